@@ -1,0 +1,3 @@
+from orbitrig.cli import main
+
+main()

@@ -1,0 +1,40 @@
+"""The application's view of the exception tree (re-exports, one place to look).
+
+    OrbitrigError
+    +-- ReductionError (also ValueError) -> IdentificationError -> IdentifiabilityError
+    +-- DaqError -> DaqLinkError, DaqTimeoutError (also TimeoutError)
+    +-- DriveError(drive, register, fault_code) -> DriveFaultError, DriveLimitError,
+    |       DriveLinkError, DriveTimeoutError (also TimeoutError)
+    +-- ConfigError (file, key) / TableError (file, line, column)
+"""
+
+from __future__ import annotations
+
+from reduction.errors import (  # noqa: F401
+    IdentifiabilityError,
+    IdentificationError,
+    OrbitrigError,
+    ReductionError,
+)
+
+
+class ConfigError(OrbitrigError):
+    """A configuration or matrix file is invalid; ``problems`` lists each one."""
+
+    def __init__(self, file: str, problems: list[str]):
+        self.file = str(file)
+        self.problems = list(problems)
+        super().__init__("\n".join(f"{self.file}: {p}" for p in self.problems))
+
+
+class TableError(OrbitrigError, ValueError):
+    """A malformed orbit table: names the file, the line (1-based) and the column."""
+
+    def __init__(self, file: str, line: int | None, column: str | None, reason: str):
+        self.file, self.line, self.column, self.reason = str(file), line, column, reason
+        where = self.file
+        if line is not None:
+            where += f", line {line}"
+        if column is not None:
+            where += f", column '{column}'"
+        super().__init__(f"{where}: {reason}")
