@@ -1,0 +1,277 @@
+"""The MQTT contract of ../shared/spec/mqtt.md as pure code (no I/O).
+
+Topic names under the prefix ``orbitrig/<rig_id>``, command parsing and
+validation with precise reasons, and the payload builders for status,
+progress, result and reply. Payloads are UTF-8 JSON objects.
+
+| topic               | QoS | retained | builder            |
+|---------------------|-----|----------|--------------------|
+| ``<prefix>/status`` | 1   | yes      | :func:`status_payload` (also the last will, state ``offline``) |
+| ``<prefix>/progress`` | 0 | no       | :func:`progress_payload` |
+| ``<prefix>/result`` | 1   | no       | :func:`result_payload` |
+| ``<prefix>/cmd``    | 1   | no       | parsed by :func:`parse_command` |
+| ``<prefix>/reply``  | 1   | no       | :func:`reply_ok`, :func:`reply_error` |
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+import re
+from dataclasses import dataclass
+from typing import Any
+
+DEFAULT_PREFIX_ROOT = "orbitrig"
+
+#: States of ``<prefix>/status`` (spec/mqtt.md).
+STATES = ("idle", "running", "paused", "waiting", "stopping", "faulted", "offline")
+
+#: QoS and retain flag of each topic (spec/mqtt.md).
+QOS_STATUS, QOS_PROGRESS, QOS_RESULT, QOS_REPLY, QOS_CMD = 1, 0, 1, 1, 1
+
+#: Commands and the fields each takes besides ``cmd`` and ``id`` (all required).
+COMMAND_FIELDS: dict[str, tuple[str, ...]] = {
+    "start": ("matrix",),
+    "pause": (),
+    "resume": (),
+    "stop": (),
+    "abort": (),
+    "confirm": ("step",),
+    "status": (),
+}
+
+#: Largest command payload accepted (bytes); a command is a few dozen bytes.
+MAX_COMMAND_BYTES = 4096
+MAX_ID_CHARS = 128
+_MATRIX_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
+_STEP_ID = re.compile(r"[^\x00-\x1f]{1,128}")
+_TOPIC_LEVEL_FORBIDDEN = set("/+#\x00")
+
+
+# -- topics -------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Topics:
+    """The topic tree of one rig service."""
+
+    prefix: str
+
+    @property
+    def status(self) -> str:
+        return f"{self.prefix}/status"
+
+    @property
+    def progress(self) -> str:
+        return f"{self.prefix}/progress"
+
+    @property
+    def result(self) -> str:
+        return f"{self.prefix}/result"
+
+    @property
+    def cmd(self) -> str:
+        return f"{self.prefix}/cmd"
+
+    @property
+    def reply(self) -> str:
+        return f"{self.prefix}/reply"
+
+
+def validate_rig_id(rig_id: str) -> str:
+    """Return ``rig_id`` if it is usable as one topic level, else raise ValueError."""
+    if not isinstance(rig_id, str) or not rig_id:
+        raise ValueError("rig id must be a non-empty string")
+    bad = sorted(_TOPIC_LEVEL_FORBIDDEN.intersection(rig_id))
+    if bad:
+        raise ValueError(f"rig id {rig_id!r} contains characters not allowed in a topic level: {bad}")
+    if len(rig_id) > 64:
+        raise ValueError(f"rig id {rig_id!r} is longer than 64 characters")
+    return rig_id
+
+
+def topics(rig_id: str, prefix: str | None = None) -> Topics:
+    """Topics under ``prefix`` (default ``orbitrig/<rig_id>``).
+
+    A custom prefix may have several levels but no wildcard and no empty level.
+    """
+    if prefix is None:
+        return Topics(f"{DEFAULT_PREFIX_ROOT}/{validate_rig_id(rig_id)}")
+    levels = prefix.split("/")
+    if not prefix or any(not lv or set(lv) & set("+#\x00") for lv in levels):
+        raise ValueError(f"topic prefix {prefix!r} must be non-empty levels without wildcards")
+    return Topics(prefix)
+
+
+# -- commands -----------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Command:
+    """A validated command. ``matrix`` is set for ``start``, ``step`` for ``confirm``."""
+
+    cmd: str
+    id: str
+    matrix: str | None = None
+    step: str | None = None
+
+
+class CommandError(ValueError):
+    """A command payload that is refused. ``id`` is the correlation id when one
+    could be read (a string), else None; ``reason`` is the text for the reply."""
+
+    def __init__(self, reason: str, id: str | None = None):  # noqa: A002
+        super().__init__(reason)
+        self.reason = reason
+        self.id = id
+
+
+def _type_name(value: Any) -> str:
+    return {dict: "object", list: "array", str: "string", bool: "boolean",
+            int: "number", float: "number", type(None): "null"}.get(type(value), type(value).__name__)
+
+
+def is_matrix_name(name: str) -> bool:
+    """True if ``name`` is a bare matrix name (no path, no ``..``, no leading dot)."""
+    return bool(_MATRIX_NAME.fullmatch(name)) and ".." not in name
+
+
+def parse_command(payload: bytes | bytearray | str) -> Command:
+    """Parse and validate one ``<prefix>/cmd`` payload.
+
+    Raises :class:`CommandError` with a precise reason (and the correlation
+    id when it could be read) for a payload that is not UTF-8 JSON, not an
+    object, lacks ``cmd`` or ``id``, names an unknown command, or has a
+    missing, extra or wrongly typed field.
+    """
+    if isinstance(payload, (bytes, bytearray)):
+        if len(payload) > MAX_COMMAND_BYTES:
+            raise CommandError(f"payload too large: {len(payload)} bytes (at most {MAX_COMMAND_BYTES})")
+        try:
+            text = bytes(payload).decode("utf-8")
+        except UnicodeDecodeError as err:
+            raise CommandError(f"payload is not UTF-8: {err.reason} at byte {err.start}") from None
+    else:
+        text = payload
+    if not text.strip():
+        raise CommandError("payload is empty: expected a JSON object with 'cmd' and 'id'")
+    try:
+        obj = json.loads(text)
+    except json.JSONDecodeError as err:
+        raise CommandError(f"payload is not JSON: {err.msg} at line {err.lineno} column {err.colno}") from None
+    if not isinstance(obj, dict):
+        raise CommandError(f"payload must be a JSON object, got {_type_name(obj)}")
+
+    raw_id = obj.get("id")
+    cid = raw_id if isinstance(raw_id, str) else None
+    problems: list[str] = []
+    if "id" not in obj:
+        problems.append("missing field 'id' (a correlation id string)")
+    elif not isinstance(raw_id, str):
+        problems.append(f"field 'id' must be a string, got {_type_name(raw_id)}")
+    elif not raw_id or len(raw_id) > MAX_ID_CHARS:
+        problems.append(f"field 'id' must have 1 to {MAX_ID_CHARS} characters")
+        cid = raw_id[:MAX_ID_CHARS] or None
+
+    if "cmd" not in obj:
+        raise CommandError("; ".join(["missing field 'cmd'", *problems]), cid)
+    name = obj["cmd"]
+    if not isinstance(name, str):
+        raise CommandError("; ".join([f"field 'cmd' must be a string, got {_type_name(name)}", *problems]), cid)
+    if name not in COMMAND_FIELDS:
+        known = ", ".join(sorted(COMMAND_FIELDS))
+        raise CommandError("; ".join([f"unknown command {name!r} (known: {known})", *problems]), cid)
+
+    wanted = COMMAND_FIELDS[name]
+    for extra in sorted(set(obj) - {"cmd", "id", *wanted}):
+        problems.append(f"unexpected field {extra!r} for command {name!r}")
+    for field in wanted:
+        if field not in obj:
+            problems.append(f"missing field {field!r} for command {name!r}")
+        elif not isinstance(obj[field], str):
+            problems.append(f"field {field!r} must be a string, got {_type_name(obj[field])}")
+    if not problems and name == "start" and not is_matrix_name(obj["matrix"]):
+        problems.append(
+            f"field 'matrix' must be a matrix name from the matrix folder, not a path: {obj['matrix']!r} "
+            "(letters, digits, '_', '-', '.'; no '/', no '..', no leading '.')")
+    if not problems and name == "confirm" and not _STEP_ID.fullmatch(obj["step"]):
+        problems.append("field 'step' must be 1 to 128 printable characters")
+    if problems:
+        raise CommandError("; ".join(problems), cid)
+    return Command(cmd=name, id=raw_id, matrix=obj.get("matrix"), step=obj.get("step"))
+
+
+# -- payloads -----------------------------------------------------------------
+
+def iso8601(when: _dt.datetime | float | str | None = None) -> str:
+    """ISO-8601 UTC text for a datetime, a POSIX time (s) or now; text passes through."""
+    if isinstance(when, str):
+        return when
+    if when is None:
+        when = _dt.datetime.now(_dt.timezone.utc)
+    elif isinstance(when, (int, float)):
+        when = _dt.datetime.fromtimestamp(float(when), _dt.timezone.utc)
+    elif when.tzinfo is None:
+        when = when.astimezone()  # naive: local time
+    return when.astimezone(_dt.timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def _jsonable(value: Any) -> Any:
+    """Plain JSON values: numpy scalars and arrays to numbers and lists,
+    non-finite floats to null, complex to ``[re, im]``, paths to text."""
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, bool) or value is None or isinstance(value, (int, str)):
+        return value
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, complex):
+        return [_jsonable(value.real), _jsonable(value.imag)]
+    tolist = getattr(value, "tolist", None)  # numpy scalar or array
+    if callable(tolist):
+        return _jsonable(tolist())
+    if isinstance(value, (_dt.datetime, _dt.date)):
+        return value.isoformat()
+    return str(value)
+
+
+def dumps(obj: dict[str, Any]) -> bytes:
+    """Compact UTF-8 JSON of ``obj`` (made JSON-safe first)."""
+    return json.dumps(_jsonable(obj), separators=(",", ":"), ensure_ascii=False,
+                      allow_nan=False).encode("utf-8")
+
+
+def status_payload(state: str, run_id: str | None = None,
+                   since: _dt.datetime | float | str | None = None,
+                   message: str | None = None) -> bytes:
+    """``{"state", "run_id", "since", "message"}`` for ``<prefix>/status``."""
+    if state not in STATES:
+        raise ValueError(f"unknown state {state!r} (one of {', '.join(STATES)})")
+    return dumps({"state": state, "run_id": run_id, "since": iso8601(since),
+                  "message": "" if message is None else str(message)})
+
+
+def progress_payload(run_id: str | None, point: int, points: int, frequency: int,
+                     frequencies: int, revolutions: int, eta_s: float | None) -> bytes:
+    """``{"run_id", "point", "points", "frequency", "frequencies", "revolutions",
+    "eta_s"}`` for ``<prefix>/progress`` (``eta_s`` in s, null when unknown)."""
+    return dumps({"run_id": run_id, "point": point, "points": points,
+                  "frequency": frequency, "frequencies": frequencies,
+                  "revolutions": revolutions, "eta_s": eta_s})
+
+
+def result_payload(run_id: str | None, payload: dict[str, Any]) -> bytes:
+    """One completed operating point (its settings and identified coefficients)
+    for ``<prefix>/result``; ``run_id`` is added when the payload lacks it."""
+    return dumps({"run_id": run_id, **payload} if "run_id" not in payload else payload)
+
+
+def reply_ok(cid: str | None) -> bytes:
+    """``{"id", "ok": true}`` for ``<prefix>/reply``."""
+    return dumps({"id": cid, "ok": True})
+
+
+def reply_error(cid: str | None, error: str) -> bytes:
+    """``{"id", "ok": false, "error"}`` for ``<prefix>/reply``."""
+    return dumps({"id": cid, "ok": False, "error": str(error)})

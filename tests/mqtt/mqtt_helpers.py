@@ -1,0 +1,255 @@
+"""Real parts for the MQTT tests: a mosquitto broker with a password file and
+the project's example ACL, independent clients (mosquitto_pub / mosquitto_sub)
+and the `orbitrig serve` process."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+REPO = Path(__file__).resolve().parents[2]
+EXAMPLE_ACL = REPO / "config" / "mosquitto" / "acl"
+MOSQUITTO = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
+
+#: The accounts of the example ACL and the passwords the tests give them.
+ACCOUNTS = {"orbitrig-service": "svc-secret", "operator": "op-secret", "viewer": "view-secret"}
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def wait_port(port: int, timeout: float = 5.0) -> None:
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            with socket.create_connection(("127.0.0.1", port), timeout=0.2):
+                return
+        except OSError:
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"nothing listens on 127.0.0.1:{port} after {timeout} s") from None
+            time.sleep(0.02)
+
+
+class Broker:
+    """mosquitto on a loopback port: no anonymous access, a password file made
+    with mosquitto_passwd, and config/mosquitto/acl (the shipped example)."""
+
+    def __init__(self, workdir: Path, port: int | None = None):
+        self.dir = Path(workdir)
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.port = port or free_port()
+        self.passwd = self.dir / "passwd"
+        self.passwd.touch()
+        for user, password in ACCOUNTS.items():
+            subprocess.run(["mosquitto_passwd", "-b", str(self.passwd), user, password],
+                           check=True, capture_output=True)
+        self.conf = self.dir / "mosquitto.conf"
+        self.conf.write_text(
+            "user root\n"  # root-run mosquitto would drop privileges and lose the files
+            "per_listener_settings false\n"
+            "allow_anonymous false\n"
+            f"password_file {self.passwd}\n"
+            f"acl_file {EXAMPLE_ACL}\n"
+            f"listener {self.port} 127.0.0.1\n"
+            "persistence false\n"
+            "log_dest stderr\n"
+            "log_type error\nlog_type warning\nlog_type notice\nlog_type information\n")
+        self.log = self.dir / "mosquitto.log"
+        self.proc: subprocess.Popen | None = None
+
+    @property
+    def url(self) -> str:
+        return f"mqtt://127.0.0.1:{self.port}"
+
+    def start(self) -> None:
+        with open(self.log, "ab") as log:
+            self.proc = subprocess.Popen([MOSQUITTO, "-c", str(self.conf)], stdout=log, stderr=log)
+        try:
+            wait_port(self.port)
+        except TimeoutError:
+            self.stop()
+            raise RuntimeError(f"mosquitto did not start:\n{self.log.read_text()}") from None
+
+    def stop(self) -> None:
+        if self.proc and self.proc.poll() is None:
+            self.proc.terminate()
+            try:
+                self.proc.wait(5)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        self.proc = None
+
+    def client_args(self, user: str | None) -> list[str]:
+        args = ["-h", "127.0.0.1", "-p", str(self.port)]
+        if user is not None:
+            args += ["-u", user, "-P", ACCOUNTS[user]]
+        return args
+
+    def pub(self, topic: str, payload: str | bytes, *, user: str | None = "operator",
+            qos: int = 1, version: int | None = None, retain: bool = False) -> subprocess.CompletedProcess:
+        """Publish one message with mosquitto_pub (payload from standard input)."""
+        args = ["mosquitto_pub", *self.client_args(user), "-q", str(qos), "-t", topic, "-s"]
+        if version:
+            args += ["-V", str(version)]
+        if retain:
+            args.append("-r")
+        data = payload.encode() if isinstance(payload, str) else payload
+        return subprocess.run(args, input=data, capture_output=True, timeout=10)
+
+
+@dataclass
+class Msg:
+    topic: str
+    payload: bytes
+    qos: int
+    retain: bool
+    t: float  # time.monotonic() when read
+
+    def json(self) -> Any:
+        return json.loads(self.payload)
+
+
+@dataclass
+class Watcher:
+    """mosquitto_sub in the background, collecting every message it prints."""
+
+    broker: Broker
+    topic: str
+    user: str | None = "viewer"
+    messages: list[Msg] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self._cond = threading.Condition()
+        self.proc = subprocess.Popen(
+            ["mosquitto_sub", *self.broker.client_args(self.user), "-q", "1", "-t", self.topic,
+             "-F", "%j"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        self._thread = threading.Thread(target=self._read, daemon=True)
+        self._thread.start()
+
+    def _read(self) -> None:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            obj = json.loads(line.decode("utf-8", "surrogateescape"))
+            msg = Msg(obj["topic"], obj["payload"].encode("utf-8", "surrogateescape"),
+                      obj["qos"], bool(obj["retain"]), time.monotonic())
+            with self._cond:
+                self.messages.append(msg)
+                self._cond.notify_all()
+
+    def wait_for(self, pred: Callable[[Msg], bool], timeout: float = 10.0, *, start: int = 0,
+                 what: str = "a message") -> Msg:
+        """First message (from index ``start``) matching ``pred``."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while True:
+                for msg in self.messages[start:]:
+                    if pred(msg):
+                        return msg
+                left = deadline - time.monotonic()
+                if left <= 0 or self.proc.poll() is not None:
+                    seen = "\n".join(f"  {m.topic} {m.payload[:200]!r}" for m in self.messages[-15:])
+                    raise AssertionError(f"no {what} within {timeout} s; last messages:\n{seen}")
+                self._cond.wait(min(left, 0.2))
+
+    def on(self, suffix: str, start: int = 0) -> list[Msg]:
+        with self._cond:
+            return [m for m in self.messages[start:] if m.topic.endswith("/" + suffix)]
+
+    def mark(self) -> int:
+        with self._cond:
+            return len(self.messages)
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.terminate()
+            self.proc.wait(5)
+        self._thread.join(5)
+
+
+class RigClient:
+    """An operator (publishing commands) plus a viewer (watching the rig's topics)."""
+
+    def __init__(self, broker: Broker, rig_id: str):
+        self.broker = broker
+        self.prefix = f"orbitrig/{rig_id}"
+        self.watch = Watcher(broker, f"{self.prefix}/#")
+        self._n = 0
+
+    def send(self, obj: dict | str | bytes, *, user: str = "operator", cid: str | None = None,
+             version: int | None = None) -> str:
+        """Publish a command; a dict without ``id`` gets a fresh one. Returns the id."""
+        if isinstance(obj, dict):
+            obj = dict(obj)
+            if "id" not in obj:
+                self._n += 1
+                obj["id"] = cid or f"t{self._n}-{obj.get('cmd')}"
+            cid = obj["id"]
+            obj = json.dumps(obj)
+        done = self.broker.pub(f"{self.prefix}/cmd", obj, user=user, version=version)
+        assert done.returncode == 0, done.stderr
+        self.last_pub = done
+        return cid
+
+    def reply(self, cid: str | None, timeout: float = 10.0, start: int = 0) -> dict:
+        msg = self.watch.wait_for(lambda m: m.topic == f"{self.prefix}/reply" and m.json().get("id") == cid,
+                                  timeout, start=start, what=f"reply to {cid!r}")
+        assert msg.qos == 1
+        return msg.json()
+
+    def command(self, obj: dict, timeout: float = 10.0) -> dict:
+        mark = self.watch.mark()
+        cid = self.send(obj)
+        return self.reply(cid, timeout, start=mark)
+
+    def status(self, state: str | Callable[[dict], bool], timeout: float = 30.0, start: int = 0) -> dict:
+        pred = (lambda s: s["state"] == state) if isinstance(state, str) else state
+        msg = self.watch.wait_for(lambda m: m.topic == f"{self.prefix}/status" and pred(m.json()),
+                                  timeout, start=start, what=f"status {state}")
+        assert msg.qos == 1
+        return msg.json()
+
+    def close(self) -> None:
+        self.watch.close()
+
+
+class Service:
+    """`orbitrig serve` as a subprocess (its log in ``log``)."""
+
+    def __init__(self, args: list[str], workdir: Path, env: dict[str, str] | None = None):
+        self.log = Path(workdir) / "serve.log"
+        full_env = {**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})}
+        with open(self.log, "ab") as log:
+            self.proc = subprocess.Popen([sys.executable, "-m", "orbitrig", "serve", *args],
+                                         stdout=log, stderr=log, env=full_env, cwd=workdir)
+
+    def text(self) -> str:
+        return self.log.read_text(errors="replace")
+
+    def kill(self, sig: int = signal.SIGKILL) -> None:
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+        self.proc.wait(20)
+
+    def stop(self) -> int:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+            try:
+                self.proc.wait(20)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        return self.proc.returncode

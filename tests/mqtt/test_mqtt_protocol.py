@@ -1,0 +1,136 @@
+"""The pure protocol layer: topics, command validation with reasons, payloads."""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import math
+
+import numpy as np
+import pytest
+
+from orbitrig.mqtt_protocol import (
+    STATES, Command, CommandError, parse_command, progress_payload, reply_error, reply_ok,
+    result_payload, status_payload, topics,
+)
+
+
+def test_topics_under_default_prefix():
+    t = topics("rig7")
+    assert (t.status, t.progress, t.result, t.cmd, t.reply) == (
+        "orbitrig/rig7/status", "orbitrig/rig7/progress", "orbitrig/rig7/result",
+        "orbitrig/rig7/cmd", "orbitrig/rig7/reply")
+    assert topics("x", prefix="lab/a/rig").cmd == "lab/a/rig/cmd"
+
+
+@pytest.mark.parametrize("rig_id", ["", "a/b", "a+", "#", "x" * 65])
+def test_bad_rig_id(rig_id):
+    with pytest.raises(ValueError, match="rig id"):
+        topics(rig_id)
+
+
+@pytest.mark.parametrize("prefix", ["", "a//b", "a/+/b", "a/#"])
+def test_bad_prefix(prefix):
+    with pytest.raises(ValueError, match="prefix"):
+        topics("r", prefix=prefix)
+
+
+@pytest.mark.parametrize("payload, cmd", [
+    (b'{"cmd":"start","id":"1","matrix":"quick"}', Command("start", "1", matrix="quick")),
+    (b'{"cmd":"start","id":"1","matrix":"sweep_2.v1-b"}', Command("start", "1", matrix="sweep_2.v1-b")),
+    (b'{"cmd":"pause","id":"a"}', Command("pause", "a")),
+    (b'{"cmd":"resume","id":"a"}', Command("resume", "a")),
+    (b'{"id":"a","cmd":"stop"}', Command("stop", "a")),
+    (b'{"cmd":"abort","id":"a"}', Command("abort", "a")),
+    (b'{"cmd":"status","id":"a"}', Command("status", "a")),
+    (b'{"cmd":"confirm","id":"a","step":"orbit_radius:p0"}', Command("confirm", "a", step="orbit_radius:p0")),
+    ('{"cmd":"pause","id":"\u00e9t\u00e9"}'.encode(), Command("pause", "\u00e9t\u00e9")),
+])
+def test_valid_commands(payload, cmd):
+    assert parse_command(payload) == cmd
+
+
+@pytest.mark.parametrize("payload, cid, reason", [
+    (b"", None, "payload is empty"),
+    (b"start quick", None, "payload is not JSON: Expecting value at line 1 column 1"),
+    (b'{"cmd":"stop","id":"x"', None, "payload is not JSON"),
+    (b"\xff\xfe", None, "payload is not UTF-8"),
+    (b"[1, 2]", None, "payload must be a JSON object, got array"),
+    (b'"stop"', None, "payload must be a JSON object, got string"),
+    (b'{"id":"q"}', "q", "missing field 'cmd'"),
+    (b'{"cmd":3,"id":"q"}', "q", "field 'cmd' must be a string, got number"),
+    (b'{"cmd":"launch","id":"q"}', "q", "unknown command 'launch' (known: abort, confirm, pause, resume, start, status, stop)"),
+    (b'{"cmd":"pause"}', None, "missing field 'id'"),
+    (b'{"cmd":"pause","id":7}', None, "field 'id' must be a string, got number"),
+    (b'{"cmd":"pause","id":""}', None, "field 'id' must have 1 to 128 characters"),
+    (b'{"cmd":"start","id":"q"}', "q", "missing field 'matrix' for command 'start'"),
+    (b'{"cmd":"start","id":"q","matrix":5}', "q", "field 'matrix' must be a string, got number"),
+    (b'{"cmd":"start","id":"q","matrix":"quick","speed":3}', "q", "unexpected field 'speed' for command 'start'"),
+    (b'{"cmd":"pause","id":"q","matrix":"quick"}', "q", "unexpected field 'matrix' for command 'pause'"),
+    (b'{"cmd":"stop","id":"q","now":true}', "q", "unexpected field 'now' for command 'stop'"),
+    (b'{"cmd":"confirm","id":"q"}', "q", "missing field 'step' for command 'confirm'"),
+    (b'{"cmd":"confirm","id":"q","step":null}', "q", "field 'step' must be a string, got null"),
+    (b'{"cmd":"confirm","id":"q","step":""}', "q", "field 'step' must be 1 to 128 printable characters"),
+])
+def test_bad_commands_have_precise_reasons(payload, cid, reason):
+    with pytest.raises(CommandError) as info:
+        parse_command(payload)
+    assert info.value.id == cid
+    assert reason in info.value.reason
+
+
+@pytest.mark.parametrize("matrix", [
+    "../quick", "/etc/passwd", "sub/quick", "..", ".hidden", "a\\b", "~root", "quick\n", "", "x" * 65,
+    "C:quick", "a..b",
+])
+def test_matrix_must_be_a_name_not_a_path(matrix):
+    with pytest.raises(CommandError, match="not a path") as info:
+        parse_command(json.dumps({"cmd": "start", "id": "m", "matrix": matrix}))
+    assert info.value.id == "m"
+
+
+def test_several_problems_are_all_named():
+    with pytest.raises(CommandError) as info:
+        parse_command(b'{"cmd":"start","matrix":1,"extra":2}')
+    reason = info.value.reason
+    assert "missing field 'id'" in reason
+    assert "unexpected field 'extra'" in reason
+    assert "field 'matrix' must be a string" in reason
+
+
+def test_oversized_payload_refused():
+    with pytest.raises(CommandError, match="too large"):
+        parse_command(b'{"cmd":"stop","id":"' + b"x" * 5000 + b'"}')
+
+
+def test_status_payload():
+    since = dt.datetime(2026, 1, 2, 3, 4, 5, 678000, tzinfo=dt.timezone.utc)
+    obj = json.loads(status_payload("running", "run-1", since, "point 1"))
+    assert obj == {"state": "running", "run_id": "run-1", "since": "2026-01-02T03:04:05.678Z",
+                   "message": "point 1"}
+    for state in STATES:
+        assert json.loads(status_payload(state))["state"] == state
+    obj = json.loads(status_payload("idle", since=0.0))
+    assert obj["since"] == "1970-01-01T00:00:00.000Z" and obj["run_id"] is None
+    with pytest.raises(ValueError, match="unknown state 'busy'"):
+        status_payload("busy")
+
+
+def test_progress_payload_keys():
+    obj = json.loads(progress_payload("r", 2, 5, 3, 8, 50, 12.5))
+    assert obj == {"run_id": "r", "point": 2, "points": 5, "frequency": 3, "frequencies": 8,
+                   "revolutions": 50, "eta_s": 12.5}
+
+
+def test_result_payload_is_plain_json():
+    payload = {"point": 0, "spin_rpm": np.float64(1200.0), "coefficients": {"Kxx": np.float32(1.5e7)},
+               "orbit_hz": np.array([1.0, 2.0]), "bad": math.nan, "z": 1 + 2j, "ok": np.bool_(True)}
+    obj = json.loads(result_payload("r9", payload))
+    assert obj == {"run_id": "r9", "point": 0, "spin_rpm": 1200.0, "coefficients": {"Kxx": 1.5e7},
+                   "orbit_hz": [1.0, 2.0], "bad": None, "z": [1.0, 2.0], "ok": True}
+    assert json.loads(result_payload("r9", {"run_id": "own"}))["run_id"] == "own"
+
+
+def test_replies():
+    assert json.loads(reply_ok("a")) == {"id": "a", "ok": True}
+    assert json.loads(reply_error(None, "no")) == {"id": None, "ok": False, "error": "no"}

@@ -1,0 +1,74 @@
+"""The broker side of the security contract, with the shipped example ACL:
+no anonymous clients, passwords checked, operators may command, viewers may
+only read."""
+
+from __future__ import annotations
+
+import subprocess
+import time
+
+from mqtt_helpers import ACCOUNTS, Watcher
+
+
+def _sub_once(broker, user, password=None):
+    args = ["mosquitto_sub", "-h", "127.0.0.1", "-p", str(broker.port), "-t", "orbitrig/#",
+            "-C", "1", "-W", "3"]
+    if user:
+        args += ["-u", user, "-P", password if password is not None else ACCOUNTS[user]]
+    return subprocess.run(args, capture_output=True, text=True, timeout=10)
+
+
+def test_anonymous_client_is_refused(broker):
+    done = _sub_once(broker, None)
+    assert done.returncode != 0
+    assert "not authori" in done.stderr.lower()
+
+
+def test_wrong_password_is_refused(broker):
+    done = _sub_once(broker, "operator", "not-the-password")
+    assert done.returncode != 0
+    assert "not authori" in done.stderr.lower()
+
+
+def test_operator_may_command_viewer_may_not(broker):
+    # The service's account listens to the commands, as the rig service does.
+    svc = Watcher(broker, "orbitrig/+/cmd", user="orbitrig-service")
+    try:
+        time.sleep(0.3)  # let the subscription settle
+        assert broker.pub("orbitrig/r1/cmd", '{"cmd":"status","id":"by-viewer"}', user="viewer").returncode == 0
+        v5 = broker.pub("orbitrig/r1/cmd", '{"cmd":"status","id":"by-viewer-v5"}', user="viewer", version=5)
+        assert "not authorized" in v5.stderr.decode().lower()  # MQTT 5 PUBACK reason code
+        assert broker.pub("orbitrig/r1/cmd", '{"cmd":"status","id":"by-operator"}').returncode == 0
+        got = svc.wait_for(lambda m: b"by-operator" in m.payload, 5)
+        assert got.qos == 1
+        time.sleep(0.3)
+        assert [m.payload for m in svc.messages] == [got.payload]  # nothing from the viewer
+    finally:
+        svc.close()
+
+
+def test_viewer_reads_but_cannot_fake_status(broker):
+    view = Watcher(broker, "orbitrig/r2/#", user="viewer")
+    try:
+        time.sleep(0.3)
+        broker.pub("orbitrig/r2/status", '{"state":"idle"}', user="viewer")
+        broker.pub("orbitrig/r2/status", '{"state":"idle"}', user="operator")
+        broker.pub("orbitrig/r2/reply", '{"id":"x","ok":true}', user="orbitrig-service")
+        view.wait_for(lambda m: m.topic == "orbitrig/r2/reply", 5)
+        time.sleep(0.2)
+        assert [m.topic for m in view.messages] == ["orbitrig/r2/reply"]
+    finally:
+        view.close()
+
+
+def test_service_account_cannot_command(broker):
+    svc = Watcher(broker, "orbitrig/+/cmd", user="orbitrig-service")
+    try:
+        time.sleep(0.3)
+        broker.pub("orbitrig/r3/cmd", '{"cmd":"stop","id":"self"}', user="orbitrig-service")
+        broker.pub("orbitrig/r3/cmd", '{"cmd":"stop","id":"op"}', user="operator")
+        svc.wait_for(lambda m: b'"op"' in m.payload, 5)
+        time.sleep(0.2)
+        assert len(svc.messages) == 1
+    finally:
+        svc.close()
