@@ -1,0 +1,83 @@
+"""`orbitrig reduce DIR` and `orbitrig report DIR`: work on a stored run, no rig.
+
+Exit status 0 on success, 2 for a missing or invalid DIR, a bad option, or a
+model that no stored table can identify (the reason on standard error, as
+`orbitrig identify`).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+
+def _fail(message: str) -> None:
+    typer.echo(f"error: {message}", err=True)
+    raise typer.Exit(2)
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("reduce")
+    def reduce_cmd(
+        directory: Annotated[Path, typer.Argument(metavar="DIR", help="Run directory written by `orbitrig sweep --out DIR`.")],
+        model: Annotated[str, typer.Option("--model", help="kc7 | kc8 | kcd11 | kcd12")],
+        freq_dep: Annotated[str, typer.Option("--freq-dep", help="none | power:M | power:m,n,p | power:auto | poly:R")] = "none",
+        method: Annotated[str, typer.Option("--method", help="ols | wls | tls | iv")] = "ols",
+        as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the table.")] = False,
+    ) -> None:
+        """Identify again from the stored phasors of every complete point, both load
+        measuring systems, without the rig. Writes DIR/reduce_<model>_<freq-dep>_<method>.csv
+        (the columns of coefficients.csv); the run's own results are left untouched."""
+        from orbitrig.errors import ReductionError
+        from orbitrig.reduce import csv_path, format_table, reduce_run, write_csv
+        from orbitrig.run_reader import RunDirError, read_run
+
+        try:
+            run = read_run(directory)
+            rows = reduce_run(run, model, freq_dep, method)
+        except (RunDirError, ReductionError) as err:
+            _fail(str(err))
+        refused = [r for r in rows if r.identification is None]
+        by_reason: dict[str, list[str]] = {}
+        for r in refused:
+            by_reason.setdefault(str(r.error), []).append(f"{r.point.name} {r.lms}")
+        for reason, where in by_reason.items():
+            typer.echo(f"{model} {freq_dep} refused at point {', '.join(where)}: {reason}", err=True)
+        if len(refused) == len(rows):
+            _fail(f"{model} {freq_dep} ({method}) cannot be identified from any stored table of {directory}")
+        path = write_csv(csv_path(directory, model, freq_dep, method), rows, run.sim)
+        if as_json:
+            out = {"run": str(directory), "csv": str(path), "status": run.status,
+                   "results": [r.to_dict() for r in rows]}
+            typer.echo(json.dumps(out))
+        else:
+            typer.echo(f"{model} {freq_dep} ({method}) from the stored orbit tables of {directory} "
+                       f"(run {run.status}, {len({r.point.index for r in rows})} complete point(s))")
+            typer.echo(format_table(rows))
+            typer.echo(f"written: {path}")
+
+    @app.command("report")
+    def report_cmd(
+        directory: Annotated[Path, typer.Argument(metavar="DIR", help="Run directory written by `orbitrig sweep --out DIR`.")],
+        point: Annotated[Optional[list[int]], typer.Option("--point", help="Only this operating point index (repeatable).")] = None,
+    ) -> None:
+        """PNG plots (forces measured vs reproduced, coefficients against Omega/omega,
+        coherence, the two load measuring systems) and an HTML page in DIR/plots."""
+        from orbitrig.report import make_report
+        from orbitrig.run_reader import RunDirError
+
+        try:
+            report = make_report(directory, points=point)
+        except (RunDirError, ValueError) as err:
+            _fail(str(err))
+        run = report.run
+        typer.echo(f"run {run.status}: {len(run.complete_points)} complete point(s), "
+                   f"{len(run.points) - len(run.complete_points)} incomplete")
+        for pr in report.points:
+            for m in pr.mismatches:
+                typer.echo(f"warning: point {pr.point.name}: {m}", err=True)
+        typer.echo(f"{len(report.plots)} plot(s) in {report.directory}")
+        typer.echo(f"open {report.html}")

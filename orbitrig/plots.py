@@ -1,0 +1,282 @@
+"""PNG plots of one operating point (matplotlib, Agg canvas, no pyplot state).
+
+Every figure takes plain data (an OrbitTable, Identification objects from
+``reduction.identify``, the point's settings and truth) and writes one PNG.
+Axes carry units at the edges: Omega/omega (-), N, deg, MN/m, kN s/m, kg.
+Forward whirl is drawn with filled markers and solid lines, backward whirl
+with open markers and dashed lines.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+ENTRIES = ("xx", "xy", "yx", "yy")
+MATRIX_UNITS = {"K": ("MN/m", 1e-6), "C": ("kN s/m", 1e-3), "D": ("kg", 1.0)}
+MATRIX_NAMES = {"K": "stiffness", "C": "damping", "D": "inertia"}
+PAIR_LABELS = {"xfx": "x, Fx", "yfx": "y, Fx", "xfy": "x, Fy", "yfy": "y, Fy"}
+DIRECTIONS = ((1, "forward", "-", "o"), (-1, "backward", "--", "s"))
+DPI = 110
+
+
+@dataclass
+class Fitted:
+    """One identification to draw: a legend label and the Identification object."""
+
+    label: str
+    identification: Any  # reduction.identify.Identification
+
+
+def whirl_direction(table) -> np.ndarray:
+    """+1 forward / -1 backward per row, from the phasors (forward: y = -i x)."""
+    return np.where(np.imag(np.conj(table.x) * table.y) <= 0, 1, -1)
+
+
+def _figure(w: float, h: float) -> Figure:
+    fig = Figure(figsize=(w, h), dpi=DPI, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig: Figure, path: Path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=DPI)
+    return path
+
+
+def _colors(n: int) -> list:
+    import matplotlib
+
+    cmap = matplotlib.colormaps["tab10"]
+    return [cmap(i % 10) for i in range(n)]
+
+
+def _phase_deg(f: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """Phase of a force relative to the x displacement (the paper's phi_x = 0), deg, unwrapped."""
+    return np.degrees(np.unwrap(np.angle(f / ref)))
+
+
+def _near(phase: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Shift each phase by whole turns to lie within 180 deg of ``target``."""
+    return phase - 360.0 * np.round((phase - target) / 360.0)
+
+
+def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
+    """The paper's Figure 5: measured and reproduced force amplitude and phase
+    against Omega/omega, for Fx and Fy, one line per identification."""
+    fig = _figure(11, 7.5)
+    axes = fig.subplots(2, 2, sharex=True)
+    ratio = table.orbit / table.spin
+    dirs = whirl_direction(table)
+    colors = _colors(len(fitted))
+    reproduced = [f.identification.reproduce(table) for f in fitted]
+    for col, (name, measured) in enumerate((("Fx", table.fx), ("Fy", table.fy))):
+        amp_ax, ph_ax = axes[0, col], axes[1, col]
+        for d, dname, ls, marker in DIRECTIONS:
+            sel = np.flatnonzero(dirs == d)
+            if sel.size == 0:
+                continue
+            sel = sel[np.argsort(ratio[sel])]
+            meas_ph = _phase_deg(measured[sel], table.x[sel])
+            for k, (fit, rep) in enumerate(zip(fitted, reproduced)):
+                f = rep[col][sel]
+                amp_ax.plot(ratio[sel], np.abs(f), ls, color=colors[k], lw=1.6,
+                            label=f"{fit.label}" if d == 1 or not np.any(dirs == 1) else None)
+                ph_ax.plot(ratio[sel], _near(_phase_deg(f, table.x[sel]), meas_ph), ls, color=colors[k], lw=1.6)
+            face = "black" if d == 1 else "white"
+            amp_ax.plot(ratio[sel], np.abs(measured[sel]), marker, mfc=face, mec="black", ls="none",
+                        ms=6, label=f"measured, {dname} whirl", zorder=5)
+            ph_ax.plot(ratio[sel], meas_ph, marker, mfc=face, mec="black", ls="none", ms=6, zorder=5)
+        amp_ax.set_title(f"{name} amplitude")
+        amp_ax.set_ylabel(f"|{name}|  [N]")
+        ph_ax.set_title(f"{name} phase (relative to x displacement)")
+        ph_ax.set_ylabel(f"phase of {name}  [deg]")
+        ph_ax.set_xlabel("\u03a9/\u03c9  [-]")
+        for ax in (amp_ax, ph_ax):
+            ax.grid(True, alpha=0.3)
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    if len(set(dirs)) > 1:
+        from matplotlib.lines import Line2D
+
+        handles += [Line2D([], [], color="gray", ls="-"), Line2D([], [], color="gray", ls="--")]
+        labels += ["reproduced, forward (solid)", "reproduced, backward (dashed)"]
+    fig.legend(handles, labels, loc="outside lower center", ncols=min(4, len(labels)), fontsize=9)
+    fig.suptitle(title)
+    return _save(fig, path)
+
+
+def _std_at(std_errors: dict[str, float], key: str, orbit: np.ndarray) -> np.ndarray:
+    """One-sigma band of a coefficient at Omega: sqrt(sum_r (Omega^r s_r)^2) over its
+    order terms (`Kxx`, `Kxx_r`); the regression's covariances are not stored, so
+    the terms are treated as independent (an approximation for r >= 1)."""
+    var = np.zeros_like(orbit, dtype=float)
+    for k, s in std_errors.items():
+        base, _, order = k.partition("_")
+        if base == key and s is not None and np.isfinite(s):
+            var += (orbit ** (int(order) if order else 0) * s) ** 2
+    return np.sqrt(var)
+
+
+def _has(ident, matrix: str) -> bool:
+    return any(k.startswith(matrix) for k in ident.coefficients)
+
+
+def coefficients_plot(path, fitted: Sequence[Fitted], *, spin: float, orbit: np.ndarray,
+                      truth: dict | None, title: str) -> Path:
+    """The paper's Figures 6 and 7: K, C (and D) entries against Omega/omega.
+
+    A frequency-dependent identification is a curve from ``matrices(Omega)``
+    with a one-sigma band and error bars at the tested frequencies; a constant
+    one is a horizontal line with its one-sigma band. True values of a
+    ``--sim`` run are drawn as black crosses."""
+    mats = [m for m in "KCD" if any(_has(f.identification, m) for f in fitted)]
+    fig = _figure(13, 2.9 * len(mats) + 1.2)
+    axes = np.atleast_2d(fig.subplots(len(mats), 4, sharex=True))
+    top = float(np.max(orbit)) * 1.05
+    grid = np.linspace(0.0, top, 200)
+    tested = np.unique(np.round(orbit, 9))
+    colors = _colors(len(fitted))
+    for k, fit in enumerate(fitted):
+        ident = fit.identification
+        on_grid = np.array([ident.matrices(w) for w in grid])  # (n, 3, 2, 2)
+        at_tested = np.array([ident.matrices(w) for w in tested])
+        constant = all("_" not in key for key in ident.coefficients)
+        for row, m in enumerate(mats):
+            if not _has(ident, m):
+                continue
+            unit, scale = MATRIX_UNITS[m]
+            mi = "KCD".index(m)
+            for col, e in enumerate(ENTRIES):
+                ax = axes[row, col]
+                i, j = divmod(col, 2)
+                val = on_grid[:, mi, i, j] * scale
+                band = _std_at(ident.std_errors, m + e, grid) * scale
+                ax.plot(grid / spin, val, color=colors[k], lw=1.6, label=fit.label)
+                ax.fill_between(grid / spin, val - band, val + band, color=colors[k], alpha=0.15, lw=0)
+                if not constant:
+                    ax.errorbar(tested / spin, at_tested[:, mi, i, j] * scale,
+                                yerr=_std_at(ident.std_errors, m + e, tested) * scale,
+                                fmt="o", ms=3.5, color=colors[k], capsize=2.5, lw=1)
+    if truth:
+        t_orbit = 2 * np.pi * np.abs(np.asarray(truth.get("orbit_hz", []), dtype=float))
+        for row, m in enumerate(mats):
+            mat = truth.get(m)
+            if mat is None or len(t_orbit) == 0:
+                continue
+            mat = np.asarray(mat, dtype=float)
+            unit, scale = MATRIX_UNITS[m]
+            for col in range(4):
+                i, j = divmod(col, 2)
+                axes[row, col].plot(t_orbit / spin, mat[:, i, j] * scale, "x", color="black", ms=6,
+                                    mew=1.5, label="true (simulator)", zorder=6)
+    for row, m in enumerate(mats):
+        unit, _ = MATRIX_UNITS[m]
+        for col, e in enumerate(ENTRIES):
+            ax = axes[row, col]
+            ax.set_title(f"{m}{e}")
+            ax.set_ylabel(f"{m}{e}  [{unit}]")
+            ax.grid(True, alpha=0.3)
+            ax.set_xlim(0, top / spin)
+            if row == len(mats) - 1:
+                ax.set_xlabel("\u03a9/\u03c9  [-]")
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    uniq = dict(zip(labels, handles))
+    fig.legend(list(uniq.values()), list(uniq.keys()), loc="outside lower center",
+               ncols=min(5, len(uniq)), fontsize=9, title="bands and error bars: \u00b11 standard error")
+    fig.suptitle(title)
+    return _save(fig, path)
+
+
+def coherence_plot(path, tables: dict[str, Any], *, title: str) -> Path:
+    """The paper's Table 1 as a plot: gamma^2 of the four motion/force pairs
+    against Omega/omega, one panel per load measuring system."""
+    lms_names = [n for n, t in tables.items() if t.gamma2 is not None]
+    fig = _figure(5.5 * max(1, len(lms_names)), 4.6)
+    axes = np.atleast_1d(fig.subplots(1, max(1, len(lms_names)), sharey=True))
+    colors = _colors(4)
+    lowest = 1.0
+    for ax, lms in zip(axes, lms_names):
+        t = tables[lms]
+        ratio = t.orbit / t.spin
+        dirs = whirl_direction(t)
+        for c, pair in enumerate(PAIR_LABELS):
+            for d, dname, ls, marker in DIRECTIONS:
+                sel = np.flatnonzero(dirs == d)
+                if sel.size == 0:
+                    continue
+                sel = sel[np.argsort(ratio[sel])]
+                ax.plot(ratio[sel], t.gamma2[sel, c], ls=ls, marker=marker, color=colors[c],
+                        mfc=colors[c] if d == 1 else "white", ms=5, lw=1,
+                        label=f"\u03b3\u00b2({PAIR_LABELS[pair]}), {dname}")
+        lowest = min(lowest, float(np.nanmin(t.gamma2)))
+        ax.set_title(f"{lms} load cells")
+        ax.set_xlabel("\u03a9/\u03c9  [-]")
+        ax.grid(True, alpha=0.3)
+    axes[0].set_ylabel("coherence \u03b3\u00b2  [-]")
+    axes[0].set_ylim(min(0.9, lowest - 0.02), 1.005)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncols=4, fontsize=8)
+    fig.suptitle(title)
+    return _save(fig, path)
+
+
+def lms_comparison_plot(path, tables: dict[str, Any], fitted: dict[str, Fitted] | None, *,
+                        title: str) -> Path:
+    """The two load measuring systems side by side: strain-gauge force relative
+    to piezoelectric (amplitude difference in %, phase difference in deg) per
+    frequency, and the constant K and C of one identification from each."""
+    a, b = tables["piezo"], tables["strain"]
+    with_bars = bool(fitted) and len(fitted) == 2
+    fig = _figure(12, 7.5 if with_bars else 4.2)
+    axes = fig.subplots(2 if with_bars else 1, 2, squeeze=False)
+    ratio = a.orbit / a.spin
+    dirs = whirl_direction(a)
+    colors = _colors(2)
+    for c, (name, fa, fb) in enumerate((("Fx", a.fx, b.fx), ("Fy", a.fy, b.fy))):
+        rel = fb / fa
+        for d, dname, ls, marker in DIRECTIONS:
+            sel = np.flatnonzero(dirs == d)
+            if sel.size == 0:
+                continue
+            sel = sel[np.argsort(ratio[sel])]
+            axes[0, 0].plot(ratio[sel], 100 * (np.abs(rel[sel]) - 1), ls=ls, marker=marker, color=colors[c],
+                            mfc=colors[c] if d == 1 else "white", label=f"{name}, {dname}")
+            axes[0, 1].plot(ratio[sel], np.degrees(np.angle(rel[sel])), ls=ls, marker=marker, color=colors[c],
+                            mfc=colors[c] if d == 1 else "white", label=f"{name}, {dname}")
+    axes[0, 0].set_ylabel("|F strain| / |F piezo| - 1  [%]")
+    axes[0, 0].set_title("amplitude difference, strain vs piezo")
+    axes[0, 1].set_ylabel("phase(F strain) - phase(F piezo)  [deg]")
+    axes[0, 1].set_title("phase difference, strain vs piezo")
+    for ax in axes[0]:
+        ax.set_xlabel("\u03a9/\u03c9  [-]")
+        ax.axhline(0, color="gray", lw=0.8)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    if with_bars:
+        width = 0.38
+        for col, m in enumerate("KC"):
+            ax = axes[1, col]
+            unit, scale = MATRIX_UNITS[m]
+            keys = [m + e for e in ENTRIES]
+            for k, (lms, fit) in enumerate(fitted.items()):
+                ident = fit.identification
+                vals = [ident.coefficients.get(key, np.nan) * scale for key in keys]
+                errs = [ident.std_errors.get(key, np.nan) * scale for key in keys]
+                ax.bar(np.arange(4) + (k - 0.5) * width, vals, width, yerr=errs, capsize=3,
+                       color=colors[k], label=f"{lms}: {fit.label}")
+            ax.set_xticks(np.arange(4), keys)
+            ax.set_ylabel(f"{MATRIX_NAMES[m]}  [{unit}]")
+            ax.set_title(f"{MATRIX_NAMES[m]} identified from each load measuring system")
+            ax.axhline(0, color="gray", lw=0.8)
+            ax.grid(True, axis="y", alpha=0.3)
+            ax.legend(fontsize=8)
+    fig.suptitle(title)
+    return _save(fig, path)

@@ -1,0 +1,190 @@
+"""``DIR/plots/index.html``: one self-contained page (inline CSS, no scripts, no
+network) showing the run's status and settings, and per operating point the
+plots, the coefficient tables (value and standard error, with units; true
+values in ``--sim`` runs) and the coherence table (the paper's Table 1).
+Images are referenced by relative name, so the ``plots`` folder can be moved
+or archived as a whole."""
+
+from __future__ import annotations
+
+import html
+import math
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from orbitrig.plots import PAIR_LABELS, whirl_direction
+from orbitrig.reduce import true_constants
+from orbitrig.run_reader import LMS_NAMES
+
+CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:1.5em auto;max-width:1400px;
+     color:#222;padding:0 1em}
+h1{margin-bottom:.2em} h2{border-bottom:2px solid #ccc;padding-bottom:.2em;margin-top:2em}
+table{border-collapse:collapse;margin:.6em 0 1.2em 0;font-size:.9em}
+th,td{border:1px solid #ccc;padding:.25em .6em;text-align:right} th{background:#f2f2f2}
+td.l,th.l{text-align:left}
+.status{display:inline-block;padding:.15em .6em;border-radius:.3em;color:#fff;font-weight:bold}
+.completed{background:#2a7d2a}.stopped{background:#b07a00}.aborted,.failed{background:#b02020}
+.running,.unknown{background:#555}
+.err{color:#b02020} .muted{color:#666}
+img{max-width:100%;border:1px solid #ddd;margin:.4em 0}
+details pre{background:#f7f7f7;padding:.6em;overflow-x:auto}
+"""
+
+#: display unit and scale of a coefficient of order r (key "Kxx" or "Kxx_r")
+_BASE_UNITS = {"K": ("MN/m", 1e-6), "C": ("kN s/m", 1e-3), "D": ("kg", 1.0)}
+
+
+def coefficient_unit(key: str) -> tuple[str, float]:
+    """Display unit and scale: constant terms in MN/m, kN s/m, kg; the term of
+    order r (``Kxx_r``) multiplies Omega^r, so its unit carries (rad/s)^-r."""
+    unit, scale = _BASE_UNITS[key[0]]
+    _, _, order = key.partition("_")
+    return (unit if not order else f"{unit} (rad/s)^-{order}"), scale
+
+
+def fmt(value, digits: int = 4) -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "-"
+    return f"{value:.{digits}g}"
+
+
+def _e(text) -> str:
+    return html.escape(str(text))
+
+
+def _settings_table(run, s) -> str:
+    rows = [
+        ("spin speed \u03c9", f"{s.spin_rpm:.0f} rpm ({s.spin:.2f} rad/s)"),
+        ("recess pressure p<sub>r</sub>", f"{s.recess_pressure / 1e6:.4g} MPa"),
+        ("pressure ratio \u03b2", fmt(s.pressure_ratio)),
+        ("static eccentricity \u03b5<sub>s</sub>", fmt(s.static_eccentricity)),
+        ("dynamic eccentricity \u03b5<sub>d</sub>", fmt(s.dynamic_eccentricity)),
+        ("orbit radius (commanded)", f"{s.orbit_radius * 1e6:.3g} \u00b5m"),
+    ]
+    return "<table>" + "".join(f'<tr><th class="l">{k}</th><td>{v}</td></tr>' for k, v in rows) + "</table>"
+
+
+def _coefficient_table(results, truth: dict[str, float]) -> str:
+    """Rows = coefficient keys, columns = identifications: value \u00b1 std in display units."""
+    keys: list[str] = []
+    for r in results:
+        keys += [k for k in r.identification.coefficients if k not in keys]
+    keys.sort(key=lambda k: ("KCD".index(k[0]), int(k.partition("_")[2] or 0), k))
+    head = '<tr><th class="l">coefficient</th><th class="l">unit</th>'
+    head += "".join(f"<th>{_e(r.model)} {_e(r.freq_dep)} {_e(r.method)}<br>value \u00b1 std error</th>" for r in results)
+    if truth:
+        head += "<th>true (simulator)</th>"
+    head += "</tr>"
+    body = []
+    for k in keys:
+        unit, scale = coefficient_unit(k)
+        cells = []
+        for r in results:
+            v = r.identification.coefficients.get(k)
+            s = r.identification.std_errors.get(k)
+            cells.append("<td>-</td>" if v is None else f"<td>{fmt(v * scale)} \u00b1 {fmt(s * scale if s is not None else None, 2)}</td>")
+        if truth:
+            t = truth.get(k)
+            cells.append(f"<td>{fmt(t * scale) if t is not None else '-'}</td>")
+        body.append(f'<tr><th class="l">{_e(k)}</th><td class="l">{_e(unit)}</td>{"".join(cells)}</tr>')
+    quality = []
+    for label, get in (
+        ("frequencies used", lambda i: str(i.n_frequencies)),
+        ("condition number", lambda i: fmt(i.condition_number, 3)),
+        ("residual RMS [N]", lambda i: fmt(i.residual_rms, 3)),
+    ):
+        cells = "".join(f"<td>{get(r.identification)}</td>" for r in results)
+        quality.append(f'<tr><th class="l">{label}</th><td></td>{cells}{"<td></td>" if truth else ""}</tr>')
+    return f"<table>{head}{''.join(body)}{''.join(quality)}</table>"
+
+
+def _coherence_table(point) -> str:
+    """The paper's Table 1 for each LMS: Omega/omega and the four gamma^2."""
+    parts = []
+    for lms in LMS_NAMES:
+        t = point.tables.get(lms)
+        if t is None or t.gamma2 is None:
+            continue
+        ratio = t.orbit / t.spin
+        dirs = whirl_direction(t)
+        order = np.lexsort((ratio, -dirs))
+        head = '<tr><th class="l">whirl</th><th>\u03a9/\u03c9</th>' + "".join(
+            f"<th>\u03b3\u00b2 {_e(v)}</th>" for v in PAIR_LABELS.values()) + "</tr>"
+        rows = "".join(
+            f'<tr><td class="l">{"forward" if dirs[i] > 0 else "backward"}</td><td>{ratio[i]:.3f}</td>'
+            + "".join(f"<td>{t.gamma2[i, c]:.3f}</td>" for c in range(4)) + "</tr>"
+            for i in order
+        )
+        parts.append(f"<h4>Coherence, {lms} load cells</h4><table>{head}{rows}</table>")
+    return "".join(parts)
+
+
+def _point_section(run, pr, out_dir: Path) -> str:
+    p = pr.point
+    s = p.settings
+    h = [f'<h2 id="p{p.name}">Point {p.name}: {_e(s.label)}</h2>', _settings_table(run, s)]
+    truth = true_constants(p)
+    for lms in LMS_NAMES:
+        results = pr.results.get(lms, [])
+        refused = [i for i in p.identifications if i.lms == lms and not i.ok]
+        if not results and not refused:
+            continue
+        h.append(f"<h3>Coefficients, {lms} load cells</h3>")
+        if results:
+            h.append(_coefficient_table(results, truth))
+        for i in refused:
+            h.append(f'<p class="err">{_e(i.model)} {_e(i.freq_dep)} refused: {_e(i.error)}</p>')
+    if pr.mismatches:
+        h.append('<p class="err">Repeating the stored identifications gave different numbers:<br>'
+                 + "<br>".join(_e(m) for m in pr.mismatches) + "</p>")
+    h.append(_coherence_table(p))
+    for png in pr.plots:
+        rel = Path(png).relative_to(out_dir)
+        h.append(f'<figure><img src="{_e(rel.as_posix())}" alt="{_e(rel.stem)}">'
+                 f'<figcaption class="muted">{_e(rel.name)}</figcaption></figure>')
+    return "\n".join(h)
+
+
+def render(report) -> str:
+    run = report.run
+    status = run.status if run.status in ("completed", "stopped", "aborted", "failed", "running") else "unknown"
+    incomplete = [p.name for p in run.points if not p.complete]
+    more = f", {len(incomplete)} incomplete ({', '.join(incomplete)})" if incomplete else ""
+    head = [
+        "<!DOCTYPE html>",
+        '<html lang="en"><head><meta charset="utf-8">',
+        f"<title>orbitrig run {_e(run.directory.name)}</title><style>{CSS}</style></head><body>",
+        f"<h1>orbitrig run <code>{_e(run.directory.name)}</code></h1>",
+        f'<p>Status: <span class="status {status}">{_e(run.status)}</span> {_e(run.status_message)}</p>',
+        "<table>",
+        f'<tr><th class="l">matrix</th><td class="l">{_e(run.matrix_name)}</td></tr>',
+        f'<tr><th class="l">mode</th><td class="l">{"simulator (--sim)" if run.sim else "rig"}</td></tr>',
+        f'<tr><th class="l">created</th><td class="l">{_e(run.created)}</td></tr>',
+        f'<tr><th class="l">software version</th><td class="l">{_e(run.software_version)}</td></tr>',
+        f'<tr><th class="l">operating points</th><td class="l">{len(run.complete_points)} complete{more}</td></tr>',
+        f'<tr><th class="l">report written</th><td class="l">{datetime.now(timezone.utc):%Y-%m-%d %H:%M:%S} UTC</td></tr>',
+        "</table>",
+    ]
+    if report.points:
+        head.append("<p>Points: " + " \u00b7 ".join(
+            f'<a href="#p{pr.point.name}">{pr.point.name}</a>' for pr in report.points) + "</p>")
+    else:
+        head.append('<p class="err">No complete operating point to report.</p>')
+    head.append('<p class="muted">Units: K in MN/m, C in kN s/m, D in kg (SI at the source); '
+                "\u00b1 one standard error of the regression. Higher-order terms multiply \u03a9^r with \u03a9 in rad/s.</p>")
+    for name, text in (("rig configuration", run.rig_config), ("matrix configuration", run.matrix_config)):
+        if text:
+            head.append(f"<details><summary>{name}</summary><pre>{_e(text)}</pre></details>")
+    body = [_point_section(run, pr, report.directory) for pr in report.points]
+    return "\n".join(head + body + ["</body></html>"])
+
+
+def write_html(report, path: Path) -> Path:
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(render(report), encoding="utf-8")
+    tmp.replace(path)
+    return path

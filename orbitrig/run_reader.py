@@ -1,0 +1,267 @@
+"""Read a run directory (docs/storage.md) into plain data, without the rig.
+
+`read_run(DIR)` opens ``DIR/run.h5`` read-only and returns a :class:`Run`: the
+run's status and configuration, and one :class:`Point` per operating point with
+its settings, its orbit table per load measuring system (as
+:class:`reduction.table.OrbitTable`), the identifications the sweep stored, the
+simulator's truth (``--sim`` runs), per-frequency coherence and the two-LMS
+comparison. Everything is copied into memory, so the file is closed on return.
+
+Units are SI as stored (rad/s, Pa, m, N); conversion to rpm, MPa, degrees is
+left to the report.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from orbitrig.errors import OrbitrigError
+
+RUN_FORMAT = "orbitrig-run/1"
+RUN_FILE = "run.h5"
+LMS_NAMES = ("piezo", "strain")
+COHERENCE_PAIRS = ("xfx", "yfx", "xfy", "yfy")
+
+
+class RunDirError(OrbitrigError):
+    """DIR is not a readable orbitrig run directory; ``file`` names the culprit."""
+
+    def __init__(self, file: str | Path, reason: str):
+        self.file = str(file)
+        self.reason = reason
+        super().__init__(f"{self.file}: {reason}")
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Operating point settings (SI, as stored in the point's attributes)."""
+
+    spin: float  # rad/s
+    spin_rpm: float
+    recess_pressure: float  # Pa
+    pressure_ratio: float  # -
+    static_eccentricity: float  # -
+    dynamic_eccentricity: float  # -
+    orbit_radius: float  # m, commanded
+    label: str
+
+    def title(self) -> str:
+        """The operating point in the paper's words, for plot titles."""
+        return (
+            f"\u03c9 = {self.spin_rpm:.0f} rpm, \u03b5d = {self.dynamic_eccentricity:g}, "
+            f"\u03b5s = {self.static_eccentricity:g}, pr = {self.recess_pressure / 1e6:.4g} MPa, "
+            f"\u03b2 = {self.pressure_ratio:g}"
+        )
+
+
+@dataclass(frozen=True)
+class Frequency:
+    """One orbit frequency of a point (group ``frequencies/FF_dir``)."""
+
+    name: str  # "FF_dir"
+    orbit: float  # rad/s, signed (< 0 backward)
+    orbit_hz: float  # > 0
+    direction: int  # +1 forward, -1 backward
+    complete: bool
+    coherence: np.ndarray | None  # (2, 4): rows piezo|strain, cols xfx, yfx, xfy, yfy
+
+
+@dataclass(frozen=True)
+class StoredIdentification:
+    """One ``identification/<lms>__<model>__<freq_dep>`` entry of the sweep."""
+
+    lms: str
+    model: str
+    freq_dep: str  # the original spec, e.g. "power:auto"
+    result: dict[str, Any] | None  # the `identify --json` object
+    error: str | None  # the refusal message when the model was refused
+    method: str = "ols"
+
+    @property
+    def ok(self) -> bool:
+        return self.result is not None
+
+
+@dataclass
+class Point:
+    """One operating point (group ``/points/PPPP``)."""
+
+    index: int
+    name: str  # "PPPP"
+    complete: bool
+    settings: Settings
+    frequencies: list[Frequency] = field(default_factory=list)
+    tables: dict[str, Any] = field(default_factory=dict)  # lms -> OrbitTable
+    identifications: list[StoredIdentification] = field(default_factory=list)
+    truth: dict[str, Any] | None = None
+    lms_comparison: Any = None
+
+    def identification(self, lms: str, model: str, freq_dep: str) -> StoredIdentification | None:
+        for ident in self.identifications:
+            if (ident.lms, ident.model, ident.freq_dep) == (lms, model, freq_dep):
+                return ident
+        return None
+
+
+@dataclass
+class Run:
+    """A run directory as read from disk."""
+
+    directory: Path
+    status: str
+    status_message: str
+    sim: bool
+    software_version: str
+    created: str
+    matrix_name: str
+    rig_config: str
+    matrix_config: str
+    points: list[Point]
+
+    @property
+    def complete_points(self) -> list[Point]:
+        return [p for p in self.points if p.complete]
+
+
+def freq_dep_from_key(key: str) -> str:
+    """Undo storage's key mangling: 'power_auto' -> 'power:auto', 'power_1_2_3' -> 'power:1,2,3'."""
+    head, sep, rest = key.partition("_")
+    return head if not sep else f"{head}:{rest.replace('_', ',')}"
+
+
+def freq_dep_key(freq_dep: str) -> str:
+    """Storage's key form of a frequency-dependence spec (':' and ',' -> '_')."""
+    return freq_dep.replace(":", "_").replace(",", "_")
+
+
+def _text(value: Any, default: str = "") -> str:
+    if value is None:
+        return default
+    if isinstance(value, bytes):
+        return value.decode("utf-8", "replace")
+    return str(value)
+
+
+def _json_attr(attrs, name: str) -> Any:
+    raw = attrs.get(name)
+    return None if raw is None else json.loads(_text(raw))
+
+
+def _open(path: Path):
+    import h5py
+
+    try:
+        return h5py.File(path, "r")
+    except OSError as err:
+        # A sweep still writing the file holds HDF5's lock; reading without the
+        # lock is safe here because only points marked complete are trusted.
+        if "lock" in str(err).lower():
+            try:
+                return h5py.File(path, "r", locking=False)
+            except OSError as err2:
+                raise RunDirError(path, f"cannot open: {err2}") from err2
+        raise RunDirError(path, f"not a readable HDF5 file ({err})") from err
+
+
+def read_run(directory: str | Path) -> Run:
+    """Read ``directory/run.h5`` (docs/storage.md). Raises :class:`RunDirError`."""
+    directory = Path(directory)
+    if not directory.exists():
+        raise RunDirError(directory, "no such directory")
+    if not directory.is_dir():
+        raise RunDirError(directory, "not a directory (expected a run directory written by `orbitrig sweep --out DIR`)")
+    path = directory / RUN_FILE
+    if not path.is_file():
+        raise RunDirError(directory, f"not an orbitrig run directory: no {RUN_FILE} in it")
+    with _open(path) as h5:
+        fmt = _text(h5.attrs.get("format"))
+        if fmt != RUN_FORMAT:
+            raise RunDirError(path, f"format attribute is {fmt or 'missing'!r}, expected {RUN_FORMAT!r}")
+        try:
+            points = [_read_point(g) for _, g in sorted(h5.get("points", {}).items())]
+        except (KeyError, ValueError, TypeError) as err:
+            raise RunDirError(path, f"malformed run file: {err}") from err
+        a = h5.attrs
+        return Run(
+            directory=directory,
+            status=_text(a.get("status"), "unknown"),
+            status_message=_text(a.get("status_message")),
+            sim=bool(a.get("sim", False)),
+            software_version=_text(a.get("software_version")),
+            created=_text(a.get("created")),
+            matrix_name=_text(a.get("matrix_name")),
+            rig_config=_text(a.get("rig_config")),
+            matrix_config=_text(a.get("matrix_config")),
+            points=points,
+        )
+
+
+def _read_point(g) -> Point:
+    from reduction.table import OrbitTable
+
+    a = g.attrs
+    name = g.name.rsplit("/", 1)[-1]
+    settings = Settings(
+        spin=float(a["spin"]),
+        spin_rpm=float(a.get("spin_rpm", float(a["spin"]) * 30.0 / np.pi)),
+        recess_pressure=float(a.get("recess_pressure", np.nan)),
+        pressure_ratio=float(a.get("pressure_ratio", np.nan)),
+        static_eccentricity=float(a.get("static_eccentricity", np.nan)),
+        dynamic_eccentricity=float(a.get("dynamic_eccentricity", np.nan)),
+        orbit_radius=float(a.get("orbit_radius", np.nan)),
+        label=_text(a.get("label"), name),
+    )
+    point = Point(
+        index=int(a.get("index", int(name))),
+        name=name,
+        complete=bool(a.get("complete", False)),
+        settings=settings,
+    )
+    for fname, fg in sorted(g.get("frequencies", {}).items()):
+        fa = fg.attrs
+        coh = np.asarray(fg["coherence"][()], dtype=float) if "coherence" in fg else None
+        point.frequencies.append(
+            Frequency(
+                name=fname,
+                orbit=float(fa.get("orbit", np.nan)),
+                orbit_hz=float(fa.get("orbit_hz", np.nan)),
+                direction=int(fa.get("direction", 1)),
+                complete=bool(fa.get("complete", False)),
+                coherence=coh,
+            )
+        )
+    for lms, tg in sorted(g.get("table", {}).items()):
+        gamma2 = np.asarray(tg["gamma2"][()], dtype=float) if "gamma2" in tg else None
+        point.tables[lms] = OrbitTable(
+            spin=float(tg.attrs.get("spin", settings.spin)),
+            orbit=np.asarray(tg["orbit"][()], dtype=float),
+            x=np.asarray(tg["x"][()], dtype=complex),
+            y=np.asarray(tg["y"][()], dtype=complex),
+            fx=np.asarray(tg["fx"][()], dtype=complex),
+            fy=np.asarray(tg["fy"][()], dtype=complex),
+            gamma2=gamma2,
+        )
+    for key, ig in sorted(g.get("identification", {}).items()):
+        lms, model, fd_key = key.split("__", 2)
+        ia = ig.attrs
+        result = _json_attr(ia, "json")
+        point.identifications.append(
+            StoredIdentification(
+                lms=lms,
+                model=_text(ia.get("model"), model),
+                freq_dep=_text(ia.get("freq_dep")) or freq_dep_from_key(fd_key),
+                result=result,
+                error=_text(ia.get("error")) or None,
+                method=_text(ia.get("method")) or str((result or {}).get("method", "ols")),
+            )
+        )
+    if "truth" in g:
+        point.truth = _json_attr(g["truth"].attrs, "json")
+    if "lms_comparison" in g:
+        point.lms_comparison = _json_attr(g["lms_comparison"].attrs, "json")
+    return point
