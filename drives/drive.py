@@ -1,0 +1,370 @@
+"""One variable-speed drive on a Modbus link (../shared/spec/drive-modbus.md).
+
+Speeds are rad/s here (signed on a bidirectional drive: > 0 forward); the
+registers carry rpm scaled by the drive's own SPEED_SCALE, which is read from
+the drive, never assumed. State changes go through the control word and are
+confirmed on the status word.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from drives import registers as R
+from drives.errors import DriveError, DriveFaultError, DriveLimitError, DriveTimeoutError
+from drives.link import ModbusLink
+
+RPM = 2.0 * math.pi / 60.0  # rad/s per rpm
+
+
+def rpm_to_rad_s(rpm: float) -> float:
+    return rpm * RPM
+
+
+def rad_s_to_rpm(speed: float) -> float:
+    return speed / RPM
+
+
+@dataclass(frozen=True)
+class DriveParameters:
+    """The drive's parameter block, SI."""
+
+    speed_scale: float  # rad/s meant by REF = 20000
+    max_speed: float  # rad/s, absolute limit (larger references are clamped by the drive)
+    accel_time: float  # s from 0 to speed_scale
+    decel_time: float  # s from speed_scale to 0
+    comm_loss_timeout: float  # s without a request before fault 7510; 0 = disabled
+    at_setpoint_band: float  # rad/s
+
+    @classmethod
+    def from_words(cls, words: list[int]) -> DriveParameters:
+        scale, max_speed, accel, decel, comm, band = words[:6]
+        return cls(
+            speed_scale=rpm_to_rad_s(scale),
+            max_speed=rpm_to_rad_s(max_speed),
+            accel_time=accel * R.TIME_UNIT,
+            decel_time=decel * R.TIME_UNIT,
+            comm_loss_timeout=comm * R.TIME_UNIT,
+            at_setpoint_band=rpm_to_rad_s(band),
+        )
+
+
+@dataclass(frozen=True)
+class DriveStatus:
+    """One read of a drive's process data, SI.
+
+    `reference` and `actual` are rad/s, signed (> 0 forward); `torque` is a
+    fraction of nominal; `time` is `time.monotonic()` of the read.
+    """
+
+    name: str
+    device_id: int
+    control_word: int
+    reference: float
+    status_word: int
+    actual: float
+    torque: float
+    fault_code: int
+    time: float
+    reference_raw: int = 0
+    actual_raw: int = 0
+
+    def _bit(self, bit: R.SWBit) -> bool:
+        return bool(self.status_word & bit)
+
+    @property
+    def running(self) -> bool:
+        """Operation enabled (RDY_REF): following the reference."""
+        return self._bit(R.SWBit.RDY_REF)
+
+    @property
+    def tripped(self) -> bool:
+        return self._bit(R.SWBit.TRIPPED)
+
+    @property
+    def at_setpoint(self) -> bool:
+        return self._bit(R.SWBit.AT_SETPOINT)
+
+    @property
+    def remote(self) -> bool:
+        return self._bit(R.SWBit.REMOTE)
+
+    @property
+    def stopped(self) -> bool:
+        """Actual speed reads exactly zero."""
+        return self.actual_raw == 0
+
+    @property
+    def state(self) -> str:
+        return R.state_name(self.status_word)
+
+    @property
+    def fault(self) -> str:
+        return R.fault_name(self.fault_code)
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary (speeds in rpm: this is for people and the CLI)."""
+        sw = self.status_word
+        return {
+            "device_id": self.device_id,
+            "state": self.state,
+            "running": self.running,
+            "at_setpoint": self.at_setpoint,
+            "tripped": self.tripped,
+            "fault_code": self.fault_code,
+            "fault": self.fault,
+            "reference_rpm": round(rad_s_to_rpm(self.reference), 3),
+            "actual_rpm": round(rad_s_to_rpm(self.actual), 3),
+            "torque_pct": round(100.0 * self.torque, 2),
+            "control_word": f"0x{self.control_word:04X}",
+            "status_word": f"0x{sw:04X}",
+            "status_bits": [b.name for b in R.SWBit if sw & b],
+        }
+
+
+class SettleDetector:
+    """True once a condition has held continuously for `hold` seconds (pure)."""
+
+    def __init__(self, hold: float):
+        if hold < 0:
+            raise ValueError(f"hold {hold} s is negative")
+        self.hold = float(hold)
+        self._since: float | None = None
+
+    def update(self, ok: bool, t: float) -> bool:
+        """Feed one observation at time `t` (s); returns whether it has settled."""
+        if not ok:
+            self._since = None
+            return False
+        if self._since is None:
+            self._since = t
+        return t - self._since >= self.hold
+
+    def reset(self) -> None:
+        self._since = None
+
+
+class Drive:
+    """One drive: parameters, status, start/stop through CW/SW, references in rad/s.
+
+    Parameters
+    ----------
+    link : the shared ModbusLink.
+    device_id : Modbus device id.
+    name : 'spin' or 'orbit' (for messages).
+    bidirectional : whether negative speeds are allowed (orbit drive only).
+    state_timeout : seconds to wait for the status word to confirm a state change.
+    """
+
+    def __init__(
+        self,
+        link: ModbusLink,
+        device_id: int,
+        name: str,
+        *,
+        bidirectional: bool,
+        state_timeout: float = 2.0,
+    ):
+        self.link = link
+        self.device_id = device_id
+        self.name = name
+        self.bidirectional = bidirectional
+        self.state_timeout = state_timeout
+        self.params: DriveParameters | None = None
+        self._scale_rpm: int | None = None
+        self._max_rpm: int | None = None
+
+    def _kw(self, register: int | None = None, fault_code: int | None = None) -> dict:
+        return {
+            "drive": self.device_id,
+            "drive_name": self.name,
+            "register": register,
+            "fault_code": fault_code,
+        }
+
+    # -- parameters -------------------------------------------------------------
+    async def read_parameters(self) -> DriveParameters:
+        """Read the parameter block; the scaling of every later speed comes from it."""
+        first, count = R.PARAMETERS
+        words = await self.link.read(self.device_id, first, count)
+        if words[0] == 0:
+            raise DriveFaultError("SPEED_SCALE reads 0", **self._kw(R.SPEED_SCALE))
+        self._scale_rpm, self._max_rpm = words[0], words[1]
+        self.params = DriveParameters.from_words(words)
+        return self.params
+
+    async def configure(
+        self,
+        *,
+        accel_time: float | None = None,
+        decel_time: float | None = None,
+        comm_loss_timeout: float | None = None,
+        at_setpoint_band: float | None = None,
+    ) -> DriveParameters:
+        """Write the given parameters (s, s, s, rad/s); the drive must not be running.
+
+        A drive that is running answers exception 03 (DriveExceptionResponse).
+        """
+        writes = []
+        for address, value, unit in (
+            (R.ACCEL_TIME, accel_time, R.TIME_UNIT),
+            (R.DECEL_TIME, decel_time, R.TIME_UNIT),
+            (R.COMM_LOSS_TIMEOUT, comm_loss_timeout, R.TIME_UNIT),
+            (R.AT_SETPOINT_BAND, at_setpoint_band, RPM),
+        ):
+            if value is None:
+                continue
+            word = round(value / unit)
+            if not 0 <= word <= 0xFFFF or (address != R.COMM_LOSS_TIMEOUT and word == 0 and value):
+                raise DriveLimitError(
+                    f"{value:g} is not representable (unit {unit:g})", **self._kw(address)
+                )
+            writes.append((address, word))
+        for address, word in writes:
+            await self.link.write(self.device_id, address, [word])
+        return await self.read_parameters()
+
+    # -- status -----------------------------------------------------------------
+    async def read_status(self) -> DriveStatus:
+        """Read CW..FAULT in one request (also the watchdog heartbeat for this drive)."""
+        if self._scale_rpm is None:
+            await self.read_parameters()
+        first, count = R.PROCESS_DATA
+        w = await self.link.read(self.device_id, first, count)
+        ref, act = R.from_word(w[R.REF]), R.from_word(w[R.ACT])
+        scale = self._scale_rpm
+        return DriveStatus(
+            name=self.name,
+            device_id=self.device_id,
+            control_word=w[R.CW],
+            reference=rpm_to_rad_s(R.ref_to_rpm(ref, scale)),
+            status_word=w[R.SW],
+            actual=rpm_to_rad_s(R.ref_to_rpm(act, scale)),
+            torque=R.from_word(w[R.TORQUE]) / R.TORQUE_FULL_SCALE,
+            fault_code=w[R.FAULT],
+            time=time.monotonic(),
+            reference_raw=ref,
+            actual_raw=act,
+        )
+
+    # -- references -------------------------------------------------------------
+    def reference_for(self, speed: float) -> int:
+        """Raw REF for `speed` rad/s, or DriveLimitError (direction, MAX_SPEED, int16).
+
+        Pure check against the parameters read from the drive; nothing is sent.
+        """
+        if self._scale_rpm is None:
+            raise DriveError("parameters not read yet", **self._kw(R.SPEED_SCALE))
+        if not math.isfinite(speed):
+            raise DriveLimitError(f"speed {speed} rad/s is not finite", **self._kw(R.REF))
+        if speed < 0 and not self.bidirectional:
+            raise DriveLimitError(
+                f"speed {speed:.3f} rad/s is negative; this drive turns one way only",
+                **self._kw(R.REF),
+            )
+        rpm = rad_s_to_rpm(speed)
+        if abs(rpm) > self._max_rpm + 1e-9:
+            raise DriveLimitError(
+                f"speed {speed:.3f} rad/s ({rpm:.1f} rpm) exceeds the drive's "
+                f"MAX_SPEED of {self._max_rpm} rpm",
+                **self._kw(R.MAX_SPEED),
+            )
+        try:
+            return R.rpm_to_ref(rpm, self._scale_rpm)
+        except ValueError as err:
+            raise DriveLimitError(str(err), **self._kw(R.REF)) from err
+
+    def speed_of(self, raw: int) -> float:
+        """rad/s of a raw REF/ACT value."""
+        return rpm_to_rad_s(R.ref_to_rpm(raw, self._scale_rpm))
+
+    async def write_reference(self, raw: int) -> None:
+        await self.link.write(self.device_id, R.REF, [R.to_word(raw)])
+
+    # -- state machine ----------------------------------------------------------
+    async def write_control(self, word: int) -> None:
+        await self.link.write(self.device_id, R.CW, [word])
+
+    async def wait_status(
+        self,
+        ok: Callable[[DriveStatus], bool],
+        what: str,
+        *,
+        timeout: float | None = None,
+        fail_on_trip: bool = True,
+    ) -> DriveStatus:
+        """Read the status word until `ok(status)`; DriveFaultError if the drive trips."""
+        timeout = self.state_timeout if timeout is None else timeout
+        deadline = time.monotonic() + timeout
+        while True:
+            st = await self.read_status()
+            if ok(st):
+                return st
+            if st.tripped and fail_on_trip:
+                raise DriveFaultError(
+                    f"tripped while waiting for {what}", **self._kw(R.FAULT, st.fault_code)
+                )
+            if time.monotonic() >= deadline:
+                raise DriveTimeoutError(
+                    f"{what} not reached within {timeout:g} s "
+                    f"(status word 0x{st.status_word:04X}: {st.state})",
+                    **self._kw(R.SW),
+                )
+            await asyncio.sleep(0.02)
+
+    async def start(self, raw_ref: int) -> DriveStatus:
+        """Run at raw reference `raw_ref`: REF, then CW ready -> RDY_ON, CW run -> RDY_REF.
+
+        A tripped drive is refused with DriveFaultError (reset it first).
+        """
+        st = await self.read_status()
+        if st.tripped:
+            raise DriveFaultError(
+                "tripped; reset the fault before starting", **self._kw(R.FAULT, st.fault_code)
+            )
+        await self.write_reference(raw_ref)
+        if st.running and st.control_word == R.CW_RUN:
+            return st
+        await self.write_control(R.CW_READY)
+        st = await self.wait_status(
+            lambda s: bool(s.status_word & R.SWBit.RDY_ON) and not s.tripped, "ready to switch on"
+        )
+        if not st.remote:
+            raise DriveFaultError(
+                "does not accept network control (status word REMOTE = 0; local control?)",
+                **self._kw(R.SW),
+            )
+        await self.write_control(R.CW_RUN)
+        return await self.wait_status(lambda s: s.running, "operation enabled (RDY_REF)")
+
+    async def ramp_stop(self) -> None:
+        """OFF1: ramp to zero along DECEL_TIME, then zero the reference."""
+        await self.write_control(R.CW_RAMP_STOP)
+        await self.write_reference(0)
+
+    async def emergency_stop(self) -> None:
+        """OFF3: fastest ramp to zero (10 x faster than DECEL_TIME)."""
+        await self.write_control(R.CW_EMERGENCY_STOP)
+
+    async def reset_fault(self) -> DriveStatus:
+        """RESET edge (0x04F6 then 0x0476); DriveFaultError if the fault is still active."""
+        st = await self.read_status()
+        if not st.tripped:
+            return st
+        code = st.fault_code
+        await self.write_control(R.CW_RESET)
+        await self.write_control(R.CW_READY)
+        try:
+            return await self.wait_status(
+                lambda s: not s.tripped, "fault cleared",
+                timeout=min(self.state_timeout, 1.0),
+                fail_on_trip=False,
+            )
+        except DriveTimeoutError as err:
+            raise DriveFaultError(
+                "fault reset refused: the cause is still active", **self._kw(R.FAULT, code)
+            ) from err

@@ -1,0 +1,102 @@
+"""Errors of the drive layer.
+
+    DriveError(message, *, drive, register, fault_code)
+    +-- DriveFaultError        a drive tripped (fault_code set) or refused to start
+    +-- DriveLimitError        a command outside the configured limits (nothing sent)
+    +-- DriveLinkError         the Modbus link is down or answers garbage
+    +-- DriveTimeoutError      no answer in time, or a state not reached in time
+    +-- DriveExceptionResponse the drive answered a Modbus exception (exception_code)
+
+The message names the drive (`spin drive (id 1)`), the register (`REF (1)`)
+and the fault code with its meaning, whichever apply.
+"""
+
+from __future__ import annotations
+
+from reduction.errors import OrbitrigError
+
+from drives.registers import EXCEPTION_NAMES, fault_name, register_name
+
+
+class DriveError(OrbitrigError):
+    """A drive or its link failed.
+
+    Attributes
+    ----------
+    drive : int | None
+        Modbus device id of the drive concerned.
+    drive_name : str | None
+        `'spin'` or `'orbit'` when known.
+    register : int | None
+        Protocol address of the register concerned.
+    fault_code : int | None
+        The drive's FAULT code (0 = none) when it is part of the story.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        drive: int | None = None,
+        register: int | None = None,
+        fault_code: int | None = None,
+        drive_name: str | None = None,
+    ):
+        self.reason = message
+        self.drive = drive
+        self.drive_name = drive_name
+        self.register = register
+        self.fault_code = fault_code
+        parts = []
+        if drive is not None or drive_name is not None:
+            who = f"{drive_name} drive" if drive_name else "drive"
+            parts.append(f"{who} (id {drive})" if drive is not None else who)
+        if register is not None:
+            parts.append(f"register {register_name(register)}")
+        if fault_code:
+            parts.append(f"fault {fault_code} ({fault_name(fault_code)})")
+        super().__init__(f"{', '.join(parts)}: {message}" if parts else message)
+
+
+class DriveFaultError(DriveError):
+    """A drive is tripped (see `fault_code`) or did not reach the commanded state."""
+
+
+class DriveLimitError(DriveError, ValueError):
+    """A speed command outside the limits; it was refused and nothing was sent."""
+
+
+class DriveLinkError(DriveError):
+    """The Modbus link to the drives is down or broken."""
+
+
+class DriveTimeoutError(DriveError, TimeoutError):
+    """No answer in time, or the drives did not reach a state in time."""
+
+
+class DriveExceptionResponse(DriveError):
+    """The drive answered with a Modbus exception response.
+
+    `exception_code`: 1 illegal function, 2 illegal data address, 3 illegal data
+    value (e.g. a parameter written while running), 4 device failure.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        exception_code: int,
+        drive: int | None = None,
+        register: int | None = None,
+        fault_code: int | None = None,
+        drive_name: str | None = None,
+    ):
+        self.exception_code = exception_code
+        meaning = EXCEPTION_NAMES.get(exception_code, "unknown exception")
+        super().__init__(
+            f"{message}: Modbus exception {exception_code:02d} ({meaning})",
+            drive=drive,
+            register=register,
+            fault_code=fault_code,
+            drive_name=drive_name,
+        )

@@ -1,0 +1,247 @@
+"""One async Modbus link (TCP or RTU) shared by the drives on one network.
+
+    link = ModbusLink("tcp://127.0.0.1:5020")          # or "rtu:///dev/pts/3?baud=19200"
+    async with link:
+        words = await link.read(1, 0, 7)                 # device id, address, count
+        await link.write(2, 1, [0xFC18])                 # one value: FC06, more: FC16
+
+The pymodbus client is created inside the running loop (`connect`). Requests
+are serialised by one lock and bounded by `timeout`; a Modbus exception
+response is raised as `DriveExceptionResponse`, never returned. After any
+failed request the connection is dropped and the next request reconnects, so
+a late answer can never be taken for the answer to a newer request.
+pymodbus' own reconnect task and retries are switched off: reconnecting is
+this class' job, at the pace its callers (the poll) set.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from urllib.parse import parse_qs, urlsplit
+
+from drives.errors import (
+    DriveExceptionResponse,
+    DriveLinkError,
+    DriveTimeoutError,
+)
+from drives.registers import register_name
+
+log = logging.getLogger(__name__)
+
+_FC_READ, _FC_WRITE_SINGLE, _FC_WRITE_MULTIPLE = 3, 6, 16
+
+
+@dataclass(frozen=True)
+class LinkAddress:
+    """A parsed Modbus URL."""
+
+    kind: str  # "tcp" | "rtu"
+    host: str | None = None  # tcp
+    port: int | None = None  # tcp
+    path: str | None = None  # rtu: serial device
+    baud: int = 19200  # rtu
+
+
+def parse_modbus_url(url: str) -> LinkAddress:
+    """Parse `tcp://host:port` (port 502 if omitted) or `rtu:///dev/ttyS0?baud=19200`.
+
+    Raises DriveLinkError naming what is wrong with the URL.
+    """
+    try:
+        parts = urlsplit(url)
+        query = parse_qs(parts.query, strict_parsing=bool(parts.query))
+        if parts.scheme == "tcp":
+            if query:
+                raise ValueError(f"unexpected query {parts.query!r}")
+            if not parts.hostname:
+                raise ValueError("no host")
+            return LinkAddress("tcp", host=parts.hostname, port=parts.port or 502)
+        if parts.scheme == "rtu":
+            if not parts.path or parts.netloc:
+                raise ValueError("expected rtu:///dev/<serial device>")
+            unknown = set(query) - {"baud"}
+            if unknown:
+                raise ValueError(f"unknown option(s) {', '.join(sorted(unknown))}; only baud")
+            baud = int(query.get("baud", ["19200"])[-1])
+            if baud <= 0:
+                raise ValueError(f"baud {baud} is not positive")
+            return LinkAddress("rtu", path=parts.path, baud=baud)
+        raise ValueError(f"unknown scheme {parts.scheme!r}; use tcp:// or rtu://")
+    except ValueError as err:
+        raise DriveLinkError(f"bad Modbus URL {url!r}: {err}") from err
+
+
+class ModbusLink:
+    """Async Modbus client for one URL; an async context manager.
+
+    Parameters
+    ----------
+    url : str
+        `tcp://host:port` or `rtu:///dev/ttyX?baud=19200` (8N1).
+    timeout : float
+        Seconds for connecting and for each request's answer.
+    names : mapping of device id -> drive name, used in error messages.
+    """
+
+    def __init__(self, url: str, *, timeout: float = 1.0, names: Mapping[int, str] | None = None):
+        self.url = url
+        self.address = parse_modbus_url(url)
+        self.timeout = float(timeout)
+        self.names = dict(names or {})
+        self._client = None
+        self._lock = asyncio.Lock()
+        self.requests = 0  # answered requests (including exception responses)
+        self.failures = 0  # requests without a valid answer
+        self.connects = 0  # successful (re)connections
+
+    # -- connection -------------------------------------------------------------
+    @property
+    def connected(self) -> bool:
+        return self._client is not None and self._client.connected
+
+    async def connect(self) -> None:
+        """Open the connection now (it is also opened on demand). Raises DriveLinkError."""
+        async with self._lock:
+            await self._ensure_connected()
+
+    async def close(self) -> None:
+        """Close the connection; idempotent."""
+        async with self._lock:
+            self._drop()
+
+    async def __aenter__(self) -> ModbusLink:
+        await self.connect()
+        return self
+
+    async def __aexit__(self, *exc) -> None:
+        await self.close()
+
+    def _new_client(self):
+        from pymodbus.client import AsyncModbusSerialClient, AsyncModbusTcpClient
+
+        # reconnect_delay=0: no pymodbus reconnect task; retries=0: one try per request.
+        common = {"timeout": self.timeout, "retries": 0, "reconnect_delay": 0, "name": self.url}
+        a = self.address
+        if a.kind == "tcp":
+            return AsyncModbusTcpClient(a.host, port=a.port, **common)
+        return AsyncModbusSerialClient(
+            a.path, baudrate=a.baud, bytesize=8, parity="N", stopbits=1, **common
+        )
+
+    async def _ensure_connected(self) -> None:
+        if self.connected:
+            return
+        self._drop()
+        client = self._new_client()
+        try:
+            ok = await asyncio.wait_for(client.connect(), self.timeout + 0.5)
+        except (asyncio.TimeoutError, OSError) as err:
+            client.close()
+            raise DriveLinkError(f"cannot connect to {self.url}: {err!r}") from err
+        except BaseException:
+            client.close()
+            raise
+        if not ok or not client.connected:
+            client.close()
+            raise DriveLinkError(f"cannot connect to {self.url}")
+        self._client = client
+        self.connects += 1
+        log.debug("connected to %s", self.url)
+
+    def _drop(self) -> None:
+        if self._client is not None:
+            self._client.close()
+            self._client = None
+
+    # -- requests ---------------------------------------------------------------
+    async def read(self, device_id: int, address: int, count: int) -> list[int]:
+        """Read `count` holding registers (FC03) from `address`: unsigned 16-bit words."""
+        rsp = await self._request(
+            device_id,
+            address,
+            _FC_READ,
+            lambda c: c.read_holding_registers(address, count=count, device_id=device_id),
+        )
+        words = list(rsp.registers)
+        if len(words) != count:
+            self._fail(device_id, address, f"asked for {count} registers, got {len(words)}")
+        return words
+
+    async def write(self, device_id: int, address: int, values: Sequence[int]) -> None:
+        """Write unsigned 16-bit words from `address`: FC06 for one, FC16 for several."""
+        values = [int(v) for v in values]
+        for v in values:
+            if not 0 <= v <= 0xFFFF:
+                raise ValueError(f"{register_name(address)}: {v} is not a 16-bit word")
+        if len(values) == 1:
+            await self._request(
+                device_id,
+                address,
+                _FC_WRITE_SINGLE,
+                lambda c: c.write_register(address, values[0], device_id=device_id),
+            )
+        else:
+            await self._request(
+                device_id,
+                address,
+                _FC_WRITE_MULTIPLE,
+                lambda c: c.write_registers(address, values, device_id=device_id),
+            )
+
+    def _error_kw(self, device_id: int, address: int) -> dict:
+        return {"drive": device_id, "drive_name": self.names.get(device_id), "register": address}
+
+    def _fail(self, device_id: int, address: int, what: str):
+        self.failures += 1
+        self._drop()
+        raise DriveLinkError(f"{what} on {self.url}", **self._error_kw(device_id, address))
+
+    async def _request(self, device_id, address, function_code, call):
+        from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
+
+        kw = self._error_kw(device_id, address)
+        async with self._lock:
+            await self._ensure_connected_for(device_id, address)
+            try:
+                rsp = await asyncio.wait_for(call(self._client), self.timeout + 0.5)
+            except (ModbusIOException, asyncio.TimeoutError) as err:
+                self.failures += 1
+                self._drop()
+                raise DriveTimeoutError(
+                    f"no answer within {self.timeout:g} s on {self.url}", **kw
+                ) from err
+            except (ConnectionException, ModbusException, OSError) as err:
+                self.failures += 1
+                self._drop()
+                raise DriveLinkError(f"link failure on {self.url}: {err}", **kw) from err
+            except BaseException:  # cancelled mid-request: the answer may still come
+                self._drop()
+                raise
+            if rsp is None:
+                self._fail(device_id, address, "no response object")
+            if rsp.isError():
+                self.requests += 1
+                raise DriveExceptionResponse(
+                    f"request FC{function_code:02d} refused",
+                    exception_code=int(rsp.exception_code),
+                    **kw,
+                )
+            if rsp.function_code != function_code or (rsp.dev_id and rsp.dev_id != device_id):
+                self._fail(
+                    device_id,
+                    address,
+                    f"answer FC{rsp.function_code} from id {rsp.dev_id} "
+                    f"does not match request FC{function_code}",
+                )
+            self.requests += 1
+            return rsp
+
+    async def _ensure_connected_for(self, device_id: int, address: int) -> None:
+        try:
+            await self._ensure_connected()
+        except DriveLinkError as err:
+            self.failures += 1
+            raise DriveLinkError(err.reason, **self._error_kw(device_id, address)) from err
