@@ -28,9 +28,12 @@ def register(app: typer.Typer) -> None:
         method: Annotated[str, typer.Option("--method", help="ols | wls | tls | iv")] = "ols",
         as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the table.")] = False,
     ) -> None:
-        """Identify again from the stored phasors of every complete point, both load
-        measuring systems, without the rig. Writes DIR/reduce_<model>_<freq-dep>_<method>.csv
-        (the columns of coefficients.csv); the run's own results are left untouched."""
+        """Identify again from a run's stored phasors, without the rig.
+
+        Every complete point, both load measuring systems. Writes
+        DIR/reduce_<model>_<freq-dep>_<method>.csv (the columns of coefficients.csv);
+        the run's own results are left untouched.
+        """
         from orbitrig.errors import ReductionError
         from orbitrig.reduce import csv_path, format_table, reduce_run, write_csv
         from orbitrig.run_reader import RunDirError, read_run
@@ -64,8 +67,12 @@ def register(app: typer.Typer) -> None:
         directory: Annotated[Path, typer.Argument(metavar="DIR", help="Run directory written by `orbitrig sweep --out DIR`.")],
         point: Annotated[Optional[list[int]], typer.Option("--point", help="Only this operating point index (repeatable).")] = None,
     ) -> None:
-        """PNG plots (forces measured vs reproduced, coefficients against Omega/omega,
-        coherence, the two load measuring systems) and an HTML page in DIR/plots."""
+        """Plots and an HTML page of a stored run, in DIR/plots.
+
+        Forces measured vs reproduced, coefficients against Omega/omega, coherence,
+        the two load measuring systems; DIR/plots/index.html shows them with the
+        coefficient tables.
+        """
         from orbitrig.report import make_report
         from orbitrig.run_reader import RunDirError
 
