@@ -43,12 +43,28 @@ def wait_port(port: int, timeout: float = 5.0) -> None:
             time.sleep(0.02)
 
 
+def make_test_ca(folder: Path) -> Path:
+    """A throw-away CA and a server certificate for 127.0.0.1 (openssl); returns the CA file."""
+    def ssl(*args: str) -> None:
+        subprocess.run(["openssl", *args], cwd=folder, check=True, capture_output=True)
+
+    ssl("req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "2", "-subj", "/CN=orbitrig test CA",
+        "-keyout", "ca.key", "-out", "ca.crt")
+    ssl("req", "-newkey", "rsa:2048", "-nodes", "-subj", "/CN=127.0.0.1",
+        "-keyout", "server.key", "-out", "server.csr")
+    (folder / "san.ext").write_text("subjectAltName=IP:127.0.0.1,DNS:localhost\n")
+    ssl("x509", "-req", "-in", "server.csr", "-CA", "ca.crt", "-CAkey", "ca.key", "-CAcreateserial",
+        "-days", "2", "-extfile", "san.ext", "-out", "server.crt")
+    return folder / "ca.crt"
+
+
 class Broker:
     """mosquitto on a loopback port: no anonymous access, a password file made
     with mosquitto_passwd, and config/mosquitto/acl (the shipped example)."""
 
-    def __init__(self, workdir: Path, port: int | None = None):
+    def __init__(self, workdir: Path, port: int | None = None, *, tls: bool = False):
         self.dir = Path(workdir)
+        self.tls = tls
         self.dir.mkdir(parents=True, exist_ok=True)
         self.port = port or free_port()
         self.passwd = self.dir / "passwd"
@@ -56,6 +72,11 @@ class Broker:
         for user, password in ACCOUNTS.items():
             subprocess.run(["mosquitto_passwd", "-b", str(self.passwd), user, password],
                            check=True, capture_output=True)
+        tls_lines = ""
+        if tls:
+            self.ca = make_test_ca(self.dir)
+            tls_lines = (f"cafile {self.ca}\ncertfile {self.dir / 'server.crt'}\n"
+                         f"keyfile {self.dir / 'server.key'}\n")
         self.conf = self.dir / "mosquitto.conf"
         self.conf.write_text(
             "user root\n"  # root-run mosquitto would drop privileges and lose the files
@@ -64,6 +85,7 @@ class Broker:
             f"password_file {self.passwd}\n"
             f"acl_file {EXAMPLE_ACL}\n"
             f"listener {self.port} 127.0.0.1\n"
+            f"{tls_lines}"
             "persistence false\n"
             "log_dest stderr\n"
             "log_type error\nlog_type warning\nlog_type notice\nlog_type information\n")
@@ -72,7 +94,7 @@ class Broker:
 
     @property
     def url(self) -> str:
-        return f"mqtt://127.0.0.1:{self.port}"
+        return f"{'mqtts' if self.tls else 'mqtt'}://127.0.0.1:{self.port}"
 
     def start(self) -> None:
         with open(self.log, "ab") as log:
@@ -95,6 +117,8 @@ class Broker:
 
     def client_args(self, user: str | None) -> list[str]:
         args = ["-h", "127.0.0.1", "-p", str(self.port)]
+        if self.tls:
+            args += ["--cafile", str(self.ca)]
         if user is not None:
             args += ["-u", user, "-P", ACCOUNTS[user]]
         return args
@@ -109,6 +133,19 @@ class Broker:
             args.append("-r")
         data = payload.encode() if isinstance(payload, str) else payload
         return subprocess.run(args, input=data, capture_output=True, timeout=10)
+
+
+def retained(broker: "Broker", topic: str, user: str = "viewer", wait: float = 2.0) -> "Msg | None":
+    """The retained message on ``topic`` now (a fresh subscription), or None."""
+    done = subprocess.run(["mosquitto_sub", *broker.client_args(user), "-t", topic, "-q", "1",
+                           "--retained-only", "-C", "1", "-W", str(int(max(1, wait))), "-F", "%j"],
+                          capture_output=True, timeout=wait + 10)
+    line = done.stdout.decode("utf-8", "surrogateescape").strip()
+    if not line:
+        return None
+    obj = json.loads(line)
+    return Msg(obj["topic"], obj["payload"].encode("utf-8", "surrogateescape"), obj["qos"],
+               bool(obj["retain"]), time.monotonic())
 
 
 @dataclass

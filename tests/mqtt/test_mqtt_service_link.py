@@ -1,0 +1,179 @@
+"""The service's broker link, in process, against a real mosquitto: retained
+status and last will, credentials, TLS with a CA file, reconnection, command
+replies that need no run. (Runs themselves: test_mqtt_serve.py.)"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+from pathlib import Path
+
+import pytest
+
+from mqtt_helpers import ACCOUNTS, Broker, RigClient, Watcher, retained
+from orbitrig.service import Backoff, BrokerSettings, RigService, ServiceError, ServiceSettings
+
+
+def _no_engine(name, matrix):
+    raise AssertionError("no run is started in these tests")
+
+
+def _service(broker: Broker, tmp_path: Path, rig_id: str, *, password: str = ACCOUNTS["orbitrig-service"],
+             **kw) -> RigService:
+    matrices = tmp_path / "matrices"
+    matrices.mkdir(exist_ok=True)
+    (matrices / "quick.toml").write_text("name = 'quick'\n")
+    (matrices / "broken.toml").write_text("name = \n")
+    settings = ServiceSettings(rig_id=rig_id, matrices_dir=matrices, **kw)
+    from orbitrig.config import load_matrix
+
+    return RigService(settings, BrokerSettings.from_url(broker.url, username="orbitrig-service",
+                                                        password=password,
+                                                        tls_ca=getattr(broker, "ca", None)),
+                      engine_factory=_no_engine, load_matrix=load_matrix)
+
+
+@contextlib.asynccontextmanager
+async def running(service: RigService):
+    stop = asyncio.Event()
+    task = asyncio.create_task(service.serve(stop), name="service-under-test")
+    try:
+        yield task
+    finally:
+        stop.set()
+        await asyncio.wait_for(task, 10)
+
+
+async def wait(fn, *args, **kw):
+    return await asyncio.to_thread(fn, *args, **kw)
+
+
+def test_backoff_is_jittered_exponential_and_capped():
+    lo = Backoff(0.2, 3.0, rng=lambda: 0.0)
+    assert [lo.next() for _ in range(6)] == pytest.approx([0.1, 0.2, 0.4, 0.8, 1.5, 1.5])
+    hi = Backoff(0.2, 3.0, rng=lambda: 1.0)
+    assert [hi.next() for _ in range(6)] == pytest.approx([0.2, 0.4, 0.8, 1.6, 3.0, 3.0])
+    hi.reset()
+    assert hi.next() == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize("url, host, port, tls", [
+    ("mqtt://127.0.0.1:1884", "127.0.0.1", 1884, False),
+    ("mqtt://broker.lab", "broker.lab", 1883, False),
+    ("mqtts://broker.lab", "broker.lab", 8883, True),
+])
+def test_broker_url(url, host, port, tls):
+    b = BrokerSettings.from_url(url)
+    assert (b.host, b.port, b.tls) == (host, port, tls)
+
+
+@pytest.mark.parametrize("url, why", [
+    ("tcp://h:1", "expected mqtt://"), ("mqtt://", "expected mqtt://"),
+    ("mqtt://u:pw@h:1", "credentials do not belong in the URL"), ("mqtt://h:1/x", "no path"),
+    ("mqtt://h:99999", "out of range"),
+])
+def test_bad_broker_url(url, why):
+    with pytest.raises(ServiceError, match=why):
+        BrokerSettings.from_url(url)
+
+
+def test_password_not_in_repr():
+    assert "s3cret" not in repr(BrokerSettings("h", username="u", password="s3cret"))
+
+
+async def test_status_retained_and_offline_on_shutdown(broker, tmp_path):
+    service = _service(broker, tmp_path, "link1")
+    async with running(service):
+        w = Watcher(broker, "orbitrig/link1/status")
+        try:
+            msg = await wait(w.wait_for, lambda m: True, 10)
+        finally:
+            w.close()
+        assert msg.qos == 1 and msg.json()["state"] == "idle" and msg.json()["run_id"] is None
+        late = await wait(retained, broker, "orbitrig/link1/status")  # a late subscriber gets it
+        assert late.retain and late.payload == msg.payload
+    # after a clean shutdown the retained status says offline
+    msg = await wait(retained, broker, "orbitrig/link1/status")
+    assert msg.retain and msg.json()["state"] == "offline"
+    assert msg.json()["message"] == "service stopped"
+
+
+async def test_refused_credentials_are_fatal(broker, tmp_path):
+    service = _service(broker, tmp_path, "link2", password="wrong")
+    with pytest.raises(ExceptionGroup) as info:
+        await asyncio.wait_for(service.serve(asyncio.Event()), 10)
+    err = info.value.exceptions[0]
+    assert isinstance(err, ServiceError) and "refused the credentials of 'orbitrig-service'" in str(err)
+
+
+async def test_commands_without_a_run(broker, tmp_path):
+    service = _service(broker, tmp_path, "link3")
+    async with running(service):
+        rc = RigClient(broker, "link3")
+        try:
+            await wait(rc.status, "idle")
+            cases = [
+                ({"cmd": "pause"}, "no run is active: nothing to pause"),
+                ({"cmd": "resume"}, "no run is active: nothing to resume"),
+                ({"cmd": "confirm", "step": "orbit_radius"}, "no run is active: nothing to confirm"),
+                ({"cmd": "start", "matrix": "nope"}, "no matrix 'nope' in the matrix folder (available: broken, quick)"),
+                ({"cmd": "start", "matrix": "broken"}, "matrix 'broken' is invalid: not valid TOML"),
+                ({"cmd": "start", "matrix": "quick"}, "matrix 'quick' is invalid: key 'operating': required key is missing"),
+                ({"cmd": "start", "matrix": "/etc/passwd"}, "not a path"),
+            ]
+            for cmd, why in cases:
+                reply = await wait(rc.command, cmd)
+                assert reply["ok"] is False and why in reply["error"], (cmd, reply)
+            for cmd in ({"cmd": "stop"}, {"cmd": "abort"}):  # always accepted
+                assert await wait(rc.command, cmd) == {"id": f"t{rc._n}-{cmd['cmd']}", "ok": True}
+            mark = rc.watch.mark()
+            assert (await wait(rc.command, {"cmd": "status"}))["ok"] is True
+            await wait(rc.status, "idle", start=mark)  # published again
+            assert service.state == "idle" and not service.run_active
+        finally:
+            rc.close()
+
+
+async def test_tls_with_ca_file(tmp_path):
+    b = Broker(tmp_path / "tls-broker", tls=True)
+    b.start()
+    try:
+        service = _service(b, tmp_path, "tls1")
+        assert service.broker.tls and service.broker.tls_ca == b.ca
+        async with running(service):
+            w = Watcher(b, "orbitrig/tls1/status")  # mosquitto_sub over TLS, same CA
+            try:
+                msg = await wait(w.wait_for, lambda m: True, 10)
+            finally:
+                w.close()
+            assert msg.json()["state"] == "idle"
+    finally:
+        b.stop()
+
+
+async def test_reconnects_and_republishes_status(tmp_path):
+    b = Broker(tmp_path / "flaky-broker")
+    b.start()
+    try:
+        service = _service(b, tmp_path, "re1", supervision_timeout=30)
+        async with running(service):
+            w = Watcher(b, "orbitrig/re1/status")
+            try:
+                await wait(w.wait_for, lambda m: True, 10)
+            finally:
+                w.close()
+            assert service.connections == 1
+            b.stop()  # persistence is off: the retained status is gone with the broker
+            await asyncio.sleep(0.5)
+            b.start()
+            w = Watcher(b, "orbitrig/re1/status")
+            try:
+                msg = await wait(w.wait_for, lambda m: True, 15)
+            finally:
+                w.close()
+            assert msg.json()["state"] == "idle"
+            assert service.connections == 2
+            assert (await wait(retained, b, "orbitrig/re1/status")).payload == msg.payload
+    finally:
+        b.stop()
