@@ -102,24 +102,28 @@ def _coefficient_table(results, truth: dict[str, float]) -> str:
 
 
 def _coherence_table(point) -> str:
-    """The paper's Table 1 for each LMS: Omega/omega and the four gamma^2."""
-    parts = []
-    for lms in LMS_NAMES:
-        t = point.tables.get(lms)
-        if t is None or t.gamma2 is None:
-            continue
-        ratio = t.orbit / t.spin
-        dirs = whirl_direction(t)
-        order = np.lexsort((ratio, -dirs))
-        head = '<tr><th class="l">whirl</th><th>\u03a9/\u03c9</th>' + "".join(
-            f"<th>\u03b3\u00b2 {_e(v)}</th>" for v in PAIR_LABELS.values()) + "</tr>"
-        rows = "".join(
-            f'<tr><td class="l">{"forward" if dirs[i] > 0 else "backward"}</td><td>{ratio[i]:.3f}</td>'
-            + "".join(f"<td>{t.gamma2[i, c]:.3f}</td>" for c in range(4)) + "</tr>"
-            for i in order
-        )
-        parts.append(f"<h4>Coherence, {lms} load cells</h4><table>{head}{rows}</table>")
-    return "".join(parts)
+    """The paper's Table 1: Omega/omega and the four gamma^2, for each LMS side by side
+    (values below 0.9 are marked)."""
+    tables = {lms: t for lms in LMS_NAMES if (t := point.tables.get(lms)) is not None and t.gamma2 is not None}
+    if not tables:
+        return ""
+    ref = next(iter(tables.values()))
+    tables = {lms: t for lms, t in tables.items() if np.array_equal(t.orbit, ref.orbit)}
+    ratio = ref.orbit / ref.spin
+    dirs = whirl_direction(ref)
+    head1 = '<tr><th class="l" rowspan="2">whirl</th><th rowspan="2">\u03a9/\u03c9</th>' + "".join(
+        f'<th colspan="4">{_e(lms)} load cells</th>' for lms in tables) + "</tr>"
+    head2 = "<tr>" + "".join(f"<th>\u03b3\u00b2 {_e(v)}</th>" for v in PAIR_LABELS.values()) * len(tables) + "</tr>"
+
+    def cell(v: float) -> str:
+        return f'<td class="err">{v:.3f}</td>' if v < 0.9 else f"<td>{v:.3f}</td>"
+
+    rows = "".join(
+        f'<tr><td class="l">{"forward" if dirs[i] > 0 else "backward"}</td><td>{ratio[i]:.3f}</td>'
+        + "".join(cell(t.gamma2[i, c]) for t in tables.values() for c in range(4)) + "</tr>"
+        for i in np.lexsort((ratio, -dirs))
+    )
+    return f"<h3>Coherence between motion and force signals</h3><table>{head1}{head2}{rows}</table>"
 
 
 def _point_section(run, pr, out_dir: Path) -> str:
