@@ -52,7 +52,11 @@ def register(app: typer.Typer) -> None:
             "keep", "--supervision-policy",
             help="when the broker is gone longer than --supervision-timeout: keep | pause | stop"),
         supervision_timeout: float = typer.Option(60.0, "--supervision-timeout", help="s"),
-        speedup: float = typer.Option(1.0, "--speedup", help="simulator time speed-up (--sim)"),
+        confirm: str = typer.Option(
+            "remote", "--confirm",
+            help="manual settings: remote (wait for a 'confirm' command) | auto (--sim only)"),
+        speedup: Optional[float] = typer.Option(None, "--speedup",
+                                                help="simulator time speed-up (--sim; default: sim config)"),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ) -> None:
         """Run the rig service: start, watch and stop runs over MQTT."""
@@ -90,10 +94,16 @@ def register(app: typer.Typer) -> None:
         except (ConfigError, ServiceError) as err:
             typer.echo(f"error: {err}", err=True)
             raise typer.Exit(2) from None
+        if confirm not in ("remote", "auto"):
+            raise typer.BadParameter("one of remote, auto", param_hint="--confirm")
+        if confirm == "auto" and not sim:
+            raise typer.BadParameter("auto confirmation only with --sim (a real rig needs an operator)",
+                                     param_hint="--confirm")
         if not folder.is_dir():
             raise typer.BadParameter(f"no such folder: {folder}", param_hint="--matrices")
         try:
-            asyncio.run(_serve(rig, settings, broker_settings, out=out, sim=sim, speedup=speedup))
+            asyncio.run(_serve(rig, settings, broker_settings, out=out, sim=sim, speedup=speedup,
+                               confirm=confirm))
         except* ServiceError as group:
             for err in group.exceptions:
                 typer.echo(f"error: {err}", err=True)
@@ -104,14 +114,17 @@ def _load_matrix_for(rig):
     from orbitrig import config as cfg
 
     def load(path: Path):
+        from orbitrig.plan import expand
+
         matrix = cfg.load_matrix(path)
-        cfg.check_matrix_against_rig(matrix, rig)
+        expand(matrix, rig)  # every problem of this matrix on this rig, before anything moves
         return matrix
 
     return load
 
 
-async def _serve(rig, settings, broker_settings, *, out: Path, sim: bool, speedup: float) -> None:
+async def _serve(rig, settings, broker_settings, *, out: Path, sim: bool, speedup: float | None,
+                 confirm: str) -> None:
     import asyncio
     import contextlib
     import datetime as dt
@@ -139,7 +152,7 @@ async def _serve(rig, settings, broker_settings, *, out: Path, sim: bool, speedu
             while run_dir.exists():
                 n += 1
                 run_dir = out / f"{stamp}-{name}-{n}"
-            return RunEngine(rig, out_dir=run_dir, sim=sim_rig, confirm_mode="remote")
+            return RunEngine(rig, out_dir=run_dir, sim=sim_rig, confirm_mode=confirm)
 
         service = RigService(settings, broker_settings, engine_factory=new_engine,
                              load_matrix=_load_matrix_for(rig))

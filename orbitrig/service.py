@@ -425,6 +425,9 @@ class RigService:
         engine, task = self._engine, self._run_task
         if task is None or task.done() or engine is None:
             return
+        if what in ("stop", "abort") and getattr(engine, "state", None) == "idle":
+            task.cancel()  # the run task has not started yet: it never touches the drives
+            return
         try:
             getattr(engine, f"request_{what}")()
         except Exception:  # noqa: BLE001
