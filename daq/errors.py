@@ -1,0 +1,17 @@
+"""Exceptions of the acquisition layer (root: ``reduction.errors.OrbitrigError``)."""
+
+from __future__ import annotations
+
+from reduction.errors import OrbitrigError
+
+
+class DaqError(OrbitrigError):
+    """Any acquisition failure (A/D board link, CAN node, bad configuration)."""
+
+
+class DaqLinkError(DaqError):
+    """The byte link to the A/D board (serial port, pty, TCP) cannot be opened or dropped."""
+
+
+class DaqTimeoutError(DaqError, TimeoutError):
+    """Not enough good revolutions (or no data at all) arrived within the timeout."""

@@ -1,0 +1,233 @@
+"""Decoder of the A/D board's frames (../shared/spec/adc-frames.md, v1). Pure: no I/O.
+
+``FrameDecoder.feed(bytes)`` takes the byte stream in arbitrary pieces and returns
+the frames that passed every check (sync, version, header fields, length, CRC).
+It never raises on bad bytes: garbage, damaged frames and false sync patterns
+inside payloads are skipped and counted, and the decoder resynchronises on the
+next sync whose frame passes its CRC.
+
+Work per frame is a handful of C calls (``bytes.find`` for the sync search,
+``struct.unpack_from`` for the header, ``binascii.crc_hqx`` for the CRC); samples
+are never touched one by one: the payloads of a whole ``feed`` are joined and
+converted with one ``np.frombuffer``. ``feed_batch`` returns them as arrays
+(:class:`FrameBatch`), which the revolution assembler consumes without building
+a Python object per frame.
+"""
+
+from __future__ import annotations
+
+import struct
+from binascii import crc_hqx
+from dataclasses import dataclass
+
+import numpy as np
+
+from daq.stats import count
+
+SYNC = b"\xa5\x5a"
+VERSION = 1
+FLAG_TRIGGER = 0x01
+FLAG_OVERRUN = 0x02
+FLAG_SIMULTANEOUS = 0x04
+SLOTS_PER_REV = 360
+HEADER = struct.Struct("<2sBBHIHBBI")  # sync version flags seq rev first_slot n_slots n_ch t_us
+HEADER_SIZE = HEADER.size  # 18
+CRC_SIZE = 2
+MAX_FRAME = HEADER_SIZE + 2 * 255 * 255 + CRC_SIZE
+_LAST_SYNC_BYTE0 = SYNC[0]
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One frame that passed its CRC. ``samples``: int16 counts, shape (n_slots, n_ch)."""
+
+    flags: int
+    seq: int
+    rev: int
+    first_slot: int
+    n_slots: int
+    n_ch: int
+    t_us: int
+    samples: np.ndarray
+    skipped_before: int = 0  # bytes discarded between the previous good frame and this one
+
+    @property
+    def trigger(self) -> bool:
+        return bool(self.flags & FLAG_TRIGGER)
+
+    @property
+    def overrun(self) -> bool:
+        return bool(self.flags & FLAG_OVERRUN)
+
+    @property
+    def simultaneous(self) -> bool:
+        return bool(self.flags & FLAG_SIMULTANEOUS)
+
+
+_FIELDS = ("flags", "seq", "rev", "first_slot", "n_slots", "n_ch", "t_us", "skipped_before")
+
+
+@dataclass(frozen=True)
+class FrameBatch:
+    """Good frames of one ``feed`` as arrays (all int64, shape (F,)).
+
+    ``start[i]`` is the index in ``samples`` (int16, 1-D, all payloads in stream
+    order, slot-major) of frame i's first sample; it has ``n_slots[i]*n_ch[i]``.
+    """
+
+    flags: np.ndarray
+    seq: np.ndarray
+    rev: np.ndarray
+    first_slot: np.ndarray
+    n_slots: np.ndarray
+    n_ch: np.ndarray
+    t_us: np.ndarray
+    skipped_before: np.ndarray
+    start: np.ndarray
+    samples: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.seq)
+
+    @classmethod
+    def empty(cls) -> "FrameBatch":
+        z = np.zeros(0, np.int64)
+        return cls(z, z, z, z, z, z, z, z, z, np.zeros(0, np.int16))
+
+    @classmethod
+    def from_frames(cls, frames: list[Frame]) -> "FrameBatch":
+        if not frames:
+            return cls.empty()
+        cols = np.array([[getattr(f, k) for k in _FIELDS] for f in frames], np.int64).T
+        sizes = np.array([f.n_slots * f.n_ch for f in frames], np.int64)
+        start = np.concatenate(([0], np.cumsum(sizes)[:-1]))
+        samples = np.concatenate([np.ascontiguousarray(f.samples, np.int16).ravel() for f in frames])
+        return cls(*cols, start, samples)
+
+    def select(self, first: int) -> "FrameBatch":
+        """Frames ``first:`` with their samples re-based to a compact buffer."""
+        if first >= len(self):
+            return FrameBatch.empty()
+        s0 = int(self.start[first])
+        cols = [getattr(self, k)[first:].copy() for k in _FIELDS]
+        return FrameBatch(*cols, self.start[first:] - s0, self.samples[s0:].copy())
+
+    def concat(self, other: "FrameBatch") -> "FrameBatch":
+        if not len(self):
+            return other
+        if not len(other):
+            return self
+        cols = [np.concatenate((getattr(self, k), getattr(other, k))) for k in _FIELDS]
+        start = np.concatenate((self.start, other.start + len(self.samples)))
+        return FrameBatch(*cols, start, np.concatenate((self.samples, other.samples)))
+
+    def frames(self) -> list[Frame]:
+        out = []
+        for i in range(len(self)):
+            ns, nc, s = int(self.n_slots[i]), int(self.n_ch[i]), int(self.start[i])
+            out.append(Frame(
+                int(self.flags[i]), int(self.seq[i]), int(self.rev[i]), int(self.first_slot[i]),
+                ns, nc, int(self.t_us[i]), self.samples[s:s + ns * nc].reshape(ns, nc),
+                int(self.skipped_before[i]),
+            ))
+        return out
+
+
+def header_problem(version: int, flags: int, first_slot: int, n_slots: int, n_ch: int) -> str | None:
+    """Why a header cannot be a v1 frame's (frame error key), or None if it can."""
+    if version != VERSION:
+        return "version"
+    if (
+        flags & ~(FLAG_TRIGGER | FLAG_OVERRUN | FLAG_SIMULTANEOUS)
+        or n_slots == 0
+        or n_ch == 0
+        or first_slot + n_slots > SLOTS_PER_REV
+        or (flags & FLAG_TRIGGER and first_slot != 0)
+        or (not flags & FLAG_SIMULTANEOUS and n_ch != 1)
+    ):
+        return "header"
+    return None
+
+
+class FrameDecoder:
+    """Incremental, resynchronising frame decoder.
+
+    Statistics (cumulative): ``frames_good``, ``frames_bad`` (candidate frames that
+    failed version, header or CRC checks; ``frame_errors`` has them by reason),
+    ``bytes_skipped`` (bytes that are not part of any good frame).
+    """
+
+    def __init__(self) -> None:
+        self._buf = b""
+        self._skip_run = 0  # bytes skipped since the last good frame (already counted)
+        self.frames_good = 0
+        self.frames_bad = 0
+        self.bytes_skipped = 0
+        self.frame_errors: dict[str, int] = {}
+
+    @property
+    def pending(self) -> int:
+        """Bytes held back (an incomplete frame or a trailing sync byte)."""
+        return len(self._buf)
+
+    def reset(self) -> None:
+        """Forget held bytes (link dropped): they count as skipped."""
+        self._skip(len(self._buf))
+        self._buf = b""
+
+    def _skip(self, n: int) -> None:
+        self.bytes_skipped += n
+        self._skip_run += n
+
+    def feed(self, data: bytes) -> list[Frame]:
+        return self.feed_batch(data).frames()
+
+    def feed_batch(self, data: bytes) -> FrameBatch:
+        buf = self._buf + bytes(data) if self._buf else bytes(data)
+        mv = memoryview(buf)
+        n = len(buf)
+        find, unpack = buf.find, HEADER.unpack_from
+        heads: list[tuple] = []
+        pos = 0  # first byte not yet accounted for
+        scan = 0  # where to look for the next sync
+        keep = n  # first byte to hold back for the next feed
+        while True:
+            c = scan if buf.startswith(SYNC, scan) else find(SYNC, scan)
+            if c < 0:
+                keep = n - 1 if n > pos and buf[-1] == _LAST_SYNC_BYTE0 else n
+                break
+            if c + HEADER_SIZE > n:
+                keep = c
+                break
+            _, ver, flags, seq, rev, fs, ns, nch, t = unpack(buf, c)
+            problem = header_problem(ver, flags, fs, ns, nch)
+            if problem is None:
+                end = c + HEADER_SIZE + 2 * ns * nch + CRC_SIZE
+                if end > n:
+                    keep = c
+                    break
+                if crc_hqx(mv[c + 2:end - 2], 0xFFFF) == buf[end - 2] | (buf[end - 1] << 8):
+                    skipped = c - pos
+                    if skipped:
+                        self._skip(skipped)
+                    heads.append((flags, seq, rev, fs, ns, nch, t, self._skip_run, c + HEADER_SIZE, end - 2))
+                    self._skip_run = 0
+                    pos = scan = end
+                    continue
+                problem = "crc"
+            self.frames_bad += 1
+            count(self.frame_errors, problem)
+            scan = c + 1
+        keep = max(keep, pos)
+        if keep > pos:
+            self._skip(keep - pos)
+        self._buf = buf[keep:]
+        if not heads:
+            return FrameBatch.empty()
+        self.frames_good += len(heads)
+        cols = np.array(heads, np.int64).T
+        payload = b"".join([mv[a:b] for a, b in zip(cols[8].tolist(), cols[9].tolist())])
+        sizes = cols[4] * cols[5]
+        start = np.zeros(len(heads), np.int64)
+        np.cumsum(sizes[:-1], out=start[1:])
+        return FrameBatch(*cols[:8], start, np.frombuffer(payload, "<i2").astype(np.int16, copy=False))

@@ -1,0 +1,273 @@
+"""Revolution assembler: good frames -> complete, trigger-aligned revolutions. Pure.
+
+A revolution is usable only when all 360 slots arrived with valid CRCs, in order,
+under one rev number, from a TRIGGER frame on, with no OVERRUN and no seq gap
+inside it (../shared/spec/adc-frames.md, "What a correct reader guarantees").
+Anything else is dropped once per revolution and counted with its reason (see
+:mod:`daq.stats`).
+
+Vectorised over a batch of frames: frame i *continues* frame i-1 when its seq is
+the next one (u16 wrap), the rev number is the same, its first slot is where
+frame i-1 ended, it is not a TRIGGER frame, carries no OVERRUN and matches the
+configured mode. Chains of continuing frames that start at a clean TRIGGER frame
+and end at slot 360 are the good revolutions; their samples are contiguous in
+the batch's sample buffer, so they are gathered with one fancy index.
+
+Channel demultiplexing: sequential mode (one sample per slot) puts channel k at
+slots k, k+C, k+2C, ... (C must divide 360); simultaneous mode gives every
+channel all 360 slots. Angles: theta = 2 pi slot / 360 (orbit angle after the
+trigger), so Fourier coefficients need no further phase correction.
+
+The orbit period of revolution r is t_us(trigger r+1) - t_us(trigger r) (u32
+wrap), so a revolution is released when the frame after it has arrived
+(``flush()`` releases a held one with an unknown period).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from daq.frames import FLAG_OVERRUN, FLAG_SIMULTANEOUS, FLAG_TRIGGER, SLOTS_PER_REV, Frame, FrameBatch
+from daq.stats import count
+
+_U16 = 0xFFFF
+_U32 = 0xFFFFFFFF
+
+
+@dataclass(frozen=True)
+class Revolution:
+    """One intact revolution in raw counts.
+
+    counts: int16 (n_channels, samples_per_channel); slots: int (same shape), 0..359,
+    theta = 2 pi slots / 360 rad. t_us: trigger time on the board clock (us, u32).
+    period_s: orbit period measured to the next trigger (s), None if unknown.
+    """
+
+    rev: int
+    t_us: int
+    period_s: float | None
+    counts: np.ndarray
+    slots: np.ndarray
+
+    @property
+    def theta(self) -> np.ndarray:
+        return self.slots * (2 * np.pi / SLOTS_PER_REV)
+
+
+@dataclass(frozen=True)
+class RevolutionBatch:
+    """Revolutions as arrays: counts (R, C, S) int16; rev, t_us (R,) int64;
+    period_s (R,) float (NaN where unknown); slots (C, S) shared by all."""
+
+    rev: np.ndarray
+    t_us: np.ndarray
+    period_s: np.ndarray
+    counts: np.ndarray
+    slots: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.rev)
+
+    def revolutions(self) -> list[Revolution]:
+        return [
+            Revolution(int(r), int(t), None if np.isnan(p) else float(p), c, self.slots)
+            for r, t, p, c in zip(self.rev, self.t_us, self.period_s, self.counts)
+        ]
+
+    @classmethod
+    def concat(cls, parts: list["RevolutionBatch"], slots: np.ndarray) -> "RevolutionBatch":
+        parts = [p for p in parts if len(p)]
+        if not parts:
+            z = np.zeros(0, np.int64)
+            return cls(z, z, np.zeros(0), np.zeros((0, *slots.shape), np.int16), slots)
+        if len(parts) == 1:
+            return parts[0]
+        return cls(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("rev", "t_us", "period_s", "counts")), slots)
+
+
+def channel_slots(channels: int, mode: str) -> np.ndarray:
+    """Slot numbers (C, S) of each channel's samples."""
+    if mode == "sequential":
+        return np.arange(SLOTS_PER_REV).reshape(SLOTS_PER_REV // channels, channels).T.copy()
+    return np.broadcast_to(np.arange(SLOTS_PER_REV), (channels, SLOTS_PER_REV)).copy()
+
+
+class RevolutionAssembler:
+    """Assemble good revolutions from decoded frames; count and drop the rest.
+
+    Statistics (cumulative): ``revolutions_good``, ``revolutions_dropped``,
+    ``drop_reasons`` (reason -> count), ``frames_discarded`` (frames of partial
+    revolutions seen right after start/reset, before the first trigger: not faults).
+    """
+
+    def __init__(self, channels: int = 8, mode: str = "sequential") -> None:
+        if mode not in ("sequential", "simultaneous"):
+            raise ValueError(f"mode must be 'sequential' or 'simultaneous', not {mode!r}")
+        if not 1 <= channels <= 255 or (mode == "sequential" and SLOTS_PER_REV % channels):
+            raise ValueError(f"channels={channels}: must be 1..255 and divide 360 in sequential mode")
+        self.channels = channels
+        self.mode = mode
+        self.n_ch = channels if mode == "simultaneous" else 1  # samples per slot in a frame
+        self._sim_flag = FLAG_SIMULTANEOUS if mode == "simultaneous" else 0
+        self.slots = channel_slots(channels, mode)
+        self.revolutions_good = 0
+        self.revolutions_dropped = 0
+        self.drop_reasons: dict[str, int] = {}
+        self.frames_discarded = 0
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything in progress (discards a partial or held revolution uncounted)."""
+        self._carry = FrameBatch.empty()  # frames of the revolution in progress (start: clean trigger)
+        self._held: RevolutionBatch | None = None  # complete revolution waiting for the next trigger
+        self._prev: tuple[int, int, int] | None = None  # (seq, rev, end slot) of the last frame
+        self._recent_drops: deque[int] = deque(maxlen=8)  # a revolution is dropped once
+
+    def link_dropped(self) -> None:
+        """The link dropped: a revolution in progress is lost (counted), a held one is kept."""
+        if len(self._carry):
+            self._drop(int(self._carry.rev[0]), "link_drop")
+        self._carry = FrameBatch.empty()
+        self._prev = None
+
+    def _drop(self, rev: int, reason: str) -> None:
+        if rev in self._recent_drops:
+            return
+        self._recent_drops.append(rev)
+        self.revolutions_dropped += 1
+        count(self.drop_reasons, reason)
+
+    def push(self, frame: Frame) -> list[Revolution]:
+        return self.push_batch(FrameBatch.from_frames([frame])).revolutions()
+
+    def flush(self) -> RevolutionBatch:
+        """Release a held complete revolution (its period stays unknown)."""
+        held, self._held = self._held, None
+        if held is None:
+            return self._empty()
+        self.revolutions_good += 1
+        return held
+
+    def _empty(self) -> RevolutionBatch:
+        return RevolutionBatch.concat([], self.slots)
+
+    def push_batch(self, batch: FrameBatch) -> RevolutionBatch:
+        if not len(batch):
+            return self._empty()
+        b = self._carry.concat(batch)
+        f = len(b)
+        flags, seq, rev, fs = b.flags, b.seq, b.rev, b.first_slot
+        end = fs + b.n_slots
+        trig = (flags & FLAG_TRIGGER) != 0
+        overrun = (flags & FLAG_OVERRUN) != 0
+        mode_ok = ((flags & FLAG_SIMULTANEOUS) == self._sim_flag) & (b.n_ch == self.n_ch)
+        # previous frame's fields, shifted by one (frame 0's predecessor is self._prev)
+        p_seq, p_rev, p_end = self._prev if self._prev is not None else (-2, -1, -1)
+        pseq = np.concatenate(([p_seq], seq[:-1]))
+        prev_rev = np.concatenate(([p_rev], rev[:-1]))
+        pend = np.concatenate(([p_end], end[:-1]))
+        seq_ok = seq == ((pseq + 1) & _U16)
+        cont = seq_ok & (rev == prev_rev) & (fs == pend) & ~trig & ~overrun & mode_ok
+        cont[0] = False  # frame 0 starts the carried revolution, or follows a finished chain
+        starts = np.flatnonzero(~cont)
+        lasts = np.append(starts[1:] - 1, f - 1)
+        clean_start = trig[starts] & ~overrun[starts] & mode_ok[starts]
+        complete = clean_start & (end[lasts] == SLOTS_PER_REV)
+        good_first = starts[complete]
+        good_last = lasts[complete]
+
+        # period of each good revolution from the next frame, if it is the next trigger
+        nxt = good_last + 1
+        has_next = nxt < f
+        nxt_c = np.minimum(nxt, f - 1)
+        dt = (b.t_us[nxt_c] - b.t_us[good_first]) & _U32
+        is_next_trig = has_next & trig[nxt_c] & (rev[nxt_c] == ((rev[good_first] + 1) & _U32))
+        period = np.where(is_next_trig & (dt > 0), dt * 1e-6, np.nan)
+        bad_period = is_next_trig & (dt == 0)
+
+        out: list[RevolutionBatch] = []
+        if self._held is not None:
+            held, self._held = self._held, None
+            first = 0
+            if trig[first] and int(b.rev[first]) == (int(held.rev[0]) + 1) & _U32:
+                dt0 = (int(b.t_us[first]) - int(held.t_us[0])) & _U32
+                if dt0 == 0:
+                    self._drop(int(held.rev[0]), "bad_period")
+                    held = None
+                else:
+                    held = RevolutionBatch(held.rev, held.t_us, np.array([dt0 * 1e-6]), held.counts, held.slots)
+            if held is not None:
+                out.append(held)
+
+        # fault attribution for chains that are not good revolutions (rare: Python loop)
+        why = _BreakReasons(b, trig, overrun, mode_ok, seq_ok, prev_rev, pend)
+        for k in np.flatnonzero(~complete):
+            a, z = int(starts[k]), int(lasts[k])
+            r = int(rev[a])
+            if clean_start[k]:
+                if z < f - 1:  # else: the revolution still in progress
+                    self._drop(r, why(z + 1))
+            elif a == 0 and self._prev is None:
+                self.frames_discarded += z - a + 1  # tail of a revolution begun before start/reset
+            elif trig[a]:
+                self._drop(r, "overrun" if overrun[a] else "mode_mismatch")
+            else:
+                reason = why(a)
+                if reason in ("slot_gap", "rev_mismatch") or (fs[a] == 0 and reason not in ("corrupt", "seq_gap")):
+                    reason = "missing_trigger"  # the chain restarted without a TRIGGER frame
+                self._drop(r, reason)
+
+        # the chain still in progress is carried to the next batch
+        if not complete[-1] and clean_start[-1]:
+            self._carry = b.select(int(starts[-1]))
+        else:
+            self._carry = FrameBatch.empty()
+        self._prev = (int(seq[-1]), int(rev[-1]), int(end[-1]))
+
+        if len(good_first):
+            keep = ~bad_period
+            for r in rev[good_first[bad_period]]:
+                self._drop(int(r), "bad_period")
+            good_first, period = good_first[keep], period[keep]
+            held_last = len(good_first) and good_last[keep][-1] == f - 1
+            s_per_rev = SLOTS_PER_REV * self.n_ch
+            idx = b.start[good_first][:, None] + np.arange(s_per_rev)
+            flat = b.samples[idx]  # (R, 360 * n_ch), slot-major
+            if self.mode == "sequential":
+                counts = flat.reshape(len(good_first), SLOTS_PER_REV // self.channels, self.channels).transpose(0, 2, 1)
+            else:
+                counts = flat.reshape(len(good_first), SLOTS_PER_REV, self.channels).transpose(0, 2, 1)
+            counts = np.ascontiguousarray(counts)
+            revs = RevolutionBatch(rev[good_first], b.t_us[good_first], period, counts, self.slots)
+            if held_last:
+                self._held = RevolutionBatch(*(getattr(revs, k)[-1:] for k in ("rev", "t_us", "period_s", "counts")), self.slots)
+                revs = RevolutionBatch(*(getattr(revs, k)[:-1] for k in ("rev", "t_us", "period_s", "counts")), self.slots)
+            out.append(revs)
+        result = RevolutionBatch.concat(out, self.slots)
+        self.revolutions_good += len(result)
+        return result
+
+
+
+class _BreakReasons:
+    """Why frame i does not continue frame i-1 (a drop reason)."""
+
+    def __init__(self, b: FrameBatch, trig, overrun, mode_ok, seq_ok, prev_rev, pend) -> None:
+        self.b, self.trig, self.overrun, self.mode_ok = b, trig, overrun, mode_ok
+        self.seq_ok, self.prev_rev, self.pend = seq_ok, prev_rev, pend
+
+    def __call__(self, i: int) -> str:
+        if not self.seq_ok[i]:
+            return "corrupt" if self.b.skipped_before[i] else "seq_gap"
+        if self.overrun[i]:
+            return "overrun"
+        if not self.mode_ok[i]:
+            return "mode_mismatch"
+        if self.trig[i]:
+            return "incomplete"
+        if self.b.rev[i] != self.prev_rev[i]:
+            return "rev_mismatch"
+        return "slot_gap"

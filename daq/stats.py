@@ -1,0 +1,76 @@
+"""Counters of one acquisition block: frames, bytes, revolutions and why any were dropped.
+
+Drop reasons (``drop_reasons`` keys) used by :mod:`daq.revolutions` and :mod:`daq.adc`:
+
+``corrupt``          bytes were skipped before a frame of the revolution (bad CRC,
+                     garbage, a damaged header): part of it never arrived intact
+``seq_gap``          a frame counter jump inside the revolution (frame lost)
+``overrun``          a frame of the revolution carries the OVERRUN flag
+``missing_trigger``  frames of a revolution without its TRIGGER frame
+``incomplete``       a new TRIGGER frame arrived before all 360 slots
+``rev_mismatch``     the revolution counter changed inside the revolution
+``slot_gap``         slots not contiguous although the frame counter is
+``mode_mismatch``    frame mode / samples per slot differ from the configured scan
+``link_drop``        the link dropped while the revolution was arriving
+``bad_period``       the trigger clock did not advance (board clock stalled)
+
+Frame errors (``frame_errors`` keys, from :mod:`daq.frames`): ``crc``, ``version``,
+``header`` (reserved flag bits, slot or length fields outside the spec).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass
+class AcquisitionStats:
+    frames_good: int = 0
+    frames_bad: int = 0
+    bytes_skipped: int = 0
+    revolutions_used: int = 0
+    revolutions_dropped: int = 0
+    drop_reasons: dict[str, int] = field(default_factory=dict)
+    frame_errors: dict[str, int] = field(default_factory=dict)
+    link_drops: int = 0
+
+    def copy(self) -> "AcquisitionStats":
+        return AcquisitionStats(
+            self.frames_good, self.frames_bad, self.bytes_skipped, self.revolutions_used,
+            self.revolutions_dropped, dict(self.drop_reasons), dict(self.frame_errors),
+            self.link_drops,
+        )
+
+    def since(self, earlier: "AcquisitionStats") -> "AcquisitionStats":
+        """Counts accumulated after the snapshot ``earlier`` (a block's own statistics)."""
+
+        def sub(a: dict[str, int], b: dict[str, int]) -> dict[str, int]:
+            return {k: v - b.get(k, 0) for k, v in a.items() if v - b.get(k, 0)}
+
+        return AcquisitionStats(
+            self.frames_good - earlier.frames_good,
+            self.frames_bad - earlier.frames_bad,
+            self.bytes_skipped - earlier.bytes_skipped,
+            self.revolutions_used - earlier.revolutions_used,
+            self.revolutions_dropped - earlier.revolutions_dropped,
+            sub(self.drop_reasons, earlier.drop_reasons),
+            sub(self.frame_errors, earlier.frame_errors),
+            self.link_drops - earlier.link_drops,
+        )
+
+    def to_dict(self) -> dict:
+        return {
+            "frames_good": self.frames_good,
+            "frames_bad": self.frames_bad,
+            "bytes_skipped": self.bytes_skipped,
+            "revolutions_used": self.revolutions_used,
+            "revolutions_dropped": self.revolutions_dropped,
+            "drop_reasons": dict(self.drop_reasons),
+            "frame_errors": dict(self.frame_errors),
+            "link_drops": self.link_drops,
+        }
+
+
+def count(reasons: dict[str, int], reason: str, n: int = 1) -> None:
+    """Add ``n`` to ``reasons[reason]``."""
+    reasons[reason] = reasons.get(reason, 0) + n
