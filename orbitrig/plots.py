@@ -269,7 +269,7 @@ def lms_comparison_plot(path, tables: dict[str, Any], fitted: dict[str, Fitted] 
             for k, (lms, fit) in enumerate(fitted.items()):
                 ident = fit.identification
                 vals = [ident.coefficients.get(key, np.nan) * scale for key in keys]
-                errs = [ident.std_errors.get(key, np.nan) * scale for key in keys]
+                errs = [(ident.std_errors.get(key) or 0.0) * scale for key in keys]
                 ax.bar(np.arange(4) + (k - 0.5) * width, vals, width, yerr=errs, capsize=3,
                        color=colors[k], label=f"{lms}: {fit.label}")
             ax.set_xticks(np.arange(4), keys)

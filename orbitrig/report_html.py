@@ -28,7 +28,7 @@ td.l,th.l{text-align:left}
 .status{display:inline-block;padding:.15em .6em;border-radius:.3em;color:#fff;font-weight:bold}
 .completed{background:#2a7d2a}.stopped{background:#b07a00}.aborted,.failed{background:#b02020}
 .running,.unknown{background:#555}
-.err{color:#b02020} .muted{color:#666}
+.err{color:#b02020;white-space:pre-wrap} .muted{color:#666}
 img{max-width:100%;border:1px solid #ddd;margin:.4em 0}
 details pre{background:#f7f7f7;padding:.6em;overflow-x:auto}
 """

@@ -1,0 +1,117 @@
+"""`orbitrig reduce DIR`: identify again from stored phasors, without the rig."""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+
+import numpy as np
+import pytest
+from report_synthetic import C_TRUE, K_TRUE
+from typer.testing import CliRunner
+
+from orbitrig.cli import app
+from orbitrig.reduce import csv_path, reduce_run, write_csv
+from orbitrig.run_reader import read_run
+
+
+def _digest(path):
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _within(value, truth, pct):
+    """Every entry within pct % of the largest entry of its matrix (the issue's criterion)."""
+    return np.all(np.abs(value - truth) <= pct / 100 * np.abs(truth).max())
+
+
+def test_reduce_recovers_known_coefficients(synthetic_run):
+    rows = reduce_run(read_run(synthetic_run), "kcd11")
+    piezo = [r for r in rows if r.lms == "piezo"]
+    assert [r.point.index for r in piezo] == [0, 1]  # the incomplete point is skipped
+    for r in piezo:
+        K, C, D = r.identification.matrices(100.0)
+        assert _within(K, K_TRUE, 1.0) and _within(C, C_TRUE, 2.0)
+
+
+def test_reduce_matches_the_stored_identification(synthetic_run):
+    run = read_run(synthetic_run)
+    compared = 0
+    for point in run.complete_points:
+        for stored in point.identifications:
+            if not stored.ok:
+                continue
+            rows = reduce_run(run, stored.model, stored.freq_dep, stored.method, lms_names=(stored.lms,))
+            (again,) = [r for r in rows if r.point.index == point.index]
+            for key, value in stored.result["coefficients"].items():
+                assert again.identification.coefficients[key] == pytest.approx(value, rel=1e-9, abs=1e-9)
+            compared += 1
+    assert compared >= 12
+
+
+def test_reduce_csv_has_coefficients_std_and_truth(synthetic_run, tmp_path):
+    run = read_run(synthetic_run)
+    rows = reduce_run(run, "kc7")
+    path = write_csv(tmp_path / "out.csv", rows, run.sim)
+    with path.open() as fh:
+        table = list(csv.DictReader(fh))
+    assert [(int(r["point"]), r["lms"]) for r in table] == [(0, "piezo"), (0, "strain"), (1, "piezo"), (1, "strain")]
+    first = table[0]
+    assert first["model"] == "kc7" and first["freq_dep"] == "none" and first["error"] == ""
+    assert float(first["Kxx"]) == pytest.approx(rows[0].identification.coefficients["Kxx"])
+    assert float(first["Cxy_std"]) > 0
+    assert float(first["true_Kxy"]) == pytest.approx(K_TRUE[0, 1])
+    assert float(first["recess_pressure_mpa"]) == pytest.approx(0.4826)
+    assert "Dxx" not in first  # kc7 has no inertia
+
+
+def test_cli_reduce_writes_csv_and_leaves_the_run_alone(synthetic_run):
+    before = _digest(synthetic_run / "run.h5")
+    result = CliRunner().invoke(app, ["reduce", str(synthetic_run), "--model", "kcd11", "--freq-dep", "power:1"])
+    assert result.exit_code == 0, result.output
+    assert "Kxx [MN/m]" in result.stdout and "0001" in result.stdout
+    out = csv_path(synthetic_run, "kcd11", "power:1", "ols")
+    assert out.name == "reduce_kcd11_power_1_ols.csv" and out.is_file()
+    with out.open() as fh:
+        assert len(list(csv.DictReader(fh))) == 4
+    assert _digest(synthetic_run / "run.h5") == before
+
+
+def test_cli_reduce_json(synthetic_run):
+    result = CliRunner().invoke(app, ["reduce", str(synthetic_run), "--model", "kc8", "--json"])
+    assert result.exit_code == 0, result.output
+    out = json.loads(result.stdout)
+    assert out["status"] == "stopped" and len(out["results"]) == 4
+    r0 = out["results"][0]
+    assert r0["point"] == 0 and r0["lms"] == "piezo" and r0["model"] == "kc8"
+    assert r0["coefficients"]["Kxx"] == pytest.approx(K_TRUE[0, 0], rel=0.01)
+    assert set(r0["std_errors"]) == set(r0["coefficients"])
+
+
+def test_cli_reduce_refuses_unidentifiable_model(synthetic_run):
+    # K_2 Omega^2 and -Omega^2 D_0 are the same regressor: no data separates them
+    result = CliRunner().invoke(app, ["reduce", str(synthetic_run), "--model", "kcd12", "--freq-dep", "poly:2"])
+    assert result.exit_code == 2
+    assert result.stdout == ""
+    assert "refused" in result.stderr and "kcd12" in result.stderr
+    assert not csv_path(synthetic_run, "kcd12", "poly:2", "ols").exists()
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--model", "kcd99"], "kcd99"),
+        (["--model", "kcd11", "--freq-dep", "wiggly"], "wiggly"),
+        (["--model", "kcd11", "--method", "magic"], "magic"),
+    ],
+)
+def test_cli_reduce_bad_option(synthetic_run, args, message):
+    result = CliRunner().invoke(app, ["reduce", str(synthetic_run), *args])
+    assert result.exit_code == 2 and message in result.stderr and result.stdout == ""
+
+
+def test_cli_reduce_bad_directory(tmp_path):
+    missing = CliRunner().invoke(app, ["reduce", str(tmp_path / "nope"), "--model", "kcd11"])
+    assert missing.exit_code == 2 and "no such directory" in missing.stderr
+    empty = CliRunner().invoke(app, ["reduce", str(tmp_path), "--model", "kcd11"])
+    assert empty.exit_code == 2 and "no run.h5" in empty.stderr and str(tmp_path) in empty.stderr
