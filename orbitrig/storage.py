@@ -351,7 +351,8 @@ def point_csv_rows(g: h5py.Group, sim: bool) -> list[dict]:
                        error="")  # fmt: skip
             for k, v in d["coefficients"].items():
                 row[k] = f"{v:.8g}"
-                row[f"{k}_std"] = f"{d['std_errors'].get(k, float('nan')):.6g}"
+                std = (d.get("std_errors") or {}).get(k)
+                row[f"{k}_std"] = "" if std is None else f"{std:.6g}"
             keys = [k for k in d["coefficients"] if "_" not in k]
         else:
             row.update(freq_dep=str(h.attrs.get("freq_dep", fd)), method=str(h.attrs.get("method", "")),

@@ -1,0 +1,281 @@
+"""`orbitrig sweep`: run a test matrix on the rig or on the built-in simulator.
+
+Exit status: 0 completed, 1 failed, 2 bad configuration or usage, 3 stopped,
+4 aborted.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+DEFAULT_SIM_SPEEDUP = 40.0
+EXIT = {"completed": 0, "failed": 1, "stopped": 3, "aborted": 4}
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("sweep")
+    def sweep(
+        out: Optional[Path] = typer.Option(None, "--out", help="run directory (run.h5, coefficients.csv, run.log)"),
+        sim: bool = typer.Option(False, "--sim", help="run on the built-in simulator over loopback protocols"),
+        config: Optional[Path] = typer.Option(None, "--config", help="rig configuration [config/rig.toml]"),
+        matrix: Optional[Path] = typer.Option(
+            None, "--matrix", help="test matrix [config/matrices/demo.toml with --sim]"
+        ),
+        resume: bool = typer.Option(False, "--resume", help="continue the run in --out from its first incomplete point"),
+        dry_run: bool = typer.Option(False, "--dry-run", help="list the steps with estimated durations; no hardware"),
+        speedup: float = typer.Option(
+            DEFAULT_SIM_SPEEDUP, "--speedup", min=0.01, help="simulator time speed-up (--sim only)"
+        ),
+    ) -> None:
+        """Run a test matrix: manual settings, speeds, settle, acquire, identify, store."""
+        from orbitrig.errors import ConfigError, OrbitrigError
+
+        try:
+            rig, mat = _load(config, matrix, sim=sim, resume=resume, out=out, dry_run=dry_run)
+            if dry_run:
+                _dry_run(rig, mat)
+                return
+            if out is None:
+                raise typer.BadParameter("--out DIR is required (except with --dry-run)", param_hint="--out")
+            import asyncio
+
+            outcome = asyncio.run(_sweep(rig, mat, out=out, sim=sim, resume=resume, speedup=speedup))
+        except ConfigError as err:
+            typer.echo(f"error: {err}", err=True)
+            raise typer.Exit(2) from None
+        except OrbitrigError as err:
+            typer.echo(f"error: {err}", err=True)
+            raise typer.Exit(2) from None
+        raise typer.Exit(EXIT[outcome.status])
+
+
+def _load(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
+    from orbitrig import config as cfg
+    from orbitrig.errors import ConfigError
+
+    if resume:
+        if out is None:
+            raise typer.BadParameter("--resume needs --out DIR (the run to continue)", param_hint="--out")
+        from orbitrig.storage import RunStore
+
+        store = RunStore.open_existing(out)
+        rig_text, matrix_text, was_sim = store.stored_configs()
+        if was_sim != sim:
+            raise ConfigError(str(store.path), [f"this run was made {'on the simulator' if was_sim else 'on the rig'}: "
+                                                f"resume it {'with' if was_sim else 'without'} --sim"])  # fmt: skip
+        rig = cfg.load_rig(config) if config else cfg.rig_from_text(rig_text, f"{store.path}:rig_config")
+        mat = cfg.load_matrix(matrix) if matrix else cfg.matrix_from_text(matrix_text, f"{store.path}:matrix_config")
+        return rig, mat
+    rig = cfg.load_rig(config)
+    if matrix is None and not sim and not dry_run:
+        raise typer.BadParameter("--matrix FILE is required on the rig (--sim defaults to the demo)",
+                                 param_hint="--matrix")  # fmt: skip
+    return rig, cfg.load_matrix(matrix)
+
+
+def _dry_run(rig, mat) -> None:
+    from orbitrig.plan import expand, format_duration, summarize
+
+    steps = expand(mat, rig)
+    width = len(str(len(steps)))
+    t = 0.0
+    for i, s in enumerate(steps, 1):
+        where = f"point {s.point:04d}" if s.point is not None else "end       "
+        typer.echo(f"{i:>{width}}  {format_duration(t):>8}  {where}  {s.duration:8.2f} s  {s.describe()}")
+        t += s.duration
+    sm = summarize(steps)
+    typer.echo(f"\nmatrix {mat.name}: {sm.points} operating points, {sm.blocks} orbit blocks, "
+               f"{len(steps)} steps, estimated {format_duration(sm.duration)} (physical time)")  # fmt: skip
+    parts = ", ".join(f"{k} {format_duration(v)}" for k, v in sm.by_kind.items())
+    typer.echo(f"by step: {parts}")
+
+
+async def _sweep(rig, mat, *, out: Path, sim: bool, resume: bool, speedup: float):
+    import contextlib
+
+    from rich.console import Console
+
+    from orbitrig.executor import RunEngine
+    from orbitrig.progress import SweepProgress
+
+    console = Console(stderr=True)
+    async with contextlib.AsyncExitStack() as stack:
+        sim_rig = None
+        if sim:
+            from sim.rig import SimRig
+
+            sim_rig = await stack.enter_async_context(SimRig(speedup=speedup, adc_pty=False))
+        engine = RunEngine(rig, out_dir=out, sim=sim_rig, confirm_mode="auto" if sim else "prompt")
+        operator = _Operator(engine, console)
+        engine.subscribe(operator.on_event)
+        with SweepProgress(console, revolutions=mat.revolutions or rig.averaging.revolutions) as bars:
+            engine.subscribe(bars)
+            operator.install()
+            try:
+                outcome = await engine.run(mat, resume=resume)
+            finally:
+                operator.uninstall()
+    console.print(f"run {outcome.status}: {outcome.message}  ({len(outcome.completed_points)} of "
+                  f"{outcome.points} points complete in {out})", markup=False)  # fmt: skip
+    if outcome.completed_points:
+        print_coefficients(out)
+    return outcome
+
+
+class _Operator:
+    """Terminal side of the engine: answers confirmations, Ctrl-C pauses and asks, twice aborts."""
+
+    def __init__(self, engine, console):
+        import asyncio
+
+        self.engine, self.console = engine, console
+        self.loop = asyncio.get_running_loop()
+        self.interrupts = 0
+        self.lines: asyncio.Queue[str | None] = asyncio.Queue()
+        self.reader = None
+        self.asking = None
+
+    def install(self) -> None:
+        import signal
+
+        self.loop.add_signal_handler(signal.SIGINT, self._sigint)
+
+    def uninstall(self) -> None:
+        import signal
+
+        self.loop.remove_signal_handler(signal.SIGINT)
+        if self.asking is not None:
+            self.asking.cancel()
+
+    def _start_reader(self) -> None:
+        import sys
+        import threading
+
+        if self.reader is not None:
+            return
+
+        def read():  # a daemon thread: a pending input() never holds the exit
+            for line in sys.stdin:
+                self.loop.call_soon_threadsafe(self.lines.put_nowait, line.strip())
+            self.loop.call_soon_threadsafe(self.lines.put_nowait, None)
+
+        self.reader = threading.Thread(target=read, name="operator-stdin", daemon=True)
+        self.reader.start()
+
+    def _sigint(self) -> None:
+        self.interrupts += 1
+        if self.interrupts >= 2:
+            self.console.print("second Ctrl-C: aborting (emergency ramp down)", style="bold red")
+            self.engine.request_abort()
+            return
+        self.engine.request_pause()
+        self._ask("paused at the next safe point: [r]esume, [s]top, [a]bort? (Ctrl-C again aborts) ", self._choice)
+
+    def on_event(self, ev) -> None:
+        from orbitrig.executor import StatusEvent
+
+        if isinstance(ev, StatusEvent) and ev.state == "waiting" and self.engine.waiting_step:
+            step = self.engine.waiting_step
+            self._ask(f"{ev.message}\npress Enter to confirm {step} (or type stop / abort): ",
+                      lambda ans: self._confirm(step, ans))  # fmt: skip
+
+    def _ask(self, prompt: str, handle) -> None:
+        import asyncio
+
+        if self.asking is not None:
+            self.asking.cancel()
+        self._start_reader()
+        self.console.print(prompt, style="bold yellow", markup=False, end="")
+
+        async def ask():
+            line = await self.lines.get()
+            if line is not None:
+                handle(line)
+
+        self.asking = asyncio.ensure_future(ask())
+
+    def _choice(self, ans: str) -> None:
+        a = ans.lower()[:1]
+        if a == "s":
+            self.engine.request_stop()
+        elif a == "a":
+            self.engine.request_abort()
+        else:
+            self.interrupts = 0
+            self.engine.request_resume()
+
+    def _confirm(self, step: str, ans: str) -> None:
+        a = ans.lower()
+        if a.startswith("abort"):
+            self.engine.request_abort()
+        elif a.startswith("stop"):
+            self.engine.request_stop()
+        else:
+            try:
+                self.engine.confirm(step)
+            except Exception as err:  # noqa: BLE001 - tell the operator, keep going
+                self.console.print(f"not confirmed: {err}", markup=False)
+
+
+# ---------------------------------------------------------- the final table
+def compare_with_truth(coefficients: dict, truth: dict) -> dict[str, float]:
+    """Error of each constant-term K, C, D entry in percent of the largest true entry of its matrix."""
+    out = {}
+    for m in "KCD":
+        true = truth.get(f"{m}0")
+        if true is None:
+            continue
+        scale = max(abs(v) for row in true for v in row) or 1.0
+        for i, a in enumerate("xy"):
+            for j, b in enumerate("xy"):
+                key = f"{m}{a}{b}"
+                if key in coefficients:
+                    out[key] = abs(coefficients[key] - true[i][j]) / scale * 100.0
+    return out
+
+
+def print_coefficients(out: Path) -> None:
+    """Identified constant-term coefficients of every complete point, beside the true ones in --sim mode."""
+    import json
+
+    import h5py
+    from rich.console import Console
+    from rich.table import Table
+
+    from orbitrig.storage import coef_order
+
+    console = Console()
+    with h5py.File(Path(out) / "run.h5", "r") as f:
+        for name, g in sorted(f["points"].items()):
+            if not g.attrs.get("complete", False):
+                continue
+            truth = json.loads(g["truth"].attrs["json"]) if "truth" in g else None
+            fits = {}
+            for key, h in g["identification"].items():
+                if "json" in h.attrs:
+                    fits[key] = json.loads(h.attrs["json"])
+            names = sorted({k for d in fits.values() for k in d["coefficients"] if "_" not in k}, key=coef_order)
+            table = Table(title=f"point {name}  {g.attrs['label']}", title_justify="left")
+            table.add_column("coef")
+            if truth:
+                table.add_column("true", justify="right")
+            for key in fits:
+                table.add_column(key.replace("__none", "").replace("__", " "), justify="right")
+            errs = {k: compare_with_truth(d["coefficients"], truth) for k, d in fits.items()} if truth else {}
+            for c in names:
+                row = [c]
+                if truth:
+                    row.append(f"{truth[c[0] + '0']['xy'.index(c[1])]['xy'.index(c[2])]:.4g}")
+                for key, d in fits.items():
+                    v = d["coefficients"].get(c)
+                    cell = "" if v is None else f"{v:.4g}"
+                    if v is not None and c in errs.get(key, {}):
+                        cell += f" ({errs[key][c]:.1f}%)"
+                    row.append(cell)
+                table.add_row(*row)
+            console.print(table)
+            if truth:
+                console.print("(%) = |identified - true| / largest true entry of the matrix", markup=False)

@@ -1,0 +1,53 @@
+"""Terminal progress of a sweep (rich): points, frequencies, revolutions, ETA.
+
+`SweepProgress` is an event subscriber of the RunEngine; status changes are
+printed as log lines above the bars.
+"""
+
+from __future__ import annotations
+
+from rich.console import Console
+from rich.text import Text
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+from orbitrig.executor import ProgressEvent, ResultEvent, StatusEvent
+from orbitrig.plan import format_duration
+
+
+class SweepProgress:
+    def __init__(self, console: Console | None = None, revolutions: int = 50):
+        self.console = console or Console(stderr=True)
+        self.progress = Progress(
+            TextColumn("{task.description:<12}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("{task.fields[extra]}"),
+            TimeElapsedColumn(),
+            console=self.console,
+            transient=False,
+            refresh_per_second=8,
+        )
+        self.points = self.progress.add_task("points", total=1, extra="")
+        self.freqs = self.progress.add_task("frequencies", total=1, extra="")
+        self.revs = self.progress.add_task("revolutions", total=revolutions, extra="")
+
+    def __enter__(self) -> "SweepProgress":
+        self.progress.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.progress.stop()
+
+    def __call__(self, ev) -> None:
+        if isinstance(ev, ProgressEvent):
+            eta = "" if ev.eta_s is None else f"ETA {format_duration(ev.eta_s)}"
+            self.progress.update(self.points, total=max(ev.points, 1), completed=max(ev.point - 1, 0), extra=eta)
+            self.progress.update(self.freqs, total=max(ev.frequencies, 1), completed=max(ev.frequency - 1, 0))
+            self.progress.update(self.revs, completed=min(ev.revolutions, self.progress.tasks[2].total))
+        elif isinstance(ev, StatusEvent):
+            style = {"faulted": "bold red", "waiting": "bold yellow", "paused": "yellow"}.get(ev.state, "")
+            self.progress.console.log(Text(f"{ev.state}: ", style=style) + Text(ev.message))
+        elif isinstance(ev, ResultEvent):
+            p = ev.payload
+            self.progress.update(self.points, advance=1)
+            self.progress.console.log(Text(f"point {p['point']:04d} {p['label']} complete"))
