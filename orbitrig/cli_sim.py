@@ -1,0 +1,64 @@
+"""`orbitrig sim`: the software rig in the foreground."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("sim")
+    def sim(
+        config: Optional[Path] = typer.Option(None, "--config", help="Simulator TOML (see config/sim.toml)."),
+        modbus_port: int = typer.Option(5020, "--modbus-port", help="Modbus TCP port of both drives (0 = any free)."),
+        adc_port: int = typer.Option(5000, "--adc-port", help="A/D TCP serial device server port (0 = any free)."),
+        speedup: Optional[float] = typer.Option(None, "--speedup", help="Simulated time / wall time (default from config, 1)."),
+        control_port: int = typer.Option(0, "--control-port", help="JSON-lines control API port (0 = any free)."),
+        modbus_rtu: bool = typer.Option(False, "--modbus-rtu/--no-modbus-rtu", help="Also serve Modbus RTU on a pty."),
+        can_channel: Optional[str] = typer.Option(None, "--can-channel", help="python-can channel of the CAN node."),
+        can_interface: str = typer.Option("virtual", "--can-interface", help="python-can interface of the CAN node."),
+    ) -> None:
+        """Run the simulated rig: drives (Modbus ids 1, 2), A/D board (TCP + pty), CAN node.
+
+        Prints one JSON line with the endpoints, then runs until Ctrl-C / SIGTERM.
+        Both drives start stopped; A/D frames stream whenever the orbit spindle turns.
+        """
+        import asyncio
+        import json
+        import signal
+        import sys
+
+        from sim.config import SimConfig, load_sim_config
+        from sim.rig import SimRig
+
+        try:
+            cfg = load_sim_config(config) if config is not None else SimConfig()
+        except ValueError as err:
+            typer.echo(f"orbitrig sim: {err}", err=True)
+            raise typer.Exit(2) from err
+        if speedup is not None and not speedup > 0:
+            typer.echo("orbitrig sim: --speedup must be > 0", err=True)
+            raise typer.Exit(2)
+
+        async def run() -> None:
+            stop = asyncio.Event()
+            loop = asyncio.get_running_loop()
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                loop.add_signal_handler(sig, stop.set)
+            async with SimRig(cfg, speedup=speedup, modbus_port=modbus_port, adc_port=adc_port,
+                              modbus_rtu_pty=modbus_rtu, can_channel=can_channel,
+                              can_interface=can_interface, control_port=control_port) as rig:
+                ep = rig.endpoints()
+                if not modbus_rtu:
+                    ep.pop("modbus_rtu")
+                sys.stdout.write(json.dumps(ep) + "\n")
+                sys.stdout.flush()
+                await stop.wait()
+
+        try:
+            asyncio.run(run())
+        except OSError as err:  # e.g. port in use
+            typer.echo(f"orbitrig sim: {err}", err=True)
+            raise typer.Exit(1) from err

@@ -1,0 +1,151 @@
+"""The clocked A/D board of spec/adc-frames.md: quantisation and frame encoding.
+
+Written from the spec only (independent of daq/). Frame layout, little-endian:
+sync A5 5A | version u8 | flags u8 | seq u16 | rev u32 | first_slot u16 |
+n_slots u8 | n_ch u8 | t_us u32 | int16 samples slot-major | crc u16, the
+CRC-16/CCITT-FALSE over version..last sample byte (binascii.crc_hqx(body, 0xFFFF)).
+
+Slots are addressed by a global slot index g (g // 360 revolutions since the
+board started, slot g % 360). A frame never spans two revolutions and frames
+start at multiples of ``frame_slots`` inside a revolution (the first frame
+after start-up may start anywhere).
+"""
+
+from __future__ import annotations
+
+import binascii
+import struct
+
+import numpy as np
+
+SYNC = b"\xa5\x5a"
+VERSION = 1
+TRIGGER, OVERRUN, SIMULTANEOUS = 0x01, 0x02, 0x04
+SLOTS = 360
+_HEADER = struct.Struct("<BBHIHBBI")  # version .. t_us (16 bytes)
+_CRC = struct.Struct("<H")
+
+
+class AdcBoard:
+    """Encoder and counters of the board, with its fault switches.
+
+    Faults (set by the rig): ``corrupt`` frames to corrupt, ``drop`` frames to
+    lose in the FIFO (seq still counts, the next frame carries OVERRUN),
+    ``missed_triggers`` trigger pulses to miss (no TRIGGER flag, rev not
+    incremented), ``stalled`` board clock frozen.
+    """
+
+    def __init__(self, *, channels: int = 8, mode: str = "sequential", frame_slots: int = 45,
+                 gains=None, offsets=None, rng: np.random.Generator | None = None):
+        if SLOTS % channels:
+            raise ValueError(f"channel count {channels} does not divide 360")
+        if not 1 <= frame_slots <= 255:
+            raise ValueError(f"frame_slots must be 1..255, got {frame_slots}")
+        self.channels = channels
+        self.mode = mode
+        self.simultaneous = mode == "simultaneous"
+        self.frame_slots = frame_slots
+        self.gains = np.asarray(gains if gains is not None else [1.0] * channels, dtype=float)
+        self.offsets = np.asarray(offsets if offsets is not None else [0.0] * channels, dtype=float)
+        self.rng = rng or np.random.default_rng()
+        self.seq = 0
+        self.rev = 0
+        self.overrun = False
+        self.corrupt = 0
+        self.drop = 0
+        self.missed_triggers = 0
+        self.stalled = False
+        self._stall_us = 0
+        self.frames_sent = 0
+        self.frames_lost = 0
+
+    # -------------------------------------------------------------- geometry
+    def boundary_before(self, g: int) -> int:
+        """Largest frame boundary <= g (global slot index)."""
+        s = g % SLOTS
+        return g - s + (s // self.frame_slots) * self.frame_slots
+
+    def _frames(self, g0: int, g1: int):
+        """(start, end) global slot ranges of the frames covering [g0, g1)."""
+        g = g0
+        while g < g1:
+            s = g % SLOTS
+            end = min(g - s + min((s // self.frame_slots + 1) * self.frame_slots, SLOTS), g1)
+            yield g, end
+            g = end
+
+    def channel_of_slot(self, g: np.ndarray) -> np.ndarray:
+        """Channel converted at each global slot in sequential mode (slot mod C)."""
+        return (np.asarray(g) % SLOTS) % self.channels
+
+    # -------------------------------------------------------------- encoding
+    def quantize(self, values: np.ndarray, channel: np.ndarray | int | None = None) -> np.ndarray:
+        """Engineering values -> int16 counts (round, saturate).
+
+        values: (n,) with ``channel`` the channel of each sample (sequential),
+        or (n, C) for all channels (simultaneous)."""
+        if channel is None:
+            counts = (values - self.offsets) / self.gains
+        else:
+            counts = (values - self.offsets[channel]) / self.gains[channel]
+        return np.clip(np.rint(counts), -32768, 32767).astype("<i2")
+
+    def _trigger(self, start: int) -> int:
+        if start % SLOTS:
+            return 0
+        if self.missed_triggers > 0:
+            self.missed_triggers -= 1
+            return 0
+        self.rev = (self.rev + 1) & 0xFFFFFFFF
+        return TRIGGER
+
+    def encode(self, g0: int, counts: np.ndarray, t: np.ndarray) -> bytes:
+        """Frames for the slots [g0, g0 + len(counts)).
+
+        counts: int16 (n,) sequential or (n, C) simultaneous; t: simulated
+        time (s) of each slot, the board clock of a frame is t at its first slot.
+        """
+        n = len(counts)
+        counts = np.ascontiguousarray(counts, dtype="<i2")
+        n_ch = self.channels if self.simultaneous else 1
+        mode_flag = SIMULTANEOUS if self.simultaneous else 0
+        t_us = (np.asarray(t) * 1e6).astype(np.int64) & 0xFFFFFFFF
+        out = []
+        for start, end in self._frames(g0, g0 + n):
+            flags = mode_flag | self._trigger(start)
+            seq = self.seq
+            self.seq = (self.seq + 1) & 0xFFFF
+            if self.drop > 0:
+                self.drop -= 1
+                self.overrun = True
+                self.frames_lost += 1
+                continue
+            if self.overrun:
+                flags |= OVERRUN
+                self.overrun = False
+            if self.stalled:
+                stamp = self._stall_us
+            else:
+                stamp = int(t_us[start - g0])
+                self._stall_us = stamp
+            body = _HEADER.pack(VERSION, flags, seq, self.rev, start % SLOTS, end - start, n_ch, stamp) \
+                + counts[start - g0:end - g0].tobytes()
+            frame = SYNC + body + _CRC.pack(binascii.crc_hqx(body, 0xFFFF))
+            if self.corrupt > 0:
+                self.corrupt -= 1
+                buf = bytearray(frame)
+                pos = int(self.rng.integers(2, len(buf)))
+                buf[pos] ^= 1 << int(self.rng.integers(0, 8))
+                frame = bytes(buf)
+            out.append(frame)
+            self.frames_sent += 1
+        return b"".join(out)
+
+    def lose(self, g0: int, g1: int) -> None:
+        """The slots [g0, g1) were converted but lost (nobody read the FIFO):
+        counters advance as if their frames had been made; OVERRUN follows."""
+        for start, _ in self._frames(g0, g1):
+            self._trigger(start)
+            self.seq = (self.seq + 1) & 0xFFFF
+            self.frames_lost += 1
+            self.overrun = True

@@ -1,0 +1,221 @@
+"""Byte-stream transports of the A/D board: a TCP serial device server and a pty.
+
+The board writes whole frames; a transport that cannot keep up drops whole
+chunks (a reader then sees a seq gap), it never blocks the event loop. Loopback
+only. A pty behaves like the board's serial port: the slave side is raw (no
+line discipline), the simulator keeps it open so that readers may come and go.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import collections
+import contextlib
+import errno
+import logging
+import os
+import tty
+
+log = logging.getLogger(__name__)
+
+DEFAULT_BACKLOG = 1 << 20  # bytes queued per reader before chunks are dropped
+
+
+class PtySink:
+    """The board's serial port as a pseudo-terminal; ``path`` is the slave device."""
+
+    def __init__(self, loop: asyncio.AbstractEventLoop, *, backlog: int = DEFAULT_BACKLOG):
+        self._loop = loop
+        self._limit = backlog
+        self._queue: collections.deque[memoryview] = collections.deque()
+        self._queued = 0
+        self._writer = False
+        self.master: int | None = None
+        self._slave: int | None = None
+        self.path: str | None = None
+        self.bytes_sent = 0
+        self.chunks_dropped = 0
+        self.open()
+
+    def open(self) -> None:
+        master, slave = os.openpty()
+        tty.setraw(slave)
+        os.set_blocking(master, False)
+        self.master, self._slave = master, slave
+        self.path = os.ttyname(slave)
+        self._loop.add_reader(master, self._drain_input)
+
+    @property
+    def congested(self) -> bool:
+        return self.master is None or self._queued >= self._limit
+
+    def send(self, data: bytes) -> None:
+        if self.master is None:
+            return
+        if self._queued + len(data) > self._limit:
+            self.chunks_dropped += 1
+            return
+        self._queue.append(memoryview(data))
+        self._queued += len(data)
+        if not self._writer:
+            self._flush()
+
+    def _flush(self) -> None:
+        while self._queue and self.master is not None:
+            head = self._queue[0]
+            try:
+                n = os.write(self.master, head)
+            except BlockingIOError:
+                break
+            except OSError as err:  # EIO: the line is hung up
+                log.debug("pty write failed: %s", err)
+                self._queue.clear()
+                self._queued = 0
+                break
+            self.bytes_sent += n
+            self._queued -= n
+            if n == len(head):
+                self._queue.popleft()
+            else:
+                self._queue[0] = head[n:]
+        want = bool(self._queue) and self.master is not None
+        if want and not self._writer:
+            self._loop.add_writer(self.master, self._flush)
+            self._writer = True
+        elif not want and self._writer:
+            if self.master is not None:
+                self._loop.remove_writer(self.master)
+            self._writer = False
+
+    def _drain_input(self) -> None:
+        """Discard what a reader writes to the board (it has no commands)."""
+        try:
+            os.read(self.master, 65536)
+        except OSError:
+            pass
+
+    def hangup(self) -> None:
+        """Close the line: the reader's port gets a hang-up (EIO / POLLHUP)."""
+        if self.master is None:
+            return
+        self._loop.remove_reader(self.master)
+        if self._writer:
+            self._loop.remove_writer(self.master)
+            self._writer = False
+        for fd in (self.master, self._slave):
+            with contextlib.suppress(OSError):
+                os.close(fd)
+        self.master = self._slave = None
+        self._queue.clear()
+        self._queued = 0
+
+    close = hangup
+
+
+class TcpSink:
+    """One connected client of the TCP serial device server."""
+
+    def __init__(self, writer: asyncio.StreamWriter, *, backlog: int = DEFAULT_BACKLOG):
+        self.writer = writer
+        self._limit = backlog
+        self.chunks_dropped = 0
+
+    @property
+    def congested(self) -> bool:
+        return self.writer.transport.get_write_buffer_size() >= self._limit
+
+    def send(self, data: bytes) -> None:
+        if self.writer.transport.is_closing():
+            return
+        if self.writer.transport.get_write_buffer_size() + len(data) > self._limit:
+            self.chunks_dropped += 1
+            return
+        self.writer.write(data)
+
+    def close(self) -> None:
+        self.writer.transport.abort()
+
+
+class AdcServer:
+    """Fan-out of the board's byte stream to a TCP serial device server and a pty."""
+
+    def __init__(self, *, backlog: int = DEFAULT_BACKLOG):
+        self._backlog = backlog
+        self._server: asyncio.base_events.Server | None = None
+        self.clients: set[TcpSink] = set()
+        self.pty: PtySink | None = None
+        self.port: int | None = None
+        self._reopen: asyncio.TimerHandle | None = None
+
+    async def start(self, *, host: str = "127.0.0.1", port: int = 0, pty: bool = True) -> None:
+        self._server = await asyncio.start_server(self._client, host, port)
+        self.port = self._server.sockets[0].getsockname()[1]
+        if pty:
+            self.pty = PtySink(asyncio.get_running_loop(), backlog=self._backlog)
+
+    @property
+    def url(self) -> str:
+        return f"socket://127.0.0.1:{self.port}"
+
+    @property
+    def pty_path(self) -> str | None:
+        return self.pty.path if self.pty is not None and self.pty.master is not None else None
+
+    async def _client(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        sink = TcpSink(writer, backlog=self._backlog)
+        self.clients.add(sink)
+        try:
+            while await reader.read(4096):  # the board ignores what it receives
+                pass
+        except (ConnectionError, OSError):
+            pass
+        finally:
+            self.clients.discard(sink)
+            writer.transport.abort()
+
+    def wants_data(self) -> bool:
+        """True when some reader could take more bytes now."""
+        if any(not c.congested for c in self.clients):
+            return True
+        return self.pty is not None and not self.pty.congested
+
+    def send(self, data: bytes) -> None:
+        if not data:
+            return
+        for c in list(self.clients):
+            c.send(data)
+        if self.pty is not None:
+            self.pty.send(data)
+
+    def close_link(self, *, reopen_after: float = 1.0) -> None:
+        """Fault: drop every TCP client and hang up the pty (reopened after
+        ``reopen_after`` wall seconds; the path may change)."""
+        for c in list(self.clients):
+            c.close()
+        self.clients.clear()
+        if self.pty is not None and self.pty.master is not None:
+            self.pty.hangup()
+            loop = asyncio.get_running_loop()
+            self._reopen = loop.call_later(reopen_after, self._reopen_pty)
+
+    def _reopen_pty(self) -> None:
+        if self.pty is not None and self.pty.master is None:
+            try:
+                self.pty.open()
+            except OSError as err:
+                if err.errno != errno.EMFILE:
+                    raise
+                log.error("cannot reopen the A/D pty: %s", err)
+
+    async def aclose(self) -> None:
+        if self._reopen is not None:
+            self._reopen.cancel()
+        for c in list(self.clients):
+            c.close()
+        self.clients.clear()
+        if self.pty is not None:
+            self.pty.close()
+        if self._server is not None:
+            self._server.close()
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(self._server.wait_closed(), 2.0)

@@ -1,0 +1,324 @@
+"""SimRig: the whole software rig behind real protocols, in the running event loop.
+
+    async with SimRig(speedup=10) as rig:
+        rig.local_control(spin=200.0, orbit=-60.0)      # rad/s, orbit signed
+        ... read rig.adc_url / rig.adc_pty_path, talk Modbus to rig.modbus_url ...
+        rig.truth(200.0, -60.0)["K"]
+
+The orbit spindle angle is integrated from the orbit drive's actual speed; every
+slot edge it passes is converted (sequential: channel s mod C; simultaneous:
+all channels), quantised and framed, and whole frames go to the TCP serial
+device server and the pty. Physics and the board clock run in simulated time
+(SimClock, `speedup` x wall time); the Modbus watchdog and the CAN periods stay
+in wall time.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+
+import numpy as np
+
+from sim.adc_board import SLOTS, AdcBoard
+from sim.adc_server import AdcServer
+from sim.can_node import CanNode
+from sim.clock import SimClock
+from sim.config import SimConfig
+from sim.physics import RigPhysics
+
+log = logging.getLogger(__name__)
+
+RPM = 2.0 * math.pi / 60.0  # rad/s per rpm
+SLOT_ANGLE = 2.0 * math.pi / SLOTS
+FAULTS = ("corrupt_bytes", "drop_frames", "missing_trigger", "stall_clock", "close_adc_link",
+          "drive_trip", "modbus_timeout", "can_heartbeat_loss", "clear")
+
+
+class SimRig:
+    """The simulated rig (async context manager); see docs/architecture.md."""
+
+    def __init__(self, config: SimConfig | None = None, *, speedup: float | None = None,
+                 modbus_port: int = 0, adc_port: int = 0, adc_pty: bool = True,
+                 modbus_rtu_pty: bool = False, can_channel: str | None = "orbitrig-sim",
+                 control_port: int | None = None, can_interface: str = "virtual",
+                 tick: float = 0.01, max_slots_per_tick: int = 400_000):
+        self.config = config or SimConfig()
+        self.clock = SimClock(speedup if speedup is not None else self.config.speedup)
+        self.physics = RigPhysics(self.config)
+        adc = self.config.adc
+        self.board = AdcBoard(channels=len(adc.channels), mode=adc.mode, frame_slots=adc.frame_slots,
+                              gains=adc.gains, offsets=adc.offsets, rng=self.physics.rng)
+        self._ports = dict(modbus=modbus_port, adc=adc_port, control=control_port)
+        self._adc_pty, self._modbus_rtu_pty = adc_pty, modbus_rtu_pty
+        self._can_interface = can_interface
+        self._tick_period = tick
+        self._max_slots = max_slots_per_tick
+        self.can_channel = can_channel
+        self.modbus_url = ""
+        self.modbus_rtu_path: str | None = None
+        self.adc_url = ""
+        self.control_url: str | None = None
+        self.drives: dict = {}
+        self.adc_server = AdcServer()
+        self.can_node: CanNode | None = None
+        self._modbus = []
+        self._control = None
+        self._tasks: set[asyncio.Task] = set()
+        # slot clock state
+        self._g_pos = float(self.physics.rng.uniform(0.0, SLOTS))  # slots passed since start
+        self._g_next = math.ceil(self._g_pos)  # next slot edge to convert
+        self._pending_g0 = self._g_next
+        self._pending_counts: np.ndarray | None = None
+        self._pending_t: np.ndarray | None = None
+        self._t_last = 0.0
+        self._spin_last = 0.0
+        self._orbit_last = 0.0
+        self._spin_angle = 0.0
+
+    # ------------------------------------------------------------ lifecycle
+    async def __aenter__(self) -> SimRig:
+        try:
+            await self._start()
+        except BaseException:
+            await self.aclose()
+            raise
+        return self
+
+    async def __aexit__(self, *exc) -> None:
+        await self.aclose()
+
+    async def _start(self) -> None:
+        from sim.drive_model import DriveModel
+        from sim.modbus_server import serve_modbus_rtu_pty, serve_modbus_tcp
+
+        self.drives = {
+            1: DriveModel(1, clock=self.clock.now, bidirectional=False),
+            2: DriveModel(2, clock=self.clock.now, bidirectional=True),
+        }
+        tcp = await serve_modbus_tcp(self.drives, host="127.0.0.1", port=self._ports["modbus"])
+        self._modbus.append(tcp)
+        self.modbus_url = tcp.url
+        if self._modbus_rtu_pty:
+            rtu = await serve_modbus_rtu_pty(self.drives)
+            self._modbus.append(rtu)
+            self.modbus_rtu_path = rtu.path
+        await self.adc_server.start(port=self._ports["adc"], pty=self._adc_pty)
+        self.adc_url = self.adc_server.url
+        if self._ports["control"] is not None:
+            from sim.control import serve_control
+
+            self._control = await serve_control(self, port=self._ports["control"])
+            self.control_url = f"tcp://127.0.0.1:{self._control.sockets[0].getsockname()[1]}"
+        self._t_last = self.clock.now()
+        self._spawn(self._run_board(), "sim-adc-board")
+        if self.can_channel is not None:
+            self.can_node = CanNode(self.can_channel, self.aux_state, interface=self._can_interface)
+            self.can_node.open()
+            self._spawn(self.can_node.run(), "sim-can-node")
+
+    def _spawn(self, coro, name: str) -> None:
+        task = asyncio.get_running_loop().create_task(coro, name=name)
+        self._tasks.add(task)
+        task.add_done_callback(self._task_done)
+
+    def _task_done(self, task: asyncio.Task) -> None:
+        self._tasks.discard(task)
+        if not task.cancelled() and task.exception() is not None:
+            log.error("simulator task %s failed", task.get_name(), exc_info=task.exception())
+
+    async def aclose(self) -> None:
+        """Stop every task and server (idempotent)."""
+        tasks = list(self._tasks)
+        for t in tasks:
+            t.cancel()
+        for t in tasks:
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await t
+        if self.can_node is not None:
+            self.can_node.close()
+        if self._control is not None:
+            self._control.close()
+            self._control = None
+        for ep in self._modbus:
+            with contextlib.suppress(Exception):
+                await ep.aclose()
+        self._modbus.clear()
+        await self.adc_server.aclose()
+
+    # ------------------------------------------------------------ properties
+    @property
+    def adc_pty_path(self) -> str | None:
+        return self.adc_server.pty_path
+
+    @property
+    def speeds(self) -> tuple[float, float]:
+        """(spin, orbit) actual speeds in rad/s (orbit signed) at the last tick."""
+        return self._spin_last, self._orbit_last
+
+    def endpoints(self) -> dict:
+        """The endpoints JSON object printed by `orbitrig sim`."""
+        return {"modbus": self.modbus_url, "adc": self.adc_url, "adc_pty": self.adc_pty_path,
+                "control": self.control_url, "can": self.can_channel,
+                "modbus_rtu": self.modbus_rtu_path}
+
+    # ------------------------------------------------------------ operator
+    def local_control(self, *, spin: float, orbit: float) -> None:
+        """Run both spindles at once from the drives' keypads (rad/s, orbit signed)."""
+        self.drives[1].local_control(abs(spin) / RPM)
+        self.drives[2].local_control(orbit / RPM)
+
+    def set_manual(self, *, orbit_radius=None, static_eccentricity=None,
+                   recess_pressure=None, pressure_ratio=None) -> None:
+        """Manual settings: orbit radius (m), static eccentricity eps_s (-),
+        recess supply pressure (Pa), pressure ratio beta (-)."""
+        self.physics.set_manual(orbit_radius=orbit_radius, static_eccentricity=static_eccentricity,
+                                recess_pressure=recess_pressure, pressure_ratio=pressure_ratio)
+
+    def truth(self, spin: float, orbit: float) -> dict:
+        """Exact {"K", "C", "D"} (2x2, SI) at spin and orbit (rad/s, orbit signed)."""
+        K, C, D = self.physics.coefficients(spin, orbit)
+        return {"K": K, "C": C, "D": D}
+
+    def true_phasors(self, spin: float, orbit: float) -> dict[str, complex]:
+        """Noise-free fundamental phasor per channel name (engineering units, trigger phase in)."""
+        return self.physics.true_phasors(spin, orbit)
+
+    def aux_state(self) -> dict:
+        return self.physics.aux_state(self._spin_last, self._orbit_last)
+
+    def state(self) -> dict:
+        m = self.physics.manual
+        return {
+            "sim_time": self.clock.now(), "speedup": self.clock.speedup,
+            "spin": self._spin_last, "orbit": self._orbit_last,
+            "manual": {"orbit_radius": m.orbit_radius, "static_eccentricity": m.static_eccentricity,
+                       "recess_pressure": m.recess_pressure, "pressure_ratio": m.pressure_ratio},
+            "board": {"seq": self.board.seq, "rev": self.board.rev,
+                      "frames_sent": self.board.frames_sent, "frames_lost": self.board.frames_lost},
+            "endpoints": self.endpoints(),
+        }
+
+    def inject(self, fault: str, **kw) -> None:
+        """Fault injection; see FAULTS. Counts/switches as keywords:
+        corrupt_bytes(count=1), drop_frames(count=1), missing_trigger(count=1),
+        stall_clock(on=True), close_adc_link(reopen_after=1.0 s wall),
+        drive_trip(drive=1|2, code=2310), modbus_timeout(on=True),
+        can_heartbeat_loss(on=True), clear (every fault off, drive causes gone)."""
+        b = self.board
+        if fault == "corrupt_bytes":
+            b.corrupt += int(kw.get("count", 1))
+        elif fault == "drop_frames":
+            b.drop += int(kw.get("count", 1))
+        elif fault == "missing_trigger":
+            b.missed_triggers += int(kw.get("count", 1))
+        elif fault == "stall_clock":
+            b.stalled = bool(kw.get("on", True))
+        elif fault == "close_adc_link":
+            self.adc_server.close_link(reopen_after=float(kw.get("reopen_after", 1.0)))
+        elif fault == "drive_trip":
+            drive = int(kw.get("drive", 2))
+            if drive not in self.drives:
+                raise ValueError(f"drive_trip: no drive {drive} (1 = spin, 2 = orbit)")
+            self.drives[drive].inject_fault(int(kw.get("code", 2310)))
+        elif fault == "modbus_timeout":
+            for ep in self._modbus:
+                ep.set_unresponsive(bool(kw.get("on", True)))
+        elif fault == "can_heartbeat_loss":
+            if self.can_node is not None:
+                self.can_node.heartbeat_lost = bool(kw.get("on", True))
+        elif fault == "clear":
+            b.corrupt = b.drop = b.missed_triggers = 0
+            b.stalled = False
+            for ep in self._modbus:
+                ep.set_unresponsive(False)
+            for d in self.drives.values():
+                d.clear_fault_cause()
+            if self.can_node is not None:
+                self.can_node.heartbeat_lost = False
+        else:
+            raise ValueError(f"unknown fault {fault!r}; known: {', '.join(FAULTS)}")
+
+    # ------------------------------------------------------------ the board
+    async def _run_board(self) -> None:
+        while True:
+            try:
+                self.step()
+            except Exception:  # keep the rig alive; the log says what broke
+                log.exception("A/D board step failed")
+            await asyncio.sleep(self._tick_period)
+
+    def step(self) -> None:
+        """Advance the drives and the spindles to now; stream the completed frames."""
+        now = self.clock.now()
+        for d in self.drives.values():
+            d.advance()
+        spin = abs(self.drives[1].actual_rpm) * RPM if 1 in self.drives else 0.0
+        orbit = self.drives[2].actual_rpm * RPM if 2 in self.drives else 0.0
+        dt = now - self._t_last
+        if dt <= 0:
+            return
+        t0, spin0, orbit0, phi0, g_pos = self._t_last, self._spin_last, self._orbit_last, self._spin_angle, self._g_pos
+        g_new = g_pos + 0.5 * (abs(orbit0) + abs(orbit)) * dt / SLOT_ANGLE
+        self._t_last, self._spin_last, self._orbit_last = now, spin, orbit
+        self._spin_angle = (phi0 + 0.5 * (spin0 + spin) * dt) % (2 * math.pi)
+        self._g_pos = g_new
+        g_end = math.floor(g_new) + 1  # slots g_next .. g_end-1 have occurred
+        if g_end <= self._g_next:
+            return
+        board = self.board
+        if g_end - self._g_next > self._max_slots:  # the board's FIFO overflowed
+            skip_to = board.boundary_before(g_end - self._max_slots)
+            if skip_to > self._pending_g0:
+                board.lose(self._pending_g0, skip_to)
+                self._pending_g0 = self._g_next = skip_to
+                self._pending_counts = self._pending_t = None
+        b = board.boundary_before(g_end)
+        lo = self._g_next
+        if b > self._pending_g0 and not self.adc_server.wants_data():
+            board.lose(self._pending_g0, b)  # nobody can take them: skip the numerics
+            if self._pending_counts is not None:
+                n = b - self._pending_g0
+                self._pending_counts, self._pending_t = self._pending_counts[n:], self._pending_t[n:]
+            self._pending_g0 = b
+            lo = max(lo, b)
+        if g_end > lo:
+            g = np.arange(lo, g_end)
+            frac = (g - g_pos) / (g_new - g_pos)
+            t = t0 + frac * dt
+            orbit_inst = orbit0 + (orbit - orbit0) * frac
+            tau = frac * dt
+            spin_angle = phi0 + spin0 * tau + (spin - spin0) * tau * tau / (2 * dt)
+            sign_orbit = orbit if orbit != 0 else orbit0
+            counts = self._convert(g, t, spin_angle, orbit_inst, spin, sign_orbit)
+            if self._pending_counts is None:
+                self._pending_counts, self._pending_t = counts, t
+            else:
+                self._pending_counts = np.concatenate([self._pending_counts, counts])
+                self._pending_t = np.concatenate([self._pending_t, t])
+        self._g_next = g_end
+        if b > self._pending_g0 and self._pending_counts is not None:
+            n = b - self._pending_g0
+            data = board.encode(self._pending_g0, self._pending_counts[:n], self._pending_t[:n])
+            self.adc_server.send(data)
+            self._pending_counts, self._pending_t = self._pending_counts[n:], self._pending_t[n:]
+            self._pending_g0 = b
+
+    def _convert(self, g, t, spin_angle, orbit_inst, spin, orbit) -> np.ndarray:
+        """Counts of the conversions at global slots g (sequential (n,), simultaneous (n, C))."""
+        ph, board = self.physics, self.board
+        C = board.channels
+        theta = (g % SLOTS) * SLOT_ANGLE
+        if board.simultaneous:
+            vals = np.empty((len(g), C))
+            for k in range(C):
+                vals[:, k] = ph.channel_values(k, theta, t, spin_angle, orbit_inst, spin, orbit)
+            return board.quantize(vals)
+        vals = np.empty(len(g))
+        g0 = int(g[0])
+        for k in range(C):
+            sl = slice((k - g0) % C, None, C)
+            vals[sl] = ph.channel_values(k, theta[sl], t[sl], spin_angle[sl], orbit_inst[sl], spin, orbit)
+        return board.quantize(vals, board.channel_of_slot(g))
