@@ -1,0 +1,86 @@
+"""run.h5 layout (docs/storage.md), complete flags, resume and coefficients.csv."""
+
+import csv
+import json
+
+import h5py
+import numpy as np
+import pytest
+
+from orbitrig import config as cfg
+from orbitrig.config import ModelSpec
+from orbitrig.plan import operating_points
+from orbitrig.storage import BlockRecord, PointResults, RunStore, StorageError
+from reduction.table import OrbitTable
+
+
+def _record(block, n=3):
+    rng = np.random.default_rng(block.freq)
+    return BlockRecord(
+        block=block, measured_orbit_speed=abs(block.orbit), raw_counts=rng.integers(-100, 100, (n, 8, 45), dtype=np.int16),
+        slots=np.arange(360, dtype=np.int16).reshape(45, 8).T, gains=np.ones(8), offsets=np.zeros(8),
+        mean=np.zeros((8, 45)), record_phasors=np.ones((n, 8), complex), phasors=np.ones(8, complex),
+        dc=np.zeros(8), rms_residual=np.zeros(8), coherence=np.ones((2, 4)),
+        stats={"frames_good": 10, "drop_reasons": {"crc": 1}},
+    )
+
+
+def _results(p):
+    t = OrbitTable(spin=p.spin, orbit=np.array([1.0, 2.0]), x=np.ones(2, complex), y=-1j * np.ones(2),
+                   fx=np.ones(2, complex), fy=np.ones(2, complex), gamma2=np.ones((2, 4)))
+    spec = ModelSpec(model="kc8")
+    ident = {"model": "kc8", "freq_dep": "none", "method": "ols", "n_coefficients": 8, "min_frequencies": 2,
+             "n_frequencies": 2, "coefficients": {"Kxx": 3e7, "Cxx": 8e4}, "std_errors": {"Kxx": 1e5, "Cxx": None},
+             "condition_number": 3.0, "residual_rms": 0.1, "fit": []}
+    idents = {("piezo", spec.key): {"spec": spec, "json": ident},
+              ("strain", spec.key): {"spec": spec, "error": "too few frequencies"}}
+    truth = {"orbit_hz": [1.0], "K0": [[3.1e7, 0], [0, 3e7]], "C0": [[8e4, 0], [0, 8e4]], "D0": [[1, 0], [0, 1]]}
+    return PointResults({"piezo": t, "strain": t}, idents, {"fx_amp_ratio": [1.0]}, truth)
+
+
+def test_store_layout_resume_and_csv(tmp_path):
+    rig, m = cfg.load_rig(), cfg.load_matrix(cfg.default_matrix_path("paper"))
+    p0, p1 = operating_points(m, rig)[:2]
+    s = RunStore.create(tmp_path, rig_text=rig.text, matrix_text=m.text, matrix_name=m.name, sim=True)
+    with pytest.raises(StorageError, match="already exists"):
+        RunStore.create(tmp_path, rig_text="", matrix_text="", matrix_name="x", sim=True)
+    s.begin_point(p0)
+    s.logs.events.append((0.5, "running", "hello"))
+    for b in p0.blocks[:2]:
+        s.write_block(p0.index, _record(b))
+    s.write_results(p0.index, _results(p0))
+    s.complete_point(p0.index)
+    s.begin_point(p1)  # p1 is left incomplete, as after a kill -9
+    s.write_block(p1.index, _record(p1.blocks[0]))
+
+    with h5py.File(s.path, "r") as f:
+        assert f.attrs["format"] == "orbitrig-run/1" and f.attrs["status"] == "running"
+        assert "matrix_config" in f.attrs and bool(f.attrs["sim"])
+        g = f["points/0000"]
+        assert g.attrs["complete"] and g.attrs["spin_rpm"] == pytest.approx(1000)
+        fr = g["frequencies/09_fwd"]
+        assert fr.attrs["complete"] and fr.attrs["direction"] == 1 and fr.attrs["orbit_hz"] > 0
+        assert fr["raw_counts"].dtype == np.int16 and fr["raw_counts"].shape == (3, 8, 45)
+        assert fr["coherence"].shape == (2, 4) and fr["phasors"].dtype == np.complex128
+        assert json.loads(fr["stats"].attrs["drop_reasons"]) == {"crc": 1}
+        assert set(g["table"]) == {"piezo", "strain"} and g["table/piezo/gamma2"].shape == (2, 4)
+        assert json.loads(g["identification/piezo__kc8__none"].attrs["json"])["coefficients"]["Kxx"] == 3e7
+        assert "error" in g["identification/strain__kc8__none"].attrs
+        assert "K0" in json.loads(g["truth"].attrs["json"])
+        assert f["logs/events"][0]["message"].decode() == "hello"
+        assert not f["points/0001"].attrs["complete"]
+
+    r = RunStore.open_existing(tmp_path)
+    assert r.prepare_resume() == [0]
+    with h5py.File(r.path, "r") as f:
+        assert list(f["points"]) == ["0000"]
+    rows = list(csv.DictReader(open(r.csv_path)))
+    assert [(x["point"], x["lms"], x["model"]) for x in rows] == [("0", "piezo", "kc8"), ("0", "strain", "kc8")]
+    assert float(rows[0]["Kxx"]) == 3e7 and float(rows[0]["true_Kxx"]) == 3.1e7 and rows[0]["Cxx_std"] == ""
+    assert rows[1]["error"] == "too few frequencies" and rows[1]["Kxx"] == ""
+    assert list(rows[0])[:15] == ["point", "label", "spin_rpm", "recess_pressure_mpa", "pressure_ratio",
+                                  "static_eccentricity", "dynamic_eccentricity", "lms", "model", "freq_dep",
+                                  "method", "n_frequencies", "condition_number", "residual_rms", "error"]
+    r.set_status("completed", "done")
+    with h5py.File(r.path, "r") as f:
+        assert f.attrs["status"] == "completed"
