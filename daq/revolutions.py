@@ -20,7 +20,9 @@ trigger), so Fourier coefficients need no further phase correction.
 
 The orbit period of revolution r is t_us(trigger r+1) - t_us(trigger r) (u32
 wrap), so a revolution is released when the frame after it has arrived
-(``flush()`` releases a held one with an unknown period).
+(``flush()`` releases a held one with an unknown period). The board clock must
+advance from each frame to the next, up to the next trigger; a revolution over
+which it stalled has no period and is dropped (``clock_stall``).
 """
 
 from __future__ import annotations
@@ -123,7 +125,7 @@ class RevolutionAssembler:
         """Forget everything in progress (discards a partial or held revolution uncounted)."""
         self._carry = FrameBatch.empty()  # frames of the revolution in progress (start: clean trigger)
         self._held: RevolutionBatch | None = None  # complete revolution waiting for the next trigger
-        self._prev: tuple[int, int, int] | None = None  # (seq, rev, end slot) of the last frame
+        self._prev: tuple[int, int, int, int] | None = None  # (seq, rev, end slot, t_us) of the last frame
         self._recent_drops: deque[int] = deque(maxlen=8)  # a revolution is dropped once
 
     def link_dropped(self) -> None:
@@ -165,12 +167,15 @@ class RevolutionAssembler:
         overrun = (flags & FLAG_OVERRUN) != 0
         mode_ok = ((flags & FLAG_SIMULTANEOUS) == self._sim_flag) & (b.n_ch == self.n_ch)
         # previous frame's fields, shifted by one (frame 0's predecessor is self._prev)
-        p_seq, p_rev, p_end = self._prev if self._prev is not None else (-2, -1, -1)
+        p_seq, p_rev, p_end, p_t = self._prev if self._prev is not None else (-2, -1, -1, 0)
         pseq = np.concatenate(([p_seq], seq[:-1]))
         prev_rev = np.concatenate(([p_rev], rev[:-1]))
         pend = np.concatenate(([p_end], end[:-1]))
         seq_ok = seq == ((pseq + 1) & _U16)
-        cont = seq_ok & (rev == prev_rev) & (fs == pend) & ~trig & ~overrun & mode_ok
+        # the board clock must advance from frame to frame (a stalled clock gives no period)
+        dt_frame = (b.t_us - np.concatenate(([p_t], b.t_us[:-1]))) & _U32
+        clock_ok = (dt_frame > 0) & (dt_frame < 1 << 31)
+        cont = seq_ok & (rev == prev_rev) & (fs == pend) & ~trig & ~overrun & mode_ok & clock_ok
         cont[0] = False  # frame 0 starts the carried revolution, or follows a finished chain
         starts = np.flatnonzero(~cont)
         lasts = np.append(starts[1:] - 1, f - 1)
@@ -185,8 +190,8 @@ class RevolutionAssembler:
         nxt_c = np.minimum(nxt, f - 1)
         dt = (b.t_us[nxt_c] - b.t_us[good_first]) & _U32
         is_next_trig = has_next & trig[nxt_c] & (rev[nxt_c] == ((rev[good_first] + 1) & _U32))
-        period = np.where(is_next_trig & (dt > 0), dt * 1e-6, np.nan)
-        bad_period = is_next_trig & (dt == 0)
+        bad_period = is_next_trig & ~clock_ok[nxt_c]
+        period = np.where(is_next_trig & ~bad_period, dt * 1e-6, np.nan)
 
         out: list[RevolutionBatch] = []
         if self._held is not None:
@@ -194,8 +199,8 @@ class RevolutionAssembler:
             first = 0
             if trig[first] and int(b.rev[first]) == (int(held.rev[0]) + 1) & _U32:
                 dt0 = (int(b.t_us[first]) - int(held.t_us[0])) & _U32
-                if dt0 == 0:
-                    self._drop(int(held.rev[0]), "bad_period")
+                if not clock_ok[first]:
+                    self._drop(int(held.rev[0]), "clock_stall")
                     held = None
                 else:
                     held = RevolutionBatch(held.rev, held.t_us, np.array([dt0 * 1e-6]), held.counts, held.slots)
@@ -203,7 +208,7 @@ class RevolutionAssembler:
                 out.append(held)
 
         # fault attribution for chains that are not good revolutions (rare: Python loop)
-        why = _BreakReasons(b, trig, overrun, mode_ok, seq_ok, prev_rev, pend)
+        why = _BreakReasons(b, trig, overrun, mode_ok, seq_ok, prev_rev, clock_ok)
         for k in np.flatnonzero(~complete):
             a, z = int(starts[k]), int(lasts[k])
             r = int(rev[a])
@@ -225,12 +230,12 @@ class RevolutionAssembler:
             self._carry = b.select(int(starts[-1]))
         else:
             self._carry = FrameBatch.empty()
-        self._prev = (int(seq[-1]), int(rev[-1]), int(end[-1]))
+        self._prev = (int(seq[-1]), int(rev[-1]), int(end[-1]), int(b.t_us[-1]))
 
         if len(good_first):
             keep = ~bad_period
             for r in rev[good_first[bad_period]]:
-                self._drop(int(r), "bad_period")
+                self._drop(int(r), "clock_stall")
             good_first, period = good_first[keep], period[keep]
             held_last = len(good_first) and good_last[keep][-1] == f - 1
             s_per_rev = SLOTS_PER_REV * self.n_ch
@@ -255,9 +260,9 @@ class RevolutionAssembler:
 class _BreakReasons:
     """Why frame i does not continue frame i-1 (a drop reason)."""
 
-    def __init__(self, b: FrameBatch, trig, overrun, mode_ok, seq_ok, prev_rev, pend) -> None:
+    def __init__(self, b: FrameBatch, trig, overrun, mode_ok, seq_ok, prev_rev, clock_ok) -> None:
         self.b, self.trig, self.overrun, self.mode_ok = b, trig, overrun, mode_ok
-        self.seq_ok, self.prev_rev, self.pend = seq_ok, prev_rev, pend
+        self.seq_ok, self.prev_rev, self.clock_ok = seq_ok, prev_rev, clock_ok
 
     def __call__(self, i: int) -> str:
         if not self.seq_ok[i]:
@@ -266,6 +271,8 @@ class _BreakReasons:
             return "overrun"
         if not self.mode_ok[i]:
             return "mode_mismatch"
+        if not self.clock_ok[i]:
+            return "clock_stall"
         if self.trig[i]:
             return "incomplete"
         if self.b.rev[i] != self.prev_rev[i]:

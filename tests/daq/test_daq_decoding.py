@@ -139,8 +139,8 @@ def test_rev_mismatch_and_early_trigger():
     def mutate(f, m):
         f = list(f)
         z = np.zeros((45, 1))
-        f[12] = frame(0, 12, 99, 180, z, 0)  # rev 1, wrong rev number
-        f[26] = frame(TRIGGER, 26, 4, 0, z, 0)  # a trigger inside rev 3 (slot 90)
+        f[12] = frame(0, 12, 99, 180, z, 120_000)  # rev 1, wrong rev number
+        f[26] = frame(TRIGGER, 26, 4, 0, z, 260_000)  # a trigger inside rev 3 (slot 90)
         return f
     counts, (dec, asm, revs) = faulty(mutate)
     # rev 1: broken by a frame with rev 99 (a fragment without trigger, counted once more);
@@ -226,3 +226,17 @@ def test_averager_rejects_bad_calibration():
     _, _, revs = run(b"".join(stream(signal(2, 8, "sequential"), "sequential")[0]))
     with pytest.raises(ValueError, match="gains has 2 values for 8 channels"):
         StreamingAverager(2, gains=[1.0, 2.0]).push(revs[0])
+
+
+def test_stalled_board_clock_drops_revolutions_without_a_period():
+    counts = signal(8, 8, "sequential")
+    frames, meta = stream(counts, "sequential")
+    stall = 2 * 80_000 + 30_000  # clock frozen from rev 2, slot 135 until rev 5
+    for i, m in enumerate(meta):
+        if 2 <= m["index"] < 5 and (m["index"], m["first_slot"]) >= (2, 135):
+            frames[i] = frame(m["first_slot"] == 0, m["seq"], m["rev"], m["first_slot"],
+                              slot_samples(counts[m["index"]], "sequential")[m["first_slot"]:m["first_slot"] + 45], stall)
+    dec, asm, revs = run(b"".join(frames))
+    assert [r.rev for r in revs] == [0, 1, 5, 6, 7]
+    assert asm.drop_reasons == {"clock_stall": 3}
+    check_intact(revs, counts)
