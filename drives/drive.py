@@ -361,7 +361,7 @@ class Drive:
         try:
             return await self.wait_status(
                 lambda s: not s.tripped, "fault cleared",
-                timeout=min(self.state_timeout, 1.0),
+                timeout=min(self.state_timeout, 0.5),
                 fail_on_trip=False,
             )
         except DriveTimeoutError as err:

@@ -533,9 +533,9 @@ class RigDrives:
             return statuses
         log.error("drive link restored after %.1f s; %s; stopping both", down, problem)
         self._trip_handled = True
+        await self._stop_all(emergency=False)
         self._command = None
         self._fail(problem)
-        await self._stop_all(emergency=False)
         return statuses
 
     async def _check_trips(self, statuses: list[DriveStatus]) -> None:
@@ -553,6 +553,6 @@ class RigDrives:
             fault_code=st.fault_code,
         )
         log.error("%s; ramping both drives to zero", err)
+        await self._stop_all(emergency=False)  # delivered before anyone hears of the fault
         self._command = None
         self._fail(err)
-        await self._stop_all(emergency=False)

@@ -1,0 +1,113 @@
+"""The simulator's drives for the drives/ tests: two DriveModels behind a real
+Modbus server (TCP, or RTU over a pty), ramps sped up, an observer that reads
+the drives' registers without going through drives/.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from sim import drive_model as dm
+from sim.drive_model import DriveModel
+from sim.modbus_server import ModbusEndpoint, serve_modbus_rtu_pty, serve_modbus_tcp
+
+ROOT = Path(__file__).resolve().parents[2]
+SPEEDUP = 25.0  # simulated s per wall s for ramps (the watchdog stays in wall time)
+RPM = 2.0 * 3.141592653589793 / 60.0
+
+# Spec control words, written out here (not imported from drives/) on purpose.
+CW_RUN, CW_RAMP_STOP, CW_EMERGENCY = 0x047F, 0x047E, 0x047B
+
+
+@dataclass
+class SimDrives:
+    """Spin (id 1) and orbit (id 2) drive models served at `url`."""
+
+    kind: str
+    models: dict[int, DriveModel]
+    endpoint: ModbusEndpoint
+
+    @property
+    def url(self) -> str:
+        return self.endpoint.url
+
+    # -- observer: the drives' own registers, not via drives/ (feeds no watchdog)
+    def regs(self, dev: int) -> dict[str, int]:
+        w = self.models[dev].read(0, 7)
+        s16 = [v - 0x10000 if v & 0x8000 else v for v in w]
+        return {"CW": w[0], "REF": s16[1], "SW": w[3], "ACT": s16[4], "FAULT": w[6]}
+
+    def rpm(self, dev: int) -> float:
+        self.models[dev].advance()
+        return self.models[dev].actual_rpm
+
+    async def wait_for(self, cond, timeout: float, what: str) -> float:
+        """Poll `cond()` every 10 ms; returns the seconds it took."""
+        t0 = time.monotonic()
+        while not cond():
+            if time.monotonic() - t0 > timeout:
+                raise AssertionError(f"{what} not within {timeout} s: {self.regs(1)} {self.regs(2)}")
+            await asyncio.sleep(0.01)
+        return time.monotonic() - t0
+
+    async def wait_stopped(self, timeout: float = 3.0) -> float:
+        return await self.wait_for(
+            lambda: self.regs(1)["ACT"] == 0 and self.regs(2)["ACT"] == 0, timeout, "standstill"
+        )
+
+
+def make_models(speedup: float = SPEEDUP) -> dict[int, DriveModel]:
+    t0 = time.monotonic()
+
+    def clock() -> float:
+        return (time.monotonic() - t0) * speedup
+
+    return {
+        1: DriveModel(1, clock=clock, bidirectional=False),
+        2: DriveModel(2, clock=clock, bidirectional=True),
+    }
+
+
+async def serve(kind: str, models: dict[int, DriveModel]) -> ModbusEndpoint:
+    if kind == "tcp":
+        return await serve_modbus_tcp(models)
+    return await serve_modbus_rtu_pty(models)
+
+
+def set_parameter(model: DriveModel, address: int, value: int) -> None:
+    model.write(address, [value])
+
+
+PARAM = {
+    "SPEED_SCALE": dm.SPEED_SCALE,
+    "MAX_SPEED": dm.MAX_SPEED,
+    "COMM_LOSS_TIMEOUT": dm.COMM_LOSS_TIMEOUT,
+    "DECEL_TIME": dm.DECEL_TIME,
+}
+
+
+async def run_cli(*args: str, timeout: float = 20.0) -> tuple[int, str, str]:
+    """`python -m orbitrig <args>` in a subprocess while this loop keeps serving."""
+    proc = await asyncio.create_subprocess_exec(
+        sys.executable, "-m", "orbitrig", *args,
+        cwd=ROOT, env=subprocess_env(),
+        stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
+    )
+    try:
+        out, err = await asyncio.wait_for(proc.communicate(), timeout)
+    except BaseException:
+        proc.kill()
+        await proc.wait()
+        raise
+    return proc.returncode, out.decode(), err.decode()
+
+
+def subprocess_env() -> dict[str, str]:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
+    return env

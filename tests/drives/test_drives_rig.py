@@ -1,0 +1,201 @@
+"""RigDrives against the simulator's drives over Modbus TCP and RTU on a pty.
+
+Every failure test ends by reading the drives' own registers (the simulator
+model, not drives/) to prove both are stopping.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+
+import pytest
+from drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, PARAM, RPM, set_parameter
+
+from drives.errors import (
+    DriveError,
+    DriveExceptionResponse,
+    DriveFaultError,
+    DriveLimitError,
+)
+from drives.link import ModbusLink
+from drives.rig import DriveLimits, RigDrives
+
+LIMITS = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM, min_ratio=None, max_ratio=1.0)
+
+
+def rig(sim, limits=LIMITS, **kw) -> RigDrives:
+    kw.setdefault("poll_interval", 0.05)
+    kw.setdefault("timeout", 0.3)
+    kw.setdefault("comm_loss_timeout", 0.5)
+    return RigDrives(sim.url, limits, **kw)
+
+
+async def test_start_forward_with_scaling_read_from_the_drive(sim):
+    set_parameter(sim.models[2], PARAM["SPEED_SCALE"], 6000)  # orbit drive: 20000 = 6000 rpm
+    async with rig(sim) as r:
+        await r.set_speeds(1000 * RPM, 600 * RPM)
+        st = await r.wait_settled(hold=0.1, timeout=5)
+        assert st.spin.actual == pytest.approx(1000 * RPM, abs=5 * RPM)
+        assert st.orbit.actual == pytest.approx(600 * RPM, abs=5 * RPM)
+        assert sim.regs(1)["REF"] == 6667 and sim.regs(2)["REF"] == 2000
+        assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RUN
+        assert sim.rpm(1) == pytest.approx(1000, abs=5) and sim.rpm(2) == pytest.approx(600, abs=5)
+        assert st.spin.running and st.orbit.at_setpoint and st.spin.torque > 0
+        await r.stop()
+        assert r.state.stopped
+    assert sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
+
+
+async def test_reverse_whirl(sim):
+    async with rig(sim) as r:
+        await r.set_speeds(1200 * RPM, -900 * RPM)
+        st = await r.wait_settled(hold=0.1, timeout=5)
+        assert st.orbit.actual == pytest.approx(-900 * RPM, abs=5 * RPM)
+        assert sim.regs(2)["REF"] == -6000  # two's complement on the wire
+        assert sim.rpm(2) == pytest.approx(-900, abs=5)
+        # through zero to forward whirl
+        await r.set_speeds(1200 * RPM, 300 * RPM)
+        await r.wait_settled(hold=0.1, timeout=5)
+        assert sim.rpm(2) == pytest.approx(300, abs=5)
+
+
+@pytest.mark.parametrize(
+    "spin_rpm, orbit_rpm, match",
+    [
+        (2450, 100, "max_spin"),
+        (1000, -2450, "max_orbit"),
+        (1000, -1100, r"\|Omega\|/omega"),
+        (-100, 0, "one way only"),
+    ],
+)
+async def test_limits_refused_before_anything_is_written(sim, spin_rpm, orbit_rpm, match):
+    async with rig(sim) as r:
+        await r.set_speeds(800 * RPM, -400 * RPM)
+        await r.wait_settled(hold=0.05, timeout=5)
+        before = (sim.regs(1), sim.regs(2))
+        with pytest.raises(DriveLimitError, match=match):
+            await r.set_speeds(spin_rpm * RPM, orbit_rpm * RPM)
+        await asyncio.sleep(0.1)
+        after = (sim.regs(1), sim.regs(2))
+        for b, a in zip(before, after):
+            assert (a["CW"], a["REF"]) == (b["CW"], b["REF"]) == (CW_RUN, b["REF"])
+        assert sim.rpm(1) == pytest.approx(800, abs=5)  # still running as before
+
+
+async def test_drive_max_speed_is_a_limit_too(sim):
+    set_parameter(sim.models[1], PARAM["MAX_SPEED"], 1500)
+    async with rig(sim, DriveLimits(math.inf, math.inf)) as r:
+        with pytest.raises(DriveLimitError, match=r"spin drive \(id 1\), register MAX_SPEED.*1500"):
+            await r.set_speeds(1600 * RPM, 0.0)
+        assert sim.regs(1)["CW"] == 0 and sim.regs(1)["REF"] == 0  # nothing sent
+
+
+async def test_trip_stops_both_and_reset(sim):
+    async with rig(sim) as r:
+        await r.set_speeds(1500 * RPM, 900 * RPM)
+        await r.wait_settled(hold=0.05, timeout=5)
+        sim.models[1].inject_fault(2310)
+        with pytest.raises(DriveFaultError) as info:
+            await r.wait_settled(hold=0.05, timeout=5)
+        err = info.value
+        assert (err.drive, err.fault_code, err.register) == (1, 2310, 6)
+        assert "spin drive (id 1)" in str(err) and "2310 (overcurrent)" in str(err)
+        # the healthy orbit drive is ramped down by the interlock, not left turning
+        assert sim.regs(2)["CW"] == CW_RAMP_STOP
+        await sim.wait_stopped(timeout=3)
+        assert sim.regs(1)["FAULT"] == 2310 and sim.regs(2)["FAULT"] == 0
+        # a tripped drive is refused, nothing written
+        with pytest.raises(DriveFaultError, match="reset"):
+            await r.set_speeds(500 * RPM, 100 * RPM)
+        assert sim.regs(1)["REF"] == 0
+        # the cause is still there: reset refused
+        with pytest.raises(DriveFaultError, match="still active") as info:
+            await r.reset_faults()
+        assert info.value.fault_code == 2310
+        sim.models[1].clear_fault_cause()
+        await r.reset_faults()
+        assert sim.regs(1)["FAULT"] == 0
+        await r.set_speeds(500 * RPM, 100 * RPM)
+        await r.wait_settled(hold=0.05, timeout=5)
+        assert sim.rpm(1) == pytest.approx(500, abs=5)
+
+
+async def test_cancelled_task_leaves_both_drives_stopping(sim):
+    settled = asyncio.Event()
+
+    async def session():
+        async with rig(sim) as r:
+            await r.set_speeds(2000 * RPM, -1500 * RPM)
+            await r.wait_settled(hold=0.05, timeout=5)
+            settled.set()
+            await asyncio.sleep(30)
+
+    task = asyncio.create_task(session())
+    await asyncio.wait_for(settled.wait(), 10)
+    task.cancel()
+    await asyncio.sleep(0)
+    task.cancel()  # a second cancellation must not skip the stop
+    with pytest.raises(asyncio.CancelledError):
+        await task
+    # stopped by command at once (not by the watchdog: no fault)
+    for dev in (1, 2):
+        regs = sim.regs(dev)
+        assert regs["CW"] == CW_RAMP_STOP and regs["FAULT"] == 0, regs
+    assert abs(sim.rpm(1)) > 100  # still ramping down, along DECEL_TIME
+    await sim.wait_stopped(timeout=3)
+
+
+async def test_exception_in_the_block_stops_both(sim):
+    with pytest.raises(RuntimeError, match="operator error"):
+        async with rig(sim) as r:
+            await r.set_speeds(1000 * RPM, 500 * RPM)
+            await r.wait_settled(hold=0.05, timeout=5)
+            raise RuntimeError("operator error")
+    assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP
+    await sim.wait_stopped()
+
+
+async def test_emergency_stop(sim):
+    # DECEL_TIME 60 s: a ramp stop from 2000 rpm would take 40 s simulated, 1.6 s wall
+    async with rig(sim, decel_time=60.0) as r:
+        await r.set_speeds(2000 * RPM, 2000 * RPM)
+        await r.wait_settled(hold=0.05, timeout=5)
+        t = asyncio.get_running_loop().time()
+        await r.stop(emergency=True)
+        took = asyncio.get_running_loop().time() - t
+        for dev in (1, 2):
+            regs = sim.regs(dev)
+            assert regs["CW"] == CW_EMERGENCY and not regs["SW"] & 0x20  # OFF_3_STA = 0
+        assert took < 0.8  # OFF3: 10 x faster than DECEL_TIME (0.16 s wall)
+    assert sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
+    # the exit repeated the emergency stop rather than relaxing it to OFF1
+    assert sim.regs(1)["CW"] == CW_EMERGENCY
+
+
+async def test_ramp_times_and_parameter_write_refused_while_running(sim):
+    async with rig(sim, accel_time=2.0, decel_time=1.0) as r:
+        assert r.spin.params.accel_time == pytest.approx(2.0)
+        assert sim.models[2].parameter(PARAM["DECEL_TIME"]) == 10
+        await r.set_speeds(300 * RPM, 0.0)
+        with pytest.raises(DriveExceptionResponse) as info:
+            await r.spin.configure(accel_time=3.0)
+        assert info.value.exception_code == 3
+        assert "spin drive (id 1), register ACCEL_TIME (102)" in str(info.value)
+
+
+async def test_exception_response_is_raised_not_returned(sim):
+    async with ModbusLink(sim.url, timeout=0.3, names={1: "spin"}) as link:
+        with pytest.raises(DriveExceptionResponse) as info:
+            await link.read(1, 50, 1)
+        assert info.value.exception_code == 2 and "register unknown register (50)" in str(info.value)
+        with pytest.raises(DriveExceptionResponse):
+            await link.write(1, 3, [0])  # SW is read-only
+        assert await link.read(1, 100, 1) == [3000]  # the link is still fine
+
+
+async def test_wait_settled_timeout_names_the_drives(sim):
+    async with rig(sim) as r:
+        await r.set_speeds(2400 * RPM, 0.0)
+        with pytest.raises(DriveError, match=r"not at setpoint.*spin \(id 1\)"):
+            await r.wait_settled(hold=0.05, timeout=0.05)
