@@ -18,8 +18,9 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from orbitrig.reduce import MATRIX_UNITS
+
 ENTRIES = ("xx", "xy", "yx", "yy")
-MATRIX_UNITS = {"K": ("MN/m", 1e-6), "C": ("kN s/m", 1e-3), "D": ("kg", 1.0)}
 MATRIX_NAMES = {"K": "stiffness", "C": "damping", "D": "inertia"}
 PAIR_LABELS = {"xfx": "x, Fx", "yfx": "y, Fx", "xfy": "x, Fy", "yfy": "y, Fy"}
 DIRECTIONS = ((1, "forward", "-", "o"), (-1, "backward", "--", "s"))

@@ -11,23 +11,26 @@ model / frequency dependence / method. The run's own results in ``run.h5`` and
 from __future__ import annotations
 
 import csv
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from orbitrig.errors import IdentificationError, ReductionError
 from orbitrig.run_reader import LMS_NAMES, Point, Run, StoredIdentification, freq_dep_key
+from orbitrig.storage import CSV_HEAD, coef_order, true_entry
 
-#: constant-term keys in the spec's order (the `true_` columns)
+#: constant-term keys in the spec's order
 CONSTANT_KEYS = tuple(f"{m}{e}" for m in "KCD" for e in ("xx", "xy", "yx", "yy"))
-SETTING_COLUMNS = (
-    "point", "label", "spin_rpm", "recess_pressure_mpa", "pressure_ratio",
-    "static_eccentricity", "dynamic_eccentricity",
-)  # fmt: skip
-RESULT_COLUMNS = (
-    "lms", "model", "freq_dep", "method", "n_frequencies", "condition_number", "residual_rms", "error",
-)  # fmt: skip
+#: display unit and scale (SI value * scale) of each matrix at the edges
+MATRIX_UNITS = {"K": ("MN/m", 1e-6), "C": ("kN s/m", 1e-3), "D": ("kg", 1.0)}
+
+
+def coefficient_unit(key: str) -> tuple[str, float]:
+    """Display unit and scale of a coefficient key: constant terms in MN/m, kN s/m, kg;
+    the term of order r (``Kxx_r``) multiplies Omega^r, so its unit carries (rad/s)^-r."""
+    unit, scale = MATRIX_UNITS[key[0]]
+    _, _, order = key.partition("_")
+    return (unit if not order else f"{unit} (rad/s)^-{order}"), scale
 
 
 @dataclass
@@ -101,31 +104,22 @@ def csv_path(directory: str | Path, model: str, freq_dep: str, method: str) -> P
 def true_constants(point: Point) -> dict[str, float]:
     """The simulator's true constant-term coefficients (K0, C0, D0), keyed Kxx..Dyy."""
     truth = point.truth or {}
-    out: dict[str, float] = {}
-    for m in "KCD":
-        mat = truth.get(f"{m}0")
-        if mat is None:
-            continue
-        for i, e in enumerate(("xx", "xy", "yx", "yy")):
-            out[f"{m}{e}"] = float(mat[i // 2][i % 2])
-    return out
-
-
-def _num(value: Any) -> Any:
-    return "" if value is None or (isinstance(value, float) and math.isnan(value)) else value
+    return {k: true_entry(truth, k) for k in CONSTANT_KEYS if f"{k[0]}0" in truth}
 
 
 def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, Any]]]:
-    """Columns and rows in the layout of coefficients.csv (docs/storage.md)."""
+    """Columns and rows in the layout of coefficients.csv (docs/storage.md, orbitrig.storage):
+    settings, result columns, every coefficient and its `_std`, and in --sim runs `true_K`
+    for the constant-term keys of the model."""
     keys: list[str] = []
     for r in rows:
         if r.identification is not None:
             keys += [k for k in r.identification.coefficients if k not in keys]
-    columns = [*SETTING_COLUMNS, *RESULT_COLUMNS]
-    for k in keys:
-        columns += [k, f"{k}_std"]
+    keys.sort(key=coef_order)
+    constant = [k for k in keys if "_" not in k]
+    columns = [*CSV_HEAD, *(c for k in keys for c in (k, f"{k}_std"))]
     if sim:
-        columns += [f"true_{k}" for k in CONSTANT_KEYS]
+        columns += [f"true_{k}" for k in constant]
     out = []
     for r in rows:
         s = r.point.settings
@@ -138,17 +132,14 @@ def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, 
         }  # fmt: skip
         ident = r.identification
         if ident is not None:
-            d.update(
-                n_frequencies=ident.n_frequencies,
-                condition_number=ident.condition_number,
-                residual_rms=ident.residual_rms,
-            )
+            d.update(n_frequencies=ident.n_frequencies, condition_number=ident.condition_number,
+                     residual_rms=ident.residual_rms)  # fmt: skip
             for k in keys:
                 d[k] = ident.coefficients.get(k)
                 d[f"{k}_std"] = ident.std_errors.get(k)
-        if sim:
-            d.update({f"true_{k}": v for k, v in true_constants(r.point).items()})
-        out.append({c: _num(d.get(c)) for c in columns})
+            if sim and r.point.truth:
+                d.update({f"true_{k}": true_entry(r.point.truth, k) for k in constant if k in ident.coefficients})
+        out.append({c: "" if d.get(c) is None else d[c] for c in columns})
     return columns, out
 
 
@@ -157,7 +148,7 @@ def write_csv(path: str | Path, rows: list[Reduced], sim: bool) -> Path:
     path = Path(path)
     columns, data = csv_rows(rows, sim)
     tmp = path.with_name(path.name + ".tmp")
-    with tmp.open("w", newline="") as fh:
+    with tmp.open("w", newline="", encoding="utf-8") as fh:
         writer = csv.DictWriter(fh, fieldnames=columns)
         writer.writeheader()
         writer.writerows(data)
@@ -166,24 +157,25 @@ def write_csv(path: str | Path, rows: list[Reduced], sim: bool) -> Path:
 
 
 def format_table(rows: list[Reduced]) -> str:
-    """A terminal table of the constant terms: K in MN/m, C in kN s/m, D in kg."""
+    """A terminal table of the constant terms (K in MN/m, C in kN s/m, D in kg) and the
+    residual; a refused (point, lms) shows 'refused' (the reason goes to standard error).
+    In --sim runs each point is followed by a row of the simulator's true values."""
     cols = [k for k in CONSTANT_KEYS if any(r.identification and k in r.identification.coefficients for r in rows)]
-    scale = {"K": 1e-6, "C": 1e-3, "D": 1.0}
-    units = {"K": "MN/m", "C": "kN s/m", "D": "kg"}
-    head = ["point", "lms"] + [f"{k} [{units[k[0]]}]" for k in cols] + ["resid [N]"]
-    lines = []
-    for r in rows:
-        cells = [f"{r.point.index:04d}", r.lms]
+    lines = [["point", "lms", *(f"{k} [{coefficient_unit(k)[0]}]" for k in cols), "resid [N]"]]
+    for n, r in enumerate(rows):
+        cells = [r.point.name, r.lms]
         if r.identification is None:
-            cells.append(f"refused: {r.error}")
+            cells.append("refused")
         else:
             c = r.identification.coefficients
-            cells += [f"{c[k] * scale[k[0]]:.4g}" for k in cols]
+            cells += [f"{c[k] * coefficient_unit(k)[1]:.4g}" for k in cols]
             cells.append(f"{r.identification.residual_rms:.3g}")
         lines.append(cells)
-    widths = [max(len(head[i]), *(len(ln[i]) for ln in lines if i < len(ln) and len(ln) == len(head))) for i in range(len(head))]
-    fmt = lambda cells: "  ".join(c.rjust(w) if i > 1 else c.ljust(w) for i, (c, w) in enumerate(zip(cells, widths)))  # noqa: E731
-    out = [fmt(head)]
-    for ln in lines:
-        out.append(fmt(ln) if len(ln) == len(head) else "  ".join([ln[0].ljust(widths[0]), ln[1].ljust(widths[1]), ln[2]]))
-    return "\n".join(out)
+        truth = true_constants(r.point)
+        if truth and (n + 1 == len(rows) or rows[n + 1].point is not r.point):
+            lines.append([r.point.name, "true", *(f"{truth[k] * coefficient_unit(k)[1]:.4g}" for k in cols)])
+    widths = [max(len(ln[i]) for ln in lines if i < len(ln)) for i in range(len(lines[0]))]
+    return "\n".join(
+        "  ".join(c.ljust(w) if i < 2 else c.rjust(w) for i, (c, w) in enumerate(zip(ln, widths))).rstrip()
+        for ln in lines
+    )

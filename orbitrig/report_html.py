@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from orbitrig.plots import PAIR_LABELS, whirl_direction
-from orbitrig.reduce import true_constants
+from orbitrig.reduce import coefficient_unit, true_constants
 from orbitrig.run_reader import LMS_NAMES
 
 CSS = """
@@ -32,18 +32,6 @@ td.l,th.l{text-align:left}
 img{max-width:100%;border:1px solid #ddd;margin:.4em 0}
 details pre{background:#f7f7f7;padding:.6em;overflow-x:auto}
 """
-
-#: display unit and scale of a coefficient of order r (key "Kxx" or "Kxx_r")
-_BASE_UNITS = {"K": ("MN/m", 1e-6), "C": ("kN s/m", 1e-3), "D": ("kg", 1.0)}
-
-
-def coefficient_unit(key: str) -> tuple[str, float]:
-    """Display unit and scale: constant terms in MN/m, kN s/m, kg; the term of
-    order r (``Kxx_r``) multiplies Omega^r, so its unit carries (rad/s)^-r."""
-    unit, scale = _BASE_UNITS[key[0]]
-    _, _, order = key.partition("_")
-    return (unit if not order else f"{unit} (rad/s)^-{order}"), scale
-
 
 def fmt(value, digits: int = 4) -> str:
     if value is None or (isinstance(value, float) and not math.isfinite(value)):

@@ -9,7 +9,7 @@ import pytest
 from typer.testing import CliRunner
 
 from orbitrig.cli import app
-from orbitrig.report_html import coefficient_unit
+from orbitrig.reduce import coefficient_unit
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
