@@ -56,7 +56,7 @@ def register(app: typer.Typer) -> None:
             "remote", "--confirm",
             help="manual settings: remote (wait for a 'confirm' command) | auto (--sim only)"),
         speedup: Optional[float] = typer.Option(None, "--speedup",
-                                                help="simulator time speed-up (--sim; default: sim config)"),
+                                                help="simulator time speed-up (--sim; default: as orbitrig sweep)"),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ) -> None:
         """Run the rig service: start, watch and stop runs over MQTT."""
@@ -143,7 +143,10 @@ async def _serve(rig, settings, broker_settings, *, out: Path, sim: bool, speedu
         if sim:
             from sim.rig import SimRig
 
-            sim_rig = await stack.enter_async_context(SimRig(speedup=speedup))
+            from orbitrig.cli_sweep import DEFAULT_SIM_SPEEDUP
+
+            sim_rig = await stack.enter_async_context(
+                SimRig(speedup=speedup or DEFAULT_SIM_SPEEDUP, adc_pty=False))
 
         def new_engine(name: str, matrix):
             stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")

@@ -268,7 +268,8 @@ class Service:
 
     def __init__(self, args: list[str], workdir: Path, env: dict[str, str] | None = None):
         self.log = Path(workdir) / "serve.log"
-        full_env = {**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})}
+        path = os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p)
+        full_env = {**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONPATH": path, **(env or {})}
         with open(self.log, "ab") as log:
             self.proc = subprocess.Popen([sys.executable, "-m", "orbitrig", "serve", *args],
                                          stdout=log, stderr=log, env=full_env, cwd=workdir)
