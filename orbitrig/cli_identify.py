@@ -1,0 +1,93 @@
+"""`orbitrig identify TABLE.csv --model NAME [--freq-dep SPEC] [--method ...] [--solver ...] [--json]`.
+
+Contract: ../shared/spec/orbit-table.md. With --json one JSON object on stdout (exit 0);
+otherwise readable tables. Unidentifiable model or malformed table: exit 2, nothing on
+stdout, the reason on stderr.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import typer
+
+UNITS = {"K": "N/m", "C": "N s/m", "D": "kg"}
+
+
+def _unit(key: str) -> str:
+    base = UNITS[key[0]]
+    if "_" not in key:
+        return base
+    r = int(key.split("_")[1])
+    return f"{base} / (rad/s)^{r}" if r > 1 else f"{base} / (rad/s)"
+
+
+def _fail(message: str) -> None:
+    sys.stderr.write(f"orbitrig identify: {message}\n")
+    raise typer.Exit(code=2)
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("identify")
+    def identify_cmd(
+        table: Path = typer.Argument(..., help="Orbit table CSV (spec: orbit-table.md)."),
+        model: str = typer.Option(..., "--model", help="kc7 | kc8 | kcd11 | kcd12"),
+        freq_dep: str = typer.Option("none", "--freq-dep",
+                                     help="none | power:M | power:m,n,p | power:auto | poly:R"),
+        method: str = typer.Option("ols", "--method", help="ols | wls | tls | iv"),
+        solver: str = typer.Option("qr", "--solver", help="qr | svd | lu (least-squares solver)"),
+        as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
+    ) -> None:
+        """Identify rotordynamic coefficients K, C, D from an orbit table."""
+        from orbitrig.errors import OrbitrigError, TableError
+        from orbitrig.orbit_table import read_orbit_table
+        from reduction.identify import identify
+
+        try:
+            data = read_orbit_table(table)
+        except TableError as err:
+            _fail(f"malformed table: {err}")
+        try:
+            result = identify(data, model=model, freq_dep=freq_dep, method=method, solver=solver)
+        except OrbitrigError as err:
+            _fail(str(err))
+        if as_json:
+            typer.echo(json.dumps(result.to_dict(), allow_nan=False))
+        else:
+            _print_readable(result, table)
+
+
+def _fmt(v) -> str:
+    return "-" if v is None else f"{v:.4g}"
+
+
+def _print_readable(result, path: Path) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    fd = result.freq_dep + (f" (chosen M = {result.exponent})" if result.exponent is not None else "")
+    console.print(f"[bold]{path}[/bold]: model {result.model}, freq-dep {fd}, method {result.method}, "
+                  f"solver {result.solver}")
+    console.print(f"{result.n_coefficients} coefficients from {result.n_frequencies} orbit frequencies "
+                  f"(minimum {result.min_frequencies}); condition number {result.condition_number:.4g}; "
+                  f"residual RMS {result.residual_rms:.4g} N")
+    for m, reason in sorted(result.skipped.items()):
+        console.print(f"power:{m} skipped: {reason.splitlines()[0]}")
+    t = Table(title="Coefficients (SI, Omega in rad/s)")
+    for col in ("coefficient", "value", "std error", "rel. std error", "unit"):
+        t.add_column(col, justify="left" if col in ("coefficient", "unit") else "right")
+    for key, v in result.coefficients.items():
+        se = result.std_errors.get(key)
+        rel = "-" if se is None or v == 0 else f"{100 * se / abs(v):.2g} %"
+        t.add_row(key, f"{v:.5g}", _fmt(se), rel, _unit(key))
+    console.print(t)
+    f = Table(title="Reproduced vs measured force (reproduced minus measured)")
+    for col in ("orbit Hz", "Fx amp %", "Fx phase deg", "Fy amp %", "Fy phase deg"):
+        f.add_column(col, justify="right")
+    for row in result.fit:
+        f.add_row(f"{row['orbit_hz']:.4g}", _fmt(row["fx_amp_err_pct"]), _fmt(row["fx_phase_err_deg"]),
+                  _fmt(row["fy_amp_err_pct"]), _fmt(row["fy_phase_err_deg"]))
+    console.print(f)

@@ -1,0 +1,119 @@
+"""Orbit table CSV (../shared/spec/orbit-table.md): read into / write from an OrbitTable.
+
+Header row required, column order free, extra columns ignored. Units at this edge:
+spin_rpm (rpm), orbit_hz (Hz), phasors in m and N, optional gamma2_* in [0, 1]. Inside:
+rad/s. Every problem raises TableError naming the file, the line (1-based, the header is
+line 1) and the column.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+
+from orbitrig.errors import TableError
+from reduction.errors import ReductionError
+from reduction.table import GAMMA2_COLUMNS, OrbitTable
+
+REQUIRED = ("spin_rpm", "orbit_hz", "x_re", "x_im", "y_re", "y_im", "fx_re", "fx_im", "fy_re", "fy_im")
+GAMMA2 = tuple(f"gamma2_{c}" for c in GAMMA2_COLUMNS)
+RPM = 2 * math.pi / 60  # rad/s per rpm
+
+
+def read_orbit_table(path: str | Path) -> OrbitTable:
+    """Read and validate an orbit table CSV; raises TableError(file, line, column, reason)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as err:
+        raise TableError(str(path), None, None, f"cannot read the file: {err}") from err
+    reader = csv.reader(text.splitlines())
+    header, header_line = None, None
+    for fields in reader:
+        if any(f.strip() for f in fields):
+            header, header_line = [f.strip() for f in fields], reader.line_num
+            break
+    if header is None:
+        raise TableError(str(path), 1, None, "empty file: a header row is required")
+    seen = set()
+    for name in header:
+        if name in seen and name:
+            raise TableError(str(path), header_line, name, "column appears twice in the header")
+        seen.add(name)
+    for name in REQUIRED:
+        if name not in seen:
+            raise TableError(str(path), header_line, name, "required column missing from the header")
+    present_g = [g for g in GAMMA2 if g in seen]
+    if present_g and len(present_g) != len(GAMMA2):
+        missing = next(g for g in GAMMA2 if g not in seen)
+        raise TableError(str(path), header_line, missing,
+                         "coherence columns come as a set of four: gamma2_xfx, gamma2_yfx, gamma2_xfy, gamma2_yfy")
+    wanted = REQUIRED + (GAMMA2 if present_g else ())
+    index = {name: header.index(name) for name in wanted}
+    rows, lines = [], []
+    for fields in reader:
+        if not any(f.strip() for f in fields):
+            continue
+        line = reader.line_num
+        if len(fields) > len(header):
+            raise TableError(str(path), line, f"#{len(header) + 1} (no header)",
+                             f"{len(fields)} fields but the header has {len(header)} columns")
+        values = []
+        for name in wanted:
+            j = index[name]
+            if j >= len(fields):
+                raise TableError(str(path), line, name, f"missing value ({len(fields)} fields, header has {len(header)})")
+            raw = fields[j].strip()
+            try:
+                v = float(raw)
+            except ValueError:
+                raise TableError(str(path), line, name, f"not a number: {raw!r}") from None
+            if not math.isfinite(v):
+                raise TableError(str(path), line, name, f"not a finite number: {raw!r}")
+            values.append(v)
+        row = dict(zip(wanted, values))
+        if row["orbit_hz"] <= 0:
+            raise TableError(str(path), line, "orbit_hz", f"orbit frequency must be > 0 Hz, got {row['orbit_hz']:g}")
+        if row["spin_rpm"] < 0:
+            raise TableError(str(path), line, "spin_rpm", f"spin speed must be >= 0 rpm, got {row['spin_rpm']:g}")
+        if rows and row["spin_rpm"] != rows[0]["spin_rpm"]:
+            raise TableError(str(path), line, "spin_rpm",
+                             f"spin speed {row['spin_rpm']:g} rpm differs from the first row's "
+                             f"{rows[0]['spin_rpm']:g} rpm (one operating point per table)")
+        for g in GAMMA2 if present_g else ():
+            if not 0.0 <= row[g] <= 1.0:
+                raise TableError(str(path), line, g, f"coherence must lie in [0, 1], got {row[g]:g}")
+        rows.append(row)
+        lines.append(line)
+    if not rows:
+        raise TableError(str(path), header_line + 1, None, "no data rows after the header")
+    col = {name: np.array([r[name] for r in rows]) for name in wanted}
+    gamma2 = np.stack([col[g] for g in GAMMA2], axis=1) if present_g else None
+    try:
+        return OrbitTable(
+            spin=float(col["spin_rpm"][0]) * RPM,
+            orbit=2 * math.pi * col["orbit_hz"],
+            x=col["x_re"] + 1j * col["x_im"], y=col["y_re"] + 1j * col["y_im"],
+            fx=col["fx_re"] + 1j * col["fx_im"], fy=col["fy_re"] + 1j * col["fy_im"],
+            gamma2=gamma2)
+    except ReductionError as err:  # defensive: every check above should have caught it
+        raise TableError(str(path), None, None, str(err)) from err
+
+
+def write_orbit_table(path: str | Path, table: OrbitTable) -> None:
+    """Write ``table`` as an orbit table CSV (full float precision; gamma2 when present)."""
+    header = list(REQUIRED) + (list(GAMMA2) if table.gamma2 is not None else [])
+    spin_rpm = table.spin / RPM
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        for k in range(table.n):
+            row = [spin_rpm, table.orbit[k] / (2 * math.pi)]
+            for z in (table.x[k], table.y[k], table.fx[k], table.fy[k]):
+                row += [z.real, z.imag]
+            if table.gamma2 is not None:
+                row += list(table.gamma2[k])
+            w.writerow([repr(float(v)) for v in row])

@@ -1,0 +1,169 @@
+"""Impedance models and their frequency dependence -> named regression coefficients.
+
+Z_ij(Omega) = sum_r Omega^r (K_ij^(r) + i Omega C_ij^(r) - Omega^2 D_ij^(r)), Omega in rad/s,
+with the orders r of each matrix set by the frequency dependence (paper Eq. 15 and 16):
+
+- ``none``: r = 0 only;
+- ``power:M`` / ``power:m,n,p``: K orders {0, m}, C orders {0, n}, D orders {0, p} (Eq. 15);
+- ``power:auto``: ``power:M`` with the best integer M in 1..4 (chosen by ``identify``);
+- ``poly:R``: orders 0..R for every matrix (Eq. 16 truncated at Omega^R).
+
+Coefficient names (the spec's keys): the constant term is ``Kxx``, the term multiplying
+Omega^r is ``Kxx_r``. A constrained (symmetric) pair is ONE free coefficient named after its
+upper entry (``Cxy`` in kc7 stands for Cxy = Cyx); the output repeats it under both keys.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+from reduction.errors import ReductionError
+
+ENTRIES = ("xx", "xy", "yx", "yy")
+_INDEX = {"x": 0, "y": 1}
+
+# model -> {matrix: symmetric?}; a matrix not listed is absent
+MODELS: dict[str, dict[str, bool]] = {
+    "kc7": {"K": False, "C": True},
+    "kc8": {"K": False, "C": False},
+    "kcd11": {"K": False, "C": False, "D": True},
+    "kcd12": {"K": False, "C": False, "D": False},
+}
+AUTO_EXPONENTS = (1, 2, 3, 4)
+MAX_ORDER = 8
+
+
+@dataclass(frozen=True)
+class FreqDep:
+    """Parsed ``--freq-dep``: orders per matrix ({"K": (0, m), ...}); ``auto`` for power:auto."""
+
+    text: str
+    orders: dict[str, tuple[int, ...]] | None  # None for power:auto
+    kind: str  # none | power | poly
+
+    @property
+    def auto(self) -> bool:
+        return self.orders is None
+
+
+def _int(text: str, spec: str) -> int:
+    if not re.fullmatch(r"\s*\d+\s*", text):
+        raise ReductionError(f"freq-dep {spec!r}: {text!r} is not a non-negative integer")
+    return int(text)
+
+
+def parse_freq_dep(spec: str) -> FreqDep:
+    """Parse a frequency-dependence spec: none | power:M | power:m,n,p | power:auto | poly:R."""
+    s = str(spec).strip().lower()
+    if s in ("none", ""):
+        return FreqDep("none", {"K": (0,), "C": (0,), "D": (0,)}, "none")
+    kind, sep, arg = s.partition(":")
+    if not sep or kind not in ("power", "poly"):
+        raise ReductionError(
+            f"unknown freq-dep {spec!r}: use none, power:M, power:m,n,p, power:auto or poly:R")
+    if kind == "power" and arg.strip() == "auto":
+        return FreqDep("power:auto", None, "power")
+    parts = [_int(p, spec) for p in arg.split(",")]
+    if any(not 1 <= p <= MAX_ORDER for p in parts):
+        raise ReductionError(f"freq-dep {spec!r}: exponents and orders must lie in 1..{MAX_ORDER}")
+    if kind == "poly":
+        if len(parts) != 1:
+            raise ReductionError(f"freq-dep {spec!r}: poly takes one order R, e.g. poly:2")
+        orders = tuple(range(parts[0] + 1))
+        return FreqDep(f"poly:{parts[0]}", {"K": orders, "C": orders, "D": orders}, "poly")
+    if len(parts) == 1:
+        m = n = p = parts[0]
+    elif len(parts) == 3:
+        m, n, p = parts
+    else:
+        raise ReductionError(f"freq-dep {spec!r}: power takes M or m,n,p")
+    text = f"power:{parts[0]}" if len(parts) == 1 else f"power:{m},{n},{p}"
+    return FreqDep(text, {"K": (0, m), "C": (0, n), "D": (0, p)}, "power")
+
+
+@dataclass(frozen=True)
+class Term:
+    """One free coefficient: matrix K|C|D, order r (multiplies Omega^r), the matrix entries
+    (i, j) it fills (two for a symmetric off-diagonal pair) and its name."""
+
+    matrix: str
+    order: int
+    entries: tuple[tuple[int, int], ...]
+    name: str
+
+
+def coefficient_name(matrix: str, entry: str, order: int) -> str:
+    """Spec key of one matrix entry: ``Kxx`` (order 0), ``Kxx_r`` (order r >= 1)."""
+    return f"{matrix}{entry}" if order == 0 else f"{matrix}{entry}_{order}"
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """A model with a resolved frequency dependence: its free coefficients (``terms``)."""
+
+    model: str
+    freq_dep: FreqDep
+    terms: tuple[Term, ...]
+
+    @property
+    def names(self) -> list[str]:
+        """Free coefficient names, in regression column order."""
+        return [t.name for t in self.terms]
+
+    @property
+    def n_coefficients(self) -> int:
+        return len(self.terms)
+
+    @property
+    def min_frequencies(self) -> int:
+        """ceil(free coefficients / 4): every orbit frequency gives four real equations."""
+        return math.ceil(len(self.terms) / 4)
+
+    @property
+    def matrices(self) -> tuple[str, ...]:
+        return tuple(MODELS[self.model])
+
+    def keys(self) -> list[str]:
+        """Output keys: all four entries of every matrix and order the model has."""
+        out = []
+        for m in self.matrices:
+            for r in self.freq_dep.orders[m]:
+                out += [coefficient_name(m, e, r) for e in ENTRIES]
+        return out
+
+    def expand(self, values) -> dict[str, float]:
+        """Free coefficient values (column order) -> {key: value}, symmetric pairs repeated."""
+        by_entry = {}
+        for t, v in zip(self.terms, values):
+            for i, j in t.entries:
+                by_entry[coefficient_name(t.matrix, "xy"[i] + "xy"[j], t.order)] = v
+        return {k: by_entry[k] for k in self.keys()}
+
+
+def model_spec(model: str, freq_dep: str | FreqDep = "none") -> ModelSpec:
+    """Build the coefficient list of ``model`` (kc7 | kc8 | kcd11 | kcd12) with ``freq_dep``.
+
+    ``power:auto`` cannot be resolved here (``identify`` tries each exponent): it raises.
+    """
+    if model not in MODELS:
+        raise ReductionError(f"unknown model {model!r}: use one of {', '.join(MODELS)}")
+    fd = freq_dep if isinstance(freq_dep, FreqDep) else parse_freq_dep(freq_dep)
+    if fd.auto:
+        raise ReductionError("power:auto has no fixed coefficient list: resolve the exponent first")
+    terms = []
+    for matrix, symmetric in MODELS[model].items():
+        for r in fd.orders[matrix]:
+            for e in ENTRIES:
+                i, j = _INDEX[e[0]], _INDEX[e[1]]
+                if symmetric and (i, j) == (1, 0):
+                    continue  # Cyx is Cxy
+                entries = ((i, j), (j, i)) if symmetric and i != j else ((i, j),)
+                terms.append(Term(matrix, r, entries, coefficient_name(matrix, e, r)))
+    return ModelSpec(model, fd, tuple(terms))
+
+
+def power_spec(model: str, exponent: int) -> ModelSpec:
+    """``model`` with ``power:M`` (one of the candidates of power:auto)."""
+    return model_spec(model, f"power:{exponent}")

@@ -1,0 +1,172 @@
+"""Linear least-squares solvers and estimators for the impedance regression A theta = b.
+
+Every routine works on the matrix it is given; :func:`column_scale` equilibrates columns
+(unit 2-norm) first so that coefficients of very different units (N/m, N s/m, kg, times
+powers of Omega) do not spoil the conditioning. The solvers, as the paper cross-checks them:
+
+- ``qr``:  Householder QR, x = R^-1 Q^T b;
+- ``svd``: x = V S^-1 U^T b;
+- ``lu``:  normal equations (A^T A) x = A^T b by LU, then iterative refinement on the
+  least-squares residual (x += (A^T A)^-1 A^T (b - A x)), which recovers QR accuracy as
+  long as cond(A)^2 * eps < 1.
+
+Estimators: :func:`ols`, :func:`wls` (row weights = inverse variances), :func:`iv`
+(instrumental variables, two-stage least squares) and :func:`structured_tls` (total least
+squares for noisy displacements, maximum likelihood with isotropic phasor noise).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from reduction.errors import IdentificationError, ReductionError
+
+SOLVERS = ("qr", "svd", "lu")
+_EPS = np.finfo(float).eps
+
+
+@dataclass
+class Estimate:
+    """A solved regression: ``x`` (p,), its covariance ``cov`` (p, p) from the residual
+    (None when there are no degrees of freedom), residual sum of squares ``rss`` in the
+    estimator's own metric (weighted for wls, whitened for tls) and ``dof``."""
+
+    x: np.ndarray
+    cov: np.ndarray | None
+    rss: float
+    dof: int
+
+
+def column_scale(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(A / c, c) with c the 2-norm of each column (1 for an all-zero column)."""
+    c = np.linalg.norm(A, axis=0)
+    c = np.where(c > 0, c, 1.0)
+    return A / c, c
+
+
+def condition_number(A: np.ndarray) -> float:
+    """2-norm condition number sigma_max / sigma_min (inf when rank-deficient)."""
+    s = np.linalg.svd(A, compute_uv=False)
+    return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+
+
+def lstsq(A: np.ndarray, b: np.ndarray, solver: str = "qr") -> np.ndarray:
+    """Least-squares solution of A x = b (A full column rank) by ``qr``, ``svd`` or ``lu``.
+
+    b may be (m,) or (m, k) for k right-hand sides.
+    """
+    if solver == "qr":
+        Q, R = np.linalg.qr(A)
+        return sla.solve_triangular(R, Q.T @ b)
+    if solver == "svd":
+        U, s, Vt = np.linalg.svd(A, full_matrices=False)
+        return Vt.T @ ((U.T @ b) / (s if np.ndim(b) == 1 else s[:, None]))
+    if solver == "lu":
+        return _lu_refined(A, b)
+    raise ReductionError(f"unknown solver {solver!r}: use one of {', '.join(SOLVERS)}")
+
+
+def _lu_refined(A: np.ndarray, b: np.ndarray, max_iter: int = 30) -> np.ndarray:
+    """Normal equations by LU (Crout-like, partial pivoting) with iterative improvement."""
+    lu = sla.lu_factor(A.T @ A, check_finite=True)
+    x = sla.lu_solve(lu, A.T @ b)
+    prev = np.inf
+    for _ in range(max_iter):
+        dx = sla.lu_solve(lu, A.T @ (b - A @ x))
+        x = x + dx
+        step, size = np.linalg.norm(dx), np.linalg.norm(x)
+        if step <= 4 * _EPS * size or step >= 0.5 * prev:
+            break
+        prev = step
+    if not np.all(np.isfinite(x)) or step > 1e-6 * max(size, np.finfo(float).tiny):
+        raise IdentificationError(
+            "lu: iterative refinement of the normal equations did not converge "
+            "(regression too ill-conditioned for the normal equations); use --solver qr or svd")
+    return x
+
+
+def _covariance(A_eff: np.ndarray, sigma2: float) -> np.ndarray:
+    """sigma2 (A^T A)^-1 via the SVD of A (full column rank)."""
+    _, s, Vt = np.linalg.svd(A_eff, full_matrices=False)
+    return sigma2 * (Vt.T / s**2) @ Vt
+
+
+def _finish(A_eff: np.ndarray, x: np.ndarray, r: np.ndarray, cov_matrix: np.ndarray | None = None) -> Estimate:
+    m, p = A_eff.shape
+    dof = m - p
+    rss = float(r @ r)
+    if dof <= 0:
+        return Estimate(x, None, rss, dof)
+    sigma2 = rss / dof
+    cov = _covariance(A_eff, sigma2) if cov_matrix is None else sigma2 * cov_matrix
+    return Estimate(x, cov, rss, dof)
+
+
+def ols(A: np.ndarray, b: np.ndarray, solver: str = "qr") -> Estimate:
+    """Ordinary least squares; cov = s^2 (A^T A)^-1 with s^2 = rss / (m - p)."""
+    x = lstsq(A, b, solver)
+    return _finish(A, x, b - A @ x)
+
+
+def wls(A: np.ndarray, b: np.ndarray, weights: np.ndarray, solver: str = "qr") -> Estimate:
+    """Weighted least squares, weights = inverse variances of b (any common scale):
+    minimises sum w r^2; cov = s^2 (A^T W A)^-1, s^2 = weighted rss / (m - p)."""
+    w = np.sqrt(np.asarray(weights, dtype=float))
+    if w.shape != b.shape or not np.all(np.isfinite(w)) or np.any(w <= 0):
+        raise ReductionError("wls: weights must be finite, > 0 and one per equation")
+    Aw, bw = A * w[:, None], b * w
+    x = lstsq(Aw, bw, solver)
+    return _finish(Aw, x, bw - Aw @ x)
+
+
+def iv(A: np.ndarray, Z: np.ndarray, b: np.ndarray, solver: str = "qr") -> Estimate:
+    """Instrumental variables by two stages: A_hat = P_Z A (projection onto span Z), then
+    least squares of b on A_hat. Z (m, q >= p) must be correlated with A but not with the
+    noise in A. cov = s^2 (A_hat^T A_hat)^-1 with s^2 from the structural residual b - A x."""
+    Qz, _ = np.linalg.qr(Z)
+    A_hat = Qz @ (Qz.T @ A)
+    x = lstsq(A_hat, b, solver)
+    r = b - A @ x
+    m, p = A.shape
+    if m - p <= 0:
+        return Estimate(x, None, float(r @ r), m - p)
+    _, s, Vt = np.linalg.svd(A_hat, full_matrices=False)
+    return _finish(A, x, r, (Vt.T / s**2) @ Vt)
+
+
+def structured_tls(G: np.ndarray, f: np.ndarray, E: np.ndarray, d: np.ndarray, ratio: float,
+                   x0: np.ndarray) -> Estimate:
+    """Total least squares of f = -Z(x) d with noise on both the displacements d and forces f.
+
+    Maximum likelihood for independent isotropic complex noise on every displacement
+    phasor (std sigma_d) and force phasor (std sigma_f = ratio * sigma_d): the orthogonal
+    distance of each measured (d_k, f_k) from the model's subspace {f = -Z_k d} is
+    r_k^H (I + Z_k Z_k^H / ratio^2)^-1 r_k with r_k = f_k - G_k x = f_k + Z_k d_k. The sum is
+    minimised (Gauss-Newton / trust region, from x0) with x in the units of G's columns.
+
+    G (n, 2, p) complex regressors, f (n, 2) forces, E (n, p, 2, 2) impedance basis
+    (Z_k = sum_j x_j E[k, j]), d (n, 2) displacements, ratio in N/m.
+    """
+    from scipy.optimize import least_squares
+
+    n, _, p = G.shape
+    if n * 4 <= p:
+        raise IdentificationError("tls needs more equations than coefficients")
+    eye = np.eye(2)
+
+    def whitened(x):
+        Z = np.einsum("kpil,p->kil", E, x)
+        M = eye + Z @ np.conj(np.swapaxes(Z, -1, -2)) / ratio**2
+        L = np.linalg.cholesky(M)
+        r = f - G @ x
+        e = np.linalg.solve(L, r[..., None])[..., 0]
+        return np.concatenate([e.real.ravel(), e.imag.ravel()])
+
+    sol = least_squares(whitened, x0, method="lm", xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=200 * (p + 1))
+    if not np.all(np.isfinite(sol.x)):
+        raise IdentificationError("tls: the total least squares iteration did not converge")
+    e = sol.fun
+    return _finish(sol.jac, sol.x, e)

@@ -1,0 +1,95 @@
+"""The orbit table: one row per orbit frequency at one operating point.
+
+Units are SI inside (rad/s, m, N). Phasor convention q(t) = Re(q_bar e^{i Omega t});
+the force is the fluid-film force ON THE JOURNAL, f_bar = -Z(Omega) d_bar.
+Forward whirl of radius R: x_bar = R, y_bar = -i R; backward: x_bar = R, y_bar = +i R.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from reduction.errors import ReductionError
+
+GAMMA2_COLUMNS = ("xfx", "yfx", "xfy", "yfy")  # order of OrbitTable.gamma2's last axis
+
+
+def _complex_1d(name: str, value, n: int | None) -> np.ndarray:
+    arr = np.asarray(value, dtype=complex)
+    if arr.ndim != 1:
+        raise ReductionError(f"OrbitTable.{name} must be one-dimensional, got shape {arr.shape}")
+    if n is not None and arr.shape[0] != n:
+        raise ReductionError(f"OrbitTable.{name} has {arr.shape[0]} rows, orbit has {n}")
+    if not np.all(np.isfinite(arr)):
+        raise ReductionError(f"OrbitTable.{name} contains a non-finite value")
+    return arr
+
+
+@dataclass(frozen=True)
+class OrbitTable:
+    """Measured phasors of one operating point (validated, SI).
+
+    spin   : journal spin speed omega, rad/s (>= 0)
+    orbit  : (n,) orbit frequencies Omega, rad/s, > 0 (the whirl direction lives in the phasors)
+    x, y   : (n,) complex displacement phasors, m
+    fx, fy : (n,) complex force phasors, N (force on the journal)
+    gamma2 : optional (n, 4) coherences in [0, 1], columns xfx, yfx, xfy, yfy
+    """
+
+    spin: float
+    orbit: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    fx: np.ndarray
+    fy: np.ndarray
+    gamma2: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        spin = float(self.spin)
+        if not np.isfinite(spin) or spin < 0:
+            raise ReductionError(f"OrbitTable.spin must be finite and >= 0 rad/s, got {self.spin!r}")
+        orbit = np.asarray(self.orbit, dtype=float)
+        if orbit.ndim != 1 or orbit.size == 0:
+            raise ReductionError(f"OrbitTable.orbit must be a non-empty 1-D array, got shape {orbit.shape}")
+        if not np.all(np.isfinite(orbit)) or np.any(orbit <= 0):
+            raise ReductionError("OrbitTable.orbit must be finite and > 0 rad/s on every row")
+        n = orbit.shape[0]
+        object.__setattr__(self, "spin", spin)
+        object.__setattr__(self, "orbit", orbit)
+        for name in ("x", "y", "fx", "fy"):
+            object.__setattr__(self, name, _complex_1d(name, getattr(self, name), n))
+        if self.gamma2 is not None:
+            g = np.asarray(self.gamma2, dtype=float)
+            if g.shape != (n, 4):
+                raise ReductionError(f"OrbitTable.gamma2 must have shape ({n}, 4), got {g.shape}")
+            if not np.all(np.isfinite(g)) or np.any(g < 0) or np.any(g > 1):
+                raise ReductionError("OrbitTable.gamma2 values must lie in [0, 1]")
+            object.__setattr__(self, "gamma2", g)
+        for arr in (self.orbit, self.x, self.y, self.fx, self.fy, self.gamma2):
+            if arr is not None:
+                arr.flags.writeable = False
+
+    @property
+    def n(self) -> int:
+        """Number of rows (orbit frequencies)."""
+        return int(self.orbit.shape[0])
+
+    @property
+    def orbit_hz(self) -> np.ndarray:
+        """Orbit frequencies Omega / (2 pi), Hz."""
+        return self.orbit / (2 * np.pi)
+
+    def whirl_components(self) -> tuple[np.ndarray, np.ndarray]:
+        """Forward and backward circular components (a_f, a_b), m, of each orbit.
+
+        x = a_f + a_b, y = -i a_f + i a_b: a forward circle of radius R has a_f = R, a_b = 0.
+        """
+        return (self.x + 1j * self.y) / 2, (self.x - 1j * self.y) / 2
+
+    def subset(self, rows) -> OrbitTable:
+        """A table of the selected rows (index array or boolean mask)."""
+        g = None if self.gamma2 is None else self.gamma2[rows]
+        return OrbitTable(self.spin, self.orbit[rows], self.x[rows], self.y[rows],
+                          self.fx[rows], self.fy[rows], g)

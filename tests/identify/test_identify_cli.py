@@ -1,0 +1,161 @@
+"""`orbitrig identify` against the spec: JSON on stdout, exit 2 with reasons on stderr."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from reduction_synthetic import frequencies, keys_of, orbit_table, truth
+from orbitrig.cli import app
+from orbitrig.orbit_table import write_orbit_table
+
+ROOT = Path(__file__).resolve().parents[2]
+TRUE = truth("kcd11", {"K": (0,), "C": (0,), "D": (0,)})
+SPEC_KEYS = ["model", "freq_dep", "method", "n_coefficients", "min_frequencies", "n_frequencies",
+             "coefficients", "std_errors", "condition_number", "residual_rms", "fit"]
+
+
+@pytest.fixture
+def runner():
+    return CliRunner()
+
+
+@pytest.fixture
+def table_csv(tmp_path):
+    path = tmp_path / "table.csv"
+    write_orbit_table(path, orbit_table(TRUE, frequencies(5), gamma2=[0.99, 0.98, 0.97, 0.995]))
+    return path
+
+
+def test_json_output_follows_the_spec(runner, table_csv):
+    res = runner.invoke(app, ["identify", str(table_csv), "--model", "kcd11", "--json"])
+    assert res.exit_code == 0, res.stderr
+    d = json.loads(res.stdout)
+    assert list(d) == SPEC_KEYS
+    assert (d["model"], d["freq_dep"], d["method"]) == ("kcd11", "none", "ols")
+    assert (d["n_coefficients"], d["min_frequencies"], d["n_frequencies"]) == (11, 3, 10)
+    for k, v in keys_of(TRUE).items():
+        assert d["coefficients"][k] == pytest.approx(v, rel=1e-9)
+    assert d["coefficients"]["Dxy"] == d["coefficients"]["Dyx"]
+    assert set(d["std_errors"]) == set(d["coefficients"])
+    assert len(d["fit"]) == 10 and d["fit"][0]["orbit_hz"] == pytest.approx(frequencies(5)[0])
+    assert res.stderr == ""
+
+
+@pytest.mark.parametrize("method", ["wls", "tls", "iv"])
+@pytest.mark.parametrize("solver", ["svd", "lu"])
+def test_methods_and_solvers(runner, table_csv, method, solver):
+    res = runner.invoke(app, ["identify", str(table_csv), "--model", "kcd11", "--method", method,
+                              "--solver", solver, "--json"])
+    assert res.exit_code == 0, res.stderr
+    d = json.loads(res.stdout)
+    assert d["method"] == method
+    assert d["coefficients"]["Kxx"] == pytest.approx(keys_of(TRUE)["Kxx"], rel=1e-9)
+
+
+def test_power_auto_reports_the_exponent(runner, tmp_path):
+    true = truth("kc7", {"K": (0, 2), "C": (0, 2)})
+    path = tmp_path / "t.csv"
+    write_orbit_table(path, orbit_table(true, frequencies(6)))
+    res = runner.invoke(app, ["identify", str(path), "--model", "kc7", "--freq-dep", "power:auto", "--json"])
+    assert res.exit_code == 0, res.stderr
+    d = json.loads(res.stdout)
+    assert d["freq_dep"] == "power:auto" and d["exponent"] == 2 and d["n_coefficients"] == 14
+    assert d["coefficients"]["Cxy_2"] == d["coefficients"]["Cyx_2"]
+
+
+def test_readable_table_without_json(runner, table_csv):
+    res = runner.invoke(app, ["identify", str(table_csv), "--model", "kc8"])
+    assert res.exit_code == 0, res.stderr
+    assert "Kxx" in res.stdout and "N s/m" in res.stdout and "condition number" in res.stdout
+    assert "Fx amp %" in res.stdout
+
+
+def test_rank_deficient_model_exit_2_nothing_on_stdout(runner, tmp_path):
+    path = tmp_path / "fwd.csv"
+    true = truth("kc8", {"K": (0, 1), "C": (0, 1)})
+    write_orbit_table(path, orbit_table(true, frequencies(8), ("forward",)))
+    res = runner.invoke(app, ["identify", str(path), "--model", "kc8", "--freq-dep", "power:1", "--json"])
+    assert res.exit_code == 2
+    assert res.stdout == ""
+    assert "Kxx_1 - Cxy" in res.stderr and "forward plus backward whirl" in res.stderr
+
+
+def test_33_coefficient_model_is_refused_with_the_inertia_confusion(runner, tmp_path):
+    path = tmp_path / "t.csv"
+    write_orbit_table(path, orbit_table(TRUE, frequencies(10)))
+    res = runner.invoke(app, ["identify", str(path), "--model", "kcd11", "--freq-dep", "poly:2", "--json"])
+    assert res.exit_code == 2 and res.stdout == ""
+    assert "33 coefficients" in res.stderr and "Kxx_2 + Dxx" in res.stderr
+
+
+def test_too_few_frequencies_exit_2(runner, tmp_path):
+    path = tmp_path / "t.csv"
+    write_orbit_table(path, orbit_table(TRUE, frequencies(2), ("forward",)))
+    res = runner.invoke(app, ["identify", str(path), "--model", "kcd11", "--json"])
+    assert res.exit_code == 2 and res.stdout == ""
+    assert "too few orbit frequencies" in res.stderr and "at least 3" in res.stderr
+
+
+def test_wls_without_coherence_exit_2(runner, tmp_path):
+    path = tmp_path / "t.csv"
+    write_orbit_table(path, orbit_table(TRUE, frequencies(4)))
+    res = runner.invoke(app, ["identify", str(path), "--model", "kcd11", "--method", "wls", "--json"])
+    assert res.exit_code == 2 and res.stdout == "" and "gamma2" in res.stderr
+
+
+def test_unknown_model_exit_2(runner, table_csv):
+    res = runner.invoke(app, ["identify", str(table_csv), "--model", "kcd13", "--json"])
+    assert res.exit_code == 2 and res.stdout == "" and "unknown model" in res.stderr
+
+
+GOOD_HEADER = "spin_rpm,orbit_hz,x_re,x_im,y_re,y_im,fx_re,fx_im,fy_re,fy_im"
+
+
+@pytest.mark.parametrize(
+    "text, line, column",
+    [
+        (GOOD_HEADER + "\n1000,5,1e-6,0,0,-1e-6,1,2,3,4\n1000,6,1e-6,0,0,abc,1,2,3,4\n", 3, "y_im"),
+        (GOOD_HEADER.replace("fy_im", "fyim") + "\n1000,5,1e-6,0,0,-1e-6,1,2,3,4\n", 1, "fy_im"),
+        (GOOD_HEADER + "\n1000,5,1e-6,0,0,-1e-6,1,2,3,4\n1000,0,1e-6,0,0,-1e-6,1,2,3,4\n", 3, "orbit_hz"),
+        (GOOD_HEADER + "\n1000,5,1e-6,0,0,-1e-6,1,2,3,4\n1000,6,1e-6,0,0,-1e-6,1,2\n", 3, "fy_re"),
+        (GOOD_HEADER + "\n1000,5,1e-6,0,0,-1e-6,1,2,3,4\n\n2000,6,1e-6,0,0,-1e-6,1,2,3,4\n", 4, "spin_rpm"),
+        (GOOD_HEADER + ",gamma2_xfx,gamma2_yfx,gamma2_xfy,gamma2_yfy\n1000,5,1e-6,0,0,-1e-6,1,2,3,4,1,1,1.5,1\n",
+         2, "gamma2_xfy"),
+        (GOOD_HEADER + ",gamma2_xfx\n1000,5,1e-6,0,0,-1e-6,1,2,3,4,1\n", 1, "gamma2_yfx"),
+        (GOOD_HEADER + "\n1000,5,1e-6,0,0,-1e-6,1,2,3,nan\n", 2, "fy_im"),
+    ],
+    ids=["not-a-number", "missing-column", "orbit-zero", "short-row", "two-spins", "gamma-range",
+         "gamma-incomplete", "nan"],
+)
+def test_malformed_table_names_line_and_column(runner, tmp_path, text, line, column):
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    res = runner.invoke(app, ["identify", str(path), "--model", "kc8", "--json"])
+    assert res.exit_code == 2
+    assert res.stdout == ""
+    assert f"line {line}" in res.stderr and f"column '{column}'" in res.stderr and str(path) in res.stderr
+
+
+def test_missing_file_exit_2(runner, tmp_path):
+    res = runner.invoke(app, ["identify", str(tmp_path / "none.csv"), "--model", "kc8", "--json"])
+    assert res.exit_code == 2 and res.stdout == "" and "none.csv" in res.stderr
+
+
+def test_real_process_streams(table_csv, tmp_path):
+    """The installed entry point as a user runs it: stdout pure JSON, refusals on stderr."""
+    ok = subprocess.run([sys.executable, "-m", "orbitrig", "identify", str(table_csv), "--model", "kc7", "--json"],
+                        capture_output=True, text=True, cwd=ROOT, timeout=60)
+    assert ok.returncode == 0, ok.stderr
+    assert json.loads(ok.stdout)["n_coefficients"] == 7
+    bad = tmp_path / "bad.csv"
+    bad.write_text(GOOD_HEADER + "\n1000,5,1e-6,0,0,-1e-6,1,2,3,x\n")
+    err = subprocess.run([sys.executable, "-m", "orbitrig", "identify", str(bad), "--model", "kc7", "--json"],
+                         capture_output=True, text=True, cwd=ROOT, timeout=60)
+    assert err.returncode == 2 and err.stdout == ""
+    assert "line 2" in err.stderr and "column 'fy_im'" in err.stderr

@@ -1,0 +1,64 @@
+"""Phasors of angle-sampled signals: q(theta) = mean + Re(q_bar e^{i h theta})."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from reduction.errors import ReductionError
+from reduction.fourier import harmonic_fit, phasor
+
+
+def signal(theta, q_bar, mean=0.0, h=1):
+    return mean + np.real(q_bar * np.exp(1j * h * theta))
+
+
+def test_uniform_full_circle_equals_the_dft_formula():
+    rng = np.random.default_rng(0)
+    theta = 2 * np.pi * np.arange(45) / 45
+    q = rng.standard_normal(45)
+    expected = 2 / 45 * np.sum(q * np.exp(-1j * theta))
+    assert phasor(q, theta) == pytest.approx(expected, rel=1e-12, abs=1e-12)
+
+
+def test_multiplexed_slots_need_no_phase_correction():
+    # 8 channels sampled one slot apart: channel c at slots c, c+8, c+16, ... of a 360-slot disk
+    slots = np.arange(0, 360, 8)[None, :] + np.arange(8)[:, None]  # (8, 45)
+    theta = 2 * np.pi * slots / 360
+    true = (np.arange(8) + 1) * np.exp(1j * np.linspace(0, 3, 8))
+    q = signal(theta, true[:, None], mean=0.5 * np.arange(8)[:, None])
+    fit = harmonic_fit(q, theta)
+    np.testing.assert_allclose(fit.phasor, true, rtol=1e-12)
+    np.testing.assert_allclose(fit.mean, 0.5 * np.arange(8), atol=1e-12)
+    assert np.all(fit.rms_residual < 1e-12)
+
+
+def test_arbitrary_angles_harmonic_and_mean():
+    rng = np.random.default_rng(1)
+    theta = np.sort(rng.uniform(0, 2 * np.pi, 30))  # irregular, not a full period grid
+    q = 3.0 + signal(theta, 2 - 1j)
+    assert phasor(q, theta) == pytest.approx(2 - 1j, rel=1e-12)
+    q2 = 3.0 + signal(theta, 0.4 + 0.7j, h=2)
+    fit = harmonic_fit(q2, theta, harmonic=2)
+    assert fit.phasor == pytest.approx(0.4 + 0.7j, rel=1e-12)
+    assert fit.mean == pytest.approx(3.0, rel=1e-12)
+
+
+def test_vectorised_over_records_and_channels_with_axis():
+    slots = np.arange(0, 360, 8)[None, :] + np.arange(4)[:, None]  # (4 channels, 45)
+    theta = 2 * np.pi * slots / 360
+    rng = np.random.default_rng(2)
+    true = rng.standard_normal((10, 4)) + 1j * rng.standard_normal((10, 4))  # 10 records
+    q = signal(theta[None], true[..., None])  # (10, 4, 45)
+    np.testing.assert_allclose(phasor(q, theta), true, rtol=1e-12)
+    # samples first: axis=0, angles 1-D along that axis
+    th1 = 2 * np.pi * np.arange(45) / 45
+    q0 = signal(th1[:, None, None], true[None])  # (45, 10, 4)
+    np.testing.assert_allclose(phasor(q0, th1, axis=0), true, rtol=1e-12)
+
+
+def test_angles_that_cannot_resolve_the_harmonic_are_refused():
+    with pytest.raises(ReductionError, match="cannot resolve"):
+        phasor(np.ones(4), np.zeros(4))
+    with pytest.raises(ReductionError):
+        phasor(np.ones(10), np.zeros(9))

@@ -1,0 +1,138 @@
+"""Identification from synthetic orbit tables of known coefficients (noise-free)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from reduction_synthetic import frequencies, keys_of, orbit_table, truth
+from reduction.errors import IdentificationError, ReductionError
+from reduction.identify import identify
+from reduction.models import parse_freq_dep
+
+ELLIPSES = (("forward",), (5e-6, 2e-6, 0.4), (3e-6, -4e-6, 1.1))  # b < 0: backward-whirling ellipse
+
+IDENTIFIABLE = [
+    ("kc7", "none"), ("kc8", "none"), ("kcd11", "none"), ("kcd12", "none"),
+    ("kc7", "power:1"), ("kc8", "power:2"), ("kcd11", "power:1"), ("kcd12", "power:3"),
+    ("kcd11", "power:1,3,4"), ("kc7", "poly:2"), ("kc8", "poly:3"), ("kcd12", "poly:1"),
+]
+
+
+def _max_rel_err(result, true):
+    expected = keys_of(true)
+    assert set(result.coefficients) == set(expected)
+    return max(abs(result.coefficients[k] - v) / abs(v) for k, v in expected.items())
+
+
+@pytest.mark.parametrize("model, freq_dep", IDENTIFIABLE)
+@pytest.mark.parametrize("orbits", ["fwd+bwd circles", "ellipses"])
+def test_noise_free_data_give_the_coefficients_back(model, freq_dep, orbits):
+    true = truth(model, parse_freq_dep(freq_dep).orders)
+    shapes = ("forward", "backward") if orbits == "fwd+bwd circles" else ELLIPSES[1:]
+    table = orbit_table(true, frequencies(10), shapes)
+    result = identify(table, model, freq_dep)
+    assert _max_rel_err(result, true) < 1e-9
+    assert result.residual_rms < 1e-9 * np.sqrt(np.mean(np.abs(table.fx) ** 2))
+    assert result.n_frequencies == table.n
+
+
+@pytest.mark.parametrize("method", ["wls", "tls", "iv"])
+def test_every_method_is_exact_on_noise_free_data(method):
+    true = truth("kcd11", {"K": (0,), "C": (0,), "D": (0,)})
+    table = orbit_table(true, frequencies(6), gamma2=[0.99, 0.98, 0.97, 0.995])
+    assert _max_rel_err(identify(table, "kcd11", "none", method), true) < 1e-9
+
+
+def test_minimum_number_of_frequencies_is_enough():
+    true = truth("kc7", {"K": (0,), "C": (0,)})
+    table = orbit_table(true, frequencies(2), ("forward",))  # 2 frequencies, 8 equations, 7 unknowns
+    result = identify(table, "kc7")
+    assert result.min_frequencies == 2 and _max_rel_err(result, true) < 1e-9
+
+
+def test_solvers_agree_to_rounding_on_noisy_data():
+    rng = np.random.default_rng(3)
+    true = truth("kcd11", {"K": (0, 1), "C": (0, 1), "D": (0, 1)})
+    table = orbit_table(true, frequencies(12))
+    noisy = type(table)(table.spin, table.orbit, table.x, table.y,
+                        table.fx * (1 + 0.01 * rng.standard_normal(table.n)),
+                        table.fy + 5 * rng.standard_normal(table.n))
+    results = {s: identify(noisy, "kcd11", "power:1", solver=s) for s in ("qr", "svd", "lu")}
+    ref = results["qr"].coefficients
+    for s in ("svd", "lu"):
+        for k, v in results[s].coefficients.items():
+            assert v == pytest.approx(ref[k], rel=1e-10, abs=1e-10 * results["qr"].std_errors[k])
+        assert results[s].std_errors == pytest.approx(results["qr"].std_errors, rel=1e-8)
+    assert _max_rel_err(results["qr"], true) > 1e-6  # the noise is real
+
+
+def test_power_auto_picks_the_true_exponent_and_skips_unidentifiable_ones():
+    true = truth("kcd11", {"K": (0, 3), "C": (0, 3), "D": (0, 3)})
+    table = orbit_table(true, frequencies(10))
+    result = identify(table, "kcd11", "power:auto")
+    assert result.exponent == 3 and result.freq_dep == "power:auto"
+    assert 2 in result.skipped and "Kxx_2 + Dxx" in result.skipped[2]  # K_2 vs inertia
+    assert _max_rel_err(result, true) < 1e-9
+    d = result.to_dict()
+    assert d["exponent"] == 3 and "Kxx_3" in d["coefficients"]
+
+
+def test_to_dict_is_the_spec_object():
+    true = truth("kcd11", {"K": (0,), "C": (0,), "D": (0,)})
+    table = orbit_table(true, frequencies(5))
+    d = identify(table, "kcd11").to_dict()
+    assert list(d) == ["model", "freq_dep", "method", "n_coefficients", "min_frequencies", "n_frequencies",
+                       "coefficients", "std_errors", "condition_number", "residual_rms", "fit"]
+    assert (d["model"], d["freq_dep"], d["method"]) == ("kcd11", "none", "ols")
+    assert (d["n_coefficients"], d["min_frequencies"], d["n_frequencies"]) == (11, 3, 10)
+    assert list(d["coefficients"]) == ["Kxx", "Kxy", "Kyx", "Kyy", "Cxx", "Cxy", "Cyx", "Cyy",
+                                       "Dxx", "Dxy", "Dyx", "Dyy"]
+    assert list(d["std_errors"]) == list(d["coefficients"])
+    assert d["coefficients"]["Dxy"] == d["coefficients"]["Dyx"]
+    assert d["condition_number"] >= 1
+    assert len(d["fit"]) == 10
+    assert set(d["fit"][0]) == {"orbit_hz", "fx_amp_err_pct", "fx_phase_err_deg", "fy_amp_err_pct",
+                                "fy_phase_err_deg"}
+    assert d["fit"][0]["orbit_hz"] == pytest.approx(table.orbit[0] / (2 * np.pi))
+
+
+def test_matrices_and_reproduce():
+    true = truth("kc8", {"K": (0, 2), "C": (0, 2)})
+    table = orbit_table(true, frequencies(8))
+    result = identify(table, "kc8", "power:2")
+    w = 70.0
+    K, C, D = result.matrices(w)
+    np.testing.assert_allclose(K, true[("K", 0)] + w**2 * true[("K", 2)], rtol=1e-9)
+    np.testing.assert_allclose(C, true[("C", 0)] + w**2 * true[("C", 2)], rtol=1e-9)
+    assert np.all(D == 0)
+    fx, fy = result.reproduce(table)
+    np.testing.assert_allclose(fx, table.fx, rtol=1e-9)
+    np.testing.assert_allclose(fy, table.fy, rtol=1e-9)
+
+
+def test_fit_diagnostics_report_amplitude_and_phase_errors():
+    true = truth("kcd11", {"K": (0,), "C": (0,), "D": (0,)})
+    table = orbit_table(true, frequencies(5))
+    # distort one measured force by +2 % and +1 degree: the fit shows it at that frequency
+    fx = table.fx.copy()
+    fx[3] *= 1.02 * np.exp(1j * np.radians(1.0))
+    distorted = type(table)(table.spin, table.orbit, table.x, table.y, fx, table.fy)
+    fit = identify(distorted, "kcd11").fit
+    worst = max(range(len(fit)), key=lambda k: abs(fit[k]["fx_amp_err_pct"]))
+    assert worst == 3
+    assert fit[3]["fx_amp_err_pct"] < -1.0 and fit[3]["fx_phase_err_deg"] < -0.5
+
+
+def test_wls_without_coherence_is_a_clear_error():
+    true = truth("kc8", {"K": (0,), "C": (0,)})
+    with pytest.raises(IdentificationError, match="gamma2"):
+        identify(orbit_table(true, frequencies(4)), "kc8", method="wls")
+
+
+@pytest.mark.parametrize("kw", [{"method": "mle"}, {"solver": "chol"}, {"model": "kd4"}, {"freq_dep": "poly"}])
+def test_unknown_options_are_refused(kw):
+    true = truth("kc8", {"K": (0,), "C": (0,)})
+    args = {"model": "kc8", **kw}
+    with pytest.raises(ReductionError):
+        identify(orbit_table(true, frequencies(4)), **args)

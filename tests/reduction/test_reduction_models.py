@@ -1,0 +1,60 @@
+"""Models and frequency dependence: coefficient counts, minimum frequencies, names."""
+
+from __future__ import annotations
+
+import pytest
+
+from reduction.errors import ReductionError
+from reduction.models import model_spec, parse_freq_dep
+
+
+@pytest.mark.parametrize(
+    "model, freq_dep, n, min_freq",
+    [
+        ("kc7", "none", 7, 2), ("kc8", "none", 8, 2), ("kcd11", "none", 11, 3), ("kcd12", "none", 12, 3),
+        # the paper's counts: 14 -> 4, 22 -> 6, 21 -> 6, 33 -> 9
+        ("kc7", "power:1", 14, 4), ("kcd11", "power:2", 22, 6), ("kc7", "poly:2", 21, 6),
+        ("kcd11", "poly:2", 33, 9), ("kcd11", "power:1,2,3", 22, 6), ("kcd12", "poly:2", 36, 9),
+    ],
+)
+def test_counts_and_minimum_frequencies(model, freq_dep, n, min_freq):
+    spec = model_spec(model, freq_dep)
+    assert spec.n_coefficients == n
+    assert spec.min_frequencies == min_freq
+
+
+def test_names_follow_the_spec():
+    spec = model_spec("kcd11", "power:1,2,3")
+    keys = spec.keys()
+    assert keys[:4] == ["Kxx", "Kxy", "Kyx", "Kyy"]
+    assert {"Kxx_1", "Cyy_2", "Dxy_3", "Dyx_3"} <= set(keys)
+    assert not any(k.startswith(("K", "C", "D")) and k.endswith("_0") for k in keys)
+    assert len(keys) == 24  # all 12 entries of both orders
+    # the symmetric inertia pair is one free coefficient, repeated in the output
+    assert "Dyx" not in spec.names and "Dxy" in spec.names
+    values = spec.expand(range(spec.n_coefficients))
+    assert values["Dxy"] == values["Dyx"] and values["Dxy_3"] == values["Dyx_3"]
+    assert "Dxx" not in model_spec("kc8").keys()
+
+
+def test_kc7_damping_is_symmetric_and_no_inertia():
+    spec = model_spec("kc7", "poly:2")
+    assert [k for k in spec.keys() if k.startswith("D")] == []
+    assert "Cyx_2" in spec.keys() and "Cyx_2" not in spec.names
+
+
+@pytest.mark.parametrize("bad", ["power", "power:0", "power:1,2", "poly:x", "cubic:2", "poly:1,2", "power:-1"])
+def test_bad_freq_dep_is_refused(bad):
+    with pytest.raises(ReductionError, match="freq-dep"):
+        parse_freq_dep(bad)
+
+
+def test_unknown_model_is_refused():
+    with pytest.raises(ReductionError, match="unknown model"):
+        model_spec("kc9")
+
+
+def test_power_auto_parses_but_has_no_fixed_list():
+    assert parse_freq_dep("power:auto").auto
+    with pytest.raises(ReductionError):
+        model_spec("kc7", "power:auto")
