@@ -94,9 +94,9 @@ class NoiseConfig:
     """Disturbances (all off when ``enabled`` is false)."""
 
     enabled: bool = True
-    piezo_white: float = 0.5  # N rms
-    strain_white: float = 0.8  # N rms
-    probe_white: float = 10e-9  # m rms
+    piezo_white: float = 1.0  # N rms
+    strain_white: float = 1.5  # N rms
+    probe_white: float = 20e-9  # m rms
     runout: tuple[float, ...] = (0.4e-6, 0.15e-6)  # m, spin harmonics 1, 2, ... at the probes
     bearing_orders: tuple[float, ...] = (3.05, 4.95)  # ball-pass orders of the spindle bearings
     bearing_force: float = 1.5  # N per order, force channels

@@ -1,0 +1,85 @@
+"""Sustained A/D output rate of the simulator (samples/s), one core.
+
+1. offline: physics + quantisation + frame encoding of 100-revolution batches;
+2. live: SimRig streaming to its pty at several speed-ups while a separate
+   reader process drains the pty; delivered samples/s = bytes received
+   converted with the frame layout (20 bytes overhead per 45-sample frame).
+Run:  python3 bench/bench_sim_adc.py [--seconds 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import math
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+from sim.config import SimConfig  # noqa: E402
+from sim.rig import SimRig  # noqa: E402
+
+READER = r"""
+import os, sys, time, tty, termios
+fd = os.open(sys.argv[1], os.O_RDONLY | os.O_NOCTTY)
+tty.setraw(fd); termios.tcflush(fd, termios.TCIFLUSH)
+t_end = time.monotonic() + float(sys.argv[2]); t_start = None; n = 0
+while time.monotonic() < t_end:
+    b = os.read(fd, 1 << 20)
+    if t_start is None:
+        t_start = time.monotonic(); continue
+    n += len(b)
+print(n, time.monotonic() - t_start)
+"""
+
+
+def offline(revs: int = 100, rounds: int = 20) -> float:
+    rig = SimRig(SimConfig())
+    n = 360 * revs
+    g = np.arange(n) + 360
+    t = g * 1e-5
+    spin_angle = g * 0.01
+    orbit = np.full(n, 2 * math.pi * 40)
+    t0 = time.perf_counter()
+    for _ in range(rounds):
+        counts = rig._convert(g, t, spin_angle, orbit, 200.0, 2 * math.pi * 40)
+        rig.board.encode(int(g[0]), counts, t)
+    return rounds * n / (time.perf_counter() - t0)
+
+
+async def live(speedup: float, seconds: float) -> tuple[float, float, int]:
+    async with SimRig(SimConfig(), speedup=speedup, can_channel=None) as rig:
+        rig.local_control(spin=200.0, orbit=2 * math.pi * 40.0)  # 2400 rpm orbit
+        proc = await asyncio.create_subprocess_exec(
+            sys.executable, "-c", READER, rig.adc_pty_path, str(seconds),
+            stdout=subprocess.PIPE)
+        cpu0 = time.process_time()
+        t0 = time.monotonic()
+        out, _ = await proc.communicate()
+        cpu = (time.process_time() - cpu0) / (time.monotonic() - t0)
+        dropped = rig.adc_server.pty.chunks_dropped
+    nbytes, dt = out.split()
+    frame = 20 + 2 * 45
+    return int(nbytes) / frame * 45 / float(dt), cpu, dropped
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=3.0)
+    args = ap.parse_args()
+    print(f"offline (physics + encode, 8 ch sequential): {offline() / 1e6:.2f} M samples/s")
+    for speedup in (25, 50, 100, 200):
+        rate, cpu, dropped = asyncio.run(live(speedup, args.seconds))
+        generated = speedup * 40 * 360
+        print(f"live pty, speed-up {speedup:4d} (board makes {generated / 1e6:.2f} M samples/s): "
+              f"delivered {rate / 1e6:.2f} M samples/s, simulator CPU {cpu * 100:.0f} % of one core, "
+              f"chunks dropped {dropped}")
+
+
+if __name__ == "__main__":
+    main()
