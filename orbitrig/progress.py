@@ -30,6 +30,7 @@ class SweepProgress:
         self.points = self.progress.add_task("points", total=1, extra="")
         self.freqs = self.progress.add_task("frequencies", total=1, extra="")
         self.revs = self.progress.add_task("revolutions", total=revolutions, extra="")
+        self.done = 0
 
     def __enter__(self) -> "SweepProgress":
         self.progress.start()
@@ -41,7 +42,7 @@ class SweepProgress:
     def __call__(self, ev) -> None:
         if isinstance(ev, ProgressEvent):
             eta = "" if ev.eta_s is None else f"ETA {format_duration(ev.eta_s)}"
-            self.progress.update(self.points, total=max(ev.points, 1), completed=max(ev.point - 1, 0), extra=eta)
+            self.progress.update(self.points, total=max(ev.points, 1), completed=self.done, extra=eta)
             self.progress.update(self.freqs, total=max(ev.frequencies, 1), completed=max(ev.frequency - 1, 0))
             self.progress.update(self.revs, completed=min(ev.revolutions, self.progress.tasks[2].total))
         elif isinstance(ev, StatusEvent):
@@ -49,5 +50,6 @@ class SweepProgress:
             self.progress.console.log(Text(f"{ev.state}: ", style=style) + Text(ev.message))
         elif isinstance(ev, ResultEvent):
             p = ev.payload
-            self.progress.update(self.points, advance=1)
+            self.done += 1
+            self.progress.update(self.points, completed=self.done)
             self.progress.console.log(Text(f"point {p['point']:04d} {p['label']} complete"))
