@@ -110,28 +110,37 @@ def register(app: typer.Typer) -> None:
             raise typer.Exit(1) from None
 
 
-def _load_matrix_for(rig):
+def build_service(rig, settings, broker_settings, *, out: Path, sim_rig=None, confirm: str = "remote"):
+    """The RigService of `orbitrig serve`: each run gets a fresh RunEngine
+    (the executor of `orbitrig sweep`) writing to OUT/<date>-<matrix>/."""
+    import datetime as dt
+
     from orbitrig import config as cfg
+    from orbitrig.executor import RunEngine
+    from orbitrig.plan import expand
+    from orbitrig.service import RigService
 
-    def load(path: Path):
-        from orbitrig.plan import expand
-
+    def load_matrix(path: Path):
         matrix = cfg.load_matrix(path)
         expand(matrix, rig)  # every problem of this matrix on this rig, before anything moves
         return matrix
 
-    return load
+    def new_engine(name: str, matrix):
+        stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+        run_dir, n = out / f"{stamp}-{name}", 1
+        while run_dir.exists():
+            n += 1
+            run_dir = out / f"{stamp}-{name}-{n}"
+        return RunEngine(rig, out_dir=run_dir, sim=sim_rig, confirm_mode=confirm)
+
+    return RigService(settings, broker_settings, engine_factory=new_engine, load_matrix=load_matrix)
 
 
 async def _serve(rig, settings, broker_settings, *, out: Path, sim: bool, speedup: float | None,
                  confirm: str) -> None:
     import asyncio
     import contextlib
-    import datetime as dt
     import signal
-
-    from orbitrig.executor import RunEngine
-    from orbitrig.service import RigService
 
     shutdown = asyncio.Event()
     loop = asyncio.get_running_loop()
@@ -141,22 +150,10 @@ async def _serve(rig, settings, broker_settings, *, out: Path, sim: bool, speedu
     async with contextlib.AsyncExitStack() as stack:
         sim_rig = None
         if sim:
-            from sim.rig import SimRig
-
             from orbitrig.cli_sweep import DEFAULT_SIM_SPEEDUP
+            from sim.rig import SimRig
 
             sim_rig = await stack.enter_async_context(
                 SimRig(speedup=speedup or DEFAULT_SIM_SPEEDUP, adc_pty=False))
-
-        def new_engine(name: str, matrix):
-            stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-            run_dir = out / f"{stamp}-{name}"
-            n = 1
-            while run_dir.exists():
-                n += 1
-                run_dir = out / f"{stamp}-{name}-{n}"
-            return RunEngine(rig, out_dir=run_dir, sim=sim_rig, confirm_mode=confirm)
-
-        service = RigService(settings, broker_settings, engine_factory=new_engine,
-                             load_matrix=_load_matrix_for(rig))
+        service = build_service(rig, settings, broker_settings, out=out, sim_rig=sim_rig, confirm=confirm)
         await service.serve(shutdown)

@@ -1,0 +1,190 @@
+"""Abort latency: from publishing an MQTT `abort` to both drives commanded to stop.
+
+Target: < 200 ms. Runs a real mosquitto (password file, the project's ACL),
+the `orbitrig serve` service (the same RigService + RunEngine the CLI builds)
+on the simulator, all in this process's event loop as with `serve --sim`.
+For each trial a run is started and given time to spin both drives up; then
+an operator client (paho, own thread, own connection through the broker)
+publishes `abort`. Three instants on one clock (time.monotonic):
+
+  t_pub     just before the operator's publish call;
+  t_arrive  the service has the command (RigService.handle_command entered);
+  t_stop    the simulated drive applied a control word that stops it (OFF1 or
+            OFF3 or RUN cleared), as written over Modbus TCP by the executor:
+            taken inside the drive's register write, for drive 1 and drive 2.
+
+Latency = max(t_stop drive 1, t_stop drive 2) - t_pub.
+
+    python3 bench/bench_abort_latency.py [--trials 7] [--speedup 20]
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import logging
+import statistics
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(REPO), str(REPO / "tests" / "mqtt")]
+
+from mqtt_helpers import ACCOUNTS, Broker  # noqa: E402  (the tests' broker set-up)
+
+MATRIX = """\
+name = "bench"
+revolutions = 200
+settle_hold_s = 0.1
+[operating]
+spin_rpm = [1000.0]
+recess_pressure_mpa = [0.4826]
+pressure_ratio = [0.4]
+static_eccentricity = [0.0]
+dynamic_eccentricity = [0.096]
+[orbit]
+ratios = [0.5, 0.7, 0.9]
+directions = ["forward"]
+[[models]]
+model = "kc7"
+"""
+CW_STOPPING = 0b1101  # OFF1 (bit 0), OFF3 (bit 2), RUN (bit 3): any of them 0 = a stop command
+
+
+def watch_control_words(sim_rig, stops: dict[int, float], armed: threading.Event) -> None:
+    """Time stamp the first stopping control word each drive applies once armed."""
+    for device, drive in sim_rig.drives.items():
+        original = drive.write
+
+        def write(address, values, _orig=original, _dev=device):
+            _orig(address, values)
+            if armed.is_set() and _dev not in stops and address <= 0 < address + len(values):
+                if int(values[-address]) & CW_STOPPING != CW_STOPPING:
+                    stops[_dev] = time.monotonic()
+
+        drive.write = write
+
+
+class Operator:
+    """An independent MQTT client (paho, its own network thread)."""
+
+    def __init__(self, port: int, prefix: str):
+        import paho.mqtt.client as mqtt
+
+        self.prefix = prefix
+        self.status: dict = {}
+        self.progress_revs = 0
+        self._got = threading.Condition()
+        self.client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id="bench-operator")
+        self.client.username_pw_set("operator", ACCOUNTS["operator"])
+        self.client.on_message = self._on_message
+        self.client.connect("127.0.0.1", port)
+        self.client.subscribe(f"{prefix}/#", qos=1)
+        self.client.loop_start()
+
+    def _on_message(self, client, userdata, msg):
+        import json
+
+        obj = json.loads(msg.payload)
+        with self._got:
+            if msg.topic.endswith("/status"):
+                self.status = obj
+            elif msg.topic.endswith("/progress"):
+                self.progress_revs = obj["revolutions"] if obj["point"] else 0
+            self._got.notify_all()
+
+    def wait(self, pred, timeout: float) -> None:
+        with self._got:
+            if not self._got.wait_for(pred, timeout):
+                raise TimeoutError(f"timed out; last status {self.status}")
+
+    def send(self, cmd: str, **fields) -> float:
+        import json
+
+        payload = json.dumps({"cmd": cmd, "id": f"bench-{cmd}-{time.monotonic_ns()}", **fields})
+        t = time.monotonic()
+        self.client.publish(f"{self.prefix}/cmd", payload, qos=1)
+        return t
+
+    def close(self) -> None:
+        self.client.loop_stop()
+        self.client.disconnect()
+
+
+async def main(trials: int, speedup: float) -> None:
+    from orbitrig.cli_serve import build_service
+    from orbitrig.config import load_rig
+    from orbitrig.service import BrokerSettings, ServiceSettings
+    from sim.rig import SimRig
+
+    logging.basicConfig(level=logging.WARNING)
+    work = Path(tempfile.mkdtemp(prefix="bench-abort-"))
+    (work / "matrices").mkdir()
+    (work / "matrices" / "bench.toml").write_text(MATRIX)
+    broker = Broker(work / "broker")
+    broker.start()
+    stops: dict[int, float] = {}
+    armed = threading.Event()
+    arrivals: list[float] = []
+    try:
+        async with SimRig(speedup=speedup, adc_pty=False) as sim_rig:
+            watch_control_words(sim_rig, stops, armed)
+            settings = ServiceSettings(rig_id="bench", matrices_dir=work / "matrices")
+            creds = BrokerSettings.from_url(broker.url, username="orbitrig-service",
+                                            password=ACCOUNTS["orbitrig-service"])
+            service = build_service(load_rig(), settings, creds, out=work / "runs", sim_rig=sim_rig,
+                                    confirm="auto")
+            handle = service.handle_command
+
+            def timed_handle(payload: bytes) -> None:
+                arrivals.append(time.monotonic())
+                handle(payload)
+
+            service.handle_command = timed_handle
+            shutdown = asyncio.Event()
+            serving = asyncio.create_task(service.serve(shutdown), name="bench-service")
+            op = await asyncio.to_thread(Operator, broker.port, "orbitrig/bench")
+            rows = []
+            try:
+                await asyncio.to_thread(op.wait, lambda: op.status.get("state") == "idle", 30)
+                for trial in range(trials):
+                    op.progress_revs = 0
+                    op.send("start", matrix="bench")
+                    # both drives at speed and the orbit being acquired
+                    await asyncio.to_thread(op.wait, lambda: op.progress_revs >= 20, 60)
+                    spin, orbit = (abs(sim_rig.drives[d].actual_rpm) for d in (1, 2))
+                    stops.clear()
+                    arrivals.clear()
+                    armed.set()
+                    t_pub = op.send("abort")
+                    await asyncio.to_thread(op.wait, lambda: op.status.get("state") == "idle", 60)
+                    armed.clear()
+                    if len(stops) != 2:
+                        raise RuntimeError(f"trial {trial}: stop commands seen for drives {sorted(stops)} only")
+                    t_arr = arrivals[0]
+                    rows.append(((t_arr - t_pub) * 1e3, (max(stops.values()) - t_arr) * 1e3,
+                                 (max(stops.values()) - t_pub) * 1e3))
+                    print(f"trial {trial + 1}: spin {spin:6.0f} rpm, orbit {orbit:+6.0f} rpm | "
+                          f"broker {rows[-1][0]:6.1f} ms + service/executor/Modbus {rows[-1][1]:6.1f} ms "
+                          f"= abort -> both drives stopping {rows[-1][2]:6.1f} ms", flush=True)
+            finally:
+                op.close()
+                shutdown.set()
+                await serving
+    finally:
+        broker.stop()
+    total = [r[2] for r in rows]
+    print(f"\nabort latency over {len(total)} trials (publish -> both drives commanded to stop): "
+          f"median {statistics.median(total):.1f} ms, min {min(total):.1f} ms, max {max(total):.1f} ms "
+          f"(target < 200 ms: {'met' if max(total) < 200 else 'NOT met'})")
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--trials", type=int, default=7)
+    ap.add_argument("--speedup", type=float, default=20.0)
+    args = ap.parse_args()
+    asyncio.run(main(args.trials, args.speedup))

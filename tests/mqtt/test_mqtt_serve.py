@@ -1,0 +1,268 @@
+"""End to end: the real `orbitrig serve --sim` under a real, authenticated
+mosquitto, driven by independent clients (mosquitto_pub / mosquitto_sub)."""
+
+from __future__ import annotations
+
+import json
+import signal
+import time
+from pathlib import Path
+
+import h5py
+import pytest
+
+from mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained
+
+RIG = "sim-rig"
+PROGRESS_KEYS = {"run_id", "point", "points", "frequency", "frequencies", "revolutions", "eta_s"}
+STATUS_KEYS = {"state", "run_id", "since", "message"}
+
+MATRIX = """\
+name = "{name}"
+revolutions = {revs}
+settle_hold_s = 0.1
+
+[operating]
+spin_rpm = [1000.0]
+recess_pressure_mpa = [0.4826]
+pressure_ratio = [0.4]
+static_eccentricity = [0.0]
+dynamic_eccentricity = [0.096]
+
+[orbit]
+ratios = {ratios}
+directions = {directions}
+
+[[models]]
+model = "kc7"
+"""
+
+
+def write_matrices(folder: Path) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "quick.toml").write_text(MATRIX.format(
+        name="quick", revs=10, ratios="[0.5, 0.8]", directions='["forward", "backward"]'))
+    (folder / "long.toml").write_text(MATRIX.format(
+        name="long", revs=40, ratios="[0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.2]",
+        directions='["forward", "backward"]'))
+    return folder
+
+
+def serve_args(broker: Broker, workdir: Path, *extra: str) -> list[str]:
+    return ["--sim", "--broker", broker.url, "--rig-id", RIG, "--username", "orbitrig-service",
+            "--matrices", str(write_matrices(workdir / "matrices")), "--out", str(workdir / "runs"),
+            "--speedup", "20", *extra]
+
+
+def run_status(workdir: Path, run_id: str) -> str:
+    """The status stored in run.h5 of the run `run_id` (storage contract)."""
+    (h5,) = [p for p in (workdir / "runs").glob("*/run.h5") if _run_id_in_log(p.parent, run_id)]
+    with h5py.File(h5, "r") as f:
+        return str(f.attrs["status"])
+
+
+def _run_id_in_log(run_dir: Path, run_id: str) -> bool:
+    log = run_dir / "run.log"
+    return log.exists() and run_id in log.read_text(errors="replace")
+
+
+@pytest.fixture(scope="module")
+def service(broker, tmp_path_factory):
+    work = tmp_path_factory.mktemp("serve")
+    pw = work / "service.pw"
+    pw.write_text(ACCOUNTS["orbitrig-service"] + "\n")
+    pw.chmod(0o600)
+    svc = Service(serve_args(broker, work, "--password-file", str(pw)), work)
+    svc.work = work
+    yield svc
+    code = svc.stop()
+    assert code == 0, svc.text()[-3000:]
+
+
+@pytest.fixture
+def rig(broker, service):
+    rc = RigClient(broker, RIG)
+    try:
+        first = rc.status(lambda s: True, timeout=30)
+        assert first["state"] in ("idle", "faulted"), first
+    except AssertionError:
+        raise AssertionError("service not idle:\n" + service.text()[-3000:]) from None
+    yield rc
+    if service.proc.poll() is None and rc.watch.on("status") and rc.watch.on("status")[-1].json()["state"] not in (
+            "idle", "faulted"):
+        rc.command({"cmd": "abort"})
+        rc.status("idle", timeout=30)
+    rc.close()
+
+
+def test_status_is_retained_and_follows_the_spec(broker, rig):
+    msg = retained(broker, f"orbitrig/{RIG}/status")
+    assert msg is not None and msg.retain and msg.qos == 1
+    assert set(msg.json()) == STATUS_KEYS
+
+
+BAD = [
+    (b"start quick", None, "payload is not JSON"),
+    (b'{"id": "b1"}', "b1", "missing field 'cmd'"),
+    (b'{"cmd": "launch", "id": "b2"}', "b2", "unknown command 'launch'"),
+    (b'{"cmd": "start", "id": "b3"}', "b3", "missing field 'matrix' for command 'start'"),
+    (b'{"cmd": "start", "id": "b4", "matrix": "quick", "spin_rpm": 9000}', "b4",
+     "unexpected field 'spin_rpm' for command 'start'"),
+    (b'{"cmd": "start", "id": "b5", "matrix": "../../etc/passwd"}', "b5", "not a path"),
+    (b'{"cmd": "start", "id": "b6", "matrix": "nope"}', "b6", "no matrix 'nope' in the matrix folder (available: long, quick)"),
+    (b'{"cmd": "confirm", "id": "b7", "step": 3}', "b7", "field 'step' must be a string, got number"),
+    (b'{"cmd": "pause", "id": 8}', None, "field 'id' must be a string"),
+    (b'{"cmd": "pause", "id": "b9"}', "b9", "no run is active: nothing to pause"),
+]
+
+
+def test_bad_payloads_get_reasons_and_change_nothing(rig):
+    mark = rig.watch.mark()
+    for payload, cid, reason in BAD:
+        m = rig.watch.mark()
+        rig.send(payload)
+        reply = rig.reply(cid, start=m)
+        assert reply["ok"] is False and reason in reply["error"], (payload, reply)
+        assert set(reply) == {"id", "ok", "error"}
+    time.sleep(0.3)
+    assert rig.watch.on("status", mark) == []  # nothing changed
+    assert len(rig.watch.on("reply", mark)) == len(BAD)  # exactly one reply each
+
+
+def test_viewer_start_is_denied_by_the_broker(rig):
+    mark = rig.watch.mark()
+    rig.send({"cmd": "start", "matrix": "quick", "id": "from-viewer"}, user="viewer", version=5)
+    assert "not authorized" in rig.last_pub.stderr.decode().lower()
+    rig.send({"cmd": "start", "matrix": "quick", "id": "from-viewer-311"}, user="viewer")
+    # the service answers a later operator command, but never saw the viewer's
+    assert rig.reply(rig.send({"cmd": "status"}), start=mark)["ok"] is True
+    time.sleep(0.3)
+    assert [m.json()["id"] for m in rig.watch.on("reply", mark)] == ["t1-status"]
+    assert {m.json()["state"] for m in rig.watch.on("status", mark)} <= {"idle", "faulted"}
+
+
+def test_anonymous_client_cannot_command(broker, rig):
+    done = broker.pub(f"orbitrig/{RIG}/cmd", '{"cmd":"abort","id":"anon"}', user=None)
+    assert done.returncode != 0 and b"not authori" in done.stderr.lower()
+
+
+def test_remote_run_confirm_pause_resume_stop(rig, service):
+    mark = rig.watch.mark()
+    assert rig.command({"cmd": "start", "matrix": "long"}) == {"id": "t1-start", "ok": True}
+    refused = rig.command({"cmd": "start", "matrix": "quick"})
+    assert refused["ok"] is False and "a run is active" in refused["error"]
+    waiting = rig.status("waiting", start=mark)
+    run_id = waiting["run_id"]
+    assert "confirm step 'manual:0000'" in waiting["message"]
+    wrong = rig.command({"cmd": "confirm", "step": "manual:0042"})
+    assert wrong["ok"] is False and "manual:0000" in wrong["error"]
+    m = rig.watch.mark()
+    assert rig.command({"cmd": "confirm", "step": "manual:0000"})["ok"] is True
+    rig.status("running", start=m)
+
+    prog = rig.watch.wait_for(lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] > 0,
+                              30, start=mark, what="progress")
+    assert prog.qos == 0 and set(prog.json()) == PROGRESS_KEYS and prog.json()["run_id"] == run_id
+    assert prog.json()["points"] == 1 and prog.json()["frequencies"] == 16
+
+    assert rig.command({"cmd": "pause"})["ok"] is True
+    paused = rig.status("paused", start=mark)
+    assert paused["run_id"] == run_id
+    again = rig.command({"cmd": "pause"})
+    assert again["ok"] is False and "cannot pause while the run is paused" in again["error"]
+    assert rig.command({"cmd": "resume"})["ok"] is True
+    m = rig.watch.mark()
+    rig.status("running", start=m)
+    assert rig.command({"cmd": "stop"})["ok"] is True
+    rig.status("stopping", start=m)
+    idle = rig.status("idle", start=m, timeout=60)
+    assert idle["run_id"] == run_id and "stopped" in idle["message"]
+    assert run_status(service.work, run_id) == "stopped"
+    assert not rig.watch.on("result", mark)  # stopped before the point was complete
+
+
+def test_abort_wins_while_waiting_for_a_confirmation(rig, service):
+    mark = rig.watch.mark()
+    assert rig.command({"cmd": "start", "matrix": "quick"})["ok"] is True
+    run_id = rig.status("waiting", start=mark)["run_id"]
+    assert rig.command({"cmd": "abort"})["ok"] is True
+    idle = rig.status("idle", start=mark, timeout=30)
+    assert idle["run_id"] == run_id and "aborted" in idle["message"]
+    assert run_status(service.work, run_id) == "aborted"
+
+
+def test_stop_wins_while_waiting_for_a_confirmation(rig, service):
+    mark = rig.watch.mark()
+    assert rig.command({"cmd": "start", "matrix": "quick"})["ok"] is True
+    run_id = rig.status("waiting", start=mark)["run_id"]
+    assert rig.command({"cmd": "stop"})["ok"] is True
+    idle = rig.status("idle", start=mark, timeout=30)
+    assert idle["run_id"] == run_id and "stopped" in idle["message"]
+
+
+def test_completed_run_publishes_one_result_per_point(rig, service):
+    mark = rig.watch.mark()
+    assert rig.command({"cmd": "start", "matrix": "quick"})["ok"] is True
+    run_id = rig.status("waiting", start=mark)["run_id"]
+    assert rig.command({"cmd": "confirm", "step": "manual:0000"})["ok"] is True
+    idle = rig.status("idle", start=mark, timeout=60)
+    assert "completed" in idle["message"], idle
+    results = rig.watch.on("result", mark)
+    assert len(results) == 1 and results[0].qos == 1
+    res = results[0].json()
+    assert res["run_id"] == run_id
+    text = json.dumps(res)
+    assert "Kxx" in text and "1000" in text  # identified coefficients and the point's settings
+    assert run_status(service.work, run_id) == "completed"
+
+
+# -- the broker and the service go away -----------------------------------------
+
+def test_broker_restart_mid_run_and_the_run_completes(tmp_path):
+    b = Broker(tmp_path / "broker")
+    b.start()
+    env = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}  # password from the environment
+    svc = Service(serve_args(b, tmp_path, "--confirm", "auto"), tmp_path, env=env)
+    rc = RigClient(b, RIG)
+    try:
+        rc.status("idle", timeout=30)
+        assert rc.command({"cmd": "start", "matrix": "long"})["ok"] is True
+        run_id = rc.status("running")["run_id"]
+        rc.watch.wait_for(lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] > 0, 30)
+        rc.close()
+        b.stop()
+        time.sleep(1.0)
+        b.start()
+        rc = RigClient(b, RIG)
+        again = rc.status(lambda s: s["run_id"] == run_id, timeout=30)  # republished on reconnect
+        assert again["state"] in ("running", "paused", "stopping", "idle")
+        idle = rc.status("idle", timeout=90)
+        assert idle["run_id"] == run_id and "completed" in idle["message"], idle
+        assert run_status(tmp_path, run_id) == "completed"
+        assert "connection to 127.0.0.1" in svc.text() and "lost" in svc.text()
+    finally:
+        rc.close()
+        svc.stop()
+        b.stop()
+
+
+def test_sigkill_publishes_offline_last_will(tmp_path):
+    b = Broker(tmp_path / "broker")
+    b.start()
+    env = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}
+    svc = Service(serve_args(b, tmp_path, "--confirm", "auto"), tmp_path, env=env)
+    rc = RigClient(b, RIG)
+    try:
+        rc.status("idle", timeout=30)
+        assert rc.command({"cmd": "start", "matrix": "long"})["ok"] is True
+        run_id = rc.status("running")["run_id"]
+        mark = rc.watch.mark()
+        svc.kill(signal.SIGKILL)
+        offline = rc.status("offline", start=mark, timeout=10)
+        assert offline["run_id"] == run_id
+        late = retained(b, f"orbitrig/{RIG}/status")
+        assert late.retain and late.json()["state"] == "offline"
+    finally:
+        rc.close()
+        svc.kill()
+        b.stop()
