@@ -55,6 +55,13 @@ def _settings_table(run, s) -> str:
     return "<table>" + "".join(f'<tr><th class="l">{k}</th><td>{v}</td></tr>' for k, v in rows) + "</table>"
 
 
+def _max_fit(ident, what: str) -> float | None:
+    """Largest |reproduced - measured| over frequencies and both forces (the fit's
+    ``fx_<what>`` / ``fy_<what>`` entries)."""
+    values = [abs(row[k]) for row in ident.fit for k in (f"fx_{what}", f"fy_{what}") if row.get(k) is not None]
+    return max(values) if values else None
+
+
 def _coefficient_table(results, truth: dict[str, float]) -> str:
     """Rows = coefficient keys, columns = identifications: value \u00b1 std in display units."""
     keys: list[str] = []
@@ -83,6 +90,8 @@ def _coefficient_table(results, truth: dict[str, float]) -> str:
         ("frequencies used", lambda i: str(i.n_frequencies)),
         ("condition number", lambda i: fmt(i.condition_number, 3)),
         ("residual RMS [N]", lambda i: fmt(i.residual_rms, 3)),
+        ("max force amplitude error [%]", lambda i: fmt(_max_fit(i, "amp_err_pct"), 3)),
+        ("max force phase error [deg]", lambda i: fmt(_max_fit(i, "phase_err_deg"), 3)),
     ):
         cells = "".join(f"<td>{get(r.identification)}</td>" for r in results)
         quality.append(f'<tr><th class="l">{label}</th><td></td>{cells}{"<td></td>" if truth else ""}</tr>')
@@ -167,6 +176,10 @@ def render(report) -> str:
         head.append('<p class="err">No complete operating point to report.</p>')
     head.append('<p class="muted">Units: K in MN/m, C in kN s/m, D in kg (SI at the source); '
                 "\u00b1 one standard error of the regression. Higher-order terms multiply \u03a9^r with \u03a9 in rad/s.</p>")
+    files = sorted(run.directory.glob("*.csv"))
+    if files:
+        head.append("<p>Tables: " + " \u00b7 ".join(
+            f'<a href="../{_e(f.name)}">{_e(f.name)}</a>' for f in files) + "</p>")
     for name, text in (("rig configuration", run.rig_config), ("matrix configuration", run.matrix_config)):
         if text:
             head.append(f"<details><summary>{name}</summary><pre>{_e(text)}</pre></details>")
