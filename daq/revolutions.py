@@ -73,6 +73,9 @@ class RevolutionBatch:
     def __len__(self) -> int:
         return len(self.rev)
 
+    def take(self, index: slice) -> "RevolutionBatch":
+        return RevolutionBatch(self.rev[index], self.t_us[index], self.period_s[index], self.counts[index], self.slots)
+
     def revolutions(self) -> list[Revolution]:
         return [
             Revolution(int(r), int(t), None if np.isnan(p) else float(p), c, self.slots)
@@ -248,8 +251,8 @@ class RevolutionAssembler:
             counts = np.ascontiguousarray(counts)
             revs = RevolutionBatch(rev[good_first], b.t_us[good_first], period, counts, self.slots)
             if held_last:
-                self._held = RevolutionBatch(*(getattr(revs, k)[-1:] for k in ("rev", "t_us", "period_s", "counts")), self.slots)
-                revs = RevolutionBatch(*(getattr(revs, k)[:-1] for k in ("rev", "t_us", "period_s", "counts")), self.slots)
+                self._held = revs.take(slice(-1, None))
+                revs = revs.take(slice(0, -1))
             out.append(revs)
         result = RevolutionBatch.concat(out, self.slots)
         self.revolutions_good += len(result)

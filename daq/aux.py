@@ -1,0 +1,170 @@
+"""AuxSensors: the lubricant/supply sensor node on CAN (../shared/spec/aux-can.md).
+
+    async with AuxSensors("orbitrig-sim", interface="virtual") as aux:
+        s = aux.latest()
+        s.p_supply, s.beta, s.ages["p_supply"], s.stale("t_recess"), s.node_lost
+
+python-can's ``Notifier`` receives on its own thread and hands every message to
+the event loop (``loop=``), where it is decoded; nothing blocks the loop. Values
+are kept in SI (K, Pa, m^3/s) with their arrival time; a value is stale when
+its frame is older than 0.5 s, the node is lost when no heartbeat arrived for
+1.5 s (counted from opening while none has come).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import struct
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from daq.errors import DaqError
+
+STALE_AFTER = 0.5  # s
+LOST_AFTER = 1.5  # s
+HEARTBEAT_OPERATIONAL = 0x05
+HEARTBEAT_PREOPERATIONAL = 0x7F
+_KELVIN = 273.15
+_LPM = 1e-3 / 60.0  # m^3/s per L/min
+
+# value name -> the frame (CAN id offset from the node id) that carries it
+_SOURCE = {
+    "t_recess": 0x180, "t_groove": 0x180, "t_supply": 0x180, "flow": 0x180,
+    "p_supply": 0x280, "p_recess": 0x280,  # p_recess 1..3 here, 4 in 0x380
+    "sensor_fault": 0x380, "pump_off": 0x380,
+}
+
+
+@dataclass(frozen=True)
+class AuxState:
+    """Latest values in SI with their ages (s; inf when never received).
+
+    t_recess, t_groove, t_supply (K); flow (m^3/s); p_supply (Pa); p_recess (4,) Pa;
+    beta = mean recess pressure / p_supply (-); NaN for values never received.
+    """
+
+    t_recess: float = math.nan
+    t_groove: float = math.nan
+    t_supply: float = math.nan
+    flow: float = math.nan
+    p_supply: float = math.nan
+    p_recess: tuple[float, float, float, float] = (math.nan,) * 4
+    beta: float = math.nan
+    sensor_fault: bool = False
+    pump_off: bool = False
+    heartbeat_state: int | None = None  # 0x05 operational, 0x7F pre-operational
+    heartbeat_age: float = math.inf
+    node_lost: bool = True
+    ages: dict[str, float] = field(default_factory=dict)
+
+    def stale(self, name: str) -> bool:
+        """True if value ``name`` is older than 0.5 s or never arrived."""
+        return not self.ages.get(name, math.inf) <= STALE_AFTER
+
+    @property
+    def operational(self) -> bool:
+        return not self.node_lost and self.heartbeat_state == HEARTBEAT_OPERATIONAL
+
+
+class AuxSensors:
+    """Async context manager reading the sensor node ``node_id`` on a python-can bus."""
+
+    def __init__(self, channel: str, *, interface: str = "socketcan", bitrate: int = 500_000,
+                 node_id: int = 1, clock: Callable[[], float] = time.monotonic) -> None:
+        self.channel, self.interface, self.bitrate, self.node_id = channel, interface, bitrate, node_id
+        self._clock = clock
+        self._bus = None
+        self._notifier = None
+        self._values: dict[str, object] = {}
+        self._times: dict[int, float] = {}  # CAN id offset -> arrival time
+        self._p_recess = [math.nan] * 4
+        self._heartbeat: int | None = None
+        self._opened_at = clock()
+        self.frames_received = 0
+        self.frames_malformed = 0
+
+    async def __aenter__(self) -> AuxSensors:
+        self.open()
+        return self
+
+    async def __aexit__(self, *exc) -> None:
+        self.close()
+
+    def open(self) -> None:
+        """Open the bus (in a running loop); raises DaqError naming the channel if it cannot."""
+        import can  # only the CAN reader needs python-can
+
+        kwargs = {} if self.interface == "virtual" else {"bitrate": self.bitrate}
+        try:
+            self._bus = can.Bus(interface=self.interface, channel=self.channel, **kwargs)
+        except (can.CanError, OSError, ValueError, ImportError) as err:
+            raise DaqError(f"CAN {self.interface}:{self.channel}: cannot open bus ({err})") from err
+        base = self.node_id
+        ids = [0x180 + base, 0x280 + base, 0x380 + base, 0x700 + base]
+        self._bus.set_filters([{"can_id": i, "can_mask": 0x7FF, "extended": False} for i in ids])
+        self._opened_at = self._clock()
+        self._notifier = can.Notifier(self._bus, [self._on_message], timeout=0.1,
+                                      loop=asyncio.get_running_loop())
+
+    def close(self) -> None:
+        """Idempotent."""
+        if self._notifier is not None:
+            self._notifier.stop()
+            self._notifier = None
+        if self._bus is not None:
+            self._bus.shutdown()
+            self._bus = None
+
+    def _on_message(self, msg) -> None:
+        if msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
+            return
+        kind = msg.arbitration_id - self.node_id
+        data = bytes(msg.data)
+        now = self._clock()
+        try:
+            if kind == 0x180:
+                tr, tg, ts, flow = struct.unpack_from("<hhhH", data)
+                self._values.update(t_recess=tr / 100 + _KELVIN, t_groove=tg / 100 + _KELVIN,
+                                    t_supply=ts / 100 + _KELVIN, flow=flow / 100 * _LPM)
+            elif kind == 0x280:
+                ps, p1, p2, p3 = struct.unpack_from("<HHHH", data)
+                self._values["p_supply"] = ps * 1e3
+                self._p_recess[:3] = [p1 * 1e3, p2 * 1e3, p3 * 1e3]
+            elif kind == 0x380:
+                p4, status = struct.unpack_from("<HH", data)
+                self._p_recess[3] = p4 * 1e3
+                self._values.update(sensor_fault=bool(status & 1), pump_off=bool(status & 2))
+            elif kind == 0x700:
+                self._heartbeat = data[0]
+            else:
+                return
+        except (struct.error, IndexError):
+            self.frames_malformed += 1
+            return
+        self._times[kind] = now
+        self.frames_received += 1
+
+    def latest(self) -> AuxState:
+        """Snapshot of the latest values, their ages and the node's liveness."""
+        now = self._clock()
+        age = {k: now - t for k, t in self._times.items()}
+        ages = {name: age.get(src, math.inf) for name, src in _SOURCE.items()}
+        # p_recess 4 comes in 0x380: the vector is as old as its older half
+        ages["p_recess"] = max(age.get(0x280, math.inf), age.get(0x380, math.inf))
+        v = self._values
+        p_supply = float(v.get("p_supply", math.nan))
+        p_recess = tuple(self._p_recess)
+        beta = sum(p_recess) / 4 / p_supply if p_supply > 0 else math.nan
+        ages["beta"] = max(ages["p_recess"], ages["p_supply"])
+        hb_age = age.get(0x700, math.inf)
+        return AuxState(
+            t_recess=float(v.get("t_recess", math.nan)), t_groove=float(v.get("t_groove", math.nan)),
+            t_supply=float(v.get("t_supply", math.nan)), flow=float(v.get("flow", math.nan)),
+            p_supply=p_supply, p_recess=p_recess, beta=beta,
+            sensor_fault=bool(v.get("sensor_fault", False)), pump_off=bool(v.get("pump_off", False)),
+            heartbeat_state=self._heartbeat, heartbeat_age=hb_age,
+            node_lost=now - self._times.get(0x700, self._opened_at) > LOST_AFTER,
+            ages=ages,
+        )
