@@ -42,6 +42,7 @@ from orbitrig.plan import (
     DIR_TAG, Acquire, Identify, OperatingPoint, SetManual, SetOrbit, SetSpin, Settle, Step, Store, StopDrives,
     Verify, expand, operating_points,
 )  # fmt: skip
+from orbitrig.rig_io import sim_speedup
 from orbitrig.storage import LMS, BlockRecord, PointResults, RunStore, now_iso
 
 log = logging.getLogger(__name__)
@@ -113,7 +114,7 @@ class RunEngine:
         self.confirm_mode = confirm_mode or ("auto" if sim is not None else "prompt")
         if self.confirm_mode not in ("prompt", "remote", "auto"):
             raise ValueError(f"confirm_mode {self.confirm_mode!r} is not one of prompt, remote, auto")
-        self.speedup = float(getattr(sim, "speedup", 1.0)) if sim is not None else 1.0
+        self.speedup = sim_speedup(sim)
         self.state: str = IDLE
         self.run_id: str | None = None
         self.waiting_step: str | None = None
@@ -170,7 +171,8 @@ class RunEngine:
             raise OrbitrigError(f"not waiting for a confirmation (state {self.state})")
         if step != self.waiting_step:
             raise OrbitrigError(f"waiting for '{self.waiting_step}', not '{step}'")
-        self._confirmed = step
+        self._confirmed, self.waiting_step = step, None
+        self._set_state(RUNNING, f"confirmed {step}")
         self._wake.set()
 
     # ----------------------------------------------------------------- run
@@ -202,7 +204,7 @@ class RunEngine:
         store.log(f"{'resume' if resume else 'start'} run {self.run_id}: matrix {matrix.name}, "
                   f"{len(todo)} of {len(points)} points to run, sim={self.sim is not None}")  # fmt: skip
         self._set_state(RUNNING, f"run {self.run_id} started" + (" (resumed)" if resume else ""))
-        from orbitrig.rig_io import RigIO
+        from orbitrig.rig_io import RigIO  # opens daq/drives: imported when a run starts
 
         io = RigIO(self.rig, sim=self.sim, on_revolution=self._on_revolution)
         entered = False
@@ -326,6 +328,8 @@ class RunEngine:
             if isinstance(step, (SetManual, SetSpin, SetOrbit, Identify)):
                 # every frequency of the point is stored before Identify: a stop lets it finish
                 await self._safe_point(allow_stop=not isinstance(step, Identify))
+            if not isinstance(step, (Store, Identify)):
+                await self._interlocks()
             if isinstance(step, SetManual):
                 await self._manual(step, prompt=step.changed or first)
             elif isinstance(step, Verify) and "pressures" in step.quantities:
@@ -376,6 +380,7 @@ class RunEngine:
         while True:
             deadline = time.monotonic() + max(3.0, 20.0 / self.speedup)
             while True:
+                await self._interlocks()
                 aux = self._io.aux.latest()
                 problems = _pressure_problems(aux, p, v)
                 if not problems or time.monotonic() > deadline:
@@ -466,6 +471,14 @@ class RunEngine:
                 task.cancel()
                 await asyncio.gather(task, return_exceptions=True)
 
+    async def _interlocks(self) -> None:
+        """Between steps: fail on a fail-trip, hold on a suspend-trip until it clears."""
+        for t in self._trips():
+            if t.action == interlocks.FAIL:
+                raise RunFailed(f"interlock: {t.message}")
+            await self._suspend(t)
+            return
+
     def _trips(self) -> list[interlocks.Trip]:
         return interlocks.check(self._io.aux.latest(), self._io.drives.state, self.rig.interlocks,
                                 pressure_armed=self._pressure_armed)  # fmt: skip
@@ -520,8 +533,6 @@ class RunEngine:
         finally:
             self.waiting_step = None
         self.timing["confirm"] += time.monotonic() - t0
-        self._log_event(f"confirmed {step_id}")
-        self._set_state(PAUSED if self._pause_req else RUNNING, "confirmed")
         if self._pause_req:
             await self._safe_point()
 

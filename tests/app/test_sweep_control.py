@@ -1,0 +1,161 @@
+"""RunEngine control on the real simulator: confirm, pause/resume, stop, abort, interlocks."""
+
+import asyncio
+
+import h5py
+import pytest
+
+from orbitrig import config as cfg
+from orbitrig.errors import OrbitrigError
+from orbitrig.executor import ProgressEvent, RunEngine, StatusEvent
+from sim.rig import SimRig
+from sweep_helpers import SPEEDUP, small_matrix, wait_for
+
+pytestmark = pytest.mark.timeout(120)
+
+
+class Recorder:
+    def __init__(self):
+        self.events = []
+
+    def __call__(self, ev):
+        self.events.append(ev)
+
+    def states(self):
+        return [e.state for e in self.events if isinstance(e, StatusEvent)]
+
+    def blocks_done(self):
+        """Blocks started so far (ProgressEvent.frequency of the latest event)."""
+        prog = [e for e in self.events if isinstance(e, ProgressEvent)]
+        return prog[-1].frequency if prog else 0
+
+
+def _stored(out):
+    with h5py.File(out / "run.h5", "r") as f:
+        pts = {n: (bool(g.attrs["complete"]), {t: bool(b.attrs["complete"]) for t, b in g["frequencies"].items()})
+               for n, g in f["points"].items()}
+        return str(f.attrs["status"]), str(f.attrs["status_message"]), pts
+
+
+def _spindles_stopped(sim) -> bool:
+    spin, orbit = sim.speeds
+    return abs(spin) < 1.0 and abs(orbit) < 1.0
+
+
+async def test_confirm_pause_resume_then_stop(tmp_path):
+    rig = cfg.load_rig()
+    out = tmp_path / "run"
+    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
+        eng = RunEngine(rig, out_dir=out, sim=sim, confirm_mode="remote")
+        rec = Recorder()
+        eng.subscribe(rec)
+        run = asyncio.create_task(eng.run(small_matrix()))
+        await wait_for(lambda: eng.state == "waiting", what="waiting for the manual settings")
+        assert eng.waiting_step == "manual:0000"
+        assert "orbit radius 5.76 um" in eng.message
+        with pytest.raises(OrbitrigError, match="waiting for 'manual:0000'"):
+            eng.confirm("manual:0001")
+        assert _spindles_stopped(sim)  # nothing turns before the operator confirms
+        eng.confirm("manual:0000")
+        with pytest.raises(OrbitrigError, match="not waiting"):
+            eng.confirm("manual:0000")
+        await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
+        eng.request_pause()
+        await wait_for(lambda: eng.state == "paused", what="paused")
+        held = rec.blocks_done()
+        await asyncio.sleep(0.5)
+        assert rec.blocks_done() == held  # holds at the safe point
+        assert not _spindles_stopped(sim)  # drives keep their speeds while paused
+        eng.request_resume()
+        await wait_for(lambda: rec.blocks_done() > held, what="resumed")
+        eng.request_stop()
+        outcome = await run
+        assert _spindles_stopped(sim)
+    assert outcome.status == "stopped"
+    assert outcome.completed_points == []
+    status, _, pts = _stored(out)
+    assert status == "stopped"
+    complete, blocks = pts["0000"]
+    assert not complete  # the point was not finished: resume will redo it
+    assert 3 <= len(blocks) < 10 and all(blocks.values())
+    states = rec.states()
+    for s in ("running", "waiting", "paused", "stopping", "idle"):
+        assert s in states
+    assert states[-1] == "idle"
+
+
+async def test_abort_emergency_ramp_keeps_complete_data(tmp_path):
+    rig = cfg.load_rig()
+    out = tmp_path / "run"
+    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
+        eng = RunEngine(rig, out_dir=out, sim=sim)
+        rec = Recorder()
+        eng.subscribe(rec)
+        run = asyncio.create_task(eng.run(small_matrix(spin_rpm=[1000.0, 2000.0])))
+        await wait_for(lambda: rec.blocks_done() >= 3, what="three blocks")
+        eng.request_abort()
+        outcome = await run
+        assert _spindles_stopped(sim)
+    assert outcome.status == "aborted"
+    status, message, pts = _stored(out)
+    assert status == "aborted" and "abort" in message
+    assert list(pts) == ["0000"] and not pts["0000"][0]
+    assert all(pts["0000"][1].values())  # whatever is stored is complete
+    assert rec.states()[-1] == "idle"
+
+
+async def test_can_heartbeat_loss_suspends_until_it_returns(tmp_path):
+    rig = cfg.load_rig()
+    out = tmp_path / "run"
+    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
+        eng = RunEngine(rig, out_dir=out, sim=sim)
+        rec = Recorder()
+        eng.subscribe(rec)
+        run = asyncio.create_task(eng.run(small_matrix(revolutions=30, spin_rpm=[1000.0, 2000.0])))
+        await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
+        sim.inject("can_heartbeat_loss", on=True)
+        await wait_for(lambda: eng.state == "paused", timeout=10, what="suspension")
+        assert "suspended by interlock" in eng.message and "CAN" in eng.message
+        sim.inject("can_heartbeat_loss", on=False)
+        outcome = await run
+    assert outcome.status == "completed", outcome.message
+    status, _, pts = _stored(out)
+    assert status == "completed" and all(p[0] and len(p[1]) == 10 for p in pts.values()) and len(pts) == 2
+    assert any("interlock cleared" in e.message for e in rec.events if isinstance(e, StatusEvent))
+
+
+async def test_drive_trip_fails_the_run_and_stops_both_drives(tmp_path):
+    rig = cfg.load_rig()
+    out = tmp_path / "run"
+    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
+        eng = RunEngine(rig, out_dir=out, sim=sim)
+        rec = Recorder()
+        eng.subscribe(rec)
+        run = asyncio.create_task(eng.run(small_matrix()))
+        await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
+        sim.inject("drive_trip", drive=2, code=2310)
+        outcome = await run
+        await wait_for(lambda: _spindles_stopped(sim), timeout=10, what="spindles at rest")
+    assert outcome.status == "failed"
+    assert "2310" in outcome.message
+    assert eng.state == "faulted"
+    status, message, pts = _stored(out)
+    assert status == "failed" and "2310" in message
+    assert all(pts["0000"][1].values()) and not pts["0000"][0]
+
+
+async def test_lost_trigger_fails_with_a_clear_message(tmp_path):
+    rig = cfg.load_rig()
+    out = tmp_path / "run"
+    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
+        eng = RunEngine(rig, out_dir=out, sim=sim)
+        rec = Recorder()
+        eng.subscribe(rec)
+        run = asyncio.create_task(eng.run(small_matrix()))
+        await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
+        sim.inject("missing_trigger", count=10**9)
+        outcome = await run
+        assert _spindles_stopped(sim)
+    assert outcome.status == "failed"
+    assert "acquisition failed" in outcome.message and "trigger" in outcome.message
+    assert _stored(out)[0] == "failed"
