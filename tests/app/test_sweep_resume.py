@@ -1,0 +1,75 @@
+"""Crash safety: a sweep killed with SIGKILL mid-run, then resumed: every point present once."""
+
+import csv
+import os
+import signal
+import subprocess
+import time
+
+import h5py
+import pytest
+
+from sweep_helpers import ROOT, orbitrig_cmd
+
+MATRIX = """
+name = "crash"
+revolutions = 10
+[operating]
+spin_rpm = [1000.0, 2000.0]
+recess_pressure_mpa = [0.4826]
+pressure_ratio = [0.4]
+static_eccentricity = [0.0, 0.15]
+dynamic_eccentricity = [0.096]
+[orbit]
+ratios = [0.3, 0.6, 0.9]
+[[models]]
+model = "kc8"
+"""
+
+
+@pytest.mark.timeout(150)
+def test_kill_9_mid_run_then_resume(tmp_path):
+    matrix = tmp_path / "crash.toml"
+    matrix.write_text(MATRIX)
+    out = tmp_path / "run"
+    log = out / "run.log"
+    proc = subprocess.Popen(orbitrig_cmd("sweep", "--sim", "--matrix", str(matrix), "--out", str(out)),
+                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        # kill right after point 0001 stored its second block: point 0000 complete, 0001 partial
+        deadline = time.monotonic() + 60
+        while not (log.exists() and log.read_text().count("point 0001: stored") >= 2):
+            assert proc.poll() is None, "the sweep ended before it could be killed"
+            assert time.monotonic() < deadline, "the sweep made no progress"
+            time.sleep(0.005)
+        os.kill(proc.pid, signal.SIGKILL)
+        assert proc.wait(10) == -signal.SIGKILL
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    with h5py.File(out / "run.h5", "r") as f:
+        assert f.attrs["status"] == "running"  # cut off: never marked as ended
+        assert f["points/0000"].attrs["complete"]
+        assert not f["points/0001"].attrs["complete"]
+    assert [r["point"] for r in csv.DictReader(open(out / "coefficients.csv"))] == ["0", "0"]
+
+    p = subprocess.run(orbitrig_cmd("sweep", "--sim", "--resume", "--out", str(out)), cwd=ROOT,
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stdout + p.stderr
+    text = log.read_text()
+    assert "resume: removed incomplete point(s) 0001" in text
+    assert "3 of 4 points to run" in text
+    with h5py.File(out / "run.h5", "r") as f:
+        assert f.attrs["status"] == "completed"
+        assert list(f["points"]) == ["0000", "0001", "0002", "0003"]
+        for name, g in f["points"].items():
+            assert g.attrs["complete"], name
+            assert sorted(g["frequencies"]) == sorted(f"{k:02d}_{d}" for k in range(3) for d in ("fwd", "bwd"))
+            assert all(b.attrs["complete"] for b in g["frequencies"].values())
+            assert g["frequencies/00_fwd/raw_counts"].shape[0] == 10
+    rows = list(csv.DictReader(open(out / "coefficients.csv")))
+    assert sorted((r["point"], r["lms"]) for r in rows) == sorted((str(i), l) for i in range(4) for l in ("piezo", "strain"))
+
+    again = subprocess.run(orbitrig_cmd("sweep", "--sim", "--out", str(out)), cwd=ROOT, capture_output=True,
+                           text=True, timeout=60)
+    assert again.returncode == 2 and "already exists: use --resume" in again.stderr
