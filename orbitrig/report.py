@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from orbitrig import plots
+from orbitrig.errors import ReductionError
 from orbitrig.reduce import Reduced, reidentify
 from orbitrig.run_reader import LMS_NAMES, Point, Run, read_run
 
@@ -64,7 +65,7 @@ def fit_label(r: Reduced) -> str:
     return f"{r.model}{fd}{n}{method}"
 
 
-def _compare(point: Point, r: Reduced, stored: dict) -> list[str]:
+def _compare(r: Reduced, stored: dict) -> list[str]:
     """Name coefficients where the repeated identification differs from the stored one."""
     out = []
     coefs = stored.get("coefficients", {})
@@ -85,8 +86,12 @@ def analyse_point(point: Point) -> PointReport:
     for stored in point.identifications:
         if stored.lms not in point.tables or not stored.ok:
             continue
-        r = reidentify(point, stored)
-        pr.mismatches += _compare(point, r, stored.result)
+        try:
+            r = reidentify(point, stored)
+        except ReductionError as err:  # a stored spec this version of reduction rejects
+            pr.mismatches.append(f"{stored.lms} {stored.model} {stored.freq_dep}: cannot be repeated: {err}")
+            continue
+        pr.mismatches += _compare(r, stored.result)
         if r.identification is not None:
             pr.results.setdefault(stored.lms, []).append(r)
     return pr

@@ -43,7 +43,7 @@ def _e(text) -> str:
     return html.escape(str(text))
 
 
-def _settings_table(run, s) -> str:
+def _settings_table(s) -> str:
     rows = [
         ("spin speed \u03c9", f"{s.spin_rpm:.0f} rpm ({s.spin:.2f} rad/s)"),
         ("recess pressure p<sub>r</sub>", f"{s.recess_pressure / 1e6:.4g} MPa"),
@@ -126,7 +126,7 @@ def _coherence_table(point) -> str:
 def _point_section(run, pr, out_dir: Path) -> str:
     p = pr.point
     s = p.settings
-    h = [f'<h2 id="p{p.name}">Point {p.name}: {_e(s.label)}</h2>', _settings_table(run, s)]
+    h = [f'<h2 id="p{p.name}">Point {p.name}: {_e(s.label)}</h2>', _settings_table(s)]
     truth = true_constants(p)
     for lms in LMS_NAMES:
         results = pr.results.get(lms, [])
