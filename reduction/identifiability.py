@@ -10,6 +10,11 @@ units: e.g. forward-whirl-only circular orbits with power:1 give ``Kxx_1 - Cxy``
 Kxx_1 + Cxy is determined), and K = K0 + Omega^2 K_2 next to an inertia term gives
 ``Kxx_2 + Dxx`` for every orbit (only Kxx_2 - Dxx is determined).
 
+Measured orbits are never exactly circular: an orbit whose minor whirl component is below
+``CIRCULAR_TOL`` (2 %) of its major one is judged by its ideal circle too, so that noisy
+forward-only circles are refused like exact ones instead of being "separated" by their
+noise (with meaningless coefficients and huge standard errors).
+
 What would separate them is found by re-testing the rank with added synthetic orbits:
 the same orbits whirling the other way round (x, y -> conj), more distinct frequencies,
 and generic elliptical orbits (whatever remains then is structural: no data separate it).
@@ -29,6 +34,7 @@ from reduction.table import OrbitTable
 
 RANK_RTOL = 1e-7  # relative singular-value tolerance on the column-scaled regression (cond > 1e7 = deficient)
 MAX_LISTED = 12
+CIRCULAR_TOL = 0.02  # an orbit whose minor whirl component is below 2 % of the major is a circle
 
 
 @dataclass(frozen=True)
@@ -57,7 +63,7 @@ def numerical_rank(A: np.ndarray, rtol: float = RANK_RTOL) -> Rank:
     m, p = A_s.shape
     if m < p:  # pad so that the SVD returns the whole right singular basis
         A_s = np.vstack([A_s, np.zeros((p - m, p))])
-    _, s, Vt = np.linalg.svd(A_s)
+    _, s, Vt = np.linalg.svd(A_s, full_matrices=False)  # m >= p here: Vt is p x p
     tol = rtol * (s[0] if s.size else 0.0)
     rank = int(np.sum(s > tol)) if s.size and s[0] > 0 else 0
     return Rank(rank, p, s, Vt[rank:].T.copy(), c)
@@ -144,15 +150,37 @@ def analyse(spec: ModelSpec, table: OrbitTable, A: np.ndarray | None = None,
     """
     if A is None:
         A = _stack(spec, table.orbit, table.x, table.y)
-    p = spec.n_coefficients
     rank = numerical_rank(A, rtol)
     too_few = table.n < spec.min_frequencies
-    if rank.deficiency == 0 and not too_few:
-        return rank
-    raise _refusal(spec, table, A, rank, rtol, too_few)
+    if rank.deficiency or too_few:
+        raise _refusal(spec, table, A, rank, rtol, too_few)
+    ideal = ideal_circles(table)
+    if ideal is not table:
+        A_ideal = _stack(spec, ideal.orbit, ideal.x, ideal.y)
+        ideal_rank = numerical_rank(A_ideal, rtol)
+        if ideal_rank.deficiency:
+            raise _refusal(spec, ideal, A_ideal, ideal_rank, rtol, False, idealised=True)
+    return rank
 
 
-def _refusal(spec, table, A, rank, rtol, too_few) -> IdentifiabilityError:
+def ideal_circles(table: OrbitTable, tol: float = CIRCULAR_TOL) -> OrbitTable:
+    """``table`` with every nearly circular orbit (minor whirl component below ``tol`` times
+    the major one) replaced by its ideal circle; ``table`` itself when none is."""
+    a_f, a_b = table.whirl_components()
+    forward = np.abs(a_f) >= np.abs(a_b)
+    near = np.minimum(np.abs(a_f), np.abs(a_b)) < tol * np.maximum(np.abs(a_f), np.abs(a_b))
+    near &= (np.abs(a_f) > 0) | (np.abs(a_b) > 0)
+    if not np.any(near):
+        return table
+    major = np.where(forward, a_f, a_b)
+    x = np.where(near, major, table.x)
+    y = np.where(near, np.where(forward, -1j, 1j) * major, table.y)
+    if np.array_equal(x, table.x) and np.array_equal(y, table.y):
+        return table
+    return OrbitTable(table.spin, table.orbit, x, y, table.fx, table.fy, table.gamma2)
+
+
+def _refusal(spec, table, A, rank, rtol, too_few, idealised=False) -> IdentifiabilityError:
     p = spec.n_coefficients
     names = spec.names
     combos = combinations(rank, names)
@@ -162,6 +190,12 @@ def _refusal(spec, table, A, rank, rtol, too_few) -> IdentifiabilityError:
         lines.append(
             f"{head}: too few orbit frequencies: {p} coefficients need at least {spec.min_frequencies} "
             f"orbit frequencies (4 real equations each), the table has {table.n}.")
+    elif idealised:
+        lines.append(
+            f"{head}: the orbits are circular to within {CIRCULAR_TOL:.0%} (minor over major whirl "
+            "component), and with ideal circles the regression is rank-deficient; the small "
+            "non-circularity left is imperfection and noise, which would separate the terms below "
+            "only with meaningless precision.")
     else:
         lines.append(f"{head}: the regression is rank-deficient.")
     lines.append(

@@ -71,17 +71,19 @@ def lstsq(A: np.ndarray, b: np.ndarray, solver: str = "qr") -> np.ndarray:
 
 def _lu_refined(A: np.ndarray, b: np.ndarray, max_iter: int = 30) -> np.ndarray:
     """Normal equations by LU (Crout-like, partial pivoting) with iterative improvement."""
-    lu = sla.lu_factor(A.T @ A, check_finite=True)
-    x = sla.lu_solve(lu, A.T @ b)
-    prev = np.inf
+    lu = sla.lu_factor(A.T @ A, check_finite=False)
+    x = sla.lu_solve(lu, A.T @ b, check_finite=False)
+    prev, step, size = np.inf, np.inf, 0.0
     for _ in range(max_iter):
-        dx = sla.lu_solve(lu, A.T @ (b - A @ x))
+        if not np.all(np.isfinite(x)):
+            break
+        dx = sla.lu_solve(lu, A.T @ (b - A @ x), check_finite=False)
         x = x + dx
         step, size = np.linalg.norm(dx), np.linalg.norm(x)
         if step <= 4 * _EPS * size or step >= 0.5 * prev:
             break
         prev = step
-    if not np.all(np.isfinite(x)) or step > 1e-6 * max(size, np.finfo(float).tiny):
+    if not np.all(np.isfinite(x)) or not step <= 1e-6 * max(size, np.finfo(float).tiny):
         raise IdentificationError(
             "lu: iterative refinement of the normal equations did not converge "
             "(regression too ill-conditioned for the normal equations); use --solver qr or svd")

@@ -27,7 +27,7 @@ def _complex_1d(name: str, value, n: int | None) -> np.ndarray:
     return arr
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class OrbitTable:
     """Measured phasors of one operating point (validated, SI).
 

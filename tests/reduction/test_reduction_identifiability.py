@@ -92,3 +92,19 @@ def test_rank_uses_column_scaling():
     A, _ = regression(spec, table.orbit, table.x, table.y, table.fx, table.fy)
     rank = numerical_rank(A)
     assert rank.deficiency == 0 and rank.condition_number < 100 < np.linalg.cond(A) / 100
+
+
+def test_noisy_forward_circles_are_refused_like_exact_ones():
+    true = truth("kc8", {"K": (0, 1), "C": (0, 1)})
+    clean = orbit_table(true, frequencies(10), ("forward",))
+    rng = np.random.default_rng(4)
+    noise = 0.5e-2 * 5e-6 * (rng.standard_normal((2, clean.n)) + 1j * rng.standard_normal((2, clean.n)))
+    noisy = type(clean)(clean.spin, clean.orbit, clean.x + noise[0], clean.y + noise[1], clean.fx, clean.fy)
+    with pytest.raises(IdentifiabilityError, match="circular to within 2%") as info:
+        identify(noisy, "kc8", "power:1")
+    assert "Kxx_1 - Cxy" in info.value.combinations
+    # the same noise on forward plus backward circles identifies fine
+    both = orbit_table(true, frequencies(10))
+    noisy_both = type(both)(both.spin, both.orbit, both.x + np.tile(noise[0], 2)[: both.n],
+                            both.y + np.tile(noise[1], 2)[: both.n], both.fx, both.fy)
+    assert identify(noisy_both, "kc8", "power:1").n_coefficients == 16
