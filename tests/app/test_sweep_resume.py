@@ -73,3 +73,39 @@ def test_kill_9_mid_run_then_resume(tmp_path):
     again = subprocess.run(orbitrig_cmd("sweep", "--sim", "--out", str(out)), cwd=ROOT, capture_output=True,
                            text=True, timeout=60)
     assert again.returncode == 2 and "already exists: use --resume" in again.stderr
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("answer, code, status", [("ctrl-c", 4, "aborted"), ("s\n", 3, "stopped"), ("r\n", 0, "completed")])
+def test_ctrl_c_pauses_and_asks_twice_aborts(tmp_path, answer, code, status):
+    matrix = tmp_path / "crash.toml"
+    matrix.write_text(MATRIX)
+    out = tmp_path / "run"
+    log = out / "run.log"
+    proc = subprocess.Popen(orbitrig_cmd("sweep", "--sim", "--matrix", str(matrix), "--out", str(out)),
+                            cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not (log.exists() and "stored" in log.read_text()):
+            assert proc.poll() is None and time.monotonic() < deadline
+            time.sleep(0.005)
+        proc.send_signal(signal.SIGINT)
+        while "[paused] paused at a safe point" not in log.read_text():
+            assert proc.poll() is None and time.monotonic() < deadline
+            time.sleep(0.005)
+        time.sleep(0.3)
+        assert proc.poll() is None  # holds, waiting for the operator
+        if answer == "ctrl-c":
+            proc.send_signal(signal.SIGINT)
+            stdout, stderr = proc.communicate(timeout=30)
+        else:
+            stdout, stderr = proc.communicate(answer, timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == code, stdout + stderr
+    assert "[r]esume, [s]top, [a]bort" in stderr
+    assert f"run {status}" in stderr
+    with h5py.File(out / "run.h5", "r") as f:
+        assert f.attrs["status"] == status
