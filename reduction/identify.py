@@ -217,7 +217,7 @@ def _tls(spec, table, A_s, b, c, solver, ratio):
     x0 = reg.ols(A_s, b, solver).x
     G = regressors(spec, table.orbit, table.x, table.y) / c
     E = impedance_basis(spec, table.orbit) / c[None, :, None, None]
-    return reg.structured_tls(G, f, E, d, ratio, x0)
+    return reg.structured_tls(G, f, E, ratio, x0)
 
 
 def circle_orbits(table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:

@@ -139,8 +139,7 @@ def iv(A: np.ndarray, Z: np.ndarray, b: np.ndarray, solver: str = "qr") -> Estim
     return _finish(A, x, r, (Vt.T / s**2) @ Vt)
 
 
-def structured_tls(G: np.ndarray, f: np.ndarray, E: np.ndarray, d: np.ndarray, ratio: float,
-                   x0: np.ndarray) -> Estimate:
+def structured_tls(G: np.ndarray, f: np.ndarray, E: np.ndarray, ratio: float, x0: np.ndarray) -> Estimate:
     """Total least squares of f = -Z(x) d with noise on both the displacements d and forces f.
 
     Maximum likelihood for independent isotropic complex noise on every displacement
@@ -150,7 +149,7 @@ def structured_tls(G: np.ndarray, f: np.ndarray, E: np.ndarray, d: np.ndarray, r
     minimised (Gauss-Newton / trust region, from x0) with x in the units of G's columns.
 
     G (n, 2, p) complex regressors, f (n, 2) forces, E (n, p, 2, 2) impedance basis
-    (Z_k = sum_j x_j E[k, j]), d (n, 2) displacements, ratio in N/m.
+    (Z_k = sum_j x_j E[k, j]), ratio in N/m; G = -E d carries the displacements.
     """
     from scipy.optimize import least_squares
 
