@@ -213,7 +213,6 @@ def _refusal(spec, table, A, rank, rtol, too_few, idealised=False) -> Identifiab
 
 
 def _hints(spec, table, A, rank, rtol) -> list[str]:
-    p = spec.n_coefficients
     rng = np.random.default_rng(0)
     scale = float(np.sqrt(np.mean(np.abs(table.x) ** 2 + np.abs(table.y) ** 2)) or 1.0)
     n_gen = 3 * spec.min_frequencies + 3
@@ -223,7 +222,7 @@ def _hints(spec, table, A, rank, rtol) -> list[str]:
     mirror_rows = _stack(spec, table.orbit, np.conj(table.x), np.conj(table.y))
     mirrored = numerical_rank(np.vstack([A, mirror_rows]), rtol)
     idx = np.arange(n_gen) % table.n
-    w_more = _extra_frequencies(table, n_gen) * 1.0137  # distinct from the table's
+    w_more = w_gen * 1.0137  # distinct from the table's
     more = np.vstack([A, mirror_rows,
                       _stack(spec, w_more, table.x[idx], table.y[idx]),
                       _stack(spec, w_more, np.conj(table.x[idx]), np.conj(table.y[idx]))])
@@ -246,8 +245,8 @@ def _hints(spec, table, A, rank, rtol) -> list[str]:
         if rest > 0:
             distinct = len(np.unique(np.round(table.orbit, 9)))
             hints.append(
-                f"more distinct orbit frequencies (the table has {distinct}; the model needs at least "
-                f"{spec.min_frequencies}, with forward and backward whirl) separate {rest} of these directions.")
+                f"more distinct orbit frequencies (the table has {distinct}, each giving at most 8 real "
+                f"equations with both whirl directions) separate {rest} of these directions.")
         rest = more_rank.deficiency - structural
         if rest > 0:
             hints.append(f"non-circular (elliptical) orbits separate {rest} of these directions.")
