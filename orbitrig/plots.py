@@ -145,6 +145,7 @@ def coefficients_plot(path, fitted: Sequence[Fitted], *, spin: float, orbit: np.
     grid = np.linspace(0.0, top, 200)
     tested = np.unique(np.round(orbit, 9))
     colors = _colors(len(fitted))
+    largest = dict.fromkeys(mats, 0.0)  # largest |entry| drawn per matrix, display units
     for k, fit in enumerate(fitted):
         ident = fit.identification
         on_grid = np.array([ident.matrices(w) for w in grid])  # (n, 3, 2, 2)
@@ -159,6 +160,7 @@ def coefficients_plot(path, fitted: Sequence[Fitted], *, spin: float, orbit: np.
                 ax = axes[row, col]
                 i, j = divmod(col, 2)
                 val = on_grid[:, mi, i, j] * scale
+                largest[m] = max(largest[m], float(np.max(np.abs(val))))
                 band = _std_at(ident.std_errors, m + e, grid) * scale
                 ax.plot(grid / spin, val, color=colors[k], lw=1.6, label=fit.label)
                 ax.fill_between(grid / spin, val - band, val + band, color=colors[k], alpha=0.15, lw=0)
@@ -174,6 +176,7 @@ def coefficients_plot(path, fitted: Sequence[Fitted], *, spin: float, orbit: np.
                 continue
             mat = np.asarray(mat, dtype=float)
             unit, scale = MATRIX_UNITS[m]
+            largest[m] = max(largest[m], float(np.max(np.abs(mat))) * scale)
             for col in range(4):
                 i, j = divmod(col, 2)
                 axes[row, col].plot(t_orbit / spin, mat[:, i, j] * scale, "x", color="black", ms=6,
@@ -186,6 +189,12 @@ def coefficients_plot(path, fitted: Sequence[Fitted], *, spin: float, orbit: np.
             ax.set_ylabel(f"{m}{e}  [{unit}]")
             ax.grid(True, alpha=0.3)
             ax.set_xlim(0, top / spin)
+            # at least 5 % of the matrix's largest entry top to bottom, so that
+            # differences far inside the 5 % criterion do not fill the panel
+            lo, hi = ax.get_ylim()
+            if hi - lo < 0.05 * largest[m]:
+                mid = (lo + hi) / 2
+                ax.set_ylim(mid - 0.025 * largest[m], mid + 0.025 * largest[m])
             if row == len(mats) - 1:
                 ax.set_xlabel("\u03a9/\u03c9  [-]")
     handles, labels = axes[0, 0].get_legend_handles_labels()

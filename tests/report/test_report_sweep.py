@@ -1,0 +1,103 @@
+"""reduce and report on a run written by the real sweep on the simulator
+(`orbitrig sweep --sim --matrix SMALL --out DIR`: the demo matrix with fewer
+revolutions per block and one frequency-dependent model more)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from orbitrig import config as cfg
+from orbitrig.reduce import csv_path
+from orbitrig.run_reader import read_run
+
+ROOT = Path(__file__).resolve().parents[2]
+MODELS = (("kcd11", "none"), ("kc8", "none"), ("kcd11", "power:1"))
+
+
+def orbitrig(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "orbitrig", *args], cwd=ROOT, capture_output=True, text=True,
+                          timeout=timeout)  # fmt: skip
+
+
+@pytest.fixture(scope="session")
+def sweep_run(tmp_path_factory) -> Path:
+    base = tmp_path_factory.mktemp("sweep")
+    text = cfg.default_matrix_path("demo").read_text()
+    text = text.replace('name = "demo"', 'name = "report-small"\nrevolutions = 10')
+    text += '\n[[models]]\nmodel = "kcd11"\nfreq_dep = "power:1"\n'
+    matrix = base / "small.toml"
+    matrix.write_text(text)
+    out = base / "run"
+    p = orbitrig("sweep", "--sim", "--matrix", str(matrix), "--out", str(out))
+    assert p.returncode == 0, p.stdout + p.stderr
+    return out
+
+
+def _csv(path: Path) -> list[dict]:
+    with path.open(newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+@pytest.mark.parametrize("model, freq_dep", MODELS)
+def test_reduce_gives_the_sweeps_coefficients(sweep_run, model, freq_dep):
+    p = orbitrig("reduce", str(sweep_run), "--model", model, "--freq-dep", freq_dep, "--json")
+    assert p.returncode == 0, p.stderr
+    out = json.loads(p.stdout)
+    point = read_run(sweep_run).points[0]
+    assert [(r["point"], r["lms"]) for r in out["results"]] == [(0, "piezo"), (0, "strain")]
+    for r in out["results"]:
+        stored = point.identification(r["lms"], model, freq_dep)
+        assert stored is not None and stored.ok
+        assert r["coefficients"].keys() == stored.result["coefficients"].keys()
+        for key, value in stored.result["coefficients"].items():
+            assert r["coefficients"][key] == pytest.approx(value, rel=1e-9, abs=1e-12), key
+    # the reduce CSV carries the numbers of the run's own coefficients.csv
+    ours = _csv(csv_path(sweep_run, model, freq_dep, "ols"))
+    theirs = [r for r in _csv(sweep_run / "coefficients.csv") if (r["model"], r["freq_dep"]) == (model, freq_dep)]
+    assert len(ours) == len(theirs) == 2
+    for a, b in zip(ours, theirs):
+        assert (a["point"], a["lms"]) == (b["point"], b["lms"])
+        for key in ("Kxx", "Kxy", "Cyx", "Cyy", "true_Kxx"):
+            assert float(a[key]) == pytest.approx(float(b[key]), rel=1e-6), key
+
+
+def test_reduce_is_within_5_percent_of_the_simulator(sweep_run):
+    p = orbitrig("reduce", str(sweep_run), "--model", "kcd11", "--json")
+    truth = read_run(sweep_run).points[0].truth
+    for r in json.loads(p.stdout)["results"]:
+        c = r["coefficients"]
+        for m in "KC":
+            true = np.asarray(truth[f"{m}0"])
+            got = np.array([[c[f"{m}xx"], c[f"{m}xy"]], [c[f"{m}yx"], c[f"{m}yy"]]])
+            assert np.abs(got - true).max() <= 0.05 * np.abs(true).max(), (r["lms"], m, got, true)
+
+
+def test_report_on_the_sweep(sweep_run):
+    p = orbitrig("report", str(sweep_run))
+    assert p.returncode == 0, p.stderr
+    assert "warning" not in p.stderr  # every stored identification repeated to the same numbers
+    plots = sweep_run / "plots"
+    pngs = sorted(f.name for f in plots.glob("*.png"))
+    assert pngs == sorted([
+        "forces_0000_piezo.png", "forces_0000_strain.png", "coherence_0000.png", "lms_0000.png",
+        "coefficients_0000_piezo_kcd11.png", "coefficients_0000_strain_kcd11.png",
+        "coefficients_0000_piezo_kc8.png", "coefficients_0000_strain_kc8.png",
+    ])  # fmt: skip
+    for name in pngs:
+        data = (plots / name).read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 30_000
+    html = (plots / "index.html").read_text(encoding="utf-8")
+    assert set(re.findall(r'<img src="([^"]+)"', html)) == set(pngs)
+    assert "completed" in html and "report-small" in html
+    stored = read_run(sweep_run).points[0].identification("piezo", "kcd11", "none").result
+    for key in ("Kxx", "Kyx", "Cxx", "Cyy"):
+        scale = 1e-6 if key[0] == "K" else 1e-3
+        assert f"{stored['coefficients'][key] * scale:.4g}" in html, key
