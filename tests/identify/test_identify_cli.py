@@ -159,3 +159,14 @@ def test_real_process_streams(table_csv, tmp_path):
                          capture_output=True, text=True, cwd=ROOT, timeout=60)
     assert err.returncode == 2 and err.stdout == ""
     assert "line 2" in err.stderr and "column 'fy_im'" in err.stderr
+
+
+def test_exactly_determined_table_has_null_std_errors_and_valid_json(runner, tmp_path):
+    path = tmp_path / "t.csv"
+    true = truth("kc8", {"K": (0,), "C": (0,)})
+    write_orbit_table(path, orbit_table(true, frequencies(2), ("forward",)))  # 8 equations, 8 unknowns
+    res = runner.invoke(app, ["identify", str(path), "--model", "kc8", "--json"])
+    assert res.exit_code == 0, res.stderr
+    d = json.loads(res.stdout)
+    assert all(v is None for v in d["std_errors"].values())
+    assert d["coefficients"]["Kxx"] == pytest.approx(keys_of(true)["Kxx"], rel=1e-9)

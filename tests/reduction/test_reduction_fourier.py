@@ -62,3 +62,25 @@ def test_angles_that_cannot_resolve_the_harmonic_are_refused():
         phasor(np.ones(4), np.zeros(4))
     with pytest.raises(ReductionError):
         phasor(np.ones(10), np.zeros(9))
+
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    slots=st.lists(st.integers(0, 359), min_size=3, max_size=60, unique=True),
+    re=st.floats(-1e3, 1e3), im=st.floats(-1e3, 1e3), mean=st.floats(-1e3, 1e3),
+    harmonic=st.integers(1, 3),
+)
+def test_any_well_spread_slots_recover_the_phasor(slots, re, im, mean, harmonic):
+    theta = 2 * np.pi * np.array(slots) / 360
+    phases = np.exp(1j * harmonic * theta)
+    basis = np.stack([np.ones_like(theta), phases.real, phases.imag], axis=1)
+    if np.linalg.cond(basis) > 1e6:  # angles that (nearly) cannot resolve the harmonic
+        return
+    fit = harmonic_fit(signal(theta, re + 1j * im, mean, harmonic), theta, harmonic)
+    scale = 1e-9 * (abs(re) + abs(im) + abs(mean) + 1)
+    assert abs(fit.phasor - (re + 1j * im)) < scale * np.linalg.cond(basis)
+    assert abs(fit.mean - mean) < scale * np.linalg.cond(basis)
