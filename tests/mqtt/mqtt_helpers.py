@@ -291,3 +291,36 @@ class Service:
                 self.proc.kill()
                 self.proc.wait()
         return self.proc.returncode
+
+
+# -- test matrices (small and fast on the simulator) ----------------------------
+
+MATRIX = """\
+name = "{name}"
+revolutions = {revs}
+settle_hold_s = 0.1
+
+[operating]
+spin_rpm = [1000.0]
+recess_pressure_mpa = [0.4826]
+pressure_ratio = [0.4]
+static_eccentricity = [0.0]
+dynamic_eccentricity = [0.096]
+
+[orbit]
+ratios = {ratios}
+directions = {directions}
+
+[[models]]
+model = "kc7"
+"""
+
+
+def write_matrices(folder: Path) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "quick.toml").write_text(MATRIX.format(
+        name="quick", revs=10, ratios="[0.5, 0.8]", directions='["forward", "backward"]'))
+    (folder / "long.toml").write_text(MATRIX.format(
+        name="long", revs=40, ratios="[0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.2]",
+        directions='["forward", "backward"]'))
+    return folder

@@ -11,42 +11,11 @@ from pathlib import Path
 import h5py
 import pytest
 
-from mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained
+from mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, write_matrices
 
 RIG = "sim-rig"
 PROGRESS_KEYS = {"run_id", "point", "points", "frequency", "frequencies", "revolutions", "eta_s"}
 STATUS_KEYS = {"state", "run_id", "since", "message"}
-
-MATRIX = """\
-name = "{name}"
-revolutions = {revs}
-settle_hold_s = 0.1
-
-[operating]
-spin_rpm = [1000.0]
-recess_pressure_mpa = [0.4826]
-pressure_ratio = [0.4]
-static_eccentricity = [0.0]
-dynamic_eccentricity = [0.096]
-
-[orbit]
-ratios = {ratios}
-directions = {directions}
-
-[[models]]
-model = "kc7"
-"""
-
-
-def write_matrices(folder: Path) -> Path:
-    folder.mkdir(parents=True, exist_ok=True)
-    (folder / "quick.toml").write_text(MATRIX.format(
-        name="quick", revs=10, ratios="[0.5, 0.8]", directions='["forward", "backward"]'))
-    (folder / "long.toml").write_text(MATRIX.format(
-        name="long", revs=40, ratios="[0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.2]",
-        directions='["forward", "backward"]'))
-    return folder
-
 
 def serve_args(broker: Broker, workdir: Path, *extra: str) -> list[str]:
     return ["--sim", "--broker", broker.url, "--rig-id", RIG, "--username", "orbitrig-service",
@@ -259,7 +228,9 @@ def test_sigkill_publishes_offline_last_will(tmp_path):
         mark = rc.watch.mark()
         svc.kill(signal.SIGKILL)
         offline = rc.status("offline", start=mark, timeout=10)
-        assert offline["run_id"] == run_id
+        # the will is registered at connection time, before this run started
+        assert offline["run_id"] is None and "connection to the rig service lost" in offline["message"]
+        assert run_id
         late = retained(b, f"orbitrig/{RIG}/status")
         assert late.retain and late.json()["state"] == "offline"
     finally:

@@ -1,0 +1,71 @@
+"""A long loss of supervision (no broker) during a run: the configured policy
+(pause or stop) is applied once, the run goes on otherwise, and the status is
+republished when the broker is back. In process: the service the CLI builds,
+on the simulator, with a real mosquitto that is stopped and started."""
+
+from __future__ import annotations
+
+import asyncio
+from pathlib import Path
+
+import pytest
+
+from mqtt_helpers import ACCOUNTS, Broker, RigClient, retained, write_matrices
+from orbitrig.cli_serve import build_service
+from orbitrig.config import load_rig
+from orbitrig.service import BrokerSettings, ServiceSettings
+
+
+async def wait(fn, *args, **kw):
+    return await asyncio.to_thread(fn, *args, **kw)
+
+
+@pytest.mark.parametrize("policy, expected", [("pause", "paused"), ("stop", "idle")])
+async def test_supervision_policy(policy, expected, tmp_path: Path):
+    from sim.rig import SimRig
+
+    b = Broker(tmp_path / "broker")
+    b.start()
+    rc = None
+    try:
+        async with SimRig(speedup=20, adc_pty=False) as sim_rig:
+            settings = ServiceSettings(rig_id="sup", matrices_dir=write_matrices(tmp_path / "matrices"),
+                                       supervision_policy=policy, supervision_timeout=1.0,
+                                       reconnect_initial=0.2, reconnect_max=1.0)
+            creds = BrokerSettings.from_url(b.url, username="orbitrig-service",
+                                            password=ACCOUNTS["orbitrig-service"])
+            service = build_service(load_rig(), settings, creds, out=tmp_path / "runs", sim_rig=sim_rig,
+                                    confirm="auto")
+            stop = asyncio.Event()
+            serving = asyncio.create_task(service.serve(stop))
+            try:
+                rc = RigClient(b, "sup")
+                await wait(rc.status, "idle")
+                assert (await wait(rc.command, {"cmd": "start", "matrix": "long"}))["ok"] is True
+                run_id = (await wait(rc.status, "running"))["run_id"]
+                rc.close()
+                b.stop()
+                # the run goes on without the broker until the policy applies (after 1 s)
+                for _ in range(100):
+                    await asyncio.sleep(0.1)
+                    if service.state == expected:
+                        break
+                assert service.state == expected, service.state
+                assert service.run_active is (policy == "pause")
+                b.start()
+                rc = RigClient(b, "sup")
+                st = await wait(rc.status, lambda s: s["run_id"] == run_id, 20)  # republished
+                assert st["state"] == expected
+                assert (await wait(retained, b, "orbitrig/sup/status")).json()["state"] == expected
+                if policy == "pause":  # an operator takes over again
+                    assert (await wait(rc.command, {"cmd": "resume"}))["ok"] is True
+                    await wait(rc.status, "running")
+                    assert (await wait(rc.command, {"cmd": "abort"}))["ok"] is True
+                    await wait(rc.status, "idle")
+            finally:
+                stop.set()
+                await asyncio.wait_for(serving, 60)
+    finally:
+        if rc is not None:
+            rc.close()
+        b.stop()
