@@ -369,6 +369,8 @@ class DriveModel:
                         ILLEGAL_VALUE, f"parameter {a} = {v} outside {lo}..{hi}"
                     )
             self._params.update(params)
+            if COMM_LOSS_TIMEOUT in params:
+                self._last_request = self._w  # a new timeout starts counting now
         if REF2 in updates:
             self._ref2 = _int16(updates[REF2])
         if REF in updates:
@@ -606,9 +608,9 @@ class DriveModel:
             if remaining <= 0.0:
                 return
             need = abs(stop - speed) / rate
-            if need <= remaining:
+            if need <= remaining + 1e-9:  # arrival (tolerating float round-off)
                 self._speed = stop
-                remaining -= need
+                remaining = max(0.0, remaining - need)
                 self._standstill_transition()
             else:
                 self._speed = speed + math.copysign(rate * remaining, stop - speed)
