@@ -12,9 +12,10 @@ def synthetic_run(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
-def synthetic_report(tmp_path_factory):
-    """`make_report` on a one-point synthetic run (plots take ~0.5 s each)."""
-    from orbitrig.report import make_report
+def synthetic_report(synthetic_run):
+    """`orbitrig report DIR --point 1` on the synthetic run (plots take ~0.5 s each)."""
+    from typer.testing import CliRunner
 
-    directory = write_synthetic_run(tmp_path_factory.mktemp("synthetic_report") / "run", n_points=1)
-    return make_report(directory)
+    from orbitrig.cli import app
+
+    return CliRunner().invoke(app, ["report", str(synthetic_run), "--point", "1"])

@@ -10,6 +10,8 @@ from typer.testing import CliRunner
 
 from orbitrig.cli import app
 from orbitrig.reduce import coefficient_unit
+from orbitrig.report import analyse_point
+from orbitrig.run_reader import read_run
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -22,40 +24,51 @@ def png_size(path):
     return struct.unpack(">II", data[16:24])
 
 
-def test_report_writes_every_plot(synthetic_report):
-    names = {p.name for p in synthetic_report.plots}
-    assert names == {
-        "forces_0000_piezo.png", "forces_0000_strain.png",
-        "coefficients_0000_piezo_kcd11.png", "coefficients_0000_strain_kcd11.png",
-        "coefficients_0000_piezo_kc7.png", "coefficients_0000_strain_kc7.png",
-        "coherence_0000.png", "lms_0000.png",
+def test_report_writes_every_plot(synthetic_run, synthetic_report):
+    assert synthetic_report.exit_code == 0, synthetic_report.output
+    assert "2 complete point(s), 1 incomplete" in synthetic_report.stdout
+    assert "8 plot(s)" in synthetic_report.stdout
+    assert "warning" not in synthetic_report.stderr  # stored identifications repeat exactly
+    plots = synthetic_run / "plots"
+    # --point 1: nothing of point 0
+    assert {p.name for p in plots.glob("*.png")} == {
+        "forces_0001_piezo.png", "forces_0001_strain.png",
+        "coefficients_0001_piezo_kcd11.png", "coefficients_0001_strain_kcd11.png",
+        "coefficients_0001_piezo_kc7.png", "coefficients_0001_strain_kc7.png",
+        "coherence_0001.png", "lms_0001.png",
     }  # fmt: skip
-    for path in synthetic_report.plots:
-        assert path.parent == synthetic_report.directory == synthetic_report.run.directory / "plots"
+    for path in plots.glob("*.png"):
         w, h = png_size(path)
         assert w >= 800 and h >= 400
         assert path.stat().st_size > 30_000  # drawn content, not an empty canvas
 
 
-def test_repeated_identifications_match_the_stored_ones(synthetic_report):
-    (pr,) = synthetic_report.points
+def test_repeated_identifications_match_the_stored_ones(synthetic_run):
+    pr = analyse_point(read_run(synthetic_run).points[0])
     assert pr.mismatches == []
     assert {(r.model, r.freq_dep) for r in pr.results["piezo"]} == {("kcd11", "none"), ("kc7", "none"), ("kcd11", "power:1")}
 
 
-def test_html_references_every_plot_and_shows_coefficients(synthetic_report):
-    html = synthetic_report.html.read_text(encoding="utf-8")
-    assert synthetic_report.html == synthetic_report.directory / "index.html"
+def test_repeated_identification_that_differs_is_named(synthetic_run):
+    point = read_run(synthetic_run).points[0]  # a fresh copy in memory
+    point.identification("piezo", "kc7", "none").result["coefficients"]["Kxy"] *= 1.01
+    mismatches = analyse_point(point).mismatches
+    assert len(mismatches) == 1 and mismatches[0].startswith("piezo kc7 none: Kxy stored")
+
+
+def test_html_references_every_plot_and_shows_coefficients(synthetic_run, synthetic_report):
+    plots = synthetic_run / "plots"
+    html = (plots / "index.html").read_text(encoding="utf-8")
     sources = set(re.findall(r'<img src="([^"]+)"', html))
-    assert sources == {p.name for p in synthetic_report.plots}
+    assert sources == {p.name for p in plots.glob("*.png")}
     assert not re.search(r'(src|href)="(https?:)?//', html) and "<script" not in html  # self-contained
-    (pr,) = synthetic_report.points
+    pr = analyse_point(read_run(synthetic_run).points[1])
     for r in pr.results["strain"]:
         for key, value in r.identification.coefficients.items():
             unit, scale = coefficient_unit(key)
             assert f"{value * scale:.4g}" in html, key
             assert f"{r.identification.std_errors[key] * scale:.2g}" in html, key
-    for text in ("MN/m", "kN s/m", "kg", "stopped", "1 incomplete (0001)", "1000 rpm", "0.4826 MPa", "true (simulator)"):
+    for text in ("MN/m", "kN s/m", "kg", "stopped", "1 incomplete (0002)", "1000 rpm", "0.4826 MPa", "true (simulator)"):
         assert text in html
     assert "kcd12 poly:2 refused" in html  # the sweep's refusal is shown, with its reason
     assert "\u03b3\u00b2 x, Fx" in html  # the coherence table (paper Table 1)
@@ -65,15 +78,6 @@ def test_coefficient_units():
     assert coefficient_unit("Kxy") == ("MN/m", 1e-6)
     assert coefficient_unit("Cyy_2") == ("kN s/m (rad/s)^-2", 1e-3)
     assert coefficient_unit("Dxx") == ("kg", 1.0)
-
-
-def test_cli_report(synthetic_run):
-    result = CliRunner().invoke(app, ["report", str(synthetic_run), "--point", "1"])
-    assert result.exit_code == 0, result.output
-    assert "2 complete point(s), 1 incomplete" in result.stdout
-    plots = synthetic_run / "plots"
-    assert (plots / "index.html").is_file() and (plots / "forces_0001_piezo.png").is_file()
-    assert not (plots / "forces_0000_piezo.png").exists()
 
 
 @pytest.mark.parametrize("point", ["2", "7"])
