@@ -124,7 +124,8 @@ class RunEngine:
         self._subs: list[Callable[[Event], None]] = []
         self._reset_requests()
         self._io = None
-        self._store_pending: asyncio.Future | None = None
+        self._pending: set[asyncio.Task] = set()  # storage and identification in the background
+        self._bg_error: BaseException | None = None
         self._store: RunStore | None = None
         self._body: asyncio.Task | None = None
         self._t0 = time.monotonic()
@@ -265,8 +266,8 @@ class RunEngine:
                 log.error("cleanup: cannot %s: %s: %s", what, type(err).__name__, err)
                 self._log_event(f"cleanup: cannot {what}: {err}")
         self._io = None
-        if self._store_pending is not None:  # a write cut off by an abort finishes first
-            await asyncio.gather(self._store_pending, return_exceptions=True)
+        while self._pending:  # writes and identifications in flight finish first (never cut off)
+            await asyncio.gather(*list(self._pending), return_exceptions=True)
         self.timing["wall"] = time.monotonic() - self._t0
         for what, fn in (("write the run status", lambda: store.set_status(status, message)),
                          ("write coefficients.csv", store.write_csv)):  # fmt: skip
@@ -276,11 +277,36 @@ class RunEngine:
                 log.error("cleanup: cannot %s: %s", what, err)
         store.log(f"run {self.run_id} ended: {status}: {message}")
 
-    async def _storage(self, fn, *args):
-        """Run a storage write in a thread; an abort waits for it instead of cutting it."""
-        fut = asyncio.ensure_future(asyncio.to_thread(fn, *args))
-        self._store_pending = fut
-        return await asyncio.shield(fut)
+    async def _write(self, fn, *args):
+        """One storage write, in a thread, in submission order (a FIFO lock)."""
+        async with self._writes:
+            t = time.monotonic()
+            try:
+                return await asyncio.to_thread(fn, *args)
+            finally:
+                self.timing["store"] = self.timing.get("store", 0.0) + time.monotonic() - t
+
+    def _background(self, coro, name: str) -> None:
+        """Storage and identification overlap the next motion; an abort or a stop waits for them."""
+        task = asyncio.create_task(coro, name=name)
+        self._pending.add(task)
+        task.add_done_callback(self._background_done)
+
+    def _background_done(self, task: asyncio.Task) -> None:
+        self._pending.discard(task)
+        if not task.cancelled() and task.exception() is not None and self._bg_error is None:
+            self._bg_error = task.exception()
+            log.error("%s failed: %s", task.get_name(), self._bg_error)
+
+    def _check_background(self) -> None:
+        if self._bg_error is not None:
+            err = self._bg_error
+            raise RunFailed(f"storage or identification failed: {type(err).__name__}: {err}") from err
+
+    async def _drain(self) -> None:
+        while self._pending:
+            await asyncio.gather(*list(self._pending), return_exceptions=True)
+        self._check_background()
 
     def _est(self, step: Step) -> float:
         """Estimated physical duration still to come for `step` (no operator time in auto mode)."""
@@ -298,25 +324,24 @@ class RunEngine:
             if s.point is not None:
                 by_point.setdefault(s.point, []).append(s)
         first = True
-        for idx, psteps in by_point.items():
-            if idx in done:
-                continue
-            try:
+        try:
+            for idx, psteps in by_point.items():
+                if idx in done:
+                    continue
                 await self._safe_point()
-            except _StopRun:
-                return STOPPED
-            self._progress.update(point=self._progress["point"] + 1, frequency=0,
-                                  frequencies=len(points[idx].blocks))  # fmt: skip
-            try:
+                self._progress.update(point=self._progress["point"] + 1, frequency=0,
+                                      frequencies=len(points[idx].blocks))  # fmt: skip
                 await self._run_point(points[idx], psteps, first)
-            except _StopRun:
-                return STOPPED
-            first = False
+                first = False
+        except _StopRun:
+            await self._drain()
+            return STOPPED
+        await self._drain()
         return STOPPED if self._stop_req else COMPLETED
 
     async def _run_point(self, p: OperatingPoint, steps: list[Step], first: bool) -> None:
         store = self._store
-        await self._storage(store.begin_point, p)
+        self._background(self._write(store.begin_point, p), f"begin point {p.index:04d}")
         store.log(f"point {p.index:04d} {p.label}: begin")
         self._pressure_armed = False
         records: dict[str, BlockRecord] = {}
@@ -325,6 +350,7 @@ class RunEngine:
         i = 0
         while i < len(steps):
             step = steps[i]
+            self._check_background()
             if isinstance(step, (SetManual, SetSpin, SetOrbit, Identify)):
                 # every frequency of the point is stored before Identify: a stop lets it finish
                 await self._safe_point(allow_stop=not isinstance(step, Identify))
@@ -333,7 +359,9 @@ class RunEngine:
             if isinstance(step, SetManual):
                 await self._manual(step, prompt=step.changed or first)
             elif isinstance(step, Verify) and "pressures" in step.quantities:
+                t = time.monotonic()
                 await self._verify_pressures(p, step)
+                self.timing["verify"] = self.timing.get("verify", 0.0) + time.monotonic() - t
             elif isinstance(step, SetSpin):
                 await self._set_speeds(step.spin, step.orbit)
             elif isinstance(step, SetOrbit):
@@ -350,22 +378,30 @@ class RunEngine:
                     last_rec = await self._measure(p, *last_pair)
             elif isinstance(step, Store) and step.block is not None:
                 records[step.block.tag] = last_rec
-                await self._storage(store.write_block, p.index, last_rec)
-                store.log(f"point {p.index:04d}: stored {step.block.tag}")
-                self._emit_progress(force=True)
+                self._background(self._store_block(p, last_rec), f"store {p.index:04d}/{step.block.tag}")
                 if self._stop_req and len(records) < len(p.blocks):
                     raise _StopRun
             elif isinstance(step, Identify):
-                t = time.monotonic()
-                results = await asyncio.to_thread(self._reduce, p, records, step)
-                await self._storage(store.write_results, p.index, results)
-                self.timing["identify"] = self.timing.get("identify", 0.0) + time.monotonic() - t
+                truth = self._truth(p, list(records.values())) if self.sim is not None else None
+                self._background(self._finish_point(p, dict(records), step, truth), f"finish point {p.index:04d}")
             elif isinstance(step, Store) and step.block is None:
-                await self._storage(store.complete_point, p.index)
-                store.log(f"point {p.index:04d} {p.label}: complete")
-                self._emit(ResultEvent(self.run_id, self._result_payload(p, results)))
+                pass  # written last by _finish_point, after the identification
             self._remaining_est -= self._est(step)
             i += 1
+
+    async def _store_block(self, p: OperatingPoint, rec: BlockRecord) -> None:
+        await self._write(self._store.write_block, p.index, rec)
+        self._store.log(f"point {p.index:04d}: stored {rec.block.tag}")
+
+    async def _finish_point(self, p: OperatingPoint, records: dict, step: Identify, truth: dict | None) -> None:
+        """Identify with every model for both load measuring systems, store, then mark the point complete."""
+        t = time.monotonic()
+        results = await asyncio.to_thread(self._reduce, p, records, step, truth)
+        self.timing["identify"] = self.timing.get("identify", 0.0) + time.monotonic() - t
+        await self._write(self._store.write_results, p.index, results)
+        await self._write(self._store.complete_point, p.index)
+        self._store.log(f"point {p.index:04d} {p.label}: complete")
+        self._emit(ResultEvent(self.run_id, self._result_payload(p, results)))
 
     # ---------------------------------------------------------- steps
     async def _manual(self, step: SetManual, *, prompt: bool) -> None:
@@ -558,7 +594,8 @@ class RunEngine:
             rms_residual=np.asarray(blk.rms_residual), coherence=coh, stats=stats,
         )  # fmt: skip
 
-    def _reduce(self, p: OperatingPoint, records: dict[str, BlockRecord], step: Identify) -> PointResults:
+    def _reduce(self, p: OperatingPoint, records: dict[str, BlockRecord], step: Identify,
+                truth: dict | None) -> PointResults:  # fmt: skip
         from reduction.errors import ReductionError
         from reduction.identify import identify
 
@@ -572,13 +609,11 @@ class RunEngine:
                     idents[(lms, spec.key)] = {"spec": spec, "json": res.to_dict()}
                 except ReductionError as err:
                     idents[(lms, spec.key)] = {"spec": spec, "error": str(err)}
-        truth = None
-        if self.sim is not None:
-            truth = self._truth(p, recs)
         return PointResults(tables, idents, lms_comparison(recs, self.rig.channel_index), truth)
 
     def _truth(self, p: OperatingPoint, recs: list[BlockRecord]) -> dict:
         out = {"orbit_hz": [], "orbit": [], "K": [], "C": [], "D": []}
+        recs = sorted(recs, key=lambda r: (r.block.freq, -r.block.direction))  # orbit table order
         for r in recs:
             t = self._io.truth(p.spin, r.block.orbit)
             out["orbit_hz"].append(r.block.orbit_hz)
@@ -613,6 +648,8 @@ class RunEngine:
         self._pause_req = self._stop_req = self._abort_req = False
         self._confirmed: str | None = None
         self._wake = asyncio.Event()
+        self._writes = asyncio.Lock()
+        self._bg_error = None
 
     def _emit(self, ev: Event) -> None:
         for cb in list(self._subs):

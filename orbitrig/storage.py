@@ -213,8 +213,7 @@ class RunStore:
             a["orbit_hz"] = b.orbit_hz
             a["direction"] = b.direction
             a["measured_orbit_speed"] = rec.measured_orbit_speed
-            g.create_dataset("raw_counts", data=np.asarray(rec.raw_counts, dtype=np.int16), compression="gzip",
-                             compression_opts=1, shuffle=True)  # fmt: skip
+            g.create_dataset("raw_counts", data=np.asarray(rec.raw_counts, dtype=np.int16))
             g.create_dataset("slots", data=np.asarray(rec.slots, dtype=np.int16))
             for name in ("gains", "offsets", "mean", "dc", "rms_residual", "coherence"):
                 g.create_dataset(name, data=np.asarray(getattr(rec, name), dtype=np.float64))
