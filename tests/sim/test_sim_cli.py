@@ -1,0 +1,68 @@
+"""`orbitrig sim` as a separate process: endpoints line, streaming, clean exit."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from sim_reader import parse, revolutions
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def start(*args: str) -> subprocess.Popen:
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    return subprocess.Popen([sys.executable, "-m", "orbitrig", "sim", *args], cwd=ROOT, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def control(port: int, obj: dict) -> dict:
+    with socket.create_connection(("127.0.0.1", port), timeout=5) as s:
+        s.sendall(json.dumps(obj).encode() + b"\n")
+        return json.loads(s.makefile().readline())
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
+def test_sim_command_runs_streams_and_stops_cleanly(sig):
+    proc = start("--modbus-port", "0", "--adc-port", "0", "--speedup", "5", "--config", "config/sim.toml")
+    try:
+        ep = json.loads(proc.stdout.readline())
+        assert set(ep) == {"modbus", "adc", "adc_pty", "control", "can"}
+        assert ep["modbus"].startswith("tcp://127.0.0.1:") and ep["adc"].startswith("socket://127.0.0.1:")
+        assert ep["adc_pty"].startswith("/dev/pts/") and ep["can"] is None
+        cport = int(ep["control"].rsplit(":", 1)[1])
+        state = control(cport, {"cmd": "state"})
+        assert state["spin"] == 0.0 and state["orbit"] == 0.0  # both drives start stopped
+        assert control(cport, {"cmd": "local_control", "spin": 120.0, "orbit": -2 * math.pi * 20})["ok"]
+        aport = int(ep["adc"].rsplit(":", 1)[1])
+        buf = b""
+        with socket.create_connection(("127.0.0.1", aport), timeout=5) as s:
+            t0 = time.monotonic()
+            while len(revolutions(parse(buf)[0])) < 2 and time.monotonic() - t0 < 10:
+                buf += s.recv(65536)
+        assert len(revolutions(parse(buf)[0])) >= 2
+        proc.send_signal(sig)
+        assert proc.wait(timeout=10) == 0
+        assert "Traceback" not in proc.stderr.read()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def test_sim_command_rejects_a_bad_config(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[noise]\nwhite = 1\n")
+    proc = start("--config", str(bad), "--modbus-port", "0", "--adc-port", "0")
+    out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 2 and out == ""
+    assert "bad.toml" in err and "noise.white" in err

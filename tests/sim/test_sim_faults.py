@@ -1,0 +1,180 @@
+"""Fault injection, each seen from outside through the real transports."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import os
+import struct
+import time
+
+import pytest
+
+from sim.config import SimConfig
+from sim.rig import SimRig
+from sim_reader import parse, read_tcp, revolutions
+
+ORBIT = 2 * math.pi * 20.0
+
+
+async def stream_with(rig: SimRig, fault: str, *, revs: int = 20, **kw) -> bytes:
+    """Read the TCP stream while injecting `fault` shortly after the start."""
+    task = asyncio.create_task(read_tcp(rig.adc_server.port, min_revs=revs))
+    await asyncio.sleep(0.05)  # a few revolutions (100 per second)
+    rig.inject(fault, **kw)
+    return await task
+
+
+def seq_gaps(frames) -> list[int]:
+    return [(b.seq - a.seq - 1) & 0xFFFF for a, b in zip(frames, frames[1:]) if b.seq != (a.seq + 1) & 0xFFFF]
+
+
+@pytest.fixture
+async def rig():
+    async with SimRig(SimConfig(), speedup=5.0, can_channel=None) as r:
+        r.local_control(spin=150.0, orbit=ORBIT)
+        yield r
+
+
+async def test_corrupted_bytes_fail_the_crc(rig):
+    data = await stream_with(rig, "corrupt_bytes", count=2)
+    frames, bad, _ = parse(data)
+    assert seq_gaps(frames) in ([2], [1, 1])  # exactly the two corrupted frames are unreadable
+    assert bad >= 1
+    assert not any(f.flags & 0x02 for f in frames)  # the board lost nothing
+    assert len(revolutions(frames)) >= 4
+
+
+async def test_dropped_frames_leave_a_seq_gap_and_overrun(rig):
+    data = await stream_with(rig, "drop_frames", count=3)
+    frames, bad, _ = parse(data)
+    assert bad == 0 and seq_gaps(frames) == [3]
+    i = next(i for i, (a, b) in enumerate(zip(frames, frames[1:])) if b.seq != (a.seq + 1) & 0xFFFF)
+    assert frames[i + 1].flags & 0x02  # OVERRUN on the first frame after the loss
+    assert sum(bool(f.flags & 0x02) for f in frames) == 1
+    # the revolution with the hole is not complete: revolutions skip its rev number
+    revs = [r for r, _, _ in revolutions(frames)]
+    assert frames[i].rev not in revs or frames[i + 1].rev not in revs
+
+
+async def test_missing_trigger(rig):
+    data = await stream_with(rig, "missing_trigger", count=1)
+    frames, bad, _ = parse(data)
+    assert bad == 0 and seq_gaps(frames) == []
+    at_zero = [f for f in frames if f.first_slot == 0]
+    missed = [f for f in at_zero if not f.flags & 0x01]
+    assert len(missed) == 1
+    before = frames[frames.index(missed[0]) - 1]
+    assert missed[0].rev == before.rev  # no trigger, no new revolution number
+    revs = [r for r, _, _ in revolutions(frames)]
+    assert revs == sorted(set(revs)) and missed[0].rev in revs  # the rev before it was complete
+
+
+async def test_stalled_board_clock(rig):
+    data = await stream_with(rig, "stall_clock", revs=12)
+    frames, _, _ = parse(data)
+    stamps = [f.t_us for f in frames]
+    assert stamps[-1] == stamps[-2] == stamps[-10]
+    assert stamps[1] > stamps[0]
+    rig.inject("clear")
+    frames, _, _ = parse(await read_tcp(rig.adc_server.port, min_revs=2))
+    assert frames[-1].t_us > frames[0].t_us
+
+
+async def test_closed_tcp_link_then_reconnect(rig):
+    reader, writer = await asyncio.open_connection("127.0.0.1", rig.adc_server.port)
+    assert await reader.read(100)
+    rig.inject("close_adc_link", reopen_after=0.2)
+    t0 = time.monotonic()
+    while await asyncio.wait_for(reader.read(1 << 16), 2.0):
+        assert time.monotonic() - t0 < 2.0
+    writer.close()  # EOF seen: the server closed the link
+    frames, bad, _ = parse(await read_tcp(rig.adc_server.port, min_revs=2))
+    assert bad == 0 and len(revolutions(frames)) >= 2
+
+
+async def test_pty_hangup_then_reopen(rig):
+    path = rig.adc_pty_path
+    fd = os.open(path, os.O_RDONLY | os.O_NOCTTY | os.O_NONBLOCK)
+    try:
+        rig.inject("close_adc_link", reopen_after=0.3)
+        await asyncio.sleep(0.05)
+        hung_up = False
+        for _ in range(200):  # a hung-up line reads as EOF or fails with EIO
+            try:
+                if os.read(fd, 1 << 16) == b"":
+                    hung_up = True
+                    break
+            except BlockingIOError:
+                await asyncio.sleep(0.01)
+            except OSError:
+                hung_up = True
+                break
+        assert hung_up
+    finally:
+        os.close(fd)
+    assert rig.adc_pty_path is None
+    await asyncio.sleep(0.5)
+    assert rig.adc_pty_path is not None and os.path.exists(rig.adc_pty_path)
+
+
+def modbus_read(port: int, unit: int, address: int, count: int, timeout: float = 1.0) -> list[int]:
+    """Raw Modbus TCP read holding registers (FC 03), written from the protocol, big-endian."""
+    import socket
+
+    with socket.create_connection(("127.0.0.1", port), timeout=timeout) as s:
+        s.sendall(struct.pack(">HHHBBHH", 7, 0, 6, unit, 3, address, count))
+        head = s.recv(9)
+        tid, proto, length, uid, fc, nbytes = struct.unpack(">HHHBBB", head)
+        assert (tid, proto, uid, fc) == (7, 0, unit, 3)
+        body = b""
+        while len(body) < nbytes:
+            body += s.recv(nbytes - len(body))
+        return list(struct.unpack(f">{count}H", body))
+
+
+async def test_drive_trip_and_modbus_timeout(rig):
+    port = int(rig.modbus_url.rsplit(":", 1)[1])
+    loop = asyncio.get_running_loop()
+    rig.inject("drive_trip", drive=2, code=2310)
+    sw, act, torque, fault = await loop.run_in_executor(None, modbus_read, port, 2, 3, 4)
+    assert fault == 2310 and sw & (1 << 3)  # TRIPPED
+    assert (await loop.run_in_executor(None, modbus_read, port, 1, 6, 1)) == [0]  # spin drive fine
+    rig.inject("modbus_timeout", on=True)
+    with pytest.raises(OSError):  # socket.timeout: no answer at all
+        await loop.run_in_executor(None, modbus_read, port, 1, 3, 1, 0.5)
+    rig.inject("clear")
+    assert len(await loop.run_in_executor(None, modbus_read, port, 1, 3, 1)) == 1
+    with pytest.raises(ValueError, match="unknown fault"):
+        rig.inject("gremlins")
+
+
+async def test_slow_reader_loses_whole_frames_and_never_blocks_the_loop():
+    import socket
+
+    async with SimRig(SimConfig(), speedup=100.0, can_channel=None) as rig:
+        rig.local_control(spin=150.0, orbit=2 * math.pi * 40)  # 1.44 M samples/s, 3.5 MB/s
+        sock = socket.socket()
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        sock.connect(("127.0.0.1", rig.adc_server.port))
+        reader, writer = await asyncio.open_connection(sock=sock)
+        loop = asyncio.get_running_loop()
+        lags = []
+        for _ in range(100):  # 2 s without reading (more than the socket buffers); nor the pty
+            t = loop.time()
+            await asyncio.sleep(0.02)
+            lags.append(loop.time() - t - 0.02)
+        assert max(lags) < 0.2
+        data = b""
+        t_end = loop.time() + 5.0
+        while loop.time() < t_end:  # read the backlog and past the hole
+            t_check = loop.time() + 0.25
+            while loop.time() < t_check:
+                data += await reader.read(1 << 16)
+            frames, bad, _ = parse(data)
+            if seq_gaps(frames):
+                break
+        writer.close()
+    assert bad == 0 and len(seq_gaps(frames)) >= 1  # chunks were dropped ...
+    for a, b in zip(frames, frames[1:]):  # ... as whole frames: the byte stream stays framed
+        assert b.offset == a.offset + 20 + 2 * a.n_slots * a.n_ch
