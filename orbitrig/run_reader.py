@@ -186,6 +186,8 @@ def read_run(directory: str | Path) -> Run:
             points = [_read_point(g) for _, g in sorted(h5.get("points", {}).items())]
         except (KeyError, ValueError, TypeError) as err:
             raise RunDirError(path, f"malformed run file: {err}") from err
+        except OSError as err:  # an object caught mid-write by a running sweep
+            raise RunDirError(path, f"cannot read ({err}); if a sweep is writing it, try again") from err
         a = h5.attrs
         return Run(
             directory=directory,
