@@ -48,8 +48,12 @@ class _Collection:
         if len(revs) > need:
             revs = revs.take(slice(0, need))
         if self.on_revolution is not None:
-            for r in revs.revolutions():
-                self.on_revolution(r)
+            try:
+                for r in revs.revolutions():
+                    self.on_revolution(r)
+            except Exception as err:  # the caller's hook failed: end this acquire with its error
+                self.future.set_exception(err)
+                return 0
         blocks = self.averager.push_batch(revs)
         if blocks:
             self.future.set_result(blocks[0])

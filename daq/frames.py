@@ -30,11 +30,14 @@ FLAG_TRIGGER = 0x01
 FLAG_OVERRUN = 0x02
 FLAG_SIMULTANEOUS = 0x04
 SLOTS_PER_REV = 360
-HEADER = struct.Struct("<2sBBHIHBBI")  # sync version flags seq rev first_slot n_slots n_ch t_us
-HEADER_SIZE = HEADER.size  # 18
+HEADER_SIZE = 18  # sync(2) version flags seq(2) rev(4) first_slot(2) n_slots n_ch t_us(4)
 CRC_SIZE = 2
 MAX_FRAME = HEADER_SIZE + 2 * 255 * 255 + CRC_SIZE
 _LAST_SYNC_BYTE0 = SYNC[0]
+_RESERVED = 0xFF & ~(FLAG_TRIGGER | FLAG_OVERRUN | FLAG_SIMULTANEOUS)
+_CHECKED = struct.Struct("<2xBB6xHBB")  # version flags first_slot n_slots n_ch
+_HEADER_DTYPE = np.dtype([("sync", "<u2"), ("version", "u1"), ("flags", "u1"), ("seq", "<u2"), ("rev", "<u4"),
+                          ("first_slot", "<u2"), ("n_slots", "u1"), ("n_ch", "u1"), ("t_us", "<u4")])
 
 
 @dataclass(frozen=True)
@@ -138,7 +141,7 @@ def header_problem(version: int, flags: int, first_slot: int, n_slots: int, n_ch
     if version != VERSION:
         return "version"
     if (
-        flags & ~(FLAG_TRIGGER | FLAG_OVERRUN | FLAG_SIMULTANEOUS)
+        flags & _RESERVED
         or n_slots == 0
         or n_ch == 0
         or first_slot + n_slots > SLOTS_PER_REV
@@ -186,35 +189,40 @@ class FrameDecoder:
         buf = self._buf + bytes(data) if self._buf else bytes(data)
         mv = memoryview(buf)
         n = len(buf)
-        find, unpack = buf.find, HEADER.unpack_from
-        heads: list[tuple] = []
+        find, startswith, unpack = buf.find, buf.startswith, _CHECKED.unpack_from
+        starts: list[int] = []  # good frames' offsets in buf
+        skips: list[tuple[int, int]] = []  # (index in starts, bytes skipped before it)
         pos = 0  # first byte not yet accounted for
         scan = 0  # where to look for the next sync
         keep = n  # first byte to hold back for the next feed
         while True:
-            c = scan if buf.startswith(SYNC, scan) else find(SYNC, scan)
+            c = scan if startswith(SYNC, scan) else find(SYNC, scan)
             if c < 0:
                 keep = n - 1 if n > pos and buf[-1] == _LAST_SYNC_BYTE0 else n
                 break
             if c + HEADER_SIZE > n:
                 keep = c
                 break
-            _, ver, flags, seq, rev, fs, ns, nch, t = unpack(buf, c)
-            problem = header_problem(ver, flags, fs, ns, nch)
-            if problem is None:
+            ver, flags, fs, ns, nch = unpack(buf, c)
+            # the checks of header_problem(), inline (this loop runs once per frame)
+            if (ver == VERSION and not flags & _RESERVED and ns and nch and fs + ns <= SLOTS_PER_REV
+                    and (fs == 0 or not flags & FLAG_TRIGGER) and (nch == 1 or flags & FLAG_SIMULTANEOUS)):
                 end = c + HEADER_SIZE + 2 * ns * nch + CRC_SIZE
                 if end > n:
                     keep = c
                     break
                 if crc_hqx(mv[c + 2:end - 2], 0xFFFF) == buf[end - 2] | (buf[end - 1] << 8):
-                    skipped = c - pos
-                    if skipped:
-                        self._skip(skipped)
-                    heads.append((flags, seq, rev, fs, ns, nch, t, self._skip_run, c + HEADER_SIZE, end - 2))
-                    self._skip_run = 0
+                    if c > pos:
+                        self._skip(c - pos)
+                    if self._skip_run:
+                        skips.append((len(starts), self._skip_run))
+                        self._skip_run = 0
+                    starts.append(c)
                     pos = scan = end
                     continue
                 problem = "crc"
+            else:
+                problem = header_problem(ver, flags, fs, ns, nch)
             self.frames_bad += 1
             count(self.frame_errors, problem)
             scan = c + 1
@@ -222,12 +230,18 @@ class FrameDecoder:
         if keep > pos:
             self._skip(keep - pos)
         self._buf = buf[keep:]
-        if not heads:
+        if not starts:
             return FrameBatch.empty()
-        self.frames_good += len(heads)
-        cols = np.array(heads, np.int64).T
-        payload = b"".join([mv[a:b] for a, b in zip(cols[8].tolist(), cols[9].tolist())])
+        self.frames_good += len(starts)
+        # headers of all good frames at once: gather their 18 bytes, view as records
+        p = np.array(starts, np.int64)
+        h = np.frombuffer(buf, np.uint8)[p[:, None] + np.arange(HEADER_SIZE)].view(_HEADER_DTYPE)[:, 0]
+        cols = [h[k].astype(np.int64) for k in ("flags", "seq", "rev", "first_slot", "n_slots", "n_ch", "t_us")]
+        skipped = np.zeros(len(starts), np.int64)
+        for i, k in skips:
+            skipped[i] = k
         sizes = cols[4] * cols[5]
-        start = np.zeros(len(heads), np.int64)
+        payload = b"".join([mv[a:a + 2 * z] for a, z in zip((p + HEADER_SIZE).tolist(), sizes.tolist())])
+        start = np.zeros(len(starts), np.int64)
         np.cumsum(sizes[:-1], out=start[1:])
-        return FrameBatch(*cols[:8], start, np.frombuffer(payload, "<i2").astype(np.int16, copy=False))
+        return FrameBatch(*cols, skipped, start, np.frombuffer(payload, "<i2").astype(np.int16, copy=False))

@@ -21,8 +21,8 @@ trigger), so Fourier coefficients need no further phase correction.
 The orbit period of revolution r is t_us(trigger r+1) - t_us(trigger r) (u32
 wrap), so a revolution is released when the frame after it has arrived
 (``flush()`` releases a held one with an unknown period). The board clock must
-advance from each frame to the next, up to the next trigger; a revolution over
-which it stalled has no period and is dropped (``clock_stall``).
+advance steadily from frame to frame up to the next trigger; a revolution over
+which it stalled or jumped has no true period and is dropped (``bad_clock``).
 """
 
 from __future__ import annotations
@@ -125,21 +125,25 @@ class RevolutionAssembler:
         self.reset()
 
     def reset(self) -> None:
-        """Forget everything in progress (discards a partial or held revolution uncounted)."""
-        self._carry = FrameBatch.empty()  # frames of the revolution in progress (start: clean trigger)
-        self._held: RevolutionBatch | None = None  # complete revolution waiting for the next trigger
+        """Forget everything in progress (a partial or held revolution, uncounted)."""
+        # frames of the last chain that starts at a clean trigger: a revolution in
+        # progress, or a complete one waiting for the next trigger (its period)
+        self._carry = FrameBatch.empty()
         self._prev: tuple[int, int, int, int] | None = None  # (seq, rev, end slot, t_us) of the last frame
-        self._recent_drops: deque[int] = deque(maxlen=8)  # a revolution is dropped once
+        self._recent_drops: deque[int] = deque(maxlen=8)
 
     def link_dropped(self) -> None:
-        """The link dropped: a revolution in progress is lost (counted), a held one is kept."""
-        if len(self._carry):
-            self._drop(int(self._carry.rev[0]), "link_drop")
-        self._carry = FrameBatch.empty()
-        self._prev = None
+        """The link dropped: a revolution in progress is lost (counted); a complete
+        one waiting for its period is kept."""
+        c = self._carry
+        if len(c) and c.first_slot[-1] + c.n_slots[-1] != SLOTS_PER_REV:
+            self._drop(int(c.rev[0]), "link_drop")
+            self._carry = FrameBatch.empty()
 
-    def _drop(self, rev: int, reason: str) -> None:
-        if rev in self._recent_drops:
+    def _drop(self, rev: int, reason: str, *, fresh: bool = True) -> None:
+        """Count one dropped revolution; ``fresh=False``: a fragment of a revolution
+        already counted if its rev number was dropped lately."""
+        if not fresh and rev in self._recent_drops:
             return
         self._recent_drops.append(rev)
         self.revolutions_dropped += 1
@@ -149,75 +153,66 @@ class RevolutionAssembler:
         return self.push_batch(FrameBatch.from_frames([frame])).revolutions()
 
     def flush(self) -> RevolutionBatch:
-        """Release a held complete revolution (its period stays unknown)."""
-        held, self._held = self._held, None
-        if held is None:
-            return self._empty()
-        self.revolutions_good += 1
-        return held
-
-    def _empty(self) -> RevolutionBatch:
-        return RevolutionBatch.concat([], self.slots)
+        """Release a complete revolution still waiting for the next trigger (period unknown)."""
+        return self._assemble(FrameBatch.empty(), final=True)
 
     def push_batch(self, batch: FrameBatch) -> RevolutionBatch:
+        """Good revolutions completed by these frames (each released once the frame
+        after it has arrived, for its period)."""
         if not len(batch):
-            return self._empty()
+            return RevolutionBatch.concat([], self.slots)
+        return self._assemble(batch, final=False)
+
+    def _assemble(self, batch: FrameBatch, final: bool) -> RevolutionBatch:
         b = self._carry.concat(batch)
         f = len(b)
-        flags, seq, rev, fs = b.flags, b.seq, b.rev, b.first_slot
+        if not f:
+            return RevolutionBatch.concat([], self.slots)
+        flags, seq, rev, fs, t = b.flags, b.seq, b.rev, b.first_slot, b.t_us
         end = fs + b.n_slots
         trig = (flags & FLAG_TRIGGER) != 0
         overrun = (flags & FLAG_OVERRUN) != 0
         mode_ok = ((flags & FLAG_SIMULTANEOUS) == self._sim_flag) & (b.n_ch == self.n_ch)
-        # previous frame's fields, shifted by one (frame 0's predecessor is self._prev)
+        # the previous frame's fields, shifted by one (frame 0's predecessor: self._prev)
         p_seq, p_rev, p_end, p_t = self._prev if self._prev is not None else (-2, -1, -1, 0)
-        pseq = np.concatenate(([p_seq], seq[:-1]))
+        seq_ok = seq == ((np.concatenate(([p_seq], seq[:-1])) + 1) & _U16)
         prev_rev = np.concatenate(([p_rev], rev[:-1]))
-        pend = np.concatenate(([p_end], end[:-1]))
-        seq_ok = seq == ((pseq + 1) & _U16)
-        # the board clock must advance from frame to frame (a stalled clock gives no period)
-        dt_frame = (b.t_us - np.concatenate(([p_t], b.t_us[:-1]))) & _U32
+        dt_frame = (t - np.concatenate(([p_t], t[:-1]))) & _U32  # board clock step (us)
         clock_ok = (dt_frame > 0) & (dt_frame < 1 << 31)
-        cont = seq_ok & (rev == prev_rev) & (fs == pend) & ~trig & ~overrun & mode_ok & clock_ok
-        cont[0] = False  # frame 0 starts the carried revolution, or follows a finished chain
+        cont = (seq_ok & (rev == prev_rev) & (fs == np.concatenate(([p_end], end[:-1])))
+                & ~trig & ~overrun & mode_ok & clock_ok)
+        cont[0] = False  # frame 0 starts the carried chain, or follows a finished one
         starts = np.flatnonzero(~cont)
         lasts = np.append(starts[1:] - 1, f - 1)
         clean_start = trig[starts] & ~overrun[starts] & mode_ok[starts]
         complete = clean_start & (end[lasts] == SLOTS_PER_REV)
-        good_first = starts[complete]
-        good_last = lasts[complete]
 
-        # period of each good revolution from the next frame, if it is the next trigger
-        nxt = good_last + 1
-        has_next = nxt < f
-        nxt_c = np.minimum(nxt, f - 1)
-        dt = (b.t_us[nxt_c] - b.t_us[good_first]) & _U32
-        is_next_trig = has_next & trig[nxt_c] & (rev[nxt_c] == ((rev[good_first] + 1) & _U32))
-        bad_period = is_next_trig & ~clock_ok[nxt_c]
-        period = np.where(is_next_trig & ~bad_period, dt * 1e-6, np.nan)
+        # the last clean chain waits in the carry: in progress, or complete but its
+        # period (the next frame) not known yet
+        carry_from = None
+        if clean_start[-1] and not final:
+            carry_from = int(starts[-1])
+            complete[-1] = False
 
-        out: list[RevolutionBatch] = []
-        if self._held is not None:
-            held, self._held = self._held, None
-            first = 0
-            if trig[first] and int(b.rev[first]) == (int(held.rev[0]) + 1) & _U32:
-                dt0 = (int(b.t_us[first]) - int(held.t_us[0])) & _U32
-                if not clock_ok[first]:
-                    self._drop(int(held.rev[0]), "clock_stall")
-                    held = None
-                else:
-                    held = RevolutionBatch(held.rev, held.t_us, np.array([dt0 * 1e-6]), held.counts, held.slots)
-            if held is not None:
-                out.append(held)
+        # period: to the next frame if it is the next revolution's trigger
+        good_first, good_last = starts[complete], lasts[complete]
+        nxt = np.minimum(good_last + 1, f - 1)
+        has_next = good_last + 1 < f
+        is_next_trig = has_next & trig[nxt] & (rev[nxt] == ((rev[good_first] + 1) & _U32))
+        period_us = ((t[nxt] - t[good_first]) & _U32).astype(np.float64)
+        steady = _steady_clock(dt_frame, b.n_slots, good_first, good_last, period_us)
+        bad_clock = is_next_trig & ~steady
+        period = np.where(is_next_trig & steady, period_us * 1e-6, np.nan)
 
         # fault attribution for chains that are not good revolutions (rare: Python loop)
         why = _BreakReasons(b, trig, overrun, mode_ok, seq_ok, prev_rev, clock_ok)
         for k in np.flatnonzero(~complete):
             a, z = int(starts[k]), int(lasts[k])
             r = int(rev[a])
+            if a == carry_from:
+                continue
             if clean_start[k]:
-                if z < f - 1:  # else: the revolution still in progress
-                    self._drop(r, why(z + 1))
+                self._drop(r, why(z + 1) if z + 1 < f else "incomplete")
             elif a == 0 and self._prev is None:
                 self.frames_discarded += z - a + 1  # tail of a revolution begun before start/reset
             elif trig[a]:
@@ -226,38 +221,44 @@ class RevolutionAssembler:
                 reason = why(a)
                 if reason in ("slot_gap", "rev_mismatch") or (fs[a] == 0 and reason not in ("corrupt", "seq_gap")):
                     reason = "missing_trigger"  # the chain restarted without a TRIGGER frame
-                self._drop(r, reason)
+                # a fragment from slot 0 on is a revolution of its own (a missed trigger
+                # does not advance the rev number); a later one may belong to one counted
+                self._drop(r, reason, fresh=bool(fs[a] == 0))
+        for r in rev[good_first[bad_clock]]:
+            self._drop(int(r), "bad_clock")
 
-        # the chain still in progress is carried to the next batch
-        if not complete[-1] and clean_start[-1]:
-            self._carry = b.select(int(starts[-1]))
+        self._carry = b.select(carry_from) if carry_from is not None else FrameBatch.empty()
+        self._prev = (int(seq[-1]), int(rev[-1]), int(end[-1]), int(t[-1])) if f else self._prev
+
+        good_first, period = good_first[~bad_clock], period[~bad_clock]
+        r_count = len(good_first)
+        if not r_count:
+            return RevolutionBatch.concat([], self.slots)
+        idx = b.start[good_first][:, None] + np.arange(SLOTS_PER_REV * self.n_ch)
+        flat = b.samples[idx]  # (R, 360 * n_ch), slot-major
+        if self.mode == "sequential":
+            counts = flat.reshape(r_count, SLOTS_PER_REV // self.channels, self.channels)
         else:
-            self._carry = FrameBatch.empty()
-        self._prev = (int(seq[-1]), int(rev[-1]), int(end[-1]), int(b.t_us[-1]))
+            counts = flat.reshape(r_count, SLOTS_PER_REV, self.channels)
+        self.revolutions_good += r_count
+        return RevolutionBatch(rev[good_first], t[good_first], period,
+                               np.ascontiguousarray(counts.transpose(0, 2, 1)), self.slots)
 
-        if len(good_first):
-            keep = ~bad_period
-            for r in rev[good_first[bad_period]]:
-                self._drop(int(r), "clock_stall")
-            good_first, period = good_first[keep], period[keep]
-            held_last = len(good_first) and good_last[keep][-1] == f - 1
-            s_per_rev = SLOTS_PER_REV * self.n_ch
-            idx = b.start[good_first][:, None] + np.arange(s_per_rev)
-            flat = b.samples[idx]  # (R, 360 * n_ch), slot-major
-            if self.mode == "sequential":
-                counts = flat.reshape(len(good_first), SLOTS_PER_REV // self.channels, self.channels).transpose(0, 2, 1)
-            else:
-                counts = flat.reshape(len(good_first), SLOTS_PER_REV, self.channels).transpose(0, 2, 1)
-            counts = np.ascontiguousarray(counts)
-            revs = RevolutionBatch(rev[good_first], b.t_us[good_first], period, counts, self.slots)
-            if held_last:
-                self._held = revs.take(slice(-1, None))
-                revs = revs.take(slice(0, -1))
-            out.append(revs)
-        result = RevolutionBatch.concat(out, self.slots)
-        self.revolutions_good += len(result)
-        return result
 
+def _steady_clock(dt_frame, n_slots, first, last, period_us, rel_tol=0.05, abs_tol_us=2.0):
+    """For each revolution (frames first..last, then the next trigger at last+1):
+    did the board clock advance steadily, each frame's step within ``rel_tol``
+    (+ ``abs_tol_us`` for the clock's 1 us rounding) of its slots' share of the
+    period? A stalled or jumping clock fails (its period would be wrong)."""
+    stop = np.minimum(last + 1, len(dt_frame) - 1)  # steps first+1 .. stop (>= 1: a revolution has >= 2 frames)
+    lengths = stop - first
+    if not len(lengths):
+        return np.ones(0, bool)
+    offsets = np.cumsum(lengths) - lengths
+    step = np.repeat(first + 1 - offsets, lengths) + np.arange(int(lengths.sum()))
+    expected = n_slots[step - 1] * np.repeat(period_us / SLOTS_PER_REV, lengths)
+    bad = np.abs(dt_frame[step] - expected) > rel_tol * expected + abs_tol_us
+    return np.add.reduceat(bad, offsets) == 0
 
 
 class _BreakReasons:
@@ -275,7 +276,7 @@ class _BreakReasons:
         if not self.mode_ok[i]:
             return "mode_mismatch"
         if not self.clock_ok[i]:
-            return "clock_stall"
+            return "bad_clock"
         if self.trig[i]:
             return "incomplete"
         if self.b.rev[i] != self.prev_rev[i]:

@@ -12,7 +12,8 @@ Drop reasons (``drop_reasons`` keys) used by :mod:`daq.revolutions` and :mod:`da
 ``slot_gap``         slots not contiguous although the frame counter is
 ``mode_mismatch``    frame mode / samples per slot differ from the configured scan
 ``link_drop``        the link dropped while the revolution was arriving
-``clock_stall``      the board clock (t_us) did not advance over the revolution
+``bad_clock``        the board clock (t_us) stalled or jumped during the revolution,
+                     or the orbit speed changed by more than 5 % within it
 
 Frame errors (``frame_errors`` keys, from :mod:`daq.frames`): ``crc``, ``version``,
 ``header`` (reserved flag bits, slot or length fields outside the spec).

@@ -238,5 +238,5 @@ def test_stalled_board_clock_drops_revolutions_without_a_period():
                               slot_samples(counts[m["index"]], "sequential")[m["first_slot"]:m["first_slot"] + 45], stall)
     dec, asm, revs = run(b"".join(frames))
     assert [r.rev for r in revs] == [0, 1, 5, 6, 7]
-    assert asm.drop_reasons == {"clock_stall": 3}
+    assert asm.drop_reasons == {"bad_clock": 3}
     check_intact(revs, counts)

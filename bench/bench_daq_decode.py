@@ -1,0 +1,82 @@
+"""In-process throughput of the acquisition pipeline: decode + assemble + average.
+
+Frames are made once (by a small encoder written from the spec, like the tests'),
+then the byte stream is fed in chunks through FrameDecoder -> RevolutionAssembler
+-> StreamingAverager on one core. Prints samples per second for several board
+layouts, and the loss counts (which must be zero on a clean stream).
+
+    python3 bench/bench_daq_decode.py [--revolutions 4000] [--chunk 65536]
+Target: >= 10 million samples/s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import struct
+import time
+from binascii import crc_hqx
+
+import numpy as np
+
+from daq.averager import StreamingAverager
+from daq.frames import FrameDecoder
+from daq.revolutions import RevolutionAssembler
+
+
+def make_stream(n_revs: int, channels: int, mode: str, frame_slots: int, seed: int = 1) -> bytes:
+    rng = np.random.default_rng(seed)
+    n_ch = channels if mode == "simultaneous" else 1
+    flag_mode = 4 if mode == "simultaneous" else 0
+    # a few distinct revolutions, repeated (encoding speed is not what is measured)
+    revs = rng.normal(0, 3000, (8, 360, n_ch)).astype("<i2")
+    out, seq = [], 0
+    for r in range(n_revs):
+        t_rev = r * 80_000
+        samples = revs[r % 8]
+        for fs in range(0, 360, frame_slots):
+            ns = min(frame_slots, 360 - fs)
+            body = struct.pack("<BBHIHBBI", 1, (1 if fs == 0 else 0) | flag_mode, seq & 0xFFFF, r, fs, ns, n_ch,
+                               t_rev + fs * 80_000 // 360) + samples[fs:fs + ns].tobytes()
+            out.append(b"\xa5\x5a" + body + struct.pack("<H", crc_hqx(body, 0xFFFF)))
+            seq += 1
+    return b"".join(out)
+
+
+def run(data: bytes, channels: int, mode: str, chunk: int, n_avg: int = 50) -> tuple[float, dict]:
+    dec, asm, avg = FrameDecoder(), RevolutionAssembler(channels, mode), StreamingAverager(n_avg)
+    blocks = 0
+    t0 = time.perf_counter()
+    for i in range(0, len(data), chunk):
+        blocks += len(avg.push_batch(asm.push_batch(dec.feed_batch(data[i:i + chunk]))))
+    blocks += len(avg.push_batch(asm.flush()))
+    dt = time.perf_counter() - t0
+    return dt, dict(revolutions=asm.revolutions_good, blocks=blocks, frames_good=dec.frames_good,
+                    frames_bad=dec.frames_bad, bytes_skipped=dec.bytes_skipped,
+                    revolutions_dropped=asm.revolutions_dropped)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--revolutions", type=int, default=4000)
+    ap.add_argument("--chunk", type=int, default=1 << 16, help="bytes per feed (one link read)")
+    args = ap.parse_args()
+    print(f"decode + assemble + average, one core, {args.revolutions} revolutions, {args.chunk} bytes per feed")
+    worst = float("inf")
+    for channels, mode, frame_slots in [(8, "sequential", 45), (8, "sequential", 180), (8, "sequential", 15),
+                                        (8, "simultaneous", 45), (8, "simultaneous", 15)]:
+        data = make_stream(args.revolutions, channels, mode, frame_slots)
+        best = min(run(data, channels, mode, args.chunk)[0] for _ in range(3))
+        _, c = run(data, channels, mode, args.chunk)
+        samples = c["revolutions"] * 360 * (channels if mode == "simultaneous" else 1)
+        rate = samples / best
+        worst = min(worst, rate)
+        print(f"  {mode:12s} C={channels} {frame_slots:3d} slots/frame: {rate / 1e6:7.1f} M samples/s "
+              f"({len(data) / best / 1e6:6.1f} MB/s)  revolutions {c['revolutions']}, blocks {c['blocks']}, "
+              f"frames bad {c['frames_bad']}, bytes skipped {c['bytes_skipped']}, "
+              f"revolutions dropped {c['revolutions_dropped']}")
+        assert c["frames_bad"] == c["bytes_skipped"] == c["revolutions_dropped"] == 0
+    print(f"slowest layout: {worst / 1e6:.1f} M samples/s (target >= 10)")
+
+
+if __name__ == "__main__":
+    main()

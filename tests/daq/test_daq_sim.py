@@ -1,0 +1,212 @@
+"""AdcReader against the simulator over a real pty and over TCP: clean and with
+every fault the simulator's A/D board and link can inject."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+
+import numpy as np
+import pytest
+from _oracle import WireTap
+
+from daq.adc import AdcReader
+from daq.errors import DaqLinkError, DaqTimeoutError
+from sim.rig import SimRig
+
+SPIN = 2 * math.pi * 30.0  # rad/s
+ORBIT = 2 * math.pi * 12.5  # rad/s, forward
+SPEEDUP = 20.0  # 250 revolutions per wall second
+N = 50
+SETTLE = 0.05  # s wall: the spindles jump to speed at the next simulator tick (10 ms)
+
+pytestmark = pytest.mark.timeout(60)
+
+
+@pytest.fixture
+async def rig():
+    async with SimRig(speedup=SPEEDUP, can_channel=None) as r:
+        r.local_control(spin=SPIN, orbit=ORBIT)
+        await asyncio.sleep(SETTLE)
+        yield r
+
+
+def url_of(rig, link: str) -> str:
+    return rig.adc_url if link == "tcp" else rig.adc_pty_path
+
+
+def slot_major(counts: np.ndarray, mode: str) -> np.ndarray:
+    c = counts.shape[0]
+    if mode == "simultaneous":
+        return counts.T
+    out = np.empty((360, 1), counts.dtype)
+    for k in range(c):
+        out[k::c, 0] = counts[k]
+    return out
+
+
+def check_block(rig, block, used, tap, *, spin=SPIN, orbit=ORBIT, mode="sequential"):
+    """Fundamentals match the simulator's truth within the statistical band of the
+    block's own records, and every revolution used went out intact."""
+    assert block.n_revolutions == N == len(used)
+    truth = np.array(list(rig.true_phasors(spin, orbit).values()))
+    rec = block.record_phasors
+    np.testing.assert_allclose(rec.mean(axis=0), block.phasors, rtol=1e-9, atol=1e-15)
+    sigma = np.sqrt(np.mean(np.abs(rec - rec.mean(axis=0)) ** 2, axis=0) / N)
+    err = np.abs(block.phasors - truth)
+    assert np.all(err < 5 * sigma + 1e-3 * np.abs(truth)), (err / sigma, err / np.abs(truth))
+    assert block.orbit_speed == pytest.approx(abs(orbit), rel=2e-3)
+    intact = tap.intact_revolutions()
+    for r in used:
+        assert any(np.array_equal(slot_major(r.counts, mode), s) for s in intact.get(r.rev, [])), r.rev
+
+
+async def acquire_with_fault(rig, url, fault=None, *, at=10, mode="sequential", **kw):
+    """Acquire N revolutions; inject ``fault`` (a name, or a callable) once ``at`` of
+    them have been used."""
+    used = []
+    cfg = rig.config.adc
+
+    def hook(r):
+        used.append(r)
+        if fault is not None and len(used) == at:
+            fault() if callable(fault) else rig.inject(fault, **kw)
+
+    async with AdcReader(url, channels=len(cfg.channels), mode=mode, gains=cfg.gains,
+                         offsets=cfg.offsets, on_revolution=hook) as adc:
+        block = await adc.acquire(N, timeout=20)
+    return block, used
+
+
+@pytest.mark.parametrize("link", ["tcp", "pty"])
+async def test_clean(rig, link):
+    tap = WireTap(rig)
+    block, used = await acquire_with_fault(rig, url_of(rig, link))
+    s = block.stats
+    assert (s.revolutions_used, s.revolutions_dropped, s.frames_bad, s.link_drops) == (N, 0, 0, 0)
+    assert s.drop_reasons == {} and s.frame_errors == {}
+    assert [r.rev for r in used] == list(range(used[0].rev, used[0].rev + N))
+    check_block(rig, block, used, tap)
+
+
+@pytest.mark.parametrize("link", ["tcp", "pty"])
+async def test_corrupt_bytes(rig, link):
+    tap = WireTap(rig)
+    block, used = await acquire_with_fault(rig, url_of(rig, link), "corrupt_bytes", count=3)
+    s = block.stats
+    assert s.frames_bad >= 3 and s.bytes_skipped > 0
+    assert 1 <= s.revolutions_dropped <= 2 and set(s.drop_reasons) == {"corrupt"}
+    check_block(rig, block, used, tap)
+
+
+@pytest.mark.parametrize("link", ["tcp", "pty"])
+async def test_drop_frames(rig, link):
+    tap = WireTap(rig)
+    block, used = await acquire_with_fault(rig, url_of(rig, link), "drop_frames", count=3)
+    s = block.stats
+    assert s.frames_bad == 0 and s.bytes_skipped == 0
+    # the revolution that lost frames (seq gap), and the next one if the frame after
+    # the loss (it carries OVERRUN) is in it
+    assert 1 <= s.revolutions_dropped <= 2 and "seq_gap" in s.drop_reasons
+    assert set(s.drop_reasons) <= {"seq_gap", "overrun"}
+    check_block(rig, block, used, tap)
+
+
+@pytest.mark.parametrize("link", ["tcp", "pty"])
+async def test_missing_trigger(rig, link):
+    tap = WireTap(rig)
+    block, used = await acquire_with_fault(rig, url_of(rig, link), "missing_trigger", count=2)
+    s = block.stats
+    assert s.drop_reasons == {"missing_trigger": 2} and s.revolutions_dropped == 2
+    assert s.frames_bad == 0
+    check_block(rig, block, used, tap)
+
+
+@pytest.mark.parametrize("link", ["tcp", "pty"])
+async def test_stall_clock(rig, link):
+    tap = WireTap(rig)
+    loop = asyncio.get_running_loop()
+
+    def stall():  # the board clock stops for 40 ms wall (~10 revolutions)
+        rig.inject("stall_clock", on=True)
+        loop.call_later(0.04, lambda: rig.inject("stall_clock", on=False))
+
+    block, used = await acquire_with_fault(rig, url_of(rig, link), stall)
+    s = block.stats
+    assert s.drop_reasons.get("bad_clock", 0) >= 3 and set(s.drop_reasons) == {"bad_clock"}
+    assert s.frames_bad == 0
+    check_block(rig, block, used, tap)  # includes the orbit speed: no period from a stalled clock
+
+
+@pytest.mark.parametrize("link", ["tcp", "pty"])
+async def test_close_link_reconnects(rig, link):
+    tap = WireTap(rig)
+    block, used = await acquire_with_fault(rig, url_of(rig, link), "close_adc_link", reopen_after=0.1)
+    s = block.stats
+    assert s.link_drops == 1
+    assert set(s.drop_reasons) <= {"link_drop", "seq_gap", "corrupt"}
+    check_block(rig, block, used, tap)
+
+
+async def test_close_link_without_reconnect_raises(rig):
+    async with AdcReader(rig.adc_url, reconnect=False) as adc:
+        task = asyncio.ensure_future(adc.acquire(10_000, timeout=20))
+        await asyncio.sleep(0.05)
+        rig.inject("close_adc_link")
+        with pytest.raises(DaqLinkError, match="closed|lost"):
+            await task
+
+
+async def test_simultaneous_mode(tmp_path):
+    from sim.config import SimConfig
+
+    cfg = SimConfig()
+    cfg.adc.mode = "simultaneous"
+    async with SimRig(cfg, speedup=SPEEDUP, can_channel=None) as rig:
+        rig.local_control(spin=SPIN, orbit=-ORBIT)  # backward whirl
+        await asyncio.sleep(SETTLE)
+        tap = WireTap(rig)
+        block, used = await acquire_with_fault(rig, rig.adc_url, mode="simultaneous")
+        assert block.stats.revolutions_dropped == 0 and block.theta.shape == (8, 360)
+        check_block(rig, block, used, tap, orbit=-ORBIT, mode="simultaneous")
+
+
+async def test_old_speed_is_discarded(rig):
+    cfg = rig.config.adc
+    async with AdcReader(rig.adc_pty_path, gains=cfg.gains) as adc:
+        first = await adc.acquire(N, timeout=20)
+        assert first.orbit_speed == pytest.approx(ORBIT, rel=2e-3)
+        rig.local_control(spin=SPIN, orbit=2 * ORBIT)
+        await asyncio.sleep(SETTLE)  # the drives settle; the reader keeps reading meanwhile
+        second = await adc.acquire(N, timeout=20)
+    assert second.orbit_speed == pytest.approx(2 * ORBIT, rel=2e-3)
+    assert second.revs[0] > first.revs[-1] + 3
+    truth = np.array(list(rig.true_phasors(SPIN, 2 * ORBIT).values()))
+    np.testing.assert_allclose(second.phasors, truth, rtol=0.05, atol=0.05 * np.abs(truth).max())
+
+
+async def test_failing_revolution_hook_ends_acquire(rig):
+    def hook(r):
+        raise RuntimeError("disk full")
+
+    async with AdcReader(rig.adc_url, on_revolution=hook) as adc:
+        with pytest.raises(RuntimeError, match="disk full"):
+            await adc.acquire(N, timeout=5)
+
+
+async def test_timeout_names_what_happened(rig):
+    async with AdcReader(rig.adc_url, mode="simultaneous") as adc:  # the board scans sequentially
+        with pytest.raises(DaqTimeoutError, match=r"no good revolution within 0.3 s .*mode_mismatch"):
+            await adc.acquire(5, timeout=0.3)
+
+
+async def test_unopenable_links():
+    with pytest.raises(DaqLinkError, match="cannot connect"):
+        async with AdcReader("socket://127.0.0.1:1"):
+            pass
+    with pytest.raises(DaqLinkError, match="/dev/does-not-exist: cannot open serial port"):
+        async with AdcReader("/dev/does-not-exist"):
+            pass
+    with pytest.raises(DaqLinkError, match="unsupported URL"):
+        async with AdcReader("rfc2217://127.0.0.1:1"):
+            pass
