@@ -24,8 +24,9 @@ def serve_args(broker: Broker, workdir: Path, *extra: str) -> list[str]:
 
 
 def run_status(workdir: Path, run_id: str) -> str:
-    """The status stored in run.h5 of the run `run_id` (storage contract)."""
-    (h5,) = [p for p in (workdir / "runs").glob("*/run.h5") if _run_id_in_log(p.parent, run_id)]
+    """The status stored in run.h5 of the latest run `run_id` (storage contract)."""
+    runs = [p for p in (workdir / "runs").glob("*/run.h5") if _run_id_in_log(p.parent, run_id)]
+    h5 = max(runs, key=lambda p: p.stat().st_mtime)  # run ids have a resolution of 1 s
     with h5py.File(h5, "r") as f:
         return str(f.attrs["status"])
 
