@@ -26,12 +26,9 @@ def register(app: typer.Typer) -> None:
         Both drives start stopped; A/D frames stream whenever the orbit spindle turns.
         """
         import asyncio
-        import json
-        import signal
-        import sys
 
         from sim.config import SimConfig, load_sim_config
-        from sim.rig import SimRig
+        from sim.rig import SimRig, serve_until_signalled
 
         try:
             cfg = load_sim_config(config) if config is not None else SimConfig()
@@ -43,19 +40,10 @@ def register(app: typer.Typer) -> None:
             raise typer.Exit(2)
 
         async def run() -> None:
-            stop = asyncio.Event()
-            loop = asyncio.get_running_loop()
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                loop.add_signal_handler(sig, stop.set)
-            async with SimRig(cfg, speedup=speedup, modbus_port=modbus_port, adc_port=adc_port,
-                              modbus_rtu_pty=modbus_rtu, can_channel=can_channel,
-                              can_interface=can_interface, control_port=control_port) as rig:
-                ep = rig.endpoints()
-                if not modbus_rtu:
-                    ep.pop("modbus_rtu")
-                sys.stdout.write(json.dumps(ep) + "\n")
-                sys.stdout.flush()
-                await stop.wait()
+            await serve_until_signalled(SimRig(
+                cfg, speedup=speedup, modbus_port=modbus_port, adc_port=adc_port,
+                modbus_rtu_pty=modbus_rtu, can_channel=can_channel, can_interface=can_interface,
+                control_port=control_port))
 
         try:
             asyncio.run(run())

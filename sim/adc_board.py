@@ -141,11 +141,21 @@ class AdcBoard:
             self.frames_sent += 1
         return b"".join(out)
 
+    def _starts_before(self, g: int) -> int:
+        """Number of frame starts at global slots [0, g)."""
+        per_rev = -(-SLOTS // self.frame_slots)
+        return (g // SLOTS) * per_rev + -(-(g % SLOTS) // self.frame_slots)
+
     def lose(self, g0: int, g1: int) -> None:
         """The slots [g0, g1) were converted but lost (nobody read the FIFO):
         counters advance as if their frames had been made; OVERRUN follows."""
-        for start, _ in self._frames(g0, g1):
-            self._trigger(start)
-            self.seq = (self.seq + 1) & 0xFFFF
-            self.frames_lost += 1
-            self.overrun = True
+        if g1 <= g0:
+            return
+        n = self._starts_before(g1) - self._starts_before(g0) + (g0 != self.boundary_before(g0))
+        triggers = -(-g1 // SLOTS) - -(-g0 // SLOTS)
+        missed = min(self.missed_triggers, triggers)
+        self.missed_triggers -= missed
+        self.rev = (self.rev + triggers - missed) & 0xFFFFFFFF
+        self.seq = (self.seq + n) & 0xFFFF
+        self.frames_lost += n
+        self.overrun = True

@@ -154,6 +154,11 @@ class SimRig:
         return self.adc_server.pty_path
 
     @property
+    def speedup(self) -> float:
+        """Simulated time / wall time."""
+        return self.clock.speedup
+
+    @property
     def speeds(self) -> tuple[float, float]:
         """(spin, orbit) actual speeds in rad/s (orbit signed) at the last tick."""
         return self._spin_last, self._orbit_last
@@ -261,9 +266,10 @@ class SimRig:
         if dt <= 0:
             return
         t0, spin0, orbit0, phi0, g_pos = self._t_last, self._spin_last, self._orbit_last, self._spin_angle, self._g_pos
-        g_new = g_pos + 0.5 * (abs(orbit0) + abs(orbit)) * dt / SLOT_ANGLE
+        ripple = float(self.physics.ripple(np.array(t0 + 0.5 * dt)))  # spindle speed ripple
+        g_new = g_pos + 0.5 * (abs(orbit0) + abs(orbit)) * ripple * dt / SLOT_ANGLE
         self._t_last, self._spin_last, self._orbit_last = now, spin, orbit
-        self._spin_angle = (phi0 + 0.5 * (spin0 + spin) * dt) % (2 * math.pi)
+        self._spin_angle = (phi0 + 0.5 * (spin0 + spin) * ripple * dt) % (2 * math.pi)
         self._g_pos = g_new
         g_end = math.floor(g_new) + 1  # slots g_next .. g_end-1 have occurred
         if g_end <= self._g_next:
@@ -290,7 +296,7 @@ class SimRig:
             t = t0 + frac * dt
             orbit_inst = orbit0 + (orbit - orbit0) * frac
             tau = frac * dt
-            spin_angle = phi0 + spin0 * tau + (spin - spin0) * tau * tau / (2 * dt)
+            spin_angle = phi0 + (spin0 * tau + (spin - spin0) * tau * tau / (2 * dt)) * ripple
             sign_orbit = orbit if orbit != 0 else orbit0
             counts = self._convert(g, t, spin_angle, orbit_inst, spin, sign_orbit)
             if self._pending_counts is None:
@@ -322,3 +328,28 @@ class SimRig:
             sl = slice((k - g0) % C, None, C)
             vals[sl] = ph.channel_values(k, theta[sl], t[sl], spin_angle[sl], orbit_inst[sl], spin, orbit)
         return board.quantize(vals, board.channel_of_slot(g))
+
+
+async def serve_until_signalled(rig: SimRig, out=None) -> None:
+    """Run ``rig`` in the foreground: print its endpoints as one JSON line on
+    ``out`` (stdout), then serve until SIGINT or SIGTERM; exits cleanly."""
+    import json
+    import signal
+    import sys
+
+    out = out or sys.stdout
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, stop.set)
+    try:
+        async with rig:
+            ep = rig.endpoints()
+            if ep["modbus_rtu"] is None:
+                del ep["modbus_rtu"]
+            out.write(json.dumps(ep) + "\n")
+            out.flush()
+            await stop.wait()
+    finally:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            loop.remove_signal_handler(sig)

@@ -104,7 +104,9 @@ async def test_frames_follow_the_spec_sequential():
     triggers = [f for f in frames if f.flags & 1]
     # board clock: one orbit period between triggers (simulated time)
     periods = np.diff([f.t_us for f in triggers])
-    np.testing.assert_allclose(periods, 1e6 / ORBIT_HZ, atol=2.0)
+    ripple = SimConfig().noise.speed_ripple  # the spindle's speed ripple shows in the period
+    np.testing.assert_allclose(periods, 1e6 / ORBIT_HZ, rtol=ripple + 1e-4)
+    assert np.ptp(periods) > 0
     # frames of a full revolution: 8 x 45 slots
     full = [f for f in frames if f.rev == triggers[1].rev]
     assert [f.first_slot for f in full] == list(range(0, 360, 45))

@@ -19,9 +19,10 @@ from sim_reader import parse, revolutions
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def start(*args: str) -> subprocess.Popen:
+def start(*args: str, module: str = "orbitrig") -> subprocess.Popen:
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    return subprocess.Popen([sys.executable, "-m", "orbitrig", "sim", *args], cwd=ROOT, env=env,
+    cmd = [sys.executable, "-m", "orbitrig", "sim"] if module == "orbitrig" else [sys.executable, "-m", "sim"]
+    return subprocess.Popen([*cmd, *args], cwd=ROOT, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -31,9 +32,12 @@ def control(port: int, obj: dict) -> dict:
         return json.loads(s.makefile().readline())
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
-def test_sim_command_runs_streams_and_stops_cleanly(sig):
-    proc = start("--modbus-port", "0", "--adc-port", "0", "--speedup", "5", "--config", "config/sim.toml")
+@pytest.mark.parametrize(("module", "sig"), [("orbitrig", signal.SIGINT), ("orbitrig", signal.SIGTERM),
+                                           ("sim", signal.SIGINT)],
+                         ids=["ctrl-c", "sigterm", "python-m-sim"])
+def test_sim_command_runs_streams_and_stops_cleanly(module, sig):
+    proc = start("--modbus-port", "0", "--adc-port", "0", "--speedup", "5", "--config", "config/sim.toml",
+                 module=module)
     try:
         ep = json.loads(proc.stdout.readline())
         assert set(ep) == {"modbus", "adc", "adc_pty", "control", "can"}
