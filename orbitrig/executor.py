@@ -39,8 +39,8 @@ from orbitrig import interlocks
 from orbitrig.config import MPA, RPM, ConfigError, MatrixConfig, RigConfig
 from orbitrig.errors import OrbitrigError
 from orbitrig.plan import (
-    DIR_TAG, Acquire, Identify, OperatingPoint, SetManual, SetOrbit, SetSpin, Settle, Step, Store, StopDrives,
-    Verify, expand, operating_points,
+    Acquire, Identify, OperatingPoint, SetManual, SetOrbit, SetSpin, Settle, Step, Store, Verify, expand,
+    operating_points,
 )  # fmt: skip
 from orbitrig.rig_io import sim_speedup
 from orbitrig.storage import LMS, BlockRecord, PointResults, RunStore, now_iso
@@ -667,7 +667,7 @@ class RunEngine:
         state = state or self.state
         log.info("[%s] %s", state, message)
         if self._store is not None:
-            self._store.logs.events.append((time.monotonic() - self._t0, state, message))
+            self._store.logs.add("events", (time.monotonic() - self._t0, state, message))
             try:
                 self._store.log(f"[{state}] {message}")
             except OSError:
@@ -693,8 +693,8 @@ class RunEngine:
             t = time.monotonic() - self._t0
             io, store = self._io, self._store
             try:
-                store.logs.can.append(_can_row(t, io.aux.latest()))
-                store.logs.drives.append(_drive_row(t, io.drives.state))
+                store.logs.add("can", _can_row(t, io.aux.latest()))
+                store.logs.add("drives", _drive_row(t, io.drives.state))
             except Exception:  # noqa: BLE001 - logging must not break the run
                 log.debug("monitor sample failed", exc_info=True)
             await asyncio.sleep(0.5)

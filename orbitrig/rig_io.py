@@ -31,11 +31,21 @@ class Acquisition:
     slots: np.ndarray  # (C, S)
 
 
+def sim_speedup(sim) -> float:
+    """Time speed-up of a SimRig (1 for the real rig, `sim` None)."""
+    if sim is None:
+        return 1.0
+    speedup = getattr(sim, "speedup", None)
+    if speedup is None:
+        speedup = sim.clock.speedup
+    return float(speedup)
+
+
 class RigIO:
     def __init__(self, rig: RigConfig, *, sim=None, on_revolution: Callable[[object], None] | None = None):
         self.rig = rig
         self.sim = sim
-        self.speedup = float(getattr(sim, "speedup", 1.0)) if sim is not None else 1.0
+        self.speedup = sim_speedup(sim)
         self._on_revolution = on_revolution
         self._recording: dict[int, object] | None = None
         self._stack = contextlib.AsyncExitStack()

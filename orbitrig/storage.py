@@ -16,6 +16,7 @@ import csv
 import datetime as _dt
 import json
 import os
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -79,18 +80,21 @@ class PointResults:
     truth: dict | None = None
 
 
-@dataclass
 class LogBuffer:
-    """Rows gathered between writes (appended with the next block)."""
+    """Rows gathered between writes (appended with the next write); thread-safe."""
 
-    events: list = field(default_factory=list)
-    can: list = field(default_factory=list)
-    drives: list = field(default_factory=list)
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._rows: dict[str, list] = {"events": [], "can": [], "drives": []}
+
+    def add(self, log: str, row: tuple) -> None:
+        with self._lock:
+            self._rows[log].append(row)
 
     def take(self) -> tuple[list, list, list]:
-        out = (self.events, self.can, self.drives)
-        self.events, self.can, self.drives = [], [], []
-        return out
+        with self._lock:
+            rows, self._rows = self._rows, {"events": [], "can": [], "drives": []}
+        return rows["events"], rows["can"], rows["drives"]
 
 
 class RunStore:

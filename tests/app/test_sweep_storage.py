@@ -45,7 +45,7 @@ def test_store_layout_resume_and_csv(tmp_path):
     with pytest.raises(StorageError, match="already exists"):
         RunStore.create(tmp_path, rig_text="", matrix_text="", matrix_name="x", sim=True)
     s.begin_point(p0)
-    s.logs.events.append((0.5, "running", "hello"))
+    s.logs.add("events", (0.5, "running", "hello"))
     for b in p0.blocks[:2]:
         s.write_block(p0.index, _record(b))
     s.write_results(p0.index, _results(p0))
