@@ -54,8 +54,8 @@ model = "kc7"
 CW_STOPPING = 0b1101  # OFF1 (bit 0), OFF3 (bit 2), RUN (bit 3): any of them 0 = a stop command
 
 
-def watch_control_words(sim_rig, stops: dict[int, float], armed: threading.Event) -> None:
-    """Time stamp the first stopping control word each drive applies once armed."""
+def watch_control_words(sim_rig, stops: dict[int, float], words: dict[int, int], armed: threading.Event) -> None:
+    """Time stamp (and keep) the first stopping control word each drive applies once armed."""
     for device, drive in sim_rig.drives.items():
         original = drive.write
 
@@ -64,6 +64,7 @@ def watch_control_words(sim_rig, stops: dict[int, float], armed: threading.Event
             if armed.is_set() and _dev not in stops and address <= 0 < address + len(values):
                 if int(values[-address]) & CW_STOPPING != CW_STOPPING:
                     stops[_dev] = time.monotonic()
+                    words[_dev] = int(values[-address])
 
         drive.write = write
 
@@ -127,11 +128,12 @@ async def main(trials: int, speedup: float) -> None:
     broker = Broker(work / "broker")
     broker.start()
     stops: dict[int, float] = {}
+    words: dict[int, int] = {}
     armed = threading.Event()
     arrivals: list[float] = []
     try:
         async with SimRig(speedup=speedup, adc_pty=False) as sim_rig:
-            watch_control_words(sim_rig, stops, armed)
+            watch_control_words(sim_rig, stops, words, armed)
             settings = ServiceSettings(rig_id="bench", matrices_dir=work / "matrices")
             creds = BrokerSettings.from_url(broker.url, username="orbitrig-service",
                                             password=ACCOUNTS["orbitrig-service"])
@@ -169,7 +171,8 @@ async def main(trials: int, speedup: float) -> None:
                                  (max(stops.values()) - t_pub) * 1e3))
                     print(f"trial {trial + 1}: spin {spin:6.0f} rpm, orbit {orbit:+6.0f} rpm | "
                           f"broker {rows[-1][0]:6.1f} ms + service/executor/Modbus {rows[-1][1]:6.1f} ms "
-                          f"= abort -> both drives stopping {rows[-1][2]:6.1f} ms", flush=True)
+                          f"= abort -> both drives stopping {rows[-1][2]:6.1f} ms "
+                          f"(CW {words[1]:#06x}, {words[2]:#06x})", flush=True)
             finally:
                 op.close()
                 shutdown.set()
