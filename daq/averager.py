@@ -3,13 +3,12 @@
 The average of N revolutions is taken slot by slot (time-synchronous average
 locked to the orbit trigger). Each revolution's fundamental phasor is kept so
 that coherence between channels can be computed from the records
-(``reduction.coherence``). Memory is bounded by N: a running sum (C, S) and an
-(N, C) array of record phasors.
+(``reduction.coherence``). Memory is bounded by N: the block's N revolutions in
+counts, (N, C, S) int16, reused from block to block.
 
 Phasor convention: q(theta) = dc + Re(q_bar e^{i theta}) + ..., theta = 2 pi slot / 360
-(orbit angle after the trigger). Each channel's samples sit on a uniform full
-circle (sequential mode: S = 360 / C angles offset by 2 pi k / 360), so the
-least-squares fundamental is exactly (2/S) sum q e^{-i theta}.
+(orbit angle after the trigger), fitted at each channel's own angles by
+``reduction.fourier`` (sequential mode: channel k at slots k, k+C, ...).
 """
 
 from __future__ import annotations
@@ -21,16 +20,7 @@ import numpy as np
 
 from daq.revolutions import Revolution, RevolutionBatch
 from daq.stats import AcquisitionStats
-
-
-def fundamental(samples: np.ndarray, theta: np.ndarray) -> np.ndarray:
-    """Fundamental phasors of samples (..., C, S) taken at angles theta (C, S) rad,
-    each channel on a uniform full circle: (2/S) sum q e^{-i theta}. Returns (..., C)."""
-    s = theta.shape[-1]
-    x = np.asarray(samples, np.float64)
-    re = np.einsum("...cs,cs->...c", x, np.cos(theta))
-    im = np.einsum("...cs,cs->...c", x, np.sin(theta))
-    return (re - 1j * im) * (2.0 / s)
+from reduction.fourier import harmonic_fit, phasor
 
 
 @dataclass(frozen=True)
@@ -74,8 +64,7 @@ class StreamingAverager:
         self.n_revolutions = n_revolutions
         self._gains = None if gains is None else np.asarray(gains, np.float64)
         self._offsets = None if offsets is None else np.asarray(offsets, np.float64)
-        self._sum: np.ndarray | None = None
-        self._records: np.ndarray | None = None
+        self._counts: np.ndarray | None = None  # (N, C, S) int16: the block's revolutions
         self._revs = np.zeros(n_revolutions, np.int64)
         self._periods = np.zeros(n_revolutions)
         self._n = 0
@@ -104,17 +93,13 @@ class StreamingAverager:
         return blocks
 
     def _accumulate(self, revs: RevolutionBatch, a: int, b: int) -> None:
-        counts = revs.counts[a:b]
-        c, s = counts.shape[1:]
-        if self._sum is None or self._sum.shape != (c, s):
+        c, s = revs.counts.shape[1:]
+        if self._counts is None or self._counts.shape[1:] != (c, s):
             self._check_calibration(c)
-            self._sum = np.zeros((c, s))
-            self._records = np.zeros((self.n_revolutions, c), np.complex128)
+            self._counts = np.empty((self.n_revolutions, c, s), np.int16)
             self._n = 0
-        theta = revs.slots * (2 * np.pi / 360)
         n0, n1 = self._n, self._n + (b - a)
-        self._sum += counts.sum(axis=0, dtype=np.int64)
-        self._records[n0:n1] = fundamental(counts, theta)
+        self._counts[n0:n1] = revs.counts[a:b]
         self._revs[n0:n1] = revs.rev[a:b]
         self._periods[n0:n1] = revs.period_s[a:b]
         self._n = n1
@@ -125,25 +110,20 @@ class StreamingAverager:
                 raise ValueError(f"{name} has {v.size} values for {c} channels")
 
     def _finish(self, slots: np.ndarray) -> AveragedBlock:
-        n = self._n
-        c = self._sum.shape[0]
+        n, c = self._n, self._counts.shape[1]
         gains = np.ones(c) if self._gains is None else self._gains
         offsets = np.zeros(c) if self._offsets is None else self._offsets
         theta = slots * (2 * np.pi / 360)
-        mean = self._sum / n * gains[:, None] + offsets[:, None]
-        phasors = fundamental(mean, theta)
-        dc = mean.mean(axis=1)
-        fit = dc[:, None] + np.real(phasors[:, None] * np.exp(1j * theta))
-        rms = np.sqrt(np.mean((mean - fit) ** 2, axis=1))
+        counts = self._counts[:n]
+        mean = counts.mean(axis=0) * gains[:, None] + offsets[:, None]
+        fit = harmonic_fit(mean, theta)
         periods = self._periods[:n]
         known = periods[~np.isnan(periods)]
         speed = 2 * np.pi / known.mean() if len(known) else float("nan")
         block = AveragedBlock(
-            orbit_speed=float(speed), theta=theta, mean=mean, phasors=phasors,
-            record_phasors=self._records[:n] * gains, rms_residual=rms, dc=dc,
+            orbit_speed=float(speed), theta=theta, mean=mean, phasors=fit.phasor,
+            record_phasors=phasor(counts, theta) * gains, rms_residual=fit.rms_residual, dc=fit.mean,
             revs=self._revs[:n].copy(),
         )
-        self._sum = None
-        self._records = None
         self._n = 0
         return block

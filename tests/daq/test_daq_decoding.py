@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 from _encoder import OVERRUN, SIMULTANEOUS, TRIGGER, frame, signal, slot_samples, stream
 
-from daq.averager import StreamingAverager, fundamental
+from daq.averager import StreamingAverager
 from daq.frames import FrameDecoder
 from daq.revolutions import RevolutionAssembler
+from reduction.fourier import phasor
 
 
 def run(data: bytes, channels=8, mode="sequential", chunk=997):
@@ -213,8 +214,8 @@ def test_averager_calibration_residual_and_blocks():
     b = blocks[1]
     raw = counts[10:20].astype(float).mean(axis=0)
     np.testing.assert_allclose(b.mean, raw * np.array(gains)[:, None] + np.array(offsets)[:, None])
-    np.testing.assert_allclose(b.phasors, fundamental(raw, b.theta) * gains)
-    np.testing.assert_allclose(b.record_phasors, fundamental(counts[10:20], b.theta) * gains)
+    np.testing.assert_allclose(b.phasors, phasor(raw, b.theta) * gains)
+    np.testing.assert_allclose(b.record_phasors, phasor(counts[10:20], b.theta) * gains)
     np.testing.assert_allclose(b.dc, raw.mean(axis=1) * gains + offsets)
     # residual = the 2nd harmonic (100/sqrt 2) plus averaged noise (20/sqrt(10))
     expected = np.hypot(100 / np.sqrt(2), 20 / np.sqrt(10)) * np.array(gains)
