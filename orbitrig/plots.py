@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from orbitrig.reduce import MATRIX_UNITS
 
@@ -114,6 +115,15 @@ def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
     return _save(fig, path)
 
 
+def _min_span(ax, largest: float, fraction: float = 0.05) -> None:
+    """Make the y axis span at least `fraction` of the matrix's largest entry, so
+    that differences far inside the 5 % criterion do not fill a coefficient panel."""
+    lo, hi = ax.get_ylim()
+    if hi - lo < fraction * largest:
+        mid = (lo + hi) / 2
+        ax.set_ylim(mid - fraction / 2 * largest, mid + fraction / 2 * largest)
+
+
 def _std_at(std_errors: dict[str, float], key: str, orbit: np.ndarray) -> np.ndarray:
     """One-sigma band of a coefficient at Omega: sqrt(sum_r (Omega^r s_r)^2) over its
     order terms (`Kxx`, `Kxx_r`); the regression's covariances are not stored, so
@@ -189,12 +199,7 @@ def coefficients_plot(path, fitted: Sequence[Fitted], *, spin: float, orbit: np.
             ax.set_ylabel(f"{m}{e}  [{unit}]")
             ax.grid(True, alpha=0.3)
             ax.set_xlim(0, top / spin)
-            # at least 5 % of the matrix's largest entry top to bottom, so that
-            # differences far inside the 5 % criterion do not fill the panel
-            lo, hi = ax.get_ylim()
-            if hi - lo < 0.05 * largest[m]:
-                mid = (lo + hi) / 2
-                ax.set_ylim(mid - 0.025 * largest[m], mid + 0.025 * largest[m])
+            _min_span(ax, largest[m])
             if row == len(mats) - 1:
                 ax.set_xlabel("\u03a9/\u03c9  [-]")
     handles, labels = axes[0, 0].get_legend_handles_labels()
@@ -288,5 +293,47 @@ def lms_comparison_plot(path, tables: dict[str, Any], fitted: dict[str, Fitted] 
             ax.axhline(0, color="gray", lw=0.8)
             ax.grid(True, axis="y", alpha=0.3)
             ax.legend(fontsize=8)
+    fig.suptitle(title)
+    return _save(fig, path)
+
+
+def summary_plot(path, series: dict[str, list[tuple[int, Any]]], truth: list[tuple[int, dict]], *,
+                 model: str, title: str) -> Path:
+    """The constant K and C entries of one model at every operating point (x: point
+    index), one marker series per load measuring system, error bars of one standard
+    error, and the simulator's true values (K0, C0) as black crosses."""
+    fig = _figure(13, 6.8)
+    axes = fig.subplots(2, 4, sharex=True)
+    colors = _colors(len(series))
+    offsets = np.linspace(-0.12, 0.12, len(series)) if len(series) > 1 else [0.0]
+    largest = {"K": 0.0, "C": 0.0}
+    for k, (lms, entries) in enumerate(series.items()):
+        idx = np.array([i for i, _ in entries], dtype=float)
+        for row, m in enumerate("KC"):
+            unit, scale = MATRIX_UNITS[m]
+            for col, e in enumerate(ENTRIES):
+                key = m + e
+                vals = [ident.coefficients.get(key, np.nan) * scale for _, ident in entries]
+                largest[m] = max(largest[m], float(np.nanmax(np.abs(vals))))
+                errs = [(ident.std_errors.get(key) or 0.0) * scale for _, ident in entries]
+                axes[row, col].errorbar(idx + offsets[k], vals, yerr=errs, fmt="o", ms=4, capsize=2,
+                                        color=colors[k], label=f"{lms}, {model}")
+    for row, m in enumerate("KC"):
+        unit, scale = MATRIX_UNITS[m]
+        for col, e in enumerate(ENTRIES):
+            ax = axes[row, col]
+            i, j = divmod(col, 2)
+            pts = [(idx, t[f"{m}0"][i][j] * scale) for idx, t in truth if t and f"{m}0" in t]
+            if pts:
+                ax.plot(*zip(*pts), "x", color="black", ms=6, mew=1.5, label="true (simulator)")
+            ax.set_title(f"{m}{e}")
+            ax.set_ylabel(f"{m}{e}  [{unit}]")
+            ax.grid(True, alpha=0.3)
+            ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+            _min_span(ax, largest[m])
+            if row == 1:
+                ax.set_xlabel("operating point  [index]")
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=9)
     fig.suptitle(title)
     return _save(fig, path)

@@ -48,10 +48,11 @@ class Report:
     directory: Path  # DIR/plots
     points: list[PointReport]
     html: Path | None = None
+    summary: Path | None = None  # summary.png, when more than one point
 
     @property
     def plots(self) -> list[Path]:
-        return [p for pr in self.points for p in pr.plots]
+        return [p for pr in self.points for p in pr.plots] + ([self.summary] if self.summary else [])
 
 
 def fit_label(r: Reduced) -> str:
@@ -124,17 +125,41 @@ def _plot_point(pr: PointReport, out: Path) -> None:
             title=f"Coherence between motion and force signals\n{where}",
         ))
     if all(lms in point.tables for lms in LMS_NAMES):
-        pair = None
-        for model, fd in PREFERRED_MODELS:
-            found = {lms: next((r for r in pr.results.get(lms, []) if (r.model, r.freq_dep) == (model, fd)), None)
-                     for lms in LMS_NAMES}
-            if all(found.values()):
-                pair = {lms: plots.Fitted(fit_label(r), r.identification) for lms, r in found.items()}
-                break
+        found = preferred(pr)
+        pair = {lms: plots.Fitted(fit_label(r), r.identification) for lms, r in found.items()} if found else None
         pr.plots.append(plots.lms_comparison_plot(
             out / f"lms_{point.name}.png", {lms: point.tables[lms] for lms in LMS_NAMES}, pair,
             title=f"Two load measuring systems: strain gauge vs piezoelectric\n{where}",
         ))
+
+
+def preferred(pr: PointReport, model: tuple[str, str] | None = None) -> dict[str, Reduced]:
+    """The first constant-coefficient model of PREFERRED_MODELS (or `model`) that was
+    identified from both load measuring systems, per LMS; {} when there is none."""
+    for spec in [model] if model else PREFERRED_MODELS:
+        found = {lms: r for lms in LMS_NAMES for r in pr.results.get(lms, []) if (r.model, r.freq_dep) == spec}
+        if len(found) == len(LMS_NAMES):
+            return found
+    return {}
+
+
+def summary_plot_for(report: Report) -> Path | None:
+    """summary.png: one model's K and C at every point, when there is more than one."""
+    if len(report.points) < 2:
+        return None
+    for spec in PREFERRED_MODELS:
+        chosen = [(pr, preferred(pr, spec)) for pr in report.points]
+        chosen = [(pr, found) for pr, found in chosen if found]
+        if len(chosen) >= 2:
+            break
+    else:
+        return None
+    series = {lms: [(pr.point.index, found[lms].identification) for pr, found in chosen] for lms in LMS_NAMES}
+    truth = [(pr.point.index, pr.point.truth) for pr, _ in chosen if pr.point.truth]
+    return plots.summary_plot(
+        report.directory / "summary.png", series, truth, model=spec[0],
+        title=f"Constant coefficients ({spec[0]}) at every operating point, run {report.run.directory.name}",
+    )
 
 
 def make_report(directory: str | Path, *, points: list[int] | None = None) -> Report:
@@ -156,5 +181,6 @@ def make_report(directory: str | Path, *, points: list[int] | None = None) -> Re
         pr = analyse_point(point)
         _plot_point(pr, out)
         report.points.append(pr)
+    report.summary = summary_plot_for(report)
     report.html = write_html(report, out / "index.html")
     return report

@@ -142,11 +142,31 @@ def _point_section(run, pr, out_dir: Path) -> str:
         h.append('<p class="err">Repeating the stored identifications gave different numbers:<br>'
                  + "<br>".join(_e(m) for m in pr.mismatches) + "</p>")
     h.append(_coherence_table(p))
-    for png in pr.plots:
-        rel = Path(png).relative_to(out_dir)
-        h.append(f'<figure><img src="{_e(rel.as_posix())}" alt="{_e(rel.stem)}">'
-                 f'<figcaption class="muted">{_e(rel.name)}</figcaption></figure>')
+    h += [_figure(png, out_dir) for png in pr.plots]
     return "\n".join(h)
+
+
+def _figure(png: Path, out_dir: Path) -> str:
+    rel = Path(png).relative_to(out_dir)
+    return (f'<figure><img src="{_e(rel.as_posix())}" alt="{_e(rel.stem)}">'
+            f'<figcaption class="muted">{_e(rel.name)}</figcaption></figure>')
+
+
+def _points_table(report) -> str:
+    """One row per reported point: its settings, linked to its section."""
+    head = ("<tr><th>point</th><th class=\"l\">label</th><th>\u03c9 [rpm]</th><th>p<sub>r</sub> [MPa]</th>"
+            "<th>\u03b2</th><th>\u03b5<sub>s</sub></th><th>\u03b5<sub>d</sub></th><th>models identified</th></tr>")
+    rows = []
+    for pr in report.points:
+        s = pr.point.settings
+        n = sum(len(v) for v in pr.results.values())
+        rows.append(
+            f'<tr><td><a href="#p{pr.point.name}">{pr.point.name}</a></td><td class="l">{_e(s.label)}</td>'
+            f"<td>{s.spin_rpm:.0f}</td><td>{s.recess_pressure / 1e6:.4g}</td><td>{fmt(s.pressure_ratio)}</td>"
+            f"<td>{fmt(s.static_eccentricity)}</td><td>{fmt(s.dynamic_eccentricity)}</td>"
+            f"<td>{n} of {len(pr.point.identifications)}</td></tr>"
+        )
+    return f"<h2>Operating points</h2><table>{head}{''.join(rows)}</table>"
 
 
 def render(report) -> str:
@@ -170,8 +190,7 @@ def render(report) -> str:
         "</table>",
     ]
     if report.points:
-        head.append("<p>Points: " + " \u00b7 ".join(
-            f'<a href="#p{pr.point.name}">{pr.point.name}</a>' for pr in report.points) + "</p>")
+        head.append(_points_table(report))
     else:
         head.append('<p class="err">No complete operating point to report.</p>')
     head.append('<p class="muted">Units: K in MN/m, C in kN s/m, D in kg (SI at the source); '
@@ -183,6 +202,8 @@ def render(report) -> str:
     for name, text in (("rig configuration", run.rig_config), ("matrix configuration", run.matrix_config)):
         if text:
             head.append(f"<details><summary>{name}</summary><pre>{_e(text)}</pre></details>")
+    if report.summary:
+        head.append(_figure(report.summary, report.directory))
     body = [_point_section(run, pr, report.directory) for pr in report.points]
     return "\n".join(head + body + ["</body></html>"])
 

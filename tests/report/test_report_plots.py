@@ -92,3 +92,16 @@ def test_cli_report_bad_directory(tmp_path):
     (tmp_path / "run.h5").write_text("not hdf5")
     result = CliRunner().invoke(app, ["report", str(tmp_path)])
     assert result.exit_code == 2 and str(tmp_path / "run.h5") in result.stderr
+
+
+def test_summary_plot_over_points(synthetic_run, tmp_path):
+    from orbitrig.report import Report, summary_plot_for
+
+    run = read_run(synthetic_run)
+    report = Report(run, tmp_path, [analyse_point(p) for p in run.complete_points])
+    path = summary_plot_for(report)
+    assert path == tmp_path / "summary.png"
+    w, h = png_size(path)
+    assert w >= 800 and h >= 400 and path.stat().st_size > 30_000
+    # one point only: no summary
+    assert summary_plot_for(Report(run, tmp_path, report.points[:1])) is None
