@@ -220,8 +220,9 @@ class Watcher:
 class RigClient:
     """An operator (publishing commands) plus a viewer (watching the rig's topics)."""
 
-    def __init__(self, broker: Broker, rig_id: str):
+    def __init__(self, broker: Broker, rig_id: str, service: "Service | None" = None):
         self.broker = broker
+        self.service = service  # its log is shown when a wait fails
         self.prefix = f"orbitrig/{rig_id}"
         self.watch = Watcher(broker, f"{self.prefix}/#")
         self._n = 0
@@ -241,9 +242,17 @@ class RigClient:
         self.last_pub = done
         return cid
 
+    def _wait(self, pred: Callable[[Msg], bool], timeout: float, start: int, what: str) -> Msg:
+        try:
+            return self.watch.wait_for(pred, timeout, start=start, what=what)
+        except AssertionError as err:
+            if self.service is None:
+                raise
+            raise AssertionError(f"{err}\n--- serve log (tail) ---\n{self.service.text()[-3000:]}") from None
+
     def reply(self, cid: str | None, timeout: float = 10.0, start: int = 0) -> dict:
-        msg = self.watch.wait_for(lambda m: m.topic == f"{self.prefix}/reply" and m.json().get("id") == cid,
-                                  timeout, start=start, what=f"reply to {cid!r}")
+        msg = self._wait(lambda m: m.topic == f"{self.prefix}/reply" and m.json().get("id") == cid,
+                         timeout, start, f"reply to {cid!r}")
         assert msg.qos == 1
         return msg.json()
 
@@ -254,8 +263,8 @@ class RigClient:
 
     def status(self, state: str | Callable[[dict], bool], timeout: float = 30.0, start: int = 0) -> dict:
         pred = (lambda s: s["state"] == state) if isinstance(state, str) else state
-        msg = self.watch.wait_for(lambda m: m.topic == f"{self.prefix}/status" and pred(m.json()),
-                                  timeout, start=start, what=f"status {state}")
+        msg = self._wait(lambda m: m.topic == f"{self.prefix}/status" and pred(m.json()),
+                         timeout, start, f"status {state}")
         assert msg.qos == 1
         return msg.json()
 

@@ -51,7 +51,7 @@ def service(broker, tmp_path_factory):
 
 @pytest.fixture
 def rig(broker, service):
-    rc = RigClient(broker, RIG)
+    rc = RigClient(broker, RIG, service)
     try:
         first = rc.status(lambda s: True, timeout=30)
         assert first["state"] in ("idle", "faulted"), first
@@ -193,7 +193,7 @@ def test_broker_restart_mid_run_and_the_run_completes(tmp_path):
     b.start()
     env = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}  # password from the environment
     svc = Service(serve_args(b, tmp_path, "--confirm", "auto"), tmp_path, env=env)
-    rc = RigClient(b, RIG)
+    rc = RigClient(b, RIG, svc)
     try:
         rc.status("idle", timeout=30)
         assert rc.command({"cmd": "start", "matrix": "long"})["ok"] is True
@@ -203,7 +203,7 @@ def test_broker_restart_mid_run_and_the_run_completes(tmp_path):
         b.stop()
         time.sleep(1.0)
         b.start()
-        rc = RigClient(b, RIG)
+        rc = RigClient(b, RIG, svc)
         again = rc.status(lambda s: s["run_id"] == run_id, timeout=30)  # republished on reconnect
         assert again["state"] in ("running", "paused", "stopping", "idle")
         idle = rc.status("idle", timeout=90)
@@ -221,7 +221,7 @@ def test_sigkill_publishes_offline_last_will(tmp_path):
     b.start()
     env = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}
     svc = Service(serve_args(b, tmp_path, "--confirm", "auto"), tmp_path, env=env)
-    rc = RigClient(b, RIG)
+    rc = RigClient(b, RIG, svc)
     try:
         rc.status("idle", timeout=30)
         assert rc.command({"cmd": "start", "matrix": "long"})["ok"] is True
@@ -234,6 +234,31 @@ def test_sigkill_publishes_offline_last_will(tmp_path):
         assert run_id
         late = retained(b, f"orbitrig/{RIG}/status")
         assert late.retain and late.json()["state"] == "offline"
+    finally:
+        rc.close()
+        svc.kill()
+        b.stop()
+
+
+def test_sigterm_mid_run_aborts_and_says_offline(tmp_path):
+    b = Broker(tmp_path / "broker")
+    b.start()
+    env = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}
+    svc = Service(serve_args(b, tmp_path, "--confirm", "auto"), tmp_path, env=env)
+    rc = RigClient(b, RIG, svc)
+    try:
+        rc.status("idle", timeout=30)
+        assert rc.command({"cmd": "start", "matrix": "long"})["ok"] is True
+        run_id = rc.status("running")["run_id"]
+        rc.watch.wait_for(lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] > 0, 30)
+        mark = rc.watch.mark()
+        svc.kill(signal.SIGTERM)
+        assert svc.proc.returncode == 0, svc.text()[-3000:]
+        states = [m.json()["state"] for m in rc.watch.on("status", mark)]
+        assert states[-1] == "offline" and "stopping" in states and "idle" in states, states
+        assert rc.watch.on("status", mark)[-1].json()["message"] == "service stopped"
+        assert retained(b, f"orbitrig/{RIG}/status").json()["state"] == "offline"
+        assert run_status(tmp_path, run_id) == "aborted"
     finally:
         rc.close()
         svc.kill()
