@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
 from orbitrig.reduce import MATRIX_UNITS
@@ -106,8 +107,6 @@ def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
             ax.grid(True, alpha=0.3)
     handles, labels = axes[0, 0].get_legend_handles_labels()
     if len(set(dirs)) > 1:
-        from matplotlib.lines import Line2D
-
         handles += [Line2D([], [], color="gray", ls="-"), Line2D([], [], color="gray", ls="--")]
         labels += ["reproduced, forward (solid)", "reproduced, backward (dashed)"]
     fig.legend(handles, labels, loc="outside lower center", ncols=min(4, len(labels)), fontsize=9)

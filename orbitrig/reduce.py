@@ -79,8 +79,9 @@ def reduce_run(
 ) -> list[Reduced]:
     """Identify every complete point of ``run`` for each LMS that has a table.
 
-    Raises ReductionError for an unknown model / spec / method (checked on the
-    first table), and ValueError when the run holds no complete point.
+    A model a table cannot identify is kept as that row's ``error``. Raises
+    ReductionError for an unknown model / spec / method, and when the run holds
+    no complete point.
     """
     points = [p for p in run.complete_points if any(lms in p.tables for lms in lms_names)]
     if not points:

@@ -11,7 +11,11 @@ drawn next to the measurements:
   (Figures 6 and 7), every frequency dependence of that model, with the true
   values in ``--sim`` runs;
 - ``coherence_PPPP.png``: gamma^2 per frequency (Table 1, also a table in the page);
-- ``lms_PPPP.png``: strain-gauge vs piezoelectric forces and coefficients.
+- ``lms_PPPP.png``: strain-gauge vs piezoelectric forces and coefficients;
+- ``summary.png`` (more than one point): one model's K and C at every point.
+
+A repeated identification that differs from the stored one is reported
+(``PointReport.mismatches``: a warning of the command and a note in the page).
 
 All go to ``DIR/plots`` with ``index.html`` (see orbitrig.report_html).
 """
@@ -68,10 +72,10 @@ def fit_label(r: Reduced) -> str:
 
 def _compare(r: Reduced, stored: dict) -> list[str]:
     """Name coefficients where the repeated identification differs from the stored one."""
-    out = []
-    coefs = stored.get("coefficients", {})
     if r.identification is None:
         return [f"{r.lms} {r.model} {r.freq_dep}: stored result, but repeating it was refused: {r.error}"]
+    out = []
+    coefs = stored.get("coefficients", {})
     new = r.identification.coefficients
     scale = {m: max((abs(v) for k, v in coefs.items() if k[0] == m), default=0.0) for m in "KCD"}
     for k, v in coefs.items():
