@@ -5,6 +5,9 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
+import shutil
+
+import h5py
 
 import numpy as np
 import pytest
@@ -115,3 +118,23 @@ def test_cli_reduce_bad_directory(tmp_path):
     assert missing.exit_code == 2 and "no such directory" in missing.stderr
     empty = CliRunner().invoke(app, ["reduce", str(tmp_path), "--model", "kcd11"])
     assert empty.exit_code == 2 and "no run.h5" in empty.stderr and str(tmp_path) in empty.stderr
+
+
+def test_cli_reduce_partial_refusal_keeps_the_other_points(synthetic_run, tmp_path):
+    run = tmp_path / "run"
+    run.mkdir()
+    shutil.copy(synthetic_run / "run.h5", run / "run.h5")
+    with h5py.File(run / "run.h5", "r+") as f:  # point 1 keeps 2 of its 20 rows: too few for kcd11
+        for lms in ("piezo", "strain"):
+            t = f[f"points/0001/table/{lms}"]
+            for name in ("orbit", "x", "y", "fx", "fy", "gamma2"):
+                data = t[name][:2]
+                del t[name]
+                t[name] = data
+    result = CliRunner().invoke(app, ["reduce", str(run), "--model", "kcd11"])
+    assert result.exit_code == 0, result.output
+    assert "refused at point 0001 piezo, 0001 strain" in result.stderr
+    rows = list(csv.DictReader(csv_path(run, "kcd11", "none", "ols").open()))
+    assert [(r["point"], r["lms"], bool(r["error"]), bool(r["Kxx"])) for r in rows] == [
+        ("0", "piezo", False, True), ("0", "strain", False, True), ("1", "piezo", True, False), ("1", "strain", True, False),
+    ]  # fmt: skip
