@@ -1,7 +1,8 @@
 """Byte-stream transports of the A/D board: a TCP serial device server and a pty.
 
 The board writes whole frames; a transport that cannot keep up drops whole
-chunks (a reader then sees a seq gap), it never blocks the event loop. Loopback
+chunks (a reader then sees a seq gap), it never blocks the event loop. An
+empty queue always takes the next chunk, however large. Loopback
 only. A pty behaves like the board's serial port: the slave side is raw (no
 line discipline), the simulator keeps it open so that readers may come and go.
 """
@@ -11,20 +12,22 @@ from __future__ import annotations
 import asyncio
 import collections
 import contextlib
-import errno
 import logging
 import os
+import termios
+import time
 import tty
 
 log = logging.getLogger(__name__)
 
 DEFAULT_BACKLOG = 1 << 20  # bytes queued per reader before chunks are dropped
+STALE_AFTER = 0.5  # s (wall) without any byte taken: a serial line drops what nobody reads
 
 
 class PtySink:
     """The board's serial port as a pseudo-terminal; ``path`` is the slave device."""
 
-    def __init__(self, loop: asyncio.AbstractEventLoop, *, backlog: int = DEFAULT_BACKLOG):
+    def __init__(self, loop: asyncio.AbstractEventLoop, *, backlog: int = DEFAULT_BACKLOG // 4):
         self._loop = loop
         self._limit = backlog
         self._queue: collections.deque[memoryview] = collections.deque()
@@ -35,6 +38,7 @@ class PtySink:
         self.path: str | None = None
         self.bytes_sent = 0
         self.chunks_dropped = 0
+        self._progress = time.monotonic()
         self.open()
 
     def open(self) -> None:
@@ -47,12 +51,16 @@ class PtySink:
 
     @property
     def congested(self) -> bool:
-        return self.master is None or self._queued >= self._limit
+        if self.master is None:
+            return True
+        self._forget_if_stale()
+        return self._queued >= self._limit // 2
 
     def send(self, data: bytes) -> None:
         if self.master is None:
             return
-        if self._queued + len(data) > self._limit:
+        self._forget_if_stale()
+        if self._queued and self._queued + len(data) > self._limit:
             self.chunks_dropped += 1
             return
         self._queue.append(memoryview(data))
@@ -74,6 +82,7 @@ class PtySink:
                 break
             self.bytes_sent += n
             self._queued -= n
+            self._progress = time.monotonic()
             if n == len(head):
                 self._queue.popleft()
             else:
@@ -86,6 +95,18 @@ class PtySink:
             if self.master is not None:
                 self._loop.remove_writer(self.master)
             self._writer = False
+
+    def _forget_if_stale(self) -> None:
+        """Nobody has read the line for a while: forget what waits in it (the
+        tty input queue and the backlog), so a reader that opens the port
+        later gets fresh frames, as on a real serial line."""
+        if self._queued < self._limit // 2 or time.monotonic() - self._progress <= STALE_AFTER:
+            return
+        with contextlib.suppress(OSError):
+            termios.tcflush(self._slave, termios.TCIFLUSH)
+        self._queue.clear()
+        self._queued = 0
+        self._progress = time.monotonic()
 
     def _drain_input(self) -> None:
         """Discard what a reader writes to the board (it has no commands)."""
@@ -127,7 +148,8 @@ class TcpSink:
     def send(self, data: bytes) -> None:
         if self.writer.transport.is_closing():
             return
-        if self.writer.transport.get_write_buffer_size() + len(data) > self._limit:
+        queued = self.writer.transport.get_write_buffer_size()
+        if queued and queued + len(data) > self._limit:
             self.chunks_dropped += 1
             return
         self.writer.write(data)
@@ -151,7 +173,7 @@ class AdcServer:
         self._server = await asyncio.start_server(self._client, host, port)
         self.port = self._server.sockets[0].getsockname()[1]
         if pty:
-            self.pty = PtySink(asyncio.get_running_loop(), backlog=self._backlog)
+            self.pty = PtySink(asyncio.get_running_loop())
 
     @property
     def url(self) -> str:
@@ -203,8 +225,6 @@ class AdcServer:
             try:
                 self.pty.open()
             except OSError as err:
-                if err.errno != errno.EMFILE:
-                    raise
                 log.error("cannot reopen the A/D pty: %s", err)
 
     async def aclose(self) -> None:

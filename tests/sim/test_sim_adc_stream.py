@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import dataclasses
 import math
 
@@ -147,3 +148,17 @@ async def test_no_frames_while_the_orbit_spindle_stands():
         rig.local_control(spin=SPIN, orbit=0.0)
         data = await read_tcp(rig.adc_server.port, seconds=0.3)
     assert data == b""
+
+
+async def test_pty_nobody_reads_gives_fresh_frames_to_a_late_reader():
+    """A serial line does not keep what nobody read: a reader opening the port
+    after a while gets current frames, not a backlog from long ago."""
+    speedup = 5.0
+    async with SimRig(SimConfig(), speedup=speedup, can_channel=None) as rig:
+        rig.local_control(spin=SPIN, orbit=2 * math.pi * 40)  # 0.14 M samples/s, nobody reads
+        await asyncio.sleep(2.0)
+        now_us = rig.clock.now() * 1e6
+        data = await read_pty(rig.adc_pty_path, min_revs=1)
+    frames, bad, _ = parse(data)
+    assert frames and bad == 0
+    assert now_us - frames[0].t_us < 0.8 * speedup * 1e6  # at most ~0.5 s wall old
