@@ -159,10 +159,12 @@ def write_csv(path: str | Path, rows: list[Reduced], sim: bool) -> Path:
 
 def format_table(rows: list[Reduced]) -> str:
     """A terminal table of the constant terms (K in MN/m, C in kN s/m, D in kg) and the
-    residual; a refused (point, lms) shows 'refused' (the reason goes to standard error).
+    residual (and the exponent M that power:auto chose); a refused (point, lms) shows
+    'refused' (the reason goes to standard error).
     In --sim runs each point is followed by a row of the simulator's true values."""
     cols = [k for k in CONSTANT_KEYS if any(r.identification and k in r.identification.coefficients for r in rows)]
-    lines = [["point", "lms", *(f"{k} [{coefficient_unit(k)[0]}]" for k in cols), "resid [N]"]]
+    auto = any(getattr(r.identification, "exponent", None) is not None for r in rows)
+    lines = [["point", "lms", *(f"{k} [{coefficient_unit(k)[0]}]" for k in cols), "resid [N]", *(["M"] if auto else [])]]
     for n, r in enumerate(rows):
         cells = [r.point.name, r.lms]
         if r.identification is None:
@@ -171,6 +173,8 @@ def format_table(rows: list[Reduced]) -> str:
             c = r.identification.coefficients
             cells += [f"{c[k] * coefficient_unit(k)[1]:.4g}" for k in cols]
             cells.append(f"{r.identification.residual_rms:.3g}")
+            if auto:  # the exponent power:auto chose
+                cells.append(str(r.identification.exponent))
         lines.append(cells)
         truth = true_constants(r.point)
         if truth and (n + 1 == len(rows) or rows[n + 1].point is not r.point):
