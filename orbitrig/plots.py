@@ -231,7 +231,7 @@ def coherence_plot(path, tables: dict[str, Any], *, title: str) -> Path:
                         mfc=colors[c] if d == 1 else "white", ms=5, lw=1,
                         label=f"\u03b3\u00b2({PAIR_LABELS[pair]}), {dname}")
         lowest = min(lowest, float(np.nanmin(t.gamma2)))
-        ax.set_title(f"{lms} load cells")
+        ax.set_title(f"{lms} load cells (lowest \u03b3\u00b2 = {np.nanmin(t.gamma2):.4f})")
         ax.set_xlabel("\u03a9/\u03c9  [-]")
         ax.grid(True, alpha=0.3)
     axes[0].set_ylabel("coherence \u03b3\u00b2  [-]")
