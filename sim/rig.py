@@ -257,6 +257,40 @@ class SimRig:
 
     def step(self) -> None:
         """Advance the drives and the spindles to now; stream the completed frames."""
+        tick = self._advance_spindles()
+        if tick is None:
+            return
+        g_end = math.floor(self._g_pos) + 1  # slot edges g_next .. g_end - 1 have passed
+        if g_end <= self._g_next:
+            return
+        board = self.board
+        if g_end - self._g_next > self._max_slots:  # the board's FIFO overflowed
+            self._lose_pending(board.boundary_before(g_end - self._max_slots))
+            self._g_next = max(self._g_next, self._pending_g0)
+        b = board.boundary_before(g_end)  # frames before b are complete
+        if b > self._pending_g0 and not self.adc_server.wants_data():
+            self._lose_pending(b)  # nobody can take them: skip the numerics
+        lo = max(self._g_next, self._pending_g0)
+        if g_end > lo:
+            g = np.arange(lo, g_end)
+            t, spin_angle, orbit_inst, spin, orbit = self._interpolate(g, tick)
+            counts = self._convert(g, t, spin_angle, orbit_inst, spin, orbit)
+            if self._pending_counts is None or not len(self._pending_counts):
+                self._pending_counts, self._pending_t = counts, t
+            else:
+                self._pending_counts = np.concatenate([self._pending_counts, counts])
+                self._pending_t = np.concatenate([self._pending_t, t])
+        self._g_next = g_end
+        if b > self._pending_g0:
+            n = b - self._pending_g0
+            self.adc_server.send(board.encode(self._pending_g0, self._pending_counts[:n], self._pending_t[:n]))
+            self._pending_counts, self._pending_t = self._pending_counts[n:], self._pending_t[n:]
+            self._pending_g0 = b
+
+    def _advance_spindles(self):
+        """Integrate both spindles from the last tick to now (drive speeds linear
+        in between, times the speed ripple). Returns the tick's start state, or
+        None when no simulated time has passed."""
         now = self.clock.now()
         for d in self.drives.values():
             d.advance()
@@ -264,53 +298,33 @@ class SimRig:
         orbit = self.drives[2].actual_rpm * RPM if 2 in self.drives else 0.0
         dt = now - self._t_last
         if dt <= 0:
-            return
-        t0, spin0, orbit0, phi0, g_pos = self._t_last, self._spin_last, self._orbit_last, self._spin_angle, self._g_pos
-        ripple = float(self.physics.ripple(np.array(t0 + 0.5 * dt)))  # spindle speed ripple
-        g_new = g_pos + 0.5 * (abs(orbit0) + abs(orbit)) * ripple * dt / SLOT_ANGLE
+            return None
+        ripple = float(self.physics.ripple(np.array(self._t_last + 0.5 * dt)))
+        tick = (self._t_last, dt, self._spin_last, spin, self._orbit_last, orbit,
+                self._spin_angle, self._g_pos, ripple)
+        self._g_pos += 0.5 * (abs(self._orbit_last) + abs(orbit)) * ripple * dt / SLOT_ANGLE
+        self._spin_angle += 0.5 * (self._spin_last + spin) * ripple * dt  # unwrapped: ball-pass orders
         self._t_last, self._spin_last, self._orbit_last = now, spin, orbit
-        self._spin_angle = (phi0 + 0.5 * (spin0 + spin) * ripple * dt) % (2 * math.pi)
-        self._g_pos = g_new
-        g_end = math.floor(g_new) + 1  # slots g_next .. g_end-1 have occurred
-        if g_end <= self._g_next:
+        return tick
+
+    def _interpolate(self, g: np.ndarray, tick):
+        """Time, spin angle and orbit speed at the slot edges g inside a tick."""
+        t0, dt, spin0, spin, orbit0, orbit, phi0, g_pos, ripple = tick
+        frac = (g - g_pos) / (self._g_pos - g_pos)
+        tau = frac * dt
+        spin_angle = phi0 + (spin0 * tau + (spin - spin0) * tau * tau / (2 * dt)) * ripple
+        orbit_inst = orbit0 + (orbit - orbit0) * frac
+        return t0 + tau, spin_angle, orbit_inst, spin, (orbit if orbit != 0 else orbit0)
+
+    def _lose_pending(self, upto: int) -> None:
+        """The board lost the slots from the pending ones up to ``upto`` (a frame boundary)."""
+        if upto <= self._pending_g0:
             return
-        board = self.board
-        if g_end - self._g_next > self._max_slots:  # the board's FIFO overflowed
-            skip_to = board.boundary_before(g_end - self._max_slots)
-            if skip_to > self._pending_g0:
-                board.lose(self._pending_g0, skip_to)
-                self._pending_g0 = self._g_next = skip_to
-                self._pending_counts = self._pending_t = None
-        b = board.boundary_before(g_end)
-        lo = self._g_next
-        if b > self._pending_g0 and not self.adc_server.wants_data():
-            board.lose(self._pending_g0, b)  # nobody can take them: skip the numerics
-            if self._pending_counts is not None:
-                n = b - self._pending_g0
-                self._pending_counts, self._pending_t = self._pending_counts[n:], self._pending_t[n:]
-            self._pending_g0 = b
-            lo = max(lo, b)
-        if g_end > lo:
-            g = np.arange(lo, g_end)
-            frac = (g - g_pos) / (g_new - g_pos)
-            t = t0 + frac * dt
-            orbit_inst = orbit0 + (orbit - orbit0) * frac
-            tau = frac * dt
-            spin_angle = phi0 + (spin0 * tau + (spin - spin0) * tau * tau / (2 * dt)) * ripple
-            sign_orbit = orbit if orbit != 0 else orbit0
-            counts = self._convert(g, t, spin_angle, orbit_inst, spin, sign_orbit)
-            if self._pending_counts is None:
-                self._pending_counts, self._pending_t = counts, t
-            else:
-                self._pending_counts = np.concatenate([self._pending_counts, counts])
-                self._pending_t = np.concatenate([self._pending_t, t])
-        self._g_next = g_end
-        if b > self._pending_g0 and self._pending_counts is not None:
-            n = b - self._pending_g0
-            data = board.encode(self._pending_g0, self._pending_counts[:n], self._pending_t[:n])
-            self.adc_server.send(data)
+        self.board.lose(self._pending_g0, upto)
+        if self._pending_counts is not None:
+            n = upto - self._pending_g0
             self._pending_counts, self._pending_t = self._pending_counts[n:], self._pending_t[n:]
-            self._pending_g0 = b
+        self._pending_g0 = upto
 
     def _convert(self, g, t, spin_angle, orbit_inst, spin, orbit) -> np.ndarray:
         """Counts of the conversions at global slots g (sequential (n,), simultaneous (n, C))."""

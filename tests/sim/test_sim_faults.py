@@ -178,3 +178,16 @@ async def test_slow_reader_loses_whole_frames_and_never_blocks_the_loop():
     assert bad == 0 and len(seq_gaps(frames)) >= 1  # chunks were dropped ...
     for a, b in zip(frames, frames[1:]):  # ... as whole frames: the byte stream stays framed
         assert b.offset == a.offset + 20 + 2 * a.n_slots * a.n_ch
+
+
+async def test_board_fifo_overflow_is_flagged():
+    """More slots per tick than the board's FIFO holds: frames are lost, the
+    next frame says OVERRUN, the revolutions in between stay intact."""
+    async with SimRig(SimConfig(), speedup=20.0, can_channel=None, max_slots_per_tick=1500) as rig:
+        rig.local_control(spin=150.0, orbit=2 * math.pi * 40)  # ~2900 slots per 10 ms tick
+        data = await read_tcp(rig.adc_server.port, min_revs=20)
+    frames, bad, _ = parse(data)
+    assert bad == 0
+    gaps = [(a, b) for a, b in zip(frames, frames[1:]) if b.seq != (a.seq + 1) & 0xFFFF]
+    assert gaps and all(b.flags & 0x02 for _, b in gaps)
+    assert len(revolutions(frames)) >= 20
