@@ -30,10 +30,18 @@ def _u16(v: float) -> int:
     return int(np.clip(round(v), 0, 65535))
 
 
+def _centi_degc(kelvin: float) -> int:
+    return _i16((kelvin - 273.15) * 100.0)
+
+
+def _kpa(pa: float) -> int:
+    return _u16(pa / 1000.0)
+
+
 def encode_aux(state: dict, *, node_id: int = 1, sensor_fault: bool = False) -> list[tuple[int, bytes]]:
-    """The three process-data frames (CAN id, payload) from SI values (see physics.aux_state)."""
-    c = lambda kelvin: _i16((kelvin - 273.15) * 100.0)  # noqa: E731  0.01 degC
-    kpa = lambda pa: _u16(pa / 1000.0)  # noqa: E731
+    """The three process-data frames (CAN id, payload) from SI values (see physics.aux_state):
+    temperatures in 0.01 degC, flow in 0.01 L/min, pressures in kPa."""
+    c, kpa = _centi_degc, _kpa
     p = state["p_recess"]
     status = (STATUS_SENSOR_FAULT if sensor_fault else 0) | (STATUS_PUMP_OFF if state["pump_off"] else 0)
     return [
