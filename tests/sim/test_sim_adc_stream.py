@@ -13,7 +13,6 @@ from sim.config import AdcConfig, GeometryConfig, NoiseConfig, SimConfig
 from sim.rig import SimRig
 from sim_reader import channel_samples, fundamental, parse, read_pty, read_tcp, revolutions
 
-NAMES = ["fx_piezo", "fy_piezo", "fx_strain", "fy_strain", "x_a", "y_a", "x_b", "y_b"]
 GAINS = np.array([0.1] * 4 + [5e-9] * 4)
 SPIN = 150.0  # rad/s
 ORBIT_HZ = 20.0

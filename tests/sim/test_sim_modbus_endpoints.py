@@ -58,12 +58,13 @@ async def test_both_drives_on_tcp_and_rtu():
         act = (await rtu_read(rig.modbus_rtu_path, 2, 4, 1))[0]
         rpm = (act - 65536 if act >= 32768 else act) * 3000 / 20000
         assert abs(rpm - (-50.0 * 60 / (2 * 3.141592653589793))) <= 0.3  # one register step
-        if shutil.which("mbpoll"):  # CI installs it (.ci/run)
-            port = rig.modbus_url.rsplit(":", 1)[1]
-            proc = await asyncio.create_subprocess_exec(
-                "mbpoll", "-m", "tcp", "-p", port, "-a", "2", "-r", "101", "-c", "2", "-t", "4", "-1",
-                "127.0.0.1", stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
-            out, err = await asyncio.wait_for(proc.communicate(), 10)
-            assert proc.returncode == 0, err
-            # reference numbers are address + 1: SPEED_SCALE (100), MAX_SPEED (101)
-            assert dict(re.findall(r"\[(\d+)\]:\s+(-?\d+)", out.decode())) == {"101": "3000", "102": "2500"}
+        # mbpoll: an independent Modbus client (installed by .ci/run)
+        assert shutil.which("mbpoll"), "mbpoll is needed (apt-get install mbpoll)"
+        port = rig.modbus_url.rsplit(":", 1)[1]
+        proc = await asyncio.create_subprocess_exec(
+            "mbpoll", "-m", "tcp", "-p", port, "-a", "2", "-r", "101", "-c", "2", "-t", "4", "-1",
+            "127.0.0.1", stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
+        out, err = await asyncio.wait_for(proc.communicate(), 10)
+        assert proc.returncode == 0, err
+        # reference numbers are address + 1: SPEED_SCALE (100), MAX_SPEED (101)
+        assert dict(re.findall(r"\[(\d+)\]:\s+(-?\d+)", out.decode())) == {"101": "3000", "102": "2500"}
