@@ -38,7 +38,7 @@ async def test_white_noise_and_jitter_average_within_the_statistical_band():
     sigma = np.sqrt(white**2 + np.abs(true) ** 2 * nz.encoder_jitter**2 / 2 + GAINS**2 / 12)
     sigma_rev = sigma * math.sqrt(2 / N)  # std of Re and Im of one revolution's phasor
     scatter = np.std(per_rev.real, axis=0, ddof=1)
-    np.testing.assert_allclose(scatter, sigma_rev, rtol=0.35)
+    np.testing.assert_allclose(scatter, sigma_rev, rtol=0.45)  # 4.5 sd of a 50-sample std
     err = np.abs(per_rev.mean(axis=0) - true)
     assert np.all(err < 5 * sigma_rev / math.sqrt(M)), err / (sigma_rev / math.sqrt(M))
 
