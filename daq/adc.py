@@ -135,7 +135,11 @@ class AdcReader:
 
     # ------------------------------------------------------------ data path
     def _on_data(self, data: bytes) -> None:
-        revs = self._assembler.push_batch(self._decoder.feed_batch(data))
+        try:
+            revs = self._assembler.push_batch(self._decoder.feed_batch(data))
+        except Exception as err:  # a bug, never bad input: make acquire() raise it, not time out
+            self._fail(err)
+            raise
         if self._collection is not None and len(revs):
             self._revolutions_used += self._collection.push(revs)
 

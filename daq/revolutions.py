@@ -131,6 +131,7 @@ class RevolutionAssembler:
         self._carry = FrameBatch.empty()
         self._prev: tuple[int, int, int, int] | None = None  # (seq, rev, end slot, t_us) of the last frame
         self._recent_drops: deque[int] = deque(maxlen=8)
+        self._discarding = True  # the tail of a revolution begun before start/reset is arriving
 
     def link_dropped(self) -> None:
         """The link dropped: a revolution in progress is lost (counted); a complete
@@ -181,7 +182,11 @@ class RevolutionAssembler:
         clock_ok = (dt_frame > 0) & (dt_frame < 1 << 31)
         cont = (seq_ok & (rev == prev_rev) & (fs == np.concatenate(([p_end], end[:-1])))
                 & ~trig & ~overrun & mode_ok & clock_ok)
-        cont[0] = False  # frame 0 starts the carried chain, or follows a finished one
+        # frame 0 starts the carried chain, or continues a fragment that was not carried
+        # (dropped, or discarded after start/reset), or starts anew
+        tail = bool(cont[0]) and not len(self._carry)
+        cont[0] = False
+        discard_first = self._prev is None or (tail and self._discarding)
         starts = np.flatnonzero(~cont)
         lasts = np.append(starts[1:] - 1, f - 1)
         clean_start = trig[starts] & ~overrun[starts] & mode_ok[starts]
@@ -213,8 +218,10 @@ class RevolutionAssembler:
                 continue
             if clean_start[k]:
                 self._drop(r, why(z + 1) if z + 1 < f else "incomplete")
-            elif a == 0 and self._prev is None:
+            elif a == 0 and discard_first:
                 self.frames_discarded += z - a + 1  # tail of a revolution begun before start/reset
+            elif a == 0 and tail:
+                pass  # more of a fragment already counted
             elif trig[a]:
                 self._drop(r, "overrun" if overrun[a] else "mode_mismatch")
             else:
@@ -228,6 +235,7 @@ class RevolutionAssembler:
             self._drop(int(r), "bad_clock")
 
         self._carry = b.select(carry_from) if carry_from is not None else FrameBatch.empty()
+        self._discarding = discard_first and len(starts) == 1 and not clean_start[0]
         self._prev = (int(seq[-1]), int(rev[-1]), int(end[-1]), int(t[-1])) if f else self._prev
 
         good_first, period = good_first[~bad_clock], period[~bad_clock]

@@ -17,6 +17,7 @@ import asyncio
 import functools
 import os
 import socket
+import termios
 from collections.abc import Callable
 from urllib.parse import parse_qs, urlsplit
 
@@ -143,4 +144,9 @@ def _open_serial(url, on_data, on_lost) -> ByteLink:
         raise DaqLinkError(f"{url}: cannot open serial port ({err})") from err
     fd = port.fileno()
     os.set_blocking(fd, False)
+    # pyserial leaves VMIN = 0, where an empty read means "nothing yet"; with VMIN = 1
+    # a non-blocking read without data raises EAGAIN and b"" means a hang-up, as on a socket
+    attrs = termios.tcgetattr(fd)
+    attrs[6][termios.VMIN], attrs[6][termios.VTIME] = 1, 0
+    termios.tcsetattr(fd, termios.TCSANOW, attrs)
     return ByteLink(url, fd, functools.partial(os.read, fd), port.close, on_data, on_lost)

@@ -167,10 +167,11 @@ def test_mode_mismatch():
     assert revs == [] and asm.drop_reasons == {"mode_mismatch": 4}
 
 
-def test_start_mid_revolution_is_not_a_fault():
+@pytest.mark.parametrize("chunk", [50, 997, 100_000])
+def test_start_mid_revolution_is_not_a_fault(chunk):
     counts = signal(4, 8, "sequential")
     frames, _ = stream(counts, "sequential")
-    dec, asm, revs = run(b"".join(frames[3:])[7:])
+    dec, asm, revs = run(b"".join(frames[3:])[7:], chunk=chunk)
     assert [r.rev for r in revs] == [1, 2, 3]
     assert asm.revolutions_dropped == 0 and asm.frames_discarded == 4
 

@@ -1,0 +1,170 @@
+"""Live acquisition rate over a pty, with zero loss: AdcReader.acquire end to end.
+
+Two sources, each in its own process (the reader has this process's core):
+  sim     the simulator (SimRig) streaming its A/D board to a pty at a high
+          speed-up: the real path, limited by how fast the simulator makes data
+  writer  a plain writer replaying pre-encoded frames into a pty as fast as the
+          pty takes them: the reader's own ceiling
+
+Prints samples/s of good revolutions averaged and the loss counts (revolutions
+dropped, frames bad, bytes skipped, link drops; for the simulator also the
+frames its board lost because the pty backed up).
+
+    python3 bench/bench_daq_live.py [--seconds 4] [--speedup 60] [--orbit-hz 50]
+Target: >= 1 million samples/s with zero loss.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import math
+import multiprocessing as mp
+import os
+import select
+import struct
+import time
+import tty
+from binascii import crc_hqx
+
+import numpy as np
+
+from daq.adc import AdcReader
+
+
+# ------------------------------------------------------------------ sources
+def sim_source(conn, mode: str, speedup: float, orbit_hz: float) -> None:
+    from sim.config import SimConfig
+    from sim.rig import SimRig
+
+    async def run() -> None:
+        cfg = SimConfig()
+        cfg.adc.mode = mode
+        async with SimRig(cfg, speedup=speedup, can_channel=None) as rig:
+            rig.local_control(spin=2 * math.pi * 30, orbit=2 * math.pi * orbit_hz)
+            conn.send(rig.adc_pty_path)
+            loop = asyncio.get_running_loop()
+            marks = []
+            while True:
+                msg = await loop.run_in_executor(None, conn.recv)
+                marks.append((rig.board.frames_lost, rig.adc_server.pty.chunks_dropped))
+                if msg == "stop":
+                    break
+            conn.send(marks)
+
+    asyncio.run(run())
+
+
+def writer_source(conn, mode: str, frame_slots: int = 45) -> None:
+    """Replays 64 random revolutions as frames (seq, rev, clock counting on) into a
+    pty, as fast as the pty takes them (it blocks the writer: no loss on this side)."""
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    os.set_blocking(master, False)
+    conn.send(os.ttyname(slave))
+    n_ch = 8 if mode == "simultaneous" else 1
+    rng = np.random.default_rng(0)
+    revs = [rng.normal(0, 2000, (360, n_ch)).astype("<i2") for _ in range(64)]
+    flag_mode = 4 if mode == "simultaneous" else 0
+    period_us, seq, r = 20_000, 0, 0
+    pending = memoryview(b"")
+    while True:
+        if not pending:
+            out = []
+            for _ in range(32):
+                samples = revs[r % len(revs)]
+                for fs in range(0, 360, frame_slots):
+                    ns = min(frame_slots, 360 - fs)
+                    body = struct.pack("<BBHIHBBI", 1, (1 if fs == 0 else 0) | flag_mode, seq & 0xFFFF,
+                                       r & 0xFFFFFFFF, fs, ns, n_ch,
+                                       (r * period_us + fs * period_us // 360) & 0xFFFFFFFF) \
+                        + samples[fs:fs + ns].tobytes()
+                    out.append(b"\xa5\x5a" + body + struct.pack("<H", crc_hqx(body, 0xFFFF)))
+                    seq += 1
+                r += 1
+            pending = memoryview(b"".join(out))
+        readable, writable, _ = select.select([conn], [master], [], 1.0)
+        if readable and conn.recv() == "stop":
+            break
+        if writable:
+            try:
+                pending = pending[os.write(master, pending):]
+            except BlockingIOError:
+                pass
+    conn.send([])
+    os.close(master)
+    os.close(slave)
+
+
+# ------------------------------------------------------------------ reader
+async def measure(path: str, mode: str, seconds: float, expected_revs_per_s: float | None,
+                  conn) -> tuple[float, object, float]:
+    channels = 8
+    spr = 360 * (channels if mode == "simultaneous" else 1)
+    async with AdcReader(path, channels=channels, mode=mode) as adc:
+        await adc.acquire(20, timeout=20)  # warm-up: the link runs, speed is reached
+        if expected_revs_per_s is None:  # calibrate the rate
+            t0 = time.perf_counter()
+            await adc.acquire(200, timeout=30)
+            expected_revs_per_s = 200 / (time.perf_counter() - t0)
+        n = max(50, int(expected_revs_per_s * seconds))
+        conn.send("mark")
+        t0 = time.perf_counter()
+        block = await adc.acquire(n, timeout=seconds * 10 + 10)
+        elapsed = time.perf_counter() - t0
+        conn.send("stop")
+    return n * spr / elapsed, block.stats, elapsed
+
+
+def run_source(target, args, mode, seconds, expected):
+    ctx = mp.get_context("spawn")
+    parent, child = ctx.Pipe()
+    proc = ctx.Process(target=target, args=(child, *args), daemon=True)
+    proc.start()
+    try:
+        path = parent.recv()
+        rate, stats, elapsed = asyncio.run(measure(path, mode, seconds, expected, parent))
+        marks = parent.recv()
+    finally:
+        proc.join(5)
+        if proc.is_alive():
+            proc.terminate()
+    src_lost = None
+    if len(marks) == 2:
+        src_lost = (marks[1][0] - marks[0][0], marks[1][1] - marks[0][1])
+    return rate, stats, elapsed, src_lost
+
+
+def report(name, rate, stats, elapsed, src_lost) -> bool:
+    loss = stats.revolutions_dropped + stats.frames_bad + stats.bytes_skipped + stats.link_drops
+    extra = ""
+    if src_lost is not None:
+        loss += src_lost[0] + src_lost[1]
+        extra = f", board frames lost {src_lost[0]}, pty chunks dropped {src_lost[1]}"
+    print(f"  {name}: {rate / 1e6:6.2f} M samples/s over {elapsed:.1f} s, {stats.revolutions_used} revolutions; "
+          f"dropped {stats.revolutions_dropped} {stats.drop_reasons or ''}, frames bad {stats.frames_bad}, "
+          f"bytes skipped {stats.bytes_skipped}, link drops {stats.link_drops}{extra}"
+          f" -> {'zero loss' if loss == 0 else 'LOSS'}")
+    return loss == 0
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=4.0)
+    ap.add_argument("--speedup", type=float, default=60.0)
+    ap.add_argument("--orbit-hz", type=float, default=50.0, help="orbit frequency in simulated time")
+    args = ap.parse_args()
+    print(f"live over a pty, AdcReader.acquire end to end ({args.seconds:g} s per run)")
+    for mode in ("simultaneous", "sequential"):
+        revs_per_s = args.orbit_hz * args.speedup
+        rate, stats, el, lost = run_source(sim_source, (mode, args.speedup, args.orbit_hz), mode,
+                                           args.seconds, revs_per_s)
+        report(f"simulator {mode:12s} x{args.speedup:g} at {args.orbit_hz:g} Hz", rate, stats, el, lost)
+    for mode in ("simultaneous", "sequential"):
+        rate, stats, el, lost = run_source(writer_source, (mode,), mode, args.seconds, None)
+        report(f"own writer {mode:12s}", rate, stats, el, lost)
+    print("target: >= 1 M samples/s with zero loss")
+
+
+if __name__ == "__main__":
+    main()
