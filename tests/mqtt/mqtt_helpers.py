@@ -331,6 +331,6 @@ def write_matrices(folder: Path) -> Path:
     (folder / "quick.toml").write_text(MATRIX.format(
         name="quick", revs=10, ratios="[0.5, 0.8]", directions='["forward", "backward"]'))
     (folder / "long.toml").write_text(MATRIX.format(
-        name="long", revs=40, ratios="[0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.2]",
+        name="long", revs=60, ratios="[0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.2]",
         directions='["forward", "backward"]'))
     return folder

@@ -140,9 +140,10 @@ def test_remote_run_confirm_pause_resume_stop(rig, service):
     assert paused["run_id"] == run_id
     again = rig.command({"cmd": "pause"})
     assert again["ok"] is False and "cannot pause while the run is paused" in again["error"]
-    assert rig.command({"cmd": "resume"})["ok"] is True
     m = rig.watch.mark()
+    assert rig.command({"cmd": "resume"})["ok"] is True
     rig.status("running", start=m)
+    m = rig.watch.mark()
     assert rig.command({"cmd": "stop"})["ok"] is True
     rig.status("stopping", start=m)
     idle = rig.status("idle", start=m, timeout=60)
