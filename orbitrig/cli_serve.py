@@ -13,6 +13,12 @@ PASSWORD_ENV = "ORBITRIG_MQTT_PASSWORD"
 USERNAME_ENV = "ORBITRIG_MQTT_USERNAME"
 
 
+def _fail(message: str, code: int = 2) -> None:
+    """A usage or configuration error: one plain line on standard error, exit `code`."""
+    typer.echo(f"orbitrig serve: {message}", err=True)
+    raise typer.Exit(code)
+
+
 def read_password(password_file: Path | None) -> str | None:
     """The broker password from ``password_file`` (first line) or from the
     environment variable ORBITRIG_MQTT_PASSWORD; None when neither is given."""
@@ -21,13 +27,12 @@ def read_password(password_file: Path | None) -> str | None:
             text = password_file.read_text(encoding="utf-8")
             mode = password_file.stat().st_mode
         except OSError as err:
-            raise typer.BadParameter(f"cannot read {password_file}: {err.strerror or err}",
-                                     param_hint="--password-file") from None
+            _fail(f"--password-file: cannot read {password_file}: {err.strerror or err}")
         if mode & (stat.S_IRGRP | stat.S_IROTH | stat.S_IWOTH):
             typer.echo(f"warning: {password_file} is readable by other users (chmod 600 it)", err=True)
         password = text.splitlines()[0] if text.strip() else ""
         if not password:
-            raise typer.BadParameter(f"{password_file} is empty", param_hint="--password-file")
+            _fail(f"--password-file: {password_file} is empty")
         return password
     return os.environ.get(PASSWORD_ENV) or None
 
@@ -66,7 +71,7 @@ def register(app: typer.Typer) -> None:
         from orbitrig import config as cfg
         from orbitrig.errors import ConfigError
         from orbitrig.mqtt_protocol import validate_rig_id
-        from orbitrig.service import BrokerSettings, RigService, ServiceError, ServiceSettings
+        from orbitrig.service import BrokerSettings, ServiceError, ServiceSettings
 
         logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO,
                             format="%(asctime)s %(levelname)s %(name)s: %(message)s")
@@ -74,15 +79,14 @@ def register(app: typer.Typer) -> None:
         try:
             validate_rig_id(rig_id)
         except ValueError as err:
-            raise typer.BadParameter(str(err), param_hint="--rig-id") from None
+            _fail(f"--rig-id: {err}")
         if tls_ca is not None and not tls_ca.is_file():
-            raise typer.BadParameter(f"no such file: {tls_ca}", param_hint="--tls-ca")
+            _fail(f"--tls-ca: no such file: {tls_ca}")
         password = read_password(password_file)
         if username is None and password is not None:
-            raise typer.BadParameter("a password needs a user name", param_hint="--username")
+            _fail("a password needs a user name (--username or ORBITRIG_MQTT_USERNAME)")
         if username is not None and password is None:
-            raise typer.BadParameter(f"no password: give --password-file or set {PASSWORD_ENV}",
-                                     param_hint="--password-file")
+            _fail(f"no password: give --password-file or set {PASSWORD_ENV}")
         try:
             rig = cfg.load_rig(config)
             broker_settings = BrokerSettings.from_url(broker, username=username, password=password,
@@ -92,22 +96,18 @@ def register(app: typer.Typer) -> None:
                                        supervision_policy=supervision_policy,  # type: ignore[arg-type]
                                        supervision_timeout=supervision_timeout)
         except (ConfigError, ServiceError) as err:
-            typer.echo(f"error: {err}", err=True)
-            raise typer.Exit(2) from None
+            _fail(str(err))
         if confirm not in ("remote", "auto"):
-            raise typer.BadParameter("one of remote, auto", param_hint="--confirm")
+            _fail(f"--confirm: one of remote, auto, not {confirm!r}")
         if confirm == "auto" and not sim:
-            raise typer.BadParameter("auto confirmation only with --sim (a real rig needs an operator)",
-                                     param_hint="--confirm")
+            _fail("--confirm auto only with --sim (a real rig needs an operator)")
         if not folder.is_dir():
-            raise typer.BadParameter(f"no such folder: {folder}", param_hint="--matrices")
+            _fail(f"matrix folder: no such folder: {folder} (--matrices)")
         try:
             asyncio.run(_serve(rig, settings, broker_settings, out=out, sim=sim, speedup=speedup,
                                confirm=confirm))
         except* ServiceError as group:
-            for err in group.exceptions:
-                typer.echo(f"error: {err}", err=True)
-            raise typer.Exit(1) from None
+            _fail("; ".join(str(e) for e in group.exceptions), 1)
 
 
 def build_service(rig, settings, broker_settings, *, out: Path, sim_rig=None, confirm: str = "remote"):

@@ -332,7 +332,7 @@ class RigService:
             if self.run_active:
                 log.warning("no broker for %.0f s: supervision lost, policy %r", s.supervision_timeout,
                             s.supervision_policy)
-                if s.supervision_policy == "pause" and self._state == "running":
+                if s.supervision_policy == "pause" and self._state in ("running", "waiting"):
                     self._request("pause")
                 elif s.supervision_policy == "stop":
                     self._request("stop")

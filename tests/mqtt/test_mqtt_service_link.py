@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import json
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -177,3 +177,32 @@ async def test_reconnects_and_republishes_status(tmp_path):
             assert (await wait(retained, b, "orbitrig/re1/status")).payload == msg.payload
     finally:
         b.stop()
+
+
+def _serve_cli(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
+    import os
+    import sys
+
+    from mqtt_helpers import REPO
+
+    full = {**os.environ, "PYTHONPATH": str(REPO), **(env or {})}
+    full.pop("ORBITRIG_MQTT_PASSWORD", None) if env is None else None
+    return subprocess.run([sys.executable, "-m", "orbitrig", "serve", *args], capture_output=True, text=True,
+                          env=full, timeout=60)
+
+
+def test_cli_needs_a_password_from_file_or_environment(broker):
+    done = _serve_cli("--broker", broker.url, "--username", "orbitrig-service")
+    assert done.returncode == 2
+    assert "no password: give --password-file or set ORBITRIG_MQTT_PASSWORD" in done.stderr
+    assert "--password" not in _serve_cli("--help").stdout.replace("--password-file", "")
+
+
+def test_cli_refused_credentials_exit_1(broker, tmp_path):
+    pw = tmp_path / "pw"
+    pw.write_text("wrong\n")
+    pw.chmod(0o644)
+    done = _serve_cli("--broker", broker.url, "--username", "orbitrig-service", "--password-file", str(pw))
+    assert done.returncode == 1, done.stderr
+    assert f"{pw} is readable by other users" in done.stderr
+    assert "refused the credentials of 'orbitrig-service'" in done.stderr
