@@ -33,24 +33,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO), str(REPO / "tests" / "mqtt")]
 
-from mqtt_helpers import ACCOUNTS, Broker  # noqa: E402  (the tests' broker set-up)
+from mqtt_helpers import ACCOUNTS, MATRIX, Broker  # noqa: E402  (the tests' broker set-up)
 
-MATRIX = """\
-name = "bench"
-revolutions = 200
-settle_hold_s = 0.1
-[operating]
-spin_rpm = [1000.0]
-recess_pressure_mpa = [0.4826]
-pressure_ratio = [0.4]
-static_eccentricity = [0.0]
-dynamic_eccentricity = [0.096]
-[orbit]
-ratios = [0.5, 0.7, 0.9]
-directions = ["forward"]
-[[models]]
-model = "kc7"
-"""
 CW_STOPPING = 0b1101  # OFF1 (bit 0), OFF3 (bit 2), RUN (bit 3): any of them 0 = a stop command
 
 
@@ -124,7 +108,8 @@ async def main(trials: int, speedup: float) -> None:
     logging.basicConfig(level=logging.WARNING)
     work = Path(tempfile.mkdtemp(prefix="bench-abort-"))
     (work / "matrices").mkdir()
-    (work / "matrices" / "bench.toml").write_text(MATRIX)
+    (work / "matrices" / "bench.toml").write_text(  # long blocks: abort lands mid-acquisition
+        MATRIX.format(name="bench", revs=200, ratios="[0.5, 0.7, 0.9]", directions='["forward"]'))
     broker = Broker(work / "broker")
     broker.start()
     stops: dict[int, float] = {}

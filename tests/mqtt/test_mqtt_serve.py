@@ -189,78 +189,68 @@ def test_completed_run_publishes_one_result_per_point(rig, service):
 
 # -- the broker and the service go away -----------------------------------------
 
+class OwnRun:
+    """A broker and a `serve --sim --confirm auto` of the test's own (the password
+    from the environment), with the 'long' matrix running and acquiring."""
+
+    def __init__(self, tmp_path: Path):
+        self.broker = Broker(tmp_path / "broker")
+        self.broker.start()
+        env = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}
+        self.svc = Service(serve_args(self.broker, tmp_path, "--confirm", "auto"), tmp_path, env=env)
+        self.rc = RigClient(self.broker, RIG, self.svc)
+
+    def __enter__(self) -> "OwnRun":
+        try:
+            self.rc.status("idle", timeout=30)
+            assert self.rc.command({"cmd": "start", "matrix": "long"})["ok"] is True
+            self.run_id = self.rc.status("running")["run_id"]
+            self.rc.watch.wait_for(lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] > 0, 30)
+        except BaseException:
+            self.__exit__()
+            raise
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.rc.close()
+        self.svc.kill()
+        self.broker.stop()
+
+
 def test_broker_restart_mid_run_and_the_run_completes(tmp_path):
-    b = Broker(tmp_path / "broker")
-    b.start()
-    env = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}  # password from the environment
-    svc = Service(serve_args(b, tmp_path, "--confirm", "auto"), tmp_path, env=env)
-    rc = RigClient(b, RIG, svc)
-    try:
-        rc.status("idle", timeout=30)
-        assert rc.command({"cmd": "start", "matrix": "long"})["ok"] is True
-        run_id = rc.status("running")["run_id"]
-        rc.watch.wait_for(lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] > 0, 30)
-        rc.close()
-        b.stop()
+    with OwnRun(tmp_path) as own:
+        own.rc.close()
+        own.broker.stop()
         time.sleep(1.0)
-        b.start()
-        rc = RigClient(b, RIG, svc)
-        again = rc.status(lambda s: s["run_id"] == run_id, timeout=30)  # republished on reconnect
+        own.broker.start()
+        own.rc = rc = RigClient(own.broker, RIG, own.svc)
+        again = rc.status(lambda s: s["run_id"] == own.run_id, timeout=30)  # republished on reconnect
         assert again["state"] in ("running", "paused", "stopping", "idle")
         idle = rc.status("idle", timeout=90)
-        assert idle["run_id"] == run_id and "completed" in idle["message"], idle
-        assert run_status(tmp_path, run_id) == "completed"
-        assert "connection to 127.0.0.1" in svc.text() and "lost" in svc.text()
-    finally:
-        rc.close()
-        svc.stop()
-        b.stop()
+        assert idle["run_id"] == own.run_id and "completed" in idle["message"], idle
+        assert run_status(tmp_path, own.run_id) == "completed"
+        assert "connection to 127.0.0.1" in own.svc.text() and "lost" in own.svc.text()
 
 
 def test_sigkill_publishes_offline_last_will(tmp_path):
-    b = Broker(tmp_path / "broker")
-    b.start()
-    env = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}
-    svc = Service(serve_args(b, tmp_path, "--confirm", "auto"), tmp_path, env=env)
-    rc = RigClient(b, RIG, svc)
-    try:
-        rc.status("idle", timeout=30)
-        assert rc.command({"cmd": "start", "matrix": "long"})["ok"] is True
-        run_id = rc.status("running")["run_id"]
-        mark = rc.watch.mark()
-        svc.kill(signal.SIGKILL)
-        offline = rc.status("offline", start=mark, timeout=10)
+    with OwnRun(tmp_path) as own:
+        mark = own.rc.watch.mark()
+        own.svc.kill(signal.SIGKILL)
+        offline = own.rc.status("offline", start=mark, timeout=10)
         # the will is registered at connection time, before this run started
         assert offline["run_id"] is None and "connection to the rig service lost" in offline["message"]
-        assert run_id
-        late = retained(b, f"orbitrig/{RIG}/status")
+        late = retained(own.broker, f"orbitrig/{RIG}/status")
         assert late.retain and late.json()["state"] == "offline"
-    finally:
-        rc.close()
-        svc.kill()
-        b.stop()
 
 
 def test_sigterm_mid_run_aborts_and_says_offline(tmp_path):
-    b = Broker(tmp_path / "broker")
-    b.start()
-    env = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}
-    svc = Service(serve_args(b, tmp_path, "--confirm", "auto"), tmp_path, env=env)
-    rc = RigClient(b, RIG, svc)
-    try:
-        rc.status("idle", timeout=30)
-        assert rc.command({"cmd": "start", "matrix": "long"})["ok"] is True
-        run_id = rc.status("running")["run_id"]
-        rc.watch.wait_for(lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] > 0, 30)
-        mark = rc.watch.mark()
-        svc.kill(signal.SIGTERM)
-        assert svc.proc.returncode == 0, svc.text()[-3000:]
-        states = [m.json()["state"] for m in rc.watch.on("status", mark)]
+    with OwnRun(tmp_path) as own:
+        mark = own.rc.watch.mark()
+        own.svc.kill(signal.SIGTERM)
+        assert own.svc.proc.returncode == 0, own.svc.text()[-3000:]
+        statuses = own.rc.watch.on("status", mark)
+        states = [m.json()["state"] for m in statuses]
         assert states[-1] == "offline" and "stopping" in states and "idle" in states, states
-        assert rc.watch.on("status", mark)[-1].json()["message"] == "service stopped"
-        assert retained(b, f"orbitrig/{RIG}/status").json()["state"] == "offline"
-        assert run_status(tmp_path, run_id) == "aborted"
-    finally:
-        rc.close()
-        svc.kill()
-        b.stop()
+        assert statuses[-1].json()["message"] == "service stopped"
+        assert retained(own.broker, f"orbitrig/{RIG}/status").json()["state"] == "offline"
+        assert run_status(tmp_path, own.run_id) == "aborted"
