@@ -229,6 +229,7 @@ def test_broker_restart_mid_run_and_the_run_completes(tmp_path):
         idle = rc.status("idle", timeout=90)
         assert idle["run_id"] == own.run_id and "completed" in idle["message"], idle
         assert run_status(tmp_path, own.run_id) == "completed"
+        assert [m.json()["run_id"] for m in rc.watch.on("result")] == [own.run_id]
         assert "connection to 127.0.0.1" in own.svc.text() and "lost" in own.svc.text()
 
 
