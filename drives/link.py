@@ -93,6 +93,7 @@ class ModbusLink:
         self.names = dict(names or {})
         self._client = None
         self._lock = asyncio.Lock()
+        self._abandoned: asyncio.Future | None = None  # RTU exchange of a cancelled caller
         self.requests = 0  # answered requests (including exception responses)
         self.failures = 0  # requests without a valid answer
         self.connects = 0  # successful (re)connections
@@ -152,6 +153,9 @@ class ModbusLink:
         log.debug("connected to %s", self.url)
 
     def _drop(self) -> None:
+        if self._abandoned is not None:
+            self._abandoned.cancel()
+            self._abandoned = None
         if self._client is not None:
             self._client.close()
             self._client = None
@@ -204,9 +208,21 @@ class ModbusLink:
 
         kw = self._error_kw(device_id, address)
         async with self._lock:
+            await self._settle_abandoned()
             await self._ensure_connected_for(device_id, address)
+            self._flush_input()
+            exchange = asyncio.ensure_future(asyncio.wait_for(call(self._client), self.timeout + 0.5))
             try:
-                rsp = await asyncio.wait_for(call(self._client), self.timeout + 0.5)
+                rsp = await asyncio.shield(exchange)
+            except asyncio.CancelledError:
+                if self.address.kind == "tcp" or exchange.done():
+                    exchange.cancel()
+                    self._drop()  # a new connection cannot receive the old answer
+                else:
+                    # RTU: let the exchange finish (<= timeout) before the next request
+                    # goes on the line, so its late answer cannot be mistaken for another.
+                    self._abandoned = exchange
+                raise
             except (ModbusIOException, asyncio.TimeoutError) as err:
                 self.failures += 1
                 self._drop()
@@ -217,9 +233,6 @@ class ModbusLink:
                 self.failures += 1
                 self._drop()
                 raise DriveLinkError(f"link failure on {self.url}: {err}", **kw) from err
-            except BaseException:  # cancelled mid-request: the answer may still come
-                self._drop()
-                raise
             if rsp is None:
                 self._fail(device_id, address, "no response object")
             if rsp.isError():
@@ -238,6 +251,30 @@ class ModbusLink:
                 )
             self.requests += 1
             return rsp
+
+    async def _settle_abandoned(self) -> None:
+        """Wait for the exchange a cancelled caller left on an RTU line (bounded)."""
+        exchange = self._abandoned
+        if exchange is None:
+            return
+        await asyncio.wait([exchange])
+        self._abandoned = None
+        if exchange.cancelled() or exchange.exception() is not None:
+            self._drop()
+
+    def _flush_input(self) -> None:
+        """RTU has no transaction id: drop any late answer still waiting in the
+        serial input (a pty or a USB adapter keeps it across a reopen) so it cannot
+        be taken for the answer to the next request. pymodbus 3.16 keeps the
+        pyserial port at `ctx.transport.sync_serial`."""
+        if self.address.kind != "rtu":
+            return
+        port = getattr(getattr(self._client.ctx, "transport", None), "sync_serial", None)
+        if port is not None:
+            try:
+                port.reset_input_buffer()
+            except OSError as err:
+                log.debug("input flush failed on %s: %s", self.url, err)
 
     async def _ensure_connected_for(self, device_id: int, address: int) -> None:
         try:

@@ -179,6 +179,7 @@ class RigDrives:
         self._link_lost_at: float | None = None
         self._release = False
         self._emergency = False  # the last stop was an emergency stop: exit repeats it
+        self.stop_errors: list[DriveError] = []  # delivery failures of the last stop command
 
     # -- context ----------------------------------------------------------------
     async def __aenter__(self) -> RigDrives:
@@ -460,9 +461,10 @@ class RigDrives:
                 await asyncio.shield(task)
             except asyncio.CancelledError:
                 cancelled = True
+        self.stop_errors = task.result()
         if cancelled:
             raise asyncio.CancelledError
-        return task.result()
+        return self.stop_errors
 
     async def _poll_loop(self) -> None:
         next_t = time.monotonic()

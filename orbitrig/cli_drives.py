@@ -147,21 +147,36 @@ def _run_async(make_coro, command: str) -> int:
             if not received:
                 raise
             task.uncancel()
+            after = "" if command == "status" else "; stop sent to both drives"
             typer.echo(
-                f"orbitrig drives {command}: interrupted by {received[0].name}; "
-                "stop sent to both drives",
-                err=True,
+                f"orbitrig drives {command}: interrupted by {received[0].name}{after}", err=True
             )
             return 2
         except DriveError as err:
-            after = "; both drives stopped" if command == "run" else ""
-            typer.echo(f"orbitrig drives {command} failed ({_reason(err)}): {err}{after}", err=True)
+            _report(command, err)
             return 2
         finally:
             for sig in (signal.SIGINT, signal.SIGTERM):
                 loop.remove_signal_handler(sig)
 
     return asyncio.run(main())
+
+
+def _stop_outcome(rig) -> str:
+    """What became of the stop a failed RigDrives session sent on its way out."""
+    if rig is None or rig.link.connects == 0:
+        return "nothing sent"
+    if rig.stop_errors:
+        return (
+            f"stop NOT delivered ({rig.stop_errors[0]}); the drives' comm-loss watchdog "
+            "stops them"
+        )
+    return "stop sent to both drives"
+
+
+def _report(command: str, err: BaseException, after: str = "") -> None:
+    tail = f"; {after}" if after else ""
+    typer.echo(f"orbitrig drives {command} failed ({_reason(err)}): {err}{tail}", err=True)
 
 
 def _drive_line(d: dict) -> str:
@@ -204,13 +219,23 @@ async def _status(url: str, json_out: bool, spin_id: int, orbit_id: int) -> int:
 
 
 async def _run(url, limits, spin, orbit, settle, timeout, spin_id, orbit_id) -> int:
+    from drives.errors import DriveError
     from drives.rig import RigDrives
 
-    limits.check(spin, orbit, spin_id=spin_id, orbit_id=orbit_id)  # before connecting at all
-    async with RigDrives(url, limits, spin_id=spin_id, orbit_id=orbit_id) as rig:
-        await rig.set_speeds(spin, orbit)
-        state = await rig.wait_settled(hold=settle, timeout=timeout)
-        rig.release()
+    try:
+        limits.check(spin, orbit, spin_id=spin_id, orbit_id=orbit_id)
+    except DriveError as err:
+        _report("run", err, "nothing sent")  # refused before connecting at all
+        return 2
+    rig = None
+    try:
+        async with RigDrives(url, limits, spin_id=spin_id, orbit_id=orbit_id) as rig:
+            await rig.set_speeds(spin, orbit)
+            state = await rig.wait_settled(hold=settle, timeout=timeout)
+            rig.release()
+    except DriveError as err:
+        _report("run", err, _stop_outcome(rig))
+        return 2
     for s in (state.spin, state.orbit):
         typer.echo(f"{s.name:5s} (id {s.device_id}): {_drive_line(s.to_dict())}")
     return 0

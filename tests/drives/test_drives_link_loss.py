@@ -16,6 +16,8 @@ from drives.errors import DriveFaultError, DriveLinkError
 from drives.rig import DriveLimits, RigDrives
 from sim.modbus_server import serve_modbus_tcp
 
+pytestmark = pytest.mark.timeout(30)  # a hang fails fast, with a traceback
+
 LIMITS = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM)
 
 

@@ -21,6 +21,8 @@ from drives.errors import (
 from drives.link import ModbusLink
 from drives.rig import DriveLimits, RigDrives
 
+pytestmark = pytest.mark.timeout(30)  # a hang fails fast, with a traceback
+
 LIMITS = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM, min_ratio=None, max_ratio=1.0)
 
 

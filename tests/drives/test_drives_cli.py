@@ -1,0 +1,114 @@
+"""`orbitrig drives status|run|stop` in a subprocess against the simulator's drives."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import signal
+import sys
+
+import pytest
+from drives_testkit import CW_RAMP_STOP, CW_RUN, ROOT, run_cli, subprocess_env
+
+pytestmark = pytest.mark.timeout(30)  # a hang fails fast, with a traceback
+
+
+async def test_run_status_stop(sim):
+    code, out, err = await run_cli(
+        "drives", "run", "--modbus", sim.url, "--spin", "1200", "--orbit", "-600",
+        "--max-spin", "2000", "--max-orbit", "1000", "--settle", "0.1", "--timeout", "10",
+    )
+    assert code == 0, err
+    assert "spin  (id 1): running, at setpoint" in out
+    assert sim.rpm(1) == pytest.approx(1200, abs=5) and sim.rpm(2) == pytest.approx(-600, abs=5)
+
+    code, out, err = await run_cli("drives", "status", "--modbus", sim.url, "--json")
+    assert code == 0, err
+    status = json.loads(out)
+    assert set(status) == {"modbus", "spin", "orbit"}
+    assert status["orbit"]["reference_rpm"] == pytest.approx(-600, abs=0.2)
+    assert status["spin"]["parameters"]["speed_scale_rpm"] == 3000
+    assert status["spin"]["fault_code"] in (0, 7510)  # the run's client has gone: watchdog
+
+    code, out, err = await run_cli("drives", "stop", "--modbus", sim.url)
+    assert code == 0, err
+    assert sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0  # returned only at zero
+
+
+async def test_run_refused_by_a_limit_sends_nothing(tcp_sim):
+    code, out, err = await run_cli(
+        "drives", "run", "--modbus", tcp_sim.url, "--spin", "1500", "--orbit", "100",
+        "--max-spin", "1000",
+    )
+    assert code == 2
+    assert "failed (limit)" in err and "spin drive (id 1)" in err and "nothing sent" in err
+    for dev in (1, 2):
+        assert tcp_sim.regs(dev)["CW"] == 0 and tcp_sim.regs(dev)["REF"] == 0
+
+
+async def test_run_fails_on_a_trip_and_stops_both(tcp_sim):
+    sim = tcp_sim
+    task = asyncio.create_task(
+        run_cli("drives", "run", "--modbus", sim.url, "--spin", "1000", "--orbit", "500",
+                "--settle", "20", "--timeout", "30")
+    )
+    await sim.wait_for(lambda: sim.regs(2)["CW"] == CW_RUN, 10, "run started")
+    sim.models[2].inject_fault(4210)
+    code, out, err = await task
+    assert code == 2
+    assert "failed (fault)" in err and "orbit drive (id 2)" in err and "4210" in err
+    assert "stop sent to both drives" in err
+    assert sim.regs(1)["CW"] == CW_RAMP_STOP and sim.regs(1)["FAULT"] == 0
+    await sim.wait_stopped()
+
+
+async def test_run_timeout_stops_both(tcp_sim):
+    code, out, err = await run_cli(
+        "drives", "run", "--modbus", tcp_sim.url, "--spin", "2400", "--orbit", "2400",
+        "--settle", "1", "--timeout", "0.2",
+    )
+    assert code == 2 and "failed (timeout)" in err, err
+    assert tcp_sim.regs(1)["CW"] == tcp_sim.regs(2)["CW"] == CW_RAMP_STOP
+    await tcp_sim.wait_stopped()
+
+
+async def test_sigterm_during_run_stops_both(sim):
+    proc = await asyncio.create_subprocess_exec(
+        sys.executable, "-m", "orbitrig", "drives", "run", "--modbus", sim.url,
+        "--spin", "1000", "--orbit", "-800", "--settle", "30", "--timeout", "60",
+        cwd=ROOT, env=subprocess_env(),
+        stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
+    )
+    try:
+        await sim.wait_for(
+            lambda: sim.regs(1)["SW"] & 0x100 and sim.regs(2)["SW"] & 0x100, 10, "at setpoint"
+        )
+        proc.send_signal(signal.SIGTERM)
+        out, err = await asyncio.wait_for(proc.communicate(), 10)
+    finally:
+        if proc.returncode is None:
+            proc.kill()
+            await proc.wait()
+    assert proc.returncode == 2
+    assert b"interrupted by SIGTERM" in err
+    for dev in (1, 2):
+        assert sim.regs(dev)["CW"] == CW_RAMP_STOP and sim.regs(dev)["FAULT"] == 0
+    await sim.wait_stopped()
+
+
+async def test_emergency_stop_cli(tcp_sim):
+    sim = tcp_sim
+    code, _, err = await run_cli(
+        "drives", "run", "--modbus", sim.url, "--spin", "2000", "--orbit", "1000",
+        "--settle", "0.05",
+    )
+    assert code == 0, err
+    code, out, err = await run_cli("drives", "stop", "--modbus", sim.url, "--emergency")
+    assert code == 0, err
+    assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == 0x047B
+    assert sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
+
+
+async def test_status_on_a_dead_link_exits_2():
+    code, out, err = await run_cli("drives", "status", "--modbus", "tcp://127.0.0.1:9")
+    assert code == 2 and "failed (link)" in err and "cannot connect" in err
