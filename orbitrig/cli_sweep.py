@@ -18,6 +18,7 @@ EXIT = {"completed": 0, "failed": 1, "stopped": 3, "aborted": 4}
 def register(app: typer.Typer) -> None:
     @app.command("sweep")
     def sweep(
+        run_dir: Optional[Path] = typer.Argument(None, help="the run directory, as --out (`--resume DIR`)"),
         out: Optional[Path] = typer.Option(None, "--out", help="run directory (run.h5, coefficients.csv, run.log)"),
         sim: bool = typer.Option(False, "--sim", help="run on the built-in simulator over loopback protocols"),
         config: Optional[Path] = typer.Option(None, "--config", help="rig configuration [config/rig.toml]"),
@@ -33,6 +34,9 @@ def register(app: typer.Typer) -> None:
         """Run a test matrix: manual settings, speeds, settle, acquire, identify, store."""
         from orbitrig.errors import ConfigError, OrbitrigError
 
+        if run_dir is not None and out is not None and run_dir != out:
+            raise typer.BadParameter(f"two run directories: {run_dir} and --out {out}", param_hint="DIR")
+        out = out or run_dir
         try:
             rig, mat = _load(config, matrix, sim=sim, resume=resume, out=out, dry_run=dry_run)
             if dry_run:

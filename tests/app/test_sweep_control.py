@@ -124,6 +124,28 @@ async def test_can_heartbeat_loss_suspends_until_it_returns(tmp_path):
     assert any("interlock cleared" in e.message for e in rec.events if isinstance(e, StatusEvent))
 
 
+async def test_supply_pressure_out_of_band_suspends(tmp_path):
+    rig = cfg.load_rig()
+    out = tmp_path / "run"
+    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
+        eng = RunEngine(rig, out_dir=out, sim=sim)
+        rec = Recorder()
+        eng.subscribe(rec)
+        m = small_matrix(revolutions=30)
+        run = asyncio.create_task(eng.run(m))
+        await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
+        sim.set_manual(pressure_ratio=0.05)  # supply = 0.4826 / 0.05 = 9.7 MPa > 8 MPa
+        await wait_for(lambda: eng.state == "paused", timeout=10, what="suspension")
+        assert "supply pressure" in eng.message and "outside the band 0.2..8 MPa" in eng.message
+        held = rec.blocks_done()
+        await asyncio.sleep(0.3)
+        assert eng.state == "paused" and rec.blocks_done() == held
+        sim.set_manual(pressure_ratio=0.4)
+        outcome = await run
+    assert outcome.status == "completed", outcome.message
+    assert _stored(out)[2]["0000"][0]
+
+
 async def test_drive_trip_fails_the_run_and_stops_both_drives(tmp_path):
     rig = cfg.load_rig()
     out = tmp_path / "run"

@@ -53,7 +53,7 @@ def test_kill_9_mid_run_then_resume(tmp_path):
         assert not f["points/0001"].attrs["complete"]
     assert [r["point"] for r in csv.DictReader(open(out / "coefficients.csv"))] == ["0", "0"]
 
-    p = subprocess.run(orbitrig_cmd("sweep", "--sim", "--resume", "--out", str(out)), cwd=ROOT,
+    p = subprocess.run(orbitrig_cmd("sweep", "--sim", "--resume", str(out)), cwd=ROOT,
                        capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stdout + p.stderr
     text = log.read_text()
