@@ -283,3 +283,7 @@ def print_coefficients(out: Path) -> None:
             console.print(table)
             if truth:
                 console.print("(%) = |identified - true| / largest true entry of the matrix", markup=False)
+                top = max(truth["orbit"], key=abs)
+                k, d = (max(abs(v) for row in truth[m] for v in row) for m in ("K0", "D0"))
+                console.print(f"D acts as Omega^2 D: at the highest orbit speed that is {100 * top**2 * d / k:.2g} % "
+                              "of the largest K entry, so D is weakly determined here", markup=False)  # fmt: skip

@@ -52,4 +52,6 @@ class SweepProgress:
             p = ev.payload
             self.done += 1
             self.progress.update(self.points, completed=self.done)
+            for task in (self.freqs, self.revs):
+                self.progress.update(task, completed=self.progress.tasks[task].total)
             self.progress.console.log(Text(f"point {p['point']:04d} {p['label']} complete"))
