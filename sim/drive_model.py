@@ -77,7 +77,8 @@ nothing. A multi-register write is applied as one: REF2, REF, then CW.
 Faults
 ------
 2310, 4210, 7301: coast stop. 7510 (communication loss): ramp stop along
-DECEL_TIME if the drive was under torque (a coasting drive keeps coasting).
+DECEL_TIME if the drive was under torque (a coasting drive keeps coasting; an
+OFF3 emergency stop under way keeps its 10 x faster ramp).
 Faults latch in order of occurrence. `inject_fault(code)` sets the cause and
 trips; `clear_fault_cause()` removes the cause (the fault stays latched until
 a RESET edge). The cause of 7510 is gone as soon as a valid request arrives.
@@ -260,6 +261,7 @@ class DriveModel:
         self._faults: list[int] = []  # latched, in order
         self._causes: set[int] = set()  # fault causes still present
         self._fault_ramp = False  # 7510 ramp stop in progress
+        self._fault_ramp_factor = 1.0  # x DECEL rate (EMERGENCY_FACTOR if OFF3 was active)
 
         self._t = float(clock())
         self._w = float(wall_clock())
@@ -544,6 +546,8 @@ class DriveModel:
             self._fault_ramp = False
         elif self._state != FAULTED:
             self._fault_ramp = was_powered and self._speed != 0.0
+            # an emergency stop already under way keeps its faster ramp
+            self._fault_ramp_factor = EMERGENCY_FACTOR if self._state == OFF3_ACTIVE else 1.0
         self._state = FAULTED
 
     def _modulating(self) -> bool:
@@ -583,7 +587,7 @@ class DriveModel:
         if s == OFF3_ACTIVE:
             return 0.0, acc, EMERGENCY_FACTOR * dec
         if s == FAULTED and self._fault_ramp:
-            return 0.0, acc, dec
+            return 0.0, acc, self._fault_ramp_factor * dec
         return 0.0, self._coast_decel, self._coast_decel  # torque off: coasting
 
     def _integrate_to(self, t_end: float) -> None:

@@ -536,3 +536,29 @@ def test_local_control(clocks):
     assert rpm(spin) == 900.0
     spin.local_control(0.0)
     assert rpm(spin) == 0.0 and not spin.running
+
+
+def test_comm_loss_during_emergency_stop_keeps_the_fast_ramp(clocks):
+    d = make(clocks)
+    at_speed(clocks, d, 1500)
+    d.note_request()
+    d.write(CW, [EMERGENCY])
+    clocks.tick(0.05, wall=1.05)  # watchdog expires 0.05 s (simulated) before now
+    d.advance()
+    assert d.fault_code == 7510
+    assert rpm(d) == pytest.approx(1500 - 0.05 * 10 * RATE, abs=1e-6)
+    clocks.tick(0.2)
+    assert rpm(d) == 0.0 and reg(d, TORQUE) == 0
+
+
+def test_coast_fault_during_comm_loss_ramp_takes_over(clocks):
+    d = make(clocks)
+    at_speed(clocks, d, 1500)
+    d.note_request()
+    clocks.tick(0.0, wall=1.5)
+    d.advance()
+    assert d.fault_code == 7510 and s16(reg(d, TORQUE)) < 0
+    d.inject_fault(4210)
+    assert reg(d, TORQUE) == 0 and d.faults == (7510, 4210)
+    clocks.tick(1.0)
+    assert rpm(d) == pytest.approx(1350)  # coasting at 150 rpm/s now
