@@ -61,7 +61,7 @@ def main() -> None:
     ap.add_argument("--chunk", type=int, default=1 << 16, help="bytes per feed (one link read)")
     args = ap.parse_args()
     print(f"decode + assemble + average, one core, {args.revolutions} revolutions, {args.chunk} bytes per feed")
-    worst = float("inf")
+    rates = {}
     for channels, mode, frame_slots in [(8, "sequential", 45), (8, "sequential", 180), (8, "sequential", 15),
                                         (8, "simultaneous", 45), (8, "simultaneous", 15)]:
         data = make_stream(args.revolutions, channels, mode, frame_slots)
@@ -69,13 +69,14 @@ def main() -> None:
         _, c = run(data, channels, mode, args.chunk)
         samples = c["revolutions"] * 360 * (channels if mode == "simultaneous" else 1)
         rate = samples / best
-        worst = min(worst, rate)
+        rates[(mode, frame_slots)] = rate
         print(f"  {mode:12s} C={channels} {frame_slots:3d} slots/frame: {rate / 1e6:7.1f} M samples/s "
               f"({len(data) / best / 1e6:6.1f} MB/s)  revolutions {c['revolutions']}, blocks {c['blocks']}, "
               f"frames bad {c['frames_bad']}, bytes skipped {c['bytes_skipped']}, "
               f"revolutions dropped {c['revolutions_dropped']}")
         assert c["frames_bad"] == c["bytes_skipped"] == c["revolutions_dropped"] == 0
-    print(f"slowest layout: {worst / 1e6:.1f} M samples/s (target >= 10)")
+    print(f"the simulator's layout (sequential, 45 slots per frame): {rates[('sequential', 45)] / 1e6:.1f} "
+          f"M samples/s (target >= 10); slowest layout: {min(rates.values()) / 1e6:.1f} M samples/s")
 
 
 if __name__ == "__main__":

@@ -161,7 +161,8 @@ class FrameDecoder:
     """
 
     def __init__(self) -> None:
-        self._buf = b""
+        self._buf = bytearray()  # bytes held back: an incomplete frame or a trailing sync byte
+        self._need = 0  # held bytes needed before decoding can make progress
         self._skip_run = 0  # bytes skipped since the last good frame (already counted)
         self.frames_good = 0
         self.frames_bad = 0
@@ -176,7 +177,8 @@ class FrameDecoder:
     def reset(self) -> None:
         """Forget held bytes (link dropped): they count as skipped."""
         self._skip(len(self._buf))
-        self._buf = b""
+        self._buf = bytearray()
+        self._need = 0
 
     def _skip(self, n: int) -> None:
         self.bytes_skipped += n
@@ -186,7 +188,13 @@ class FrameDecoder:
         return self.feed_batch(data).frames()
 
     def feed_batch(self, data: bytes) -> FrameBatch:
-        buf = self._buf + bytes(data) if self._buf else bytes(data)
+        if self._buf:
+            self._buf += data
+            if len(self._buf) < self._need:  # the held frame is still incomplete
+                return FrameBatch.empty()
+            buf = bytes(self._buf)
+        else:
+            buf = bytes(data)
         mv = memoryview(buf)
         n = len(buf)
         find, startswith, unpack = buf.find, buf.startswith, _CHECKED.unpack_from
@@ -195,13 +203,14 @@ class FrameDecoder:
         pos = 0  # first byte not yet accounted for
         scan = 0  # where to look for the next sync
         keep = n  # first byte to hold back for the next feed
+        need = 0  # bytes from ``keep`` on that a held frame needs
         while True:
             c = scan if startswith(SYNC, scan) else find(SYNC, scan)
             if c < 0:
                 keep = n - 1 if n > pos and buf[-1] == _LAST_SYNC_BYTE0 else n
                 break
             if c + HEADER_SIZE > n:
-                keep = c
+                keep, need = c, c + HEADER_SIZE
                 break
             ver, flags, fs, ns, nch = unpack(buf, c)
             # the checks of header_problem(), inline (this loop runs once per frame)
@@ -209,7 +218,7 @@ class FrameDecoder:
                     and (fs == 0 or not flags & FLAG_TRIGGER) and (nch == 1 or flags & FLAG_SIMULTANEOUS)):
                 end = c + HEADER_SIZE + 2 * ns * nch + CRC_SIZE
                 if end > n:
-                    keep = c
+                    keep, need = c, end
                     break
                 if crc_hqx(mv[c + 2:end - 2], 0xFFFF) == buf[end - 2] | (buf[end - 1] << 8):
                     if c > pos:
@@ -229,7 +238,8 @@ class FrameDecoder:
         keep = max(keep, pos)
         if keep > pos:
             self._skip(keep - pos)
-        self._buf = buf[keep:]
+        self._buf = bytearray(mv[keep:])
+        self._need = need - keep if need else 0
         if not starts:
             return FrameBatch.empty()
         self.frames_good += len(starts)

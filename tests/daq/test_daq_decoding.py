@@ -242,3 +242,16 @@ def test_stalled_board_clock_drops_revolutions_without_a_period():
     assert [r.rev for r in revs] == [0, 1, 5, 6, 7]
     assert asm.drop_reasons == {"bad_clock": 3}
     check_intact(revs, counts)
+
+
+def test_false_header_claiming_a_long_frame_is_resolved():
+    """A sync + plausible header in garbage claiming 255 x 255 samples holds decoding
+    only until that many bytes arrived; the frames behind it then decode."""
+    false = b"\xa5\x5a" + bytes([1, SIMULTANEOUS, 0, 0, 0, 0, 0, 0, 0, 0, 255, 255, 0, 0, 0, 0])
+    counts = signal(80, 8, "simultaneous")
+    data = false + b"".join(stream(counts, "simultaneous")[0])
+    assert len(data) > 2 * 255 * 255 + 20
+    dec, asm, revs = run(data, mode="simultaneous", chunk=7)
+    assert dec.frame_errors == {"crc": 1} and dec.bytes_skipped == 1 + 17  # resynced right after the sync
+    assert len(revs) == 80 and asm.revolutions_dropped == 0
+    check_intact(revs, counts)
