@@ -158,7 +158,7 @@ class ModbusEndpoint:
         self._closed = True
         listener = self._server.transport
         await self._server.shutdown()
-        if isinstance(listener, asyncio.base_events.Server):
+        if isinstance(listener, asyncio.AbstractServer):
             with contextlib.suppress(asyncio.TimeoutError):
                 await asyncio.wait_for(listener.wait_closed(), timeout=1.0)
         if self._bridge is not None:
