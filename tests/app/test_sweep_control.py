@@ -1,6 +1,7 @@
 """RunEngine control on the real simulator: confirm, pause/resume, stop, abort, interlocks."""
 
 import asyncio
+import contextlib
 
 import h5py
 import pytest
@@ -37,19 +38,30 @@ def _stored(out):
         return str(f.attrs["status"]), str(f.attrs["status_message"]), pts
 
 
+@contextlib.asynccontextmanager
+async def running(tmp_path, matrix, **engine_kw):
+    """A SimRig and a RunEngine running `matrix` in a task: yields (sim, engine, recorder, run task)."""
+    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
+        eng = RunEngine(cfg.load_rig(), out_dir=tmp_path / "run", sim=sim, **engine_kw)
+        rec = Recorder()
+        eng.subscribe(rec)
+        run = asyncio.create_task(eng.run(matrix))
+        try:
+            yield sim, eng, rec, run
+        finally:
+            if not run.done():
+                run.cancel()
+                await asyncio.gather(run, return_exceptions=True)
+
+
 def _spindles_stopped(sim) -> bool:
     spin, orbit = sim.speeds
     return abs(spin) < 1.0 and abs(orbit) < 1.0
 
 
 async def test_confirm_pause_resume_then_stop(tmp_path):
-    rig = cfg.load_rig()
     out = tmp_path / "run"
-    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
-        eng = RunEngine(rig, out_dir=out, sim=sim, confirm_mode="remote")
-        rec = Recorder()
-        eng.subscribe(rec)
-        run = asyncio.create_task(eng.run(small_matrix()))
+    async with running(tmp_path, small_matrix(), confirm_mode="remote") as (sim, eng, rec, run):
         await wait_for(lambda: eng.state == "waiting", what="waiting for the manual settings")
         assert eng.waiting_step == "manual:0000"
         assert "orbit radius 5.76 um" in eng.message
@@ -85,13 +97,8 @@ async def test_confirm_pause_resume_then_stop(tmp_path):
 
 
 async def test_abort_emergency_ramp_keeps_complete_data(tmp_path):
-    rig = cfg.load_rig()
     out = tmp_path / "run"
-    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
-        eng = RunEngine(rig, out_dir=out, sim=sim)
-        rec = Recorder()
-        eng.subscribe(rec)
-        run = asyncio.create_task(eng.run(small_matrix(spin_rpm=[1000.0, 2000.0])))
+    async with running(tmp_path, small_matrix(spin_rpm=[1000.0, 2000.0])) as (sim, eng, rec, run):
         await wait_for(lambda: rec.blocks_done() >= 3, what="three blocks")
         eng.request_abort()
         outcome = await run
@@ -105,13 +112,8 @@ async def test_abort_emergency_ramp_keeps_complete_data(tmp_path):
 
 
 async def test_can_heartbeat_loss_suspends_until_it_returns(tmp_path):
-    rig = cfg.load_rig()
     out = tmp_path / "run"
-    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
-        eng = RunEngine(rig, out_dir=out, sim=sim)
-        rec = Recorder()
-        eng.subscribe(rec)
-        run = asyncio.create_task(eng.run(small_matrix(revolutions=30, spin_rpm=[1000.0, 2000.0])))
+    async with running(tmp_path, small_matrix(revolutions=30, spin_rpm=[1000.0, 2000.0])) as (sim, eng, rec, run):
         await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
         sim.inject("can_heartbeat_loss", on=True)
         await wait_for(lambda: eng.state == "paused", timeout=10, what="suspension")
@@ -125,14 +127,8 @@ async def test_can_heartbeat_loss_suspends_until_it_returns(tmp_path):
 
 
 async def test_supply_pressure_out_of_band_suspends(tmp_path):
-    rig = cfg.load_rig()
     out = tmp_path / "run"
-    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
-        eng = RunEngine(rig, out_dir=out, sim=sim)
-        rec = Recorder()
-        eng.subscribe(rec)
-        m = small_matrix(revolutions=30)
-        run = asyncio.create_task(eng.run(m))
+    async with running(tmp_path, small_matrix(revolutions=30)) as (sim, eng, rec, run):
         await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
         sim.set_manual(pressure_ratio=0.05)  # supply = 0.4826 / 0.05 = 9.7 MPa > 8 MPa
         await wait_for(lambda: eng.state == "paused", timeout=10, what="suspension")
@@ -147,13 +143,8 @@ async def test_supply_pressure_out_of_band_suspends(tmp_path):
 
 
 async def test_drive_trip_fails_the_run_and_stops_both_drives(tmp_path):
-    rig = cfg.load_rig()
     out = tmp_path / "run"
-    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
-        eng = RunEngine(rig, out_dir=out, sim=sim)
-        rec = Recorder()
-        eng.subscribe(rec)
-        run = asyncio.create_task(eng.run(small_matrix()))
+    async with running(tmp_path, small_matrix()) as (sim, eng, rec, run):
         await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
         sim.inject("drive_trip", drive=2, code=2310)
         outcome = await run
@@ -167,13 +158,8 @@ async def test_drive_trip_fails_the_run_and_stops_both_drives(tmp_path):
 
 
 async def test_lost_trigger_fails_with_a_clear_message(tmp_path):
-    rig = cfg.load_rig()
     out = tmp_path / "run"
-    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
-        eng = RunEngine(rig, out_dir=out, sim=sim)
-        rec = Recorder()
-        eng.subscribe(rec)
-        run = asyncio.create_task(eng.run(small_matrix()))
+    async with running(tmp_path, small_matrix()) as (sim, eng, rec, run):
         await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
         sim.inject("missing_trigger", count=10**9)
         outcome = await run
