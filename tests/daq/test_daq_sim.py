@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from _oracle import WireTap
+from daq_oracle import WireTap
 
 from daq.adc import AdcReader
 from daq.errors import DaqLinkError, DaqTimeoutError
