@@ -218,10 +218,10 @@ class Drive:
         ):
             if value is None:
                 continue
-            word = round(value / unit)
-            if not 0 <= word <= 0xFFFF or (address != R.COMM_LOSS_TIMEOUT and word == 0 and value):
+            word = round(value / unit)  # the drive refuses values outside its range (exc. 03)
+            if not 0 <= word <= 0xFFFF:
                 raise DriveLimitError(
-                    f"{value:g} is not representable (unit {unit:g})", **self._kw(address)
+                    f"{value:g} does not fit the register (unit {unit:g})", **self._kw(address)
                 )
             writes.append((address, word))
         for address, word in writes:

@@ -100,6 +100,8 @@ EXCEPTION_NAMES: dict[int, str] = {
     3: "illegal data value",
     4: "server device failure",
     6: "server device busy",
+    10: "gateway path unavailable",
+    11: "gateway target device failed to respond",
 }
 
 

@@ -64,6 +64,17 @@ class DriveLimits:
     min_ratio: float | None = None
     max_ratio: float | None = None
 
+    def __post_init__(self) -> None:
+        for name in ("max_spin", "max_orbit", "min_ratio", "max_ratio"):
+            value = getattr(self, name)
+            if value is not None and not value >= 0:
+                raise ValueError(f"DriveLimits.{name} = {value} must be >= 0")
+        if self.min_ratio is not None and self.max_ratio is not None:
+            if self.min_ratio > self.max_ratio:
+                raise ValueError(
+                    f"DriveLimits.min_ratio = {self.min_ratio} > max_ratio = {self.max_ratio}"
+                )
+
     def check(self, spin: float, orbit: float, *, spin_id: int = 1, orbit_id: int = 2) -> None:
         """Raise DriveLimitError if (spin, orbit) is outside the limits (pure)."""
         if not (math.isfinite(spin) and math.isfinite(orbit)):
@@ -156,8 +167,10 @@ class RigDrives:
         comm_loss_timeout: float | None = None,
         state_timeout: float = 2.0,
     ):
-        if poll_interval <= 0:
+        if not poll_interval > 0:
             raise ValueError(f"poll_interval {poll_interval} s is not positive")
+        if spin_id == orbit_id:
+            raise ValueError(f"spin_id and orbit_id are both {spin_id}")
         self.url = url
         self.limits = limits
         self.poll_interval = float(poll_interval)
@@ -228,15 +241,20 @@ class RigDrives:
             await self.link.close()
 
     async def _clear_stale_comm_loss(self, drive: Drive) -> DriveStatus:
-        """A drive at standstill whose only fault is 7510 (the previous client went
-        away) is reset: talking to it removed the cause. Other faults stay."""
+        """A drive at standstill showing fault 7510 (the previous client went away)
+        is reset: talking to it removed the cause. Other faults stay for
+        `reset_faults`; a reset the drive refuses leaves it tripped."""
         st = await drive.read_status()
         if st.tripped and st.fault_code == R.FAULT_COMM_LOSS and st.stopped:
             log.warning(
                 "%s drive (id %d): resetting fault 7510 left by a previous client (at standstill)",
                 drive.name, drive.device_id,
             )
-            st = await drive.reset_fault()
+            try:
+                st = await drive.reset_fault()
+            except DriveFaultError as err:
+                log.warning("%s", err)
+                st = await drive.read_status()
         return st
 
     def release(self) -> None:

@@ -11,8 +11,6 @@ import math
 
 import typer
 
-RPM = 2.0 * math.pi / 60.0  # rad/s per rpm
-
 _MODBUS_HELP = "Modbus URL of the drives: tcp://host:port or rtu:///dev/ttyX?baud=19200"
 
 
@@ -66,6 +64,7 @@ def register(app: typer.Typer) -> None:
         left at their setpoint; without a polling client their comm-loss
         watchdog then ramps them down after COMM_LOSS_TIMEOUT.
         """
+        from drives.drive import RPM
         from drives.rig import DriveLimits
 
         limits = DriveLimits(
@@ -130,6 +129,8 @@ def _run_async(make_coro, command: str) -> int:
 
     from drives.errors import DriveError
 
+    _quiet_logging()
+
     async def main() -> int:
         task = asyncio.current_task()
         loop = asyncio.get_running_loop()
@@ -160,6 +161,16 @@ def _run_async(make_coro, command: str) -> int:
                 loop.remove_signal_handler(sig)
 
     return asyncio.run(main())
+
+
+def _quiet_logging() -> None:
+    """Our warnings (link loss, drives left running) on stderr; pymodbus' own
+    error lines repeat what our messages say, so they are silenced."""
+    import logging
+
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+    if not logging.getLogger().handlers:
+        logging.basicConfig(level=logging.WARNING, format="orbitrig %(name)s: %(message)s")
 
 
 def _stop_outcome(rig) -> str:
@@ -242,13 +253,41 @@ async def _run(url, limits, spin, orbit, settle, timeout, spin_id, orbit_id) -> 
 
 
 async def _stop(url, emergency, timeout, spin_id, orbit_id) -> int:
+    from drives.errors import DriveError
     from drives.rig import DriveLimits, RigDrives
 
-    async with RigDrives(
-        url, DriveLimits(math.inf, math.inf), spin_id=spin_id, orbit_id=orbit_id
-    ) as rig:
-        await rig.stop(emergency=emergency, wait=True, timeout=timeout)
-        state = rig.state
+    try:
+        async with RigDrives(
+            url, DriveLimits(math.inf, math.inf), spin_id=spin_id, orbit_id=orbit_id
+        ) as rig:
+            await rig.stop(emergency=emergency, wait=True, timeout=timeout)
+            state = rig.state
+    except DriveError as err:
+        # The controller could not be opened (or the wait failed): still put the
+        # stop word on the line for each drive that answers, without reading first.
+        sent = await _stop_words_best_effort(url, emergency, spin_id, orbit_id)
+        _report("stop", err, f"stop word delivered to: {', '.join(sent) or 'no drive'}")
+        return 2
     for s in (state.spin, state.orbit):
         typer.echo(f"{s.name:5s} (id {s.device_id}): {_drive_line(s.to_dict())}")
     return 0
+
+
+async def _stop_words_best_effort(url, emergency, spin_id, orbit_id) -> list[str]:
+    from drives.drive import Drive
+    from drives.errors import DriveError
+    from drives.link import ModbusLink
+
+    sent = []
+    link = ModbusLink(url, names={spin_id: "spin", orbit_id: "orbit"})
+    try:
+        for name, device_id in (("spin", spin_id), ("orbit", orbit_id)):
+            drive = Drive(link, device_id, name, bidirectional=name == "orbit")
+            try:
+                await (drive.emergency_stop() if emergency else drive.ramp_stop())
+                sent.append(f"{name} (id {device_id})")
+            except DriveError as err:
+                typer.echo(f"orbitrig drives stop: {err}", err=True)
+    finally:
+        await link.close()
+    return sent

@@ -12,6 +12,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from drives.rig import DriveLimits, RigDrives
 from sim import drive_model as dm
 from sim.drive_model import DriveModel
 from sim.modbus_server import ModbusEndpoint, serve_modbus_rtu_pty, serve_modbus_tcp
@@ -59,6 +60,14 @@ class SimDrives:
         return await self.wait_for(
             lambda: self.regs(1)["ACT"] == 0 and self.regs(2)["ACT"] == 0, timeout, "standstill"
         )
+
+
+def open_rig(sim: SimDrives, limits: DriveLimits, **kw) -> RigDrives:
+    """RigDrives on the simulator with test timings (poll 50 ms, watchdog 0.5 s)."""
+    kw.setdefault("poll_interval", 0.05)
+    kw.setdefault("timeout", 0.3)
+    kw.setdefault("comm_loss_timeout", 0.5)
+    return RigDrives(sim.url, limits, **kw)
 
 
 def make_models(speedup: float = SPEEDUP) -> dict[int, DriveModel]:

@@ -72,7 +72,8 @@ async def test_run_timeout_stops_both(tcp_sim):
     await tcp_sim.wait_stopped()
 
 
-async def test_sigterm_during_run_stops_both(sim):
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+async def test_signal_during_run_stops_both(sim, sig):
     proc = await asyncio.create_subprocess_exec(
         sys.executable, "-m", "orbitrig", "drives", "run", "--modbus", sim.url,
         "--spin", "1000", "--orbit", "-800", "--settle", "30", "--timeout", "60",
@@ -83,14 +84,14 @@ async def test_sigterm_during_run_stops_both(sim):
         await sim.wait_for(
             lambda: sim.regs(1)["SW"] & 0x100 and sim.regs(2)["SW"] & 0x100, 10, "at setpoint"
         )
-        proc.send_signal(signal.SIGTERM)
+        proc.send_signal(sig)
         out, err = await asyncio.wait_for(proc.communicate(), 10)
     finally:
         if proc.returncode is None:
             proc.kill()
             await proc.wait()
     assert proc.returncode == 2
-    assert b"interrupted by SIGTERM" in err
+    assert f"interrupted by {sig.name}".encode() in err
     for dev in (1, 2):
         assert sim.regs(dev)["CW"] == CW_RAMP_STOP and sim.regs(dev)["FAULT"] == 0
     await sim.wait_stopped()
@@ -107,6 +108,22 @@ async def test_emergency_stop_cli(tcp_sim):
     assert code == 0, err
     assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == 0x047B
     assert sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
+
+
+async def test_stop_still_stops_the_drive_that_answers(tcp_sim):
+    sim = tcp_sim
+    code, _, err = await run_cli(
+        "drives", "run", "--modbus", sim.url, "--spin", "1500", "--orbit", "500",
+        "--settle", "0.05",
+    )
+    assert code == 0, err
+    # device id 3 is not on the network (the TCP gateway answers exception 0x0B)
+    code, out, err = await run_cli("drives", "stop", "--modbus", sim.url, "--orbit-id", "3")
+    assert code == 2
+    assert "orbit drive (id 3)" in err and "exception 11" in err
+    assert "stop word delivered to: spin (id 1)" in err
+    assert sim.regs(1)["CW"] == CW_RAMP_STOP
+    await sim.wait_for(lambda: sim.regs(1)["ACT"] == 0, 3, "spin standstill")
 
 
 async def test_status_on_a_dead_link_exits_2():

@@ -10,7 +10,7 @@ import signal
 import sys
 
 import pytest
-from drives_testkit import CW_RAMP_STOP, CW_RUN, ROOT, RPM, subprocess_env
+from drives_testkit import CW_RAMP_STOP, CW_RUN, ROOT, RPM, open_rig, subprocess_env
 
 from drives.errors import DriveFaultError, DriveLinkError
 from drives.rig import DriveLimits, RigDrives
@@ -22,10 +22,7 @@ LIMITS = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM)
 
 
 def rig(sim, **kw) -> RigDrives:
-    kw.setdefault("poll_interval", 0.05)
-    kw.setdefault("timeout", 0.3)
-    kw.setdefault("comm_loss_timeout", 0.5)
-    return RigDrives(sim.url, LIMITS, **kw)
+    return open_rig(sim, LIMITS, **kw)
 
 
 async def wait_until(cond, timeout: float, what: str) -> None:

@@ -93,6 +93,10 @@ def test_limits():
     with pytest.raises(DriveLimitError):
         lim.check(0.0, 10.0)
     DriveLimits(math.inf, math.inf).check(0.0, 10.0)  # no ratio bound
+    with pytest.raises(ValueError, match="max_orbit"):
+        DriveLimits(100.0, -1.0)
+    with pytest.raises(ValueError, match="min_ratio"):
+        DriveLimits(100.0, 100.0, min_ratio=2.0, max_ratio=1.0)
 
 
 def test_settle_detector_needs_an_unbroken_hold():

@@ -10,7 +10,7 @@ import asyncio
 import math
 
 import pytest
-from drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, PARAM, RPM, set_parameter
+from drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, PARAM, RPM, open_rig, set_parameter
 
 from drives.errors import (
     DriveError,
@@ -27,10 +27,7 @@ LIMITS = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM, min_ratio=None, 
 
 
 def rig(sim, limits=LIMITS, **kw) -> RigDrives:
-    kw.setdefault("poll_interval", 0.05)
-    kw.setdefault("timeout", 0.3)
-    kw.setdefault("comm_loss_timeout", 0.5)
-    return RigDrives(sim.url, limits, **kw)
+    return open_rig(sim, limits, **kw)
 
 
 async def test_start_forward_with_scaling_read_from_the_drive(sim):
