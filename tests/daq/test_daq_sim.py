@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import math
+import os
 
 import numpy as np
 import pytest
@@ -139,13 +140,34 @@ async def test_stall_clock(rig, link):
 
 
 @pytest.mark.parametrize("link", ["tcp", "pty"])
-async def test_close_link_reconnects(rig, link):
+async def test_close_link_reconnects(rig, link, tmp_path):
+    """The link drops (TCP connection aborted / pty hung up) and comes back. A pty
+    comes back under whatever /dev/pts number is free, so the reader opens it by a
+    symbolic link that the test re-points, as udev does for /dev/serial/by-id/."""
     tap = WireTap(rig)
-    block, used = await acquire_with_fault(rig, url_of(rig, link), "close_adc_link", reopen_after=0.1)
+    url = rig.adc_url
+    tasks = []
+    if link == "pty":
+        url = str(tmp_path / "adc-by-id")
+        os.symlink(rig.adc_pty_path, url)
+
+    async def repoint():
+        while rig.adc_pty_path is None:
+            await asyncio.sleep(0.01)
+        os.symlink(rig.adc_pty_path, url + ".new")
+        os.replace(url + ".new", url)
+
+    def fault():
+        rig.inject("close_adc_link", reopen_after=0.1)
+        if link == "pty":
+            tasks.append(asyncio.ensure_future(repoint()))
+
+    block, used = await acquire_with_fault(rig, url, fault)
     s = block.stats
     assert s.link_drops == 1
     assert set(s.drop_reasons) <= {"link_drop", "seq_gap", "corrupt"}
     check_block(rig, block, used, tap)
+    await asyncio.gather(*tasks)
 
 
 async def test_close_link_without_reconnect_raises(rig):
