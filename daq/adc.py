@@ -182,8 +182,10 @@ class AdcReader:
         """
         if self._collection is not None:
             raise DaqError("acquire() is already running on this reader")
-        if self._closed or (self._link is None and self._reconnect_task is None):
+        if self._closed or self._link is None:
             raise DaqLinkError(f"{self.url}: reader is not open")
+        if not self.connected and self._reconnect_task is None:
+            raise DaqLinkError(f"{self.url}: link is down ({self.link_error})")
         # bytes already received (waiting in the OS) were converted before this call:
         # they pass through the decoder and assembler while nothing is collecting
         if self.connected:

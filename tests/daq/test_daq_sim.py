@@ -177,6 +177,8 @@ async def test_close_link_without_reconnect_raises(rig):
         rig.inject("close_adc_link")
         with pytest.raises(DaqLinkError, match="closed|lost"):
             await task
+        with pytest.raises(DaqLinkError, match="link is down"):
+            await adc.acquire(10, timeout=5)
 
 
 async def test_simultaneous_mode(tmp_path):
