@@ -203,6 +203,7 @@ class RigDrives:
             if any(v is not None for v in self._params.values()):
                 for d in self._drives:
                     await d.configure(**self._params)
+            self._check_heartbeat_margin()
             statuses = [await self._clear_stale_comm_loss(d) for d in self._drives]
             self._publish(statuses, link_ok=True)
             self._poll_task = asyncio.create_task(
@@ -239,6 +240,17 @@ class RigDrives:
                 raise errors[0]
         finally:
             await self.link.close()
+
+    def _check_heartbeat_margin(self) -> None:
+        """Warn when one lost request could already trip a drive's watchdog."""
+        watchdogs = [d.params.comm_loss_timeout for d in self._drives if d.params.comm_loss_timeout]
+        gap = self.link.timeout + self.poll_interval  # longest silence after a lost request
+        if watchdogs and gap >= min(watchdogs):
+            log.warning(
+                "request timeout %.2f s + poll interval %.2f s is not below the drives' "
+                "COMM_LOSS_TIMEOUT of %.1f s: a single lost request trips them",
+                self.link.timeout, self.poll_interval, min(watchdogs),
+            )
 
     async def _clear_stale_comm_loss(self, drive: Drive) -> DriveStatus:
         """A drive at standstill showing fault 7510 (the previous client went away)

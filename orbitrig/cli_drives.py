@@ -11,6 +11,7 @@ import math
 
 import typer
 
+_REQUEST_TIMEOUT = 0.5  # s; well below the drives' default 1.0 s comm-loss watchdog
 _MODBUS_HELP = "Modbus URL of the drives: tcp://host:port or rtu:///dev/ttyX?baud=19200"
 
 
@@ -240,7 +241,9 @@ async def _run(url, limits, spin, orbit, settle, timeout, spin_id, orbit_id) -> 
         return 2
     rig = None
     try:
-        async with RigDrives(url, limits, spin_id=spin_id, orbit_id=orbit_id) as rig:
+        async with RigDrives(
+            url, limits, spin_id=spin_id, orbit_id=orbit_id, timeout=_REQUEST_TIMEOUT
+        ) as rig:
             await rig.set_speeds(spin, orbit)
             state = await rig.wait_settled(hold=settle, timeout=timeout)
             rig.release()
@@ -258,7 +261,11 @@ async def _stop(url, emergency, timeout, spin_id, orbit_id) -> int:
 
     try:
         async with RigDrives(
-            url, DriveLimits(math.inf, math.inf), spin_id=spin_id, orbit_id=orbit_id
+            url,
+            DriveLimits(math.inf, math.inf),
+            spin_id=spin_id,
+            orbit_id=orbit_id,
+            timeout=_REQUEST_TIMEOUT,
         ) as rig:
             await rig.stop(emergency=emergency, wait=True, timeout=timeout)
             state = rig.state

@@ -198,3 +198,13 @@ async def test_wait_settled_timeout_names_the_drives(sim):
         await r.set_speeds(2400 * RPM, 0.0)
         with pytest.raises(DriveError, match=r"not at setpoint.*spin \(id 1\)"):
             await r.wait_settled(hold=0.05, timeout=0.05)
+
+
+async def test_warns_when_one_lost_request_would_trip_the_watchdog(tcp_sim, caplog):
+    async with rig(tcp_sim, timeout=1.0, comm_loss_timeout=1.0):
+        pass
+    assert "a single lost request trips them" in caplog.text
+    caplog.clear()
+    async with rig(tcp_sim, timeout=0.3, comm_loss_timeout=1.0):
+        pass
+    assert "single lost request" not in caplog.text
