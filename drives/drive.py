@@ -341,15 +341,6 @@ class Drive:
         await self.write_control(R.CW_RUN)
         return await self.wait_status(lambda s: s.running, "operation enabled (RDY_REF)")
 
-    async def ramp_stop(self) -> None:
-        """OFF1: ramp to zero along DECEL_TIME, then zero the reference."""
-        await self.write_control(R.CW_RAMP_STOP)
-        await self.write_reference(0)
-
-    async def emergency_stop(self) -> None:
-        """OFF3: fastest ramp to zero (10 x faster than DECEL_TIME)."""
-        await self.write_control(R.CW_EMERGENCY_STOP)
-
     async def reset_fault(self) -> DriveStatus:
         """RESET edge (0x04F6 then 0x0476); DriveFaultError if the fault is still active."""
         st = await self.read_status()

@@ -49,6 +49,30 @@ def _fmt(speed: float) -> str:
     return f"{speed:.3f} rad/s ({rad_s_to_rpm(speed):.1f} rpm)"
 
 
+async def send_stop(drives, *, emergency: bool = False) -> list[DriveError]:
+    """Stop words to every drive (OFF1 ramp stop, or OFF3 emergency stop), then
+    zero references so that no later start jumps back to the old speed.
+
+    Control words go out first, to all drives, before anything else; a drive
+    that does not take it does not keep the others from getting theirs.
+    Returns the delivery errors (logged), one per drive that missed its stop word.
+    """
+    errors: list[DriveError] = []
+    word = R.CW_EMERGENCY_STOP if emergency else R.CW_RAMP_STOP
+    for d in drives:
+        try:
+            await d.write_control(word)
+        except DriveError as err:
+            log.error("stop command not delivered: %s", err)
+            errors.append(err)
+    for d in drives:
+        try:
+            await d.write_reference(0)
+        except DriveError as err:
+            log.warning("zero reference not delivered: %s", err)
+    return errors
+
+
 @dataclass(frozen=True)
 class DriveLimits:
     """Allowed operating range, rad/s.
@@ -423,12 +447,16 @@ class RigDrives:
             self._failure = err
 
     def _stop_time(self, emergency: bool) -> float:
+        """Default wait for standstill (s): the drives' own ramp from the present
+        speed, with margin; a tripped drive coasts at a rate nobody knows, so it
+        gets a minute more."""
         worst = 0.0
         for d, st in ((self.spin, self._state.spin), (self.orbit, self._state.orbit)):
             if d.params is None or st is None:
                 continue
             t = d.params.decel_time * abs(st.actual) / d.params.speed_scale
-            worst = max(worst, t / 10 if emergency else t)
+            t = t / 10 if emergency else t
+            worst = max(worst, t + (60.0 if st.tripped else 0.0))
         return 1.5 * worst + 2.0 + 4 * self.poll_interval
 
     def _describe(self, st: RigDriveState) -> str:
@@ -459,22 +487,7 @@ class RigDrives:
         tick.set()
 
     async def _stop_all(self, emergency: bool) -> list[DriveError]:
-        """Stop command to both drives: control words first, then zero references."""
-        errors: list[DriveError] = []
-        word = R.CW_EMERGENCY_STOP if emergency else R.CW_RAMP_STOP
-        for d in self._drives:
-            try:
-                await d.write_control(word)
-            except DriveError as err:
-                log.error("stop command not delivered: %s", err)
-                errors.append(err)
-        if not emergency:
-            for d in self._drives:
-                try:
-                    await d.write_reference(0)
-                except DriveError as err:
-                    log.warning("zero reference not delivered: %s", err)
-        return errors
+        return await send_stop(self._drives, emergency=emergency)
 
     async def _safe_stop(self, *, emergency: bool = False) -> list[DriveError]:
         """Deliver the stop to both drives even if the calling task is cancelled meanwhile.

@@ -282,19 +282,16 @@ async def _stop(url, emergency, timeout, spin_id, orbit_id) -> int:
 
 async def _stop_words_best_effort(url, emergency, spin_id, orbit_id) -> list[str]:
     from drives.drive import Drive
-    from drives.errors import DriveError
     from drives.link import ModbusLink
+    from drives.rig import send_stop
 
-    sent = []
-    link = ModbusLink(url, names={spin_id: "spin", orbit_id: "orbit"})
+    link = ModbusLink(url, timeout=_REQUEST_TIMEOUT, names={spin_id: "spin", orbit_id: "orbit"})
+    drives = [
+        Drive(link, spin_id, "spin", bidirectional=False),
+        Drive(link, orbit_id, "orbit", bidirectional=True),
+    ]
     try:
-        for name, device_id in (("spin", spin_id), ("orbit", orbit_id)):
-            drive = Drive(link, device_id, name, bidirectional=name == "orbit")
-            try:
-                await (drive.emergency_stop() if emergency else drive.ramp_stop())
-                sent.append(f"{name} (id {device_id})")
-            except DriveError as err:
-                typer.echo(f"orbitrig drives stop: {err}", err=True)
+        missed = {err.drive for err in await send_stop(drives, emergency=emergency)}
     finally:
         await link.close()
-    return sent
+    return [f"{d.name} (id {d.device_id})" for d in drives if d.device_id not in missed]
