@@ -8,8 +8,14 @@
 The pymodbus client is created inside the running loop (`connect`). Requests
 are serialised by one lock and bounded by `timeout`; a Modbus exception
 response is raised as `DriveExceptionResponse`, never returned. After any
-failed request the connection is dropped and the next request reconnects, so
-a late answer can never be taken for the answer to a newer request.
+failed request the connection is dropped and the next request reconnects.
+
+A late answer must never be taken for the answer to a newer request: on TCP
+a new connection cannot receive it (and transaction ids differ); RTU has no
+transaction id, so the serial input is flushed before each request (a pty or
+USB adapter keeps unread bytes across a reopen), and an exchange whose caller
+was cancelled is allowed to finish (<= timeout) before the next one starts.
+
 pymodbus' own reconnect task and retries are switched off: reconnecting is
 this class' job, at the pace its callers (the poll) set.
 """

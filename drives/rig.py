@@ -20,7 +20,11 @@ Safety rules this class keeps:
   before anything goes on; drives found tripped or off their reference are
   stopped and the loss is raised.
 - Any exception inside `set_speeds`, and every exit of the context, ramps both
-  drives to zero; the stop is sent even while the task is being cancelled.
+  drives to zero (an emergency stop is repeated as such); the stop is sent
+  even while the task is being cancelled. Only `release()` followed by a clean
+  exit leaves them running (the CLI's `run`).
+- On entry, a drive at standstill showing fault 7510 (a previous client went
+  away) is reset; any other fault waits for `reset_faults()`.
 """
 
 from __future__ import annotations
