@@ -490,9 +490,6 @@ class RigDrives:
         tick, self._tick = self._tick, asyncio.Event()
         tick.set()
 
-    async def _stop_all(self, emergency: bool) -> list[DriveError]:
-        return await send_stop(self._drives, emergency=emergency)
-
     async def _safe_stop(self, *, emergency: bool = False) -> list[DriveError]:
         """Deliver the stop to both drives even if the calling task is cancelled meanwhile.
 
@@ -500,7 +497,7 @@ class RigDrives:
         during the stop is re-raised once the stop has been sent.
         """
         task = asyncio.get_running_loop().create_task(
-            self._stop_all(emergency), name="drives-safe-stop"
+            send_stop(self._drives, emergency=emergency), name="drives-safe-stop"
         )
         cancelled = False
         while not task.done():
@@ -531,8 +528,9 @@ class RigDrives:
 
     async def _poll_once(self) -> None:
         try:
-            statuses = [await d.read_status() for d in self._drives]
-            if not self._state.link_ok:
+            if self._state.link_ok:
+                statuses = [await d.read_status() for d in self._drives]
+            else:
                 statuses = await self._verify_after_reconnect()
         except DriveError as err:
             self._link_down(err)
@@ -560,7 +558,7 @@ class RigDrives:
         statuses = [await d.read_status() for d in self._drives]
         command = self._command
         problem: DriveError | None = None
-        for st, d in zip(statuses, self._drives):
+        for i, (st, d) in enumerate(zip(statuses, self._drives)):
             if st.tripped:
                 problem = DriveFaultError(
                     f"tripped while the link was down ({down:.1f} s)",
@@ -569,7 +567,7 @@ class RigDrives:
                 )
                 break
             if command is not None:
-                want = command[self._drives.index(d)]
+                want = command[i]
                 if not st.running or st.reference_raw != want:
                     problem = DriveLinkError(
                         f"link was down {down:.1f} s; found {st.state} with REF "
@@ -582,7 +580,7 @@ class RigDrives:
             return statuses
         log.error("drive link restored after %.1f s; %s; stopping both", down, problem)
         self._trip_handled = True
-        await self._stop_all(emergency=False)
+        await send_stop(self._drives)
         self._command = None
         self._fail(problem)
         return statuses
@@ -602,6 +600,6 @@ class RigDrives:
             fault_code=st.fault_code,
         )
         log.error("%s; ramping both drives to zero", err)
-        await self._stop_all(emergency=False)  # delivered before anyone hears of the fault
+        await send_stop(self._drives)  # delivered before anyone hears of the fault
         self._command = None
         self._fail(err)
