@@ -51,7 +51,10 @@ class Transports(_Model):
     adc_mode: Literal["sequential", "simultaneous"] = "sequential"
     modbus_url: str = "tcp://127.0.0.1:5020"
     can_channel: str = "can0"
-    can_interface: Literal["socketcan", "virtual"] = "socketcan"
+    # python-can interface names: socketcan on a Linux rig, serial/slcan for USB
+    # adapters, virtual for in-process tests
+    can_interface: Literal["socketcan", "serial", "slcan", "pcan", "kvaser", "ixxat",
+                           "vector", "socketcand", "virtual"] = "socketcan"
     can_bitrate: Annotated[int, Field(gt=0)] = 500_000
     can_node_id: Annotated[int, Field(ge=1, le=127)] = 1
 

@@ -195,7 +195,8 @@ class RunEngine:
             done = []
         self._store = store
         self._reset_requests()
-        self.run_id = f"{matrix.name}-{_dt.datetime.now(_dt.timezone.utc).strftime('%Y%m%dT%H%M%SZ')}"
+        now = _dt.datetime.now(_dt.timezone.utc)  # millisecond resolution: ids stay unique
+        self.run_id = f"{matrix.name}-{now.strftime('%Y%m%dT%H%M%S')}.{now.microsecond // 1000:03d}Z"
         self._t0 = time.monotonic()
         self.timing = {"wall": 0.0, "settle": 0.0, "acquire": 0.0, "confirm": 0.0, "suspended": 0.0}
         todo = [i for i in points if i not in done]
@@ -559,7 +560,8 @@ class RunEngine:
         t0 = time.monotonic()
         self.waiting_step = step_id
         self._confirmed = None
-        self._set_state(WAITING, message)
+        # the operator (terminal or MQTT) confirms by this id: {"cmd": "confirm", "step": ...}
+        self._set_state(WAITING, f"{message} (confirm step {step_id!r})")
         try:
             while self._confirmed != step_id:
                 if self._stop_req:

@@ -460,12 +460,7 @@ class RigService:
             self._loop.call_soon_threadsafe(self._on_event, event)
             return
         if hasattr(event, "state"):
-            message = event.message or ""
-            step = getattr(self._engine, "waiting_step", None)
-            if event.state == "waiting" and step and repr(step) not in message:
-                # the operator confirms by this id: {"cmd": "confirm", "step": ...}
-                message = f"{message} (confirm step {step!r})".lstrip()
-            self._set_status(event.state, event.run_id, message, event.since)
+            self._set_status(event.state, event.run_id, event.message or "", event.since)
         elif hasattr(event, "payload"):
             self._send(self.topics.result, proto.result_payload(event.run_id, event.payload), proto.QOS_RESULT)
         elif hasattr(event, "point"):

@@ -275,13 +275,12 @@ class RigClient:
 class Service:
     """`orbitrig serve` as a subprocess (its log in ``log``)."""
 
-    def __init__(self, args: list[str], workdir: Path, env: dict[str, str] | None = None,
-                 launcher: list[str] | None = None):
+    def __init__(self, args: list[str], workdir: Path, env: dict[str, str] | None = None):
         self.log = Path(workdir) / "serve.log"
         path = os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p)
         full_env = {**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONPATH": path, **(env or {})}
         with open(self.log, "ab") as log:
-            self.proc = subprocess.Popen([*(launcher or [sys.executable, "-m", "orbitrig"]), "serve", *args],
+            self.proc = subprocess.Popen([sys.executable, "-m", "orbitrig", "serve", *args],
                                          stdout=log, stderr=log, env=full_env, cwd=workdir)
 
     def text(self) -> str:
