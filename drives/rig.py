@@ -83,8 +83,9 @@ class DriveLimits:
 
     max_spin : largest spin speed omega (spin is >= 0).
     max_orbit : largest |Omega| (orbit is signed).
-    min_ratio, max_ratio : allowed |Omega| / omega, None = unbounded. With
-        omega = 0 only Omega = 0 passes a ratio bound.
+    min_ratio, max_ratio : allowed |Omega| / omega while both turn, None =
+        unbounded. Omega = 0 (orbit spindle still) passes; omega = 0 with
+        Omega != 0 (orbit without spin, ratio infinite) fails any ratio bound.
     """
 
     max_spin: float
@@ -122,7 +123,7 @@ class DriveLimits:
                 f"orbit |{_fmt(orbit)}| exceeds the limit max_orbit = {_fmt(self.max_orbit)}",
                 drive=orbit_id, drive_name="orbit", register=R.REF,
             )
-        if self.min_ratio is None and self.max_ratio is None or (spin == 0 and orbit == 0):
+        if self.min_ratio is None and self.max_ratio is None or orbit == 0:
             return
         ratio = math.inf if spin == 0 else abs(orbit) / spin
         lo = self.min_ratio if self.min_ratio is not None else 0.0

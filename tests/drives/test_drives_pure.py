@@ -80,6 +80,7 @@ def test_limits():
     lim.check(150.0, -100.0)
     lim.check(150.0, 15.0)
     lim.check(0.0, 0.0)
+    lim.check(150.0, 0.0)  # orbit spindle still: no ratio to keep
     with pytest.raises(DriveLimitError, match=r"spin drive \(id 1\).*max_spin"):
         lim.check(200.1, 50.0)
     with pytest.raises(DriveLimitError, match=r"orbit drive \(id 2\).*max_orbit"):
