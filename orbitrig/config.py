@@ -280,7 +280,8 @@ class ModelSpec(_Model):
 
     @property
     def key(self) -> str:
-        return f"{self.model}__{self.freq_dep.replace(':', '_').replace(',', '_')}"
+        """Storage name: model, freq-dep and method (two methods of one model must not collide)."""
+        return f"{self.model}__{self.freq_dep.replace(':', '_').replace(',', '_')}__{self.method}"
 
 
 class MatrixConfig(_Model):

@@ -345,8 +345,7 @@ def point_csv_rows(g: h5py.Group, sim: bool) -> list[dict]:
     truth = json.loads(g["truth"].attrs["json"]) if sim and "truth" in g else None
     rows = []
     for name, h in g["identification"].items():
-        lms, model, fd = name.split("__")
-        row = dict(settings, lms=lms, model=model)
+        row = dict(settings, lms=name.split("__")[0], model=str(h.attrs["model"]))
         if "json" in h.attrs:
             d = json.loads(h.attrs["json"])
             row.update(freq_dep=d["freq_dep"], method=d["method"], n_frequencies=d["n_frequencies"],
@@ -358,7 +357,7 @@ def point_csv_rows(g: h5py.Group, sim: bool) -> list[dict]:
                 row[f"{k}_std"] = "" if std is None else f"{std:.6g}"
             keys = [k for k in d["coefficients"] if "_" not in k]
         else:
-            row.update(freq_dep=str(h.attrs.get("freq_dep", fd)), method=str(h.attrs.get("method", "")),
+            row.update(freq_dep=str(h.attrs["freq_dep"]), method=str(h.attrs.get("method", "")),
                        error=str(h.attrs["error"]))
             keys = []
         if truth is not None:

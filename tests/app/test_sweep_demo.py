@@ -32,7 +32,7 @@ def test_demo_sweep_identifies_within_5_percent(tmp_path):
             assert (fr["coherence"][()] > 0.9).all()
         truth = json.loads(g["truth"].attrs["json"])
         checked = 0
-        for name in ("piezo__kcd11__none", "strain__kcd11__none", "piezo__kc8__none", "strain__kc8__none"):
+        for name in ("piezo__kcd11__none__ols", "strain__kcd11__none__ols", "piezo__kc8__none__ols", "strain__kc8__none__ols"):
             fit = json.loads(g["identification"][name].attrs["json"])
             errs = compare_with_truth(fit["coefficients"], truth)
             for key, pct in errs.items():

@@ -64,8 +64,8 @@ def test_store_layout_resume_and_csv(tmp_path):
         assert fr["coherence"].shape == (2, 4) and fr["phasors"].dtype == np.complex128
         assert json.loads(fr["stats"].attrs["drop_reasons"]) == {"crc": 1}
         assert set(g["table"]) == {"piezo", "strain"} and g["table/piezo/gamma2"].shape == (2, 4)
-        assert json.loads(g["identification/piezo__kc8__none"].attrs["json"])["coefficients"]["Kxx"] == 3e7
-        assert "error" in g["identification/strain__kc8__none"].attrs
+        assert json.loads(g["identification/piezo__kc8__none__ols"].attrs["json"])["coefficients"]["Kxx"] == 3e7
+        assert "error" in g["identification/strain__kc8__none__ols"].attrs
         assert "K0" in json.loads(g["truth"].attrs["json"])
         assert f["logs/events"][0]["message"].decode() == "hello"
         assert not f["points/0001"].attrs["complete"]
