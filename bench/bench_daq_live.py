@@ -10,7 +10,7 @@ Prints samples/s of good revolutions averaged and the loss counts (revolutions
 dropped, frames bad, bytes skipped, link drops; for the simulator also the
 frames its board lost because the pty backed up).
 
-    python3 bench/bench_daq_live.py [--seconds 4] [--speedup 10] [--speedup-sequential 40] [--orbit-hz 50]
+    python3 bench/bench_daq_live.py [--seconds 4] [--speedup 10] [--speedup-sequential 80] [--orbit-hz 50]
 Target: >= 1 million samples/s with zero loss.
 """
 
@@ -156,7 +156,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=4.0)
     ap.add_argument("--speedup", type=float, default=10.0, help="simulator speed-up, simultaneous mode")
-    ap.add_argument("--speedup-sequential", type=float, default=40.0)
+    ap.add_argument("--speedup-sequential", type=float, default=80.0)
     ap.add_argument("--orbit-hz", type=float, default=50.0, help="orbit frequency in simulated time")
     args = ap.parse_args()
     print(f"live over a pty, AdcReader.acquire end to end ({args.seconds:g} s per run)")

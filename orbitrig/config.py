@@ -92,7 +92,7 @@ class Drives(_Model):
     spin_id: Annotated[int, Field(ge=1, le=247)] = 1
     orbit_id: Annotated[int, Field(ge=1, le=247)] = 2
     poll_interval_s: Pos = 0.1
-    timeout_s: Pos = 1.0
+    timeout_s: Pos = 0.4  # Modbus request timeout, s: keep well under COMM_LOSS_TIMEOUT
     ramp_rpm_per_s: Pos = Field(600.0, description="drive ramp rate, for time estimates")
     stop_timeout_s: Pos = 30.0
 

@@ -10,6 +10,15 @@
 
 from __future__ import annotations
 
+from daq.errors import DaqError, DaqLinkError, DaqTimeoutError  # noqa: F401
+from drives.errors import (  # noqa: F401
+    DriveError,
+    DriveExceptionResponse,
+    DriveFaultError,
+    DriveLimitError,
+    DriveLinkError,
+    DriveTimeoutError,
+)
 from reduction.errors import (  # noqa: F401
     IdentifiabilityError,
     IdentificationError,
