@@ -142,7 +142,7 @@ class RunEngine:
     def request_pause(self) -> None:
         if self.state in (RUNNING, WAITING):
             self._pause_req = True
-            self._log_event(f"pause requested (honoured at the next safe point)")
+            self._log_event("pause requested (honoured at the next safe point)")
         self._wake.set()
 
     def request_resume(self) -> None:

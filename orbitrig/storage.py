@@ -301,7 +301,7 @@ class RunStore:
         rows = []
         with h5py.File(self.path, "r") as f:
             sim = bool(f.attrs.get("sim", False))
-            for name, g in sorted(f["points"].items()):
+            for _name, g in sorted(f["points"].items()):
                 if not g.attrs.get("complete", False):
                     continue
                 rows += point_csv_rows(g, sim)

@@ -21,7 +21,6 @@ import sys
 import threading
 import time
 import tty
-from pathlib import Path
 
 import pytest
 from pymodbus.client import ModbusTcpClient
