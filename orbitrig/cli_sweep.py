@@ -21,14 +21,14 @@ def register(app: typer.Typer) -> None:
         run_dir: Optional[Path] = typer.Argument(None, help="the run directory, as --out (`--resume DIR`)"),
         out: Optional[Path] = typer.Option(None, "--out", help="run directory (run.h5, coefficients.csv, run.log)"),
         sim: bool = typer.Option(False, "--sim", help="run on the built-in simulator over loopback protocols"),
-        config: Optional[Path] = typer.Option(None, "--config", help="rig configuration [config/rig.toml]"),
+        config: Optional[Path] = typer.Option(None, "--config", help="rig configuration TOML (default: config/rig.toml of the orbitrig source tree)"),
         matrix: Optional[Path] = typer.Option(
-            None, "--matrix", help="test matrix [config/matrices/demo.toml with --sim]"
+            None, "--matrix", help="test matrix TOML (required on the rig; --sim defaults to config/matrices/demo.toml)"
         ),
         resume: bool = typer.Option(False, "--resume", help="continue the run in --out from its first incomplete point"),
-        dry_run: bool = typer.Option(False, "--dry-run", help="list the steps with estimated durations; no hardware"),
+        dry_run: bool = typer.Option(False, "--dry-run", help="list the steps with estimated durations (s); touches no hardware"),
         speedup: float = typer.Option(
-            DEFAULT_SIM_SPEEDUP, "--speedup", min=0.01, help="simulator time speed-up (--sim only)"
+            DEFAULT_SIM_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"
         ),
     ) -> None:
         """Run a test matrix: manual settings, speeds, settle, acquire, identify, store."""
@@ -44,6 +44,8 @@ def register(app: typer.Typer) -> None:
                 return
             if out is None:
                 raise typer.BadParameter("--out DIR is required (except with --dry-run)", param_hint="--out")
+            if not resume:
+                _check_out(out)
             import asyncio
 
             outcome = asyncio.run(_sweep(rig, mat, out=out, sim=sim, resume=resume, speedup=speedup))
@@ -53,6 +55,9 @@ def register(app: typer.Typer) -> None:
         except OrbitrigError as err:
             typer.echo(f"error: {err}", err=True)
             raise typer.Exit(2) from None
+        except OSError as err:  # a file the run needs cannot be written (disk full, permissions)
+            typer.echo(f"error: {err.filename or out}: {err.strerror or err}", err=True)
+            raise typer.Exit(1) from None
         raise typer.Exit(EXIT[outcome.status])
 
 
@@ -77,7 +82,27 @@ def _load(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
     if matrix is None and not sim and not dry_run:
         raise typer.BadParameter("--matrix FILE is required on the rig (--sim defaults to the demo)",
                                  param_hint="--matrix")  # fmt: skip
-    return rig, cfg.load_matrix(matrix)
+    mat = cfg.load_matrix(matrix)
+    cfg.check_matrix_against_rig(mat, rig)  # before the simulator or any drive is started
+    return rig, mat
+
+
+def _check_out(out: Path) -> None:
+    """The run directory can be created and written, before anything is started."""
+    import os
+
+    from orbitrig.errors import ConfigError
+
+    if out.exists() and not out.is_dir():
+        raise ConfigError(str(out), ["--out is a file, not a directory"])
+    if (out / "run.h5").exists():
+        raise ConfigError(str(out / "run.h5"), ["already exists: use --resume to continue that run, or another --out"])
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise ConfigError(str(out), [f"cannot create the run directory: {err.strerror or err}"]) from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise ConfigError(str(out), ["the run directory is not writable"])
 
 
 def _dry_run(rig, mat) -> None:

@@ -336,25 +336,67 @@ def _key_path(loc: tuple) -> str:
     for part in loc:
         if isinstance(part, int):
             out += f"[{part}]"
-        elif not str(part).startswith(("function-", "literal[", "list[", "float", "int")):
+        elif not str(part).startswith(_LOC_SKIP):
             out += ("." if out else "") + str(part)
     return out or "(top level)"
 
 
-def _problems(err: ValidationError, model: type[BaseModel]) -> list[str]:
+_LOC_SKIP = ("function-", "literal[", "list[", "float", "int")
+_HEADER = re.compile(r"^\s*(\[\[?)\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
+_KEY = re.compile(r"^\s*([A-Za-z0-9_\-\"']+)\s*=")
+
+
+def _line_of(text: str, loc: tuple) -> int | None:
+    """1-based line of the key (or table header) at a pydantic location, None if not found."""
+    want = tuple(p for p in loc if isinstance(p, int) or not str(p).startswith(_LOC_SKIP))
+    if not want or not text:
+        return None
+    best, best_len = None, 0
+    table: tuple = ()
+    counts: dict[tuple, int] = {}
+    for n, line in enumerate(text.splitlines(), 1):
+        m = _HEADER.match(line)
+        if m:
+            path = tuple(part.strip().strip('"') for part in m.group(2).split("."))
+            if m.group(1) == "[[":
+                i = counts.get(path, 0)
+                counts[path] = i + 1
+                path = path + (i,)
+            table, here = path, path
+        else:
+            k = _KEY.match(line)
+            if not k:
+                continue
+            here = table + (k.group(1).strip("\"'"),)
+        if len(here) > best_len and want[: len(here)] == here:
+            best, best_len = n, len(here)
+    return best
+
+
+def _got(value) -> str:
+    """A short rendering of the offending value (whole tables are not repeated)."""
+    if isinstance(value, dict):
+        return ""
+    text = repr(value)
+    return f" (got {text if len(text) <= 60 else text[:57] + '...'})"
+
+
+def _problems(err: ValidationError, model: type[BaseModel], text: str = "") -> list[str]:
     out = []
     for e in err.errors(include_url=False):
         loc = tuple(e["loc"])
         key = _key_path(loc)
+        line = _line_of(text, loc)
+        where = f"line {line}: " if line else ""
         if e["type"] == "extra_forbidden":
             allowed = _allowed_keys(model, loc)
             hint = f"; allowed keys here: {', '.join(allowed)}" if allowed else ""
-            out.append(f"key '{key}': unknown key{hint}")
+            out.append(f"{where}key '{key}': unknown key{hint}")
         elif e["type"] == "missing":
-            out.append(f"key '{key}': required key is missing")
+            out.append(f"{where}key '{key}': required key is missing")
         else:
             msg = e["msg"].removeprefix("Value error, ")
-            out.append(f"key '{key}': {msg} (got {e.get('input')!r})")
+            out.append(f"{where}key '{key}': {msg}{_got(e.get('input'))}")
     return out
 
 
@@ -369,7 +411,7 @@ def _build(cls, data: dict, file: str, text: str):
     try:
         obj = cls.model_validate(data)
     except ValidationError as err:
-        raise ConfigError(file, _problems(err, cls)) from err
+        raise ConfigError(file, _problems(err, cls, text)) from err
     obj._file = file
     obj._text = text
     return obj
@@ -405,21 +447,26 @@ def check_matrix_against_rig(matrix: MatrixConfig, rig: RigConfig) -> None:
     """Problems a matrix has only on this rig (drive limits), all in one ConfigError."""
     problems = []
     d = rig.drives
+    text = getattr(matrix, "_text", "") or ""
+    spin_at = _line_of(text, ("operating", "spin_rpm"))
+    ratio_at = _line_of(text, ("orbit", "ratios")) or _line_of(text, ("orbit", "ratio_stop")) or _line_of(text, ("orbit",))
+    at_spin = f"line {spin_at}: " if spin_at else ""
+    at_ratio = f"line {ratio_at}: " if ratio_at else ""
     for rpm in matrix.operating.spin_rpm:
         if rpm > d.max_spin_rpm:
             problems.append(
-                f"key 'operating.spin_rpm': {rpm:g} rpm exceeds the rig's drives.max_spin_rpm = {d.max_spin_rpm:g}"
+                f"{at_spin}key 'operating.spin_rpm': {rpm:g} rpm exceeds the rig's drives.max_spin_rpm = {d.max_spin_rpm:g}"
             )
         top = max(matrix.orbit.ratio_list) * rpm
         if top > d.max_orbit_rpm:
             problems.append(
-                f"key 'orbit': ratio {max(matrix.orbit.ratio_list):g} at {rpm:g} rpm gives {top:g} rpm orbit, "
+                f"{at_ratio}key 'orbit': ratio {max(matrix.orbit.ratio_list):g} at {rpm:g} rpm gives {top:g} rpm orbit, "
                 f"above the rig's drives.max_orbit_rpm = {d.max_orbit_rpm:g}"
             )
     lo, hi = min(matrix.orbit.ratio_list), max(matrix.orbit.ratio_list)
     if d.min_ratio is not None and lo < d.min_ratio:
-        problems.append(f"key 'orbit': ratio {lo:g} is below the rig's drives.min_ratio = {d.min_ratio:g}")
+        problems.append(f"{at_ratio}key 'orbit': ratio {lo:g} is below the rig's drives.min_ratio = {d.min_ratio:g}")
     if d.max_ratio is not None and hi > d.max_ratio:
-        problems.append(f"key 'orbit': ratio {hi:g} is above the rig's drives.max_ratio = {d.max_ratio:g}")
+        problems.append(f"{at_ratio}key 'orbit': ratio {hi:g} is above the rig's drives.max_ratio = {d.max_ratio:g}")
     if problems:
         raise ConfigError(matrix.file, problems)

@@ -1,0 +1,98 @@
+"""Operator mistakes: each gives one clear message (file, line, key), no traceback, a non-zero exit."""
+
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from orbitrig import config as cfg
+from orbitrig.errors import ConfigError
+
+from sweep_helpers import ROOT, orbitrig_cmd
+
+RIG_TEXT = cfg.default_rig_path().read_text()
+DEMO_TEXT = cfg.default_matrix_path("demo").read_text()
+
+
+def _line_no(text: str, startswith: str) -> int:
+    return next(n for n, line in enumerate(text.splitlines(), 1) if line.startswith(startswith))
+
+
+def _run(*args: str, timeout: float = 60) -> subprocess.CompletedProcess:
+    return subprocess.run(orbitrig_cmd(*args), cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.mark.parametrize(
+    "old, new, key, message",
+    [
+        ("clearance_um = 60.0", "clearence_um = 60.0", "bearing.clearence_um", "unknown key"),
+        ("revolutions = 50 ", 'revolutions = "fifty" ', "averaging.revolutions", "'fifty'"),
+        ("hold_s = 2.0 ", "hold_s = -2.0 ", "settle.hold_s", "greater than or equal to 0"),
+        ('adc_mode = "sequential"', 'adc_mode = "sequental"', "transports.adc_mode", "'sequental'"),
+    ],
+)
+def test_bad_rig_value_names_file_line_and_key(old, new, key, message):
+    text = RIG_TEXT.replace(old, new, 1)
+    with pytest.raises(ConfigError) as info:
+        cfg.rig_from_text(text, "bad_rig.toml")
+    (problem,) = info.value.problems
+    assert problem.startswith(f"line {_line_no(text, new.strip())}: key '{key}'")
+    assert message in problem
+
+
+def test_table_level_error_points_at_the_table_and_does_not_dump_it():
+    text = RIG_TEXT.replace("gain = 5e-9", "gain = 0", 1)  # channel 4
+    with pytest.raises(ConfigError) as info:
+        cfg.rig_from_text(text, "bad_rig.toml")
+    (problem,) = info.value.problems
+    header = [n for n, line in enumerate(text.splitlines(), 1) if line.startswith("[[channels]]")][4]
+    assert problem == f"line {header}: key 'channels[4]': gain must be non-zero"
+
+
+def test_missing_matrix_key_names_its_table_line():
+    text = "\n".join(line for line in DEMO_TEXT.splitlines() if not line.startswith("spin_rpm"))
+    with pytest.raises(ConfigError) as info:
+        cfg.matrix_from_text(text, "m.toml")
+    assert info.value.problems == [f"line {_line_no(text, '[operating]')}: key 'operating.spin_rpm': "
+                                   "required key is missing"]  # fmt: skip
+
+
+def test_matrix_beyond_drive_limits_is_refused_before_the_simulator_starts(tmp_path):
+    matrix = tmp_path / "fast.toml"
+    matrix.write_text(DEMO_TEXT.replace("spin_rpm = [1000.0]", "spin_rpm = [9000.0]"))
+    p = _run("sweep", "--sim", "--matrix", str(matrix), "--out", str(tmp_path / "run"))
+    assert p.returncode == 2
+    assert "Traceback" not in p.stderr
+    assert f"{matrix}: line {_line_no(matrix.read_text(), 'spin_rpm')}: key 'operating.spin_rpm': 9000 rpm" in p.stderr
+    assert "points" not in p.stderr  # no progress bars: nothing was started
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("kind", ["missing-parent", "file"])
+def test_unusable_out_gives_a_message_not_a_traceback(tmp_path, kind):
+    if kind == "file":
+        out = tmp_path / "a_file"
+        out.write_text("x")
+        expect = "--out is a file, not a directory"
+    else:
+        out = Path("/proc/orbitrig-no-such-dir")  # /proc refuses new directories, even to root
+        expect = "cannot create the run directory"
+    p = _run("sweep", "--sim", "--out", str(out))
+    assert p.returncode == 2
+    assert "Traceback" not in p.stderr
+    assert f"error: {out}: {expect}" in p.stderr
+
+
+def test_out_holding_a_run_is_refused_before_anything_starts(tmp_path):
+    (tmp_path / "run.h5").write_bytes(b"")
+    p = _run("sweep", "--sim", "--out", str(tmp_path))
+    assert p.returncode == 2
+    assert f"{tmp_path / 'run.h5'}: already exists: use --resume" in p.stderr
+    assert "points" not in p.stderr
+
+
+def test_sweep_help_keeps_its_defaults_visible():
+    p = _run("sweep", "--help")
+    assert p.returncode == 0
+    flat = " ".join(p.stdout.replace("│", " ").split())
+    assert "config/rig.toml" in flat and "config/matrices/demo.toml" in flat
