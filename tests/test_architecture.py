@@ -26,14 +26,24 @@ ALLOWED = {
 IO_MODULES = ("serial", "socket", "asyncio", "can", "pymodbus", "aiomqtt", "h5py", "typer", "rich")
 
 
-def _imports(path: Path) -> list[tuple[int, str]]:
+def _imports(path: Path, module: tuple[str, ...] | None = None) -> list[tuple[int, str]]:
+    """(line, absolute module name) of every import in ``path``; relative imports
+    (``from ..daq import frames``) are resolved against the file's own module
+    (``module``, default: its path under ROOT), so they cannot slip past the rules."""
     tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    package = list((module or path.relative_to(ROOT).with_suffix("").parts)[:-1])
     found = []
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             found += [(node.lineno, alias.name) for alias in node.names]
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
             found.append((node.lineno, node.module))
+        elif isinstance(node, ast.ImportFrom) and node.level > 0:
+            base = package[: len(package) - (node.level - 1)] if node.level - 1 <= len(package) else []
+            if node.module:
+                found.append((node.lineno, ".".join(base + [node.module])))
+            else:  # from .. import daq: the names are modules of the base package
+                found += [(node.lineno, ".".join(base + [alias.name])) for alias in node.names]
     return found
 
 
@@ -79,3 +89,13 @@ def test_rule_checker_catches_a_violation(tmp_path: Path) -> None:
     assert _permitted("drives", "reduction.errors")
     assert _permitted("orbitrig", "sim.rig")
     assert _permitted("sim", "numpy")
+
+
+def test_relative_imports_are_resolved(tmp_path: Path) -> None:
+    """``from ..daq import frames`` inside sim/ is an import from daq."""
+    src = tmp_path / "mod.py"
+    src.write_text("from ..daq import frames\nfrom . import physics\nfrom .. import drives\n"
+                   "from .drive_model import DriveModel\n")
+    found = [m for _, m in _imports(src, ("sim", "mod"))]
+    assert found == ["daq", "sim.physics", "drives", "sim.drive_model"]
+    assert [m for m in found if not _permitted("sim", m)] == ["daq", "drives"]
