@@ -41,6 +41,8 @@ def register(app: typer.Typer) -> None:
         as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
     ) -> None:
         """Identify rotordynamic coefficients K, C, D from an orbit table."""
+        import numpy as np
+
         from orbitrig.errors import OrbitrigError, TableError
         from orbitrig.orbit_table import read_orbit_table
         from reduction.identify import identify
@@ -53,6 +55,9 @@ def register(app: typer.Typer) -> None:
             result = identify(data, model=model, freq_dep=freq_dep, method=method, solver=solver)
         except OrbitrigError as err:
             _fail(str(err))
+        except (ArithmeticError, ValueError, np.linalg.LinAlgError) as err:  # the contract: exit 2, reason
+            _fail(f"numerical failure of the {method} fit ({type(err).__name__}: {err}); "
+                  "check the table's values and units")
         if as_json:
             typer.echo(json.dumps(result.to_dict(), allow_nan=False))
         else:

@@ -3,13 +3,16 @@
 Header row required, column order free, extra columns ignored. Units at this edge:
 spin_rpm (rpm), orbit_hz (Hz), phasors in m and N, optional gamma2_* in [0, 1]. Inside:
 rad/s. Every problem raises TableError naming the file, the line (1-based, the header is
-line 1) and the column.
+line 1) and the column. UTF-8 (a BOM is allowed); blank lines are skipped; cells are plain
+decimal numbers; empty fields past the header's last column (a trailing comma) are ignored.
 """
 
 from __future__ import annotations
 
 import csv
+import io
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -23,14 +26,52 @@ GAMMA2 = tuple(f"gamma2_{c}" for c in GAMMA2_COLUMNS)
 RPM = 2 * math.pi / 60  # rad/s per rpm
 
 
+# a decimal number as a CSV writer prints it (Python's float() also takes '1_000' and spaces)
+_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|[+-]?(nan|inf|infinity)", re.IGNORECASE)
+
+
+def _number(raw: str) -> float | None:
+    """The value of one cell, or None when it is not a plain decimal number."""
+    return float(raw) if _NUMBER.fullmatch(raw) else None
+
+
+class _Reader:
+    """csv.reader whose format errors (e.g. an over-long field) become TableError with the line."""
+
+    def __init__(self, file: str, reader):
+        self.file, self.reader = file, reader
+
+    @property
+    def line_num(self) -> int:
+        return self.reader.line_num
+
+    def __iter__(self):
+        return self
+
+    def __next__(self) -> list[str]:
+        try:
+            return next(self.reader)
+        except csv.Error as err:
+            raise TableError(self.file, self.reader.line_num or 1, None, f"not a valid CSV row: {err}") from None
+
+
 def read_orbit_table(path: str | Path) -> OrbitTable:
     """Read and validate an orbit table CSV; raises TableError(file, line, column, reason)."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as err:
+        data = path.read_bytes()
+    except OSError as err:
         raise TableError(str(path), None, None, f"cannot read the file: {err}") from err
-    reader = csv.reader(text.splitlines())
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        start = data.rfind(b"\n", 0, err.start) + 1
+        line = data[: err.start].count(b"\n") + 1
+        field = data[start: err.start].count(b",") + 1
+        raise TableError(str(path), line, f"field {field}",
+                         f"not UTF-8 text: byte 0x{data[err.start]:02x} ({err.reason}); "
+                         "save the table as UTF-8 CSV") from None
+    reader = _Reader(str(path), csv.reader(io.StringIO(text, newline="")))
     header, header_line = None, None
     for fields in reader:
         if any(f.strip() for f in fields):
@@ -58,7 +99,7 @@ def read_orbit_table(path: str | Path) -> OrbitTable:
         if not any(f.strip() for f in fields):
             continue
         line = reader.line_num
-        if len(fields) > len(header):
+        if len(fields) > len(header) and any(f.strip() for f in fields[len(header):]):
             raise TableError(str(path), line, f"#{len(header) + 1} (no header)",
                              f"{len(fields)} fields but the header has {len(header)} columns")
         values = []
@@ -67,10 +108,9 @@ def read_orbit_table(path: str | Path) -> OrbitTable:
             if j >= len(fields):
                 raise TableError(str(path), line, name, f"missing value ({len(fields)} fields, header has {len(header)})")
             raw = fields[j].strip()
-            try:
-                v = float(raw)
-            except ValueError:
-                raise TableError(str(path), line, name, f"not a number: {raw!r}") from None
+            v = _number(raw)
+            if v is None:
+                raise TableError(str(path), line, name, f"not a number: {raw!r}")
             if not math.isfinite(v):
                 raise TableError(str(path), line, name, f"not a finite number: {raw!r}")
             values.append(v)

@@ -166,7 +166,15 @@ def identify(table: OrbitTable, model: str = "kcd11", freq_dep: str = "none", me
 
 def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank_rtol: float,
               tls_ratio: float | None) -> Identification:
-    A, b = regression(spec, table.orbit, table.x, table.y, table.fx, table.fy)
+    with np.errstate(over="ignore", invalid="ignore"):
+        A, b = regression(spec, table.orbit, table.x, table.y, table.fx, table.fy)
+        finite = (np.all(np.isfinite(A)) and np.all(np.isfinite(b))
+                  and np.isfinite(np.linalg.norm(A)) and np.isfinite(np.linalg.norm(b)))
+    if not finite:
+        raise IdentificationError(
+            f"{spec.model} with freq-dep {spec.freq_dep.text}: the regression exceeds the floating-point "
+            "range (Omega^r times the displacements, or the forces, are too large); check the table's "
+            "units (orbit_hz in Hz, phasors in m and N)")
     weights = None
     if method == "wls":
         if table.gamma2 is None:
