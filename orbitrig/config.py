@@ -274,8 +274,16 @@ class ModelSpec(_Model):
     @field_validator("freq_dep")
     @classmethod
     def _freq_dep(cls, v: str) -> str:
-        if not FREQ_DEP.match(v):
-            raise ValueError("allowed: none, power:M, power:m,n,p, power:auto, poly:R (integers >= 1)")
+        from reduction.errors import ReductionError
+        from reduction.models import MAX_ORDER, parse_freq_dep
+
+        allowed = f"allowed: none, power:M, power:m,n,p, power:auto, poly:R (integers 1..{MAX_ORDER})"
+        if not FREQ_DEP.fullmatch(v):
+            raise ValueError(allowed)
+        try:
+            parse_freq_dep(v)  # the identification's own limits, so a run never meets them first
+        except ReductionError:
+            raise ValueError(allowed) from None
         return v
 
     @property
