@@ -29,6 +29,8 @@ HEARTBEAT_PREOPERATIONAL = 0x7F
 _KELVIN = 273.15
 _LPM = 1e-3 / 60.0  # m^3/s per L/min
 
+# payload length of each frame (CAN id offset from the node id), spec/aux-can.md
+_LENGTH = {0x180: 8, 0x280: 8, 0x380: 4, 0x700: 1}
 # value name -> the frame (CAN id offset from the node id) that carries it
 _SOURCE = {
     "t_recess": 0x180, "t_groove": 0x180, "t_supply": 0x180, "flow": 0x180,
@@ -123,6 +125,9 @@ class AuxSensors:
         kind = msg.arbitration_id - self.node_id
         data = bytes(msg.data)
         now = self._clock()
+        if kind in _LENGTH and len(data) != _LENGTH[kind]:
+            self.frames_malformed += 1  # not the spec's layout (8, 8, 4, 1 bytes): never misread
+            return
         try:
             if kind == 0x180:
                 tr, tg, ts, flow = struct.unpack_from("<hhhH", data)

@@ -111,8 +111,11 @@ class RevolutionAssembler:
     def __init__(self, channels: int = 8, mode: str = "sequential") -> None:
         if mode not in ("sequential", "simultaneous"):
             raise ValueError(f"mode must be 'sequential' or 'simultaneous', not {mode!r}")
-        if not 1 <= channels <= 255 or (mode == "sequential" and SLOTS_PER_REV % channels):
-            raise ValueError(f"channels={channels}: must be 1..255 and divide 360 in sequential mode")
+        # sequential: one sample per slot, C any divisor of 360; simultaneous: n_ch = C is a u8
+        if mode == "sequential" and not (1 <= channels <= SLOTS_PER_REV and SLOTS_PER_REV % channels == 0):
+            raise ValueError(f"channels={channels}: must divide 360 in sequential mode")
+        if mode == "simultaneous" and not 1 <= channels <= 255:
+            raise ValueError(f"channels={channels}: must be 1..255 in simultaneous mode (n_ch is a u8)")
         self.channels = channels
         self.mode = mode
         self.n_ch = channels if mode == "simultaneous" else 1  # samples per slot in a frame
