@@ -166,6 +166,7 @@ class _Operator:
         self.lines: asyncio.Queue[str | None] = asyncio.Queue()
         self.reader = None
         self.asking = None
+        self.eof = False  # standard input closed: nobody can answer, so the run stops
 
     def install(self) -> None:
         import signal
@@ -218,13 +219,24 @@ class _Operator:
             self.asking.cancel()
         self._start_reader()
         self.console.print(prompt, style="bold yellow", markup=False, end="")
+        if self.eof:
+            self._no_operator()
+            return
 
         async def ask():
             line = await self.lines.get()
-            if line is not None:
+            if line is None:
+                self.eof = True
+                self._no_operator()
+            else:
                 handle(line)
 
         self.asking = asyncio.ensure_future(ask())
+
+    def _no_operator(self) -> None:
+        self.console.print("\nstandard input is closed, nobody can answer: stopping the run "
+                           "(continue later with --resume)", style="bold red", markup=False)  # fmt: skip
+        self.engine.request_stop()
 
     def _choice(self, ans: str) -> None:
         a = ans.lower()[:1]

@@ -96,3 +96,30 @@ def test_sweep_help_keeps_its_defaults_visible():
     assert p.returncode == 0
     flat = " ".join(p.stdout.replace("│", " ").split())
     assert "config/rig.toml" in flat and "config/matrices/demo.toml" in flat
+
+
+def test_closed_stdin_at_a_confirmation_stops_the_run_instead_of_hanging(tmp_path):
+    """On the rig (no --sim) a manual-settings prompt with nobody to answer stops the run safely."""
+    import json
+
+    sim = subprocess.Popen(orbitrig_cmd("sim", "--modbus-port", "0", "--adc-port", "0"), cwd=ROOT,
+                           stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)  # fmt: skip
+    try:
+        ends = json.loads(sim.stdout.readline())
+        rig = tmp_path / "rig.toml"
+        rig.write_text(RIG_TEXT.replace('"socket://127.0.0.1:5000"', json.dumps(ends["adc"]), 1)
+                       .replace('"tcp://127.0.0.1:5020"', json.dumps(ends["modbus"]), 1)
+                       .replace('can_interface = "socketcan"', 'can_interface = "virtual"', 1))  # fmt: skip
+        p = subprocess.run(orbitrig_cmd("sweep", "--config", str(rig), "--matrix", str(cfg.default_matrix_path("demo")),
+                                        "--out", str(tmp_path / "run")),
+                           cwd=ROOT, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)  # fmt: skip
+        assert p.returncode == 3, p.stderr
+        assert "standard input is closed" in p.stderr and "Traceback" not in p.stderr
+        status = _run("drives", "status", "--modbus", ends["modbus"], "--json")
+        drives = json.loads(status.stdout)
+        assert status.returncode == 0, status.stderr
+        for name in ("spin", "orbit"):
+            assert drives[name]["running"] is False and drives[name]["reference_rpm"] == 0.0, drives
+    finally:
+        sim.terminate()
+        sim.wait(timeout=10)
