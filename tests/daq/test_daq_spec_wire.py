@@ -164,3 +164,26 @@ async def test_aux_lengths_and_unsigned_fields_are_the_specs():
             assert s.operational
     finally:
         tx.shutdown()
+
+
+async def test_serial_link_has_no_flow_control():
+    """adc-frames.md Transport: a serial port, any baud rate, no flow control."""
+    import os
+    import termios
+
+    from daq.transport import open_link
+
+    master, slave = os.openpty()
+    path = os.ttyname(slave)
+    try:
+        link = await open_link(f"{path}?baud=921600", lambda data: None, lambda err: None)
+        try:
+            iflag, _, cflag, _, ispeed, _, cc = termios.tcgetattr(link._fd)
+            assert not iflag & (termios.IXON | termios.IXOFF | termios.IXANY)
+            assert not cflag & termios.CRTSCTS
+            assert cc[termios.VMIN] == 1
+        finally:
+            link.close()
+    finally:
+        os.close(master)
+        os.close(slave)
