@@ -10,15 +10,6 @@
 
 from __future__ import annotations
 
-from daq.errors import DaqError, DaqLinkError, DaqTimeoutError  # noqa: F401
-from drives.errors import (  # noqa: F401
-    DriveError,
-    DriveExceptionResponse,
-    DriveFaultError,
-    DriveLimitError,
-    DriveLinkError,
-    DriveTimeoutError,
-)
 from reduction.errors import (  # noqa: F401
     IdentifiabilityError,
     IdentificationError,
@@ -47,3 +38,20 @@ class TableError(OrbitrigError, ValueError):
         if column is not None:
             where += f", column '{column}'"
         super().__init__(f"{where}: {reason}")
+
+
+_LAZY = {
+    **dict.fromkeys(("DaqError", "DaqLinkError", "DaqTimeoutError"), "daq.errors"),
+    **dict.fromkeys(("DriveError", "DriveExceptionResponse", "DriveFaultError", "DriveLimitError",
+                     "DriveLinkError", "DriveTimeoutError"), "drives.errors"),
+}
+
+
+def __getattr__(name: str):
+    """The daq and drive branches, imported on first use: a dry run or `identify`
+    must not load the hardware packages."""
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
