@@ -315,7 +315,7 @@ class RigService:
                 continue
             payload = message.payload if isinstance(message.payload, (bytes, bytearray)) else \
                 str(message.payload or "").encode()
-            self.handle_command(bytes(payload))
+            self.handle_command(bytes(payload), retained=bool(getattr(message, "retain", False)))
 
     # -- supervision --------------------------------------------------------------
 
@@ -340,13 +340,23 @@ class RigService:
 
     # -- commands ---------------------------------------------------------------
 
-    def handle_command(self, payload: bytes) -> None:
-        """Validate and execute one command; publish exactly one reply."""
+    def handle_command(self, payload: bytes, *, retained: bool = False) -> None:
+        """Validate and execute one command; publish exactly one reply.
+
+        A retained command (spec: ``<prefix>/cmd`` is not retained) is stale: the broker
+        hands it to every new subscription, so executing it would, e.g., start a run at
+        each reconnection. It is refused (one reply) and changes nothing."""
         try:
             cmd = proto.parse_command(payload)
         except proto.CommandError as err:
             log.info("refused command %r: %s", payload[:200], err.reason)
             self._reply(err.id, err.reason)
+            return
+        if retained:
+            log.warning("refused retained command %s (id %r)", cmd.cmd, cmd.id)
+            self._reply(cmd.id, f"retained command {cmd.cmd!r} refused: publish commands without the "
+                                "retain flag (a retained command is replayed on every reconnection); "
+                                "clear it with an empty retained message")
             return
         t0 = time.monotonic()
         log.info("command %s (id %r)", cmd.cmd, cmd.id)

@@ -1,0 +1,48 @@
+"""A command left retained on <prefix>/cmd (spec: cmd is not retained) is stale: the broker
+replays it on every subscription. The service refuses it with one reply and changes
+nothing; a live command right after is executed as usual. Real mosquitto, real clients."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+from pathlib import Path
+
+from mqtt_helpers import ACCOUNTS, RigClient, write_matrices
+from orbitrig.config import load_matrix
+from orbitrig.service import BrokerSettings, RigService, ServiceSettings
+
+
+async def test_retained_start_is_refused_and_starts_nothing(broker, tmp_path: Path):
+    rig_id = "retained1"
+    topic = f"orbitrig/{rig_id}/cmd"
+    started: list[str] = []
+
+    def factory(name, matrix):
+        started.append(name)
+        raise RuntimeError("engine not available in this test")
+
+    done = await asyncio.to_thread(broker.pub, topic, json.dumps({"cmd": "start", "id": "stale", "matrix": "quick"}),
+                                   retain=True)
+    assert done.returncode == 0, done.stderr
+    rc = RigClient(broker, rig_id)
+    service = RigService(
+        ServiceSettings(rig_id=rig_id, matrices_dir=write_matrices(tmp_path / "matrices")),
+        BrokerSettings.from_url(broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]),
+        engine_factory=factory, load_matrix=load_matrix)
+    stop = asyncio.Event()
+    task = asyncio.create_task(service.serve(stop))
+    try:
+        reply = await asyncio.to_thread(rc.reply, "stale", 10.0)
+        assert reply["ok"] is False and "retained command 'start' refused" in reply["error"]
+        assert started == [] and not service.run_active and service.state == "idle"
+        # a live (not retained) start of the same matrix reaches the engine factory
+        live = await asyncio.to_thread(rc.command, {"cmd": "start", "matrix": "quick"})
+        assert live["ok"] is False and "engine not available" in live["error"] and started == ["quick"]
+        replies = [m for m in rc.watch.on("reply") if m.json().get("id") == "stale"]
+        assert len(replies) == 1  # exactly one reply to the stale command
+    finally:
+        await asyncio.to_thread(broker.pub, topic, b"", retain=True)  # clear the retained command
+        rc.close()
+        stop.set()
+        await asyncio.wait_for(task, 10)
