@@ -349,12 +349,11 @@ def point_csv_rows(g: h5py.Group, sim: bool) -> list[dict]:
         if "json" in h.attrs:
             d = json.loads(h.attrs["json"])
             row.update(freq_dep=d["freq_dep"], method=d["method"], n_frequencies=d["n_frequencies"],
-                       condition_number=f"{d['condition_number']:.6g}", residual_rms=f"{d['residual_rms']:.6g}",
-                       error="")  # fmt: skip
+                       condition_number=_num(d["condition_number"], ".6g"),
+                       residual_rms=_num(d["residual_rms"], ".6g"), error="")  # fmt: skip
             for k, v in d["coefficients"].items():
-                row[k] = f"{v:.8g}"
-                std = (d.get("std_errors") or {}).get(k)
-                row[f"{k}_std"] = "" if std is None else f"{std:.6g}"
+                row[k] = _num(v, ".8g")
+                row[f"{k}_std"] = _num((d.get("std_errors") or {}).get(k), ".6g")
             keys = [k for k in d["coefficients"] if "_" not in k]
         else:
             row.update(freq_dep=str(h.attrs["freq_dep"]), method=str(h.attrs.get("method", "")),
@@ -365,6 +364,11 @@ def point_csv_rows(g: h5py.Group, sim: bool) -> list[dict]:
                 row[f"true_{k}"] = f"{true_entry(truth, k):.8g}"
         rows.append(row)
     return rows
+
+
+def _num(v, fmt: str) -> str:
+    """A CSV cell: the number in `fmt`, empty for null (the identify JSON's non-finite values)."""
+    return "" if v is None else format(float(v), fmt)
 
 
 def true_entry(truth: dict, key: str) -> float:
