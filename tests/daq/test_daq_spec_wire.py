@@ -5,15 +5,21 @@ from __future__ import annotations
 
 import asyncio
 import itertools
+import os
 import struct
+import termios
 
 import can
 import numpy as np
 import pytest
 
+from daq.adc import AdcReader
 from daq.aux import AuxSensors
 from daq.frames import FrameDecoder
 from daq.revolutions import RevolutionAssembler
+from daq.transport import open_link
+from sim.config import NoiseConfig, SimConfig
+from sim.rig import SimRig
 
 pytestmark = pytest.mark.timeout(30)
 
@@ -168,17 +174,12 @@ async def test_aux_lengths_and_unsigned_fields_are_the_specs():
 
 async def test_serial_link_has_no_flow_control():
     """adc-frames.md Transport: a serial port, any baud rate, no flow control."""
-    import os
-    import termios
-
-    from daq.transport import open_link
-
     master, slave = os.openpty()
     path = os.ttyname(slave)
     try:
         link = await open_link(f"{path}?baud=921600", lambda data: None, lambda err: None)
         try:
-            iflag, _, cflag, _, ispeed, _, cc = termios.tcgetattr(link._fd)
+            iflag, _, cflag, _, _, _, cc = termios.tcgetattr(link._fd)
             assert not iflag & (termios.IXON | termios.IXOFF | termios.IXANY)
             assert not cflag & termios.CRTSCTS
             assert cc[termios.VMIN] == 1
@@ -187,3 +188,25 @@ async def test_serial_link_has_no_flow_control():
     finally:
         os.close(master)
         os.close(slave)
+
+
+@pytest.mark.parametrize("direction", [1, -1], ids=["forward", "backward"])
+async def test_whirl_direction_shows_in_the_phasors_not_in_the_slot_order(direction):
+    """Sequential scan, noise off: every channel's phasor (fitted at its own slots
+    k, k + 8, ...) is the simulator's truth to the ADC resolution in both
+    directions; y lags x by 90 degrees forward and leads it backward."""
+    cfg = SimConfig()
+    cfg.noise = NoiseConfig(enabled=False)
+    spin, orbit = 2 * np.pi * 30.0, direction * 2 * np.pi * 12.5
+    async with SimRig(cfg, speedup=20.0, can_channel=None, adc_pty=False) as rig:
+        rig.local_control(spin=spin, orbit=orbit)
+        async with AdcReader(rig.adc_url, channels=8, mode="sequential", gains=cfg.adc.gains,
+                             offsets=cfg.adc.offsets) as adc:
+            block = await adc.acquire(4, timeout=20)
+        truth = rig.true_phasors(spin, orbit)
+    names = list(cfg.adc.channels)
+    for k, name in enumerate(names):
+        assert abs(block.phasors[k] - truth[name]) <= 0.25 * cfg.adc.gains[k], name
+    x, y = block.phasors[names.index("x_a")], block.phasors[names.index("y_a")]
+    assert np.degrees(np.angle(y / x)) == pytest.approx(-90.0 * direction, abs=3.0)
+    assert block.orbit_speed == pytest.approx(abs(orbit), rel=1e-3)
