@@ -218,7 +218,7 @@ class _Operator:
         if self.asking is not None:
             self.asking.cancel()
         self._start_reader()
-        self.console.print(prompt, style="bold yellow", markup=False, end="")
+        self.console.print(prompt, style="bold yellow", markup=False)  # a whole line: the live bars redraw over a partial one
         if self.eof:
             self._no_operator()
             return
