@@ -105,11 +105,17 @@ def _check_out(out: Path) -> None:
         raise ConfigError(str(out), ["the run directory is not writable"])
 
 
+_STEP_WORDS = {"SetManual": "manual settings", "Verify": "verify", "SetSpin": "spin changes", "Settle": "settle",
+               "Acquire": "acquire", "Store": "store", "SetOrbit": "orbit changes", "Identify": "identify",
+               "StopDrives": "stop drives"}  # fmt: skip
+
+
 def _dry_run(rig, mat) -> None:
     from orbitrig.plan import expand, format_duration, summarize
 
     steps = expand(mat, rig)
     width = len(str(len(steps)))
+    typer.echo(f"{'#':>{width}}  {'starts at':>8}  {'where':10}  {'duration':>10}  step  (times h:mm:ss from the start)")
     t = 0.0
     for i, s in enumerate(steps, 1):
         where = f"point {s.point:04d}" if s.point is not None else "end       "
@@ -118,7 +124,7 @@ def _dry_run(rig, mat) -> None:
     sm = summarize(steps)
     typer.echo(f"\nmatrix {mat.name}: {sm.points} operating points, {sm.blocks} orbit blocks, "
                f"{len(steps)} steps, estimated {format_duration(sm.duration)} (physical time)")  # fmt: skip
-    parts = ", ".join(f"{k} {format_duration(v)}" for k, v in sm.by_kind.items())
+    parts = ", ".join(f"{_STEP_WORDS.get(k, k)} {format_duration(v)}" for k, v in sm.by_kind.items())
     typer.echo(f"by step: {parts}")
 
 

@@ -123,3 +123,12 @@ def test_closed_stdin_at_a_confirmation_stops_the_run_instead_of_hanging(tmp_pat
     finally:
         sim.terminate()
         sim.wait(timeout=10)
+
+
+def test_dry_run_has_a_column_header_and_names_steps_in_the_rigs_words():
+    p = _run("sweep", "--sim", "--dry-run")
+    assert p.returncode == 0, p.stderr
+    lines = p.stdout.splitlines()
+    assert lines[0].split()[:5] == ["#", "starts", "at", "where", "duration"]
+    by_step = next(line for line in lines if line.startswith("by step: "))
+    assert "manual settings 2:00" in by_step and "stop drives" in by_step and "SetManual" not in by_step
