@@ -81,7 +81,7 @@ def read_orbit_table(path: str | Path) -> OrbitTable:
         raise TableError(str(path), 1, None, "empty file: a header row is required")
     seen = set()
     for name in header:
-        if name in seen and name:
+        if name in seen and name in REQUIRED + GAMMA2:  # a repeated extra column is ignored like any other
             raise TableError(str(path), header_line, name, "column appears twice in the header")
         seen.add(name)
     for name in REQUIRED:

@@ -153,3 +153,12 @@ def test_power_mnp_keys_carry_each_matrix_exponent(tmp_path):
     assert d["std_errors"]["Dxy"] == d["std_errors"]["Dyx"]
     for k, v in keys_of(true).items():
         assert d["coefficients"][k] == pytest.approx(v, rel=1e-9)
+
+
+def test_repeated_extra_columns_are_ignored_a_repeated_spec_column_is_not(tmp_path, lines):
+    path = tmp_path / "t.csv"
+    path.write_text("\n".join([lines[0] + ",note,note,"] + [r + ",a,b," for r in lines[1:]]) + "\n")
+    _ok(_run(path))
+    path.write_text("\n".join([lines[0] + ",fx_re"] + [r + ",1" for r in lines[1:]]) + "\n")
+    err = _refused(_run(path), path, 1, "fx_re")
+    assert "appears twice" in err
