@@ -37,8 +37,11 @@ class AdcBoard:
 
     def __init__(self, *, channels: int = 8, mode: str = "sequential", frame_slots: int = 45,
                  gains=None, offsets=None, rng: np.random.Generator | None = None):
-        if SLOTS % channels:
-            raise ValueError(f"channel count {channels} does not divide 360")
+        if mode == "simultaneous":
+            if not 1 <= channels <= 255:  # n_ch = C is a u8
+                raise ValueError(f"channel count {channels} outside 1..255 (simultaneous mode)")
+        elif not 1 <= channels <= SLOTS or SLOTS % channels:  # slot s converts channel s mod C
+            raise ValueError(f"channel count {channels} does not divide 360 (sequential mode)")
         if not 1 <= frame_slots <= 255:
             raise ValueError(f"frame_slots must be 1..255, got {frame_slots}")
         self.channels = channels

@@ -146,8 +146,8 @@ def validate(cfg: SimConfig) -> list[str]:
     if a.mode not in ("sequential", "simultaneous"):
         p.append(f"adc.mode must be 'sequential' or 'simultaneous', got {a.mode!r}")
     n = len(a.channels)
-    if n < 1 or 360 % n:
-        p.append(f"adc.channels: the channel count must divide 360, got {n}")
+    if n < 1 or (a.mode != "simultaneous" and 360 % n):  # spec: C must divide 360 (sequential scan)
+        p.append(f"adc.channels: the channel count must divide 360 in sequential mode, got {n}")
     unknown = [c for c in a.channels if c not in CHANNEL_NAMES]
     if unknown:
         p.append(f"adc.channels: unknown channel names {unknown}; known: {list(CHANNEL_NAMES)}")

@@ -9,6 +9,7 @@ import pytest
 
 from sim.adc_board import AdcBoard
 from sim.can_node import encode_aux
+from sim.config import CHANNEL_GAINS, CHANNEL_NAMES, AdcConfig, SimConfig
 
 
 def crc16_ccitt_false(data: bytes) -> int:
@@ -119,3 +120,20 @@ def test_aux_frames_are_the_golden_payloads():
     assert frames[0x381] == bytes.fromhex("0000" "0300")  # p_recess4 0; sensor fault | pump off
     off = dict(encode_aux(dict(state, pump_off=False)))
     assert off[0x381][2:] == b"\x00\x00"
+
+
+def test_scan_sizes_follow_the_spec():
+    """C must divide 360 in sequential mode only; simultaneous mode takes any C
+    that n_ch (u8) can carry."""
+    board = AdcBoard(channels=7, mode="simultaneous", frame_slots=3)
+    wire = board.encode(0, np.arange(21, dtype=np.int16).reshape(3, 7), np.zeros(3))
+    assert wire == golden(0x05, 0, 1, 0, 3, 7, 0, list(range(21)))
+    assert AdcBoard(channels=360, mode="sequential").channels == 360
+    for channels, mode in ((7, "sequential"), (0, "sequential"), (256, "simultaneous")):
+        with pytest.raises(ValueError, match=f"channel count {channels}"):
+            AdcBoard(channels=channels, mode=mode)
+    cfg = SimConfig(adc=AdcConfig(mode="simultaneous", channels=CHANNEL_NAMES[:7], gains=CHANNEL_GAINS[:7],
+                                  offsets=(0.0,) * 7))
+    assert len(cfg.adc.channels) == 7
+    with pytest.raises(ValueError, match="must divide 360 in sequential mode"):
+        SimConfig(adc=AdcConfig(channels=CHANNEL_NAMES[:7], gains=CHANNEL_GAINS[:7], offsets=(0.0,) * 7))
