@@ -284,6 +284,9 @@ def compare_with_truth(coefficients: dict, truth: dict) -> dict[str, float]:
     return out
 
 
+_COEF_UNIT = {"K": "N/m", "C": "N s/m", "D": "kg"}
+
+
 def print_coefficients(out: Path) -> None:
     """Identified constant-term coefficients of every complete point, beside the true ones in --sim mode."""
     import json
@@ -306,14 +309,14 @@ def print_coefficients(out: Path) -> None:
                     fits[key] = json.loads(h.attrs["json"])
             names = sorted({k for d in fits.values() for k in d["coefficients"] if "_" not in k}, key=coef_order)
             table = Table(title=f"point {name}  {g.attrs['label']}", title_justify="left")
-            table.add_column("coef")
+            table.add_column("coef  unit")
             if truth:
                 table.add_column("true", justify="right")
             for key in fits:
                 table.add_column(key.replace("__none", "").replace("__", " "), justify="right")
             errs = {k: compare_with_truth(d["coefficients"], truth) for k, d in fits.items()} if truth else {}
             for c in names:
-                row = [c]
+                row = [f"{c}  {_COEF_UNIT[c[0]]}"]
                 if truth:
                     row.append(f"{truth[c[0] + '0']['xy'.index(c[1])]['xy'.index(c[2])]:.4g}")
                 for key, d in fits.items():

@@ -132,3 +132,10 @@ def test_dry_run_has_a_column_header_and_names_steps_in_the_rigs_words():
     assert lines[0].split()[:5] == ["#", "starts", "at", "where", "duration"]
     by_step = next(line for line in lines if line.startswith("by step: "))
     assert "manual settings 2:00" in by_step and "stop drives" in by_step and "SetManual" not in by_step
+
+
+def test_sweep_coefficient_table_states_units(tmp_path):
+    p = _run("sweep", "--sim", "--out", str(tmp_path / "run"))
+    assert p.returncode == 0, p.stderr
+    rows = {line.split()[1]: line for line in p.stdout.splitlines() if line.startswith("│ ") and line.split()[1][:1] in "KCD"}
+    assert "N/m" in rows["Kxx"] and "N s/m" in rows["Cyy"] and "kg" in rows["Dxx"]
