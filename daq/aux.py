@@ -8,7 +8,9 @@ python-can's ``Notifier`` receives on its own thread and hands every message to
 the event loop (``loop=``), where it is decoded; nothing blocks the loop. Values
 are kept in SI (K, Pa, m^3/s) with their arrival time; a value is stale when
 its frame is older than 0.5 s, the node is lost when no heartbeat arrived for
-1.5 s (counted from opening while none has come).
+1.5 s (counted from opening while none has come). A frame whose length is not
+the spec's (0x181, 0x281: 8 bytes; 0x381: 4; 0x701: 1) is counted in
+``frames_malformed`` and not read.
 """
 
 from __future__ import annotations
