@@ -243,16 +243,20 @@ class Orbit(_Model):
     @model_validator(mode="after")
     def _one_spec(self):
         rng = (self.ratio_start, self.ratio_stop, self.count)
+        problems = []  # every problem of the table, not only the first
         if self.ratios is not None and any(v is not None for v in rng):
-            raise ValueError("give either 'ratios' or 'ratio_start', 'ratio_stop', 'count', not both")
+            problems.append("give either 'ratios' or 'ratio_start', 'ratio_stop', 'count', not both")
         if self.ratios is None and any(v is None for v in rng):
-            raise ValueError("give 'ratios' (a list) or all of 'ratio_start', 'ratio_stop', 'count'")
+            problems.append("give 'ratios' (a list) or all of 'ratio_start', 'ratio_stop', 'count'")
         if self.ratios is not None and len(set(self.ratios)) != len(self.ratios):
-            raise ValueError("'ratios' has repeated values")
+            problems.append("'ratios' has repeated values")
         if len(set(self.directions)) != len(self.directions):
-            raise ValueError("'directions' has repeated values")
-        if self.count is not None and self.count > 1 and self.ratio_start >= self.ratio_stop:
-            raise ValueError("ratio_start must be smaller than ratio_stop")
+            problems.append("'directions' has repeated values")
+        if (self.count is not None and self.count > 1 and None not in rng
+                and self.ratio_start >= self.ratio_stop):
+            problems.append("ratio_start must be smaller than ratio_stop")
+        if problems:
+            raise ValueError("; ".join(problems))
         return self
 
     @property
