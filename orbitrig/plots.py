@@ -81,6 +81,8 @@ def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
     dirs = whirl_direction(table)
     colors = _colors(len(fitted))
     reproduced = [f.identification.reproduce(table) for f in fitted]
+    # models that agree draw on top of each other: each later line is thinner, so all stay visible
+    widths = [max(0.9, 3.4 - 1.0 * k) for k in range(len(fitted))]
     for col, (name, measured) in enumerate((("Fx", table.fx), ("Fy", table.fy))):
         amp_ax, ph_ax = axes[0, col], axes[1, col]
         for d, dname, ls, marker in DIRECTIONS:
@@ -91,9 +93,10 @@ def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
             meas_ph = _phase_deg(measured[sel], table.x[sel])
             for k, (fit, rep) in enumerate(zip(fitted, reproduced)):
                 f = rep[col][sel]
-                amp_ax.plot(ratio[sel], np.abs(f), ls, color=colors[k], lw=1.6,
+                amp_ax.plot(ratio[sel], np.abs(f), ls, color=colors[k], lw=widths[k],
                             label=f"{fit.label}" if d == 1 or not np.any(dirs == 1) else None)
-                ph_ax.plot(ratio[sel], _near(_phase_deg(f, table.x[sel]), meas_ph), ls, color=colors[k], lw=1.6)
+                ph_ax.plot(ratio[sel], _near(_phase_deg(f, table.x[sel]), meas_ph), ls, color=colors[k],
+                           lw=widths[k])
             face = "black" if d == 1 else "white"
             amp_ax.plot(ratio[sel], np.abs(measured[sel]), marker, mfc=face, mec="black", ls="none",
                         ms=6, label=f"measured, {dname} whirl", zorder=5)

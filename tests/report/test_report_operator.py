@@ -16,3 +16,23 @@ def test_report_of_a_killed_run_says_how_to_continue_it(tmp_path):
     assert r.exit_code == 0, r.output
     assert "run running: 1 complete point(s), 1 incomplete" in r.stdout
     assert f"orbitrig sweep --resume {run}" in r.stdout
+
+
+def test_forces_plot_keeps_agreeing_models_visible(tmp_path, monkeypatch):
+    """kc8 and kcd11 reproduce nearly the same forces: the lines differ in width so neither hides the other."""
+    from orbitrig import plots
+    from orbitrig.report import analyse_point
+    from orbitrig.run_reader import read_run
+
+    run = write_synthetic_run(tmp_path / "run", n_points=1, incomplete=0)
+    pr = analyse_point(read_run(run).points[0])
+    fitted = [plots.Fitted(f"{r.model} {r.freq_dep}", r.identification) for r in pr.results["piezo"]]
+    assert len(fitted) >= 2
+    figs = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: figs.append(fig) or path)
+    plots.forces_plot(tmp_path / "f.png", pr.point.tables["piezo"], fitted, title="t")
+    amp = figs[0].axes[0]
+    model_lines = [ln for ln in amp.get_lines() if ln.get_linestyle() != "None"]
+    widths = sorted({ln.get_linewidth() for ln in model_lines}, reverse=True)
+    assert len(widths) == len(fitted) and widths[-1] >= 0.9
+    assert all(a - b >= 0.9 for a, b in zip(widths, widths[1:]))
