@@ -62,6 +62,7 @@ def register(app: typer.Typer) -> None:
             raise typer.Exit(2)
 
         gains = offsets = None
+        labels: dict[int, tuple[str, str]] = {}  # index -> (channel name, unit), from --rig
         if rig is not None:
             from orbitrig.config import load_rig
             from orbitrig.errors import ConfigError
@@ -71,6 +72,7 @@ def register(app: typer.Typer) -> None:
             except ConfigError as err:
                 fail(str(err))
             gains, offsets = cfg.gains, cfg.offsets
+            labels = {c.index: (c.name, c.unit) for c in cfg.ordered_channels}
             adc = adc or cfg.transports.adc_url
             channels = channels or len(gains)
             mode = mode or cfg.transports.adc_mode
@@ -98,10 +100,12 @@ def register(app: typer.Typer) -> None:
         if as_json:
             typer.echo(json.dumps(out))
             return
-        typer.echo(f"{out['revolutions_used']} revolutions averaged, {out['revolutions_dropped']} dropped "
-                   f"{dict(block.stats.drop_reasons) or ''}, frames bad {out['frames_bad']}, "
+        reasons = f" {dict(block.stats.drop_reasons)}" if block.stats.drop_reasons else ""
+        typer.echo(f"{out['revolutions_used']} revolutions averaged, {out['revolutions_dropped']} dropped"
+                   f"{reasons}, frames bad {out['frames_bad']}, "
                    f"bytes skipped {out['bytes_skipped']}, orbit {out['orbit_hz'] or float('nan'):.4f} Hz")
-        typer.echo(f"{'ch':>3} {'re':>12} {'im':>12} {'amplitude':>12} {'phase deg':>10} {'rms resid':>12}")
+        typer.echo(f"{'ch':>3} {'re':>12} {'im':>12} {'amplitude':>12} {'phase deg':>10} {'rms resid':>12}  unit   name")
         for c in out["channels"]:
+            name, unit = labels.get(c["index"], ("", "counts"))
             typer.echo(f"{c['index']:>3} {c['re']:>12.5g} {c['im']:>12.5g} {c['amplitude']:>12.5g} "
-                       f"{c['phase_deg']:>10.3f} {c['rms_residual']:>12.5g}")
+                       f"{c['phase_deg']:>10.3f} {c['rms_residual']:>12.5g}  {unit:<6} {name}".rstrip())

@@ -33,10 +33,10 @@ def register(app: typer.Typer) -> None:
     @app.command("identify")
     def identify_cmd(
         table: Path = typer.Argument(..., help="Orbit table CSV (spec: orbit-table.md)."),
-        model: str = typer.Option(..., "--model", help="kc7 | kc8 | kcd11 | kcd12"),
+        model: str = typer.Option(..., "--model", help="kc7 (K, symmetric C) | kc8 (K, C) | kcd11 (K, C, symmetric D) | kcd12 (K, C, D)"),
         freq_dep: str = typer.Option("none", "--freq-dep",
-                                     help="none | power:M | power:m,n,p | power:auto | poly:R"),
-        method: str = typer.Option("ols", "--method", help="ols | wls | tls | iv"),
+                                     help="coefficients' dependence on the orbit speed Omega (rad/s): none | power:M (K = K0 + Omega^M KM, likewise C, D) | power:m,n,p (exponents of K, C, D) | power:auto (best M in 1..4) | poly:R (polynomial to Omega^R)"),
+        method: str = typer.Option("ols", "--method", help="least squares: ols (ordinary) | wls (weighted) | tls (total) | iv (instrumental variables)"),
         solver: str = typer.Option("qr", "--solver", help="qr | svd | lu (least-squares solver)"),
         as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
     ) -> None:

@@ -23,9 +23,9 @@ def register(app: typer.Typer) -> None:
     @app.command("reduce")
     def reduce_cmd(
         directory: Annotated[Path, typer.Argument(metavar="DIR", help="Run directory written by `orbitrig sweep --out DIR`.")],
-        model: Annotated[str, typer.Option("--model", help="kc7 | kc8 | kcd11 | kcd12")],
-        freq_dep: Annotated[str, typer.Option("--freq-dep", help="none | power:M | power:m,n,p | power:auto | poly:R")] = "none",
-        method: Annotated[str, typer.Option("--method", help="ols | wls | tls | iv")] = "ols",
+        model: Annotated[str, typer.Option("--model", help="kc7 (K, symmetric C) | kc8 (K, C) | kcd11 (K, C, symmetric D) | kcd12 (K, C, D)")],
+        freq_dep: Annotated[str, typer.Option("--freq-dep", help="coefficients' dependence on the orbit speed Omega (rad/s): none | power:M (K = K0 + Omega^M KM, likewise C, D) | power:m,n,p (exponents of K, C, D) | power:auto (best M in 1..4) | poly:R (polynomial to Omega^R)")] = "none",
+        method: Annotated[str, typer.Option("--method", help="least squares: ols (ordinary) | wls (weighted) | tls (total) | iv (instrumental variables)")] = "ols",
         as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the table.")] = False,
     ) -> None:
         """Identify again from a run's stored phasors, without the rig.

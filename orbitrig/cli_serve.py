@@ -62,7 +62,7 @@ def register(app: typer.Typer) -> None:
             help="manual settings: remote (wait for a 'confirm' command) | auto (--sim only)"),
         speedup: Optional[float] = typer.Option(None, "--speedup",
                                                 help="simulator time speed-up (--sim; default: as orbitrig sweep)"),
-        verbose: bool = typer.Option(False, "--verbose", "-v"),
+        verbose: bool = typer.Option(False, "--verbose", "-v", help="log at debug level (every event)"),
     ) -> None:
         """Run the rig service: start, watch and stop runs over MQTT."""
         import asyncio

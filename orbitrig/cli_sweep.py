@@ -31,7 +31,13 @@ def register(app: typer.Typer) -> None:
             DEFAULT_SIM_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"
         ),
     ) -> None:
-        """Run a test matrix: manual settings, speeds, settle, acquire, identify, store."""
+        """Run a test matrix: manual settings, speeds, settle, acquire, identify, store.
+
+        Speeds in the matrix are rpm (spin omega; orbit Omega = ratio * omega), pressures MPa,
+        times s. Ctrl-C pauses at the next safe point and asks resume / stop / abort; a second
+        Ctrl-C aborts (drives ramp down). Exit 0 completed, 1 failed, 2 bad configuration or
+        usage, 3 stopped, 4 aborted.
+        """
         from orbitrig.errors import ConfigError, OrbitrigError
 
         if run_dir is not None and out is not None and run_dir != out:
