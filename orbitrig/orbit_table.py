@@ -27,7 +27,7 @@ RPM = 2 * math.pi / 60  # rad/s per rpm
 
 
 # a decimal number as a CSV writer prints it (Python's float() also takes '1_000' and spaces)
-_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|[+-]?(nan|inf|infinity)", re.IGNORECASE)
+_NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|[+-]?(nan|inf|infinity)", re.IGNORECASE | re.ASCII)
 
 
 def _number(raw: str) -> float | None:

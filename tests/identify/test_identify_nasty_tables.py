@@ -71,7 +71,7 @@ def test_surplus_value_past_the_header_is_refused(tmp_path, lines):
     _refused(_run(path), path, 4, "#11 (no header)")
 
 
-@pytest.mark.parametrize("cell", ["1_000", "0x10", "1e", "--1", "1,5", "NaN", "-inf", ""])
+@pytest.mark.parametrize("cell", ["1_000", "0x10", "1e", "--1", "1,5", "NaN", "-inf", "", "\u0661\u0662"])
 def test_non_numeric_cells_name_line_and_column(tmp_path, lines, cell):
     header = lines[0].split(",")
     row = lines[2].split(",")
