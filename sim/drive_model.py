@@ -42,9 +42,11 @@ OFF1 ACTIVE (ramp stop), OFF3 ACTIVE (emergency ramp stop), FAULT.
   when none is left the drive goes to SWITCH-ON INHIBITED and, since the reset
   word 0x04F6 has OFF1 = 0, straight on to READY TO SWITCH ON.
 - REMOTE (bit 10) = 0: the control word is stored (reads back) but not acted
-  on; the drive keeps its last accepted command and reference, SW.REMOTE = 0
-  and the watchdog is disarmed. A control word with REMOTE = 1 takes network
-  control (also out of `local_control`).
+  on; the drive keeps its last accepted command and reference and SW.REMOTE = 0,
+  but the watchdog stays armed: a drive running on a network command must
+  still stop when the network falls silent. A control word with REMOTE = 1
+  takes network control (also out of `local_control`); only `local_control`
+  (the keypad) disarms the watchdog.
 
 Status word per state: RDY_ON in READY TO SWITCH ON / READY TO OPERATE /
 OPERATION ENABLED / OFF1 ACTIVE; RDY_RUN in READY TO OPERATE / OPERATION
@@ -251,6 +253,7 @@ class DriveModel:
         self._ref = 0  # last accepted REF, int16
         self._ref2 = 0
         self._remote = False
+        self._watchdog_armed = False  # armed by network control, disarmed only by the keypad
         self._local = False
         self._local_rpm = 0.0
         self._alarm = False
@@ -416,6 +419,7 @@ class DriveModel:
             raise RuntimeError(f"drive {self.device_id} is tripped (fault {self.fault_code})")
         self._local = True
         self._remote = False
+        self._watchdog_armed = False
         limit = float(self._params[MAX_SPEED])
         self._local_rpm = math.copysign(min(abs(float(rpm)), limit), rpm)
         self._speed = self._local_rpm
@@ -487,11 +491,12 @@ class DriveModel:
     def _write_cw(self, value: int) -> None:
         self._cw_reg = value
         if not value & CW_REMOTE:
-            self._remote = False  # stored, not acted on; watchdog disarmed
+            self._remote = False  # stored, not acted on; the watchdog stays armed
             return
-        if not self._remote:
-            self._remote = True
+        if not self._watchdog_armed:
+            self._watchdog_armed = True
             self._last_request = self._w  # arming starts a fresh timeout
+        self._remote = True
         self._local = False
         self._ref = self._ref_reg
         old, self._cw = self._cw, value
@@ -640,6 +645,6 @@ class DriveModel:
     def _watchdog_expiry(self) -> float | None:
         """Wall time at which the watchdog trips, None if disarmed."""
         timeout = self._params[COMM_LOSS_TIMEOUT]
-        if not self._remote or timeout == 0 or COMM_LOSS_FAULT in self._faults:
+        if not self._watchdog_armed or timeout == 0 or COMM_LOSS_FAULT in self._faults:
             return None
         return self._last_request + 0.1 * timeout

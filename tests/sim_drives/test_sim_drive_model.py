@@ -509,11 +509,29 @@ def test_watchdog_disabled_or_not_armed(clocks):
     clocks.tick(100.0, wall=100.0)
     d.advance()
     assert not d.faults  # 0 disables
+    d.local_control(0.0)  # the keypad takes over: only that disarms the watchdog
     d.write(COMM_LOSS_TIMEOUT, [10])
-    d.write(CW, [READY & ~0x0400])  # network control released
     clocks.tick(100.0, wall=100.0)
     d.advance()
     assert not d.faults
+
+
+def test_remote_released_while_running_keeps_the_watchdog_armed(clocks):
+    """A drive left running on a network command must stop when the network falls
+    silent, even if the last control word released network control (REMOTE = 0)."""
+    d = make(clocks)
+    at_speed(clocks, d, 1500)
+    d.write(CW, [RUN & ~0x0400])  # network control released: the last command stays
+    assert not sw(d) & REMOTE and d.running
+    clocks.tick(0.9, wall=0.9)
+    d.advance()
+    assert not d.faults and rpm(d) == pytest.approx(1500)
+    clocks.tick(0.2, wall=0.2)  # 1.1 s of silence > COMM_LOSS_TIMEOUT (1 s)
+    d.advance()
+    assert d.fault_code == 7510 and rpm(d) < 1500
+    clocks.tick(5.0)
+    d.advance()
+    assert rpm(d) == 0.0
 
 
 # -------------------------------------------------------------- local control
