@@ -44,6 +44,8 @@ def register(app: typer.Typer) -> None:
         sim: bool = typer.Option(False, "--sim", help="run against the built-in simulator"),
         config: Optional[Path] = typer.Option(None, "--config", help="rig configuration (TOML)"),
         rig_id: str = typer.Option("rig1", "--rig-id", help="topic prefix orbitrig/<rig-id>"),
+        prefix: Optional[str] = typer.Option(
+            None, "--prefix", help="topic prefix instead of orbitrig/<rig-id> (levels without wildcards)"),
         username: Optional[str] = typer.Option(None, "--username", envvar=USERNAME_ENV,
                                                help="broker user name"),
         password_file: Optional[Path] = typer.Option(
@@ -70,7 +72,7 @@ def register(app: typer.Typer) -> None:
 
         from orbitrig import config as cfg
         from orbitrig.errors import ConfigError
-        from orbitrig.mqtt_protocol import validate_rig_id
+        from orbitrig.mqtt_protocol import topics, validate_rig_id
         from orbitrig.service import BrokerSettings, ServiceError, ServiceSettings
 
         logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO,
@@ -80,6 +82,10 @@ def register(app: typer.Typer) -> None:
             validate_rig_id(rig_id)
         except ValueError as err:
             _fail(f"--rig-id: {err}")
+        try:
+            topics(rig_id, prefix)
+        except ValueError as err:
+            _fail(f"--prefix: {err}")
         if tls_ca is not None and not tls_ca.is_file():
             _fail(f"--tls-ca: no such file: {tls_ca}")
         password = read_password(password_file)
@@ -92,7 +98,7 @@ def register(app: typer.Typer) -> None:
             broker_settings = BrokerSettings.from_url(broker, username=username, password=password,
                                                       tls_ca=tls_ca)
             folder = matrices or Path(rig.file).resolve().parent / "matrices"
-            settings = ServiceSettings(rig_id=rig_id, matrices_dir=folder,
+            settings = ServiceSettings(rig_id=rig_id, matrices_dir=folder, prefix=prefix,
                                        supervision_policy=supervision_policy,  # type: ignore[arg-type]
                                        supervision_timeout=supervision_timeout)
         except (ConfigError, ServiceError) as err:
