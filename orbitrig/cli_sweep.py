@@ -83,6 +83,9 @@ def _load(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
                                                 f"resume it {'with' if was_sim else 'without'} --sim"])  # fmt: skip
         rig = cfg.load_rig(config) if config else cfg.rig_from_text(rig_text, f"{store.path}:rig_config")
         mat = cfg.load_matrix(matrix) if matrix else cfg.matrix_from_text(matrix_text, f"{store.path}:matrix_config")
+        if matrix and mat.text != matrix_text:  # before the simulator or any drive is started
+            raise ConfigError(mat.file, [f"differs from the matrix of the run being resumed in {store.path}; "
+                                         "resume without --matrix (the stored one is used)"])  # fmt: skip
         return rig, mat
     rig = cfg.load_rig(config)
     if matrix is None and not sim and not dry_run:

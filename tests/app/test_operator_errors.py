@@ -139,3 +139,14 @@ def test_sweep_coefficient_table_states_units(tmp_path):
     assert p.returncode == 0, p.stderr
     rows = {line.split()[1]: line for line in p.stdout.splitlines() if line.startswith("│ ") and line.split()[1][:1] in "KCD"}
     assert "N/m" in rows["Kxx"] and "N s/m" in rows["Cyy"] and "kg" in rows["Dxx"]
+
+
+def test_resume_with_another_matrix_is_refused_before_anything_starts(tmp_path):
+    out = tmp_path / "run"
+    assert _run("sweep", "--sim", "--out", str(out)).returncode == 0
+    other = tmp_path / "other.toml"
+    other.write_text(DEMO_TEXT.replace("dynamic_eccentricity = [0.096]", "dynamic_eccentricity = [0.1]"))
+    p = _run("sweep", "--sim", "--resume", str(out), "--matrix", str(other))
+    assert p.returncode == 2 and "Traceback" not in p.stderr
+    assert f"{other}: differs from the matrix of the run being resumed" in p.stderr
+    assert "points" not in p.stderr
