@@ -318,14 +318,14 @@ def print_coefficients(out: Path) -> None:
                     fits[key] = json.loads(h.attrs["json"])
             names = sorted({k for d in fits.values() for k in d["coefficients"] if "_" not in k}, key=coef_order)
             table = Table(title=f"point {name}  {g.attrs['label']}", title_justify="left")
-            table.add_column("coef  unit")
+            table.add_column("coef")
             if truth:
                 table.add_column("true", justify="right")
             for key in fits:
                 table.add_column(key.replace("__none", "").replace("__", " "), justify="right")
             errs = {k: compare_with_truth(d["coefficients"], truth) for k, d in fits.items()} if truth else {}
             for c in names:
-                row = [f"{c}  {_COEF_UNIT[c[0]]}"]
+                row = [c]
                 if truth:
                     row.append(f"{truth[c[0] + '0']['xy'.index(c[1])]['xy'.index(c[2])]:.4g}")
                 for key, d in fits.items():
@@ -336,6 +336,8 @@ def print_coefficients(out: Path) -> None:
                     row.append(cell)
                 table.add_row(*row)
             console.print(table)
+            console.print("units: " + ", ".join(f"{m} {u}" for m, u in _COEF_UNIT.items() if any(c[0] == m for c in names)),
+                          markup=False)  # fmt: skip
             if truth:
                 console.print("(%) = |identified - true| / largest true entry of the matrix", markup=False)
                 top = max(truth["orbit"], key=abs)
