@@ -12,10 +12,10 @@ def register(app: typer.Typer) -> None:
     @app.command("sim")
     def sim(
         config: Optional[Path] = typer.Option(None, "--config", help="Simulator TOML (see config/sim.toml)."),
-        modbus_port: int = typer.Option(5020, "--modbus-port", help="Modbus TCP port of both drives (0 = any free)."),
-        adc_port: int = typer.Option(5000, "--adc-port", help="A/D TCP serial device server port (0 = any free)."),
+        modbus_port: int = typer.Option(5020, "--modbus-port", min=0, max=65535, help="Modbus TCP port of both drives (0 = any free)."),
+        adc_port: int = typer.Option(5000, "--adc-port", min=0, max=65535, help="A/D TCP serial device server port (0 = any free)."),
         speedup: Optional[float] = typer.Option(None, "--speedup", help="Simulated time / wall time (default from config, 1)."),
-        control_port: int = typer.Option(0, "--control-port", help="JSON-lines control API port (0 = any free)."),
+        control_port: int = typer.Option(0, "--control-port", min=0, max=65535, help="JSON-lines control API port (0 = any free)."),
         modbus_rtu: bool = typer.Option(False, "--modbus-rtu/--no-modbus-rtu", help="Also serve Modbus RTU on a pty."),
         can_channel: Optional[str] = typer.Option(None, "--can-channel", help="python-can channel of the CAN node."),
         can_interface: str = typer.Option("virtual", "--can-interface", help="python-can interface of the CAN node."),
@@ -47,6 +47,7 @@ def register(app: typer.Typer) -> None:
 
         try:
             asyncio.run(run())
-        except OSError as err:  # e.g. port in use
-            typer.echo(f"orbitrig sim: {err}", err=True)
-            raise typer.Exit(1) from err
+        except (OSError, RuntimeError) as err:  # a port in use (pymodbus says RuntimeError "Could not start listen")
+            typer.echo(f"orbitrig sim: {err} (ports: Modbus {modbus_port}, A/D {adc_port}, control {control_port}; "
+                       "is another simulator running? 0 picks a free port)", err=True)  # fmt: skip
+            raise typer.Exit(1) from None

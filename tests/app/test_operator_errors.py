@@ -150,3 +150,16 @@ def test_resume_with_another_matrix_is_refused_before_anything_starts(tmp_path):
     assert p.returncode == 2 and "Traceback" not in p.stderr
     assert f"{other}: differs from the matrix of the run being resumed" in p.stderr
     assert "points" not in p.stderr
+
+
+def test_sim_on_a_port_in_use_names_the_port_without_a_traceback():
+    import socket
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        p = _run("sim", "--modbus-port", str(port), "--adc-port", "0", timeout=30)
+    assert p.returncode == 1
+    assert "Traceback" not in p.stderr
+    assert f"ports: Modbus {port}, A/D 0" in p.stderr
