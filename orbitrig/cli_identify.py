@@ -49,8 +49,8 @@ def register(app: typer.Typer) -> None:
 
         try:
             data = read_orbit_table(table)
-        except TableError as err:
-            _fail(f"malformed table: {err}")
+        except TableError as err:  # a table that cannot be read is not "malformed"
+            _fail(str(err) if err.reason.startswith("cannot read") else f"malformed table: {err}")
         try:
             result = identify(data, model=model, freq_dep=freq_dep, method=method, solver=solver)
         except OrbitrigError as err:
