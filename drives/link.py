@@ -11,9 +11,12 @@ response is raised as `DriveExceptionResponse`, never returned. After any
 failed request the connection is dropped and the next request reconnects.
 
 A late answer must never be taken for the answer to a newer request: on TCP
-a new connection cannot receive it (and transaction ids differ); RTU has no
-transaction id, so the serial input is flushed before each request (a pty or
-USB adapter keeps unread bytes across a reopen), and an exchange whose caller
+a new connection cannot receive it (and transaction ids differ). RTU has no
+transaction id: `rtu://` runs on `drives.rtu.RtuLine` (not pymodbus' serial
+client), which keeps the inter-frame silence before every request (longer
+after a failed exchange, so a late answer lands first) and accepts only a
+CRC-valid answer from the addressed device with the request's function code
+and shape, discarding any other frame on the line. An exchange whose caller
 was cancelled is allowed to finish (<= timeout) before the next one starts.
 
 pymodbus' own reconnect task and retries are switched off: reconnecting is
@@ -34,6 +37,7 @@ from drives.errors import (
     DriveTimeoutError,
 )
 from drives.registers import register_name
+from drives.rtu import RtuLine
 
 log = logging.getLogger(__name__)
 
@@ -127,15 +131,14 @@ class ModbusLink:
         await self.close()
 
     def _new_client(self):
-        from pymodbus.client import AsyncModbusSerialClient, AsyncModbusTcpClient
+        from pymodbus.client import AsyncModbusTcpClient
 
-        # reconnect_delay=0: no pymodbus reconnect task; retries=0: one try per request.
-        common = {"timeout": self.timeout, "retries": 0, "reconnect_delay": 0, "name": self.url}
         a = self.address
-        if a.kind == "tcp":
-            return AsyncModbusTcpClient(a.host, port=a.port, **common)
-        return AsyncModbusSerialClient(
-            a.path, baudrate=a.baud, bytesize=8, parity="N", stopbits=1, **common
+        if a.kind == "rtu":
+            return RtuLine(a.path, baud=a.baud, timeout=self.timeout)
+        # reconnect_delay=0: no pymodbus reconnect task; retries=0: one try per request.
+        return AsyncModbusTcpClient(
+            a.host, port=a.port, timeout=self.timeout, retries=0, reconnect_delay=0, name=self.url
         )
 
     async def _ensure_connected(self) -> None:
@@ -216,7 +219,6 @@ class ModbusLink:
         async with self._lock:
             await self._settle_abandoned()
             await self._ensure_connected_for(device_id, address)
-            self._flush_input()
             exchange = asyncio.ensure_future(asyncio.wait_for(call(self._client), self.timeout + 0.5))
             try:
                 rsp = await asyncio.shield(exchange)
@@ -267,20 +269,6 @@ class ModbusLink:
         self._abandoned = None
         if exchange.cancelled() or exchange.exception() is not None:
             self._drop()
-
-    def _flush_input(self) -> None:
-        """RTU has no transaction id: drop any late answer still waiting in the
-        serial input (a pty or a USB adapter keeps it across a reopen) so it cannot
-        be taken for the answer to the next request. pymodbus 3.16 keeps the
-        pyserial port at `ctx.transport.sync_serial`."""
-        if self.address.kind != "rtu":
-            return
-        port = getattr(getattr(self._client.ctx, "transport", None), "sync_serial", None)
-        if port is not None:
-            try:
-                port.reset_input_buffer()
-            except OSError as err:
-                log.debug("input flush failed on %s: %s", self.url, err)
 
     async def _ensure_connected_for(self, device_id: int, address: int) -> None:
         try:

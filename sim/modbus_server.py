@@ -1,7 +1,7 @@
 """Modbus servers for the emulated drives: TCP on loopback and RTU over a pty.
 
 Both serve a dict {device id: DriveModel} ({1: spin, 2: orbit}) on ONE
-network with pymodbus 3.16 servers. The datastore is pymodbus' `SimDevice`
+network. TCP is pymodbus 3.16's server. The datastore is pymodbus' `SimDevice`
 (the successor of the deprecated ModbusServerContext / ModbusDeviceContext /
 ModbusSequentialDataBlock): each drive is a SimDevice whose whole address
 space is declared and whose `action` hook routes every request live to
@@ -10,8 +10,8 @@ its exception codes (02 unknown / read-only address, 03 bad value or
 parameter write while running). Function codes other than 03, 06 and 16
 answer exception 01.
 
-Every received request passes a gate (pymodbus' `trace_pdu` hook) before it
-is executed:
+Every received request passes a gate (pymodbus' `trace_pdu` hook on TCP)
+before it is executed:
 - a request addressed to a drive feeds that drive's watchdog
   (`note_request`), also when it will be answered with an exception;
 - a request for an unknown device id is not answered on RTU (as on a real
@@ -20,12 +20,18 @@ is executed:
 - `set_unresponsive(True)` drops every request (a dead link: the client times
   out, and since the drives receive nothing their watchdogs run down).
 
-RTU over a pty: two pseudo-terminals are created and their master ends are
-bridged in-process (`loop.add_reader`), so the server opens one slave device
-(`ModbusSerialServer`) and the client another (`endpoint.path`, any serial
-client: pymodbus, pyserial, mbpoll). Both slave ends are kept open and raw by
-the endpoint, so clients may open and close the path repeatedly. The baud
-rate is only carried in the URL (a pty has no line timing).
+RTU over a pty: a server of our own works the master end of one pty
+(sim/pty.py); clients open the slave (`endpoint.path`: pymodbus, pyserial,
+mbpoll). The endpoint keeps the slave open and raw, so clients may open and
+close the path repeatedly. The baud rate is only carried in the URL (a pty has
+no line timing). It is not pymodbus' ModbusSerialServer, which loses requests
+that arrive back to back: its RTU framer (FramerRTU.decode) consumes the whole
+receive buffer with the first frame, so a second frame read in the same chunk
+is dropped unanswered; and its ServerRequestHandler keeps ONE `last_pdu` that
+the next chunk overwrites (or clears) before the deferred handler runs, so
+the first request is lost and the second answered twice. This server answers
+every well-formed request exactly once, in order (`find_request` frames by
+function-code size and CRC, hunting byte by byte past noise).
 """
 
 from __future__ import annotations
@@ -33,19 +39,23 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import functools
+import logging
 import os
-import tty
+import struct
 from collections.abc import Mapping
 
 from pymodbus.constants import ExcCodes
 from pymodbus.framer import FramerType
 from pymodbus.pdu import ModbusPDU
-from pymodbus.server import ModbusSerialServer, ModbusTcpServer
+from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
 from .drive_model import DriveModbusException, DriveModel
+from .pty import close_fds, open_raw_pty
 
-__all__ = ["ModbusEndpoint", "serve_modbus_rtu_pty", "serve_modbus_tcp"]
+log = logging.getLogger(__name__)
+
+__all__ = ["ModbusEndpoint", "crc16", "find_request", "serve_modbus_rtu_pty", "serve_modbus_tcp"]
 
 _SUPPORTED_FUNCTIONS = (3, 6, 16)
 
@@ -99,23 +109,30 @@ def _sim_devices(drives: Mapping[int, DriveModel], catch_all: bool) -> list[SimD
 
 
 class _Gate:
-    """trace_pdu hook: watchdog feeding, unknown device ids, unresponsive mode."""
+    """Every received request: watchdog feeding, unknown device ids, unresponsive mode.
+
+    `trace_pdu` is the pymodbus hook (TCP); `admit` is the same rule for the RTU server.
+    """
 
     def __init__(self, drives: Mapping[int, DriveModel], answer_unknown: bool) -> None:
         self.drives = dict(drives)
         self.answer_unknown = answer_unknown
         self.unresponsive = False
 
+    def admit(self, dev_id: int) -> bool:
+        """Whether a request for `dev_id` is executed and answered (feeds its watchdog)."""
+        if self.unresponsive:
+            return False  # dropped: no response
+        drive = self.drives.get(dev_id)
+        if drive is None:
+            return self.answer_unknown
+        drive.note_request()
+        return True
+
     def trace_pdu(self, sending: bool, pdu: ModbusPDU) -> ModbusPDU | None:
         if sending:
             return pdu
-        if self.unresponsive:
-            return None  # dropped: no response
-        drive = self.drives.get(pdu.dev_id)
-        if drive is None:
-            return pdu if self.answer_unknown else None
-        drive.note_request()
-        return pdu
+        return pdu if self.admit(pdu.dev_id) else None
 
 
 class ModbusEndpoint:
@@ -131,16 +148,14 @@ class ModbusEndpoint:
         url: str,
         port: int | None,
         path: str | None,
-        server: ModbusTcpServer | ModbusSerialServer,
+        server: ModbusTcpServer | _RtuPtyServer,
         gate: _Gate,
-        bridge: _PtyBridge | None = None,
     ) -> None:
         self.url = url
         self.port = port
         self.path = path
         self._server = server
         self._gate = gate
-        self._bridge = bridge
         self._closed = False
 
     def set_unresponsive(self, on: bool) -> None:
@@ -156,13 +171,11 @@ class ModbusEndpoint:
         if self._closed:
             return
         self._closed = True
-        listener = self._server.transport
+        listener = getattr(self._server, "transport", None)
         await self._server.shutdown()
         if isinstance(listener, asyncio.AbstractServer):
             with contextlib.suppress(asyncio.TimeoutError):
                 await asyncio.wait_for(listener.wait_closed(), timeout=1.0)
-        if self._bridge is not None:
-            self._bridge.close()
 
     async def __aenter__(self) -> ModbusEndpoint:
         return self
@@ -192,76 +205,201 @@ async def serve_modbus_tcp(
     )
 
 
-class _PtyBridge:
-    """Two ptys whose masters are cross-connected: slave A <-> slave B."""
+# ------------------------------------------------------------------ RTU
+# Request sizes (bytes, device id and CRC included) by function code, from the
+# Modbus application protocol: a fixed size, or (position of the byte count,
+# bytes around it). Other function codes are framed by their CRC alone.
+_FIXED_SIZE = {1: 8, 2: 8, 3: 8, 4: 8, 5: 8, 6: 8, 7: 4, 8: 8, 11: 4, 12: 4, 17: 4, 22: 10, 24: 6}
+_COUNTED_SIZE = {15: (6, 9), 16: (6, 9), 20: (2, 5), 21: (2, 5), 23: (10, 13)}
+_MAX_ADU = 256
 
-    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
-        self._loop = loop
-        self._fds: list[int] = []
-        try:
-            m_a, s_a = os.openpty()
-            self._fds += [m_a, s_a]
-            m_b, s_b = os.openpty()
-            self._fds += [m_b, s_b]
-            for fd in (s_a, s_b):
-                tty.setraw(fd)  # no echo / line editing before a client opens it
-            for fd in (m_a, m_b):
-                os.set_blocking(fd, False)
-            self.server_path = os.ttyname(s_a)
-            self.client_path = os.ttyname(s_b)
-        except BaseException:
-            self._close_fds()
-            raise
-        self._masters = (m_a, m_b)
-        loop.add_reader(m_a, self._pump, m_a, m_b)
-        loop.add_reader(m_b, self._pump, m_b, m_a)
 
-    def _pump(self, src: int, dst: int) -> None:
+def _crc_table() -> list[int]:
+    table = []
+    for byte in range(256):
+        crc = byte
+        for _ in range(8):
+            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
+        table.append(crc)
+    return table
+
+
+_CRC_TABLE = _crc_table()
+
+
+def crc16(data: bytes | bytearray | memoryview) -> int:
+    """Modbus CRC-16 (poly 0xA001 reflected, init 0xFFFF); sent low byte first."""
+    crc = 0xFFFF
+    for b in data:
+        crc = (crc >> 8) ^ _CRC_TABLE[(crc ^ b) & 0xFF]
+    return crc
+
+
+def _with_crc(body: bytes) -> bytes:
+    return body + crc16(body).to_bytes(2, "little")
+
+
+def find_request(buf: bytes | bytearray) -> tuple[int, int] | None:
+    """(start, end) of the first complete, CRC-valid request frame in `buf`, or None.
+
+    Hunts byte by byte: bytes before `start` are line noise or the fragment of a
+    broken frame (a real RTU receiver drops them at the next inter-frame
+    silence). Every complete frame is found, also several back to back in one
+    read; an incomplete frame at the head does not hide a complete one after it.
+    """
+    n = len(buf)
+    for k in range(n - 3):
+        fc = buf[k + 1]
+        if fc in _FIXED_SIZE:
+            size = _FIXED_SIZE[fc]
+        elif fc in _COUNTED_SIZE:
+            pos, extra = _COUNTED_SIZE[fc]
+            if k + pos >= n:
+                continue
+            size = buf[k + pos] + extra
+        else:  # unknown layout: the shortest CRC-valid frame
+            crc = 0xFFFF
+            for e in range(k, min(n, k + _MAX_ADU) - 2):
+                crc = (crc >> 8) ^ _CRC_TABLE[(crc ^ buf[e]) & 0xFF]
+                if e - k >= 1 and crc == buf[e + 1] | buf[e + 2] << 8:
+                    return k, e + 3
+            continue
+        end = k + size
+        if end <= n and crc16(buf[k : end - 2]) == buf[end - 2] | buf[end - 1] << 8:
+            return k, end
+    return None
+
+
+class _RtuPtyServer:
+    """Modbus RTU server on the master end of a pty: every well-formed request
+    is executed and answered exactly once, in the order received.
+
+    Frames are delimited by function-code size and CRC (a pty carries no line
+    timing); several frames in one read are all served. A request is handled
+    synchronously in the read callback (the drive models are synchronous), so
+    no later request can overtake or replace it. Answers are queued to the
+    master; what a client never reads is forgotten when it reopens the line.
+    """
+
+    def __init__(self, drives: Mapping[int, DriveModel], gate: _Gate) -> None:
+        self._loop = asyncio.get_running_loop()
+        self._drives = dict(drives)
+        self._gate = gate
+        self.master, self._slave, self.path = open_raw_pty()
+        self._rx = bytearray()
+        self._tx = bytearray()
+        self._writing = False
+        self.requests = 0  # well-formed requests received
+        self.answered = 0
+        self.noise_bytes = 0  # bytes dropped while hunting for a frame
+        self._loop.add_reader(self.master, self._on_readable)
+
+    # -- bytes ----------------------------------------------------------------
+    def _on_readable(self) -> None:
         try:
-            data = os.read(src, 4096)
+            data = os.read(self.master, 4096)
         except (BlockingIOError, InterruptedError):
             return
-        except OSError:
+        except OSError:  # EIO: no slave open (cannot happen while we hold one)
             return
-        with contextlib.suppress(BlockingIOError, InterruptedError, OSError):
-            os.write(dst, data)  # a full buffer (nobody reading) drops the bytes
+        self._rx += data
+        while True:
+            found = find_request(self._rx)
+            if found is None:
+                break
+            start, end = found
+            if start:
+                self.noise_bytes += start
+                log.debug("RTU: %d byte(s) of noise before a frame dropped", start)
+            frame = bytes(self._rx[start:end])
+            del self._rx[:end]
+            self._serve(frame)
+        if len(self._rx) > 2 * _MAX_ADU:  # no frame in it: noise
+            self.noise_bytes += len(self._rx) - _MAX_ADU
+            del self._rx[:-_MAX_ADU]
 
-    def close(self) -> None:
-        for fd in self._masters:
-            self._loop.remove_reader(fd)
-        self._close_fds()
+    def _send(self, adu: bytes) -> None:
+        self._tx += adu
+        self.answered += 1
+        if not self._writing:
+            self._flush()
 
-    def _close_fds(self) -> None:
-        for fd in self._fds:
-            with contextlib.suppress(OSError):
-                os.close(fd)
-        self._fds = []
+    def _flush(self) -> None:
+        try:
+            n = os.write(self.master, self._tx)
+        except (BlockingIOError, InterruptedError):
+            n = 0
+        except OSError:
+            self._tx.clear()
+            n = 0
+        del self._tx[:n]
+        if self._tx and not self._writing:
+            self._writing = True
+            self._loop.add_writer(self.master, self._on_writable)
+        elif not self._tx and self._writing:
+            self._writing = False
+            self._loop.remove_writer(self.master)
+
+    def _on_writable(self) -> None:
+        self._flush()
+
+    # -- requests ---------------------------------------------------------------
+    def _serve(self, frame: bytes) -> None:
+        dev, fc, data = frame[0], frame[1], frame[2:-2]
+        self.requests += 1
+        if dev == 0 or not self._gate.admit(dev):
+            return  # broadcast (nothing to answer), unknown id or a dead line: silence
+        drive = self._drives[dev]
+        try:
+            body = self._execute(drive, fc, data)
+        except DriveModbusException as exc:
+            body = bytes([fc | 0x80, exc.code])
+        self._send(_with_crc(bytes([dev]) + body))
+
+    @staticmethod
+    def _execute(drive: DriveModel, fc: int, data: bytes) -> bytes:
+        """The response PDU (function code onward) for one request PDU."""
+        if fc not in _SUPPORTED_FUNCTIONS:
+            raise DriveModbusException(int(ExcCodes.ILLEGAL_FUNCTION), f"function code {fc}")
+        address, count = struct.unpack(">HH", data[:4])
+        if fc == 3:
+            if not 1 <= count <= 125:
+                raise DriveModbusException(int(ExcCodes.ILLEGAL_VALUE), f"count {count}")
+            words = drive.read(address, count)
+            return struct.pack(f">BB{count}H", fc, 2 * count, *words)
+        if fc == 6:
+            drive.write(address, [count])  # the second word is the value
+            return bytes([fc]) + data[:4]
+        byte_count, values = data[4], data[5:]
+        if not 1 <= count <= 123 or byte_count != 2 * count or len(values) != byte_count:
+            raise DriveModbusException(int(ExcCodes.ILLEGAL_VALUE), f"count {count}")
+        drive.write(address, list(struct.unpack(f">{count}H", values)))
+        return bytes([fc]) + data[:4]
+
+    async def shutdown(self) -> None:
+        if self.master is None:
+            return
+        self._loop.remove_reader(self.master)
+        if self._writing:
+            self._loop.remove_writer(self.master)
+        close_fds(self.master, self._slave)
+        self.master = self._slave = None
 
 
 async def serve_modbus_rtu_pty(drives: Mapping[int, DriveModel], baud: int = 19200) -> ModbusEndpoint:
-    """Serve `drives` as Modbus RTU on a pty; the client opens `endpoint.path`."""
-    bridge = _PtyBridge(asyncio.get_running_loop())
-    try:
-        gate = _Gate(drives, answer_unknown=False)
-        server = ModbusSerialServer(
-            _sim_devices(drives, catch_all=False),
-            framer=FramerType.RTU,
-            port=bridge.server_path,
-            baudrate=baud,
-            bytesize=8,
-            parity="N",
-            stopbits=1,
-            trace_pdu=gate.trace_pdu,
-        )
-        await server.serve_forever(background=True)
-    except BaseException:
-        bridge.close()
-        raise
+    """Serve `drives` as Modbus RTU on a pty; the client opens `endpoint.path`.
+
+    The baud rate is only carried in the URL (a pty has no line timing).
+    """
+    for dev_id in drives:
+        if not 1 <= dev_id <= 247:
+            raise ValueError(f"device id {dev_id} outside 1..247")
+    gate = _Gate(drives, answer_unknown=False)
+    server = _RtuPtyServer(drives, gate)
     return ModbusEndpoint(
-        url=f"rtu://{bridge.client_path}?baud={baud}",
+        url=f"rtu://{server.path}?baud={baud}",
         port=None,
-        path=bridge.client_path,
+        path=server.path,
         server=server,
         gate=gate,
-        bridge=bridge,
     )
