@@ -33,10 +33,11 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Run a test matrix: manual settings, speeds, settle, acquire, identify, store.
 
-        Speeds in the matrix are rpm (spin omega; orbit Omega = ratio * omega), pressures MPa,
-        times s. Ctrl-C pauses at the next safe point and asks resume / stop / abort; a second
-        Ctrl-C aborts (drives ramp down). Exit 0 completed, 1 failed, 2 bad configuration or
-        usage, 3 stopped, 4 aborted.
+        Matrix units: speeds rpm (spin omega; orbit Omega = ratio * omega), pressures MPa, times s.
+
+        Ctrl-C pauses at the next safe point and asks resume / stop / abort; a second Ctrl-C aborts.
+
+        Exit 0 completed, 1 failed, 2 bad configuration or usage, 3 stopped, 4 aborted.
         """
         from orbitrig.errors import ConfigError, OrbitrigError
 
