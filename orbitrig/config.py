@@ -437,8 +437,15 @@ def _read(path: Path | str) -> tuple[str, str]:
         raise ConfigError(str(path), [f"cannot read the file: {err.strerror or err}"]) from err
 
 
+def _read_default(path: Path | str | None, default: Path, option: str) -> tuple[str, str]:
+    if path is not None or default.is_file():
+        return _read(path or default)
+    raise ConfigError(str(default), [f"the default file is not there (orbitrig installed without its source tree? "
+                                     f"install with pip install -e): give {option} FILE"])  # fmt: skip
+
+
 def load_rig(path: Path | str | None = None) -> RigConfig:
-    text, file = _read(path or default_rig_path())
+    text, file = _read_default(path, default_rig_path(), "--config")
     return rig_from_text(text, file)
 
 
@@ -447,7 +454,7 @@ def rig_from_text(text: str, file: str = "<rig config>") -> RigConfig:
 
 
 def load_matrix(path: Path | str | None = None) -> MatrixConfig:
-    text, file = _read(path or default_matrix_path())
+    text, file = _read_default(path, default_matrix_path(), "--matrix")
     return matrix_from_text(text, file)
 
 

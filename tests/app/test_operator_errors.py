@@ -170,3 +170,12 @@ def test_identify_of_a_missing_table_says_it_cannot_be_read(tmp_path):
     assert p.returncode == 2 and "Traceback" not in p.stderr
     assert f"orbitrig identify: {tmp_path / 'nope.csv'}: cannot read the file" in p.stderr
     assert "malformed" not in p.stderr
+
+
+def test_missing_default_config_says_how_to_give_one(tmp_path, monkeypatch):
+    monkeypatch.setattr(cfg, "_REPO_CONFIG", tmp_path / "config")  # as in a non-editable install
+    for load, option in ((cfg.load_rig, "--config"), (cfg.load_matrix, "--matrix")):
+        with pytest.raises(ConfigError) as info:
+            load()
+        assert info.value.file.startswith(str(tmp_path / "config"))
+        assert info.value.problems[0].endswith(f"install with pip install -e): give {option} FILE")
