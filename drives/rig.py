@@ -15,8 +15,14 @@ Safety rules this class keeps:
   pace. It is the heartbeat the drives' comm-loss watchdog needs, the source of
   `state`, and the interlock: if either drive trips, both are ramped to zero
   and the fault is raised from `wait_settled`.
-- On link loss the poll reports it (log, `state.link_ok`), keeps reconnecting
-  and, once the link is back, verifies both drives against what was commanded
+- A failed poll is counted (`state.poll_failures`, logged) but the link is
+  declared lost only after `link_loss_polls` consecutive failed polls (an
+  isolated lost frame on a noisy RS-485 line is tolerated). Keep
+  link_loss_polls x (poll_interval + timeout) well under the drives'
+  COMM_LOSS_TIMEOUT (warned on entry), so the loss is declared before the
+  drives' own watchdog stops them.
+- On a declared link loss the poll reports it (log, `state.link_ok`), keeps
+  reconnecting and, once the link is back, verifies both drives against what was commanded
   before anything goes on; drives found tripped or off their reference are
   stopped and the loss is raised.
 - Any exception inside `set_speeds`, and every exit of the context, ramps both
@@ -30,6 +36,7 @@ Safety rules this class keeps:
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import logging
 import math
 import time
@@ -144,7 +151,9 @@ class RigDriveState:
     link_ok: bool
     link_error: str | None = None
     link_losses: int = 0
-    polls: int = 0
+    polls: int = 0  # successful polls
+    poll_failures: int = 0  # failed polls in all (isolated ones and those of a declared loss)
+    failed_in_row: int = 0  # consecutive failed polls up to now (0 after a good one)
     time: float = 0.0  # time.monotonic() of the poll
 
     @property
@@ -161,6 +170,7 @@ class RigDriveState:
             "link_ok": self.link_ok,
             "link_error": self.link_error,
             "link_losses": self.link_losses,
+            "poll_failures": self.poll_failures,
             "spin": self.spin.to_dict() if self.spin else None,
             "orbit": self.orbit.to_dict() if self.orbit else None,
         }
@@ -177,6 +187,9 @@ class RigDrives:
         the drives' COMM_LOSS_TIMEOUT).
     spin_id, orbit_id : Modbus device ids.
     timeout : s per Modbus request.
+    link_loss_polls : consecutive failed polls that declare the link lost
+        (`state.link_ok` False, the sweep's interlock); fewer are counted and
+        logged only.
     accel_time, decel_time, comm_loss_timeout : s; written to both drives on
         entry when given (the drives must be stopped then).
     state_timeout : s for a drive to confirm a state change on its status word.
@@ -195,9 +208,13 @@ class RigDrives:
         decel_time: float | None = None,
         comm_loss_timeout: float | None = None,
         state_timeout: float = 2.0,
+        link_loss_polls: int = 3,
     ):
         if not poll_interval > 0:
             raise ValueError(f"poll_interval {poll_interval} s is not positive")
+        if int(link_loss_polls) != link_loss_polls or link_loss_polls < 1:
+            raise ValueError(f"link_loss_polls {link_loss_polls} is not a positive integer")
+        self.link_loss_polls = int(link_loss_polls)
         if spin_id == orbit_id:
             raise ValueError(f"spin_id and orbit_id are both {spin_id}")
         self.url = url
@@ -271,14 +288,24 @@ class RigDrives:
             await self.link.close()
 
     def _check_heartbeat_margin(self) -> None:
-        """Warn when one lost request could already trip a drive's watchdog."""
+        """Warn when the drives' watchdog could trip before a link loss is declared."""
         watchdogs = [d.params.comm_loss_timeout for d in self._drives if d.params.comm_loss_timeout]
+        if not watchdogs:
+            return
         gap = self.link.timeout + self.poll_interval  # longest silence after a lost request
-        if watchdogs and gap >= min(watchdogs):
+        if gap >= min(watchdogs):
             log.warning(
                 "request timeout %.2f s + poll interval %.2f s is not below the drives' "
                 "COMM_LOSS_TIMEOUT of %.1f s: a single lost request trips them",
                 self.link.timeout, self.poll_interval, min(watchdogs),
+            )
+        elif self.link_loss_polls * gap >= min(watchdogs):
+            log.warning(
+                "link_loss_polls %d x (request timeout %.2f s + poll interval %.2f s) = %.2f s "
+                "is not below the drives' COMM_LOSS_TIMEOUT of %.1f s: they may stop on "
+                "their own before the link loss is declared",
+                self.link_loss_polls, self.link.timeout, self.poll_interval,
+                self.link_loss_polls * gap, min(watchdogs),
             )
 
     async def _clear_stale_comm_loss(self, drive: Drive) -> DriveStatus:
@@ -486,6 +513,8 @@ class RigDrives:
             link_error=link_error,
             link_losses=old.link_losses + (old.link_ok and not link_ok),
             polls=old.polls + 1,
+            poll_failures=old.poll_failures + (not link_ok),
+            failed_in_row=old.failed_in_row + 1 if not link_ok else 0,
             time=time.monotonic(),
         )
         tick, self._tick = self._tick, asyncio.Event()
@@ -534,18 +563,37 @@ class RigDrives:
             else:
                 statuses = await self._verify_after_reconnect()
         except DriveError as err:
-            self._link_down(err)
+            self._poll_failed(err)
             return
         self._publish(statuses, link_ok=True)
         await self._check_trips(statuses)
+
+    def _poll_failed(self, err: DriveError) -> None:
+        """A poll without valid answers: counted; the link is declared lost after
+        `link_loss_polls` in a row. Isolated failures keep `state` (drive
+        statuses, time, `polls`) as it was, so nothing takes the old reading for
+        a new one."""
+        old = self._state
+        in_row = old.failed_in_row + 1
+        if not old.link_ok or in_row >= self.link_loss_polls:
+            self._link_down(err)
+            return
+        log.warning(
+            "drive poll failed (%d in a row; link declared lost at %d): %s",
+            in_row, self.link_loss_polls, err,
+        )
+        self._state = dataclasses.replace(
+            old, poll_failures=old.poll_failures + 1, failed_in_row=in_row, link_error=str(err)
+        )
 
     def _link_down(self, err: DriveError) -> None:
         if self._state.link_ok:
             self._link_lost_at = time.monotonic()
             watchdogs = [d.params.comm_loss_timeout for d in self._drives if d.params]
             log.error(
-                "drive link lost: %s; the drives' comm-loss watchdog stops them after %s s; "
-                "reconnecting",
+                "drive link lost (%d failed polls in a row): %s; the drives' comm-loss watchdog "
+                "stops them after %s s; reconnecting",
+                self._state.failed_in_row + 1,
                 err,
                 max(watchdogs) if watchdogs else "?",
             )

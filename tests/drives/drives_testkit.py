@@ -63,9 +63,9 @@ class SimDrives:
 
 
 def open_rig(sim: SimDrives, limits: DriveLimits, **kw) -> RigDrives:
-    """RigDrives on the simulator with test timings (poll 50 ms, watchdog 0.5 s)."""
+    """RigDrives on the simulator with test timings (poll 50 ms, request timeout 0.1 s, watchdog 0.5 s)."""
     kw.setdefault("poll_interval", 0.05)
-    kw.setdefault("timeout", 0.3)
+    kw.setdefault("timeout", 0.1)  # link_loss_polls 3 x (0.05 + 0.1) s < 0.5 s watchdog
     kw.setdefault("comm_loss_timeout", 0.5)
     return RigDrives(sim.url, limits, **kw)
 
