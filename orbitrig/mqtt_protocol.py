@@ -110,9 +110,10 @@ class Command:
     """A validated command. ``matrix`` is set for ``start``, ``step`` for ``confirm``."""
 
     cmd: str
-    id: str
+    id: str | None  # None only for a stop/abort whose id could not be read
     matrix: str | None = None
     step: str | None = None
+    ignored: tuple[str, ...] = ()  # stop/abort: the problems that were overlooked
 
 
 class CommandError(ValueError):
@@ -135,13 +136,19 @@ def is_matrix_name(name: str) -> bool:
     return bool(_MATRIX_NAME.fullmatch(name)) and ".." not in name
 
 
+#: commands carried out even when their payload has wrong fields (spec/mqtt.md)
+ALWAYS_ACCEPTED = frozenset({"stop", "abort"})
+
+
 def parse_command(payload: bytes | bytearray | str) -> Command:
     """Parse and validate one ``<prefix>/cmd`` payload.
 
     Raises :class:`CommandError` with a precise reason (and the correlation
     id when it could be read) for a payload that is not UTF-8 JSON, not an
     object, lacks ``cmd`` or ``id``, names an unknown command, or has a
-    missing, extra or wrongly typed field.
+    missing, extra or wrongly typed field. Exception: ``stop`` and ``abort``
+    are always accepted once ``cmd`` names them; their overlooked problems are
+    listed in ``Command.ignored``.
     """
     if isinstance(payload, (bytes, bytearray)):
         if len(payload) > MAX_COMMAND_BYTES:
@@ -195,6 +202,10 @@ def parse_command(payload: bytes | bytearray | str) -> Command:
             "(letters, digits, '_', '-', '.'; no '/', no '..', no leading '.')")
     if not problems and name == "confirm" and not _STEP_ID.fullmatch(obj["step"]):
         problems.append("field 'step' must be 1 to 128 printable characters")
+    if problems and name in ALWAYS_ACCEPTED:
+        # "stop and abort are always accepted": a stray field or a bad id must
+        # never keep spinning machinery from stopping. The problems are logged.
+        return Command(cmd=name, id=cid, ignored=tuple(problems))
     if problems:
         raise CommandError("; ".join(problems), cid)
     return Command(cmd=name, id=raw_id, matrix=obj.get("matrix"), step=obj.get("step"))

@@ -360,6 +360,8 @@ class RigService:
             return
         t0 = time.monotonic()
         log.info("command %s (id %r)", cmd.cmd, cmd.id)
+        if cmd.ignored:
+            log.warning("%s accepted despite: %s", cmd.cmd, "; ".join(cmd.ignored))
         try:
             error = getattr(self, f"_cmd_{cmd.cmd}")(cmd)
         except Exception as err:  # noqa: BLE001 - a command must never kill the service

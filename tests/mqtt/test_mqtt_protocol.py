@@ -67,7 +67,7 @@ def test_valid_commands(payload, cmd):
     (b'{"cmd":"start","id":"q","matrix":5}', "q", "field 'matrix' must be a string, got number"),
     (b'{"cmd":"start","id":"q","matrix":"quick","speed":3}', "q", "unexpected field 'speed' for command 'start'"),
     (b'{"cmd":"pause","id":"q","matrix":"quick"}', "q", "unexpected field 'matrix' for command 'pause'"),
-    (b'{"cmd":"stop","id":"q","now":true}', "q", "unexpected field 'now' for command 'stop'"),
+    (b'{"cmd":"start","id":"q","matrix":"demo","now":true}', "q", "unexpected field 'now' for command 'start'"),
     (b'{"cmd":"confirm","id":"q"}', "q", "missing field 'step' for command 'confirm'"),
     (b'{"cmd":"confirm","id":"q","step":null}', "q", "field 'step' must be a string, got null"),
     (b'{"cmd":"confirm","id":"q","step":""}', "q", "field 'step' must be 1 to 128 printable characters"),
@@ -134,3 +134,20 @@ def test_result_payload_is_plain_json():
 def test_replies():
     assert json.loads(reply_ok("a")) == {"id": "a", "ok": True}
     assert json.loads(reply_error(None, "no")) == {"id": None, "ok": False, "error": "no"}
+
+
+@pytest.mark.parametrize("payload, cid, ignored", [
+    (b'{"cmd":"stop","id":"q","now":true}', "q", "unexpected field 'now' for command 'stop'"),
+    (b'{"cmd":"abort"}', None, "missing field 'id'"),
+    (b'{"cmd":"abort","id":7,"reason":"smoke"}', None, "field 'id' must be a string"),
+])
+def test_stop_and_abort_are_always_accepted(payload, cid, ignored):
+    """spec/mqtt.md: stop and abort are always accepted, even with wrong fields."""
+    cmd = parse_command(payload)
+    assert cmd.cmd in ("stop", "abort") and cmd.id == cid
+    assert any(ignored in problem for problem in cmd.ignored)
+
+
+def test_a_payload_that_cannot_be_read_as_abort_is_still_refused():
+    with pytest.raises(CommandError, match="missing field 'cmd'"):
+        parse_command(b'{"command":"abort","id":"a"}')
