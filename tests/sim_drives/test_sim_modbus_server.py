@@ -4,11 +4,14 @@ RTU over the pty) and mbpoll, held to ../shared/spec/drive-modbus.md."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import os
 import re
 import shutil
 import socket
 import subprocess
 import time
+import tty
 
 import pytest
 from pymodbus.client import AsyncModbusSerialClient, AsyncModbusTcpClient
@@ -414,3 +417,52 @@ async def test_mbpoll_rtu_read_and_write(rtu, drives):
     regs = mbpoll_values(p.stdout)
     assert regs[2] == 4000 and regs[7] == 0
     assert drives[1].read(REF, 1) == [4000] and drives[2].read(REF, 1) == [0]
+
+
+def _rtu(dev, pdu):
+    """An RTU frame built here (independent of sim's framing): id, PDU, CRC-16 low byte first."""
+    body = bytes([dev]) + pdu
+    crc = 0xFFFF
+    for b in body:
+        crc ^= b
+        for _ in range(8):
+            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
+    return body + crc.to_bytes(2, "little")
+
+
+async def _read_exactly(fd, n, timeout=2.0):
+    got, deadline = b"", time.monotonic() + timeout
+    while len(got) < n and time.monotonic() < deadline:
+        try:
+            got += os.read(fd, 1024)
+        except BlockingIOError:
+            await asyncio.sleep(0.005)
+    return got
+
+
+async def test_rtu_back_to_back_requests_each_answered_once_in_order(rtu, drives):
+    fd = os.open(rtu.path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    tty.setraw(fd)
+    try:
+        w = _rtu(2, bytes([6, 0, REF2, 0x12, 0x34]))  # FC06 REF2 = 0x1234 on the orbit drive
+        r1 = _rtu(1, bytes([3, 0, 0, 0, 7]))
+        r2 = _rtu(2, bytes([3, 0, REF2, 0, 1]))
+        bad = _rtu(2, bytes([3, 0, 7, 0, 1]))  # address 7: exception 02
+        os.write(fd, w + r1 + r2)  # three frames in one write
+        os.write(fd, b"\x55" + bad)  # a noise byte, then a frame
+        os.write(fd, r2)
+        want = [
+            w,
+            _rtu(1, bytes([3, 14]) + bytes(b for v in drives[1].read(0, 7) for b in v.to_bytes(2, "big"))),
+            _rtu(2, bytes([3, 2, 0x12, 0x34])),
+            _rtu(2, bytes([0x83, 2])),
+            _rtu(2, bytes([3, 2, 0x12, 0x34])),
+        ]
+        got = await _read_exactly(fd, sum(map(len, want)))
+        await asyncio.sleep(0.05)
+        with contextlib.suppress(BlockingIOError):
+            got += os.read(fd, 1024)  # nothing more: no request answered twice
+        assert got.hex(" ") == b"".join(want).hex(" ")
+        assert rtu._server.requests == 5 and rtu._server.answered == 5
+    finally:
+        os.close(fd)
