@@ -100,6 +100,9 @@ async def open_link(url: str, on_data: Callable[[bytes], None], on_lost: Callabl
     """Open ``url`` (see module doc); raises DaqLinkError naming the URL if it cannot."""
     if url.startswith("socket://"):
         return await _open_socket(url, on_data, on_lost, timeout)
+    if url.startswith("tcp://"):
+        raise DaqLinkError(f"{url}: the A/D board takes pyserial URLs; for a TCP serial device server "
+                           f"write socket://{url.removeprefix('tcp://')} (tcp:// is the Modbus drives' URL)")
     if "://" in url:
         raise DaqLinkError(f"{url}: unsupported URL (use socket://host:port or a device path)")
     return _open_serial(url, on_data, on_lost)

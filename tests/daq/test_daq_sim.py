@@ -234,3 +234,6 @@ async def test_unopenable_links():
     with pytest.raises(DaqLinkError, match="unsupported URL"):
         async with AdcReader("rfc2217://127.0.0.1:1"):
             pass
+    with pytest.raises(DaqLinkError, match=r"write socket://127\.0\.0\.1:5000 \(tcp:// is the Modbus"):
+        async with AdcReader("tcp://127.0.0.1:5000"):
+            pass
