@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import re
 import tomllib
+import warnings
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -84,6 +85,9 @@ class Bearing(_Model):
         return self.clearance_um * 1e-6
 
 
+LINK_LOSS_MARGIN = 0.8  # [drives] link_loss_time_s above this share of comm_loss_timeout_s warns
+
+
 class Drives(_Model):
     max_spin_rpm: Pos = 2500.0
     max_orbit_rpm: Pos = 2500.0
@@ -92,9 +96,17 @@ class Drives(_Model):
     spin_id: Annotated[int, Field(ge=1, le=247)] = 1
     orbit_id: Annotated[int, Field(ge=1, le=247)] = 2
     poll_interval_s: Pos = 0.1
-    timeout_s: Pos = 0.4  # Modbus request timeout, s: keep well under COMM_LOSS_TIMEOUT
+    timeout_s: Pos = 0.15  # Modbus request timeout, s (an RTU exchange at 19200 baud takes ~20 ms)
+    # consecutive failed polls that declare the drive link lost (the sweep's drive_link interlock)
+    link_loss_polls: Annotated[int, Field(ge=1, le=100)] = 3
+    comm_loss_timeout_s: Pos = 1.0  # the drives' own COMM_LOSS_TIMEOUT (spec default 1 s)
     ramp_rpm_per_s: Pos = Field(600.0, description="drive ramp rate, for time estimates")
     stop_timeout_s: Pos = 30.0
+
+    @property
+    def link_loss_time_s(self) -> float:
+        """Longest time from the last answer to a declared link loss (s)."""
+        return self.link_loss_polls * (self.poll_interval_s + self.timeout_s)
 
     @model_validator(mode="after")
     def _ratio_order(self):
@@ -102,6 +114,15 @@ class Drives(_Model):
             raise ValueError("min_ratio must be smaller than max_ratio")
         if self.spin_id == self.orbit_id:
             raise ValueError("spin_id and orbit_id must differ")
+        t, wd = self.link_loss_time_s, self.comm_loss_timeout_s
+        what = (f"link_loss_polls {self.link_loss_polls} x (poll_interval_s {self.poll_interval_s:g} + "
+                f"timeout_s {self.timeout_s:g}) = {t:.2f} s")
+        if t >= wd:
+            raise ValueError(f"{what} is not below comm_loss_timeout_s = {wd:g} s: the drives would "
+                             "stop on their own watchdog before the link loss is declared")
+        if t > LINK_LOSS_MARGIN * wd:
+            warnings.warn(f"[drives] {what} is close to comm_loss_timeout_s = {wd:g} s "
+                          f"(keep it under {LINK_LOSS_MARGIN:g} x)", UserWarning, stacklevel=2)
         return self
 
 
