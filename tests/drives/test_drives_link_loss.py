@@ -141,16 +141,24 @@ async def test_server_restart_reconnects(tcp_sim):
 
 
 class StateWatch:
-    """Samples `rig.state` every 5 ms: did the link ever read as lost?"""
+    """Samples `rig.state` every 5 ms as the sweep's interlock check does:
+    did the link ever read as lost, did any interlock that fails a run fire?"""
 
     def __init__(self, r: RigDrives):
         self.r = r
         self.ever_lost = False
+        self.trips: set[str] = set()
         self._task = asyncio.create_task(self._run())
 
     async def _run(self):
+        from orbitrig import interlocks
+        from orbitrig.config import Interlocks
+
+        cfg = Interlocks()
         while True:
             self.ever_lost |= not self.r.state.link_ok
+            for trip in interlocks.check(None, self.r.state, cfg, pressure_armed=False):
+                self.trips.add(f"{trip.kind}:{trip.action}")
             await asyncio.sleep(0.005)
 
     def stop(self):
@@ -173,7 +181,7 @@ async def test_isolated_failed_polls_are_counted_not_a_link_loss(sim):
         finally:
             watch.stop()
         st = r.state
-        assert not watch.ever_lost
+        assert not watch.ever_lost and watch.trips == set()  # the run would go on
         assert st.link_ok and st.link_losses == 0 and st.failed_in_row == 0
         assert 1 <= st.poll_failures < 3
         assert st.link_error is None and r.state.to_dict()["poll_failures"] == st.poll_failures
@@ -189,10 +197,14 @@ async def test_failed_polls_in_a_row_declare_the_link_lost(sim):
         await r.set_speeds(1000 * RPM, 500 * RPM)
         await r.wait_settled(hold=0.05, timeout=5)
         loop = asyncio.get_running_loop()
+        watch = StateWatch(r)
         sim.endpoint.set_unresponsive(True)
         t0 = loop.time()
         await wait_until(lambda: not r.state.link_ok, 2, "link loss declared")
         took = loop.time() - t0
+        await asyncio.sleep(0.02)
+        watch.stop()
+        assert "drive_link:fail" in watch.trips  # the sweep's interlock fails the run
         st = r.state
         assert st.poll_failures == 3 and st.failed_in_row == 3 and st.link_losses == 1
         assert took >= 2 * 0.1  # not at the first failure: three request timeouts of 0.1 s
