@@ -297,6 +297,48 @@ def compare_with_truth(coefficients: dict, truth: dict) -> dict[str, float]:
 _COEF_UNIT = {"K": "N/m", "C": "N s/m", "D": "kg"}
 
 
+#: above this many complete points the final table is one summary row per point
+DETAIL_POINTS = 4
+
+
+def _fits(g) -> dict[str, dict]:
+    import json
+
+    return {key: json.loads(h.attrs["json"]) for key, h in g["identification"].items() if "json" in h.attrs}
+
+
+def _print_summary(console, complete: list, out: Path) -> None:
+    """One row per operating point: the main stiffness and damping entries of the first
+    fit (piezo), and in --sim mode the worst K and C error of every fit."""
+    import json
+
+    from rich.table import Table
+
+    table = Table(title=f"{len(complete)} operating points (full tables: coefficients.csv, "
+                        f"orbitrig report {out})", title_justify="left")
+    for col in ("point", "label", "Kxx MN/m", "Kyy MN/m", "Cxx kN s/m", "Cyy kN s/m", "worst K / C error"):
+        table.add_column(col, justify="left" if col in ("point", "label") else "right")
+    for name, g in complete:
+        fits = _fits(g)
+        truth = json.loads(g["truth"].attrs["json"]) if "truth" in g else None
+        first = next((d["coefficients"] for k, d in sorted(fits.items()) if k.startswith("piezo")), None)
+        row = [name, str(g.attrs["label"])]
+        row += [f"{first[c] * scale:.4g}" if first and c in first else "-"
+                for c, scale in (("Kxx", 1e-6), ("Kyy", 1e-6), ("Cxx", 1e-3), ("Cyy", 1e-3))]
+        if truth:
+            errs = [compare_with_truth(d["coefficients"], truth) for d in fits.values()]
+            k = max((e[c] for e in errs for c in e if c[0] == "K"), default=float("nan"))
+            c = max((e[c] for e in errs for c in e if c[0] == "C"), default=float("nan"))
+            row.append(f"{k:.1f} % / {c:.1f} %")
+        else:
+            row.append(f"{len(fits)} fits")
+        table.add_row(*row)
+    console.print(table)
+    if any("truth" in g for _, g in complete):
+        console.print("error = |identified - true| / largest true entry of the matrix, worst over all fits",
+                      markup=False)
+
+
 def print_coefficients(out: Path) -> None:
     """Identified constant-term coefficients of every complete point, beside the true ones in --sim mode."""
     import json
@@ -309,14 +351,13 @@ def print_coefficients(out: Path) -> None:
 
     console = Console()
     with h5py.File(Path(out) / "run.h5", "r") as f:
-        for name, g in sorted(f["points"].items()):
-            if not g.attrs.get("complete", False):
-                continue
+        complete = [(name, g) for name, g in sorted(f["points"].items()) if g.attrs.get("complete", False)]
+        if len(complete) > DETAIL_POINTS:
+            _print_summary(console, complete, out)
+            return
+        for name, g in complete:
             truth = json.loads(g["truth"].attrs["json"]) if "truth" in g else None
-            fits = {}
-            for key, h in g["identification"].items():
-                if "json" in h.attrs:
-                    fits[key] = json.loads(h.attrs["json"])
+            fits = _fits(g)
             names = sorted({k for d in fits.values() for k in d["coefficients"] if "_" not in k}, key=coef_order)
             table = Table(title=f"point {name}  {g.attrs['label']}", title_justify="left")
             table.add_column("coef")

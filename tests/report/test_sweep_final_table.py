@@ -1,0 +1,30 @@
+"""The sweep's closing table: full tables for a few points, one summary row per point for many."""
+
+from __future__ import annotations
+
+import re
+
+from report_synthetic import write_synthetic_run
+
+from orbitrig.cli_sweep import DETAIL_POINTS, print_coefficients
+
+
+def test_many_points_print_one_summary_row_each(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "220")
+    run = write_synthetic_run(tmp_path / "run", n_points=DETAIL_POINTS + 2, incomplete=1)
+    print_coefficients(run)
+    out = capsys.readouterr().out
+    assert f"{DETAIL_POINTS + 2} operating points" in out
+    rows = re.findall(r"^\S*\s*(\d{4})\s", out, flags=re.M)
+    assert rows == [f"{i:04d}" for i in range(DETAIL_POINTS + 2)]  # the incomplete point is not listed
+    errors = [float(k) for k, _ in re.findall(r"(\d+\.\d) % / (\d+\.\d) %", out)]
+    assert len(errors) == DETAIL_POINTS + 2 and max(errors) < 5.0
+    assert "Kxx" not in re.sub(r"Kxx MN/m", "", out)  # no per-coefficient tables
+
+
+def test_few_points_print_the_full_tables(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "220")
+    run = write_synthetic_run(tmp_path / "run", n_points=2, incomplete=0)
+    print_coefficients(run)
+    out = capsys.readouterr().out
+    assert out.count("point 000") == 2 and "Cyy" in out and "operating points" not in out
