@@ -185,6 +185,8 @@ def make_report(directory: str | Path, *, points: list[int] | None = None) -> Re
         pr = analyse_point(point)
         _plot_point(pr, out)
         report.points.append(pr)
+    stale = out / "summary.png"  # from an earlier report over other points
+    stale.unlink(missing_ok=True)
     report.summary = summary_plot_for(report)
     report.html = write_html(report, out / "index.html")
     return report

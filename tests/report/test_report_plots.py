@@ -105,3 +105,17 @@ def test_summary_plot_over_points(synthetic_run, tmp_path):
     assert w >= 800 and h >= 400 and path.stat().st_size > 30_000
     # one point only: no summary
     assert summary_plot_for(Report(run, tmp_path, report.points[:1])) is None
+
+
+def test_report_of_one_point_drops_an_earlier_summary(tmp_path):
+    """`report --point N` after a full report must not leave the old summary.png behind."""
+    from report_synthetic import write_synthetic_run
+
+    from orbitrig.report import make_report
+
+    run = write_synthetic_run(tmp_path / "run", n_points=2, incomplete=0)
+    assert make_report(run).summary == run / "plots" / "summary.png"
+    assert (run / "plots" / "summary.png").exists()
+    one = make_report(run, points=[1])
+    assert one.summary is None and not (run / "plots" / "summary.png").exists()
+    assert "summary.png" not in (run / "plots" / "index.html").read_text()
