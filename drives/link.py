@@ -7,8 +7,10 @@
 
 The pymodbus client is created inside the running loop (`connect`). Requests
 are serialised by one lock and bounded by `timeout`; a Modbus exception
-response is raised as `DriveExceptionResponse`, never returned. After any
-failed request the connection is dropped and the next request reconnects.
+response is raised as `DriveExceptionResponse`, never returned. After a
+failed request a TCP connection is dropped and the next request reconnects;
+an RTU line is reopened after a line error (OSError), while after a timeout
+it stays open and settles first.
 
 A late answer must never be taken for the answer to a newer request: on TCP
 a new connection cannot receive it (and transaction ids differ). RTU has no
@@ -233,7 +235,10 @@ class ModbusLink:
                 raise
             except (ModbusIOException, asyncio.TimeoutError) as err:
                 self.failures += 1
-                self._drop()
+                if self.address.kind == "tcp":
+                    self._drop()  # a new connection cannot receive the late answer
+                # RTU: the line stays open; it settles (a late answer lands and is
+                # discarded) before the next request
                 raise DriveTimeoutError(
                     f"no answer within {self.timeout:g} s on {self.url}", **kw
                 ) from err
@@ -267,7 +272,7 @@ class ModbusLink:
             return
         await asyncio.wait([exchange])
         self._abandoned = None
-        if exchange.cancelled() or exchange.exception() is not None:
+        if exchange.cancelled() or isinstance(exchange.exception(), OSError):
             self._drop()
 
     async def _ensure_connected_for(self, device_id: int, address: int) -> None:

@@ -20,8 +20,10 @@ held two frames. Here:
   of address and quantity); anything else on the line is dropped and counted
   (`discarded_frames`, `noise_bytes`), and the wait for the real answer goes on.
 A stale answer identical in shape to the awaited one (same device, function
-and size) can only be excluded by timing; the settle time after a failure is
-what does that.
+and size) can only be excluded by timing: after a failed exchange the next
+request waits until the line has been quiet for `settle` s (default
+min(timeout, 0.05 s): no longer than a poll interval) counted from the failure, so an answer up to
+timeout + settle late is discarded; a later one cannot be told apart on RTU.
 """
 
 from __future__ import annotations
@@ -134,7 +136,7 @@ class RtuLine:
         self.timeout = float(timeout)
         self.silence = inter_frame_silence(self.baud)
         # quiet time required after a failed exchange: long enough for a late answer to land
-        self.settle = float(settle) if settle is not None else min(self.timeout, 0.1)
+        self.settle = float(settle) if settle is not None else min(self.timeout, 0.05)
         self._port = None
         self._fd: int | None = None
         self._rx = bytearray()
@@ -211,6 +213,8 @@ class RtuLine:
                 return await asyncio.wait_for(fut, self.timeout)
             finally:
                 self._pending = None
+                if self._dirty:  # failed: the settle time runs from now
+                    self._last_activity = max(self._last_activity, time.monotonic())
 
     async def _wait_silence(self) -> None:
         """Until the line has been quiet for t3.5 (after a failure: `settle`)."""

@@ -96,7 +96,8 @@ async def test_short_link_loss_is_reported_and_the_run_goes_on(sim):
         sim.endpoint.set_unresponsive(False)
         st = await r.wait_settled(hold=0.1, timeout=5)  # after reconnect + verification
         assert st.link_ok and st.link_losses == 1
-        assert r.link.connects >= 2
+        # TCP reconnects; an RTU line stays open through timeouts (it settles instead)
+        assert r.link.connects >= (2 if sim.kind == "tcp" else 1)
         for dev, rpm in ((1, 1000), (2, 500)):
             assert sim.regs(dev)["FAULT"] == 0 and sim.rpm(dev) == pytest.approx(rpm, abs=5)
 

@@ -126,3 +126,38 @@ async def test_stale_and_foreign_frames_are_discarded():
         line.close()
         loop.remove_reader(master)
         close_fds(master, slave)
+
+
+async def test_a_late_answer_is_not_taken_for_the_next_one():
+    """The device answers request 1 after the client gave up; request 2 (same
+    device, function and size) must get its own answer, not the late one."""
+    from sim.pty import close_fds, open_raw_pty
+
+    master, slave, path = open_raw_pty()
+    loop = asyncio.get_running_loop()
+    buf, seen = bytearray(), []
+
+    def readable():
+        buf.extend(os.read(master, 256))
+        while len(buf) >= 8:
+            del buf[:8]
+            seen.append(loop.time())
+            if len(seen) == 1:  # 0.12 s late: after the 0.1 s timeout, within the settle time
+                loop.call_later(0.12, os.write, master, frame(1, bytes([3, 2, 0, 111])))
+            else:
+                os.write(master, frame(1, bytes([3, 2, 0, 222])))
+
+    loop.add_reader(master, readable)
+    line = RtuLine(path, baud=19200, timeout=0.1)
+    try:
+        await line.connect()
+        with pytest.raises(asyncio.TimeoutError):
+            await line.read_holding_registers(2, count=1, device_id=1)
+        rsp = await line.read_holding_registers(2, count=1, device_id=1)
+        assert rsp.registers == [222]
+        assert line.discarded_frames == 1  # the late 111, dropped while nothing was awaited
+        assert seen[1] - seen[0] >= 0.12 + line.settle - 0.01  # request 2 waited for quiet
+    finally:
+        line.close()
+        loop.remove_reader(master)
+        close_fds(master, slave)
