@@ -17,10 +17,11 @@ Safety rules this class keeps:
   and the fault is raised from `wait_settled`.
 - A failed poll is counted (`state.poll_failures`, logged) but the link is
   declared lost only after `link_loss_polls` consecutive failed polls (an
-  isolated lost frame on a noisy RS-485 line is tolerated). Keep
-  link_loss_polls x (poll_interval + timeout) well under the drives'
-  COMM_LOSS_TIMEOUT (warned on entry), so the loss is declared before the
-  drives' own watchdog stops them.
+  isolated lost frame on a noisy RS-485 line is tolerated). The count is
+  lowered on entry, if needed, so that link_loss_polls x (poll_interval +
+  timeout) stays below the drives' COMM_LOSS_TIMEOUT: the loss is declared
+  before the drives' own watchdog stops them (a warning if the count was
+  given explicitly).
 - On a declared link loss the poll reports it (log, `state.link_ok`), keeps
   reconnecting and, once the link is back, verifies both drives against what was commanded
   before anything goes on; drives found tripped or off their reference are
@@ -189,7 +190,7 @@ class RigDrives:
     timeout : s per Modbus request.
     link_loss_polls : consecutive failed polls that declare the link lost
         (`state.link_ok` False, the sweep's interlock); fewer are counted and
-        logged only.
+        logged only. None: 3, lowered without a warning to fit the watchdog.
     accel_time, decel_time, comm_loss_timeout : s; written to both drives on
         entry when given (the drives must be stopped then).
     state_timeout : s for a drive to confirm a state change on its status word.
@@ -208,10 +209,13 @@ class RigDrives:
         decel_time: float | None = None,
         comm_loss_timeout: float | None = None,
         state_timeout: float = 2.0,
-        link_loss_polls: int = 3,
+        link_loss_polls: int | None = None,
     ):
         if not poll_interval > 0:
             raise ValueError(f"poll_interval {poll_interval} s is not positive")
+        self._loss_polls_given = link_loss_polls is not None
+        if link_loss_polls is None:
+            link_loss_polls = 3
         if int(link_loss_polls) != link_loss_polls or link_loss_polls < 1:
             raise ValueError(f"link_loss_polls {link_loss_polls} is not a positive integer")
         self.link_loss_polls = int(link_loss_polls)
@@ -288,7 +292,8 @@ class RigDrives:
             await self.link.close()
 
     def _check_heartbeat_margin(self) -> None:
-        """Warn when the drives' watchdog could trip before a link loss is declared."""
+        """Lower `link_loss_polls` (and warn) when the drives' watchdog would trip
+        before a link loss is declared."""
         watchdogs = [d.params.comm_loss_timeout for d in self._drives if d.params.comm_loss_timeout]
         if not watchdogs:
             return
@@ -299,14 +304,17 @@ class RigDrives:
                 "COMM_LOSS_TIMEOUT of %.1f s: a single lost request trips them",
                 self.link.timeout, self.poll_interval, min(watchdogs),
             )
+            self.link_loss_polls = 1
         elif self.link_loss_polls * gap >= min(watchdogs):
-            log.warning(
+            fit = max(1, math.ceil(min(watchdogs) / gap) - 1)  # fit x gap < watchdog
+            (log.warning if self._loss_polls_given else log.info)(
                 "link_loss_polls %d x (request timeout %.2f s + poll interval %.2f s) = %.2f s "
-                "is not below the drives' COMM_LOSS_TIMEOUT of %.1f s: they may stop on "
-                "their own before the link loss is declared",
+                "is not below the drives' COMM_LOSS_TIMEOUT of %.1f s: the link is declared "
+                "lost after %d failed poll(s) instead",
                 self.link_loss_polls, self.link.timeout, self.poll_interval,
-                self.link_loss_polls * gap, min(watchdogs),
+                self.link_loss_polls * gap, min(watchdogs), fit,
             )
+            self.link_loss_polls = fit
 
     async def _clear_stale_comm_loss(self, drive: Drive) -> DriveStatus:
         """A drive at standstill showing fault 7510 (the previous client went away)

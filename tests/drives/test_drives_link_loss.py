@@ -6,6 +6,7 @@ The drives' comm-loss watchdog runs in wall time (COMM_LOSS_TIMEOUT 0.5 s here).
 from __future__ import annotations
 
 import asyncio
+import logging
 import signal
 import sys
 
@@ -222,13 +223,19 @@ def test_link_loss_polls_must_be_a_positive_integer():
             RigDrives("tcp://127.0.0.1:1", LIMITS, link_loss_polls=bad)
 
 
-async def test_warns_when_the_declared_loss_comes_after_the_watchdog(tcp_sim, caplog):
-    async with rig(tcp_sim, timeout=0.3, poll_interval=0.05, comm_loss_timeout=1.0,
-                   link_loss_polls=3):
-        pass
-    assert "may stop on their own before the link loss is declared" in caplog.text
+async def test_link_loss_polls_lowered_to_fit_the_watchdog(tcp_sim, caplog):
+    caplog.set_level(logging.INFO, logger="drives.rig")
+    # given explicitly: 3 x (0.3 + 0.05) s = 1.05 s >= 1 s watchdog -> 2 (0.7 s), warned
+    async with rig(tcp_sim, timeout=0.3, comm_loss_timeout=1.0, link_loss_polls=3) as r:
+        assert r.link_loss_polls == 2
+    warned = [rec for rec in caplog.records if "declared lost after 2 failed poll(s)" in rec.message]
+    assert warned and warned[0].levelno == logging.WARNING
     caplog.clear()
-    async with rig(tcp_sim, timeout=0.2, poll_interval=0.05, comm_loss_timeout=1.0,
-                   link_loss_polls=3):
-        pass
-    assert "before the link loss is declared" not in caplog.text
+    # the default (3) is lowered quietly (the CLI's 0.5 s timeout: 1 poll)
+    async with rig(tcp_sim, timeout=0.5, poll_interval=0.1, comm_loss_timeout=1.0) as r:
+        assert r.link_loss_polls == 1
+    assert all(rec.levelno < logging.WARNING for rec in caplog.records if "failed poll" in rec.message)
+    caplog.clear()
+    async with rig(tcp_sim, timeout=0.2, comm_loss_timeout=1.0, link_loss_polls=3) as r:
+        assert r.link_loss_polls == 3  # 3 x 0.25 s = 0.75 s fits
+    assert "failed poll(s) instead" not in caplog.text
