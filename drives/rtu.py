@@ -111,7 +111,7 @@ class RtuAnswer:
     registers: list[int] = field(default_factory=list)
     exception_code: int = 0
 
-    def isError(self) -> bool:  # noqa: N802 (pymodbus' name)
+    def isError(self) -> bool:  # pymodbus name
         return self.function_code >= 0x80
 
 
