@@ -158,6 +158,8 @@ class Drive:
     name : 'spin' or 'orbit' (for messages).
     bidirectional : whether negative speeds are allowed (orbit drive only).
     state_timeout : seconds to wait for the status word to confirm a state change.
+    write_retries : further tries of an idempotent write (CW, REF, parameters)
+        after a request timeout; an exception response is an answer, never retried.
     """
 
     def __init__(
@@ -168,7 +170,11 @@ class Drive:
         *,
         bidirectional: bool,
         state_timeout: float = 2.0,
+        write_retries: int = 2,
     ):
+        if write_retries < 0:
+            raise ValueError(f"write_retries {write_retries} is negative")
+        self.write_retries = int(write_retries)
         self.link = link
         self.device_id = device_id
         self.name = name
@@ -207,9 +213,11 @@ class Drive:
     ) -> DriveParameters:
         """Write the given parameters (s, s, s, rad/s); the drive must not be running.
 
-        A drive that is running answers exception 03 (DriveExceptionResponse).
+        All given parameters go out in one write-multiple (FC16), all or nothing:
+        a drive that is running, or finds a value out of its range, answers
+        exception 03 (DriveExceptionResponse) and changes none of them.
         """
-        writes = []
+        given: dict[int, int] = {}
         for address, value, unit in (
             (R.ACCEL_TIME, accel_time, R.TIME_UNIT),
             (R.DECEL_TIME, decel_time, R.TIME_UNIT),
@@ -223,9 +231,15 @@ class Drive:
                 raise DriveLimitError(
                     f"{value:g} does not fit the register (unit {unit:g})", **self._kw(address)
                 )
-            writes.append((address, word))
-        for address, word in writes:
-            await self.link.write(self.device_id, address, [word])
+            given[address] = word
+        if given:
+            # One FC16 over the contiguous range (gaps keep the values just read), so
+            # a refusal (exception 03: running, or a value out of range) changes nothing.
+            first_p, count_p = R.PARAMETERS
+            current = await self.link.read(self.device_id, first_p, count_p)
+            first, last = min(given), max(given)
+            words = [given.get(a, current[a - first_p]) for a in range(first, last + 1)]
+            await self.link.write(self.device_id, first, words, retries=self.write_retries)
         return await self.read_parameters()
 
     # -- status -----------------------------------------------------------------
@@ -283,11 +297,13 @@ class Drive:
         return rpm_to_rad_s(R.ref_to_rpm(raw, self._scale_rpm))
 
     async def write_reference(self, raw: int) -> None:
-        await self.link.write(self.device_id, R.REF, [R.to_word(raw)])
+        """Write REF (idempotent: retried on a timeout, `write_retries` times)."""
+        await self.link.write(self.device_id, R.REF, [R.to_word(raw)], retries=self.write_retries)
 
     # -- state machine ----------------------------------------------------------
     async def write_control(self, word: int) -> None:
-        await self.link.write(self.device_id, R.CW, [word])
+        """Write CW (idempotent: retried on a timeout, `write_retries` times)."""
+        await self.link.write(self.device_id, R.CW, [word], retries=self.write_retries)
 
     async def wait_status(
         self,
@@ -342,11 +358,17 @@ class Drive:
         return await self.wait_status(lambda s: s.running, "operation enabled (RDY_REF)")
 
     async def reset_fault(self) -> DriveStatus:
-        """RESET edge (0x04F6 then 0x0476); DriveFaultError if the fault is still active."""
+        """RESET edge: 0x0476, 0x04F6, 0x0476; DriveFaultError if the fault is still active.
+
+        The leading 0x0476 (RESET = 0) makes sure there is a 0 -> 1 edge even when
+        the drive still holds a control word with RESET = 1 (a client that died
+        between its two reset writes).
+        """
         st = await self.read_status()
         if not st.tripped:
             return st
         code = st.fault_code
+        await self.write_control(R.CW_READY)
         await self.write_control(R.CW_RESET)
         await self.write_control(R.CW_READY)
         try:

@@ -109,6 +109,7 @@ class ModbusLink:
         self.requests = 0  # answered requests (including exception responses)
         self.failures = 0  # requests without a valid answer
         self.connects = 0  # successful (re)connections
+        self.retries = 0  # write retries after a timeout
 
     # -- connection -------------------------------------------------------------
     @property
@@ -185,26 +186,41 @@ class ModbusLink:
             self._fail(device_id, address, f"asked for {count} registers, got {len(words)}")
         return words
 
-    async def write(self, device_id: int, address: int, values: Sequence[int]) -> None:
-        """Write unsigned 16-bit words from `address`: FC06 for one, FC16 for several."""
+    async def write(
+        self, device_id: int, address: int, values: Sequence[int], *, retries: int = 0
+    ) -> None:
+        """Write unsigned 16-bit words from `address`: FC06 for one, FC16 for several.
+
+        `retries` : further tries after a request timeout (DriveTimeoutError),
+        for idempotent writes only (a register set to a value: sending it twice
+        is harmless). Each retry is logged; an exception response or a link
+        error is never retried.
+        """
         values = [int(v) for v in values]
         for v in values:
             if not 0 <= v <= 0xFFFF:
                 raise ValueError(f"{register_name(address)}: {v} is not a 16-bit word")
         if len(values) == 1:
-            await self._request(
-                device_id,
-                address,
-                _FC_WRITE_SINGLE,
-                lambda c: c.write_register(address, values[0], device_id=device_id),
+            fc, call = _FC_WRITE_SINGLE, lambda c: c.write_register(
+                address, values[0], device_id=device_id
             )
         else:
-            await self._request(
-                device_id,
-                address,
-                _FC_WRITE_MULTIPLE,
-                lambda c: c.write_registers(address, values, device_id=device_id),
+            fc, call = _FC_WRITE_MULTIPLE, lambda c: c.write_registers(
+                address, values, device_id=device_id
             )
+        for attempt in range(retries + 1):
+            try:
+                await self._request(device_id, address, fc, call)
+                return
+            except DriveTimeoutError as err:
+                if attempt >= retries:
+                    raise
+                self.retries += 1
+                log.warning(
+                    "%s (id %d) %s write: %s; retry %d of %d",
+                    self.names.get(device_id, "drive"), device_id, register_name(address),
+                    err.reason, attempt + 1, retries,
+                )
 
     def _error_kw(self, device_id: int, address: int) -> dict:
         return {"drive": device_id, "drive_name": self.names.get(device_id), "register": address}
