@@ -85,14 +85,20 @@ def test_ctrl_c_pauses_and_asks_twice_aborts(tmp_path, answer, code, status):
     proc = subprocess.Popen(orbitrig_cmd("sweep", "--sim", "--matrix", str(matrix), "--out", str(out)),
                             cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)
+    def alive(deadline: float) -> None:
+        if proc.poll() is not None:  # say why: the sweep's own words
+            raise AssertionError(f"sweep exited with {proc.returncode}:\n{proc.stderr.read()}\n"
+                                 f"{log.read_text() if log.exists() else '(no run.log)'}")
+        assert time.monotonic() < deadline, "timed out"
+
     try:
         deadline = time.monotonic() + 60
         while not (log.exists() and "stored" in log.read_text()):
-            assert proc.poll() is None and time.monotonic() < deadline
+            alive(deadline)
             time.sleep(0.005)
         proc.send_signal(signal.SIGINT)
         while "[paused] paused at a safe point" not in log.read_text():
-            assert proc.poll() is None and time.monotonic() < deadline
+            alive(deadline)
             time.sleep(0.005)
         time.sleep(0.3)
         assert proc.poll() is None  # holds, waiting for the operator
