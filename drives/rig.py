@@ -348,6 +348,17 @@ class RigDrives:
         """The latest poll (per drive status bits, speeds rad/s, torque, fault code, link)."""
         return self._state
 
+    def check(self) -> RigDriveState:
+        """The latest poll, or raise what the poll found (a trip as DriveFaultError,
+        a failed verification after a link loss), as `wait_settled` does.
+
+        For a caller holding the drives at speed (the CLI's `run --hold`).
+        """
+        self._require_open()
+        if self._failure is not None:
+            raise self._failure
+        return self._state
+
     async def set_speeds(self, spin: float, orbit: float) -> None:
         """Run the spin drive at `spin` rad/s (>= 0) and the orbit drive at `orbit` rad/s.
 

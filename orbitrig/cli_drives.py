@@ -1,105 +1,242 @@
 """`orbitrig drives status|run|stop`: the spindle drives from the command line.
 
 Speeds are rpm here (the command line is an edge); the drive API underneath
-is rad/s. Exit status: 0 done, 2 failed (the reason is printed on standard
-error, and `run` has stopped both drives by then).
+is rad/s. The rig configuration (`--config`, default config/rig.toml) gives
+the Modbus URL (`transports.modbus_url`; an explicit `--modbus` wins), the
+device ids, the request timeout, the poll interval, link_loss_polls and the
+limits (`[drives]`): `--max-spin/--max-orbit/--min-ratio/--max-ratio` may
+only tighten those. Exit status: 0 done, 2 failed (the reason is printed on
+standard error, and `run` has stopped both drives by then).
 """
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
+from typing import Optional
 
 import typer
 
-_REQUEST_TIMEOUT = 0.5  # s; well below the drives' default 1.0 s comm-loss watchdog
-_MODBUS_HELP = "Modbus URL of the drives: tcp://host:port or rtu:///dev/ttyX?baud=19200"
+_MODBUS_HELP = (
+    "Modbus URL of the drives: tcp://host:port or rtu:///dev/ttyX?baud=19200 "
+    "(default: transports.modbus_url of the rig configuration)"
+)
+_CONFIG_HELP = "Rig configuration TOML (default: config/rig.toml of the orbitrig source tree)."
+_SPIN_ID_HELP = "Device id of the spin drive (default: drives.spin_id of the rig configuration)."
+_ORBIT_ID_HELP = "Device id of the orbit drive (default: drives.orbit_id of the rig configuration)."
 
 
 def register(app: typer.Typer) -> None:
     """Add the `drives` sub-app to the `orbitrig` command."""
     drives_app = typer.Typer(
-        help="Spindle drives over Modbus: status, run to a setpoint, stop.",
+        help="Spindle drives over Modbus: status, run to a setpoint (and hold), stop.",
         no_args_is_help=True,
     )
 
     @drives_app.command("status")
     def status(
-        modbus: str = typer.Option(..., "--modbus", help=_MODBUS_HELP),
+        modbus: Optional[str] = typer.Option(None, "--modbus", help=_MODBUS_HELP),
+        config: Optional[Path] = typer.Option(None, "--config", help=_CONFIG_HELP),
         json_out: bool = typer.Option(False, "--json", help="One JSON object on standard output."),
-        spin_id: int = typer.Option(1, help="Device id of the spin drive."),
-        orbit_id: int = typer.Option(2, help="Device id of the orbit drive."),
+        spin_id: Optional[int] = typer.Option(None, help=_SPIN_ID_HELP),
+        orbit_id: Optional[int] = typer.Option(None, help=_ORBIT_ID_HELP),
     ) -> None:
         """Print both drives' state, reference and actual speed (rpm), torque and fault.
 
         Only reads: running drives keep running.
         """
-        raise typer.Exit(_run_async(lambda: _status(modbus, json_out, spin_id, orbit_id), "status"))
+        opened = _open_config("status", config, modbus, spin_id, orbit_id, required=False)
+        if opened is None:
+            raise typer.Exit(2)
+        url, d = opened
+        raise typer.Exit(_run_async(lambda intr: _status(url, json_out, d), "status"))
 
     @drives_app.command("run")
     def run(
-        modbus: str = typer.Option(..., "--modbus", help=_MODBUS_HELP),
         spin: float = typer.Option(..., "--spin", help="Spin speed omega, rpm (>= 0)."),
         orbit: float = typer.Option(
             ..., "--orbit", help="Orbit speed Omega, rpm; negative = backward whirl."
         ),
-        max_spin: float = typer.Option(
-            math.inf, "--max-spin", help="Refuse a spin speed above this, rpm."
+        modbus: Optional[str] = typer.Option(None, "--modbus", help=_MODBUS_HELP),
+        config: Optional[Path] = typer.Option(None, "--config", help=_CONFIG_HELP),
+        max_spin: Optional[float] = typer.Option(
+            None, "--max-spin", help="Refuse a spin speed above this, rpm (<= drives.max_spin_rpm)."
         ),
-        max_orbit: float = typer.Option(
-            math.inf, "--max-orbit", help="Refuse an |orbit| speed above this, rpm."
+        max_orbit: Optional[float] = typer.Option(
+            None, "--max-orbit",
+            help="Refuse an |orbit| speed above this, rpm (<= drives.max_orbit_rpm).",
         ),
-        min_ratio: float = typer.Option(None, "--min-ratio", help="Smallest |Omega|/omega."),
-        max_ratio: float = typer.Option(None, "--max-ratio", help="Largest |Omega|/omega."),
+        min_ratio: Optional[float] = typer.Option(
+            None, "--min-ratio", help="Smallest |Omega|/omega (>= drives.min_ratio)."
+        ),
+        max_ratio: Optional[float] = typer.Option(
+            None, "--max-ratio", help="Largest |Omega|/omega (<= drives.max_ratio)."
+        ),
         settle: float = typer.Option(
             1.0, "--settle", help="Seconds both drives must hold AT_SETPOINT."
         ),
         timeout: float = typer.Option(120.0, "--timeout", help="Seconds to reach the setpoint."),
-        spin_id: int = typer.Option(1, help="Device id of the spin drive."),
-        orbit_id: int = typer.Option(2, help="Device id of the orbit drive."),
+        hold: bool = typer.Option(
+            False, "--hold",
+            help="Stay at the setpoint, polling (the drives' watchdog heartbeat), until "
+            "Ctrl-C or SIGTERM; then ramp both to zero and exit 0.",
+        ),
+        status_every: float = typer.Option(
+            5.0, "--status-every", help="With --hold: seconds between status lines."
+        ),
+        spin_id: Optional[int] = typer.Option(None, help=_SPIN_ID_HELP),
+        orbit_id: Optional[int] = typer.Option(None, help=_ORBIT_ID_HELP),
     ) -> None:
         """Bring both drives to speed; exit 0 once both hold their setpoint.
 
-        Limits are checked before anything is sent. On any failure (limit,
-        fault, timeout, link, Ctrl-C, SIGTERM) both drives are ramped to zero
-        and the command exits 2 with the reason. On success the drives are
-        left at their setpoint; without a polling client their comm-loss
-        watchdog then ramps them down after COMM_LOSS_TIMEOUT.
+        Limits (the rig configuration's, tightened by the options) are checked
+        before anything is sent. On any failure (limit, fault, timeout, link,
+        Ctrl-C, SIGTERM before the setpoint) both drives are ramped to zero and
+        the command exits 2 with the reason. Without --hold the drives are left
+        at their setpoint; with no client polling them, their comm-loss
+        watchdog then ramps them down after COMM_LOSS_TIMEOUT. With --hold the
+        command keeps polling until Ctrl-C/SIGTERM, then ramps both to zero.
         """
+        opened = _open_config("run", config, modbus, spin_id, orbit_id, required=True)
+        if opened is None:
+            raise typer.Exit(2)
+        url, d = opened
+        try:
+            limits = effective_limits(
+                d, max_spin=max_spin, max_orbit=max_orbit, min_ratio=min_ratio,
+                max_ratio=max_ratio, file=_config_name(config),
+            )
+        except ValueError as err:
+            typer.echo(f"orbitrig drives run refused (limit): {err}; nothing sent", err=True)
+            raise typer.Exit(2) from None
+        if not status_every > 0:
+            typer.echo("orbitrig drives run: --status-every must be > 0 s", err=True)
+            raise typer.Exit(2)
         from drives.drive import RPM
-        from drives.rig import DriveLimits
 
-        limits = DriveLimits(
-            max_spin=max_spin * RPM,
-            max_orbit=max_orbit * RPM,
-            min_ratio=min_ratio,
-            max_ratio=max_ratio,
-        )
         raise typer.Exit(
             _run_async(
-                lambda: _run(modbus, limits, spin * RPM, orbit * RPM, settle, timeout,
-                             spin_id, orbit_id),
+                lambda intr: _run(url, d, limits, spin * RPM, orbit * RPM, settle, timeout,
+                                  hold, status_every, intr),
                 "run",
             )
         )
 
     @drives_app.command("stop")
     def stop(
-        modbus: str = typer.Option(..., "--modbus", help=_MODBUS_HELP),
+        modbus: Optional[str] = typer.Option(None, "--modbus", help=_MODBUS_HELP),
+        config: Optional[Path] = typer.Option(None, "--config", help=_CONFIG_HELP),
         emergency: bool = typer.Option(
             False, "--emergency", help="Emergency stop (OFF3, fastest ramp) instead of OFF1."
         ),
-        timeout: float = typer.Option(
+        timeout: Optional[float] = typer.Option(
             None, "--timeout", help="Seconds to reach zero (default: from the ramp times)."
         ),
-        spin_id: int = typer.Option(1, help="Device id of the spin drive."),
-        orbit_id: int = typer.Option(2, help="Device id of the orbit drive."),
+        spin_id: Optional[int] = typer.Option(None, help=_SPIN_ID_HELP),
+        orbit_id: Optional[int] = typer.Option(None, help=_ORBIT_ID_HELP),
     ) -> None:
         """Stop both drives; returns once both read zero speed."""
-        raise typer.Exit(
-            _run_async(lambda: _stop(modbus, emergency, timeout, spin_id, orbit_id), "stop")
-        )
+        opened = _open_config("stop", config, modbus, spin_id, orbit_id, required=False)
+        if opened is None:
+            raise typer.Exit(2)
+        url, d = opened
+        raise typer.Exit(_run_async(lambda intr: _stop(url, d, emergency, timeout), "stop"))
 
     app.add_typer(drives_app, name="drives")
+
+
+def _config_name(config: Path | None) -> str:
+    if config is not None:
+        return str(config)
+    from orbitrig.config import default_rig_path
+
+    return str(default_rig_path())
+
+
+def _open_config(command, config, modbus, spin_id, orbit_id, *, required: bool):
+    """(Modbus URL, the [drives] section with the ids from the options) or None
+    after printing why not. `status` and `stop` with an explicit --modbus go on
+    with the built-in [drives] defaults if the configuration cannot be read (a
+    stop must not depend on a configuration file); `run` never does."""
+    from orbitrig.config import Drives, load_rig
+    from orbitrig.errors import ConfigError
+
+    try:
+        rig = load_rig(config)
+        url, d = modbus or rig.transports.modbus_url, rig.drives
+    except ConfigError as err:
+        if required or modbus is None:
+            typer.echo(f"orbitrig drives {command} failed (config): {err}", err=True)
+            return None
+        typer.echo(
+            f"orbitrig drives {command}: configuration not used ({err}); "
+            "built-in [drives] defaults", err=True,
+        )
+        url, d = modbus, Drives()
+    ids = {}
+    if spin_id is not None:
+        ids["spin_id"] = spin_id
+    if orbit_id is not None:
+        ids["orbit_id"] = orbit_id
+    if ids:
+        d = d.model_copy(update=ids)
+        if d.spin_id == d.orbit_id:
+            typer.echo(f"orbitrig drives {command}: spin and orbit id are both {d.spin_id}",
+                       err=True)
+            return None
+    return url, d
+
+
+def effective_limits(d, *, max_spin=None, max_orbit=None, min_ratio=None, max_ratio=None,
+                     file: str = "the rig configuration"):
+    """DriveLimits (rad/s) of the rig's [drives] section `d`, tightened by the
+    command line's values (rpm, ratios). ValueError naming the option if one
+    is looser than the configuration (or contradicts another)."""
+    from drives.drive import RPM
+    from drives.rig import DriveLimits
+
+    problems = []
+
+    def tighter(option, value, key, configured, *, upper: bool, unit: str = ""):
+        if value is None:
+            return configured
+        if not (math.isfinite(value) and value >= 0):
+            problems.append(f"{option} {value:g}{unit} is not a finite value >= 0")
+            return configured
+        if configured is not None and (value > configured if upper else value < configured):
+            word = "above" if upper else "below"
+            problems.append(
+                f"{option} {value:g}{unit} is {word} the rig's drives.{key} = {configured:g}{unit} "
+                f"({file}): the command line may only tighten the rig's limits"
+            )
+            return configured
+        return value
+
+    spin = tighter("--max-spin", max_spin, "max_spin_rpm", d.max_spin_rpm, upper=True, unit=" rpm")
+    orbit = tighter("--max-orbit", max_orbit, "max_orbit_rpm", d.max_orbit_rpm, upper=True,
+                    unit=" rpm")
+    lo = tighter("--min-ratio", min_ratio, "min_ratio", d.min_ratio, upper=False)
+    hi = tighter("--max-ratio", max_ratio, "max_ratio", d.max_ratio, upper=True)
+    if not problems and lo is not None and hi is not None and lo > hi:
+        problems.append(f"min ratio {lo:g} > max ratio {hi:g} (options and {file} together)")
+    if problems:
+        raise ValueError("; ".join(problems))
+    return DriveLimits(max_spin=spin * RPM, max_orbit=orbit * RPM, min_ratio=lo, max_ratio=hi)
+
+
+def _rig_drives(url, d, limits=None):
+    """RigDrives with the configuration's ids, timeout, poll interval and link_loss_polls."""
+    from drives.rig import DriveLimits, RigDrives
+
+    return RigDrives(
+        url,
+        limits if limits is not None else DriveLimits(math.inf, math.inf),
+        poll_interval=d.poll_interval_s,
+        spin_id=d.spin_id,
+        orbit_id=d.orbit_id,
+        timeout=d.timeout_s,
+        link_loss_polls=d.link_loss_polls,
+    )
 
 
 def _reason(err: BaseException) -> str:
@@ -123,8 +260,21 @@ def _reason(err: BaseException) -> str:
     return "error"
 
 
+class _Interrupt:
+    """SIGINT/SIGTERM received by a command. While `holding`, a signal ends the
+    hold (`event`) instead of cancelling the command."""
+
+    def __init__(self) -> None:
+        import asyncio
+
+        self.received: list = []
+        self.holding = False
+        self.event = asyncio.Event()
+
+
 def _run_async(make_coro, command: str) -> int:
-    """Run a command coroutine; SIGINT/SIGTERM cancel it (so its drives stop) -> exit 2."""
+    """Run `make_coro(interrupt)`; SIGINT/SIGTERM cancel it (so its drives stop)
+    -> exit 2, except while it holds (`run --hold`), where they end the hold."""
     import asyncio
     import signal
 
@@ -135,23 +285,28 @@ def _run_async(make_coro, command: str) -> int:
     async def main() -> int:
         task = asyncio.current_task()
         loop = asyncio.get_running_loop()
-        received: list[signal.Signals] = []
+        interrupt = _Interrupt()
 
         def on_signal(sig: signal.Signals) -> None:
-            received.append(sig)
-            task.cancel()
+            interrupt.received.append(sig)
+            if interrupt.holding:
+                interrupt.holding = False  # a second signal cancels (the exit still stops)
+                interrupt.event.set()
+            else:
+                task.cancel()
 
         for sig in (signal.SIGINT, signal.SIGTERM):
             loop.add_signal_handler(sig, on_signal, sig)
         try:
-            return await make_coro()
+            return await make_coro(interrupt)
         except asyncio.CancelledError:
-            if not received:
+            if not interrupt.received:
                 raise
             task.uncancel()
             after = "" if command == "status" else "; stop sent to both drives"
             typer.echo(
-                f"orbitrig drives {command}: interrupted by {received[0].name}{after}", err=True
+                f"orbitrig drives {command}: interrupted by {interrupt.received[-1].name}{after}",
+                err=True,
             )
             return 2
         except DriveError as err:
@@ -200,19 +355,40 @@ def _drive_line(d: dict) -> str:
     )
 
 
-async def _status(url: str, json_out: bool, spin_id: int, orbit_id: int) -> int:
+def _state_lines(state) -> None:
+    for s in (state.spin, state.orbit):
+        typer.echo(f"{s.name:5s} (id {s.device_id}): {_drive_line(s.to_dict())}")
+
+
+def _hold_line(state, held: float) -> str:
+    parts = []
+    for s in (state.spin, state.orbit):
+        if s is not None:
+            d = s.to_dict()
+            flag = "at setpoint" if d["at_setpoint"] else d["state"]
+            parts.append(f"{s.name} {d['actual_rpm']:.1f} rpm ({flag})")
+    link = "link ok" if state.link_ok else f"LINK DOWN ({state.link_error})"
+    return (
+        f"holding {held:.0f} s: {', '.join(parts)}; {link}, polls {state.polls}, "
+        f"poll failures {state.poll_failures}"
+    )
+
+
+async def _status(url: str, json_out: bool, d) -> int:
     import json
 
     from drives.drive import Drive, rad_s_to_rpm
     from drives.link import ModbusLink
 
     out: dict = {"modbus": url}
-    async with ModbusLink(url, names={spin_id: "spin", orbit_id: "orbit"}) as link:
-        for name, device_id, bidirectional in (("spin", spin_id, False), ("orbit", orbit_id, True)):
+    names = {d.spin_id: "spin", d.orbit_id: "orbit"}
+    async with ModbusLink(url, timeout=d.timeout_s, names=names) as link:
+        for name, device_id, bidirectional in (("spin", d.spin_id, False),
+                                               ("orbit", d.orbit_id, True)):
             drive = Drive(link, device_id, name, bidirectional=bidirectional)
             params = await drive.read_parameters()
-            d = (await drive.read_status()).to_dict()
-            d["parameters"] = {
+            st = (await drive.read_status()).to_dict()
+            st["parameters"] = {
                 "speed_scale_rpm": round(rad_s_to_rpm(params.speed_scale), 3),
                 "max_speed_rpm": round(rad_s_to_rpm(params.max_speed), 3),
                 "accel_time_s": params.accel_time,
@@ -220,78 +396,96 @@ async def _status(url: str, json_out: bool, spin_id: int, orbit_id: int) -> int:
                 "comm_loss_timeout_s": params.comm_loss_timeout,
                 "at_setpoint_band_rpm": round(rad_s_to_rpm(params.at_setpoint_band), 3),
             }
-            out[name] = d
+            out[name] = st
     if json_out:
         typer.echo(json.dumps(out))
     else:
         for name in ("spin", "orbit"):
-            d = out[name]
-            typer.echo(f"{name:5s} (id {d['device_id']}): {_drive_line(d)}")
+            st = out[name]
+            typer.echo(f"{name:5s} (id {st['device_id']}): {_drive_line(st)}")
     return 0
 
 
-async def _run(url, limits, spin, orbit, settle, timeout, spin_id, orbit_id) -> int:
-    from drives.errors import DriveError
-    from drives.rig import RigDrives
+async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every, interrupt) -> int:
+    import asyncio
+    import time
+
+    from drives.errors import DriveError, DriveLinkError
 
     try:
-        limits.check(spin, orbit, spin_id=spin_id, orbit_id=orbit_id)
+        limits.check(spin, orbit, spin_id=d.spin_id, orbit_id=d.orbit_id)
     except DriveError as err:
         _report("run", err, "nothing sent")  # refused before connecting at all
         return 2
     rig = None
     try:
-        async with RigDrives(
-            url, limits, spin_id=spin_id, orbit_id=orbit_id, timeout=_REQUEST_TIMEOUT
-        ) as rig:
+        async with _rig_drives(url, d, limits) as rig:
             await rig.set_speeds(spin, orbit)
             state = await rig.wait_settled(hold=settle, timeout=timeout)
-            rig.release()
+            if not hold:
+                rig.release()
+                _state_lines(state)
+                return 0
+            _state_lines(state)
+            typer.echo("holding at the setpoint; Ctrl-C or SIGTERM ramps both drives to zero",
+                       err=True)
+            interrupt.holding = True
+            t0 = last = time.monotonic()
+            while not interrupt.event.is_set():
+                try:
+                    await asyncio.wait_for(interrupt.event.wait(), rig.poll_interval)
+                except asyncio.TimeoutError:
+                    pass
+                state = rig.check()  # a trip found by the poll (both already stopping)
+                if not state.link_ok:
+                    raise DriveLinkError(
+                        f"link lost while holding ({state.link_error}); the drives' "
+                        "comm-loss watchdog stops them"
+                    )
+                now = time.monotonic()
+                if now - last >= status_every and not interrupt.event.is_set():
+                    last = now
+                    typer.echo(_hold_line(state, now - t0))
+            sig = interrupt.received[-1].name
+            typer.echo(f"{sig}: ramping both drives to zero", err=True)
+            await rig.stop(wait=True)
+            _state_lines(rig.state)
+            typer.echo(f"both drives stopped after {time.monotonic() - t0:.0f} s at the setpoint")
+            return 0
     except DriveError as err:
         _report("run", err, _stop_outcome(rig))
         return 2
-    for s in (state.spin, state.orbit):
-        typer.echo(f"{s.name:5s} (id {s.device_id}): {_drive_line(s.to_dict())}")
-    return 0
 
 
-async def _stop(url, emergency, timeout, spin_id, orbit_id) -> int:
+async def _stop(url, d, emergency, timeout) -> int:
     from drives.errors import DriveError
-    from drives.rig import DriveLimits, RigDrives
 
     try:
-        async with RigDrives(
-            url,
-            DriveLimits(math.inf, math.inf),
-            spin_id=spin_id,
-            orbit_id=orbit_id,
-            timeout=_REQUEST_TIMEOUT,
-        ) as rig:
+        async with _rig_drives(url, d) as rig:
             await rig.stop(emergency=emergency, wait=True, timeout=timeout)
             state = rig.state
     except DriveError as err:
         # The controller could not be opened (or the wait failed): still put the
         # stop word on the line for each drive that answers, without reading first.
-        sent = await _stop_words_best_effort(url, emergency, spin_id, orbit_id)
+        sent = await _stop_words_best_effort(url, d, emergency)
         _report("stop", err, f"stop word delivered to: {', '.join(sent) or 'no drive'}")
         return 2
-    for s in (state.spin, state.orbit):
-        typer.echo(f"{s.name:5s} (id {s.device_id}): {_drive_line(s.to_dict())}")
+    _state_lines(state)
     return 0
 
 
-async def _stop_words_best_effort(url, emergency, spin_id, orbit_id) -> list[str]:
+async def _stop_words_best_effort(url, d, emergency) -> list[str]:
     from drives.drive import Drive
     from drives.link import ModbusLink
     from drives.rig import send_stop
 
-    link = ModbusLink(url, timeout=_REQUEST_TIMEOUT, names={spin_id: "spin", orbit_id: "orbit"})
+    link = ModbusLink(url, timeout=d.timeout_s, names={d.spin_id: "spin", d.orbit_id: "orbit"})
     drives = [
-        Drive(link, spin_id, "spin", bidirectional=False),
-        Drive(link, orbit_id, "orbit", bidirectional=True),
+        Drive(link, d.spin_id, "spin", bidirectional=False),
+        Drive(link, d.orbit_id, "orbit", bidirectional=True),
     ]
     try:
         missed = {err.drive for err in await send_stop(drives, emergency=emergency)}
     finally:
         await link.close()
-    return [f"{d.name} (id {d.device_id})" for d in drives if d.device_id not in missed]
+    return [f"{dr.name} (id {dr.device_id})" for dr in drives if dr.device_id not in missed]

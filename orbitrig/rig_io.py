@@ -79,7 +79,8 @@ class RigIO:
             # entered last, so it is closed first: the drives stop before the links go
             self.drives = await self._stack.enter_async_context(
                 RigDrives(modbus_url, limits, poll_interval=d.poll_interval_s, spin_id=d.spin_id,
-                          orbit_id=d.orbit_id, timeout=d.timeout_s)  # fmt: skip
+                          orbit_id=d.orbit_id, timeout=d.timeout_s,
+                          link_loss_polls=d.link_loss_polls)  # fmt: skip
             )
         except BaseException:
             await self._stack.aclose()

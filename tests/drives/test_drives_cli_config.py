@@ -1,0 +1,138 @@
+"""`orbitrig drives` with a rig configuration: URL and limits from the file, the
+command line only tightening them, and `run --hold` (subprocesses against the
+simulator's drives; every test ends on the drives' own registers).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import re
+import signal
+import sys
+
+import pytest
+from drives_testkit import CW_RAMP_STOP, CW_RUN, ROOT, run_cli, subprocess_env
+
+from orbitrig.cli_drives import effective_limits
+from orbitrig.config import Drives
+
+pytestmark = pytest.mark.timeout(40)
+
+SW_AT_SETPOINT = 0x100
+
+
+def rig_config(tmp_path, url: str, **drives) -> str:
+    """config/rig.toml with the simulator's URL and the given [drives] values."""
+    text = (ROOT / "config" / "rig.toml").read_text()
+    text = re.sub(r'(?m)^modbus_url = ".*"', f'modbus_url = "{url}"', text)
+    for key, value in drives.items():
+        text, n = re.subn(rf"(?m)^{key} = [^#\n]*", f"{key} = {value!r}", text)
+        assert n == 1, key
+    path = tmp_path / "rig.toml"
+    path.write_text(text)
+    return str(path)
+
+
+def untouched(sim) -> bool:
+    return all(sim.regs(dev)["CW"] == 0 and sim.regs(dev)["REF"] == 0 for dev in (1, 2))
+
+
+async def test_limits_come_from_the_config_and_options_only_tighten(tcp_sim, tmp_path):
+    sim = tcp_sim
+    cfg = rig_config(tmp_path, sim.url, max_spin_rpm=1000.0, max_orbit_rpm=500.0,
+                     min_ratio=0.1, max_ratio=1.0)
+    refused = [
+        (["--spin", "1500", "--orbit", "300"], "max_spin"),  # over the config's 1000 rpm
+        (["--spin", "800", "--orbit", "-600"], "max_orbit"),
+        (["--spin", "900", "--orbit", "50"], r"\|Omega\|/omega"),  # below min_ratio 0.1
+        (["--spin", "600", "--orbit", "300", "--max-spin", "500"], "max_spin"),  # tightened
+    ]
+    for args, match in refused:
+        code, out, err = await run_cli("drives", "run", "--config", cfg, *args)
+        assert code == 2 and "failed (limit)" in err and "nothing sent" in err, err
+        assert re.search(match, err), err
+    looser = [
+        (["--max-spin", "3000"], "--max-spin 3000 rpm is above the rig's drives.max_spin_rpm = 1000 rpm"),
+        (["--max-orbit", "600"], "--max-orbit 600 rpm is above the rig's drives.max_orbit_rpm = 500"),
+        (["--min-ratio", "0.05"], "--min-ratio 0.05 is below the rig's drives.min_ratio = 0.1"),
+        (["--max-ratio", "2"], "--max-ratio 2 is above the rig's drives.max_ratio = 1"),
+    ]
+    for args, message in looser:  # a legal speed, refused for the looser limit alone
+        code, out, err = await run_cli(
+            "drives", "run", "--config", cfg, "--spin", "600", "--orbit", "300", *args
+        )
+        assert code == 2 and message in err and "only tighten" in err and "nothing sent" in err, err
+        assert cfg in err
+    assert untouched(sim)  # nothing was written by any of them
+    assert sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
+
+
+def test_effective_limits_merge():
+    d = Drives(max_spin_rpm=2000.0, max_orbit_rpm=1000.0, min_ratio=None, max_ratio=1.5)
+    lim = effective_limits(d, max_spin=1500.0, min_ratio=0.2)
+    rpm = 2 * 3.141592653589793 / 60
+    assert lim.max_spin == pytest.approx(1500 * rpm) and lim.max_orbit == pytest.approx(1000 * rpm)
+    assert (lim.min_ratio, lim.max_ratio) == (0.2, 1.5)
+    with pytest.raises(ValueError, match="min ratio 2 > max ratio 1.5"):
+        effective_limits(d, min_ratio=2.0)
+    with pytest.raises(ValueError, match="--max-spin inf"):
+        effective_limits(d, max_spin=float("inf"))
+
+
+async def test_url_from_the_config_run_status_stop(tcp_sim, tmp_path):
+    sim = tcp_sim
+    cfg = rig_config(tmp_path, sim.url)
+    code, out, err = await run_cli(
+        "drives", "run", "--config", cfg, "--spin", "1000", "--orbit", "-400", "--settle", "0.05"
+    )
+    assert code == 0, err
+    assert sim.regs(1)["REF"] == 6667 and sim.regs(2)["REF"] == -2667
+    code, out, err = await run_cli("drives", "status", "--config", cfg, "--json")
+    assert code == 0, err
+    status = json.loads(out)
+    assert status["modbus"] == sim.url
+    assert status["orbit"]["reference_rpm"] == pytest.approx(-400, abs=0.1)
+    code, out, err = await run_cli("drives", "stop", "--config", cfg)
+    assert code == 0, err
+    assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP
+    assert sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
+    # an explicit --modbus wins over the file's URL
+    dead = rig_config(tmp_path, "tcp://127.0.0.1:9")
+    code, out, err = await run_cli("drives", "stop", "--config", dead, "--modbus", sim.url)
+    assert code == 0, err
+
+
+async def test_hold_keeps_the_drives_at_speed_and_stops_them_on_sigint(sim, tmp_path):
+    cfg = rig_config(tmp_path, sim.url)
+    proc = await asyncio.create_subprocess_exec(
+        sys.executable, "-m", "orbitrig", "drives", "run", "--config", cfg,
+        "--spin", "900", "--orbit", "-450", "--settle", "0.05", "--hold", "--status-every", "0.5",
+        cwd=ROOT, env=subprocess_env(),
+        stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
+    )
+    try:
+        await sim.wait_for(
+            lambda: sim.regs(1)["SW"] & SW_AT_SETPOINT and sim.regs(2)["SW"] & SW_AT_SETPOINT,
+            10, "at setpoint",
+        )
+        assert sim.models[1].parameter(104) == 10  # the drives' watchdog: 1 s
+        await asyncio.sleep(2.0)  # twice the watchdog: only the hold's polling keeps them going
+        for dev in (1, 2):
+            regs = sim.regs(dev)
+            assert regs["CW"] == CW_RUN and regs["FAULT"] == 0, regs
+        assert sim.rpm(1) == pytest.approx(900, abs=5) and sim.rpm(2) == pytest.approx(-450, abs=5)
+        proc.send_signal(signal.SIGINT)
+        out, err = await asyncio.wait_for(proc.communicate(), 15)
+    finally:
+        if proc.returncode is None:
+            proc.kill()
+            await proc.wait()
+    out, err = out.decode(), err.decode()
+    assert proc.returncode == 0, err
+    assert len(re.findall(r"(?m)^holding \d+ s: spin 9\d\d\.\d rpm \(at setpoint\)", out)) >= 2, out
+    assert "SIGINT: ramping both drives to zero" in err
+    assert "both drives stopped" in out
+    for dev in (1, 2):  # stopped by command, not by the watchdog
+        regs = sim.regs(dev)
+        assert regs["CW"] == CW_RAMP_STOP and regs["FAULT"] == 0 and regs["ACT"] == 0, regs
