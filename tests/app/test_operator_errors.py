@@ -116,8 +116,8 @@ def test_closed_stdin_at_a_confirmation_stops_the_run_instead_of_hanging(tmp_pat
         assert p.returncode == 3, p.stderr
         assert "standard input is closed" in p.stderr and "Traceback" not in p.stderr
         status = _run("drives", "status", "--modbus", ends["modbus"], "--json")
-        drives = json.loads(status.stdout)
         assert status.returncode == 0, status.stderr
+        drives = json.loads(status.stdout)
         for name in ("spin", "orbit"):
             assert drives[name]["running"] is False and drives[name]["reference_rpm"] == 0.0, drives
     finally:
