@@ -9,7 +9,7 @@ import asyncio
 import logging
 
 import pytest
-from drives_testkit import CW_RAMP_STOP, CW_RUN, PARAM, RPM, open_rig
+from drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, open_rig
 
 from drives.errors import DriveExceptionResponse, DriveTimeoutError
 from drives.rig import DriveLimits
@@ -97,11 +97,12 @@ async def test_long_outage_fails_the_command_and_both_drives_stop(sim):
 
         orig = r.orbit.write_reference
 
-        async def orbit_ref_in_outage(raw):
-            spin_started.set()
-            sim.endpoint.set_unresponsive(True)
-            asyncio.get_running_loop().call_later(1.2, sim.endpoint.set_unresponsive, False)
-            await orig(raw)
+        async def orbit_ref_in_outage(raw, **kw):
+            if not spin_started.is_set():  # the first orbit REF write: the speed command
+                spin_started.set()
+                sim.endpoint.set_unresponsive(True)
+                asyncio.get_running_loop().call_later(1.2, sim.endpoint.set_unresponsive, False)
+            await orig(raw, **kw)
 
         r.orbit.write_reference = orbit_ref_in_outage
         with pytest.raises(DriveTimeoutError, match=r"orbit drive \(id 2\), register REF"):
@@ -113,3 +114,28 @@ async def test_long_outage_fails_the_command_and_both_drives_stop(sim):
     # link back: the exit's stop reached both
     assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP
     await sim.wait_stopped()
+
+
+@pytest.mark.parametrize("sim", ["rtu"], indirect=True)
+async def test_a_silent_drive_delays_the_others_stop_by_one_timeout_only(sim):
+    """Device id 3 is not on the RS-485 line (no answer): its stop word is retried
+    only after the spin drive has had its own."""
+    from drives.drive import Drive
+    from drives.link import ModbusLink
+    from drives.rig import send_stop
+
+    sim.models[1].write(0, [CW_RUN])
+    loop = asyncio.get_running_loop()
+    async with ModbusLink(sim.url, timeout=0.2) as link:
+        silent = Drive(link, 3, "orbit", bidirectional=True)
+        spin = Drive(link, 1, "spin", bidirectional=False)
+        t0 = loop.time()
+        task = asyncio.create_task(send_stop([silent, spin]))
+        await sim.wait_for(lambda: sim.regs(1)["CW"] == CW_RAMP_STOP, 3, "spin stop word")
+        took = loop.time() - t0
+        errors = await task
+    assert took < 0.45, took  # one timeout (+ line settling), not 3 tries x 0.2 s
+    assert [e.drive for e in errors] == [3] and isinstance(errors[0], DriveTimeoutError)
+    # the silent drive's CW and zero REF: 1 try each, then 2 more (the second counted by the link)
+    assert link.retries == 2
+    assert sim.regs(1)["CW"] == CW_RAMP_STOP and sim.regs(1)["ACT"] == 0
