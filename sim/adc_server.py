@@ -16,7 +16,8 @@ import logging
 import os
 import termios
 import time
-import tty
+
+from sim.pty import close_fds, open_raw_pty
 
 log = logging.getLogger(__name__)
 
@@ -42,11 +43,8 @@ class PtySink:
         self.open()
 
     def open(self) -> None:
-        master, slave = os.openpty()
-        tty.setraw(slave)
-        os.set_blocking(master, False)
+        master, slave, self.path = open_raw_pty()
         self.master, self._slave = master, slave
-        self.path = os.ttyname(slave)
         self._loop.add_reader(master, self._drain_input)
 
     @property
@@ -123,9 +121,7 @@ class PtySink:
         if self._writer:
             self._loop.remove_writer(self.master)
             self._writer = False
-        for fd in (self.master, self._slave):
-            with contextlib.suppress(OSError):
-                os.close(fd)
+        close_fds(self.master, self._slave)
         self.master = self._slave = None
         self._queue.clear()
         self._queued = 0
