@@ -36,14 +36,14 @@ from typing import Callable, Literal
 import numpy as np
 
 from orbitrig import interlocks
-from orbitrig.config import MPA, RPM, ConfigError, MatrixConfig, RigConfig
+from orbitrig.config import LMS, MPA, RPM, ConfigError, MatrixConfig, RigConfig
 from orbitrig.errors import OrbitrigError
 from orbitrig.plan import (
     Acquire, Identify, OperatingPoint, SetManual, SetOrbit, SetSpin, Settle, Step, Store, Verify, expand,
     operating_points,
 )  # fmt: skip
 from orbitrig.rig_io import sim_speedup
-from orbitrig.storage import LMS, BlockRecord, PointResults, RunStore, now_iso
+from orbitrig.storage import BlockRecord, PointResults, RunStore, now_iso
 
 log = logging.getLogger(__name__)
 
@@ -598,20 +598,7 @@ class RunEngine:
 
     def _reduce(self, p: OperatingPoint, records: dict[str, BlockRecord], step: Identify,
                 truth: dict | None) -> PointResults:  # fmt: skip
-        from reduction.errors import ReductionError
-        from reduction.identify import identify
-
-        recs = sorted(records.values(), key=lambda r: (r.block.freq, -r.block.direction))
-        tables = {lms: orbit_table(p.spin, recs, self.rig.channel_index, lms) for lms in LMS}
-        idents = {}
-        for lms in LMS:
-            for spec in step.models:
-                try:
-                    res = identify(tables[lms], model=spec.model, freq_dep=spec.freq_dep, method=spec.method)
-                    idents[(lms, spec.key)] = {"spec": spec, "json": res.to_dict()}
-                except ReductionError as err:
-                    idents[(lms, spec.key)] = {"spec": spec, "error": str(err)}
-        return PointResults(tables, idents, lms_comparison(recs, self.rig.channel_index), truth)
+        return identify_point(p.spin, list(records.values()), self.rig.channel_index, step.models, truth)
 
     def _truth(self, p: OperatingPoint, recs: list[BlockRecord]) -> dict:
         out = {"orbit_hz": [], "orbit": [], "K": [], "C": [], "D": []}
@@ -703,6 +690,27 @@ class RunEngine:
 
 
 # ------------------------------------------------------------- pure helpers
+def identify_point(spin: float, recs: list[BlockRecord], ch: dict[str, int], models: list,
+                   truth: dict | None = None) -> PointResults:
+    """One operating point's results: the orbit table of each load measuring system (forward
+    and backward blocks together), every model of ``models`` (ModelSpec) identified on each
+    (a refused model keeps its reason), and the two systems compared. Pure: no I/O."""
+    from reduction.errors import ReductionError
+    from reduction.identify import identify
+
+    recs = sorted(recs, key=lambda r: (r.block.freq, -r.block.direction))
+    tables = {lms: orbit_table(spin, recs, ch, lms) for lms in LMS}
+    idents = {}
+    for lms in LMS:
+        for spec in models:
+            try:
+                res = identify(tables[lms], model=spec.model, freq_dep=spec.freq_dep, method=spec.method)
+                idents[(lms, spec.key)] = {"spec": spec, "json": res.to_dict()}
+            except ReductionError as err:
+                idents[(lms, spec.key)] = {"spec": spec, "error": str(err)}
+    return PointResults(tables, idents, lms_comparison(recs, ch), truth)
+
+
 def orbit_table(spin: float, recs: list[BlockRecord], ch: dict[str, int], lms: str):
     """Orbit table of one point for one load measuring system (Omega > 0, direction in the phasors)."""
     from reduction.table import OrbitTable

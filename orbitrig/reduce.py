@@ -16,7 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from orbitrig.errors import IdentificationError, ReductionError
-from orbitrig.run_reader import LMS_NAMES, Point, Run, StoredIdentification, freq_dep_key
+from orbitrig.config import LMS
+from orbitrig.run_reader import Point, Run, StoredIdentification, freq_dep_key
 from orbitrig.storage import CSV_HEAD, coef_order, true_entry
 
 #: constant-term keys in the spec's order
@@ -75,7 +76,7 @@ def reduce_run(
     model: str,
     freq_dep: str = "none",
     method: str = "ols",
-    lms_names: tuple[str, ...] = LMS_NAMES,
+    lms_names: tuple[str, ...] = LMS,
 ) -> list[Reduced]:
     """Identify every complete point of ``run`` for each LMS that has a table.
 

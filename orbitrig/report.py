@@ -29,7 +29,8 @@ from pathlib import Path
 from orbitrig import plots
 from orbitrig.errors import ReductionError
 from orbitrig.reduce import Reduced, reidentify
-from orbitrig.run_reader import LMS_NAMES, Point, Run, read_run
+from orbitrig.config import LMS
+from orbitrig.run_reader import Point, Run, read_run
 
 PLOTS_DIR = "plots"
 #: compared across the two load measuring systems, first one present wins
@@ -106,7 +107,7 @@ def _plot_point(pr: PointReport, out: Path) -> None:
     point = pr.point
     s = point.settings
     where = f"point {point.name}: {s.title()}"
-    for lms in LMS_NAMES:
+    for lms in LMS:
         table = point.tables.get(lms)
         results = pr.results.get(lms, [])
         if table is None:
@@ -128,11 +129,11 @@ def _plot_point(pr: PointReport, out: Path) -> None:
             out / f"coherence_{point.name}.png", point.tables,
             title=f"Coherence between motion and force signals\n{where}",
         ))
-    if all(lms in point.tables for lms in LMS_NAMES):
+    if all(lms in point.tables for lms in LMS):
         found = preferred(pr)
         pair = {lms: plots.Fitted(fit_label(r), r.identification) for lms, r in found.items()} if found else None
         pr.plots.append(plots.lms_comparison_plot(
-            out / f"lms_{point.name}.png", {lms: point.tables[lms] for lms in LMS_NAMES}, pair,
+            out / f"lms_{point.name}.png", {lms: point.tables[lms] for lms in LMS}, pair,
             title=f"Two load measuring systems: strain gauge vs piezoelectric\n{where}",
         ))
 
@@ -141,8 +142,8 @@ def preferred(pr: PointReport, model: tuple[str, str] | None = None) -> dict[str
     """The first constant-coefficient model of PREFERRED_MODELS (or `model`) that was
     identified from both load measuring systems, per LMS; {} when there is none."""
     for spec in [model] if model else PREFERRED_MODELS:
-        found = {lms: r for lms in LMS_NAMES for r in pr.results.get(lms, []) if (r.model, r.freq_dep) == spec}
-        if len(found) == len(LMS_NAMES):
+        found = {lms: r for lms in LMS for r in pr.results.get(lms, []) if (r.model, r.freq_dep) == spec}
+        if len(found) == len(LMS):
             return found
     return {}
 
@@ -158,7 +159,7 @@ def summary_plot_for(report: Report) -> Path | None:
             break
     else:
         return None
-    series = {lms: [(pr.point.index, found[lms].identification) for pr, found in chosen] for lms in LMS_NAMES}
+    series = {lms: [(pr.point.index, found[lms].identification) for pr, found in chosen] for lms in LMS}
     truth = [(pr.point.index, pr.point.truth) for pr, _ in chosen if pr.point.truth]
     return plots.summary_plot(
         report.directory / "summary.png", series, truth, model=spec[0],

@@ -16,7 +16,7 @@ import numpy as np
 
 from orbitrig.plots import PAIR_LABELS, whirl_direction
 from orbitrig.reduce import coefficient_unit, true_constants
-from orbitrig.run_reader import LMS_NAMES
+from orbitrig.config import LMS
 
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:1.5em auto;max-width:1400px;
@@ -101,7 +101,7 @@ def _coefficient_table(results, truth: dict[str, float]) -> str:
 def _coherence_table(point) -> str:
     """The paper's Table 1: Omega/omega and the four gamma^2, for each LMS side by side
     (values below 0.9 are marked)."""
-    tables = {lms: t for lms in LMS_NAMES if (t := point.tables.get(lms)) is not None and t.gamma2 is not None}
+    tables = {lms: t for lms in LMS if (t := point.tables.get(lms)) is not None and t.gamma2 is not None}
     if not tables:
         return ""
     ref = next(iter(tables.values()))
@@ -128,7 +128,7 @@ def _point_section(run, pr, out_dir: Path) -> str:
     s = p.settings
     h = [f'<h2 id="p{p.name}">Point {p.name}: {_e(s.label)}</h2>', _settings_table(s)]
     truth = true_constants(p)
-    for lms in LMS_NAMES:
+    for lms in LMS:
         results = pr.results.get(lms, [])
         refused = [i for i in p.identifications if i.lms == lms and not i.ok]
         if not results and not refused:

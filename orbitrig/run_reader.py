@@ -24,7 +24,6 @@ from orbitrig.errors import OrbitrigError
 
 RUN_FORMAT = "orbitrig-run/1"
 RUN_FILE = "run.h5"
-LMS_NAMES = ("piezo", "strain")
 COHERENCE_PAIRS = ("xfx", "yfx", "xfy", "yfy")
 
 

@@ -29,7 +29,6 @@ from orbitrig.plan import Block, OperatingPoint
 
 FORMAT = "orbitrig-run/1"
 RUN_FILE, CSV_FILE, LOG_FILE = "run.h5", "coefficients.csv", "run.log"
-LMS = ("piezo", "strain")
 CSV_HEAD = [
     "point", "label", "spin_rpm", "recess_pressure_mpa", "pressure_ratio", "static_eccentricity",
     "dynamic_eccentricity", "lms", "model", "freq_dep", "method", "n_frequencies", "condition_number",

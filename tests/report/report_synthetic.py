@@ -10,11 +10,9 @@ from pathlib import Path
 import numpy as np
 
 from orbitrig import config as cfg
-from orbitrig.executor import lms_comparison, orbit_table
+from orbitrig.executor import identify_point
 from orbitrig.plan import operating_points
-from orbitrig.storage import LMS, BlockRecord, PointResults, RunStore
-from reduction.errors import ReductionError
-from reduction.identify import identify
+from orbitrig.storage import BlockRecord, RunStore
 
 MATRIX = """
 name = "synthetic"
@@ -95,22 +93,13 @@ def write_synthetic_run(directory: Path, *, noise=1e-3, seed=1, n_points=2, inco
         if point.index >= n_points:
             continue  # as after a kill -9: blocks stored, point never completed
         recs.sort(key=lambda r: (r.block.freq, -r.block.direction))
-        tables = {lms: orbit_table(point.spin, recs, ch, lms) for lms in LMS}
-        idents = {}
-        for lms in LMS:
-            for spec in matrix.models:
-                try:
-                    res = identify(tables[lms], model=spec.model, freq_dep=spec.freq_dep, method=spec.method)
-                    idents[(lms, spec.key)] = {"spec": spec, "json": res.to_dict()}
-                except ReductionError as err:
-                    idents[(lms, spec.key)] = {"spec": spec, "error": str(err)}
         n = len(recs)
         truth = {
             "orbit_hz": [r.block.orbit_hz for r in recs], "orbit": [r.block.orbit for r in recs],
             "K": [K_TRUE.tolist()] * n, "C": [C_TRUE.tolist()] * n, "D": [D_TRUE.tolist()] * n,
             "K0": K_TRUE.tolist(), "C0": C_TRUE.tolist(), "D0": D_TRUE.tolist(),
         }  # fmt: skip
-        store.write_results(point.index, PointResults(tables, idents, lms_comparison(recs, ch), truth))
+        store.write_results(point.index, identify_point(point.spin, recs, ch, matrix.models, truth))
         store.complete_point(point.index)
     store.set_status("stopped" if incomplete else "completed", "synthetic run")
     return directory
