@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-import orbitrig.cli_acquire as cli_acquire
+import orbitrig.cli.acquire as cli_acquire
 from orbitrig.cli import app
 from sim.rig import SimRig
 
