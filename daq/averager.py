@@ -73,7 +73,7 @@ class AveragedBlock:
     was measured). slots, theta (= 2 pi slots / 360 rad), mean: (C, S); mean is
     ``raw_counts.mean(axis=0) * gains[:, None] + offsets[:, None]``. phasors: (C,)
     complex fundamental of the average; uncertainty: (C,) its standard uncertainty
-    from the scatter of record_phasors (NaN for N = 1). record_phasors: (N, C).
+    from the scatter of record_phasors (inf for N = 1). record_phasors: (N, C).
     rms_residual: (C,) RMS of the average minus (dc + fundamental). dc: (C,).
     raw_counts: (N, C, S) int16. revs, t_us: (N,) board revolution numbers and
     trigger times (us); periods: (N,) s (NaN where unknown). stop_reason: "count",
@@ -126,11 +126,11 @@ def phasor_weights(theta: np.ndarray) -> np.ndarray:
 
 
 def scatter_uncertainty(records: np.ndarray) -> np.ndarray:
-    """Standard uncertainty of the mean of complex records (N, C) along axis 0:
-    sqrt(sum |q - mean|^2 / (N - 1) / N); NaN for N < 2."""
+    """Standard uncertainty of the mean of complex records (N, C) along axis 0 (the
+    orbit table's u_*): sqrt(sum |q - mean|^2 / (N - 1) / N); inf for N = 1 (unknown)."""
     n = len(records)
     if n < 2:
-        return np.full(records.shape[1:], np.nan)
+        return np.full(records.shape[1:], np.inf)
     dev = records - records.mean(axis=0)
     return np.sqrt(np.sum(dev.real**2 + dev.imag**2, axis=0) / ((n - 1) * n))
 

@@ -34,7 +34,7 @@ def block_summary(block) -> dict:
         "channels": [
             {"index": k, "re": float(q.real), "im": float(q.imag), "amplitude": float(abs(q)),
              "phase_deg": float(np.degrees(np.angle(q))), "rms_residual": float(r),
-             "uncertainty": None if math.isnan(u) else float(u)}
+             "uncertainty": float(u) if math.isfinite(u) else None}
             for k, (q, r, u) in enumerate(zip(block.phasors, block.rms_residual, block.uncertainty))
         ],
     }

@@ -91,8 +91,9 @@ class RigIO:
         if self._on_revolution is not None:
             self._on_revolution(rev)
 
-    async def acquire(self, n_revolutions: int, *, timeout: float) -> Acquisition:
-        """Average `n_revolutions` good revolutions; the block carries their raw counts."""
+    async def acquire(self, n_revolutions, *, timeout: float) -> Acquisition:
+        """Average good revolutions (`n_revolutions`: a count, or a daq.averager.AveragingRule);
+        the block carries their raw counts."""
         block = await self.adc.acquire(n_revolutions, timeout=timeout)
         return Acquisition(block, block.raw_counts, block.slots)
 
