@@ -147,10 +147,10 @@ class StreamingAverager:
 
     def __init__(self, rule: AveragingRule | int = 50, gains: Sequence[float] | None = None,
                  offsets: Sequence[float] | None = None) -> None:
-        if isinstance(rule, int):
-            if rule < 1:
-                raise ValueError(f"n_revolutions must be >= 1, not {rule}")
-            rule = AveragingRule.fixed(rule)
+        if not isinstance(rule, AveragingRule):  # a count: the fixed rule
+            if int(rule) != rule or rule < 1:
+                raise ValueError(f"n_revolutions must be an integer >= 1, not {rule}")
+            rule = AveragingRule.fixed(int(rule))
         self.rule = rule
         self._gains = None if gains is None else np.asarray(gains, np.float64)
         self._offsets = None if offsets is None else np.asarray(offsets, np.float64)
