@@ -42,10 +42,17 @@ def whirl_direction(table) -> np.ndarray:
     return np.where(np.imag(np.conj(table.x) * table.y) <= 0, 1, -1)
 
 
-def _figure(w: float, h: float) -> Figure:
-    fig = Figure(figsize=(w, h), dpi=DPI, layout="constrained")
+def _figure(w: float, h: float, layout: str | None = "constrained") -> Figure:
+    """A figure on an Agg canvas; `layout=None` for many small panels (constrained layout's
+    solver costs seconds there), placed by the caller with ``subplots_adjust``."""
+    fig = Figure(figsize=(w, h), dpi=DPI, layout=layout)
     FigureCanvasAgg(fig)
     return fig
+
+
+def save_figure(fig: Figure, path: Path) -> Path:
+    """Write `fig` as PNG to `path` (folders created)."""
+    return _save(fig, path)
 
 
 def _save(fig: Figure, path: Path) -> Path:

@@ -10,7 +10,12 @@ drawn next to the measurements:
 - ``coefficients_PPPP_<lms>_<model>.png``: K, C, D entries against Omega/omega
   (Figures 6 and 7), every frequency dependence of that model, with the true
   values in ``--sim`` runs;
-- ``coherence_PPPP.png``: gamma^2 per frequency (Table 1, also a table in the page);
+- ``coherence_PPPP.png``: gamma^2 per frequency as a coloured table (Table 1, also in the page);
+- ``signals_PPPP_FF_dir.png``: the paper's Figure 4 for one orbit frequency, (a) both load
+  measuring systems' time-averaged forces with their amplitude and phase difference, (b) one
+  raw revolution against the average; by default the lowest and highest orbit frequency of
+  each whirl direction (``all_frequencies`` for every one);
+- ``orbits_PPPP.png``: the measured x-y orbit of both probe planes, one panel per frequency;
 - ``lms_PPPP.png``: strain-gauge vs piezoelectric forces and coefficients;
 - ``summary.png`` (more than one point): one model's K and C at every point.
 
@@ -27,6 +32,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from orbitrig.analysis import plots as plots
+from orbitrig.analysis import plots_signals
+from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.errors import ReductionError
 from orbitrig.analysis.reduce import Reduced, reidentify
 from orbitrig.config import LMS
@@ -103,10 +110,31 @@ def analyse_point(point: Point) -> PointReport:
     return pr
 
 
-def _plot_point(pr: PointReport, out: Path) -> None:
+def _plot_signals(run: Run, pr: PointReport, out: Path, where: str, all_frequencies: bool) -> None:
+    """Figure 4 per chosen frequency and the x-y orbits of every frequency of one point."""
+    point = pr.point
+    complete = sorted((f for f in point.frequencies if f.complete), key=lambda f: (-f.direction, f.orbit_hz))
+    for old in out.glob(f"signals_{point.name}_*.png"):  # an earlier report's other subset
+        old.unlink()
+    if not complete:
+        return
+    blocks = {f.name: read_block_signals(run, point, f) for f in complete}
+    for f in complete if all_frequencies else default_frequencies(point):
+        direction = "forward" if f.direction > 0 else "backward"
+        pr.plots.append(plots.save_figure(plots_signals.signals_figure(
+            blocks[f.name], title=f"Force signals at {f.orbit_hz:.4g} Hz {direction} whirl (paper Fig. 4)\n{where}",
+        ), out / f"signals_{point.name}_{f.name}.png"))  # fmt: skip
+    pr.plots.append(plots.save_figure(plots_signals.orbits_figure(
+        list(blocks.values()), radius=point.settings.orbit_radius,
+        title=f"Measured orbits (averaged displacements), both probe planes\n{where}",
+    ), out / f"orbits_{point.name}.png"))  # fmt: skip
+
+
+def _plot_point(run: Run, pr: PointReport, out: Path, all_frequencies: bool = False) -> None:
     point = pr.point
     s = point.settings
     where = f"point {point.name}: {s.title()}"
+    _plot_signals(run, pr, out, where, all_frequencies)
     for lms in LMS:
         table = point.tables.get(lms)
         results = pr.results.get(lms, [])
@@ -167,11 +195,12 @@ def summary_plot_for(report: Report) -> Path | None:
     )
 
 
-def make_report(directory: str | Path, *, points: list[int] | None = None) -> Report:
+def make_report(directory: str | Path, *, points: list[int] | None = None, all_frequencies: bool = False) -> Report:
     """Write ``DIR/plots/*.png`` and ``DIR/plots/index.html``; return what was written.
 
     ``points`` restricts the plots to those operating point indices (all
-    complete points by default). Raises RunDirError when DIR is not a run."""
+    complete points by default); ``all_frequencies`` draws Figure 4 for every orbit frequency
+    instead of the lowest and highest of each direction. Raises RunDirError when DIR is not a run."""
     from orbitrig.analysis.report_html import write_html
 
     run = read_run(directory)
@@ -184,7 +213,7 @@ def make_report(directory: str | Path, *, points: list[int] | None = None) -> Re
     report = Report(run, out, [])
     for point in chosen:
         pr = analyse_point(point)
-        _plot_point(pr, out)
+        _plot_point(run, pr, out, all_frequencies)
         report.points.append(pr)
     stale = out / "summary.png"  # from an earlier report over other points
     stale.unlink(missing_ok=True)

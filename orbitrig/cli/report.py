@@ -66,18 +66,19 @@ def register(app: typer.Typer) -> None:
     def report_cmd(
         directory: Annotated[Path, typer.Argument(metavar="DIR", help="Run directory written by `orbitrig sweep --out DIR`.")],
         point: Annotated[Optional[list[int]], typer.Option("--point", help="Only this operating point index (repeatable).")] = None,
+        all_frequencies: Annotated[bool, typer.Option("--all-frequencies", help="Force-signal figure (paper Fig. 4) for every orbit frequency, not only the lowest and highest of each whirl direction.")] = False,
     ) -> None:
         """Plots and an HTML page of a stored run, in DIR/plots.
 
         Forces measured vs reproduced, coefficients against Omega/omega, coherence,
-        the two load measuring systems; DIR/plots/index.html shows them with the
-        coefficient tables.
+        the two load measuring systems, the force signals (paper Fig. 4) and the
+        measured x-y orbits; DIR/plots/index.html shows them with the coefficient tables.
         """
         from orbitrig.analysis.report import make_report
         from orbitrig.store.reader import RunDirError
 
         try:
-            report = make_report(directory, points=point)
+            report = make_report(directory, points=point, all_frequencies=all_frequencies)
         except (RunDirError, ValueError) as err:
             _fail(str(err))
         run = report.run
