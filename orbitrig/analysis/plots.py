@@ -27,6 +27,7 @@ MATRIX_NAMES = {"K": "stiffness", "C": "damping", "D": "inertia"}
 PAIR_LABELS = {"xfx": "x, Fx", "yfx": "y, Fx", "xfy": "x, Fy", "yfy": "y, Fy"}
 DIRECTIONS = ((1, "forward", "-", "o"), (-1, "backward", "--", "s"))
 DPI = 110
+TRUTH_LABEL = "true (simulator)"
 
 
 @dataclass
@@ -145,6 +146,20 @@ def _std_at(std_errors: dict[str, float], key: str, orbit: np.ndarray) -> np.nda
     return np.sqrt(var)
 
 
+def keep_inside(ax, xs, ys, margin: float = 0.05) -> None:
+    """Widen the axes limits so that every point (xs, ys) lies inside, with `margin` of the
+    span to spare: truth markers must never fall outside the panel."""
+    xs, ys = np.asarray(xs, dtype=float).ravel(), np.asarray(ys, dtype=float).ravel()
+    ok = np.isfinite(xs) & np.isfinite(ys)
+    if not ok.any():
+        return
+    for lim, get, put in ((xs[ok], ax.get_xlim, ax.set_xlim), (ys[ok], ax.get_ylim, ax.set_ylim)):
+        lo, hi = get()
+        span = max(hi - lo, float(np.ptp(lim)), 1e-12)
+        if lim.min() <= lo or lim.max() >= hi:
+            put(min(lo, lim.min() - margin * span), max(hi, lim.max() + margin * span))
+
+
 def _has(ident, matrix: str) -> bool:
     return any(k.startswith(matrix) for k in ident.coefficients)
 
@@ -199,7 +214,7 @@ def coefficients_plot(path, fitted: Sequence[Fitted], *, spin: float, orbit: np.
             for col in range(4):
                 i, j = divmod(col, 2)
                 axes[row, col].plot(t_orbit / spin, mat[:, i, j] * scale, "x", color="black", ms=6,
-                                    mew=1.5, label="true (simulator)", zorder=6)
+                                    mew=1.5, label=TRUTH_LABEL, zorder=6)
     for row, m in enumerate(mats):
         unit, _ = MATRIX_UNITS[m]
         for col, e in enumerate(ENTRIES):
@@ -209,45 +224,15 @@ def coefficients_plot(path, fitted: Sequence[Fitted], *, spin: float, orbit: np.
             ax.grid(True, alpha=0.3)
             ax.set_xlim(0, top / spin)
             _min_span(ax, largest[m])
+            for line in ax.get_lines():  # the truth crosses, whatever limits were chosen
+                if line.get_label() == TRUTH_LABEL:
+                    keep_inside(ax, line.get_xdata(), line.get_ydata())
             if row == len(mats) - 1:
                 ax.set_xlabel("\u03a9/\u03c9  [-]")
     handles, labels = axes[0, 0].get_legend_handles_labels()
     uniq = dict(zip(labels, handles))
     fig.legend(list(uniq.values()), list(uniq.keys()), loc="outside lower center",
                ncols=min(5, len(uniq)), fontsize=9, title="bands and error bars: \u00b11 standard error")
-    fig.suptitle(title)
-    return _save(fig, path)
-
-
-def coherence_plot(path, tables: dict[str, Any], *, title: str) -> Path:
-    """The paper's Table 1 as a plot: gamma^2 of the four motion/force pairs
-    against Omega/omega, one panel per load measuring system."""
-    lms_names = [n for n, t in tables.items() if t.gamma2 is not None]
-    fig = _figure(5.5 * max(1, len(lms_names)), 4.6)
-    axes = np.atleast_1d(fig.subplots(1, max(1, len(lms_names)), sharey=True))
-    colors = _colors(4)
-    lowest = 1.0
-    for ax, lms in zip(axes, lms_names):
-        t = tables[lms]
-        ratio = t.orbit / t.spin
-        dirs = whirl_direction(t)
-        for c, pair in enumerate(PAIR_LABELS):
-            for d, dname, ls, marker in DIRECTIONS:
-                sel = np.flatnonzero(dirs == d)
-                if sel.size == 0:
-                    continue
-                sel = sel[np.argsort(ratio[sel])]
-                ax.plot(ratio[sel], t.gamma2[sel, c], ls=ls, marker=marker, color=colors[c],
-                        mfc=colors[c] if d == 1 else "white", ms=5, lw=1,
-                        label=f"\u03b3\u00b2({PAIR_LABELS[pair]}), {dname}")
-        lowest = min(lowest, float(np.nanmin(t.gamma2)))
-        ax.set_title(f"{lms} load cells (lowest \u03b3\u00b2 = {np.nanmin(t.gamma2):.4f})")
-        ax.set_xlabel("\u03a9/\u03c9  [-]")
-        ax.grid(True, alpha=0.3)
-    axes[0].set_ylabel("coherence \u03b3\u00b2  [-]")
-    axes[0].set_ylim(min(0.9, lowest - 0.02), 1.005)
-    handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncols=4, fontsize=8)
     fig.suptitle(title)
     return _save(fig, path)
 
@@ -334,12 +319,14 @@ def summary_plot(path, series: dict[str, list[tuple[int, Any]]], truth: list[tup
             i, j = divmod(col, 2)
             pts = [(idx, t[f"{m}0"][i][j] * scale) for idx, t in truth if t and f"{m}0" in t]
             if pts:
-                ax.plot(*zip(*pts), "x", color="black", ms=6, mew=1.5, label="true (simulator)")
+                ax.plot(*zip(*pts), "x", color="black", ms=6, mew=1.5, label=TRUTH_LABEL)
             ax.set_title(f"{m}{e}")
             ax.set_ylabel(f"{m}{e}  [{unit}]")
             ax.grid(True, alpha=0.3)
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
             _min_span(ax, largest[m])
+            if pts:
+                keep_inside(ax, *zip(*pts))
             if row == 1:
                 ax.set_xlabel("operating point  [index]")
     handles, labels = axes[0, 0].get_legend_handles_labels()

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from orbitrig.analysis import plots as plots
-from orbitrig.analysis import plots_signals
+from orbitrig.analysis import plots_coherence, plots_signals
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.errors import ReductionError
 from orbitrig.analysis.reduce import Reduced, reidentify
@@ -152,11 +152,11 @@ def _plot_point(run: Run, pr: PointReport, out: Path, all_frequencies: bool = Fa
                 spin=table.spin, orbit=table.orbit, truth=point.truth,
                 title=f"Rotordynamic coefficients, model {model}, {lms} load cells\n{where}",
             ))
-    if any(t.gamma2 is not None for t in point.tables.values()):
-        pr.plots.append(plots.coherence_plot(
-            out / f"coherence_{point.name}.png", point.tables,
-            title=f"Coherence between motion and force signals\n{where}",
-        ))
+    coherence = plots_coherence.coherence_table(point.tables)
+    if coherence is not None:
+        pr.plots.append(plots.save_figure(plots_coherence.coherence_figure(
+            coherence, title=f"Coherence between motion and force signals (paper Table 1)\n{where}",
+        ), out / f"coherence_{point.name}.png"))  # fmt: skip
     if all(lms in point.tables for lms in LMS):
         found = preferred(pr)
         pair = {lms: plots.Fitted(fit_label(r), r.identification) for lms, r in found.items()} if found else None

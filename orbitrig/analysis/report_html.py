@@ -12,9 +12,9 @@ import math
 from datetime import datetime, timezone
 from pathlib import Path
 
-import numpy as np
 
-from orbitrig.analysis.plots import PAIR_LABELS, whirl_direction
+from orbitrig.analysis.plots import PAIR_LABELS
+from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_table
 from orbitrig.analysis.reduce import coefficient_unit, true_constants
 from orbitrig.config import LMS
 
@@ -29,6 +29,7 @@ td.l,th.l{text-align:left}
 .completed{background:#2a7d2a}.stopped{background:#b07a00}.aborted,.failed{background:#b02020}
 .running,.unknown{background:#555}
 .err{color:#b02020;white-space:pre-wrap} .muted{color:#666}
+.band{padding:0 .5em;margin-right:.3em}
 img{max-width:100%;border:1px solid #ddd;margin:.4em 0}
 details pre{background:#f7f7f7;padding:.6em;overflow-x:auto}
 """
@@ -99,28 +100,26 @@ def _coefficient_table(results, truth: dict[str, float]) -> str:
 
 
 def _coherence_table(point) -> str:
-    """The paper's Table 1: Omega/omega and the four gamma^2, for each LMS side by side
-    (values below 0.9 are marked)."""
-    tables = {lms: t for lms in LMS if (t := point.tables.get(lms)) is not None and t.gamma2 is not None}
-    if not tables:
+    """The paper's Table 1: gamma^2 of the four pairs of each LMS per Omega/omega, each
+    cell on the colour of its band (plots_coherence.BANDS, as in coherence_PPPP.png)."""
+    table = coherence_table(point.tables)
+    if table is None:
         return ""
-    ref = next(iter(tables.values()))
-    tables = {lms: t for lms, t in tables.items() if np.array_equal(t.orbit, ref.orbit)}
-    ratio = ref.orbit / ref.spin
-    dirs = whirl_direction(ref)
-    head1 = '<tr><th class="l" rowspan="2">whirl</th><th rowspan="2">\u03a9/\u03c9</th>' + "".join(
-        f'<th colspan="4">{_e(lms)} load cells</th>' for lms in tables) + "</tr>"
-    head2 = "<tr>" + "".join(f"<th>\u03b3\u00b2 {_e(v)}</th>" for v in PAIR_LABELS.values()) * len(tables) + "</tr>"
-
-    def cell(v: float) -> str:
-        return f'<td class="err">{v:.3f}</td>' if v < 0.9 else f"<td>{v:.3f}</td>"
-
+    head1 = '<tr><th class="l" rowspan="2">\u03a9/\u03c9, whirl</th>' + "".join(
+        f'<th colspan="4">{_e(lms)} load cells</th>' for lms in table.lms) + "</tr>"
+    head2 = "<tr>" + "".join(f"<th>\u03b3\u00b2 {_e(v)}</th>" for v in PAIR_LABELS.values()) * len(table.lms) + "</tr>"
     rows = "".join(
-        f'<tr><td class="l">{"forward" if dirs[i] > 0 else "backward"}</td><td>{ratio[i]:.3f}</td>'
-        + "".join(cell(t.gamma2[i, c]) for t in tables.values() for c in range(4)) + "</tr>"
-        for i in np.lexsort((ratio, -dirs))
+        f'<tr><td class="l">{_e(label)}</td>'
+        + "".join(f'<td style="background:{band_colour(v)}">{fmt_coherence(v)}</td>' for v in values) + "</tr>"
+        for label, values in zip(table.rows, table.values)
     )
-    return f"<h3>Coherence between motion and force signals</h3><table>{head1}{head2}{rows}</table>"
+    legend = " ".join(f'<span class="band" style="background:{c}">{_e(t)}</span>' for _, c, t in BANDS)
+    return (f"<h3>Coherence between motion and force signals</h3><table>{head1}{head2}{rows}</table>"
+            f'<p class="muted">\u03b3\u00b2 bands: {legend}</p>')
+
+
+def fmt_coherence(v: float) -> str:
+    return f"{v:.3f}" if math.isfinite(v) else "-"
 
 
 def _point_section(run, pr, out_dir: Path) -> str:
