@@ -48,7 +48,7 @@ def test_coherence_weights_reduce_the_spread_and_keep_std_errors_honest():
     rng = np.random.default_rng(12)
     clean = orbit_table(TRUE, frequencies(6))
     n_rec = 50
-    rel = np.geomspace(0.2, 1.0, clean.n)  # relative force noise of one record, per row
+    rel = np.geomspace(0.15, 1.5, clean.n)  # relative force noise of one record, per row
     gamma2 = 1 / (1 + rel**2)  # coherent power over total power
     g = np.repeat(gamma2[:, None], 4, axis=1)
     avg = rel / np.sqrt(n_rec)  # relative noise of the average of n_rec records
