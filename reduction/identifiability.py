@@ -58,6 +58,16 @@ class Rank:
     null: np.ndarray  # (p, p - rank), orthonormal, scaled coordinates
     scale: np.ndarray  # column norms c: theta = u / c
     vt: np.ndarray  # (p, p) right singular vectors (rows), scaled coordinates
+    u: np.ndarray | None = None  # (m, p) left singular vectors when m >= p
+
+    def unscaled_covariance(self) -> np.ndarray:
+        """(A_s^T A_s)^-1 of the column-scaled matrix (full rank only)."""
+        s = self.singular_values
+        return (self.vt.T / s**2) @ self.vt
+
+    def pseudo_inverse(self) -> np.ndarray:
+        """(A_s^T A_s)^-1 A_s^T of the column-scaled matrix (full rank, m >= p only)."""
+        return (self.vt.T / self.singular_values) @ self.u.T
 
     @property
     def deficiency(self) -> int:
@@ -75,10 +85,10 @@ def numerical_rank(A: np.ndarray, rtol: float = RANK_RTOL) -> Rank:
     m, p = A_s.shape
     if m < p:  # pad so that the SVD returns the whole right singular basis
         A_s = np.vstack([A_s, np.zeros((p - m, p))])
-    _, s, Vt = np.linalg.svd(A_s, full_matrices=False)  # m >= p here: Vt is p x p
+    U, s, Vt = np.linalg.svd(A_s, full_matrices=False)  # m >= p here: Vt is p x p
     tol = rtol * (s[0] if s.size else 0.0)
     rank = int(np.sum(s > tol)) if s.size and s[0] > 0 else 0
-    return Rank(rank, p, s, Vt[rank:].T.copy(), c, Vt)
+    return Rank(rank, p, s, Vt[rank:].T.copy(), c, Vt, U if m >= p else None)
 
 
 def combinations(rank: Rank, names: list[str]) -> list[str]:

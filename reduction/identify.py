@@ -109,17 +109,18 @@ def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank
               tls_ratio: float | None) -> Identification:
     A, b = _regression(spec, table)
     known = table.u is not None
-    var = _variances(spec, table, A, b, method, solver, rank_rtol)
-    A_eff = A / np.sqrt(var)[:, None] if method == "wls" else A
-    rank = analyse(spec, table, A_eff, rank_rtol)  # raises when not identifiable
+    rank = analyse(spec, table, A, rank_rtol)  # raises when not identifiable
+    var = _variances(spec, table, A, b, method, solver, rank)
+    if method == "wls":  # the weighted regression's own scaling and conditioning
+        rank = analyse(spec, table, A / np.sqrt(var)[:, None], rank_rtol)
     c = rank.scale
     A_s = A / c
     P = None  # the estimator's linear map b -> scaled coefficients (ols, iv)
     if method == "ols":
-        est = reg.ols(A_s, b, solver)
-        P = st.pseudo_inverse(A_s) if known else None
+        est = reg.ols(A_s, b, solver, rank.unscaled_covariance())
+        P = rank.pseudo_inverse() if known else None
     elif method == "wls":
-        est = reg.wls(A_s, b, 1.0 / var, solver)
+        est = reg.wls(A_s, b, 1.0 / var, solver, rank.unscaled_covariance())
         if known:  # second pass: effective variances at the wls coefficients
             var = equation_variances(table.u, impedance(spec, est.x / c, table.orbit))
             est = reg.wls(A_s, b, 1.0 / var, solver)
@@ -153,14 +154,13 @@ def _regression(spec: ModelSpec, table: OrbitTable) -> tuple[np.ndarray, np.ndar
     return A, b
 
 
-def _variances(spec, table, A, b, method, solver, rank_rtol) -> np.ndarray:
+def _variances(spec, table, A, b, method, solver, rank) -> np.ndarray:
     """Variances of the 4n equations: from u_* (effective, at a first ols fit), else from the
     coherences for wls, else ones."""
     if table.u is not None:
         if not np.any(table.u[:, 2:] > 0) and not np.any(table.u[:, :2] > 0):
             raise IdentificationError("the table's u_x, u_y, u_fx, u_fy are all zero: no noise to weight by")
-        rank = analyse(spec, table, A, rank_rtol)
-        theta0 = reg.ols(A / rank.scale, b, solver).x / rank.scale
+        theta0 = reg.lstsq(A / rank.scale, b, solver) / rank.scale
         var = equation_variances(table.u, impedance(spec, theta0, table.orbit))
         floor = 1e-12 * float(np.max(var))
         if not floor > 0:

@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
+from functools import cached_property
 
 from reduction.errors import ReductionError
 
@@ -159,13 +160,19 @@ class ModelSpec:
                    if MODELS[self.model].get("D") else "") + ".")
         return out
 
-    def expand(self, values) -> dict[str, float]:
+    @cached_property
+    def _key_columns(self) -> tuple[tuple[str, int], ...]:
+        """(output key, free-coefficient column) pairs, in key order."""
+        column = {}
+        for j, t in enumerate(self.terms):
+            for i, l in t.entries:
+                column[coefficient_name(t.matrix, "xy"[i] + "xy"[l], t.order)] = j
+        return tuple((k, column[k]) for k in self.keys())
+
+    def expand(self, values) -> dict:
         """Free coefficient values (column order) -> {key: value}, symmetric pairs repeated."""
-        by_entry = {}
-        for t, v in zip(self.terms, values):
-            for i, j in t.entries:
-                by_entry[coefficient_name(t.matrix, "xy"[i] + "xy"[j], t.order)] = v
-        return {k: by_entry[k] for k in self.keys()}
+        values = list(values)
+        return {k: values[j] for k, j in self._key_columns}
 
 
 def model_spec(model: str, freq_dep: str | FreqDep = "none") -> ModelSpec:

@@ -107,21 +107,24 @@ def _finish(A_eff: np.ndarray, x: np.ndarray, r: np.ndarray, cov_matrix: np.ndar
     return Estimate(x, rss / dof * unscaled, rss, dof, unscaled)
 
 
-def ols(A: np.ndarray, b: np.ndarray, solver: str = "qr") -> Estimate:
-    """Ordinary least squares; cov = s^2 (A^T A)^-1 with s^2 = rss / (m - p)."""
+def ols(A: np.ndarray, b: np.ndarray, solver: str = "qr", unscaled: np.ndarray | None = None) -> Estimate:
+    """Ordinary least squares; cov = s^2 (A^T A)^-1 with s^2 = rss / (m - p); ``unscaled``
+    is (A^T A)^-1 when the caller has it already (else computed by SVD)."""
     x = lstsq(A, b, solver)
-    return _finish(A, x, b - A @ x)
+    return _finish(A, x, b - A @ x, unscaled)
 
 
-def wls(A: np.ndarray, b: np.ndarray, weights: np.ndarray, solver: str = "qr") -> Estimate:
+def wls(A: np.ndarray, b: np.ndarray, weights: np.ndarray, solver: str = "qr",
+        unscaled: np.ndarray | None = None) -> Estimate:
     """Weighted least squares, weights = inverse variances of b (any common scale):
-    minimises sum w r^2; cov = s^2 (A^T W A)^-1, s^2 = weighted rss / (m - p)."""
+    minimises sum w r^2; cov = s^2 (A^T W A)^-1, s^2 = weighted rss / (m - p); ``unscaled``
+    is (A^T W A)^-1 when the caller has it already."""
     w = np.sqrt(np.asarray(weights, dtype=float))
     if w.shape != b.shape or not np.all(np.isfinite(w)) or np.any(w <= 0):
         raise ReductionError("wls: weights must be finite, > 0 and one per equation")
     Aw, bw = A * w[:, None], b * w
     x = lstsq(Aw, bw, solver)
-    return _finish(Aw, x, bw - Aw @ x)
+    return _finish(Aw, x, bw - Aw @ x, unscaled)
 
 
 def iv(A: np.ndarray, Z: np.ndarray, b: np.ndarray, solver: str = "qr") -> Estimate:
