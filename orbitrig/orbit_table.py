@@ -84,7 +84,7 @@ def read_orbit_table(path: str | Path) -> OrbitTable:
         raise TableError(str(path), 1, None, "empty file: a header row is required")
     wanted = _wanted_columns(str(path), header, header_line)
     index = {name: header.index(name) for name in wanted}
-    rows, lines = [], []
+    rows = []
     for fields in reader:
         if not any(f.strip() for f in fields):
             continue
@@ -95,7 +95,6 @@ def read_orbit_table(path: str | Path) -> OrbitTable:
         row = {name: _cell(str(path), line, name, fields, index[name], len(header)) for name in wanted}
         _check_row(str(path), line, row, rows[0] if rows else None)
         rows.append(row)
-        lines.append(line)
     if not rows:
         raise TableError(str(path), header_line + 1, None, "no data rows after the header")
     col = {name: np.array([r[name] for r in rows]) for name in wanted}
