@@ -17,7 +17,8 @@ from orbitrig.store.orbit_table import write_orbit_table
 ROOT = Path(__file__).resolve().parents[2]
 TRUE = truth("kcd11", {"K": (0,), "C": (0,), "D": (0,)})
 SPEC_KEYS = ["model", "freq_dep", "method", "n_coefficients", "min_frequencies", "n_frequencies",
-             "coefficients", "std_errors", "condition_number", "residual_rms", "fit"]
+             "coefficients", "std_errors", "confidence_95", "free", "covariance", "dof",
+             "condition_number", "residual_rms", "aic", "bic", "notes", "warnings", "fit"]
 
 
 @pytest.fixture
@@ -86,12 +87,23 @@ def test_rank_deficient_model_exit_2_nothing_on_stdout(runner, tmp_path):
     assert "Kxx_1 - Cxy" in res.stderr and "forward plus backward whirl" in res.stderr
 
 
-def test_33_coefficient_model_is_refused_with_the_inertia_confusion(runner, tmp_path):
+def test_paper_33_coefficient_model_fits_29_with_the_absorbed_order_noted(runner, tmp_path):
     path = tmp_path / "t.csv"
     write_orbit_table(path, orbit_table(TRUE, frequencies(10)))
     res = runner.invoke(app, ["identify", str(path), "--model", "kcd11", "--freq-dep", "poly:2", "--json"])
+    assert res.exit_code == 0, res.stderr
+    d = json.loads(res.stdout)
+    assert d["n_coefficients"] == 29 and d["min_frequencies"] == 8 and len(d["free"]) == 29
+    assert "Kxx_2" not in d["coefficients"] and "Kxx_1" in d["coefficients"]
+    assert any("K order 2" in n for n in d["notes"])
+
+
+def test_forward_only_fixed_ellipse_power_1_exit_2(runner, tmp_path):
+    path = tmp_path / "t.csv"
+    write_orbit_table(path, orbit_table(TRUE, frequencies(10), ((5e-6, 4.9e-6, 0.3),)))
+    res = runner.invoke(app, ["identify", str(path), "--model", "kc8", "--freq-dep", "power:1", "--json"])
     assert res.exit_code == 2 and res.stdout == ""
-    assert "33 coefficients" in res.stderr and "Kxx_2 + Dxx" in res.stderr
+    assert "Kxx_1 - Cxy" in res.stderr and "backward-whirl" in res.stderr
 
 
 def test_too_few_frequencies_exit_2(runner, tmp_path):

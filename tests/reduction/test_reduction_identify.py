@@ -72,7 +72,8 @@ def test_power_auto_picks_the_true_exponent_and_skips_unidentifiable_ones():
     table = orbit_table(true, frequencies(10))
     result = identify(table, "kcd11", "power:auto")
     assert result.exponent == 3 and result.freq_dep == "power:auto"
-    assert 2 in result.skipped and "Kxx_2 + Dxx" in result.skipped[2]  # K_2 vs inertia
+    assert result.skipped == {}  # v2: power:2 fits with K_2 absorbed by D
+    assert any("exponent M = 3" in n for n in result.notes)
     assert _max_rel_err(result, true) < 1e-9
     d = result.to_dict()
     assert d["exponent"] == 3 and "Kxx_3" in d["coefficients"]
@@ -83,7 +84,8 @@ def test_to_dict_is_the_spec_object():
     table = orbit_table(true, frequencies(5))
     d = identify(table, "kcd11").to_dict()
     assert list(d) == ["model", "freq_dep", "method", "n_coefficients", "min_frequencies", "n_frequencies",
-                       "coefficients", "std_errors", "condition_number", "residual_rms", "fit"]
+                       "coefficients", "std_errors", "confidence_95", "free", "covariance", "dof",
+                       "condition_number", "residual_rms", "aic", "bic", "notes", "warnings", "fit"]
     assert (d["model"], d["freq_dep"], d["method"]) == ("kcd11", "none", "ols")
     assert (d["n_coefficients"], d["min_frequencies"], d["n_frequencies"]) == (11, 3, 10)
     assert list(d["coefficients"]) == ["Kxx", "Kxy", "Kyx", "Kyy", "Cxx", "Cxy", "Cyx", "Cyy",
