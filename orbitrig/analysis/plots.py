@@ -120,7 +120,8 @@ def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
     if len(set(dirs)) > 1:
         handles += [Line2D([], [], color="gray", ls="-"), Line2D([], [], color="gray", ls="--")]
         labels += ["reproduced, forward (solid)", "reproduced, backward (dashed)"]
-    fig.legend(handles, labels, loc="outside lower center", ncols=min(4, len(labels)), fontsize=9)
+    ncols = max(1, min(4, len(labels), 150 // max(len(label) for label in labels)))  # long labels: fewer columns
+    fig.legend(handles, labels, loc="outside lower center", ncols=ncols, fontsize=9)
     fig.suptitle(title)
     return _save(fig, path)
 

@@ -45,6 +45,7 @@ class Reduced:
     method: str
     identification: Any = None  # reduction.identify.Identification
     error: str | None = None
+    stored: dict[str, Any] | None = None  # the sweep's stored JSON of this identification, if repeated
 
     def to_dict(self) -> dict[str, Any]:
         head = {"point": self.point.index, "label": self.point.settings.label, "lms": self.lms}
@@ -68,7 +69,9 @@ def identify_point(point: Point, lms: str, model: str, freq_dep: str = "none", m
 
 def reidentify(point: Point, stored: StoredIdentification) -> Reduced:
     """Repeat one of the sweep's stored identifications from the stored table."""
-    return identify_point(point, stored.lms, stored.model, stored.freq_dep, stored.method)
+    row = identify_point(point, stored.lms, stored.model, stored.freq_dep, stored.method)
+    row.stored = stored.result
+    return row
 
 
 def reduce_run(

@@ -32,12 +32,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from orbitrig.analysis import plots as plots
-from orbitrig.analysis import plots_coherence, plots_signals
+from orbitrig.analysis import plots_coherence, plots_derived, plots_signals
+from orbitrig.analysis.quality import Verdict, adequacy_verdicts, derived_of, true_impedance
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.errors import ReductionError
 from orbitrig.analysis.reduce import Reduced, reidentify
 from orbitrig.config import LMS
 from orbitrig.store.reader import Point, Run, read_run
+from reduction.derived import Derived
 
 PLOTS_DIR = "plots"
 #: compared across the two load measuring systems, first one present wins
@@ -52,6 +54,8 @@ class PointReport:
     results: dict[str, list[Reduced]] = field(default_factory=dict)  # lms -> re-identified
     plots: list[Path] = field(default_factory=list)
     mismatches: list[str] = field(default_factory=list)  # stored vs repeated identification
+    verdicts: dict[str, list[Verdict]] = field(default_factory=dict)  # lms -> model adequacy
+    derived: dict[str, list[tuple[Reduced, Derived]]] = field(default_factory=dict)  # lms -> derived
 
 
 @dataclass
@@ -71,7 +75,7 @@ def fit_label(r: Reduced) -> str:
     """'kcd11 (11 coef.)', 'kcd11 power:1 (22 coef.)' - the paper's wording."""
     ident = r.identification
     fd = "" if r.freq_dep == "none" else f" {r.freq_dep}"
-    if ident is not None and getattr(ident, "exponent", None) and r.freq_dep == "power:auto":
+    if ident is not None and ident.exponent and r.freq_dep == "power:auto":
         fd = f" power:{ident.exponent} (auto)"
     n = f" ({ident.n_coefficients} coef.)" if ident is not None else ""
     method = "" if r.method == "ols" else f", {r.method}"
@@ -130,28 +134,49 @@ def _plot_signals(run: Run, pr: PointReport, out: Path, where: str, all_frequenc
     ), out / f"orbits_{point.name}.png"))  # fmt: skip
 
 
+def _plot_lms(pr: PointReport, lms: str, out: Path, where: str) -> None:
+    """Figure 5 with the adequacy verdicts, coefficients per model, derived quantities and,
+    in simulator runs, the impedance against the true one, for one load measuring system."""
+    point, table = pr.point, pr.point.tables[lms]
+    results = pr.results.get(lms, [])
+    pr.verdicts[lms] = adequacy_verdicts(lms, results)
+    verdict = {id(v.dependent): v.text for v in pr.verdicts[lms]}
+    fitted = [plots.Fitted(fit_label(r), r.identification) for r in results]
+    with_verdicts = [plots.Fitted(f.label + (f" \u2014 {verdict[id(r)]}" if id(r) in verdict else ""),
+                                  f.identification) for f, r in zip(fitted, results)]  # fmt: skip
+    pr.plots.append(plots.forces_plot(
+        out / f"forces_{point.name}_{lms}.png", table, with_verdicts,
+        title=f"Measured and reproduced forces (paper Fig. 5), {lms} load cells\n{where}",
+    ))  # fmt: skip
+    for model in dict.fromkeys(r.model for r in results):
+        group = [f for f, r in zip(fitted, results) if r.model == model]
+        pr.plots.append(plots.coefficients_plot(
+            out / f"coefficients_{point.name}_{lms}_{model}.png", group,
+            spin=table.spin, orbit=table.orbit, truth=point.truth,
+            title=f"Rotordynamic coefficients, model {model}, {lms} load cells\n{where}",
+        ))  # fmt: skip
+    pr.derived[lms] = [(r, d) for r in results if (d := derived_of(r, table.orbit)) is not None]
+    if pr.derived[lms]:
+        pr.plots.append(plots.save_figure(plots_derived.derived_figure(
+            [(fit_label(r), d) for r, d in pr.derived[lms]], spin=table.spin,
+            title=f"Derived quantities, {lms} load cells\n{where}",
+        ), out / f"derived_{point.name}_{lms}.png"))  # fmt: skip
+    truth = true_impedance(point.truth)
+    if truth is not None and fitted:
+        pr.plots.append(plots.save_figure(plots_derived.impedance_figure(
+            fitted, truth, spin=table.spin, orbit=table.orbit,
+            title=f"Identified impedance against the simulator's true Z(\u03a9), {lms} load cells\n{where}",
+        ), out / f"impedance_{point.name}_{lms}.png"))  # fmt: skip
+
+
 def _plot_point(run: Run, pr: PointReport, out: Path, all_frequencies: bool = False) -> None:
     point = pr.point
     s = point.settings
     where = f"point {point.name}: {s.title()}"
     _plot_signals(run, pr, out, where, all_frequencies)
     for lms in LMS:
-        table = point.tables.get(lms)
-        results = pr.results.get(lms, [])
-        if table is None:
-            continue
-        fitted = [plots.Fitted(fit_label(r), r.identification) for r in results]
-        pr.plots.append(plots.forces_plot(
-            out / f"forces_{point.name}_{lms}.png", table, fitted,
-            title=f"Measured and reproduced forces, {lms} load cells\n{where}",
-        ))
-        for model in dict.fromkeys(r.model for r in results):
-            group = [f for f, r in zip(fitted, results) if r.model == model]
-            pr.plots.append(plots.coefficients_plot(
-                out / f"coefficients_{point.name}_{lms}_{model}.png", group,
-                spin=table.spin, orbit=table.orbit, truth=point.truth,
-                title=f"Rotordynamic coefficients, model {model}, {lms} load cells\n{where}",
-            ))
+        if point.tables.get(lms) is not None:
+            _plot_lms(pr, lms, out, where)
     coherence = plots_coherence.coherence_table(point.tables)
     if coherence is not None:
         pr.plots.append(plots.save_figure(plots_coherence.coherence_figure(
