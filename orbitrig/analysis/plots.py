@@ -90,7 +90,7 @@ def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
     colors = _colors(len(fitted))
     reproduced = [f.identification.reproduce(table) for f in fitted]
     # models that agree draw on top of each other: each later line is thinner, so all stay visible
-    widths = [max(0.9, 3.4 - 1.0 * k) for k in range(len(fitted))]
+    widths = [0.9 + 0.9 * (len(fitted) - 1 - k) for k in range(len(fitted))]
     for col, (name, measured) in enumerate((("Fx", table.fx), ("Fy", table.fy))):
         amp_ax, ph_ax = axes[0, col], axes[1, col]
         for d, dname, ls, marker in DIRECTIONS:
@@ -135,18 +135,6 @@ def _min_span(ax, largest: float, fraction: float = 0.05) -> None:
         ax.set_ylim(mid - fraction / 2 * largest, mid + fraction / 2 * largest)
 
 
-def _std_at(std_errors: dict[str, float], key: str, orbit: np.ndarray) -> np.ndarray:
-    """One-sigma band of a coefficient at Omega: sqrt(sum_r (Omega^r s_r)^2) over its
-    order terms (`Kxx`, `Kxx_r`); the regression's covariances are not stored, so
-    the terms are treated as independent (an approximation for r >= 1)."""
-    var = np.zeros_like(orbit, dtype=float)
-    for k, s in std_errors.items():
-        base, _, order = k.partition("_")
-        if base == key and s is not None and np.isfinite(s):
-            var += (orbit ** (int(order) if order else 0) * s) ** 2
-    return np.sqrt(var)
-
-
 def keep_inside(ax, xs, ys, margin: float = 0.05) -> None:
     """Widen the axes limits so that every point (xs, ys) lies inside, with `margin` of the
     span to spare: truth markers must never fall outside the panel."""
@@ -159,83 +147,6 @@ def keep_inside(ax, xs, ys, margin: float = 0.05) -> None:
         span = max(hi - lo, float(np.ptp(lim)), 1e-12)
         if lim.min() <= lo or lim.max() >= hi:
             put(min(lo, lim.min() - margin * span), max(hi, lim.max() + margin * span))
-
-
-def _has(ident, matrix: str) -> bool:
-    return any(k.startswith(matrix) for k in ident.coefficients)
-
-
-def coefficients_plot(path, fitted: Sequence[Fitted], *, spin: float, orbit: np.ndarray,
-                      truth: dict | None, title: str) -> Path:
-    """The paper's Figures 6 and 7: K, C (and D) entries against Omega/omega.
-
-    A frequency-dependent identification is a curve from ``matrices(Omega)``
-    with a one-sigma band and error bars at the tested frequencies; a constant
-    one is a horizontal line with its one-sigma band. True values of a
-    ``--sim`` run are drawn as black crosses."""
-    mats = [m for m in "KCD" if any(_has(f.identification, m) for f in fitted)]
-    fig = _figure(13, 2.9 * len(mats) + 1.2)
-    axes = np.atleast_2d(fig.subplots(len(mats), 4, sharex=True))
-    top = float(np.max(orbit)) * 1.05
-    grid = np.linspace(0.0, top, 200)
-    tested = np.unique(np.round(orbit, 9))
-    colors = _colors(len(fitted))
-    largest = dict.fromkeys(mats, 0.0)  # largest |entry| drawn per matrix, display units
-    for k, fit in enumerate(fitted):
-        ident = fit.identification
-        on_grid = np.array([ident.matrices(w) for w in grid])  # (n, 3, 2, 2)
-        at_tested = np.array([ident.matrices(w) for w in tested])
-        constant = all("_" not in key for key in ident.coefficients)
-        for row, m in enumerate(mats):
-            if not _has(ident, m):
-                continue
-            unit, scale = MATRIX_UNITS[m]
-            mi = "KCD".index(m)
-            for col, e in enumerate(ENTRIES):
-                ax = axes[row, col]
-                i, j = divmod(col, 2)
-                val = on_grid[:, mi, i, j] * scale
-                largest[m] = max(largest[m], float(np.max(np.abs(val))))
-                band = _std_at(ident.std_errors, m + e, grid) * scale
-                ax.plot(grid / spin, val, color=colors[k], lw=1.6, label=fit.label)
-                ax.fill_between(grid / spin, val - band, val + band, color=colors[k], alpha=0.15, lw=0)
-                if not constant:
-                    ax.errorbar(tested / spin, at_tested[:, mi, i, j] * scale,
-                                yerr=_std_at(ident.std_errors, m + e, tested) * scale,
-                                fmt="o", ms=3.5, color=colors[k], capsize=2.5, lw=1)
-    if truth:
-        t_orbit = 2 * np.pi * np.abs(np.asarray(truth.get("orbit_hz", []), dtype=float))
-        for row, m in enumerate(mats):
-            mat = truth.get(m)
-            if mat is None or len(t_orbit) == 0:
-                continue
-            mat = np.asarray(mat, dtype=float)
-            unit, scale = MATRIX_UNITS[m]
-            largest[m] = max(largest[m], float(np.max(np.abs(mat))) * scale)
-            for col in range(4):
-                i, j = divmod(col, 2)
-                axes[row, col].plot(t_orbit / spin, mat[:, i, j] * scale, "x", color="black", ms=6,
-                                    mew=1.5, label=TRUTH_LABEL, zorder=6)
-    for row, m in enumerate(mats):
-        unit, _ = MATRIX_UNITS[m]
-        for col, e in enumerate(ENTRIES):
-            ax = axes[row, col]
-            ax.set_title(f"{m}{e}")
-            ax.set_ylabel(f"{m}{e}  [{unit}]")
-            ax.grid(True, alpha=0.3)
-            ax.set_xlim(0, top / spin)
-            _min_span(ax, largest[m])
-            for line in ax.get_lines():  # the truth crosses, whatever limits were chosen
-                if line.get_label() == TRUTH_LABEL:
-                    keep_inside(ax, line.get_xdata(), line.get_ydata())
-            if row == len(mats) - 1:
-                ax.set_xlabel("\u03a9/\u03c9  [-]")
-    handles, labels = axes[0, 0].get_legend_handles_labels()
-    uniq = dict(zip(labels, handles))
-    fig.legend(list(uniq.values()), list(uniq.keys()), loc="outside lower center",
-               ncols=min(5, len(uniq)), fontsize=9, title="bands and error bars: \u00b11 standard error")
-    fig.suptitle(title)
-    return _save(fig, path)
 
 
 def lms_comparison_plot(path, tables: dict[str, Any], fitted: dict[str, Fitted] | None, *,

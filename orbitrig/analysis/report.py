@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from orbitrig.analysis import plots as plots
-from orbitrig.analysis import plots_coherence, plots_derived, plots_signals
+from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_signals
 from orbitrig.analysis.quality import Verdict, adequacy_verdicts, derived_of, true_impedance
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.errors import ReductionError
@@ -42,8 +42,18 @@ from orbitrig.store.reader import Point, Run, read_run
 from reduction.derived import Derived
 
 PLOTS_DIR = "plots"
+#: figure kinds of a point (file name prefixes); `orbitrig report --figures` picks some
+FIGURES = ("forces", "coefficients", "derived", "impedance", "coherence", "lms", "signals", "orbits")
 #: compared across the two load measuring systems, first one present wins
 PREFERRED_MODELS = (("kcd11", "none"), ("kc8", "none"), ("kc7", "none"), ("kcd12", "none"))
+
+
+@dataclass(frozen=True)
+class ReportOptions:
+    """What to draw: ``figures`` (kinds of FIGURES) and Figure 4 for every frequency or the default subset."""
+
+    figures: frozenset[str] = frozenset(FIGURES)
+    all_frequencies: bool = False
 
 
 @dataclass
@@ -114,27 +124,29 @@ def analyse_point(point: Point) -> PointReport:
     return pr
 
 
-def _plot_signals(run: Run, pr: PointReport, out: Path, where: str, all_frequencies: bool) -> None:
+def _plot_signals(run: Run, pr: PointReport, out: Path, where: str, opts: ReportOptions) -> None:
     """Figure 4 per chosen frequency and the x-y orbits of every frequency of one point."""
     point = pr.point
     complete = sorted((f for f in point.frequencies if f.complete), key=lambda f: (-f.direction, f.orbit_hz))
-    for old in out.glob(f"signals_{point.name}_*.png"):  # an earlier report's other subset
-        old.unlink()
-    if not complete:
+    if not complete or not {"signals", "orbits"} & opts.figures:
         return
-    blocks = {f.name: read_block_signals(run, point, f) for f in complete}
-    for f in complete if all_frequencies else default_frequencies(point):
+    chosen = complete if opts.all_frequencies else default_frequencies(point)
+    chosen = chosen if "signals" in opts.figures else []
+    blocks = {f.name: read_block_signals(run, point, f) for f in (complete if "orbits" in opts.figures else chosen)}
+    for f in chosen:
         direction = "forward" if f.direction > 0 else "backward"
         pr.plots.append(plots.save_figure(plots_signals.signals_figure(
             blocks[f.name], title=f"Force signals at {f.orbit_hz:.4g} Hz {direction} whirl (paper Fig. 4)\n{where}",
         ), out / f"signals_{point.name}_{f.name}.png"))  # fmt: skip
+    if "orbits" not in opts.figures:
+        return
     pr.plots.append(plots.save_figure(plots_signals.orbits_figure(
         list(blocks.values()), radius=point.settings.orbit_radius,
         title=f"Measured orbits (averaged displacements), both probe planes\n{where}",
     ), out / f"orbits_{point.name}.png"))  # fmt: skip
 
 
-def _plot_lms(pr: PointReport, lms: str, out: Path, where: str) -> None:
+def _plot_lms(pr: PointReport, lms: str, out: Path, where: str, opts: ReportOptions) -> None:
     """Figure 5 with the adequacy verdicts, coefficients per model, derived quantities and,
     in simulator runs, the impedance against the true one, for one load measuring system."""
     point, table = pr.point, pr.point.tables[lms]
@@ -144,45 +156,46 @@ def _plot_lms(pr: PointReport, lms: str, out: Path, where: str) -> None:
     fitted = [plots.Fitted(fit_label(r), r.identification) for r in results]
     with_verdicts = [plots.Fitted(f.label + (f" \u2014 {verdict[id(r)]}" if id(r) in verdict else ""),
                                   f.identification) for f, r in zip(fitted, results)]  # fmt: skip
-    pr.plots.append(plots.forces_plot(
-        out / f"forces_{point.name}_{lms}.png", table, with_verdicts,
-        title=f"Measured and reproduced forces (paper Fig. 5), {lms} load cells\n{where}",
-    ))  # fmt: skip
-    for model in dict.fromkeys(r.model for r in results):
+    if "forces" in opts.figures:
+        pr.plots.append(plots.forces_plot(
+            out / f"forces_{point.name}_{lms}.png", table, with_verdicts,
+            title=f"Measured and reproduced forces (paper Fig. 5), {lms} load cells\n{where}",
+        ))  # fmt: skip
+    for model in dict.fromkeys(r.model for r in results) if "coefficients" in opts.figures else ():
         group = [f for f, r in zip(fitted, results) if r.model == model]
-        pr.plots.append(plots.coefficients_plot(
+        pr.plots.append(plots_coefficients.coefficients_plot(
             out / f"coefficients_{point.name}_{lms}_{model}.png", group,
             spin=table.spin, orbit=table.orbit, truth=point.truth,
             title=f"Rotordynamic coefficients, model {model}, {lms} load cells\n{where}",
         ))  # fmt: skip
     pr.derived[lms] = [(r, d) for r in results if (d := derived_of(r, table.orbit)) is not None]
-    if pr.derived[lms]:
+    if pr.derived[lms] and "derived" in opts.figures:
         pr.plots.append(plots.save_figure(plots_derived.derived_figure(
             [(fit_label(r), d) for r, d in pr.derived[lms]], spin=table.spin,
             title=f"Derived quantities, {lms} load cells\n{where}",
         ), out / f"derived_{point.name}_{lms}.png"))  # fmt: skip
     truth = true_impedance(point.truth)
-    if truth is not None and fitted:
+    if truth is not None and fitted and "impedance" in opts.figures:
         pr.plots.append(plots.save_figure(plots_derived.impedance_figure(
             fitted, truth, spin=table.spin, orbit=table.orbit,
             title=f"Identified impedance against the simulator's true Z(\u03a9), {lms} load cells\n{where}",
         ), out / f"impedance_{point.name}_{lms}.png"))  # fmt: skip
 
 
-def _plot_point(run: Run, pr: PointReport, out: Path, all_frequencies: bool = False) -> None:
+def _plot_point(run: Run, pr: PointReport, out: Path, opts: ReportOptions) -> None:
     point = pr.point
     s = point.settings
     where = f"point {point.name}: {s.title()}"
-    _plot_signals(run, pr, out, where, all_frequencies)
+    _plot_signals(run, pr, out, where, opts)
     for lms in LMS:
         if point.tables.get(lms) is not None:
-            _plot_lms(pr, lms, out, where)
+            _plot_lms(pr, lms, out, where, opts)
     coherence = plots_coherence.coherence_table(point.tables)
-    if coherence is not None:
+    if coherence is not None and "coherence" in opts.figures:
         pr.plots.append(plots.save_figure(plots_coherence.coherence_figure(
             coherence, title=f"Coherence between motion and force signals (paper Table 1)\n{where}",
         ), out / f"coherence_{point.name}.png"))  # fmt: skip
-    if all(lms in point.tables for lms in LMS):
+    if all(lms in point.tables for lms in LMS) and "lms" in opts.figures:
         found = preferred(pr)
         pair = {lms: plots.Fitted(fit_label(r), r.identification) for lms, r in found.items()} if found else None
         pr.plots.append(plots.lms_comparison_plot(
@@ -220,12 +233,23 @@ def summary_plot_for(report: Report) -> Path | None:
     )
 
 
-def make_report(directory: str | Path, *, points: list[int] | None = None, all_frequencies: bool = False) -> Report:
+def _clear_point(out: Path, name: str) -> None:
+    """Remove an earlier report's figures of point `name` (another subset or other kinds)."""
+    for kind in FIGURES:
+        for pattern in (f"{kind}_{name}.png", f"{kind}_{name}_*.png"):
+            for old in out.glob(pattern):
+                old.unlink()
+
+
+def make_report(directory: str | Path, *, points: list[int] | None = None,
+                options: ReportOptions = ReportOptions()) -> Report:
     """Write ``DIR/plots/*.png`` and ``DIR/plots/index.html``; return what was written.
 
     ``points`` restricts the plots to those operating point indices (all
-    complete points by default); ``all_frequencies`` draws Figure 4 for every orbit frequency
-    instead of the lowest and highest of each direction. Raises RunDirError when DIR is not a run."""
+    complete points by default); ``options`` picks the figure kinds and whether Figure 4 is drawn
+    for every orbit frequency or the lowest and highest of each direction. Figures of a kind not
+    drawn are removed from DIR/plots (a page never shows a stale one). Raises RunDirError when
+    DIR is not a run."""
     from orbitrig.analysis.report_html import write_html
 
     run = read_run(directory)
@@ -238,7 +262,8 @@ def make_report(directory: str | Path, *, points: list[int] | None = None, all_f
     report = Report(run, out, [])
     for point in chosen:
         pr = analyse_point(point)
-        _plot_point(run, pr, out, all_frequencies)
+        _clear_point(out, point.name)
+        _plot_point(run, pr, out, options)
         report.points.append(pr)
     stale = out / "summary.png"  # from an earlier report over other points
     stale.unlink(missing_ok=True)

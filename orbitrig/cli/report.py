@@ -67,6 +67,7 @@ def register(app: typer.Typer) -> None:
         directory: Annotated[Path, typer.Argument(metavar="DIR", help="Run directory written by `orbitrig sweep --out DIR`.")],
         point: Annotated[Optional[list[int]], typer.Option("--point", help="Only this operating point index (repeatable).")] = None,
         all_frequencies: Annotated[bool, typer.Option("--all-frequencies", help="Force-signal figure (paper Fig. 4) for every orbit frequency, not only the lowest and highest of each whirl direction.")] = False,
+        figures: Annotated[Optional[str], typer.Option("--figures", metavar="KINDS", help="Only these figure kinds, comma-separated: forces, coefficients, derived, impedance, coherence, lms, signals, orbits (default: all). The page's tables are always complete.")] = None,
     ) -> None:
         """Plots and an HTML page of a stored run, in DIR/plots.
 
@@ -74,11 +75,16 @@ def register(app: typer.Typer) -> None:
         the two load measuring systems, the force signals (paper Fig. 4) and the
         measured x-y orbits; DIR/plots/index.html shows them with the coefficient tables.
         """
-        from orbitrig.analysis.report import make_report
+        from orbitrig.analysis.report import FIGURES, ReportOptions, make_report
         from orbitrig.store.reader import RunDirError
 
+        kinds = FIGURES if figures is None else tuple(k.strip() for k in figures.split(",") if k.strip())
+        unknown = [k for k in kinds if k not in FIGURES]
+        if unknown:
+            _fail(f"--figures: unknown kind(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")
         try:
-            report = make_report(directory, points=point, all_frequencies=all_frequencies)
+            options = ReportOptions(figures=frozenset(kinds), all_frequencies=all_frequencies)
+            report = make_report(directory, points=point, options=options)
         except (RunDirError, ValueError) as err:
             _fail(str(err))
         run = report.run
