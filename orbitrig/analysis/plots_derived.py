@@ -18,7 +18,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _colors, _figure, keep_inside
+from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _colors, _figure, _min_span, keep_inside
 from orbitrig.analysis.quality import orbit_grid
 from reduction.derived import Derived
 
@@ -94,6 +94,7 @@ def impedance_figure(fitted: Sequence[Fitted], truth: tuple[np.ndarray, np.ndarr
     grid = orbit_grid(orbit)
     colors = _colors(len(fitted))
     t_w, t_z = truth
+    largest = float(np.max(np.abs(t_z))) * MN  # panels span at least 5 % of it: no magnified noise
     for k, fit in enumerate(fitted):
         z = fit.identification.impedance(grid)
         for col in range(4):
@@ -106,6 +107,7 @@ def impedance_figure(fitted: Sequence[Fitted], truth: tuple[np.ndarray, np.ndarr
             ax = axes[row, col]
             ax.plot(t_w / spin, part(t_z[:, i, j]) * MN, "x", color="black", ms=6, mew=1.5, label=TRUTH_LABEL,
                     zorder=6)  # fmt: skip
+            _min_span(ax, largest)
             keep_inside(ax, t_w / spin, part(t_z[:, i, j]) * MN)
             ax.set_title(f"{name} Z{e}", fontsize=10)
             ax.set_ylabel(f"{name} Z{e}  [MN/m]")
