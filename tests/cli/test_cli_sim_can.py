@@ -85,8 +85,8 @@ async def test_orbitrig_sim_says_what_it_serves_and_its_can_node_reaches_another
     assert ep["can"].startswith("socket://127.0.0.1:")
     async with AuxSensors(ep["can"], interface="serial") as aux:  # this process is not the simulator's
         deadline = time.monotonic() + 10
-        while aux.frames_received < 8 and time.monotonic() < deadline:
-            await asyncio.sleep(0.1)
+        while not (aux.frames_received >= 8 and aux.latest().operational) and time.monotonic() < deadline:
+            await asyncio.sleep(0.1)  # the heartbeat comes every 0.5 s
         assert aux.frames_received >= 8
         assert aux.frames_malformed == 0
         state = aux.latest()
