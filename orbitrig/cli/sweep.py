@@ -24,8 +24,8 @@ def register(app: typer.Typer) -> None:
         config: Optional[Path] = typer.Option(None, "--config", help="rig configuration TOML (default: config/rig.toml of the orbitrig source tree)"),
         matrix: Optional[str] = typer.Option(
             None, "--matrix", metavar="NAME|FILE",
-            help="test matrix: a TOML file, or a name from config/matrices/ (paper, demo); "
-                 "required on the rig, --sim defaults to demo",
+            help="test matrix: a TOML file, or a name from config/matrices/ (demo, paper); "
+                 "required on the rig, --sim defaults to config/matrices/demo.toml",
         ),
         resume: bool = typer.Option(False, "--resume", help="continue the run in --out from its first incomplete point"),
         dry_run: bool = typer.Option(False, "--dry-run", help="print the plan's totals, then every step with its estimated duration (s); touches no hardware"),
