@@ -1,6 +1,6 @@
 """The run engine: one executor owns the drives and runs a plan (bluesky style).
 
-States (spec/mqtt.md): idle -> running <-> paused | waiting -> stopping ->
+States (docs/protocols/mqtt.md): idle -> running <-> paused | waiting -> stopping ->
 idle, or faulted after a failure. Outcomes: completed | stopped | aborted |
 failed.
 

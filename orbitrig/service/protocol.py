@@ -1,4 +1,4 @@
-"""The MQTT contract of ../shared/spec/mqtt.md as pure code (no I/O).
+"""The MQTT contract of docs/protocols/mqtt.md as pure code (no I/O).
 
 Topic names under the prefix ``orbitrig/<rig_id>``, command parsing and
 validation with precise reasons, and the payload builders for status,
@@ -24,10 +24,10 @@ from typing import Any
 
 DEFAULT_PREFIX_ROOT = "orbitrig"
 
-#: States of ``<prefix>/status`` (spec/mqtt.md).
+#: States of ``<prefix>/status`` (docs/protocols/mqtt.md).
 STATES = ("idle", "running", "paused", "waiting", "stopping", "faulted", "offline")
 
-#: QoS and retain flag of each topic (spec/mqtt.md).
+#: QoS and retain flag of each topic (docs/protocols/mqtt.md).
 QOS_STATUS, QOS_PROGRESS, QOS_RESULT, QOS_REPLY, QOS_CMD = 1, 0, 1, 1, 1
 
 #: Commands and the fields each takes besides ``cmd`` and ``id`` (all required).
@@ -136,7 +136,7 @@ def is_matrix_name(name: str) -> bool:
     return bool(_MATRIX_NAME.fullmatch(name)) and ".." not in name
 
 
-#: commands carried out even when their payload has wrong fields (spec/mqtt.md)
+#: commands carried out even when their payload has wrong fields (docs/protocols/mqtt.md)
 ALWAYS_ACCEPTED = frozenset({"stop", "abort"})
 
 

@@ -1,4 +1,4 @@
-"""The rig service under MQTT control (../shared/spec/mqtt.md), with aiomqtt.
+"""The rig service under MQTT control (docs/protocols/mqtt.md), with aiomqtt.
 
 One :class:`RigService` owns the broker connection and at most one run. The
 run is executed by the same executor as ``orbitrig sweep``
