@@ -4,10 +4,9 @@ ACL), `orbitrig serve --sim`, `orbitrig dashboard` and headless chromium."""
 from __future__ import annotations
 
 import pytest
-from dash_helpers import REPO, Dashboard, chromium
+from dash_helpers import REPO, RIG, Dashboard, chromium
 from mqtt_helpers import ACCOUNTS, Broker, Service
 
-RIG = "dash-rig"
 SPEEDUP = "5"  # the demo matrix runs for ~20 s: time to pause, resume and stop it
 
 

@@ -22,6 +22,7 @@ sys.path.insert(0, str(REPO / "tests" / "mqtt"))
 
 from mqtt_helpers import free_port, wait_port  # noqa: E402
 
+RIG = "dash-rig"  # rig id of the service the tests start
 CHROMIUM = "/usr/bin/chromium"
 CHROMEDRIVER = "/usr/bin/chromedriver"
 CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
