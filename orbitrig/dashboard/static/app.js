@@ -111,6 +111,7 @@ function showStatus(s) {
   if ($("link").textContent === "online") banner(s.state === "offline" ? "offline: the rig service is not connected" : null);
   const warn = s.state === "faulted" || /interlock|not met|failed|lost/i.test(s.message || "");
   if (warn && !(prev && prev.message === s.message)) addEvent("warn", s.state + ": " + s.message);
+  if (s.state === "idle" && /completed/.test(s.message || "")) $("progress-bar").style.width = "100%";
   showManual(s);
 }
 
