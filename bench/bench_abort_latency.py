@@ -100,9 +100,9 @@ class Operator:
 
 
 async def main(trials: int, speedup: float) -> None:
-    from orbitrig.cli_serve import build_service
+    from orbitrig.cli.serve import build_service
     from orbitrig.config import load_rig
-    from orbitrig.service import BrokerSettings, ServiceSettings
+    from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
     from sim.rig import SimRig
 
     logging.basicConfig(level=logging.WARNING)

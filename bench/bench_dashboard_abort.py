@@ -52,9 +52,9 @@ def click_abort(page: Page) -> float:
 
 
 async def main(trials: int, speedup: float) -> None:
-    from orbitrig.cli_serve import build_service
+    from orbitrig.cli.serve import build_service
     from orbitrig.config import load_rig
-    from orbitrig.service import BrokerSettings, ServiceSettings
+    from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
     from sim.rig import SimRig
 
     logging.basicConfig(level=logging.WARNING)

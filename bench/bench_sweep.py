@@ -29,8 +29,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from orbitrig import config as cfg  # noqa: E402
-from orbitrig.executor import RunEngine  # noqa: E402
-from orbitrig.plan import Acquire, SetOrbit, SetSpin, Settle, StopDrives, expand, format_duration  # noqa: E402
+from orbitrig.run.engine import RunEngine  # noqa: E402
+from orbitrig.run.plan import Acquire, SetOrbit, SetSpin, Settle, StopDrives, expand, format_duration  # noqa: E402
 
 PHYSICAL = (SetSpin, SetOrbit, Settle, Acquire, StopDrives)
 

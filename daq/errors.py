@@ -1,8 +1,8 @@
-"""Exceptions of the acquisition layer (root: ``reduction.errors.OrbitrigError``)."""
+"""Exceptions of the acquisition layer (root: ``rigerrors.OrbitrigError``)."""
 
 from __future__ import annotations
 
-from reduction.errors import OrbitrigError
+from rigerrors import OrbitrigError
 
 
 class DaqError(OrbitrigError):

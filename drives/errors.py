@@ -13,7 +13,7 @@ and the fault code with its meaning, whichever apply.
 
 from __future__ import annotations
 
-from reduction.errors import OrbitrigError
+from rigerrors import OrbitrigError
 
 from drives.registers import EXCEPTION_NAMES, fault_name, register_name
 

@@ -1,4 +1,5 @@
-"""The application's view of the exception tree (re-exports, one place to look).
+"""The application's errors (configuration, orbit tables) and re-exports of the
+numerical ones; daq's and drives' branches live in ``daq.errors`` and ``drives.errors``.
 
     OrbitrigError
     +-- ReductionError (also ValueError) -> IdentificationError -> IdentifiabilityError
@@ -10,12 +11,8 @@
 
 from __future__ import annotations
 
-from reduction.errors import (  # noqa: F401
-    IdentifiabilityError,
-    IdentificationError,
-    OrbitrigError,
-    ReductionError,
-)
+from reduction.errors import IdentifiabilityError, IdentificationError, ReductionError  # noqa: F401
+from rigerrors import OrbitrigError
 
 
 class ConfigError(OrbitrigError):
@@ -38,20 +35,3 @@ class TableError(OrbitrigError, ValueError):
         if column is not None:
             where += f", column '{column}'"
         super().__init__(f"{where}: {reason}")
-
-
-_LAZY = {
-    **dict.fromkeys(("DaqError", "DaqLinkError", "DaqTimeoutError"), "daq.errors"),
-    **dict.fromkeys(("DriveError", "DriveExceptionResponse", "DriveFaultError", "DriveLimitError",
-                     "DriveLinkError", "DriveTimeoutError"), "drives.errors"),
-}
-
-
-def __getattr__(name: str):
-    """The daq and drive branches, imported on first use: a dry run or `identify`
-    must not load the hardware packages."""
-    if name in _LAZY:
-        import importlib
-
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

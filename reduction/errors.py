@@ -1,16 +1,9 @@
-"""Root of orbitrig's exception tree.
-
-It lives here because ``reduction`` is the bottom layer: it imports nothing of
-ours, so every other package (daq, drives, the application) may import this
-one module without creating a cycle. ``sim`` does not use it: the simulator is
-an independent stand-in for the hardware.
-"""
+"""Errors of the numerical layer (root: :class:`rigerrors.OrbitrigError`)."""
 
 from __future__ import annotations
 
 
-class OrbitrigError(Exception):
-    """Base class of every error orbitrig raises on purpose."""
+from rigerrors import OrbitrigError
 
 
 class ReductionError(OrbitrigError, ValueError):

@@ -12,15 +12,32 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-OURS = ("daq", "drives", "reduction", "sim", "orbitrig")
+OURS = ("daq", "drives", "reduction", "sim", "orbitrig", "rigerrors")
 
-# package -> packages of ours it may import (module-level or inside functions)
+# package -> packages of ours it may import (module-level or inside functions);
+# rigerrors, the root of the exception tree, imports nothing and every package
+# but sim may import it.
 ALLOWED = {
-    "reduction": set(),
+    "rigerrors": set(),
+    "reduction": {"rigerrors"},
     "sim": set(),
-    "daq": {"reduction"},
-    "drives": {"reduction.errors"},
-    "orbitrig": {"daq", "drives", "reduction", "sim"},
+    "daq": {"reduction", "rigerrors"},
+    "drives": {"rigerrors"},
+    "orbitrig": {"daq", "drives", "reduction", "sim", "rigerrors"},
+}
+
+# the application's wings -> the parts of orbitrig they may import. orbitrig.config
+# and orbitrig.errors are shared by all; cli/ wires everything and is the only
+# wing that knows the simulator exists (it builds it).
+APP_SHARED = {"orbitrig", "orbitrig.config", "orbitrig.errors"}
+WINGS = {
+    "orbitrig.cli": {"orbitrig.cli", "orbitrig.run", "orbitrig.store", "orbitrig.analysis", "orbitrig.service",
+                     "orbitrig.dashboard", "sim"},
+    "orbitrig.service": {"orbitrig.service", "orbitrig.run", "orbitrig.store", "orbitrig.analysis"},
+    "orbitrig.dashboard": {"orbitrig.dashboard", "orbitrig.service.protocol"},
+    "orbitrig.run": {"orbitrig.run", "orbitrig.store"},
+    "orbitrig.store": {"orbitrig.store", "orbitrig.run.plan"},
+    "orbitrig.analysis": {"orbitrig.analysis", "orbitrig.store"},
 }
 # I/O libraries the pure numerical core must never import
 IO_MODULES = ("serial", "socket", "asyncio", "can", "pymodbus", "aiomqtt", "h5py", "typer", "rich")
@@ -69,6 +86,43 @@ def test_imports_flow_one_way(package: str) -> None:
     assert not bad, "forbidden imports:\n" + "\n".join(bad)
 
 
+def _wing_permitted(wing: str, module: str) -> bool:
+    top = module.split(".")[0]
+    if top == "sim":
+        return "sim" in WINGS[wing]
+    if top != "orbitrig":
+        return True
+    return module in APP_SHARED or any(module == a or module.startswith(a + ".") for a in WINGS[wing])
+
+
+@pytest.mark.parametrize("wing", sorted(WINGS))
+def test_application_wings(wing: str) -> None:
+    folder = ROOT / wing.replace(".", "/")
+    bad = [
+        f"{path.relative_to(ROOT)}:{line}: imports {module}"
+        for path in sorted(folder.rglob("*.py"))
+        for line, module in _imports(path)
+        if not _wing_permitted(wing, module)
+    ]
+    assert not bad, f"{wing} may import only {sorted(WINGS[wing] | APP_SHARED)} of orbitrig:\n" + "\n".join(bad)
+
+
+def test_every_application_module_is_in_a_wing() -> None:
+    loose = {p.stem for p in (ROOT / "orbitrig").glob("*.py")} - {"__init__", "__main__", "config", "errors"}
+    folders = {p.name for p in (ROOT / "orbitrig").iterdir() if p.is_dir() and p.name != "__pycache__"}
+    assert not loose, f"modules outside the wings: {sorted(loose)}"
+    assert folders <= {w.split(".")[1] for w in WINGS} | {"data"}, f"unknown wings: {sorted(folders)}"
+
+
+def test_wing_checker_catches_a_violation() -> None:
+    assert not _wing_permitted("orbitrig.run", "sim.rig")
+    assert not _wing_permitted("orbitrig.run", "orbitrig.cli.sweep")
+    assert not _wing_permitted("orbitrig.store", "orbitrig.run.engine")
+    assert _wing_permitted("orbitrig.store", "orbitrig.run.plan")
+    assert _wing_permitted("orbitrig.cli", "sim.rig")
+    assert _wing_permitted("orbitrig.analysis", "orbitrig.config")
+
+
 def test_reduction_has_no_io() -> None:
     bad = [
         f"{path.relative_to(ROOT)}:{line}: imports {module}"
@@ -86,7 +140,9 @@ def test_rule_checker_catches_a_violation(tmp_path: Path) -> None:
     assert not _permitted("drives", "reduction.identify")
     assert not _permitted("daq", "drives.rig")
     assert _permitted("daq", "reduction.fourier")
-    assert _permitted("drives", "reduction.errors")
+    assert _permitted("drives", "rigerrors")
+    assert not _permitted("drives", "reduction.errors")
+    assert not _permitted("sim", "rigerrors")
     assert _permitted("orbitrig", "sim.rig")
     assert _permitted("sim", "numpy")
 

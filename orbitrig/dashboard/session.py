@@ -25,7 +25,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from orbitrig import mqtt_protocol as proto
+import orbitrig.service.protocol as proto
 
 log = logging.getLogger("orbitrig.dashboard")
 

@@ -8,8 +8,8 @@ import numpy as np
 
 from orbitrig import config as cfg
 from orbitrig.config import ModelSpec
-from orbitrig.plan import operating_points
-from orbitrig.storage import PointResults, RunStore
+from orbitrig.run.plan import operating_points
+from orbitrig.store.writer import PointResults, RunStore
 from reduction.table import OrbitTable
 
 

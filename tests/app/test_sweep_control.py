@@ -8,7 +8,7 @@ import pytest
 
 from orbitrig import config as cfg
 from orbitrig.errors import OrbitrigError
-from orbitrig.executor import ProgressEvent, RunEngine, StatusEvent
+from orbitrig.run.engine import ProgressEvent, RunEngine, StatusEvent
 from sim.rig import SimRig
 from sweep_helpers import SPEEDUP, small_matrix, wait_for
 

@@ -7,7 +7,7 @@ import sys
 import pytest
 
 from orbitrig import config as cfg
-from orbitrig.plan import Acquire, SetManual, SetSpin, StopDrives, expand, summarize
+from orbitrig.run.plan import Acquire, SetManual, SetSpin, StopDrives, expand, summarize
 
 RPM = 2 * math.pi / 60
 

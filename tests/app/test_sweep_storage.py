@@ -9,8 +9,8 @@ import pytest
 
 from orbitrig import config as cfg
 from orbitrig.config import ModelSpec
-from orbitrig.plan import operating_points
-from orbitrig.storage import BlockRecord, PointResults, RunStore, StorageError
+from orbitrig.run.plan import operating_points
+from orbitrig.store.writer import BlockRecord, PointResults, RunStore, StorageError
 from reduction.table import OrbitTable
 
 

@@ -1,7 +1,7 @@
 """The service's side of the live view, on the wire (real mosquitto, `orbitrig
 serve --sim`): `step` + `settings` on the waiting status, and `live` with the
 spec's fields, at most 5 per second, one averaged revolution per channel in SI.
-Plus the pure helpers of orbitrig.live against hand-checkable numbers."""
+Plus the pure helpers of orbitrig.service.live against hand-checkable numbers."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import numpy as np
 from dash_helpers import RIG
 from mqtt_helpers import RigClient
 
-from orbitrig.live import RevolutionAverage, _geometry
+from orbitrig.service.live import RevolutionAverage, _geometry
 
 LIVE_KEYS = {"run_id", "point", "frequency", "direction", "revolutions", "orbit_hz", "spin_rpm", "drives",
              "aux", "waveforms", "units"}

@@ -14,7 +14,7 @@ import sys
 import pytest
 from drives_testkit import CW_RAMP_STOP, CW_RUN, ROOT, run_cli, subprocess_env
 
-from orbitrig.cli_drives import effective_limits
+from orbitrig.cli.drives import effective_limits
 from orbitrig.config import Drives
 
 pytestmark = pytest.mark.timeout(40)

@@ -153,7 +153,7 @@ class StateWatch:
         self._task = asyncio.create_task(self._run())
 
     async def _run(self):
-        from orbitrig import interlocks
+        from orbitrig.run import interlocks as interlocks
         from orbitrig.config import Interlocks
 
         cfg = Interlocks()

@@ -18,7 +18,7 @@ from drives.errors import (
 )
 from drives.link import parse_modbus_url
 from drives.rig import DriveLimits
-from reduction.errors import OrbitrigError
+from rigerrors import OrbitrigError
 
 RPM = 2 * math.pi / 60
 

@@ -1,11 +1,11 @@
-"""`orbitrig.rig_io.RigIO` builds its RigDrives from the rig configuration's [drives]."""
+"""`orbitrig.run.rig_io.RigIO` builds its RigDrives from the rig configuration's [drives]."""
 
 from __future__ import annotations
 
 import pytest
 
 from orbitrig.config import load_rig
-from orbitrig.rig_io import RigIO
+from orbitrig.run.rig_io import RigIO
 from sim.rig import SimRig
 
 pytestmark = pytest.mark.timeout(30)

@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 from reduction_synthetic import frequencies, keys_of, orbit_table, truth
 from orbitrig.cli import app
-from orbitrig.orbit_table import write_orbit_table
+from orbitrig.store.orbit_table import write_orbit_table
 
 ROOT = Path(__file__).resolve().parents[2]
 TRUE = truth("kcd11", {"K": (0,), "C": (0,), "D": (0,)})

@@ -7,7 +7,7 @@ import pytest
 
 from reduction_synthetic import frequencies, orbit_table, truth
 from orbitrig.errors import TableError
-from orbitrig.orbit_table import read_orbit_table, write_orbit_table
+from orbitrig.store.orbit_table import read_orbit_table, write_orbit_table
 
 
 def test_round_trip_is_exact(tmp_path):

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from orbitrig.mqtt_protocol import (
+from orbitrig.service.protocol import (
     STATES, Command, CommandError, parse_command, progress_payload, reply_error, reply_ok,
     result_payload, status_payload, topics,
 )

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from mqtt_helpers import ACCOUNTS, RigClient, write_matrices
 from orbitrig.config import load_matrix
-from orbitrig.service import BrokerSettings, RigService, ServiceSettings
+from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
 
 
 async def test_retained_start_is_refused_and_starts_nothing(broker, tmp_path: Path):

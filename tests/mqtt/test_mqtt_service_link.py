@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from mqtt_helpers import ACCOUNTS, Broker, RigClient, Watcher, retained
-from orbitrig.service import Backoff, BrokerSettings, RigService, ServiceError, ServiceSettings
+from orbitrig.service.rig_service import Backoff, BrokerSettings, RigService, ServiceError, ServiceSettings
 
 
 def _no_engine(name, matrix):

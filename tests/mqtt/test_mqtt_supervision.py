@@ -11,9 +11,9 @@ from pathlib import Path
 import pytest
 
 from mqtt_helpers import ACCOUNTS, Broker, RigClient, retained, write_matrices
-from orbitrig.cli_serve import build_service
+from orbitrig.cli.serve import build_service
 from orbitrig.config import load_rig
-from orbitrig.service import BrokerSettings, ServiceSettings
+from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
 
 
 async def wait(fn, *args, **kw):

@@ -1,5 +1,5 @@
 """A small run directory from synthetic data of known coefficients, written by the
-sweep's own storage (orbitrig.storage.RunStore) along the sweep's data path
+sweep's own storage (orbitrig.store.writer.RunStore) along the sweep's data path
 (plan -> blocks -> orbit tables -> identify -> results -> complete flag), without
 the rig or the simulator: the fast stand-in for `orbitrig sweep --sim`."""
 
@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 
 from orbitrig import config as cfg
-from orbitrig.executor import identify_point
-from orbitrig.plan import operating_points
-from orbitrig.storage import BlockRecord, RunStore
+from orbitrig.run.engine import identify_point
+from orbitrig.run.plan import operating_points
+from orbitrig.store.writer import BlockRecord, RunStore
 
 MATRIX = """
 name = "synthetic"

@@ -20,9 +20,9 @@ def test_report_of_a_killed_run_says_how_to_continue_it(tmp_path):
 
 def test_forces_plot_keeps_agreeing_models_visible(tmp_path, monkeypatch):
     """kc8 and kcd11 reproduce nearly the same forces: the lines differ in width so neither hides the other."""
-    from orbitrig import plots
-    from orbitrig.report import analyse_point
-    from orbitrig.run_reader import read_run
+    from orbitrig.analysis import plots as plots
+    from orbitrig.analysis.report import analyse_point
+    from orbitrig.store.reader import read_run
 
     run = write_synthetic_run(tmp_path / "run", n_points=1, incomplete=0)
     pr = analyse_point(read_run(run).points[0])

@@ -9,9 +9,9 @@ import pytest
 from typer.testing import CliRunner
 
 from orbitrig.cli import app
-from orbitrig.reduce import coefficient_unit
-from orbitrig.report import analyse_point
-from orbitrig.run_reader import read_run
+from orbitrig.analysis.reduce import coefficient_unit
+from orbitrig.analysis.report import analyse_point
+from orbitrig.store.reader import read_run
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -95,7 +95,7 @@ def test_cli_report_bad_directory(tmp_path):
 
 
 def test_summary_plot_over_points(synthetic_run, tmp_path):
-    from orbitrig.report import Report, summary_plot_for
+    from orbitrig.analysis.report import Report, summary_plot_for
 
     run = read_run(synthetic_run)
     report = Report(run, tmp_path, [analyse_point(p) for p in run.complete_points])
@@ -111,7 +111,7 @@ def test_report_of_one_point_drops_an_earlier_summary(tmp_path):
     """`report --point N` after a full report must not leave the old summary.png behind."""
     from report_synthetic import write_synthetic_run
 
-    from orbitrig.report import make_report
+    from orbitrig.analysis.report import make_report
 
     run = write_synthetic_run(tmp_path / "run", n_points=2, incomplete=0)
     assert make_report(run).summary == run / "plots" / "summary.png"

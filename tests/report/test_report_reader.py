@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from report_synthetic import K_TRUE
 
-from orbitrig.run_reader import RunDirError, freq_dep_from_key, freq_dep_key, read_run
+from orbitrig.store.reader import RunDirError, freq_dep_from_key, freq_dep_key, read_run
 from reduction.table import OrbitTable
 
 

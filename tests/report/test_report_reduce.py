@@ -15,8 +15,8 @@ from report_synthetic import C_TRUE, K_TRUE
 from typer.testing import CliRunner
 
 from orbitrig.cli import app
-from orbitrig.reduce import csv_path, reduce_run, write_csv
-from orbitrig.run_reader import read_run
+from orbitrig.analysis.reduce import csv_path, reduce_run, write_csv
+from orbitrig.store.reader import read_run
 
 
 def _digest(path):

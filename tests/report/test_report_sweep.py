@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from orbitrig import config as cfg
-from orbitrig.reduce import csv_path
-from orbitrig.run_reader import read_run
+from orbitrig.analysis.reduce import csv_path
+from orbitrig.store.reader import read_run
 
 ROOT = Path(__file__).resolve().parents[2]
 MODELS = (("kcd11", "none"), ("kc8", "none"), ("kcd11", "power:1"))

@@ -29,7 +29,7 @@ STATES = ("idle", "running", "paused", "waiting", "stopping", "faulted", "offlin
 
 #: QoS and retain flag of each topic (spec/mqtt.md).
 QOS_STATUS, QOS_PROGRESS, QOS_RESULT, QOS_REPLY, QOS_CMD = 1, 0, 1, 1, 1
-QOS_LIVE = 0  # <prefix>/live, built by orbitrig.live
+QOS_LIVE = 0  # <prefix>/live, built by orbitrig.service.live
 
 #: Commands and the fields each takes besides ``cmd`` and ``id`` (all required).
 COMMAND_FIELDS: dict[str, tuple[str, ...]] = {
@@ -262,7 +262,7 @@ def status_payload(state: str, run_id: str | None = None,
                    since: _dt.datetime | float | str | None = None,
                    message: str | None = None, extra: dict[str, Any] | None = None) -> bytes:
     """``{"state", "run_id", "since", "message"}`` for ``<prefix>/status``, plus ``extra``
-    (while ``waiting``: ``step`` and ``settings``, see orbitrig.live)."""
+    (while ``waiting``: ``step`` and ``settings``, see orbitrig.service.live)."""
     if state not in STATES:
         raise ValueError(f"unknown state {state!r} (one of {', '.join(STATES)})")
     return dumps({"state": state, "run_id": run_id, "since": iso8601(since),

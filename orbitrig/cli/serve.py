@@ -72,8 +72,8 @@ def register(app: typer.Typer) -> None:
 
         from orbitrig import config as cfg
         from orbitrig.errors import ConfigError
-        from orbitrig.mqtt_protocol import topics, validate_rig_id
-        from orbitrig.service import BrokerSettings, ServiceError, ServiceSettings
+        from orbitrig.service.protocol import topics, validate_rig_id
+        from orbitrig.service.rig_service import BrokerSettings, ServiceError, ServiceSettings
 
         logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO,
                             format="%(asctime)s %(levelname)s %(name)s: %(message)s")
@@ -122,9 +122,9 @@ def build_service(rig, settings, broker_settings, *, out: Path, sim_rig=None, co
     import datetime as dt
 
     from orbitrig import config as cfg
-    from orbitrig.executor import RunEngine
-    from orbitrig.plan import expand
-    from orbitrig.service import RigService
+    from orbitrig.run.engine import RunEngine
+    from orbitrig.run.plan import expand
+    from orbitrig.service.rig_service import RigService
 
     def load_matrix(path: Path):
         matrix = cfg.load_matrix(path)
@@ -156,7 +156,7 @@ async def _serve(rig, settings, broker_settings, *, out: Path, sim: bool, speedu
     async with contextlib.AsyncExitStack() as stack:
         sim_rig = None
         if sim:
-            from orbitrig.cli_sweep import DEFAULT_SIM_SPEEDUP
+            from orbitrig.cli.sweep import DEFAULT_SIM_SPEEDUP
             from sim.rig import SimRig
 
             sim_rig = await stack.enter_async_context(

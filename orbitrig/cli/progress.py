@@ -10,8 +10,8 @@ from rich.console import Console
 from rich.text import Text
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from orbitrig.executor import ProgressEvent, ResultEvent, StatusEvent
-from orbitrig.plan import format_duration
+from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
+from orbitrig.run.plan import format_duration
 
 
 class SweepProgress:

@@ -17,7 +17,7 @@ drawn next to the measurements:
 A repeated identification that differs from the stored one is reported
 (``PointReport.mismatches``: a warning of the command and a note in the page).
 
-All go to ``DIR/plots`` with ``index.html`` (see orbitrig.report_html).
+All go to ``DIR/plots`` with ``index.html`` (see orbitrig.analysis.report_html).
 """
 
 from __future__ import annotations
@@ -26,11 +26,11 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from orbitrig import plots
+from orbitrig.analysis import plots as plots
 from orbitrig.errors import ReductionError
-from orbitrig.reduce import Reduced, reidentify
+from orbitrig.analysis.reduce import Reduced, reidentify
 from orbitrig.config import LMS
-from orbitrig.run_reader import Point, Run, read_run
+from orbitrig.store.reader import Point, Run, read_run
 
 PLOTS_DIR = "plots"
 #: compared across the two load measuring systems, first one present wins
@@ -172,7 +172,7 @@ def make_report(directory: str | Path, *, points: list[int] | None = None) -> Re
 
     ``points`` restricts the plots to those operating point indices (all
     complete points by default). Raises RunDirError when DIR is not a run."""
-    from orbitrig.report_html import write_html
+    from orbitrig.analysis.report_html import write_html
 
     run = read_run(directory)
     chosen = [p for p in run.complete_points if points is None or p.index in points]

@@ -35,8 +35,8 @@ def register(app: typer.Typer) -> None:
         the run's own results are left untouched.
         """
         from orbitrig.errors import ReductionError
-        from orbitrig.reduce import csv_path, format_table, reduce_run, write_csv
-        from orbitrig.run_reader import RunDirError, read_run
+        from orbitrig.analysis.reduce import csv_path, format_table, reduce_run, write_csv
+        from orbitrig.store.reader import RunDirError, read_run
 
         try:
             run = read_run(directory)
@@ -73,8 +73,8 @@ def register(app: typer.Typer) -> None:
         the two load measuring systems; DIR/plots/index.html shows them with the
         coefficient tables.
         """
-        from orbitrig.report import make_report
-        from orbitrig.run_reader import RunDirError
+        from orbitrig.analysis.report import make_report
+        from orbitrig.store.reader import RunDirError
 
         try:
             report = make_report(directory, points=point)

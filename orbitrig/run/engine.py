@@ -12,7 +12,7 @@ failed.
 - ``request_abort``: cancel at once, emergency ramp (OFF3), keep what is
   complete; the run ends as aborted.
 - ``confirm(step)``: the operator confirms a manual setting the run waits for.
-- Interlocks (orbitrig.interlocks) suspend the run (state paused, message
+- Interlocks (orbitrig.run.interlocks) suspend the run (state paused, message
   says why) until the condition clears, then the block is settled and
   acquired again; a drive trip or a lost trigger fails the run.
 
@@ -35,15 +35,15 @@ from typing import Callable, Literal
 
 import numpy as np
 
-from orbitrig import interlocks
+from orbitrig.run import interlocks as interlocks
 from orbitrig.config import LMS, MPA, RPM, ConfigError, MatrixConfig, RigConfig
 from orbitrig.errors import OrbitrigError
-from orbitrig.plan import (
+from orbitrig.run.plan import (
     Acquire, Identify, OperatingPoint, SetManual, SetOrbit, SetSpin, Settle, Step, Store, Verify, expand,
     operating_points,
 )  # fmt: skip
-from orbitrig.rig_io import sim_speedup
-from orbitrig.storage import BlockRecord, PointResults, RunStore, now_iso
+from orbitrig.run.rig_io import sim_speedup
+from orbitrig.store.writer import BlockRecord, PointResults, RunStore, now_iso
 
 log = logging.getLogger(__name__)
 
@@ -122,7 +122,7 @@ class RunEngine:
         self.since = now_iso()
         self.timing: dict[str, float] = {}  # wall s per activity (bench)
         self._subs: list[Callable[[Event], None]] = []
-        self.revolution_taps: list[Callable[[object], None]] = []  # every revolution (orbitrig.live)
+        self.revolution_taps: list[Callable[[object], None]] = []  # every revolution (orbitrig.service.live)
         self._reset_requests()
         self._io = None
         self._pending: set[asyncio.Task] = set()  # storage and identification in the background
@@ -212,7 +212,7 @@ class RunEngine:
         store.log(f"{'resume' if resume else 'start'} run {self.run_id}: matrix {matrix.name}, "
                   f"{len(todo)} of {len(points)} points to run, sim={self.sim is not None}")  # fmt: skip
         self._set_state(RUNNING, f"run {self.run_id} started" + (" (resumed)" if resume else ""))
-        from orbitrig.rig_io import RigIO  # opens daq/drives: imported when a run starts
+        from orbitrig.run.rig_io import RigIO  # opens daq/drives: imported when a run starts
 
         io = RigIO(self.rig, sim=self.sim, on_revolution=self._on_revolution)
         entered = False

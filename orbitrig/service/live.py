@@ -1,7 +1,7 @@
 """What a person watching a run needs, built from the run's engine (spec: the
 ``<prefix>/live`` topic and the ``step``/``settings`` of a ``waiting`` status).
 
-:class:`LiveFeed` listens to one :class:`orbitrig.executor.RunEngine`: it keeps
+:class:`LiveFeed` listens to one :class:`orbitrig.run.engine.RunEngine`: it keeps
 the running mean of the revolutions of the block being measured (the latest
 averaged revolution, SI = gain * counts + offset) and, at most ``rate_hz``
 times a second while the run lives, publishes
@@ -31,10 +31,10 @@ from typing import Any
 
 import numpy as np
 
-from orbitrig import mqtt_protocol as proto
+from orbitrig.service import protocol as proto
 from orbitrig.config import MPA, RPM, MatrixConfig
-from orbitrig.executor import ProgressEvent, RunEngine
-from orbitrig.plan import SetManual, expand
+from orbitrig.run.engine import ProgressEvent, RunEngine
+from orbitrig.run.plan import SetManual, expand
 
 log = logging.getLogger(__name__)
 

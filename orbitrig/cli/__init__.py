@@ -1,6 +1,6 @@
 """The `orbitrig` command.
 
-Each area registers its own sub-commands from a module ``orbitrig/cli_<area>.py``
+Each area registers its own sub-commands from a module ``orbitrig/cli/<area>.py``
 exposing ``register(app: typer.Typer) -> None``. Those modules import their heavy
 dependencies inside the command functions, so `orbitrig --help` stays fast and a
 missing optional library breaks only the command that needs it.
@@ -32,13 +32,7 @@ _AREAS = (
 )
 
 for _area in _AREAS:
-    try:
-        _mod = importlib.import_module(f"orbitrig.cli_{_area}")
-    except ModuleNotFoundError as _err:  # area not built yet
-        if _err.name != f"orbitrig.cli_{_area}":
-            raise
-        continue
-    _mod.register(app)
+    importlib.import_module(f"orbitrig.cli.{_area}").register(app)
 
 
 @app.command("version")

@@ -2,7 +2,7 @@
 
 One :class:`RigService` owns the broker connection and at most one run. The
 run is executed by the same executor as ``orbitrig sweep``
-(:class:`orbitrig.executor.RunEngine`, made by an ``engine_factory``); its
+(:class:`orbitrig.run.engine.RunEngine`, made by an ``engine_factory``); its
 events become MQTT messages:
 
 - ``<prefix>/status``: retained, QoS 1; republished on every (re)connection;
@@ -36,11 +36,11 @@ from pathlib import Path
 from typing import Any, Literal, Protocol
 from urllib.parse import urlsplit
 
-from orbitrig import live as live_feed
-from orbitrig import mqtt_protocol as proto
+from orbitrig.service import live as live_feed
+from orbitrig.service import protocol as proto
 from orbitrig.errors import ConfigError, OrbitrigError
 
-log = logging.getLogger("orbitrig.service")
+log = logging.getLogger("orbitrig.service.rig_service")
 
 SupervisionPolicy = Literal["keep", "pause", "stop"]
 SUPERVISION_POLICIES: tuple[str, ...] = ("keep", "pause", "stop")
@@ -127,7 +127,7 @@ class Backoff:
         self.attempt = 0
 
 
-# -- the executor as seen from here (orbitrig.executor.RunEngine) --------------
+# -- the executor as seen from here (orbitrig.run.engine.RunEngine) --------------
 
 class Engine(Protocol):
     state: str

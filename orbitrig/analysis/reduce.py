@@ -17,8 +17,8 @@ from typing import Any
 
 from orbitrig.errors import IdentificationError, ReductionError
 from orbitrig.config import LMS
-from orbitrig.run_reader import Point, Run, StoredIdentification, freq_dep_key
-from orbitrig.storage import CSV_HEAD, coef_order, true_entry
+from orbitrig.store.reader import Point, Run, StoredIdentification, freq_dep_key
+from orbitrig.store.writer import CSV_HEAD, coef_order, true_entry
 
 #: constant-term keys in the spec's order
 CONSTANT_KEYS = tuple(f"{m}{e}" for m in "KCD" for e in ("xx", "xy", "yx", "yy"))
@@ -110,7 +110,7 @@ def true_constants(point: Point) -> dict[str, float]:
 
 
 def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, Any]]]:
-    """Columns and rows in the layout of coefficients.csv (docs/storage.md, orbitrig.storage):
+    """Columns and rows in the layout of coefficients.csv (docs/storage.md, orbitrig.store.writer):
     settings, result columns, every coefficient and its `_std`, and in --sim runs `true_K`
     for the constant-term keys of the model."""
     keys: list[str] = []

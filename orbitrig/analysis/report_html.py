@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from orbitrig.plots import PAIR_LABELS, whirl_direction
-from orbitrig.reduce import coefficient_unit, true_constants
+from orbitrig.analysis.plots import PAIR_LABELS, whirl_direction
+from orbitrig.analysis.reduce import coefficient_unit, true_constants
 from orbitrig.config import LMS
 
 CSS = """

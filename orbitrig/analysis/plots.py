@@ -20,7 +20,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
-from orbitrig.reduce import MATRIX_UNITS
+from orbitrig.analysis.reduce import MATRIX_UNITS
 
 ENTRIES = ("xx", "xy", "yx", "yy")
 MATRIX_NAMES = {"K": "stiffness", "C": "damping", "D": "inertia"}

@@ -39,8 +39,8 @@ def register(app: typer.Typer) -> None:
         import signal
 
         from orbitrig.dashboard.session import DashboardSettings
-        from orbitrig.mqtt_protocol import topics, validate_rig_id
-        from orbitrig.service import BrokerSettings, ServiceError
+        from orbitrig.service.protocol import topics, validate_rig_id
+        from orbitrig.service.rig_service import BrokerSettings, ServiceError
 
         logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO,
                             format="%(asctime)s %(levelname)s %(name)s: %(message)s")

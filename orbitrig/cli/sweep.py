@@ -75,7 +75,7 @@ def _load(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
     if resume:
         if out is None:
             raise typer.BadParameter("--resume needs --out DIR (the run to continue)", param_hint="--out")
-        from orbitrig.storage import RunStore
+        from orbitrig.store.writer import RunStore
 
         store = RunStore.open_existing(out)
         rig_text, matrix_text, was_sim = store.stored_configs()
@@ -121,7 +121,7 @@ _STEP_WORDS = {"SetManual": "manual settings", "Verify": "verify", "SetSpin": "s
 
 
 def _dry_run(rig, mat) -> None:
-    from orbitrig.plan import expand, format_duration, summarize
+    from orbitrig.run.plan import expand, format_duration, summarize
 
     steps = expand(mat, rig)
     width = len(str(len(steps)))
@@ -143,8 +143,8 @@ async def _sweep(rig, mat, *, out: Path, sim: bool, resume: bool, speedup: float
 
     from rich.console import Console
 
-    from orbitrig.executor import RunEngine
-    from orbitrig.progress import SweepProgress
+    from orbitrig.run.engine import RunEngine
+    from orbitrig.cli.progress import SweepProgress
 
     console = Console(stderr=True)
     async with contextlib.AsyncExitStack() as stack:
@@ -221,7 +221,7 @@ class _Operator:
         self._ask("paused at the next safe point: [r]esume, [s]top, [a]bort? (Ctrl-C again aborts) ", self._choice)
 
     def on_event(self, ev) -> None:
-        from orbitrig.executor import StatusEvent
+        from orbitrig.run.engine import StatusEvent
 
         if isinstance(ev, StatusEvent) and ev.state == "waiting" and self.engine.waiting_step:
             step = self.engine.waiting_step
@@ -347,7 +347,7 @@ def print_coefficients(out: Path) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    from orbitrig.storage import coef_order
+    from orbitrig.store.writer import coef_order
 
     console = Console()
     with h5py.File(Path(out) / "run.h5", "r") as f:

@@ -44,7 +44,7 @@ def register(app: typer.Typer) -> None:
         import numpy as np
 
         from orbitrig.errors import OrbitrigError, TableError
-        from orbitrig.orbit_table import read_orbit_table
+        from orbitrig.store.orbit_table import read_orbit_table
         from reduction.identify import identify
 
         try:

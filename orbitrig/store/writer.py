@@ -25,7 +25,7 @@ import numpy as np
 
 from orbitrig import __version__
 from orbitrig.errors import OrbitrigError
-from orbitrig.plan import Block, OperatingPoint
+from orbitrig.run.plan import Block, OperatingPoint
 
 FORMAT = "orbitrig-run/1"
 RUN_FILE, CSV_FILE, LOG_FILE = "run.h5", "coefficients.csv", "run.log"
