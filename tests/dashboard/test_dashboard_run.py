@@ -4,11 +4,12 @@ in at the same time in another browser, finds every command refused."""
 
 from __future__ import annotations
 
+import json
 import os
 import time
 from pathlib import Path
 
-from dash_helpers import REPO, Page
+from dash_helpers import REPO, RIG, Page
 from mqtt_helpers import ACCOUNTS
 
 #: Set to a path (e.g. docs/dashboard.png) to keep the screenshot the test makes.
@@ -101,3 +102,27 @@ def test_viewer_sees_everything_and_commands_nothing(dashboard, service, browser
     time.sleep(0.2)
     operator.screenshot(shot)
     assert shot.stat().st_size > 20_000
+
+
+def test_results_show_intervals_and_warnings_as_they_arrive(broker, dashboard, browsers):
+    """A result of the identification's next version (95 % intervals, warnings) is drawn as it arrives."""
+    page = Page(browsers(), dashboard.url, dashboard)
+    page.sign_in("viewer", ACCOUNTS["viewer"])
+    page.signed_in()
+    page.wait_text("link", "online")
+    rows_before = len(page.d.find_elements("css selector", "#results tr"))
+    result = {"run_id": "r-test", "point": 7, "label": "w1000rpm", "identification": [
+        {"lms": "piezo", "model": "kc8", "freq_dep": "none", "method": "ols",
+         "coefficients": {"Kxx": 1.5e7, "Cxx": 2.0e4}, "std_errors": {"Kxx": 1e5, "Cxx": 1e2},
+         "confidence_95": {"Kxx": [1.48e7, 1.52e7], "Cxx": [1.98e4, 2.02e4]},
+         "warnings": ["condition number 3.1e6: Kxy poorly determined"]},
+        {"lms": "strain", "model": "kcd11", "error": "too few orbit frequencies: 2 < 3"}]}
+    done = broker.pub(f"orbitrig/{RIG}/result", json.dumps(result), user="orbitrig-service")
+    assert done.returncode == 0, done.stderr
+    page.wait(lambda: len(page.d.find_elements("css selector", "#results tr")) == rows_before + 2, 10, "2 rows")
+    text = page.text("results")
+    assert "Kxx 1.500e+7 [1.480e+7, 1.520e+7]" in text and "Cxx 2.000e+4 [1.980e+4, 2.020e+4]" in text
+    assert "refused: too few orbit frequencies: 2 < 3" in text
+    events = page.text("events")
+    assert "point 7 piezo kc8: condition number 3.1e6: Kxy poorly determined" in events
+    assert "point 7 strain kcd11: too few orbit frequencies: 2 < 3" in events

@@ -206,18 +206,22 @@ function showAux(a, bands) {
 // ---------------------------------------------------------------- results
 function showResult(r) {
   const body = $("results");
+  (r.warnings || []).forEach(w => addEvent("warn", "point " + r.point + ": " + w));
   (r.identification || []).forEach(row => {
     const tr = document.createElement("tr");
+    const what = (row.lms || "") + " " + (row.model || "");
     cell(tr, (r.point !== undefined ? r.point : "?") + (r.label ? " " + r.label : ""));
     cell(tr, row.lms || ""); cell(tr, (row.model || "") + (row.freq_dep && row.freq_dep !== "none" ? " " + row.freq_dep : ""));
-    if (row.error) { cell(tr, "refused: " + row.error, "out"); addEvent("warn", "point " + r.point + " " + row.lms + " " + row.model + ": " + row.error); }
+    if (row.error) { cell(tr, "refused: " + row.error, "out"); addEvent("warn", "point " + r.point + " " + what + ": " + row.error); }
     else cell(tr, coefficientsText(row));
+    (row.warnings || []).forEach(w => addEvent("warn", "point " + r.point + " " + what + ": " + w));
     body.appendChild(tr);
   });
 }
 
+// 95 % intervals when the result carries them (confidence_95, identification v2), else +/- 1 std. error
 function coefficientsText(row) {
-  const c = row.coefficients || {}, se = row.std_errors || {}, iv = row.intervals || {};
+  const c = row.coefficients || {}, se = row.std_errors || {}, iv = row.confidence_95 || row.intervals || {};
   return Object.keys(c).map(k => {
     const i = iv[k];
     const unc = i ? " [" + fmtSi(i[0]) + ", " + fmtSi(i[1]) + "]" : (se[k] !== null && se[k] !== undefined ? " ± " + fmtSi(se[k]) : "");
