@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ipaddress
 from pathlib import Path
 from typing import Optional
 
@@ -20,6 +21,56 @@ def _http_address(text: str) -> tuple[str, int]:
     return host.strip("[]"), int(port)
 
 
+def _loopback(host: str) -> bool:
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return host == "localhost"
+
+
+def _https_context(cert: Path | None, key: Path | None, host: str):
+    """The TLS context of the page (None: plain HTTP, allowed on loopback only:
+    passwords cross this connection at sign-in)."""
+    import ssl
+
+    if (cert is None) != (key is None):
+        _fail("--https-cert and --https-key go together")
+    if cert is None:
+        if not _loopback(host):
+            _fail(f"--http {host}: plain HTTP only on loopback (passwords are sent at sign-in); "
+                  "give --https-cert and --https-key, or serve on 127.0.0.1 behind a TLS reverse proxy")
+        return None
+    ctx = ssl.create_default_context(ssl.Purpose.CLIENT_AUTH)
+    try:
+        ctx.load_cert_chain(cert, key)
+    except (OSError, ssl.SSLError) as err:
+        _fail(f"--https-cert/--https-key: cannot load {cert} / {key}: {err}")
+    return ctx
+
+
+def _settings(broker: str, rig_id: str, prefix: str | None, tls_ca: Path | None, idle_timeout: float,
+              reply_timeout: float):
+    from orbitrig.dashboard.session import DashboardSettings
+    from orbitrig.service.protocol import topics, validate_rig_id
+    from orbitrig.service.rig_service import BrokerSettings, ServiceError
+
+    try:
+        validate_rig_id(rig_id)
+        tree = topics(rig_id, prefix)
+    except ValueError as err:
+        _fail(str(err))
+    if tls_ca is not None and not tls_ca.is_file():
+        _fail(f"--tls-ca: no such file: {tls_ca}")
+    if idle_timeout <= 0 or reply_timeout <= 0:
+        _fail("--idle-timeout and --reply-timeout must be > 0 s")
+    try:
+        where = BrokerSettings.from_url(broker, tls_ca=tls_ca)
+    except ServiceError as err:
+        _fail(str(err))
+    return DashboardSettings(host=where.host, port=where.port, topics=tree, tls=where.tls, tls_ca=tls_ca,
+                             idle_timeout=idle_timeout, reply_timeout=reply_timeout)
+
+
 def register(app: typer.Typer) -> None:
     @app.command("dashboard")
     def dashboard(
@@ -27,6 +78,8 @@ def register(app: typer.Typer) -> None:
         rig_id: str = typer.Option("rig1", "--rig-id", help="topic prefix orbitrig/<rig-id>"),
         prefix: Optional[str] = typer.Option(None, "--prefix", help="topic prefix instead of orbitrig/<rig-id>"),
         http: str = typer.Option("127.0.0.1:8080", "--http", help="HOST:PORT the page is served on"),
+        https_cert: Optional[Path] = typer.Option(None, "--https-cert", help="serve HTTPS with this certificate"),
+        https_key: Optional[Path] = typer.Option(None, "--https-key", help="its private key"),
         tls_ca: Optional[Path] = typer.Option(None, "--tls-ca", help="CA file: TLS to the broker"),
         idle_timeout: float = typer.Option(1800.0, "--idle-timeout", help="s without activity that end a session"),
         reply_timeout: float = typer.Option(
@@ -38,29 +91,12 @@ def register(app: typer.Typer) -> None:
         import logging
         import signal
 
-        from orbitrig.dashboard.session import DashboardSettings
-        from orbitrig.service.protocol import topics, validate_rig_id
-        from orbitrig.service.rig_service import BrokerSettings, ServiceError
-
         logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO,
                             format="%(asctime)s %(levelname)s %(name)s: %(message)s")
         logging.getLogger("mqtt").setLevel(logging.WARNING)
-        try:
-            validate_rig_id(rig_id)
-            tree = topics(rig_id, prefix)
-        except ValueError as err:
-            _fail(str(err))
-        if tls_ca is not None and not tls_ca.is_file():
-            _fail(f"--tls-ca: no such file: {tls_ca}")
-        if idle_timeout <= 0 or reply_timeout <= 0:
-            _fail("--idle-timeout and --reply-timeout must be > 0 s")
-        try:
-            where = BrokerSettings.from_url(broker, tls_ca=tls_ca)
-        except ServiceError as err:
-            _fail(str(err))
+        settings = _settings(broker, rig_id, prefix, tls_ca, idle_timeout, reply_timeout)
         host, port = _http_address(http)
-        settings = DashboardSettings(host=where.host, port=where.port, topics=tree, tls=where.tls,
-                                     tls_ca=tls_ca, idle_timeout=idle_timeout, reply_timeout=reply_timeout)
+        ssl_context = _https_context(https_cert, https_key, host)
 
         async def main() -> None:
             from orbitrig.dashboard.server import serve
@@ -69,7 +105,7 @@ def register(app: typer.Typer) -> None:
             loop = asyncio.get_running_loop()
             for sig in (signal.SIGINT, signal.SIGTERM):
                 loop.add_signal_handler(sig, shutdown.set)
-            await serve(settings, host, port, shutdown)
+            await serve(settings, host, port, shutdown, ssl_context=ssl_context)
 
         try:
             asyncio.run(main())

@@ -204,14 +204,15 @@ def make_app(settings: DashboardSettings) -> web.Application:
     return app
 
 
-async def serve(settings: DashboardSettings, host: str, port: int, shutdown: asyncio.Event) -> None:
-    """Serve until ``shutdown`` is set."""
+async def serve(settings: DashboardSettings, host: str, port: int, shutdown: asyncio.Event, *,
+                ssl_context: Any = None) -> None:
+    """Serve until ``shutdown`` is set (HTTPS with ``ssl_context``)."""
     runner = web.AppRunner(make_app(settings), access_log=None)
     await runner.setup()
-    site = web.TCPSite(runner, host, port)
+    site = web.TCPSite(runner, host, port, ssl_context=ssl_context)
     await site.start()
-    log.info("dashboard on http://%s:%d/ (broker %s:%d, topics %s/#)", host, port, settings.host,
-             settings.port, settings.topics.prefix)
+    log.info("dashboard on %s://%s:%d/ (broker %s:%d, topics %s/#)", "https" if ssl_context else "http", host,
+             port, settings.host, settings.port, settings.topics.prefix)
     try:
         await shutdown.wait()
     finally:

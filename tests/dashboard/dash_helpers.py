@@ -35,7 +35,7 @@ class Dashboard:
 
     def __init__(self, broker_url: str, rig_id: str, workdir: Path, *extra: str):
         self.port = free_port()
-        self.url = f"http://127.0.0.1:{self.port}/"
+        self.url = f"{'https' if '--https-cert' in extra else 'http'}://127.0.0.1:{self.port}/"
         self.log = Path(workdir) / f"dashboard-{self.port}.log"
         env = {**os.environ, "PYTHONUNBUFFERED": "1",
                "PYTHONPATH": os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p)}

@@ -94,3 +94,30 @@ def test_no_anonymous_access_and_idle_timeout(broker, tmp_path):
         assert ACCOUNTS["operator"] not in dash.text()
     finally:
         assert dash.stop() == 0, dash.text()[-2000:]
+
+
+def test_https_and_no_plain_http_off_loopback(broker, tmp_path):
+    import ssl
+    import subprocess
+    import sys
+
+    from dash_helpers import REPO
+    from mqtt_helpers import make_test_ca
+
+    refused = subprocess.run([sys.executable, "-m", "orbitrig", "dashboard", "--broker", broker.url,
+                              "--http", "0.0.0.0:8080"], cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert refused.returncode == 2 and "plain HTTP only on loopback" in refused.stderr
+
+    ca = make_test_ca(tmp_path)  # also server.crt / server.key for 127.0.0.1
+    dash = Dashboard(broker.url, RIG, tmp_path, "--https-cert", str(tmp_path / "server.crt"),
+                     "--https-key", str(tmp_path / "server.key"))
+    try:
+        assert dash.url.startswith("https://")
+        ctx = ssl.create_default_context(cafile=str(ca))
+        req = urllib.request.Request(dash.url + "api/login", method="POST", headers={"Content-Type": "application/json"},
+                                     data=json.dumps({"user": "viewer", "password": ACCOUNTS["viewer"]}).encode())
+        with urllib.request.urlopen(req, timeout=15, context=ctx) as r:
+            cookie = r.headers["Set-Cookie"]
+        assert "HttpOnly" in cookie and "SameSite=Strict" in cookie and "Secure" in cookie
+    finally:
+        assert dash.stop() == 0, dash.text()[-2000:]
