@@ -51,6 +51,28 @@ def click_abort(page: Page) -> float:
     return t
 
 
+async def trials_loop(page, watcher, sim_rig, stops: dict, words: dict, armed: threading.Event,
+                      trials: int) -> list[float]:
+    """Start a run, let both drives spin up, abort from the page; click -> stop latency (ms) per trial."""
+    rows: list[float] = []
+    for trial in range(trials):
+        watcher.progress_revs = 0
+        await asyncio.to_thread(page.command, "btn-start", "start: accepted")
+        await asyncio.to_thread(watcher.wait, lambda: watcher.progress_revs >= 20, 60)
+        spin, orbit = (abs(sim_rig.drives[d].actual_rpm) for d in (1, 2))
+        stops.clear()
+        armed.set()
+        t_click = await asyncio.to_thread(click_abort, page)
+        await asyncio.to_thread(watcher.wait, lambda: watcher.status.get("state") == "idle", 60)
+        armed.clear()
+        if len(stops) != 2:
+            raise RuntimeError(f"trial {trial}: stop commands seen for drives {sorted(stops)} only")
+        rows.append((max(stops.values()) - t_click) * 1e3)
+        print(f"trial {trial + 1}: spin {spin:6.0f} rpm, orbit {orbit:+6.0f} rpm | click 'Abort now' -> "
+              f"both drives stopping {rows[-1]:6.1f} ms (CW {words[1]:#06x}, {words[2]:#06x})", flush=True)
+    return rows
+
+
 async def main(trials: int, speedup: float) -> None:
     from orbitrig.cli.serve import build_service
     from orbitrig.config import load_rig
@@ -89,21 +111,7 @@ async def main(trials: int, speedup: float) -> None:
                 await asyncio.to_thread(page.wait_state, "idle")
                 await asyncio.to_thread(page.el("matrix").clear)
                 await asyncio.to_thread(page.el("matrix").send_keys, "bench")
-                for trial in range(trials):
-                    watcher.progress_revs = 0
-                    await asyncio.to_thread(page.command, "btn-start", "start: accepted")
-                    await asyncio.to_thread(watcher.wait, lambda: watcher.progress_revs >= 20, 60)
-                    spin, orbit = (abs(sim_rig.drives[d].actual_rpm) for d in (1, 2))
-                    stops.clear()
-                    armed.set()
-                    t_click = await asyncio.to_thread(click_abort, page)
-                    await asyncio.to_thread(watcher.wait, lambda: watcher.status.get("state") == "idle", 60)
-                    armed.clear()
-                    if len(stops) != 2:
-                        raise RuntimeError(f"trial {trial}: stop commands seen for drives {sorted(stops)} only")
-                    rows.append((max(stops.values()) - t_click) * 1e3)
-                    print(f"trial {trial + 1}: spin {spin:6.0f} rpm, orbit {orbit:+6.0f} rpm | click 'Abort now' -> "
-                          f"both drives stopping {rows[-1]:6.1f} ms (CW {words[1]:#06x}, {words[2]:#06x})", flush=True)
+                rows = await trials_loop(page, watcher, sim_rig, stops, words, armed, trials)
             finally:
                 watcher.close()
                 if driver is not None:
