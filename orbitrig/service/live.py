@@ -134,7 +134,7 @@ class LiveFeed:
         orbit_hz = (1.0 / period) if period else (abs(orbit.actual) / (2 * math.pi) if orbit else None)
         return {
             "run_id": self.engine.run_id, "point": self._point, "frequency": self._frequency,
-            "direction": None if orbit is None else ("forward" if orbit.reference >= 0 else "backward"),
+            "direction": _direction(orbit),
             "revolutions": self._revolutions, "orbit_hz": orbit_hz,
             "spin_rpm": None if spin is None else spin.actual / RPM,
             "drives": drives.to_dict(),
@@ -224,6 +224,12 @@ def _geometry(mean: np.ndarray, slots: np.ndarray, ch: dict[str, int], clearance
     x0 = (fit.mean[ch["x_a"]] + fit.mean[ch["x_b"]]) / 2
     y0 = (fit.mean[ch["y_a"]] + fit.mean[ch["y_b"]]) / 2
     return {"orbit_radius": float((abs(x) + abs(y)) / 2), "static_eccentricity": float(math.hypot(x0, y0) / clearance)}
+
+
+def _direction(orbit: Any) -> str | None:
+    """Whirl direction of the orbit drive: the sign of its reference, else of its actual speed."""
+    speed = 0.0 if orbit is None else (orbit.reference or orbit.actual)
+    return None if speed == 0 else ("forward" if speed > 0 else "backward")
 
 
 def attach(engine: Any, matrix: Any, send: Callable[[bytes], None]) -> LiveFeed | None:
