@@ -29,6 +29,7 @@ _AREAS = (
     "sweep",  # orbitrig sweep
     "report",  # orbitrig reduce, orbitrig report
     "serve",  # orbitrig serve
+    "dashboard",  # orbitrig dashboard
 )
 
 for _area in _AREAS:

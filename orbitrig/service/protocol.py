@@ -29,6 +29,7 @@ STATES = ("idle", "running", "paused", "waiting", "stopping", "faulted", "offlin
 
 #: QoS and retain flag of each topic (docs/protocols/mqtt.md).
 QOS_STATUS, QOS_PROGRESS, QOS_RESULT, QOS_REPLY, QOS_CMD = 1, 0, 1, 1, 1
+QOS_LIVE = 0  # <prefix>/live, built by orbitrig.service.live
 
 #: Commands and the fields each takes besides ``cmd`` and ``id`` (all required).
 COMMAND_FIELDS: dict[str, tuple[str, ...]] = {
@@ -68,6 +69,10 @@ class Topics:
     @property
     def result(self) -> str:
         return f"{self.prefix}/result"
+
+    @property
+    def live(self) -> str:
+        return f"{self.prefix}/live"
 
     @property
     def cmd(self) -> str:
@@ -255,12 +260,13 @@ def dumps(obj: dict[str, Any]) -> bytes:
 
 def status_payload(state: str, run_id: str | None = None,
                    since: _dt.datetime | float | str | None = None,
-                   message: str | None = None) -> bytes:
-    """``{"state", "run_id", "since", "message"}`` for ``<prefix>/status``."""
+                   message: str | None = None, extra: dict[str, Any] | None = None) -> bytes:
+    """``{"state", "run_id", "since", "message"}`` for ``<prefix>/status``, plus ``extra``
+    (while ``waiting``: ``step`` and ``settings``, see orbitrig.service.live)."""
     if state not in STATES:
         raise ValueError(f"unknown state {state!r} (one of {', '.join(STATES)})")
     return dumps({"state": state, "run_id": run_id, "since": iso8601(since),
-                  "message": "" if message is None else str(message)})
+                  "message": "" if message is None else str(message), **(extra or {})})
 
 
 def progress_payload(run_id: str | None, point: int, points: int, frequency: int,
