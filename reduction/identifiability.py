@@ -35,10 +35,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from reduction.design import idealised_design, reference_design
+from reduction.design import design_orbits, idealised_design, reference_design
 from reduction.errors import IdentifiabilityError
 from reduction.impedance import real_rows, regressors
-from reduction.models import ModelSpec
+from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
 from reduction.regression import column_scale
 from reduction.table import OrbitTable
 
@@ -185,6 +185,30 @@ def analyse(spec: ModelSpec, table: OrbitTable, A: np.ndarray | None = None,
     if rank.deficiency:
         raise _refusal(spec, table, A, rank, rtol, "")
     return rank
+
+
+def check_plan(model: str, freq_dep: str, orbit_hz, directions) -> None:
+    """Before a run: raise IdentifiabilityError when circular orbits at ``orbit_hz`` (Hz) in
+    ``directions`` ("forward" | "backward" | "both", one for all or one per frequency) cannot
+    identify ``model`` with ``freq_dep`` (power:auto: when no exponent M can)."""
+    orbit, x, y = design_orbits(orbit_hz, directions, 1.0)
+    zero = np.zeros(orbit.size, dtype=complex)
+    table = OrbitTable(0.0, orbit, x, y, zero, zero)
+    fd = parse_freq_dep(freq_dep)
+    if not fd.auto:
+        analyse(model_spec(model, fd), table)
+        return
+    refused = {}
+    for m in AUTO_EXPONENTS:
+        try:
+            analyse(power_spec(model, m), table)
+            return
+        except IdentifiabilityError as err:
+            refused[m] = err
+    raise IdentifiabilityError(
+        f"{model} with freq-dep power:auto: no exponent M in {AUTO_EXPONENTS[0]}..{AUTO_EXPONENTS[-1]} "
+        "is identifiable from the planned orbits.\n\n" + "\n\n".join(f"power:{m}: {e}" for m, e in refused.items()),
+        [f"power:{m}: {c}" for m, e in refused.items() for c in e.combinations])
 
 
 def ill_conditioning(spec: ModelSpec, table: OrbitTable, rank: Rank) -> str | None:

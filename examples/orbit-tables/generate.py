@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from orbitrig.orbit_table import write_orbit_table
+from orbitrig.store.orbit_table import write_orbit_table
 from reduction.table import OrbitTable
 
 HERE = Path(__file__).resolve().parent

@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -182,3 +183,18 @@ def test_exactly_determined_table_has_null_std_errors_and_valid_json(runner, tmp
     d = json.loads(res.stdout)
     assert all(v is None for v in d["std_errors"].values())
     assert d["coefficients"]["Kxx"] == pytest.approx(keys_of(true)["Kxx"], rel=1e-9)
+
+
+def test_ill_conditioned_fit_warns_on_stderr_and_in_json(runner, tmp_path):
+    true = truth("kc8", {"K": (0, 1), "C": (0, 1)})
+    fwd = orbit_table(true, frequencies(8), ("forward",))
+    bwd = orbit_table(true, frequencies(8), ("backward",), radius=5e-9)  # backward whirl 1000 times smaller
+    table = type(fwd)(fwd.spin, np.r_[fwd.orbit, bwd.orbit], np.r_[fwd.x, bwd.x], np.r_[fwd.y, bwd.y],
+                      np.r_[fwd.fx, bwd.fx], np.r_[fwd.fy, bwd.fy])
+    path = tmp_path / "t.csv"
+    write_orbit_table(path, table)
+    res = runner.invoke(app, ["identify", str(path), "--model", "kc8", "--freq-dep", "power:1"])
+    assert res.exit_code == 0 and "warning: ill-conditioned" in res.stderr and "warning" not in res.stdout
+    res = runner.invoke(app, ["identify", str(path), "--model", "kc8", "--freq-dep", "power:1", "--json"])
+    d = json.loads(res.stdout)
+    assert res.exit_code == 0 and d["warnings"][0].startswith("ill-conditioned") and res.stderr == ""

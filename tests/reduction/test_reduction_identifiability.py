@@ -133,3 +133,17 @@ def test_noisy_forward_circles_are_refused_like_exact_ones():
     noisy_both = type(both)(both.spin, both.orbit, both.x + np.tile(noise[0], 2)[: both.n],
                             both.y + np.tile(noise[1], 2)[: both.n], both.fx, both.fy)
     assert identify(noisy_both, "kc8", "power:1").n_coefficients == 16
+
+
+def test_check_plan_says_before_a_run_which_models_the_plan_cannot_identify():
+    from reduction.identifiability import check_plan
+
+    hz = frequencies(10)
+    check_plan("kcd11", "power:2", hz, "forward")  # identifiable forward-only once K_2 is absorbed
+    check_plan("kc8", "power:1", hz, "both")
+    check_plan("kc8", "power:auto", hz, "forward")  # M = 2 works forward-only
+    with pytest.raises(IdentifiabilityError) as info:
+        check_plan("kc8", "power:1", hz, "forward")
+    assert "Kxx_1 - Cxy" in info.value.combinations
+    with pytest.raises(IdentifiabilityError, match="too few orbit frequencies"):
+        check_plan("kcd12", "poly:2", hz[:3], "both")
