@@ -51,6 +51,17 @@ def _figure(w: float, h: float, layout: str | None = "constrained") -> Figure:
     return fig
 
 
+def panel_figure(w: float, h: float, *, left: float = 0.85, right: float = 0.2, top: float = 0.95,
+                 bottom: float = 1.15, wspace: float = 0.42, hspace: float = 0.42) -> Figure:  # fmt: skip
+    """A figure of many panels with fixed margins in inches (room for a two-line title on top and
+    a legend at the bottom): half the saving time of constrained layout, whose solver measures
+    every tick label. Put the legend with ``loc="lower center"``."""
+    fig = _figure(w, h, layout=None)
+    fig.subplots_adjust(left=left / w, right=1 - right / w, top=1 - top / h, bottom=bottom / h,
+                        wspace=wspace, hspace=hspace)  # fmt: skip
+    return fig
+
+
 def save_figure(fig: Figure, path: Path) -> Path:
     """Write `fig` as PNG to `path` (folders created)."""
     return _save(fig, path)

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _colors, _figure, _min_span, _save, keep_inside
+from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _colors, _min_span, _save, keep_inside, panel_figure
 from orbitrig.analysis.reduce import MATRIX_UNITS
 from reduction.derived import entry_gradient
 
@@ -76,7 +76,7 @@ def coefficients_figure(fitted: Sequence[Fitted], *, spin: float, orbit: np.ndar
                         title: str) -> Figure:  # fmt: skip
     """K, C, D entries of every identification in `fitted` against Omega/omega (one model)."""
     mats = [m for m in "KCD" if any(_has(f.identification, m) for f in fitted)]
-    fig = _figure(13, 2.9 * len(mats) + 1.2)
+    fig = panel_figure(13, 2.7 * len(mats) + 2.0, bottom=1.35, hspace=0.35)
     axes = np.atleast_2d(fig.subplots(len(mats), 4, sharex=True))
     top = float(np.max(np.abs(orbit))) * 1.05
     grid = np.linspace(0.0, top, 200)
@@ -102,7 +102,7 @@ def coefficients_figure(fitted: Sequence[Fitted], *, spin: float, orbit: np.ndar
                 ax.set_xlabel("\u03a9/\u03c9  [-]")
     handles, labels = axes[0, 0].get_legend_handles_labels()
     uniq = dict(zip(labels, handles))
-    fig.legend(list(uniq.values()), list(uniq.keys()), loc="outside lower center", ncols=min(5, len(uniq)),
+    fig.legend(list(uniq.values()), list(uniq.keys()), loc="lower center", ncols=min(5, len(uniq)),
                fontsize=9, title="bands and error bars: \u00b11 standard uncertainty (statistical)")  # fmt: skip
     fig.suptitle(title)
     return fig

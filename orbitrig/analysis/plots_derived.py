@@ -18,7 +18,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _colors, _figure, _min_span, keep_inside
+from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _colors, _min_span, keep_inside, panel_figure
 from orbitrig.analysis.quality import orbit_grid
 from reduction.derived import Derived
 
@@ -42,7 +42,7 @@ def _zero_text(zero, spin: float) -> str:
 
 def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title: str) -> Figure:
     """C_eff (xx, yy), WFR, Re H and Im H (forward solid, backward dashed) against Omega/omega."""
-    fig = _figure(14, 8.2)
+    fig = panel_figure(14, 9.0, top=1.6, bottom=1.3, hspace=0.75, wspace=0.3)
     axes = fig.subplots(2, 3, sharex=True)
     colors = _colors(len(derived))
     zeros = {"xx": [], "yy": []}
@@ -79,7 +79,7 @@ def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title
     axes[0, 2].set_xlabel("\u03a9/\u03c9  [-]")
     axes[0, 2].xaxis.set_tick_params(labelbottom=True)
     handles = [Line2D([], [], color=c, lw=2) for c in colors]
-    fig.legend(handles, [label for label, _ in derived], loc="outside lower center", ncols=min(3, len(derived)),
+    fig.legend(handles, [label for label, _ in derived], loc="lower center", ncols=min(3, len(derived)),
                fontsize=9, title=f"bands: \u00b1{BAND:g} standard uncertainties (statistical)")  # fmt: skip
     fig.suptitle(title)
     return fig
@@ -89,7 +89,7 @@ def impedance_figure(fitted: Sequence[Fitted], truth: tuple[np.ndarray, np.ndarr
                      orbit: np.ndarray, title: str) -> Figure:  # fmt: skip
     """Re and Im of Z_xx, Z_xy, Z_yx, Z_yy [MN/m]: identified models (lines) and the simulator's
     true Z at its frequencies (crosses, kept inside the axes)."""
-    fig = _figure(14, 6.8)
+    fig = panel_figure(14, 7.2, bottom=1.0, hspace=0.3, wspace=0.45)
     axes = fig.subplots(2, 4, sharex=True)
     grid = orbit_grid(orbit)
     colors = _colors(len(fitted))
@@ -115,6 +115,6 @@ def impedance_figure(fitted: Sequence[Fitted], truth: tuple[np.ndarray, np.ndarr
             if row == 1:
                 ax.set_xlabel("\u03a9/\u03c9  [-]")
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncols=min(4, len(labels)), fontsize=9)
+    fig.legend(handles, labels, loc="lower center", ncols=min(4, len(labels)), fontsize=9)
     fig.suptitle(title)
     return fig
