@@ -33,7 +33,7 @@ from pathlib import Path
 
 from orbitrig.analysis import plots as plots
 from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_signals
-from orbitrig.analysis.quality import Verdict, adequacy_verdicts, derived_of, true_impedance
+from orbitrig.analysis.quality import Verdict, adequacy_verdicts, derived_of, true_impedance, warnings_of
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.errors import ReductionError
 from orbitrig.analysis.reduce import Reduced, reidentify
@@ -66,6 +66,16 @@ class PointReport:
     mismatches: list[str] = field(default_factory=list)  # stored vs repeated identification
     verdicts: dict[str, list[Verdict]] = field(default_factory=dict)  # lms -> model adequacy
     derived: dict[str, list[tuple[Reduced, Derived]]] = field(default_factory=dict)  # lms -> derived
+
+
+    def fit_warnings(self) -> list[str]:
+        """'<lms> <model> <freq-dep> warns: <text>' for every warning of a repeated or stored fit,
+        and '<lms> <model> <freq-dep> refused: <reason>' for every stored refusal."""
+        out = [f"{r.lms} {r.model} {r.freq_dep} warns: {w}" for rs in self.results.values() for r in rs
+               for w in warnings_of(r)]  # fmt: skip
+        out += [f"{i.lms} {i.model} {i.freq_dep} refused: {(i.error or '').splitlines()[0]}"
+                for i in self.point.identifications if not i.ok]  # fmt: skip
+        return out
 
 
 @dataclass

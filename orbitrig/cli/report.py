@@ -96,5 +96,7 @@ def register(app: typer.Typer) -> None:
         for pr in report.points:
             for m in pr.mismatches:
                 typer.echo(f"warning: point {pr.point.name}: {m}", err=True)
+            for line in pr.fit_warnings():
+                typer.echo(f"point {pr.point.name} {line}", err=True)
         typer.echo(f"{len(report.plots)} plot(s) in {report.directory}")
         typer.echo(f"open {report.html}")

@@ -29,6 +29,7 @@ def test_report_writes_every_plot(synthetic_run, synthetic_report):
     assert "2 complete point(s), 1 incomplete" in synthetic_report.stdout
     assert "17 plot(s)" in synthetic_report.stdout
     assert "warning" not in synthetic_report.stderr  # stored identifications repeat exactly
+    assert "point 0001 strain kcd12 poly:8 refused: " in synthetic_report.stderr  # refusals are visible
     plots = synthetic_run / "plots"
     # --point 1: nothing of point 0; Figure 4 for the lowest and highest frequency of each direction
     assert {p.name for p in plots.glob("*.png")} == {

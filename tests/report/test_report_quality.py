@@ -170,3 +170,12 @@ def test_page_shows_verdict_beside_figure_5_and_derived_table(synthetic_run, syn
     assert "WFR at 3.33 Hz" in html and "C<sub>eff,xx</sub> = Cxx - Kxy/\u03a9 = 0 at" in html
     assert "95 % interval" in html and "AIC / BIC" in html
     assert "Systematic (calibration) uncertainty: not stored in this run" in html
+
+
+def test_fit_warnings_name_point_model_and_text(synthetic_run):
+    pr = analyse_point(read_run(synthetic_run).points[0])
+    r = pr.results["piezo"][0]
+    r.stored = dict(r.stored or {}, warnings=["ill-conditioned: Kxy, Cxx poorly determined"])
+    lines = pr.fit_warnings()
+    assert f"piezo {r.model} {r.freq_dep} warns: ill-conditioned: Kxy, Cxx poorly determined" in lines
+    assert any(line.startswith("piezo kcd12 poly:8 refused: ") for line in lines)
