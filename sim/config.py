@@ -7,8 +7,9 @@ an edge unit as a suffix, converted on load: ``_deg`` (degrees -> rad),
 ``AdcConfig.trigger_phase`` to 0.349 rad. See config/sim.toml.
 
 Defaults: the paper's rig at its Table 1 operating point: a four-recess,
-orifice-compensated hydrostatic journal bearing, D = 76.2 mm, L = 50.8 mm,
-c = 152.4 um, SAE 30 oil; K ~ 3e7 N/m, C ~ 1.3e5 N s/m, M ~ 7 kg.
+orifice-compensated hydrostatic journal bearing with large recesses and
+narrow lands, D = L = 38.1 mm, c = 60 um, SAE 30 oil; K ~ 4e7 N/m,
+C ~ 1e5 N s/m, M ~ 4 kg.
 """
 
 from __future__ import annotations
@@ -46,13 +47,13 @@ class BearingConfig:
     nonlinear film. ``reference_ratios``: the Omega/omega band of truth().
     """
 
-    diameter: float = 0.0762  # m, journal diameter
-    length: float = 0.0508  # m, bearing axial length L
-    recess_length: float = 0.0318  # m, recess axial length l
-    recess_angle: float = math.radians(60.0)  # rad, recess arc theta_r
-    recess_depth: float = 0.5e-3  # m
-    feed_volume: float = 3.0e-6  # m^3 per recess, orifice to recess
-    bulk_modulus: float = 3.0e8  # Pa, effective (oil with entrained air and hoses)
+    diameter: float = 0.0381  # m, journal diameter
+    length: float = 0.0381  # m, bearing axial length L
+    recess_length: float = 0.034  # m, recess axial length l
+    recess_angle: float = math.radians(78.0)  # rad, recess arc theta_r
+    recess_depth: float = 0.3e-3  # m
+    feed_volume: float = 2.0e-6  # m^3 per recess, orifice to recess
+    bulk_modulus: float = 5.0e8  # Pa, effective (oil with entrained air and hoses)
     compressible: bool = True
     viscosity: float = 0.098  # Pa s, SAE 30 at 37.8 degC
     density: float = 870.0  # kg/m^3
@@ -65,7 +66,7 @@ class BearingConfig:
 class GeometryConfig:
     """Journal orbit and probe geometry (SI)."""
 
-    clearance: float = 152.4e-6  # radial clearance c, m
+    clearance: float = 60e-6  # radial clearance c, m
     orbit_ratio: float = 0.04  # eps_d: orbit radius R = eps_d * c
     static_eccentricity: float = 0.0  # eps_s: static offset eps_s * c
     static_angle: float = -math.pi / 2  # rad, direction of the static offset (load down)
@@ -119,17 +120,17 @@ class NoiseConfig:
     """Disturbances (all off when ``enabled`` is false). Force levels in N, probe levels in m."""
 
     enabled: bool = True
-    piezo_white: float = 125.0  # N rms per sample
-    strain_white: float = 130.0  # N rms
+    piezo_white: float = 55.0  # N rms per sample
+    strain_white: float = 60.0  # N rms
     probe_white: float = 0.1e-6  # m rms
-    runout: tuple[float, ...] = (0.4e-6, 0.15e-6)  # m, electrical runout of the probe tracks, spin harmonics 1, 2
-    spin_force: tuple[float, ...] = (20.0, 8.0)  # N, spindle unbalance/misalignment at spin harmonics 1, 2
+    runout: tuple[float, ...] = (0.25e-6, 0.1e-6)  # m, electrical runout of the probe tracks, spin harmonics 1, 2
+    spin_force: tuple[float, ...] = (10.0, 4.0)  # N, spindle unbalance/misalignment at spin harmonics 1, 2
     bearing_orders: tuple[float, ...] = (3.05, 4.95)  # ball-pass orders of the spindle bearings
-    bearing_force: float = 6.0  # N per order, force channels
+    bearing_force: float = 3.0  # N per order, force channels
     bearing_probe: float = 3e-9  # m per order, probe channels
     resonance_frequency: float = 143.0  # Hz, structural mode of the bearing housing
     resonance_damping: float = 0.02  # damping ratio
-    resonance_force: float = 40.0  # N rms, narrow-band response of that mode
+    resonance_force: float = 20.0  # N rms, narrow-band response of that mode
     line_frequency: float = 50.0  # Hz (simulated time)
     line_force: float = 0.4  # N
     line_probe: float = 8e-9  # m
@@ -251,6 +252,19 @@ def _section(cls, table: dict, where: str, problems: list[str]):
         except TypeError:
             problems.append(f"key '{where}{key}': expected numbers, got {value!r}")
     return kwargs
+
+
+SCENARIO_DIR = Path(__file__).resolve().parents[1] / "config"
+
+
+def scenario(name: str) -> SimConfig:
+    """A shipped scenario by name: "paper" (config/sim.toml, the default rig) or a file
+    config/sim/<name>.toml ("clean", "compressible"). ValueError naming the known ones."""
+    path = SCENARIO_DIR / "sim.toml" if name == "paper" else SCENARIO_DIR / "sim" / f"{name}.toml"
+    if not path.is_file():
+        known = ["paper"] + sorted(p.stem for p in (SCENARIO_DIR / "sim").glob("*.toml"))
+        raise ValueError(f"unknown simulator scenario {name!r}; known: {', '.join(known)}")
+    return load_sim_config(path)
 
 
 def load_sim_config(path: str | Path) -> SimConfig:

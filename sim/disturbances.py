@@ -19,6 +19,7 @@ from sim.config import NoiseConfig
 
 TWO_PI = 2.0 * math.pi
 RESONANCE_LINES = 12  # sinusoids spanning the mode's half-power band a few times
+ENVELOPE_STEP = 8  # the resonance's slow complex envelope is evaluated every 8th sample, then interpolated
 
 
 def resonance_lines(f_n: float, zeta: float, rms: float) -> tuple[np.ndarray, np.ndarray]:
@@ -60,8 +61,7 @@ class Disturbances:
             for h, (amp, ph) in enumerate(zip(nz.spin_force, self._spin[k]), start=1):
                 val = val + amp * np.sin(h * spin_angle + ph)
             if nz.resonance_force:
-                arg = TWO_PI * np.multiply.outer(t, self._res_f) + self._res_phase[k]
-                val = val + np.sin(arg) @ self._res_a
+                val = val + self._resonance(k, np.asarray(t, dtype=float))
         else:
             plane = 0 if ch.plane > 0 else 1
             shift = 0.0 if ch.axis == 0 else -math.pi / 2  # y probe sits 90 deg on
@@ -70,3 +70,22 @@ class Disturbances:
         if self.white[k]:
             val = val + self.rng.normal(0.0, self.white[k], np.shape(val))
         return val
+
+    def _resonance(self, k: int, t: np.ndarray) -> np.ndarray:
+        """The mode's narrow-band response, Re(z(t) e^{i 2 pi f_n t}): its slowly varying
+        envelope z (lines f_j - f_n, a few Hz) is evaluated every ENVELOPE_STEP samples and
+        interpolated linearly (exact where t is not increasing)."""
+        nz = self.nz
+        df = self._res_f - nz.resonance_frequency
+        n = t.size
+        coarse = n > 4 * ENVELOPE_STEP and t[-1] > t[0]
+        tc = np.r_[t[::ENVELOPE_STEP], t[-1]] if coarse else t
+        arg = TWO_PI * np.multiply.outer(tc, df) + self._res_phase[k]
+        zr, zi = np.cos(arg) @ self._res_a, np.sin(arg) @ self._res_a
+        if coarse and np.all(np.diff(tc) > 0):
+            zr, zi = np.interp(t, tc, zr), np.interp(t, tc, zi)
+        elif coarse:  # not increasing: evaluate exactly
+            arg = TWO_PI * np.multiply.outer(t, df) + self._res_phase[k]
+            zr, zi = np.cos(arg) @ self._res_a, np.sin(arg) @ self._res_a
+        carrier = TWO_PI * nz.resonance_frequency * t
+        return zr * np.sin(carrier) + zi * np.cos(carrier)

@@ -181,7 +181,9 @@ class RigPhysics:
         else:
             q = self._probe_harmonics(ch, orbit)
         f = np.arange(len(q)) * abs(orbit) / TWO_PI
-        return q * self.chains[k].response(f)
+        q = q * self.chains[k].response(f)
+        big = np.nonzero(np.abs(q[1:]) > 1e-9 * np.abs(q[1:]).max(initial=0.0))[0]
+        return q[: 2 + (big[-1] if big.size else 0)]  # the harmonics that matter, at least DC and 1
 
     def true_phasors(self, spin: float, orbit: float) -> dict[str, complex]:
         """Noise-free fundamental phasor of every channel (engineering units),

@@ -1,7 +1,7 @@
 """The hydrostatic bearing against limits a reviewer can check by hand.
 
-Geometry of config/sim.toml: journal R = 38.1 mm, L = 50.8 mm, recess l = 31.8 mm
-over 60 deg, c = 152.4 um, mu = 0.098 Pa s. Derived by hand (docs/simulator.md):
+Geometry of config/sim.toml: journal R = 19.05 mm, L = 38.1 mm, recess l = 34 mm
+over 78 deg, 0.3 mm deep, c = 60 um, mu = 0.098 Pa s. Derived by hand (docs/simulator.md):
     lands        l_a = (L - l)/2, l_c = R (pi/2 - theta_r)/2
     flow factor  B_f = (2 R theta_r / l_a + 2 l / l_c) / 12,  G(c) = B_f c^3 / mu
     area         A_e = (l + l_a) 2 R sin(theta_e / 2),  theta_e = theta_r + l_c / R
@@ -19,7 +19,7 @@ import pytest
 from sim.config import SimConfig
 from sim.physics import RigPhysics
 
-R, L, l, TH, c, MU = 0.0381, 0.0508, 0.0318, math.radians(60.0), 152.4e-6, 0.098
+R, L, l, TH, c, MU = 0.01905, 0.0381, 0.034, math.radians(78.0), 60e-6, 0.098
 L_A, L_C = (L - l) / 2, R * (math.pi / 2 - TH) / 2
 B_F = (2 * R * TH / L_A + 2 * l / L_C) / 12
 A_E = (l + L_A) * 2 * R * math.sin((TH + L_C / R) / 2)
@@ -67,9 +67,9 @@ def test_couette_cross_coupling_sign_and_magnitude(spin):
 def test_compressibility_corner_frequency():
     """Zero spin, no inertia: Z_xx(w) = K0 (1 + i w / w_z) / (1 + i w / w_c) with the recess
     corner w_c = G_p B / V (V recess + feed volume) and w_z = K0 / C0 = 3 Q / (c A_s), A_s = A_e."""
-    ph = physics(bulk_modulus=1e8, feed_volume=1.5e-5)
+    ph = physics(bulk_modulus=1e8, feed_volume=2.5e-6)
     ph.set_manual(static_eccentricity=0.0)
-    V = R * TH * l * 0.5e-3 + 1.5e-5
+    V = R * TH * l * 0.3e-3 + 2.5e-6
     w_c = g_p() * 1e8 / V
     K0 = 12 * A_E * PR * (1 - BETA) / ((2 - BETA) * c)
     w_z = 3 * B_F * c**3 * PR / MU / (c * A_E)
