@@ -185,6 +185,20 @@ class RigPhysics:
         big = np.nonzero(np.abs(q[1:]) > 1e-9 * np.abs(q[1:]).max(initial=0.0))[0]
         return q[: 2 + (big[-1] if big.size else 0)]  # the harmonics that matter, at least DC and 1
 
+    def apparent_impedance(self, spin: float, orbit: float, lms: str = "piezo") -> np.ndarray:
+        """The Z (2x2 complex) a perfect identification from the ``lms`` system's forces and the
+        probe-plane mean displacements would give: diag(H_fx, H_fy) Z diag(H_x, H_y)^-1, H the
+        channels' chain responses at |orbit| (the true Z seen through the calibration errors)."""
+        chains = channel_chains(self.cfg)
+        f = np.array([abs(float(orbit)) / TWO_PI])
+
+        def h(name: str) -> complex:
+            return complex(chains[name].response(f)[0])
+
+        hf = np.array([h(f"fx_{lms}"), h(f"fy_{lms}")])
+        hd = np.array([(h("x_a") + h("x_b")) / 2, (h("y_a") + h("y_b")) / 2])
+        return hf[:, None] * self.impedance(spin, orbit) / hd[None, :]
+
     def true_phasors(self, spin: float, orbit: float) -> dict[str, complex]:
         """Noise-free fundamental phasor of every channel (engineering units),
         trigger phase and chain included: what an ideal reader gets, q = Re(q_bar e^{i theta})."""

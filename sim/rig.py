@@ -193,6 +193,10 @@ class SimRig:
         """True Z (n, 2, 2) complex at each orbit speed (rad/s)."""
         return self.physics.impedances(spin, orbits)
 
+    def apparent_impedance(self, spin: float, orbit: float, lms: str = "piezo") -> np.ndarray:
+        """True Z seen through the calibration errors of ``lms`` and the probes (RigPhysics)."""
+        return self.physics.apparent_impedance(spin, orbit, lms)
+
     def reference_orbits(self, spin: float) -> np.ndarray:
         """The reference band of truth(): bearing.reference_ratios x spin (rad/s)."""
         return np.asarray(self.config.bearing.reference_ratios) * abs(float(spin))
@@ -205,9 +209,8 @@ class SimRig:
         return {"constant": constant_fit(w, Z), "power": power_fit(w, Z, exponents)}
 
     def truth(self, spin: float, orbit: float) -> dict:
-        """{"K", "C", "D"} (2x2, SI): the constant-coefficient best fit of the true Z over
-        the reference band at this spin (``orbit`` does not change the band). The exact
-        truth is Z per frequency: true_impedance."""
+        """{"K", "C", "D"} (2x2, SI): constant best fit of the true Z over the reference band
+        at this spin (``orbit`` does not change it). The exact truth: true_impedance."""
         w = self.reference_orbits(spin)
         return constant_fit(w, self.true_impedances(spin, w))
 
@@ -216,8 +219,7 @@ class SimRig:
         return calibration_errors(self.config)
 
     def true_phasors(self, spin: float, orbit: float) -> dict[str, complex]:
-        """Noise-free fundamental phasor per channel name (engineering units, trigger
-        phase, film nonlinearity and measurement chain in)."""
+        """Noise-free fundamental phasor per channel name (engineering units, chain in)."""
         return self.physics.true_phasors(spin, orbit)
 
     def aux_state(self) -> dict:
