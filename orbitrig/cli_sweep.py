@@ -48,6 +48,8 @@ def register(app: typer.Typer) -> None:
         if run_dir is not None and out is not None and run_dir != out:
             raise typer.BadParameter(f"two run directories: {run_dir} and --out {out}", param_hint="DIR")
         out = out or run_dir
+        if sim_config is not None and not sim:
+            raise typer.BadParameter("--sim-config needs --sim", param_hint="--sim-config")
         try:
             rig, mat = _load(config, matrix, sim=sim, resume=resume, out=out, dry_run=dry_run)
             if dry_run:
