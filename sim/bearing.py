@@ -153,7 +153,7 @@ class HydrostaticBearing:
         h, _ = self.films(X0, Y0)
         G = self.land_conductance(h)
         k_o, p_s = self.restrictor(supply), supply.supply_pressure
-        g_o = k_o / (2 * np.sqrt(np.maximum(np.abs(p_s - p), 1e-9 * p_s)))
+        g_o = k_o / (2 * np.sqrt(np.maximum(np.abs(p_s - p), 1e-9 * p_s))) if k_o > 0 else np.zeros(4)
         cap = 0.0 if math.isinf(g.bulk_modulus) else g.volume / g.bulk_modulus
         den = g_o + G + 1j * w * cap  # (n, 4)
         normal = (3 * G * p / h + 1j * w * g.area_squeeze) / den  # (n, 4) times n_i

@@ -121,7 +121,10 @@ def test_pressure_settings_and_static_eccentricity_change_the_response():
     ph.set_manual(recess_pressure=PR, static_eccentricity=0.3)  # journal sits low, towards recess 270 deg
     Ze = ph.impedance(104.7, 50.0)
     assert Ze[1, 1].real > 1.05 * Z[1, 1].real and Ze[1, 1].imag > 1.05 * Z[1, 1].imag
-    ph.set_manual(static_eccentricity=0.0, orbit_radius=0.15 * c)  # a larger orbit: a larger force
+    ph.set_manual(static_eccentricity=0.0, recess_pressure=0.0)  # pump off: squeeze film only
+    Zoff = ph.impedance(104.7, 50.0)
+    assert np.all(np.isfinite(Zoff)) and abs(Zoff[0, 0].real) < 0.01 * Z[0, 0].real
+    ph.set_manual(recess_pressure=PR, orbit_radius=0.15 * c)  # a larger orbit: a larger force
     assert abs(ph.true_phasors(104.7, 50.0)["fx_piezo"]) > 3.5 * abs(Z[0, 0]) * 0.04 * c
 
 
