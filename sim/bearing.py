@@ -16,8 +16,8 @@ h = c - X cos(phi) - Y sin(phi). Per recess, flow continuity:
 
 The force on the journal is f = -A_e sum_i p_i n_i - M (X'', Y'') (M the
 optional fluid inertia, a lumped added mass). The restrictor is set so that
-the centred journal at rest has recess pressure p_r with supply p_s = p_r / beta
-(the test matrix's two pressure settings). Everything SI; pure numpy.
+the recesses' mean pressure at rest is p_r with supply p_s = p_r / beta (the
+test matrix's two pressure settings). Everything SI; pure numpy.
 """
 
 from __future__ import annotations
@@ -80,10 +80,12 @@ def bearing_geometry(b, clearance: float) -> BearingGeometry:
 
 @dataclass(frozen=True)
 class Supply:
-    """Pressure settings: recess pressure p_r (Pa), ratio beta, so p_s = p_r / beta."""
+    """Pressure settings: recess pressure p_r (Pa), ratio beta, so p_s = p_r / beta, and
+    the orifice constant k_o (m^3/s/sqrt(Pa)) the operator's restrictor setting gives."""
 
     recess_pressure: float
     pressure_ratio: float
+    orifice: float
 
     @property
     def supply_pressure(self) -> float:
@@ -102,12 +104,25 @@ class HydrostaticBearing:
         g = self.g
         return g.flow_factor * np.asarray(h) ** 3 / g.viscosity
 
-    def restrictor(self, supply: Supply) -> float:
-        """Orifice constant k_o (m^3/s/sqrt(Pa)) giving p_r in the centred recess at rest."""
-        p_r, p_s = supply.recess_pressure, supply.supply_pressure
+    def set_supply(self, recess_pressure: float, pressure_ratio: float, X0: float = 0.0,
+                   Y0: float = 0.0) -> Supply:
+        """The operator's setting: supply p_s = p_r / beta, restrictor adjusted until the
+        recesses' mean pressure reads p_r with the journal at rest at (X0, Y0). Centred,
+        k_o = G(c) p_r / sqrt(p_s - p_r) in closed form; off centre by bisection on k_o."""
+        p_r, beta = recess_pressure, pressure_ratio
         if p_r <= 0:
-            return 0.0
-        return float(self.land_conductance(self.g.clearance)) * p_r / math.sqrt(p_s - p_r)
+            return Supply(p_r, beta, 0.0)
+        p_s = p_r / beta
+        k_c = float(self.land_conductance(self.g.clearance)) * p_r / math.sqrt(p_s - p_r)
+        if X0 == 0.0 and Y0 == 0.0:
+            return Supply(p_r, beta, k_c)
+        h, _ = self.films(X0, Y0)
+        lo, hi = math.log(k_c) - 7.0, math.log(k_c) + 7.0
+        for _ in range(60):  # mean pressure grows with k_o
+            mid = 0.5 * (lo + hi)
+            mean = float(np.mean(self.quasi_static_pressures(h, 0.0, math.exp(mid), p_s)))
+            lo, hi = (mid, hi) if mean < p_r else (lo, mid)
+        return Supply(p_r, beta, math.exp(0.5 * (lo + hi)))
 
     def films(self, X, Y):
         """(h at the recess centres, Couette outflow per unit surface speed), shape (4, ...)."""
@@ -133,7 +148,7 @@ class HydrostaticBearing:
         """Recess pressures (4,) with the journal held at (X0, Y0), spinning at omega (rad/s)."""
         h, cq = self.films(X0, Y0)
         U = spin * self.g.radius
-        return self.quasi_static_pressures(h, U * cq, self.restrictor(supply), supply.supply_pressure)
+        return self.quasi_static_pressures(h, U * cq, supply.orifice, supply.supply_pressure)
 
     def static_force(self, X0: float, Y0: float, spin: float, supply: Supply) -> np.ndarray:
         """Film force on the journal (2,) held at (X0, Y0), N."""
@@ -152,7 +167,7 @@ class HydrostaticBearing:
         p = self.equilibrium(X0, Y0, spin, supply)
         h, _ = self.films(X0, Y0)
         G = self.land_conductance(h)
-        k_o, p_s = self.restrictor(supply), supply.supply_pressure
+        k_o, p_s = supply.orifice, supply.supply_pressure
         g_o = k_o / (2 * np.sqrt(np.maximum(np.abs(p_s - p), 1e-9 * p_s))) if k_o > 0 else np.zeros(4)
         cap = 0.0 if math.isinf(g.bulk_modulus) else g.volume / g.bulk_modulus
         den = g_o + G + 1j * w * cap  # (n, 4)
@@ -177,7 +192,7 @@ class HydrostaticBearing:
         h, cq = self.films(X, Y)
         hd = -(NORMALS[:, 0:1] * Xd + NORMALS[:, 1:2] * Yd)
         out = spin * g.radius * cq + g.area_squeeze * hd
-        k_o, p_s = self.restrictor(supply), supply.supply_pressure
+        k_o, p_s = supply.orifice, supply.supply_pressure
         p = self.quasi_static_pressures(h, out, k_o, p_s)
         if math.isinf(g.bulk_modulus) or w == 0.0 or k_o == 0.0:
             return p
@@ -208,4 +223,4 @@ class HydrostaticBearing:
         """Supply flow into each recess (4,) at the static position, m^3/s."""
         p = self.equilibrium(X0, Y0, spin, supply)
         gap = supply.supply_pressure - p
-        return self.restrictor(supply) * np.sign(gap) * np.sqrt(np.abs(gap))
+        return supply.orifice * np.sign(gap) * np.sqrt(np.abs(gap))

@@ -79,6 +79,7 @@ class RigPhysics:
         self.disturbances = Disturbances(cfg.noise, self.channels, white, self.rng)
         self._ripple_phase = self.rng.uniform(0, TWO_PI)
         self._waveforms: dict[tuple, np.ndarray] = {}
+        self._supply: tuple[ManualSettings, Supply] | None = None
 
     # ---------------------------------------------------------------- settings
     def set_manual(self, *, orbit_radius=None, static_eccentricity=None,
@@ -106,7 +107,12 @@ class RigPhysics:
 
     @property
     def supply(self) -> Supply:
-        return Supply(self.manual.recess_pressure, self.manual.pressure_ratio)
+        """Pressures and restrictor of the current manual settings (set at the static position)."""
+        m = self.manual
+        if self._supply is None or self._supply[0] != m:
+            X0, Y0 = self._static()
+            self._supply = (m, self.bearing.set_supply(m.recess_pressure, m.pressure_ratio, X0, Y0))
+        return self._supply[1]
 
     # ---------------------------------------------------------------- truth
     def impedances(self, spin: float, orbits) -> np.ndarray:
