@@ -5,7 +5,8 @@
   backward direct dynamic stiffness Re and Im H(Omega), each with a band of two standard
   uncertainties (statistical), one colour per identification;
 - :func:`impedance_figure`: Re and Im of each entry of the identified Z(Omega) = K + i Omega C
-  - Omega^2 D against the simulator's true Z at the tested frequencies (black crosses).
+  - Omega^2 D against the simulator's true Z at the tested frequencies (black crosses; the Z of
+  its reference K, C, D when the run did not store the true Z).
 
 Both return the Figure; x axes are Omega/omega (-); K-like quantities in MN/m, damping in kN s/m.
 """
@@ -18,8 +19,8 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _colors, _min_span, keep_inside, panel_figure
-from orbitrig.analysis.quality import orbit_grid
+from orbitrig.analysis.plots import ENTRIES, Fitted, _colors, _min_span, keep_inside, panel_figure
+from orbitrig.analysis.quality import TrueImpedance, orbit_grid
 from reduction.derived import Derived
 
 MN, KNS = 1e-6, 1e-3  # N/m -> MN/m, N s/m -> kN s/m
@@ -85,7 +86,7 @@ def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title
     return fig
 
 
-def impedance_figure(fitted: Sequence[Fitted], truth: tuple[np.ndarray, np.ndarray], *, spin: float,
+def impedance_figure(fitted: Sequence[Fitted], truth: TrueImpedance, *, spin: float,
                      orbit: np.ndarray, title: str) -> Figure:  # fmt: skip
     """Re and Im of Z_xx, Z_xy, Z_yx, Z_yy [MN/m]: identified models (lines) and the simulator's
     true Z at its frequencies (crosses, kept inside the axes)."""
@@ -93,7 +94,7 @@ def impedance_figure(fitted: Sequence[Fitted], truth: tuple[np.ndarray, np.ndarr
     axes = fig.subplots(2, 4, sharex=True)
     grid = orbit_grid(orbit)
     colors = _colors(len(fitted))
-    t_w, t_z = truth
+    t_w, t_z = truth.orbit, truth.z
     largest = float(np.max(np.abs(t_z))) * MN  # panels span at least 5 % of it: no magnified noise
     for k, fit in enumerate(fitted):
         z = fit.identification.impedance(grid)
@@ -105,7 +106,7 @@ def impedance_figure(fitted: Sequence[Fitted], truth: tuple[np.ndarray, np.ndarr
         i, j = divmod(col, 2)
         for row, (name, part) in enumerate((("Re", np.real), ("Im", np.imag))):
             ax = axes[row, col]
-            ax.plot(t_w / spin, part(t_z[:, i, j]) * MN, "x", color="black", ms=6, mew=1.5, label=TRUTH_LABEL,
+            ax.plot(t_w / spin, part(t_z[:, i, j]) * MN, "x", color="black", ms=6, mew=1.5, label=truth.label,
                     zorder=6)  # fmt: skip
             _min_span(ax, largest)
             keep_inside(ax, t_w / spin, part(t_z[:, i, j]) * MN)

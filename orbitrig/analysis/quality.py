@@ -113,13 +113,28 @@ def derived_of(r: Reduced, orbit: np.ndarray) -> Derived | None:
         return None
 
 
-def true_impedance(truth: dict | None) -> tuple[np.ndarray, np.ndarray] | None:
-    """(|Omega| rad/s (n,), Z (n, 2, 2) complex N/m) of a simulator run: the stored true Z per
-    frequency (``Z_re``/``Z_im``), else K + i|Omega| C - Omega^2 D from the stored truth rows."""
+@dataclass(frozen=True)
+class TrueImpedance:
+    """The simulator's impedance at the tested frequencies: ``orbit`` |Omega| rad/s (n,),
+    ``z`` (n, 2, 2) complex N/m; ``exact`` when the run stored the true Z itself, else it is
+    K + i|Omega| C - Omega^2 D of the stored truth rows (the simulator's reference fit)."""
+
+    orbit: np.ndarray
+    z: np.ndarray
+    exact: bool
+
+    @property
+    def label(self) -> str:
+        return "true Z (simulator)" if self.exact else "simulator's K, C, D (reference fit)"
+
+
+def true_impedance(truth: dict | None) -> TrueImpedance | None:
+    """The stored true Z per frequency (``Z_re``/``Z_im``), else Z of the stored truth K, C, D rows."""
     if not truth or not truth.get("orbit"):
         return None
     w = np.abs(np.asarray(truth["orbit"], dtype=float))
-    if truth.get("Z_re") is not None and truth.get("Z_im") is not None:
+    exact = truth.get("Z_re") is not None and truth.get("Z_im") is not None
+    if exact:
         z = np.asarray(truth["Z_re"], dtype=float) + 1j * np.asarray(truth["Z_im"], dtype=float)
     elif all(truth.get(m) is not None for m in "KCD"):
         k, c, d = (np.asarray(truth[m], dtype=float) for m in "KCD")
@@ -128,4 +143,4 @@ def true_impedance(truth: dict | None) -> tuple[np.ndarray, np.ndarray] | None:
         return None
     if z.shape != (w.size, 2, 2):
         return None
-    return w, z
+    return TrueImpedance(w, z, exact)

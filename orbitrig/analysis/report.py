@@ -188,7 +188,7 @@ def _plot_lms(pr: PointReport, lms: str, out: Path, where: str, opts: ReportOpti
     if truth is not None and fitted and "impedance" in opts.figures:
         pr.plots.append(plots.save_figure(plots_derived.impedance_figure(
             fitted, truth, spin=table.spin, orbit=table.orbit,
-            title=f"Identified impedance against the simulator's true Z(\u03a9), {lms} load cells\n{where}",
+            title=f"Identified impedance Z(\u03a9) against the {truth.label}, {lms} load cells\n{where}",
         ), out / f"impedance_{point.name}_{lms}.png"))  # fmt: skip
 
 

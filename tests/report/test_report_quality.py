@@ -119,15 +119,19 @@ def test_derived_quantities_drawn_and_near_the_hand_values(point_report):
 def test_impedance_against_the_stored_true_z(point_report):
     point, t = point_report.point, point_report.point.tables["piezo"]
     fitted = [Fitted(fit_label(r), r.identification) for r in point_report.results["piezo"]]
-    w, z = true_impedance(point.truth)  # from the truth's K, C, D rows
+    reference = true_impedance(point.truth)  # from the truth's K, C, D rows
+    w = reference.orbit
     expect = K_TRUE[None] + 1j * w[:, None, None] * C_TRUE - w[:, None, None] ** 2 * D_TRUE
-    np.testing.assert_allclose(z, expect)
+    np.testing.assert_allclose(reference.z, expect)
+    assert not reference.exact and reference.label == "simulator's K, C, D (reference fit)"
     stored = dict(point.truth, Z_re=(expect.real * 1.1).tolist(), Z_im=expect.imag.tolist())
-    w2, z2 = true_impedance(stored)  # a stored true Z per frequency wins
+    true = true_impedance(stored)  # a stored true Z per frequency wins
+    assert true.exact and true.label == "true Z (simulator)"
+    z2 = true.z
     np.testing.assert_allclose(z2.real, expect.real * 1.1)
-    fig = impedance_figure(fitted, (w2, z2), spin=t.spin, orbit=t.orbit, title="t")
+    fig = impedance_figure(fitted, true, spin=t.spin, orbit=t.orbit, title="t")
     re_xy = fig.axes[1]
-    cross = next(ln for ln in re_xy.get_lines() if ln.get_label() == "true (simulator)")
+    cross = next(ln for ln in re_xy.get_lines() if ln.get_label() == "true Z (simulator)")
     np.testing.assert_allclose(cross.get_ydata(), z2[:, 0, 1].real * 1e-6)
     model = re_xy.get_lines()[0]
     grid = model.get_xdata() * t.spin
