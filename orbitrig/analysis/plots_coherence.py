@@ -22,10 +22,10 @@ BANDS = ((0.99, "#1a9850", "\u2265 0.99"), (0.95, "#a6d96a", "0.95 \u2013 0.99")
 
 
 def band_colour(gamma2: float) -> str:
-    """Colour of the band gamma2 falls in (NaN: grey)."""
+    """Colour of the band gamma2 falls in, judged on the three decimals shown (NaN: grey)."""
     if not np.isfinite(gamma2):
         return "#cccccc"
-    return next(colour for low, colour, _ in BANDS if gamma2 >= low)
+    return next(colour for low, colour, _ in BANDS if round(float(gamma2), 3) >= low)
 
 
 @dataclass(frozen=True)
@@ -62,7 +62,8 @@ def coherence_figure(table: CoherenceTable, *, title: str) -> Figure:
     ax = fig.add_subplot()
     bounds = [0.0] + [low for low, _, _ in reversed(BANDS[:-1])] + [1.0 + 1e-9]
     cmap = ListedColormap([colour for _, colour, _ in reversed(BANDS)])
-    ax.imshow(np.nan_to_num(table.values, nan=0.0), cmap=cmap, norm=BoundaryNorm(bounds, cmap.N), aspect="auto")
+    shown = np.round(np.nan_to_num(table.values, nan=0.0), 3)  # coloured as the number reads
+    ax.imshow(shown, cmap=cmap, norm=BoundaryNorm(bounds, cmap.N), aspect="auto")
     for (r, c), v in np.ndenumerate(table.values):
         ax.text(c, r, "-" if not np.isfinite(v) else f"{v:.3f}", ha="center", va="center", fontsize=8)
     ax.set_xticks(range(n_cols), table.columns, fontsize=8)

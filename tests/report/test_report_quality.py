@@ -59,6 +59,7 @@ def test_band_colours():
     assert band_colour(0.995) == BANDS[0][1] and band_colour(0.96) == BANDS[1][1]
     assert band_colour(0.91) == BANDS[2][1] and band_colour(0.5) == BANDS[3][1]
     assert band_colour(float("nan")) == "#cccccc"
+    assert band_colour(0.9896) == BANDS[0][1]  # reads 0.990: coloured as it reads
 
 
 def test_truth_markers_stay_inside_the_axes_even_far_from_the_fit(point_report):
