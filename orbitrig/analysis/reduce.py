@@ -167,7 +167,7 @@ def format_table(rows: list[Reduced]) -> str:
     'refused' (the reason goes to standard error).
     In --sim runs each point is followed by a row of the simulator's true values."""
     cols = [k for k in CONSTANT_KEYS if any(r.identification and k in r.identification.coefficients for r in rows)]
-    auto = any(getattr(r.identification, "exponent", None) is not None for r in rows)
+    auto = any(r.identification is not None and r.identification.exponent is not None for r in rows)
     lines = [["point", "lms", *(f"{k} [{coefficient_unit(k)[0]}]" for k in cols), "resid [N]", *(["M"] if auto else [])]]
     for n, r in enumerate(rows):
         cells = [r.point.name, r.lms]
