@@ -38,7 +38,7 @@ from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.errors import ReductionError
 from orbitrig.analysis.reduce import Reduced, reidentify
 from orbitrig.config import LMS
-from orbitrig.store.reader import Point, Run, read_run
+from orbitrig.store.reader import Point, Run, RunDirError, read_run
 from reduction.derived import Derived
 
 PLOTS_DIR = "plots"
@@ -64,6 +64,7 @@ class PointReport:
     results: dict[str, list[Reduced]] = field(default_factory=dict)  # lms -> re-identified
     plots: list[Path] = field(default_factory=list)
     mismatches: list[str] = field(default_factory=list)  # stored vs repeated identification
+    unreadable: list[str] = field(default_factory=list)  # stored blocks the signal figures could not read
     verdicts: dict[str, list[Verdict]] = field(default_factory=dict)  # lms -> model adequacy
     derived: dict[str, list[tuple[Reduced, Derived]]] = field(default_factory=dict)  # lms -> derived
 
@@ -75,7 +76,7 @@ class PointReport:
                for w in warnings_of(r)]  # fmt: skip
         out += [f"{i.lms} {i.model} {i.freq_dep} refused: {(i.error or '').splitlines()[0]}"
                 for i in self.point.identifications if not i.ok]  # fmt: skip
-        return out
+        return out + self.unreadable
 
 
 @dataclass
@@ -142,7 +143,15 @@ def _plot_signals(run: Run, pr: PointReport, out: Path, where: str, opts: Report
         return
     chosen = complete if opts.all_frequencies else default_frequencies(point)
     chosen = chosen if "signals" in opts.figures else []
-    blocks = {f.name: read_block_signals(run, point, f) for f in (complete if "orbits" in opts.figures else chosen)}
+    blocks = {}
+    for f in complete if "orbits" in opts.figures else chosen:
+        try:
+            blocks[f.name] = read_block_signals(run, point, f)
+        except RunDirError as err:  # a damaged or old block: the other figures still get drawn
+            pr.unreadable.append(f"signals of block {f.name} not drawn: {err}")
+    chosen = [f for f in chosen if f.name in blocks]
+    if not blocks:
+        return
     for f in chosen:
         direction = "forward" if f.direction > 0 else "backward"
         pr.plots.append(plots.save_figure(plots_signals.signals_figure(

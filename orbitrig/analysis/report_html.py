@@ -120,6 +120,8 @@ def _point_section(run, pr, out_dir: Path) -> str:
     if pr.mismatches:
         h.append('<p class="err">Repeating the stored identifications gave different numbers:<br>'
                  + "<br>".join(_e(m) for m in pr.mismatches) + "</p>")
+    if pr.unreadable:
+        h.append('<p class="err">' + "<br>".join(_e(m) for m in pr.unreadable) + "</p>")
     for lms in LMS:
         h += _lms_section(pr, out_dir, lms, truth, taken)
     h.append("<h3>Measurement</h3>")

@@ -124,3 +124,21 @@ def test_orbit_figure_one_panel_per_frequency_with_both_planes(synthetic_run, ru
         cx, cy = lines["plane A"].get_xdata().mean(), lines["plane A"].get_ydata().mean()
         turn = (x0 - cx) * (y1 - cy) - (y0 - cy) * (x1 - cx)
         assert np.sign(turn) == f.direction, f.name
+
+
+def test_an_unreadable_block_leaves_the_other_figures(synthetic_run, tmp_path):
+    """A block the store lists but the report cannot read is named (stderr lines, page); the
+    point's other signal figures and its orbits are still drawn."""
+    from dataclasses import replace
+
+    from orbitrig.analysis.report import ReportOptions, _plot_signals, analyse_point
+
+    point = read_run(synthetic_run).points[0]
+    ghost = replace(next(f for f in point.frequencies if f.name == "00_fwd"), name="00_fwd_missing", orbit_hz=0.1)
+    point.frequencies.append(ghost)  # the lowest forward frequency now, and not in storage
+    pr = analyse_point(point)
+    _plot_signals(read_run(synthetic_run), pr, tmp_path, "where", ReportOptions())
+    assert len(pr.unreadable) == 1 and pr.unreadable[0].startswith("signals of block 00_fwd_missing not drawn: ")
+    assert pr.unreadable[0] in pr.fit_warnings()
+    names = {p.name for p in pr.plots}
+    assert names == {"orbits_0000.png", "signals_0000_09_fwd.png", "signals_0000_00_bwd.png", "signals_0000_09_bwd.png"}
