@@ -16,6 +16,7 @@ from orbitrig.analysis.reduce import Reduced, identify_point
 from reduction.adequacy import Adequacy, frequency_dependence
 from reduction.derived import Derived, derived_quantities
 from reduction.errors import ReductionError
+from reduction.systematic import Calibration, lms_consistency
 
 #: the budget columns a stored identification may carry under "uncertainty" (SI std per key)
 BUDGET_PARTS = ("statistical", "systematic", "combined", "expanded")
@@ -92,6 +93,17 @@ def adequacy_verdicts(lms: str, results: list[Reduced]) -> list[Verdict]:
         except ReductionError as err:
             out.append(Verdict(lms, dep, None, str(err)))
     return out
+
+
+def lms_normalised_difference(a: Reduced, b: Reduced) -> dict[str, float | None] | None:
+    """E_n = (a - b) / u(a - b) of each coefficient of one model identified from two load
+    measuring systems (statistical uncertainties only: the run states no calibration budget
+    the report could use); None when the two fits are not of one model."""
+    try:
+        return lms_consistency(a.identification, a.point.tables[a.lms], b.identification, b.point.tables[b.lms],
+                               Calibration(), Calibration())  # fmt: skip
+    except (ReductionError, KeyError):
+        return None
 
 
 def orbit_grid(orbit: np.ndarray, n: int = 120) -> np.ndarray:

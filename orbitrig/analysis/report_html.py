@@ -16,8 +16,9 @@ from pathlib import Path
 from orbitrig.analysis.plots import PAIR_LABELS
 from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_table
 from orbitrig.analysis.reduce import true_constants
-from orbitrig.analysis.report import fit_label
-from orbitrig.analysis.report_tables import derived_table, fmt, lms_tables, verdict_list
+from orbitrig.analysis.quality import lms_normalised_difference
+from orbitrig.analysis.report import fit_label, preferred
+from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
 from orbitrig.config import LMS
 
 CSS = """
@@ -126,7 +127,14 @@ def _point_section(run, pr, out_dir: Path) -> str:
         h += _lms_section(pr, out_dir, lms, truth, taken)
     h.append("<h3>Measurement</h3>")
     h.append(_coherence_table(p))
-    h += _pick(pr, out_dir, taken, f"coherence_{p.name}", f"lms_{p.name}", f"orbits_{p.name}")
+    h += _pick(pr, out_dir, taken, f"coherence_{p.name}")
+    found = preferred(pr)
+    if len(found) == 2:
+        a, b = found["piezo"], found["strain"]
+        en = lms_normalised_difference(a, b)
+        if en is not None:
+            h.append(consistency_table(a, b, en, fit_label(a)))
+    h += _pick(pr, out_dir, taken, f"lms_{p.name}", f"orbits_{p.name}")
     h += [_figure(png, out_dir) for png in pr.plots if Path(png).stem not in taken]  # signals, and any other
     return "\n".join(h)
 

@@ -141,3 +141,25 @@ def derived_table(derived: list[tuple[Reduced, object]], labels: dict[int, str],
     return (f"<table>{head}{''.join(rows)}</table>"
             '<p class="muted">\u00b1 two standard uncertainties (statistical, linearised for WFR and '
             "the zero crossings).</p>")  # fmt: skip
+
+
+def consistency_table(a: Reduced, b: Reduced, en: dict[str, float | None], label: str) -> str:
+    """The two load measuring systems' coefficients of one model side by side with their
+    relative difference and the normalised difference E_n (|E_n| > 2 marked)."""
+    rows = []
+    for key, va in a.identification.coefficients.items():
+        vb = b.identification.coefficients.get(key)
+        unit, scale = coefficient_unit(key)
+        rel = "-" if vb is None or va == 0 else f"{100 * (vb - va) / abs(va):+.2f}"
+        e = en.get(key)
+        cell = "-" if e is None else f"{e:+.2f}"
+        cls = ' class="err"' if e is not None and abs(e) > 2 else ""
+        rows.append(f'<tr><th class="l">{_e(key)}</th><td class="l">{_e(unit)}</td><td>{fmt(va * scale)}</td>'
+                    f"<td>{fmt(None if vb is None else vb * scale)}</td><td>{rel}</td><td{cls}>{cell}</td></tr>")
+    head = (f'<tr><th class="l">{_e(label)}</th><th class="l">unit</th><th>{_e(a.lms)}</th><th>{_e(b.lms)}</th>'
+            f"<th>({_e(b.lms)} - {_e(a.lms)}) / |{_e(a.lms)}| [%]</th><th>E<sub>n</sub></th></tr>")
+    return (f"<h4>Two load measuring systems: consistency</h4><table>{head}{''.join(rows)}</table>"
+            f'<p class="muted">E<sub>n</sub> = (a - b) / u(a - b), a = {_e(a.lms)}, b = {_e(b.lms)}, with the '
+            "statistical uncertainties of both fits "
+            "(no calibration budget stored); |E<sub>n</sub>| &gt; 2: the systems disagree beyond their "
+            "uncertainty.</p>")

@@ -184,3 +184,22 @@ def test_fit_warnings_name_point_model_and_text(synthetic_run):
     lines = pr.fit_warnings()
     assert f"piezo {r.model} {r.freq_dep} warns: ill-conditioned: Kxy, Cxx poorly determined" in lines
     assert any(line.startswith("piezo kcd12 poly:8 refused: ") for line in lines)
+
+
+def test_lms_consistency_table_shows_the_normalised_difference(point_report):
+    """The strain gauges read 1.8 % high (synthetic): the K entries differ by about 1.8 %, and
+    E_n = (piezo - strain) / u is negative and large where the statistical uncertainty is small."""
+    from orbitrig.analysis.quality import lms_normalised_difference
+    from orbitrig.analysis.report import preferred
+    from orbitrig.analysis.report_tables import consistency_table
+
+    found = preferred(point_report)
+    a, b = found["piezo"], found["strain"]
+    en = lms_normalised_difference(a, b)
+    ka, kb = a.identification.coefficients["Kxx"], b.identification.coefficients["Kxx"]
+    assert 100 * (kb - ka) / ka == pytest.approx(1.8, abs=0.3)
+    u = np.hypot(a.identification.std_errors["Kxx"], b.identification.std_errors["Kxx"])
+    assert en["Kxx"] == pytest.approx((ka - kb) / u, rel=1e-6) and en["Kxx"] < -2
+    html = consistency_table(a, b, en, "kcd11 (11 coef.)")
+    assert f'<td class="err">{en["Kxx"]:+.2f}</td>' in html
+    assert f"<td>{100 * (kb - ka) / abs(ka):+.2f}</td>" in html
