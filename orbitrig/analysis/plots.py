@@ -93,7 +93,9 @@ def _near(phase: np.ndarray, target: np.ndarray) -> np.ndarray:
 
 def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
     """The paper's Figure 5: measured and reproduced force amplitude and phase
-    against Omega/omega, for Fx and Fy, one line per identification."""
+    against Omega/omega, for Fx and Fy, one line per identification. When the table has the
+    phasor uncertainties u_* the measured points carry error bars of two standard
+    uncertainties (amplitude u/sqrt(2), phase u/(sqrt(2)|F|): an isotropic complex error)."""
     fig = _figure(11, 7.5)
     axes = fig.subplots(2, 2, sharex=True)
     ratio = table.orbit / table.spin
@@ -120,6 +122,12 @@ def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
             amp_ax.plot(ratio[sel], np.abs(measured[sel]), marker, mfc=face, mec="black", ls="none",
                         ms=6, label=f"measured, {dname} whirl", zorder=5)
             ph_ax.plot(ratio[sel], meas_ph, marker, mfc=face, mec="black", ls="none", ms=6, zorder=5)
+            if table.u is not None:  # +-2 std of the averaged phasor: radial and tangential parts of u
+                u = table.u[sel, 2 + col] / np.sqrt(2.0)
+                amp_ax.errorbar(ratio[sel], np.abs(measured[sel]), yerr=2 * u, fmt="none", ecolor="black",
+                                capsize=3, lw=1, zorder=4, gid="measured-uncertainty")
+                ph_ax.errorbar(ratio[sel], meas_ph, yerr=np.degrees(2 * u / np.abs(measured[sel])), fmt="none",
+                               ecolor="black", capsize=3, lw=1, zorder=4, gid="measured-uncertainty")
         amp_ax.set_title(f"{name} amplitude")
         amp_ax.set_ylabel(f"|{name}|  [N]")
         ph_ax.set_title(f"{name} phase (relative to x displacement)")

@@ -203,3 +203,31 @@ def test_lms_consistency_table_shows_the_normalised_difference(point_report):
     html = consistency_table(a, b, en, "kcd11 (11 coef.)")
     assert f'<td class="err">{en["Kxx"]:+.2f}</td>' in html
     assert f"<td>{100 * (kb - ka) / abs(ka):+.2f}</td>" in html
+
+
+def test_figure_5_error_bars_from_the_phasor_uncertainty(point_report, monkeypatch):
+    """With u_* in the table the measured forces carry +-2 standard uncertainties: amplitude
+    2 u / sqrt(2), phase 2 u / (sqrt(2) |F|) (an isotropic complex error); without, none."""
+    from matplotlib.container import ErrorbarContainer
+
+    from orbitrig.analysis import plots
+    from reduction.table import OrbitTable
+
+    t = point_report.point.tables["piezo"]
+    u = np.column_stack([np.full(t.orbit.size, 1e-8)] * 2 + [0.01 * np.abs(t.fx), 0.02 * np.abs(t.fy)])
+    with_u = OrbitTable(t.spin, t.orbit, t.x, t.y, t.fx, t.fy, gamma2=t.gamma2, n_records=np.full(t.orbit.size, 8), u=u)
+    figs = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: figs.append(fig) or path)
+    fitted = [Fitted("kc7", point_report.results["piezo"][0].identification)]
+    plots.forces_plot("unused.png", t, fitted, title="t")
+    plots.forces_plot("unused.png", with_u, fitted, title="t")
+    assert not any(isinstance(c, ErrorbarContainer) for ax in figs[0].axes for c in ax.containers)
+    amp_fy, phase_fy = figs[1].axes[1], figs[1].axes[3]
+    half = []
+    for ax in (amp_fy, phase_fy):
+        bars = [c for c in ax.containers if isinstance(c, ErrorbarContainer)]
+        assert len(bars) == 2  # forward and backward
+        half.append(np.concatenate([[abs(s[1][1] - s[0][1]) / 2 for s in c.lines[2][0].get_segments()] for c in bars]))
+    # u_fy = 0.02 |Fy|: amplitude bars 2 * 0.02 |Fy| / sqrt(2), phase bars 2 * 0.02 / sqrt(2) rad
+    assert np.sort(half[0]) == pytest.approx(np.sort(2 * 0.02 * np.abs(t.fy) / np.sqrt(2)))
+    assert half[1] == pytest.approx(np.degrees(2 * 0.02 / np.sqrt(2)))
