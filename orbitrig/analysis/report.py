@@ -68,7 +68,6 @@ class PointReport:
     verdicts: dict[str, list[Verdict]] = field(default_factory=dict)  # lms -> model adequacy
     derived: dict[str, list[tuple[Reduced, Derived]]] = field(default_factory=dict)  # lms -> derived
 
-
     def fit_warnings(self) -> list[str]:
         """'<lms> <model> <freq-dep> warns: <text>' for every warning of a repeated or stored fit,
         and '<lms> <model> <freq-dep> refused: <reason>' for every stored refusal."""
@@ -119,7 +118,8 @@ def _compare(r: Reduced, stored: dict) -> list[str]:
 
 
 def analyse_point(point: Point) -> PointReport:
-    """Repeat the sweep's identifications of one point (both LMS)."""
+    """Repeat the sweep's identifications of one point (both LMS); test each frequency-dependent
+    fit against the constant one and form the derived quantities of every fit."""
     pr = PointReport(point)
     for stored in point.identifications:
         if stored.lms not in point.tables or not stored.ok:
@@ -132,6 +132,10 @@ def analyse_point(point: Point) -> PointReport:
         pr.mismatches += _compare(r, stored.result)
         if r.identification is not None:
             pr.results.setdefault(stored.lms, []).append(r)
+    for lms, table in point.tables.items():
+        results = pr.results.get(lms, [])
+        pr.verdicts[lms] = adequacy_verdicts(lms, results)
+        pr.derived[lms] = [(r, d) for r in results if (d := derived_of(r, table.orbit)) is not None]
     return pr
 
 
@@ -170,8 +174,7 @@ def _plot_lms(pr: PointReport, lms: str, out: Path, where: str, opts: ReportOpti
     in simulator runs, the impedance against the true one, for one load measuring system."""
     point, table = pr.point, pr.point.tables[lms]
     results = pr.results.get(lms, [])
-    pr.verdicts[lms] = adequacy_verdicts(lms, results)
-    verdict = {id(v.dependent): v.text for v in pr.verdicts[lms]}
+    verdict = {id(v.dependent): v.text for v in pr.verdicts.get(lms, [])}
     fitted = [plots.Fitted(fit_label(r), r.identification) for r in results]
     with_verdicts = [plots.Fitted(f.label + (f" \u2014 {verdict[id(r)]}" if id(r) in verdict else ""),
                                   f.identification) for f, r in zip(fitted, results)]  # fmt: skip
@@ -187,8 +190,7 @@ def _plot_lms(pr: PointReport, lms: str, out: Path, where: str, opts: ReportOpti
             spin=table.spin, orbit=table.orbit, truth=point.truth,
             title=f"Rotordynamic coefficients, model {model}, {lms} load cells\n{where}",
         ))  # fmt: skip
-    pr.derived[lms] = [(r, d) for r in results if (d := derived_of(r, table.orbit)) is not None]
-    if pr.derived[lms] and "derived" in opts.figures:
+    if pr.derived.get(lms) and "derived" in opts.figures:
         pr.plots.append(plots.save_figure(plots_derived.derived_figure(
             [(fit_label(r), d) for r, d in pr.derived[lms]], spin=table.spin,
             title=f"Derived quantities, {lms} load cells\n{where}",
