@@ -104,19 +104,20 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
 
 def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) -> Figure:
     """x-y orbit (averaged displacements) of probe planes A and B, one panel per block, in um,
-    equal axes; the commanded orbit radius (m) as a dashed circle about the measured centre."""
+    equal axes; the commanded orbit radius (m) as a dashed circle about the measured centre, and
+    each plane's mean radius (mean distance from its centre) in the panel title."""
     n = len(blocks)
     cols = min(5, max(1, n))
     rows = max(1, math.ceil(n / cols))
-    width, height = 2.7 * cols + 0.8, 2.7 * rows + 1.6
+    width, height = 2.7 * cols + 0.8, 2.9 * rows + 1.6
     fig = _figure(width, height, layout=None)
-    fig.subplots_adjust(left=0.7 / width, right=1 - 0.15 / width, bottom=1.0 / height, top=1 - 1.0 / height,
+    fig.subplots_adjust(left=0.7 / width, right=1 - 0.15 / width, bottom=1.0 / height, top=1 - 1.25 / height,
                         wspace=0.35, hspace=0.45)  # fmt: skip
     axes = fig.subplots(rows, cols, squeeze=False).ravel()
     colors = _colors(2)
     circle = np.linspace(0, 2 * np.pi, 121)
     for ax, sig in zip(axes, blocks):
-        centre = []
+        centre, radii = [], []
         for k, (plane, (xn, yn)) in enumerate(PROBE_PLANES.items()):
             x, y = plane_orbit(sig, xn, yn)
             ax.plot(np.append(x, x[0]) * UM, np.append(y, y[0]) * UM, "-", color=colors[k], lw=1.4,
@@ -127,12 +128,14 @@ def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) 
                 ax.annotate("", xy=(x[j] * UM, y[j] * UM), xytext=(x[0] * UM, y[0] * UM),
                             arrowprops={"arrowstyle": "->", "color": "black", "lw": 1.2})  # fmt: skip
             centre.append((x.mean(), y.mean()))
+            radii.append(float(np.mean(np.hypot(x - x.mean(), y - y.mean()))))
         cx, cy = np.mean(centre, axis=0)
         if math.isfinite(radius) and radius > 0:
             ax.plot((cx + radius * np.cos(circle)) * UM, (cy + radius * np.sin(circle)) * UM, "--", color="0.4",
                     lw=0.8, label="commanded radius")  # fmt: skip
         f = sig.frequency
-        ax.set_title(f"{f.orbit_hz:.3g} Hz {_direction(sig)}", fontsize=9)
+        ax.set_title(f"{f.orbit_hz:.3g} Hz {_direction(sig)}\nmean radius A {radii[0] * UM:.3g}, "
+                     f"B {radii[1] * UM:.3g} \u00b5m", fontsize=9)  # fmt: skip
         ax.set_aspect("equal", adjustable="datalim")
         ax.grid(True, alpha=0.3)
         ax.tick_params(labelsize=7)

@@ -108,7 +108,9 @@ def test_orbit_figure_one_panel_per_frequency_with_both_planes(synthetic_run, ru
     assert len(panels) == 20
     for ax, sig in zip(panels, blocks):
         f = sig.frequency
-        assert ax.get_title() == f"{f.orbit_hz:.3g} Hz {'forward' if f.direction > 0 else 'backward'}"
+        head, radii = ax.get_title().split("\n")
+        assert head == f"{f.orbit_hz:.3g} Hz {'forward' if f.direction > 0 else 'backward'}"
+        stated = [float(v) for v in re.findall(r"[AB] ([\d.]+)", radii)]
         lines = {ln.get_label(): ln for ln in ax.get_lines()}
         stored = _stored(synthetic_run, "0000", f.name)
         for plane, (xn, yn) in (("A", ("x_a", "y_a")), ("B", ("x_b", "y_b"))):
@@ -116,8 +118,9 @@ def test_orbit_figure_one_panel_per_frequency_with_both_planes(synthetic_run, ru
             c = CH[xn]
             np.testing.assert_allclose(x[:-1], stored["mean"][c][np.argsort(stored["slots"][c])])
             # measured radius: the commanded 2.4 um within the synthetic 1 % scatter and noise
-            r = np.hypot(x - x.mean(), y - y.mean())
+            r = np.hypot(x[:-1] - x[:-1].mean(), y[:-1] - y[:-1].mean())
             assert np.median(r) == pytest.approx(point.settings.orbit_radius, rel=0.05), (f.name, plane)
+            assert stated["AB".index(plane)] == pytest.approx(r.mean() * 1e6, rel=5e-3)
         # the arrow from the trigger point shows the sense of the whirl: counter-clockwise forward
         arrow = next(t for t in ax.texts if t.arrow_patch is not None)
         (x0, y0), (x1, y1) = arrow.xyann, arrow.xy
