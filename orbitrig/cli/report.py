@@ -65,15 +65,18 @@ def register(app: typer.Typer) -> None:
     @app.command("report")
     def report_cmd(
         directory: Annotated[Path, typer.Argument(metavar="DIR", help="Run directory written by `orbitrig sweep --out DIR`.")],
-        point: Annotated[Optional[list[int]], typer.Option("--point", help="Only this operating point index (repeatable).")] = None,
+        point: Annotated[Optional[list[int]], typer.Option("--point", metavar="N", help="Only this operating point index (repeatable).")] = None,
         all_frequencies: Annotated[bool, typer.Option("--all-frequencies", help="Force-signal figure (paper Fig. 4) for every orbit frequency, not only the lowest and highest of each whirl direction.")] = False,
         figures: Annotated[Optional[str], typer.Option("--figures", metavar="KINDS", help="Only these figure kinds, comma-separated: forces, coefficients, derived, impedance, coherence, lms, signals, orbits (default: all). The page's tables are always complete.")] = None,
     ) -> None:
         """Plots and an HTML page of a stored run, in DIR/plots.
 
-        Forces measured vs reproduced, coefficients against Omega/omega, coherence,
-        the two load measuring systems, the force signals (paper Fig. 4) and the
-        measured x-y orbits; DIR/plots/index.html shows them with the coefficient tables.
+        Forces measured vs reproduced with the model-adequacy verdict (paper Fig. 5),
+        coefficients against Omega/omega, derived quantities (effective damping, WFR,
+        forward/backward dynamic stiffness), identified vs true impedance (simulator runs),
+        coherence table, the two load measuring systems, force signals (paper Fig. 4) and
+        the measured x-y orbits; DIR/plots/index.html shows them with the coefficients'
+        intervals and uncertainties. Fit warnings and refusals go to standard error.
         """
         from orbitrig.analysis.report import FIGURES, ReportOptions, make_report
         from orbitrig.store.reader import RunDirError
