@@ -21,15 +21,19 @@ def _fail(message: str, code: int = 2) -> None:
 
 def read_password(password_file: Path | None) -> str | None:
     """The broker password from ``password_file`` (first line) or from the
-    environment variable ORBITRIG_MQTT_PASSWORD; None when neither is given."""
+    environment variable ORBITRIG_MQTT_PASSWORD; None when neither is given.
+    A file other users may read or write is refused (as ssh refuses such a key)."""
     if password_file is not None:
         try:
-            text = password_file.read_text(encoding="utf-8")
             mode = password_file.stat().st_mode
+            if mode & (stat.S_IRWXG | stat.S_IRWXO):
+                _fail(f"--password-file: {password_file} is accessible by other users "
+                      f"(mode {stat.S_IMODE(mode):04o}): chmod 600 {password_file}")
+            text = password_file.read_bytes().decode("utf-8")
         except OSError as err:
             _fail(f"--password-file: cannot read {password_file}: {err.strerror or err}")
-        if mode & (stat.S_IRGRP | stat.S_IROTH | stat.S_IWOTH):
-            typer.echo(f"warning: {password_file} is readable by other users (chmod 600 it)", err=True)
+        except UnicodeDecodeError as err:
+            _fail(f"--password-file: {password_file} is not UTF-8 text ({err.reason} at byte {err.start})")
         password = text.splitlines()[0] if text.strip() else ""
         if not password:
             _fail(f"--password-file: {password_file} is empty")
@@ -59,6 +63,9 @@ def register(app: typer.Typer) -> None:
             "keep", "--supervision-policy",
             help="when the broker is gone longer than --supervision-timeout: keep | pause | stop"),
         supervision_timeout: float = typer.Option(60.0, "--supervision-timeout", help="s"),
+        client_id: Optional[str] = typer.Option(
+            None, "--client-id",
+            help="MQTT client id (default mosq-orbitrig-serve-<prefix>; see config/mosquitto/README.md)"),
         confirm: str = typer.Option(
             "remote", "--confirm",
             help="manual settings: remote (wait for a 'confirm' command) | auto (--sim only)"),
@@ -100,7 +107,7 @@ def register(app: typer.Typer) -> None:
             folder = matrices or Path(rig.file).resolve().parent / "matrices"
             settings = ServiceSettings(rig_id=rig_id, matrices_dir=folder, prefix=prefix,
                                        supervision_policy=supervision_policy,  # type: ignore[arg-type]
-                                       supervision_timeout=supervision_timeout)
+                                       supervision_timeout=supervision_timeout, client_id=client_id)
         except (ConfigError, ServiceError) as err:
             _fail(str(err))
         if confirm not in ("remote", "auto"):

@@ -4,6 +4,7 @@ settings, the client id and the reconnection backoff."""
 from __future__ import annotations
 
 import dataclasses
+import math
 import random
 from collections.abc import Callable
 from pathlib import Path
@@ -88,8 +89,11 @@ class ServiceSettings:
         if self.supervision_policy not in SUPERVISION_POLICIES:
             raise ServiceError(f"supervision policy {self.supervision_policy!r}: "
                                f"one of {', '.join(SUPERVISION_POLICIES)}")
-        if self.supervision_timeout <= 0:
-            raise ServiceError("supervision timeout must be > 0 s")
+        if not 0 < self.supervision_timeout < math.inf:
+            raise ServiceError(f"supervision timeout must be a finite number of seconds > 0, "
+                               f"not {self.supervision_timeout!r}")
+        if self.client_id is not None and not 0 < len(self.client_id.encode()) <= 128:
+            raise ServiceError("client id must have 1 to 128 bytes")
 
 
 #: Client ids of people's clients start with this on the shipped broker config

@@ -201,8 +201,33 @@ def test_cli_needs_a_password_from_file_or_environment(broker):
 def test_cli_refused_credentials_exit_1(broker, tmp_path):
     pw = tmp_path / "pw"
     pw.write_text("wrong\n")
-    pw.chmod(0o644)
+    pw.chmod(0o600)
     done = _serve_cli("--broker", broker.url, "--username", "orbitrig-service", "--password-file", str(pw))
     assert done.returncode == 1, done.stderr
-    assert f"{pw} is readable by other users" in done.stderr
     assert "refused the credentials of 'orbitrig-service'" in done.stderr
+
+
+@pytest.mark.parametrize("mode", [0o644, 0o640, 0o604, 0o606, 0o620])
+def test_cli_refuses_a_password_file_others_can_access(broker, tmp_path, mode):
+    pw = tmp_path / "pw"
+    pw.write_text(ACCOUNTS["orbitrig-service"] + "\n")
+    pw.chmod(mode)
+    done = _serve_cli("--broker", broker.url, "--username", "orbitrig-service", "--password-file", str(pw))
+    assert done.returncode == 2, done.stderr
+    assert f"{pw} is accessible by other users (mode {mode:04o}): chmod 600" in done.stderr
+    assert "Traceback" not in done.stderr
+
+
+def test_cli_refuses_a_password_file_that_is_not_utf8(broker, tmp_path):
+    pw = tmp_path / "pw"
+    pw.write_bytes(b"caf\xe9\n")
+    pw.chmod(0o600)
+    done = _serve_cli("--broker", broker.url, "--username", "orbitrig-service", "--password-file", str(pw))
+    assert done.returncode == 2 and "is not UTF-8 text" in done.stderr and "Traceback" not in done.stderr
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "-1", "0"])
+def test_cli_supervision_timeout_must_be_finite_and_positive(broker, value):
+    done = _serve_cli("--broker", broker.url, "--supervision-timeout", value,
+                      env={"ORBITRIG_MQTT_PASSWORD": "x", "ORBITRIG_MQTT_USERNAME": "orbitrig-service"})
+    assert done.returncode == 2 and "supervision timeout must be a finite number" in done.stderr, done.stderr
