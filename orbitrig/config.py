@@ -39,11 +39,24 @@ def default_matrix_path(name: str = "demo") -> Path:
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # every float finite: inf/nan in any file are refused with the file, line and key
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 Pos = Annotated[float, Field(gt=0)]
 NonNeg = Annotated[float, Field(ge=0)]
+#: a time (s) that must pass: positive, at most one day
+Seconds = Annotated[float, Field(gt=0, le=86_400)]
+#: a time (s) that may be zero, at most one day
+Wait = Annotated[float, Field(ge=0, le=86_400)]
+#: a speed of the rig's drives (rpm)
+Rpm = Annotated[float, Field(gt=0, le=100_000)]
+#: an orbit ratio |Omega|/omega
+Ratio = Annotated[float, Field(gt=0, le=100)]
+#: a pressure (MPa)
+Mpa = Annotated[float, Field(gt=0, le=1_000)]
+#: a Modbus device id (1..247; 0 is broadcast)
+DeviceId = Annotated[int, Field(ge=1, le=247)]
 
 
 # ---------------------------------------------------------------- rig.toml
@@ -56,7 +69,7 @@ class Transports(_Model):
     # adapters, virtual for in-process tests
     can_interface: Literal["socketcan", "serial", "slcan", "pcan", "kvaser", "ixxat",
                            "vector", "socketcand", "virtual"] = "socketcan"
-    can_bitrate: Annotated[int, Field(gt=0)] = 500_000
+    can_bitrate: Annotated[int, Field(gt=0, le=10_000_000)] = 500_000
     can_node_id: Annotated[int, Field(ge=1, le=127)] = 1
 
 
@@ -76,8 +89,8 @@ class Channel(_Model):
 
 
 class Bearing(_Model):
-    radius_mm: Pos = 30.0
-    clearance_um: Pos = 60.0
+    radius_mm: Annotated[float, Field(gt=0, le=10_000)] = 30.0
+    clearance_um: Annotated[float, Field(gt=0, le=100_000)] = 60.0
 
     @property
     def clearance(self) -> float:
@@ -89,19 +102,19 @@ LINK_LOSS_MARGIN = 0.8  # [drives] link_loss_time_s above this share of comm_los
 
 
 class Drives(_Model):
-    max_spin_rpm: Pos = 2500.0
-    max_orbit_rpm: Pos = 2500.0
-    min_ratio: Annotated[float, Field(ge=0)] | None = None
-    max_ratio: Pos | None = None
-    spin_id: Annotated[int, Field(ge=1, le=247)] = 1
-    orbit_id: Annotated[int, Field(ge=1, le=247)] = 2
-    poll_interval_s: Pos = 0.1
-    timeout_s: Pos = 0.15  # Modbus request timeout, s (an RTU exchange at 19200 baud takes ~20 ms)
+    max_spin_rpm: Rpm = 2500.0
+    max_orbit_rpm: Rpm = 2500.0
+    min_ratio: Annotated[float, Field(ge=0, le=100)] | None = None
+    max_ratio: Ratio | None = None
+    spin_id: DeviceId = 1
+    orbit_id: DeviceId = 2
+    poll_interval_s: Annotated[float, Field(gt=0, le=60)] = 0.1
+    timeout_s: Annotated[float, Field(gt=0, le=60)] = 0.15  # Modbus request timeout, s (an RTU exchange at 19200 baud takes ~20 ms)
     # consecutive failed polls that declare the drive link lost (the sweep's drive_link interlock)
     link_loss_polls: Annotated[int, Field(ge=1, le=100)] = 3
-    comm_loss_timeout_s: Pos = 1.0  # the drives' own COMM_LOSS_TIMEOUT (spec default 1 s)
-    ramp_rpm_per_s: Pos = Field(600.0, description="drive ramp rate, for time estimates")
-    stop_timeout_s: Pos = 30.0
+    comm_loss_timeout_s: Annotated[float, Field(gt=0, le=3_600)] = 1.0  # the drives' own COMM_LOSS_TIMEOUT
+    ramp_rpm_per_s: Annotated[float, Field(gt=0, le=1e6)] = Field(600.0, description="drive ramp rate, for time estimates")
+    stop_timeout_s: Annotated[float, Field(gt=0, le=3_600)] = 30.0
 
     @property
     def link_loss_time_s(self) -> float:
@@ -128,29 +141,29 @@ class Drives(_Model):
 
 class Averaging(_Model):
     revolutions: Annotated[int, Field(ge=2, le=10_000)] = 50
-    timeout_factor: Annotated[float, Field(ge=1.2)] = 3.0
-    timeout_margin_s: NonNeg = 2.0
+    timeout_factor: Annotated[float, Field(ge=1.2, le=1_000)] = 3.0
+    timeout_margin_s: Annotated[float, Field(ge=0, le=3_600)] = 2.0
     retries: Annotated[int, Field(ge=0, le=10)] = 1
 
 
 class Settle(_Model):
-    hold_s: NonNeg = 2.0
-    timeout_s: Pos = 120.0
+    hold_s: Wait = 2.0
+    timeout_s: Seconds = 120.0
 
 
 class Verify(_Model):
-    orbit_radius_tol_pct: Pos = 15.0
-    static_eccentricity_tol: Pos = 0.05
-    recess_pressure_tol_pct: Pos = 10.0
-    pressure_ratio_tol: Pos = 0.05
+    orbit_radius_tol_pct: Annotated[float, Field(gt=0, le=100)] = 15.0
+    static_eccentricity_tol: Annotated[float, Field(gt=0, le=1)] = 0.05
+    recess_pressure_tol_pct: Annotated[float, Field(gt=0, le=100)] = 10.0
+    pressure_ratio_tol: Annotated[float, Field(gt=0, le=1)] = 0.05
 
 
 class Interlocks(_Model):
-    supply_pressure_min_mpa: NonNeg = 0.2
-    supply_pressure_max_mpa: Pos = 8.0
+    supply_pressure_min_mpa: Annotated[float, Field(ge=0, le=1_000)] = 0.2
+    supply_pressure_max_mpa: Mpa = 8.0
     check_supply_pressure: bool = True
     check_can_heartbeat: bool = True
-    suspend_timeout_s: Pos = 300.0
+    suspend_timeout_s: Seconds = 300.0
 
     @model_validator(mode="after")
     def _band(self):
@@ -160,10 +173,10 @@ class Interlocks(_Model):
 
 
 class Estimates(_Model):
-    manual_setting_s: NonNeg = 120.0
-    verify_s: NonNeg = 1.0
-    identify_s: NonNeg = 0.2
-    store_s: NonNeg = 0.05
+    manual_setting_s: Wait = 120.0
+    verify_s: Wait = 1.0
+    identify_s: Wait = 0.2
+    store_s: Wait = 0.05
 
 
 class RigConfig(_Model):
@@ -246,8 +259,8 @@ class RigConfig(_Model):
 
 # ----------------------------------------------------- matrices/*.toml
 class Operating(_Model):
-    spin_rpm: Annotated[list[Pos], Field(min_length=1)]
-    recess_pressure_mpa: Annotated[list[Pos], Field(min_length=1)]
+    spin_rpm: Annotated[list[Rpm], Field(min_length=1)]
+    recess_pressure_mpa: Annotated[list[Mpa], Field(min_length=1)]
     pressure_ratio: Annotated[list[Annotated[float, Field(gt=0, lt=1)]], Field(min_length=1)]
     static_eccentricity: Annotated[list[Annotated[float, Field(ge=0, lt=1)]], Field(min_length=1)]
     dynamic_eccentricity: Annotated[list[Annotated[float, Field(gt=0, lt=1)]], Field(min_length=1)]
@@ -256,9 +269,9 @@ class Operating(_Model):
 class Orbit(_Model):
     """Orbit frequencies as ratios Omega/omega: either `ratios` or start/stop/count."""
 
-    ratios: list[Pos] | None = None
-    ratio_start: Pos | None = None
-    ratio_stop: Pos | None = None
+    ratios: list[Ratio] | None = None
+    ratio_start: Ratio | None = None
+    ratio_stop: Ratio | None = None
     count: Annotated[int, Field(ge=1, le=100)] | None = None
     directions: Annotated[list[Literal["forward", "backward"]], Field(min_length=1)] = ["forward", "backward"]
 
@@ -325,7 +338,7 @@ class MatrixConfig(_Model):
     orbit: Orbit
     models: Annotated[list[ModelSpec], Field(min_length=1)]
     revolutions: Annotated[int, Field(ge=2, le=10_000)] | None = None
-    settle_hold_s: NonNeg | None = None
+    settle_hold_s: Wait | None = None
 
     _file: str = PrivateAttr("<matrix>")
     _text: str = PrivateAttr("")
@@ -370,19 +383,27 @@ def _key_path(loc: tuple) -> str:
     for part in loc:
         if isinstance(part, int):
             out += f"[{part}]"
-        elif not str(part).startswith(_LOC_SKIP):
+        elif not _skipped(part):
             out += ("." if out else "") + str(part)
     return out or "(top level)"
 
 
-_LOC_SKIP = ("function-", "literal[", "list[", "float", "int")
+_LOC_SKIP_PREFIXES = ("function-", "literal[", "list[", "nullable[")
+_LOC_SKIP_NAMES = frozenset({"float", "int", "str", "bool", "none"})
+
+
+def _skipped(part) -> bool:
+    """A pydantic location part that names a validator or type, not a key."""
+    text = str(part)
+    return text in _LOC_SKIP_NAMES or text.startswith(_LOC_SKIP_PREFIXES)
+
 _HEADER = re.compile(r"^\s*(\[\[?)\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
 _KEY = re.compile(r"^\s*([A-Za-z0-9_\-\"']+)\s*=")
 
 
 def _line_of(text: str, loc: tuple) -> int | None:
     """1-based line of the key (or table header) at a pydantic location, None if not found."""
-    want = tuple(p for p in loc if isinstance(p, int) or not str(p).startswith(_LOC_SKIP))
+    want = tuple(p for p in loc if isinstance(p, int) or not _skipped(p))
     if not want or not text:
         return None
     best, best_len = None, 0
@@ -439,6 +460,8 @@ def _parse(text: str, file: str) -> dict:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise ConfigError(file, [f"not valid TOML: {err}"]) from err
+    except RecursionError:
+        raise ConfigError(file, ["not valid TOML: arrays or tables nested too deeply"]) from None
 
 
 def _build(cls, data: dict, file: str, text: str):
@@ -454,9 +477,20 @@ def _build(cls, data: dict, file: str, text: str):
 def _read(path: Path | str) -> tuple[str, str]:
     path = Path(path)
     try:
-        return path.read_text(encoding="utf-8"), str(path)
+        data = path.read_bytes()
     except OSError as err:
         raise ConfigError(str(path), [f"cannot read the file: {err.strerror or err}"]) from err
+    return decode_text(data, str(path)), str(path)
+
+
+def decode_text(data: bytes, file: str) -> str:
+    """UTF-8 text of a configuration file, or ConfigError naming the line and byte."""
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        line = data.count(b"\n", 0, err.start) + 1
+        raise ConfigError(file, [f"line {line}: not UTF-8 text ({err.reason} at byte {err.start}); "
+                                 "save the file as UTF-8"]) from None
 
 
 def _read_default(path: Path | str | None, default: Path, option: str) -> tuple[str, str]:
