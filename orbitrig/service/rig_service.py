@@ -245,7 +245,12 @@ class RigService:
         return False
 
     def _on_message(self, payload: bytes, retained: bool) -> None:
-        self.handle_command(payload, retained=retained)
+        """Every message on ``<prefix>/cmd``; nothing a message does may end the service."""
+        try:
+            self.handle_command(payload, retained=retained)
+        except Exception as err:  # noqa: BLE001 - last line of defence; handle_command replies itself
+            log.exception("command %r could not be handled", payload[:200])
+            self._reply(None, f"command could not be handled: {type(err).__name__}")
 
     def _send(self, topic: str, payload: bytes, qos: int, retain: bool = False) -> None:
         self.link.send(topic, payload, qos, retain)

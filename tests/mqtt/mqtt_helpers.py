@@ -368,8 +368,9 @@ class CutProxy:
     ``restore()``. The client behind it sees its link to the broker drop while
     the broker stays up for everyone else."""
 
-    def __init__(self, target_port: int):
+    def __init__(self, target_port: int, *, lifetime: float | None = None):
         self.target = target_port
+        self.lifetime = lifetime  # s after which each relayed connection is cut
         self.server = socket.socket()
         self.server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         self.server.bind(("127.0.0.1", 0))
@@ -401,6 +402,8 @@ class CutProxy:
                 self._pairs.append((conn, up))
             for a, b in ((conn, up), (up, conn)):
                 threading.Thread(target=self._pump, args=(a, b), daemon=True).start()
+            if self.lifetime is not None:
+                threading.Timer(self.lifetime, self._drop, args=((conn, up),)).start()
 
     @staticmethod
     def _pump(src: socket.socket, dst: socket.socket) -> None:
@@ -420,12 +423,16 @@ class CutProxy:
         with self._lock:
             pairs, self._pairs = self._pairs, []
         for pair in pairs:
-            for s in pair:
-                try:
-                    s.shutdown(socket.SHUT_RDWR)
-                except OSError:
-                    pass
-                s.close()
+            self._drop(pair)
+
+    @staticmethod
+    def _drop(pair: tuple[socket.socket, socket.socket]) -> None:
+        for s in pair:
+            try:
+                s.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+            s.close()
 
     def restore(self) -> None:
         self.open = True

@@ -165,3 +165,26 @@ async def test_a_cancelled_service_says_offline(bound, tmp_path):
         await task
     msg = await asyncio.to_thread(retained, bound, "orbitrig/cancelled/status")
     assert msg is not None and msg.json()["state"] == "offline" and msg.json()["message"] == "rig service stopped"
+
+
+async def test_backoff_is_not_reset_by_connections_that_carry_no_traffic(bound, tmp_path):
+    """Every connection is cut 0.3 s after it was made (CONNACK and SUBACK get
+    through): reconnections thin out (jittered exponential backoff, reset only
+    after a session stayed up for a while) instead of repeating every 0.1 s."""
+    proxy = CutProxy(bound.service_port, lifetime=0.3)
+    settings = ServiceSettings(rig_id="dropped", matrices_dir=write_matrices(tmp_path / "m"),
+                               reconnect_initial=0.2, reconnect_max=30.0)
+    service = RigService(settings, BrokerSettings.from_url(proxy.url, username="orbitrig-service",
+                                                           password=ACCOUNTS["orbitrig-service"]),
+                         engine_factory=lambda name, m: None, load_matrix=lambda p: None)
+    stop = asyncio.Event()
+    task = asyncio.create_task(service.serve(stop))
+    try:
+        await asyncio.sleep(6.0)
+        # growing delays 0.1-0.2, 0.2-0.4, 0.4-0.8, 0.8-1.6, 1.6-3.2 s after 0.3 s sessions: <= 6
+        # connections in 6 s; a backoff reset at each connection would make about 12
+        assert 3 <= service.connections <= 6, service.connections
+    finally:
+        proxy.close()
+        stop.set()
+        await asyncio.wait_for(task, 20)
