@@ -56,6 +56,7 @@ class BrokerLink:
         self.offline.set()
         self.leaving = False  # set by the owner once "offline" was queued for a clean exit
         self.connections = 0  # successful connections so far
+        self.connected_at = 0.0  # time.monotonic() of the latest connection
 
     @property
     def where(self) -> str:
@@ -132,7 +133,7 @@ class BrokerLink:
         try:
             async with self._client() as client:
                 await client.subscribe(self.topics.cmd, qos=proto.QOS_CMD)
-                t_connected = time.monotonic()
+                t_connected = self.connected_at = time.monotonic()
                 self.connections += 1
                 log.info("connected to %s as %r (client id %r); commands on %s", self.where,
                          self.broker.username, self.settings.mqtt_client_id, self.topics.cmd)

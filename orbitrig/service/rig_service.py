@@ -13,9 +13,9 @@ events become MQTT messages:
 
 The session is persistent (MQTT 5, clean start off, a session expiry of
 ``session_expiry`` s): QoS 1 commands published while the service reconnects
-are kept by the broker and delivered once it is back; a redelivered command
-(same id and bytes within ``redelivery_window`` s) is executed and answered
-once. ``offline`` is published on every way out of :meth:`RigService.serve`
+are kept by the broker and delivered once it is back; the broker's redelivery
+of a command already handled (its acknowledgement lost with the link) is
+executed and answered once. ``offline`` is published on every way out of :meth:`RigService.serve`
 (shutdown, a fault in the service) and is the last will for the others.
 
 The broker may go away: the run goes on, the service reconnects with jittered
@@ -50,6 +50,9 @@ from orbitrig.service.settings import (  # noqa: F401 - the service's public nam
 )
 
 log = logging.getLogger("orbitrig.service.rig_service")
+
+#: s after a reconnection during which the broker's redeliveries arrive
+REDELIVERY_S = 10.0
 
 
 # -- the executor as seen from here (orbitrig.run.engine.RunEngine) --------------
@@ -96,7 +99,8 @@ class RigService:
         self._tg: asyncio.TaskGroup | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread = threading.get_ident()
-        self._handled: collections.OrderedDict[tuple[str, bytes], float] = collections.OrderedDict()
+        #: (id, bytes) of recent commands -> number of the connection they came on
+        self._handled: collections.OrderedDict[tuple[str, bytes], int] = collections.OrderedDict()
         #: command name -> handler returning None (ok) or the reason of a refusal
         self._handlers: dict[str, Callable[[proto.Command], str | None]] = {
             "start": self._cmd_start, "pause": self._cmd_pause, "resume": self._cmd_resume,
@@ -229,19 +233,22 @@ class RigService:
         self._reply(cmd.id, error)
 
     def _redelivered(self, cmd: proto.Command, payload: bytes) -> bool:
-        """True if this id and these bytes were handled within ``redelivery_window`` s."""
+        """True for the broker's redelivery of a command handled before the link
+        dropped (its acknowledgement was lost): the same id and bytes, handled
+        during an earlier connection, arriving within REDELIVERY_S of this one.
+        An operator repeating a command later is not affected."""
         if cmd.id is None:
             return False
-        now = time.monotonic()
-        seen = self._handled
-        while seen and now - next(iter(seen.values())) > self.settings.redelivery_window:
-            seen.popitem(last=False)
         key = (cmd.id, bytes(payload))
-        if key in seen:
+        earlier = self._handled.get(key)
+        now, link = time.monotonic(), self.link
+        if (earlier is not None and earlier < link.connections
+                and now - link.connected_at < REDELIVERY_S):
             return True
-        seen[key] = now
-        if len(seen) > 1024:
-            seen.popitem(last=False)
+        self._handled[key] = link.connections
+        self._handled.move_to_end(key)
+        if len(self._handled) > 256:
+            self._handled.popitem(last=False)
         return False
 
     def _on_message(self, payload: bytes, retained: bool) -> None:

@@ -78,8 +78,6 @@ class ServiceSettings:
     client_id: str | None = None
     #: s the broker keeps the session (subscription, queued QoS 1 commands) after a disconnect
     session_expiry: int = 120
-    #: s within which a command with the same id and bytes is a redelivery
-    redelivery_window: float = 600.0
 
     @property
     def mqtt_client_id(self) -> str:

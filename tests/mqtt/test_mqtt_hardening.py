@@ -188,3 +188,27 @@ async def test_backoff_is_not_reset_by_connections_that_carry_no_traffic(bound, 
         proxy.close()
         stop.set()
         await asyncio.wait_for(task, 20)
+
+
+def test_a_redelivery_after_a_reconnection_is_executed_once(tmp_path):
+    """The broker redelivers a QoS 1 command whose acknowledgement was lost with
+    the link, right after the reconnection: executed and answered once. The same
+    command repeated by an operator is a new command."""
+    import time as _time
+
+    settings = ServiceSettings(rig_id="redeliver", matrices_dir=write_matrices(tmp_path / "m"))
+    service = RigService(settings, BrokerSettings("127.0.0.1"), engine_factory=lambda name, m: None,
+                         load_matrix=lambda p: None)
+    sent = []
+    service.link.send = lambda topic, payload, qos, retain=False: sent.append((topic, payload))
+    payload = b'{"cmd":"status","id":"a1"}'
+    service.link.connections, service.link.connected_at = 1, _time.monotonic()
+    service.handle_command(payload)
+    service.handle_command(payload)  # the operator repeats it
+    assert sum(t.endswith("/reply") for t, _ in sent) == 2
+    service.link.connections, service.link.connected_at = 2, _time.monotonic()  # reconnected
+    service.handle_command(payload)  # the broker's redelivery
+    assert sum(t.endswith("/reply") for t, _ in sent) == 2
+    service.link.connected_at -= 60  # long after the reconnection: a new command
+    service.handle_command(payload)
+    assert sum(t.endswith("/reply") for t, _ in sent) == 3
