@@ -110,6 +110,8 @@ def register(app: typer.Typer) -> None:
                                        supervision_timeout=supervision_timeout, client_id=client_id)
         except (ConfigError, ServiceError) as err:
             _fail(str(err))
+        if speedup is not None and not 0 < speedup <= 1e4:
+            _fail(f"--speedup {speedup:g}: a finite factor > 0 and at most 10000")
         if confirm not in ("remote", "auto"):
             _fail(f"--confirm: one of remote, auto, not {confirm!r}")
         if confirm == "auto" and not sim:

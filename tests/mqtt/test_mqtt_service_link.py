@@ -231,3 +231,10 @@ def test_cli_supervision_timeout_must_be_finite_and_positive(broker, value):
     done = _serve_cli("--broker", broker.url, "--supervision-timeout", value,
                       env={"ORBITRIG_MQTT_PASSWORD": "x", "ORBITRIG_MQTT_USERNAME": "orbitrig-service"})
     assert done.returncode == 2 and "supervision timeout must be a finite number" in done.stderr, done.stderr
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "0"])
+def test_cli_speedup_must_be_finite_and_positive(broker, value):
+    done = _serve_cli("--broker", broker.url, "--sim", "--speedup", value,
+                      env={"ORBITRIG_MQTT_PASSWORD": "x", "ORBITRIG_MQTT_USERNAME": "orbitrig-service"})
+    assert done.returncode == 2 and "--speedup" in done.stderr and "Traceback" not in done.stderr
