@@ -22,7 +22,8 @@ from collections.abc import Callable
 from typing import Any
 
 from orbitrig.service import protocol as proto
-from orbitrig.service.settings import AUTH_REFUSED, Backoff, BrokerSettings, ServiceError, ServiceSettings
+from daq.backoff import Backoff
+from orbitrig.service.settings import AUTH_REFUSED, BrokerSettings, ServiceError, ServiceSettings
 
 log = logging.getLogger("orbitrig.service.link")
 
@@ -120,7 +121,7 @@ class BrokerLink:
         while True:
             if await self._session():
                 backoff.reset()
-            delay = backoff.next()
+            delay = backoff.next_delay()
             log.info("reconnecting in %.2f s", delay)
             await asyncio.sleep(delay)
 

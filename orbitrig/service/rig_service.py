@@ -45,7 +45,7 @@ from orbitrig.errors import ConfigError, OrbitrigError
 from orbitrig.service import protocol as proto
 from orbitrig.service.link import BrokerLink
 from orbitrig.service.settings import (  # noqa: F401 - the service's public names
-    SUPERVISION_POLICIES, Backoff, BrokerSettings, ServiceError, ServiceSettings, SupervisionPolicy,
+    SUPERVISION_POLICIES, BrokerSettings, ServiceError, ServiceSettings, SupervisionPolicy,
     default_client_id,
 )
 

@@ -1,12 +1,10 @@
 """How the rig service connects and behaves: broker settings, service
-settings, the client id and the reconnection backoff."""
+settings and the client id."""
 
 from __future__ import annotations
 
 import dataclasses
 import math
-import random
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
 from urllib.parse import urlsplit
@@ -104,20 +102,3 @@ def default_client_id(rig_id: str, prefix: str | None = None) -> str:
     every reconnection, so the broker's session and queued commands are found."""
     where = (prefix or f"{proto.DEFAULT_PREFIX_ROOT}/{rig_id}").replace("/", "-")
     return f"{CLIENT_ID_PREFIX}orbitrig-serve-{where}"[:128]
-
-
-class Backoff:
-    """Jittered exponential backoff: attempt n waits a uniform random time in
-    ``[d/2, d]`` with ``d = min(maximum, initial * 2**n)`` (s)."""
-
-    def __init__(self, initial: float, maximum: float, *, rng: Callable[[], float] = random.random):
-        self.initial, self.maximum, self._rng = initial, maximum, rng
-        self.attempt = 0
-
-    def next(self) -> float:
-        d = min(self.maximum, self.initial * 2.0 ** self.attempt)
-        self.attempt += 1
-        return d * (0.5 + 0.5 * self._rng())
-
-    def reset(self) -> None:
-        self.attempt = 0

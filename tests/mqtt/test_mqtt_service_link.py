@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from mqtt_helpers import ACCOUNTS, Broker, RigClient, Watcher, retained
-from orbitrig.service.rig_service import Backoff, BrokerSettings, RigService, ServiceError, ServiceSettings
+from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceError, ServiceSettings
 
 
 def _no_engine(name, matrix):
@@ -47,15 +47,6 @@ async def running(service: RigService):
 
 async def wait(fn, *args, **kw):
     return await asyncio.to_thread(fn, *args, **kw)
-
-
-def test_backoff_is_jittered_exponential_and_capped():
-    lo = Backoff(0.2, 3.0, rng=lambda: 0.0)
-    assert [lo.next() for _ in range(6)] == pytest.approx([0.1, 0.2, 0.4, 0.8, 1.5, 1.5])
-    hi = Backoff(0.2, 3.0, rng=lambda: 1.0)
-    assert [hi.next() for _ in range(6)] == pytest.approx([0.2, 0.4, 0.8, 1.6, 3.0, 3.0])
-    hi.reset()
-    assert hi.next() == pytest.approx(0.2)
 
 
 @pytest.mark.parametrize("url, host, port, tls", [
