@@ -522,7 +522,7 @@ def check_matrix_against_rig(matrix: MatrixConfig, rig: RigConfig) -> None:
     """Problems a matrix has only on this rig (drive limits), all in one ConfigError."""
     problems = []
     d = rig.drives
-    text = getattr(matrix, "_text", "") or ""
+    text = matrix.text
     spin_at = _line_of(text, ("operating", "spin_rpm"))
     ratio_at = _line_of(text, ("orbit", "ratios")) or _line_of(text, ("orbit", "ratio_stop")) or _line_of(text, ("orbit",))
     at_spin = f"line {spin_at}: " if spin_at else ""

@@ -42,6 +42,7 @@ from pathlib import Path
 from typing import Any, Literal, Protocol
 
 from orbitrig.errors import ConfigError, OrbitrigError
+from orbitrig.run.engine import ProgressEvent, ResultEvent, RunOutcome, StatusEvent
 from orbitrig.service import protocol as proto
 from orbitrig.service.link import BrokerLink
 from orbitrig.service.settings import (  # noqa: F401 - the service's public names
@@ -62,7 +63,7 @@ class Engine(Protocol):
     run_id: str | None
     waiting_step: str | None
 
-    async def run(self, matrix: Any, *, resume: bool = False) -> Any: ...
+    async def run(self, matrix: Any, *, resume: bool = False) -> RunOutcome: ...
     def subscribe(self, callback: Callable[[Any], None]) -> None: ...
     def request_pause(self) -> None: ...
     def request_resume(self) -> None: ...
@@ -286,7 +287,7 @@ class RigService:
         engine = self._engine_factory(cmd.matrix, matrix)
         engine.subscribe(self._on_event)
         self._engine = engine
-        self._run_id = getattr(engine, "run_id", None)
+        self._run_id = engine.run_id
         assert self._tg is not None
         self._run_task = self._tg.create_task(self._run(engine, cmd.matrix, matrix), name=f"run-{cmd.matrix}")
         return None
@@ -311,7 +312,7 @@ class RigService:
     def _control(self, what: str, call: Callable[[Engine], None], allowed: tuple[str, ...] | None) -> str | None:
         if not self.run_active or self._engine is None:
             return f"no run is active: nothing to {what}"
-        state = getattr(self._engine, "state", self._state)
+        state = self._engine.state
         if allowed is not None and state not in allowed:
             return f"cannot {what} while the run is {state}"
         try:
@@ -327,11 +328,12 @@ class RigService:
         engine, task = self._engine, self._run_task
         if task is None or task.done() or engine is None:
             return
-        if what in ("stop", "abort") and getattr(engine, "state", None) == "idle":
+        if what in ("stop", "abort") and engine.state == "idle":
             task.cancel()  # the run task has not started yet: it never touches the drives
             return
+        requests = {"pause": engine.request_pause, "stop": engine.request_stop, "abort": engine.request_abort}
         try:
-            getattr(engine, f"request_{what}")()
+            requests[what]()
         except Exception:  # noqa: BLE001
             log.exception("executor refused %s", what)
             if what in ("stop", "abort"):
@@ -349,23 +351,23 @@ class RigService:
             if self._state != "faulted":
                 self._set_status("faulted", self._run_id, f"run of {name!r} failed: {err}")
             return
-        status = getattr(outcome, "status", outcome)
+        status = outcome.status
         log.info("run %s of matrix %r ended: %s", self._run_id, name, status)
         if self._state not in ("idle", "faulted"):
             self._set_status("idle", self._run_id, f"run {status}")
 
     # -- executor events --------------------------------------------------------
 
-    def _on_event(self, event: Any) -> None:
+    def _on_event(self, event: StatusEvent | ResultEvent | ProgressEvent) -> None:
         """Executor event -> MQTT message (thread-safe)."""
         if threading.get_ident() != self._thread and self._loop is not None:
             self._loop.call_soon_threadsafe(self._on_event, event)
             return
-        if hasattr(event, "state"):
+        if isinstance(event, StatusEvent):
             self._set_status(event.state, event.run_id, event.message or "", event.since)
-        elif hasattr(event, "payload"):
+        elif isinstance(event, ResultEvent):
             self._send(self.topics.result, proto.result_payload(event.run_id, event.payload), proto.QOS_RESULT)
-        elif hasattr(event, "point"):
+        elif isinstance(event, ProgressEvent):
             self._send(self.topics.progress, proto.progress_payload(
                 event.run_id, event.point, event.points, event.frequency, event.frequencies,
                 event.revolutions, event.eta_s), proto.QOS_PROGRESS)
