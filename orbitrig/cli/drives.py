@@ -37,7 +37,12 @@ def register(app: typer.Typer) -> None:
         help="Spindle drives over Modbus: status, run to a setpoint (and hold), stop.",
         no_args_is_help=True,
     )
+    for add in (_add_status, _add_run, _add_stop):
+        add(drives_app)
+    app.add_typer(drives_app, name="drives")
 
+
+def _add_status(drives_app: typer.Typer) -> None:
     @drives_app.command("status")
     def status(
         modbus: Optional[str] = typer.Option(None, "--modbus", help=_MODBUS_HELP),
@@ -56,6 +61,8 @@ def register(app: typer.Typer) -> None:
         url, d = opened
         raise typer.Exit(_run_async(lambda intr: _status(url, json_out, d), "status"))
 
+
+def _add_run(drives_app: typer.Typer) -> None:
     @drives_app.command("run")
     def run(
         spin: float = typer.Option(..., "--spin", help="Spin speed omega, rpm (>= 0)."),
@@ -104,31 +111,44 @@ def register(app: typer.Typer) -> None:
         (exit 0); if another client stops a drive or changes its reference
         meanwhile, it says which, ramps both to zero and exits 2.
         """
-        if not check_seconds("run", settle=(settle, True), timeout=(timeout, False),
-                             status_every=(status_every, False)):
-            raise typer.Exit(2)
-        opened = open_config("run", config, modbus, spin_id, orbit_id, required=True)
-        if opened is None:
-            raise typer.Exit(2)
-        url, d = opened
-        try:
-            limits = effective_limits(
-                d, max_spin=max_spin, max_orbit=max_orbit, min_ratio=min_ratio,
-                max_ratio=max_ratio, file=_config_name(config),
-            )
-        except ValueError as err:
-            typer.echo(f"orbitrig drives run refused (limit): {err}; nothing sent", err=True)
-            raise typer.Exit(2) from None
-        from drives.drive import RPM
+        _run_command(spin=spin, orbit=orbit, modbus=modbus, config=config, max_spin=max_spin,
+                     max_orbit=max_orbit, min_ratio=min_ratio, max_ratio=max_ratio, settle=settle,
+                     timeout=timeout, hold=hold, status_every=status_every, spin_id=spin_id,
+                     orbit_id=orbit_id)
 
-        raise typer.Exit(
-            _run_async(
-                lambda intr: _run(url, d, limits, spin * RPM, orbit * RPM, settle, timeout,
-                                  hold, status_every, intr),
-                "run",
-            )
+
+def _run_command(*, spin: float, orbit: float, modbus: str | None, config: Path | None,
+                 max_spin: float | None, max_orbit: float | None, min_ratio: float | None,
+                 max_ratio: float | None, settle: float, timeout: float, hold: bool,
+                 status_every: float, spin_id: int | None, orbit_id: int | None) -> None:
+    """`drives run` after typer: checks (exit 2, nothing sent), then the run."""
+    if not check_seconds("run", settle=(settle, True), timeout=(timeout, False),
+                         status_every=(status_every, False)):
+        raise typer.Exit(2)
+    opened = open_config("run", config, modbus, spin_id, orbit_id, required=True)
+    if opened is None:
+        raise typer.Exit(2)
+    url, d = opened
+    try:
+        limits = effective_limits(
+            d, max_spin=max_spin, max_orbit=max_orbit, min_ratio=min_ratio,
+            max_ratio=max_ratio, file=_config_name(config),
         )
+    except ValueError as err:
+        typer.echo(f"orbitrig drives run refused (limit): {err}; nothing sent", err=True)
+        raise typer.Exit(2) from None
+    from drives.drive import RPM
 
+    raise typer.Exit(
+        _run_async(
+            lambda intr: _run(url, d, limits, spin * RPM, orbit * RPM, settle, timeout,
+                              hold, status_every, intr),
+            "run",
+        )
+    )
+
+
+def _add_stop(drives_app: typer.Typer) -> None:
     @drives_app.command("stop")
     def stop(
         modbus: Optional[str] = typer.Option(None, "--modbus", help=_MODBUS_HELP),
@@ -150,8 +170,6 @@ def register(app: typer.Typer) -> None:
             raise typer.Exit(2)
         url, d = opened
         raise typer.Exit(_run_async(lambda intr: _stop(url, d, emergency, timeout), "stop"))
-
-    app.add_typer(drives_app, name="drives")
 
 
 def _config_name(config: Path | None) -> str:
