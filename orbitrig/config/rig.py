@@ -162,7 +162,7 @@ class RigConfig(_Model):
         if idx != list(range(len(idx))):
             problems.append(f"channel indices must be 0..{len(idx) - 1} each once, got {idx}")
         elif self.transports.adc_mode == "sequential" and 360 % len(idx):
-            # spec/adc-frames.md: in sequential mode slot s converts channel s mod C
+            # docs/protocols/adc-frames.md: in sequential mode slot s converts channel s mod C
             problems.append(f"in sequential mode the number of channels ({len(idx)}) must divide 360")
         for c in self.channels:
             want = "N" if c.name.startswith("f") else "m"

@@ -1,4 +1,4 @@
-"""The rig service's MQTT contract as pure code (no I/O).
+"""The MQTT contract of docs/protocols/mqtt.md as pure code (no I/O).
 
 Topic names under the prefix ``orbitrig/<rig_id>``, command parsing by
 pydantic models with precise reasons, and the payload builders for status,
@@ -27,11 +27,12 @@ from pydantic import (BaseModel, ConfigDict, Field, StringConstraints, TypeAdapt
 
 DEFAULT_PREFIX_ROOT = "orbitrig"
 
-#: States of ``<prefix>/status`` (spec/mqtt.md).
+#: States of ``<prefix>/status`` (docs/protocols/mqtt.md).
 STATES = ("idle", "running", "paused", "waiting", "stopping", "faulted", "offline")
 
-#: QoS and retain flag of each topic (spec/mqtt.md).
+#: QoS and retain flag of each topic (docs/protocols/mqtt.md).
 QOS_STATUS, QOS_PROGRESS, QOS_RESULT, QOS_REPLY, QOS_CMD = 1, 0, 1, 1, 1
+QOS_LIVE = 0  # <prefix>/live, built by orbitrig.service.live
 
 #: Largest command payload accepted (bytes); a command is a few dozen bytes.
 MAX_COMMAND_BYTES = 4096
@@ -60,6 +61,10 @@ class Topics:
     @property
     def result(self) -> str:
         return f"{self.prefix}/result"
+
+    @property
+    def live(self) -> str:
+        return f"{self.prefix}/live"
 
     @property
     def cmd(self) -> str:
@@ -128,7 +133,7 @@ def is_matrix_name(name: str) -> bool:
     return bool(_MATRIX_NAME.fullmatch(name)) and ".." not in name
 
 
-#: commands carried out even when their payload has wrong fields (spec/mqtt.md)
+#: commands carried out even when their payload has wrong fields (docs/protocols/mqtt.md)
 ALWAYS_ACCEPTED = frozenset({"stop", "abort"})
 
 CorrelationId = Annotated[str, StringConstraints(min_length=1, max_length=MAX_ID_CHARS)]
@@ -333,12 +338,13 @@ def dumps(obj: dict[str, Any]) -> bytes:
 
 def status_payload(state: str, run_id: str | None = None,
                    since: _dt.datetime | float | str | None = None,
-                   message: str | None = None) -> bytes:
-    """``{"state", "run_id", "since", "message"}`` for ``<prefix>/status``."""
+                   message: str | None = None, extra: dict[str, Any] | None = None) -> bytes:
+    """``{"state", "run_id", "since", "message"}`` for ``<prefix>/status``, plus ``extra``
+    (while ``waiting``: ``step`` and ``settings``, see orbitrig.service.live)."""
     if state not in STATES:
         raise ValueError(f"unknown state {state!r} (one of {', '.join(STATES)})")
     return dumps({"state": state, "run_id": run_id, "since": iso8601(since),
-                  "message": "" if message is None else str(message)})
+                  "message": "" if message is None else str(message), **(extra or {})})
 
 
 def progress_payload(run_id: str | None, point: int, points: int, frequency: int,
