@@ -11,10 +11,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
-
-import h5py
-
 from orbitrig.store.layout import coefficient_si_unit
 
 CSV_HEAD = [
@@ -54,37 +50,32 @@ def _num(v, fmt: str) -> str:
     return "" if v is None else format(float(v), fmt)
 
 
-def point_rows(settings: dict, results: h5py.Group, sim: bool) -> list[dict]:
-    """The rows of one complete point: `settings` (point.json), `results` the results group."""
+def point_rows(point, sim: bool) -> list[dict]:
+    """The rows of one complete point (an orbitrig.store.reader.Point)."""
+    st = point.settings
     base = {
-        "point": int(settings["index"]), "label": str(settings["label"]),
-        "spin_rpm": f"{float(settings['spin_rpm']):.6g}",
-        "recess_pressure_mpa": f"{float(settings['recess_pressure']) / 1e6:.6g}",
-        "pressure_ratio": f"{float(settings['pressure_ratio']):.6g}",
-        "static_eccentricity": f"{float(settings['static_eccentricity']):.6g}",
-        "dynamic_eccentricity": f"{float(settings['dynamic_eccentricity']):.6g}",
+        "point": point.index, "label": st.label, "spin_rpm": f"{st.spin_rpm:.6g}",
+        "recess_pressure_mpa": f"{st.recess_pressure / 1e6:.6g}", "pressure_ratio": f"{st.pressure_ratio:.6g}",
+        "static_eccentricity": f"{st.static_eccentricity:.6g}", "dynamic_eccentricity": f"{st.dynamic_eccentricity:.6g}",
     }  # fmt: skip
-    truth = json.loads(results["truth"].attrs["json"]) if sim and "truth" in results else None
+    truth = point.truth if sim else None
     rows = []
-    for name, h in results["identification"].items():
-        row = dict(base, lms=name.split("__")[0], model=str(h.attrs["model"]))
-        keys = []
-        if "json" in h.attrs:
-            d = json.loads(h.attrs["json"])
+    for ident in point.identifications:
+        row = dict(base, lms=ident.lms, model=ident.model, _keys=[])
+        d = ident.result
+        if d is not None:
             row.update({"freq_dep": d["freq_dep"], "method": d["method"], "n_frequencies": d["n_frequencies"],
                         "condition_number": _num(d["condition_number"], ".6g"),
                         "residual_rms [N]": _num(d["residual_rms"], ".6g"), "error": ""})  # fmt: skip
             for k, v in d["coefficients"].items():
                 row[coefficient_column(k)] = _num(v, ".8g")
                 row[coefficient_column(k, "std")] = _num((d.get("std_errors") or {}).get(k), ".6g")
-            keys = [k for k in d["coefficients"] if "_" not in k]
+            row["_keys"] = list(d["coefficients"])
         else:
-            row.update(freq_dep=str(h.attrs["freq_dep"]), method=str(h.attrs.get("method", "")),
-                       error=one_line(h.attrs["error"]))  # fmt: skip
+            row.update(freq_dep=ident.freq_dep, method=ident.method, error=one_line(ident.error or ""))
         if truth is not None:
-            for k in keys:
+            for k in (k for k in row["_keys"] if "_" not in k):
                 row[coefficient_column(k, "true")] = f"{true_entry(truth, k):.8g}"
-        row["_keys"] = list(d["coefficients"]) if "json" in h.attrs else []
         rows.append(row)
     return rows
 

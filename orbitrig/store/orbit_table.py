@@ -143,17 +143,33 @@ def read_orbit_table(path: str | Path) -> OrbitTable:
         raise TableError(str(path), None, None, str(err)) from err
 
 
+U_COLUMNS_CSV = ("u_x", "u_y", "u_fx", "u_fy")
+
+
+def orbit_table_columns(table: OrbitTable) -> dict[str, tuple[np.ndarray, str]]:
+    """The orbit-table columns of ``table`` in order: name -> (values, unit), the optional
+    ones (gamma2_*, n_records, u_*) only when the table has them. Units as in the CSV."""
+    # n_records and u are OrbitTable's optional v2 fields (absent from older tables)
+    n_records, u = getattr(table, "n_records", None), getattr(table, "u", None)
+    cols = {"spin_rpm": (np.full(table.n, table.spin / RPM), "rpm"), "orbit_hz": (table.orbit / (2 * math.pi), "Hz")}
+    for name, unit in (("x", "m"), ("y", "m"), ("fx", "N"), ("fy", "N")):
+        z = np.asarray(getattr(table, name))
+        cols[f"{name}_re"], cols[f"{name}_im"] = (z.real, unit), (z.imag, unit)
+    if table.gamma2 is not None:
+        cols.update({g: (np.asarray(table.gamma2)[:, j], "1") for j, g in enumerate(GAMMA2)})
+    if n_records is not None:
+        cols["n_records"] = (np.asarray(n_records, dtype=np.int64), "1")
+    if u is not None:
+        cols.update({c: (np.asarray(u)[:, j], unit) for j, (c, unit) in enumerate(zip(U_COLUMNS_CSV, "mmNN"))})
+    return cols
+
+
 def write_orbit_table(path: str | Path, table: OrbitTable) -> None:
-    """Write ``table`` as an orbit table CSV (full float precision; gamma2 when present)."""
-    header = list(REQUIRED) + (list(GAMMA2) if table.gamma2 is not None else [])
-    spin_rpm = table.spin / RPM
+    """Write ``table`` as an orbit table CSV (full float precision), with the optional
+    columns the table has: gamma2_*, n_records, u_x, u_y, u_fx, u_fy (orbit-table v2)."""
+    cols = orbit_table_columns(table)
     with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
-        w.writerow(header)
+        w.writerow(list(cols))
         for k in range(table.n):
-            row = [spin_rpm, table.orbit[k] / (2 * math.pi)]
-            for z in (table.x[k], table.y[k], table.fx[k], table.fy[k]):
-                row += [z.real, z.imag]
-            if table.gamma2 is not None:
-                row += list(table.gamma2[k])
-            w.writerow([repr(float(v)) for v in row])
+            w.writerow([str(int(v[k])) if name == "n_records" else repr(float(v[k])) for name, (v, _) in cols.items()])

@@ -224,27 +224,40 @@ def _read_pieces(layout: RunLayout) -> Run:
         torn=journal.torn,
     )  # fmt: skip
     for index in layout.point_indexes():
-        state = point_state(layout, index)
         try:
-            settings = json.loads(layout.point_file(index).read_bytes())
-            point = _new_point({**settings, "complete": state.complete}, f"{index:04d}")
-        except (OSError, ValueError, KeyError, TypeError, RecursionError) as err:
-            run.unreadable.append(f"{layout.point_file(index)}: {err}")
+            point = read_point(layout, index, complete=point_state(layout, index).complete, skipped=run.unreadable)
+        except RunDirError as err:
+            if err.file != str(layout.point_file(index)):
+                raise
+            run.unreadable.append(str(err))
             continue
-        for tag in layout.block_tags(index):
-            try:
-                with _open(layout.block_file(index, tag)) as fg:
-                    point.frequencies.append(_frequency(tag, fg))
-            except (RunDirError, OSError, KeyError, ValueError) as err:
-                run.unreadable.append(f"{layout.block_file(index, tag)}: {err}")
-        if state.complete:
-            try:
-                with _open(layout.results_file(index)) as rg:
-                    _read_results(rg, point)
-            except (RunDirError, OSError, KeyError, ValueError, TypeError) as err:
-                raise RunDirError(layout.results_file(index), f"malformed results of a complete point: {err}") from err
         run.points.append(point)
     return run
+
+
+def read_point(layout: RunLayout, index: int, *, complete: bool, skipped: list[str] | None = None) -> Point:
+    """One point of a run in pieces: settings, its readable blocks (the others are named
+    in `skipped`) and, when `complete`, its results. Raises RunDirError."""
+    path = layout.point_file(index)
+    try:
+        settings = json.loads(path.read_bytes())
+        point = _new_point({**settings, "complete": complete}, f"{index:04d}")
+    except (OSError, ValueError, KeyError, TypeError, RecursionError) as err:
+        raise RunDirError(path, f"unreadable point settings ({type(err).__name__}: {err})") from err
+    for tag in layout.block_tags(index):
+        try:
+            with _open(layout.block_file(index, tag)) as fg:
+                point.frequencies.append(_frequency(tag, fg))
+        except (RunDirError, OSError, KeyError, ValueError) as err:
+            if skipped is not None:
+                skipped.append(f"{layout.block_file(index, tag)}: {err}")
+    if complete:
+        try:
+            with _open(layout.results_file(index)) as rg:
+                _read_results(rg, point)
+        except (RunDirError, OSError, KeyError, ValueError, TypeError) as err:
+            raise RunDirError(layout.results_file(index), f"malformed results of a complete point: {err}") from err
+    return point
 
 
 def _new_point(a, name: str) -> Point:

@@ -30,6 +30,7 @@ from orbitrig.store.errors import StorageError, StorageFullError, storage_error 
 from orbitrig.store.index import commit_record, point_state, scan
 from orbitrig.store.journal import now_iso  # noqa: F401  (the engine's timestamps)
 from orbitrig.store.layout import FORMAT, RunLayout, point_name
+from orbitrig.store.reader import RunDirError, read_point
 from orbitrig.store.records import BlockRecord, LogBuffer, PointResults  # noqa: F401
 
 log = logging.getLogger(__name__)
@@ -219,24 +220,21 @@ class RunStore:
         return [st.index for st in scan(self.layout) if st.complete]
 
     def csv_rows(self) -> list[dict]:
-        import h5py
-
+        """The rows of coefficients.csv (each complete point read once, then remembered)."""
         sim = bool(self._header.get("sim", False))
         rows = []
         for i in self.completed_points():
             if i not in self._csv_rows:
-                settings = json.loads(self.layout.point_file(i).read_bytes())
-                with h5py.File(self.layout.results_file(i), "r") as res:
-                    self._csv_rows[i] = csvfile.point_rows(settings, res, sim)
+                try:
+                    point = read_point(self.layout, i, complete=True)
+                except RunDirError as err:
+                    raise StorageError(err.file, f"cannot read the stored results: {err.reason}") from err
+                self._csv_rows[i] = csvfile.point_rows(point, sim)
             rows += self._csv_rows[i]
         return rows
 
     def write_csv(self) -> None:
-        try:
-            rows = self.csv_rows()
-        except OSError as err:
-            raise StorageError(self.layout.points, f"cannot read the stored results: {err}") from err
-        write_atomic(self.csv_path, csvfile.render(rows))
+        write_atomic(self.csv_path, csvfile.render(self.csv_rows()))
 
 
 def _channels(rig_text: str) -> tuple[list[str], list[str]]:

@@ -9,6 +9,8 @@ import time
 import h5py
 import pytest
 
+from orbitrig.store.reader import read_run
+
 from sweep_helpers import ROOT, orbitrig_cmd
 
 MATRIX = """
@@ -47,17 +49,18 @@ def test_kill_9_mid_run_then_resume(tmp_path):
     finally:
         if proc.poll() is None:
             proc.kill()
-    with h5py.File(out / "run.h5", "r") as f:
-        assert f.attrs["status"] == "running"  # cut off: never marked as ended
-        assert f["points/0000"].attrs["complete"]
-        assert not f["points/0001"].attrs["complete"]
+    assert not (out / "run.h5").exists()  # consolidated only when a run ends
+    cut = read_run(out)  # the durable pieces
+    assert cut.status == "running"  # cut off: never marked as ended
+    assert [(p.name, p.complete) for p in cut.points] == [("0000", True), ("0001", False)]
     assert [r["point"] for r in csv.DictReader(open(out / "coefficients.csv"))] == ["0", "0"]
 
     p = subprocess.run(orbitrig_cmd("sweep", "--sim", "--resume", str(out)), cwd=ROOT,
                        capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stdout + p.stderr
     text = log.read_text()
-    assert "resume: removed incomplete point(s) 0001" in text
+    assert "resume: point 0001 set aside as aside/0001.incomplete.1" in text
+    assert "point 0001 set aside as" in p.stderr  # and on the terminal
     assert "3 of 4 points to run" in text
     with h5py.File(out / "run.h5", "r") as f:
         assert f.attrs["status"] == "completed"
