@@ -8,7 +8,6 @@ ORBITRIG_KILL_POINTS=all runs the long list of write points (about 30 runs).
 from __future__ import annotations
 
 import os
-import shutil
 import signal
 import subprocess
 
@@ -56,7 +55,6 @@ def _killed_sweep(tmp_path, calls: str, k: int):
     return out
 
 
-@pytest.mark.skipif(shutil.which("strace") is None, reason="needs strace (installed by .ci/run)")
 @pytest.mark.timeout(240)
 @pytest.mark.parametrize("calls, k", CASES)
 def test_kill_at_a_write_then_resume_stores_every_point_once(tmp_path, calls, k):
