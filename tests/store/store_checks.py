@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import errno
 import json
 import sys
 from pathlib import Path
 
 import h5py
+import pytest
 
 from orbitrig.store.index import scan
 from orbitrig.store.layout import RunLayout
@@ -57,3 +60,22 @@ def check_whole(run_dir: Path, points: list[int], blocks_per_point: int) -> None
     with h5py.File(layout.run_file, "r") as f:
         assert sorted(int(n) for n in f["points"]) == points
         assert all(bool(g.attrs["complete"]) for g in f["points"].values())
+
+
+def fill(mnt: Path) -> Path:
+    """Write zeros into mnt/filler until the file system is full."""
+    path = mnt / "filler"
+    chunk = b"\0" * 65536
+    with open(path, "wb", buffering=0) as fh:
+        with contextlib.suppress(OSError):
+            while True:
+                fh.write(chunk)
+        with contextlib.suppress(OSError):
+            while True:
+                fh.write(b"\0" * 512)
+    probe = mnt / "probe"
+    with pytest.raises(OSError) as err:
+        probe.write_bytes(b"\0" * 8192)
+    assert err.value.errno == errno.ENOSPC
+    probe.unlink(missing_ok=True)
+    return path

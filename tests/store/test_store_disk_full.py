@@ -5,12 +5,7 @@ non-zero without a signal, the completed points stay readable and the run resume
 from __future__ import annotations
 
 import asyncio
-import contextlib
-import errno
-import os
 import subprocess
-import sys
-import threading
 import time
 from pathlib import Path
 
@@ -21,7 +16,7 @@ from orbitrig.run.engine import RunEngine, StatusEvent
 from orbitrig.store.reader import read_run
 from sim.rig import SimRig
 
-from store_checks import ROOT, check_whole, orbitrig_cmd
+from store_checks import ROOT, check_whole, fill, orbitrig_cmd
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -39,37 +34,6 @@ ratios = [0.3, 0.6, 0.9]
 [[models]]
 model = "kc8"
 """
-
-
-@pytest.fixture
-def tiny_disk(tmp_path):
-    """A 6 MB tmpfs (enough for the run, until `fill` eats the rest); unmounted afterwards."""
-    mnt = tmp_path / "disk"
-    mnt.mkdir()
-    subprocess.run(["mount", "-t", "tmpfs", "-o", "size=6m", "tmpfs", str(mnt)], check=True)
-    try:
-        yield mnt
-    finally:
-        subprocess.run(["umount", "-l", str(mnt)], check=False)
-
-
-def fill(mnt: Path) -> Path:
-    """Write zeros into mnt/filler until the file system is full."""
-    path = mnt / "filler"
-    chunk = b"\0" * 65536
-    with open(path, "wb", buffering=0) as fh:
-        with contextlib.suppress(OSError):
-            while True:
-                fh.write(chunk)
-        with contextlib.suppress(OSError):
-            while True:
-                fh.write(b"\0" * 512)
-    probe = mnt / "probe"
-    with pytest.raises(OSError) as err:
-        probe.write_bytes(b"\0" * 8192)
-    assert err.value.errno == errno.ENOSPC
-    probe.unlink(missing_ok=True)
-    return path
 
 
 def _point_committed(run: Path, index: int) -> bool:
