@@ -51,8 +51,9 @@ def _write_all(fd: int, data: bytes | memoryview) -> None:
         view = view[n:]
 
 
-def write_atomic(path: Path, data: bytes | memoryview) -> None:
-    """Write `data` to `path` as one durable step (temp name, fsync, rename, fsync dir).
+def write_atomic(path: Path, data: bytes | memoryview) -> dict:
+    """Write `data` to `path` as one durable step (temp name, fsync, rename, fsync dir);
+    return {"size": bytes, "sha256": hex digest} of what was written.
 
     On any failure the temporary file is removed and a StorageError is raised; the
     previous content of `path` (if any) is untouched."""
@@ -74,6 +75,7 @@ def write_atomic(path: Path, data: bytes | memoryview) -> None:
             os.unlink(tmp)
         raise storage_error(path, "write", err) from err
     fsync_dir(path.parent)
+    return {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
 
 
 def append_lines(path: Path, lines: list[str]) -> None:

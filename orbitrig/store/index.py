@@ -22,14 +22,18 @@ class PointState:
     problem: str = ""  # why it is not complete ("" when complete)
 
 
-def commit_record(layout: RunLayout, index: int) -> dict:
-    """The content of a new commit record: every file of the point with its size and digest."""
+def commit_record(layout: RunLayout, index: int, known: dict | None = None) -> dict:
+    """The content of a new commit record: every file of the point with its size and digest
+    (`known`: name -> {"size", "sha256"} of files this process wrote; the others are read)."""
     d = layout.point_dir(index)
     files = {}
     for p in sorted(d.iterdir()):
         if p.is_file() and p.name != COMMIT_FILE and not p.name.endswith(".tmp"):
-            size, sha = digest(p)
-            files[p.name] = {"size": size, "sha256": sha}
+            entry = (known or {}).get(p.name)
+            if entry is None or entry["size"] != p.stat().st_size:
+                size, sha = digest(p)
+                entry = {"size": size, "sha256": sha}
+            files[p.name] = entry
     return {"point": index, "files": files}
 
 

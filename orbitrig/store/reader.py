@@ -235,16 +235,18 @@ def _read_pieces(layout: RunLayout) -> Run:
     return run
 
 
-def read_point(layout: RunLayout, index: int, *, complete: bool, skipped: list[str] | None = None) -> Point:
-    """One point of a run in pieces: settings, its readable blocks (the others are named
-    in `skipped`) and, when `complete`, its results. Raises RunDirError."""
+def read_point(layout: RunLayout, index: int, *, complete: bool, skipped: list[str] | None = None,
+               blocks: bool = True) -> Point:
+    """One point of a run in pieces: settings, its readable blocks (unless blocks=False;
+    the unreadable ones are named in `skipped`) and, when `complete`, its results.
+    Raises RunDirError."""
     path = layout.point_file(index)
     try:
         settings = json.loads(path.read_bytes())
         point = _new_point({**settings, "complete": complete}, f"{index:04d}")
     except (OSError, ValueError, KeyError, TypeError, RecursionError) as err:
         raise RunDirError(path, f"unreadable point settings ({type(err).__name__}: {err})") from err
-    for tag in layout.block_tags(index):
+    for tag in layout.block_tags(index) if blocks else ():
         try:
             with _open(layout.block_file(index, tag)) as fg:
                 point.frequencies.append(_frequency(tag, fg))

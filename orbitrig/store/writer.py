@@ -50,6 +50,7 @@ class RunStore:
         self.set_aside: list[str] = []  # what prepare_resume set aside, one message each
         self._header: dict = {}
         self._csv_rows: dict[int, list[dict]] = {}
+        self._written: dict[int, dict[str, dict]] = {}  # point -> file name -> size, digest
         self._log_failed = False
 
     # ---------------------------------------------------------- life cycle
@@ -140,23 +141,26 @@ class RunStore:
         except OSError as err:
             raise storage_error(d, "create the point directory", err) from err
         fsync_dir(self.layout.points)
-        write_atomic(self.layout.point_file(i), json.dumps(pieces.point_settings(point), indent=1).encode())
+        path = self.layout.point_file(i)
+        self._written[i] = {path.name: write_atomic(path, json.dumps(pieces.point_settings(point), indent=1).encode())}
         self._journal([journal.line("point", point=i, action="begin")])
 
     def write_block(self, point: int, rec: BlockRecord) -> None:
         channels, units = self._header.get("channels", []), self._header.get("channel_units", [])
         data = h5_image(lambda f: pieces.write_block(f, rec, channels, units))
-        write_atomic(self.layout.block_file(point, rec.block.tag), data)
+        path = self.layout.block_file(point, rec.block.tag)
+        self._written.setdefault(point, {})[path.name] = write_atomic(path, data)
         self._journal([journal.line("block", point=point, tag=rec.block.tag, bytes=len(data))])
 
     def write_results(self, point: int, res: PointResults) -> None:
         data = h5_image(lambda f: pieces.write_results(f, res))
-        write_atomic(self.layout.results_file(point), data)
+        path = self.layout.results_file(point)
+        self._written.setdefault(point, {})[path.name] = write_atomic(path, data)
         self._journal([])
 
     def complete_point(self, point: int) -> None:
         """Commit the point: its commit record names every file with size and digest."""
-        rec = commit_record(self.layout, point)
+        rec = commit_record(self.layout, point, self._written.pop(point, None))
         write_atomic(self.layout.commit_file(point), json.dumps(rec, indent=1).encode())
         self._journal([journal.line("point", point=point, action="complete")])
         self.write_csv()
@@ -226,7 +230,7 @@ class RunStore:
         for i in self.completed_points():
             if i not in self._csv_rows:
                 try:
-                    point = read_point(self.layout, i, complete=True)
+                    point = read_point(self.layout, i, complete=True, blocks=False)
                 except RunDirError as err:
                     raise StorageError(err.file, f"cannot read the stored results: {err.reason}") from err
                 self._csv_rows[i] = csvfile.point_rows(point, sim)

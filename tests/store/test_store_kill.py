@@ -62,7 +62,7 @@ def test_kill_at_a_write_then_resume_stores_every_point_once(tmp_path, calls, k)
     runner = CliRunner()
     if (out / "run.json").exists():
         cut = read_run(out)  # whatever resume can read, the readers read
-        assert cut.status == "running"
+        assert cut.status in ("running", "completed")  # completed: killed while consolidating run.h5
         assert runner.invoke(app, ["export", str(out), "--format", "h5", "--out", str(tmp_path / "cut")]).exit_code == 0
         p = subprocess.run(orbitrig_cmd("sweep", "--sim", "--resume", str(out)), cwd=ROOT, capture_output=True,
                            text=True, timeout=120)  # fmt: skip
