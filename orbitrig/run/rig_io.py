@@ -11,7 +11,6 @@ calls are `set_manual` (the operator's hands) and `truth`.
 from __future__ import annotations
 
 import contextlib
-import logging
 from dataclasses import dataclass
 from typing import Callable
 
@@ -19,12 +18,10 @@ import numpy as np
 
 from orbitrig.config import RigConfig
 
-log = logging.getLogger(__name__)
-
 
 @dataclass
 class Acquisition:
-    """An averaged block plus the raw counts of exactly the revolutions in it."""
+    """An averaged block (it carries the raw counts of exactly the revolutions in it)."""
 
     block: object  # daq.averager.AveragedBlock
     raw_counts: np.ndarray  # int16 (N, C, S)
@@ -47,7 +44,6 @@ class RigIO:
         self.sim = sim
         self.speedup = sim_speedup(sim)
         self._on_revolution = on_revolution
-        self._recording: dict[int, object] | None = None
         self._stack = contextlib.AsyncExitStack()
         self.drives = None
         self.adc = None
@@ -92,28 +88,14 @@ class RigIO:
 
     # ---------------------------------------------------------------- A/D
     def _revolution(self, rev) -> None:
-        if self._recording is not None:
-            self._recording[int(rev.rev)] = rev
         if self._on_revolution is not None:
             self._on_revolution(rev)
 
-    async def acquire(self, n_revolutions: int, *, timeout: float) -> Acquisition:
-        """Average `n_revolutions` good revolutions; keep their raw counts."""
-        self._recording = {}
-        try:
-            block = await self.adc.acquire(n_revolutions, timeout=timeout)
-        finally:
-            recorded, self._recording = self._recording, None
-        revs = [recorded.get(int(r)) for r in getattr(block, "revs", [])]
-        if revs and all(r is not None for r in revs):
-            raw = np.stack([np.asarray(r.counts, dtype=np.int16) for r in revs])
-            slots = np.asarray(revs[0].slots)
-        else:  # the reader did not report the revolution numbers: keep the last n seen
-            kept = list(recorded.values())[-n_revolutions:]
-            log.warning("raw revolutions matched by position, not by number (%d kept)", len(kept))
-            raw = np.stack([np.asarray(r.counts, dtype=np.int16) for r in kept]) if kept else np.zeros((0, 0, 0), np.int16)
-            slots = np.asarray(kept[0].slots) if kept else np.rint(np.asarray(block.theta) * 180 / np.pi)
-        return Acquisition(block, raw, slots)
+    async def acquire(self, n_revolutions, *, timeout: float) -> Acquisition:
+        """Average good revolutions (`n_revolutions`: a count, or a daq.averager.AveragingRule);
+        the block carries their raw counts."""
+        block = await self.adc.acquire(n_revolutions, timeout=timeout)
+        return Acquisition(block, block.raw_counts, block.slots)
 
     # ---------------------------------------------------------- sim only
     def set_manual(self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float,
