@@ -5,8 +5,9 @@ with the sweep's own RunStore and prints
 
 - per block: building the HDF5 file in memory + write + fsync + rename + fsync of the
   directory + the journal append (median, 95th percentile, max),
-- per point: results file and commit record (digests of every file) + coefficients.csv,
-- the consolidation of run.h5 at the end, and the file sizes,
+- per point: results file, commit record, coefficients.csv and the copy of the point into
+  the run.h5 built in memory,
+- what is left for the end of the run (status, logs, writing run.h5), and the file sizes,
 - the byte estimate of orbitrig.store.estimate against what was written.
 
     python3 bench/bench_store.py [--points 6] [--blocks 20] [--revolutions 50] [--dir DIR]
@@ -109,9 +110,9 @@ def main() -> None:
     block_size = (out / "points/0000" / f"{operating_points(matrix, rig)[0].blocks[0].tag}.h5").stat().st_size
     print(f"run in {out}: {args.points} points x {args.blocks} blocks of {args.revolutions} revolutions")
     print(f"block write + fsync + rename (+ journal): {_ms(per_block)}   ({block_size / 1e3:.1f} kB each)")
-    print(f"point results + commit record + CSV:     {_ms(per_point)}")
+    print(f"point results + commit + CSV + run.h5 copy: {_ms(per_point)}")
     print(f"  (identification of the point, for scale: {_ms(per_identify)})")
-    print(f"run.h5 consolidation: {consolidate:.3f} s for {size / 1e6:.2f} MB "
+    print(f"run.h5 at the end (status, logs, write): {consolidate:.3f} s for {size / 1e6:.2f} MB "
           f"({consolidate / max(1, args.points):.3f} s per point); pieces {pieces / 1e6:.2f} MB")
     est = plan_bytes(rig, expand(matrix, rig))
     print(f"estimate (plan_bytes) {est / 1e6:.2f} MB for {(pieces + size) / 1e6:.2f} MB written")

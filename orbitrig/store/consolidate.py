@@ -3,23 +3,27 @@
 The file is built in memory and written with `durable.write_atomic` (temporary name,
 fsync, rename): a reader finds the previous run.h5 or the new one, never a torn file,
 and a full disk is an ordinary StorageFullError. Built at the end of a run
-(`RunStore.finalize`) and by `orbitrig export --format h5`.
+(`RunStore.finalize`) and by `orbitrig export --format h5`. During a run, `RunImage`
+copies each point into the file in memory as soon as it is committed, so the end of
+the run only adds the status and the logs.
 """
 
 from __future__ import annotations
 
 import json
+import logging
 
 import h5py
 import numpy as np
 
-from orbitrig.store.durable import h5_image
+from orbitrig.store.durable import h5_image, memory_h5
 from orbitrig.store.errors import StorageError
 from orbitrig.store.index import scan
 from orbitrig.store.journal import CAN_DTYPE, CAN_UNITS, DRIVE_DTYPE, DRIVE_UNITS, Journal, read_journal
 from orbitrig.store.layout import FORMAT, POINT_ATTR_UNITS, RunLayout, point_name
 from orbitrig.store.pieces import STR, put, strings
 
+log = logging.getLogger(__name__)
 EVENT_DTYPE = np.dtype([("t", "f8"), ("state", STR), ("message", STR)])
 
 
@@ -41,10 +45,51 @@ def run_image(layout: RunLayout) -> bytes:
     header = read_header(layout)
     journal = read_journal(layout.journal)
     states = scan(layout)
-    return h5_image(lambda f: _build(f, layout, header, journal, states))
+    return h5_image(lambda f: _build(f, layout, header, journal, states, set()))
 
 
-def _build(f: h5py.File, layout: RunLayout, header: dict, journal: Journal, states) -> None:
+class RunImage:
+    """run.h5 under construction in memory; `add_point` copies a committed point in."""
+
+    def __init__(self, layout: RunLayout):
+        self.layout = layout
+        self._f: h5py.File | None = None
+        self._done: set[int] = set()
+
+    def add_point(self, index: int) -> None:
+        """Copy committed point `index`; on any failure the image is dropped (`image` then
+        consolidates from the disk), because the point itself is safe in its pieces."""
+        try:
+            if self._f is None:
+                self._f = memory_h5()
+                self._f.create_group("points")
+            if _add_point(self._f["points"], self.layout, index, True):
+                self._done.add(index)
+        except (StorageError, OSError, ValueError, KeyError) as err:
+            log.warning("run.h5 will be consolidated at the end (cannot copy point %04d now: %s)", index, err)
+            self.close()
+
+    def image(self) -> bytes:
+        """The bytes of run.h5 (the points not copied yet are copied now); closes the image."""
+        if self._f is None:
+            return run_image(self.layout)
+        try:
+            header, journal, states = read_header(self.layout), read_journal(self.layout.journal), scan(self.layout)
+            if any(i not in {st.index for st in states if st.complete} for i in self._done):
+                return run_image(self.layout)  # a copied point is no longer complete: start over
+            _build(self._f, self.layout, header, journal, states, self._done)
+            self._f.flush()
+            return self._f.id.get_file_image()
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        if self._f is not None:
+            self._f.close()
+        self._f, self._done = None, set()
+
+
+def _build(f: h5py.File, layout: RunLayout, header: dict, journal: Journal, states, done: set[int]) -> None:
     a = f.attrs
     a["format"] = FORMAT
     for k in ("software_version", "created", "rig_config", "matrix_config", "matrix_name"):
@@ -53,21 +98,28 @@ def _build(f: h5py.File, layout: RunLayout, header: dict, journal: Journal, stat
     a["status"], a["status_message"] = journal.status, journal.status_message
     f.create_dataset("channels", data=strings(header.get("channels", [])))
     f.create_dataset("channel_units", data=strings(header.get("channel_units", [])))
-    pts = f.create_group("points")
+    pts = f.require_group("points")
     for st in states:
-        settings = _settings(layout, st.index)
-        if settings is None:
-            continue  # a point directory without readable settings: nothing to show
-        g = pts.create_group(point_name(st.index))
-        g.attrs.update(settings)
-        g.attrs["complete"] = st.complete
-        g.attrs["units_of_attributes"] = POINT_ATTR_UNITS
-        freqs = g.create_group("frequencies")
-        for tag in layout.block_tags(st.index):
-            _copy_root(layout.block_file(st.index, tag), freqs, tag)
-        if st.complete:
-            _copy_root(layout.results_file(st.index), g, None)
+        if st.index not in done:
+            _add_point(pts, layout, st.index, st.complete)
     _write_logs(f.create_group("logs"), journal)
+
+
+def _add_point(pts: h5py.Group, layout: RunLayout, index: int, complete: bool) -> bool:
+    """Copy one point's pieces into /points/PPPP; False when its settings are unreadable."""
+    settings = _settings(layout, index)
+    if settings is None:
+        return False  # a point directory without readable settings: nothing to show
+    g = pts.create_group(point_name(index))
+    g.attrs.update(settings)
+    g.attrs["complete"] = complete
+    g.attrs["units_of_attributes"] = POINT_ATTR_UNITS
+    freqs = g.create_group("frequencies")
+    for tag in layout.block_tags(index):
+        _copy_root(layout.block_file(index, tag), freqs, tag)
+    if complete:
+        _copy_root(layout.results_file(index), g, None)
+    return True
 
 
 def _settings(layout: RunLayout, index: int) -> dict | None:

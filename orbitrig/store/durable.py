@@ -145,16 +145,21 @@ def digest(path: Path) -> tuple[int, str]:
     return size, h.hexdigest()
 
 
-def h5_image(build: Callable) -> bytes:
-    """The bytes of an HDF5 file built in memory by ``build(h5py.File)``."""
+def memory_h5():
+    """A new HDF5 file that lives in memory only (the core driver without a backing store)."""
     import h5py
 
     with _name_lock:
         name = f"orbitrig-mem-{os.getpid()}-{next(_names)}.h5"
     try:
-        f = h5py.File(name, "w", driver="core", backing_store=False)
+        return h5py.File(name, "w", driver="core", backing_store=False)
     except (OSError, ValueError) as err:
         raise StorageError(name, f"cannot build an HDF5 file in memory: {err}") from err
+
+
+def h5_image(build: Callable) -> bytes:
+    """The bytes of an HDF5 file built in memory by ``build(h5py.File)``."""
+    f = memory_h5()
     try:
         build(f)
         f.flush()

@@ -23,7 +23,7 @@ from pathlib import Path
 from orbitrig import __version__
 from orbitrig.run.plan import OperatingPoint
 from orbitrig.store import csvfile, journal, pieces
-from orbitrig.store.consolidate import read_header, run_image
+from orbitrig.store.consolidate import RunImage, read_header
 from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F401  (the CSV's public names)
 from orbitrig.store.durable import TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
 from orbitrig.store.errors import StorageError, StorageFullError, storage_error  # noqa: F401
@@ -51,6 +51,7 @@ class RunStore:
         self._header: dict = {}
         self._csv_rows: dict[int, list[dict]] = {}
         self._written: dict[int, dict[str, dict]] = {}  # point -> file name -> size, digest
+        self._image = RunImage(self.layout)  # run.h5 in memory, filled as points commit
         self._log_failed = False
 
     # ---------------------------------------------------------- life cycle
@@ -163,6 +164,7 @@ class RunStore:
         rec = commit_record(self.layout, point, self._written.pop(point, None))
         write_atomic(self.layout.commit_file(point), json.dumps(rec, indent=1).encode())
         self._journal([journal.line("point", point=point, action="complete")])
+        self._image.add_point(point)
         self.write_csv()
 
     def set_status(self, status: str, message: str = "") -> None:
@@ -176,7 +178,7 @@ class RunStore:
 
     def finalize(self) -> Path:
         """Consolidate DIR/run.h5 from the pieces (temporary name, fsync, rename)."""
-        data = run_image(self.layout)
+        data = self._image.image()
         self.check_free_space(len(data) + (1 << 16))
         write_atomic(self.layout.run_file, data)
         return self.layout.run_file
