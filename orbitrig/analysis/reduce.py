@@ -2,7 +2,7 @@
 
 `reduce_run` runs :func:`reduction.identify.identify` on the orbit table of
 every complete operating point, for both load measuring systems, with one
-model / frequency dependence / method. The run's own results in ``run.h5`` and
+model / frequency dependence / method. The run's own results (``run.h5``, the pieces) and
 ``coefficients.csv`` are never touched: `write_csv` writes a separate file
 ``DIR/reduce_<model>_<freq-dep>_<method>.csv`` with the columns of
 ``coefficients.csv`` (docs/storage.md), one row per (point, lms).
@@ -87,7 +87,7 @@ def reduce_run(
     points = [p for p in run.complete_points if any(lms in p.tables for lms in lms_names)]
     if not points:
         raise ReductionError(
-            f"{run.directory / 'run.h5'}: no complete operating point with an orbit table "
+            f"{run.directory}: no complete operating point with an orbit table "
             f"(run status: {run.status})"
         )
     return [

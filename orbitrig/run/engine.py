@@ -1,6 +1,6 @@
 """The run engine: one executor owns the drives and runs a plan (bluesky style).
 
-States (spec/mqtt.md): idle -> running <-> paused | waiting -> stopping ->
+States (docs/protocols/mqtt.md): idle -> running <-> paused | waiting -> stopping ->
 idle, or faulted after a failure. Outcomes: completed | stopped | aborted |
 failed.
 
@@ -122,6 +122,7 @@ class RunEngine:
         self.since = now_iso()
         self.timing: dict[str, float] = {}  # wall s per activity (bench)
         self._subs: list[Callable[[Event], None]] = []
+        self.revolution_taps: list[Callable[[object], None]] = []  # every revolution (orbitrig.service.live)
         self._reset_requests()
         self._io = None
         self._pending: set[asyncio.Task] = set()  # storage and identification in the background
@@ -136,6 +137,11 @@ class RunEngine:
         self._pressure_armed = False
 
     # ------------------------------------------------------------- public API
+    @property
+    def io(self):
+        """The open rig (orbitrig.rig_io.RigIO) while a run has it, else None."""
+        return self._io
+
     def subscribe(self, callback: Callable[[Event], None]) -> None:
         self._subs.append(callback)
 
@@ -664,6 +670,8 @@ class RunEngine:
 
     def _on_revolution(self, rev) -> None:
         self._revs += 1
+        for tap in self.revolution_taps:
+            tap(rev)
         self._emit_progress()
 
     def _emit_progress(self, force: bool = False) -> None:

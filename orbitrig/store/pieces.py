@@ -107,12 +107,10 @@ def _write_table(h: h5py.Group, t) -> None:
             convention="q = Re(q_bar exp(i Omega t))")
     if t.gamma2 is not None:
         put(h, "gamma2", np.asarray(t.gamma2, dtype=np.float64), "1", columns=strings(COHERENCE_PAIRS))
-    # n_records and u are the orbit table's optional v2 columns (absent from older OrbitTables)
-    n_records, u = getattr(t, "n_records", None), getattr(t, "u", None)
-    if n_records is not None:
-        put(h, "n_records", np.asarray(n_records, dtype=np.int64), "1")
-    if u is not None:
-        put(h, "u", np.asarray(u, dtype=np.float64), ", ".join(U_UNITS), columns=strings(U_COLUMNS),
+    if t.n_records is not None:
+        put(h, "n_records", np.asarray(t.n_records, dtype=np.int64), "1")
+    if t.u is not None:
+        put(h, "u", np.asarray(t.u, dtype=np.float64), ", ".join(U_UNITS), columns=strings(U_COLUMNS),
             meaning="standard uncertainty of each averaged phasor")
 
 
