@@ -63,7 +63,7 @@ def test_run_h5_states_units_and_names(synthetic):
         power = g["identification/piezo__kcd11__power_1__ols"]
         assert dict(zip(_s(power["names"][()]), _s(power["units"][()])))[
             "Cxy_1"] == "N s/m (rad/s)^-1"
-        refused = g["identification/piezo__kcd12__poly_2__ols"]
+        refused = g["identification/piezo__kcd12__poly_8__ols"]
         assert "rank-deficient" in refused.attrs["error"] and "coefficients" not in refused
 
 
@@ -103,7 +103,7 @@ def test_export_mat_reads_in_scipy(synthetic, tmp_path):
     np.testing.assert_array_equal(ident["coefficients"], list(stored["coefficients"].values()))
     assert list(ident["units"][:5]) == ["N/m"] * 4 + ["N s/m"]
     assert ident["interval_95"].shape == (12, 2)
-    assert "rank-deficient" in p["identification"]["strain__kcd12__poly_2__ols"]["error"]
+    assert "rank-deficient" in p["identification"]["strain__kcd12__poly_8__ols"]["error"]
     assert list(m["run"]["channels"][:2]) == ["fx_piezo", "fy_piezo"] and m["units"]["fx"].startswith("N")
 
 
@@ -149,3 +149,61 @@ def test_export_h5_of_a_cut_run_and_bad_arguments(tmp_path):
     assert r.exit_code == 2 and "csv, mat, tdms, h5" in r.stderr
     r = CliRunner().invoke(app, ["export", str(tmp_path / "nope")])
     assert r.exit_code == 2 and "no such directory" in r.stderr
+
+
+def test_v2_results_and_uncertainties_are_numeric_datasets(synthetic, tmp_path):
+    with h5py.File(synthetic / "run.h5", "r") as f:
+        ident = f["points/0000/identification/piezo__kcd11__none__ols"]
+        stored = read_run(synthetic).points[0].identification("piezo", "kcd11", "none").result
+        names = _s(ident["names"][()])
+        lo_hi = np.array([stored["confidence_95"][k] for k in names])
+        np.testing.assert_array_equal(ident["interval_95"][()], lo_hi)
+        assert (ident["interval_95"][:, 0] < ident["coefficients"][()]).all()
+        assert _s(ident["covariance"].attrs["names"]) == stored["free"]
+        np.testing.assert_array_equal(ident["covariance"][()], np.array(stored["covariance"]))
+        assert _s(ident["notes"][()]) == stored["notes"] and _s(ident["warnings"][()]) == stored["warnings"]
+        assert ident.attrs["dof"] == stored["dof"]
+
+
+def test_orbit_table_uncertainty_and_block_stop_reason_round_trip(tmp_path):
+    from orbitrig import config as cfg
+    from orbitrig.config import ModelSpec
+    from orbitrig.run.plan import operating_points
+    from orbitrig.store.writer import BlockRecord, PointResults, RunStore
+    from reduction.table import OrbitTable
+
+    rig, m = cfg.load_rig(), cfg.load_matrix(cfg.default_matrix_path("demo"))
+    p = operating_points(m, rig)[0]
+    t = OrbitTable(spin=p.spin, orbit=np.array([10.0, 20.0]), x=np.ones(2, complex), y=-1j * np.ones(2),
+                   fx=np.ones(2, complex), fy=np.ones(2, complex), n_records=np.array([50, 73]),
+                   u=np.array([[1e-8, 2e-8, 0.5, 0.6], [1.5e-8, 2.5e-8, 0.7, 0.8]]))  # fmt: skip
+    store = RunStore.create(tmp_path / "run", rig_text=rig.text, matrix_text=m.text, matrix_name=m.name, sim=False)
+    store.begin_point(p)
+    b = p.blocks[0]
+    store.write_block(p.index, BlockRecord(
+        block=b, measured_orbit_speed=abs(b.orbit), raw_counts=np.zeros((73, 8, 45), np.int16),
+        slots=np.zeros((8, 45), np.int16), gains=np.ones(8), offsets=np.zeros(8), mean=np.zeros((8, 45)),
+        record_phasors=np.zeros((73, 8), complex), phasors=np.ones(8, complex), dc=np.zeros(8),
+        rms_residual=np.zeros(8), coherence=np.ones((2, 4)), uncertainty=np.full(8, 0.25), n_records=73,
+        stop_reason="target"))  # fmt: skip
+    spec = ModelSpec(model="kc8")
+    store.write_results(p.index, PointResults({"piezo": t}, {("piezo", spec.key): {"spec": spec, "error": "x\ny"}}, {}))
+    store.complete_point(p.index)
+    store.set_status("completed", "")
+    with h5py.File(tmp_path / "run/run.h5", "r") as f:
+        fr = f[f"points/0000/frequencies/{b.tag}"]
+        assert (fr.attrs["n_records"], fr.attrs["stop_reason"]) == (73, "target")
+        np.testing.assert_array_equal(fr["uncertainty"][()], np.full(8, 0.25))
+        tg = f["points/0000/table/piezo"]
+        np.testing.assert_array_equal(tg["u"][()], t.u)
+        assert _s(tg["u"].attrs["columns"]) == ["x", "y", "fx", "fy"] and tg["u"].attrs["units"] == "m, m, N, N"
+        np.testing.assert_array_equal(tg["n_records"][()], [50, 73])
+    back = read_run(tmp_path / "run").points[0].tables["piezo"]
+    np.testing.assert_array_equal(back.u, t.u)
+    np.testing.assert_array_equal(back.n_records, [50, 73])
+    _export(tmp_path / "run", "csv", tmp_path / "csv")
+    header = (tmp_path / "csv/point_0000_piezo.csv").read_text().splitlines()[0].split(",")
+    assert header[-5:] == ["n_records", "u_x", "u_y", "u_fx", "u_fy"]
+    table = read_orbit_table(tmp_path / "csv/point_0000_piezo.csv")
+    np.testing.assert_array_equal(table.u, t.u)
+    assert (tmp_path / "run/coefficients.csv").read_text().splitlines()[1].endswith("x | y")
