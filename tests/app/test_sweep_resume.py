@@ -40,7 +40,11 @@ def test_kill_9_mid_run_then_resume(tmp_path):
     try:
         # kill right after point 0001 stored its second block: point 0000 complete, 0001 partial
         deadline = time.monotonic() + 60
-        while not (log.exists() and log.read_text().count("point 0001: stored") >= 2):
+        def cut_point() -> bool:  # point 0000 committed (identification runs in the background) and 0001 begun
+            text = log.read_text() if log.exists() else ""
+            return text.count("point 0001: stored") >= 2 and ": complete" in text
+
+        while not cut_point():
             assert proc.poll() is None, "the sweep ended before it could be killed"
             assert time.monotonic() < deadline, "the sweep made no progress"
             time.sleep(0.005)
