@@ -25,6 +25,11 @@ IDENT_SCALARS = ("n_coefficients", "min_frequencies", "n_frequencies", "conditio
                  "dof", "chi2", "p_value", "aic", "bic", "exponent")  # fmt: skip
 
 
+def to_json(obj) -> str:
+    """JSON text of plain data that may hold numpy scalars or arrays (e.g. counters, truth)."""
+    return json.dumps(obj, default=lambda o: o.tolist() if isinstance(o, (np.generic, np.ndarray)) else str(o))
+
+
 def strings(values) -> np.ndarray:
     return np.array(list(values), dtype=STR)
 
@@ -80,7 +85,7 @@ def write_block(g: h5py.Group, rec: BlockRecord, channels: list[str], units: lis
         columns=strings(COHERENCE_PAIRS), meaning="gamma^2 between displacement and force")
     st = g.create_group("stats")
     for k, v in rec.stats.items():
-        st.attrs[k] = json.dumps(v) if isinstance(v, dict) else v
+        st.attrs[k] = to_json(v) if isinstance(v, (dict, list)) else v
 
 
 def write_results(g: h5py.Group, res: PointResults) -> None:
@@ -92,8 +97,8 @@ def write_results(g: h5py.Group, res: PointResults) -> None:
     for (lms, key), entry in res.identifications.items():
         _write_identification(ig.create_group(f"{lms}__{key}"), entry)
     if res.truth is not None:
-        g.create_group("truth").attrs["json"] = json.dumps(res.truth)
-    g.create_group("lms_comparison").attrs["json"] = json.dumps(res.lms_comparison)
+        g.create_group("truth").attrs["json"] = to_json(res.truth)
+    g.create_group("lms_comparison").attrs["json"] = to_json(res.lms_comparison)
 
 
 def _write_table(h: h5py.Group, t) -> None:
@@ -126,7 +131,7 @@ def _write_identification(h: h5py.Group, entry: dict) -> None:
         h.attrs["error"] = entry["error"]
         return
     d = entry["json"]
-    h.attrs["json"] = json.dumps(d)
+    h.attrs["json"] = to_json(d)
     for k in IDENT_SCALARS:
         if k in d and (d[k] is None or isinstance(d[k], (int, float))):
             h.attrs[k] = _float(d[k])

@@ -143,7 +143,7 @@ class RunStore:
             raise storage_error(d, "create the point directory", err) from err
         fsync_dir(self.layout.points)
         path = self.layout.point_file(i)
-        self._written[i] = {path.name: write_atomic(path, json.dumps(pieces.point_settings(point), indent=1).encode())}
+        self._written[i] = {path.name: write_atomic(path, pieces.to_json(pieces.point_settings(point)).encode())}
         self._journal([journal.line("point", point=i, action="begin")])
 
     def write_block(self, point: int, rec: BlockRecord) -> None:

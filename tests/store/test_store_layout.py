@@ -90,3 +90,17 @@ def test_store_layout_resume_and_csv(tmp_path):
     r.set_status("completed", "done")  # a final status consolidates run.h5
     with h5py.File(r.path, "r") as f:
         assert f.attrs["status"] == "completed" and list(f["points"]) == ["0000"]
+
+
+def test_numpy_numbers_in_stats_and_truth_are_stored(tmp_path):
+    rig, m = cfg.load_rig(), cfg.load_matrix(cfg.default_matrix_path("demo"))
+    p = operating_points(m, rig)[0]
+    s = RunStore.create(tmp_path, rig_text=rig.text, matrix_text=m.text, matrix_name=m.name, sim=True)
+    s.begin_point(p)
+    rec = _record(p.blocks[0])
+    rec.stats = {"frames_good": np.int64(7), "drop_reasons": {"crc": np.int64(2)}}
+    s.write_block(p.index, rec)
+    s.finalize()
+    with h5py.File(s.path, "r") as f:
+        st = f[f"points/0000/frequencies/{p.blocks[0].tag}/stats"].attrs
+        assert st["frames_good"] == 7 and json.loads(st["drop_reasons"]) == {"crc": 2}
