@@ -65,7 +65,7 @@ def test_reduce_gives_the_sweeps_coefficients(sweep_run, model, freq_dep):
     assert len(ours) == len(theirs) == 2
     for a, b in zip(ours, theirs):
         assert (a["point"], a["lms"]) == (b["point"], b["lms"])
-        for key in ("Kxx", "Kxy", "Cyx", "Cyy", "true_Kxx"):
+        for key in ("Kxx [N/m]", "Kxy [N/m]", "Cyx [N s/m]", "Cyy [N s/m]", "true_Kxx [N/m]"):
             assert float(a[key]) == pytest.approx(float(b[key]), rel=1e-6), key
 
 
