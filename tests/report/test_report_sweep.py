@@ -1,6 +1,6 @@
 """reduce and report on a run written by the real sweep on the simulator
-(`orbitrig sweep --sim --matrix SMALL --out DIR`: the demo matrix with fewer
-revolutions per block and one frequency-dependent model more)."""
+(`orbitrig sweep --sim --sim-config config/sim/clean.toml --matrix SMALL --out DIR`: the clean
+scenario, the demo matrix with fewer revolutions per block and one frequency-dependent model more)."""
 
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ def sweep_run(tmp_path_factory) -> Path:
     matrix = base / "small.toml"
     matrix.write_text(text)
     out = base / "run"
-    p = orbitrig("sweep", "--sim", "--matrix", str(matrix), "--out", str(out))
+    p = orbitrig("sweep", "--sim", "--sim-config", "config/sim/clean.toml", "--matrix", str(matrix), "--out", str(out))
     assert p.returncode == 0, p.stdout + p.stderr
     return out
 
