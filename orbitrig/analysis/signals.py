@@ -20,6 +20,7 @@ import numpy as np
 
 from orbitrig.config import LMS, rig_from_text
 from orbitrig.errors import ConfigError
+from orbitrig.store.layout import RunLayout
 from orbitrig.store.reader import Frequency, Point, Run, RunDirError
 
 #: force channels per load measuring system and probe channels per plane
@@ -47,7 +48,10 @@ class BlockSignals:
 
 
 def channel_map(run: Run) -> dict[str, int]:
-    """Channel name -> row of the stored arrays, from the rig configuration stored in the run."""
+    """Channel name -> row of the stored arrays: the run's channel list, else (older runs) the
+    rig configuration stored in the run."""
+    if run.channels:
+        return {name: i for i, name in enumerate(run.channels)}
     try:
         return rig_from_text(run.rig_config, "rig configuration stored in the run").channel_index
     except ConfigError as err:
@@ -58,8 +62,9 @@ def _open_block(run: Run, point: Point, frequency: Frequency):
     """(h5py file, group) of the block, in the pieces layout or in run.h5."""
     import h5py
 
-    piece = run.directory / "points" / point.name / f"{frequency.name}.h5"
-    path = piece if piece.is_file() else run.directory / "run.h5"
+    layout = RunLayout(run.directory)
+    piece = layout.block_file(point.index, frequency.name)
+    path = piece if piece.is_file() else layout.run_file
     try:
         h5 = h5py.File(path, "r")
     except OSError as err:
