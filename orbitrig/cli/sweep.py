@@ -11,7 +11,7 @@ from typing import Optional
 
 import typer
 
-DEFAULT_SIM_SPEEDUP = 40.0
+DEFAULT_SPEEDUP = 40.0  # as orbitrig.cli.simulated_rig.DEFAULT_SPEEDUP (imported only with --sim)
 EXIT = {"completed": 0, "failed": 1, "stopped": 3, "aborted": 4}
 
 
@@ -28,7 +28,7 @@ def register(app: typer.Typer) -> None:
         resume: bool = typer.Option(False, "--resume", help="continue the run in --out from its first incomplete point"),
         dry_run: bool = typer.Option(False, "--dry-run", help="list the steps with estimated durations (s); touches no hardware"),
         speedup: float = typer.Option(
-            DEFAULT_SIM_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"
+            DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"
         ),
     ) -> None:
         """Run a test matrix: manual settings, speeds, settle, acquire, identify, store.
@@ -45,9 +45,9 @@ def register(app: typer.Typer) -> None:
             raise typer.BadParameter(f"two run directories: {run_dir} and --out {out}", param_hint="DIR")
         out = out or run_dir
         try:
-            rig, mat = _load(config, matrix, sim=sim, resume=resume, out=out, dry_run=dry_run)
+            plan = _load(config, matrix, sim=sim, resume=resume, out=out, dry_run=dry_run)
             if dry_run:
-                _dry_run(rig, mat)
+                _dry_run(plan)
                 return
             if out is None:
                 raise typer.BadParameter("--out DIR is required (except with --dry-run)", param_hint="--out")
@@ -55,7 +55,7 @@ def register(app: typer.Typer) -> None:
                 _check_out(out)
             import asyncio
 
-            outcome = asyncio.run(_sweep(rig, mat, out=out, sim=sim, resume=resume, speedup=speedup))
+            outcome = asyncio.run(_sweep(plan, out=out, sim=sim, resume=resume, speedup=speedup))
         except ConfigError as err:
             typer.echo(f"error: {err}", err=True)
             raise typer.Exit(2) from None
@@ -69,6 +69,14 @@ def register(app: typer.Typer) -> None:
 
 
 def _load(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
+    """The plan of this sweep: matrix checked against the rig and expanded, before anything starts."""
+    from orbitrig.run.plan import make_plan
+
+    rig, mat = _configs(config, matrix, sim=sim, resume=resume, out=out, dry_run=dry_run)
+    return make_plan(mat, rig)
+
+
+def _configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
     from orbitrig import config as cfg
     from orbitrig.errors import ConfigError
 
@@ -92,9 +100,7 @@ def _load(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
     if matrix is None and not sim and not dry_run:
         raise typer.BadParameter("--matrix FILE is required on the rig (--sim defaults to the demo)",
                                  param_hint="--matrix")  # fmt: skip
-    mat = cfg.load_matrix(matrix)
-    cfg.check_matrix_against_rig(mat, rig)  # before the simulator or any drive is started
-    return rig, mat
+    return rig, cfg.load_matrix(matrix)
 
 
 def _check_out(out: Path) -> None:
@@ -115,15 +121,10 @@ def _check_out(out: Path) -> None:
         raise ConfigError(str(out), ["the run directory is not writable"])
 
 
-_STEP_WORDS = {"SetManual": "manual settings", "Verify": "verify", "SetSpin": "spin changes", "Settle": "settle",
-               "Acquire": "acquire", "Store": "store", "SetOrbit": "orbit changes", "Identify": "identify",
-               "StopDrives": "stop drives"}  # fmt: skip
+def _dry_run(plan) -> None:
+    from orbitrig.run.plan import format_duration, summarize
 
-
-def _dry_run(rig, mat) -> None:
-    from orbitrig.run.plan import expand, format_duration, summarize
-
-    steps = expand(mat, rig)
+    steps = plan.steps
     width = len(str(len(steps)))
     typer.echo(f"{'#':>{width}}  {'starts at':>8}  {'where':10}  {'duration':>10}  step  (times h:mm:ss from the start)")
     t = 0.0
@@ -132,35 +133,36 @@ def _dry_run(rig, mat) -> None:
         typer.echo(f"{i:>{width}}  {format_duration(t):>8}  {where}  {s.duration:8.2f} s  {s.describe()}")
         t += s.duration
     sm = summarize(steps)
-    typer.echo(f"\nmatrix {mat.name}: {sm.points} operating points, {sm.blocks} orbit blocks, "
+    typer.echo(f"\nmatrix {plan.name}: {sm.points} operating points, {sm.blocks} orbit blocks, "
                f"{len(steps)} steps, estimated {format_duration(sm.duration)} (physical time)")  # fmt: skip
-    parts = ", ".join(f"{_STEP_WORDS.get(k, k)} {format_duration(v)}" for k, v in sm.by_kind.items())
+    parts = ", ".join(f"{k} {format_duration(v)}" for k, v in sm.by_kind.items())
     typer.echo(f"by step: {parts}")
 
 
-async def _sweep(rig, mat, *, out: Path, sim: bool, resume: bool, speedup: float):
+async def _sweep(plan, *, out: Path, sim: bool, resume: bool, speedup: float):
     import contextlib
 
     from rich.console import Console
 
-    from orbitrig.run.engine import RunEngine
     from orbitrig.cli.progress import SweepProgress
+    from orbitrig.run.engine import RunEngine
 
     console = Console(stderr=True)
     async with contextlib.AsyncExitStack() as stack:
-        sim_rig = None
+        access = None
         if sim:
-            from sim.rig import SimRig
+            from orbitrig.cli.simulated_rig import simulated_rig
 
-            sim_rig = await stack.enter_async_context(SimRig(speedup=speedup, adc_pty=False))
-        engine = RunEngine(rig, out_dir=out, sim=sim_rig, confirm_mode="auto" if sim else "prompt")
+            _, access = await stack.enter_async_context(simulated_rig(speedup))
+        engine = RunEngine(plan.rig, out_dir=out, access=access,
+                           confirm_mode="auto" if sim else "prompt")  # fmt: skip
         operator = _Operator(engine, console)
         engine.subscribe(operator.on_event)
-        with SweepProgress(console, revolutions=mat.revolutions or rig.averaging.revolutions) as bars:
+        with SweepProgress(console, revolutions=plan.revolutions) as bars:
             engine.subscribe(bars)
             operator.install()
             try:
-                outcome = await engine.run(mat, resume=resume)
+                outcome = await engine.run(plan, resume=resume)
             finally:
                 operator.uninstall()
     console.print(f"run {outcome.status}: {outcome.message}  ({len(outcome.completed_points)} of "

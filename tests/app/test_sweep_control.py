@@ -8,6 +8,7 @@ import pytest
 
 from orbitrig import config as cfg
 from orbitrig.errors import OrbitrigError
+from orbitrig.cli.simulated_rig import simulated_access
 from orbitrig.run.engine import ProgressEvent, RunEngine, StatusEvent
 from sim.rig import SimRig
 from sweep_helpers import SPEEDUP, small_matrix, wait_for
@@ -42,7 +43,8 @@ def _stored(out):
 async def running(tmp_path, matrix, **engine_kw):
     """A SimRig and a RunEngine running `matrix` in a task: yields (sim, engine, recorder, run task)."""
     async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
-        eng = RunEngine(cfg.load_rig(), out_dir=tmp_path / "run", sim=sim, **engine_kw)
+        engine_kw.setdefault("confirm_mode", "auto")
+        eng = RunEngine(cfg.load_rig(), out_dir=tmp_path / "run", access=simulated_access(sim), **engine_kw)
         rec = Recorder()
         eng.subscribe(rec)
         run = asyncio.create_task(eng.run(matrix))
