@@ -2,8 +2,9 @@
 
 Writes run in a worker thread, one at a time, in submission order (a FIFO
 lock), so a block is never written after the point that holds it is marked
-complete. A stop or an abort waits for what is in flight (never cut off);
-the first failure is raised at the engine's next step.
+complete. A stop or an abort waits for what is in flight (never cut off).
+The first failure is reported at once to `on_failure` (the engine ends the
+run: drives to a safe stop first) and raised by `check`.
 """
 
 from __future__ import annotations
@@ -20,8 +21,9 @@ log = logging.getLogger(__name__)
 
 
 class Background:
-    def __init__(self, timing: dict[str, float]):
+    def __init__(self, timing: dict[str, float], on_failure: Callable[[BaseException], None] | None = None):
         self.timing = timing
+        self._on_failure = on_failure
         self._pending: set[asyncio.Task] = set()
         self._writes = asyncio.Lock()
         self.error: BaseException | None = None
@@ -46,14 +48,21 @@ class Background:
         if not task.cancelled() and task.exception() is not None and self.error is None:
             self.error = task.exception()
             log.error("%s failed: %s", task.get_name(), self.error)
+            if self._on_failure is not None:
+                self._on_failure(self.error)
 
-    def check(self) -> None:
-        """Raise RunFailed if a background task failed (storage first in the message)."""
+    def failure_message(self) -> str | None:
+        """What failed in the background, for the operator (None: nothing failed)."""
         err = self.error
         if err is None:
-            return
+            return None
         what = "storage failed" if isinstance(err, (StorageError, OSError)) else "identification failed"
-        raise RunFailed(f"{what}: {type(err).__name__}: {err}") from err
+        return f"{what}: {type(err).__name__}: {err}"
+
+    def check(self) -> None:
+        """Raise RunFailed if a background task failed."""
+        if (message := self.failure_message()) is not None:
+            raise RunFailed(message) from self.error
 
     async def settle(self) -> None:
         """Wait for everything in flight (not cancelling it, even if this wait is cancelled)."""

@@ -67,7 +67,7 @@ class RunEngine:
         self._failure: Trip | None = None
         self._t0 = time.monotonic()
         self._progress = ProgressMeter(self._emit, self.access.time_scale)
-        self._background = Background(self.timing)
+        self._background = Background(self.timing, self._background_failed)
 
     # ------------------------------------------------------------- public API
     @property
@@ -146,7 +146,7 @@ class RunEngine:
         self.timing.clear()
         self.timing.update(wall=0.0, settle=0.0, acquire=0.0, confirm=0.0, suspended=0.0)
         self._control.timing = self.timing
-        self._background = Background(self.timing)
+        self._background = Background(self.timing, self._background_failed)
         todo = [p for p in plan.points if p.index not in done]
         kept = {p.index for p in todo}
         remaining = sum(PointProcedure.estimate_of(s, self.confirm_mode) for s in plan.steps
@@ -177,6 +177,8 @@ class RunEngine:
         except asyncio.CancelledError:
             if self._failure is not None:
                 return FAILED, f"interlock: {self._failure.message}"
+            if (failed := self._background.failure_message()) is not None:
+                return FAILED, failed
             if self._control.abort_requested and not _cancelling():
                 return ABORTED, "aborted by the operator"
             raise
@@ -218,6 +220,12 @@ class RunEngine:
         """A fail trip: the run ends at once (drives stopping in the cleanup)."""
         self._failure = trip
         self._log_event(f"interlock: {trip.message}")
+        if self._body is not None and not self._body.done():
+            self._body.cancel()
+
+    def _background_failed(self, err: BaseException) -> None:
+        """A storage write (disk full included) or an identification failed: the run ends at once."""
+        self._log_event(self._background.failure_message() or str(err))
         if self._body is not None and not self._body.done():
             self._body.cancel()
 
