@@ -309,11 +309,6 @@ def make_plan(matrix: MatrixConfig, rig: RigConfig) -> Plan:
     return Plan(matrix, rig, tuple(points), tuple(_steps(matrix, rig, points, n_rev)), n_rev)
 
 
-def expand(matrix: MatrixConfig, rig: RigConfig) -> list[Step]:
-    """The whole run as steps (`make_plan(matrix, rig).steps`)."""
-    return list(make_plan(matrix, rig).steps)
-
-
 def _steps(matrix: MatrixConfig, rig: RigConfig, points: list[OperatingPoint], n_rev: int) -> list[Step]:
     est = rig.estimates
     hold = rig.settle.hold_s if matrix.settle_hold_s is None else matrix.settle_hold_s
