@@ -123,7 +123,7 @@ class RunEngine:
             raise
         finally:
             await self._make_safe(io, store, status, message)
-        return RunOutcome(status, message, self.run_id, self.out_dir, store.completed_points(), len(plan.points))
+        return RunOutcome(status, message, self.run_id, self.out_dir, _completed(store), len(plan.points))
 
     def _open_store(self, plan: Plan, resume: bool) -> tuple[RunStore, list[int]]:
         if not resume:
@@ -154,11 +154,11 @@ class RunEngine:
         self._progress.start(self.run_id, len(todo), remaining)
         store.log(f"{'resume' if resume else 'start'} run {self.run_id}: matrix {plan.name}, "
                   f"{len(todo)} of {len(plan.points)} points to run, sim={self.access.simulated}")  # fmt: skip
-        self._control.fire("start", f"run {self.run_id} started" + (" (resumed)" if resume else ""))
         need = sum(self._point_bytes(plan, p) for p in todo)
         if (why := room_problem(self.out_dir, need)) is not None:
             self._log_event(f"warning: the whole plan may not fit ({why.replace('the next point', 'all points')}); "
                             "the run pauses before a point that does not fit")  # fmt: skip
+        self._control.fire("start", f"run {self.run_id} started" + (" (resumed)" if resume else ""))
 
     def _point_bytes(self, plan: Plan, p) -> int:
         return point_bytes(len(p.blocks), plan.revolutions, len(self.rig.channels), SLOTS)
@@ -316,6 +316,15 @@ class RunEngine:
             except Exception:  # noqa: BLE001 - logging must not break the run
                 log.debug("monitor sample failed", exc_info=True)
             await asyncio.sleep(0.5)
+
+
+def _completed(store: RunStore) -> list[int]:
+    """The points the run file marks complete ([] if it cannot be read after a storage failure)."""
+    try:
+        return store.completed_points()
+    except (StorageError, OSError) as err:
+        log.error("cannot read the completed points: %s", err)
+        return []
 
 
 def _cancelling() -> bool:
