@@ -3,7 +3,9 @@
 Frames are made once (by a small encoder written from the spec, like the tests'),
 then the byte stream is fed in chunks through FrameDecoder -> RevolutionAssembler
 -> StreamingAverager on one core. Prints samples per second for several board
-layouts, and the loss counts (which must be zero on a clean stream).
+layouts with the paper's fixed rule (50 revolutions), and for the simulator's
+layout with an adaptive rule (per-revolution phasors and running uncertainty
+checked on every revolution), and the loss counts (zero on a clean stream).
 
     python3 bench/bench_daq_decode.py [--revolutions 4000] [--chunk 65536]
 Target: >= 10 million samples/s.
@@ -18,7 +20,7 @@ from binascii import crc_hqx
 
 import numpy as np
 
-from daq.averager import StreamingAverager
+from daq.averager import AveragingRule, StreamingAverager
 from daq.frames import FrameDecoder
 from daq.revolutions import RevolutionAssembler
 
@@ -42,8 +44,9 @@ def make_stream(n_revs: int, channels: int, mode: str, frame_slots: int, seed: i
     return b"".join(out)
 
 
-def run(data: bytes, channels: int, mode: str, chunk: int, n_avg: int = 50) -> tuple[float, dict]:
-    dec, asm, avg = FrameDecoder(), RevolutionAssembler(channels, mode), StreamingAverager(n_avg)
+def run(data: bytes, channels: int, mode: str, chunk: int, rule: AveragingRule = AveragingRule.fixed(50)
+        ) -> tuple[float, dict]:
+    dec, asm, avg = FrameDecoder(), RevolutionAssembler(channels, mode), StreamingAverager(rule)
     blocks = 0
     t0 = time.perf_counter()
     for i in range(0, len(data), chunk):
@@ -75,6 +78,12 @@ def main() -> None:
               f"frames bad {c['frames_bad']}, bytes skipped {c['bytes_skipped']}, "
               f"revolutions dropped {c['revolutions_dropped']}")
         assert c["frames_bad"] == c["bytes_skipped"] == c["revolutions_dropped"] == 0
+    adaptive = AveragingRule.adaptive(1e-3, 10, 200)  # these random revolutions never meet it: 200 each
+    data = make_stream(args.revolutions, 8, "sequential", 45)
+    best = min(run(data, 8, "sequential", args.chunk, adaptive)[0] for _ in range(3))
+    _, c = run(data, 8, "sequential", args.chunk, adaptive)
+    print(f"  adaptive rule (0.1 %, 10..200), sequential C=8 45 slots/frame: {c['revolutions'] * 360 / best / 1e6:7.1f} "
+          f"M samples/s, blocks {c['blocks']}")
     print(f"the simulator's layout (sequential, 45 slots per frame): {rates[('sequential', 45)] / 1e6:.1f} "
           f"M samples/s (target >= 10); slowest layout: {min(rates.values()) / 1e6:.1f} M samples/s")
 

@@ -1,29 +1,34 @@
 """AdcReader: the A/D board's byte stream -> averaged, phase-true revolutions (async).
 
     async with AdcReader("socket://127.0.0.1:5000", channels=8) as adc:
-        block = await adc.acquire(50, timeout=10.0)    # AveragedBlock
-        block.phasors, block.orbit_speed, block.stats
+        block = await adc.acquire(50, timeout=10.0)    # AveragedBlock (the fixed rule)
+        block = await adc.acquire(AveragingRule.adaptive(0.005, 10, 200), timeout=2.0, per_revolution=3.0)
+        block.phasors, block.uncertainty, block.raw_counts, block.stop_reason, block.stats
 
 The link is read continuously from the moment the reader opens (so neither the
 OS buffers nor the board back up), decoded (daq.frames) and assembled into
 revolutions (daq.revolutions) inside the event loop's read callback. Outside
 ``acquire`` revolutions are thrown away. ``acquire`` first consumes whatever the
 OS already holds for the link, forgets the revolution in progress (old speed),
-then averages the next ``n`` good revolutions. Keep the reader open while the
-drives settle (as the sweep does): data a sender had queued but not yet sent
-when ``acquire`` was called cannot be told apart from new data. A dropped link is reopened with
-jittered exponential back-off (``reconnect=True``); the revolution in progress is
-counted as dropped (``link_drop``).
+then averages the next good revolutions as its rule says (daq.averager). Keep
+the reader open while the drives settle (as the sweep does): data a sender had
+queued but not yet sent when ``acquire`` was called cannot be told apart from
+new data. A dropped link is reopened after growing, jittered delays
+(daq.backoff, ``reconnect=True``) that start again from the shortest only once
+good frames arrived on the new link; the revolution in progress is counted as
+dropped (``link_drop``).
 """
 
 from __future__ import annotations
 
 import asyncio
-import random
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 
-from daq.averager import AveragedBlock, StreamingAverager
+import numpy as np
+
+from daq.averager import AveragedBlock, AveragingRule, StreamingAverager
+from daq.backoff import Backoff
 from daq.errors import DaqError, DaqLinkError, DaqTimeoutError
 from daq.frames import FrameDecoder
 from daq.revolutions import Revolution, RevolutionAssembler, RevolutionBatch
@@ -39,25 +44,26 @@ class _Collection:
         self.averager = averager
         self.future = future
         self.on_revolution = on_revolution
+        self.period: float | None = None  # first orbit period measured (s)
 
     def push(self, revs: RevolutionBatch) -> int:
         """Feed revolutions; returns how many were used."""
         if self.future.done():
             return 0
-        need = self.averager.n_revolutions - self.averager.count
-        if len(revs) > need:
-            revs = revs.take(slice(0, need))
-        if self.on_revolution is not None:
+        if self.period is None:
+            known = revs.period_s[~np.isnan(revs.period_s)]
+            self.period = float(known[0]) if len(known) else None
+        used, block = self.averager.take(revs)
+        if self.on_revolution is not None and used:
             try:
-                for r in revs.revolutions():
+                for r in revs.take(slice(0, used)).revolutions():
                     self.on_revolution(r)
             except Exception as err:  # the caller's hook failed: end this acquire with its error
                 self.future.set_exception(err)
-                return 0
-        blocks = self.averager.push_batch(revs)
-        if blocks:
-            self.future.set_result(blocks[0])
-        return len(revs)
+                return used
+        if block is not None:
+            self.future.set_result(block)
+        return used
 
 
 class AdcReader:
@@ -67,29 +73,33 @@ class AdcReader:
     channels, mode: the board's scan list size and ``sequential``/``simultaneous``.
     gains, offsets: per channel, engineering value = gain * counts + offset
     (default raw counts). on_revolution: called with every revolution that goes
-    into an average (raw counts, for storage). ``stats``: cumulative counters.
+    into an average (the block carries their raw counts too). max_backoff: the
+    longest delay (s) between reconnect attempts. ``stats``: cumulative counters;
+    ``reconnects``: reconnect attempts made.
     """
 
     def __init__(self, url: str, *, channels: int = 8, mode: str = "sequential",
                  gains: Sequence[float] | None = None, offsets: Sequence[float] | None = None,
                  on_revolution: Callable[[Revolution], None] | None = None,
                  reconnect: bool = True, open_timeout: float = 5.0,
-                 max_backoff: float = 1.0) -> None:
+                 max_backoff: float = 2.0, backoff: Backoff | None = None) -> None:
         self.url = url
         self.channels, self.mode = channels, mode
         self.gains, self.offsets = gains, offsets
         self.on_revolution = on_revolution
         self.reconnect = reconnect
         self.open_timeout = open_timeout
-        self.max_backoff = max_backoff
+        self.backoff = backoff or Backoff(maximum=max_backoff)
         self._decoder = FrameDecoder()
         self._assembler = RevolutionAssembler(channels, mode)  # raises ValueError on a bad scan
         self._link: ByteLink | None = None
         self._collection: _Collection | None = None
         self._reconnect_task: asyncio.Task | None = None
         self._closed = False
+        self._flowed = False  # good frames arrived on the current link
         self._revolutions_used = 0
         self.link_drops = 0
+        self.reconnects = 0
         self.link_error: Exception | None = None
 
     async def __aenter__(self) -> AdcReader:
@@ -103,6 +113,7 @@ class AdcReader:
         """Open the link; raises DaqLinkError if it cannot be opened."""
         self._closed = False
         self._link = await open_link(self.url, self._on_data, self._on_lost, timeout=self.open_timeout)
+        self._flowed = False
 
     async def aclose(self) -> None:
         """Close the link and stop reconnecting (idempotent)."""
@@ -136,10 +147,14 @@ class AdcReader:
     # ------------------------------------------------------------ data path
     def _on_data(self, data: bytes) -> None:
         try:
-            revs = self._assembler.push_batch(self._decoder.feed_batch(data))
+            frames = self._decoder.feed_batch(data)
+            revs = self._assembler.push_batch(frames)
         except Exception as err:  # a bug, never bad input: make acquire() raise it, not time out
             self._fail(err)
             raise
+        if not self._flowed and len(frames):
+            self._flowed = True
+            self.backoff.reset()
         if self._collection is not None and len(revs):
             self._revolutions_used += self._collection.push(revs)
 
@@ -153,8 +168,9 @@ class AdcReader:
         if not self.reconnect:
             self._fail(err)
             return
-        self._reconnect_task = asyncio.get_running_loop().create_task(
-            self._reconnect_loop(), name=f"adc-reconnect {self.url}")
+        if self._reconnect_task is None:
+            self._reconnect_task = asyncio.get_running_loop().create_task(
+                self._reconnect_loop(), name=f"adc-reconnect {self.url}")
 
     def _fail(self, err: Exception) -> None:
         c = self._collection
@@ -162,23 +178,28 @@ class AdcReader:
             c.future.set_exception(err)
 
     async def _reconnect_loop(self) -> None:
-        delay = 0.02
+        """Wait the next backoff delay, try to reopen; repeat until open or closed."""
         while not self._closed:
+            await asyncio.sleep(self.backoff.next_delay())
+            self.reconnects += 1
             try:
-                self._link = await open_link(self.url, self._on_data, self._on_lost, timeout=self.open_timeout)
-                self._reconnect_task = None
-                return
+                link = await open_link(self.url, self._on_data, self._on_lost, timeout=self.open_timeout)
             except DaqLinkError as err:
                 self.link_error = err
-            await asyncio.sleep(delay * random.uniform(0.5, 1.0))
-            delay = min(delay * 2, self.max_backoff)
+                continue
+            self._link, self._flowed, self._reconnect_task = link, False, None
+            return
 
     # ------------------------------------------------------------ acquisition
-    async def acquire(self, n_revolutions: int = 50, *, timeout: float) -> AveragedBlock:
-        """Average the next ``n_revolutions`` good revolutions received after this call.
+    async def acquire(self, rule: AveragingRule | int = 50, *, timeout: float,
+                      per_revolution: float | None = None) -> AveragedBlock:
+        """Average the good revolutions received after this call as ``rule`` says
+        (an ``AveragingRule``, or n for the fixed rule of n revolutions).
 
-        Raises DaqTimeoutError (with the counts seen) if they do not arrive within
-        ``timeout`` seconds, DaqLinkError if the link drops and ``reconnect`` is off.
+        Waits ``timeout`` s; with ``per_revolution`` = F, once the orbit period P is
+        measured the wait grows to ``timeout + F * rule.max_revolutions * P``. Raises
+        DaqTimeoutError (with the counts seen) if the block is not complete in time,
+        DaqLinkError if the link drops and ``reconnect`` is off.
         """
         if self._collection is not None:
             raise DaqError("acquire() is already running on this reader")
@@ -193,20 +214,30 @@ class AdcReader:
         self._assembler.reset()
         start = self.stats
         loop = asyncio.get_running_loop()
-        averager = StreamingAverager(n_revolutions, self.gains, self.offsets)
-        self._collection = _Collection(averager, loop.create_future(), self.on_revolution)
+        averager = StreamingAverager(rule, self.gains, self.offsets)
+        self._collection = c = _Collection(averager, loop.create_future(), self.on_revolution)
+        t0 = loop.time()
         try:
-            block = await asyncio.wait_for(self._collection.future, timeout)
-        except asyncio.TimeoutError:
-            s = self.stats.since(start)
-            got = averager.count
-            what = "no good revolution" if got == 0 else f"only {got} of {n_revolutions} good revolutions"
-            raise DaqTimeoutError(
-                f"{self.url}: {what} within {timeout:g} s (frames good {s.frames_good}, bad {s.frames_bad}, "
-                f"bytes skipped {s.bytes_skipped}, revolutions dropped {s.revolutions_dropped} "
-                f"{s.drop_reasons or ''}, link drops {s.link_drops}"
-                + (f", last link error: {self.link_error}" if s.link_drops or not self.connected else "") + ")"
-            ) from None
+            while not c.future.done():
+                limit = timeout
+                if per_revolution and c.period:  # the orbit period is known: wait for the revolutions
+                    limit += per_revolution * averager.n_revolutions * c.period
+                left = t0 + limit - loop.time()
+                if left <= 0:
+                    raise self._timeout_error(start, averager, limit)
+                await asyncio.wait({c.future}, timeout=left)
+            block = c.future.result()
         finally:
             self._collection = None
         return replace(block, stats=self.stats.since(start))
+
+    def _timeout_error(self, start: AcquisitionStats, averager: StreamingAverager, waited: float) -> DaqTimeoutError:
+        s = self.stats.since(start)
+        got, want = averager.count, averager.n_revolutions
+        what = "no good revolution" if got == 0 else f"only {got} of {want} good revolutions"
+        return DaqTimeoutError(
+            f"{self.url}: {what} within {waited:.4g} s (frames good {s.frames_good}, bad {s.frames_bad}, "
+            f"bytes skipped {s.bytes_skipped}, revolutions dropped {s.revolutions_dropped} "
+            f"{s.drop_reasons or ''}, link drops {s.link_drops}"
+            + (f", last link error: {self.link_error}" if s.link_drops or not self.connected else "") + ")"
+        )

@@ -1,14 +1,21 @@
-"""Streaming synchronous average of trigger-aligned revolutions. Pure.
+"""Streaming synchronous average of trigger-aligned revolutions, fixed or adaptive. Pure.
 
 The average of N revolutions is taken slot by slot (time-synchronous average
-locked to the orbit trigger). Each revolution's fundamental phasor is kept so
-that coherence between channels can be computed from the records
-(``reduction.coherence``). Memory is bounded by N: the block's N revolutions in
-counts, (N, C, S) int16, reused from block to block.
+locked to the orbit trigger). Every revolution's fundamental phasor is computed
+as it arrives (one weighted sum per channel, the least-squares weights of
+``reduction.fourier.phasor`` at the channel's own angles), so that
+
+- an adaptive rule can stop the block once every channel's averaged phasor is
+  known well enough (running sums, O(channels) per revolution), and
+- coherence between channels can be computed from the records
+  (``reduction.coherence``).
+
+The block keeps the raw int16 counts of exactly the revolutions it averaged,
+(N, C, S), with their calibration; memory is bounded by the rule's maximum.
 
 Phasor convention: q(theta) = dc + Re(q_bar e^{i theta}) + ..., theta = 2 pi slot / 360
-(orbit angle after the trigger), fitted at each channel's own angles by
-``reduction.fourier`` (sequential mode: channel k at slots k, k+C, ...).
+(orbit angle after the trigger). Standard uncertainty of the averaged phasor (the
+orbit table's ``u_*``): u = sqrt(sum_r |q_r - q_bar|^2 / (n - 1)) / sqrt(n).
 """
 
 from __future__ import annotations
@@ -22,52 +29,146 @@ from daq.revolutions import Revolution, RevolutionBatch
 from daq.stats import AcquisitionStats
 from reduction.fourier import harmonic_fit, phasor
 
+STOP_COUNT = "count"  # a fixed rule reached its number of revolutions
+STOP_TARGET = "target"  # every channel's relative uncertainty reached the target
+STOP_MAX = "max"  # the target was not reached within the maximum
+
+
+@dataclass(frozen=True)
+class AveragingRule:
+    """When a block is complete: between ``min_revolutions`` and ``max_revolutions``
+    good revolutions; with a ``target`` (relative standard uncertainty of every
+    channel's averaged fundamental, a fraction: 0.005 is 0.5 %) as soon as it is met,
+    without one at exactly ``max_revolutions`` (the paper's protocol: ``fixed(50)``)."""
+
+    min_revolutions: int = 50
+    max_revolutions: int = 50
+    target: float | None = None
+
+    def __post_init__(self) -> None:
+        lo, hi, t = self.min_revolutions, self.max_revolutions, self.target
+        if not 1 <= lo <= hi:
+            raise ValueError(f"revolutions: need 1 <= min ({lo}) <= max ({hi})")
+        if t is not None and not (0 < t < np.inf):
+            raise ValueError(f"target must be a positive finite fraction, not {t!r}")
+        if t is not None and lo < 2:
+            raise ValueError("an uncertainty target needs min_revolutions >= 2 (a scatter needs two)")
+        if t is None and lo != hi:
+            raise ValueError(f"without a target min and max must be equal (got {lo}, {hi})")
+
+    @classmethod
+    def fixed(cls, n: int) -> AveragingRule:
+        return cls(n, n, None)
+
+    @classmethod
+    def adaptive(cls, target: float, min_revolutions: int = 10, max_revolutions: int = 200) -> AveragingRule:
+        return cls(min_revolutions, max_revolutions, target)
+
 
 @dataclass(frozen=True)
 class AveragedBlock:
-    """Synchronous average of N good revolutions, engineering units (gain * counts + offset).
+    """Synchronous average of N good revolutions, engineering units (SI): gain * counts + offset.
 
-    orbit_speed: |Omega| (rad/s) = 2 pi / mean period over the block (NaN if no
-    period was measured). theta, mean: (C, S). phasors: (C,) complex fundamental
-    of the average. record_phasors: (N, C) fundamental of each revolution.
+    orbit_speed: |Omega| (rad/s) = 2 pi / mean period over the block (NaN if no period
+    was measured). slots, theta (= 2 pi slots / 360 rad), mean: (C, S); mean is
+    ``raw_counts.mean(axis=0) * gains[:, None] + offsets[:, None]``. phasors: (C,)
+    complex fundamental of the average; uncertainty: (C,) its standard uncertainty
+    from the scatter of record_phasors (inf for N = 1). record_phasors: (N, C).
     rms_residual: (C,) RMS of the average minus (dc + fundamental). dc: (C,).
-    revs: (N,) the board's revolution numbers that went into the average.
+    raw_counts: (N, C, S) int16. revs, t_us: (N,) board revolution numbers and
+    trigger times (us); periods: (N,) s (NaN where unknown). stop_reason: "count",
+    "target" or "max". stats: this block's counters (drops per reason).
     """
 
     orbit_speed: float
+    slots: np.ndarray
     theta: np.ndarray
     mean: np.ndarray
     phasors: np.ndarray
+    uncertainty: np.ndarray
     record_phasors: np.ndarray
     rms_residual: np.ndarray
     dc: np.ndarray
+    raw_counts: np.ndarray
+    gains: np.ndarray
+    offsets: np.ndarray
+    revs: np.ndarray
+    t_us: np.ndarray
+    periods: np.ndarray
+    stop_reason: str
+    rule: AveragingRule
     stats: AcquisitionStats = field(default_factory=AcquisitionStats)
-    revs: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
     @property
     def n_revolutions(self) -> int:
-        return len(self.record_phasors)
+        return len(self.revs)
+
+    @property
+    def n_records(self) -> int:
+        return len(self.revs)
+
+    @property
+    def drop_reasons(self) -> dict[str, int]:
+        return dict(self.stats.drop_reasons)
+
+    @property
+    def relative_uncertainty(self) -> np.ndarray:
+        """(C,) uncertainty / |phasors| (inf for a zero phasor)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return self.uncertainty / np.abs(self.phasors)
+
+
+def phasor_weights(theta: np.ndarray) -> np.ndarray:
+    """(C, S) complex weights w with q_bar = sum_s w[c, s] q[c, s]: the least-squares
+    fundamental of ``reduction.fourier.phasor`` (linear in the samples) at angles theta."""
+    c, s = theta.shape
+    return phasor(np.broadcast_to(np.eye(s), (c, s, s)), theta[:, None, :])
+
+
+def scatter_uncertainty(records: np.ndarray) -> np.ndarray:
+    """Standard uncertainty of the mean of complex records (N, C) along axis 0 (the
+    orbit table's u_*): sqrt(sum |q - mean|^2 / (N - 1) / N); inf for N = 1 (unknown)."""
+    n = len(records)
+    if n < 2:
+        return np.full(records.shape[1:], np.inf)
+    dev = records - records.mean(axis=0)
+    return np.sqrt(np.sum(dev.real**2 + dev.imag**2, axis=0) / ((n - 1) * n))
 
 
 class StreamingAverager:
-    """Average consecutive good revolutions in blocks of ``n_revolutions``.
+    """Average consecutive good revolutions in blocks decided by ``rule``
+    (an ``AveragingRule``, or an int n for ``AveragingRule.fixed(n)``).
 
     ``gains``/``offsets`` (per channel, unit/count and unit) convert counts to
-    engineering units; default 1 and 0 (raw counts). ``push``/``push_batch`` return
-    each completed block and start the next one.
+    engineering units; default 1 and 0 (raw counts). ``take`` consumes revolutions
+    up to the end of the current block; ``push``/``push_batch`` return every
+    completed block and start the next one.
     """
 
-    def __init__(self, n_revolutions: int = 50, gains: Sequence[float] | None = None,
+    def __init__(self, rule: AveragingRule | int = 50, gains: Sequence[float] | None = None,
                  offsets: Sequence[float] | None = None) -> None:
-        if n_revolutions < 1:
-            raise ValueError(f"n_revolutions must be >= 1, not {n_revolutions}")
-        self.n_revolutions = n_revolutions
+        if not isinstance(rule, AveragingRule):  # a count: the fixed rule
+            if int(rule) != rule or rule < 1:
+                raise ValueError(f"n_revolutions must be an integer >= 1, not {rule}")
+            rule = AveragingRule.fixed(int(rule))
+        self.rule = rule
         self._gains = None if gains is None else np.asarray(gains, np.float64)
         self._offsets = None if offsets is None else np.asarray(offsets, np.float64)
-        self._counts: np.ndarray | None = None  # (N, C, S) int16: the block's revolutions
-        self._revs = np.zeros(n_revolutions, np.int64)
-        self._periods = np.zeros(n_revolutions)
+        hi = rule.max_revolutions
+        self._counts: np.ndarray | None = None  # (max, C, S) int16: the block's revolutions
+        self._records = np.zeros((hi, 0), complex)  # (max, C) per-revolution phasors
+        self._revs, self._t_us = np.zeros(hi, np.int64), np.zeros(hi, np.int64)
+        self._periods = np.zeros(hi)
+        self._slots = np.zeros((0, 0), np.int64)
+        self._weights = np.zeros((0, 0), complex)
+        self._cal = (np.zeros(0), np.zeros(0))
+        self._running = _RunningScatter()
         self._n = 0
+
+    @property
+    def n_revolutions(self) -> int:
+        """The most revolutions a block can hold."""
+        return self.rule.max_revolutions
 
     @property
     def count(self) -> int:
@@ -82,48 +183,120 @@ class StreamingAverager:
         return blocks[0] if blocks else None
 
     def push_batch(self, revs: RevolutionBatch) -> list[AveragedBlock]:
-        blocks = []
-        i = 0
+        blocks, i = [], 0
         while i < len(revs):
-            take = min(self.n_revolutions - self._n, len(revs) - i)
-            self._accumulate(revs, i, i + take)
-            i += take
-            if self._n == self.n_revolutions:
-                blocks.append(self._finish(revs.slots))
+            used, block = self.take(revs.take(slice(i, None)))
+            i += used
+            if block is not None:
+                blocks.append(block)
         return blocks
 
-    def _accumulate(self, revs: RevolutionBatch, a: int, b: int) -> None:
-        c, s = revs.counts.shape[1:]
-        if self._counts is None or self._counts.shape[1:] != (c, s):
-            self._check_calibration(c)
-            self._counts = np.empty((self.n_revolutions, c, s), np.int16)
-            self._n = 0
-        n0, n1 = self._n, self._n + (b - a)
-        self._counts[n0:n1] = revs.counts[a:b]
-        self._revs[n0:n1] = revs.rev[a:b]
-        self._periods[n0:n1] = revs.period_s[a:b]
+    def take(self, revs: RevolutionBatch) -> tuple[int, AveragedBlock | None]:
+        """Add revolutions from the start of ``revs`` until the block is complete.
+        Returns (revolutions used, the completed block or None)."""
+        if not len(revs):
+            return 0, None
+        self._prepare(revs.counts.shape[1:], revs.slots)
+        seg = revs.take(slice(0, self.rule.max_revolutions - self._n))
+        records = np.einsum("rcs,cs->rc", seg.counts, self._weights) * self._cal[0]
+        used, reason = self._stop(records)
+        n0, n1 = self._n, self._n + used
+        self._counts[n0:n1] = seg.counts[:used]
+        self._records[n0:n1] = records[:used]
+        self._revs[n0:n1], self._t_us[n0:n1] = seg.rev[:used], seg.t_us[:used]
+        self._periods[n0:n1] = seg.period_s[:used]
         self._n = n1
+        return used, (self._finish(reason) if reason else None)
 
-    def _check_calibration(self, c: int) -> None:
+    def _prepare(self, shape: tuple[int, int], slots: np.ndarray) -> None:
+        """Buffers and phasor weights for this scan layout (a new layout starts a new block)."""
+        if self._counts is not None and self._counts.shape[1:] == shape and np.array_equal(slots, self._slots):
+            return
+        c, s = shape
         for name, v in (("gains", self._gains), ("offsets", self._offsets)):
             if v is not None and v.shape != (c,):
                 raise ValueError(f"{name} has {v.size} values for {c} channels")
+        self._cal = (np.ones(c) if self._gains is None else self._gains,
+                     np.zeros(c) if self._offsets is None else self._offsets)
+        self._counts = np.empty((self.rule.max_revolutions, c, s), np.int16)
+        self._records = np.empty((self.rule.max_revolutions, c), complex)
+        self._slots = np.array(slots)
+        self._weights = phasor_weights(self._slots * (2 * np.pi / 360))
+        self._running.reset()
+        self._n = 0
 
-    def _finish(self, slots: np.ndarray) -> AveragedBlock:
-        n, c = self._n, self._counts.shape[1]
-        gains = np.ones(c) if self._gains is None else self._gains
-        offsets = np.zeros(c) if self._offsets is None else self._offsets
-        theta = slots * (2 * np.pi / 360)
-        counts = self._counts[:n]
+    def _stop(self, records: np.ndarray) -> tuple[int, str | None]:
+        """How many of these new per-revolution phasors (R, C) the block takes, and
+        why it stops (None: not yet)."""
+        rule, r = self.rule, len(records)
+        room = rule.max_revolutions - self._n
+        if rule.target is not None:
+            used = self._running.first_met(records, rule.target, rule.min_revolutions)
+            if used:
+                self._running.add(records[:used])
+                return used, STOP_TARGET
+            self._running.add(records[:room])
+        if r >= room:
+            return room, STOP_COUNT if rule.target is None else STOP_MAX
+        return r, None
+
+    def _finish(self, reason: str) -> AveragedBlock:
+        n = self._n
+        gains, offsets = self._cal
+        theta = self._slots * (2 * np.pi / 360)
+        counts = self._counts[:n].copy()
         mean = counts.mean(axis=0) * gains[:, None] + offsets[:, None]
         fit = harmonic_fit(mean, theta)
-        periods = self._periods[:n]
+        records = self._records[:n].copy()
+        periods = self._periods[:n].copy()
         known = periods[~np.isnan(periods)]
         speed = 2 * np.pi / known.mean() if len(known) else float("nan")
-        block = AveragedBlock(
-            orbit_speed=float(speed), theta=theta, mean=mean, phasors=fit.phasor,
-            record_phasors=phasor(counts, theta) * gains, rms_residual=fit.rms_residual, dc=fit.mean,
-            revs=self._revs[:n].copy(),
-        )
         self._n = 0
-        return block
+        self._running.reset()
+        return AveragedBlock(
+            orbit_speed=float(speed), slots=self._slots.copy(), theta=theta, mean=mean, phasors=fit.phasor,
+            uncertainty=scatter_uncertainty(records), record_phasors=records, rms_residual=fit.rms_residual,
+            dc=fit.mean, raw_counts=counts, gains=gains.copy(), offsets=offsets.copy(),
+            revs=self._revs[:n].copy(), t_us=self._t_us[:n].copy(), periods=periods, stop_reason=reason,
+            rule=self.rule,
+        )
+
+
+class _RunningScatter:
+    """Running sums of a block's per-revolution phasors (C,), shifted by its first one
+    (numerically stable): the standard uncertainty of their mean after each new
+    revolution in O(channels) per revolution."""
+
+    def __init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        self.n = 0
+        self.ref = self.s1 = self.s2 = None
+
+    def _cumulative(self, records: np.ndarray):
+        if self.ref is None:
+            self.ref = records[0].copy()
+            self.s1, self.s2 = np.zeros_like(self.ref), np.zeros(self.ref.shape)
+        d = records - self.ref
+        return self.s1 + np.cumsum(d, axis=0), self.s2 + np.cumsum(d.real**2 + d.imag**2, axis=0)
+
+    def first_met(self, records: np.ndarray, target: float, min_n: int) -> int:
+        """Revolutions of ``records`` (R, C) after which every channel's uncertainty
+        of the mean is at most ``target`` times the mean's magnitude, at a count of at
+        least ``min_n`` (and 2); 0 if none."""
+        s1, s2 = self._cumulative(records)
+        m = (self.n + 1 + np.arange(len(records), dtype=float))[:, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            var = (s2 - (s1.real**2 + s1.imag**2) / m) / (m - 1)
+            u = np.sqrt(np.maximum(var, 0.0) / m)
+            ok = np.all(u <= target * np.abs(self.ref + s1 / m), axis=1) & (m[:, 0] >= max(min_n, 2))
+        hit = np.flatnonzero(ok)
+        return int(hit[0]) + 1 if len(hit) else 0
+
+    def add(self, records: np.ndarray) -> None:
+        if not len(records):
+            return
+        s1, s2 = self._cumulative(records)
+        self.s1, self.s2 = s1[-1], s2[-1]
+        self.n += len(records)

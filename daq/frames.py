@@ -67,7 +67,9 @@ class Frame:
         return bool(self.flags & FLAG_SIMULTANEOUS)
 
 
-_FIELDS = ("flags", "seq", "rev", "first_slot", "n_slots", "n_ch", "t_us", "skipped_before")
+def _header_of(f: Frame) -> tuple[int, ...]:
+    """A frame's header fields in FrameBatch column order."""
+    return (f.flags, f.seq, f.rev, f.first_slot, f.n_slots, f.n_ch, f.t_us, f.skipped_before)
 
 
 @dataclass(frozen=True)
@@ -92,6 +94,11 @@ class FrameBatch:
     def __len__(self) -> int:
         return len(self.seq)
 
+    def _columns(self) -> tuple[np.ndarray, ...]:
+        """The per-frame header columns, in constructor order (before ``start``)."""
+        return (self.flags, self.seq, self.rev, self.first_slot, self.n_slots, self.n_ch, self.t_us,
+                self.skipped_before)
+
     @classmethod
     def empty(cls) -> "FrameBatch":
         z = np.zeros(0, np.int64)
@@ -101,7 +108,7 @@ class FrameBatch:
     def from_frames(cls, frames: list[Frame]) -> "FrameBatch":
         if not frames:
             return cls.empty()
-        cols = np.array([[getattr(f, k) for k in _FIELDS] for f in frames], np.int64).T
+        cols = np.array([_header_of(f) for f in frames], np.int64).T
         sizes = np.array([f.n_slots * f.n_ch for f in frames], np.int64)
         start = np.concatenate(([0], np.cumsum(sizes)[:-1]))
         samples = np.concatenate([np.ascontiguousarray(f.samples, np.int16).ravel() for f in frames])
@@ -112,7 +119,7 @@ class FrameBatch:
         if first >= len(self):
             return FrameBatch.empty()
         s0 = int(self.start[first])
-        cols = [getattr(self, k)[first:].copy() for k in _FIELDS]
+        cols = [c[first:].copy() for c in self._columns()]
         return FrameBatch(*cols, self.start[first:] - s0, self.samples[s0:].copy())
 
     def concat(self, other: "FrameBatch") -> "FrameBatch":
@@ -120,7 +127,7 @@ class FrameBatch:
             return other
         if not len(other):
             return self
-        cols = [np.concatenate((getattr(self, k), getattr(other, k))) for k in _FIELDS]
+        cols = [np.concatenate(pair) for pair in zip(self._columns(), other._columns())]
         start = np.concatenate((self.start, other.start + len(self.samples)))
         return FrameBatch(*cols, start, np.concatenate((self.samples, other.samples)))
 

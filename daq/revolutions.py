@@ -90,7 +90,8 @@ class RevolutionBatch:
             return cls(z, z, np.zeros(0), np.zeros((0, *slots.shape), np.int16), slots)
         if len(parts) == 1:
             return parts[0]
-        return cls(*(np.concatenate([getattr(p, k) for p in parts]) for k in ("rev", "t_us", "period_s", "counts")), slots)
+        return cls(np.concatenate([p.rev for p in parts]), np.concatenate([p.t_us for p in parts]),
+                   np.concatenate([p.period_s for p in parts]), np.concatenate([p.counts for p in parts]), slots)
 
 
 def channel_slots(channels: int, mode: str) -> np.ndarray:

@@ -1,16 +1,23 @@
-"""`orbitrig acquire`: read N good revolutions from the A/D board and print the fundamentals."""
+"""`orbitrig acquire`: average good revolutions from the A/D board and print the fundamentals."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
 import typer
 
+FIRST_WAIT_S = 10.0  # automatic timeout: wait this long for the orbit's first good revolution
+_HINT_TURNING = ("is the orbit turning? start it with `orbitrig drives run --spin RPM --orbit RPM --hold` "
+                 "in another shell, and check the A/D board's trigger and clock")
+_HINT_LINK = "is the A/D board (or `orbitrig sim`) serving there? set [transports] adc_url in the rig config or pass --adc"
+
 
 def block_summary(block) -> dict:
     """The JSON object of `orbitrig acquire --json` (units: counts, or engineering
-    units with a rig config; phase in degrees, q(theta) = Re(q_bar e^{i theta}))."""
+    units with a rig config; phase in degrees, q(theta) = Re(q_bar e^{i theta});
+    uncertainty: standard uncertainty of the averaged phasor, same unit)."""
     import math
 
     import numpy as np
@@ -23,12 +30,123 @@ def block_summary(block) -> dict:
         "frames_bad": s.frames_bad,
         "bytes_skipped": s.bytes_skipped,
         "orbit_hz": None if math.isnan(orbit_hz) else orbit_hz,
+        "stop_reason": block.stop_reason,
         "channels": [
             {"index": k, "re": float(q.real), "im": float(q.imag), "amplitude": float(abs(q)),
-             "phase_deg": float(np.degrees(np.angle(q))), "rms_residual": float(r)}
-            for k, (q, r) in enumerate(zip(block.phasors, block.rms_residual))
+             "phase_deg": float(np.degrees(np.angle(q))), "rms_residual": float(r),
+             "uncertainty": float(u) if math.isfinite(u) else None}
+            for k, (q, r, u) in enumerate(zip(block.phasors, block.rms_residual, block.uncertainty))
         ],
     }
+
+
+@dataclass
+class _Scan:
+    """Where and what to read: URL, scan list, calibration and labels (index -> name, unit)."""
+
+    adc: str
+    channels: int
+    mode: str
+    gains: list[float] | None
+    offsets: list[float] | None
+    labels: dict[int, tuple[str, str]]
+    timeout_factor: float = 3.0  # acquisition wait per revolution asked, in orbit periods
+
+
+def _fail(msg: str) -> None:
+    typer.echo(f"orbitrig acquire: {msg}", err=True)
+    raise typer.Exit(2)
+
+
+def _scan(adc, channels, mode, rig: Path | None, counts: bool) -> _Scan:
+    """The scan from the options, the rig config (--rig, default config/rig.toml) filling the gaps."""
+    from orbitrig.config import default_rig_path, load_rig
+    from orbitrig.errors import ConfigError
+
+    path = rig or default_rig_path()
+    scan = _Scan(adc, channels, mode, None, None, {})
+    if rig is not None or path.is_file():
+        try:
+            cfg = load_rig(path)
+        except ConfigError as err:
+            _fail(str(err))
+        scan.adc = adc or cfg.transports.adc_url
+        scan.mode = mode or cfg.transports.adc_mode
+        scan.timeout_factor = cfg.averaging.timeout_factor
+        if not counts:
+            scan.gains, scan.offsets = cfg.gains, cfg.offsets
+            scan.labels = {c.index: (c.name, c.unit) for c in cfg.ordered_channels}
+        scan.channels = channels or len(cfg.gains)
+    scan.channels = scan.channels or 8
+    scan.mode = scan.mode or "sequential"
+    if scan.adc is None:
+        _fail("--adc URL is required (or a rig config with an adc_url)")
+    if scan.mode not in ("sequential", "simultaneous"):
+        _fail(f"--mode must be sequential or simultaneous, not {scan.mode!r}")
+    if scan.gains is not None and len(scan.gains) != scan.channels:
+        _fail(f"--channels {scan.channels} but the rig config calibrates {len(scan.gains)} channels")
+    return scan
+
+
+def _rule(revolutions: int, target: float | None, min_revolutions: int):
+    import math
+
+    from daq.averager import AveragingRule
+
+    if target is None:
+        return AveragingRule.fixed(revolutions)
+    if not (math.isfinite(target) and target > 0):
+        _fail(f"--target must be a positive percentage, not {target}")
+    try:
+        return AveragingRule.adaptive(target / 100, min(min_revolutions, revolutions), revolutions)
+    except ValueError as err:
+        _fail(str(err))
+
+
+def _acquire(scan: _Scan, rule, timeout: float | None):
+    """Run the reader; exit 2 with a hint at the cause on any acquisition failure."""
+    import asyncio
+
+    from daq.adc import AdcReader
+    from daq.errors import DaqError, DaqLinkError, DaqTimeoutError
+
+    wait, per_rev = (timeout, None) if timeout is not None else (FIRST_WAIT_S, scan.timeout_factor)
+
+    async def run():
+        async with AdcReader(scan.adc, channels=scan.channels, mode=scan.mode, gains=scan.gains,
+                             offsets=scan.offsets, reconnect=True) as reader:
+            return await reader.acquire(rule, timeout=wait, per_revolution=per_rev)
+
+    try:
+        return asyncio.run(run())
+    except ValueError as err:  # bad scan list (channels not dividing 360 ...)
+        _fail(str(err))
+    except DaqTimeoutError as err:
+        hint = _HINT_TURNING if "no good revolution" in str(err) else "is the orbit speed steady?"
+        if timeout is not None:
+            hint += "; or raise --timeout"
+        _fail(f"{err}\n  {hint}")
+    except DaqLinkError as err:
+        _fail(f"{err}\n  {_HINT_LINK}")
+    except DaqError as err:
+        _fail(str(err))
+
+
+def _print_table(block, labels: dict[int, tuple[str, str]]) -> None:
+    out = block_summary(block)
+    s = block.stats
+    reasons = f" {dict(s.drop_reasons)}" if s.drop_reasons else ""
+    stop = "" if block.stop_reason == "count" else f" (stopped: {block.stop_reason})"
+    typer.echo(f"{out['revolutions_used']} revolutions averaged{stop}, {out['revolutions_dropped']} dropped"
+               f"{reasons}, frames bad {out['frames_bad']}, "
+               f"bytes skipped {out['bytes_skipped']}, orbit {out['orbit_hz'] or float('nan'):.4f} Hz")
+    typer.echo(f"{'ch':>3} {'re':>12} {'im':>12} {'amplitude':>12} {'phase deg':>10} {'rms resid':>12} "
+               f"{'u %':>8}  unit   name")
+    for c in out["channels"]:
+        name, unit = labels.get(c["index"], ("", "counts"))
+        rel = float("nan") if c["uncertainty"] is None or not c["amplitude"] else 100 * c["uncertainty"] / c["amplitude"]
+        typer.echo(f"{c['index']:>3} {c['re']:>12.5g} {c['im']:>12.5g} {c['amplitude']:>12.5g} "
+                   f"{c['phase_deg']:>10.3f} {c['rms_residual']:>12.5g} {rel:>8.3f}  {unit:<6} {name}".rstrip())
 
 
 def register(app: typer.Typer) -> None:
@@ -36,76 +154,39 @@ def register(app: typer.Typer) -> None:
     def acquire(
         adc: Optional[str] = typer.Option(None, "--adc", help="A/D board URL: /dev/ttyUSB0, a pty path, "
                                           "socket://host:port (default: the rig config's adc_url)."),
-        channels: Optional[int] = typer.Option(None, "--channels", help="Channels in the scan list (default 8, "
-                                               "or the rig config's)."),
-        mode: Optional[str] = typer.Option(None, "--mode", help="sequential | simultaneous (default sequential, "
-                                           "or the rig config's)."),
-        revolutions: int = typer.Option(50, "--revolutions", min=1, help="Good revolutions to average."),
-        timeout: float = typer.Option(10.0, "--timeout", help="Seconds to wait for them."),
-        rig: Optional[Path] = typer.Option(None, "--rig", help="Rig config (rig.toml): calibrate to "
-                                           "engineering units with its gains and offsets."),
+        channels: Optional[int] = typer.Option(None, "--channels", help="Channels in the scan list (default: "
+                                               "the rig config's, else 8)."),
+        mode: Optional[str] = typer.Option(None, "--mode", help="sequential | simultaneous (default: the rig "
+                                           "config's, else sequential)."),
+        revolutions: int = typer.Option(50, "--revolutions", min=1, help="Good revolutions to average "
+                                        "(with --target: the most)."),
+        target: Optional[float] = typer.Option(None, "--target", help="Stop as soon as every channel's phasor "
+                                               "uncertainty is below this percentage of its amplitude."),
+        min_revolutions: int = typer.Option(10, "--min-revolutions", min=2, help="With --target: the fewest."),
+        timeout: Optional[float] = typer.Option(None, "--timeout", min=0.001, max=1e6, help="Seconds to wait "
+                                                "(default: 10 s for the first revolution plus the rig config's "
+                                                "timeout_factor x revolutions x measured orbit period)."),
+        rig: Optional[Path] = typer.Option(None, "--rig", "--config", help="Rig config (default: config/rig.toml "
+                                           "of the orbitrig source tree): URL, scan and calibration to "
+                                           "engineering units (SI)."),
+        counts: bool = typer.Option(False, "--counts", help="Raw counts (gain 1, offset 0), not calibrated."),
         as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
     ) -> None:
-        """Average N good revolutions of the clocked A/D board; print each channel's fundamental.
+        """Average good revolutions of the clocked A/D board; print each channel's fundamental.
 
-        Without --rig the phasors are in raw counts (gain 1, offset 0). Exit 2 if the link
-        cannot be opened or the revolutions do not arrive within --timeout.
+        Phasors in engineering units of the rig config (N, m), or raw counts with --counts;
+        q(theta) = Re(q_bar e^{i theta}), theta the orbit angle after the trigger; "u %" is the
+        standard uncertainty of the averaged phasor relative to its amplitude. Exit 2 if the
+        link cannot be opened or the revolutions do not arrive in time.
         """
-        import asyncio
         import json
+        import math
 
-        from daq.adc import AdcReader
-        from daq.errors import DaqError
-
-        def fail(msg: str) -> None:
-            typer.echo(f"orbitrig acquire: {msg}", err=True)
-            raise typer.Exit(2)
-
-        gains = offsets = None
-        labels: dict[int, tuple[str, str]] = {}  # index -> (channel name, unit), from --rig
-        if rig is not None:
-            from orbitrig.config import load_rig
-            from orbitrig.errors import ConfigError
-
-            try:
-                cfg = load_rig(rig)
-            except ConfigError as err:
-                fail(str(err))
-            gains, offsets = cfg.gains, cfg.offsets
-            labels = {c.index: (c.name, c.unit) for c in cfg.ordered_channels}
-            adc = adc or cfg.transports.adc_url
-            channels = channels or len(gains)
-            mode = mode or cfg.transports.adc_mode
-        if adc is None:
-            fail("--adc URL is required (or --rig with an adc_url)")
-        channels = channels or 8
-        mode = mode or "sequential"
-        if mode not in ("sequential", "simultaneous"):
-            fail(f"--mode must be sequential or simultaneous, not {mode!r}")
-        if gains is not None and len(gains) != channels:
-            fail(f"--channels {channels} but the rig config calibrates {len(gains)} channels")
-
-        async def run():
-            async with AdcReader(adc, channels=channels, mode=mode, gains=gains, offsets=offsets,
-                                 reconnect=True) as reader:
-                return await reader.acquire(revolutions, timeout=timeout)
-
-        try:
-            block = asyncio.run(run())
-        except ValueError as err:  # bad scan list (channels not dividing 360 ...)
-            fail(str(err))
-        except DaqError as err:
-            fail(str(err))
-        out = block_summary(block)
+        if timeout is not None and not math.isfinite(timeout):
+            _fail(f"--timeout must be a finite number of seconds, not {timeout}")
+        scan = _scan(adc, channels, mode, rig, counts)
+        block = _acquire(scan, _rule(revolutions, target, min_revolutions), timeout)
         if as_json:
-            typer.echo(json.dumps(out))
-            return
-        reasons = f" {dict(block.stats.drop_reasons)}" if block.stats.drop_reasons else ""
-        typer.echo(f"{out['revolutions_used']} revolutions averaged, {out['revolutions_dropped']} dropped"
-                   f"{reasons}, frames bad {out['frames_bad']}, "
-                   f"bytes skipped {out['bytes_skipped']}, orbit {out['orbit_hz'] or float('nan'):.4f} Hz")
-        typer.echo(f"{'ch':>3} {'re':>12} {'im':>12} {'amplitude':>12} {'phase deg':>10} {'rms resid':>12}  unit   name")
-        for c in out["channels"]:
-            name, unit = labels.get(c["index"], ("", "counts"))
-            typer.echo(f"{c['index']:>3} {c['re']:>12.5g} {c['im']:>12.5g} {c['amplitude']:>12.5g} "
-                       f"{c['phase_deg']:>10.3f} {c['rms_residual']:>12.5g}  {unit:<6} {name}".rstrip())
+            typer.echo(json.dumps(block_summary(block)))
+        else:
+            _print_table(block, scan.labels)

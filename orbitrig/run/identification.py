@@ -15,7 +15,8 @@ import numpy as np
 
 from orbitrig.config import LMS, RigConfig
 from orbitrig.run.plan import Block, OperatingPoint
-from orbitrig.run.rig_io import Acquisition, TruthSource
+from daq.averager import AveragedBlock
+from orbitrig.run.rig_io import TruthSource
 from orbitrig.store.writer import BlockRecord, PointResults
 from reduction.coherence import orbit_coherences
 from reduction.errors import ReductionError
@@ -30,17 +31,17 @@ def probe_plane(values: np.ndarray, ch: dict[str, int]) -> tuple[np.ndarray, np.
     return (v[..., ch["x_a"]] + v[..., ch["x_b"]]) / 2, (v[..., ch["y_a"]] + v[..., ch["y_b"]]) / 2
 
 
-def block_record(block: Block, acq: Acquisition, rig: RigConfig) -> BlockRecord:
+def block_record(block: Block, blk: AveragedBlock, rig: RigConfig) -> BlockRecord:
     """What is stored for one block: the average, its raw counts, and the coherences of each
     load measuring system (rows piezo, strain; columns xfx, yfx, xfy, yfy)."""
-    blk, ch = acq.block, rig.channel_index
+    ch = rig.channel_index
     rp = np.asarray(blk.record_phasors)
     x, y = probe_plane(rp, ch)
     coh = np.array([orbit_coherences(x, y, rp[:, ch[f"fx_{lms}"]], rp[:, ch[f"fy_{lms}"]]) for lms in LMS])
     stats = {k: v for k, v in blk.stats.to_dict().items() if isinstance(v, (int, float, dict))}
     return BlockRecord(
-        block=block, measured_orbit_speed=float(blk.orbit_speed), raw_counts=acq.raw_counts, slots=acq.slots,
-        gains=np.asarray(rig.gains), offsets=np.asarray(rig.offsets), mean=np.asarray(blk.mean),
+        block=block, measured_orbit_speed=float(blk.orbit_speed), raw_counts=blk.raw_counts, slots=blk.slots,
+        gains=np.asarray(blk.gains), offsets=np.asarray(blk.offsets), mean=np.asarray(blk.mean),
         record_phasors=rp, phasors=np.asarray(blk.phasors), dc=np.asarray(blk.dc),
         rms_residual=np.asarray(blk.rms_residual), coherence=coh, stats=stats,
     )  # fmt: skip

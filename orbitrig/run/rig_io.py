@@ -19,10 +19,8 @@ import contextlib
 from dataclasses import dataclass, field
 from typing import Callable, Protocol
 
-import numpy as np
-
 from daq.adc import AdcReader
-from daq.averager import AveragedBlock
+from daq.averager import AveragedBlock, AveragingRule
 from daq.aux import AuxSensors
 from daq.revolutions import Revolution
 from drives.rig import RigDrives
@@ -92,15 +90,6 @@ class RigAccess:
         return cls(Endpoints.of_rig(rig))
 
 
-@dataclass
-class Acquisition:
-    """An averaged block plus the raw counts of exactly the revolutions in it."""
-
-    block: AveragedBlock
-    raw_counts: np.ndarray  # int16 (N, C, S)
-    slots: np.ndarray  # (C, S)
-
-
 class RigIO:
     """The open links of one run: `drives`, `adc`, `aux` (entered in that reverse order)."""
 
@@ -109,7 +98,6 @@ class RigIO:
         self.rig = rig
         self.endpoints = endpoints
         self._on_revolution = on_revolution
-        self._recording: dict[int, Revolution] | None = None
         self._stack = contextlib.AsyncExitStack()
         self.drives: RigDrives | None = None
         self.adc: AdcReader | None = None
@@ -136,18 +124,9 @@ class RigIO:
         await self._stack.aclose()
 
     def _revolution(self, rev: Revolution) -> None:
-        if self._recording is not None:
-            self._recording[int(rev.rev)] = rev
         if self._on_revolution is not None:
             self._on_revolution(rev)
 
-    async def acquire(self, n_revolutions: int, *, timeout: float) -> Acquisition:
-        """Average `n_revolutions` good revolutions (wall `timeout` s); keep their raw counts."""
-        self._recording = {}
-        try:
-            block = await self.adc.acquire(n_revolutions, timeout=timeout)
-        finally:
-            recorded, self._recording = self._recording, None
-        revs = [recorded[int(r)] for r in block.revs]
-        raw = np.stack([np.asarray(r.counts, dtype=np.int16) for r in revs])
-        return Acquisition(block, raw, np.asarray(revs[0].slots))
+    async def acquire(self, rule: AveragingRule | int, *, timeout: float) -> AveragedBlock:
+        """Average good revolutions by `rule` (wall `timeout` s); the block carries their raw counts."""
+        return await self.adc.acquire(rule, timeout=timeout)

@@ -37,18 +37,20 @@ async def rig():
 
 
 async def test_json_over_tcp_in_counts(rig):
-    code, out, err = await orbitrig("--adc", rig.adc_url, "--json", "--revolutions", "40")
+    code, out, err = await orbitrig("--adc", rig.adc_url, "--json", "--revolutions", "40", "--counts")
     assert code == 0, err
     d = json.loads(out)
     assert list(d) == ["revolutions_used", "revolutions_dropped", "frames_bad", "bytes_skipped",
-                       "orbit_hz", "channels"]
+                       "orbit_hz", "stop_reason", "channels"]
+    assert d["stop_reason"] == "count"
     assert d["revolutions_used"] == 40 and d["revolutions_dropped"] == 0 and d["frames_bad"] == 0
     assert d["orbit_hz"] == pytest.approx(12.5, rel=2e-3)
     assert [c["index"] for c in d["channels"]] == list(range(8))
     gains = np.array(rig.config.adc.gains)
     truth = np.array(list(rig.true_phasors(150.0, ORBIT).values())) / gains  # counts
     for c, q in zip(d["channels"], truth):
-        assert set(c) == {"index", "re", "im", "amplitude", "phase_deg", "rms_residual"}
+        assert set(c) == {"index", "re", "im", "amplitude", "phase_deg", "rms_residual", "uncertainty"}
+        assert 0 < c["uncertainty"] < 0.01 * c["amplitude"]
         got = complex(c["re"], c["im"])
         assert abs(got - q) < 0.01 * abs(q)
         assert c["amplitude"] == pytest.approx(abs(got))
@@ -76,4 +78,6 @@ async def test_exit_2_with_a_clear_message(rig):
     code, _, err = await orbitrig("--adc", rig.adc_url, "--mode", "simultaneous", "--timeout", "0.5")
     assert code == 2 and "no good revolution within 0.5 s" in err and "mode_mismatch" in err
     code, _, err = await orbitrig("--adc", rig.adc_url, "--channels", "7")
+    assert code == 2 and "--channels 7 but the rig config calibrates 8 channels" in err
+    code, _, err = await orbitrig("--adc", rig.adc_url, "--channels", "7", "--counts")
     assert code == 2 and "channels=7" in err

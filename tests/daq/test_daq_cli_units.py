@@ -1,4 +1,4 @@
-"""`orbitrig acquire` table: every row says its unit (counts, or N / m with --rig) and channel name."""
+"""`orbitrig acquire` table: every row says its unit (N / m from the rig config, or counts) and channel name."""
 
 from __future__ import annotations
 
@@ -35,6 +35,6 @@ async def test_rows_name_channel_and_unit():
         assert [row.split()[-2:] for row in lines[2:]] == [
             ["N", "fx_piezo"], ["N", "fy_piezo"], ["N", "fx_strain"], ["N", "fy_strain"],
             ["m", "x_a"], ["m", "y_a"], ["m", "x_b"], ["m", "y_b"]]
-        code, out, err = await _acquire("--adc", rig.adc_url, "--revolutions", "5")
+        code, out, err = await _acquire("--adc", rig.adc_url, "--revolutions", "5", "--counts")
         assert code == 0, err
         assert all(row.split()[-1] == "counts" for row in out.splitlines()[2:])

@@ -1,0 +1,57 @@
+"""AdcReader.acquire with averaging rules, against the simulator over TCP: adaptive
+stop at an uncertainty target, the maximum, and a wait that grows with the
+revolutions asked and the measured orbit period."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+
+import numpy as np
+import pytest
+
+from daq.adc import AdcReader
+from daq.averager import AveragingRule
+from daq.errors import DaqTimeoutError
+from sim.rig import SimRig
+
+ORBIT = 2 * math.pi * 12.5  # rad/s
+pytestmark = pytest.mark.timeout(60)
+
+
+@pytest.fixture
+async def adc():
+    async with SimRig(speedup=20.0, can_channel=None) as rig:
+        rig.local_control(spin=2 * math.pi * 30.0, orbit=ORBIT)
+        await asyncio.sleep(0.05)
+        cfg = rig.config.adc
+        async with AdcReader(rig.adc_url, channels=len(cfg.channels), gains=cfg.gains, offsets=cfg.offsets) as a:
+            yield a
+
+
+async def test_adaptive_stops_at_the_target(adc):
+    # the simulator's displacement channels reach 0.4 % after about 15 revolutions
+    block = await adc.acquire(AveragingRule.adaptive(0.004, 5, 200), timeout=20)
+    assert block.stop_reason == "target" and 5 < block.n_records < 100
+    assert np.all(block.relative_uncertainty <= 0.004)
+    assert block.stats.revolutions_used == block.n_records == len(block.raw_counts)
+    assert block.orbit_speed == pytest.approx(ORBIT, rel=2e-3)
+    # revolutions are consecutive and the block's mean is its raw counts, calibrated
+    assert np.all(np.diff(block.revs) == 1)
+    assert np.array_equal(block.mean, block.raw_counts.mean(axis=0) * block.gains[:, None] + block.offsets[:, None])
+
+
+async def test_adaptive_stops_at_the_maximum(adc):
+    block = await adc.acquire(AveragingRule.adaptive(1e-5, 5, 30), timeout=20)
+    assert (block.stop_reason, block.n_records) == ("max", 30)
+    assert np.all(block.relative_uncertainty > 1e-5)
+    fixed = await adc.acquire(12, timeout=20)
+    assert (fixed.stop_reason, fixed.n_records) == ("count", 12)
+
+
+async def test_the_wait_grows_with_revolutions_and_orbit_period(adc):
+    # 150 revolutions at 250 revolutions per wall second need 0.6 s: more than 0.3 s
+    with pytest.raises(DaqTimeoutError, match=r"only \d+ of 150 good revolutions within 0.3 s"):
+        await adc.acquire(150, timeout=0.3)
+    block = await adc.acquire(150, timeout=0.3, per_revolution=3.0)
+    assert block.n_records == 150

@@ -1,0 +1,115 @@
+"""`orbitrig acquire` defaults: the rig config's calibration, a wait that scales with
+the revolutions asked and the orbit period, adaptive averaging, errors that hint
+at the cause."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import math
+import sys
+import threading
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+import orbitrig.cli.acquire as cli_acquire
+from orbitrig.cli import app
+from sim.rig import SimRig
+
+ROOT = Path(__file__).resolve().parents[2]
+ORBIT = 2 * math.pi * 12.5  # rad/s
+pytestmark = pytest.mark.timeout(60)
+
+
+async def acquire(*args: str) -> tuple[int, str, str]:
+    p = await asyncio.create_subprocess_exec(sys.executable, "-m", "orbitrig", "acquire", *args, cwd=ROOT,
+                                             stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
+    out, err = await p.communicate()
+    return p.returncode, out.decode(), err.decode()
+
+
+@pytest.fixture
+async def rig():
+    async with SimRig(speedup=20.0, can_channel=None) as r:
+        r.local_control(spin=150.0, orbit=ORBIT)
+        await asyncio.sleep(0.05)
+        yield r
+
+
+async def test_calibrated_by_the_rig_config_by_default(rig):
+    code, out, err = await acquire("--adc", rig.adc_url, "--revolutions", "10", "--json")
+    assert code == 0, err
+    truth = list(rig.true_phasors(150.0, ORBIT).values())  # N, m
+    for c, q in zip(json.loads(out)["channels"], truth):
+        assert abs(complex(c["re"], c["im"]) - q) < 0.01 * abs(q)
+
+
+async def test_adaptive_averaging_from_the_command_line(rig):
+    code, out, err = await acquire("--adc", rig.adc_url, "--target", "0.5", "--min-revolutions", "5",
+                                   "--revolutions", "300", "--json")
+    assert code == 0, err
+    d = json.loads(out)
+    assert d["stop_reason"] == "target" and 5 <= d["revolutions_used"] < 300
+    assert all(c["uncertainty"] <= 0.005 * c["amplitude"] for c in d["channels"])
+    code, out, err = await acquire("--adc", rig.adc_url, "--target", "1e-6", "--min-revolutions", "5",
+                                   "--revolutions", "20")
+    assert code == 0, err
+    assert out.startswith("20 revolutions averaged (stopped: max), 0 dropped")
+    assert "u %" in out.splitlines()[1]
+
+
+async def test_errors_hint_at_the_cause(rig):
+    rig.local_control(spin=150.0, orbit=0.0)  # the board is clocked by the orbit: no frames
+    await asyncio.sleep(0.05)
+    code, out, err = await acquire("--adc", rig.adc_url, "--timeout", "0.5")
+    assert code == 2 and out == ""
+    assert "no good revolution within 0.5 s" in err and "is the orbit turning?" in err
+    assert "orbitrig drives run" in err and "--hold" in err and "raise --timeout" in err
+    code, _, err = await acquire("--adc", "socket://127.0.0.1:1")
+    assert code == 2 and "cannot connect" in err and "is the A/D board (or `orbitrig sim`) serving there?" in err
+    for bad in ("nan", "-1", "inf", "0"):
+        code, _, err = await acquire("--adc", rig.adc_url, "--timeout", bad)
+        assert code == 2 and "Traceback" not in err and "--timeout" in err, (bad, err)
+    code, _, err = await acquire("--adc", rig.adc_url, "--target", "1", "--revolutions", "1")
+    assert code == 2 and "min_revolutions >= 2" in err and "Traceback" not in err
+
+
+@contextmanager
+def sim_in_thread():
+    """The simulator on its own event loop in a thread (the CLI runs asyncio.run here)."""
+    ready, stop = threading.Event(), None
+    box: dict = {}
+
+    async def serve():
+        nonlocal stop
+        stop = asyncio.Event()
+        async with SimRig(speedup=20.0, can_channel=None) as r:
+            r.local_control(spin=150.0, orbit=ORBIT)
+            await asyncio.sleep(0.05)
+            box["url"], box["loop"] = r.adc_url, asyncio.get_running_loop()
+            ready.set()
+            await stop.wait()
+
+    t = threading.Thread(target=asyncio.run, args=(serve(),), daemon=True)
+    t.start()
+    assert ready.wait(20)
+    try:
+        yield box["url"]
+    finally:
+        box["loop"].call_soon_threadsafe(stop.set)
+        t.join(20)
+
+
+def test_the_default_wait_scales_with_revolutions_and_orbit_period(monkeypatch):
+    # 150 revolutions at 250 per wall second take 0.6 s; the wait for the first one is
+    # cut to 0.3 s: only the part that scales with the measured period lets it finish
+    monkeypatch.setattr(cli_acquire, "FIRST_WAIT_S", 0.3)
+    with sim_in_thread() as url:
+        r = CliRunner().invoke(app, ["acquire", "--adc", url, "--revolutions", "150", "--json"])
+        assert r.exit_code == 0, r.output
+        assert json.loads(r.stdout)["revolutions_used"] == 150
+        r = CliRunner().invoke(app, ["acquire", "--adc", url, "--revolutions", "150", "--timeout", "0.3"])
+        assert r.exit_code == 2 and "of 150 good revolutions within 0.3 s" in r.output
