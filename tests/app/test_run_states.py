@@ -66,3 +66,16 @@ def parts_stub():
         access = RigAccess(Endpoints("", "", "", ""))
 
     return Parts()
+
+
+def test_the_real_rig_is_reached_at_the_configured_transports_in_physical_time():
+    from orbitrig import config as cfg
+    from orbitrig.run.rig_io import OperatorHands, RigAccess, TimeScale
+
+    rig = cfg.load_rig()
+    access = RigAccess.of_rig(rig)
+    t = rig.transports
+    assert (access.endpoints.modbus_url, access.endpoints.adc_url) == (t.modbus_url, t.adc_url)
+    assert (access.endpoints.can_channel, access.endpoints.can_interface) == (t.can_channel, t.can_interface)
+    assert access.time_scale.wall(12.5) == 12.5 and TimeScale(40.0).wall(20.0) == 0.5
+    assert isinstance(access.hands, OperatorHands) and access.truth is None and not access.simulated
