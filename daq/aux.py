@@ -1,4 +1,4 @@
-"""AuxSensors: the lubricant/supply sensor node on CAN (../shared/spec/aux-can.md).
+"""AuxSensors: the lubricant/supply sensor node on CAN (docs/protocols/can-node.md).
 
     async with AuxSensors("orbitrig-sim", interface="virtual") as aux:
         s = aux.latest()
@@ -31,7 +31,7 @@ HEARTBEAT_PREOPERATIONAL = 0x7F
 _KELVIN = 273.15
 _LPM = 1e-3 / 60.0  # m^3/s per L/min
 
-# payload length of each frame (CAN id offset from the node id), spec/aux-can.md
+# payload length of each frame (CAN id offset from the node id), docs/protocols/can-node.md
 _LENGTH = {0x180: 8, 0x280: 8, 0x380: 4, 0x700: 1}
 # value name -> the frame (CAN id offset from the node id) that carries it
 _SOURCE = {

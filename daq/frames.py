@@ -1,4 +1,4 @@
-"""Decoder of the A/D board's frames (../shared/spec/adc-frames.md, v1). Pure: no I/O.
+"""Decoder of the A/D board's frames (docs/protocols/adc-frames.md, v1). Pure: no I/O.
 
 ``FrameDecoder.feed(bytes)`` takes the byte stream in arbitrary pieces and returns
 the frames that passed every check (sync, version, header fields, length, CRC).

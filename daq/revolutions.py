@@ -2,7 +2,7 @@
 
 A revolution is usable only when all 360 slots arrived with valid CRCs, in order,
 under one rev number, from a TRIGGER frame on, with no OVERRUN and no seq gap
-inside it (../shared/spec/adc-frames.md, "What a correct reader guarantees").
+inside it (docs/protocols/adc-frames.md, "What a correct reader guarantees").
 Anything else is dropped once per revolution and counted with its reason (see
 :mod:`daq.stats`).
 

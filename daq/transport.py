@@ -142,7 +142,7 @@ def _open_serial(url, on_data, on_lost) -> ByteLink:
     except ValueError as err:
         raise DaqLinkError(f"{url}: bad baud rate") from err
     try:
-        # spec/adc-frames.md: "No flow control" (no XON/XOFF, no RTS/CTS, no DSR/DTR)
+        # docs/protocols/adc-frames.md: "No flow control" (no XON/XOFF, no RTS/CTS, no DSR/DTR)
         port = serial.Serial(path, baudrate=baud, timeout=0, xonxoff=False, rtscts=False, dsrdtr=False)
     except (serial.SerialException, OSError, ValueError) as err:
         raise DaqLinkError(f"{url}: cannot open serial port ({err})") from err

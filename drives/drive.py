@@ -1,4 +1,4 @@
-"""One variable-speed drive on a Modbus link (../shared/spec/drive-modbus.md).
+"""One variable-speed drive on a Modbus link (docs/protocols/drive-modbus.md).
 
 Speeds are rad/s here (signed on a bidirectional drive: > 0 forward); the
 registers carry rpm scaled by the drive's own SPEED_SCALE, which is read from

@@ -1,4 +1,4 @@
-"""The drives' Modbus register map (../shared/spec/drive-modbus.md), pure.
+"""The drives' Modbus register map (docs/protocols/drive-modbus.md), pure.
 
 Addresses are the 0-based protocol addresses pymodbus takes. Speeds in the
 registers are int16 two's complement scaled so that REF = +/-20000 means

@@ -38,6 +38,23 @@ def default_matrix_path(name: str = "demo") -> Path:
     return _REPO_CONFIG / "matrices" / f"{name}.toml"
 
 
+def matrix_file(arg: str | Path, folder: Path | None = None) -> Path:
+    """A test matrix given as a file, or as a bare name from ``folder`` (default:
+    config/matrices/ of the source tree), as MQTT's `start` names one.
+
+    Raises ConfigError naming the available matrices if ``arg`` is neither."""
+    path = Path(arg)
+    if path.is_file() or path.suffix == ".toml" or len(path.parts) != 1:
+        return path  # a file (load_matrix names it if it cannot be read)
+    folder = folder or default_matrix_path().parent
+    named = folder / f"{arg}.toml"
+    if named.is_file():
+        return named
+    names = sorted(p.stem for p in folder.glob("*.toml"))
+    raise ConfigError(str(arg), [f"no such file, and no matrix of that name in {folder} "
+                                 f"(available: {', '.join(names) or 'none'})"])  # fmt: skip
+
+
 class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -195,7 +212,7 @@ class RigConfig(_Model):
         if idx != list(range(len(idx))):
             problems.append(f"channel indices must be 0..{len(idx) - 1} each once, got {idx}")
         elif self.transports.adc_mode == "sequential" and 360 % len(idx):
-            # spec/adc-frames.md: in sequential mode slot s converts channel s mod C
+            # docs/protocols/adc-frames.md: in sequential mode slot s converts channel s mod C
             problems.append(f"in sequential mode the number of channels ({len(idx)}) must divide 360")
         for c in self.channels:
             want = "N" if c.name.startswith("f") else "m"

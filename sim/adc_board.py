@@ -1,4 +1,4 @@
-"""The clocked A/D board of spec/adc-frames.md: quantisation and frame encoding.
+"""The clocked A/D board of docs/protocols/adc-frames.md: quantisation and frame encoding.
 
 Written from the spec only (independent of daq/). Frame layout, little-endian:
 sync A5 5A | version u8 | flags u8 | seq u16 | rev u32 | first_slot u16 |

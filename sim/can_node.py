@@ -1,4 +1,4 @@
-"""The auxiliary sensor node of spec/aux-can.md on a python-can bus.
+"""The auxiliary sensor node of docs/protocols/can-node.md on a python-can bus.
 
 Node id 1: 0x181 temperatures + flow, 0x281 supply + recess 1..3 pressures,
 0x381 recess 4 + status, every 100 ms; heartbeat 0x701 every 500 ms. Periods

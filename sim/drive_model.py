@@ -1,4 +1,4 @@
-"""Emulated spindle drive: the register map of ../shared/spec/drive-modbus.md.
+"""Emulated spindle drive: the register map of docs/protocols/drive-modbus.md.
 
 Pure logic, no I/O. One `DriveModel` is one drive (device id 1 = spin,
 2 = orbit). The Modbus servers in `sim/modbus_server.py` route every request

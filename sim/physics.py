@@ -1,6 +1,6 @@
 """Rig physics: true bearing coefficients, journal orbit, probe and load-cell signals.
 
-Conventions (docs/architecture.md, spec/orbit-table.md):
+Conventions (docs/architecture.md, docs/orbit-table.md):
 - theta = 2 pi s / 360 is the orbit angle after the trigger in time order
   (slot s), whatever the direction. The eccentric (orbit) spindle puts the
   journal at angle psi = sign(Omega) * (theta + phi0) with phi0 the trigger

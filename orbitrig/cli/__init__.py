@@ -11,6 +11,7 @@ from __future__ import annotations
 import importlib
 
 import typer
+import typer.core
 
 app = typer.Typer(
     name="orbitrig",
@@ -28,22 +29,51 @@ _AREAS = (
     "sweep",  # orbitrig sweep
     "report",  # orbitrig reduce, orbitrig report
     "serve",  # orbitrig serve
+    "dashboard",  # orbitrig dashboard
 )
 
 for _area in _AREAS:
     importlib.import_module(f"orbitrig.cli.{_area}").register(app)
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        from orbitrig import __version__
+
+        typer.echo(f"orbitrig {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: bool = typer.Option(False, "--version", is_eager=True, callback=_print_version,
+                                 help="Print the software version and exit."),
+) -> None:
+    """Fluid-film bearing test rig: acquisition, drives, sweep, identification."""
+
+
 @app.command("version")
 def version() -> None:
     """Print the software version."""
-    from orbitrig import __version__
+    _print_version(True)
 
-    typer.echo(__version__)
+
+def _flags_without_type(command) -> None:
+    """Typer's rich help (0.29, on its own copy of click) shows every option's type,
+    flags included ("<bool>", also for --help), although a flag takes no value; an
+    empty metavar leaves the type column blank. Walks ``command`` and its sub-commands."""
+    for param in command.get_params(typer.Context(command)):  # includes the cached --help option
+        if isinstance(param, typer.core.TyperOption) and param.is_flag:
+            param.metavar = ""
+    if isinstance(command, typer.core.TyperGroup):
+        for sub in command.commands.values():
+            _flags_without_type(sub)
 
 
 def main() -> None:
-    app()
+    command = typer.main.get_command(app)
+    _flags_without_type(command)
+    command()
 
 
 if __name__ == "__main__":

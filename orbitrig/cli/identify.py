@@ -1,6 +1,6 @@
 """`orbitrig identify TABLE.csv --model NAME [--freq-dep SPEC] [--method ...] [--solver ...] [--json]`.
 
-Contract: ../shared/spec/orbit-table.md. With --json one JSON object on stdout (exit 0);
+Contract: docs/orbit-table.md. With --json one JSON object on stdout (exit 0);
 otherwise readable tables. Unidentifiable model or malformed table: exit 2, nothing on
 stdout, the reason on stderr.
 """
@@ -32,7 +32,7 @@ def _fail(message: str) -> None:
 def register(app: typer.Typer) -> None:
     @app.command("identify")
     def identify_cmd(
-        table: Path = typer.Argument(..., help="Orbit table CSV (spec: orbit-table.md)."),
+        table: Path = typer.Argument(..., help="Orbit table CSV (columns: docs/orbit-table.md)."),
         model: str = typer.Option(..., "--model", help="kc7 (K, symmetric C) | kc8 (K, C) | kcd11 (K, C, symmetric D) | kcd12 (K, C, D)"),
         freq_dep: str = typer.Option("none", "--freq-dep",
                                      help="coefficients' dependence on the orbit speed Omega (rad/s): none | power:M (K = K0 + Omega^M KM, likewise C, D) | power:m,n,p (exponents of K, C, D) | power:auto (best M in 1..4) | poly:R (polynomial to Omega^R)"),

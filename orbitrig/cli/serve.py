@@ -1,4 +1,4 @@
-"""`orbitrig serve`: the rig service under MQTT control (spec/mqtt.md)."""
+"""`orbitrig serve`: the rig service under MQTT control (docs/protocols/mqtt.md)."""
 
 from __future__ import annotations
 

@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import json
+import sys
 from pathlib import Path
 from typing import Optional
 
 import typer
+
+#: default TCP port of the simulator's CAN bus (python-can `serial` framing)
+CAN_PORT = 5010
 
 
 def register(app: typer.Typer) -> None:
@@ -17,16 +22,20 @@ def register(app: typer.Typer) -> None:
         speedup: Optional[float] = typer.Option(None, "--speedup", help="Simulated time / wall time (default from config, 1)."),
         control_port: int = typer.Option(0, "--control-port", min=0, max=65535, help="JSON-lines control API port (0 = any free)."),
         modbus_rtu: bool = typer.Option(False, "--modbus-rtu/--no-modbus-rtu", help="Also serve Modbus RTU on a pty."),
-        can_channel: Optional[str] = typer.Option(None, "--can-channel", help="python-can channel of the CAN node."),
-        can_interface: str = typer.Option("virtual", "--can-interface", help="python-can interface of the CAN node."),
+        can_port: int = typer.Option(CAN_PORT, "--can-port", min=0, max=65535, help="TCP port of the CAN bus: python-can interface 'serial', channel socket://127.0.0.1:PORT (0 = any free)."),
+        can_channel: Optional[str] = typer.Option(None, "--can-channel", help="Put the CAN node on this python-can channel instead (e.g. vcan0 with --can-interface socketcan)."),
+        can_interface: str = typer.Option("virtual", "--can-interface", help="python-can interface of --can-channel."),
     ) -> None:
-        """Run the simulated rig: drives (Modbus ids 1, 2), A/D board (TCP + pty), CAN node.
+        """Run the simulated rig: drives (Modbus ids 1, 2), A/D board (TCP + pty), CAN sensor node (TCP).
 
-        Prints one JSON line with the endpoints, then runs until Ctrl-C / SIGTERM.
-        Both drives start stopped; A/D frames stream whenever the orbit spindle turns.
+        Prints one JSON line with the endpoints on stdout and what it serves where on
+        stderr, then runs until Ctrl-C / SIGTERM. Both drives start stopped; A/D frames
+        stream whenever the orbit spindle turns; the CAN node sends all the time.
         """
         import asyncio
+        import contextlib
 
+        from sim.can_tcp import CanTcpHub
         from sim.config import SimConfig, load_sim_config
         from sim.rig import SimRig, serve_until_signalled
 
@@ -40,14 +49,55 @@ def register(app: typer.Typer) -> None:
             raise typer.Exit(2)
 
         async def run() -> None:
-            await serve_until_signalled(SimRig(
-                cfg, speedup=speedup, modbus_port=modbus_port, adc_port=adc_port,
-                modbus_rtu_pty=modbus_rtu, can_channel=can_channel, can_interface=can_interface,
-                control_port=control_port))
+            async with contextlib.AsyncExitStack() as stack:
+                can = dict(can_channel=can_channel, can_interface=can_interface)
+                if can_channel is None:  # the bus other processes can reach
+                    hub = await stack.enter_async_context(CanTcpHub(port=can_port))
+                    can = dict(can_channel=hub.url, can_interface="serial")
+                rig = SimRig(cfg, speedup=speedup, modbus_port=modbus_port, adc_port=adc_port,
+                             modbus_rtu_pty=modbus_rtu, control_port=control_port, **can)  # fmt: skip
+                await serve_until_signalled(rig, out=_Announce(can["can_interface"], speedup or cfg.speedup))
 
         try:
             asyncio.run(run())
         except (OSError, RuntimeError) as err:  # a port in use (pymodbus says RuntimeError "Could not start listen")
-            typer.echo(f"orbitrig sim: {err} (ports: Modbus {modbus_port}, A/D {adc_port}, control {control_port}; "
-                       "is another simulator running? 0 picks a free port)", err=True)  # fmt: skip
+            typer.echo(f"orbitrig sim: {err} (ports: Modbus {modbus_port}, A/D {adc_port}, CAN {can_port}, "
+                       f"control {control_port}; is another simulator running? 0 picks a free port)", err=True)  # fmt: skip
             raise typer.Exit(1) from None
+
+
+class _Announce:
+    """stdout for the endpoints line: passes it on, and tells the operator on stderr
+    what is served where."""
+
+    def __init__(self, can_interface: str, speedup: float):
+        self.can_interface, self.speedup = can_interface, speedup
+        self.told = False
+
+    def write(self, text: str) -> None:
+        sys.stdout.write(text)
+        if not self.told and text.startswith("{"):
+            self.told = True
+            sys.stderr.write(describe_endpoints(json.loads(text), self.can_interface, self.speedup))
+
+    def flush(self) -> None:
+        sys.stdout.flush()
+        sys.stderr.flush()
+
+
+def describe_endpoints(ep: dict, can_interface: str, speedup: float) -> str:
+    """The endpoints object of the simulator in words, with the rig.toml keys that reach them."""
+    lines = [f"orbitrig sim: the simulated rig runs (simulated time = {speedup:g} x wall time); Ctrl-C ends it.",
+             f"  drives     Modbus TCP {ep['modbus']}, device ids 1 (spin) and 2 (orbit)"]  # fmt: skip
+    if ep.get("modbus_rtu"):
+        lines.append(f"             Modbus RTU on {ep['modbus_rtu']}")
+    pty = f" and the pty {ep['adc_pty']}" if ep.get("adc_pty") else ""
+    lines.append(f"  A/D board  {ep['adc']} (TCP serial device server){pty}")
+    if ep.get("can"):
+        lines.append(f"  CAN node   python-can interface '{can_interface}', channel {ep['can']}")
+    if ep.get("control"):
+        lines.append(f"  control    {ep['control']} (JSON lines)")
+    lines.append("In config/rig.toml [transports]: adc_url = \"%s\", modbus_url = \"%s\"%s."
+                 % (ep["adc"], ep["modbus"],
+                    f", can_interface = \"{can_interface}\", can_channel = \"{ep['can']}\"" if ep.get("can") else ""))
+    return "\n".join(lines) + "\n"

@@ -22,11 +22,13 @@ def register(app: typer.Typer) -> None:
         out: Optional[Path] = typer.Option(None, "--out", help="run directory (run.h5, coefficients.csv, run.log)"),
         sim: bool = typer.Option(False, "--sim", help="run on the built-in simulator over loopback protocols"),
         config: Optional[Path] = typer.Option(None, "--config", help="rig configuration TOML (default: config/rig.toml of the orbitrig source tree)"),
-        matrix: Optional[Path] = typer.Option(
-            None, "--matrix", help="test matrix TOML (required on the rig; --sim defaults to config/matrices/demo.toml)"
+        matrix: Optional[str] = typer.Option(
+            None, "--matrix", metavar="NAME|FILE",
+            help="test matrix: a TOML file, or a name from config/matrices/ (demo, paper); "
+                 "required on the rig, --sim defaults to config/matrices/demo.toml",
         ),
         resume: bool = typer.Option(False, "--resume", help="continue the run in --out from its first incomplete point"),
-        dry_run: bool = typer.Option(False, "--dry-run", help="list the steps with estimated durations (s); touches no hardware"),
+        dry_run: bool = typer.Option(False, "--dry-run", help="print the plan's totals, then every step with its estimated duration (s); touches no hardware"),
         speedup: float = typer.Option(
             DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"
         ),
@@ -47,10 +49,14 @@ def register(app: typer.Typer) -> None:
         try:
             plan = _load(config, matrix, sim=sim, resume=resume, out=out, dry_run=dry_run)
             if dry_run:
-                _dry_run(plan)
+                from orbitrig.cli.dry_run import print_plan
+
+                print_plan(plan)
                 return
             if out is None:
                 raise typer.BadParameter("--out DIR is required (except with --dry-run)", param_hint="--out")
+            if not sim:
+                _check_rig_answers(plan.rig)
             if not resume:
                 _check_out(out)
             import asyncio
@@ -91,6 +97,7 @@ def _configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
             raise ConfigError(str(store.path), [f"this run was made {'on the simulator' if was_sim else 'on the rig'}: "
                                                 f"resume it {'with' if was_sim else 'without'} --sim"])  # fmt: skip
         rig = cfg.load_rig(config) if config else cfg.rig_from_text(rig_text, f"{store.path}:rig_config")
+        matrix = cfg.matrix_file(matrix) if matrix else None
         mat = cfg.load_matrix(matrix) if matrix else cfg.matrix_from_text(matrix_text, f"{store.path}:matrix_config")
         if matrix and mat.text != matrix_text:  # before the simulator or any drive is started
             raise ConfigError(mat.file, [f"differs from the matrix of the run being resumed in {store.path}; "
@@ -98,9 +105,9 @@ def _configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
         return rig, mat
     rig = cfg.load_rig(config)
     if matrix is None and not sim and not dry_run:
-        raise typer.BadParameter("--matrix FILE is required on the rig (--sim defaults to the demo)",
+        raise typer.BadParameter("--matrix NAME|FILE is required on the rig (--sim defaults to the demo)",
                                  param_hint="--matrix")  # fmt: skip
-    return rig, cfg.load_matrix(matrix)
+    return rig, cfg.load_matrix(cfg.matrix_file(matrix) if matrix else None)
 
 
 def _check_out(out: Path) -> None:
@@ -121,22 +128,19 @@ def _check_out(out: Path) -> None:
         raise ConfigError(str(out), ["the run directory is not writable"])
 
 
-def _dry_run(plan) -> None:
-    from orbitrig.run.plan import format_duration, summarize
+def _check_rig_answers(rig) -> None:
+    """On the rig: every transport must answer before the run directory is made (exit 2 if not)."""
+    import asyncio
 
-    steps = plan.steps
-    width = len(str(len(steps)))
-    typer.echo(f"{'#':>{width}}  {'starts at':>8}  {'where':10}  {'duration':>10}  step  (times h:mm:ss from the start)")
-    t = 0.0
-    for i, s in enumerate(steps, 1):
-        where = f"point {s.point:04d}" if s.point is not None else "end       "
-        typer.echo(f"{i:>{width}}  {format_duration(t):>8}  {where}  {s.duration:8.2f} s  {s.describe()}")
-        t += s.duration
-    sm = summarize(steps)
-    typer.echo(f"\nmatrix {plan.name}: {sm.points} operating points, {sm.blocks} orbit blocks, "
-               f"{len(steps)} steps, estimated {format_duration(sm.duration)} (physical time)")  # fmt: skip
-    parts = ", ".join(f"{k} {format_duration(v)}" for k, v in sm.by_kind.items())
-    typer.echo(f"by step: {parts}")
+    from orbitrig.cli.preflight import unreachable_transports
+
+    problems = asyncio.run(unreachable_transports(rig))
+    if problems:
+        lines = "\n".join(f"  {p}" for p in problems)
+        typer.echo(f"error: the rig does not answer ([transports] in {rig.file}):\n{lines}\n"
+                   "Nothing was started and no run directory was made. On a machine without the rig, "
+                   "run on the built-in simulator: orbitrig sweep --sim ...", err=True)  # fmt: skip
+        raise typer.Exit(2)
 
 
 async def _sweep(plan, *, out: Path, sim: bool, resume: bool, speedup: float):
@@ -154,8 +158,7 @@ async def _sweep(plan, *, out: Path, sim: bool, resume: bool, speedup: float):
             from orbitrig.cli.simulated_rig import simulated_rig
 
             _, access = await stack.enter_async_context(simulated_rig(speedup))
-        engine = RunEngine(plan.rig, out_dir=out, access=access,
-                           confirm_mode="auto" if sim else "prompt")  # fmt: skip
+        engine = RunEngine(plan.rig, out_dir=out, access=access, confirm_mode="auto" if sim else "prompt")
         operator = _Operator(engine, console)
         engine.subscribe(operator.on_event)
         with SweepProgress(console, revolutions=plan.revolutions) as bars:

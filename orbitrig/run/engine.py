@@ -22,7 +22,9 @@ import datetime as _dt
 import logging
 import time
 from pathlib import Path
-from typing import Literal
+from typing import Callable, Literal
+
+from daq.revolutions import Revolution
 
 from orbitrig.config import ConfigError, MatrixConfig, RigConfig
 from orbitrig.errors import OrbitrigError
@@ -60,6 +62,7 @@ class RunEngine:
         self.run_id: str | None = None
         self.timing: dict[str, float] = {}  # wall s per activity (bench)
         self._subs: list[Subscriber] = []
+        self.revolution_taps: list[Callable[[Revolution], None]] = []  # every revolution (orbitrig.service.live)
         self._control = RunControl(self._state_changed, self._log_event)
         self._store: RunStore | None = None
         self._io: RigIO | None = None
@@ -85,6 +88,11 @@ class RunEngine:
     @property
     def waiting_step(self) -> str | None:
         return self._control.waiting_step
+
+    @property
+    def io(self) -> RigIO | None:
+        """The open rig while a run has it, else None."""
+        return self._io
 
     def subscribe(self, callback: Subscriber) -> None:
         self._subs.append(callback)
@@ -114,7 +122,7 @@ class RunEngine:
         plan = plan if isinstance(plan, Plan) else make_plan(plan, self.rig)
         store, done = self._open_store(plan, resume)
         self._start(plan, store, done, resume)
-        io = RigIO(self.rig, self.access.endpoints, on_revolution=self._progress.revolution)
+        io = RigIO(self.rig, self.access.endpoints, on_revolution=self._on_revolution)
         status, message = FAILED, "run cancelled"
         try:
             status, message = await self._operate(io, plan, set(done))
@@ -305,6 +313,11 @@ class RunEngine:
                 self._store.log(f"[{state}] {message}")
             except OSError:
                 pass
+
+    def _on_revolution(self, rev: Revolution) -> None:
+        self._progress.revolution()
+        for tap in self.revolution_taps:
+            tap(rev)
 
     async def _monitor(self) -> None:
         """CAN and drive logs every 0.5 s (wall), kept until the next write."""

@@ -34,7 +34,7 @@ class ProgressMeter:
         self.frequency, self.revolutions = frequency, 0
         self.emit(force=True)
 
-    def revolution(self, _rev=None) -> None:
+    def revolution(self) -> None:
         self.revolutions += 1
         self.emit()
 

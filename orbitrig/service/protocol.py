@@ -1,4 +1,4 @@
-"""The MQTT contract of ../shared/spec/mqtt.md as pure code (no I/O).
+"""The MQTT contract of docs/protocols/mqtt.md as pure code (no I/O).
 
 Topic names under the prefix ``orbitrig/<rig_id>``, command parsing and
 validation with precise reasons, and the payload builders for status,
@@ -24,11 +24,12 @@ from typing import Any
 
 DEFAULT_PREFIX_ROOT = "orbitrig"
 
-#: States of ``<prefix>/status`` (spec/mqtt.md).
+#: States of ``<prefix>/status`` (docs/protocols/mqtt.md).
 STATES = ("idle", "running", "paused", "waiting", "stopping", "faulted", "offline")
 
-#: QoS and retain flag of each topic (spec/mqtt.md).
+#: QoS and retain flag of each topic (docs/protocols/mqtt.md).
 QOS_STATUS, QOS_PROGRESS, QOS_RESULT, QOS_REPLY, QOS_CMD = 1, 0, 1, 1, 1
+QOS_LIVE = 0  # <prefix>/live, built by orbitrig.service.live
 
 #: Commands and the fields each takes besides ``cmd`` and ``id`` (all required).
 COMMAND_FIELDS: dict[str, tuple[str, ...]] = {
@@ -68,6 +69,10 @@ class Topics:
     @property
     def result(self) -> str:
         return f"{self.prefix}/result"
+
+    @property
+    def live(self) -> str:
+        return f"{self.prefix}/live"
 
     @property
     def cmd(self) -> str:
@@ -136,7 +141,7 @@ def is_matrix_name(name: str) -> bool:
     return bool(_MATRIX_NAME.fullmatch(name)) and ".." not in name
 
 
-#: commands carried out even when their payload has wrong fields (spec/mqtt.md)
+#: commands carried out even when their payload has wrong fields (docs/protocols/mqtt.md)
 ALWAYS_ACCEPTED = frozenset({"stop", "abort"})
 
 
@@ -255,12 +260,13 @@ def dumps(obj: dict[str, Any]) -> bytes:
 
 def status_payload(state: str, run_id: str | None = None,
                    since: _dt.datetime | float | str | None = None,
-                   message: str | None = None) -> bytes:
-    """``{"state", "run_id", "since", "message"}`` for ``<prefix>/status``."""
+                   message: str | None = None, extra: dict[str, Any] | None = None) -> bytes:
+    """``{"state", "run_id", "since", "message"}`` for ``<prefix>/status``, plus ``extra``
+    (while ``waiting``: ``step`` and ``settings``, see orbitrig.service.live)."""
     if state not in STATES:
         raise ValueError(f"unknown state {state!r} (one of {', '.join(STATES)})")
     return dumps({"state": state, "run_id": run_id, "since": iso8601(since),
-                  "message": "" if message is None else str(message)})
+                  "message": "" if message is None else str(message), **(extra or {})})
 
 
 def progress_payload(run_id: str | None, point: int, points: int, frequency: int,

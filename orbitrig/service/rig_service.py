@@ -1,4 +1,4 @@
-"""The rig service under MQTT control (../shared/spec/mqtt.md), with aiomqtt.
+"""The rig service under MQTT control (docs/protocols/mqtt.md), with aiomqtt.
 
 One :class:`RigService` owns the broker connection and at most one run. The
 run is executed by the same executor as ``orbitrig sweep``
@@ -36,6 +36,7 @@ from pathlib import Path
 from typing import Any, Literal, Protocol
 from urllib.parse import urlsplit
 
+from orbitrig.service import live as live_feed
 from orbitrig.service import protocol as proto
 from orbitrig.errors import ConfigError, OrbitrigError
 
@@ -144,7 +145,7 @@ class Engine(Protocol):
 
 #: Makes the executor of one run: ``factory(matrix_name, matrix) -> Engine``.
 EngineFactory = Callable[[str, Any], Engine]
-#: Loads and checks a matrix file: ``loader(path) -> MatrixConfig`` (raises ConfigError).
+#: Loads and checks a matrix file: ``loader(path) -> Plan`` (orbitrig.run.plan; raises ConfigError).
 MatrixLoader = Callable[[Path], Any]
 
 
@@ -170,6 +171,7 @@ class RigService:
         self._load_matrix = load_matrix
         self._engine: Engine | None = None
         self._run_task: asyncio.Task | None = None
+        self._live: live_feed.LiveFeed | None = None
         self._status = proto.status_payload("idle", None, None, "service ready")
         self._state = "idle"
         self._run_id: str | None = None
@@ -399,6 +401,9 @@ class RigService:
         self._run_id = getattr(engine, "run_id", None)
         assert self._tg is not None
         self._run_task = self._tg.create_task(self._run(engine, cmd.matrix, matrix), name=f"run-{cmd.matrix}")
+        self._live = live_feed.attach(engine, matrix, lambda p: self._send(self.topics.live, p, proto.QOS_LIVE))
+        if self._live is not None:
+            self._tg.create_task(self._live.run(self._run_task), name=f"live-{cmd.matrix}")
         return None
 
     def _cmd_pause(self, cmd: proto.Command) -> str | None:
@@ -472,7 +477,8 @@ class RigService:
             self._loop.call_soon_threadsafe(self._on_event, event)
             return
         if hasattr(event, "state"):
-            self._set_status(event.state, event.run_id, event.message or "", event.since)
+            extra = self._live.waiting_fields(event.state) if self._live is not None else None
+            self._set_status(event.state, event.run_id, event.message or "", event.since, extra)
         elif hasattr(event, "payload"):
             self._send(self.topics.result, proto.result_payload(event.run_id, event.payload), proto.QOS_RESULT)
         elif hasattr(event, "point"):
@@ -482,7 +488,8 @@ class RigService:
         else:
             log.debug("ignored event %r", event)
 
-    def _set_status(self, state: str, run_id: str | None, message: str | None, since: Any = None) -> None:
+    def _set_status(self, state: str, run_id: str | None, message: str | None, since: Any = None,
+                    extra: dict[str, Any] | None = None) -> None:
         self._state, self._run_id = state, run_id
-        self._status = proto.status_payload(state, run_id, since, message)
+        self._status = proto.status_payload(state, run_id, since, message, extra)
         self._send(self.topics.status, self._status, proto.QOS_STATUS, True)

@@ -1,4 +1,4 @@
-"""Orbit table CSV (../shared/spec/orbit-table.md): read into / write from an OrbitTable.
+"""Orbit table CSV (docs/orbit-table.md): read into / write from an OrbitTable.
 
 Header row required, column order free, extra columns ignored. Units at this edge:
 spin_rpm (rpm), orbit_hz (Hz), phasors in m and N, optional gamma2_* in [0, 1]. Inside:

@@ -102,7 +102,7 @@ def test_closed_stdin_at_a_confirmation_stops_the_run_instead_of_hanging(tmp_pat
     """On the rig (no --sim) a manual-settings prompt with nobody to answer stops the run safely."""
     import json
 
-    sim = subprocess.Popen(orbitrig_cmd("sim", "--modbus-port", "0", "--adc-port", "0"), cwd=ROOT,
+    sim = subprocess.Popen(orbitrig_cmd("sim", "--modbus-port", "0", "--adc-port", "0", "--can-port", "0"), cwd=ROOT,
                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)  # fmt: skip
     try:
         ends = json.loads(sim.stdout.readline())
@@ -129,7 +129,8 @@ def test_dry_run_has_a_column_header_and_names_steps_in_the_rigs_words():
     p = _run("sweep", "--sim", "--dry-run")
     assert p.returncode == 0, p.stderr
     lines = p.stdout.splitlines()
-    assert lines[0].split()[:5] == ["#", "starts", "at", "where", "duration"]
+    assert lines[0].startswith("matrix demo: 1 operating points") and lines[1].startswith("by step: ")  # totals first
+    assert lines[3].split()[:5] == ["#", "starts", "at", "where", "duration"]
     by_step = next(line for line in lines if line.startswith("by step: "))
     assert "manual settings 2:00" in by_step and "stop drives" in by_step and "SetManual" not in by_step
 

@@ -1,5 +1,5 @@
 """A small A/D board frame encoder for the daq tests, written from the spec
-(../shared/spec/adc-frames.md) independently of daq.frames."""
+(docs/protocols/adc-frames.md) independently of daq.frames."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """A deliberately naive reference reader for the daq tests: what was on the wire.
 
 Taps the simulator's byte stream and parses it one frame at a time in plain
-Python (spec: ../shared/spec/adc-frames.md), to tell which revolutions went out
+Python (spec: docs/protocols/adc-frames.md), to tell which revolutions went out
 intact and what their samples were. Independent of daq.frames/daq.revolutions.
 """
 

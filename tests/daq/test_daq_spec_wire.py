@@ -1,4 +1,4 @@
-"""The readers held byte for byte to the specs (adc-frames.md, aux-can.md): golden
+"""The readers held byte for byte to the specs (docs/protocols: adc-frames.md, can-node.md): golden
 frames written out by hand from the spec tables, field by field at their offsets."""
 
 from __future__ import annotations
@@ -173,7 +173,7 @@ async def test_aux_lengths_and_unsigned_fields_are_the_specs():
 
 
 async def test_serial_link_has_no_flow_control():
-    """adc-frames.md Transport: a serial port, any baud rate, no flow control."""
+    """docs/protocols/adc-frames.md, the byte stream: a serial port, any baud rate, no flow control."""
     master, slave = os.openpty()
     path = os.ttyname(slave)
     try:

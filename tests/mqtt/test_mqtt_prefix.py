@@ -1,4 +1,4 @@
-"""spec/mqtt.md: the topic tree lives under a configurable prefix (default
+"""docs/protocols/mqtt.md: the topic tree lives under a configurable prefix (default
 orbitrig/<rig_id>). `orbitrig serve --prefix P` with a real mosquitto (the example
 ACL grants orbitrig/+/..., so the test prefix has two levels)."""
 

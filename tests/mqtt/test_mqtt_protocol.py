@@ -142,7 +142,7 @@ def test_replies():
     (b'{"cmd":"abort","id":7,"reason":"smoke"}', None, "field 'id' must be a string"),
 ])
 def test_stop_and_abort_are_always_accepted(payload, cid, ignored):
-    """spec/mqtt.md: stop and abort are always accepted, even with wrong fields."""
+    """docs/protocols/mqtt.md: stop and abort are always accepted, even with wrong fields."""
     cmd = parse_command(payload)
     assert cmd.cmd in ("stop", "abort") and cmd.id == cid
     assert any(ignored in problem for problem in cmd.ignored)

@@ -1,4 +1,4 @@
-"""An independent reader of the A/D byte stream, written from spec/adc-frames.md
+"""An independent reader of the A/D byte stream, written from docs/protocols/adc-frames.md
 for the simulator tests only (it shares nothing with daq/ or sim/)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The CAN sensor node (read off the virtual bus, decoded per spec/aux-can.md)
+"""The CAN sensor node (read off the virtual bus, decoded per docs/protocols/can-node.md)
 and the JSON-lines control API."""
 
 from __future__ import annotations

@@ -36,13 +36,15 @@ def control(port: int, obj: dict) -> dict:
                                            ("sim", signal.SIGINT)],
                          ids=["ctrl-c", "sigterm", "python-m-sim"])
 def test_sim_command_runs_streams_and_stops_cleanly(module, sig):
-    proc = start("--modbus-port", "0", "--adc-port", "0", "--speedup", "5", "--config", "config/sim.toml",
+    can = ("--can-port", "0") if module == "orbitrig" else ()  # orbitrig sim: CAN on a TCP bus by default
+    proc = start("--modbus-port", "0", "--adc-port", "0", *can, "--speedup", "5", "--config", "config/sim.toml",
                  module=module)
     try:
         ep = json.loads(proc.stdout.readline())
         assert set(ep) == {"modbus", "adc", "adc_pty", "control", "can"}
         assert ep["modbus"].startswith("tcp://127.0.0.1:") and ep["adc"].startswith("socket://127.0.0.1:")
-        assert ep["adc_pty"].startswith("/dev/pts/") and ep["can"] is None
+        assert ep["adc_pty"].startswith("/dev/pts/")
+        assert ep["can"] is None if module == "sim" else ep["can"].startswith("socket://127.0.0.1:")
         cport = int(ep["control"].rsplit(":", 1)[1])
         state = control(cport, {"cmd": "state"})
         assert state["spin"] == 0.0 and state["orbit"] == 0.0  # both drives start stopped

@@ -1,5 +1,5 @@
-"""The simulator's wire formats held byte for byte to the specs (adc-frames.md,
-aux-can.md): golden frames written out by hand from the spec tables, field by
+"""The simulator's wire formats held byte for byte to the specs (docs/protocols: adc-frames.md,
+can-node.md): golden frames written out by hand from the spec tables, field by
 field at their offsets, never with the simulator's own struct layouts."""
 
 from __future__ import annotations

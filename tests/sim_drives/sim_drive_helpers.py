@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 
-# Control words of ../shared/spec/drive-modbus.md.
+# Control words of docs/protocols/drive-modbus.md.
 READY = 0x0476
 RUN = 0x047F
 RAMP_STOP = 0x047E

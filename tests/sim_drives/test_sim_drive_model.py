@@ -1,4 +1,4 @@
-"""DriveModel held to ../shared/spec/drive-modbus.md with a fake clock (no I/O)."""
+"""DriveModel held to docs/protocols/drive-modbus.md with a fake clock (no I/O)."""
 
 from __future__ import annotations
 

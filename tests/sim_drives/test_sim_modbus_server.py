@@ -1,5 +1,5 @@
 """The emulated drives over real Modbus: an independent pymodbus client (TCP and
-RTU over the pty) and mbpoll, held to ../shared/spec/drive-modbus.md."""
+RTU over the pty) and mbpoll, held to docs/protocols/drive-modbus.md."""
 
 from __future__ import annotations
 

@@ -1,0 +1,113 @@
+"""`orbitrig dashboard`: the live view of a rig in the browser (orbitrig.dashboard)."""
+
+from __future__ import annotations
+
+import ipaddress
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+
+def _fail(message: str, code: int = 2) -> None:
+    typer.echo(f"orbitrig dashboard: {message}", err=True)
+    raise typer.Exit(code)
+
+
+def _http_address(text: str) -> tuple[str, int]:
+    host, sep, port = text.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        _fail(f"--http {text!r}: expected HOST:PORT, e.g. 127.0.0.1:8080")
+    return host.strip("[]"), int(port)
+
+
+def _loopback(host: str) -> bool:
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return host == "localhost"
+
+
+def _https_context(cert: Path | None, key: Path | None, host: str):
+    """The TLS context of the page (None: plain HTTP, allowed on loopback only:
+    passwords cross this connection at sign-in)."""
+    import ssl
+
+    if (cert is None) != (key is None):
+        _fail("--https-cert and --https-key go together")
+    if cert is None:
+        if not _loopback(host):
+            _fail(f"--http {host}: plain HTTP only on loopback (passwords are sent at sign-in); "
+                  "give --https-cert and --https-key, or serve on 127.0.0.1 behind a TLS reverse proxy")
+        return None
+    ctx = ssl.create_default_context(ssl.Purpose.CLIENT_AUTH)
+    try:
+        ctx.load_cert_chain(cert, key)
+    except (OSError, ssl.SSLError) as err:
+        _fail(f"--https-cert/--https-key: cannot load {cert} / {key}: {err}")
+    return ctx
+
+
+def _settings(broker: str, rig_id: str, prefix: str | None, tls_ca: Path | None, idle_timeout: float,
+              reply_timeout: float):
+    from orbitrig.dashboard.session import DashboardSettings
+    from orbitrig.service.protocol import topics, validate_rig_id
+    from orbitrig.service.rig_service import BrokerSettings, ServiceError
+
+    try:
+        validate_rig_id(rig_id)
+        tree = topics(rig_id, prefix)
+    except ValueError as err:
+        _fail(str(err))
+    if tls_ca is not None and not tls_ca.is_file():
+        _fail(f"--tls-ca: no such file: {tls_ca}")
+    if idle_timeout <= 0 or reply_timeout <= 0:
+        _fail("--idle-timeout and --reply-timeout must be > 0 s")
+    try:
+        where = BrokerSettings.from_url(broker, tls_ca=tls_ca)
+    except ServiceError as err:
+        _fail(str(err))
+    return DashboardSettings(host=where.host, port=where.port, topics=tree, tls=where.tls, tls_ca=tls_ca,
+                             idle_timeout=idle_timeout, reply_timeout=reply_timeout)
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("dashboard")
+    def dashboard(
+        broker: str = typer.Option(..., "--broker", help="mqtt://host:port or mqtts://host:port"),
+        rig_id: str = typer.Option("rig1", "--rig-id", help="topic prefix orbitrig/<rig-id>"),
+        prefix: Optional[str] = typer.Option(None, "--prefix", help="topic prefix instead of orbitrig/<rig-id>"),
+        http: str = typer.Option("127.0.0.1:8080", "--http", help="HOST:PORT the page is served on"),
+        https_cert: Optional[Path] = typer.Option(None, "--https-cert", help="serve HTTPS with this certificate"),
+        https_key: Optional[Path] = typer.Option(None, "--https-key", help="its private key"),
+        tls_ca: Optional[Path] = typer.Option(None, "--tls-ca", help="CA file: TLS to the broker"),
+        idle_timeout: float = typer.Option(1800.0, "--idle-timeout", help="s without activity that end a session"),
+        reply_timeout: float = typer.Option(
+            3.0, "--reply-timeout", help="s to wait for the service's reply before a command counts as refused"),
+        verbose: bool = typer.Option(False, "--verbose", "-v", help="log at debug level"),
+    ) -> None:
+        """Serve the live view of a rig: sign in with your broker user name and password."""
+        import asyncio
+        import logging
+        import signal
+
+        logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO,
+                            format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+        logging.getLogger("mqtt").setLevel(logging.WARNING)
+        settings = _settings(broker, rig_id, prefix, tls_ca, idle_timeout, reply_timeout)
+        host, port = _http_address(http)
+        ssl_context = _https_context(https_cert, https_key, host)
+
+        async def main() -> None:
+            from orbitrig.dashboard.server import serve
+
+            shutdown = asyncio.Event()
+            loop = asyncio.get_running_loop()
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                loop.add_signal_handler(sig, shutdown.set)
+            await serve(settings, host, port, shutdown, ssl_context=ssl_context)
+
+        try:
+            asyncio.run(main())
+        except OSError as err:
+            _fail(f"--http {http}: {err.strerror or err}", 1)

@@ -1,0 +1,64 @@
+"""Before a sweep on the rig: does every transport of the rig config answer?
+
+Each link is opened once and closed again; nothing is sent to the drives and no
+run directory exists yet, so a machine without the rig gets one clear message
+instead of a failed run that blocks the next try.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+
+from orbitrig.config import RigConfig
+
+#: seconds each transport may take to answer
+TIMEOUT_S = 2.0
+
+
+async def _adc(url: str) -> None:
+    from daq.transport import open_link
+
+    link = await open_link(url, lambda data: None, lambda err: None, timeout=TIMEOUT_S)
+    link.close()
+
+
+async def _drives(url: str) -> None:
+    from drives.link import ModbusLink
+
+    quiet = logging.getLogger("pymodbus")  # it logs every refused connection itself
+    level = quiet.level
+    quiet.setLevel(logging.CRITICAL)
+    try:
+        async with ModbusLink(url, timeout=TIMEOUT_S):
+            pass
+    finally:
+        quiet.setLevel(level)
+
+
+async def _can(rig: RigConfig) -> None:
+    from daq.aux import AuxSensors
+
+    t = rig.transports
+    async with AuxSensors(t.can_channel, interface=t.can_interface, bitrate=t.can_bitrate, node_id=t.can_node_id):
+        pass
+
+
+async def unreachable_transports(rig: RigConfig) -> list[str]:
+    """One line per transport of ``rig`` that cannot be opened (empty: all answer)."""
+    from rigerrors import OrbitrigError
+
+    t = rig.transports
+    checks = {
+        "A/D board (adc_url)": _adc(t.adc_url),
+        "drives (modbus_url)": _drives(t.modbus_url),
+        "CAN sensor node (can_interface, can_channel)": _can(rig),
+    }
+    results = await asyncio.gather(*checks.values(), return_exceptions=True)
+    problems = []
+    for what, result in zip(checks, results):
+        if isinstance(result, (OrbitrigError, OSError)):
+            problems.append(f"{what}: {result}")
+        elif isinstance(result, BaseException):
+            raise result
+    return problems

@@ -1,0 +1,219 @@
+"""The dashboard's web server (aiohttp): one page, its assets, a small JSON API
+and a websocket feed per browser.
+
+- ``GET /``: the page (assets under ``/static/``, all inside the package);
+- ``POST /api/login`` ``{"user", "password"}``: opens the person's MQTT
+  connection; on success an HttpOnly, SameSite=Strict session cookie;
+- ``POST /api/logout``, ``GET /api/session``;
+- ``POST /api/cmd`` ``{"cmd", ...}``: one command as the signed-in user;
+- ``GET /api/feed``: websocket, server -> page JSON messages ``{"type", ...}``
+  (``hello``, ``link``, ``status``, ``progress``, ``live``, ``result``,
+  ``signed_out``); page -> server ``{"type": "active"}`` on user activity.
+
+A session ends on sign-out or after ``idle_timeout`` s without a request or
+user activity. Passwords appear in no log, URL or page storage.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import logging
+import time
+from pathlib import Path
+from typing import Any
+
+from aiohttp import WSMsgType, web
+
+from orbitrig.dashboard.session import DashboardSettings, Feed, Session, SignInRefused
+
+log = logging.getLogger("orbitrig.dashboard")
+
+STATIC = Path(__file__).resolve().parent / "static"
+COOKIE = "orbitrig_session"
+MAX_SESSIONS = 64
+SECURITY_HEADERS = {
+    "Cache-Control": "no-store",
+    "Content-Security-Policy": "default-src 'self'; img-src 'self' data:; frame-ancestors 'none'",
+    "X-Frame-Options": "DENY",
+    "X-Content-Type-Options": "nosniff",
+    "Referrer-Policy": "no-referrer",
+}
+
+SESSIONS = web.AppKey("sessions", dict)
+SETTINGS = web.AppKey("settings", DashboardSettings)
+
+
+@web.middleware
+async def _headers(request: web.Request, handler) -> web.StreamResponse:
+    if request.method == "POST" and not _same_origin(request):
+        return web.json_response({"error": "cross-origin request refused"}, status=403)
+    response = await handler(request)
+    response.headers.update(SECURITY_HEADERS)
+    return response
+
+
+def _same_origin(request: web.Request) -> bool:
+    origin = request.headers.get("Origin")
+    return origin is None or origin.split("://", 1)[-1] == request.host
+
+
+def _session(request: web.Request) -> Session | None:
+    token = request.cookies.get(COOKIE)
+    session = request.app[SESSIONS].get(token) if token else None
+    return None if session is None or session.closed else session
+
+
+async def index(request: web.Request) -> web.StreamResponse:
+    return web.FileResponse(STATIC / "index.html")
+
+
+async def login(request: web.Request) -> web.Response:
+    try:
+        body = await request.json()
+    except (ValueError, UnicodeDecodeError):
+        return web.json_response({"error": "expected JSON {user, password}"}, status=400)
+    user, password = body.get("user"), body.get("password")
+    if not isinstance(user, str) or not isinstance(password, str) or not user or not password:
+        return web.json_response({"error": "give a user name and a password"}, status=400)
+    sessions: dict[str, Session] = request.app[SESSIONS]
+    if len(sessions) >= MAX_SESSIONS:
+        return web.json_response({"error": "too many sessions: sign out elsewhere first"}, status=503)
+    session = Session(request.app[SETTINGS], user, password)
+    del password, body
+    try:
+        await session.open()
+    except SignInRefused as err:
+        log.info("sign-in of %r refused: %s", user, err)
+        return web.json_response({"error": str(err)}, status=401)
+    old = _session(request)
+    if old is not None:
+        await _end(request.app, old, "signed in again")
+    sessions[session.token] = session
+    log.info("%r signed in (%d sessions)", user, len(sessions))
+    response = web.json_response({"user": user, "prefix": session.settings.topics.prefix})
+    response.set_cookie(COOKIE, session.token, httponly=True, samesite="Strict", path="/",
+                        secure=request.secure)
+    return response
+
+
+async def logout(request: web.Request) -> web.Response:
+    session = _session(request)
+    if session is not None:
+        await _end(request.app, session, "signed out")
+    response = web.json_response({"ok": True})
+    response.del_cookie(COOKIE, path="/")
+    return response
+
+
+async def whoami(request: web.Request) -> web.Response:
+    session = _session(request)
+    if session is None:
+        return web.json_response({"error": "not signed in"}, status=401)
+    session.touch()
+    return web.json_response({"user": session.user, "prefix": session.settings.topics.prefix})
+
+
+async def command(request: web.Request) -> web.Response:
+    session = _session(request)
+    if session is None:
+        return web.json_response({"ok": False, "error": "not signed in"}, status=401)
+    session.touch()
+    try:
+        body = await request.json()
+    except (ValueError, UnicodeDecodeError):
+        return web.json_response({"ok": False, "error": "expected a JSON command"}, status=400)
+    if not isinstance(body, dict):
+        return web.json_response({"ok": False, "error": "expected a JSON object"}, status=400)
+    return web.json_response(await session.command(body))
+
+
+async def feed(request: web.Request) -> web.StreamResponse:
+    session = _session(request)
+    if session is None or not _same_origin(request):
+        return web.json_response({"error": "not signed in"}, status=401)
+    ws = web.WebSocketResponse(heartbeat=20)
+    await ws.prepare(request)
+    queue = Feed()
+    for message in session.snapshot():
+        queue.put(message)
+    session.feeds.add(queue)
+    sender = asyncio.create_task(_send_loop(ws, queue), name=f"feed-{session.user}")
+    try:
+        async for msg in ws:
+            if msg.type == WSMsgType.TEXT and '"active"' in msg.data:
+                session.touch()
+    finally:
+        session.feeds.discard(queue)
+        sender.cancel()
+        await asyncio.gather(sender, return_exceptions=True)
+    return ws
+
+
+async def _send_loop(ws: web.WebSocketResponse, queue: Feed) -> None:
+    with contextlib.suppress(ConnectionError, RuntimeError):
+        while not ws.closed:
+            for message in await queue.take():
+                await ws.send_str(json.dumps(message, allow_nan=False, default=str))
+                if message.get("type") == "signed_out":
+                    await ws.close()
+                    return
+
+
+async def _end(app: web.Application, session: Session, reason: str) -> None:
+    app[SESSIONS].pop(session.token, None)
+    await session.close(reason)
+    log.info("session of %r ended: %s", session.user, reason)
+
+
+async def _reaper(app: web.Application) -> None:
+    """End sessions idle longer than idle_timeout and those whose broker refused them."""
+    limit = app[SETTINGS].idle_timeout
+    while True:
+        now = time.monotonic()
+        for session in list(app[SESSIONS].values()):
+            if session.closed:
+                await _end(app, session, "the broker refused the credentials")
+            elif now - session.last_active > limit:
+                await _end(app, session, f"idle for more than {limit:g} s")
+        await asyncio.sleep(min(1.0, limit / 4))
+
+
+async def _background(app: web.Application) -> Any:
+    task = asyncio.create_task(_reaper(app), name="dashboard-reaper")
+    yield
+    task.cancel()
+    await asyncio.gather(task, return_exceptions=True)
+    for session in list(app[SESSIONS].values()):
+        await _end(app, session, "dashboard stopped")
+
+
+def make_app(settings: DashboardSettings) -> web.Application:
+    app = web.Application(middlewares=[_headers], client_max_size=64 * 1024)
+    app[SESSIONS] = {}
+    app[SETTINGS] = settings
+    app.router.add_get("/", index)
+    app.router.add_static("/static", STATIC, follow_symlinks=False)
+    app.router.add_post("/api/login", login)
+    app.router.add_post("/api/logout", logout)
+    app.router.add_get("/api/session", whoami)
+    app.router.add_post("/api/cmd", command)
+    app.router.add_get("/api/feed", feed)
+    app.cleanup_ctx.append(_background)
+    return app
+
+
+async def serve(settings: DashboardSettings, host: str, port: int, shutdown: asyncio.Event, *,
+                ssl_context: Any = None) -> None:
+    """Serve until ``shutdown`` is set (HTTPS with ``ssl_context``)."""
+    runner = web.AppRunner(make_app(settings), access_log=None)
+    await runner.setup()
+    site = web.TCPSite(runner, host, port, ssl_context=ssl_context)
+    await site.start()
+    log.info("dashboard on %s://%s:%d/ (broker %s:%d, topics %s/#)", "https" if ssl_context else "http", host,
+             port, settings.host, settings.port, settings.topics.prefix)
+    try:
+        await shutdown.wait()
+    finally:
+        await runner.cleanup()

@@ -1,0 +1,256 @@
+"""One signed-in person of the dashboard: an MQTT connection AS THAT BROKER USER.
+
+The broker authenticates the connection and its ACL decides what the person
+may do: the dashboard adds no rights of its own. The password lives only in
+this object (server-side memory) for the reconnections; it is never logged.
+
+A :class:`Session` keeps what the page needs to draw itself at once (the
+retained status, the latest progress and live payloads, the results so far)
+and fans every rig message out to the session's browser feeds. A command is
+published with a correlation id and answered by the service's reply; a publish
+the ACL drops silently (MQTT 3.1.1) gets no reply: after ``reply_timeout`` it is
+reported as refused, not authorised (or "no reply: the rig service is offline"
+when the service's status says so).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import collections
+import dataclasses
+import json
+import logging
+import secrets
+import time
+from pathlib import Path
+from typing import Any
+
+import orbitrig.service.protocol as proto
+
+log = logging.getLogger("orbitrig.dashboard")
+
+#: CONNACK reason codes meaning "your credentials are refused" (MQTT 3.1.1 and 5).
+AUTH_REFUSED = {4, 5, 134, 135}
+#: Commands the page may send and the fields each takes besides ``cmd``.
+PAGE_COMMANDS = {"start": ("matrix",), "pause": (), "resume": (), "stop": (), "abort": (),
+                 "confirm": ("step",), "status": ()}
+NOT_AUTHORISED = "refused: not authorised"
+
+
+class SignInRefused(Exception):
+    """The broker refused the person's credentials, or cannot be reached."""
+
+
+@dataclasses.dataclass(frozen=True)
+class DashboardSettings:
+    """Broker address, topic prefix and the dashboard's times (s)."""
+
+    host: str
+    port: int
+    topics: proto.Topics
+    tls: bool = False
+    tls_ca: Path | None = None
+    idle_timeout: float = 1800.0
+    reply_timeout: float = 3.0
+    keepalive: int = 10
+
+
+class Feed:
+    """The messages waiting for one browser connection; only the newest ``live``
+    payload is kept (a slow browser skips frames, never falls behind)."""
+
+    def __init__(self, limit: int = 2000):
+        self.queue: collections.deque[dict] = collections.deque(maxlen=limit)
+        self.live: dict | None = None
+        self.wake = asyncio.Event()
+
+    def put(self, message: dict) -> None:
+        if message.get("type") == "live":
+            self.live = message
+        else:
+            self.queue.append(message)
+        self.wake.set()
+
+    async def take(self) -> list[dict]:
+        await self.wake.wait()
+        self.wake.clear()
+        out = list(self.queue)
+        self.queue.clear()
+        if self.live is not None:
+            out.append(self.live)
+            self.live = None
+        return out
+
+
+class Session:
+    """One browser session = one broker user's MQTT connection."""
+
+    def __init__(self, settings: DashboardSettings, user: str, password: str):
+        self.settings = settings
+        self.user = user
+        self.__password = password
+        self.token = secrets.token_urlsafe(32)
+        self.last_active = time.monotonic()
+        self.link = "connecting"  # online | broker unreachable | connecting
+        self.status: dict | None = None
+        self.progress: dict | None = None
+        self.live: dict | None = None
+        self.results: collections.deque[dict] = collections.deque(maxlen=500)
+        self.feeds: set[Feed] = set()
+        self._pending: dict[str, asyncio.Future] = {}
+        self._client: Any = None
+        self._task: asyncio.Task | None = None
+        self.closed = False
+
+    def __repr__(self) -> str:  # never the password
+        return f"Session(user={self.user!r}, link={self.link!r})"
+
+    def touch(self) -> None:
+        self.last_active = time.monotonic()
+
+    # -- connection --------------------------------------------------------------
+
+    def _make_client(self) -> Any:
+        import aiomqtt
+
+        s = self.settings
+        tls = aiomqtt.TLSParameters(ca_certs=str(s.tls_ca) if s.tls_ca else None) if s.tls else None
+        return aiomqtt.Client(s.host, s.port, username=self.user, password=self.__password,
+                              identifier=f"orbitrig-dashboard-{self.user}-{self.token[:8]}",
+                              clean_session=True, keepalive=s.keepalive, timeout=10, tls_params=tls)
+
+    async def open(self) -> None:
+        """Connect as the user; raises SignInRefused (wrong credentials, no broker)."""
+        first: asyncio.Future = asyncio.get_running_loop().create_future()
+        self._task = asyncio.create_task(self._connection_loop(first), name=f"dashboard-{self.user}")
+        await first
+
+    async def _connection_loop(self, first: asyncio.Future) -> None:
+        import aiomqtt
+
+        delay = 0.2
+        while not self.closed:
+            try:
+                async with self._make_client() as client:
+                    await client.subscribe(f"{self.settings.topics.prefix}/#", qos=1)
+                    self._client = client
+                    if not first.done():
+                        first.set_result(None)
+                    self._set_link("online")
+                    delay = 0.2
+                    async for message in client.messages:
+                        self._on_message(str(message.topic), message.payload)
+            except aiomqtt.MqttError as err:
+                self._client = None
+                rc = getattr(getattr(err, "rc", None), "value", getattr(err, "rc", None))
+                refused = isinstance(err, aiomqtt.MqttCodeError) and rc in AUTH_REFUSED
+                if not first.done():
+                    first.set_exception(SignInRefused(
+                        "refused: wrong user name or password" if refused
+                        else f"cannot reach the broker {self.settings.host}:{self.settings.port}"))
+                    return
+                if refused:
+                    log.warning("broker no longer accepts %r: session ended", self.user)
+                    self._broadcast({"type": "signed_out", "reason": "the broker refused your credentials"})
+                    self.closed = True
+                    return
+                self._set_link("broker unreachable")
+            await asyncio.sleep(delay)
+            delay = min(5.0, delay * 2)
+
+    def _set_link(self, link: str) -> None:
+        if link != self.link:
+            self.link = link
+            log.info("session of %r: broker link %s", self.user, link)
+            self._broadcast({"type": "link", "link": link})
+
+    async def close(self, reason: str) -> None:
+        self.closed = True
+        self._broadcast({"type": "signed_out", "reason": reason})
+        if self._task is not None:
+            self._task.cancel()
+            await asyncio.gather(self._task, return_exceptions=True)
+        self._client = None
+
+    # -- incoming ----------------------------------------------------------------
+
+    def _on_message(self, topic: str, raw: Any) -> None:
+        t = self.settings.topics
+        try:
+            data = json.loads(raw if isinstance(raw, (bytes, bytearray, str)) else b"")
+        except (ValueError, RecursionError):
+            return
+        if not isinstance(data, dict):
+            return
+        if topic == t.status:
+            self.status = data
+            self._broadcast({"type": "status", "data": data})
+        elif topic == t.progress:
+            self.progress = data
+            self._broadcast({"type": "progress", "data": data})
+        elif topic == t.live:
+            self.live = data
+            self._broadcast({"type": "live", "data": data})
+        elif topic == t.result:
+            self.results.append(data)
+            self._broadcast({"type": "result", "data": data})
+        elif topic == t.reply:
+            fut = self._pending.pop(str(data.get("id")), None)
+            if fut is not None and not fut.done():
+                fut.set_result(data)
+
+    def _broadcast(self, message: dict) -> None:
+        for feed in list(self.feeds):
+            feed.put(message)
+
+    def snapshot(self) -> list[dict]:
+        """What a newly connected page needs to draw the present at once."""
+        out: list[dict] = [{"type": "hello", "user": self.user, "prefix": self.settings.topics.prefix},
+                           {"type": "link", "link": self.link}]
+        out += [{"type": k, "data": v} for k, v in (("status", self.status), ("progress", self.progress))
+                if v is not None]
+        out += [{"type": "result", "data": r} for r in self.results]
+        if self.live is not None:
+            out.append({"type": "live", "data": self.live})
+        return out
+
+    # -- commands ----------------------------------------------------------------
+
+    async def command(self, request: dict) -> dict:
+        """Publish one command as this user; the service's reply, or a refusal."""
+        name = request.get("cmd")
+        if name not in PAGE_COMMANDS:
+            return {"ok": False, "error": f"unknown command {name!r}"}
+        body = {"cmd": name}
+        for field in PAGE_COMMANDS[name]:
+            value = request.get(field)
+            if not isinstance(value, str) or not value:
+                return {"ok": False, "error": f"{name}: field {field!r} is missing"}
+            body[field] = value
+        client = self._client
+        if client is None:
+            return {"ok": False, "error": "no connection to the broker: try again when it is back"}
+        cid = f"dash-{secrets.token_hex(6)}"
+        fut = asyncio.get_running_loop().create_future()
+        self._pending[cid] = fut
+        t0 = time.monotonic()
+        try:
+            await client.publish(self.settings.topics.cmd, json.dumps({**body, "id": cid}),
+                                 qos=proto.QOS_CMD, timeout=self.settings.reply_timeout)
+            reply = await asyncio.wait_for(fut, self.settings.reply_timeout)
+        except (TimeoutError, asyncio.TimeoutError):
+            return {"ok": False, "error": self._no_reply(name)}
+        except Exception as err:  # noqa: BLE001 - aiomqtt errors: the link went away
+            return {"ok": False, "error": f"{name} not sent: {err}"}
+        finally:
+            self._pending.pop(cid, None)
+        log.info("%s by %r: %s (%.0f ms)", name, self.user, "ok" if reply.get("ok") else reply.get("error"),
+                 (time.monotonic() - t0) * 1e3)
+        return {"ok": bool(reply.get("ok")), "error": reply.get("error")}
+
+    def _no_reply(self, name: str) -> str:
+        if self.status is not None and self.status.get("state") == "offline":
+            return f"{name}: no reply: the rig service is offline"
+        log.info("%s by %r: no reply within %.1f s (ACL)", name, self.user, self.settings.reply_timeout)
+        return (f"{NOT_AUTHORISED}: {name} — user {self.user!r} may not command this rig "
+                "(the broker dropped the command; no reply from the rig service)")

@@ -1,0 +1,287 @@
+// The live view: sign-in, the websocket feed from the dashboard server, rendering, commands.
+// The password goes once to POST /api/login and is then cleared from the page; nothing is kept
+// in the page's storage (the session cookie is HttpOnly).
+"use strict";
+
+const $ = id => document.getElementById(id);
+const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0};
+
+function fmt(v, digits) { return (v === null || v === undefined || !isFinite(v)) ? "—" : Number(v).toFixed(digits); }
+function fmtSi(v) { return (v === null || v === undefined || !isFinite(v)) ? "—" : Number(v).toPrecision(4); }
+function show(el, on) { el.hidden = !on; }
+function clear(el) { while (el.firstChild) el.removeChild(el.firstChild); }
+function cell(tr, text, cls) { const td = document.createElement("td"); td.textContent = text; if (cls) td.className = cls; tr.appendChild(td); return td; }
+
+async function api(path, body) {
+  const opts = body === undefined ? {credentials: "same-origin"} :
+    {method: "POST", credentials: "same-origin", headers: {"Content-Type": "application/json"}, body: JSON.stringify(body)};
+  const r = await fetch(path, opts);
+  let data = {};
+  try { data = await r.json(); } catch (e) { /* empty */ }
+  return {status: r.status, data};
+}
+
+// ---------------------------------------------------------------- sign-in
+async function signIn(ev) {
+  ev.preventDefault();
+  const user = $("user").value.trim(), pw = $("password");
+  $("signin-error").textContent = "";
+  $("signin-btn").disabled = true;
+  try {
+    const r = await api("/api/login", {user, password: pw.value});
+    pw.value = "";
+    if (r.status !== 200) { $("signin-error").textContent = r.data.error || ("sign-in failed (" + r.status + ")"); return; }
+    enter(r.data);
+  } catch (e) {
+    pw.value = "";
+    $("signin-error").textContent = "dashboard server unreachable";
+  } finally { $("signin-btn").disabled = false; }
+}
+
+function enter(who) {
+  $("who").textContent = who.user;
+  $("rig").textContent = who.prefix;
+  show($("signin"), false); show($("app"), true);
+  connect();
+}
+
+function leave(reason) {
+  if (st.ws) { st.ws.onclose = null; st.ws.close(); st.ws = null; }
+  show($("app"), false); show($("signin"), true);
+  $("signin-error").textContent = reason || "";
+}
+
+async function signOut() { await api("/api/logout", {}); leave("signed out"); }
+
+// ---------------------------------------------------------------- feed
+function connect() {
+  const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/api/feed");
+  st.ws = ws;
+  ws.onopen = () => { st.retry = 0; banner(null); };
+  ws.onmessage = ev => handle(JSON.parse(ev.data));
+  ws.onclose = () => { st.ws = null; banner("offline: dashboard server unreachable — reconnecting"); setTimeout(reconnect, Math.min(5000, 500 * 2 ** st.retry++)); };
+}
+
+async function reconnect() {
+  try {
+    const r = await api("/api/session");
+    if (r.status === 401) { leave("session ended: sign in again"); return; }
+    if (r.status === 200) { connect(); return; }
+  } catch (e) { /* server still away */ }
+  setTimeout(reconnect, Math.min(5000, 500 * 2 ** st.retry++));
+}
+
+function activity() {
+  const now = Date.now();
+  if (st.ws && st.ws.readyState === 1 && now - st.lastActive > 10000) { st.lastActive = now; st.ws.send('{"type": "active"}'); }
+}
+
+function banner(text) { $("offline-banner").textContent = text || ""; show($("offline-banner"), !!text); }
+
+function handle(msg) {
+  switch (msg.type) {
+    case "hello": $("who").textContent = msg.user; $("rig").textContent = msg.prefix; break;
+    case "link": showLink(msg.link); break;
+    case "status": showStatus(msg.data); break;
+    case "progress": showProgress(msg.data); break;
+    case "live": showLive(msg.data); break;
+    case "result": showResult(msg.data); break;
+    case "signed_out": leave("session ended: " + msg.reason); break;
+  }
+}
+
+function showLink(link) {
+  const el = $("link");
+  el.textContent = link;
+  el.className = "badge " + (link === "online" ? "l-online" : "l-broker");
+  if (link !== "online") banner("offline: broker unreachable — reconnecting");
+  else if (st.status && st.status.state === "offline") banner("offline: the rig service is not connected");
+  else banner(null);
+}
+
+// ---------------------------------------------------------------- run state
+function showStatus(s) {
+  const prev = st.status;
+  st.status = s;
+  const el = $("state");
+  el.textContent = s.state;
+  el.className = "state s-" + s.state;
+  $("run-id").textContent = s.run_id || "";
+  $("message").textContent = s.message || "";
+  if ($("link").textContent === "online") banner(s.state === "offline" ? "offline: the rig service is not connected" : null);
+  const warn = s.state === "faulted" || /interlock|not met|failed|lost/i.test(s.message || "");
+  if (warn && !(prev && prev.message === s.message)) addEvent("warn", s.state + ": " + s.message);
+  if (s.state === "idle" && /completed/.test(s.message || "")) $("progress-bar").style.width = "100%";
+  showManual(s);
+}
+
+function showManual(s) {
+  const waiting = s.state === "waiting" && s.step;
+  show($("manual"), !!waiting);
+  if (!waiting) return;
+  $("manual-step").textContent = s.step;
+  const body = $("manual-table"); clear(body);
+  const label = {orbit_radius: ["orbit radius", "µm", 1e6, 2], static_eccentricity: ["static eccentricity", "", 1, 3],
+                 recess_pressure: ["recess pressure", "MPa", 1e-6, 4], pressure_ratio: ["pressure ratio", "", 1, 3]};
+  Object.entries(s.settings || {}).forEach(([name, v]) => {
+    const [text, unit, k, d] = label[name] || [name, v.unit, 1, 4];
+    const tr = document.createElement("tr"); tr.dataset.setting = name;
+    cell(tr, text + (unit ? " (" + unit + ")" : ""));
+    cell(tr, v.value === null ? "—" : fmt(v.value * k, d));
+    cell(tr, v.measured === null || v.measured === undefined ? "not measured yet" : fmt(v.measured * k, d));
+    body.appendChild(tr);
+  });
+}
+
+function showProgress(p) {
+  $("point").textContent = p.point + " / " + p.points;
+  $("frequency").textContent = p.frequency + " / " + p.frequencies;
+  $("revolutions").textContent = String(p.revolutions);
+  $("eta").textContent = p.eta_s === null ? "—" : formatDuration(p.eta_s);
+  const done = p.points ? (Math.max(0, p.point - 1) + (p.frequencies ? Math.max(0, p.frequency - 1) / p.frequencies : 0)) / p.points : 0;
+  $("progress-bar").style.width = (100 * Math.min(1, done)).toFixed(1) + "%";
+}
+
+function formatDuration(s) {
+  s = Math.round(s);
+  const h = Math.floor(s / 3600), m = Math.floor(s % 3600 / 60), sec = s % 60;
+  return (h ? h + " h " : "") + (h || m ? m + " min " : "") + sec + " s";
+}
+
+// ---------------------------------------------------------------- live
+function showLive(d) {
+  st.liveAt = Date.now();
+  $("op-spin").textContent = fmt(d.spin_rpm, 0) + " rpm";
+  $("op-orbit").textContent = fmt(d.orbit_hz, 2) + " Hz";
+  $("op-direction").textContent = d.direction || "—";
+  showDrives(d.drives || {});
+  showAux(d.aux || {}, d.bands || {});
+  const w = d.waveforms || {};
+  const forces = ["fx_piezo", "fy_piezo", "fx_strain", "fy_strain"].filter(n => w[n]);
+  const disp = ["x_a", "y_a", "x_b", "y_b"].filter(n => w[n]);
+  if (forces.length) orbitPlots.drawTraces($("plot-forces"), forces.map(n => ({name: n, values: w[n]})), 1);
+  if (disp.length) orbitPlots.drawTraces($("plot-disp"), disp.map(n => ({name: n, values: w[n]})), 1e6);
+  if (w.x_a && w.y_a && w.x_b && w.y_b) {
+    const x = w.x_a.map((v, i) => (v + w.x_b[i]) / 2), y = w.y_a.map((v, i) => (v + w.y_b[i]) / 2);
+    orbitPlots.drawOrbit($("plot-orbit"), x, y);
+  }
+}
+
+function showDrives(dr) {
+  const body = $("drives"); clear(body);
+  ["spin", "orbit"].forEach(name => {
+    const d = dr[name], tr = document.createElement("tr"); tr.dataset.drive = name;
+    cell(tr, name);
+    cell(tr, d ? fmt(d.reference_rpm, 1) : "—"); cell(tr, d ? fmt(d.actual_rpm, 1) : "—");
+    cell(tr, d ? fmt(d.torque_pct, 1) : "—"); cell(tr, d ? d.state : (dr.link_ok === false ? "link lost" : "—"));
+    cell(tr, d ? (d.fault_code ? d.fault + " (" + d.fault_code + ")" : "none") : "—", d && d.fault_code ? "out" : "");
+    body.appendChild(tr);
+  });
+}
+
+const AUX = [["t_supply", "supply temperature", "°C"], ["t_recess", "recess temperature", "°C"], ["t_groove", "groove temperature", "°C"],
+  ["p_supply", "supply pressure", "MPa"], ["p_recess_1", "recess pressure 1", "MPa"], ["p_recess_2", "recess pressure 2", "MPa"],
+  ["p_recess_3", "recess pressure 3", "MPa"], ["p_recess_4", "recess pressure 4", "MPa"], ["beta", "pressure ratio", ""], ["flow", "flow", "l/min"]];
+
+function auxShown(v, unit) {
+  if (v === null || v === undefined) return null;
+  return unit === "°C" ? v - 273.15 : unit === "MPa" ? v / 1e6 : unit === "l/min" ? v * 6e4 : v;
+}
+
+function showAux(a, bands) {
+  const body = $("aux"); clear(body);
+  AUX.forEach(([key, text, unit]) => {
+    const band = bands[key] || (key.startsWith("p_recess") ? bands.p_recess : null);
+    const v = auxShown(a[key], unit), digits = unit === "MPa" ? 4 : unit === "" ? 3 : 2;
+    const tr = document.createElement("tr"); tr.dataset.aux = key;
+    cell(tr, text + (unit ? " (" + unit + ")" : ""));
+    const out = band && a[key] !== null && (a[key] < band[0] || a[key] > band[1]);
+    cell(tr, fmt(v, digits), out ? "out" : "");
+    cell(tr, band ? fmt(auxShown(band[0], unit), digits) + " … " + fmt(auxShown(band[1], unit), digits) : "");
+    body.appendChild(tr);
+  });
+  if (a.node_lost) addEvent("warn", "CAN sensor node lost", true);
+}
+
+// ---------------------------------------------------------------- results
+function showResult(r) {
+  const body = $("results");
+  (r.warnings || []).forEach(w => addEvent("warn", "point " + r.point + ": " + w));
+  (r.identification || []).forEach(row => {
+    const tr = document.createElement("tr");
+    const what = (row.lms || "") + " " + (row.model || "");
+    cell(tr, (r.point !== undefined ? r.point : "?") + (r.label ? " " + r.label : ""));
+    cell(tr, row.lms || ""); cell(tr, (row.model || "") + (row.freq_dep && row.freq_dep !== "none" ? " " + row.freq_dep : ""));
+    if (row.error) { cell(tr, "refused: " + row.error, "out"); addEvent("warn", "point " + r.point + " " + what + ": " + row.error); }
+    else cell(tr, coefficientsText(row));
+    (row.warnings || []).forEach(w => addEvent("warn", "point " + r.point + " " + what + ": " + w));
+    body.appendChild(tr);
+  });
+}
+
+// 95 % intervals when the result carries them (confidence_95, identification v2), else +/- 1 std. error
+function coefficientsText(row) {
+  const c = row.coefficients || {}, se = row.std_errors || {}, iv = row.confidence_95 || row.intervals || {};
+  return Object.keys(c).map(k => {
+    const i = iv[k];
+    const unc = i ? " [" + fmtSi(i[0]) + ", " + fmtSi(i[1]) + "]" : (se[k] !== null && se[k] !== undefined ? " ± " + fmtSi(se[k]) : "");
+    return k + " " + fmtSi(c[k]) + unc;
+  }).join("; ");
+}
+
+function addEvent(kind, text, once) {
+  const list = $("events");
+  if (once && list.firstChild && list.firstChild.textContent.endsWith(text)) return;
+  const li = document.createElement("li"); li.className = kind;
+  li.textContent = new Date().toLocaleTimeString() + " " + text;
+  list.insertBefore(li, list.firstChild);
+  while (list.children.length > 100) list.removeChild(list.lastChild);
+}
+
+// ---------------------------------------------------------------- commands
+async function send(cmd, extra) {
+  activity();
+  const out = $("cmd-result");
+  out.className = "cmd-result"; out.textContent = cmd + ": sent…";
+  let r;
+  try { r = await api("/api/cmd", Object.assign({cmd}, extra || {})); }
+  catch (e) { r = {status: 0, data: {ok: false, error: "dashboard server unreachable"}}; }
+  if (r.status === 401) { leave("session ended: sign in again"); return; }
+  if (r.data.ok) { out.className = "cmd-result ok"; out.textContent = cmd + ": accepted"; return; }
+  const text = cmd + ": " + (r.data.error || "failed");
+  out.className = "cmd-result refused"; out.textContent = text;
+  addEvent("refused", text);
+  const names = /available: ([^)]*)\)/.exec(r.data.error || "");
+  if (names) fillMatrices(names[1].split(", "));
+}
+
+function fillMatrices(names) {
+  const dl = $("matrix-names"); clear(dl);
+  names.forEach(n => { const o = document.createElement("option"); o.value = n; dl.appendChild(o); });
+}
+
+function wire() {
+  $("signin-form").addEventListener("submit", signIn);
+  $("signout").addEventListener("click", signOut);
+  $("btn-start").addEventListener("click", () => send("start", {matrix: $("matrix").value.trim()}));
+  $("btn-pause").addEventListener("click", () => send("pause"));
+  $("btn-resume").addEventListener("click", () => send("resume"));
+  $("btn-stop").addEventListener("click", () => send("stop"));
+  $("btn-abort").addEventListener("click", () => $("abort-dialog").showModal());
+  $("abort-cancel").addEventListener("click", () => $("abort-dialog").close());
+  $("abort-confirm").addEventListener("click", () => { $("abort-dialog").close(); send("abort"); });
+  $("btn-confirm").addEventListener("click", () => send("confirm", {step: $("manual-step").textContent}));
+  ["keydown", "pointerdown", "pointermove", "wheel"].forEach(t => document.addEventListener(t, activity, {passive: true}));
+  setInterval(() => { $("live-age").textContent = st.liveAt ? ((Date.now() - st.liveAt) / 1000).toFixed(1) + " s ago" : "—"; }, 500);
+}
+
+async function boot() {
+  wire();
+  try {
+    const r = await api("/api/session");
+    if (r.status === 200) { enter(r.data); return; }
+  } catch (e) { /* not reachable: show the sign-in */ }
+  leave("");
+}
+
+boot();

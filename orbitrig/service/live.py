@@ -1,0 +1,239 @@
+"""What a person watching a run needs, built from the run's engine (spec: the
+``<prefix>/live`` topic and the ``step``/``settings`` of a ``waiting`` status).
+
+:class:`LiveFeed` listens to one :class:`orbitrig.run.engine.RunEngine`: it keeps
+the running mean of the revolutions of the block being measured (the latest
+averaged revolution, SI = gain * counts + offset) and, at most ``rate_hz``
+times a second while the run lives, publishes
+
+``{"run_id", "point", "frequency", "direction", "revolutions", "orbit_hz",
+"spin_rpm", "drives", "aux", "waveforms", "units", "bands"}``
+
+- ``drives``: both drives as :meth:`drives.rig.RigDriveState.to_dict` (rpm and
+  percent: for people);
+- ``aux``: the CAN sensor values in SI (K, Pa, m^3/s, -), their units in ``units``;
+- ``waveforms``: one averaged revolution per channel, SI (N, m), samples in slot order;
+- ``bands``: interlock and verification bands ``{name: [low, high]}`` in SI
+  (an addition to the spec's field list: the page draws them).
+
+While the run waits for an operator, :meth:`LiveFeed.waiting_fields` gives the
+status fields ``step`` and ``settings`` = ``{name: {"value", "unit", "measured"}}``
+(asked and measured manual settings, SI; ``measured`` null when not measured yet).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from orbitrig.service import protocol as proto
+from orbitrig.config import MPA, RPM
+from orbitrig.run.engine import ProgressEvent, RunEngine
+from orbitrig.run.plan import Plan, SetManual
+
+log = logging.getLogger(__name__)
+
+#: CAN sensor values of the live payload and their SI units.
+AUX_UNITS = {"t_recess": "K", "t_groove": "K", "t_supply": "K", "flow": "m^3/s", "p_supply": "Pa",
+             "p_recess_1": "Pa", "p_recess_2": "Pa", "p_recess_3": "Pa", "p_recess_4": "Pa", "beta": "-"}
+#: The manual settings of an operating point and their SI units.
+SETTING_UNITS = {"orbit_radius": "m", "static_eccentricity": "-", "recess_pressure": "Pa", "pressure_ratio": "-"}
+LIVE_STATES = ("running", "paused", "waiting", "stopping")
+
+
+class RevolutionAverage:
+    """Running mean of the revolutions of one block, in engineering units (SI)."""
+
+    def __init__(self, gains: list[float], offsets: list[float]):
+        self._gain = np.asarray(gains, dtype=float)[:, None]
+        self._offset = np.asarray(offsets, dtype=float)[:, None]
+        self._sum: np.ndarray | None = None
+        self.count = 0
+        self.slots: np.ndarray | None = None  # (C, S) slot of each sample
+        self.period_s: float | None = None  # orbit period of the latest revolution
+
+    def reset(self) -> None:
+        self._sum, self.count = None, 0
+
+    def add(self, counts: np.ndarray, slots: np.ndarray, period_s: float | None) -> None:
+        c = np.asarray(counts, dtype=float)
+        if self._sum is None or self._sum.shape != c.shape:
+            self._sum, self.count = np.zeros_like(c), 0
+        self._sum += c
+        self.count += 1
+        self.slots = np.asarray(slots)
+        if period_s is not None and period_s > 0:
+            self.period_s = period_s
+
+    def mean(self) -> np.ndarray | None:
+        """(C, S) SI values of the averaged revolution, None before the first."""
+        if self._sum is None or self.count == 0:
+            return None
+        return self._gain * (self._sum / self.count) + self._offset
+
+
+class LiveFeed:
+    """The live view of one run; see the module docstring."""
+
+    def __init__(self, engine: RunEngine, plan: Plan, send: Callable[[bytes], None], *,
+                 rate_hz: float = 5.0):
+        self.engine = engine
+        self.rig = engine.rig
+        self._send = send
+        self.interval = 1.0 / rate_hz
+        self.average = RevolutionAverage(self.rig.gains, self.rig.offsets)
+        self._manual = {s.point: s for s in plan.steps if isinstance(s, SetManual)}
+        self._block: tuple[int, int] = (0, 0)
+        self._point = self._frequency = self._revolutions = 0
+        self.sent = 0
+        engine.subscribe(self._on_event)
+        engine.revolution_taps.append(self._on_revolution)
+
+    # -- engine events -------------------------------------------------------------
+
+    def _on_event(self, event: Any) -> None:
+        if isinstance(event, ProgressEvent):
+            block = (event.point, event.frequency)
+            if block != self._block:
+                self._block = block
+                self.average.reset()  # a new block: its own average
+            self._point, self._frequency, self._revolutions = event.point, event.frequency, event.revolutions
+
+    def _on_revolution(self, rev: Any) -> None:
+        self.average.add(rev.counts, rev.slots, rev.period_s)
+
+    # -- publishing ------------------------------------------------------------------
+
+    async def run(self, run_task: asyncio.Task) -> None:
+        """Publish every ``interval`` s while ``run_task`` lives; never raises."""
+        while not run_task.done():
+            try:
+                payload = self.payload()
+                if payload is not None:
+                    self._send(proto.dumps(payload))
+                    self.sent += 1
+            except Exception:  # noqa: BLE001 - the live view must never disturb the run
+                log.exception("live payload failed")
+            await asyncio.sleep(self.interval)
+
+    def payload(self) -> dict[str, Any] | None:
+        """The live payload now; None while the rig is not open or the run not active."""
+        io = self.engine.io
+        if io is None or io.drives is None or self.engine.state not in LIVE_STATES:
+            return None
+        drives = io.drives.state
+        orbit, spin = drives.orbit, drives.spin
+        names = [c.name for c in sorted(self.rig.channels, key=lambda c: c.index)]
+        mean = self.average.mean()
+        period = self.average.period_s
+        orbit_hz = (1.0 / period) if period else (abs(orbit.actual) / (2 * math.pi) if orbit else None)
+        return {
+            "run_id": self.engine.run_id, "point": self._point, "frequency": self._frequency,
+            "direction": _direction(orbit),
+            "revolutions": self._revolutions, "orbit_hz": orbit_hz,
+            "spin_rpm": None if spin is None else spin.actual / RPM,
+            "drives": drives.to_dict(),
+            "aux": self._aux(io),
+            "waveforms": {} if mean is None else {n: mean[i] for i, n in enumerate(names)},
+            "units": {**{c.name: c.unit for c in self.rig.channels}, **AUX_UNITS},
+            "bands": self._bands(),
+        }
+
+    @staticmethod
+    def _aux(io: Any) -> dict[str, float | bool | None]:
+        a = io.aux.latest() if io.aux is not None else None
+        if a is None:
+            return {}
+        out: dict[str, Any] = {k: getattr(a, k) for k in ("t_recess", "t_groove", "t_supply", "flow",
+                                                           "p_supply", "beta")}
+        out.update({f"p_recess_{i + 1}": v for i, v in enumerate(a.p_recess)})
+        out.update(sensor_fault=a.sensor_fault, pump_off=a.pump_off, node_lost=a.node_lost)
+        return out
+
+    def _bands(self) -> dict[str, list[float]]:
+        lim = self.rig.interlocks
+        bands: dict[str, list[float]] = {}
+        if lim.check_supply_pressure:
+            bands["p_supply"] = [lim.supply_pressure_min_mpa * MPA, lim.supply_pressure_max_mpa * MPA]
+        step = self._manual.get(self._manual_point())
+        if step is not None:
+            v, p = self.rig.verify, step.recess_pressure
+            bands["p_recess"] = [p * (1 - v.recess_pressure_tol_pct / 100), p * (1 + v.recess_pressure_tol_pct / 100)]
+            bands["beta"] = [step.pressure_ratio - v.pressure_ratio_tol, step.pressure_ratio + v.pressure_ratio_tol]
+        return bands
+
+    def _manual_point(self) -> int | None:
+        """Index of the operating point being run (from the waiting step or the progress)."""
+        step = self.engine.waiting_step
+        if step and ":" in step:
+            try:
+                return int(step.split(":", 1)[1])
+            except ValueError:
+                return None
+        points = sorted(self._manual)
+        return points[self._point - 1] if 0 < self._point <= len(points) else None
+
+    # -- waiting status ----------------------------------------------------------------
+
+    def waiting_fields(self, state: str) -> dict[str, Any] | None:
+        """``{"step", "settings"}`` for a ``waiting`` status, else None."""
+        step_id = self.engine.waiting_step
+        if state != "waiting" or not step_id:
+            return None
+        step = self._manual.get(self._manual_point())
+        if step is None:
+            return {"step": step_id, "settings": {}}
+        measured = self._measured()
+        asked = {"orbit_radius": step.orbit_radius, "static_eccentricity": step.static_eccentricity,
+                 "recess_pressure": step.recess_pressure, "pressure_ratio": step.pressure_ratio}
+        return {"step": step_id, "settings": {
+            k: {"value": v, "unit": SETTING_UNITS[k], "measured": measured.get(k)} for k, v in asked.items()}}
+
+    def _measured(self) -> dict[str, float]:
+        """Manual settings as measured now: pressures from CAN, orbit radius and static
+        eccentricity from the latest averaged revolution of the displacement probes."""
+        out: dict[str, float] = {}
+        io = self.engine.io
+        a = io.aux.latest() if io is not None and io.aux is not None else None
+        if a is not None and not a.node_lost:
+            out["recess_pressure"] = float(np.mean(a.p_recess))
+            out["pressure_ratio"] = float(a.beta)
+        mean, slots = self.average.mean(), self.average.slots
+        if mean is not None and slots is not None and self.average.count >= 1:
+            out.update(_geometry(mean, slots, self.rig.channel_index, self.rig.bearing.clearance))
+        return {k: v for k, v in out.items() if math.isfinite(v)}
+
+
+def _geometry(mean: np.ndarray, slots: np.ndarray, ch: dict[str, int], clearance: float) -> dict[str, float]:
+    """Orbit radius (m) and static eccentricity (-) of one averaged revolution: the
+    first harmonic and the mean of x and y (mean of probe planes A and B)."""
+    from reduction.errors import ReductionError
+    from reduction.fourier import harmonic_fit
+
+    try:
+        fit = harmonic_fit(mean, slots * (2 * np.pi / 360), axis=-1)
+    except ReductionError:
+        return {}
+    x = (fit.phasor[ch["x_a"]] + fit.phasor[ch["x_b"]]) / 2
+    y = (fit.phasor[ch["y_a"]] + fit.phasor[ch["y_b"]]) / 2
+    x0 = (fit.mean[ch["x_a"]] + fit.mean[ch["x_b"]]) / 2
+    y0 = (fit.mean[ch["y_a"]] + fit.mean[ch["y_b"]]) / 2
+    return {"orbit_radius": float((abs(x) + abs(y)) / 2), "static_eccentricity": float(math.hypot(x0, y0) / clearance)}
+
+
+def _direction(orbit: Any) -> str | None:
+    """Whirl direction of the orbit drive: the sign of its reference, else of its actual speed."""
+    speed = 0.0 if orbit is None else (orbit.reference or orbit.actual)
+    return None if speed == 0 else ("forward" if speed > 0 else "backward")
+
+
+def attach(engine: Any, plan: Any, send: Callable[[bytes], None]) -> LiveFeed | None:
+    """A LiveFeed on ``engine`` when it is the rig's RunEngine (else None: a test double)."""
+    if not isinstance(engine, RunEngine) or not isinstance(plan, Plan):
+        return None
+    return LiveFeed(engine, plan, send)

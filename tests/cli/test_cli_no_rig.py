@@ -1,0 +1,68 @@
+"""`orbitrig sweep` without --sim on a machine without the rig: says so, suggests --sim,
+leaves no run directory, and the next try gets the same answer (not "already exists")."""
+
+from __future__ import annotations
+
+import re
+
+from cli_helpers import ROOT, closed_port, orbitrig
+
+
+def _rig_without_answer(tmp_path):
+    """config/rig.toml with every transport pointed at a port nothing listens on."""
+    adc, modbus, can = closed_port(), closed_port(), closed_port()
+    text = (ROOT / "config" / "rig.toml").read_text()
+    subs = {"adc_url": f"socket://127.0.0.1:{adc}", "modbus_url": f"tcp://127.0.0.1:{modbus}",
+            "can_channel": f"socket://127.0.0.1:{can}", "can_interface": "serial"}  # fmt: skip
+    for key, value in subs.items():
+        text, n = re.subn(rf'(?m)^{key}\s*=\s*"[^"]*"', f'{key} = "{value}"', text)
+        assert n == 1, key
+    path = tmp_path / "rig.toml"
+    path.write_text(text)
+    return path, subs
+
+
+def test_sweep_without_the_rig_names_each_transport_and_suggests_sim(tmp_path):
+    rig, subs = _rig_without_answer(tmp_path)
+    out = tmp_path / "runs" / "paper"
+    for attempt in range(2):
+        p = orbitrig("sweep", "--config", str(rig), "--matrix", "paper", "--out", str(out), timeout=60)
+        assert p.returncode == 2, (attempt, p.stdout, p.stderr)
+        assert "the rig does not answer" in p.stderr
+        for what in ("A/D board", "drives", "CAN sensor node"):
+            assert what in p.stderr
+        for url in (subs["adc_url"], subs["modbus_url"], subs["can_channel"]):
+            assert url in p.stderr
+        assert "--sim" in p.stderr
+        assert "already exists" not in p.stderr
+        assert "Traceback" not in p.stderr
+        assert not out.exists()
+        assert not (tmp_path / "runs").exists()
+
+
+def test_sweep_with_one_transport_missing_names_only_that_one(tmp_path):
+    """The drives and the A/D board answer (a listening simulator would); the CAN bus does not."""
+    import subprocess
+    import sys
+
+    rig, subs = _rig_without_answer(tmp_path)
+    code = (
+        "import asyncio, sys\n"
+        "async def main():\n"
+        "    servers = [await asyncio.start_server(lambda r, w: None, '127.0.0.1', int(p)) for p in sys.argv[1:]]\n"
+        "    print('ready', flush=True)\n"
+        "    await asyncio.sleep(60)\n"
+        "asyncio.run(main())\n"
+    )
+    ports = [subs["adc_url"].rsplit(":", 1)[1], subs["modbus_url"].rsplit(":", 1)[1]]
+    listener = subprocess.Popen([sys.executable, "-c", code, *ports], stdout=subprocess.PIPE, text=True)
+    try:
+        assert listener.stdout.readline().strip() == "ready"
+        p = orbitrig("sweep", "--config", str(rig), "--matrix", "demo", "--out", str(tmp_path / "run"), timeout=60)
+    finally:
+        listener.kill()
+        listener.wait()
+    assert p.returncode == 2, p.stderr
+    assert "CAN sensor node" in p.stderr and subs["can_channel"] in p.stderr
+    assert "A/D board" not in p.stderr and "drives (modbus_url)" not in p.stderr
+    assert not (tmp_path / "run").exists()

@@ -1,0 +1,113 @@
+"""Every command in the README's shell blocks runs: the ones that need no rig run for real
+(against the simulator, run directories in a temporary folder); every other `orbitrig`
+command is held to its command's --help (the command exists, every option it uses exists);
+other programs exist on this machine, scripts and files exist."""
+
+from __future__ import annotations
+
+import functools
+import re
+import shlex
+import shutil
+
+import pytest
+from cli_helpers import ROOT, orbitrig
+
+README = ROOT / "README.md"
+
+#: README command -> exit status here (no rig attached). Each must appear in the README as written.
+RUN_HERE = {
+    "orbitrig sweep --sim --out runs/demo": 0,
+    "orbitrig report runs/demo": 0,
+    "orbitrig reduce runs/demo --model kc7 --freq-dep power:auto": 0,
+    "orbitrig sweep --sim --dry-run --matrix paper": 0,
+    "orbitrig sweep --matrix paper --out runs/paper": 2,  # on the rig: here it says there is no rig
+}
+
+
+def readme_commands() -> list[str]:
+    """Commands of the README's untagged or shell fenced blocks, each once: continuation
+    lines (a trailing backslash, or a synopsis line that starts with an option) joined,
+    comments dropped, `a && b` split."""
+    lines, block, lang = [], None, ""
+    for line in README.read_text().splitlines():
+        fence = re.match(r"\s*```(\w*)", line)
+        if fence:
+            block, lang = (None, "") if block is not None else ([], fence.group(1))
+            continue
+        if block is None or lang not in ("", "sh", "bash", "shell", "console"):
+            continue
+        text = re.sub(r"\s+#.*$", "", line).strip()
+        if lines and (lines[-1].endswith("\\") or text.startswith(("[", "-"))):
+            lines[-1] = lines[-1].rstrip("\\").strip() + " " + text
+        elif text:
+            lines.append(text)
+    commands = [c.strip() for line in lines for c in line.split("&&")]
+    return list(dict.fromkeys(c for c in commands if c))
+
+
+@functools.cache
+def help_text(*path: str) -> str:
+    p = orbitrig(*path, "--help", timeout=60)
+    assert p.returncode == 0, f"orbitrig {' '.join(path)} --help: {p.stderr}"
+    return p.stdout
+
+
+def command_path(words: list[str]) -> list[str]:
+    """The sub-command words of `orbitrig WORDS...` (a group such as `drives` takes one more)."""
+    path = []
+    for w in words:
+        if w.startswith("-") or not re.fullmatch(r"[a-z][a-z-]*", w):
+            break
+        path.append(w)
+        if "Commands" not in help_text(*path):
+            break
+    return path
+
+
+def check_orbitrig_command(words: list[str]) -> None:
+    path = command_path(words)
+    text = help_text(*path)
+    options = {o for w in words for o in re.findall(r"--[a-z][a-z0-9-]*", w)}
+    unknown = [o for o in sorted(options) if not re.search(rf"(?<![\w-]){re.escape(o)}(?![\w-])", text)]
+    assert not unknown, f"orbitrig {' '.join(path)}: no option {', '.join(unknown)}"
+
+
+def test_readme_has_commands_and_the_ones_run_here():
+    commands = readme_commands()
+    assert len(commands) >= 15
+    for command in RUN_HERE:
+        assert command in commands, f"README no longer shows {command!r}: update RUN_HERE"
+    assert "tools/run-tests" in commands
+
+
+@pytest.mark.parametrize("command", readme_commands())
+def test_readme_command_exists_with_its_options(command):
+    words = shlex.split(command.replace("~", "HOME"))
+    if words[0] == "orbitrig":
+        check_orbitrig_command(words[1:])
+    elif words[0] == "python3" and words[1:3] == ["-m", "pip"]:
+        assert (ROOT / "pyproject.toml").is_file()
+        if ".[test]" in words:
+            assert "[project.optional-dependencies]\ntest" in (ROOT / "pyproject.toml").read_text()
+    elif words[0] == "python3" and words[1] == "-m":
+        assert words[2] in ("pytest", "venv", "orbitrig")
+    elif words[0] == "python3":
+        assert (ROOT / words[1]).is_file(), words[1]
+    elif "/" in words[0]:
+        assert (ROOT / words[0]).is_file(), words[0]
+    else:
+        assert shutil.which(words[0]), f"{words[0]} is not installed (tools/run-tests installs the test tools)"
+
+
+def test_readme_commands_that_need_no_rig_run(tmp_path):
+    """In README order: the main job on the simulator, its report and re-identification,
+    the paper's plan, and the sweep on the rig (no rig here: exit 2, no run directory)."""
+    runs = tmp_path / "runs"
+    for command in [c for c in readme_commands() if c in RUN_HERE]:
+        args = [str(runs / w.removeprefix("runs/")) if w.startswith("runs/") else w for w in shlex.split(command)]
+        p = orbitrig(*args[1:], timeout=600)
+        assert p.returncode == RUN_HERE[command], f"{command}: {p.stdout[-2000:]}\n{p.stderr[-2000:]}"
+    assert (runs / "demo" / "run.h5").is_file() and (runs / "demo" / "coefficients.csv").is_file()
+    assert list((runs / "demo" / "plots").glob("*.png"))
+    assert not (runs / "paper").exists()

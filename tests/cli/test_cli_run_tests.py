@@ -1,0 +1,84 @@
+"""tools/run-tests: names missing system packages before any test runs, installs the
+package with its test extras, then hands pytest's exit status through.
+
+The system commands and the Python interpreter are stand-ins here (scripts in a temporary
+PATH): the real ones would install packages on the machine running this test."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+from cli_helpers import ROOT
+
+SCRIPT = ROOT / "tools" / "run-tests"
+COMMANDS = ["mosquitto", "mosquitto_pub", "mbpoll", "socat", "chromium", "chromedriver", "strace"]
+
+
+def _bin(tmp_path, commands):
+    """A PATH directory with the script's own tools and stand-ins for ``commands``; no apt-get."""
+    path = tmp_path / "bin"
+    path.mkdir()
+    for tool in ("dirname", "id", "env", "bash"):
+        real = subprocess.run(["bash", "-c", f"command -v {tool}"], capture_output=True, text=True).stdout.strip()
+        (path / tool).symlink_to(real)
+    for name in commands:
+        (path / name).write_text("#!/bin/sh\nexit 0\n")
+        (path / name).chmod(0o755)
+    return path
+
+
+def _fake_python(tmp_path, pytest_status: int):
+    """An interpreter that logs its arguments, fakes pip and pytest, and runs everything else."""
+    log = tmp_path / "python.log"
+    fake = tmp_path / "python"
+    fake.write_text(
+        "#!/bin/bash\n"
+        f'echo "$*" >> {log}\n'
+        'if [ "$1" = -m ] && [ "$2" = pip ]; then exit 0; fi\n'
+        f'if [ "$1" = -m ] && [ "$2" = pytest ]; then exit {pytest_status}; fi\n'
+        f'exec {sys.executable} "$@"\n'
+    )
+    fake.chmod(0o755)
+    return fake, log
+
+
+def _run(tmp_path, path_dir, python, *args):
+    # /usr/sbin and /sbin are searched by the script itself; keep them out of this test's reach
+    env = {"PATH": str(path_dir), "PYTHON": str(python), "HOME": str(tmp_path)}
+    return subprocess.run([str(path_dir / "bash"), str(SCRIPT), *args], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=60)  # fmt: skip
+
+
+def test_missing_system_packages_are_named_before_anything_runs(tmp_path):
+    present = {"mosquitto", "socat"}
+    python, log = _fake_python(tmp_path, 0)
+    p = _run(tmp_path, _bin(tmp_path, present), python, "-q")
+    assert p.returncode == 2, p.stderr
+    package_of = {"mosquitto": "mosquitto", "mosquitto_pub": "mosquitto-clients", "mbpoll": "mbpoll",
+                  "socat": "socat", "chromium": "chromium", "chromedriver": "chromium-driver", "strace": "strace"}
+    on_sbin = {c for c in COMMANDS if os.path.exists(f"/usr/sbin/{c}") or os.path.exists(f"/sbin/{c}")}
+    expected = {package_of[c] for c in COMMANDS if c not in present | on_sbin}  # the script also looks in sbin
+    line = next(l for l in p.stderr.splitlines() if "apt-get install -y" in l)
+    assert set(line.split("apt-get install -y", 1)[1].split()) == expected
+    assert {"mbpoll", "chromium-driver"} <= expected
+    assert "sudo apt-get update" in line
+    logged = log.read_text() if log.exists() else ""
+    assert "-m pip" not in logged and "-m pytest" not in logged  # nothing installed, no test run
+
+
+def test_pytest_exit_status_passes_through_after_the_install(tmp_path):
+    python, log = _fake_python(tmp_path, 5)
+    p = _run(tmp_path, _bin(tmp_path, COMMANDS), python, "-q", "tests/daq")
+    assert p.returncode == 5, p.stderr
+    calls = [l for l in log.read_text().splitlines() if l.startswith("-m ")]
+    assert calls[0].startswith("-m pip install") and calls[0].endswith("-e .[test]")
+    assert calls[1] == "-m pytest -q tests/daq"
+    assert len(calls) == 2
+
+
+def test_ci_calls_the_same_command():
+    text = (ROOT / ".ci" / "run").read_text()
+    assert 'exec tools/run-tests "$@"' in text  # the README's command, as written
+    assert os.access(SCRIPT, os.X_OK) and os.access(ROOT / ".ci" / "run", os.X_OK)

@@ -1,0 +1,66 @@
+"""Fixtures of the dashboard tests: a real mosquitto (password file + the shipped
+ACL), `orbitrig serve --sim`, `orbitrig dashboard` and headless chromium."""
+
+from __future__ import annotations
+
+import pytest
+from dash_helpers import REPO, RIG, Dashboard, chromium
+from mqtt_helpers import ACCOUNTS, Broker, Service
+
+SPEEDUP = "5"  # the demo matrix runs for ~20 s: time to pause, resume and stop it
+
+
+class ServiceHolder:
+    """`orbitrig serve --sim` on the shipped matrices (config/matrices: demo, paper), restartable."""
+
+    def __init__(self, broker: Broker, work):
+        self.broker, self.work = broker, work
+        pw = work / "service.pw"
+        pw.write_text(ACCOUNTS["orbitrig-service"] + "\n")
+        pw.chmod(0o600)
+        self.args = ["--sim", "--broker", broker.url, "--rig-id", RIG, "--username", "orbitrig-service",
+                     "--password-file", str(pw), "--matrices", str(REPO / "config" / "matrices"),
+                     "--out", str(work / "runs"), "--speedup", SPEEDUP]
+        self.proc = Service(self.args, work)
+
+    def restart(self) -> None:
+        self.proc = Service(self.args, self.work)
+
+    def text(self) -> str:
+        return self.proc.text()
+
+
+@pytest.fixture(scope="module")
+def broker(tmp_path_factory):
+    b = Broker(tmp_path_factory.mktemp("broker"))
+    b.start()
+    yield b
+    b.stop()
+
+
+@pytest.fixture(scope="module")
+def service(broker, tmp_path_factory):
+    holder = ServiceHolder(broker, tmp_path_factory.mktemp("serve"))
+    yield holder
+    holder.proc.stop()
+
+
+@pytest.fixture(scope="module")
+def dashboard(broker, service, tmp_path_factory):
+    dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", "1.5")
+    yield dash
+    assert dash.stop() == 0, dash.text()[-3000:]
+
+
+@pytest.fixture
+def browsers(tmp_path):
+    """Factory of fresh headless chromium instances, all quit at the end of the test."""
+    made = []
+
+    def make():
+        made.append(chromium(tmp_path))
+        return made[-1]
+
+    yield make
+    for d in made:
+        d.quit()

@@ -1,0 +1,148 @@
+"""Real parts for the dashboard tests: the `orbitrig dashboard` process and a
+headless Debian chromium driven by chromedriver (selenium)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+from typing import Callable
+
+from selenium import webdriver
+from selenium.webdriver.chrome.service import Service as DriverService
+from selenium.webdriver.common.by import By
+from selenium.webdriver.support.ui import WebDriverWait
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO / "tests" / "mqtt"))
+
+from mqtt_helpers import free_port, wait_port  # noqa: E402
+
+RIG = "dash-rig"  # rig id of the service the tests start
+CHROMIUM = "/usr/bin/chromium"
+CHROMEDRIVER = "/usr/bin/chromedriver"
+CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                  "--disable-dev-shm-usage", "--window-size=1400,1500")
+
+
+class Dashboard:
+    """`orbitrig dashboard` as a subprocess on a free loopback port (its log in ``log``)."""
+
+    def __init__(self, broker_url: str, rig_id: str, workdir: Path, *extra: str):
+        self.port = free_port()
+        self.url = f"{'https' if '--https-cert' in extra else 'http'}://127.0.0.1:{self.port}/"
+        self.log = Path(workdir) / f"dashboard-{self.port}.log"
+        env = {**os.environ, "PYTHONUNBUFFERED": "1",
+               "PYTHONPATH": os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p)}
+        with open(self.log, "ab") as log:
+            self.proc = subprocess.Popen(
+                [sys.executable, "-m", "orbitrig", "dashboard", "--broker", broker_url, "--rig-id", rig_id,
+                 "--http", f"127.0.0.1:{self.port}", *extra], stdout=log, stderr=log, env=env, cwd=REPO)
+        try:
+            wait_port(self.port, timeout=30)
+        except TimeoutError:
+            self.stop()
+            raise RuntimeError(f"dashboard did not start:\n{self.text()}") from None
+
+    def text(self) -> str:
+        return self.log.read_text(errors="replace")
+
+    def stop(self) -> int:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+            try:
+                self.proc.wait(20)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        return self.proc.returncode
+
+
+def chromium(profile_root: Path) -> webdriver.Chrome:
+    """A fresh headless chromium with its own profile directory."""
+    opts = webdriver.ChromeOptions()
+    opts.binary_location = CHROMIUM
+    for flag in CHROMIUM_FLAGS:
+        opts.add_argument(flag)
+    opts.add_argument(f"--user-data-dir={tempfile.mkdtemp(prefix='chromium-', dir=profile_root)}")
+    return webdriver.Chrome(service=DriverService(CHROMEDRIVER), options=opts)
+
+
+class Page:
+    """The dashboard page in one browser, with the waits the tests need."""
+
+    def __init__(self, driver: webdriver.Chrome, url: str, dashboard: Dashboard | None = None):
+        self.d, self.url, self.dashboard = driver, url, dashboard
+        driver.get(url)
+
+    def el(self, element_id: str):
+        return self.d.find_element(By.ID, element_id)
+
+    def text(self, element_id: str) -> str:
+        return self.el(element_id).text
+
+    def wait(self, pred: Callable[[], bool], timeout: float = 30.0, what: str = "condition") -> None:
+        try:
+            WebDriverWait(self.d, timeout, poll_frequency=0.1).until(lambda _: pred())
+        except Exception as err:  # noqa: BLE001 - re-raised with the page's state
+            state = self._describe()
+            log = self.dashboard.text()[-2000:] if self.dashboard else ""
+            raise AssertionError(f"timed out waiting for {what}: {state}\n--- dashboard log ---\n{log}") from err
+
+    def _describe(self) -> str:
+        try:
+            return ", ".join(f"{i}={self.text(i)!r}" for i in ("state", "message", "link", "cmd-result",
+                                                              "signin-error", "offline-banner"))
+        except Exception as err:  # noqa: BLE001
+            return f"(page not readable: {err})"
+
+    def wait_text(self, element_id: str, pred: Callable[[str], bool] | str, timeout: float = 30.0) -> str:
+        check = (lambda t: t == pred) if isinstance(pred, str) else pred
+        self.wait(lambda: check(self.text(element_id)), timeout, f"#{element_id} {pred!r}")
+        return self.text(element_id)
+
+    def sign_in(self, user: str, password: str) -> None:
+        self.wait(lambda: self.el("signin").is_displayed(), 15, "the sign-in form")
+        self.el("user").clear()
+        self.el("user").send_keys(user)
+        self.el("password").clear()
+        self.el("password").send_keys(password)
+        self.el("signin-btn").click()
+
+    def signed_in(self, timeout: float = 20.0) -> None:
+        self.wait(lambda: self.el("app").is_displayed(), timeout, "the dashboard after sign-in")
+
+    def state(self) -> str:
+        return self.text("state")
+
+    def wait_state(self, state: str | tuple[str, ...], timeout: float = 60.0) -> None:
+        states = (state,) if isinstance(state, str) else state
+        self.wait(lambda: self.state() in states, timeout, f"state {states}")
+
+    def command(self, button: str, expect: str | Callable[[str], bool], timeout: float = 20.0) -> str:
+        """Click a command button; wait for its outcome line."""
+        before = self.d.execute_script("return document.getElementById('cmd-result').textContent = ''")
+        del before
+        self.el(button).click()
+        if button == "btn-abort":
+            self.wait(lambda: self.el("abort-confirm").is_displayed(), 10, "the abort confirmation")
+            self.el("abort-confirm").click()
+        check = (lambda t: expect in t) if isinstance(expect, str) else expect
+        return self.wait_text("cmd-result", lambda t: "sent" not in t and t != "" and check(t), timeout)
+
+    def rows(self, tbody_id: str, key: str) -> dict[str, str]:
+        """Rows of a table body redrawn live, read in one go: {data-<key>: row text}."""
+        return self.d.execute_script(
+            "const out = {}; document.querySelectorAll('#' + arguments[0] + ' tr').forEach("
+            "r => { out[r.dataset[arguments[1]]] = r.innerText; }); return out;", tbody_id, key)
+
+    def canvas_updates(self, element_id: str) -> int:
+        return int(self.el(element_id).get_attribute("data-updates") or 0)
+
+    def screenshot(self, path: Path) -> None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self.d.save_screenshot(str(path))

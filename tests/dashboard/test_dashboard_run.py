@@ -1,0 +1,128 @@
+"""The page in a real headless chromium against a real authenticated mosquitto
+and `orbitrig serve --sim`: an operator runs the demo matrix; a viewer, signed
+in at the same time in another browser, finds every command refused."""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+from dash_helpers import REPO, RIG, Page
+from mqtt_helpers import ACCOUNTS
+
+#: Set to a path (e.g. docs/dashboard.png) to keep the screenshot the test makes.
+SCREENSHOT_ENV = "ORBITRIG_DASHBOARD_SCREENSHOT"
+
+
+def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
+    page = Page(browsers(), dashboard.url, dashboard)
+    page.sign_in("operator", ACCOUNTS["operator"])
+    page.signed_in()
+    page.wait_state("idle")
+    assert page.text("link") == "online"
+    page.el("matrix").clear()
+    page.el("matrix").send_keys("demo")
+    assert "accepted" in page.command("btn-start", "start:")
+
+    # the run asks for the point's manual settings: asked and measured values, and Confirm
+    page.wait_state("waiting")
+    page.wait(lambda: page.el("manual").is_displayed(), 10, "the manual setting panel")
+    step = page.text("manual-step")
+    assert step == "manual:0000"
+    rows = page.rows("manual-table", "setting")
+    assert set(rows) == {"orbit_radius", "static_eccentricity", "recess_pressure", "pressure_ratio"}
+    assert "5.76" in rows["orbit_radius"]  # demo: dynamic eccentricity 0.096 x clearance 60 um
+    assert "0.4826" in rows["recess_pressure"]
+    assert "confirm: accepted" in page.command("btn-confirm", "confirm:")
+    page.wait_state("running")
+    assert not page.el("manual").is_displayed()
+
+    # progress and waveforms update
+    page.wait_text("point", "1 / 1")
+    page.wait(lambda: page.canvas_updates("plot-forces") >= 2, 30, "force waveforms")
+    n0 = page.canvas_updates("plot-disp")
+    revs0 = page.text("revolutions")
+    page.wait(lambda: page.canvas_updates("plot-disp") >= n0 + 5, 10, "displacement waveforms updating")
+    page.wait(lambda: page.text("revolutions") != revs0, 10, "revolutions counting")
+    assert int(page.el("plot-forces").get_attribute("data-samples")) == 4 * 45  # 4 forces x 45 slots
+    assert int(page.el("plot-orbit").get_attribute("data-samples")) == 45
+    drives = page.rows("drives", "drive")
+    assert "1000.0" in drives["spin"] and "running" in drives["spin"]
+    aux = page.rows("aux", "aux")
+    assert "0.2000 … 8.0000" in aux["p_supply"]  # the supply pressure interlock band, MPa
+
+    # pause (at the next safe point), resume, stop
+    assert "pause: accepted" in page.command("btn-pause", "pause:")
+    page.wait_state("paused", 30)
+    assert "resume: accepted" in page.command("btn-resume", "resume:")
+    page.wait_state("running", 15)
+    assert "stop: accepted" in page.command("btn-stop", "stop:")
+    page.wait_state("idle", 60)
+    assert "stopped" in page.text("message")
+
+
+def test_viewer_sees_everything_and_commands_nothing(dashboard, service, browsers, tmp_path):
+    operator = Page(browsers(), dashboard.url, dashboard)
+    operator.sign_in("operator", ACCOUNTS["operator"])
+    operator.signed_in()
+    operator.wait_state("idle", 60)
+    viewer = Page(browsers(), dashboard.url, dashboard)
+    viewer.sign_in("viewer", ACCOUNTS["viewer"])
+    viewer.signed_in()
+    assert viewer.text("who") == "viewer" and operator.text("who") == "operator"
+
+    operator.el("matrix").clear()
+    operator.el("matrix").send_keys("demo")
+    operator.command("btn-start", "start: accepted")
+    viewer.wait_state("waiting")
+    viewer.wait(lambda: viewer.el("manual").is_displayed(), 10, "the viewer's manual setting panel")
+
+    for button in ("btn-confirm", "btn-pause", "btn-resume", "btn-stop", "btn-abort", "btn-start"):
+        outcome = viewer.command(button, "refused: not authorised")
+        assert "'viewer' may not command this rig" in outcome, outcome
+    events = viewer.text("events")
+    assert events.count("refused: not authorised") == 6
+    assert viewer.state() == "waiting" and operator.state() == "waiting"  # nothing changed
+
+    operator.command("btn-confirm", "confirm: accepted")
+    viewer.wait_state("running", 15)
+    viewer.wait(lambda: viewer.canvas_updates("plot-orbit") >= 3, 30, "the viewer's orbit plot")
+    # the demo point completes: both load measuring systems x both models, with their errors
+    viewer.wait(lambda: len(viewer.d.find_elements("css selector", "#results tr")) == 4, 90, "4 result rows")
+    viewer.wait_state("idle", 30)
+    operator.wait(lambda: len(operator.d.find_elements("css selector", "#results tr")) == 4, 10, "results")
+    text = operator.text("results")
+    assert "Kxx" in text and "±" in text and "piezo" in text and "strain" in text
+    shot = Path(os.environ.get(SCREENSHOT_ENV) or tmp_path / "dashboard.png")
+    if not shot.is_absolute():
+        shot = REPO / shot
+    operator.d.execute_script("window.scrollTo(0, 0)")
+    time.sleep(0.2)
+    operator.screenshot(shot)
+    assert shot.stat().st_size > 20_000
+
+
+def test_results_show_intervals_and_warnings_as_they_arrive(broker, dashboard, browsers):
+    """A result of the identification's next version (95 % intervals, warnings) is drawn as it arrives."""
+    page = Page(browsers(), dashboard.url, dashboard)
+    page.sign_in("viewer", ACCOUNTS["viewer"])
+    page.signed_in()
+    page.wait_text("link", "online")
+    rows_before = len(page.d.find_elements("css selector", "#results tr"))
+    result = {"run_id": "r-test", "point": 7, "label": "w1000rpm", "identification": [
+        {"lms": "piezo", "model": "kc8", "freq_dep": "none", "method": "ols",
+         "coefficients": {"Kxx": 1.5e7, "Cxx": 2.0e4}, "std_errors": {"Kxx": 1e5, "Cxx": 1e2},
+         "confidence_95": {"Kxx": [1.48e7, 1.52e7], "Cxx": [1.98e4, 2.02e4]},
+         "warnings": ["condition number 3.1e6: Kxy poorly determined"]},
+        {"lms": "strain", "model": "kcd11", "error": "too few orbit frequencies: 2 < 3"}]}
+    done = broker.pub(f"orbitrig/{RIG}/result", json.dumps(result), user="orbitrig-service")
+    assert done.returncode == 0, done.stderr
+    page.wait(lambda: len(page.d.find_elements("css selector", "#results tr")) == rows_before + 2, 10, "2 rows")
+    text = page.text("results")
+    assert "Kxx 1.500e+7 [1.480e+7, 1.520e+7]" in text and "Cxx 2.000e+4 [1.980e+4, 2.020e+4]" in text
+    assert "refused: too few orbit frequencies: 2 < 3" in text
+    events = page.text("events")
+    assert "point 7 piezo kc8: condition number 3.1e6: Kxy poorly determined" in events
+    assert "point 7 strain kcd11: too few orbit frequencies: 2 < 3" in events
