@@ -165,7 +165,7 @@ NOT_YET_SPLIT = {
     "orbitrig/config.py", "orbitrig/cli/drives.py", "orbitrig/service/rig_service.py",
     "orbitrig/analysis/plots.py::coefficients_plot", "orbitrig/cli/drives.py::register", "orbitrig/cli/drives.py::run",
     "orbitrig/cli/report.py::register", "orbitrig/cli/serve.py::register", "orbitrig/cli/serve.py::serve",
-    "orbitrig/service/protocol.py::parse_command", "orbitrig/store/orbit_table.py::read_orbit_table",
+    "orbitrig/service/protocol.py::parse_command",
     "orbitrig/store/reader.py::_read_point",
 }  # fmt: skip
 
