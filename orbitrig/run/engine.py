@@ -206,7 +206,7 @@ class RunEngine:
         helpers = [asyncio.create_task(supervisor.watch(), name="interlocks"),
                    asyncio.create_task(self._monitor(), name="run-monitor")]  # fmt: skip
         self._body = asyncio.create_task(body, name="run-body")
-        if self._failure is not None:
+        if self._failure is not None or self._control.abort_requested:  # while the rig was being opened
             self._body.cancel()
         try:
             return await self._body
