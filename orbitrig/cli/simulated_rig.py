@@ -13,6 +13,7 @@ import contextlib
 from collections.abc import AsyncIterator
 
 from orbitrig.run.rig_io import Endpoints, RigAccess, TimeScale
+from sim.config import SimConfig
 from sim.rig import SimRig
 
 #: simulator time / wall time of `orbitrig sweep --sim` and `orbitrig serve --sim`
@@ -51,7 +52,9 @@ def simulated_access(sim: SimRig) -> RigAccess:
 
 
 @contextlib.asynccontextmanager
-async def simulated_rig(speedup: float = DEFAULT_SPEEDUP) -> AsyncIterator[tuple[SimRig, RigAccess]]:
-    """A running SimRig (no pty: the A/D board over TCP) and its access."""
-    async with SimRig(speedup=speedup, adc_pty=False) as sim:
+async def simulated_rig(speedup: float = DEFAULT_SPEEDUP,
+                        config: SimConfig | None = None) -> AsyncIterator[tuple[SimRig, RigAccess]]:  # fmt: skip
+    """A running SimRig of scenario `config` (default: the paper's rig; no pty: the A/D
+    board over TCP) and its access."""
+    async with SimRig(config, speedup=speedup, adc_pty=False) as sim:
         yield sim, simulated_access(sim)
