@@ -259,10 +259,9 @@ class RunEngine:
     # ------------------------------------------------------- the one finally
     async def _make_safe(self, io: RigIO, store: RunStore, status: str, message: str) -> None:
         """Every exit path: drives to a safe stop first, then the links, then storage; each
-        failure logged, the rest still done."""
-        if status == FAILED:
-            self._control.fire("fail", message)
-        elif self.state != STOPPING:
+        failure logged, the rest still done. A failure is reported (state faulted) once the
+        drives are safe."""
+        if self.state != STOPPING:
             self._control.fire("finish", message)
         emergency = status in (ABORTED, FAILED)
         timeout = self.access.time_scale.wall(self.rig.drives.stop_timeout_s) + 5.0
@@ -277,6 +276,8 @@ class RunEngine:
             except BaseException as err:  # noqa: BLE001 - every cleanup step must run
                 self._cleanup_failed(what, err)
         self._io = None
+        if status == FAILED:  # reported once the drives are safe
+            self._control.fire("fail", message)
         self.timing["wall"] = time.monotonic() - self._t0
         for what, action in (("write the run status", lambda: store.set_status(status, message)),
                              ("write coefficients.csv", store.write_csv),
