@@ -169,3 +169,14 @@ async def test_lost_trigger_fails_with_a_clear_message(tmp_path):
     assert outcome.status == "failed"
     assert "acquisition failed" in outcome.message and "trigger" in outcome.message
     assert _stored(out)[0] == "failed"
+
+
+async def test_a_drive_trip_while_waiting_for_the_operator_fails_the_run_at_once(tmp_path):
+    """Interlocks are supervised in their own task: a trip ends the run even while it waits for a confirmation."""
+    async with running(tmp_path, small_matrix(), confirm_mode="remote") as (sim, eng, rec, run):
+        await wait_for(lambda: eng.state == "waiting", what="waiting for the manual settings")
+        sim.inject("drive_trip", drive=1, code=2310)
+        outcome = await asyncio.wait_for(run, 10)
+    assert outcome.status == "failed" and outcome.message.startswith("interlock: spin drive tripped: fault 2310")
+    assert eng.state == "faulted" and eng.waiting_step is None
+    assert rec.states()[-2:] == ["stopping", "faulted"]  # reported once the drives are safe
