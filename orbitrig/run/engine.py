@@ -40,15 +40,11 @@ from orbitrig.run.procedure import PointProcedure, RunParts
 from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.states import ABORTED, COMPLETED, FAILED, FAULTED, IDLE, STOPPED, STOPPING
-from orbitrig.run.storage_room import point_bytes, room_problem
 from orbitrig.run.supervision import InterlockSupervisor
-from orbitrig.store.writer import RunStore, StorageError
+from orbitrig.store.estimate import plan_bytes, point_bytes
+from orbitrig.store.writer import RunStore, StorageError, StorageFullError
 
 log = logging.getLogger(__name__)
-
-#: samples per channel and revolution at most (the timing disk's slots): for space estimates
-SLOTS = 360
-
 
 class RunEngine:
     def __init__(self, rig: RigConfig, *, out_dir: Path, access: RigAccess | None = None,
@@ -162,14 +158,22 @@ class RunEngine:
         self._progress.start(self.run_id, len(todo), remaining)
         store.log(f"{'resume' if resume else 'start'} run {self.run_id}: matrix {plan.name}, "
                   f"{len(todo)} of {len(plan.points)} points to run, sim={self.access.simulated}")  # fmt: skip
-        need = sum(self._point_bytes(plan, p) for p in todo)
-        if (why := room_problem(self.out_dir, need)) is not None:
-            self._log_event(f"warning: the whole plan may not fit ({why.replace('the next point', 'all points')}); "
-                            "the run pauses before a point that does not fit")  # fmt: skip
+        for line in store.set_aside:  # incomplete or damaged points a resume put aside
+            self._log_event(line)
+        try:
+            store.check_free_space(plan_bytes(self.rig, [s for s in plan.steps if s.point is None or s.point in kept]))
+        except StorageFullError as err:
+            self._log_event(f"warning: the whole plan may not fit ({err}); the run pauses before a point that does not")
         self._control.fire("start", f"run {self.run_id} started" + (" (resumed)" if resume else ""))
 
-    def _point_bytes(self, plan: Plan, p) -> int:
-        return point_bytes(len(p.blocks), plan.revolutions, len(self.rig.channels), SLOTS)
+    def _no_room(self, plan: Plan, p) -> str | None:
+        """Why the disk cannot take point `p` (None: it can)."""
+        models = len(plan.matrix.models)
+        try:
+            self._store.check_free_space(point_bytes(self.rig, p, plan.revolutions, models))
+        except StorageFullError as err:
+            return f"not enough free disk space: {err}"
+        return None
 
     async def _operate(self, io: RigIO, plan: Plan, done: set[int]) -> tuple[str, str]:
         """Open the rig and execute the plan: (status, message)."""
@@ -244,7 +248,7 @@ class RunEngine:
                 if p.index in done:
                     continue
                 await control.safe_point()
-                await control.hold_for_room(lambda: room_problem(self.out_dir, self._point_bytes(plan, p)))
+                await control.hold_for_room(lambda: self._no_room(plan, p))
                 self._progress.next_point(len(p.blocks))
                 await procedure.run_point(p, plan.point_steps(p.index), first)
                 first = False

@@ -44,6 +44,7 @@ def block_record(block: Block, blk: AveragedBlock, rig: RigConfig) -> BlockRecor
         gains=np.asarray(blk.gains), offsets=np.asarray(blk.offsets), mean=np.asarray(blk.mean),
         record_phasors=rp, phasors=np.asarray(blk.phasors), dc=np.asarray(blk.dc),
         rms_residual=np.asarray(blk.rms_residual), coherence=coh, stats=stats,
+        uncertainty=np.asarray(blk.uncertainty), n_records=blk.n_records, stop_reason=blk.stop_reason,
     )  # fmt: skip
 
 

@@ -1,9 +1,9 @@
 """Safety before storage: a storage failure stops the drives first; no room pauses the run.
 
 A full disk cannot be produced here without mounting a small file system, so
-the store's failure is injected (RunStore.write_block raising StorageError,
-as the store raises it for every write failure) and the free-space answer is
-replaced; everything else is the real engine on the real simulator.
+the store's failure is injected (RunStore.write_block raising StorageFullError,
+as the store raises it when the disk is full) and the free space the store
+reads is replaced; everything else is the real engine, store and simulator.
 """
 
 import asyncio
@@ -12,10 +12,10 @@ import pytest
 
 from orbitrig import config as cfg
 from orbitrig.cli.simulated_rig import simulated_access
-from orbitrig.run import engine as engine_module
 from orbitrig.run.engine import RunEngine, StatusEvent
-from orbitrig.run.storage_room import MARGIN_BYTES, point_bytes, room_problem
-from orbitrig.store.writer import RunStore, StorageError
+from orbitrig.run.plan import make_plan
+from orbitrig.store.estimate import plan_bytes, point_bytes
+from orbitrig.store.writer import RunStore, StorageFullError
 from sim.rig import SimRig
 from sweep_helpers import SPEEDUP, small_matrix, wait_for
 
@@ -32,7 +32,7 @@ async def test_storage_failure_stops_the_drives_before_recording(tmp_path, monke
     def failing_write_block(self, point, rec):
         writes.append(rec.block.tag)
         if len(writes) == 3:
-            raise StorageError(f"{self.path}: no space left on device (disk full)")
+            raise StorageFullError(self.dir, "no space left on device (disk full)")
         return write_block(self, point, rec)
 
     set_status = RunStore.set_status
@@ -48,7 +48,7 @@ async def test_storage_failure_stops_the_drives_before_recording(tmp_path, monke
         outcome = await eng.run(small_matrix())
         assert _at_rest(sim)
     assert outcome.status == "failed" and eng.state == "faulted"
-    assert outcome.message.startswith("storage failed: StorageError:") and "disk full" in outcome.message
+    assert outcome.message.startswith("storage failed: StorageFullError:") and "disk full" in outcome.message
     assert at_status == [("failed", True)]  # the drives were at rest before the status was recorded
     assert len(writes) == 3  # the run ended at the failed write: no block after it
     assert RunStore.open_existing(tmp_path / "run").stored_configs()  # the run file is still readable
@@ -57,17 +57,20 @@ async def test_storage_failure_stops_the_drives_before_recording(tmp_path, monke
 async def test_no_room_for_the_next_point_pauses_until_resumed(tmp_path, monkeypatch):
     full = {"on": True}
     asked = []
+    check = RunStore.check_free_space
 
-    def fake_room(directory, n_bytes):
+    def watched_check(self, n_bytes):
         asked.append(n_bytes)
-        return "not enough free disk space in the test: 1.0 MB free" if full["on"] else None
+        return check(self, n_bytes)
 
-    monkeypatch.setattr(engine_module, "room_problem", fake_room)
+    monkeypatch.setattr(RunStore, "free_bytes", lambda self: 1_000 if full["on"] else 10**15)
+    monkeypatch.setattr(RunStore, "check_free_space", watched_check)
+    rig, matrix = cfg.load_rig(), small_matrix()
     async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
-        eng = RunEngine(cfg.load_rig(), out_dir=tmp_path / "run", access=simulated_access(sim), confirm_mode="auto")
+        eng = RunEngine(rig, out_dir=tmp_path / "run", access=simulated_access(sim), confirm_mode="auto")
         events = []
         eng.subscribe(events.append)
-        run = asyncio.create_task(eng.run(small_matrix()))
+        run = asyncio.create_task(eng.run(matrix))
         await wait_for(lambda: eng.state == "paused", what="paused for room")
         assert "not enough free disk space" in eng.message and "resume" in eng.message
         assert _at_rest(sim)  # held before the point: nothing turned
@@ -81,15 +84,7 @@ async def test_no_room_for_the_next_point_pauses_until_resumed(tmp_path, monkeyp
     assert outcome.completed_points == [0]
     states = [e.state for e in events if isinstance(e, StatusEvent)]
     assert states[:3] == ["running", "paused", "running"]
-    one_point = point_bytes(10, 10, 8, 360)
-    assert asked[0] == one_point  # the whole plan (one point) before the run, then before the point
-    assert all(n == one_point for n in asked)
-
-
-def test_room_problem_reads_the_real_disk(tmp_path):
-    assert room_problem(tmp_path, 0) is None
-    why = room_problem(tmp_path, 10**18)
-    assert why is not None and str(tmp_path) in why and "MB free" in why
-    # a 50-revolution block of 8 channels x 360 slots holds 288 kB of raw counts
-    assert point_bytes(1, 50, 8, 360) > 50 * 8 * 360 * 2
-    assert MARGIN_BYTES > 0
+    plan = make_plan(matrix, rig)
+    # asked for the whole plan before the run, then for the point (again after each resume)
+    assert asked[0] == plan_bytes(rig, list(plan.steps))
+    assert asked[1:4] == [point_bytes(rig, plan.points[0], 10, len(matrix.models))] * 3
