@@ -12,30 +12,34 @@ PAYLOAD_KEYS = ("coefficients", "std_errors", "confidence_95", "condition_number
                 "chi2", "p_value", "aic", "bic", "notes", "warnings", "exponent")  # fmt: skip
 
 
-def fit_name(lms: str, spec) -> str:
-    """'piezo kcd11 power:1 ols'."""
-    return f"{lms} {spec.model} {spec.freq_dep} {spec.method}"
-
-
 def point_log_lines(p: OperatingPoint, res: PointResults) -> list[str]:
     """One line per refusal, warning, adequacy verdict and LMS consistency check of the point."""
-    head = f"point {p.index:04d}"
+    fits = [(lms, f"{e['spec'].model} {e['spec'].freq_dep} {e['spec'].method}", e.get("json"), e.get("error"))
+            for (lms, _), e in res.identifications.items()]  # fmt: skip
+    return [f"point {p.index:04d}: {line}" for line in judgement_lines(fits)]
+
+
+def judgement_lines(fits: list[tuple[str, str, dict | None, str | None]], *, verdicts: bool = True,
+                    brief: bool = False) -> list[str]:  # fmt: skip
+    """Lines of (lms, "model freq_dep method", stored JSON or None, refusal or None) fits: refusals
+    (``brief``: their first line; else every line joined by ' | '), warnings, parts not evaluated,
+    and (``verdicts``) the adequacy verdicts and LMS consistency."""
     lines, compared = [], set()
-    for (lms, key), e in res.identifications.items():
-        name = fit_name(lms, e["spec"])
-        if "error" in e:
-            lines.append(f"{head}: {name}: refused: {e['error']}")
+    for lms, name, d, error in fits:
+        if d is None:
+            reason = str(error).strip().splitlines() or [""]
+            text = f"{reason[0]} (the full reason is in run.log)" if brief and len(reason) > 1 else " | ".join(reason)
+            lines.append(f"{lms} {name}: refused: {text}")
             continue
-        d = e["json"]
-        lines += [f"{head}: {name}: warning: {w}" for w in d.get("warnings") or []]
+        lines += [f"{lms} {name}: warning: {w}" for w in d.get("warnings") or []]
         for part in ("uncertainty", "derived"):
             if "error" in (d.get(part) or {}):
-                lines.append(f"{head}: {name}: {part} not evaluated: {d[part]['error']}")
-        if d.get("adequacy"):
-            lines.append(f"{head}: {name}: {adequacy_text(d['adequacy'])}")
-        if d.get("lms_consistency") and key not in compared:
-            compared.add(key)
-            lines.append(f"{head}: {name.split(' ', 1)[1]}: {consistency_text(d['lms_consistency'])}")
+                lines.append(f"{lms} {name}: {part} not evaluated: {d[part]['error']}")
+        if verdicts and d.get("adequacy"):
+            lines.append(f"{lms} {name}: {adequacy_text(d['adequacy'])}")
+        if verdicts and d.get("lms_consistency") and name not in compared:
+            compared.add(name)
+            lines.append(f"{name}: {consistency_text(d['lms_consistency'])}")
     return lines
 
 
