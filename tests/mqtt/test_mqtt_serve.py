@@ -187,6 +187,30 @@ def test_completed_run_publishes_one_result_per_point(rig, service):
     assert run_status(service.work, run_id) == "completed"
 
 
+def test_result_carries_intervals_uncertainty_verdicts_and_refusals(rig, service):
+    mark = rig.watch.mark()
+    assert rig.command({"cmd": "start", "matrix": "judged"})["ok"] is True
+    rig.status("waiting", start=mark)
+    assert rig.command({"cmd": "confirm", "step": "manual:0000"})["ok"] is True
+    assert "completed" in rig.status("idle", start=mark, timeout=60)["message"]
+    (msg,) = rig.watch.on("result", mark)
+    res = msg.json()
+    rows = {(r["lms"], r["model"], r["freq_dep"]): r for r in res["identification"]}
+    fit = rows[("piezo", "kc7", "none")]
+    for key, (lo, hi) in fit["confidence_95"].items():
+        assert lo < fit["coefficients"][key] < hi
+    assert fit["uncertainty"]["k"] == 2.0 and fit["uncertainty"]["systematic"]["Kxx"] > 0
+    assert fit["uncertainty"]["expanded"]["Kxx"] > 2 * fit["std_errors"]["Kxx"]
+    assert isinstance(fit["warnings"], list) and isinstance(fit["notes"], list) and fit["chi2"] > 0
+    assert fit["lms_consistency"]["pair"] == "piezo - strain"
+    dep = rows[("strain", "kc7", "power:1")]
+    assert dep["adequacy"]["verdict"].startswith("frequency dependence supported: ")
+    assert {(a["lms"], a["freq_dep"]) for a in res["adequacy"]} == {("piezo", "power:1"), ("strain", "power:1")}
+    assert "too few orbit frequencies" in rows[("piezo", "kcd12", "poly:4")]["error"]
+    assert [(r["lms"], r["model"]) for r in res["refused"]] == [("piezo", "kcd12"), ("strain", "kcd12")]
+    assert isinstance(res["warnings"], list)
+
+
 # -- the broker and the service go away -----------------------------------------
 
 class OwnRun:

@@ -182,3 +182,27 @@ def test_a_bad_calibration_uncertainty_is_refused_with_file_line_and_key(tmp_pat
     assert res.returncode == 2
     assert f"{rig}: line {line}: key 'calibration_uncertainty.fy_strain.gain_pct'" in res.stderr
     assert why in res.stderr and "Traceback" not in res.stderr
+
+
+def test_result_payload_carries_the_warnings_of_a_stored_run(sweep):
+    from orbitrig import config as cfg
+    from orbitrig.config import ModelSpec
+    from orbitrig.run.plan import make_plan
+    from orbitrig.run.point_report import result_payload
+    from orbitrig.service.protocol import result_payload as mqtt_result
+    from orbitrig.store.reader import read_run
+    from orbitrig.store.records import PointResults
+
+    run, _ = sweep
+    stored = read_run(run).complete_points[0]
+    idents = {}
+    for i in stored.identifications:
+        spec = ModelSpec(model=i.model, freq_dep=i.freq_dep, method=i.method)
+        idents[(i.lms, spec.key)] = {"spec": spec, **({"json": i.result} if i.ok else {"error": i.error})}
+    plan = make_plan(cfg.matrix_from_text(MATRIX, "judged.toml"), cfg.load_rig())
+    res = PointResults(stored.tables, idents, stored.lms_comparison)
+    obj = json.loads(mqtt_result("r1", result_payload("r1", plan.points[0], res)))
+    assert any(w.startswith("piezo kcd11 none ols: bad fit: chi2 = ") for w in obj["warnings"])
+    row = next(r for r in obj["identification"] if (r["lms"], r["model"], r["freq_dep"]) == ("piezo", "kcd11", "none"))
+    assert row["warnings"] and set(row["confidence_95"]) == set(row["coefficients"])
+    assert {a["verdict"][:36] for a in obj["adequacy"]} == {"frequency dependence supported: yes "}
