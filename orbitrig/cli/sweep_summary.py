@@ -13,8 +13,8 @@ from rich.console import Console
 from rich.table import Table
 
 from orbitrig.run.point_report import judgement_lines
+from orbitrig.store.csvfile import coef_order
 from orbitrig.store.reader import Point, freq_dep_key, read_run
-from orbitrig.store.writer import coef_order
 
 #: above this many complete points the final table is one summary row per point
 DETAIL_POINTS = 4
