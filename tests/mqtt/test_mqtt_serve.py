@@ -79,7 +79,7 @@ BAD = [
     (b'{"cmd": "start", "id": "b4", "matrix": "quick", "spin_rpm": 9000}', "b4",
      "unexpected field 'spin_rpm' for command 'start'"),
     (b'{"cmd": "start", "id": "b5", "matrix": "../../etc/passwd"}', "b5", "not a path"),
-    (b'{"cmd": "start", "id": "b6", "matrix": "nope"}', "b6", "no matrix 'nope' in the matrix folder (available: long, quick)"),
+    (b'{"cmd": "start", "id": "b6", "matrix": "nope"}', "b6", "no matrix 'nope' in the matrix folder (available: judged, long, quick)"),
     (b'{"cmd": "confirm", "id": "b7", "step": 3}', "b7", "field 'step' must be a string, got number"),
     (b'{"cmd": "pause", "id": 8}', None, "field 'id' must be a string"),
     (b'{"cmd": "pause", "id": "b9"}', "b9", "no run is active: nothing to pause"),
