@@ -70,7 +70,8 @@ def identify_operating_point(spin: float, recs: list[BlockRecord], ch: dict[str,
                 continue
             fits[(lms, spec.key)] = res
             idents[(lms, spec.key)] = {"spec": spec, "json": res.to_dict()}
-    analyse_point(spin, tables, fits, idents, calibration)
+    grid = np.unique([abs(r.block.orbit) for r in recs])  # the planned orbit frequencies, rad/s
+    analyse_point(spin, tables, fits, idents, calibration, grid)
     return PointResults(tables, idents, lms_comparison(recs, ch), truth)
 
 

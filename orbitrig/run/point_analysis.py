@@ -11,7 +11,7 @@ object of `identify --json`) under its own key:
   against the constant fit of the same model and method, plus "constant" (its spec);
 - ``lms_consistency``: {"e_n": {key: E_n}, "max_abs", "consistent", "basis"}, the
   normalised difference piezo - strain of the same model (reduction.systematic.lms_consistency);
-- ``derived``: reduction.derived.derived_quantities at the point's orbit frequencies,
+- ``derived``: reduction.derived.derived_quantities at the point's planned orbit frequencies,
   with the combined covariance when there is one (``derived["covariance"]`` says which).
 
 A step that cannot be evaluated stores {"error": reason} under its key instead.
@@ -32,8 +32,6 @@ from reduction.table import OrbitTable
 
 #: |E_n| up to this value: the two load measuring systems agree (k = 2)
 CONSISTENT_EN = 2.0
-#: orbit frequencies closer than this (relative) are one point of the derived-quantity grid
-SAME_FREQUENCY = 1e-3
 _FAILURES = (ReductionError, np.linalg.LinAlgError, ValueError, ZeroDivisionError)
 
 
@@ -55,17 +53,18 @@ def lms_calibration(stated: CalibrationUncertainty, lms: str) -> Calibration:
 
 
 def analyse_point(spin: float, tables: dict[str, OrbitTable], fits: dict[tuple[str, str], Identification],
-                  idents: dict, stated: CalibrationUncertainty | None) -> None:  # fmt: skip
+                  idents: dict, stated: CalibrationUncertainty | None, grid: np.ndarray) -> None:  # fmt: skip
     """Add budget, adequacy, LMS consistency and derived quantities to the stored JSON of every
     fit in ``idents`` ((lms, ModelSpec.key) -> {"spec", "json"}); ``fits`` the same fits'
-    Identification objects."""
+    Identification objects; ``grid`` the point's orbit frequencies for the derived quantities
+    (rad/s, > 0: the planned ones, forward and backward blocks of one frequency are one)."""
     cal = {lms: lms_calibration(stated, lms) for lms in LMS} if stated is not None else None
     budgets: dict[tuple[str, str], Budget] = {}
     for (lms, key), ident in fits.items():
         d = idents[(lms, key)]["json"]
         if cal is not None:
             d["uncertainty"] = _guarded(_budget, ident, tables[lms], cal[lms], budgets, (lms, key))
-        d["derived"] = _guarded(_derived, ident, tables[lms], spin, budgets.get((lms, key)))
+        d["derived"] = _guarded(_derived, ident, grid, spin, budgets.get((lms, key)))
         if ident.freq_dep != "none":
             d["adequacy"] = _guarded(_adequacy, ident, tables[lms], fits, lms, idents[(lms, key)]["spec"])
     for key in {k for _, k in fits}:
@@ -92,18 +91,10 @@ def _budget(ident: Identification, table: OrbitTable, cal: Calibration, budgets:
             "expanded": b.expanded, "sources": list(b.labels), "source_std": [float(s) for s in sigma]}  # fmt: skip
 
 
-def orbit_grid(table: OrbitTable) -> np.ndarray:
-    """The point's distinct orbit frequencies (rad/s, ascending; forward and backward blocks of one
-    frequency are one grid point)."""
-    w = np.sort(np.asarray(table.orbit, dtype=float))
-    keep = np.concatenate([[True], np.diff(w) > SAME_FREQUENCY * w[1:]])
-    return w[keep]
-
-
-def _derived(ident: Identification, table: OrbitTable, spin: float, budget: Budget | None) -> dict:
+def _derived(ident: Identification, grid: np.ndarray, spin: float, budget: Budget | None) -> dict:
     combined = budget is not None and budget.covariance_combined is not None
     cov = budget.covariance_combined if combined else None
-    d = derived_quantities(ident, orbit_grid(table), spin, cov=cov).to_dict()
+    d = derived_quantities(ident, grid, spin, cov=cov).to_dict()
     d["covariance"] = "combined" if combined else ("statistical" if ident.covariance is not None else "none")
     return d
 

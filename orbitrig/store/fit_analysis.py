@@ -10,7 +10,7 @@ when the sweep evaluated it (docs/storage.md):
   ``dof``, ``alpha``, ``aic``, ``bic`` (constant, this fit), ``constant``;
 - ``lms_consistency/``: ``e_n`` aligned with ``names`` (1), attributes ``max_abs``,
   ``consistent``, ``basis``, ``limit``, ``pair``;
-- ``derived/``: at the point's orbit frequencies ``orbit`` (rad/s), ``orbit_hz``,
+- ``derived/``: at the point's planned orbit frequencies ``orbit`` (rad/s), ``orbit_hz``,
   ``c_eff_xx``/``c_eff_yy`` (+ ``_std``, N s/m), ``h_forward``/``h_backward`` (complex, N/m;
   ``_std`` columns re, im), ``wfr`` (+ ``_std``, 1), ``c_eff_zero_xx``/``_yy`` (Omega_0,
   std; rad/s) when C_eff changes sign; attribute ``covariance`` (combined | statistical).
