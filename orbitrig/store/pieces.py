@@ -106,9 +106,10 @@ def _write_table(h: h5py.Group, t) -> None:
     h.attrs["units_of_attributes"] = TABLE_ATTR_UNITS
     put(h, "orbit", np.asarray(t.orbit, dtype=np.float64), "rad/s")
     put(h, "orbit_hz", np.asarray(t.orbit, dtype=np.float64) / (2 * math.pi), "Hz")
-    for name, unit, what in (("x", "m", "x displacement"), ("y", "m", "y displacement"),
-                             ("fx", "N", "x force on the journal"), ("fy", "N", "y force on the journal")):  # fmt: skip
-        put(h, name, np.asarray(getattr(t, name), dtype=np.complex128), unit, meaning=what,
+    meanings = (("m", "x displacement"), ("m", "y displacement"), ("N", "x force on the journal"),
+                ("N", "y force on the journal"))  # fmt: skip
+    for (name, z), (unit, what) in zip(t.phasors.items(), meanings):
+        put(h, name, np.asarray(z, dtype=np.complex128), unit, meaning=what,
             convention="q = Re(q_bar exp(i Omega t))")
     if t.gamma2 is not None:
         put(h, "gamma2", np.asarray(t.gamma2, dtype=np.float64), "1", columns=strings(COHERENCE_PAIRS))
