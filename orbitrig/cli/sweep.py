@@ -72,8 +72,8 @@ def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, 
             _check_out(out)
         import asyncio
 
-        sim_cfg = _sim_config(sim_config) if sim else None
-        outcome = asyncio.run(_sweep(plan, out=out, sim=sim_cfg, resume=resume, speedup=speedup))
+        scenario = _scenario(sim_config, resume=resume, out=out) if sim else None
+        outcome = asyncio.run(_sweep(plan, out=out, sim=scenario, resume=resume, speedup=speedup))
     except ConfigError as err:
         typer.echo(f"error: {err}", err=True)
         raise typer.Exit(2) from None
@@ -86,16 +86,39 @@ def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, 
     raise typer.Exit(EXIT[outcome.status])
 
 
-def _sim_config(path):
-    """The simulator scenario (SimConfig) of --sim-config, or the default rig."""
-    from sim.config import SimConfig, load_sim_config
+def _scenario(path, *, resume: bool, out):
+    """(SimConfig, Scenario) of this --sim sweep: --sim-config or the default rig; on --resume
+    the scenario the run recorded (a --sim-config given then must have the same text)."""
+    from orbitrig.errors import ConfigError
+    from orbitrig.run.rig_io import Scenario
+    from orbitrig.store.writer import RunStore
+    from sim.config import sim_config_from_text
 
-    if path is None:
-        return SimConfig()
+    stored = RunStore.open_existing(out).stored_scenario() if resume else None
+    if stored is not None:
+        name, text = stored
+        if path is not None and _read(path) != text:
+            raise ConfigError(str(path), [f"differs from the simulator scenario of the run being resumed in {out} "
+                                          f"({name}); resume without --sim-config (the stored one is used)"])  # fmt: skip
+        where = f"{out}/run.json: sim_scenario ({name})"
+    else:
+        name, text = (DEFAULT_SCENARIO, "") if path is None else (str(path), _read(path))
+        where = str(path)
     try:
-        return load_sim_config(path)
+        return sim_config_from_text(text, where), Scenario(name, text)
     except ValueError as err:
         raise typer.BadParameter(str(err), param_hint="--sim-config") from None
+
+
+#: the scenario name recorded when no --sim-config is given (sim.config.SimConfig())
+DEFAULT_SCENARIO = "default (the paper's rig, as config/sim.toml)"
+
+
+def _read(path) -> str:
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as err:
+        raise typer.BadParameter(f"{path}: {err}", param_hint="--sim-config") from None
 
 
 def _load(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
@@ -168,7 +191,7 @@ def _check_rig_answers(rig) -> None:
 
 
 async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float):
-    """Run the plan; ``sim`` the simulator's SimConfig (None: the real rig)."""
+    """Run the plan; ``sim`` the simulator's (SimConfig, Scenario) (None: the real rig)."""
     import contextlib
 
     from rich.console import Console
@@ -183,7 +206,7 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float):
         if sim is not None:
             from orbitrig.cli.simulated_rig import simulated_rig
 
-            _, access = await stack.enter_async_context(simulated_rig(speedup, sim))
+            _, access = await stack.enter_async_context(simulated_rig(speedup, *sim))
         engine = RunEngine(plan.rig, out_dir=out, access=access, confirm_mode="auto" if access else "prompt")
         operator = Operator(engine, console)
         engine.subscribe(operator.on_event)
@@ -197,116 +220,7 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float):
     console.print(f"run {outcome.status}: {outcome.message}  ({len(outcome.completed_points)} of "
                   f"{outcome.points} points complete in {out})", markup=False)  # fmt: skip
     if outcome.completed_points:
+        from orbitrig.cli.sweep_summary import print_coefficients
+
         print_coefficients(out)
     return outcome
-
-
-# ---------------------------------------------------------- the final table
-def compare_with_truth(coefficients: dict, truth: dict) -> dict[str, float]:
-    """Error of each constant-term K, C, D entry in percent of the largest true entry of its matrix."""
-    out = {}
-    for m in "KCD":
-        true = truth.get(f"{m}0")
-        if true is None:
-            continue
-        scale = max(abs(v) for row in true for v in row) or 1.0
-        for i, a in enumerate("xy"):
-            for j, b in enumerate("xy"):
-                key = f"{m}{a}{b}"
-                if key in coefficients:
-                    out[key] = abs(coefficients[key] - true[i][j]) / scale * 100.0
-    return out
-
-
-_COEF_UNIT = {"K": "N/m", "C": "N s/m", "D": "kg"}
-
-
-#: above this many complete points the final table is one summary row per point
-DETAIL_POINTS = 4
-
-
-def _fits(g) -> dict[str, dict]:
-    import json
-
-    return {key: json.loads(h.attrs["json"]) for key, h in g["identification"].items() if "json" in h.attrs}
-
-
-def _print_summary(console, complete: list, out: Path) -> None:
-    """One row per operating point: the main stiffness and damping entries of the first
-    fit (piezo), and in --sim mode the worst K and C error of every fit."""
-    import json
-
-    from rich.table import Table
-
-    table = Table(title=f"{len(complete)} operating points (full tables: coefficients.csv, "
-                        f"orbitrig report {out})", title_justify="left")
-    for col in ("point", "label", "Kxx MN/m", "Kyy MN/m", "Cxx kN s/m", "Cyy kN s/m", "worst K / C error"):
-        table.add_column(col, justify="left" if col in ("point", "label") else "right")
-    for name, g in complete:
-        fits = _fits(g)
-        truth = json.loads(g["truth"].attrs["json"]) if "truth" in g else None
-        first = next((d["coefficients"] for k, d in sorted(fits.items()) if k.startswith("piezo")), None)
-        row = [name, str(g.attrs["label"])]
-        row += [f"{first[c] * scale:.4g}" if first and c in first else "-"
-                for c, scale in (("Kxx", 1e-6), ("Kyy", 1e-6), ("Cxx", 1e-3), ("Cyy", 1e-3))]
-        if truth:
-            errs = [compare_with_truth(d["coefficients"], truth) for d in fits.values()]
-            k = max((e[c] for e in errs for c in e if c[0] == "K"), default=float("nan"))
-            c = max((e[c] for e in errs for c in e if c[0] == "C"), default=float("nan"))
-            row.append(f"{k:.1f} % / {c:.1f} %")
-        else:
-            row.append(f"{len(fits)} fits")
-        table.add_row(*row)
-    console.print(table)
-    if any("truth" in g for _, g in complete):
-        console.print("error = |identified - true| / largest true entry of the matrix, worst over all fits",
-                      markup=False)
-
-
-def print_coefficients(out: Path) -> None:
-    """Identified constant-term coefficients of every complete point, beside the true ones in --sim mode."""
-    import json
-
-    import h5py
-    from rich.console import Console
-    from rich.table import Table
-
-    from orbitrig.store.writer import coef_order
-
-    console = Console()
-    with h5py.File(Path(out) / "run.h5", "r") as f:
-        complete = [(name, g) for name, g in sorted(f["points"].items()) if g.attrs.get("complete", False)]
-        if len(complete) > DETAIL_POINTS:
-            _print_summary(console, complete, out)
-            return
-        for name, g in complete:
-            truth = json.loads(g["truth"].attrs["json"]) if "truth" in g else None
-            fits = _fits(g)
-            names = sorted({k for d in fits.values() for k in d["coefficients"] if "_" not in k}, key=coef_order)
-            table = Table(title=f"point {name}  {g.attrs['label']}", title_justify="left")
-            table.add_column("coef")
-            if truth:
-                table.add_column("true", justify="right")
-            for key in fits:
-                table.add_column(key.replace("__none", "").replace("__", " "), justify="right")
-            errs = {k: compare_with_truth(d["coefficients"], truth) for k, d in fits.items()} if truth else {}
-            for c in names:
-                row = [c]
-                if truth:
-                    row.append(f"{truth[c[0] + '0']['xy'.index(c[1])]['xy'.index(c[2])]:.4g}")
-                for key, d in fits.items():
-                    v = d["coefficients"].get(c)
-                    cell = "" if v is None else f"{v:.4g}"
-                    if v is not None and c in errs.get(key, {}):
-                        cell += f" ({errs[key][c]:.1f}%)"
-                    row.append(cell)
-                table.add_row(*row)
-            console.print(table)
-            console.print("units: " + ", ".join(f"{m} {u}" for m, u in _COEF_UNIT.items() if any(c[0] == m for c in names)),
-                          markup=False)  # fmt: skip
-            if truth:
-                console.print("(%) = |identified - true| / largest true entry of the matrix", markup=False)
-                top = max(truth["orbit"], key=abs)
-                k, d = (max(abs(v) for row in truth[m] for v in row) for m in ("K0", "D0"))
-                console.print(f"D acts as Omega^2 D: at the highest orbit speed that is {100 * top**2 * d / k:.2g} % "
-                              "of the largest K entry, so D is weakly determined here", markup=False)  # fmt: skip
