@@ -101,6 +101,7 @@ def _scenario(path, *, resume: bool, out):
             raise ConfigError(str(path), [f"differs from the simulator scenario of the run being resumed in {out} "
                                           f"({name}); resume without --sim-config (the stored one is used)"])  # fmt: skip
         where = f"{out}/run.json: sim_scenario ({name})"
+        typer.echo(f"simulator scenario of the run: {name}", err=True)
     else:
         name, text = (DEFAULT_SCENARIO, "") if path is None else (str(path), _read(path))
         where = str(path)
