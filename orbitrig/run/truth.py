@@ -47,7 +47,8 @@ def point_truth(p: OperatingPoint, recs: list[BlockRecord], source: TruthSource)
     band = np.unique(np.abs(orbit))
     fits = source.reference_fits(p.spin, band)
     const = {k: np.asarray(v, dtype=float).tolist() for k, v in fits["constant"].items()}
-    power = {k: (list(v) if k == "exponents" else np.asarray(v, dtype=float).tolist()) for k, v in fits["power"].items()}
+    power = {k: (list(v) if k == "exponents" else np.asarray(v, dtype=float).tolist())
+             for k, v in fits["power"].items()}  # fmt: skip
     return {
         "definition": DEFINITION, "orbit": orbit.tolist(), "orbit_hz": [r.block.orbit_hz for r in recs],
         "Z_re": z.real.tolist(), "Z_im": z.imag.tolist(), "band": band.tolist(),
