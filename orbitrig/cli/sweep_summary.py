@@ -1,16 +1,25 @@
-"""The closing table of `orbitrig sweep`: the identified coefficients of every complete point.
+"""The sweep's closing summary: identified coefficients of every complete point (beside the
+simulator's truth in --sim runs) with their expanded uncertainty, then every refused model,
+every warning, the model-adequacy verdicts and the two load measuring systems' consistency.
 
-In a --sim run each point also carries the simulator's truth (orbitrig.run.truth): its
-impedance Z(Omega) per orbit frequency and the constant K, C, D best fitting it over the
-point's orbit speeds. The coefficient errors compare against that constant best fit; the
-impedance error compares the identified model's Z with the true Z at every frequency.
-"""
+In --sim runs the truth is the simulator's impedance Z(Omega) per orbit frequency
+(orbitrig.run.truth): the coefficient errors compare with the constant K, C, D best fitting
+it over the point's orbit speeds; `|dZ|/|Z|` compares each fit's Z with the true Z.
+
+Read from the run directory with orbitrig.store.reader.read_run (works also when the
+consolidated run.h5 could not be written)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+from orbitrig.run.point_report import judgement_lines
+from orbitrig.store.csvfile import coef_order
+from orbitrig.store.reader import Point, freq_dep_key, read_run
 
 #: above this many complete points the final table is one summary row per point
 DETAIL_POINTS = 4
@@ -33,7 +42,7 @@ def compare_with_truth(coefficients: dict, truth: dict) -> dict[str, float]:
         for i, a in enumerate("xy"):
             for j, b in enumerate("xy"):
                 key = f"{m}{a}{b}"
-                if key in coefficients and coefficients[key] is not None:
+                if coefficients.get(key) is not None:
                     out[key] = abs(coefficients[key] - true[i][j]) / scale * 100.0
     return out
 
@@ -48,96 +57,131 @@ def worst_impedance_error(result: dict, truth: dict | None) -> float | None:
     return float(np.max(impedance_deviation(result, truth))) * 100.0
 
 
-def fit_label(ident) -> str:
-    """'piezo kcd11 ols', 'strain kcd11 power:1 ols' (a StoredIdentification)."""
-    fd = "" if ident.freq_dep == "none" else f" {ident.freq_dep}"
-    return f"{ident.lms} {ident.model}{fd} {ident.method}"
+def best_impedance_error(fits, truth: dict | None) -> str:
+    """The summary cell: the smallest worst-frequency |dZ|/|Z| of the fits ('-' without truth Z)."""
+    errs = [e for d in fits if (e := worst_impedance_error(d, truth)) is not None and np.isfinite(e)]
+    return f"{min(errs):.2f} %" if errs else "-"
+
+
+def _fits(p: Point) -> dict[str, dict]:
+    """Stored JSON of every fit that gave coefficients, by storage key (lms__model__fd__method)."""
+    return {f"{i.lms}__{i.model}__{freq_dep_key(i.freq_dep)}__{i.method}": i.result
+            for i in p.identifications if i.ok}  # fmt: skip
+
+
+def _judged(p: Point) -> list[tuple[str, str, dict | None, str | None]]:
+    return [(i.lms, f"{i.model} {i.freq_dep} {i.method}", i.result, i.error) for i in p.identifications]
+
+
+def _uncertainty(d: dict, key: str) -> float | None:
+    """Expanded uncertainty (k = 2, combined) of `key`, or 1.96 x the statistical one without a budget."""
+    u = d.get("uncertainty") or {}
+    if "expanded" in u and u["expanded"].get(key) is not None:
+        return u["expanded"][key]
+    std = (d.get("std_errors") or {}).get(key)
+    return None if std is None else 1.96 * std
+
+
+def _summary_cells(p: Point) -> list[str]:
+    """Adequacy, LMS consistency and warnings/refusals of one point, for the summary row."""
+    fits = _fits(p).values()
+    verdicts = [d["adequacy"]["supported"] for d in fits if "supported" in (d.get("adequacy") or {})]
+    worst = [d["lms_consistency"]["max_abs"] for d in fits if (d.get("lms_consistency") or {}).get("max_abs") is not None]
+    warnings = sum(len(d.get("warnings") or []) for d in fits)
+    refused = sum(1 for i in p.identifications if not i.ok)
+    return [f"{sum(verdicts)} of {len(verdicts)} yes" if verdicts else "-",
+            f"{max(worst):.2g}" if worst else "-", f"{warnings} / {refused}"]  # fmt: skip
+
+
+def _print_summary(console: Console, complete: list[Point], out: Path) -> None:
+    """One row per operating point: the main stiffness and damping entries of the first fit
+    (piezo), in --sim mode the worst K and C error of every fit, the adequacy verdicts, the
+    worst LMS |E_n| and the counts of warnings and refused models."""
+    table = Table(title=f"{len(complete)} operating points (full tables: coefficients.csv, "
+                        f"orbitrig report {out})", title_justify="left")  # fmt: skip
+    for col in ("point", "label", "Kxx MN/m", "Kyy MN/m", "Cxx kN s/m", "Cyy kN s/m", "worst K / C error",
+                "|dZ|/|Z|", "freq. dep.", "LMS |E_n|", "warn / refused"):  # fmt: skip
+        table.add_column(col, justify="left" if col in ("point", "label") else "right")
+    for p in complete:
+        fits = _fits(p)
+        first = next((d["coefficients"] for k, d in sorted(fits.items()) if k.startswith("piezo")), None)
+        row = [p.name, p.settings.label]
+        row += [f"{first[c] * scale:.4g}" if first and c in first else "-"
+                for c, scale in (("Kxx", 1e-6), ("Kyy", 1e-6), ("Cxx", 1e-3), ("Cyy", 1e-3))]  # fmt: skip
+        if p.truth:
+            errs = [compare_with_truth(d["coefficients"], p.truth) for d in fits.values()]
+            k = max((e[c] for e in errs for c in e if c[0] == "K"), default=float("nan"))
+            c = max((e[c] for e in errs for c in e if c[0] == "C"), default=float("nan"))
+            row += [f"{k:.1f} % / {c:.1f} %", best_impedance_error(fits.values(), p.truth)]
+        else:
+            row += [f"{len(fits)} fits", "-"]
+        table.add_row(*row, *_summary_cells(p))
+    console.print(table)
+    if any(p.truth for p in complete):
+        console.print("K / C error: worst over all fits; " + TRUE_NOTE, markup=False)
+        console.print(Z_NOTE + "; of the fit that reproduces Z best", markup=False)
+    console.print("freq. dep. = frequency dependence supported by the data (per frequency-dependent fit); "
+                  "LMS |E_n| = worst normalised piezo - strain difference (<= 2: consistent)", markup=False)
+    for p in complete:
+        for line in judgement_lines(_judged(p), verdicts=False, brief=True):
+            console.print(f"point {p.name}: {line}", markup=False)
+
+
+def _point_table(p: Point) -> tuple[Table, list[str]]:
+    fits = _fits(p)
+    truth = p.truth
+    names = sorted({k for d in fits.values() for k in d["coefficients"] if "_" not in k}, key=coef_order)
+    table = Table(title=f"point {p.name}  {p.settings.label}", title_justify="left")
+    table.add_column("coef")
+    if truth:
+        table.add_column("true", justify="right")
+    for key in fits:
+        table.add_column(key.replace("__none", "").replace("__", " "), justify="right")
+    errs = {k: compare_with_truth(d["coefficients"], truth) for k, d in fits.items()} if truth else {}
+    for c in names:
+        row = [c]
+        if truth:
+            row.append(f"{truth[c[0] + '0']['xy'.index(c[1])]['xy'.index(c[2])]:.4g}")
+        for key, d in fits.items():
+            v = d["coefficients"].get(c)
+            u = None if v is None else _uncertainty(d, c)
+            cell = "" if v is None else f"{v:.4g}" + ("" if u is None else f" \u00b1 {u:.2g}")
+            if v is not None and c in errs.get(key, {}):
+                cell += f" ({errs[key][c]:.1f}%)"
+            row.append(cell)
+        table.add_row(*row)
+    z_errs = [worst_impedance_error(d, truth) for d in fits.values()]
+    if any(e is not None for e in z_errs):
+        table.add_row("|dZ|/|Z|", "", *("-" if e is None else f"{e:.2f} %" for e in z_errs))
+    return table, names
 
 
 def print_coefficients(out: Path) -> None:
-    """Identified constant-term coefficients of every complete point, beside the truth in --sim mode."""
-    from rich.console import Console
-
-    from orbitrig.store.reader import read_run
-
+    """Identified constant-term coefficients of every complete point with their expanded
+    uncertainty (beside the true ones in --sim mode), then refusals, warnings and verdicts."""
     console = Console()
     complete = read_run(out).complete_points
     if len(complete) > DETAIL_POINTS:
         _print_summary(console, complete, out)
         return
-    for point in complete:
-        _print_point(console, point)
+    for p in complete:
+        table, names = _point_table(p)
+        console.print(table)
+        console.print("units: " + ", ".join(f"{m} {u}" for m, u in _COEF_UNIT.items() if any(c[0] == m for c in names)),
+                      markup=False)  # fmt: skip
+        console.print("\u00b1 = expanded uncertainty U (k = 2): statistical and calibration combined "
+                      "(without a stated calibration: 1.96 x the statistical one)", markup=False)
+        if p.truth:
+            _truth_notes(console, p.truth)
+        for line in judgement_lines(_judged(p), brief=True):
+            console.print(f"point {p.name}: {line}", markup=False)
 
 
-def _print_point(console, point) -> None:
-    from rich.table import Table
-
-    from orbitrig.store.csvfile import coef_order
-
-    truth, fits = point.truth, [i for i in point.identifications if i.ok]
-    names = sorted({k for i in fits for k in i.result["coefficients"] if "_" not in k}, key=coef_order)
-    table = Table(title=f"point {point.name}  {point.settings.label}", title_justify="left")
-    table.add_column("coef")
-    if truth:
-        table.add_column("true", justify="right")
-    for ident in fits:
-        table.add_column(fit_label(ident), justify="right")
-    errs = [compare_with_truth(i.result["coefficients"], truth) if truth else {} for i in fits]
-    for c in names:
-        row = [c]
-        if truth:
-            row.append(f"{truth[c[0] + '0']['xy'.index(c[1])]['xy'.index(c[2])]:.4g}")
-        for ident, err in zip(fits, errs):
-            v = ident.result["coefficients"].get(c)
-            row.append(("" if v is None else f"{v:.4g}") + (f" ({err[c]:.1f}%)" if c in err else ""))
-        table.add_row(*row)
-    z_errs = [worst_impedance_error(i.result, truth) for i in fits]
-    if any(e is not None for e in z_errs):
-        table.add_row("|dZ|/|Z|", "", *("-" if e is None else f"{e:.2f} %" for e in z_errs))
-    console.print(table)
-    console.print("units: " + ", ".join(f"{m} {u}" for m, u in _COEF_UNIT.items() if any(c[0] == m for c in names)),
-                  markup=False)  # fmt: skip
-    if truth:
-        console.print(TRUE_NOTE, markup=False)
-        if any(e is not None for e in z_errs):
-            console.print(Z_NOTE, markup=False)
-        top = max(np.abs(truth["orbit"]))
-        k, d = (max(abs(v) for row in truth[m] for v in row) for m in ("K0", "D0"))
-        console.print(f"D acts as Omega^2 D: at the highest orbit speed that is {100 * top**2 * d / k:.2g} % "
-                      "of the largest K entry, so D is weakly determined here", markup=False)  # fmt: skip
-
-
-def _print_summary(console, complete: list, out: Path) -> None:
-    """One row per operating point: the main stiffness and damping entries of the first
-    piezo fit; in --sim mode the worst K and C error of every fit and the worst impedance
-    error of each point's best-reproducing fit."""
-    from rich.table import Table
-
-    table = Table(title=f"{len(complete)} operating points (full tables: coefficients.csv, "
-                        f"orbitrig report {out})", title_justify="left")  # fmt: skip
-    cols = ("point", "label", "Kxx MN/m", "Kyy MN/m", "Cxx kN s/m", "Cyy kN s/m", "worst K / C error", "|dZ|/|Z|")
-    for col in cols:
-        table.add_column(col, justify="left" if col in ("point", "label") else "right")
-    for point in complete:
-        fits = [i for i in point.identifications if i.ok]
-        first = next((i.result["coefficients"] for i in fits if i.lms == "piezo"), None)
-        row = [point.name, point.settings.label]
-        row += [f"{first[c] * scale:.4g}" if first and first.get(c) is not None else "-"
-                for c, scale in (("Kxx", 1e-6), ("Kyy", 1e-6), ("Cxx", 1e-3), ("Cyy", 1e-3))]  # fmt: skip
-        row += _truth_cells(point.truth, fits)
-        table.add_row(*row)
-    console.print(table)
-    if any(p.truth for p in complete):
-        console.print("K / C error: worst over all fits; " + TRUE_NOTE, markup=False)
-        console.print(Z_NOTE + "; shown for the fit that reproduces Z best", markup=False)
-
-
-def _truth_cells(truth: dict | None, fits: list) -> list[str]:
-    if not truth:
-        return [f"{len(fits)} fits", "-"]
-    errs = [compare_with_truth(i.result["coefficients"], truth) for i in fits]
-    k = max((e[c] for e in errs for c in e if c[0] == "K"), default=float("nan"))
-    c = max((e[c] for e in errs for c in e if c[0] == "C"), default=float("nan"))
-    z = [(e, fit_label(i)) for i in fits if (e := worst_impedance_error(i.result, truth)) is not None]
-    best = min(z, default=None)
-    return [f"{k:.1f} % / {c:.1f} %", "-" if best is None else f"{best[0]:.2f} % ({best[1]})"]
+def _truth_notes(console: Console, truth: dict) -> None:
+    console.print(TRUE_NOTE, markup=False)
+    if "Z_re" in truth:
+        console.print(Z_NOTE, markup=False)
+    top = max(truth["orbit"], key=abs)
+    k, d = (max(abs(v) for row in truth[m] for v in row) for m in ("K0", "D0"))
+    console.print(f"D acts as Omega^2 D: at the highest orbit speed that is {100 * top**2 * d / k:.2g} % "
+                  "of the largest K entry, so D is weakly determined here", markup=False)  # fmt: skip

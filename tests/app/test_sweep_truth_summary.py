@@ -4,9 +4,8 @@ matrices are the truth's times 1.02 reproduces Z 2 % high at every frequency."""
 import numpy as np
 import pytest
 
-from orbitrig.cli.sweep_summary import _truth_cells, worst_impedance_error
+from orbitrig.cli.sweep_summary import best_impedance_error, compare_with_truth, worst_impedance_error
 from orbitrig.run.truth import impedance_deviation, stored_impedance
-from orbitrig.store.reader import StoredIdentification
 
 K = np.array([[3.3e7, 5.4e6], [-5.4e6, 3.3e7]])
 C = np.array([[1.16e5, 0.0], [0.0, 1.16e5]])
@@ -44,9 +43,9 @@ def test_a_truth_the_constant_model_cannot_reach_shows_in_the_worst_frequency():
     assert np.allclose(z[0], K + 1j * w * C - w**2 * D)
 
 
-def test_the_summary_row_names_the_fit_that_reproduces_z_best():
-    fits = [StoredIdentification("piezo", "kcd12", "none", _result(1.005), None),
-            StoredIdentification("strain", "kcd12", "none", _result(1.02), None)]
-    errors, z = _truth_cells(_truth(), fits)
-    assert errors == "2.0 % / 2.0 %"  # worst K / C error over both fits, against K0 / C0
-    assert z == "0.50 % (piezo kcd12 ols)"
+def test_the_summary_cell_is_the_fit_that_reproduces_z_best():
+    fits = [_result(1.005), _result(1.02)]
+    assert best_impedance_error(fits, _truth()) == "0.50 %"
+    assert best_impedance_error(fits, {"K0": K.tolist()}) == "-"
+    errors = compare_with_truth(_result(1.02)["coefficients"], _truth())  # against K0, C0, D0
+    assert errors["Kxx"] == pytest.approx(2.0) and errors["Cyy"] == pytest.approx(2.0)
