@@ -111,23 +111,3 @@ def lms_comparison(recs: list[BlockRecord], ch: dict[str, int]) -> dict:
     out["max_amp_diff_pct"] = round(float(amp.max()), 4) if amp.size else None
     out["max_phase_diff_deg"] = round(float(ph.max()), 4) if ph.size else None
     return out
-
-
-def result_payload(run_id: str | None, p: OperatingPoint, res: PointResults) -> dict:
-    """The point's results as published (MQTT result topic, terminal)."""
-    rows = []
-    for (lms, _), e in res.identifications.items():
-        spec = e["spec"]
-        row = {"lms": lms, "model": spec.model, "freq_dep": spec.freq_dep, "method": spec.method}
-        if "json" in e:
-            j = e["json"]
-            row.update(coefficients=j["coefficients"], std_errors=j["std_errors"],
-                       condition_number=j["condition_number"], residual_rms=j["residual_rms"])  # fmt: skip
-        else:
-            row["error"] = e["error"]
-        rows.append(row)
-    out = {"run_id": run_id, **p.settings(), "identification": rows, "lms_comparison": res.lms_comparison}
-    if res.truth is not None:
-        out["truth"] = {k: res.truth[k] for k in ("K0", "C0", "D0")}
-    return out
-
