@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import time
 from pathlib import Path
 
@@ -89,12 +90,13 @@ def test_viewer_sees_everything_and_commands_nothing(dashboard, service, browser
     operator.command("btn-confirm", "confirm: accepted")
     viewer.wait_state("running", 15)
     viewer.wait(lambda: viewer.canvas_updates("plot-orbit") >= 3, 30, "the viewer's orbit plot")
-    # the demo point completes: both load measuring systems x both models, with their errors
+    # the demo point completes: both load measuring systems x both models, with their 95 % intervals
     viewer.wait(lambda: len(viewer.d.find_elements("css selector", "#results tr")) == 4, 90, "4 result rows")
     viewer.wait_state("idle", 30)
     operator.wait(lambda: len(operator.d.find_elements("css selector", "#results tr")) == 4, 10, "results")
     text = operator.text("results")
-    assert "Kxx" in text and "±" in text and "piezo" in text and "strain" in text
+    assert "Kxx" in text and "piezo" in text and "strain" in text
+    assert re.search(r"Kxx\S* \S+ \[\S+, \S+\]", text), text  # value [low, high] from confidence_95
     shot = Path(os.environ.get(SCREENSHOT_ENV) or tmp_path / "dashboard.png")
     if not shot.is_absolute():
         shot = REPO / shot
