@@ -30,6 +30,7 @@ _AREAS = (
     "report",  # orbitrig reduce, orbitrig report
     "serve",  # orbitrig serve
     "dashboard",  # orbitrig dashboard
+    "design",  # orbitrig design
 )
 
 for _area in _AREAS:
