@@ -28,6 +28,7 @@ import numpy as np
 from daq.revolutions import Revolution, RevolutionBatch
 from daq.stats import AcquisitionStats
 from reduction.fourier import harmonic_fit, phasor
+from reduction.noise import phasor_uncertainty
 
 STOP_COUNT = "count"  # a fixed rule reached its number of revolutions
 STOP_TARGET = "target"  # every channel's relative uncertainty reached the target
@@ -123,16 +124,6 @@ def phasor_weights(theta: np.ndarray) -> np.ndarray:
     fundamental of ``reduction.fourier.phasor`` (linear in the samples) at angles theta."""
     c, s = theta.shape
     return phasor(np.broadcast_to(np.eye(s), (c, s, s)), theta[:, None, :])
-
-
-def scatter_uncertainty(records: np.ndarray) -> np.ndarray:
-    """Standard uncertainty of the mean of complex records (N, C) along axis 0 (the
-    orbit table's u_*): sqrt(sum |q - mean|^2 / (N - 1) / N); inf for N = 1 (unknown)."""
-    n = len(records)
-    if n < 2:
-        return np.full(records.shape[1:], np.inf)
-    dev = records - records.mean(axis=0)
-    return np.sqrt(np.sum(dev.real**2 + dev.imag**2, axis=0) / ((n - 1) * n))
 
 
 class StreamingAverager:
@@ -255,7 +246,7 @@ class StreamingAverager:
         self._running.reset()
         return AveragedBlock(
             orbit_speed=float(speed), slots=self._slots.copy(), theta=theta, mean=mean, phasors=fit.phasor,
-            uncertainty=scatter_uncertainty(records), record_phasors=records, rms_residual=fit.rms_residual,
+            uncertainty=phasor_uncertainty(records, axis=0), record_phasors=records, rms_residual=fit.rms_residual,
             dc=fit.mean, raw_counts=counts, gains=gains.copy(), offsets=offsets.copy(),
             revs=self._revs[:n].copy(), t_us=self._t_us[:n].copy(), periods=periods, stop_reason=reason,
             rule=self.rule,

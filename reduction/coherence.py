@@ -37,25 +37,3 @@ def orbit_coherences(x, y, fx, fy, axis: int = 0) -> np.ndarray:
     (the table's gamma2 columns), from per-record phasors with records along ``axis``."""
     return np.stack([coherence(x, fx, axis), coherence(y, fx, axis),
                      coherence(x, fy, axis), coherence(y, fy, axis)], axis=-1)
-
-
-def coherence_weights(gamma2, fx, fy, floor: float = 1e-9) -> np.ndarray:
-    """Weighted-least-squares weights (inverse variances) of the 4n real equations.
-
-    The usual frequency-response variance: a force phasor of coherence gamma^2 with the
-    motion has relative variance (1 - gamma^2) / gamma^2 (output noise power over coherent
-    power, per record), so var(f) ~ |f|^2 (1 - gamma^2) / gamma^2 on both Re and Im. For fx
-    gamma^2 is the mean of gamma2_xfx and gamma2_yfx (x and y are coherent with each other
-    on a single-frequency orbit, so each ordinary coherence is the multiple coherence),
-    likewise for fy. (1 - gamma^2) / gamma^2 is floored at ``floor`` so that gamma^2 = 1
-    gives a large finite weight. Returns (4n,) weights, rows Re fx, Im fx, Re fy, Im fy.
-    """
-    g = np.asarray(gamma2, dtype=float)
-    fx, fy = np.asarray(fx, dtype=complex), np.asarray(fy, dtype=complex)
-    gx = np.clip((g[:, 0] + g[:, 1]) / 2, 1e-12, 1.0)
-    gy = np.clip((g[:, 2] + g[:, 3]) / 2, 1e-12, 1.0)
-    mag2 = np.stack([np.abs(fx) ** 2, np.abs(fy) ** 2], axis=1)
-    mag2 = np.maximum(mag2, 1e-12 * max(float(np.mean(mag2)), np.finfo(float).tiny))
-    rel = np.maximum(np.stack([(1 - gx) / gx, (1 - gy) / gy], axis=1), floor)
-    var = mag2 * rel  # (n, 2)
-    return np.repeat(1.0 / var, 2, axis=1).reshape(-1)

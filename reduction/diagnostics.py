@@ -12,18 +12,18 @@ def fit_errors(orbit, fx, fy, fx_rep, fy_rep) -> list[dict]:
     in degrees in (-180, 180] (both signed: reproduced minus measured); None where the
     measured force is zero. orbit in rad/s, reported as orbit_hz.
     """
-    out = []
-    for w, a, b, ra, rb in zip(np.asarray(orbit, dtype=float), fx, fy, fx_rep, fy_rep):
-        row = {"orbit_hz": float(w / (2 * np.pi))}
-        for name, meas, rep in (("fx", a, ra), ("fy", b, rb)):
-            if abs(meas) > 0:
-                row[f"{name}_amp_err_pct"] = float(100 * (abs(rep) - abs(meas)) / abs(meas))
-                row[f"{name}_phase_err_deg"] = float(np.degrees(np.angle(rep / meas)))
-            else:
-                row[f"{name}_amp_err_pct"] = None
-                row[f"{name}_phase_err_deg"] = None
-        out.append(row)
-    return out
+    orbit_hz = np.asarray(orbit, dtype=float) / (2 * np.pi)
+    cols = {}
+    for name, meas, rep in (("fx", fx, fx_rep), ("fy", fy, fy_rep)):
+        meas, rep = np.asarray(meas, dtype=complex), np.asarray(rep, dtype=complex)
+        ok = np.abs(meas) > 0
+        safe = np.where(ok, meas, 1.0)
+        amp = 100 * (np.abs(rep) - np.abs(meas)) / np.abs(safe)
+        phase = np.degrees(np.angle(rep / safe))
+        cols[f"{name}_amp_err_pct"] = [float(a) if o else None for a, o in zip(amp, ok)]
+        cols[f"{name}_phase_err_deg"] = [float(p) if o else None for p, o in zip(phase, ok)]
+    keys = ("fx_amp_err_pct", "fx_phase_err_deg", "fy_amp_err_pct", "fy_phase_err_deg")
+    return [{"orbit_hz": float(f), **{k: cols[k][i] for k in keys}} for i, f in enumerate(orbit_hz)]
 
 
 def residual_rms(fx, fy, fx_rep, fy_rep) -> float:

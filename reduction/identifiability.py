@@ -10,10 +10,19 @@ units: e.g. forward-whirl-only circular orbits with power:1 give ``Kxx_1 - Cxy``
 Kxx_1 + Cxy is determined), and K = K0 + Omega^2 K_2 next to an inertia term gives
 ``Kxx_2 + Dxx`` for every orbit (only Kxx_2 - Dxx is determined).
 
-Measured orbits are never exactly circular: an orbit whose minor whirl component is below
-``CIRCULAR_TOL`` (2 %) of its major one is judged by its ideal circle too, so that noisy
-forward-only circles are refused like exact ones instead of being "separated" by their
-noise (with meaningless coefficients and huge standard errors).
+Identifiability is judged on the design, not on noisy numbers
+(:func:`reduction.design.idealised_design`): each whirl direction's orbits are idealised to
+that direction's common shape (a circle, or the mean ellipse) and the rank is checked there.
+A fixed ellipse separates nothing a circle cannot, so forward-only tables of one slightly
+elliptical (or noisy) orbit shape are refused like exact circles instead of being
+"separated" by their imperfection (with meaningless coefficients and huge standard errors).
+
+An identifiable fit may still be ill-conditioned: :func:`ill_conditioning` compares the
+condition number of the column-scaled regression with that of the same frequencies on the
+ideal design with both whirl directions (:func:`reduction.design.reference_design`) and
+warns, naming the poorly determined coefficients, when the ratio exceeds
+``ILL_CONDITIONED_RATIO`` (100: a hundredfold amplification of relative data errors beyond
+what the frequencies themselves impose).
 
 What would separate them is found by re-testing the rank with added synthetic orbits:
 the same orbits whirling the other way round (x, y -> conj), more distinct frequencies,
@@ -26,15 +35,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from reduction.design import design_orbits, idealised_design, reference_design
 from reduction.errors import IdentifiabilityError
 from reduction.impedance import real_rows, regressors
-from reduction.models import ModelSpec
+from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
 from reduction.regression import column_scale
 from reduction.table import OrbitTable
 
 RANK_RTOL = 1e-7  # relative singular-value tolerance on the column-scaled regression (cond > 1e7 = deficient)
 MAX_LISTED = 12
-CIRCULAR_TOL = 0.02  # an orbit whose minor whirl component is below 2 % of the major is a circle
+ILL_CONDITIONED_RATIO = 100.0  # warn when cond(table) > 100 x cond(same frequencies, ideal design)
+WEAK_LISTED = 8
 
 
 @dataclass(frozen=True)
@@ -46,6 +57,17 @@ class Rank:
     singular_values: np.ndarray
     null: np.ndarray  # (p, p - rank), orthonormal, scaled coordinates
     scale: np.ndarray  # column norms c: theta = u / c
+    vt: np.ndarray  # (p, p) right singular vectors (rows), scaled coordinates
+    u: np.ndarray | None = None  # (m, p) left singular vectors when m >= p
+
+    def unscaled_covariance(self) -> np.ndarray:
+        """(A_s^T A_s)^-1 of the column-scaled matrix (full rank only)."""
+        s = self.singular_values
+        return (self.vt.T / s**2) @ self.vt
+
+    def pseudo_inverse(self) -> np.ndarray:
+        """(A_s^T A_s)^-1 A_s^T of the column-scaled matrix (full rank, m >= p only)."""
+        return (self.vt.T / self.singular_values) @ self.u.T
 
     @property
     def deficiency(self) -> int:
@@ -63,10 +85,10 @@ def numerical_rank(A: np.ndarray, rtol: float = RANK_RTOL) -> Rank:
     m, p = A_s.shape
     if m < p:  # pad so that the SVD returns the whole right singular basis
         A_s = np.vstack([A_s, np.zeros((p - m, p))])
-    _, s, Vt = np.linalg.svd(A_s, full_matrices=False)  # m >= p here: Vt is p x p
+    U, s, Vt = np.linalg.svd(A_s, full_matrices=False)  # m >= p here: Vt is p x p
     tol = rtol * (s[0] if s.size else 0.0)
     rank = int(np.sum(s > tol)) if s.size and s[0] > 0 else 0
-    return Rank(rank, p, s, Vt[rank:].T.copy(), c)
+    return Rank(rank, p, s, Vt[rank:].T.copy(), c, Vt, U if m >= p else None)
 
 
 def combinations(rank: Rank, names: list[str]) -> list[str]:
@@ -145,57 +167,102 @@ def analyse(spec: ModelSpec, table: OrbitTable, A: np.ndarray | None = None,
             rtol: float = RANK_RTOL) -> Rank:
     """Check that ``table`` identifies ``spec``; raise :class:`IdentifiabilityError` if not.
 
-    A is the (possibly weighted) real regression; built from the table when omitted.
-    Returns the :class:`Rank` of the column-scaled regression otherwise.
+    Order of the checks: enough frequencies; the idealised design (each whirl direction at
+    its common shape) has full rank; the table's own (possibly weighted) regression A has
+    full rank. Returns the :class:`Rank` of the column-scaled A.
     """
     if A is None:
         A = _stack(spec, table.orbit, table.x, table.y)
     rank = numerical_rank(A, rtol)
-    too_few = table.n < spec.min_frequencies
-    if rank.deficiency or too_few:
-        raise _refusal(spec, table, A, rank, rtol, too_few)
-    ideal = ideal_circles(table)
-    if ideal is not table:
-        A_ideal = _stack(spec, ideal.orbit, ideal.x, ideal.y)
-        ideal_rank = numerical_rank(A_ideal, rtol)
-        if ideal_rank.deficiency:
-            raise _refusal(spec, ideal, A_ideal, ideal_rank, rtol, False, idealised=True)
+    if table.n < spec.min_frequencies:
+        raise _refusal(spec, table, A, rank, rtol, "few")
+    x, y, fixed = idealised_design(table)
+    ideal = table.with_phasors(x, y, table.fx, table.fy)
+    A_ideal = _stack(spec, ideal.orbit, ideal.x, ideal.y)
+    ideal_rank = numerical_rank(A_ideal, rtol)
+    if ideal_rank.deficiency:
+        raise _refusal(spec, ideal, A_ideal, ideal_rank, rtol, "ideal" if fixed else "")
+    if rank.deficiency:
+        raise _refusal(spec, table, A, rank, rtol, "")
     return rank
 
 
-def ideal_circles(table: OrbitTable, tol: float = CIRCULAR_TOL) -> OrbitTable:
-    """``table`` with every nearly circular orbit (minor whirl component below ``tol`` times
-    the major one) replaced by its ideal circle; ``table`` itself when none is."""
-    a_f, a_b = table.whirl_components()
-    forward = np.abs(a_f) >= np.abs(a_b)
-    near = np.minimum(np.abs(a_f), np.abs(a_b)) < tol * np.maximum(np.abs(a_f), np.abs(a_b))
-    near &= (np.abs(a_f) > 0) | (np.abs(a_b) > 0)
-    if not np.any(near):
-        return table
-    major = np.where(forward, a_f, a_b)
-    x = np.where(near, major, table.x)
-    y = np.where(near, np.where(forward, -1j, 1j) * major, table.y)
-    if np.array_equal(x, table.x) and np.array_equal(y, table.y):
-        return table
-    return OrbitTable(table.spin, table.orbit, x, y, table.fx, table.fy, table.gamma2)
+def check_plan(model: str, freq_dep: str, orbit_hz, directions) -> None:
+    """Before a run: raise IdentifiabilityError when circular orbits at ``orbit_hz`` (Hz) in
+    ``directions`` ("forward" | "backward" | "both", one for all or one per frequency) cannot
+    identify ``model`` with ``freq_dep`` (power:auto: when no exponent M can)."""
+    orbit, x, y = design_orbits(orbit_hz, directions, 1.0)
+    zero = np.zeros(orbit.size, dtype=complex)
+    table = OrbitTable(0.0, orbit, x, y, zero, zero)
+    fd = parse_freq_dep(freq_dep)
+    if not fd.auto:
+        analyse(model_spec(model, fd), table)
+        return
+    refused = {}
+    for m in AUTO_EXPONENTS:
+        try:
+            analyse(power_spec(model, m), table)
+            return
+        except IdentifiabilityError as err:
+            refused[m] = err
+    raise IdentifiabilityError(
+        f"{model} with freq-dep power:auto: no exponent M in {AUTO_EXPONENTS[0]}..{AUTO_EXPONENTS[-1]} "
+        "is identifiable from the planned orbits.\n\n" + "\n\n".join(f"power:{m}: {e}" for m, e in refused.items()),
+        [f"power:{m}: {c}" for m, e in refused.items() for c in e.combinations])
 
 
-def _refusal(spec, table, A, rank, rtol, too_few, idealised=False) -> IdentifiabilityError:
+def ill_conditioning(spec: ModelSpec, table: OrbitTable, rank: Rank) -> str | None:
+    """The warning for an identifiable but ill-conditioned fit, or None.
+
+    The table's column-scaled condition number (``rank``) is compared with that of the same
+    distinct frequencies on the ideal design with both whirl directions; above
+    ``ILL_CONDITIONED_RATIO`` times it the fit is flagged, and the coefficients whose
+    standard errors are inflated most (variance inflation against the ideal design, at
+    least a tenth of the worst and above the ratio's square root) are named.
+    """
+    w, x, y = reference_design(table.orbit)
+    ref = numerical_rank(_stack(spec, w, x, y), 0.0)
+    cond, cond_ref = rank.condition_number, ref.condition_number
+    if not np.isfinite(cond_ref) or not cond > ILL_CONDITIONED_RATIO * cond_ref:
+        return None
+    inflation = np.sqrt(_variance_factors(rank) / _variance_factors(ref))
+    order = np.argsort(-inflation)
+    weak = [spec.names[j] for j in order
+            if inflation[j] >= max(0.1 * inflation[order[0]], np.sqrt(ILL_CONDITIONED_RATIO))]
+    weak = weak or [spec.names[order[0]]]
+    listed = ", ".join(weak[:WEAK_LISTED]) + (f" and {len(weak) - WEAK_LISTED} more" if len(weak) > WEAK_LISTED else "")
+    return (f"ill-conditioned: condition number {cond:.3g}, {cond / cond_ref:.3g} times that of the same "
+            f"frequencies with forward and backward circular orbits ({cond_ref:.3g}; orbitrig warns above "
+            f"{ILL_CONDITIONED_RATIO:g} times); poorly determined: {listed}. Forward and backward whirl of "
+            "similar size at every frequency would determine them.")
+
+
+def _variance_factors(rank: Rank) -> np.ndarray:
+    """diag((A_s^T A_s)^-1) of the column-scaled regression (unit-noise variance factors)."""
+    s = rank.singular_values[: rank.n_columns]
+    with np.errstate(divide="ignore"):
+        return np.sum((rank.vt.T / s) ** 2, axis=1)
+
+
+def _refusal(spec, table, A, rank, rtol, kind) -> IdentifiabilityError:
+    """kind: "few" (too few frequencies), "ideal" (the idealised one-shape-per-direction
+    design is rank-deficient) or "" (the regression itself is)."""
     p = spec.n_coefficients
     names = spec.names
     combos = combinations(rank, names)
     head = f"{spec.model} with freq-dep {spec.freq_dep.text} ({p} coefficients) cannot be identified from this table"
     lines = []
-    if too_few:
+    if kind == "few":
         lines.append(
             f"{head}: too few orbit frequencies: {p} coefficients need at least {spec.min_frequencies} "
             f"orbit frequencies (4 real equations each), the table has {table.n}.")
-    elif idealised:
+    elif kind == "ideal":
         lines.append(
-            f"{head}: the orbits are circular to within {CIRCULAR_TOL:.0%} (minor over major whirl "
-            "component), and with ideal circles the regression is rank-deficient; the small "
-            "non-circularity left is imperfection and noise, which would separate the terms below "
-            "only with meaningless precision.")
+            f"{head}: the orbits of each whirl direction have one common shape (idealised to it: "
+            "a circle or the mean ellipse), and on that design the regression is rank-deficient; "
+            "a fixed orbit shape separates nothing a circle cannot, and the orbits' small "
+            "differences in shape are imperfection and noise, which would separate the terms "
+            "below only with meaningless precision.")
     else:
         lines.append(f"{head}: the regression is rank-deficient.")
     lines.append(
@@ -238,9 +305,11 @@ def _hints(spec, table, A, rank, rtol) -> list[str]:
                 hints.append(
                     f"every orbit in the table is a {whirl} circular whirl: forward plus backward whirl "
                     f"(adding {other}-whirl orbits at these frequencies) separates {resolved} of these "
-                    "directions; elliptical orbits would too.")
+                    "directions; orbits of one fixed elliptical shape would not.")
             else:
-                hints.append(f"orbits whirling the other way round at these frequencies separate {resolved} of these directions.")
+                hints.append(f"orbits whirling the other way round at these frequencies (backward-whirl orbits "
+                             f"beside forward ones, or the reverse) separate {resolved} of these directions; "
+                             "orbits of the same fixed shape would not.")
         rest = mirrored.deficiency - more_rank.deficiency
         if rest > 0:
             distinct = len(np.unique(np.round(table.orbit, 9)))

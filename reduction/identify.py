@@ -8,12 +8,14 @@ confounded combinations), solves it in column-scaled coordinates and reports dia
 Methods
 -------
 ols : ordinary least squares (qr | svd | lu solver, agreeing to rounding).
-wls : weighted least squares with coherence weights (the table's gamma2 columns),
-      var(f) ~ |f|^2 (1 - gamma^2) / gamma^2, see :func:`reduction.coherence.coherence_weights`.
+wls : weighted least squares. Weights: the inverse effective variances of the equations from
+      the table's u_* columns (:func:`reduction.noise.equation_variances`, force noise plus
+      displacement noise through Z, Z from a first ols pass then the wls one); without u_*
+      the coherences (:func:`reduction.noise.coherence_variances`, floored at 1/n_records).
 tls : total least squares for noisy displacements, see :func:`reduction.regression.structured_tls`.
-      Noise ratio sigma_f / sigma_d (N/m) defaults to rms|f| / rms|d| (equal relative noise on
-      displacement and force phasors, the usual normalisation of TLS); pass ``tls_ratio``
-      when the noise levels are known.
+      Noise of every phasor from the u_* columns; without them the noise ratio
+      sigma_f / sigma_d (N/m) is rms|f| / rms|d| (equal relative noise on displacement and
+      force phasors) unless ``tls_ratio`` is given.
 iv  : instrumental variables (two-stage least squares). Instruments: the regression built
       from the ideal circular orbit the rig imposes - one circle of common radius and trigger
       phase per whirl direction, fitted (complex mean of the dominant whirl component) to the
@@ -28,97 +30,33 @@ tls and iv remove that bias (tested by Monte Carlo in tests/reduction).
 Reported ``condition_number``: 2-norm condition number of the column-scaled regression
 matrix (unit column norms; row-weighted for wls) - the amplification of relative data errors
 into relative coefficient errors, independent of the coefficients' units.
-``std_errors``: one standard deviation from the regression covariance s^2 (A^T A)^-1 with
-s^2 = residual sum of squares / (4n - p) (estimator-specific forms for wls, tls, iv); None
-when 4n == p (no degrees of freedom).
+``covariance`` / ``std_errors``: with u_* columns from the stated uncertainties (absolute,
+see :mod:`reduction.statistics`), otherwise s^2 (A^T A)^-1 with s^2 = residual sum of squares
+/ (4n - p) (estimator-specific forms for wls, tls, iv); None when 4n == p and the noise is
+unknown. ``confidence_95`` from Student's t with 4n - p degrees of freedom.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from reduction import regression as reg
-from reduction.coherence import coherence_weights
+from reduction import statistics as st
 from reduction.diagnostics import fit_errors, residual_rms
 from reduction.errors import IdentificationError, IdentifiabilityError, ReductionError
-from reduction.identifiability import RANK_RTOL, analyse, numerical_rank
-from reduction.impedance import forces, impedance, impedance_basis, real_rows, regression, regressors
+from reduction.identifiability import RANK_RTOL, analyse, ill_conditioning, numerical_rank
+from reduction.impedance import impedance, impedance_basis, real_rows, regression, regressors
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
+from reduction.noise import coherence_variances, equation_variances
+from reduction.result import Identification
 from reduction.table import OrbitTable
+
+__all__ = ["METHODS", "Identification", "identify", "circle_orbits"]
 
 METHODS = ("ols", "wls", "tls", "iv")
 IV_MAX_MISFIT = 0.3  # rms |d - circle| / rms |d| above which the circle instruments are refused
-
-
-@dataclass
-class Identification:
-    """Result of :func:`identify` (coefficients in SI: N/m, N s/m, kg, Omega in rad/s).
-
-    ``coefficients`` / ``std_errors`` use the spec's keys (``Kxx``, ``Kxx_1``, ...; a
-    symmetric pair appears under both keys). ``exponent`` is the M chosen by power:auto.
-    """
-
-    model: str
-    freq_dep: str
-    method: str
-    n_coefficients: int
-    min_frequencies: int
-    n_frequencies: int
-    coefficients: dict[str, float]
-    std_errors: dict[str, float | None]
-    condition_number: float
-    residual_rms: float
-    fit: list[dict]
-    exponent: int | None = None
-    solver: str = "qr"
-    spec: ModelSpec | None = field(default=None, repr=False)
-    theta: np.ndarray | None = field(default=None, repr=False)  # free coefficients, column order
-    cost: float = field(default=float("nan"), repr=False)  # the estimator's minimised objective
-    skipped: dict[int, str] = field(default_factory=dict, repr=False)  # power:auto: M -> reason
-
-    def to_dict(self) -> dict:
-        """The spec's JSON object (``exponent`` added for power:auto); NaN/inf -> None."""
-        d = {
-            "model": self.model, "freq_dep": self.freq_dep, "method": self.method,
-            "n_coefficients": self.n_coefficients, "min_frequencies": self.min_frequencies,
-            "n_frequencies": self.n_frequencies,
-            "coefficients": {k: _num(v) for k, v in self.coefficients.items()},
-            "std_errors": {k: _num(v) for k, v in self.std_errors.items()},
-            "condition_number": _num(self.condition_number),
-            "residual_rms": _num(self.residual_rms),
-            "fit": [{k: _num(v) for k, v in row.items()} for row in self.fit],
-        }
-        if self.exponent is not None:
-            d["exponent"] = self.exponent
-        return d
-
-    def matrices(self, orbit: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(K, C, D) 2x2 at orbit frequency Omega (rad/s), summed over their orders
-        (K(Omega) = sum_r Omega^r K^(r)); D is zeros for a model without D."""
-        w = float(orbit)
-        out = {m: np.zeros((2, 2)) for m in "KCD"}
-        for t, v in zip(self.spec.terms, self.theta):
-            for i, j in t.entries:
-                out[t.matrix][i, j] += v * w**t.order
-        return out["K"], out["C"], out["D"]
-
-    def impedance(self, orbit) -> np.ndarray:
-        """Z(Omega) = K + i Omega C - Omega^2 D, shape (n, 2, 2), N/m."""
-        return impedance(self.spec, self.theta, orbit)
-
-    def reproduce(self, table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:
-        """Reproduced force phasors (fx, fy), N, f = -Z(Omega) d from the table's displacements."""
-        return forces(self.impedance(table.orbit), table.x, table.y)
-
-
-def _num(v):
-    if v is None:
-        return None
-    v = float(v)
-    return v if math.isfinite(v) else None
 
 
 def identify(table: OrbitTable, model: str = "kcd11", freq_dep: str = "none", method: str = "ols",
@@ -161,11 +99,49 @@ def identify(table: OrbitTable, model: str = "kcd11", freq_dep: str = "none", me
     best.exponent = best_m
     best.freq_dep = "power:auto"
     best.skipped = {m: str(err) for m, err in refused.items()}
+    best.notes.append(f"power:auto chose the exponent M = {best_m} (least residual of M in "
+                      + ", ".join(str(m) for m in results) + ")"
+                      + (f"; not identifiable: M = {', '.join(str(m) for m in refused)}" if refused else ""))
     return best
 
 
 def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank_rtol: float,
               tls_ratio: float | None) -> Identification:
+    A, b = _regression(spec, table)
+    known = table.u is not None
+    rank = analyse(spec, table, A, rank_rtol)  # raises when not identifiable
+    var = _variances(spec, table, A, b, method, solver, rank)
+    if method == "wls":  # the weighted regression's own scaling and conditioning
+        rank = analyse(spec, table, A / np.sqrt(var)[:, None], rank_rtol)
+    c = rank.scale
+    A_s = A / c
+    P = None  # the estimator's linear map b -> scaled coefficients (ols, iv)
+    if method == "ols":
+        est = reg.ols(A_s, b, solver, rank.unscaled_covariance())
+        P = rank.pseudo_inverse() if known else None
+    elif method == "wls":
+        est = reg.wls(A_s, b, 1.0 / var, solver, rank.unscaled_covariance())
+        if known:  # second pass: effective variances at the wls coefficients
+            var = equation_variances(table.u, impedance(spec, est.x / c, table.orbit))
+            est = reg.wls(A_s, b, 1.0 / var, solver)
+    elif method == "iv":
+        Zi = _circle_instruments(spec, table, rank_rtol) / c
+        est = reg.iv(A_s, Zi, b, solver)
+        if known:
+            Qz, _ = np.linalg.qr(Zi)
+            P = st.pseudo_inverse(Qz @ (Qz.T @ A_s))
+    else:
+        est = _tls(spec, table, A_s, b, c, solver, tls_ratio)
+    theta = est.x / c
+    if known:
+        var = equation_variances(table.u, impedance(spec, theta, table.orbit))
+        cov_s = st.sandwich(P, var) if P is not None else est.unscaled
+    else:
+        cov_s = est.cov
+    return _result(spec, table, method, solver, est, theta, c, cov_s, rank, var if known else None, b - A @ theta)
+
+
+def _regression(spec: ModelSpec, table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:
     with np.errstate(over="ignore", invalid="ignore"):
         A, b = regression(spec, table.orbit, table.x, table.y, table.fx, table.fy)
         finite = (np.all(np.isfinite(A)) and np.all(np.isfinite(b))
@@ -175,40 +151,63 @@ def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank
             f"{spec.model} with freq-dep {spec.freq_dep.text}: the regression exceeds the floating-point "
             "range (Omega^r times the displacements, or the forces, are too large); check the table's "
             "units (orbit_hz in Hz, phasors in m and N)")
-    weights = None
-    if method == "wls":
-        if table.gamma2 is None:
-            raise IdentificationError(
-                "--method wls needs coherence values: the table has no gamma2_xfx, gamma2_yfx, "
-                "gamma2_xfy, gamma2_yfy columns")
-        weights = coherence_weights(table.gamma2, table.fx, table.fy)
-        A_eff = A * np.sqrt(weights)[:, None]
-    else:
-        A_eff = A
-    rank = analyse(spec, table, A_eff, rank_rtol)  # raises when not identifiable
-    c = rank.scale
-    A_s = A / c
-    if method == "ols":
-        est = reg.ols(A_s, b, solver)
+    return A, b
+
+
+def _variances(spec, table, A, b, method, solver, rank) -> np.ndarray:
+    """Variances of the 4n equations: from u_* (effective, at a first ols fit), else from the
+    coherences for wls, else ones."""
+    if table.u is not None:
+        if not np.any(table.u[:, 2:] > 0) and not np.any(table.u[:, :2] > 0):
+            raise IdentificationError("the table's u_x, u_y, u_fx, u_fy are all zero: no noise to weight by")
+        theta0 = reg.lstsq(A / rank.scale, b, solver) / rank.scale
+        var = equation_variances(table.u, impedance(spec, theta0, table.orbit))
+        floor = 1e-12 * float(np.max(var))
+        if not floor > 0:
+            raise IdentificationError("the table's u_* give no noise on any equation")
+        return np.maximum(var, floor)
+    if method != "wls":
+        return np.ones(b.shape)
+    if table.gamma2 is None:
+        raise IdentificationError(
+            "--method wls needs u_x, u_y, u_fx, u_fy columns or coherence values (gamma2_xfx, gamma2_yfx, "
+            "gamma2_xfy, gamma2_yfy); the table has neither")
+    return coherence_variances(table.gamma2, table.fx, table.fy, table.n_records)
+
+
+def _result(spec, table, method, solver, est, theta, c, cov_s, rank, var, r) -> Identification:
+    known = var is not None
+    p, dof = spec.n_coefficients, 4 * table.n - spec.n_coefficients
+    cov = None if cov_s is None else cov_s / np.outer(c, c)
+    std = np.full(p, np.nan) if cov is None else np.sqrt(np.clip(np.diag(cov), 0, None))
+    ci = st.intervals(theta, std, dof)
+    notes, warnings = list(spec.notes), []
+    chi2 = p_value = None
+    if known:
+        chi2 = float(est.rss) if method == "tls" else float(np.sum(r**2 / var))
+        p_value = st.chi2_p_value(chi2, dof)
+        notes.append("covariance, weights and chi2 from the table's u_x, u_y, u_fx, u_fy "
+                     "(force noise plus displacement noise through Z)")
+        bad = st.chi2_warning(chi2, dof, p_value)
+        if bad:
+            warnings.append(bad)
     elif method == "wls":
-        est = reg.wls(A_s, b, weights, solver)
-    elif method == "iv":
-        est = reg.iv(A_s, _circle_instruments(spec, table, rank_rtol) / c, b, solver)
-    else:
-        est = _tls(spec, table, A_s, b, c, solver, tls_ratio)
-    theta = est.x / c
-    if est.cov is None:
-        std = np.full(theta.shape, np.nan)
-    else:
-        std = np.sqrt(np.clip(np.diag(est.cov), 0, None)) / c
+        notes.append("wls weights from the coherences (no u_* columns): per-record noise ratio "
+                     "(1 - gamma^2)/gamma^2 floored at 1/n_records")
+    aic, bic = st.information_criteria(chi2 if known else est.rss, 4 * table.n, p, known)
+    ill = ill_conditioning(spec, table, rank)
+    if ill:
+        warnings.append(ill)
     ident = Identification(
         model=spec.model, freq_dep=spec.freq_dep.text, method=method,
-        n_coefficients=spec.n_coefficients, min_frequencies=spec.min_frequencies,
-        n_frequencies=table.n,
+        n_coefficients=p, min_frequencies=spec.min_frequencies, n_frequencies=table.n,
         coefficients={k: float(v) for k, v in spec.expand(theta).items()},
         std_errors={k: (None if not np.isfinite(v) else float(v)) for k, v in spec.expand(std).items()},
         condition_number=rank.condition_number, residual_rms=0.0, fit=[], solver=solver,
-        spec=spec, theta=theta, cost=est.rss)
+        spec=spec, theta=theta, cost=est.rss, free=spec.names, covariance=cov, dof=dof,
+        confidence_95={k: (None if not np.all(np.isfinite(v)) else (float(v[0]), float(v[1])))
+                       for k, v in spec.expand(list(ci)).items()},
+        chi2=chi2, p_value=p_value, aic=aic, bic=bic, notes=notes, warnings=warnings, known_noise=known)
     fx_rep, fy_rep = ident.reproduce(table)
     ident.residual_rms = residual_rms(table.fx, table.fy, fx_rep, fy_rep)
     ident.fit = fit_errors(table.orbit, table.fx, table.fy, fx_rep, fy_rep)
@@ -218,14 +217,20 @@ def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank
 def _tls(spec, table, A_s, b, c, solver, ratio):
     d = np.stack([table.x, table.y], axis=1)
     f = np.stack([table.fx, table.fy], axis=1)
-    if ratio is None:
-        ratio = float(np.sqrt(np.mean(np.abs(f) ** 2) / np.mean(np.abs(d) ** 2)))
-    if not ratio > 0 or not math.isfinite(ratio):
-        raise IdentificationError(f"tls: noise ratio must be finite and > 0 N/m, got {ratio!r}")
+    if table.u is not None:
+        var_d, var_f = table.u[:, :2] ** 2, table.u[:, 2:] ** 2
+        tiny = 1e-12 * max(float(np.max(var_f)), float(np.max(var_d)) * float(np.max(np.abs(f)) ** 2 + 1))
+        var_f = np.maximum(var_f, tiny)
+    else:
+        if ratio is None:
+            ratio = float(np.sqrt(np.mean(np.abs(f) ** 2) / np.mean(np.abs(d) ** 2)))
+        if not ratio > 0 or not math.isfinite(ratio):
+            raise IdentificationError(f"tls: noise ratio must be finite and > 0 N/m, got {ratio!r}")
+        var_d, var_f = np.ones((table.n, 2)), np.full((table.n, 2), ratio**2)
     x0 = reg.ols(A_s, b, solver).x
     G = regressors(spec, table.orbit, table.x, table.y) / c
     E = impedance_basis(spec, table.orbit) / c[None, :, None, None]
-    return reg.structured_tls(G, f, E, ratio, x0)
+    return reg.structured_tls(G, f, E, var_f, var_d, x0)
 
 
 def circle_orbits(table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:

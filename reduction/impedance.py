@@ -20,14 +20,31 @@ _FACTOR = {"K": lambda w: np.ones_like(w, dtype=complex),
            "D": lambda w: -(w.astype(complex) ** 2)}
 
 
+_last_basis: tuple = (None, b"", None)  # (spec, orbit key, E): one identification reuses its basis
+
+
 def impedance_basis(spec: ModelSpec, orbit) -> np.ndarray:
-    """E with Z(Omega_k) = sum_j theta_j E[k, j]: shape (n, p, 2, 2), complex (N/m per unit)."""
+    """E with Z(Omega_k) = sum_j theta_j E[k, j]: shape (n, p, 2, 2), complex (N/m per unit).
+
+    Read-only; the last (spec, orbit) pair's basis is kept and reused.
+    """
     w = np.atleast_1d(np.asarray(orbit, dtype=float))
+    key = w.tobytes() + str(w.shape).encode()
+    global _last_basis
+    last_spec, last_key, last_E = _last_basis  # one read: another thread may replace it
+    if last_spec is spec and last_key == key:
+        return last_E
+    factor = {m: f(w) for m, f in _FACTOR.items()}
+    powers = {}
     E = np.zeros(w.shape + (spec.n_coefficients, 2, 2), dtype=complex)
     for j, t in enumerate(spec.terms):
-        col = _FACTOR[t.matrix](w) * w**t.order
+        if t.order not in powers:
+            powers[t.order] = w**t.order
+        col = factor[t.matrix] * powers[t.order]
         for i, l in t.entries:
             E[..., j, i, l] = col
+    E.flags.writeable = False
+    _last_basis = (spec, key, E)
     return E
 
 

@@ -8,6 +8,11 @@ with the orders r of each matrix set by the frequency dependence (paper Eq. 15 a
 - ``power:auto``: ``power:M`` with the best integer M in 1..4 (chosen by ``identify``);
 - ``poly:R``: orders 0..R for every matrix (Eq. 16 truncated at Omega^R).
 
+Inertia absorbs the colliding stiffness orders: Omega^r K^(r) and -Omega^2 Omega^(r-2) D^(r-2)
+have the same regressor for every orbit, so in a model with D a K order r is not fitted when D
+has order r - 2 (D carries that term); kc7/kc8 keep every K order. ``ModelSpec.absorbed``
+lists the K orders dropped, ``ModelSpec.notes`` says so in words.
+
 Coefficient names (the spec's keys): the constant term is ``Kxx``, the term multiplying
 Omega^r is ``Kxx_r``. A constrained (symmetric) pair is ONE free coefficient named after its
 upper entry (``Cxy`` in kc7 stands for Cxy = Cyx); the output repeats it under both keys.
@@ -18,6 +23,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
+from functools import cached_property
 
 from reduction.errors import ReductionError
 
@@ -106,6 +112,7 @@ class ModelSpec:
     model: str
     freq_dep: FreqDep
     terms: tuple[Term, ...]
+    absorbed: tuple[int, ...] = ()  # K orders not fitted: D of order r - 2 carries them
 
     @property
     def names(self) -> list[str]:
@@ -125,21 +132,47 @@ class ModelSpec:
     def matrices(self) -> tuple[str, ...]:
         return tuple(MODELS[self.model])
 
+    def orders(self, matrix: str) -> tuple[int, ...]:
+        """Fitted orders of ``matrix`` (K without the absorbed orders)."""
+        rs = self.freq_dep.orders[matrix]
+        return tuple(r for r in rs if not (matrix == "K" and r in self.absorbed))
+
     def keys(self) -> list[str]:
-        """Output keys: all four entries of every matrix and order the model has."""
+        """Output keys: all four entries of every matrix and fitted order of the model."""
         out = []
         for m in self.matrices:
-            for r in self.freq_dep.orders[m]:
+            for r in self.orders(m):
                 out += [coefficient_name(m, e, r) for e in ENTRIES]
         return out
 
-    def expand(self, values) -> dict[str, float]:
+    @property
+    def notes(self) -> list[str]:
+        """Facts about the coefficient list: which stiffness orders inertia absorbed."""
+        out = []
+        for r in self.absorbed:
+            d = r - 2
+            dname = "D" if d == 0 else f"D_{d}"
+            out.append(
+                f"K order {r} (Kxx_{r} .. Kyy_{r}) is not fitted: Omega^{r} K_{r} and the inertia term "
+                f"-Omega^{r} {dname} have the same regressor for every orbit, so {dname} carries "
+                f"that term (its reported value is {dname} - K_{r})"
+                + ("; the skew-symmetric part of K_%d, a skew-symmetric inertia, is not represented" % r
+                   if MODELS[self.model].get("D") else "") + ".")
+        return out
+
+    @cached_property
+    def _key_columns(self) -> tuple[tuple[str, int], ...]:
+        """(output key, free-coefficient column) pairs, in key order."""
+        column = {}
+        for j, t in enumerate(self.terms):
+            for i, l in t.entries:
+                column[coefficient_name(t.matrix, "xy"[i] + "xy"[l], t.order)] = j
+        return tuple((k, column[k]) for k in self.keys())
+
+    def expand(self, values) -> dict:
         """Free coefficient values (column order) -> {key: value}, symmetric pairs repeated."""
-        by_entry = {}
-        for t, v in zip(self.terms, values):
-            for i, j in t.entries:
-                by_entry[coefficient_name(t.matrix, "xy"[i] + "xy"[j], t.order)] = v
-        return {k: by_entry[k] for k in self.keys()}
+        values = list(values)
+        return {k: values[j] for k, j in self._key_columns}
 
 
 def model_spec(model: str, freq_dep: str | FreqDep = "none") -> ModelSpec:
@@ -152,16 +185,20 @@ def model_spec(model: str, freq_dep: str | FreqDep = "none") -> ModelSpec:
     fd = freq_dep if isinstance(freq_dep, FreqDep) else parse_freq_dep(freq_dep)
     if fd.auto:
         raise ReductionError("power:auto has no fixed coefficient list: resolve the exponent first")
+    has_d = "D" in MODELS[model]
+    absorbed = tuple(r for r in fd.orders["K"] if has_d and r - 2 in fd.orders["D"])
     terms = []
     for matrix, symmetric in MODELS[model].items():
         for r in fd.orders[matrix]:
+            if matrix == "K" and r in absorbed:
+                continue
             for e in ENTRIES:
                 i, j = _INDEX[e[0]], _INDEX[e[1]]
                 if symmetric and (i, j) == (1, 0):
                     continue  # Cyx is Cxy
                 entries = ((i, j), (j, i)) if symmetric and i != j else ((i, j),)
                 terms.append(Term(matrix, r, entries, coefficient_name(matrix, e, r)))
-    return ModelSpec(model, fd, tuple(terms))
+    return ModelSpec(model, fd, tuple(terms), absorbed)
 
 
 def power_spec(model: str, exponent: int) -> ModelSpec:

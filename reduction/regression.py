@@ -38,6 +38,7 @@ class Estimate:
     cov: np.ndarray | None
     rss: float
     dof: int
+    unscaled: np.ndarray | None = None  # (A_eff^T A_eff)^-1: the covariance for unit-variance equations
 
 
 def column_scale(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -100,28 +101,30 @@ def _finish(A_eff: np.ndarray, x: np.ndarray, r: np.ndarray, cov_matrix: np.ndar
     m, p = A_eff.shape
     dof = m - p
     rss = float(r @ r)
+    unscaled = _covariance(A_eff, 1.0) if cov_matrix is None else cov_matrix
     if dof <= 0:
-        return Estimate(x, None, rss, dof)
-    sigma2 = rss / dof
-    cov = _covariance(A_eff, sigma2) if cov_matrix is None else sigma2 * cov_matrix
-    return Estimate(x, cov, rss, dof)
+        return Estimate(x, None, rss, dof, unscaled)
+    return Estimate(x, rss / dof * unscaled, rss, dof, unscaled)
 
 
-def ols(A: np.ndarray, b: np.ndarray, solver: str = "qr") -> Estimate:
-    """Ordinary least squares; cov = s^2 (A^T A)^-1 with s^2 = rss / (m - p)."""
+def ols(A: np.ndarray, b: np.ndarray, solver: str = "qr", unscaled: np.ndarray | None = None) -> Estimate:
+    """Ordinary least squares; cov = s^2 (A^T A)^-1 with s^2 = rss / (m - p); ``unscaled``
+    is (A^T A)^-1 when the caller has it already (else computed by SVD)."""
     x = lstsq(A, b, solver)
-    return _finish(A, x, b - A @ x)
+    return _finish(A, x, b - A @ x, unscaled)
 
 
-def wls(A: np.ndarray, b: np.ndarray, weights: np.ndarray, solver: str = "qr") -> Estimate:
+def wls(A: np.ndarray, b: np.ndarray, weights: np.ndarray, solver: str = "qr",
+        unscaled: np.ndarray | None = None) -> Estimate:
     """Weighted least squares, weights = inverse variances of b (any common scale):
-    minimises sum w r^2; cov = s^2 (A^T W A)^-1, s^2 = weighted rss / (m - p)."""
+    minimises sum w r^2; cov = s^2 (A^T W A)^-1, s^2 = weighted rss / (m - p); ``unscaled``
+    is (A^T W A)^-1 when the caller has it already."""
     w = np.sqrt(np.asarray(weights, dtype=float))
     if w.shape != b.shape or not np.all(np.isfinite(w)) or np.any(w <= 0):
         raise ReductionError("wls: weights must be finite, > 0 and one per equation")
     Aw, bw = A * w[:, None], b * w
     x = lstsq(Aw, bw, solver)
-    return _finish(Aw, x, bw - Aw @ x)
+    return _finish(Aw, x, bw - Aw @ x, unscaled)
 
 
 def iv(A: np.ndarray, Z: np.ndarray, b: np.ndarray, solver: str = "qr") -> Estimate:
@@ -139,35 +142,43 @@ def iv(A: np.ndarray, Z: np.ndarray, b: np.ndarray, solver: str = "qr") -> Estim
     return _finish(A, x, r, (Vt.T / s**2) @ Vt)
 
 
-def structured_tls(G: np.ndarray, f: np.ndarray, E: np.ndarray, ratio: float, x0: np.ndarray) -> Estimate:
+def structured_tls(G: np.ndarray, f: np.ndarray, E: np.ndarray, var_f: np.ndarray, var_d: np.ndarray,
+                   x0: np.ndarray) -> Estimate:
     """Total least squares of f = -Z(x) d with noise on both the displacements d and forces f.
 
-    Maximum likelihood for independent isotropic complex noise on every displacement
-    phasor (std sigma_d) and force phasor (std sigma_f = ratio * sigma_d): the orthogonal
-    distance of each measured (d_k, f_k) from the model's subspace {f = -Z_k d} is
-    r_k^H (I + Z_k Z_k^H / ratio^2)^-1 r_k with r_k = f_k - G_k x = f_k + Z_k d_k. The sum is
-    minimised (Gauss-Newton / trust region, from x0) with x in the units of G's columns.
+    Maximum likelihood for independent circular complex noise on every displacement phasor
+    (E|n|^2 = var_d, (n, 2)) and force phasor (var_f, (n, 2)): the residual r_k = f_k - G_k x
+    = f_k + Z_k d_k has the covariance M_k = diag(var_f_k) + Z_k diag(var_d_k) Z_k^H, and
+    sum_k 2 r_k^H M_k^-1 r_k (a chi2 when the variances are absolute) is minimised
+    (Levenberg-Marquardt from x0) with x in the units of G's columns. Only the ratio of the
+    variances matters for x; ``Estimate.unscaled`` is the covariance for absolute variances.
 
     G (n, 2, p) complex regressors, f (n, 2) forces, E (n, p, 2, 2) impedance basis
-    (Z_k = sum_j x_j E[k, j]), ratio in N/m; G = -E d carries the displacements.
+    (Z_k = sum_j x_j E[k, j]); G = -E d carries the displacements.
     """
     from scipy.optimize import least_squares
 
     n, _, p = G.shape
     if n * 4 <= p:
         raise IdentificationError("tls needs more equations than coefficients")
-    eye = np.eye(2)
+    Sf = np.asarray(var_f, dtype=float)[..., None] * np.eye(2)
+    Sd = np.asarray(var_d, dtype=float)
 
-    def whitened(x):
-        Z = np.einsum("kpil,p->kil", E, x)
-        M = eye + Z @ np.conj(np.swapaxes(Z, -1, -2)) / ratio**2
+    def whitened(X):  # X (m, p) -> (m, 4n): every candidate at once
+        Z = np.einsum("kpil,mp->mkil", E, X)
+        M = Sf + (Z * Sd[:, None, :]) @ np.conj(np.swapaxes(Z, -1, -2))
         L = np.linalg.cholesky(M)
-        r = f - G @ x
-        e = np.linalg.solve(L, r[..., None])[..., 0]
-        return np.concatenate([e.real.ravel(), e.imag.ravel()])
+        r = f[None] - np.einsum("kip,mp->mki", G, X)
+        e = np.sqrt(2) * np.linalg.solve(L, r[..., None])[..., 0]
+        return np.concatenate([e.real.reshape(len(X), -1), e.imag.reshape(len(X), -1)], axis=1)
 
-    sol = least_squares(whitened, x0, method="lm", xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=200 * (p + 1))
+    def jacobian(x):  # forward differences, all p columns in one batched evaluation
+        h = np.sqrt(_EPS) * np.maximum(1.0, np.abs(x))
+        F = whitened(np.vstack([x, x + np.diag(h)]))
+        return ((F[1:] - F[0]) / h[:, None]).T
+
+    sol = least_squares(lambda x: whitened(x[None])[0], x0, jac=jacobian, method="lm",
+                        xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=200 * (p + 1))
     if not np.all(np.isfinite(sol.x)):
         raise IdentificationError("tls: the total least squares iteration did not converge")
-    e = sol.fun
-    return _finish(sol.jac, sol.x, e)
+    return _finish(sol.jac, sol.x, sol.fun)

@@ -14,6 +14,7 @@ import numpy as np
 from reduction.errors import ReductionError
 
 GAMMA2_COLUMNS = ("xfx", "yfx", "xfy", "yfy")  # order of OrbitTable.gamma2's last axis
+U_COLUMNS = ("x", "y", "fx", "fy")  # order of OrbitTable.u's last axis
 
 
 def _complex_1d(name: str, value, n: int | None) -> np.ndarray:
@@ -36,6 +37,9 @@ class OrbitTable:
     x, y   : (n,) complex displacement phasors, m
     fx, fy : (n,) complex force phasors, N (force on the journal)
     gamma2 : optional (n, 4) coherences in [0, 1], columns xfx, yfx, xfy, yfy
+    n_records : optional (n,) number of revolutions (records) behind each row, >= 1
+    u      : optional (n, 4) standard uncertainties sqrt(E|error|^2) of the averaged complex
+             phasors x, y (m), fx, fy (N), >= 0 (columns ``U_COLUMNS``)
     """
 
     spin: float
@@ -45,6 +49,8 @@ class OrbitTable:
     fx: np.ndarray
     fy: np.ndarray
     gamma2: np.ndarray | None = None
+    n_records: np.ndarray | None = None
+    u: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         spin = float(self.spin)
@@ -67,7 +73,19 @@ class OrbitTable:
             if not np.all(np.isfinite(g)) or np.any(g < 0) or np.any(g > 1):
                 raise ReductionError("OrbitTable.gamma2 values must lie in [0, 1]")
             object.__setattr__(self, "gamma2", g)
-        for arr in (self.orbit, self.x, self.y, self.fx, self.fy, self.gamma2):
+        if self.n_records is not None:
+            r = np.asarray(self.n_records, dtype=float)
+            if r.shape != (n,) or not np.all(np.isfinite(r)) or np.any(r < 1) or np.any(r != np.round(r)):
+                raise ReductionError(f"OrbitTable.n_records must be ({n},) whole numbers >= 1")
+            object.__setattr__(self, "n_records", r)
+        if self.u is not None:
+            u = np.asarray(self.u, dtype=float)
+            if u.shape != (n, 4):
+                raise ReductionError(f"OrbitTable.u must have shape ({n}, 4), got {u.shape}")
+            if not np.all(np.isfinite(u)) or np.any(u < 0):
+                raise ReductionError("OrbitTable.u values must be finite and >= 0")
+            object.__setattr__(self, "u", u)
+        for arr in (self.orbit, self.x, self.y, self.fx, self.fy, self.gamma2, self.n_records, self.u):
             if arr is not None:
                 arr.flags.writeable = False
 
@@ -88,8 +106,17 @@ class OrbitTable:
         """
         return (self.x + 1j * self.y) / 2, (self.x - 1j * self.y) / 2
 
+    def forward(self) -> np.ndarray:
+        """(n,) bool: the row's orbit turns from +x towards +y (Im(conj(x) y) < 0)."""
+        return np.imag(np.conj(self.x) * self.y) < 0
+
     def subset(self, rows) -> OrbitTable:
         """A table of the selected rows (index array or boolean mask)."""
-        g = None if self.gamma2 is None else self.gamma2[rows]
+        def pick(a):
+            return None if a is None else a[rows]
         return OrbitTable(self.spin, self.orbit[rows], self.x[rows], self.y[rows],
-                          self.fx[rows], self.fy[rows], g)
+                          self.fx[rows], self.fy[rows], pick(self.gamma2), pick(self.n_records), pick(self.u))
+
+    def with_phasors(self, x, y, fx, fy) -> OrbitTable:
+        """The same table (frequencies, coherences, uncertainties) with other phasors."""
+        return OrbitTable(self.spin, self.orbit, x, y, fx, fy, self.gamma2, self.n_records, self.u)

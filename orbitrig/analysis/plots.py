@@ -82,7 +82,7 @@ def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
     colors = _colors(len(fitted))
     reproduced = [f.identification.reproduce(table) for f in fitted]
     # models that agree draw on top of each other: each later line is thinner, so all stay visible
-    widths = [max(0.9, 3.4 - 1.0 * k) for k in range(len(fitted))]
+    widths = [0.9 + 1.0 * (len(fitted) - 1 - k) for k in range(len(fitted))]
     for col, (name, measured) in enumerate((("Fx", table.fx), ("Fy", table.fy))):
         amp_ax, ph_ax = axes[0, col], axes[1, col]
         for d, dname, ls, marker in DIRECTIONS:

@@ -1,8 +1,8 @@
 """`orbitrig identify TABLE.csv --model NAME [--freq-dep SPEC] [--method ...] [--solver ...] [--json]`.
 
-Contract: docs/orbit-table.md. With --json one JSON object on stdout (exit 0);
-otherwise readable tables. Unidentifiable model or malformed table: exit 2, nothing on
-stdout, the reason on stderr.
+Contract: docs/orbit-table.md. With --json exactly the result object on stdout (exit 0);
+otherwise readable tables on stdout and the result's notes and warnings on stderr.
+Unidentifiable model or malformed table: exit 2, nothing on stdout, the reason on stderr.
 """
 
 from __future__ import annotations
@@ -62,10 +62,16 @@ def register(app: typer.Typer) -> None:
             typer.echo(json.dumps(result.to_dict(), allow_nan=False))
         else:
             _print_readable(result, table)
+            for note in result.notes:
+                sys.stderr.write(f"note: {note}\n")
+            for warning in result.warnings:
+                sys.stderr.write(f"warning: {warning}\n")
 
 
 def _fmt(v) -> str:
-    return "-" if v is None else f"{v:.4g}"
+    import math
+
+    return "-" if v is None or not math.isfinite(v) else f"{v:.4g}"
 
 
 def _print_readable(result, path: Path) -> None:
@@ -78,16 +84,22 @@ def _print_readable(result, path: Path) -> None:
                   f"solver {result.solver}")
     console.print(f"{result.n_coefficients} coefficients from {result.n_frequencies} orbit frequencies "
                   f"(minimum {result.min_frequencies}); condition number {result.condition_number:.4g}; "
-                  f"residual RMS {result.residual_rms:.4g} N")
+                  f"residual RMS {result.residual_rms:.4g} N; {result.dof} degrees of freedom")
+    fit = f"AIC {_fmt(result.aic)}, BIC {_fmt(result.bic)}"
+    if result.chi2 is not None:
+        fit = f"chi2 {result.chi2:.4g} (p = {_fmt(result.p_value)}), " + fit
+    console.print(fit)
     for m, reason in sorted(result.skipped.items()):
         console.print(f"power:{m} skipped: {reason.splitlines()[0]}")
     t = Table(title="Coefficients (SI, Omega in rad/s)")
-    for col in ("coefficient", "value", "std error", "rel. std error", "unit"):
+    for col in ("coefficient", "value", "std error", "rel. std error", "95 % interval", "unit"):
         t.add_column(col, justify="left" if col in ("coefficient", "unit") else "right")
     for key, v in result.coefficients.items():
         se = result.std_errors.get(key)
         rel = "-" if se is None or v == 0 else f"{100 * se / abs(v):.2g} %"
-        t.add_row(key, f"{v:.5g}", _fmt(se), rel, _unit(key))
+        ci = result.confidence_95.get(key)
+        interval = "-" if ci is None else f"[{ci[0]:.4g}, {ci[1]:.4g}]"
+        t.add_row(key, f"{v:.5g}", _fmt(se), rel, interval, _unit(key))
     console.print(t)
     f = Table(title="Reproduced vs measured force (reproduced minus measured)")
     for col in ("orbit Hz", "Fx amp %", "Fx phase deg", "Fy amp %", "Fy phase deg"):

@@ -1,7 +1,8 @@
 """Orbit table CSV (docs/orbit-table.md): read into / write from an OrbitTable.
 
 Header row required, column order free, extra columns ignored. Units at this edge:
-spin_rpm (rpm), orbit_hz (Hz), phasors in m and N, optional gamma2_* in [0, 1]. Inside:
+spin_rpm (rpm), orbit_hz (Hz), phasors in m and N, optional gamma2_* in [0, 1], optional
+n_records (whole number >= 1) and u_x, u_y (m), u_fx, u_fy (N) (>= 0, a set of four). Inside:
 rad/s. Every problem raises TableError naming the file, the line (1-based, the header is
 line 1) and the column. UTF-8 (a BOM is allowed); blank lines are skipped; cells are plain
 decimal numbers; empty fields past the header's last column (a trailing comma) are ignored.
@@ -19,10 +20,12 @@ import numpy as np
 
 from orbitrig.errors import TableError
 from reduction.errors import ReductionError
-from reduction.table import GAMMA2_COLUMNS, OrbitTable
+from reduction.table import GAMMA2_COLUMNS, U_COLUMNS, OrbitTable
 
 REQUIRED = ("spin_rpm", "orbit_hz", "x_re", "x_im", "y_re", "y_im", "fx_re", "fx_im", "fy_re", "fy_im")
 GAMMA2 = tuple(f"gamma2_{c}" for c in GAMMA2_COLUMNS)
+UNCERTAINTY = tuple(f"u_{c}" for c in U_COLUMNS)
+RECORDS = "n_records"
 RPM = 2 * math.pi / 60  # rad/s per rpm
 
 
@@ -79,22 +82,9 @@ def read_orbit_table(path: str | Path) -> OrbitTable:
             break
     if header is None:
         raise TableError(str(path), 1, None, "empty file: a header row is required")
-    seen = set()
-    for name in header:
-        if name in seen and name in REQUIRED + GAMMA2:  # a repeated extra column is ignored like any other
-            raise TableError(str(path), header_line, name, "column appears twice in the header")
-        seen.add(name)
-    for name in REQUIRED:
-        if name not in seen:
-            raise TableError(str(path), header_line, name, "required column missing from the header")
-    present_g = [g for g in GAMMA2 if g in seen]
-    if present_g and len(present_g) != len(GAMMA2):
-        missing = next(g for g in GAMMA2 if g not in seen)
-        raise TableError(str(path), header_line, missing,
-                         "coherence columns come as a set of four: gamma2_xfx, gamma2_yfx, gamma2_xfy, gamma2_yfy")
-    wanted = REQUIRED + (GAMMA2 if present_g else ())
+    wanted = _wanted_columns(str(path), header, header_line)
     index = {name: header.index(name) for name in wanted}
-    rows, lines = [], []
+    rows = []
     for fields in reader:
         if not any(f.strip() for f in fields):
             continue
@@ -102,50 +92,84 @@ def read_orbit_table(path: str | Path) -> OrbitTable:
         if len(fields) > len(header) and any(f.strip() for f in fields[len(header):]):
             raise TableError(str(path), line, f"#{len(header) + 1} (no header)",
                              f"{len(fields)} fields but the header has {len(header)} columns")
-        values = []
-        for name in wanted:
-            j = index[name]
-            if j >= len(fields):
-                raise TableError(str(path), line, name, f"missing value ({len(fields)} fields, header has {len(header)})")
-            raw = fields[j].strip()
-            v = _number(raw)
-            if v is None:
-                raise TableError(str(path), line, name, f"not a number: {raw!r}")
-            if not math.isfinite(v):
-                raise TableError(str(path), line, name, f"not a finite number: {raw!r}")
-            values.append(v)
-        row = dict(zip(wanted, values))
-        if row["orbit_hz"] <= 0:
-            raise TableError(str(path), line, "orbit_hz", f"orbit frequency must be > 0 Hz, got {row['orbit_hz']:g}")
-        if row["spin_rpm"] < 0:
-            raise TableError(str(path), line, "spin_rpm", f"spin speed must be >= 0 rpm, got {row['spin_rpm']:g}")
-        if rows and row["spin_rpm"] != rows[0]["spin_rpm"]:
-            raise TableError(str(path), line, "spin_rpm",
-                             f"spin speed {row['spin_rpm']:g} rpm differs from the first row's "
-                             f"{rows[0]['spin_rpm']:g} rpm (one operating point per table)")
-        for g in GAMMA2 if present_g else ():
-            if not 0.0 <= row[g] <= 1.0:
-                raise TableError(str(path), line, g, f"coherence must lie in [0, 1], got {row[g]:g}")
+        row = {name: _cell(str(path), line, name, fields, index[name], len(header)) for name in wanted}
+        _check_row(str(path), line, row, rows[0] if rows else None)
         rows.append(row)
-        lines.append(line)
     if not rows:
         raise TableError(str(path), header_line + 1, None, "no data rows after the header")
     col = {name: np.array([r[name] for r in rows]) for name in wanted}
-    gamma2 = np.stack([col[g] for g in GAMMA2], axis=1) if present_g else None
+    gamma2 = np.stack([col[g] for g in GAMMA2], axis=1) if GAMMA2[0] in col else None
+    u = np.stack([col[c] for c in UNCERTAINTY], axis=1) if UNCERTAINTY[0] in col else None
     try:
         return OrbitTable(
             spin=float(col["spin_rpm"][0]) * RPM,
             orbit=2 * math.pi * col["orbit_hz"],
             x=col["x_re"] + 1j * col["x_im"], y=col["y_re"] + 1j * col["y_im"],
             fx=col["fx_re"] + 1j * col["fx_im"], fy=col["fy_re"] + 1j * col["fy_im"],
-            gamma2=gamma2)
+            gamma2=gamma2, n_records=col.get(RECORDS), u=u)
     except ReductionError as err:  # defensive: every check above should have caught it
         raise TableError(str(path), None, None, str(err)) from err
 
 
+def _wanted_columns(file: str, header: list[str], header_line: int) -> tuple[str, ...]:
+    """The columns to read: the required ones and the optional sets present."""
+    seen = set()
+    known = REQUIRED + GAMMA2 + UNCERTAINTY + (RECORDS,)
+    for name in header:
+        if name in seen and name in known:  # a repeated extra column is ignored like any other
+            raise TableError(file, header_line, name, "column appears twice in the header")
+        seen.add(name)
+    for name in REQUIRED:
+        if name not in seen:
+            raise TableError(file, header_line, name, "required column missing from the header")
+    wanted = REQUIRED
+    for group, what in ((GAMMA2, "coherence"), (UNCERTAINTY, "uncertainty")):
+        present = [g for g in group if g in seen]
+        if present and len(present) != len(group):
+            missing = next(g for g in group if g not in seen)
+            raise TableError(file, header_line, missing,
+                             f"{what} columns come as a set of four: {', '.join(group)}")
+        wanted += group if present else ()
+    return wanted + ((RECORDS,) if RECORDS in seen else ())
+
+
+def _cell(file: str, line: int, name: str, fields: list[str], j: int, n_header: int) -> float:
+    if j >= len(fields):
+        raise TableError(file, line, name, f"missing value ({len(fields)} fields, header has {n_header})")
+    raw = fields[j].strip()
+    v = _number(raw)
+    if v is None:
+        raise TableError(file, line, name, f"not a number: {raw!r}")
+    if not math.isfinite(v):
+        raise TableError(file, line, name, f"not a finite number: {raw!r}")
+    return v
+
+
+def _check_row(file: str, line: int, row: dict, first: dict | None) -> None:
+    if row["orbit_hz"] <= 0:
+        raise TableError(file, line, "orbit_hz", f"orbit frequency must be > 0 Hz, got {row['orbit_hz']:g}")
+    if row["spin_rpm"] < 0:
+        raise TableError(file, line, "spin_rpm", f"spin speed must be >= 0 rpm, got {row['spin_rpm']:g}")
+    if first is not None and row["spin_rpm"] != first["spin_rpm"]:
+        raise TableError(file, line, "spin_rpm",
+                         f"spin speed {row['spin_rpm']:g} rpm differs from the first row's "
+                         f"{first['spin_rpm']:g} rpm (one operating point per table)")
+    for g in GAMMA2:
+        if g in row and not 0.0 <= row[g] <= 1.0:
+            raise TableError(file, line, g, f"coherence must lie in [0, 1], got {row[g]:g}")
+    for c in UNCERTAINTY:
+        if c in row and row[c] < 0:
+            raise TableError(file, line, c, f"uncertainty must be >= 0, got {row[c]:g}")
+    if RECORDS in row and not (row[RECORDS] >= 1 and row[RECORDS] == round(row[RECORDS])):
+        raise TableError(file, line, RECORDS, f"number of records must be a whole number >= 1, got {row[RECORDS]:g}")
+
+
 def write_orbit_table(path: str | Path, table: OrbitTable) -> None:
-    """Write ``table`` as an orbit table CSV (full float precision; gamma2 when present)."""
-    header = list(REQUIRED) + (list(GAMMA2) if table.gamma2 is not None else [])
+    """Write ``table`` as an orbit table CSV (full float precision; gamma2, n_records and u_*
+    when present)."""
+    header = (list(REQUIRED) + (list(GAMMA2) if table.gamma2 is not None else [])
+              + ([RECORDS] if table.n_records is not None else [])
+              + (list(UNCERTAINTY) if table.u is not None else []))
     spin_rpm = table.spin / RPM
     with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
@@ -156,4 +180,9 @@ def write_orbit_table(path: str | Path, table: OrbitTable) -> None:
                 row += [z.real, z.imag]
             if table.gamma2 is not None:
                 row += list(table.gamma2[k])
-            w.writerow([repr(float(v)) for v in row])
+            cells = [repr(float(v)) for v in row]
+            if table.n_records is not None:
+                cells.append(str(int(table.n_records[k])))
+            if table.u is not None:
+                cells += [repr(float(v)) for v in table.u[k]]
+            w.writerow(cells)

@@ -9,7 +9,8 @@ from daq_encoder import signal, stream
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from daq.averager import AveragingRule, StreamingAverager, scatter_uncertainty
+from daq.averager import AveragingRule, StreamingAverager
+from reduction.noise import phasor_uncertainty
 from daq.frames import FrameDecoder
 from daq.revolutions import RevolutionAssembler, RevolutionBatch, channel_slots
 from reduction.fourier import phasor
@@ -114,8 +115,8 @@ def test_uncertainty_matches_the_scatter_of_repeated_blocks():
 def test_scatter_uncertainty_formula():
     rec = np.array([[1 + 1j], [3 + 1j], [2 - 2j]])
     dev = np.abs(rec - (2 + 0j)) ** 2  # 1, 2, 4 ... mean is 2+0j
-    assert scatter_uncertainty(rec)[0] == pytest.approx(np.sqrt(dev.sum() / 2 / 3))
-    assert np.isinf(scatter_uncertainty(rec[:1])[0])
+    assert phasor_uncertainty(rec)[0] == pytest.approx(np.sqrt(dev.sum() / 2 / 3))
+    assert np.isinf(phasor_uncertainty(rec[:1])[0])
 
 
 RULES = st.one_of(

@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -17,7 +18,8 @@ from orbitrig.store.orbit_table import write_orbit_table
 ROOT = Path(__file__).resolve().parents[2]
 TRUE = truth("kcd11", {"K": (0,), "C": (0,), "D": (0,)})
 SPEC_KEYS = ["model", "freq_dep", "method", "n_coefficients", "min_frequencies", "n_frequencies",
-             "coefficients", "std_errors", "condition_number", "residual_rms", "fit"]
+             "coefficients", "std_errors", "confidence_95", "free", "covariance", "dof",
+             "condition_number", "residual_rms", "aic", "bic", "notes", "warnings", "fit"]
 
 
 @pytest.fixture
@@ -86,12 +88,23 @@ def test_rank_deficient_model_exit_2_nothing_on_stdout(runner, tmp_path):
     assert "Kxx_1 - Cxy" in res.stderr and "forward plus backward whirl" in res.stderr
 
 
-def test_33_coefficient_model_is_refused_with_the_inertia_confusion(runner, tmp_path):
+def test_paper_33_coefficient_model_fits_29_with_the_absorbed_order_noted(runner, tmp_path):
     path = tmp_path / "t.csv"
     write_orbit_table(path, orbit_table(TRUE, frequencies(10)))
     res = runner.invoke(app, ["identify", str(path), "--model", "kcd11", "--freq-dep", "poly:2", "--json"])
+    assert res.exit_code == 0, res.stderr
+    d = json.loads(res.stdout)
+    assert d["n_coefficients"] == 29 and d["min_frequencies"] == 8 and len(d["free"]) == 29
+    assert "Kxx_2" not in d["coefficients"] and "Kxx_1" in d["coefficients"]
+    assert any("K order 2" in n for n in d["notes"])
+
+
+def test_forward_only_fixed_ellipse_power_1_exit_2(runner, tmp_path):
+    path = tmp_path / "t.csv"
+    write_orbit_table(path, orbit_table(TRUE, frequencies(10), ((5e-6, 4.9e-6, 0.3),)))
+    res = runner.invoke(app, ["identify", str(path), "--model", "kc8", "--freq-dep", "power:1", "--json"])
     assert res.exit_code == 2 and res.stdout == ""
-    assert "33 coefficients" in res.stderr and "Kxx_2 + Dxx" in res.stderr
+    assert "Kxx_1 - Cxy" in res.stderr and "backward-whirl" in res.stderr
 
 
 def test_too_few_frequencies_exit_2(runner, tmp_path):
@@ -170,3 +183,18 @@ def test_exactly_determined_table_has_null_std_errors_and_valid_json(runner, tmp
     d = json.loads(res.stdout)
     assert all(v is None for v in d["std_errors"].values())
     assert d["coefficients"]["Kxx"] == pytest.approx(keys_of(true)["Kxx"], rel=1e-9)
+
+
+def test_ill_conditioned_fit_warns_on_stderr_and_in_json(runner, tmp_path):
+    true = truth("kc8", {"K": (0, 1), "C": (0, 1)})
+    fwd = orbit_table(true, frequencies(8), ("forward",))
+    bwd = orbit_table(true, frequencies(8), ("backward",), radius=5e-9)  # backward whirl 1000 times smaller
+    table = type(fwd)(fwd.spin, np.r_[fwd.orbit, bwd.orbit], np.r_[fwd.x, bwd.x], np.r_[fwd.y, bwd.y],
+                      np.r_[fwd.fx, bwd.fx], np.r_[fwd.fy, bwd.fy])
+    path = tmp_path / "t.csv"
+    write_orbit_table(path, table)
+    res = runner.invoke(app, ["identify", str(path), "--model", "kc8", "--freq-dep", "power:1"])
+    assert res.exit_code == 0 and "warning: ill-conditioned" in res.stderr and "warning" not in res.stdout
+    res = runner.invoke(app, ["identify", str(path), "--model", "kc8", "--freq-dep", "power:1", "--json"])
+    d = json.loads(res.stdout)
+    assert res.exit_code == 0 and d["warnings"][0].startswith("ill-conditioned") and res.stderr == ""

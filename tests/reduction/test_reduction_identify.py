@@ -72,7 +72,8 @@ def test_power_auto_picks_the_true_exponent_and_skips_unidentifiable_ones():
     table = orbit_table(true, frequencies(10))
     result = identify(table, "kcd11", "power:auto")
     assert result.exponent == 3 and result.freq_dep == "power:auto"
-    assert 2 in result.skipped and "Kxx_2 + Dxx" in result.skipped[2]  # K_2 vs inertia
+    assert result.skipped == {}  # v2: power:2 fits with K_2 absorbed by D
+    assert any("exponent M = 3" in n for n in result.notes)
     assert _max_rel_err(result, true) < 1e-9
     d = result.to_dict()
     assert d["exponent"] == 3 and "Kxx_3" in d["coefficients"]
@@ -83,7 +84,8 @@ def test_to_dict_is_the_spec_object():
     table = orbit_table(true, frequencies(5))
     d = identify(table, "kcd11").to_dict()
     assert list(d) == ["model", "freq_dep", "method", "n_coefficients", "min_frequencies", "n_frequencies",
-                       "coefficients", "std_errors", "condition_number", "residual_rms", "fit"]
+                       "coefficients", "std_errors", "confidence_95", "free", "covariance", "dof",
+                       "condition_number", "residual_rms", "aic", "bic", "notes", "warnings", "fit"]
     assert (d["model"], d["freq_dep"], d["method"]) == ("kcd11", "none", "ols")
     assert (d["n_coefficients"], d["min_frequencies"], d["n_frequencies"]) == (11, 3, 10)
     assert list(d["coefficients"]) == ["Kxx", "Kxy", "Kyx", "Kyy", "Cxx", "Cxy", "Cyx", "Cyy",
@@ -136,3 +138,33 @@ def test_unknown_options_are_refused(kw):
     args = {"model": "kc8", **kw}
     with pytest.raises(ReductionError):
         identify(orbit_table(true, frequencies(4)), **args)
+
+
+V2_ABSORBED = [("kcd11", "power:2", 18), ("kcd11", "poly:2", 29), ("kcd12", "power:2", 20),
+               ("kcd12", "poly:2", 32), ("kcd11", "power:4,2,2", 18), ("kcd12", "power:2,1,1", 20)]
+
+
+@pytest.mark.parametrize("model, freq_dep, count", V2_ABSORBED)
+@pytest.mark.parametrize("orbits", ["fwd+bwd circles", "ellipses"])
+def test_v2_models_with_absorbed_stiffness_orders_are_recovered_exactly(model, freq_dep, count, orbits):
+    from reduction.models import model_spec
+
+    spec = model_spec(model, freq_dep)
+    true = truth(model, {m: spec.orders(m) for m in "KCD"})  # no K order absorbed by D
+    shapes = ("forward", "backward") if orbits == "fwd+bwd circles" else ELLIPSES[1:]
+    result = identify(orbit_table(true, frequencies(10), shapes), model, freq_dep)
+    assert result.n_coefficients == count == len(result.free) and result.min_frequencies == -(-count // 4)
+    assert _max_rel_err(result, true) < 1e-8
+    assert len(result.notes) == 1 and result.warnings == []
+
+
+def test_an_absorbed_stiffness_term_is_carried_by_the_inertia():
+    # data WITH Omega^2 K_2: kcd11 power:2 reports D_0 - K_2 (the note's claim), all else exact
+    true = truth("kcd11", {"K": (0, 2), "C": (0, 2), "D": (0, 2)})
+    true[("K", 2)] = (true[("K", 2)] + true[("K", 2)].T) / 2  # symmetric: kcd11's D can carry it
+    result = identify(orbit_table(true, frequencies(10)), "kcd11", "power:2")
+    d0 = true[("D", 0)] - true[("K", 2)]
+    assert result.coefficients["Dxx"] == pytest.approx(d0[0, 0], rel=1e-8)
+    assert result.coefficients["Dxy"] == pytest.approx(d0[0, 1], rel=1e-8)
+    assert result.coefficients["Kxx"] == pytest.approx(true[("K", 0)][0, 0], rel=1e-9)
+    assert result.residual_rms < 1e-9 * np.sqrt(np.mean(np.abs(orbit_table(true, frequencies(10)).fx) ** 2))

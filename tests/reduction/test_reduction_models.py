@@ -12,15 +12,27 @@ from reduction.models import model_spec, parse_freq_dep
     "model, freq_dep, n, min_freq",
     [
         ("kc7", "none", 7, 2), ("kc8", "none", 8, 2), ("kcd11", "none", 11, 3), ("kcd12", "none", 12, 3),
-        # the paper's counts: 14 -> 4, 22 -> 6, 21 -> 6, 33 -> 9
-        ("kc7", "power:1", 14, 4), ("kcd11", "power:2", 22, 6), ("kc7", "poly:2", 21, 6),
-        ("kcd11", "poly:2", 33, 9), ("kcd11", "power:1,2,3", 22, 6), ("kcd12", "poly:2", 36, 9),
+        # the paper's counts where no K order is absorbed: 14 -> 4, 21 -> 6, 22 (power:1) -> 6
+        ("kc7", "power:1", 14, 4), ("kc7", "poly:2", 21, 6), ("kcd11", "power:1,2,3", 22, 6),
+        ("kcd11", "power:1", 22, 6), ("kc8", "power:2", 16, 4),
+        # v2: inertia absorbs the colliding stiffness orders (22 -> 18, 33 -> 29, 24 -> 20, 36 -> 32)
+        ("kcd11", "power:2", 18, 5), ("kcd11", "poly:2", 29, 8), ("kcd12", "power:2", 20, 5),
+        ("kcd12", "poly:2", 32, 8), ("kcd11", "power:2,1,1", 18, 5), ("kcd11", "power:4,2,2", 18, 5),
     ],
 )
 def test_counts_and_minimum_frequencies(model, freq_dep, n, min_freq):
     spec = model_spec(model, freq_dep)
     assert spec.n_coefficients == n
     assert spec.min_frequencies == min_freq
+
+
+def test_absorbed_orders_are_omitted_from_the_keys_and_noted():
+    spec = model_spec("kcd11", "poly:2")
+    assert spec.absorbed == (2,)
+    assert "Kxx_2" not in spec.keys() and {"Kxx_1", "Cxx_2", "Dxx_2", "Dyx_2"} <= set(spec.keys())
+    assert len(spec.notes) == 1 and "K order 2" in spec.notes[0] and "skew-symmetric" in spec.notes[0]
+    assert "skew-symmetric" not in model_spec("kcd12", "poly:2").notes[0]  # kcd12's D keeps it
+    assert model_spec("kc8", "poly:2").absorbed == () and model_spec("kc8", "poly:2").notes == []
 
 
 def test_names_follow_the_spec():

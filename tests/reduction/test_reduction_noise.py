@@ -47,12 +47,14 @@ def test_reported_std_errors_match_the_spread_over_trials():
 def test_coherence_weights_reduce_the_spread_and_keep_std_errors_honest():
     rng = np.random.default_rng(12)
     clean = orbit_table(TRUE, frequencies(6))
-    rel = np.geomspace(0.002, 0.05, clean.n)  # relative force noise per row
+    n_rec = 50
+    rel = np.geomspace(0.15, 1.5, clean.n)  # relative force noise of one record, per row
     gamma2 = 1 / (1 + rel**2)  # coherent power over total power
     g = np.repeat(gamma2[:, None], 4, axis=1)
+    avg = rel / np.sqrt(n_rec)  # relative noise of the average of n_rec records
     trials = [OrbitTable(clean.spin, clean.orbit, clean.x, clean.y,
-                         clean.fx + _cnoise(rng, rel * np.abs(clean.fx), clean.n),
-                         clean.fy + _cnoise(rng, rel * np.abs(clean.fy), clean.n), g)
+                         clean.fx + _cnoise(rng, avg * np.abs(clean.fx), clean.n),
+                         clean.fy + _cnoise(rng, avg * np.abs(clean.fy), clean.n), g, np.full(clean.n, n_rec))
               for _ in range(300)]
     wls, wse = _run(trials, "wls")
     ols, _ = _run(trials, "ols")

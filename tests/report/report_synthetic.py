@@ -41,7 +41,7 @@ freq_dep = "power:1"
 
 [[models]]
 model = "kcd12"
-freq_dep = "poly:2"
+freq_dep = "poly:8"
 """
 # hydrostatic-bearing-like true coefficients (SI); D symmetric so kcd11 fits them exactly
 K_TRUE = np.array([[3.3e7, 4.0e6], [-3.5e6, 3.1e7]])

@@ -70,7 +70,7 @@ def test_html_references_every_plot_and_shows_coefficients(synthetic_run, synthe
             assert f"{r.identification.std_errors[key] * scale:.2g}" in html, key
     for text in ("MN/m", "kN s/m", "kg", "stopped", "1 incomplete (0002)", "1000 rpm", "0.4826 MPa", "true (simulator)"):
         assert text in html
-    assert "kcd12 poly:2 refused" in html  # the sweep's refusal is shown, with its reason
+    assert "kcd12 poly:8 refused" in html  # the sweep's refusal is shown, with its reason
     assert "\u03b3\u00b2 x, Fx" in html  # the coherence table (paper Table 1)
 
 

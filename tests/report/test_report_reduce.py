@@ -92,12 +92,12 @@ def test_cli_reduce_json(synthetic_run):
 
 
 def test_cli_reduce_refuses_unidentifiable_model(synthetic_run):
-    # K_2 Omega^2 and -Omega^2 D_0 are the same regressor: no data separates them
-    result = CliRunner().invoke(app, ["reduce", str(synthetic_run), "--model", "kcd12", "--freq-dep", "poly:2"])
+    # kcd12 poly:8: 11 powers of Omega per real part of Z, the run has 10 orbit frequencies
+    result = CliRunner().invoke(app, ["reduce", str(synthetic_run), "--model", "kcd12", "--freq-dep", "poly:8"])
     assert result.exit_code == 2
     assert result.stdout == ""
     assert "refused" in result.stderr and "kcd12" in result.stderr
-    assert not csv_path(synthetic_run, "kcd12", "poly:2", "ols").exists()
+    assert not csv_path(synthetic_run, "kcd12", "poly:8", "ols").exists()
 
 
 @pytest.mark.parametrize(

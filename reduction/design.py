@@ -1,0 +1,131 @@
+"""Designs of orbit tables: the idealised design that identifiability is judged on, the
+ideal two-direction reference design, and the predicted (Cramer-Rao) covariance of a design.
+
+A design is what the rig imposes, not what the noise adds: the orbit frequencies and, per
+row, the orbit's shape. The shape of an orbit (x, y) is its unit-norm phasor pair with the
+phase of its dominant whirl component removed, so that orbits that differ only in size and
+trigger phase have one shape. The rank of the regression does not depend on a row's size
+or phase (a complex factor on a row mixes that row's Re/Im equations invertibly).
+
+:func:`idealised_design`: each whirl direction's orbits are replaced by that direction's
+common shape - the mean shape (a circle when its minor whirl component is below
+``CIRCLE_TOL`` of the major, else the mean ellipse) - unless that direction's shapes differ deliberately (any shape farther than
+``SHAPE_SPREAD`` from the mean), when they keep their own shapes. A fixed ellipse separates
+nothing a circle cannot: with one shape s, the data give Z(Omega) s only, a complex
+2-vector, 4 real numbers per power of Omega.
+
+:func:`reference_design`: both whirl directions as unit circles at every distinct frequency
+of the table - the best the same frequencies can do; its condition number is the yardstick
+of the ill-conditioning warning.
+
+:func:`predicted_covariance`: the Cramer-Rao bound of the coefficients for a design, known
+displacements with per-channel noise and force noise; with displacement noise it uses the
+effective variance at the given coefficients (first order in the displacement noise).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from reduction.errors import ReductionError
+from reduction.impedance import impedance, real_rows, regressors
+from reduction.models import ModelSpec
+from reduction.noise import equation_variances
+from reduction.table import OrbitTable
+
+SHAPE_SPREAD = 0.2  # a direction's shapes farther apart than this (unit-norm distance) are kept apart
+CIRCLE_TOL = 0.05  # a mean shape whose minor whirl component is below 5 % of the major is a circle
+
+
+def orbit_shapes(x, y) -> tuple[np.ndarray, np.ndarray]:
+    """(forward (n,) bool, shapes (n, 2) complex): each orbit's unit-norm (x, y) with the
+    phase of its dominant whirl component removed; a zero orbit has shape (0, 0)."""
+    x, y = np.asarray(x, dtype=complex), np.asarray(y, dtype=complex)
+    v = np.stack([x, y], axis=1)
+    a_f, a_b = (x + 1j * y) / 2, (x - 1j * y) / 2
+    forward = np.imag(np.conj(x) * y) < 0
+    dom = np.where(forward, a_f, a_b)
+    size = np.linalg.norm(v, axis=1)
+    ok = (size > 0) & (np.abs(dom) > 0)
+    phase = np.where(ok, dom / np.where(ok, np.abs(dom), 1.0), 1.0)
+    shapes = np.where(ok[:, None], v / (np.where(ok, size, 1.0) * phase)[:, None], 0.0)
+    return forward, shapes
+
+
+def idealised_design(table: OrbitTable, spread: float = SHAPE_SPREAD) -> tuple[np.ndarray, np.ndarray, bool]:
+    """(x, y, fixed): the table's rows with each whirl direction's orbits replaced by that
+    direction's common shape; ``fixed`` is True when every present direction has one shape."""
+    forward, shapes = orbit_shapes(table.x, table.y)
+    ideal = shapes.copy()
+    fixed = True
+    for direction in (True, False):
+        rows = np.flatnonzero(forward == direction)
+        if rows.size == 0:
+            continue
+        mean = np.mean(shapes[rows], axis=0)
+        norm = np.linalg.norm(mean)
+        if norm == 0:
+            fixed = False
+            continue
+        mean = mean / norm
+        minor = abs(mean[0] - 1j * mean[1]) if direction else abs(mean[0] + 1j * mean[1])
+        if minor < CIRCLE_TOL * abs(mean[0] + 1j * mean[1] if direction else mean[0] - 1j * mean[1]):
+            mean = np.array([1.0, -1j if direction else 1j]) / np.sqrt(2)
+        if np.max(np.linalg.norm(shapes[rows] - mean, axis=1)) > spread:
+            fixed = False  # deliberately different shapes: keep them
+            continue
+        ideal[rows] = mean
+    return ideal[:, 0], ideal[:, 1], fixed
+
+
+def reference_design(orbit) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(orbit, x, y): forward and backward unit circles at every distinct frequency."""
+    w = np.unique(np.asarray(orbit, dtype=float))
+    w2 = np.repeat(w, 2)
+    x = np.ones(w2.size, dtype=complex)
+    y = np.tile([-1j, 1j], w.size)
+    return w2, x, y
+
+
+def design_orbits(orbit_hz, directions, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(orbit rad/s, x, y m) of circular orbits of ``radius`` (m) at ``orbit_hz`` (Hz), one
+    row per (frequency, direction); directions: "forward" | "backward" | "both" per
+    frequency (one value for all, or one per frequency)."""
+    hz = np.atleast_1d(np.asarray(orbit_hz, dtype=float))
+    dirs = [directions] * hz.size if isinstance(directions, str) else list(directions)
+    if len(dirs) != hz.size:
+        raise ReductionError("design_orbits: one direction per frequency, or one for all")
+    w, y = [], []
+    for f, d in zip(hz, dirs):
+        if d not in ("forward", "backward", "both"):
+            raise ReductionError(f"design_orbits: unknown direction {d!r}")
+        for sign in ((-1j,) if d == "forward" else (1j,) if d == "backward" else (-1j, 1j)):
+            w.append(2 * np.pi * f)
+            y.append(sign * radius)
+    return np.array(w), np.full(len(w), complex(radius)), np.array(y)
+
+
+def predicted_covariance(spec: ModelSpec, orbit, x, y, u, theta=None) -> np.ndarray:
+    """Cramer-Rao bound (p, p) of the free coefficients (SI, column order of ``spec``) for a
+    design: orbit (rad/s), x, y (m) per row, u the standard uncertainties sqrt(E|err|^2) of
+    the averaged phasors x, y (m), fx, fy (N) - (n, 4) or (4,) for every row. theta (the
+    coefficients at which displacement noise is propagated through Z) may be omitted when
+    u_x = u_y = 0. Raises ReductionError when the design cannot identify ``spec``."""
+    orbit = np.asarray(orbit, dtype=float)
+    u = np.broadcast_to(np.asarray(u, dtype=float), (orbit.size, 4))
+    if theta is None:
+        if np.any(u[:, :2] > 0):
+            raise ReductionError("predicted_covariance: displacement noise needs the coefficients theta")
+        theta = np.zeros(spec.n_coefficients)
+    A = real_rows(regressors(spec, orbit, x, y))
+    var = equation_variances(u, impedance(spec, theta, orbit))
+    if np.any(var <= 0):
+        raise ReductionError("predicted_covariance: every equation needs a noise > 0")
+    Aw = A / np.sqrt(var)[:, None]
+    c = np.linalg.norm(Aw, axis=0)
+    c = np.where(c > 0, c, 1.0)
+    _, s, Vt = np.linalg.svd(Aw / c, full_matrices=False)
+    if s[-1] <= 1e-12 * s[0]:
+        raise ReductionError("predicted_covariance: the design cannot identify this model (rank-deficient)")
+    cov_s = (Vt.T / s**2) @ Vt
+    return cov_s / np.outer(c, c)

@@ -1,0 +1,78 @@
+"""Statistics of a solved regression: covariance forms, intervals, goodness of fit,
+information criteria.
+
+Two covariance situations:
+
+- noise unknown (no u_* columns): cov = s^2 (A^T W A)^-1 with s^2 = weighted residual sum
+  of squares / dof, the estimator's own form (``Estimate.cov``);
+- noise known (u_* columns): the stated uncertainties set the covariance absolutely -
+  (A^T W A)^-1 for wls and tls (W the inverse effective variances), the sandwich
+  P A^T Sigma A P^T for ols and iv (P the estimator's linear map).
+
+Intervals: two-sided 95 % from Student's t with dof = 4n - p. Information criteria of a
+Gaussian likelihood over N = 4n real equations and p free coefficients: with known noise
+AIC = chi2 + 2p, BIC = chi2 + p ln N; otherwise AIC = N ln(RSS/N) + 2p, BIC = N ln(RSS/N) +
+p ln N (RSS in the estimator's own metric) - comparable between models of one table fitted
+with one method.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import stats
+
+CHI2_ALPHA = 1e-3  # warn when the chi2 test rejects the stated uncertainties at this level (either tail)
+
+
+def sandwich(P: np.ndarray, variances: np.ndarray) -> np.ndarray:
+    """P diag(variances) P^T: the covariance of x = P b for independent b of given variances."""
+    return (P * variances[None, :]) @ P.T
+
+
+def pseudo_inverse(A: np.ndarray) -> np.ndarray:
+    """(A^T A)^-1 A^T for A of full column rank (by SVD)."""
+    U, s, Vt = np.linalg.svd(A, full_matrices=False)
+    return (Vt.T / s) @ U.T
+
+
+def t_quantile(dof: int, level: float = 0.95) -> float:
+    """Two-sided Student-t quantile (NaN without degrees of freedom)."""
+    return float(stats.t.ppf(0.5 + level / 2, dof)) if dof > 0 else float("nan")
+
+
+def intervals(theta: np.ndarray, std: np.ndarray, dof: int, level: float = 0.95) -> np.ndarray:
+    """(p, 2) two-sided intervals theta -+ t std (NaN where std is NaN or dof = 0)."""
+    t = t_quantile(dof, level)
+    half = t * std
+    return np.stack([theta - half, theta + half], axis=1)
+
+
+def chi2_p_value(chi2: float, dof: int) -> float:
+    """Upper-tail probability of chi2 with dof degrees of freedom (NaN when dof = 0)."""
+    return float(stats.chi2.sf(chi2, dof)) if dof > 0 else float("nan")
+
+
+def chi2_warning(chi2: float, dof: int, p: float) -> str | None:
+    """A warning when the residuals disagree with the stated uncertainties (either tail)."""
+    if not math.isfinite(p):
+        return None
+    if p < CHI2_ALPHA:
+        return (f"bad fit: chi2 = {chi2:.4g} for {dof} degrees of freedom (p = {p:.2g}): the residuals "
+                "exceed the stated u_* uncertainties; the model misses something or u_* are understated")
+    if p > 1 - CHI2_ALPHA:
+        return (f"chi2 = {chi2:.4g} for {dof} degrees of freedom (p = {p:.4g}): the residuals are far "
+                "smaller than the stated u_* uncertainties, which look overstated")
+    return None
+
+
+def information_criteria(misfit: float, n_equations: int, p: int, known_noise: bool) -> tuple[float, float]:
+    """(AIC, BIC); misfit is chi2 (known noise) or the RSS (unknown noise). NaN for RSS = 0."""
+    if known_noise:
+        base = misfit
+    elif misfit > 0:
+        base = n_equations * math.log(misfit / n_equations)
+    else:
+        return float("nan"), float("nan")
+    return base + 2 * p, base + p * math.log(n_equations)

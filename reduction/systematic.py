@@ -1,0 +1,179 @@
+"""Systematic (type B) uncertainty of the coefficients from the channels' calibration.
+
+Model of a calibration error, per channel c in x, y (displacement probes), fx, fy (load
+cells): the measured phasor is q_c (1 + g_c) exp(-i (phi_c + Omega tau_c)), with a relative
+gain error g_c, a phase error phi_c (rad) and a time delay tau_c (s); the displacement
+probes' sensitivity error s_c acts like a gain. Each error is fixed for a run (the same on
+every row) and has a standard uncertainty from the rig's calibration (:class:`Calibration`).
+
+Propagation is LINEARISED (first order; no Monte Carlo): a data change moves the estimate
+by d theta = P (d b - d A theta), with P the fit's weighted least-squares map (the weights
+of the fit: u_* effective variances, or coherences for wls, else equal) and
+d b - d A theta = real rows of (d f + Z d d). The Jacobian J (one column per error
+parameter) gives cov_sys = J diag(u_beta^2) J^T. Hand checks: a gain error g on both force
+channels scales K, C, D by 1 + g; a delay tau on them moves D by about -C tau (and C by -K tau).
+
+Statistical, systematic and combined (sum of the covariances) standard uncertainties are
+kept apart; the expanded uncertainty is k = 2 times the combined one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from reduction.errors import ReductionError
+from reduction.impedance import impedance_basis, real_rows
+from reduction.noise import coherence_variances, equation_variances
+from reduction.result import Identification
+from reduction.statistics import pseudo_inverse
+from reduction.table import OrbitTable
+
+CHANNELS = ("x", "y", "fx", "fy")
+DISPLACEMENT_CHANNELS = ("x", "y")
+
+
+@dataclass(frozen=True)
+class ChannelCalibration:
+    """Standard uncertainties of one channel's calibration: gain (relative), phase (rad),
+    delay (s)."""
+
+    gain: float = 0.0
+    phase: float = 0.0
+    delay: float = 0.0
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """Calibration uncertainty of the four channels of one orbit table; ``sensitivity`` is
+    the displacement probes' relative sensitivity uncertainty (each probe independently)."""
+
+    x: ChannelCalibration = field(default_factory=ChannelCalibration)
+    y: ChannelCalibration = field(default_factory=ChannelCalibration)
+    fx: ChannelCalibration = field(default_factory=ChannelCalibration)
+    fy: ChannelCalibration = field(default_factory=ChannelCalibration)
+    sensitivity: float = 0.0
+
+    def parameters(self) -> tuple[list[str], np.ndarray]:
+        """(labels, standard uncertainties) of every error parameter, e.g. "fx.delay"."""
+        labels, sigma = [], []
+        for c in CHANNELS:
+            ch = getattr(self, c)
+            for kind in ("gain", "phase", "delay"):
+                labels.append(f"{c}.{kind}")
+                sigma.append(getattr(ch, kind))
+            if c in DISPLACEMENT_CHANNELS:
+                labels.append(f"{c}.sensitivity")
+                sigma.append(self.sensitivity)
+        sigma = np.array(sigma, dtype=float)
+        if not np.all(np.isfinite(sigma)) or np.any(sigma < 0):
+            raise ReductionError("calibration uncertainties must be finite and >= 0")
+        return labels, sigma
+
+
+@dataclass
+class Budget:
+    """Uncertainty budget of one identification (keys as ``Identification.coefficients``):
+    standard uncertainties statistical / systematic / combined and the expanded one (k times
+    combined); covariances (free-coefficient order) and the systematic Jacobian."""
+
+    statistical: dict[str, float | None]
+    systematic: dict[str, float]
+    combined: dict[str, float | None]
+    expanded: dict[str, float | None]
+    k: float
+    covariance_systematic: np.ndarray
+    covariance_combined: np.ndarray | None
+    labels: list[str]
+    jacobian: np.ndarray  # (p, q): d theta / d beta
+
+
+def systematic_jacobian(ident: Identification, table: OrbitTable) -> tuple[list[str], np.ndarray]:
+    """(labels, J): d theta / d beta (p, q) for every calibration error parameter (unit errors:
+    relative gain 1, phase 1 rad, delay 1 s), linearised at the fit."""
+    spec, theta = ident.spec, ident.theta
+    Z = ident.impedance(table.orbit)  # (n, 2, 2)
+    A = real_rows(-np.einsum("kpil,kl->kip", impedance_basis(spec, table.orbit), np.stack([table.x, table.y], 1)))
+    var = _fit_variances(ident, table, Z)
+    P = pseudo_inverse(A / np.sqrt(var)[:, None]) / np.sqrt(var)[None, :]
+    d = {"x": table.x, "y": table.y, "fx": table.fx, "fy": table.fy}
+    factors = {"gain": np.ones(table.n), "phase": np.full(table.n, -1j), "delay": -1j * table.orbit,
+               "sensitivity": np.ones(table.n)}
+    labels, cols = [], []
+    zero = np.zeros(table.n, dtype=complex)
+    for c in CHANNELS:
+        kinds = ("gain", "phase", "delay") + (("sensitivity",) if c in DISPLACEMENT_CHANNELS else ())
+        for kind in kinds:
+            dq = d[c] * factors[kind]
+            dd = np.stack([dq if c == "x" else zero, dq if c == "y" else zero], axis=1)
+            df = np.stack([dq if c == "fx" else zero, dq if c == "fy" else zero], axis=1)
+            r = df + np.einsum("kij,kj->ki", Z, dd)  # d f + Z d d, (n, 2)
+            cols.append(real_rows(r))
+            labels.append(f"{c}.{kind}")
+    J = P @ np.stack(cols, axis=1)
+    return labels, J
+
+
+def uncertainty_budget(ident: Identification, table: OrbitTable, calibration: Calibration,
+                       k: float = 2.0) -> Budget:
+    """Statistical (the fit's covariance), systematic (calibration, linearised) and combined
+    standard uncertainties of every coefficient, and the expanded uncertainty k * combined."""
+    labels, J = systematic_jacobian(ident, table)
+    names, sigma = calibration.parameters()
+    if names != labels:
+        raise ReductionError("calibration parameters do not match the Jacobian's")
+    cov_sys = (J * sigma**2) @ J.T
+    cov_stat = ident.covariance
+    cov_comb = None if cov_stat is None else cov_stat + cov_sys
+    spec = ident.spec
+    sys_std = np.sqrt(np.clip(np.diag(cov_sys), 0, None))
+    comb_std = None if cov_comb is None else np.sqrt(np.clip(np.diag(cov_comb), 0, None))
+    systematic = {key: float(v) for key, v in spec.expand(sys_std).items()}
+    if comb_std is None:
+        combined = {key: None for key in systematic}
+    else:
+        combined = {key: float(v) for key, v in spec.expand(comb_std).items()}
+    expanded = {key: (None if v is None else k * v) for key, v in combined.items()}
+    return Budget(dict(ident.std_errors), systematic, combined, expanded, k, cov_sys, cov_comb, labels, J)
+
+
+def lms_consistency(a: Identification, table_a: OrbitTable, b: Identification, table_b: OrbitTable,
+                    calibration_a: Calibration, calibration_b: Calibration) -> dict[str, float | None]:
+    """Normalised difference E_n = (a - b) / u(a - b) of every common coefficient of two
+    load measuring systems' identifications of one operating point (same model).
+
+    u(a - b)^2 = statistical variances of both (independent force noise) plus the
+    systematic variance of the difference: the displacement channels are shared, so their
+    errors enter as J_a - J_b; the force channels' errors are independent. |E_n| <= 2 means
+    the two systems agree within their combined expanded (k = 2) uncertainty.
+    """
+    if a.spec.names != b.spec.names:
+        raise ReductionError("lms_consistency needs the same model and frequency dependence on both systems")
+    labels, Ja = systematic_jacobian(a, table_a)
+    _, Jb = systematic_jacobian(b, table_b)
+    _, sa = calibration_a.parameters()
+    _, sb = calibration_b.parameters()
+    shared = np.array([lab.split(".")[0] in DISPLACEMENT_CHANNELS for lab in labels])
+    Jd = Ja[:, shared] - Jb[:, shared]
+    sd = (sa[shared] + sb[shared]) / 2  # one set of probes: the two configs should agree
+    cov = (Jd * sd**2) @ Jd.T + (Ja[:, ~shared] * sa[~shared] ** 2) @ Ja[:, ~shared].T \
+        + (Jb[:, ~shared] * sb[~shared] ** 2) @ Jb[:, ~shared].T
+    for ident in (a, b):
+        if ident.covariance is not None:
+            cov = cov + ident.covariance
+    u = np.sqrt(np.clip(np.diag(cov), 0, None))
+    diff = a.theta - b.theta
+    with np.errstate(divide="ignore", invalid="ignore"):
+        en = np.where(u > 0, diff / np.where(u > 0, u, 1.0), np.nan)
+    return {key: (None if not np.isfinite(v) else float(v)) for key, v in a.spec.expand(en).items()}
+
+
+def _fit_variances(ident: Identification, table: OrbitTable, Z: np.ndarray) -> np.ndarray:
+    """The equation variances the fit weighted by (relative scale irrelevant here)."""
+    if table.u is not None:
+        var = equation_variances(table.u, Z)
+        return np.maximum(var, 1e-12 * float(np.max(var)))
+    if ident.method == "wls" and table.gamma2 is not None:
+        return coherence_variances(table.gamma2, table.fx, table.fy, table.n_records)
+    return np.ones(4 * table.n)

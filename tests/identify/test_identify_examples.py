@@ -1,0 +1,53 @@
+"""`identify --json` on the example orbit tables: the v2 keys exactly, and the truth within
+the reported uncertainty (the examples carry noise of their stated u_*)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = ROOT / "examples" / "orbit-tables"
+TRUTH = json.loads((EXAMPLES / "truth.json").read_text())
+V2_KEYS = ["model", "freq_dep", "method", "n_coefficients", "min_frequencies", "n_frequencies",
+           "coefficients", "std_errors", "confidence_95", "free", "covariance", "dof",
+           "condition_number", "residual_rms", "chi2", "p_value", "aic", "bic", "notes", "warnings", "fit"]
+
+
+def _identify(name: str, args: str, *extra: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "orbitrig", "identify", str(EXAMPLES / name), *args.split(), *extra],
+                          cwd=ROOT, capture_output=True, text=True, timeout=120)
+
+
+@pytest.mark.parametrize("name", sorted(TRUTH))
+def test_examples_follow_the_v2_contract(name):
+    truth = TRUTH[name]
+    res = _identify(name, truth["command"], "--json")
+    assert res.returncode == truth.get("exit_status", 0), res.stderr
+    if res.returncode == 2:
+        assert res.stdout == "" and "Kxx_1 - Cxy" in res.stderr
+        return
+    d = json.loads(res.stdout)
+    has_u = "n_records" in (EXAMPLES / name).read_text().splitlines()[0]
+    assert list(d) == [k for k in V2_KEYS if has_u or k not in ("chi2", "p_value")]
+    assert set(d["coefficients"]) == set(truth["coefficients"]) == set(d["std_errors"]) == set(d["confidence_95"])
+    p = len(d["free"])
+    assert d["n_coefficients"] == p and len(d["covariance"]) == p and all(len(r) == p for r in d["covariance"])
+    assert d["dof"] == 4 * d["n_frequencies"] - p
+    for key, true in truth["coefficients"].items():
+        assert abs(d["coefficients"][key] - true) < 5 * d["std_errors"][key], key
+    if has_u:
+        assert 0.001 < d["p_value"] < 0.999  # the stated u_* are the noise the tables carry
+
+
+def test_absorbed_order_is_a_note_and_readable_output_puts_notes_on_stderr():
+    res = _identify("kcd11-poly2.csv", "--model kcd11 --freq-dep poly:2")
+    assert res.returncode == 0
+    assert "note: K order 2" in res.stderr and "note:" not in res.stdout
+    assert "Kxx_1" in res.stdout and "Kxx_2 " not in res.stdout
+    d = json.loads(_identify("kcd11-poly2.csv", "--model kcd11 --freq-dep poly:2", "--json").stdout)
+    assert d["n_coefficients"] == 29 and any("K order 2" in n for n in d["notes"])
