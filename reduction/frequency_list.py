@@ -10,7 +10,9 @@ Relative standard error of a coefficient: its standard error divided by the size
 matrix, ``coefficient_scales``: the RMS of the diagonal entries of that matrix's constant
 term at the prior coefficients, divided by omega^r for a term of order r (so Omega^r K_r is
 compared with K at Omega = omega). A cross-coupling or a frequency-dependent term that is
-zero in the prior keeps a finite relative error this way.
+zero in the prior keeps a finite relative error this way. Given ``scales`` instead (e.g. the
+standard errors of a reference list), "relative" is relative to them: a target of 1 then asks
+for every coefficient at least as precise as with the reference.
 
 :func:`propose` searches a grid of allowed ratios (inside the drives' band, away from
 r = 1 where the orbit cannot be told from the spindle's runout) with an exchange algorithm:
@@ -47,6 +49,7 @@ class DesignProblem:
     u_revolution: np.ndarray
     revolutions: int = 50
     directions: str = "both"
+    scales: np.ndarray | None = None  # (p,) what "relative" divides by; None: coefficient_scales
 
 
 @dataclass(frozen=True)
@@ -97,7 +100,10 @@ def predict(problem: DesignProblem, ratios) -> ListPrediction:
     except ReductionError:
         return ListPrediction(r, None, None, float("inf"))
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    rel = se / coefficient_scales(problem.spec, problem.theta, problem.spin)
+    scales = problem.scales
+    if scales is None:
+        scales = coefficient_scales(problem.spec, problem.theta, problem.spin)
+    rel = se / scales
     return ListPrediction(r, se, rel, float(np.max(rel)))
 
 
