@@ -21,8 +21,8 @@ import numpy as np
 
 from rigerrors import OrbitrigError
 
-DEFAULT_FORCE_NOISE = 2.0  # N per revolution, fx and fy
-DEFAULT_PROBE_NOISE = 50e-9  # m per revolution, x and y
+DEFAULT_FORCE_NOISE = 0.5  # N per revolution, fx and fy (the simulator's default scenario: 0.33)
+DEFAULT_PROBE_NOISE = 300e-9  # m per revolution, x and y (there: 0.29 um, mostly runout)
 NOMINAL = {"Kxx": 3.8e7, "Kxy": 6.0e6, "Kyx": -6.0e6, "Kyy": 4.0e7,
            "Cxx": 1.0e5, "Cxy": 2.0e3, "Cyx": 2.0e3, "Cyy": 1.1e5,
            "Dxx": 4.0, "Dxy": 0.05, "Dyx": 0.05, "Dyy": 4.2}  # fmt: skip  (SI; higher orders 0)

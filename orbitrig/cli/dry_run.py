@@ -14,17 +14,19 @@ _STEP_WORDS = {"SetManual": "manual settings", "Verify": "verify", "SetSpin": "s
 
 def print_plan(rig, mat) -> None:
     """Print the plan of matrix ``mat`` on ``rig``: a summary (points, orbit blocks, steps,
-    estimated physical time, time per step kind), then one line per step (durations in s)."""
+    estimated physical time, time per step kind), the predicted uncertainty of each model
+    (orbitrig.cli.dry_run_predict), then one line per step (durations in s)."""
     from orbitrig.run.plan import expand
 
     steps = expand(mat, rig)
     try:
-        _print(steps, mat.name)
+        _print(steps, mat.name, rig, mat)
     except BrokenPipeError:  # `| head`: the reader has what it wanted
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
 
 
-def _print(steps, name: str) -> None:
+def _print(steps, name: str, rig, mat) -> None:
+    from orbitrig.cli.dry_run_predict import prediction_lines
     from orbitrig.run.plan import format_duration, summarize
 
     sm = summarize(steps)
@@ -32,6 +34,8 @@ def _print(steps, name: str) -> None:
                f"{len(steps)} steps, estimated {format_duration(sm.duration)} (physical time)")  # fmt: skip
     parts = ", ".join(f"{_STEP_WORDS.get(k, k)} {format_duration(v)}" for k, v in sm.by_kind.items())
     typer.echo(f"by step: {parts}")
+    for line in prediction_lines(rig, mat):
+        typer.echo(line)
     typer.echo("")
     width = len(str(len(steps)))
     typer.echo(f"{'#':>{width}}  {'starts at':>8}  {'where':10}  {'duration':>10}  step  (times h:mm:ss from the start)")
