@@ -14,7 +14,7 @@ from typing import Optional
 
 import typer
 
-from orbitrig.cli.design_report import design_object, print_design, save_design
+from orbitrig.cli.design_report import design_object, designs_dir, print_design, save_design
 
 
 def _fail(message: str) -> None:
@@ -94,7 +94,8 @@ def register(app: typer.Typer) -> None:
                 directions=directions, radius=radius * 1e-6 if radius is not None else mat_radius,
                 noise=noise, run=run, lms=lms, revolutions=revolutions, target=target, keep_away=keep_away)
             if save:
-                save_design(obj, save)
+                saved = save_design(obj, save, designs_dir(rig_path))
+                sys.stderr.write(f"orbitrig design: wrote {saved}\n")
         except OrbitrigError as err:
             _fail(str(err))
         if as_json:
