@@ -1,6 +1,9 @@
 """Sustained A/D output rate of the simulator (samples/s), one core.
 
-1. offline: physics + quantisation + frame encoding of 100-revolution batches;
+0. the bearing: periodic film solution per operating point (each new speed pair),
+   for the paper's rig and the compressible scenario;
+1. offline: physics + quantisation + frame encoding of 100-revolution batches,
+   the paper's rig (chain, disturbances) and the clean scenario;
 2. live: SimRig streaming to its pty at several speed-ups while a separate
    reader process drains the pty; delivered samples/s = bytes received
    converted with the frame layout (20 bytes overhead per 45-sample frame).
@@ -21,7 +24,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from sim.config import SimConfig  # noqa: E402
+from sim.config import SimConfig, scenario  # noqa: E402
+from sim.physics import RigPhysics  # noqa: E402
 from sim.rig import SimRig  # noqa: E402
 
 READER = r"""
@@ -38,8 +42,18 @@ print(n, time.monotonic() - t_start)
 """
 
 
-def offline(revs: int = 100, rounds: int = 20) -> float:
-    rig = SimRig(SimConfig())
+def film_solve(cfg: SimConfig, rounds: int = 200) -> float:
+    """CPU seconds per periodic film solution (a new operating point every call)."""
+    ph = RigPhysics(cfg)
+    ph.set_manual(orbit_radius=0.096 * cfg.geometry.clearance)
+    t0 = time.process_time()
+    for i in range(rounds):
+        ph.force_harmonics(104.7 + 0.01 * i, 60.0 + 0.01 * i)
+    return (time.process_time() - t0) / rounds
+
+
+def offline(revs: int = 100, rounds: int = 20, cfg: SimConfig | None = None) -> float:
+    rig = SimRig(cfg or SimConfig())
     n = 360 * revs
     g = np.arange(n) + 360
     t = g * 1e-5
@@ -72,7 +86,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=3.0)
     args = ap.parse_args()
-    print(f"offline (physics + encode, 8 ch sequential): {offline() / 1e6:.2f} M samples per CPU second")
+    for name in ("paper", "compressible"):
+        print(f"film solve per operating point ({name}, eps_d 0.096): {film_solve(scenario(name)) * 1e3:.2f} ms CPU")
+    print(f"offline (physics + encode, 8 ch sequential, paper's rig): {offline() / 1e6:.2f} M samples per CPU second")
+    print(f"offline (physics + encode, 8 ch sequential, clean): {offline(cfg=scenario('clean')) / 1e6:.2f} "
+          "M samples per CPU second")
     for speedup in (50, 100, 200, 400):
         rate, cpu, dropped = asyncio.run(live(speedup, args.seconds))
         generated = speedup * 40 * 360

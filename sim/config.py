@@ -6,8 +6,10 @@ an edge unit as a suffix, converted on load: ``_deg`` (degrees -> rad),
 ``_degc`` (degC -> K). Example: ``trigger_phase_deg = 20`` sets
 ``AdcConfig.trigger_phase`` to 0.349 rad. See config/sim.toml.
 
-Defaults: a 4-pocket oil-fed hydrostatic journal bearing, D = 60 mm,
-radial clearance c = 60 um, K ~ 3e7 N/m, C ~ 8e4 N s/m, D ~ 1 kg.
+Defaults: the paper's rig at its Table 1 operating point: a four-recess,
+orifice-compensated hydrostatic journal bearing with large recesses and
+narrow lands, D = L = 38.1 mm, c = 60 um, SAE 30 oil; K ~ 4e7 N/m,
+C ~ 1e5 N s/m, M ~ 4 kg.
 """
 
 from __future__ import annotations
@@ -28,28 +30,36 @@ def _zeros() -> Matrix:
     return ((0.0, 0.0), (0.0, 0.0))
 
 
+TABLE1_RATIOS = (0.247, 0.363, 0.471, 0.569, 0.677, 0.765, 0.871, 1.041, 1.139, 1.247)  # Omega/omega
+
+
 @dataclass
 class BearingConfig:
-    """True bearing coefficients.
+    """The four-recess, orifice-compensated hydrostatic journal bearing (sim/bearing.py).
 
-    K(omega, Omega) = K0 * p + omega * K_spin + |Omega|^m K_orbit
-    C(Omega) = C0 + |Omega|^n C_orbit;  D(Omega) = D0 + |Omega|^p D_orbit
-    (omega spin, Omega orbit in rad/s; p the hydrostatic pressure scale,
-    1 at the reference supply setting when ``pressure_scaling``).
-    Second-harmonic nonlinearity: f_nl = -(nonlinear * Kxx0 / c) *
-    (dx^2 - dy^2, 2 dx dy) for the dynamic displacement d.
+    Geometry of one recess: axial length ``recess_length`` inside the bearing
+    length, arc ``recess_angle``, depth ``recess_depth``; ``feed_volume`` the
+    oil between the orifice and the recess; ``bulk_modulus`` the effective
+    bulk modulus of that oil column with its plumbing (``compressible`` false:
+    infinitely stiff, Z nearly constant in Omega). ``fluid_inertia`` adds the
+    film's lumped added mass. ``linear`` makes the signals follow the
+    linearised bearing exactly (f = -Z d on the orbit) instead of the
+    nonlinear film. ``reference_ratios``: the Omega/omega band of truth().
     """
 
-    K0: Matrix = ((3.0e7, 0.0), (0.0, 3.3e7))  # N/m
-    K_spin: Matrix = ((0.0, 4.0e4), (-4.0e4, 0.0))  # N/m per rad/s of spin
-    C0: Matrix = ((8.0e4, 2.0e3), (2.0e3, 8.6e4))  # N s/m
-    D0: Matrix = ((1.0, 0.05), (0.05, 1.1))  # kg
-    K_orbit: Matrix = field(default_factory=_zeros)  # N/m per (rad/s)^m
-    C_orbit: Matrix = field(default_factory=_zeros)  # N s/m per (rad/s)^n
-    D_orbit: Matrix = field(default_factory=_zeros)  # kg per (rad/s)^p
-    orbit_exponents: tuple[int, int, int] = (1, 1, 1)  # m, n, p
-    nonlinear: float = 0.1  # second-harmonic stiffness / Kxx0 (at d = c)
-    pressure_scaling: bool = True  # K0 scales with p_recess * (1 - beta)
+    diameter: float = 0.0381  # m, journal diameter
+    length: float = 0.0381  # m, bearing axial length L
+    recess_length: float = 0.034  # m, recess axial length l
+    recess_angle: float = math.radians(78.0)  # rad, recess arc theta_r
+    recess_depth: float = 0.3e-3  # m
+    feed_volume: float = 2.0e-6  # m^3 per recess, orifice to recess
+    bulk_modulus: float = 5.0e8  # Pa, effective (oil with entrained air and hoses)
+    compressible: bool = True
+    viscosity: float = 0.098  # Pa s, SAE 30 at 37.8 degC
+    density: float = 870.0  # kg/m^3
+    fluid_inertia: bool = True
+    linear: bool = False
+    reference_ratios: tuple[float, ...] = TABLE1_RATIOS
 
 
 @dataclass
@@ -57,9 +67,8 @@ class GeometryConfig:
     """Journal orbit and probe geometry (SI)."""
 
     clearance: float = 60e-6  # radial clearance c, m
-    diameter: float = 0.060  # m (informational)
-    orbit_ratio: float = 0.1  # eps_d: orbit radius R = eps_d * c
-    static_eccentricity: float = 0.2  # eps_s: static offset eps_s * c
+    orbit_ratio: float = 0.04  # eps_d: orbit radius R = eps_d * c
+    static_eccentricity: float = 0.0  # eps_s: static offset eps_s * c
     static_angle: float = -math.pi / 2  # rad, direction of the static offset (load down)
     ellipticity: float = 0.02  # x semi-axis R(1+e), y semi-axis R(1-e)
     probe_tilt: float = 0.05  # conical motion at the probe planes, fraction of R (+A, -B)
@@ -85,22 +94,43 @@ class LmsConfig:
 
     piezo_gain_error: float = 0.0
     piezo_phase_lag: float = 0.0  # rad
-    strain_gain_error: float = 0.02
+    strain_gain_error: float = 0.018
     strain_phase_lag: float = math.radians(0.3)
 
 
 @dataclass
-class NoiseConfig:
-    """Disturbances (all off when ``enabled`` is false)."""
+class ChainConfig:
+    """Measurement chain of every channel (all off when ``enabled`` is false).
+
+    gain_error: relative gain error per channel (in CHANNEL_NAMES order; for
+    a probe channel its sensitivity error on top of
+    ``probe_sensitivity_error``, common to all probes). filter_cutoff: corner
+    of each channel's (CHANNEL_NAMES order) 2nd-order Butterworth anti-alias filter, Hz (0: none).
+    force_delay: the force channels lag the probes by this time, s."""
 
     enabled: bool = True
-    piezo_white: float = 1.0  # N rms
-    strain_white: float = 1.5  # N rms
-    probe_white: float = 20e-9  # m rms
-    runout: tuple[float, ...] = (0.4e-6, 0.15e-6)  # m, spin harmonics 1, 2, ... at the probes
+    gain_error: tuple[float, ...] = (0.004, -0.003, 0.002, 0.005, 0.003, -0.002, 0.001, -0.004)
+    probe_sensitivity_error: float = -0.01
+    filter_cutoff: tuple[float, ...] = (1000.0, 1000.0, 1000.0, 1000.0, 1030.0, 1030.0, 1030.0, 1030.0)
+    force_delay: float = 20e-6
+
+
+@dataclass
+class NoiseConfig:
+    """Disturbances (all off when ``enabled`` is false). Force levels in N, probe levels in m."""
+
+    enabled: bool = True
+    piezo_white: float = 55.0  # N rms per sample
+    strain_white: float = 60.0  # N rms
+    probe_white: float = 0.1e-6  # m rms
+    runout: tuple[float, ...] = (0.25e-6, 0.1e-6)  # m, electrical runout of the probe tracks, spin harmonics 1, 2
+    spin_force: tuple[float, ...] = (10.0, 4.0)  # N, spindle unbalance/misalignment at spin harmonics 1, 2
     bearing_orders: tuple[float, ...] = (3.05, 4.95)  # ball-pass orders of the spindle bearings
-    bearing_force: float = 1.5  # N per order, force channels
+    bearing_force: float = 3.0  # N per order, force channels
     bearing_probe: float = 3e-9  # m per order, probe channels
+    resonance_frequency: float = 143.0  # Hz, structural mode of the bearing housing
+    resonance_damping: float = 0.02  # damping ratio
+    resonance_force: float = 20.0  # N rms, narrow-band response of that mode
     line_frequency: float = 50.0  # Hz (simulated time)
     line_force: float = 0.4  # N
     line_probe: float = 8e-9  # m
@@ -113,13 +143,10 @@ class NoiseConfig:
 class SupplyConfig:
     """Lubricant supply; recess pressure and beta are the operator's manual settings."""
 
-    recess_pressure: float = 1.0e6  # Pa, mean recess pressure
-    pressure_ratio: float = 0.5  # beta = p_recess / p_supply
+    recess_pressure: float = 0.4826e6  # Pa, recess pressure of the centred journal at rest
+    pressure_ratio: float = 0.25  # beta = p_recess / p_supply
     t_supply: float = 313.15  # K
     heating: float = 1.0e-4  # K per (rad/s)^2 of spin, recess temperature rise
-    orifice_diameter: float = 1.0e-3  # m
-    discharge_coefficient: float = 0.7
-    density: float = 860.0  # kg/m^3
 
 
 @dataclass
@@ -128,6 +155,7 @@ class SimConfig:
     geometry: GeometryConfig = field(default_factory=GeometryConfig)
     adc: AdcConfig = field(default_factory=AdcConfig)
     lms: LmsConfig = field(default_factory=LmsConfig)
+    chain: ChainConfig = field(default_factory=ChainConfig)
     noise: NoiseConfig = field(default_factory=NoiseConfig)
     supply: SupplyConfig = field(default_factory=SupplyConfig)
     speedup: float = 1.0
@@ -165,6 +193,23 @@ def validate(cfg: SimConfig) -> list[str]:
         p.append("supply.pressure_ratio must be in (0, 1)")
     if not cfg.speedup > 0:
         p.append("speedup must be > 0")
+    ch = cfg.chain
+    if len(ch.gain_error) != len(CHANNEL_NAMES) or len(ch.filter_cutoff) != len(CHANNEL_NAMES):
+        p.append(f"chain.gain_error and chain.filter_cutoff need {len(CHANNEL_NAMES)} values "
+                 f"(order {', '.join(CHANNEL_NAMES)})")
+    if any(f < 0 for f in ch.filter_cutoff):
+        p.append("chain.filter_cutoff must be >= 0 Hz (0: no filter)")
+    b = cfg.bearing
+    positive = dict(diameter=b.diameter, length=b.length, recess_length=b.recess_length,
+                    recess_angle=b.recess_angle, recess_depth=b.recess_depth,
+                    bulk_modulus=b.bulk_modulus, viscosity=b.viscosity, density=b.density)
+    p += [f"bearing.{name} must be > 0" for name, v in positive.items() if not v > 0]
+    if not (b.recess_length < b.length and b.recess_angle < math.pi / 2):
+        p.append("bearing: the recesses must leave lands (recess_length < length, recess_angle < 90 deg)")
+    if b.feed_volume < 0:
+        p.append("bearing.feed_volume must be >= 0")
+    if not b.reference_ratios or any(r <= 0 for r in b.reference_ratios):
+        p.append("bearing.reference_ratios must be positive Omega/omega values")
     return p
 
 
@@ -209,6 +254,19 @@ def _section(cls, table: dict, where: str, problems: list[str]):
     return kwargs
 
 
+SCENARIO_DIR = Path(__file__).resolve().parents[1] / "config"
+
+
+def scenario(name: str) -> SimConfig:
+    """A shipped scenario by name: "paper" (config/sim.toml, the default rig) or a file
+    config/sim/<name>.toml ("clean", "compressible"). ValueError naming the known ones."""
+    path = SCENARIO_DIR / "sim.toml" if name == "paper" else SCENARIO_DIR / "sim" / f"{name}.toml"
+    if not path.is_file():
+        known = ["paper"] + sorted(p.stem for p in (SCENARIO_DIR / "sim").glob("*.toml"))
+        raise ValueError(f"unknown simulator scenario {name!r}; known: {', '.join(known)}")
+    return load_sim_config(path)
+
+
 def load_sim_config(path: str | Path) -> SimConfig:
     """Read a SimConfig from TOML. Raises ValueError naming the file and key."""
     path = Path(path)
@@ -219,7 +277,7 @@ def load_sim_config(path: str | Path) -> SimConfig:
     problems: list[str] = []
     classes = {
         "bearing": BearingConfig, "geometry": GeometryConfig, "adc": AdcConfig,
-        "lms": LmsConfig, "noise": NoiseConfig, "supply": SupplyConfig,
+        "lms": LmsConfig, "chain": ChainConfig, "noise": NoiseConfig, "supply": SupplyConfig,
     }
     kwargs = {}
     for key, value in data.items():

@@ -5,6 +5,7 @@ One JSON object per line in, one per line out:
    "recess_pressure": 1e6, "pressure_ratio": 0.5}           -> {"ok": true}
   {"cmd": "truth", "spin": 200.0, "orbit": -60.0}            -> {"ok": true, "K": [[..]], "C": .., "D": ..}
   {"cmd": "true_phasors", "spin": .., "orbit": ..}           -> {"ok": true, "phasors": {"x_a": [re, im], ..}}
+  {"cmd": "true_impedance", "spin": .., "orbit": ..}         -> {"ok": true, "re": [[..]], "im": [[..]]}
   {"cmd": "inject", "fault": "drop_frames", "count": 3}      -> {"ok": true}
   {"cmd": "local_control", "spin": .., "orbit": ..}          -> {"ok": true}
   {"cmd": "state"}                                           -> {"ok": true, "spin": .., "orbit": .., ...}
@@ -46,6 +47,9 @@ def handle(rig, request: dict) -> dict:
             return {"ok": True, **_jsonable(rig.truth(float(req["spin"]), float(req["orbit"])))}
         if cmd == "true_phasors":
             return {"ok": True, "phasors": _jsonable(rig.true_phasors(float(req["spin"]), float(req["orbit"])))}
+        if cmd == "true_impedance":
+            Z = rig.true_impedance(float(req["spin"]), float(req["orbit"]))
+            return {"ok": True, "re": Z.real.tolist(), "im": Z.imag.tolist()}
         if cmd == "inject":
             rig.inject(req.pop("fault"), **req)
             return {"ok": True}
@@ -55,7 +59,7 @@ def handle(rig, request: dict) -> dict:
         if cmd == "state":
             return {"ok": True, **_jsonable(rig.state())}
         return {"ok": False, "error": f"unknown cmd {cmd!r}; known: set_manual, truth, "
-                                      "true_phasors, inject, local_control, state"}
+                                      "true_phasors, true_impedance, inject, local_control, state"}
     except KeyError as err:
         return {"ok": False, "error": f"{cmd}: missing field {err.args[0]!r}"}
     except (TypeError, ValueError, RuntimeError) as err:

@@ -1,16 +1,17 @@
-"""Rig physics: true bearing coefficients, journal orbit, probe and load-cell signals.
+"""Rig physics: the bearing on the imposed orbit, the probes and the load cells.
 
-Conventions (docs/architecture.md, docs/orbit-table.md):
+Conventions (docs/architecture.md, docs/simulator.md):
 - theta = 2 pi s / 360 is the orbit angle after the trigger in time order
   (slot s), whatever the direction. The eccentric (orbit) spindle puts the
-  journal at angle psi = sign(Omega) * (theta + phi0) with phi0 the trigger
-  phase, so x = a cos(theta + phi0) and y = sign(Omega) * b sin(theta + phi0):
-  x_bar = a e^{i phi0}, y_bar = -i sign(Omega) b e^{i phi0}.
-- Force on the journal, evaluated in the time domain from first principles:
-  f = -(K d + C d' + D d''), velocities from the instantaneous orbit speed,
-  plus a second-harmonic nonlinearity and the static load. Its fundamental
-  is f_bar = -(K + i|Omega|C - Omega^2 D) d_bar.
-- Load measuring system L reads g_L f(theta - lag_L) (gain and phase error).
+  journal at x = X0 + a cos(theta + phi0), y = Y0 + sign(Omega) b sin(theta + phi0)
+  (phi0 the trigger phase, (X0, Y0) the static offset): x_bar = a e^{i phi0},
+  y_bar = -i sign(Omega) b e^{i phi0}; q = Re(q_bar e^{i theta}).
+- The force on the journal is the film force of sim/bearing.py along that
+  orbit (its periodic steady state, nonlinear in the orbit radius), or with
+  ``bearing.linear`` the linearised f = f0 - Z d; for small orbits its
+  fundamental is f_bar = -Z d_bar, Z = K + i|Omega| C - Omega^2 D.
+- Every channel then passes its measurement chain (sim/chain.py) and gets its
+  disturbances (sim/disturbances.py).
 Everything is SI and vectorised over sample arrays; nothing here does I/O.
 """
 
@@ -21,9 +22,14 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from sim.bearing import HydrostaticBearing, Supply, bearing_geometry
+from sim.chain import channel_chains
 from sim.config import SimConfig
+from sim.disturbances import Disturbances
 
 TWO_PI = 2.0 * math.pi
+HARMONICS = 12  # harmonics of the orbit kept in the force waveform
+GRID = 128  # orbit-angle grid of the periodic film solution
 
 
 @dataclass(frozen=True)
@@ -65,16 +71,15 @@ class RigPhysics:
             recess_pressure=sup.recess_pressure,
             pressure_ratio=sup.pressure_ratio,
         )
-        self._p_ref = sup.recess_pressure * (1.0 - sup.pressure_ratio)
+        self.bearing = HydrostaticBearing(bearing_geometry(cfg.bearing, g.clearance))
         self.channels = [_channel(n) for n in cfg.adc.channels]
-        n = len(self.channels)
-        nz = cfg.noise
-        # fixed random phases of the deterministic disturbances, per channel
-        self._line_phase = self.rng.uniform(0, TWO_PI, n)
-        self._bearing_phase = self.rng.uniform(0, TWO_PI, (n, len(nz.bearing_orders)))
-        self._runout_phase = self.rng.uniform(0, TWO_PI, (2, len(nz.runout)))  # per plane
+        chains = channel_chains(cfg)
+        self.chains = [chains[c.name] for c in self.channels]
+        white = np.array([self._white_std(c) for c in self.channels])
+        self.disturbances = Disturbances(cfg.noise, self.channels, white, self.rng)
         self._ripple_phase = self.rng.uniform(0, TWO_PI)
-        self._white = np.array([self._white_std(c) for c in self.channels])
+        self._waveforms: dict[tuple, np.ndarray] = {}
+        self._supply: tuple[ManualSettings, Supply] | None = None
 
     # ---------------------------------------------------------------- settings
     def set_manual(self, *, orbit_radius=None, static_eccentricity=None,
@@ -100,25 +105,25 @@ class RigPhysics:
             raise ValueError("pressure_ratio must be in (0, 1)")
         self.manual = new
 
+    @property
+    def supply(self) -> Supply:
+        """Pressures and restrictor of the current manual settings (set at the static position)."""
+        m = self.manual
+        if self._supply is None or self._supply[0] != m:
+            X0, Y0 = self._static()
+            self._supply = (m, self.bearing.set_supply(m.recess_pressure, m.pressure_ratio, X0, Y0))
+        return self._supply[1]
+
     # ---------------------------------------------------------------- truth
-    def coefficients(self, spin: float, orbit: float):
-        """True K, C, D (2x2, SI) at spin omega (rad/s) and orbit Omega (rad/s, signed)."""
-        b = self.cfg.bearing
-        w = abs(float(orbit))
-        m, n, p = b.orbit_exponents
-        scale = 1.0
-        if b.pressure_scaling and self._p_ref > 0:
-            scale = self.manual.recess_pressure * (1.0 - self.manual.pressure_ratio) / self._p_ref
-        K = np.array(b.K0) * scale + abs(float(spin)) * np.array(b.K_spin) + w**m * np.array(b.K_orbit)
-        C = np.array(b.C0) + w**n * np.array(b.C_orbit)
-        D = np.array(b.D0) + w**p * np.array(b.D_orbit)
-        return K, C, D
+    def impedances(self, spin: float, orbits) -> np.ndarray:
+        """True Z(|Omega|) (n, 2, 2) complex of the bearing linearised at the static
+        position, spin omega (rad/s), orbit speeds Omega (rad/s, sign irrelevant)."""
+        X0, Y0 = self._static()
+        return self.bearing.impedance(X0, Y0, abs(float(spin)), orbits, self.supply)
 
     def impedance(self, spin: float, orbit: float) -> np.ndarray:
-        """Z = K + i|Omega| C - Omega^2 D (2x2 complex)."""
-        K, C, D = self.coefficients(spin, orbit)
-        w = abs(float(orbit))
-        return K + 1j * w * C - w * w * D
+        """True Z (2, 2) complex at spin and orbit (rad/s): f_bar = -Z d_bar."""
+        return self.impedances(spin, [orbit])[0]
 
     def _orbit_axes(self):
         R, e = self.manual.orbit_radius, self.cfg.geometry.ellipticity
@@ -129,34 +134,82 @@ class RigPhysics:
         r = self.manual.static_eccentricity * g.clearance
         return np.array([r * math.cos(g.static_angle), r * math.sin(g.static_angle)])
 
-    def _lms(self, lms: str) -> tuple[float, float]:
-        L = self.cfg.lms
-        if lms == "piezo":
-            return 1.0 + L.piezo_gain_error, L.piezo_phase_lag
-        return 1.0 + L.strain_gain_error, L.strain_phase_lag
+    def force_harmonics(self, spin: float, orbit: float) -> np.ndarray:
+        """Film force on the journal (2, HARMONICS + 1) complex: f = Re sum_h F_h e^{i h psi},
+        psi = theta + phi0 the journal's orbit angle in time order (cached per point)."""
+        key = (float(spin), float(orbit), self.manual)
+        F = self._waveforms.get(key)
+        if F is None:
+            F = self._solve_force(abs(float(spin)), float(orbit))
+            if len(self._waveforms) > 256:
+                self._waveforms.clear()
+            self._waveforms[key] = F
+        return F
 
-    def true_phasors(self, spin: float, orbit: float) -> dict[str, complex]:
-        """Noise-free fundamental phasor of every channel (engineering units),
-        trigger phase included: what an ideal reader gets, q = Re(q_bar e^{i theta})."""
+    def _solve_force(self, spin: float, orbit: float) -> np.ndarray:
+        s = -1.0 if orbit < 0 else 1.0
+        w = abs(orbit)
+        a, b = self._orbit_axes()
+        X0, Y0 = self._static()
+        F = np.zeros((2, HARMONICS + 1), dtype=complex)
+        if self.cfg.bearing.linear:
+            F[:, 0] = self.bearing.static_force(X0, Y0, spin, self.supply)
+            F[:, 1] = -self.impedance(spin, orbit) @ np.array([a, -1j * s * b])
+            return F
+        psi = TWO_PI * np.arange(GRID) / GRID
+        c, sn = np.cos(psi), np.sin(psi)
+        f = self.bearing.periodic_force(X0 + a * c, Y0 + s * b * sn, -a * w * sn, s * b * w * c,
+                                        -a * w * w * c, -s * b * w * w * sn, w, spin, self.supply)
+        spec = np.fft.rfft(f, axis=1)[:, : HARMONICS + 1] / GRID
+        spec[:, 1:] *= 2.0
+        return spec  # f = Re sum_h spec_h e^{i h psi}
+
+    def _probe_harmonics(self, ch: _Channel, orbit: float) -> np.ndarray:
+        """(DC, fundamental) of the journal position at probe channel ``ch``, theta referenced."""
         g = self.cfg.geometry
         s = -1.0 if orbit < 0 else 1.0
         E = np.exp(1j * self.cfg.adc.trigger_phase)
         a, b = self._orbit_axes()
-        d = np.array([a * E, -1j * s * b * E])
-        f = -self.impedance(spin, orbit) @ d
-        tR = g.probe_tilt * self.manual.orbit_radius
+        tR = ch.plane * g.probe_tilt * self.manual.orbit_radius
         Et = E * np.exp(1j * s * g.probe_tilt_phase)
-        tau = np.array([tR * Et, -1j * s * tR * Et])
-        out = {}
-        for ch in self.channels:
-            if ch.kind == "force":
-                gain, lag = self._lms(ch.lms)
-                out[ch.name] = complex(gain * np.exp(-1j * lag) * f[ch.axis])
-            else:
-                X, Y = d + ch.plane * tau
-                ca, sa = math.cos(ch.plane * g.probe_misalignment / 2), math.sin(ch.plane * g.probe_misalignment / 2)
-                out[ch.name] = complex(ca * X + sa * Y if ch.axis == 0 else -sa * X + ca * Y)
-        return out
+        X = np.array([self._static()[0], a * E + tR * Et])
+        Y = np.array([self._static()[1], -1j * s * (b * E + tR * Et)])
+        half = ch.plane * g.probe_misalignment / 2
+        ca, sa = math.cos(half), math.sin(half)
+        return ca * X + sa * Y if ch.axis == 0 else -sa * X + ca * Y
+
+    def channel_harmonics(self, k: int, spin: float, orbit: float) -> np.ndarray:
+        """Noise-free signal of channel k after its chain: value = Re sum_h q_h e^{i h theta}."""
+        ch = self.channels[k]
+        if ch.kind == "force":
+            F = self.force_harmonics(spin, orbit)[ch.axis]
+            q = F * np.exp(1j * np.arange(len(F)) * self.cfg.adc.trigger_phase)
+        else:
+            q = self._probe_harmonics(ch, orbit)
+        f = np.arange(len(q)) * abs(orbit) / TWO_PI
+        q = q * self.chains[k].response(f)
+        big = np.nonzero(np.abs(q[1:]) > 1e-9 * np.abs(q[1:]).max(initial=0.0))[0]
+        return q[: 2 + (big[-1] if big.size else 0)]  # the harmonics that matter, at least DC and 1
+
+    def apparent_impedance(self, spin: float, orbit: float, lms: str = "piezo") -> np.ndarray:
+        """The Z (2x2 complex) a perfect identification from the ``lms`` system's forces and the
+        probe-plane mean displacements would give: diag(H_fx, H_fy) Z diag(H_x, H_y)^-1, H the
+        channels' chain responses at |orbit| (the true Z seen through the calibration errors)."""
+        chains = channel_chains(self.cfg)
+        f = np.array([abs(float(orbit)) / TWO_PI])
+
+        def h(name: str) -> complex:
+            return complex(chains[name].response(f)[0])
+
+        hf = np.array([h(f"fx_{lms}"), h(f"fy_{lms}")])
+        hd = np.array([(h("x_a") + h("x_b")) / 2, (h("y_a") + h("y_b")) / 2])
+        return hf[:, None] * self.impedance(spin, orbit) / hd[None, :]
+
+    def true_phasors(self, spin: float, orbit: float) -> dict[str, complex]:
+        """Noise-free fundamental phasor of every channel (engineering units),
+        trigger phase and chain included: what an ideal reader gets, q = Re(q_bar e^{i theta})."""
+        return {ch.name: complex(self.channel_harmonics(k, spin, orbit)[1])
+                for k, ch in enumerate(self.channels)}
 
     # ---------------------------------------------------------------- signals
     def _white_std(self, ch: _Channel) -> float:
@@ -178,57 +231,21 @@ class RigPhysics:
 
         theta: orbit angle after the trigger (rad, time order); t: simulated
         time (s); spin_angle: journal spin angle (rad); orbit_inst: orbit drive
-        speed at each sample (rad/s, signed, before ripple); spin, orbit: the
-        operating point for the coefficients (rad/s). Disturbances are added
-        when the configuration enables them.
+        speed at each sample (rad/s, signed; unused: the film is solved at the
+        operating point); spin, orbit: the operating point (rad/s).
+        Disturbances are added when the configuration enables them.
         """
-        ch = self.channels[k]
-        cfg, nz = self.cfg, self.cfg.noise
-        s = -1.0 if orbit < 0 else 1.0
-        noisy = nz.enabled
-        if noisy and nz.encoder_jitter:
-            theta = theta + self.rng.normal(0.0, nz.encoder_jitter, theta.shape)
-        a, b = self._orbit_axes()
-        q = self._static()
-        if ch.kind == "force":
-            gain, lag = self._lms(ch.lms)
-            psi = s * (theta - lag + cfg.adc.trigger_phase)
-            c, sn = np.cos(psi), np.sin(psi)
-            w = orbit_inst * self.ripple(t) if noisy else orbit_inst
-            K, C, D = self.coefficients(spin, orbit)
-            i = ch.axis
-            dx, dy = a * c, b * sn
-            kn = cfg.bearing.nonlinear * cfg.bearing.K0[0][0] / cfg.geometry.clearance
-            nl = kn * (dx * dx - dy * dy) if i == 0 else kn * 2.0 * dx * dy
-            val = -(K[i, 0] * dx + K[i, 1] * dy
-                    + w * (C[i, 1] * b * c - C[i, 0] * a * sn)
-                    - w * w * (D[i, 0] * dx + D[i, 1] * dy)) - nl - (K[i] @ q)
-            val = gain * val
-            if noisy:
-                for o, ph in zip(nz.bearing_orders, self._bearing_phase[k]):
-                    val = val + nz.bearing_force * np.sin(o * spin_angle + ph)
-                val = val + nz.line_force * np.sin(TWO_PI * nz.line_frequency * t + self._line_phase[k])
-        else:
-            g = cfg.geometry
-            psi = s * (theta + cfg.adc.trigger_phase)
-            c, sn = np.cos(psi), np.sin(psi)
-            tR = ch.plane * g.probe_tilt * self.manual.orbit_radius
-            ct, st = math.cos(g.probe_tilt_phase), math.sin(g.probe_tilt_phase)
-            X = q[0] + a * c + tR * (c * ct - sn * st)
-            Y = q[1] + b * sn + tR * (sn * ct + c * st)
-            half = ch.plane * g.probe_misalignment / 2
-            ca, sa = math.cos(half), math.sin(half)
-            val = ca * X + sa * Y if ch.axis == 0 else -sa * X + ca * Y
-            if noisy:
-                plane = 0 if ch.plane > 0 else 1
-                shift = 0.0 if ch.axis == 0 else -math.pi / 2  # y probe sits 90 deg on
-                for h, (amp, ph) in enumerate(zip(nz.runout, self._runout_phase[plane]), start=1):
-                    val = val + amp * np.cos(h * (spin_angle + shift) + ph)
-                for o, ph in zip(nz.bearing_orders, self._bearing_phase[k]):
-                    val = val + nz.bearing_probe * np.sin(o * spin_angle + ph)
-                val = val + nz.line_probe * np.sin(TWO_PI * nz.line_frequency * t + self._line_phase[k])
-        if noisy and self._white[k]:
-            val = val + self.rng.normal(0.0, self._white[k], np.shape(val))
+        nz = self.cfg.noise
+        if nz.enabled and nz.encoder_jitter:
+            theta = theta + self.rng.normal(0.0, nz.encoder_jitter, np.shape(theta))
+        q = self.channel_harmonics(k, spin, orbit)
+        e = np.exp(1j * np.asarray(theta, dtype=float))
+        acc = np.full(np.shape(e), q[-1], dtype=complex)
+        for qh in q[-2:0:-1]:  # Horner in e^{i theta} down to the fundamental
+            acc = acc * e + qh
+        val = q[0].real + np.real(acc * e)
+        if nz.enabled:
+            val = self.disturbances.add(k, val, t, spin_angle)
         return np.asarray(val, dtype=float)
 
     # ---------------------------------------------------------------- supply
@@ -236,16 +253,12 @@ class RigPhysics:
         """Lubricant and supply conditions at the operating point (SI):
         t_recess, t_groove, t_supply (K), flow (m^3/s), p_supply (Pa),
         p_recess (4,) (Pa), beta, pump_off."""
-        sup, g, m = self.cfg.supply, self.cfg.geometry, self.manual
-        p_r, beta = m.recess_pressure, m.pressure_ratio
-        p_s = p_r / beta
-        pocket = np.radians([0.0, 90.0, 180.0, 270.0])
-        # the pocket the journal moves towards sees a smaller gap, so a higher pressure
-        dp = 2.0 * (1.0 - beta) * m.static_eccentricity * np.cos(pocket - g.static_angle)
-        p_rec = np.clip(p_r * (1.0 + dp), 0.0, p_s)
-        area = math.pi * sup.orifice_diameter**2 / 4
-        flow = float(np.sum(sup.discharge_coefficient * area
-                            * np.sqrt(2.0 * np.maximum(p_s - p_rec, 0.0) / sup.density)))
+        sup = self.cfg.supply
+        p_s = self.supply.supply_pressure
+        X0, Y0 = self._static()
+        # the recess the journal sits towards sees a smaller gap, so a higher pressure
+        p_rec = self.bearing.equilibrium(X0, Y0, abs(spin), self.supply)
+        flow = float(np.sum(self.bearing.flow(X0, Y0, abs(spin), self.supply)))
         rise = sup.heating * spin * spin
         if flow > 0:
             rise *= min(1.0, 1e-4 / flow)  # more flow carries more heat away
@@ -257,5 +270,5 @@ class RigPhysics:
             "p_supply": p_s,
             "p_recess": p_rec,
             "beta": float(np.mean(p_rec) / p_s) if p_s > 0 else 0.0,
-            "pump_off": p_r <= 0.0,
+            "pump_off": self.manual.recess_pressure <= 0.0,
         }

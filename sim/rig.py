@@ -3,7 +3,7 @@
     async with SimRig(speedup=10) as rig:
         rig.local_control(spin=200.0, orbit=-60.0)      # rad/s, orbit signed
         ... read rig.adc_url / rig.adc_pty_path, talk Modbus to rig.modbus_url ...
-        rig.truth(200.0, -60.0)["K"]
+        rig.true_impedance(200.0, -60.0)      # 2x2 complex, the truth per frequency
 
 The orbit spindle angle is integrated from the orbit drive's actual speed; every
 slot edge it passes is converted (sequential: channel s mod C; simultaneous:
@@ -25,8 +25,10 @@ import numpy as np
 from sim.adc_board import SLOTS, AdcBoard
 from sim.adc_server import AdcServer
 from sim.can_node import CanNode
+from sim.chain import calibration_errors
 from sim.clock import SimClock
 from sim.config import SimConfig
+from sim.fits import constant_fit, power_fit
 from sim.physics import RigPhysics
 
 log = logging.getLogger(__name__)
@@ -182,13 +184,42 @@ class SimRig:
         self.physics.set_manual(orbit_radius=orbit_radius, static_eccentricity=static_eccentricity,
                                 recess_pressure=recess_pressure, pressure_ratio=pressure_ratio)
 
+    def true_impedance(self, spin: float, orbit: float) -> np.ndarray:
+        """True Z (2x2 complex) of the linearised bearing at spin and orbit (rad/s, orbit
+        signed; Z depends on |orbit| only): f_bar = -Z d_bar, Z = K + i|Omega| C - Omega^2 D."""
+        return self.physics.impedance(spin, orbit)
+
+    def true_impedances(self, spin: float, orbits) -> np.ndarray:
+        """True Z (n, 2, 2) complex at each orbit speed (rad/s)."""
+        return self.physics.impedances(spin, orbits)
+
+    def apparent_impedance(self, spin: float, orbit: float, lms: str = "piezo") -> np.ndarray:
+        """True Z seen through the calibration errors of ``lms`` and the probes (RigPhysics)."""
+        return self.physics.apparent_impedance(spin, orbit, lms)
+
+    def reference_orbits(self, spin: float) -> np.ndarray:
+        """The reference band of truth(): bearing.reference_ratios x spin (rad/s)."""
+        return np.asarray(self.config.bearing.reference_ratios) * abs(float(spin))
+
+    def reference_fits(self, spin: float, orbits=None, exponents=(1, 1, 1)) -> dict:
+        """Best fits of the true Z over ``orbits`` (rad/s; default the reference band):
+        {"constant": {"K","C","D"}, "power": {"K0","Km","C0","Cn","D0","Dp","exponents"}}."""
+        w = self.reference_orbits(spin) if orbits is None else np.abs(np.asarray(orbits, dtype=float))
+        Z = self.true_impedances(spin, w)
+        return {"constant": constant_fit(w, Z), "power": power_fit(w, Z, exponents)}
+
     def truth(self, spin: float, orbit: float) -> dict:
-        """Exact {"K", "C", "D"} (2x2, SI) at spin and orbit (rad/s, orbit signed)."""
-        K, C, D = self.physics.coefficients(spin, orbit)
-        return {"K": K, "C": C, "D": D}
+        """{"K", "C", "D"} (2x2, SI): constant best fit of the true Z over the reference band
+        at this spin (``orbit`` does not change it). The exact truth: true_impedance."""
+        w = self.reference_orbits(spin)
+        return constant_fit(w, self.true_impedances(spin, w))
+
+    def calibration_errors(self) -> dict:
+        """The calibration errors the scenario injects (see sim.chain.calibration_errors)."""
+        return calibration_errors(self.config)
 
     def true_phasors(self, spin: float, orbit: float) -> dict[str, complex]:
-        """Noise-free fundamental phasor per channel name (engineering units, trigger phase in)."""
+        """Noise-free fundamental phasor per channel name (engineering units, chain in)."""
         return self.physics.true_phasors(spin, orbit)
 
     def aux_state(self) -> dict:

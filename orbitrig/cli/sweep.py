@@ -32,6 +32,10 @@ def register(app: typer.Typer) -> None:
         speedup: float = typer.Option(
             DEFAULT_SIM_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"
         ),
+        sim_config: Optional[Path] = typer.Option(
+            None, "--sim-config", help="simulator scenario TOML (--sim only; default config/sim.toml, the paper's rig; "
+            "also config/sim/clean.toml, config/sim/compressible.toml)"
+        ),
     ) -> None:
         """Run a test matrix: manual settings, speeds, settle, acquire, identify, store.
 
@@ -46,6 +50,8 @@ def register(app: typer.Typer) -> None:
         if run_dir is not None and out is not None and run_dir != out:
             raise typer.BadParameter(f"two run directories: {run_dir} and --out {out}", param_hint="DIR")
         out = out or run_dir
+        if sim_config is not None and not sim:
+            raise typer.BadParameter("--sim-config needs --sim", param_hint="--sim-config")
         try:
             rig, mat = _load(config, matrix, sim=sim, resume=resume, out=out, dry_run=dry_run)
             if dry_run:
@@ -61,7 +67,8 @@ def register(app: typer.Typer) -> None:
                 _check_out(out)
             import asyncio
 
-            outcome = asyncio.run(_sweep(rig, mat, out=out, sim=sim, resume=resume, speedup=speedup))
+            sim_cfg = _sim_config(sim_config) if sim else None
+            outcome = asyncio.run(_sweep(rig, mat, out=out, sim=sim_cfg, resume=resume, speedup=speedup))
         except ConfigError as err:
             typer.echo(f"error: {err}", err=True)
             raise typer.Exit(2) from None
@@ -72,6 +79,18 @@ def register(app: typer.Typer) -> None:
             typer.echo(f"error: {err.filename or out}: {err.strerror or err}", err=True)
             raise typer.Exit(1) from None
         raise typer.Exit(EXIT[outcome.status])
+
+
+def _sim_config(path):
+    """The simulator scenario (SimConfig) of --sim-config, or the default rig."""
+    from sim.config import SimConfig, load_sim_config
+
+    if path is None:
+        return SimConfig()
+    try:
+        return load_sim_config(path)
+    except ValueError as err:
+        raise typer.BadParameter(str(err), param_hint="--sim-config") from None
 
 
 def _load(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
@@ -137,7 +156,8 @@ def _check_rig_answers(rig) -> None:
         raise typer.Exit(2)
 
 
-async def _sweep(rig, mat, *, out: Path, sim: bool, resume: bool, speedup: float):
+async def _sweep(rig, mat, *, out: Path, sim, resume: bool, speedup: float):
+    """Run the matrix; ``sim`` the simulator's SimConfig (None: the real rig)."""
     import contextlib
 
     from rich.console import Console
@@ -148,11 +168,11 @@ async def _sweep(rig, mat, *, out: Path, sim: bool, resume: bool, speedup: float
     console = Console(stderr=True)
     async with contextlib.AsyncExitStack() as stack:
         sim_rig = None
-        if sim:
+        if sim is not None:
             from sim.rig import SimRig
 
-            sim_rig = await stack.enter_async_context(SimRig(speedup=speedup, adc_pty=False))
-        engine = RunEngine(rig, out_dir=out, sim=sim_rig, confirm_mode="auto" if sim else "prompt")
+            sim_rig = await stack.enter_async_context(SimRig(sim, speedup=speedup, adc_pty=False))
+        engine = RunEngine(rig, out_dir=out, sim=sim_rig, confirm_mode="auto" if sim_rig is not None else "prompt")
         operator = _Operator(engine, console)
         engine.subscribe(operator.on_event)
         with SweepProgress(console, revolutions=mat.revolutions or rig.averaging.revolutions) as bars:

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from sim.config import scenario
 from sim.rig import SimRig
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -30,7 +31,7 @@ async def orbitrig(*args: str) -> tuple[int, str, str]:
 
 @pytest.fixture
 async def rig():
-    async with SimRig(speedup=20.0, can_channel=None) as r:
+    async with SimRig(scenario("clean"), speedup=20.0, can_channel=None) as r:  # phasors to 1 %
         r.local_control(spin=150.0, orbit=ORBIT)
         await asyncio.sleep(0.05)
         yield r

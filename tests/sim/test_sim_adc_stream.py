@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from sim.config import AdcConfig, GeometryConfig, NoiseConfig, SimConfig
+from sim.config import AdcConfig, GeometryConfig, NoiseConfig, SimConfig, load_sim_config
 from sim.rig import SimRig
 from sim_reader import channel_samples, fundamental, parse, read_pty, read_tcp, revolutions
 
@@ -19,11 +19,12 @@ ORBIT_HZ = 20.0
 
 
 def ideal_config(mode="sequential", **noise) -> SimConfig:
-    """Noise-free, linear bearing, circular orbit, aligned probes (LMS errors kept)."""
-    cfg = SimConfig()
+    """Noise-free, linearised bearing, ideal chain, circular orbit, aligned probes,
+    a static offset (LMS errors kept)."""
+    cfg = load_sim_config("config/sim/clean.toml")
     cfg.noise = NoiseConfig(enabled=False) if not noise else NoiseConfig(**noise)
-    cfg.geometry = dataclasses.replace(GeometryConfig(), ellipticity=0.0, probe_tilt=0.0, probe_misalignment=0.0)
-    cfg.bearing.nonlinear = 0.0
+    cfg.geometry = dataclasses.replace(GeometryConfig(), ellipticity=0.0, probe_tilt=0.0, probe_misalignment=0.0,
+                                       static_eccentricity=0.2)
     cfg.adc = dataclasses.replace(AdcConfig(), mode=mode)
     return cfg
 
@@ -31,21 +32,20 @@ def ideal_config(mode="sequential", **noise) -> SimConfig:
 def expected_signals(rig: SimRig, spin: float, orbit: float):
     """(dc, phasor) per channel from the conventions alone:
     x_bar = R e^{i phi0}, y_bar = -/+ i R e^{i phi0}, f_bar = -Z d_bar,
-    strain gauge = 1.02 e^{-i 0.3 deg} x force."""
+    strain gauge = 1.018 e^{-i 0.3 deg} x force, f0 the film's static force."""
     cfg = rig.config
     R = cfg.geometry.orbit_ratio * cfg.geometry.clearance
     E = np.exp(1j * cfg.adc.trigger_phase)
     s = 1 if orbit > 0 else -1
     d = np.array([R * E, -1j * s * R * E])
-    t = rig.truth(spin, orbit)
-    w = abs(orbit)
-    Z = t["K"] + 1j * w * t["C"] - w * w * t["D"]
-    f = -Z @ d
+    f = -rig.true_impedance(spin, orbit) @ d
     r = cfg.geometry.static_eccentricity * cfg.geometry.clearance
     q = np.array([r * math.cos(cfg.geometry.static_angle), r * math.sin(cfg.geometry.static_angle)])
-    f0 = -t["K"] @ q
-    g = 1.02 * np.exp(-1j * math.radians(0.3))
-    dc = [f0[0], f0[1], 1.02 * f0[0], 1.02 * f0[1], q[0], q[1], q[0], q[1]]
+    ph = rig.physics
+    f0 = ph.bearing.static_force(q[0], q[1], spin, ph.supply)
+    assert f0[1] > 3 * abs(f0[0])  # the film pushes the low journal back up (x: Couette cross-coupling)
+    g = 1.018 * np.exp(-1j * math.radians(0.3))
+    dc = [f0[0], f0[1], 1.018 * f0[0], 1.018 * f0[1], q[0], q[1], q[0], q[1]]
     ph = [f[0], f[1], g * f[0], g * f[1], d[0], d[1], d[0], d[1]]
     return np.array(dc), np.array(ph)
 

@@ -107,6 +107,8 @@ async def test_control_api():
                 np.testing.assert_allclose(tr[key], want[key])
             tp = await request(r, w, {"cmd": "true_phasors", "spin": 200.0, "orbit": -80.0})
             assert complex(*tp["phasors"]["y_a"]) == pytest.approx(rig.true_phasors(200.0, -80.0)["y_a"])
+            tz = await request(r, w, {"cmd": "true_impedance", "spin": 200.0, "orbit": -80.0})
+            np.testing.assert_allclose(np.array(tz["re"]) + 1j * np.array(tz["im"]), rig.true_impedance(200.0, -80.0))
             assert (await request(r, w, {"cmd": "local_control", "spin": 100.0, "orbit": 2 * math.pi * 5}))["ok"]
             await asyncio.sleep(0.05)
             st = await request(r, w, {"cmd": "state"})
