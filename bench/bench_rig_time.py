@@ -1,9 +1,9 @@
 """Rig time: the paper's fixed protocol against a designed frequency list with adaptive averaging.
 
 How (honestly): this drives reduction DIRECTLY on simulated revolutions - no engine, no
-transports, no drives. Revolutions come from the simulator's physics (sim.physics.RigPhysics,
-the default scenario, every disturbance on: white noise, runout, spindle-bearing orders,
-line frequency, encoder jitter, speed ripple), sampled like the A/D board's sequential scan,
+transports, no drives. Revolutions come from the simulator's physics (sim.physics.RigPhysics
+of the default scenario "paper", config/sim.toml: hydrostatic bearing, measurement chain and
+every disturbance on) through sim.revolutions.simulate_revolutions (the A/D board's scan),
 quantised with the rig's gains and averaged by daq's StreamingAverager (the sweep's averager)
 under daq.averager.AveragingRule; each block's per-revolution phasors give the table's u_*,
 and reduction.identify (weighted least squares) identifies the model.
@@ -16,7 +16,7 @@ rate) - the `orbitrig design` model; manual settings and the spin ramp are commo
 Protocols:
   paper    : ratios 0.2 .. 1.2 (10), both directions, AveragingRule.fixed(50)
   designed : a pilot run of the paper's protocol (not counted) gives the per-revolution noise
-             and the prior coefficients (what `design --noise-from RUN` does); then
+             at each ratio and the prior coefficients (what `design --noise-from RUN` does); then
              reduction.frequency_list.propose asks for every coefficient's predicted standard
              error at most the paper list's (scales = those errors, target 1) in the least rig
              time; its blocks average adaptively: AveragingRule.adaptive(target, 10, 3 n*)
@@ -30,6 +30,7 @@ Run: python3 bench/bench_rig_time.py [runs]   (default 40 runs per protocol and 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 import time
@@ -49,35 +50,19 @@ from reduction.identify import identify  # noqa: E402
 from reduction.models import model_spec  # noqa: E402
 from reduction.noise import phasor_uncertainty  # noqa: E402
 from reduction.table import OrbitTable  # noqa: E402
-from sim.config import SimConfig  # noqa: E402
+from sim.config import scenario  # noqa: E402
+from sim.fits import constant_fit  # noqa: E402
 from sim.physics import RigPhysics  # noqa: E402
+from sim.revolutions import simulate_revolutions  # noqa: E402
 
 SPIN = 1000 * RPM
 PAPER = [round(0.2 + k / 9, 6) for k in range(10)]
 MODELS = ("kcd11", "kc8")
-SLOT = 2 * math.pi / 360
 
 
-def revolutions(physics: RigPhysics, orbit: float, n: int, t0: float):
-    """(slots (C, S), values (n, C, S)): n revolutions of the sequential scan at steady speed."""
-    try:  # the simulator's own helper, where it has one
-        from sim.revolutions import simulate_revolutions
-    except ImportError:
-        simulate_revolutions = None
-    if simulate_revolutions is not None:
-        return simulate_revolutions(physics, SPIN, orbit, n, t0=t0)
-    C = len(physics.channels)
-    slots = np.arange(360).reshape(-1, C).T
-    g = np.arange(n * 360)
-    t_nom = t0 + g * SLOT / abs(orbit)
-    t = (t0 + np.cumsum(np.r_[0.0, np.diff(t_nom) / physics.ripple(t_nom[:-1])])).reshape(n, 360)
-    values = np.empty((n, C, slots.shape[1]))
-    inst = np.full(n * slots.shape[1], float(orbit))
-    for k in range(C):
-        tk = t[:, slots[k]].ravel()
-        values[:, k, :] = physics.channel_values(k, np.tile(slots[k] * SLOT, n), tk, SPIN * tk,
-                                                 inst, SPIN, orbit).reshape(n, -1)
-    return slots, values
+def new_physics(seed: int) -> RigPhysics:
+    """The simulator's default scenario (config/sim.toml: the paper's rig) with a noise seed."""
+    return RigPhysics(dataclasses.replace(scenario("paper"), seed=seed))
 
 
 def run_point(physics, rig, ratios, rule: AveragingRule):
@@ -88,7 +73,7 @@ def run_point(physics, rig, ratios, rule: AveragingRule):
         for r in (sorted(ratios, reverse=True) if direction > 0 else sorted(ratios)):
             orbit = direction * r * SPIN
             period = 2 * math.pi / abs(orbit)
-            slots, values = revolutions(physics, orbit, rule.max_revolutions, t)
+            slots, values = simulate_revolutions(physics, SPIN, orbit, rule.max_revolutions, t0=t)
             counts = np.clip(np.round(values / gains[:, None]), -32768, 32767).astype(np.int16)
             n = counts.shape[0]
             revs = np.arange(n, dtype=np.int64)
@@ -110,29 +95,37 @@ def run_point(physics, rig, ratios, rule: AveragingRule):
 
 
 def truth(physics, spec) -> np.ndarray:
-    K, C, D = physics.coefficients(SPIN, SPIN)
-    mats = {"K": K, "C": C, "D": D}
+    """The simulator's truth: the constant K, C, D best fitting the true Z over the reference
+    band (Table 1 ratios) at this spin, in the spec's column order (higher orders 0)."""
+    w = np.asarray(physics.cfg.bearing.reference_ratios) * SPIN
+    mats = constant_fit(w, physics.impedances(SPIN, w))
     return np.array([mats[t.matrix][t.entries[0]] if t.order == 0 else 0.0 for t in spec.terms])
 
 
 def pilot(rig, spec):
     """Noise (4,) per revolution, prior theta and the channels' per-revolution relative noise."""
-    physics = RigPhysics(SimConfig(seed=10_000))
+    physics = new_physics(10_000)
     table, blocks, _ = run_point(physics, rig, PAPER, AveragingRule.fixed(50))
-    u_rev = np.median(table.u * np.sqrt(table.n_records)[:, None], axis=0)
-    rel_rev = np.array([b.relative_uncertainty * math.sqrt(b.n_records) for b in blocks])  # (blocks, C)
+    per_row = table.u * np.sqrt(table.n_records)[:, None]
+    ratios = np.round(np.asarray(table.orbit) / SPIN, 6)
+    noise_ratios = np.unique(ratios)
+    u_rev = np.array([np.median(per_row[ratios == r], axis=0) for r in noise_ratios])
+    worst = np.array([np.max(b.relative_uncertainty) * math.sqrt(b.n_records) for b in blocks])
+    rel_rev = (noise_ratios, np.array([np.median(worst[ratios == r]) for r in noise_ratios]))
     theta = identify(table, spec.model, method="wls").theta
-    return u_rev, theta, rel_rev
+    radius = float(np.mean(np.sqrt((np.abs(table.x) ** 2 + np.abs(table.y) ** 2) / 2)))
+    return (u_rev, noise_ratios, radius), theta, rel_rev
 
 
-def design(rig, spec, u_rev, theta, rel_rev):
-    radius = rig.bearing.clearance * 0.1
-    paper = predict(DesignProblem(spec, theta, SPIN, radius, u_rev, 50), PAPER)
-    problem = DesignProblem(spec, theta, SPIN, radius, u_rev, 50, scales=paper.std_errors)
-    grid = allowed_ratios(rig.drives.min_ratio or 0.05, min(rig.drives.max_ratio, rig.drives.max_orbit_rpm / 1000))
+def design(rig, spec, noise, theta, rel_rev):
+    u_rev, noise_ratios, radius = noise
+    paper = predict(DesignProblem(spec, theta, SPIN, radius, u_rev, 50, noise_ratios=noise_ratios), PAPER)
+    problem = DesignProblem(spec, theta, SPIN, radius, u_rev, 50, scales=paper.std_errors, noise_ratios=noise_ratios)
+    grid = allowed_ratios(min(PAPER), max(PAPER))  # the paper's band: the truth is a fit over it
     prop = propose(problem, grid, target=1.0, block_overhead=rig.settle.hold_s + rig.estimates.store_s)
     n_star = revolutions_for(prop.best, 50, 1.0)
-    worst_channel = float(np.median(np.max(rel_rev, axis=1)))  # per-revolution relative noise
+    # the worst channel's per-revolution relative noise at the designed ratios (pilot, interpolated)
+    worst_channel = float(np.median(np.interp(prop.best.ratios, *rel_rev)))
     target = worst_channel / math.sqrt(n_star)
     return prop.best.ratios, n_star, AveragingRule.adaptive(target, 10, max(3 * n_star, 20)), paper
 
@@ -140,40 +133,49 @@ def design(rig, spec, u_rev, theta, rel_rev):
 def achieved(rig, spec, ratios, rule, runs: int):
     est, times, used = [], [], []
     for seed in range(runs):
-        physics = RigPhysics(SimConfig(seed=seed + 1))
+        physics = new_physics(seed + 1)
         table, blocks, t = run_point(physics, rig, ratios, rule)
         est.append(identify(table, spec.model, method="wls").theta)
         times.append(t)
         used += [b.n_records for b in blocks]
-    true = truth(RigPhysics(SimConfig(seed=1)), spec)
+    true = truth(new_physics(1), spec)
     est = np.array(est)
     return est.std(axis=0, ddof=1), np.sqrt(np.mean((est - true) ** 2, axis=0)), float(np.mean(times)), used
+
+
+def compare(rig, model: str, runs: int) -> None:
+    """One model: pilot, design, then the paper's protocol, the designed list with adaptive
+    averaging and the designed list with a fixed n* revolutions; one line per coefficient."""
+    t0 = time.perf_counter()
+    spec = model_spec(model)
+    noise, theta, rel_rev = pilot(rig, spec)
+    ratios, n_star, rule, paper_pred = design(rig, spec, noise, theta, rel_rev)
+    sd_p, rms_p, t_p, _ = achieved(rig, spec, PAPER, AveragingRule.fixed(50), runs)
+    sd_a, rms_a, t_a, used = achieved(rig, spec, ratios, rule, runs)
+    sd_f, rms_f, t_f, _ = achieved(rig, spec, ratios, AveragingRule.fixed(n_star), runs)
+    print(f"\n{model}: pilot orbit radius {noise[2] * 1e6:.3g} um; designed ratios "
+          f"{', '.join(f'{r:g}' for r in ratios)} x both, n* = {n_star}; adaptive: target "
+          f"{rule.target * 100:.3g} % per channel, revolutions {rule.min_revolutions}..{rule.max_revolutions} "
+          f"(used {min(used)}..{max(used)}, mean {np.mean(used):.1f})")
+    print(f"  rig time: paper {t_p:.1f} s; designed+adaptive {t_a:.1f} s (ratio {t_a / t_p:.3f}); "
+          f"designed fixed n* {t_f:.1f} s (ratio {t_f / t_p:.3f})")
+    print(f"  {'coef':6} {'paper SD':>10} {'predicted':>10} {'SD adapt':>9} {'SD fixed':>9} "
+          f"{'paper RMS':>10} {'RMS adapt':>10} {'RMS fixed':>10}   (SD, RMS of designed: ratio to paper)")
+    for k, name in enumerate(spec.names):
+        print(f"  {name:6} {sd_p[k]:10.4g} {paper_pred.std_errors[k]:10.4g} {sd_a[k] / sd_p[k]:9.3f} "
+              f"{sd_f[k] / sd_p[k]:9.3f} {rms_p[k]:10.4g} {rms_a[k] / rms_p[k]:10.3f} {rms_f[k] / rms_p[k]:10.3f}")
+    print(f"  worst SD ratio: adaptive {np.max(sd_a / sd_p):.3f}, fixed {np.max(sd_f / sd_p):.3f}; worst RMS "
+          f"ratio: adaptive {np.max(rms_a / rms_p):.3f}, fixed {np.max(rms_f / rms_p):.3f}; RIG TIME RATIO "
+          f"adaptive {t_a / t_p:.3f}, fixed {t_f / t_p:.3f}  ({time.perf_counter() - t0:.1f} s wall)")
 
 
 def main() -> None:
     runs = int(sys.argv[1]) if len(sys.argv) > 1 else 40
     rig = load_rig(ROOT / "config" / "rig.toml")
-    print(f"bench_rig_time: {runs} simulated runs per protocol, 1000 rpm, orbit radius 6 um, "
-          "default simulator scenario with all disturbances; reduction driven directly (no engine)")
+    print(f"bench_rig_time: {runs} simulated runs per protocol at 1000 rpm, the default simulator scenario "
+          "(all disturbances); reduction driven directly on simulated revolutions (no engine)")
     for model in MODELS:
-        t0 = time.perf_counter()
-        spec = model_spec(model)
-        u_rev, theta, rel_rev = pilot(rig, spec)
-        ratios, n_star, rule, paper_pred = design(rig, spec, u_rev, theta, rel_rev)
-        sd_p, rms_p, t_p, _ = achieved(rig, spec, PAPER, AveragingRule.fixed(50), runs)
-        sd_d, rms_d, t_d, used = achieved(rig, spec, ratios, rule, runs)
-        print(f"\n{model}: designed ratios {', '.join(f'{r:g}' for r in ratios)} x both; "
-              f"n* = {n_star}; adaptive target {rule.target * 100:.3g} % per channel, "
-              f"revolutions {rule.min_revolutions}..{rule.max_revolutions} (used {min(used)}..{max(used)}, "
-              f"mean {np.mean(used):.1f})")
-        print(f"  rig time: paper {t_p:.1f} s, designed {t_d:.1f} s, ratio {t_d / t_p:.3f}")
-        print(f"  {'coef':6} {'paper SD':>11} {'designed SD':>11} {'SD ratio':>8} {'paper RMS':>11} "
-              f"{'designed RMS':>12} {'RMS ratio':>9} {'predicted':>10}")
-        for k, name in enumerate(spec.names):
-            print(f"  {name:6} {sd_p[k]:11.4g} {sd_d[k]:11.4g} {sd_d[k] / sd_p[k]:8.3f} {rms_p[k]:11.4g} "
-                  f"{rms_d[k]:12.4g} {rms_d[k] / rms_p[k]:9.3f} {paper_pred.std_errors[k]:10.4g}")
-        print(f"  worst SD ratio {np.max(sd_d / sd_p):.3f}, worst RMS ratio {np.max(rms_d / rms_p):.3f}, "
-              f"rig time ratio {t_d / t_p:.3f}  ({time.perf_counter() - t0:.1f} s wall)")
+        compare(rig, model, runs)
 
 
 if __name__ == "__main__":

@@ -5,6 +5,8 @@ given whirl directions with circular orbits of one radius. Its predicted standar
 the square roots of the diagonal of :func:`reduction.design.predicted_covariance` for the
 stated noise: ``u_revolution`` (4,) is the standard uncertainty sqrt(E|err|^2) of ONE
 revolution's phasors x, y (m), fx, fy (N); a block averaging n revolutions has u / sqrt(n).
+Measured noise depends on the orbit frequency (runout and spindle-bearing tones leak into
+the fundamental differently at each ratio): give it as (m, 4) at ``noise_ratios`` (m,).
 
 Relative standard error of a coefficient: its standard error divided by the size of its
 matrix, ``coefficient_scales``: the RMS of the diagonal entries of that matrix's constant
@@ -50,6 +52,18 @@ class DesignProblem:
     revolutions: int = 50
     directions: str = "both"
     scales: np.ndarray | None = None  # (p,) what "relative" divides by; None: coefficient_scales
+    noise_ratios: np.ndarray | None = None  # (m,) ratios where u_revolution (m, 4) was measured
+
+    def noise_at(self, ratios) -> np.ndarray:
+        """(n, 4) per-revolution noise at ``ratios``: the stated (4,), or the measured
+        (m, 4) interpolated linearly in the ratio (held constant beyond the ends)."""
+        r = np.asarray(ratios, dtype=float)
+        u = np.asarray(self.u_revolution, dtype=float)
+        if self.noise_ratios is None:
+            return np.broadcast_to(u, (r.size, 4)).copy()
+        order = np.argsort(self.noise_ratios)
+        nr, u = np.asarray(self.noise_ratios, dtype=float)[order], u[order]
+        return np.stack([np.interp(r, nr, u[:, c]) for c in range(4)], axis=1)
 
 
 @dataclass(frozen=True)
@@ -94,7 +108,7 @@ def predict(problem: DesignProblem, ratios) -> ListPrediction:
     r = tuple(sorted(float(v) for v in ratios))
     hz = np.asarray(r) * problem.spin / (2 * np.pi)
     orbit, x, y = design_orbits(hz, problem.directions, problem.radius)
-    u = np.asarray(problem.u_revolution, dtype=float) / np.sqrt(problem.revolutions)
+    u = problem.noise_at(orbit / problem.spin) / np.sqrt(problem.revolutions)
     try:
         cov = predicted_covariance(problem.spec, orbit, x, y, u, theta=problem.theta)
     except ReductionError:
