@@ -21,8 +21,8 @@ import numpy as np
 
 from rigerrors import OrbitrigError
 
-DEFAULT_FORCE_NOISE = 0.5  # N per revolution, fx and fy (the simulator's default scenario: 0.33)
-DEFAULT_PROBE_NOISE = 300e-9  # m per revolution, x and y (there: 0.29 um, mostly runout)
+DEFAULT_FORCE_NOISE = 20.0  # N per revolution, fx and fy (the simulator's default scenario: 16 to 25 N)
+DEFAULT_PROBE_NOISE = 100e-9  # m per revolution, x and y (there: 20 to 160 nm, growing with the orbit ratio)
 NOMINAL = {"Kxx": 3.8e7, "Kxy": 6.0e6, "Kyx": -6.0e6, "Kyy": 4.0e7,
            "Cxx": 1.0e5, "Cxy": 2.0e3, "Cyx": 2.0e3, "Cyy": 1.1e5,
            "Dxx": 4.0, "Dxy": 0.05, "Dyx": 0.05, "Dyy": 4.2}  # fmt: skip  (SI; higher orders 0)
@@ -34,10 +34,14 @@ class DesignInputError(OrbitrigError):
 
 @dataclass(frozen=True)
 class Noise:
-    """Per-revolution standard uncertainty (4,) of x, y (m), fx, fy (N) and where it came from."""
+    """Per-revolution standard uncertainty of x, y (m), fx, fy (N): (4,) stated, or (m, 4)
+    measured at the orbit ratios ``ratios`` (m,); where it came from; the measured orbit
+    radius (m, None when stated)."""
 
     u_revolution: np.ndarray
     source: str
+    ratios: np.ndarray | None = None
+    radius: float | None = None
 
 
 def stated_noise(force: float = DEFAULT_FORCE_NOISE, probe: float = DEFAULT_PROBE_NOISE) -> Noise:
@@ -62,15 +66,19 @@ def _row_noise(table, probe: float) -> np.ndarray | None:
 
 def run_noise(run, lms: str, probe: float = DEFAULT_PROBE_NOISE) -> Noise:
     """Median per-revolution noise of the run's ``lms`` orbit tables (complete points)."""
-    rows = [r for p in run.complete_points() if lms in p.tables
-            for r in [_row_noise(p.tables[lms], probe)] if r is not None]
-    if not rows:
+    tables = [p.tables[lms] for p in run.complete_points if lms in p.tables]
+    found = [(t, r) for t in tables for r in [_row_noise(t, probe)] if r is not None]
+    if not found:
         raise DesignInputError(f"{run.directory}: no complete point with an orbit table of the "
                                f"{lms} system carrying uncertainties or coherences")
-    u = np.median(np.concatenate(rows, axis=0), axis=0)
-    how = "u_* columns" if any(lms in p.tables and p.tables[lms].u is not None
-                               for p in run.complete_points()) else "coherences"
-    return Noise(u, f"measured: run {run.directory} ({lms}, {how}, median of {sum(len(r) for r in rows)} rows)")
+    rows = np.concatenate([r for _, r in found], axis=0)
+    ratios = np.round(np.concatenate([np.abs(t.orbit) / t.spin for t, _ in found]), 3)
+    at = np.unique(ratios)
+    u = np.array([np.median(rows[ratios == r], axis=0) for r in at])
+    radius = float(np.median(np.concatenate([np.sqrt((np.abs(t.x) ** 2 + np.abs(t.y) ** 2) / 2) for t, _ in found])))
+    how = "u_* columns" if any(t.u is not None for t, _ in found) else "coherences"
+    return Noise(u, f"measured: run {run.directory} ({lms}, {how}; median per orbit ratio of {len(rows)} rows)",
+                 at, radius)
 
 
 def prior_theta(spec, run=None, spin: float | None = None, lms: str = "piezo") -> tuple[np.ndarray, str]:
@@ -78,7 +86,7 @@ def prior_theta(spec, run=None, spin: float | None = None, lms: str = "piezo") -
     and frequency dependence at the point nearest ``spin`` (rad/s), else ``NOMINAL``."""
     if run is not None and spin is not None:
         found = []
-        for p in run.complete_points():
+        for p in run.complete_points:
             ident = p.identification(lms, spec.model, spec.freq_dep.text)
             if ident is not None and ident.result is not None:
                 found.append((abs(p.settings.spin - spin), p.index, ident.result.get("coefficients", {})))

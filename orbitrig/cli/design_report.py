@@ -10,6 +10,7 @@ are the same for every list and left out.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -54,6 +55,16 @@ def _list_object(rig, problem, pred, revolutions: int, directions: str) -> dict:
     }
 
 
+def _noise_object(noise) -> dict:
+    """{"u_revolution": {x, y, fx, fy}, "source"}; measured noise: one value per ratio ("ratios")."""
+    u = np.asarray(noise.u_revolution, dtype=float)
+    cols = ("x", "y", "fx", "fy")
+    if noise.ratios is None:
+        return {"u_revolution": dict(zip(cols, map(float, u))), "source": noise.source}
+    return {"u_revolution": {c: [float(v) for v in u[:, k]] for k, c in enumerate(cols)},
+            "ratios": [float(r) for r in noise.ratios], "source": noise.source}
+
+
 def _band(rig, spin_rpm: float, keep_away: float):
     from reduction.frequency_list import GRID_STEP, allowed_ratios
 
@@ -83,10 +94,10 @@ def design_object(rig, *, model, freq_dep, spin_rpm, candidate, source, directio
         raise DesignInputError(f"--spin must be > 0 rpm, got {spin_rpm:g}")
     spec = model_spec(model, freq_dep)
     spin = spin_rpm * RPM
-    radius = 0.1 * rig.bearing.clearance if radius is None else radius
+    radius = radius if radius is not None else noise.radius or 0.1 * rig.bearing.clearance
     n = revolutions or rig.averaging.revolutions
     theta, prior_source = prior_theta(spec, run, spin, lms)
-    problem = DesignProblem(spec, theta, spin, radius, noise.u_revolution, n, directions)
+    problem = DesignProblem(spec, theta, spin, radius, noise.u_revolution, n, directions, noise_ratios=noise.ratios)
     grid, lo, hi = _band(rig, spin_rpm, keep_away)
     cand = predict(problem, candidate)
     overhead = rig.settle.hold_s + rig.estimates.store_s
@@ -97,8 +108,7 @@ def design_object(rig, *, model, freq_dep, spin_rpm, candidate, source, directio
         "model": model, "freq_dep": spec.freq_dep.text, "coefficients": spec.names,
         "units": {name: _unit(name) for name in spec.names},
         "spin_rpm": spin_rpm, "orbit_radius_m": radius, "directions": directions,
-        "noise": {"u_revolution": dict(zip(("x", "y", "fx", "fy"), map(float, noise.u_revolution))),
-                  "source": noise.source},
+        "noise": _noise_object(noise),
         "prior": {"coefficients": dict(zip(spec.names, map(float, theta))), "source": prior_source},
         "allowed": {"ratio_min": lo, "ratio_max": hi, "keep_away_from_1": keep_away, "grid": list(map(float, grid))},
         "target_pct": target,
@@ -109,7 +119,7 @@ def design_object(rig, *, model, freq_dep, spin_rpm, candidate, source, directio
     if goal:
         out["proposal"]["reaches_target"] = n_prop is not None
         if n_prop is not None:  # the predicted errors at the revolutions that reach the target
-            scaled = DesignProblem(spec, theta, spin, radius, noise.u_revolution, n_prop, directions)
+            scaled = replace(problem, revolutions=n_prop)
             out["proposal"] = dict(_list_object(rig, scaled, predict(scaled, prop.best.ratios), n_prop, directions),
                                    reaches_target=True)
     return out

@@ -42,7 +42,7 @@ def test_json_keys_and_numbers():
     assert p["worst_relative_pct"] < c["worst_relative_pct"]
     assert all(0.1 <= r <= 1.5 and abs(r - 1) >= 0.1 - 1e-9 for r in p["ratios"])
     assert any("0.977778" in w for w in c["warnings"])  # the paper's list has a ratio next to 1
-    assert obj["noise"]["u_revolution"] == {"x": 3e-7, "y": 3e-7, "fx": 0.5, "fy": 0.5}
+    assert obj["noise"]["u_revolution"] == {"x": 1e-7, "y": 1e-7, "fx": 20.0, "fy": 20.0}
 
 
 def test_target_is_reached_in_less_rig_time():
@@ -82,3 +82,22 @@ def test_text_output_and_saved_design(tmp_path):
 def test_operator_mistakes_exit_2(args, message):
     p = design(*args, check=False)
     assert p.returncode == 2 and message in p.stderr and "Traceback" not in p.stderr and p.stdout == ""
+
+
+def test_noise_and_prior_from_a_simulated_run(tmp_path):
+    matrix = tmp_path / "small.toml"
+    matrix.write_text((ROOT / "config" / "matrices" / "demo.toml").read_text()
+                      .replace('name = "demo"', 'name = "small"\nrevolutions = 10'))
+    run = tmp_path / "run"
+    p = subprocess.run([sys.executable, "-m", "orbitrig", "sweep", "--sim", "--matrix", str(matrix), "--out", str(run),
+                        "--speedup", "40"], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    obj = json.loads(design("--model", "kcd11", "--spin", "1000", "--noise-from", str(run), "--json").stdout)
+    noise = obj["noise"]
+    assert noise["ratios"] == [0.3, 0.5, 0.7, 0.9, 1.2] and "measured: run" in noise["source"]
+    assert all(5.0 < u < 60.0 for u in noise["u_revolution"]["fx"])  # the simulator's force noise per revolution
+    assert obj["prior"]["source"].startswith("identified: run")
+    assert obj["prior"]["coefficients"]["Kxx"] > 1e7
+    assert 1e-6 < obj["orbit_radius_m"] < 1e-5  # the run's measured orbit (demo: eps_d 0.096)
+    p = design("--model", "kcd11", "--spin", "1000", "--noise-from", str(tmp_path), check=False)
+    assert p.returncode == 2 and "Traceback" not in p.stderr
