@@ -109,6 +109,8 @@ def predict(problem: DesignProblem, ratios) -> ListPrediction:
     hz = np.asarray(r) * problem.spin / (2 * np.pi)
     orbit, x, y = design_orbits(hz, problem.directions, problem.radius)
     u = problem.noise_at(orbit / problem.spin) / np.sqrt(problem.revolutions)
+    if 4 * orbit.size < problem.spec.n_coefficients:  # fewer equations than coefficients
+        return ListPrediction(r, None, None, float("inf"))
     try:
         cov = predicted_covariance(problem.spec, orbit, x, y, u, theta=problem.theta)
     except ReductionError:
