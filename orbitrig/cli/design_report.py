@@ -173,7 +173,9 @@ def save_design(obj: dict, name: str, folder: Path | None = None) -> Path:
         raise DesignInputError(f"--save {name!r}: use letters, digits, - and _ only")
     folder = folder or designs_dir()
     p = obj["proposal"]
-    lines = [f"# orbitrig design --model {obj['model']} --freq-dep {obj['freq_dep']} --spin {obj['spin_rpm']:g}",
+    target = "" if obj["target_pct"] is None else f" --target {obj['target_pct']:g}"
+    lines = [f"# orbitrig design --model {obj['model']} --freq-dep {obj['freq_dep']} --spin {obj['spin_rpm']:g}{target}",
+             f"# candidate: {obj['candidate']['source']}; orbit radius {obj['orbit_radius_m'] * 1e6:.3g} um",
              f"# predicted worst relative standard error {p['worst_relative_pct']:.3g} % "
              f"at {p['revolutions']} revolutions per block; noise {obj['noise']['source']}",
              f'model = "{obj["model"]}"', f'freq_dep = "{obj["freq_dep"]}"',
