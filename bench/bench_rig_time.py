@@ -19,7 +19,7 @@ Protocols:
              at each ratio and the prior coefficients (what `design --noise-from RUN` does); then
              reduction.frequency_list.propose asks for every coefficient's predicted standard
              error at most the paper list's (scales = those errors, target 1) in the least rig
-             time; its blocks average adaptively: AveragingRule.adaptive(target, 10, 3 n*)
+             time; its blocks average adaptively: AveragingRule.adaptive(target, n*/2, 3 n*)
              with the channel target that n* revolutions reach on the pilot's noise.
 
 Achieved standard errors: the spread (and the RMS error against the simulator's true K, C,
@@ -127,7 +127,7 @@ def design(rig, spec, noise, theta, rel_rev):
     # the worst channel's per-revolution relative noise at the designed ratios (pilot, interpolated)
     worst_channel = float(np.median(np.interp(prop.best.ratios, *rel_rev)))
     target = worst_channel / math.sqrt(n_star)
-    return prop.best.ratios, n_star, AveragingRule.adaptive(target, 10, max(3 * n_star, 20)), paper
+    return prop.best.ratios, n_star, AveragingRule.adaptive(target, max(10, n_star // 2), max(3 * n_star, 20)), paper
 
 
 def achieved(rig, spec, ratios, rule, runs: int):
