@@ -126,9 +126,9 @@ async def main(trials: int, speedup: float) -> None:
                                     confirm="auto")
             handle = service.handle_command
 
-            def timed_handle(payload: bytes) -> None:
+            def timed_handle(payload: bytes, *, retained: bool = False) -> None:
                 arrivals.append(time.monotonic())
-                handle(payload)
+                handle(payload, retained=retained)
 
             service.handle_command = timed_handle
             shutdown = asyncio.Event()

@@ -17,6 +17,11 @@ from typing import Optional
 
 import typer
 
+from orbitrig.cli.drives_checks import (  # noqa: F401 - effective_limits is part of this command's API
+    check_seconds, effective_limits, open_config,
+)
+from orbitrig.cli.drives_hold import _drive_line, _hold, _state_lines
+
 _MODBUS_HELP = (
     "Modbus URL of the drives: tcp://host:port or rtu:///dev/ttyX?baud=19200 "
     "(default: transports.modbus_url of the rig configuration)"
@@ -32,7 +37,12 @@ def register(app: typer.Typer) -> None:
         help="Spindle drives over Modbus: status, run to a setpoint (and hold), stop.",
         no_args_is_help=True,
     )
+    for add in (_add_status, _add_run, _add_stop):
+        add(drives_app)
+    app.add_typer(drives_app, name="drives")
 
+
+def _add_status(drives_app: typer.Typer) -> None:
     @drives_app.command("status")
     def status(
         modbus: Optional[str] = typer.Option(None, "--modbus", help=_MODBUS_HELP),
@@ -45,12 +55,14 @@ def register(app: typer.Typer) -> None:
 
         Only reads: running drives keep running.
         """
-        opened = _open_config("status", config, modbus, spin_id, orbit_id, required=False)
+        opened = open_config("status", config, modbus, spin_id, orbit_id, required=False)
         if opened is None:
             raise typer.Exit(2)
         url, d = opened
         raise typer.Exit(_run_async(lambda intr: _status(url, json_out, d), "status"))
 
+
+def _add_run(drives_app: typer.Typer) -> None:
     @drives_app.command("run")
     def run(
         spin: float = typer.Option(..., "--spin", help="Spin speed omega, rpm (>= 0)."),
@@ -95,33 +107,48 @@ def register(app: typer.Typer) -> None:
         the command exits 2 with the reason. Without --hold the drives are left
         at their setpoint; with no client polling them, their comm-loss
         watchdog then ramps them down after COMM_LOSS_TIMEOUT. With --hold the
-        command keeps polling until Ctrl-C/SIGTERM, then ramps both to zero.
+        command keeps polling until Ctrl-C/SIGTERM, then ramps both to zero
+        (exit 0); if another client stops a drive or changes its reference
+        meanwhile, it says which, ramps both to zero and exits 2.
         """
-        opened = _open_config("run", config, modbus, spin_id, orbit_id, required=True)
-        if opened is None:
-            raise typer.Exit(2)
-        url, d = opened
-        try:
-            limits = effective_limits(
-                d, max_spin=max_spin, max_orbit=max_orbit, min_ratio=min_ratio,
-                max_ratio=max_ratio, file=_config_name(config),
-            )
-        except ValueError as err:
-            typer.echo(f"orbitrig drives run refused (limit): {err}; nothing sent", err=True)
-            raise typer.Exit(2) from None
-        if not status_every > 0:
-            typer.echo("orbitrig drives run: --status-every must be > 0 s", err=True)
-            raise typer.Exit(2)
-        from drives.drive import RPM
+        _run_command(spin=spin, orbit=orbit, modbus=modbus, config=config, max_spin=max_spin,
+                     max_orbit=max_orbit, min_ratio=min_ratio, max_ratio=max_ratio, settle=settle,
+                     timeout=timeout, hold=hold, status_every=status_every, spin_id=spin_id,
+                     orbit_id=orbit_id)
 
-        raise typer.Exit(
-            _run_async(
-                lambda intr: _run(url, d, limits, spin * RPM, orbit * RPM, settle, timeout,
-                                  hold, status_every, intr),
-                "run",
-            )
+
+def _run_command(*, spin: float, orbit: float, modbus: str | None, config: Path | None,
+                 max_spin: float | None, max_orbit: float | None, min_ratio: float | None,
+                 max_ratio: float | None, settle: float, timeout: float, hold: bool,
+                 status_every: float, spin_id: int | None, orbit_id: int | None) -> None:
+    """`drives run` after typer: checks (exit 2, nothing sent), then the run."""
+    if not check_seconds("run", settle=(settle, True), timeout=(timeout, False),
+                         status_every=(status_every, False)):
+        raise typer.Exit(2)
+    opened = open_config("run", config, modbus, spin_id, orbit_id, required=True)
+    if opened is None:
+        raise typer.Exit(2)
+    url, d = opened
+    try:
+        limits = effective_limits(
+            d, max_spin=max_spin, max_orbit=max_orbit, min_ratio=min_ratio,
+            max_ratio=max_ratio, file=_config_name(config),
         )
+    except ValueError as err:
+        typer.echo(f"orbitrig drives run refused (limit): {err}; nothing sent", err=True)
+        raise typer.Exit(2) from None
+    from drives.drive import RPM
 
+    raise typer.Exit(
+        _run_async(
+            lambda intr: _run(url, d, limits, spin * RPM, orbit * RPM, settle, timeout,
+                              hold, status_every, intr),
+            "run",
+        )
+    )
+
+
+def _add_stop(drives_app: typer.Typer) -> None:
     @drives_app.command("stop")
     def stop(
         modbus: Optional[str] = typer.Option(None, "--modbus", help=_MODBUS_HELP),
@@ -136,13 +163,13 @@ def register(app: typer.Typer) -> None:
         orbit_id: Optional[int] = typer.Option(None, help=_ORBIT_ID_HELP),
     ) -> None:
         """Stop both drives; returns once both read zero speed."""
-        opened = _open_config("stop", config, modbus, spin_id, orbit_id, required=False)
+        if not check_seconds("stop", timeout=(timeout, False)):
+            raise typer.Exit(2)
+        opened = open_config("stop", config, modbus, spin_id, orbit_id, required=False)
         if opened is None:
             raise typer.Exit(2)
         url, d = opened
         raise typer.Exit(_run_async(lambda intr: _stop(url, d, emergency, timeout), "stop"))
-
-    app.add_typer(drives_app, name="drives")
 
 
 def _config_name(config: Path | None) -> str:
@@ -151,77 +178,6 @@ def _config_name(config: Path | None) -> str:
     from orbitrig.config import default_rig_path
 
     return str(default_rig_path())
-
-
-def _open_config(command, config, modbus, spin_id, orbit_id, *, required: bool):
-    """(Modbus URL, the [drives] section with the ids from the options) or None
-    after printing why not. `status` and `stop` with an explicit --modbus go on
-    with the built-in [drives] defaults if the configuration cannot be read (a
-    stop must not depend on a configuration file); `run` never does."""
-    from orbitrig.config import Drives, load_rig
-    from orbitrig.errors import ConfigError
-
-    try:
-        rig = load_rig(config)
-        url, d = modbus or rig.transports.modbus_url, rig.drives
-    except ConfigError as err:
-        if required or modbus is None:
-            typer.echo(f"orbitrig drives {command} failed (config): {err}", err=True)
-            return None
-        typer.echo(
-            f"orbitrig drives {command}: configuration not used ({err}); "
-            "built-in [drives] defaults", err=True,
-        )
-        url, d = modbus, Drives()
-    ids = {}
-    if spin_id is not None:
-        ids["spin_id"] = spin_id
-    if orbit_id is not None:
-        ids["orbit_id"] = orbit_id
-    if ids:
-        d = d.model_copy(update=ids)
-        if d.spin_id == d.orbit_id:
-            typer.echo(f"orbitrig drives {command}: spin and orbit id are both {d.spin_id}",
-                       err=True)
-            return None
-    return url, d
-
-
-def effective_limits(d, *, max_spin=None, max_orbit=None, min_ratio=None, max_ratio=None,
-                     file: str = "the rig configuration"):
-    """DriveLimits (rad/s) of the rig's [drives] section `d`, tightened by the
-    command line's values (rpm, ratios). ValueError naming the option if one
-    is looser than the configuration (or contradicts another)."""
-    from drives.drive import RPM
-    from drives.rig import DriveLimits
-
-    problems = []
-
-    def tighter(option, value, key, configured, *, upper: bool, unit: str = ""):
-        if value is None:
-            return configured
-        if not (math.isfinite(value) and value >= 0):
-            problems.append(f"{option} {value:g}{unit} is not a finite value >= 0")
-            return configured
-        if configured is not None and (value > configured if upper else value < configured):
-            word = "above" if upper else "below"
-            problems.append(
-                f"{option} {value:g}{unit} is {word} the rig's drives.{key} = {configured:g}{unit} "
-                f"({file}): the command line may only tighten the rig's limits"
-            )
-            return configured
-        return value
-
-    spin = tighter("--max-spin", max_spin, "max_spin_rpm", d.max_spin_rpm, upper=True, unit=" rpm")
-    orbit = tighter("--max-orbit", max_orbit, "max_orbit_rpm", d.max_orbit_rpm, upper=True,
-                    unit=" rpm")
-    lo = tighter("--min-ratio", min_ratio, "min_ratio", d.min_ratio, upper=False)
-    hi = tighter("--max-ratio", max_ratio, "max_ratio", d.max_ratio, upper=True)
-    if not problems and lo is not None and hi is not None and lo > hi:
-        problems.append(f"min ratio {lo:g} > max ratio {hi:g} (options and {file} together)")
-    if problems:
-        raise ValueError("; ".join(problems))
-    return DriveLimits(max_spin=spin * RPM, max_orbit=orbit * RPM, min_ratio=lo, max_ratio=hi)
 
 
 def _rig_drives(url, d, limits=None):
@@ -346,34 +302,6 @@ def _report(command: str, err: BaseException, after: str = "") -> None:
     typer.echo(f"orbitrig drives {command} failed ({_reason(err)}): {err}{tail}", err=True)
 
 
-def _drive_line(d: dict) -> str:
-    flags = ", at setpoint" if d["at_setpoint"] else ""
-    return (
-        f"{d['state']}{flags}; REF {d['reference_rpm']:.1f} rpm, ACT {d['actual_rpm']:.1f} rpm, "
-        f"torque {d['torque_pct']:.1f} %, fault {d['fault_code']} ({d['fault']}), "
-        f"CW {d['control_word']}, SW {d['status_word']}"
-    )
-
-
-def _state_lines(state) -> None:
-    for s in (state.spin, state.orbit):
-        typer.echo(f"{s.name:5s} (id {s.device_id}): {_drive_line(s.to_dict())}")
-
-
-def _hold_line(state, held: float) -> str:
-    parts = []
-    for s in (state.spin, state.orbit):
-        if s is not None:
-            d = s.to_dict()
-            flag = "at setpoint" if d["at_setpoint"] else d["state"]
-            parts.append(f"{s.name} {d['actual_rpm']:.1f} rpm ({flag})")
-    link = "link ok" if state.link_ok else f"LINK DOWN ({state.link_error})"
-    return (
-        f"holding {held:.0f} s: {', '.join(parts)}; {link}, polls {state.polls}, "
-        f"poll failures {state.poll_failures}"
-    )
-
-
 async def _status(url: str, json_out: bool, d) -> int:
     import json
 
@@ -407,10 +335,7 @@ async def _status(url: str, json_out: bool, d) -> int:
 
 
 async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every, interrupt) -> int:
-    import asyncio
-    import time
-
-    from drives.errors import DriveError, DriveLinkError
+    from drives.errors import DriveError
 
     try:
         limits.check(spin, orbit, spin_id=d.spin_id, orbit_id=d.orbit_id)
@@ -422,36 +347,12 @@ async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every,
         async with _rig_drives(url, d, limits) as rig:
             await rig.set_speeds(spin, orbit)
             state = await rig.wait_settled(hold=settle, timeout=timeout)
+            _state_lines(state)
             if not hold:
                 rig.release()
-                _state_lines(state)
                 return 0
-            _state_lines(state)
-            typer.echo("holding at the setpoint; Ctrl-C or SIGTERM ramps both drives to zero",
-                       err=True)
-            interrupt.holding = True
-            t0 = last = time.monotonic()
-            while not interrupt.event.is_set():
-                try:
-                    await asyncio.wait_for(interrupt.event.wait(), rig.poll_interval)
-                except asyncio.TimeoutError:
-                    pass
-                state = rig.check()  # a trip found by the poll (both already stopping)
-                if not state.link_ok:
-                    raise DriveLinkError(
-                        f"link lost while holding ({state.link_error}); the drives' "
-                        "comm-loss watchdog stops them"
-                    )
-                now = time.monotonic()
-                if now - last >= status_every and not interrupt.event.is_set():
-                    last = now
-                    typer.echo(_hold_line(state, now - t0))
-            sig = interrupt.received[-1].name
-            typer.echo(f"{sig}: ramping both drives to zero", err=True)
-            await rig.stop(wait=True)
-            _state_lines(rig.state)
-            typer.echo(f"both drives stopped after {time.monotonic() - t0:.0f} s at the setpoint")
-            return 0
+            refs = (rig.spin.reference_for(spin), rig.orbit.reference_for(orbit))
+            return await _hold(rig, refs, status_every, interrupt)
     except DriveError as err:
         _report("run", err, _stop_outcome(rig))
         return 2

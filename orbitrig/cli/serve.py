@@ -21,15 +21,19 @@ def _fail(message: str, code: int = 2) -> None:
 
 def read_password(password_file: Path | None) -> str | None:
     """The broker password from ``password_file`` (first line) or from the
-    environment variable ORBITRIG_MQTT_PASSWORD; None when neither is given."""
+    environment variable ORBITRIG_MQTT_PASSWORD; None when neither is given.
+    A file other users may read or write is refused (as ssh refuses such a key)."""
     if password_file is not None:
         try:
-            text = password_file.read_text(encoding="utf-8")
             mode = password_file.stat().st_mode
+            if mode & (stat.S_IRWXG | stat.S_IRWXO):
+                _fail(f"--password-file: {password_file} is accessible by other users "
+                      f"(mode {stat.S_IMODE(mode):04o}): chmod 600 {password_file}")
+            text = password_file.read_bytes().decode("utf-8")
         except OSError as err:
             _fail(f"--password-file: cannot read {password_file}: {err.strerror or err}")
-        if mode & (stat.S_IRGRP | stat.S_IROTH | stat.S_IWOTH):
-            typer.echo(f"warning: {password_file} is readable by other users (chmod 600 it)", err=True)
+        except UnicodeDecodeError as err:
+            _fail(f"--password-file: {password_file} is not UTF-8 text ({err.reason} at byte {err.start})")
         password = text.splitlines()[0] if text.strip() else ""
         if not password:
             _fail(f"--password-file: {password_file} is empty")
@@ -59,6 +63,9 @@ def register(app: typer.Typer) -> None:
             "keep", "--supervision-policy",
             help="when the broker is gone longer than --supervision-timeout: keep | pause | stop"),
         supervision_timeout: float = typer.Option(60.0, "--supervision-timeout", help="s"),
+        client_id: Optional[str] = typer.Option(
+            None, "--client-id",
+            help="MQTT client id (default mosq-orbitrig-serve-<prefix>; see config/mosquitto/README.md)"),
         confirm: str = typer.Option(
             "remote", "--confirm",
             help="manual settings: remote (wait for a 'confirm' command) | auto (--sim only)"),
@@ -67,53 +74,73 @@ def register(app: typer.Typer) -> None:
         verbose: bool = typer.Option(False, "--verbose", "-v", help="log at debug level (every event)"),
     ) -> None:
         """Run the rig service: start, watch and stop runs over MQTT."""
-        import asyncio
-        import logging
+        _start(broker=broker, sim=sim, config=config, rig_id=rig_id, prefix=prefix, username=username,
+               password_file=password_file, tls_ca=tls_ca, out=out, matrices=matrices,
+               supervision_policy=supervision_policy, supervision_timeout=supervision_timeout,
+               client_id=client_id, confirm=confirm, speedup=speedup, verbose=verbose)
 
-        from orbitrig import config as cfg
-        from orbitrig.errors import ConfigError
-        from orbitrig.service.protocol import topics, validate_rig_id
-        from orbitrig.service.rig_service import BrokerSettings, ServiceError, ServiceSettings
 
-        logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO,
-                            format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-        logging.getLogger("mqtt").setLevel(logging.WARNING)
-        try:
-            validate_rig_id(rig_id)
-        except ValueError as err:
-            _fail(f"--rig-id: {err}")
-        try:
-            topics(rig_id, prefix)
-        except ValueError as err:
-            _fail(f"--prefix: {err}")
-        if tls_ca is not None and not tls_ca.is_file():
-            _fail(f"--tls-ca: no such file: {tls_ca}")
-        password = read_password(password_file)
-        if username is None and password is not None:
-            _fail("a password needs a user name (--username or ORBITRIG_MQTT_USERNAME)")
-        if username is not None and password is None:
-            _fail(f"no password: give --password-file or set {PASSWORD_ENV}")
-        try:
-            rig = cfg.load_rig(config)
-            broker_settings = BrokerSettings.from_url(broker, username=username, password=password,
-                                                      tls_ca=tls_ca)
-            folder = matrices or Path(rig.file).resolve().parent / "matrices"
-            settings = ServiceSettings(rig_id=rig_id, matrices_dir=folder, prefix=prefix,
-                                       supervision_policy=supervision_policy,  # type: ignore[arg-type]
-                                       supervision_timeout=supervision_timeout)
-        except (ConfigError, ServiceError) as err:
-            _fail(str(err))
-        if confirm not in ("remote", "auto"):
-            _fail(f"--confirm: one of remote, auto, not {confirm!r}")
-        if confirm == "auto" and not sim:
-            _fail("--confirm auto only with --sim (a real rig needs an operator)")
-        if not folder.is_dir():
-            _fail(f"matrix folder: no such folder: {folder} (--matrices)")
-        try:
-            asyncio.run(_serve(rig, settings, broker_settings, out=out, sim=sim, speedup=speedup,
-                               confirm=confirm))
-        except* ServiceError as group:
-            _fail("; ".join(str(e) for e in group.exceptions), 1)
+def _broker_password(rig_id: str, prefix: str | None, tls_ca: Path | None, username: str | None,
+                     password_file: Path | None) -> str | None:
+    """Check the topic and broker options; the password (exit 2 on any problem)."""
+    from orbitrig.service.protocol import topics, validate_rig_id
+
+    try:
+        validate_rig_id(rig_id)
+    except ValueError as err:
+        _fail(f"--rig-id: {err}")
+    try:
+        topics(rig_id, prefix)
+    except ValueError as err:
+        _fail(f"--prefix: {err}")
+    if tls_ca is not None and not tls_ca.is_file():
+        _fail(f"--tls-ca: no such file: {tls_ca}")
+    password = read_password(password_file)
+    if username is None and password is not None:
+        _fail("a password needs a user name (--username or ORBITRIG_MQTT_USERNAME)")
+    if username is not None and password is None:
+        _fail(f"no password: give --password-file or set {PASSWORD_ENV}")
+    return password
+
+
+def _start(*, broker: str, sim: bool, config: Path | None, rig_id: str, prefix: str | None,
+           username: str | None, password_file: Path | None, tls_ca: Path | None, out: Path,
+           matrices: Path | None, supervision_policy: str, supervision_timeout: float,
+           client_id: str | None, confirm: str, speedup: float | None, verbose: bool) -> None:
+    import asyncio
+    import logging
+
+    from orbitrig import config as cfg
+    from orbitrig.errors import ConfigError
+    from orbitrig.service.rig_service import BrokerSettings, ServiceError, ServiceSettings
+
+    logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO,
+                        format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    logging.getLogger("mqtt").setLevel(logging.WARNING)
+    password = _broker_password(rig_id, prefix, tls_ca, username, password_file)
+    try:
+        rig = cfg.load_rig(config)
+        broker_settings = BrokerSettings.from_url(broker, username=username, password=password,
+                                                  tls_ca=tls_ca)
+        folder = matrices or Path(rig.file).resolve().parent / "matrices"
+        settings = ServiceSettings(rig_id=rig_id, matrices_dir=folder, prefix=prefix,
+                                   supervision_policy=supervision_policy,  # type: ignore[arg-type]
+                                   supervision_timeout=supervision_timeout, client_id=client_id)
+    except (ConfigError, ServiceError) as err:
+        _fail(str(err))
+    if speedup is not None and not 0 < speedup <= 1e4:
+        _fail(f"--speedup {speedup:g}: a finite factor > 0 and at most 10000")
+    if confirm not in ("remote", "auto"):
+        _fail(f"--confirm: one of remote, auto, not {confirm!r}")
+    if confirm == "auto" and not sim:
+        _fail("--confirm auto only with --sim (a real rig needs an operator)")
+    if not folder.is_dir():
+        _fail(f"matrix folder: no such folder: {folder} (--matrices)")
+    try:
+        asyncio.run(_serve(rig, settings, broker_settings, out=out, sim=sim, speedup=speedup,
+                           confirm=confirm))
+    except* ServiceError as group:
+        _fail("; ".join(str(e) for e in group.exceptions), 1)
 
 
 def build_service(rig, settings, broker_settings, *, out: Path, sim_rig=None, confirm: str = "remote"):

@@ -1,7 +1,7 @@
 """The MQTT contract of docs/protocols/mqtt.md as pure code (no I/O).
 
-Topic names under the prefix ``orbitrig/<rig_id>``, command parsing and
-validation with precise reasons, and the payload builders for status,
+Topic names under the prefix ``orbitrig/<rig_id>``, command parsing by
+pydantic models with precise reasons, and the payload builders for status,
 progress, result and reply. Payloads are UTF-8 JSON objects.
 
 | topic               | QoS | retained | builder            |
@@ -20,7 +20,10 @@ import json
 import math
 import re
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any, Literal, Union
+
+from pydantic import (BaseModel, ConfigDict, Field, StringConstraints, TypeAdapter, ValidationError,
+                      field_validator)
 
 DEFAULT_PREFIX_ROOT = "orbitrig"
 
@@ -30,17 +33,6 @@ STATES = ("idle", "running", "paused", "waiting", "stopping", "faulted", "offlin
 #: QoS and retain flag of each topic (docs/protocols/mqtt.md).
 QOS_STATUS, QOS_PROGRESS, QOS_RESULT, QOS_REPLY, QOS_CMD = 1, 0, 1, 1, 1
 QOS_LIVE = 0  # <prefix>/live, built by orbitrig.service.live
-
-#: Commands and the fields each takes besides ``cmd`` and ``id`` (all required).
-COMMAND_FIELDS: dict[str, tuple[str, ...]] = {
-    "start": ("matrix",),
-    "pause": (),
-    "resume": (),
-    "stop": (),
-    "abort": (),
-    "confirm": ("step",),
-    "status": (),
-}
 
 #: Largest command payload accepted (bytes); a command is a few dozen bytes.
 MAX_COMMAND_BYTES = 4096
@@ -144,17 +136,102 @@ def is_matrix_name(name: str) -> bool:
 #: commands carried out even when their payload has wrong fields (docs/protocols/mqtt.md)
 ALWAYS_ACCEPTED = frozenset({"stop", "abort"})
 
+CorrelationId = Annotated[str, StringConstraints(min_length=1, max_length=MAX_ID_CHARS)]
 
-def parse_command(payload: bytes | bytearray | str) -> Command:
-    """Parse and validate one ``<prefix>/cmd`` payload.
 
-    Raises :class:`CommandError` with a precise reason (and the correlation
-    id when it could be read) for a payload that is not UTF-8 JSON, not an
-    object, lacks ``cmd`` or ``id``, names an unknown command, or has a
-    missing, extra or wrongly typed field. Exception: ``stop`` and ``abort``
-    are always accepted once ``cmd`` names them; their overlooked problems are
-    listed in ``Command.ignored``.
-    """
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True, frozen=True)
+
+
+class _Correlation(BaseModel):
+    """Only the correlation id (read first, so every reply can carry it)."""
+
+    model_config = ConfigDict(extra="ignore", strict=True)
+    id: CorrelationId
+
+
+class StartCommand(_Strict):
+    """``start``: run the named matrix of the service's matrix folder."""
+
+    cmd: Literal["start"]
+    id: CorrelationId
+    matrix: str
+
+    @field_validator("matrix")
+    @classmethod
+    def _bare_name(cls, v: str) -> str:
+        if not is_matrix_name(v):
+            raise ValueError(
+                f"field 'matrix' must be a matrix name from the matrix folder, not a path: {v!r} "
+                "(letters, digits, '_', '-', '.'; no '/', no '..', no leading '.')")
+        return v
+
+
+class ConfirmCommand(_Strict):
+    """``confirm``: the operator confirms the manual setting ``step``."""
+
+    cmd: Literal["confirm"]
+    id: CorrelationId
+    step: str
+
+    @field_validator("step")
+    @classmethod
+    def _printable(cls, v: str) -> str:
+        if not _STEP_ID.fullmatch(v):
+            raise ValueError("field 'step' must be 1 to 128 printable characters")
+        return v
+
+
+class BareCommand(_Strict):
+    """Commands without arguments."""
+
+    cmd: Literal["pause", "resume", "stop", "abort", "status"]
+    id: CorrelationId
+
+
+CommandModel = Annotated[Union[StartCommand, ConfirmCommand, BareCommand], Field(discriminator="cmd")]
+_COMMANDS: TypeAdapter = TypeAdapter(CommandModel)
+
+#: Commands and the fields each takes besides ``cmd`` and ``id`` (from the models).
+COMMAND_FIELDS: dict[str, tuple[str, ...]] = {
+    name: tuple(f for f in model.model_fields if f not in ("cmd", "id"))
+    for model in (StartCommand, ConfirmCommand, BareCommand)
+    for name in model.model_fields["cmd"].annotation.__args__
+}
+
+
+def _field_problem(err: dict[str, Any], name: str) -> str | None:
+    """One pydantic error of a command's fields as the reply's words (None: an
+    id problem, reported once by the correlation check)."""
+    field = str(err["loc"][-1]) if err["loc"] else "?"
+    kind = err["type"]
+    if field == "id" and kind != "extra_forbidden":
+        return None
+    if kind == "missing":
+        return f"missing field {field!r} for command {name!r}"
+    if kind == "extra_forbidden":
+        return f"unexpected field {field!r} for command {name!r}"
+    if kind == "string_type":
+        return f"field {field!r} must be a string, got {_type_name(err.get('input'))}"
+    return err["msg"].removeprefix("Value error, ")
+
+
+def _id_problems(obj: dict[str, Any]) -> list[str]:
+    try:
+        _Correlation.model_validate(obj)
+    except ValidationError as err:
+        kind = err.errors(include_url=False)[0]["type"]
+        if kind == "missing":
+            return ["missing field 'id' (a correlation id string)"]
+        if kind == "string_type":
+            return [f"field 'id' must be a string, got {_type_name(obj['id'])}"]
+        return [f"field 'id' must have 1 to {MAX_ID_CHARS} characters"]
+    return []
+
+
+def _payload_object(payload: bytes | bytearray | str) -> dict[str, Any]:
+    """The JSON object of a payload, or CommandError whatever went wrong
+    (size, encoding, syntax, nesting too deep for the parser, not an object)."""
     if isinstance(payload, (bytes, bytearray)):
         if len(payload) > MAX_COMMAND_BYTES:
             raise CommandError(f"payload too large: {len(payload)} bytes (at most {MAX_COMMAND_BYTES})")
@@ -170,50 +247,51 @@ def parse_command(payload: bytes | bytearray | str) -> Command:
         obj = json.loads(text)
     except json.JSONDecodeError as err:
         raise CommandError(f"payload is not JSON: {err.msg} at line {err.lineno} column {err.colno}") from None
+    except RecursionError:
+        raise CommandError("payload is not a command: JSON nested too deeply") from None
+    except Exception as err:  # noqa: BLE001 - whatever the parser raises, the payload is refused
+        raise CommandError(f"payload cannot be read: {type(err).__name__}") from None
     if not isinstance(obj, dict):
         raise CommandError(f"payload must be a JSON object, got {_type_name(obj)}")
+    return obj
 
+
+def parse_command(payload: bytes | bytearray | str) -> Command:
+    """Parse and validate one ``<prefix>/cmd`` payload with the command models.
+
+    Raises :class:`CommandError` with a precise reason (and the correlation
+    id when it could be read) for a payload that is not UTF-8 JSON, not an
+    object, lacks ``cmd`` or ``id``, names an unknown command, or has a
+    missing, extra or wrongly typed field. Exception: ``stop`` and ``abort``
+    are always accepted once ``cmd`` names them; their overlooked problems are
+    listed in ``Command.ignored``.
+    """
+    obj = _payload_object(payload)
     raw_id = obj.get("id")
-    cid = raw_id if isinstance(raw_id, str) else None
-    problems: list[str] = []
-    if "id" not in obj:
-        problems.append("missing field 'id' (a correlation id string)")
-    elif not isinstance(raw_id, str):
-        problems.append(f"field 'id' must be a string, got {_type_name(raw_id)}")
-    elif not raw_id or len(raw_id) > MAX_ID_CHARS:
-        problems.append(f"field 'id' must have 1 to {MAX_ID_CHARS} characters")
-        cid = raw_id[:MAX_ID_CHARS] or None
-
+    cid = (raw_id[:MAX_ID_CHARS] or None) if isinstance(raw_id, str) else None
+    problems = _id_problems(obj)
+    name = obj.get("cmd")
     if "cmd" not in obj:
         raise CommandError("; ".join(["missing field 'cmd'", *problems]), cid)
-    name = obj["cmd"]
     if not isinstance(name, str):
         raise CommandError("; ".join([f"field 'cmd' must be a string, got {_type_name(name)}", *problems]), cid)
     if name not in COMMAND_FIELDS:
         known = ", ".join(sorted(COMMAND_FIELDS))
         raise CommandError("; ".join([f"unknown command {name!r} (known: {known})", *problems]), cid)
-
-    wanted = COMMAND_FIELDS[name]
-    for extra in sorted(set(obj) - {"cmd", "id", *wanted}):
-        problems.append(f"unexpected field {extra!r} for command {name!r}")
-    for field in wanted:
-        if field not in obj:
-            problems.append(f"missing field {field!r} for command {name!r}")
-        elif not isinstance(obj[field], str):
-            problems.append(f"field {field!r} must be a string, got {_type_name(obj[field])}")
-    if not problems and name == "start" and not is_matrix_name(obj["matrix"]):
-        problems.append(
-            f"field 'matrix' must be a matrix name from the matrix folder, not a path: {obj['matrix']!r} "
-            "(letters, digits, '_', '-', '.'; no '/', no '..', no leading '.')")
-    if not problems and name == "confirm" and not _STEP_ID.fullmatch(obj["step"]):
-        problems.append("field 'step' must be 1 to 128 printable characters")
+    try:
+        model = _COMMANDS.validate_python(obj)
+    except ValidationError as err:
+        found = (_field_problem(e, name) for e in err.errors(include_url=False))
+        problems += [p for p in found if p is not None]
     if problems and name in ALWAYS_ACCEPTED:
         # "stop and abort are always accepted": a stray field or a bad id must
         # never keep spinning machinery from stopping. The problems are logged.
         return Command(cmd=name, id=cid, ignored=tuple(problems))
     if problems:
         raise CommandError("; ".join(problems), cid)
-    return Command(cmd=name, id=raw_id, matrix=obj.get("matrix"), step=obj.get("step"))
+    return Command(cmd=model.cmd, id=model.id,
+                   matrix=model.matrix if isinstance(model, StartCommand) else None,
+                   step=model.step if isinstance(model, ConfirmCommand) else None)
 
 
 # -- payloads -----------------------------------------------------------------

@@ -11,8 +11,16 @@ events become MQTT messages:
 - ``<prefix>/result``: QoS 1, kept and delivered after a reconnection;
 - ``<prefix>/reply``: QoS 1, exactly one per command.
 
+The session is persistent (MQTT 5, clean start off, a session expiry of
+``session_expiry`` s): QoS 1 commands published while the service reconnects
+are kept by the broker and delivered once it is back; the broker's redelivery
+of a command already handled (its acknowledgement lost with the link) is
+executed and answered once. ``offline`` is published on every way out of :meth:`RigService.serve`
+(shutdown, a fault in the service) and is the last will for the others.
+
 The broker may go away: the run goes on, the service reconnects with jittered
-exponential backoff and republishes the status. A loss of supervision longer
+exponential backoff (reset only after a connection carried traffic for a while)
+and republishes the status. A loss of supervision longer
 than ``supervision_timeout`` applies ``supervision_policy`` to a running run
 once: ``keep`` (go on), ``pause`` or ``stop``. ``stop`` and ``abort`` are
 always accepted and go straight to the executor, whatever it is doing (also
@@ -26,105 +34,27 @@ from __future__ import annotations
 
 import asyncio
 import collections
-import dataclasses
 import logging
-import random
 import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal, Protocol
-from urllib.parse import urlsplit
 
+from orbitrig.errors import ConfigError, OrbitrigError
+from orbitrig.run.engine import ProgressEvent, ResultEvent, RunOutcome, StatusEvent
 from orbitrig.service import live as live_feed
 from orbitrig.service import protocol as proto
-from orbitrig.errors import ConfigError, OrbitrigError
+from orbitrig.service.link import BrokerLink
+from orbitrig.service.settings import (  # noqa: F401 - the service's public names
+    SUPERVISION_POLICIES, BrokerSettings, ServiceError, ServiceSettings, SupervisionPolicy,
+    default_client_id,
+)
 
 log = logging.getLogger("orbitrig.service.rig_service")
 
-SupervisionPolicy = Literal["keep", "pause", "stop"]
-SUPERVISION_POLICIES: tuple[str, ...] = ("keep", "pause", "stop")
-#: CONNACK reason codes meaning "your credentials are refused" (MQTT 3.1.1 and 5).
-_AUTH_REFUSED = {4, 5, 134, 135}
-
-
-class ServiceError(OrbitrigError):
-    """The service cannot run (bad broker URL, credentials refused, ...)."""
-
-
-# -- settings -----------------------------------------------------------------
-
-@dataclasses.dataclass(frozen=True)
-class BrokerSettings:
-    """Where and how to connect. ``keepalive`` (s): the broker publishes the last
-    will after 1.5 x keepalive without traffic (at once when the socket closes)."""
-
-    host: str
-    port: int = 1883
-    username: str | None = None
-    password: str | None = dataclasses.field(default=None, repr=False)
-    tls: bool = False
-    tls_ca: Path | None = None
-    keepalive: int = 10
-    timeout: float = 10.0
-
-    @classmethod
-    def from_url(cls, url: str, **kw: Any) -> BrokerSettings:
-        """``mqtt://host:port`` (default port 1883) or ``mqtts://host:port`` (TLS, 8883).
-        TLS is also used with ``mqtt://`` when ``tls_ca`` is given."""
-        parts = urlsplit(url)
-        if parts.scheme not in ("mqtt", "mqtts") or not parts.hostname:
-            raise ServiceError(f"broker URL {url!r}: expected mqtt://host:port or mqtts://host:port")
-        if parts.username or parts.password:
-            raise ServiceError(f"broker URL {url!r}: credentials do not belong in the URL "
-                               "(use --username and --password-file or ORBITRIG_MQTT_PASSWORD)")
-        if parts.path not in ("", "/") or parts.query:
-            raise ServiceError(f"broker URL {url!r}: no path or query expected")
-        try:
-            port = parts.port
-        except ValueError as err:
-            raise ServiceError(f"broker URL {url!r}: {err}") from None
-        tls = parts.scheme == "mqtts" or kw.get("tls_ca") is not None
-        return cls(host=parts.hostname, port=port or (8883 if parts.scheme == "mqtts" else 1883),
-                   tls=tls, **kw)
-
-
-@dataclasses.dataclass(frozen=True)
-class ServiceSettings:
-    """Behaviour of the service (times in s)."""
-
-    rig_id: str
-    matrices_dir: Path
-    prefix: str | None = None
-    supervision_policy: SupervisionPolicy = "keep"
-    supervision_timeout: float = 60.0
-    reconnect_initial: float = 0.2
-    reconnect_max: float = 30.0
-    shutdown_timeout: float = 60.0
-
-    def __post_init__(self) -> None:
-        if self.supervision_policy not in SUPERVISION_POLICIES:
-            raise ServiceError(f"supervision policy {self.supervision_policy!r}: "
-                               f"one of {', '.join(SUPERVISION_POLICIES)}")
-        if self.supervision_timeout <= 0:
-            raise ServiceError("supervision timeout must be > 0 s")
-
-
-class Backoff:
-    """Jittered exponential backoff: attempt n waits a uniform random time in
-    ``[d/2, d]`` with ``d = min(maximum, initial * 2**n)`` (s)."""
-
-    def __init__(self, initial: float, maximum: float, *, rng: Callable[[], float] = random.random):
-        self.initial, self.maximum, self._rng = initial, maximum, rng
-        self.attempt = 0
-
-    def next(self) -> float:
-        d = min(self.maximum, self.initial * 2.0 ** self.attempt)
-        self.attempt += 1
-        return d * (0.5 + 0.5 * self._rng())
-
-    def reset(self) -> None:
-        self.attempt = 0
+#: s after a reconnection during which the broker's redeliveries arrive
+REDELIVERY_S = 10.0
 
 
 # -- the executor as seen from here (orbitrig.run.engine.RunEngine) --------------
@@ -134,7 +64,7 @@ class Engine(Protocol):
     run_id: str | None
     waiting_step: str | None
 
-    async def run(self, matrix: Any, *, resume: bool = False) -> Any: ...
+    async def run(self, matrix: Any, *, resume: bool = False) -> RunOutcome: ...
     def subscribe(self, callback: Callable[[Any], None]) -> None: ...
     def request_pause(self) -> None: ...
     def request_resume(self) -> None: ...
@@ -147,14 +77,6 @@ class Engine(Protocol):
 EngineFactory = Callable[[str, Any], Engine]
 #: Loads and checks a matrix file: ``loader(path) -> MatrixConfig`` (raises ConfigError).
 MatrixLoader = Callable[[Path], Any]
-
-
-@dataclasses.dataclass
-class _Out:
-    topic: str
-    payload: bytes
-    qos: int
-    retain: bool = False
 
 
 class RigService:
@@ -175,16 +97,19 @@ class RigService:
         self._status = proto.status_payload("idle", None, None, "service ready")
         self._state = "idle"
         self._run_id: str | None = None
-        self._out: collections.deque[_Out] = collections.deque(maxlen=10_000)
-        self._wake = asyncio.Event()
-        self._drained = asyncio.Event()
-        self._online = asyncio.Event()
-        self._offline = asyncio.Event()
-        self._offline.set()
+        self.link = BrokerLink(broker, settings, self.topics, status=lambda: self._status,
+                               offline=self._offline_status, on_command=self._on_message)
         self._tg: asyncio.TaskGroup | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread = threading.get_ident()
-        self.connections = 0  # successful connections so far
+        #: (id, bytes) of recent commands -> number of the connection they came on
+        self._handled: collections.OrderedDict[tuple[str, bytes], int] = collections.OrderedDict()
+        #: command name -> handler returning None (ok) or the reason of a refusal
+        self._handlers: dict[str, Callable[[proto.Command], str | None]] = {
+            "start": self._cmd_start, "pause": self._cmd_pause, "resume": self._cmd_resume,
+            "stop": self._cmd_stop, "abort": self._cmd_abort, "confirm": self._cmd_confirm,
+            "status": self._cmd_status,
+        }
 
     # -- public state -----------------------------------------------------------
 
@@ -196,6 +121,11 @@ class RigService:
     def state(self) -> str:
         return self._state
 
+    @property
+    def connections(self) -> int:
+        """Successful connections to the broker so far."""
+        return self.link.connections
+
     # -- main -------------------------------------------------------------------
 
     async def serve(self, shutdown: asyncio.Event | None = None) -> None:
@@ -204,20 +134,27 @@ class RigService:
         self._thread = threading.get_ident()
         async with asyncio.TaskGroup() as tg:
             self._tg = tg
-            conn = tg.create_task(self._connection_loop(), name="mqtt-connection")
+            conn = tg.create_task(self.link.run(), name="mqtt-connection")
             sup = tg.create_task(self._supervision_loop(), name="supervision-watchdog")
             stop = tg.create_task(shutdown.wait(), name="shutdown-signal")
             await asyncio.wait({conn, stop}, return_when=asyncio.FIRST_COMPLETED)
             log.info("shutting down")
             await self._end_run("service shutting down")
             self._set_status("offline", self._run_id, "service stopped")
-            if self._online.is_set():
+            self.link.leaving = True
+            if self.link.online.is_set():
                 try:
-                    await asyncio.wait_for(self._drained.wait(), 5.0)
+                    await asyncio.wait_for(self.link.drained.wait(), 5.0)
                 except TimeoutError:
                     log.warning("could not deliver every message before shutdown")
             for task in (conn, sup, stop):
                 task.cancel()
+        # (a fault inside the group cancels the connection task, whose session
+        # publishes offline on its way out: BrokerLink._leave)
+        await self.link.discard_session()
+
+    def _offline_status(self, message: str) -> bytes:
+        return proto.status_payload("offline", self._run_id, None, message)
 
     async def _end_run(self, why: str) -> None:
         """Abort an active run and wait (bounded) until the executor has finished."""
@@ -234,100 +171,15 @@ class RigService:
         except Exception:  # noqa: BLE001 - reported by _run itself
             pass
 
-    # -- connection -------------------------------------------------------------
-
-    def _client(self) -> Any:
-        import aiomqtt
-
-        b = self.broker
-        will = aiomqtt.Will(self.topics.status,
-                            proto.status_payload("offline", self._run_id, None,
-                                                 "connection to the rig service lost"),
-                            qos=proto.QOS_STATUS, retain=True)
-        tls = aiomqtt.TLSParameters(ca_certs=str(b.tls_ca) if b.tls_ca else None) if b.tls else None
-        return aiomqtt.Client(b.host, b.port, username=b.username, password=b.password,
-                              identifier=f"orbitrig-serve-{self.settings.rig_id}", will=will,
-                              clean_session=True, keepalive=b.keepalive, timeout=b.timeout,
-                              tls_params=tls)
-
-    async def _connection_loop(self) -> None:
-        import aiomqtt
-
-        backoff = Backoff(self.settings.reconnect_initial, self.settings.reconnect_max)
-        where = f"{self.broker.host}:{self.broker.port}"
-        while True:
-            t_connected = None
-            try:
-                async with self._client() as client:
-                    t_connected = time.monotonic()
-                    await client.subscribe(self.topics.cmd, qos=proto.QOS_CMD)
-                    self.connections += 1
-                    log.info("connected to %s as %r; commands on %s", where, self.broker.username,
-                             self.topics.cmd)
-                    self._offline.clear()
-                    self._online.set()
-                    async with asyncio.TaskGroup() as session:
-                        session.create_task(self._publish_loop(client), name="mqtt-publish")
-                        session.create_task(self._command_loop(client), name="mqtt-commands")
-            except* aiomqtt.MqttError as group:
-                err = group.exceptions[0]
-                rc = getattr(getattr(err, "rc", None), "value", getattr(err, "rc", None))
-                if self.connections == 0 and isinstance(err, aiomqtt.MqttCodeError) and rc in _AUTH_REFUSED:
-                    raise ServiceError(f"broker {where} refused the credentials of "
-                                       f"{self.broker.username!r}: {err}") from None
-                if t_connected is None:
-                    log.warning("cannot connect to %s: %s", where, err)
-                else:
-                    log.warning("connection to %s lost: %s", where, err)
-            finally:
-                self._online.clear()
-                self._offline.set()
-            if t_connected is not None and time.monotonic() - t_connected > 5.0:
-                backoff.reset()
-            delay = backoff.next()
-            log.info("reconnecting in %.2f s", delay)
-            await asyncio.sleep(delay)
-
-    async def _publish_loop(self, client: Any) -> None:
-        """Deliver the outgoing queue in order; the current status first."""
-        pending = [m for m in self._out if m.topic != self.topics.status]
-        self._out.clear()
-        self._out.append(_Out(self.topics.status, self._status, proto.QOS_STATUS, True))
-        self._out.extend(pending)
-        while True:
-            while self._out:
-                msg = self._out[0]
-                await client.publish(msg.topic, msg.payload, qos=msg.qos, retain=msg.retain)
-                if self._out and self._out[0] is msg:
-                    self._out.popleft()
-            self._drained.set()
-            self._wake.clear()
-            await self._wake.wait()
-
-    def _send(self, topic: str, payload: bytes, qos: int, retain: bool = False) -> None:
-        if not self._online.is_set() and (qos == 0 or topic == self.topics.status):
-            return  # progress is of no use later; the status is republished on connection
-        self._out.append(_Out(topic, payload, qos, retain))
-        self._drained.clear()
-        self._wake.set()
-
-    async def _command_loop(self, client: Any) -> None:
-        async for message in client.messages:
-            if str(message.topic) != self.topics.cmd:
-                continue
-            payload = message.payload if isinstance(message.payload, (bytes, bytearray)) else \
-                str(message.payload or "").encode()
-            self.handle_command(bytes(payload), retained=bool(getattr(message, "retain", False)))
-
     # -- supervision --------------------------------------------------------------
 
     async def _supervision_loop(self) -> None:
         """Apply the policy once per outage longer than ``supervision_timeout``."""
         s = self.settings
         while True:
-            await self._offline.wait()
+            await self.link.offline.wait()
             try:
-                await asyncio.wait_for(self._online.wait(), s.supervision_timeout)
+                await asyncio.wait_for(self.link.online.wait(), s.supervision_timeout)
                 continue
             except TimeoutError:
                 pass
@@ -338,21 +190,30 @@ class RigService:
                     self._request("pause")
                 elif s.supervision_policy == "stop":
                     self._request("stop")
-            await self._online.wait()
+            await self.link.online.wait()
 
     # -- commands ---------------------------------------------------------------
 
     def handle_command(self, payload: bytes, *, retained: bool = False) -> None:
         """Validate and execute one command; publish exactly one reply.
 
-        A retained command (spec: ``<prefix>/cmd`` is not retained) is stale: the broker
+        A retained command (``<prefix>/cmd`` is not retained) is stale: the broker
         hands it to every new subscription, so executing it would, e.g., start a run at
-        each reconnection. It is refused (one reply) and changes nothing."""
+        each reconnection. It is refused (one reply) and changes nothing. A
+        redelivery of a command already handled (QoS 1 after a reconnection) is
+        dropped: it was executed and answered once."""
         try:
             cmd = proto.parse_command(payload)
         except proto.CommandError as err:
             log.info("refused command %r: %s", payload[:200], err.reason)
             self._reply(err.id, err.reason)
+            return
+        except Exception as err:  # noqa: BLE001 - no payload may kill the service
+            log.exception("refused command %r: the parser failed", payload[:200])
+            self._reply(None, f"payload cannot be read: {type(err).__name__}")
+            return
+        if self._redelivered(cmd, payload):
+            log.warning("dropped redelivered command %s (id %r): handled already", cmd.cmd, cmd.id)
             return
         if retained:
             log.warning("refused retained command %s (id %r)", cmd.cmd, cmd.id)
@@ -365,7 +226,7 @@ class RigService:
         if cmd.ignored:
             log.warning("%s accepted despite: %s", cmd.cmd, "; ".join(cmd.ignored))
         try:
-            error = getattr(self, f"_cmd_{cmd.cmd}")(cmd)
+            error = self._handlers[cmd.cmd](cmd)
         except Exception as err:  # noqa: BLE001 - a command must never kill the service
             log.exception("command %s failed", cmd.cmd)
             error = f"{cmd.cmd} failed: {err}"
@@ -373,6 +234,36 @@ class RigService:
             log.info("abort requested of the executor %.1f ms after the message arrived",
                      (time.monotonic() - t0) * 1e3)
         self._reply(cmd.id, error)
+
+    def _redelivered(self, cmd: proto.Command, payload: bytes) -> bool:
+        """True for the broker's redelivery of a command handled before the link
+        dropped (its acknowledgement was lost): the same id and bytes, handled
+        during an earlier connection, arriving within REDELIVERY_S of this one.
+        An operator repeating a command later is not affected."""
+        if cmd.id is None:
+            return False
+        key = (cmd.id, bytes(payload))
+        earlier = self._handled.get(key)
+        now, link = time.monotonic(), self.link
+        if (earlier is not None and earlier < link.connections
+                and now - link.connected_at < REDELIVERY_S):
+            return True
+        self._handled[key] = link.connections
+        self._handled.move_to_end(key)
+        if len(self._handled) > 256:
+            self._handled.popitem(last=False)
+        return False
+
+    def _on_message(self, payload: bytes, retained: bool) -> None:
+        """Every message on ``<prefix>/cmd``; nothing a message does may end the service."""
+        try:
+            self.handle_command(payload, retained=retained)
+        except Exception as err:  # noqa: BLE001 - last line of defence; handle_command replies itself
+            log.exception("command %r could not be handled", payload[:200])
+            self._reply(None, f"command could not be handled: {type(err).__name__}")
+
+    def _send(self, topic: str, payload: bytes, qos: int, retain: bool = False) -> None:
+        self.link.send(topic, payload, qos, retain)
 
     def _reply(self, cid: str | None, error: str | None) -> None:
         payload = proto.reply_ok(cid) if error is None else proto.reply_error(cid, error)
@@ -398,7 +289,7 @@ class RigService:
         engine = self._engine_factory(cmd.matrix, matrix)
         engine.subscribe(self._on_event)
         self._engine = engine
-        self._run_id = getattr(engine, "run_id", None)
+        self._run_id = engine.run_id
         assert self._tg is not None
         self._run_task = self._tg.create_task(self._run(engine, cmd.matrix, matrix), name=f"run-{cmd.matrix}")
         self._live = live_feed.attach(engine, matrix, lambda p: self._send(self.topics.live, p, proto.QOS_LIVE))
@@ -426,7 +317,7 @@ class RigService:
     def _control(self, what: str, call: Callable[[Engine], None], allowed: tuple[str, ...] | None) -> str | None:
         if not self.run_active or self._engine is None:
             return f"no run is active: nothing to {what}"
-        state = getattr(self._engine, "state", self._state)
+        state = self._engine.state
         if allowed is not None and state not in allowed:
             return f"cannot {what} while the run is {state}"
         try:
@@ -442,11 +333,12 @@ class RigService:
         engine, task = self._engine, self._run_task
         if task is None or task.done() or engine is None:
             return
-        if what in ("stop", "abort") and getattr(engine, "state", None) == "idle":
+        if what in ("stop", "abort") and engine.state == "idle":
             task.cancel()  # the run task has not started yet: it never touches the drives
             return
+        requests = {"pause": engine.request_pause, "stop": engine.request_stop, "abort": engine.request_abort}
         try:
-            getattr(engine, f"request_{what}")()
+            requests[what]()
         except Exception:  # noqa: BLE001
             log.exception("executor refused %s", what)
             if what in ("stop", "abort"):
@@ -464,24 +356,24 @@ class RigService:
             if self._state != "faulted":
                 self._set_status("faulted", self._run_id, f"run of {name!r} failed: {err}")
             return
-        status = getattr(outcome, "status", outcome)
+        status = outcome.status
         log.info("run %s of matrix %r ended: %s", self._run_id, name, status)
         if self._state not in ("idle", "faulted"):
             self._set_status("idle", self._run_id, f"run {status}")
 
     # -- executor events --------------------------------------------------------
 
-    def _on_event(self, event: Any) -> None:
+    def _on_event(self, event: StatusEvent | ResultEvent | ProgressEvent) -> None:
         """Executor event -> MQTT message (thread-safe)."""
         if threading.get_ident() != self._thread and self._loop is not None:
             self._loop.call_soon_threadsafe(self._on_event, event)
             return
-        if hasattr(event, "state"):
+        if isinstance(event, StatusEvent):
             extra = self._live.waiting_fields(event.state) if self._live is not None else None
             self._set_status(event.state, event.run_id, event.message or "", event.since, extra)
-        elif hasattr(event, "payload"):
+        elif isinstance(event, ResultEvent):
             self._send(self.topics.result, proto.result_payload(event.run_id, event.payload), proto.QOS_RESULT)
-        elif hasattr(event, "point"):
+        elif isinstance(event, ProgressEvent):
             self._send(self.topics.progress, proto.progress_payload(
                 event.run_id, event.point, event.points, event.frequency, event.frequencies,
                 event.revolutions, event.eta_s), proto.QOS_PROGRESS)

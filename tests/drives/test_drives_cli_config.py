@@ -136,3 +136,55 @@ async def test_hold_keeps_the_drives_at_speed_and_stops_them_on_sigint(sim, tmp_
     for dev in (1, 2):  # stopped by command, not by the watchdog
         regs = sim.regs(dev)
         assert regs["CW"] == CW_RAMP_STOP and regs["FAULT"] == 0 and regs["ACT"] == 0, regs
+
+
+@pytest.mark.parametrize("args, says", [
+    (["--timeout", "-1"], "--timeout -1 s must be finite, > 0"),
+    (["--timeout", "nan"], "--timeout nan s must be finite"),
+    (["--timeout", "inf"], "--timeout inf s must be finite"),
+    (["--settle", "nan"], "--settle nan s must be finite, >= 0"),
+    (["--status-every", "0"], "--status-every 0 s must be finite, > 0"),
+    (["--spin-id", "999999"], "--spin-id 999999 is not a Modbus device id (1..247)"),
+    (["--orbit-id", "0"], "--orbit-id 0 is not a Modbus device id (1..247)"),
+])
+async def test_run_refuses_bad_options_and_sends_nothing(tcp_sim, tmp_path, args, says):
+    cfg = rig_config(tmp_path, tcp_sim.url)
+    code, out, err = await run_cli("drives", "run", "--config", cfg, "--spin", "900", "--orbit", "300", *args)
+    assert code == 2 and says in err and "nothing sent" in err, err
+    assert "Traceback" not in err
+    assert untouched(tcp_sim)
+
+
+async def test_stop_refuses_a_timeout_that_is_not_finite(tcp_sim, tmp_path):
+    code, out, err = await run_cli("drives", "stop", "--config", rig_config(tmp_path, tcp_sim.url),
+                                   "--timeout", "nan")
+    assert code == 2 and "--timeout nan s must be finite" in err and untouched(tcp_sim)
+
+
+async def test_hold_notices_the_drives_stopped_by_another_client(tcp_sim, tmp_path):
+    sim = tcp_sim
+    cfg = rig_config(tmp_path, sim.url)
+    proc = await asyncio.create_subprocess_exec(
+        sys.executable, "-m", "orbitrig", "drives", "run", "--config", cfg,
+        "--spin", "900", "--orbit", "450", "--settle", "0.05", "--hold", "--status-every", "0.5",
+        cwd=ROOT, env=subprocess_env(), stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
+    )
+    try:
+        await sim.wait_for(
+            lambda: sim.regs(1)["SW"] & SW_AT_SETPOINT and sim.regs(2)["SW"] & SW_AT_SETPOINT,
+            10, "at setpoint",
+        )
+        code, _, stop_err = await run_cli("drives", "stop", "--config", cfg)  # another client
+        assert code == 0, stop_err
+        out, err = await asyncio.wait_for(proc.communicate(), 15)
+    finally:
+        if proc.returncode is None:
+            proc.kill()
+            await proc.wait()
+    out, err = out.decode(), err.decode()
+    assert proc.returncode == 2, err
+    assert "is no longer running" in err and "stopped or changed by another client" in err, err
+    assert "the hold was ended by another client" in out and "both drives stopped" in out
+    for dev in (1, 2):
+        regs = sim.regs(dev)
+        assert regs["ACT"] == 0 and regs["FAULT"] == 0, regs

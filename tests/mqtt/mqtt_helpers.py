@@ -20,6 +20,7 @@ from typing import Any, Callable
 REPO = Path(__file__).resolve().parents[2]
 EXAMPLE_ACL = REPO / "config" / "mosquitto" / "acl"
 EXAMPLE_PASSWD = REPO / "config" / "mosquitto" / "passwd.example"
+EXAMPLE_CONF = REPO / "config" / "mosquitto" / "mosquitto.conf"
 MOSQUITTO = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
 
 #: The accounts of the example ACL and the passwords the tests give them.
@@ -59,15 +60,30 @@ def make_test_ca(folder: Path) -> Path:
     return folder / "ca.crt"
 
 
+def client_id_lines() -> tuple[list[str], list[str]]:
+    """The shipped config's client-id binding: (global lines, service-listener lines)."""
+    lines = [ln.strip() for ln in EXAMPLE_CONF.read_text().splitlines()]
+    glob = [ln for ln in lines if ln.split(" ")[0] in ("clientid_prefixes", "auto_id_prefix")]
+    listener = [ln for ln in lines if ln.startswith("use_username_as_clientid")]
+    assert glob and listener, "config/mosquitto/mosquitto.conf lost its client-id binding"
+    return glob, listener
+
+
 class Broker:
     """mosquitto on a loopback port: no anonymous access, a password file made
-    with mosquitto_passwd, and config/mosquitto/acl (the shipped example)."""
+    with mosquitto_passwd, and config/mosquitto/acl (the shipped example).
 
-    def __init__(self, workdir: Path, port: int | None = None, *, tls: bool = False):
+    ``bind_ids``: also the shipped config's client-id binding, with the rig
+    service's own listener on ``service_port`` (``service_url``); ``persist``:
+    sessions and retained messages survive a restart."""
+
+    def __init__(self, workdir: Path, port: int | None = None, *, tls: bool = False,
+                 bind_ids: bool = False, persist: bool = False):
         self.dir = Path(workdir)
         self.tls = tls
         self.dir.mkdir(parents=True, exist_ok=True)
         self.port = port or free_port()
+        self.service_port = free_port() if bind_ids else self.port
         self.passwd = self.dir / "passwd"  # the shipped example: ACCOUNTS are its passwords
         shutil.copyfile(EXAMPLE_PASSWD, self.passwd)
         self.passwd.chmod(0o600)
@@ -76,6 +92,11 @@ class Broker:
             self.ca = make_test_ca(self.dir)
             tls_lines = (f"cafile {self.ca}\ncertfile {self.dir / 'server.crt'}\n"
                          f"keyfile {self.dir / 'server.key'}\n")
+        ids, service_listener = client_id_lines() if bind_ids else ([], [])
+        if bind_ids:
+            service_listener = [f"listener {self.service_port} 127.0.0.1", *service_listener, ""]
+        persistence = (f"persistence true\npersistence_location {self.dir}/\n" if persist
+                       else "persistence false\n")
         self.conf = self.dir / "mosquitto.conf"
         self.conf.write_text(
             "user root\n"  # root-run mosquitto would drop privileges and lose the files
@@ -83,9 +104,10 @@ class Broker:
             "allow_anonymous false\n"
             f"password_file {self.passwd}\n"
             f"acl_file {EXAMPLE_ACL}\n"
+            + "".join(f"{ln}\n" for ln in ids) + "\n".join(service_listener) +
             f"listener {self.port} 127.0.0.1\n"
             f"{tls_lines}"
-            "persistence false\n"
+            f"{persistence}"
             "log_dest stderr\n"
             "log_type error\nlog_type warning\nlog_type notice\nlog_type information\n")
         self.log = self.dir / "mosquitto.log"
@@ -95,11 +117,17 @@ class Broker:
     def url(self) -> str:
         return f"{'mqtts' if self.tls else 'mqtt'}://127.0.0.1:{self.port}"
 
+    @property
+    def service_url(self) -> str:
+        """Where the rig service connects (the service listener with ``bind_ids``)."""
+        return f"{'mqtts' if self.tls else 'mqtt'}://127.0.0.1:{self.service_port}"
+
     def start(self) -> None:
         with open(self.log, "ab") as log:
             self.proc = subprocess.Popen([MOSQUITTO, "-c", str(self.conf)], stdout=log, stderr=log)
         try:
             wait_port(self.port)
+            wait_port(self.service_port)
         except TimeoutError:
             self.stop()
             raise RuntimeError(f"mosquitto did not start:\n{self.log.read_text()}") from None
@@ -114,8 +142,8 @@ class Broker:
                 self.proc.wait()
         self.proc = None
 
-    def client_args(self, user: str | None) -> list[str]:
-        args = ["-h", "127.0.0.1", "-p", str(self.port)]
+    def client_args(self, user: str | None, port: int | None = None) -> list[str]:
+        args = ["-h", "127.0.0.1", "-p", str(port or self.port)]
         if self.tls:
             args += ["--cafile", str(self.ca)]
         if user is not None:
@@ -332,3 +360,84 @@ def write_matrices(folder: Path) -> Path:
         name="long", revs=60, ratios="[0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.2]",
         directions='["forward", "backward"]'))
     return folder
+
+
+class CutProxy:
+    """A TCP relay 127.0.0.1:port -> target port that the test can cut: ``cut()``
+    closes every relayed connection and refuses new ones (accept, close) until
+    ``restore()``. The client behind it sees its link to the broker drop while
+    the broker stays up for everyone else."""
+
+    def __init__(self, target_port: int, *, lifetime: float | None = None):
+        self.target = target_port
+        self.lifetime = lifetime  # s after which each relayed connection is cut
+        self.server = socket.socket()
+        self.server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self.server.bind(("127.0.0.1", 0))
+        self.server.listen(16)
+        self.port = self.server.getsockname()[1]
+        self.open = True
+        self.accepted = 0
+        self._pairs: list[tuple[socket.socket, socket.socket]] = []
+        self._lock = threading.Lock()
+        self._closed = False
+        threading.Thread(target=self._accept, daemon=True).start()
+
+    @property
+    def url(self) -> str:
+        return f"mqtt://127.0.0.1:{self.port}"
+
+    def _accept(self) -> None:
+        while not self._closed:
+            try:
+                conn, _ = self.server.accept()
+            except OSError:
+                return
+            self.accepted += 1
+            if not self.open:
+                conn.close()
+                continue
+            up = socket.create_connection(("127.0.0.1", self.target))
+            with self._lock:
+                self._pairs.append((conn, up))
+            for a, b in ((conn, up), (up, conn)):
+                threading.Thread(target=self._pump, args=(a, b), daemon=True).start()
+            if self.lifetime is not None:
+                threading.Timer(self.lifetime, self._drop, args=((conn, up),)).start()
+
+    @staticmethod
+    def _pump(src: socket.socket, dst: socket.socket) -> None:
+        try:
+            while data := src.recv(65536):
+                dst.sendall(data)
+        except OSError:
+            pass
+        for s in (src, dst):
+            try:
+                s.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+
+    def cut(self) -> None:
+        self.open = False
+        with self._lock:
+            pairs, self._pairs = self._pairs, []
+        for pair in pairs:
+            self._drop(pair)
+
+    @staticmethod
+    def _drop(pair: tuple[socket.socket, socket.socket]) -> None:
+        for s in pair:
+            try:
+                s.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+            s.close()
+
+    def restore(self) -> None:
+        self.open = True
+
+    def close(self) -> None:
+        self._closed = True
+        self.cut()
+        self.server.close()

@@ -151,3 +151,44 @@ def test_stop_and_abort_are_always_accepted(payload, cid, ignored):
 def test_a_payload_that_cannot_be_read_as_abort_is_still_refused():
     with pytest.raises(CommandError, match="missing field 'cmd'"):
         parse_command(b'{"command":"abort","id":"a"}')
+
+
+@pytest.mark.parametrize("payload", [
+    b"[" * 1500 + b"]" * 1500,
+    b'{"cmd":"stop","id":"d","x":' + b"[" * 1300 + b"]" * 1300 + b"}",
+    "[" * 1400 + "]" * 1400,
+], ids=["array", "inside-a-stop", "text"])
+def test_deep_nesting_is_refused_not_raised(payload):
+    """json.loads raises RecursionError on deep nesting: it must become a refusal."""
+    with pytest.raises(CommandError, match="nested too deeply"):
+        parse_command(payload)
+
+
+def test_commands_are_the_models():
+    """The command table is derived from the pydantic models, one per argument set."""
+    from orbitrig.service.protocol import COMMAND_FIELDS, ConfirmCommand, StartCommand
+
+    assert COMMAND_FIELDS == {"start": ("matrix",), "confirm": ("step",), "pause": (), "resume": (),
+                              "stop": (), "abort": (), "status": ()}
+    assert StartCommand.model_validate({"cmd": "start", "id": "1", "matrix": "quick"}).matrix == "quick"
+    with pytest.raises(Exception):
+        ConfirmCommand.model_validate({"cmd": "confirm", "id": "1", "step": 5})  # strict: no coercion
+
+
+@pytest.mark.parametrize("payload, reason", [
+    (b'{"cmd":"pause","id":true}', "field 'id' must be a string, got boolean"),
+    (b'{"cmd":"start","id":"q","matrix":["quick"]}', "field 'matrix' must be a string, got array"),
+    (b'{"cmd":"confirm","id":"q","step":{"a":1}}', "field 'step' must be a string, got object"),
+    (b'{"cmd":"status","id":"q","cmd2":1}', "unexpected field 'cmd2' for command 'status'"),
+    (b'{"cmd":"resume","id":"' + b"x" * 129 + b'"}', "field 'id' must have 1 to 128 characters"),
+])
+def test_every_wrong_field_has_its_reason(payload, reason):
+    with pytest.raises(CommandError) as info:
+        parse_command(payload)
+    assert info.value.reason == reason
+
+
+def test_abort_with_several_problems_is_accepted_and_lists_them():
+    cmd = parse_command(b'{"cmd":"abort","id":"","why":1,"how":2}')
+    assert cmd.cmd == "abort" and cmd.id is None
+    assert len(cmd.ignored) == 3 and "unexpected field 'how' for command 'abort'" in cmd.ignored

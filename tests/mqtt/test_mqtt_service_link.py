@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from mqtt_helpers import ACCOUNTS, Broker, RigClient, Watcher, retained
-from orbitrig.service.rig_service import Backoff, BrokerSettings, RigService, ServiceError, ServiceSettings
+from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceError, ServiceSettings
 
 
 def _no_engine(name, matrix):
@@ -47,15 +47,6 @@ async def running(service: RigService):
 
 async def wait(fn, *args, **kw):
     return await asyncio.to_thread(fn, *args, **kw)
-
-
-def test_backoff_is_jittered_exponential_and_capped():
-    lo = Backoff(0.2, 3.0, rng=lambda: 0.0)
-    assert [lo.next() for _ in range(6)] == pytest.approx([0.1, 0.2, 0.4, 0.8, 1.5, 1.5])
-    hi = Backoff(0.2, 3.0, rng=lambda: 1.0)
-    assert [hi.next() for _ in range(6)] == pytest.approx([0.2, 0.4, 0.8, 1.6, 3.0, 3.0])
-    hi.reset()
-    assert hi.next() == pytest.approx(0.2)
 
 
 @pytest.mark.parametrize("url, host, port, tls", [
@@ -201,8 +192,40 @@ def test_cli_needs_a_password_from_file_or_environment(broker):
 def test_cli_refused_credentials_exit_1(broker, tmp_path):
     pw = tmp_path / "pw"
     pw.write_text("wrong\n")
-    pw.chmod(0o644)
+    pw.chmod(0o600)
     done = _serve_cli("--broker", broker.url, "--username", "orbitrig-service", "--password-file", str(pw))
     assert done.returncode == 1, done.stderr
-    assert f"{pw} is readable by other users" in done.stderr
     assert "refused the credentials of 'orbitrig-service'" in done.stderr
+
+
+@pytest.mark.parametrize("mode", [0o644, 0o640, 0o604, 0o606, 0o620])
+def test_cli_refuses_a_password_file_others_can_access(broker, tmp_path, mode):
+    pw = tmp_path / "pw"
+    pw.write_text(ACCOUNTS["orbitrig-service"] + "\n")
+    pw.chmod(mode)
+    done = _serve_cli("--broker", broker.url, "--username", "orbitrig-service", "--password-file", str(pw))
+    assert done.returncode == 2, done.stderr
+    assert f"{pw} is accessible by other users (mode {mode:04o}): chmod 600" in done.stderr
+    assert "Traceback" not in done.stderr
+
+
+def test_cli_refuses_a_password_file_that_is_not_utf8(broker, tmp_path):
+    pw = tmp_path / "pw"
+    pw.write_bytes(b"caf\xe9\n")
+    pw.chmod(0o600)
+    done = _serve_cli("--broker", broker.url, "--username", "orbitrig-service", "--password-file", str(pw))
+    assert done.returncode == 2 and "is not UTF-8 text" in done.stderr and "Traceback" not in done.stderr
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "-1", "0"])
+def test_cli_supervision_timeout_must_be_finite_and_positive(broker, value):
+    done = _serve_cli("--broker", broker.url, "--supervision-timeout", value,
+                      env={"ORBITRIG_MQTT_PASSWORD": "x", "ORBITRIG_MQTT_USERNAME": "orbitrig-service"})
+    assert done.returncode == 2 and "supervision timeout must be a finite number" in done.stderr, done.stderr
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "0"])
+def test_cli_speedup_must_be_finite_and_positive(broker, value):
+    done = _serve_cli("--broker", broker.url, "--sim", "--speedup", value,
+                      env={"ORBITRIG_MQTT_PASSWORD": "x", "ORBITRIG_MQTT_USERNAME": "orbitrig-service"})
+    assert done.returncode == 2 and "--speedup" in done.stderr and "Traceback" not in done.stderr

@@ -1,0 +1,104 @@
+"""Checks of `orbitrig drives` options before anything is sent: the rig
+configuration and device ids, times, and limits that may only tighten the
+configuration's."""
+
+from __future__ import annotations
+
+import math
+
+import typer
+
+MIN_DEVICE_ID, MAX_DEVICE_ID = 1, 247  # Modbus unit ids (0 is broadcast)
+MAX_SECONDS = 86_400.0  # longest --settle/--timeout/--status-every accepted
+
+
+def check_seconds(command: str, **options: tuple[float | None, bool]) -> bool:
+    """True if every option (name -> (value s, zero allowed)) is a finite time
+    of at most a day; else print why (exit 2 follows, nothing sent)."""
+    problems = []
+    for name, (value, zero_ok) in options.items():
+        if value is None:
+            continue
+        low_ok = value >= 0 if zero_ok else value > 0
+        if not (math.isfinite(value) and low_ok and value <= MAX_SECONDS):
+            bound = ">= 0" if zero_ok else "> 0"
+            problems.append(f"--{name.replace('_', '-')} {value:g} s must be finite, {bound} "
+                            f"and at most {MAX_SECONDS:g} s")
+    if problems:
+        typer.echo(f"orbitrig drives {command}: {'; '.join(problems)}; nothing sent", err=True)
+    return not problems
+
+
+def effective_limits(d, *, max_spin=None, max_orbit=None, min_ratio=None, max_ratio=None,
+                     file: str = "the rig configuration"):
+    """DriveLimits (rad/s) of the rig's [drives] section `d`, tightened by the
+    command line's values (rpm, ratios). ValueError naming the option if one
+    is looser than the configuration (or contradicts another)."""
+    from drives.drive import RPM
+    from drives.rig import DriveLimits
+
+    problems = []
+
+    def tighter(option, value, key, configured, *, upper: bool, unit: str = ""):
+        if value is None:
+            return configured
+        if not (math.isfinite(value) and value >= 0):
+            problems.append(f"{option} {value:g}{unit} is not a finite value >= 0")
+            return configured
+        if configured is not None and (value > configured if upper else value < configured):
+            word = "above" if upper else "below"
+            problems.append(
+                f"{option} {value:g}{unit} is {word} the rig's drives.{key} = {configured:g}{unit} "
+                f"({file}): the command line may only tighten the rig's limits"
+            )
+            return configured
+        return value
+
+    spin = tighter("--max-spin", max_spin, "max_spin_rpm", d.max_spin_rpm, upper=True, unit=" rpm")
+    orbit = tighter("--max-orbit", max_orbit, "max_orbit_rpm", d.max_orbit_rpm, upper=True,
+                    unit=" rpm")
+    lo = tighter("--min-ratio", min_ratio, "min_ratio", d.min_ratio, upper=False)
+    hi = tighter("--max-ratio", max_ratio, "max_ratio", d.max_ratio, upper=True)
+    if not problems and lo is not None and hi is not None and lo > hi:
+        problems.append(f"min ratio {lo:g} > max ratio {hi:g} (options and {file} together)")
+    if problems:
+        raise ValueError("; ".join(problems))
+    return DriveLimits(max_spin=spin * RPM, max_orbit=orbit * RPM, min_ratio=lo, max_ratio=hi)
+
+
+def open_config(command, config, modbus, spin_id, orbit_id, *, required: bool):
+    """(Modbus URL, the [drives] section with the ids from the options) or None
+    after printing why not. `status` and `stop` with an explicit --modbus go on
+    with the built-in [drives] defaults if the configuration cannot be read (a
+    stop must not depend on a configuration file); `run` never does."""
+    from orbitrig.config import Drives, load_rig
+    from orbitrig.errors import ConfigError
+
+    try:
+        rig = load_rig(config)
+        url, d = modbus or rig.transports.modbus_url, rig.drives
+    except ConfigError as err:
+        if required or modbus is None:
+            typer.echo(f"orbitrig drives {command} failed (config): {err}", err=True)
+            return None
+        typer.echo(
+            f"orbitrig drives {command}: configuration not used ({err}); "
+            "built-in [drives] defaults", err=True,
+        )
+        url, d = modbus, Drives()
+    ids = {}
+    for option, key, value in (("--spin-id", "spin_id", spin_id), ("--orbit-id", "orbit_id", orbit_id)):
+        if value is None:
+            continue
+        if not MIN_DEVICE_ID <= value <= MAX_DEVICE_ID:
+            typer.echo(f"orbitrig drives {command}: {option} {value} is not a Modbus device id "
+                       f"({MIN_DEVICE_ID}..{MAX_DEVICE_ID}); nothing sent", err=True)
+            return None
+        ids[key] = value
+    if ids:
+        d = d.model_copy(update=ids)
+        if d.spin_id == d.orbit_id:
+            typer.echo(f"orbitrig drives {command}: spin and orbit id are both {d.spin_id}",
+                       err=True)
+            return None
+    return url, d

@@ -1,0 +1,149 @@
+"""Rig and test-matrix configuration (TOML files validated with pydantic).
+
+Files use the units an operator reads (rpm, MPa, mm, um, s, percent); every
+model exposes SI properties (rad/s, Pa, m) for the code inside. Every number
+must be finite and within its range. A bad file raises
+:class:`orbitrig.errors.ConfigError` with one message per problem, naming the
+file, the line, the key path and what is allowed; so does a file that is not
+UTF-8 text.
+
+The models live in ``rig`` and ``matrix``, the field types in ``fields``, the
+error wording in ``messages``; everything is importable from here.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+from pydantic import ValidationError
+
+from orbitrig.config.fields import (  # noqa: F401 - the package's public names
+    CHANNEL_NAMES, FREQ_DEP, LMS, MODELS, MPA, RPM, DeviceId, Mpa, NonNeg, Pos, Ratio, Rpm, Seconds, Wait,
+)
+from orbitrig.config.matrix import MatrixConfig, ModelSpec, Operating, Orbit  # noqa: F401
+from orbitrig.config.messages import _line_of, _problems
+from orbitrig.config.rig import (  # noqa: F401
+    LINK_LOSS_MARGIN, Averaging, Bearing, Channel, Drives, Estimates, Interlocks, RigConfig, Settle,
+    Transports, Verify,
+)
+from orbitrig.errors import ConfigError
+
+_REPO_CONFIG = Path(__file__).resolve().parents[2] / "config"
+
+
+def default_rig_path() -> Path:
+    return _REPO_CONFIG / "rig.toml"
+
+
+def default_matrix_path(name: str = "demo") -> Path:
+    return _REPO_CONFIG / "matrices" / f"{name}.toml"
+
+
+def matrix_file(arg: str | Path, folder: Path | None = None) -> Path:
+    """A test matrix given as a file, or as a bare name from ``folder`` (default:
+    config/matrices/ of the source tree), as MQTT's `start` names one.
+
+    Raises ConfigError naming the available matrices if ``arg`` is neither."""
+    path = Path(arg)
+    if path.is_file() or path.suffix == ".toml" or len(path.parts) != 1:
+        return path  # a file (load_matrix names it if it cannot be read)
+    folder = folder or default_matrix_path().parent
+    named = folder / f"{arg}.toml"
+    if named.is_file():
+        return named
+    names = sorted(p.stem for p in folder.glob("*.toml"))
+    raise ConfigError(str(arg), [f"no such file, and no matrix of that name in {folder} "
+                                 f"(available: {', '.join(names) or 'none'})"])  # fmt: skip
+
+
+def _parse(text: str, file: str) -> dict:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise ConfigError(file, [f"not valid TOML: {err}"]) from err
+    except RecursionError:
+        raise ConfigError(file, ["not valid TOML: arrays or tables nested too deeply"]) from None
+
+
+def _build(cls, data: dict, file: str, text: str):
+    try:
+        obj = cls.model_validate(data)
+    except ValidationError as err:
+        raise ConfigError(file, _problems(err, cls, text)) from err
+    obj._file = file
+    obj._text = text
+    return obj
+
+
+def _read(path: Path | str) -> tuple[str, str]:
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as err:
+        raise ConfigError(str(path), [f"cannot read the file: {err.strerror or err}"]) from err
+    return decode_text(data, str(path)), str(path)
+
+
+def decode_text(data: bytes, file: str) -> str:
+    """UTF-8 text of a configuration file, or ConfigError naming the line and byte."""
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        line = data.count(b"\n", 0, err.start) + 1
+        raise ConfigError(file, [f"line {line}: not UTF-8 text ({err.reason} at byte {err.start}); "
+                                 "save the file as UTF-8"]) from None
+
+
+def _read_default(path: Path | str | None, default: Path, option: str) -> tuple[str, str]:
+    if path is not None or default.is_file():
+        return _read(path or default)
+    raise ConfigError(str(default), [f"the default file is not there (orbitrig installed without its source tree? "
+                                     f"install with pip install -e): give {option} FILE"])  # fmt: skip
+
+
+def load_rig(path: Path | str | None = None) -> RigConfig:
+    text, file = _read_default(path, default_rig_path(), "--config")
+    return rig_from_text(text, file)
+
+
+def rig_from_text(text: str, file: str = "<rig config>") -> RigConfig:
+    return _build(RigConfig, _parse(text, file), file, text)
+
+
+def load_matrix(path: Path | str | None = None) -> MatrixConfig:
+    text, file = _read_default(path, default_matrix_path(), "--matrix")
+    return matrix_from_text(text, file)
+
+
+def matrix_from_text(text: str, file: str = "<matrix>") -> MatrixConfig:
+    return _build(MatrixConfig, _parse(text, file), file, text)
+
+
+def check_matrix_against_rig(matrix: MatrixConfig, rig: RigConfig) -> None:
+    """Problems a matrix has only on this rig (drive limits), all in one ConfigError."""
+    problems = []
+    d = rig.drives
+    text = matrix.text
+    spin_at = _line_of(text, ("operating", "spin_rpm"))
+    ratio_at = _line_of(text, ("orbit", "ratios")) or _line_of(text, ("orbit", "ratio_stop")) or _line_of(text, ("orbit",))
+    at_spin = f"line {spin_at}: " if spin_at else ""
+    at_ratio = f"line {ratio_at}: " if ratio_at else ""
+    for rpm in matrix.operating.spin_rpm:
+        if rpm > d.max_spin_rpm:
+            problems.append(
+                f"{at_spin}key 'operating.spin_rpm': {rpm:g} rpm exceeds the rig's drives.max_spin_rpm = {d.max_spin_rpm:g}"
+            )
+        top = max(matrix.orbit.ratio_list) * rpm
+        if top > d.max_orbit_rpm:
+            problems.append(
+                f"{at_ratio}key 'orbit': ratio {max(matrix.orbit.ratio_list):g} at {rpm:g} rpm gives {top:g} rpm orbit, "
+                f"above the rig's drives.max_orbit_rpm = {d.max_orbit_rpm:g}"
+            )
+    lo, hi = min(matrix.orbit.ratio_list), max(matrix.orbit.ratio_list)
+    if d.min_ratio is not None and lo < d.min_ratio:
+        problems.append(f"{at_ratio}key 'orbit': ratio {lo:g} is below the rig's drives.min_ratio = {d.min_ratio:g}")
+    if d.max_ratio is not None and hi > d.max_ratio:
+        problems.append(f"{at_ratio}key 'orbit': ratio {hi:g} is above the rig's drives.max_ratio = {d.max_ratio:g}")
+    if problems:
+        raise ConfigError(matrix.file, problems)

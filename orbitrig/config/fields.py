@@ -1,0 +1,38 @@
+"""Units, names and the field types shared by the configuration models."""
+
+from __future__ import annotations
+
+import math
+import re
+from typing import Annotated
+
+from pydantic import BaseModel, ConfigDict, Field
+
+RPM = 2.0 * math.pi / 60.0  # rad/s per rpm
+MPA = 1.0e6  # Pa per MPa
+
+CHANNEL_NAMES = ("fx_piezo", "fy_piezo", "fx_strain", "fy_strain", "x_a", "y_a", "x_b", "y_b")
+LMS = ("piezo", "strain")
+MODELS = ("kc7", "kc8", "kcd11", "kcd12")
+FREQ_DEP = re.compile(r"^(none|power:auto|power:[1-9]\d*|power:[1-9]\d*,[1-9]\d*,[1-9]\d*|poly:[1-9]\d*)$")
+
+
+class _Model(BaseModel):
+    # every float finite: inf/nan in any file are refused with the file, line and key
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+Pos = Annotated[float, Field(gt=0)]
+NonNeg = Annotated[float, Field(ge=0)]
+#: a time (s) that must pass: positive, at most one day
+Seconds = Annotated[float, Field(gt=0, le=86_400)]
+#: a time (s) that may be zero, at most one day
+Wait = Annotated[float, Field(ge=0, le=86_400)]
+#: a speed of the rig's drives (rpm)
+Rpm = Annotated[float, Field(gt=0, le=100_000)]
+#: an orbit ratio |Omega|/omega
+Ratio = Annotated[float, Field(gt=0, le=100)]
+#: a pressure (MPa)
+Mpa = Annotated[float, Field(gt=0, le=1_000)]
+#: a Modbus device id (1..247; 0 is broadcast)
+DeviceId = Annotated[int, Field(ge=1, le=247)]

@@ -1,0 +1,111 @@
+"""Validation errors as the operator reads them: one line per problem, with
+the file's line number and the key path (``drives.max_spin_rpm``,
+``channels[3].gain``)."""
+
+from __future__ import annotations
+
+import re
+
+from pydantic import BaseModel, ValidationError
+
+
+def _allowed_keys(model: type[BaseModel], loc: tuple) -> list[str] | None:
+    """Field names of the model that holds the key at `loc` (for unknown-key messages)."""
+    cls: object = model
+    for part in loc[:-1]:
+        if isinstance(part, int):
+            continue
+        if not (isinstance(cls, type) and issubclass(cls, BaseModel)) or part not in cls.model_fields:
+            return None
+        ann = cls.model_fields[part].annotation
+        cls = _model_in(ann)
+    if isinstance(cls, type) and issubclass(cls, BaseModel):
+        return list(cls.model_fields)
+    return None
+
+
+def _model_in(ann) -> object:
+    if isinstance(ann, type) and issubclass(ann, BaseModel):
+        return ann
+    for arg in getattr(ann, "__args__", ()) or ():
+        found = _model_in(arg)
+        if found is not None:
+            return found
+    return None
+
+
+def _key_path(loc: tuple) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        elif not _skipped(part):
+            out += ("." if out else "") + str(part)
+    return out or "(top level)"
+
+
+_LOC_SKIP_PREFIXES = ("function-", "literal[", "list[", "nullable[")
+_LOC_SKIP_NAMES = frozenset({"float", "int", "str", "bool", "none"})
+
+
+def _skipped(part) -> bool:
+    """A pydantic location part that names a validator or type, not a key."""
+    text = str(part)
+    return text in _LOC_SKIP_NAMES or text.startswith(_LOC_SKIP_PREFIXES)
+
+_HEADER = re.compile(r"^\s*(\[\[?)\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
+_KEY = re.compile(r"^\s*([A-Za-z0-9_\-\"']+)\s*=")
+
+
+def _line_of(text: str, loc: tuple) -> int | None:
+    """1-based line of the key (or table header) at a pydantic location, None if not found."""
+    want = tuple(p for p in loc if isinstance(p, int) or not _skipped(p))
+    if not want or not text:
+        return None
+    best, best_len = None, 0
+    table: tuple = ()
+    counts: dict[tuple, int] = {}
+    for n, line in enumerate(text.splitlines(), 1):
+        m = _HEADER.match(line)
+        if m:
+            path = tuple(part.strip().strip('"') for part in m.group(2).split("."))
+            if m.group(1) == "[[":
+                i = counts.get(path, 0)
+                counts[path] = i + 1
+                path = path + (i,)
+            table, here = path, path
+        else:
+            k = _KEY.match(line)
+            if not k:
+                continue
+            here = table + (k.group(1).strip("\"'"),)
+        if len(here) > best_len and want[: len(here)] == here:
+            best, best_len = n, len(here)
+    return best
+
+
+def _got(value) -> str:
+    """A short rendering of the offending value (whole tables are not repeated)."""
+    if isinstance(value, dict):
+        return ""
+    text = repr(value)
+    return f" (got {text if len(text) <= 60 else text[:57] + '...'})"
+
+
+def _problems(err: ValidationError, model: type[BaseModel], text: str = "") -> list[str]:
+    out = []
+    for e in err.errors(include_url=False):
+        loc = tuple(e["loc"])
+        key = _key_path(loc)
+        line = _line_of(text, loc)
+        where = f"line {line}: " if line else ""
+        if e["type"] == "extra_forbidden":
+            allowed = _allowed_keys(model, loc)
+            hint = f"; allowed keys here: {', '.join(allowed)}" if allowed else ""
+            out.append(f"{where}key '{key}': unknown key{hint}")
+        elif e["type"] == "missing":
+            out.append(f"{where}key '{key}': required key is missing")
+        else:
+            msg = e["msg"].removeprefix("Value error, ")
+            out.append(f"{where}key '{key}': {msg}{_got(e.get('input'))}")
+    return out

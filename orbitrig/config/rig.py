@@ -1,0 +1,211 @@
+"""The rig configuration (rig.toml): transports, channels, bearing, drives,
+averaging, settling, verification, interlocks and estimates. Operator units in
+the file (rpm, MPa, mm, um, s, percent); SI through the properties."""
+
+from __future__ import annotations
+
+import warnings
+from typing import Annotated, Literal
+
+from pydantic import Field, PrivateAttr, model_validator
+
+from orbitrig.config.fields import (
+    CHANNEL_NAMES, RPM, DeviceId, Mpa, Ratio, Rpm, Seconds, Wait, _Model,
+)
+
+
+class Transports(_Model):
+    adc_url: str = "socket://127.0.0.1:5000"
+    adc_mode: Literal["sequential", "simultaneous"] = "sequential"
+    modbus_url: str = "tcp://127.0.0.1:5020"
+    can_channel: str = "can0"
+    # python-can interface names: socketcan on a Linux rig, serial/slcan for USB
+    # adapters, virtual for in-process tests
+    can_interface: Literal["socketcan", "serial", "slcan", "pcan", "kvaser", "ixxat",
+                           "vector", "socketcand", "virtual"] = "socketcan"
+    can_bitrate: Annotated[int, Field(gt=0, le=10_000_000)] = 500_000
+    can_node_id: Annotated[int, Field(ge=1, le=127)] = 1
+
+
+class Channel(_Model):
+    index: Annotated[int, Field(ge=0, le=63)]
+    name: Literal[CHANNEL_NAMES]  # type: ignore[valid-type]
+    quantity: str = ""
+    unit: Literal["N", "m"]
+    gain: float = Field(description="engineering unit per count")
+    offset: float = 0.0
+
+    @model_validator(mode="after")
+    def _gain_nonzero(self):
+        if self.gain == 0:
+            raise ValueError("gain must be non-zero")
+        return self
+
+
+class Bearing(_Model):
+    radius_mm: Annotated[float, Field(gt=0, le=10_000)] = 30.0
+    clearance_um: Annotated[float, Field(gt=0, le=100_000)] = 60.0
+
+    @property
+    def clearance(self) -> float:
+        """Radial clearance c (m)."""
+        return self.clearance_um * 1e-6
+
+
+LINK_LOSS_MARGIN = 0.8  # [drives] link_loss_time_s above this share of comm_loss_timeout_s warns
+
+
+class Drives(_Model):
+    max_spin_rpm: Rpm = 2500.0
+    max_orbit_rpm: Rpm = 2500.0
+    min_ratio: Annotated[float, Field(ge=0, le=100)] | None = None
+    max_ratio: Ratio | None = None
+    spin_id: DeviceId = 1
+    orbit_id: DeviceId = 2
+    poll_interval_s: Annotated[float, Field(gt=0, le=60)] = 0.1
+    timeout_s: Annotated[float, Field(gt=0, le=60)] = 0.15  # Modbus request timeout, s (an RTU exchange at 19200 baud takes ~20 ms)
+    # consecutive failed polls that declare the drive link lost (the sweep's drive_link interlock)
+    link_loss_polls: Annotated[int, Field(ge=1, le=100)] = 3
+    comm_loss_timeout_s: Annotated[float, Field(gt=0, le=3_600)] = 1.0  # the drives' own COMM_LOSS_TIMEOUT
+    ramp_rpm_per_s: Annotated[float, Field(gt=0, le=1e6)] = Field(600.0, description="drive ramp rate, for time estimates")
+    stop_timeout_s: Annotated[float, Field(gt=0, le=3_600)] = 30.0
+
+    @property
+    def link_loss_time_s(self) -> float:
+        """Longest time from the last answer to a declared link loss (s)."""
+        return self.link_loss_polls * (self.poll_interval_s + self.timeout_s)
+
+    @model_validator(mode="after")
+    def _ratio_order(self):
+        if self.min_ratio is not None and self.max_ratio is not None and self.min_ratio >= self.max_ratio:
+            raise ValueError("min_ratio must be smaller than max_ratio")
+        if self.spin_id == self.orbit_id:
+            raise ValueError("spin_id and orbit_id must differ")
+        t, wd = self.link_loss_time_s, self.comm_loss_timeout_s
+        what = (f"link_loss_polls {self.link_loss_polls} x (poll_interval_s {self.poll_interval_s:g} + "
+                f"timeout_s {self.timeout_s:g}) = {t:.2f} s")
+        if t >= wd:
+            raise ValueError(f"{what} is not below comm_loss_timeout_s = {wd:g} s: the drives would "
+                             "stop on their own watchdog before the link loss is declared")
+        if t > LINK_LOSS_MARGIN * wd:
+            warnings.warn(f"[drives] {what} is close to comm_loss_timeout_s = {wd:g} s "
+                          f"(keep it under {LINK_LOSS_MARGIN:g} x)", UserWarning, stacklevel=2)
+        return self
+
+
+class Averaging(_Model):
+    revolutions: Annotated[int, Field(ge=2, le=10_000)] = 50
+    timeout_factor: Annotated[float, Field(ge=1.2, le=1_000)] = 3.0
+    timeout_margin_s: Annotated[float, Field(ge=0, le=3_600)] = 2.0
+    retries: Annotated[int, Field(ge=0, le=10)] = 1
+
+
+class Settle(_Model):
+    hold_s: Wait = 2.0
+    timeout_s: Seconds = 120.0
+
+
+class Verify(_Model):
+    orbit_radius_tol_pct: Annotated[float, Field(gt=0, le=100)] = 15.0
+    static_eccentricity_tol: Annotated[float, Field(gt=0, le=1)] = 0.05
+    recess_pressure_tol_pct: Annotated[float, Field(gt=0, le=100)] = 10.0
+    pressure_ratio_tol: Annotated[float, Field(gt=0, le=1)] = 0.05
+
+
+class Interlocks(_Model):
+    supply_pressure_min_mpa: Annotated[float, Field(ge=0, le=1_000)] = 0.2
+    supply_pressure_max_mpa: Mpa = 8.0
+    check_supply_pressure: bool = True
+    check_can_heartbeat: bool = True
+    suspend_timeout_s: Seconds = 300.0
+
+    @model_validator(mode="after")
+    def _band(self):
+        if self.supply_pressure_min_mpa >= self.supply_pressure_max_mpa:
+            raise ValueError("supply_pressure_min_mpa must be smaller than supply_pressure_max_mpa")
+        return self
+
+
+class Estimates(_Model):
+    manual_setting_s: Wait = 120.0
+    verify_s: Wait = 1.0
+    identify_s: Wait = 0.2
+    store_s: Wait = 0.05
+
+
+class RigConfig(_Model):
+    name: str = "rig"
+    transports: Transports = Transports()
+    channels: list[Channel]
+    bearing: Bearing = Bearing()
+    drives: Drives = Drives()
+    averaging: Averaging = Averaging()
+    settle: Settle = Settle()
+    verify: Verify = Verify()
+    interlocks: Interlocks = Interlocks()
+    estimates: Estimates = Estimates()
+
+    _file: str = PrivateAttr("<rig config>")
+    _text: str = PrivateAttr("")
+
+    @model_validator(mode="after")
+    def _channel_map(self):
+        problems = []
+        names = [c.name for c in self.channels]
+        missing = [n for n in CHANNEL_NAMES if n not in names]
+        if missing:
+            problems.append(f"missing channels {missing}; every one of {list(CHANNEL_NAMES)} is required")
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            problems.append(f"channel names used twice: {dup}")
+        idx = sorted(c.index for c in self.channels)
+        if idx != list(range(len(idx))):
+            problems.append(f"channel indices must be 0..{len(idx) - 1} each once, got {idx}")
+        elif self.transports.adc_mode == "sequential" and 360 % len(idx):
+            # docs/protocols/adc-frames.md: in sequential mode slot s converts channel s mod C
+            problems.append(f"in sequential mode the number of channels ({len(idx)}) must divide 360")
+        for c in self.channels:
+            want = "N" if c.name.startswith("f") else "m"
+            if c.unit != want:
+                problems.append(f"channel {c.name} must have unit '{want}'")
+        if problems:
+            raise ValueError("; ".join(problems))
+        return self
+
+    # -- derived, SI
+    @property
+    def file(self) -> str:
+        return self._file
+
+    @property
+    def text(self) -> str:
+        return self._text
+
+    @property
+    def ordered_channels(self) -> list[Channel]:
+        return sorted(self.channels, key=lambda c: c.index)
+
+    @property
+    def channel_index(self) -> dict[str, int]:
+        return {c.name: c.index for c in self.channels}
+
+    @property
+    def gains(self) -> list[float]:
+        return [c.gain for c in self.ordered_channels]
+
+    @property
+    def offsets(self) -> list[float]:
+        return [c.offset for c in self.ordered_channels]
+
+    @property
+    def max_spin(self) -> float:
+        return self.drives.max_spin_rpm * RPM
+
+    @property
+    def max_orbit(self) -> float:
+        return self.drives.max_orbit_rpm * RPM
+
+    @property
+    def ramp_rate(self) -> float:
+        """Drive ramp rate (rad/s per s), for estimates."""
+        return self.drives.ramp_rpm_per_s * RPM

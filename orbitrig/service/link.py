@@ -1,0 +1,188 @@
+"""The rig service's connection to the broker (aiomqtt, MQTT 5).
+
+:class:`BrokerLink` owns one persistent session (clean start off, session
+expiry ``ServiceSettings.session_expiry`` s, a stable client id), so QoS 1
+commands published while the link is down are kept by the broker and handed
+over on reconnection. It reconnects with jittered exponential backoff, reset
+only after a connection carried traffic; keeps an ordered outgoing queue (the
+current status first after every connection; QoS 0 messages and stale
+statuses are not queued while offline); registers ``offline`` as the last
+will and publishes it itself when a session ends for any reason but a lost
+link (a clean disconnect does not trigger the will).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import collections
+import dataclasses
+import logging
+import time
+from collections.abc import Callable
+from typing import Any
+
+from orbitrig.service import protocol as proto
+from daq.backoff import Backoff
+from orbitrig.service.settings import AUTH_REFUSED, BrokerSettings, ServiceError, ServiceSettings
+
+log = logging.getLogger("orbitrig.service.link")
+
+#: a connection that stayed up this long (s) after subscribing resets the backoff
+TRAFFIC_S = 5.0
+
+
+@dataclasses.dataclass
+class Outgoing:
+    topic: str
+    payload: bytes
+    qos: int
+    retain: bool = False
+
+
+class BrokerLink:
+    """The broker side of one rig service. ``status()`` gives the current status
+    payload, ``offline(message)`` an ``offline`` status; ``on_command(payload,
+    retained)`` gets every message on ``<prefix>/cmd``."""
+
+    def __init__(self, broker: BrokerSettings, settings: ServiceSettings, topics: proto.Topics, *,
+                 status: Callable[[], bytes], offline: Callable[[str], bytes],
+                 on_command: Callable[[bytes, bool], None]):
+        self.broker, self.settings, self.topics = broker, settings, topics
+        self._status, self._offline, self._on_command = status, offline, on_command
+        self._out: collections.deque[Outgoing] = collections.deque(maxlen=10_000)
+        self._wake = asyncio.Event()
+        self.drained = asyncio.Event()
+        self.online = asyncio.Event()
+        self.offline = asyncio.Event()
+        self.offline.set()
+        self.leaving = False  # set by the owner once "offline" was queued for a clean exit
+        self.connections = 0  # successful connections so far
+        self.connected_at = 0.0  # time.monotonic() of the latest connection
+
+    @property
+    def where(self) -> str:
+        return f"{self.broker.host}:{self.broker.port}"
+
+    # -- outgoing -------------------------------------------------------------------
+
+    def send(self, topic: str, payload: bytes, qos: int, retain: bool = False) -> None:
+        if not self.online.is_set() and (qos == 0 or topic == self.topics.status):
+            return  # progress is of no use later; the status is republished on connection
+        self._out.append(Outgoing(topic, payload, qos, retain))
+        self.drained.clear()
+        self._wake.set()
+
+    async def _publish_loop(self, client: Any) -> None:
+        """Deliver the outgoing queue in order; the current status first."""
+        pending = [m for m in self._out if m.topic != self.topics.status]
+        self._out.clear()
+        self._out.append(Outgoing(self.topics.status, self._status(), proto.QOS_STATUS, True))
+        self._out.extend(pending)
+        while True:
+            while self._out:
+                msg = self._out[0]
+                await client.publish(msg.topic, msg.payload, qos=msg.qos, retain=msg.retain)
+                if self._out and self._out[0] is msg:
+                    self._out.popleft()
+            self.drained.set()
+            self._wake.clear()
+            await self._wake.wait()
+
+    async def _command_loop(self, client: Any) -> None:
+        async for message in client.messages:
+            if str(message.topic) != self.topics.cmd:
+                continue
+            payload = message.payload if isinstance(message.payload, (bytes, bytearray)) else \
+                str(message.payload or "").encode()
+            self._on_command(bytes(payload), bool(message.retain))
+
+    # -- connection -----------------------------------------------------------------
+
+    def _client(self, *, clean_start: bool = False) -> Any:
+        import aiomqtt
+        from paho.mqtt.packettypes import PacketTypes
+        from paho.mqtt.properties import Properties
+
+        b = self.broker
+        will = aiomqtt.Will(self.topics.status, self._offline("connection to the rig service lost"),
+                            qos=proto.QOS_STATUS, retain=True)
+        tls = aiomqtt.TLSParameters(ca_certs=str(b.tls_ca) if b.tls_ca else None) if b.tls else None
+        session = Properties(PacketTypes.CONNECT)
+        session.SessionExpiryInterval = 0 if clean_start else self.settings.session_expiry
+        return aiomqtt.Client(b.host, b.port, username=b.username, password=b.password,
+                              identifier=self.settings.mqtt_client_id, will=None if clean_start else will,
+                              protocol=aiomqtt.ProtocolVersion.V5, clean_start=clean_start,
+                              properties=session, keepalive=b.keepalive, timeout=b.timeout,
+                              tls_params=tls)
+
+    async def run(self) -> None:
+        """Connect, and reconnect after every loss, until cancelled."""
+        backoff = Backoff(self.settings.reconnect_initial, self.settings.reconnect_max)
+        while True:
+            if await self._session():
+                backoff.reset()
+            delay = backoff.next_delay()
+            log.info("reconnecting in %.2f s", delay)
+            await asyncio.sleep(delay)
+
+    async def _session(self) -> bool:
+        """One connection, until it is lost. True if it carried traffic
+        (subscribed, then up for at least TRAFFIC_S)."""
+        import aiomqtt
+
+        t_connected = None
+        try:
+            async with self._client() as client:
+                await client.subscribe(self.topics.cmd, qos=proto.QOS_CMD)
+                t_connected = self.connected_at = time.monotonic()
+                self.connections += 1
+                log.info("connected to %s as %r (client id %r); commands on %s", self.where,
+                         self.broker.username, self.settings.mqtt_client_id, self.topics.cmd)
+                self.offline.clear()
+                self.online.set()
+                try:
+                    async with asyncio.TaskGroup() as session:
+                        session.create_task(self._publish_loop(client), name="mqtt-publish")
+                        session.create_task(self._command_loop(client), name="mqtt-commands")
+                finally:
+                    await self._leave(client)
+        except* aiomqtt.MqttError as group:
+            self._connection_failed(group.exceptions[0], connected=t_connected is not None)
+        finally:
+            self.online.clear()
+            self.offline.set()
+        return t_connected is not None and time.monotonic() - t_connected > TRAFFIC_S
+
+    def _connection_failed(self, err: Exception, *, connected: bool) -> None:
+        import aiomqtt
+
+        rc = getattr(getattr(err, "rc", None), "value", getattr(err, "rc", None))
+        if self.connections == 0 and isinstance(err, aiomqtt.MqttCodeError) and rc in AUTH_REFUSED:
+            raise ServiceError(f"broker {self.where} refused the credentials of "
+                               f"{self.broker.username!r}: {err}") from None
+        if connected:
+            log.warning("connection to %s lost: %s", self.where, err)
+        else:
+            log.warning("cannot connect to %s: %s", self.where, err)
+
+    async def _leave(self, client: Any) -> None:
+        """Publish ``offline`` (retained) before the session ends for any reason
+        but a lost link (shutdown, a fault in the service)."""
+        if self.leaving and self.drained.is_set():
+            return  # the owner's offline status has been delivered
+        try:
+            await asyncio.wait_for(client.publish(self.topics.status, self._offline("rig service stopped"), qos=proto.QOS_STATUS,
+                                                  retain=True), 3.0)
+        except Exception as err:  # noqa: BLE001 - the link may be gone: the last will covers that
+            log.debug("could not publish offline on the way out: %s", err)
+
+    async def discard_session(self) -> None:
+        """Make the broker forget the session (after a clean shutdown): commands
+        sent while no service runs are not executed by the next one; the
+        persistent session bridges reconnections, not restarts."""
+        try:
+            async with asyncio.timeout(5.0):
+                async with self._client(clean_start=True):
+                    pass
+        except Exception as err:  # noqa: BLE001 - the session then expires on its own
+            log.info("could not discard the broker session: %s", err)

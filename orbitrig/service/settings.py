@@ -1,0 +1,104 @@
+"""How the rig service connects and behaves: broker settings, service
+settings and the client id."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+from typing import Any, Literal
+from urllib.parse import urlsplit
+
+from orbitrig.errors import OrbitrigError
+from orbitrig.service import protocol as proto
+
+SupervisionPolicy = Literal["keep", "pause", "stop"]
+SUPERVISION_POLICIES: tuple[str, ...] = ("keep", "pause", "stop")
+#: CONNACK reason codes meaning "your credentials are refused" (MQTT 3.1.1 and 5).
+AUTH_REFUSED = frozenset({4, 5, 134, 135})
+
+
+class ServiceError(OrbitrigError):
+    """The service cannot run (bad broker URL, credentials refused, ...)."""
+
+
+# -- settings -----------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class BrokerSettings:
+    """Where and how to connect. ``keepalive`` (s): the broker publishes the last
+    will after 1.5 x keepalive without traffic (at once when the socket closes)."""
+
+    host: str
+    port: int = 1883
+    username: str | None = None
+    password: str | None = dataclasses.field(default=None, repr=False)
+    tls: bool = False
+    tls_ca: Path | None = None
+    keepalive: int = 10
+    timeout: float = 10.0
+
+    @classmethod
+    def from_url(cls, url: str, **kw: Any) -> BrokerSettings:
+        """``mqtt://host:port`` (default port 1883) or ``mqtts://host:port`` (TLS, 8883).
+        TLS is also used with ``mqtt://`` when ``tls_ca`` is given."""
+        parts = urlsplit(url)
+        if parts.scheme not in ("mqtt", "mqtts") or not parts.hostname:
+            raise ServiceError(f"broker URL {url!r}: expected mqtt://host:port or mqtts://host:port")
+        if parts.username or parts.password:
+            raise ServiceError(f"broker URL {url!r}: credentials do not belong in the URL "
+                               "(use --username and --password-file or ORBITRIG_MQTT_PASSWORD)")
+        if parts.path not in ("", "/") or parts.query:
+            raise ServiceError(f"broker URL {url!r}: no path or query expected")
+        try:
+            port = parts.port
+        except ValueError as err:
+            raise ServiceError(f"broker URL {url!r}: {err}") from None
+        tls = parts.scheme == "mqtts" or kw.get("tls_ca") is not None
+        return cls(host=parts.hostname, port=port or (8883 if parts.scheme == "mqtts" else 1883),
+                   tls=tls, **kw)
+
+
+@dataclasses.dataclass(frozen=True)
+class ServiceSettings:
+    """Behaviour of the service (times in s)."""
+
+    rig_id: str
+    matrices_dir: Path
+    prefix: str | None = None
+    supervision_policy: SupervisionPolicy = "keep"
+    supervision_timeout: float = 60.0
+    reconnect_initial: float = 0.2
+    reconnect_max: float = 30.0
+    shutdown_timeout: float = 60.0
+    #: MQTT client id asked for; None: ``default_client_id(rig_id, prefix)``. A broker
+    #: configured as config/mosquitto/ replaces it with the account's user name.
+    client_id: str | None = None
+    #: s the broker keeps the session (subscription, queued QoS 1 commands) after a disconnect
+    session_expiry: int = 120
+
+    @property
+    def mqtt_client_id(self) -> str:
+        return self.client_id or default_client_id(self.rig_id, self.prefix)
+
+    def __post_init__(self) -> None:
+        if self.supervision_policy not in SUPERVISION_POLICIES:
+            raise ServiceError(f"supervision policy {self.supervision_policy!r}: "
+                               f"one of {', '.join(SUPERVISION_POLICIES)}")
+        if not 0 < self.supervision_timeout < math.inf:
+            raise ServiceError(f"supervision timeout must be a finite number of seconds > 0, "
+                               f"not {self.supervision_timeout!r}")
+        if self.client_id is not None and not 0 < len(self.client_id.encode()) <= 128:
+            raise ServiceError("client id must have 1 to 128 bytes")
+
+
+#: Client ids of people's clients start with this on the shipped broker config
+#: (mosquitto's own tools' prefix and its ``auto_id_prefix`` there).
+CLIENT_ID_PREFIX = "mosq-"
+
+
+def default_client_id(rig_id: str, prefix: str | None = None) -> str:
+    """A stable client id per service instance (its topic prefix): the same on
+    every reconnection, so the broker's session and queued commands are found."""
+    where = (prefix or f"{proto.DEFAULT_PREFIX_ROOT}/{rig_id}").replace("/", "-")
+    return f"{CLIENT_ID_PREFIX}orbitrig-serve-{where}"[:128]

@@ -1,0 +1,214 @@
+"""The MQTT link no viewer can disrupt, against a real mosquitto with the
+shipped client-id binding (config/mosquitto/mosquitto.conf): nobody can take
+the service's client id, QoS 1 commands published while the service reconnects
+are executed once, any unreadable payload gets ok:false, and ``offline`` is
+retained on every way out."""
+
+from __future__ import annotations
+
+import asyncio
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+
+from mqtt_helpers import ACCOUNTS, Broker, CutProxy, RigClient, Service, retained, write_matrices
+from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings, default_client_id
+
+RIG = "hard-rig"
+ENV = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}
+
+
+@pytest.fixture(scope="module")
+def bound(tmp_path_factory):
+    b = Broker(tmp_path_factory.mktemp("bound-broker"), bind_ids=True)
+    b.start()
+    yield b
+    b.stop()
+
+
+def serve(url: str, work: Path, rig: str = RIG) -> Service:
+    args = ["--sim", "--broker", url, "--rig-id", rig, "--username", "orbitrig-service",
+            "--matrices", str(write_matrices(work / "matrices")), "--out", str(work / "runs"),
+            "--speedup", "20", "--confirm", "auto"]
+    return Service(args, work, env=ENV)
+
+
+@pytest.fixture
+def started(bound, tmp_path):
+    svc = serve(bound.service_url, tmp_path)
+    rc = RigClient(bound, RIG, svc)
+    try:
+        rc.status("idle", timeout=30)
+        yield svc, rc
+    finally:
+        rc.close()
+        svc.stop()
+
+
+def _connect_as(broker: Broker, port: int, client_id: str) -> subprocess.CompletedProcess:
+    """A viewer connects with ``client_id`` for about 2 s (mosquitto_sub)."""
+    return subprocess.run(["mosquitto_sub", *broker.client_args("viewer", port), "-i", client_id,
+                           "-t", "orbitrig/none", "-W", "2"], capture_output=True, timeout=15)
+
+
+def test_a_viewer_cannot_take_the_service_client_id(bound, started):
+    svc, rc = started
+    asked = default_client_id(RIG)
+    assert asked.startswith("mosq-")
+    attempts = [
+        (bound.port, asked),               # the id the service asks for: another session, no takeover
+        (bound.port, "orbitrig-service"),  # the id the broker gave the service: refused
+        (bound.service_port, asked),       # the service listener: the viewer's id becomes "viewer"
+        (bound.service_port, "orbitrig-service"),
+    ]
+    for port, cid in attempts:
+        _connect_as(bound, port, cid)
+        assert rc.command({"cmd": "status"})["ok"] is True, (port, cid)
+    text = svc.text()
+    assert text.count("connected to 127.0.0.1") == 1 and " lost" not in text, text[-2000:]
+    broker_log = bound.log.read_text()
+    assert "closing old connection" not in broker_log and "taken over" not in broker_log
+    assert "not authorised" in broker_log  # the attempt with the service's name was refused
+
+
+def test_without_the_binding_a_viewer_kicks_the_service(broker, tmp_path):
+    """The control: on a broker without the binding the same attempt succeeds."""
+    svc = serve(broker.url, tmp_path, rig="unbound-rig")
+    rc = RigClient(broker, "unbound-rig", svc)
+    try:
+        rc.status("idle", timeout=30)
+        _connect_as(broker, broker.port, default_client_id("unbound-rig"))
+        assert " lost" in svc.text()
+    finally:
+        rc.close()
+        svc.stop()
+
+
+def test_deep_json_gets_ok_false_and_serve_keeps_running(started):
+    svc, rc = started
+    mark = rc.watch.mark()
+    deep = b"[" * 1500 + b"]" * 1500
+    nested = b'{"cmd":"abort","id":"deep","x":' + b"[" * 1400 + b"]" * 1400 + b"}"
+    for payload in (deep, nested):
+        rc.send(payload)
+    deadline = time.monotonic() + 10
+    while len(rc.watch.on("reply", mark)) < 2 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    replies = [m.json() for m in rc.watch.on("reply", mark)]
+    assert [r["ok"] for r in replies] == [False, False], replies
+    assert all("nested too deeply" in r["error"] for r in replies), replies
+    assert rc.command({"cmd": "status"})["ok"] is True
+    assert svc.proc.poll() is None and "Traceback" not in svc.text()
+
+
+def test_a_command_sent_while_the_service_reconnects_runs_once(bound, tmp_path):
+    proxy = CutProxy(bound.service_port)
+    svc = serve(proxy.url, tmp_path)
+    rc = RigClient(bound, RIG, svc)
+    try:
+        rc.status("idle", timeout=30)
+        mark = rc.watch.mark()
+        proxy.cut()
+        rc.status("offline", start=mark, timeout=15)  # the broker saw the link drop: the last will
+        cid = rc.send({"cmd": "start", "matrix": "quick"})
+        time.sleep(1.5)
+        assert rc.watch.on("reply", mark) == [], "answered while cut off?"
+        proxy.restore()
+        assert rc.reply(cid, timeout=30, start=mark)["ok"] is True
+        rc.status("running", start=mark, timeout=30)
+        assert rc.command({"cmd": "abort"})["ok"] is True
+        rc.status("idle", start=mark, timeout=60)
+        replies = [m.json()["id"] for m in rc.watch.on("reply", mark)]
+        assert replies.count(cid) == 1, replies
+        assert svc.text().count("run of matrix 'quick' starting") == 1
+    finally:
+        rc.close()
+        svc.stop()
+        proxy.close()
+
+
+@pytest.mark.parametrize("how", ["SIGINT", "SIGKILL"])
+def test_offline_is_retained_after_any_exit(bound, tmp_path, how):
+    svc = serve(bound.service_url, tmp_path)
+    rc = RigClient(bound, RIG, svc)
+    try:
+        rc.status("idle", timeout=30)
+        svc.kill(getattr(signal, how))
+        if how == "SIGINT":
+            assert svc.proc.returncode == 0, svc.text()[-2000:]
+        msg = retained(bound, f"orbitrig/{RIG}/status")
+        assert msg is not None and msg.retain and msg.json()["state"] == "offline", msg
+        want = "service stopped" if how == "SIGINT" else "connection to the rig service lost"
+        assert msg.json()["message"] == want
+    finally:
+        rc.close()
+        svc.stop()
+
+
+async def test_a_cancelled_service_says_offline(bound, tmp_path):
+    """A way out that is neither a shutdown request nor a lost link."""
+    settings = ServiceSettings(rig_id="cancelled", matrices_dir=write_matrices(tmp_path / "m"))
+    service = RigService(settings, BrokerSettings.from_url(bound.service_url, username="orbitrig-service",
+                                                           password=ACCOUNTS["orbitrig-service"]),
+                         engine_factory=lambda name, m: None, load_matrix=lambda p: None)
+    task = asyncio.create_task(service.serve(asyncio.Event()))
+    for _ in range(100):
+        if service.connections:
+            break
+        await asyncio.sleep(0.05)
+    await asyncio.sleep(0.3)
+    task.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await task
+    msg = await asyncio.to_thread(retained, bound, "orbitrig/cancelled/status")
+    assert msg is not None and msg.json()["state"] == "offline" and msg.json()["message"] == "rig service stopped"
+
+
+async def test_backoff_is_not_reset_by_connections_that_carry_no_traffic(bound, tmp_path):
+    """Every connection is cut 0.3 s after it was made (CONNACK and SUBACK get
+    through): reconnections thin out (jittered exponential backoff, reset only
+    after a session stayed up for a while) instead of repeating every 0.1 s."""
+    proxy = CutProxy(bound.service_port, lifetime=0.3)
+    settings = ServiceSettings(rig_id="dropped", matrices_dir=write_matrices(tmp_path / "m"),
+                               reconnect_initial=0.2, reconnect_max=30.0)
+    service = RigService(settings, BrokerSettings.from_url(proxy.url, username="orbitrig-service",
+                                                           password=ACCOUNTS["orbitrig-service"]),
+                         engine_factory=lambda name, m: None, load_matrix=lambda p: None)
+    stop = asyncio.Event()
+    task = asyncio.create_task(service.serve(stop))
+    try:
+        await asyncio.sleep(6.0)
+        # growing delays 0.1-0.2, 0.2-0.4, 0.4-0.8, 0.8-1.6, 1.6-3.2 s after 0.3 s sessions: <= 6
+        # connections in 6 s; a backoff reset at each connection would make about 12
+        assert 3 <= service.connections <= 6, service.connections
+    finally:
+        proxy.close()
+        stop.set()
+        await asyncio.wait_for(task, 20)
+
+
+def test_a_redelivery_after_a_reconnection_is_executed_once(tmp_path):
+    """The broker redelivers a QoS 1 command whose acknowledgement was lost with
+    the link, right after the reconnection: executed and answered once. The same
+    command repeated by an operator is a new command."""
+    import time as _time
+
+    settings = ServiceSettings(rig_id="redeliver", matrices_dir=write_matrices(tmp_path / "m"))
+    service = RigService(settings, BrokerSettings("127.0.0.1"), engine_factory=lambda name, m: None,
+                         load_matrix=lambda p: None)
+    sent = []
+    service.link.send = lambda topic, payload, qos, retain=False: sent.append((topic, payload))
+    payload = b'{"cmd":"status","id":"a1"}'
+    service.link.connections, service.link.connected_at = 1, _time.monotonic()
+    service.handle_command(payload)
+    service.handle_command(payload)  # the operator repeats it
+    assert sum(t.endswith("/reply") for t, _ in sent) == 2
+    service.link.connections, service.link.connected_at = 2, _time.monotonic()  # reconnected
+    service.handle_command(payload)  # the broker's redelivery
+    assert sum(t.endswith("/reply") for t, _ in sent) == 2
+    service.link.connected_at -= 60  # long after the reconnection: a new command
+    service.handle_command(payload)
+    assert sum(t.endswith("/reply") for t, _ in sent) == 3
