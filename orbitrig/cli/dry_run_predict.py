@@ -40,7 +40,25 @@ def _directions(mat) -> str:
 
 def block_revolutions(rig, mat) -> int:
     """Revolutions the prediction assumes per block (the minimum of an adaptive rule)."""
+    if mat.averaging is not None:
+        return mat.averaging.min_revolutions
     return mat.revolutions or rig.averaging.revolutions
+
+
+def adaptive_line(rig, mat) -> str | None:
+    """With [averaging]: the acquisition time if every block stopped at the minimum, and at
+    the maximum (the plan's durations assume the maximum)."""
+    from orbitrig.run.plan import acquisition_time, format_duration, operating_points
+
+    a = mat.averaging
+    if a is None:
+        return None
+    orbits = [b.orbit for p in operating_points(mat, rig) for b in p.blocks]
+    lo = sum(acquisition_time(w, a.min_revolutions) for w in orbits)
+    hi = sum(acquisition_time(w, a.max_revolutions) for w in orbits)
+    return (f"adaptive averaging: every channel <= {a.target_pct:g} % in {a.min_revolutions}..{a.max_revolutions} "
+            f"revolutions per block: acquiring takes {format_duration(lo)} .. {format_duration(hi)} "
+            "(the estimate above assumes the maximum)")
 
 
 def predict_model(rig, mat, model: str, freq_dep: str, noise) -> ModelPrediction:
@@ -81,8 +99,11 @@ def prediction_lines(rig, mat) -> list[str]:
 
     noise = stated_noise()
     n = block_revolutions(rig, mat)
-    out = [f"predicted uncertainty (Cramer-Rao; noise {noise.source}; {n} revolutions per block; "
-           "nominal prior coefficients; `orbitrig design` proposes lists):"]
+    adaptive = adaptive_line(rig, mat)
+    out = [adaptive] if adaptive else []
+    out.append(f"predicted uncertainty (Cramer-Rao; noise {noise.source}; {n} revolutions per block"
+               + (", the adaptive minimum" if adaptive else "") + "; nominal prior coefficients; "
+               "`orbitrig design` proposes lists):")
     for m in mat.models:
         p = predict_model(rig, mat, m.model, m.freq_dep, noise)
         if p.refusal:
