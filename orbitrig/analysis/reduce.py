@@ -2,7 +2,7 @@
 
 `reduce_run` runs :func:`reduction.identify.identify` on the orbit table of
 every complete operating point, for both load measuring systems, with one
-model / frequency dependence / method. The run's own results in ``run.h5`` and
+model / frequency dependence / method. The run's own results (``run.h5``, the pieces) and
 ``coefficients.csv`` are never touched: `write_csv` writes a separate file
 ``DIR/reduce_<model>_<freq-dep>_<method>.csv`` with the columns of
 ``coefficients.csv`` (docs/storage.md), one row per (point, lms).
@@ -18,7 +18,7 @@ from typing import Any
 from orbitrig.errors import IdentificationError, ReductionError
 from orbitrig.config import LMS
 from orbitrig.store.reader import Point, Run, StoredIdentification, freq_dep_key
-from orbitrig.store.writer import CSV_HEAD, coef_order, true_entry
+from orbitrig.store.csvfile import CSV_HEAD, coef_order, coefficient_column, one_line, true_entry
 
 #: constant-term keys in the spec's order
 CONSTANT_KEYS = tuple(f"{m}{e}" for m in "KCD" for e in ("xx", "xy", "yx", "yy"))
@@ -87,7 +87,7 @@ def reduce_run(
     points = [p for p in run.complete_points if any(lms in p.tables for lms in lms_names)]
     if not points:
         raise ReductionError(
-            f"{run.directory / 'run.h5'}: no complete operating point with an orbit table "
+            f"{run.directory}: no complete operating point with an orbit table "
             f"(run status: {run.status})"
         )
     return [
@@ -119,9 +119,9 @@ def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, 
             keys += [k for k in r.identification.coefficients if k not in keys]
     keys.sort(key=coef_order)
     constant = [k for k in keys if "_" not in k]
-    columns = [*CSV_HEAD, *(c for k in keys for c in (k, f"{k}_std"))]
+    columns = [*CSV_HEAD, *(coefficient_column(k, kind) for k in keys for kind in ("", "std"))]
     if sim:
-        columns += [f"true_{k}" for k in constant]
+        columns += [coefficient_column(k, "true") for k in constant]
     out = []
     for r in rows:
         s = r.point.settings
@@ -130,17 +130,18 @@ def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, 
             "recess_pressure_mpa": s.recess_pressure / 1e6, "pressure_ratio": s.pressure_ratio,
             "static_eccentricity": s.static_eccentricity, "dynamic_eccentricity": s.dynamic_eccentricity,
             "lms": r.lms, "model": r.model, "freq_dep": r.freq_dep, "method": r.method,
-            "error": r.error or "",
+            "error": one_line(r.error or ""),
         }  # fmt: skip
         ident = r.identification
         if ident is not None:
-            d.update(n_frequencies=ident.n_frequencies, condition_number=ident.condition_number,
-                     residual_rms=ident.residual_rms)  # fmt: skip
+            d.update({"n_frequencies": ident.n_frequencies, "condition_number": ident.condition_number,
+                      "residual_rms [N]": ident.residual_rms})  # fmt: skip
             for k in keys:
-                d[k] = ident.coefficients.get(k)
-                d[f"{k}_std"] = ident.std_errors.get(k)
+                d[coefficient_column(k)] = ident.coefficients.get(k)
+                d[coefficient_column(k, "std")] = ident.std_errors.get(k)
             if sim and r.point.truth:
-                d.update({f"true_{k}": true_entry(r.point.truth, k) for k in constant if k in ident.coefficients})
+                d.update({coefficient_column(k, "true"): true_entry(r.point.truth, k)
+                          for k in constant if k in ident.coefficients})
         out.append({c: "" if d.get(c) is None else d[c] for c in columns})
     return columns, out
 

@@ -178,7 +178,7 @@ def make_report(directory: str | Path, *, points: list[int] | None = None) -> Re
     chosen = [p for p in run.complete_points if points is None or p.index in points]
     if points is not None and len(chosen) < len(set(points)):
         missing = sorted(set(points) - {p.index for p in chosen})
-        raise ValueError(f"{run.directory / 'run.h5'}: no complete operating point {missing}")
+        raise ValueError(f"{run.directory}: no complete operating point {missing}")
     out = Path(directory) / PLOTS_DIR
     out.mkdir(exist_ok=True)
     report = Report(run, out, [])

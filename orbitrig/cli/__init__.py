@@ -28,6 +28,7 @@ _AREAS = (
     "drives",  # orbitrig drives status|run|stop
     "sweep",  # orbitrig sweep
     "report",  # orbitrig reduce, orbitrig report
+    "export",  # orbitrig export
     "serve",  # orbitrig serve
     "dashboard",  # orbitrig dashboard
     "design",  # orbitrig design

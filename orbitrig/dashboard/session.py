@@ -116,7 +116,7 @@ class Session:
         s = self.settings
         tls = aiomqtt.TLSParameters(ca_certs=str(s.tls_ca) if s.tls_ca else None) if s.tls else None
         return aiomqtt.Client(s.host, s.port, username=self.user, password=self.__password,
-                              identifier=f"orbitrig-dashboard-{self.user}-{self.token[:8]}",
+                              identifier=f"mosq-orbitrig-dashboard-{self.user}-{self.token[:8]}",
                               clean_session=True, keepalive=s.keepalive, timeout=10, tls_params=tls)
 
     async def open(self) -> None:

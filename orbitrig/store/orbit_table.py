@@ -164,25 +164,28 @@ def _check_row(file: str, line: int, row: dict, first: dict | None) -> None:
         raise TableError(file, line, RECORDS, f"number of records must be a whole number >= 1, got {row[RECORDS]:g}")
 
 
+def orbit_table_columns(table: OrbitTable) -> dict[str, tuple[np.ndarray, str]]:
+    """The orbit-table columns of ``table`` in order: name -> (values, unit), the optional
+    ones (gamma2_*, n_records, u_*) only when the table has them. Units as in the CSV."""
+    cols = {"spin_rpm": (np.full(table.n, table.spin / RPM), "rpm"), "orbit_hz": (table.orbit / (2 * math.pi), "Hz")}
+    for name, unit in (("x", "m"), ("y", "m"), ("fx", "N"), ("fy", "N")):
+        z = np.asarray(getattr(table, name))
+        cols[f"{name}_re"], cols[f"{name}_im"] = (z.real, unit), (z.imag, unit)
+    if table.gamma2 is not None:
+        cols.update({g: (np.asarray(table.gamma2)[:, j], "1") for j, g in enumerate(GAMMA2)})
+    if table.n_records is not None:
+        cols[RECORDS] = (np.asarray(table.n_records, dtype=np.int64), "1")
+    if table.u is not None:
+        cols.update({c: (np.asarray(table.u)[:, j], unit) for j, (c, unit) in enumerate(zip(UNCERTAINTY, "mmNN"))})
+    return cols
+
+
 def write_orbit_table(path: str | Path, table: OrbitTable) -> None:
     """Write ``table`` as an orbit table CSV (full float precision; gamma2, n_records and u_*
     when present)."""
-    header = (list(REQUIRED) + (list(GAMMA2) if table.gamma2 is not None else [])
-              + ([RECORDS] if table.n_records is not None else [])
-              + (list(UNCERTAINTY) if table.u is not None else []))
-    spin_rpm = table.spin / RPM
+    cols = orbit_table_columns(table)
     with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
-        w.writerow(header)
+        w.writerow(list(cols))
         for k in range(table.n):
-            row = [spin_rpm, table.orbit[k] / (2 * math.pi)]
-            for z in (table.x[k], table.y[k], table.fx[k], table.fy[k]):
-                row += [z.real, z.imag]
-            if table.gamma2 is not None:
-                row += list(table.gamma2[k])
-            cells = [repr(float(v)) for v in row]
-            if table.n_records is not None:
-                cells.append(str(int(table.n_records[k])))
-            if table.u is not None:
-                cells += [repr(float(v)) for v in table.u[k]]
-            w.writerow(cells)
+            w.writerow([str(int(v[k])) if name == RECORDS else repr(float(v[k])) for name, (v, _) in cols.items()])

@@ -1,6 +1,8 @@
 """Read a run directory (docs/storage.md) into plain data, without the rig.
 
-`read_run(DIR)` opens ``DIR/run.h5`` read-only and returns a :class:`Run`: the
+`read_run(DIR)` reads the run's durable pieces (any run `--resume` can read, also one
+cut short by a kill) or, in a directory holding only a consolidated ``run.h5``, that
+file; both have the same groups (orbitrig.store.pieces). It returns a :class:`Run`: the
 run's status and configuration, and one :class:`Point` per operating point with
 its settings, its orbit table per load measuring system (as
 :class:`reduction.table.OrbitTable`), the identifications the sweep stored, the
@@ -21,10 +23,7 @@ from typing import Any
 import numpy as np
 
 from orbitrig.errors import OrbitrigError
-
-RUN_FORMAT = "orbitrig-run/1"
-RUN_FILE = "run.h5"
-COHERENCE_PAIRS = ("xfx", "yfx", "xfy", "yfy")
+from orbitrig.store.layout import COHERENCE_PAIRS, READABLE_FORMATS, RUN_FILE, RunLayout  # noqa: F401
 
 
 class RunDirError(OrbitrigError):
@@ -109,7 +108,7 @@ class Point:
 
 @dataclass
 class Run:
-    """A run directory as read from disk."""
+    """A run directory as read from disk (`torn`: journal lines ignored, `unreadable`: pieces skipped)."""
 
     directory: Path
     status: str
@@ -121,6 +120,10 @@ class Run:
     rig_config: str
     matrix_config: str
     points: list[Point]
+    channels: list[str] = field(default_factory=list)
+    channel_units: list[str] = field(default_factory=list)
+    torn: int = 0
+    unreadable: list[str] = field(default_factory=list)
 
     @property
     def complete_points(self) -> list[Point]:
@@ -157,56 +160,109 @@ def _open(path: Path):
     try:
         return h5py.File(path, "r")
     except OSError as err:
-        # A sweep still writing the file holds HDF5's lock; reading without the
-        # lock is safe here because only points marked complete are trusted.
-        if "lock" in str(err).lower():
-            try:
-                return h5py.File(path, "r", locking=False)
-            except OSError as err2:
-                raise RunDirError(path, f"cannot open: {err2}") from err2
         raise RunDirError(path, f"not a readable HDF5 file ({err})") from err
 
 
 def read_run(directory: str | Path) -> Run:
-    """Read ``directory/run.h5`` (docs/storage.md). Raises :class:`RunDirError`."""
+    """Read the run in ``directory`` (docs/storage.md). Raises :class:`RunDirError`."""
     directory = Path(directory)
     if not directory.exists():
         raise RunDirError(directory, "no such directory")
     if not directory.is_dir():
         raise RunDirError(directory, "not a directory (expected a run directory written by `orbitrig sweep --out DIR`)")
-    path = directory / RUN_FILE
+    layout = RunLayout(directory)
+    if layout.has_pieces():
+        return _read_pieces(layout)
+    path = layout.run_file
     if not path.is_file():
-        raise RunDirError(directory, f"not an orbitrig run directory: no {RUN_FILE} in it")
+        raise RunDirError(directory, f"not an orbitrig run directory: no {RUN_FILE} (nor {layout.header.name}) in it")
     with _open(path) as h5:
         fmt = _text(h5.attrs.get("format"))
-        if fmt != RUN_FORMAT:
-            raise RunDirError(path, f"format attribute is {fmt or 'missing'!r}, expected {RUN_FORMAT!r}")
+        if fmt not in READABLE_FORMATS:
+            raise RunDirError(path, f"format attribute is {fmt or 'missing'!r}, expected {READABLE_FORMATS[-1]!r}")
         try:
-            points = [_read_point(g) for _, g in sorted(h5.get("points", {}).items())]
+            points = []
+            for _, g in sorted(h5.get("points", {}).items()):
+                point = _new_point(g.attrs, g.name.rsplit("/", 1)[-1])
+                for fname, fg in sorted(g.get("frequencies", {}).items()):
+                    point.frequencies.append(_frequency(fname, fg))
+                _read_results(g, point)
+                points.append(point)
+            a = h5.attrs
+            return Run(
+                directory=directory, status=_text(a.get("status"), "unknown"),
+                status_message=_text(a.get("status_message")), sim=bool(a.get("sim", False)),
+                software_version=_text(a.get("software_version")), created=_text(a.get("created")),
+                matrix_name=_text(a.get("matrix_name")), rig_config=_text(a.get("rig_config")),
+                matrix_config=_text(a.get("matrix_config")), points=points,
+                channels=[_text(c) for c in h5["channels"][()]] if "channels" in h5 else [],
+                channel_units=[_text(c) for c in h5["channel_units"][()]] if "channel_units" in h5 else [],
+            )  # fmt: skip
         except (KeyError, ValueError, TypeError) as err:
             raise RunDirError(path, f"malformed run file: {err}") from err
-        except OSError as err:  # an object caught mid-write by a running sweep
-            raise RunDirError(path, f"cannot read ({err}); if a sweep is writing it, try again") from err
-        a = h5.attrs
-        return Run(
-            directory=directory,
-            status=_text(a.get("status"), "unknown"),
-            status_message=_text(a.get("status_message")),
-            sim=bool(a.get("sim", False)),
-            software_version=_text(a.get("software_version")),
-            created=_text(a.get("created")),
-            matrix_name=_text(a.get("matrix_name")),
-            rig_config=_text(a.get("rig_config")),
-            matrix_config=_text(a.get("matrix_config")),
-            points=points,
-        )
+        except OSError as err:
+            raise RunDirError(path, f"cannot read ({err})") from err
 
 
-def _read_point(g) -> Point:
-    from reduction.table import OrbitTable
+def _read_pieces(layout: RunLayout) -> Run:
+    from orbitrig.store.consolidate import read_header
+    from orbitrig.store.errors import StorageError
+    from orbitrig.store.index import point_state
+    from orbitrig.store.journal import read_journal
 
-    a = g.attrs
-    name = g.name.rsplit("/", 1)[-1]
+    try:
+        header = read_header(layout)
+        journal = read_journal(layout.journal)
+    except StorageError as err:
+        raise RunDirError(err.path, err.reason) from err
+    run = Run(
+        directory=layout.dir, status=journal.status, status_message=journal.status_message,
+        sim=bool(header.get("sim", False)), software_version=str(header.get("software_version", "")),
+        created=str(header.get("created", "")), matrix_name=str(header.get("matrix_name", "")),
+        rig_config=str(header.get("rig_config", "")), matrix_config=str(header.get("matrix_config", "")),
+        points=[], channels=list(header.get("channels", [])), channel_units=list(header.get("channel_units", [])),
+        torn=journal.torn,
+    )  # fmt: skip
+    for index in layout.point_indexes():
+        try:
+            point = read_point(layout, index, complete=point_state(layout, index).complete, skipped=run.unreadable)
+        except RunDirError as err:
+            if err.file != str(layout.point_file(index)):
+                raise
+            run.unreadable.append(str(err))
+            continue
+        run.points.append(point)
+    return run
+
+
+def read_point(layout: RunLayout, index: int, *, complete: bool, skipped: list[str] | None = None,
+               blocks: bool = True) -> Point:
+    """One point of a run in pieces: settings, its readable blocks (unless blocks=False;
+    the unreadable ones are named in `skipped`) and, when `complete`, its results.
+    Raises RunDirError."""
+    path = layout.point_file(index)
+    try:
+        settings = json.loads(path.read_bytes())
+        point = _new_point({**settings, "complete": complete}, f"{index:04d}")
+    except (OSError, ValueError, KeyError, TypeError, RecursionError) as err:
+        raise RunDirError(path, f"unreadable point settings ({type(err).__name__}: {err})") from err
+    for tag in layout.block_tags(index) if blocks else ():
+        try:
+            with _open(layout.block_file(index, tag)) as fg:
+                point.frequencies.append(_frequency(tag, fg))
+        except (RunDirError, OSError, KeyError, ValueError) as err:
+            if skipped is not None:
+                skipped.append(f"{layout.block_file(index, tag)}: {err}")
+    if complete:
+        try:
+            with _open(layout.results_file(index)) as rg:
+                _read_results(rg, point)
+        except (RunDirError, OSError, KeyError, ValueError, TypeError) as err:
+            raise RunDirError(layout.results_file(index), f"malformed results of a complete point: {err}") from err
+    return point
+
+
+def _new_point(a, name: str) -> Point:
     settings = Settings(
         spin=float(a["spin"]),
         spin_rpm=float(a.get("spin_rpm", float(a["spin"]) * 30.0 / np.pi)),
@@ -217,36 +273,39 @@ def _read_point(g) -> Point:
         orbit_radius=float(a.get("orbit_radius", np.nan)),
         label=_text(a.get("label"), name),
     )
-    point = Point(
-        index=int(a.get("index", int(name))),
-        name=name,
-        complete=bool(a.get("complete", False)),
-        settings=settings,
-    )
-    for fname, fg in sorted(g.get("frequencies", {}).items()):
-        fa = fg.attrs
-        coh = np.asarray(fg["coherence"][()], dtype=float) if "coherence" in fg else None
-        point.frequencies.append(
-            Frequency(
-                name=fname,
-                orbit=float(fa.get("orbit", np.nan)),
-                orbit_hz=float(fa.get("orbit_hz", np.nan)),
-                direction=int(fa.get("direction", 1)),
-                complete=bool(fa.get("complete", False)),
-                coherence=coh,
-            )
-        )
+    return Point(index=int(a.get("index", int(name))), name=name, complete=bool(a.get("complete", False)),
+                 settings=settings)  # fmt: skip
+
+
+def _frequency(name: str, fg) -> Frequency:
+    fa = fg.attrs
+    coh = np.asarray(fg["coherence"][()], dtype=float) if "coherence" in fg else None
+    return Frequency(
+        name=name, orbit=float(fa.get("orbit", np.nan)), orbit_hz=float(fa.get("orbit_hz", np.nan)),
+        direction=int(fa.get("direction", 1)), complete=bool(fa.get("complete", False)), coherence=coh,
+    )  # fmt: skip
+
+
+def _table(tg, spin: float):
+    from reduction.table import OrbitTable
+
+    extra = {}  # orbit-table v2 columns, stored when the sweep had them
+    if "n_records" in tg:
+        extra["n_records"] = np.asarray(tg["n_records"][()], dtype=float)
+    if "u" in tg:
+        extra["u"] = np.asarray(tg["u"][()], dtype=float)
+    return OrbitTable(
+        spin=float(tg.attrs.get("spin", spin)), orbit=np.asarray(tg["orbit"][()], dtype=float),
+        x=np.asarray(tg["x"][()], dtype=complex), y=np.asarray(tg["y"][()], dtype=complex),
+        fx=np.asarray(tg["fx"][()], dtype=complex), fy=np.asarray(tg["fy"][()], dtype=complex),
+        gamma2=np.asarray(tg["gamma2"][()], dtype=float) if "gamma2" in tg else None, **extra,
+    )  # fmt: skip
+
+
+def _read_results(g, point: Point) -> None:
+    """The results groups (table, identification, truth, lms_comparison) of `point`."""
     for lms, tg in sorted(g.get("table", {}).items()):
-        gamma2 = np.asarray(tg["gamma2"][()], dtype=float) if "gamma2" in tg else None
-        point.tables[lms] = OrbitTable(
-            spin=float(tg.attrs.get("spin", settings.spin)),
-            orbit=np.asarray(tg["orbit"][()], dtype=float),
-            x=np.asarray(tg["x"][()], dtype=complex),
-            y=np.asarray(tg["y"][()], dtype=complex),
-            fx=np.asarray(tg["fx"][()], dtype=complex),
-            fy=np.asarray(tg["fy"][()], dtype=complex),
-            gamma2=gamma2,
-        )
+        point.tables[lms] = _table(tg, point.settings.spin)
     for key, ig in sorted(g.get("identification", {}).items()):
         lms, model, fd_key = key.split("__", 2)
         ia = ig.attrs
@@ -265,4 +324,3 @@ def _read_point(g) -> Point:
         point.truth = _json_attr(g["truth"].attrs, "json")
     if "lms_comparison" in g:
         point.lms_comparison = _json_attr(g["lms_comparison"].attrs, "json")
-    return point

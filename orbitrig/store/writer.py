@@ -1,379 +1,262 @@
-"""The run directory: `run.h5` + `coefficients.csv` + `run.log` (docs/storage.md).
+"""The run directory's writer: every unit of measured data durable in one atomic step.
 
-Crash safety by open/flush/close discipline: the HDF5 file is open only while
-one block (or one point's results) is written, then flushed and closed, so a
-kill -9 or a power cut during acquisition (nearly all of a run's time) finds a
-closed, consistent file. Every group's ``complete`` attribute is written LAST;
-`resume` deletes every incomplete point group, so a point is never stored
-twice nor marked complete when it is not. `coefficients.csv` is rebuilt from
-the complete points of run.h5 and replaced atomically (write + rename).
+A block (one orbit frequency) and a point's results each become one file written to a
+temporary name, fsync'ed and renamed into place (orbitrig.store.durable); the point is
+committed last by its commit record, which names every file with its digest; the
+journal is append-only. A kill at any instant therefore leaves every completed block
+and point readable, and `prepare_resume` sets aside (under DIR/aside, never deleted)
+whatever is incomplete or damaged. HDF5 never writes to the disk directly, so a full
+disk raises StorageFullError and leaves nothing in a broken state. The single-file
+run.h5 is consolidated from the pieces when the run ends (`finalize`). Layout:
+orbitrig.store.layout and docs/storage.md.
 """
 
 from __future__ import annotations
 
 import contextlib
-import csv
 import datetime as _dt
 import json
+import logging
 import os
-import threading
-from dataclasses import dataclass, field
 from pathlib import Path
 
-import h5py
-import numpy as np
-
 from orbitrig import __version__
-from orbitrig.errors import OrbitrigError
-from orbitrig.run.plan import Block, OperatingPoint
+from orbitrig.run.plan import OperatingPoint
+from orbitrig.store import csvfile, journal, pieces
+from orbitrig.store.consolidate import RunImage, read_header
+from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F401  (the CSV's public names)
+from orbitrig.store.durable import TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
+from orbitrig.store.errors import StorageError, StorageFullError, storage_error  # noqa: F401
+from orbitrig.store.index import commit_record, point_state, scan
+from orbitrig.store.journal import now_iso  # noqa: F401  (the engine's timestamps)
+from orbitrig.store.layout import FORMAT, RunLayout, point_name
+from orbitrig.store.reader import RunDirError, read_point
+from orbitrig.store.records import BlockRecord, LogBuffer, PointResults  # noqa: F401
 
-FORMAT = "orbitrig-run/1"
+log = logging.getLogger(__name__)
 RUN_FILE, CSV_FILE, LOG_FILE = "run.h5", "coefficients.csv", "run.log"
-CSV_HEAD = [
-    "point", "label", "spin_rpm", "recess_pressure_mpa", "pressure_ratio", "static_eccentricity",
-    "dynamic_eccentricity", "lms", "model", "freq_dep", "method", "n_frequencies", "condition_number",
-    "residual_rms", "error",
-]  # fmt: skip
-_STR = h5py.string_dtype()
-EVENT_DTYPE = np.dtype([("t", "f8"), ("state", _STR), ("message", _STR)])
-CAN_FIELDS = ("t_recess", "t_groove", "t_supply", "flow", "p_supply", "p_recess1", "p_recess2", "p_recess3",
-              "p_recess4", "beta", "sensor_fault", "pump_off", "node_lost")  # fmt: skip
-CAN_DTYPE = np.dtype([("t", "f8")] + [(f, "f8") for f in CAN_FIELDS])
-DRIVE_FIELDS = ("spin_ref", "spin_act", "orbit_ref", "orbit_act", "spin_status", "orbit_status",
-                "spin_fault", "orbit_fault", "spin_torque", "orbit_torque")  # fmt: skip
-DRIVE_DTYPE = np.dtype([("t", "f8")] + [(f, "f8") for f in DRIVE_FIELDS])
-
-
-class StorageError(OrbitrigError):
-    """The run directory cannot be created, resumed or written."""
-
-
-def now_iso() -> str:
-    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
-
-
-@dataclass
-class BlockRecord:
-    """Everything stored for one orbit frequency and direction."""
-
-    block: Block
-    measured_orbit_speed: float  # rad/s, |Omega| from trigger timestamps
-    raw_counts: np.ndarray  # int16 (N, C, S)
-    slots: np.ndarray  # (C, S)
-    gains: np.ndarray
-    offsets: np.ndarray
-    mean: np.ndarray  # (C, S) engineering units
-    record_phasors: np.ndarray  # (N, C)
-    phasors: np.ndarray  # (C,)
-    dc: np.ndarray  # (C,)
-    rms_residual: np.ndarray  # (C,)
-    coherence: np.ndarray  # (2, 4) piezo|strain x (xfx, yfx, xfy, yfy)
-    stats: dict = field(default_factory=dict)
-
-
-@dataclass
-class PointResults:
-    tables: dict  # lms -> reduction.table.OrbitTable
-    identifications: dict  # (lms, ModelSpec.key) -> {"spec": ModelSpec, "json": dict | "error": str}
-    lms_comparison: dict
-    truth: dict | None = None
-
-
-class LogBuffer:
-    """Rows gathered between writes (appended with the next write); thread-safe."""
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self._rows: dict[str, list] = {"events": [], "can": [], "drives": []}
-
-    def add(self, log: str, row: tuple) -> None:
-        with self._lock:
-            self._rows[log].append(row)
-
-    def take(self) -> tuple[list, list, list]:
-        with self._lock:
-            rows, self._rows = self._rows, {"events": [], "can": [], "drives": []}
-        return rows["events"], rows["can"], rows["drives"]
 
 
 class RunStore:
-    """Writer of one run directory. Every method opens, writes, flushes and closes."""
+    """Writer of one run directory. Every method raises StorageError (never OSError)."""
 
     def __init__(self, out_dir: Path | str):
-        self.dir = Path(out_dir)
-        self.path = self.dir / RUN_FILE
-        self.csv_path = self.dir / CSV_FILE
-        self.log_path = self.dir / LOG_FILE
+        self.layout = RunLayout(Path(out_dir))
+        self.dir = self.layout.dir
+        self.path = self.layout.run_file
+        self.csv_path = self.layout.csv
+        self.log_path = self.layout.log
         self.logs = LogBuffer()
+        self.set_aside: list[str] = []  # what prepare_resume set aside, one message each
+        self._header: dict = {}
+        self._csv_rows: dict[int, list[dict]] = {}
+        self._written: dict[int, dict[str, dict]] = {}  # point -> file name -> size, digest
+        self._image = RunImage(self.layout)  # run.h5 in memory, filled as points commit
+        self._log_failed = False
 
     # ---------------------------------------------------------- life cycle
     @classmethod
-    def create(cls, out_dir, *, rig_text: str, matrix_text: str, matrix_name: str, sim: bool) -> "RunStore":
+    def create(cls, out_dir, *, rig_text: str, matrix_text: str, matrix_name: str, sim: bool) -> RunStore:
         self = cls(out_dir)
-        if self.path.exists():
-            raise StorageError(f"{self.path} already exists: use --resume to continue that run, or another --out")
-        self.dir.mkdir(parents=True, exist_ok=True)
-        tmp = self.path.with_suffix(".h5.tmp")
-        with h5py.File(tmp, "w") as f:
-            a = f.attrs
-            a["format"] = FORMAT
-            a["software_version"] = _versions()
-            a["created"] = now_iso()
-            a["status"] = "running"
-            a["status_message"] = ""
-            a["sim"] = bool(sim)
-            a["rig_config"] = rig_text
-            a["matrix_config"] = matrix_text
-            a["matrix_name"] = matrix_name
-            f.create_group("points")
-            logs = f.create_group("logs")
-            for name, dt in (("events", EVENT_DTYPE), ("can", CAN_DTYPE), ("drives", DRIVE_DTYPE)):
-                logs.create_dataset(name, shape=(0,), maxshape=(None,), dtype=dt, chunks=(256,))
-        os.replace(tmp, self.path)
+        lay = self.layout
+        for existing in (lay.header, lay.run_file, lay.journal):
+            if existing.exists():
+                raise StorageError(existing, "already exists: use --resume to continue that run, or another --out")
+        try:
+            lay.points.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            raise storage_error(lay.points, "create the run directory", err) from err
+        channels, units = _channels(rig_text)
+        self._header = {"format": FORMAT, "software_version": _versions(), "created": now_iso(), "sim": bool(sim),
+                        "matrix_name": matrix_name, "channels": channels, "channel_units": units,
+                        "rig_config": rig_text, "matrix_config": matrix_text}  # fmt: skip
+        fsync_dir(lay.dir)
+        write_atomic(lay.header, json.dumps(self._header, indent=1).encode("utf-8"))
+        self._journal([journal.status_line("running", "")])
         self.write_csv()
         return self
 
     @classmethod
-    def open_existing(cls, out_dir) -> "RunStore":
+    def open_existing(cls, out_dir) -> RunStore:
         self = cls(out_dir)
-        if not self.path.exists():
-            raise StorageError(f"{self.path} does not exist: nothing to resume")
-        try:
-            with h5py.File(self.path, "r") as f:
-                if f.attrs.get("format") != FORMAT:
-                    raise StorageError(f"{self.path} is not an orbitrig run (format {f.attrs.get('format')!r})")
-        except OSError as err:
-            raise StorageError(f"{self.path} cannot be opened ({err}); it may have been cut mid-write") from err
+        lay = self.layout
+        if not lay.has_pieces():
+            if lay.run_file.exists():
+                raise StorageError(lay.run_file, "holds a finished copy of a run but not its pieces "
+                                   f"({lay.header.name}, {lay.points.name}/): it cannot be resumed")  # fmt: skip
+            raise StorageError(lay.header, "does not exist: nothing to resume")
+        self._header = read_header(lay)
         return self
 
     def stored_configs(self) -> tuple[str, str, bool]:
         """(rig TOML text, matrix TOML text, sim) of the stored run."""
-        with h5py.File(self.path, "r") as f:
-            a = f.attrs
-            return str(a["rig_config"]), str(a["matrix_config"]), bool(a["sim"])
+        h = self._header or read_header(self.layout)
+        return str(h["rig_config"]), str(h["matrix_config"]), bool(h["sim"])
 
     def prepare_resume(self) -> list[int]:
-        """Delete incomplete point groups; return the complete point indexes."""
-        with self._open() as f:
-            pts = f["points"]
-            done, dropped = [], []
-            for name in list(pts):
-                if bool(pts[name].attrs.get("complete", False)):
-                    done.append(int(name))
-                else:
-                    del pts[name]
-                    dropped.append(name)
-            f.attrs["status"] = "running"
-            f.attrs["status_message"] = ""
+        """Set aside every incomplete or damaged point (DIR/aside/PPPP.<reason>.N) and
+        leftover temporary files; return the complete point indexes. `set_aside` lists
+        what was moved (also in run.log and the journal)."""
+        self.set_aside = []
+        done = []
+        for st in scan(self.layout):
+            if st.complete:
+                done.append(st.index)
+            else:
+                self._put_aside(st.index, "incomplete" if "never completed" in st.problem else "damaged", st.problem)
+        for tmp in self.dir.glob(f"*{TMP_SUFFIX}"):
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+        with contextlib.suppress(OSError):
+            self.layout.run_file.unlink()  # a stale copy: consolidated again when the run ends
+        self._journal([journal.status_line("running", "resumed")])
+        self._csv_rows.clear()
         self.write_csv()
-        if dropped:
-            self.log(f"resume: removed incomplete point(s) {', '.join(dropped)}")
         return sorted(done)
 
-    @contextlib.contextmanager
-    def _open(self):
-        f = h5py.File(self.path, "r+")
+    def _put_aside(self, index: int, reason: str, problem: str) -> None:
+        src = self.layout.point_dir(index)
+        dest = self.layout.aside_dir(index, reason)
         try:
-            yield f
-            f.flush()
-        finally:
-            f.close()
+            dest.parent.mkdir(exist_ok=True)
+            os.replace(src, dest)
+            fsync_dir(self.layout.points)
+        except OSError as err:
+            raise storage_error(src, f"move aside to {dest}", err) from err
+        msg = f"point {point_name(index)} set aside as {dest.relative_to(self.dir)} ({problem}); it will be measured again"
+        self.set_aside.append(msg)
+        log.warning("%s", msg)
+        self.log(f"resume: {msg}")
+        self._journal([journal.line("point", point=index, action="set_aside", detail=msg)])
 
     # ------------------------------------------------------------- writing
     def begin_point(self, point: OperatingPoint) -> None:
-        with self._open() as f:
-            pts = f["points"]
-            name = f"{point.index:04d}"
-            if name in pts:
-                if pts[name].attrs.get("complete", False):
-                    raise StorageError(f"point {name} is already complete in {self.path}")
-                del pts[name]
-            g = pts.create_group(name)
-            a = g.attrs
-            a["index"] = point.index
-            a["complete"] = False
-            a["spin"] = point.spin
-            a["spin_rpm"] = point.spin_rpm
-            a["recess_pressure"] = point.recess_pressure
-            a["pressure_ratio"] = point.pressure_ratio
-            a["static_eccentricity"] = point.static_eccentricity
-            a["dynamic_eccentricity"] = point.dynamic_eccentricity
-            a["orbit_radius"] = point.orbit_radius
-            a["label"] = point.label
-            g.create_group("frequencies")
-            self._append_logs(f)
+        i = point.index
+        d = self.layout.point_dir(i)
+        if d.exists():
+            if point_state(self.layout, i).complete:
+                raise StorageError(d, f"point {point_name(i)} is already complete")
+            self._put_aside(i, "restarted", "an earlier attempt that did not complete")
+        try:
+            d.mkdir(parents=True)
+        except OSError as err:
+            raise storage_error(d, "create the point directory", err) from err
+        fsync_dir(self.layout.points)
+        path = self.layout.point_file(i)
+        self._written[i] = {path.name: write_atomic(path, pieces.to_json(pieces.point_settings(point)).encode())}
+        self._journal([journal.line("point", point=i, action="begin")])
 
     def write_block(self, point: int, rec: BlockRecord) -> None:
-        with self._open() as f:
-            freqs = f[f"points/{point:04d}/frequencies"]
-            b = rec.block
-            if b.tag in freqs:
-                del freqs[b.tag]
-            g = freqs.create_group(b.tag)
-            a = g.attrs
-            a["complete"] = False
-            a["orbit"] = b.orbit
-            a["orbit_hz"] = b.orbit_hz
-            a["direction"] = b.direction
-            a["measured_orbit_speed"] = rec.measured_orbit_speed
-            g.create_dataset("raw_counts", data=np.asarray(rec.raw_counts, dtype=np.int16))
-            g.create_dataset("slots", data=np.asarray(rec.slots, dtype=np.int16))
-            for name in ("gains", "offsets", "mean", "dc", "rms_residual", "coherence"):
-                g.create_dataset(name, data=np.asarray(getattr(rec, name), dtype=np.float64))
-            for name in ("record_phasors", "phasors"):
-                g.create_dataset(name, data=np.asarray(getattr(rec, name), dtype=np.complex128))
-            g["mean"].attrs["units"] = "N (forces), m (displacements)"
-            st = g.create_group("stats")
-            for k, v in rec.stats.items():
-                st.attrs[k] = json.dumps(v) if isinstance(v, dict) else v
-            self._append_logs(f)
-            a["complete"] = True
+        channels, units = self._header.get("channels", []), self._header.get("channel_units", [])
+        data = h5_image(lambda f: pieces.write_block(f, rec, channels, units))
+        path = self.layout.block_file(point, rec.block.tag)
+        self._written.setdefault(point, {})[path.name] = write_atomic(path, data)
+        self._journal([journal.line("block", point=point, tag=rec.block.tag, bytes=len(data))])
 
     def write_results(self, point: int, res: PointResults) -> None:
-        with self._open() as f:
-            g = f[f"points/{point:04d}"]
-            for sub in ("table", "identification", "truth", "lms_comparison"):
-                if sub in g:
-                    del g[sub]
-            tg = g.create_group("table")
-            for lms, t in res.tables.items():
-                h = tg.create_group(lms)
-                h.attrs["spin"] = t.spin
-                h.create_dataset("orbit", data=np.asarray(t.orbit, dtype=np.float64))
-                for name in ("x", "y", "fx", "fy"):
-                    h.create_dataset(name, data=np.asarray(getattr(t, name), dtype=np.complex128))
-                if t.gamma2 is not None:
-                    h.create_dataset("gamma2", data=np.asarray(t.gamma2, dtype=np.float64))
-            ig = g.create_group("identification")
-            for (lms, key), entry in res.identifications.items():
-                h = ig.create_group(f"{lms}__{key}")
-                spec = entry["spec"]
-                h.attrs["model"], h.attrs["freq_dep"], h.attrs["method"] = spec.model, spec.freq_dep, spec.method
-                if "json" in entry:
-                    h.attrs["json"] = json.dumps(entry["json"])
-                else:
-                    h.attrs["error"] = entry["error"]
-            if res.truth is not None:
-                g.create_group("truth").attrs["json"] = json.dumps(res.truth)
-            g.create_group("lms_comparison").attrs["json"] = json.dumps(res.lms_comparison)
-            self._append_logs(f)
+        data = h5_image(lambda f: pieces.write_results(f, res))
+        path = self.layout.results_file(point)
+        self._written.setdefault(point, {})[path.name] = write_atomic(path, data)
+        self._journal([])
 
     def complete_point(self, point: int) -> None:
-        with self._open() as f:
-            self._append_logs(f)
-            f[f"points/{point:04d}"].attrs["complete"] = True
+        """Commit the point: its commit record names every file with size and digest."""
+        rec = commit_record(self.layout, point, self._written.pop(point, None))
+        write_atomic(self.layout.commit_file(point), json.dumps(rec, indent=1).encode())
+        self._journal([journal.line("point", point=point, action="complete")])
+        self._image.add_point(point)
         self.write_csv()
 
     def set_status(self, status: str, message: str = "") -> None:
-        with self._open() as f:
-            self._append_logs(f)
-            f.attrs["status"] = status
-            f.attrs["status_message"] = message
+        """Record the run's status; a final status (not 'running') also consolidates run.h5."""
+        self._journal([journal.status_line(status, message)])
+        if status != "running":
+            self.finalize()
 
     def flush_logs(self) -> None:
-        with self._open() as f:
-            self._append_logs(f)
+        self._journal([])
 
-    def _append_logs(self, f: h5py.File) -> None:
+    def finalize(self) -> Path:
+        """Consolidate DIR/run.h5 from the pieces (temporary name, fsync, rename)."""
+        data = self._image.image()
+        self.check_free_space(len(data) + (1 << 16))
+        write_atomic(self.layout.run_file, data)
+        return self.layout.run_file
+
+    def _journal(self, lines: list[str]) -> None:
+        """Append `lines` and the gathered log rows to the journal in one durable write."""
         events, can, drives = self.logs.take()
-        for name, rows, dt in (("events", events, EVENT_DTYPE), ("can", can, CAN_DTYPE), ("drives", drives, DRIVE_DTYPE)):
-            if not rows:
-                continue
-            ds = f["logs"][name]
-            n = ds.shape[0]
-            ds.resize((n + len(rows),))
-            ds[n:] = np.array([tuple(r) for r in rows], dtype=dt)
+        try:
+            append_lines(self.layout.journal, lines + journal.log_lines(events, can, drives))
+        except StorageError:
+            self.logs.put_back(events, can, drives)
+            raise
+
+    # -------------------------------------------------------------- space
+    def free_bytes(self) -> int:
+        """Free bytes on the run directory's file system (for an unprivileged writer)."""
+        try:
+            st = os.statvfs(self.dir if self.dir.exists() else self.dir.parent)
+        except OSError as err:
+            raise storage_error(self.dir, "read the free space", err) from err
+        return st.f_bavail * st.f_frsize
+
+    def check_free_space(self, n_bytes: int) -> None:
+        """Raise StorageFullError when fewer than `n_bytes` are free for the run directory."""
+        free = self.free_bytes()
+        if free < n_bytes:
+            raise StorageFullError(self.dir, f"needs {_mb(n_bytes)} free, {_mb(free)} left: free space on this "
+                                   "disk (or choose another --out), then resume the run",
+                                   needed=int(n_bytes), free=int(free))  # fmt: skip
 
     # -------------------------------------------------------------- run.log
     def log(self, message: str) -> None:
+        """A line of the human-readable run.log (best effort: a full disk must not stop the run)."""
         stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
-        with open(self.log_path, "a", encoding="utf-8") as fh:
-            fh.write(f"{stamp} {message}\n")
-            fh.flush()
+        try:
+            with open(self.log_path, "a", encoding="utf-8") as fh:
+                fh.write(f"{stamp} {message}\n")
+        except OSError as err:
+            if not self._log_failed:
+                log.error("cannot write %s: %s (further run.log lines are lost)", self.log_path, err)
+            self._log_failed = True
 
     # --------------------------------------------------------------- reading
     def completed_points(self) -> list[int]:
-        with h5py.File(self.path, "r") as f:
-            return sorted(int(n) for n, g in f["points"].items() if g.attrs.get("complete", False))
+        return [st.index for st in scan(self.layout) if st.complete]
 
     def csv_rows(self) -> list[dict]:
+        """The rows of coefficients.csv (each complete point read once, then remembered)."""
+        sim = bool(self._header.get("sim", False))
         rows = []
-        with h5py.File(self.path, "r") as f:
-            sim = bool(f.attrs.get("sim", False))
-            for _name, g in sorted(f["points"].items()):
-                if not g.attrs.get("complete", False):
-                    continue
-                rows += point_csv_rows(g, sim)
+        for i in self.completed_points():
+            if i not in self._csv_rows:
+                try:
+                    point = read_point(self.layout, i, complete=True, blocks=False)
+                except RunDirError as err:
+                    raise StorageError(err.file, f"cannot read the stored results: {err.reason}") from err
+                self._csv_rows[i] = csvfile.point_rows(point, sim)
+            rows += self._csv_rows[i]
         return rows
 
     def write_csv(self) -> None:
-        rows = self.csv_rows()
-        keys: list[str] = []
-        for r in rows:
-            keys += [k for k in r if k not in CSV_HEAD and k not in keys]
-        coef = sorted((k for k in keys if not k.startswith("true_") and not k.endswith("_std")), key=coef_order)
-        cols = CSV_HEAD + [c for k in coef for c in (k, f"{k}_std")]
-        cols += sorted((k for k in keys if k.startswith("true_")), key=lambda k: coef_order(k[5:]))
-        tmp = self.csv_path.with_suffix(".csv.tmp")
-        with open(tmp, "w", newline="", encoding="utf-8") as fh:
-            w = csv.DictWriter(fh, fieldnames=cols, restval="")
-            w.writeheader()
-            w.writerows(rows)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, self.csv_path)
+        write_atomic(self.csv_path, csvfile.render(self.csv_rows()))
 
 
-def coef_order(key: str) -> tuple:
-    """Kxx, Kxy, Kyx, Kyy, Cxx, ..., Dyy, then the Omega^r terms (Kxx_1, ...)."""
-    base, _, r = key.partition("_")
-    return (int(r) if r.isdigit() else 0, "KCD".find(base[:1]), base[1:], key)
+def _channels(rig_text: str) -> tuple[list[str], list[str]]:
+    """Channel names and units in A/D order, from the rig config text."""
+    from orbitrig.config import rig_from_text
+    from orbitrig.errors import ConfigError
+
+    try:
+        rig = rig_from_text(rig_text, "rig config")
+    except ConfigError:
+        return [], []
+    return [c.name for c in rig.ordered_channels], [c.unit for c in rig.ordered_channels]
 
 
-def point_csv_rows(g: h5py.Group, sim: bool) -> list[dict]:
-    a = g.attrs
-    settings = {
-        "point": int(a["index"]),
-        "label": str(a["label"]),
-        "spin_rpm": f"{float(a['spin_rpm']):.6g}",
-        "recess_pressure_mpa": f"{float(a['recess_pressure']) / 1e6:.6g}",
-        "pressure_ratio": f"{float(a['pressure_ratio']):.6g}",
-        "static_eccentricity": f"{float(a['static_eccentricity']):.6g}",
-        "dynamic_eccentricity": f"{float(a['dynamic_eccentricity']):.6g}",
-    }
-    truth = json.loads(g["truth"].attrs["json"]) if sim and "truth" in g else None
-    rows = []
-    for name, h in g["identification"].items():
-        row = dict(settings, lms=name.split("__")[0], model=str(h.attrs["model"]))
-        if "json" in h.attrs:
-            d = json.loads(h.attrs["json"])
-            row.update(freq_dep=d["freq_dep"], method=d["method"], n_frequencies=d["n_frequencies"],
-                       condition_number=_num(d["condition_number"], ".6g"),
-                       residual_rms=_num(d["residual_rms"], ".6g"), error="")  # fmt: skip
-            for k, v in d["coefficients"].items():
-                row[k] = _num(v, ".8g")
-                row[f"{k}_std"] = _num((d.get("std_errors") or {}).get(k), ".6g")
-            keys = [k for k in d["coefficients"] if "_" not in k]
-        else:
-            row.update(freq_dep=str(h.attrs["freq_dep"]), method=str(h.attrs.get("method", "")),
-                       error=str(h.attrs["error"]))
-            keys = []
-        if truth is not None:
-            for k in keys:
-                row[f"true_{k}"] = f"{true_entry(truth, k):.8g}"
-        rows.append(row)
-    return rows
-
-
-def _num(v, fmt: str) -> str:
-    """A CSV cell: the number in `fmt`, empty for null (the identify JSON's non-finite values)."""
-    return "" if v is None else format(float(v), fmt)
-
-
-def true_entry(truth: dict, key: str) -> float:
-    """True constant-term value of coefficient `key` ('Kxy' ...) at the lowest |Omega|."""
-    mat = truth[key[0] + "0"]
-    return float(mat["xy".index(key[1])]["xy".index(key[2])])
+def _mb(n: int) -> str:
+    return f"{n / 1e6:.3g} MB" if n >= 1e5 else f"{n} bytes"
 
 
 def _versions() -> str:

@@ -48,5 +48,5 @@ def test_demo_sweep_identifies_within_5_percent(tmp_path):
 
     rows = list(csv.DictReader(open(out / "coefficients.csv")))
     assert {(r["lms"], r["model"]) for r in rows} == {(l, m) for l in ("piezo", "strain") for m in ("kcd11", "kc8")}
-    assert all(r["true_Kxx"] and r["Kxx"] and r["Kxx_std"] for r in rows)
+    assert all(r["true_Kxx [N/m]"] and r["Kxx [N/m]"] and r["Kxx_std [N/m]"] for r in rows)
     assert (out / "run.log").read_text().count("stored") == 10

@@ -13,6 +13,7 @@ import pytest
 from daq.adc import AdcReader
 from daq.averager import AveragingRule
 from daq.errors import DaqTimeoutError
+from sim.config import scenario
 from sim.rig import SimRig
 
 ORBIT = 2 * math.pi * 12.5  # rad/s
@@ -21,7 +22,7 @@ pytestmark = pytest.mark.timeout(60)
 
 @pytest.fixture
 async def adc():
-    async with SimRig(speedup=20.0, can_channel=None) as rig:
+    async with SimRig(scenario("clean"), speedup=20.0, can_channel=None) as rig:
         rig.local_control(spin=2 * math.pi * 30.0, orbit=ORBIT)
         await asyncio.sleep(0.05)
         cfg = rig.config.adc

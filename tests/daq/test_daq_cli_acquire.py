@@ -17,6 +17,7 @@ from typer.testing import CliRunner
 
 import orbitrig.cli.acquire as cli_acquire
 from orbitrig.cli import app
+from sim.config import scenario
 from sim.rig import SimRig
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -33,7 +34,7 @@ async def acquire(*args: str) -> tuple[int, str, str]:
 
 @pytest.fixture
 async def rig():
-    async with SimRig(speedup=20.0, can_channel=None) as r:
+    async with SimRig(scenario("clean"), speedup=20.0, can_channel=None) as r:  # exact phasors, low noise
         r.local_control(spin=150.0, orbit=ORBIT)
         await asyncio.sleep(0.05)
         yield r
@@ -86,7 +87,7 @@ def sim_in_thread():
     async def serve():
         nonlocal stop
         stop = asyncio.Event()
-        async with SimRig(speedup=20.0, can_channel=None) as r:
+        async with SimRig(scenario("clean"), speedup=20.0, can_channel=None) as r:  # exact phasors, low noise
             r.local_control(spin=150.0, orbit=ORBIT)
             await asyncio.sleep(0.05)
             box["url"], box["loop"] = r.adc_url, asyncio.get_running_loop()

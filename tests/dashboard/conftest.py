@@ -18,7 +18,7 @@ class ServiceHolder:
         pw = work / "service.pw"
         pw.write_text(ACCOUNTS["orbitrig-service"] + "\n")
         pw.chmod(0o600)
-        self.args = ["--sim", "--broker", broker.url, "--rig-id", RIG, "--username", "orbitrig-service",
+        self.args = ["--sim", "--broker", broker.service_url, "--rig-id", RIG, "--username", "orbitrig-service",
                      "--password-file", str(pw), "--matrices", str(REPO / "config" / "matrices"),
                      "--out", str(work / "runs"), "--speedup", SPEEDUP]
         self.proc = Service(self.args, work)
@@ -32,7 +32,7 @@ class ServiceHolder:
 
 @pytest.fixture(scope="module")
 def broker(tmp_path_factory):
-    b = Broker(tmp_path_factory.mktemp("broker"))
+    b = Broker(tmp_path_factory.mktemp("broker"), bind_ids=True)  # the shipped client-id binding
     b.start()
     yield b
     b.stop()

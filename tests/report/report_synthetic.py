@@ -74,9 +74,10 @@ def _record(block, radius, rng, noise, ch) -> BlockRecord:
     )  # fmt: skip
 
 
-def write_synthetic_run(directory: Path, *, noise=1e-3, seed=1, n_points=2, incomplete=1) -> Path:
+def write_synthetic_run(directory: Path, *, noise=1e-3, seed=1, n_points=2, incomplete=1, finished=True) -> Path:
     """n_points complete operating points (static eccentricity 0, 0.15, ...) and
-    `incomplete` more whose blocks are stored but which are never marked complete."""
+    `incomplete` more whose blocks are stored but which are never marked complete.
+    finished=False leaves the run as a kill -9 does: status 'running', no run.h5."""
     directory = Path(directory)
     rng = np.random.default_rng(seed)
     eps = ", ".join(f"{0.15 * i:g}" for i in range(n_points + incomplete))
@@ -101,5 +102,6 @@ def write_synthetic_run(directory: Path, *, noise=1e-3, seed=1, n_points=2, inco
         }  # fmt: skip
         store.write_results(point.index, identify_point(point.spin, recs, ch, matrix.models, truth))
         store.complete_point(point.index)
-    store.set_status("stopped" if incomplete else "completed", "synthetic run")
+    if finished:
+        store.set_status("stopped" if incomplete else "completed", "synthetic run")
     return directory

@@ -1,6 +1,6 @@
 """reduce and report on a run written by the real sweep on the simulator
-(`orbitrig sweep --sim --matrix SMALL --out DIR`: the demo matrix with fewer
-revolutions per block and one frequency-dependent model more)."""
+(`orbitrig sweep --sim --sim-config config/sim/clean.toml --matrix SMALL --out DIR`: the clean
+scenario, the demo matrix with fewer revolutions per block and one frequency-dependent model more)."""
 
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ def sweep_run(tmp_path_factory) -> Path:
     matrix = base / "small.toml"
     matrix.write_text(text)
     out = base / "run"
-    p = orbitrig("sweep", "--sim", "--matrix", str(matrix), "--out", str(out))
+    p = orbitrig("sweep", "--sim", "--sim-config", "config/sim/clean.toml", "--matrix", str(matrix), "--out", str(out))
     assert p.returncode == 0, p.stdout + p.stderr
     return out
 
@@ -65,7 +65,7 @@ def test_reduce_gives_the_sweeps_coefficients(sweep_run, model, freq_dep):
     assert len(ours) == len(theirs) == 2
     for a, b in zip(ours, theirs):
         assert (a["point"], a["lms"]) == (b["point"], b["lms"])
-        for key in ("Kxx", "Kxy", "Cyx", "Cyy", "true_Kxx"):
+        for key in ("Kxx [N/m]", "Kxy [N/m]", "Cyx [N s/m]", "Cyy [N s/m]", "true_Kxx [N/m]"):
             assert float(a[key]) == pytest.approx(float(b[key]), rel=1e-6), key
 
 

@@ -31,5 +31,5 @@ def test_null_condition_number_coefficient_and_std_error_give_empty_cells(tmp_pa
     rows = list(csv.DictReader(open(s.csv_path, encoding="utf-8")))
     assert len(rows) == 1
     r = rows[0]
-    assert (r["condition_number"], r["residual_rms"], r["Kxy"], r["Kxx_std"]) == ("", "", "", "")
-    assert float(r["Kxx"]) == 3e7 and float(r["true_Kxy"]) == 1e6
+    assert (r["condition_number"], r["residual_rms [N]"], r["Kxy [N/m]"], r["Kxx_std [N/m]"]) == ("", "", "", "")
+    assert float(r["Kxx [N/m]"]) == 3e7 and float(r["true_Kxy [N/m]"]) == 1e6

@@ -1,4 +1,4 @@
-"""run.h5 layout (docs/storage.md), complete flags, resume and coefficients.csv."""
+"""run.h5 layout (docs/storage.md), complete points, resume and coefficients.csv."""
 
 import csv
 import json
@@ -53,8 +53,10 @@ def test_store_layout_resume_and_csv(tmp_path):
     s.begin_point(p1)  # p1 is left incomplete, as after a kill -9
     s.write_block(p1.index, _record(p1.blocks[0]))
 
+    assert not s.path.exists()  # run.h5 is consolidated when the run ends, or on demand:
+    s.finalize()
     with h5py.File(s.path, "r") as f:
-        assert f.attrs["format"] == "orbitrig-run/1" and f.attrs["status"] == "running"
+        assert f.attrs["format"] == "orbitrig-run/2" and f.attrs["status"] == "running"
         assert "matrix_config" in f.attrs and bool(f.attrs["sim"])
         g = f["points/0000"]
         assert g.attrs["complete"] and g.attrs["spin_rpm"] == pytest.approx(1000)
@@ -72,15 +74,33 @@ def test_store_layout_resume_and_csv(tmp_path):
 
     r = RunStore.open_existing(tmp_path)
     assert r.prepare_resume() == [0]
-    with h5py.File(r.path, "r") as f:
-        assert list(f["points"]) == ["0000"]
+    assert r.set_aside == ["point 0001 set aside as aside/0001.incomplete.1 (never completed (no commit record)); "
+                           "it will be measured again"]
+    assert (tmp_path / "aside/0001.incomplete.1/09_fwd.h5").is_file()  # kept, never deleted
+    assert "resume: point 0001 set aside" in (tmp_path / "run.log").read_text()
+    assert not s.path.exists()  # the stale copy is gone until the run ends again
     rows = list(csv.DictReader(open(r.csv_path)))
     assert [(x["point"], x["lms"], x["model"]) for x in rows] == [("0", "piezo", "kc8"), ("0", "strain", "kc8")]
-    assert float(rows[0]["Kxx"]) == 3e7 and float(rows[0]["true_Kxx"]) == 3.1e7 and rows[0]["Cxx_std"] == ""
-    assert rows[1]["error"] == "too few frequencies" and rows[1]["Kxx"] == ""
+    assert float(rows[0]["Kxx [N/m]"]) == 3e7 and float(rows[0]["true_Kxx [N/m]"]) == 3.1e7
+    assert rows[0]["Cxx_std [N s/m]"] == ""
+    assert rows[1]["error"] == "too few frequencies" and rows[1]["Kxx [N/m]"] == ""
     assert list(rows[0])[:15] == ["point", "label", "spin_rpm", "recess_pressure_mpa", "pressure_ratio",
                                   "static_eccentricity", "dynamic_eccentricity", "lms", "model", "freq_dep",
-                                  "method", "n_frequencies", "condition_number", "residual_rms", "error"]
-    r.set_status("completed", "done")
+                                  "method", "n_frequencies", "condition_number", "residual_rms [N]", "error"]
+    r.set_status("completed", "done")  # a final status consolidates run.h5
     with h5py.File(r.path, "r") as f:
-        assert f.attrs["status"] == "completed"
+        assert f.attrs["status"] == "completed" and list(f["points"]) == ["0000"]
+
+
+def test_numpy_numbers_in_stats_and_truth_are_stored(tmp_path):
+    rig, m = cfg.load_rig(), cfg.load_matrix(cfg.default_matrix_path("demo"))
+    p = operating_points(m, rig)[0]
+    s = RunStore.create(tmp_path, rig_text=rig.text, matrix_text=m.text, matrix_name=m.name, sim=True)
+    s.begin_point(p)
+    rec = _record(p.blocks[0])
+    rec.stats = {"frames_good": np.int64(7), "drop_reasons": {"crc": np.int64(2)}}
+    s.write_block(p.index, rec)
+    s.finalize()
+    with h5py.File(s.path, "r") as f:
+        st = f[f"points/0000/frequencies/{p.blocks[0].tag}/stats"].attrs
+        assert st["frames_good"] == 7 and json.loads(st["drop_reasons"]) == {"crc": 2}

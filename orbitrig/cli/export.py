@@ -1,0 +1,39 @@
+"""`orbitrig export RUN`: a stored run's orbit tables and results as CSV, MATLAB, TDMS or HDF5.
+
+Exit status 0 on success, 2 when RUN is not a run directory or the option is bad,
+1 when the export cannot be written (disk full, permissions).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("export")
+    def export_cmd(
+        directory: Annotated[Path, typer.Argument(metavar="RUN", help="Run directory written by `orbitrig sweep --out DIR`.")],
+        fmt: Annotated[str, typer.Option("--format", help="csv (one orbit table per point and load system, coefficients.csv) | mat (MATLAB run.mat) | tdms (LabVIEW run.tdms) | h5 (the single-file run.h5)")] = "csv",
+        out: Annotated[Optional[Path], typer.Option("--out", help="Directory for the files (default RUN/export).")] = None,
+    ) -> None:
+        """Export every complete operating point's orbit tables and results."""
+        from orbitrig.store.errors import StorageError
+        from orbitrig.store.export import FORMATS, export_run
+        from orbitrig.store.reader import RunDirError
+
+        if fmt not in FORMATS:
+            typer.echo(f"error: --format {fmt!r}: one of {', '.join(FORMATS)}", err=True)
+            raise typer.Exit(2)
+        try:
+            files = export_run(directory, fmt, out)
+        except RunDirError as err:
+            typer.echo(f"error: {err}", err=True)
+            raise typer.Exit(2) from None
+        except StorageError as err:
+            typer.echo(f"error: {err}", err=True)
+            raise typer.Exit(1) from None
+        for path in files:
+            typer.echo(str(path))

@@ -1,0 +1,153 @@
+"""run.h5: the whole run in one HDF5 file, consolidated from the durable pieces.
+
+The file is built in memory and written with `durable.write_atomic` (temporary name,
+fsync, rename): a reader finds the previous run.h5 or the new one, never a torn file,
+and a full disk is an ordinary StorageFullError. Built at the end of a run
+(`RunStore.finalize`) and by `orbitrig export --format h5`. During a run, `RunImage`
+copies each point into the file in memory as soon as it is committed, so the end of
+the run only adds the status and the logs.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+
+import h5py
+import numpy as np
+
+from orbitrig.store.durable import h5_image, memory_h5
+from orbitrig.store.errors import StorageError
+from orbitrig.store.index import scan
+from orbitrig.store.journal import CAN_DTYPE, CAN_UNITS, DRIVE_DTYPE, DRIVE_UNITS, Journal, read_journal
+from orbitrig.store.layout import FORMAT, POINT_ATTR_UNITS, RunLayout, point_name
+from orbitrig.store.pieces import STR, put, strings
+
+log = logging.getLogger(__name__)
+EVENT_DTYPE = np.dtype([("t", "f8"), ("state", STR), ("message", STR)])
+
+
+def read_header(layout: RunLayout) -> dict:
+    """run.json as a dict; StorageError when it is missing or unreadable."""
+    try:
+        header = json.loads(layout.header.read_bytes())
+        if not isinstance(header, dict) or not str(header.get("format", "")).startswith("orbitrig-run/"):
+            raise ValueError(f"format {header.get('format') if isinstance(header, dict) else None!r}")
+    except FileNotFoundError:
+        raise StorageError(layout.header, "missing: not a run directory of this version") from None
+    except (OSError, ValueError, RecursionError) as err:
+        raise StorageError(layout.header, f"not a readable run header ({type(err).__name__}: {err})") from err
+    return header
+
+
+def run_image(layout: RunLayout) -> bytes:
+    """The bytes of run.h5 for the run directory `layout`."""
+    header = read_header(layout)
+    journal = read_journal(layout.journal)
+    states = scan(layout)
+    return h5_image(lambda f: _build(f, layout, header, journal, states, set()))
+
+
+class RunImage:
+    """run.h5 under construction in memory; `add_point` copies a committed point in."""
+
+    def __init__(self, layout: RunLayout):
+        self.layout = layout
+        self._f: h5py.File | None = None
+        self._done: set[int] = set()
+
+    def add_point(self, index: int) -> None:
+        """Copy committed point `index`; on any failure the image is dropped (`image` then
+        consolidates from the disk), because the point itself is safe in its pieces."""
+        try:
+            if self._f is None:
+                self._f = memory_h5()
+                self._f.create_group("points")
+            if _add_point(self._f["points"], self.layout, index, True):
+                self._done.add(index)
+        except (StorageError, OSError, ValueError, KeyError) as err:
+            log.warning("run.h5 will be consolidated at the end (cannot copy point %04d now: %s)", index, err)
+            self.close()
+
+    def image(self) -> bytes:
+        """The bytes of run.h5 (the points not copied yet are copied now); closes the image."""
+        if self._f is None:
+            return run_image(self.layout)
+        try:
+            header, journal, states = read_header(self.layout), read_journal(self.layout.journal), scan(self.layout)
+            if any(i not in {st.index for st in states if st.complete} for i in self._done):
+                return run_image(self.layout)  # a copied point is no longer complete: start over
+            _build(self._f, self.layout, header, journal, states, self._done)
+            self._f.flush()
+            return self._f.id.get_file_image()
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        if self._f is not None:
+            self._f.close()
+        self._f, self._done = None, set()
+
+
+def _build(f: h5py.File, layout: RunLayout, header: dict, journal: Journal, states, done: set[int]) -> None:
+    a = f.attrs
+    a["format"] = FORMAT
+    for k in ("software_version", "created", "rig_config", "matrix_config", "matrix_name"):
+        a[k] = str(header.get(k, ""))
+    a["sim"] = bool(header.get("sim", False))
+    a["status"], a["status_message"] = journal.status, journal.status_message
+    f.create_dataset("channels", data=strings(header.get("channels", [])))
+    f.create_dataset("channel_units", data=strings(header.get("channel_units", [])))
+    pts = f.require_group("points")
+    for st in states:
+        if st.index not in done:
+            _add_point(pts, layout, st.index, st.complete)
+    _write_logs(f.create_group("logs"), journal)
+
+
+def _add_point(pts: h5py.Group, layout: RunLayout, index: int, complete: bool) -> bool:
+    """Copy one point's pieces into /points/PPPP; False when its settings are unreadable."""
+    settings = _settings(layout, index)
+    if settings is None:
+        return False  # a point directory without readable settings: nothing to show
+    g = pts.create_group(point_name(index))
+    g.attrs.update(settings)
+    g.attrs["complete"] = complete
+    g.attrs["units_of_attributes"] = POINT_ATTR_UNITS
+    freqs = g.create_group("frequencies")
+    for tag in layout.block_tags(index):
+        _copy_root(layout.block_file(index, tag), freqs, tag)
+    if complete:
+        _copy_root(layout.results_file(index), g, None)
+    return True
+
+
+def _settings(layout: RunLayout, index: int) -> dict | None:
+    try:
+        s = json.loads(layout.point_file(index).read_bytes())
+    except (OSError, ValueError, RecursionError):
+        return None
+    return s if isinstance(s, dict) else None
+
+
+def _copy_root(path, dest: h5py.Group, name: str | None) -> None:
+    """Copy a piece's root into `dest` (as group `name`, or its members when None)."""
+    try:
+        with h5py.File(path, "r") as src:
+            if name is None:
+                for k in src:
+                    src.copy(src[k], dest, name=k)
+            else:
+                src.copy(src["/"], dest, name=name)
+    except OSError as err:
+        raise StorageError(path, f"cannot read this piece of the run: {err}") from err
+
+
+def _write_logs(lg: h5py.Group, journal: Journal) -> None:
+    ev = np.array(journal.events, dtype=EVENT_DTYPE) if journal.events else np.zeros(0, EVENT_DTYPE)
+    put(lg, "events", ev, "t: s since the run started", fields=strings(EVENT_DTYPE.names))
+    for name, rows, dt, units in (("can", journal.can, CAN_DTYPE, CAN_UNITS),
+                                  ("drives", journal.drives, DRIVE_DTYPE, DRIVE_UNITS)):  # fmt: skip
+        data = np.array(rows, dtype=dt) if rows else np.zeros(0, dt)
+        put(lg, name, data, "; ".join(f"{n}: {u}" for n, u in zip(dt.names, units)),
+            fields=strings(dt.names), field_units=strings(units))

@@ -1,0 +1,168 @@
+"""Durable writes: a file is either absent or whole (git's temp-fsync-rename discipline).
+
+`write_atomic` writes the bytes to ``NAME.tmp``, flushes and fsyncs them, renames the
+file into place and fsyncs the directory, so a kill or a power cut at any instant
+leaves the old state or the new one, never a mixture. `append_line` adds one line to
+an append-only log and fsyncs it; `read_lines` returns the lines whose newline made
+it to disk and counts a torn tail (or any line that does not parse) instead of failing.
+
+HDF5 never writes to the disk here: `h5_image` builds a file in memory (the core
+driver without a backing store) and returns its bytes, so a full disk is an ordinary
+OSError of `os.write` and never leaves the HDF5 library in a broken state.
+Every OSError becomes a StorageError naming the file (orbitrig.store.errors).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import itertools
+import json
+import os
+import threading
+from collections.abc import Callable
+from pathlib import Path
+
+from orbitrig.store.errors import StorageError, storage_error
+
+TMP_SUFFIX = ".tmp"
+_names = itertools.count()
+_name_lock = threading.Lock()
+
+
+def fsync_dir(directory: Path) -> None:
+    """Make the directory entries (a rename, a new file) durable."""
+    try:
+        fd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY)
+    except OSError as err:
+        raise storage_error(directory, "open the directory", err) from err
+    try:
+        os.fsync(fd)
+    except OSError as err:
+        raise storage_error(directory, "fsync the directory", err) from err
+    finally:
+        os.close(fd)
+
+
+def _write_all(fd: int, data: bytes | memoryview) -> None:
+    view = memoryview(data)
+    while view:
+        n = os.write(fd, view)
+        view = view[n:]
+
+
+def write_atomic(path: Path, data: bytes | memoryview) -> dict:
+    """Write `data` to `path` as one durable step (temp name, fsync, rename, fsync dir);
+    return {"size": bytes, "sha256": hex digest} of what was written.
+
+    On any failure the temporary file is removed and a StorageError is raised; the
+    previous content of `path` (if any) is untouched."""
+    path = Path(path)
+    tmp = path.with_name(path.name + TMP_SUFFIX)
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+    except OSError as err:
+        raise storage_error(tmp, "create", err) from err
+    try:
+        try:
+            _write_all(fd, data)
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.replace(tmp, path)
+    except OSError as err:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise storage_error(path, "write", err) from err
+    fsync_dir(path.parent)
+    return {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+
+
+def append_lines(path: Path, lines: list[str]) -> None:
+    """Append `lines` (no newline inside any) in one write and fsync. A torn write leaves
+    a partial last line that `read_lines` ignores; the next append starts on a fresh line."""
+    if not lines:
+        return
+    data = "".join(line + "\n" for line in lines).encode("utf-8")
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+    except OSError as err:
+        raise storage_error(path, "open for appending", err) from err
+    try:
+        if os.fstat(fd).st_size and not _ends_with_newline(path):
+            data = b"\n" + data  # a torn tail from a kill: it stays a line of its own
+        _write_all(fd, data)
+        os.fsync(fd)
+    except OSError as err:
+        raise storage_error(path, "append", err) from err
+    finally:
+        os.close(fd)
+
+
+def _ends_with_newline(path: Path) -> bool:
+    with open(path, "rb") as fh:
+        fh.seek(-1, os.SEEK_END)
+        return fh.read(1) == b"\n"
+
+
+def read_lines(path: Path) -> tuple[list[dict], int]:
+    """The JSON objects of an append-only log, and how many lines were torn or unreadable."""
+    try:
+        data = Path(path).read_bytes()
+    except FileNotFoundError:
+        return [], 0
+    except OSError as err:
+        raise storage_error(path, "read", err) from err
+    records, bad = [], 0
+    lines = data.split(b"\n")
+    if lines and lines[-1] == b"":
+        lines.pop()
+    elif lines:
+        lines.pop()  # no newline: the tail of a write cut short
+        bad += 1
+    for raw in lines:
+        try:
+            rec = json.loads(raw)
+        except (ValueError, RecursionError):
+            rec = None
+        if isinstance(rec, dict):
+            records.append(rec)
+        elif raw.strip():
+            bad += 1
+    return records, bad
+
+
+def digest(path: Path) -> tuple[int, str]:
+    """(size in bytes, SHA-256 hex) of a file."""
+    h = hashlib.sha256()
+    try:
+        with open(path, "rb") as fh:
+            for chunk in iter(lambda: fh.read(1 << 20), b""):
+                h.update(chunk)
+            size = fh.tell()
+    except OSError as err:
+        raise storage_error(path, "read", err) from err
+    return size, h.hexdigest()
+
+
+def memory_h5():
+    """A new HDF5 file that lives in memory only (the core driver without a backing store)."""
+    import h5py
+
+    with _name_lock:
+        name = f"orbitrig-mem-{os.getpid()}-{next(_names)}.h5"
+    try:
+        return h5py.File(name, "w", driver="core", backing_store=False)
+    except (OSError, ValueError) as err:
+        raise StorageError(name, f"cannot build an HDF5 file in memory: {err}") from err
+
+
+def h5_image(build: Callable) -> bytes:
+    """The bytes of an HDF5 file built in memory by ``build(h5py.File)``."""
+    f = memory_h5()
+    try:
+        build(f)
+        f.flush()
+        return f.id.get_file_image()
+    finally:
+        f.close()

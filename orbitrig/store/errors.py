@@ -1,0 +1,45 @@
+"""Storage errors: every failure to write or read a run directory is a StorageError.
+
+    OrbitrigError
+    +-- StorageError(path, reason)              the run directory cannot be written or read
+        +-- StorageFullError(path, needed, free)  no space left (ENOSPC, EDQUOT) or too little free
+
+No storage function lets an OSError or an HDF5 library error escape: `storage_error`
+turns one into the matching StorageError, naming the file.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+
+from orbitrig.errors import OrbitrigError
+
+_FULL = {errno.ENOSPC, errno.EDQUOT}
+
+
+class StorageError(OrbitrigError):
+    """The run directory cannot be created, resumed, written or read; ``path`` names the file."""
+
+    def __init__(self, path: str | os.PathLike, reason: str):
+        self.path, self.reason = str(path), reason
+        super().__init__(f"{self.path}: {reason}")
+
+
+class StorageFullError(StorageError):
+    """The file system of the run directory is full (or has less free space than a write needs)."""
+
+    def __init__(self, path: str | os.PathLike, reason: str, *, needed: int | None = None, free: int | None = None):
+        self.needed, self.free = needed, free
+        super().__init__(path, reason)
+
+
+def storage_error(path: str | os.PathLike, doing: str, err: BaseException) -> StorageError:
+    """The StorageError for `err` raised while `doing` (e.g. 'write', 'rename') on `path`."""
+    if isinstance(err, StorageError):
+        return err
+    code = err.errno if isinstance(err, OSError) else None
+    text = os.strerror(code) if isinstance(code, int) else str(err)
+    if code in _FULL:
+        return StorageFullError(path, f"cannot {doing}: {text} (the disk is full: free space, then resume the run)")
+    return StorageError(path, f"cannot {doing}: {type(err).__name__}: {text}")

@@ -1,0 +1,68 @@
+"""The run's index, rebuilt from what is on disk: which points are complete, which are not.
+
+A point is complete when its commit record (``complete.json``) parses and every file it
+names has the recorded size and SHA-256 digest. Anything else (no commit record, a file
+missing, torn or altered) makes the point incomplete; `problem` says why.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+from orbitrig.store.durable import digest
+from orbitrig.store.errors import StorageError
+from orbitrig.store.layout import COMMIT_FILE, POINT_FILE, RunLayout
+
+
+@dataclass(frozen=True)
+class PointState:
+    index: int
+    complete: bool
+    problem: str = ""  # why it is not complete ("" when complete)
+
+
+def commit_record(layout: RunLayout, index: int, known: dict | None = None) -> dict:
+    """The content of a new commit record: every file of the point with its size and digest
+    (`known`: name -> {"size", "sha256"} of files this process wrote; the others are read)."""
+    d = layout.point_dir(index)
+    files = {}
+    for p in sorted(d.iterdir()):
+        if p.is_file() and p.name != COMMIT_FILE and not p.name.endswith(".tmp"):
+            entry = (known or {}).get(p.name)
+            if entry is None or entry["size"] != p.stat().st_size:
+                size, sha = digest(p)
+                entry = {"size": size, "sha256": sha}
+            files[p.name] = entry
+    return {"point": index, "files": files}
+
+
+def point_state(layout: RunLayout, index: int) -> PointState:
+    """Check one point directory against its commit record."""
+    path = layout.commit_file(index)
+    if not path.is_file():
+        return PointState(index, False, "never completed (no commit record)")
+    try:
+        rec = json.loads(path.read_bytes())
+        files = rec["files"]
+        if rec["point"] != index or POINT_FILE not in files:
+            raise ValueError("names another point or lacks point.json")
+    except (OSError, ValueError, KeyError, TypeError, RecursionError) as err:
+        return PointState(index, False, f"commit record unreadable ({type(err).__name__}: {err})")
+    d = layout.point_dir(index)
+    for name, want in files.items():
+        p = d / name
+        if not p.is_file():
+            return PointState(index, False, f"{name} is missing")
+        try:
+            size, sha = digest(p)
+        except StorageError as err:
+            return PointState(index, False, str(err))
+        if (size, sha) != (want.get("size"), want.get("sha256")):
+            return PointState(index, False, f"{name} is damaged ({size} bytes, digest differs from the commit record)")
+    return PointState(index, True)
+
+
+def scan(layout: RunLayout) -> list[PointState]:
+    """The state of every point directory, ascending index."""
+    return [point_state(layout, i) for i in layout.point_indexes()]

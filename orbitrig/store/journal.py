@@ -1,0 +1,88 @@
+"""The run's append-only event log (``journal.jsonl``): one JSON object per line.
+
+Kinds (key ``k``): ``status`` (status, message, at), ``point`` (point, action: begin |
+complete | set_aside, detail), ``block`` (point, tag, bytes), ``event`` (t, state,
+message), ``can`` (row), ``drives`` (row). ``t`` is seconds since the run started;
+``at`` an ISO-8601 UTC time. A torn last line (a kill mid-append) is ignored; the run's
+status is the last ``status`` line that made it to disk.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from orbitrig.store.durable import read_lines
+
+CAN_FIELDS = ("t_recess", "t_groove", "t_supply", "flow", "p_supply", "p_recess1", "p_recess2", "p_recess3",
+              "p_recess4", "beta", "sensor_fault", "pump_off", "node_lost")  # fmt: skip
+CAN_UNITS = ("s", "K", "K", "K", "m^3/s", "Pa", "Pa", "Pa", "Pa", "Pa", "1", "1 (flag)", "1 (flag)", "1 (flag)")
+DRIVE_FIELDS = ("spin_ref", "spin_act", "orbit_ref", "orbit_act", "spin_status", "orbit_status",
+                "spin_fault", "orbit_fault", "spin_torque", "orbit_torque")  # fmt: skip
+DRIVE_UNITS = ("s", "rad/s", "rad/s", "rad/s", "rad/s", "status word", "status word", "fault code", "fault code",
+               "fraction of nominal", "fraction of nominal")  # fmt: skip
+CAN_DTYPE = np.dtype([("t", "f8")] + [(f, "f8") for f in CAN_FIELDS])
+DRIVE_DTYPE = np.dtype([("t", "f8")] + [(f, "f8") for f in DRIVE_FIELDS])
+
+
+def now_iso() -> str:
+    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+
+
+def line(kind: str, **fields) -> str:
+    return json.dumps({"k": kind, **fields}, separators=(",", ":"))
+
+
+def status_line(status: str, message: str) -> str:
+    return line("status", status=status, message=message, at=now_iso())
+
+
+def log_lines(events: list, can: list, drives: list) -> list[str]:
+    """Journal lines of the rows gathered by a LogBuffer."""
+    out = [line("event", t=float(t), state=str(s), message=str(m)) for t, s, m in events]
+    out += [line("can", row=[_num(v) for v in r]) for r in can]
+    out += [line("drives", row=[_num(v) for v in r]) for r in drives]
+    return out
+
+
+def _num(v) -> float | None:
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+@dataclass
+class Journal:
+    """What the journal says, as far as it made it to disk."""
+
+    status: str = "running"
+    status_message: str = ""
+    events: list = field(default_factory=list)  # (t, state, message)
+    can: list = field(default_factory=list)  # rows of CAN_DTYPE
+    drives: list = field(default_factory=list)  # rows of DRIVE_DTYPE
+    points: list = field(default_factory=list)  # the point and block records, in order
+    torn: int = 0  # lines ignored (torn tail or unreadable)
+
+
+def read_journal(path) -> Journal:
+    records, torn = read_lines(path)
+    j = Journal(torn=torn)
+    for r in records:
+        try:
+            k = r.get("k")
+            if k == "status":
+                j.status, j.status_message = str(r["status"]), str(r.get("message", ""))
+            elif k == "event":
+                j.events.append((float(r["t"]), str(r["state"]), str(r["message"])))
+            elif k in ("can", "drives"):
+                n = len(CAN_DTYPE.names if k == "can" else DRIVE_DTYPE.names)
+                row = [math.nan if v is None else float(v) for v in r["row"]][:n]
+                (j.can if k == "can" else j.drives).append(tuple(row + [math.nan] * (n - len(row))))
+            elif k in ("point", "block"):
+                j.points.append(r)
+        except (KeyError, TypeError, ValueError):
+            j.torn += 1
+    return j

@@ -1,0 +1,141 @@
+"""The run directory's layout: every file name, and the units and labels of what is stored.
+
+Both the writer (orbitrig.store.writer) and the readers (orbitrig.store.reader, export)
+find files through :class:`RunLayout`; docs/storage.md describes the same layout::
+
+    DIR/run.json                    the run's header, written once (format, configs, channels)
+    DIR/journal.jsonl               append-only event log (status, points, events, CAN, drives)
+    DIR/points/PPPP/point.json      an operating point's settings
+    DIR/points/PPPP/FF_dir.h5       one orbit frequency (block), one durable file each
+    DIR/points/PPPP/results.h5      the point's orbit tables and identifications
+    DIR/points/PPPP/complete.json   the commit record: size and SHA-256 of every file above
+    DIR/aside/...                   what `--resume` set aside (incomplete or damaged)
+    DIR/run.h5                      the single file for MATLAB / h5py users (consolidated)
+    DIR/coefficients.csv, DIR/run.log
+
+A point is complete when ``complete.json`` exists and every file it names has the
+recorded size and digest; nothing else counts.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+FORMAT = "orbitrig-run/2"
+#: formats of run.h5 this version reads (1: written in place by earlier versions)
+READABLE_FORMATS = ("orbitrig-run/1", FORMAT)
+
+HEADER, JOURNAL, RUN_FILE = "run.json", "journal.jsonl", "run.h5"
+CSV_FILE, LOG_FILE = "coefficients.csv", "run.log"
+POINTS, ASIDE = "points", "aside"
+POINT_FILE, RESULTS_FILE, COMMIT_FILE = "point.json", "results.h5", "complete.json"
+BLOCK_SUFFIX = ".h5"
+_POINT_DIR = re.compile(r"\d{4}")
+_BLOCK_FILE = re.compile(r"\d{2}_(fwd|bwd)\.h5")
+
+#: the two load measuring systems, in the order of the coherence rows
+LMS_ORDER = ("piezo", "strain")
+#: coherence columns: (displacement, force) pairs
+COHERENCE_PAIRS = ("xfx", "yfx", "xfy", "yfy")
+#: columns of an orbit table's `u` (standard uncertainty of each phasor)
+U_COLUMNS = ("x", "y", "fx", "fy")
+U_UNITS = ("m", "m", "N", "N")
+#: SI unit of each matrix of a coefficient key
+MATRIX_SI = {"K": "N/m", "C": "N s/m", "D": "kg"}
+
+#: units of the attributes of each kind of group (HDF5 attributes cannot carry attributes)
+POINT_ATTR_UNITS = ("spin: rad/s; spin_rpm: rpm; recess_pressure: Pa; pressure_ratio: 1; "
+                    "static_eccentricity: 1; dynamic_eccentricity: 1; orbit_radius: m")  # fmt: skip
+BLOCK_ATTR_UNITS = "orbit: rad/s (signed, < 0 backward); orbit_hz: Hz; measured_orbit_speed: rad/s; n_records: 1"
+TABLE_ATTR_UNITS = "spin: rad/s"
+IDENT_ATTR_UNITS = "condition_number: 1; residual_rms: N; dof: 1; chi2: 1; p_value: 1"
+
+
+def coefficient_si_unit(key: str) -> str:
+    """SI unit of coefficient `key`: 'Kxx' -> 'N/m'; 'Cxy_2' (multiplies Omega^2) -> 'N s/m (rad/s)^-2'."""
+    unit = MATRIX_SI[key[0]]
+    _, _, order = key.partition("_")
+    return unit if not order else f"{unit} (rad/s)^-{order}"
+
+
+def point_name(index: int) -> str:
+    return f"{index:04d}"
+
+
+@dataclass(frozen=True)
+class RunLayout:
+    """Paths of one run directory."""
+
+    dir: Path
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "dir", Path(self.dir))
+
+    @property
+    def header(self) -> Path:
+        return self.dir / HEADER
+
+    @property
+    def journal(self) -> Path:
+        return self.dir / JOURNAL
+
+    @property
+    def run_file(self) -> Path:
+        return self.dir / RUN_FILE
+
+    @property
+    def csv(self) -> Path:
+        return self.dir / CSV_FILE
+
+    @property
+    def log(self) -> Path:
+        return self.dir / LOG_FILE
+
+    @property
+    def points(self) -> Path:
+        return self.dir / POINTS
+
+    @property
+    def aside(self) -> Path:
+        return self.dir / ASIDE
+
+    def has_pieces(self) -> bool:
+        """True when DIR holds a run in durable pieces (written by this version)."""
+        return self.header.is_file()
+
+    def point_dir(self, index: int) -> Path:
+        return self.points / point_name(index)
+
+    def point_file(self, index: int) -> Path:
+        return self.point_dir(index) / POINT_FILE
+
+    def block_file(self, index: int, tag: str) -> Path:
+        return self.point_dir(index) / f"{tag}{BLOCK_SUFFIX}"
+
+    def results_file(self, index: int) -> Path:
+        return self.point_dir(index) / RESULTS_FILE
+
+    def commit_file(self, index: int) -> Path:
+        return self.point_dir(index) / COMMIT_FILE
+
+    def point_indexes(self) -> list[int]:
+        """Indexes of the point directories present (complete or not), ascending."""
+        if not self.points.is_dir():
+            return []
+        return sorted(int(p.name) for p in self.points.iterdir() if p.is_dir() and _POINT_DIR.fullmatch(p.name))
+
+    def block_tags(self, index: int) -> list[str]:
+        """Tags ('03_bwd') of the block files present in a point directory, sorted."""
+        d = self.point_dir(index)
+        if not d.is_dir():
+            return []
+        return sorted(p.name[: -len(BLOCK_SUFFIX)] for p in d.iterdir() if _BLOCK_FILE.fullmatch(p.name))
+
+    def aside_dir(self, index: int, reason: str) -> Path:
+        """A free name under DIR/aside for point `index` set aside for `reason`."""
+        n = 1
+        while (self.aside / f"{point_name(index)}.{reason}.{n}").exists():
+            n += 1
+        return self.aside / f"{point_name(index)}.{reason}.{n}"

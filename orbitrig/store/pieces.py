@@ -1,0 +1,154 @@
+"""HDF5 content of the durable pieces, which is also the content of the consolidated run.h5.
+
+A block file's root is exactly the group ``/points/PPPP/frequencies/FF_dir`` of run.h5,
+and a results file's root holds the point's ``table``, ``identification``, ``truth`` and
+``lms_comparison``; consolidation copies them unchanged. Every dataset carries a
+``units`` attribute; channel, coefficient and column names are string datasets or
+attributes, so MATLAB's h5read and h5py read everything without parsing JSON.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import h5py
+import numpy as np
+
+from orbitrig.run.plan import OperatingPoint
+from orbitrig.store.layout import (BLOCK_ATTR_UNITS, COHERENCE_PAIRS, IDENT_ATTR_UNITS, LMS_ORDER,
+                                   TABLE_ATTR_UNITS, U_COLUMNS, U_UNITS, coefficient_si_unit)  # fmt: skip
+from orbitrig.store.records import BlockRecord, PointResults
+
+STR = h5py.string_dtype()
+IDENT_SCALARS = ("n_coefficients", "min_frequencies", "n_frequencies", "condition_number", "residual_rms",
+                 "dof", "chi2", "p_value", "aic", "bic", "exponent")  # fmt: skip
+
+
+def to_json(obj) -> str:
+    """JSON text of plain data that may hold numpy scalars or arrays (e.g. counters, truth)."""
+    return json.dumps(obj, default=lambda o: o.tolist() if isinstance(o, (np.generic, np.ndarray)) else str(o))
+
+
+def strings(values) -> np.ndarray:
+    return np.array(list(values), dtype=STR)
+
+
+def put(g: h5py.Group, name: str, data, units: str, **attrs) -> h5py.Dataset:
+    """A dataset with its units (and other attributes)."""
+    ds = g.create_dataset(name, data=data)
+    ds.attrs["units"] = units
+    for k, v in attrs.items():
+        ds.attrs[k] = v
+    return ds
+
+
+def point_settings(point: OperatingPoint) -> dict:
+    """The attributes of a point (point.json and /points/PPPP in run.h5), SI."""
+    return {
+        "index": point.index, "spin": point.spin, "spin_rpm": point.spin_rpm,
+        "recess_pressure": point.recess_pressure, "pressure_ratio": point.pressure_ratio,
+        "static_eccentricity": point.static_eccentricity, "dynamic_eccentricity": point.dynamic_eccentricity,
+        "orbit_radius": point.orbit_radius, "label": point.label,
+    }  # fmt: skip
+
+
+def write_block(g: h5py.Group, rec: BlockRecord, channels: list[str], units: list[str]) -> None:
+    """One orbit frequency: settings as attributes, the measurement as datasets with units."""
+    b = rec.block
+    chan = strings(channels)
+    per_channel = " or ".join(dict.fromkeys(units)) + " per channel (see channel_units)"
+    a = g.attrs
+    a.update({"orbit": b.orbit, "orbit_hz": b.orbit_hz, "direction": b.direction,
+              "measured_orbit_speed": rec.measured_orbit_speed, "stop_reason": rec.stop_reason,
+              "n_records": int(rec.n_records if rec.n_records is not None else len(rec.raw_counts)),
+              "complete": True, "units_of_attributes": BLOCK_ATTR_UNITS})  # fmt: skip
+    a["channels"], a["channel_units"] = chan, strings(units)
+    put(g, "raw_counts", np.asarray(rec.raw_counts, dtype=np.int16), "count",
+        dimensions="revolution, channel, sample")
+    put(g, "slots", np.asarray(rec.slots, dtype=np.int16), "slot (1/360 of an orbit revolution after the trigger)",
+        dimensions="channel, sample")
+    put(g, "gains", np.asarray(rec.gains, dtype=np.float64), per_channel.replace("per", "/count per"))
+    put(g, "offsets", np.asarray(rec.offsets, dtype=np.float64), per_channel)
+    put(g, "mean", np.asarray(rec.mean, dtype=np.float64), per_channel, dimensions="channel, sample",
+        meaning="synchronous average over the revolutions")
+    put(g, "dc", np.asarray(rec.dc, dtype=np.float64), per_channel)
+    put(g, "rms_residual", np.asarray(rec.rms_residual, dtype=np.float64), per_channel)
+    put(g, "record_phasors", np.asarray(rec.record_phasors, dtype=np.complex128), per_channel,
+        dimensions="revolution, channel", convention="q = Re(q_bar exp(i Omega t))")
+    put(g, "phasors", np.asarray(rec.phasors, dtype=np.complex128), per_channel,
+        convention="q = Re(q_bar exp(i Omega t))")
+    if rec.uncertainty is not None:
+        put(g, "uncertainty", np.asarray(rec.uncertainty, dtype=np.float64), per_channel,
+            meaning="standard uncertainty of each averaged phasor")
+    put(g, "coherence", np.asarray(rec.coherence, dtype=np.float64), "1", rows=strings(LMS_ORDER),
+        columns=strings(COHERENCE_PAIRS), meaning="gamma^2 between displacement and force")
+    st = g.create_group("stats")
+    for k, v in rec.stats.items():
+        st.attrs[k] = to_json(v) if isinstance(v, (dict, list)) else v
+
+
+def write_results(g: h5py.Group, res: PointResults) -> None:
+    """A point's orbit tables, identifications, the simulator's truth and the LMS comparison."""
+    tg = g.create_group("table")
+    for lms, t in res.tables.items():
+        _write_table(tg.create_group(lms), t)
+    ig = g.create_group("identification")
+    for (lms, key), entry in res.identifications.items():
+        _write_identification(ig.create_group(f"{lms}__{key}"), entry)
+    if res.truth is not None:
+        g.create_group("truth").attrs["json"] = to_json(res.truth)
+    g.create_group("lms_comparison").attrs["json"] = to_json(res.lms_comparison)
+
+
+def _write_table(h: h5py.Group, t) -> None:
+    h.attrs["spin"] = t.spin
+    h.attrs["units_of_attributes"] = TABLE_ATTR_UNITS
+    put(h, "orbit", np.asarray(t.orbit, dtype=np.float64), "rad/s")
+    put(h, "orbit_hz", np.asarray(t.orbit, dtype=np.float64) / (2 * math.pi), "Hz")
+    for name, unit, what in (("x", "m", "x displacement"), ("y", "m", "y displacement"),
+                             ("fx", "N", "x force on the journal"), ("fy", "N", "y force on the journal")):  # fmt: skip
+        put(h, name, np.asarray(getattr(t, name), dtype=np.complex128), unit, meaning=what,
+            convention="q = Re(q_bar exp(i Omega t))")
+    if t.gamma2 is not None:
+        put(h, "gamma2", np.asarray(t.gamma2, dtype=np.float64), "1", columns=strings(COHERENCE_PAIRS))
+    if t.n_records is not None:
+        put(h, "n_records", np.asarray(t.n_records, dtype=np.int64), "1")
+    if t.u is not None:
+        put(h, "u", np.asarray(t.u, dtype=np.float64), ", ".join(U_UNITS), columns=strings(U_COLUMNS),
+            meaning="standard uncertainty of each averaged phasor")
+
+
+def _float(v) -> float:
+    return math.nan if v is None else float(v)
+
+
+def _write_identification(h: h5py.Group, entry: dict) -> None:
+    spec = entry["spec"]
+    h.attrs.update({"model": spec.model, "freq_dep": spec.freq_dep, "method": spec.method,
+                    "units_of_attributes": IDENT_ATTR_UNITS})  # fmt: skip
+    if "json" not in entry:
+        h.attrs["error"] = entry["error"]
+        return
+    d = entry["json"]
+    h.attrs["json"] = to_json(d)
+    for k in IDENT_SCALARS:
+        if k in d and (d[k] is None or isinstance(d[k], (int, float))):
+            h.attrs[k] = _float(d[k])
+    names = list(d["coefficients"])
+    h.create_dataset("names", data=strings(names))
+    h.create_dataset("units", data=strings(coefficient_si_unit(k) for k in names))
+    unit = "SI per coefficient (see dataset units)"
+    put(h, "coefficients", np.array([_float(d["coefficients"][k]) for k in names]), unit)
+    std = d.get("std_errors") or {}
+    put(h, "std_errors", np.array([_float(std.get(k)) for k in names]), unit, meaning="one standard deviation")
+    ci = d.get("confidence_95")
+    if ci:
+        put(h, "interval_95", np.array([[_float(v) for v in (ci.get(k) or (None, None))] for k in names]).reshape(-1, 2),
+            unit, columns=strings(("low", "high")), meaning="two-sided 95 % confidence interval")
+    if d.get("free") and d.get("covariance") is not None:
+        free = list(d["free"])
+        cov = np.array([[_float(v) for v in row] for row in d["covariance"]], dtype=np.float64).reshape(len(free), -1)
+        put(h, "covariance", cov, "SI: product of the two coefficients' units", names=strings(free))
+    for k in ("notes", "warnings"):
+        h.create_dataset(k, data=strings(str(s) for s in d.get(k) or []))

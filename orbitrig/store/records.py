@@ -1,0 +1,63 @@
+"""What the run engine hands to storage: one block, one point's results (SI throughout)."""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from orbitrig.run.plan import Block
+
+
+@dataclass
+class BlockRecord:
+    """Everything stored for one orbit frequency and direction."""
+
+    block: Block
+    measured_orbit_speed: float  # rad/s, |Omega| from trigger timestamps
+    raw_counts: np.ndarray  # int16 (N, C, S)
+    slots: np.ndarray  # (C, S)
+    gains: np.ndarray  # (C,) engineering unit per count
+    offsets: np.ndarray  # (C,) engineering unit
+    mean: np.ndarray  # (C, S) engineering units
+    record_phasors: np.ndarray  # (N, C)
+    phasors: np.ndarray  # (C,)
+    dc: np.ndarray  # (C,)
+    rms_residual: np.ndarray  # (C,)
+    coherence: np.ndarray  # (2, 4) piezo|strain x (xfx, yfx, xfy, yfy)
+    stats: dict = field(default_factory=dict)
+    uncertainty: np.ndarray | None = None  # (C,) standard uncertainty of `phasors` (N, m)
+    n_records: int | None = None  # revolutions averaged (None: the rows of raw_counts)
+    stop_reason: str = ""  # why averaging stopped: "count" | "target" | "max" ("" unknown)
+
+
+@dataclass
+class PointResults:
+    tables: dict  # lms -> reduction.table.OrbitTable
+    identifications: dict  # (lms, ModelSpec.key) -> {"spec": ModelSpec, "json": dict | "error": str}
+    lms_comparison: dict
+    truth: dict | None = None
+
+
+class LogBuffer:
+    """Rows gathered between writes (appended to the journal with the next write); thread-safe."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._rows: dict[str, list] = {"events": [], "can": [], "drives": []}
+
+    def add(self, log: str, row: tuple) -> None:
+        with self._lock:
+            self._rows[log].append(row)
+
+    def take(self) -> tuple[list, list, list]:
+        with self._lock:
+            rows, self._rows = self._rows, {"events": [], "can": [], "drives": []}
+        return rows["events"], rows["can"], rows["drives"]
+
+    def put_back(self, events: list, can: list, drives: list) -> None:
+        """Return rows a failed write could not store (they go with the next write)."""
+        with self._lock:
+            for name, rows in (("events", events), ("can", can), ("drives", drives)):
+                self._rows[name][:0] = rows

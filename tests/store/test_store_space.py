@@ -1,0 +1,110 @@
+"""Storage failures at the RunStore level: a full disk is a StorageFullError, leaves no
+temporary file and no broken library state (the store keeps working once space is
+free); free-space checks and the byte estimates that feed them."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from orbitrig import config as cfg
+from orbitrig.run.plan import expand, operating_points
+from orbitrig.store.errors import StorageError, StorageFullError
+from orbitrig.store.estimate import block_bytes, plan_bytes, point_bytes, results_bytes
+from orbitrig.store.reader import read_run
+from orbitrig.store.writer import BlockRecord, RunStore
+
+from store_checks import fill
+
+MATRIX = """
+name = "space"
+revolutions = 20
+[operating]
+spin_rpm = [1000.0, 2000.0]
+recess_pressure_mpa = [0.4826]
+pressure_ratio = [0.4]
+static_eccentricity = [0.0]
+dynamic_eccentricity = [0.096]
+[orbit]
+ratios = [0.3, 0.6, 0.9]
+[[models]]
+model = "kc8"
+"""
+
+
+def _record(block, n=20) -> BlockRecord:
+    rng = np.random.default_rng(block.freq)
+    return BlockRecord(
+        block=block, measured_orbit_speed=abs(block.orbit), raw_counts=rng.integers(-3000, 3000, (n, 8, 45), dtype=np.int16),
+        slots=np.arange(360, dtype=np.int16).reshape(45, 8).T, gains=np.ones(8), offsets=np.zeros(8),
+        mean=rng.standard_normal((8, 45)), record_phasors=rng.standard_normal((n, 8)) + 0j, phasors=np.ones(8, complex),
+        dc=np.zeros(8), rms_residual=np.zeros(8), coherence=np.ones((2, 4)), uncertainty=np.full(8, 1e-3),
+        n_records=n, stop_reason="count",
+    )  # fmt: skip
+
+
+def _setup(directory):
+    rig = cfg.load_rig()
+    m = cfg.matrix_from_text(MATRIX, "space.toml")
+    store = RunStore.create(directory, rig_text=rig.text, matrix_text=m.text, matrix_name=m.name, sim=True)
+    return rig, m, store
+
+
+def test_full_disk_is_a_storage_full_error_and_the_store_recovers(tiny_disk):
+    rig, m, store = _setup(tiny_disk / "run")
+    p = operating_points(m, rig)[0]
+    store.begin_point(p)
+    store.write_block(p.index, _record(p.blocks[0]))
+    filler = fill(tiny_disk)
+    with pytest.raises(StorageFullError, match="No space left on device.*the disk is full") as err:
+        store.write_block(p.index, _record(p.blocks[1]))
+    assert err.value.path.endswith("01_fwd.h5") or err.value.path.endswith(".h5.tmp")
+    assert not list((tiny_disk / "run").rglob("*.tmp"))  # the torn temporary file is gone
+    with pytest.raises(StorageFullError):
+        store.set_status("failed", "disk full")  # the journal cannot take it either: an error, not a crash
+    store.log("still alive")  # run.log is best effort: no exception
+    with pytest.raises(StorageFullError, match="needs .* free"):
+        store.check_free_space(1)
+    filler.unlink()
+    store.check_free_space(100_000)
+    for b in p.blocks[1:]:  # the same store object and the same HDF5 library keep working
+        store.write_block(p.index, _record(b))
+    point = read_run(tiny_disk / "run").points[0]
+    assert [f.name for f in point.frequencies] == sorted(b.tag for b in p.blocks)
+
+
+def test_storage_errors_name_the_file(tmp_path):
+    with pytest.raises(StorageError, match="does not exist: nothing to resume"):
+        RunStore.open_existing(tmp_path)
+    (tmp_path / "run.json").write_text("{not json")
+    with pytest.raises(StorageError, match=r"run.json: not a readable run header"):
+        RunStore.open_existing(tmp_path)
+    _, m, store = _setup(tmp_path / "run")
+    points = tmp_path / "run" / "points"
+    points.rmdir()
+    points.write_text("in the way")  # the point directory cannot be created
+    with pytest.raises(StorageError, match=r"points/0000: cannot create the point directory"):
+        store.begin_point(operating_points(m, cfg.load_rig())[0])
+
+
+def test_estimates_bound_what_is_written(tmp_path):
+    rig, m, store = _setup(tmp_path / "run")
+    from orbitrig.run.engine import identify_point
+
+    p = operating_points(m, rig)[0]
+    store.begin_point(p)
+    recs = [_record(b) for b in p.blocks]
+    for r in recs:
+        store.write_block(p.index, r)
+    store.write_results(p.index, identify_point(p.spin, recs, rig.channel_index, m.models))
+    store.complete_point(p.index)
+    block = (tmp_path / "run/points/0000/00_fwd.h5").stat().st_size
+    assert block <= block_bytes(rig, 20) <= 1.5 * block
+    results = (tmp_path / "run/points/0000/results.h5").stat().st_size
+    assert results <= results_bytes(len(p.blocks), 1) <= 2.5 * results
+    point = sum(f.stat().st_size for f in (tmp_path / "run/points/0000").iterdir())
+    assert point <= point_bytes(rig, p, 20, 1) <= 2 * point
+    store.set_status("stopped", "one point")
+    written = sum(f.stat().st_size for f in (tmp_path / "run").rglob("*") if f.is_file())
+    whole = plan_bytes(rig, expand(m, rig))  # two points: about twice this one's share
+    assert 2 * written <= whole <= 6 * written
