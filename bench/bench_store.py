@@ -31,8 +31,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from orbitrig import config as cfg  # noqa: E402
-from orbitrig.run.engine import identify_point  # noqa: E402
-from orbitrig.run.plan import expand, operating_points  # noqa: E402
+from orbitrig.run.identification import identify_operating_point  # noqa: E402
+from orbitrig.run.plan import make_plan, operating_points  # noqa: E402
 from orbitrig.store.estimate import plan_bytes  # noqa: E402
 from orbitrig.store.writer import BlockRecord, RunStore  # noqa: E402
 
@@ -96,7 +96,7 @@ def main() -> None:
             store.write_block(p.index, recs[-1])
             per_block.append(time.perf_counter() - t)
         t = time.perf_counter()
-        results = identify_point(p.spin, recs, rig.channel_index, matrix.models)
+        results = identify_operating_point(p.spin, recs, rig.channel_index, matrix.models)
         per_identify.append(time.perf_counter() - t)
         t = time.perf_counter()
         store.write_results(p.index, results)
@@ -114,7 +114,7 @@ def main() -> None:
     print(f"  (identification of the point, for scale: {_ms(per_identify)})")
     print(f"run.h5 at the end (status, logs, write): {consolidate:.3f} s for {size / 1e6:.2f} MB "
           f"({consolidate / max(1, args.points):.3f} s per point); pieces {pieces / 1e6:.2f} MB")
-    est = plan_bytes(rig, expand(matrix, rig))
+    est = plan_bytes(rig, list(make_plan(matrix, rig).steps))
     print(f"estimate (plan_bytes) {est / 1e6:.2f} MB for {(pieces + size) / 1e6:.2f} MB written")
 
 

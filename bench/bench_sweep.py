@@ -30,7 +30,7 @@ sys.path.insert(0, str(ROOT))
 
 from orbitrig import config as cfg  # noqa: E402
 from orbitrig.run.engine import RunEngine  # noqa: E402
-from orbitrig.run.plan import Acquire, SetOrbit, SetSpin, Settle, StopDrives, expand, format_duration  # noqa: E402
+from orbitrig.run.plan import Acquire, SetOrbit, SetSpin, Settle, StopDrives, format_duration, make_plan  # noqa: E402
 
 PHYSICAL = (SetSpin, SetOrbit, Settle, Acquire, StopDrives)
 
@@ -64,11 +64,12 @@ async def main() -> None:
     args = ap.parse_args()
     logging.basicConfig(level=logging.WARNING)
 
-    from sim.rig import SimRig
+    from orbitrig.cli.simulated_rig import simulated_rig
 
     rig = cfg.load_rig(args.config)
     matrix = _subset(cfg.load_matrix(args.matrix), args.points)
-    steps = expand(matrix, rig)
+    plan = make_plan(matrix, rig)
+    steps = plan.steps
     physical = sum(s.duration for s in steps if isinstance(s, PHYSICAL))
     acquire = sum(s.duration for s in steps if isinstance(s, Acquire))
     ideal = physical / args.speedup
@@ -77,10 +78,10 @@ async def main() -> None:
     print(f"matrix {matrix.name}: {n_points} points, {blocks} blocks; physical ramps+settle+acquisition "
           f"{format_duration(physical)} (acquisition {format_duration(acquire)}); speed-up {args.speedup:g}")
     out = args.out or Path(tempfile.mkdtemp(prefix="bench-sweep-")) / "run"
-    async with SimRig(speedup=args.speedup, adc_pty=False) as sim:
-        engine = RunEngine(rig, out_dir=out, sim=sim, confirm_mode="auto")
+    async with simulated_rig(args.speedup) as (_, access):
+        engine = RunEngine(rig, out_dir=out, access=access, confirm_mode="auto")
         t0 = time.monotonic()
-        outcome = await engine.run(matrix)
+        outcome = await engine.run(plan)
         wall = time.monotonic() - t0
     tm = engine.timing
     print(f"outcome: {outcome.status} ({outcome.message}), {len(outcome.completed_points)} points complete in {out}")

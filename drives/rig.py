@@ -53,6 +53,7 @@ from drives.errors import (
     DriveTimeoutError,
 )
 from drives.link import ModbusLink
+from drives.pair import drive_names, drive_pair
 
 log = logging.getLogger(__name__)
 
@@ -240,16 +241,11 @@ class RigDrives:
         if int(link_loss_polls) != link_loss_polls or link_loss_polls < 1:
             raise ValueError(f"link_loss_polls {link_loss_polls} is not a positive integer")
         self.link_loss_polls = int(link_loss_polls)
-        if spin_id == orbit_id:
-            raise ValueError(f"spin_id and orbit_id are both {spin_id}")
         self.url = url
         self.limits = limits
         self.poll_interval = float(poll_interval)
-        self.link = ModbusLink(url, timeout=timeout, names={spin_id: "spin", orbit_id: "orbit"})
-        self.spin = Drive(self.link, spin_id, "spin", bidirectional=False, state_timeout=state_timeout)
-        self.orbit = Drive(
-            self.link, orbit_id, "orbit", bidirectional=True, state_timeout=state_timeout
-        )
+        self.link = ModbusLink(url, timeout=timeout, names=drive_names(spin_id, orbit_id))
+        self.spin, self.orbit = drive_pair(self.link, spin_id, orbit_id, state_timeout=state_timeout)
         self._drives = (self.spin, self.orbit)
         self._params = {"accel_time": accel_time, "decel_time": decel_time,
                         "comm_loss_timeout": comm_loss_timeout}

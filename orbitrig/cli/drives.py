@@ -182,17 +182,9 @@ def _config_name(config: Path | None) -> str:
 
 def _rig_drives(url, d, limits=None):
     """RigDrives with the configuration's ids, timeout, poll interval and link_loss_polls."""
-    from drives.rig import DriveLimits, RigDrives
+    from orbitrig.run.drive_setup import UNLIMITED, rig_drives
 
-    return RigDrives(
-        url,
-        limits if limits is not None else DriveLimits(math.inf, math.inf),
-        poll_interval=d.poll_interval_s,
-        spin_id=d.spin_id,
-        orbit_id=d.orbit_id,
-        timeout=d.timeout_s,
-        link_loss_polls=d.link_loss_polls,
-    )
+    return rig_drives(url, d, UNLIMITED if limits is None else limits)
 
 
 def _reason(err: BaseException) -> str:
@@ -376,15 +368,11 @@ async def _stop(url, d, emergency, timeout) -> int:
 
 
 async def _stop_words_best_effort(url, d, emergency) -> list[str]:
-    from drives.drive import Drive
-    from drives.link import ModbusLink
     from drives.rig import send_stop
+    from orbitrig.run.drive_setup import bare_drives, modbus_link
 
-    link = ModbusLink(url, timeout=d.timeout_s, names={d.spin_id: "spin", d.orbit_id: "orbit"})
-    drives = [
-        Drive(link, d.spin_id, "spin", bidirectional=False),
-        Drive(link, d.orbit_id, "orbit", bidirectional=True),
-    ]
+    link = modbus_link(url, d)
+    drives = list(bare_drives(link, d))
     try:
         missed = {err.drive for err in await send_stop(drives, emergency=emergency)}
     finally:

@@ -7,20 +7,13 @@ import sys
 
 import typer
 
-_STEP_WORDS = {"SetManual": "manual settings", "Verify": "verify", "SetSpin": "spin changes", "Settle": "settle",
-               "Acquire": "acquire", "Store": "store", "SetOrbit": "orbit changes", "Identify": "identify",
-               "StopDrives": "stop drives"}  # fmt: skip
 
-
-def print_plan(rig, mat) -> None:
-    """Print the plan of matrix ``mat`` on ``rig``: a summary (points, orbit blocks, steps,
+def print_plan(plan) -> None:
+    """Print `plan` (orbitrig.run.plan.Plan): a summary (points, orbit blocks, steps,
     estimated physical time, time per step kind), the predicted uncertainty of each model
     (orbitrig.cli.dry_run_predict), then one line per step (durations in s)."""
-    from orbitrig.run.plan import expand
-
-    steps = expand(mat, rig)
     try:
-        _print(steps, mat.name, rig, mat)
+        _print(plan.steps, plan.name, plan.rig, plan.matrix)
     except BrokenPipeError:  # `| head`: the reader has what it wanted
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
 
@@ -32,7 +25,7 @@ def _print(steps, name: str, rig, mat) -> None:
     sm = summarize(steps)
     typer.echo(f"matrix {name}: {sm.points} operating points, {sm.blocks} orbit blocks, "
                f"{len(steps)} steps, estimated {format_duration(sm.duration)} (physical time)")  # fmt: skip
-    parts = ", ".join(f"{_STEP_WORDS.get(k, k)} {format_duration(v)}" for k, v in sm.by_kind.items())
+    parts = ", ".join(f"{k} {format_duration(v)}" for k, v in sm.by_kind.items())
     typer.echo(f"by step: {parts}")
     for line in prediction_lines(rig, mat):
         typer.echo(line)

@@ -144,19 +144,24 @@ def _start(*, broker: str, sim: bool, config: Path | None, rig_id: str, prefix: 
 
 
 def build_service(rig, settings, broker_settings, *, out: Path, sim_rig=None, confirm: str = "remote"):
-    """The RigService of `orbitrig serve`: each run gets a fresh RunEngine
-    (the executor of `orbitrig sweep`) writing to OUT/<date>-<matrix>/."""
+    """The RigService of `orbitrig serve`: each run gets a fresh RunEngine (the engine of
+    `orbitrig sweep`; on the simulator `sim_rig` when given) writing to OUT/<date>-<matrix>/."""
     import datetime as dt
 
     from orbitrig import config as cfg
     from orbitrig.run.engine import RunEngine
-    from orbitrig.run.plan import expand
+    from orbitrig.run.plan import make_plan
     from orbitrig.service.rig_service import RigService
 
+    access = None
+    if sim_rig is not None:
+        from orbitrig.cli.simulated_rig import simulated_access
+
+        access = simulated_access(sim_rig)
+
     def load_matrix(path: Path):
-        matrix = cfg.load_matrix(path)
-        expand(matrix, rig)  # every problem of this matrix on this rig, before anything moves
-        return matrix
+        # every problem of this matrix on this rig, before anything moves; the plan is run as it is
+        return make_plan(cfg.load_matrix(path), rig)
 
     def new_engine(name: str, matrix):
         stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
@@ -164,7 +169,7 @@ def build_service(rig, settings, broker_settings, *, out: Path, sim_rig=None, co
         while run_dir.exists():
             n += 1
             run_dir = out / f"{stamp}-{name}-{n}"
-        return RunEngine(rig, out_dir=run_dir, sim=sim_rig, confirm_mode=confirm)
+        return RunEngine(rig, out_dir=run_dir, access=access, confirm_mode=confirm)
 
     return RigService(settings, broker_settings, engine_factory=new_engine, load_matrix=load_matrix)
 
@@ -183,10 +188,8 @@ async def _serve(rig, settings, broker_settings, *, out: Path, sim: bool, speedu
     async with contextlib.AsyncExitStack() as stack:
         sim_rig = None
         if sim:
-            from orbitrig.cli.sweep import DEFAULT_SIM_SPEEDUP
-            from sim.rig import SimRig
+            from orbitrig.cli.simulated_rig import DEFAULT_SPEEDUP, simulated_rig
 
-            sim_rig = await stack.enter_async_context(
-                SimRig(speedup=speedup or DEFAULT_SIM_SPEEDUP, adc_pty=False))
+            sim_rig, _ = await stack.enter_async_context(simulated_rig(speedup or DEFAULT_SPEEDUP))
         service = build_service(rig, settings, broker_settings, out=out, sim_rig=sim_rig, confirm=confirm)
         await service.serve(shutdown)

@@ -11,7 +11,7 @@ from typing import Optional
 
 import typer
 
-DEFAULT_SIM_SPEEDUP = 40.0
+DEFAULT_SPEEDUP = 40.0  # as orbitrig.cli.simulated_rig.DEFAULT_SPEEDUP (imported only with --sim)
 EXIT = {"completed": 0, "failed": 1, "stopped": 3, "aborted": 4}
 
 
@@ -30,7 +30,7 @@ def register(app: typer.Typer) -> None:
         resume: bool = typer.Option(False, "--resume", help="continue the run in --out from its first incomplete point"),
         dry_run: bool = typer.Option(False, "--dry-run", help="print the plan's totals, then every step with its estimated duration (s); touches no hardware"),
         speedup: float = typer.Option(
-            DEFAULT_SIM_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"
+            DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"
         ),
         sim_config: Optional[Path] = typer.Option(
             None, "--sim-config", help="simulator scenario TOML (--sim only; default config/sim.toml, the paper's rig; "
@@ -45,40 +45,45 @@ def register(app: typer.Typer) -> None:
 
         Exit 0 completed, 1 failed, 2 bad configuration or usage, 3 stopped, 4 aborted.
         """
-        from orbitrig.errors import ConfigError, OrbitrigError
+        _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, sim_config)
 
-        if run_dir is not None and out is not None and run_dir != out:
-            raise typer.BadParameter(f"two run directories: {run_dir} and --out {out}", param_hint="DIR")
-        out = out or run_dir
-        if sim_config is not None and not sim:
-            raise typer.BadParameter("--sim-config needs --sim", param_hint="--sim-config")
-        try:
-            rig, mat = _load(config, matrix, sim=sim, resume=resume, out=out, dry_run=dry_run)
-            if dry_run:
-                from orbitrig.cli.dry_run import print_plan
 
-                print_plan(rig, mat)
-                return
-            if out is None:
-                raise typer.BadParameter("--out DIR is required (except with --dry-run)", param_hint="--out")
-            if not sim:
-                _check_rig_answers(rig)
-            if not resume:
-                _check_out(out)
-            import asyncio
+def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, sim_config) -> None:
+    """`orbitrig sweep`, its options checked; raises typer.Exit with the run's exit status."""
+    from orbitrig.errors import ConfigError, OrbitrigError
 
-            sim_cfg = _sim_config(sim_config) if sim else None
-            outcome = asyncio.run(_sweep(rig, mat, out=out, sim=sim_cfg, resume=resume, speedup=speedup))
-        except ConfigError as err:
-            typer.echo(f"error: {err}", err=True)
-            raise typer.Exit(2) from None
-        except OrbitrigError as err:
-            typer.echo(f"error: {err}", err=True)
-            raise typer.Exit(2) from None
-        except OSError as err:  # a file the run needs cannot be written (disk full, permissions)
-            typer.echo(f"error: {err.filename or out}: {err.strerror or err}", err=True)
-            raise typer.Exit(1) from None
-        raise typer.Exit(EXIT[outcome.status])
+    if run_dir is not None and out is not None and run_dir != out:
+        raise typer.BadParameter(f"two run directories: {run_dir} and --out {out}", param_hint="DIR")
+    out = out or run_dir
+    if sim_config is not None and not sim:
+        raise typer.BadParameter("--sim-config needs --sim", param_hint="--sim-config")
+    try:
+        plan = _load(config, matrix, sim=sim, resume=resume, out=out, dry_run=dry_run)
+        if dry_run:
+            from orbitrig.cli.dry_run import print_plan
+
+            print_plan(plan)
+            return
+        if out is None:
+            raise typer.BadParameter("--out DIR is required (except with --dry-run)", param_hint="--out")
+        if not sim:
+            _check_rig_answers(plan.rig)
+        if not resume:
+            _check_out(out)
+        import asyncio
+
+        sim_cfg = _sim_config(sim_config) if sim else None
+        outcome = asyncio.run(_sweep(plan, out=out, sim=sim_cfg, resume=resume, speedup=speedup))
+    except ConfigError as err:
+        typer.echo(f"error: {err}", err=True)
+        raise typer.Exit(2) from None
+    except OrbitrigError as err:
+        typer.echo(f"error: {err}", err=True)
+        raise typer.Exit(2) from None
+    except OSError as err:  # a file the run needs cannot be written (disk full, permissions)
+        typer.echo(f"error: {err.filename or out}: {err.strerror or err}", err=True)
+        raise typer.Exit(1) from None
+    raise typer.Exit(EXIT[outcome.status])
 
 
 def _sim_config(path):
@@ -94,6 +99,14 @@ def _sim_config(path):
 
 
 def _load(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
+    """The plan of this sweep: matrix checked against the rig and expanded, before anything starts."""
+    from orbitrig.run.plan import make_plan
+
+    rig, mat = _configs(config, matrix, sim=sim, resume=resume, out=out, dry_run=dry_run)
+    return make_plan(mat, rig)
+
+
+def _configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
     from orbitrig import config as cfg
     from orbitrig.errors import ConfigError
 
@@ -118,9 +131,7 @@ def _load(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
     if matrix is None and not sim and not dry_run:
         raise typer.BadParameter("--matrix NAME|FILE is required on the rig (--sim defaults to the demo)",
                                  param_hint="--matrix")  # fmt: skip
-    mat = cfg.load_matrix(cfg.matrix_file(matrix) if matrix else None)
-    cfg.check_matrix_against_rig(mat, rig)  # before the simulator or any drive is started
-    return rig, mat
+    return rig, cfg.load_matrix(cfg.matrix_file(matrix) if matrix else None)
 
 
 def _check_out(out: Path) -> None:
@@ -156,30 +167,31 @@ def _check_rig_answers(rig) -> None:
         raise typer.Exit(2)
 
 
-async def _sweep(rig, mat, *, out: Path, sim, resume: bool, speedup: float):
-    """Run the matrix; ``sim`` the simulator's SimConfig (None: the real rig)."""
+async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float):
+    """Run the plan; ``sim`` the simulator's SimConfig (None: the real rig)."""
     import contextlib
 
     from rich.console import Console
 
-    from orbitrig.run.engine import RunEngine
+    from orbitrig.cli.operator import Operator
     from orbitrig.cli.progress import SweepProgress
+    from orbitrig.run.engine import RunEngine
 
     console = Console(stderr=True)
     async with contextlib.AsyncExitStack() as stack:
-        sim_rig = None
+        access = None
         if sim is not None:
-            from sim.rig import SimRig
+            from orbitrig.cli.simulated_rig import simulated_rig
 
-            sim_rig = await stack.enter_async_context(SimRig(sim, speedup=speedup, adc_pty=False))
-        engine = RunEngine(rig, out_dir=out, sim=sim_rig, confirm_mode="auto" if sim_rig is not None else "prompt")
-        operator = _Operator(engine, console)
+            _, access = await stack.enter_async_context(simulated_rig(speedup, sim))
+        engine = RunEngine(plan.rig, out_dir=out, access=access, confirm_mode="auto" if access else "prompt")
+        operator = Operator(engine, console)
         engine.subscribe(operator.on_event)
-        with SweepProgress(console, revolutions=mat.revolutions or rig.averaging.revolutions) as bars:
+        with SweepProgress(console, revolutions=plan.revolutions) as bars:
             engine.subscribe(bars)
             operator.install()
             try:
-                outcome = await engine.run(mat, resume=resume)
+                outcome = await engine.run(plan, resume=resume)
             finally:
                 operator.uninstall()
     console.print(f"run {outcome.status}: {outcome.message}  ({len(outcome.completed_points)} of "
@@ -187,113 +199,6 @@ async def _sweep(rig, mat, *, out: Path, sim, resume: bool, speedup: float):
     if outcome.completed_points:
         print_coefficients(out)
     return outcome
-
-
-class _Operator:
-    """Terminal side of the engine: answers confirmations, Ctrl-C pauses and asks, twice aborts."""
-
-    def __init__(self, engine, console):
-        import asyncio
-
-        self.engine, self.console = engine, console
-        self.loop = asyncio.get_running_loop()
-        self.interrupts = 0
-        self.lines: asyncio.Queue[str | None] = asyncio.Queue()
-        self.reader = None
-        self.asking = None
-        self.eof = False  # standard input closed: nobody can answer, so the run stops
-
-    def install(self) -> None:
-        import signal
-
-        self.loop.add_signal_handler(signal.SIGINT, self._sigint)
-
-    def uninstall(self) -> None:
-        import signal
-
-        self.loop.remove_signal_handler(signal.SIGINT)
-        if self.asking is not None:
-            self.asking.cancel()
-
-    def _start_reader(self) -> None:
-        import sys
-        import threading
-
-        if self.reader is not None:
-            return
-
-        def read():  # a daemon thread: a pending input() never holds the exit
-            for line in sys.stdin:
-                self.loop.call_soon_threadsafe(self.lines.put_nowait, line.strip())
-            self.loop.call_soon_threadsafe(self.lines.put_nowait, None)
-
-        self.reader = threading.Thread(target=read, name="operator-stdin", daemon=True)
-        self.reader.start()
-
-    def _sigint(self) -> None:
-        self.interrupts += 1
-        if self.interrupts >= 2:
-            self.console.print("second Ctrl-C: aborting (emergency ramp down)", style="bold red")
-            self.engine.request_abort()
-            return
-        self.engine.request_pause()
-        self._ask("paused at the next safe point: [r]esume, [s]top, [a]bort? (Ctrl-C again aborts) ", self._choice)
-
-    def on_event(self, ev) -> None:
-        from orbitrig.run.engine import StatusEvent
-
-        if isinstance(ev, StatusEvent) and ev.state == "waiting" and self.engine.waiting_step:
-            step = self.engine.waiting_step
-            self._ask(f"{ev.message}\npress Enter to confirm {step} (or type stop / abort): ",
-                      lambda ans: self._confirm(step, ans))  # fmt: skip
-
-    def _ask(self, prompt: str, handle) -> None:
-        import asyncio
-
-        if self.asking is not None:
-            self.asking.cancel()
-        self._start_reader()
-        self.console.print(prompt, style="bold yellow", markup=False)  # a whole line: the live bars redraw over a partial one
-        if self.eof:
-            self._no_operator()
-            return
-
-        async def ask():
-            line = await self.lines.get()
-            if line is None:
-                self.eof = True
-                self._no_operator()
-            else:
-                handle(line)
-
-        self.asking = asyncio.ensure_future(ask())
-
-    def _no_operator(self) -> None:
-        self.console.print("\nstandard input is closed, nobody can answer: stopping the run "
-                           "(continue later with --resume)", style="bold red", markup=False)  # fmt: skip
-        self.engine.request_stop()
-
-    def _choice(self, ans: str) -> None:
-        a = ans.lower()[:1]
-        if a == "s":
-            self.engine.request_stop()
-        elif a == "a":
-            self.engine.request_abort()
-        else:
-            self.interrupts = 0
-            self.engine.request_resume()
-
-    def _confirm(self, step: str, ans: str) -> None:
-        a = ans.lower()
-        if a.startswith("abort"):
-            self.engine.request_abort()
-        elif a.startswith("stop"):
-            self.engine.request_stop()
-        else:
-            try:
-                self.engine.confirm(step)
-            except Exception as err:  # noqa: BLE001 - tell the operator, keep going
-                self.console.print(f"not confirmed: {err}", markup=False)
 
 
 # ---------------------------------------------------------- the final table

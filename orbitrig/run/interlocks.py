@@ -14,13 +14,15 @@ and acquired again); ``fail`` ends the run (both drives stopping).
 | supply_pump     | the node reports the supply pump off   | suspend |
 
 A lost orbit trigger shows as an acquisition that gets no revolutions; the
-executor retries it and then fails the run (it is not polled here).
+engine retries it and then fails the run (it is not polled here).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+from daq.aux import AuxState
+from drives.rig import RigDriveState
 from orbitrig.config import MPA, Interlocks
 
 SUSPEND, FAIL = "suspend", "fail"
@@ -33,36 +35,37 @@ class Trip:
     message: str
 
 
-def drive_status(state, which: str):
-    """The per-drive status object ('spin' | 'orbit') of a RigDriveState, or None."""
-    return getattr(state, which, None) if state is not None else None
-
-
-def check(aux, drives, cfg: Interlocks, *, pressure_armed: bool) -> list[Trip]:
-    """Trips in force given the latest AuxState `aux` and RigDriveState `drives` (either may be None)."""
-    trips: list[Trip] = []
-    if drives is not None:
-        if getattr(drives, "link_ok", True) is False:
-            trips.append(Trip("drive_link", FAIL, "Modbus link to the drives lost"))
-        for which in ("spin", "orbit"):
-            st = drive_status(drives, which)
-            if st is None:
-                continue
-            code = int(getattr(st, "fault_code", 0) or 0)
-            if code or getattr(st, "tripped", False):
-                fault = getattr(st, "fault", "") or ""
-                trips.append(Trip("drive_trip", FAIL, f"{which} drive tripped: fault {code} {fault}".rstrip()))
+def check(aux: AuxState | None, drives: RigDriveState | None, cfg: Interlocks, *,
+          pressure_armed: bool) -> list[Trip]:  # fmt: skip
+    """Trips in force given the latest CAN sensor state `aux` and drive state `drives` (either may be None).
+    The supply pressure is watched only once `pressure_armed` (the point's pressures were verified)."""
+    trips = _drive_trips(drives) if drives is not None else []
     if aux is not None:
-        if cfg.check_can_heartbeat and getattr(aux, "node_lost", False):
-            trips.append(Trip("can_heartbeat", SUSPEND, "CAN sensor node lost (no heartbeat for 1.5 s)"))
-        elif pressure_armed and cfg.check_supply_pressure:
-            if getattr(aux, "pump_off", False):
-                trips.append(Trip("supply_pump", SUSPEND, "lubricant supply pump is off"))
-            p = getattr(aux, "p_supply", None)
-            stale = getattr(aux, "stale", None)
-            if p is not None and not (callable(stale) and stale("p_supply")):
-                lo, hi = cfg.supply_pressure_min_mpa, cfg.supply_pressure_max_mpa
-                if not lo * MPA <= p <= hi * MPA:
-                    trips.append(Trip("supply_pressure", SUSPEND,
-                                      f"supply pressure {p / MPA:.3f} MPa outside the band {lo:g}..{hi:g} MPa"))  # fmt: skip
+        trips += _supply_trips(aux, cfg, pressure_armed)
+    return trips
+
+
+def _drive_trips(drives: RigDriveState) -> list[Trip]:
+    trips = []
+    if not drives.link_ok:
+        trips.append(Trip("drive_link", FAIL, "Modbus link to the drives lost"))
+    for which, st in (("spin", drives.spin), ("orbit", drives.orbit)):
+        if st is not None and (st.fault_code or st.tripped):
+            trips.append(Trip("drive_trip", FAIL, f"{which} drive tripped: fault {st.fault_code} {st.fault}".rstrip()))
+    return trips
+
+
+def _supply_trips(aux: AuxState, cfg: Interlocks, pressure_armed: bool) -> list[Trip]:
+    if cfg.check_can_heartbeat and aux.node_lost:
+        return [Trip("can_heartbeat", SUSPEND, "CAN sensor node lost (no heartbeat for 1.5 s)")]
+    if not (pressure_armed and cfg.check_supply_pressure):
+        return []
+    trips = []
+    if aux.pump_off:
+        trips.append(Trip("supply_pump", SUSPEND, "lubricant supply pump is off"))
+    p = aux.p_supply
+    lo, hi = cfg.supply_pressure_min_mpa, cfg.supply_pressure_max_mpa
+    if not aux.stale("p_supply") and not lo * MPA <= p <= hi * MPA:
+        trips.append(Trip("supply_pressure", SUSPEND,
+                          f"supply pressure {p / MPA:.3f} MPa outside the band {lo:g}..{hi:g} MPa"))  # fmt: skip
     return trips

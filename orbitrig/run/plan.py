@@ -1,16 +1,17 @@
 """The test matrix as a plan: plain-data steps with estimated durations.
 
-`expand(matrix, rig)` turns a matrix into the steps one executor runs; it
-touches no hardware, so `orbitrig sweep --dry-run` can list it and tests can
-assert the sequence. Durations are PHYSICAL seconds (the simulator's speed-up
-is the executor's business).
+`make_plan(matrix, rig)` checks the matrix against the rig and expands it,
+once, into a `Plan` (operating points and steps) that the run engine executes
+as it is; it touches no hardware, so `orbitrig sweep --dry-run` lists it and
+tests assert the sequence. Durations are PHYSICAL seconds (the time scale of
+a simulated rig is the engine's business).
 
 Per operating point (manual settings outermost, spin innermost, so the
 operator changes the rig as rarely as possible)::
 
-    SetManual -> Verify(pressures) -> SetSpin -> for each block:
-        [SetOrbit] -> Settle -> Acquire -> [Verify(geometry), first block] -> Store
-    -> Identify -> Store(point complete)
+    SetManual -> VerifyPressures -> SetSpin -> for each block:
+        [SetOrbit] -> Settle -> Acquire -> [VerifyGeometry, first block] -> StoreBlock
+    -> Identify -> CompletePoint
     ... StopDrives
 
 Blocks run forward whirl from the highest |Omega| down, then backward from
@@ -21,6 +22,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from orbitrig.config import MPA, RPM, MatrixConfig, ModelSpec, RigConfig, check_matrix_against_rig
@@ -46,6 +48,11 @@ class Block:
     @property
     def orbit_hz(self) -> float:
         return abs(self.orbit) / TWO_PI
+
+    @property
+    def period(self) -> float:
+        """Orbit period, physical s."""
+        return TWO_PI / abs(self.orbit)
 
 
 @dataclass(frozen=True)
@@ -90,8 +97,13 @@ class OperatingPoint:
 # ------------------------------------------------------------------ steps
 @dataclass(frozen=True)
 class Step:
+    """One step of the plan; `duration` is its estimated physical time (s)."""
+
     point: int | None
     duration: float  # estimated, physical s
+
+    #: the step's kind in the dry run's summary ("store" covers blocks and points)
+    word = "step"
 
     def describe(self) -> str:  # pragma: no cover - overridden
         return type(self).__name__
@@ -99,11 +111,15 @@ class Step:
 
 @dataclass(frozen=True)
 class SetManual(Step):
+    """The operator's hands set orbit radius, static eccentricity and pressures (SI)."""
+
     orbit_radius: float
     static_eccentricity: float
     recess_pressure: float
     pressure_ratio: float
     changed: bool  # differs from the previous point's settings
+
+    word = "manual settings"
 
     @property
     def step_id(self) -> str:
@@ -119,19 +135,21 @@ class SetManual(Step):
 
 
 @dataclass(frozen=True)
-class Verify(Step):
-    quantities: tuple[str, ...]  # "pressures" and/or "geometry"
+class VerifyPressures(Step):
+    """Recess pressure and pressure ratio from CAN against the point's settings."""
+
+    word = "verify"
 
     def describe(self) -> str:
-        src = {"pressures": "recess pressure and ratio from CAN",
-               "geometry": "orbit radius and static eccentricity from the displacement probes"}
-        return "verify " + "; ".join(src[q] for q in self.quantities)
+        return "verify recess pressure and ratio from CAN"
 
 
 @dataclass(frozen=True)
 class SetSpin(Step):
     spin: float  # rad/s
     orbit: float  # rad/s signed: the point's first block, set together
+
+    word = "spin changes"
 
     def describe(self) -> str:
         return f"set spin {self.spin / RPM:.0f} rpm (orbit {self.orbit / RPM:+.1f} rpm)"
@@ -140,6 +158,8 @@ class SetSpin(Step):
 @dataclass(frozen=True)
 class SetOrbit(Step):
     block: Block
+
+    word = "orbit changes"
 
     def describe(self) -> str:
         return f"set orbit {self.block.orbit / RPM:+.1f} rpm [{self.block.tag}]"
@@ -150,30 +170,55 @@ class Settle(Step):
     block: Block
     hold: float  # s at setpoint
 
+    word = "settle"
+
     def describe(self) -> str:
         return f"settle, {self.hold:g} s at setpoint [{self.block.tag}]"
 
 
 @dataclass(frozen=True)
 class Acquire(Step):
+    """Average `revolutions` good revolutions; after an interlock suspension the
+    block is settled again (`hold` s at setpoint) and acquired anew."""
+
     block: Block
     revolutions: int
+    hold: float  # s at setpoint when the block must be settled again
+
+    word = "acquire"
 
     def describe(self) -> str:
         return f"acquire {self.revolutions} revolutions at {self.block.orbit_hz:.3f} Hz [{self.block.tag}]"
 
 
 @dataclass(frozen=True)
-class Store(Step):
-    block: Block | None  # None: the point is complete
+class VerifyGeometry(Step):
+    """Orbit radius and static eccentricity of the block just acquired (probes); when
+    they miss and the operator corrects them, `acquire` is repeated."""
+
+    acquire: Acquire
+
+    word = "verify"
 
     def describe(self) -> str:
-        return f"store [{self.block.tag}]" if self.block else "store point, mark complete"
+        return "verify orbit radius and static eccentricity from the displacement probes"
+
+
+@dataclass(frozen=True)
+class StoreBlock(Step):
+    block: Block
+
+    word = "store"
+
+    def describe(self) -> str:
+        return f"store [{self.block.tag}]"
 
 
 @dataclass(frozen=True)
 class Identify(Step):
     models: tuple[ModelSpec, ...]
+
+    word = "identify"
 
     def describe(self) -> str:
         names = ", ".join(f"{m.model}/{m.freq_dep}/{m.method}" for m in self.models)
@@ -181,9 +226,28 @@ class Identify(Step):
 
 
 @dataclass(frozen=True)
+class CompletePoint(Step):
+    """Store the point's results and mark it complete (after the identification)."""
+
+    word = "store"
+
+    def describe(self) -> str:
+        return "store point, mark complete"
+
+
+@dataclass(frozen=True)
 class StopDrives(Step):
+    """The run's last step: both drives ramp to zero."""
+
+    word = "stop drives"
+
     def describe(self) -> str:
         return "ramp both drives to zero"
+
+
+#: every step kind of a plan (the engine has one handler for each)
+STEP_KINDS: tuple[type[Step], ...] = (SetManual, VerifyPressures, SetSpin, SetOrbit, Settle, Acquire,
+                                      VerifyGeometry, StoreBlock, Identify, CompletePoint, StopDrives)  # fmt: skip
 
 
 # ---------------------------------------------------------------- expansion
@@ -213,22 +277,51 @@ def acquisition_time(orbit: float, revolutions: int) -> float:
     return (revolutions + 1) * TWO_PI / abs(orbit)
 
 
-def expand(matrix: MatrixConfig, rig: RigConfig) -> list[Step]:
-    """The whole run as steps, with estimated (physical) durations. No hardware."""
+@dataclass(frozen=True)
+class Plan:
+    """A matrix checked against the rig and expanded: the whole truth the engine runs."""
+
+    matrix: MatrixConfig
+    rig: RigConfig  # the rig it was checked against
+    points: tuple[OperatingPoint, ...]
+    steps: tuple[Step, ...]
+    revolutions: int  # per block
+
+    @property
+    def name(self) -> str:
+        return self.matrix.name
+
+    def point_steps(self, index: int) -> list[Step]:
+        """The steps of operating point `index`, in order."""
+        return [s for s in self.steps if s.point == index]
+
+    @property
+    def final_steps(self) -> list[Step]:
+        """The steps after the last point (StopDrives)."""
+        return [s for s in self.steps if s.point is None]
+
+
+def make_plan(matrix: MatrixConfig, rig: RigConfig) -> Plan:
+    """Check `matrix` against `rig` (ConfigError naming every problem) and expand it."""
     check_matrix_against_rig(matrix, rig)
-    est = rig.estimates
+    points = operating_points(matrix, rig)
     n_rev = matrix.revolutions or rig.averaging.revolutions
+    return Plan(matrix, rig, tuple(points), tuple(_steps(matrix, rig, points, n_rev)), n_rev)
+
+
+def _steps(matrix: MatrixConfig, rig: RigConfig, points: list[OperatingPoint], n_rev: int) -> list[Step]:
+    est = rig.estimates
     hold = rig.settle.hold_s if matrix.settle_hold_s is None else matrix.settle_hold_s
     rate = rig.ramp_rate
     models = tuple(matrix.models)
     steps: list[Step] = []
     spin_now = orbit_now = 0.0
     manual_prev = None
-    for p in operating_points(matrix, rig):
+    for p in points:
         changed = p.manual != manual_prev
-        manual_prev = p.manual
         steps.append(SetManual(p.index, est.manual_setting_s if changed else 0.0, *p.manual, changed))
-        steps.append(Verify(p.index, est.verify_s, ("pressures",)))
+        manual_prev = p.manual
+        steps.append(VerifyPressures(p.index, est.verify_s))
         first = p.blocks[0]
         ramp = max(abs(p.spin - spin_now), abs(first.orbit - orbit_now)) / rate
         steps.append(SetSpin(p.index, ramp, p.spin, first.orbit))
@@ -238,12 +331,13 @@ def expand(matrix: MatrixConfig, rig: RigConfig) -> list[Step]:
                 steps.append(SetOrbit(p.index, abs(b.orbit - orbit_now) / rate, b))
                 orbit_now = b.orbit
             steps.append(Settle(p.index, hold, b, hold))
-            steps.append(Acquire(p.index, acquisition_time(b.orbit, n_rev), b, n_rev))
+            acquire = Acquire(p.index, acquisition_time(b.orbit, n_rev), b, n_rev, hold)
+            steps.append(acquire)
             if j == 0:
-                steps.append(Verify(p.index, 0.0, ("geometry",)))
-            steps.append(Store(p.index, est.store_s, b))
+                steps.append(VerifyGeometry(p.index, 0.0, acquire))
+            steps.append(StoreBlock(p.index, est.store_s, b))
         steps.append(Identify(p.index, est.identify_s * len(models) * 2, models))
-        steps.append(Store(p.index, est.store_s, None))
+        steps.append(CompletePoint(p.index, est.store_s))
     steps.append(StopDrives(None, max(spin_now, abs(orbit_now)) / rate))
     return steps
 
@@ -256,10 +350,11 @@ class PlanSummary:
     by_kind: dict[str, float] = field(default_factory=dict)
 
 
-def summarize(steps: list[Step]) -> PlanSummary:
+def summarize(steps: Sequence[Step]) -> PlanSummary:
+    """Points, blocks and estimated time, with the time per kind of step (`Step.word`)."""
     by_kind: dict[str, float] = {}
     for s in steps:
-        by_kind[type(s).__name__] = by_kind.get(type(s).__name__, 0.0) + s.duration
+        by_kind[s.word] = by_kind.get(s.word, 0.0) + s.duration
     points = {s.point for s in steps if s.point is not None}
     blocks = sum(isinstance(s, Acquire) for s in steps)
     return PlanSummary(len(points), blocks, sum(by_kind.values()), by_kind)

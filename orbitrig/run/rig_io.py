@@ -1,83 +1,120 @@
-"""Opening the rig's hardware for one run: drives, A/D board, CAN sensor node.
+"""How a run reaches the rig: endpoints, time scale, the operator's hands, and the open links.
+
+The engine never knows whether the rig is real or simulated. It gets a
+`RigAccess`: the transports to open (`Endpoints`), the `TimeScale` between
+physical time and wall time (1 on the real rig), the `Hands` that make the
+manual settings, and optionally a `TruthSource` (coefficients known exactly,
+stored beside the identified ones). The real rig's access comes from the rig
+configuration (`RigAccess.of_rig`); a simulated rig's is built where the
+simulator is built (the command line).
 
 `RigIO` is an async context manager around `drives.rig.RigDrives`,
-`daq.adc.AdcReader` and `daq.aux.AuxSensors`, opened at the transports of
-`config/rig.toml` or, in --sim mode, at the endpoints of an in-process
-`sim.rig.SimRig` (Modbus TCP, A/D over a TCP socket, a python-can virtual
-bus): the same protocol code runs in both cases. The only sim-specific
-calls are `set_manual` (the operator's hands) and `truth`.
+`daq.adc.AdcReader` and `daq.aux.AuxSensors` opened at those endpoints: the
+same protocol code runs on the rig and on the simulator.
 """
 
 from __future__ import annotations
 
 import contextlib
-from dataclasses import dataclass
-from typing import Callable
+from dataclasses import dataclass, field
+from typing import Callable, Protocol
 
-import numpy as np
-
+from daq.adc import AdcReader
+from daq.averager import AveragedBlock, AveragingRule
+from daq.aux import AuxSensors
+from daq.revolutions import Revolution
+from drives.rig import RigDrives
 from orbitrig.config import RigConfig
+from orbitrig.run.drive_setup import rig_drives
 
 
-@dataclass
-class Acquisition:
-    """An averaged block (it carries the raw counts of exactly the revolutions in it)."""
+@dataclass(frozen=True)
+class Endpoints:
+    """Where the rig's three links are: Modbus URL of the drives, A/D board URL, CAN bus."""
 
-    block: object  # daq.averager.AveragedBlock
-    raw_counts: np.ndarray  # int16 (N, C, S)
-    slots: np.ndarray  # (C, S)
+    modbus_url: str
+    adc_url: str
+    can_channel: str
+    can_interface: str
+
+    @classmethod
+    def of_rig(cls, rig: RigConfig) -> "Endpoints":
+        t = rig.transports
+        return cls(t.modbus_url, t.adc_url, t.can_channel, t.can_interface)
 
 
-def sim_speedup(sim) -> float:
-    """Time speed-up of a SimRig (1 for the real rig, `sim` None)."""
-    if sim is None:
-        return 1.0
-    speedup = getattr(sim, "speedup", None)
-    if speedup is None:
-        speedup = sim.clock.speedup
-    return float(speedup)
+@dataclass(frozen=True)
+class TimeScale:
+    """Physical time / wall time (1 on the real rig; a simulated rig may run faster)."""
+
+    speedup: float = 1.0
+
+    def wall(self, physical_s: float) -> float:
+        """Wall seconds that `physical_s` physical seconds take."""
+        return physical_s / self.speedup
+
+
+class Hands(Protocol):
+    """Whoever sets orbit radius (m), static eccentricity, recess pressure (Pa) and pressure ratio."""
+
+    def set_manual(self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float,
+                   pressure_ratio: float) -> None: ...  # fmt: skip
+
+
+class OperatorHands:
+    """The real rig: the operator sets the values by hand; the engine asks for a confirmation."""
+
+    def set_manual(self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float,
+                   pressure_ratio: float) -> None:  # fmt: skip
+        return None
+
+
+class TruthSource(Protocol):
+    """The coefficients a rig is known to have: {"K", "C", "D"} 2x2 (SI) at (spin, orbit) rad/s."""
+
+    def truth(self, spin: float, orbit: float) -> dict: ...
+
+
+@dataclass(frozen=True)
+class RigAccess:
+    """Everything the engine needs to reach one rig."""
+
+    endpoints: Endpoints
+    time_scale: TimeScale = TimeScale()
+    hands: Hands = field(default_factory=OperatorHands)
+    truth: TruthSource | None = None
+    simulated: bool = False  # recorded in the run file (a resume must use the same kind of rig)
+
+    @classmethod
+    def of_rig(cls, rig: RigConfig) -> "RigAccess":
+        return cls(Endpoints.of_rig(rig))
 
 
 class RigIO:
-    def __init__(self, rig: RigConfig, *, sim=None, on_revolution: Callable[[object], None] | None = None):
+    """The open links of one run: `drives`, `adc`, `aux` (entered in that reverse order)."""
+
+    def __init__(self, rig: RigConfig, endpoints: Endpoints, *,
+                 on_revolution: Callable[[Revolution], None] | None = None):  # fmt: skip
         self.rig = rig
-        self.sim = sim
-        self.speedup = sim_speedup(sim)
+        self.endpoints = endpoints
         self._on_revolution = on_revolution
         self._stack = contextlib.AsyncExitStack()
-        self.drives = None
-        self.adc = None
-        self.aux = None
+        self.drives: RigDrives | None = None
+        self.adc: AdcReader | None = None
+        self.aux: AuxSensors | None = None
 
     async def __aenter__(self) -> "RigIO":
-        from daq.adc import AdcReader
-        from daq.aux import AuxSensors
-        from drives.rig import DriveLimits, RigDrives
-
-        rig, t = self.rig, self.rig.transports
-        d = rig.drives
-        if self.sim is not None:
-            modbus_url, adc_url = self.sim.modbus_url, self.sim.adc_url
-            can_channel, can_interface = self.sim.can_channel, "virtual"
-        else:
-            modbus_url, adc_url = t.modbus_url, t.adc_url
-            can_channel, can_interface = t.can_channel, t.can_interface
-        limits = DriveLimits(max_spin=rig.max_spin, max_orbit=rig.max_orbit, min_ratio=d.min_ratio,
-                             max_ratio=d.max_ratio)  # fmt: skip
+        rig, t, e = self.rig, self.rig.transports, self.endpoints
         try:
             self.aux = await self._stack.enter_async_context(
-                AuxSensors(can_channel, interface=can_interface, bitrate=t.can_bitrate, node_id=t.can_node_id)
+                AuxSensors(e.can_channel, interface=e.can_interface, bitrate=t.can_bitrate, node_id=t.can_node_id)
             )
             self.adc = await self._stack.enter_async_context(
-                AdcReader(adc_url, channels=len(rig.channels), mode=t.adc_mode, gains=rig.gains,
+                AdcReader(e.adc_url, channels=len(rig.channels), mode=t.adc_mode, gains=rig.gains,
                           offsets=rig.offsets, on_revolution=self._revolution)  # fmt: skip
             )
             # entered last, so it is closed first: the drives stop before the links go
-            self.drives = await self._stack.enter_async_context(
-                RigDrives(modbus_url, limits, poll_interval=d.poll_interval_s, spin_id=d.spin_id,
-                          orbit_id=d.orbit_id, timeout=d.timeout_s,
-                          link_loss_polls=d.link_loss_polls)  # fmt: skip
-            )
+            self.drives = await self._stack.enter_async_context(rig_drives(e.modbus_url, rig.drives))
         except BaseException:
             await self._stack.aclose()
             raise
@@ -86,22 +123,10 @@ class RigIO:
     async def __aexit__(self, *exc) -> None:
         await self._stack.aclose()
 
-    # ---------------------------------------------------------------- A/D
-    def _revolution(self, rev) -> None:
+    def _revolution(self, rev: Revolution) -> None:
         if self._on_revolution is not None:
             self._on_revolution(rev)
 
-    async def acquire(self, n_revolutions, *, timeout: float) -> Acquisition:
-        """Average good revolutions (`n_revolutions`: a count, or a daq.averager.AveragingRule);
-        the block carries their raw counts."""
-        block = await self.adc.acquire(n_revolutions, timeout=timeout)
-        return Acquisition(block, block.raw_counts, block.slots)
-
-    # ---------------------------------------------------------- sim only
-    def set_manual(self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float,
-                   pressure_ratio: float) -> None:  # fmt: skip
-        self.sim.set_manual(orbit_radius=orbit_radius, static_eccentricity=static_eccentricity,
-                            recess_pressure=recess_pressure, pressure_ratio=pressure_ratio)  # fmt: skip
-
-    def truth(self, spin: float, orbit: float) -> dict:
-        return self.sim.truth(spin, orbit)
+    async def acquire(self, rule: AveragingRule | int, *, timeout: float) -> AveragedBlock:
+        """Average good revolutions by `rule` (wall `timeout` s); the block carries their raw counts."""
+        return await self.adc.acquire(rule, timeout=timeout)

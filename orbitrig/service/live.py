@@ -32,9 +32,9 @@ from typing import Any
 import numpy as np
 
 from orbitrig.service import protocol as proto
-from orbitrig.config import MPA, RPM, MatrixConfig
+from orbitrig.config import MPA, RPM
 from orbitrig.run.engine import ProgressEvent, RunEngine
-from orbitrig.run.plan import SetManual, expand
+from orbitrig.run.plan import Plan, SetManual
 
 log = logging.getLogger(__name__)
 
@@ -80,14 +80,14 @@ class RevolutionAverage:
 class LiveFeed:
     """The live view of one run; see the module docstring."""
 
-    def __init__(self, engine: RunEngine, matrix: MatrixConfig, send: Callable[[bytes], None], *,
+    def __init__(self, engine: RunEngine, plan: Plan, send: Callable[[bytes], None], *,
                  rate_hz: float = 5.0):
         self.engine = engine
         self.rig = engine.rig
         self._send = send
         self.interval = 1.0 / rate_hz
         self.average = RevolutionAverage(self.rig.gains, self.rig.offsets)
-        self._manual = {s.point: s for s in expand(matrix, self.rig) if isinstance(s, SetManual)}
+        self._manual = {s.point: s for s in plan.steps if isinstance(s, SetManual)}
         self._block: tuple[int, int] = (0, 0)
         self._point = self._frequency = self._revolutions = 0
         self.sent = 0
@@ -232,8 +232,8 @@ def _direction(orbit: Any) -> str | None:
     return None if speed == 0 else ("forward" if speed > 0 else "backward")
 
 
-def attach(engine: Any, matrix: Any, send: Callable[[bytes], None]) -> LiveFeed | None:
+def attach(engine: Any, plan: Any, send: Callable[[bytes], None]) -> LiveFeed | None:
     """A LiveFeed on ``engine`` when it is the rig's RunEngine (else None: a test double)."""
-    if not isinstance(engine, RunEngine) or not isinstance(matrix, MatrixConfig):
+    if not isinstance(engine, RunEngine) or not isinstance(plan, Plan):
         return None
-    return LiveFeed(engine, matrix, send)
+    return LiveFeed(engine, plan, send)

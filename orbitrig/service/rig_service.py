@@ -75,7 +75,7 @@ class Engine(Protocol):
 
 #: Makes the executor of one run: ``factory(matrix_name, matrix) -> Engine``.
 EngineFactory = Callable[[str, Any], Engine]
-#: Loads and checks a matrix file: ``loader(path) -> MatrixConfig`` (raises ConfigError).
+#: Loads and checks a matrix file: ``loader(path) -> Plan`` (orbitrig.run.plan; raises ConfigError).
 MatrixLoader = Callable[[Path], Any]
 
 

@@ -8,6 +8,7 @@ import pytest
 
 from orbitrig import config as cfg
 from orbitrig.errors import OrbitrigError
+from orbitrig.cli.simulated_rig import simulated_access
 from orbitrig.run.engine import ProgressEvent, RunEngine, StatusEvent
 from sim.rig import SimRig
 from sweep_helpers import SPEEDUP, small_matrix, wait_for
@@ -42,7 +43,8 @@ def _stored(out):
 async def running(tmp_path, matrix, **engine_kw):
     """A SimRig and a RunEngine running `matrix` in a task: yields (sim, engine, recorder, run task)."""
     async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
-        eng = RunEngine(cfg.load_rig(), out_dir=tmp_path / "run", sim=sim, **engine_kw)
+        engine_kw.setdefault("confirm_mode", "auto")
+        eng = RunEngine(cfg.load_rig(), out_dir=tmp_path / "run", access=simulated_access(sim), **engine_kw)
         rec = Recorder()
         eng.subscribe(rec)
         run = asyncio.create_task(eng.run(matrix))
@@ -167,3 +169,14 @@ async def test_lost_trigger_fails_with_a_clear_message(tmp_path):
     assert outcome.status == "failed"
     assert "acquisition failed" in outcome.message and "trigger" in outcome.message
     assert _stored(out)[0] == "failed"
+
+
+async def test_a_drive_trip_while_waiting_for_the_operator_fails_the_run_at_once(tmp_path):
+    """Interlocks are supervised in their own task: a trip ends the run even while it waits for a confirmation."""
+    async with running(tmp_path, small_matrix(), confirm_mode="remote") as (sim, eng, rec, run):
+        await wait_for(lambda: eng.state == "waiting", what="waiting for the manual settings")
+        sim.inject("drive_trip", drive=1, code=2310)
+        outcome = await asyncio.wait_for(run, 10)
+    assert outcome.status == "failed" and outcome.message.startswith("interlock: spin drive tripped: fault 2310")
+    assert eng.state == "faulted" and eng.waiting_step is None
+    assert rec.states()[-2:] == ["stopping", "faulted"]  # reported once the drives are safe

@@ -7,17 +7,18 @@ import sys
 import pytest
 
 from orbitrig import config as cfg
-from orbitrig.run.plan import Acquire, SetManual, SetSpin, StopDrives, expand, summarize
+from orbitrig.run.plan import Acquire, SetManual, SetSpin, StopDrives, make_plan, summarize
 
 RPM = 2 * math.pi / 60
 
 
 def test_demo_plan_sequence():
     rig, m = cfg.load_rig(), cfg.load_matrix()
-    steps = expand(m, rig)
+    steps = list(make_plan(m, rig).steps)
     kinds = [type(s).__name__ for s in steps]
-    assert kinds[:7] == ["SetManual", "Verify", "SetSpin", "Settle", "Acquire", "Verify", "Store"]
-    assert kinds[-3:] == ["Identify", "Store", "StopDrives"]
+    assert kinds[:7] == ["SetManual", "VerifyPressures", "SetSpin", "Settle", "Acquire", "VerifyGeometry",
+                         "StoreBlock"]
+    assert kinds[-3:] == ["Identify", "CompletePoint", "StopDrives"]
     acq = [s for s in steps if isinstance(s, Acquire)]
     assert len(acq) == 10  # 5 frequencies x 2 directions
     # forward from the highest |Omega| down, then backward from the lowest up
@@ -36,7 +37,7 @@ def test_demo_plan_sequence():
 
 def test_paper_plan_size_and_manual_changes():
     rig, m = cfg.load_rig(), cfg.load_matrix(cfg.default_matrix_path("paper"))
-    steps = expand(m, rig)
+    steps = list(make_plan(m, rig).steps)
     sm = summarize(steps)
     assert sm.points == 108 and sm.blocks == 2160
     manual = [s for s in steps if isinstance(s, SetManual)]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from orbitrig.config import load_rig
+from orbitrig.cli.simulated_rig import simulated_access
 from orbitrig.run.rig_io import RigIO
 from sim.rig import SimRig
 
@@ -18,7 +19,7 @@ async def test_rig_io_passes_the_configured_drive_link_settings():
     )
     rig = rig.model_copy(update={"drives": d})
     async with SimRig(speedup=10) as sim:
-        async with RigIO(rig, sim=sim) as io:
+        async with RigIO(rig, simulated_access(sim).endpoints) as io:
             drives = io.drives
             assert drives.link_loss_polls == 2  # not the RigDrives default of 3
             assert drives.link.timeout == pytest.approx(0.12)

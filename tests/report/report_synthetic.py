@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from orbitrig import config as cfg
-from orbitrig.run.engine import identify_point
+from orbitrig.run.identification import identify_operating_point
 from orbitrig.run.plan import operating_points
 from orbitrig.store.writer import BlockRecord, RunStore
 
@@ -100,7 +100,7 @@ def write_synthetic_run(directory: Path, *, noise=1e-3, seed=1, n_points=2, inco
             "K": [K_TRUE.tolist()] * n, "C": [C_TRUE.tolist()] * n, "D": [D_TRUE.tolist()] * n,
             "K0": K_TRUE.tolist(), "C0": C_TRUE.tolist(), "D0": D_TRUE.tolist(),
         }  # fmt: skip
-        store.write_results(point.index, identify_point(point.spin, recs, ch, matrix.models, truth))
+        store.write_results(point.index, identify_operating_point(point.spin, recs, ch, matrix.models, truth))
         store.complete_point(point.index)
     if finished:
         store.set_status("stopped" if incomplete else "completed", "synthetic run")

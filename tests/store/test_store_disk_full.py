@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from orbitrig import config as cfg
+from orbitrig.cli.simulated_rig import simulated_access
 from orbitrig.run.engine import RunEngine, StatusEvent
 from orbitrig.store.reader import read_run
 from sim.rig import SimRig
@@ -70,14 +71,13 @@ def test_disk_full_mid_run_exits_cleanly_and_keeps_the_completed_points(tiny_dis
     check_whole(out, [0, 1, 2], 6)
 
 
-@pytest.mark.xfail(strict=True, reason="the run engine reports a failure (state 'faulted') before it stops the drives")
 async def test_drives_are_stopped_before_the_storage_error_is_handled(tiny_disk):
     """At the moment the run reports the storage failure, both drives were already commanded to stop."""
     matrix = cfg.matrix_from_text(MATRIX, "full.toml")
     out = tiny_disk / "run"
     snapshots = []
     async with SimRig(speedup=40.0, adc_pty=False) as sim:
-        eng = RunEngine(cfg.load_rig(), out_dir=out, sim=sim)
+        eng = RunEngine(cfg.load_rig(), out_dir=out, access=simulated_access(sim), confirm_mode="auto")
 
         def on_event(ev):
             if isinstance(ev, StatusEvent) and ev.state == "faulted":

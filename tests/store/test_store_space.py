@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from orbitrig import config as cfg
-from orbitrig.run.plan import expand, operating_points
+from orbitrig.run.plan import make_plan, operating_points
 from orbitrig.store.errors import StorageError, StorageFullError
 from orbitrig.store.estimate import block_bytes, plan_bytes, point_bytes, results_bytes
 from orbitrig.store.reader import read_run
@@ -89,14 +89,14 @@ def test_storage_errors_name_the_file(tmp_path):
 
 def test_estimates_bound_what_is_written(tmp_path):
     rig, m, store = _setup(tmp_path / "run")
-    from orbitrig.run.engine import identify_point
+    from orbitrig.run.identification import identify_operating_point
 
     p = operating_points(m, rig)[0]
     store.begin_point(p)
     recs = [_record(b) for b in p.blocks]
     for r in recs:
         store.write_block(p.index, r)
-    store.write_results(p.index, identify_point(p.spin, recs, rig.channel_index, m.models))
+    store.write_results(p.index, identify_operating_point(p.spin, recs, rig.channel_index, m.models))
     store.complete_point(p.index)
     block = (tmp_path / "run/points/0000/00_fwd.h5").stat().st_size
     assert block <= block_bytes(rig, 20) <= 1.5 * block
@@ -106,5 +106,5 @@ def test_estimates_bound_what_is_written(tmp_path):
     assert point <= point_bytes(rig, p, 20, 1) <= 2 * point
     store.set_status("stopped", "one point")
     written = sum(f.stat().st_size for f in (tmp_path / "run").rglob("*") if f.is_file())
-    whole = plan_bytes(rig, expand(m, rig))  # two points: about twice this one's share
+    whole = plan_bytes(rig, list(make_plan(m, rig).steps))  # two points: about twice this one's share
     assert 2 * written <= whole <= 6 * written

@@ -1,0 +1,60 @@
+"""The built-in simulator as the run engine sees it: the one place that builds it.
+
+`simulated_rig(speedup)` starts an in-process `sim.rig.SimRig` (Modbus TCP,
+A/D over a TCP socket, a python-can virtual bus) and yields it with its
+`RigAccess`: the simulator's endpoints, its speed-up as the time scale, its
+manual settings as the operator's hands, and its exact coefficients as the
+truth stored beside the identified ones. The engine gets only the access.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import AsyncIterator
+
+from orbitrig.run.rig_io import Endpoints, RigAccess, TimeScale
+from sim.config import SimConfig
+from sim.rig import SimRig
+
+#: simulator time / wall time of `orbitrig sweep --sim` and `orbitrig serve --sim`
+DEFAULT_SPEEDUP = 40.0
+
+
+class SimulatorHands:
+    """The operator's hands on the simulator: the manual settings move it at once."""
+
+    def __init__(self, sim: SimRig):
+        self.sim = sim
+
+    def set_manual(self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float,
+                   pressure_ratio: float) -> None:  # fmt: skip
+        self.sim.set_manual(orbit_radius=orbit_radius, static_eccentricity=static_eccentricity,
+                            recess_pressure=recess_pressure, pressure_ratio=pressure_ratio)  # fmt: skip
+
+
+class SimulatorTruth:
+    """The simulator's bearing coefficients K, C, D (SI) at (spin, orbit) rad/s."""
+
+    def __init__(self, sim: SimRig):
+        self.sim = sim
+
+    def truth(self, spin: float, orbit: float) -> dict:
+        return self.sim.truth(spin, orbit)
+
+
+def simulated_access(sim: SimRig) -> RigAccess:
+    """How the engine reaches a running SimRig."""
+    return RigAccess(
+        endpoints=Endpoints(sim.modbus_url, sim.adc_url, sim.can_channel, "virtual"),
+        time_scale=TimeScale(sim.speedup), hands=SimulatorHands(sim), truth=SimulatorTruth(sim),
+        simulated=True,
+    )  # fmt: skip
+
+
+@contextlib.asynccontextmanager
+async def simulated_rig(speedup: float = DEFAULT_SPEEDUP,
+                        config: SimConfig | None = None) -> AsyncIterator[tuple[SimRig, RigAccess]]:  # fmt: skip
+    """A running SimRig of scenario `config` (default: the paper's rig; no pty: the A/D
+    board over TCP) and its access."""
+    async with SimRig(config, speedup=speedup, adc_pty=False) as sim:
+        yield sim, simulated_access(sim)

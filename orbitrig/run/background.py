@@ -1,0 +1,75 @@
+"""Storage and identification in the background, overlapping the next motion.
+
+Writes run in a worker thread, one at a time, in submission order (a FIFO
+lock), so a block is never written after the point that holds it is marked
+complete. A stop or an abort waits for what is in flight (never cut off).
+The first failure is reported at once to `on_failure` (the engine ends the
+run: drives to a safe stop first) and raised by `check`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from typing import Awaitable, Callable
+
+from orbitrig.run.events import RunFailed
+from orbitrig.store.writer import StorageError
+
+log = logging.getLogger(__name__)
+
+
+class Background:
+    def __init__(self, timing: dict[str, float], on_failure: Callable[[BaseException], None] | None = None):
+        self.timing = timing
+        self._on_failure = on_failure
+        self._pending: set[asyncio.Task] = set()
+        self._writes = asyncio.Lock()
+        self.error: BaseException | None = None
+
+    async def write(self, fn: Callable, *args):
+        """One storage write, in a thread, after every write submitted before it."""
+        async with self._writes:
+            t = time.monotonic()
+            try:
+                return await asyncio.to_thread(fn, *args)
+            finally:
+                self.timing["store"] = self.timing.get("store", 0.0) + time.monotonic() - t
+
+    def spawn(self, coro: Awaitable, name: str) -> None:
+        task = asyncio.ensure_future(coro)
+        task.set_name(name)
+        self._pending.add(task)
+        task.add_done_callback(self._done)
+
+    def _done(self, task: asyncio.Task) -> None:
+        self._pending.discard(task)
+        if not task.cancelled() and task.exception() is not None and self.error is None:
+            self.error = task.exception()
+            log.error("%s failed: %s", task.get_name(), self.error)
+            if self._on_failure is not None:
+                self._on_failure(self.error)
+
+    def failure_message(self) -> str | None:
+        """What failed in the background, for the operator (None: nothing failed)."""
+        err = self.error
+        if err is None:
+            return None
+        what = "storage failed" if isinstance(err, (StorageError, OSError)) else "identification failed"
+        return f"{what}: {type(err).__name__}: {err}"
+
+    def check(self) -> None:
+        """Raise RunFailed if a background task failed."""
+        if (message := self.failure_message()) is not None:
+            raise RunFailed(message) from self.error
+
+    async def settle(self) -> None:
+        """Wait for everything in flight (not cancelling it, even if this wait is cancelled)."""
+        while self._pending:
+            await asyncio.wait(set(self._pending))
+
+    async def drain(self) -> None:
+        """Wait for everything in flight, then raise its first failure."""
+        await self.settle()
+        self.check()

@@ -1,0 +1,206 @@
+"""The operator's requests and the engine's waits: pause, resume, stop, abort, confirm, suspend.
+
+`RunControl` owns the run state (changed only through the table of
+orbitrig.run.states) and the requests. The point procedure calls its waits
+at safe points; nothing here polls: every wait ends on an event (a request,
+a confirmation, an interlock clearing).
+
+- pause: held at the next safe point (before a manual setting, a speed change
+  or the identification); drives keep their speeds.
+- stop: finish the current orbit frequency, store it, end the run as stopped.
+- abort: the engine cancels the run at once (emergency ramp), keeps what is complete.
+- confirm(step): the operator confirms the manual setting the run waits for.
+- suspension: an interlock holds the run (state paused) until it clears.
+- no room: too little free disk space for the next point pauses the run.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from typing import Awaitable, Callable
+
+from orbitrig.errors import OrbitrigError
+from orbitrig.run.events import RunFailed
+from orbitrig.run.states import FAULTED, IDLE, RUNNING, STOPPING, WAITING, next_state
+from orbitrig.run.supervision import InterlockSupervisor
+from orbitrig.run.interlocks import Trip
+from orbitrig.store.writer import now_iso
+
+
+class StopRun(Exception):
+    """A stop request reached a safe point."""
+
+
+class Suspended(Exception):
+    """An interlock tripped while the engine waited for the drives or the A/D board."""
+
+    def __init__(self, trip: Trip):
+        super().__init__(trip.message)
+        self.trip = trip
+
+
+async def _first(*events: asyncio.Event, timeout: float | None = None) -> None:
+    """Until one of `events` is set (or `timeout` s)."""
+    waits = [asyncio.ensure_future(e.wait()) for e in events]
+    try:
+        await asyncio.wait(waits, timeout=timeout, return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        for w in waits:
+            w.cancel()
+
+
+class RunControl:
+    def __init__(self, on_state: Callable[[str, str], None], note: Callable[[str], None]):
+        self._on_state = on_state
+        self._note = note
+        self.state = IDLE
+        self.message = ""
+        self.since = now_iso()
+        self.waiting_step: str | None = None
+        self.timing: dict[str, float] = {}
+        self.reset()
+
+    def reset(self) -> None:
+        self.pause_requested = self.stop_requested = self.abort_requested = False
+        self.confirmed: str | None = None
+        self.wake = asyncio.Event()
+
+    def fire(self, event: str, message: str) -> None:
+        """Change state by the table; tell the engine."""
+        self.state = next_state(self.state, event)
+        self.message, self.since = message, now_iso()
+        self._on_state(self.state, message)
+
+    # ---------------------------------------------------------- requests
+    def request_pause(self) -> None:
+        if self.state in (RUNNING, WAITING):
+            self.pause_requested = True
+            self._note("pause requested (honoured at the next safe point)")
+        self.wake.set()
+
+    def request_resume(self) -> None:
+        self.pause_requested = False
+        self.wake.set()
+
+    def request_stop(self) -> None:
+        if self.state in (IDLE, FAULTED):
+            return
+        self.stop_requested = True
+        self.wake.set()
+        if self.state != STOPPING:
+            self.fire("stop", "stop requested: finishing the current orbit frequency")
+
+    def request_abort(self) -> bool:
+        """True if this request starts an abort (the engine then cancels the run)."""
+        if self.state in (IDLE, FAULTED) or self.abort_requested:
+            return False
+        self.abort_requested = True
+        self.wake.set()
+        self.fire("abort", "abort requested: emergency ramp down")
+        return True
+
+    def confirm(self, step: str) -> None:
+        """Confirm the manual setting `step` (e.g. 'manual:0003'); raises if not waiting for it."""
+        if self.state != WAITING or self.waiting_step is None:
+            raise OrbitrigError(f"not waiting for a confirmation (state {self.state})")
+        if step != self.waiting_step:
+            raise OrbitrigError(f"waiting for '{self.waiting_step}', not '{step}'")
+        self.confirmed, self.waiting_step = step, None
+        self.fire("confirm", f"confirmed {step}")
+        self.wake.set()
+
+    # -------------------------------------------------------------- waits
+    def _add_time(self, key: str, t0: float) -> None:
+        self.timing[key] = self.timing.get(key, 0.0) + time.monotonic() - t0
+
+    async def _until_resumed(self) -> None:
+        while self.pause_requested and not self.stop_requested:
+            self.wake.clear()
+            await self.wake.wait()
+
+    async def safe_point(self, allow_stop: bool = True) -> None:
+        """Honour a stop (StopRun) or a pause here."""
+        if self.stop_requested and allow_stop:
+            raise StopRun
+        if not self.pause_requested or self.stop_requested:
+            return
+        self.fire("pause", "paused at a safe point (drives keep their speeds)")
+        await self._until_resumed()
+        if self.stop_requested:
+            if allow_stop:
+                raise StopRun
+            return
+        self.fire("resume", "resumed")
+
+    async def ask(self, step_id: str, message: str) -> None:
+        """Wait until the operator confirms `step_id` (StopRun on a stop)."""
+        if self.stop_requested:
+            raise StopRun
+        t0 = time.monotonic()
+        self.waiting_step, self.confirmed = step_id, None
+        # the operator (terminal or MQTT) confirms by this id: {"cmd": "confirm", "step": ...}
+        self.fire("ask", f"{message} (confirm step {step_id!r})")
+        try:
+            while self.confirmed != step_id:
+                if self.stop_requested:
+                    raise StopRun
+                self.wake.clear()
+                await self.wake.wait()
+        finally:
+            self.waiting_step = None
+        self._add_time("confirm", t0)
+        await self.safe_point()
+
+    async def hold_for_room(self, problem: Callable[[], str | None]) -> None:
+        """Paused while `problem()` says the disk has no room for the next point; resume re-checks."""
+        why = problem()
+        if why is None:
+            return
+        if self.stop_requested:
+            raise StopRun
+        self.fire("no_room", f"paused: {why}; free disk space, then resume")
+        while why is not None:
+            self.pause_requested = True
+            await self._until_resumed()
+            if self.stop_requested:
+                raise StopRun
+            why = problem()
+            if why is not None:
+                self._note(f"still paused: {why}")
+        self.fire("resume", "resumed: there is room for the next point")
+
+    async def hold_while_suspended(self, sup: InterlockSupervisor, limit: float) -> None:
+        """Paused while a suspend trip is in force (RunFailed after `limit` wall s)."""
+        trip = sup.trip
+        if trip is None:
+            return
+        if self.stop_requested:
+            raise StopRun
+        t0 = time.monotonic()
+        self.fire("suspend", f"suspended by interlock: {trip.message}")
+        while not sup.clear.is_set():
+            if self.stop_requested:
+                raise StopRun
+            left = limit - (time.monotonic() - t0)
+            if left <= 0:
+                raise RunFailed(f"interlock: {(sup.trip or trip).message} for more than {limit:g} s")
+            self.wake.clear()
+            await _first(sup.clear, self.wake, timeout=left)
+        self._add_time("suspended", t0)
+        self.fire("clear", f"interlock cleared ({trip.kind}): settling and acquiring the block again")
+
+    async def guarded(self, aw: Awaitable, sup: InterlockSupervisor):
+        """Await `aw`; Suspended (and `aw` cancelled) if an interlock suspends the run meanwhile."""
+        task = asyncio.ensure_future(aw)
+        trip = asyncio.ensure_future(sup.tripped.wait())
+        try:
+            await asyncio.wait({task, trip}, return_when=asyncio.FIRST_COMPLETED)
+            if task.done():
+                return task.result()
+            raise Suspended(sup.trip or Trip("interlock", "suspend", "interlock"))
+        finally:
+            for t in (task, trip):
+                if not t.done():
+                    t.cancel()
+            await asyncio.gather(task, trip, return_exceptions=True)

@@ -1,0 +1,128 @@
+"""From averaged blocks to a point's results: block records, orbit tables, K C D, truth.
+
+Pure (no I/O): the engine calls these in a worker thread; the synthetic-run
+fixtures of the tests call `identify_operating_point` directly.
+
+Phasors: q = Re(q_bar e^{i Omega t}); the journal's motion is the probe-plane
+average of the two probes of each axis (x_a, x_b and y_a, y_b).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from orbitrig.config import LMS, RigConfig
+from orbitrig.run.plan import Block, OperatingPoint
+from daq.averager import AveragedBlock
+from orbitrig.run.rig_io import TruthSource
+from orbitrig.store.writer import BlockRecord, PointResults
+from reduction.coherence import orbit_coherences
+from reduction.errors import ReductionError
+from reduction.identify import identify
+from reduction.table import OrbitTable
+
+
+def probe_plane(values: np.ndarray, ch: dict[str, int]) -> tuple[np.ndarray, np.ndarray]:
+    """(x, y) at the bearing's mid-plane: the mean of the a and b probes of each axis,
+    over the last axis of `values` (channels)."""
+    v = np.asarray(values)
+    return (v[..., ch["x_a"]] + v[..., ch["x_b"]]) / 2, (v[..., ch["y_a"]] + v[..., ch["y_b"]]) / 2
+
+
+def block_record(block: Block, blk: AveragedBlock, rig: RigConfig) -> BlockRecord:
+    """What is stored for one block: the average, its raw counts, and the coherences of each
+    load measuring system (rows piezo, strain; columns xfx, yfx, xfy, yfy)."""
+    ch = rig.channel_index
+    rp = np.asarray(blk.record_phasors)
+    x, y = probe_plane(rp, ch)
+    coh = np.array([orbit_coherences(x, y, rp[:, ch[f"fx_{lms}"]], rp[:, ch[f"fy_{lms}"]]) for lms in LMS])
+    stats = {k: v for k, v in blk.stats.to_dict().items() if isinstance(v, (int, float, dict))}
+    return BlockRecord(
+        block=block, measured_orbit_speed=float(blk.orbit_speed), raw_counts=blk.raw_counts, slots=blk.slots,
+        gains=np.asarray(blk.gains), offsets=np.asarray(blk.offsets), mean=np.asarray(blk.mean),
+        record_phasors=rp, phasors=np.asarray(blk.phasors), dc=np.asarray(blk.dc),
+        rms_residual=np.asarray(blk.rms_residual), coherence=coh, stats=stats,
+        uncertainty=np.asarray(blk.uncertainty), n_records=blk.n_records, stop_reason=blk.stop_reason,
+    )  # fmt: skip
+
+
+def identify_operating_point(spin: float, recs: list[BlockRecord], ch: dict[str, int], models,
+                             truth: dict | None = None) -> PointResults:  # fmt: skip
+    """One operating point's results: the orbit table of each load measuring system (forward
+    and backward blocks together), every model of ``models`` (ModelSpec) identified on each
+    (a refused model keeps its reason), and the two systems compared."""
+    recs = sorted(recs, key=lambda r: (r.block.freq, -r.block.direction))
+    tables = {lms: orbit_table(spin, recs, ch, lms) for lms in LMS}
+    idents = {}
+    for lms in LMS:
+        for spec in models:
+            try:
+                res = identify(tables[lms], model=spec.model, freq_dep=spec.freq_dep, method=spec.method)
+                idents[(lms, spec.key)] = {"spec": spec, "json": res.to_dict()}
+            except ReductionError as err:
+                idents[(lms, spec.key)] = {"spec": spec, "error": str(err)}
+    return PointResults(tables, idents, lms_comparison(recs, ch), truth)
+
+
+def orbit_table(spin: float, recs: list[BlockRecord], ch: dict[str, int], lms: str) -> OrbitTable:
+    """Orbit table of one point for one load measuring system (Omega > 0, direction in the phasors)."""
+    ph = np.array([r.phasors for r in recs])
+    orbit = np.array([r.measured_orbit_speed if math.isfinite(r.measured_orbit_speed) and r.measured_orbit_speed > 0
+                      else abs(r.block.orbit) for r in recs])  # fmt: skip
+    i = LMS.index(lms)
+    x, y = probe_plane(ph, ch)
+    return OrbitTable(spin=spin, orbit=orbit, x=x, y=y, fx=ph[:, ch[f"fx_{lms}"]], fy=ph[:, ch[f"fy_{lms}"]],
+                      gamma2=np.array([r.coherence[i] for r in recs]))  # fmt: skip
+
+
+def lms_comparison(recs: list[BlockRecord], ch: dict[str, int]) -> dict:
+    """Strain vs piezo forces per block: amplitude ratio and phase difference (deg)."""
+    out: dict = {"orbit_hz": [r.block.orbit_hz for r in recs], "direction": [r.block.direction for r in recs]}
+    for f in ("fx", "fy"):
+        ratio = np.array([r.phasors[ch[f"{f}_strain"]] / r.phasors[ch[f"{f}_piezo"]] for r in recs])
+        out[f"{f}_amp_ratio"] = np.abs(ratio).round(6).tolist()
+        out[f"{f}_phase_diff_deg"] = np.degrees(np.angle(ratio)).round(4).tolist()
+    amp = np.abs(np.array(out["fx_amp_ratio"] + out["fy_amp_ratio"]) - 1) * 100
+    ph = np.abs(np.array(out["fx_phase_diff_deg"] + out["fy_phase_diff_deg"]))
+    out["max_amp_diff_pct"] = round(float(amp.max()), 4) if amp.size else None
+    out["max_phase_diff_deg"] = round(float(ph.max()), 4) if ph.size else None
+    return out
+
+
+def point_truth(p: OperatingPoint, recs: list[BlockRecord], source: TruthSource) -> dict:
+    """The known K, C, D at each block (orbit table order) and at the lowest |Omega| (K0, C0, D0)."""
+    out: dict = {"orbit_hz": [], "orbit": [], "K": [], "C": [], "D": []}
+    recs = sorted(recs, key=lambda r: (r.block.freq, -r.block.direction))
+    for r in recs:
+        t = source.truth(p.spin, r.block.orbit)
+        out["orbit_hz"].append(r.block.orbit_hz)
+        out["orbit"].append(r.block.orbit)
+        for k in "KCD":
+            out[k].append(np.asarray(t[k], dtype=float).tolist())
+    low = min(recs, key=lambda r: (abs(r.block.orbit), -r.block.direction))
+    t0 = source.truth(p.spin, low.block.orbit)
+    for k in "KCD":
+        out[f"{k}0"] = np.asarray(t0[k], dtype=float).tolist()
+    return out
+
+
+def result_payload(run_id: str | None, p: OperatingPoint, res: PointResults) -> dict:
+    """The point's results as published (MQTT result topic, terminal)."""
+    rows = []
+    for (lms, _), e in res.identifications.items():
+        spec = e["spec"]
+        row = {"lms": lms, "model": spec.model, "freq_dep": spec.freq_dep, "method": spec.method}
+        if "json" in e:
+            j = e["json"]
+            row.update(coefficients=j["coefficients"], std_errors=j["std_errors"],
+                       condition_number=j["condition_number"], residual_rms=j["residual_rms"])  # fmt: skip
+        else:
+            row["error"] = e["error"]
+        rows.append(row)
+    out = {"run_id": run_id, **p.settings(), "identification": rows, "lms_comparison": res.lms_comparison}
+    if res.truth is not None:
+        out["truth"] = {k: res.truth[k] for k in ("K0", "C0", "D0")}
+    return out
+

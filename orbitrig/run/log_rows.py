@@ -1,0 +1,29 @@
+"""The rows of the run file's CAN and drive logs (columns: orbitrig.store.writer CAN_FIELDS, DRIVE_FIELDS)."""
+
+from __future__ import annotations
+
+import math
+
+from daq.aux import AuxState
+from drives.drive import DriveStatus
+from drives.rig import RigDriveState
+
+
+def can_row(t: float, aux: AuxState) -> tuple:
+    """t (s since the run started), temperatures, flow, pressures (SI), flags as 0/1."""
+    pr = [float(v) for v in aux.p_recess][:4]
+    pr += [math.nan] * (4 - len(pr))
+    return (t, aux.t_recess, aux.t_groove, aux.t_supply, aux.flow, aux.p_supply, *pr, aux.beta,
+            float(aux.sensor_fault), float(aux.pump_off), float(aux.node_lost))  # fmt: skip
+
+
+def _drive_values(d: DriveStatus | None) -> list[float]:
+    if d is None:
+        return [math.nan] * 5
+    return [float(d.reference), float(d.actual), float(d.status_word), float(d.fault_code), float(d.torque)]
+
+
+def drive_row(t: float, st: RigDriveState) -> tuple:
+    """t, reference and actual speeds (rad/s), status words, fault codes, torques of spin and orbit."""
+    s, o = _drive_values(st.spin), _drive_values(st.orbit)
+    return (t, s[0], s[1], o[0], o[1], s[2], o[2], s[3], o[3], s[4], o[4])

@@ -1,0 +1,279 @@
+"""The point procedure: manual settings, speeds, settle, acquire, verify, record.
+
+Every step kind of the plan has one handler in `PointProcedure.handlers`
+and one rule for what comes before it (`BEFORE`: a safe point where a pause
+or a stop is honoured, and/or a hold while an interlock suspends the run).
+Times in the plan are physical; waits on the rig are converted to wall time
+by the rig's `TimeScale`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Awaitable, Callable
+
+from daq.errors import DaqError
+from drives.errors import DriveError
+from orbitrig.config import RPM, RigConfig
+from orbitrig.run.background import Background
+from orbitrig.run.control import RunControl, StopRun, Suspended
+from orbitrig.run.events import ResultEvent, RunFailed
+from orbitrig.run.identification import block_record, identify_operating_point, point_truth, result_payload
+from orbitrig.run.plan import (
+    Acquire, CompletePoint, Identify, OperatingPoint, SetManual, SetOrbit, SetSpin, Settle, Step, StopDrives,
+    StoreBlock, VerifyGeometry, VerifyPressures,
+)  # fmt: skip
+from orbitrig.run.progress import ProgressMeter
+from orbitrig.run.rig_io import RigAccess, RigIO
+from orbitrig.run.supervision import InterlockSupervisor
+from orbitrig.run.verification import geometry_problems, pressure_problems
+from orbitrig.store.writer import BlockRecord, PointResults, RunStore
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Before:
+    """What the engine does before a step: a safe point (None: none; False: pause only, a stop
+    must let the step run) and a hold while an interlock suspends the run."""
+
+    safe_point: bool | None
+    interlocks: bool
+
+
+#: every frequency of a point is stored before Identify: a stop lets the identification finish
+BEFORE: dict[type[Step], Before] = {
+    SetManual: Before(True, True), VerifyPressures: Before(None, True), SetSpin: Before(True, True),
+    SetOrbit: Before(True, True), Settle: Before(None, True), Acquire: Before(None, True),
+    VerifyGeometry: Before(None, True), StoreBlock: Before(None, False), Identify: Before(False, False),
+    CompletePoint: Before(None, False), StopDrives: Before(None, False),
+}  # fmt: skip
+
+
+@dataclass
+class PointState:
+    """What one point's steps hand each other: the blocks measured and stored so far."""
+
+    point: OperatingPoint
+    always_confirm: bool  # the run's first point: its manual settings are confirmed even if unchanged
+    last: BlockRecord | None = None
+    records: dict[str, BlockRecord] = field(default_factory=dict)
+    results: asyncio.Future | None = None  # PointResults, computed in the background
+
+
+@dataclass
+class RunParts:
+    """The run's parts the procedure works with."""
+
+    rig: RigConfig
+    access: RigAccess
+    io: RigIO
+    store: RunStore
+    control: RunControl
+    supervisor: InterlockSupervisor
+    background: Background
+    progress: ProgressMeter
+    timing: dict[str, float]
+    confirm_mode: str  # prompt | remote | auto
+    run_id: str
+    emit: Callable[[ResultEvent], None]
+    note: Callable[[str], None]
+
+
+class PointProcedure:
+    def __init__(self, parts: RunParts):
+        self.r = parts
+        self.scale = parts.access.time_scale
+        self.handlers: dict[type[Step], Callable[[Step, PointState | None], Awaitable[None]]] = {
+            SetManual: self.set_manual, VerifyPressures: self.verify_pressures, SetSpin: self.set_spin,
+            SetOrbit: self.set_orbit, Settle: self.settle, Acquire: self.acquire,
+            VerifyGeometry: self.verify_geometry, StoreBlock: self.store_block, Identify: self.identify,
+            CompletePoint: self.complete_point, StopDrives: self.stop_drives,
+        }  # fmt: skip
+
+    # ------------------------------------------------------------- driving
+    async def run_point(self, p: OperatingPoint, steps: list[Step], first: bool) -> None:
+        r = self.r
+        r.background.spawn(r.background.write(r.store.begin_point, p), f"begin point {p.index:04d}")
+        r.store.log(f"point {p.index:04d} {p.label}: begin")
+        r.supervisor.pressure_armed = False
+        ps = PointState(p, first)
+        for step in steps:
+            await self.run_step(step, ps)
+
+    async def run_step(self, step: Step, ps: PointState | None) -> None:
+        r = self.r
+        r.background.check()
+        before = BEFORE[type(step)]
+        if before.safe_point is not None:
+            await r.control.safe_point(allow_stop=before.safe_point)
+        if before.interlocks:
+            await self._hold_while_suspended()
+        await self.handlers[type(step)](step, ps)
+        r.progress.spent(self.estimate(step))
+
+    def estimate(self, step: Step) -> float:
+        return self.estimate_of(step, self.r.confirm_mode)
+
+    @staticmethod
+    def estimate_of(step: Step, confirm_mode: str) -> float:
+        """Physical seconds still to come for `step` (no operator time in auto mode)."""
+        return 0.0 if isinstance(step, SetManual) and confirm_mode == "auto" else step.duration
+
+    async def _hold_while_suspended(self) -> None:
+        await self.r.control.hold_while_suspended(self.r.supervisor, self.r.rig.interlocks.suspend_timeout_s)
+
+    def _add_time(self, key: str, t0: float) -> float:
+        now = time.monotonic()
+        self.r.timing[key] = self.r.timing.get(key, 0.0) + now - t0
+        return now
+
+    # ----------------------------------------------------- manual settings
+    async def set_manual(self, step: SetManual, ps: PointState) -> None:
+        self.r.access.hands.set_manual(orbit_radius=step.orbit_radius, static_eccentricity=step.static_eccentricity,
+                                       recess_pressure=step.recess_pressure, pressure_ratio=step.pressure_ratio)  # fmt: skip
+        if self.r.confirm_mode != "auto" and (step.changed or ps.always_confirm):
+            await self.r.control.ask(step.step_id, "set by hand and confirm: " + step.describe())
+
+    async def _not_met(self, p: OperatingPoint, problems: list[str]) -> None:
+        """Manual settings missed: the operator corrects and confirms (auto mode: the run fails)."""
+        msg = f"point {p.index:04d}: manual settings not met: " + "; ".join(problems)
+        if self.r.confirm_mode == "auto":
+            raise RunFailed(msg)
+        await self.r.control.ask(f"verify:{p.index:04d}", msg + "; correct and confirm")
+
+    async def verify_pressures(self, step: VerifyPressures, ps: PointState) -> None:
+        r, t0 = self.r, time.monotonic()
+        while problems := await self._pressures_settled(ps.point):
+            await self._not_met(ps.point, problems)
+        r.supervisor.pressure_armed = True
+        r.store.log(f"point {ps.point.index:04d}: pressures verified")
+        self._add_time("verify", t0)
+
+    async def _pressures_settled(self, p: OperatingPoint) -> list[str]:
+        """The pressure problems left after waiting up to 20 physical s (at least 3 wall s)."""
+        deadline = time.monotonic() + max(3.0, self.scale.wall(20.0))
+        while True:
+            await self._hold_while_suspended()
+            problems = pressure_problems(self.r.io.aux.latest(), p, self.r.rig.verify)
+            if not problems or time.monotonic() > deadline:
+                return problems
+            await asyncio.sleep(0.1)
+
+    async def verify_geometry(self, step: VerifyGeometry, ps: PointState) -> None:
+        while problems := geometry_problems(ps.last, ps.point, self.r.rig):
+            await self._not_met(ps.point, problems)
+            await self._measure(step.acquire, ps, settle_first=True)
+        self.r.store.log(f"point {ps.point.index:04d}: orbit radius and static eccentricity verified")
+
+    # -------------------------------------------------------------- speeds
+    async def _set_speeds(self, spin: float, orbit: float) -> None:
+        try:
+            await self.r.io.drives.set_speeds(spin, orbit)
+        except DriveError as err:
+            raise RunFailed(f"cannot set speeds spin {spin / RPM:.0f} rpm, orbit {orbit / RPM:+.0f} rpm: {err}") from err
+        self.r.note(f"speeds set: spin {spin / RPM:.0f} rpm, orbit {orbit / RPM:+.1f} rpm")
+
+    async def set_spin(self, step: SetSpin, ps: PointState) -> None:
+        await self._set_speeds(step.spin, step.orbit)
+
+    async def set_orbit(self, step: SetOrbit, ps: PointState) -> None:
+        await self._set_speeds(ps.point.spin, step.block.orbit)
+
+    async def stop_drives(self, step: StopDrives, ps: None) -> None:
+        timeout = self.scale.wall(self.r.rig.drives.stop_timeout_s) + 5.0
+        await self.r.io.drives.stop(emergency=False, wait=True, timeout=timeout)
+        self.r.note("both drives ramped to zero")
+
+    # -------------------------------------------------- settle and acquire
+    async def _settle_once(self, p: OperatingPoint, step: Settle | Acquire) -> None:
+        """Wait until both drives hold their setpoints for `step.hold` physical s (Suspended on an interlock)."""
+        r, t0 = self.r, time.monotonic()
+        timeout = self.scale.wall(r.rig.settle.timeout_s) + 5.0
+        try:
+            await r.control.guarded(r.io.drives.wait_settled(hold=self.scale.wall(step.hold), timeout=timeout),
+                                    r.supervisor)  # fmt: skip
+        except DriveError as err:
+            raise RunFailed(f"point {p.index:04d} [{step.block.tag}]: drives did not settle: {err}") from err
+        self._add_time("settle", t0)
+
+    async def settle(self, step: Settle, ps: PointState) -> None:
+        while True:
+            try:
+                return await self._settle_once(ps.point, step)
+            except Suspended:
+                await self._hold_while_suspended()
+
+    async def acquire(self, step: Acquire, ps: PointState) -> None:
+        await self._measure(step, ps, settle_first=False)
+
+    async def _measure(self, step: Acquire, ps: PointState, *, settle_first: bool) -> None:
+        """Acquire one block (settled first if asked); after a suspension or a failed acquisition
+        (retried `averaging.retries` times) the block is settled and acquired again."""
+        r, p, b = self.r, ps.point, step.block
+        av = r.rig.averaging
+        timeout = self.scale.wall(av.timeout_factor * (step.revolutions + 1) * b.period + av.timeout_margin_s) + 2.0
+        attempts = 0
+        while True:
+            try:
+                if settle_first:
+                    await self._settle_once(p, step)
+                settle_first = True
+                t0 = time.monotonic()
+                r.progress.block(p.blocks.index(b) + 1)
+                avg = await r.control.guarded(r.io.acquire(step.revolutions, timeout=timeout), r.supervisor)
+                self._add_time("acquire", t0)
+                ps.last = block_record(b, avg, r.rig)
+                return
+            except Suspended:
+                await self._hold_while_suspended()
+            except (DaqError, TimeoutError) as err:
+                attempts += 1
+                msg = (f"point {p.index:04d} [{b.tag}]: acquisition failed ({type(err).__name__}: {err}); "
+                       "orbit trigger lost or A/D link down?")  # fmt: skip
+                r.note(msg)
+                if attempts > av.retries:
+                    raise RunFailed(msg) from err
+
+    # --------------------------------------------------------------- record
+    async def store_block(self, step: StoreBlock, ps: PointState) -> None:
+        r, rec = self.r, ps.last
+        ps.records[step.block.tag] = rec
+        r.background.spawn(self._write_block(ps.point, rec), f"store {ps.point.index:04d}/{step.block.tag}")
+        if r.control.stop_requested and len(ps.records) < len(ps.point.blocks):
+            raise StopRun
+
+    async def _write_block(self, p: OperatingPoint, rec: BlockRecord) -> None:
+        await self.r.background.write(self.r.store.write_block, p.index, rec)
+        self.r.store.log(f"point {p.index:04d}: stored {rec.block.tag}")
+
+    async def identify(self, step: Identify, ps: PointState) -> None:
+        """Identify every model for both load measuring systems, in a worker thread."""
+        r, p, recs = self.r, ps.point, list(ps.records.values())
+        truth = point_truth(p, recs, r.access.truth) if r.access.truth is not None else None
+
+        async def results() -> PointResults:
+            t0 = time.monotonic()
+            res = await asyncio.to_thread(identify_operating_point, p.spin, recs, r.rig.channel_index,
+                                          step.models, truth)  # fmt: skip
+            self._add_time("identify", t0)
+            await r.background.write(r.store.write_results, p.index, res)
+            return res
+
+        ps.results = asyncio.ensure_future(results())
+        r.background.spawn(ps.results, f"identify point {p.index:04d}")
+
+    async def complete_point(self, step: CompletePoint, ps: PointState) -> None:
+        """Once the results are stored: mark the point complete and publish its results."""
+        r, p, results = self.r, ps.point, ps.results
+
+        async def complete() -> None:
+            res = await results
+            await r.background.write(r.store.complete_point, p.index)
+            r.store.log(f"point {p.index:04d} {p.label}: complete")
+            r.emit(ResultEvent(r.run_id, result_payload(r.run_id, p, res)))
+
+        r.background.spawn(complete(), f"complete point {p.index:04d}")

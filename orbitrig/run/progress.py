@@ -1,0 +1,51 @@
+"""Progress of a run for its subscribers: point, block, revolutions, ETA (wall s)."""
+
+from __future__ import annotations
+
+import time
+from typing import Callable
+
+from orbitrig.run.events import ProgressEvent
+from orbitrig.run.rig_io import TimeScale
+
+
+class ProgressMeter:
+    """Counts what is done and estimates what is left (physical s, shown as wall s)."""
+
+    def __init__(self, emit: Callable[[ProgressEvent], None], scale: TimeScale, *, every: float = 0.1):
+        self._emit = emit
+        self.scale = scale
+        self.every = every  # s between two events, at most one per interval
+        self.run_id: str | None = None
+        self.point = self.points = self.frequency = self.frequencies = self.revolutions = 0
+        self.remaining = 0.0
+        self._last = 0.0
+
+    def start(self, run_id: str, points: int, remaining: float) -> None:
+        self.run_id, self.points, self.remaining = run_id, points, remaining
+        self.point = self.frequency = self.frequencies = 0
+
+    def next_point(self, frequencies: int) -> None:
+        self.point += 1
+        self.frequency, self.frequencies = 0, frequencies
+
+    def block(self, frequency: int) -> None:
+        """A block (1-based in the point) starts acquiring."""
+        self.frequency, self.revolutions = frequency, 0
+        self.emit(force=True)
+
+    def revolution(self) -> None:
+        self.revolutions += 1
+        self.emit()
+
+    def spent(self, physical_s: float) -> None:
+        self.remaining -= physical_s
+
+    def emit(self, force: bool = False) -> None:
+        now = time.monotonic()
+        if not force and now - self._last < self.every:
+            return
+        self._last = now
+        eta = self.scale.wall(max(0.0, self.remaining))
+        self._emit(ProgressEvent(self.run_id, self.point, self.points, self.frequency, self.frequencies,
+                                 self.revolutions, round(eta, 1)))  # fmt: skip

@@ -1,0 +1,59 @@
+"""Interlock supervision: a task of its own that tells the engine when a trip starts or clears.
+
+The sensors are read as states (the CAN node's latest values, the drives'
+latest poll), so the supervisor samples them every `period` s and turns
+them into events: a *fail* trip calls `on_fail` once (the engine ends the
+run); a *suspend* trip sets `tripped` until it clears (then `clear` is set).
+The engine never polls: it waits on these events.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from typing import Callable
+
+from daq.aux import AuxState
+from drives.rig import RigDriveState
+from orbitrig.config import Interlocks
+from orbitrig.run import interlocks
+from orbitrig.run.interlocks import Trip
+
+
+class InterlockSupervisor:
+    def __init__(self, read: Callable[[], tuple[AuxState | None, RigDriveState | None]], cfg: Interlocks,
+                 on_fail: Callable[[Trip], None], *, period: float = 0.05):  # fmt: skip
+        self._read = read
+        self.cfg = cfg
+        self._on_fail = on_fail
+        self.period = period
+        self.pressure_armed = False  # supply pressure watched once the point's pressures are verified
+        self.trip: Trip | None = None  # the suspension in force
+        self.failure: Trip | None = None
+        self.tripped = asyncio.Event()
+        self.clear = asyncio.Event()
+        self.clear.set()
+
+    def trips(self) -> list[Trip]:
+        aux, drives = self._read()
+        return interlocks.check(aux, drives, self.cfg, pressure_armed=self.pressure_armed)
+
+    def sample(self) -> None:
+        """Look once; fire the events that changed."""
+        trips = self.trips()
+        fail = next((t for t in trips if t.action == interlocks.FAIL), None)
+        if fail is not None and self.failure is None:
+            self.failure = fail
+            self._on_fail(fail)
+        suspend = next((t for t in trips if t.action == interlocks.SUSPEND), None)
+        self.trip = suspend
+        if suspend is not None:
+            self.clear.clear()
+            self.tripped.set()
+        else:
+            self.tripped.clear()
+            self.clear.set()
+
+    async def watch(self) -> None:
+        while self.failure is None:
+            self.sample()
+            await asyncio.sleep(self.period)

@@ -1,0 +1,49 @@
+"""Are the manual settings what the point asks for? Pressures from CAN, geometry from the probes.
+
+Each function returns the problems found (empty: verified), worded for the operator.
+"""
+
+from __future__ import annotations
+
+import math
+
+from daq.aux import AuxState
+from orbitrig.config import MPA, RigConfig, Verify
+from orbitrig.run.identification import probe_plane
+from orbitrig.run.plan import OperatingPoint
+from orbitrig.store.writer import BlockRecord
+
+
+def pressure_problems(aux: AuxState, p: OperatingPoint, v: Verify) -> list[str]:
+    """Recess pressure (mean of the four recesses) and pressure ratio against the point's settings."""
+    if aux.node_lost:
+        return ["no CAN sensor readings (node lost)"]
+    if aux.stale("p_recess") or aux.stale("p_supply"):
+        return ["CAN pressure readings are stale"]
+    problems = []
+    pr = sum(aux.p_recess) / len(aux.p_recess)
+    if abs(pr - p.recess_pressure) > v.recess_pressure_tol_pct / 100 * p.recess_pressure:
+        problems.append(f"recess pressure {pr / MPA:.4f} MPa, want {p.recess_pressure / MPA:.4f} MPa "
+                        f"+/- {v.recess_pressure_tol_pct:g} %")  # fmt: skip
+    beta = aux.beta if math.isfinite(aux.beta) else pr / aux.p_supply
+    if abs(beta - p.pressure_ratio) > v.pressure_ratio_tol:
+        problems.append(f"pressure ratio {beta:.3f}, want {p.pressure_ratio:g} +/- {v.pressure_ratio_tol:g}")
+    return problems
+
+
+def geometry_problems(rec: BlockRecord, p: OperatingPoint, rig: RigConfig) -> list[str]:
+    """Orbit radius (m, mean of the x and y amplitudes) and static eccentricity (static
+    displacement / clearance) of a block against the point's settings."""
+    ch, v, c = rig.channel_index, rig.verify, rig.bearing.clearance
+    x, y = probe_plane(rec.phasors, ch)
+    x0, y0 = probe_plane(rec.dc, ch)
+    radius = (abs(x) + abs(y)) / 2
+    ecc = math.hypot(x0, y0) / c
+    problems = []
+    if abs(radius - p.orbit_radius) > v.orbit_radius_tol_pct / 100 * p.orbit_radius:
+        problems.append(f"orbit radius {radius * 1e6:.2f} um, want {p.orbit_radius * 1e6:.2f} um "
+                        f"+/- {v.orbit_radius_tol_pct:g} %")  # fmt: skip
+    if abs(ecc - p.static_eccentricity) > v.static_eccentricity_tol:
+        problems.append(f"static eccentricity {ecc:.3f}, want {p.static_eccentricity:g} "
+                        f"+/- {v.static_eccentricity_tol:g}")  # fmt: skip
+    return problems

@@ -1,0 +1,90 @@
+"""Safety before storage: a storage failure stops the drives first; no room pauses the run.
+
+A full disk cannot be produced here without mounting a small file system, so
+the store's failure is injected (RunStore.write_block raising StorageFullError,
+as the store raises it when the disk is full) and the free space the store
+reads is replaced; everything else is the real engine, store and simulator.
+"""
+
+import asyncio
+
+import pytest
+
+from orbitrig import config as cfg
+from orbitrig.cli.simulated_rig import simulated_access
+from orbitrig.run.engine import RunEngine, StatusEvent
+from orbitrig.run.plan import make_plan
+from orbitrig.store.estimate import plan_bytes, point_bytes
+from orbitrig.store.writer import RunStore, StorageFullError
+from sim.rig import SimRig
+from sweep_helpers import SPEEDUP, small_matrix, wait_for
+
+pytestmark = pytest.mark.timeout(120)
+
+
+def _at_rest(sim) -> bool:
+    return all(abs(s) < 1.0 for s in sim.speeds)
+
+
+async def test_storage_failure_stops_the_drives_before_recording(tmp_path, monkeypatch):
+    write_block, writes, at_status = RunStore.write_block, [], []
+
+    def failing_write_block(self, point, rec):
+        writes.append(rec.block.tag)
+        if len(writes) == 3:
+            raise StorageFullError(self.dir, "no space left on device (disk full)")
+        return write_block(self, point, rec)
+
+    set_status = RunStore.set_status
+
+    def watched_set_status(self, status, message=""):
+        at_status.append((status, _at_rest(sim)))
+        return set_status(self, status, message)
+
+    monkeypatch.setattr(RunStore, "write_block", failing_write_block)
+    monkeypatch.setattr(RunStore, "set_status", watched_set_status)
+    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
+        eng = RunEngine(cfg.load_rig(), out_dir=tmp_path / "run", access=simulated_access(sim), confirm_mode="auto")
+        outcome = await eng.run(small_matrix())
+        assert _at_rest(sim)
+    assert outcome.status == "failed" and eng.state == "faulted"
+    assert outcome.message.startswith("storage failed: StorageFullError:") and "disk full" in outcome.message
+    assert at_status == [("failed", True)]  # the drives were at rest before the status was recorded
+    assert len(writes) == 3  # the run ended at the failed write: no block after it
+    assert RunStore.open_existing(tmp_path / "run").stored_configs()  # the run file is still readable
+
+
+async def test_no_room_for_the_next_point_pauses_until_resumed(tmp_path, monkeypatch):
+    full = {"on": True}
+    asked = []
+    check = RunStore.check_free_space
+
+    def watched_check(self, n_bytes):
+        asked.append(n_bytes)
+        return check(self, n_bytes)
+
+    monkeypatch.setattr(RunStore, "free_bytes", lambda self: 1_000 if full["on"] else 10**15)
+    monkeypatch.setattr(RunStore, "check_free_space", watched_check)
+    rig, matrix = cfg.load_rig(), small_matrix()
+    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
+        eng = RunEngine(rig, out_dir=tmp_path / "run", access=simulated_access(sim), confirm_mode="auto")
+        events = []
+        eng.subscribe(events.append)
+        run = asyncio.create_task(eng.run(matrix))
+        await wait_for(lambda: eng.state == "paused", what="paused for room")
+        assert "not enough free disk space" in eng.message and "resume" in eng.message
+        assert _at_rest(sim)  # held before the point: nothing turned
+        eng.request_resume()  # still no room: stays paused
+        await asyncio.sleep(0.2)
+        assert eng.state == "paused" and not run.done()
+        full["on"] = False
+        eng.request_resume()
+        outcome = await run
+    assert outcome.status == "completed", outcome.message
+    assert outcome.completed_points == [0]
+    states = [e.state for e in events if isinstance(e, StatusEvent)]
+    assert states[:3] == ["running", "paused", "running"]
+    plan = make_plan(matrix, rig)
+    # asked for the whole plan before the run, then for the point (again after each resume)
+    assert asked[0] == plan_bytes(rig, list(plan.steps))
+    assert asked[1:4] == [point_bytes(rig, plan.points[0], 10, len(matrix.models))] * 3
