@@ -73,8 +73,9 @@ def orbit_table(spin: float, recs: list[BlockRecord], ch: dict[str, int], lms: s
                       else abs(r.block.orbit) for r in recs])  # fmt: skip
     i = LMS.index(lms)
     x, y = probe_plane(ph, ch)
+    n = np.array([r.n_records if r.n_records is not None else len(r.raw_counts) for r in recs])
     return OrbitTable(spin=spin, orbit=orbit, x=x, y=y, fx=ph[:, ch[f"fx_{lms}"]], fy=ph[:, ch[f"fy_{lms}"]],
-                      gamma2=np.array([r.coherence[i] for r in recs]))  # fmt: skip
+                      gamma2=np.array([r.coherence[i] for r in recs]), n_records=n)  # fmt: skip
 
 
 def lms_comparison(recs: list[BlockRecord], ch: dict[str, int]) -> dict:

@@ -25,6 +25,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+from daq.averager import AveragingRule
 from orbitrig.config import MPA, RPM, MatrixConfig, ModelSpec, RigConfig, check_matrix_against_rig
 
 TWO_PI = 2.0 * math.pi
@@ -178,17 +179,26 @@ class Settle(Step):
 
 @dataclass(frozen=True)
 class Acquire(Step):
-    """Average `revolutions` good revolutions; after an interlock suspension the
-    block is settled again (`hold` s at setpoint) and acquired anew."""
+    """Average good revolutions by `rule` (`revolutions` = its maximum, what the duration,
+    the timeout and the storage estimate assume); after an interlock suspension the block is
+    settled again (`hold` s at setpoint) and acquired anew."""
 
     block: Block
     revolutions: int
     hold: float  # s at setpoint when the block must be settled again
+    rule: AveragingRule | None = None  # None: AveragingRule.fixed(revolutions)
 
     word = "acquire"
 
+    @property
+    def averaging(self) -> AveragingRule:
+        return self.rule or AveragingRule.fixed(self.revolutions)
+
     def describe(self) -> str:
-        return f"acquire {self.revolutions} revolutions at {self.block.orbit_hz:.3f} Hz [{self.block.tag}]"
+        r = self.averaging
+        what = (f"{r.max_revolutions} revolutions" if r.target is None else
+                f"{r.min_revolutions}..{r.max_revolutions} revolutions (until every channel <= {r.target * 100:g} %)")
+        return f"acquire {what} at {self.block.orbit_hz:.3f} Hz [{self.block.tag}]"
 
 
 @dataclass(frozen=True)
@@ -301,15 +311,25 @@ class Plan:
         return [s for s in self.steps if s.point is None]
 
 
+def averaging_rule(matrix: MatrixConfig, rig: RigConfig) -> AveragingRule:
+    """The matrix's [averaging] (adaptive: target_pct in percent -> a fraction), else a fixed
+    count: the matrix's `revolutions`, else rig.toml's (the paper's 50)."""
+    a = matrix.averaging
+    if a is None:
+        return AveragingRule.fixed(matrix.revolutions or rig.averaging.revolutions)
+    return AveragingRule.adaptive(a.target_pct / 100.0, a.min_revolutions, a.max_revolutions)
+
+
 def make_plan(matrix: MatrixConfig, rig: RigConfig) -> Plan:
     """Check `matrix` against `rig` (ConfigError naming every problem) and expand it."""
     check_matrix_against_rig(matrix, rig)
     points = operating_points(matrix, rig)
-    n_rev = matrix.revolutions or rig.averaging.revolutions
-    return Plan(matrix, rig, tuple(points), tuple(_steps(matrix, rig, points, n_rev)), n_rev)
+    rule = averaging_rule(matrix, rig)
+    return Plan(matrix, rig, tuple(points), tuple(_steps(matrix, rig, points, rule)), rule.max_revolutions)
 
 
-def _steps(matrix: MatrixConfig, rig: RigConfig, points: list[OperatingPoint], n_rev: int) -> list[Step]:
+def _steps(matrix: MatrixConfig, rig: RigConfig, points: list[OperatingPoint], rule: AveragingRule) -> list[Step]:
+    n_rev = rule.max_revolutions
     est = rig.estimates
     hold = rig.settle.hold_s if matrix.settle_hold_s is None else matrix.settle_hold_s
     rate = rig.ramp_rate
@@ -331,7 +351,7 @@ def _steps(matrix: MatrixConfig, rig: RigConfig, points: list[OperatingPoint], n
                 steps.append(SetOrbit(p.index, abs(b.orbit - orbit_now) / rate, b))
                 orbit_now = b.orbit
             steps.append(Settle(p.index, hold, b, hold))
-            acquire = Acquire(p.index, acquisition_time(b.orbit, n_rev), b, n_rev, hold)
+            acquire = Acquire(p.index, acquisition_time(b.orbit, n_rev), b, n_rev, hold, rule)
             steps.append(acquire)
             if j == 0:
                 steps.append(VerifyGeometry(p.index, 0.0, acquire))

@@ -224,7 +224,7 @@ class PointProcedure:
                 settle_first = True
                 t0 = time.monotonic()
                 r.progress.block(p.blocks.index(b) + 1)
-                avg = await r.control.guarded(r.io.acquire(step.revolutions, timeout=timeout), r.supervisor)
+                avg = await r.control.guarded(r.io.acquire(step.averaging, timeout=timeout), r.supervisor)
                 self._add_time("acquire", t0)
                 ps.last = block_record(b, avg, r.rig)
                 return

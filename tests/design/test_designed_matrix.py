@@ -77,3 +77,4 @@ def test_dry_run_of_the_designed_matrix():
     assert "6 orbit blocks" in out.splitlines()[0]
     assert "adaptive averaging: every channel <= 2 % in 20..100 revolutions per block" in out
     assert "20 revolutions per block, the adaptive minimum" in out
+    assert "acquire 20..100 revolutions (until every channel <= 2 %) at 25.000 Hz" in out
