@@ -74,6 +74,7 @@ def orbit_table(spin: float, recs: list[BlockRecord], ch: dict[str, int], lms: s
     i = LMS.index(lms)
     x, y = probe_plane(ph, ch)
     n = np.array([r.n_records if r.n_records is not None else len(r.raw_counts) for r in recs])
+    n = n if np.all(n >= 1) else None  # records without revolutions (synthetic) leave it out
     return OrbitTable(spin=spin, orbit=orbit, x=x, y=y, fx=ph[:, ch[f"fx_{lms}"]], fy=ph[:, ch[f"fy_{lms}"]],
                       gamma2=np.array([r.coherence[i] for r in recs]), n_records=n)  # fmt: skip
 

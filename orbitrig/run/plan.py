@@ -25,8 +25,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from daq.averager import AveragingRule
-from orbitrig.config import MPA, RPM, MatrixConfig, ModelSpec, RigConfig, check_matrix_against_rig
+from orbitrig.config import MPA, RPM, MatrixAveraging, MatrixConfig, ModelSpec, RigConfig, check_matrix_against_rig
 
 TWO_PI = 2.0 * math.pi
 DIRECTIONS = {"forward": +1, "backward": -1}
@@ -179,25 +178,22 @@ class Settle(Step):
 
 @dataclass(frozen=True)
 class Acquire(Step):
-    """Average good revolutions by `rule` (`revolutions` = its maximum, what the duration,
-    the timeout and the storage estimate assume); after an interlock suspension the block is
-    settled again (`hold` s at setpoint) and acquired anew."""
+    """Average good revolutions: a fixed `revolutions`, or adaptively by the matrix's
+    [averaging] (`revolutions` is then its maximum, what the duration, the timeout and the
+    storage estimate assume); after an interlock suspension the block is settled again
+    (`hold` s at setpoint) and acquired anew."""
 
     block: Block
     revolutions: int
     hold: float  # s at setpoint when the block must be settled again
-    rule: AveragingRule | None = None  # None: AveragingRule.fixed(revolutions)
+    adaptive: MatrixAveraging | None = None  # None: exactly `revolutions`
 
     word = "acquire"
 
-    @property
-    def averaging(self) -> AveragingRule:
-        return self.rule or AveragingRule.fixed(self.revolutions)
-
     def describe(self) -> str:
-        r = self.averaging
-        what = (f"{r.max_revolutions} revolutions" if r.target is None else
-                f"{r.min_revolutions}..{r.max_revolutions} revolutions (until every channel <= {r.target * 100:g} %)")
+        a = self.adaptive
+        what = (f"{self.revolutions} revolutions" if a is None else
+                f"{a.min_revolutions}..{a.max_revolutions} revolutions (until every channel <= {a.target_pct:g} %)")
         return f"acquire {what} at {self.block.orbit_hz:.3f} Hz [{self.block.tag}]"
 
 
@@ -311,25 +307,16 @@ class Plan:
         return [s for s in self.steps if s.point is None]
 
 
-def averaging_rule(matrix: MatrixConfig, rig: RigConfig) -> AveragingRule:
-    """The matrix's [averaging] (adaptive: target_pct in percent -> a fraction), else a fixed
-    count: the matrix's `revolutions`, else rig.toml's (the paper's 50)."""
-    a = matrix.averaging
-    if a is None:
-        return AveragingRule.fixed(matrix.revolutions or rig.averaging.revolutions)
-    return AveragingRule.adaptive(a.target_pct / 100.0, a.min_revolutions, a.max_revolutions)
-
-
 def make_plan(matrix: MatrixConfig, rig: RigConfig) -> Plan:
     """Check `matrix` against `rig` (ConfigError naming every problem) and expand it."""
     check_matrix_against_rig(matrix, rig)
     points = operating_points(matrix, rig)
-    rule = averaging_rule(matrix, rig)
-    return Plan(matrix, rig, tuple(points), tuple(_steps(matrix, rig, points, rule)), rule.max_revolutions)
+    a = matrix.averaging
+    n_rev = a.max_revolutions if a is not None else matrix.revolutions or rig.averaging.revolutions
+    return Plan(matrix, rig, tuple(points), tuple(_steps(matrix, rig, points, n_rev)), n_rev)
 
 
-def _steps(matrix: MatrixConfig, rig: RigConfig, points: list[OperatingPoint], rule: AveragingRule) -> list[Step]:
-    n_rev = rule.max_revolutions
+def _steps(matrix: MatrixConfig, rig: RigConfig, points: list[OperatingPoint], n_rev: int) -> list[Step]:
     est = rig.estimates
     hold = rig.settle.hold_s if matrix.settle_hold_s is None else matrix.settle_hold_s
     rate = rig.ramp_rate
@@ -351,7 +338,7 @@ def _steps(matrix: MatrixConfig, rig: RigConfig, points: list[OperatingPoint], r
                 steps.append(SetOrbit(p.index, abs(b.orbit - orbit_now) / rate, b))
                 orbit_now = b.orbit
             steps.append(Settle(p.index, hold, b, hold))
-            acquire = Acquire(p.index, acquisition_time(b.orbit, n_rev), b, n_rev, hold, rule)
+            acquire = Acquire(p.index, acquisition_time(b.orbit, n_rev), b, n_rev, hold, matrix.averaging)
             steps.append(acquire)
             if j == 0:
                 steps.append(VerifyGeometry(p.index, 0.0, acquire))

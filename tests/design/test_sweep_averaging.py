@@ -14,6 +14,7 @@ from orbitrig import config as cfg
 from orbitrig.cli.simulated_rig import simulated_access
 from orbitrig.run.engine import RunEngine
 from orbitrig.run.plan import Acquire, make_plan
+from orbitrig.run.procedure import averaging_rule
 from sim.rig import SimRig
 
 pytestmark = pytest.mark.timeout(180)
@@ -56,14 +57,14 @@ async def run_sweep(tmp_path: Path, mat, damage: bool = False) -> list[dict]:
 def test_the_plan_carries_the_matrix_rule():
     rig = cfg.load_rig()
     plan = make_plan(matrix("target_pct = 0.5\nmin_revolutions = 12\nmax_revolutions = 80\n"), rig)
-    rules = {s.averaging for s in plan.steps if isinstance(s, Acquire)}
+    rules = {averaging_rule(s) for s in plan.steps if isinstance(s, Acquire)}
     assert len(rules) == 1
     rule = rules.pop()
     assert (rule.min_revolutions, rule.max_revolutions, rule.target) == (12, 80, pytest.approx(0.005))
     assert plan.revolutions == 80  # storage and time estimates take the maximum
     fixed = make_plan(cfg.load_matrix(cfg.matrix_file("demo")), rig)
-    assert {(s.averaging.min_revolutions, s.averaging.max_revolutions, s.averaging.target)
-            for s in fixed.steps if isinstance(s, Acquire)} == {(50, 50, None)}  # the paper's fixed 50
+    assert {(r.min_revolutions, r.max_revolutions, r.target)
+            for r in (averaging_rule(s) for s in fixed.steps if isinstance(s, Acquire))} == {(50, 50, None)}  # the paper's fixed 50
 
 
 async def test_loose_target_stops_at_the_minimum(tmp_path):
