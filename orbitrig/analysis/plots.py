@@ -27,6 +27,7 @@ MATRIX_NAMES = {"K": "stiffness", "C": "damping", "D": "inertia"}
 PAIR_LABELS = {"xfx": "x, Fx", "yfx": "y, Fx", "xfy": "x, Fy", "yfy": "y, Fy"}
 DIRECTIONS = ((1, "forward", "-", "o"), (-1, "backward", "--", "s"))
 DPI = 110
+TRUTH_LABEL = "true (simulator)"
 
 
 @dataclass
@@ -42,10 +43,28 @@ def whirl_direction(table) -> np.ndarray:
     return np.where(np.imag(np.conj(table.x) * table.y) <= 0, 1, -1)
 
 
-def _figure(w: float, h: float) -> Figure:
-    fig = Figure(figsize=(w, h), dpi=DPI, layout="constrained")
+def _figure(w: float, h: float, layout: str | None = "constrained") -> Figure:
+    """A figure on an Agg canvas; `layout=None` for many small panels (constrained layout's
+    solver costs seconds there), placed by the caller with ``subplots_adjust``."""
+    fig = Figure(figsize=(w, h), dpi=DPI, layout=layout)
     FigureCanvasAgg(fig)
     return fig
+
+
+def panel_figure(w: float, h: float, *, left: float = 0.85, right: float = 0.2, top: float = 0.95,
+                 bottom: float = 1.15, wspace: float = 0.42, hspace: float = 0.42) -> Figure:  # fmt: skip
+    """A figure of many panels with fixed margins in inches (room for a two-line title on top and
+    a legend at the bottom): half the saving time of constrained layout, whose solver measures
+    every tick label. Put the legend with ``loc="lower center"``."""
+    fig = _figure(w, h, layout=None)
+    fig.subplots_adjust(left=left / w, right=1 - right / w, top=1 - top / h, bottom=bottom / h,
+                        wspace=wspace, hspace=hspace)  # fmt: skip
+    return fig
+
+
+def save_figure(fig: Figure, path: Path) -> Path:
+    """Write `fig` as PNG to `path` (folders created)."""
+    return _save(fig, path)
 
 
 def _save(fig: Figure, path: Path) -> Path:
@@ -74,7 +93,9 @@ def _near(phase: np.ndarray, target: np.ndarray) -> np.ndarray:
 
 def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
     """The paper's Figure 5: measured and reproduced force amplitude and phase
-    against Omega/omega, for Fx and Fy, one line per identification."""
+    against Omega/omega, for Fx and Fy, one line per identification. When the table has the
+    phasor uncertainties u_* the measured points carry error bars of two standard
+    uncertainties (amplitude u/sqrt(2), phase u/(sqrt(2)|F|): an isotropic complex error)."""
     fig = _figure(11, 7.5)
     axes = fig.subplots(2, 2, sharex=True)
     ratio = table.orbit / table.spin
@@ -101,6 +122,12 @@ def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
             amp_ax.plot(ratio[sel], np.abs(measured[sel]), marker, mfc=face, mec="black", ls="none",
                         ms=6, label=f"measured, {dname} whirl", zorder=5)
             ph_ax.plot(ratio[sel], meas_ph, marker, mfc=face, mec="black", ls="none", ms=6, zorder=5)
+            if table.u is not None:  # +-2 std of the averaged phasor: radial and tangential parts of u
+                u = table.u[sel, 2 + col] / np.sqrt(2.0)
+                amp_ax.errorbar(ratio[sel], np.abs(measured[sel]), yerr=2 * u, fmt="none", ecolor="black",
+                                capsize=3, lw=1, zorder=4, gid="measured-uncertainty")
+                ph_ax.errorbar(ratio[sel], meas_ph, yerr=np.degrees(2 * u / np.abs(measured[sel])), fmt="none",
+                               ecolor="black", capsize=3, lw=1, zorder=4, gid="measured-uncertainty")
         amp_ax.set_title(f"{name} amplitude")
         amp_ax.set_ylabel(f"|{name}|  [N]")
         ph_ax.set_title(f"{name} phase (relative to x displacement)")
@@ -112,7 +139,8 @@ def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
     if len(set(dirs)) > 1:
         handles += [Line2D([], [], color="gray", ls="-"), Line2D([], [], color="gray", ls="--")]
         labels += ["reproduced, forward (solid)", "reproduced, backward (dashed)"]
-    fig.legend(handles, labels, loc="outside lower center", ncols=min(4, len(labels)), fontsize=9)
+    ncols = max(1, min(4, len(labels), 150 // max(len(label) for label in labels)))  # long labels: fewer columns
+    fig.legend(handles, labels, loc="outside lower center", ncols=ncols, fontsize=9)
     fig.suptitle(title)
     return _save(fig, path)
 
@@ -126,123 +154,18 @@ def _min_span(ax, largest: float, fraction: float = 0.05) -> None:
         ax.set_ylim(mid - fraction / 2 * largest, mid + fraction / 2 * largest)
 
 
-def _std_at(std_errors: dict[str, float], key: str, orbit: np.ndarray) -> np.ndarray:
-    """One-sigma band of a coefficient at Omega: sqrt(sum_r (Omega^r s_r)^2) over its
-    order terms (`Kxx`, `Kxx_r`); the regression's covariances are not stored, so
-    the terms are treated as independent (an approximation for r >= 1)."""
-    var = np.zeros_like(orbit, dtype=float)
-    for k, s in std_errors.items():
-        base, _, order = k.partition("_")
-        if base == key and s is not None and np.isfinite(s):
-            var += (orbit ** (int(order) if order else 0) * s) ** 2
-    return np.sqrt(var)
-
-
-def _has(ident, matrix: str) -> bool:
-    return any(k.startswith(matrix) for k in ident.coefficients)
-
-
-def coefficients_plot(path, fitted: Sequence[Fitted], *, spin: float, orbit: np.ndarray,
-                      truth: dict | None, title: str) -> Path:
-    """The paper's Figures 6 and 7: K, C (and D) entries against Omega/omega.
-
-    A frequency-dependent identification is a curve from ``matrices(Omega)``
-    with a one-sigma band and error bars at the tested frequencies; a constant
-    one is a horizontal line with its one-sigma band. True values of a
-    ``--sim`` run are drawn as black crosses."""
-    mats = [m for m in "KCD" if any(_has(f.identification, m) for f in fitted)]
-    fig = _figure(13, 2.9 * len(mats) + 1.2)
-    axes = np.atleast_2d(fig.subplots(len(mats), 4, sharex=True))
-    top = float(np.max(orbit)) * 1.05
-    grid = np.linspace(0.0, top, 200)
-    tested = np.unique(np.round(orbit, 9))
-    colors = _colors(len(fitted))
-    largest = dict.fromkeys(mats, 0.0)  # largest |entry| drawn per matrix, display units
-    for k, fit in enumerate(fitted):
-        ident = fit.identification
-        on_grid = np.array([ident.matrices(w) for w in grid])  # (n, 3, 2, 2)
-        at_tested = np.array([ident.matrices(w) for w in tested])
-        constant = all("_" not in key for key in ident.coefficients)
-        for row, m in enumerate(mats):
-            if not _has(ident, m):
-                continue
-            unit, scale = MATRIX_UNITS[m]
-            mi = "KCD".index(m)
-            for col, e in enumerate(ENTRIES):
-                ax = axes[row, col]
-                i, j = divmod(col, 2)
-                val = on_grid[:, mi, i, j] * scale
-                largest[m] = max(largest[m], float(np.max(np.abs(val))))
-                band = _std_at(ident.std_errors, m + e, grid) * scale
-                ax.plot(grid / spin, val, color=colors[k], lw=1.6, label=fit.label)
-                ax.fill_between(grid / spin, val - band, val + band, color=colors[k], alpha=0.15, lw=0)
-                if not constant:
-                    ax.errorbar(tested / spin, at_tested[:, mi, i, j] * scale,
-                                yerr=_std_at(ident.std_errors, m + e, tested) * scale,
-                                fmt="o", ms=3.5, color=colors[k], capsize=2.5, lw=1)
-    if truth:
-        t_orbit = 2 * np.pi * np.abs(np.asarray(truth.get("orbit_hz", []), dtype=float))
-        for row, m in enumerate(mats):
-            mat = truth.get(m)
-            if mat is None or len(t_orbit) == 0:
-                continue
-            mat = np.asarray(mat, dtype=float)
-            unit, scale = MATRIX_UNITS[m]
-            largest[m] = max(largest[m], float(np.max(np.abs(mat))) * scale)
-            for col in range(4):
-                i, j = divmod(col, 2)
-                axes[row, col].plot(t_orbit / spin, mat[:, i, j] * scale, "x", color="black", ms=6,
-                                    mew=1.5, label="true (simulator)", zorder=6)
-    for row, m in enumerate(mats):
-        unit, _ = MATRIX_UNITS[m]
-        for col, e in enumerate(ENTRIES):
-            ax = axes[row, col]
-            ax.set_title(f"{m}{e}")
-            ax.set_ylabel(f"{m}{e}  [{unit}]")
-            ax.grid(True, alpha=0.3)
-            ax.set_xlim(0, top / spin)
-            _min_span(ax, largest[m])
-            if row == len(mats) - 1:
-                ax.set_xlabel("\u03a9/\u03c9  [-]")
-    handles, labels = axes[0, 0].get_legend_handles_labels()
-    uniq = dict(zip(labels, handles))
-    fig.legend(list(uniq.values()), list(uniq.keys()), loc="outside lower center",
-               ncols=min(5, len(uniq)), fontsize=9, title="bands and error bars: \u00b11 standard error")
-    fig.suptitle(title)
-    return _save(fig, path)
-
-
-def coherence_plot(path, tables: dict[str, Any], *, title: str) -> Path:
-    """The paper's Table 1 as a plot: gamma^2 of the four motion/force pairs
-    against Omega/omega, one panel per load measuring system."""
-    lms_names = [n for n, t in tables.items() if t.gamma2 is not None]
-    fig = _figure(5.5 * max(1, len(lms_names)), 4.6)
-    axes = np.atleast_1d(fig.subplots(1, max(1, len(lms_names)), sharey=True))
-    colors = _colors(4)
-    lowest = 1.0
-    for ax, lms in zip(axes, lms_names):
-        t = tables[lms]
-        ratio = t.orbit / t.spin
-        dirs = whirl_direction(t)
-        for c, pair in enumerate(PAIR_LABELS):
-            for d, dname, ls, marker in DIRECTIONS:
-                sel = np.flatnonzero(dirs == d)
-                if sel.size == 0:
-                    continue
-                sel = sel[np.argsort(ratio[sel])]
-                ax.plot(ratio[sel], t.gamma2[sel, c], ls=ls, marker=marker, color=colors[c],
-                        mfc=colors[c] if d == 1 else "white", ms=5, lw=1,
-                        label=f"\u03b3\u00b2({PAIR_LABELS[pair]}), {dname}")
-        lowest = min(lowest, float(np.nanmin(t.gamma2)))
-        ax.set_title(f"{lms} load cells (lowest \u03b3\u00b2 = {np.nanmin(t.gamma2):.4f})")
-        ax.set_xlabel("\u03a9/\u03c9  [-]")
-        ax.grid(True, alpha=0.3)
-    axes[0].set_ylabel("coherence \u03b3\u00b2  [-]")
-    axes[0].set_ylim(min(0.9, lowest - 0.02), 1.005)
-    handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncols=4, fontsize=8)
-    fig.suptitle(title)
-    return _save(fig, path)
+def keep_inside(ax, xs, ys, margin: float = 0.05) -> None:
+    """Widen the axes limits so that every point (xs, ys) lies inside, with `margin` of the
+    span to spare: truth markers must never fall outside the panel."""
+    xs, ys = np.asarray(xs, dtype=float).ravel(), np.asarray(ys, dtype=float).ravel()
+    ok = np.isfinite(xs) & np.isfinite(ys)
+    if not ok.any():
+        return
+    for lim, get, put in ((xs[ok], ax.get_xlim, ax.set_xlim), (ys[ok], ax.get_ylim, ax.set_ylim)):
+        lo, hi = get()
+        span = max(hi - lo, float(np.ptp(lim)), 1e-12)
+        if lim.min() <= lo or lim.max() >= hi:
+            put(min(lo, lim.min() - margin * span), max(hi, lim.max() + margin * span))
 
 
 def lms_comparison_plot(path, tables: dict[str, Any], fitted: dict[str, Fitted] | None, *,
@@ -327,12 +250,14 @@ def summary_plot(path, series: dict[str, list[tuple[int, Any]]], truth: list[tup
             i, j = divmod(col, 2)
             pts = [(idx, t[f"{m}0"][i][j] * scale) for idx, t in truth if t and f"{m}0" in t]
             if pts:
-                ax.plot(*zip(*pts), "x", color="black", ms=6, mew=1.5, label="true (simulator)")
+                ax.plot(*zip(*pts), "x", color="black", ms=6, mew=1.5, label=TRUTH_LABEL)
             ax.set_title(f"{m}{e}")
             ax.set_ylabel(f"{m}{e}  [{unit}]")
             ax.grid(True, alpha=0.3)
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
             _min_span(ax, largest[m])
+            if pts:
+                keep_inside(ax, *zip(*pts))
             if row == 1:
                 ax.set_xlabel("operating point  [index]")
     handles, labels = axes[0, 0].get_legend_handles_labels()

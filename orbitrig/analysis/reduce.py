@@ -45,6 +45,7 @@ class Reduced:
     method: str
     identification: Any = None  # reduction.identify.Identification
     error: str | None = None
+    stored: dict[str, Any] | None = None  # the sweep's stored JSON of this identification, if repeated
 
     def to_dict(self) -> dict[str, Any]:
         head = {"point": self.point.index, "label": self.point.settings.label, "lms": self.lms}
@@ -68,7 +69,9 @@ def identify_point(point: Point, lms: str, model: str, freq_dep: str = "none", m
 
 def reidentify(point: Point, stored: StoredIdentification) -> Reduced:
     """Repeat one of the sweep's stored identifications from the stored table."""
-    return identify_point(point, stored.lms, stored.model, stored.freq_dep, stored.method)
+    row = identify_point(point, stored.lms, stored.model, stored.freq_dep, stored.method)
+    row.stored = stored.result
+    return row
 
 
 def reduce_run(
@@ -165,7 +168,7 @@ def format_table(rows: list[Reduced]) -> str:
     'refused' (the reason goes to standard error).
     In --sim runs each point is followed by a row of the simulator's true values."""
     cols = [k for k in CONSTANT_KEYS if any(r.identification and k in r.identification.coefficients for r in rows)]
-    auto = any(getattr(r.identification, "exponent", None) is not None for r in rows)
+    auto = any(r.identification is not None and r.identification.exponent is not None for r in rows)
     lines = [["point", "lms", *(f"{k} [{coefficient_unit(k)[0]}]" for k in cols), "resid [N]", *(["M"] if auto else [])]]
     for n, r in enumerate(rows):
         cells = [r.point.name, r.lms]

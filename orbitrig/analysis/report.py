@@ -10,7 +10,12 @@ drawn next to the measurements:
 - ``coefficients_PPPP_<lms>_<model>.png``: K, C, D entries against Omega/omega
   (Figures 6 and 7), every frequency dependence of that model, with the true
   values in ``--sim`` runs;
-- ``coherence_PPPP.png``: gamma^2 per frequency (Table 1, also a table in the page);
+- ``coherence_PPPP.png``: gamma^2 per frequency as a coloured table (Table 1, also in the page);
+- ``signals_PPPP_FF_dir.png``: the paper's Figure 4 for one orbit frequency, (a) both load
+  measuring systems' time-averaged forces with their amplitude and phase difference, (b) one
+  raw revolution against the average; by default the lowest and highest orbit frequency of
+  each whirl direction (``all_frequencies`` for every one);
+- ``orbits_PPPP.png``: the measured x-y orbit of both probe planes, one panel per frequency;
 - ``lms_PPPP.png``: strain-gauge vs piezoelectric forces and coefficients;
 - ``summary.png`` (more than one point): one model's K and C at every point.
 
@@ -27,14 +32,28 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from orbitrig.analysis import plots as plots
+from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_signals
+from orbitrig.analysis.quality import Verdict, adequacy_verdicts, derived_of, true_impedance, warnings_of
+from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.errors import ReductionError
 from orbitrig.analysis.reduce import Reduced, reidentify
 from orbitrig.config import LMS
-from orbitrig.store.reader import Point, Run, read_run
+from orbitrig.store.reader import Point, Run, RunDirError, read_run
+from reduction.derived import Derived
 
 PLOTS_DIR = "plots"
+#: figure kinds of a point (file name prefixes); `orbitrig report --figures` picks some
+FIGURES = ("forces", "coefficients", "derived", "impedance", "coherence", "lms", "signals", "orbits")
 #: compared across the two load measuring systems, first one present wins
 PREFERRED_MODELS = (("kcd11", "none"), ("kc8", "none"), ("kc7", "none"), ("kcd12", "none"))
+
+
+@dataclass(frozen=True)
+class ReportOptions:
+    """What to draw: ``figures`` (kinds of FIGURES) and Figure 4 for every frequency or the default subset."""
+
+    figures: frozenset[str] = frozenset(FIGURES)
+    all_frequencies: bool = False
 
 
 @dataclass
@@ -45,6 +64,18 @@ class PointReport:
     results: dict[str, list[Reduced]] = field(default_factory=dict)  # lms -> re-identified
     plots: list[Path] = field(default_factory=list)
     mismatches: list[str] = field(default_factory=list)  # stored vs repeated identification
+    unreadable: list[str] = field(default_factory=list)  # stored blocks the signal figures could not read
+    verdicts: dict[str, list[Verdict]] = field(default_factory=dict)  # lms -> model adequacy
+    derived: dict[str, list[tuple[Reduced, Derived]]] = field(default_factory=dict)  # lms -> derived
+
+    def fit_warnings(self) -> list[str]:
+        """'<lms> <model> <freq-dep> warns: <text>' for every warning of a repeated or stored fit,
+        and '<lms> <model> <freq-dep> refused: <reason>' for every stored refusal."""
+        out = [f"{r.lms} {r.model} {r.freq_dep} warns: {w}" for rs in self.results.values() for r in rs
+               for w in warnings_of(r)]  # fmt: skip
+        out += [f"{i.lms} {i.model} {i.freq_dep} refused: {(i.error or '').splitlines()[0]}"
+                for i in self.point.identifications if not i.ok]  # fmt: skip
+        return out + self.unreadable
 
 
 @dataclass
@@ -64,7 +95,7 @@ def fit_label(r: Reduced) -> str:
     """'kcd11 (11 coef.)', 'kcd11 power:1 (22 coef.)' - the paper's wording."""
     ident = r.identification
     fd = "" if r.freq_dep == "none" else f" {r.freq_dep}"
-    if ident is not None and getattr(ident, "exponent", None) and r.freq_dep == "power:auto":
+    if ident is not None and ident.exponent and r.freq_dep == "power:auto":
         fd = f" power:{ident.exponent} (auto)"
     n = f" ({ident.n_coefficients} coef.)" if ident is not None else ""
     method = "" if r.method == "ols" else f", {r.method}"
@@ -87,7 +118,8 @@ def _compare(r: Reduced, stored: dict) -> list[str]:
 
 
 def analyse_point(point: Point) -> PointReport:
-    """Repeat the sweep's identifications of one point (both LMS)."""
+    """Repeat the sweep's identifications of one point (both LMS); test each frequency-dependent
+    fit against the constant one and form the derived quantities of every fit."""
     pr = PointReport(point)
     for stored in point.identifications:
         if stored.lms not in point.tables or not stored.ok:
@@ -100,36 +132,91 @@ def analyse_point(point: Point) -> PointReport:
         pr.mismatches += _compare(r, stored.result)
         if r.identification is not None:
             pr.results.setdefault(stored.lms, []).append(r)
+    for lms, table in point.tables.items():
+        results = pr.results.get(lms, [])
+        pr.verdicts[lms] = adequacy_verdicts(lms, results)
+        pr.derived[lms] = [(r, d) for r in results if (d := derived_of(r, table.orbit)) is not None]
     return pr
 
 
-def _plot_point(pr: PointReport, out: Path) -> None:
+def _plot_signals(run: Run, pr: PointReport, out: Path, where: str, opts: ReportOptions) -> None:
+    """Figure 4 per chosen frequency and the x-y orbits of every frequency of one point."""
+    point = pr.point
+    complete = sorted((f for f in point.frequencies if f.complete), key=lambda f: (-f.direction, f.orbit_hz))
+    if not complete or not {"signals", "orbits"} & opts.figures:
+        return
+    chosen = complete if opts.all_frequencies else default_frequencies(point)
+    chosen = chosen if "signals" in opts.figures else []
+    blocks = {}
+    for f in complete if "orbits" in opts.figures else chosen:
+        try:
+            blocks[f.name] = read_block_signals(run, point, f)
+        except RunDirError as err:  # a damaged or old block: the other figures still get drawn
+            pr.unreadable.append(f"signals of block {f.name} not drawn: {err}")
+    chosen = [f for f in chosen if f.name in blocks]
+    if not blocks:
+        return
+    for f in chosen:
+        direction = "forward" if f.direction > 0 else "backward"
+        pr.plots.append(plots.save_figure(plots_signals.signals_figure(
+            blocks[f.name], title=f"Force signals at {f.orbit_hz:.4g} Hz {direction} whirl (paper Fig. 4)\n{where}",
+        ), out / f"signals_{point.name}_{f.name}.png"))  # fmt: skip
+    if "orbits" not in opts.figures:
+        return
+    pr.plots.append(plots.save_figure(plots_signals.orbits_figure(
+        list(blocks.values()), radius=point.settings.orbit_radius,
+        title=f"Measured orbits (averaged displacements), both probe planes\n{where}",
+    ), out / f"orbits_{point.name}.png"))  # fmt: skip
+
+
+def _plot_lms(pr: PointReport, lms: str, out: Path, where: str, opts: ReportOptions) -> None:
+    """Figure 5 with the adequacy verdicts, coefficients per model, derived quantities and,
+    in simulator runs, the impedance against the true one, for one load measuring system."""
+    point, table = pr.point, pr.point.tables[lms]
+    results = pr.results.get(lms, [])
+    verdict = {id(v.dependent): v.text for v in pr.verdicts.get(lms, [])}
+    fitted = [plots.Fitted(fit_label(r), r.identification) for r in results]
+    with_verdicts = [plots.Fitted(f.label + (f" \u2014 {verdict[id(r)]}" if id(r) in verdict else ""),
+                                  f.identification) for f, r in zip(fitted, results)]  # fmt: skip
+    if "forces" in opts.figures:
+        pr.plots.append(plots.forces_plot(
+            out / f"forces_{point.name}_{lms}.png", table, with_verdicts,
+            title=f"Measured and reproduced forces (paper Fig. 5), {lms} load cells\n{where}",
+        ))  # fmt: skip
+    for model in dict.fromkeys(r.model for r in results) if "coefficients" in opts.figures else ():
+        group = [f for f, r in zip(fitted, results) if r.model == model]
+        pr.plots.append(plots_coefficients.coefficients_plot(
+            out / f"coefficients_{point.name}_{lms}_{model}.png", group,
+            spin=table.spin, orbit=table.orbit, truth=point.truth,
+            title=f"Rotordynamic coefficients, model {model}, {lms} load cells\n{where}",
+        ))  # fmt: skip
+    if pr.derived.get(lms) and "derived" in opts.figures:
+        pr.plots.append(plots.save_figure(plots_derived.derived_figure(
+            [(fit_label(r), d) for r, d in pr.derived[lms]], spin=table.spin,
+            title=f"Derived quantities, {lms} load cells\n{where}",
+        ), out / f"derived_{point.name}_{lms}.png"))  # fmt: skip
+    truth = true_impedance(point.truth)
+    if truth is not None and fitted and "impedance" in opts.figures:
+        pr.plots.append(plots.save_figure(plots_derived.impedance_figure(
+            fitted, truth, spin=table.spin, orbit=table.orbit,
+            title=f"Identified impedance Z(\u03a9) against the {truth.label}, {lms} load cells\n{where}",
+        ), out / f"impedance_{point.name}_{lms}.png"))  # fmt: skip
+
+
+def _plot_point(run: Run, pr: PointReport, out: Path, opts: ReportOptions) -> None:
     point = pr.point
     s = point.settings
     where = f"point {point.name}: {s.title()}"
+    _plot_signals(run, pr, out, where, opts)
     for lms in LMS:
-        table = point.tables.get(lms)
-        results = pr.results.get(lms, [])
-        if table is None:
-            continue
-        fitted = [plots.Fitted(fit_label(r), r.identification) for r in results]
-        pr.plots.append(plots.forces_plot(
-            out / f"forces_{point.name}_{lms}.png", table, fitted,
-            title=f"Measured and reproduced forces, {lms} load cells\n{where}",
-        ))
-        for model in dict.fromkeys(r.model for r in results):
-            group = [f for f, r in zip(fitted, results) if r.model == model]
-            pr.plots.append(plots.coefficients_plot(
-                out / f"coefficients_{point.name}_{lms}_{model}.png", group,
-                spin=table.spin, orbit=table.orbit, truth=point.truth,
-                title=f"Rotordynamic coefficients, model {model}, {lms} load cells\n{where}",
-            ))
-    if any(t.gamma2 is not None for t in point.tables.values()):
-        pr.plots.append(plots.coherence_plot(
-            out / f"coherence_{point.name}.png", point.tables,
-            title=f"Coherence between motion and force signals\n{where}",
-        ))
-    if all(lms in point.tables for lms in LMS):
+        if point.tables.get(lms) is not None:
+            _plot_lms(pr, lms, out, where, opts)
+    coherence = plots_coherence.coherence_table(point.tables)
+    if coherence is not None and "coherence" in opts.figures:
+        pr.plots.append(plots.save_figure(plots_coherence.coherence_figure(
+            coherence, title=f"Coherence between motion and force signals (paper Table 1)\n{where}",
+        ), out / f"coherence_{point.name}.png"))  # fmt: skip
+    if all(lms in point.tables for lms in LMS) and "lms" in opts.figures:
         found = preferred(pr)
         pair = {lms: plots.Fitted(fit_label(r), r.identification) for lms, r in found.items()} if found else None
         pr.plots.append(plots.lms_comparison_plot(
@@ -167,11 +254,23 @@ def summary_plot_for(report: Report) -> Path | None:
     )
 
 
-def make_report(directory: str | Path, *, points: list[int] | None = None) -> Report:
+def _clear_point(out: Path, name: str) -> None:
+    """Remove an earlier report's figures of point `name` (another subset or other kinds)."""
+    for kind in FIGURES:
+        for pattern in (f"{kind}_{name}.png", f"{kind}_{name}_*.png"):
+            for old in out.glob(pattern):
+                old.unlink()
+
+
+def make_report(directory: str | Path, *, points: list[int] | None = None,
+                options: ReportOptions = ReportOptions()) -> Report:
     """Write ``DIR/plots/*.png`` and ``DIR/plots/index.html``; return what was written.
 
     ``points`` restricts the plots to those operating point indices (all
-    complete points by default). Raises RunDirError when DIR is not a run."""
+    complete points by default); ``options`` picks the figure kinds and whether Figure 4 is drawn
+    for every orbit frequency or the lowest and highest of each direction. Figures of a kind not
+    drawn are removed from DIR/plots (a page never shows a stale one). Raises RunDirError when
+    DIR is not a run."""
     from orbitrig.analysis.report_html import write_html
 
     run = read_run(directory)
@@ -184,7 +283,8 @@ def make_report(directory: str | Path, *, points: list[int] | None = None) -> Re
     report = Report(run, out, [])
     for point in chosen:
         pr = analyse_point(point)
-        _plot_point(pr, out)
+        _clear_point(out, point.name)
+        _plot_point(run, pr, out, options)
         report.points.append(pr)
     stale = out / "summary.png"  # from an earlier report over other points
     stale.unlink(missing_ok=True)

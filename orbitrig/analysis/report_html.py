@@ -12,10 +12,13 @@ import math
 from datetime import datetime, timezone
 from pathlib import Path
 
-import numpy as np
 
-from orbitrig.analysis.plots import PAIR_LABELS, whirl_direction
-from orbitrig.analysis.reduce import coefficient_unit, true_constants
+from orbitrig.analysis.plots import PAIR_LABELS
+from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_table
+from orbitrig.analysis.reduce import true_constants
+from orbitrig.analysis.quality import lms_normalised_difference
+from orbitrig.analysis.report import fit_label, preferred
+from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
 from orbitrig.config import LMS
 
 CSS = """
@@ -29,15 +32,12 @@ td.l,th.l{text-align:left}
 .completed{background:#2a7d2a}.stopped{background:#b07a00}.aborted,.failed{background:#b02020}
 .running,.unknown{background:#555}
 .err{color:#b02020;white-space:pre-wrap} .muted{color:#666}
+.side{display:flex;gap:1em;align-items:flex-start} .side figure{flex:0 1 65%;margin:0}
+.side>div{flex:1 1 35%} .warn{color:#a05000} .verdict li{margin:.3em 0}
+.band{padding:0 .5em;margin-right:.3em}
 img{max-width:100%;border:1px solid #ddd;margin:.4em 0}
 details pre{background:#f7f7f7;padding:.6em;overflow-x:auto}
 """
-
-def fmt(value, digits: int = 4) -> str:
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
-        return "-"
-    return f"{value:.{digits}g}"
-
 
 def _e(text) -> str:
     return html.escape(str(text))
@@ -55,72 +55,61 @@ def _settings_table(s) -> str:
     return "<table>" + "".join(f'<tr><th class="l">{k}</th><td>{v}</td></tr>' for k, v in rows) + "</table>"
 
 
-def _max_fit(ident, what: str) -> float | None:
-    """Largest |reproduced - measured| over frequencies and both forces (the fit's
-    ``fx_<what>`` / ``fy_<what>`` entries)."""
-    values = [abs(row[k]) for row in ident.fit for k in (f"fx_{what}", f"fy_{what}") if row.get(k) is not None]
-    return max(values) if values else None
-
-
-def _coefficient_table(results, truth: dict[str, float]) -> str:
-    """Rows = coefficient keys, columns = identifications: value \u00b1 std in display units."""
-    keys: list[str] = []
-    for r in results:
-        keys += [k for k in r.identification.coefficients if k not in keys]
-    keys.sort(key=lambda k: ("KCD".index(k[0]), int(k.partition("_")[2] or 0), k))
-    head = '<tr><th class="l">coefficient</th><th class="l">unit</th>'
-    head += "".join(f"<th>{_e(r.model)} {_e(r.freq_dep)} {_e(r.method)}<br>value \u00b1 std error</th>" for r in results)
-    if truth:
-        head += "<th>true (simulator)</th>"
-    head += "</tr>"
-    body = []
-    for k in keys:
-        unit, scale = coefficient_unit(k)
-        cells = []
-        for r in results:
-            v = r.identification.coefficients.get(k)
-            s = r.identification.std_errors.get(k)
-            cells.append("<td>-</td>" if v is None else f"<td>{fmt(v * scale)} \u00b1 {fmt(s * scale if s is not None else None, 2)}</td>")
-        if truth:
-            t = truth.get(k)
-            cells.append(f"<td>{fmt(t * scale) if t is not None else '-'}</td>")
-        body.append(f'<tr><th class="l">{_e(k)}</th><td class="l">{_e(unit)}</td>{"".join(cells)}</tr>')
-    quality = []
-    for label, get in (
-        ("frequencies used", lambda i: str(i.n_frequencies)),
-        ("condition number", lambda i: fmt(i.condition_number, 3)),
-        ("residual RMS [N]", lambda i: fmt(i.residual_rms, 3)),
-        ("max force amplitude error [%]", lambda i: fmt(_max_fit(i, "amp_err_pct"), 3)),
-        ("max force phase error [deg]", lambda i: fmt(_max_fit(i, "phase_err_deg"), 3)),
-    ):
-        cells = "".join(f"<td>{get(r.identification)}</td>" for r in results)
-        quality.append(f'<tr><th class="l">{label}</th><td></td>{cells}{"<td></td>" if truth else ""}</tr>')
-    return f"<table>{head}{''.join(body)}{''.join(quality)}</table>"
-
-
 def _coherence_table(point) -> str:
-    """The paper's Table 1: Omega/omega and the four gamma^2, for each LMS side by side
-    (values below 0.9 are marked)."""
-    tables = {lms: t for lms in LMS if (t := point.tables.get(lms)) is not None and t.gamma2 is not None}
-    if not tables:
+    """The paper's Table 1: gamma^2 of the four pairs of each LMS per Omega/omega, each
+    cell on the colour of its band (plots_coherence.BANDS, as in coherence_PPPP.png)."""
+    table = coherence_table(point.tables)
+    if table is None:
         return ""
-    ref = next(iter(tables.values()))
-    tables = {lms: t for lms, t in tables.items() if np.array_equal(t.orbit, ref.orbit)}
-    ratio = ref.orbit / ref.spin
-    dirs = whirl_direction(ref)
-    head1 = '<tr><th class="l" rowspan="2">whirl</th><th rowspan="2">\u03a9/\u03c9</th>' + "".join(
-        f'<th colspan="4">{_e(lms)} load cells</th>' for lms in tables) + "</tr>"
-    head2 = "<tr>" + "".join(f"<th>\u03b3\u00b2 {_e(v)}</th>" for v in PAIR_LABELS.values()) * len(tables) + "</tr>"
-
-    def cell(v: float) -> str:
-        return f'<td class="err">{v:.3f}</td>' if v < 0.9 else f"<td>{v:.3f}</td>"
-
+    head1 = '<tr><th class="l" rowspan="2">\u03a9/\u03c9, whirl</th>' + "".join(
+        f'<th colspan="4">{_e(lms)} load cells</th>' for lms in table.lms) + "</tr>"
+    head2 = "<tr>" + "".join(f"<th>\u03b3\u00b2 {_e(v)}</th>" for v in PAIR_LABELS.values()) * len(table.lms) + "</tr>"
     rows = "".join(
-        f'<tr><td class="l">{"forward" if dirs[i] > 0 else "backward"}</td><td>{ratio[i]:.3f}</td>'
-        + "".join(cell(t.gamma2[i, c]) for t in tables.values() for c in range(4)) + "</tr>"
-        for i in np.lexsort((ratio, -dirs))
+        f'<tr><td class="l">{_e(label)}</td>'
+        + "".join(f'<td style="background:{band_colour(v)}">{fmt_coherence(v)}</td>' for v in values) + "</tr>"
+        for label, values in zip(table.rows, table.values)
     )
-    return f"<h3>Coherence between motion and force signals</h3><table>{head1}{head2}{rows}</table>"
+    legend = " ".join(f'<span class="band" style="background:{c}">{_e(t)}</span>' for _, c, t in BANDS)
+    return (f"<h3>Coherence between motion and force signals</h3><table>{head1}{head2}{rows}</table>"
+            f'<p class="muted">\u03b3\u00b2 bands: {legend}</p>')
+
+
+def fmt_coherence(v: float) -> str:
+    return f"{v:.3f}" if math.isfinite(v) else "-"
+
+
+def _pick(pr, out_dir: Path, taken: set, *names: str) -> list[str]:
+    """The figures of `pr` named `names` (stems), in that order, as HTML; marks them taken."""
+    by_stem = {Path(p).stem: p for p in pr.plots}
+    out = []
+    for name in names:
+        if name in by_stem and name not in taken:
+            taken.add(name)
+            out.append(_figure(by_stem[name], out_dir))
+    return out
+
+
+def _lms_section(pr, out_dir: Path, lms: str, truth: dict, taken: set) -> list[str]:
+    """One load measuring system: refusals, Figure 5 beside the adequacy verdicts, the
+    identification tables, coefficient figures, derived quantities, impedance vs truth."""
+    p, results = pr.point, pr.results.get(lms, [])
+    refused = [i for i in p.identifications if i.lms == lms and not i.ok]
+    if not results and not refused:
+        return []
+    labels = {id(r): fit_label(r) for r in results}
+    h = [f"<h3>{_e(lms)} load cells</h3>"]
+    h += [f'<p class="err">{_e(i.model)} {_e(i.freq_dep)} refused: {_e(i.error)}</p>' for i in refused]
+    forces = _pick(pr, out_dir, taken, f"forces_{p.name}_{lms}")
+    if forces:
+        h.append('<div class="side">' + forces[0] + '<div><h4>Model adequacy</h4>'
+                 + verdict_list(pr.verdicts.get(lms, []), labels) + "</div></div>")  # fmt: skip
+    h.append(lms_tables(results, truth, [labels[id(r)] for r in results]))
+    h += _pick(pr, out_dir, taken, *(f"coefficients_{p.name}_{lms}_{m}" for m in dict.fromkeys(r.model for r in results)))
+    if pr.derived.get(lms):
+        h.append("<h4>Derived quantities</h4>")
+        h.append(derived_table(pr.derived[lms], labels, p.settings.spin))
+    h += _pick(pr, out_dir, taken, f"derived_{p.name}_{lms}", f"impedance_{p.name}_{lms}")
+    return h
 
 
 def _point_section(run, pr, out_dir: Path) -> str:
@@ -128,28 +117,33 @@ def _point_section(run, pr, out_dir: Path) -> str:
     s = p.settings
     h = [f'<h2 id="p{p.name}">Point {p.name}: {_e(s.label)}</h2>', _settings_table(s)]
     truth = true_constants(p)
-    for lms in LMS:
-        results = pr.results.get(lms, [])
-        refused = [i for i in p.identifications if i.lms == lms and not i.ok]
-        if not results and not refused:
-            continue
-        h.append(f"<h3>Coefficients, {lms} load cells</h3>")
-        if results:
-            h.append(_coefficient_table(results, truth))
-        for i in refused:
-            h.append(f'<p class="err">{_e(i.model)} {_e(i.freq_dep)} refused: {_e(i.error)}</p>')
+    taken: set = set()
     if pr.mismatches:
         h.append('<p class="err">Repeating the stored identifications gave different numbers:<br>'
                  + "<br>".join(_e(m) for m in pr.mismatches) + "</p>")
+    if pr.unreadable:
+        h.append('<p class="err">' + "<br>".join(_e(m) for m in pr.unreadable) + "</p>")
+    for lms in LMS:
+        h += _lms_section(pr, out_dir, lms, truth, taken)
+    h.append("<h3>Measurement</h3>")
     h.append(_coherence_table(p))
-    h += [_figure(png, out_dir) for png in pr.plots]
+    h += _pick(pr, out_dir, taken, f"coherence_{p.name}")
+    found = preferred(pr)
+    if len(found) == 2:
+        a, b = found["piezo"], found["strain"]
+        en = lms_normalised_difference(a, b)
+        if en is not None:
+            h.append(consistency_table(a, b, en, fit_label(a)))
+    h += _pick(pr, out_dir, taken, f"lms_{p.name}", f"orbits_{p.name}")
+    h += [_figure(png, out_dir) for png in pr.plots if Path(png).stem not in taken]  # signals, and any other
     return "\n".join(h)
 
 
 def _figure(png: Path, out_dir: Path) -> str:
     rel = Path(png).relative_to(out_dir)
-    return (f'<figure><img src="{_e(rel.as_posix())}" alt="{_e(rel.stem)}">'
-            f'<figcaption class="muted">{_e(rel.name)}</figcaption></figure>')
+    name = _e(rel.as_posix())
+    return (f'<figure><a href="{name}"><img src="{name}" alt="{_e(rel.stem)}"></a>'
+            f'<figcaption class="muted">{_e(rel.name)} (full size: click)</figcaption></figure>')
 
 
 def _points_table(report) -> str:
@@ -193,8 +187,10 @@ def render(report) -> str:
         head.append(_points_table(report))
     else:
         head.append('<p class="err">No complete operating point to report.</p>')
-    head.append('<p class="muted">Units: K in MN/m, C in kN s/m, D in kg (SI at the source); '
-                "\u00b1 one standard error of the regression. Higher-order terms multiply \u03a9^r with \u03a9 in rad/s.</p>")
+    head.append('<p class="muted">Units: K in MN/m, C in kN s/m, D in kg (SI at the source). '
+                "Std error: one statistical standard uncertainty of the regression; 95 % interval: Student t "
+                "with 4n - p degrees of freedom; expanded U: k times the combined (statistical and systematic) "
+                "standard uncertainty. Higher-order terms multiply \u03a9^r with \u03a9 in rad/s.</p>")
     files = sorted(run.directory.glob("*.csv"))
     if files:
         head.append("<p>Tables: " + " \u00b7 ".join(

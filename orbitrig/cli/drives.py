@@ -137,7 +137,7 @@ def _run_command(*, spin: float, orbit: float, modbus: str | None, config: Path 
     except ValueError as err:
         typer.echo(f"orbitrig drives run refused (limit): {err}; nothing sent", err=True)
         raise typer.Exit(2) from None
-    from drives.drive import RPM
+    from orbitrig.config import RPM
 
     raise typer.Exit(
         _run_async(

@@ -34,7 +34,7 @@ def effective_limits(d, *, max_spin=None, max_orbit=None, min_ratio=None, max_ra
     """DriveLimits (rad/s) of the rig's [drives] section `d`, tightened by the
     command line's values (rpm, ratios). ValueError naming the option if one
     is looser than the configuration (or contradicts another)."""
-    from drives.drive import RPM
+    from orbitrig.config import RPM
     from drives.rig import DriveLimits
 
     problems = []

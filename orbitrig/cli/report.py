@@ -19,75 +19,89 @@ def _fail(message: str) -> None:
     raise typer.Exit(2)
 
 
+def reduce_cmd(
+    directory: Annotated[Path, typer.Argument(metavar="DIR", help="Run directory written by `orbitrig sweep --out DIR`.")],
+    model: Annotated[str, typer.Option("--model", help="kc7 (K, symmetric C) | kc8 (K, C) | kcd11 (K, C, symmetric D) | kcd12 (K, C, D)")],
+    freq_dep: Annotated[str, typer.Option("--freq-dep", help="coefficients' dependence on the orbit speed Omega (rad/s): none | power:M (K = K0 + Omega^M KM, likewise C, D) | power:m,n,p (exponents of K, C, D) | power:auto (best M in 1..4) | poly:R (polynomial to Omega^R)")] = "none",
+    method: Annotated[str, typer.Option("--method", help="least squares: ols (ordinary) | wls (weighted) | tls (total) | iv (instrumental variables)")] = "ols",
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the table.")] = False,
+) -> None:
+    """Identify again from a run's stored phasors, without the rig.
+
+    Every complete point, both load measuring systems. Writes
+    DIR/reduce_<model>_<freq-dep>_<method>.csv (the columns of coefficients.csv);
+    the run's own results are left untouched.
+    """
+    from orbitrig.errors import ReductionError
+    from orbitrig.analysis.reduce import csv_path, format_table, reduce_run, write_csv
+    from orbitrig.store.reader import RunDirError, read_run
+
+    try:
+        run = read_run(directory)
+        rows = reduce_run(run, model, freq_dep, method)
+    except (RunDirError, ReductionError) as err:
+        _fail(str(err))
+    refused = [r for r in rows if r.identification is None]
+    by_reason: dict[str, list[str]] = {}
+    for r in refused:
+        by_reason.setdefault(str(r.error), []).append(f"{r.point.name} {r.lms}")
+    for reason, where in by_reason.items():
+        typer.echo(f"{model} {freq_dep} refused at point {', '.join(where)}: {reason}", err=True)
+    if len(refused) == len(rows):
+        _fail(f"{model} {freq_dep} ({method}) cannot be identified from any stored table of {directory}")
+    path = write_csv(csv_path(directory, model, freq_dep, method), rows, run.sim)
+    if as_json:
+        out = {"run": str(directory), "csv": str(path), "status": run.status,
+               "results": [r.to_dict() for r in rows]}
+        typer.echo(json.dumps(out))
+    else:
+        typer.echo(f"{model} {freq_dep} ({method}) from the stored orbit tables of {directory} "
+                   f"(run {run.status}, {len({r.point.index for r in rows})} complete point(s))")
+        typer.echo(format_table(rows))
+        typer.echo(f"written: {path}")
+
+def report_cmd(
+    directory: Annotated[Path, typer.Argument(metavar="DIR", help="Run directory written by `orbitrig sweep --out DIR`.")],
+    point: Annotated[Optional[list[int]], typer.Option("--point", metavar="N", help="Only this operating point index (repeatable).")] = None,
+    all_frequencies: Annotated[bool, typer.Option("--all-frequencies", help="Force-signal figure (paper Fig. 4) for every orbit frequency, not only the lowest and highest of each whirl direction.")] = False,
+    figures: Annotated[Optional[str], typer.Option("--figures", metavar="KINDS", help="Only these figure kinds, comma-separated: forces, coefficients, derived, impedance, coherence, lms, signals, orbits (default: all). The page's tables are always complete.")] = None,
+) -> None:
+    """Plots and an HTML page of a stored run, in DIR/plots.
+
+    Forces measured vs reproduced with the model-adequacy verdict (paper Fig. 5),
+    coefficients against Omega/omega, derived quantities (effective damping, WFR,
+    forward/backward dynamic stiffness), identified vs true impedance (simulator runs),
+    coherence table, the two load measuring systems, force signals (paper Fig. 4) and
+    the measured x-y orbits; DIR/plots/index.html shows them with the coefficients'
+    intervals and uncertainties. Fit warnings and refusals go to standard error.
+    """
+    from orbitrig.analysis.report import FIGURES, ReportOptions, make_report
+    from orbitrig.store.reader import RunDirError
+
+    kinds = FIGURES if figures is None else tuple(k.strip() for k in figures.split(",") if k.strip())
+    unknown = [k for k in kinds if k not in FIGURES]
+    if unknown:
+        _fail(f"--figures: unknown kind(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")
+    try:
+        options = ReportOptions(figures=frozenset(kinds), all_frequencies=all_frequencies)
+        report = make_report(directory, points=point, options=options)
+    except (RunDirError, ValueError) as err:
+        _fail(str(err))
+    run = report.run
+    typer.echo(f"run {run.status}: {len(run.complete_points)} complete point(s), "
+               f"{len(run.points) - len(run.complete_points)} incomplete")
+    if run.status == "running":  # the store says so until the run ends: also after a crash or kill -9
+        typer.echo(f"(still running, or interrupted: `orbitrig sweep --resume {directory}` continues an "
+                   "interrupted run; add --sim if it was made on the simulator)")
+    for pr in report.points:
+        for m in pr.mismatches:
+            typer.echo(f"warning: point {pr.point.name}: {m}", err=True)
+        for line in pr.fit_warnings():
+            typer.echo(f"point {pr.point.name} {line}", err=True)
+    typer.echo(f"{len(report.plots)} plot(s) in {report.directory}")
+    typer.echo(f"open {report.html}")
+
+
 def register(app: typer.Typer) -> None:
-    @app.command("reduce")
-    def reduce_cmd(
-        directory: Annotated[Path, typer.Argument(metavar="DIR", help="Run directory written by `orbitrig sweep --out DIR`.")],
-        model: Annotated[str, typer.Option("--model", help="kc7 (K, symmetric C) | kc8 (K, C) | kcd11 (K, C, symmetric D) | kcd12 (K, C, D)")],
-        freq_dep: Annotated[str, typer.Option("--freq-dep", help="coefficients' dependence on the orbit speed Omega (rad/s): none | power:M (K = K0 + Omega^M KM, likewise C, D) | power:m,n,p (exponents of K, C, D) | power:auto (best M in 1..4) | poly:R (polynomial to Omega^R)")] = "none",
-        method: Annotated[str, typer.Option("--method", help="least squares: ols (ordinary) | wls (weighted) | tls (total) | iv (instrumental variables)")] = "ols",
-        as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the table.")] = False,
-    ) -> None:
-        """Identify again from a run's stored phasors, without the rig.
-
-        Every complete point, both load measuring systems. Writes
-        DIR/reduce_<model>_<freq-dep>_<method>.csv (the columns of coefficients.csv);
-        the run's own results are left untouched.
-        """
-        from orbitrig.errors import ReductionError
-        from orbitrig.analysis.reduce import csv_path, format_table, reduce_run, write_csv
-        from orbitrig.store.reader import RunDirError, read_run
-
-        try:
-            run = read_run(directory)
-            rows = reduce_run(run, model, freq_dep, method)
-        except (RunDirError, ReductionError) as err:
-            _fail(str(err))
-        refused = [r for r in rows if r.identification is None]
-        by_reason: dict[str, list[str]] = {}
-        for r in refused:
-            by_reason.setdefault(str(r.error), []).append(f"{r.point.name} {r.lms}")
-        for reason, where in by_reason.items():
-            typer.echo(f"{model} {freq_dep} refused at point {', '.join(where)}: {reason}", err=True)
-        if len(refused) == len(rows):
-            _fail(f"{model} {freq_dep} ({method}) cannot be identified from any stored table of {directory}")
-        path = write_csv(csv_path(directory, model, freq_dep, method), rows, run.sim)
-        if as_json:
-            out = {"run": str(directory), "csv": str(path), "status": run.status,
-                   "results": [r.to_dict() for r in rows]}
-            typer.echo(json.dumps(out))
-        else:
-            typer.echo(f"{model} {freq_dep} ({method}) from the stored orbit tables of {directory} "
-                       f"(run {run.status}, {len({r.point.index for r in rows})} complete point(s))")
-            typer.echo(format_table(rows))
-            typer.echo(f"written: {path}")
-
-    @app.command("report")
-    def report_cmd(
-        directory: Annotated[Path, typer.Argument(metavar="DIR", help="Run directory written by `orbitrig sweep --out DIR`.")],
-        point: Annotated[Optional[list[int]], typer.Option("--point", help="Only this operating point index (repeatable).")] = None,
-    ) -> None:
-        """Plots and an HTML page of a stored run, in DIR/plots.
-
-        Forces measured vs reproduced, coefficients against Omega/omega, coherence,
-        the two load measuring systems; DIR/plots/index.html shows them with the
-        coefficient tables.
-        """
-        from orbitrig.analysis.report import make_report
-        from orbitrig.store.reader import RunDirError
-
-        try:
-            report = make_report(directory, points=point)
-        except (RunDirError, ValueError) as err:
-            _fail(str(err))
-        run = report.run
-        typer.echo(f"run {run.status}: {len(run.complete_points)} complete point(s), "
-                   f"{len(run.points) - len(run.complete_points)} incomplete")
-        if run.status == "running":  # the store says so until the run ends: also after a crash or kill -9
-            typer.echo(f"(still running, or interrupted: `orbitrig sweep --resume {directory}` continues an "
-                       "interrupted run; add --sim if it was made on the simulator)")
-        for pr in report.points:
-            for m in pr.mismatches:
-                typer.echo(f"warning: point {pr.point.name}: {m}", err=True)
-        typer.echo(f"{len(report.plots)} plot(s) in {report.directory}")
-        typer.echo(f"open {report.html}")
+    app.command("reduce")(reduce_cmd)
+    app.command("report")(report_cmd)

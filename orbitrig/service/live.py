@@ -149,8 +149,8 @@ class LiveFeed:
         a = io.aux.latest() if io.aux is not None else None
         if a is None:
             return {}
-        out: dict[str, Any] = {k: getattr(a, k) for k in ("t_recess", "t_groove", "t_supply", "flow",
-                                                           "p_supply", "beta")}
+        out: dict[str, Any] = {"t_recess": a.t_recess, "t_groove": a.t_groove, "t_supply": a.t_supply,
+                               "flow": a.flow, "p_supply": a.p_supply, "beta": a.beta}
         out.update({f"p_recess_{i + 1}": v for i, v in enumerate(a.p_recess)})
         out.update(sensor_fault=a.sensor_fault, pump_off=a.pump_off, node_lost=a.node_lost)
         return out

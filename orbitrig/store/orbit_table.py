@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from orbitrig.config import RPM
 from orbitrig.errors import TableError
 from reduction.errors import ReductionError
 from reduction.table import GAMMA2_COLUMNS, U_COLUMNS, OrbitTable
@@ -26,7 +27,6 @@ REQUIRED = ("spin_rpm", "orbit_hz", "x_re", "x_im", "y_re", "y_im", "fx_re", "fx
 GAMMA2 = tuple(f"gamma2_{c}" for c in GAMMA2_COLUMNS)
 UNCERTAINTY = tuple(f"u_{c}" for c in U_COLUMNS)
 RECORDS = "n_records"
-RPM = 2 * math.pi / 60  # rad/s per rpm
 
 
 # a decimal number as a CSV writer prints it (Python's float() also takes '1_000' and spaces)

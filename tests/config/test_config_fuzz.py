@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from orbitrig.config import load_matrix, load_rig
 from orbitrig.errors import ConfigError
-from orbitrig.run.plan import expand, format_duration, summarize
+from orbitrig.run.plan import format_duration, make_plan, summarize
 
 REPO = Path(__file__).resolve().parents[2]
 RIG_TEXT = (REPO / "config" / "rig.toml").read_bytes()
@@ -100,7 +100,7 @@ def test_mutated_files_load_or_are_refused_by_name(tmp_path, rig, matrix):
     for f in (*_floats(r), *_floats(m)):
         assert math.isfinite(f)
     try:
-        steps = expand(m, r)
+        steps = make_plan(m, r).steps
     except ConfigError as err:
         _check_refusal(err, tmp_path)
         return

@@ -52,7 +52,23 @@ STRAIN_GAIN = 1.018 * np.exp(1j * np.radians(0.3))
 N_REV = 8
 
 
-def _record(block, radius, rng, noise, ch) -> BlockRecord:
+SAMPLES = 45  # per channel: 360 slots over 8 multiplexed channels
+WAVE_NOISE = 0.03  # per-sample noise of one revolution, relative to the channel's amplitude
+
+
+def _waveforms(ph, records, gains, wave_rng):
+    """Raw counts (N, 8, S) of each revolution, q = dc + Re(q_r e^{i theta}) + noise, at the
+    slots of a sequential 8-channel board; their average is the stored `mean` (as daq's)."""
+    slots = np.arange(360, dtype=np.int16).reshape(SAMPLES, 8).T  # channel c: slots c, c + 8, ...
+    theta = 2 * np.pi * slots / 360.0
+    dc = 0.1 * np.abs(ph)
+    values = dc[None, :, None] + np.real(records[:, :, None] * np.exp(1j * theta)[None])
+    values += WAVE_NOISE * np.abs(ph)[None, :, None] * wave_rng.standard_normal(values.shape)
+    counts = np.round(values / gains[None, :, None]).astype(np.int16)
+    return slots, counts, counts.mean(axis=0) * gains[:, None]
+
+
+def _record(block, radius, rng, noise, ch, gains, wave_rng) -> BlockRecord:
     w = abs(block.orbit)
     x = radius * (1 + 0.01 * rng.standard_normal())
     y = -1j * block.direction * radius * (1 + 0.01 * rng.standard_normal())
@@ -65,10 +81,13 @@ def _record(block, radius, rng, noise, ch) -> BlockRecord:
     ph[[ch["fx_piezo"], ch["fy_piezo"]]] = f
     ph[[ch["fx_strain"], ch["fy_strain"]]] = f * STRAIN_GAIN
     records = ph[None, :] * (1 + 0.02 * rng.standard_normal((N_REV, 8)))
+    for axis in ("fx", "fy"):  # both systems measure the same force in each revolution
+        records[:, ch[f"{axis}_strain"]] = records[:, ch[f"{axis}_piezo"]] * STRAIN_GAIN
+    slots, counts, mean = _waveforms(ph, records, gains, wave_rng)
     return BlockRecord(
-        block=block, measured_orbit_speed=w, raw_counts=np.zeros((N_REV, 8, 45), np.int16),
-        slots=np.arange(360, dtype=np.int16).reshape(45, 8).T, gains=np.ones(8), offsets=np.zeros(8),
-        mean=np.zeros((8, 45)), record_phasors=records, phasors=ph, dc=np.zeros(8),
+        block=block, measured_orbit_speed=w, raw_counts=counts,
+        slots=slots, gains=gains, offsets=np.zeros(8),
+        mean=mean, record_phasors=records, phasors=ph, dc=0.1 * np.abs(ph),
         rms_residual=np.zeros(8), coherence=np.clip(0.995 - 0.04 * rng.random((2, 4)), 0, 1),
         stats={"frames_good": N_REV, "revolutions_used": N_REV},
     )  # fmt: skip
@@ -80,16 +99,18 @@ def write_synthetic_run(directory: Path, *, noise=1e-3, seed=1, n_points=2, inco
     finished=False leaves the run as a kill -9 does: status 'running', no run.h5."""
     directory = Path(directory)
     rng = np.random.default_rng(seed)
+    wave_rng = np.random.default_rng(seed + 1000)  # waveforms only: the phasors stay as before
     eps = ", ".join(f"{0.15 * i:g}" for i in range(n_points + incomplete))
     rig = cfg.load_rig()
     matrix = cfg.matrix_from_text(MATRIX.format(eps=eps), "synthetic.toml")
     ch = rig.channel_index
+    gains = np.asarray(rig.gains, dtype=float)
     store = RunStore.create(directory, rig_text=rig.text, matrix_text=matrix.text, matrix_name=matrix.name, sim=True)
     for point in operating_points(matrix, rig):
         store.begin_point(point)
         recs = []
         for block in point.blocks:
-            recs.append(_record(block, point.orbit_radius, rng, noise, ch))
+            recs.append(_record(block, point.orbit_radius, rng, noise, ch, gains, wave_rng))
             store.write_block(point.index, recs[-1])
         if point.index >= n_points:
             continue  # as after a kill -9: blocks stored, point never completed

@@ -27,15 +27,19 @@ def png_size(path):
 def test_report_writes_every_plot(synthetic_run, synthetic_report):
     assert synthetic_report.exit_code == 0, synthetic_report.output
     assert "2 complete point(s), 1 incomplete" in synthetic_report.stdout
-    assert "8 plot(s)" in synthetic_report.stdout
+    assert "17 plot(s)" in synthetic_report.stdout
     assert "warning" not in synthetic_report.stderr  # stored identifications repeat exactly
+    assert "point 0001 strain kcd12 poly:8 refused: " in synthetic_report.stderr  # refusals are visible
     plots = synthetic_run / "plots"
-    # --point 1: nothing of point 0
+    # --point 1: nothing of point 0; Figure 4 for the lowest and highest frequency of each direction
     assert {p.name for p in plots.glob("*.png")} == {
         "forces_0001_piezo.png", "forces_0001_strain.png",
         "coefficients_0001_piezo_kcd11.png", "coefficients_0001_strain_kcd11.png",
         "coefficients_0001_piezo_kc7.png", "coefficients_0001_strain_kc7.png",
-        "coherence_0001.png", "lms_0001.png",
+        "derived_0001_piezo.png", "derived_0001_strain.png",
+        "impedance_0001_piezo.png", "impedance_0001_strain.png",
+        "coherence_0001.png", "lms_0001.png", "orbits_0001.png",
+        "signals_0001_00_fwd.png", "signals_0001_09_fwd.png", "signals_0001_00_bwd.png", "signals_0001_09_bwd.png",
     }  # fmt: skip
     for path in plots.glob("*.png"):
         w, h = png_size(path)
@@ -111,11 +115,29 @@ def test_report_of_one_point_drops_an_earlier_summary(tmp_path):
     """`report --point N` after a full report must not leave the old summary.png behind."""
     from report_synthetic import write_synthetic_run
 
-    from orbitrig.analysis.report import make_report
+    from orbitrig.analysis.report import ReportOptions, make_report
 
     run = write_synthetic_run(tmp_path / "run", n_points=2, incomplete=0)
-    assert make_report(run).summary == run / "plots" / "summary.png"
+    quick = ReportOptions(figures=frozenset({"lms"}))  # the summary is drawn whatever the kinds
+    assert make_report(run, options=quick).summary == run / "plots" / "summary.png"
     assert (run / "plots" / "summary.png").exists()
-    one = make_report(run, points=[1])
+    one = make_report(run, points=[1], options=quick)
     assert one.summary is None and not (run / "plots" / "summary.png").exists()
     assert "summary.png" not in (run / "plots" / "index.html").read_text()
+
+
+def test_report_kinds_and_all_frequencies_replace_an_earlier_report(tmp_path):
+    """--figures draws only those kinds and removes the point's other figures; --all-frequencies
+    draws Figure 4 for every stored orbit frequency."""
+    from report_synthetic import write_synthetic_run
+
+    run = write_synthetic_run(tmp_path / "run", n_points=1, incomplete=0)
+    stale = run / "plots" / "forces_0000_piezo.png"
+    stale.parent.mkdir()
+    stale.write_bytes(b"old")
+    result = CliRunner().invoke(app, ["report", str(run), "--figures", "signals", "--all-frequencies"])
+    assert result.exit_code == 0, result.output
+    names = {p.name for p in (run / "plots").glob("*.png")}
+    assert names == {f"signals_0000_{k:02d}_{d}.png" for k in range(10) for d in ("fwd", "bwd")}
+    bad = CliRunner().invoke(app, ["report", str(run), "--figures", "signals,wiggles"])
+    assert bad.exit_code == 2 and "unknown kind(s) wiggles" in bad.stderr

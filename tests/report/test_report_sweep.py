@@ -70,14 +70,19 @@ def test_reduce_gives_the_sweeps_coefficients(sweep_run, model, freq_dep):
 
 
 def test_reduce_is_within_5_percent_of_the_simulator(sweep_run):
+    """K and C within 5 % of the largest true entry, plus three standard errors: the simulated
+    chain (1.8 % strain-gauge gain error, 55-60 N noise per sample, 10 revolutions a block)
+    leaves a statistical scatter that the fit's own standard errors state."""
     p = orbitrig("reduce", str(sweep_run), "--model", "kcd11", "--json")
     truth = read_run(sweep_run).points[0].truth
     for r in json.loads(p.stdout)["results"]:
-        c = r["coefficients"]
+        c, s = r["coefficients"], r["std_errors"]
         for m in "KC":
             true = np.asarray(truth[f"{m}0"])
-            got = np.array([[c[f"{m}xx"], c[f"{m}xy"]], [c[f"{m}yx"], c[f"{m}yy"]]])
-            assert np.abs(got - true).max() <= 0.05 * np.abs(true).max(), (r["lms"], m, got, true)
+            keys = [[f"{m}xx", f"{m}xy"], [f"{m}yx", f"{m}yy"]]
+            got = np.array([[c[k] for k in row] for row in keys])
+            std = np.array([[s[k] for k in row] for row in keys])
+            assert np.all(np.abs(got - true) <= 0.05 * np.abs(true).max() + 3 * std), (r["lms"], m, got, true, std)
 
 
 def test_report_on_the_sweep(sweep_run):
@@ -90,6 +95,9 @@ def test_report_on_the_sweep(sweep_run):
         "forces_0000_piezo.png", "forces_0000_strain.png", "coherence_0000.png", "lms_0000.png",
         "coefficients_0000_piezo_kcd11.png", "coefficients_0000_strain_kcd11.png",
         "coefficients_0000_piezo_kc8.png", "coefficients_0000_strain_kc8.png",
+        "derived_0000_piezo.png", "derived_0000_strain.png", "impedance_0000_piezo.png", "impedance_0000_strain.png",
+        "orbits_0000.png", "signals_0000_00_fwd.png", "signals_0000_04_fwd.png", "signals_0000_00_bwd.png",
+        "signals_0000_04_bwd.png",
     ])  # fmt: skip
     for name in pngs:
         data = (plots / name).read_bytes()
@@ -101,3 +109,22 @@ def test_report_on_the_sweep(sweep_run):
     for key in ("Kxx", "Kyx", "Cxx", "Cyy"):
         scale = 1e-6 if key[0] == "K" else 1e-3
         assert f"{stored['coefficients'][key] * scale:.4g}" in html, key
+
+
+def test_figure_4a_on_the_sweep_matches_the_stored_comparison(sweep_run):
+    """The amplitude and phase difference that Figure 4 (a) states, from the averaged waveforms,
+    equal the sweep's own strain/piezo comparison of the block phasors."""
+    from orbitrig.analysis.plots_signals import lms_difference
+    from orbitrig.analysis.signals import read_block_signals
+
+    run = read_run(sweep_run)
+    point = run.points[0]
+    cmp = point.lms_comparison
+    blocks = sorted(point.frequencies, key=lambda f: (f.orbit_hz, -f.direction))
+    assert [f.orbit_hz for f in blocks] == pytest.approx(cmp["orbit_hz"])
+    for k, f in enumerate(blocks):
+        sig = read_block_signals(run, point, f)
+        for axis in ("fx", "fy"):
+            d = lms_difference(sig, axis)
+            assert d.amplitude_pct == pytest.approx(100 * (cmp[f"{axis}_amp_ratio"][k] - 1), abs=2e-3), f.name
+            assert d.phase_deg == pytest.approx(cmp[f"{axis}_phase_diff_deg"][k], abs=2e-3), f.name

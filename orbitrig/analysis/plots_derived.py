@@ -1,0 +1,121 @@
+"""Figures of derived quantities and of the impedance (matplotlib Agg, no pyplot state).
+
+- :func:`derived_figure`: effective damping C_eff,xx = Cxx - Kxy/Omega and C_eff,yy =
+  Cyy + Kyx/Omega with their zero crossings, the whirl frequency ratio, and the forward /
+  backward direct dynamic stiffness Re and Im H(Omega), each with a band of two standard
+  uncertainties (statistical), one colour per identification;
+- :func:`impedance_figure`: Re and Im of each entry of the identified Z(Omega) = K + i Omega C
+  - Omega^2 D against the simulator's true Z at the tested frequencies (black crosses; the Z of
+  its reference K, C, D when the run did not store the true Z).
+
+Both return the Figure; x axes are Omega/omega (-); K-like quantities in MN/m, damping in kN s/m.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+
+from orbitrig.analysis.plots import ENTRIES, Fitted, _colors, _min_span, keep_inside, panel_figure
+from orbitrig.analysis.quality import TrueImpedance, orbit_grid
+from reduction.derived import Derived
+
+MN, KNS = 1e-6, 1e-3  # N/m -> MN/m, N s/m -> kN s/m
+BAND = 2.0  # bands of +-2 standard uncertainties
+
+
+def _band(ax, x, y, std, color, scale, **kw) -> None:
+    ax.plot(x, y * scale, color=color, **kw)
+    if std is not None:
+        ax.fill_between(x, (y - BAND * std) * scale, (y + BAND * std) * scale, color=color, alpha=0.15, lw=0)
+
+
+def _zero_text(zero, spin: float) -> str:
+    if zero is None:
+        return "no zero crossing in the tested range"
+    w0, sd = zero
+    pm = "" if sd is None else f" \u00b1 {BAND * sd / (2 * np.pi):.2g}"
+    return f"zero at {w0 / (2 * np.pi):.3g}{pm} Hz (\u03a9/\u03c9 = {w0 / spin:.3f})"
+
+
+def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title: str) -> Figure:
+    """C_eff (xx, yy), WFR, Re H and Im H (forward solid, backward dashed) against Omega/omega."""
+    fig = panel_figure(14, 9.0, top=1.6, bottom=1.3, hspace=0.75, wspace=0.3)
+    axes = fig.subplots(2, 3, sharex=True)
+    colors = _colors(len(derived))
+    zeros = {"xx": [], "yy": []}
+    for k, (label, d) in enumerate(derived):
+        x = d.orbit / spin
+        for col, e in enumerate(("xx", "yy")):
+            val, std = (d.c_eff_xx, d.c_eff_xx_std) if e == "xx" else (d.c_eff_yy, d.c_eff_yy_std)
+            _band(axes[0, col], x, val, std, colors[k], KNS, lw=1.6, label=label)
+            zero = d.c_eff_zero_xx if e == "xx" else d.c_eff_zero_yy
+            zeros[e].append(f"{label}: {_zero_text(zero, spin)}")
+            if zero is not None:
+                axes[0, col].plot(zero[0] / spin, 0.0, "o", color=colors[k], ms=7, mec="black", zorder=6)
+        _band(axes[0, 2], x, d.wfr, d.wfr_std, colors[k], 1.0, lw=1.6, label=label)
+        for col, part in ((0, np.real), (1, np.imag)):
+            for h, hstd, ls in ((d.h_forward, d.h_forward_std, "-"), (d.h_backward, d.h_backward_std, "--")):
+                _band(axes[1, col], x, part(h), None if hstd is None else hstd[col], colors[k], MN, lw=1.6, ls=ls)
+    for col, e in enumerate(("xx", "yy")):
+        ax = axes[0, col]
+        ax.axhline(0, color="gray", lw=0.8)
+        sign = "-" if e == "xx" else "+"
+        ax.set_title(f"effective damping C{e} {sign} K{'xy' if e == 'xx' else 'yx'}/\u03a9\n"
+                     + "\n".join(zeros[e]), fontsize=9)  # fmt: skip
+        ax.set_ylabel(f"C_eff,{e}  [kN s/m]")
+    axes[0, 2].set_title("whirl frequency ratio (Kxy - Kyx) / (\u03c9 (Cxx + Cyy))", fontsize=9)
+    axes[0, 2].set_ylabel("WFR  [-]")
+    for col, part in enumerate(("Re", "Im")):
+        axes[1, col].set_title(f"{part} H: direct dynamic stiffness, forward (solid) / backward (dashed)", fontsize=9)
+        axes[1, col].set_ylabel(f"{part} H  [MN/m]")
+    axes[1, 2].set_visible(False)
+    for ax in axes.flat:
+        ax.grid(True, alpha=0.3)
+    for ax in axes[1, :2]:
+        ax.set_xlabel("\u03a9/\u03c9  [-]")
+    axes[0, 2].set_xlabel("\u03a9/\u03c9  [-]")
+    axes[0, 2].xaxis.set_tick_params(labelbottom=True)
+    handles = [Line2D([], [], color=c, lw=2) for c in colors]
+    fig.legend(handles, [label for label, _ in derived], loc="lower center", ncols=min(3, len(derived)),
+               fontsize=9, title=f"bands: \u00b1{BAND:g} standard uncertainties (statistical)")  # fmt: skip
+    fig.suptitle(title)
+    return fig
+
+
+def impedance_figure(fitted: Sequence[Fitted], truth: TrueImpedance, *, spin: float,
+                     orbit: np.ndarray, title: str) -> Figure:  # fmt: skip
+    """Re and Im of Z_xx, Z_xy, Z_yx, Z_yy [MN/m]: identified models (lines) and the simulator's
+    true Z at its frequencies (crosses, kept inside the axes)."""
+    fig = panel_figure(14, 7.2, bottom=1.0, hspace=0.3, wspace=0.45)
+    axes = fig.subplots(2, 4, sharex=True)
+    grid = orbit_grid(orbit)
+    colors = _colors(len(fitted))
+    t_w, t_z = truth.orbit, truth.z
+    largest = float(np.max(np.abs(t_z))) * MN  # panels span at least 5 % of it: no magnified noise
+    for k, fit in enumerate(fitted):
+        z = fit.identification.impedance(grid)
+        for col in range(4):
+            i, j = divmod(col, 2)
+            for row, part in enumerate((np.real, np.imag)):
+                axes[row, col].plot(grid / spin, part(z[:, i, j]) * MN, color=colors[k], lw=1.6, label=fit.label)
+    for col, e in enumerate(ENTRIES):
+        i, j = divmod(col, 2)
+        for row, (name, part) in enumerate((("Re", np.real), ("Im", np.imag))):
+            ax = axes[row, col]
+            ax.plot(t_w / spin, part(t_z[:, i, j]) * MN, "x", color="black", ms=6, mew=1.5, label=truth.label,
+                    zorder=6)  # fmt: skip
+            _min_span(ax, largest)
+            keep_inside(ax, t_w / spin, part(t_z[:, i, j]) * MN)
+            ax.set_title(f"{name} Z{e}", fontsize=10)
+            ax.set_ylabel(f"{name} Z{e}  [MN/m]")
+            ax.grid(True, alpha=0.3)
+            if row == 1:
+                ax.set_xlabel("\u03a9/\u03c9  [-]")
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncols=min(4, len(labels)), fontsize=9)
+    fig.suptitle(title)
+    return fig

@@ -1,0 +1,151 @@
+"""Figures of the stored signals (matplotlib Agg, no pyplot state).
+
+- :func:`signals_figure`: the paper's Figure 4 for one orbit frequency: (a) the
+  time-averaged force over the averaged revolutions from both load measuring systems,
+  with their amplitude and phase difference; (b) one raw revolution against the average.
+- :func:`orbits_figure`: the measured x-y orbit of both probe planes, one panel per
+  orbit frequency (the rig engineer's first sanity check).
+
+Each ``*_figure`` returns the Figure (tests read back what was drawn); ``save`` writes it.
+Forces are on the journal (N), displacements in um, orbit angle in deg after the trigger.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from orbitrig.analysis.plots import _colors, _figure, panel_figure
+from orbitrig.analysis.signals import FORCE_CHANNELS, PROBE_PLANES, BlockSignals
+from reduction.fourier import harmonic_fit
+
+UM = 1e6  # m -> um at the edge
+
+
+@dataclass(frozen=True)
+class LmsDifference:
+    """Strain-gauge force relative to piezoelectric, from the averaged signals' fundamentals."""
+
+    amplitude_pct: float  # |F_strain| / |F_piezo| - 1, percent
+    phase_deg: float  # phase(F_strain) - phase(F_piezo), deg in (-180, 180]
+
+
+def fundamental(theta: np.ndarray, values: np.ndarray):
+    """HarmonicFit (dc, phasor, rms_residual) of one channel's samples at angles theta (rad)."""
+    return harmonic_fit(values, theta)
+
+
+def lms_difference(sig: BlockSignals, axis: str) -> LmsDifference:
+    """Strain vs piezo of force `axis` ('fx' | 'fy') from the block's averaged waveforms."""
+    q = {}
+    for lms in ("piezo", "strain"):
+        i = sig.channels[f"{axis}_{lms}"]
+        q[lms] = complex(fundamental(sig.theta[i], sig.mean[i]).phasor)
+    ratio = q["strain"] / q["piezo"]
+    return LmsDifference(100.0 * (abs(ratio) - 1.0), math.degrees(np.angle(ratio)))
+
+
+def plane_orbit(sig: BlockSignals, x_name: str, y_name: str) -> tuple[np.ndarray, np.ndarray]:
+    """Averaged (x, y) of one probe plane at the x channel's angles (ascending); y, sampled at
+    its own slots, is interpolated (periodic) to those angles. m."""
+    deg_x, x, _ = sig.of(x_name)
+    deg_y, y, _ = sig.of(y_name)
+    return x, np.interp(deg_x, deg_y, y, period=360.0)
+
+
+def _direction(sig: BlockSignals) -> str:
+    return "forward" if sig.frequency.direction > 0 else "backward"
+
+
+def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
+    """Figure 4 of the paper for one block: row (a) both systems' averaged Fx and Fy, the
+    amplitude and phase difference in each panel's title; row (b) one raw revolution of the
+    piezoelectric forces against their average, with the RMS deviation from the fundamental."""
+    fig = panel_figure(12, 8.0, left=0.9, top=1.35, bottom=0.65, hspace=0.36, wspace=0.22)
+    axes = fig.subplots(2, 2, sharex=True)
+    colors = _colors(2)
+    for col, axis in enumerate(("fx", "fy")):
+        label = f"F{axis[1]}"
+        ax = axes[0, col]
+        for k, lms in enumerate(("piezo", "strain")):
+            deg, mean, _ = sig.of(FORCE_CHANNELS[lms][col])
+            ax.plot(deg, mean, "-", color=colors[k], lw=2.4 - 1.2 * k, label=f"{lms}")
+        d = lms_difference(sig, axis)
+        ax.set_title(f"(a) {label} averaged over {sig.n_revolutions} revolutions, both load measuring systems\n"
+                     f"strain vs piezo: amplitude {d.amplitude_pct:+.2f} %, phase {d.phase_deg:+.2f} deg",
+                     fontsize=10)  # fmt: skip
+        ax.set_ylabel(f"{label} on the journal  [N]")
+        ax.legend(fontsize=8, loc="upper right", framealpha=0.9)
+        ax = axes[1, col]
+        name = FORCE_CHANNELS["piezo"][col]
+        deg, mean, raw = sig.of(name)
+        i = sig.channels[name]
+        rms_raw = float(fundamental(sig.theta[i], sig.raw[i]).rms_residual)
+        rms_mean = float(fundamental(sig.theta[i], sig.mean[i]).rms_residual)
+        ax.plot(deg, raw, ".-", color="0.5", lw=0.8, ms=3.5, label=f"revolution {sig.revolution + 1} (raw)")
+        ax.plot(deg, mean, "-", color=colors[0], lw=2.2, label=f"average of {sig.n_revolutions}")
+        ax.set_title(f"(b) {label} piezo: one revolution against the average\n"
+                     f"RMS deviation from the fundamental: raw {rms_raw:.3g} N, average {rms_mean:.3g} N",
+                     fontsize=10)  # fmt: skip
+        ax.set_ylabel(f"{label} on the journal  [N]")
+        ax.set_xlabel("orbit angle after the trigger  [deg]")
+        ax.legend(fontsize=8, loc="upper right", framealpha=0.9)
+    for ax in axes.flat:
+        ax.set_xlim(0, 360)
+        ax.set_xticks(range(0, 361, 45))
+        ax.grid(True, alpha=0.3)
+    fig.suptitle(title)
+    return fig
+
+
+def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) -> Figure:
+    """x-y orbit (averaged displacements) of probe planes A and B, one panel per block, in um,
+    equal axes; the commanded orbit radius (m) as a dashed circle about the measured centre, and
+    each plane's mean radius (mean distance from its centre) in the panel title."""
+    n = len(blocks)
+    cols = min(5, max(1, n))
+    rows = max(1, math.ceil(n / cols))
+    width, height = 2.7 * cols + 0.8, 2.9 * rows + 1.6
+    fig = _figure(width, height, layout=None)
+    fig.subplots_adjust(left=0.7 / width, right=1 - 0.15 / width, bottom=1.0 / height, top=1 - 1.25 / height,
+                        wspace=0.35, hspace=0.45)  # fmt: skip
+    axes = fig.subplots(rows, cols, squeeze=False).ravel()
+    colors = _colors(2)
+    circle = np.linspace(0, 2 * np.pi, 121)
+    for ax, sig in zip(axes, blocks):
+        centre, radii = [], []
+        for k, (plane, (xn, yn)) in enumerate(PROBE_PLANES.items()):
+            x, y = plane_orbit(sig, xn, yn)
+            ax.plot(np.append(x, x[0]) * UM, np.append(y, y[0]) * UM, "-", color=colors[k], lw=1.4,
+                    label=f"plane {plane}")  # fmt: skip
+            if k == 0:  # the trigger (0 deg) and the sense of the motion
+                ax.plot(x[0] * UM, y[0] * UM, "o", color="black", ms=4, label="trigger (0 deg)")
+                j = max(1, len(x) // 12)
+                ax.annotate("", xy=(x[j] * UM, y[j] * UM), xytext=(x[0] * UM, y[0] * UM),
+                            arrowprops={"arrowstyle": "->", "color": "black", "lw": 1.2})  # fmt: skip
+            centre.append((x.mean(), y.mean()))
+            radii.append(float(np.mean(np.hypot(x - x.mean(), y - y.mean()))))
+        cx, cy = np.mean(centre, axis=0)
+        if math.isfinite(radius) and radius > 0:
+            ax.plot((cx + radius * np.cos(circle)) * UM, (cy + radius * np.sin(circle)) * UM, "--", color="0.4",
+                    lw=0.8, label="commanded radius")  # fmt: skip
+        f = sig.frequency
+        ax.set_title(f"{f.orbit_hz:.3g} Hz {_direction(sig)}\nmean radius A {radii[0] * UM:.3g}, "
+                     f"B {radii[1] * UM:.3g} \u00b5m", fontsize=9)  # fmt: skip
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(True, alpha=0.3)
+        ax.tick_params(labelsize=7)
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    for ax in axes[(rows - 1) * cols:(rows - 1) * cols + cols]:
+        ax.set_xlabel("x  [\u00b5m]", fontsize=8)
+    for ax in axes[::cols]:
+        ax.set_ylabel("y  [\u00b5m]", fontsize=8)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncols=len(labels), fontsize=9, frameon=False)
+    fig.suptitle(title)
+    return fig

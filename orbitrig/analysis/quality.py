@@ -1,0 +1,158 @@
+"""What the report says about each identification beyond its coefficients (orbit-table v2):
+intervals and the uncertainty budget, the model-adequacy verdict, the derived quantities,
+and the simulator's true impedance. Numbers come from reduction's pure functions applied
+to the repeated identifications, or from the stored identification where it holds them.
+
+SI inside (N/m, N s/m, kg, rad/s); the page and the figures convert at the edge.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from orbitrig.analysis.reduce import Reduced, identify_point
+from reduction.adequacy import Adequacy, frequency_dependence
+from reduction.derived import Derived, derived_quantities
+from reduction.errors import ReductionError
+from reduction.systematic import Calibration, lms_consistency
+
+#: the budget columns a stored identification may carry under "uncertainty" (SI std per key)
+BUDGET_PARTS = ("statistical", "systematic", "combined", "expanded")
+
+
+@dataclass(frozen=True)
+class CoefficientRow:
+    """One coefficient of one identification, SI; None where the run does not state it."""
+
+    key: str
+    value: float
+    std: float | None  # statistical standard uncertainty (the fit's standard error)
+    interval: tuple[float, float] | None  # Student-t 95 % interval
+    systematic: float | None  # type B standard uncertainty (calibration)
+    expanded: float | None  # combined expanded uncertainty U = k u_c
+    k: float | None
+
+
+def coefficient_rows(r: Reduced) -> list[CoefficientRow]:
+    """Rows of one identification in the identification's key order."""
+    ident = r.identification
+    budget = (r.stored or {}).get("uncertainty") or {}
+    sys_u, expanded = budget.get("systematic") or {}, budget.get("expanded") or {}
+    rows = []
+    for key, value in ident.coefficients.items():
+        ci = ident.confidence_95.get(key)
+        rows.append(CoefficientRow(
+            key, value, ident.std_errors.get(key), None if ci is None else (float(ci[0]), float(ci[1])),
+            sys_u.get(key), expanded.get(key), budget.get("k") if expanded else None,
+        ))  # fmt: skip
+    return rows
+
+
+def has_budget(results: list[Reduced]) -> bool:
+    """True when any of `results` was stored with its systematic budget."""
+    return any((r.stored or {}).get("uncertainty") for r in results)
+
+
+def warnings_of(r: Reduced) -> list[str]:
+    """The identification's warnings: the repeated fit's, and the stored ones it does not repeat."""
+    out = list(r.identification.warnings) if r.identification is not None else []
+    out += [w for w in (r.stored or {}).get("warnings") or [] if w not in out]
+    return out
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Model adequacy of one frequency-dependent fit against the constant fit of its model."""
+
+    lms: str
+    dependent: Reduced
+    adequacy: Adequacy | None
+    error: str | None = None
+
+    @property
+    def text(self) -> str:
+        return self.adequacy.verdict if self.adequacy is not None else f"adequacy not tested: {self.error}"
+
+
+def adequacy_verdicts(lms: str, results: list[Reduced]) -> list[Verdict]:
+    """Every frequency-dependent fit of `results` tested against the constant fit of the same
+    model and method (repeated here when the run did not ask for it)."""
+    out = []
+    for dep in (r for r in results if r.freq_dep != "none"):
+        const = next((r for r in results if (r.model, r.method, r.freq_dep) == (dep.model, dep.method, "none")),
+                     None)  # fmt: skip
+        if const is None:
+            const = identify_point(dep.point, lms, dep.model, "none", dep.method)
+        if const.identification is None:
+            out.append(Verdict(lms, dep, None, f"the constant {dep.model} was refused: {const.error}"))
+            continue
+        try:
+            out.append(Verdict(lms, dep, frequency_dependence(const.identification, dep.identification)))
+        except ReductionError as err:
+            out.append(Verdict(lms, dep, None, str(err)))
+    return out
+
+
+def lms_normalised_difference(a: Reduced, b: Reduced) -> dict[str, float | None] | None:
+    """E_n = (a - b) / u(a - b) of each coefficient of one model identified from two load
+    measuring systems (statistical uncertainties only: the run states no calibration budget
+    the report could use); None when the two fits are not of one model."""
+    try:
+        return lms_consistency(a.identification, a.point.tables[a.lms], b.identification, b.point.tables[b.lms],
+                               Calibration(), Calibration())  # fmt: skip
+    except (ReductionError, KeyError):
+        return None
+
+
+def orbit_grid(orbit: np.ndarray, n: int = 120) -> np.ndarray:
+    """Omega grid (rad/s, > 0) over the tested range of |Omega|."""
+    w = np.abs(np.asarray(orbit, dtype=float))
+    w = w[np.isfinite(w) & (w > 0)]
+    return np.linspace(w.min(), w.max(), n) if w.size else np.array([])
+
+
+def derived_of(r: Reduced, orbit: np.ndarray) -> Derived | None:
+    """C_eff, H forward/backward and WFR of one identification over the tested Omega range
+    (statistical covariance); None when it cannot be formed (e.g. no orbit)."""
+    grid = orbit_grid(orbit)
+    if grid.size == 0:
+        return None
+    try:
+        return derived_quantities(r.identification, grid, r.point.settings.spin)
+    except ReductionError:
+        return None
+
+
+@dataclass(frozen=True)
+class TrueImpedance:
+    """The simulator's impedance at the tested frequencies: ``orbit`` |Omega| rad/s (n,),
+    ``z`` (n, 2, 2) complex N/m; ``exact`` when the run stored the true Z itself, else it is
+    K + i|Omega| C - Omega^2 D of the stored truth rows (the simulator's reference fit)."""
+
+    orbit: np.ndarray
+    z: np.ndarray
+    exact: bool
+
+    @property
+    def label(self) -> str:
+        return "true Z (simulator)" if self.exact else "simulator's K, C, D (reference fit)"
+
+
+def true_impedance(truth: dict | None) -> TrueImpedance | None:
+    """The stored true Z per frequency (``Z_re``/``Z_im``), else Z of the stored truth K, C, D rows."""
+    if not truth or not truth.get("orbit"):
+        return None
+    w = np.abs(np.asarray(truth["orbit"], dtype=float))
+    exact = truth.get("Z_re") is not None and truth.get("Z_im") is not None
+    if exact:
+        z = np.asarray(truth["Z_re"], dtype=float) + 1j * np.asarray(truth["Z_im"], dtype=float)
+    elif all(truth.get(m) is not None for m in "KCD"):
+        k, c, d = (np.asarray(truth[m], dtype=float) for m in "KCD")
+        z = k + 1j * w[:, None, None] * c - (w**2)[:, None, None] * d
+    else:
+        return None
+    if z.shape != (w.size, 2, 2):
+        return None
+    return TrueImpedance(w, z, exact)

@@ -1,0 +1,165 @@
+"""HTML tables of one load measuring system's identifications for ``index.html``.
+
+Per identification: every coefficient with its value, statistical standard uncertainty,
+Student-t 95 % interval, systematic (type B) standard uncertainty and combined expanded
+uncertainty (k = 2) where the run stored its budget, the simulator's true value; the fit's
+quality (frequencies, degrees of freedom, condition number, residual, chi2 and p, AIC, BIC,
+force errors); its warnings and notes. Then the model-adequacy verdicts and the derived
+quantities (whirl frequency ratio, zero crossings of the effective damping).
+Display units: MN/m, kN s/m, kg (coefficient_unit); frequencies in Hz and Omega/omega.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+
+import numpy as np
+
+from orbitrig.analysis.quality import Verdict, coefficient_rows, has_budget, warnings_of
+from orbitrig.analysis.reduce import Reduced, coefficient_unit
+
+DERIVED_K = 2.0  # derived quantities are given +- two standard uncertainties
+
+
+def fmt(value, digits: int = 4) -> str:
+    """A number for the page, '-' for None / NaN / inf."""
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "-"
+    return f"{value:.{digits}g}"
+
+
+def _e(text) -> str:
+    return html.escape(str(text))
+
+
+def _max_fit(ident, what: str) -> float | None:
+    """Largest |reproduced - measured| over frequencies and both forces (``fx_<what>``, ``fy_<what>``)."""
+    values = [abs(row[k]) for row in ident.fit for k in (f"fx_{what}", f"fy_{what}") if row.get(k) is not None]
+    return max(values) if values else None
+
+
+def _quality(ident) -> list[tuple[str, str]]:
+    chi2 = "-" if ident.chi2 is None else f"{fmt(ident.chi2, 4)} (p = {fmt(ident.p_value, 3)})"
+    return [
+        ("frequencies used", str(ident.n_frequencies)),
+        ("degrees of freedom 4n - p", str(ident.dof)),
+        ("condition number", fmt(ident.condition_number, 3)),
+        ("residual RMS [N]", fmt(ident.residual_rms, 3)),
+        ("\u03c7\u00b2 (known noise u_*)", chi2),
+        ("AIC / BIC (lower is better)", f"{fmt(ident.aic, 5)} / {fmt(ident.bic, 5)}"),
+        ("max force amplitude error [%]", fmt(_max_fit(ident, "amp_err_pct"), 3)),
+        ("max force phase error [deg]", fmt(_max_fit(ident, "phase_err_deg"), 3)),
+    ]
+
+
+def identification_table(r: Reduced, truth: dict[str, float], label: str, with_budget: bool) -> str:
+    """One identification: coefficients with their uncertainties, quality rows, warnings, notes."""
+    rows = coefficient_rows(r)
+    k = next((row.k for row in rows if row.k is not None), 2.0)
+    head = ['<th class="l">coefficient</th>', '<th class="l">unit</th>', "<th>value</th>",
+            "<th>std error<br>(statistical)</th>", "<th>95 % interval<br>(Student t)</th>"]  # fmt: skip
+    if with_budget:
+        head += ["<th>systematic u<br>(calibration)</th>", f"<th>expanded U<br>(combined, k = {k:g})</th>"]
+    if truth:
+        head.append("<th>true (simulator)</th>")
+    body = []
+    for row in rows:
+        unit, scale = coefficient_unit(row.key)
+        ci = "-" if row.interval is None else f"[{fmt(row.interval[0] * scale)}, {fmt(row.interval[1] * scale)}]"
+        cells = [fmt(row.value * scale), fmt(None if row.std is None else row.std * scale, 2), ci]
+        if with_budget:
+            cells += [fmt(None if row.systematic is None else row.systematic * scale, 2),
+                      fmt(None if row.expanded is None else row.expanded * scale, 2)]  # fmt: skip
+        if truth:
+            t = truth.get(row.key)
+            cells.append(fmt(t * scale) if t is not None else "-")
+        body.append(f'<tr><th class="l">{_e(row.key)}</th><td class="l">{_e(unit)}</td>'
+                    + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")  # fmt: skip
+    span = len(head) - 1
+    body += [f'<tr><th class="l">{_e(name)}</th><td colspan="{span}" class="l">{value}</td></tr>'
+             for name, value in _quality(r.identification)]  # fmt: skip
+    out = [f"<h4>{_e(label)} ({_e(r.method)})</h4>", f"<table><tr>{''.join(head)}</tr>{''.join(body)}</table>"]
+    warnings = warnings_of(r)
+    if warnings:
+        out.append('<ul class="warn">' + "".join(f"<li>warning: {_e(w)}</li>" for w in warnings) + "</ul>")
+    if r.identification.notes:
+        out.append('<ul class="muted">' + "".join(f"<li>{_e(n)}</li>" for n in r.identification.notes) + "</ul>")
+    return "\n".join(out)
+
+
+def lms_tables(results: list[Reduced], truth: dict[str, float], labels: list[str]) -> str:
+    """Every identification of one load measuring system; budget columns when the run stored any;
+    a note when it did not."""
+    with_budget = has_budget(results)
+    out = [identification_table(r, truth, label, with_budget) for r, label in zip(results, labels)]
+    if results and not with_budget:
+        out.append('<p class="muted">Systematic (calibration) uncertainty: not stored in this run; '
+                   "the uncertainties above are statistical only.</p>")  # fmt: skip
+    return "\n".join(out)
+
+
+def verdict_list(verdicts: list[Verdict], labels: dict[int, str]) -> str:
+    """Model adequacy: 'frequency dependence supported: yes/no (p = ...)' per frequency-dependent
+    fit, with the test and the AIC/BIC of the constant and the dependent fit."""
+    if not verdicts:
+        return '<p class="muted">No frequency-dependent model identified: no adequacy test.</p>'
+    items = []
+    for v in verdicts:
+        a = v.adequacy
+        extra = "" if a is None else (
+            f" \u2014 {_e(a.test)} test, dof {a.dof[0]}/{a.dof[1]}; AIC {fmt(a.aic[0], 5)} (constant) vs "
+            f"{fmt(a.aic[1], 5)}; BIC {fmt(a.bic[0], 5)} vs {fmt(a.bic[1], 5)}")  # fmt: skip
+        items.append(f"<li><b>{_e(labels.get(id(v.dependent), v.dependent.model))}</b>: {_e(v.text)}{extra}</li>")
+    return f'<ul class="verdict">{"".join(items)}</ul>'
+
+
+def derived_table(derived: list[tuple[Reduced, object]], labels: dict[int, str], spin: float) -> str:
+    """WFR at the lowest and highest tested Omega and the zero crossings of C_eff, +- 2 std."""
+    if not derived:
+        return ""
+
+    def pm(value, std, scale=1.0, digits=4) -> str:
+        s = "" if std is None or not np.isfinite(std) else f" \u00b1 {fmt(DERIVED_K * std * scale, 2)}"
+        return f"{fmt(value * scale, digits)}{s}"
+
+    def zero(z) -> str:
+        if z is None:
+            return "none in the tested range"
+        hz = 1 / (2 * np.pi)
+        return f"{pm(z[0], z[1], hz)} Hz (\u03a9/\u03c9 = {fmt(z[0] / spin, 3)})"
+
+    rows = []
+    for r, d in derived:
+        wfr_std = d.wfr_std if d.wfr_std is not None else [None] * len(d.wfr)
+        rows.append(
+            f'<tr><td class="l">{_e(labels.get(id(r), r.model))}</td><td>{pm(d.wfr[0], wfr_std[0])}</td>'
+            f"<td>{pm(d.wfr[-1], wfr_std[-1])}</td><td>{zero(d.c_eff_zero_xx)}</td><td>{zero(d.c_eff_zero_yy)}</td></tr>")
+    lo, hi = derived[0][1].orbit[[0, -1]] / (2 * np.pi)
+    head = (f'<tr><th class="l">identification</th><th>WFR at {fmt(lo, 3)} Hz</th><th>WFR at {fmt(hi, 3)} Hz</th>'
+            "<th>C<sub>eff,xx</sub> = Cxx - Kxy/\u03a9 = 0 at</th><th>C<sub>eff,yy</sub> = Cyy + Kyx/\u03a9 = 0 at</th></tr>")
+    return (f"<table>{head}{''.join(rows)}</table>"
+            '<p class="muted">\u00b1 two standard uncertainties (statistical, linearised for WFR and '
+            "the zero crossings).</p>")  # fmt: skip
+
+
+def consistency_table(a: Reduced, b: Reduced, en: dict[str, float | None], label: str) -> str:
+    """The two load measuring systems' coefficients of one model side by side with their
+    relative difference and the normalised difference E_n (|E_n| > 2 marked)."""
+    rows = []
+    for key, va in a.identification.coefficients.items():
+        vb = b.identification.coefficients.get(key)
+        unit, scale = coefficient_unit(key)
+        rel = "-" if vb is None or va == 0 else f"{100 * (vb - va) / abs(va):+.2f}"
+        e = en.get(key)
+        cell = "-" if e is None else f"{e:+.2f}"
+        cls = ' class="err"' if e is not None and abs(e) > 2 else ""
+        rows.append(f'<tr><th class="l">{_e(key)}</th><td class="l">{_e(unit)}</td><td>{fmt(va * scale)}</td>'
+                    f"<td>{fmt(None if vb is None else vb * scale)}</td><td>{rel}</td><td{cls}>{cell}</td></tr>")
+    head = (f'<tr><th class="l">{_e(label)}</th><th class="l">unit</th><th>{_e(a.lms)}</th><th>{_e(b.lms)}</th>'
+            f"<th>({_e(b.lms)} - {_e(a.lms)}) / |{_e(a.lms)}| [%]</th><th>E<sub>n</sub></th></tr>")
+    return (f"<h4>Two load measuring systems: consistency</h4><table>{head}{''.join(rows)}</table>"
+            f'<p class="muted">E<sub>n</sub> = (a - b) / u(a - b), a = {_e(a.lms)}, b = {_e(b.lms)}, with the '
+            "statistical uncertainties of both fits "
+            "(no calibration budget stored); |E<sub>n</sub>| &gt; 2: the systems disagree beyond their "
+            "uncertainty.</p>")

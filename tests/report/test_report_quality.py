@@ -1,0 +1,233 @@
+"""The report's coherence table, truth markers, derived quantities, impedance against the
+truth, and the identify-v2 items of the page (intervals, budget, adequacy, warnings), checked
+for content: the drawn data and the rendered pixels against the stored numbers and the
+synthetic truth."""
+
+from __future__ import annotations
+
+import copy
+import re
+
+import numpy as np
+import pytest
+from matplotlib.colors import to_rgb
+
+from orbitrig.analysis.plots import Fitted, keep_inside
+from orbitrig.analysis.plots_coefficients import coefficients_figure
+from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_figure, coherence_table
+from orbitrig.analysis.plots_derived import derived_figure, impedance_figure
+from orbitrig.analysis.quality import adequacy_verdicts, derived_of, true_impedance
+from orbitrig.analysis.report import analyse_point, fit_label
+from orbitrig.analysis.report_tables import identification_table, verdict_list
+from orbitrig.store.reader import read_run
+from report_synthetic import C_TRUE, D_TRUE, K_TRUE
+
+
+@pytest.fixture(scope="module")
+def point_report(synthetic_run):
+    return analyse_point(read_run(synthetic_run).points[1])
+
+
+def _pixel(fig, ax, x, y) -> tuple[float, float, float]:
+    """RGB (0..1) of the rendered figure at data point (x, y) of `ax`."""
+    fig.canvas.draw()
+    rgba = np.asarray(fig.canvas.buffer_rgba())
+    px, py = ax.transData.transform((x, y))
+    return tuple(rgba[int(round(rgba.shape[0] - py)), int(round(px)), :3] / 255.0)
+
+
+def test_coherence_is_a_coloured_table_of_the_stored_values(point_report):
+    point = point_report.point
+    table = coherence_table(point.tables)
+    assert table.lms == ["piezo", "strain"] and table.values.shape == (20, 8)
+    assert table.rows[0] == "0.200 fwd" and table.rows[-1] == "1.200 bwd"
+    piezo = point.tables["piezo"]
+    first_bwd = int(np.flatnonzero((piezo.orbit / piezo.spin > 0.19) & (piezo.orbit / piezo.spin < 0.21)
+                                   & (np.imag(np.conj(piezo.x) * piezo.y) > 0))[0])  # fmt: skip
+    np.testing.assert_array_equal(table.values[10, :4], piezo.gamma2[first_bwd])
+    fig = coherence_figure(table, title="t")
+    ax = fig.axes[0]
+    texts = [t.get_text() for t in ax.texts]
+    assert texts == [f"{v:.3f}" for v in table.values.ravel()]
+    # the rendered cell colour (left of the number) is its band's colour
+    for r, c in ((0, 0), (7, 5), (19, 3), (12, 7)):
+        got = _pixel(fig, ax, c - 0.4, r)
+        assert np.allclose(got, to_rgb(band_colour(table.values[r, c])), atol=0.02), (r, c, got)
+
+
+def test_band_colours():
+    assert band_colour(0.995) == BANDS[0][1] and band_colour(0.96) == BANDS[1][1]
+    assert band_colour(0.91) == BANDS[2][1] and band_colour(0.5) == BANDS[3][1]
+    assert band_colour(float("nan")) == "#cccccc"
+    assert band_colour(0.9896) == BANDS[0][1]  # reads 0.990: coloured as it reads
+
+
+def test_truth_markers_stay_inside_the_axes_even_far_from_the_fit(point_report):
+    point = point_report.point
+    r = point_report.results["piezo"][1]
+    truth = copy.deepcopy(point.truth)
+    truth["K"] = (np.asarray(truth["K"]) * 3).tolist()  # far outside what the fit draws
+    t = point.tables["piezo"]
+    fig = coefficients_figure([Fitted(fit_label(r), r.identification)], spin=t.spin, orbit=t.orbit, truth=truth,
+                              title="t")  # fmt: skip
+    crosses = 0
+    for ax in fig.axes:
+        for line in ax.get_lines():
+            if line.get_label() != "true (simulator)":
+                continue
+            (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+            x, y = np.asarray(line.get_xdata()), np.asarray(line.get_ydata())
+            assert np.all((x > x0) & (x < x1) & (y > y0) & (y < y1)), ax.get_title()
+            crosses += x.size
+    assert crosses == 12 * 20  # K, C, D entries at 20 orbit frequencies
+
+
+def test_keep_inside_widens_only_when_needed():
+    from orbitrig.analysis.plots import _figure
+
+    ax = _figure(3, 3).add_subplot()
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1)
+    keep_inside(ax, [0.5], [0.5])
+    assert ax.get_xlim() == (0, 1) and ax.get_ylim() == (0, 1)
+    keep_inside(ax, [2.0], [-1.0])
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    assert x0 == 0 and x1 > 2.0 and y0 < -1.0 and y1 == 1
+
+
+def test_derived_quantities_drawn_and_near_the_hand_values(point_report):
+    """Constant true coefficients: C_eff,xx = Cxx - Kxy/Omega is zero at Kxy/Cxx, C_eff,yy at -Kyx/Cyy."""
+    t = point_report.point.tables["piezo"]
+    r = next(r for r in point_report.results["piezo"] if (r.model, r.freq_dep) == ("kcd11", "none"))
+    d = derived_of(r, t.orbit)
+    w0_xx, w0_yy = K_TRUE[0, 1] / C_TRUE[0, 0], -K_TRUE[1, 0] / C_TRUE[1, 1]
+    assert d.c_eff_zero_xx[0] == pytest.approx(w0_xx, rel=0.02)
+    assert d.c_eff_zero_yy[0] == pytest.approx(w0_yy, rel=0.02)
+    fig = derived_figure([(fit_label(r), d)], spin=t.spin, title="t")
+    ceff_xx, _, wfr = fig.axes[:3]
+    np.testing.assert_allclose(ceff_xx.get_lines()[0].get_ydata(), d.c_eff_xx * 1e-3)
+    np.testing.assert_allclose(ceff_xx.get_lines()[0].get_xdata(), d.orbit / t.spin)
+    hz = float(re.search(r"zero at ([\d.]+) \u00b1", ceff_xx.get_title()).group(1))
+    assert hz == pytest.approx(w0_xx / (2 * np.pi), rel=0.02)
+    wfr_true = (K_TRUE[0, 1] - K_TRUE[1, 0]) / (t.spin * (C_TRUE[0, 0] + C_TRUE[1, 1]))
+    assert wfr.get_lines()[0].get_ydata() == pytest.approx(wfr_true, rel=0.02)
+    re_h = fig.axes[3].get_lines()[0].get_ydata() * 1e6  # forward H, N/m
+    z = K_TRUE[None] + 1j * d.orbit[:, None, None] * C_TRUE - d.orbit[:, None, None] ** 2 * D_TRUE
+    h_true = (z[:, 0, 0] + z[:, 1, 1]) / 2 + 1j * (z[:, 1, 0] - z[:, 0, 1]) / 2
+    np.testing.assert_allclose(re_h, h_true.real, rtol=0.01)
+
+
+def test_impedance_against_the_stored_true_z(point_report):
+    point, t = point_report.point, point_report.point.tables["piezo"]
+    fitted = [Fitted(fit_label(r), r.identification) for r in point_report.results["piezo"]]
+    reference = true_impedance(point.truth)  # from the truth's K, C, D rows
+    w = reference.orbit
+    expect = K_TRUE[None] + 1j * w[:, None, None] * C_TRUE - w[:, None, None] ** 2 * D_TRUE
+    np.testing.assert_allclose(reference.z, expect)
+    assert not reference.exact and reference.label == "simulator's K, C, D (reference fit)"
+    stored = dict(point.truth, Z_re=(expect.real * 1.1).tolist(), Z_im=expect.imag.tolist())
+    true = true_impedance(stored)  # a stored true Z per frequency wins
+    assert true.exact and true.label == "true Z (simulator)"
+    z2 = true.z
+    np.testing.assert_allclose(z2.real, expect.real * 1.1)
+    fig = impedance_figure(fitted, true, spin=t.spin, orbit=t.orbit, title="t")
+    re_xy = fig.axes[1]
+    cross = next(ln for ln in re_xy.get_lines() if ln.get_label() == "true Z (simulator)")
+    np.testing.assert_allclose(cross.get_ydata(), z2[:, 0, 1].real * 1e-6)
+    model = re_xy.get_lines()[0]
+    grid = model.get_xdata() * t.spin
+    np.testing.assert_allclose(model.get_ydata(), fitted[0].identification.impedance(grid)[:, 0, 1].real * 1e-6)
+    (y0, y1) = re_xy.get_ylim()
+    assert np.all((cross.get_ydata() > y0) & (cross.get_ydata() < y1))
+
+
+def test_adequacy_verdict_for_constant_truth(point_report):
+    verdicts = adequacy_verdicts("piezo", point_report.results["piezo"])
+    assert [(v.dependent.model, v.dependent.freq_dep) for v in verdicts] == [("kcd11", "power:1")]
+    v = verdicts[0]
+    assert v.adequacy.test == "F" and not v.adequacy.supported  # the synthetic truth is constant
+    assert v.text == f"frequency dependence supported: no (p = {v.adequacy.p_value:.3g})"
+    html = verdict_list(verdicts, {id(v.dependent): "kcd11 power:1 (22 coef.)"})
+    assert "kcd11 power:1 (22 coef.)</b>: frequency dependence supported: no (p = " in html
+    assert f"AIC {v.adequacy.aic[0]:.5g} (constant)" in html
+
+
+def test_identification_table_shows_interval_budget_warnings(point_report):
+    r = copy.copy(next(r for r in point_report.results["piezo"] if r.freq_dep == "none" and r.model == "kcd11"))
+    ident = r.identification
+    html = identification_table(r, {}, "kcd11", with_budget=False)
+    lo, hi = ident.confidence_95["Kxy"]
+    assert f"[{lo * 1e-6:.4g}, {hi * 1e-6:.4g}]" in html
+    assert f"{ident.aic:.5g} / {ident.bic:.5g}" in html and f"<td colspan=\"4\" class=\"l\">{ident.dof}</td>" in html
+    r.stored = dict(r.stored or {}, warnings=["Cxy is ill-conditioned"],
+                    uncertainty={"k": 2.0, "systematic": {"Kxy": 12345.0}, "expanded": {"Kxy": 67890.0}})
+    html = identification_table(r, {}, "kcd11", with_budget=True)
+    assert "warning: Cxy is ill-conditioned" in html
+    assert "expanded U<br>(combined, k = 2)" in html
+    assert f"<td>{12345.0 * 1e-6:.2g}</td><td>{67890.0 * 1e-6:.2g}</td>" in html
+
+
+def test_page_shows_verdict_beside_figure_5_and_derived_table(synthetic_run, synthetic_report):
+    assert synthetic_report.exit_code == 0, synthetic_report.output
+    html = (synthetic_run / "plots" / "index.html").read_text(encoding="utf-8")
+    side = re.search(r'<div class="side">(.*?)</div></div>', html, re.S).group(1)
+    assert 'src="forces_0001_piezo.png"' in side and "frequency dependence supported: no (p = " in side
+    assert "WFR at 3.33 Hz" in html and "C<sub>eff,xx</sub> = Cxx - Kxy/\u03a9 = 0 at" in html
+    assert "95 % interval" in html and "AIC / BIC" in html
+    assert "Systematic (calibration) uncertainty: not stored in this run" in html
+
+
+def test_fit_warnings_name_point_model_and_text(synthetic_run):
+    pr = analyse_point(read_run(synthetic_run).points[0])
+    r = pr.results["piezo"][0]
+    r.stored = dict(r.stored or {}, warnings=["ill-conditioned: Kxy, Cxx poorly determined"])
+    lines = pr.fit_warnings()
+    assert f"piezo {r.model} {r.freq_dep} warns: ill-conditioned: Kxy, Cxx poorly determined" in lines
+    assert any(line.startswith("piezo kcd12 poly:8 refused: ") for line in lines)
+
+
+def test_lms_consistency_table_shows_the_normalised_difference(point_report):
+    """The strain gauges read 1.8 % high (synthetic): the K entries differ by about 1.8 %, and
+    E_n = (piezo - strain) / u is negative and large where the statistical uncertainty is small."""
+    from orbitrig.analysis.quality import lms_normalised_difference
+    from orbitrig.analysis.report import preferred
+    from orbitrig.analysis.report_tables import consistency_table
+
+    found = preferred(point_report)
+    a, b = found["piezo"], found["strain"]
+    en = lms_normalised_difference(a, b)
+    ka, kb = a.identification.coefficients["Kxx"], b.identification.coefficients["Kxx"]
+    assert 100 * (kb - ka) / ka == pytest.approx(1.8, abs=0.3)
+    u = np.hypot(a.identification.std_errors["Kxx"], b.identification.std_errors["Kxx"])
+    assert en["Kxx"] == pytest.approx((ka - kb) / u, rel=1e-6) and en["Kxx"] < -2
+    html = consistency_table(a, b, en, "kcd11 (11 coef.)")
+    assert f'<td class="err">{en["Kxx"]:+.2f}</td>' in html
+    assert f"<td>{100 * (kb - ka) / abs(ka):+.2f}</td>" in html
+
+
+def test_figure_5_error_bars_from_the_phasor_uncertainty(point_report, monkeypatch):
+    """With u_* in the table the measured forces carry +-2 standard uncertainties: amplitude
+    2 u / sqrt(2), phase 2 u / (sqrt(2) |F|) (an isotropic complex error); without, none."""
+    from matplotlib.container import ErrorbarContainer
+
+    from orbitrig.analysis import plots
+    from reduction.table import OrbitTable
+
+    t = point_report.point.tables["piezo"]
+    u = np.column_stack([np.full(t.orbit.size, 1e-8)] * 2 + [0.01 * np.abs(t.fx), 0.02 * np.abs(t.fy)])
+    with_u = OrbitTable(t.spin, t.orbit, t.x, t.y, t.fx, t.fy, gamma2=t.gamma2, n_records=np.full(t.orbit.size, 8), u=u)
+    figs = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: figs.append(fig) or path)
+    fitted = [Fitted("kc7", point_report.results["piezo"][0].identification)]
+    plots.forces_plot("unused.png", t, fitted, title="t")
+    plots.forces_plot("unused.png", with_u, fitted, title="t")
+    assert not any(isinstance(c, ErrorbarContainer) for ax in figs[0].axes for c in ax.containers)
+    amp_fy, phase_fy = figs[1].axes[1], figs[1].axes[3]
+    half = []
+    for ax in (amp_fy, phase_fy):
+        bars = [c for c in ax.containers if isinstance(c, ErrorbarContainer)]
+        assert len(bars) == 2  # forward and backward
+        half.append(np.concatenate([[abs(s[1][1] - s[0][1]) / 2 for s in c.lines[2][0].get_segments()] for c in bars]))
+    # u_fy = 0.02 |Fy|: amplitude bars 2 * 0.02 |Fy| / sqrt(2), phase bars 2 * 0.02 / sqrt(2) rad
+    assert np.sort(half[0]) == pytest.approx(np.sort(2 * 0.02 * np.abs(t.fy) / np.sqrt(2)))
+    assert half[1] == pytest.approx(np.degrees(2 * 0.02 / np.sqrt(2)))
