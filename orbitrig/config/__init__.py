@@ -7,7 +7,7 @@ must be finite and within its range. A bad file raises
 file, the line, the key path and what is allowed; so does a file that is not
 UTF-8 text.
 
-The models live in ``rig`` and ``matrix``, the field types in ``fields``, the
+The models live in ``rig``, ``calibration`` and ``matrix``, the field types in ``fields``, the
 error wording in ``messages``; everything is importable from here.
 """
 
@@ -18,6 +18,7 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
+from orbitrig.config.calibration import CalibrationUncertainty, ChannelUncertainty  # noqa: F401
 from orbitrig.config.fields import (  # noqa: F401 - the package's public names
     CHANNEL_NAMES, FREQ_DEP, LMS, MODELS, MPA, RPM, DeviceId, Mpa, NonNeg, Pos, Ratio, Rpm, Seconds, Wait,
 )

@@ -9,6 +9,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, PrivateAttr, model_validator
 
+from orbitrig.config.calibration import CalibrationUncertainty
 from orbitrig.config.fields import (
     CHANNEL_NAMES, RPM, DeviceId, Mpa, Ratio, Rpm, Seconds, Wait, _Model,
 )
@@ -144,6 +145,8 @@ class RigConfig(_Model):
     verify: Verify = Verify()
     interlocks: Interlocks = Interlocks()
     estimates: Estimates = Estimates()
+    # stated calibration uncertainty; None: not stated (no systematic budget)
+    calibration_uncertainty: CalibrationUncertainty | None = None
 
     _file: str = PrivateAttr("<rig config>")
     _text: str = PrivateAttr("")

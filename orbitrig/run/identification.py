@@ -13,13 +13,15 @@ import math
 
 import numpy as np
 
-from orbitrig.config import LMS, RigConfig
+from orbitrig.config import LMS, CalibrationUncertainty, RigConfig
 from orbitrig.run.plan import Block, OperatingPoint
+from orbitrig.run.point_analysis import analyse_point
 from daq.averager import AveragedBlock
 from orbitrig.run.rig_io import TruthSource
 from orbitrig.store.writer import BlockRecord, PointResults
 from reduction.coherence import orbit_coherences
 from reduction.errors import ReductionError
+from reduction.noise import phasor_uncertainty
 from reduction.identify import identify
 from reduction.table import OrbitTable
 
@@ -49,34 +51,52 @@ def block_record(block: Block, blk: AveragedBlock, rig: RigConfig) -> BlockRecor
 
 
 def identify_operating_point(spin: float, recs: list[BlockRecord], ch: dict[str, int], models,
-                             truth: dict | None = None) -> PointResults:  # fmt: skip
+                             truth: dict | None = None,
+                             calibration: CalibrationUncertainty | None = None) -> PointResults:  # fmt: skip
     """One operating point's results: the orbit table of each load measuring system (forward
     and backward blocks together), every model of ``models`` (ModelSpec) identified on each
-    (a refused model keeps its reason), and the two systems compared."""
+    (a refused model keeps its reason), each fit judged (orbitrig.run.point_analysis: the
+    uncertainty budget from the rig's stated ``calibration`` uncertainty, model adequacy, the
+    two systems' consistency, derived quantities), and the two systems' forces compared."""
     recs = sorted(recs, key=lambda r: (r.block.freq, -r.block.direction))
     tables = {lms: orbit_table(spin, recs, ch, lms) for lms in LMS}
-    idents = {}
+    idents, fits = {}, {}
     for lms in LMS:
         for spec in models:
             try:
                 res = identify(tables[lms], model=spec.model, freq_dep=spec.freq_dep, method=spec.method)
-                idents[(lms, spec.key)] = {"spec": spec, "json": res.to_dict()}
             except ReductionError as err:
                 idents[(lms, spec.key)] = {"spec": spec, "error": str(err)}
+                continue
+            fits[(lms, spec.key)] = res
+            idents[(lms, spec.key)] = {"spec": spec, "json": res.to_dict()}
+    grid = np.unique([abs(r.block.orbit) for r in recs])  # the planned orbit frequencies, rad/s
+    analyse_point(spin, tables, fits, idents, calibration, grid)
     return PointResults(tables, idents, lms_comparison(recs, ch), truth)
 
 
 def orbit_table(spin: float, recs: list[BlockRecord], ch: dict[str, int], lms: str) -> OrbitTable:
-    """Orbit table of one point for one load measuring system (Omega > 0, direction in the phasors)."""
+    """Orbit table of one point for one load measuring system (Omega > 0, direction in the phasors),
+    with each row's revolution count and the standard uncertainty of its phasors (the scatter of
+    the per-revolution phasors; x, y the per-revolution probe-plane means)."""
     ph = np.array([r.phasors for r in recs])
     orbit = np.array([r.measured_orbit_speed if math.isfinite(r.measured_orbit_speed) and r.measured_orbit_speed > 0
                       else abs(r.block.orbit) for r in recs])  # fmt: skip
     i = LMS.index(lms)
     x, y = probe_plane(ph, ch)
-    n = np.array([r.n_records if r.n_records is not None else len(r.raw_counts) for r in recs])
-    n = n if np.all(n >= 1) else None  # records without revolutions (synthetic) leave it out
+    n_records = np.array([len(r.record_phasors) for r in recs])
+    u = np.array([row_uncertainty(r.record_phasors, ch, lms) for r in recs])
     return OrbitTable(spin=spin, orbit=orbit, x=x, y=y, fx=ph[:, ch[f"fx_{lms}"]], fy=ph[:, ch[f"fy_{lms}"]],
-                      gamma2=np.array([r.coherence[i] for r in recs]), n_records=n)  # fmt: skip
+                      gamma2=np.array([r.coherence[i] for r in recs]), n_records=n_records,
+                      u=u if np.all(np.isfinite(u)) else None)  # fmt: skip
+
+
+def row_uncertainty(record_phasors: np.ndarray, ch: dict[str, int], lms: str) -> np.ndarray:
+    """(u_x, u_y, u_fx, u_fy) of one block (m, m, N, N): inf with a single revolution."""
+    rp = np.asarray(record_phasors)
+    x, y = probe_plane(rp, ch)
+    per_rev = np.stack([x, y, rp[:, ch[f"fx_{lms}"]], rp[:, ch[f"fy_{lms}"]]], axis=1)
+    return phasor_uncertainty(per_rev, axis=0)
 
 
 def lms_comparison(recs: list[BlockRecord], ch: dict[str, int]) -> dict:
@@ -108,23 +128,3 @@ def point_truth(p: OperatingPoint, recs: list[BlockRecord], source: TruthSource)
     for k in "KCD":
         out[f"{k}0"] = np.asarray(t0[k], dtype=float).tolist()
     return out
-
-
-def result_payload(run_id: str | None, p: OperatingPoint, res: PointResults) -> dict:
-    """The point's results as published (MQTT result topic, terminal)."""
-    rows = []
-    for (lms, _), e in res.identifications.items():
-        spec = e["spec"]
-        row = {"lms": lms, "model": spec.model, "freq_dep": spec.freq_dep, "method": spec.method}
-        if "json" in e:
-            j = e["json"]
-            row.update(coefficients=j["coefficients"], std_errors=j["std_errors"],
-                       condition_number=j["condition_number"], residual_rms=j["residual_rms"])  # fmt: skip
-        else:
-            row["error"] = e["error"]
-        rows.append(row)
-    out = {"run_id": run_id, **p.settings(), "identification": rows, "lms_comparison": res.lms_comparison}
-    if res.truth is not None:
-        out["truth"] = {k: res.truth[k] for k in ("K0", "C0", "D0")}
-    return out
-

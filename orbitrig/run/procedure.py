@@ -22,7 +22,8 @@ from orbitrig.config import RPM, RigConfig
 from orbitrig.run.background import Background
 from orbitrig.run.control import RunControl, StopRun, Suspended
 from orbitrig.run.events import ResultEvent, RunFailed
-from orbitrig.run.identification import block_record, identify_operating_point, point_truth, result_payload
+from orbitrig.run.identification import block_record, identify_operating_point, point_truth
+from orbitrig.run.point_report import point_log_lines, result_payload
 from orbitrig.run.plan import (
     Acquire, CompletePoint, Identify, OperatingPoint, SetManual, SetOrbit, SetSpin, Settle, Step, StopDrives,
     StoreBlock, VerifyGeometry, VerifyPressures,
@@ -268,8 +269,10 @@ class PointProcedure:
         async def results() -> PointResults:
             t0 = time.monotonic()
             res = await asyncio.to_thread(identify_operating_point, p.spin, recs, r.rig.channel_index,
-                                          step.models, truth)  # fmt: skip
+                                          step.models, truth, r.rig.calibration_uncertainty)  # fmt: skip
             self._add_time("identify", t0)
+            for line in point_log_lines(p, res):
+                r.store.log(line)
             await r.background.write(r.store.write_results, p.index, res)
             return res
 

@@ -15,7 +15,7 @@ BLOCK_OVERHEAD = 16_384  # HDF5 superblock, object headers, attributes of one bl
 RESULTS_OVERHEAD = 12_288  # results file: groups, truth and LMS comparison
 PER_TABLE = 2_048  # one load system's orbit table: headers
 PER_TABLE_ROW = 160  # orbit (2 x 8), 4 complex phasors (64), gamma2 (32), n_records, u (40)
-PER_IDENTIFICATION = 12_288  # one model on one table: JSON attribute, names, covariance, intervals
+PER_IDENTIFICATION = 20_480  # one model on one table: JSON, names, covariance, intervals, budget, derived groups
 POINT_FIXED = 8_192  # point.json, commit record, journal lines, the CSV rows
 N_LMS = 2
 

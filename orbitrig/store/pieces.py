@@ -152,3 +152,6 @@ def _write_identification(h: h5py.Group, entry: dict) -> None:
         put(h, "covariance", cov, "SI: product of the two coefficients' units", names=strings(free))
     for k in ("notes", "warnings"):
         h.create_dataset(k, data=strings(str(s) for s in d.get(k) or []))
+    from orbitrig.store.fit_analysis import write_fit_analysis  # it uses put/strings of this module
+
+    write_fit_analysis(h, d, names)

@@ -359,6 +359,10 @@ def write_matrices(folder: Path) -> Path:
     (folder / "long.toml").write_text(MATRIX.format(
         name="long", revs=60, ratios="[0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.2]",
         directions='["forward", "backward"]'))
+    # judged fits: a frequency-dependent model (adequacy) and one the data cannot identify (refused)
+    (folder / "judged.toml").write_text(MATRIX.format(
+        name="judged", revs=10, ratios="[0.3, 0.6, 0.9, 1.2]", directions='["forward", "backward"]')
+        + '\n[[models]]\nmodel = "kc7"\nfreq_dep = "power:1"\n\n[[models]]\nmodel = "kcd12"\nfreq_dep = "poly:4"\n')
     return folder
 
 

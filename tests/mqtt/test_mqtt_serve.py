@@ -79,7 +79,7 @@ BAD = [
     (b'{"cmd": "start", "id": "b4", "matrix": "quick", "spin_rpm": 9000}', "b4",
      "unexpected field 'spin_rpm' for command 'start'"),
     (b'{"cmd": "start", "id": "b5", "matrix": "../../etc/passwd"}', "b5", "not a path"),
-    (b'{"cmd": "start", "id": "b6", "matrix": "nope"}', "b6", "no matrix 'nope' in the matrix folder (available: long, quick)"),
+    (b'{"cmd": "start", "id": "b6", "matrix": "nope"}', "b6", "no matrix 'nope' in the matrix folder (available: judged, long, quick)"),
     (b'{"cmd": "confirm", "id": "b7", "step": 3}', "b7", "field 'step' must be a string, got number"),
     (b'{"cmd": "pause", "id": 8}', None, "field 'id' must be a string"),
     (b'{"cmd": "pause", "id": "b9"}', "b9", "no run is active: nothing to pause"),
@@ -185,6 +185,30 @@ def test_completed_run_publishes_one_result_per_point(rig, service):
     text = json.dumps(res)
     assert "Kxx" in text and "1000" in text  # identified coefficients and the point's settings
     assert run_status(service.work, run_id) == "completed"
+
+
+def test_result_carries_intervals_uncertainty_verdicts_and_refusals(rig, service):
+    mark = rig.watch.mark()
+    assert rig.command({"cmd": "start", "matrix": "judged"})["ok"] is True
+    rig.status("waiting", start=mark)
+    assert rig.command({"cmd": "confirm", "step": "manual:0000"})["ok"] is True
+    assert "completed" in rig.status("idle", start=mark, timeout=60)["message"]
+    (msg,) = rig.watch.on("result", mark)
+    res = msg.json()
+    rows = {(r["lms"], r["model"], r["freq_dep"]): r for r in res["identification"]}
+    fit = rows[("piezo", "kc7", "none")]
+    for key, (lo, hi) in fit["confidence_95"].items():
+        assert lo < fit["coefficients"][key] < hi
+    assert fit["uncertainty"]["k"] == 2.0 and fit["uncertainty"]["systematic"]["Kxx"] > 0
+    assert fit["uncertainty"]["expanded"]["Kxx"] > 2 * fit["std_errors"]["Kxx"]
+    assert isinstance(fit["warnings"], list) and isinstance(fit["notes"], list) and fit["chi2"] > 0
+    assert fit["lms_consistency"]["pair"] == "piezo - strain"
+    dep = rows[("strain", "kc7", "power:1")]
+    assert dep["adequacy"]["verdict"].startswith("frequency dependence supported: ")
+    assert {(a["lms"], a["freq_dep"]) for a in res["adequacy"]} == {("piezo", "power:1"), ("strain", "power:1")}
+    assert "too few orbit frequencies" in rows[("piezo", "kcd12", "poly:4")]["error"]
+    assert [(r["lms"], r["model"]) for r in res["refused"]] == [("piezo", "kcd12"), ("strain", "kcd12")]
+    assert isinstance(res["warnings"], list)
 
 
 # -- the broker and the service go away -----------------------------------------

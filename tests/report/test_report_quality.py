@@ -145,7 +145,8 @@ def test_adequacy_verdict_for_constant_truth(point_report):
     verdicts = adequacy_verdicts("piezo", point_report.results["piezo"])
     assert [(v.dependent.model, v.dependent.freq_dep) for v in verdicts] == [("kcd11", "power:1")]
     v = verdicts[0]
-    assert v.adequacy.test == "F" and not v.adequacy.supported  # the synthetic truth is constant
+    # the synthetic tables carry u_* (known noise): the likelihood-ratio test; the truth is constant
+    assert v.adequacy.test == "likelihood ratio" and not v.adequacy.supported
     assert v.text == f"frequency dependence supported: no (p = {v.adequacy.p_value:.3g})"
     html = verdict_list(verdicts, {id(v.dependent): "kcd11 power:1 (22 coef.)"})
     assert "kcd11 power:1 (22 coef.)</b>: frequency dependence supported: no (p = " in html
@@ -213,7 +214,8 @@ def test_figure_5_error_bars_from_the_phasor_uncertainty(point_report, monkeypat
     from orbitrig.analysis import plots
     from reduction.table import OrbitTable
 
-    t = point_report.point.tables["piezo"]
+    stored = point_report.point.tables["piezo"]
+    t = OrbitTable(stored.spin, stored.orbit, stored.x, stored.y, stored.fx, stored.fy, gamma2=stored.gamma2)
     u = np.column_stack([np.full(t.orbit.size, 1e-8)] * 2 + [0.01 * np.abs(t.fx), 0.02 * np.abs(t.fy)])
     with_u = OrbitTable(t.spin, t.orbit, t.x, t.y, t.fx, t.fy, gamma2=t.gamma2, n_records=np.full(t.orbit.size, 8), u=u)
     figs = []

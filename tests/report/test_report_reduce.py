@@ -127,9 +127,7 @@ def test_cli_reduce_partial_refusal_keeps_the_other_points(synthetic_run, tmp_pa
     with h5py.File(run / "run.h5", "r+") as f:  # point 1 keeps 2 of its 20 rows: too few for kcd11
         for lms in ("piezo", "strain"):
             t = f[f"points/0001/table/{lms}"]
-            for name in ("orbit", "x", "y", "fx", "fy", "gamma2", "n_records"):
-                if name not in t:
-                    continue
+            for name in ("orbit", "x", "y", "fx", "fy", "gamma2", "n_records", "u"):
                 data = t[name][:2]
                 del t[name]
                 t[name] = data

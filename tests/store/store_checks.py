@@ -19,6 +19,25 @@ from orbitrig.store.reader import read_run
 ROOT = Path(__file__).resolve().parents[2]
 
 
+def small_matrix(name: str, revolutions: int, spin_rpm: tuple[float, ...] = (1000.0, 2000.0)) -> str:
+    """A test matrix of the storage tests: one kc8 model, 3 orbit ratios x both directions
+    per point, one point per spin speed."""
+    return f"""
+name = "{name}"
+revolutions = {revolutions}
+[operating]
+spin_rpm = {list(spin_rpm)}
+recess_pressure_mpa = [0.4826]
+pressure_ratio = [0.4]
+static_eccentricity = [0.0]
+dynamic_eccentricity = [0.096]
+[orbit]
+ratios = [0.3, 0.6, 0.9]
+[[models]]
+model = "kc8"
+"""
+
+
 def orbitrig_cmd(*args: str) -> list[str]:
     return [sys.executable, "-m", "orbitrig", *args]
 

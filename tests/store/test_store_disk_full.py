@@ -17,24 +17,11 @@ from orbitrig.run.engine import RunEngine, StatusEvent
 from orbitrig.store.reader import read_run
 from sim.rig import SimRig
 
-from store_checks import ROOT, check_whole, fill, orbitrig_cmd
+from store_checks import ROOT, check_whole, fill, orbitrig_cmd, small_matrix
 
 pytestmark = pytest.mark.timeout(180)
 
-MATRIX = """
-name = "full"
-revolutions = 20
-[operating]
-spin_rpm = [1000.0, 1500.0, 2000.0]
-recess_pressure_mpa = [0.4826]
-pressure_ratio = [0.4]
-static_eccentricity = [0.0]
-dynamic_eccentricity = [0.096]
-[orbit]
-ratios = [0.3, 0.6, 0.9]
-[[models]]
-model = "kc8"
-"""
+MATRIX = small_matrix("full", revolutions=20, spin_rpm=(1000.0, 1500.0, 2000.0))
 
 
 def _point_committed(run: Path, index: int) -> bool:

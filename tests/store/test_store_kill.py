@@ -17,22 +17,9 @@ from typer.testing import CliRunner
 from orbitrig.cli import app
 from orbitrig.store.reader import read_run
 
-from store_checks import ROOT, check_whole, orbitrig_cmd
+from store_checks import ROOT, check_whole, orbitrig_cmd, small_matrix
 
-MATRIX = """
-name = "crash"
-revolutions = 10
-[operating]
-spin_rpm = [1000.0, 2000.0]
-recess_pressure_mpa = [0.4826]
-pressure_ratio = [0.4]
-static_eccentricity = [0.0]
-dynamic_eccentricity = [0.096]
-[orbit]
-ratios = [0.3, 0.6, 0.9]
-[[models]]
-model = "kc8"
-"""
+MATRIX = small_matrix("crash", revolutions=10)
 BLOCKS = 6  # 3 ratios x forward, backward
 STORAGE_CALLS = "write,pwrite64,fsync,rename,renameat,renameat2"
 # (syscalls counted, K): the run is killed at the K-th call of one of them by one thread;

@@ -14,22 +14,9 @@ from orbitrig.store.estimate import block_bytes, plan_bytes, point_bytes, result
 from orbitrig.store.reader import read_run
 from orbitrig.store.writer import BlockRecord, RunStore
 
-from store_checks import fill
+from store_checks import fill, small_matrix
 
-MATRIX = """
-name = "space"
-revolutions = 20
-[operating]
-spin_rpm = [1000.0, 2000.0]
-recess_pressure_mpa = [0.4826]
-pressure_ratio = [0.4]
-static_eccentricity = [0.0]
-dynamic_eccentricity = [0.096]
-[orbit]
-ratios = [0.3, 0.6, 0.9]
-[[models]]
-model = "kc8"
-"""
+MATRIX = small_matrix("space", revolutions=20)
 
 
 def _record(block, n=20) -> BlockRecord:

@@ -1,0 +1,156 @@
+"""The sweep's closing summary: identified coefficients of every complete point (beside the
+simulator's truth in --sim runs) with their expanded uncertainty, then every refused model,
+every warning, the model-adequacy verdicts and the two load measuring systems' consistency.
+
+Read from the run directory with orbitrig.store.reader.read_run (works also when the
+consolidated run.h5 could not be written)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from rich.console import Console
+from rich.table import Table
+
+from orbitrig.run.point_report import judgement_lines
+from orbitrig.store.csvfile import coef_order
+from orbitrig.store.reader import Point, freq_dep_key, read_run
+
+#: above this many complete points the final table is one summary row per point
+DETAIL_POINTS = 4
+_COEF_UNIT = {"K": "N/m", "C": "N s/m", "D": "kg"}
+
+
+def compare_with_truth(coefficients: dict, truth: dict) -> dict[str, float]:
+    """Error of each constant-term K, C, D entry in percent of the largest true entry of its matrix."""
+    out = {}
+    for m in "KCD":
+        true = truth.get(f"{m}0")
+        if true is None:
+            continue
+        scale = max(abs(v) for row in true for v in row) or 1.0
+        for i, a in enumerate("xy"):
+            for j, b in enumerate("xy"):
+                key = f"{m}{a}{b}"
+                if key in coefficients:
+                    out[key] = abs(coefficients[key] - true[i][j]) / scale * 100.0
+    return out
+
+
+def _fits(p: Point) -> dict[str, dict]:
+    """Stored JSON of every fit that gave coefficients, by storage key (lms__model__fd__method)."""
+    return {f"{i.lms}__{i.model}__{freq_dep_key(i.freq_dep)}__{i.method}": i.result
+            for i in p.identifications if i.ok}  # fmt: skip
+
+
+def _judged(p: Point) -> list[tuple[str, str, dict | None, str | None]]:
+    return [(i.lms, f"{i.model} {i.freq_dep} {i.method}", i.result, i.error) for i in p.identifications]
+
+
+def _uncertainty(d: dict, key: str) -> float | None:
+    """Expanded uncertainty (k = 2, combined) of `key`, or 1.96 x the statistical one without a budget."""
+    u = d.get("uncertainty") or {}
+    if "expanded" in u and u["expanded"].get(key) is not None:
+        return u["expanded"][key]
+    std = (d.get("std_errors") or {}).get(key)
+    return None if std is None else 1.96 * std
+
+
+def _summary_cells(p: Point) -> list[str]:
+    """Adequacy, LMS consistency and warnings/refusals of one point, for the summary row."""
+    fits = _fits(p).values()
+    verdicts = [d["adequacy"]["supported"] for d in fits if "supported" in (d.get("adequacy") or {})]
+    worst = [d["lms_consistency"]["max_abs"] for d in fits if (d.get("lms_consistency") or {}).get("max_abs") is not None]
+    warnings = sum(len(d.get("warnings") or []) for d in fits)
+    refused = sum(1 for i in p.identifications if not i.ok)
+    return [f"{sum(verdicts)} of {len(verdicts)} yes" if verdicts else "-",
+            f"{max(worst):.2g}" if worst else "-", f"{warnings} / {refused}"]  # fmt: skip
+
+
+def _print_summary(console: Console, complete: list[Point], out: Path) -> None:
+    """One row per operating point: the main stiffness and damping entries of the first fit
+    (piezo), in --sim mode the worst K and C error of every fit, the adequacy verdicts, the
+    worst LMS |E_n| and the counts of warnings and refused models."""
+    table = Table(title=f"{len(complete)} operating points (full tables: coefficients.csv, "
+                        f"orbitrig report {out})", title_justify="left")  # fmt: skip
+    for col in ("point", "label", "Kxx MN/m", "Kyy MN/m", "Cxx kN s/m", "Cyy kN s/m", "worst K / C error",
+                "freq. dep.", "LMS |E_n|", "warn / refused"):  # fmt: skip
+        table.add_column(col, justify="left" if col in ("point", "label") else "right")
+    for p in complete:
+        fits = _fits(p)
+        first = next((d["coefficients"] for k, d in sorted(fits.items()) if k.startswith("piezo")), None)
+        row = [p.name, p.settings.label]
+        row += [f"{first[c] * scale:.4g}" if first and c in first else "-"
+                for c, scale in (("Kxx", 1e-6), ("Kyy", 1e-6), ("Cxx", 1e-3), ("Cyy", 1e-3))]  # fmt: skip
+        if p.truth:
+            errs = [compare_with_truth(d["coefficients"], p.truth) for d in fits.values()]
+            k = max((e[c] for e in errs for c in e if c[0] == "K"), default=float("nan"))
+            c = max((e[c] for e in errs for c in e if c[0] == "C"), default=float("nan"))
+            row.append(f"{k:.1f} % / {c:.1f} %")
+        else:
+            row.append(f"{len(fits)} fits")
+        table.add_row(*row, *_summary_cells(p))
+    console.print(table)
+    if any(p.truth for p in complete):
+        console.print("error = |identified - true| / largest true entry of the matrix, worst over all fits",
+                      markup=False)  # fmt: skip
+    console.print("freq. dep. = frequency dependence supported by the data (per frequency-dependent fit); "
+                  "LMS |E_n| = worst normalised piezo - strain difference (<= 2: consistent)", markup=False)
+    for p in complete:
+        for line in judgement_lines(_judged(p), verdicts=False, brief=True):
+            console.print(f"point {p.name}: {line}", markup=False)
+
+
+def _point_table(p: Point) -> tuple[Table, list[str]]:
+    fits = _fits(p)
+    truth = p.truth
+    names = sorted({k for d in fits.values() for k in d["coefficients"] if "_" not in k}, key=coef_order)
+    table = Table(title=f"point {p.name}  {p.settings.label}", title_justify="left")
+    table.add_column("coef")
+    if truth:
+        table.add_column("true", justify="right")
+    for key in fits:
+        table.add_column(key.replace("__none", "").replace("__", " "), justify="right")
+    errs = {k: compare_with_truth(d["coefficients"], truth) for k, d in fits.items()} if truth else {}
+    for c in names:
+        row = [c]
+        if truth:
+            row.append(f"{truth[c[0] + '0']['xy'.index(c[1])]['xy'.index(c[2])]:.4g}")
+        for key, d in fits.items():
+            v = d["coefficients"].get(c)
+            u = None if v is None else _uncertainty(d, c)
+            cell = "" if v is None else f"{v:.4g}" + ("" if u is None else f" \u00b1 {u:.2g}")
+            if v is not None and c in errs.get(key, {}):
+                cell += f" ({errs[key][c]:.1f}%)"
+            row.append(cell)
+        table.add_row(*row)
+    return table, names
+
+
+def print_coefficients(out: Path) -> None:
+    """Identified constant-term coefficients of every complete point with their expanded
+    uncertainty (beside the true ones in --sim mode), then refusals, warnings and verdicts."""
+    console = Console()
+    complete = read_run(out).complete_points
+    if len(complete) > DETAIL_POINTS:
+        _print_summary(console, complete, out)
+        return
+    for p in complete:
+        table, names = _point_table(p)
+        console.print(table)
+        console.print("units: " + ", ".join(f"{m} {u}" for m, u in _COEF_UNIT.items() if any(c[0] == m for c in names)),
+                      markup=False)  # fmt: skip
+        console.print("\u00b1 = expanded uncertainty U (k = 2): statistical and calibration combined "
+                      "(without a stated calibration: 1.96 x the statistical one)", markup=False)
+        if p.truth:
+            _truth_notes(console, p.truth)
+        for line in judgement_lines(_judged(p), brief=True):
+            console.print(f"point {p.name}: {line}", markup=False)
+
+
+def _truth_notes(console: Console, truth: dict) -> None:
+    console.print("(%) = |identified - true| / largest true entry of the matrix", markup=False)
+    top = max(truth["orbit"], key=abs)
+    k, d = (max(abs(v) for row in truth[m] for v in row) for m in ("K0", "D0"))
+    console.print(f"D acts as Omega^2 D: at the highest orbit speed that is {100 * top**2 * d / k:.2g} % "
+                  "of the largest K entry, so D is weakly determined here", markup=False)  # fmt: skip

@@ -1,0 +1,120 @@
+"""A point's identifications judged: uncertainty budget, model adequacy, the two load
+measuring systems' consistency, and derived quantities (pure, no I/O; worker thread).
+
+Each result is added to the identification's stored JSON object (the orbit-table v2
+object of `identify --json`) under its own key:
+
+- ``uncertainty``: {"k", "statistical", "systematic", "combined", "expanded", "sources",
+  "source_std"} per coefficient (SI), from reduction.systematic.uncertainty_budget with the
+  rig's stated calibration uncertainty (absent when the rig states none);
+- ``adequacy`` (frequency-dependent fits only): reduction.adequacy.frequency_dependence
+  against the constant fit of the same model and method, plus "constant" (its spec);
+- ``lms_consistency``: {"e_n": {key: E_n}, "max_abs", "consistent", "basis"}, the
+  normalised difference piezo - strain of the same model (reduction.systematic.lms_consistency);
+- ``derived``: reduction.derived.derived_quantities at the point's planned orbit frequencies,
+  with the combined covariance when there is one (``derived["covariance"]`` says which).
+
+A step that cannot be evaluated stores {"error": reason} under its key instead.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from orbitrig.config import LMS, CalibrationUncertainty
+from reduction.adequacy import frequency_dependence
+from reduction.derived import derived_quantities
+from reduction.errors import ReductionError
+from reduction.identify import identify
+from reduction.result import Identification
+from reduction.systematic import Budget, Calibration, ChannelCalibration, lms_consistency, uncertainty_budget
+from reduction.table import OrbitTable
+
+#: |E_n| up to this value: the two load measuring systems agree (k = 2)
+CONSISTENT_EN = 2.0
+_FAILURES = (ReductionError, np.linalg.LinAlgError, ValueError, ZeroDivisionError)
+
+
+def lms_calibration(stated: CalibrationUncertainty, lms: str) -> Calibration:
+    """The calibration uncertainty of one load measuring system's orbit table (SI): x, y are
+    the probe-plane means, their uncertainty the mean of the two probes' (taken as fully
+    correlated, the conservative choice); fx, fy the system's force channels."""
+
+    def chan(name: str) -> ChannelCalibration:
+        c = stated.channel(name)
+        return ChannelCalibration(gain=c.gain, phase=c.phase, delay=c.delay)
+
+    def mean(a: str, b: str) -> ChannelCalibration:
+        ca, cb = chan(a), chan(b)
+        return ChannelCalibration((ca.gain + cb.gain) / 2, (ca.phase + cb.phase) / 2, (ca.delay + cb.delay) / 2)
+
+    return Calibration(x=mean("x_a", "x_b"), y=mean("y_a", "y_b"), fx=chan(f"fx_{lms}"), fy=chan(f"fy_{lms}"),
+                       sensitivity=stated.probe_sensitivity)  # fmt: skip
+
+
+def analyse_point(spin: float, tables: dict[str, OrbitTable], fits: dict[tuple[str, str], Identification],
+                  idents: dict, stated: CalibrationUncertainty | None, grid: np.ndarray) -> None:  # fmt: skip
+    """Add budget, adequacy, LMS consistency and derived quantities to the stored JSON of every
+    fit in ``idents`` ((lms, ModelSpec.key) -> {"spec", "json"}); ``fits`` the same fits'
+    Identification objects; ``grid`` the point's orbit frequencies for the derived quantities
+    (rad/s, > 0: the planned ones, forward and backward blocks of one frequency are one)."""
+    cal = {lms: lms_calibration(stated, lms) for lms in LMS} if stated is not None else None
+    budgets: dict[tuple[str, str], Budget] = {}
+    for (lms, key), ident in fits.items():
+        d = idents[(lms, key)]["json"]
+        if cal is not None:
+            d["uncertainty"] = _guarded(_budget, ident, tables[lms], cal[lms], budgets, (lms, key))
+        d["derived"] = _guarded(_derived, ident, grid, spin, budgets.get((lms, key)))
+        if ident.freq_dep != "none":
+            d["adequacy"] = _guarded(_adequacy, ident, tables[lms], fits, lms, idents[(lms, key)]["spec"])
+    for key in {k for _, k in fits}:
+        a, b = fits.get((LMS[0], key)), fits.get((LMS[1], key))
+        if a is None or b is None:
+            continue
+        out = _guarded(_consistency, a, tables[LMS[0]], b, tables[LMS[1]], cal)
+        for lms in LMS:
+            idents[(lms, key)]["json"]["lms_consistency"] = out
+
+
+def _guarded(fn, *args) -> dict:
+    try:
+        return fn(*args)
+    except _FAILURES as err:
+        return {"error": str(err)}
+
+
+def _budget(ident: Identification, table: OrbitTable, cal: Calibration, budgets: dict, where) -> dict:
+    b = uncertainty_budget(ident, table, cal)
+    budgets[where] = b
+    _, sigma = cal.parameters()
+    return {"k": b.k, "statistical": b.statistical, "systematic": b.systematic, "combined": b.combined,
+            "expanded": b.expanded, "sources": list(b.labels), "source_std": [float(s) for s in sigma]}  # fmt: skip
+
+
+def _derived(ident: Identification, grid: np.ndarray, spin: float, budget: Budget | None) -> dict:
+    combined = budget is not None and budget.covariance_combined is not None
+    cov = budget.covariance_combined if combined else None
+    d = derived_quantities(ident, grid, spin, cov=cov).to_dict()
+    d["covariance"] = "combined" if combined else ("statistical" if ident.covariance is not None else "none")
+    return d
+
+
+def _adequacy(ident: Identification, table: OrbitTable, fits: dict, lms: str, spec) -> dict:
+    constant = next((f for (ls, _), f in fits.items() if ls == lms and f.model == ident.model
+                     and f.freq_dep == "none" and f.method == ident.method), None)  # fmt: skip
+    if constant is None:  # not configured: fitted here for the test only
+        constant = identify(table, model=spec.model, freq_dep="none", method=spec.method)
+    out = frequency_dependence(constant, ident).to_dict()
+    out["constant"] = f"{constant.model} none {constant.method}"
+    return out
+
+
+def _consistency(a: Identification, ta: OrbitTable, b: Identification, tb: OrbitTable, cal) -> dict:
+    none = Calibration()
+    ca, cb = (cal[LMS[0]], cal[LMS[1]]) if cal is not None else (none, none)
+    en = lms_consistency(a, ta, b, tb, ca, cb)
+    values = [abs(v) for v in en.values() if v is not None]
+    worst = max(values) if values else None
+    return {"e_n": en, "max_abs": worst, "consistent": worst is not None and worst <= CONSISTENT_EN,
+            "basis": "combined" if cal is not None else "statistical", "limit": CONSISTENT_EN,
+            "pair": f"{LMS[0]} - {LMS[1]}"}  # fmt: skip

@@ -1,0 +1,99 @@
+"""A point's results in words and as the published object: run.log lines and the
+``result`` payload (MQTT result topic), with warnings, refusals, intervals, the
+uncertainty budget, the model-adequacy verdicts and the two systems' consistency."""
+
+from __future__ import annotations
+
+from orbitrig.run.plan import OperatingPoint
+from orbitrig.store.records import PointResults
+
+#: keys of a fit's stored JSON that the result payload carries
+PAYLOAD_KEYS = ("coefficients", "std_errors", "confidence_95", "condition_number", "residual_rms", "dof",
+                "chi2", "p_value", "aic", "bic", "notes", "warnings", "exponent")  # fmt: skip
+
+
+def point_log_lines(p: OperatingPoint, res: PointResults) -> list[str]:
+    """One line per refusal, warning, adequacy verdict and LMS consistency check of the point."""
+    fits = [(lms, f"{e['spec'].model} {e['spec'].freq_dep} {e['spec'].method}", e.get("json"), e.get("error"))
+            for (lms, _), e in res.identifications.items()]  # fmt: skip
+    return [f"point {p.index:04d}: {line}" for line in judgement_lines(fits)]
+
+
+def judgement_lines(fits: list[tuple[str, str, dict | None, str | None]], *, verdicts: bool = True,
+                    brief: bool = False) -> list[str]:  # fmt: skip
+    """Lines of (lms, "model freq_dep method", stored JSON or None, refusal or None) fits: refusals
+    (``brief``: their first line; else every line joined by ' | '), warnings, parts not evaluated,
+    and (``verdicts``) the adequacy verdicts and LMS consistency."""
+    lines, compared = [], set()
+    for lms, name, d, error in fits:
+        if d is None:
+            reason = str(error).strip().splitlines() or [""]
+            text = f"{reason[0]} (the full reason is in run.log)" if brief and len(reason) > 1 else " | ".join(reason)
+            lines.append(f"{lms} {name}: refused: {text}")
+            continue
+        lines += [f"{lms} {name}: warning: {w}" for w in d.get("warnings") or []]
+        for part in ("uncertainty", "derived"):
+            if "error" in (d.get(part) or {}):
+                lines.append(f"{lms} {name}: {part} not evaluated: {d[part]['error']}")
+        if verdicts and d.get("adequacy"):
+            lines.append(f"{lms} {name}: {adequacy_text(d['adequacy'])}")
+        if verdicts and d.get("lms_consistency") and name not in compared:
+            compared.add(name)
+            lines.append(f"{name}: {consistency_text(d['lms_consistency'])}")
+    return lines
+
+
+def adequacy_text(a: dict) -> str:
+    """'frequency dependence supported: no (p = 0.94); AIC 812 / 815, BIC 840 / 858 (constant / this)'."""
+    if "error" in a:
+        return f"frequency dependence not tested: {a['error']}"
+    aic, bic = a["aic"], a["bic"]
+    return (f"{a['verdict']} against {a['constant']}; AIC {aic[0]:.6g} / {aic[1]:.6g}, "
+            f"BIC {bic[0]:.6g} / {bic[1]:.6g} (constant / this)")
+
+
+def consistency_text(c: dict) -> str:
+    """'load measuring systems piezo - strain: max |E_n| = 1.3 (consistent within k = 2, combined)'."""
+    if "error" in c:
+        return f"load measuring systems not compared: {c['error']}"
+    if c["max_abs"] is None:
+        return "load measuring systems not compared: no uncertainty"
+    verdict = "consistent" if c["consistent"] else "NOT consistent"
+    return (f"load measuring systems {c['pair']}: max |E_n| = {c['max_abs']:.3g} "
+            f"({verdict} within |E_n| <= {c['limit']:g}, {c['basis']} uncertainty)")
+
+
+def _row(lms: str, e: dict) -> dict:
+    spec = e["spec"]
+    row = {"lms": lms, "model": spec.model, "freq_dep": spec.freq_dep, "method": spec.method}
+    if "error" in e:
+        row["error"] = e["error"]
+        return row
+    d = e["json"]
+    row.update({k: d[k] for k in PAYLOAD_KEYS if k in d})
+    u = d.get("uncertainty")
+    if u:
+        row["uncertainty"] = u if "error" in u else {k: u[k] for k in ("k", "systematic", "combined", "expanded")}
+    for k in ("adequacy", "lms_consistency"):
+        if d.get(k):
+            row[k] = d[k]
+    return row
+
+
+def result_payload(run_id: str | None, p: OperatingPoint, res: PointResults) -> dict:
+    """The point's results as published (MQTT result topic): settings, one row per fit (its
+    coefficients, std_errors, confidence_95, warnings, notes, uncertainty budget, adequacy,
+    LMS consistency, or the refusal), and per point the adequacy verdicts, every warning and
+    the refused fits."""
+    rows = [_row(lms, e) for (lms, _), e in res.identifications.items()]
+    out = {"run_id": run_id, **p.settings(), "identification": rows, "lms_comparison": res.lms_comparison}
+    out["adequacy"] = [{"lms": r["lms"], "model": r["model"], "freq_dep": r["freq_dep"], "method": r["method"],
+                        **({"verdict": r["adequacy"]["verdict"], "supported": r["adequacy"]["supported"],
+                            "p_value": r["adequacy"]["p_value"]} if "verdict" in r["adequacy"] else r["adequacy"])}
+                       for r in rows if "adequacy" in r]  # fmt: skip
+    out["warnings"] = [f"{r['lms']} {r['model']} {r['freq_dep']} {r['method']}: {w}"
+                       for r in rows for w in r.get("warnings") or []]  # fmt: skip
+    out["refused"] = [{k: r[k] for k in ("lms", "model", "freq_dep", "method", "error")} for r in rows if "error" in r]
+    if res.truth is not None:
+        out["truth"] = {k: res.truth[k] for k in ("K0", "C0", "D0")}
+    return out

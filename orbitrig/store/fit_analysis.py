@@ -1,0 +1,104 @@
+"""Numeric datasets of a fit's judgement (orbitrig.run.point_analysis), beside its JSON.
+
+Under ``identification/<lms>__<model>__<freq_dep>__<method>``, each group present only
+when the sweep evaluated it (docs/storage.md):
+
+- ``uncertainty/``: ``statistical``, ``systematic``, ``combined``, ``expanded`` aligned with
+  the fit's ``names`` (SI per coefficient), attribute ``k``; ``sources`` and ``source_std``:
+  the stated calibration uncertainties propagated (1, rad or s per source);
+- ``adequacy/``: attributes ``verdict``, ``supported``, ``p_value``, ``statistic``, ``test``,
+  ``dof``, ``alpha``, ``aic``, ``bic`` (constant, this fit), ``constant``;
+- ``lms_consistency/``: ``e_n`` aligned with ``names`` (1), attributes ``max_abs``,
+  ``consistent``, ``basis``, ``limit``, ``pair``;
+- ``derived/``: at the point's planned orbit frequencies ``orbit`` (rad/s), ``orbit_hz``,
+  ``c_eff_xx``/``c_eff_yy`` (+ ``_std``, N s/m), ``h_forward``/``h_backward`` (complex, N/m;
+  ``_std`` columns re, im), ``wfr`` (+ ``_std``, 1), ``c_eff_zero_xx``/``_yy`` (Omega_0,
+  std; rad/s) when C_eff changes sign; attribute ``covariance`` (combined | statistical).
+
+A part that could not be evaluated is a group with only an ``error`` attribute.
+"""
+
+from __future__ import annotations
+
+import math
+
+import h5py
+import numpy as np
+
+from orbitrig.store.pieces import put, strings
+
+PER_COEFFICIENT = "SI per coefficient (see dataset units)"
+SOURCE_UNITS = "per source: 1 (gain, sensitivity), rad (phase), s (delay)"
+
+
+def _num(v) -> float:
+    return math.nan if v is None else float(v)
+
+
+def _vector(d: dict, names: list[str]) -> np.ndarray:
+    return np.array([_num(d.get(k)) for k in names], dtype=np.float64)
+
+
+def write_fit_analysis(h: h5py.Group, d: dict, names: list[str]) -> None:
+    """The uncertainty, adequacy, lms_consistency and derived parts of the fit's JSON ``d``."""
+    for part, writer in (("uncertainty", _uncertainty), ("adequacy", _adequacy),
+                         ("lms_consistency", _consistency), ("derived", _derived)):  # fmt: skip
+        if not d.get(part):
+            continue
+        g = h.create_group(part)
+        if "error" in d[part]:
+            g.attrs["error"] = str(d[part]["error"])
+        else:
+            writer(g, d[part], names)
+
+
+def _uncertainty(g: h5py.Group, u: dict, names: list[str]) -> None:
+    g.attrs["k"] = float(u["k"])
+    for k, what in (("statistical", "standard uncertainty from the fit (type A)"),
+                    ("systematic", "standard uncertainty from the stated calibration (type B)"),
+                    ("combined", "combined standard uncertainty"),
+                    ("expanded", "expanded uncertainty, k times combined")):  # fmt: skip
+        put(g, k, _vector(u[k], names), PER_COEFFICIENT, meaning=what)
+    g.create_dataset("sources", data=strings(u["sources"]))
+    put(g, "source_std", np.asarray(u["source_std"], dtype=np.float64), SOURCE_UNITS,
+        meaning="stated standard uncertainty of each calibration error")
+
+
+def _adequacy(g: h5py.Group, a: dict, names: list[str]) -> None:
+    g.attrs.update({"verdict": a["verdict"], "supported": bool(a["supported"]), "p_value": _num(a["p_value"]),
+                    "statistic": _num(a["statistic"]), "test": a["test"], "dof": np.asarray(a["dof"], dtype=np.int64),
+                    "alpha": float(a["alpha"]), "aic": np.asarray([_num(v) for v in a["aic"]]),
+                    "bic": np.asarray([_num(v) for v in a["bic"]]), "constant": a["constant"],
+                    "aic_bic_order": "constant, this fit"})  # fmt: skip
+
+
+def _consistency(g: h5py.Group, c: dict, names: list[str]) -> None:
+    put(g, "e_n", _vector(c["e_n"], names), "1", meaning=f"normalised difference {c['pair']}")
+    g.attrs.update({"max_abs": _num(c["max_abs"]), "consistent": bool(c["consistent"]), "basis": c["basis"],
+                    "limit": float(c["limit"]), "pair": c["pair"]})  # fmt: skip
+
+
+def _derived(g: h5py.Group, d: dict, names: list[str]) -> None:
+    hz = np.asarray(d["orbit_hz"], dtype=np.float64)
+    g.attrs["covariance"] = d.get("covariance", "")
+    put(g, "orbit", 2 * math.pi * hz, "rad/s")
+    put(g, "orbit_hz", hz, "Hz")
+    for k in ("xx", "yy"):
+        put(g, f"c_eff_{k}", np.asarray(d[f"c_eff_{k}"], dtype=np.float64), "N s/m",
+            meaning=f"effective damping C_eff,{k}")
+        if d.get(f"c_eff_{k}_std") is not None:
+            put(g, f"c_eff_{k}_std", np.asarray(d[f"c_eff_{k}_std"], dtype=np.float64), "N s/m")
+        zero = d.get(f"c_eff_zero_{k}_hz")
+        if zero is not None:
+            put(g, f"c_eff_zero_{k}", 2 * math.pi * np.array([_num(v) for v in zero]), "rad/s",
+                columns=strings(("omega_0", "std")), meaning="zero crossing of C_eff")
+    for k in ("forward", "backward"):
+        h = np.asarray(d[f"h_{k}_re"], dtype=np.float64) + 1j * np.asarray(d[f"h_{k}_im"], dtype=np.float64)
+        put(g, f"h_{k}", h, "N/m", meaning=f"{k} direct dynamic stiffness H")
+        if d.get(f"h_{k}_std") is not None:
+            std = np.array([[_num(v) for v in row] for row in d[f"h_{k}_std"]], dtype=np.float64).T
+            put(g, f"h_{k}_std", std, "N/m", columns=strings(("re", "im")))
+    wfr = np.array([_num(v) for v in d["wfr"]], dtype=np.float64)
+    put(g, "wfr", wfr, "1", meaning="whirl frequency ratio")
+    if d.get("wfr_std") is not None:
+        put(g, "wfr_std", np.array([_num(v) for v in d["wfr_std"]], dtype=np.float64), "1")
