@@ -124,8 +124,8 @@ class DriveLimits:
     max_ratio: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("max_spin", "max_orbit", "min_ratio", "max_ratio"):
-            value = getattr(self, name)
+        for name, value in (("max_spin", self.max_spin), ("max_orbit", self.max_orbit),
+                            ("min_ratio", self.min_ratio), ("max_ratio", self.max_ratio)):
             if value is not None and not value >= 0:
                 raise ValueError(f"DriveLimits.{name} = {value} must be >= 0")
         if self.min_ratio is not None and self.max_ratio is not None:

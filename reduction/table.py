@@ -90,6 +90,11 @@ class OrbitTable:
                 arr.flags.writeable = False
 
     @property
+    def phasors(self) -> dict[str, np.ndarray]:
+        """The four phasor columns by name, in ``U_COLUMNS`` order: x, y (m), fx, fy (N)."""
+        return {"x": self.x, "y": self.y, "fx": self.fx, "fy": self.fy}
+
+    @property
     def n(self) -> int:
         """Number of rows (orbit frequencies)."""
         return int(self.orbit.shape[0])

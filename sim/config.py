@@ -271,8 +271,19 @@ def load_sim_config(path: str | Path) -> SimConfig:
     """Read a SimConfig from TOML. Raises ValueError naming the file and key."""
     path = Path(path)
     try:
-        data = tomllib.loads(path.read_text())
-    except (OSError, tomllib.TOMLDecodeError) as err:
+        text = path.read_text()
+    except OSError as err:
+        raise ValueError(f"{path}: {err}") from err
+    return sim_config_from_text(text, str(path))
+
+
+def sim_config_from_text(text: str, source: str = "<text>") -> SimConfig:
+    """A SimConfig from TOML text (as a scenario file; "" is the default rig). ValueError
+    naming `source` and the key."""
+    path = source
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
         raise ValueError(f"{path}: {err}") from err
     problems: list[str] = []
     classes = {

@@ -3,8 +3,9 @@
 `simulated_rig(speedup)` starts an in-process `sim.rig.SimRig` (Modbus TCP,
 A/D over a TCP socket, a python-can virtual bus) and yields it with its
 `RigAccess`: the simulator's endpoints, its speed-up as the time scale, its
-manual settings as the operator's hands, and its exact coefficients as the
-truth stored beside the identified ones. The engine gets only the access.
+manual settings as the operator's hands, its bearing's true impedance Z(Omega)
+(and best fits of it) as the truth stored beside the identified coefficients, and
+the scenario it runs (recorded in the run). The engine gets only the access.
 """
 
 from __future__ import annotations
@@ -12,7 +13,9 @@ from __future__ import annotations
 import contextlib
 from collections.abc import AsyncIterator
 
-from orbitrig.run.rig_io import Endpoints, RigAccess, TimeScale
+import numpy as np
+
+from orbitrig.run.rig_io import Endpoints, RigAccess, Scenario, TimeScale
 from sim.config import SimConfig
 from sim.rig import SimRig
 
@@ -33,28 +36,33 @@ class SimulatorHands:
 
 
 class SimulatorTruth:
-    """The simulator's bearing coefficients K, C, D (SI) at (spin, orbit) rad/s."""
+    """The simulator's bearing at its present manual settings (SI; spin, orbits rad/s)."""
 
     def __init__(self, sim: SimRig):
         self.sim = sim
 
-    def truth(self, spin: float, orbit: float) -> dict:
-        return self.sim.truth(spin, orbit)
+    def impedance(self, spin: float, orbits: np.ndarray) -> np.ndarray:
+        """True Z (n, 2, 2) of the linearised bearing (f_bar = -Z d_bar)."""
+        return self.sim.true_impedances(spin, orbits)
+
+    def reference_fits(self, spin: float, orbits: np.ndarray) -> dict:
+        """Constant and Eq. 15 best fits of the true Z over `orbits` (sim.fits)."""
+        return self.sim.reference_fits(spin, orbits)
 
 
-def simulated_access(sim: SimRig) -> RigAccess:
-    """How the engine reaches a running SimRig."""
+def simulated_access(sim: SimRig, scenario: Scenario | None = None) -> RigAccess:
+    """How the engine reaches a running SimRig (`scenario`: what it runs, recorded in the run)."""
     return RigAccess(
         endpoints=Endpoints(sim.modbus_url, sim.adc_url, sim.can_channel, "virtual"),
         time_scale=TimeScale(sim.speedup), hands=SimulatorHands(sim), truth=SimulatorTruth(sim),
-        simulated=True,
+        simulated=True, scenario=scenario,
     )  # fmt: skip
 
 
 @contextlib.asynccontextmanager
-async def simulated_rig(speedup: float = DEFAULT_SPEEDUP,
-                        config: SimConfig | None = None) -> AsyncIterator[tuple[SimRig, RigAccess]]:  # fmt: skip
+async def simulated_rig(speedup: float = DEFAULT_SPEEDUP, config: SimConfig | None = None,
+                        scenario: Scenario | None = None) -> AsyncIterator[tuple[SimRig, RigAccess]]:  # fmt: skip
     """A running SimRig of scenario `config` (default: the paper's rig; no pty: the A/D
-    board over TCP) and its access."""
+    board over TCP) and its access; `scenario` names it in the run (the config's file and text)."""
     async with SimRig(config, speedup=speedup, adc_pty=False) as sim:
-        yield sim, simulated_access(sim)
+        yield sim, simulated_access(sim, scenario)

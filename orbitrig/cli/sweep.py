@@ -72,8 +72,8 @@ def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, 
             _check_out(out)
         import asyncio
 
-        sim_cfg = _sim_config(sim_config) if sim else None
-        outcome = asyncio.run(_sweep(plan, out=out, sim=sim_cfg, resume=resume, speedup=speedup))
+        scenario = _scenario(sim_config, resume=resume, out=out) if sim else None
+        outcome = asyncio.run(_sweep(plan, out=out, sim=scenario, resume=resume, speedup=speedup))
     except ConfigError as err:
         typer.echo(f"error: {err}", err=True)
         raise typer.Exit(2) from None
@@ -86,16 +86,40 @@ def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, 
     raise typer.Exit(EXIT[outcome.status])
 
 
-def _sim_config(path):
-    """The simulator scenario (SimConfig) of --sim-config, or the default rig."""
-    from sim.config import SimConfig, load_sim_config
+def _scenario(path, *, resume: bool, out):
+    """(SimConfig, Scenario) of this --sim sweep: --sim-config or the default rig; on --resume
+    the scenario the run recorded (a --sim-config given then must have the same text)."""
+    from orbitrig.errors import ConfigError
+    from orbitrig.run.rig_io import Scenario
+    from orbitrig.store.writer import RunStore
+    from sim.config import sim_config_from_text
 
-    if path is None:
-        return SimConfig()
+    stored = RunStore.open_existing(out).stored_scenario() if resume else None
+    if stored is not None:
+        name, text = stored
+        if path is not None and _read(path) != text:
+            raise ConfigError(str(path), [f"differs from the simulator scenario of the run being resumed in {out} "
+                                          f"({name}); resume without --sim-config (the stored one is used)"])  # fmt: skip
+        where = f"{out}/run.json: sim_scenario ({name})"
+        typer.echo(f"simulator scenario of the run: {name}", err=True)
+    else:
+        name, text = (DEFAULT_SCENARIO, "") if path is None else (str(path), _read(path))
+        where = str(path)
     try:
-        return load_sim_config(path)
+        return sim_config_from_text(text, where), Scenario(name, text)
     except ValueError as err:
         raise typer.BadParameter(str(err), param_hint="--sim-config") from None
+
+
+#: the scenario name recorded when no --sim-config is given (sim.config.SimConfig())
+DEFAULT_SCENARIO = "default (the paper's rig, as config/sim.toml)"
+
+
+def _read(path) -> str:
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as err:
+        raise typer.BadParameter(f"{path}: {err}", param_hint="--sim-config") from None
 
 
 def _load(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
@@ -168,7 +192,7 @@ def _check_rig_answers(rig) -> None:
 
 
 async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float):
-    """Run the plan; ``sim`` the simulator's SimConfig (None: the real rig)."""
+    """Run the plan; ``sim`` the simulator's (SimConfig, Scenario) (None: the real rig)."""
     import contextlib
 
     from rich.console import Console
@@ -183,7 +207,7 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float):
         if sim is not None:
             from orbitrig.cli.simulated_rig import simulated_rig
 
-            _, access = await stack.enter_async_context(simulated_rig(speedup, sim))
+            _, access = await stack.enter_async_context(simulated_rig(speedup, *sim))
         engine = RunEngine(plan.rig, out_dir=out, access=access, confirm_mode="auto" if access else "prompt")
         operator = Operator(engine, console)
         engine.subscribe(operator.on_event)

@@ -2,6 +2,10 @@
 simulator's truth in --sim runs) with their expanded uncertainty, then every refused model,
 every warning, the model-adequacy verdicts and the two load measuring systems' consistency.
 
+In --sim runs the truth is the simulator's impedance Z(Omega) per orbit frequency
+(orbitrig.run.truth): the coefficient errors compare with the constant K, C, D best fitting
+it over the point's orbit speeds; `|dZ|/|Z|` compares each fit's Z with the true Z.
+
 Read from the run directory with orbitrig.store.reader.read_run (works also when the
 consolidated run.h5 could not be written)."""
 
@@ -9,6 +13,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 from rich.console import Console
 from rich.table import Table
 
@@ -19,10 +24,15 @@ from orbitrig.store.reader import Point, freq_dep_key, read_run
 #: above this many complete points the final table is one summary row per point
 DETAIL_POINTS = 4
 _COEF_UNIT = {"K": "N/m", "C": "N s/m", "D": "kg"}
+TRUE_NOTE = ("true = the constant K, C, D best fitting the simulator's true Z(Omega) over the point's "
+             "orbit speeds; (%) = |identified - true| / largest true entry of the matrix")  # fmt: skip
+Z_NOTE = ("|dZ|/|Z| = worst over the orbit frequencies of |Z_identified - Z_true| / |Z_true| "
+          "(Frobenius norms; Z_true the simulator's impedance)")  # fmt: skip
 
 
 def compare_with_truth(coefficients: dict, truth: dict) -> dict[str, float]:
-    """Error of each constant-term K, C, D entry in percent of the largest true entry of its matrix."""
+    """Error of each constant-term K, C, D entry against the truth's constant best fit
+    (K0, C0, D0), in percent of the largest true entry of its matrix."""
     out = {}
     for m in "KCD":
         true = truth.get(f"{m}0")
@@ -32,9 +42,25 @@ def compare_with_truth(coefficients: dict, truth: dict) -> dict[str, float]:
         for i, a in enumerate("xy"):
             for j, b in enumerate("xy"):
                 key = f"{m}{a}{b}"
-                if key in coefficients:
+                if coefficients.get(key) is not None:
                     out[key] = abs(coefficients[key] - true[i][j]) / scale * 100.0
     return out
+
+
+def worst_impedance_error(result: dict, truth: dict | None) -> float | None:
+    """Worst |Z_identified - Z_true| / |Z_true| over the truth's frequencies, percent
+    (None without a true impedance)."""
+    from orbitrig.run.truth import impedance_deviation
+
+    if not truth or "Z_re" not in truth:
+        return None
+    return float(np.max(impedance_deviation(result, truth))) * 100.0
+
+
+def best_impedance_error(fits, truth: dict | None) -> str:
+    """The summary cell: the smallest worst-frequency |dZ|/|Z| of the fits ('-' without truth Z)."""
+    errs = [e for d in fits if (e := worst_impedance_error(d, truth)) is not None and np.isfinite(e)]
+    return f"{min(errs):.2f} %" if errs else "-"
 
 
 def _fits(p: Point) -> dict[str, dict]:
@@ -74,7 +100,7 @@ def _print_summary(console: Console, complete: list[Point], out: Path) -> None:
     table = Table(title=f"{len(complete)} operating points (full tables: coefficients.csv, "
                         f"orbitrig report {out})", title_justify="left")  # fmt: skip
     for col in ("point", "label", "Kxx MN/m", "Kyy MN/m", "Cxx kN s/m", "Cyy kN s/m", "worst K / C error",
-                "freq. dep.", "LMS |E_n|", "warn / refused"):  # fmt: skip
+                "|dZ|/|Z|", "freq. dep.", "LMS |E_n|", "warn / refused"):  # fmt: skip
         table.add_column(col, justify="left" if col in ("point", "label") else "right")
     for p in complete:
         fits = _fits(p)
@@ -86,14 +112,14 @@ def _print_summary(console: Console, complete: list[Point], out: Path) -> None:
             errs = [compare_with_truth(d["coefficients"], p.truth) for d in fits.values()]
             k = max((e[c] for e in errs for c in e if c[0] == "K"), default=float("nan"))
             c = max((e[c] for e in errs for c in e if c[0] == "C"), default=float("nan"))
-            row.append(f"{k:.1f} % / {c:.1f} %")
+            row += [f"{k:.1f} % / {c:.1f} %", best_impedance_error(fits.values(), p.truth)]
         else:
-            row.append(f"{len(fits)} fits")
+            row += [f"{len(fits)} fits", "-"]
         table.add_row(*row, *_summary_cells(p))
     console.print(table)
     if any(p.truth for p in complete):
-        console.print("error = |identified - true| / largest true entry of the matrix, worst over all fits",
-                      markup=False)  # fmt: skip
+        console.print("K / C error: worst over all fits; " + TRUE_NOTE, markup=False)
+        console.print(Z_NOTE + "; of the fit that reproduces Z best", markup=False)
     console.print("freq. dep. = frequency dependence supported by the data (per frequency-dependent fit); "
                   "LMS |E_n| = worst normalised piezo - strain difference (<= 2: consistent)", markup=False)
     for p in complete:
@@ -124,6 +150,9 @@ def _point_table(p: Point) -> tuple[Table, list[str]]:
                 cell += f" ({errs[key][c]:.1f}%)"
             row.append(cell)
         table.add_row(*row)
+    z_errs = [worst_impedance_error(d, truth) for d in fits.values()]
+    if any(e is not None for e in z_errs):
+        table.add_row("|dZ|/|Z|", "", *("-" if e is None else f"{e:.2f} %" for e in z_errs))
     return table, names
 
 
@@ -149,7 +178,9 @@ def print_coefficients(out: Path) -> None:
 
 
 def _truth_notes(console: Console, truth: dict) -> None:
-    console.print("(%) = |identified - true| / largest true entry of the matrix", markup=False)
+    console.print(TRUE_NOTE, markup=False)
+    if "Z_re" in truth:
+        console.print(Z_NOTE, markup=False)
     top = max(truth["orbit"], key=abs)
     k, d = (max(abs(v) for row in truth[m] for v in row) for m in ("K0", "D0"))
     console.print(f"D acts as Omega^2 D: at the highest orbit speed that is {100 * top**2 * d / k:.2g} % "

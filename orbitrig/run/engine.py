@@ -38,7 +38,7 @@ from orbitrig.run.log_rows import can_row, drive_row
 from orbitrig.run.plan import Plan, make_plan
 from orbitrig.run.procedure import PointProcedure, RunParts
 from orbitrig.run.progress import ProgressMeter
-from orbitrig.run.rig_io import RigAccess, RigIO
+from orbitrig.run.rig_io import RigAccess, RigIO, Scenario
 from orbitrig.run.states import ABORTED, COMPLETED, FAILED, FAULTED, IDLE, STOPPED, STOPPING
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.store.estimate import plan_bytes, point_bytes
@@ -131,8 +131,10 @@ class RunEngine:
 
     def _open_store(self, plan: Plan, resume: bool) -> tuple[RunStore, list[int]]:
         if not resume:
+            sc = self.access.scenario or Scenario("")
             store = RunStore.create(self.out_dir, rig_text=self.rig.text, matrix_text=plan.matrix.text,
-                                    matrix_name=plan.name, sim=self.access.simulated)  # fmt: skip
+                                    matrix_name=plan.name, sim=self.access.simulated,
+                                    scenario_name=sc.name, scenario_text=sc.text)  # fmt: skip
             return store, []
         store = RunStore.open_existing(self.out_dir)
         _, matrix_text, _ = store.stored_configs()

@@ -1,4 +1,4 @@
-"""From averaged blocks to a point's results: block records, orbit tables, K C D, truth.
+"""From averaged blocks to a point's results: block records, orbit tables, K C D (truth: run.truth).
 
 Pure (no I/O): the engine calls these in a worker thread; the synthetic-run
 fixtures of the tests call `identify_operating_point` directly.
@@ -17,7 +17,7 @@ from orbitrig.config import LMS, CalibrationUncertainty, RigConfig
 from orbitrig.run.plan import Block, OperatingPoint
 from orbitrig.run.point_analysis import analyse_point
 from daq.averager import AveragedBlock
-from orbitrig.run.rig_io import TruthSource
+from orbitrig.run.truth import point_truth  # noqa: F401  (the engine's truth step)
 from orbitrig.store.writer import BlockRecord, PointResults
 from reduction.coherence import orbit_coherences
 from reduction.errors import ReductionError
@@ -110,21 +110,4 @@ def lms_comparison(recs: list[BlockRecord], ch: dict[str, int]) -> dict:
     ph = np.abs(np.array(out["fx_phase_diff_deg"] + out["fy_phase_diff_deg"]))
     out["max_amp_diff_pct"] = round(float(amp.max()), 4) if amp.size else None
     out["max_phase_diff_deg"] = round(float(ph.max()), 4) if ph.size else None
-    return out
-
-
-def point_truth(p: OperatingPoint, recs: list[BlockRecord], source: TruthSource) -> dict:
-    """The known K, C, D at each block (orbit table order) and at the lowest |Omega| (K0, C0, D0)."""
-    out: dict = {"orbit_hz": [], "orbit": [], "K": [], "C": [], "D": []}
-    recs = sorted(recs, key=lambda r: (r.block.freq, -r.block.direction))
-    for r in recs:
-        t = source.truth(p.spin, r.block.orbit)
-        out["orbit_hz"].append(r.block.orbit_hz)
-        out["orbit"].append(r.block.orbit)
-        for k in "KCD":
-            out[k].append(np.asarray(t[k], dtype=float).tolist())
-    low = min(recs, key=lambda r: (abs(r.block.orbit), -r.block.direction))
-    t0 = source.truth(p.spin, low.block.orbit)
-    for k in "KCD":
-        out[f"{k}0"] = np.asarray(t0[k], dtype=float).tolist()
     return out

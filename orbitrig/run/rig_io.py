@@ -3,8 +3,9 @@
 The engine never knows whether the rig is real or simulated. It gets a
 `RigAccess`: the transports to open (`Endpoints`), the `TimeScale` between
 physical time and wall time (1 on the real rig), the `Hands` that make the
-manual settings, and optionally a `TruthSource` (coefficients known exactly,
-stored beside the identified ones). The real rig's access comes from the rig
+manual settings, and optionally a `TruthSource` (a simulated rig's exact
+impedance, stored beside the identified coefficients) and the `Scenario` it
+was built from (recorded in the run, so that a resume rebuilds the same rig). The real rig's access comes from the rig
 configuration (`RigAccess.of_rig`); a simulated rig's is built where the
 simulator is built (the command line).
 
@@ -19,6 +20,7 @@ import contextlib
 from dataclasses import dataclass, field
 from typing import Callable, Protocol
 
+import numpy as np
 from daq.adc import AdcReader
 from daq.averager import AveragedBlock, AveragingRule
 from daq.aux import AuxSensors
@@ -70,9 +72,26 @@ class OperatorHands:
 
 
 class TruthSource(Protocol):
-    """The coefficients a rig is known to have: {"K", "C", "D"} 2x2 (SI) at (spin, orbit) rad/s."""
+    """What a simulated rig knows exactly about its bearing (SI; spin, orbits rad/s)."""
 
-    def truth(self, spin: float, orbit: float) -> dict: ...
+    def impedance(self, spin: float, orbits: np.ndarray) -> np.ndarray:
+        """True Z (n, 2, 2) complex, N/m, at each orbit speed: f_bar = -Z d_bar,
+        Z = K + i|Omega| C - Omega^2 D for a bearing that has constant coefficients."""
+        ...
+
+    def reference_fits(self, spin: float, orbits: np.ndarray) -> dict:
+        """Best fits of the true Z over `orbits`: {"constant": {"K", "C", "D"}, "power":
+        {"K0", "Km", "C0", "Cn", "D0", "Dp", "exponents"}} (the paper's Eq. 15), 2x2 each."""
+        ...
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A simulated rig's scenario as recorded in the run: its name (the file given, or the
+    default) and its configuration text (TOML; empty: the default rig)."""
+
+    name: str
+    text: str = ""
 
 
 @dataclass(frozen=True)
@@ -84,6 +103,7 @@ class RigAccess:
     hands: Hands = field(default_factory=OperatorHands)
     truth: TruthSource | None = None
     simulated: bool = False  # recorded in the run file (a resume must use the same kind of rig)
+    scenario: Scenario | None = None  # recorded in the run file (a resume rebuilds the same rig)
 
     @classmethod
     def of_rig(cls, rig: RigConfig) -> "RigAccess":

@@ -95,6 +95,9 @@ def _build(f: h5py.File, layout: RunLayout, header: dict, journal: Journal, stat
     for k in ("software_version", "created", "rig_config", "matrix_config", "matrix_name"):
         a[k] = str(header.get(k, ""))
     a["sim"] = bool(header.get("sim", False))
+    scenario = header.get("sim_scenario")
+    if isinstance(scenario, dict):  # the simulator scenario of a --sim run: name and TOML text
+        a["sim_scenario_name"], a["sim_scenario_config"] = str(scenario.get("name", "")), str(scenario.get("text", ""))
     a["status"], a["status_message"] = journal.status, journal.status_message
     f.create_dataset("channels", data=strings(header.get("channels", [])))
     f.create_dataset("channel_units", data=strings(header.get("channel_units", [])))

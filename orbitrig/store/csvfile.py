@@ -4,7 +4,9 @@ Every column name states its unit (``spin_rpm``, ``recess_pressure_mpa``, ``Kxx 
 ``Cxy_1 [N s/m (rad/s)^-1]``, ``residual_rms [N]``); every row is one physical line
 (a refusal message that spans lines is joined with ' | '). Numbers are SI except the
 settings columns, whose names give their unit. Empty cell: no value (refused model,
-or a number the identification could not give).
+or a number the identification could not give). The ``true_*`` columns of a --sim run
+are the constant K, C, D best fitting the simulator's true impedance over the point's
+orbit speeds (the truth's K0, C0, D0), not coefficients the simulator has.
 """
 
 from __future__ import annotations

@@ -134,7 +134,7 @@ def _point_struct(p: Point) -> dict:
     for lms, table in p.tables.items():
         cols = orbit_table_columns(table)
         t = {"orbit": np.asarray(table.orbit, dtype=float), "orbit_hz": cols["orbit_hz"][0]}
-        t.update({k: np.asarray(getattr(table, k)) for k in ("x", "y", "fx", "fy")})
+        t.update(table.phasors)
         t.update({k: v for k, (v, _) in cols.items() if k.startswith(("gamma2", "n_records", "u_"))})
         s[lms] = t
     s["identification"] = {_field(f"{i.lms}__{i.model}__{i.freq_dep}__{i.method}"): _identification_struct(i)

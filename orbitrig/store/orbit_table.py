@@ -168,8 +168,7 @@ def orbit_table_columns(table: OrbitTable) -> dict[str, tuple[np.ndarray, str]]:
     """The orbit-table columns of ``table`` in order: name -> (values, unit), the optional
     ones (gamma2_*, n_records, u_*) only when the table has them. Units as in the CSV."""
     cols = {"spin_rpm": (np.full(table.n, table.spin / RPM), "rpm"), "orbit_hz": (table.orbit / (2 * math.pi), "Hz")}
-    for name, unit in (("x", "m"), ("y", "m"), ("fx", "N"), ("fy", "N")):
-        z = np.asarray(getattr(table, name))
+    for (name, z), unit in zip(table.phasors.items(), ("m", "m", "N", "N")):
         cols[f"{name}_re"], cols[f"{name}_im"] = (z.real, unit), (z.imag, unit)
     if table.gamma2 is not None:
         cols.update({g: (np.asarray(table.gamma2)[:, j], "1") for j, g in enumerate(GAMMA2)})

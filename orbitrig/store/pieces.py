@@ -17,7 +17,7 @@ import numpy as np
 
 from orbitrig.run.plan import OperatingPoint
 from orbitrig.store.layout import (BLOCK_ATTR_UNITS, COHERENCE_PAIRS, IDENT_ATTR_UNITS, LMS_ORDER,
-                                   TABLE_ATTR_UNITS, U_COLUMNS, U_UNITS, coefficient_si_unit)  # fmt: skip
+                                   MATRIX_SI, TABLE_ATTR_UNITS, U_COLUMNS, U_UNITS, coefficient_si_unit)  # fmt: skip
 from orbitrig.store.records import BlockRecord, PointResults
 
 STR = h5py.string_dtype()
@@ -97,7 +97,7 @@ def write_results(g: h5py.Group, res: PointResults) -> None:
     for (lms, key), entry in res.identifications.items():
         _write_identification(ig.create_group(f"{lms}__{key}"), entry)
     if res.truth is not None:
-        g.create_group("truth").attrs["json"] = to_json(res.truth)
+        write_truth(g.create_group("truth"), res.truth)
     g.create_group("lms_comparison").attrs["json"] = to_json(res.lms_comparison)
 
 
@@ -106,9 +106,10 @@ def _write_table(h: h5py.Group, t) -> None:
     h.attrs["units_of_attributes"] = TABLE_ATTR_UNITS
     put(h, "orbit", np.asarray(t.orbit, dtype=np.float64), "rad/s")
     put(h, "orbit_hz", np.asarray(t.orbit, dtype=np.float64) / (2 * math.pi), "Hz")
-    for name, unit, what in (("x", "m", "x displacement"), ("y", "m", "y displacement"),
-                             ("fx", "N", "x force on the journal"), ("fy", "N", "y force on the journal")):  # fmt: skip
-        put(h, name, np.asarray(getattr(t, name), dtype=np.complex128), unit, meaning=what,
+    meanings = (("m", "x displacement"), ("m", "y displacement"), ("N", "x force on the journal"),
+                ("N", "y force on the journal"))  # fmt: skip
+    for (name, z), (unit, what) in zip(t.phasors.items(), meanings):
+        put(h, name, np.asarray(z, dtype=np.complex128), unit, meaning=what,
             convention="q = Re(q_bar exp(i Omega t))")
     if t.gamma2 is not None:
         put(h, "gamma2", np.asarray(t.gamma2, dtype=np.float64), "1", columns=strings(COHERENCE_PAIRS))
@@ -155,3 +156,34 @@ def _write_identification(h: h5py.Group, entry: dict) -> None:
     from orbitrig.store.fit_analysis import write_fit_analysis  # it uses put/strings of this module
 
     write_fit_analysis(h, d, names)
+
+
+#: SI unit of each coefficient of the Eq. 15 power fit ({m}: its exponent)
+POWER_FIT_UNITS = {"K0": "N/m", "Km": "N/m (rad/s)^-{m}", "C0": "N s/m", "Cn": "N s/m (rad/s)^-{n}",
+                   "D0": "kg", "Dp": "kg (rad/s)^-{p}"}  # fmt: skip
+
+
+def write_truth(h: h5py.Group, truth: dict) -> None:
+    """The simulator's truth of a point (orbitrig.run.truth): the JSON in attribute ``json``
+    and, when the truth holds the true impedance, numeric datasets with units: ``orbit``,
+    ``orbit_hz``, ``Z`` (row, 2, 2) and the best fits under ``fits/constant`` and ``fits/power``."""
+    h.attrs["json"] = to_json(truth)
+    if "Z_re" not in truth:
+        return
+    h.attrs["meaning"] = str(truth.get("definition", "the simulator's truth"))
+    put(h, "orbit", np.asarray(truth["orbit"], dtype=np.float64), "rad/s", meaning="signed (< 0 backward)")
+    put(h, "orbit_hz", np.asarray(truth["orbit_hz"], dtype=np.float64), "Hz")
+    z = np.asarray(truth["Z_re"], dtype=np.float64) + 1j * np.asarray(truth["Z_im"], dtype=np.float64)
+    put(h, "Z", z.reshape(-1, 2, 2), "N/m", dimensions="orbit row, force (fx, fy), displacement (x, y)",
+        convention="f_bar = -Z d_bar, Z = K + i|Omega| C - Omega^2 D for constant coefficients")
+    fits = h.create_group("fits")
+    put(fits, "band", np.asarray(truth["band"], dtype=np.float64), "rad/s", meaning="|Omega| the fits use")
+    const = fits.create_group("constant")
+    for m in "KCD":
+        put(const, m, np.asarray(truth["fits"]["constant"][m], dtype=np.float64), MATRIX_SI[m])
+    power = fits.create_group("power")
+    exps = dict(zip("mnp", truth["fits"]["power"]["exponents"]))
+    power.attrs["exponents"] = np.asarray(list(exps.values()), dtype=np.int64)
+    power.attrs["form"] = "K = K0 + |Omega|^m Km, C = C0 + |Omega|^n Cn, D = D0 + |Omega|^p Dp (Eq. 15)"
+    for k, unit in POWER_FIT_UNITS.items():
+        put(power, k, np.asarray(truth["fits"]["power"][k], dtype=np.float64), unit.format(**exps))

@@ -124,6 +124,8 @@ class Run:
     channel_units: list[str] = field(default_factory=list)
     torn: int = 0
     unreadable: list[str] = field(default_factory=list)
+    sim_scenario_name: str = ""  # --sim runs: the simulator scenario (file name, or the default)
+    sim_scenario_config: str = ""  # its TOML text ("" the default rig)
 
     @property
     def complete_points(self) -> list[Point]:
@@ -197,6 +199,8 @@ def read_run(directory: str | Path) -> Run:
                 matrix_config=_text(a.get("matrix_config")), points=points,
                 channels=[_text(c) for c in h5["channels"][()]] if "channels" in h5 else [],
                 channel_units=[_text(c) for c in h5["channel_units"][()]] if "channel_units" in h5 else [],
+                sim_scenario_name=_text(a.get("sim_scenario_name")),
+                sim_scenario_config=_text(a.get("sim_scenario_config")),
             )  # fmt: skip
         except (KeyError, ValueError, TypeError) as err:
             raise RunDirError(path, f"malformed run file: {err}") from err
@@ -223,6 +227,9 @@ def _read_pieces(layout: RunLayout) -> Run:
         points=[], channels=list(header.get("channels", [])), channel_units=list(header.get("channel_units", [])),
         torn=journal.torn,
     )  # fmt: skip
+    scenario = header.get("sim_scenario")
+    if isinstance(scenario, dict):
+        run.sim_scenario_name, run.sim_scenario_config = str(scenario.get("name", "")), str(scenario.get("text", ""))
     for index in layout.point_indexes():
         try:
             point = read_point(layout, index, complete=point_state(layout, index).complete, skipped=run.unreadable)

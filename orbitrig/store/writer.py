@@ -56,7 +56,10 @@ class RunStore:
 
     # ---------------------------------------------------------- life cycle
     @classmethod
-    def create(cls, out_dir, *, rig_text: str, matrix_text: str, matrix_name: str, sim: bool) -> RunStore:
+    def create(cls, out_dir, *, rig_text: str, matrix_text: str, matrix_name: str, sim: bool,
+               scenario_name: str = "", scenario_text: str = "") -> RunStore:  # fmt: skip
+        """A new run directory; `scenario_name` / `scenario_text`: the simulator scenario of a
+        --sim run (name and TOML text, recorded so that a resume runs the same one)."""
         self = cls(out_dir)
         lay = self.layout
         for existing in (lay.header, lay.run_file, lay.journal):
@@ -70,6 +73,8 @@ class RunStore:
         self._header = {"format": FORMAT, "software_version": _versions(), "created": now_iso(), "sim": bool(sim),
                         "matrix_name": matrix_name, "channels": channels, "channel_units": units,
                         "rig_config": rig_text, "matrix_config": matrix_text}  # fmt: skip
+        if sim:
+            self._header["sim_scenario"] = {"name": scenario_name, "text": scenario_text}
         fsync_dir(lay.dir)
         write_atomic(lay.header, json.dumps(self._header, indent=1).encode("utf-8"))
         self._journal([journal.status_line("running", "")])
@@ -92,6 +97,13 @@ class RunStore:
         """(rig TOML text, matrix TOML text, sim) of the stored run."""
         h = self._header or read_header(self.layout)
         return str(h["rig_config"]), str(h["matrix_config"]), bool(h["sim"])
+
+    def stored_scenario(self) -> tuple[str, str] | None:
+        """(name, TOML text) of the stored run's simulator scenario; None when the run did not
+        record one (a rig run, or a run written before scenarios were recorded)."""
+        h = self._header or read_header(self.layout)
+        sc = h.get("sim_scenario")
+        return (str(sc.get("name", "")), str(sc.get("text", ""))) if isinstance(sc, dict) else None
 
     def prepare_resume(self) -> list[int]:
         """Set aside every incomplete or damaged point (DIR/aside/PPPP.<reason>.N) and

@@ -8,7 +8,7 @@ import subprocess
 
 import h5py
 
-from orbitrig.cli.sweep import compare_with_truth
+from orbitrig.cli.sweep_summary import compare_with_truth
 
 from sweep_helpers import ROOT, orbitrig_cmd
 

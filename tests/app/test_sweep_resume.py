@@ -8,6 +8,7 @@ import subprocess
 import time
 
 import h5py
+import numpy as np
 import pytest
 
 from orbitrig.store.reader import read_run
@@ -44,8 +45,9 @@ def test_kill_9_mid_run_then_resume(tmp_path):
     matrix.write_text(MATRIX)
     out = tmp_path / "run"
     log = out / "run.log"
-    proc = subprocess.Popen(orbitrig_cmd("sweep", "--sim", "--matrix", str(matrix), "--out", str(out)),
-                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(orbitrig_cmd("sweep", "--sim", "--sim-config", "config/sim/clean.toml", "--matrix",
+                                         str(matrix), "--out", str(out)),
+                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
     try:
         # kill once a point is complete and a later one has stored a block (identification and
         # storage run in the background, so which points these are depends on the machine's load)
@@ -70,6 +72,13 @@ def test_kill_9_mid_run_then_resume(tmp_path):
     p = subprocess.run(orbitrig_cmd("sweep", "--sim", "--resume", str(out)), cwd=ROOT,
                        capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stdout + p.stderr
+    assert "simulator scenario of the run: config/sim/clean.toml" in p.stderr  # stored, not given again
+    for point in read_run(out).points:  # the clean bearing (Z exactly constant K, C, D) at every point
+        t = point.truth
+        w, c = np.abs(np.asarray(t["orbit"]))[:, None, None], t["fits"]["constant"]
+        fit = np.asarray(c["K"]) + 1j * w * np.asarray(c["C"]) - w**2 * np.asarray(c["D"])
+        z = np.asarray(t["Z_re"]) + 1j * np.asarray(t["Z_im"])
+        assert np.abs(fit - z).max() < 1e-6 * np.abs(z).max(), point.name
     text = log.read_text()
     for name in partial:
         assert f"resume: point {name} set aside as aside/{name}.incomplete.1" in text

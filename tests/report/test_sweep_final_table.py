@@ -6,7 +6,7 @@ import re
 
 from report_synthetic import write_synthetic_run
 
-from orbitrig.cli.sweep import DETAIL_POINTS, print_coefficients
+from orbitrig.cli.sweep_summary import DETAIL_POINTS, print_coefficients
 
 
 def test_many_points_print_one_summary_row_each(tmp_path, capsys, monkeypatch):

@@ -1,0 +1,97 @@
+"""`orbitrig sweep --sim` end to end on each simulator scenario, at the paper's Table 1
+operating point (1000 rpm, eps_d 0.04, eps_s 0, p_r 0.4826 MPa, beta 0.25, its ten
+Omega/omega, forward and backward, 50 revolutions): the impedance of the identified model
+against the simulator's true Z(Omega), the model-adequacy test, and the coherence.
+
+Uncertainty of Z at each frequency: the fit's statistical covariance plus the type-B budget
+of the rig's stated calibration uncertainty (config/rig.toml [calibration_uncertainty]; the
+budget the sweep stores, recomputed here with its covariance), propagated to Z's eight real
+parts; the check is |Z_id - Z_true| <= k u(Z) with the sweep's k = 2. The model-adequacy
+verdict is the one the sweep stores with the frequency-dependent fit (reduction.adequacy.
+frequency_dependence); "not rejected" is judged at alpha = 1e-3, so that a bearing that
+truly has constant coefficients fails the test about 1 time in 1000 only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from e2e_sweep import impedance_misfit, stated_calibration, sweep, the_point
+from reduction.adequacy import frequency_dependence
+from reduction.identify import identify
+
+ALPHA = 1e-3
+SCENARIOS = {"clean": "config/sim/clean.toml", "compressible": "config/sim/compressible.toml", "paper": None}
+#: the model that describes each scenario's bearing
+ADEQUATE = {"clean": "none", "compressible": "power:1", "paper": "none"}
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """One sweep per scenario, made on first use."""
+    made: dict = {}
+
+    def get(name: str):
+        if name not in made:
+            made[name] = sweep(tmp_path_factory.mktemp(name), SCENARIOS[name])
+        return made[name]
+
+    return get
+
+
+@pytest.mark.parametrize("name", list(SCENARIOS))
+def test_identified_impedance_is_within_its_uncertainty_of_the_true_one(runs, name):
+    out, _ = runs(name)
+    point = the_point(out)
+    for lms in ("piezo", "strain"):
+        misfit = impedance_misfit(point, lms, ADEQUATE[name], stated_calibration(out, lms), stored_budget=True)
+        assert len(misfit) == 20 and np.all(misfit <= 1.0), (lms, misfit.round(2))
+    if name == "clean":  # no chain errors on the piezo forces: the statistics alone cover it
+        assert np.all(impedance_misfit(point, "piezo", "none", None) <= 1.0)
+    if name == "compressible":  # low noise: the chain's errors are outside the statistics alone
+        assert np.max(impedance_misfit(point, "piezo", ADEQUATE[name], None)) > 1.0
+
+
+@pytest.mark.parametrize("name", list(SCENARIOS))
+def test_frequency_dependence_is_found_only_in_the_compressible_bearing(runs, name):
+    point = the_point(runs(name)[0])
+    stored = point.identification("piezo", "kcd11", "power:1").result["adequacy"]
+    assert stored["constant"] == "kcd11 none ols", stored  # the constant fit it was tested against
+    if name == "compressible":
+        assert stored["supported"] and stored["p_value"] < 1e-8, stored["verdict"]
+        table = point.tables["piezo"]  # power:1 is accepted: a richer polynomial finds nothing more
+        richer = frequency_dependence(identify(table, "kcd11", "power:1"), identify(table, "kcd11", "poly:2"))
+        assert not richer.supported, richer.verdict
+    else:
+        assert stored["p_value"] > ALPHA, stored["verdict"]
+
+
+def test_table1_coherence_lies_in_the_papers_range(runs):
+    point = the_point(runs("paper")[0])
+    coherence = np.array([f.coherence for f in point.frequencies])  # (20, 2 LMS, 4 pairs)
+    assert coherence.shape == (20, 2, 4)
+    assert 0.91 <= coherence.min() and coherence.max() <= 0.996, (coherence.min(), coherence.max())
+
+
+def test_the_run_stores_the_true_impedance_and_its_best_fits(runs):
+    import h5py
+
+    out, stdout = runs("clean")
+    truth = the_point(out).truth
+    z = np.asarray(truth["Z_re"]) + 1j * np.asarray(truth["Z_im"])
+    assert z.shape == (20, 2, 2) and len(truth["orbit"]) == 20
+    w = np.abs(np.asarray(truth["orbit"]))
+    c = truth["fits"]["constant"]
+    # compressibility off: Z = K + i w C - w^2 M exactly, so the constant best fit reproduces it
+    fit = np.asarray(c["K"]) + 1j * w[:, None, None] * np.asarray(c["C"]) - w[:, None, None] ** 2 * np.asarray(c["D"])
+    assert np.abs(fit - z).max() < 1e-6 * np.abs(z).max()
+    assert truth["K0"] == c["K"] and np.array_equal(truth["band"], np.unique(w))
+    with h5py.File(out / "run.h5", "r") as f:
+        g = f["points/0000/truth"]
+        assert g["Z"].attrs["units"] == "N/m" and g["orbit"].attrs["units"] == "rad/s"
+        assert np.allclose(g["Z"][()], z) and np.allclose(g["fits/constant/K"][()], c["K"])
+        assert g["fits/power/Km"].attrs["units"] == "N/m (rad/s)^-1"
+        assert f.attrs["sim_scenario_name"] == "config/sim/clean.toml"
+        assert "compressible = false" in f.attrs["sim_scenario_config"]
+    assert "|dZ|/|Z|" in stdout and "best fitting the simulator's true Z(Omega)" in stdout
