@@ -31,6 +31,7 @@ _AREAS = (
     "export",  # orbitrig export
     "serve",  # orbitrig serve
     "dashboard",  # orbitrig dashboard
+    "design",  # orbitrig design
 )
 
 for _area in _AREAS:

@@ -7,16 +7,19 @@ import sys
 
 import typer
 
+
 def print_plan(plan) -> None:
     """Print `plan` (orbitrig.run.plan.Plan): a summary (points, orbit blocks, steps,
-    estimated physical time, time per step kind), then one line per step (durations in s)."""
+    estimated physical time, time per step kind), the predicted uncertainty of each model
+    (orbitrig.cli.dry_run_predict), then one line per step (durations in s)."""
     try:
-        _print(plan.steps, plan.name)
+        _print(plan.steps, plan.name, plan.rig, plan.matrix)
     except BrokenPipeError:  # `| head`: the reader has what it wanted
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
 
 
-def _print(steps, name: str) -> None:
+def _print(steps, name: str, rig, mat) -> None:
+    from orbitrig.cli.dry_run_predict import prediction_lines
     from orbitrig.run.plan import format_duration, summarize
 
     sm = summarize(steps)
@@ -24,6 +27,8 @@ def _print(steps, name: str) -> None:
                f"{len(steps)} steps, estimated {format_duration(sm.duration)} (physical time)")  # fmt: skip
     parts = ", ".join(f"{k} {format_duration(v)}" for k, v in sm.by_kind.items())
     typer.echo(f"by step: {parts}")
+    for line in prediction_lines(rig, mat):
+        typer.echo(line)
     typer.echo("")
     width = len(str(len(steps)))
     typer.echo(f"{'#':>{width}}  {'starts at':>8}  {'where':10}  {'duration':>10}  step  (times h:mm:ss from the start)")

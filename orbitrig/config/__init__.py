@@ -22,7 +22,8 @@ from orbitrig.config.calibration import CalibrationUncertainty, ChannelUncertain
 from orbitrig.config.fields import (  # noqa: F401 - the package's public names
     CHANNEL_NAMES, FREQ_DEP, LMS, MODELS, MPA, RPM, DeviceId, Mpa, NonNeg, Pos, Ratio, Rpm, Seconds, Wait,
 )
-from orbitrig.config.matrix import MatrixConfig, ModelSpec, Operating, Orbit  # noqa: F401
+from orbitrig.config.designs import apply_design
+from orbitrig.config.matrix import MatrixAveraging, MatrixConfig, ModelSpec, Operating, Orbit  # noqa: F401
 from orbitrig.config.messages import _line_of, _problems
 from orbitrig.config.rig import (  # noqa: F401
     LINK_LOSS_MARGIN, Averaging, Bearing, Channel, Drives, Estimates, Interlocks, RigConfig, Settle,
@@ -118,7 +119,12 @@ def load_matrix(path: Path | str | None = None) -> MatrixConfig:
 
 
 def matrix_from_text(text: str, file: str = "<matrix>") -> MatrixConfig:
-    return _build(MatrixConfig, _parse(text, file), file, text)
+    data = _parse(text, file)
+    problems = apply_design(data, file)  # [orbit] design = "NAME": the designed ratios
+    if problems:
+        at = _line_of(text, ("orbit", "design"))
+        raise ConfigError(file, [f"line {at}: {p}" if at else p for p in problems])
+    return _build(MatrixConfig, data, file, text)
 
 
 def check_matrix_against_rig(matrix: MatrixConfig, rig: RigConfig) -> None:

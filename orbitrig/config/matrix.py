@@ -19,8 +19,10 @@ class Operating(_Model):
 
 
 class Orbit(_Model):
-    """Orbit frequencies as ratios Omega/omega: either `ratios` or start/stop/count."""
+    """Orbit frequencies as ratios Omega/omega: either `ratios` or start/stop/count, or a
+    designed list by name (`design`, see orbitrig.config.designs: its ratios fill `ratios`)."""
 
+    design: str | None = None
     ratios: list[Ratio] | None = None
     ratio_start: Ratio | None = None
     ratio_stop: Ratio | None = None
@@ -83,6 +85,24 @@ class ModelSpec(_Model):
         return f"{self.model}__{self.freq_dep.replace(':', '_').replace(',', '_')}__{self.method}"
 
 
+class MatrixAveraging(_Model):
+    """Adaptive averaging of every block: stop once every channel's averaged phasor has a
+    relative standard uncertainty <= target_pct (percent), between min_revolutions and
+    max_revolutions good revolutions. Without this table a block averages the matrix's
+    `revolutions` (default rig.toml's, the paper's 50)."""
+
+    target_pct: Annotated[float, Field(gt=0, lt=100)]
+    min_revolutions: Annotated[int, Field(ge=2, le=10_000)] = 10
+    max_revolutions: Annotated[int, Field(ge=2, le=10_000)] = 200
+
+    @model_validator(mode="after")
+    def _order(self):
+        if self.min_revolutions > self.max_revolutions:
+            raise ValueError(f"min_revolutions ({self.min_revolutions}) must not exceed "
+                             f"max_revolutions ({self.max_revolutions})")
+        return self
+
+
 class MatrixConfig(_Model):
     name: str
     description: str = ""
@@ -90,7 +110,14 @@ class MatrixConfig(_Model):
     orbit: Orbit
     models: Annotated[list[ModelSpec], Field(min_length=1)]
     revolutions: Annotated[int, Field(ge=2, le=10_000)] | None = None
+    averaging: MatrixAveraging | None = None
     settle_hold_s: Wait | None = None
+
+    @model_validator(mode="after")
+    def _one_count(self):
+        if self.averaging is not None and self.revolutions is not None:
+            raise ValueError("give 'revolutions' (a fixed count) or an [averaging] table (adaptive), not both")
+        return self
 
     _file: str = PrivateAttr("<matrix>")
     _text: str = PrivateAttr("")

@@ -25,7 +25,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from orbitrig.config import MPA, RPM, MatrixConfig, ModelSpec, RigConfig, check_matrix_against_rig
+from orbitrig.config import MPA, RPM, MatrixAveraging, MatrixConfig, ModelSpec, RigConfig, check_matrix_against_rig
 
 TWO_PI = 2.0 * math.pi
 DIRECTIONS = {"forward": +1, "backward": -1}
@@ -178,17 +178,23 @@ class Settle(Step):
 
 @dataclass(frozen=True)
 class Acquire(Step):
-    """Average `revolutions` good revolutions; after an interlock suspension the
-    block is settled again (`hold` s at setpoint) and acquired anew."""
+    """Average good revolutions: a fixed `revolutions`, or adaptively by the matrix's
+    [averaging] (`revolutions` is then its maximum, what the duration, the timeout and the
+    storage estimate assume); after an interlock suspension the block is settled again
+    (`hold` s at setpoint) and acquired anew."""
 
     block: Block
     revolutions: int
     hold: float  # s at setpoint when the block must be settled again
+    adaptive: MatrixAveraging | None = None  # None: exactly `revolutions`
 
     word = "acquire"
 
     def describe(self) -> str:
-        return f"acquire {self.revolutions} revolutions at {self.block.orbit_hz:.3f} Hz [{self.block.tag}]"
+        a = self.adaptive
+        what = (f"{self.revolutions} revolutions" if a is None else
+                f"{a.min_revolutions}..{a.max_revolutions} revolutions (until every channel <= {a.target_pct:g} %)")
+        return f"acquire {what} at {self.block.orbit_hz:.3f} Hz [{self.block.tag}]"
 
 
 @dataclass(frozen=True)
@@ -305,7 +311,8 @@ def make_plan(matrix: MatrixConfig, rig: RigConfig) -> Plan:
     """Check `matrix` against `rig` (ConfigError naming every problem) and expand it."""
     check_matrix_against_rig(matrix, rig)
     points = operating_points(matrix, rig)
-    n_rev = matrix.revolutions or rig.averaging.revolutions
+    a = matrix.averaging
+    n_rev = a.max_revolutions if a is not None else matrix.revolutions or rig.averaging.revolutions
     return Plan(matrix, rig, tuple(points), tuple(_steps(matrix, rig, points, n_rev)), n_rev)
 
 
@@ -331,7 +338,7 @@ def _steps(matrix: MatrixConfig, rig: RigConfig, points: list[OperatingPoint], n
                 steps.append(SetOrbit(p.index, abs(b.orbit - orbit_now) / rate, b))
                 orbit_now = b.orbit
             steps.append(Settle(p.index, hold, b, hold))
-            acquire = Acquire(p.index, acquisition_time(b.orbit, n_rev), b, n_rev, hold)
+            acquire = Acquire(p.index, acquisition_time(b.orbit, n_rev), b, n_rev, hold, matrix.averaging)
             steps.append(acquire)
             if j == 0:
                 steps.append(VerifyGeometry(p.index, 0.0, acquire))

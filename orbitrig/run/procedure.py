@@ -15,6 +15,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Awaitable, Callable
 
+from daq.averager import AveragingRule
 from daq.errors import DaqError
 from drives.errors import DriveError
 from orbitrig.config import RPM, RigConfig
@@ -35,6 +36,15 @@ from orbitrig.store.writer import BlockRecord, PointResults, RunStore
 
 log = logging.getLogger(__name__)
 
+
+
+def averaging_rule(step: Acquire) -> AveragingRule:
+    """The daq rule of an Acquire step: the matrix's [averaging] (target_pct percent -> a
+    fraction, between min and max revolutions), else exactly `revolutions`."""
+    a = step.adaptive
+    if a is None:
+        return AveragingRule.fixed(step.revolutions)
+    return AveragingRule.adaptive(a.target_pct / 100.0, a.min_revolutions, a.max_revolutions)
 
 @dataclass(frozen=True)
 class Before:
@@ -225,7 +235,7 @@ class PointProcedure:
                 settle_first = True
                 t0 = time.monotonic()
                 r.progress.block(p.blocks.index(b) + 1)
-                avg = await r.control.guarded(r.io.acquire(step.revolutions, timeout=timeout), r.supervisor)
+                avg = await r.control.guarded(r.io.acquire(averaging_rule(step), timeout=timeout), r.supervisor)
                 self._add_time("acquire", t0)
                 ps.last = block_record(b, avg, r.rig)
                 return

@@ -50,7 +50,8 @@ def test_sweep_matrix_by_name_prints_totals_first():
     assert lines[1].startswith("by step: manual settings ")
     steps = [line for line in lines if re.match(r"\s*\d+\s+\d+:\d\d", line)]
     assert len(steps) == int(m.group(1))
-    assert lines.index(steps[0]) == 4  # totals, by step, blank, header, then the steps
+    assert lines[2].startswith("predicted uncertainty") and lines[9] == ""  # then 6 models' predictions
+    assert lines.index(steps[0]) == 11  # totals, by step, predictions, blank, header, then the steps
     assert steps[-1].split()[0] == m.group(1)
 
 

@@ -1,0 +1,98 @@
+"""Inputs of `orbitrig design`: the per-revolution phasor noise and the prior coefficients.
+
+Noise (standard uncertainty sqrt(E|err|^2) of ONE revolution's complex phasor; SI):
+- stated: ``DEFAULT_FORCE_NOISE`` N for fx, fy and ``DEFAULT_PROBE_NOISE`` m for x, y unless
+  the command line says otherwise;
+- measured (``--noise-from RUN``): from the run's orbit tables of one load measuring system,
+  u * sqrt(n_records) per row when the tables carry u_* (orbit-table v2), else the forces'
+  noise from the coherence, |f| sqrt((1 - gamma^2) / gamma^2), and the displacements' noise
+  as stated. The median over every row of every complete point.
+
+Prior coefficients (where the relative standard errors are measured, and where displacement
+noise is propagated through Z): the run's identification of the model at the point whose
+spin is nearest, else ``NOMINAL`` (the order of magnitude of a 60 mm hydrostatic bearing).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rigerrors import OrbitrigError
+
+DEFAULT_FORCE_NOISE = 20.0  # N per revolution, fx and fy (the simulator's default scenario: 16 to 25 N)
+DEFAULT_PROBE_NOISE = 100e-9  # m per revolution, x and y (there: 20 to 160 nm, growing with the orbit ratio)
+NOMINAL = {"Kxx": 3.8e7, "Kxy": 6.0e6, "Kyx": -6.0e6, "Kyy": 4.0e7,
+           "Cxx": 1.0e5, "Cxy": 2.0e3, "Cyx": 2.0e3, "Cyy": 1.1e5,
+           "Dxx": 4.0, "Dxy": 0.05, "Dyx": 0.05, "Dyy": 4.2}  # fmt: skip  (SI; higher orders 0)
+
+
+class DesignInputError(OrbitrigError):
+    """A run that cannot give noise figures (message names the run directory)."""
+
+
+@dataclass(frozen=True)
+class Noise:
+    """Per-revolution standard uncertainty of x, y (m), fx, fy (N): (4,) stated, or (m, 4)
+    measured at the orbit ratios ``ratios`` (m,); where it came from; the measured orbit
+    radius (m, None when stated)."""
+
+    u_revolution: np.ndarray
+    source: str
+    ratios: np.ndarray | None = None
+    radius: float | None = None
+
+
+def stated_noise(force: float = DEFAULT_FORCE_NOISE, probe: float = DEFAULT_PROBE_NOISE) -> Noise:
+    return Noise(np.array([probe, probe, force, force], dtype=float),
+                 f"stated: {force:g} N (forces), {probe * 1e9:g} nm (displacements) per revolution")
+
+
+def _row_noise(table, probe: float) -> np.ndarray | None:
+    """(n, 4) per-revolution noise of one table's rows, or None when it has no evidence."""
+    if table.u is not None:
+        n = np.full(len(table.orbit), 50.0) if table.n_records is None else np.asarray(table.n_records, float)
+        return np.asarray(table.u, dtype=float) * np.sqrt(n)[:, None]
+    if table.gamma2 is None:
+        return None
+    g = np.clip(np.asarray(table.gamma2, dtype=float), 1e-6, 1.0)
+    gx, gy = (g[:, 0] + g[:, 1]) / 2, (g[:, 2] + g[:, 3]) / 2
+    ufx = np.abs(table.fx) * np.sqrt((1 - gx) / gx)
+    ufy = np.abs(table.fy) * np.sqrt((1 - gy) / gy)
+    ud = np.full(ufx.shape, probe)
+    return np.stack([ud, ud, ufx, ufy], axis=1)
+
+
+def run_noise(run, lms: str, probe: float = DEFAULT_PROBE_NOISE) -> Noise:
+    """Median per-revolution noise of the run's ``lms`` orbit tables (complete points)."""
+    tables = [p.tables[lms] for p in run.complete_points if lms in p.tables]
+    found = [(t, r) for t in tables for r in [_row_noise(t, probe)] if r is not None]
+    if not found:
+        raise DesignInputError(f"{run.directory}: no complete point with an orbit table of the "
+                               f"{lms} system carrying uncertainties or coherences")
+    rows = np.concatenate([r for _, r in found], axis=0)
+    ratios = np.round(np.concatenate([np.abs(t.orbit) / t.spin for t, _ in found]), 3)
+    at = np.unique(ratios)
+    u = np.array([np.median(rows[ratios == r], axis=0) for r in at])
+    radius = float(np.median(np.concatenate([np.sqrt((np.abs(t.x) ** 2 + np.abs(t.y) ** 2) / 2) for t, _ in found])))
+    how = "u_* columns" if any(t.u is not None for t, _ in found) else "coherences"
+    return Noise(u, f"measured: run {run.directory} ({lms}, {how}; median per orbit ratio of {len(rows)} rows)",
+                 at, radius)
+
+
+def prior_theta(spec, run=None, spin: float | None = None, lms: str = "piezo") -> tuple[np.ndarray, str]:
+    """(theta in the spec's column order, source): the run's identification of this model
+    and frequency dependence at the point nearest ``spin`` (rad/s), else ``NOMINAL``."""
+    if run is not None and spin is not None:
+        found = []
+        for p in run.complete_points:
+            ident = p.identification(lms, spec.model, spec.freq_dep.text)
+            if ident is not None and ident.result is not None:
+                found.append((abs(p.settings.spin - spin), p.index, ident.result.get("coefficients", {})))
+        if found:
+            _, index, coeffs = min(found, key=lambda f: f[:2])
+            if all(coeffs.get(n) is not None for n in spec.names):
+                return (np.array([float(coeffs[n]) for n in spec.names]),
+                        f"identified: run {run.directory}, point {index:04d} ({lms})")
+    return np.array([NOMINAL.get(n, 0.0) for n in spec.names]), "nominal (60 mm hydrostatic bearing)"

@@ -1,0 +1,188 @@
+"""`orbitrig design`'s result: one JSON-ready object, its printed form, and a saved design file.
+
+Rig time of a list at one operating point (s, physical): per block the averaged revolutions
+plus one (finding the trigger) times the orbit period, the settle hold and the store estimate
+of rig.toml; plus the orbit drive's ramps (forward from the highest |Omega| down, backward
+back up: 2 x the highest |Omega| at the rig's ramp rate). Manual settings and the spin ramp
+are the same for every list and left out.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import typer
+
+from orbitrig.cli.design_inputs import DesignInputError
+from orbitrig.config import RPM, default_rig_path
+
+DESIGNS_DIR = "designs"  # next to config/matrices: config/designs/NAME.toml
+_UNITS = {"K": "N/m", "C": "N s/m", "D": "kg"}
+
+
+def _unit(name: str) -> str:
+    base = _UNITS[name[0]]
+    r = int(name.split("_")[1]) if "_" in name else 0
+    return base if r == 0 else f"{base}/(rad/s)" + (f"^{r}" if r > 1 else "")
+
+
+def rig_time(rig, ratios, spin: float, revolutions: int, directions: str) -> float:
+    """Physical seconds the blocks of ``ratios`` take at spin (rad/s); see the module doc."""
+    r = np.asarray(ratios, dtype=float)
+    per_dir = 2 if directions == "both" else 1
+    acquire = per_dir * float(np.sum((revolutions + 1) * 2 * math.pi / (r * spin)))
+    blocks = per_dir * r.size
+    ramps = per_dir * float(np.max(r)) * spin / rig.ramp_rate
+    return acquire + blocks * (rig.settle.hold_s + rig.estimates.store_s) + ramps
+
+
+def _list_object(rig, problem, pred, revolutions: int, directions: str) -> dict:
+    names = problem.spec.names
+    ok = pred.std_errors is not None
+    return {
+        "ratios": list(pred.ratios),
+        "orbit_hz": [round(r * problem.spin / (2 * math.pi), 6) for r in pred.ratios],
+        "directions": directions,
+        "revolutions": revolutions,
+        "identifiable": ok,
+        "std_errors": {n: float(v) for n, v in zip(names, pred.std_errors)} if ok else None,
+        "relative_pct": {n: float(v) * 100 for n, v in zip(names, pred.relative)} if ok else None,
+        "worst_relative_pct": float(pred.worst) * 100 if ok else None,
+        "rig_time_s": rig_time(rig, pred.ratios, problem.spin, revolutions, directions),
+    }
+
+
+def _noise_object(noise) -> dict:
+    """{"u_revolution": {x, y, fx, fy}, "source"}; measured noise: one value per ratio ("ratios")."""
+    u = np.asarray(noise.u_revolution, dtype=float)
+    cols = ("x", "y", "fx", "fy")
+    if noise.ratios is None:
+        return {"u_revolution": dict(zip(cols, map(float, u))), "source": noise.source}
+    return {"u_revolution": {c: [float(v) for v in u[:, k]] for k, c in enumerate(cols)},
+            "ratios": [float(r) for r in noise.ratios], "source": noise.source}
+
+
+def _band(rig, spin_rpm: float, keep_away: float):
+    from reduction.frequency_list import GRID_STEP, allowed_ratios
+
+    d = rig.drives
+    if spin_rpm > d.max_spin_rpm:
+        raise DesignInputError(f"--spin {spin_rpm:g} rpm is above the rig's drives.max_spin_rpm = {d.max_spin_rpm:g}")
+    lo = d.min_ratio if d.min_ratio else GRID_STEP
+    hi = min(d.max_ratio if d.max_ratio is not None else 1.5, d.max_orbit_rpm / spin_rpm)
+    return allowed_ratios(lo, hi, keep_away=keep_away), lo, hi
+
+
+def _candidate_warnings(ratios, lo: float, hi: float, keep_away: float) -> list[str]:
+    out = [f"ratio {r:g} is within {keep_away:g} of Omega/omega = 1: the orbit is hard to tell from the "
+           "spindle's runout there" for r in ratios if abs(r - 1) < keep_away]
+    out += [f"ratio {r:g} is outside the drives' band {lo:g} .. {hi:.3g}" for r in ratios if not lo <= r <= hi]
+    return out
+
+
+def design_object(rig, *, model, freq_dep, spin_rpm, candidate, source, directions, radius, noise,
+                  run, lms, revolutions, target, keep_away) -> dict:
+    """Predict the candidate list, propose one; the JSON object `design --json` prints."""
+    from orbitrig.cli.design_inputs import prior_theta
+    from reduction.frequency_list import DesignProblem, predict, propose, revolutions_for
+    from reduction.models import model_spec
+
+    if not spin_rpm > 0:
+        raise DesignInputError(f"--spin must be > 0 rpm, got {spin_rpm:g}")
+    spec = model_spec(model, freq_dep)
+    spin = spin_rpm * RPM
+    radius = radius if radius is not None else noise.radius or 0.1 * rig.bearing.clearance
+    n = revolutions or rig.averaging.revolutions
+    theta, prior_source = prior_theta(spec, run, spin, lms)
+    problem = DesignProblem(spec, theta, spin, radius, noise.u_revolution, n, directions, noise_ratios=noise.ratios)
+    grid, lo, hi = _band(rig, spin_rpm, keep_away)
+    cand = predict(problem, candidate)
+    overhead = rig.settle.hold_s + rig.estimates.store_s
+    goal = target / 100 if target is not None else None
+    prop = propose(problem, grid, count=None if goal else len(candidate), target=goal, block_overhead=overhead)
+    n_prop = revolutions_for(prop.best, n, goal) if goal else n
+    out = {
+        "model": model, "freq_dep": spec.freq_dep.text, "coefficients": spec.names,
+        "units": {name: _unit(name) for name in spec.names},
+        "spin_rpm": spin_rpm, "orbit_radius_m": radius, "directions": directions,
+        "noise": _noise_object(noise),
+        "prior": {"coefficients": dict(zip(spec.names, map(float, theta))), "source": prior_source},
+        "allowed": {"ratio_min": lo, "ratio_max": hi, "keep_away_from_1": keep_away, "grid": list(map(float, grid))},
+        "target_pct": target,
+        "candidate": dict(_list_object(rig, problem, cand, n, directions), source=source,
+                          warnings=_candidate_warnings(candidate, lo, hi, keep_away)),
+        "proposal": _list_object(rig, problem, prop.best, n_prop or n, directions),
+    }
+    if goal:
+        out["proposal"]["reaches_target"] = n_prop is not None
+        if n_prop is not None:  # the predicted errors at the revolutions that reach the target
+            scaled = replace(problem, revolutions=n_prop)
+            out["proposal"] = dict(_list_object(rig, scaled, predict(scaled, prop.best.ratios), n_prop, directions),
+                                   reaches_target=True)
+    return out
+
+
+def _fmt_time(s: float) -> str:
+    s = int(round(s))
+    return f"{s // 3600}:{s % 3600 // 60:02d}:{s % 60:02d}"
+
+
+def print_design(obj: dict) -> None:
+    """Readable form: settings, the two lists, one line per coefficient."""
+    c, p = obj["candidate"], obj["proposal"]
+    echo = typer.echo
+    echo(f"model {obj['model']} ({obj['freq_dep']}), spin {obj['spin_rpm']:g} rpm, orbit radius "
+         f"{obj['orbit_radius_m'] * 1e6:.3g} um, directions {obj['directions']}")
+    echo(f"noise {obj['noise']['source']}")
+    echo(f"prior coefficients: {obj['prior']['source']}")
+    a = obj["allowed"]
+    echo(f"allowed ratios {a['ratio_min']:g} .. {a['ratio_max']:.3g}, none within {a['keep_away_from_1']:g} of 1")
+    for label, lst in (("candidate", c), ("proposal ", p)):
+        worst = "not identifiable" if lst["worst_relative_pct"] is None else f"worst {lst['worst_relative_pct']:.3g} %"
+        echo(f"{label}: {len(lst['ratios'])} ratios x {lst['directions']}, {lst['revolutions']} revolutions, "
+             f"rig time {_fmt_time(lst['rig_time_s'])}, {worst}: {', '.join(f'{r:g}' for r in lst['ratios'])}")
+    for w in c["warnings"]:
+        echo(f"warning (candidate): {w}")
+    if obj["target_pct"] is not None:
+        ok = p.get("reaches_target")
+        echo(f"target {obj['target_pct']:g} %: " + ("reached" if ok else "not reachable on this grid"))
+    echo("")
+    echo(f"{'coefficient':12} {'unit':16} {'prior':>11} {'candidate SE':>13} {'rel %':>8} {'proposal SE':>13} {'rel %':>8}")
+    for name in obj["coefficients"]:
+        cells = []
+        for lst in (c, p):
+            if lst["std_errors"] is None:
+                cells += [f"{'-':>13}", f"{'-':>8}"]
+            else:
+                cells += [f"{lst['std_errors'][name]:13.4g}", f"{lst['relative_pct'][name]:8.3g}"]
+        echo(f"{name:12} {obj['units'][name]:16} {obj['prior']['coefficients'][name]:11.4g} " + " ".join(cells))
+
+
+def designs_dir(rig_path: Path | None = None) -> Path:
+    """config/designs next to the rig configuration's folder."""
+    return (rig_path or default_rig_path()).parent / DESIGNS_DIR
+
+
+def save_design(obj: dict, name: str, folder: Path | None = None) -> Path:
+    """Write config/designs/NAME.toml: the proposal's ratios and directions (what a matrix
+    reads with [orbit] design = "NAME") and, as comments, what it was designed for."""
+    if not name.replace("-", "").replace("_", "").isalnum():
+        raise DesignInputError(f"--save {name!r}: use letters, digits, - and _ only")
+    folder = folder or designs_dir()
+    p = obj["proposal"]
+    target = "" if obj["target_pct"] is None else f" --target {obj['target_pct']:g}"
+    lines = [f"# orbitrig design --model {obj['model']} --freq-dep {obj['freq_dep']} --spin {obj['spin_rpm']:g}{target}",
+             f"# candidate: {obj['candidate']['source']}; orbit radius {obj['orbit_radius_m'] * 1e6:.3g} um",
+             f"# predicted worst relative standard error {p['worst_relative_pct']:.3g} % "
+             f"at {p['revolutions']} revolutions per block; noise {obj['noise']['source']}",
+             f'model = "{obj["model"]}"', f'freq_dep = "{obj["freq_dep"]}"',
+             f"spin_rpm = {obj['spin_rpm']:g}", f"revolutions = {p['revolutions']}",
+             "ratios = [" + ", ".join(f"{r:g}" for r in p["ratios"]) + "]",
+             "directions = " + ('["forward", "backward"]' if p["directions"] == "both" else f'["{p["directions"]}"]')]
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{name}.toml"
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path

@@ -1,0 +1,116 @@
+"""`sweep --dry-run`: the predicted uncertainty of each configured model, and which ones the
+planned orbits cannot identify.
+
+For every model of the matrix and every distinct (spin, orbit radius) of its operating
+points: the Cramer-Rao standard errors (reduction.frequency_list.predict) of circular orbits
+at the matrix's ratios and directions, for the stated per-revolution noise and the nominal
+prior of `orbitrig design` (orbitrig.cli.design_inputs), averaged over the revolutions a
+block takes (the fixed count, or an adaptive rule's minimum: the most pessimistic). One line
+per model: the worst relative standard error over the operating points (and where), or why
+the planned orbits cannot identify it (reduction.identifiability.check_plan).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from orbitrig.config import RPM
+
+
+@dataclass(frozen=True)
+class ModelPrediction:
+    """One configured model: worst relative standard error (fraction) over the operating
+    points, with the coefficient, spin (rpm) and radius (m) where it occurs; or a refusal."""
+
+    label: str
+    worst: float | None
+    coefficient: str | None
+    spin_rpm: float | None
+    radius: float | None
+    best: float | None
+    refusal: str | None = None
+
+
+def _directions(mat) -> str:
+    dirs = set(mat.orbit.directions)
+    return "both" if len(dirs) == 2 else next(iter(dirs))
+
+
+def block_revolutions(rig, mat) -> int:
+    """Revolutions the prediction assumes per block (the minimum of an adaptive rule)."""
+    if mat.averaging is not None:
+        return mat.averaging.min_revolutions
+    return mat.revolutions or rig.averaging.revolutions
+
+
+def adaptive_line(rig, mat) -> str | None:
+    """With [averaging]: the acquisition time if every block stopped at the minimum, and at
+    the maximum (the plan's durations assume the maximum)."""
+    from orbitrig.run.plan import acquisition_time, format_duration, operating_points
+
+    a = mat.averaging
+    if a is None:
+        return None
+    orbits = [b.orbit for p in operating_points(mat, rig) for b in p.blocks]
+    lo = sum(acquisition_time(w, a.min_revolutions) for w in orbits)
+    hi = sum(acquisition_time(w, a.max_revolutions) for w in orbits)
+    return (f"adaptive averaging: every channel <= {a.target_pct:g} % in {a.min_revolutions}..{a.max_revolutions} "
+            f"revolutions per block: acquiring takes {format_duration(lo)} .. {format_duration(hi)} "
+            "(the estimate above assumes the maximum)")
+
+
+def predict_model(rig, mat, model: str, freq_dep: str, noise) -> ModelPrediction:
+    """The prediction line of one configured model (see the module doc)."""
+    from orbitrig.cli.design_inputs import prior_theta
+    from reduction.errors import IdentifiabilityError
+    from reduction.frequency_list import DesignProblem, predict
+    from reduction.identifiability import check_plan
+    from reduction.models import model_spec
+
+    label = f"{model} {freq_dep}"
+    ratios, directions = mat.orbit.ratio_list, _directions(mat)
+    spins = sorted(set(mat.operating.spin_rpm))
+    try:
+        for rpm in spins:
+            check_plan(model, freq_dep, np.asarray(ratios) * rpm / 60.0, directions)
+    except IdentifiabilityError as err:
+        return ModelPrediction(label, None, None, None, None, None, str(err).splitlines()[0])
+    if freq_dep.strip().lower() == "power:auto":
+        return ModelPrediction(label, None, None, None, None, None)
+    spec = model_spec(model, freq_dep)
+    theta, _ = prior_theta(spec)
+    n = block_revolutions(rig, mat)
+    rows = []
+    for rpm in spins:
+        for eps in sorted(set(mat.operating.dynamic_eccentricity)):
+            radius = eps * rig.bearing.clearance
+            p = predict(DesignProblem(spec, theta, rpm * RPM, radius, noise.u_revolution, n, directions), ratios)
+            j = int(np.argmax(p.relative))
+            rows.append((p.worst, spec.names[j], rpm, radius))
+    worst = max(rows)
+    return ModelPrediction(label, worst[0], worst[1], worst[2], worst[3], min(rows)[0])
+
+
+def prediction_lines(rig, mat) -> list[str]:
+    """The dry run's prediction block (one header line, one line per model)."""
+    from orbitrig.cli.design_inputs import stated_noise
+
+    noise = stated_noise()
+    n = block_revolutions(rig, mat)
+    adaptive = adaptive_line(rig, mat)
+    out = [adaptive] if adaptive else []
+    out.append(f"predicted uncertainty (Cramer-Rao; noise {noise.source}; {n} revolutions per block"
+               + (", the adaptive minimum" if adaptive else "") + "; nominal prior coefficients; "
+               "`orbitrig design` proposes lists):")
+    for m in mat.models:
+        p = predict_model(rig, mat, m.model, m.freq_dep, noise)
+        if p.refusal:
+            out.append(f"  {p.label}: CANNOT be identified from the planned orbits: {p.refusal}")
+        elif p.worst is None:
+            out.append(f"  {p.label}: identifiable (the exponent is chosen at identification; not predicted)")
+        else:
+            out.append(f"  {p.label}: worst relative standard error {p.worst * 100:.3g} % ({p.coefficient} at "
+                       f"{p.spin_rpm:g} rpm, orbit radius {p.radius * 1e6:.3g} um); best point {p.best * 100:.3g} %")
+    return out

@@ -1,0 +1,223 @@
+"""Orbit-frequency lists designed on the Cramer-Rao bound: fewer, better placed frequencies.
+
+A list is a set of orbit ratios r = |Omega|/omega at one spin speed omega, each run in the
+given whirl directions with circular orbits of one radius. Its predicted standard errors are
+the square roots of the diagonal of :func:`reduction.design.predicted_covariance` for the
+stated noise: ``u_revolution`` (4,) is the standard uncertainty sqrt(E|err|^2) of ONE
+revolution's phasors x, y (m), fx, fy (N); a block averaging n revolutions has u / sqrt(n).
+Measured noise depends on the orbit frequency (runout and spindle-bearing tones leak into
+the fundamental differently at each ratio): give it as (m, 4) at ``noise_ratios`` (m,).
+
+Relative standard error of a coefficient: its standard error divided by the size of its
+matrix, ``coefficient_scales``: the RMS of the diagonal entries of that matrix's constant
+term at the prior coefficients, divided by omega^r for a term of order r (so Omega^r K_r is
+compared with K at Omega = omega). A cross-coupling or a frequency-dependent term that is
+zero in the prior keeps a finite relative error this way. Given ``scales`` instead (e.g. the
+standard errors of a reference list), "relative" is relative to them: a target of 1 then asks
+for every coefficient at least as precise as with the reference.
+
+:func:`propose` searches a grid of allowed ratios (inside the drives' band, away from
+r = 1 where the orbit cannot be told from the spindle's runout) with an exchange algorithm:
+start from an evenly spread list, move one frequency at a time to the grid point that lowers
+the worst relative standard error most, until no move helps. With a target it returns the
+fewest frequencies whose best list reaches it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from reduction.design import design_orbits, predicted_covariance
+from reduction.errors import ReductionError
+from reduction.models import ModelSpec
+
+RUNOUT_KEEP_AWAY = 0.1  # ratios within this of Omega/omega = 1 are not proposed
+GRID_STEP = 0.05  # ratio step of the search grid
+MAX_PASSES = 20  # exchange passes (each tries every position against every grid point)
+
+
+@dataclass(frozen=True)
+class DesignProblem:
+    """What a list is judged on (SI): the model, prior coefficients theta (column order of
+    ``spec``), spin omega (rad/s), orbit radius (m), per-revolution noise u (4,) of x, y
+    (m), fx, fy (N), revolutions averaged per block, whirl directions of every frequency."""
+
+    spec: ModelSpec
+    theta: np.ndarray
+    spin: float
+    radius: float
+    u_revolution: np.ndarray
+    revolutions: int = 50
+    directions: str = "both"
+    scales: np.ndarray | None = None  # (p,) what "relative" divides by; None: coefficient_scales
+    noise_ratios: np.ndarray | None = None  # (m,) ratios where u_revolution (m, 4) was measured
+
+    def noise_at(self, ratios) -> np.ndarray:
+        """(n, 4) per-revolution noise at ``ratios``: the stated (4,), or the measured
+        (m, 4) interpolated linearly in the ratio (held constant beyond the ends)."""
+        r = np.asarray(ratios, dtype=float)
+        u = np.asarray(self.u_revolution, dtype=float)
+        if self.noise_ratios is None:
+            return np.broadcast_to(u, (r.size, 4)).copy()
+        order = np.argsort(self.noise_ratios)
+        nr, u = np.asarray(self.noise_ratios, dtype=float)[order], u[order]
+        return np.stack([np.interp(r, nr, u[:, c]) for c in range(4)], axis=1)
+
+
+@dataclass(frozen=True)
+class ListPrediction:
+    """Predicted standard errors of one list (ratios ascending); ``worst`` is the largest
+    relative standard error (a fraction; inf when the list cannot identify the model)."""
+
+    ratios: tuple[float, ...]
+    std_errors: np.ndarray | None  # (p,) SI, column order of the spec; None: not identifiable
+    relative: np.ndarray | None  # (p,) fractions
+    worst: float
+
+
+@dataclass(frozen=True)
+class Proposal:
+    """The proposed list, whether it reached the target (None without one), and how many
+    lists were evaluated on the way."""
+
+    best: ListPrediction
+    target: float | None
+    reached: bool | None
+    evaluated: int
+
+
+def coefficient_scales(spec: ModelSpec, theta, spin: float) -> np.ndarray:
+    """(p,) size of each coefficient's matrix: RMS of the constant term's diagonal at theta,
+    divided by spin^order (SI). A matrix whose diagonal is zero gets scale 1."""
+    theta = np.asarray(theta, dtype=float)
+    diag = {}
+    for j, t in enumerate(spec.terms):
+        if t.order == 0 and t.entries[0][0] == t.entries[0][1]:
+            diag.setdefault(t.matrix, []).append(theta[j])
+    out = np.empty(spec.n_coefficients)
+    for j, t in enumerate(spec.terms):
+        size = float(np.sqrt(np.mean(np.square(diag.get(t.matrix, [0.0])))))
+        out[j] = (size if size > 0 else 1.0) / spin**t.order
+    return out
+
+
+def predict(problem: DesignProblem, ratios) -> ListPrediction:
+    """Predicted (Cramer-Rao) standard errors of the list ``ratios`` (|Omega|/omega)."""
+    r = tuple(sorted(float(v) for v in ratios))
+    hz = np.asarray(r) * problem.spin / (2 * np.pi)
+    orbit, x, y = design_orbits(hz, problem.directions, problem.radius)
+    u = problem.noise_at(orbit / problem.spin) / np.sqrt(problem.revolutions)
+    if 4 * orbit.size < problem.spec.n_coefficients:  # fewer equations than coefficients
+        return ListPrediction(r, None, None, float("inf"))
+    try:
+        cov = predicted_covariance(problem.spec, orbit, x, y, u, theta=problem.theta)
+    except ReductionError:
+        return ListPrediction(r, None, None, float("inf"))
+    se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    scales = problem.scales
+    if scales is None:
+        scales = coefficient_scales(problem.spec, problem.theta, problem.spin)
+    rel = se / scales
+    return ListPrediction(r, se, rel, float(np.max(rel)))
+
+
+def allowed_ratios(lo: float, hi: float, step: float = GRID_STEP,
+                   keep_away: float = RUNOUT_KEEP_AWAY) -> np.ndarray:
+    """Grid of ratios in [lo, hi] (multiples of ``step``) at least ``keep_away`` from 1."""
+    if not 0 < lo < hi:
+        raise ReductionError(f"allowed_ratios: need 0 < lo < hi, got {lo:g}, {hi:g}")
+    k = np.arange(np.ceil(lo / step - 1e-9), np.floor(hi / step + 1e-9) + 1)
+    grid = np.round(k * step, 10)
+    grid = grid[np.abs(grid - 1.0) >= keep_away - 1e-9]
+    if grid.size == 0:
+        raise ReductionError(f"no orbit ratio in [{lo:g}, {hi:g}] stays {keep_away:g} away from 1")
+    return grid
+
+
+def best_list(problem: DesignProblem, grid, count: int, score=None) -> tuple[ListPrediction, int]:
+    """The exchange algorithm's best list of ``count`` distinct grid ratios (and how many
+    lists it evaluated); ``score(prediction) -> float`` is minimised, default the worst
+    relative standard error."""
+    score = score or (lambda pred: pred.worst)
+    grid = np.unique(np.asarray(grid, dtype=float))
+    if not 1 <= count <= grid.size:
+        raise ReductionError(f"best_list: {count} frequencies from a grid of {grid.size}")
+    picks = list(np.unique(np.round(np.linspace(0, grid.size - 1, count)).astype(int)))
+    picks += [i for i in range(grid.size) if i not in picks][: count - len(picks)]
+    best = predict(problem, grid[picks])
+    best_score, evaluated = score(best), 1
+    for _ in range(MAX_PASSES):
+        improved = False
+        for pos in range(count):
+            for g in range(grid.size):
+                if g in picks:
+                    continue
+                trial = picks[:pos] + [g] + picks[pos + 1:]
+                pred = predict(problem, grid[trial])
+                evaluated += 1
+                s = score(pred)
+                if s < best_score * (1 - 1e-9):
+                    best, best_score, picks, improved = pred, s, trial, True
+        if not improved:
+            break
+    return best, evaluated
+
+
+def time_to_target(problem: DesignProblem, prediction: ListPrediction, target: float,
+                   block_overhead: float = 0.0) -> float:
+    """Predicted rig time (s) of a list whose blocks average just enough revolutions
+    (:func:`revolutions_for`) to reach ``target``, plus ``block_overhead`` s per block."""
+    n = revolutions_for(prediction, problem.revolutions, target)
+    if n is None:
+        return float("inf")
+    blocks = len(prediction.ratios) * (2 if problem.directions == "both" else 1)
+    return acquisition_time(prediction.ratios, problem.spin, n, problem.directions) + blocks * block_overhead
+
+
+def propose(problem: DesignProblem, grid, *, count: int | None = None, target: float | None = None,
+            block_overhead: float = 0.0) -> Proposal:
+    """Best list of ``count`` frequencies (lowest worst relative standard error), or, with
+    ``target`` (a fraction), the list that reaches it in the least rig time: for every
+    count, the list minimising :func:`time_to_target`; the cheapest count wins, so a
+    per-block overhead favours fewer frequencies. ``reached`` says whether the stated
+    ``problem.revolutions`` already reach the target (else :func:`revolutions_for` says
+    how many the blocks need)."""
+    grid = np.unique(np.asarray(grid, dtype=float))
+    if target is None:
+        if count is None:
+            raise ReductionError("propose: give a count or a target")
+        best, n = best_list(problem, grid, min(count, grid.size))
+        return Proposal(best, None, None, n)
+    if not target > 0:
+        raise ReductionError(f"propose: target must be > 0, got {target:g}")
+    def cost(pred):
+        return time_to_target(problem, pred, target, block_overhead)
+    total, best, best_cost = 0, None, float("inf")
+    top = grid.size if count is None else min(count, grid.size)
+    for k in range(max(1, min(problem.spec.min_frequencies, top)), top + 1):
+        pred, n = best_list(problem, grid, k, score=cost)
+        total += n
+        if cost(pred) < best_cost:
+            best, best_cost = pred, cost(pred)
+    if best is None:
+        best = pred
+    return Proposal(best, target, best.worst <= target, total)
+
+
+def revolutions_for(prediction: ListPrediction, revolutions: int, target: float) -> int | None:
+    """Revolutions per block that bring the list's worst relative standard error to
+    ``target`` (variance ~ 1/n); None when the list cannot identify the model."""
+    if prediction.relative is None:
+        return None
+    return max(1, int(np.ceil(revolutions * (prediction.worst / target) ** 2)))
+
+
+def acquisition_time(ratios, spin: float, revolutions, directions: str = "both") -> float:
+    """Seconds spent averaging: revolutions x orbit period 2 pi / (r omega), per block
+    (two blocks per ratio for "both"). ``revolutions``: one count or one per ratio."""
+    r = np.asarray(ratios, dtype=float)
+    n = np.broadcast_to(np.asarray(revolutions, dtype=float), r.shape)
+    per_dir = 2 if directions == "both" else 1
+    return float(per_dir * np.sum(n * 2 * np.pi / (r * spin)))

@@ -1,0 +1,103 @@
+"""`orbitrig design`: the JSON object, the proposal's promises, the saved design, operator errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+KEYS = {"model", "freq_dep", "coefficients", "units", "spin_rpm", "orbit_radius_m", "directions", "noise",
+        "prior", "allowed", "target_pct", "candidate", "proposal"}
+LIST_KEYS = {"ratios", "orbit_hz", "directions", "revolutions", "identifiable", "std_errors", "relative_pct",
+             "worst_relative_pct", "rig_time_s"}
+
+
+def design(*args: str, check: bool = True) -> subprocess.CompletedProcess:
+    p = subprocess.run([sys.executable, "-m", "orbitrig", "design", *args], cwd=ROOT, capture_output=True,
+                       text=True, timeout=120)
+    if check:
+        assert p.returncode == 0, p.stderr
+    return p
+
+
+def test_json_keys_and_numbers():
+    obj = json.loads(design("--model", "kcd11", "--spin", "1000", "--json").stdout)
+    assert set(obj) == KEYS
+    assert set(obj["candidate"]) == LIST_KEYS | {"source", "warnings"}
+    assert set(obj["proposal"]) == LIST_KEYS
+    names = obj["coefficients"]
+    assert len(names) == 11 and names[-1] == "Dyy"
+    for lst in (obj["candidate"], obj["proposal"]):
+        assert list(lst["std_errors"]) == names
+        assert lst["worst_relative_pct"] == pytest.approx(max(lst["relative_pct"].values()))
+        assert lst["orbit_hz"] == pytest.approx(np.array(lst["ratios"]) * 1000 / 60, rel=1e-6)
+    # no target: the same number of frequencies, a lower worst relative error, inside the band, off 1
+    c, p = obj["candidate"], obj["proposal"]
+    assert len(p["ratios"]) == len(c["ratios"]) == 10
+    assert p["worst_relative_pct"] < c["worst_relative_pct"]
+    assert all(0.1 <= r <= 1.5 and abs(r - 1) >= 0.1 - 1e-9 for r in p["ratios"])
+    assert any("0.977778" in w for w in c["warnings"])  # the paper's list has a ratio next to 1
+    assert obj["noise"]["u_revolution"] == {"x": 1e-7, "y": 1e-7, "fx": 20.0, "fy": 20.0}
+
+
+def test_target_is_reached_in_less_rig_time():
+    obj = json.loads(design("--model", "kc8", "--spin", "1000", "--matrix", "demo", "--target", "0.2",
+                            "--json").stdout)
+    c, p = obj["candidate"], obj["proposal"]
+    assert c["ratios"] == [0.3, 0.5, 0.7, 0.9, 1.2] and obj["target_pct"] == 0.2
+    assert p["reaches_target"] is True and p["worst_relative_pct"] <= 0.2 * (1 + 1e-9)
+    # the candidate list with just enough revolutions to reach the target takes longer
+    n_c = int(np.ceil(50 * (c["worst_relative_pct"] / 0.2) ** 2))
+    c_at_target = json.loads(design("--model", "kc8", "--spin", "1000", "--matrix", "demo", "--revolutions",
+                                    str(n_c), "--json").stdout)["candidate"]
+    assert c_at_target["worst_relative_pct"] <= 0.2 * (1 + 1e-9)
+    assert p["rig_time_s"] < c_at_target["rig_time_s"]
+    # variance ~ 1/n: the predicted errors scale with the revolutions stated
+    halved = json.loads(design("--model", "kc8", "--spin", "1000", "--ratios", ",".join(map(str, p["ratios"])),
+                               "--revolutions", str(4 * p["revolutions"]), "--radius", "5.76", "--json").stdout)["candidate"]
+    assert halved["worst_relative_pct"] == pytest.approx(p["worst_relative_pct"] / 2, rel=1e-6)
+
+
+def test_text_output_and_saved_design(tmp_path):
+    rig = tmp_path / "config" / "rig.toml"
+    rig.parent.mkdir()
+    rig.write_text((ROOT / "config" / "rig.toml").read_text())
+    p = design("--model", "kc8", "--spin", "1000", "--target", "0.2", "--save", "kc8fast", "--config", str(rig))
+    assert "proposal :" in p.stdout and "target 0.2 %: reached" in p.stdout
+    saved = (tmp_path / "config" / "designs" / "kc8fast.toml").read_text()
+    assert 'model = "kc8"' in saved and "ratios = [" in saved and "revolutions = " in saved
+
+
+@pytest.mark.parametrize("args, message", [
+    (("--model", "kcd11", "--spin", "3000"), "above the rig's drives.max_spin_rpm = 2500"),
+    (("--model", "kcd11", "--spin", "1000", "--ratios", "0.2,x"), "give numbers"),
+    (("--model", "kcd13", "--spin", "1000"), "unknown model 'kcd13'"),
+    (("--model", "kcd11", "--spin", "1000", "--ratios", "0.5", "--matrix", "demo"), "not both"),
+])
+def test_operator_mistakes_exit_2(args, message):
+    p = design(*args, check=False)
+    assert p.returncode == 2 and message in p.stderr and "Traceback" not in p.stderr and p.stdout == ""
+
+
+def test_noise_and_prior_from_a_simulated_run(tmp_path):
+    matrix = tmp_path / "small.toml"
+    matrix.write_text((ROOT / "config" / "matrices" / "demo.toml").read_text()
+                      .replace('name = "demo"', 'name = "small"\nrevolutions = 10'))
+    run = tmp_path / "run"
+    p = subprocess.run([sys.executable, "-m", "orbitrig", "sweep", "--sim", "--matrix", str(matrix), "--out", str(run),
+                        "--speedup", "40"], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    obj = json.loads(design("--model", "kcd11", "--spin", "1000", "--noise-from", str(run), "--json").stdout)
+    noise = obj["noise"]
+    assert noise["ratios"] == [0.3, 0.5, 0.7, 0.9, 1.2] and "measured: run" in noise["source"]
+    assert all(5.0 < u < 60.0 for u in noise["u_revolution"]["fx"])  # the simulator's force noise per revolution
+    assert obj["prior"]["source"].startswith("identified: run")
+    assert obj["prior"]["coefficients"]["Kxx"] > 1e7
+    assert 1e-6 < obj["orbit_radius_m"] < 1e-5  # the run's measured orbit (demo: eps_d 0.096)
+    p = design("--model", "kcd11", "--spin", "1000", "--noise-from", str(tmp_path), check=False)
+    assert p.returncode == 2 and "Traceback" not in p.stderr

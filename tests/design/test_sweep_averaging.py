@@ -1,0 +1,92 @@
+"""Adaptive averaging in the sweep (matrix [averaging] -> daq AveragingRule -> stored blocks),
+on the real simulator over its loopback protocols, the engine in-process."""
+
+from __future__ import annotations
+
+import asyncio
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from orbitrig import config as cfg
+from orbitrig.cli.simulated_rig import simulated_access
+from orbitrig.run.engine import RunEngine
+from orbitrig.run.plan import Acquire, make_plan
+from orbitrig.run.procedure import averaging_rule
+from sim.rig import SimRig
+
+pytestmark = pytest.mark.timeout(180)
+ROOT = Path(__file__).resolve().parents[2]
+SPEEDUP = 40.0
+
+
+def matrix(averaging: str, ratios: str = "[0.5, 1.2]") -> cfg.MatrixConfig:
+    text = (ROOT / "config" / "matrices" / "demo.toml").read_text()
+    text = text.replace('name = "demo"', 'name = "adaptive"').replace("ratios = [0.3, 0.5, 0.7, 0.9, 1.2]",
+                                                                       f"ratios = {ratios}")
+    return cfg.matrix_from_text(text + "\n[averaging]\n" + averaging, "adaptive.toml")
+
+
+def stored_blocks(out: Path) -> list[dict]:
+    blocks = []
+    with h5py.File(out / "run.h5", "r") as f:
+        for g in f["points"].values():
+            for tag, b in g["frequencies"].items():
+                blocks.append({"tag": tag, "n": int(b.attrs["n_records"]), "why": str(b.attrs["stop_reason"]),
+                               "rows": b["raw_counts"].shape[0], "used": int(b["stats"].attrs.get("revolutions_used", -1))
+                               if "stats" in b else -1,
+                               "dropped": int(b["stats"].attrs.get("revolutions_dropped", 0)) if "stats" in b else 0,
+                               "record_phasors": b["record_phasors"][()], "u": b["uncertainty"][()]})
+    return blocks
+
+
+async def run_sweep(tmp_path: Path, mat, damage: bool = False) -> list[dict]:
+    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
+        eng = RunEngine(cfg.load_rig(), out_dir=tmp_path / "run", access=simulated_access(sim), confirm_mode="auto")
+        run = asyncio.create_task(eng.run(mat))
+        while damage and not run.done():  # a damaged frame every few revolutions, all run long
+            sim.inject("corrupt_bytes", count=1)
+            await asyncio.sleep(0.02)
+        outcome = await run
+    assert outcome.status == "completed", outcome.message
+    return stored_blocks(tmp_path / "run")
+
+
+def test_the_plan_carries_the_matrix_rule():
+    rig = cfg.load_rig()
+    plan = make_plan(matrix("target_pct = 0.5\nmin_revolutions = 12\nmax_revolutions = 80\n"), rig)
+    rules = {averaging_rule(s) for s in plan.steps if isinstance(s, Acquire)}
+    assert len(rules) == 1
+    rule = rules.pop()
+    assert (rule.min_revolutions, rule.max_revolutions, rule.target) == (12, 80, pytest.approx(0.005))
+    assert plan.revolutions == 80  # storage and time estimates take the maximum
+    fixed = make_plan(cfg.load_matrix(cfg.matrix_file("demo")), rig)
+    assert {(r.min_revolutions, r.max_revolutions, r.target)
+            for r in (averaging_rule(s) for s in fixed.steps if isinstance(s, Acquire))} == {(50, 50, None)}  # the paper's fixed 50
+
+
+async def test_loose_target_stops_at_the_minimum(tmp_path):
+    blocks = await run_sweep(tmp_path, matrix("target_pct = 50\nmin_revolutions = 7\nmax_revolutions = 40\n"))
+    assert len(blocks) == 4
+    for b in blocks:
+        assert (b["n"], b["why"], b["rows"], b["used"]) == (7, "target", 7, 7), b["tag"]
+
+
+async def test_unreachable_target_stops_at_the_maximum(tmp_path):
+    blocks = await run_sweep(tmp_path, matrix("target_pct = 0.001\nmin_revolutions = 3\nmax_revolutions = 12\n"))
+    for b in blocks:
+        assert (b["n"], b["why"], b["rows"], b["used"]) == (12, "max", 12, 12), b["tag"]
+
+
+async def test_damaged_revolutions_are_never_averaged(tmp_path):
+    blocks = await run_sweep(tmp_path, matrix("target_pct = 3\nmin_revolutions = 10\nmax_revolutions = 30\n"),
+                             damage=True)
+    assert sum(b["dropped"] for b in blocks) > 0  # the damage reached the blocks
+    for b in blocks:
+        assert 10 <= b["n"] <= 30 and b["rows"] == b["n"] == b["used"], b["tag"]
+        assert b["why"] in ("target", "max")
+        q = b["record_phasors"]  # (N, C): no revolution is an outlier of its block
+        dev = np.abs(q - q.mean(axis=0)) / (np.sqrt(q.shape[0]) * b["u"])
+        assert np.max(dev) < 6.0, b["tag"]
