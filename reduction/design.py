@@ -121,6 +121,9 @@ def predicted_covariance(spec: ModelSpec, orbit, x, y, u, theta=None) -> np.ndar
     var = equation_variances(u, impedance(spec, theta, orbit))
     if np.any(var <= 0):
         raise ReductionError("predicted_covariance: every equation needs a noise > 0")
+    if A.shape[0] < A.shape[1]:
+        raise ReductionError(f"predicted_covariance: {A.shape[0]} real equations cannot identify "
+                             f"{A.shape[1]} coefficients (need at least {-(-A.shape[1] // 4)} orbit frequencies)")
     Aw = A / np.sqrt(var)[:, None]
     c = np.linalg.norm(Aw, axis=0)
     c = np.where(c > 0, c, 1.0)

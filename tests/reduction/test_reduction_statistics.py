@@ -85,6 +85,8 @@ def test_predicted_covariance_of_a_design_scales_with_noise_and_radius():
     with pytest.raises(ReductionError, match="rank-deficient"):
         fwd = design_orbits(frequencies(6), "forward", 5e-6)
         predicted_covariance(model_spec("kc8", "power:1"), *fwd, [0, 0, 1.0, 1.0])
+    with pytest.raises(ReductionError, match="need at least 2 orbit frequencies"):  # 4 equations, 8 unknowns
+        predicted_covariance(spec, *design_orbits(frequencies(1), "forward", 5e-6), [0, 0, 1.0, 1.0])
     with pytest.raises(ReductionError, match="theta"):
         predicted_covariance(spec, orbit, x, y, [1e-9, 1e-9, 1.0, 1.0])
     theta = np.array([keys_of(TRUE)[k] for k in spec.names])
