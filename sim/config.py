@@ -120,17 +120,17 @@ class NoiseConfig:
     """Disturbances (all off when ``enabled`` is false). Force levels in N, probe levels in m."""
 
     enabled: bool = True
-    piezo_white: float = 55.0  # N rms per sample
-    strain_white: float = 60.0  # N rms
-    probe_white: float = 0.1e-6  # m rms
-    runout: tuple[float, ...] = (0.25e-6, 0.1e-6)  # m, electrical runout of the probe tracks, spin harmonics 1, 2
-    spin_force: tuple[float, ...] = (10.0, 4.0)  # N, spindle unbalance/misalignment at spin harmonics 1, 2
+    piezo_white: float = 50.0  # N rms per sample
+    strain_white: float = 54.0  # N rms
+    probe_white: float = 0.09e-6  # m rms
+    runout: tuple[float, ...] = (0.225e-6, 0.09e-6)  # m, electrical runout of the probe tracks, spin harmonics 1, 2
+    spin_force: tuple[float, ...] = (9.0, 3.6)  # N, spindle unbalance/misalignment at spin harmonics 1, 2
     bearing_orders: tuple[float, ...] = (3.05, 4.95)  # ball-pass orders of the spindle bearings
     bearing_force: float = 3.0  # N per order, force channels
     bearing_probe: float = 3e-9  # m per order, probe channels
     resonance_frequency: float = 143.0  # Hz, structural mode of the bearing housing
     resonance_damping: float = 0.02  # damping ratio
-    resonance_force: float = 20.0  # N rms, narrow-band response of that mode
+    resonance_force: float = 18.0  # N rms, narrow-band response of that mode
     line_frequency: float = 50.0  # Hz (simulated time)
     line_force: float = 0.4  # N
     line_probe: float = 8e-9  # m
