@@ -4,7 +4,6 @@ headless Debian chromium driven by chromedriver (selenium)."""
 from __future__ import annotations
 
 import os
-import signal
 import subprocess
 import sys
 import tempfile
@@ -19,7 +18,7 @@ from selenium.webdriver.support.ui import WebDriverWait
 REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO / "tests" / "mqtt"))
 
-from mqtt_helpers import free_port, wait_port  # noqa: E402
+from mqtt_helpers import free_port, interrupt, wait_port  # noqa: E402
 
 RIG = "dash-rig"  # rig id of the service the tests start
 CHROMIUM = "/usr/bin/chromium"
@@ -52,14 +51,7 @@ class Dashboard:
         return self.log.read_text(errors="replace")
 
     def stop(self) -> int:
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
-            try:
-                self.proc.wait(20)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        return self.proc.returncode
+        return interrupt(self.proc)
 
 
 def chromium(profile_root: Path) -> webdriver.Chrome:

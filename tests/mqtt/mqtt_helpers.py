@@ -319,14 +319,19 @@ class Service:
         self.proc.wait(20)
 
     def stop(self) -> int:
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
-            try:
-                self.proc.wait(20)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        return self.proc.returncode
+        return interrupt(self.proc)
+
+
+def interrupt(proc: subprocess.Popen) -> int:
+    """Ctrl-C a process of ours (SIGINT), kill it if it has not ended within 20 s; its exit status."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    return proc.returncode
 
 
 # -- test matrices (small and fast on the simulator) ----------------------------
