@@ -1,31 +1,36 @@
-"""Rig time: the paper's fixed protocol against a designed frequency list with adaptive averaging.
+"""Rig time: the paper's fixed protocol against a designed list with revolutions per ratio.
 
 How (honestly): this drives reduction DIRECTLY on simulated revolutions - no engine, no
 transports, no drives. Revolutions come from the simulator's physics (sim.physics.RigPhysics
 of the default scenario "paper", config/sim.toml: hydrostatic bearing, measurement chain and
 every disturbance on) through sim.revolutions.simulate_revolutions (the A/D board's scan),
 quantised with the rig's gains and averaged by daq's StreamingAverager (the sweep's averager)
-under daq.averager.AveragingRule; each block's per-revolution phasors give the table's u_*,
-and reduction.identify (weighted least squares) identifies the model.
+under daq.averager.AveragingRule; each block's u_* is the sweep's (reduction.noise.
+mean_uncertainty: the per-revolution scatter without the spin tones' rotating leakage), and
+reduction.identify (weighted least squares) identifies the model.
 
-Rig time (simulated seconds, one operating point at 1000 rpm): per block the revolutions
-used plus one (finding the trigger) times the orbit period, the settle hold and the store
-estimate of config/rig.toml, plus the orbit ramps (2 x the highest |Omega| at the ramp
-rate) - the `orbitrig design` model; manual settings and the spin ramp are common to both.
+Rig time (simulated seconds, one operating point at 1000 rpm), as `orbitrig design` counts
+it: per block the revolutions used plus one (finding the trigger) times the orbit period, the
+settle hold and the store estimate of config/rig.toml, plus the orbit ramps (2 x the highest
+|Omega| at the ramp rate); manual settings and the spin ramp are common to both protocols.
 
 Protocols:
   paper    : ratios 0.2 .. 1.2 (10), both directions, AveragingRule.fixed(50)
   designed : a pilot run of the paper's protocol (not counted) gives the per-revolution noise
-             at each ratio and the prior coefficients (what `design --noise-from RUN` does); then
-             reduction.frequency_list.propose asks for every coefficient's predicted standard
-             error at most the paper list's (scales = those errors, target 1) in the least rig
-             time; its blocks average adaptively: AveragingRule.adaptive(target, n*/2, 3 n*)
-             with the channel target that n* revolutions reach on the pilot's noise.
+             at each ratio (smoothed, reduction.frequency_list.smooth_noise) and the prior
+             coefficients - what `orbitrig design --noise-from RUN --match` does; then
+             reduction.allocation.allocate asks for every coefficient's predicted standard
+             error at most the paper list's, in the least rig time, over the drives' band
+             (rig.toml: ratios 0.1 .. 1.5, none within 0.1 of 1), with revolutions per ratio.
+             Run with those fixed counts, and adaptively: each ratio's target
+             (reduction.allocation.adaptive_targets) between MIN_REVOLUTIONS and
+             MAX_FACTOR x its count.
 
 Achieved standard errors: the spread (and the RMS error against the simulator's true K, C,
-D) of the identified coefficients over repeated runs with different noise seeds.
+D) of the identified coefficients over repeated runs with different noise seeds; each SD
+ratio carries a Monte Carlo uncertainty of about 1/sqrt(runs - 1) (two SDs of `runs` runs).
 
-Run: python3 bench/bench_rig_time.py [runs]   (default 40 runs per protocol and model)
+Run: python3 bench/bench_rig_time.py [runs]   (default 200 runs per protocol and model)
 """
 
 from __future__ import annotations
@@ -44,11 +49,11 @@ sys.path.insert(0, str(ROOT))
 from daq.averager import AveragingRule, StreamingAverager  # noqa: E402
 from daq.revolutions import RevolutionBatch  # noqa: E402
 from orbitrig.config import RPM, load_rig  # noqa: E402
-from reduction.frequency_list import (DesignProblem, allowed_ratios, predict, propose,  # noqa: E402
-                                      revolutions_for)
+from reduction.allocation import adaptive_targets, allocate  # noqa: E402
+from reduction.frequency_list import DesignProblem, allowed_ratios, predict, smooth_noise  # noqa: E402
 from reduction.identify import identify  # noqa: E402
 from reduction.models import model_spec  # noqa: E402
-from reduction.noise import phasor_uncertainty  # noqa: E402
+from reduction.noise import mean_uncertainty  # noqa: E402
 from reduction.table import OrbitTable  # noqa: E402
 from sim.config import scenario  # noqa: E402
 from sim.fits import constant_fit  # noqa: E402
@@ -58,6 +63,8 @@ from sim.revolutions import simulate_revolutions  # noqa: E402
 SPIN = 1000 * RPM
 PAPER = [round(0.2 + k / 9, 6) for k in range(10)]
 MODELS = ("kcd11", "kc8")
+MIN_REVOLUTIONS = 50  # adaptive blocks: never fewer
+MAX_FACTOR = 3  # adaptive blocks: at most this many times the ratio's allocated count
 
 
 def new_physics(seed: int) -> RigPhysics:
@@ -65,12 +72,15 @@ def new_physics(seed: int) -> RigPhysics:
     return RigPhysics(dataclasses.replace(scenario("paper"), seed=seed))
 
 
-def run_point(physics, rig, ratios, rule: AveragingRule):
-    """One operating point: blocks at +-ratio x spin; (table, blocks, rig seconds)."""
+def run_point(physics, rig, ratios, rules):
+    """One operating point: blocks at +-ratio x spin, ``rules`` one AveragingRule per ratio;
+    (table, revolutions used per block, rig seconds)."""
     gains = np.asarray(rig.gains)
-    rows, us, ns, orbits, blocks, t = [], [], [], [], [], 0.0
+    rule_of = dict(zip(ratios, rules))
+    rows, us, ns, orbits, t = [], [], [], [], 0.0
     for direction in (+1, -1):
         for r in (sorted(ratios, reverse=True) if direction > 0 else sorted(ratios)):
+            rule = rule_of[r]
             orbit = direction * r * SPIN
             period = 2 * math.pi / abs(orbit)
             slots, values = simulate_revolutions(physics, SPIN, orbit, rule.max_revolutions, t0=t)
@@ -83,15 +93,14 @@ def run_point(physics, rig, ratios, rule: AveragingRule):
             q = block.record_phasors
             recs = np.stack([(q[:, 4] + q[:, 6]) / 2, (q[:, 5] + q[:, 7]) / 2, q[:, 0], q[:, 1]], axis=1)
             rows.append(recs.mean(axis=0))
-            us.append(phasor_uncertainty(recs, axis=0))
+            us.append(mean_uncertainty(recs, 1 / r))
             ns.append(block.n_records)
             orbits.append(abs(orbit))
-            blocks.append(block)
     t += 2 * max(ratios) * SPIN / rig.ramp_rate
     rows = np.array(rows)
     table = OrbitTable(SPIN, np.array(orbits), rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3],
                        n_records=np.array(ns), u=np.array(us))
-    return table, blocks, t
+    return table, ns, t
 
 
 def truth(physics, spec) -> np.ndarray:
@@ -102,75 +111,72 @@ def truth(physics, spec) -> np.ndarray:
     return np.array([mats[t.matrix][t.entries[0]] if t.order == 0 else 0.0 for t in spec.terms])
 
 
-def pilot(rig, spec):
-    """Noise (4,) per revolution, prior theta and the channels' per-revolution relative noise."""
-    physics = new_physics(10_000)
-    table, blocks, _ = run_point(physics, rig, PAPER, AveragingRule.fixed(50))
-    per_row = table.u * np.sqrt(table.n_records)[:, None]
+def design(rig, spec):
+    """Pilot (the paper's protocol, seed 10000), then the allocation that matches the paper
+    list's predicted standard errors; (ratios, counts, targets, paper prediction, allocation)."""
+    table, _, _ = run_point(new_physics(10_000), rig, PAPER, [AveragingRule.fixed(50)] * len(PAPER))
+    per_rev = table.u * np.sqrt(table.n_records)[:, None]
     ratios = np.round(np.asarray(table.orbit) / SPIN, 6)
-    noise_ratios = np.unique(ratios)
-    u_rev = np.array([np.median(per_row[ratios == r], axis=0) for r in noise_ratios])
-    worst = np.array([np.max(b.relative_uncertainty) * math.sqrt(b.n_records) for b in blocks])
-    rel_rev = (noise_ratios, np.array([np.median(worst[ratios == r]) for r in noise_ratios]))
+    at = np.unique(ratios)
+    u_rev = smooth_noise(at, np.array([np.median(per_rev[ratios == r], axis=0) for r in at]))
     theta = identify(table, spec.model, method="wls").theta
     radius = float(np.mean(np.sqrt((np.abs(table.x) ** 2 + np.abs(table.y) ** 2) / 2)))
-    return (u_rev, noise_ratios, radius), theta, rel_rev
+    problem = DesignProblem(spec, theta, SPIN, radius, u_rev, 50, noise_ratios=at)
+    paper = predict(problem, PAPER)
+    d = rig.drives
+    grid = allowed_ratios(d.min_ratio, min(d.max_ratio, d.max_orbit_rpm / 1000.0))
+    alloc = allocate(spec, theta, SPIN, radius, grid, problem.noise_at(grid), paper.std_errors,
+                     block_overhead=rig.settle.hold_s + rig.estimates.store_s)
+    targets = adaptive_targets(spec, theta, SPIN, radius, alloc.ratios, alloc.revolutions,
+                               problem.noise_at(alloc.ratios))
+    return list(alloc.ratios), list(alloc.revolutions), targets, paper, alloc
 
 
-def design(rig, spec, noise, theta, rel_rev):
-    u_rev, noise_ratios, radius = noise
-    paper = predict(DesignProblem(spec, theta, SPIN, radius, u_rev, 50, noise_ratios=noise_ratios), PAPER)
-    problem = DesignProblem(spec, theta, SPIN, radius, u_rev, 50, scales=paper.std_errors, noise_ratios=noise_ratios)
-    grid = allowed_ratios(min(PAPER), max(PAPER))  # the paper's band: the truth is a fit over it
-    prop = propose(problem, grid, target=1.0, block_overhead=rig.settle.hold_s + rig.estimates.store_s)
-    n_star = revolutions_for(prop.best, 50, 1.0)
-    # the worst channel's per-revolution relative noise at the designed ratios (pilot, interpolated)
-    worst_channel = float(np.median(np.interp(prop.best.ratios, *rel_rev)))
-    target = worst_channel / math.sqrt(n_star)
-    return prop.best.ratios, n_star, AveragingRule.adaptive(target, max(10, n_star // 2), max(3 * n_star, 20)), paper
-
-
-def achieved(rig, spec, ratios, rule, runs: int):
+def achieved(rig, spec, ratios, rules, runs: int):
     est, times, used = [], [], []
     for seed in range(runs):
-        physics = new_physics(seed + 1)
-        table, blocks, t = run_point(physics, rig, ratios, rule)
+        table, ns, t = run_point(new_physics(seed + 1), rig, ratios, rules)
         est.append(identify(table, spec.model, method="wls").theta)
         times.append(t)
-        used += [b.n_records for b in blocks]
+        used.append(ns)
     true = truth(new_physics(1), spec)
     est = np.array(est)
-    return est.std(axis=0, ddof=1), np.sqrt(np.mean((est - true) ** 2, axis=0)), float(np.mean(times)), used
+    return est.std(axis=0, ddof=1), np.sqrt(np.mean((est - true) ** 2, axis=0)), float(np.mean(times)), np.array(used)
 
 
 def compare(rig, model: str, runs: int) -> None:
-    """One model: pilot, design, then the paper's protocol, the designed list with adaptive
-    averaging and the designed list with a fixed n* revolutions; one line per coefficient."""
+    """One model: pilot, allocation, then the paper's protocol and the designed list with
+    fixed and with adaptive counts; one line per coefficient."""
     t0 = time.perf_counter()
     spec = model_spec(model)
-    noise, theta, rel_rev = pilot(rig, spec)
-    ratios, n_star, rule, paper_pred = design(rig, spec, noise, theta, rel_rev)
-    sd_p, rms_p, t_p, _ = achieved(rig, spec, PAPER, AveragingRule.fixed(50), runs)
-    sd_a, rms_a, t_a, used = achieved(rig, spec, ratios, rule, runs)
-    sd_f, rms_f, t_f, _ = achieved(rig, spec, ratios, AveragingRule.fixed(n_star), runs)
-    print(f"\n{model}: pilot orbit radius {noise[2] * 1e6:.3g} um; designed ratios "
-          f"{', '.join(f'{r:g}' for r in ratios)} x both, n* = {n_star}; adaptive: target "
-          f"{rule.target * 100:.3g} % per channel, revolutions {rule.min_revolutions}..{rule.max_revolutions} "
-          f"(used {min(used)}..{max(used)}, mean {np.mean(used):.1f})")
-    print(f"  rig time: paper {t_p:.1f} s; designed+adaptive {t_a:.1f} s (ratio {t_a / t_p:.3f}); "
-          f"designed fixed n* {t_f:.1f} s (ratio {t_f / t_p:.3f})")
-    print(f"  {'coef':6} {'paper SD':>10} {'predicted':>10} {'SD adapt':>9} {'SD fixed':>9} "
-          f"{'paper RMS':>10} {'RMS adapt':>10} {'RMS fixed':>10}   (SD, RMS of designed: ratio to paper)")
+    ratios, counts, targets, paper_pred, alloc = design(rig, spec)
+    fixed = [AveragingRule.fixed(n) for n in counts]
+    adaptive = [AveragingRule.adaptive(float(t), min(MIN_REVOLUTIONS, n), MAX_FACTOR * n, spin_turns=1 / r)
+                for t, n, r in zip(targets, counts, ratios)]
+    sd_p, rms_p, t_p, _ = achieved(rig, spec, PAPER, [AveragingRule.fixed(50)] * len(PAPER), runs)
+    sd_f, rms_f, t_f, _ = achieved(rig, spec, ratios, fixed, runs)
+    sd_a, rms_a, t_a, used = achieved(rig, spec, ratios, adaptive, runs)
+    print(f"\n{model}: designed ratios {', '.join(f'{r:g}' for r in ratios)} x both, revolutions "
+          f"{', '.join(map(str, counts))} (predicted rig time {alloc.rig_time_s:.1f} s + ramps); adaptive targets "
+          f"{', '.join(f'{t * 100:.3g}' for t in targets)} % (used per block: mean "
+          f"{', '.join(f'{m:.0f}' for m in used.mean(axis=0))}, range {used.min()}..{used.max()})")
+    print(f"  rig time: paper {t_p:.1f} s; designed fixed {t_f:.1f} s (ratio {t_f / t_p:.3f}); "
+          f"designed adaptive {t_a:.1f} s (ratio {t_a / t_p:.3f})")
+    print(f"  {'coef':6} {'paper SD':>10} {'predicted':>10} {'SD fixed':>9} {'predicted':>9} {'SD adapt':>9} "
+          f"{'paper RMS':>10} {'RMS fixed':>10} {'RMS adapt':>10}   (designed: ratio to paper)")
     for k, name in enumerate(spec.names):
-        print(f"  {name:6} {sd_p[k]:10.4g} {paper_pred.std_errors[k]:10.4g} {sd_a[k] / sd_p[k]:9.3f} "
-              f"{sd_f[k] / sd_p[k]:9.3f} {rms_p[k]:10.4g} {rms_a[k] / rms_p[k]:10.3f} {rms_f[k] / rms_p[k]:10.3f}")
-    print(f"  worst SD ratio: adaptive {np.max(sd_a / sd_p):.3f}, fixed {np.max(sd_f / sd_p):.3f}; worst RMS "
-          f"ratio: adaptive {np.max(rms_a / rms_p):.3f}, fixed {np.max(rms_f / rms_p):.3f}; RIG TIME RATIO "
-          f"adaptive {t_a / t_p:.3f}, fixed {t_f / t_p:.3f}  ({time.perf_counter() - t0:.1f} s wall)")
+        print(f"  {name:6} {sd_p[k]:10.4g} {paper_pred.std_errors[k]:10.4g} {sd_f[k] / sd_p[k]:9.3f} "
+              f"{alloc.std_errors[k] / paper_pred.std_errors[k]:9.3f} {sd_a[k] / sd_p[k]:9.3f} "
+              f"{rms_p[k]:10.4g} {rms_f[k] / rms_p[k]:10.3f} {rms_a[k] / rms_p[k]:10.3f}")
+    mc = 1 / math.sqrt(runs - 1)
+    print(f"  worst SD ratio: fixed {np.max(sd_f / sd_p):.3f}, adaptive {np.max(sd_a / sd_p):.3f} (Monte Carlo "
+          f"1 sigma of one ratio ~{mc:.3f}); worst RMS ratio: fixed {np.max(rms_f / rms_p):.3f}, adaptive "
+          f"{np.max(rms_a / rms_p):.3f}; RIG TIME RATIO fixed {t_f / t_p:.3f}, adaptive {t_a / t_p:.3f}  "
+          f"({time.perf_counter() - t0:.1f} s wall)")
 
 
 def main() -> None:
-    runs = int(sys.argv[1]) if len(sys.argv) > 1 else 40
+    runs = int(sys.argv[1]) if len(sys.argv) > 1 else 200
     rig = load_rig(ROOT / "config" / "rig.toml")
     print(f"bench_rig_time: {runs} simulated runs per protocol at 1000 rpm, the default simulator scenario "
           "(all disturbances); reduction driven directly on simulated revolutions (no engine)")

@@ -28,7 +28,7 @@ import numpy as np
 from daq.revolutions import Revolution, RevolutionBatch
 from daq.stats import AcquisitionStats
 from reduction.fourier import harmonic_fit, phasor
-from reduction.noise import phasor_uncertainty
+from reduction.noise import mean_uncertainty, phasor_uncertainty, prefix_mean_uncertainty
 
 STOP_COUNT = "count"  # a fixed rule reached its number of revolutions
 STOP_TARGET = "target"  # every channel's relative uncertainty reached the target
@@ -45,6 +45,7 @@ class AveragingRule:
     min_revolutions: int = 50
     max_revolutions: int = 50
     target: float | None = None
+    spin_turns: float | None = None  # omega/|Omega|: the target check leaves the spin tones' leakage out
 
     def __post_init__(self) -> None:
         lo, hi, t = self.min_revolutions, self.max_revolutions, self.target
@@ -62,8 +63,12 @@ class AveragingRule:
         return cls(n, n, None)
 
     @classmethod
-    def adaptive(cls, target: float, min_revolutions: int = 10, max_revolutions: int = 200) -> AveragingRule:
-        return cls(min_revolutions, max_revolutions, target)
+    def adaptive(cls, target: float, min_revolutions: int = 10, max_revolutions: int = 200,
+                 spin_turns: float | None = None) -> AveragingRule:
+        """Stop at ``target``; with ``spin_turns`` (omega/|Omega|) the uncertainty checked is
+        reduction.noise.mean_uncertainty (the spin tones' rotating leakage is not noise that
+        averaging must beat as 1/sqrt(n)), else the plain scatter of the per-revolution phasors."""
+        return cls(min_revolutions, max_revolutions, target, spin_turns)
 
 
 @dataclass(frozen=True)
@@ -222,7 +227,10 @@ class StreamingAverager:
         rule, r = self.rule, len(records)
         room = rule.max_revolutions - self._n
         if rule.target is not None:
-            used = self._running.first_met(records, rule.target, rule.min_revolutions)
+            if rule.spin_turns is not None:
+                used = self._first_met_tones(records)
+            else:
+                used = self._running.first_met(records, rule.target, rule.min_revolutions)
             if used:
                 self._running.add(records[:used])
                 return used, STOP_TARGET
@@ -230,6 +238,17 @@ class StreamingAverager:
         if r >= room:
             return room, STOP_COUNT if rule.target is None else STOP_MAX
         return r, None
+
+    def _first_met_tones(self, records: np.ndarray) -> int:
+        """Like _RunningScatter.first_met with the spin tones fitted out (rule.spin_turns)."""
+        rule = self.rule
+        every = np.concatenate([self._records[:self._n], records])
+        u = prefix_mean_uncertainty(every, rule.spin_turns, start=self._n)
+        m = self._n + 1 + np.arange(len(records))
+        mean = np.abs(np.cumsum(every, axis=0)[self._n:] / m[:, None])
+        ok = np.all(u <= rule.target * mean, axis=1) & (m >= max(rule.min_revolutions, 2))
+        hit = np.flatnonzero(ok)
+        return int(hit[0]) + 1 if len(hit) else 0
 
     def _finish(self, reason: str) -> AveragedBlock:
         n = self._n
@@ -246,7 +265,8 @@ class StreamingAverager:
         self._running.reset()
         return AveragedBlock(
             orbit_speed=float(speed), slots=self._slots.copy(), theta=theta, mean=mean, phasors=fit.phasor,
-            uncertainty=phasor_uncertainty(records, axis=0), record_phasors=records, rms_residual=fit.rms_residual,
+            uncertainty=(phasor_uncertainty(records, axis=0) if self.rule.spin_turns is None
+                         else mean_uncertainty(records, self.rule.spin_turns)), record_phasors=records, rms_residual=fit.rms_residual,
             dc=fit.mean, raw_counts=counts, gains=gains.copy(), offsets=offsets.copy(),
             revs=self._revs[:n].copy(), t_us=self._t_us[:n].copy(), periods=periods, stop_reason=reason,
             rule=self.rule,

@@ -123,6 +123,22 @@ def predict(problem: DesignProblem, ratios) -> ListPrediction:
     return ListPrediction(r, se, rel, float(np.max(rel)))
 
 
+def smooth_noise(ratios, u_revolution) -> np.ndarray:
+    """(m, 4) per-revolution noise measured at ``ratios`` (m,), smoothed: per channel a
+    straight line in the ratio through log u (least squares; the mean with fewer than three
+    ratios). One block's noise figure scatters by about 1/sqrt(2 n); a design that trusted
+    each ratio's own figure would pick the ratios whose noise happened to come out low."""
+    r = np.asarray(ratios, dtype=float)
+    u = np.asarray(u_revolution, dtype=float)
+    if not np.all(np.isfinite(u) & (u > 0)):
+        raise ReductionError("smooth_noise: every noise figure must be finite and > 0")
+    logu = np.log(u)
+    if r.size < 3 or np.ptp(r) == 0:
+        return np.exp(np.broadcast_to(np.mean(logu, axis=0), logu.shape)).copy()
+    coef = np.polyfit(r, logu, 1)  # (2, 4)
+    return np.exp(np.outer(r, coef[0]) + coef[1])
+
+
 def allowed_ratios(lo: float, hi: float, step: float = GRID_STEP,
                    keep_away: float = RUNOUT_KEEP_AWAY) -> np.ndarray:
     """Grid of ratios in [lo, hi] (multiples of ``step``) at least ``keep_away`` from 1."""

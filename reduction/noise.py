@@ -19,6 +19,7 @@ import numpy as np
 
 from reduction.errors import ReductionError
 
+SPIN_HARMONICS = (1, 2)  # spin harmonics whose leakage is fitted out of the scatter (runout, unbalance)
 DEFAULT_RECORDS = 50  # revolutions per averaged phasor assumed when a table has no n_records
 
 
@@ -37,6 +38,88 @@ def phasor_uncertainty(record_phasors, axis: int = 0) -> np.ndarray:
     dev = q - np.mean(q, axis=axis, keepdims=True)
     scatter2 = np.sum(np.abs(dev) ** 2, axis=axis) / (n - 1)
     return np.sqrt(scatter2 / n)
+
+
+def _spin_tones(n: int, spin_turns: float, harmonics) -> np.ndarray:
+    """(n, 1 + m) columns: ones (the mean), then e^{+-i 2 pi h spin_turns k} of the spin
+    tones that n revolutions can tell apart from the mean and from each other (two tones
+    whose advances per revolution coincide mod one turn leak as one)."""
+    k = np.arange(n)
+    advances = [0.0]  # phase advance per revolution, in turns mod 1; 0: the mean
+    for h in harmonics:
+        for sign in (1, -1):
+            a = (sign * h * spin_turns) % 1.0
+            if all(min(abs(a - b), 1 - abs(a - b)) * n > 1.0 for b in advances):
+                advances.append(a)  # resolvable from the mean and from the tones already in
+    return np.exp(2j * np.pi * np.outer(k, advances))
+
+
+def _tone_fit(record_phasors, spin_turns: float, harmonics):
+    q = np.asarray(record_phasors, dtype=complex)
+    X = _spin_tones(q.shape[0], spin_turns, harmonics)
+    if q.shape[0] <= X.shape[1]:
+        raise ReductionError(f"{q.shape[0]} revolutions cannot separate {X.shape[1] - 1} spin tones and the mean")
+    coef, *_ = np.linalg.lstsq(X, q, rcond=None)
+    resid = q - X @ coef
+    white = np.sqrt(np.sum(np.abs(resid) ** 2, axis=0) / (q.shape[0] - X.shape[1]))
+    return X, coef, white
+
+
+def revolution_noise(record_phasors, spin_turns: float, harmonics=SPIN_HARMONICS) -> np.ndarray:
+    """Per-revolution standard uncertainty sqrt(E|e|^2) of each channel's phasor (same unit),
+    with the spin-synchronous tones taken out of the scatter.
+
+    record_phasors (n, C): one block's per-revolution phasors. ``spin_turns`` = omega/|Omega|,
+    the spin revolutions per orbit revolution. A tone at h x spin (runout, unbalance) leaks
+    into revolution k's phasor as a e^{+-i 2 pi h spin_turns k}: it rotates from revolution to
+    revolution, so it inflates the scatter, but its share of the mean shrinks like 1/n, not
+    1/sqrt(n). Those exponentials (h in ``harmonics``, both signs) are fitted with the mean and
+    removed; one whose advance per revolution is within 2 pi / n of a whole turn cannot be told
+    from the mean over n revolutions and stays in. The residual scatter (degrees of freedom
+    n - fitted columns) is the white part that averaging reduces as 1/sqrt(n).
+    """
+    return _tone_fit(record_phasors, spin_turns, harmonics)[2]
+
+
+def mean_uncertainty(record_phasors, spin_turns: float, harmonics=SPIN_HARMONICS) -> np.ndarray:
+    """Standard uncertainty sqrt(E|mean - true|^2) of the plain mean of per-revolution phasors
+    (n, C): the white part sigma^2 / n (:func:`revolution_noise`) plus what each fitted spin
+    tone a e^{i phi k} leaves in the mean, |a|^2 |mean_k e^{i phi k}|^2. With too few
+    revolutions to fit the tones, the scatter's :func:`phasor_uncertainty`."""
+    q = np.asarray(record_phasors, dtype=complex)
+    try:
+        X, coef, white = _tone_fit(q, spin_turns, harmonics)
+    except ReductionError:
+        return phasor_uncertainty(q, axis=0)
+    leak = np.abs(np.mean(X[:, 1:], axis=0)) ** 2  # (m,)
+    tones = np.sum(np.abs(coef[1:]) ** 2 * leak[:, None], axis=0)
+    return np.sqrt(white**2 / q.shape[0] + tones)
+
+
+def prefix_mean_uncertainty(record_phasors, spin_turns: float, start: int = 0,
+                            harmonics=SPIN_HARMONICS) -> np.ndarray:
+    """(n - start, C): :func:`mean_uncertainty` of the first m revolutions for every
+    m = start+1..n at once (inf where m is too small to fit the mean and the tones), the tones
+    being those that all n revolutions resolve. Cumulative sums and batched small solves."""
+    q = np.asarray(record_phasors, dtype=complex)
+    n = q.shape[0]
+    X = _spin_tones(n, spin_turns, harmonics)  # (n, p)
+    p = X.shape[1]
+    m = np.arange(1, n + 1, dtype=float)
+    gram = np.cumsum(np.conj(X)[:, :, None] * X[:, None, :], axis=0)  # (n, p, p)
+    b = np.cumsum(np.conj(X)[:, :, None] * q[:, None, :], axis=0)  # (n, p, C)
+    s2 = np.cumsum(np.abs(q) ** 2, axis=0)  # (n, C)
+    out = np.full(q.shape, np.inf)
+    ok = (m > p) & (m > start)
+    if not np.any(ok):
+        return out[start:]
+    coef = np.linalg.solve(gram[ok], b[ok])  # (k, p, C)
+    rss = np.maximum(s2[ok] - np.real(np.einsum("kpc,kpc->kc", np.conj(b[ok]), coef)), 0.0)
+    white2 = rss / (m[ok] - p)[:, None]
+    leak = np.abs(np.cumsum(X[:, 1:], axis=0)[ok] / m[ok][:, None]) ** 2  # (k, p - 1)
+    tones = np.einsum("kj,kjc->kc", leak, np.abs(coef[:, 1:]) ** 2)
+    out[ok] = np.sqrt(white2 / m[ok][:, None] + tones)
+    return out[start:]
 
 
 def equation_variances(u: np.ndarray, Z: np.ndarray) -> np.ndarray:

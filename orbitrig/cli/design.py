@@ -75,7 +75,8 @@ def register(app: typer.Typer) -> None:
         probe_noise: Optional[float] = typer.Option(None, "--probe-noise", help="Per-revolution displacement phasor noise, nm (default 100)."),
         radius: Optional[float] = typer.Option(None, "--radius", help="Orbit radius, um (default: the matrix's smallest, else 0.1 x clearance)."),
         revolutions: Optional[int] = typer.Option(None, "--revolutions", help="Revolutions averaged per block (default: rig.toml [averaging])."),
-        target: Optional[float] = typer.Option(None, "--target", help="Worst relative standard error to reach, percent: propose the list that reaches it in the least rig time."),
+        target: Optional[float] = typer.Option(None, "--target", help="Worst relative standard error to reach, percent: propose ratios and revolutions per ratio that reach it in the least rig time."),
+        match: bool = typer.Option(False, "--match", help="Propose revolutions per ratio that give every coefficient at most the candidate's standard error in the least rig time."),
         keep_away: float = typer.Option(0.1, "--keep-away", help="Propose no ratio closer than this to Omega/omega = 1 (runout)."),
         save: Optional[str] = typer.Option(None, "--save", help="Write the proposal to config/designs/NAME.toml (a matrix uses it with [orbit] design = \"NAME\")."),
         rig_path: Optional[Path] = typer.Option(None, "--config", help="Rig configuration (default config/rig.toml)."),
@@ -92,7 +93,8 @@ def register(app: typer.Typer) -> None:
             obj = design_object(
                 rig, model=model, freq_dep=freq_dep, spin_rpm=spin, candidate=cand, source=source,
                 directions=directions, radius=radius * 1e-6 if radius is not None else mat_radius,
-                noise=noise, run=run, lms=lms, revolutions=revolutions, target=target, keep_away=keep_away)
+                noise=noise, run=run, lms=lms, revolutions=revolutions, target=target, keep_away=keep_away,
+                match=match)
             if save:
                 saved = save_design(obj, save, designs_dir(rig_path))
                 sys.stderr.write(f"orbitrig design: wrote {saved}\n")

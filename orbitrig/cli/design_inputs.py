@@ -6,7 +6,8 @@ Noise (standard uncertainty sqrt(E|err|^2) of ONE revolution's complex phasor; S
 - measured (``--noise-from RUN``): from the run's orbit tables of one load measuring system,
   u * sqrt(n_records) per row when the tables carry u_* (orbit-table v2), else the forces'
   noise from the coherence, |f| sqrt((1 - gamma^2) / gamma^2), and the displacements' noise
-  as stated. The median over every row of every complete point.
+  as stated. The median over every row of every complete point at each orbit ratio, then
+  smoothed across the ratios (reduction.frequency_list.smooth_noise).
 
 Prior coefficients (where the relative standard errors are measured, and where displacement
 noise is propagated through Z): the run's identification of the model at the point whose
@@ -18,6 +19,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from reduction.frequency_list import smooth_noise
 
 from rigerrors import OrbitrigError
 
@@ -74,7 +77,7 @@ def run_noise(run, lms: str, probe: float = DEFAULT_PROBE_NOISE) -> Noise:
     rows = np.concatenate([r for _, r in found], axis=0)
     ratios = np.round(np.concatenate([np.abs(t.orbit) / t.spin for t, _ in found]), 3)
     at = np.unique(ratios)
-    u = np.array([np.median(rows[ratios == r], axis=0) for r in at])
+    u = smooth_noise(at, np.array([np.median(rows[ratios == r], axis=0) for r in at]))
     radius = float(np.median(np.concatenate([np.sqrt((np.abs(t.x) ** 2 + np.abs(t.y) ** 2) / 2) for t, _ in found])))
     how = "u_* columns" if any(t.u is not None for t, _ in found) else "coherences"
     return Noise(u, f"measured: run {run.directory} ({lms}, {how}; median per orbit ratio of {len(rows)} rows)",

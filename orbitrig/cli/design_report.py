@@ -10,7 +10,6 @@ are the same for every list and left out.
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -29,11 +28,13 @@ def _unit(name: str) -> str:
     return base if r == 0 else f"{base}/(rad/s)" + (f"^{r}" if r > 1 else "")
 
 
-def rig_time(rig, ratios, spin: float, revolutions: int, directions: str) -> float:
-    """Physical seconds the blocks of ``ratios`` take at spin (rad/s); see the module doc."""
+def rig_time(rig, ratios, spin: float, revolutions, directions: str) -> float:
+    """Physical seconds the blocks of ``ratios`` take at spin (rad/s), ``revolutions`` one
+    count or one per ratio; see the module doc."""
     r = np.asarray(ratios, dtype=float)
+    n = np.broadcast_to(np.asarray(revolutions, dtype=float), r.shape)
     per_dir = 2 if directions == "both" else 1
-    acquire = per_dir * float(np.sum((revolutions + 1) * 2 * math.pi / (r * spin)))
+    acquire = per_dir * float(np.sum((n + 1) * 2 * math.pi / (r * spin)))
     blocks = per_dir * r.size
     ramps = per_dir * float(np.max(r)) * spin / rig.ramp_rate
     return acquire + blocks * (rig.settle.hold_s + rig.estimates.store_s) + ramps
@@ -83,11 +84,48 @@ def _candidate_warnings(ratios, lo: float, hi: float, keep_away: float) -> list[
     return out
 
 
+def _allocated(rig, problem, grid, scales, directions: str) -> dict:
+    """The proposal as revolutions per ratio (reduction.allocation): every coefficient's
+    standard error at most ``scales`` in the least rig time, with each ratio's adaptive target."""
+    from reduction.allocation import adaptive_targets, allocate
+
+    from reduction.errors import ReductionError
+
+    u = problem.noise_at(grid)
+    try:
+        a = allocate(problem.spec, problem.theta, problem.spin, problem.radius, grid, u, scales,
+                     block_overhead=rig.settle.hold_s + rig.estimates.store_s, directions=directions)
+    except ReductionError as err:
+        raise DesignInputError(f"no list of the allowed ratios reaches it: {err}") from None
+    u_kept = problem.noise_at(a.ratios)
+    names = problem.spec.names
+    base = coefficient_scales_of(problem)
+    return {
+        "ratios": list(a.ratios),
+        "orbit_hz": [round(r * problem.spin / (2 * math.pi), 6) for r in a.ratios],
+        "directions": directions,
+        "revolutions": list(a.revolutions),
+        "target_pct": [round(float(t) * 100, 4) for t in adaptive_targets(
+            problem.spec, problem.theta, problem.spin, problem.radius, a.ratios, a.revolutions, u_kept, directions)],
+        "identifiable": True,
+        "std_errors": {n: float(v) for n, v in zip(names, a.std_errors)},
+        "relative_pct": {n: float(v) * 100 for n, v in zip(names, a.std_errors / base)},
+        "worst_relative_pct": float(np.max(a.std_errors / base)) * 100,
+        "rig_time_s": rig_time(rig, a.ratios, problem.spin, a.revolutions, directions),
+    }
+
+
+def coefficient_scales_of(problem) -> np.ndarray:
+    from reduction.frequency_list import coefficient_scales
+
+    return coefficient_scales(problem.spec, problem.theta, problem.spin)
+
+
 def design_object(rig, *, model, freq_dep, spin_rpm, candidate, source, directions, radius, noise,
-                  run, lms, revolutions, target, keep_away) -> dict:
+                  run, lms, revolutions, target, keep_away, match: bool = False) -> dict:
     """Predict the candidate list, propose one; the JSON object `design --json` prints."""
     from orbitrig.cli.design_inputs import prior_theta
-    from reduction.frequency_list import DesignProblem, predict, propose, revolutions_for
+    from reduction.frequency_list import DesignProblem, predict, propose
     from reduction.models import model_spec
 
     if not spin_rpm > 0:
@@ -102,8 +140,8 @@ def design_object(rig, *, model, freq_dep, spin_rpm, candidate, source, directio
     cand = predict(problem, candidate)
     overhead = rig.settle.hold_s + rig.estimates.store_s
     goal = target / 100 if target is not None else None
-    prop = propose(problem, grid, count=None if goal else len(candidate), target=goal, block_overhead=overhead)
-    n_prop = revolutions_for(prop.best, n, goal) if goal else n
+    if goal is not None and match:
+        raise DesignInputError("give --target or --match, not both")
     out = {
         "model": model, "freq_dep": spec.freq_dep.text, "coefficients": spec.names,
         "units": {name: _unit(name) for name in spec.names},
@@ -114,20 +152,31 @@ def design_object(rig, *, model, freq_dep, spin_rpm, candidate, source, directio
         "target_pct": target,
         "candidate": dict(_list_object(rig, problem, cand, n, directions), source=source,
                           warnings=_candidate_warnings(candidate, lo, hi, keep_away)),
-        "proposal": _list_object(rig, problem, prop.best, n_prop or n, directions),
+        "match_candidate": match,
     }
-    if goal:
-        out["proposal"]["reaches_target"] = n_prop is not None
-        if n_prop is not None:  # the predicted errors at the revolutions that reach the target
-            scaled = replace(problem, revolutions=n_prop)
-            out["proposal"] = dict(_list_object(rig, scaled, predict(scaled, prop.best.ratios), n_prop, directions),
-                                   reaches_target=True)
+    if match or goal:
+        if cand.std_errors is None and match:
+            raise DesignInputError("--match: the candidate list cannot identify the model, so there is nothing to match")
+        scales = cand.std_errors if match else coefficient_scales_of(problem) * goal
+        out["proposal"] = dict(_allocated(rig, problem, grid, scales, directions), reaches_target=True)
+    else:
+        prop = propose(problem, grid, count=len(candidate), block_overhead=overhead)
+        out["proposal"] = _list_object(rig, problem, prop.best, n, directions)
     return out
 
 
 def _fmt_time(s: float) -> str:
     s = int(round(s))
     return f"{s // 3600}:{s % 3600 // 60:02d}:{s % 60:02d}"
+
+
+def _revolutions_text(lst: dict) -> str:
+    n = lst["revolutions"]
+    if not isinstance(n, list):
+        return f"{n} revolutions"
+    text = "revolutions " + ", ".join(map(str, n))
+    return text + (" (adaptive targets " + ", ".join(f"{t:.3g}" for t in lst["target_pct"]) + " %)"
+                   if lst.get("target_pct") else "")
 
 
 def print_design(obj: dict) -> None:
@@ -142,7 +191,7 @@ def print_design(obj: dict) -> None:
     echo(f"allowed ratios {a['ratio_min']:g} .. {a['ratio_max']:.3g}, none within {a['keep_away_from_1']:g} of 1")
     for label, lst in (("candidate", c), ("proposal ", p)):
         worst = "not identifiable" if lst["worst_relative_pct"] is None else f"worst {lst['worst_relative_pct']:.3g} %"
-        echo(f"{label}: {len(lst['ratios'])} ratios x {lst['directions']}, {lst['revolutions']} revolutions, "
+        echo(f"{label}: {len(lst['ratios'])} ratios x {lst['directions']}, {_revolutions_text(lst)}, "
              f"rig time {_fmt_time(lst['rig_time_s'])}, {worst}: {', '.join(f'{r:g}' for r in lst['ratios'])}")
     for w in c["warnings"]:
         echo(f"warning (candidate): {w}")
@@ -167,21 +216,27 @@ def designs_dir(rig_path: Path | None = None) -> Path:
 
 
 def save_design(obj: dict, name: str, folder: Path | None = None) -> Path:
-    """Write config/designs/NAME.toml: the proposal's ratios and directions (what a matrix
-    reads with [orbit] design = "NAME") and, as comments, what it was designed for."""
+    """Write config/designs/NAME.toml: the proposal's ratios, revolutions per ratio, adaptive
+    targets per ratio (percent; with --target or --match) and directions (what a matrix reads
+    with [orbit] design = "NAME") and, as comments, what it was designed for."""
     if not name.replace("-", "").replace("_", "").isalnum():
         raise DesignInputError(f"--save {name!r}: use letters, digits, - and _ only")
     folder = folder or designs_dir()
     p = obj["proposal"]
-    target = "" if obj["target_pct"] is None else f" --target {obj['target_pct']:g}"
-    lines = [f"# orbitrig design --model {obj['model']} --freq-dep {obj['freq_dep']} --spin {obj['spin_rpm']:g}{target}",
+    goal = "" if obj["target_pct"] is None else f" --target {obj['target_pct']:g}"
+    goal += " --match" if obj.get("match_candidate") else ""
+    n = p["revolutions"]
+    per_ratio = isinstance(n, list)
+    lines = [f"# orbitrig design --model {obj['model']} --freq-dep {obj['freq_dep']} --spin {obj['spin_rpm']:g}{goal}",
              f"# candidate: {obj['candidate']['source']}; orbit radius {obj['orbit_radius_m'] * 1e6:.3g} um",
-             f"# predicted worst relative standard error {p['worst_relative_pct']:.3g} % "
-             f"at {p['revolutions']} revolutions per block; noise {obj['noise']['source']}",
-             f'model = "{obj["model"]}"', f'freq_dep = "{obj["freq_dep"]}"',
-             f"spin_rpm = {obj['spin_rpm']:g}", f"revolutions = {p['revolutions']}",
+             f"# predicted worst relative standard error {p['worst_relative_pct']:.3g} %, rig time "
+             f"{p['rig_time_s']:.0f} s per operating point; noise {obj['noise']['source']}",
+             f'model = "{obj["model"]}"', f'freq_dep = "{obj["freq_dep"]}"', f"spin_rpm = {obj['spin_rpm']:g}",
              "ratios = [" + ", ".join(f"{r:g}" for r in p["ratios"]) + "]",
+             ("revolutions = [" + ", ".join(map(str, n)) + "]") if per_ratio else f"revolutions = [{', '.join([str(n)] * len(p['ratios']))}]",
              "directions = " + ('["forward", "backward"]' if p["directions"] == "both" else f'["{p["directions"]}"]')]
+    if per_ratio and p.get("target_pct"):
+        lines.append("target_pct = [" + ", ".join(f"{t:g}" for t in p["target_pct"]) + "]")
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{name}.toml"
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")

@@ -21,7 +21,7 @@ from orbitrig.run.truth import point_truth  # noqa: F401  (the engine's truth st
 from orbitrig.store.writer import BlockRecord, PointResults
 from reduction.coherence import orbit_coherences
 from reduction.errors import ReductionError
-from reduction.noise import phasor_uncertainty
+from reduction.noise import mean_uncertainty
 from reduction.identify import identify
 from reduction.table import OrbitTable
 
@@ -77,26 +77,28 @@ def identify_operating_point(spin: float, recs: list[BlockRecord], ch: dict[str,
 
 def orbit_table(spin: float, recs: list[BlockRecord], ch: dict[str, int], lms: str) -> OrbitTable:
     """Orbit table of one point for one load measuring system (Omega > 0, direction in the phasors),
-    with each row's revolution count and the standard uncertainty of its phasors (the scatter of
-    the per-revolution phasors; x, y the per-revolution probe-plane means)."""
+    with each row's revolution count and the standard uncertainty of its phasors
+    (:func:`row_uncertainty`; x, y the per-revolution probe-plane means)."""
     ph = np.array([r.phasors for r in recs])
     orbit = np.array([r.measured_orbit_speed if math.isfinite(r.measured_orbit_speed) and r.measured_orbit_speed > 0
                       else abs(r.block.orbit) for r in recs])  # fmt: skip
     i = LMS.index(lms)
     x, y = probe_plane(ph, ch)
     n_records = np.array([len(r.record_phasors) for r in recs])
-    u = np.array([row_uncertainty(r.record_phasors, ch, lms) for r in recs])
+    u = np.array([row_uncertainty(r.record_phasors, ch, lms, spin / abs(r.block.orbit)) for r in recs])
     return OrbitTable(spin=spin, orbit=orbit, x=x, y=y, fx=ph[:, ch[f"fx_{lms}"]], fy=ph[:, ch[f"fy_{lms}"]],
                       gamma2=np.array([r.coherence[i] for r in recs]), n_records=n_records,
                       u=u if np.all(np.isfinite(u)) else None)  # fmt: skip
 
 
-def row_uncertainty(record_phasors: np.ndarray, ch: dict[str, int], lms: str) -> np.ndarray:
-    """(u_x, u_y, u_fx, u_fy) of one block (m, m, N, N): inf with a single revolution."""
+def row_uncertainty(record_phasors: np.ndarray, ch: dict[str, int], lms: str, spin_turns: float) -> np.ndarray:
+    """(u_x, u_y, u_fx, u_fy) of one block (m, m, N, N): the standard uncertainty of each mean
+    (reduction.noise.mean_uncertainty: the scatter with the spin tones' rotating leakage taken
+    out, plus what those tones leave in the mean); ``spin_turns`` = omega / |Omega|."""
     rp = np.asarray(record_phasors)
     x, y = probe_plane(rp, ch)
     per_rev = np.stack([x, y, rp[:, ch[f"fx_{lms}"]], rp[:, ch[f"fy_{lms}"]]], axis=1)
-    return phasor_uncertainty(per_rev, axis=0)
+    return mean_uncertainty(per_rev, spin_turns)
 
 
 def lms_comparison(recs: list[BlockRecord], ch: dict[str, int]) -> dict:

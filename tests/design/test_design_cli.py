@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +13,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 KEYS = {"model", "freq_dep", "coefficients", "units", "spin_rpm", "orbit_radius_m", "directions", "noise",
-        "prior", "allowed", "target_pct", "candidate", "proposal"}
+        "prior", "allowed", "target_pct", "candidate", "proposal", "match_candidate"}
 LIST_KEYS = {"ratios", "orbit_hz", "directions", "revolutions", "identifiable", "std_errors", "relative_pct",
              "worst_relative_pct", "rig_time_s"}
 
@@ -51,16 +52,34 @@ def test_target_is_reached_in_less_rig_time():
     c, p = obj["candidate"], obj["proposal"]
     assert c["ratios"] == [0.3, 0.5, 0.7, 0.9, 1.2] and obj["target_pct"] == 0.2
     assert p["reaches_target"] is True and p["worst_relative_pct"] <= 0.2 * (1 + 1e-9)
+    assert len(p["revolutions"]) == len(p["ratios"]) == len(p["target_pct"])  # one count, one target per ratio
     # the candidate list with just enough revolutions to reach the target takes longer
     n_c = int(np.ceil(50 * (c["worst_relative_pct"] / 0.2) ** 2))
     c_at_target = json.loads(design("--model", "kc8", "--spin", "1000", "--matrix", "demo", "--revolutions",
                                     str(n_c), "--json").stdout)["candidate"]
     assert c_at_target["worst_relative_pct"] <= 0.2 * (1 + 1e-9)
     assert p["rig_time_s"] < c_at_target["rig_time_s"]
-    # variance ~ 1/n: the predicted errors scale with the revolutions stated
+    # variance ~ 1/n: the predicted errors scale with the revolutions stated (kc8 goes to one ratio)
+    assert len(p["ratios"]) == 1
     halved = json.loads(design("--model", "kc8", "--spin", "1000", "--ratios", ",".join(map(str, p["ratios"])),
-                               "--revolutions", str(4 * p["revolutions"]), "--radius", "5.76", "--json").stdout)["candidate"]
+                               "--revolutions", str(4 * p["revolutions"][0]), "--radius", "5.76", "--json").stdout)["candidate"]
     assert halved["worst_relative_pct"] == pytest.approx(p["worst_relative_pct"] / 2, rel=1e-6)
+
+
+def test_match_gives_every_coefficient_the_candidates_error_in_half_the_time():
+    """--match against the paper's list (kcd11, 15 N / 20 nm per revolution, 2.4 um orbit):
+    no coefficient's predicted standard error grows, the rig time halves (hand check: the
+    paper's 20 blocks take 115 s of orbits + 41 s of settling + 4 s of ramps)."""
+    args = ("--model", "kcd11", "--spin", "1000", "--force-noise", "15", "--probe-noise", "20", "--radius", "2.4")
+    obj = json.loads(design(*args, "--match", "--json").stdout)
+    c, p = obj["candidate"], obj["proposal"]
+    assert obj["match_candidate"] is True and c["rig_time_s"] == pytest.approx(162.9, abs=0.5)
+    for name in obj["coefficients"]:
+        assert p["std_errors"][name] <= c["std_errors"][name] * (1 + 1e-9)
+    assert p["rig_time_s"] < 0.52 * c["rig_time_s"]
+    assert all(n >= 10 for n in p["revolutions"]) and all(0 < t < 100 for t in p["target_pct"])
+    bad = design(*args, "--match", "--target", "1", check=False)
+    assert bad.returncode == 2 and "not both" in bad.stderr
 
 
 def test_text_output_and_saved_design(tmp_path):
@@ -69,8 +88,8 @@ def test_text_output_and_saved_design(tmp_path):
     rig.write_text((ROOT / "config" / "rig.toml").read_text())
     p = design("--model", "kc8", "--spin", "1000", "--target", "0.2", "--save", "kc8fast", "--config", str(rig))
     assert "proposal :" in p.stdout and "target 0.2 %: reached" in p.stdout
-    saved = (tmp_path / "config" / "designs" / "kc8fast.toml").read_text()
-    assert 'model = "kc8"' in saved and "ratios = [" in saved and "revolutions = " in saved
+    saved = tomllib.loads((tmp_path / "config" / "designs" / "kc8fast.toml").read_text())
+    assert saved["model"] == "kc8" and len(saved["ratios"]) == len(saved["revolutions"]) == len(saved["target_pct"])
 
 
 @pytest.mark.parametrize("args, message", [

@@ -1,0 +1,226 @@
+"""Revolutions per orbit frequency: the least rig time that reaches a precision target.
+
+A block at orbit ratio r = |Omega|/omega costs its revolutions times the orbit period
+2 pi / (r omega) plus a fixed overhead (settle, store). Averaging n revolutions divides the
+per-revolution noise variance by n, so a block's Fisher information is n times its
+per-revolution information F_b (:func:`revolution_information`). The covariance of the
+coefficients is (sum_b n_b F_b)^-1.
+
+:func:`allocate` finds, for a set of candidate ratios, the revolutions per ratio (both
+whirl directions of a ratio average the same count) that bring every coefficient's
+standard error to at most ``target`` x its scale in the least rig time:
+
+1. time shares: with w_b the fraction of the acquisition time spent at ratio b, the
+   information per second of acquisition is I(w) = sum_b (w_b / tau_b) F_b (tau_b the time
+   of one revolution at b, both directions). The acquisition time that reaches the target is
+   T = max_j [I(w)^-1]_jj / (target s_j)^2, convex in w; minimised over the simplex (SLSQP on
+   the epigraph, analytic gradients).
+2. support: each ratio kept costs the per-block overhead; the ratio with the smallest share
+   is dropped (and the shares solved again) while that lowers acquisition + overhead and the
+   rest still identifies the model.
+3. counts: n_b = ceil(w_b T / tau_b), at least ``min_revolutions``, then scaled up together
+   until the rounded counts reach the target.
+
+Everything SI; ratios are fractions of the spin speed; no I/O.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize
+
+from reduction.design import design_orbits
+from reduction.errors import ReductionError
+from reduction.impedance import forces, impedance, real_rows, regressors
+from reduction.models import ModelSpec
+from reduction.noise import equation_variances
+
+MIN_SHARE = 1e-9  # smallest time share the solver may give a ratio (keeps I(w) invertible)
+
+
+@dataclass(frozen=True)
+class Allocation:
+    """Revolutions per ratio (ratios ascending, both directions of a ratio alike), their
+    predicted standard errors (p,) SI, the worst of se / scale, and the rig time split into
+    acquisition (s, sum of revolutions x period) and overhead (s, blocks x overhead)."""
+
+    ratios: tuple[float, ...]
+    revolutions: tuple[int, ...]
+    std_errors: np.ndarray
+    worst: float
+    acquisition_s: float
+    overhead_s: float
+
+    @property
+    def rig_time_s(self) -> float:
+        return self.acquisition_s + self.overhead_s
+
+
+def revolution_time(ratios, spin: float, directions: str = "both") -> np.ndarray:
+    """(k,) seconds of one revolution at each ratio, summed over its whirl directions."""
+    r = np.asarray(ratios, dtype=float)
+    return (2 if directions == "both" else 1) * 2 * np.pi / (r * spin)
+
+
+def revolution_information(spec: ModelSpec, theta, spin: float, radius: float, ratios, u_revolution,
+                           directions: str = "both") -> np.ndarray:
+    """(k, p, p) Fisher information of ONE revolution at each ratio (all its directions),
+    circular orbits of ``radius`` (m), per-revolution noise u (k, 4) of x, y (m), fx, fy (N);
+    displacement noise is propagated through Z at ``theta``."""
+    r = np.atleast_1d(np.asarray(ratios, dtype=float))
+    u = np.broadcast_to(np.asarray(u_revolution, dtype=float), (r.size, 4))
+    per = 2 if directions == "both" else 1
+    orbit, x, y = design_orbits(r * spin / (2 * np.pi), directions, radius)
+    A = real_rows(regressors(spec, orbit, x, y))  # (4 k per, p)
+    var = equation_variances(np.repeat(u, per, axis=0), impedance(spec, np.asarray(theta, float), orbit))
+    if np.any(var <= 0):
+        raise ReductionError("revolution_information: every equation needs a noise > 0")
+    Aw = (A / np.sqrt(var)[:, None]).reshape(r.size, 4 * per, -1)
+    return np.einsum("kei,kej->kij", Aw, Aw)
+
+
+def _worst_variance(F, scales):
+    """Objective pieces at shares w: g(w) (p,) = diag(I^-1) / scales^2 and its (p, k) gradient
+    (diag(I^-1) / s^2 = diag((S I S)^-1) with S = diag(scales))."""
+    Fs = F * np.outer(scales, scales)[None]
+
+    def at(w):
+        info = np.einsum("k,kij->ij", w, Fs)
+        G = np.linalg.inv(info)
+        g = np.diag(G)
+        GF = np.einsum("ij,kjl->kil", G, Fs)  # (k, p, p)
+        grad = -np.einsum("kil,li->ik", GF, G)  # d g_i / d w_k = -(G F_k G)_ii
+        return g, grad
+
+    return at
+
+
+def time_shares(F, tau, scales) -> tuple[np.ndarray, float]:
+    """(w (k,), T): acquisition-time shares minimising the acquisition time T (s) at which
+    every coefficient's standard error equals its ``scales`` entry. F (k, p, p) information
+    per revolution, tau (k,) seconds per revolution."""
+    F, tau, scales = np.asarray(F, float), np.asarray(tau, float), np.asarray(scales, float)
+    k = tau.size
+    per_second = F / tau[:, None, None]
+    at = _worst_variance(per_second, scales)
+    w0 = np.full(k, 1.0 / k)
+    try:
+        g0, _ = at(w0)
+    except np.linalg.LinAlgError as exc:
+        raise ReductionError("time_shares: these ratios cannot identify the model") from exc
+    if not np.all(np.isfinite(g0)) or np.any(g0 <= 0):
+        raise ReductionError("time_shares: these ratios cannot identify the model")
+    z0 = float(np.max(g0))
+
+    def safe(w):
+        try:
+            return at(np.maximum(w, MIN_SHARE))
+        except np.linalg.LinAlgError:
+            return np.full(scales.size, 1e30), np.zeros((scales.size, k))
+
+    cons = [{"type": "ineq", "fun": lambda v: v[-1] - safe(v[:-1])[0] / z0,
+             "jac": lambda v: np.hstack([-safe(v[:-1])[1] / z0, np.ones((scales.size, 1))])},
+            {"type": "eq", "fun": lambda v: np.sum(v[:-1]) - 1.0,
+             "jac": lambda v: np.append(np.ones(k), 0.0)[None]}]
+    res = minimize(lambda v: v[-1], np.append(w0, 1.0), jac=lambda v: np.append(np.zeros(k), 1.0),
+                   method="SLSQP", constraints=cons, bounds=[(MIN_SHARE, 1.0)] * k + [(0, None)],
+                   options={"maxiter": 300, "ftol": 1e-10})
+    w = np.maximum(res.x[:-1], MIN_SHARE)
+    w = w / w.sum()
+    g, _ = at(w)
+    if float(np.max(g)) > z0:  # the solver did worse than the even split
+        w, g = w0, g0
+    return w, float(np.max(g))
+
+
+def _cost(F, tau, s, per_block, keep):
+    """(total s, shares, acquisition s) of the ratios ``keep``; total inf when they cannot
+    identify the model."""
+    try:
+        w, T = time_shares(F[keep], tau[keep], s)
+    except ReductionError:
+        return float("inf"), None, float("inf")
+    return T + per_block * len(keep), w, T
+
+
+def _support(F, tau, s, per_block):
+    """The ratios worth their overhead: from all, drop the one with the smallest share while
+    that lowers acquisition + overhead; then exchange one kept ratio for another (or drop
+    one) while that helps. Returns (kept indices, their shares, acquisition s)."""
+    keep = list(range(tau.size))
+    best, w, T = _cost(F, tau, s, per_block, keep)
+    if not np.isfinite(best):
+        raise ReductionError("allocate: these ratios cannot identify the model")
+    while len(keep) > 1:
+        trial = keep[:int(np.argmin(w))] + keep[int(np.argmin(w)) + 1:]
+        c, w2, T2 = _cost(F, tau, s, per_block, trial)
+        if c >= best:
+            break
+        keep, best, w, T = trial, c, w2, T2
+    improved = True
+    while improved:
+        improved = False
+        moves = [keep[:i] + keep[i + 1:] for i in range(len(keep)) if len(keep) > 1] + \
+                [sorted(keep[:i] + [g] + keep[i + 1:]) for i in range(len(keep)) for g in range(tau.size) if g not in keep]
+        for trial in moves:
+            c, w2, T2 = _cost(F, tau, s, per_block, trial)
+            if c < best * (1 - 1e-6):
+                keep, best, w, T, improved = trial, c, w2, T2, True
+    return np.array(keep), w, T
+
+
+def _counts(F, tau, scales, w, T, min_revolutions):
+    """Rounded revolutions (k,) reaching the target, and their worst variance ratio."""
+    n = np.maximum(np.ceil(w * T / tau - 1e-9), min_revolutions)
+    for _ in range(50):
+        info = np.einsum("k,kij->ij", n, F * np.outer(scales, scales)[None])
+        worst = float(np.max(np.diag(np.linalg.inv(info))))
+        if worst <= 1.0 + 1e-9:
+            return n.astype(int), worst
+        n = np.maximum(np.ceil(n * worst), min_revolutions)
+    return n.astype(int), worst
+
+
+def allocate(spec: ModelSpec, theta, spin: float, radius: float, ratios, u_revolution, scales,
+             target: float = 1.0, block_overhead: float = 0.0, min_revolutions: int = 10,
+             directions: str = "both") -> Allocation:
+    """Least-rig-time revolutions per ratio (a subset of ``ratios``) bringing every
+    coefficient's standard error to at most ``target`` x ``scales`` (p,) SI; u_revolution
+    (k, 4) per-revolution noise at each of ``ratios`` (or (4,) for all); ``block_overhead``
+    s per block (settle + store); every kept block averages at least ``min_revolutions``."""
+    r = np.asarray(ratios, dtype=float)
+    order = np.argsort(r)
+    r = r[order]
+    u = np.broadcast_to(np.asarray(u_revolution, dtype=float), (len(order), 4))[order] \
+        if np.ndim(u_revolution) == 2 else np.asarray(u_revolution, dtype=float)
+    if not target > 0:
+        raise ReductionError(f"allocate: target must be > 0, got {target:g}")
+    s = np.asarray(scales, dtype=float) * target
+    F = revolution_information(spec, theta, spin, radius, r, u, directions)
+    tau = revolution_time(r, spin, directions)
+    per_block = block_overhead * (2 if directions == "both" else 1)
+    keep, w, T = _support(F, tau, s, per_block)
+    n, _ = _counts(F[keep], tau[keep], s, w, T, min_revolutions)
+    info = np.einsum("k,kij->ij", n, F[keep])
+    se = np.sqrt(np.diag(np.linalg.inv(info)))
+    return Allocation(tuple(float(v) for v in r[keep]), tuple(int(v) for v in n), se,
+                      float(np.max(se / np.asarray(scales, float))), float(np.sum(n * tau[keep])),
+                      per_block * keep.size)
+
+
+def adaptive_targets(spec: ModelSpec, theta, spin: float, radius: float, ratios, revolutions, u_revolution,
+                     directions: str = "both") -> np.ndarray:
+    """(k,) relative standard uncertainty (fraction) of the noisiest phasor after ``revolutions``
+    (k,) at each ratio: max over x, y (u / radius) and fx, fy (u / |f|, f = -Z d on the
+    circular orbit at ``theta``, the smaller force of the ratio's directions). As an adaptive
+    averaging target it makes a block stop near its allocated count at the stated noise."""
+    r = np.atleast_1d(np.asarray(ratios, dtype=float))
+    u = np.broadcast_to(np.asarray(u_revolution, dtype=float), (r.size, 4))
+    per = 2 if directions == "both" else 1
+    orbit, x, y = design_orbits(r * spin / (2 * np.pi), directions, radius)
+    fx, fy = forces(impedance(spec, np.asarray(theta, float), orbit), x, y)
+    f = np.min(np.minimum(np.abs(fx), np.abs(fy)).reshape(r.size, per), axis=1)
+    rel = np.maximum(np.max(u[:, :2], axis=1) / radius, np.max(u[:, 2:], axis=1) / f)
+    return rel / np.sqrt(np.asarray(revolutions, dtype=float))
