@@ -5,8 +5,8 @@ For every model of the matrix and every distinct (spin, orbit radius) of its ope
 points: the Cramer-Rao standard errors (reduction.frequency_list.predict) of circular orbits
 at the matrix's ratios and directions, for the stated per-revolution noise and the nominal
 prior of `orbitrig design` (orbitrig.cli.design_inputs), averaged over the revolutions a
-block takes (the fixed count, or an adaptive rule's minimum: the most pessimistic). One line
-per model: the worst relative standard error over the operating points (and where), or why
+block takes (the fixed count, the fewest of the per-ratio counts, or an adaptive rule's
+minimum: the most pessimistic). One line per model: the worst relative standard error over the operating points (and where), or why
 the planned orbits cannot identify it (reduction.identifiability.check_plan).
 """
 
@@ -39,15 +39,18 @@ def _directions(mat) -> str:
 
 
 def block_revolutions(rig, mat) -> int:
-    """Revolutions the prediction assumes per block (the minimum of an adaptive rule)."""
+    """Revolutions the prediction assumes per block: the fewest any block averages (an adaptive
+    rule's minimum, or the smallest of the per-ratio counts)."""
     if mat.averaging is not None:
         return mat.averaging.min_revolutions
+    if mat.orbit.revolutions is not None:
+        return min(mat.orbit.revolutions)
     return mat.revolutions or rig.averaging.revolutions
 
 
 def adaptive_line(rig, mat) -> str | None:
     """With [averaging]: the acquisition time if every block stopped at the minimum, and at
-    the maximum (the plan's durations assume the maximum)."""
+    the maximum (the plan's durations assume each ratio's expected count, else the maximum)."""
     from orbitrig.run.plan import acquisition_time, format_duration, operating_points
 
     a = mat.averaging
@@ -56,9 +59,13 @@ def adaptive_line(rig, mat) -> str | None:
     orbits = [b.orbit for p in operating_points(mat, rig) for b in p.blocks]
     lo = sum(acquisition_time(w, a.min_revolutions) for w in orbits)
     hi = sum(acquisition_time(w, a.max_revolutions) for w in orbits)
-    return (f"adaptive averaging: every channel <= {a.target_pct:g} % in {a.min_revolutions}..{a.max_revolutions} "
+    targets = mat.orbit.target_pct
+    target = (f"{a.target_pct:g} %" if targets is None else
+              f"its ratio's target ({min(targets):g}..{max(targets):g} %)")
+    assumed = "the maximum" if mat.orbit.revolutions is None else "each ratio's expected revolutions"
+    return (f"adaptive averaging: every channel <= {target} in {a.min_revolutions}..{a.max_revolutions} "
             f"revolutions per block: acquiring takes {format_duration(lo)} .. {format_duration(hi)} "
-            "(the estimate above assumes the maximum)")
+            f"(the estimate above assumes {assumed})")
 
 
 def predict_model(rig, mat, model: str, freq_dep: str, noise) -> ModelPrediction:
@@ -101,8 +108,10 @@ def prediction_lines(rig, mat) -> list[str]:
     n = block_revolutions(rig, mat)
     adaptive = adaptive_line(rig, mat)
     out = [adaptive] if adaptive else []
+    fewest = (", the adaptive minimum" if adaptive else
+              ", the fewest of the per-ratio counts" if mat.orbit.revolutions else "")
     out.append(f"predicted uncertainty (Cramer-Rao; noise {noise.source}; {n} revolutions per block"
-               + (", the adaptive minimum" if adaptive else "") + "; nominal prior coefficients; "
+               + fewest + "; nominal prior coefficients; "
                "`orbitrig design` proposes lists):")
     for m in mat.models:
         p = predict_model(rig, mat, m.model, m.freq_dep, noise)

@@ -3,12 +3,17 @@
 A matrix's ``[orbit] design = "NAME"`` takes its ratios and directions from
 ``config/designs/NAME.toml`` of the source tree (what ``orbitrig design --save NAME``
 writes); ``design = "FILE.toml"`` names a file, relative to the matrix's folder. The design
-file holds ``ratios`` (Omega/omega) and ``directions``; its other keys (model, spin,
-revolutions) say what it was designed for and are not used by the matrix.
+file holds ``ratios`` (Omega/omega) and ``directions``, and optionally, one per ratio in the
+order of ``ratios``, ``revolutions`` (the block's count) and ``target_pct`` (its adaptive
+target, percent). The matrix takes each of these unless it sets it itself: ``directions``
+and ``revolutions`` / ``target_pct`` in [orbit]; a top-level ``revolutions`` also keeps the
+design's counts out, and an [averaging] ``target_pct`` the design's targets (which are used
+only with an [averaging] table). Its other keys (model, spin) say what it was designed for.
 """
 
 from __future__ import annotations
 
+import math
 import tomllib
 from pathlib import Path
 
@@ -35,14 +40,33 @@ def _read_design(path: Path) -> tuple[dict | None, str | None]:
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, RecursionError) as err:
         return None, f"design file {path} cannot be read: {err}"
     ratios = data.get("ratios")
-    if not isinstance(ratios, list) or not ratios or not all(isinstance(r, (int, float)) and r > 0 for r in ratios):
+    if not isinstance(ratios, list) or not ratios or not all(_number(r) and r > 0 for r in ratios):
         return None, f"design file {path}: 'ratios' must be a non-empty list of numbers > 0"
+    for key, ok, what in _PER_RATIO:
+        values = data.get(key)
+        if values is not None and not (isinstance(values, list) and len(values) == len(ratios)
+                                       and all(ok(v) for v in values)):
+            return None, (f"design file {path}: '{key}' must be a list of {len(ratios)} {what}, "
+                          f"one per entry of 'ratios' (got {values!r:.60})")
     return data, None
 
 
+def _number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+#: per-ratio keys of a design file: (key, check of one value, what the values must be)
+_PER_RATIO = (
+    ("revolutions", lambda v: isinstance(v, int) and not isinstance(v, bool) and 2 <= v <= 10_000,
+     "whole numbers 2..10000"),
+    ("target_pct", lambda v: _number(v) and 0 < v < 100, "numbers between 0 and 100 (percent)"),
+)
+
+
 def apply_design(data: dict, file: str) -> list[str]:
-    """Replace a matrix's ``[orbit] design`` by the design's ratios and directions (in
-    ``data``, before validation); the problems, each naming the key."""
+    """Replace a matrix's ``[orbit] design`` by the design's ratios, directions and per-ratio
+    revolutions / targets (in ``data``, before validation; see the module doc for which the
+    matrix keeps); the problems, each naming the key."""
     orbit = data.get("orbit")
     if not isinstance(orbit, dict) or "design" not in orbit:
         return []
@@ -57,4 +81,10 @@ def apply_design(data: dict, file: str) -> list[str]:
     orbit["ratios"] = [float(r) for r in design["ratios"]]
     if "directions" in design and "directions" not in orbit:
         orbit["directions"] = design["directions"]
+    if "revolutions" in design and "revolutions" not in orbit and "revolutions" not in data:
+        orbit["revolutions"] = list(design["revolutions"])
+    averaging = data.get("averaging")
+    if ("target_pct" in design and "target_pct" not in orbit and isinstance(averaging, dict)
+            and "target_pct" not in averaging):
+        orbit["target_pct"] = [float(v) for v in design["target_pct"]]
     return []

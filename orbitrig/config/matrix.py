@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import Field, PrivateAttr, field_validator, model_validator
+from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from orbitrig.config.fields import FREQ_DEP, MODELS, Mpa, Ratio, Rpm, Wait, _Model
 
@@ -18,9 +18,20 @@ class Operating(_Model):
     dynamic_eccentricity: Annotated[list[Annotated[float, Field(gt=0, lt=1)]], Field(min_length=1)]
 
 
+#: revolutions averaged per block (a fixed count, or an adaptive rule's bounds)
+Revolutions = Annotated[int, Field(ge=2, le=10_000)]
+#: an adaptive averaging target: relative standard uncertainty of every channel, percent
+TargetPct = Annotated[float, Field(gt=0, lt=100)]
+
+
 class Orbit(_Model):
     """Orbit frequencies as ratios Omega/omega: either `ratios` or start/stop/count, or a
-    designed list by name (`design`, see orbitrig.config.designs: its ratios fill `ratios`)."""
+    designed list by name (`design`, see orbitrig.config.designs: its ratios fill `ratios`).
+
+    `revolutions` and `target_pct`, when given, hold one value per entry of `ratios` in the
+    order written (both directions of a ratio alike): the block's fixed count, and its
+    adaptive target (percent, with the matrix's [averaging]). `ratio_list` sorts the ratios;
+    `revolutions_at(k)` / `target_pct_at(k)` give the value of `ratio_list[k]`."""
 
     design: str | None = None
     ratios: list[Ratio] | None = None
@@ -28,6 +39,22 @@ class Orbit(_Model):
     ratio_stop: Ratio | None = None
     count: Annotated[int, Field(ge=1, le=100)] | None = None
     directions: Annotated[list[Literal["forward", "backward"]], Field(min_length=1)] = ["forward", "backward"]
+    revolutions: list[Revolutions] | None = None
+    target_pct: list[TargetPct] | None = None
+
+    @field_validator("revolutions", "target_pct")
+    @classmethod
+    def _one_per_ratio(cls, values, info: ValidationInfo):
+        if values is None or "ratios" not in info.data:  # ratios invalid: reported on their own
+            return values
+        ratios = info.data["ratios"]
+        if ratios is None:
+            raise ValueError("gives one value per entry of 'ratios': it needs 'ratios' (or a design), "
+                             "not 'ratio_start', 'ratio_stop', 'count'")
+        if len(values) != len(ratios):
+            raise ValueError(f"has {len(values)} values and 'ratios' {len(ratios)}: give one per ratio, "
+                             "in the order of 'ratios'")
+        return values
 
     @model_validator(mode="after")
     def _one_spec(self):
@@ -58,6 +85,18 @@ class Orbit(_Model):
         step = (self.ratio_stop - self.ratio_start) / (self.count - 1)
         return [round(self.ratio_start + k * step, 12) for k in range(self.count)]
 
+    def _written(self, k: int) -> int:
+        """Index in `ratios` (as written) of `ratio_list[k]` (ascending)."""
+        return sorted(range(len(self.ratios)), key=self.ratios.__getitem__)[k]
+
+    def revolutions_at(self, k: int) -> int | None:
+        """The fixed revolutions of `ratio_list[k]` (None: `revolutions` not given)."""
+        return None if self.revolutions is None else self.revolutions[self._written(k)]
+
+    def target_pct_at(self, k: int) -> float | None:
+        """The adaptive target (percent) of `ratio_list[k]` (None: `target_pct` not given)."""
+        return None if self.target_pct is None else self.target_pct[self._written(k)]
+
 
 class ModelSpec(_Model):
     model: Literal[MODELS]  # type: ignore[valid-type]
@@ -87,13 +126,14 @@ class ModelSpec(_Model):
 
 class MatrixAveraging(_Model):
     """Adaptive averaging of every block: stop once every channel's averaged phasor has a
-    relative standard uncertainty <= target_pct (percent), between min_revolutions and
-    max_revolutions good revolutions. Without this table a block averages the matrix's
-    `revolutions` (default rig.toml's, the paper's 50)."""
+    relative standard uncertainty <= the target (percent), between min_revolutions and
+    max_revolutions good revolutions. The target is `target_pct`, or per ratio the [orbit]
+    table's `target_pct` (one of the two). Without this table a block averages the matrix's
+    `revolutions` (or [orbit] `revolutions` per ratio; default rig.toml's, the paper's 50)."""
 
-    target_pct: Annotated[float, Field(gt=0, lt=100)]
-    min_revolutions: Annotated[int, Field(ge=2, le=10_000)] = 10
-    max_revolutions: Annotated[int, Field(ge=2, le=10_000)] = 200
+    target_pct: TargetPct | None = None
+    min_revolutions: Revolutions = 10
+    max_revolutions: Revolutions = 200
 
     @model_validator(mode="after")
     def _order(self):
@@ -109,15 +149,39 @@ class MatrixConfig(_Model):
     operating: Operating
     orbit: Orbit
     models: Annotated[list[ModelSpec], Field(min_length=1)]
-    revolutions: Annotated[int, Field(ge=2, le=10_000)] | None = None
-    averaging: MatrixAveraging | None = None
+    revolutions: Revolutions | None = None
+    averaging: MatrixAveraging | None = Field(None, validate_default=True)  # checked when absent too
     settle_hold_s: Wait | None = None
 
-    @model_validator(mode="after")
-    def _one_count(self):
-        if self.averaging is not None and self.revolutions is not None:
-            raise ValueError("give 'revolutions' (a fixed count) or an [averaging] table (adaptive), not both")
-        return self
+    # cross-table checks as field validators, so each error names its key and line
+    @field_validator("revolutions")
+    @classmethod
+    def _one_fixed_count(cls, v, info: ValidationInfo):
+        orbit = info.data.get("orbit")
+        if v is not None and orbit is not None and orbit.revolutions is not None:
+            raise ValueError("give the top-level 'revolutions' (one count for every block) or 'orbit.revolutions' "
+                             "(one per ratio), not both")
+        return v
+
+    @field_validator("averaging")
+    @classmethod
+    def _one_target(cls, a, info: ValidationInfo):
+        orbit = info.data.get("orbit")
+        targets = None if orbit is None else orbit.target_pct
+        problems = []
+        if a is not None and info.data.get("revolutions") is not None:
+            problems.append("give 'revolutions' (a fixed count) or an [averaging] table (adaptive), not both")
+        if a is None and targets is not None:
+            problems.append("'orbit.target_pct' (adaptive targets per ratio) needs an [averaging] table "
+                            "(min_revolutions, max_revolutions)")
+        if a is not None and a.target_pct is not None and targets is not None:
+            problems.append("give 'averaging.target_pct' (one target) or 'orbit.target_pct' (one per ratio), not both")
+        if a is not None and a.target_pct is None and targets is None and orbit is not None:
+            problems.append("[averaging] needs a target: 'averaging.target_pct' (percent) or 'orbit.target_pct' "
+                            "(one per ratio)")
+        if problems:
+            raise ValueError("; ".join(problems))
+        return a
 
     _file: str = PrivateAttr("<matrix>")
     _text: str = PrivateAttr("")

@@ -86,7 +86,7 @@ def _line_of(text: str, loc: tuple) -> int | None:
 
 def _got(value) -> str:
     """A short rendering of the offending value (whole tables are not repeated)."""
-    if isinstance(value, dict):
+    if isinstance(value, dict) or value is None:  # a table, or a key that is absent (TOML has no null)
         return ""
     text = repr(value)
     return f" (got {text if len(text) <= 60 else text[:57] + '...'})"

@@ -25,7 +25,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from orbitrig.config import MPA, RPM, MatrixAveraging, MatrixConfig, ModelSpec, RigConfig, check_matrix_against_rig
+from orbitrig.config import MPA, RPM, MatrixConfig, ModelSpec, RigConfig, check_matrix_against_rig
 
 TWO_PI = 2.0 * math.pi
 DIRECTIONS = {"forward": +1, "backward": -1}
@@ -177,23 +177,35 @@ class Settle(Step):
 
 
 @dataclass(frozen=True)
+class AdaptiveTarget:
+    """A block's adaptive averaging: until every channel's relative phasor uncertainty <= `target_pct`
+    (percent), between min and max good revolutions; `expected`: its ratio's [orbit] `revolutions`."""
+
+    target_pct: float
+    min_revolutions: int
+    max_revolutions: int
+    expected: int | None = None
+
+
+@dataclass(frozen=True)
 class Acquire(Step):
-    """Average good revolutions: a fixed `revolutions`, or adaptively by the matrix's
-    [averaging] (`revolutions` is then its maximum, what the duration, the timeout and the
-    storage estimate assume); after an interlock suspension the block is settled again
-    (`hold` s at setpoint) and acquired anew."""
+    """Average exactly `revolutions` good revolutions (the block's count), or adaptively
+    (`revolutions` is then the maximum, what the timeout and storage estimate assume; the
+    duration assumes the expected count, else the maximum); after an interlock suspension
+    the block is settled again (`hold` s at setpoint) and acquired anew."""
 
     block: Block
     revolutions: int
     hold: float  # s at setpoint when the block must be settled again
-    adaptive: MatrixAveraging | None = None  # None: exactly `revolutions`
+    adaptive: AdaptiveTarget | None = None  # None: exactly `revolutions`
 
     word = "acquire"
 
     def describe(self) -> str:
-        a = self.adaptive
-        what = (f"{self.revolutions} revolutions" if a is None else
-                f"{a.min_revolutions}..{a.max_revolutions} revolutions (until every channel <= {a.target_pct:g} %)")
+        a, what = self.adaptive, f"{self.revolutions} revolutions"
+        if a is not None:
+            about = "" if a.expected is None else f", about {a.expected} expected"
+            what = f"{a.min_revolutions}..{a.max_revolutions} revolutions (until every channel <= {a.target_pct:g} %{about})"
         return f"acquire {what} at {self.block.orbit_hz:.3f} Hz [{self.block.tag}]"
 
 
@@ -291,7 +303,7 @@ class Plan:
     rig: RigConfig  # the rig it was checked against
     points: tuple[OperatingPoint, ...]
     steps: tuple[Step, ...]
-    revolutions: int  # per block
+    revolutions: int  # the most any block averages (a fixed count, or the adaptive maximum)
 
     @property
     def name(self) -> str:
@@ -311,12 +323,26 @@ def make_plan(matrix: MatrixConfig, rig: RigConfig) -> Plan:
     """Check `matrix` against `rig` (ConfigError naming every problem) and expand it."""
     check_matrix_against_rig(matrix, rig)
     points = operating_points(matrix, rig)
-    a = matrix.averaging
-    n_rev = a.max_revolutions if a is not None else matrix.revolutions or rig.averaging.revolutions
-    return Plan(matrix, rig, tuple(points), tuple(_steps(matrix, rig, points, n_rev)), n_rev)
+    steps = _steps(matrix, rig, points)
+    n_rev = max(s.revolutions for s in steps if isinstance(s, Acquire))
+    return Plan(matrix, rig, tuple(points), tuple(steps), n_rev)
 
 
-def _steps(matrix: MatrixConfig, rig: RigConfig, points: list[OperatingPoint], n_rev: int) -> list[Step]:
+def block_acquire(matrix: MatrixConfig, rig: RigConfig, point: int, b: Block, hold: float) -> Acquire:
+    """Block `b`'s Acquire: its ratio's fixed count ([orbit] revolutions, else the matrix's or rig.toml's),
+    or with [averaging] its ratio's target; duration at the expected count (clamped), else the maximum."""
+    o, a = matrix.orbit, matrix.averaging
+    count = o.revolutions_at(b.freq)
+    if a is None:
+        n = count or matrix.revolutions or rig.averaging.revolutions
+        return Acquire(point, acquisition_time(b.orbit, n), b, n, hold)
+    target = o.target_pct_at(b.freq)
+    expected = None if count is None else min(max(count, a.min_revolutions), a.max_revolutions)
+    rule = AdaptiveTarget(a.target_pct if target is None else target, a.min_revolutions, a.max_revolutions, expected)
+    return Acquire(point, acquisition_time(b.orbit, expected or a.max_revolutions), b, a.max_revolutions, hold, rule)
+
+
+def _steps(matrix: MatrixConfig, rig: RigConfig, points: list[OperatingPoint]) -> list[Step]:
     est = rig.estimates
     hold = rig.settle.hold_s if matrix.settle_hold_s is None else matrix.settle_hold_s
     rate = rig.ramp_rate
@@ -338,7 +364,7 @@ def _steps(matrix: MatrixConfig, rig: RigConfig, points: list[OperatingPoint], n
                 steps.append(SetOrbit(p.index, abs(b.orbit - orbit_now) / rate, b))
                 orbit_now = b.orbit
             steps.append(Settle(p.index, hold, b, hold))
-            acquire = Acquire(p.index, acquisition_time(b.orbit, n_rev), b, n_rev, hold, matrix.averaging)
+            acquire = block_acquire(matrix, rig, p.index, b, hold)
             steps.append(acquire)
             if j == 0:
                 steps.append(VerifyGeometry(p.index, 0.0, acquire))

@@ -39,8 +39,8 @@ log = logging.getLogger(__name__)
 
 
 def averaging_rule(step: Acquire) -> AveragingRule:
-    """The daq rule of an Acquire step: the matrix's [averaging] (target_pct percent -> a
-    fraction, between min and max revolutions), else exactly `revolutions`."""
+    """The daq rule of an Acquire step: its block's adaptive target (percent -> a fraction,
+    between min and max revolutions), else exactly its `revolutions`."""
     a = step.adaptive
     if a is None:
         return AveragingRule.fixed(step.revolutions)

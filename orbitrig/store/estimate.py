@@ -7,6 +7,8 @@ run.h5, which holds a second copy of every piece. Pure arithmetic on the plan.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from orbitrig.config import RigConfig
 from orbitrig.run.plan import Acquire, Identify, OperatingPoint, Step
 
@@ -41,10 +43,12 @@ def results_bytes(n_blocks: int, n_models: int) -> int:
     return RESULTS_OVERHEAD + N_LMS * (PER_TABLE + n_blocks * PER_TABLE_ROW + n_models * PER_IDENTIFICATION)
 
 
-def point_bytes(rig: RigConfig, point: OperatingPoint, revolutions: int, n_models: int = 8) -> int:
-    """Everything one operating point writes (margin included)."""
+def point_bytes(rig: RigConfig, point: OperatingPoint, revolutions: int | Sequence[int], n_models: int = 8) -> int:
+    """Everything one operating point writes (margin included); `revolutions`: the most every
+    block averages, or one count per block."""
     n = len(point.blocks)
-    raw = n * block_bytes(rig, revolutions) + results_bytes(n, n_models) + POINT_FIXED
+    counts = [revolutions] * n if isinstance(revolutions, int) else list(revolutions)
+    raw = sum(block_bytes(rig, r) for r in counts) + results_bytes(n, n_models) + POINT_FIXED
     return int(raw * MARGIN)
 
 

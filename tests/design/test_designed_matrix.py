@@ -77,4 +77,6 @@ def test_dry_run_of_the_designed_matrix():
     assert "6 orbit blocks" in out.splitlines()[0]
     assert "adaptive averaging: every channel <= 2 % in 20..100 revolutions per block" in out
     assert "20 revolutions per block, the adaptive minimum" in out
-    assert "acquire 20..100 revolutions (until every channel <= 2 %) at 25.000 Hz" in out
+    # the design's 27 revolutions per ratio are each block's expected count (the duration's)
+    assert "acquire 20..100 revolutions (until every channel <= 2 %, about 27 expected) at 25.000 Hz" in out
+    assert "(the estimate above assumes each ratio's expected revolutions)" in out
