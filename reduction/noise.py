@@ -40,18 +40,22 @@ def phasor_uncertainty(record_phasors, axis: int = 0) -> np.ndarray:
     return np.sqrt(scatter2 / n)
 
 
-def _spin_tones(n: int, spin_turns: float, harmonics) -> np.ndarray:
-    """(n, 1 + m) columns: ones (the mean), then e^{+-i 2 pi h spin_turns k} of the spin
-    tones that n revolutions can tell apart from the mean and from each other (two tones
-    whose advances per revolution coincide mod one turn leak as one)."""
-    k = np.arange(n)
-    advances = [0.0]  # phase advance per revolution, in turns mod 1; 0: the mean
+def _advances(n: int, spin_turns: float, harmonics) -> tuple[float, ...]:
+    """Phase advances per revolution (turns mod 1) of the mean (0) and of the spin tones
+    h x spin, both signs, that n revolutions tell apart from the mean and from each other
+    (two tones whose advances coincide mod one turn leak as one)."""
+    advances = [0.0]
     for h in harmonics:
         for sign in (1, -1):
             a = (sign * h * spin_turns) % 1.0
             if all(min(abs(a - b), 1 - abs(a - b)) * n > 1.0 for b in advances):
-                advances.append(a)  # resolvable from the mean and from the tones already in
-    return np.exp(2j * np.pi * np.outer(k, advances))
+                advances.append(a)
+    return tuple(advances)
+
+
+def _spin_tones(n: int, spin_turns: float, harmonics) -> np.ndarray:
+    """(n, 1 + m) columns: ones (the mean), then e^{i 2 pi a k} of the resolvable spin tones."""
+    return np.exp(2j * np.pi * np.outer(np.arange(n), _advances(n, spin_turns, harmonics)))
 
 
 def _tone_fit(record_phasors, spin_turns: float, harmonics):
@@ -99,27 +103,32 @@ def mean_uncertainty(record_phasors, spin_turns: float, harmonics=SPIN_HARMONICS
 def prefix_mean_uncertainty(record_phasors, spin_turns: float, start: int = 0,
                             harmonics=SPIN_HARMONICS) -> np.ndarray:
     """(n - start, C): :func:`mean_uncertainty` of the first m revolutions for every
-    m = start+1..n at once (inf where m is too small to fit the mean and the tones), the tones
-    being those that all n revolutions resolve. Cumulative sums and batched small solves."""
+    m = start+1..n at once (each m with the tones m revolutions resolve; inf where m is too
+    small to fit them). Cumulative sums and batched small solves, one batch per tone set."""
     q = np.asarray(record_phasors, dtype=complex)
     n = q.shape[0]
-    X = _spin_tones(n, spin_turns, harmonics)  # (n, p)
-    p = X.shape[1]
-    m = np.arange(1, n + 1, dtype=float)
-    gram = np.cumsum(np.conj(X)[:, :, None] * X[:, None, :], axis=0)  # (n, p, p)
-    b = np.cumsum(np.conj(X)[:, :, None] * q[:, None, :], axis=0)  # (n, p, C)
+    out = np.full((n - start,) + q.shape[1:], np.inf)
+    counts = np.arange(start + 1, n + 1)
+    sets = [_advances(int(m), spin_turns, harmonics) for m in counts]
+    k = np.arange(n)
     s2 = np.cumsum(np.abs(q) ** 2, axis=0)  # (n, C)
-    out = np.full(q.shape, np.inf)
-    ok = (m > p) & (m > start)
-    if not np.any(ok):
-        return out[start:]
-    coef = np.linalg.solve(gram[ok], b[ok])  # (k, p, C)
-    rss = np.maximum(s2[ok] - np.real(np.einsum("kpc,kpc->kc", np.conj(b[ok]), coef)), 0.0)
-    white2 = rss / (m[ok] - p)[:, None]
-    leak = np.abs(np.cumsum(X[:, 1:], axis=0)[ok] / m[ok][:, None]) ** 2  # (k, p - 1)
-    tones = np.einsum("kj,kjc->kc", leak, np.abs(coef[:, 1:]) ** 2)
-    out[ok] = np.sqrt(white2 / m[ok][:, None] + tones)
-    return out[start:]
+    for adv in dict.fromkeys(sets):
+        rows = np.array([i for i, a in enumerate(sets) if a == adv])
+        m = counts[rows].astype(float)
+        p = len(adv)
+        rows, m = rows[m > p], m[m > p]
+        if rows.size == 0:
+            continue
+        X = np.exp(2j * np.pi * np.outer(k, adv))  # (n, p)
+        idx = rows + start  # the prefix m ends at revolution index m - 1
+        gram = np.cumsum(np.conj(X)[:, :, None] * X[:, None, :], axis=0)[idx]
+        b = np.cumsum(np.conj(X)[:, :, None] * q[:, None, :], axis=0)[idx]
+        coef = np.linalg.solve(gram, b)  # (r, p, C)
+        rss = np.maximum(s2[idx] - np.real(np.einsum("kpc,kpc->kc", np.conj(b), coef)), 0.0)
+        leak = np.abs(np.cumsum(X[:, 1:], axis=0)[idx] / m[:, None]) ** 2
+        tones = np.einsum("kj,kjc->kc", leak, np.abs(coef[:, 1:]) ** 2)
+        out[rows] = np.sqrt(rss / (m - p)[:, None] / m[:, None] + tones)
+    return out
 
 
 def equation_variances(u: np.ndarray, Z: np.ndarray) -> np.ndarray:

@@ -38,13 +38,16 @@ log = logging.getLogger(__name__)
 
 
 
-def averaging_rule(step: Acquire) -> AveragingRule:
-    """The daq rule of an Acquire step: its block's adaptive target (percent -> a fraction,
-    between min and max revolutions), else exactly its `revolutions`."""
+def averaging_rule(step: Acquire, spin: float) -> AveragingRule:
+    """The daq rule of an Acquire step at spin (rad/s): its block's adaptive target (percent ->
+    a fraction, between min and max revolutions; the check leaves the spin tones' leakage out,
+    spin_turns = omega/|Omega|), else exactly its `revolutions`."""
     a = step.adaptive
     if a is None:
         return AveragingRule.fixed(step.revolutions)
-    return AveragingRule.adaptive(a.target_pct / 100.0, a.min_revolutions, a.max_revolutions)
+    return AveragingRule.adaptive(a.target_pct / 100.0, a.min_revolutions, a.max_revolutions,
+                                  spin_turns=spin / abs(step.block.orbit))
+
 
 @dataclass(frozen=True)
 class Before:
@@ -235,7 +238,7 @@ class PointProcedure:
                 settle_first = True
                 t0 = time.monotonic()
                 r.progress.block(p.blocks.index(b) + 1)
-                avg = await r.control.guarded(r.io.acquire(averaging_rule(step), timeout=timeout), r.supervisor)
+                avg = await r.control.guarded(r.io.acquire(averaging_rule(step, p.spin), timeout=timeout), r.supervisor)
                 self._add_time("acquire", t0)
                 ps.last = block_record(b, avg, r.rig)
                 return

@@ -81,6 +81,35 @@ def test_stop_reasons():
     assert (b.stop_reason, b.n_records) == ("max", 50)
 
 
+def tone_block(n: int, spin_turns: float, tone: float, noise: float, seed: int) -> np.ndarray:
+    """(n, 8, 45) counts: a 1000-count fundamental per channel, a spin tone of ``tone``
+    counts at spin_turns x the orbit frequency (it rotates from revolution to revolution),
+    white noise of ``noise`` counts rms per sample."""
+    rng = np.random.default_rng(seed)
+    slots = channel_slots(8, "sequential")
+    theta = slots * (2 * np.pi / 360)  # (8, 45)
+    k = np.arange(n)[:, None, None]
+    x = 1000 * np.cos(theta) + tone * np.cos(spin_turns * (theta + 2 * np.pi * k) + 0.3)
+    return np.round(x + noise * rng.standard_normal(x.shape)).astype(np.int16)
+
+
+def test_spin_tones_do_not_keep_an_adaptive_block_going():
+    """A 300-count spin tone at 1/0.7 x the orbit frequency: the plain scatter counts it as
+    noise and never reaches 0.5 %; with spin_turns the check takes it out and stops at about
+    the count the white noise alone needs (relative u of one revolution 2 x 60 / sqrt(45) /
+    1000 = 1.8 %: about 13 revolutions for 0.5 %), and the stored uncertainty is the one checked."""
+    counts = tone_block(400, 1 / 0.7, tone=300, noise=60, seed=7)
+    plain = StreamingAverager(AveragingRule.adaptive(0.005, 5, 400)).push_batch(batch(counts))[0]
+    assert plain.stop_reason == "max"
+    aware = StreamingAverager(AveragingRule.adaptive(0.005, 5, 400, spin_turns=1 / 0.7)).push_batch(batch(counts))[0]
+    assert aware.stop_reason == "target" and 8 <= aware.n_records <= 30
+    assert np.all(aware.uncertainty <= 0.005 * np.abs(aware.phasors) * (1 + 1e-9))
+    # fed one revolution at a time, the same block
+    one = StreamingAverager(AveragingRule.adaptive(0.005, 5, 400, spin_turns=1 / 0.7))
+    blocks = [b for i in range(60) for b in one.push_batch(batch(counts[i:i + 1], rev0=i))]
+    assert blocks[0].n_records == aware.n_records
+
+
 def test_rules_refuse_nonsense():
     for args in [(0, 5, None), (6, 5, None), (3, 5, None), (1, 5, 0.01), (5, 10, 0.0), (5, 10, float("inf")),
                  (5, 10, float("nan"))]:
@@ -123,6 +152,8 @@ RULES = st.one_of(
     st.integers(1, 12).map(AveragingRule.fixed),
     st.tuples(st.integers(2, 10), st.integers(0, 10), st.floats(1e-4, 0.5)).map(
         lambda t: AveragingRule.adaptive(t[2], t[0], t[0] + t[1])),
+    st.tuples(st.integers(2, 10), st.integers(0, 10), st.floats(1e-4, 0.5), st.floats(0.6, 5.0)).map(
+        lambda t: AveragingRule.adaptive(t[2], t[0], t[0] + t[1], spin_turns=t[3])),
 )
 DAMAGE = st.lists(st.tuples(st.sampled_from(["flip", "drop"]), st.integers(0, 10**6), st.integers(1, 255)),
                   max_size=8)

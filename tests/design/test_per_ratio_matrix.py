@@ -88,7 +88,7 @@ def test_fixed_counts_per_ratio_in_the_plan(tmp_path):
             assert a.revolutions == n and a.adaptive is None
             assert a.duration == pytest.approx((n + 1) / hz)  # one more revolution to find the trigger
             assert a.describe() == f"acquire {n} revolutions at {hz:.3f} Hz [{tag}_{d}]"
-            rule = averaging_rule(a)
+            rule = averaging_rule(a, 1000 * RPM)
             assert (rule.min_revolutions, rule.max_revolutions, rule.target) == (n, n, None)
     assert acq["02_fwd"].block.orbit == pytest.approx(1.2 * 1000 * RPM)
     assert plan.revolutions == 14  # the most any block averages
@@ -106,8 +106,9 @@ def test_adaptive_targets_per_ratio_in_the_plan(tmp_path):
     acq = acquires(mat)
     for tag, t in {"00": 1.5, "01": 2.5, "02": 3.5}.items():
         a = acq[f"{tag}_bwd"]
-        rule = averaging_rule(a)
+        rule = averaging_rule(a, 1000 * RPM)
         assert (rule.min_revolutions, rule.max_revolutions, rule.target) == (8, 60, pytest.approx(t / 100))
+        assert rule.spin_turns == pytest.approx(1000 * RPM / abs(a.block.orbit))  # the stop check fits the spin tones out
         assert a.revolutions == 60 and a.duration == pytest.approx(61 / a.block.orbit_hz)  # no expected count
         assert f"8..60 revolutions (until every channel <= {t:g} %) at" in a.describe()
 
@@ -121,7 +122,7 @@ def test_expected_counts_set_the_adaptive_durations(tmp_path):
         a = acq[f"{tag}_fwd"]
         assert a.duration == pytest.approx((n + 1) / a.block.orbit_hz)
         assert a.revolutions == 60  # the timeout and the storage estimate take the maximum
-        assert averaging_rule(a).target == pytest.approx(0.02)
+        assert averaging_rule(a, 1000 * RPM).target == pytest.approx(0.02)
         assert f"(until every channel <= 2 %, about {n} expected)" in a.describe()
     assert make_plan(mat, cfg.load_rig()).revolutions == 60
 
@@ -153,7 +154,7 @@ def test_a_design_gives_its_counts_and_targets(tmp_path):
     assert {t: a.revolutions for t, a in acquires(fixed).items()} == {"00_bwd": 6, "01_bwd": 9, "02_bwd": 14}
     adaptive = load(tmp_path, 'design = "d.toml"', "[averaging]\nmin_revolutions = 5\nmax_revolutions = 40")
     assert [adaptive.orbit.target_pct_at(k) for k in range(3)] == [1.5, 2.5, 3.5]
-    assert averaging_rule(acquires(adaptive)["02_bwd"]).target == pytest.approx(0.035)
+    assert averaging_rule(acquires(adaptive)["02_bwd"], 1000 * RPM).target == pytest.approx(0.035)
     assert acquires(adaptive)["02_bwd"].adaptive.expected == 14
 
 
@@ -165,4 +166,4 @@ def test_the_matrix_keeps_its_own_settings_over_the_design(tmp_path):
     assert top.orbit.revolutions is None and {a.revolutions for a in acquires(top).values()} == {40}
     one = load(tmp_path, 'design = "d.toml"', "[averaging]\ntarget_pct = 2")  # one target: the design's stay out
     assert one.orbit.target_pct is None
-    assert [averaging_rule(a).target for a in acquires(one).values()] == [pytest.approx(0.02)] * 3
+    assert [averaging_rule(a, 1000 * RPM).target for a in acquires(one).values()] == [pytest.approx(0.02)] * 3

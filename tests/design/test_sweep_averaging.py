@@ -57,14 +57,15 @@ async def run_sweep(tmp_path: Path, mat, damage: bool = False) -> list[dict]:
 def test_the_plan_carries_the_matrix_rule():
     rig = cfg.load_rig()
     plan = make_plan(matrix("target_pct = 0.5\nmin_revolutions = 12\nmax_revolutions = 80\n"), rig)
-    rules = {averaging_rule(s) for s in plan.steps if isinstance(s, Acquire)}
-    assert len(rules) == 1
-    rule = rules.pop()
-    assert (rule.min_revolutions, rule.max_revolutions, rule.target) == (12, 80, pytest.approx(0.005))
+    steps = [s for s in plan.steps if isinstance(s, Acquire)]
+    rules = [averaging_rule(s, plan.points[s.point].spin) for s in steps]
+    assert {(r.min_revolutions, r.max_revolutions, round(r.target, 12)) for r in rules} == {(12, 80, 0.005)}
+    # the stop check fits the spin tones out: omega/|Omega| of each block
+    assert all(r.spin_turns == pytest.approx(plan.points[s.point].spin / abs(s.block.orbit)) for r, s in zip(rules, steps))
     assert plan.revolutions == 80  # storage and time estimates take the maximum
     fixed = make_plan(cfg.load_matrix(cfg.matrix_file("demo")), rig)
     assert {(r.min_revolutions, r.max_revolutions, r.target)
-            for r in (averaging_rule(s) for s in fixed.steps if isinstance(s, Acquire))} == {(50, 50, None)}  # the paper's fixed 50
+            for r in (averaging_rule(s, 1.0) for s in fixed.steps if isinstance(s, Acquire))} == {(50, 50, None)}  # the paper's fixed 50
 
 
 async def test_loose_target_stops_at_the_minimum(tmp_path):
