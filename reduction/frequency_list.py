@@ -103,12 +103,18 @@ def coefficient_scales(spec: ModelSpec, theta, spin: float) -> np.ndarray:
     return out
 
 
-def predict(problem: DesignProblem, ratios) -> ListPrediction:
-    """Predicted (Cramer-Rao) standard errors of the list ``ratios`` (|Omega|/omega)."""
-    r = tuple(sorted(float(v) for v in ratios))
+def predict(problem: DesignProblem, ratios, revolutions=None) -> ListPrediction:
+    """Predicted (Cramer-Rao) standard errors of the list ``ratios`` (|Omega|/omega), each
+    block averaging ``problem.revolutions``, or ``revolutions`` (one per ratio, in the order
+    of ``ratios``, both directions alike)."""
+    order = np.argsort(np.asarray(ratios, dtype=float), kind="stable")
+    r = tuple(float(np.asarray(ratios, dtype=float)[i]) for i in order)
+    n = (np.full(len(r), float(problem.revolutions)) if revolutions is None
+         else np.asarray(revolutions, dtype=float)[order])
     hz = np.asarray(r) * problem.spin / (2 * np.pi)
     orbit, x, y = design_orbits(hz, problem.directions, problem.radius)
-    u = problem.noise_at(orbit / problem.spin) / np.sqrt(problem.revolutions)
+    per = orbit.size // max(len(r), 1)
+    u = problem.noise_at(orbit / problem.spin) / np.sqrt(np.repeat(n, per))[:, None]
     if 4 * orbit.size < problem.spec.n_coefficients:  # fewer equations than coefficients
         return ListPrediction(r, None, None, float("inf"))
     try:

@@ -99,3 +99,49 @@ def prior_theta(spec, run=None, spin: float | None = None, lms: str = "piezo") -
                 return (np.array([float(coeffs[n]) for n in spec.names]),
                         f"identified: run {run.directory}, point {index:04d} ({lms})")
     return np.array([NOMINAL.get(n, 0.0) for n in spec.names]), "nominal (60 mm hydrostatic bearing)"
+
+
+def model_check(spec, run, spin: float, lms: str, problem, candidate: tuple, proposal: tuple) -> str | None:
+    """A warning when moving from the candidate list to the proposal could move the model's
+    estimates by more than the candidate's standard error (reduction.misfit.list_shift):
+    the richer model (kcd12 for a model without D; the same model with freq-dep poly:1 for a
+    constant model with D) fitted to the run's orbit table at the point nearest ``spin``
+    (rad/s) gives the terms the model leaves out; the shift counts with 2 standard
+    uncertainties. A list is (ratios, revolutions). None when it holds or cannot be judged."""
+    from reduction.errors import ReductionError
+    from reduction.identify import identify
+    from reduction.misfit import list_shift
+    from reduction.models import model_spec
+
+    if run is None or spec.freq_dep.text != "none":
+        return None
+    richer = ("kcd12", "none") if "d" not in spec.model else (spec.model, "poly:1")
+    points = [p for p in run.complete_points if lms in p.tables]
+    if not points:
+        return None
+    point = min(points, key=lambda p: (abs(p.settings.spin - spin), p.index))
+    table = point.tables[lms]
+    try:
+        big = identify(table, model=richer[0], freq_dep=richer[1], method="wls" if table.u is not None else "ols")
+        if big.covariance is None:
+            return None
+        lists = [(r, n, problem.noise_at(r)) for r, n in (candidate, proposal)]
+        sh = list_shift(spec, model_spec(*richer), big.theta, big.covariance, problem.spin, problem.radius,
+                        *lists, problem.directions)
+        from reduction.frequency_list import predict
+        se = predict(problem, candidate[0]).std_errors
+    except ReductionError:
+        return None
+    reach = (np.abs(sh.shift) + 2 * sh.std) / se
+    j = int(np.argmax(reach))
+    if reach[j] <= 1.0:
+        return None
+    name, model = spec.names[j], spec.model
+    where = f"point {point.index:04d} of run {run.directory}"
+    if abs(sh.shift[j]) > 2 * sh.std[j]:
+        return (f"the data of {where} show terms {model} leaves out ({' '.join(richer)}): from the candidate list "
+                f"to the proposal they move {name} by {sh.shift[j]:.3g} +- {2 * sh.std[j]:.3g} (2 sigma), up to "
+                f"{reach[j]:.2g} x the candidate's standard error: the proposal estimates something else")
+    return (f"{model} leaves out terms of {' '.join(richer)} that the data of {where} cannot rule out: from the "
+            f"candidate list to the proposal they could move {name} by up to {abs(sh.shift[j]) + 2 * sh.std[j]:.3g} "
+            f"({reach[j]:.2g} x the candidate's standard error); compare the two lists on the rig before relying on it")

@@ -124,7 +124,7 @@ def coefficient_scales_of(problem) -> np.ndarray:
 def design_object(rig, *, model, freq_dep, spin_rpm, candidate, source, directions, radius, noise,
                   run, lms, revolutions, target, keep_away, match: bool = False) -> dict:
     """Predict the candidate list, propose one; the JSON object `design --json` prints."""
-    from orbitrig.cli.design_inputs import prior_theta
+    from orbitrig.cli.design_inputs import model_check, prior_theta
     from reduction.frequency_list import DesignProblem, predict, propose
     from reduction.models import model_spec
 
@@ -153,6 +153,7 @@ def design_object(rig, *, model, freq_dep, spin_rpm, candidate, source, directio
         "candidate": dict(_list_object(rig, problem, cand, n, directions), source=source,
                           warnings=_candidate_warnings(candidate, lo, hi, keep_away)),
         "match_candidate": match,
+        "warnings": [],
     }
     if match or goal:
         if cand.std_errors is None and match:
@@ -162,6 +163,9 @@ def design_object(rig, *, model, freq_dep, spin_rpm, candidate, source, directio
     else:
         prop = propose(problem, grid, count=len(candidate), block_overhead=overhead)
         out["proposal"] = _list_object(rig, problem, prop.best, n, directions)
+    prop = out["proposal"]
+    warning = model_check(spec, run, spin, lms, problem, (list(cand.ratios), n), (prop["ratios"], prop["revolutions"]))
+    out["warnings"] = [warning] if warning else []
     return out
 
 
@@ -195,6 +199,8 @@ def print_design(obj: dict) -> None:
              f"rig time {_fmt_time(lst['rig_time_s'])}, {worst}: {', '.join(f'{r:g}' for r in lst['ratios'])}")
     for w in c["warnings"]:
         echo(f"warning (candidate): {w}")
+    for w in obj.get("warnings", []):
+        echo(f"warning (model): {w}")
     if obj["target_pct"] is not None:
         ok = p.get("reaches_target")
         echo(f"target {obj['target_pct']:g} %: " + ("reached" if ok else "not reachable on this grid"))

@@ -4,9 +4,9 @@ planned orbits cannot identify.
 For every model of the matrix and every distinct (spin, orbit radius) of its operating
 points: the Cramer-Rao standard errors (reduction.frequency_list.predict) of circular orbits
 at the matrix's ratios and directions, for the stated per-revolution noise and the nominal
-prior of `orbitrig design` (orbitrig.cli.design_inputs), averaged over the revolutions a
-block takes (the fixed count, the fewest of the per-ratio counts, or an adaptive rule's
-minimum: the most pessimistic). One line per model: the worst relative standard error over the operating points (and where), or why
+prior of `orbitrig design` (orbitrig.cli.design_inputs), averaged over the revolutions each
+ratio's blocks take (:func:`block_revolutions`: the per-ratio counts, else the fixed count,
+else an adaptive rule's minimum). One line per model: the worst relative standard error over the operating points (and where), or why
 the planned orbits cannot identify it (reduction.identifiability.check_plan).
 """
 
@@ -38,14 +38,18 @@ def _directions(mat) -> str:
     return "both" if len(dirs) == 2 else next(iter(dirs))
 
 
-def block_revolutions(rig, mat) -> int:
-    """Revolutions the prediction assumes per block: the fewest any block averages (an adaptive
-    rule's minimum, or the smallest of the per-ratio counts)."""
-    if mat.averaging is not None:
-        return mat.averaging.min_revolutions
-    if mat.orbit.revolutions is not None:
-        return min(mat.orbit.revolutions)
-    return mat.revolutions or rig.averaging.revolutions
+def block_revolutions(rig, mat) -> list[int]:
+    """Revolutions the prediction assumes per ratio (order of ``mat.orbit.ratio_list``): the
+    per-ratio counts ([orbit] revolutions; with [averaging] each ratio's expected count held
+    within min..max), else the fixed count, else an adaptive rule's minimum (pessimistic)."""
+    o, a = mat.orbit, mat.averaging
+    k = range(len(o.ratio_list))
+    if o.revolutions is not None:
+        counts = [o.revolutions_at(i) for i in k]
+        return counts if a is None else [min(max(c, a.min_revolutions), a.max_revolutions) for c in counts]
+    if a is not None:
+        return [a.min_revolutions for _ in k]
+    return [mat.revolutions or rig.averaging.revolutions for _ in k]
 
 
 def adaptive_line(rig, mat) -> str | None:
@@ -93,7 +97,7 @@ def predict_model(rig, mat, model: str, freq_dep: str, noise) -> ModelPrediction
     for rpm in spins:
         for eps in sorted(set(mat.operating.dynamic_eccentricity)):
             radius = eps * rig.bearing.clearance
-            p = predict(DesignProblem(spec, theta, rpm * RPM, radius, noise.u_revolution, n, directions), ratios)
+            p = predict(DesignProblem(spec, theta, rpm * RPM, radius, noise.u_revolution, n[0], directions), ratios, n)
             j = int(np.argmax(p.relative))
             rows.append((p.worst, spec.names[j], rpm, radius))
     worst = max(rows)
@@ -108,10 +112,11 @@ def prediction_lines(rig, mat) -> list[str]:
     n = block_revolutions(rig, mat)
     adaptive = adaptive_line(rig, mat)
     out = [adaptive] if adaptive else []
-    fewest = (", the adaptive minimum" if adaptive else
-              ", the fewest of the per-ratio counts" if mat.orbit.revolutions else "")
-    out.append(f"predicted uncertainty (Cramer-Rao; noise {noise.source}; {n} revolutions per block"
-               + fewest + "; nominal prior coefficients; "
+    if mat.orbit.revolutions is not None:
+        counts = ", ".join(map(str, n)) + " revolutions per ratio" + (" (the expected counts)" if adaptive else "")
+    else:
+        counts = f"{n[0]} revolutions per block" + (", the adaptive minimum" if adaptive else "")
+    out.append(f"predicted uncertainty (Cramer-Rao; noise {noise.source}; {counts}; nominal prior coefficients; "
                "`orbitrig design` proposes lists):")
     for m in mat.models:
         p = predict_model(rig, mat, m.model, m.freq_dep, noise)

@@ -108,6 +108,9 @@ def test_allocation_reaches_the_target_cheaper_than_any_even_split():
     F = revolution_information(spec, theta(spec), SPIN, RADIUS, a.ratios, U)
     se = np.sqrt(np.diag(np.linalg.inv(np.einsum("k,kij->ij", np.array(a.revolutions), F))))
     assert se == pytest.approx(a.std_errors, rel=1e-9)
+    # frequency_list.predict with one count per ratio (in any order) says the same
+    p = DesignProblem(spec, theta(spec), SPIN, RADIUS, U, 50)
+    assert predict(p, a.ratios[::-1], a.revolutions[::-1]).std_errors == pytest.approx(a.std_errors, rel=1e-9)
     assert np.all(se <= scales * (1 + 1e-9)) and a.worst <= 1 + 1e-9
     # the same ratios with one count for all that reaches the target costs more rig time
     n_even = 1
@@ -156,3 +159,27 @@ def test_allocated_counts_give_the_predicted_spread():
         est.append(identify(table, "kcd11", method="wls").theta)
     spread = np.std(np.array(est), axis=0, ddof=1)
     assert spread / a.std_errors == pytest.approx(np.ones(spec.n_coefficients), abs=0.15)
+
+
+# ------------------------------------------------------------------ what a model leaves out
+def test_a_missing_d_moves_k_by_the_change_in_omega_squared():
+    """kc8 on the forces of D alone (K = C = 0 in kcd12): at one frequency its K reads
+    -Omega^2 D exactly, so from ratio 0.3 to ratio 1.5 K moves by -(1.5^2 - 0.3^2) omega^2 D;
+    its uncertainty follows D's."""
+    from reduction.misfit import list_shift
+
+    small, rich = model_spec("kc8"), model_spec("kcd12")
+    theta = np.zeros(rich.n_coefficients)
+    d = {"Dxx": 40.0, "Dyy": 30.0}
+    for name, v in d.items():
+        theta[rich.names.index(name)] = v
+    cov = np.zeros((rich.n_coefficients, rich.n_coefficients))
+    cov[rich.names.index("Dxx"), rich.names.index("Dxx")] = 5.0**2
+    sh = list_shift(small, rich, theta, cov, SPIN, RADIUS, ([0.3], 50, U), ([1.5], 200, U))
+    dw2 = (1.5**2 - 0.3**2) * SPIN**2
+    assert sh.shift[small.names.index("Kxx")] == pytest.approx(-dw2 * 40.0, rel=1e-9)
+    assert sh.shift[small.names.index("Kyy")] == pytest.approx(-dw2 * 30.0, rel=1e-9)
+    assert sh.std[small.names.index("Kxx")] == pytest.approx(dw2 * 5.0, rel=1e-9)
+    assert np.allclose(sh.shift[4:], 0.0, atol=1e-6)  # C is not touched by D
+    same = list_shift(small, rich, theta, cov, SPIN, RADIUS, ([0.3], 50, U), ([0.3], 200, U))
+    assert np.allclose(same.shift, 0.0, atol=1e-6)  # the same frequency: nothing moves

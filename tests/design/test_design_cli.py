@@ -13,7 +13,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 KEYS = {"model", "freq_dep", "coefficients", "units", "spin_rpm", "orbit_radius_m", "directions", "noise",
-        "prior", "allowed", "target_pct", "candidate", "proposal", "match_candidate"}
+        "prior", "allowed", "target_pct", "candidate", "proposal", "match_candidate", "warnings"}
 LIST_KEYS = {"ratios", "orbit_hz", "directions", "revolutions", "identifiable", "std_errors", "relative_pct",
              "worst_relative_pct", "rig_time_s"}
 
@@ -118,5 +118,9 @@ def test_noise_and_prior_from_a_simulated_run(tmp_path):
     assert obj["prior"]["source"].startswith("identified: run")
     assert obj["prior"]["coefficients"]["Kxx"] > 1e7
     assert 1e-6 < obj["orbit_radius_m"] < 1e-5  # the run's measured orbit (demo: eps_d 0.096)
+    # kc8 has no D: the run cannot vouch that moving the frequencies leaves its K alone
+    kc8 = json.loads(design("--model", "kc8", "--spin", "1000", "--noise-from", str(run), "--match", "--json").stdout)
+    assert kc8["proposal"]["ratios"] == [1.5] and len(kc8["warnings"]) == 1
+    assert "kc8 leaves out terms of kcd12" in kc8["warnings"][0] or "terms kc8 leaves out" in kc8["warnings"][0]
     p = design("--model", "kcd11", "--spin", "1000", "--noise-from", str(tmp_path), check=False)
     assert p.returncode == 2 and "Traceback" not in p.stderr

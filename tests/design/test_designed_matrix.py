@@ -33,7 +33,10 @@ def test_the_shipped_designed_matrix():
     assert mat.orbit.design == "kcd11-demo"
     assert mat.orbit.ratio_list == sorted(design["ratios"])
     assert mat.orbit.directions == design["directions"] == ["forward", "backward"]
-    assert (mat.averaging.target_pct, mat.averaging.min_revolutions, mat.averaging.max_revolutions) == (2.0, 20, 100)
+    # the design's revolutions and adaptive targets per ratio; the matrix's [averaging] gives the bounds
+    assert [mat.orbit.revolutions_at(k) for k in range(len(design["ratios"]))] == design["revolutions"]
+    assert [mat.orbit.target_pct_at(k) for k in range(len(design["ratios"]))] == design["target_pct"]
+    assert (mat.averaging.target_pct, mat.averaging.min_revolutions, mat.averaging.max_revolutions) == (None, 20, 400)
 
 
 def test_a_design_file_next_to_the_matrix(tmp_path):
@@ -74,9 +77,13 @@ def test_dry_run_of_the_designed_matrix():
                        capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
     out = p.stdout
-    assert "6 orbit blocks" in out.splitlines()[0]
-    assert "adaptive averaging: every channel <= 2 % in 20..100 revolutions per block" in out
-    assert "20 revolutions per block, the adaptive minimum" in out
-    # the design's 27 revolutions per ratio are each block's expected count (the duration's)
-    assert "acquire 20..100 revolutions (until every channel <= 2 %, about 27 expected) at 25.000 Hz" in out
+    assert "4 orbit blocks" in out.splitlines()[0]
+    design = tomllib.loads((ROOT / "config" / "designs" / "kcd11-demo.toml").read_text())
+    lo, hi = min(design["target_pct"]), max(design["target_pct"])
+    assert f"adaptive averaging: every channel <= its ratio's target ({lo:g}..{hi:g} %) in 20..400 revolutions" in out
+    counts = ", ".join(map(str, design["revolutions"]))
+    assert f"{counts} revolutions per ratio (the expected counts)" in out
+    # each block's expected count (the duration's) and its own target
+    n_top, t_top = design["revolutions"][-1], design["target_pct"][-1]
+    assert f"acquire 20..400 revolutions (until every channel <= {t_top:g} %, about {n_top} expected) at 25.000 Hz" in out
     assert "(the estimate above assumes each ratio's expected revolutions)" in out
