@@ -71,7 +71,7 @@ MAX_FACTOR = 3  # adaptive blocks: at most this many times the ratio's allocated
 
 def new_physics(seed: int) -> RigPhysics:
     """The simulator's default scenario (config/sim.toml: the paper's rig) with a noise seed."""
-    return RigPhysics(dataclasses.replace(scenario(__import__("os").environ.get("SCEN","paper")), seed=seed))
+    return RigPhysics(dataclasses.replace(scenario("paper"), seed=seed))
 
 
 def run_point(physics, rig, ratios, rules):
