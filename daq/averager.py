@@ -195,7 +195,7 @@ class StreamingAverager:
         self._prepare(revs.counts.shape[1:], revs.slots)
         seg = revs.take(slice(0, self.rule.max_revolutions - self._n))
         records = np.einsum("rcs,cs->rc", seg.counts, self._weights) * self._cal[0]
-        used, reason = self._stop(records)
+        used, reason = self._stop(records, seg.rev)
         n0, n1 = self._n, self._n + used
         self._counts[n0:n1] = seg.counts[:used]
         self._records[n0:n1] = records[:used]
@@ -221,14 +221,14 @@ class StreamingAverager:
         self._running.reset()
         self._n = 0
 
-    def _stop(self, records: np.ndarray) -> tuple[int, str | None]:
+    def _stop(self, records: np.ndarray, revs: np.ndarray) -> tuple[int, str | None]:
         """How many of these new per-revolution phasors (R, C) the block takes, and
         why it stops (None: not yet)."""
         rule, r = self.rule, len(records)
         room = rule.max_revolutions - self._n
         if rule.target is not None:
             if rule.spin_turns is not None:
-                used = self._first_met_tones(records)
+                used = self._first_met_tones(records, revs)
             else:
                 used = self._running.first_met(records, rule.target, rule.min_revolutions)
             if used:
@@ -239,11 +239,12 @@ class StreamingAverager:
             return room, STOP_COUNT if rule.target is None else STOP_MAX
         return r, None
 
-    def _first_met_tones(self, records: np.ndarray) -> int:
+    def _first_met_tones(self, records: np.ndarray, revs_new: np.ndarray) -> int:
         """Like _RunningScatter.first_met with the spin tones fitted out (rule.spin_turns)."""
         rule = self.rule
         every = np.concatenate([self._records[:self._n], records])
-        u = prefix_mean_uncertainty(every, rule.spin_turns, start=self._n)
+        revs = np.concatenate([self._revs[:self._n], revs_new])
+        u = prefix_mean_uncertainty(every, rule.spin_turns, start=self._n, revolutions=revs)
         m = self._n + 1 + np.arange(len(records))
         mean = np.abs(np.cumsum(every, axis=0)[self._n:] / m[:, None])
         ok = np.all(u <= rule.target * mean, axis=1) & (m >= max(rule.min_revolutions, 2))
@@ -266,7 +267,8 @@ class StreamingAverager:
         return AveragedBlock(
             orbit_speed=float(speed), slots=self._slots.copy(), theta=theta, mean=mean, phasors=fit.phasor,
             uncertainty=(phasor_uncertainty(records, axis=0) if self.rule.spin_turns is None
-                         else mean_uncertainty(records, self.rule.spin_turns)), record_phasors=records, rms_residual=fit.rms_residual,
+                         else mean_uncertainty(records, self.rule.spin_turns, self._revs[:n])),
+            record_phasors=records, rms_residual=fit.rms_residual,
             dc=fit.mean, raw_counts=counts, gains=gains.copy(), offsets=offsets.copy(),
             revs=self._revs[:n].copy(), t_us=self._t_us[:n].copy(), periods=periods, stop_reason=reason,
             rule=self.rule,

@@ -53,46 +53,64 @@ def _advances(n: int, spin_turns: float, harmonics) -> tuple[float, ...]:
     return tuple(advances)
 
 
-def _spin_tones(n: int, spin_turns: float, harmonics) -> np.ndarray:
-    """(n, 1 + m) columns: ones (the mean), then e^{i 2 pi a k} of the resolvable spin tones."""
-    return np.exp(2j * np.pi * np.outer(np.arange(n), _advances(n, spin_turns, harmonics)))
+def _positions(n: int, revolutions) -> np.ndarray:
+    """(n,) revolution k of each record, counted from the first: the board's revolution
+    numbers when given (a dropped revolution leaves a gap the tones still turn through)."""
+    if revolutions is None:
+        return np.arange(n, dtype=float)
+    revs = np.asarray(revolutions, dtype=float)
+    if revs.shape != (n,):
+        raise ReductionError(f"revolution numbers: {revs.size} for {n} records")
+    return revs - revs[0]
 
 
-def _tone_fit(record_phasors, spin_turns: float, harmonics):
+def _tone_fit(record_phasors, spin_turns: float, harmonics, revolutions=None):
+    """(X (n, p), coef (p, C), residuals (n, C), white (C,)) of the least-squares fit of the
+    mean and the resolvable spin tones."""
     q = np.asarray(record_phasors, dtype=complex)
-    X = _spin_tones(q.shape[0], spin_turns, harmonics)
-    if q.shape[0] <= X.shape[1]:
-        raise ReductionError(f"{q.shape[0]} revolutions cannot separate {X.shape[1] - 1} spin tones and the mean")
+    n = q.shape[0]
+    X = np.exp(2j * np.pi * np.outer(_positions(n, revolutions), _advances(n, spin_turns, harmonics)))
+    if n <= X.shape[1]:
+        raise ReductionError(f"{n} revolutions cannot separate {X.shape[1] - 1} spin tones and the mean")
     coef, *_ = np.linalg.lstsq(X, q, rcond=None)
     resid = q - X @ coef
-    white = np.sqrt(np.sum(np.abs(resid) ** 2, axis=0) / (q.shape[0] - X.shape[1]))
-    return X, coef, white
+    white = np.sqrt(np.sum(np.abs(resid) ** 2, axis=0) / (n - X.shape[1]))
+    return X, coef, resid, white
 
 
-def revolution_noise(record_phasors, spin_turns: float, harmonics=SPIN_HARMONICS) -> np.ndarray:
+def revolution_noise(record_phasors, spin_turns: float, revolutions=None, harmonics=SPIN_HARMONICS) -> np.ndarray:
     """Per-revolution standard uncertainty sqrt(E|e|^2) of each channel's phasor (same unit),
     with the spin-synchronous tones taken out of the scatter.
 
-    record_phasors (n, C): one block's per-revolution phasors. ``spin_turns`` = omega/|Omega|,
-    the spin revolutions per orbit revolution. A tone at h x spin (runout, unbalance) leaks
-    into revolution k's phasor as a e^{+-i 2 pi h spin_turns k}: it rotates from revolution to
+    record_phasors (n, C): one block's per-revolution phasors; ``revolutions`` (n,) their
+    board revolution numbers (default consecutive). ``spin_turns`` = omega/|Omega|, the spin
+    revolutions per orbit revolution. A tone at h x spin (runout, unbalance) leaks into
+    revolution k's phasor as a e^{+-i 2 pi h spin_turns k}: it rotates from revolution to
     revolution, so it inflates the scatter, but its share of the mean shrinks like 1/n, not
     1/sqrt(n). Those exponentials (h in ``harmonics``, both signs) are fitted with the mean and
     removed; one whose advance per revolution is within 2 pi / n of a whole turn cannot be told
     from the mean over n revolutions and stays in. The residual scatter (degrees of freedom
     n - fitted columns) is the white part that averaging reduces as 1/sqrt(n).
     """
-    return _tone_fit(record_phasors, spin_turns, harmonics)[2]
+    return _tone_fit(record_phasors, spin_turns, harmonics, revolutions)[3]
 
 
-def mean_uncertainty(record_phasors, spin_turns: float, harmonics=SPIN_HARMONICS) -> np.ndarray:
+def revolution_residuals(record_phasors, spin_turns: float, revolutions=None,
+                         harmonics=SPIN_HARMONICS) -> tuple[np.ndarray, np.ndarray]:
+    """((n, C) what each revolution's phasor differs from the mean and the fitted spin tones,
+    (C,) their standard deviation :func:`revolution_noise`): a disturbed revolution stands out."""
+    _, _, resid, white = _tone_fit(record_phasors, spin_turns, harmonics, revolutions)
+    return resid, white
+
+
+def mean_uncertainty(record_phasors, spin_turns: float, revolutions=None, harmonics=SPIN_HARMONICS) -> np.ndarray:
     """Standard uncertainty sqrt(E|mean - true|^2) of the plain mean of per-revolution phasors
     (n, C): the white part sigma^2 / n (:func:`revolution_noise`) plus what each fitted spin
     tone a e^{i phi k} leaves in the mean, |a|^2 |mean_k e^{i phi k}|^2. With too few
     revolutions to fit the tones, the scatter's :func:`phasor_uncertainty`."""
     q = np.asarray(record_phasors, dtype=complex)
     try:
-        X, coef, white = _tone_fit(q, spin_turns, harmonics)
+        X, coef, _, white = _tone_fit(q, spin_turns, harmonics, revolutions)
     except ReductionError:
         return phasor_uncertainty(q, axis=0)
     leak = np.abs(np.mean(X[:, 1:], axis=0)) ** 2  # (m,)
@@ -100,9 +118,9 @@ def mean_uncertainty(record_phasors, spin_turns: float, harmonics=SPIN_HARMONICS
     return np.sqrt(white**2 / q.shape[0] + tones)
 
 
-def prefix_mean_uncertainty(record_phasors, spin_turns: float, start: int = 0,
+def prefix_mean_uncertainty(record_phasors, spin_turns: float, start: int = 0, revolutions=None,
                             harmonics=SPIN_HARMONICS) -> np.ndarray:
-    """(n - start, C): :func:`mean_uncertainty` of the first m revolutions for every
+    """(n - start, C): :func:`mean_uncertainty` of the first m records for every
     m = start+1..n at once (each m with the tones m revolutions resolve; inf where m is too
     small to fit them). Cumulative sums and batched small solves, one batch per tone set."""
     q = np.asarray(record_phasors, dtype=complex)
@@ -110,7 +128,7 @@ def prefix_mean_uncertainty(record_phasors, spin_turns: float, start: int = 0,
     out = np.full((n - start,) + q.shape[1:], np.inf)
     counts = np.arange(start + 1, n + 1)
     sets = [_advances(int(m), spin_turns, harmonics) for m in counts]
-    k = np.arange(n)
+    k = _positions(n, revolutions)
     s2 = np.cumsum(np.abs(q) ** 2, axis=0)  # (n, C)
     for adv in dict.fromkeys(sets):
         rows = np.array([i for i, a in enumerate(sets) if a == adv])
@@ -120,10 +138,13 @@ def prefix_mean_uncertainty(record_phasors, spin_turns: float, start: int = 0,
         if rows.size == 0:
             continue
         X = np.exp(2j * np.pi * np.outer(k, adv))  # (n, p)
-        idx = rows + start  # the prefix m ends at revolution index m - 1
+        idx = rows + start  # the prefix of m records ends at record m - 1
         gram = np.cumsum(np.conj(X)[:, :, None] * X[:, None, :], axis=0)[idx]
         b = np.cumsum(np.conj(X)[:, :, None] * q[:, None, :], axis=0)[idx]
-        coef = np.linalg.solve(gram, b)  # (r, p, C)
+        try:
+            coef = np.linalg.solve(gram, b)  # (r, p, C)
+        except np.linalg.LinAlgError:  # tones too close over this prefix: leave it unjudged
+            continue
         rss = np.maximum(s2[idx] - np.real(np.einsum("kpc,kpc->kc", np.conj(b), coef)), 0.0)
         leak = np.abs(np.cumsum(X[:, 1:], axis=0)[idx] / m[:, None]) ** 2
         tones = np.einsum("kj,kjc->kc", leak, np.abs(coef[:, 1:]) ** 2)

@@ -47,6 +47,7 @@ def block_record(block: Block, blk: AveragedBlock, rig: RigConfig) -> BlockRecor
         record_phasors=rp, phasors=np.asarray(blk.phasors), dc=np.asarray(blk.dc),
         rms_residual=np.asarray(blk.rms_residual), coherence=coh, stats=stats,
         uncertainty=np.asarray(blk.uncertainty), n_records=blk.n_records, stop_reason=blk.stop_reason,
+        revolutions=np.asarray(blk.revs),
     )  # fmt: skip
 
 
@@ -85,20 +86,22 @@ def orbit_table(spin: float, recs: list[BlockRecord], ch: dict[str, int], lms: s
     i = LMS.index(lms)
     x, y = probe_plane(ph, ch)
     n_records = np.array([len(r.record_phasors) for r in recs])
-    u = np.array([row_uncertainty(r.record_phasors, ch, lms, spin / abs(r.block.orbit)) for r in recs])
+    u = np.array([row_uncertainty(r.record_phasors, ch, lms, spin / abs(r.block.orbit), r.revolutions) for r in recs])
     return OrbitTable(spin=spin, orbit=orbit, x=x, y=y, fx=ph[:, ch[f"fx_{lms}"]], fy=ph[:, ch[f"fy_{lms}"]],
                       gamma2=np.array([r.coherence[i] for r in recs]), n_records=n_records,
                       u=u if np.all(np.isfinite(u)) else None)  # fmt: skip
 
 
-def row_uncertainty(record_phasors: np.ndarray, ch: dict[str, int], lms: str, spin_turns: float) -> np.ndarray:
+def row_uncertainty(record_phasors: np.ndarray, ch: dict[str, int], lms: str, spin_turns: float,
+                    revolutions: np.ndarray | None = None) -> np.ndarray:
     """(u_x, u_y, u_fx, u_fy) of one block (m, m, N, N): the standard uncertainty of each mean
     (reduction.noise.mean_uncertainty: the scatter with the spin tones' rotating leakage taken
-    out, plus what those tones leave in the mean); ``spin_turns`` = omega / |Omega|."""
+    out, plus what those tones leave in the mean); ``spin_turns`` = omega / |Omega|,
+    ``revolutions`` the board's revolution number of each record (gaps where one was dropped)."""
     rp = np.asarray(record_phasors)
     x, y = probe_plane(rp, ch)
     per_rev = np.stack([x, y, rp[:, ch[f"fx_{lms}"]], rp[:, ch[f"fy_{lms}"]]], axis=1)
-    return mean_uncertainty(per_rev, spin_turns)
+    return mean_uncertainty(per_rev, spin_turns, revolutions)
 
 
 def lms_comparison(recs: list[BlockRecord], ch: dict[str, int]) -> dict:

@@ -40,13 +40,13 @@ log = logging.getLogger(__name__)
 
 def averaging_rule(step: Acquire, spin: float) -> AveragingRule:
     """The daq rule of an Acquire step at spin (rad/s): its block's adaptive target (percent ->
-    a fraction, between min and max revolutions; the check leaves the spin tones' leakage out,
-    spin_turns = omega/|Omega|), else exactly its `revolutions`."""
-    a = step.adaptive
+    a fraction, between min and max revolutions), else exactly its `revolutions`; with
+    spin_turns = omega/|Omega|, so the check and the block's uncertainty leave the spin tones'
+    leakage out."""
+    a, turns = step.adaptive, spin / abs(step.block.orbit)
     if a is None:
-        return AveragingRule.fixed(step.revolutions)
-    return AveragingRule.adaptive(a.target_pct / 100.0, a.min_revolutions, a.max_revolutions,
-                                  spin_turns=spin / abs(step.block.orbit))
+        return AveragingRule(step.revolutions, step.revolutions, None, turns)
+    return AveragingRule.adaptive(a.target_pct / 100.0, a.min_revolutions, a.max_revolutions, spin_turns=turns)
 
 
 @dataclass(frozen=True)

@@ -78,6 +78,9 @@ def write_block(g: h5py.Group, rec: BlockRecord, channels: list[str], units: lis
         dimensions="revolution, channel", convention="q = Re(q_bar exp(i Omega t))")
     put(g, "phasors", np.asarray(rec.phasors, dtype=np.complex128), per_channel,
         convention="q = Re(q_bar exp(i Omega t))")
+    if rec.revolutions is not None:
+        put(g, "revolutions", np.asarray(rec.revolutions, dtype=np.int64), "1", dimensions="revolution",
+            meaning="the A/D board's revolution number of each averaged revolution (gaps: dropped ones)")
     if rec.uncertainty is not None:
         put(g, "uncertainty", np.asarray(rec.uncertainty, dtype=np.float64), per_channel,
             meaning="standard uncertainty of each averaged phasor")

@@ -30,6 +30,7 @@ class BlockRecord:
     uncertainty: np.ndarray | None = None  # (C,) standard uncertainty of `phasors` (N, m)
     n_records: int | None = None  # revolutions averaged (None: the rows of raw_counts)
     stop_reason: str = ""  # why averaging stopped: "count" | "target" | "max" ("" unknown)
+    revolutions: np.ndarray | None = None  # (N,) the A/D board's revolution number of each record
 
 
 @dataclass

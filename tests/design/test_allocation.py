@@ -81,6 +81,20 @@ def test_coinciding_and_unresolvable_tones_stay_finite():
     assert np.isfinite(revolution_noise(q[:3], 1 / 0.7)).all()
 
 
+def test_dropped_revolutions_keep_the_tone_in_step():
+    """Revolutions 20..29 dropped (damaged frames): the tone still turns through them, so the
+    fit must use the board's revolution numbers; counted as consecutive records it would
+    leave the tone in the residual scatter."""
+    rng = np.random.default_rng(5)
+    revs = np.r_[np.arange(20), np.arange(30, 80)]
+    q = 3.0 * np.exp(2j * np.pi * (1 / 0.7) * revs) + (rng.standard_normal(70) + 1j * rng.standard_normal(70)) / math.sqrt(2)
+    right = revolution_noise(q[:, None], 1 / 0.7, revolutions=revs)[0]
+    wrong = revolution_noise(q[:, None], 1 / 0.7)[0]
+    assert right == pytest.approx(1.0, abs=0.25) and wrong > 1.5
+    with pytest.raises(ReductionError):
+        revolution_noise(q[:, None], 1 / 0.7, revolutions=revs[:-1])
+
+
 # ------------------------------------------------------------------ allocation
 def test_information_adds_up_to_the_cramer_rao_bound():
     spec = model_spec("kcd11")
