@@ -30,8 +30,9 @@ receive buffer with the first frame, so a second frame read in the same chunk
 is dropped unanswered; and its ServerRequestHandler keeps ONE `last_pdu` that
 the next chunk overwrites (or clears) before the deferred handler runs, so
 the first request is lost and the second answered twice. This server answers
-every well-formed request exactly once, in order (`find_request` frames by
-function-code size and CRC, hunting byte by byte past noise).
+every well-formed request exactly once, in order (`find_request` in
+sim/rtu_frames.py frames by function-code size and CRC, hunting byte by byte
+past noise).
 """
 
 from __future__ import annotations
@@ -52,9 +53,11 @@ from pymodbus.simulator import DataType, SimData, SimDevice
 
 from .drive_model import DriveModbusException, DriveModel
 from .pty import close_fds, open_raw_pty
+from .rtu_frames import MAX_ADU, crc16, find_request, with_crc
 
 log = logging.getLogger(__name__)
 
+# crc16 and find_request (sim/rtu_frames.py) stay importable from here
 __all__ = ["ModbusEndpoint", "crc16", "find_request", "serve_modbus_rtu_pty", "serve_modbus_tcp"]
 
 _SUPPORTED_FUNCTIONS = (3, 6, 16)
@@ -206,70 +209,6 @@ async def serve_modbus_tcp(
 
 
 # ------------------------------------------------------------------ RTU
-# Request sizes (bytes, device id and CRC included) by function code, from the
-# Modbus application protocol: a fixed size, or (position of the byte count,
-# bytes around it). Other function codes are framed by their CRC alone.
-_FIXED_SIZE = {1: 8, 2: 8, 3: 8, 4: 8, 5: 8, 6: 8, 7: 4, 8: 8, 11: 4, 12: 4, 17: 4, 22: 10, 24: 6}
-_COUNTED_SIZE = {15: (6, 9), 16: (6, 9), 20: (2, 5), 21: (2, 5), 23: (10, 13)}
-_MAX_ADU = 256
-
-
-def _crc_table() -> list[int]:
-    table = []
-    for byte in range(256):
-        crc = byte
-        for _ in range(8):
-            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
-        table.append(crc)
-    return table
-
-
-_CRC_TABLE = _crc_table()
-
-
-def crc16(data: bytes | bytearray | memoryview) -> int:
-    """Modbus CRC-16 (poly 0xA001 reflected, init 0xFFFF); sent low byte first."""
-    crc = 0xFFFF
-    for b in data:
-        crc = (crc >> 8) ^ _CRC_TABLE[(crc ^ b) & 0xFF]
-    return crc
-
-
-def _with_crc(body: bytes) -> bytes:
-    return body + crc16(body).to_bytes(2, "little")
-
-
-def find_request(buf: bytes | bytearray) -> tuple[int, int] | None:
-    """(start, end) of the first complete, CRC-valid request frame in `buf`, or None.
-
-    Hunts byte by byte: bytes before `start` are line noise or the fragment of a
-    broken frame (a real RTU receiver drops them at the next inter-frame
-    silence). Every complete frame is found, also several back to back in one
-    read; an incomplete frame at the head does not hide a complete one after it.
-    """
-    n = len(buf)
-    for k in range(n - 3):
-        fc = buf[k + 1]
-        if fc in _FIXED_SIZE:
-            size = _FIXED_SIZE[fc]
-        elif fc in _COUNTED_SIZE:
-            pos, extra = _COUNTED_SIZE[fc]
-            if k + pos >= n:
-                continue
-            size = buf[k + pos] + extra
-        else:  # unknown layout: the shortest CRC-valid frame
-            crc = 0xFFFF
-            for e in range(k, min(n, k + _MAX_ADU) - 2):
-                crc = (crc >> 8) ^ _CRC_TABLE[(crc ^ buf[e]) & 0xFF]
-                if e - k >= 1 and crc == buf[e + 1] | buf[e + 2] << 8:
-                    return k, e + 3
-            continue
-        end = k + size
-        if end <= n and crc16(buf[k : end - 2]) == buf[end - 2] | buf[end - 1] << 8:
-            return k, end
-    return None
-
-
 class _RtuPtyServer:
     """Modbus RTU server on the master end of a pty: every well-formed request
     is executed and answered exactly once, in the order received.
@@ -314,9 +253,9 @@ class _RtuPtyServer:
             frame = bytes(self._rx[start:end])
             del self._rx[:end]
             self._serve(frame)
-        if len(self._rx) > 2 * _MAX_ADU:  # no frame in it: noise
-            self.noise_bytes += len(self._rx) - _MAX_ADU
-            del self._rx[:-_MAX_ADU]
+        if len(self._rx) > 2 * MAX_ADU:  # no frame in it: noise
+            self.noise_bytes += len(self._rx) - MAX_ADU
+            del self._rx[:-MAX_ADU]
 
     def _send(self, adu: bytes) -> None:
         self._tx += adu
@@ -354,7 +293,7 @@ class _RtuPtyServer:
             body = self._execute(drive, fc, data)
         except DriveModbusException as exc:
             body = bytes([fc | 0x80, exc.code])
-        self._send(_with_crc(bytes([dev]) + body))
+        self._send(with_crc(bytes([dev]) + body))
 
     @staticmethod
     def _execute(drive: DriveModel, fc: int, data: bytes) -> bytes:
