@@ -368,7 +368,7 @@ async def _stop(url, d, emergency, timeout) -> int:
 
 
 async def _stop_words_best_effort(url, d, emergency) -> list[str]:
-    from drives.rig import send_stop
+    from drives.stop import send_stop
     from orbitrig.run.drive_setup import bare_drives, modbus_link
 
     link = modbus_link(url, d)

@@ -35,7 +35,7 @@ def effective_limits(d, *, max_spin=None, max_orbit=None, min_ratio=None, max_ra
     command line's values (rpm, ratios). ValueError naming the option if one
     is looser than the configuration (or contradicts another)."""
     from orbitrig.config import RPM
-    from drives.rig import DriveLimits
+    from drives.limits import DriveLimits
 
     problems = []
 

@@ -9,9 +9,10 @@ from __future__ import annotations
 import math
 
 from drives.drive import Drive
+from drives.limits import DriveLimits
 from drives.link import ModbusLink
 from drives.pair import drive_names, drive_pair
-from drives.rig import DriveLimits, RigDrives
+from drives.rig import RigDrives
 from orbitrig.config import RPM, Drives
 
 #: no speed or ratio limit (status and stop of `orbitrig drives` command no speed)

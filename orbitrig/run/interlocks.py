@@ -22,7 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from daq.aux import AuxState
-from drives.rig import RigDriveState
+from drives.state import RigDriveState
 from orbitrig.config import MPA, Interlocks
 
 SUSPEND, FAIL = "suspend", "fail"

@@ -6,7 +6,7 @@ import math
 
 from daq.aux import AuxState
 from drives.drive import DriveStatus
-from drives.rig import RigDriveState
+from drives.state import RigDriveState
 
 
 def can_row(t: float, aux: AuxState) -> tuple:

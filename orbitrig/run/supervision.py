@@ -13,7 +13,7 @@ import asyncio
 from typing import Callable
 
 from daq.aux import AuxState
-from drives.rig import RigDriveState
+from drives.state import RigDriveState
 from orbitrig.config import Interlocks
 from orbitrig.run import interlocks
 from orbitrig.run.interlocks import Trip

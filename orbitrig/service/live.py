@@ -9,7 +9,7 @@ times a second while the run lives, publishes
 ``{"run_id", "point", "frequency", "direction", "revolutions", "orbit_hz",
 "spin_rpm", "drives", "aux", "waveforms", "units", "bands"}``
 
-- ``drives``: both drives as :meth:`drives.rig.RigDriveState.to_dict` (rpm and
+- ``drives``: both drives as :meth:`drives.state.RigDriveState.to_dict` (rpm and
   percent: for people);
 - ``aux``: the CAN sensor values in SI (K, Pa, m^3/s, -), their units in ``units``;
 - ``waveforms``: one averaged revolution per channel, SI (N, m), samples in slot order;

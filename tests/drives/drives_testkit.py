@@ -12,7 +12,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from drives.rig import DriveLimits, RigDrives
+from drives.limits import DriveLimits
+from drives.rig import RigDrives
 from sim import drive_model as dm
 from sim.drive_model import DriveModel
 from sim.modbus_server import ModbusEndpoint, serve_modbus_rtu_pty, serve_modbus_tcp

@@ -14,7 +14,8 @@ import pytest
 from drives_testkit import CW_RAMP_STOP, CW_RUN, ROOT, RPM, open_rig, subprocess_env
 
 from drives.errors import DriveFaultError, DriveLinkError
-from drives.rig import DriveLimits, RigDrives
+from drives.limits import DriveLimits
+from drives.rig import RigDrives
 from sim.modbus_server import serve_modbus_tcp
 
 pytestmark = pytest.mark.timeout(30)  # a hang fails fast, with a traceback
@@ -48,7 +49,8 @@ async def test_poll_keeps_the_watchdog_fed_while_the_caller_waits(sim):
 
 CLIENT = """
 import asyncio, sys
-from drives.rig import DriveLimits, RigDrives
+from drives.limits import DriveLimits
+from drives.rig import RigDrives
 
 async def main():
     async with RigDrives(sys.argv[1], DriveLimits(1000.0, 1000.0), poll_interval=0.05,
@@ -224,7 +226,7 @@ def test_link_loss_polls_must_be_a_positive_integer():
 
 
 async def test_link_loss_polls_lowered_to_fit_the_watchdog(tcp_sim, caplog):
-    caplog.set_level(logging.INFO, logger="drives.rig")
+    caplog.set_level(logging.INFO, logger="drives.poll")
     # given explicitly: 3 x (0.3 + 0.05) s = 1.05 s >= 1 s watchdog -> 2 (0.7 s), warned
     async with rig(tcp_sim, timeout=0.3, comm_loss_timeout=1.0, link_loss_polls=3) as r:
         assert r.link_loss_polls == 2

@@ -17,7 +17,7 @@ from drives.errors import (
     DriveTimeoutError,
 )
 from drives.link import parse_modbus_url
-from drives.rig import DriveLimits
+from drives.limits import DriveLimits
 from rigerrors import OrbitrigError
 
 RPM = 2 * math.pi / 60

@@ -18,8 +18,9 @@ from drives.errors import (
     DriveFaultError,
     DriveLimitError,
 )
+from drives.limits import DriveLimits
 from drives.link import ModbusLink
-from drives.rig import DriveLimits, RigDrives
+from drives.rig import RigDrives
 
 pytestmark = pytest.mark.timeout(30)  # a hang fails fast, with a traceback
 

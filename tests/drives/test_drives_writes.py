@@ -12,7 +12,7 @@ import pytest
 from drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, open_rig
 
 from drives.errors import DriveExceptionResponse, DriveTimeoutError
-from drives.rig import DriveLimits
+from drives.limits import DriveLimits
 from sim import drive_model as dm
 
 pytestmark = pytest.mark.timeout(30)
@@ -122,7 +122,7 @@ async def test_a_silent_drive_delays_the_others_stop_by_one_timeout_only(sim):
     only after the spin drive has had its own."""
     from drives.drive import Drive
     from drives.link import ModbusLink
-    from drives.rig import send_stop
+    from drives.stop import send_stop
 
     sim.models[1].write(0, [CW_RUN])
     loop = asyncio.get_running_loop()

@@ -1,0 +1,41 @@
+"""The snapshot of both drives that each poll publishes."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from drives.drive import DriveStatus
+
+
+@dataclass(frozen=True)
+class RigDriveState:
+    """The latest poll of both drives. Speeds in the DriveStatus objects are rad/s."""
+
+    spin: DriveStatus | None
+    orbit: DriveStatus | None
+    link_ok: bool
+    link_error: str | None = None
+    link_losses: int = 0
+    polls: int = 0  # successful polls
+    poll_failures: int = 0  # failed polls in all (isolated ones and those of a declared loss)
+    failed_in_row: int = 0  # consecutive failed polls up to now (0 after a good one)
+    time: float = 0.0  # time.monotonic() of the poll
+
+    @property
+    def at_setpoint(self) -> bool:
+        return bool(self.spin and self.orbit and self.spin.at_setpoint and self.orbit.at_setpoint)
+
+    @property
+    def stopped(self) -> bool:
+        """Both drives read an actual speed of exactly zero."""
+        return bool(self.spin and self.orbit and self.spin.stopped and self.orbit.stopped)
+
+    def to_dict(self) -> dict:
+        return {
+            "link_ok": self.link_ok,
+            "link_error": self.link_error,
+            "link_losses": self.link_losses,
+            "poll_failures": self.poll_failures,
+            "spin": self.spin.to_dict() if self.spin else None,
+            "orbit": self.orbit.to_dict() if self.orbit else None,
+        }

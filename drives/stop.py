@@ -1,0 +1,55 @@
+"""The stop command to a set of drives: stop words first, to every drive, then zero references."""
+
+from __future__ import annotations
+
+import logging
+
+from drives import registers as R
+from drives.errors import DriveError, DriveTimeoutError
+
+log = logging.getLogger(__name__)
+
+
+async def send_stop(drives, *, emergency: bool = False) -> list[DriveError]:
+    """Stop words to every drive (OFF1 ramp stop, or OFF3 emergency stop), then
+    zero references so that no later start jumps back to the old speed.
+
+    Control words go out first, to all drives, before anything else; a drive
+    that does not take it does not keep the others from getting theirs: each
+    gets one try first, and only then are the timed-out ones retried
+    (`Drive.write_retries`), so one silent drive delays the other's stop word by
+    one request timeout, not by all its retries.
+    Returns the delivery errors (logged), one per drive that missed its stop word.
+    """
+    word = R.CW_EMERGENCY_STOP if emergency else R.CW_RAMP_STOP
+    errors = await _to_each(drives, lambda d, retries: d.write_control(word, retries=retries))
+    for err in errors:
+        log.error("stop command not delivered: %s", err)
+    for err in await _to_each(drives, lambda d, retries: d.write_reference(0, retries=retries)):
+        log.warning("zero reference not delivered: %s", err)
+    return errors
+
+
+async def _to_each(drives, write) -> list[DriveError]:
+    """`write(drive, retries)` to every drive: one try each, then the retries of
+    those that timed out. Returns the errors of the drives that missed it."""
+    errors: dict[int, DriveError] = {}
+    timed_out = []
+    for d in drives:
+        try:
+            await write(d, 0)
+        except DriveTimeoutError as err:
+            timed_out.append(d)
+            errors[id(d)] = err
+        except DriveError as err:
+            errors[id(d)] = err
+    for d in timed_out:
+        if d.write_retries < 1:
+            continue
+        log.warning("%s drive (id %d): write timed out; retrying", d.name, d.device_id)
+        try:
+            await write(d, d.write_retries - 1)
+            del errors[id(d)]
+        except DriveError as err:
+            errors[id(d)] = err
+    return [errors[id(d)] for d in drives if id(d) in errors]
