@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from reduction.frequency_list import smooth_noise
+from reduction.frequency_list import predict, smooth_noise
 
 from rigerrors import OrbitrigError
 
@@ -128,7 +128,6 @@ def model_check(spec, run, spin: float, lms: str, problem, candidate: tuple, pro
         lists = [(r, n, problem.noise_at(r)) for r, n in (candidate, proposal)]
         sh = list_shift(spec, model_spec(*richer), big.theta, big.covariance, problem.spin, problem.radius,
                         *lists, problem.directions)
-        from reduction.frequency_list import predict
         se = predict(problem, candidate[0]).std_errors
     except ReductionError:
         return None
