@@ -165,7 +165,9 @@ async def test_close_link_reconnects(rig, link, tmp_path):
     block, used = await acquire_with_fault(rig, url, fault)
     s = block.stats
     assert s.link_drops == 1
-    assert set(s.drop_reasons) <= {"link_drop", "seq_gap", "corrupt"}
+    # what the board converted while nobody read it is lost: its next frame says OVERRUN (seen
+    # when the reconnect is slow, on a loaded machine)
+    assert set(s.drop_reasons) <= {"link_drop", "seq_gap", "corrupt", "overrun"}
     check_block(rig, block, used, tap)
     await asyncio.gather(*tasks)
 
