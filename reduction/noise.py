@@ -65,8 +65,8 @@ def _positions(n: int, revolutions) -> np.ndarray:
 
 
 def _tone_fit(record_phasors, spin_turns: float, harmonics, revolutions=None):
-    """(X (n, p), coef (p, C), residuals (n, C), white (C,)) of the least-squares fit of the
-    mean and the resolvable spin tones."""
+    """(residuals (n, C), white (C,)) of the least-squares fit of the mean and the resolvable
+    spin tones."""
     q = np.asarray(record_phasors, dtype=complex)
     n = q.shape[0]
     X = np.exp(2j * np.pi * np.outer(_positions(n, revolutions), _advances(n, spin_turns, harmonics)))
@@ -75,7 +75,7 @@ def _tone_fit(record_phasors, spin_turns: float, harmonics, revolutions=None):
     coef, *_ = np.linalg.lstsq(X, q, rcond=None)
     resid = q - X @ coef
     white = np.sqrt(np.sum(np.abs(resid) ** 2, axis=0) / (n - X.shape[1]))
-    return X, coef, resid, white
+    return resid, white
 
 
 def revolution_noise(record_phasors, spin_turns: float, revolutions=None, harmonics=SPIN_HARMONICS) -> np.ndarray:
@@ -92,30 +92,27 @@ def revolution_noise(record_phasors, spin_turns: float, revolutions=None, harmon
     from the mean over n revolutions and stays in. The residual scatter (degrees of freedom
     n - fitted columns) is the white part that averaging reduces as 1/sqrt(n).
     """
-    return _tone_fit(record_phasors, spin_turns, harmonics, revolutions)[3]
+    return _tone_fit(record_phasors, spin_turns, harmonics, revolutions)[1]
 
 
 def revolution_residuals(record_phasors, spin_turns: float, revolutions=None,
                          harmonics=SPIN_HARMONICS) -> tuple[np.ndarray, np.ndarray]:
     """((n, C) what each revolution's phasor differs from the mean and the fitted spin tones,
     (C,) their standard deviation :func:`revolution_noise`): a disturbed revolution stands out."""
-    _, _, resid, white = _tone_fit(record_phasors, spin_turns, harmonics, revolutions)
-    return resid, white
+    return _tone_fit(record_phasors, spin_turns, harmonics, revolutions)
 
 
 def mean_uncertainty(record_phasors, spin_turns: float, revolutions=None, harmonics=SPIN_HARMONICS) -> np.ndarray:
     """Standard uncertainty sqrt(E|mean - true|^2) of the plain mean of per-revolution phasors
     (n, C): the white part sigma^2 / n (:func:`revolution_noise`) plus what each fitted spin
-    tone a e^{i phi k} leaves in the mean, |a|^2 |mean_k e^{i phi k}|^2. With too few
-    revolutions to fit the tones, the scatter's :func:`phasor_uncertainty`."""
+    tone a e^{i phi k} leaves in the mean, |a|^2 |mean_k e^{i phi k}|^2 (the last row of
+    :func:`prefix_mean_uncertainty`, so a block stores exactly what its stop rule checked).
+    With too few revolutions to fit the tones, the scatter's :func:`phasor_uncertainty`."""
     q = np.asarray(record_phasors, dtype=complex)
-    try:
-        X, coef, _, white = _tone_fit(q, spin_turns, harmonics, revolutions)
-    except ReductionError:
-        return phasor_uncertainty(q, axis=0)
-    leak = np.abs(np.mean(X[:, 1:], axis=0)) ** 2  # (m,)
-    tones = np.sum(np.abs(coef[1:]) ** 2 * leak[:, None], axis=0)
-    return np.sqrt(white**2 / q.shape[0] + tones)
+    if q.shape[0] < 1:
+        raise ReductionError("mean_uncertainty needs at least one record")
+    u = prefix_mean_uncertainty(q, spin_turns, start=q.shape[0] - 1, revolutions=revolutions, harmonics=harmonics)[0]
+    return u if np.all(np.isfinite(u)) else phasor_uncertainty(q, axis=0)
 
 
 def prefix_mean_uncertainty(record_phasors, spin_turns: float, start: int = 0, revolutions=None,
