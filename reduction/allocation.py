@@ -33,6 +33,7 @@ from scipy.optimize import minimize
 
 from reduction.design import design_orbits
 from reduction.errors import ReductionError
+from reduction.frequency_list import revolution_time
 from reduction.impedance import forces, impedance, real_rows, regressors
 from reduction.models import ModelSpec
 from reduction.noise import equation_variances
@@ -56,12 +57,6 @@ class Allocation:
     @property
     def rig_time_s(self) -> float:
         return self.acquisition_s + self.overhead_s
-
-
-def revolution_time(ratios, spin: float, directions: str = "both") -> np.ndarray:
-    """(k,) seconds of one revolution at each ratio, summed over its whirl directions."""
-    r = np.asarray(ratios, dtype=float)
-    return (2 if directions == "both" else 1) * 2 * np.pi / (r * spin)
 
 
 def revolution_information(spec: ModelSpec, theta, spin: float, radius: float, ratios, u_revolution,

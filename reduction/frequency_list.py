@@ -236,10 +236,15 @@ def revolutions_for(prediction: ListPrediction, revolutions: int, target: float)
     return max(1, int(np.ceil(revolutions * (prediction.worst / target) ** 2)))
 
 
-def acquisition_time(ratios, spin: float, revolutions, directions: str = "both") -> float:
-    """Seconds spent averaging: revolutions x orbit period 2 pi / (r omega), per block
-    (two blocks per ratio for "both"). ``revolutions``: one count or one per ratio."""
+def revolution_time(ratios, spin: float, directions: str = "both") -> np.ndarray:
+    """(k,) seconds of one revolution at each ratio, 2 pi / (r omega), summed over its whirl
+    directions (two blocks per ratio for "both")."""
     r = np.asarray(ratios, dtype=float)
-    n = np.broadcast_to(np.asarray(revolutions, dtype=float), r.shape)
-    per_dir = 2 if directions == "both" else 1
-    return float(per_dir * np.sum(n * 2 * np.pi / (r * spin)))
+    return (2 if directions == "both" else 1) * 2 * np.pi / (r * spin)
+
+
+def acquisition_time(ratios, spin: float, revolutions, directions: str = "both") -> float:
+    """Seconds spent averaging: revolutions x :func:`revolution_time`. ``revolutions``: one
+    count or one per ratio."""
+    n = np.broadcast_to(np.asarray(revolutions, dtype=float), np.shape(ratios))
+    return float(np.sum(n * revolution_time(ratios, spin, directions)))
