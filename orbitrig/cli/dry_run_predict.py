@@ -42,13 +42,11 @@ def block_revolutions(rig, mat) -> list[int]:
     """Revolutions the prediction assumes per ratio (order of ``mat.orbit.ratio_list``): the
     per-ratio counts ([orbit] revolutions; with [averaging] each ratio's expected count held
     within min..max), else the fixed count, else an adaptive rule's minimum (pessimistic)."""
-    o, a = mat.orbit, mat.averaging
-    k = range(len(o.ratio_list))
-    if o.revolutions is not None:
-        counts = [o.revolutions_at(i) for i in k]
-        return counts if a is None else [min(max(c, a.min_revolutions), a.max_revolutions) for c in counts]
-    if a is not None:
-        return [a.min_revolutions for _ in k]
+    k = range(len(mat.orbit.ratio_list))
+    if mat.orbit.revolutions is not None:
+        return [mat.expected_revolutions(i) for i in k]
+    if mat.averaging is not None:
+        return [mat.averaging.min_revolutions for _ in k]
     return [mat.revolutions or rig.averaging.revolutions for _ in k]
 
 

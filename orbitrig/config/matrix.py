@@ -193,3 +193,12 @@ class MatrixConfig(_Model):
     @property
     def text(self) -> str:
         return self._text
+
+    def expected_revolutions(self, k: int) -> int | None:
+        """Revolutions a block at `orbit.ratio_list[k]` is expected to average: its `[orbit]
+        revolutions` count, held within `[averaging]` min..max when averaging is adaptive
+        (None: no per-ratio count)."""
+        count, a = self.orbit.revolutions_at(k), self.averaging
+        if count is None or a is None:
+            return count
+        return min(max(count, a.min_revolutions), a.max_revolutions)

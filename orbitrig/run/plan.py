@@ -331,13 +331,11 @@ def make_plan(matrix: MatrixConfig, rig: RigConfig) -> Plan:
 def block_acquire(matrix: MatrixConfig, rig: RigConfig, point: int, b: Block, hold: float) -> Acquire:
     """Block `b`'s Acquire: its ratio's fixed count ([orbit] revolutions, else the matrix's or rig.toml's),
     or with [averaging] its ratio's target; duration at the expected count (clamped), else the maximum."""
-    o, a = matrix.orbit, matrix.averaging
-    count = o.revolutions_at(b.freq)
+    a, expected = matrix.averaging, matrix.expected_revolutions(b.freq)
     if a is None:
-        n = count or matrix.revolutions or rig.averaging.revolutions
+        n = expected or matrix.revolutions or rig.averaging.revolutions
         return Acquire(point, acquisition_time(b.orbit, n), b, n, hold)
-    target = o.target_pct_at(b.freq)
-    expected = None if count is None else min(max(count, a.min_revolutions), a.max_revolutions)
+    target = matrix.orbit.target_pct_at(b.freq)
     rule = AdaptiveTarget(a.target_pct if target is None else target, a.min_revolutions, a.max_revolutions, expected)
     return Acquire(point, acquisition_time(b.orbit, expected or a.max_revolutions), b, a.max_revolutions, hold, rule)
 
