@@ -76,3 +76,17 @@ def information_criteria(misfit: float, n_equations: int, p: int, known_noise: b
     else:
         return float("nan"), float("nan")
     return base + 2 * p, base + p * math.log(n_equations)
+
+
+def not_determined(values: dict[str, float], expanded: dict[str, float]) -> list[str]:
+    """Names whose expanded uncertainty (k = 2) exceeds the magnitude of the estimate,
+    in the order of ``values`` (orbit-table contract v3, ``not_determined``). A NaN
+    uncertainty counts as not determined."""
+    out = []
+    for name, value in values.items():
+        u = expanded.get(name)
+        if u is None:
+            continue
+        if not math.isfinite(u) or u > abs(value):
+            out.append(name)
+    return out
