@@ -6,6 +6,7 @@ One JSON object per line in, one per line out:
   {"cmd": "truth", "spin": 200.0, "orbit": -60.0}            -> {"ok": true, "K": [[..]], "C": .., "D": ..}
   {"cmd": "true_phasors", "spin": .., "orbit": ..}           -> {"ok": true, "phasors": {"x_a": [re, im], ..}}
   {"cmd": "true_impedance", "spin": .., "orbit": ..}         -> {"ok": true, "re": [[..]], "im": [[..]]}
+  {"cmd": "apply_load", "fx": 500.0, "fy": 0.0}              -> {"ok": true}   (static calibration load, N)
   {"cmd": "inject", "fault": "drop_frames", "count": 3}      -> {"ok": true}
   {"cmd": "local_control", "spin": .., "orbit": ..}          -> {"ok": true}
   {"cmd": "state"}                                           -> {"ok": true, "spin": .., "orbit": .., ...}
@@ -50,6 +51,9 @@ def handle(rig, request: dict) -> dict:
         if cmd == "true_impedance":
             Z = rig.true_impedance(float(req["spin"]), float(req["orbit"]))
             return {"ok": True, "re": Z.real.tolist(), "im": Z.imag.tolist()}
+        if cmd == "apply_load":
+            rig.physics.apply_load(float(req["fx"]), float(req["fy"]))
+            return {"ok": True}
         if cmd == "inject":
             rig.inject(req.pop("fault"), **req)
             return {"ok": True}
@@ -58,7 +62,7 @@ def handle(rig, request: dict) -> dict:
             return {"ok": True}
         if cmd == "state":
             return {"ok": True, **_jsonable(rig.state())}
-        return {"ok": False, "error": f"unknown cmd {cmd!r}; known: set_manual, truth, "
+        return {"ok": False, "error": f"unknown cmd {cmd!r}; known: set_manual, apply_load, truth, "
                                       "true_phasors, true_impedance, inject, local_control, state"}
     except KeyError as err:
         return {"ok": False, "error": f"{cmd}: missing field {err.args[0]!r}"}

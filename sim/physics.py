@@ -80,6 +80,7 @@ class RigPhysics:
         self._ripple_phase = self.rng.uniform(0, TWO_PI)
         self._waveforms: dict[tuple, np.ndarray] = {}
         self._supply: tuple[ManualSettings, Supply] | None = None
+        self.applied_load = np.zeros(2)  # N (x, y): a static calibration load on the journal
 
     # ---------------------------------------------------------------- settings
     def set_manual(self, *, orbit_radius=None, static_eccentricity=None,
@@ -178,11 +179,20 @@ class RigPhysics:
         ca, sa = math.cos(half), math.sin(half)
         return ca * X + sa * Y if ch.axis == 0 else -sa * X + ca * Y
 
+    def apply_load(self, fx: float, fy: float) -> None:
+        """A known static load (N) on the journal, read by both load measuring systems (0, 0: none)."""
+        load = np.array([float(fx), float(fy)])
+        if not np.all(np.isfinite(load)):
+            raise ValueError("a calibration load must be finite")
+        self.applied_load = load
+
     def channel_harmonics(self, k: int, spin: float, orbit: float) -> np.ndarray:
-        """Noise-free signal of channel k after its chain: value = Re sum_h q_h e^{i h theta}."""
+        """Noise-free signal of channel k after its chain: value = Re sum_h q_h e^{i h theta}
+        (a force channel's static part includes the applied calibration load)."""
         ch = self.channels[k]
         if ch.kind == "force":
-            F = self.force_harmonics(spin, orbit)[ch.axis]
+            F = self.force_harmonics(spin, orbit)[ch.axis].copy()
+            F[0] += self.applied_load[ch.axis]
             q = F * np.exp(1j * np.arange(len(F)) * self.cfg.adc.trigger_phase)
         else:
             q = self._probe_harmonics(ch, orbit)

@@ -32,6 +32,7 @@ _AREAS = (
     "serve",  # orbitrig serve
     "dashboard",  # orbitrig dashboard
     "design",  # orbitrig design
+    "calibrate",  # orbitrig calibrate list|show|loads|runout
 )
 
 for _area in _AREAS:

@@ -34,6 +34,10 @@ class SimulatorHands:
         self.sim.set_manual(orbit_radius=orbit_radius, static_eccentricity=static_eccentricity,
                             recess_pressure=recess_pressure, pressure_ratio=pressure_ratio)  # fmt: skip
 
+    async def apply_load(self, fx: float, fy: float) -> None:
+        """A known static calibration load (N) on the simulator's journal, at once."""
+        self.sim.physics.apply_load(fx, fy)
+
 
 class SimulatorTruth:
     """The simulator's bearing at its present manual settings (SI; spin, orbits rad/s)."""

@@ -109,8 +109,25 @@ def load_rig(path: Path | str | None = None) -> RigConfig:
     return rig_from_text(text, file)
 
 
-def rig_from_text(text: str, file: str = "<rig config>") -> RigConfig:
-    return _build(RigConfig, _parse(text, file), file, text)
+def rig_from_text(text: str, file: str = "<rig config>", record_text: str | None = None) -> RigConfig:
+    """The rig configuration with its active calibration record: ``record_text`` (a run's stored
+    copy) or the file named by ``calibration_record`` in the records' folder beside ``file``
+    (config/calibration/ of the source tree when ``file`` is not a file). The record's
+    ``[uncertainty]`` replaces ``[calibration_uncertainty]``."""
+    rig = _build(RigConfig, _parse(text, file), file, text)
+    name = rig.calibration_record
+    if name is None:
+        return rig
+    from orbitrig.config.records import folder_of, read_record, record_from_text
+
+    if record_text is None:
+        folder = folder_of(file) if Path(file).is_file() else _REPO_CONFIG / "calibration"
+        record, record_text = read_record(folder, name)
+    else:
+        record = record_from_text(record_text, f"{file}: calibration record {name}")
+    out = rig.model_copy(update={"calibration_uncertainty": record.uncertainty})
+    out._file, out._text, out._record, out._record_text = file, text, record, record_text
+    return out
 
 
 def load_matrix(path: Path | str | None = None) -> MatrixConfig:

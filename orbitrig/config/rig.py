@@ -136,6 +136,8 @@ class Estimates(_Model):
 
 class RigConfig(_Model):
     name: str = "rig"
+    # the active calibration record (config/calibration/NAME.toml beside this file); None: none
+    calibration_record: Annotated[str, Field(pattern=r"^\d{4}-\d\d-\d\dT\d{6}Z-[a-z]+$")] | None = None
     transports: Transports = Transports()
     channels: list[Channel]
     bearing: Bearing = Bearing()
@@ -150,6 +152,8 @@ class RigConfig(_Model):
 
     _file: str = PrivateAttr("<rig config>")
     _text: str = PrivateAttr("")
+    _record: object = PrivateAttr(None)  # the active CalibrationRecord (orbitrig.config.records)
+    _record_text: str = PrivateAttr("")
 
     @model_validator(mode="after")
     def _channel_map(self):
@@ -183,6 +187,22 @@ class RigConfig(_Model):
     @property
     def text(self) -> str:
         return self._text
+
+    @property
+    def record(self):
+        """The active CalibrationRecord, or None."""
+        return self._record
+
+    @property
+    def record_text(self) -> str:
+        """The active record's TOML text ("" without one)."""
+        return self._record_text
+
+    def force_gain(self, lms: str):
+        """The 2 x 2 gain matrix of load measuring system ``lms`` (identity without a record)."""
+        import numpy as np
+
+        return np.eye(2) if self._record is None else self._record.force_gain(lms)
 
     @property
     def ordered_channels(self) -> list[Channel]:

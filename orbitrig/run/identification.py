@@ -19,6 +19,7 @@ from orbitrig.run.point_analysis import analyse_point
 from daq.averager import AveragedBlock
 from orbitrig.run.truth import point_truth  # noqa: F401  (the engine's truth step)
 from orbitrig.store.writer import BlockRecord, PointResults
+from reduction.calibration import correct_forces
 from reduction.coherence import orbit_coherences
 from reduction.errors import ReductionError
 from reduction.noise import mean_uncertainty
@@ -52,15 +53,17 @@ def block_record(block: Block, blk: AveragedBlock, rig: RigConfig) -> BlockRecor
 
 
 def identify_operating_point(spin: float, recs: list[BlockRecord], ch: dict[str, int], models,
-                             truth: dict | None = None,
-                             calibration: CalibrationUncertainty | None = None) -> PointResults:  # fmt: skip
+                             truth: dict | None = None, calibration: CalibrationUncertainty | None = None,
+                             force_gains: dict[str, np.ndarray] | None = None) -> PointResults:  # fmt: skip
     """One operating point's results: the orbit table of each load measuring system (forward
-    and backward blocks together), every model of ``models`` (ModelSpec) identified on each
+    and backward blocks together; its forces through the system's gain matrix of
+    ``force_gains``, the active calibration record's), every model of ``models`` (ModelSpec) identified on each
     (a refused model keeps its reason), each fit judged (orbitrig.run.point_analysis: the
     uncertainty budget from the rig's stated ``calibration`` uncertainty, model adequacy, the
     two systems' consistency, derived quantities), and the two systems' forces compared."""
     recs = sorted(recs, key=lambda r: (r.block.freq, -r.block.direction))
-    tables = {lms: orbit_table(spin, recs, ch, lms) for lms in LMS}
+    gains = force_gains or {}
+    tables = {lms: orbit_table(spin, recs, ch, lms, gains.get(lms)) for lms in LMS}
     idents, fits = {}, {}
     for lms in LMS:
         for spec in models:
@@ -73,27 +76,33 @@ def identify_operating_point(spin: float, recs: list[BlockRecord], ch: dict[str,
             idents[(lms, spec.key)] = {"spec": spec, "json": res.to_dict()}
     grid = np.unique([abs(r.block.orbit) for r in recs])  # the planned orbit frequencies, rad/s
     analyse_point(spin, tables, fits, idents, calibration, grid)
-    return PointResults(tables, idents, lms_comparison(recs, ch), truth)
+    return PointResults(tables, idents, lms_comparison(recs, ch, gains), truth)
 
 
-def orbit_table(spin: float, recs: list[BlockRecord], ch: dict[str, int], lms: str) -> OrbitTable:
+def orbit_table(spin: float, recs: list[BlockRecord], ch: dict[str, int], lms: str,
+                gain: np.ndarray | None = None) -> OrbitTable:  # fmt: skip
     """Orbit table of one point for one load measuring system (Omega > 0, direction in the phasors),
     with each row's revolution count and the standard uncertainty of its phasors
-    (:func:`row_uncertainty`; x, y the per-revolution probe-plane means)."""
+    (:func:`row_uncertainty`; x, y the per-revolution probe-plane means); the forces through the
+    system's 2 x 2 ``gain`` matrix (reduction.calibration; None: as read)."""
     ph = np.array([r.phasors for r in recs])
     orbit = np.array([r.measured_orbit_speed if math.isfinite(r.measured_orbit_speed) and r.measured_orbit_speed > 0
                       else abs(r.block.orbit) for r in recs])  # fmt: skip
     i = LMS.index(lms)
     x, y = probe_plane(ph, ch)
     n_records = np.array([len(r.record_phasors) for r in recs])
-    u = np.array([row_uncertainty(r.record_phasors, ch, lms, spin / abs(r.block.orbit), r.revolutions) for r in recs])
-    return OrbitTable(spin=spin, orbit=orbit, x=x, y=y, fx=ph[:, ch[f"fx_{lms}"]], fy=ph[:, ch[f"fy_{lms}"]],
+    u = np.array([row_uncertainty(r.record_phasors, ch, lms, spin / abs(r.block.orbit), r.revolutions, gain)
+                  for r in recs])  # fmt: skip
+    fx, fy = ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]]
+    if gain is not None:
+        fx, fy = correct_forces(gain, fx, fy)
+    return OrbitTable(spin=spin, orbit=orbit, x=x, y=y, fx=fx, fy=fy,
                       gamma2=np.array([r.coherence[i] for r in recs]), n_records=n_records,
                       u=u if np.all(np.isfinite(u)) else None)  # fmt: skip
 
 
 def row_uncertainty(record_phasors: np.ndarray, ch: dict[str, int], lms: str, spin_turns: float,
-                    revolutions: np.ndarray | None = None) -> np.ndarray:
+                    revolutions: np.ndarray | None = None, gain: np.ndarray | None = None) -> np.ndarray:
     """(u_x, u_y, u_fx, u_fy) of one block (m, m, N, N): the standard uncertainty of each mean
     (reduction.noise.mean_uncertainty: the scatter with the spin tones' rotating leakage taken
     out, plus what those tones leave in the mean); ``spin_turns`` = omega / |Omega|,
@@ -104,11 +113,18 @@ def row_uncertainty(record_phasors: np.ndarray, ch: dict[str, int], lms: str, sp
     return mean_uncertainty(per_rev, spin_turns, revolutions)
 
 
-def lms_comparison(recs: list[BlockRecord], ch: dict[str, int]) -> dict:
-    """Strain vs piezo forces per block: amplitude ratio and phase difference (deg)."""
+def lms_comparison(recs: list[BlockRecord], ch: dict[str, int], gains: dict | None = None) -> dict:
+    """Strain vs piezo forces per block (each through its gain matrix of ``gains``): amplitude
+    ratio and phase difference (deg)."""
     out: dict = {"orbit_hz": [r.block.orbit_hz for r in recs], "direction": [r.block.direction for r in recs]}
+    ph = np.array([r.phasors for r in recs]) if recs else np.zeros((0, len(ch)), complex)
+    forces = {}
+    for lms in LMS:
+        fx, fy = ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]]
+        g = (gains or {}).get(lms)
+        forces[lms] = dict(zip(("fx", "fy"), correct_forces(g, fx, fy) if g is not None else (fx, fy)))
     for f in ("fx", "fy"):
-        ratio = np.array([r.phasors[ch[f"{f}_strain"]] / r.phasors[ch[f"{f}_piezo"]] for r in recs])
+        ratio = forces["strain"][f] / forces["piezo"][f]
         out[f"{f}_amp_ratio"] = np.abs(ratio).round(6).tolist()
         out[f"{f}_phase_diff_deg"] = np.degrees(np.angle(ratio)).round(4).tolist()
     amp = np.abs(np.array(out["fx_amp_ratio"] + out["fy_amp_ratio"]) - 1) * 100

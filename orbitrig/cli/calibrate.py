@@ -1,0 +1,191 @@
+"""`orbitrig calibrate`: calibration steps on the rig or the simulator, and the records' history.
+
+  orbitrig calibrate list                  every record, oldest first; * marks the active one
+  orbitrig calibrate show [NAME]           one record (default: the active one)
+  orbitrig calibrate loads [--sim]         known static loads -> each load measuring system's gain matrix
+  orbitrig calibrate runout [--sim]        slow roll without orbit -> each probe's runout at 1x, 2x spin
+
+A step writes a new record into the records' folder beside the rig configuration
+(docs/calibration.md) and makes it the active one (``--no-activate``: it only writes it).
+Exit status: 0 done, 1 the step failed, 2 bad configuration or usage, 3 stopped (Ctrl-C).
+"""
+
+from __future__ import annotations
+
+import getpass
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+DEFAULT_SPEEDUP = 40.0  # as orbitrig.cli.simulated_rig.DEFAULT_SPEEDUP
+_CONFIG = typer.Option(None, "--config", help="rig configuration TOML (default: config/rig.toml of the source tree)")
+
+
+def register(app: typer.Typer) -> None:
+    cal = typer.Typer(help="Calibrate the load measuring systems and probes; the calibration records.",
+                      no_args_is_help=True)  # fmt: skip
+    app.add_typer(cal, name="calibrate")
+
+    @cal.command("list")
+    def list_(config: Optional[Path] = _CONFIG) -> None:
+        """Every calibration record, oldest first (* the active one): date, step, operator, reference."""
+        _guarded(lambda: _list(config))
+
+    @cal.command("show")
+    def show(name: Optional[str] = typer.Argument(None, help="record name (default: the active record)"),
+             config: Optional[Path] = _CONFIG) -> None:  # fmt: skip
+        """Print one calibration record (its TOML text) and its SHA-256."""
+        _guarded(lambda: _show(name, config))
+
+    @cal.command("loads")
+    def loads(
+        sim: bool = typer.Option(False, "--sim", help="on the built-in simulator (it applies the loads)"),
+        load_n: float = typer.Option(500.0, "--load-n", min=1.0, help="magnitude of each static load (N)"),
+        reference_id: Optional[str] = typer.Option(None, "--reference-id", help="the reference's id (dead-weight set, load cell); required on the rig"),
+        reference_u_pct: Optional[float] = typer.Option(None, "--reference-u-pct", min=0.0, max=50.0,
+                                                        help="the reference certificate's relative standard uncertainty (%); required on the rig"),
+        config: Optional[Path] = _CONFIG, operator: Optional[str] = typer.Option(None, "--operator", help="who calibrates (default: the login name)"),
+        spin_rpm: float = typer.Option(300.0, "--spin-rpm", min=1.0, help="slow roll speed (rpm)"),
+        revolutions: int = typer.Option(50, "--revolutions", min=2, max=10_000, help="revolutions averaged per reading"),
+        recess_pressure_mpa: float = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0),
+        pressure_ratio: float = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99),
+        activate: bool = typer.Option(True, "--activate/--no-activate", help="make the new record the active one in the rig configuration"),
+        sim_config: Optional[Path] = typer.Option(None, "--sim-config", help="simulator scenario TOML (--sim only)"),
+        speedup: float = typer.Option(DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"),
+    ) -> None:  # fmt: skip
+        """Known static loads in x and y (the default set: none, +-x, +-y, two diagonals), read by both
+        load measuring systems; least squares gives each system's 2 x 2 gain matrix (cross terms
+        included) and its uncertainty (residuals and the reference's). The sweep applies them to the forces.
+        On the rig the operator applies each load and confirms it."""
+        opts = _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
+        _guarded(lambda: _loads(config, opts, load_n, reference_id, reference_u_pct, activate))
+
+    @cal.command("runout")
+    def runout(
+        sim: bool = typer.Option(False, "--sim", help="on the built-in simulator"),
+        config: Optional[Path] = _CONFIG, operator: Optional[str] = typer.Option(None, "--operator", help="who calibrates (default: the login name)"),
+        spin_rpm: float = typer.Option(100.0, "--spin-rpm", min=1.0, help="slow roll speed (rpm)"),
+        revolutions: int = typer.Option(100, "--revolutions", min=2, max=10_000, help="revolutions averaged"),
+        recess_pressure_mpa: float = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0),
+        pressure_ratio: float = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99),
+        activate: bool = typer.Option(True, "--activate/--no-activate", help="make the new record the active one"),
+        sim_config: Optional[Path] = typer.Option(None, "--sim-config", help="simulator scenario TOML (--sim only)"),
+        speedup: float = typer.Option(DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"),
+    ) -> None:  # fmt: skip
+        """Slow roll at low spin without orbit (orbit radius zero, the orbit spindle at the spin speed):
+        each probe's runout phasors at 1x and 2x spin, stored in a new record."""
+        opts = _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
+        _guarded(lambda: _runout(config, opts, activate))
+
+
+def _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup):
+    from orbitrig.cli.calibrate_steps import StepOptions
+
+    if sim_config is not None and not sim:
+        raise typer.BadParameter("--sim-config needs --sim", param_hint="--sim-config")
+    who = operator or getpass.getuser()
+    return StepOptions(who, spin_rpm, revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
+
+
+def _guarded(fn) -> None:
+    """Run a sub-command: exit 2 on a configuration error, 1 on a failed step, 3 on Ctrl-C."""
+    from orbitrig.errors import ConfigError, OrbitrigError
+
+    try:
+        fn()
+    except ConfigError as err:
+        typer.echo(f"error: {err}", err=True)
+        raise typer.Exit(2) from None
+    except OrbitrigError as err:
+        typer.echo(f"error: {err}", err=True)
+        raise typer.Exit(1) from None
+    except KeyboardInterrupt:
+        typer.echo("calibration stopped: the drives were stopped, no record written", err=True)
+        raise typer.Exit(3) from None
+
+
+def _rig_and_folder(config):
+    from orbitrig.config import default_rig_path, load_rig
+    from orbitrig.config.records import folder_of
+
+    rig = load_rig(config)
+    return rig, folder_of(config or default_rig_path())
+
+
+def _list(config) -> None:
+    from orbitrig.config.records import list_names, read_record
+    from orbitrig.errors import ConfigError
+
+    rig, folder = _rig_and_folder(config)
+    names = list_names(folder)
+    if not names:
+        typer.echo(f"no calibration records in {folder}")
+        return
+    for name in names:
+        mark = "*" if name == rig.calibration_record else " "
+        try:
+            rec, _ = read_record(folder, name)
+        except ConfigError as err:
+            typer.echo(f"{mark} {name}  unreadable: {err}")
+            continue
+        ref = f"{rec.reference.id} (u {rec.reference.uncertainty_pct:g} %)" if rec.reference else "-"
+        typer.echo(f"{mark} {name}  {rec.date}  {rec.step:<8} operator {rec.operator}  reference {ref}")
+
+
+def _show(name, config) -> None:
+    from orbitrig.config.records import digest, read_record
+    from orbitrig.errors import ConfigError
+
+    rig, folder = _rig_and_folder(config)
+    name = name or rig.calibration_record
+    if name is None:
+        raise ConfigError(rig.file, ["names no active calibration record (calibration_record): give NAME"])
+    _, text = read_record(folder, name)
+    active = " (active)" if name == rig.calibration_record else ""
+    typer.echo(f"# {folder / (name + '.toml')}{active}\n# sha256 {digest(text)}\n{text}", nl=False)
+
+
+def _write(rig, folder, record, activate: bool, what: str) -> None:
+    from orbitrig.config.records import activate as make_active
+    from orbitrig.config.records import write_record
+
+    header = (f"orbitrig calibration record (docs/calibration.md), written by `orbitrig calibrate {record.step}`.\n"
+              f"{what}")  # fmt: skip
+    name, _ = write_record(folder, record, header)
+    typer.echo(f"calibration record {name} written to {folder}")
+    if activate:
+        make_active(rig.file, name)
+        typer.echo(f"{rig.file}: calibration_record = \"{name}\" (active)")
+
+
+def _loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> None:
+    import asyncio
+
+    from orbitrig.cli.calibrate_steps import loads_record
+    from orbitrig.config.records import Reference
+
+    if not opts.sim and (reference_id is None or reference_u_pct is None):
+        raise typer.BadParameter("on the rig give the reference: --reference-id ID --reference-u-pct U",
+                                 param_hint="--reference-id")  # fmt: skip
+    ref = Reference(id=reference_id or "simulator: loads applied exactly", uncertainty_pct=reference_u_pct or 0.0)
+    rig, folder = _rig_and_folder(config)
+    record = asyncio.run(loads_record(rig, opts, load_n, ref, lambda m: typer.echo(m, err=True)))
+    for lms, g in record.loads.items():
+        typer.echo(f"{lms}: gain matrix {g.gain} (u {[[f'{u:.2g}' for u in row] for row in g.gain_u]}), "
+                   f"residual {g.residual_n:.3g} N")  # fmt: skip
+    _write(rig, folder, record, activate, "Units: gain 1 (f_journal = gain @ f_read + offset_n), offset_n and "
+           "residual_n N; [uncertainty] gain_pct percent, phase_deg degrees, delay_us microseconds (k = 1).")
+
+
+def _runout(config, opts, activate) -> None:
+    import asyncio
+
+    from orbitrig.cli.calibrate_steps import runout_record
+
+    rig, folder = _rig_and_folder(config)
+    record = asyncio.run(runout_record(rig, opts, lambda m: typer.echo(m, err=True)))
+    for p in ("x_a", "y_a", "x_b", "y_b"):
+        r = getattr(record.runout, p)
+        typer.echo(f"{p}: runout 1x {abs(complex(*r.h1_um)):.3f} um, 2x {abs(complex(*r.h2_um)):.3f} um")
+    _write(rig, folder, record, activate, "Units: runout h1_um, h2_um micrometres [re, im] at 1x and 2x spin.")

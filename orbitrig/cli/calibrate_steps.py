@@ -1,0 +1,111 @@
+"""The steps of `orbitrig calibrate` on the rig or the simulator, and the records they write.
+
+Each step opens the rig (or starts the simulator) in a `CalibrationSession`, measures, and
+returns a new complete `CalibrationRecord`: the active record (or, without one, rig.toml's
+``[calibration_uncertainty]``) with what the step measured replaced.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import typer
+
+from orbitrig import __version__
+from orbitrig.config import LMS, MPA, RPM, CalibrationUncertainty, RigConfig
+from orbitrig.config.records import CalibrationRecord, LoadGains, ProbeRunout, Reference, RecordStep, Runout
+from orbitrig.run.calibration import PROBES, CalibrationSession, SlowRoll, measure_loads, measure_runout
+from orbitrig.run.rig_io import RigAccess
+from orbitrig.store.journal import now_iso
+from reduction.calibration import fit_gain_matrix, static_loads
+
+
+@dataclass(frozen=True)
+class StepOptions:
+    """What every step takes from the command line (operator units converted to SI)."""
+
+    operator: str
+    spin_rpm: float
+    revolutions: int
+    recess_pressure_mpa: float
+    pressure_ratio: float
+    sim: bool
+    sim_config: Path | None
+    speedup: float
+
+    def roll(self) -> SlowRoll:
+        return SlowRoll(self.spin_rpm * RPM, self.recess_pressure_mpa * MPA, self.pressure_ratio, self.revolutions)
+
+
+class OperatorLoads:
+    """The rig: the operator applies each load and confirms on the terminal (Ctrl-C ends the step)."""
+
+    async def apply_load(self, fx: float, fy: float) -> None:
+        what = "remove every calibration load" if fx == 0 and fy == 0 else \
+            f"apply the static load fx = {fx:+.1f} N, fy = {fy:+.1f} N on the journal"
+        await asyncio.to_thread(typer.prompt, f"{what}, then press Enter", default="", show_default=False)
+
+
+@contextlib.asynccontextmanager
+async def rig_access(rig: RigConfig, opts: StepOptions):
+    """(RigAccess, load hands) of the rig, or of a simulator started for the step."""
+    if not opts.sim:
+        yield RigAccess.of_rig(rig), OperatorLoads()
+        return
+    from orbitrig.cli.simulated_rig import simulated_rig
+    from sim.config import load_sim_config
+
+    try:
+        config = load_sim_config(opts.sim_config) if opts.sim_config else None
+    except ValueError as err:
+        raise typer.BadParameter(str(err), param_hint="--sim-config") from None
+    async with simulated_rig(opts.speedup, config) as (_, access):
+        yield access, access.hands
+
+
+def _base(rig: RigConfig, opts: StepOptions, step: RecordStep) -> dict:
+    """The new record's fields from the active record (or rig.toml), its date and operator set."""
+    old = rig.record
+    base = old.model_dump() if old is not None else {
+        "uncertainty": (rig.calibration_uncertainty or CalibrationUncertainty()).model_dump()}
+    base.update(date=now_iso(), operator=opts.operator, rig=rig.name, step=step,
+                previous=rig.calibration_record or "", software=f"orbitrig {__version__}")
+    return base
+
+
+async def loads_record(rig: RigConfig, opts: StepOptions, load_n: float, reference: Reference,
+                       note) -> CalibrationRecord:  # fmt: skip
+    """`calibrate loads`: the default load set of `load_n` N, each system's gain matrix fitted."""
+    loads = static_loads(load_n)
+    async with rig_access(rig, opts) as (access, hands):
+        async with CalibrationSession(rig, access, note) as session:
+            await session.roll(opts.roll())
+            readings = await measure_loads(session, hands, loads)
+    data = _base(rig, opts, RecordStep.LOADS)
+    data["reference"] = reference.model_dump()
+    data["loads"] = dict(data.get("loads") or {})
+    u_ref = reference.uncertainty_pct / 100.0
+    for lms in LMS:
+        fit = fit_gain_matrix(loads, readings[lms], u_ref)
+        data["loads"][lms] = LoadGains(gain=fit.gain.tolist(), gain_u=fit.gain_u.tolist(), offset_n=fit.offset.tolist(),
+                                       residual_n=fit.residual_rms, loads=len(loads)).model_dump()  # fmt: skip
+        for axis, u in zip(("fx", "fy"), fit.relative_gain_u()):
+            data["uncertainty"][f"{axis}_{lms}"]["gain_pct"] = float(u * 100.0)
+    return CalibrationRecord.model_validate(data)
+
+
+async def runout_record(rig: RigConfig, opts: StepOptions, note) -> CalibrationRecord:
+    """`calibrate runout`: every probe track's runout at 1x and 2x spin from a slow roll."""
+    async with rig_access(rig, opts) as (access, _):
+        async with CalibrationSession(rig, access, note) as session:
+            await session.roll(opts.roll())
+            phasors, n = await measure_runout(session)
+    data = _base(rig, opts, RecordStep.RUNOUT)
+    um = {p: [np.array([v.real, v.imag]) * 1e6 for v in phasors[p]] for p in PROBES}
+    probes = {p: ProbeRunout(h1_um=um[p][0].tolist(), h2_um=um[p][1].tolist()).model_dump() for p in PROBES}
+    data["runout"] = Runout(spin_rpm=opts.spin_rpm, revolutions=n, **probes).model_dump()
+    return CalibrationRecord.model_validate(data)

@@ -1,0 +1,144 @@
+"""Calibration steps on the rig: a slow roll without orbit, static loads, runout.
+
+The A/D board converts on the orbit spindle's timing disk, so the orbit spindle turns during
+every step; "without orbit" means the orbit radius (a manual setting) is zero. The slow roll
+runs spin and orbit spindle at the same speed (ratio 1): then the spin's harmonics are the
+board's revolution harmonics and the probe tracks' runout at 1x and 2x spin is the average's
+first and second harmonic. Both drives are stopped on every way out (`CalibrationSession`),
+before the links close.
+
+`measure_loads` applies each known static load through the ``hands`` (the simulator at once;
+on the rig the operator applies it and confirms) and reads the static part (dc) of both load
+measuring systems' force channels. SI throughout.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Awaitable, Callable, Protocol
+
+import numpy as np
+
+from daq.averager import AveragedBlock, AveragingRule
+from daq.errors import DaqError
+from drives.errors import DriveError
+from orbitrig.config import LMS, RigConfig
+from orbitrig.errors import OrbitrigError
+from orbitrig.run.rig_io import RigAccess, RigIO
+
+log = logging.getLogger(__name__)
+PROBES = ("x_a", "y_a", "x_b", "y_b")
+
+
+class CalibrationFailed(OrbitrigError):
+    """A calibration step could not be completed (drives, A/D link, operator)."""
+
+
+class LoadHands(Protocol):
+    """Whoever applies a known static load (N) on the journal: the simulator, or the operator."""
+
+    async def apply_load(self, fx: float, fy: float) -> None: ...
+
+
+@dataclass(frozen=True)
+class SlowRoll:
+    """The slow roll of a step: spin (rad/s, orbit spindle at the same speed, radius zero), the
+    pressures set meanwhile (Pa, -) and the revolutions averaged per reading."""
+
+    spin: float
+    recess_pressure: float
+    pressure_ratio: float
+    revolutions: int = 50
+
+
+class CalibrationSession:
+    """The rig opened for a calibration step; ``async with`` it, then `roll` and `average`."""
+
+    def __init__(self, rig: RigConfig, access: RigAccess, note: Callable[[str], None] = log.info):
+        self.rig, self.access, self.note = rig, access, note
+        self.io = RigIO(rig, access.endpoints)
+        self.roll_spec: SlowRoll | None = None
+
+    async def __aenter__(self) -> "CalibrationSession":
+        try:
+            await self.io.__aenter__()
+        except (DriveError, DaqError, OSError) as err:
+            raise CalibrationFailed(f"cannot open the rig: {err}") from err
+        return self
+
+    async def __aexit__(self, *exc) -> None:
+        try:
+            if self.io.drives is not None:
+                timeout = self.access.time_scale.wall(self.rig.drives.stop_timeout_s) + 5.0
+                await self.io.drives.stop(emergency=exc[0] is not None, wait=True, timeout=timeout)
+                self.note("both drives stopped")
+        except DriveError as err:
+            self.note(f"stopping the drives failed: {err}")
+        finally:
+            await self.io.__aexit__(*exc)
+
+    async def roll(self, roll: SlowRoll) -> None:
+        """Orbit radius and static eccentricity zero, the pressures set, then spin and orbit
+        spindle at `roll.spin` until both hold it."""
+        self.roll_spec = roll
+        self.access.hands.set_manual(orbit_radius=0.0, static_eccentricity=0.0,
+                                     recess_pressure=roll.recess_pressure, pressure_ratio=roll.pressure_ratio)  # fmt: skip
+        scale, s = self.access.time_scale, self.rig.settle
+        try:
+            await self.io.drives.set_speeds(roll.spin, roll.spin)
+            await self.io.drives.wait_settled(hold=scale.wall(s.hold_s), timeout=scale.wall(s.timeout_s) + 5.0)
+        except DriveError as err:
+            raise CalibrationFailed(f"slow roll at {roll.spin:.4g} rad/s: {err}") from err
+
+    async def average(self) -> AveragedBlock:
+        """One block of `roll.revolutions` revolutions at the slow roll (retried once)."""
+        roll, av = self.roll_spec, self.rig.averaging
+        period = 2 * np.pi / roll.spin
+        timeout = self.access.time_scale.wall(av.timeout_factor * (roll.revolutions + 1) * period
+                                              + av.timeout_margin_s) + 2.0  # fmt: skip
+        rule = AveragingRule(roll.revolutions, roll.revolutions, None, 1.0)
+        for attempt in range(av.retries + 1):
+            try:
+                return await self.io.acquire(rule, timeout=timeout)
+            except (DaqError, TimeoutError) as err:
+                self.note(f"acquisition failed ({type(err).__name__}: {err})")
+                if attempt == av.retries:
+                    raise CalibrationFailed(f"no block at the slow roll: {err}") from err
+        raise AssertionError("unreachable")
+
+
+async def measure_loads(session: CalibrationSession, hands: LoadHands, loads: np.ndarray) -> dict[str, np.ndarray]:
+    """Each load of `loads` (n, 2; N) applied in turn and read by both load measuring systems:
+    {lms: (n, 2) static readings (N, through rig.toml's channel gains)}; the load removed after."""
+    ch = session.rig.channel_index
+    out = {lms: [] for lms in LMS}
+    try:
+        for fx, fy in np.asarray(loads, dtype=float):
+            await hands.apply_load(float(fx), float(fy))
+            blk = await session.average()
+            for lms in LMS:
+                out[lms].append([blk.dc[ch[f"fx_{lms}"]], blk.dc[ch[f"fy_{lms}"]]])
+            session.note(f"load ({fx:+.1f}, {fy:+.1f}) N read: "
+                         + ", ".join(f"{lms} ({r[-1][0]:+.2f}, {r[-1][1]:+.2f}) N" for lms, r in out.items()))  # fmt: skip
+    finally:
+        await hands.apply_load(0.0, 0.0)
+    return {lms: np.array(v) for lms, v in out.items()}
+
+
+def harmonic(blk: AveragedBlock, channel: int, h: int) -> complex:
+    """Phasor (engineering units) of the `h`-th revolution harmonic of one channel's average:
+    q = Re(q_h e^{i h theta}), theta its sampling angles."""
+    theta, mean = np.asarray(blk.theta)[channel], np.asarray(blk.mean)[channel]
+    return complex(2.0 * np.mean(mean * np.exp(-1j * h * theta)))
+
+
+async def measure_runout(session: CalibrationSession) -> tuple[dict[str, np.ndarray], int]:
+    """Runout of every probe track at 1x and 2x spin (m, complex; phase to the slow roll's
+    trigger) from one block of the slow roll: ({probe: (2,)}, revolutions averaged)."""
+    blk = await session.average()
+    ch = session.rig.channel_index
+    return {p: np.array([harmonic(blk, ch[p], 1), harmonic(blk, ch[p], 2)]) for p in PROBES}, blk.n_revolutions
+
+
+ApplyLoad = Callable[[float, float], Awaitable[None]]

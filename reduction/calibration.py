@@ -1,0 +1,72 @@
+"""Static calibration of a load measuring system: the 2 x 2 gain matrix from known loads.
+
+Model: reference load L_j (N, x and y, applied to the journal) = G r_j + b, with r_j the
+system's reading of load j (N, through the rig's channel gains), G the 2 x 2 gain matrix
+(cross-axis terms included) and b the zero-load offset. Each axis is an ordinary least-squares
+fit of three parameters; the residuals give one pooled variance s^2 (both axes, 2 (n - 3)
+degrees of freedom) and cov = s^2 (A^T A)^-1. The reference's stated relative standard
+uncertainty u_ref scales every load alike, so it adds (u_ref G_ab)^2 to each entry's variance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from reduction.errors import ReductionError
+
+
+@dataclass(frozen=True)
+class GainFit:
+    """A load measuring system's calibration: reference = gain @ reading + offset (N)."""
+
+    gain: np.ndarray  # (2, 2), 1
+    gain_u: np.ndarray  # (2, 2) standard uncertainties of the entries, 1
+    offset: np.ndarray  # (2,) N
+    residual_rms: float  # N, the fit's residual standard deviation
+    dof: int
+
+    def relative_gain_u(self) -> np.ndarray:
+        """(2,) relative standard uncertainty of each axis' gain, cross term included (1)."""
+        return np.sqrt(np.sum(self.gain_u**2, axis=1)) / np.abs(np.diag(self.gain))
+
+
+def fit_gain_matrix(reference: np.ndarray, reading: np.ndarray, reference_u: float) -> GainFit:
+    """The 2 x 2 gain matrix (and offset) mapping `reading` (n, 2) to `reference` (n, 2) loads (N)
+    by least squares; `reference_u` the reference's relative standard uncertainty (1).
+    ReductionError with fewer than 4 loads or loads that do not span both axes."""
+    L, r = np.asarray(reference, dtype=float), np.asarray(reading, dtype=float)
+    if L.shape != r.shape or L.ndim != 2 or L.shape[1] != 2:
+        raise ReductionError(f"reference and reading must both be (n, 2), got {L.shape} and {r.shape}")
+    n = L.shape[0]
+    if n < 4:
+        raise ReductionError(f"{n} loads cannot determine a 2 x 2 gain matrix and offset (at least 4)")
+    if not (np.all(np.isfinite(L)) and np.all(np.isfinite(r))):
+        raise ReductionError("loads and readings must be finite")
+    if not np.isfinite(reference_u) or reference_u < 0:
+        raise ReductionError(f"the reference's uncertainty must be finite and >= 0, got {reference_u}")
+    A = np.column_stack([r, np.ones(n)])
+    if np.linalg.matrix_rank(A) < 3:
+        raise ReductionError("the loads do not span both axes: apply loads in x and in y")
+    coef, *_ = np.linalg.lstsq(A, L, rcond=None)  # (3, 2): column a holds row a of G and b_a
+    res = L - A @ coef
+    dof = 2 * (n - 3)
+    s2 = float(np.sum(res**2) / dof) if dof > 0 else 0.0
+    inv = np.linalg.inv(A.T @ A)
+    gain = coef[:2].T
+    var = s2 * np.diag(inv)[:2][None, :] + (reference_u * gain) ** 2
+    return GainFit(gain=gain, gain_u=np.sqrt(var), offset=coef[2].copy(), residual_rms=float(np.sqrt(s2)), dof=dof)
+
+
+def correct_forces(gain: np.ndarray, fx: np.ndarray, fy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(fx, fy) of the journal from a system's readings (phasors or values, any shape) by its gain matrix."""
+    g = np.asarray(gain)
+    return g[0, 0] * fx + g[0, 1] * fy, g[1, 0] * fx + g[1, 1] * fy
+
+
+def static_loads(magnitude: float) -> np.ndarray:
+    """The default load set (n, 2), N: none, +-x, +-y and the two diagonals, each of `magnitude`."""
+    d = magnitude / np.sqrt(2.0)
+    return np.array([[0, 0], [magnitude, 0], [-magnitude, 0], [0, magnitude], [0, -magnitude], [d, d], [d, -d]],
+                    dtype=float)  # fmt: skip
