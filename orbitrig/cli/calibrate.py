@@ -107,14 +107,14 @@ def _guarded(fn) -> None:
 
 def _rig_and_folder(config):
     from orbitrig.config import default_rig_path, load_rig
-    from orbitrig.config.records import folder_of
+    from orbitrig.config import folder_of
 
     rig = load_rig(config)
     return rig, folder_of(config or default_rig_path())
 
 
 def _list(config) -> None:
-    from orbitrig.config.records import list_names, read_record
+    from orbitrig.config import list_names, read_record
     from orbitrig.errors import ConfigError
 
     rig, folder = _rig_and_folder(config)
@@ -134,7 +134,7 @@ def _list(config) -> None:
 
 
 def _show(name, config) -> None:
-    from orbitrig.config.records import digest, read_record
+    from orbitrig.config import digest, read_record
     from orbitrig.errors import ConfigError
 
     rig, folder = _rig_and_folder(config)
@@ -147,8 +147,8 @@ def _show(name, config) -> None:
 
 
 def _write(rig, folder, record, activate: bool, what: str) -> None:
-    from orbitrig.config.records import activate as make_active
-    from orbitrig.config.records import write_record
+    from orbitrig.config import activate as make_active
+    from orbitrig.config import write_record
 
     header = (f"orbitrig calibration record (docs/calibration.md), written by `orbitrig calibrate {record.step}`.\n"
               f"{what}")  # fmt: skip
@@ -163,7 +163,7 @@ def _loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> Non
     import asyncio
 
     from orbitrig.cli.calibrate_steps import loads_record
-    from orbitrig.config.records import Reference
+    from orbitrig.config import Reference
 
     if not opts.sim and (reference_id is None or reference_u_pct is None):
         raise typer.BadParameter("on the rig give the reference: --reference-id ID --reference-u-pct U",
@@ -186,6 +186,6 @@ def _runout(config, opts, activate) -> None:
     rig, folder = _rig_and_folder(config)
     record = asyncio.run(runout_record(rig, opts, lambda m: typer.echo(m, err=True)))
     for p in ("x_a", "y_a", "x_b", "y_b"):
-        r = getattr(record.runout, p)
-        typer.echo(f"{p}: runout 1x {abs(complex(*r.h1_um)):.3f} um, 2x {abs(complex(*r.h2_um)):.3f} um")
+        h1, h2 = abs(record.runout.phasors(p)) * 1e6
+        typer.echo(f"{p}: runout 1x {h1:.3f} um, 2x {h2:.3f} um")
     _write(rig, folder, record, activate, "Units: runout h1_um, h2_um micrometres [re, im] at 1x and 2x spin.")

@@ -17,7 +17,7 @@ import typer
 
 from orbitrig import __version__
 from orbitrig.config import LMS, MPA, RPM, CalibrationUncertainty, RigConfig
-from orbitrig.config.records import CalibrationRecord, LoadGains, ProbeRunout, Reference, RecordStep, Runout
+from orbitrig.config import CalibrationRecord, LoadGains, ProbeRunout, Reference, RecordStep, Runout
 from orbitrig.run.calibration import PROBES, CalibrationSession, SlowRoll, measure_loads, measure_runout
 from orbitrig.run.rig_io import RigAccess
 from orbitrig.store.journal import now_iso

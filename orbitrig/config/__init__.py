@@ -7,7 +7,7 @@ must be finite and within its range. A bad file raises
 file, the line, the key path and what is allowed; so does a file that is not
 UTF-8 text.
 
-The models live in ``rig``, ``calibration`` and ``matrix``, the field types in ``fields``, the
+The models live in ``rig``, ``calibration``, ``records`` (calibration records) and ``matrix``, the field types in ``fields``, the
 error wording in ``messages``; everything is importable from here.
 """
 
@@ -25,6 +25,10 @@ from orbitrig.config.fields import (  # noqa: F401 - the package's public names
 from orbitrig.config.designs import apply_design
 from orbitrig.config.matrix import MatrixAveraging, MatrixConfig, ModelSpec, Operating, Orbit  # noqa: F401
 from orbitrig.config.messages import _line_of, _problems
+from orbitrig.config.records import (  # noqa: F401
+    CalibrationRecord, LoadGains, ProbeRunout, RecordStep, Reference, Runout, activate, digest, folder_of,
+    list_names, read_record, record_from_text, write_record,
+)
 from orbitrig.config.rig import (  # noqa: F401
     LINK_LOSS_MARGIN, Averaging, Bearing, Channel, Drives, Estimates, Interlocks, RigConfig, Settle,
     Transports, Verify,
@@ -112,16 +116,15 @@ def load_rig(path: Path | str | None = None) -> RigConfig:
 def rig_from_text(text: str, file: str = "<rig config>", record_text: str | None = None) -> RigConfig:
     """The rig configuration with its active calibration record: ``record_text`` (a run's stored
     copy) or the file named by ``calibration_record`` in the records' folder beside ``file``
-    (config/calibration/ of the source tree when ``file`` is not a file). The record's
+    (config/calibration/ of the source tree when that folder does not hold it). The record's
     ``[uncertainty]`` replaces ``[calibration_uncertainty]``."""
     rig = _build(RigConfig, _parse(text, file), file, text)
     name = rig.calibration_record
     if name is None:
         return rig
-    from orbitrig.config.records import folder_of, read_record, record_from_text
-
     if record_text is None:
-        folder = folder_of(file) if Path(file).is_file() else _REPO_CONFIG / "calibration"
+        beside = folder_of(file) if Path(file).is_file() else None
+        folder = beside if beside is not None and (beside / f"{name}.toml").is_file() else _REPO_CONFIG / "calibration"
         record, record_text = read_record(folder, name)
     else:
         record = record_from_text(record_text, f"{file}: calibration record {name}")
