@@ -36,6 +36,7 @@ def register(app: typer.Typer) -> None:
             None, "--sim-config", help="simulator scenario TOML (--sim only; default config/sim.toml, the paper's rig; "
             "also config/sim/clean.toml, config/sim/compressible.toml)"
         ),
+        operator: Optional[str] = typer.Option(None, "--operator", help="who runs the sweep, recorded in the run (default: the login name)"),
     ) -> None:
         """Run a test matrix: manual settings, speeds, settle, acquire, identify, store.
 
@@ -45,10 +46,10 @@ def register(app: typer.Typer) -> None:
 
         Exit 0 completed, 1 failed, 2 bad configuration or usage, 3 stopped, 4 aborted.
         """
-        _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, sim_config)
+        _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, sim_config, operator)
 
 
-def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, sim_config) -> None:
+def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, sim_config, operator=None) -> None:
     """`orbitrig sweep`, its options checked; raises typer.Exit with the run's exit status."""
     from orbitrig.errors import ConfigError, OrbitrigError
 
@@ -73,7 +74,8 @@ def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, 
         import asyncio
 
         scenario = _scenario(sim_config, resume=resume, out=out) if sim else None
-        outcome = asyncio.run(_sweep(plan, out=out, sim=scenario, resume=resume, speedup=speedup))
+        outcome = asyncio.run(_sweep(plan, out=out, sim=scenario, resume=resume, speedup=speedup,
+                                     operator=operator or _login()))  # fmt: skip
     except ConfigError as err:
         typer.echo(f"error: {err}", err=True)
         raise typer.Exit(2) from None
@@ -144,7 +146,8 @@ def _configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
         if was_sim != sim:
             raise ConfigError(str(store.path), [f"this run was made {'on the simulator' if was_sim else 'on the rig'}: "
                                                 f"resume it {'with' if was_sim else 'without'} --sim"])  # fmt: skip
-        rig = cfg.load_rig(config) if config else cfg.rig_from_text(rig_text, f"{store.path}:rig_config")
+        rig = cfg.load_rig(config) if config else cfg.rig_from_text(rig_text, f"{store.path}:rig_config",
+                                                                    store.stored_record())  # fmt: skip
         matrix = cfg.matrix_file(matrix) if matrix else None
         mat = cfg.load_matrix(matrix) if matrix else cfg.matrix_from_text(matrix_text, f"{store.path}:matrix_config")
         if matrix and mat.text != matrix_text:  # before the simulator or any drive is started
@@ -191,7 +194,13 @@ def _check_rig_answers(rig) -> None:
         raise typer.Exit(2)
 
 
-async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float):
+def _login() -> str:
+    import getpass
+
+    return getpass.getuser()
+
+
+async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator: str = ""):
     """Run the plan; ``sim`` the simulator's (SimConfig, Scenario) (None: the real rig)."""
     import contextlib
 
@@ -208,7 +217,9 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float):
             from orbitrig.cli.simulated_rig import simulated_rig
 
             _, access = await stack.enter_async_context(simulated_rig(speedup, *sim))
-        engine = RunEngine(plan.rig, out_dir=out, access=access, confirm_mode="auto" if access else "prompt")
+        engine = RunEngine(plan.rig, out_dir=out, access=access, confirm_mode="auto" if access else "prompt",
+                           operator=operator)  # fmt: skip
+        engine.console_user = operator  # Ctrl-C's pause, stop, abort and the prompts' confirmations
         operator = Operator(engine, console)
         engine.subscribe(operator.on_event)
         with SweepProgress(console, revolutions=plan.revolutions) as bars:

@@ -35,6 +35,7 @@ class Channel(_Model):
     unit: Literal["N", "m"]
     gain: float = Field(description="engineering unit per count")
     offset: float = 0.0
+    serial: str = ""  # the sensor's serial number (recorded in every run)
 
     @model_validator(mode="after")
     def _gain_nonzero(self):
@@ -136,6 +137,7 @@ class Estimates(_Model):
 
 class RigConfig(_Model):
     name: str = "rig"
+    rig_id: str = ""  # the rig's identifier recorded in every run (default: name)
     # the active calibration record (config/calibration/NAME.toml beside this file); None: none
     calibration_record: Annotated[str, Field(pattern=r"^\d{4}-\d\d-\d\dT\d{6}Z-[a-z]+$")] | None = None
     transports: Transports = Transports()
@@ -147,6 +149,8 @@ class RigConfig(_Model):
     verify: Verify = Verify()
     interlocks: Interlocks = Interlocks()
     estimates: Estimates = Estimates()
+    # the active record's runout taken out of every block's probe phasors (docs/calibration.md)
+    subtract_runout: bool = True
     # stated calibration uncertainty; None: not stated (no systematic budget)
     calibration_uncertainty: CalibrationUncertainty | None = None
 
@@ -197,12 +201,6 @@ class RigConfig(_Model):
     def record_text(self) -> str:
         """The active record's TOML text ("" without one)."""
         return self._record_text
-
-    def force_gain(self, lms: str):
-        """The 2 x 2 gain matrix of load measuring system ``lms`` (identity without a record)."""
-        import numpy as np
-
-        return np.eye(2) if self._record is None else self._record.force_gain(lms)
 
     @property
     def ordered_channels(self) -> list[Channel]:

@@ -221,7 +221,7 @@ class Session:
         name = request.get("cmd")
         if name not in PAGE_COMMANDS:
             return {"ok": False, "error": f"unknown command {name!r}"}
-        body = {"cmd": name}
+        body = {"cmd": name, "by": self.user}  # the signed-in user, recorded in the run
         for field in PAGE_COMMANDS[name]:
             value = request.get(field)
             if not isinstance(value, str) or not value:

@@ -26,6 +26,7 @@ from drives.errors import DriveError
 from orbitrig.config import LMS, RigConfig
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.rig_io import RigAccess, RigIO
+from reduction.fourier import phasor
 
 log = logging.getLogger(__name__)
 PROBES = ("x_a", "y_a", "x_b", "y_b")
@@ -128,9 +129,8 @@ async def measure_loads(session: CalibrationSession, hands: LoadHands, loads: np
 
 def harmonic(blk: AveragedBlock, channel: int, h: int) -> complex:
     """Phasor (engineering units) of the `h`-th revolution harmonic of one channel's average:
-    q = Re(q_h e^{i h theta}), theta its sampling angles."""
-    theta, mean = np.asarray(blk.theta)[channel], np.asarray(blk.mean)[channel]
-    return complex(2.0 * np.mean(mean * np.exp(-1j * h * theta)))
+    q = Re(q_h e^{i h theta}), theta its sampling angles (least squares, reduction.fourier)."""
+    return complex(phasor(np.asarray(blk.mean)[channel], np.asarray(blk.theta)[channel], harmonic=h))
 
 
 async def measure_runout(session: CalibrationSession) -> tuple[dict[str, np.ndarray], int]:

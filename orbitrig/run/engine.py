@@ -38,6 +38,7 @@ from orbitrig.run.log_rows import can_row, drive_row
 from orbitrig.run.plan import Acquire, Plan, make_plan
 from orbitrig.run.procedure import PointProcedure, RunParts
 from orbitrig.run.progress import ProgressMeter
+from orbitrig.run.provenance import UNNAMED, Provenance, RunCommand
 from orbitrig.run.rig_io import RigAccess, RigIO, Scenario
 from orbitrig.run.states import ABORTED, COMPLETED, FAILED, FAULTED, IDLE, STOPPED, STOPPING
 from orbitrig.run.supervision import InterlockSupervisor
@@ -48,7 +49,7 @@ log = logging.getLogger(__name__)
 
 class RunEngine:
     def __init__(self, rig: RigConfig, *, out_dir: Path, access: RigAccess | None = None,
-                 confirm_mode: Literal["prompt", "remote", "auto"] = "prompt"):  # fmt: skip
+                 confirm_mode: Literal["prompt", "remote", "auto"] = "prompt", operator: str = ""):  # fmt: skip
         if confirm_mode not in ("prompt", "remote", "auto"):
             raise ValueError(f"confirm_mode {confirm_mode!r} is not one of prompt, remote, auto")
         self.rig = rig
@@ -56,6 +57,8 @@ class RunEngine:
         self.access = access or RigAccess.of_rig(rig)
         self.confirm_mode = confirm_mode
         self.run_id: str | None = None
+        self.operator = operator  # who starts the next run (orbitrig.run.provenance)
+        self.console_user: str | None = None  # who sends a request that names nobody (a terminal's user)
         self.timing: dict[str, float] = {}  # wall s per activity (bench)
         self._subs: list[Subscriber] = []
         self.revolution_taps: list[Callable[[Revolution], None]] = []  # every revolution (orbitrig.service.live)
@@ -93,22 +96,32 @@ class RunEngine:
     def subscribe(self, callback: Subscriber) -> None:
         self._subs.append(callback)
 
-    def request_pause(self) -> None:
+    def request_pause(self, by: str | None = None) -> None:
         self._control.request_pause()
+        self._command(RunCommand.PAUSE, by)
 
-    def request_resume(self) -> None:
+    def request_resume(self, by: str | None = None) -> None:
         self._control.request_resume()
+        self._command(RunCommand.RESUME, by)
 
-    def request_stop(self) -> None:
+    def request_stop(self, by: str | None = None) -> None:
         self._control.request_stop()
+        self._command(RunCommand.STOP, by)
 
-    def request_abort(self) -> None:
+    def request_abort(self, by: str | None = None) -> None:
         if self._control.request_abort() and self._body is not None and not self._body.done():
             self._body.cancel()
+        self._command(RunCommand.ABORT, by)
 
-    def confirm(self, step: str) -> None:
-        """Confirm the manual setting `step` (e.g. 'manual:0003'); raises if not waiting for it."""
+    def confirm(self, step: str, by: str | None = None) -> None:
+        """Confirm the manual setting `step` (e.g. 'manual:0003'); raises if not waiting for it.
+        `by`: who sent each request (logged with the time in run.log and run.h5)."""
         self._control.confirm(step)
+        self._command(RunCommand.CONFIRM, by, step)
+
+    def _command(self, command: RunCommand, by: str | None, detail: str = "") -> None:
+        if self._store is not None:
+            self._store.command(command, by or self.console_user or UNNAMED, detail)
 
     # ------------------------------------------------------------------- run
     async def run(self, plan: Plan | MatrixConfig, *, resume: bool = False) -> RunOutcome:
@@ -132,9 +145,12 @@ class RunEngine:
     def _open_store(self, plan: Plan, resume: bool) -> tuple[RunStore, list[int]]:
         if not resume:
             sc = self.access.scenario or Scenario("")
+            prov = Provenance.of_run(self.rig, self.operator)
             store = RunStore.create(self.out_dir, rig_text=self.rig.text, matrix_text=plan.matrix.text,
                                     matrix_name=plan.name, sim=self.access.simulated,
-                                    scenario_name=sc.name, scenario_text=sc.text)  # fmt: skip
+                                    scenario_name=sc.name, scenario_text=sc.text,
+                                    provenance=prov.to_dict(), record_text=self.rig.record_text)  # fmt: skip
+            store.log(prov.summary())
             return store, []
         store = RunStore.open_existing(self.out_dir)
         _, matrix_text, _ = store.stored_configs()
@@ -167,6 +183,7 @@ class RunEngine:
         except StorageFullError as err:
             self._log_event(f"warning: the whole plan may not fit ({err}); the run pauses before a point that does not")
         self._control.fire("start", f"run {self.run_id} started" + (" (resumed)" if resume else ""))
+        self._command(RunCommand.START, self.operator, f"run {self.run_id}" + (", resumed" if resume else ""))
 
     def _no_room(self, plan: Plan, p) -> str | None:
         """Why the disk cannot take point `p` (None: it can)."""

@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from orbitrig.config import LMS, CalibrationUncertainty, RigConfig
+from orbitrig.run.corrections import Corrections
 from orbitrig.run.plan import Block, OperatingPoint
 from orbitrig.run.point_analysis import analyse_point
 from daq.averager import AveragedBlock
@@ -54,16 +55,17 @@ def block_record(block: Block, blk: AveragedBlock, rig: RigConfig) -> BlockRecor
 
 def identify_operating_point(spin: float, recs: list[BlockRecord], ch: dict[str, int], models,
                              truth: dict | None = None, calibration: CalibrationUncertainty | None = None,
-                             force_gains: dict[str, np.ndarray] | None = None) -> PointResults:  # fmt: skip
+                             corrections: Corrections | None = None) -> PointResults:  # fmt: skip
     """One operating point's results: the orbit table of each load measuring system (forward
-    and backward blocks together; its forces through the system's gain matrix of
-    ``force_gains``, the active calibration record's), every model of ``models`` (ModelSpec) identified on each
+    and backward blocks together; ``corrections``, the active calibration record's force gain
+    matrices and probe runout, applied), every model of ``models`` (ModelSpec) identified on each
     (a refused model keeps its reason), each fit judged (orbitrig.run.point_analysis: the
     uncertainty budget from the rig's stated ``calibration`` uncertainty, model adequacy, the
     two systems' consistency, derived quantities), and the two systems' forces compared."""
     recs = sorted(recs, key=lambda r: (r.block.freq, -r.block.direction))
-    gains = force_gains or {}
-    tables = {lms: orbit_table(spin, recs, ch, lms, gains.get(lms)) for lms in LMS}
+    corr = corrections or Corrections()
+    probes = [(corr.probe_phasors(r, ch, spin), corr.probe_records(r, ch, spin)) for r in recs]
+    tables = {lms: orbit_table(spin, recs, ch, lms, corr.force_gains.get(lms), probes) for lms in LMS}
     idents, fits = {}, {}
     for lms in LMS:
         for spec in models:
@@ -76,23 +78,25 @@ def identify_operating_point(spin: float, recs: list[BlockRecord], ch: dict[str,
             idents[(lms, spec.key)] = {"spec": spec, "json": res.to_dict()}
     grid = np.unique([abs(r.block.orbit) for r in recs])  # the planned orbit frequencies, rad/s
     analyse_point(spin, tables, fits, idents, calibration, grid)
-    return PointResults(tables, idents, lms_comparison(recs, ch, gains), truth)
+    return PointResults(tables, idents, lms_comparison(recs, ch, corr.force_gains), truth)
 
 
 def orbit_table(spin: float, recs: list[BlockRecord], ch: dict[str, int], lms: str,
-                gain: np.ndarray | None = None) -> OrbitTable:  # fmt: skip
+                gain: np.ndarray | None = None, probes: list | None = None) -> OrbitTable:  # fmt: skip
     """Orbit table of one point for one load measuring system (Omega > 0, direction in the phasors),
     with each row's revolution count and the standard uncertainty of its phasors
     (:func:`row_uncertainty`; x, y the per-revolution probe-plane means); the forces through the
-    system's 2 x 2 ``gain`` matrix (reduction.calibration; None: as read)."""
-    ph = np.array([r.phasors for r in recs])
+    system's 2 x 2 ``gain`` matrix (reduction.calibration; None: as read); ``probes`` per block
+    (averaged phasors, per-revolution phasors) with the runout taken out (None: as read)."""
+    probes = probes or [(r.phasors, r.record_phasors) for r in recs]
+    ph = np.array([p for p, _ in probes])
     orbit = np.array([r.measured_orbit_speed if math.isfinite(r.measured_orbit_speed) and r.measured_orbit_speed > 0
                       else abs(r.block.orbit) for r in recs])  # fmt: skip
     i = LMS.index(lms)
     x, y = probe_plane(ph, ch)
     n_records = np.array([len(r.record_phasors) for r in recs])
-    u = np.array([row_uncertainty(r.record_phasors, ch, lms, spin / abs(r.block.orbit), r.revolutions, gain)
-                  for r in recs])  # fmt: skip
+    u = np.array([row_uncertainty(rp, ch, lms, spin / abs(r.block.orbit), r.revolutions, gain)
+                  for r, (_, rp) in zip(recs, probes)])  # fmt: skip
     fx, fy = ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]]
     if gain is not None:
         fx, fy = correct_forces(gain, fx, fy)
@@ -106,10 +110,14 @@ def row_uncertainty(record_phasors: np.ndarray, ch: dict[str, int], lms: str, sp
     """(u_x, u_y, u_fx, u_fy) of one block (m, m, N, N): the standard uncertainty of each mean
     (reduction.noise.mean_uncertainty: the scatter with the spin tones' rotating leakage taken
     out, plus what those tones leave in the mean); ``spin_turns`` = omega / |Omega|,
-    ``revolutions`` the board's revolution number of each record (gaps where one was dropped)."""
+    ``revolutions`` the board's revolution number of each record (gaps where one was dropped),
+    ``gain`` the system's gain matrix (the forces corrected per revolution)."""
     rp = np.asarray(record_phasors)
     x, y = probe_plane(rp, ch)
-    per_rev = np.stack([x, y, rp[:, ch[f"fx_{lms}"]], rp[:, ch[f"fy_{lms}"]]], axis=1)
+    fx, fy = rp[:, ch[f"fx_{lms}"]], rp[:, ch[f"fy_{lms}"]]
+    if gain is not None:
+        fx, fy = correct_forces(gain, fx, fy)
+    per_rev = np.stack([x, y, fx, fy], axis=1)
     return mean_uncertainty(per_rev, spin_turns, revolutions)
 
 

@@ -18,9 +18,10 @@ from typing import Awaitable, Callable
 from daq.averager import AveragingRule
 from daq.errors import DaqError
 from drives.errors import DriveError
-from orbitrig.config import LMS, RPM, RigConfig
+from orbitrig.config import RPM, RigConfig
 from orbitrig.run.background import Background
 from orbitrig.run.control import RunControl, StopRun, Suspended
+from orbitrig.run.corrections import Corrections
 from orbitrig.run.events import ResultEvent, RunFailed
 from orbitrig.run.identification import block_record, identify_operating_point, point_truth
 from orbitrig.run.point_report import point_log_lines, result_payload
@@ -271,9 +272,8 @@ class PointProcedure:
 
         async def results() -> PointResults:
             t0 = time.monotonic()
-            gains = {lms: r.rig.force_gain(lms) for lms in LMS}
-            res = await asyncio.to_thread(identify_operating_point, p.spin, recs, r.rig.channel_index,
-                                          step.models, truth, r.rig.calibration_uncertainty, gains)  # fmt: skip
+            res = await asyncio.to_thread(identify_operating_point, p.spin, recs, r.rig.channel_index, step.models,
+                                          truth, r.rig.calibration_uncertainty, Corrections.of_rig(r.rig))  # fmt: skip
             self._add_time("identify", t0)
             for line in point_log_lines(p, res):
                 r.store.log(line)

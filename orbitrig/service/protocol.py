@@ -111,6 +111,7 @@ class Command:
     matrix: str | None = None
     step: str | None = None
     ignored: tuple[str, ...] = ()  # stop/abort: the problems that were overlooked
+    by: str | None = None  # who sent it, as the command says (None: not said)
 
 
 class CommandError(ValueError):
@@ -150,7 +151,14 @@ class _Correlation(BaseModel):
     id: CorrelationId
 
 
-class StartCommand(_Strict):
+class _Sent(_Strict):
+    """What every command may carry: ``by``, who sent it (the dashboard: its signed-in user),
+    recorded with the command in the run (orbitrig.run.provenance)."""
+
+    by: Annotated[str, Field(min_length=1, max_length=64)] | None = None
+
+
+class StartCommand(_Sent):
     """``start``: run the named matrix of the service's matrix folder."""
 
     cmd: Literal["start"]
@@ -167,7 +175,7 @@ class StartCommand(_Strict):
         return v
 
 
-class ConfirmCommand(_Strict):
+class ConfirmCommand(_Sent):
     """``confirm``: the operator confirms the manual setting ``step``."""
 
     cmd: Literal["confirm"]
@@ -182,7 +190,7 @@ class ConfirmCommand(_Strict):
         return v
 
 
-class BareCommand(_Strict):
+class BareCommand(_Sent):
     """Commands without arguments."""
 
     cmd: Literal["pause", "resume", "stop", "abort", "status"]
@@ -194,7 +202,7 @@ _COMMANDS: TypeAdapter = TypeAdapter(CommandModel)
 
 #: Commands and the fields each takes besides ``cmd`` and ``id`` (from the models).
 COMMAND_FIELDS: dict[str, tuple[str, ...]] = {
-    name: tuple(f for f in model.model_fields if f not in ("cmd", "id"))
+    name: tuple(f for f in model.model_fields if f not in ("cmd", "id", "by"))
     for model in (StartCommand, ConfirmCommand, BareCommand)
     for name in model.model_fields["cmd"].annotation.__args__
 }
@@ -286,12 +294,13 @@ def parse_command(payload: bytes | bytearray | str) -> Command:
     if problems and name in ALWAYS_ACCEPTED:
         # "stop and abort are always accepted": a stray field or a bad id must
         # never keep spinning machinery from stopping. The problems are logged.
-        return Command(cmd=name, id=cid, ignored=tuple(problems))
+        by = obj.get("by") if isinstance(obj.get("by"), str) else None
+        return Command(cmd=name, id=cid, ignored=tuple(problems), by=by[:64] if by else None)
     if problems:
         raise CommandError("; ".join(problems), cid)
     return Command(cmd=model.cmd, id=model.id,
                    matrix=model.matrix if isinstance(model, StartCommand) else None,
-                   step=model.step if isinstance(model, ConfirmCommand) else None)
+                   step=model.step if isinstance(model, ConfirmCommand) else None, by=model.by)
 
 
 # -- payloads -----------------------------------------------------------------

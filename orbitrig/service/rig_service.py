@@ -66,11 +66,12 @@ class Engine(Protocol):
 
     async def run(self, matrix: Any, *, resume: bool = False) -> RunOutcome: ...
     def subscribe(self, callback: Callable[[Any], None]) -> None: ...
-    def request_pause(self) -> None: ...
-    def request_resume(self) -> None: ...
-    def request_stop(self) -> None: ...
-    def request_abort(self) -> None: ...
-    def confirm(self, step: str) -> None: ...
+    operator: str
+    def request_pause(self, by: str | None = None) -> None: ...
+    def request_resume(self, by: str | None = None) -> None: ...
+    def request_stop(self, by: str | None = None) -> None: ...
+    def request_abort(self, by: str | None = None) -> None: ...
+    def confirm(self, step: str, by: str | None = None) -> None: ...
 
 
 #: Makes the executor of one run: ``factory(matrix_name, matrix) -> Engine``.
@@ -161,7 +162,7 @@ class RigService:
         if not self.run_active:
             return
         log.warning("aborting run %s: %s", self._run_id, why)
-        self._request("abort")
+        self._request("abort", f"service ({why})")
         try:
             await asyncio.wait_for(asyncio.shield(self._run_task), self.settings.shutdown_timeout)
         except TimeoutError:
@@ -187,9 +188,9 @@ class RigService:
                 log.warning("no broker for %.0f s: supervision lost, policy %r", s.supervision_timeout,
                             s.supervision_policy)
                 if s.supervision_policy == "pause" and self._state in ("running", "waiting"):
-                    self._request("pause")
+                    self._request("pause", "service (supervision lost)")
                 elif s.supervision_policy == "stop":
-                    self._request("stop")
+                    self._request("stop", "service (supervision lost)")
             await self.link.online.wait()
 
     # -- commands ---------------------------------------------------------------
@@ -287,6 +288,7 @@ class RigService:
         except ConfigError as err:
             return f"matrix {cmd.matrix!r} is invalid: {'; '.join(err.problems)}"
         engine = self._engine_factory(cmd.matrix, matrix)
+        engine.operator = cmd.by or ""  # recorded in the run with every command's sender
         engine.subscribe(self._on_event)
         self._engine = engine
         self._run_id = engine.run_id
@@ -298,20 +300,20 @@ class RigService:
         return None
 
     def _cmd_pause(self, cmd: proto.Command) -> str | None:
-        return self._control("pause", lambda e: e.request_pause(), allowed=("running", "waiting"))
+        return self._control("pause", lambda e: e.request_pause(by=cmd.by), allowed=("running", "waiting"))
 
     def _cmd_resume(self, cmd: proto.Command) -> str | None:
-        return self._control("resume", lambda e: e.request_resume(), allowed=("paused",))
+        return self._control("resume", lambda e: e.request_resume(by=cmd.by), allowed=("paused",))
 
     def _cmd_confirm(self, cmd: proto.Command) -> str | None:
-        return self._control("confirm", lambda e: e.confirm(cmd.step), allowed=None)
+        return self._control("confirm", lambda e: e.confirm(cmd.step, by=cmd.by), allowed=None)
 
     def _cmd_stop(self, cmd: proto.Command) -> str | None:
-        self._request("stop")
+        self._request("stop", cmd.by)
         return None  # always accepted
 
     def _cmd_abort(self, cmd: proto.Command) -> str | None:
-        self._request("abort")
+        self._request("abort", cmd.by)
         return None  # always accepted
 
     def _control(self, what: str, call: Callable[[Engine], None], allowed: tuple[str, ...] | None) -> str | None:
@@ -326,7 +328,7 @@ class RigService:
             return f"cannot {what}: {err}"
         return None
 
-    def _request(self, what: Literal["pause", "stop", "abort"]) -> None:
+    def _request(self, what: Literal["pause", "stop", "abort"], by: str | None = None) -> None:
         """Ask the executor to pause/stop/abort; never raises. If the executor
         refuses a stop or abort, the run task is cancelled (its cleanup ramps
         both drives to zero)."""
@@ -338,7 +340,7 @@ class RigService:
             return
         requests = {"pause": engine.request_pause, "stop": engine.request_stop, "abort": engine.request_abort}
         try:
-            requests[what]()
+            requests[what](by=by)
         except Exception:  # noqa: BLE001
             log.exception("executor refused %s", what)
             if what in ("stop", "abort"):

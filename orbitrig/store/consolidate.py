@@ -25,6 +25,7 @@ from orbitrig.store.pieces import STR, put, strings
 
 log = logging.getLogger(__name__)
 EVENT_DTYPE = np.dtype([("t", "f8"), ("state", STR), ("message", STR)])
+COMMAND_DTYPE = np.dtype([("at", STR), ("command", STR), ("by", STR), ("detail", STR)])
 
 
 def read_header(layout: RunLayout) -> dict:
@@ -99,6 +100,7 @@ def _build(f: h5py.File, layout: RunLayout, header: dict, journal: Journal, stat
     if isinstance(scenario, dict):  # the simulator scenario of a --sim run: name and TOML text
         a["sim_scenario_name"], a["sim_scenario_config"] = str(scenario.get("name", "")), str(scenario.get("text", ""))
     a["status"], a["status_message"] = journal.status, journal.status_message
+    _provenance(a, header, journal)
     f.create_dataset("channels", data=strings(header.get("channels", [])))
     f.create_dataset("channel_units", data=strings(header.get("channel_units", [])))
     pts = f.require_group("points")
@@ -106,6 +108,18 @@ def _build(f: h5py.File, layout: RunLayout, header: dict, journal: Journal, stat
         if st.index not in done:
             _add_point(pts, layout, st.index, st.complete)
     _write_logs(f.create_group("logs"), journal)
+
+
+def _provenance(a, header: dict, journal: Journal) -> None:
+    """Who made the run, with what, where, when (orbitrig.run.provenance), as root attributes."""
+    prov = header.get("provenance")
+    if not isinstance(prov, dict):
+        return  # a run written before provenance was recorded
+    for k in ("operator", "rig_id", "host", "calibration_record", "calibration_record_sha256", "started"):
+        a[k] = str(prov.get(k, ""))
+    a["sensor_serials"] = json.dumps(prov.get("sensor_serials", {}))
+    a["calibration_record_text"] = str(header.get("calibration_record_text", ""))
+    a["ended"] = journal.status_at if journal.status != "running" else ""
 
 
 def _add_point(pts: h5py.Group, layout: RunLayout, index: int, complete: bool) -> bool:
@@ -149,6 +163,8 @@ def _copy_root(path, dest: h5py.Group, name: str | None) -> None:
 def _write_logs(lg: h5py.Group, journal: Journal) -> None:
     ev = np.array(journal.events, dtype=EVENT_DTYPE) if journal.events else np.zeros(0, EVENT_DTYPE)
     put(lg, "events", ev, "t: s since the run started", fields=strings(EVENT_DTYPE.names))
+    cmd = np.array(journal.commands, dtype=COMMAND_DTYPE) if journal.commands else np.zeros(0, COMMAND_DTYPE)
+    put(lg, "commands", cmd, "at: ISO 8601 UTC; by: who sent the command", fields=strings(COMMAND_DTYPE.names))
     for name, rows, dt, units in (("can", journal.can, CAN_DTYPE, CAN_UNITS),
                                   ("drives", journal.drives, DRIVE_DTYPE, DRIVE_UNITS)):  # fmt: skip
         data = np.array(rows, dtype=dt) if rows else np.zeros(0, dt)

@@ -2,7 +2,8 @@
 
 Kinds (key ``k``): ``status`` (status, message, at), ``point`` (point, action: begin |
 complete | set_aside, detail), ``block`` (point, tag, bytes), ``event`` (t, state,
-message), ``can`` (row), ``drives`` (row). ``t`` is seconds since the run started;
+message), ``can`` (row), ``drives`` (row), ``command`` (command, by, at, detail: a command
+that changed the run and who sent it). ``t`` is seconds since the run started;
 ``at`` an ISO-8601 UTC time. A torn last line (a kill mid-append) is ignored; the run's
 status is the last ``status`` line that made it to disk.
 """
@@ -60,6 +61,8 @@ class Journal:
 
     status: str = "running"
     status_message: str = ""
+    status_at: str = ""  # ISO 8601 UTC time of the last status line (the run's end once final)
+    commands: list = field(default_factory=list)  # (at, command, by, detail)
     events: list = field(default_factory=list)  # (t, state, message)
     can: list = field(default_factory=list)  # rows of CAN_DTYPE
     drives: list = field(default_factory=list)  # rows of DRIVE_DTYPE
@@ -75,6 +78,9 @@ def read_journal(path) -> Journal:
             k = r.get("k")
             if k == "status":
                 j.status, j.status_message = str(r["status"]), str(r.get("message", ""))
+                j.status_at = str(r.get("at", ""))
+            elif k == "command":
+                j.commands.append((str(r["at"]), str(r["command"]), str(r["by"]), str(r.get("detail", ""))))
             elif k == "event":
                 j.events.append((float(r["t"]), str(r["state"]), str(r["message"])))
             elif k in ("can", "drives"):

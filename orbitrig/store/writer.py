@@ -57,9 +57,11 @@ class RunStore:
     # ---------------------------------------------------------- life cycle
     @classmethod
     def create(cls, out_dir, *, rig_text: str, matrix_text: str, matrix_name: str, sim: bool,
-               scenario_name: str = "", scenario_text: str = "") -> RunStore:  # fmt: skip
+               scenario_name: str = "", scenario_text: str = "", provenance: dict | None = None,
+               record_text: str = "") -> RunStore:  # fmt: skip
         """A new run directory; `scenario_name` / `scenario_text`: the simulator scenario of a
-        --sim run (name and TOML text, recorded so that a resume runs the same one)."""
+        --sim run (name and TOML text, recorded so that a resume runs the same one);
+        `provenance` (orbitrig.run.provenance) and the active calibration record's text."""
         self = cls(out_dir)
         lay = self.layout
         for existing in (lay.header, lay.run_file, lay.journal):
@@ -75,6 +77,10 @@ class RunStore:
                         "rig_config": rig_text, "matrix_config": matrix_text}  # fmt: skip
         if sim:
             self._header["sim_scenario"] = {"name": scenario_name, "text": scenario_text}
+        if provenance is not None:
+            self._header["provenance"] = provenance
+        if record_text:
+            self._header["calibration_record_text"] = record_text
         fsync_dir(lay.dir)
         write_atomic(lay.header, json.dumps(self._header, indent=1).encode("utf-8"))
         self._journal([journal.status_line("running", "")])
@@ -104,6 +110,22 @@ class RunStore:
         h = self._header or read_header(self.layout)
         sc = h.get("sim_scenario")
         return (str(sc.get("name", "")), str(sc.get("text", ""))) if isinstance(sc, dict) else None
+
+    def stored_record(self) -> str | None:
+        """The TOML text of the calibration record the stored run was made with (None: none)."""
+        h = self._header or read_header(self.layout)
+        text = h.get("calibration_record_text")
+        return str(text) if text else None
+
+    def command(self, command: str, by: str, detail: str = "") -> None:
+        """A command that changed the run, who sent it and when: a journal line (run.h5's
+        /logs/commands) and a run.log line. Best effort: a storage failure is logged."""
+        at = now_iso()
+        self.log(f"command {command} by {by}" + (f" ({detail})" if detail else ""))
+        try:
+            self._journal([journal.line("command", command=command, by=by, at=at, detail=detail)])
+        except StorageError as err:
+            log.error("cannot journal the command %s by %s: %s", command, by, err)
 
     def prepare_resume(self) -> list[int]:
         """Set aside every incomplete or damaged point (DIR/aside/PPPP.<reason>.N) and

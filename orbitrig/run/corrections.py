@@ -1,0 +1,64 @@
+"""What the sweep corrects from the active calibration record (docs/calibration.md).
+
+- Forces: each load measuring system's 2 x 2 gain matrix (``[loads.<system>]``; identity
+  without one), f_journal = G f_read, per revolution and on the averaged phasors.
+- Probes: the runout of each probe track at 1x and 2x spin (``[runout]``) taken out of every
+  block's per-revolution phasors, the block's spin phase fitted from its own revolutions
+  (reduction.runout); only when the rig configuration's ``subtract_runout`` is true (default).
+
+The blocks keep what was read; the orbit tables (and so every identification and the stored
+tables) hold the corrected values. SI.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from orbitrig.config import LMS, RigConfig
+from orbitrig.store.writer import BlockRecord
+from reduction.runout import remove_runout
+
+PROBES = ("x_a", "y_a", "x_b", "y_b")
+MIN_REVOLUTIONS = 3  # fewer cannot fit a block's spin phase: the block is left as read
+
+
+@dataclass(frozen=True)
+class Corrections:
+    force_gains: dict[str, np.ndarray] = field(default_factory=dict)
+    runout: np.ndarray | None = None  # (4, 2) complex, m: PROBES x (1x, 2x spin)
+
+    @classmethod
+    def of_rig(cls, rig: RigConfig) -> "Corrections":
+        """The corrections of ``rig``'s active record (none without one)."""
+        rec = rig.record
+        if rec is None:
+            return cls()
+        runout = None
+        if rec.runout is not None and rig.subtract_runout:
+            runout = np.array([rec.runout.phasors(p) for p in PROBES])
+        return cls({lms: rec.force_gain(lms) for lms in LMS if lms in rec.loads}, runout)
+
+    def probe_records(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray:
+        """(N, C) the block's per-revolution phasors, the probes' runout taken out (spin rad/s)."""
+        rp = np.asarray(rec.record_phasors)
+        if self.runout is None or len(rp) < MIN_REVOLUTIONS:
+            return rp
+        if self.runout is None:
+            return rp
+        idx = [ch[p] for p in PROBES]
+        theta = 2 * np.pi * np.asarray(rec.slots, dtype=float)[idx] / 360.0
+        revs = np.arange(len(rp)) if rec.revolutions is None else np.asarray(rec.revolutions)
+        out = rp.copy()
+        out[:, idx] = remove_runout(rp[:, idx], self.runout, theta, spin / abs(rec.block.orbit), revs)
+        return out
+
+    def probe_phasors(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray:
+        """(C,) the block's averaged phasors, the probes' runout taken out (the mean of the
+        corrected revolutions minus that of the read ones, added to the stored average)."""
+        ph = np.asarray(rec.phasors)
+        if self.runout is None or len(rec.record_phasors) < MIN_REVOLUTIONS:
+            return ph
+        rp = np.asarray(rec.record_phasors)
+        return ph + (self.probe_records(rec, ch, spin) - rp).mean(axis=0)

@@ -1,0 +1,84 @@
+"""The probe tracks' runout in a block's orbit phasors, and its removal.
+
+Runout of a probe track is a signal locked to the journal's spin angle psi,
+r(psi) = Re(sum_h R_h e^{i h psi}), h = 1, 2, with R_h measured at a slow roll (the spin angle's
+origin there: the slow roll's trigger). During a block the spin turns rho = omega/|Omega| times per
+orbit revolution: in revolution k (board revolution number n_k) psi = phi_0 + 2 pi rho (n_k - n_0)
++ rho theta, theta the orbit angle after the trigger. Its contribution to that revolution's orbit
+phasor is linear in the samples: q_k = sum_h (R_h e^{i h phi_k} w . e^{i h rho theta}
++ conj(R_h) e^{-i h phi_k} w . e^{-i h rho theta}) / 2, w the channel's phasor weights
+(reduction.fourier.phasor, least squares at its sampling angles).
+
+phi_0, the spin angle at the block's first trigger, is not measured: it is the one unknown common
+to all probes and harmonics, fitted from the block's own revolutions (the runout turns through
+them while the orbit response stays), by a grid over one turn refined by a parabola. Removing
+the fitted runout from the block's mean takes out its leakage into the orbit phasor. SI (m, rad).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from reduction.errors import ReductionError
+from reduction.fourier import phasor
+
+GRID = 720  # phi_0 candidates over one turn
+
+
+def phasor_weights(theta: np.ndarray) -> np.ndarray:
+    """(P, S) weights w with q_bar = w . samples, the least-squares fundamental at angles theta (P, S)."""
+    theta = np.asarray(theta, dtype=float)
+    p, s = theta.shape
+    return phasor(np.broadcast_to(np.eye(s), (p, s, s)), theta[:, None, :])
+
+
+def _basis(runout: np.ndarray, theta: np.ndarray, spin_turns: float, steps: np.ndarray):
+    """(a, b, h): q_k(phi_0) = sum_h a[h] e^{i h phi_0} + b[h] e^{-i h phi_0}, a and b (H, N, P)."""
+    w = phasor_weights(theta)  # (P, S)
+    hs = np.arange(1, runout.shape[1] + 1)
+    lead = np.einsum("ps,hps->hp", w, np.exp(1j * hs[:, None, None] * spin_turns * theta[None]))
+    lag = np.einsum("ps,hps->hp", w, np.exp(-1j * hs[:, None, None] * spin_turns * theta[None]))
+    turn = np.exp(1j * hs[:, None] * 2 * np.pi * spin_turns * steps[None, :])  # (H, N)
+    a = 0.5 * runout.T[:, None, :] * turn[:, :, None] * lead[:, None, :]
+    b = 0.5 * np.conj(runout.T)[:, None, :] * np.conj(turn)[:, :, None] * lag[:, None, :]
+    return a, b, hs
+
+
+def runout_phasors(runout: np.ndarray, theta: np.ndarray, spin_turns: float, revolutions: np.ndarray,
+                   spin_phase: float) -> np.ndarray:  # fmt: skip
+    """(N, P) runout in each revolution's orbit phasor: ``runout`` (P, H) complex R_h per probe (m),
+    ``theta`` (P, S) each probe's sampling angles (rad), ``revolutions`` (N,) board revolution
+    numbers, ``spin_phase`` phi_0 (rad) at the first of them."""
+    steps = np.asarray(revolutions, dtype=float) - float(np.asarray(revolutions)[0])
+    a, b, hs = _basis(np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns, steps)
+    e = np.exp(1j * hs * spin_phase)[:, None, None]
+    return np.sum(a * e + b * np.conj(e), axis=0)
+
+
+def fit_spin_phase(record_phasors: np.ndarray, runout: np.ndarray, theta: np.ndarray, spin_turns: float,
+                   revolutions: np.ndarray) -> float:  # fmt: skip
+    """phi_0 (rad) that best explains the scatter of the probes' per-revolution phasors
+    ``record_phasors`` (N, P) by the runout (least squares, each probe's mean free)."""
+    p = np.asarray(record_phasors, dtype=complex)
+    if p.ndim != 2 or p.shape[0] < 3:
+        raise ReductionError("at least 3 revolutions are needed to fit the spin phase of the runout")
+    steps = np.asarray(revolutions, dtype=float) - float(np.asarray(revolutions)[0])
+    a, b, hs = _basis(np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns, steps)
+    a, b = a - a.mean(axis=1, keepdims=True), b - b.mean(axis=1, keepdims=True)
+    dev = p - p.mean(axis=0)
+    phi = np.linspace(0.0, 2 * np.pi, GRID, endpoint=False)
+    e = np.exp(1j * hs[:, None] * phi[None, :])  # (H, G)
+    model = np.einsum("hnp,hg->gnp", a, e) + np.einsum("hnp,hg->gnp", b, np.conj(e))
+    cost = np.sum(np.abs(dev[None] - model) ** 2, axis=(1, 2))
+    i = int(np.argmin(cost))
+    c0, c1, c2 = cost[i - 1], cost[i], cost[(i + 1) % GRID]
+    den = c0 - 2 * c1 + c2
+    shift = 0.5 * (c0 - c2) / den if den > 0 else 0.0
+    return float((phi[i] + shift * (2 * np.pi / GRID)) % (2 * np.pi))
+
+
+def remove_runout(record_phasors: np.ndarray, runout: np.ndarray, theta: np.ndarray, spin_turns: float,
+                  revolutions: np.ndarray) -> np.ndarray:  # fmt: skip
+    """The probes' per-revolution phasors (N, P) with the runout (spin phase fitted) taken out."""
+    phi0 = fit_spin_phase(record_phasors, runout, theta, spin_turns, revolutions)
+    return np.asarray(record_phasors) - runout_phasors(runout, theta, spin_turns, revolutions, phi0)
