@@ -70,3 +70,37 @@ def static_loads(magnitude: float) -> np.ndarray:
     d = magnitude / np.sqrt(2.0)
     return np.array([[0, 0], [magnitude, 0], [-magnitude, 0], [0, magnitude], [0, -magnitude], [d, d], [d, -d]],
                     dtype=float)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class DelayFit:
+    """A channel's lag behind the reference channels: phase(f) = phase + 2 pi f delay (rad, s),
+    with standard uncertainties from the fit's residuals (at least ``floor``)."""
+
+    phase: float  # rad
+    delay: float  # s
+    phase_u: float
+    delay_u: float
+    residual_rms: float  # rad
+
+
+def fit_delay(frequencies: np.ndarray, lag: np.ndarray) -> DelayFit:
+    """Least-squares line through a channel's measured lag (rad, unwrapped along frequency) behind
+    the reference at `frequencies` (Hz): lag = phase + 2 pi f delay. ReductionError with fewer
+    than 3 distinct frequencies."""
+    f, y = np.asarray(frequencies, dtype=float), np.unwrap(np.asarray(lag, dtype=float))
+    if f.shape != y.shape or f.ndim != 1 or len(np.unique(f)) < 3:
+        raise ReductionError("a phase and a delay need the lag at 3 or more distinct frequencies")
+    A = np.column_stack([np.ones_like(f), 2 * np.pi * f])
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    res = y - A @ coef
+    s2 = float(np.sum(res**2) / (len(f) - 2))
+    cov = s2 * np.linalg.inv(A.T @ A)
+    return DelayFit(float(coef[0]), float(coef[1]), float(np.sqrt(cov[0, 0])), float(np.sqrt(cov[1, 1])),
+                    float(np.sqrt(s2)))  # fmt: skip
+
+
+def correct_lag(values: np.ndarray, orbit: np.ndarray, phase: float, delay: float) -> np.ndarray:
+    """Phasors of a channel that lags by phase + |Omega| delay (rad, s), brought in step with the
+    reference channels; `orbit` (rad/s) broadcast against `values`."""
+    return np.asarray(values) * np.exp(1j * (phase + np.abs(np.asarray(orbit)) * delay))

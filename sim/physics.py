@@ -81,6 +81,7 @@ class RigPhysics:
         self._waveforms: dict[tuple, np.ndarray] = {}
         self._supply: tuple[ManualSettings, Supply] | None = None
         self.applied_load = np.zeros(2)  # N (x, y): a static calibration load on the journal
+        self.reference: tuple[float, float] | None = None  # (N, m): a calibrator on every channel's input
 
     # ---------------------------------------------------------------- settings
     def set_manual(self, *, orbit_radius=None, static_eccentricity=None,
@@ -186,11 +187,22 @@ class RigPhysics:
             raise ValueError("a calibration load must be finite")
         self.applied_load = load
 
+    def apply_reference(self, force: float, probe: float) -> None:
+        """A calibrator on every channel's input instead of the rig: Re(A e^{i theta}), locked to
+        the orbit angle, A = ``force`` N on force channels and ``probe`` m on probe channels; both
+        zero: the calibrator is removed. It passes each channel's chain like the real signal."""
+        amps = (float(force), float(probe))
+        if not all(np.isfinite(amps)):
+            raise ValueError("the reference amplitudes must be finite")
+        self.reference = None if amps == (0.0, 0.0) else amps
+
     def channel_harmonics(self, k: int, spin: float, orbit: float) -> np.ndarray:
         """Noise-free signal of channel k after its chain: value = Re sum_h q_h e^{i h theta}
         (a force channel's static part includes the applied calibration load)."""
         ch = self.channels[k]
-        if ch.kind == "force":
+        if self.reference is not None:
+            q = np.array([0.0, self.reference[0 if ch.kind == "force" else 1]], dtype=complex)
+        elif ch.kind == "force":
             F = self.force_harmonics(spin, orbit)[ch.axis].copy()
             F[0] += self.applied_load[ch.axis]
             q = F * np.exp(1j * np.arange(len(F)) * self.cfg.adc.trigger_phase)

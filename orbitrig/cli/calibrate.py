@@ -4,6 +4,7 @@
   orbitrig calibrate show [NAME]           one record (default: the active one)
   orbitrig calibrate loads [--sim]         known static loads -> each load measuring system's gain matrix
   orbitrig calibrate runout [--sim]        slow roll without orbit -> each probe's runout at 1x, 2x spin
+  orbitrig calibrate delay [--sim]         phase reference -> each force channel's phase and delay behind the probes
 
 A step writes a new record into the records' folder beside the rig configuration
 (docs/calibration.md) and makes it the active one (``--no-activate``: it only writes it).
@@ -77,6 +78,38 @@ def register(app: typer.Typer) -> None:
         each probe's runout phasors at 1x and 2x spin, stored in a new record."""
         opts = _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
         _guarded(lambda: _runout(config, opts, activate))
+
+
+    @cal.command("delay")
+    def delay(
+        sim: bool = typer.Option(False, "--sim", help="on the built-in simulator (it connects the reference)"),
+        speeds_rpm: str = typer.Option("300,600,900,1200,1500", "--speeds-rpm", help="orbit spindle speeds (rpm, the spin at 1/0.7 times), comma separated: the reference's frequencies"),
+        reference_n: float = typer.Option(200.0, "--reference-n", min=0.001, help="reference amplitude on the force channels (N)"),
+        reference_um: float = typer.Option(20.0, "--reference-um", min=0.001, help="reference amplitude on the probes (um)"),
+        config: Optional[Path] = _CONFIG, operator: Optional[str] = typer.Option(None, "--operator", help="who calibrates (default: the login name)"),
+        revolutions: int = typer.Option(50, "--revolutions", min=2, max=10_000, help="revolutions averaged per speed"),
+        recess_pressure_mpa: float = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0),
+        pressure_ratio: float = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99),
+        activate: bool = typer.Option(True, "--activate/--no-activate", help="make the new record the active one"),
+        sim_config: Optional[Path] = typer.Option(None, "--sim-config", help="simulator scenario TOML (--sim only)"),
+        speedup: float = typer.Option(DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"),
+    ) -> None:  # fmt: skip
+        """A reference signal locked to the orbit spindle on every channel's input, read at several
+        slow-roll speeds: each force channel's lag behind the probes as a constant phase plus a time
+        delay (a 0.3 degree lag moves D by kilograms). The sweep takes the lags out of the forces."""
+        speeds = _speeds(speeds_rpm)
+        opts = _options(operator, speeds[0], revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
+        _guarded(lambda: _delay(config, opts, speeds, (reference_n, reference_um * 1e-6), activate))
+
+
+def _speeds(text: str) -> list[float]:
+    try:
+        speeds = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise typer.BadParameter(f"not a list of numbers: {text!r}", param_hint="--speeds-rpm") from None
+    if len(set(speeds)) < 3 or any(not 0 < v < 1e5 for v in speeds):
+        raise typer.BadParameter("give 3 or more distinct positive speeds (rpm)", param_hint="--speeds-rpm")
+    return speeds
 
 
 def _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup):
@@ -189,3 +222,17 @@ def _runout(config, opts, activate) -> None:
         h1, h2 = abs(record.runout.phasors(p)) * 1e6
         typer.echo(f"{p}: runout 1x {h1:.3f} um, 2x {h2:.3f} um")
     _write(rig, folder, record, activate, "Units: runout h1_um, h2_um micrometres [re, im] at 1x and 2x spin.")
+
+
+def _delay(config, opts, speeds, amplitudes, activate) -> None:
+    import asyncio
+
+    from orbitrig.cli.calibrate_steps import delay_record
+
+    rig, folder = _rig_and_folder(config)
+    record = asyncio.run(delay_record(rig, opts, speeds, amplitudes, lambda m: typer.echo(m, err=True)))
+    for name, d in record.delay.items():
+        typer.echo(f"{name}: lags the probes by {d.phase_deg:.4f} deg (u {d.phase_u_deg:.2g}) "
+                   f"+ {d.delay_us:.2f} us (u {d.delay_u_us:.2g})")  # fmt: skip
+    _write(rig, folder, record, activate, "Units: [delay] phase_deg degrees, delay_us microseconds: the force "
+           "channel lags the probes by phase_deg + 360 f delay_us 1e-6 degrees at f Hz.")

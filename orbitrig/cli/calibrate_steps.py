@@ -17,11 +17,20 @@ import typer
 
 from orbitrig import __version__
 from orbitrig.config import LMS, MPA, RPM, CalibrationUncertainty, RigConfig
-from orbitrig.config import CalibrationRecord, LoadGains, ProbeRunout, Reference, RecordStep, Runout
-from orbitrig.run.calibration import PROBES, CalibrationSession, SlowRoll, measure_loads, measure_runout
+from orbitrig.config import (
+    CalibrationRecord, ChannelDelay, LoadGains, ProbeRunout, Reference, RecordStep, Runout,
+)
+from orbitrig.run.calibration import (
+    PROBES, CalibrationSession, SlowRoll, measure_delay, measure_loads, measure_runout,
+)
 from orbitrig.run.rig_io import RigAccess
 from orbitrig.store.journal import now_iso
-from reduction.calibration import fit_gain_matrix, static_loads
+from reduction.calibration import fit_delay, fit_gain_matrix, static_loads
+
+FORCE_CHANNELS = ("fx_piezo", "fy_piezo", "fx_strain", "fy_strain")
+#: orbit / spin speed of the delay step: the spin's harmonics (runout, unbalance) stay off the
+#: board's revolution harmonics and average out
+DELAY_RATIO = 0.7
 
 
 @dataclass(frozen=True)
@@ -42,11 +51,18 @@ class StepOptions:
 
 
 class OperatorLoads:
-    """The rig: the operator applies each load and confirms on the terminal (Ctrl-C ends the step)."""
+    """The rig: the operator applies each load (or connects the phase reference) and confirms on
+    the terminal (Ctrl-C ends the step)."""
 
     async def apply_load(self, fx: float, fy: float) -> None:
         what = "remove every calibration load" if fx == 0 and fy == 0 else \
             f"apply the static load fx = {fx:+.1f} N, fy = {fy:+.1f} N on the journal"
+        await asyncio.to_thread(typer.prompt, f"{what}, then press Enter", default="", show_default=False)
+
+    async def apply_reference(self, force: float, probe: float) -> None:
+        what = "disconnect the phase reference and reconnect the sensors" if force == 0 and probe == 0 else \
+            (f"connect the phase reference (locked to the orbit spindle) to every channel's input: "
+             f"{force:g} N on the force channels, {probe * 1e6:g} um on the probes")
         await asyncio.to_thread(typer.prompt, f"{what}, then press Enter", default="", show_default=False)
 
 
@@ -108,4 +124,25 @@ async def runout_record(rig: RigConfig, opts: StepOptions, note) -> CalibrationR
     um = {p: [np.array([v.real, v.imag]) * 1e6 for v in phasors[p]] for p in PROBES}
     probes = {p: ProbeRunout(h1_um=um[p][0].tolist(), h2_um=um[p][1].tolist()).model_dump() for p in PROBES}
     data["runout"] = Runout(spin_rpm=opts.spin_rpm, revolutions=n, **probes).model_dump()
+    return CalibrationRecord.model_validate(data)
+
+
+async def delay_record(rig: RigConfig, opts: StepOptions, speeds_rpm: list[float], amplitudes: tuple[float, float],
+                       note) -> CalibrationRecord:  # fmt: skip
+    """`calibrate delay`: the phase reference read at each slow-roll speed; each force channel's lag
+    behind the probes fitted as a constant phase plus a time delay."""
+    base = opts.roll()
+    rolls = [SlowRoll(rpm * RPM / DELAY_RATIO, base.recess_pressure, base.pressure_ratio, base.revolutions, DELAY_RATIO)
+             for rpm in speeds_rpm]  # fmt: skip
+    async with rig_access(rig, opts) as (access, hands):
+        async with CalibrationSession(rig, access, note) as session:
+            freqs, lags = await measure_delay(session, hands, rolls, amplitudes)
+    data = _base(rig, opts, RecordStep.DELAY)
+    data["delay"] = {}
+    for name in FORCE_CHANNELS:
+        fit = fit_delay(freqs, lags[name])
+        d = ChannelDelay(phase_deg=float(np.degrees(fit.phase)), delay_us=fit.delay * 1e6,
+                         phase_u_deg=float(np.degrees(fit.phase_u)), delay_u_us=fit.delay_u * 1e6)  # fmt: skip
+        data["delay"][name] = d.model_dump()
+        data["uncertainty"][name].update(phase_deg=d.phase_u_deg, delay_us=d.delay_u_us)
     return CalibrationRecord.model_validate(data)

@@ -38,6 +38,10 @@ class SimulatorHands:
         """A known static calibration load (N) on the simulator's journal, at once."""
         self.sim.physics.apply_load(fx, fy)
 
+    async def apply_reference(self, force: float, probe: float) -> None:
+        """A calibrator on every channel's input of the simulator (N, m; 0, 0: removed)."""
+        self.sim.physics.apply_reference(force, probe)
+
 
 class SimulatorTruth:
     """The simulator's bearing at its present manual settings (SI; spin, orbits rad/s)."""

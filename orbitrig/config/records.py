@@ -6,7 +6,8 @@ date. Each record is complete: a calibration step starts from the active record 
 what it measured, so the active record alone says how the rig is calibrated. The rig
 configuration names the active one (``calibration_record = "NAME"``); its ``[uncertainty]``
 feeds the type-B budget, its ``[loads.<system>]`` gain matrices correct the forces, its
-``[runout]`` phasors are taken from the probes' blocks.
+``[runout]`` phasors are taken from the probes' blocks, its ``[delay]`` phases and delays
+bring the force channels in step with the probes.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ class RecordStep(StrEnum):
     INITIAL = "initial"  # typed in from the sensors' data sheets and certificates
     LOADS = "loads"
     RUNOUT = "runout"
+    DELAY = "delay"
 
 
 class Reference(_Model):
@@ -87,6 +89,16 @@ class Runout(_Model):
         return np.array([complex(*p.h1_um), complex(*p.h2_um)]) * 1e-6
 
 
+class ChannelDelay(_Model):
+    """A force channel's lag behind the probes: phase_deg + 360 f delay_us 1e-6 degrees at f Hz,
+    with the fit's standard uncertainties."""
+
+    phase_deg: Annotated[float, Field(ge=-180, le=180)]
+    delay_us: Annotated[float, Field(ge=-100_000, le=100_000)]
+    phase_u_deg: Annotated[float, Field(ge=0)] = 0.0
+    delay_u_us: Annotated[float, Field(ge=0)] = 0.0
+
+
 class CalibrationRecord(_Model):
     date: str  # ISO 8601, UTC
     operator: str = Field(min_length=1)
@@ -97,6 +109,7 @@ class CalibrationRecord(_Model):
     reference: Reference | None = None
     loads: dict[Literal["piezo", "strain"], LoadGains] = {}
     runout: Runout | None = None
+    delay: dict[Literal["fx_piezo", "fy_piezo", "fx_strain", "fy_strain"], ChannelDelay] = {}
     uncertainty: CalibrationUncertainty = CalibrationUncertainty()
 
     @field_validator("date")

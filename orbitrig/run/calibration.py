@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Awaitable, Callable, Protocol
+from typing import Callable, Protocol
 
 import numpy as np
 
@@ -42,15 +42,28 @@ class LoadHands(Protocol):
     async def apply_load(self, fx: float, fy: float) -> None: ...
 
 
+class ReferenceHands(Protocol):
+    """Whoever connects the phase reference (a calibrator locked to the orbit spindle, amplitude
+    ``force`` N on the force channels, ``probe`` m on the probes; 0, 0: disconnected)."""
+
+    async def apply_reference(self, force: float, probe: float) -> None: ...
+
+
 @dataclass(frozen=True)
 class SlowRoll:
-    """The slow roll of a step: spin (rad/s, orbit spindle at the same speed, radius zero), the
-    pressures set meanwhile (Pa, -) and the revolutions averaged per reading."""
+    """The slow roll of a step: spin (rad/s; the orbit spindle at ``ratio`` times it, radius zero),
+    the pressures set meanwhile (Pa, -) and the revolutions averaged per reading."""
 
     spin: float
     recess_pressure: float
     pressure_ratio: float
     revolutions: int = 50
+    ratio: float = 1.0
+
+    @property
+    def orbit(self) -> float:
+        """The orbit spindle's speed (rad/s), the board's revolution rate."""
+        return self.spin * self.ratio
 
 
 class CalibrationSession:
@@ -81,13 +94,13 @@ class CalibrationSession:
 
     async def roll(self, roll: SlowRoll) -> None:
         """Orbit radius and static eccentricity zero, the pressures set, then spin and orbit
-        spindle at `roll.spin` until both hold it."""
+        spindle at their speeds until both hold them."""
         self.roll_spec = roll
         self.access.hands.set_manual(orbit_radius=0.0, static_eccentricity=0.0,
                                      recess_pressure=roll.recess_pressure, pressure_ratio=roll.pressure_ratio)  # fmt: skip
         scale, s = self.access.time_scale, self.rig.settle
         try:
-            await self.io.drives.set_speeds(roll.spin, roll.spin)
+            await self.io.drives.set_speeds(roll.spin, roll.orbit)
             await self.io.drives.wait_settled(hold=scale.wall(s.hold_s), timeout=scale.wall(s.timeout_s) + 5.0)
         except DriveError as err:
             raise CalibrationFailed(f"slow roll at {roll.spin:.4g} rad/s: {err}") from err
@@ -95,10 +108,10 @@ class CalibrationSession:
     async def average(self) -> AveragedBlock:
         """One block of `roll.revolutions` revolutions at the slow roll (retried once)."""
         roll, av = self.roll_spec, self.rig.averaging
-        period = 2 * np.pi / roll.spin
+        period = 2 * np.pi / roll.orbit
         timeout = self.access.time_scale.wall(av.timeout_factor * (roll.revolutions + 1) * period
                                               + av.timeout_margin_s) + 2.0  # fmt: skip
-        rule = AveragingRule(roll.revolutions, roll.revolutions, None, 1.0)
+        rule = AveragingRule(roll.revolutions, roll.revolutions, None, 1.0 / roll.ratio)
         for attempt in range(av.retries + 1):
             try:
                 return await self.io.acquire(rule, timeout=timeout)
@@ -141,4 +154,25 @@ async def measure_runout(session: CalibrationSession) -> tuple[dict[str, np.ndar
     return {p: np.array([harmonic(blk, ch[p], 1), harmonic(blk, ch[p], 2)]) for p in PROBES}, blk.n_revolutions
 
 
-ApplyLoad = Callable[[float, float], Awaitable[None]]
+async def measure_delay(session: CalibrationSession, hands: ReferenceHands, rolls: list[SlowRoll],
+                        amplitudes: tuple[float, float]) -> tuple[np.ndarray, dict[str, np.ndarray]]:  # fmt: skip
+    """The reference read at each slow roll of `rolls` (its orbit frequency; a ratio off 1 keeps
+    the probes' runout out of the average): (frequencies Hz (n,), {channel: (n,) lag (rad)
+    behind the mean of the four probes}); the reference removed after."""
+    ch = session.rig.channel_index
+    freqs, lags = [], {name: [] for name in ch}
+    try:
+        await hands.apply_reference(*amplitudes)
+        for roll in rolls:
+            await session.roll(roll)
+            blk = await session.average()
+            ph = np.asarray(blk.phasors)
+            ref = np.mean([ph[ch[p]] / abs(ph[ch[p]]) for p in PROBES])
+            freqs.append(roll.orbit / (2 * np.pi))
+            for name, i in ch.items():
+                lags[name].append(-np.angle(ph[i] / ref))
+            session.note(f"reference at {freqs[-1]:.2f} Hz: force channels lag the probes by "
+                         + ", ".join(f"{n} {np.degrees(lags[n][-1]):.3f} deg" for n in ch if n.startswith("f")))  # fmt: skip
+    finally:
+        await hands.apply_reference(0.0, 0.0)
+    return np.array(freqs), {name: np.array(v) for name, v in lags.items()}

@@ -1,7 +1,8 @@
 """What the sweep corrects from the active calibration record (docs/calibration.md).
 
-- Forces: each load measuring system's 2 x 2 gain matrix (``[loads.<system>]``; identity
-  without one), f_journal = G f_read, per revolution and on the averaged phasors.
+- Forces: each force channel's lag behind the probes (``[delay]``: phase and time delay)
+  taken out, then each load measuring system's 2 x 2 gain matrix (``[loads.<system>]``;
+  identity without one), f_journal = G f_read, per revolution and on the averaged phasors.
 - Probes: the runout of each probe track at 1x and 2x spin (``[runout]``) taken out of every
   block's per-revolution phasors, the block's spin phase fitted from its own revolutions
   (reduction.runout); only when the rig configuration's ``subtract_runout`` is true (default).
@@ -18,6 +19,7 @@ import numpy as np
 
 from orbitrig.config import LMS, RigConfig
 from orbitrig.store.writer import BlockRecord
+from reduction.calibration import correct_forces, correct_lag
 from reduction.runout import remove_runout
 
 PROBES = ("x_a", "y_a", "x_b", "y_b")
@@ -28,6 +30,7 @@ MIN_REVOLUTIONS = 3  # fewer cannot fit a block's spin phase: the block is left 
 class Corrections:
     force_gains: dict[str, np.ndarray] = field(default_factory=dict)
     runout: np.ndarray | None = None  # (4, 2) complex, m: PROBES x (1x, 2x spin)
+    lags: dict[str, tuple[float, float]] = field(default_factory=dict)  # channel -> (phase rad, delay s)
 
     @classmethod
     def of_rig(cls, rig: RigConfig) -> "Corrections":
@@ -38,7 +41,18 @@ class Corrections:
         runout = None
         if rec.runout is not None and rig.subtract_runout:
             runout = np.array([rec.runout.phasors(p) for p in PROBES])
-        return cls({lms: rec.force_gain(lms) for lms in LMS if lms in rec.loads}, runout)
+        lags = {name: (np.radians(d.phase_deg), d.delay_us * 1e-6) for name, d in rec.delay.items()}
+        return cls({lms: rec.force_gain(lms) for lms in LMS if lms in rec.loads}, runout, lags)
+
+    def forces(self, lms: str, fx: np.ndarray, fy: np.ndarray, orbit) -> tuple[np.ndarray, np.ndarray]:
+        """(fx, fy) of system ``lms`` corrected: each channel's lag at |orbit| (rad/s, broadcast
+        against the phasors) taken out, then the gain matrix."""
+        out = []
+        for axis, f in (("fx", fx), ("fy", fy)):
+            lag = self.lags.get(f"{axis}_{lms}")
+            out.append(f if lag is None else correct_lag(f, orbit, *lag))
+        gain = self.force_gains.get(lms)
+        return tuple(out) if gain is None else correct_forces(gain, *out)
 
     def probe_records(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray:
         """(N, C) the block's per-revolution phasors, the probes' runout taken out (spin rad/s)."""

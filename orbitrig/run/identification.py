@@ -20,7 +20,6 @@ from orbitrig.run.point_analysis import analyse_point
 from daq.averager import AveragedBlock
 from orbitrig.run.truth import point_truth  # noqa: F401  (the engine's truth step)
 from orbitrig.store.writer import BlockRecord, PointResults
-from reduction.calibration import correct_forces
 from reduction.coherence import orbit_coherences
 from reduction.errors import ReductionError
 from reduction.noise import mean_uncertainty
@@ -65,7 +64,7 @@ def identify_operating_point(spin: float, recs: list[BlockRecord], ch: dict[str,
     recs = sorted(recs, key=lambda r: (r.block.freq, -r.block.direction))
     corr = corrections or Corrections()
     probes = [(corr.probe_phasors(r, ch, spin), corr.probe_records(r, ch, spin)) for r in recs]
-    tables = {lms: orbit_table(spin, recs, ch, lms, corr.force_gains.get(lms), probes) for lms in LMS}
+    tables = {lms: orbit_table(spin, recs, ch, lms, corr, probes) for lms in LMS}
     idents, fits = {}, {}
     for lms in LMS:
         for spec in models:
@@ -78,59 +77,57 @@ def identify_operating_point(spin: float, recs: list[BlockRecord], ch: dict[str,
             idents[(lms, spec.key)] = {"spec": spec, "json": res.to_dict()}
     grid = np.unique([abs(r.block.orbit) for r in recs])  # the planned orbit frequencies, rad/s
     analyse_point(spin, tables, fits, idents, calibration, grid)
-    return PointResults(tables, idents, lms_comparison(recs, ch, corr.force_gains), truth)
+    return PointResults(tables, idents, lms_comparison(recs, ch, corr), truth)
 
 
 def orbit_table(spin: float, recs: list[BlockRecord], ch: dict[str, int], lms: str,
-                gain: np.ndarray | None = None, probes: list | None = None) -> OrbitTable:  # fmt: skip
+                corrections: Corrections | None = None, probes: list | None = None) -> OrbitTable:  # fmt: skip
     """Orbit table of one point for one load measuring system (Omega > 0, direction in the phasors),
     with each row's revolution count and the standard uncertainty of its phasors
     (:func:`row_uncertainty`; x, y the per-revolution probe-plane means); the forces through the
-    system's 2 x 2 ``gain`` matrix (reduction.calibration; None: as read); ``probes`` per block
+    ``corrections`` (lags and gain matrix; None: as read); ``probes`` per block
     (averaged phasors, per-revolution phasors) with the runout taken out (None: as read)."""
     probes = probes or [(r.phasors, r.record_phasors) for r in recs]
+    corr = corrections or Corrections()
     ph = np.array([p for p, _ in probes])
     orbit = np.array([r.measured_orbit_speed if math.isfinite(r.measured_orbit_speed) and r.measured_orbit_speed > 0
                       else abs(r.block.orbit) for r in recs])  # fmt: skip
     i = LMS.index(lms)
     x, y = probe_plane(ph, ch)
     n_records = np.array([len(r.record_phasors) for r in recs])
-    u = np.array([row_uncertainty(rp, ch, lms, spin / abs(r.block.orbit), r.revolutions, gain)
+    u = np.array([row_uncertainty(rp, ch, lms, spin / abs(r.block.orbit), r.revolutions,
+                                  lambda fx, fy, o=abs(r.block.orbit): corr.forces(lms, fx, fy, o))
                   for r, (_, rp) in zip(recs, probes)])  # fmt: skip
-    fx, fy = ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]]
-    if gain is not None:
-        fx, fy = correct_forces(gain, fx, fy)
+    fx, fy = corr.forces(lms, ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]], orbit)
     return OrbitTable(spin=spin, orbit=orbit, x=x, y=y, fx=fx, fy=fy,
                       gamma2=np.array([r.coherence[i] for r in recs]), n_records=n_records,
                       u=u if np.all(np.isfinite(u)) else None)  # fmt: skip
 
 
 def row_uncertainty(record_phasors: np.ndarray, ch: dict[str, int], lms: str, spin_turns: float,
-                    revolutions: np.ndarray | None = None, gain: np.ndarray | None = None) -> np.ndarray:
+                    revolutions: np.ndarray | None = None, correct=None) -> np.ndarray:
     """(u_x, u_y, u_fx, u_fy) of one block (m, m, N, N): the standard uncertainty of each mean
     (reduction.noise.mean_uncertainty: the scatter with the spin tones' rotating leakage taken
     out, plus what those tones leave in the mean); ``spin_turns`` = omega / |Omega|,
     ``revolutions`` the board's revolution number of each record (gaps where one was dropped),
-    ``gain`` the system's gain matrix (the forces corrected per revolution)."""
+    ``correct(fx, fy) -> (fx, fy)`` the system's force corrections (applied per revolution)."""
     rp = np.asarray(record_phasors)
     x, y = probe_plane(rp, ch)
     fx, fy = rp[:, ch[f"fx_{lms}"]], rp[:, ch[f"fy_{lms}"]]
-    if gain is not None:
-        fx, fy = correct_forces(gain, fx, fy)
+    if correct is not None:
+        fx, fy = correct(fx, fy)
     per_rev = np.stack([x, y, fx, fy], axis=1)
     return mean_uncertainty(per_rev, spin_turns, revolutions)
 
 
-def lms_comparison(recs: list[BlockRecord], ch: dict[str, int], gains: dict | None = None) -> dict:
-    """Strain vs piezo forces per block (each through its gain matrix of ``gains``): amplitude
-    ratio and phase difference (deg)."""
+def lms_comparison(recs: list[BlockRecord], ch: dict[str, int], corrections: Corrections | None = None) -> dict:
+    """Strain vs piezo forces per block (each through its ``corrections``): amplitude ratio and
+    phase difference (deg)."""
     out: dict = {"orbit_hz": [r.block.orbit_hz for r in recs], "direction": [r.block.direction for r in recs]}
     ph = np.array([r.phasors for r in recs]) if recs else np.zeros((0, len(ch)), complex)
-    forces = {}
-    for lms in LMS:
-        fx, fy = ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]]
-        g = (gains or {}).get(lms)
-        forces[lms] = dict(zip(("fx", "fy"), correct_forces(g, fx, fy) if g is not None else (fx, fy)))
+    corr, orbit = corrections or Corrections(), np.array([abs(r.block.orbit) for r in recs])
+    forces = {lms: dict(zip(("fx", "fy"), corr.forces(lms, ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]], orbit)))
+              for lms in LMS}  # fmt: skip
     for f in ("fx", "fy"):
         ratio = forces["strain"][f] / forces["piezo"][f]
         out[f"{f}_amp_ratio"] = np.abs(ratio).round(6).tolist()
