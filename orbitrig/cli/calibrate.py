@@ -84,10 +84,10 @@ def register(app: typer.Typer) -> None:
     def delay(
         sim: bool = typer.Option(False, "--sim", help="on the built-in simulator (it connects the reference)"),
         speeds_rpm: str = typer.Option("300,600,900,1200,1500", "--speeds-rpm", help="orbit spindle speeds (rpm, the spin at 1/0.7 times), comma separated: the reference's frequencies"),
-        reference_n: float = typer.Option(200.0, "--reference-n", min=0.001, help="reference amplitude on the force channels (N)"),
+        reference_n: float = typer.Option(1000.0, "--reference-n", min=0.001, help="reference amplitude on the force channels (N)"),
         reference_um: float = typer.Option(20.0, "--reference-um", min=0.001, help="reference amplitude on the probes (um)"),
         config: Optional[Path] = _CONFIG, operator: Optional[str] = typer.Option(None, "--operator", help="who calibrates (default: the login name)"),
-        revolutions: int = typer.Option(50, "--revolutions", min=2, max=10_000, help="revolutions averaged per speed"),
+        revolutions: int = typer.Option(100, "--revolutions", min=2, max=10_000, help="revolutions averaged per speed"),
         recess_pressure_mpa: float = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0),
         pressure_ratio: float = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99),
         activate: bool = typer.Option(True, "--activate/--no-activate", help="make the new record the active one"),

@@ -14,6 +14,7 @@ measuring systems' force channels. SI throughout.
 
 from __future__ import annotations
 
+import asyncio
 import logging
 from dataclasses import dataclass
 from typing import Callable, Protocol
@@ -23,12 +24,13 @@ import numpy as np
 from daq.averager import AveragedBlock, AveragingRule
 from daq.errors import DaqError
 from drives.errors import DriveError
-from orbitrig.config import LMS, RigConfig
+from orbitrig.config import LMS, RPM, RigConfig
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.rig_io import RigAccess, RigIO
 from reduction.fourier import phasor
 
 log = logging.getLogger(__name__)
+HOLD_REVOLUTIONS = 3  # read and dropped after a change at the input
 PROBES = ("x_a", "y_a", "x_b", "y_b")
 
 
@@ -103,15 +105,22 @@ class CalibrationSession:
             await self.io.drives.set_speeds(roll.spin, roll.orbit)
             await self.io.drives.wait_settled(hold=scale.wall(s.hold_s), timeout=scale.wall(s.timeout_s) + 5.0)
         except DriveError as err:
-            raise CalibrationFailed(f"slow roll at {roll.spin:.4g} rad/s: {err}") from err
+            raise CalibrationFailed(f"slow roll at spin {roll.spin / RPM:.0f} rpm, orbit {roll.orbit / RPM:.0f} rpm: "
+                                    f"{err}") from err  # fmt: skip
 
-    async def average(self) -> AveragedBlock:
-        """One block of `roll.revolutions` revolutions at the slow roll (retried once)."""
+    async def hold(self) -> None:
+        """After a change at the input (a load, the reference): `settle.hold_s` physical seconds,
+        then a few revolutions read and dropped, so that no average holds what came before."""
+        await asyncio.sleep(self.access.time_scale.wall(self.rig.settle.hold_s))
+        await self.average(HOLD_REVOLUTIONS)
+
+    async def average(self, revolutions: int | None = None) -> AveragedBlock:
+        """One block of `revolutions` (default `roll.revolutions`) at the slow roll (retried once)."""
         roll, av = self.roll_spec, self.rig.averaging
+        n = revolutions or roll.revolutions
         period = 2 * np.pi / roll.orbit
-        timeout = self.access.time_scale.wall(av.timeout_factor * (roll.revolutions + 1) * period
-                                              + av.timeout_margin_s) + 2.0  # fmt: skip
-        rule = AveragingRule(roll.revolutions, roll.revolutions, None, 1.0 / roll.ratio)
+        timeout = self.access.time_scale.wall(av.timeout_factor * (n + 1) * period + av.timeout_margin_s) + 2.0
+        rule = AveragingRule(n, n, None, 1.0 / roll.ratio)
         for attempt in range(av.retries + 1):
             try:
                 return await self.io.acquire(rule, timeout=timeout)
@@ -130,6 +139,7 @@ async def measure_loads(session: CalibrationSession, hands: LoadHands, loads: np
     try:
         for fx, fy in np.asarray(loads, dtype=float):
             await hands.apply_load(float(fx), float(fy))
+            await session.hold()
             blk = await session.average()
             for lms in LMS:
                 out[lms].append([blk.dc[ch[f"fx_{lms}"]], blk.dc[ch[f"fy_{lms}"]]])
@@ -165,6 +175,7 @@ async def measure_delay(session: CalibrationSession, hands: ReferenceHands, roll
         await hands.apply_reference(*amplitudes)
         for roll in rolls:
             await session.roll(roll)
+            await session.hold()
             blk = await session.average()
             ph = np.asarray(blk.phasors)
             ref = np.mean([ph[ch[p]] / abs(ph[ch[p]]) for p in PROBES])
