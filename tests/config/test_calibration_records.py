@@ -1,0 +1,102 @@
+"""Calibration records (orbitrig.config.records, docs/calibration.md): the shipped record, writing
+and reading back, the active record in the rig configuration, refusals that name the file, and
+`orbitrig calibrate list|show`."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from orbitrig.config import (
+    CalibrationRecord, activate, digest, list_names, load_rig, read_record, rig_from_text, write_record,
+)  # fmt: skip
+from orbitrig.errors import ConfigError
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _rig_copy(tmp: Path) -> Path:
+    shutil.copy(ROOT / "config/rig.toml", tmp / "rig.toml")
+    shutil.copytree(ROOT / "config/calibration", tmp / "calibration")
+    return tmp / "rig.toml"
+
+
+def _loads_record(rig, date: str = "2026-12-01T08:30:00+00:00") -> CalibrationRecord:
+    data = rig.record.model_dump()
+    data.update(date=date, operator="ada", step="loads", previous=rig.calibration_record,
+                reference={"id": "DW-7 dead weights", "uncertainty_pct": 0.02},
+                loads={"strain": {"gain": [[0.98, 0.001], [0.0, 0.99]], "gain_u": [[1e-4, 1e-4], [1e-4, 1e-4]]}})
+    data["uncertainty"]["fx_strain"]["gain_pct"] = 0.01
+    return CalibrationRecord.model_validate(data)
+
+
+def test_the_shipped_rig_configuration_names_a_record_whose_uncertainty_is_the_budget():
+    rig = load_rig()
+    assert rig.calibration_record in list_names(ROOT / "config/calibration")
+    assert rig.record.step == "initial" and rig.calibration_uncertainty == rig.record.uncertainty
+    assert rig.calibration_uncertainty.fx_strain.gain_pct == 2.5
+    assert rig.record.force_gain("strain").tolist() == [[1.0, 0.0], [0.0, 1.0]]
+
+
+def test_a_written_record_reads_back_is_activated_and_drives_the_budget(tmp_path):
+    rig_file = _rig_copy(tmp_path)
+    rig = load_rig(rig_file)
+    before = rig_file.read_text()
+    name, text = write_record(tmp_path / "calibration", _loads_record(rig), "a test record")
+    assert name == "2026-12-01T083000Z-loads" and text.startswith("# a test record\n")
+    back, back_text = read_record(tmp_path / "calibration", name)
+    assert back == _loads_record(rig) and back_text == text
+    with pytest.raises(ConfigError, match="exists already"):
+        write_record(tmp_path / "calibration", _loads_record(rig))
+    activate(rig_file, name)
+    after = rig_file.read_text()
+    changed = [(a, b) for a, b in zip(before.splitlines(), after.splitlines()) if a != b]
+    assert len(before.splitlines()) == len(after.splitlines()) and len(changed) == 1
+    assert changed[0][1].startswith(f'calibration_record = "{name}"  #')  # the comment stays
+    rig2 = load_rig(rig_file)
+    assert rig2.calibration_uncertainty.fx_strain.gain_pct == 0.01
+    assert np.allclose(rig2.record.force_gain("strain"), [[0.98, 0.001], [0.0, 0.99]])
+    assert rig2.record.force_gain("piezo").tolist() == [[1.0, 0.0], [0.0, 1.0]]
+    # a run's stored copy wins over the folder (a resume uses what the run was made with)
+    stored = rig_from_text(after, str(rig_file), read_record(tmp_path / "calibration", rig.calibration_record)[1])
+    assert stored.calibration_uncertainty.fx_strain.gain_pct == 2.5
+
+
+def test_a_missing_or_bad_record_is_refused_naming_the_file(tmp_path):
+    rig_file = _rig_copy(tmp_path)
+    text = rig_file.read_text()
+    rig_file.write_text(text.replace(load_rig(rig_file).calibration_record, "2020-01-01T000000Z-loads"))
+    with pytest.raises(ConfigError) as err:
+        load_rig(rig_file)
+    assert "2020-01-01T000000Z-loads" in str(err.value) and "initial" in str(err.value)  # names what exists
+    bad = tmp_path / "calibration" / "2020-01-01T000000Z-loads.toml"
+    bad.write_text('date = "2020-01-01T00:00:00+02:00"\noperator = "x"\nstep = "loads"\n')
+    with pytest.raises(ConfigError) as err:
+        load_rig(rig_file)
+    assert err.value.file == str(bad) and "line 1" in str(err.value) and "UTC" in str(err.value)
+
+
+def _orbitrig(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "orbitrig", *args], cwd=ROOT, capture_output=True, text=True,
+                          timeout=60, env={**os.environ, "COLUMNS": "200", "PYTHONPATH": str(ROOT)})
+
+
+def test_calibrate_list_and_show_print_the_history(tmp_path):
+    rig_file = _rig_copy(tmp_path)
+    rig = load_rig(rig_file)
+    name, text = write_record(tmp_path / "calibration", _loads_record(rig))
+    p = _orbitrig("calibrate", "list", "--config", str(rig_file))
+    assert p.returncode == 0, p.stderr
+    lines = p.stdout.splitlines()
+    assert lines[0].startswith(f"* {rig.calibration_record}") and "initial" in lines[0]  # oldest first
+    assert lines[1].startswith(f"  {name}") and "operator ada" in lines[1] and "DW-7 dead weights (u 0.02 %)" in lines[1]
+    p = _orbitrig("calibrate", "show", name, "--config", str(rig_file))
+    assert p.returncode == 0 and f"# sha256 {digest(text)}" in p.stdout and p.stdout.endswith(text)
+    p = _orbitrig("calibrate", "show", "2020-01-01T000000Z-none", "--config", str(rig_file))
+    assert p.returncode == 2 and "no calibration record" in p.stderr and "Traceback" not in p.stderr
