@@ -27,79 +27,86 @@ def register(app: typer.Typer) -> None:
     cal = typer.Typer(help="Calibrate the load measuring systems and probes; the calibration records.",
                       no_args_is_help=True)  # fmt: skip
     app.add_typer(cal, name="calibrate")
-
-    @cal.command("list")
-    def list_(config: Optional[Path] = _CONFIG) -> None:
-        """Every calibration record, oldest first (* the active one): date, step, operator, reference."""
-        _guarded(lambda: _list(config))
-
-    @cal.command("show")
-    def show(name: Optional[str] = typer.Argument(None, help="record name (default: the active record)"),
-             config: Optional[Path] = _CONFIG) -> None:  # fmt: skip
-        """Print one calibration record (its TOML text) and its SHA-256."""
-        _guarded(lambda: _show(name, config))
-
-    @cal.command("loads")
-    def loads(
-        sim: bool = typer.Option(False, "--sim", help="on the built-in simulator (it applies the loads)"),
-        load_n: float = typer.Option(500.0, "--load-n", min=1.0, help="magnitude of each static load (N)"),
-        reference_id: Optional[str] = typer.Option(None, "--reference-id", help="the reference's id (dead-weight set, load cell); required on the rig"),
-        reference_u_pct: Optional[float] = typer.Option(None, "--reference-u-pct", min=0.0, max=50.0,
-                                                        help="the reference certificate's relative standard uncertainty (%); required on the rig"),
-        config: Optional[Path] = _CONFIG, operator: Optional[str] = typer.Option(None, "--operator", help="who calibrates (default: the login name)"),
-        spin_rpm: float = typer.Option(300.0, "--spin-rpm", min=1.0, help="slow roll speed (rpm)"),
-        revolutions: int = typer.Option(50, "--revolutions", min=2, max=10_000, help="revolutions averaged per reading"),
-        recess_pressure_mpa: float = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0),
-        pressure_ratio: float = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99),
-        activate: bool = typer.Option(True, "--activate/--no-activate", help="make the new record the active one in the rig configuration"),
-        sim_config: Optional[Path] = typer.Option(None, "--sim-config", help="simulator scenario TOML (--sim only)"),
-        speedup: float = typer.Option(DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"),
-    ) -> None:  # fmt: skip
-        """Known static loads in x and y (the default set: none, +-x, +-y, two diagonals), read by both
-        load measuring systems; least squares gives each system's 2 x 2 gain matrix (cross terms
-        included) and its uncertainty (residuals and the reference's). The sweep applies them to the forces.
-        On the rig the operator applies each load and confirms it."""
-        opts = _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
-        _guarded(lambda: _loads(config, opts, load_n, reference_id, reference_u_pct, activate))
-
-    @cal.command("runout")
-    def runout(
-        sim: bool = typer.Option(False, "--sim", help="on the built-in simulator"),
-        config: Optional[Path] = _CONFIG, operator: Optional[str] = typer.Option(None, "--operator", help="who calibrates (default: the login name)"),
-        spin_rpm: float = typer.Option(100.0, "--spin-rpm", min=1.0, help="slow roll speed (rpm)"),
-        revolutions: int = typer.Option(100, "--revolutions", min=2, max=10_000, help="revolutions averaged"),
-        recess_pressure_mpa: float = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0),
-        pressure_ratio: float = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99),
-        activate: bool = typer.Option(True, "--activate/--no-activate", help="make the new record the active one"),
-        sim_config: Optional[Path] = typer.Option(None, "--sim-config", help="simulator scenario TOML (--sim only)"),
-        speedup: float = typer.Option(DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"),
-    ) -> None:  # fmt: skip
-        """Slow roll at low spin without orbit (orbit radius zero, the orbit spindle at the spin speed):
-        each probe's runout phasors at 1x and 2x spin, stored in a new record."""
-        opts = _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
-        _guarded(lambda: _runout(config, opts, activate))
+    for name, command in (("list", list_), ("show", show), ("loads", loads), ("runout", runout), ("delay", delay)):
+        cal.command(name)(command)
 
 
-    @cal.command("delay")
-    def delay(
-        sim: bool = typer.Option(False, "--sim", help="on the built-in simulator (it connects the reference)"),
-        speeds_rpm: str = typer.Option("300,600,900,1200,1500", "--speeds-rpm", help="orbit spindle speeds (rpm, the spin at 1/0.7 times), comma separated: the reference's frequencies"),
-        reference_n: float = typer.Option(1000.0, "--reference-n", min=0.001, help="reference amplitude on the force channels (N)"),
-        reference_um: float = typer.Option(20.0, "--reference-um", min=0.001, help="reference amplitude on the probes (um)"),
-        config: Optional[Path] = _CONFIG, operator: Optional[str] = typer.Option(None, "--operator", help="who calibrates (default: the login name)"),
-        revolutions: int = typer.Option(100, "--revolutions", min=2, max=10_000, help="revolutions averaged per speed"),
-        recess_pressure_mpa: float = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0),
-        pressure_ratio: float = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99),
-        activate: bool = typer.Option(True, "--activate/--no-activate", help="make the new record the active one"),
-        sim_config: Optional[Path] = typer.Option(None, "--sim-config", help="simulator scenario TOML (--sim only)"),
-        speedup: float = typer.Option(DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"),
-    ) -> None:  # fmt: skip
-        """A reference signal locked to the orbit spindle on every channel's input, read at several
-        slow-roll speeds: each force channel's lag behind the probes as a constant phase plus a time
-        delay (a 0.3 degree lag moves D by kilograms). The sweep takes the lags out of the forces."""
-        speeds = _speeds(speeds_rpm)
-        opts = _options(operator, speeds[0], revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
-        _guarded(lambda: _delay(config, opts, speeds, (reference_n, reference_um * 1e-6), activate))
+def list_(config: Optional[Path] = _CONFIG) -> None:
+    """Every calibration record, oldest first (* the active one): date, step, operator, reference."""
+    _guarded(lambda: _list(config))
+
+
+def show(name: Optional[str] = typer.Argument(None, help="record name (default: the active record)"),
+         config: Optional[Path] = _CONFIG) -> None:  # fmt: skip
+    """Print one calibration record (its TOML text) and its SHA-256."""
+    _guarded(lambda: _show(name, config))
+
+
+def loads(
+    sim: bool = typer.Option(False, "--sim", help="on the built-in simulator (it applies the loads)"),
+    load_n: float = typer.Option(500.0, "--load-n", min=1.0, help="magnitude of each static load (N)"),
+    reference_id: Optional[str] = typer.Option(None, "--reference-id", help="the reference's id (dead-weight set, load cell); required on the rig"),
+    reference_u_pct: Optional[float] = typer.Option(None, "--reference-u-pct", min=0.0, max=50.0,
+                                                    help="the reference certificate's relative standard uncertainty (%); required on the rig"),
+    config: Optional[Path] = _CONFIG, operator: Optional[str] = typer.Option(None, "--operator", help="who calibrates (default: the login name)"),
+    spin_rpm: float = typer.Option(300.0, "--spin-rpm", min=1.0, help="slow roll speed (rpm)"),
+    revolutions: int = typer.Option(50, "--revolutions", min=2, max=10_000, help="revolutions averaged per reading"),
+    recess_pressure_mpa: float = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0),
+    pressure_ratio: float = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99),
+    activate: bool = typer.Option(True, "--activate/--no-activate", help="make the new record the active one in the rig configuration"),
+    sim_config: Optional[Path] = typer.Option(None, "--sim-config", help="simulator scenario TOML (--sim only)"),
+    speedup: float = typer.Option(DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"),
+) -> None:  # fmt: skip
+    """Static loads -> each load measuring system's 2 x 2 gain matrix.
+
+    Known static loads in x and y (the default set: none, +-x, +-y, two diagonals), read by both
+    load measuring systems; least squares gives each system's 2 x 2 gain matrix (cross terms
+    included) and its uncertainty (residuals and the reference's). The sweep applies them to the forces.
+    On the rig the operator applies each load and confirms it."""
+    opts = _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
+    _guarded(lambda: _loads(config, opts, load_n, reference_id, reference_u_pct, activate))
+
+
+def runout(
+    sim: bool = typer.Option(False, "--sim", help="on the built-in simulator"),
+    config: Optional[Path] = _CONFIG, operator: Optional[str] = typer.Option(None, "--operator", help="who calibrates (default: the login name)"),
+    spin_rpm: float = typer.Option(100.0, "--spin-rpm", min=1.0, help="slow roll speed (rpm)"),
+    revolutions: int = typer.Option(100, "--revolutions", min=2, max=10_000, help="revolutions averaged"),
+    recess_pressure_mpa: float = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0),
+    pressure_ratio: float = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99),
+    activate: bool = typer.Option(True, "--activate/--no-activate", help="make the new record the active one"),
+    sim_config: Optional[Path] = typer.Option(None, "--sim-config", help="simulator scenario TOML (--sim only)"),
+    speedup: float = typer.Option(DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"),
+) -> None:  # fmt: skip
+    """Slow roll without orbit -> each probe's runout at 1x and 2x spin.
+
+    Slow roll at low spin without orbit (orbit radius zero, the orbit spindle at the spin speed):
+    each probe's runout phasors at 1x and 2x spin, stored in a new record."""
+    opts = _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
+    _guarded(lambda: _runout(config, opts, activate))
+
+
+def delay(
+    sim: bool = typer.Option(False, "--sim", help="on the built-in simulator (it connects the reference)"),
+    speeds_rpm: str = typer.Option("300,600,900,1200,1500", "--speeds-rpm", help="orbit spindle speeds (rpm, the spin at 1/0.7 times), comma separated: the reference's frequencies"),
+    reference_n: float = typer.Option(1000.0, "--reference-n", min=0.001, help="reference amplitude on the force channels (N)"),
+    reference_um: float = typer.Option(20.0, "--reference-um", min=0.001, help="reference amplitude on the probes (um)"),
+    config: Optional[Path] = _CONFIG, operator: Optional[str] = typer.Option(None, "--operator", help="who calibrates (default: the login name)"),
+    revolutions: int = typer.Option(100, "--revolutions", min=2, max=10_000, help="revolutions averaged per speed"),
+    recess_pressure_mpa: float = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0),
+    pressure_ratio: float = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99),
+    activate: bool = typer.Option(True, "--activate/--no-activate", help="make the new record the active one"),
+    sim_config: Optional[Path] = typer.Option(None, "--sim-config", help="simulator scenario TOML (--sim only)"),
+    speedup: float = typer.Option(DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"),
+) -> None:  # fmt: skip
+    """Phase reference -> each force channel's phase and time delay behind the probes.
+
+    A reference signal locked to the orbit spindle on every channel's input, read at several
+    slow-roll speeds: each force channel's lag behind the probes as a constant phase plus a time
+    delay (a 0.3 degree lag moves D by kilograms). The sweep takes the lags out of the forces."""
+    speeds = _speeds(speeds_rpm)
+    opts = _options(operator, speeds[0], revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
+    _guarded(lambda: _delay(config, opts, speeds, (reference_n, reference_um * 1e-6), activate))
 
 
 def _speeds(text: str) -> list[float]:
