@@ -104,3 +104,31 @@ def correct_lag(values: np.ndarray, orbit: np.ndarray, phase: float, delay: floa
     """Phasors of a channel that lags by phase + |Omega| delay (rad, s), brought in step with the
     reference channels; `orbit` (rad/s) broadcast against `values`."""
     return np.asarray(values) * np.exp(1j * (phase + np.abs(np.asarray(orbit)) * delay))
+
+
+@dataclass(frozen=True)
+class ProbeFit:
+    """A displacement probe's calibration: step = gain * reading + offset (m), the gain's standard
+    uncertainty (residuals and the reference's), and its linearity: the largest deviation of the
+    readings from the line, relative to the span of the steps (1)."""
+
+    gain: float
+    gain_u: float
+    offset: float
+    linearity: float
+    residual_rms: float  # m
+
+
+def fit_probe(steps: np.ndarray, reading: np.ndarray, reference_u: float) -> ProbeFit:
+    """The line through a probe's `reading` (n,) of known `steps` (n,, m); `reference_u` the
+    steps' relative standard uncertainty. ReductionError with fewer than 3 distinct steps."""
+    d, r = np.asarray(steps, dtype=float), np.asarray(reading, dtype=float)
+    if d.shape != r.shape or d.ndim != 1 or len(np.unique(d)) < 3:
+        raise ReductionError("a probe's gain and linearity need 3 or more distinct steps")
+    A = np.column_stack([r, np.ones_like(r)])
+    coef, *_ = np.linalg.lstsq(A, d, rcond=None)
+    res = d - A @ coef
+    s2 = float(np.sum(res**2) / (len(d) - 2))
+    var = s2 * np.linalg.inv(A.T @ A)[0, 0] + (reference_u * coef[0]) ** 2
+    return ProbeFit(float(coef[0]), float(np.sqrt(var)), float(coef[1]),
+                    float(np.max(np.abs(res)) / np.ptp(d)), float(np.sqrt(s2)))  # fmt: skip

@@ -7,6 +7,7 @@ One JSON object per line in, one per line out:
   {"cmd": "true_phasors", "spin": .., "orbit": ..}           -> {"ok": true, "phasors": {"x_a": [re, im], ..}}
   {"cmd": "true_impedance", "spin": .., "orbit": ..}         -> {"ok": true, "re": [[..]], "im": [[..]]}
   {"cmd": "apply_load", "fx": 500.0, "fy": 0.0}              -> {"ok": true}   (static calibration load, N)
+  {"cmd": "apply_displacement", "dx": 1e-5, "dy": 0.0}      -> {"ok": true}   (static probe step, m)
   {"cmd": "apply_reference", "force": 100.0, "probe": 2e-6}  -> {"ok": true}   (calibrator on every input; 0, 0: off)
   {"cmd": "inject", "fault": "drop_frames", "count": 3}      -> {"ok": true}
   {"cmd": "local_control", "spin": .., "orbit": ..}          -> {"ok": true}
@@ -55,6 +56,9 @@ def handle(rig, request: dict) -> dict:
         if cmd == "apply_load":
             rig.physics.apply_load(float(req["fx"]), float(req["fy"]))
             return {"ok": True}
+        if cmd == "apply_displacement":
+            rig.physics.apply_displacement(float(req["dx"]), float(req["dy"]))
+            return {"ok": True}
         if cmd == "apply_reference":
             rig.physics.apply_reference(float(req["force"]), float(req["probe"]))
             return {"ok": True}
@@ -66,7 +70,8 @@ def handle(rig, request: dict) -> dict:
             return {"ok": True}
         if cmd == "state":
             return {"ok": True, **_jsonable(rig.state())}
-        return {"ok": False, "error": f"unknown cmd {cmd!r}; known: set_manual, apply_load, apply_reference, truth, "
+        return {"ok": False, "error": f"unknown cmd {cmd!r}; known: set_manual, apply_load, apply_displacement, "
+                                      "apply_reference, truth, "
                                       "true_phasors, true_impedance, inject, local_control, state"}
     except KeyError as err:
         return {"ok": False, "error": f"{cmd}: missing field {err.args[0]!r}"}

@@ -82,6 +82,7 @@ class RigPhysics:
         self._supply: tuple[ManualSettings, Supply] | None = None
         self.applied_load = np.zeros(2)  # N (x, y): a static calibration load on the journal
         self.reference: tuple[float, float] | None = None  # (N, m): a calibrator on every channel's input
+        self.applied_displacement = np.zeros(2)  # m (x, y): a micrometer's static step of the journal
 
     # ---------------------------------------------------------------- settings
     def set_manual(self, *, orbit_radius=None, static_eccentricity=None,
@@ -174,8 +175,9 @@ class RigPhysics:
         a, b = self._orbit_axes()
         tR = ch.plane * g.probe_tilt * self.manual.orbit_radius
         Et = E * np.exp(1j * s * g.probe_tilt_phase)
-        X = np.array([self._static()[0], a * E + tR * Et])
-        Y = np.array([self._static()[1], -1j * s * (b * E + tR * Et)])
+        dx, dy = self.applied_displacement
+        X = np.array([self._static()[0] + dx, a * E + tR * Et])
+        Y = np.array([self._static()[1] + dy, -1j * s * (b * E + tR * Et)])
         half = ch.plane * g.probe_misalignment / 2
         ca, sa = math.cos(half), math.sin(half)
         return ca * X + sa * Y if ch.axis == 0 else -sa * X + ca * Y
@@ -186,6 +188,14 @@ class RigPhysics:
         if not np.all(np.isfinite(load)):
             raise ValueError("a calibration load must be finite")
         self.applied_load = load
+
+    def apply_displacement(self, dx: float, dy: float) -> None:
+        """A known static step (m) of the journal by a micrometer jig: the probes see it, the film
+        does not (the probes' calibration; 0, 0: removed)."""
+        step = np.array([float(dx), float(dy)])
+        if not np.all(np.isfinite(step)):
+            raise ValueError("a displacement step must be finite")
+        self.applied_displacement = step
 
     def apply_reference(self, force: float, probe: float) -> None:
         """A calibrator on every channel's input instead of the rig: Re(A e^{i theta}), locked to

@@ -5,6 +5,7 @@
   orbitrig calibrate loads [--sim]         known static loads -> each load measuring system's gain matrix
   orbitrig calibrate runout [--sim]        slow roll without orbit -> each probe's runout at 1x, 2x spin
   orbitrig calibrate delay [--sim]         phase reference -> each force channel's phase and delay behind the probes
+  orbitrig calibrate probes [--sim]        known displacement steps -> each probe's gain and linearity
 
 A step writes a new record into the records' folder beside the rig configuration
 (docs/calibration.md) and makes it the active one (``--no-activate``: it only writes it).
@@ -27,7 +28,8 @@ def register(app: typer.Typer) -> None:
     cal = typer.Typer(help="Calibrate the load measuring systems and probes; the calibration records.",
                       no_args_is_help=True)  # fmt: skip
     app.add_typer(cal, name="calibrate")
-    for name, command in (("list", list_), ("show", show), ("loads", loads), ("runout", runout), ("delay", delay)):
+    for name, command in (("list", list_), ("show", show), ("loads", loads), ("runout", runout), ("delay", delay),
+                          ("probes", probes)):
         cal.command(name)(command)
 
 
@@ -107,6 +109,31 @@ def delay(
     speeds = _speeds(speeds_rpm)
     opts = _options(operator, speeds[0], revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
     _guarded(lambda: _delay(config, opts, speeds, (reference_n, reference_um * 1e-6), activate))
+
+
+def probes(
+    sim: bool = typer.Option(False, "--sim", help="on the built-in simulator (it steps the journal)"),
+    span_um: float = typer.Option(40.0, "--span-um", min=0.1, help="span of the steps, centred on zero (um)"),
+    steps: int = typer.Option(5, "--steps", min=3, max=101, help="number of steps over the span"),
+    reference_id: Optional[str] = typer.Option(None, "--reference-id", help="the micrometer's id; required on the rig"),
+    reference_u_pct: Optional[float] = typer.Option(None, "--reference-u-pct", min=0.0, max=50.0,
+                                                    help="its certificate's relative standard uncertainty (%); required on the rig"),
+    config: Optional[Path] = _CONFIG, operator: Optional[str] = typer.Option(None, "--operator", help="who calibrates (default: the login name)"),
+    spin_rpm: float = typer.Option(300.0, "--spin-rpm", min=1.0, help="slow roll speed (rpm)"),
+    revolutions: int = typer.Option(50, "--revolutions", min=2, max=10_000, help="revolutions averaged per step"),
+    recess_pressure_mpa: float = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0),
+    pressure_ratio: float = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99),
+    activate: bool = typer.Option(True, "--activate/--no-activate", help="make the new record the active one"),
+    sim_config: Optional[Path] = typer.Option(None, "--sim-config", help="simulator scenario TOML (--sim only)"),
+    speedup: float = typer.Option(DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"),
+) -> None:  # fmt: skip
+    """Displacement steps -> each probe's gain and linearity.
+
+    Known static steps of the journal (a micrometer), first along x, then along y, read by the probes
+    of that axis: a line per probe gives its gain (the sweep applies it) with its uncertainty, and
+    its linearity (largest deviation from the line, percent of the span)."""
+    opts = _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
+    _guarded(lambda: _probes(config, opts, span_um, steps, reference_id, reference_u_pct, activate))
 
 
 def _speeds(text: str) -> list[float]:
@@ -199,16 +226,22 @@ def _write(rig, folder, record, activate: bool, what: str) -> None:
         typer.echo(f"{rig.file}: calibration_record = \"{name}\" (active)")
 
 
-def _loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> None:
-    import asyncio
-
-    from orbitrig.cli.calibrate_steps import loads_record
+def _reference(opts, reference_id, reference_u_pct, simulated: str):
+    """The reference of a step: required on the rig; on the simulator exact unless given."""
     from orbitrig.config import Reference
 
     if not opts.sim and (reference_id is None or reference_u_pct is None):
         raise typer.BadParameter("on the rig give the reference: --reference-id ID --reference-u-pct U",
                                  param_hint="--reference-id")  # fmt: skip
-    ref = Reference(id=reference_id or "simulator: loads applied exactly", uncertainty_pct=reference_u_pct or 0.0)
+    return Reference(id=reference_id or simulated, uncertainty_pct=reference_u_pct or 0.0)
+
+
+def _loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> None:
+    import asyncio
+
+    from orbitrig.cli.calibrate_steps import loads_record
+
+    ref = _reference(opts, reference_id, reference_u_pct, "simulator: loads applied exactly")
     rig, folder = _rig_and_folder(config)
     record = asyncio.run(loads_record(rig, opts, load_n, ref, lambda m: typer.echo(m, err=True)))
     for lms, g in record.loads.items():
@@ -243,3 +276,21 @@ def _delay(config, opts, speeds, amplitudes, activate) -> None:
                    f"+ {d.delay_us:.2f} us (u {d.delay_u_us:.2g})")  # fmt: skip
     _write(rig, folder, record, activate, "Units: [delay] phase_deg degrees, delay_us microseconds: the force "
            "channel lags the probes by phase_deg + 360 f delay_us 1e-6 degrees at f Hz.")
+
+
+def _probes(config, opts, span_um, steps, reference_id, reference_u_pct, activate) -> None:
+    import asyncio
+
+    import numpy as np
+
+    from orbitrig.cli.calibrate_steps import probes_record
+    from orbitrig.config import Reference
+
+    ref = _reference(opts, reference_id, reference_u_pct, "simulator: steps applied exactly")
+    rig, folder = _rig_and_folder(config)
+    grid = np.linspace(-span_um / 2, span_um / 2, steps) * 1e-6
+    record = asyncio.run(probes_record(rig, opts, grid, ref, lambda m: typer.echo(m, err=True)))
+    for p, g in record.probes.items():
+        typer.echo(f"{p}: gain {g.gain:.5f} (u {g.gain_u:.2g}), linearity {g.linearity_pct:.3g} % of {g.span_um:g} um")
+    _write(rig, folder, record, activate, "Units: [probes] gain 1 (x_journal = gain x_read), linearity_pct percent "
+           "of span_um micrometres.")

@@ -18,14 +18,14 @@ import typer
 from orbitrig import __version__
 from orbitrig.config import LMS, MPA, RPM, CalibrationUncertainty, RigConfig
 from orbitrig.config import (
-    CalibrationRecord, ChannelDelay, LoadGains, ProbeRunout, Reference, RecordStep, Runout,
+    CalibrationRecord, ChannelDelay, LoadGains, ProbeGain, ProbeRunout, Reference, RecordStep, Runout,
 )
 from orbitrig.run.calibration import (
-    PROBES, CalibrationSession, SlowRoll, measure_delay, measure_loads, measure_runout,
+    PROBES, CalibrationSession, SlowRoll, measure_delay, measure_loads, measure_probes, measure_runout,
 )
 from orbitrig.run.rig_io import RigAccess
 from orbitrig.store.journal import now_iso
-from reduction.calibration import fit_delay, fit_gain_matrix, static_loads
+from reduction.calibration import fit_delay, fit_gain_matrix, fit_probe, static_loads
 
 FORCE_CHANNELS = ("fx_piezo", "fy_piezo", "fx_strain", "fy_strain")
 #: orbit / spin speed of the delay step: the spin's harmonics (runout, unbalance) stay off the
@@ -57,6 +57,11 @@ class OperatorLoads:
     async def apply_load(self, fx: float, fy: float) -> None:
         what = "remove every calibration load" if fx == 0 and fy == 0 else \
             f"apply the static load fx = {fx:+.1f} N, fy = {fy:+.1f} N on the journal"
+        await asyncio.to_thread(typer.prompt, f"{what}, then press Enter", default="", show_default=False)
+
+    async def apply_displacement(self, dx: float, dy: float) -> None:
+        what = "remove the displacement step" if dx == 0 and dy == 0 else \
+            f"step the journal by x = {dx * 1e6:+.2f} um, y = {dy * 1e6:+.2f} um (micrometer)"
         await asyncio.to_thread(typer.prompt, f"{what}, then press Enter", default="", show_default=False)
 
     async def apply_reference(self, force: float, probe: float) -> None:
@@ -145,4 +150,23 @@ async def delay_record(rig: RigConfig, opts: StepOptions, speeds_rpm: list[float
                          phase_u_deg=float(np.degrees(fit.phase_u)), delay_u_us=fit.delay_u * 1e6)  # fmt: skip
         data["delay"][name] = d.model_dump()
         data["uncertainty"][name].update(phase_deg=d.phase_u_deg, delay_us=d.delay_u_us)
+    return CalibrationRecord.model_validate(data)
+
+
+async def probes_record(rig: RigConfig, opts: StepOptions, steps: np.ndarray, reference: Reference,
+                        note) -> CalibrationRecord:  # fmt: skip
+    """`calibrate probes`: known displacement steps along x, then y; each probe's gain and linearity."""
+    async with rig_access(rig, opts) as (access, hands):
+        async with CalibrationSession(rig, access, note) as session:
+            await session.roll(opts.roll())
+            readings = await measure_probes(session, hands, steps)
+    data = _base(rig, opts, RecordStep.PROBES)
+    data["reference"] = reference.model_dump()
+    data["probes"] = {}
+    for p in PROBES:
+        fit = fit_probe(steps, readings[p], reference.uncertainty_pct / 100.0)
+        data["probes"][p] = ProbeGain(gain=fit.gain, gain_u=fit.gain_u, linearity_pct=fit.linearity * 100,
+                                      span_um=float(np.ptp(steps)) * 1e6, steps=len(steps)).model_dump()  # fmt: skip
+        data["uncertainty"][p]["gain_pct"] = fit.gain_u / fit.gain * 100.0
+    data["uncertainty"]["probe_sensitivity_pct"] = reference.uncertainty_pct  # common to all: the reference
     return CalibrationRecord.model_validate(data)

@@ -38,6 +38,10 @@ class SimulatorHands:
         """A known static calibration load (N) on the simulator's journal, at once."""
         self.sim.physics.apply_load(fx, fy)
 
+    async def apply_displacement(self, dx: float, dy: float) -> None:
+        """A known static step (m) of the simulator's journal under the probes (0, 0: removed)."""
+        self.sim.physics.apply_displacement(dx, dy)
+
     async def apply_reference(self, force: float, probe: float) -> None:
         """A calibrator on every channel's input of the simulator (N, m; 0, 0: removed)."""
         self.sim.physics.apply_reference(force, probe)

@@ -26,7 +26,7 @@ from orbitrig.config.designs import apply_design
 from orbitrig.config.matrix import MatrixAveraging, MatrixConfig, ModelSpec, Operating, Orbit  # noqa: F401
 from orbitrig.config.messages import _line_of, _problems
 from orbitrig.config.records import (  # noqa: F401
-    CalibrationRecord, ChannelDelay, LoadGains, ProbeRunout, RecordStep, Reference, Runout, activate, digest, folder_of,
+    CalibrationRecord, ChannelDelay, LoadGains, ProbeGain, ProbeRunout, RecordStep, Reference, Runout, activate, digest, folder_of,
     list_names, read_record, record_from_text, write_record,
 )
 from orbitrig.config.rig import (  # noqa: F401

@@ -42,6 +42,7 @@ class RecordStep(StrEnum):
     LOADS = "loads"
     RUNOUT = "runout"
     DELAY = "delay"
+    PROBES = "probes"
 
 
 class Reference(_Model):
@@ -89,6 +90,17 @@ class Runout(_Model):
         return np.array([complex(*p.h1_um), complex(*p.h2_um)]) * 1e-6
 
 
+class ProbeGain(_Model):
+    """A displacement probe's calibration: x_journal = gain x_read (x_read through the channel gain
+    of rig.toml), the gain's standard uncertainty and the probe's linearity (percent of the span)."""
+
+    gain: Annotated[float, Field(gt=0)]
+    gain_u: Annotated[float, Field(ge=0)] = 0.0
+    linearity_pct: Annotated[float, Field(ge=0)] = 0.0
+    span_um: Annotated[float, Field(ge=0)] = 0.0
+    steps: Annotated[int, Field(ge=0)] = 0
+
+
 class ChannelDelay(_Model):
     """A force channel's lag behind the probes: phase_deg + 360 f delay_us 1e-6 degrees at f Hz,
     with the fit's standard uncertainties."""
@@ -110,6 +122,7 @@ class CalibrationRecord(_Model):
     loads: dict[Literal["piezo", "strain"], LoadGains] = {}
     runout: Runout | None = None
     delay: dict[Literal["fx_piezo", "fy_piezo", "fx_strain", "fy_strain"], ChannelDelay] = {}
+    probes: dict[Literal["x_a", "y_a", "x_b", "y_b"], ProbeGain] = {}
     uncertainty: CalibrationUncertainty = CalibrationUncertainty()
 
     @field_validator("date")

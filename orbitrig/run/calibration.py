@@ -44,6 +44,12 @@ class LoadHands(Protocol):
     async def apply_load(self, fx: float, fy: float) -> None: ...
 
 
+class ProbeHands(Protocol):
+    """Whoever steps the journal by a known static displacement (m) under the probes (a micrometer)."""
+
+    async def apply_displacement(self, dx: float, dy: float) -> None: ...
+
+
 class ReferenceHands(Protocol):
     """Whoever connects the phase reference (a calibrator locked to the orbit spindle, amplitude
     ``force`` N on the force channels, ``probe`` m on the probes; 0, 0: disconnected)."""
@@ -162,6 +168,27 @@ async def measure_runout(session: CalibrationSession) -> tuple[dict[str, np.ndar
     blk = await session.average()
     ch = session.rig.channel_index
     return {p: np.array([harmonic(blk, ch[p], 1), harmonic(blk, ch[p], 2)]) for p in PROBES}, blk.n_revolutions
+
+
+async def measure_probes(session: CalibrationSession, hands: ProbeHands, steps: np.ndarray) -> dict[str, np.ndarray]:
+    """Each step of `steps` (n,; m) applied along x, then along y, and read by the probes of that
+    axis: {probe: (n,) static readings (m, through rig.toml's channel gains)}; the step removed after."""
+    ch = session.rig.channel_index
+    out: dict[str, list] = {p: [] for p in PROBES}
+    try:
+        for axis in ("x", "y"):
+            for d in np.asarray(steps, dtype=float):
+                await hands.apply_displacement(float(d) if axis == "x" else 0.0, float(d) if axis == "y" else 0.0)
+                await session.hold()
+                blk = await session.average()
+                for p in PROBES:
+                    if p.startswith(axis):
+                        out[p].append(blk.dc[ch[p]])
+                session.note(f"step {axis} {d * 1e6:+.2f} um read: " + ", ".join(
+                    f"{p} {out[p][-1] * 1e6:+.3f} um" for p in PROBES if p.startswith(axis)))  # fmt: skip
+    finally:
+        await hands.apply_displacement(0.0, 0.0)
+    return {p: np.array(v) for p, v in out.items()}
 
 
 async def measure_delay(session: CalibrationSession, hands: ReferenceHands, rolls: list[SlowRoll],

@@ -6,6 +6,7 @@
 - Probes: the runout of each probe track at 1x and 2x spin (``[runout]``) taken out of every
   block's per-revolution phasors, the block's spin phase fitted from its own revolutions
   (reduction.runout); only when the rig configuration's ``subtract_runout`` is true (default).
+  Then each probe's gain (``[probes]``, from known displacement steps).
 
 The blocks keep what was read; the orbit tables (and so every identification and the stored
 tables) hold the corrected values. SI.
@@ -31,6 +32,7 @@ class Corrections:
     force_gains: dict[str, np.ndarray] = field(default_factory=dict)
     runout: np.ndarray | None = None  # (4, 2) complex, m: PROBES x (1x, 2x spin)
     lags: dict[str, tuple[float, float]] = field(default_factory=dict)  # channel -> (phase rad, delay s)
+    probe_gains: dict[str, float] = field(default_factory=dict)  # probe -> gain (1)
 
     @classmethod
     def of_rig(cls, rig: RigConfig) -> "Corrections":
@@ -42,7 +44,8 @@ class Corrections:
         if rec.runout is not None and rig.subtract_runout:
             runout = np.array([rec.runout.phasors(p) for p in PROBES])
         lags = {name: (np.radians(d.phase_deg), d.delay_us * 1e-6) for name, d in rec.delay.items()}
-        return cls({lms: rec.force_gain(lms) for lms in LMS if lms in rec.loads}, runout, lags)
+        gains = {p: g.gain for p, g in rec.probes.items()}
+        return cls({lms: rec.force_gain(lms) for lms in LMS if lms in rec.loads}, runout, lags, gains)
 
     def forces(self, lms: str, fx: np.ndarray, fy: np.ndarray, orbit) -> tuple[np.ndarray, np.ndarray]:
         """(fx, fy) of system ``lms`` corrected: each channel's lag at |orbit| (rad/s, broadcast
@@ -55,11 +58,21 @@ class Corrections:
         return tuple(out) if gain is None else correct_forces(gain, *out)
 
     def probe_records(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray:
-        """(N, C) the block's per-revolution phasors, the probes' runout taken out (spin rad/s)."""
+        """(N, C) the block's per-revolution phasors, the probes' runout taken out and their
+        gains applied (spin rad/s)."""
+        return self._gains(self._without_runout(rec, ch, spin), ch)
+
+    def probe_phasors(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray:
+        """(C,) the block's averaged phasors, the probes' runout taken out (the mean of the
+        corrected revolutions minus that of the read ones, added to the stored average) and
+        their gains applied."""
+        rp = np.asarray(rec.record_phasors)
+        shift = (self._without_runout(rec, ch, spin) - rp).mean(axis=0) if len(rp) else 0.0
+        return self._gains(np.asarray(rec.phasors) + shift, ch)
+
+    def _without_runout(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray:
         rp = np.asarray(rec.record_phasors)
         if self.runout is None or len(rp) < MIN_REVOLUTIONS:
-            return rp
-        if self.runout is None:
             return rp
         idx = [ch[p] for p in PROBES]
         theta = 2 * np.pi * np.asarray(rec.slots, dtype=float)[idx] / 360.0
@@ -68,11 +81,11 @@ class Corrections:
         out[:, idx] = remove_runout(rp[:, idx], self.runout, theta, spin / abs(rec.block.orbit), revs)
         return out
 
-    def probe_phasors(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray:
-        """(C,) the block's averaged phasors, the probes' runout taken out (the mean of the
-        corrected revolutions minus that of the read ones, added to the stored average)."""
-        ph = np.asarray(rec.phasors)
-        if self.runout is None or len(rec.record_phasors) < MIN_REVOLUTIONS:
-            return ph
-        rp = np.asarray(rec.record_phasors)
-        return ph + (self.probe_records(rec, ch, spin) - rp).mean(axis=0)
+    def _gains(self, values: np.ndarray, ch: dict[str, int]) -> np.ndarray:
+        """``values`` (..., C) with each calibrated probe's column through its gain."""
+        if not self.probe_gains:
+            return values
+        out = np.array(values, dtype=complex, copy=True)
+        for p, g in self.probe_gains.items():
+            out[..., ch[p]] *= g
+        return out

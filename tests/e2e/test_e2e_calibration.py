@@ -1,12 +1,13 @@
-"""Before the first run on a rig, end to end on the simulator: `orbitrig calibrate loads|runout|delay
---sim` into a copy of the rig configuration, then `orbitrig sweep --sim` at the paper's Table 1
+"""Before the first run on a rig, end to end on the simulator: `orbitrig calibrate
+loads|runout|delay|probes --sim` into a copy of the rig configuration, then `orbitrig sweep --sim` at the paper's Table 1
 point with the calibrated configuration.
 
 The same stored blocks are identified again without the corrections (and with the intermediate
 records' ones), so "before" and "after" come from one sweep: the clean scenario's strain-gauge
 system (declared errors +1.8 % gain, 0.3 deg lag) lands ~2 % off without calibration, within
 0.3 % in K after `loads` and `runout`, and within 0.3 % in K and C once `delay` took the lag out;
-on the paper scenario the piezo-vs-strain |E_n| shrinks. The run records its provenance.
+on the paper scenario the probes' gains are found and the two systems' forces agree. The run
+records its provenance.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from orbitrig.run.corrections import Corrections
 from orbitrig.run.identification import identify_operating_point
 from orbitrig.run.plan import Block
 from orbitrig.store.reader import read_run
+from sim.config import SimConfig
 
 STEP_S = 90
 SPEEDUP = 20.0  # half the sweep's default: the drives' watchdog holds with both cores busy
@@ -150,9 +152,13 @@ def test_paper_scenario_load_measuring_systems_agree_better_after_calibration(tm
     (40 ratios) is off by the strain gauges' +1.8 % before and within noise after. Per ratio the
     noise is about 1.5 % (50 revolutions of the paper's disturbances), so the mean of 40 has a
     standard deviation of about 0.25 %: the bounds sit 2.4 of them from the expected values."""
-    rig, names = _calibrated_config(tmp_path, None, ("loads", "delay"))
+    rig, names = _calibrated_config(tmp_path, None, ("loads", "delay", "probes"))
+    probes, record_text = read_record(tmp_path / "calibration", names["probes"])
+    chain = SimConfig().chain  # the paper's probes: their own gain errors and a common -1 % sensitivity
+    for i, p in enumerate(("x_a", "y_a", "x_b", "y_b"), start=4):
+        true = 1 / ((1 + chain.gain_error[i]) * (1 + chain.probe_sensitivity_error))
+        assert probes.probes[p].gain == pytest.approx(true, rel=3e-4) and probes.probes[p].linearity_pct < 0.1
     run = _sweep(tmp_path, rig, None)
-    record_text = read_record(tmp_path / "calibration", names["delay"])[1]
     initial = next((ROOT / "config/calibration").glob("*-initial.toml")).read_text()
     ratio, en = {}, {}
     for label, text, corr in (("before", initial, False), ("after", record_text, True)):

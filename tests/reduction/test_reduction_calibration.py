@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from reduction.calibration import correct_forces, correct_lag, fit_delay, fit_gain_matrix, static_loads
+from reduction.calibration import correct_forces, correct_lag, fit_delay, fit_gain_matrix, fit_probe, static_loads
 from reduction.errors import ReductionError
 from reduction.fourier import phasor
 from reduction.runout import fit_spin_phase, remove_runout
@@ -92,3 +92,14 @@ def test_runout_leaves_the_mean_exactly_once_its_spin_phase_is_fitted(ratio):
     assert fit_spin_phase(rec, runout, theta, 1 / ratio, revs) == pytest.approx(1.234, abs=1e-5)
     clean = remove_runout(rec, runout, theta, 1 / ratio, revs)
     assert np.max(np.abs(clean.mean(0) - d) / np.abs(d)) < 1e-8
+
+
+def test_probe_gain_and_linearity():
+    steps = np.linspace(-20e-6, 20e-6, 5)
+    fit = fit_probe(steps, steps / 1.007 + 3e-7, 0.0)
+    assert fit.gain == pytest.approx(1.007, rel=1e-9) and fit.offset == pytest.approx(-3e-7 * 1.007, rel=1e-6)
+    assert fit.linearity < 1e-9 and fit.gain_u < 1e-9
+    bent = fit_probe(steps, steps + 0.002 * steps**2 / 20e-6, 0.001)  # a bowed probe: 0.2 % of 20 um at the ends
+    assert 1e-4 < bent.linearity < 1e-3 and bent.gain_u > 0.001 * bent.gain
+    with pytest.raises(ReductionError, match="3 or more"):
+        fit_probe(steps[:2], steps[:2], 0.0)
