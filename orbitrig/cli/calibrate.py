@@ -22,6 +22,13 @@ import typer
 
 DEFAULT_SPEEDUP = 40.0  # as orbitrig.cli.simulated_rig.DEFAULT_SPEEDUP
 _CONFIG = typer.Option(None, "--config", help="rig configuration TOML (default: config/rig.toml of the source tree)")
+_OPERATOR = typer.Option(None, "--operator", help="who calibrates (default: the login name)")
+_RECESS = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0, help="recess pressure during the slow roll (MPa)")
+_RATIO = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99, help="pressure ratio during the slow roll")
+_ACTIVATE = typer.Option(True, "--activate/--no-activate", help="make the new record the rig's active one")
+_SIM_CONFIG = typer.Option(None, "--sim-config", help="simulator scenario TOML (--sim only)")
+_SPEEDUP = typer.Option(DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)")
+_REF_U = "its certificate's relative standard uncertainty (%); required on the rig"
 
 
 def register(app: typer.Typer) -> None:
@@ -47,17 +54,17 @@ def show(name: Optional[str] = typer.Argument(None, help="record name (default: 
 def loads(
     sim: bool = typer.Option(False, "--sim", help="on the built-in simulator (it applies the loads)"),
     load_n: float = typer.Option(500.0, "--load-n", min=1.0, help="magnitude of each static load (N)"),
-    reference_id: Optional[str] = typer.Option(None, "--reference-id", help="the reference's id (dead-weight set, load cell); required on the rig"),
-    reference_u_pct: Optional[float] = typer.Option(None, "--reference-u-pct", min=0.0, max=50.0,
-                                                    help="the reference certificate's relative standard uncertainty (%); required on the rig"),
-    config: Optional[Path] = _CONFIG, operator: Optional[str] = typer.Option(None, "--operator", help="who calibrates (default: the login name)"),
+    reference_id: Optional[str] = typer.Option(None, "--reference-id",
+                                               help="the reference's id (dead-weight set, load cell); required on the rig"),
+    reference_u_pct: Optional[float] = typer.Option(None, "--reference-u-pct", min=0.0, max=50.0, help=_REF_U),
+    config: Optional[Path] = _CONFIG, operator: Optional[str] = _OPERATOR,
     spin_rpm: float = typer.Option(300.0, "--spin-rpm", min=1.0, help="slow roll speed (rpm)"),
     revolutions: int = typer.Option(50, "--revolutions", min=2, max=10_000, help="revolutions averaged per reading"),
-    recess_pressure_mpa: float = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0),
-    pressure_ratio: float = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99),
-    activate: bool = typer.Option(True, "--activate/--no-activate", help="make the new record the active one in the rig configuration"),
-    sim_config: Optional[Path] = typer.Option(None, "--sim-config", help="simulator scenario TOML (--sim only)"),
-    speedup: float = typer.Option(DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"),
+    recess_pressure_mpa: float = _RECESS,
+    pressure_ratio: float = _RATIO,
+    activate: bool = _ACTIVATE,
+    sim_config: Optional[Path] = _SIM_CONFIG,
+    speedup: float = _SPEEDUP,
 ) -> None:  # fmt: skip
     """Static loads -> each load measuring system's 2 x 2 gain matrix.
 
@@ -71,14 +78,14 @@ def loads(
 
 def runout(
     sim: bool = typer.Option(False, "--sim", help="on the built-in simulator"),
-    config: Optional[Path] = _CONFIG, operator: Optional[str] = typer.Option(None, "--operator", help="who calibrates (default: the login name)"),
+    config: Optional[Path] = _CONFIG, operator: Optional[str] = _OPERATOR,
     spin_rpm: float = typer.Option(100.0, "--spin-rpm", min=1.0, help="slow roll speed (rpm)"),
     revolutions: int = typer.Option(100, "--revolutions", min=2, max=10_000, help="revolutions averaged"),
-    recess_pressure_mpa: float = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0),
-    pressure_ratio: float = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99),
-    activate: bool = typer.Option(True, "--activate/--no-activate", help="make the new record the active one"),
-    sim_config: Optional[Path] = typer.Option(None, "--sim-config", help="simulator scenario TOML (--sim only)"),
-    speedup: float = typer.Option(DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"),
+    recess_pressure_mpa: float = _RECESS,
+    pressure_ratio: float = _RATIO,
+    activate: bool = _ACTIVATE,
+    sim_config: Optional[Path] = _SIM_CONFIG,
+    speedup: float = _SPEEDUP,
 ) -> None:  # fmt: skip
     """Slow roll without orbit -> each probe's runout at 1x and 2x spin.
 
@@ -90,16 +97,17 @@ def runout(
 
 def delay(
     sim: bool = typer.Option(False, "--sim", help="on the built-in simulator (it connects the reference)"),
-    speeds_rpm: str = typer.Option("300,600,900,1200,1500", "--speeds-rpm", help="orbit spindle speeds (rpm, the spin at 1/0.7 times), comma separated: the reference's frequencies"),
-    reference_n: float = typer.Option(1000.0, "--reference-n", min=0.001, help="reference amplitude on the force channels (N)"),
-    reference_um: float = typer.Option(20.0, "--reference-um", min=0.001, help="reference amplitude on the probes (um)"),
-    config: Optional[Path] = _CONFIG, operator: Optional[str] = typer.Option(None, "--operator", help="who calibrates (default: the login name)"),
+    speeds_rpm: str = typer.Option("300,600,900,1200,1500", "--speeds-rpm",
+                                   help="orbit spindle speeds (rpm, the spin at 1/0.7 times), comma separated"),
+    reference_n: float = typer.Option(1000.0, "--reference-n", min=0.001, help="reference on the force channels (N)"),
+    reference_um: float = typer.Option(20.0, "--reference-um", min=0.001, help="reference on the probes (um)"),
+    config: Optional[Path] = _CONFIG, operator: Optional[str] = _OPERATOR,
     revolutions: int = typer.Option(100, "--revolutions", min=2, max=10_000, help="revolutions averaged per speed"),
-    recess_pressure_mpa: float = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0),
-    pressure_ratio: float = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99),
-    activate: bool = typer.Option(True, "--activate/--no-activate", help="make the new record the active one"),
-    sim_config: Optional[Path] = typer.Option(None, "--sim-config", help="simulator scenario TOML (--sim only)"),
-    speedup: float = typer.Option(DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"),
+    recess_pressure_mpa: float = _RECESS,
+    pressure_ratio: float = _RATIO,
+    activate: bool = _ACTIVATE,
+    sim_config: Optional[Path] = _SIM_CONFIG,
+    speedup: float = _SPEEDUP,
 ) -> None:  # fmt: skip
     """Phase reference -> each force channel's phase and time delay behind the probes.
 
@@ -116,16 +124,15 @@ def probes(
     span_um: float = typer.Option(40.0, "--span-um", min=0.1, help="span of the steps, centred on zero (um)"),
     steps: int = typer.Option(5, "--steps", min=3, max=101, help="number of steps over the span"),
     reference_id: Optional[str] = typer.Option(None, "--reference-id", help="the micrometer's id; required on the rig"),
-    reference_u_pct: Optional[float] = typer.Option(None, "--reference-u-pct", min=0.0, max=50.0,
-                                                    help="its certificate's relative standard uncertainty (%); required on the rig"),
-    config: Optional[Path] = _CONFIG, operator: Optional[str] = typer.Option(None, "--operator", help="who calibrates (default: the login name)"),
+    reference_u_pct: Optional[float] = typer.Option(None, "--reference-u-pct", min=0.0, max=50.0, help=_REF_U),
+    config: Optional[Path] = _CONFIG, operator: Optional[str] = _OPERATOR,
     spin_rpm: float = typer.Option(300.0, "--spin-rpm", min=1.0, help="slow roll speed (rpm)"),
     revolutions: int = typer.Option(50, "--revolutions", min=2, max=10_000, help="revolutions averaged per step"),
-    recess_pressure_mpa: float = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0),
-    pressure_ratio: float = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99),
-    activate: bool = typer.Option(True, "--activate/--no-activate", help="make the new record the active one"),
-    sim_config: Optional[Path] = typer.Option(None, "--sim-config", help="simulator scenario TOML (--sim only)"),
-    speedup: float = typer.Option(DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"),
+    recess_pressure_mpa: float = _RECESS,
+    pressure_ratio: float = _RATIO,
+    activate: bool = _ACTIVATE,
+    sim_config: Optional[Path] = _SIM_CONFIG,
+    speedup: float = _SPEEDUP,
 ) -> None:  # fmt: skip
     """Displacement steps -> each probe's gain and linearity.
 
