@@ -17,6 +17,8 @@ the fitted runout from the block's mean takes out its leakage into the orbit pha
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from reduction.errors import ReductionError
@@ -44,32 +46,38 @@ def _basis(runout: np.ndarray, theta: np.ndarray, spin_turns: float, steps: np.n
     return a, b, hs
 
 
-def runout_phasors(runout: np.ndarray, theta: np.ndarray, spin_turns: float, revolutions: np.ndarray,
-                   spin_phase: float) -> np.ndarray:  # fmt: skip
-    """(N, P) runout in each revolution's orbit phasor: ``runout`` (P, H) complex R_h per probe (m),
-    ``theta`` (P, S) each probe's sampling angles (rad), ``revolutions`` (N,) board revolution
-    numbers, ``spin_phase`` phi_0 (rad) at the first of them."""
-    steps = np.asarray(revolutions, dtype=float) - float(np.asarray(revolutions)[0])
-    a, b, hs = _basis(np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns, steps)
+def _steps(revolutions) -> np.ndarray:
+    r = np.asarray(revolutions, dtype=float)
+    return r - r[0]
+
+
+def _at(a: np.ndarray, b: np.ndarray, hs: np.ndarray, spin_phase: float) -> np.ndarray:
     e = np.exp(1j * hs * spin_phase)[:, None, None]
     return np.sum(a * e + b * np.conj(e), axis=0)
 
 
-def fit_spin_phase(record_phasors: np.ndarray, runout: np.ndarray, theta: np.ndarray, spin_turns: float,
-                   revolutions: np.ndarray) -> float:  # fmt: skip
-    """phi_0 (rad) that best explains the scatter of the probes' per-revolution phasors
-    ``record_phasors`` (N, P) by the runout (least squares, each probe's mean free)."""
-    p = np.asarray(record_phasors, dtype=complex)
-    if p.ndim != 2 or p.shape[0] < 3:
-        raise ReductionError("at least 3 revolutions are needed to fit the spin phase of the runout")
-    steps = np.asarray(revolutions, dtype=float) - float(np.asarray(revolutions)[0])
-    a, b, hs = _basis(np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns, steps)
+@functools.lru_cache(maxsize=4)
+def _grid(degree: int) -> tuple[np.ndarray, np.ndarray]:
+    """The phi_0 grid (G,) and e^{i n phi} (G, 2 degree + 1) for n = -degree..degree."""
+    phi = np.linspace(0.0, 2 * np.pi, GRID, endpoint=False)
+    return phi, np.exp(1j * np.outer(phi, np.arange(-degree, degree + 1)))
+
+
+def _best_phase(p: np.ndarray, a: np.ndarray, b: np.ndarray, hs: np.ndarray) -> float:
+    """The phi_0 minimising sum |dev - m(phi_0)|^2 (dev: the phasors less their mean, m: the runout
+    model less its mean). With z = e^{i phi_0} the cost is a trigonometric polynomial in phi_0 of
+    degree 2H, built from inner products and evaluated on the grid; a parabola refines the minimum."""
     a, b = a - a.mean(axis=1, keepdims=True), b - b.mean(axis=1, keepdims=True)
     dev = p - p.mean(axis=0)
-    phi = np.linspace(0.0, 2 * np.pi, GRID, endpoint=False)
-    e = np.exp(1j * hs[:, None] * phi[None, :])  # (H, G)
-    model = np.einsum("hnp,hg->gnp", a, e) + np.einsum("hnp,hg->gnp", b, np.conj(e))
-    cost = np.sum(np.abs(dev[None] - model) ** 2, axis=(1, 2))
+    terms = [(h, a[i]) for i, h in enumerate(hs)] + [(-h, b[i]) for i, h in enumerate(hs)]  # m = sum t z^n
+    degree = 2 * int(hs.max())
+    coef = np.zeros(2 * degree + 1, dtype=complex)  # coefficient of z^n at index n + degree
+    for n, t in terms:
+        coef[degree - n] -= 2 * np.vdot(t, dev)  # -2 Re <m, dev>: conj(z^n) = z^-n
+        for k, u in terms:
+            coef[degree + k - n] += np.vdot(t, u)  # <t z^n, u z^k> = z^(k - n) <t, u>
+    phi, waves = _grid(degree)
+    cost = np.real(waves @ coef)
     i = int(np.argmin(cost))
     c0, c1, c2 = cost[i - 1], cost[i], cost[(i + 1) % GRID]
     den = c0 - 2 * c1 + c2
@@ -77,8 +85,38 @@ def fit_spin_phase(record_phasors: np.ndarray, runout: np.ndarray, theta: np.nda
     return float((phi[i] + shift * (2 * np.pi / GRID)) % (2 * np.pi))
 
 
+def runout_phasors(runout: np.ndarray, theta: np.ndarray, spin_turns: float, revolutions: np.ndarray,
+                   spin_phase: float) -> np.ndarray:  # fmt: skip
+    """(N, P) runout in each revolution's orbit phasor: ``runout`` (P, H) complex R_h per probe (m),
+    ``theta`` (P, S) each probe's sampling angles (rad), ``revolutions`` (N,) board revolution
+    numbers, ``spin_phase`` phi_0 (rad) at the first of them."""
+    a, b, hs = _basis(np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns,
+                      _steps(revolutions))  # fmt: skip
+    return _at(a, b, hs, spin_phase)
+
+
+def fit_spin_phase(record_phasors: np.ndarray, runout: np.ndarray, theta: np.ndarray, spin_turns: float,
+                   revolutions: np.ndarray) -> float:  # fmt: skip
+    """phi_0 (rad) that best explains the scatter of the probes' per-revolution phasors
+    ``record_phasors`` (N, P) by the runout (least squares over a grid of one turn refined by a
+    parabola, each probe's mean free)."""
+    p = _checked(record_phasors)
+    a, b, hs = _basis(np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns,
+                      _steps(revolutions))  # fmt: skip
+    return _best_phase(p, a, b, hs)
+
+
 def remove_runout(record_phasors: np.ndarray, runout: np.ndarray, theta: np.ndarray, spin_turns: float,
                   revolutions: np.ndarray) -> np.ndarray:  # fmt: skip
     """The probes' per-revolution phasors (N, P) with the runout (spin phase fitted) taken out."""
-    phi0 = fit_spin_phase(record_phasors, runout, theta, spin_turns, revolutions)
-    return np.asarray(record_phasors) - runout_phasors(runout, theta, spin_turns, revolutions, phi0)
+    p = _checked(record_phasors)
+    a, b, hs = _basis(np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns,
+                      _steps(revolutions))  # fmt: skip
+    return p - _at(a, b, hs, _best_phase(p, a, b, hs))
+
+
+def _checked(record_phasors) -> np.ndarray:
+    p = np.asarray(record_phasors, dtype=complex)
+    if p.ndim != 2 or p.shape[0] < 3:
+        raise ReductionError("at least 3 revolutions are needed to fit the spin phase of the runout")
+    return p
