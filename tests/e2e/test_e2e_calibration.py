@@ -30,6 +30,7 @@ from orbitrig.run.corrections import Corrections
 from orbitrig.run.identification import identify_operating_point
 from orbitrig.run.plan import Block
 from orbitrig.store.reader import read_run
+from orbitrig.store.writer import RunStore
 from sim.config import SimConfig
 
 STEP_S = 90
@@ -131,6 +132,7 @@ def test_clean_scenario_strain_gauges_within_0_3_percent_after_calibration(tmp_p
     with h5py.File(run / "run.h5") as f:  # the sweep stored exactly these corrected tables
         assert np.allclose(f["points/0000/table/strain/fx"][()], stored.tables["strain"].fx, rtol=1e-9)
     _check_provenance(run, names["delay"], delay_text)
+    assert RunStore.open_existing(run).stored_record() == delay_text  # what --resume uses
 
 
 def _check_provenance(run: Path, record: str, record_text: str) -> None:
