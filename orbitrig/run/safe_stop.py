@@ -15,8 +15,10 @@ import time
 from drives.rig import RigDrives
 
 
-async def stop_drives(drives: RigDrives, aborted: asyncio.Event, *, emergency: bool, timeout: float) -> tuple[bool, str]:
-    """Stop both drives (`timeout` wall s to standstill); (escalated to an emergency stop, log line)."""
+async def stop_drives(drives: RigDrives, aborted: asyncio.Event, *, emergency: bool,
+                      timeout: float | None) -> tuple[bool, str]:  # fmt: skip
+    """Stop both drives (`timeout` wall s to standstill, None: the drives' own ramp time with a
+    margin); (escalated to an emergency stop, log line)."""
     t0 = time.monotonic()
     escalated = False
     if emergency or aborted.is_set():
