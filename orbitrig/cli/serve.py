@@ -182,7 +182,10 @@ async def _serve(rig, settings, broker_settings, *, out: Path, sim: bool, speedu
 
     shutdown = asyncio.Event()
     loop = asyncio.get_running_loop()
-    for sig in (signal.SIGINT, signal.SIGTERM):
+    from orbitrig.run.modbus_log import keep_pymodbus_off_the_terminal
+
+    keep_pymodbus_off_the_terminal()
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):  # the run stops at once with a ramp
         loop.add_signal_handler(sig, shutdown.set)
 
     async with contextlib.AsyncExitStack() as stack:

@@ -268,14 +268,19 @@ def test_sigkill_publishes_offline_last_will(tmp_path):
         assert late.retain and late.json()["state"] == "offline"
 
 
-def test_sigterm_mid_run_aborts_and_says_offline(tmp_path):
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
+def test_sigterm_mid_run_stops_with_a_ramp_and_says_offline(tmp_path, sig):
     with OwnRun(tmp_path) as own:
         mark = own.rc.watch.mark()
-        own.svc.kill(signal.SIGTERM)
+        own.svc.kill(sig)
         assert own.svc.proc.returncode == 0, own.svc.text()[-3000:]
         statuses = own.rc.watch.on("status", mark)
         states = [m.json()["state"] for m in statuses]
         assert states[-1] == "offline" and "stopping" in states and "idle" in states, states
         assert statuses[-1].json()["message"] == "service stopped"
         assert retained(own.broker, f"orbitrig/{RIG}/status").json()["state"] == "offline"
-        assert run_status(tmp_path, own.run_id) == "aborted"
+        assert run_status(tmp_path, own.run_id) == "stopped"
+        log = next(p for p in (tmp_path / "runs").glob("*/run.log") if own.run_id in p.read_text())
+        log = log.read_text()
+        assert "stopped at once by the service shutting down" in log
+        assert "drives: ramp stop (OFF1); standstill after" in log
