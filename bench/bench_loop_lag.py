@@ -65,9 +65,29 @@ async def _poll_gaps(engine: RunEngine, gaps: list[float]) -> None:
         await asyncio.sleep(0.005)
 
 
+#: four operating points, so that identification and storage of one overlap the next one's motion
+FOUR_POINTS = """
+name = "lag"
+revolutions = 30
+[operating]
+spin_rpm = [1000.0, 2000.0]
+recess_pressure_mpa = [0.4826]
+pressure_ratio = [0.4]
+static_eccentricity = [0.0, 0.15]
+dynamic_eccentricity = [0.096]
+[orbit]
+ratios = [0.3, 0.5, 0.7, 0.9, 1.2]
+[[models]]
+model = "kcd11"
+[[models]]
+model = "kc8"
+"""
+
+
 async def sweep(matrix: str, speedup: float) -> tuple[str, list[float], list[float], int]:
     rig = cfg.load_rig(None)
-    plan = make_plan(cfg.load_matrix(cfg.matrix_file(matrix)), rig)
+    mat = cfg.matrix_from_text(FOUR_POINTS, "four points") if matrix == "four" else cfg.load_matrix(cfg.matrix_file(matrix))
+    plan = make_plan(mat, rig)
     lags: list[float] = []
     gaps: list[float] = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -96,7 +116,7 @@ def _pct(values: list[float], q: float) -> float:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--matrix", default="demo")
+    ap.add_argument("--matrix", default="four", help="four (built in: 4 points x 10 blocks), or a matrix name/file")
     ap.add_argument("--hogs", type=int, default=os.cpu_count() or 1, help="busy processes (default: one per core)")
     ap.add_argument("--target-ms", type=float, default=250.0)
     ap.add_argument("--speedup", type=float, default=40.0)
