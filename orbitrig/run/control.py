@@ -21,7 +21,6 @@ a confirmation, an interlock clearing).
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import time
 from typing import Awaitable, Callable
 
@@ -143,8 +142,7 @@ class RunControl:
         if limit is None:
             await self.wake.wait()
             return
-        with contextlib.suppress(TimeoutError):
-            await asyncio.wait_for(self.wake.wait(), max(0.0, t0 + limit - time.monotonic()))
+        await _first(self.wake, timeout=max(0.0, t0 + limit - time.monotonic()))  # not wait_for: it can swallow a cancel
         if time.monotonic() - t0 >= limit and not self.stop_requested:
             self.request_stop(f"nobody can answer ({self.state} for {limit:g} s, no terminal and no MQTT): "
                               "stopping the run (continue later with --resume)")  # fmt: skip
