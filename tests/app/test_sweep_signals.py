@@ -84,7 +84,7 @@ def sweep(tmp_path):
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
 def test_sigterm_and_sighup_stop_with_a_ramp(sweep, sig):
     s = sweep()
-    s.wait_log(": stored ")
+    s.wait_log("[running] speeds set: spin 1000 rpm")
     s.proc.send_signal(sig)
     code, err = s.finish()
     assert code == 3, err
