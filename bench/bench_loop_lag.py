@@ -5,12 +5,15 @@ trips (fault 7510) if no request reaches them for 1 s. This bench runs a
 sweep on the in-process simulator with one busy-looping process per core and
 measures
 
-- the loop lag: how late a 10 ms heartbeat task wakes up (worst, 99.9th
-  percentile, median), ms;
+- the loop lag: how late a 10 ms heartbeat task wakes up while the drives
+  are open and polled (worst, 99.9th percentile, median), ms;
 - the worst gap between two completed drive polls (ms) and the failed polls;
 
 and exits 1 if the worst loop lag is above the target (default 250 ms, well
-under the drives' 1 s comm-loss window) or the run did not complete.
+under the drives' 1 s comm-loss window) or the run did not complete. The
+built-in simulator runs on a loop of its own (a thread): on a machine with
+fewer free cores than it needs at the speed-up, it is the simulator that
+answers late (a poll gap above the loop lag), not the sweep's loop.
 
     python3 bench/bench_loop_lag.py [--matrix demo] [--hogs N] [--target-ms 250] [--speedup 40]
 
@@ -45,12 +48,15 @@ def _hog() -> None:  # pragma: no cover - a child process that only burns CPU
         x = (x * 31 + 7) % 1000003
 
 
-async def _heartbeat(lags: list[float]) -> None:
+async def _heartbeat(engine: RunEngine, lags: list[float]) -> None:
+    """Lateness of each 10 ms tick while the drives are open (polled), s."""
     loop = asyncio.get_running_loop()
     while True:
+        polled = engine.io is not None
         t = loop.time()
         await asyncio.sleep(TICK)
-        lags.append(loop.time() - t - TICK)
+        if polled and engine.io is not None:
+            lags.append(loop.time() - t - TICK)
 
 
 async def _poll_gaps(engine: RunEngine, gaps: list[float]) -> None:
@@ -84,7 +90,7 @@ model = "kc8"
 """
 
 
-async def sweep(matrix: str, speedup: float) -> tuple[str, list[float], list[float], int]:
+async def sweep(matrix: str, speedup: float) -> tuple[str, list[float], list[float]]:
     rig = cfg.load_rig(None)
     mat = cfg.matrix_from_text(FOUR_POINTS, "four points") if matrix == "four" else cfg.load_matrix(cfg.matrix_file(matrix))
     plan = make_plan(mat, rig)
@@ -93,21 +99,13 @@ async def sweep(matrix: str, speedup: float) -> tuple[str, list[float], list[flo
     with tempfile.TemporaryDirectory() as tmp:
         async with simulated_rig(speedup) as (_, access):
             engine = RunEngine(rig, out_dir=Path(tmp) / "run", access=access, confirm_mode="auto")
-            tasks = [asyncio.create_task(_heartbeat(lags)), asyncio.create_task(_poll_gaps(engine, gaps))]
+            tasks = [asyncio.create_task(_heartbeat(engine, lags)), asyncio.create_task(_poll_gaps(engine, gaps))]
             try:
                 outcome = await engine.run(plan)
-                failures = engine_failures = 0
-                del engine_failures
             finally:
                 for t in tasks:
                     t.cancel()
-            failures = _poll_failures(gaps)
-    return f"{outcome.status}: {outcome.message}", lags, gaps, failures
-
-
-def _poll_failures(gaps: list[float]) -> int:
-    return 0  # failed polls are counted from the log line below (the state is read only while ok)
-
+    return f"{outcome.status}: {outcome.message}", lags, gaps
 
 def _pct(values: list[float], q: float) -> float:
     s = sorted(values)
@@ -126,7 +124,7 @@ def main() -> int:
         h.start()
     t0 = time.monotonic()
     try:
-        result, lags, gaps, _ = asyncio.run(sweep(a.matrix, a.speedup))
+        result, lags, gaps = asyncio.run(sweep(a.matrix, a.speedup))
     finally:
         for h in hogs:
             h.kill()
