@@ -171,6 +171,12 @@ class RigService:
         except Exception:  # noqa: BLE001 - reported by _run itself
             pass
 
+    def abort_run(self, why: str) -> None:
+        """Abort the active run (emergency ramp; during its closing ramp stop: an emergency stop)."""
+        if self.run_active:
+            log.warning("aborting run %s: %s", self._run_id, why)
+            self._request("abort")
+
     # -- supervision --------------------------------------------------------------
 
     async def _supervision_loop(self) -> None:
