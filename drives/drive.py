@@ -160,6 +160,9 @@ class Drive:
     state_timeout : seconds to wait for the status word to confirm a state change.
     write_retries : further tries of an idempotent write (CW, REF, parameters)
         after a request timeout; an exception response is an answer, never retried.
+    read_retries : further tries of a read after a request timeout (one late
+        answer is not a fault); the poll reads without them, its own count of
+        failed polls in a row bounds the time to declare the link lost.
     """
 
     def __init__(
@@ -171,10 +174,12 @@ class Drive:
         bidirectional: bool,
         state_timeout: float = 2.0,
         write_retries: int = 2,
+        read_retries: int = 1,
     ):
-        if write_retries < 0:
-            raise ValueError(f"write_retries {write_retries} is negative")
+        if write_retries < 0 or read_retries < 0:
+            raise ValueError(f"write_retries {write_retries} or read_retries {read_retries} is negative")
         self.write_retries = int(write_retries)
+        self.read_retries = int(read_retries)
         self.link = link
         self.device_id = device_id
         self.name = name
@@ -196,7 +201,7 @@ class Drive:
     async def read_parameters(self) -> DriveParameters:
         """Read the parameter block; the scaling of every later speed comes from it."""
         first, count = R.PARAMETERS
-        words = await self.link.read(self.device_id, first, count)
+        words = await self.link.read(self.device_id, first, count, retries=self.read_retries)
         if words[0] == 0:
             raise DriveFaultError("SPEED_SCALE reads 0", **self._kw(R.SPEED_SCALE))
         self._scale_rpm, self._max_rpm = words[0], words[1]
@@ -243,12 +248,14 @@ class Drive:
         return await self.read_parameters()
 
     # -- status -----------------------------------------------------------------
-    async def read_status(self) -> DriveStatus:
-        """Read CW..FAULT in one request (also the watchdog heartbeat for this drive)."""
+    async def read_status(self, *, retries: int | None = None) -> DriveStatus:
+        """Read CW..FAULT in one request (also the watchdog heartbeat for this drive);
+        retried after a timeout `read_retries` times by default."""
         if self._scale_rpm is None:
             await self.read_parameters()
         first, count = R.PROCESS_DATA
-        w = await self.link.read(self.device_id, first, count)
+        retries = self.read_retries if retries is None else retries
+        w = await self.link.read(self.device_id, first, count, retries=retries)
         ref, act = R.from_word(w[R.REF]), R.from_word(w[R.ACT])
         scale = self._scale_rpm
         return DriveStatus(

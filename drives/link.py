@@ -109,7 +109,7 @@ class ModbusLink:
         self.requests = 0  # answered requests (including exception responses)
         self.failures = 0  # requests without a valid answer
         self.connects = 0  # successful (re)connections
-        self.retries = 0  # write retries after a timeout
+        self.retries = 0  # read and write retries after a timeout
 
     # -- connection -------------------------------------------------------------
     @property
@@ -173,14 +173,16 @@ class ModbusLink:
             self._client = None
 
     # -- requests ---------------------------------------------------------------
-    async def read(self, device_id: int, address: int, count: int) -> list[int]:
-        """Read `count` holding registers (FC03) from `address`: unsigned 16-bit words."""
-        rsp = await self._request(
-            device_id,
-            address,
-            _FC_READ,
+    async def read(self, device_id: int, address: int, count: int, *, retries: int = 0) -> list[int]:
+        """Read `count` holding registers (FC03) from `address`: unsigned 16-bit words.
+
+        `retries` : further tries after a request timeout (a late answer); reading
+        is harmless to repeat. A link error or an exception response is not retried.
+        """
+        rsp = await self._retried(
+            device_id, address, _FC_READ, "read", retries,
             lambda c: c.read_holding_registers(address, count=count, device_id=device_id),
-        )
+        )  # fmt: skip
         words = list(rsp.registers)
         if len(words) != count:
             self._fail(device_id, address, f"asked for {count} registers, got {len(words)}")
@@ -208,17 +210,20 @@ class ModbusLink:
             fc, call = _FC_WRITE_MULTIPLE, lambda c: c.write_registers(
                 address, values, device_id=device_id
             )
+        await self._retried(device_id, address, fc, "write", retries, call)
+
+    async def _retried(self, device_id, address, function_code, what, retries, call):
+        """`_request`, tried again up to `retries` times after a timeout (each retry logged)."""
         for attempt in range(retries + 1):
             try:
-                await self._request(device_id, address, fc, call)
-                return
+                return await self._request(device_id, address, function_code, call)
             except DriveTimeoutError as err:
                 if attempt >= retries:
                     raise
                 self.retries += 1
                 log.warning(
-                    "%s (id %d) %s write: %s; retry %d of %d",
-                    self.names.get(device_id, "drive"), device_id, register_name(address),
+                    "%s (id %d) %s %s: %s; retry %d of %d",
+                    self.names.get(device_id, "drive"), device_id, register_name(address), what,
                     err.reason, attempt + 1, retries,
                 )
 

@@ -137,8 +137,8 @@ class DrivePoll:
 
     async def _poll_once(self) -> None:
         try:
-            if self.state.link_ok:
-                statuses = [await d.read_status() for d in self.drives]
+            if self.state.link_ok:  # no retry: failed polls in a row bound the time to a declared loss
+                statuses = [await d.read_status(retries=0) for d in self.drives]
             else:
                 statuses = await self._verify_after_reconnect()
         except DriveError as err:
@@ -183,7 +183,7 @@ class DrivePoll:
         down = time.monotonic() - (self._link_lost_at or time.monotonic())
         for d in self.drives:
             await d.read_parameters()  # volatile: a power-cycled drive has defaults again
-        statuses = [await d.read_status() for d in self.drives]
+        statuses = [await d.read_status(retries=0) for d in self.drives]
         command = self.command
         problem: DriveError | None = None
         for i, (st, d) in enumerate(zip(statuses, self.drives)):

@@ -121,11 +121,15 @@ class _Gate:
         self.drives = dict(drives)
         self.answer_unknown = answer_unknown
         self.unresponsive = False
+        self.to_drop = 0  # the next requests dropped unanswered (late answers)
 
     def admit(self, dev_id: int) -> bool:
         """Whether a request for `dev_id` is executed and answered (feeds its watchdog)."""
         if self.unresponsive:
             return False  # dropped: no response
+        if self.to_drop > 0:
+            self.to_drop -= 1
+            return False
         drive = self.drives.get(dev_id)
         if drive is None:
             return self.answer_unknown
@@ -164,6 +168,10 @@ class ModbusEndpoint:
     def set_unresponsive(self, on: bool) -> None:
         """Fault injection: while on, requests are dropped and time out."""
         self._gate.unresponsive = bool(on)
+
+    def drop_next(self, n: int = 1) -> None:
+        """Fault injection: the next `n` requests go unanswered (each times out once)."""
+        self._gate.to_drop = int(n)
 
     @property
     def unresponsive(self) -> bool:

@@ -281,13 +281,13 @@ class SimRig:
     async def _run_board(self) -> None:
         while True:
             try:
-                self.step()
+                await self.step()
             except Exception:  # keep the rig alive; the log says what broke
                 log.exception("A/D board step failed")
             await asyncio.sleep(self._tick_period)
 
-    def step(self) -> None:
-        """Advance the drives and the spindles to now; stream the completed frames."""
+    async def step(self) -> None:
+        """Advance the drives and spindles to now; stream the completed frames (numerics in a thread)."""
         tick = self._advance_spindles()
         if tick is None:
             return
@@ -305,7 +305,7 @@ class SimRig:
         if g_end > lo:
             g = np.arange(lo, g_end)
             t, spin_angle, orbit_inst, spin, orbit = self._interpolate(g, tick)
-            counts = self._convert(g, t, spin_angle, orbit_inst, spin, orbit)
+            counts = await asyncio.to_thread(self._convert, g, t, spin_angle, orbit_inst, spin, orbit)
             if self._pending_counts is None or not len(self._pending_counts):
                 self._pending_counts, self._pending_t = counts, t
             else:

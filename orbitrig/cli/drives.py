@@ -91,7 +91,8 @@ def _add_run(drives_app: typer.Typer) -> None:
         hold: bool = typer.Option(
             False, "--hold",
             help="Stay at the setpoint, polling (the drives' watchdog heartbeat), until "
-            "Ctrl-C or SIGTERM; then ramp both to zero and exit 0.",
+            "Ctrl-C, SIGTERM or SIGHUP; then ramp both to zero and exit 0 (a second signal "
+            "during the ramp: emergency stop, exit 4).",
         ),
         status_every: float = typer.Option(
             5.0, "--status-every", help="With --hold: seconds between status lines."
@@ -103,13 +104,14 @@ def _add_run(drives_app: typer.Typer) -> None:
 
         Limits (the rig configuration's, tightened by the options) are checked
         before anything is sent. On any failure (limit, fault, timeout, link,
-        Ctrl-C, SIGTERM before the setpoint) both drives are ramped to zero and
+        Ctrl-C, SIGTERM, SIGHUP before the setpoint) both drives are ramped to zero and
         the command exits 2 with the reason. Without --hold the drives are left
         at their setpoint; with no client polling them, their comm-loss
         watchdog then ramps them down after COMM_LOSS_TIMEOUT. With --hold the
-        command keeps polling until Ctrl-C/SIGTERM, then ramps both to zero
-        (exit 0); if another client stops a drive or changes its reference
-        meanwhile, it says which, ramps both to zero and exits 2.
+        command keeps polling until Ctrl-C/SIGTERM/SIGHUP, then ramps both to
+        zero (exit 0; a second signal during the ramp: emergency stop, exit 4);
+        if another client stops a drive or changes its reference meanwhile, it
+        says which, ramps both to zero and exits 2.
         """
         _run_command(spin=spin, orbit=orbit, modbus=modbus, config=config, max_spin=max_spin,
                      max_orbit=max_orbit, min_ratio=min_ratio, max_ratio=max_ratio, settle=settle,
@@ -209,19 +211,22 @@ def _reason(err: BaseException) -> str:
 
 
 class _Interrupt:
-    """SIGINT/SIGTERM received by a command. While `holding`, a signal ends the
-    hold (`event`) instead of cancelling the command."""
+    """SIGINT/SIGTERM/SIGHUP received by a command. While `holding`, a signal ends the
+    hold (`event`) instead of cancelling the command; another one during the ramp
+    that follows makes it an emergency stop (`abort`)."""
 
     def __init__(self) -> None:
         import asyncio
 
         self.received: list = []
         self.holding = False
+        self.ramping = False
         self.event = asyncio.Event()
+        self.abort = asyncio.Event()
 
 
 def _run_async(make_coro, command: str) -> int:
-    """Run `make_coro(interrupt)`; SIGINT/SIGTERM cancel it (so its drives stop)
+    """Run `make_coro(interrupt)`; SIGINT/SIGTERM/SIGHUP cancel it (so its drives stop)
     -> exit 2, except while it holds (`run --hold`), where they end the hold."""
     import asyncio
     import signal
@@ -238,12 +243,14 @@ def _run_async(make_coro, command: str) -> int:
         def on_signal(sig: signal.Signals) -> None:
             interrupt.received.append(sig)
             if interrupt.holding:
-                interrupt.holding = False  # a second signal cancels (the exit still stops)
+                interrupt.holding = False
                 interrupt.event.set()
+            elif interrupt.ramping:  # a second signal while the hold's ramp stop is under way
+                interrupt.abort.set()
             else:
-                task.cancel()
+                task.cancel()  # the exit still stops both drives
 
-        for sig in (signal.SIGINT, signal.SIGTERM):
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
             loop.add_signal_handler(sig, on_signal, sig)
         try:
             return await make_coro(interrupt)
@@ -261,7 +268,7 @@ def _run_async(make_coro, command: str) -> int:
             _report(command, err)
             return 2
         finally:
-            for sig in (signal.SIGINT, signal.SIGTERM):
+            for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
                 loop.remove_signal_handler(sig)
 
     return asyncio.run(main())

@@ -50,15 +50,18 @@ def stopped_elsewhere(state, refs: tuple[int, int]) -> str | None:
 
 
 async def _hold(rig, refs: tuple[int, int], status_every: float, interrupt) -> int:
-    """`run --hold`: poll at the setpoint until SIGINT/SIGTERM (exit 0) or until
+    """`run --hold`: poll at the setpoint until SIGINT/SIGTERM/SIGHUP (exit 0) or until
     another client stops or moves a drive (exit 2); both end with both drives
-    ramped to zero and at standstill."""
+    ramped to zero and at standstill. A second signal during that ramp makes it an
+    emergency stop (exit 4)."""
     import asyncio
     import time
 
     from drives.errors import DriveLinkError
+    from orbitrig.run.safe_stop import stop_drives
 
-    typer.echo("holding at the setpoint; Ctrl-C or SIGTERM ramps both drives to zero", err=True)
+    typer.echo("holding at the setpoint; Ctrl-C, SIGTERM or SIGHUP ramps both drives to zero "
+               "(a second one: emergency stop)", err=True)  # fmt: skip
     interrupt.holding = True
     t0 = last = time.monotonic()
     elsewhere = None
@@ -82,10 +85,14 @@ async def _hold(rig, refs: tuple[int, int], status_every: float, interrupt) -> i
                    "stopped or changed by another client; ramping both drives to zero", err=True)
     else:
         typer.echo(f"{interrupt.received[-1].name}: ramping both drives to zero", err=True)
-    interrupt.holding = False
-    await rig.stop(wait=True)
+    interrupt.holding, interrupt.ramping = False, True
+    escalated, line = await stop_drives(rig, interrupt.abort, emergency=False, timeout=None)
+    interrupt.ramping = False
     _state_lines(rig.state)
     ramp = time.monotonic() - t0 - held
     typer.echo(f"held the setpoint for {held:.0f} s; both drives stopped (standstill {ramp:.1f} s later)"
                + ("; the hold was ended by another client" if elsewhere else ""))
+    if escalated:
+        typer.echo(f"{interrupt.received[-1].name} again during the ramp: {line}", err=True)
+        return 4
     return 2 if elsewhere else 0

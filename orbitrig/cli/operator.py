@@ -1,4 +1,15 @@
-"""The operator at the terminal of `orbitrig sweep`: confirmations, Ctrl-C (pause and ask), a second Ctrl-C (abort)."""
+"""The operator at the terminal of `orbitrig sweep`: confirmations, Ctrl-C (pause and ask), signals, aborts.
+
+- Ctrl-C (SIGINT): pause at the next safe point and ask resume / stop / abort.
+- SIGTERM, SIGHUP (a service manager, a shutdown, a closed terminal): stop at
+  once, both drives ramp to zero (OFF1), the run ends stopped (exit 3).
+- A second signal of any kind, or any signal while a stop is under way or a
+  manual setting waits for its confirmation after a Ctrl-C: abort (emergency
+  ramp, exit 4). Only an explicit "r" at the pause prompt (the run then
+  resumes) makes the next Ctrl-C a first one again.
+- Standard input not a terminal: nobody can answer a pause, which then stops
+  the run after [interlocks] unanswered_pause_s (RunEngine.unattended).
+"""
 
 from __future__ import annotations
 
@@ -16,16 +27,20 @@ class Operator:
         self.reader = None
         self.asking = None
         self.eof = False  # standard input closed: nobody can answer, so the run stops
+        self.pending = None  # a signal received before the run started (re-requested at its start)
 
     def install(self) -> None:
         import signal
+        import sys
 
-        self.loop.add_signal_handler(signal.SIGINT, self._sigint)
+        for sig in SIGNALS:
+            self.loop.add_signal_handler(sig, self._signal, sig)
+        if not sys.stdin.isatty():
+            self.engine.unattended = True
 
     def uninstall(self) -> None:
-        import signal
-
-        self.loop.remove_signal_handler(signal.SIGINT)
+        for sig in SIGNALS:
+            self.loop.remove_signal_handler(sig)
         if self.asking is not None:
             self.asking.cancel()
 
@@ -44,22 +59,40 @@ class Operator:
         self.reader = threading.Thread(target=read, name="operator-stdin", daemon=True)
         self.reader.start()
 
-    def _sigint(self) -> None:
+    def _signal(self, sig) -> None:
+        import signal
+
+        from orbitrig.run.states import IDLE, FAULTED, STOPPING
+
         self.interrupts += 1
-        if self.interrupts >= 2:
-            self.console.print("second Ctrl-C: aborting (emergency ramp down)", style="bold red")
-            self.engine.request_abort()
+        if self.engine.state in (IDLE, FAULTED):  # not started yet: acted upon at the start
+            self.pending = sig
             return
-        self.engine.request_pause()
-        self._ask("paused at the next safe point: [r]esume, [s]top, [a]bort? (Ctrl-C again aborts) ", self._choice)
+        if self.interrupts >= 2 or self.engine.state == STOPPING:
+            self.console.print(f"{_name(sig)} again: aborting (emergency ramp down)", style="bold red", markup=False)
+            self.engine.request_abort()
+        elif sig == signal.SIGINT:
+            self.engine.request_pause()
+            self._ask("paused at the next safe point: [r]esume, [s]top, [a]bort? (Ctrl-C again aborts) ", self._choice)
+        else:
+            self.console.print(f"{_name(sig)}: stopping now, both drives ramp to zero (a second signal aborts)",
+                               style="bold red", markup=False)  # fmt: skip
+            self.engine.request_stop_now(_name(sig))
 
     def on_event(self, ev) -> None:
         from orbitrig.run.engine import StatusEvent
 
+        if isinstance(ev, StatusEvent) and ev.state == "running" and self.pending is not None:
+            sig, self.pending = self.pending, None
+            self.interrupts -= 1
+            self.loop.call_soon(self._signal, sig)
         if isinstance(ev, StatusEvent) and ev.state == "waiting" and self.engine.waiting_step:
-            step = self.engine.waiting_step
-            self._ask(f"{ev.message}\npress Enter to confirm {step} (or type stop / abort): ",
-                      lambda ans: self._confirm(step, ans))  # fmt: skip
+            self._ask_confirm(ev.message)
+
+    def _ask_confirm(self, message: str) -> None:
+        step = self.engine.waiting_step
+        self._ask(f"{message}\npress Enter to confirm {step} (or type stop / abort): ",
+                  lambda ans: self._confirm(step, ans))  # fmt: skip
 
     def _ask(self, prompt: str, handle) -> None:
         import asyncio
@@ -93,9 +126,14 @@ class Operator:
             self.engine.request_stop()
         elif a == "a":
             self.engine.request_abort()
-        else:
-            self.interrupts = 0
+        elif a == "r":
             self.engine.request_resume()
+            if self.engine.waiting_step is None:
+                self.interrupts = 0
+            else:  # still waiting for the confirmation: ask again, the count stays
+                self._ask_confirm(self.engine.message)
+        else:
+            self._ask("[r]esume, [s]top or [a]bort? (Ctrl-C again aborts) ", self._choice)
 
     def _confirm(self, step: str, ans: str) -> None:
         a = ans.lower()
@@ -108,3 +146,18 @@ class Operator:
                 self.engine.confirm(step)
             except Exception as err:  # noqa: BLE001 - tell the operator, keep going
                 self.console.print(f"not confirmed: {err}", markup=False)
+
+
+def _signals() -> tuple:
+    import signal
+
+    return (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+SIGNALS = _signals()
+
+
+def _name(sig) -> str:
+    import signal
+
+    return "Ctrl-C" if sig == signal.SIGINT else signal.Signals(sig).name

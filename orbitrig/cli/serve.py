@@ -182,8 +182,18 @@ async def _serve(rig, settings, broker_settings, *, out: Path, sim: bool, speedu
 
     shutdown = asyncio.Event()
     loop = asyncio.get_running_loop()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        loop.add_signal_handler(sig, shutdown.set)
+    from orbitrig.run.modbus_log import keep_pymodbus_off_the_terminal
+
+    keep_pymodbus_off_the_terminal()
+    services = []
+
+    def on_signal() -> None:  # the first: the run stops at once with a ramp; another: it aborts
+        if shutdown.is_set() and services:
+            services[0].abort_run("a second signal while shutting down")
+        shutdown.set()
+
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        loop.add_signal_handler(sig, on_signal)
 
     async with contextlib.AsyncExitStack() as stack:
         sim_rig = None
@@ -192,4 +202,5 @@ async def _serve(rig, settings, broker_settings, *, out: Path, sim: bool, speedu
 
             sim_rig, _ = await stack.enter_async_context(simulated_rig(speedup or DEFAULT_SPEEDUP))
         service = build_service(rig, settings, broker_settings, out=out, sim_rig=sim_rig, confirm=confirm)
+        services.append(service)
         await service.serve(shutdown)

@@ -10,7 +10,9 @@ the scenario it runs (recorded in the run). The engine gets only the access.
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
+import threading
 from collections.abc import AsyncIterator
 
 import numpy as np
@@ -75,6 +77,52 @@ def simulated_access(sim: SimRig, scenario: Scenario | None = None) -> RigAccess
 async def simulated_rig(speedup: float = DEFAULT_SPEEDUP, config: SimConfig | None = None,
                         scenario: Scenario | None = None) -> AsyncIterator[tuple[SimRig, RigAccess]]:  # fmt: skip
     """A running SimRig of scenario `config` (default: the paper's rig; no pty: the A/D
-    board over TCP) and its access; `scenario` names it in the run (the config's file and text)."""
-    async with SimRig(config, speedup=speedup, adc_pty=False) as sim:
+    board over TCP) and its access; `scenario` names it in the run (the config's file and text).
+
+    The simulator runs on an event loop of its own, in a thread: its physics and its
+    servers never hold up the loop that polls its drives (as on the rig, where they are
+    other machines). Manual settings and the truth are plain calls into it."""
+    host = _SimulatorThread(config, speedup)
+    sim = await host.start()
+    try:
         yield sim, simulated_access(sim, scenario)
+    finally:
+        await host.stop()
+
+
+class _SimulatorThread:
+    """A SimRig served by its own event loop in a daemon thread."""
+
+    def __init__(self, config: SimConfig | None, speedup: float):
+        self.config, self.speedup = config, speedup
+        self.ready = threading.Event()
+        self.sim: SimRig | None = None
+        self.error: BaseException | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._stop: asyncio.Event | None = None
+        self._thread = threading.Thread(target=lambda: asyncio.run(self._serve()), name="simulator", daemon=True)
+
+    async def _serve(self) -> None:
+        self._loop, self._stop = asyncio.get_running_loop(), asyncio.Event()
+        try:
+            async with SimRig(self.config, speedup=self.speedup, adc_pty=False) as sim:
+                self.sim = sim
+                self.ready.set()
+                await self._stop.wait()
+        except BaseException as err:  # noqa: BLE001 - raised again in the caller's thread
+            self.error = err
+        finally:
+            self.ready.set()
+
+    async def start(self) -> SimRig:
+        self._thread.start()
+        await asyncio.to_thread(self.ready.wait)
+        if self.sim is None:
+            raise self.error or RuntimeError("the simulator did not start")
+        return self.sim
+
+    async def stop(self) -> None:
+        if self._loop is not None and not self._loop.is_closed():
+            with contextlib.suppress(RuntimeError):  # its loop already ended
+                self._loop.call_soon_threadsafe(self._stop.set)
+        await asyncio.to_thread(self._thread.join, 30.0)

@@ -43,6 +43,7 @@ def register(app: typer.Typer) -> None:
         Matrix units: speeds rpm (spin omega; orbit Omega = ratio * omega), pressures MPa, times s.
 
         Ctrl-C pauses at the next safe point and asks resume / stop / abort; a second Ctrl-C aborts.
+        SIGTERM or SIGHUP stops at once with a ramp (exit 3); a second signal aborts (exit 4).
 
         Exit 0 completed, 1 failed, 2 bad configuration or usage, 3 stopped, 4 aborted.
         """
@@ -210,6 +211,9 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator
     from orbitrig.cli.progress import SweepProgress
     from orbitrig.run.engine import RunEngine
 
+    from orbitrig.run.modbus_log import keep_pymodbus_off_the_terminal
+
+    keep_pymodbus_off_the_terminal()
     console = Console(stderr=True)
     async with contextlib.AsyncExitStack() as stack:
         access = None

@@ -12,6 +12,10 @@ a confirmation, an interlock clearing).
 - confirm(step): the operator confirms the manual setting the run waits for.
 - suspension: an interlock holds the run (state paused) until it clears.
 - no room: too little free disk space for the next point pauses the run.
+- stop now: a signal from the system (SIGTERM, SIGHUP): the engine cancels the
+  run at once, the drives ramp to zero (not an emergency), the run ends stopped.
+- nobody to answer (`unanswered_limit`, wall s): a pause or a confirmation
+  that nobody can answer (no terminal, no MQTT) stops the run after that long.
 """
 
 from __future__ import annotations
@@ -59,12 +63,15 @@ class RunControl:
         self.since = now_iso()
         self.waiting_step: str | None = None
         self.timing: dict[str, float] = {}
+        self.unanswered_limit: float | None = None  # None: someone can answer a pause
         self.reset()
 
     def reset(self) -> None:
         self.pause_requested = self.stop_requested = self.abort_requested = False
+        self.stop_now: str | None = None  # why the run stops at once (a signal)
         self.confirmed: str | None = None
         self.wake = asyncio.Event()
+        self.aborted = asyncio.Event()  # set by an abort: a ramp stop under way becomes an emergency stop
 
     def fire(self, event: str, message: str) -> None:
         """Change state by the table; tell the engine."""
@@ -83,19 +90,28 @@ class RunControl:
         self.pause_requested = False
         self.wake.set()
 
-    def request_stop(self) -> None:
+    def request_stop(self, message: str = "stop requested: finishing the current orbit frequency") -> None:
         if self.state in (IDLE, FAULTED):
             return
         self.stop_requested = True
         self.wake.set()
         if self.state != STOPPING:
-            self.fire("stop", "stop requested: finishing the current orbit frequency")
+            self.fire("stop", message)
+
+    def request_stop_now(self, why: str) -> bool:
+        """Stop at once with a ramp (`why`: e.g. 'SIGTERM'); True if the engine is to cancel the run."""
+        if self.state in (IDLE, FAULTED) or self.abort_requested or self.stop_now is not None:
+            return False
+        self.stop_now = why
+        self.request_stop(f"{why}: stopping now, both drives ramp to zero")
+        return True
 
     def request_abort(self) -> bool:
         """True if this request starts an abort (the engine then cancels the run)."""
         if self.state in (IDLE, FAULTED) or self.abort_requested:
             return False
         self.abort_requested = True
+        self.aborted.set()
         self.wake.set()
         self.fire("abort", "abort requested: emergency ramp down")
         return True
@@ -114,10 +130,22 @@ class RunControl:
     def _add_time(self, key: str, t0: float) -> None:
         self.timing[key] = self.timing.get(key, 0.0) + time.monotonic() - t0
 
-    async def _until_resumed(self) -> None:
+    async def _until_resumed(self, t0: float) -> None:
         while self.pause_requested and not self.stop_requested:
-            self.wake.clear()
+            await self._wait_answer(t0)
+
+    async def _wait_answer(self, t0: float) -> None:
+        """Until the next request; if nobody can answer, a stop once `unanswered_limit` s
+        have passed since `t0`."""
+        self.wake.clear()
+        limit = self.unanswered_limit
+        if limit is None:
             await self.wake.wait()
+            return
+        await _first(self.wake, timeout=max(0.0, t0 + limit - time.monotonic()))  # not wait_for: it can swallow a cancel
+        if time.monotonic() - t0 >= limit and not self.stop_requested:
+            self.request_stop(f"nobody can answer ({self.state} for {limit:g} s, no terminal and no MQTT): "
+                              "stopping the run (continue later with --resume)")  # fmt: skip
 
     async def safe_point(self, allow_stop: bool = True) -> None:
         """Honour a stop (StopRun) or a pause here."""
@@ -126,7 +154,7 @@ class RunControl:
         if not self.pause_requested or self.stop_requested:
             return
         self.fire("pause", "paused at a safe point (drives keep their speeds)")
-        await self._until_resumed()
+        await self._until_resumed(time.monotonic())
         if self.stop_requested:
             if allow_stop:
                 raise StopRun
@@ -145,8 +173,7 @@ class RunControl:
             while self.confirmed != step_id:
                 if self.stop_requested:
                     raise StopRun
-                self.wake.clear()
-                await self.wake.wait()
+                await self._wait_answer(t0)
         finally:
             self.waiting_step = None
         self._add_time("confirm", t0)
@@ -160,9 +187,10 @@ class RunControl:
         if self.stop_requested:
             raise StopRun
         self.fire("no_room", f"paused: {why}; free disk space, then resume")
+        t0 = time.monotonic()
         while why is not None:
             self.pause_requested = True
-            await self._until_resumed()
+            await self._until_resumed(t0)
             if self.stop_requested:
                 raise StopRun
             why = problem()

@@ -35,11 +35,13 @@ from orbitrig.run.events import (  # noqa: F401 - the engine's public names
 )  # fmt: skip
 from orbitrig.run.interlocks import Trip
 from orbitrig.run.log_rows import can_row, drive_row
+from orbitrig.run.modbus_log import pymodbus_into
 from orbitrig.run.plan import Acquire, Plan, make_plan
 from orbitrig.run.procedure import PointProcedure, RunParts
 from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.provenance import UNNAMED, Provenance, RunCommand
 from orbitrig.run.rig_io import RigAccess, RigIO, Scenario
+from orbitrig.run.safe_stop import stop_drives
 from orbitrig.run.states import ABORTED, COMPLETED, FAILED, FAULTED, IDLE, STOPPED, STOPPING
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.store.estimate import plan_bytes, point_bytes
@@ -113,6 +115,23 @@ class RunEngine:
             self._body.cancel()
         self._command(RunCommand.ABORT, by)
 
+    def request_stop_now(self, why: str, by: str | None = None) -> None:
+        """Stop at once (`why`, e.g. 'SIGTERM'): the block under way is dropped, both drives ramp
+        to zero (OFF1, not an emergency), the run ends stopped and can be resumed."""
+        if self._control.request_stop_now(why) and self._body is not None and not self._body.done():
+            self._body.cancel()
+        self._command(RunCommand.STOP, by, why)
+
+    @property
+    def unattended(self) -> bool:
+        """Nobody can answer a pause or a confirmation (no terminal, no MQTT): such a wait
+        stops the run after [interlocks] unanswered_pause_s."""
+        return self._control.unanswered_limit is not None
+
+    @unattended.setter
+    def unattended(self, value: bool) -> None:
+        self._control.unanswered_limit = self.rig.interlocks.unanswered_pause_s if value else None
+
     def confirm(self, step: str, by: str | None = None) -> None:
         """Confirm the manual setting `step` (e.g. 'manual:0003'); raises if not waiting for it.
         `by`: who sent each request (logged with the time in run.log and run.h5)."""
@@ -133,13 +152,14 @@ class RunEngine:
         self._start(plan, store, done, resume)
         io = RigIO(self.rig, self.access.endpoints, on_revolution=self._on_revolution)
         status, message = FAILED, "run cancelled"
-        try:
-            status, message = await self._operate(io, plan, set(done))
-        except asyncio.CancelledError:
-            status, message = ABORTED, "run cancelled"
-            raise
-        finally:
-            await self._make_safe(io, store, status, message)
+        with pymodbus_into(store):
+            try:
+                status, message = await self._operate(io, plan, set(done))
+            except asyncio.CancelledError:
+                status, message = ABORTED, "run cancelled"
+                raise
+            finally:
+                status, message = await self._make_safe(io, store, status, message)
         return RunOutcome(status, message, self.run_id, self.out_dir, _completed(store), len(plan.points))
 
     def _open_store(self, plan: Plan, resume: bool) -> tuple[RunStore, list[int]]:
@@ -213,6 +233,8 @@ class RunEngine:
                 return FAILED, failed
             if self._control.abort_requested and not _cancelling():
                 return ABORTED, "aborted by the operator"
+            if self._control.stop_now is not None and not _cancelling():
+                return STOPPED, f"stopped at once by {self._control.stop_now}"
             raise
         except (StorageError, OSError) as err:
             log.error("run failed: storage: %s", err)
@@ -230,7 +252,7 @@ class RunEngine:
         helpers = [asyncio.create_task(supervisor.watch(), name="interlocks"),
                    asyncio.create_task(self._monitor(), name="run-monitor")]  # fmt: skip
         self._body = asyncio.create_task(body, name="run-body")
-        if self._failure is not None or self._control.abort_requested:  # while the rig was being opened
+        if self._failure is not None or self._control.abort_requested or self._control.stop_now:  # while opening
             self._body.cancel()
         try:
             return await self._body
@@ -281,17 +303,17 @@ class RunEngine:
         return STOPPED if control.stop_requested else COMPLETED
 
     # ------------------------------------------------------- the one finally
-    async def _make_safe(self, io: RigIO, store: RunStore, status: str, message: str) -> None:
+    async def _make_safe(self, io: RigIO, store: RunStore, status: str, message: str) -> tuple[str, str]:
         """Every exit path: drives to a safe stop first, then the links, then storage; each
         failure logged, the rest still done. A failure is reported (state faulted) once the
-        drives are safe."""
+        drives are safe. Returns the outcome (an abort while stopping makes it aborted)."""
         if self.state != STOPPING:
             self._control.fire("finish", message)
         emergency = status in (ABORTED, FAILED)
         timeout = self.access.time_scale.wall(self.rig.drives.stop_timeout_s) + 5.0
         steps = []
         if io.drives is not None:
-            steps.append(("stop both drives", lambda: io.drives.stop(emergency=emergency, wait=True, timeout=timeout)))
+            steps.append(("stop both drives", lambda: self._stop_drives(io.drives, emergency, timeout)))
         steps.append(("close the rig links", lambda: io.__aexit__(None, None, None)))
         steps.append(("finish the storage in flight", self._background.settle))
         for what, action in steps:
@@ -300,6 +322,8 @@ class RunEngine:
             except BaseException as err:  # noqa: BLE001 - every cleanup step must run
                 self._cleanup_failed(what, err)
         self._io = None
+        if self._control.abort_requested and status in (COMPLETED, STOPPED):  # an abort while stopping
+            status, message = ABORTED, f"aborted by the operator while stopping ({message})"
         if status == FAILED:  # reported once the drives are safe
             self._control.fire("fail", message)
         self.timing["wall"] = time.monotonic() - self._t0
@@ -312,6 +336,11 @@ class RunEngine:
                 self._cleanup_failed(what, err)
         if status != FAILED:
             self._control.fire("done", f"run {self.run_id} {status}: {message}")
+        return status, message
+
+    async def _stop_drives(self, drives, emergency: bool, timeout: float) -> None:
+        _, line = await stop_drives(drives, self._control.aborted, emergency=emergency, timeout=timeout)
+        self._log_event(line)
 
     def _cleanup_failed(self, what: str, err: BaseException) -> None:
         log.error("cleanup: cannot %s: %s: %s", what, type(err).__name__, err)

@@ -266,12 +266,13 @@ class PointProcedure:
         self.r.store.log(f"point {p.index:04d}: stored {rec.block.tag}")
 
     async def identify(self, step: Identify, ps: PointState) -> None:
-        """Identify every model for both load measuring systems, in a worker thread."""
+        """Identify every model for both load measuring systems (and a simulated rig's truth), in a
+        worker thread: nothing of it holds up the loop that polls the drives."""
         r, p, recs = self.r, ps.point, list(ps.records.values())
-        truth = point_truth(p, recs, r.access.truth) if r.access.truth is not None else None
 
         async def results() -> PointResults:
             t0 = time.monotonic()
+            truth = None if r.access.truth is None else await asyncio.to_thread(point_truth, p, recs, r.access.truth)
             res = await asyncio.to_thread(identify_operating_point, p.spin, recs, r.rig.channel_index, step.models,
                                           truth, r.rig.calibration_uncertainty, Corrections.of_rig(r.rig))  # fmt: skip
             self._add_time("identify", t0)

@@ -5,11 +5,17 @@ latest poll), so the supervisor samples them every `period` s and turns
 them into events: a *fail* trip calls `on_fail` once (the engine ends the
 run); a *suspend* trip sets `tripped` until it clears (then `clear` is set).
 The engine never polls: it waits on these events.
+
+A lost CAN heartbeat suspends the run only for `can_heartbeat_timeout_s`
+(wall s, counted from the first sample that saw it lost, whatever the engine
+is doing meanwhile: settling, paused, waiting for a confirmation): then it
+becomes a fail trip and the drives stop.
 """
 
 from __future__ import annotations
 
 import asyncio
+import time
 from typing import Callable
 
 from daq.aux import AuxState
@@ -32,6 +38,7 @@ class InterlockSupervisor:
         self.tripped = asyncio.Event()
         self.clear = asyncio.Event()
         self.clear.set()
+        self._lost_since: float | None = None  # first sample without the CAN node
 
     def trips(self) -> list[Trip]:
         aux, drives = self._read()
@@ -39,7 +46,7 @@ class InterlockSupervisor:
 
     def sample(self) -> None:
         """Look once; fire the events that changed."""
-        trips = self.trips()
+        trips = self._escalated(self.trips())
         fail = next((t for t in trips if t.action == interlocks.FAIL), None)
         if fail is not None and self.failure is None:
             self.failure = fail
@@ -52,6 +59,17 @@ class InterlockSupervisor:
         else:
             self.tripped.clear()
             self.clear.set()
+
+    def _escalated(self, trips: list[Trip]) -> list[Trip]:
+        """`trips`, a CAN heartbeat lost for longer than its timeout made a fail trip."""
+        lost = any(t.kind == "can_heartbeat" for t in trips)
+        now = time.monotonic()
+        self._lost_since = (self._lost_since or now) if lost else None
+        limit = self.cfg.can_heartbeat_timeout_s
+        if lost and now - self._lost_since >= limit:
+            return [Trip("can_heartbeat", interlocks.FAIL, f"CAN sensor node lost for more than {limit:g} s "
+                         "(no heartbeat): supply pressure and pump are not watched")] + trips  # fmt: skip
+        return trips
 
     async def watch(self) -> None:
         while self.failure is None:

@@ -161,8 +161,8 @@ class RigService:
         """Abort an active run and wait (bounded) until the executor has finished."""
         if not self.run_active:
             return
-        log.warning("aborting run %s: %s", self._run_id, why)
-        self._request("abort", f"service ({why})")
+        log.warning("stopping run %s at once, both drives ramp to zero: %s", self._run_id, why)
+        self._request("stop_now", f"service ({why})")
         try:
             await asyncio.wait_for(asyncio.shield(self._run_task), self.settings.shutdown_timeout)
         except TimeoutError:
@@ -171,6 +171,12 @@ class RigService:
             await asyncio.gather(self._run_task, return_exceptions=True)
         except Exception:  # noqa: BLE001 - reported by _run itself
             pass
+
+    def abort_run(self, why: str) -> None:
+        """Abort the active run (emergency ramp; during its closing ramp stop: an emergency stop)."""
+        if self.run_active:
+            log.warning("aborting run %s: %s", self._run_id, why)
+            self._request("abort")
 
     # -- supervision --------------------------------------------------------------
 
@@ -328,22 +334,23 @@ class RigService:
             return f"cannot {what}: {err}"
         return None
 
-    def _request(self, what: Literal["pause", "stop", "abort"], by: str | None = None) -> None:
+    def _request(self, what: Literal["pause", "stop", "abort", "stop_now"], by: str | None = None) -> None:
         """Ask the executor to pause/stop/abort; never raises. If the executor
         refuses a stop or abort, the run task is cancelled (its cleanup ramps
         both drives to zero)."""
         engine, task = self._engine, self._run_task
         if task is None or task.done() or engine is None:
             return
-        if what in ("stop", "abort") and engine.state == "idle":
+        if what != "pause" and engine.state == "idle":
             task.cancel()  # the run task has not started yet: it never touches the drives
             return
-        requests = {"pause": engine.request_pause, "stop": engine.request_stop, "abort": engine.request_abort}
+        requests = {"pause": engine.request_pause, "stop": engine.request_stop, "abort": engine.request_abort,
+                    "stop_now": lambda by: engine.request_stop_now("the service shutting down", by=by)}  # fmt: skip
         try:
             requests[what](by=by)
         except Exception:  # noqa: BLE001
             log.exception("executor refused %s", what)
-            if what in ("stop", "abort"):
+            if what != "pause":
                 task.cancel()
 
     async def _run(self, engine: Engine, name: str, matrix: Any) -> None:

@@ -1,35 +1,15 @@
 """RunEngine control on the real simulator: confirm, pause/resume, stop, abort, interlocks."""
 
 import asyncio
-import contextlib
 
 import h5py
 import pytest
 
-from orbitrig import config as cfg
 from orbitrig.errors import OrbitrigError
-from orbitrig.cli.simulated_rig import simulated_access
-from orbitrig.run.engine import ProgressEvent, RunEngine, StatusEvent
-from sim.rig import SimRig
-from sweep_helpers import SPEEDUP, small_matrix, wait_for
+from orbitrig.run.engine import StatusEvent
+from sweep_helpers import Recorder, running, small_matrix, wait_for
 
 pytestmark = pytest.mark.timeout(120)
-
-
-class Recorder:
-    def __init__(self):
-        self.events = []
-
-    def __call__(self, ev):
-        self.events.append(ev)
-
-    def states(self):
-        return [e.state for e in self.events if isinstance(e, StatusEvent)]
-
-    def blocks_done(self):
-        """Blocks started so far (ProgressEvent.frequency of the latest event)."""
-        prog = [e for e in self.events if isinstance(e, ProgressEvent)]
-        return prog[-1].frequency if prog else 0
 
 
 def _stored(out):
@@ -37,23 +17,6 @@ def _stored(out):
         pts = {n: (bool(g.attrs["complete"]), {t: bool(b.attrs["complete"]) for t, b in g["frequencies"].items()})
                for n, g in f["points"].items()}
         return str(f.attrs["status"]), str(f.attrs["status_message"]), pts
-
-
-@contextlib.asynccontextmanager
-async def running(tmp_path, matrix, **engine_kw):
-    """A SimRig and a RunEngine running `matrix` in a task: yields (sim, engine, recorder, run task)."""
-    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
-        engine_kw.setdefault("confirm_mode", "auto")
-        eng = RunEngine(cfg.load_rig(), out_dir=tmp_path / "run", access=simulated_access(sim), **engine_kw)
-        rec = Recorder()
-        eng.subscribe(rec)
-        run = asyncio.create_task(eng.run(matrix))
-        try:
-            yield sim, eng, rec, run
-        finally:
-            if not run.done():
-                run.cancel()
-                await asyncio.gather(run, return_exceptions=True)
 
 
 def _spindles_stopped(sim) -> bool:

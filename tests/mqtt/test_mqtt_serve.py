@@ -217,11 +217,11 @@ class OwnRun:
     """A broker and a `serve --sim --confirm auto` of the test's own (the password
     from the environment), with the 'long' matrix running and acquiring."""
 
-    def __init__(self, tmp_path: Path):
+    def __init__(self, tmp_path: Path, *args: str):
         self.broker = Broker(tmp_path / "broker")
         self.broker.start()
         env = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}
-        self.svc = Service(serve_args(self.broker, tmp_path, "--confirm", "auto"), tmp_path, env=env)
+        self.svc = Service(serve_args(self.broker, tmp_path, "--confirm", "auto", *args), tmp_path, env=env)
         self.rc = RigClient(self.broker, RIG, self.svc)
 
     def __enter__(self) -> "OwnRun":
@@ -239,6 +239,20 @@ class OwnRun:
         self.rc.close()
         self.svc.kill()
         self.broker.stop()
+
+
+def test_a_second_signal_while_stopping_aborts(tmp_path):
+    with OwnRun(tmp_path, "--speedup", "2") as own:  # a ramp of about a second
+        log = next(p for p in (tmp_path / "runs").glob("*/run.log") if own.run_id in p.read_text())
+        own.svc.proc.send_signal(signal.SIGTERM)
+        deadline = time.monotonic() + 20
+        while "[stopping] the service shutting down" not in log.read_text():
+            assert time.monotonic() < deadline, log.read_text()
+            time.sleep(0.005)
+        own.svc.kill(signal.SIGINT)
+        assert own.svc.proc.returncode == 0, own.svc.text()[-3000:]
+        assert run_status(tmp_path, own.run_id) == "aborted"
+        assert "drives: emergency stop (OFF3)" in log.read_text()  # before or during the ramp
 
 
 def test_broker_restart_mid_run_and_the_run_completes(tmp_path):
@@ -268,14 +282,19 @@ def test_sigkill_publishes_offline_last_will(tmp_path):
         assert late.retain and late.json()["state"] == "offline"
 
 
-def test_sigterm_mid_run_aborts_and_says_offline(tmp_path):
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
+def test_sigterm_mid_run_stops_with_a_ramp_and_says_offline(tmp_path, sig):
     with OwnRun(tmp_path) as own:
         mark = own.rc.watch.mark()
-        own.svc.kill(signal.SIGTERM)
+        own.svc.kill(sig)
         assert own.svc.proc.returncode == 0, own.svc.text()[-3000:]
         statuses = own.rc.watch.on("status", mark)
         states = [m.json()["state"] for m in statuses]
         assert states[-1] == "offline" and "stopping" in states and "idle" in states, states
         assert statuses[-1].json()["message"] == "service stopped"
         assert retained(own.broker, f"orbitrig/{RIG}/status").json()["state"] == "offline"
-        assert run_status(tmp_path, own.run_id) == "aborted"
+        assert run_status(tmp_path, own.run_id) == "stopped"
+        log = next(p for p in (tmp_path / "runs").glob("*/run.log") if own.run_id in p.read_text())
+        log = log.read_text()
+        assert "stopped at once by the service shutting down" in log
+        assert "drives: ramp stop (OFF1); standstill after" in log

@@ -1,0 +1,50 @@
+"""The drives' stop at the end of a run: a ramp that an abort turns into an emergency stop.
+
+The engine's one `finally` stops both drives first. A ramp stop (completed or
+stopped runs, OFF1 along the drives' DECEL_TIME) is watched: an abort that
+arrives while it is under way (a second Ctrl-C, a signal, an MQTT abort) sends
+the emergency stop (OFF3) at once, and the run ends aborted. The line this
+returns says what the drives were commanded and how they ended, for run.log.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+
+from drives.rig import RigDrives
+
+
+async def stop_drives(drives: RigDrives, aborted: asyncio.Event, *, emergency: bool,
+                      timeout: float | None) -> tuple[bool, str]:  # fmt: skip
+    """Stop both drives (`timeout` wall s to standstill, None: the drives' own ramp time with a
+    margin); (escalated to an emergency stop, log line)."""
+    t0 = time.monotonic()
+    escalated = False
+    if emergency or aborted.is_set():
+        escalated = not emergency
+        await drives.stop(emergency=True, wait=True, timeout=timeout)
+    else:
+        ramp = asyncio.ensure_future(drives.stop(emergency=False, wait=True, timeout=timeout))
+        abort = asyncio.ensure_future(aborted.wait())
+        try:
+            await asyncio.wait({ramp, abort}, return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            abort.cancel()
+        if ramp.done():
+            ramp.result()
+        else:
+            ramp.cancel()
+            await asyncio.gather(ramp, return_exceptions=True)
+            escalated = True
+            await drives.stop(emergency=True, wait=True, timeout=timeout)
+    kind = "emergency stop (OFF3)" if emergency or escalated else "ramp stop (OFF1)"
+    return escalated, (f"drives: {kind}{' after an abort during the ramp' if escalated else ''}; "
+                       f"standstill after {time.monotonic() - t0:.1f} s: {_speeds(drives)}")  # fmt: skip
+
+
+def _speeds(drives: RigDrives) -> str:
+    st = drives.state
+    parts = [f"{s.name} ACT {s.to_dict()['actual_rpm']:.0f} rpm, fault {s.fault_code}"
+             for s in (st.spin, st.orbit) if s is not None]  # fmt: skip
+    return "; ".join(parts) or "no drive state"

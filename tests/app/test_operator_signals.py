@@ -1,0 +1,46 @@
+"""The terminal operator of `orbitrig sweep` while a manual setting waits for its confirmation:
+real SIGINTs to this process reach its handlers; a second one always aborts (an "r" answered in
+between does not make it a first one again), and the simulator's drives get the emergency stop."""
+
+import asyncio
+import io
+import os
+import signal
+import sys
+
+import pytest
+from rich.console import Console
+
+from orbitrig.cli.operator import Operator
+from sweep_helpers import running, small_matrix, wait_for
+
+pytestmark = pytest.mark.timeout(60)
+CW_EMERGENCY = 0x047B  # spec control word, written out on purpose
+
+
+@pytest.mark.parametrize("between", [None, "r"], ids=["twice", "resume-answered-between"])
+async def test_a_second_ctrl_c_while_confirming_aborts(tmp_path, monkeypatch, between):
+    read_end, write_end = os.pipe()  # the operator's terminal: open, nothing typed
+    monkeypatch.setattr(sys, "stdin", os.fdopen(read_end))
+    async with running(tmp_path, small_matrix(), confirm_mode="prompt") as (sim, eng, rec, run):
+        out = io.StringIO()
+        operator = Operator(eng, Console(file=out, width=200))
+        eng.subscribe(operator.on_event)
+        operator.install()
+        try:
+            await wait_for(lambda: eng.state == "waiting", what="waiting for the manual settings")
+            os.kill(os.getpid(), signal.SIGINT)
+            await wait_for(lambda: "[r]esume, [s]top, [a]bort" in out.getvalue(), what="the pause prompt")
+            if between is not None:
+                operator._choice(between)  # the operator's typed answer
+                await wait_for(lambda: "press Enter to confirm" in out.getvalue().split("[a]bort")[-1],
+                               what="the confirmation asked again")  # fmt: skip
+            assert eng.state == "waiting" and not run.done()
+            os.kill(os.getpid(), signal.SIGINT)
+            outcome = await asyncio.wait_for(run, 20)
+        finally:
+            operator.uninstall()
+            os.close(write_end)
+    assert outcome.status == "aborted", outcome.message
+    assert "Ctrl-C again: aborting" in out.getvalue()
+    assert sim.drives[1].read(0, 1)[0] == sim.drives[2].read(0, 1)[0] == CW_EMERGENCY

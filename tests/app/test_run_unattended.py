@@ -1,0 +1,121 @@
+"""Waits that end on their own, on the real simulator: a lost CAN heartbeat fails the run after
+[interlocks] can_heartbeat_timeout_s, a pause nobody can answer stops it after unanswered_pause_s,
+and an abort during the closing ramp turns it into an emergency stop. Checked on the simulator's
+drive registers (what the drives were commanded)."""
+
+import asyncio
+import time
+
+import pytest
+
+from orbitrig import config as cfg
+from sweep_helpers import running, small_matrix, wait_for
+
+pytestmark = pytest.mark.timeout(90)
+
+# Spec control words, written out here (not imported from drives/) on purpose.
+CW_RAMP_STOP, CW_EMERGENCY = 0x047E, 0x047B
+
+
+LONG = small_matrix(revolutions=50, spin_rpm=[1000.0, 2000.0])  # several seconds at speed-up 40
+
+
+def _rig(**interlocks):
+    """config/rig.toml with some [interlocks] keys changed (the shipped file must name them)."""
+    text = cfg.default_rig_path().read_text()
+    for key, value in interlocks.items():
+        old = f"{key} = {getattr(cfg.load_rig().interlocks, key)!r}"
+        assert old in text, old
+        text = text.replace(old, f"{key} = {value!r}")
+    return cfg.rig_from_text(text, "rig.toml")
+
+
+def _commanded(sim) -> tuple[int, int]:
+    """The control words the drives hold (spin, orbit)."""
+    return sim.drives[1].read(0, 1)[0], sim.drives[2].read(0, 1)[0]
+
+
+def _faults(sim) -> tuple[int, int]:
+    return sim.drives[1].fault_code, sim.drives[2].fault_code
+
+
+def _standstill(sim) -> bool:
+    """Both drive models at zero speed now (advanced to the present)."""
+    for d in (1, 2):
+        sim.drives[d].advance()
+    return sim.drives[1].actual_rpm == 0 and sim.drives[2].actual_rpm == 0
+
+
+@pytest.mark.parametrize("paused", [False, True], ids=["running", "paused-by-the-operator"])
+async def test_a_lost_can_heartbeat_fails_the_run_within_its_timeout(tmp_path, paused):
+    rig = _rig(can_heartbeat_timeout_s=1.0)
+    async with running(tmp_path, LONG, rig) as (sim, eng, rec, run):
+        await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
+        if paused:  # a safe point, no interlock hold: the supervisor's own clock still runs
+            eng.request_pause()
+            await wait_for(lambda: eng.state == "paused", what="the pause")
+        t0 = time.monotonic()
+        sim.inject("can_heartbeat_loss", on=True)
+        outcome = await asyncio.wait_for(run, 20)
+        took = time.monotonic() - t0
+    assert outcome.status == "failed", outcome.message
+    assert "CAN sensor node lost for more than 1 s" in outcome.message
+    # 1.5 s until the node counts as lost, then 1 s; generous margin for a loaded machine
+    assert 2.0 < took < 10.0, took
+    assert _commanded(sim) == (CW_EMERGENCY, CW_EMERGENCY)
+    assert _faults(sim) == (0, 0) and _standstill(sim)
+
+
+async def test_a_pause_nobody_can_answer_stops_the_run(tmp_path):
+    rig = _rig(unanswered_pause_s=1.0)
+    async with running(tmp_path, small_matrix(revolutions=30), rig) as (sim, eng, rec, run):
+        eng.unattended = True
+        await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
+        eng.request_pause()
+        await wait_for(lambda: eng.state == "paused", what="the pause")
+        t0 = time.monotonic()
+        outcome = await asyncio.wait_for(run, 20)
+        took = time.monotonic() - t0
+    assert outcome.status == "stopped", outcome.message
+    assert 0.9 < took < 8.0, took
+    assert any("nobody can answer (paused for 1 s" in e.message for e in rec.events if hasattr(e, "state"))
+    assert _commanded(sim) == (CW_RAMP_STOP, CW_RAMP_STOP)
+    assert _faults(sim) == (0, 0) and _standstill(sim)
+
+
+async def test_a_confirmation_nobody_can_answer_stops_the_run(tmp_path):
+    rig = _rig(unanswered_pause_s=1.0)
+    async with running(tmp_path, small_matrix(), rig, confirm_mode="remote") as (sim, eng, rec, run):
+        eng.unattended = True
+        await wait_for(lambda: eng.state == "waiting", what="waiting for the manual settings")
+        outcome = await asyncio.wait_for(run, 20)
+    assert outcome.status == "stopped" and eng.state == "idle", outcome.message
+    assert _faults(sim) == (0, 0) and _standstill(sim)
+
+
+async def test_without_unattended_a_pause_holds(tmp_path):
+    rig = _rig(unanswered_pause_s=1.0)
+    async with running(tmp_path, small_matrix(revolutions=30), rig) as (sim, eng, rec, run):
+        await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
+        eng.request_pause()
+        await wait_for(lambda: eng.state == "paused", what="the pause")
+        await asyncio.sleep(2.0)
+        assert eng.state == "paused" and not run.done()
+        eng.request_resume()
+        outcome = await asyncio.wait_for(run, 30)
+    assert outcome.status == "completed", outcome.message
+
+
+async def test_an_abort_during_the_closing_ramp_becomes_an_emergency_stop(tmp_path):
+    # speed-up 1: the ramp from 1000 rpm takes seconds, long enough to abort in the middle of it
+    async with running(tmp_path, small_matrix(), speedup=1.0) as (sim, eng, rec, run):
+        await wait_for(lambda: sim.speeds[0] > 0.9 * 1000 * 2 * 3.14159 / 60, timeout=30, what="spin at speed")
+        eng.request_stop_now("SIGTERM")
+        await wait_for(lambda: _commanded(sim) == (CW_RAMP_STOP, CW_RAMP_STOP), timeout=10, what="ramp stop")
+        assert not _standstill(sim)
+        eng.request_abort()
+        outcome = await asyncio.wait_for(run, 20)
+    assert outcome.status == "aborted" and "while stopping" in outcome.message, outcome.message
+    assert _commanded(sim) == (CW_EMERGENCY, CW_EMERGENCY)
+    assert _standstill(sim)
+    assert "drives: emergency stop (OFF3) after an abort during the ramp" in (tmp_path / "run" / "run.log").read_text()

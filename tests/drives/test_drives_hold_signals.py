@@ -1,0 +1,79 @@
+"""`orbitrig drives run --hold` ended by a real signal: SIGTERM and SIGHUP ramp both drives to
+zero (exit 0); a second signal during that ramp makes it an emergency stop (exit 4)."""
+
+from __future__ import annotations
+
+import asyncio
+import signal
+import sys
+
+import pytest
+from drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, ROOT, SimDrives, make_models, serve, subprocess_env
+
+pytestmark = pytest.mark.timeout(60)
+SW_AT_SETPOINT = 0x100
+
+
+@pytest.fixture
+async def slow_sim() -> SimDrives:
+    """The drives with slow ramps (about a second from 1500 rpm): long enough to signal twice."""
+    models = make_models(speedup=3.0)
+    endpoint = await serve("tcp", models)
+    try:
+        yield SimDrives("tcp", models, endpoint)
+    finally:
+        await endpoint.aclose()
+
+
+async def _hold(sim: SimDrives):
+    proc = await asyncio.create_subprocess_exec(
+        sys.executable, "-m", "orbitrig", "drives", "run", "--modbus", sim.url,
+        "--spin", "1500", "--orbit", "-750", "--settle", "0.05", "--timeout", "30", "--hold",
+        cwd=ROOT, env=subprocess_env(), stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
+    )  # fmt: skip
+    said = b""
+    while b"holding at the setpoint" not in said:  # the command's own word that it holds
+        line = await asyncio.wait_for(proc.stderr.readline(), 30)
+        assert line, f"exited before holding: {said.decode()}"
+        said += line
+    assert sim.regs(1)["SW"] & SW_AT_SETPOINT and sim.regs(2)["SW"] & SW_AT_SETPOINT
+    return proc
+
+
+async def _finish(proc) -> tuple[int, str]:
+    try:
+        _, err = await asyncio.wait_for(proc.communicate(), 30)
+    finally:
+        if proc.returncode is None:
+            proc.kill()
+            await proc.wait()
+    return proc.returncode, err.decode()
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
+async def test_sigterm_and_sighup_end_the_hold_with_a_ramp(slow_sim, sig):
+    sim = slow_sim
+    proc = await _hold(sim)
+    proc.send_signal(sig)
+    code, err = await _finish(proc)
+    assert code == 0, err
+    assert f"{sig.name}: ramping both drives to zero" in err and "Traceback" not in err
+    for dev in (1, 2):
+        assert sim.regs(dev)["CW"] == CW_RAMP_STOP and sim.regs(dev)["FAULT"] == 0  # not the watchdog
+    await sim.wait_stopped()
+
+
+async def test_a_second_signal_during_the_ramp_is_an_emergency_stop(slow_sim):
+    sim = slow_sim
+    proc = await _hold(sim)
+    proc.send_signal(signal.SIGTERM)
+    await sim.wait_for(lambda: sim.regs(1)["CW"] == CW_RAMP_STOP and sim.regs(2)["CW"] == CW_RAMP_STOP,
+                       10, "ramp stop")  # fmt: skip
+    assert sim.rpm(1) > 100  # still ramping down
+    proc.send_signal(signal.SIGINT)
+    code, err = await _finish(proc)
+    assert code == 4, err
+    assert "SIGINT again during the ramp: drives: emergency stop (OFF3)" in err
+    for dev in (1, 2):
+        assert sim.regs(dev)["CW"] == CW_EMERGENCY and sim.regs(dev)["FAULT"] == 0
+    await sim.wait_stopped()

@@ -1,0 +1,37 @@
+"""pymodbus' own records of a late answer (an error and a hex dump of its last frames) go to the
+run's log as `debug pymodbus` lines, and nothing of them reaches the terminal (stderr)."""
+
+from __future__ import annotations
+
+import logging
+
+import pytest
+from drives_testkit import RPM, open_rig
+
+from drives.limits import DriveLimits
+from orbitrig.run.modbus_log import pymodbus_into
+
+pytestmark = pytest.mark.timeout(30)
+
+
+class RunLog:
+    """A run log's lines (the interface of RunStore.log)."""
+
+    def __init__(self):
+        self.lines: list[str] = []
+
+    def log(self, message: str) -> None:
+        self.lines.append(message)
+
+
+async def test_pymodbus_records_go_to_the_run_log_not_the_terminal(tcp_sim, capfd):
+    logging.getLogger("pymodbus").setLevel(logging.NOTSET)  # as in a sweep (the conftest quiets it)
+    run_log = RunLog()
+    with pymodbus_into(run_log):
+        async with open_rig(tcp_sim, DriveLimits(2400 * RPM, 2400 * RPM), comm_loss_timeout=5.0) as r:
+            tcp_sim.endpoint.drop_next(1)
+            await r.spin.read_status(retries=1)  # one late answer: pymodbus logs it, the retry answers
+    err = capfd.readouterr().err
+    assert run_log.lines and all(line.startswith("debug pymodbus ") for line in run_log.lines), run_log.lines
+    assert any("0x" in line for line in run_log.lines)  # its hex dump is kept for whoever debugs the link
+    assert "pymodbus" not in err and "0x" not in err, err
