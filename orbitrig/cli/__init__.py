@@ -32,6 +32,7 @@ _AREAS = (
     "serve",  # orbitrig serve
     "dashboard",  # orbitrig dashboard
     "design",  # orbitrig design
+    "init",  # orbitrig init DIR
 )
 
 for _area in _AREAS:
