@@ -65,6 +65,11 @@ def read_orbit_table(path: str | Path) -> OrbitTable:
         data = path.read_bytes()
     except OSError as err:
         raise TableError(str(path), None, None, f"cannot read the file: {err}") from err
+    return parse_orbit_table(data, path)
+
+
+def parse_orbit_table(data: bytes, path: str | Path = "<table>") -> OrbitTable:
+    """An orbit table from the CSV's bytes (``path`` names it in errors); as read_orbit_table."""
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as err:
@@ -162,6 +167,11 @@ def _check_row(file: str, line: int, row: dict, first: dict | None) -> None:
             raise TableError(file, line, c, f"uncertainty must be >= 0, got {row[c]:g}")
     if RECORDS in row and not (row[RECORDS] >= 1 and row[RECORDS] == round(row[RECORDS])):
         raise TableError(file, line, RECORDS, f"number of records must be a whole number >= 1, got {row[RECORDS]:g}")
+
+
+def whirl_direction(x, y) -> np.ndarray:
+    """+1 where the phasors x, y whirl forward (y = -i x for a circle), -1 backward."""
+    return np.where(np.imag(np.asarray(x) * np.conj(np.asarray(y))) >= 0, 1, -1)
 
 
 def orbit_table_columns(table: OrbitTable) -> dict[str, tuple[np.ndarray, str]]:
