@@ -21,10 +21,11 @@ from orbitrig.store.errors import StorageError
 from orbitrig.store.index import scan
 from orbitrig.store.journal import CAN_DTYPE, CAN_UNITS, DRIVE_DTYPE, DRIVE_UNITS, Journal, read_journal
 from orbitrig.store.layout import FORMAT, POINT_ATTR_UNITS, RunLayout, point_name
-from orbitrig.store.pieces import STR, put, strings
+from orbitrig.store.annotate import annotate, annotate_attributes, annotate_dataset
+from orbitrig.store.pieces import STR, fixed_text, put, strings
 
 log = logging.getLogger(__name__)
-EVENT_DTYPE = np.dtype([("t", "f8"), ("state", STR), ("message", STR)])
+EVENT_DTYPE = np.dtype([("t", "f8"), ("state", STR), ("message", STR)])  # text fields fixed-length when stored
 
 
 def read_header(layout: RunLayout) -> dict:
@@ -99,13 +100,17 @@ def _build(f: h5py.File, layout: RunLayout, header: dict, journal: Journal, stat
     if isinstance(scenario, dict):  # the simulator scenario of a --sim run: name and TOML text
         a["sim_scenario_name"], a["sim_scenario_config"] = str(scenario.get("name", "")), str(scenario.get("text", ""))
     a["status"], a["status_message"] = journal.status, journal.status_message
-    f.create_dataset("channels", data=strings(header.get("channels", [])))
-    f.create_dataset("channel_units", data=strings(header.get("channel_units", [])))
+    f.create_dataset("channels", data=fixed_text(header.get("channels", [])))
+    f.create_dataset("channel_units", data=fixed_text(header.get("channel_units", [])))
     pts = f.require_group("points")
     for st in states:
         if st.index not in done:
             _add_point(pts, layout, st.index, st.complete)
     _write_logs(f.create_group("logs"), journal)
+    annotate_attributes(f)
+    for name in ("channels", "channel_units"):
+        annotate_dataset(f[name])
+    annotate(f["logs"])
 
 
 def _add_point(pts: h5py.Group, layout: RunLayout, index: int, complete: bool) -> bool:
@@ -117,6 +122,7 @@ def _add_point(pts: h5py.Group, layout: RunLayout, index: int, complete: bool) -
     g.attrs.update(settings)
     g.attrs["complete"] = complete
     g.attrs["units_of_attributes"] = POINT_ATTR_UNITS
+    annotate_attributes(g)
     freqs = g.create_group("frequencies")
     for tag in layout.block_tags(index):
         _copy_root(layout.block_file(index, tag), freqs, tag)
@@ -147,7 +153,10 @@ def _copy_root(path, dest: h5py.Group, name: str | None) -> None:
 
 
 def _write_logs(lg: h5py.Group, journal: Journal) -> None:
-    ev = np.array(journal.events, dtype=EVENT_DTYPE) if journal.events else np.zeros(0, EVENT_DTYPE)
+    rows = np.array(journal.events, dtype=EVENT_DTYPE) if journal.events else np.zeros(0, EVENT_DTYPE)
+    text = {k: fixed_text(rows[k]) for k in ("state", "message")}
+    ev = np.zeros(len(rows), [("t", "f8")] + [(k, v.dtype) for k, v in text.items()])
+    ev["t"], ev["state"], ev["message"] = rows["t"], text["state"], text["message"]
     put(lg, "events", ev, "t: s since the run started", fields=strings(EVENT_DTYPE.names))
     for name, rows, dt, units in (("can", journal.can, CAN_DTYPE, CAN_UNITS),
                                   ("drives", journal.drives, DRIVE_DTYPE, DRIVE_UNITS)):  # fmt: skip

@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from orbitrig.store.fit_record import BUDGET_PARTS, FitRecord
-from orbitrig.store.orbit_table import orbit_table_columns, whirl_direction
+from orbitrig.store.orbit_table import orbit_table_columns
 
 SETTINGS_UNITS = {"label": "", "complete": "", "spin": "rad/s", "spin_rpm": "rpm", "recess_pressure": "Pa",
                   "pressure_ratio": "1", "static_eccentricity": "1", "dynamic_eccentricity": "1",
@@ -45,10 +45,8 @@ def points_frame(points):
 def table_frame(table):
     """An orbit table (reduction.table.OrbitTable) in the orbit-table CSV's columns (rpm, Hz,
     m, N; gamma2_*, n_records, u_* when measured) and ``direction`` (+1 forward, -1 backward)."""
-    cols = orbit_table_columns(table)
-    data = {name: values for name, (values, _) in cols.items()}
-    data["direction"] = whirl_direction(table.x, table.y)
-    return _frame(data, {**{name: unit for name, (_, unit) in cols.items()}, "direction": "1"})
+    cols = orbit_table_columns(table, direction=True)
+    return _frame({name: values for name, (values, _) in cols.items()}, {name: unit for name, (_, unit) in cols.items()})
 
 
 def coefficients_frame(fits: list[FitRecord]):
