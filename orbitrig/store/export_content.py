@@ -105,7 +105,8 @@ def waveform_arrays(point, channels: list[str]) -> list[dict]:
     return blocks
 
 
-def _number(v) -> float:
-    if isinstance(v, bool):
-        return float(v)
+def _number(v):
+    """A stored number (None: NaN; a list, e.g. an F test's two dof: an array)."""
+    if isinstance(v, (list, tuple)):
+        return np.array([math.nan if x is None else float(x) for x in v])
     return math.nan if v is None else float(v)

@@ -49,8 +49,8 @@ def _fit_objects(p, fit) -> list:
     d = content.fit_arrays(fit)
     group = f"fit {p.name} {fit.key}"
     props = {"error": fit.error, "adequacy_verdict": d.get("adequacy_verdict", "")}
-    props |= _numeric({k: (float(v), "1") for k, v in d.items() if k == "k" or (k.startswith("adequacy_")
-                                                                               and k != "adequacy_verdict")})
+    props |= _numeric({k: (float(np.ravel(v)[0]) if np.size(v) == 1 else str(list(np.ravel(v))), "1")
+                       for k, v in d.items() if k == "k" or (k.startswith("adequacy_") and k != "adequacy_verdict")})
     objs = [GroupObject(group, props), ChannelObject(group, "name", np.array(fit.names, dtype=str), _TEXT),
             ChannelObject(group, "unit", np.array(fit.units, dtype=str), _TEXT)]  # fmt: skip
     per_row = {"value": d["value"], "std": d["std"], "U": d["U"]}
