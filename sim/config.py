@@ -254,17 +254,24 @@ def _section(cls, table: dict, where: str, problems: list[str]):
     return kwargs
 
 
-SCENARIO_DIR = Path(__file__).resolve().parents[1] / "config"
+# config/ of the source tree; an installed wheel carries sim.toml and sim/ as sim/scenarios
+_SHIPPED = Path(__file__).resolve().parent / "scenarios"
+SCENARIO_DIR = _SHIPPED if (_SHIPPED / "sim.toml").is_file() else Path(__file__).resolve().parents[1] / "config"
 
 
 def scenario(name: str) -> SimConfig:
-    """A shipped scenario by name: "paper" (config/sim.toml, the default rig) or a file
+    """A shipped scenario by name (scenario_path). ValueError naming the known ones."""
+    return load_sim_config(scenario_path(name))
+
+
+def scenario_path(name: str) -> Path:
+    """A shipped scenario's file: "paper" (config/sim.toml, the default rig) or
     config/sim/<name>.toml ("clean", "compressible"). ValueError naming the known ones."""
     path = SCENARIO_DIR / "sim.toml" if name == "paper" else SCENARIO_DIR / "sim" / f"{name}.toml"
     if not path.is_file():
         known = ["paper"] + sorted(p.stem for p in (SCENARIO_DIR / "sim").glob("*.toml"))
         raise ValueError(f"unknown simulator scenario {name!r}; known: {', '.join(known)}")
-    return load_sim_config(path)
+    return path
 
 
 def load_sim_config(path: str | Path) -> SimConfig:

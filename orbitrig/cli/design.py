@@ -55,9 +55,9 @@ def _noise(noise_from: Optional[Path], lms: str, force: Optional[float], probe_n
     probe = di.DEFAULT_PROBE_NOISE if probe_nm is None else probe_nm * 1e-9
     if noise_from is None:
         return di.stated_noise(di.DEFAULT_FORCE_NOISE if force is None else force, probe), None
-    from orbitrig.store.reader import read_run
+    from orbitrig import open_run
 
-    run = read_run(noise_from)
+    run = open_run(noise_from).run
     return di.run_noise(run, lms, probe), run
 
 

@@ -34,10 +34,11 @@ def reduce_cmd(
     """
     from orbitrig.errors import ReductionError
     from orbitrig.analysis.reduce import csv_path, format_table, reduce_run, write_csv
-    from orbitrig.store.reader import RunDirError, read_run
+    from orbitrig import open_run
+    from orbitrig.store.reader import RunDirError
 
     try:
-        run = read_run(directory)
+        run = open_run(directory).run
         rows = reduce_run(run, model, freq_dep, method)
     except (RunDirError, ReductionError) as err:
         _fail(str(err))

@@ -21,11 +21,11 @@ def register(app: typer.Typer) -> None:
         run_dir: Optional[Path] = typer.Argument(None, help="the run directory, as --out (`--resume DIR`)"),
         out: Optional[Path] = typer.Option(None, "--out", help="run directory (run.h5, coefficients.csv, run.log)"),
         sim: bool = typer.Option(False, "--sim", help="run on the built-in simulator over loopback protocols"),
-        config: Optional[Path] = typer.Option(None, "--config", help="rig configuration TOML (default: config/rig.toml of the orbitrig source tree)"),
+        config: Optional[Path] = typer.Option(None, "--config", help="rig configuration TOML (default: rig.toml of $ORBITRIG_HOME, of the current directory, or shipped; see `orbitrig init`)"),
         matrix: Optional[str] = typer.Option(
             None, "--matrix", metavar="NAME|FILE",
-            help="test matrix: a TOML file, or a name from config/matrices/ (demo, paper); "
-                 "required on the rig, --sim defaults to config/matrices/demo.toml",
+            help="test matrix: a TOML file, or a name from the configuration's matrices/ (demo, paper); "
+                 "required on the rig, --sim defaults to matrices/demo.toml",
         ),
         resume: bool = typer.Option(False, "--resume", help="continue the run in --out from its first incomplete point"),
         dry_run: bool = typer.Option(False, "--dry-run", help="print the plan's totals, then every step with its estimated duration (s); touches no hardware"),
@@ -33,8 +33,8 @@ def register(app: typer.Typer) -> None:
             DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"
         ),
         sim_config: Optional[Path] = typer.Option(
-            None, "--sim-config", help="simulator scenario TOML (--sim only; default config/sim.toml, the paper's rig; "
-            "also config/sim/clean.toml, config/sim/compressible.toml)"
+            None, "--sim-config", metavar="NAME|FILE", help="simulator scenario TOML (--sim only; default the "
+            "paper's rig, config/sim.toml); a shipped one by NAME: paper, clean, compressible (config/sim/)"
         ),
         operator: Optional[str] = typer.Option(None, "--operator", help="who runs the sweep, recorded in the run (default: the login name)"),
     ) -> None:
@@ -97,6 +97,7 @@ def _scenario(path, *, resume: bool, out):
     from orbitrig.store.writer import RunStore
     from sim.config import sim_config_from_text
 
+    path = _scenario_file(path)
     stored = RunStore.open_existing(out).stored_scenario() if resume else None
     if stored is not None:
         name, text = stored
@@ -116,6 +117,18 @@ def _scenario(path, *, resume: bool, out):
 
 #: the scenario name recorded when no --sim-config is given (sim.config.SimConfig())
 DEFAULT_SCENARIO = "default (the paper's rig, as config/sim.toml)"
+
+
+def _scenario_file(path):
+    """--sim-config FILE, or the NAME of a shipped scenario (paper, clean, compressible)."""
+    if path is None or path.is_file() or path.suffix or len(path.parts) != 1:
+        return path
+    from sim.config import scenario_path
+
+    try:
+        return scenario_path(str(path))
+    except ValueError as err:
+        raise typer.BadParameter(f"{path}: no such file; {err}", param_hint="--sim-config") from None
 
 
 def _read(path) -> str:
@@ -149,7 +162,7 @@ def _configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
                                                 f"resume it {'with' if was_sim else 'without'} --sim"])  # fmt: skip
         rig = cfg.load_rig(config) if config else cfg.rig_from_text(rig_text, f"{store.path}:rig_config",
                                                                     store.stored_record())  # fmt: skip
-        matrix = cfg.matrix_file(matrix) if matrix else None
+        matrix = cfg.matrix_file(matrix, rig_path=config) if matrix else None
         mat = cfg.load_matrix(matrix) if matrix else cfg.matrix_from_text(matrix_text, f"{store.path}:matrix_config")
         if matrix and mat.text != matrix_text:  # before the simulator or any drive is started
             raise ConfigError(mat.file, [f"differs from the matrix of the run being resumed in {store.path}; "
@@ -159,7 +172,8 @@ def _configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
     if matrix is None and not sim and not dry_run:
         raise typer.BadParameter("--matrix NAME|FILE is required on the rig (--sim defaults to the demo)",
                                  param_hint="--matrix")  # fmt: skip
-    return rig, cfg.load_matrix(cfg.matrix_file(matrix) if matrix else None)
+    path = cfg.matrix_file(matrix, rig_path=config) if matrix else cfg.default_matrix_path(rig_path=config)
+    return rig, cfg.load_matrix(path)
 
 
 def _check_out(out: Path) -> None:

@@ -23,6 +23,10 @@ from orbitrig.config.fields import (  # noqa: F401 - the package's public names
     CHANNEL_NAMES, FREQ_DEP, LMS, MODELS, MPA, RPM, DeviceId, Mpa, NonNeg, Pos, Ratio, Rpm, Seconds, Wait,
 )
 from orbitrig.config.designs import apply_design
+from orbitrig.config.home import (  # noqa: F401
+    HOME_ENV, MATRICES, RIG_FILE, config_home, known_names, named_file, search_folders, shipped_config,
+)
+from orbitrig.config.lab import write_lab  # noqa: F401
 from orbitrig.config.matrix import MatrixAveraging, MatrixConfig, ModelSpec, Operating, Orbit  # noqa: F401
 from orbitrig.config.messages import _line_of, _problems
 from orbitrig.config.records import (  # noqa: F401
@@ -35,31 +39,31 @@ from orbitrig.config.rig import (  # noqa: F401
 )
 from orbitrig.errors import ConfigError
 
-_REPO_CONFIG = Path(__file__).resolve().parents[2] / "config"
-
-
 def default_rig_path() -> Path:
-    return _REPO_CONFIG / "rig.toml"
+    """rig.toml of the lab configuration (orbitrig.config.home: $ORBITRIG_HOME, the current
+    directory, the shipped defaults)."""
+    return config_home() / RIG_FILE
 
 
-def default_matrix_path(name: str = "demo") -> Path:
-    return _REPO_CONFIG / "matrices" / f"{name}.toml"
+def default_matrix_path(name: str = "demo", rig_path: Path | str | None = None) -> Path:
+    """The matrix NAME: from the lab's matrices/ (the folder of ``rig_path``), else shipped."""
+    return named_file(MATRICES, name, rig_path)
 
 
-def matrix_file(arg: str | Path, folder: Path | None = None) -> Path:
-    """A test matrix given as a file, or as a bare name from ``folder`` (default:
-    config/matrices/ of the source tree), as MQTT's `start` names one.
+def matrix_file(arg: str | Path, folder: Path | None = None, rig_path: Path | str | None = None) -> Path:
+    """A test matrix given as a file, or as a bare name from ``folder`` (default: the lab's
+    matrices/, then the shipped ones; see orbitrig.config.home), as MQTT's `start` names one.
 
     Raises ConfigError naming the available matrices if ``arg`` is neither."""
     path = Path(arg)
     if path.is_file() or path.suffix == ".toml" or len(path.parts) != 1:
         return path  # a file (load_matrix names it if it cannot be read)
-    folder = folder or default_matrix_path().parent
-    named = folder / f"{arg}.toml"
+    named = folder / f"{arg}.toml" if folder else default_matrix_path(str(arg), rig_path)
     if named.is_file():
         return named
-    names = sorted(p.stem for p in folder.glob("*.toml"))
-    raise ConfigError(str(arg), [f"no such file, and no matrix of that name in {folder} "
+    names = sorted(p.stem for p in folder.glob("*.toml")) if folder else known_names(MATRICES, rig_path)
+    where = folder or " or ".join(str(f) for f in search_folders(MATRICES, rig_path))
+    raise ConfigError(str(arg), [f"no such file, and no matrix of that name in {where} "
                                  f"(available: {', '.join(names) or 'none'})"])  # fmt: skip
 
 
@@ -104,8 +108,8 @@ def decode_text(data: bytes, file: str) -> str:
 def _read_default(path: Path | str | None, default: Path, option: str) -> tuple[str, str]:
     if path is not None or default.is_file():
         return _read(path or default)
-    raise ConfigError(str(default), [f"the default file is not there (orbitrig installed without its source tree? "
-                                     f"install with pip install -e): give {option} FILE"])  # fmt: skip
+    raise ConfigError(str(default), [f"the default file is not there: give {option} FILE, set {HOME_ENV} to a "
+                                     "folder made by `orbitrig init DIR`, or run in such a folder"])  # fmt: skip
 
 
 def load_rig(path: Path | str | None = None) -> RigConfig:

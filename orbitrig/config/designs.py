@@ -1,8 +1,9 @@
 """Designed orbit-frequency lists by name.
 
 A matrix's ``[orbit] design = "NAME"`` takes its ratios and directions from
-``config/designs/NAME.toml`` of the source tree (what ``orbitrig design --save NAME``
-writes); ``design = "FILE.toml"`` names a file, relative to the matrix's folder. The design
+``designs/NAME.toml`` next to the matrix's folder (a lab configuration's or the source
+tree's config/), else of the lab configuration or the shipped defaults (orbitrig.config.home;
+what ``orbitrig design --save NAME`` writes); ``design = "FILE.toml"`` names a file, relative to the matrix's folder. The design
 file holds ``ratios`` (Omega/omega) and ``directions``, and optionally, one per ratio in the
 order of ``ratios``, ``revolutions`` (the block's count) and ``target_pct`` (its adaptive
 target, percent). The matrix takes each of these unless it sets it itself: ``directions``
@@ -17,24 +18,27 @@ import math
 import tomllib
 from pathlib import Path
 
-DESIGNS_DIR = Path(__file__).resolve().parents[2] / "config" / "designs"
+from orbitrig.config.home import DESIGNS, known_names, named_file
+
 _SPEC_KEYS = ("ratios", "ratio_start", "ratio_stop", "count")
 
 
 def design_path(name: str, matrix_file: str) -> Path:
-    """The design file a matrix names: NAME -> config/designs/NAME.toml; a name ending in
-    .toml is a file relative to the matrix's folder."""
+    """The design file a matrix names: NAME -> designs/NAME.toml beside the matrix's folder,
+    else of the lab configuration or shipped; a name ending in .toml is a file relative to
+    the matrix's folder."""
     if name.endswith(".toml"):
         p = Path(name)
         return p if p.is_absolute() else Path(matrix_file).parent / p
-    return DESIGNS_DIR / f"{name}.toml"
+    beside = Path(matrix_file).parent.parent / DESIGNS / f"{name}.toml"
+    return beside if beside.is_file() else named_file(DESIGNS, name)
 
 
 def _read_design(path: Path) -> tuple[dict | None, str | None]:
     try:
         data = tomllib.loads(path.read_bytes().decode("utf-8"))
     except FileNotFoundError:
-        known = sorted(p.stem for p in DESIGNS_DIR.glob("*.toml")) if DESIGNS_DIR.is_dir() else []
+        known = known_names(DESIGNS)
         return None, f"no design file {path}" + (f" (designs: {', '.join(known)})" if known else
                                                  "; write one with `orbitrig design ... --save NAME`")
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, RecursionError) as err:

@@ -21,9 +21,11 @@ from orbitrig.store.errors import StorageError
 from orbitrig.store.index import scan
 from orbitrig.store.journal import CAN_DTYPE, CAN_UNITS, DRIVE_DTYPE, DRIVE_UNITS, Journal, read_journal
 from orbitrig.store.layout import FORMAT, POINT_ATTR_UNITS, RunLayout, point_name
-from orbitrig.store.pieces import STR, put, strings
+from orbitrig.store.annotate import annotate, annotate_attributes, annotate_dataset
+from orbitrig.store.pieces import STR, fixed_text, put, strings
 
 log = logging.getLogger(__name__)
+# text fields fixed-length when stored
 EVENT_DTYPE = np.dtype([("t", "f8"), ("state", STR), ("message", STR)])
 COMMAND_DTYPE = np.dtype([("at", STR), ("command", STR), ("by", STR), ("detail", STR)])
 
@@ -101,13 +103,17 @@ def _build(f: h5py.File, layout: RunLayout, header: dict, journal: Journal, stat
         a["sim_scenario_name"], a["sim_scenario_config"] = str(scenario.get("name", "")), str(scenario.get("text", ""))
     a["status"], a["status_message"] = journal.status, journal.status_message
     _provenance(a, header, journal)
-    f.create_dataset("channels", data=strings(header.get("channels", [])))
-    f.create_dataset("channel_units", data=strings(header.get("channel_units", [])))
+    f.create_dataset("channels", data=fixed_text(header.get("channels", [])))
+    f.create_dataset("channel_units", data=fixed_text(header.get("channel_units", [])))
     pts = f.require_group("points")
     for st in states:
         if st.index not in done:
             _add_point(pts, layout, st.index, st.complete)
     _write_logs(f.create_group("logs"), journal)
+    annotate_attributes(f)
+    for name in ("channels", "channel_units"):
+        annotate_dataset(f[name])
+    annotate(f["logs"])
 
 
 def _provenance(a, header: dict, journal: Journal) -> None:
@@ -131,6 +137,7 @@ def _add_point(pts: h5py.Group, layout: RunLayout, index: int, complete: bool) -
     g.attrs.update(settings)
     g.attrs["complete"] = complete
     g.attrs["units_of_attributes"] = POINT_ATTR_UNITS
+    annotate_attributes(g)
     freqs = g.create_group("frequencies")
     for tag in layout.block_tags(index):
         _copy_root(layout.block_file(index, tag), freqs, tag)
@@ -160,11 +167,21 @@ def _copy_root(path, dest: h5py.Group, name: str | None) -> None:
         raise StorageError(path, f"cannot read this piece of the run: {err}") from err
 
 
+def _fixed_rows(rows: list, dtype: np.dtype) -> np.ndarray:
+    """Log rows as a compound array whose text fields are fixed-length (``fixed_text``)."""
+    data = np.array(rows, dtype=dtype) if rows else np.zeros(0, dtype)
+    cols = {k: fixed_text(data[k]) if dtype[k] == STR else data[k] for k in dtype.names}
+    out = np.zeros(len(data), [(k, v.dtype) for k, v in cols.items()])
+    for k, v in cols.items():
+        out[k] = v
+    return out
+
+
 def _write_logs(lg: h5py.Group, journal: Journal) -> None:
-    ev = np.array(journal.events, dtype=EVENT_DTYPE) if journal.events else np.zeros(0, EVENT_DTYPE)
-    put(lg, "events", ev, "t: s since the run started", fields=strings(EVENT_DTYPE.names))
-    cmd = np.array(journal.commands, dtype=COMMAND_DTYPE) if journal.commands else np.zeros(0, COMMAND_DTYPE)
-    put(lg, "commands", cmd, "at: ISO 8601 UTC; by: who sent the command", fields=strings(COMMAND_DTYPE.names))
+    put(lg, "events", _fixed_rows(journal.events, EVENT_DTYPE), "t: s since the run started",
+        fields=strings(EVENT_DTYPE.names))
+    put(lg, "commands", _fixed_rows(journal.commands, COMMAND_DTYPE), "at: ISO 8601 UTC; by: who sent the command",
+        fields=strings(COMMAND_DTYPE.names))  # fmt: skip
     for name, rows, dt, units in (("can", journal.can, CAN_DTYPE, CAN_UNITS),
                                   ("drives", journal.drives, DRIVE_DTYPE, DRIVE_UNITS)):  # fmt: skip
         data = np.array(rows, dtype=dt) if rows else np.zeros(0, dt)

@@ -25,7 +25,7 @@ import math
 import h5py
 import numpy as np
 
-from orbitrig.store.pieces import put, strings
+from orbitrig.store.pieces import fixed_text, put, strings
 
 PER_COEFFICIENT = "SI per coefficient (see dataset units)"
 SOURCE_UNITS = "per source: 1 (gain, sensitivity), rad (phase), s (delay)"
@@ -59,7 +59,7 @@ def _uncertainty(g: h5py.Group, u: dict, names: list[str]) -> None:
                     ("combined", "combined standard uncertainty"),
                     ("expanded", "expanded uncertainty, k times combined")):  # fmt: skip
         put(g, k, _vector(u[k], names), PER_COEFFICIENT, meaning=what)
-    g.create_dataset("sources", data=strings(u["sources"]))
+    g.create_dataset("sources", data=fixed_text(u["sources"]))
     put(g, "source_std", np.asarray(u["source_std"], dtype=np.float64), SOURCE_UNITS,
         meaning="stated standard uncertainty of each calibration error")
 

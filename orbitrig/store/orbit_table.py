@@ -65,6 +65,11 @@ def read_orbit_table(path: str | Path) -> OrbitTable:
         data = path.read_bytes()
     except OSError as err:
         raise TableError(str(path), None, None, f"cannot read the file: {err}") from err
+    return parse_orbit_table(data, path)
+
+
+def parse_orbit_table(data: bytes, path: str | Path = "<table>") -> OrbitTable:
+    """An orbit table from the CSV's bytes (``path`` names it in errors); as read_orbit_table."""
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as err:
@@ -82,6 +87,7 @@ def read_orbit_table(path: str | Path) -> OrbitTable:
             break
     if header is None:
         raise TableError(str(path), 1, None, "empty file: a header row is required")
+    header = [_column_name(str(path), header_line, name) for name in header]
     wanted = _wanted_columns(str(path), header, header_line)
     index = {name: header.index(name) for name in wanted}
     rows = []
@@ -109,6 +115,24 @@ def read_orbit_table(path: str | Path) -> OrbitTable:
             gamma2=gamma2, n_records=col.get(RECORDS), u=u)
     except ReductionError as err:  # defensive: every check above should have caught it
         raise TableError(str(path), None, None, str(err)) from err
+
+
+#: the unit a column may state in its header ("orbit_hz [Hz]"); the table's units are fixed
+COLUMN_UNITS = {"spin_rpm": "rpm", "orbit_hz": "Hz", **{f"{q}_{p}": u for q, u in (("x", "m"), ("y", "m"), ("fx", "N"),
+                ("fy", "N")) for p in ("re", "im")}, **dict.fromkeys(GAMMA2, "1"), RECORDS: "1", "direction": "1",
+                **dict(zip(UNCERTAINTY, ("m", "m", "N", "N")))}  # fmt: skip
+_WITH_UNIT = re.compile(r"^(?P<name>\S+)\s*\[(?P<unit>[^\]]*)\]$")
+
+
+def _column_name(file: str, line: int, field: str) -> str:
+    """A header field's column name; a stated unit ("orbit_hz [Hz]") must be the column's."""
+    match = _WITH_UNIT.match(field)
+    if not match:
+        return field
+    name, unit = match["name"], match["unit"].strip()
+    if name in COLUMN_UNITS and unit != COLUMN_UNITS[name]:
+        raise TableError(file, line, field, f"the unit of {name} is {COLUMN_UNITS[name]}, not {unit!r}")
+    return name
 
 
 def _wanted_columns(file: str, header: list[str], header_line: int) -> tuple[str, ...]:
@@ -164,9 +188,15 @@ def _check_row(file: str, line: int, row: dict, first: dict | None) -> None:
         raise TableError(file, line, RECORDS, f"number of records must be a whole number >= 1, got {row[RECORDS]:g}")
 
 
-def orbit_table_columns(table: OrbitTable) -> dict[str, tuple[np.ndarray, str]]:
+def whirl_direction(x, y) -> np.ndarray:
+    """+1 where the phasors x, y whirl forward (Im(conj(x) y) < 0; a circle: y = -i x), else -1."""
+    return np.where(np.imag(np.conj(np.asarray(x)) * np.asarray(y)) < 0, 1, -1)
+
+
+def orbit_table_columns(table: OrbitTable, direction: bool = False) -> dict[str, tuple[np.ndarray, str]]:
     """The orbit-table columns of ``table`` in order: name -> (values, unit), the optional
-    ones (gamma2_*, n_records, u_*) only when the table has them. Units as in the CSV."""
+    ones (gamma2_*, n_records, u_*) only when the table has them, then with ``direction``
+    that column (+1 forward, -1 backward whirl, from the phasors). Units as in the CSV."""
     cols = {"spin_rpm": (np.full(table.n, table.spin / RPM), "rpm"), "orbit_hz": (table.orbit / (2 * math.pi), "Hz")}
     for (name, z), unit in zip(table.phasors.items(), ("m", "m", "N", "N")):
         cols[f"{name}_re"], cols[f"{name}_im"] = (z.real, unit), (z.imag, unit)
@@ -176,15 +206,19 @@ def orbit_table_columns(table: OrbitTable) -> dict[str, tuple[np.ndarray, str]]:
         cols[RECORDS] = (np.asarray(table.n_records, dtype=np.int64), "1")
     if table.u is not None:
         cols.update({c: (np.asarray(table.u)[:, j], unit) for j, (c, unit) in enumerate(zip(UNCERTAINTY, "mmNN"))})
+    if direction:
+        cols["direction"] = (whirl_direction(table.x, table.y), "1")
     return cols
 
 
-def write_orbit_table(path: str | Path, table: OrbitTable) -> None:
+def write_orbit_table(path: str | Path, table: OrbitTable, units: bool = False) -> None:
     """Write ``table`` as an orbit table CSV (full float precision; gamma2, n_records and u_*
-    when present)."""
-    cols = orbit_table_columns(table)
+    when present). ``units``: each header field states its unit (``orbit_hz [Hz]``) and a
+    ``direction`` column follows (+1 forward, -1 backward whirl; readers ignore it)."""
+    cols = orbit_table_columns(table, direction=units)
     with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
-        w.writerow(list(cols))
+        w.writerow([f"{name} [{unit}]" if units else name for name, (_, unit) in cols.items()])
         for k in range(table.n):
-            w.writerow([str(int(v[k])) if name == RECORDS else repr(float(v[k])) for name, (v, _) in cols.items()])
+            w.writerow([str(int(v[k])) if name in (RECORDS, "direction") else repr(float(v[k]))
+                        for name, (v, _) in cols.items()])

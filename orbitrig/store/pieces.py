@@ -16,6 +16,7 @@ import h5py
 import numpy as np
 
 from orbitrig.run.plan import OperatingPoint
+from orbitrig.store.annotate import annotate
 from orbitrig.store.layout import (BLOCK_ATTR_UNITS, COHERENCE_PAIRS, IDENT_ATTR_UNITS, LMS_ORDER,
                                    MATRIX_SI, TABLE_ATTR_UNITS, U_COLUMNS, U_UNITS, coefficient_si_unit)  # fmt: skip
 from orbitrig.store.records import BlockRecord, PointResults
@@ -31,11 +32,21 @@ def to_json(obj) -> str:
 
 
 def strings(values) -> np.ndarray:
+    """Text for an attribute (variable-length UTF-8)."""
     return np.array(list(values), dtype=STR)
+
+
+def fixed_text(values) -> np.ndarray:
+    """Text for a dataset: fixed-length UTF-8 bytes (GNU Octave's load cannot read
+    variable-length strings; h5py's ``.asstr()`` and MATLAB's h5read read both)."""
+    encoded = [str(v).encode("utf-8") for v in values]
+    return np.array(encoded, dtype=f"S{max([1, *map(len, encoded)])}")
 
 
 def put(g: h5py.Group, name: str, data, units: str, **attrs) -> h5py.Dataset:
     """A dataset with its units (and other attributes)."""
+    if isinstance(data, np.ndarray) and data.dtype == STR:
+        data = fixed_text(data)
     ds = g.create_dataset(name, data=data)
     ds.attrs["units"] = units
     for k, v in attrs.items():
@@ -89,6 +100,7 @@ def write_block(g: h5py.Group, rec: BlockRecord, channels: list[str], units: lis
     st = g.create_group("stats")
     for k, v in rec.stats.items():
         st.attrs[k] = to_json(v) if isinstance(v, (dict, list)) else v
+    annotate(g)
 
 
 def write_results(g: h5py.Group, res: PointResults) -> None:
@@ -102,6 +114,7 @@ def write_results(g: h5py.Group, res: PointResults) -> None:
     if res.truth is not None:
         write_truth(g.create_group("truth"), res.truth)
     g.create_group("lms_comparison").attrs["json"] = to_json(res.lms_comparison)
+    annotate(g)
 
 
 def _write_table(h: h5py.Group, t) -> None:
@@ -140,8 +153,8 @@ def _write_identification(h: h5py.Group, entry: dict) -> None:
         if k in d and (d[k] is None or isinstance(d[k], (int, float))):
             h.attrs[k] = _float(d[k])
     names = list(d["coefficients"])
-    h.create_dataset("names", data=strings(names))
-    h.create_dataset("units", data=strings(coefficient_si_unit(k) for k in names))
+    h.create_dataset("names", data=fixed_text(names))
+    h.create_dataset("units", data=fixed_text(coefficient_si_unit(k) for k in names))
     unit = "SI per coefficient (see dataset units)"
     put(h, "coefficients", np.array([_float(d["coefficients"][k]) for k in names]), unit)
     std = d.get("std_errors") or {}
@@ -155,7 +168,7 @@ def _write_identification(h: h5py.Group, entry: dict) -> None:
         cov = np.array([[_float(v) for v in row] for row in d["covariance"]], dtype=np.float64).reshape(len(free), -1)
         put(h, "covariance", cov, "SI: product of the two coefficients' units", names=strings(free))
     for k in ("notes", "warnings"):
-        h.create_dataset(k, data=strings(str(s) for s in d.get(k) or []))
+        h.create_dataset(k, data=fixed_text(d.get(k) or []))
     from orbitrig.store.fit_analysis import write_fit_analysis  # it uses put/strings of this module
 
     write_fit_analysis(h, d, names)

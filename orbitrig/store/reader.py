@@ -67,6 +67,10 @@ class Frequency:
     direction: int  # +1 forward, -1 backward
     complete: bool
     coherence: np.ndarray | None  # (2, 4): rows piezo|strain, cols xfx, yfx, xfy, yfy
+    n_records: int = 0  # revolutions averaged
+    #: the averaged block, SI per channel (N or m): mean (C, S), slots (C, S), dc (C,),
+    #: phasors (C,) complex, uncertainty (C,) when measured
+    waveform: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
 
 @dataclass(frozen=True)
@@ -287,10 +291,15 @@ def _new_point(a, name: str) -> Point:
 def _frequency(name: str, fg) -> Frequency:
     fa = fg.attrs
     coh = np.asarray(fg["coherence"][()], dtype=float) if "coherence" in fg else None
+    waveform = {k: np.asarray(fg[k][()]) for k in _WAVEFORM if k in fg}
     return Frequency(
         name=name, orbit=float(fa.get("orbit", np.nan)), orbit_hz=float(fa.get("orbit_hz", np.nan)),
         direction=int(fa.get("direction", 1)), complete=bool(fa.get("complete", False)), coherence=coh,
+        n_records=int(fa.get("n_records", 0)), waveform=waveform,
     )  # fmt: skip
+
+
+_WAVEFORM = ("mean", "slots", "dc", "phasors", "uncertainty")
 
 
 def _table(tg, spin: float):

@@ -1,0 +1,39 @@
+"""`orbitrig init DIR`: write an editable lab configuration from the shipped defaults.
+
+Exit status 0 on success, 2 when DIR already holds a configuration (without --force) or
+cannot be written.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+
+def register(app: typer.Typer) -> None:
+    @app.command("init")
+    def init_cmd(
+        directory: Annotated[Path, typer.Argument(metavar="DIR", help="The lab configuration folder (made if missing).")],
+        broker_dir: Annotated[Optional[Path], typer.Option(
+            "--broker-dir", help="Folder the broker reads its password file, ACL and TLS files from, written into "
+                                 "mosquitto.conf (default DIR/mosquitto).")] = None,
+        force: Annotated[bool, typer.Option("--force", help="Overwrite an existing configuration in DIR.")] = False,
+    ) -> None:
+        """Write rig.toml, matrices/, designs/, calibration/ and mosquitto/ into DIR.
+
+        Later commands use DIR when run in it, with ORBITRIG_HOME=DIR, or with --config DIR/rig.toml.
+        """
+        from orbitrig.config import HOME_ENV, write_lab
+        from orbitrig.errors import ConfigError
+
+        try:
+            files = write_lab(directory, broker_dir, force)
+        except ConfigError as err:
+            typer.echo(f"error: {err}", err=True)
+            raise typer.Exit(2) from None
+        for path in files:
+            typer.echo(str(path))
+        typer.echo(f"lab configuration in {directory}: edit rig.toml; commands run in this folder, with "
+                   f"{HOME_ENV}={directory.resolve()}, or with --config {directory / 'rig.toml'} use it")

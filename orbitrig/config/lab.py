@@ -1,0 +1,83 @@
+"""Write a lab configuration folder from the shipped defaults (`orbitrig init DIR`).
+
+The folder holds what a lab edits: ``rig.toml``, ``matrices/``, ``designs/``, a
+``calibration/`` folder for the channels' calibration records, and ``mosquitto/`` (the
+broker's configuration, ACL and example password file) whose paths point into the folder
+or into the broker folder given (``--broker-dir``, e.g. /etc/mosquitto/orbitrig when the
+files are installed there). Later commands find the folder as orbitrig.config.home says.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+from pathlib import Path
+
+from orbitrig.config.home import DESIGNS, MATRICES, RIG_FILE, shipped_config
+from orbitrig.errors import ConfigError
+
+MOSQUITTO = "mosquitto"
+CALIBRATION = "calibration"
+_BROKER_FILES = ("acl", "passwd.example", "README.md")
+# mosquitto.conf keys that name a file (or folder) of the broker, and the file they name
+_BROKER_PATHS = {"password_file": "passwd", "acl_file": "acl", "cafile": "ca.crt",
+                 "certfile": "broker.crt", "keyfile": "broker.key", "persistence_location": "data/"}
+_CALIBRATION_README = """\
+# Calibration records
+
+Keep each channel's calibration record here (certificates, the load cells' and
+probes' calibration runs). What the code uses is in ../rig.toml: each channel's
+`gain` and `offset` ([[channels]]) and the stated standard uncertainties
+([calibration_uncertainty]) that enter every coefficient's uncertainty budget.
+Update them together with the record.
+"""
+
+
+def write_lab(folder: Path, broker_dir: Path | None = None, force: bool = False) -> list[Path]:
+    """Write the lab configuration into ``folder``; the files written, in order.
+
+    Raises ConfigError if ``folder`` already holds a rig.toml and ``force`` is false."""
+    folder = Path(folder)
+    if (folder / RIG_FILE).exists() and not force:
+        raise ConfigError(str(folder / RIG_FILE), ["already there: a lab configuration exists in this folder "
+                                                   "(--force overwrites it)"])  # fmt: skip
+    shipped = shipped_config()
+    written = [_copy(shipped / RIG_FILE, folder / RIG_FILE)]
+    for kind in (MATRICES, DESIGNS):
+        written += [_copy(f, folder / kind / f.name) for f in sorted((shipped / kind).glob("*.toml"))]
+    written += [_copy(shipped / MOSQUITTO / name, folder / MOSQUITTO / name) for name in _BROKER_FILES]
+    broker = (broker_dir or folder / MOSQUITTO).resolve()
+    conf = broker_conf((shipped / MOSQUITTO / "mosquitto.conf").read_text(encoding="utf-8"), broker)
+    written.append(_write(folder / MOSQUITTO / "mosquitto.conf", conf))
+    (folder / MOSQUITTO / "data").mkdir(exist_ok=True)
+    written.append(_write(folder / CALIBRATION / "README.md", _CALIBRATION_README))
+    return written
+
+
+def broker_conf(text: str, broker: Path) -> str:
+    """The shipped mosquitto.conf with every file it names in the folder ``broker``."""
+    def repoint(match: re.Match) -> str:
+        name = _BROKER_PATHS[match["key"]]
+        target = str(broker / name) + ("/" if name.endswith("/") else "")
+        return f"{match['hash']}{match['key']} {target}"
+
+    keys = "|".join(_BROKER_PATHS)
+    return re.sub(rf"^(?P<hash>#?)(?P<key>{keys}) \S+$", repoint, text, flags=re.MULTILINE)
+
+
+def _copy(src: Path, dst: Path) -> Path:
+    try:
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(src, dst)
+    except OSError as err:
+        raise ConfigError(str(dst), [f"cannot write: {err.strerror or err}"]) from err
+    return dst
+
+
+def _write(dst: Path, text: str) -> Path:
+    try:
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        dst.write_text(text, encoding="utf-8")
+    except OSError as err:
+        raise ConfigError(str(dst), [f"cannot write: {err.strerror or err}"]) from err
+    return dst

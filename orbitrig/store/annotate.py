@@ -1,0 +1,198 @@
+"""Units and descriptions on every dataset and attribute of an orbitrig HDF5 file.
+
+Applied to each HDF5 image before it is written (the pieces and run.h5), so the files
+describe themselves to any reader:
+
+- every numeric dataset has ``units`` (a unit string pint parses; "1" dimensionless,
+  "count", "degree", "N s/m (rad/s)^-1") or, when its entries differ, one attribute per
+  entry: ``units_<channel>`` (per A/D channel), ``units_<coefficient>`` (per coefficient
+  key), ``units_<column>`` / ``units_<field>`` (per column of a table or log);
+- every dataset has ``description``;
+- every attribute A of a group or dataset has ``A__description``, and a numeric one
+  ``A__units`` (HDF5 attributes cannot carry attributes).
+
+Text datasets and attributes have no unit. The catalog below is the one list of what
+each name means; a name missing from it is described as UNDOCUMENTED, which the tests refuse.
+"""
+
+from __future__ import annotations
+
+import h5py
+import numpy as np
+
+from orbitrig.store.layout import U_COLUMNS, U_UNITS, coefficient_si_unit
+
+PER_CHANNEL, PER_COEFFICIENT, PER_SOURCE = "<channel>", "<coefficient>", "<source>"
+#: the description of a name missing from the catalog (the tests find none; a run never fails on it)
+UNDOCUMENTED = "undocumented"
+
+#: dataset name -> (units, description); the units may be a PER_* rule
+DATASETS = {
+    "raw_counts": ("count", "every averaged revolution's A/D counts (revolution, channel, sample)"),
+    "slots": ("degree", "slot of each sample (channel, sample): the orbit angle after the trigger, 1 slot = 1 degree"),
+    "gains": (PER_CHANNEL + "/count", "calibration gain of each channel: value = gain x counts + offset"),
+    "offsets": (PER_CHANNEL, "calibration offset of each channel"),
+    "mean": (PER_CHANNEL, "synchronous average over the revolutions (channel, sample)"),
+    "dc": (PER_CHANNEL, "mean value of each channel over the revolution"),
+    "rms_residual": (PER_CHANNEL, "RMS of the average minus its dc and fundamental"),
+    "record_phasors": (PER_CHANNEL, "each revolution's fundamental phasor (revolution, channel), q = Re(q_bar exp(i theta))"),
+    "phasors": (PER_CHANNEL, "fundamental phasor of the average, q = Re(q_bar exp(i theta))"),
+    "uncertainty": (PER_CHANNEL, "standard uncertainty of each averaged phasor, the spin tones fitted out"),
+    "revolutions": ("1", "the A/D board's revolution number of each averaged revolution"),
+    "coherence": ("1", "gamma^2 between displacement and force: rows piezo, strain; columns xfx, yfx, xfy, yfy"),
+    "orbit": ("rad/s", "orbit speed Omega"),
+    "orbit_hz": ("Hz", "orbit frequency"),
+    "x": ("m", "x displacement phasor of the journal (mean of the probe planes)"),
+    "y": ("m", "y displacement phasor of the journal (mean of the probe planes)"),
+    "fx": ("N", "x force phasor on the journal"),
+    "fy": ("N", "y force phasor on the journal"),
+    "gamma2": ("1", "coherences of each row: columns xfx, yfx, xfy, yfy"),
+    "n_records": ("1", "revolutions averaged behind each row"),
+    "u": ("<column>", "standard uncertainty of each averaged phasor: columns x, y, fx, fy"),
+    "names": ("", "coefficient keys"), "units": ("", "SI unit of each coefficient"),
+    "notes": ("", "notes of the identification"), "warnings": ("", "warnings of the identification"),
+    "coefficients": (PER_COEFFICIENT, "identified coefficients, aligned with names"),
+    "std_errors": (PER_COEFFICIENT, "standard error of each coefficient (one standard deviation)"),
+    "interval_95": (PER_COEFFICIENT, "two-sided 95 % confidence interval: columns low, high"),
+    "covariance": (PER_COEFFICIENT, "covariance of the free coefficients (attribute names); entry (i, j) in "
+                                    "units_<name_i> x units_<name_j>"),
+    "statistical": (PER_COEFFICIENT, "standard uncertainty from the fit (type A)"),
+    "systematic": (PER_COEFFICIENT, "standard uncertainty from the stated calibration (type B)"),
+    "combined": (PER_COEFFICIENT, "combined standard uncertainty"),
+    "expanded": (PER_COEFFICIENT, "expanded uncertainty U = k x combined"),
+    "sources": ("", "calibration error parameters propagated"),
+    "source_std": (PER_SOURCE, "stated standard uncertainty of each calibration error parameter"),
+    "e_n": ("1", "normalised difference piezo - strain against its uncertainty"),
+    "c_eff_xx": ("N s/m", "effective damping C_xx - K_xy/Omega"), "c_eff_yy": ("N s/m", "effective damping C_yy + K_yx/Omega"),
+    "c_eff_xx_std": ("N s/m", "standard uncertainty of c_eff_xx"), "c_eff_yy_std": ("N s/m", "standard uncertainty of c_eff_yy"),
+    "c_eff_zero_xx": ("rad/s", "orbit speed where c_eff_xx crosses zero, and its standard uncertainty"),
+    "c_eff_zero_yy": ("rad/s", "orbit speed where c_eff_yy crosses zero, and its standard uncertainty"),
+    "h_forward": ("N/m", "forward-whirl direct dynamic stiffness H"), "h_backward": ("N/m", "backward-whirl direct dynamic stiffness H"),
+    "h_forward_std": ("N/m", "standard uncertainty of h_forward: columns re, im"),
+    "h_backward_std": ("N/m", "standard uncertainty of h_backward: columns re, im"),
+    "wfr": ("1", "whirl frequency ratio"), "wfr_std": ("1", "standard uncertainty of wfr"),
+    "Z": ("N/m", "the simulator's true impedance at each row's orbit speed, f_bar = -Z d_bar (row, force, displacement)"),
+    "band": ("rad/s", "the |Omega| the best fits use"),
+    "K": ("N/m", "stiffness"), "C": ("N s/m", "damping"), "D": ("kg", "added mass"),
+    "K0": ("N/m", "constant stiffness term"), "C0": ("N s/m", "constant damping term"), "D0": ("kg", "constant mass term"),
+    "Km": ("N/m (rad/s)^-1", "stiffness term multiplying |Omega|^m (attribute exponents)"),
+    "Cn": ("N s/m (rad/s)^-1", "damping term multiplying |Omega|^n (attribute exponents)"),
+    "Dp": ("kg (rad/s)^-1", "mass term multiplying |Omega|^p (attribute exponents)"),
+    "channels": ("", "A/D channel names in board order"), "channel_units": ("", "unit of each A/D channel"),
+    "events": ("<field>", "the run's events: t (s since the run started), state, message"),
+    "can": ("<field>", "CAN sensor node log"), "drives": ("<field>", "drive log"),
+}  # fmt: skip
+
+#: attribute name -> (units, description); "" units: text
+ATTRIBUTES = {
+    "format": ("", "file format and version"), "software_version": ("", "software that wrote the file"),
+    "created": ("", "creation time, ISO 8601 UTC"), "status": ("", "run status"), "status_message": ("", "why the run ended"),
+    "sim": ("1", "true for a run on the simulator"), "rig_config": ("", "rig configuration (TOML text)"),
+    "matrix_config": ("", "test matrix (TOML text)"), "matrix_name": ("", "test matrix name"),
+    "sim_scenario_name": ("", "simulator scenario"), "sim_scenario_config": ("", "simulator scenario (TOML text)"),
+    "index": ("1", "operating point index in plan order"), "complete": ("1", "true when complete"),
+    "spin": ("rad/s", "journal spin speed omega"), "spin_rpm": ("rpm", "journal spin speed"),
+    "recess_pressure": ("Pa", "recess pressure"), "pressure_ratio": ("1", "recess / supply pressure"),
+    "static_eccentricity": ("1", "static eccentricity / clearance"), "dynamic_eccentricity": ("1", "orbit radius / clearance"),
+    "orbit_radius": ("m", "commanded orbit radius"), "label": ("", "operating point label"),
+    "orbit": ("rad/s", "orbit speed Omega, signed: < 0 backward whirl"), "orbit_hz": ("Hz", "orbit frequency, > 0"),
+    "direction": ("1", "+1 forward, -1 backward whirl"), "measured_orbit_speed": ("rad/s", "orbit speed from the trigger times"),
+    "n_records": ("1", "revolutions averaged"), "stop_reason": ("", "why averaging stopped: count, target or max"),
+    "channels": ("", "A/D channel names"), "channel_units": ("", "unit of each A/D channel"),
+    "frames_good": ("1", "A/D frames decoded"), "frames_bad": ("1", "damaged A/D frames"),
+    "bytes_skipped": ("byte", "bytes skipped while resynchronising"), "link_drops": ("1", "A/D link drops"),
+    "revolutions_used": ("1", "revolutions averaged"), "revolutions_dropped": ("1", "revolutions dropped"),
+    "drop_reasons": ("", "dropped revolutions by reason (JSON)"), "frame_errors": ("", "frame errors by kind (JSON)"),
+    "model": ("", "impedance model"), "freq_dep": ("", "frequency dependence"), "method": ("", "estimation method"),
+    "error": ("", "why this could not be evaluated"), "json": ("", "the whole result as JSON"),
+    "n_coefficients": ("1", "coefficients identified"), "min_frequencies": ("1", "orbit frequencies the model needs"),
+    "n_frequencies": ("1", "orbit frequencies used"), "condition_number": ("1", "condition number of the regression"),
+    "residual_rms": ("N", "RMS force residual"), "dof": ("1", "degrees of freedom"), "chi2": ("1", "chi-square of the fit"),
+    "p_value": ("1", "p-value"), "aic": ("1", "Akaike information criterion"), "bic": ("1", "Bayesian information criterion"),
+    "exponent": ("1", "exponent chosen by power:auto"), "k": ("1", "coverage factor of the expanded uncertainty"),
+    "covariance": ("", "covariance behind the standard uncertainties: combined or statistical"),
+    "max_abs": ("1", "largest |E_n|"), "consistent": ("1", "true when max_abs <= limit"), "limit": ("1", "largest consistent |E_n|"),
+    "basis": ("", "uncertainty the comparison uses"), "pair": ("", "the systems compared"),
+    "verdict": ("", "frequency dependence supported or not"), "supported": ("1", "true when the test supports it"),
+    "statistic": ("1", "test statistic"), "test": ("", "F or likelihood ratio"), "alpha": ("1", "significance level"),
+    "constant": ("", "the constant fit compared with"), "aic_bic_order": ("", "the fits the aic and bic pairs belong to"), "exponents": ("1", "exponents m, n, p"),
+    "form": ("", "the fitted form"),
+}  # fmt: skip
+#: attributes that annotate (they describe others; no description of their own)
+_ANNOTATIONS = {"units", "description", "convention", "dimensions", "columns", "rows", "fields", "field_units", "names",
+                "meaning"}
+
+
+def _is_text(value) -> bool:
+    return isinstance(value, (str, bytes)) or np.asarray(value).dtype.kind in "OSU"
+
+
+def _per_entry_rule(ds: h5py.Dataset, rule: str) -> dict[str, str]:
+    """units_<entry> attributes of a dataset whose entries have different units."""
+    g = ds.parent
+    if rule.startswith(PER_CHANNEL):
+        host = g if "channels" in g.attrs else g.file
+        names = host.attrs["channels"] if "channels" in g.attrs else host["channels"][()]
+        units = g.attrs["channel_units"] if "channels" in g.attrs else host["channel_units"][()]
+        suffix = rule[len(PER_CHANNEL):]
+        return {_s(n): _s(u) + suffix for n, u in zip(names, units)}
+    if rule == PER_COEFFICIENT:
+        names = ds.attrs["names"] if "names" in ds.attrs else _names_near(g)
+        return {_s(n): coefficient_si_unit(_s(n)) for n in names}
+    if rule == PER_SOURCE:
+        return {_s(n): _source_unit(_s(n)) for n in g["sources"][()]}
+    if rule == "<column>":
+        return dict(zip(U_COLUMNS, U_UNITS))
+    fields = list(ds.dtype.names or ())
+    units = [_s(u) for u in ds.attrs.get("field_units", ["s"] + [""] * (len(fields) - 1))]
+    return {f: _parseable(u) for f, u in zip(fields, units) if ds.dtype[f].kind in "fiub"}
+
+
+def _names_near(g: h5py.Group):
+    return g["names"][()] if "names" in g else g.parent["names"][()]
+
+
+def _source_unit(name: str) -> str:
+    kind = name.rsplit(".", 1)[-1]
+    return {"phase": "rad", "delay": "s"}.get(kind, "1")
+
+
+def _parseable(unit: str) -> str:
+    """A log's field unit as pint reads it: flags, status words, fault codes and fractions are numbers."""
+    return unit if unit and not any(w in unit for w in ("flag", "word", "code", "fraction")) else "1"
+
+
+def _s(v) -> str:
+    return v.decode("utf-8") if isinstance(v, bytes) else str(v)
+
+
+def annotate(f: h5py.Group) -> None:
+    """Units and descriptions on every dataset and attribute under ``f`` (see the module docstring)."""
+    annotate_attributes(f)
+    f.visititems(lambda _, obj: annotate_dataset(obj) if isinstance(obj, h5py.Dataset) else annotate_attributes(obj))
+
+
+def annotate_dataset(ds: h5py.Dataset) -> None:
+    """``description`` and units (``units`` or ``units_<entry>``) of one dataset, and its attributes'."""
+    name = ds.name.rsplit("/", 1)[-1]
+    units, description = DATASETS.get(name, ("1" if ds.dtype.kind in "biufc" else "", UNDOCUMENTED))
+    annotate_attributes(ds)
+    ds.attrs["description"] = description
+    if units.startswith("<"):  # entries with different units: one attribute per entry
+        if "units" in ds.attrs:
+            del ds.attrs["units"]
+        for entry, unit in _per_entry_rule(ds, units).items():
+            ds.attrs[f"units_{entry}"] = unit
+    elif ds.dtype.kind not in "OS":  # text has no unit
+        ds.attrs["units"] = units or "1"
+
+
+def annotate_attributes(obj) -> None:
+    """``A__description`` (and ``A__units`` when numeric) for every attribute A of ``obj``."""
+    for name in list(obj.attrs):
+        if name in _ANNOTATIONS or "__" in name or name.startswith("units_"):
+            continue
+        units, description = ATTRIBUTES.get(name, ("", UNDOCUMENTED))
+        obj.attrs[f"{name}__description"] = description
+        if not _is_text(obj.attrs[name]):
+            obj.attrs[f"{name}__units"] = units or "1"

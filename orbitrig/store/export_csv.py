@@ -1,0 +1,100 @@
+"""``orbitrig export --format csv``: CSV files, every header field with its unit.
+
+- ``point_PPPP_<lms>.csv``: the orbit table (docs/orbit-table.md; ``orbit_hz [Hz]`` ...,
+  ``direction [1]``), which `orbitrig identify` reads;
+- ``coefficients.csv``: as the run's (one row per point, load measuring system and fit);
+- ``fits.csv``: one row per point, fit and coefficient: ``value``, ``std``, ``U`` and the
+  budget's parts in the row's ``unit``, ``e_n``, and ``true`` (--sim: the constant best fit);
+- ``covariance_PPPP_<key>.csv``: the covariance, the free coefficients' names as the first
+  column and the header (entry in unit(row) x unit(column));
+- ``derived_PPPP_<key>.csv``: the derived quantities at the point's orbit frequencies;
+- ``provenance.csv``: software version, creation time, status, configuration.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from pathlib import Path
+
+from orbitrig.store import csvfile
+from orbitrig.store import export_content as content
+from orbitrig.store.durable import write_atomic
+from orbitrig.store.fit_record import BUDGET_PARTS, point_fits
+from orbitrig.store.orbit_table import write_orbit_table
+from orbitrig.store.errors import storage_error
+
+FIT_HEAD = ["point", "lms", "model", "freq_dep", "method", "name", "unit", "value", "std", "U",
+            *BUDGET_PARTS, "e_n [1]", "true", "error"]  # fmt: skip
+
+
+def _render(rows: list[list]) -> bytes:
+    buf = io.StringIO(newline="")
+    csv.writer(buf, lineterminator="\n").writerows(rows)
+    return buf.getvalue().encode("utf-8")
+
+
+def _cell(v) -> str:
+    return "" if v is None or (isinstance(v, float) and math.isnan(v)) else repr(float(v))
+
+
+def _fit_rows(p, sim: bool) -> list[list]:
+    rows = []
+    for fit in point_fits(p):
+        d = content.fit_arrays(fit)
+        head = [p.index, fit.lms, fit.model, fit.freq_dep, fit.method]
+        if fit.error:
+            rows.append(head + [""] * (len(FIT_HEAD) - 6) + [csvfile.one_line(fit.error)])
+            continue
+        for j, name in enumerate(fit.names):
+            parts = [_cell(d[part][j]) if part in d else "" for part in BUDGET_PARTS]
+            true = csvfile.true_entry(p.truth, name) if sim and p.truth and "_" not in name else None
+            e_n = _cell(d["e_n"][j]) if "e_n" in d else ""
+            rows.append(head + [name, fit.units[j], _cell(d["value"][j]), _cell(d["std"][j]), _cell(d["U"][j]),
+                                *parts, e_n, _cell(true), ""])  # fmt: skip
+    return rows
+
+
+def _table_files(p, out: Path) -> list[Path]:
+    files = []
+    for fit in point_fits(p):
+        d = content.fit_arrays(fit)
+        if "covariance" in d:
+            names = d["covariance_names"]
+            rows = [["name"] + names] + [[n] + [_cell(v) for v in row] for n, row in zip(names, d["covariance"])]
+            files.append(out / f"covariance_{p.name}_{fit.key}.csv")
+            write_atomic(files[-1], _render(rows))
+        derived = content.derived_columns(fit)
+        if derived:
+            cols = list(derived.items())
+            rows = [[f"{k} [{u}]" for k, (_, u) in cols]]
+            rows += [[_cell(v[i]) for _, (v, _) in cols] for i in range(len(cols[0][1][0]))]
+            files.append(out / f"derived_{p.name}_{fit.key}.csv")
+            write_atomic(files[-1], _render(rows))
+    return files
+
+
+def export_csv(run, points: list, out: Path) -> list[Path]:
+    files = []
+    for p in points:
+        for lms, table in p.tables.items():
+            path = out / f"point_{p.name}_{lms}.csv"
+            tmp = path.with_name(path.name + ".tmp")
+            try:
+                write_orbit_table(tmp, table, units=True)
+                tmp.replace(path)
+            except OSError as err:
+                tmp.unlink(missing_ok=True)
+                raise storage_error(path, "write", err) from err
+            files.append(path)
+    path = out / "coefficients.csv"
+    write_atomic(path, csvfile.render([row for p in points for row in csvfile.point_rows(p, run.sim)]))
+    files.append(path)
+    files.append(out / "fits.csv")
+    write_atomic(files[-1], _render([FIT_HEAD] + [r for p in points for r in _fit_rows(p, run.sim)]))
+    for p in points:
+        files += _table_files(p, out)
+    files.append(out / "provenance.csv")
+    write_atomic(files[-1], _render([["key", "value"]] + [[k, v] for k, v in content.provenance(run).items()]))
+    return files

@@ -1,0 +1,111 @@
+"""``orbitrig export --format mat``: run.mat (MATLAB 5, scipy.io.savemat; GNU Octave loads it).
+
+``run`` (provenance, channels), ``units`` (a legend), and ``points.pPPPP`` per complete
+point: the settings with ``settings_units``; per load measuring system the orbit table
+(complex ``x``, ``y``, ``fx``, ``fy``, ``direction``, ...) with ``units``;
+``identification.<lms>__<model>__<freq_dep>__<method>`` per fit (``names``, ``units``,
+``coefficients``, ``std_errors``, ``U``, ``interval_95``, ``covariance`` with
+``covariance_names``, the budget ``statistical`` ... ``expanded`` and ``k``, ``adequacy_*``,
+``e_n``, ``derived`` with ``derived_units``, ``error``, ``notes``, ``warnings``); ``truth``
+(--sim) and ``waveforms.bFF_dir`` (``mean`` and ``theta`` (channel x sample), ``dc``,
+complex ``phasors``, ``uncertainty``, ``orbit_hz``, ``direction``, ``n_records``).
+"""
+
+from __future__ import annotations
+
+import io
+import re
+from pathlib import Path
+
+import numpy as np
+
+from orbitrig.store import export_content as content
+from orbitrig.store.durable import write_atomic
+from orbitrig.store.errors import StorageError
+from orbitrig.store.fit_record import point_fits
+
+UNITS = {
+    "spin": "rad/s", "spin_rpm": "rpm", "recess_pressure": "Pa", "orbit_radius": "m", "orbit": "rad/s",
+    "orbit_hz": "Hz", "x": "m", "y": "m", "fx": "N", "fy": "N", "gamma2": "1", "direction": "1",
+    "coefficients": "per coefficient: identification.*.units", "covariance": "units_i x units_j",
+    "mean": "per channel: run.channel_units", "theta": "rad",
+    "convention": "phasors q = Re(q_bar exp(i theta)); forces on the journal, f_bar = -Z d_bar",
+}  # fmt: skip
+
+
+def field(name: str) -> str:
+    """A MATLAB struct field name: letters, digits, '_', starting with a letter, <= 63 chars."""
+    name = re.sub(r"\W", "_", name)
+    return (name if name[:1].isalpha() else f"f_{name}")[:63]
+
+
+def cell(values) -> np.ndarray:
+    """A MATLAB cell array of strings."""
+    items = [str(v) for v in values]
+    arr = np.empty(len(items), dtype=object)
+    arr[:] = items
+    return arr
+
+
+def _fit_struct(fit, ident) -> dict:
+    d = content.fit_arrays(fit)
+    s = {"lms": fit.lms, "model": fit.model, "freq_dep": fit.freq_dep, "method": fit.method, "error": fit.error,
+         "names": cell(d["names"]), "units": cell(d["units"]), "coefficients": d["value"],
+         "std_errors": d["std"], "U": d["U"]}  # fmt: skip
+    result = ident.result or {}
+    ci = result.get("confidence_95") or {}
+    s["interval_95"] = np.array([[np.nan if v is None else float(v) for v in (ci.get(k) or (None, None))]
+                                 for k in fit.names]).reshape(-1, 2)  # fmt: skip
+    if "covariance" in d:
+        s["covariance"], s["covariance_names"] = d["covariance"], cell(d["covariance_names"])
+    s.update({k: v for k, v in d.items() if k.startswith(("adequacy_", "statistical", "systematic", "combined",
+                                                              "expanded", "e_n")) or k == "k"})  # fmt: skip
+    for k in ("n_frequencies", "condition_number", "residual_rms", "dof", "chi2", "p_value", "aic", "bic"):
+        if k in result:
+            s[k] = np.nan if result[k] is None else float(result[k])
+    s["notes"], s["warnings"] = cell(result.get("notes") or []), cell(result.get("warnings") or [])
+    derived = content.derived_columns(fit)
+    if derived:
+        s["derived"] = {k: v for k, (v, _) in derived.items()}
+        s["derived_units"] = {k: u for k, (_, u) in derived.items()}
+    return s
+
+
+def point_struct(p, channels: list[str], channel_units: list[str]) -> dict:
+    settings = content.settings(p)
+    s = {k: v for k, (v, _) in settings.items()}
+    s.update(index=p.index, label=p.settings.label, settings_units={k: u for k, (_, u) in settings.items()})
+    for lms, table in p.tables.items():
+        cols = content.table_columns(table)
+        t = {"orbit": np.asarray(table.orbit, dtype=float), **table.phasors}
+        t.update({k: v for k, (v, _) in cols.items() if not k.endswith(("_re", "_im"))})
+        t["units"] = {"orbit": "rad/s", "x": "m", "y": "m", "fx": "N", "fy": "N",
+                      **{k: u for k, (_, u) in cols.items() if not k.endswith(("_re", "_im"))}}  # fmt: skip
+        s[lms] = t
+    s["identification"] = {field(f.key): _fit_struct(f, i) for f, i in zip(point_fits(p), p.identifications)}
+    truth = content.truth_arrays(p.truth)
+    if truth:
+        s["truth"] = {k: v for k, (v, _) in truth.items()} | {"units": {k: u for k, (_, u) in truth.items()}}
+    s["waveforms"] = {field(f"b{b['name']}"): {k: v for k, v in b.items() if k != "channels"}
+                      | {"channels": cell(channels), "channel_units": cell(channel_units)}
+                      for b in content.waveform_arrays(p, channels)}  # fmt: skip
+    return s
+
+
+def export_mat(run, points: list, out: Path) -> list[Path]:
+    from scipy.io import savemat
+
+    data = {
+        "run": {**content.provenance(run), "directory": str(run.directory), "sim": bool(run.sim),
+                "channels": cell(run.channels), "channel_units": cell(run.channel_units)},
+        "units": UNITS,
+        "points": {f"p{p.name}": point_struct(p, run.channels, run.channel_units) for p in points},
+    }  # fmt: skip
+    buf = io.BytesIO()
+    try:
+        savemat(buf, data, long_field_names=True, do_compression=True, oned_as="column")
+    except (ValueError, TypeError) as err:
+        raise StorageError(out / "run.mat", f"cannot build the MATLAB file: {err}") from err
+    path = out / "run.mat"
+    write_atomic(path, buf.getvalue())
+    return [path]

@@ -1,0 +1,94 @@
+"""One stored identification as arrays: what the Python API and every export read.
+
+A :class:`FitRecord` holds a fit's coefficients aligned with ``names`` (SI, ``units``),
+their standard error ``std`` and expanded uncertainty ``U`` (:func:`expanded_uncertainty`,
+the one rule for U), the covariance with the names of its rows (the free coefficients,
+which a constrained model has fewer of than ``names``), the uncertainty budget, the
+adequacy test, the derived quantities and the two-LMS consistency, as the sweep stored them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from orbitrig.store.layout import coefficient_si_unit
+
+BUDGET_PARTS = ("statistical", "systematic", "combined", "expanded")
+COVERAGE_K = 2.0  # U = 2 x std when the run stored no budget
+
+
+def _num(v) -> float:
+    return math.nan if v is None else float(v)
+
+
+def expanded_uncertainty(result: dict) -> dict[str, float]:
+    """U of each coefficient of an `identify --json` object as stored (SI): the stored
+    budget's expanded uncertainty (k x combined, calibration included) when the run has
+    one, else 2 x the standard error (statistical only). NaN where neither is known."""
+    names = list(result.get("coefficients") or {})
+    budget = (result.get("uncertainty") or {}).get("expanded")
+    if budget:
+        return {k: _num(budget.get(k)) for k in names}
+    std = result.get("std_errors") or {}
+    return {k: COVERAGE_K * _num(std.get(k)) for k in names}
+
+
+@dataclass(frozen=True)
+class FitRecord:
+    """One identification of one point and load measuring system (SI)."""
+
+    point: int
+    lms: str
+    model: str
+    freq_dep: str
+    method: str
+    error: str = ""  # why the model was refused ("" for a fit)
+    names: list[str] = field(default_factory=list)
+    units: list[str] = field(default_factory=list)
+    value: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    std: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    U: np.ndarray = field(default_factory=lambda: np.zeros(0))  # expanded uncertainty, see expanded_uncertainty
+    covariance: np.ndarray | None = None  # (q, q) over covariance_names
+    covariance_names: list[str] = field(default_factory=list)
+    budget: dict[str, np.ndarray] = field(default_factory=dict)  # BUDGET_PARTS aligned with names; "k"
+    adequacy: dict[str, Any] | None = None
+    derived: dict[str, Any] | None = None
+    lms_consistency: dict[str, Any] | None = None
+    result: dict[str, Any] | None = None  # the whole `identify --json` object as stored
+
+    @property
+    def key(self) -> str:
+        """``<lms>__<model>__<freq_dep>__<method>`` as in run.h5 (':' and ',' -> '_')."""
+        return f"{self.lms}__{self.model}__{self.freq_dep.replace(':', '_').replace(',', '_')}__{self.method}"
+
+
+def fit_record(point: int, lms: str, model: str, freq_dep: str, method: str, result: dict | None,
+               error: str | None = None) -> FitRecord:
+    """The FitRecord of a stored identification (``result`` None: a refused model)."""
+    if result is None:
+        return FitRecord(point, lms, model, freq_dep, method, error or "")
+    names = list(result.get("coefficients") or {})
+    vector = lambda d: np.array([_num((d or {}).get(k)) for k in names], dtype=float)  # noqa: E731
+    U = expanded_uncertainty(result)
+    cov = result.get("covariance")
+    unc = result.get("uncertainty") or {}
+    budget = {part: vector(unc.get(part)) for part in BUDGET_PARTS if unc.get(part)}
+    if budget:
+        budget["k"] = np.array(float(unc.get("k", COVERAGE_K)))
+    return FitRecord(
+        point, lms, model, freq_dep, method, error or "", names, [coefficient_si_unit(k) for k in names],
+        vector(result.get("coefficients")), vector(result.get("std_errors")), np.array([U[k] for k in names]),
+        None if cov is None else np.array([[_num(v) for v in row] for row in cov], dtype=float),
+        list(result.get("free") or names) if cov is not None else [], budget,
+        result.get("adequacy"), result.get("derived"), result.get("lms_consistency"), result,
+    )  # fmt: skip
+
+
+def point_fits(point) -> list[FitRecord]:
+    """Every stored identification of an orbitrig.store.reader.Point, in stored order."""
+    return [fit_record(point.index, i.lms, i.model, i.freq_dep, i.method, i.result, i.error)
+            for i in point.identifications]  # fmt: skip

@@ -1,0 +1,139 @@
+"""pandas and xarray views of a stored run (the Python API's tables; docs/api.md).
+
+pandas and xarray are imported only here and only when a view is made (the `api` extra).
+Columns are SI unless the name says otherwise (``spin_rpm``, ``orbit_hz``); each frame's
+``attrs["units"]`` maps every column to a unit pint parses ("1": dimensionless).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from orbitrig.store.fit_record import BUDGET_PARTS, FitRecord
+from orbitrig.store.orbit_table import orbit_table_columns
+
+SETTINGS_UNITS = {"label": "", "complete": "", "spin": "rad/s", "spin_rpm": "rpm", "recess_pressure": "Pa",
+                  "pressure_ratio": "1", "static_eccentricity": "1", "dynamic_eccentricity": "1",
+                  "orbit_radius": "m", "n_frequencies": "1"}  # fmt: skip
+FIT_KEYS = ("point", "lms", "model", "freq_dep", "method")
+
+
+def _frame(data: dict, units: dict, index: str | list[str] | None = None):
+    import pandas as pd
+
+    df = pd.DataFrame(data)
+    if index is not None:
+        df = df.set_index(index)
+    df.attrs["units"] = {k: v for k, v in units.items() if k in data}
+    return df
+
+
+def points_frame(points):
+    """One row per operating point (index ``point``): settings, complete, n_frequencies."""
+    rows = {k: [] for k in ("point", *SETTINGS_UNITS)}
+    for p in points:
+        st = p.settings
+        for k in SETTINGS_UNITS:
+            rows[k].append(len(p.frequencies) if k == "n_frequencies" else p.complete if k == "complete"
+                           else getattr(st, k))  # fmt: skip
+        rows["point"].append(p.index)
+    return _frame(rows, SETTINGS_UNITS, "point")
+
+
+def table_frame(table):
+    """An orbit table (reduction.table.OrbitTable) in the orbit-table CSV's columns (rpm, Hz,
+    m, N; gamma2_*, n_records, u_* when measured) and ``direction`` (+1 forward, -1 backward)."""
+    cols = orbit_table_columns(table, direction=True)
+    return _frame({name: values for name, (values, _) in cols.items()}, {name: unit for name, (_, unit) in cols.items()})
+
+
+def coefficients_frame(fits: list[FitRecord]):
+    """One row per fit: point, lms, model, freq_dep, method, error, then per coefficient KEY,
+    KEY_std and KEY_U (expanded uncertainty), SI (units in attrs)."""
+    keys: list[str] = []
+    for f in fits:
+        keys += [k for k in f.names if k not in keys]
+    data = {k: [getattr(f, k) for f in fits] for k in (*FIT_KEYS, "error")}
+    units = {k: "" for k in data}
+    for key in keys:
+        for suffix, part in (("", "value"), ("_std", "std"), ("_U", "U")):
+            data[key + suffix] = [_entry(f, key, part) for f in fits]
+    for f in fits:
+        units.update({k + s: u for k, u in zip(f.names, f.units) for s in ("", "_std", "_U")})
+    return _frame(data, units)
+
+
+def _entry(fit: FitRecord, key: str, part: str) -> float:
+    return float(getattr(fit, part)[fit.names.index(key)]) if key in fit.names else math.nan
+
+
+def coefficient_table(fit: FitRecord):
+    """One fit's coefficients (index ``name``): value, std, U, unit, and the budget's parts."""
+    data = {"name": fit.names, "value": fit.value, "std": fit.std, "U": fit.U, "unit": fit.units}
+    data.update({part: fit.budget[part] for part in BUDGET_PARTS if part in fit.budget})
+    return _frame(data, {k: "per row: unit" for k in data if k not in ("name", "unit")}, "name")
+
+
+def covariance_frame(fit: FitRecord):
+    """The covariance (SI) with the free coefficients' names as index and columns."""
+    import pandas as pd
+
+    if fit.covariance is None:
+        return pd.DataFrame()
+    return pd.DataFrame(fit.covariance, index=fit.covariance_names, columns=fit.covariance_names)
+
+
+def derived_frame(fit: FitRecord):
+    """The derived quantities at the point's orbit frequencies (index ``orbit_hz``):
+    c_eff_xx, c_eff_yy (N s/m), h_forward, h_backward (complex N/m), wfr (1), each with _std
+    (H: _std_re, _std_im). The C_eff zero crossings are in attrs."""
+    d = fit.derived or {}
+    if "orbit_hz" not in d:
+        return _frame({"orbit_hz": []}, {"orbit_hz": "Hz"}, "orbit_hz")
+    data = {"orbit_hz": d["orbit_hz"]}
+    units = {"orbit_hz": "Hz"}
+    for name, unit in (("c_eff_xx", "N*s/m"), ("c_eff_yy", "N*s/m"), ("wfr", "1")):
+        if name in d:
+            data[name], data[f"{name}_std"] = d[name], d.get(f"{name}_std")
+            units[name] = units[f"{name}_std"] = unit
+    for name in ("h_forward", "h_backward"):
+        if f"{name}_re" in d:
+            data[name] = np.asarray(d[f"{name}_re"]) + 1j * np.asarray(d[f"{name}_im"])
+            std = np.asarray(d.get(f"{name}_std"), dtype=float)
+            data[f"{name}_std_re"], data[f"{name}_std_im"] = std[0], std[1]
+            units.update({name: "N/m", f"{name}_std_re": "N/m", f"{name}_std_im": "N/m"})
+    df = _frame(data, units, "orbit_hz")
+    df.attrs.update({k: d[k] for k in d if k.startswith("c_eff_zero")})
+    df.attrs["covariance"] = d.get("covariance", "")
+    return df
+
+
+def waveforms_dataset(point, channels: list[str], channel_units: list[str]):
+    """The point's averaged revolutions as an xarray Dataset: ``mean`` (block, channel, angle)
+    with ``theta`` (rad, orbit angle after the trigger of each sample), ``dc``, ``phasor``
+    (complex) and ``uncertainty`` (block, channel); per-channel units as attributes
+    ``units_<channel>`` and the coordinate ``unit``."""
+    import xarray as xr
+
+    blocks = [f for f in point.frequencies if "mean" in f.waveform]
+    if not blocks:
+        return xr.Dataset()
+    stack = lambda key: np.stack([b.waveform[key] for b in blocks])  # noqa: E731
+    per_channel = {f"units_{c}": u for c, u in zip(channels, channel_units)}
+    dims = ("block", "channel", "angle")
+    data = {"mean": (dims, stack("mean"), {"description": "synchronous average over the revolutions", **per_channel})}
+    for key, name, what in (("dc", "dc", "mean value"), ("phasors", "phasor", "fundamental phasor, q = Re(q_bar exp(i theta))"),
+                            ("uncertainty", "uncertainty", "standard uncertainty of the phasor")):  # fmt: skip
+        if all(key in b.waveform for b in blocks):
+            data[name] = (dims[:2], stack(key), {"description": what, **per_channel})
+    coords = {
+        "block": [b.name for b in blocks], "channel": list(channels),
+        "unit": ("channel", list(channel_units)),
+        "orbit_hz": ("block", [b.orbit_hz for b in blocks], {"units": "Hz"}),
+        "direction": ("block", [b.direction for b in blocks], {"units": "1", "description": "+1 forward, -1 backward"}),
+        "n_records": ("block", [b.n_records for b in blocks], {"units": "1"}),
+        "theta": (dims, 2 * np.pi * stack("slots") / 360.0, {"units": "rad", "description": "orbit angle after the trigger"}),
+    }  # fmt: skip
+    return xr.Dataset(data, coords=coords, attrs={"point": point.index})

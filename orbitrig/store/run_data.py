@@ -1,0 +1,140 @@
+"""The Python API over a stored run: ``orbitrig.open_run(path)`` and
+``orbitrig.identify_table(df, model=...)`` (docs/api.md).
+
+:class:`RunData` reads the run once (orbitrig.store.reader, also a run cut short or a
+lone run.h5) and gives pandas/xarray views (orbitrig.store.frames) of it; :class:`Fit` is
+one identification, stored or made from a table in memory. Plain-data accessors
+(:meth:`RunData.fits`, ``RunData.run``) need neither pandas nor xarray.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+from orbitrig.store import frames
+from orbitrig.store.fit_record import FitRecord, fit_record, point_fits
+from orbitrig.store.reader import Point, Run, read_run
+
+
+class Fit:
+    """One identification: ``record`` (arrays) and its tables."""
+
+    def __init__(self, record: FitRecord):
+        self.record = record
+
+    def __repr__(self) -> str:
+        r = self.record
+        return f"Fit(point={r.point}, {r.key}{', refused' if r.error else ''})"
+
+    @property
+    def error(self) -> str:
+        """Why the model was refused ("" for a fit)."""
+        return self.record.error
+
+    @property
+    def result(self) -> dict | None:
+        """The whole `identify --json` object (docs/orbit-table.md), with the sweep's additions."""
+        return self.record.result
+
+    @property
+    def coefficients(self):
+        """DataFrame (index ``name``): value, std, U, unit and the budget's parts (SI)."""
+        return frames.coefficient_table(self.record)
+
+    @property
+    def covariance(self):
+        """DataFrame: the covariance over the free coefficients (their names as index and columns)."""
+        return frames.covariance_frame(self.record)
+
+    @property
+    def derived(self):
+        """DataFrame (index ``orbit_hz``): effective damping, direct dynamic stiffness, whirl frequency ratio."""
+        return frames.derived_frame(self.record)
+
+    @property
+    def adequacy(self) -> dict | None:
+        """The frequency-dependence test against the constant fit (verdict, p_value, ...)."""
+        return self.record.adequacy
+
+    @property
+    def lms_consistency(self) -> dict | None:
+        return self.record.lms_consistency
+
+
+class RunData:
+    """A run directory (or a directory holding only run.h5) opened for analysis."""
+
+    def __init__(self, run: Run):
+        self.run = run
+
+    def __repr__(self) -> str:
+        return f"RunData({str(self.run.directory)!r}, status={self.run.status}, points={len(self.run.points)})"
+
+    def _point(self, point: int) -> Point:
+        for p in self.run.points:
+            if p.index == point:
+                return p
+        raise KeyError(f"{self.run.directory}: no operating point {point} "
+                       f"(points: {', '.join(str(p.index) for p in self.run.points) or 'none'})")  # fmt: skip
+
+    @property
+    def points(self):
+        """DataFrame, one row per operating point (index ``point``): settings (SI and rpm),
+        complete, n_frequencies."""
+        return frames.points_frame(self.run.points)
+
+    def table(self, point: int, lms: str = "piezo"):
+        """DataFrame: the point's orbit table for load measuring system ``lms`` (piezo |
+        strain), the orbit-table CSV's columns and ``direction``."""
+        p = self._point(point)
+        if lms not in p.tables:
+            raise KeyError(f"point {point} has no orbit table {lms!r} (tables: {', '.join(p.tables) or 'none'})")
+        return frames.table_frame(p.tables[lms])
+
+    def fits(self, point: int | None = None) -> list[FitRecord]:
+        """Every stored identification (of one point, or of every complete point) as arrays."""
+        points = [self._point(point)] if point is not None else self.run.complete_points
+        return [f for p in points for f in point_fits(p)]
+
+    @property
+    def coefficients(self):
+        """DataFrame, one row per (point, lms, model, freq_dep, method): KEY, KEY_std, KEY_U."""
+        return frames.coefficients_frame(self.fits())
+
+    def fit(self, point: int, lms: str, model: str, freq_dep: str = "none", method: str = "ols") -> Fit:
+        """One stored identification. KeyError naming the ones there are."""
+        fits = self.fits(point)
+        for f in fits:
+            if (f.lms, f.model, f.freq_dep, f.method) == (lms, model, freq_dep, method):
+                return Fit(f)
+        raise KeyError(f"point {point}: no fit {lms} {model} {freq_dep} {method} "
+                       f"(fits: {', '.join(f.key for f in fits) or 'none'})")  # fmt: skip
+
+    def truth(self, point: int) -> dict | None:
+        """--sim runs: the simulator's true impedance and its best fits (K0, C0, D0, ...), SI."""
+        return self._point(point).truth
+
+    def waveforms(self, point: int):
+        """xarray Dataset of the point's averaged revolutions (dims block, channel, angle)."""
+        return frames.waveforms_dataset(self._point(point), self.run.channels, self.run.channel_units)
+
+
+def open_run(path: str | Path) -> RunData:
+    """Open the run in ``path`` (docs/api.md). Raises orbitrig.store.reader.RunDirError."""
+    return RunData(read_run(path))
+
+
+def identify_table(df, model: str = "kcd11", freq_dep: str = "none", method: str = "ols", solver: str = "qr") -> Fit:
+    """Identify ``model`` from an orbit table in memory: a DataFrame with the orbit-table
+    CSV's columns (spin_rpm, orbit_hz, x_re, ..., fy_im; gamma2_*, n_records, u_* optional),
+    as RunData.table gives. Raises TableError for a bad table, ReductionError for a model
+    the table cannot identify."""
+    from orbitrig.store.orbit_table import parse_orbit_table
+    from reduction.identify import identify
+
+    buf = io.StringIO()
+    df.to_csv(buf, index=False)
+    table = parse_orbit_table(buf.getvalue().encode("utf-8"), "<DataFrame>")
+    result = identify(table, model=model, freq_dep=freq_dep, method=method, solver=solver).to_dict()
+    return Fit(fit_record(-1, "", model, freq_dep, method, result))

@@ -1,0 +1,149 @@
+"""Every export carries the same content, read back by independent readers (scipy.io,
+npTDMS, csv, pint, GNU Octave) against run.h5 read with h5py: coefficients with std and
+U, the covariance with its names (11 x 11 for kcd11's 11 free coefficients), the budget,
+derived quantities, truth, provenance and (mat, tdms) the averaged waveforms."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+
+import h5py
+import numpy as np
+import pint
+import pytest
+from nptdms import TdmsFile
+from scipy.io import loadmat
+
+from orbitrig.store.export import export_run
+from orbitrig.store.orbit_table import read_orbit_table
+
+UREG = pint.UnitRegistry()
+FIT = "piezo__kcd11__none__ols"
+
+
+@pytest.fixture(scope="module")
+def stored(sim_run):
+    """What run.h5 says, read with h5py."""
+    with h5py.File(sim_run / "run.h5", "r") as f:
+        g = f[f"points/0000/identification/{FIT}"]
+        return {
+            "names": list(g["names"].asstr()[()]), "value": g["coefficients"][()], "std": g["std_errors"][()],
+            "U": g["uncertainty/expanded"][()], "combined": g["uncertainty/combined"][()],
+            "cov": g["covariance"][()], "cov_names": list(g["covariance"].attrs["names"]),
+            "c_eff_xx": g["derived/c_eff_xx"][()], "K0": f["points/0000/truth/fits/constant/K"][()],
+            "mean": f["points/0000/frequencies/03_bwd/mean"][()], "fx": f["points/0000/table/piezo/fx"][()],
+            "version": f.attrs["software_version"], "truth_orbit": f["points/0000/truth/orbit"][()],
+        }  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def exported(sim_run, tmp_path_factory):
+    out = tmp_path_factory.mktemp("export")
+    return {fmt: export_run(sim_run, fmt, out) for fmt in ("csv", "mat", "tdms", "h5")} | {"dir": out}
+
+
+def _units_parse(units) -> None:
+    for u in units:
+        if u not in ("", "1", "see unit") and not u.startswith("("):
+            UREG.parse_units(u)
+
+
+def test_mat(exported, stored):
+    m = loadmat(exported["dir"] / "run.mat", simplify_cells=True)
+    fit = m["points"]["p0000"]["identification"][FIT]
+    assert list(fit["names"]) == stored["names"]
+    np.testing.assert_array_equal(fit["coefficients"], stored["value"])
+    np.testing.assert_array_equal(fit["U"], stored["U"])
+    np.testing.assert_array_equal(fit["combined"], stored["combined"])
+    assert fit["covariance"].shape == (11, 11) and list(fit["covariance_names"]) == stored["cov_names"]
+    np.testing.assert_array_equal(fit["covariance"], stored["cov"])
+    np.testing.assert_array_equal(fit["derived"]["c_eff_xx"], stored["c_eff_xx"])
+    assert fit["derived_units"]["c_eff_xx"] == "N s/m"
+    point = m["points"]["p0000"]
+    np.testing.assert_array_equal(point["truth"]["K0"], stored["K0"])
+    np.testing.assert_array_equal(point["waveforms"]["b03_bwd"]["mean"], stored["mean"])
+    np.testing.assert_array_equal(point["piezo"]["fx"], stored["fx"])
+    np.testing.assert_array_equal(point["piezo"]["direction"], np.sign(stored["truth_orbit"]))
+    assert m["run"]["software_version"] == stored["version"]
+    _units_parse(point["settings_units"].values())
+    _units_parse(point["piezo"]["units"].values())
+
+
+def test_tdms(exported, stored):
+    tdms = TdmsFile.read(exported["dir"] / "run.tdms")
+    table = tdms["point 0000 piezo"]
+    assert isinstance(table.properties["spin_rpm"], float) and table.properties["spin_rpm.unit_string"] == "rpm"
+    assert table["orbit_hz"].properties["unit_string"] == "Hz"
+    np.testing.assert_array_equal(table["direction"][:], np.sign(stored["truth_orbit"]))
+    fit = tdms[f"fit 0000 {FIT}"]
+    assert list(fit["name"][:]) == stored["names"]
+    np.testing.assert_array_equal(fit["U"][:], stored["U"])
+    np.testing.assert_array_equal(fit["combined"][:], stored["combined"])
+    cov = tdms[f"covariance 0000 {FIT}"]
+    assert list(cov["name"][:]) == stored["cov_names"] and len(cov.channels()) == 12  # name + 11 columns
+    np.testing.assert_array_equal(np.stack([cov[n][:] for n in stored["cov_names"]], axis=1), stored["cov"])
+    np.testing.assert_array_equal(tdms[f"derived 0000 {FIT}"]["c_eff_xx"][:], stored["c_eff_xx"])
+    np.testing.assert_array_equal(tdms["truth 0000"]["K0"][:], stored["K0"].ravel())
+    wave = tdms["waveforms 0000 03_bwd"]
+    np.testing.assert_array_equal(wave["fx_piezo"][:], stored["mean"][0])
+    assert wave["x_a"].properties["unit_string"] == "m" and isinstance(wave.properties["orbit_hz"], float)
+    assert tdms.properties["software_version"] == stored["version"]
+    coef = tdms["coefficients"]
+    k = stored["names"].index("Kxy")
+    assert stored["U"][k] in list(coef["Kxy_U"][:]) and coef["Kxy_U"].properties["unit_string"] == "N/m"
+    _units_parse(c.properties["unit_string"] for g in tdms.groups() for c in g.channels())
+
+
+def test_csv(exported, stored):
+    out = exported["dir"]
+    with open(out / "point_0000_piezo.csv", newline="") as fh:
+        header = next(csv.reader(fh))
+    assert header[:2] == ["spin_rpm [rpm]", "orbit_hz [Hz]"] and header[-1] == "direction [1]"
+    _units_parse(h.split("[")[1].rstrip("]") for h in header)
+    table = read_orbit_table(out / "point_0000_piezo.csv")  # identify reads it back
+    np.testing.assert_array_equal(table.fx, stored["fx"])
+    with open(out / "point_0000_piezo.csv", newline="") as fh:
+        assert [int(r["direction [1]"]) for r in csv.DictReader(fh)] == list(np.sign(stored["truth_orbit"]))
+    with open(out / "fits.csv", newline="") as fh:
+        rows = [r for r in csv.DictReader(fh) if r["lms"] == "piezo" and r["model"] == "kcd11"]
+    assert [r["name"] for r in rows] == stored["names"]
+    np.testing.assert_array_equal([float(r["U"]) for r in rows], stored["U"])
+    np.testing.assert_array_equal([float(r["true"]) for r in rows if r["name"] == "Kxy"], [stored["K0"][0, 1]])
+    _units_parse(r["unit"] for r in rows)
+    with open(out / f"covariance_0000_{FIT}.csv", newline="") as fh:
+        cov = list(csv.reader(fh))
+    assert cov[0] == ["name"] + stored["cov_names"] and [r[0] for r in cov[1:]] == stored["cov_names"]
+    np.testing.assert_array_equal([[float(v) for v in r[1:]] for r in cov[1:]], stored["cov"])
+    with open(out / f"derived_0000_{FIT}.csv", newline="") as fh:
+        derived = list(csv.DictReader(fh))
+    np.testing.assert_array_equal([float(r["c_eff_xx [N s/m]"]) for r in derived], stored["c_eff_xx"])
+    with open(out / "provenance.csv", newline="") as fh:
+        assert dict(csv.reader(fh))["software_version"] == stored["version"]
+
+
+def test_h5_export_is_the_run_file(exported, stored):
+    with h5py.File(exported["dir"] / "run.h5", "r") as f:
+        g = f[f"points/0000/identification/{FIT}"]
+        np.testing.assert_array_equal(g["uncertainty/expanded"][()], stored["U"])
+        assert g["coefficients"].attrs["units_Kxx"] == "N/m" and "description" in g["coefficients"].attrs
+        assert json.loads(g.attrs["json"])["free"] == stored["cov_names"]
+
+
+def test_octave_loads_the_mat_export(exported, stored, tmp_path):
+    script = (f"m = load('{exported['dir'] / 'run.mat'}');\n"
+              f"k = m.points.p0000.identification.{FIT};\n"
+              "printf('U %.17g\\n', k.U);\n"
+              "printf('cov %d %d %d\\n', size(k.covariance), numel(k.covariance_names));\n"
+              "fx = m.points.p0000.piezo.fx;\n"
+              "printf('fx %.17g %.17g\\n', [real(fx) imag(fx)]');\n"
+              "printf('version %s\\n', m.run.software_version);\n")
+    done = subprocess.run(["octave-cli", "--no-gui", "--norc", "--eval", script], capture_output=True, text=True,
+                          timeout=120, cwd=tmp_path)  # fmt: skip
+    lines = done.stdout.splitlines()
+    assert "cov 11 11 11" in lines, done.stdout + done.stderr[-2000:]
+    np.testing.assert_array_equal([float(ln.split()[1]) for ln in lines if ln.startswith("U ")], stored["U"])
+    fx = np.array([[float(v) for v in ln.split()[1:]] for ln in lines if ln.startswith("fx ")])
+    np.testing.assert_array_equal(fx[:, 0] + 1j * fx[:, 1], stored["fx"])
+    assert f"version {stored['version']}" in lines

@@ -1,0 +1,120 @@
+"""Where the configuration comes from (orbitrig.config.home) and `orbitrig init DIR`:
+--config, then $ORBITRIG_HOME, then the current directory, then the shipped defaults;
+the lab's matrices and designs before the shipped ones; the broker configuration that
+init writes runs a real mosquitto."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from orbitrig import config as cfg
+from orbitrig.config.lab import write_lab
+from orbitrig.errors import ConfigError
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO / "tests" / "mqtt"))
+from mqtt_helpers import ACCOUNTS, MOSQUITTO, free_port, wait_port  # noqa: E402
+
+
+@pytest.fixture
+def lab(tmp_path, monkeypatch):
+    """A lab folder written by init, the environment and current directory neutral."""
+    monkeypatch.delenv(cfg.HOME_ENV, raising=False)
+    monkeypatch.chdir(tmp_path)
+    folder = tmp_path / "lab"
+    write_lab(folder)
+    (folder / "rig.toml").write_text((folder / "rig.toml").read_text().replace(
+        'name = "double-spool rig"', 'name = "lab rig"'))
+    return folder
+
+
+def test_shipped_defaults_are_the_source_trees_config(tmp_path, monkeypatch):
+    monkeypatch.delenv(cfg.HOME_ENV, raising=False)
+    monkeypatch.chdir(tmp_path)
+    assert cfg.shipped_config() == REPO / "config"
+    assert cfg.default_rig_path() == REPO / "config" / "rig.toml"
+    assert cfg.load_rig().name == "double-spool rig"
+
+
+def test_lookup_order_config_then_env_then_cwd(lab, tmp_path, monkeypatch):
+    other = tmp_path / "other"
+    write_lab(other)
+    assert cfg.load_rig().name == "double-spool rig"  # tmp_path holds no rig.toml: shipped
+    monkeypatch.chdir(lab)
+    assert cfg.load_rig().name == "lab rig"  # the current directory
+    monkeypatch.setenv(cfg.HOME_ENV, str(other))
+    assert cfg.default_rig_path() == other / "rig.toml"  # the environment before the current directory
+    assert cfg.config_home(lab / "rig.toml") == lab  # --config before everything
+
+
+def test_matrix_names_from_the_lab_first(lab, monkeypatch):
+    (lab / "matrices" / "demo.toml").write_text(
+        (lab / "matrices" / "demo.toml").read_text().replace('name = "demo"', 'name = "lab demo"'))
+    (lab / "matrices" / "mine.toml").write_text((lab / "matrices" / "demo.toml").read_text())
+    (lab / "matrices" / "paper.toml").unlink()  # then the shipped one
+    assert cfg.load_matrix(cfg.matrix_file("demo", rig_path=lab / "rig.toml")).name == "lab demo"
+    assert cfg.load_matrix(cfg.matrix_file("paper", rig_path=lab / "rig.toml")).file.startswith(str(REPO))
+    monkeypatch.setenv(cfg.HOME_ENV, str(lab))
+    assert cfg.load_matrix(cfg.default_matrix_path()).name == "lab demo"
+    with pytest.raises(ConfigError, match=r"available: demo, designed, mine, paper"):
+        cfg.matrix_file("nothing")
+
+
+def test_a_design_beside_the_matrix_folder_wins(lab):
+    design = (lab / "designs" / "kcd11-demo.toml").read_text()
+    (lab / "designs" / "kcd11-demo.toml").write_text(design.replace("ratios = [0.65,", "ratios = [0.25,"))
+    mat = cfg.load_matrix(lab / "matrices" / "designed.toml")
+    shipped = cfg.load_matrix(REPO / "config" / "matrices" / "designed.toml")
+    assert 0.25 in mat.orbit.ratio_list
+    assert 0.25 not in shipped.orbit.ratio_list
+
+
+def test_init_refuses_an_existing_configuration(lab):
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    done = subprocess.run([sys.executable, "-m", "orbitrig", "init", str(lab)], capture_output=True, text=True,
+                          env=env, timeout=60)  # fmt: skip
+    assert done.returncode == 2, done.stderr
+    assert f"{lab / 'rig.toml'}: already there" in done.stderr
+    assert "Traceback" not in done.stderr
+    assert "lab rig" in (lab / "rig.toml").read_text()  # untouched
+    write_lab(lab, force=True)
+    assert "lab rig" not in (lab / "rig.toml").read_text()
+
+
+def test_broker_dir_goes_into_mosquitto_conf(tmp_path):
+    write_lab(tmp_path / "lab", broker_dir=Path("/etc/mosquitto/orbitrig"))
+    conf = (tmp_path / "lab" / "mosquitto" / "mosquitto.conf").read_text()
+    assert "password_file /etc/mosquitto/orbitrig/passwd\n" in conf
+    assert "acl_file /etc/mosquitto/orbitrig/acl\n" in conf
+    assert "#cafile /etc/mosquitto/orbitrig/ca.crt\n" in conf
+
+
+def test_init_broker_configuration_runs_mosquitto(lab):
+    """The written mosquitto.conf, its listeners moved to free ports: the broker starts with
+    the lab's password file and ACL, a viewer may read and may not command."""
+    broker = lab / "mosquitto"
+    shutil.copyfile(broker / "passwd.example", broker / "passwd")
+    (broker / "passwd").chmod(0o600)
+    service, people = free_port(), free_port()
+    conf = (broker / "mosquitto.conf").read_text()
+    conf = conf.replace("listener 1883 127.0.0.1", f"listener {service} 127.0.0.1")
+    conf = conf.replace("listener 1884 127.0.0.1", f"listener {people} 127.0.0.1")
+    (broker / "test.conf").write_text("user root\n" + conf)
+    proc = subprocess.Popen([MOSQUITTO, "-c", str(broker / "test.conf")], stderr=subprocess.PIPE)
+    try:
+        wait_port(people)
+        pub = ["mosquitto_pub", "-h", "127.0.0.1", "-p", str(people), "-t", "orbitrig/lab/cmd", "-m", "{}", "-q", "1"]
+        ok = subprocess.run(pub + ["-u", "operator", "-P", ACCOUNTS["operator"]], capture_output=True, timeout=10)
+        bad = subprocess.run(pub + ["-u", "operator", "-P", "wrong"], capture_output=True, timeout=10)
+        assert ok.returncode == 0, ok.stderr
+        assert bad.returncode != 0
+        assert (broker / "data").is_dir()
+    finally:
+        proc.terminate()
+        proc.wait(5)
