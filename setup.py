@@ -1,7 +1,7 @@
 """Build hook: the wheel carries the default configuration.
 
 config/ of the source tree stays the one copy. When a wheel is built, its files are
-copied into the package: rig.toml, matrices/, designs/ and mosquitto/ as orbitrig/data
+copied into the package: rig.toml, matrices/, designs/, mosquitto/ and calibration/ as orbitrig/data
 (orbitrig.config.home.shipped_config), the simulator's scenarios sim.toml and sim/ as
 sim/scenarios (sim.config.SCENARIO_DIR). An editable install reads config/ in place.
 Everything else is in pyproject.toml.
@@ -15,7 +15,7 @@ from setuptools.command.build_py import build_py
 
 CONFIG = Path(__file__).resolve().parent / "config"
 SHIPPED = {
-    "orbitrig/data": ("rig.toml", "matrices", "designs", "mosquitto"),
+    "orbitrig/data": ("rig.toml", "matrices", "designs", "mosquitto", "calibration"),
     "sim/scenarios": ("sim.toml", "sim"),
 }
 

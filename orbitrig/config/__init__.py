@@ -120,7 +120,7 @@ def load_rig(path: Path | str | None = None) -> RigConfig:
 def rig_from_text(text: str, file: str = "<rig config>", record_text: str | None = None) -> RigConfig:
     """The rig configuration with its active calibration record: ``record_text`` (a run's stored
     copy) or the file named by ``calibration_record`` in the records' folder beside ``file``
-    (config/calibration/ of the source tree when that folder does not hold it). The record's
+    (the shipped defaults' calibration/ when that folder does not hold it). The record's
     ``[uncertainty]`` replaces ``[calibration_uncertainty]``."""
     rig = _build(RigConfig, _parse(text, file), file, text)
     name = rig.calibration_record
@@ -128,7 +128,7 @@ def rig_from_text(text: str, file: str = "<rig config>", record_text: str | None
         return rig
     if record_text is None:
         beside = folder_of(file) if Path(file).is_file() else None
-        folder = beside if beside is not None and (beside / f"{name}.toml").is_file() else _REPO_CONFIG / "calibration"
+        folder = beside if beside is not None and (beside / f"{name}.toml").is_file() else shipped_config() / "calibration"
         record, record_text = read_record(folder, name)
     else:
         record = record_from_text(record_text, f"{file}: calibration record {name}")

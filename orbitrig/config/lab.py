@@ -25,11 +25,11 @@ _BROKER_PATHS = {"password_file": "passwd", "acl_file": "acl", "cafile": "ca.crt
 _CALIBRATION_README = """\
 # Calibration records
 
-Keep each channel's calibration record here (certificates, the load cells' and
-probes' calibration runs). What the code uses is in ../rig.toml: each channel's
-`gain` and `offset` ([[channels]]) and the stated standard uncertainties
-([calibration_uncertainty]) that enter every coefficient's uncertainty budget.
-Update them together with the record.
+One TOML file per calibration step, named by its UTC date (`orbitrig calibrate
+loads|runout|delay|probes` writes them; `orbitrig calibrate list` shows the
+history). ../rig.toml names the active one (`calibration_record`); its values
+correct the forces and displacements and its [uncertainty] enters every
+coefficient's uncertainty budget. Keep the reference certificates beside them.
 """
 
 
@@ -50,6 +50,7 @@ def write_lab(folder: Path, broker_dir: Path | None = None, force: bool = False)
     conf = broker_conf((shipped / MOSQUITTO / "mosquitto.conf").read_text(encoding="utf-8"), broker)
     written.append(_write(folder / MOSQUITTO / "mosquitto.conf", conf))
     (folder / MOSQUITTO / "data").mkdir(exist_ok=True)
+    written += [_copy(f, folder / CALIBRATION / f.name) for f in sorted((shipped / CALIBRATION).glob("*.toml"))]
     written.append(_write(folder / CALIBRATION / "README.md", _CALIBRATION_README))
     return written
 

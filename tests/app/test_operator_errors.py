@@ -176,9 +176,13 @@ def test_identify_of_a_missing_table_says_it_cannot_be_read(tmp_path):
 
 
 def test_missing_default_config_says_how_to_give_one(tmp_path, monkeypatch):
-    monkeypatch.setattr(cfg, "_REPO_CONFIG", tmp_path / "config")  # as in a non-editable install
+    from orbitrig.config import home
+
+    monkeypatch.setattr(home, "shipped_config", lambda: tmp_path / "config")  # an install without its data
+    monkeypatch.delenv(home.HOME_ENV, raising=False)
+    monkeypatch.chdir(tmp_path)
     for load, option in ((cfg.load_rig, "--config"), (cfg.load_matrix, "--matrix")):
         with pytest.raises(ConfigError) as info:
             load()
         assert info.value.file.startswith(str(tmp_path / "config"))
-        assert info.value.problems[0].endswith(f"install with pip install -e): give {option} FILE")
+        assert info.value.problems[0].startswith(f"the default file is not there: give {option} FILE, set ORBITRIG_HOME")
