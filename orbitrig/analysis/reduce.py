@@ -133,7 +133,7 @@ def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, 
             "recess_pressure_mpa": s.recess_pressure / 1e6, "pressure_ratio": s.pressure_ratio,
             "static_eccentricity": s.static_eccentricity, "dynamic_eccentricity": s.dynamic_eccentricity,
             "lms": r.lms, "model": r.model, "freq_dep": r.freq_dep, "method": r.method,
-            "error": one_line(r.error or ""),
+            "error": one_line(r.error or ""), "not_determined": " ".join((r.stored or {}).get("not_determined") or []),
         }  # fmt: skip
         ident = r.identification
         if ident is not None:

@@ -112,6 +112,10 @@ def _identification_struct(ident: StoredIdentification) -> dict:
     num = lambda m, k: np.nan if (m or {}).get(k) is None else float(m[k])  # noqa: E731
     s["coefficients"] = np.array([num(d.get("coefficients"), k) for k in names])
     s["std_errors"] = np.array([num(d.get("std_errors"), k) for k in names])
+    s["expanded_uncertainty"] = np.array([num((d.get("expanded_uncertainty") or {}).get("values"), k) for k in names])
+    s["not_determined"] = _cell(d.get("not_determined") or [])
+    if ((d.get("truth") or {}).get("coefficients")) is not None:
+        s["truth"] = np.array([num(d["truth"]["coefficients"], k) for k in names])
     ci = d.get("confidence_95") or {}
     s["interval_95"] = np.array([[np.nan if v is None else float(v) for v in (ci.get(k) or (None, None))]
                                  for k in names]).reshape(-1, 2)  # fmt: skip
@@ -147,6 +151,8 @@ MAT_UNITS = {
     "orbit_hz": "Hz", "x": "m (complex phasor, q = Re(q_bar exp(i Omega t)))", "y": "m (complex phasor)",
     "fx": "N (complex phasor, force on the journal)", "fy": "N (complex phasor)", "gamma2": "1", "u": "m or N",
     "coefficients": "SI, see identification.units", "covariance": "SI products of the coefficients' units",
+    "expanded_uncertainty": "SI, see identification.units (U, k = 2, statistical and calibration combined)",
+    "truth": "SI, see identification.units (the true Z projected onto the fit's model)",
 }  # fmt: skip
 
 
@@ -192,7 +198,7 @@ def _export_tdms(run: Run, points: list[Point], out: Path) -> list[Path]:
         cells = [str(r.get(col, "")) for r in rows]
         unit = col[col.index("[") + 1: -1] if col.endswith("]") else ""
         name = col.split(" [")[0]
-        if col in ("label", "lms", "model", "freq_dep", "method", "error"):
+        if col in ("label", "lms", "model", "freq_dep", "method", "error", "not_determined"):
             values = np.array(cells, dtype=str)
         else:
             values = np.array([float(c) if c else np.nan for c in cells], dtype=np.float64)
