@@ -33,9 +33,9 @@ def model_truth(ident: Identification, table: OrbitTable, z_true: np.ndarray) ->
     """{"coefficients": {key: SI value}, "definition"} of fit ``ident`` (made from ``table``)
     against the true impedance ``z_true`` (n, 2, 2) complex at the table's rows (same order);
     {"error": reason} when the noise-free fit cannot be made."""
-    fx, fy = forces(np.asarray(z_true), table.x, table.y)
     freq_dep = f"power:{ident.exponent}" if ident.freq_dep == "power:auto" else ident.freq_dep
     try:
+        fx, fy = forces(np.asarray(z_true), table.x, table.y)
         exact = identify(dataclasses.replace(table, fx=fx, fy=fy), model=ident.model, freq_dep=freq_dep,
                          method=ident.method)  # fmt: skip
     except (ReductionError, np.linalg.LinAlgError, ValueError) as err:
