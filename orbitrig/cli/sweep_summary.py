@@ -88,8 +88,9 @@ def _summary_cells(p: Point) -> list[str]:
     worst = [d["lms_consistency"]["max_abs"] for d in fits if (d.get("lms_consistency") or {}).get("max_abs") is not None]
     warnings = sum(len(d.get("warnings") or []) for d in fits)
     refused = sum(1 for i in p.identifications if not i.ok)
+    nd = sum(len(d.get("not_determined") or []) for d in fits)
     return [f"{sum(verdicts)} of {len(verdicts)} yes" if verdicts else "-",
-            f"{max(worst):.2g}" if worst else "-", f"{warnings} / {refused}"]  # fmt: skip
+            f"{max(worst):.2g}" if worst else "-", str(nd), f"{warnings} / {refused}"]  # fmt: skip
 
 
 def _print_summary(console: Console, complete: list[Point], out: Path) -> None:
@@ -99,7 +100,7 @@ def _print_summary(console: Console, complete: list[Point], out: Path) -> None:
     table = Table(title=f"{len(complete)} operating points (full tables: coefficients.csv, "
                         f"orbitrig report {out})", title_justify="left")  # fmt: skip
     for col in ("point", "label", "Kxx MN/m", "Kyy MN/m", "Cxx kN s/m", "Cyy kN s/m", "worst K / C error",
-                "|dZ|/|Z|", "freq. dep.", "LMS |E_n|", "warn / refused"):  # fmt: skip
+                "|dZ|/|Z|", "freq. dep.", "LMS |E_n|", "n.d.", "warn / refused"):  # fmt: skip
         table.add_column(col, justify="left" if col in ("point", "label") else "right")
     for p in complete:
         fits = _fits(p)
@@ -120,7 +121,8 @@ def _print_summary(console: Console, complete: list[Point], out: Path) -> None:
         console.print("K / C error: worst over all fits; " + TRUE_NOTE, markup=False)
         console.print(Z_NOTE + "; of the fit that reproduces Z best", markup=False)
     console.print("freq. dep. = frequency dependence supported by the data (per frequency-dependent fit); "
-                  "LMS |E_n| = worst normalised piezo - strain difference (<= 2: consistent)", markup=False)
+                  "LMS |E_n| = worst normalised piezo - strain difference (<= 2: consistent); "
+                  "n.d. = coefficients not determined (U > |value|), over all fits", markup=False)
     for p in complete:
         for line in judgement_lines(_judged(p), verdicts=False, brief=True):
             console.print(f"point {p.name}: {line}", markup=False)
