@@ -112,21 +112,38 @@ def true_constants(point: Point) -> dict[str, float]:
     return {k: true_entry(truth, k) for k in CONSTANT_KEYS if f"{k[0]}0" in truth}
 
 
+def fit_true_values(r: Reduced) -> dict[str, float]:
+    """The simulator's truth of `r`'s fit, keyed as its coefficients: the true Z projected onto
+    its model (orbitrig.run.model_truth) when the run stored Z, else the constant best fit
+    (constant terms only); {} for a refused model or a run without truth."""
+    from orbitrig.run.model_truth import model_truth
+    from orbitrig.run.truth import true_impedance
+
+    truth = r.point.truth
+    if r.identification is None or not truth:
+        return {}
+    if "Z_re" in truth:
+        own = model_truth(r.identification, r.point.tables[r.lms], true_impedance(truth))
+        if "coefficients" in own:
+            return own["coefficients"]
+    constant = true_constants(r.point)
+    return {k: constant[k] for k in r.identification.coefficients if k in constant}
+
+
 def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, Any]]]:
     """Columns and rows in the layout of coefficients.csv (docs/storage.md, orbitrig.store.writer):
     settings, result columns, every coefficient and its `_std`, and in --sim runs `true_K`
-    for the constant-term keys of the model."""
+    (fit_true_values: each fit's own truth)."""
     keys: list[str] = []
     for r in rows:
         if r.identification is not None:
             keys += [k for k in r.identification.coefficients if k not in keys]
     keys.sort(key=coef_order)
-    constant = [k for k in keys if "_" not in k]
+    trues = [fit_true_values(r) if sim else {} for r in rows]
     columns = [*CSV_HEAD, *(coefficient_column(k, kind) for k in keys for kind in ("", "std"))]
-    if sim:
-        columns += [coefficient_column(k, "true") for k in constant]
+    columns += [coefficient_column(k, "true") for k in keys if any(k in t for t in trues)]
     out = []
-    for r in rows:
+    for r, true in zip(rows, trues):
         s = r.point.settings
         d: dict[str, Any] = {
             "point": r.point.index, "label": s.label, "spin_rpm": s.spin_rpm,
@@ -142,9 +159,7 @@ def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, 
             for k in keys:
                 d[coefficient_column(k)] = ident.coefficients.get(k)
                 d[coefficient_column(k, "std")] = ident.std_errors.get(k)
-            if sim and r.point.truth:
-                d.update({coefficient_column(k, "true"): true_entry(r.point.truth, k)
-                          for k in constant if k in ident.coefficients})
+            d.update({coefficient_column(k, "true"): v for k, v in true.items()})
         out.append({c: "" if d.get(c) is None else d[c] for c in columns})
     return columns, out
 

@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from orbitrig.analysis.quality import Verdict, coefficient_rows, has_budget, warnings_of
-from orbitrig.analysis.reduce import Reduced, coefficient_unit
+from orbitrig.analysis.reduce import Reduced, coefficient_unit, fit_true_values
 from orbitrig.store.csvfile import fit_truth
 
 DERIVED_K = 2.0  # derived quantities are given +- two standard uncertainties
@@ -62,7 +62,8 @@ def _quality(ident) -> list[tuple[str, str]]:
 def identification_table(r: Reduced, truth: dict[str, float], label: str, with_budget: bool) -> str:
     """One identification: coefficients with their uncertainties, quality rows, warnings, notes."""
     rows = coefficient_rows(r)
-    own = fit_truth(r.stored, r.point.truth) if r.stored and (r.stored.get("truth") or {}).get("coefficients") else {}
+    stored = ((r.stored or {}).get("truth") or {}).get("coefficients")
+    own = fit_truth(r.stored, r.point.truth) if stored else fit_true_values(r) if "Z_re" in (r.point.truth or {}) else {}
     truth = own or truth
     nd = set((r.stored or {}).get("not_determined") or [])
     k = next((row.k for row in rows if row.k is not None), 2.0)
