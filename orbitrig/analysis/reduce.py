@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from orbitrig.errors import IdentificationError, ReductionError
 from orbitrig.config import LMS
 from orbitrig.store.reader import Point, Run, StoredIdentification, freq_dep_key
@@ -114,18 +116,20 @@ def true_constants(point: Point) -> dict[str, float]:
 
 def fit_true_values(r: Reduced) -> dict[str, float]:
     """The simulator's truth of `r`'s fit, keyed as its coefficients: the true Z projected onto
-    its model (orbitrig.run.model_truth) when the run stored Z, else the constant best fit
-    (constant terms only); {} for a refused model or a run without truth."""
-    from orbitrig.run.model_truth import model_truth
-    from orbitrig.run.truth import true_impedance
+    its model (reduction.expected, as the sweep stores it) when the run stored Z, else the
+    constant best fit (constant terms only); {} for a refused model or a run without truth."""
+    from reduction.errors import ReductionError
+    from reduction.expected import noise_free_fit
 
     truth = r.point.truth
     if r.identification is None or not truth:
         return {}
     if "Z_re" in truth:
-        own = model_truth(r.identification, r.point.tables[r.lms], true_impedance(truth))
-        if "coefficients" in own:
-            return own["coefficients"]
+        z = np.asarray(truth["Z_re"], dtype=float) + 1j * np.asarray(truth["Z_im"], dtype=float)
+        try:
+            return noise_free_fit(r.identification, r.point.tables[r.lms], z)
+        except (ReductionError, np.linalg.LinAlgError, ValueError):
+            pass
     constant = true_constants(r.point)
     return {k: constant[k] for k in r.identification.coefficients if k in constant}
 
