@@ -120,9 +120,11 @@ class RigPhysics:
     # ---------------------------------------------------------------- truth
     def impedances(self, spin: float, orbits) -> np.ndarray:
         """True Z(|Omega|) (n, 2, 2) complex of the bearing linearised at the static
-        position, spin omega (rad/s), orbit speeds Omega (rad/s, sign irrelevant)."""
+        position, spin omega (rad/s, signed: > 0 turns from +x towards +y; reversing it
+        reverses the Couette flow, so the cross-coupled terms change sign), orbit speeds
+        Omega (rad/s, sign irrelevant)."""
         X0, Y0 = self._static()
-        return self.bearing.impedance(X0, Y0, abs(float(spin)), orbits, self.supply)
+        return self.bearing.impedance(X0, Y0, float(spin), orbits, self.supply)
 
     def impedance(self, spin: float, orbit: float) -> np.ndarray:
         """True Z (2, 2) complex at spin and orbit (rad/s): f_bar = -Z d_bar."""
@@ -143,7 +145,7 @@ class RigPhysics:
         key = (float(spin), float(orbit), self.manual)
         F = self._waveforms.get(key)
         if F is None:
-            F = self._solve_force(abs(float(spin)), float(orbit))
+            F = self._solve_force(float(spin), float(orbit))
             if len(self._waveforms) > 256:
                 self._waveforms.clear()
             self._waveforms[key] = F
@@ -289,8 +291,8 @@ class RigPhysics:
         p_s = self.supply.supply_pressure
         X0, Y0 = self._static()
         # the recess the journal sits towards sees a smaller gap, so a higher pressure
-        p_rec = self.bearing.equilibrium(X0, Y0, abs(spin), self.supply)
-        flow = float(np.sum(self.bearing.flow(X0, Y0, abs(spin), self.supply)))
+        p_rec = self.bearing.equilibrium(X0, Y0, spin, self.supply)
+        flow = float(np.sum(self.bearing.flow(X0, Y0, spin, self.supply)))
         rise = sup.heating * spin * spin
         if flow > 0:
             rise *= min(1.0, 1e-4 / flow)  # more flow carries more heat away

@@ -173,8 +173,8 @@ class SimRig:
 
     # ------------------------------------------------------------ operator
     def local_control(self, *, spin: float, orbit: float) -> None:
-        """Run both spindles at once from the drives' keypads (rad/s, orbit signed)."""
-        self.drives[1].local_control(abs(spin) / RPM)
+        """Both spindles from the keypads (rad/s, signed; the spin drive refuses spin < 0)."""
+        self.drives[1].local_control(spin / RPM)
         self.drives[2].local_control(orbit / RPM)
 
     def set_manual(self, *, orbit_radius=None, static_eccentricity=None,
@@ -325,7 +325,7 @@ class SimRig:
         now = self.clock.now()
         for d in self.drives.values():
             d.advance()
-        spin = abs(self.drives[1].actual_rpm) * RPM if 1 in self.drives else 0.0
+        spin = self.drives[1].actual_rpm * RPM if 1 in self.drives else 0.0
         orbit = self.drives[2].actual_rpm * RPM if 2 in self.drives else 0.0
         dt = now - self._t_last
         if dt <= 0:

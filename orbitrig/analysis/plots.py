@@ -23,7 +23,7 @@ from matplotlib.ticker import MaxNLocator
 from orbitrig.analysis.reduce import MATRIX_UNITS
 
 ENTRIES = ("xx", "xy", "yx", "yy")
-MATRIX_NAMES = {"K": "stiffness", "C": "damping", "D": "inertia"}
+MATRIX_NAMES = {"K": "stiffness", "C": "damping", "D": "apparent inertia (added mass)"}
 PAIR_LABELS = {"xfx": "x, Fx", "yfx": "y, Fx", "xfy": "x, Fy", "yfy": "y, Fy"}
 DIRECTIONS = ((1, "forward", "-", "o"), (-1, "backward", "--", "s"))
 DPI = 110

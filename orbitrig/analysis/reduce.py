@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from orbitrig.errors import IdentificationError, ReductionError
 from orbitrig.config import LMS
 from orbitrig.store.reader import Point, Run, StoredIdentification, freq_dep_key
@@ -112,28 +114,47 @@ def true_constants(point: Point) -> dict[str, float]:
     return {k: true_entry(truth, k) for k in CONSTANT_KEYS if f"{k[0]}0" in truth}
 
 
+def fit_true_values(r: Reduced) -> dict[str, float]:
+    """The simulator's truth of `r`'s fit, keyed as its coefficients: the true Z projected onto
+    its model (reduction.expected, as the sweep stores it) when the run stored Z, else the
+    constant best fit (constant terms only); {} for a refused model or a run without truth."""
+    from reduction.errors import ReductionError
+    from reduction.expected import noise_free_fit
+
+    truth = r.point.truth
+    if r.identification is None or not truth:
+        return {}
+    if "Z_re" in truth:
+        z = np.asarray(truth["Z_re"], dtype=float) + 1j * np.asarray(truth["Z_im"], dtype=float)
+        try:
+            return noise_free_fit(r.identification, r.point.tables[r.lms], z)
+        except (ReductionError, np.linalg.LinAlgError, ValueError):
+            pass
+    constant = true_constants(r.point)
+    return {k: constant[k] for k in r.identification.coefficients if k in constant}
+
+
 def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, Any]]]:
     """Columns and rows in the layout of coefficients.csv (docs/storage.md, orbitrig.store.writer):
     settings, result columns, every coefficient and its `_std`, and in --sim runs `true_K`
-    for the constant-term keys of the model."""
+    (fit_true_values: each fit's own truth)."""
     keys: list[str] = []
     for r in rows:
         if r.identification is not None:
             keys += [k for k in r.identification.coefficients if k not in keys]
     keys.sort(key=coef_order)
-    constant = [k for k in keys if "_" not in k]
+    trues = [fit_true_values(r) if sim else {} for r in rows]
     columns = [*CSV_HEAD, *(coefficient_column(k, kind) for k in keys for kind in ("", "std"))]
-    if sim:
-        columns += [coefficient_column(k, "true") for k in constant]
+    columns += [coefficient_column(k, "true") for k in keys if any(k in t for t in trues)]
     out = []
-    for r in rows:
+    for r, true in zip(rows, trues):
         s = r.point.settings
         d: dict[str, Any] = {
             "point": r.point.index, "label": s.label, "spin_rpm": s.spin_rpm,
             "recess_pressure_mpa": s.recess_pressure / 1e6, "pressure_ratio": s.pressure_ratio,
             "static_eccentricity": s.static_eccentricity, "dynamic_eccentricity": s.dynamic_eccentricity,
             "lms": r.lms, "model": r.model, "freq_dep": r.freq_dep, "method": r.method,
-            "error": one_line(r.error or ""),
+            "error": one_line(r.error or ""), "not_determined": " ".join((r.stored or {}).get("not_determined") or []),
         }  # fmt: skip
         ident = r.identification
         if ident is not None:
@@ -142,9 +163,7 @@ def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, 
             for k in keys:
                 d[coefficient_column(k)] = ident.coefficients.get(k)
                 d[coefficient_column(k, "std")] = ident.std_errors.get(k)
-            if sim and r.point.truth:
-                d.update({coefficient_column(k, "true"): true_entry(r.point.truth, k)
-                          for k in constant if k in ident.coefficients})
+            d.update({coefficient_column(k, "true"): v for k, v in true.items()})
         out.append({c: "" if d.get(c) is None else d[c] for c in columns})
     return columns, out
 

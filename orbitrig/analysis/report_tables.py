@@ -2,7 +2,9 @@
 
 Per identification: every coefficient with its value, statistical standard uncertainty,
 Student-t 95 % interval, systematic (type B) standard uncertainty and combined expanded
-uncertainty (k = 2) where the run stored its budget, the simulator's true value; the fit's
+uncertainty (k = 2) where the run stored its budget, "n.d." where that U exceeds the value
+(not determined), the simulator's true value (the fit's own truth: the true Z projected onto
+its model, where the run stored it; else the constant best fit); the fit's
 quality (frequencies, degrees of freedom, condition number, residual, chi2 and p, AIC, BIC,
 force errors); its warnings and notes. Then the model-adequacy verdicts and the derived
 quantities (whirl frequency ratio, zero crossings of the effective damping).
@@ -17,9 +19,13 @@ import math
 import numpy as np
 
 from orbitrig.analysis.quality import Verdict, coefficient_rows, has_budget, warnings_of
-from orbitrig.analysis.reduce import Reduced, coefficient_unit
+from orbitrig.analysis.reduce import Reduced, coefficient_unit, fit_true_values
+from orbitrig.store.csvfile import fit_truth
 
 DERIVED_K = 2.0  # derived quantities are given +- two standard uncertainties
+D_SENTENCE = ("D is an apparent inertia (added mass): it absorbs everything that grows with \u03a9\u00b2, "
+              "here mostly the recesses' compressibility and the measuring chain's delay, not only the "
+              "fluid's own inertia.")  # fmt: skip
 
 
 def fmt(value, digits: int = 4) -> str:
@@ -56,18 +62,23 @@ def _quality(ident) -> list[tuple[str, str]]:
 def identification_table(r: Reduced, truth: dict[str, float], label: str, with_budget: bool) -> str:
     """One identification: coefficients with their uncertainties, quality rows, warnings, notes."""
     rows = coefficient_rows(r)
+    stored = ((r.stored or {}).get("truth") or {}).get("coefficients")
+    own = fit_truth(r.stored, r.point.truth) if stored else fit_true_values(r) if "Z_re" in (r.point.truth or {}) else {}
+    truth = own or truth
+    nd = set((r.stored or {}).get("not_determined") or [])
     k = next((row.k for row in rows if row.k is not None), 2.0)
     head = ['<th class="l">coefficient</th>', '<th class="l">unit</th>', "<th>value</th>",
             "<th>std error<br>(statistical)</th>", "<th>95 % interval<br>(Student t)</th>"]  # fmt: skip
     if with_budget:
         head += ["<th>systematic u<br>(calibration)</th>", f"<th>expanded U<br>(combined, k = {k:g})</th>"]
     if truth:
-        head.append("<th>true (simulator)</th>")
+        head.append("<th>true (simulator, this model)</th>" if own else "<th>true (simulator)</th>")
     body = []
     for row in rows:
         unit, scale = coefficient_unit(row.key)
         ci = "-" if row.interval is None else f"[{fmt(row.interval[0] * scale)}, {fmt(row.interval[1] * scale)}]"
-        cells = [fmt(row.value * scale), fmt(None if row.std is None else row.std * scale, 2), ci]
+        value = fmt(row.value * scale) + (" <b>n.d.</b>" if row.key in nd else "")
+        cells = [value, fmt(None if row.std is None else row.std * scale, 2), ci]
         if with_budget:
             cells += [fmt(None if row.systematic is None else row.systematic * scale, 2),
                       fmt(None if row.expanded is None else row.expanded * scale, 2)]  # fmt: skip
@@ -80,6 +91,10 @@ def identification_table(r: Reduced, truth: dict[str, float], label: str, with_b
     body += [f'<tr><th class="l">{_e(name)}</th><td colspan="{span}" class="l">{value}</td></tr>'
              for name, value in _quality(r.identification)]  # fmt: skip
     out = [f"<h4>{_e(label)} ({_e(r.method)})</h4>", f"<table><tr>{''.join(head)}</tr>{''.join(body)}</table>"]
+    notes = (["n.d. = not determined: the expanded uncertainty U (k = 2) exceeds the value."] if nd else [])
+    notes += [D_SENTENCE] if any(row.key.startswith("D") for row in rows) else []
+    if notes:
+        out.append('<p class="muted">' + " ".join(_e(n) for n in notes) + "</p>")
     warnings = warnings_of(r)
     if warnings:
         out.append('<ul class="warn">' + "".join(f"<li>warning: {_e(w)}</li>" for w in warnings) + "</ul>")

@@ -3,8 +3,10 @@ simulator's truth in --sim runs) with their expanded uncertainty, then every ref
 every warning, the model-adequacy verdicts and the two load measuring systems' consistency.
 
 In --sim runs the truth is the simulator's impedance Z(Omega) per orbit frequency
-(orbitrig.run.truth): the coefficient errors compare with the constant K, C, D best fitting
-it over the point's orbit speeds; `|dZ|/|Z|` compares each fit's Z with the true Z.
+(orbitrig.run.truth): each fit's coefficient errors compare with its own truth, that Z
+projected onto the fit's model (orbitrig.run.model_truth); `|dZ|/|Z|` compares each fit's
+Z with the true Z. A coefficient whose expanded uncertainty exceeds its magnitude is
+marked "not determined".
 
 Read from the run directory with orbitrig.store.reader.read_run (works also when the
 consolidated run.h5 could not be written)."""
@@ -18,32 +20,33 @@ from rich.console import Console
 from rich.table import Table
 
 from orbitrig.run.point_report import judgement_lines
-from orbitrig.store.csvfile import coef_order
+from orbitrig.store.csvfile import coef_order, fit_truth
 from orbitrig.store.reader import Point, freq_dep_key, read_run
 
 #: above this many complete points the final table is one summary row per point
 DETAIL_POINTS = 4
 _COEF_UNIT = {"K": "N/m", "C": "N s/m", "D": "kg"}
-TRUE_NOTE = ("true = the constant K, C, D best fitting the simulator's true Z(Omega) over the point's "
-             "orbit speeds; (%) = |identified - true| / largest true entry of the matrix")  # fmt: skip
+TRUE_NOTE = ("true = the simulator's true Z(Omega) projected onto each fit's model (its constraints, "
+             "frequency dependence, frequencies and weights); (%) = |identified - true| / largest true entry "
+             "of the matrix; const. fit = the constant K, C, D best fitting the true Z over the point's orbit "
+             "speeds")  # fmt: skip
+D_NOTE = ("D = apparent inertia (added mass): it absorbs whatever grows with Omega^2, here mostly the "
+          "recesses' compressibility and the measuring chain's delay, not only the fluid's inertia")
+ND_NOTE = "n.d. = not determined: the expanded uncertainty U exceeds the magnitude"
 Z_NOTE = ("|dZ|/|Z| = worst over the orbit frequencies of |Z_identified - Z_true| / |Z_true| "
           "(Frobenius norms; Z_true the simulator's impedance)")  # fmt: skip
 
 
-def compare_with_truth(coefficients: dict, truth: dict) -> dict[str, float]:
-    """Error of each constant-term K, C, D entry against the truth's constant best fit
-    (K0, C0, D0), in percent of the largest true entry of its matrix."""
-    out = {}
+def compare_with_truth(d: dict, truth: dict) -> dict[str, float]:
+    """Error of each constant-term K, C, D entry of stored fit ``d`` against its truth
+    (csvfile.fit_truth), in percent of the largest true entry of its matrix."""
+    true, coefficients, out = fit_truth(d, truth), d["coefficients"], {}
     for m in "KCD":
-        true = truth.get(f"{m}0")
-        if true is None:
-            continue
-        scale = max(abs(v) for row in true for v in row) or 1.0
-        for i, a in enumerate("xy"):
-            for j, b in enumerate("xy"):
-                key = f"{m}{a}{b}"
-                if coefficients.get(key) is not None:
-                    out[key] = abs(coefficients[key] - true[i][j]) / scale * 100.0
+        keys = [f"{m}{a}{b}" for a in "xy" for b in "xy" if f"{m}{a}{b}" in true]
+        scale = max((abs(true[k]) for k in keys), default=0.0) or 1.0
+        for key in keys:
+            if coefficients.get(key) is not None:
+                out[key] = abs(coefficients[key] - true[key]) / scale * 100.0
     return out
 
 
@@ -74,12 +77,8 @@ def _judged(p: Point) -> list[tuple[str, str, dict | None, str | None]]:
 
 
 def _uncertainty(d: dict, key: str) -> float | None:
-    """Expanded uncertainty (k = 2, combined) of `key`, or 1.96 x the statistical one without a budget."""
-    u = d.get("uncertainty") or {}
-    if "expanded" in u and u["expanded"].get(key) is not None:
-        return u["expanded"][key]
-    std = (d.get("std_errors") or {}).get(key)
-    return None if std is None else 1.96 * std
+    """Expanded uncertainty (k = 2) of `key` as stored with the fit (run.point_analysis)."""
+    return ((d.get("expanded_uncertainty") or {}).get("values") or {}).get(key)
 
 
 def _summary_cells(p: Point) -> list[str]:
@@ -89,8 +88,9 @@ def _summary_cells(p: Point) -> list[str]:
     worst = [d["lms_consistency"]["max_abs"] for d in fits if (d.get("lms_consistency") or {}).get("max_abs") is not None]
     warnings = sum(len(d.get("warnings") or []) for d in fits)
     refused = sum(1 for i in p.identifications if not i.ok)
+    nd = sum(len(d.get("not_determined") or []) for d in fits)
     return [f"{sum(verdicts)} of {len(verdicts)} yes" if verdicts else "-",
-            f"{max(worst):.2g}" if worst else "-", f"{warnings} / {refused}"]  # fmt: skip
+            f"{max(worst):.2g}" if worst else "-", str(nd), f"{warnings} / {refused}"]  # fmt: skip
 
 
 def _print_summary(console: Console, complete: list[Point], out: Path) -> None:
@@ -100,7 +100,7 @@ def _print_summary(console: Console, complete: list[Point], out: Path) -> None:
     table = Table(title=f"{len(complete)} operating points (full tables: coefficients.csv, "
                         f"orbitrig report {out})", title_justify="left")  # fmt: skip
     for col in ("point", "label", "Kxx MN/m", "Kyy MN/m", "Cxx kN s/m", "Cyy kN s/m", "worst K / C error",
-                "|dZ|/|Z|", "freq. dep.", "LMS |E_n|", "warn / refused"):  # fmt: skip
+                "|dZ|/|Z|", "freq. dep.", "LMS |E_n|", "n.d.", "warn / refused"):  # fmt: skip
         table.add_column(col, justify="left" if col in ("point", "label") else "right")
     for p in complete:
         fits = _fits(p)
@@ -109,7 +109,7 @@ def _print_summary(console: Console, complete: list[Point], out: Path) -> None:
         row += [f"{first[c] * scale:.4g}" if first and c in first else "-"
                 for c, scale in (("Kxx", 1e-6), ("Kyy", 1e-6), ("Cxx", 1e-3), ("Cyy", 1e-3))]  # fmt: skip
         if p.truth:
-            errs = [compare_with_truth(d["coefficients"], p.truth) for d in fits.values()]
+            errs = [compare_with_truth(d, p.truth) for d in fits.values()]
             k = max((e[c] for e in errs for c in e if c[0] == "K"), default=float("nan"))
             c = max((e[c] for e in errs for c in e if c[0] == "C"), default=float("nan"))
             row += [f"{k:.1f} % / {c:.1f} %", best_impedance_error(fits.values(), p.truth)]
@@ -121,35 +121,44 @@ def _print_summary(console: Console, complete: list[Point], out: Path) -> None:
         console.print("K / C error: worst over all fits; " + TRUE_NOTE, markup=False)
         console.print(Z_NOTE + "; of the fit that reproduces Z best", markup=False)
     console.print("freq. dep. = frequency dependence supported by the data (per frequency-dependent fit); "
-                  "LMS |E_n| = worst normalised piezo - strain difference (<= 2: consistent)", markup=False)
+                  "LMS |E_n| = worst normalised piezo - strain difference (<= 2: consistent); "
+                  "n.d. = coefficients not determined (U > |value|), over all fits", markup=False)
     for p in complete:
         for line in judgement_lines(_judged(p), verdicts=False, brief=True):
             console.print(f"point {p.name}: {line}", markup=False)
 
 
+def _cell(d: dict, c: str, err: float | None) -> str:
+    """'3.3e+07 ± 2.1e+05 (0.4%)', ' n.d.' appended when not determined; '' without the key."""
+    v = d["coefficients"].get(c)
+    if v is None:
+        return ""
+    u = _uncertainty(d, c)
+    cell = f"{v:.4g}" + ("" if u is None else f" \u00b1 {u:.2g}")
+    cell += "" if err is None else f" ({err:.1f}%)"
+    return cell + (" n.d." if c in (d.get("not_determined") or []) else "")
+
+
 def _point_table(p: Point) -> tuple[Table, list[str]]:
+    """Each coefficient's row (identified ± U (error against the fit's truth)) followed, in
+    --sim runs, by a 'true' row (each fit's own truth) beside the constant best fit."""
     fits = _fits(p)
     truth = p.truth
     names = sorted({k for d in fits.values() for k in d["coefficients"] if "_" not in k}, key=coef_order)
     table = Table(title=f"point {p.name}  {p.settings.label}", title_justify="left")
     table.add_column("coef")
     if truth:
-        table.add_column("true", justify="right")
+        table.add_column("const. fit", justify="right")
     for key in fits:
         table.add_column(key.replace("__none", "").replace("__", " "), justify="right")
-    errs = {k: compare_with_truth(d["coefficients"], truth) for k, d in fits.items()} if truth else {}
+    errs = {k: compare_with_truth(d, truth) for k, d in fits.items()} if truth else {}
+    trues = {k: fit_truth(d, truth) for k, d in fits.items()} if truth else {}
     for c in names:
-        row = [c]
+        row = [c] + ([f"{truth[c[0] + '0']['xy'.index(c[1])]['xy'.index(c[2])]:.4g}"] if truth else [])
+        table.add_row(*row, *(_cell(d, c, errs.get(key, {}).get(c)) for key, d in fits.items()))
         if truth:
-            row.append(f"{truth[c[0] + '0']['xy'.index(c[1])]['xy'.index(c[2])]:.4g}")
-        for key, d in fits.items():
-            v = d["coefficients"].get(c)
-            u = None if v is None else _uncertainty(d, c)
-            cell = "" if v is None else f"{v:.4g}" + ("" if u is None else f" \u00b1 {u:.2g}")
-            if v is not None and c in errs.get(key, {}):
-                cell += f" ({errs[key][c]:.1f}%)"
-            row.append(cell)
-        table.add_row(*row)
+            table.add_row("  true", "", *("" if c not in trues[k] or c not in d["coefficients"] else f"{trues[k][c]:.4g}"
+                                          for k, d in fits.items()))  # fmt: skip
     z_errs = [worst_impedance_error(d, truth) for d in fits.values()]
     if any(e is not None for e in z_errs):
         table.add_row("|dZ|/|Z|", "", *("-" if e is None else f"{e:.2f} %" for e in z_errs))
@@ -170,7 +179,9 @@ def print_coefficients(out: Path) -> None:
         console.print("units: " + ", ".join(f"{m} {u}" for m, u in _COEF_UNIT.items() if any(c[0] == m for c in names)),
                       markup=False)  # fmt: skip
         console.print("\u00b1 = expanded uncertainty U (k = 2): statistical and calibration combined "
-                      "(without a stated calibration: 1.96 x the statistical one)", markup=False)
+                      "(without a stated calibration: statistical only); " + ND_NOTE, markup=False)
+        if any(c[0] == "D" for c in names):
+            console.print(D_NOTE, markup=False)
         if p.truth:
             _truth_notes(console, p.truth)
         for line in judgement_lines(_judged(p), brief=True):

@@ -18,7 +18,8 @@ from orbitrig.run.corrections import Corrections
 from orbitrig.run.plan import Block, OperatingPoint
 from orbitrig.run.point_analysis import analyse_point
 from daq.averager import AveragedBlock
-from orbitrig.run.truth import point_truth  # noqa: F401  (the engine's truth step)
+from orbitrig.run.model_truth import model_truth
+from orbitrig.run.truth import point_truth, true_impedance  # noqa: F401  (point_truth: the engine's truth step)
 from orbitrig.store.writer import BlockRecord, PointResults
 from reduction.coherence import orbit_coherences
 from reduction.errors import ReductionError
@@ -60,7 +61,8 @@ def identify_operating_point(spin: float, recs: list[BlockRecord], ch: dict[str,
     matrices and probe runout, applied), every model of ``models`` (ModelSpec) identified on each
     (a refused model keeps its reason), each fit judged (orbitrig.run.point_analysis: the
     uncertainty budget from the rig's stated ``calibration`` uncertainty, model adequacy, the
-    two systems' consistency, derived quantities), and the two systems' forces compared."""
+    two systems' consistency, derived quantities), and the two systems' forces compared.
+    With a simulator's ``truth`` every fit also stores its own truth (run.model_truth)."""
     recs = sorted(recs, key=lambda r: (r.block.freq, -r.block.direction))
     corr = corrections or Corrections()
     probes = [(corr.probe_phasors(r, ch, spin), corr.probe_records(r, ch, spin)) for r in recs]
@@ -75,6 +77,8 @@ def identify_operating_point(spin: float, recs: list[BlockRecord], ch: dict[str,
                 continue
             fits[(lms, spec.key)] = res
             idents[(lms, spec.key)] = {"spec": spec, "json": res.to_dict()}
+            if truth is not None and "Z_re" in truth:
+                idents[(lms, spec.key)]["json"]["truth"] = model_truth(res, tables[lms], true_impedance(truth))
     grid = np.unique([abs(r.block.orbit) for r in recs])  # the planned orbit frequencies, rad/s
     analyse_point(spin, tables, fits, idents, calibration, grid)
     return PointResults(tables, idents, lms_comparison(recs, ch, corr), truth)

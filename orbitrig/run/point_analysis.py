@@ -11,6 +11,11 @@ object of `identify --json`) under its own key:
   against the constant fit of the same model and method, plus "constant" (its spec);
 - ``lms_consistency``: {"e_n": {key: E_n}, "max_abs", "consistent", "basis"}, the
   normalised difference piezo - strain of the same model (reduction.systematic.lms_consistency);
+- ``expanded_uncertainty``: {"k": 2, "basis": "combined" | "statistical", "values": {key: U}},
+  the expanded uncertainty of every coefficient: k times the combined standard uncertainty
+  (statistical and calibration), or k times the statistical one when the rig states no
+  calibration uncertainty or the budget failed; ``not_determined``: the coefficients whose U
+  exceeds their magnitude (reduction.statistics.not_determined; orbit-table v3);
 - ``derived``: reduction.derived.derived_quantities at the point's planned orbit frequencies,
   with the combined covariance when there is one (``derived["covariance"]`` says which).
 
@@ -27,9 +32,12 @@ from reduction.derived import derived_quantities
 from reduction.errors import ReductionError
 from reduction.identify import identify
 from reduction.result import Identification
+from reduction.statistics import not_determined
 from reduction.systematic import Budget, Calibration, ChannelCalibration, lms_consistency, uncertainty_budget
 from reduction.table import OrbitTable
 
+#: coverage factor of the expanded uncertainty U (as the budget's)
+K_EXPANDED = 2.0
 #: |E_n| up to this value: the two load measuring systems agree (k = 2)
 CONSISTENT_EN = 2.0
 _FAILURES = (ReductionError, np.linalg.LinAlgError, ValueError, ZeroDivisionError)
@@ -64,6 +72,9 @@ def analyse_point(spin: float, tables: dict[str, OrbitTable], fits: dict[tuple[s
         d = idents[(lms, key)]["json"]
         if cal is not None:
             d["uncertainty"] = _guarded(_budget, ident, tables[lms], cal[lms], budgets, (lms, key))
+        d["expanded_uncertainty"] = expanded_uncertainty(d)
+        values = {k: v for k, v in d["coefficients"].items() if v is not None}
+        d["not_determined"] = not_determined(values, d["expanded_uncertainty"]["values"])
         d["derived"] = _guarded(_derived, ident, grid, spin, budgets.get((lms, key)))
         if ident.freq_dep != "none":
             d["adequacy"] = _guarded(_adequacy, ident, tables[lms], fits, lms, idents[(lms, key)]["spec"])
@@ -74,6 +85,17 @@ def analyse_point(spin: float, tables: dict[str, OrbitTable], fits: dict[tuple[s
         out = _guarded(_consistency, a, tables[LMS[0]], b, tables[LMS[1]], cal)
         for lms in LMS:
             idents[(lms, key)]["json"]["lms_consistency"] = out
+
+
+def expanded_uncertainty(d: dict) -> dict:
+    """{"k", "basis", "values"} of a fit's stored JSON ``d``: its budget's expanded (combined)
+    uncertainty where there is one, else K_EXPANDED times the statistical standard error."""
+    u = d.get("uncertainty") or {}
+    if u.get("expanded"):
+        return {"k": float(u["k"]), "basis": "combined", "values": dict(u["expanded"])}
+    std = d.get("std_errors") or {}
+    values = {k: (None if std.get(k) is None else K_EXPANDED * std[k]) for k in d["coefficients"]}
+    return {"k": K_EXPANDED, "basis": "statistical", "values": values}
 
 
 def _guarded(fn, *args) -> dict:

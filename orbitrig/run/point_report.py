@@ -9,7 +9,8 @@ from orbitrig.store.records import PointResults
 
 #: keys of a fit's stored JSON that the result payload carries
 PAYLOAD_KEYS = ("coefficients", "std_errors", "confidence_95", "condition_number", "residual_rms", "dof",
-                "chi2", "p_value", "aic", "bic", "notes", "warnings", "exponent")  # fmt: skip
+                "chi2", "p_value", "aic", "bic", "notes", "warnings", "exponent", "expanded_uncertainty",
+                "not_determined", "truth")  # fmt: skip
 
 
 def point_log_lines(p: OperatingPoint, res: PointResults) -> list[str]:
@@ -82,9 +83,10 @@ def _row(lms: str, e: dict) -> dict:
 
 def result_payload(run_id: str | None, p: OperatingPoint, res: PointResults) -> dict:
     """The point's results as published (MQTT result topic): settings, one row per fit (its
-    coefficients, std_errors, confidence_95, warnings, notes, uncertainty budget, adequacy,
-    LMS consistency, or the refusal), and per point the adequacy verdicts, every warning and
-    the refused fits."""
+    coefficients, std_errors, confidence_95, warnings, notes, uncertainty budget, expanded
+    uncertainty, not_determined, its own truth in --sim runs, adequacy, LMS consistency, or the
+    refusal), and per point the adequacy verdicts, every warning, the refused fits and (--sim)
+    the constant best fit of the true Z."""
     rows = [_row(lms, e) for (lms, _), e in res.identifications.items()]
     out = {"run_id": run_id, **p.settings(), "identification": rows, "lms_comparison": res.lms_comparison}
     out["adequacy"] = [{"lms": r["lms"], "model": r["model"], "freq_dep": r["freq_dep"], "method": r["method"],

@@ -4,29 +4,34 @@ Every column name states its unit (``spin_rpm``, ``recess_pressure_mpa``, ``Kxx 
 ``Cxy_1 [N s/m (rad/s)^-1]``, ``residual_rms [N]``); every row is one physical line
 (a refusal message that spans lines is joined with ' | '). Numbers are SI except the
 settings columns, whose names give their unit. Empty cell: no value (refused model,
-or a number the identification could not give). The ``true_*`` columns of a --sim run
-are the constant K, C, D best fitting the simulator's true impedance over the point's
-orbit speeds (the truth's K0, C0, D0), not coefficients the simulator has.
+or a number the identification could not give). ``{name}_U`` is the expanded uncertainty
+(k = 2, statistical and calibration combined; statistical only when the rig states no
+calibration uncertainty); ``not_determined`` lists (space-separated) the coefficients whose
+U exceeds their magnitude. The ``true_*`` columns of a --sim run are the fit's own truth:
+the simulator's true Z(Omega) projected onto the fit's model (orbitrig.run.model_truth);
+runs stored before that show the constant K, C, D best fit (the truth's K0, C0, D0).
 """
 
 from __future__ import annotations
 
 import csv
 import io
+from orbitrig.store.fit_record import expanded_uncertainty
 from orbitrig.store.layout import coefficient_si_unit
 
 CSV_HEAD = [
     "point", "label", "spin_rpm", "recess_pressure_mpa", "pressure_ratio", "static_eccentricity",
     "dynamic_eccentricity", "lms", "model", "freq_dep", "method", "n_frequencies", "condition_number",
-    "residual_rms [N]", "error",
+    "residual_rms [N]", "error", "not_determined",
 ]  # fmt: skip
 
 
 def coefficient_column(key: str, kind: str = "") -> str:
-    """Column name of coefficient `key`: kind '' -> 'Kxx [N/m]', 'std' -> 'Kxx_std [N/m]', 'true' -> 'true_Kxx [N/m]'."""
+    """Column name of coefficient `key`: kind '' -> 'Kxx [N/m]', 'std' -> 'Kxx_std [N/m]',
+    'U' -> 'Kxx_U [N/m]', 'true' -> 'true_Kxx [N/m]'."""
     unit = coefficient_si_unit(key)
-    if kind == "std":
-        return f"{key}_std [{unit}]"
+    if kind in ("std", "U"):
+        return f"{key}_{kind} [{unit}]"
     return f"{'true_' if kind == 'true' else ''}{key} [{unit}]"
 
 
@@ -45,6 +50,18 @@ def true_entry(truth: dict, key: str) -> float:
     """True constant-term value of coefficient `key` ('Kxy' ...) at the lowest |Omega|."""
     mat = truth[key[0] + "0"]
     return float(mat["xy".index(key[1])]["xy".index(key[2])])
+
+
+def fit_truth(d: dict | None, truth: dict | None) -> dict[str, float]:
+    """The true value of every coefficient of a stored fit ``d``: its own truth (the true Z
+    projected onto its model) when stored, else the point's constant best fit (constant
+    terms only); {} without a truth."""
+    own = ((d or {}).get("truth") or {}).get("coefficients")
+    if own is not None:
+        return {k: v for k, v in own.items() if v is not None}
+    if not truth or d is None:
+        return {}
+    return {k: true_entry(truth, k) for k in d["coefficients"] if "_" not in k and f"{k[0]}0" in truth}
 
 
 def _num(v, fmt: str) -> str:
@@ -69,27 +86,31 @@ def point_rows(point, sim: bool) -> list[dict]:
             row.update({"freq_dep": d["freq_dep"], "method": d["method"], "n_frequencies": d["n_frequencies"],
                         "condition_number": _num(d["condition_number"], ".6g"),
                         "residual_rms [N]": _num(d["residual_rms"], ".6g"), "error": ""})  # fmt: skip
+            expanded = expanded_uncertainty(d)
             for k, v in d["coefficients"].items():
                 row[coefficient_column(k)] = _num(v, ".8g")
                 row[coefficient_column(k, "std")] = _num((d.get("std_errors") or {}).get(k), ".6g")
+                row[coefficient_column(k, "U")] = _num(expanded.get(k), ".6g")
             row["_keys"] = list(d["coefficients"])
+            row["not_determined"] = " ".join(d.get("not_determined") or [])
         else:
             row.update(freq_dep=ident.freq_dep, method=ident.method, error=one_line(ident.error or ""))
         if truth is not None:
-            for k in (k for k in row["_keys"] if "_" not in k):
-                row[coefficient_column(k, "true")] = f"{true_entry(truth, k):.8g}"
+            for k, v in fit_truth(d, truth).items():
+                row[coefficient_column(k, "true")] = f"{v:.8g}"
         rows.append(row)
     return rows
 
 
 def columns(rows: list[dict]) -> list[str]:
-    """CSV_HEAD, then each coefficient and its standard error, then the true values."""
+    """CSV_HEAD, then each coefficient, its standard error and expanded uncertainty, then the
+    true values."""
     keys: list[str] = []
     for r in rows:
         keys += [k for k in r["_keys"] if k not in keys]
     keys.sort(key=coef_order)
-    cols = CSV_HEAD + [c for k in keys for c in (coefficient_column(k), coefficient_column(k, "std"))]
-    true = [k for k in keys if "_" not in k and any(coefficient_column(k, "true") in r for r in rows)]
+    cols = CSV_HEAD + [coefficient_column(k, kind) for k in keys for kind in ("", "std", "U")]
+    true = [k for k in keys if any(coefficient_column(k, "true") in r for r in rows)]
     return cols + [coefficient_column(k, "true") for k in true]
 
 

@@ -42,7 +42,8 @@ def table_columns(table) -> dict[str, tuple[np.ndarray, str]]:
 
 def fit_arrays(fit: FitRecord) -> dict:
     """One fit as arrays: names, units, value, std, U, covariance (+ covariance_names), the
-    budget's parts and k, the adequacy numbers and verdict, derived quantities with units."""
+    budget's parts and k, the adequacy numbers and verdict, E_n, ``not_determined`` (1 where U
+    exceeds the magnitude) and the fit's own ``truth`` (--sim) aligned with names."""
     d = {"names": fit.names, "units": fit.units, "value": fit.value, "std": fit.std, "U": fit.U,
          "error": fit.error}  # fmt: skip
     if fit.covariance is not None:
@@ -55,6 +56,12 @@ def fit_arrays(fit: FitRecord) -> dict:
         d.update({f"adequacy_{k}": _number(fit.adequacy.get(k)) for k in ADEQUACY_NUMBERS})
     if fit.lms_consistency and "e_n" in fit.lms_consistency:
         d["e_n"] = np.array([_number(fit.lms_consistency["e_n"].get(k)) for k in fit.names])
+    result = fit.result or {}
+    if "not_determined" in result:
+        d["not_determined"] = np.array([k in result["not_determined"] for k in fit.names], dtype=np.uint8)
+    own = (result.get("truth") or {}).get("coefficients")
+    if own is not None:  # the simulator's truth projected onto this fit's model
+        d["truth"] = np.array([_number(own.get(k)) for k in fit.names])
     return d
 
 

@@ -49,7 +49,7 @@ def _fit_rows(p, sim: bool) -> list[list]:
             continue
         for j, name in enumerate(fit.names):
             parts = [_cell(d[part][j]) if part in d else "" for part in BUDGET_PARTS]
-            true = csvfile.true_entry(p.truth, name) if sim and p.truth and "_" not in name else None
+            true = csvfile.fit_truth(fit.result, p.truth if sim else None).get(name)
             e_n = _cell(d["e_n"][j]) if "e_n" in d else ""
             rows.append(head + [name, fit.units[j], _cell(d["value"][j]), _cell(d["std"][j]), _cell(d["U"][j]),
                                 *parts, e_n, _cell(true), ""])  # fmt: skip

@@ -16,6 +16,12 @@ when the sweep evaluated it (docs/storage.md):
   std; rad/s) when C_eff changes sign; attribute ``covariance`` (combined | statistical).
 
 A part that could not be evaluated is a group with only an ``error`` attribute.
+
+Beside them, aligned with ``names``: ``expanded_uncertainty`` (U, k = 2; attributes ``k``,
+``basis``: combined | statistical) and ``not_determined`` (1 where U exceeds the magnitude,
+also the names in attribute ``names``); in --sim runs ``truth``: the fit's own truth, the
+true Z(Omega) projected onto its model (orbitrig.run.model_truth; NaN where the model has
+no such coefficient; attribute ``definition``, or only ``error``).
 """
 
 from __future__ import annotations
@@ -41,6 +47,7 @@ def _vector(d: dict, names: list[str]) -> np.ndarray:
 
 def write_fit_analysis(h: h5py.Group, d: dict, names: list[str]) -> None:
     """The uncertainty, adequacy, lms_consistency and derived parts of the fit's JSON ``d``."""
+    write_fit_values(h, d, names)
     for part, writer in (("uncertainty", _uncertainty), ("adequacy", _adequacy),
                          ("lms_consistency", _consistency), ("derived", _derived)):  # fmt: skip
         if not d.get(part):
@@ -50,6 +57,25 @@ def write_fit_analysis(h: h5py.Group, d: dict, names: list[str]) -> None:
             g.attrs["error"] = str(d[part]["error"])
         else:
             writer(g, d[part], names)
+
+
+def write_fit_values(h: h5py.Group, d: dict, names: list[str]) -> None:
+    """The expanded uncertainty, not_determined and the fit's own truth of the fit's JSON ``d``."""
+    if d.get("expanded_uncertainty"):
+        e = d["expanded_uncertainty"]
+        put(h, "expanded_uncertainty", _vector(e["values"], names), PER_COEFFICIENT, k=float(e["k"]),
+            basis=e["basis"], meaning="expanded uncertainty U, k times the combined standard uncertainty")
+    if "not_determined" in d:
+        nd = list(d["not_determined"])
+        put(h, "not_determined", np.array([k in nd for k in names], dtype=np.uint8), "1", names=strings(nd),
+            meaning="1: the expanded uncertainty exceeds the magnitude (not determined)")
+    t = d.get("truth")
+    if t:
+        if "error" in t:
+            h.create_group("truth").attrs["error"] = str(t["error"])
+        else:
+            put(h, "truth", _vector(t["coefficients"], names), PER_COEFFICIENT, definition=t["definition"],
+                meaning="the simulator's true Z(Omega) projected onto this fit's model")
 
 
 def _uncertainty(g: h5py.Group, u: dict, names: list[str]) -> None:

@@ -26,11 +26,13 @@ def _num(v) -> float:
 
 
 def expanded_uncertainty(result: dict) -> dict[str, float]:
-    """U of each coefficient of an `identify --json` object as stored (SI): the stored
-    budget's expanded uncertainty (k x combined, calibration included) when the run has
-    one, else 2 x the standard error (statistical only). NaN where neither is known."""
+    """U of each coefficient of an `identify --json` object as stored (SI): the sweep's
+    ``expanded_uncertainty`` (orbitrig.run.point_analysis: k = 2, calibration included when
+    stated), else the stored budget's expanded uncertainty, else 2 x the standard error
+    (statistical only). NaN where none is known."""
     names = list(result.get("coefficients") or {})
-    budget = (result.get("uncertainty") or {}).get("expanded")
+    budget = ((result.get("expanded_uncertainty") or {}).get("values")
+              or (result.get("uncertainty") or {}).get("expanded"))  # fmt: skip
     if budget:
         return {k: _num(budget.get(k)) for k in names}
     std = result.get("std_errors") or {}

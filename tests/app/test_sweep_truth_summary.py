@@ -47,5 +47,15 @@ def test_the_summary_cell_is_the_fit_that_reproduces_z_best():
     fits = [_result(1.005), _result(1.02)]
     assert best_impedance_error(fits, _truth()) == "0.50 %"
     assert best_impedance_error(fits, {"K0": K.tolist()}) == "-"
-    errors = compare_with_truth(_result(1.02)["coefficients"], _truth())  # against K0, C0, D0
+    errors = compare_with_truth(_result(1.02), _truth())  # a fit without its own truth: against K0, C0, D0
     assert errors["Kxx"] == pytest.approx(2.0) and errors["Cyy"] == pytest.approx(2.0)
+
+
+def test_a_fit_is_compared_with_its_own_truth_when_it_has_one():
+    fit = _result(1.02)
+    own = {k: v / 1.02 * 1.01 for k, v in fit["coefficients"].items()}  # the model's reach: 1 % high
+    fit["truth"] = {"coefficients": own, "definition": "..."}
+    errors = compare_with_truth(fit, _truth())
+    # |1.02 - 1.01| / 1.01 of the largest entry of each matrix
+    assert errors["Kxx"] == pytest.approx(100 * 0.01 / 1.01) and errors["Dyy"] == pytest.approx(100 * 0.01 / 1.01)
+    assert errors["Kxy"] == pytest.approx(100 * 0.01 / 1.01 * 5.4e6 / 3.3e7)

@@ -106,4 +106,48 @@ def test_the_run_stores_the_true_impedance_and_its_best_fits(runs):
         assert g["fits/power/Km"].attrs["units"] == "N/m (rad/s)^-1"
         assert f.attrs["sim_scenario_name"] == "config/sim/clean.toml"
         assert "compressible = false" in f.attrs["sim_scenario_config"]
-    assert "|dZ|/|Z|" in stdout and "best fitting the simulator's true Z(Omega)" in stdout
+    text = " ".join(stdout.split())
+    assert "|dZ|/|Z|" in text and "true = the simulator's true Z(Omega) projected onto each fit's model" in text
+
+
+def test_every_fit_stores_its_own_truth_expanded_uncertainty_and_not_determined(runs):
+    """The compressible run: each fit's truth is its model's projection of the stored true Z
+    (remade here from the stored table), and coefficients.csv, run.h5 and the closing table
+    carry it with U (k = 2, combined) and the not-determined marks."""
+    import csv
+
+    import h5py
+
+    from orbitrig.run.model_truth import model_truth
+    from orbitrig.run.truth import true_impedance
+    from orbitrig.store.reader import freq_dep_key
+
+    out, stdout = runs("compressible")
+    point = the_point(out)
+    rows = list(csv.DictReader(open(out / "coefficients.csv")))
+    with h5py.File(out / "run.h5", "r") as f:
+        for lms in ("piezo", "strain"):
+            for fd in ("none", "power:1"):
+                d = point.identification(lms, "kcd11", fd).result
+                table = point.tables[lms]
+                again = model_truth(identify(table, "kcd11", fd), table, true_impedance(point.truth))
+                assert d["truth"]["coefficients"] == pytest.approx(again["coefficients"], rel=1e-9)
+                u = d["expanded_uncertainty"]
+                assert u["basis"] == "combined" and u["values"] == d["uncertainty"]["expanded"]
+                assert d["not_determined"] == [k for k, v in d["coefficients"].items() if u["values"][k] > abs(v)]
+                row = next(r for r in rows if (r["lms"], r["model"], r["freq_dep"]) == (lms, "kcd11", fd))
+                assert float(row["true_Dxy [kg]"]) == pytest.approx(d["truth"]["coefficients"]["Dxy"], rel=1e-6)
+                assert float(row["Kxx_U [N/m]"]) == pytest.approx(u["values"]["Kxx"], rel=1e-5)
+                assert row["not_determined"].split() == d["not_determined"]
+                g = f[f"points/0000/identification/{lms}__kcd11__{freq_dep_key(fd)}__ols"]
+                names = [n.decode() for n in g["names"][()]]
+                assert np.allclose(g["truth"][()], [d["truth"]["coefficients"][k] for k in names])
+                assert np.allclose(g["expanded_uncertainty"][()], [u["values"][k] for k in names])
+                assert [n for n, m in zip(names, g["not_determined"][()]) if m] == d["not_determined"]
+        # kcd11 forces D symmetric: its truth does too, while the constant best fit is skew
+        const = point.truth["fits"]["constant"]["D"]
+        assert const[0][1] > 20 and const[1][0] < -20
+        d = point.identification("piezo", "kcd11", "none").result["truth"]["coefficients"]
+        assert d["Dxy"] == d["Dyx"] and abs(d["Dxy"]) < 0.2 * const[0][1]
+    text = " ".join(stdout.split())
+    assert "D = apparent inertia (added mass)" in text and "const. fit = the constant K, C, D" in text

@@ -233,3 +233,15 @@ def test_figure_5_error_bars_from_the_phasor_uncertainty(point_report, monkeypat
     # u_fy = 0.02 |Fy|: amplitude bars 2 * 0.02 |Fy| / sqrt(2), phase bars 2 * 0.02 / sqrt(2) rad
     assert np.sort(half[0]) == pytest.approx(np.sort(2 * 0.02 * np.abs(t.fy) / np.sqrt(2)))
     assert half[1] == pytest.approx(np.degrees(2 * 0.02 / np.sqrt(2)))
+
+
+def test_identification_table_shows_the_fits_own_truth_and_not_determined(point_report):
+    r = copy.copy(next(r for r in point_report.results["piezo"] if r.freq_dep == "none" and r.model == "kcd11"))
+    own = {k: 2.0 * v for k, v in r.identification.coefficients.items()}
+    r.stored = dict(r.stored or {}, not_determined=["Dxy", "Dyx"], truth={"coefficients": own, "definition": "x"})
+    html = identification_table(r, {"Kxx": 1.0}, "kcd11", with_budget=False)
+    assert "true (simulator, this model)" in html
+    assert f"<td>{own['Kyy'] * 1e-6:.4g}</td></tr>" in html  # the fit's own truth, not the constant one given
+    dxy = r.identification.coefficients["Dxy"]
+    assert f"<td>{dxy:.4g} <b>n.d.</b></td>" in html and html.count("<b>n.d.</b>") == 2
+    assert "n.d. = not determined" in html and "D is an apparent inertia (added mass)" in html

@@ -29,3 +29,18 @@ def test_few_points_print_the_full_tables(tmp_path, capsys, monkeypatch):
     out = capsys.readouterr().out
     titles = re.findall(r"^point \d{4}  \S", out, flags=re.M)  # one table per point, then its judgement lines
     assert len(titles) == 2 and "Cyy" in out and "operating points" not in out
+
+
+def test_the_full_table_marks_not_determined_coefficients_and_names_d(tmp_path, capsys, monkeypatch):
+    from orbitrig.store.reader import read_run
+
+    monkeypatch.setenv("COLUMNS", "220")
+    run = write_synthetic_run(tmp_path / "run", n_points=1, incomplete=0)
+    print_coefficients(run)
+    out = " ".join(capsys.readouterr().out.split())
+    fits = [i.result for i in read_run(run).complete_points[0].identifications if i.ok]
+    nd = sum(1 for d in fits for k in d["not_determined"] if "_" not in k)  # the table shows constant terms
+    assert nd and out.count(" n.d. ") == nd + 1  # each mark, and the note's "n.d. = not determined"
+    assert "n.d. = not determined: the expanded uncertainty U exceeds the magnitude" in out
+    if any("Dxx" in d["coefficients"] for d in fits):
+        assert "D = apparent inertia (added mass)" in out

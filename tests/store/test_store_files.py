@@ -22,7 +22,7 @@ def _s(values) -> list[str]:
     return [v.decode() if isinstance(v, bytes) else str(v) for v in values]
 
 
-UNIT_COLUMN = re.compile(r"(true_)?[KCD][xy]{2}(_\d+)?(_std)? \[(N/m|N s/m|kg)( \(rad/s\)\^-\d+)?\]")
+UNIT_COLUMN = re.compile(r"(true_)?[KCD][xy]{2}(_\d+)?(_std|_U)? \[(N/m|N s/m|kg)( \(rad/s\)\^-\d+)?\]")
 
 
 def test_run_h5_states_units_and_names(synthetic):
@@ -103,6 +103,9 @@ def test_export_mat_reads_in_scipy(synthetic, tmp_path):
     np.testing.assert_array_equal(ident["coefficients"], list(stored["coefficients"].values()))
     assert list(ident["units"][:5]) == ["N/m"] * 4 + ["N s/m"]
     assert ident["interval_95"].shape == (12, 2)
+    expanded = stored["expanded_uncertainty"]["values"]
+    np.testing.assert_allclose(ident["expanded_uncertainty"], [expanded[k] for k in stored["coefficients"]])
+    assert list(np.atleast_1d(ident["not_determined"])) == stored["not_determined"]
     assert "rank-deficient" in p["identification"]["strain__kcd12__poly_8__ols"]["error"]
     assert list(m["run"]["channels"][:2]) == ["fx_piezo", "fy_piezo"] and m["units"]["fx"].startswith("N")
 
@@ -209,4 +212,4 @@ def test_orbit_table_uncertainty_and_block_stop_reason_round_trip(tmp_path):
     assert header[-6:] == ["n_records [1]", "u_x [m]", "u_y [m]", "u_fx [N]", "u_fy [N]", "direction [1]"]
     table = read_orbit_table(tmp_path / "csv/point_0000_piezo.csv")
     np.testing.assert_array_equal(table.u, t.u)
-    assert (tmp_path / "run/coefficients.csv").read_text().splitlines()[1].endswith("x | y")
+    assert (tmp_path / "run/coefficients.csv").read_text().splitlines()[1].endswith("x | y,")  # the error, then not_determined (empty)

@@ -1,0 +1,34 @@
+"""What a fit would give without noise: its model identified on a table whose forces are
+the exact f_bar = -Z d_bar of a known impedance Z(Omega).
+
+Everything but the forces stays the table's: displacements, orbit speeds, coherences and
+u_*, hence the same rows, weights, constraints, frequency dependence and method. The result
+is the projection of Z onto the fit's model structure, the value its estimates scatter
+about: the truth a model can reach (a simulator knows Z). Pure numpy; SI.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from reduction.identify import identify
+from reduction.impedance import forces
+from reduction.result import Identification
+from reduction.table import OrbitTable
+
+
+def noise_free_fit(ident: Identification, table: OrbitTable, z: np.ndarray) -> dict[str, float]:
+    """Coefficients (SI, keyed as ``ident``'s) of fit ``ident``, made from ``table``, repeated
+    on the table's displacements with forces -Z d, ``z`` (n, 2, 2) complex N/m at the table's
+    rows in order; power:auto at the exponent ``ident`` chose. Raises ReductionError when the
+    model cannot be identified, ValueError when ``z`` does not match the rows."""
+    z = np.asarray(z)
+    if z.shape != (len(table.orbit), 2, 2):
+        raise ValueError(f"the impedance has shape {z.shape}, the table {len(table.orbit)} rows")
+    fx, fy = forces(z, table.x, table.y)
+    freq_dep = f"power:{ident.exponent}" if ident.freq_dep == "power:auto" else ident.freq_dep
+    exact = identify(dataclasses.replace(table, fx=fx, fy=fy), model=ident.model, freq_dep=freq_dep,
+                     method=ident.method)  # fmt: skip
+    return {k: float(v) for k, v in exact.coefficients.items()}
