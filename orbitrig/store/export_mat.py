@@ -64,6 +64,9 @@ def _fit_struct(fit, ident) -> dict:
         if k in result:
             s[k] = np.nan if result[k] is None else float(result[k])
     s["notes"], s["warnings"] = cell(result.get("notes") or []), cell(result.get("warnings") or [])
+    s["not_determined"] = cell(result.get("not_determined") or [])  # names whose U exceeds their magnitude
+    if "truth" in d:
+        s["truth"] = d["truth"]  # the simulator's truth projected onto this model, aligned with names
     derived = content.derived_columns(fit)
     if derived:
         s["derived"] = {k: v for k, (v, _) in derived.items()}

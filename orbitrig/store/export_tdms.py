@@ -106,21 +106,15 @@ def _coefficient_objects(run, points) -> list:
     from nptdms import ChannelObject, GroupObject
 
     rows = [row for p in points for row in csvfile.point_rows(p, run.sim)]
-    fits = [f for p in points for f in point_fits(p)]
-    objs = [GroupObject("coefficients", {"description": "the columns of coefficients.csv, and KEY_U"})]
+    objs = [GroupObject("coefficients", {"description": "the columns of coefficients.csv"})]
     for col in csvfile.columns(rows):
         cells = [str(r.get(col, "")) for r in rows]
         unit = col[col.index("[") + 1: -1] if col.endswith("]") else ""
-        if col in ("label", "lms", "model", "freq_dep", "method", "error"):
+        if col in ("label", "lms", "model", "freq_dep", "method", "error", "not_determined"):
             values = np.array(cells, dtype=str)
         else:
             values = np.array([float(c) if c else np.nan for c in cells], dtype=np.float64)
         objs.append(ChannelObject("coefficients", col.split(" [")[0], values, {"unit_string": unit}))
-    keys = list(dict.fromkeys(k for f in fits for k in f.names))
-    for key in keys:
-        values = np.array([f.U[f.names.index(key)] if key in f.names else np.nan for f in fits])
-        unit = next(u for f in fits for k, u in zip(f.names, f.units) if k == key)
-        objs.append(ChannelObject("coefficients", f"{key}_U", values, {"unit_string": unit}))
     return objs
 
 

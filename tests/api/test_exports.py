@@ -92,7 +92,8 @@ def test_tdms(exported, stored):
     assert tdms.properties["software_version"] == stored["version"]
     coef = tdms["coefficients"]
     k = stored["names"].index("Kxy")
-    assert stored["U"][k] in list(coef["Kxy_U"][:]) and coef["Kxy_U"].properties["unit_string"] == "N/m"
+    # the columns of coefficients.csv, U printed to 6 significant digits there
+    assert np.isclose(coef["Kxy_U"][:], stored["U"][k], rtol=1e-5).any() and coef["Kxy_U"].properties["unit_string"] == "N/m"
     _units_parse(c.properties["unit_string"] for g in tdms.groups() for c in g.channels())
 
 
@@ -110,7 +111,8 @@ def test_csv(exported, stored):
         rows = [r for r in csv.DictReader(fh) if r["lms"] == "piezo" and r["model"] == "kcd11"]
     assert [r["name"] for r in rows] == stored["names"]
     np.testing.assert_array_equal([float(r["U"]) for r in rows], stored["U"])
-    np.testing.assert_array_equal([float(r["true"]) for r in rows if r["name"] == "Kxy"], [stored["K0"][0, 1]])
+    # the fit's own truth: on the clean scenario (Z exactly constant K, C, D) the constant K
+    np.testing.assert_allclose([float(r["true"]) for r in rows if r["name"] == "Kxy"], [stored["K0"][0, 1]], rtol=1e-9)
     _units_parse(r["unit"] for r in rows)
     with open(out / f"covariance_0000_{FIT}.csv", newline="") as fh:
         cov = list(csv.reader(fh))

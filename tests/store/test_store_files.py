@@ -104,7 +104,7 @@ def test_export_mat_reads_in_scipy(synthetic, tmp_path):
     assert list(ident["units"][:5]) == ["N/m"] * 4 + ["N s/m"]
     assert ident["interval_95"].shape == (12, 2)
     expanded = stored["expanded_uncertainty"]["values"]
-    np.testing.assert_allclose(ident["expanded_uncertainty"], [expanded[k] for k in stored["coefficients"]])
+    np.testing.assert_allclose(ident["U"], [expanded[k] for k in stored["coefficients"]])
     assert list(np.atleast_1d(ident["not_determined"])) == stored["not_determined"]
     assert "rank-deficient" in p["identification"]["strain__kcd12__poly_8__ols"]["error"]
     assert list(m["run"]["channels"][:2]) == ["fx_piezo", "fy_piezo"] and m["units"]["fx"].startswith("N")
