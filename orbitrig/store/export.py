@@ -16,7 +16,6 @@ is a StorageError naming the file.
 from __future__ import annotations
 
 import io
-import os
 import re
 from pathlib import Path
 
@@ -77,13 +76,7 @@ def _export_csv(run: Run, points: list[Point], out: Path) -> list[Path]:
     for p in points:
         for lms, table in p.tables.items():
             path = out / f"point_{p.name}_{lms}.csv"
-            tmp = path.with_name(path.name + ".tmp")
-            try:
-                write_orbit_table(tmp, table)
-                os.replace(tmp, path)
-            except OSError as err:
-                tmp.unlink(missing_ok=True)
-                raise storage_error(path, "write", err) from err
+            write_orbit_table(path, table)
             files.append(path)
     path = out / "coefficients.csv"
     write_atomic(path, csvfile.render([row for p in points for row in csvfile.point_rows(p, run.sim)]))

@@ -181,10 +181,13 @@ def orbit_table_columns(table: OrbitTable) -> dict[str, tuple[np.ndarray, str]]:
 
 def write_orbit_table(path: str | Path, table: OrbitTable) -> None:
     """Write ``table`` as an orbit table CSV (full float precision; gamma2, n_records and u_*
-    when present)."""
+    when present), durably (orbitrig.store.durable.write_atomic; a StorageError names the file)."""
+    from orbitrig.store.durable import write_atomic
+
     cols = orbit_table_columns(table)
-    with open(path, "w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(list(cols))
-        for k in range(table.n):
-            w.writerow([str(int(v[k])) if name == RECORDS else repr(float(v[k])) for name, (v, _) in cols.items()])
+    fh = io.StringIO(newline="")
+    w = csv.writer(fh, lineterminator="\r\n")
+    w.writerow(list(cols))
+    for k in range(table.n):
+        w.writerow([str(int(v[k])) if name == RECORDS else repr(float(v[k])) for name, (v, _) in cols.items()])
+    write_atomic(Path(path), fh.getvalue().encode("utf-8"))
