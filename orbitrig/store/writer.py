@@ -180,10 +180,18 @@ class RunStore:
         self.write_csv()
 
     def set_status(self, status: str, message: str = "") -> None:
-        """Record the run's status; a final status (not 'running') also consolidates run.h5."""
+        """Record the run's status; a final status (not 'running') also consolidates run.h5.
+        When run.h5 cannot be written the journal records the run as failed (best effort:
+        the disk may be full) and the StorageError is raised."""
         self._journal([journal.status_line(status, message)])
-        if status != "running":
+        if status == "running":
+            return
+        try:
             self.finalize()
+        except StorageError as err:
+            with contextlib.suppress(StorageError):
+                self._journal([journal.status_line("failed", f"run.h5 could not be written: {err}")])
+            raise
 
     def flush_logs(self) -> None:
         self._journal([])
