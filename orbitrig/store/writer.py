@@ -27,7 +27,7 @@ from orbitrig.store.consolidate import RunImage, read_header
 from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F401  (the CSV's public names)
 from orbitrig.store.durable import TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
 from orbitrig.store.errors import StorageError, StorageFullError, storage_error  # noqa: F401
-from orbitrig.store.index import commit_record, point_state, scan
+from orbitrig.store.index import NEVER_COMPLETED, commit_record, point_state, scan
 from orbitrig.store.journal import now_iso  # noqa: F401  (the engine's timestamps)
 from orbitrig.store.layout import FORMAT, RunLayout, point_name
 from orbitrig.store.reader import RunDirError, read_point
@@ -115,7 +115,7 @@ class RunStore:
             if st.complete:
                 done.append(st.index)
             else:
-                self._put_aside(st.index, "incomplete" if "never completed" in st.problem else "damaged", st.problem)
+                self._put_aside(st.index, "incomplete" if st.problem == NEVER_COMPLETED else "damaged", st.problem)
         for tmp in self.dir.glob(f"*{TMP_SUFFIX}"):
             with contextlib.suppress(OSError):
                 tmp.unlink()
