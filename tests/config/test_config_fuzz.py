@@ -110,6 +110,29 @@ def test_mutated_files_load_or_are_refused_by_name(tmp_path, rig, matrix):
     assert math.isfinite(total) and format_duration(total)
 
 
+DESIGN_TEXT = (REPO / "config" / "designs" / "kcd11-demo.toml").read_bytes()
+DESIGN_MATRIX = MATRIX_TEXT.replace(b"ratios = [0.3, 0.5, 0.7, 0.9, 1.2]", b'design = "d.toml"').replace(
+    b'directions = ["forward", "backward"]', b"")
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(design=mutated(DESIGN_TEXT))
+@example(design=DESIGN_TEXT.replace(b"[0.65, 1.5]", b"[0.65]").replace(b"[163, 63]", b"[163]"))
+@example(design=DESIGN_TEXT.replace(b"[0.65, 1.5]", b"[0.65, 1e308]"))
+def test_mutated_design_files_load_or_are_refused_by_name(tmp_path, design):
+    (tmp_path / "d.toml").write_bytes(design)
+    r, m, problems = _load_both(tmp_path, RIG_TEXT, DESIGN_MATRIX)
+    for err in problems:
+        _check_refusal(err, tmp_path)
+    if m is None:
+        return
+    assert len(m.orbit.ratio_list) >= 2 and all(0 < x <= 100 for x in m.orbit.ratio_list)
+    try:
+        assert math.isfinite(summarize(make_plan(m, r).steps).duration)
+    except ConfigError as err:
+        _check_refusal(err, tmp_path)
+
+
 def _floats(model) -> list[float]:
     out = []
     for value in model.model_dump().values():
