@@ -301,7 +301,8 @@ class RunEngine:
             store.set_status(status, message)
         except Exception as err:  # noqa: BLE001 - the other records are still written
             self._cleanup_failed("write the run status and run.h5", err)
-            status, message = FAILED, f"storage failed: the run's status and run.h5 could not be written: {err}"
+            if status != FAILED:  # a failed run keeps its first cause
+                status, message = FAILED, f"storage failed: the run's status and run.h5 could not be written: {err}"
         for what, action in (("write coefficients.csv", store.write_csv),
                              ("close the run log", lambda: store.log(f"run {self.run_id} ended: {status}: {message}"))):  # fmt: skip
             try:
