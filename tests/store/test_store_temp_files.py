@@ -63,7 +63,7 @@ def test_reduce_and_report_never_follow_a_planted_link(synthetic, tmp_path):
                _plant(run / "plots" / "index.html.tmp", tmp_path / "victim_b")]
     r = CliRunner().invoke(app, ["reduce", str(run), "--model", "kc8"])
     assert r.exit_code == 0, r.output
-    r = CliRunner().invoke(app, ["report", str(run), "--figures", "coefficients"])
+    r = CliRunner().invoke(app, ["report", str(run), "--point", "1", "--figures", "coefficients"])
     assert r.exit_code == 0, r.output
     assert all(v.read_bytes() == VICTIM for v in victims)
     assert (run / "reduce_kc8_none_ols.csv").read_text().startswith("point,label,")
