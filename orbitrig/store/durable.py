@@ -28,6 +28,8 @@ from pathlib import Path
 from orbitrig.store.errors import StorageError, storage_error
 
 TMP_SUFFIX = ".tmp"
+#: an append-only log: created when missing, a symbolic link at its name refused (never followed)
+APPEND_FLAGS = os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC
 _names = itertools.count()
 _name_lock = threading.Lock()
 
@@ -100,7 +102,7 @@ def append_lines(path: Path, lines: list[str]) -> None:
         return
     data = "".join(line + "\n" for line in lines).encode("utf-8")
     try:
-        fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        fd = os.open(path, APPEND_FLAGS, 0o644)
     except OSError as err:
         raise storage_error(path, "open for appending", err) from err
     try:

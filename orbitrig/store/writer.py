@@ -25,7 +25,7 @@ from orbitrig.run.plan import OperatingPoint
 from orbitrig.store import csvfile, journal, pieces
 from orbitrig.store.consolidate import RunImage, read_header
 from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F401  (the CSV's public names)
-from orbitrig.store.durable import TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
+from orbitrig.store.durable import APPEND_FLAGS, TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
 from orbitrig.store.errors import StorageError, StorageFullError, storage_error  # noqa: F401
 from orbitrig.store.index import NEVER_COMPLETED, commit_record, point_state, scan
 from orbitrig.store.journal import now_iso  # noqa: F401  (the engine's timestamps)
@@ -234,7 +234,7 @@ class RunStore:
         """A line of the human-readable run.log (best effort: a full disk must not stop the run)."""
         stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
         try:
-            with open(self.log_path, "a", encoding="utf-8") as fh:
+            with open(os.open(self.log_path, APPEND_FLAGS, 0o644), "a", encoding="utf-8") as fh:
                 fh.write(f"{stamp} {message}\n")
         except OSError as err:
             if not self._log_failed:

@@ -68,3 +68,13 @@ def test_reduce_and_report_never_follow_a_planted_link(synthetic, tmp_path):
     assert all(v.read_bytes() == VICTIM for v in victims)
     assert (run / "reduce_kc8_none_ols.csv").read_text().startswith("point,label,")
     assert "<html" in (run / "plots" / "index.html").read_text()
+
+
+def test_the_append_only_logs_refuse_a_planted_link(tmp_path):
+    from orbitrig.store.durable import append_lines
+    from orbitrig.store.errors import StorageError
+
+    victim = _plant(tmp_path / "journal.jsonl", tmp_path / "victim.txt")
+    with pytest.raises(StorageError, match="journal.jsonl"):
+        append_lines(tmp_path / "journal.jsonl", ['{"k": "status"}'])
+    assert victim.read_bytes() == VICTIM
