@@ -15,7 +15,7 @@ import urllib.request
 
 import pytest
 
-from dash_helpers import RIG, Dashboard
+from dash_helpers import RIG, Dashboard, Page
 from mqtt_helpers import ACCOUNTS
 
 pytestmark = pytest.mark.timeout(150)
@@ -165,4 +165,27 @@ def test_held_connections_are_cut_after_the_request_timeout_and_the_feed_is_not(
                     got += chunk
             assert b"\x88" in got  # the server answered the close (after the hello frames): the feed was open
     finally:
+        assert dash.stop() == 0, dash.text()[-2000:]
+
+
+def test_the_page_says_the_lockout_and_the_oldest_page_is_signed_out(broker, tmp_path, browsers):
+    dash = Dashboard(broker.url, RIG, tmp_path, "--lockout-after", "1", "--lockout", "60", "--sessions-per-user", "1")
+    drivers = [browsers() for _ in range(3)]
+    try:
+        page = Page(drivers[0], dash.url, dash)
+        page.sign_in("operator", "wrong")
+        page.wait_text("signin-error", "refused: wrong user name or password")
+        page.sign_in("operator", ACCOUNTS["operator"])
+        page.wait_text("signin-error", lambda t: "locked for" in t and "lockout 60 s" in t)
+        assert not page.el("app").is_displayed() and page.d.get_cookies() == []
+        first, second = Page(drivers[1], dash.url, dash), Page(drivers[2], dash.url, dash)
+        first.sign_in("viewer", ACCOUNTS["viewer"])
+        first.signed_in()
+        second.sign_in("viewer", ACCOUNTS["viewer"])
+        second.signed_in()
+        first.wait(lambda: first.el("signin").is_displayed(), 15, "the oldest page signed out")
+        assert "signed in elsewhere" in first.text("signin-error")
+    finally:
+        for d in drivers:  # the pages leave first: their live feeds close
+            d.get("about:blank")
         assert dash.stop() == 0, dash.text()[-2000:]
