@@ -204,6 +204,13 @@ async def _reaper(app: web.Application) -> None:
         await asyncio.sleep(min(1.0, limit / 4))
 
 
+async def _end_all(app: web.Application) -> None:
+    """On shutdown, before aiohttp waits for the open connections: every session ends, so
+    the pages' live feeds close instead of holding the stop for the shutdown timeout."""
+    for session in list(app[SESSIONS].values()):
+        await _end(app, session, "dashboard stopped")
+
+
 async def _background(app: web.Application) -> Any:
     task = asyncio.create_task(_reaper(app), name="dashboard-reaper")
     yield
@@ -226,6 +233,7 @@ def make_app(settings: DashboardSettings) -> web.Application:
     app.router.add_post("/api/cmd", command)
     app.router.add_get("/api/feed", feed)
     app.cleanup_ctx.append(_background)
+    app.on_shutdown.append(_end_all)
     return app
 
 
