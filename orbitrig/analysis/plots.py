@@ -9,6 +9,7 @@ with open markers and dashed lines.
 
 from __future__ import annotations
 
+import io
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +22,8 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
 from orbitrig.analysis.reduce import MATRIX_UNITS
+from orbitrig.store.durable import write_atomic
+from orbitrig.store.errors import storage_error
 
 ENTRIES = ("xx", "xy", "yx", "yy")
 MATRIX_NAMES = {"K": "stiffness", "C": "damping", "D": "apparent inertia (added mass)"}
@@ -68,9 +71,15 @@ def save_figure(fig: Figure, path: Path) -> Path:
 
 
 def _save(fig: Figure, path: Path) -> Path:
+    """PNG bytes rendered in memory, then written durably (a StorageError names the file)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=DPI)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise storage_error(path.parent, "create the folder", err) from err
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=DPI)
+    write_atomic(path, buf.getbuffer())
     return path
 
 

@@ -10,7 +10,6 @@ model / frequency dependence / method. The run's own results (``run.h5``, the pi
 
 from __future__ import annotations
 
-import csv
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -20,7 +19,8 @@ import numpy as np
 from orbitrig.errors import IdentificationError, ReductionError
 from orbitrig.config import LMS
 from orbitrig.store.reader import Point, Run, StoredIdentification, freq_dep_key
-from orbitrig.store.csvfile import CSV_HEAD, coef_order, coefficient_column, one_line, true_entry
+from orbitrig.store.csvfile import CSV_HEAD, coef_order, coefficient_column, one_line, render_table, true_entry
+from orbitrig.store.durable import write_atomic
 
 #: constant-term keys in the spec's order
 CONSTANT_KEYS = tuple(f"{m}{e}" for m in "KCD" for e in ("xx", "xy", "yx", "yy"))
@@ -169,15 +169,9 @@ def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, 
 
 
 def write_csv(path: str | Path, rows: list[Reduced], sim: bool) -> Path:
-    """Write the reduce results; the file is replaced atomically."""
+    """Write the reduce results durably (coefficients.csv's writer; a StorageError names the file)."""
     path = Path(path)
-    columns, data = csv_rows(rows, sim)
-    tmp = path.with_name(path.name + ".tmp")
-    with tmp.open("w", newline="", encoding="utf-8") as fh:
-        writer = csv.DictWriter(fh, fieldnames=columns)
-        writer.writeheader()
-        writer.writerows(data)
-    tmp.replace(path)
+    write_atomic(path, render_table(*csv_rows(rows, sim)))
     return path
 
 

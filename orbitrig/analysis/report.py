@@ -38,7 +38,9 @@ from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.errors import ReductionError
 from orbitrig.analysis.reduce import Reduced, reidentify
 from orbitrig.config import LMS
+from orbitrig.store.errors import storage_error
 from orbitrig.store.reader import Point, Run, RunDirError, read_run
+from orbitrig.store.selection import select_points
 from reduction.derived import Derived
 
 PLOTS_DIR = "plots"
@@ -85,6 +87,8 @@ class Report:
     points: list[PointReport]
     html: Path | None = None
     summary: Path | None = None  # summary.png, when more than one point
+    skipped: list[str] = field(default_factory=list)  # points asked for and not reported, with why
+    notes: list[str] = field(default_factory=list)  # points the run never completed (not asked for by number)
 
     @property
     def plots(self) -> list[Path]:
@@ -259,7 +263,14 @@ def _clear_point(out: Path, name: str) -> None:
     for kind in FIGURES:
         for pattern in (f"{kind}_{name}.png", f"{kind}_{name}_*.png"):
             for old in out.glob(pattern):
-                old.unlink()
+                _remove(old)
+
+
+def _remove(path: Path) -> None:
+    try:
+        path.unlink(missing_ok=True)
+    except OSError as err:
+        raise storage_error(path, "remove", err) from err
 
 
 def make_report(directory: str | Path, *, points: list[int] | None = None,
@@ -269,25 +280,25 @@ def make_report(directory: str | Path, *, points: list[int] | None = None,
     ``points`` restricts the plots to those operating point indices (all
     complete points by default); ``options`` picks the figure kinds and whether Figure 4 is drawn
     for every orbit frequency or the lowest and highest of each direction. Figures of a kind not
-    drawn are removed from DIR/plots (a page never shows a stale one). Raises RunDirError when
-    DIR is not a run."""
+    drawn are removed from DIR/plots (a page never shows a stale one). The points asked for and
+    not complete are named in `skipped` (orbitrig.store.selection). Raises RunDirError when
+    DIR is not a run, StorageError when DIR/plots cannot be written."""
     from orbitrig.analysis.report_html import write_html
 
     run = read_run(directory)
-    chosen = [p for p in run.complete_points if points is None or p.index in points]
-    if points is not None and len(chosen) < len(set(points)):
-        missing = sorted(set(points) - {p.index for p in chosen})
-        raise ValueError(f"{run.directory}: no complete operating point {missing}")
+    selection = select_points(run, points)
     out = Path(directory) / PLOTS_DIR
-    out.mkdir(exist_ok=True)
-    report = Report(run, out, [])
-    for point in chosen:
+    try:
+        out.mkdir(exist_ok=True)
+    except OSError as err:
+        raise storage_error(out, "create the folder", err) from err
+    report = Report(run, out, [], skipped=selection.skipped, notes=selection.notes)
+    for point in selection.points:
         pr = analyse_point(point)
         _clear_point(out, point.name)
         _plot_point(run, pr, out, options)
         report.points.append(pr)
-    stale = out / "summary.png"  # from an earlier report over other points
-    stale.unlink(missing_ok=True)
+    _remove(out / "summary.png")  # from an earlier report over other points
     report.summary = summary_plot_for(report)
     report.html = write_html(report, out / "index.html")
     return report

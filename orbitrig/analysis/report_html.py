@@ -20,6 +20,7 @@ from orbitrig.analysis.quality import lms_normalised_difference
 from orbitrig.analysis.report import fit_label, preferred
 from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
 from orbitrig.config import LMS
+from orbitrig.store.durable import write_atomic
 
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:1.5em auto;max-width:1400px;
@@ -206,7 +207,5 @@ def render(report) -> str:
 
 def write_html(report, path: Path) -> Path:
     path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(render(report), encoding="utf-8")
-    tmp.replace(path)
+    write_atomic(path, render(report).encode("utf-8"))
     return path

@@ -17,6 +17,8 @@ import typer
 
 from orbitrig.cli.design_inputs import DesignInputError
 from orbitrig.config import RPM, default_rig_path
+from orbitrig.store.durable import write_atomic
+from orbitrig.store.errors import storage_error
 
 DESIGNS_DIR = "designs"  # next to config/matrices: config/designs/NAME.toml
 _UNITS = {"K": "N/m", "C": "N s/m", "D": "kg"}
@@ -243,7 +245,10 @@ def save_design(obj: dict, name: str, folder: Path | None = None) -> Path:
              "directions = " + ('["forward", "backward"]' if p["directions"] == "both" else f'["{p["directions"]}"]')]
     if per_ratio and p.get("target_pct"):
         lines.append("target_pct = [" + ", ".join(f"{t:g}" for t in p["target_pct"]) + "]")
-    folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{name}.toml"
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise storage_error(folder, "create the folder", err) from err
+    write_atomic(path, ("\n".join(lines) + "\n").encode("utf-8"))
     return path

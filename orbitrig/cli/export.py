@@ -1,7 +1,8 @@
 """`orbitrig export RUN`: a stored run's orbit tables and results as CSV, MATLAB, TDMS or HDF5.
 
 Exit status 0 on success, 2 when RUN is not a run directory or the option is bad,
-1 when the export cannot be written (disk full, permissions).
+1 when the export cannot be written (disk full, permissions) or a point asked for
+(every committed point, without --point) was skipped: each skipped point is named.
 """
 
 from __future__ import annotations
@@ -18,8 +19,12 @@ def register(app: typer.Typer) -> None:
         directory: Annotated[Path, typer.Argument(metavar="RUN", help="Run directory written by `orbitrig sweep --out DIR`.")],
         fmt: Annotated[str, typer.Option("--format", help="csv (one orbit table per point and load system, coefficients.csv) | mat (MATLAB run.mat) | tdms (LabVIEW run.tdms) | h5 (the single-file run.h5)")] = "csv",
         out: Annotated[Optional[Path], typer.Option("--out", help="Directory for the files (default RUN/export).")] = None,
+        point: Annotated[Optional[list[int]], typer.Option("--point", metavar="N", help="Only this operating point index (repeatable; not with --format h5, the whole run).")] = None,
     ) -> None:
-        """Export every complete operating point's orbit tables and results."""
+        """Export every complete operating point's orbit tables and results.
+
+        A point asked for (every committed point, without --point) that is damaged or
+        missing is named on standard error and the exit status is 1."""
         from orbitrig.store.errors import StorageError
         from orbitrig.store.export import FORMATS, export_run
         from orbitrig.store.reader import RunDirError
@@ -27,13 +32,22 @@ def register(app: typer.Typer) -> None:
         if fmt not in FORMATS:
             typer.echo(f"error: --format {fmt!r}: one of {', '.join(FORMATS)}", err=True)
             raise typer.Exit(2)
+        if point and fmt == "h5":
+            typer.echo("error: --point does not apply to --format h5 (run.h5 holds the whole run)", err=True)
+            raise typer.Exit(2)
         try:
-            files = export_run(directory, fmt, out)
+            done = export_run(directory, fmt, out, point)
         except RunDirError as err:
             typer.echo(f"error: {err}", err=True)
             raise typer.Exit(2) from None
         except StorageError as err:
             typer.echo(f"error: {err}", err=True)
             raise typer.Exit(1) from None
-        for path in files:
+        for path in done.files:
             typer.echo(str(path))
+        for line in done.selection.notes:
+            typer.echo(line, err=True)
+        for line in done.selection.skipped:
+            typer.echo(f"error: {line}", err=True)
+        if done.selection.skipped:
+            raise typer.Exit(1)

@@ -2,7 +2,8 @@
 
 Exit status 0 on success, 2 for a missing or invalid DIR, a bad option, or a
 model that no stored table can identify (the reason on standard error, as
-`orbitrig identify`).
+`orbitrig identify`); 1 when the files cannot be written (read-only or full disk:
+one line naming the file) or, for `report`, a point asked for was skipped (each named).
 """
 
 from __future__ import annotations
@@ -14,9 +15,9 @@ from typing import Annotated, Optional
 import typer
 
 
-def _fail(message: str) -> None:
+def _fail(message: str, code: int = 2) -> None:
     typer.echo(f"error: {message}", err=True)
-    raise typer.Exit(2)
+    raise typer.Exit(code)
 
 
 def reduce_cmd(
@@ -35,6 +36,7 @@ def reduce_cmd(
     from orbitrig.errors import ReductionError
     from orbitrig.analysis.reduce import csv_path, format_table, reduce_run, write_csv
     from orbitrig import open_run
+    from orbitrig.store.errors import StorageError
     from orbitrig.store.reader import RunDirError
 
     try:
@@ -50,7 +52,10 @@ def reduce_cmd(
         typer.echo(f"{model} {freq_dep} refused at point {', '.join(where)}: {reason}", err=True)
     if len(refused) == len(rows):
         _fail(f"{model} {freq_dep} ({method}) cannot be identified from any stored table of {directory}")
-    path = write_csv(csv_path(directory, model, freq_dep, method), rows, run.sim)
+    try:
+        path = write_csv(csv_path(directory, model, freq_dep, method), rows, run.sim)
+    except StorageError as err:
+        _fail(str(err), 1)
     if as_json:
         out = {"run": str(directory), "csv": str(path), "status": run.status,
                "results": [r.to_dict() for r in rows]}
@@ -77,6 +82,7 @@ def report_cmd(
     intervals and uncertainties. Fit warnings and refusals go to standard error.
     """
     from orbitrig.analysis.report import FIGURES, ReportOptions, make_report
+    from orbitrig.store.errors import StorageError
     from orbitrig.store.reader import RunDirError
 
     kinds = FIGURES if figures is None else tuple(k.strip() for k in figures.split(",") if k.strip())
@@ -88,6 +94,8 @@ def report_cmd(
         report = make_report(directory, points=point, options=options)
     except (RunDirError, ValueError) as err:
         _fail(str(err))
+    except StorageError as err:
+        _fail(str(err), 1)
     run = report.run
     typer.echo(f"run {run.status}: {len(run.complete_points)} complete point(s), "
                f"{len(run.points) - len(run.complete_points)} incomplete")
@@ -101,6 +109,12 @@ def report_cmd(
             typer.echo(f"point {pr.point.name} {line}", err=True)
     typer.echo(f"{len(report.plots)} plot(s) in {report.directory}")
     typer.echo(f"open {report.html}")
+    for line in report.notes:
+        typer.echo(line, err=True)
+    for line in report.skipped:
+        typer.echo(f"error: {line}", err=True)
+    if report.skipped:
+        raise typer.Exit(1)
 
 
 def register(app: typer.Typer) -> None:

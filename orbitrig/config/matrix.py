@@ -10,6 +10,10 @@ from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_
 from orbitrig.config.fields import FREQ_DEP, MODELS, Mpa, Ratio, Rpm, Wait, _Model
 
 
+#: the fewest orbit frequencies a matrix may give (per direction)
+MIN_RATIOS = 2
+
+
 class Operating(_Model):
     spin_rpm: Annotated[list[Rpm], Field(min_length=1)]
     recess_pressure_mpa: Annotated[list[Mpa], Field(min_length=1)]
@@ -37,7 +41,7 @@ class Orbit(_Model):
     ratios: list[Ratio] | None = None
     ratio_start: Ratio | None = None
     ratio_stop: Ratio | None = None
-    count: Annotated[int, Field(ge=1, le=100)] | None = None
+    count: Annotated[int, Field(ge=MIN_RATIOS, le=100)] | None = None
     directions: Annotated[list[Literal["forward", "backward"]], Field(min_length=1)] = ["forward", "backward"]
     revolutions: list[Revolutions] | None = None
     target_pct: list[TargetPct] | None = None
@@ -64,6 +68,9 @@ class Orbit(_Model):
             problems.append("give either 'ratios' or 'ratio_start', 'ratio_stop', 'count', not both")
         if self.ratios is None and any(v is None for v in rng):
             problems.append("give 'ratios' (a list) or all of 'ratio_start', 'ratio_stop', 'count'")
+        if self.ratios is not None and len(self.ratios) < MIN_RATIOS:
+            problems.append(f"'ratios' has {len(self.ratios)} value(s): give at least {MIN_RATIOS} orbit frequencies "
+                            "(one cannot separate the stiffness K from the added mass D or a frequency dependence)")
         if self.ratios is not None and len(set(self.ratios)) != len(self.ratios):
             problems.append("'ratios' has repeated values")
         if len(set(self.directions)) != len(self.directions):
@@ -80,8 +87,6 @@ class Orbit(_Model):
         """Orbit ratios |Omega|/omega, ascending."""
         if self.ratios is not None:
             return sorted(self.ratios)
-        if self.count == 1:
-            return [self.ratio_start]
         step = (self.ratio_stop - self.ratio_start) / (self.count - 1)
         return [round(self.ratio_start + k * step, 12) for k in range(self.count)]
 

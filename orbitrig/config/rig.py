@@ -7,7 +7,7 @@ from __future__ import annotations
 import warnings
 from typing import Annotated, Literal
 
-from pydantic import Field, PrivateAttr, model_validator
+from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from orbitrig.config.calibration import CalibrationUncertainty
 from orbitrig.config.fields import (
@@ -28,7 +28,15 @@ class Transports(_Model):
     can_node_id: Annotated[int, Field(ge=1, le=127)] = 1
 
 
+#: physical calibration bounds per unit: (smallest |gain|, largest |gain|) per count of the
+#: 16-bit A/D (full scale 32768 counts), largest |offset|, and whether the gain may be negative
+#: (a load cell's sign is carried by its gain; a probe's axis is fixed by the rig's frame)
+CHANNEL_BOUNDS = {"N": (1e-9, 1e3, 1e7, True), "m": (1e-15, 1e-4, 1.0, False)}
+
+
 class Channel(_Model):
+    """One A/D channel: engineering value = gain * counts + offset (N or m)."""
+
     index: Annotated[int, Field(ge=0, le=63)]
     name: Literal[CHANNEL_NAMES]  # type: ignore[valid-type]
     quantity: str = ""
@@ -37,11 +45,29 @@ class Channel(_Model):
     offset: float = 0.0
     serial: str = ""  # the sensor's serial number (recorded in every run)
 
-    @model_validator(mode="after")
-    def _gain_nonzero(self):
-        if self.gain == 0:
+    @field_validator("gain")
+    @classmethod
+    def _physical_gain(cls, gain: float, info: ValidationInfo) -> float:
+        unit = info.data.get("unit")
+        if unit not in CHANNEL_BOUNDS:
+            return gain  # the unit's own error is reported
+        low, high, _, signed = CHANNEL_BOUNDS[unit]
+        if gain == 0:
             raise ValueError("gain must be non-zero")
-        return self
+        if gain < 0 and not signed:
+            raise ValueError(f"gain {gain:g} {unit} per count: a displacement probe's gain must be positive")
+        if not low <= abs(gain) <= high:
+            raise ValueError(f"gain {gain:g} {unit} per count is not physical: |gain| between {low:g} and "
+                             f"{high:g} {unit} per count (full scale {low * 32768:.3g}..{high * 32768:.3g} {unit})")
+        return gain
+
+    @field_validator("offset")
+    @classmethod
+    def _physical_offset(cls, offset: float, info: ValidationInfo) -> float:
+        bound = CHANNEL_BOUNDS.get(info.data.get("unit"), (0, 0, float("inf"), True))[2]
+        if abs(offset) > bound:
+            raise ValueError(f"offset {offset:g} is not physical: |offset| at most {bound:g} {info.data['unit']}")
+        return offset
 
 
 class Bearing(_Model):

@@ -11,7 +11,11 @@ and a websocket feed per browser.
   ``signed_out``); page -> server ``{"type": "active"}`` on user activity.
 
 A session ends on sign-out or after ``idle_timeout`` s without a request or
-user activity. Passwords appear in no log, URL or page storage.
+user activity; a user's new sign-in beyond ``sessions_per_user`` ends that user's
+oldest session. Refused sign-ins are throttled per user name and client address
+(orbitrig.dashboard.throttle: 429 while a delay or a lockout lasts); every request
+must be read within ``request_timeout`` s (orbitrig.dashboard.guard). Passwords
+appear in no log, URL or page storage.
 """
 
 from __future__ import annotations
@@ -26,13 +30,16 @@ from typing import Any
 
 from aiohttp import WSMsgType, web
 
+from orbitrig.dashboard.guard import RequestDeadline
 from orbitrig.dashboard.session import DashboardSettings, Feed, Session, SignInRefused
+from orbitrig.dashboard.throttle import SignInThrottle
 
 log = logging.getLogger("orbitrig.dashboard")
 
 STATIC = Path(__file__).resolve().parent / "static"
 COOKIE = "orbitrig_session"
 MAX_SESSIONS = 64
+KEEPALIVE_S = 15.0  # an idle keep-alive connection is closed after this (s)
 SECURITY_HEADERS = {
     "Cache-Control": "no-store",
     "Content-Security-Policy": "default-src 'self'; img-src 'self' data:; frame-ancestors 'none'",
@@ -43,6 +50,7 @@ SECURITY_HEADERS = {
 
 SESSIONS = web.AppKey("sessions", dict)
 SETTINGS = web.AppKey("settings", DashboardSettings)
+THROTTLE = web.AppKey("throttle", SignInThrottle)
 
 
 @web.middleware
@@ -77,25 +85,41 @@ async def login(request: web.Request) -> web.Response:
     user, password = body.get("user"), body.get("password")
     if not isinstance(user, str) or not isinstance(password, str) or not user or not password:
         return web.json_response({"error": "give a user name and a password"}, status=400)
+    throttle, address = request.app[THROTTLE], request.remote or "?"
+    if (why := throttle.refusal(user, address)) is not None:
+        log.info("sign-in of %r from %s not tried: %s", user, address, why)
+        return web.json_response({"error": why}, status=429)
     sessions: dict[str, Session] = request.app[SESSIONS]
-    if len(sessions) >= MAX_SESSIONS:
+    if len(sessions) - len(_oldest_beyond_cap(request.app, user)) >= MAX_SESSIONS:
         return web.json_response({"error": "too many sessions: sign out elsewhere first"}, status=503)
     session = Session(request.app[SETTINGS], user, password)
     del password, body
     try:
         await session.open()
     except SignInRefused as err:
-        log.info("sign-in of %r refused: %s", user, err)
+        if err.credentials:
+            throttle.failed(user, address)
+        log.info("sign-in of %r from %s refused: %s", user, address, err)
         return web.json_response({"error": str(err)}, status=401)
+    throttle.succeeded(user)
     old = _session(request)
     if old is not None:
         await _end(request.app, old, "signed in again")
+    for oldest in _oldest_beyond_cap(request.app, user):
+        await _end(request.app, oldest, "the same user signed in elsewhere (oldest session ended)")
     sessions[session.token] = session
     log.info("%r signed in (%d sessions)", user, len(sessions))
     response = web.json_response({"user": user, "prefix": session.settings.topics.prefix})
     response.set_cookie(COOKIE, session.token, httponly=True, samesite="Strict", path="/",
                         secure=request.secure)
     return response
+
+
+def _oldest_beyond_cap(app: web.Application, user: str) -> list[Session]:
+    """The sessions of `user` to end so that a new one keeps them within sessions_per_user
+    (the oldest first: the sessions dict keeps the sign-in order)."""
+    own = [s for s in app[SESSIONS].values() if s.user == user]
+    return own[:max(0, len(own) - app[SETTINGS].sessions_per_user + 1)]
 
 
 async def logout(request: web.Request) -> web.Response:
@@ -180,6 +204,13 @@ async def _reaper(app: web.Application) -> None:
         await asyncio.sleep(min(1.0, limit / 4))
 
 
+async def _end_all(app: web.Application) -> None:
+    """On shutdown, before aiohttp waits for the open connections: every session ends, so
+    the pages' live feeds close instead of holding the stop for the shutdown timeout."""
+    for session in list(app[SESSIONS].values()):
+        await _end(app, session, "dashboard stopped")
+
+
 async def _background(app: web.Application) -> Any:
     task = asyncio.create_task(_reaper(app), name="dashboard-reaper")
     yield
@@ -193,6 +224,7 @@ def make_app(settings: DashboardSettings) -> web.Application:
     app = web.Application(middlewares=[_headers], client_max_size=64 * 1024)
     app[SESSIONS] = {}
     app[SETTINGS] = settings
+    app[THROTTLE] = SignInThrottle(settings.throttle)
     app.router.add_get("/", index)
     app.router.add_static("/static", STATIC, follow_symlinks=False)
     app.router.add_post("/api/login", login)
@@ -201,19 +233,23 @@ def make_app(settings: DashboardSettings) -> web.Application:
     app.router.add_post("/api/cmd", command)
     app.router.add_get("/api/feed", feed)
     app.cleanup_ctx.append(_background)
+    app.on_shutdown.append(_end_all)
     return app
 
 
 async def serve(settings: DashboardSettings, host: str, port: int, shutdown: asyncio.Event, *,
                 ssl_context: Any = None) -> None:
     """Serve until ``shutdown`` is set (HTTPS with ``ssl_context``)."""
-    runner = web.AppRunner(make_app(settings), access_log=None)
+    runner = web.AppRunner(make_app(settings), access_log=None, keepalive_timeout=KEEPALIVE_S)
     await runner.setup()
-    site = web.TCPSite(runner, host, port, ssl_context=ssl_context)
-    await site.start()
+    handler = runner.server
+    assert handler is not None
+    server = await asyncio.get_running_loop().create_server(
+        lambda: RequestDeadline(handler(), settings.request_timeout), host, port, ssl=ssl_context)
     log.info("dashboard on %s://%s:%d/ (broker %s:%d, topics %s/#)", "https" if ssl_context else "http", host,
              port, settings.host, settings.port, settings.topics.prefix)
     try:
         await shutdown.wait()
     finally:
+        server.close()
         await runner.cleanup()

@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 import orbitrig.service.protocol as proto
+from orbitrig.dashboard.throttle import ThrottlePolicy
 
 log = logging.getLogger("orbitrig.dashboard")
 
@@ -38,12 +39,17 @@ NOT_AUTHORISED = "refused: not authorised"
 
 
 class SignInRefused(Exception):
-    """The broker refused the person's credentials, or cannot be reached."""
+    """The broker refused the person's credentials (`credentials`), or cannot be reached."""
+
+    def __init__(self, message: str, credentials: bool):
+        super().__init__(message)
+        self.credentials = credentials
 
 
 @dataclasses.dataclass(frozen=True)
 class DashboardSettings:
-    """Broker address, topic prefix and the dashboard's times (s)."""
+    """Broker address, topic prefix, the dashboard's times (s) and limits: sessions per broker
+    user, sign-in throttling (orbitrig.dashboard.throttle), the read deadline of a request."""
 
     host: str
     port: int
@@ -53,6 +59,9 @@ class DashboardSettings:
     idle_timeout: float = 1800.0
     reply_timeout: float = 3.0
     keepalive: int = 10
+    sessions_per_user: int = 4
+    throttle: ThrottlePolicy = ThrottlePolicy()
+    request_timeout: float = 10.0
 
 
 class Feed:
@@ -147,7 +156,7 @@ class Session:
                 if not first.done():
                     first.set_exception(SignInRefused(
                         "refused: wrong user name or password" if refused
-                        else f"cannot reach the broker {self.settings.host}:{self.settings.port}"))
+                        else f"cannot reach the broker {self.settings.host}:{self.settings.port}", refused))
                     return
                 if refused:
                     log.warning("broker no longer accepts %r: session ended", self.user)

@@ -306,7 +306,8 @@ class RunEngine:
     async def _make_safe(self, io: RigIO, store: RunStore, status: str, message: str) -> tuple[str, str]:
         """Every exit path: drives to a safe stop first, then the links, then storage; each
         failure logged, the rest still done. A failure is reported (state faulted) once the
-        drives are safe. Returns the outcome (an abort while stopping makes it aborted)."""
+        drives are safe. Returns the final (status, message): aborted after an abort while
+        stopping; failed when the run's status and run.h5 could not be recorded."""
         if self.state != STOPPING:
             self._control.fire("finish", message)
         emergency = status in (ABORTED, FAILED)
@@ -327,20 +328,33 @@ class RunEngine:
         if status == FAILED:  # reported once the drives are safe
             self._control.fire("fail", message)
         self.timing["wall"] = time.monotonic() - self._t0
-        for what, action in (("write the run status", lambda: store.set_status(status, message)),
-                             ("write coefficients.csv", store.write_csv),
+        ended = self._record_end(store, status, message)
+        if ended != (status, message):
+            self._control.fire("fail", ended[1])
+        elif status != FAILED:
+            self._control.fire("done", f"run {self.run_id} {status}: {message}")
+        return ended
+
+    async def _stop_drives(self, drives, emergency: bool, timeout: float) -> None:
+        _, line = await stop_drives(drives, self._control.aborted, emergency=emergency, timeout=timeout)
+        self._log_event(line)
+
+    def _record_end(self, store: RunStore, status: str, message: str) -> tuple[str, str]:
+        """The run's status, run.h5, coefficients.csv and run.log's last line. A run whose
+        status or run.h5 cannot be written ends failed, whatever it was (the reason said)."""
+        try:
+            store.set_status(status, message)
+        except Exception as err:  # noqa: BLE001 - the other records are still written
+            self._cleanup_failed("write the run status and run.h5", err)
+            if status != FAILED:  # a failed run keeps its first cause
+                status, message = FAILED, f"storage failed: the run's status and run.h5 could not be written: {err}"
+        for what, action in (("write coefficients.csv", store.write_csv),
                              ("close the run log", lambda: store.log(f"run {self.run_id} ended: {status}: {message}"))):  # fmt: skip
             try:
                 action()
             except Exception as err:  # noqa: BLE001
                 self._cleanup_failed(what, err)
-        if status != FAILED:
-            self._control.fire("done", f"run {self.run_id} {status}: {message}")
         return status, message
-
-    async def _stop_drives(self, drives, emergency: bool, timeout: float) -> None:
-        _, line = await stop_drives(drives, self._control.aborted, emergency=emergency, timeout=timeout)
-        self._log_event(line)
 
     def _cleanup_failed(self, what: str, err: BaseException) -> None:
         log.error("cleanup: cannot %s: %s: %s", what, type(err).__name__, err)

@@ -116,8 +116,15 @@ def columns(rows: list[dict]) -> list[str]:
 
 def render(rows: list[dict]) -> bytes:
     """The whole file's bytes (UTF-8, header + one line per row)."""
+    return render_table(columns(rows), rows)
+
+
+def render_table(fieldnames: list[str], rows: list[dict]) -> bytes:
+    """A coefficients-layout CSV's bytes: the header `fieldnames`, one line per row (missing
+    cells empty, keys not in `fieldnames` ignored). The one writer of coefficients.csv and of
+    `orbitrig reduce`'s file; write the bytes with orbitrig.store.durable.write_atomic."""
     buf = io.StringIO(newline="")
-    w = csv.DictWriter(buf, fieldnames=columns(rows), restval="", extrasaction="ignore", lineterminator="\n")
+    w = csv.DictWriter(buf, fieldnames=fieldnames, restval="", extrasaction="ignore", lineterminator="\n")
     w.writeheader()
     w.writerows(rows)
     return buf.getvalue().encode("utf-8")

@@ -2,7 +2,9 @@
 
 `write_atomic` writes the bytes to ``NAME.tmp``, flushes and fsyncs them, renames the
 file into place and fsyncs the directory, so a kill or a power cut at any instant
-leaves the old state or the new one, never a mixture. `append_line` adds one line to
+leaves the old state or the new one, never a mixture. ``NAME.tmp`` is created new
+(``O_CREAT | O_EXCL | O_NOFOLLOW``): a leftover (a file, or a symbolic link planted
+there) is removed first, never followed, so no write lands outside the directory entry. `append_line` adds one line to
 an append-only log and fsyncs it; `read_lines` returns the lines whose newline made
 it to disk and counts a torn tail (or any line that does not parse) instead of failing.
 
@@ -26,6 +28,8 @@ from pathlib import Path
 from orbitrig.store.errors import StorageError, storage_error
 
 TMP_SUFFIX = ".tmp"
+#: an append-only log: created when missing, a symbolic link at its name refused (never followed)
+APPEND_FLAGS = os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC
 _names = itertools.count()
 _name_lock = threading.Lock()
 
@@ -59,10 +63,7 @@ def write_atomic(path: Path, data: bytes | memoryview) -> dict:
     previous content of `path` (if any) is untouched."""
     path = Path(path)
     tmp = path.with_name(path.name + TMP_SUFFIX)
-    try:
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-    except OSError as err:
-        raise storage_error(tmp, "create", err) from err
+    fd = create_new(tmp)
     try:
         try:
             _write_all(fd, data)
@@ -78,6 +79,22 @@ def write_atomic(path: Path, data: bytes | memoryview) -> dict:
     return {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
 
 
+def create_new(tmp: Path) -> int:
+    """Open a fresh temporary file for writing (0o644): a leftover at `tmp` (file or symbolic
+    link) is unlinked, never followed; the open itself refuses anything there
+    (``O_EXCL | O_NOFOLLOW``), so a link planted in between makes a StorageError, not a write."""
+    try:
+        os.unlink(tmp)
+    except FileNotFoundError:
+        pass
+    except OSError as err:
+        raise storage_error(tmp, "remove the leftover temporary file", err) from err
+    try:
+        return os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+    except OSError as err:
+        raise storage_error(tmp, "create", err) from err
+
+
 def append_lines(path: Path, lines: list[str]) -> None:
     """Append `lines` (no newline inside any) in one write and fsync. A torn write leaves
     a partial last line that `read_lines` ignores; the next append starts on a fresh line."""
@@ -85,7 +102,7 @@ def append_lines(path: Path, lines: list[str]) -> None:
         return
     data = "".join(line + "\n" for line in lines).encode("utf-8")
     try:
-        fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        fd = os.open(path, APPEND_FLAGS, 0o644)
     except OSError as err:
         raise storage_error(path, "open for appending", err) from err
     try:

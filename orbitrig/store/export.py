@@ -11,47 +11,59 @@ adequacy, the simulator's truth, and (mat, tdms, h5) the averaged waveforms:
 - ``h5``: ``run.h5``, the consolidated single file (docs/storage.md).
 
 Every file is written to a temporary name and renamed into place; every failure
-is a StorageError naming the file.
+is a StorageError naming the file. Every point asked for and not exported is named
+(orbitrig.store.selection).
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
 
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
 from orbitrig.store.layout import RunLayout
 from orbitrig.store.reader import read_run
+from orbitrig.store.selection import Selection, select_points
 
 FORMATS = ("csv", "mat", "tdms", "h5")
 EXPORT_DIR = "export"
 
 
-def export_run(directory: str | Path, fmt: str, out: str | Path | None = None) -> list[Path]:
-    """Write the export of the run in `directory` as `fmt` into `out` (default DIR/export).
-    Returns the files written. Raises RunDirError (not a run) or StorageError."""
+@dataclass
+class Exported:
+    """The files written and the points selected (with the skipped ones named)."""
+
+    files: list[Path]
+    selection: Selection
+
+
+def export_run(directory: str | Path, fmt: str, out: str | Path | None = None,
+               points: Iterable[int] | None = None) -> Exported:
+    """Write the export of the run in `directory` as `fmt` into `out` (default DIR/export):
+    the complete points among `points` (None: all; h5 always holds the whole run).
+    Raises RunDirError (not a run) or StorageError."""
     if fmt not in FORMATS:
         raise ValueError(f"unknown format {fmt!r}: one of {', '.join(FORMATS)}")
     layout = RunLayout(Path(directory))
     out = Path(out) if out is not None else layout.dir / EXPORT_DIR
-    if fmt == "h5":
-        run = read_run(layout.dir)  # a RunDirError for what is not a run
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-        except OSError as err:
-            raise storage_error(out, "create the export directory", err) from err
-        return [_export_h5(layout, out)]
-    run = read_run(layout.dir)
-    points = [p for p in run.complete_points if p.tables]
+    run = read_run(layout.dir)  # a RunDirError for what is not a run
+    selection = select_points(run, None if fmt == "h5" else points)
+    for p in [p for p in selection.points if not p.tables]:
+        selection.skip(p, "no orbit table stored")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise storage_error(out, "create the export directory", err) from err
+    if fmt == "h5":
+        return Exported([_export_h5(layout, out)], selection)
     from orbitrig.store.export_csv import export_csv
     from orbitrig.store.export_mat import export_mat
     from orbitrig.store.export_tdms import export_tdms
 
-    return {"csv": export_csv, "mat": export_mat, "tdms": export_tdms}[fmt](run, points, out)
+    write = {"csv": export_csv, "mat": export_mat, "tdms": export_tdms}[fmt]
+    return Exported(write(run, selection.points, out), selection)
 
 
 def _export_h5(layout: RunLayout, out: Path) -> Path:

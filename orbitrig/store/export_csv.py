@@ -23,7 +23,6 @@ from orbitrig.store import export_content as content
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.fit_record import BUDGET_PARTS, point_fits
 from orbitrig.store.orbit_table import write_orbit_table
-from orbitrig.store.errors import storage_error
 
 FIT_HEAD = ["point", "lms", "model", "freq_dep", "method", "name", "unit", "value", "std", "U",
             *BUDGET_PARTS, "e_n [1]", "true", "error"]  # fmt: skip
@@ -80,13 +79,7 @@ def export_csv(run, points: list, out: Path) -> list[Path]:
     for p in points:
         for lms, table in p.tables.items():
             path = out / f"point_{p.name}_{lms}.csv"
-            tmp = path.with_name(path.name + ".tmp")
-            try:
-                write_orbit_table(tmp, table, units=True)
-                tmp.replace(path)
-            except OSError as err:
-                tmp.unlink(missing_ok=True)
-                raise storage_error(path, "write", err) from err
+            write_orbit_table(path, table, units=True)  # durable: a StorageError names the file
             files.append(path)
     path = out / "coefficients.csv"
     write_atomic(path, csvfile.render([row for p in points for row in csvfile.point_rows(p, run.sim)]))

@@ -15,6 +15,10 @@ from orbitrig.store.errors import StorageError
 from orbitrig.store.layout import COMMIT_FILE, POINT_FILE, RunLayout
 
 
+#: the problem of a point whose run never committed it (stopped, killed, still running)
+NEVER_COMPLETED = "never completed (no commit record)"
+
+
 @dataclass(frozen=True)
 class PointState:
     index: int
@@ -41,7 +45,7 @@ def point_state(layout: RunLayout, index: int) -> PointState:
     """Check one point directory against its commit record."""
     path = layout.commit_file(index)
     if not path.is_file():
-        return PointState(index, False, "never completed (no commit record)")
+        return PointState(index, False, NEVER_COMPLETED)
     try:
         rec = json.loads(path.read_bytes())
         files = rec["files"]

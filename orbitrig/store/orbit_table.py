@@ -213,12 +213,16 @@ def orbit_table_columns(table: OrbitTable, direction: bool = False) -> dict[str,
 
 def write_orbit_table(path: str | Path, table: OrbitTable, units: bool = False) -> None:
     """Write ``table`` as an orbit table CSV (full float precision; gamma2, n_records and u_*
-    when present). ``units``: each header field states its unit (``orbit_hz [Hz]``) and a
-    ``direction`` column follows (+1 forward, -1 backward whirl; readers ignore it)."""
+    when present), durably (orbitrig.store.durable.write_atomic; a StorageError names the file).
+    ``units``: each header field states its unit (``orbit_hz [Hz]``) and a ``direction``
+    column follows (+1 forward, -1 backward whirl; readers ignore it)."""
+    from orbitrig.store.durable import write_atomic
+
     cols = orbit_table_columns(table, direction=units)
-    with open(path, "w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow([f"{name} [{unit}]" if units else name for name, (_, unit) in cols.items()])
-        for k in range(table.n):
-            w.writerow([str(int(v[k])) if name in (RECORDS, "direction") else repr(float(v[k]))
-                        for name, (v, _) in cols.items()])
+    fh = io.StringIO(newline="")
+    w = csv.writer(fh, lineterminator="\r\n")
+    w.writerow([f"{name} [{unit}]" if units else name for name, (_, unit) in cols.items()])
+    for k in range(table.n):
+        w.writerow([str(int(v[k])) if name in (RECORDS, "direction") else repr(float(v[k]))
+                    for name, (v, _) in cols.items()])
+    write_atomic(Path(path), fh.getvalue().encode("utf-8"))

@@ -24,6 +24,7 @@ import numpy as np
 
 from orbitrig.errors import OrbitrigError
 from orbitrig.store.layout import COHERENCE_PAIRS, READABLE_FORMATS, RUN_FILE, RunLayout  # noqa: F401
+from orbitrig.store.index import NEVER_COMPLETED
 
 
 class RunDirError(OrbitrigError):
@@ -102,6 +103,7 @@ class Point:
     identifications: list[StoredIdentification] = field(default_factory=list)
     truth: dict[str, Any] | None = None
     lms_comparison: Any = None
+    problem: str = ""  # why the point is not complete ("" when complete; orbitrig.store.index)
 
     def identification(self, lms: str, model: str, freq_dep: str) -> StoredIdentification | None:
         for ident in self.identifications:
@@ -235,8 +237,10 @@ def _read_pieces(layout: RunLayout) -> Run:
     if isinstance(scenario, dict):
         run.sim_scenario_name, run.sim_scenario_config = str(scenario.get("name", "")), str(scenario.get("text", ""))
     for index in layout.point_indexes():
+        state = point_state(layout, index)
         try:
-            point = read_point(layout, index, complete=point_state(layout, index).complete, skipped=run.unreadable)
+            point = read_point(layout, index, complete=state.complete, skipped=run.unreadable)
+            point.problem = state.problem
         except RunDirError as err:
             if err.file != str(layout.point_file(index)):
                 raise
@@ -284,8 +288,9 @@ def _new_point(a, name: str) -> Point:
         orbit_radius=float(a.get("orbit_radius", np.nan)),
         label=_text(a.get("label"), name),
     )
-    return Point(index=int(a.get("index", int(name))), name=name, complete=bool(a.get("complete", False)),
-                 settings=settings)  # fmt: skip
+    complete = bool(a.get("complete", False))
+    return Point(index=int(a.get("index", int(name))), name=name, complete=complete, settings=settings,
+                 problem="" if complete else NEVER_COMPLETED)  # fmt: skip
 
 
 def _frequency(name: str, fg) -> Frequency:

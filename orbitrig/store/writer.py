@@ -25,9 +25,9 @@ from orbitrig.run.plan import OperatingPoint
 from orbitrig.store import csvfile, journal, pieces
 from orbitrig.store.consolidate import RunImage, read_header
 from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F401  (the CSV's public names)
-from orbitrig.store.durable import TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
+from orbitrig.store.durable import APPEND_FLAGS, TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
 from orbitrig.store.errors import StorageError, StorageFullError, storage_error  # noqa: F401
-from orbitrig.store.index import commit_record, point_state, scan
+from orbitrig.store.index import NEVER_COMPLETED, commit_record, point_state, scan
 from orbitrig.store.journal import now_iso  # noqa: F401  (the engine's timestamps)
 from orbitrig.store.layout import FORMAT, RunLayout, point_name
 from orbitrig.store.reader import RunDirError, read_point
@@ -137,7 +137,7 @@ class RunStore:
             if st.complete:
                 done.append(st.index)
             else:
-                self._put_aside(st.index, "incomplete" if "never completed" in st.problem else "damaged", st.problem)
+                self._put_aside(st.index, "incomplete" if st.problem == NEVER_COMPLETED else "damaged", st.problem)
         for tmp in self.dir.glob(f"*{TMP_SUFFIX}"):
             with contextlib.suppress(OSError):
                 tmp.unlink()
@@ -202,10 +202,18 @@ class RunStore:
         self.write_csv()
 
     def set_status(self, status: str, message: str = "") -> None:
-        """Record the run's status; a final status (not 'running') also consolidates run.h5."""
+        """Record the run's status; a final status (not 'running') also consolidates run.h5.
+        When run.h5 cannot be written the journal records the run as failed (best effort:
+        the disk may be full) and the StorageError is raised."""
         self._journal([journal.status_line(status, message)])
-        if status != "running":
+        if status == "running":
+            return
+        try:
             self.finalize()
+        except StorageError as err:
+            with contextlib.suppress(StorageError):
+                self._journal([journal.status_line("failed", f"run.h5 could not be written: {err}")])
+            raise
 
     def flush_logs(self) -> None:
         self._journal([])
@@ -248,7 +256,7 @@ class RunStore:
         """A line of the human-readable run.log (best effort: a full disk must not stop the run)."""
         stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
         try:
-            with open(self.log_path, "a", encoding="utf-8") as fh:
+            with open(os.open(self.log_path, APPEND_FLAGS, 0o644), "a", encoding="utf-8") as fh:
                 fh.write(f"{stamp} {message}\n")
         except OSError as err:
             if not self._log_failed:

@@ -41,12 +41,12 @@ def test_bad_rig_value_names_file_line_and_key(old, new, key, message):
 
 
 def test_table_level_error_points_at_the_table_and_does_not_dump_it():
-    text = RIG_TEXT.replace("gain = 5e-9", "gain = 0", 1)  # channel 4
+    text = RIG_TEXT.replace("orbit_id = 2", "orbit_id = 1", 1)
     with pytest.raises(ConfigError) as info:
         cfg.rig_from_text(text, "bad_rig.toml")
     (problem,) = info.value.problems
-    header = [n for n, line in enumerate(text.splitlines(), 1) if line.startswith("[[channels]]")][4]
-    assert problem == f"line {header}: key 'channels[4]': gain must be non-zero"
+    header = [n for n, line in enumerate(text.splitlines(), 1) if line.startswith("[drives]")][0]
+    assert problem == f"line {header}: key 'drives': spin_id and orbit_id must differ"
 
 
 def test_missing_matrix_key_names_its_table_line():

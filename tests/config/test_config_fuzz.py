@@ -91,6 +91,8 @@ def _check_refusal(err: ConfigError, tmp: Path) -> None:
 @example(rig=RIG_TEXT, matrix=MATRIX_TEXT.replace(b"[1000.0]", b"[1e308]"))
 @example(rig=RIG_TEXT.replace(b"[bearing]", b"[bearing]\xff"), matrix=MATRIX_TEXT + b"\n\xc3")
 @example(rig=RIG_TEXT, matrix=MATRIX_TEXT.replace(b"[0.3,", b"[" * 3000 + b"]" * 3000 + b" # [0.3,"))
+@example(rig=RIG_TEXT, matrix=MATRIX_TEXT.replace(b"[0.3, 0.5, 0.7, 0.9, 1.2]", b"[]"))
+@example(rig=RIG_TEXT.replace(b"gain = 0.1", b"gain = 1e308", 1), matrix=MATRIX_TEXT)
 def test_mutated_files_load_or_are_refused_by_name(tmp_path, rig, matrix):
     r, m, problems = _load_both(tmp_path, rig, matrix)
     for err in problems:
@@ -106,6 +108,29 @@ def test_mutated_files_load_or_are_refused_by_name(tmp_path, rig, matrix):
         return
     total = summarize(steps).duration
     assert math.isfinite(total) and format_duration(total)
+
+
+DESIGN_TEXT = (REPO / "config" / "designs" / "kcd11-demo.toml").read_bytes()
+DESIGN_MATRIX = MATRIX_TEXT.replace(b"ratios = [0.3, 0.5, 0.7, 0.9, 1.2]", b'design = "d.toml"').replace(
+    b'directions = ["forward", "backward"]', b"")
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(design=mutated(DESIGN_TEXT))
+@example(design=DESIGN_TEXT.replace(b"[0.65, 1.5]", b"[0.65]").replace(b"[163, 63]", b"[163]"))
+@example(design=DESIGN_TEXT.replace(b"[0.65, 1.5]", b"[0.65, 1e308]"))
+def test_mutated_design_files_load_or_are_refused_by_name(tmp_path, design):
+    (tmp_path / "d.toml").write_bytes(design)
+    r, m, problems = _load_both(tmp_path, RIG_TEXT, DESIGN_MATRIX)
+    for err in problems:
+        _check_refusal(err, tmp_path)
+    if m is None:
+        return
+    assert len(m.orbit.ratio_list) >= 2 and all(0 < x <= 100 for x in m.orbit.ratio_list)
+    try:
+        assert math.isfinite(summarize(make_plan(m, r).steps).duration)
+    except ConfigError as err:
+        _check_refusal(err, tmp_path)
 
 
 def _floats(model) -> list[float]:
@@ -129,6 +154,15 @@ CLI_CASES = [
     (RIG_TEXT.replace(b"[bearing]", b"[bearing]\n# caf\xe9"), MATRIX_TEXT, 2, "not UTF-8 text"),
     (RIG_TEXT, MATRIX_TEXT.replace(b"[1000.0]", b"[nan]"), 2, "key 'operating.spin_rpm[0]'"),
     (RIG_TEXT, MATRIX_TEXT.replace(b'name = "demo"', b"name = 3"), 2, "key 'name'"),
+    (RIG_TEXT, MATRIX_TEXT.replace(b"[0.3, 0.5, 0.7, 0.9, 1.2]", b"[]"), 2, "key 'orbit': 'ratios' has 0 value(s)"),
+    (RIG_TEXT, MATRIX_TEXT.replace(b"[0.3, 0.5, 0.7, 0.9, 1.2]", b"[0.5]"), 2, "give at least 2 orbit frequencies"),
+    (RIG_TEXT, MATRIX_TEXT.replace(b"ratios = [0.3, 0.5, 0.7, 0.9, 1.2]",
+                                   b"ratio_start = 0.3\nratio_stop = 0.9\ncount = 1"), 2, "key 'orbit.count'"),
+    (RIG_TEXT.replace(b"gain = 0.1", b"gain = 1e308", 1), MATRIX_TEXT, 2, "key 'channels[0].gain': gain 1e+308"),
+    (RIG_TEXT.replace(b"gain = 0.1", b"gain = 0", 1), MATRIX_TEXT, 2, "key 'channels[0].gain': gain must be non-zero"),
+    (RIG_TEXT.replace(b"gain = 5e-9", b"gain = -5e-9", 1), MATRIX_TEXT, 2, "key 'channels[4].gain'"),
+    (RIG_TEXT.replace(b"offset = 0.0", b"offset = 1e300", 1), MATRIX_TEXT, 2, "key 'channels[0].offset'"),
+    (RIG_TEXT.replace(b"gain = 0.1", b"gain = -0.1", 1), MATRIX_TEXT, 0, ""),  # a load cell's sign
 ]
 
 
@@ -141,3 +175,5 @@ def test_cli_dry_run_exits_0_or_2_with_a_message(tmp_path, rig, matrix, code, sa
                           cwd=REPO, capture_output=True, text=True, timeout=120)
     assert done.returncode == code, done.stderr[-2000:]
     assert "Traceback" not in done.stderr and says in done.stderr
+    if code == 2:  # one line naming the file and the line
+        assert re.fullmatch(r"error: \S+\.toml: line \d+: [^\n]+\n", done.stderr), done.stderr

@@ -84,10 +84,11 @@ def test_coefficient_units():
     assert coefficient_unit("Dxx") == ("kg", 1.0)
 
 
-@pytest.mark.parametrize("point", ["2", "7"])
-def test_cli_report_point_not_complete(synthetic_run, point):
-    result = CliRunner().invoke(app, ["report", str(synthetic_run), "--point", point])
-    assert result.exit_code == 2 and "no complete operating point" in result.stderr
+@pytest.mark.parametrize("point, why", [("2", "point 0002 skipped: never completed"),
+                                        ("7", "point 0007 skipped: no such point in the run")])
+def test_cli_report_point_not_complete(synthetic_run, point, why):
+    result = CliRunner().invoke(app, ["report", str(synthetic_run), "--point", point, "--figures", "coefficients"])
+    assert result.exit_code == 1 and f"error: {why}" in result.stderr, result.output
 
 
 def test_cli_report_bad_directory(tmp_path):

@@ -1,0 +1,64 @@
+"""The operating points a command over a stored run (`export`, `report`) works on, and
+every point it skips, named with the reason.
+
+Asked for: the points given (``--point N``), or, without them, every point the run
+committed (a commit record exists). A point asked for that is not complete (damaged,
+missing, unreadable) is *skipped*: named, and the command exits non-zero. A point the
+run never committed (a stopped or interrupted run) is only *noted* when nobody asked
+for it by number.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+from orbitrig.store.index import NEVER_COMPLETED
+from orbitrig.store.layout import point_name
+from orbitrig.store.reader import Point, Run
+
+
+@dataclass
+class Selection:
+    """The complete points to work on (ascending), the skipped ones and the notes (messages)."""
+
+    points: list[Point]
+    skipped: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+    def skip(self, point: Point, reason: str) -> None:
+        """Drop `point` from the selection (e.g. it has no orbit table), naming why."""
+        self.points = [p for p in self.points if p.index != point.index]
+        self.skipped.append(f"point {point.name} skipped: {reason}")
+
+
+def _unreadable_of(run: Run, name: str) -> list[str]:
+    """The run's unreadable-file messages that belong to point directory `name`."""
+    return [u for u in run.unreadable if f"/{name}/" in u or f"/{name}." in u]
+
+
+def select_points(run: Run, wanted: Iterable[int] | None = None) -> Selection:
+    """The complete points of `run` among `wanted` (None: all), and what is skipped."""
+    by_index = {p.index: p for p in run.points}
+    if wanted is None:
+        sel = Selection([p for p in run.points if p.complete])
+        for p in run.points:
+            if p.complete:
+                continue
+            (sel.notes if p.problem == NEVER_COMPLETED else sel.skipped).append(
+                f"point {p.name} {'not included' if p.problem == NEVER_COMPLETED else 'skipped'}: {p.problem}")
+        listed = {p.name for p in run.points}
+        sel.skipped += [f"skipped: unreadable {u}" for u in run.unreadable
+                        if not any(f"/{name}/" in u for name in listed)]
+        return sel
+    sel = Selection([])
+    for index in sorted(set(wanted)):
+        p = by_index.get(index)
+        if p is not None and p.complete:
+            sel.points.append(p)
+            continue
+        name = point_name(index) if p is None else p.name
+        why = p.problem if p is not None else "no such point in the run"
+        details = _unreadable_of(run, name)
+        sel.skipped.append(f"point {name} skipped: {why}" + "".join(f"; unreadable {u}" for u in details))
+    return sel

@@ -1,0 +1,99 @@
+"""What a run and the commands over it say when the disk says no: a run whose run.h5
+does not fit ends failed (exit 1), never completed; `report` and `reduce` on a full or
+read-only disk give one line and exit 1; `export` and `report` name every point they
+skip (a damaged block) and exit 1 when one was asked for."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+
+import pytest
+from typer.testing import CliRunner
+
+from orbitrig.cli import app
+from orbitrig.store.reader import read_run
+
+from store_checks import ROOT, fill, orbitrig_cmd, small_matrix
+
+pytestmark = pytest.mark.timeout(240)
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 480 kB tmpfs: one small point's pieces fit (about 330 kB), run.h5 beside them does not."""
+    mnt = tmp_path / "disk"
+    mnt.mkdir()
+    subprocess.run(["mount", "-t", "tmpfs", "-o", "size=480k", "tmpfs", str(mnt)], check=True)
+    try:
+        yield mnt
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], check=False)
+
+
+def _one_line_error(r: subprocess.CompletedProcess, says: str) -> None:
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "Traceback" not in r.stderr, r.stderr
+    errors = [line for line in r.stderr.splitlines() if line.startswith("error: ")]
+    assert len(errors) == 1 and says in errors[0], r.stderr
+
+
+def test_no_room_for_run_h5_fails_the_run_and_full_or_read_only_disks_fail_in_one_line(small_disk, tmp_path):
+    matrix = tmp_path / "one.toml"
+    matrix.write_text(small_matrix("one", revolutions=20, spin_rpm=(1000.0,)))
+    out = small_disk / "run"
+    r = subprocess.run(orbitrig_cmd("sweep", "--sim", "--matrix", str(matrix), "--out", str(out)), cwd=ROOT,
+                       capture_output=True, text=True, timeout=180, stdin=subprocess.DEVNULL)
+    text = " ".join((r.stdout + r.stderr).split())  # the summary is wrapped to the terminal
+    assert r.returncode == 1, text
+    assert "run failed" in text and "run.h5 could not be written" in text and "run completed" not in text, text
+    assert not (out / "run.h5").exists()
+    run = read_run(out)
+    assert run.status == "failed" and "run.h5 could not be written" in run.status_message
+    assert [p.complete for p in run.points] == [True]  # the measured point is kept
+
+    fill(small_disk)  # now nothing fits
+    for args, says in ((["reduce", str(out), "--model", "kc8"], "No space left on device"),
+                       (["report", str(out), "--figures", "coefficients"], "No space left on device")):
+        _one_line_error(subprocess.run(orbitrig_cmd(*args), cwd=ROOT, capture_output=True, text=True, timeout=120),
+                        says)
+    (small_disk / "filler").unlink()
+    subprocess.run(["mount", "-o", "remount,ro", str(small_disk)], check=True)
+    for args in (["reduce", str(out), "--model", "kc8"], ["report", str(out), "--figures", "coefficients"]):
+        _one_line_error(subprocess.run(orbitrig_cmd(*args), cwd=ROOT, capture_output=True, text=True, timeout=120),
+                        "Read-only file system")
+
+
+def _damage(run, name: str) -> None:
+    path = run / "points" / "0000" / name
+    data = bytearray(path.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    path.write_bytes(bytes(data))
+
+
+def test_export_and_report_name_a_point_with_a_damaged_block(synthetic, tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(synthetic, run)
+    _damage(run, "03_fwd.h5")
+    runner = CliRunner()
+    r = runner.invoke(app, ["export", str(run), "--out", str(tmp_path / "all")])
+    assert r.exit_code == 1, r.output
+    assert "error: point 0000 skipped: 03_fwd.h5 is damaged" in r.stderr
+    assert "point 0002 not included: never completed" in r.stderr  # the stopped run's last point: a note
+    assert sorted(p.name for p in (tmp_path / "all").iterdir()) == ["coefficients.csv", "point_0001_piezo.csv",
+                                                                    "point_0001_strain.csv"]  # fmt: skip
+    r = runner.invoke(app, ["export", str(run), "--point", "1", "--out", str(tmp_path / "one")])
+    assert r.exit_code == 0 and "skipped" not in r.stderr, r.output
+    r = runner.invoke(app, ["export", str(run), "--point", "0", "--point", "1", "--format", "mat",
+                            "--out", str(tmp_path / "mat")])
+    assert r.exit_code == 1 and "point 0000 skipped: 03_fwd.h5 is damaged" in r.stderr, r.output
+    r = runner.invoke(app, ["report", str(run), "--figures", "coefficients"])
+    assert r.exit_code == 1 and "error: point 0000 skipped: 03_fwd.h5 is damaged" in r.stderr, r.output
+    assert list((run / "plots").glob("coefficients_0001*.png")) and not list((run / "plots").glob("*_0000*.png"))
+
+
+def test_export_of_an_undamaged_stopped_run_notes_the_point_never_completed(synthetic, tmp_path):
+    r = CliRunner().invoke(app, ["export", str(synthetic), "--out", str(tmp_path / "x")])
+    assert r.exit_code == 0 and "point 0002 not included: never completed" in r.stderr, r.output
+    r = CliRunner().invoke(app, ["export", str(synthetic), "--point", "2", "--out", str(tmp_path / "y")])
+    assert r.exit_code == 1 and "error: point 0002 skipped: never completed" in r.stderr, r.output
