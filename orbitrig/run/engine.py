@@ -39,7 +39,8 @@ from orbitrig.run.modbus_log import pymodbus_into
 from orbitrig.run.plan import Acquire, Plan, make_plan
 from orbitrig.run.procedure import PointProcedure, RunParts
 from orbitrig.run.progress import ProgressMeter
-from orbitrig.run.provenance import UNNAMED, Provenance, RunCommand
+from orbitrig.run.provenance import Provenance, RunCommand
+from orbitrig.run.requests import OperatorRequests
 from orbitrig.run.rig_io import RigAccess, RigIO, Scenario
 from orbitrig.run.safe_stop import stop_drives
 from orbitrig.run.states import ABORTED, COMPLETED, FAILED, FAULTED, IDLE, STOPPED, STOPPING
@@ -49,7 +50,7 @@ from orbitrig.store.writer import RunStore, StorageError, StorageFullError
 
 log = logging.getLogger(__name__)
 
-class RunEngine:
+class RunEngine(OperatorRequests):
     def __init__(self, rig: RigConfig, *, out_dir: Path, access: RigAccess | None = None,
                  confirm_mode: Literal["prompt", "remote", "auto"] = "prompt", operator: str = ""):  # fmt: skip
         if confirm_mode not in ("prompt", "remote", "auto"):
@@ -97,50 +98,6 @@ class RunEngine:
 
     def subscribe(self, callback: Subscriber) -> None:
         self._subs.append(callback)
-
-    def request_pause(self, by: str | None = None) -> None:
-        self._control.request_pause()
-        self._command(RunCommand.PAUSE, by)
-
-    def request_resume(self, by: str | None = None) -> None:
-        self._control.request_resume()
-        self._command(RunCommand.RESUME, by)
-
-    def request_stop(self, by: str | None = None) -> None:
-        self._control.request_stop()
-        self._command(RunCommand.STOP, by)
-
-    def request_abort(self, by: str | None = None) -> None:
-        if self._control.request_abort() and self._body is not None and not self._body.done():
-            self._body.cancel()
-        self._command(RunCommand.ABORT, by)
-
-    def request_stop_now(self, why: str, by: str | None = None) -> None:
-        """Stop at once (`why`, e.g. 'SIGTERM'): the block under way is dropped, both drives ramp
-        to zero (OFF1, not an emergency), the run ends stopped and can be resumed."""
-        if self._control.request_stop_now(why) and self._body is not None and not self._body.done():
-            self._body.cancel()
-        self._command(RunCommand.STOP, by, why)
-
-    @property
-    def unattended(self) -> bool:
-        """Nobody can answer a pause or a confirmation (no terminal, no MQTT): such a wait
-        stops the run after [interlocks] unanswered_pause_s."""
-        return self._control.unanswered_limit is not None
-
-    @unattended.setter
-    def unattended(self, value: bool) -> None:
-        self._control.unanswered_limit = self.rig.interlocks.unanswered_pause_s if value else None
-
-    def confirm(self, step: str, by: str | None = None) -> None:
-        """Confirm the manual setting `step` (e.g. 'manual:0003'); raises if not waiting for it.
-        `by`: who sent each request (logged with the time in run.log and run.h5)."""
-        self._control.confirm(step)
-        self._command(RunCommand.CONFIRM, by, step)
-
-    def _command(self, command: RunCommand, by: str | None, detail: str = "") -> None:
-        if self._store is not None:
-            self._store.command(command, by or self.console_user or UNNAMED, detail)
 
     # ------------------------------------------------------------------- run
     async def run(self, plan: Plan | MatrixConfig, *, resume: bool = False) -> RunOutcome:
