@@ -63,7 +63,7 @@ class Operator:
         self.status: dict = {}
         self.progress_revs = 0
         self._got = threading.Condition()
-        self.client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id="bench-operator")
+        self.client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id="mosq-bench-operator")
         self.client.username_pw_set("operator", ACCOUNTS["operator"])
         self.client.on_message = self._on_message
         self.client.connect("127.0.0.1", port)
