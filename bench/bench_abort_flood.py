@@ -49,7 +49,16 @@ class TimedOperator(Operator):
 
     def __init__(self, port: int, prefix: str):
         self.seen: dict[str, float] = {}
-        super().__init__(port, prefix)
+        # status and progress only: this client shares the service's interpreter (one GIL),
+        # so it must not spend it on the flood's replies
+        super().__init__(port, prefix, topics=("status", "progress"))
+
+    def abort(self, via: str) -> float:
+        """Publish abort on ``<prefix>/<via>`` (abort: the dedicated topic; cmd: with the flood)."""
+        payload = json.dumps({"cmd": "abort", "id": f"bench-abort-{time.monotonic_ns()}"})
+        t = time.monotonic()
+        self.client.publish(f"{self.prefix}/{via}", payload, qos=1)
+        return t
 
     def _on_message(self, client, userdata, msg):
         if msg.topic.endswith("/status"):
@@ -68,30 +77,64 @@ async def flood(port: int, prefix: str, count: int, qos: str) -> asyncio.subproc
     return proc
 
 
-async def one_trial(op: TimedOperator, sim_rig, service, broker: Broker, qos: str, count: int,
-                    stops: dict, armed: threading.Event) -> dict:
+class LoopLag:
+    """The event loop's worst lateness (s) since the last ``take()``: a 10 ms tick."""
+
+    def __init__(self) -> None:
+        self.worst = 0.0
+
+    async def run(self) -> None:
+        while True:
+            t = time.monotonic()
+            await asyncio.sleep(0.01)
+            self.worst = max(self.worst, time.monotonic() - t - 0.01)
+
+    def take(self) -> float:
+        worst, self.worst = self.worst, 0.0
+        return worst
+
+
+async def one_trial(op: TimedOperator, service, broker: Broker, qos: str, count: int,
+                    stops: dict, armed: threading.Event, lag: LoopLag, via: str) -> dict:
     op.progress_revs = 0
     op.send("start", matrix="bench")
     await asyncio.to_thread(op.wait, lambda: op.progress_revs >= 20, 60)  # both drives at speed
-    before = dict(getattr(service, "flood_counts", dict)())
+    before = dict(service.command_counts())
+    service.abort_arrived = None
+    lag.take()
     proc = await flood(broker.port, op.prefix, count, qos)
     stops.clear()
     op.seen.clear()
     armed.set()
-    t_pub = op.send("abort")
-    await asyncio.to_thread(op.wait, lambda: op.status.get("state") == "idle", 120)
+    t_pub = op.abort(via)
+    await asyncio.to_thread(op.wait, lambda: op.status.get("state") in ("idle", "faulted"), 120)
     armed.clear()
+    worst_lag = lag.take()
     summary = json.loads((await asyncio.wait_for(proc.stdout.read(), 180)).decode().strip().splitlines()[-1])
     await proc.wait()
-    after = dict(getattr(service, "flood_counts", dict)())
+    after = dict(service.command_counts())
     counted = {k: after.get(k, 0) - before.get(k, 0) for k in after}
     stop_ms = (max(stops.values()) - t_pub) * 1e3 if len(stops) == 2 else float("inf")
+    arrive_ms = (service.abort_arrived - t_pub) * 1e3 if service.abort_arrived else float("inf")
     stopping_ms = (op.seen["stopping"] - t_pub) * 1e3 if "stopping" in op.seen else float("inf")
-    return {"stop_ms": stop_ms, "stopping_ms": stopping_ms, "outcome": op.status.get("message", ""),
-            "flood": summary, "service": counted}
+    return {"stop_ms": stop_ms, "arrive_ms": arrive_ms, "stopping_ms": stopping_ms, "outcome": op.status.get("message", ""),
+            "flood": summary, "service": counted, "lag_ms": worst_lag * 1e3}
 
 
-async def main(trials: int, speedup: float, count: int, modes: list[str]) -> int:
+def timed_arrival(service) -> None:
+    """Note when the service takes the bench's abort (``service.abort_arrived``, time.monotonic)."""
+    handle = service.handle_command
+    service.abort_arrived = None
+
+    def timed_handle(payload: bytes, *, retained: bool = False) -> None:
+        if service.abort_arrived is None and b"bench-abort-" in payload:
+            service.abort_arrived = time.monotonic()
+        handle(payload, retained=retained)
+
+    service.handle_command = timed_handle
+
+
+async def main(trials: int, speedup: float, count: int, modes: list[str], via: str) -> int:
     from orbitrig.cli.serve import build_service
     from orbitrig.config import load_rig
     from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
@@ -115,22 +158,26 @@ async def main(trials: int, speedup: float, count: int, modes: list[str]) -> int
                                             password=ACCOUNTS["orbitrig-service"])
             service = build_service(load_rig(), settings, creds, out=work / "runs", sim_rig=sim_rig,
                                     confirm="auto")
+            timed_arrival(service)
             shutdown = asyncio.Event()
             serving = asyncio.create_task(service.serve(shutdown), name="bench-service")
+            lag = LoopLag()
+            lagging = asyncio.create_task(lag.run(), name="loop-lag")
             op = await asyncio.to_thread(TimedOperator, broker.port, "orbitrig/bench")
             try:
                 await asyncio.to_thread(op.wait, lambda: op.status.get("state") == "idle", 30)
                 for qos in modes:
                     for trial in range(trials):
-                        r = await one_trial(op, sim_rig, service, broker, qos, count, stops, armed)
+                        r = await one_trial(op, service, broker, qos, count, stops, armed, lag, via)
                         ok = r["stop_ms"] < TARGET_MS and "aborted" in r["outcome"]
                         failures += not ok
                         print(f"QoS {qos:>5} trial {trial + 1}: abort -> both drives stopping "
-                              f"{r['stop_ms']:7.1f} ms, status stopping {r['stopping_ms']:7.1f} ms, "
-                              f"{r['outcome']!r} | flood {r['flood']} | service {r['service']}"
+                              f"{r['stop_ms']:7.1f} ms (in the service after {r['arrive_ms']:.1f} ms), status stopping {r['stopping_ms']:7.1f} ms, "
+                              f"{r['outcome']!r}, worst loop lag {r['lag_ms']:.0f} ms | flood {r['flood']} | service {r['service']}"
                               f"{'' if ok else '  <-- MISS'}", flush=True)
             finally:
                 op.close()
+                lagging.cancel()
                 shutdown.set()
                 await serving
     finally:
@@ -147,5 +194,7 @@ if __name__ == "__main__":
     ap.add_argument("--speedup", type=float, default=20.0)
     ap.add_argument("--count", type=int, default=5000)
     ap.add_argument("--qos", nargs="+", default=["1", "mixed"], choices=("1", "mixed"))
+    ap.add_argument("--via", default="abort", choices=("abort", "cmd"),
+                    help="the abort's topic: <prefix>/abort (default) or <prefix>/cmd, behind the flood")
     args = ap.parse_args()
-    sys.exit(asyncio.run(main(args.trials, args.speedup, args.count, args.qos)))
+    sys.exit(asyncio.run(main(args.trials, args.speedup, args.count, args.qos, args.via)))

@@ -56,7 +56,7 @@ def watch_control_words(sim_rig, stops: dict[int, float], words: dict[int, int],
 class Operator:
     """An independent MQTT client (paho, its own network thread)."""
 
-    def __init__(self, port: int, prefix: str):
+    def __init__(self, port: int, prefix: str, topics: tuple[str, ...] = ("#",)):
         import paho.mqtt.client as mqtt
 
         self.prefix = prefix
@@ -67,7 +67,7 @@ class Operator:
         self.client.username_pw_set("operator", ACCOUNTS["operator"])
         self.client.on_message = self._on_message
         self.client.connect("127.0.0.1", port)
-        self.client.subscribe(f"{prefix}/#", qos=1)
+        self.client.subscribe([(f"{prefix}/{t}", 1) for t in topics])
         self.client.loop_start()
 
     def _on_message(self, client, userdata, msg):

@@ -44,6 +44,7 @@ from typing import Any, Literal, Protocol
 from orbitrig.errors import ConfigError, OrbitrigError
 from orbitrig.run.engine import ProgressEvent, ResultEvent, RunOutcome, StatusEvent
 from orbitrig.service import live as live_feed
+from orbitrig.service.inbox import CommandTriage
 from orbitrig.service import protocol as proto
 from orbitrig.service.link import BrokerLink
 from orbitrig.service.settings import (  # noqa: F401 - the service's public names
@@ -97,8 +98,10 @@ class RigService:
         self._status = proto.status_payload("idle", None, None, "service ready")
         self._state = "idle"
         self._run_id: str | None = None
+        self.triage = CommandTriage(self._on_message, self._reply_behind, lambda: self.link.reply_backlog)
         self.link = BrokerLink(broker, settings, self.topics, status=lambda: self._status,
-                               offline=self._offline_status, on_command=self._on_message)
+                               offline=self._offline_status, on_command=self._on_message,
+                               triage=self.triage)
         self._tg: asyncio.TaskGroup | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread = threading.get_ident()
@@ -120,6 +123,10 @@ class RigService:
     @property
     def state(self) -> str:
         return self._state
+
+    def command_counts(self) -> dict[str, int]:
+        """Commands received, carried out at once (stop, abort), answered busy, dropped."""
+        return dict(self.triage.counts)
 
     @property
     def connections(self) -> int:
@@ -206,11 +213,11 @@ class RigService:
             cmd = proto.parse_command(payload)
         except proto.CommandError as err:
             log.info("refused command %r: %s", payload[:200], err.reason)
-            self._reply(err.id, err.reason)
+            self._reply(err.id, err.reason, behind=True)
             return
         except Exception as err:  # noqa: BLE001 - no payload may kill the service
             log.exception("refused command %r: the parser failed", payload[:200])
-            self._reply(None, f"payload cannot be read: {type(err).__name__}")
+            self._reply(None, f"payload cannot be read: {type(err).__name__}", behind=True)
             return
         if self._redelivered(cmd, payload):
             log.warning("dropped redelivered command %s (id %r): handled already", cmd.cmd, cmd.id)
@@ -233,7 +240,7 @@ class RigService:
         if cmd.cmd == "abort":
             log.info("abort requested of the executor %.1f ms after the message arrived",
                      (time.monotonic() - t0) * 1e3)
-        self._reply(cmd.id, error)
+        self._reply(cmd.id, error, behind=cmd.cmd not in proto.ALWAYS_ACCEPTED)
 
     def _redelivered(self, cmd: proto.Command, payload: bytes) -> bool:
         """True for the broker's redelivery of a command handled before the link
@@ -265,9 +272,13 @@ class RigService:
     def _send(self, topic: str, payload: bytes, qos: int, retain: bool = False) -> None:
         self.link.send(topic, payload, qos, retain)
 
-    def _reply(self, cid: str | None, error: str | None) -> None:
+    def _reply(self, cid: str | None, error: str | None, *, behind: bool = False) -> None:
+        """One reply; ``behind``: to an ordinary command (sent after statuses and results)."""
         payload = proto.reply_ok(cid) if error is None else proto.reply_error(cid, error)
-        self._send(self.topics.reply, payload, proto.QOS_REPLY)
+        self.link.send(self.topics.reply, payload, proto.QOS_REPLY, behind=behind)
+
+    def _reply_behind(self, cid: str | None, error: str) -> None:
+        self._reply(cid, error, behind=True)
 
     def _cmd_status(self, cmd: proto.Command) -> str | None:
         self._send(self.topics.status, self._status, proto.QOS_STATUS, True)

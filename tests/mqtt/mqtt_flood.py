@@ -6,8 +6,9 @@ service for the machine, not for one GIL): publishes ``--count`` commands to
 alternating QoS 0 and 1 (``--qos mixed``), and counts the service's replies to
 its own ids. Prints one line ``half`` as soon as the broker has taken half of
 the flood (the moment the other operator aborts), then, once no reply came for
-``--quiet`` s, one JSON line: published, seconds, and the replies by kind
-(``ok``, ``busy``, ``refused``).
+``--quiet`` s, one JSON line: published, seconds (to the last reply), out_s
+(until the broker had taken the whole flood), and the replies by kind (``ok``,
+``busy``, ``refused``).
 
     python mqtt_flood.py --port 1883 --prefix orbitrig/rig1 --count 5000 --qos 1
 """
@@ -43,6 +44,7 @@ def main() -> None:
 
     replies = {"ok": 0, "busy": 0, "refused": 0}
     acked = 0
+    out_at = [0.0]  # time.monotonic() when the broker had taken the whole flood
     half = threading.Event()
     last_reply = [time.monotonic()]
     lock = threading.Lock()
@@ -61,6 +63,8 @@ def main() -> None:
         acked += 1
         if acked == args.count // 2:
             half.set()
+        if acked == args.count:
+            out_at[0] = time.monotonic()
 
     client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=f"mosq-flood-{os.getpid()}",
                          protocol=mqtt.MQTTv5)
@@ -87,7 +91,8 @@ def main() -> None:
     client.loop_stop()
     client.disconnect()
     with lock:
-        print(json.dumps({"published": args.count, "seconds": round(seconds, 3), **replies}), flush=True)
+        print(json.dumps({"published": args.count, "seconds": round(seconds, 3),
+                          "out_s": round(out_at[0] - t0, 3) if out_at[0] else None, **replies}), flush=True)
 
 
 if __name__ == "__main__":

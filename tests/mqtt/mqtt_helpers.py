@@ -69,9 +69,18 @@ def client_id_lines() -> tuple[list[str], list[str]]:
     return glob, listener
 
 
+def flow_limit_lines() -> list[str]:
+    """The shipped config's queue and in-flight limits (every test broker has them)."""
+    keys = ("max_inflight_messages", "max_queued_messages", "queue_qos0_messages")
+    lines = [ln.strip() for ln in EXAMPLE_CONF.read_text().splitlines() if ln.split(" ")[0] in keys]
+    assert len(lines) == len(keys), "config/mosquitto/mosquitto.conf lost its flow limits"
+    return lines
+
+
 class Broker:
     """mosquitto on a loopback port: no anonymous access, a password file made
-    with mosquitto_passwd, and config/mosquitto/acl (the shipped example).
+    with mosquitto_passwd, config/mosquitto/acl (the shipped example) and the
+    shipped config's flow limits.
 
     ``bind_ids``: also the shipped config's client-id binding, with the rig
     service's own listener on ``service_port`` (``service_url``); ``persist``:
@@ -104,6 +113,7 @@ class Broker:
             "allow_anonymous false\n"
             f"password_file {self.passwd}\n"
             f"acl_file {EXAMPLE_ACL}\n"
+            + "".join(f"{ln}\n" for ln in flow_limit_lines())
             + "".join(f"{ln}\n" for ln in ids) + "\n".join(service_listener) +
             f"listener {self.port} 127.0.0.1\n"
             f"{tls_lines}"
