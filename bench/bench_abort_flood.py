@@ -99,7 +99,7 @@ async def one_trial(op: TimedOperator, service, broker: Broker, qos: str, count:
     op.progress_revs = 0
     op.send("start", matrix="bench")
     await asyncio.to_thread(op.wait, lambda: op.progress_revs >= 20, 60)  # both drives at speed
-    before = dict(service.command_counts())
+    before = dict(service.triage.counts)
     service.abort_arrived = None
     lag.take()
     proc = await flood(broker.port, op.prefix, count, qos)
@@ -112,7 +112,7 @@ async def one_trial(op: TimedOperator, service, broker: Broker, qos: str, count:
     worst_lag = lag.take()
     summary = json.loads((await asyncio.wait_for(proc.stdout.read(), 180)).decode().strip().splitlines()[-1])
     await proc.wait()
-    after = dict(service.command_counts())
+    after = dict(service.triage.counts)
     counted = {k: after.get(k, 0) - before.get(k, 0) for k in after}
     stop_ms = (max(stops.values()) - t_pub) * 1e3 if len(stops) == 2 else float("inf")
     arrive_ms = (service.abort_arrived - t_pub) * 1e3 if service.abort_arrived else float("inf")

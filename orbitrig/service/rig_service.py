@@ -23,8 +23,9 @@ exponential backoff (reset only after a connection carried traffic for a while)
 and republishes the status. A loss of supervision longer
 than ``supervision_timeout`` applies ``supervision_policy`` to a running run
 once: ``keep`` (go on), ``pause`` or ``stop``. ``stop`` and ``abort`` are
-always accepted and go straight to the executor, whatever it is doing (also
-while it waits for an operator confirmation). A matrix is chosen by name only,
+always accepted and go straight to the executor as they are read off the
+connection, whatever it is doing and however many commands wait (also on
+``<prefix>/abort``; orbitrig.service.inbox). A matrix is chosen by name only,
 from the configured matrix folder.
 
 Background work runs in named tasks owned by one TaskGroup.
@@ -34,6 +35,7 @@ from __future__ import annotations
 
 import asyncio
 import collections
+import functools
 import logging
 import threading
 import time
@@ -98,7 +100,8 @@ class RigService:
         self._status = proto.status_payload("idle", None, None, "service ready")
         self._state = "idle"
         self._run_id: str | None = None
-        self.triage = CommandTriage(self._on_message, self._reply_behind, lambda: self.link.reply_backlog)
+        self.triage = CommandTriage(self._on_message, functools.partial(self._reply, behind=True),
+                                    lambda: self.link.reply_backlog)
         self.link = BrokerLink(broker, settings, self.topics, status=lambda: self._status,
                                offline=self._offline_status, on_command=self._on_message,
                                triage=self.triage)
@@ -123,10 +126,6 @@ class RigService:
     @property
     def state(self) -> str:
         return self._state
-
-    def command_counts(self) -> dict[str, int]:
-        """Commands received, carried out at once (stop, abort), answered busy, dropped."""
-        return dict(self.triage.counts)
 
     @property
     def connections(self) -> int:
@@ -277,8 +276,6 @@ class RigService:
         payload = proto.reply_ok(cid) if error is None else proto.reply_error(cid, error)
         self.link.send(self.topics.reply, payload, proto.QOS_REPLY, behind=behind)
 
-    def _reply_behind(self, cid: str | None, error: str) -> None:
-        self._reply(cid, error, behind=True)
 
     def _cmd_status(self, cmd: proto.Command) -> str | None:
         self._send(self.topics.status, self._status, proto.QOS_STATUS, True)
