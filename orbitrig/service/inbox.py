@@ -14,9 +14,12 @@ the event loop, before anything else happens to it), so
   behind the commands waiting for the service either) only they are taken;
 - any other command waits in the queue, at most ``limit`` of them; the
   service takes them one at a time;
+- they are carried out at most ``COMMAND_RATE`` a second;
 - beyond that, a command is answered ``ok: false`` "busy" without being
-  carried out, and once ``REPLY_BACKLOG`` replies wait to be sent it is dropped
-  unanswered; both are counted and logged at most once a second.
+  carried out (at most ``BUSY_RATE`` a second, and while fewer than
+  ``REPLY_BACKLOG`` replies wait to be sent), else dropped unanswered; both
+  are counted and logged at most once a second. A flood so costs the service
+  little more than reading it.
 """
 
 from __future__ import annotations
@@ -35,6 +38,10 @@ log = logging.getLogger("orbitrig.service.inbox")
 
 #: commands waiting to be carried out, at most
 WAITING_LIMIT = 64
+#: ordinary commands carried out per second, at most (an operator sends a few)
+COMMAND_RATE = 200.0
+#: "busy" replies per second, at most; beyond, an excess command is dropped unanswered
+BUSY_RATE = 50.0
 #: replies waiting to be sent beyond which an excess command is dropped unanswered
 REPLY_BACKLOG = 256
 #: commands carried out as they arrive (docs/protocols/mqtt.md: always accepted)
@@ -50,6 +57,28 @@ def _may_name_at_once(payload: bytes) -> bool:
 _AT_ONCE_BYTES = tuple(name.encode() for name in AT_ONCE)
 
 
+class Allowance:
+    """At most ``rate`` events a second, ``burst`` at once (a token bucket)."""
+
+    def __init__(self, rate: float, burst: float):
+        self.rate, self.burst = rate, burst
+        self._tokens, self._at = burst, time.monotonic()
+
+    def take(self) -> bool:
+        """Use one if one is left (True)."""
+        now = time.monotonic()
+        self._tokens = min(self.burst, self._tokens + (now - self._at) * self.rate)
+        self._at = now
+        if self._tokens < 1.0:
+            return False
+        self._tokens -= 1.0
+        return True
+
+    def wait_s(self) -> float:
+        """s until the next one."""
+        return max(0.0, (1.0 - self._tokens) / self.rate)
+
+
 class CommandTriage:
     """What happens to each command as it arrives. ``handle(payload, retained)``
     carries one out and replies; ``reply(cid, error)`` sends a reply;
@@ -61,6 +90,8 @@ class CommandTriage:
         self.limit = limit
         #: received, at once (stop/abort), busy (answered, not carried out), dropped (unanswered)
         self.counts: collections.Counter[str] = collections.Counter()
+        self._commands = Allowance(COMMAND_RATE, burst=16)
+        self._busy = Allowance(BUSY_RATE, burst=BUSY_RATE)
         self._logged = collections.Counter()
         self._logged_at = 0.0
 
@@ -89,11 +120,17 @@ class CommandTriage:
                     f"only stop and abort are taken on the abort topic, not {name!r}: "
                     "send other commands on the command topic")
 
+    async def turn(self) -> None:
+        """Wait until the next ordinary command may be carried out (``COMMAND_RATE``);
+        the socket is read in between."""
+        while not self._commands.take():
+            await asyncio.sleep(self._commands.wait_s())
+        await asyncio.sleep(0)
+
     def overflow(self, payload: bytes, retained: bool) -> None:
-        """A command beyond ``limit`` waiting: answered busy, or dropped when even
-        the replies are backed up."""
-        _, cid = command_json.peek(payload)
-        if self._backlog() < REPLY_BACKLOG:
+        """A command beyond ``limit`` waiting: answered busy, or dropped."""
+        if self._backlog() < REPLY_BACKLOG and self._busy.take():
+            _, cid = command_json.peek(payload)
             self.counts["busy"] += 1
             self._reply(cid[:proto.MAX_ID_CHARS] if cid else None, BUSY.format(n=self.limit))
         else:

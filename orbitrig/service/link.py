@@ -24,6 +24,7 @@ import asyncio
 import collections
 import dataclasses
 import logging
+import select
 import time
 from collections.abc import Callable
 from typing import Any
@@ -39,8 +40,8 @@ log = logging.getLogger("orbitrig.service.link")
 TRAFFIC_S = 5.0
 #: messages handed to the MQTT client at once (it keeps its own in-flight limit)
 PUBLISH_WINDOW = 64
-#: ordinary commands carried out in a row before the socket is read again
-COMMAND_BATCH = 16
+#: packets read off the socket in one turn of the event loop, at most
+READ_BURST = 64
 
 
 @dataclasses.dataclass
@@ -50,6 +51,27 @@ class Outgoing:
     qos: int
     retain: bool = False
     behind: bool = False  # a reply to an ordinary command: sent when nothing else waits
+
+
+def read_in_bursts(paho_client: Any, burst: int = READ_BURST) -> None:
+    """Make ``paho_client.loop_read`` read up to ``burst`` packets while the socket
+    has more. paho reads one packet per call when it has little to send, and the
+    event loop calls it once per turn: a flood would queue up in the socket
+    (an abort behind it) while the loop turns over."""
+    from paho.mqtt.client import MQTTErrorCode
+
+    one = paho_client.loop_read
+
+    def loop_read(max_packets: int = 1) -> Any:
+        rc = one()
+        for _ in range(burst - 1):
+            sock = paho_client.socket()
+            if rc != MQTTErrorCode.MQTT_ERR_SUCCESS or sock is None or not select.select([sock], [], [], 0)[0]:
+                break
+            rc = one()
+        return rc
+
+    paho_client.loop_read = loop_read
 
 
 class BrokerLink:
@@ -127,17 +149,17 @@ class BrokerLink:
             await self._wake.wait()
 
     async def _command_loop(self, client: Any) -> None:
-        """Ordinary commands in turn, up to COMMAND_BATCH between two looks at the
-        socket (stop and abort never get here: ``_take_now``)."""
+        """Ordinary commands in turn, as fast as the triage allows (stop and abort
+        never get here: ``_take_now``)."""
         inbox = self._inbox
         async for message in client.messages:
-            for _ in range(COMMAND_BATCH):
+            while True:
+                await self.triage.turn()
                 self._on_command(self._payload(message), bool(message.retain))
                 if inbox is None or inbox.empty():
                     break
                 message = inbox.get_nowait()
-            if inbox is None or inbox.empty():
-                self.triage.flush_report()
+            self.triage.flush_report()
 
     def _new_inbox(self, maxsize: int = 0) -> CommandInbox:
         """The MQTT client's incoming queue (made by the client: ``queue_type``)."""
@@ -183,6 +205,7 @@ class BrokerLink:
                                 tls_params=tls, max_queued_incoming_messages=self.triage.limit,
                                 queue_type=self._new_inbox)
         client.pending_calls_threshold = PUBLISH_WINDOW + 8  # a full window is expected, not a warning
+        read_in_bursts(client._client)  # noqa: SLF001 - aiomqtt's paho client: no public handle
         return client
 
     async def run(self) -> None:

@@ -25,9 +25,10 @@ import time
 
 import paho.mqtt.client as mqtt
 
-#: Ordinary commands an operator might repeat (each refused or harmless during a run).
-FLOOD_CYCLE = ({"cmd": "start", "matrix": "quick"}, {"cmd": "status"},
-               {"cmd": "confirm", "step": "manual:9999"})
+#: Ordinary commands an operator might repeat, none of which changes a run
+#: (refused while a run is active or harmless); a start names no matrix there is.
+FLOOD_CYCLE = ({"cmd": "start", "matrix": "no-such-matrix"}, {"cmd": "status"},
+               {"cmd": "confirm", "step": "manual:9999"}, {"cmd": "resume"}, {"cmd": "no-such-command"})
 
 
 def main() -> None:

@@ -202,15 +202,16 @@ class Watcher:
     """mosquitto_sub in the background, collecting every message it prints."""
 
     broker: Broker
-    topic: str
+    topic: str | tuple[str, ...]  # one filter or several
     user: str | None = "viewer"
     messages: list[Msg] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self._cond = threading.Condition()
+        filters = [self.topic] if isinstance(self.topic, str) else list(self.topic)
         self.proc = subprocess.Popen(
-            ["mosquitto_sub", *self.broker.client_args(self.user), "-q", "1", "-t", self.topic,
-             "-F", "%j"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+            ["mosquitto_sub", *self.broker.client_args(self.user), "-q", "1",
+             *(a for t in filters for a in ("-t", t)), "-F", "%j"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         self._thread = threading.Thread(target=self._read, daemon=True)
         self._thread.start()
 
@@ -257,11 +258,12 @@ class Watcher:
 class RigClient:
     """An operator (publishing commands) plus a viewer (watching the rig's topics)."""
 
-    def __init__(self, broker: Broker, rig_id: str, service: "Service | None" = None):
+    def __init__(self, broker: Broker, rig_id: str, service: "Service | None" = None,
+                 watch: tuple[str, ...] = ("#",)):
         self.broker = broker
         self.service = service  # its log is shown when a wait fails
         self.prefix = f"orbitrig/{rig_id}"
-        self.watch = Watcher(broker, f"{self.prefix}/#")
+        self.watch = Watcher(broker, tuple(f"{self.prefix}/{t}" for t in watch))
         self._n = 0
 
     def send(self, obj: dict | str | bytes, *, user: str = "operator", cid: str | None = None,
