@@ -62,7 +62,7 @@ def test_abort_gets_through_a_flood_of_commands(bound, running):
         assert bound.pub(f"{rc.prefix}/abort", json.dumps({"cmd": "abort", "id": "flood-abort"})).returncode == 0
         stopping = rc._wait(lambda m: m.topic.endswith("/status") and m.json()["state"] == "stopping",
                             20, mark, "status stopping")
-        assert stopping.t - t_abort < 2.0, f"abort took {stopping.t - t_abort:.2f} s to reach the executor"
+        assert stopping.t - t_abort < 3.0, f"abort took {stopping.t - t_abort:.2f} s to reach the executor"
         ended = rc.status("idle", timeout=60, start=mark)
         assert "aborted" in ended["message"], ended
         summary = json.loads(flood.communicate(timeout=150)[0].decode().strip().splitlines()[-1])
