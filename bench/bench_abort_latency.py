@@ -56,18 +56,18 @@ def watch_control_words(sim_rig, stops: dict[int, float], words: dict[int, int],
 class Operator:
     """An independent MQTT client (paho, its own network thread)."""
 
-    def __init__(self, port: int, prefix: str):
+    def __init__(self, port: int, prefix: str, topics: tuple[str, ...] = ("#",)):
         import paho.mqtt.client as mqtt
 
         self.prefix = prefix
         self.status: dict = {}
         self.progress_revs = 0
         self._got = threading.Condition()
-        self.client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id="bench-operator")
+        self.client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id="mosq-bench-operator")
         self.client.username_pw_set("operator", ACCOUNTS["operator"])
         self.client.on_message = self._on_message
         self.client.connect("127.0.0.1", port)
-        self.client.subscribe(f"{prefix}/#", qos=1)
+        self.client.subscribe([(f"{prefix}/{t}", 1) for t in topics])
         self.client.loop_start()
 
     def _on_message(self, client, userdata, msg):

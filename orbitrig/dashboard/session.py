@@ -240,11 +240,13 @@ class Session:
         if client is None:
             return {"ok": False, "error": "no connection to the broker: try again when it is back"}
         cid = f"dash-{secrets.token_hex(6)}"
+        topics = self.settings.topics  # stop and abort on their own topic: no flood holds them back
         fut = asyncio.get_running_loop().create_future()
         self._pending[cid] = fut
         t0 = time.monotonic()
         try:
-            await client.publish(self.settings.topics.cmd, json.dumps({**body, "id": cid}),
+            await client.publish(topics.abort if name in proto.ALWAYS_ACCEPTED else topics.cmd,
+                                 json.dumps({**body, "id": cid}),
                                  qos=proto.QOS_CMD, timeout=self.settings.reply_timeout)
             reply = await asyncio.wait_for(fut, self.settings.reply_timeout)
         except (TimeoutError, asyncio.TimeoutError):

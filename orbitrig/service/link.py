@@ -9,6 +9,13 @@ current status first after every connection; QoS 0 messages and stale
 statuses are not queued while offline); registers ``offline`` as the last
 will and publishes it itself when a session ends for any reason but a lost
 link (a clean disconnect does not trigger the will).
+
+Commands come in through :class:`orbitrig.service.inbox.CommandInbox` (stop
+and abort carried out as they are read off the socket, the rest queued and
+bounded). Going out, replies to ordinary commands wait in a lane of their own,
+sent only when nothing else waits: a flood of replies never holds back a
+status or a result. Messages go out ``PUBLISH_WINDOW`` at a time, without
+waiting for each acknowledgement in turn.
 """
 
 from __future__ import annotations
@@ -17,18 +24,24 @@ import asyncio
 import collections
 import dataclasses
 import logging
+import select
 import time
 from collections.abc import Callable
 from typing import Any
 
 from orbitrig.service import protocol as proto
 from daq.backoff import Backoff
+from orbitrig.service.inbox import CommandInbox, CommandTriage
 from orbitrig.service.settings import AUTH_REFUSED, BrokerSettings, ServiceError, ServiceSettings
 
 log = logging.getLogger("orbitrig.service.link")
 
 #: a connection that stayed up this long (s) after subscribing resets the backoff
 TRAFFIC_S = 5.0
+#: messages handed to the MQTT client at once (it keeps its own in-flight limit)
+PUBLISH_WINDOW = 64
+#: packets read off the socket in one turn of the event loop, at most
+READ_BURST = 64
 
 
 @dataclasses.dataclass
@@ -37,19 +50,46 @@ class Outgoing:
     payload: bytes
     qos: int
     retain: bool = False
+    behind: bool = False  # a reply to an ordinary command: sent when nothing else waits
+
+
+def read_in_bursts(paho_client: Any, burst: int = READ_BURST) -> None:
+    """Make ``paho_client.loop_read`` read up to ``burst`` packets while the socket
+    has more. paho reads one packet per call when it has little to send, and the
+    event loop calls it once per turn: a flood would queue up in the socket
+    (an abort behind it) while the loop turns over."""
+    from paho.mqtt.client import MQTTErrorCode
+
+    one = paho_client.loop_read
+
+    def loop_read(max_packets: int = 1) -> Any:
+        rc = one()
+        for _ in range(burst - 1):
+            sock = paho_client.socket()
+            if rc != MQTTErrorCode.MQTT_ERR_SUCCESS or sock is None or not select.select([sock], [], [], 0)[0]:
+                break
+            rc = one()
+        return rc
+
+    paho_client.loop_read = loop_read
 
 
 class BrokerLink:
     """The broker side of one rig service. ``status()`` gives the current status
     payload, ``offline(message)`` an ``offline`` status; ``on_command(payload,
-    retained)`` gets every message on ``<prefix>/cmd``."""
+    retained)`` gets each ordinary message on ``<prefix>/cmd`` in turn,
+    ``triage`` sees every one as it arrives."""
 
     def __init__(self, broker: BrokerSettings, settings: ServiceSettings, topics: proto.Topics, *,
                  status: Callable[[], bytes], offline: Callable[[str], bytes],
-                 on_command: Callable[[bytes, bool], None]):
+                 on_command: Callable[[bytes, bool], None], triage: CommandTriage):
         self.broker, self.settings, self.topics = broker, settings, topics
         self._status, self._offline, self._on_command = status, offline, on_command
+        self.triage = triage
         self._out: collections.deque[Outgoing] = collections.deque(maxlen=10_000)
+        self._replies: collections.deque[Outgoing] = collections.deque()
+        self._sending: list[Outgoing] = []  # handed to the client, not yet acknowledged
+        self._inbox: CommandInbox | None = None  # the current connection's
         self._wake = asyncio.Event()
         self.drained = asyncio.Event()
         self.online = asyncio.Event()
@@ -65,36 +105,85 @@ class BrokerLink:
 
     # -- outgoing -------------------------------------------------------------------
 
-    def send(self, topic: str, payload: bytes, qos: int, retain: bool = False) -> None:
+    @property
+    def reply_backlog(self) -> int:
+        """Replies to ordinary commands not yet sent."""
+        return len(self._replies)
+
+    def send(self, topic: str, payload: bytes, qos: int, retain: bool = False, *, behind: bool = False) -> None:
+        """Queue a message; ``behind``: a reply to an ordinary command (its own lane)."""
         if not self.online.is_set() and (qos == 0 or topic == self.topics.status):
             return  # progress is of no use later; the status is republished on connection
-        self._out.append(Outgoing(topic, payload, qos, retain))
+        if topic == self.topics.status and self._out and self._out[-1].payload == payload:
+            return  # the same status waits to be sent already (a repeated "status" command)
+        (self._replies if behind else self._out).append(Outgoing(topic, payload, qos, retain, behind))
         self.drained.clear()
         self._wake.set()
 
+    def _next_batch(self) -> list[Outgoing]:
+        batch: list[Outgoing] = []
+        for lane in (self._out, self._replies):
+            while lane and len(batch) < PUBLISH_WINDOW:
+                batch.append(lane.popleft())
+        return batch
+
     async def _publish_loop(self, client: Any) -> None:
-        """Deliver the outgoing queue in order; the current status first."""
+        """Deliver the outgoing lanes in order, the current status first; what
+        was handed over but not acknowledged when a link dropped goes again."""
+        unsent = [m for m in self._sending if m.topic != self.topics.status]
         pending = [m for m in self._out if m.topic != self.topics.status]
         self._out.clear()
         self._out.append(Outgoing(self.topics.status, self._status(), proto.QOS_STATUS, True))
+        self._out.extend(m for m in unsent if not m.behind)
         self._out.extend(pending)
+        self._replies.extendleft(reversed([m for m in unsent if m.behind]))
+        self._sending = []
         while True:
-            while self._out:
-                msg = self._out[0]
-                await client.publish(msg.topic, msg.payload, qos=msg.qos, retain=msg.retain)
-                if self._out and self._out[0] is msg:
-                    self._out.popleft()
+            while self._sending or self._out or self._replies:
+                self._sending = self._sending or self._next_batch()
+                await asyncio.gather(*(client.publish(m.topic, m.payload, qos=m.qos, retain=m.retain)
+                                       for m in self._sending))
+                self._sending = []
             self.drained.set()
             self._wake.clear()
             await self._wake.wait()
 
     async def _command_loop(self, client: Any) -> None:
+        """Ordinary commands in turn, as fast as the triage allows (stop and abort
+        never get here: ``_take_now``)."""
+        inbox = self._inbox
         async for message in client.messages:
-            if str(message.topic) != self.topics.cmd:
-                continue
-            payload = message.payload if isinstance(message.payload, (bytes, bytearray)) else \
-                str(message.payload or "").encode()
-            self._on_command(bytes(payload), bool(message.retain))
+            while True:
+                await self.triage.turn()
+                self._on_command(self._payload(message), bool(message.retain))
+                if inbox is None or inbox.empty():
+                    break
+                message = inbox.get_nowait()
+            self.triage.flush_report()
+
+    def _new_inbox(self, maxsize: int = 0) -> CommandInbox:
+        """The MQTT client's incoming queue (made by the client: ``queue_type``)."""
+        self._inbox = CommandInbox(maxsize, take_now=self._take_now, overflow=self._overflow)
+        return self._inbox
+
+    @staticmethod
+    def _payload(message: Any) -> bytes:
+        payload = message.payload
+        return bytes(payload) if isinstance(payload, (bytes, bytearray)) else str(payload or "").encode()
+
+    def _take_now(self, message: Any) -> bool:
+        """Each message as it is read off the socket: True if dealt with (stop,
+        abort, anything on ``<prefix>/abort``, a topic not subscribed to)."""
+        topic = str(message.topic)
+        if topic == self.topics.abort:
+            self.triage.urgent(self._payload(message), bool(message.retain))
+            return True
+        if topic != self.topics.cmd:
+            return True
+        return self.triage.at_once(self._payload(message), bool(message.retain))
+
+    def _overflow(self, message: Any) -> None:
+        self.triage.overflow(self._payload(message), bool(message.retain))
 
     # -- connection -----------------------------------------------------------------
 
@@ -109,11 +198,15 @@ class BrokerLink:
         tls = aiomqtt.TLSParameters(ca_certs=str(b.tls_ca) if b.tls_ca else None) if b.tls else None
         session = Properties(PacketTypes.CONNECT)
         session.SessionExpiryInterval = 0 if clean_start else self.settings.session_expiry
-        return aiomqtt.Client(b.host, b.port, username=b.username, password=b.password,
-                              identifier=self.settings.mqtt_client_id, will=None if clean_start else will,
-                              protocol=aiomqtt.ProtocolVersion.V5, clean_start=clean_start,
-                              properties=session, keepalive=b.keepalive, timeout=b.timeout,
-                              tls_params=tls)
+        client = aiomqtt.Client(b.host, b.port, username=b.username, password=b.password,
+                                identifier=self.settings.mqtt_client_id, will=None if clean_start else will,
+                                protocol=aiomqtt.ProtocolVersion.V5, clean_start=clean_start,
+                                properties=session, keepalive=b.keepalive, timeout=b.timeout,
+                                tls_params=tls, max_queued_incoming_messages=self.triage.limit,
+                                queue_type=self._new_inbox)
+        client.pending_calls_threshold = PUBLISH_WINDOW + 8  # a full window is expected, not a warning
+        read_in_bursts(client._client)  # noqa: SLF001 - aiomqtt's paho client: no public handle
+        return client
 
     async def run(self) -> None:
         """Connect, and reconnect after every loss, until cancelled."""
@@ -133,11 +226,13 @@ class BrokerLink:
         t_connected = None
         try:
             async with self._client() as client:
-                await client.subscribe(self.topics.cmd, qos=proto.QOS_CMD)
+                await client.subscribe([(self.topics.cmd, proto.QOS_CMD),
+                                        (self.topics.abort, proto.QOS_ABORT_SUBSCRIPTION)])
                 t_connected = self.connected_at = time.monotonic()
                 self.connections += 1
-                log.info("connected to %s as %r (client id %r); commands on %s", self.where,
-                         self.broker.username, self.settings.mqtt_client_id, self.topics.cmd)
+                log.info("connected to %s as %r (client id %r); commands on %s, stop and abort also on %s",
+                         self.where, self.broker.username, self.settings.mqtt_client_id, self.topics.cmd,
+                         self.topics.abort)
                 self.offline.clear()
                 self.online.set()
                 try:

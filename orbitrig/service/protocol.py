@@ -10,6 +10,7 @@ progress, result and reply. Payloads are UTF-8 JSON objects.
 | ``<prefix>/progress`` | 0 | no       | :func:`progress_payload` |
 | ``<prefix>/result`` | 1   | no       | :func:`result_payload` |
 | ``<prefix>/cmd``    | 1   | no       | parsed by :func:`parse_command` |
+| ``<prefix>/abort``  | 1 (subscribed at 0) | no | stop and abort only, parsed alike |
 | ``<prefix>/reply``  | 1   | no       | :func:`reply_ok`, :func:`reply_error` |
 """
 
@@ -25,6 +26,9 @@ from typing import Annotated, Any, Literal, Union
 from pydantic import (BaseModel, ConfigDict, Field, StringConstraints, TypeAdapter, ValidationError,
                       field_validator)
 
+from orbitrig.service.command_json import (  # noqa: F401 - part of this contract's names
+    MAX_COMMAND_BYTES, CommandError, read_object, type_name as _type_name)
+
 DEFAULT_PREFIX_ROOT = "orbitrig"
 
 #: States of ``<prefix>/status`` (docs/protocols/mqtt.md).
@@ -33,9 +37,11 @@ STATES = ("idle", "running", "paused", "waiting", "stopping", "faulted", "offlin
 #: QoS and retain flag of each topic (docs/protocols/mqtt.md).
 QOS_STATUS, QOS_PROGRESS, QOS_RESULT, QOS_REPLY, QOS_CMD = 1, 0, 1, 1, 1
 QOS_LIVE = 0  # <prefix>/live, built by orbitrig.service.live
+#: The service subscribes to <prefix>/abort at QoS 0: the broker then passes such a
+#: message on at once instead of queueing it behind the QoS 1 commands waiting for
+#: the service (docs/protocols/mqtt.md, "Stop and abort under load").
+QOS_ABORT_SUBSCRIPTION = 0
 
-#: Largest command payload accepted (bytes); a command is a few dozen bytes.
-MAX_COMMAND_BYTES = 4096
 MAX_ID_CHARS = 128
 _MATRIX_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 _STEP_ID = re.compile(r"[^\x00-\x1f]{1,128}")
@@ -69,6 +75,11 @@ class Topics:
     @property
     def cmd(self) -> str:
         return f"{self.prefix}/cmd"
+
+    @property
+    def abort(self) -> str:
+        """stop and abort only, subscribed at QoS 0: never queued behind other commands."""
+        return f"{self.prefix}/abort"
 
     @property
     def reply(self) -> str:
@@ -112,21 +123,6 @@ class Command:
     step: str | None = None
     ignored: tuple[str, ...] = ()  # stop/abort: the problems that were overlooked
     by: str | None = None  # who sent it, as the command says (None: not said)
-
-
-class CommandError(ValueError):
-    """A command payload that is refused. ``id`` is the correlation id when one
-    could be read (a string), else None; ``reason`` is the text for the reply."""
-
-    def __init__(self, reason: str, id: str | None = None):  # noqa: A002
-        super().__init__(reason)
-        self.reason = reason
-        self.id = id
-
-
-def _type_name(value: Any) -> str:
-    return {dict: "object", list: "array", str: "string", bool: "boolean",
-            int: "number", float: "number", type(None): "null"}.get(type(value), type(value).__name__)
 
 
 def is_matrix_name(name: str) -> bool:
@@ -237,47 +233,26 @@ def _id_problems(obj: dict[str, Any]) -> list[str]:
     return []
 
 
-def _payload_object(payload: bytes | bytearray | str) -> dict[str, Any]:
-    """The JSON object of a payload, or CommandError whatever went wrong
-    (size, encoding, syntax, nesting too deep for the parser, not an object)."""
-    if isinstance(payload, (bytes, bytearray)):
-        if len(payload) > MAX_COMMAND_BYTES:
-            raise CommandError(f"payload too large: {len(payload)} bytes (at most {MAX_COMMAND_BYTES})")
-        try:
-            text = bytes(payload).decode("utf-8")
-        except UnicodeDecodeError as err:
-            raise CommandError(f"payload is not UTF-8: {err.reason} at byte {err.start}") from None
-    else:
-        text = payload
-    if not text.strip():
-        raise CommandError("payload is empty: expected a JSON object with 'cmd' and 'id'")
-    try:
-        obj = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise CommandError(f"payload is not JSON: {err.msg} at line {err.lineno} column {err.colno}") from None
-    except RecursionError:
-        raise CommandError("payload is not a command: JSON nested too deeply") from None
-    except Exception as err:  # noqa: BLE001 - whatever the parser raises, the payload is refused
-        raise CommandError(f"payload cannot be read: {type(err).__name__}") from None
-    if not isinstance(obj, dict):
-        raise CommandError(f"payload must be a JSON object, got {_type_name(obj)}")
-    return obj
-
-
 def parse_command(payload: bytes | bytearray | str) -> Command:
     """Parse and validate one ``<prefix>/cmd`` payload with the command models.
 
     Raises :class:`CommandError` with a precise reason (and the correlation
     id when it could be read) for a payload that is not UTF-8 JSON, not an
     object, lacks ``cmd`` or ``id``, names an unknown command, or has a
-    missing, extra or wrongly typed field. Exception: ``stop`` and ``abort``
-    are always accepted once ``cmd`` names them; their overlooked problems are
-    listed in ``Command.ignored``.
+    missing, extra or wrongly typed field, a key given twice or text that
+    cannot be encoded as UTF-8 (such an ``id`` is not echoed: the reply's id is
+    null). Exception: ``stop`` and ``abort`` are always accepted once ``cmd``
+    names them unambiguously; their overlooked problems are listed in
+    ``Command.ignored``.
     """
-    obj = _payload_object(payload)
+    found = read_object(payload)
+    obj = found.fields
     raw_id = obj.get("id")
-    cid = (raw_id[:MAX_ID_CHARS] or None) if isinstance(raw_id, str) else None
-    problems = _id_problems(obj)
+    readable = isinstance(raw_id, str) and "id" not in found.unencodable and "id" not in found.duplicates
+    cid = (raw_id[:MAX_ID_CHARS] or None) if readable else None
+    problems = found.problems() + ([] if "id" in found.unencodable else _id_problems(obj))
+    if "cmd" in found.duplicates:
+        raise CommandError("; ".join(problems), cid)  # which command was meant cannot be told
     name = obj.get("cmd")
     if "cmd" not in obj:
         raise CommandError("; ".join(["missing field 'cmd'", *problems]), cid)

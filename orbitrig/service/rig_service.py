@@ -23,8 +23,9 @@ exponential backoff (reset only after a connection carried traffic for a while)
 and republishes the status. A loss of supervision longer
 than ``supervision_timeout`` applies ``supervision_policy`` to a running run
 once: ``keep`` (go on), ``pause`` or ``stop``. ``stop`` and ``abort`` are
-always accepted and go straight to the executor, whatever it is doing (also
-while it waits for an operator confirmation). A matrix is chosen by name only,
+always accepted and go straight to the executor as they are read off the
+connection, whatever it is doing and however many commands wait (also on
+``<prefix>/abort``; orbitrig.service.inbox). A matrix is chosen by name only,
 from the configured matrix folder.
 
 Background work runs in named tasks owned by one TaskGroup.
@@ -34,6 +35,7 @@ from __future__ import annotations
 
 import asyncio
 import collections
+import functools
 import logging
 import threading
 import time
@@ -44,6 +46,7 @@ from typing import Any, Literal, Protocol
 from orbitrig.errors import ConfigError, OrbitrigError
 from orbitrig.run.engine import ProgressEvent, ResultEvent, RunOutcome, StatusEvent
 from orbitrig.service import live as live_feed
+from orbitrig.service.inbox import CommandTriage
 from orbitrig.service import protocol as proto
 from orbitrig.service.link import BrokerLink
 from orbitrig.service.settings import (  # noqa: F401 - the service's public names
@@ -98,8 +101,11 @@ class RigService:
         self._status = proto.status_payload("idle", None, None, "service ready")
         self._state = "idle"
         self._run_id: str | None = None
+        self.triage = CommandTriage(self._on_message, functools.partial(self._reply, behind=True),
+                                    lambda: self.link.reply_backlog)
         self.link = BrokerLink(broker, settings, self.topics, status=lambda: self._status,
-                               offline=self._offline_status, on_command=self._on_message)
+                               offline=self._offline_status, on_command=self._on_message,
+                               triage=self.triage)
         self._tg: asyncio.TaskGroup | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread = threading.get_ident()
@@ -213,11 +219,11 @@ class RigService:
             cmd = proto.parse_command(payload)
         except proto.CommandError as err:
             log.info("refused command %r: %s", payload[:200], err.reason)
-            self._reply(err.id, err.reason)
+            self._reply(err.id, err.reason, behind=True)
             return
         except Exception as err:  # noqa: BLE001 - no payload may kill the service
             log.exception("refused command %r: the parser failed", payload[:200])
-            self._reply(None, f"payload cannot be read: {type(err).__name__}")
+            self._reply(None, f"payload cannot be read: {type(err).__name__}", behind=True)
             return
         if self._redelivered(cmd, payload):
             log.warning("dropped redelivered command %s (id %r): handled already", cmd.cmd, cmd.id)
@@ -240,7 +246,7 @@ class RigService:
         if cmd.cmd == "abort":
             log.info("abort requested of the executor %.1f ms after the message arrived",
                      (time.monotonic() - t0) * 1e3)
-        self._reply(cmd.id, error)
+        self._reply(cmd.id, error, behind=cmd.cmd not in proto.ALWAYS_ACCEPTED)
 
     def _redelivered(self, cmd: proto.Command, payload: bytes) -> bool:
         """True for the broker's redelivery of a command handled before the link
@@ -272,9 +278,11 @@ class RigService:
     def _send(self, topic: str, payload: bytes, qos: int, retain: bool = False) -> None:
         self.link.send(topic, payload, qos, retain)
 
-    def _reply(self, cid: str | None, error: str | None) -> None:
+    def _reply(self, cid: str | None, error: str | None, *, behind: bool = False) -> None:
+        """One reply; ``behind``: to an ordinary command (sent after statuses and results)."""
         payload = proto.reply_ok(cid) if error is None else proto.reply_error(cid, error)
-        self._send(self.topics.reply, payload, proto.QOS_REPLY)
+        self.link.send(self.topics.reply, payload, proto.QOS_REPLY, behind=behind)
+
 
     def _cmd_status(self, cmd: proto.Command) -> str | None:
         self._send(self.topics.status, self._status, proto.QOS_STATUS, True)

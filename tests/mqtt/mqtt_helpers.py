@@ -69,9 +69,18 @@ def client_id_lines() -> tuple[list[str], list[str]]:
     return glob, listener
 
 
+def flow_limit_lines() -> list[str]:
+    """The shipped config's queue and in-flight limits (every test broker has them)."""
+    keys = ("max_inflight_messages", "max_queued_messages", "queue_qos0_messages")
+    lines = [ln.strip() for ln in EXAMPLE_CONF.read_text().splitlines() if ln.split(" ")[0] in keys]
+    assert len(lines) == len(keys), "config/mosquitto/mosquitto.conf lost its flow limits"
+    return lines
+
+
 class Broker:
     """mosquitto on a loopback port: no anonymous access, a password file made
-    with mosquitto_passwd, and config/mosquitto/acl (the shipped example).
+    with mosquitto_passwd, config/mosquitto/acl (the shipped example) and the
+    shipped config's flow limits.
 
     ``bind_ids``: also the shipped config's client-id binding, with the rig
     service's own listener on ``service_port`` (``service_url``); ``persist``:
@@ -104,6 +113,7 @@ class Broker:
             "allow_anonymous false\n"
             f"password_file {self.passwd}\n"
             f"acl_file {EXAMPLE_ACL}\n"
+            + "".join(f"{ln}\n" for ln in flow_limit_lines())
             + "".join(f"{ln}\n" for ln in ids) + "\n".join(service_listener) +
             f"listener {self.port} 127.0.0.1\n"
             f"{tls_lines}"
@@ -192,15 +202,16 @@ class Watcher:
     """mosquitto_sub in the background, collecting every message it prints."""
 
     broker: Broker
-    topic: str
+    topic: str | tuple[str, ...]  # one filter or several
     user: str | None = "viewer"
     messages: list[Msg] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self._cond = threading.Condition()
+        filters = [self.topic] if isinstance(self.topic, str) else list(self.topic)
         self.proc = subprocess.Popen(
-            ["mosquitto_sub", *self.broker.client_args(self.user), "-q", "1", "-t", self.topic,
-             "-F", "%j"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+            ["mosquitto_sub", *self.broker.client_args(self.user), "-q", "1",
+             *(a for t in filters for a in ("-t", t)), "-F", "%j"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         self._thread = threading.Thread(target=self._read, daemon=True)
         self._thread.start()
 
@@ -247,11 +258,12 @@ class Watcher:
 class RigClient:
     """An operator (publishing commands) plus a viewer (watching the rig's topics)."""
 
-    def __init__(self, broker: Broker, rig_id: str, service: "Service | None" = None):
+    def __init__(self, broker: Broker, rig_id: str, service: "Service | None" = None,
+                 watch: tuple[str, ...] = ("#",)):
         self.broker = broker
         self.service = service  # its log is shown when a wait fails
         self.prefix = f"orbitrig/{rig_id}"
-        self.watch = Watcher(broker, f"{self.prefix}/#")
+        self.watch = Watcher(broker, tuple(f"{self.prefix}/{t}" for t in watch))
         self._n = 0
 
     def send(self, obj: dict | str | bytes, *, user: str = "operator", cid: str | None = None,

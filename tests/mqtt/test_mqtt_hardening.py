@@ -200,7 +200,7 @@ def test_a_redelivery_after_a_reconnection_is_executed_once(tmp_path):
     service = RigService(settings, BrokerSettings("127.0.0.1"), engine_factory=lambda name, m: None,
                          load_matrix=lambda p: None)
     sent = []
-    service.link.send = lambda topic, payload, qos, retain=False: sent.append((topic, payload))
+    service.link.send = lambda topic, payload, qos, retain=False, behind=False: sent.append((topic, payload))
     payload = b'{"cmd":"status","id":"a1"}'
     service.link.connections, service.link.connected_at = 1, _time.monotonic()
     service.handle_command(payload)

@@ -72,3 +72,17 @@ def test_service_account_cannot_command(broker):
         assert len(svc.messages) == 1
     finally:
         svc.close()
+
+
+def test_only_operators_may_publish_on_the_abort_topic(broker):
+    svc = Watcher(broker, "orbitrig/+/abort", user="orbitrig-service")  # the service reads it
+    try:
+        time.sleep(0.3)
+        broker.pub("orbitrig/r4/abort", '{"cmd":"abort","id":"by-viewer"}', user="viewer")
+        broker.pub("orbitrig/r4/abort", '{"cmd":"abort","id":"by-service"}', user="orbitrig-service")
+        assert broker.pub("orbitrig/r4/abort", '{"cmd":"abort","id":"by-operator"}').returncode == 0
+        svc.wait_for(lambda m: b"by-operator" in m.payload, 5)
+        time.sleep(0.2)
+        assert [m.payload for m in svc.messages] == [b'{"cmd":"abort","id":"by-operator"}']
+    finally:
+        svc.close()
