@@ -24,6 +24,10 @@ warns, naming the poorly determined coefficients, when the ratio exceeds
 ``ILL_CONDITIONED_RATIO`` (100: a hundredfold amplification of relative data errors beyond
 what the frequencies themselves impose).
 
+v3, identifiability on signal (:mod:`reduction.excitation`): a displacement direction whose
+excitation is not clear of its noise carries no orbit shape; :func:`check_signal` judges the
+rank on the design with such directions removed and refuses when it is deficient.
+
 What would separate them is found by re-testing the rank with added synthetic orbits:
 the same orbits whirling the other way round (x, y -> conj), more distinct frequencies,
 and generic elliptical orbits (whatever remains then is structural: no data separate it).
@@ -37,6 +41,7 @@ import numpy as np
 
 from reduction.design import design_orbits, idealised_design, reference_design
 from reduction.errors import IdentifiabilityError
+from reduction.excitation import SignalDesign
 from reduction.impedance import real_rows, regressors
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
 from reduction.regression import column_scale
@@ -187,6 +192,28 @@ def analyse(spec: ModelSpec, table: OrbitTable, A: np.ndarray | None = None,
     return rank
 
 
+def check_signal(spec: ModelSpec, table: OrbitTable, signal: SignalDesign, rtol: float = RANK_RTOL) -> None:
+    """Raise IdentifiabilityError when ``table`` with the directions that are not clear of
+    their noise removed (``signal``, :func:`reduction.excitation.signal_design`) cannot
+    identify ``spec``: the rows left, idealised per whirl direction, must have full rank."""
+    if not signal.changed:
+        return
+    keep = np.abs(signal.x) + np.abs(signal.y) > 0
+    cause = "; ".join(signal.removed)
+    if not np.any(keep):
+        raise IdentifiabilityError(
+            f"{spec.model} with freq-dep {spec.freq_dep.text} cannot be identified from this table: no "
+            f"displacement is clear of its noise ({cause}); every coefficient is undetermined.", list(spec.names))
+    cleaned = table.with_phasors(signal.x, signal.y, table.fx, table.fy).subset(keep)
+    if cleaned.n < spec.min_frequencies:
+        raise _refusal(spec, cleaned, None, None, rtol, "few", cause)
+    x, y, _ = idealised_design(cleaned)
+    A = _stack(spec, cleaned.orbit, x, y)
+    rank = numerical_rank(A, rtol)
+    if rank.deficiency:
+        raise _refusal(spec, cleaned.with_phasors(x, y, cleaned.fx, cleaned.fy), A, rank, rtol, "signal", cause)
+
+
 def check_plan(model: str, freq_dep: str, orbit_hz, directions) -> None:
     """Before a run: raise IdentifiabilityError when circular orbits at ``orbit_hz`` (Hz) in
     ``directions`` ("forward" | "backward" | "both", one for all or one per frequency) cannot
@@ -244,18 +271,29 @@ def _variance_factors(rank: Rank) -> np.ndarray:
         return np.sum((rank.vt.T / s) ** 2, axis=1)
 
 
-def _refusal(spec, table, A, rank, rtol, kind) -> IdentifiabilityError:
+def _refusal(spec, table, A, rank, rtol, kind, cause="") -> IdentifiabilityError:
     """kind: "few" (too few frequencies), "ideal" (the idealised one-shape-per-direction
-    design is rank-deficient) or "" (the regression itself is)."""
+    design is rank-deficient), "signal" (so is the design without the directions not clear
+    of their noise, ``cause``) or "" (the regression itself is)."""
     p = spec.n_coefficients
     names = spec.names
-    combos = combinations(rank, names)
     head = f"{spec.model} with freq-dep {spec.freq_dep.text} ({p} coefficients) cannot be identified from this table"
+    if kind == "few" and cause:
+        return IdentifiabilityError(
+            f"{head}: the displacement is not clear of its noise in {cause}; the {table.n} rows left "
+            f"are fewer than the {spec.min_frequencies} orbit frequencies {p} coefficients need.", list(names))
+    combos = combinations(rank, names)
     lines = []
     if kind == "few":
         lines.append(
             f"{head}: too few orbit frequencies: {p} coefficients need at least {spec.min_frequencies} "
             f"orbit frequencies (4 real equations each), the table has {table.n}.")
+    elif kind == "signal":
+        lines.append(
+            f"{head}: the excitation is not clear of the displacement noise in {cause} (u_x, u_y, "
+            "else the residual's equivalent; at least 0.5 % of each orbit). Such a direction "
+            "carries noise, not an orbit shape (e.g. a line orbit whose other axis is only probe "
+            "noise); without it the regression is rank-deficient.")
     elif kind == "ideal":
         lines.append(
             f"{head}: the orbits of each whirl direction have one common shape (idealised to it: "
@@ -275,7 +313,11 @@ def _refusal(spec, table, A, rank, rtol, kind) -> IdentifiabilityError:
     if len(combos) > MAX_LISTED:
         lines.append(f"  ... and {len(combos) - MAX_LISTED} more")
     lines.append("What would separate them:")
-    lines += ["  - " + h for h in _hints(spec, table, A, rank, rtol)]
+    if kind == "signal":
+        lines.append("  - an excitation across the orbits' main axis well above the probe noise: forward and "
+                     "backward circular whirl, or ellipses whose minor axis stands clear of the noise.")
+    else:
+        lines += ["  - " + h for h in _hints(spec, table, A, rank, rtol)]
     return IdentifiabilityError("\n".join(lines), combos)
 
 

@@ -33,7 +33,9 @@ into relative coefficient errors, independent of the coefficients' units.
 ``covariance`` / ``std_errors``: with u_* columns from the stated uncertainties (absolute,
 see :mod:`reduction.statistics`), otherwise s^2 (A^T A)^-1 with s^2 = residual sum of squares
 / (4n - p) (estimator-specific forms for wls, tls, iv); None when 4n == p and the noise is
-unknown. ``confidence_95`` from Student's t with 4n - p degrees of freedom.
+unknown. ``confidence_95``: with u_* the normal quantile 1.96 (the covariance is known, so
+also at 4n - p = 0), else Student's t with 4n - p degrees of freedom (``interval``).
+``not_determined``: the coefficients whose interval half-width exceeds their magnitude.
 """
 
 from __future__ import annotations
@@ -46,7 +48,8 @@ from reduction import regression as reg
 from reduction import statistics as st
 from reduction.diagnostics import fit_errors, residual_rms
 from reduction.errors import IdentificationError, IdentifiabilityError, ReductionError
-from reduction.identifiability import RANK_RTOL, analyse, ill_conditioning, numerical_rank
+from reduction.excitation import displacement_noise, signal_design, signal_warning
+from reduction.identifiability import RANK_RTOL, analyse, check_signal, ill_conditioning, numerical_rank
 from reduction.impedance import impedance, impedance_basis, real_rows, regression, regressors
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
 from reduction.noise import coherence_variances, equation_variances
@@ -110,6 +113,7 @@ def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank
     A, b = _regression(spec, table)
     known = table.u is not None
     rank = analyse(spec, table, A, rank_rtol)  # raises when not identifiable
+    signal = _signal(spec, table, A, b, rank, solver, rank_rtol)  # raises when not identifiable on signal
     var = _variances(spec, table, A, b, method, solver, rank)
     if method == "wls":  # the weighted regression's own scaling and conditioning
         rank = analyse(spec, table, A / np.sqrt(var)[:, None], rank_rtol)
@@ -138,7 +142,26 @@ def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank
         cov_s = st.sandwich(P, var) if P is not None else est.unscaled
     else:
         cov_s = est.cov
-    return _result(spec, table, method, solver, est, theta, c, cov_s, rank, var if known else None, b - A @ theta)
+    ident = _result(spec, table, method, solver, est, theta, c, cov_s, rank, var if known else None, b - A @ theta)
+    weak = signal_warning(signal)
+    if weak:
+        ident.warnings.insert(0, weak)
+    return ident
+
+
+def _signal(spec, table, A, b, rank, solver, rtol):
+    """The design without the displacement directions not clear of their noise (u_x, u_y,
+    else the residual of a first ols fit); raises IdentifiabilityError when it cannot
+    identify ``spec``."""
+    if table.u is not None:
+        noise = displacement_noise(table)
+    else:
+        theta0 = reg.lstsq(A / rank.scale, b, solver) / rank.scale
+        noise = displacement_noise(table, b - A @ theta0, impedance(spec, theta0, table.orbit),
+                                   4 * table.n - spec.n_coefficients)
+    design = signal_design(table, noise)
+    check_signal(spec, table, design, rtol)
+    return design
 
 
 def _regression(spec: ModelSpec, table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:
@@ -180,7 +203,8 @@ def _result(spec, table, method, solver, est, theta, c, cov_s, rank, var, r) -> 
     p, dof = spec.n_coefficients, 4 * table.n - spec.n_coefficients
     cov = None if cov_s is None else cov_s / np.outer(c, c)
     std = np.full(p, np.nan) if cov is None else np.sqrt(np.clip(np.diag(cov), 0, None))
-    ci = st.intervals(theta, std, dof)
+    interval = st.Interval.NORMAL if known else st.Interval.STUDENT_T
+    ci = st.intervals(theta, std, dof, interval=interval)
     notes, warnings = list(spec.notes), []
     chi2 = p_value = None
     if known:
@@ -207,7 +231,10 @@ def _result(spec, table, method, solver, est, theta, c, cov_s, rank, var, r) -> 
         spec=spec, theta=theta, cost=est.rss, free=spec.names, covariance=cov, dof=dof,
         confidence_95={k: (None if not np.all(np.isfinite(v)) else (float(v[0]), float(v[1])))
                        for k, v in spec.expand(list(ci)).items()},
-        chi2=chi2, p_value=p_value, aic=aic, bic=bic, notes=notes, warnings=warnings, known_noise=known)
+        chi2=chi2, p_value=p_value, aic=aic, bic=bic, notes=notes, warnings=warnings, known_noise=known,
+        interval=interval)
+    half = st.quantile(interval, dof) * np.asarray(list(spec.expand(std).values()))
+    ident.not_determined = st.not_determined(ident.coefficients, dict(zip(ident.coefficients, half)))
     fx_rep, fy_rep = ident.reproduce(table)
     ident.residual_rms = residual_rms(table.fx, table.fy, fx_rep, fy_rep)
     ident.fit = fit_errors(table.orbit, table.fx, table.fy, fx_rep, fy_rep)
