@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from reduction.design import design_orbits, idealised_design, reference_design
+from reduction.design import YARDSTICK_SPAN, design_orbits, idealised_design, reference_design, yardstick_design
 from reduction.errors import IdentifiabilityError
 from reduction.excitation import SignalDesign
 from reduction.impedance import real_rows, regressors
@@ -50,6 +50,7 @@ from reduction.table import OrbitTable
 RANK_RTOL = 1e-7  # relative singular-value tolerance on the column-scaled regression (cond > 1e7 = deficient)
 MAX_LISTED = 12
 ILL_CONDITIONED_RATIO = 100.0  # warn when cond(table) > 100 x cond(same frequencies, ideal design)
+MAX_SE_INFLATION = 10.0  # warn when a standard error is > 10 x that of the yardstick design (variance 100 x)
 WEAK_LISTED = 8
 
 
@@ -241,27 +242,39 @@ def check_plan(model: str, freq_dep: str, orbit_hz, directions) -> None:
 def ill_conditioning(spec: ModelSpec, table: OrbitTable, rank: Rank) -> str | None:
     """The warning for an identifiable but ill-conditioned fit, or None.
 
-    The table's column-scaled condition number (``rank``) is compared with that of the same
-    distinct frequencies on the ideal design with both whirl directions; above
-    ``ILL_CONDITIONED_RATIO`` times it the fit is flagged, and the coefficients whose
-    standard errors are inflated most (variance inflation against the ideal design, at
-    least a tenth of the worst and above the ratio's square root) are named.
+    Relative test: the table's column-scaled condition number (``rank``) against that of the
+    same distinct frequencies on the ideal design with both whirl directions, flagged above
+    ``ILL_CONDITIONED_RATIO`` times it. Absolute test (v3): each coefficient's variance
+    inflation (diag of the column-scaled (A^T A)^-1) against the yardstick design
+    (:func:`reduction.design.yardstick_design`), flagged when a standard error is inflated
+    above ``MAX_SE_INFLATION``. The coefficients inflated most (at least a tenth of the
+    worst and above the ratio's square root) are named.
     """
     w, x, y = reference_design(table.orbit)
     ref = numerical_rank(_stack(spec, w, x, y), 0.0)
+    forward = table.forward()
+    directions = "both" if forward.any() and not forward.all() else "forward" if forward.all() else "backward"
+    yard_design = yardstick_design(table.orbit, spec.min_frequencies, directions)
+    yard = numerical_rank(_stack(spec, *yard_design), 0.0)
     cond, cond_ref = rank.condition_number, ref.condition_number
-    if not np.isfinite(cond_ref) or not cond > ILL_CONDITIONED_RATIO * cond_ref:
+    relative = bool(np.isfinite(cond_ref) and cond > ILL_CONDITIONED_RATIO * cond_ref)
+    factors = _variance_factors(rank)
+    absolute = np.sqrt(factors / _variance_factors(yard))
+    if not relative and not np.max(absolute) > MAX_SE_INFLATION:
         return None
-    inflation = np.sqrt(_variance_factors(rank) / _variance_factors(ref))
+    inflation = np.maximum(np.sqrt(factors / _variance_factors(ref)) if relative else 0.0, absolute)
     order = np.argsort(-inflation)
     weak = [spec.names[j] for j in order
             if inflation[j] >= max(0.1 * inflation[order[0]], np.sqrt(ILL_CONDITIONED_RATIO))]
     weak = weak or [spec.names[order[0]]]
     listed = ", ".join(weak[:WEAK_LISTED]) + (f" and {len(weak) - WEAK_LISTED} more" if len(weak) > WEAK_LISTED else "")
+    n_yard = len(np.unique(yard_design[0]))
     return (f"ill-conditioned: condition number {cond:.3g}, {cond / cond_ref:.3g} times that of the same "
             f"frequencies with forward and backward circular orbits ({cond_ref:.3g}; orbitrig warns above "
-            f"{ILL_CONDITIONED_RATIO:g} times); poorly determined: {listed}. Forward and backward whirl of "
-            "similar size at every frequency would determine them.")
+            f"{ILL_CONDITIONED_RATIO:g} times); standard errors up to {np.max(absolute):.3g} times those of "
+            f"{'forward and backward' if directions == 'both' else directions} circles at {n_yard} frequencies spread over 1/{YARDSTICK_SPAN:g} .. 1 of the "
+            f"highest (orbitrig warns above {MAX_SE_INFLATION:g} times); poorly determined: {listed}. Forward "
+            "and backward whirl of similar size at well separated frequencies would determine them.")
 
 
 def _variance_factors(rank: Rank) -> np.ndarray:
