@@ -83,19 +83,26 @@ def displacement_noise(table: OrbitTable, residual: np.ndarray | None = None,
     return np.maximum(u[:, None], floor)
 
 
-def _shape_matrix(x, y) -> np.ndarray:
-    """(2, 2 rows) real orbit-shape matrix: Re and Im parts of each row side by side."""
-    return np.stack([np.concatenate([x.real, x.imag]), np.concatenate([y.real, y.imag])])
-
-
-def _judge(name: str, x, y, u) -> GroupSignal:
-    S = _shape_matrix(x, y)
-    U, s, _ = np.linalg.svd(S, full_matrices=False)
-    energy = (U**2).T @ np.sum(u**2, axis=0)  # noise energy along each singular direction
+def excitation_ratios(x, y, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(major, minor, axis): the singular values of the orbit-shape matrix of rows x, y (m,
+    last axis) over the square root of the noise energy along their directions (u (..., n, 2)
+    the rows' u_x, u_y), and the main axis (..., 2). Leading axes are a batch of tables."""
+    x, y = np.asarray(x, dtype=complex), np.asarray(y, dtype=complex)
+    xy = np.sum((x * np.conj(y)).real, axis=-1)
+    gram = np.stack([np.stack([np.sum(np.abs(x) ** 2, axis=-1), xy], -1),
+                     np.stack([xy, np.sum(np.abs(y) ** 2, axis=-1)], -1)], -2)  # S S^T, (..., 2, 2)
+    s2, U = np.linalg.eigh(gram)  # ascending: minor first
+    energy = np.einsum("...ij,...i->...j", U**2, np.sum(np.asarray(u, dtype=float) ** 2, axis=-2))
+    s = np.sqrt(np.clip(s2, 0.0, None))
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(energy > 0, s / np.sqrt(np.where(energy > 0, energy, 1.0)), np.inf)
     ratio = np.where(s > 0, ratio, 0.0)
-    return GroupSignal(name, x.size, float(ratio[0]), float(ratio[1]), U[:, 0].copy())
+    return ratio[..., 1], ratio[..., 0], U[..., :, 1]
+
+
+def _judge(name: str, x, y, u) -> GroupSignal:
+    major, minor, axis = excitation_ratios(x, y, u)
+    return GroupSignal(name, x.size, float(major), float(minor), axis)
 
 
 def _project(x, y, axis):

@@ -255,7 +255,11 @@ def ill_conditioning(spec: ModelSpec, table: OrbitTable, rank: Rank) -> str | No
     forward = table.forward()
     directions = "both" if forward.any() and not forward.all() else "forward" if forward.all() else "backward"
     yard_design = yardstick_design(table.orbit, spec.min_frequencies, directions)
-    yard = numerical_rank(_stack(spec, *yard_design), 0.0)
+    yard = numerical_rank(_stack(spec, *yard_design))
+    if yard.deficiency:  # the table's one direction cannot identify the model: judge against both
+        directions = "both"
+        yard_design = yardstick_design(table.orbit, spec.min_frequencies, directions)
+        yard = numerical_rank(_stack(spec, *yard_design))
     cond, cond_ref = rank.condition_number, ref.condition_number
     relative = bool(np.isfinite(cond_ref) and cond > ILL_CONDITIONED_RATIO * cond_ref)
     factors = _variance_factors(rank)

@@ -46,6 +46,7 @@ import numpy as np
 
 from reduction import regression as reg
 from reduction import statistics as st
+from reduction.attenuation import attenuation_bias, attenuation_warning
 from reduction.diagnostics import fit_errors, residual_rms
 from reduction.errors import IdentificationError, IdentifiabilityError, ReductionError
 from reduction.excitation import displacement_noise, signal_design, signal_warning
@@ -146,6 +147,13 @@ def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank
     weak = signal_warning(signal)
     if weak:
         ident.warnings.insert(0, weak)
+    if known and method in ("ols", "wls"):
+        unscaled = rank.unscaled_covariance() if method == "ols" else est.unscaled
+        bias = attenuation_bias(spec, table, theta, c, unscaled, None if method == "ols" else 1.0 / var)
+        std = np.sqrt(np.clip(np.diag(ident.covariance), 0, None))
+        eiv = attenuation_warning(spec, method, bias, std)
+        if eiv:
+            ident.warnings.append(eiv)
     return ident
 
 
