@@ -19,12 +19,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from reduction.impedance import impedance_basis
+from reduction.impedance import impedance_columns
 from reduction.models import ModelSpec
 from reduction.table import OrbitTable
 
 EIV_BIAS_FRACTION = 0.25  # warn when |bias| > 0.25 standard errors
 LISTED = 8
+ROWS = 65536  # rows per block of the noise sum
 
 
 def attenuation_bias(spec: ModelSpec, table: OrbitTable, theta: np.ndarray, scale: np.ndarray,
@@ -32,10 +33,19 @@ def attenuation_bias(spec: ModelSpec, table: OrbitTable, theta: np.ndarray, scal
     """(p,) first-order bias (SI, column order) of ols (``weights`` None) or wls (weights
     (4n,) the inverse equation variances) from the table's displacement noise u_x, u_y;
     ``unscaled`` is (A_s^T W A_s)^-1 of the column-scaled (by ``scale``) regression."""
-    E = impedance_basis(spec, table.orbit)
     w = np.ones((table.n, 2)) if weights is None else np.asarray(weights).reshape(table.n, 2, 2)[:, :, 0]
-    W = w[:, :, None] * (table.u[:, None, :2] ** 2)  # (n, force i, displacement l)
-    sigma = np.einsum("kpil,kqil,kil->pq", E, np.conj(E), W).real
+    p = spec.n_coefficients
+    filling = {}  # Z's entry (i, l) -> the coefficients whose basis fills it
+    for j, t in enumerate(spec.terms):
+        for i, l in t.entries:
+            filling.setdefault((i, l), []).append(j)
+    sigma = np.zeros((p, p))
+    for s in range(0, table.n, ROWS):
+        cols = impedance_columns(spec, table.orbit[s: s + ROWS])
+        for (i, l), J in filling.items():
+            e = cols[:, J]
+            weight = w[s: s + ROWS, i] * table.u[s: s + ROWS, l] ** 2
+            sigma[np.ix_(J, J)] += (np.conj(e).T @ (e * weight[:, None])).real
     sigma_s = sigma / np.outer(scale, scale)
     return -(unscaled @ (sigma_s @ (theta * scale))) / scale
 

@@ -40,6 +40,7 @@ SHAPE_SPREAD = 0.2  # a direction's shapes farther apart than this (unit-norm di
 CIRCLE_TOL = 0.05  # a mean shape whose minor whirl component is below 5 % of the major is a circle
 YARDSTICK_SPAN = 6.0  # the yardstick design spans highest / 6 .. highest orbit frequency
 YARDSTICK_MAX = 64  # at most this many frequencies in the yardstick design
+REFERENCE_MAX = 4096  # the same-frequency reference of a long table uses this many of its frequencies
 
 
 def orbit_shapes(x, y) -> tuple[np.ndarray, np.ndarray]:
@@ -84,8 +85,11 @@ def idealised_design(table: OrbitTable, spread: float = SHAPE_SPREAD) -> tuple[n
 
 
 def reference_design(orbit) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(orbit, x, y): forward and backward unit circles at every distinct frequency."""
+    """(orbit, x, y): forward and backward unit circles at every distinct frequency (a long
+    table's: at ``REFERENCE_MAX`` of them, evenly picked in order)."""
     w = np.unique(np.asarray(orbit, dtype=float))
+    if w.size > REFERENCE_MAX:
+        w = w[np.round(np.linspace(0, w.size - 1, REFERENCE_MAX)).astype(int)]
     w2 = np.repeat(w, 2)
     x = np.ones(w2.size, dtype=complex)
     y = np.tile([-1j, 1j], w.size)

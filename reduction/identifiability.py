@@ -42,9 +42,9 @@ import numpy as np
 from reduction.design import YARDSTICK_SPAN, design_orbits, idealised_design, reference_design, yardstick_design
 from reduction.errors import IdentifiabilityError
 from reduction.excitation import SignalDesign
-from reduction.impedance import real_rows, regressors
+from reduction.impedance import regression_rows
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
-from reduction.regression import column_scale
+from reduction.regression import triangular
 from reduction.table import OrbitTable
 
 RANK_RTOL = 1e-7  # relative singular-value tolerance on the column-scaled regression (cond > 1e7 = deficient)
@@ -64,16 +64,11 @@ class Rank:
     null: np.ndarray  # (p, p - rank), orthonormal, scaled coordinates
     scale: np.ndarray  # column norms c: theta = u / c
     vt: np.ndarray  # (p, p) right singular vectors (rows), scaled coordinates
-    u: np.ndarray | None = None  # (m, p) left singular vectors when m >= p
 
     def unscaled_covariance(self) -> np.ndarray:
         """(A_s^T A_s)^-1 of the column-scaled matrix (full rank only)."""
         s = self.singular_values
         return (self.vt.T / s**2) @ self.vt
-
-    def pseudo_inverse(self) -> np.ndarray:
-        """(A_s^T A_s)^-1 A_s^T of the column-scaled matrix (full rank, m >= p only)."""
-        return (self.vt.T / self.singular_values) @ self.u.T
 
     @property
     def deficiency(self) -> int:
@@ -86,15 +81,21 @@ class Rank:
 
 
 def numerical_rank(A: np.ndarray, rtol: float = RANK_RTOL) -> Rank:
-    """Rank of A after column scaling: singular values > rtol * sigma_max count."""
-    A_s, c = column_scale(np.asarray(A, dtype=float))
-    m, p = A_s.shape
-    if m < p:  # pad so that the SVD returns the whole right singular basis
-        A_s = np.vstack([A_s, np.zeros((p - m, p))])
-    U, s, Vt = np.linalg.svd(A_s, full_matrices=False)  # m >= p here: Vt is p x p
+    """Rank of A after column scaling: singular values > rtol * sigma_max count. The
+    singular values and right vectors come from the R factor of the blocked QR (those of A
+    itself), so a long table costs one pass and one block of memory."""
+    A = np.asarray(A, dtype=float)
+    m, p = A.shape
+    c = np.sqrt(np.einsum("ij,ij->j", A, A))
+    c = np.where(c > 0, c, 1.0)
+    R = triangular(A)[0] / c
+    if R.shape[0] < p:  # pad so that the SVD returns the whole right singular basis
+        R = np.vstack([R, np.zeros((p - R.shape[0], p))])
+    _, s, Vt = np.linalg.svd(R)
+    s = s if m >= p else np.concatenate([s[:m], np.zeros(p - m)])
     tol = rtol * (s[0] if s.size else 0.0)
     rank = int(np.sum(s > tol)) if s.size and s[0] > 0 else 0
-    return Rank(rank, p, s, Vt[rank:].T.copy(), c, Vt, U if m >= p else None)
+    return Rank(rank, p, s, Vt[rank:].T.copy(), c, Vt)
 
 
 def combinations(rank: Rank, names: list[str]) -> list[str]:
@@ -149,7 +150,7 @@ def _determined(combo: str, all_combos: list[str]) -> str | None:
 
 
 def _stack(spec: ModelSpec, orbit, x, y) -> np.ndarray:
-    return real_rows(regressors(spec, orbit, x, y))
+    return regression_rows(spec, orbit, x, y)
 
 
 def _whirl(table: OrbitTable) -> str:

@@ -114,16 +114,19 @@ def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank
     A, b = _regression(spec, table)
     known = table.u is not None
     rank = analyse(spec, table, A, rank_rtol)  # raises when not identifiable
-    signal = _signal(spec, table, A, b, rank, solver, rank_rtol)  # raises when not identifiable on signal
-    var = _variances(spec, table, A, b, method, solver, rank)
-    if method == "wls":  # the weighted regression's own scaling and conditioning
-        rank = analyse(spec, table, A / np.sqrt(var)[:, None], rank_rtol)
     c = rank.scale
-    A_s = A / c
-    P = None  # the estimator's linear map b -> scaled coefficients (ols, iv)
+    A_s = A
+    A_s /= c  # in place (a long table has room for one regression matrix): the column-scaled A
+    x0 = reg.lstsq(A_s, b, solver)  # the ols solution (scaled), the first pass of every method
+    signal = _signal(spec, table, A_s, b, c, x0, rank_rtol)  # raises when not identifiable on signal
+    var = _variances(spec, table, x0 / c, b, method)
+    if method == "wls":  # the weighted regression's own scaling and conditioning
+        rank = analyse(spec, table, A_s * (c / np.sqrt(var)[:, None]), rank_rtol)
+        A_s *= c / rank.scale
+        c = rank.scale
+    P = None  # the estimator's linear map b -> scaled coefficients (iv)
     if method == "ols":
-        est = reg.ols(A_s, b, solver, rank.unscaled_covariance())
-        P = rank.pseudo_inverse() if known else None
+        est = reg.ols(A_s, b, solver, rank.unscaled_covariance(), x0)
     elif method == "wls":
         est = reg.wls(A_s, b, 1.0 / var, solver, rank.unscaled_covariance())
         if known:  # second pass: effective variances at the wls coefficients
@@ -140,10 +143,14 @@ def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank
     theta = est.x / c
     if known:
         var = equation_variances(table.u, impedance(spec, theta, table.orbit))
-        cov_s = st.sandwich(P, var) if P is not None else est.unscaled
+        if method == "ols":
+            cov_s = st.sandwich_rows(A_s, var, est.unscaled)
+        else:
+            cov_s = st.sandwich(P, var) if P is not None else est.unscaled
     else:
         cov_s = est.cov
-    ident = _result(spec, table, method, solver, est, theta, c, cov_s, rank, var if known else None, b - A @ theta)
+    ident = _result(spec, table, method, solver, est, theta, c, cov_s, rank, var if known else None,
+                    b - A_s @ est.x)
     weak = signal_warning(signal)
     if weak:
         ident.warnings.insert(0, weak)
@@ -157,15 +164,15 @@ def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank
     return ident
 
 
-def _signal(spec, table, A, b, rank, solver, rtol):
+def _signal(spec, table, A_s, b, c, x0, rtol):
     """The design without the displacement directions not clear of their noise (u_x, u_y,
     else the residual of a first ols fit); raises IdentifiabilityError when it cannot
     identify ``spec``."""
     if table.u is not None:
         noise = displacement_noise(table)
     else:
-        theta0 = reg.lstsq(A / rank.scale, b, solver) / rank.scale
-        noise = displacement_noise(table, b - A @ theta0, impedance(spec, theta0, table.orbit),
+        theta0 = x0 / c
+        noise = displacement_noise(table, b - A_s @ x0, impedance(spec, theta0, table.orbit),
                                    4 * table.n - spec.n_coefficients)
     design = signal_design(table, noise)
     check_signal(spec, table, design, rtol)
@@ -185,13 +192,12 @@ def _regression(spec: ModelSpec, table: OrbitTable) -> tuple[np.ndarray, np.ndar
     return A, b
 
 
-def _variances(spec, table, A, b, method, solver, rank) -> np.ndarray:
+def _variances(spec, table, theta0, b, method) -> np.ndarray:
     """Variances of the 4n equations: from u_* (effective, at a first ols fit), else from the
     coherences for wls, else ones."""
     if table.u is not None:
         if not np.any(table.u[:, 2:] > 0) and not np.any(table.u[:, :2] > 0):
             raise IdentificationError("the table's u_x, u_y, u_fx, u_fy are all zero: no noise to weight by")
-        theta0 = reg.lstsq(A / rank.scale, b, solver) / rank.scale
         var = equation_variances(table.u, impedance(spec, theta0, table.orbit))
         floor = 1e-12 * float(np.max(var))
         if not floor > 0:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -35,7 +36,7 @@ class Identification:
     std_errors: dict[str, float | None]
     condition_number: float
     residual_rms: float
-    fit: list[dict]
+    fit: Sequence[dict]  # reduction.diagnostics.FitRows: one dict per row, read lazily
     exponent: int | None = None
     solver: str = "qr"
     spec: ModelSpec | None = field(default=None, repr=False)
@@ -56,8 +57,9 @@ class Identification:
     interval: str = "student_t"  # reduction.statistics.Interval
     not_determined: list[str] = field(default_factory=list)
 
-    def to_dict(self) -> dict:
-        """The contract's JSON object (``exponent`` added for power:auto); NaN/inf -> None."""
+    def to_dict(self, fit: bool = True) -> dict:
+        """The contract's JSON object (``exponent`` added for power:auto); NaN/inf -> None.
+        ``fit=False`` leaves the per-row ``fit`` out (a long table's writer streams it)."""
         cov = None if self.covariance is None else [[_num(v) for v in row] for row in self.covariance]
         d = {
             "model": self.model, "freq_dep": self.freq_dep, "method": self.method,
@@ -75,7 +77,7 @@ class Identification:
             d["chi2"], d["p_value"] = _num(self.chi2), _num(self.p_value)
         d.update(aic=_num(self.aic), bic=_num(self.bic), interval=str(self.interval),
                  not_determined=list(self.not_determined), notes=list(self.notes), warnings=list(self.warnings),
-                 fit=[{k: _num(v) for k, v in row.items()} for row in self.fit])
+                 **({"fit": [{k: _num(v) for k, v in row.items()} for row in self.fit]} if fit else {}))
         if self.exponent is not None:
             d["exponent"] = self.exponent
         return d

@@ -34,6 +34,17 @@ def sandwich(P: np.ndarray, variances: np.ndarray) -> np.ndarray:
     return (P * variances[None, :]) @ P.T
 
 
+def sandwich_rows(A: np.ndarray, variances: np.ndarray, bread: np.ndarray, rows: int = 32768) -> np.ndarray:
+    """bread (A^T diag(variances) A) bread: the covariance of least squares x = bread A^T b
+    (bread = (A^T A)^-1) for independent b of given variances, summed over blocks of rows."""
+    p = A.shape[1]
+    meat = np.zeros((p, p))
+    for s in range(0, A.shape[0], rows):
+        block = A[s: s + rows]
+        meat += (block * variances[s: s + rows, None]).T @ block
+    return bread @ meat @ bread
+
+
 def pseudo_inverse(A: np.ndarray) -> np.ndarray:
     """(A^T A)^-1 A^T for A of full column rank (by SVD)."""
     U, s, Vt = np.linalg.svd(A, full_matrices=False)
