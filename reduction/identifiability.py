@@ -35,8 +35,6 @@ and generic elliptical orbits (whatever remains then is structural: no data sepa
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from reduction.design import YARDSTICK_SPAN, design_orbits, idealised_design, reference_design, yardstick_design
@@ -44,58 +42,13 @@ from reduction.errors import IdentifiabilityError
 from reduction.excitation import SignalDesign
 from reduction.impedance import regression_rows
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
-from reduction.regression import triangular
+from reduction.rank import RANK_RTOL, Rank, design_rank, numerical_rank
 from reduction.table import OrbitTable
 
-RANK_RTOL = 1e-7  # relative singular-value tolerance on the column-scaled regression (cond > 1e7 = deficient)
 MAX_LISTED = 12
 ILL_CONDITIONED_RATIO = 100.0  # warn when cond(table) > 100 x cond(same frequencies, ideal design)
 MAX_SE_INFLATION = 10.0  # warn when a standard error is > 10 x that of the yardstick design (variance 100 x)
 WEAK_LISTED = 8
-
-
-@dataclass(frozen=True)
-class Rank:
-    """Numerical rank of a column-scaled regression and its null space (scaled coordinates)."""
-
-    rank: int
-    n_columns: int
-    singular_values: np.ndarray
-    null: np.ndarray  # (p, p - rank), orthonormal, scaled coordinates
-    scale: np.ndarray  # column norms c: theta = u / c
-    vt: np.ndarray  # (p, p) right singular vectors (rows), scaled coordinates
-
-    def unscaled_covariance(self) -> np.ndarray:
-        """(A_s^T A_s)^-1 of the column-scaled matrix (full rank only)."""
-        s = self.singular_values
-        return (self.vt.T / s**2) @ self.vt
-
-    @property
-    def deficiency(self) -> int:
-        return self.n_columns - self.rank
-
-    @property
-    def condition_number(self) -> float:
-        s = self.singular_values
-        return float(s[0] / s[-1]) if s.size and s[-1] > 0 else float("inf")
-
-
-def numerical_rank(A: np.ndarray, rtol: float = RANK_RTOL) -> Rank:
-    """Rank of A after column scaling: singular values > rtol * sigma_max count. The
-    singular values and right vectors come from the R factor of the blocked QR (those of A
-    itself), so a long table costs one pass and one block of memory."""
-    A = np.asarray(A, dtype=float)
-    m, p = A.shape
-    c = np.sqrt(np.einsum("ij,ij->j", A, A))
-    c = np.where(c > 0, c, 1.0)
-    R = triangular(A)[0] / c
-    if R.shape[0] < p:  # pad so that the SVD returns the whole right singular basis
-        R = np.vstack([R, np.zeros((p - R.shape[0], p))])
-    _, s, Vt = np.linalg.svd(R)
-    s = s if m >= p else np.concatenate([s[:m], np.zeros(p - m)])
-    tol = rtol * (s[0] if s.size else 0.0)
-    rank = int(np.sum(s > tol)) if s.size and s[0] > 0 else 0
-    return Rank(rank, p, s, Vt[rank:].T.copy(), c, Vt)
 
 
 def combinations(rank: Rank, names: list[str]) -> list[str]:
@@ -185,10 +138,10 @@ def analyse(spec: ModelSpec, table: OrbitTable, A: np.ndarray | None = None,
         raise _refusal(spec, table, A, rank, rtol, "few")
     x, y, fixed = idealised_design(table)
     ideal = table.with_phasors(x, y, table.fx, table.fy)
-    A_ideal = _stack(spec, ideal.orbit, ideal.x, ideal.y)
-    ideal_rank = numerical_rank(A_ideal, rtol)
+    ideal_rank = design_rank(spec, ideal.orbit, ideal.x, ideal.y, rtol)
     if ideal_rank.deficiency:
-        raise _refusal(spec, ideal, A_ideal, ideal_rank, rtol, "ideal" if fixed else "")
+        A_ideal = _stack(spec, ideal.orbit, ideal.x, ideal.y)
+        raise _refusal(spec, ideal, A_ideal, numerical_rank(A_ideal, rtol), rtol, "ideal" if fixed else "")
     if rank.deficiency:
         raise _refusal(spec, table, A, rank, rtol, "")
     return rank
@@ -210,9 +163,9 @@ def check_signal(spec: ModelSpec, table: OrbitTable, signal: SignalDesign, rtol:
     if cleaned.n < spec.min_frequencies:
         raise _refusal(spec, cleaned, None, None, rtol, "few", cause)
     x, y, _ = idealised_design(cleaned)
-    A = _stack(spec, cleaned.orbit, x, y)
-    rank = numerical_rank(A, rtol)
-    if rank.deficiency:
+    if design_rank(spec, cleaned.orbit, x, y, rtol).deficiency:
+        A = _stack(spec, cleaned.orbit, x, y)
+        rank = numerical_rank(A, rtol)
         raise _refusal(spec, cleaned.with_phasors(x, y, cleaned.fx, cleaned.fy), A, rank, rtol, "signal", cause)
 
 

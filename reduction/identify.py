@@ -51,7 +51,7 @@ from reduction.diagnostics import fit_errors, residual_rms
 from reduction.errors import IdentificationError, IdentifiabilityError, ReductionError
 from reduction.excitation import displacement_noise, signal_design, signal_warning
 from reduction.identifiability import RANK_RTOL, analyse, check_signal, ill_conditioning, numerical_rank
-from reduction.impedance import impedance, impedance_basis, real_rows, regression, regressors
+from reduction.impedance import forces, impedance, impedance_basis, real_rows, regression, regressors
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
 from reduction.noise import coherence_variances, equation_variances
 from reduction.result import Identification
@@ -141,8 +141,9 @@ def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank
     else:
         est = _tls(spec, table, A_s, b, c, solver, tls_ratio)
     theta = est.x / c
+    Z = impedance(spec, theta, table.orbit)  # at the estimate: effective variances and the fit
     if known:
-        var = equation_variances(table.u, impedance(spec, theta, table.orbit))
+        var = equation_variances(table.u, Z)
         if method == "ols":
             cov_s = st.sandwich_rows(A_s, var, est.unscaled)
         else:
@@ -150,7 +151,7 @@ def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank
     else:
         cov_s = est.cov
     ident = _result(spec, table, method, solver, est, theta, c, cov_s, rank, var if known else None,
-                    b - A_s @ est.x)
+                    b - A_s @ est.x, Z)
     weak = signal_warning(signal)
     if weak:
         ident.warnings.insert(0, weak)
@@ -212,7 +213,7 @@ def _variances(spec, table, theta0, b, method) -> np.ndarray:
     return coherence_variances(table.gamma2, table.fx, table.fy, table.n_records)
 
 
-def _result(spec, table, method, solver, est, theta, c, cov_s, rank, var, r) -> Identification:
+def _result(spec, table, method, solver, est, theta, c, cov_s, rank, var, r, Z) -> Identification:
     known = var is not None
     p, dof = spec.n_coefficients, 4 * table.n - spec.n_coefficients
     cov = None if cov_s is None else cov_s / np.outer(c, c)
@@ -249,7 +250,7 @@ def _result(spec, table, method, solver, est, theta, c, cov_s, rank, var, r) -> 
         interval=interval)
     half = st.quantile(interval, dof) * np.asarray(list(spec.expand(std).values()))
     ident.not_determined = st.not_determined(ident.coefficients, dict(zip(ident.coefficients, half)))
-    fx_rep, fy_rep = ident.reproduce(table)
+    fx_rep, fy_rep = forces(Z, table.x, table.y)  # ident.reproduce(table), Z computed once
     ident.residual_rms = residual_rms(table.fx, table.fy, fx_rep, fy_rep)
     ident.fit = fit_errors(table.orbit, table.fx, table.fy, fx_rep, fy_rep)
     return ident

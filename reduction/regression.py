@@ -56,23 +56,13 @@ def condition_number(A: np.ndarray) -> float:
     return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
 
 
-def _gram(A, b, T=None) -> np.ndarray:
-    """The Gram matrix of [A | b] (b (m,), (m, k) or None), or of [A | b] T with T upper
-    triangular, summed over blocks of ``CHUNK_ROWS`` rows (never a copy of A)."""
-    p = A.shape[1]
-    b2 = None if b is None else (b[:, None] if np.ndim(b) == 1 else b)
-    size = p + (0 if b2 is None else b2.shape[1])
-    G = np.zeros((size, size))
-    for s in range(0, A.shape[0], CHUNK_ROWS):
-        qa = A[s: s + CHUNK_ROWS]
-        qb = None if b2 is None else b2[s: s + CHUNK_ROWS]
-        if T is not None:
-            qa, qb = qa @ T[:p, :p], (None if qb is None else qa @ T[:p, p:] + qb @ T[p:, p:])
-        G[:p, :p] += qa.T @ qa
-        if qb is not None:
-            G[:p, p:] += qa.T @ qb
-            G[p:, p:] += qb.T @ qb
-    G[p:, :p] = G[:p, p:].T
+def _gram(blocks, T=None) -> np.ndarray:
+    """The Gram matrix of the stacked row ``blocks`` (each a callable's yield, (rows, q)),
+    or of the blocks times T (q, q) on the right."""
+    G = None
+    for block in blocks():
+        q = block if T is None else block @ T
+        G = q.T @ q if G is None else G + q.T @ q
     return G
 
 
@@ -83,40 +73,43 @@ def _blocks(A, b):
         yield block if b is None else np.column_stack([block, b[s: s + CHUNK_ROWS]])
 
 
-def _householder(A, b) -> np.ndarray:
-    R = np.zeros((0, A.shape[1] + (0 if b is None else (1 if np.ndim(b) == 1 else b.shape[1]))))
-    for block in _blocks(A, b):
-        R = np.linalg.qr(np.vstack([R, block]), mode="r")
-    return R
-
-
-def _cholesky_qr2(A, b) -> np.ndarray | None:
-    """R of [A | b] by Cholesky QR twice (the Gram matrix of the rows, then of the rows
-    made orthonormal by the first R): as accurate as Householder for condition numbers up to
-    about 1e8, at the speed of a matrix product. None when the Gram matrix is not positive
-    definite (rank-deficient or worse conditioned)."""
+def _cholesky_qr2(blocks) -> np.ndarray | None:
+    """R of the stacked row ``blocks`` (a callable yielding them; called twice) by Cholesky
+    QR twice (the Gram matrix of the rows, then of the rows made orthonormal by the first R):
+    as accurate as Householder for condition numbers up to about 1e8, at the speed of a
+    matrix product. None when the Gram matrix is not positive definite (rank-deficient or
+    worse conditioned)."""
     try:
-        R1 = np.linalg.cholesky(_gram(A, b)).T
+        R1 = np.linalg.cholesky(_gram(blocks)).T
         R1_inv = sla.solve_triangular(R1, np.eye(R1.shape[0]))
-        R2 = np.linalg.cholesky(_gram(A, b, R1_inv)).T
+        R2 = np.linalg.cholesky(_gram(blocks, R1_inv)).T
     except np.linalg.LinAlgError:
         return None
     return R2 @ R1 if np.all(np.isfinite(R2)) else None
 
 
-def triangular(A: np.ndarray, b: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
-    """(R, Q^T b) of the QR factorisation A = Q R, over blocks of ``CHUNK_ROWS`` rows (never
-    more than one block in memory): Householder on each block stacked under the R so far,
-    or for a long table (over ``LONG_TABLE`` equations) Cholesky QR twice, falling back to
-    Householder when that fails. R is (min(m, p), p); b (m,) or (m, k); signs of R's rows
-    may differ between the two ways (Q differs likewise)."""
-    m, p = A.shape
-    R = _cholesky_qr2(A, b) if m > LONG_TABLE else None
+def triangular_blocks(blocks, n_equations: int, p: int) -> np.ndarray:
+    """R (min(m, p), p) of a regression given as a callable yielding its row blocks (called
+    up to three times; the matrix itself is never whole in memory): Cholesky QR twice for a
+    long one (over ``LONG_TABLE`` equations), else or when that fails blocked Householder."""
+    R = _cholesky_qr2(blocks) if n_equations > LONG_TABLE else None
     if R is None:
-        R = _householder(A, b)
+        R = np.zeros((0, p))
+        for block in blocks():
+            R = np.linalg.qr(np.vstack([R, block]), mode="r")
+    return np.triu(R[: min(R.shape[0], p)])
+
+
+def triangular(A: np.ndarray, b: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    """(R, Q^T b) of the QR factorisation A = Q R over blocks of ``CHUNK_ROWS`` rows
+    (:func:`triangular_blocks` on [A | b]; never more than one block copied). R is
+    (min(m, p), p); b (m,) or (m, k); the signs of R's rows are the factorisation's own."""
+    m, p = A.shape
+    k = 0 if b is None else (1 if np.ndim(b) == 1 else b.shape[1])
+    R = triangular_blocks(lambda: _blocks(A, b), m, p + k)
     top = min(R.shape[0], p)
     z = None if b is None else (R[:top, p] if np.ndim(b) == 1 else R[:top, p:])
-    return np.triu(R[:top, :p]), z
+    return R[:top, :p], z
 
 
 def lstsq(A: np.ndarray, b: np.ndarray, solver: str = "qr") -> np.ndarray:
