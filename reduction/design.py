@@ -18,6 +18,9 @@ nothing a circle cannot: with one shape s, the data give Z(Omega) s only, a comp
 of the table - the best the same frequencies can do; its condition number is the yardstick
 of the ill-conditioning warning.
 
+:func:`yardstick_design`: the table's whirl directions as unit circles at evenly spread
+frequencies up to the table's highest - the absolute yardstick of variance inflation (v3).
+
 :func:`predicted_covariance`: the Cramer-Rao bound of the coefficients for a design, known
 displacements with per-channel noise and force noise; with displacement noise it uses the
 effective variance at the given coefficients (first order in the displacement noise).
@@ -35,6 +38,9 @@ from reduction.table import OrbitTable
 
 SHAPE_SPREAD = 0.2  # a direction's shapes farther apart than this (unit-norm distance) are kept apart
 CIRCLE_TOL = 0.05  # a mean shape whose minor whirl component is below 5 % of the major is a circle
+YARDSTICK_SPAN = 6.0  # the yardstick design spans highest / 6 .. highest orbit frequency
+YARDSTICK_MAX = 64  # at most this many frequencies in the yardstick design
+REFERENCE_MAX = 4096  # the same-frequency reference of a long table uses this many of its frequencies
 
 
 def orbit_shapes(x, y) -> tuple[np.ndarray, np.ndarray]:
@@ -79,12 +85,28 @@ def idealised_design(table: OrbitTable, spread: float = SHAPE_SPREAD) -> tuple[n
 
 
 def reference_design(orbit) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(orbit, x, y): forward and backward unit circles at every distinct frequency."""
+    """(orbit, x, y): forward and backward unit circles at every distinct frequency (a long
+    table's: at ``REFERENCE_MAX`` of them, evenly picked in order)."""
     w = np.unique(np.asarray(orbit, dtype=float))
+    if w.size > REFERENCE_MAX:
+        w = w[np.round(np.linspace(0, w.size - 1, REFERENCE_MAX)).astype(int)]
     w2 = np.repeat(w, 2)
     x = np.ones(w2.size, dtype=complex)
     y = np.tile([-1j, 1j], w.size)
     return w2, x, y
+
+
+def yardstick_design(orbit, min_frequencies: int, directions: str = "both") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(orbit, x, y): unit circles in ``directions`` (the whirl directions the table has:
+    "forward" | "backward" | "both") at as many frequencies as the table has distinct ones
+    (at least ``min_frequencies``, at most ``YARDSTICK_MAX``), spread evenly from
+    1/``YARDSTICK_SPAN`` of the table's highest orbit frequency to it - the paper's
+    0.2..1.2 x spin. The absolute yardstick of variance inflation: it does not share the
+    table's frequencies, so near-coincident ones cannot hide behind it."""
+    w = np.asarray(orbit, dtype=float)
+    count = int(np.clip(np.unique(w).size, max(min_frequencies, 1), YARDSTICK_MAX))
+    top = float(np.max(w))
+    return design_orbits(np.linspace(top / YARDSTICK_SPAN, top, count) / (2 * np.pi), directions, 1.0)
 
 
 def design_orbits(orbit_hz, directions, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -24,6 +24,10 @@ warns, naming the poorly determined coefficients, when the ratio exceeds
 ``ILL_CONDITIONED_RATIO`` (100: a hundredfold amplification of relative data errors beyond
 what the frequencies themselves impose).
 
+v3, identifiability on signal (:mod:`reduction.excitation`): a displacement direction whose
+excitation is not clear of its noise carries no orbit shape; :func:`check_signal` judges the
+rank on the design with such directions removed and refuses when it is deficient.
+
 What would separate them is found by re-testing the rank with added synthetic orbits:
 the same orbits whirling the other way round (x, y -> conj), more distinct frequencies,
 and generic elliptical orbits (whatever remains then is structural: no data separate it).
@@ -31,64 +35,20 @@ and generic elliptical orbits (whatever remains then is structural: no data sepa
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from reduction.design import design_orbits, idealised_design, reference_design
+from reduction.design import YARDSTICK_SPAN, design_orbits, idealised_design, reference_design, yardstick_design
 from reduction.errors import IdentifiabilityError
-from reduction.impedance import real_rows, regressors
+from reduction.excitation import SignalDesign
+from reduction.impedance import regression_rows
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
-from reduction.regression import column_scale
+from reduction.rank import RANK_RTOL, Rank, design_rank, numerical_rank
 from reduction.table import OrbitTable
 
-RANK_RTOL = 1e-7  # relative singular-value tolerance on the column-scaled regression (cond > 1e7 = deficient)
 MAX_LISTED = 12
 ILL_CONDITIONED_RATIO = 100.0  # warn when cond(table) > 100 x cond(same frequencies, ideal design)
+MAX_SE_INFLATION = 10.0  # warn when a standard error is > 10 x that of the yardstick design (variance 100 x)
 WEAK_LISTED = 8
-
-
-@dataclass(frozen=True)
-class Rank:
-    """Numerical rank of a column-scaled regression and its null space (scaled coordinates)."""
-
-    rank: int
-    n_columns: int
-    singular_values: np.ndarray
-    null: np.ndarray  # (p, p - rank), orthonormal, scaled coordinates
-    scale: np.ndarray  # column norms c: theta = u / c
-    vt: np.ndarray  # (p, p) right singular vectors (rows), scaled coordinates
-    u: np.ndarray | None = None  # (m, p) left singular vectors when m >= p
-
-    def unscaled_covariance(self) -> np.ndarray:
-        """(A_s^T A_s)^-1 of the column-scaled matrix (full rank only)."""
-        s = self.singular_values
-        return (self.vt.T / s**2) @ self.vt
-
-    def pseudo_inverse(self) -> np.ndarray:
-        """(A_s^T A_s)^-1 A_s^T of the column-scaled matrix (full rank, m >= p only)."""
-        return (self.vt.T / self.singular_values) @ self.u.T
-
-    @property
-    def deficiency(self) -> int:
-        return self.n_columns - self.rank
-
-    @property
-    def condition_number(self) -> float:
-        s = self.singular_values
-        return float(s[0] / s[-1]) if s.size and s[-1] > 0 else float("inf")
-
-
-def numerical_rank(A: np.ndarray, rtol: float = RANK_RTOL) -> Rank:
-    """Rank of A after column scaling: singular values > rtol * sigma_max count."""
-    A_s, c = column_scale(np.asarray(A, dtype=float))
-    m, p = A_s.shape
-    if m < p:  # pad so that the SVD returns the whole right singular basis
-        A_s = np.vstack([A_s, np.zeros((p - m, p))])
-    U, s, Vt = np.linalg.svd(A_s, full_matrices=False)  # m >= p here: Vt is p x p
-    tol = rtol * (s[0] if s.size else 0.0)
-    rank = int(np.sum(s > tol)) if s.size and s[0] > 0 else 0
-    return Rank(rank, p, s, Vt[rank:].T.copy(), c, Vt, U if m >= p else None)
 
 
 def combinations(rank: Rank, names: list[str]) -> list[str]:
@@ -143,7 +103,7 @@ def _determined(combo: str, all_combos: list[str]) -> str | None:
 
 
 def _stack(spec: ModelSpec, orbit, x, y) -> np.ndarray:
-    return real_rows(regressors(spec, orbit, x, y))
+    return regression_rows(spec, orbit, x, y)
 
 
 def _whirl(table: OrbitTable) -> str:
@@ -178,13 +138,35 @@ def analyse(spec: ModelSpec, table: OrbitTable, A: np.ndarray | None = None,
         raise _refusal(spec, table, A, rank, rtol, "few")
     x, y, fixed = idealised_design(table)
     ideal = table.with_phasors(x, y, table.fx, table.fy)
-    A_ideal = _stack(spec, ideal.orbit, ideal.x, ideal.y)
-    ideal_rank = numerical_rank(A_ideal, rtol)
+    ideal_rank = design_rank(spec, ideal.orbit, ideal.x, ideal.y, rtol)
     if ideal_rank.deficiency:
-        raise _refusal(spec, ideal, A_ideal, ideal_rank, rtol, "ideal" if fixed else "")
+        A_ideal = _stack(spec, ideal.orbit, ideal.x, ideal.y)
+        raise _refusal(spec, ideal, A_ideal, numerical_rank(A_ideal, rtol), rtol, "ideal" if fixed else "")
     if rank.deficiency:
         raise _refusal(spec, table, A, rank, rtol, "")
     return rank
+
+
+def check_signal(spec: ModelSpec, table: OrbitTable, signal: SignalDesign, rtol: float = RANK_RTOL) -> None:
+    """Raise IdentifiabilityError when ``table`` with the directions that are not clear of
+    their noise removed (``signal``, :func:`reduction.excitation.signal_design`) cannot
+    identify ``spec``: the rows left, idealised per whirl direction, must have full rank."""
+    if not signal.changed:
+        return
+    keep = np.abs(signal.x) + np.abs(signal.y) > 0
+    cause = "; ".join(signal.removed)
+    if not np.any(keep):
+        raise IdentifiabilityError(
+            f"{spec.model} with freq-dep {spec.freq_dep.text} cannot be identified from this table: no "
+            f"displacement is clear of its noise ({cause}); every coefficient is undetermined.", list(spec.names))
+    cleaned = table.with_phasors(signal.x, signal.y, table.fx, table.fy).subset(keep)
+    if cleaned.n < spec.min_frequencies:
+        raise _refusal(spec, cleaned, None, None, rtol, "few", cause)
+    x, y, _ = idealised_design(cleaned)
+    if design_rank(spec, cleaned.orbit, x, y, rtol).deficiency:
+        A = _stack(spec, cleaned.orbit, x, y)
+        rank = numerical_rank(A, rtol)
+        raise _refusal(spec, cleaned.with_phasors(x, y, cleaned.fx, cleaned.fy), A, rank, rtol, "signal", cause)
 
 
 def check_plan(model: str, freq_dep: str, orbit_hz, directions) -> None:
@@ -214,27 +196,43 @@ def check_plan(model: str, freq_dep: str, orbit_hz, directions) -> None:
 def ill_conditioning(spec: ModelSpec, table: OrbitTable, rank: Rank) -> str | None:
     """The warning for an identifiable but ill-conditioned fit, or None.
 
-    The table's column-scaled condition number (``rank``) is compared with that of the same
-    distinct frequencies on the ideal design with both whirl directions; above
-    ``ILL_CONDITIONED_RATIO`` times it the fit is flagged, and the coefficients whose
-    standard errors are inflated most (variance inflation against the ideal design, at
-    least a tenth of the worst and above the ratio's square root) are named.
+    Relative test: the table's column-scaled condition number (``rank``) against that of the
+    same distinct frequencies on the ideal design with both whirl directions, flagged above
+    ``ILL_CONDITIONED_RATIO`` times it. Absolute test (v3): each coefficient's variance
+    inflation (diag of the column-scaled (A^T A)^-1) against the yardstick design
+    (:func:`reduction.design.yardstick_design`), flagged when a standard error is inflated
+    above ``MAX_SE_INFLATION``. The coefficients inflated most (at least a tenth of the
+    worst and above the ratio's square root) are named.
     """
     w, x, y = reference_design(table.orbit)
     ref = numerical_rank(_stack(spec, w, x, y), 0.0)
+    forward = table.forward()
+    directions = "both" if forward.any() and not forward.all() else "forward" if forward.all() else "backward"
+    yard_design = yardstick_design(table.orbit, spec.min_frequencies, directions)
+    yard = numerical_rank(_stack(spec, *yard_design))
+    if yard.deficiency:  # the table's one direction cannot identify the model: judge against both
+        directions = "both"
+        yard_design = yardstick_design(table.orbit, spec.min_frequencies, directions)
+        yard = numerical_rank(_stack(spec, *yard_design))
     cond, cond_ref = rank.condition_number, ref.condition_number
-    if not np.isfinite(cond_ref) or not cond > ILL_CONDITIONED_RATIO * cond_ref:
+    relative = bool(np.isfinite(cond_ref) and cond > ILL_CONDITIONED_RATIO * cond_ref)
+    factors = _variance_factors(rank)
+    absolute = np.sqrt(factors / _variance_factors(yard))
+    if not relative and not np.max(absolute) > MAX_SE_INFLATION:
         return None
-    inflation = np.sqrt(_variance_factors(rank) / _variance_factors(ref))
+    inflation = np.maximum(np.sqrt(factors / _variance_factors(ref)) if relative else 0.0, absolute)
     order = np.argsort(-inflation)
     weak = [spec.names[j] for j in order
             if inflation[j] >= max(0.1 * inflation[order[0]], np.sqrt(ILL_CONDITIONED_RATIO))]
     weak = weak or [spec.names[order[0]]]
     listed = ", ".join(weak[:WEAK_LISTED]) + (f" and {len(weak) - WEAK_LISTED} more" if len(weak) > WEAK_LISTED else "")
+    n_yard = len(np.unique(yard_design[0]))
     return (f"ill-conditioned: condition number {cond:.3g}, {cond / cond_ref:.3g} times that of the same "
             f"frequencies with forward and backward circular orbits ({cond_ref:.3g}; orbitrig warns above "
-            f"{ILL_CONDITIONED_RATIO:g} times); poorly determined: {listed}. Forward and backward whirl of "
-            "similar size at every frequency would determine them.")
+            f"{ILL_CONDITIONED_RATIO:g} times); standard errors up to {np.max(absolute):.3g} times those of "
+            f"{'forward and backward' if directions == 'both' else directions} circles at {n_yard} frequencies spread over 1/{YARDSTICK_SPAN:g} .. 1 of the "
+            f"highest (orbitrig warns above {MAX_SE_INFLATION:g} times); poorly determined: {listed}. Forward "
+            "and backward whirl of similar size at well separated frequencies would determine them.")
 
 
 def _variance_factors(rank: Rank) -> np.ndarray:
@@ -244,18 +242,29 @@ def _variance_factors(rank: Rank) -> np.ndarray:
         return np.sum((rank.vt.T / s) ** 2, axis=1)
 
 
-def _refusal(spec, table, A, rank, rtol, kind) -> IdentifiabilityError:
+def _refusal(spec, table, A, rank, rtol, kind, cause="") -> IdentifiabilityError:
     """kind: "few" (too few frequencies), "ideal" (the idealised one-shape-per-direction
-    design is rank-deficient) or "" (the regression itself is)."""
+    design is rank-deficient), "signal" (so is the design without the directions not clear
+    of their noise, ``cause``) or "" (the regression itself is)."""
     p = spec.n_coefficients
     names = spec.names
-    combos = combinations(rank, names)
     head = f"{spec.model} with freq-dep {spec.freq_dep.text} ({p} coefficients) cannot be identified from this table"
+    if kind == "few" and cause:
+        return IdentifiabilityError(
+            f"{head}: the displacement is not clear of its noise in {cause}; the {table.n} rows left "
+            f"are fewer than the {spec.min_frequencies} orbit frequencies {p} coefficients need.", list(names))
+    combos = combinations(rank, names)
     lines = []
     if kind == "few":
         lines.append(
             f"{head}: too few orbit frequencies: {p} coefficients need at least {spec.min_frequencies} "
             f"orbit frequencies (4 real equations each), the table has {table.n}.")
+    elif kind == "signal":
+        lines.append(
+            f"{head}: the excitation is not clear of the displacement noise in {cause} (u_x, u_y, "
+            "else the residual's equivalent; at least 0.5 % of each orbit). Such a direction "
+            "carries noise, not an orbit shape (e.g. a line orbit whose other axis is only probe "
+            "noise); without it the regression is rank-deficient.")
     elif kind == "ideal":
         lines.append(
             f"{head}: the orbits of each whirl direction have one common shape (idealised to it: "
@@ -275,7 +284,11 @@ def _refusal(spec, table, A, rank, rtol, kind) -> IdentifiabilityError:
     if len(combos) > MAX_LISTED:
         lines.append(f"  ... and {len(combos) - MAX_LISTED} more")
     lines.append("What would separate them:")
-    lines += ["  - " + h for h in _hints(spec, table, A, rank, rtol)]
+    if kind == "signal":
+        lines.append("  - an excitation across the orbits' main axis well above the probe noise: forward and "
+                     "backward circular whirl, or ellipses whose minor axis stands clear of the noise.")
+    else:
+        lines += ["  - " + h for h in _hints(spec, table, A, rank, rtol)]
     return IdentifiabilityError("\n".join(lines), combos)
 
 

@@ -33,7 +33,9 @@ into relative coefficient errors, independent of the coefficients' units.
 ``covariance`` / ``std_errors``: with u_* columns from the stated uncertainties (absolute,
 see :mod:`reduction.statistics`), otherwise s^2 (A^T A)^-1 with s^2 = residual sum of squares
 / (4n - p) (estimator-specific forms for wls, tls, iv); None when 4n == p and the noise is
-unknown. ``confidence_95`` from Student's t with 4n - p degrees of freedom.
+unknown. ``confidence_95``: with u_* the normal quantile 1.96 (the covariance is known, so
+also at 4n - p = 0), else Student's t with 4n - p degrees of freedom (``interval``).
+``not_determined``: the coefficients whose interval half-width exceeds their magnitude.
 """
 
 from __future__ import annotations
@@ -44,10 +46,12 @@ import numpy as np
 
 from reduction import regression as reg
 from reduction import statistics as st
+from reduction.attenuation import attenuation_bias, attenuation_warning
 from reduction.diagnostics import fit_errors, residual_rms
 from reduction.errors import IdentificationError, IdentifiabilityError, ReductionError
-from reduction.identifiability import RANK_RTOL, analyse, ill_conditioning, numerical_rank
-from reduction.impedance import impedance, impedance_basis, real_rows, regression, regressors
+from reduction.excitation import displacement_noise, signal_design, signal_warning
+from reduction.identifiability import RANK_RTOL, analyse, check_signal, ill_conditioning, numerical_rank
+from reduction.impedance import forces, impedance, impedance_basis, real_rows, regression, regressors
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
 from reduction.noise import coherence_variances, equation_variances
 from reduction.result import Identification
@@ -110,15 +114,19 @@ def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank
     A, b = _regression(spec, table)
     known = table.u is not None
     rank = analyse(spec, table, A, rank_rtol)  # raises when not identifiable
-    var = _variances(spec, table, A, b, method, solver, rank)
-    if method == "wls":  # the weighted regression's own scaling and conditioning
-        rank = analyse(spec, table, A / np.sqrt(var)[:, None], rank_rtol)
     c = rank.scale
-    A_s = A / c
-    P = None  # the estimator's linear map b -> scaled coefficients (ols, iv)
+    A_s = A
+    A_s /= c  # in place (a long table has room for one regression matrix): the column-scaled A
+    x0 = reg.lstsq(A_s, b, solver)  # the ols solution (scaled), the first pass of every method
+    signal = _signal(spec, table, A_s, b, c, x0, rank_rtol)  # raises when not identifiable on signal
+    var = _variances(spec, table, x0 / c, b, method)
+    if method == "wls":  # the weighted regression's own scaling and conditioning
+        rank = analyse(spec, table, A_s * (c / np.sqrt(var)[:, None]), rank_rtol)
+        A_s *= c / rank.scale
+        c = rank.scale
+    P = None  # the estimator's linear map b -> scaled coefficients (iv)
     if method == "ols":
-        est = reg.ols(A_s, b, solver, rank.unscaled_covariance())
-        P = rank.pseudo_inverse() if known else None
+        est = reg.ols(A_s, b, solver, rank.unscaled_covariance(), x0)
     elif method == "wls":
         est = reg.wls(A_s, b, 1.0 / var, solver, rank.unscaled_covariance())
         if known:  # second pass: effective variances at the wls coefficients
@@ -133,12 +141,43 @@ def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank
     else:
         est = _tls(spec, table, A_s, b, c, solver, tls_ratio)
     theta = est.x / c
+    Z = impedance(spec, theta, table.orbit)  # at the estimate: effective variances and the fit
     if known:
-        var = equation_variances(table.u, impedance(spec, theta, table.orbit))
-        cov_s = st.sandwich(P, var) if P is not None else est.unscaled
+        var = equation_variances(table.u, Z)
+        if method == "ols":
+            cov_s = st.sandwich_rows(A_s, var, est.unscaled)
+        else:
+            cov_s = st.sandwich(P, var) if P is not None else est.unscaled
     else:
         cov_s = est.cov
-    return _result(spec, table, method, solver, est, theta, c, cov_s, rank, var if known else None, b - A @ theta)
+    ident = _result(spec, table, method, solver, est, theta, c, cov_s, rank, var if known else None,
+                    b - A_s @ est.x, Z)
+    weak = signal_warning(signal)
+    if weak:
+        ident.warnings.insert(0, weak)
+    if known and method in ("ols", "wls"):
+        unscaled = rank.unscaled_covariance() if method == "ols" else est.unscaled
+        bias = attenuation_bias(spec, table, theta, c, unscaled, None if method == "ols" else 1.0 / var)
+        std = np.sqrt(np.clip(np.diag(ident.covariance), 0, None))
+        eiv = attenuation_warning(spec, method, bias, std)
+        if eiv:
+            ident.warnings.append(eiv)
+    return ident
+
+
+def _signal(spec, table, A_s, b, c, x0, rtol):
+    """The design without the displacement directions not clear of their noise (u_x, u_y,
+    else the residual of a first ols fit); raises IdentifiabilityError when it cannot
+    identify ``spec``."""
+    if table.u is not None:
+        noise = displacement_noise(table)
+    else:
+        theta0 = x0 / c
+        noise = displacement_noise(table, b - A_s @ x0, impedance(spec, theta0, table.orbit),
+                                   4 * table.n - spec.n_coefficients)
+    design = signal_design(table, noise)
+    check_signal(spec, table, design, rtol)
+    return design
 
 
 def _regression(spec: ModelSpec, table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:
@@ -154,13 +193,12 @@ def _regression(spec: ModelSpec, table: OrbitTable) -> tuple[np.ndarray, np.ndar
     return A, b
 
 
-def _variances(spec, table, A, b, method, solver, rank) -> np.ndarray:
+def _variances(spec, table, theta0, b, method) -> np.ndarray:
     """Variances of the 4n equations: from u_* (effective, at a first ols fit), else from the
     coherences for wls, else ones."""
     if table.u is not None:
         if not np.any(table.u[:, 2:] > 0) and not np.any(table.u[:, :2] > 0):
             raise IdentificationError("the table's u_x, u_y, u_fx, u_fy are all zero: no noise to weight by")
-        theta0 = reg.lstsq(A / rank.scale, b, solver) / rank.scale
         var = equation_variances(table.u, impedance(spec, theta0, table.orbit))
         floor = 1e-12 * float(np.max(var))
         if not floor > 0:
@@ -175,12 +213,13 @@ def _variances(spec, table, A, b, method, solver, rank) -> np.ndarray:
     return coherence_variances(table.gamma2, table.fx, table.fy, table.n_records)
 
 
-def _result(spec, table, method, solver, est, theta, c, cov_s, rank, var, r) -> Identification:
+def _result(spec, table, method, solver, est, theta, c, cov_s, rank, var, r, Z) -> Identification:
     known = var is not None
     p, dof = spec.n_coefficients, 4 * table.n - spec.n_coefficients
     cov = None if cov_s is None else cov_s / np.outer(c, c)
     std = np.full(p, np.nan) if cov is None else np.sqrt(np.clip(np.diag(cov), 0, None))
-    ci = st.intervals(theta, std, dof)
+    interval = st.Interval.NORMAL if known else st.Interval.STUDENT_T
+    ci = st.intervals(theta, std, dof, interval=interval)
     notes, warnings = list(spec.notes), []
     chi2 = p_value = None
     if known:
@@ -207,8 +246,11 @@ def _result(spec, table, method, solver, est, theta, c, cov_s, rank, var, r) -> 
         spec=spec, theta=theta, cost=est.rss, free=spec.names, covariance=cov, dof=dof,
         confidence_95={k: (None if not np.all(np.isfinite(v)) else (float(v[0]), float(v[1])))
                        for k, v in spec.expand(list(ci)).items()},
-        chi2=chi2, p_value=p_value, aic=aic, bic=bic, notes=notes, warnings=warnings, known_noise=known)
-    fx_rep, fy_rep = ident.reproduce(table)
+        chi2=chi2, p_value=p_value, aic=aic, bic=bic, notes=notes, warnings=warnings, known_noise=known,
+        interval=interval)
+    half = st.quantile(interval, dof) * np.asarray(list(spec.expand(std).values()))
+    ident.not_determined = st.not_determined(ident.coefficients, dict(zip(ident.coefficients, half)))
+    fx_rep, fy_rep = forces(Z, table.x, table.y)  # ident.reproduce(table), Z computed once
     ident.residual_rms = residual_rms(table.fx, table.fy, fx_rep, fy_rep)
     ident.fit = fit_errors(table.orbit, table.fx, table.fy, fx_rep, fy_rep)
     return ident

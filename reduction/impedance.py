@@ -48,16 +48,69 @@ def impedance_basis(spec: ModelSpec, orbit) -> np.ndarray:
     return E
 
 
+_PHASE = {"K": (1.0, 0), "C": (1j, 1), "D": (-1.0, 2)}  # Omega-factor of each matrix: phase x Omega^k
+
+
+def impedance_columns(spec: ModelSpec, w: np.ndarray) -> np.ndarray:
+    """(n, p) complex: each free coefficient's Omega factor (1, i Omega or -Omega^2, times
+    Omega^r) - the one nonzero value its basis matrix holds at its entries."""
+    powers = {}
+    out = np.empty(w.shape + (spec.n_coefficients,), dtype=complex)
+    for j, t in enumerate(spec.terms):
+        phase, k = _PHASE[t.matrix]
+        r = t.order + k
+        if r not in powers:
+            powers[r] = w**r if r else np.ones_like(w)
+        out[..., j] = phase * powers[r]
+    return out
+
+
 def regressors(spec: ModelSpec, orbit, x, y) -> np.ndarray:
     """G with (fx, fy)_k = G[k] @ theta: shape (n, 2, p), complex, G = -E d (N per unit)."""
-    E = impedance_basis(spec, orbit)
+    w = np.atleast_1d(np.asarray(orbit, dtype=float))
     d = np.stack([np.asarray(x, dtype=complex), np.asarray(y, dtype=complex)], axis=-1)
-    return -np.einsum("kpil,kl->kip", E, d)
+    cols = impedance_columns(spec, w)
+    G = np.zeros(w.shape + (2, spec.n_coefficients), dtype=complex)
+    for j, t in enumerate(spec.terms):
+        for i, l in t.entries:
+            G[:, i, j] -= cols[:, j] * d[:, l]
+    return G
+
+
+def regression_rows(spec: ModelSpec, orbit, x, y) -> np.ndarray:
+    """real_rows(regressors(...)) filled column by column: (4n, p) real, no (n, 2, p)
+    complex intermediate (rows Re fx, Im fx, Re fy, Im fy per orbit frequency)."""
+    w = np.atleast_1d(np.asarray(orbit, dtype=float))
+    d = (np.asarray(x, dtype=complex), np.asarray(y, dtype=complex))
+    cols = impedance_columns(spec, w)
+    A = np.zeros((4 * w.shape[0], spec.n_coefficients), order="F")  # columns contiguous while filled
+    for j, t in enumerate(spec.terms):
+        column = A[:, j]
+        for i, l in t.entries:
+            g = cols[:, j] * d[l]
+            column[2 * i::4] -= g.real
+            column[2 * i + 1::4] -= g.imag
+    return A
 
 
 def impedance(spec: ModelSpec, theta, orbit) -> np.ndarray:
     """Z(Omega) for coefficient values theta (column order): shape (n, 2, 2), N/m."""
-    return np.einsum("kpil,p->kil", impedance_basis(spec, orbit), np.asarray(theta, dtype=float))
+    w = np.atleast_1d(np.asarray(orbit, dtype=float))
+    theta = np.asarray(theta, dtype=float)
+    cols = impedance_columns(spec, w)
+    Z = np.zeros(w.shape + (2, 2), dtype=complex)
+    for (i, l), J in _filling(spec).items():
+        Z[:, i, l] = cols[:, J] @ theta[J].astype(complex)
+    return Z
+
+
+def _filling(spec: ModelSpec) -> dict[tuple[int, int], list[int]]:
+    """Z's entry (i, l) -> the free coefficients whose basis fills it."""
+    out = {}
+    for j, t in enumerate(spec.terms):
+        for i, l in t.entries:
+            out.setdefault((i, l), []).append(j)
+    return out
 
 
 def forces(Z, x, y) -> tuple[np.ndarray, np.ndarray]:
@@ -76,6 +129,6 @@ def real_rows(G: np.ndarray) -> np.ndarray:
 
 def regression(spec: ModelSpec, orbit, x, y, fx, fy) -> tuple[np.ndarray, np.ndarray]:
     """The real regression A theta = b: A (4n, p), b (4n,) in N."""
-    A = real_rows(regressors(spec, orbit, x, y))
+    A = regression_rows(spec, orbit, x, y)
     b = real_rows(np.stack([np.asarray(fx, dtype=complex), np.asarray(fy, dtype=complex)], axis=-1))
     return A, b

@@ -4,7 +4,7 @@ Every routine works on the matrix it is given; :func:`column_scale` equilibrates
 (unit 2-norm) first so that coefficients of very different units (N/m, N s/m, kg, times
 powers of Omega) do not spoil the conditioning. The solvers, as the paper cross-checks them:
 
-- ``qr``:  Householder QR, x = R^-1 Q^T b;
+- ``qr``:  Householder QR, x = R^-1 Q^T b, blocked over rows (:func:`triangular`);
 - ``svd``: x = V S^-1 U^T b;
 - ``lu``:  normal equations (A^T A) x = A^T b by LU, then iterative refinement on the
   least-squares residual (x += (A^T A)^-1 A^T (b - A x)), which recovers QR accuracy as
@@ -25,6 +25,8 @@ import scipy.linalg as sla
 from reduction.errors import IdentificationError, ReductionError
 
 SOLVERS = ("qr", "svd", "lu")
+CHUNK_ROWS = 32768  # real equations per block of the blocked QR (memory: one block, not the table)
+LONG_TABLE = 8 * CHUNK_ROWS  # above this many equations the QR is taken by Cholesky QR twice
 _EPS = np.finfo(float).eps
 
 
@@ -54,14 +56,70 @@ def condition_number(A: np.ndarray) -> float:
     return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
 
 
+def _gram(blocks, T=None) -> np.ndarray:
+    """The Gram matrix of the stacked row ``blocks`` (each a callable's yield, (rows, q)),
+    or of the blocks times T (q, q) on the right."""
+    G = None
+    for block in blocks():
+        q = block if T is None else block @ T
+        G = q.T @ q if G is None else G + q.T @ q
+    return G
+
+
+def _blocks(A, b):
+    """[A | b] in blocks of ``CHUNK_ROWS`` rows."""
+    for s in range(0, A.shape[0], CHUNK_ROWS):
+        block = A[s: s + CHUNK_ROWS]
+        yield block if b is None else np.column_stack([block, b[s: s + CHUNK_ROWS]])
+
+
+def _cholesky_qr2(blocks) -> np.ndarray | None:
+    """R of the stacked row ``blocks`` (a callable yielding them; called twice) by Cholesky
+    QR twice (the Gram matrix of the rows, then of the rows made orthonormal by the first R):
+    as accurate as Householder for condition numbers up to about 1e8, at the speed of a
+    matrix product. None when the Gram matrix is not positive definite (rank-deficient or
+    worse conditioned)."""
+    try:
+        R1 = np.linalg.cholesky(_gram(blocks)).T
+        R1_inv = sla.solve_triangular(R1, np.eye(R1.shape[0]))
+        R2 = np.linalg.cholesky(_gram(blocks, R1_inv)).T
+    except np.linalg.LinAlgError:
+        return None
+    return R2 @ R1 if np.all(np.isfinite(R2)) else None
+
+
+def triangular_blocks(blocks, n_equations: int, p: int) -> np.ndarray:
+    """R (min(m, p), p) of a regression given as a callable yielding its row blocks (called
+    up to three times; the matrix itself is never whole in memory): Cholesky QR twice for a
+    long one (over ``LONG_TABLE`` equations), else or when that fails blocked Householder."""
+    R = _cholesky_qr2(blocks) if n_equations > LONG_TABLE else None
+    if R is None:
+        R = np.zeros((0, p))
+        for block in blocks():
+            R = np.linalg.qr(np.vstack([R, block]), mode="r")
+    return np.triu(R[: min(R.shape[0], p)])
+
+
+def triangular(A: np.ndarray, b: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    """(R, Q^T b) of the QR factorisation A = Q R over blocks of ``CHUNK_ROWS`` rows
+    (:func:`triangular_blocks` on [A | b]; never more than one block copied). R is
+    (min(m, p), p); b (m,) or (m, k); the signs of R's rows are the factorisation's own."""
+    m, p = A.shape
+    k = 0 if b is None else (1 if np.ndim(b) == 1 else b.shape[1])
+    R = triangular_blocks(lambda: _blocks(A, b), m, p + k)
+    top = min(R.shape[0], p)
+    z = None if b is None else (R[:top, p] if np.ndim(b) == 1 else R[:top, p:])
+    return R[:top, :p], z
+
+
 def lstsq(A: np.ndarray, b: np.ndarray, solver: str = "qr") -> np.ndarray:
     """Least-squares solution of A x = b (A full column rank) by ``qr``, ``svd`` or ``lu``.
 
     b may be (m,) or (m, k) for k right-hand sides.
     """
     if solver == "qr":
-        Q, R = np.linalg.qr(A)
-        return sla.solve_triangular(R, Q.T @ b)
+        R, z = triangular(A, b)
+        return sla.solve_triangular(R, z)
     if solver == "svd":
         U, s, Vt = np.linalg.svd(A, full_matrices=False)
         return Vt.T @ ((U.T @ b) / (s if np.ndim(b) == 1 else s[:, None]))
@@ -107,10 +165,12 @@ def _finish(A_eff: np.ndarray, x: np.ndarray, r: np.ndarray, cov_matrix: np.ndar
     return Estimate(x, rss / dof * unscaled, rss, dof, unscaled)
 
 
-def ols(A: np.ndarray, b: np.ndarray, solver: str = "qr", unscaled: np.ndarray | None = None) -> Estimate:
+def ols(A: np.ndarray, b: np.ndarray, solver: str = "qr", unscaled: np.ndarray | None = None,
+        x: np.ndarray | None = None) -> Estimate:
     """Ordinary least squares; cov = s^2 (A^T A)^-1 with s^2 = rss / (m - p); ``unscaled``
-    is (A^T A)^-1 when the caller has it already (else computed by SVD)."""
-    x = lstsq(A, b, solver)
+    is (A^T A)^-1 when the caller has it already (else computed by SVD), ``x`` the solution
+    when the caller has solved it already with ``solver``."""
+    x = lstsq(A, b, solver) if x is None else x
     return _finish(A, x, b - A @ x, unscaled)
 
 

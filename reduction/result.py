@@ -1,8 +1,9 @@
-"""The result of an identification and its JSON object (the orbit-table contract v2)."""
+"""The result of an identification and its JSON object (the orbit-table contract v3)."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,7 +21,9 @@ class Identification:
     ``Kxx_1``, ...; a symmetric pair appears under both keys, absorbed K orders not at all).
     ``free`` names the free coefficients in the order of ``theta`` and ``covariance``;
     ``dof`` = 4 n - p. ``chi2`` / ``p_value`` only when the table has u_* columns.
-    ``exponent`` is the M chosen by power:auto.
+    ``exponent`` is the M chosen by power:auto. ``interval``: where the quantile of
+    ``confidence_95`` comes from (normal with u_*, else student_t); ``not_determined``: the
+    keys whose 95 % interval half-width exceeds their magnitude.
     """
 
     model: str
@@ -33,7 +36,7 @@ class Identification:
     std_errors: dict[str, float | None]
     condition_number: float
     residual_rms: float
-    fit: list[dict]
+    fit: Sequence[dict]  # reduction.diagnostics.FitRows: one dict per row, read lazily
     exponent: int | None = None
     solver: str = "qr"
     spec: ModelSpec | None = field(default=None, repr=False)
@@ -51,9 +54,12 @@ class Identification:
     notes: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     known_noise: bool = False  # covariance from the table's u_* columns (else from the residual)
+    interval: str = "student_t"  # reduction.statistics.Interval
+    not_determined: list[str] = field(default_factory=list)
 
-    def to_dict(self) -> dict:
-        """The contract's JSON object (``exponent`` added for power:auto); NaN/inf -> None."""
+    def to_dict(self, fit: bool = True) -> dict:
+        """The contract's JSON object (``exponent`` added for power:auto); NaN/inf -> None.
+        ``fit=False`` leaves the per-row ``fit`` out (a long table's writer streams it)."""
         cov = None if self.covariance is None else [[_num(v) for v in row] for row in self.covariance]
         d = {
             "model": self.model, "freq_dep": self.freq_dep, "method": self.method,
@@ -69,8 +75,9 @@ class Identification:
         }
         if self.chi2 is not None:
             d["chi2"], d["p_value"] = _num(self.chi2), _num(self.p_value)
-        d.update(aic=_num(self.aic), bic=_num(self.bic), notes=list(self.notes), warnings=list(self.warnings),
-                 fit=[{k: _num(v) for k, v in row.items()} for row in self.fit])
+        d.update(aic=_num(self.aic), bic=_num(self.bic), interval=str(self.interval),
+                 not_determined=list(self.not_determined), notes=list(self.notes), warnings=list(self.warnings),
+                 **({"fit": [{k: _num(v) for k, v in row.items()} for row in self.fit]} if fit else {}))
         if self.exponent is not None:
             d["exponent"] = self.exponent
         return d

@@ -9,7 +9,9 @@ Two covariance situations:
   (A^T W A)^-1 for wls and tls (W the inverse effective variances), the sandwich
   P A^T Sigma A P^T for ols and iv (P the estimator's linear map).
 
-Intervals: two-sided 95 % from Student's t with dof = 4n - p. Information criteria of a
+Intervals (two-sided 95 %, :class:`Interval`): with known noise the covariance is not
+estimated, so the normal quantile (1.96) applies, also at dof = 0; otherwise Student's t
+with dof = 4n - p. Information criteria of a
 Gaussian likelihood over N = 4n real equations and p free coefficients: with known noise
 AIC = chi2 + 2p, BIC = chi2 + p ln N; otherwise AIC = N ln(RSS/N) + 2p, BIC = N ln(RSS/N) +
 p ln N (RSS in the estimator's own metric) - comparable between models of one table fitted
@@ -19,6 +21,7 @@ with one method.
 from __future__ import annotations
 
 import math
+from enum import StrEnum
 
 import numpy as np
 from scipy import stats
@@ -31,10 +34,28 @@ def sandwich(P: np.ndarray, variances: np.ndarray) -> np.ndarray:
     return (P * variances[None, :]) @ P.T
 
 
+def sandwich_rows(A: np.ndarray, variances: np.ndarray, bread: np.ndarray, rows: int = 32768) -> np.ndarray:
+    """bread (A^T diag(variances) A) bread: the covariance of least squares x = bread A^T b
+    (bread = (A^T A)^-1) for independent b of given variances, summed over blocks of rows."""
+    p = A.shape[1]
+    meat = np.zeros((p, p))
+    for s in range(0, A.shape[0], rows):
+        block = A[s: s + rows]
+        meat += (block * variances[s: s + rows, None]).T @ block
+    return bread @ meat @ bread
+
+
 def pseudo_inverse(A: np.ndarray) -> np.ndarray:
     """(A^T A)^-1 A^T for A of full column rank (by SVD)."""
     U, s, Vt = np.linalg.svd(A, full_matrices=False)
     return (Vt.T / s) @ U.T
+
+
+class Interval(StrEnum):
+    """Where an interval's quantile comes from (the JSON key ``interval``)."""
+
+    NORMAL = "normal"  # covariance known from the stated u_*: normal quantile, any dof
+    STUDENT_T = "student_t"  # covariance estimated from the residual: Student's t with dof
 
 
 def t_quantile(dof: int, level: float = 0.95) -> float:
@@ -42,10 +63,18 @@ def t_quantile(dof: int, level: float = 0.95) -> float:
     return float(stats.t.ppf(0.5 + level / 2, dof)) if dof > 0 else float("nan")
 
 
-def intervals(theta: np.ndarray, std: np.ndarray, dof: int, level: float = 0.95) -> np.ndarray:
-    """(p, 2) two-sided intervals theta -+ t std (NaN where std is NaN or dof = 0)."""
-    t = t_quantile(dof, level)
-    half = t * std
+def quantile(interval: Interval, dof: int, level: float = 0.95) -> float:
+    """Two-sided quantile of ``interval``: 1.96 for normal at 95 %, t(dof) for student_t."""
+    if interval == Interval.NORMAL:
+        return float(stats.norm.ppf(0.5 + level / 2))
+    return t_quantile(dof, level)
+
+
+def intervals(theta: np.ndarray, std: np.ndarray, dof: int, level: float = 0.95,
+              interval: Interval = Interval.STUDENT_T) -> np.ndarray:
+    """(p, 2) two-sided intervals theta -+ q std, q from :func:`quantile` (NaN where std is
+    NaN, or dof = 0 with student_t)."""
+    half = quantile(interval, dof, level) * np.asarray(std, dtype=float)
     return np.stack([theta - half, theta + half], axis=1)
 
 

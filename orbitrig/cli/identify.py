@@ -59,13 +59,25 @@ def register(app: typer.Typer) -> None:
             _fail(f"numerical failure of the {method} fit ({type(err).__name__}: {err}); "
                   "check the table's values and units")
         if as_json:
-            typer.echo(json.dumps(result.to_dict(), allow_nan=False))
+            _write_json(result)
         else:
             _print_readable(result, table)
             for note in result.notes:
                 sys.stderr.write(f"note: {note}\n")
             for warning in result.warnings:
                 sys.stderr.write(f"warning: {warning}\n")
+
+
+def _write_json(result, rows: int = 20000) -> None:
+    """The result object on stdout; the per-row ``fit`` streamed in blocks of ``rows`` (a
+    long table's rows never all become dicts at once)."""
+    head = json.dumps(result.to_dict(fit=False), allow_nan=False)
+    out = sys.stdout
+    out.write(head[:-1] + ', "fit": [')
+    for start in range(0, len(result.fit), rows):
+        out.write((", " if start else "") + result.fit.json_rows(start, start + rows))
+    out.write("]}\n")
+    out.flush()
 
 
 def _fmt(v) -> str:

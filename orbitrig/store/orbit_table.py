@@ -14,6 +14,7 @@ import csv
 import io
 import math
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +31,8 @@ RECORDS = "n_records"
 
 
 # a decimal number as a CSV writer prints it (Python's float() also takes '1_000' and spaces)
+BLOCK_ROWS = 50000  # rows converted at once
+_DECIMAL_CHARS = frozenset("0123456789+-.eE \t")  # a cell float() reads from these alone is a plain decimal
 _NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|[+-]?(nan|inf|infinity)", re.IGNORECASE | re.ASCII)
 
 
@@ -59,51 +62,40 @@ class _Reader:
 
 
 def read_orbit_table(path: str | Path) -> OrbitTable:
-    """Read and validate an orbit table CSV; raises TableError(file, line, column, reason)."""
+    """Read and validate an orbit table CSV; raises TableError(file, line, column, reason).
+    The file is streamed in blocks of ``BLOCK_ROWS`` rows, each converted column by column
+    (a block with any fault is read again row by row to name the line and column)."""
     path = Path(path)
     try:
-        data = path.read_bytes()
+        col = _columns(str(path), lambda: open(path, encoding="utf-8-sig", newline=""))
+    except UnicodeDecodeError:
+        raise _not_utf8(path.read_bytes(), str(path)) from None
     except OSError as err:
         raise TableError(str(path), None, None, f"cannot read the file: {err}") from err
-    return parse_orbit_table(data, path)
+    return _table(str(path), col)
 
 
 def parse_orbit_table(data: bytes, path: str | Path = "<table>") -> OrbitTable:
     """An orbit table from the CSV's bytes (``path`` names it in errors); as read_orbit_table."""
     try:
         text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as err:
-        start = data.rfind(b"\n", 0, err.start) + 1
-        line = data[: err.start].count(b"\n") + 1
-        field = data[start: err.start].count(b",") + 1
-        raise TableError(str(path), line, f"field {field}",
-                         f"not UTF-8 text: byte 0x{data[err.start]:02x} ({err.reason}); "
-                         "save the table as UTF-8 CSV") from None
-    reader = _Reader(str(path), csv.reader(io.StringIO(text, newline="")))
-    header, header_line = None, None
-    for fields in reader:
-        if any(f.strip() for f in fields):
-            header, header_line = [f.strip() for f in fields], reader.line_num
-            break
-    if header is None:
-        raise TableError(str(path), 1, None, "empty file: a header row is required")
-    header = [_column_name(str(path), header_line, name) for name in header]
-    wanted = _wanted_columns(str(path), header, header_line)
-    index = {name: header.index(name) for name in wanted}
-    rows = []
-    for fields in reader:
-        if not any(f.strip() for f in fields):
-            continue
-        line = reader.line_num
-        if len(fields) > len(header) and any(f.strip() for f in fields[len(header):]):
-            raise TableError(str(path), line, f"#{len(header) + 1} (no header)",
-                             f"{len(fields)} fields but the header has {len(header)} columns")
-        row = {name: _cell(str(path), line, name, fields, index[name], len(header)) for name in wanted}
-        _check_row(str(path), line, row, rows[0] if rows else None)
-        rows.append(row)
-    if not rows:
-        raise TableError(str(path), header_line + 1, None, "no data rows after the header")
-    col = {name: np.array([r[name] for r in rows]) for name in wanted}
+    except UnicodeDecodeError:
+        raise _not_utf8(data, str(path)) from None
+    return _table(str(path), _columns(str(path), lambda: io.StringIO(text, newline="")))
+
+
+def _columns(file: str, open_text) -> dict[str, np.ndarray]:
+    """The validated columns of the text ``open_text()`` opens: numpy's C reader first, the
+    row-by-row reader when anything is amiss (it names the line and column)."""
+    with open_text() as fh:
+        col = _load_columns(file, fh)
+    if col is None:
+        with open_text() as fh:
+            col = _read_columns(file, fh)
+    return col
+
+
+def _table(file: str, col: dict[str, np.ndarray]) -> OrbitTable:
     gamma2 = np.stack([col[g] for g in GAMMA2], axis=1) if GAMMA2[0] in col else None
     u = np.stack([col[c] for c in UNCERTAINTY], axis=1) if UNCERTAINTY[0] in col else None
     try:
@@ -114,7 +106,115 @@ def parse_orbit_table(data: bytes, path: str | Path = "<table>") -> OrbitTable:
             fx=col["fx_re"] + 1j * col["fx_im"], fy=col["fy_re"] + 1j * col["fy_im"],
             gamma2=gamma2, n_records=col.get(RECORDS), u=u)
     except ReductionError as err:  # defensive: every check above should have caught it
-        raise TableError(str(path), None, None, str(err)) from err
+        raise TableError(file, None, None, str(err)) from err
+
+
+def _not_utf8(data: bytes, file: str) -> TableError:
+    try:
+        data.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        start = data.rfind(b"\n", 0, err.start) + 1
+        line = data[: err.start].count(b"\n") + 1
+        field = data[start: err.start].count(b",") + 1
+        return TableError(file, line, f"field {field}",
+                          f"not UTF-8 text: byte 0x{data[err.start]:02x} ({err.reason}); "
+                          "save the table as UTF-8 CSV")
+    return TableError(file, None, None, "not UTF-8 text; save the table as UTF-8 CSV")
+
+
+def _load_columns(file: str, fh) -> dict[str, np.ndarray] | None:
+    """The wanted columns by numpy's C reader, or None when anything is amiss (a cell that
+    is not a finite decimal number, a value out of range, a ragged row): the row-by-row
+    reader then names the line and column; so does a table with a column that is not
+    numbers (an ignored extra column). The header is checked here already."""
+    for line_no, text in enumerate(fh, start=1):
+        if text.strip():
+            header = [_column_name(file, line_no, f.strip()) for f in next(csv.reader([text]))]
+            break
+    else:
+        return None
+    wanted = _wanted_columns(file, header, line_no)
+    try:  # every column, so that a row with more fields than the header is not passed over
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # "no data": the row-by-row reader says so
+            data = np.loadtxt(fh, delimiter=",", comments=None, ndmin=2, quotechar='"')
+    except ValueError:
+        return None
+    if data.shape[0] == 0 or data.shape[1] != len(header) or not np.all(np.isfinite(data)):
+        return None
+    col = {name: data[:, header.index(name)] for name in wanted}
+    return col if _in_range(col, {name: col[name][0] for name in wanted}) else None
+
+
+def _read_columns(file: str, fh) -> dict[str, np.ndarray]:
+    """The wanted columns of a CSV stream, validated, as float arrays."""
+    reader = _Reader(file, csv.reader(fh))
+    header, header_line = None, None
+    for fields in reader:
+        if any(f.strip() for f in fields):
+            header, header_line = [f.strip() for f in fields], reader.line_num
+            break
+    if header is None:
+        raise TableError(file, 1, None, "empty file: a header row is required")
+    header = [_column_name(file, header_line, name) for name in header]
+    wanted = _wanted_columns(file, header, header_line)
+    index = {name: header.index(name) for name in wanted}
+    blocks, block, lines, first = [], [], [], None
+    for fields in reader:
+        if not any(f.strip() for f in fields):
+            continue
+        block.append(fields)
+        lines.append(reader.line_num)
+        if len(block) == BLOCK_ROWS:
+            blocks.append(_block(file, block, lines, wanted, index, len(header), first))
+            first = first or {name: blocks[0][name][0] for name in wanted}
+            block, lines = [], []
+    if block:
+        blocks.append(_block(file, block, lines, wanted, index, len(header), first))
+    if not blocks:
+        raise TableError(file, header_line + 1, None, "no data rows after the header")
+    return {name: np.concatenate([b[name] for b in blocks]) for name in wanted}
+
+
+def _block(file, rows, lines, wanted, index, n_header, first) -> dict[str, np.ndarray]:
+    """One block of rows as columns: converted at once when every cell is a plain finite
+    number and every value in range, else row by row to raise the first fault."""
+    fast = all(len(f) == n_header for f in rows)
+    col = {}
+    for name in wanted if fast else ():
+        cells = [f[index[name]] for f in rows]
+        try:
+            if set("".join(cells)) - _DECIMAL_CHARS:
+                raise ValueError
+            col[name] = np.fromiter(map(float, cells), float, len(cells))
+        except ValueError:
+            fast = False
+            break
+    if fast and _in_range(col, first or {name: col[name][0] for name in wanted}):
+        return col
+    out = []
+    for line, fields in zip(lines, rows):
+        if len(fields) > n_header and any(f.strip() for f in fields[n_header:]):
+            raise TableError(file, line, f"#{n_header + 1} (no header)",
+                             f"{len(fields)} fields but the header has {n_header} columns")
+        row = {name: _cell(file, line, name, fields, index[name], n_header) for name in wanted}
+        _check_row(file, line, row, first or (out[0] if out else None))
+        out.append(row)
+    return {name: np.array([r[name] for r in out]) for name in wanted}
+
+
+def _in_range(col: dict[str, np.ndarray], first: dict[str, float]) -> bool:
+    """Every value of the block within the checks of ``_check_row``."""
+    ok = bool(np.all(col["orbit_hz"] > 0) and np.all(col["spin_rpm"] >= 0)
+              and np.all(col["spin_rpm"] == first["spin_rpm"]))
+    for g in GAMMA2:
+        ok = ok and (g not in col or bool(np.all((col[g] >= 0) & (col[g] <= 1))))
+    for c in UNCERTAINTY:
+        ok = ok and (c not in col or bool(np.all(col[c] >= 0)))
+    if RECORDS in col:
+        r = col[RECORDS]
+        ok = ok and bool(np.all((r >= 1) & (r == np.round(r))))
+    return ok
 
 
 #: the unit a column may state in its header ("orbit_hz [Hz]"); the table's units are fixed
@@ -188,11 +288,6 @@ def _check_row(file: str, line: int, row: dict, first: dict | None) -> None:
         raise TableError(file, line, RECORDS, f"number of records must be a whole number >= 1, got {row[RECORDS]:g}")
 
 
-def whirl_direction(x, y) -> np.ndarray:
-    """+1 where the phasors x, y whirl forward (Im(conj(x) y) < 0; a circle: y = -i x), else -1."""
-    return np.where(np.imag(np.conj(np.asarray(x)) * np.asarray(y)) < 0, 1, -1)
-
-
 def orbit_table_columns(table: OrbitTable, direction: bool = False) -> dict[str, tuple[np.ndarray, str]]:
     """The orbit-table columns of ``table`` in order: name -> (values, unit), the optional
     ones (gamma2_*, n_records, u_*) only when the table has them, then with ``direction``
@@ -207,7 +302,7 @@ def orbit_table_columns(table: OrbitTable, direction: bool = False) -> dict[str,
     if table.u is not None:
         cols.update({c: (np.asarray(table.u)[:, j], unit) for j, (c, unit) in enumerate(zip(UNCERTAINTY, "mmNN"))})
     if direction:
-        cols["direction"] = (whirl_direction(table.x, table.y), "1")
+        cols["direction"] = (np.where(table.forward(), 1, -1), "1")
     return cols
 
 

@@ -19,7 +19,8 @@ ROOT = Path(__file__).resolve().parents[2]
 TRUE = truth("kcd11", {"K": (0,), "C": (0,), "D": (0,)})
 SPEC_KEYS = ["model", "freq_dep", "method", "n_coefficients", "min_frequencies", "n_frequencies",
              "coefficients", "std_errors", "confidence_95", "free", "covariance", "dof",
-             "condition_number", "residual_rms", "aic", "bic", "notes", "warnings", "fit"]
+             "condition_number", "residual_rms", "aic", "bic", "interval", "not_determined", "notes",
+             "warnings", "fit"]
 
 
 @pytest.fixture

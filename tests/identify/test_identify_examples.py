@@ -1,4 +1,4 @@
-"""`identify --json` on the example orbit tables: the v2 keys exactly, and the truth within
+"""`identify --json` on the example orbit tables: the v3 keys exactly, and the truth within
 the reported uncertainty (the examples carry noise of their stated u_*)."""
 
 from __future__ import annotations
@@ -13,9 +13,10 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples" / "orbit-tables"
 TRUTH = json.loads((EXAMPLES / "truth.json").read_text())
-V2_KEYS = ["model", "freq_dep", "method", "n_coefficients", "min_frequencies", "n_frequencies",
+V3_KEYS = ["model", "freq_dep", "method", "n_coefficients", "min_frequencies", "n_frequencies",
            "coefficients", "std_errors", "confidence_95", "free", "covariance", "dof",
-           "condition_number", "residual_rms", "chi2", "p_value", "aic", "bic", "notes", "warnings", "fit"]
+           "condition_number", "residual_rms", "chi2", "p_value", "aic", "bic", "interval", "not_determined", "notes",
+           "warnings", "fit"]
 
 
 def _identify(name: str, args: str, *extra: str) -> subprocess.CompletedProcess:
@@ -24,7 +25,7 @@ def _identify(name: str, args: str, *extra: str) -> subprocess.CompletedProcess:
 
 
 @pytest.mark.parametrize("name", sorted(TRUTH))
-def test_examples_follow_the_v2_contract(name):
+def test_examples_follow_the_v3_contract(name):
     truth = TRUTH[name]
     res = _identify(name, truth["command"], "--json")
     assert res.returncode == truth.get("exit_status", 0), res.stderr
@@ -33,7 +34,10 @@ def test_examples_follow_the_v2_contract(name):
         return
     d = json.loads(res.stdout)
     has_u = "n_records" in (EXAMPLES / name).read_text().splitlines()[0]
-    assert list(d) == [k for k in V2_KEYS if has_u or k not in ("chi2", "p_value")]
+    assert list(d) == [k for k in V3_KEYS if has_u or k not in ("chi2", "p_value")]
+    assert d["interval"] == ("normal" if has_u else "student_t") and d["warnings"] == []
+    # the constant models are determined; poly:2's higher D orders are not from this table
+    assert (d["not_determined"] == []) == (d["freq_dep"] == "none"), d["not_determined"]
     assert set(d["coefficients"]) == set(truth["coefficients"]) == set(d["std_errors"]) == set(d["confidence_95"])
     p = len(d["free"])
     assert d["n_coefficients"] == p and len(d["covariance"]) == p and all(len(r) == p for r in d["covariance"])

@@ -85,7 +85,8 @@ def test_to_dict_is_the_spec_object():
     d = identify(table, "kcd11").to_dict()
     assert list(d) == ["model", "freq_dep", "method", "n_coefficients", "min_frequencies", "n_frequencies",
                        "coefficients", "std_errors", "confidence_95", "free", "covariance", "dof",
-                       "condition_number", "residual_rms", "aic", "bic", "notes", "warnings", "fit"]
+                       "condition_number", "residual_rms", "aic", "bic", "interval", "not_determined", "notes", "warnings",
+                       "fit"]
     assert (d["model"], d["freq_dep"], d["method"]) == ("kcd11", "none", "ols")
     assert (d["n_coefficients"], d["min_frequencies"], d["n_frequencies"]) == (11, 3, 10)
     assert list(d["coefficients"]) == ["Kxx", "Kxy", "Kyx", "Kyy", "Cxx", "Cxy", "Cyx", "Cyy",

@@ -1,0 +1,84 @@
+"""Numerical rank of a regression after column scaling, from its R factor.
+
+The regression A theta = b is column-scaled to unit column norms; its numerical rank is the
+number of singular values above ``rtol * sigma_max``. The singular values and right
+singular vectors are those of the R factor of a blocked QR (:func:`reduction.regression.
+triangular`), so a long table costs passes over its rows and one block of memory.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from reduction.impedance import regression_rows
+from reduction.models import ModelSpec
+from reduction.regression import CHUNK_ROWS, LONG_TABLE, triangular, triangular_blocks
+
+RANK_RTOL = 1e-7  # relative singular-value tolerance on the column-scaled regression (cond > 1e7 = deficient)
+
+
+@dataclass(frozen=True)
+class Rank:
+    """Numerical rank of a column-scaled regression and its null space (scaled coordinates)."""
+
+    rank: int
+    n_columns: int
+    singular_values: np.ndarray
+    null: np.ndarray  # (p, p - rank), orthonormal, scaled coordinates
+    scale: np.ndarray  # column norms c: theta = u / c
+    vt: np.ndarray  # (p, p) right singular vectors (rows), scaled coordinates
+
+    def unscaled_covariance(self) -> np.ndarray:
+        """(A_s^T A_s)^-1 of the column-scaled matrix (full rank only)."""
+        s = self.singular_values
+        return (self.vt.T / s**2) @ self.vt
+
+    @property
+    def deficiency(self) -> int:
+        return self.n_columns - self.rank
+
+    @property
+    def condition_number(self) -> float:
+        s = self.singular_values
+        return float(s[0] / s[-1]) if s.size and s[-1] > 0 else float("inf")
+
+
+def numerical_rank(A: np.ndarray, rtol: float = RANK_RTOL) -> Rank:
+    """Rank of A after column scaling: singular values > rtol * sigma_max count. The
+    singular values and right vectors come from the R factor of the blocked QR (those of A
+    itself), so a long table costs passes over its rows and one block of memory."""
+    A = np.asarray(A, dtype=float)
+    return _rank_of(triangular(A)[0], A.shape[0], rtol)
+
+
+def design_rank(spec: ModelSpec, orbit, x, y, rtol: float = RANK_RTOL) -> Rank:
+    """:func:`numerical_rank` of the regression of orbits (orbit rad/s, x, y m), its rows
+    built block by block: a long table's design is never whole in memory."""
+    orbit = np.asarray(orbit, dtype=float)
+    n = orbit.size
+    if 4 * n <= LONG_TABLE:
+        return numerical_rank(regression_rows(spec, orbit, x, y), rtol)
+    step = CHUNK_ROWS // 4
+
+    def blocks():
+        for s in range(0, n, step):
+            yield regression_rows(spec, orbit[s: s + step], x[s: s + step], y[s: s + step])
+
+    return _rank_of(triangular_blocks(blocks, 4 * n, spec.n_coefficients), 4 * n, rtol)
+
+
+def _rank_of(R: np.ndarray, m: int, rtol: float) -> Rank:
+    """The Rank of a matrix of m rows from its R factor (column norms = those of R's columns)."""
+    p = R.shape[1]
+    c = np.linalg.norm(R, axis=0)
+    c = np.where(c > 0, c, 1.0)
+    R = R / c
+    if R.shape[0] < p:  # pad so that the SVD returns the whole right singular basis
+        R = np.vstack([R, np.zeros((p - R.shape[0], p))])
+    _, s, Vt = np.linalg.svd(R)
+    s = s if m >= p else np.concatenate([s[:m], np.zeros(p - m)])
+    tol = rtol * (s[0] if s.size else 0.0)
+    rank = int(np.sum(s > tol)) if s.size and s[0] > 0 else 0
+    return Rank(rank, p, s, Vt[rank:].T.copy(), c, Vt)
