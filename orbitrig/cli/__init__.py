@@ -33,6 +33,7 @@ _AREAS = (
     "dashboard",  # orbitrig dashboard
     "design",  # orbitrig design
     "calibrate",  # orbitrig calibrate list|show|loads|runout
+    "catalog",  # orbitrig catalog add|list|export
 )
 
 for _area in _AREAS:

@@ -44,6 +44,7 @@ from typing import Any, Literal, Protocol
 from orbitrig.errors import ConfigError, OrbitrigError
 from orbitrig.run.engine import ProgressEvent, ResultEvent, RunOutcome, StatusEvent
 from orbitrig.service import live as live_feed
+from orbitrig.service.catalog_feed import CatalogFeed
 from orbitrig.service import protocol as proto
 from orbitrig.service.link import BrokerLink
 from orbitrig.service.settings import (  # noqa: F401 - the service's public names
@@ -60,6 +61,7 @@ REDELIVERY_S = 10.0
 # -- the executor as seen from here (orbitrig.run.engine.RunEngine) --------------
 
 class Engine(Protocol):
+    out_dir: Path  # the run directory
     state: str
     run_id: str | None
     waiting_step: str | None
@@ -98,6 +100,7 @@ class RigService:
         self._status = proto.status_payload("idle", None, None, "service ready")
         self._state = "idle"
         self._run_id: str | None = None
+        self._catalog = CatalogFeed(settings.catalog_url) if settings.catalog_url else None
         self.link = BrokerLink(broker, settings, self.topics, status=lambda: self._status,
                                offline=self._offline_status, on_command=self._on_message)
         self._tg: asyncio.TaskGroup | None = None
@@ -375,6 +378,8 @@ class RigService:
             self._set_status(event.state, event.run_id, event.message or "", event.since, extra)
         elif isinstance(event, ResultEvent):
             self._send(self.topics.result, proto.result_payload(event.run_id, event.payload), proto.QOS_RESULT)
+            if self._catalog is not None and self._engine is not None:
+                self._catalog.point_completed(self._engine.out_dir, event.payload["point"])
         elif isinstance(event, ProgressEvent):
             self._send(self.topics.progress, proto.progress_payload(
                 event.run_id, event.point, event.points, event.frequency, event.frequencies,

@@ -13,7 +13,7 @@ import sys
 from cli_helpers import ROOT
 
 SCRIPT = ROOT / "tools" / "run-tests"
-COMMANDS = ["mosquitto", "mosquitto_pub", "mbpoll", "socat", "chromium", "chromedriver", "strace"]
+COMMANDS = ["mosquitto", "mosquitto_pub", "mbpoll", "socat", "chromium", "chromedriver", "strace", "psql"]
 
 
 def _bin(tmp_path, commands):
@@ -57,7 +57,8 @@ def test_missing_system_packages_are_named_before_anything_runs(tmp_path):
     p = _run(tmp_path, _bin(tmp_path, present), python, "-q")
     assert p.returncode == 2, p.stderr
     package_of = {"mosquitto": "mosquitto", "mosquitto_pub": "mosquitto-clients", "mbpoll": "mbpoll",
-                  "socat": "socat", "chromium": "chromium", "chromedriver": "chromium-driver", "strace": "strace"}
+                  "socat": "socat", "chromium": "chromium", "chromedriver": "chromium-driver", "strace": "strace",
+                  "psql": "postgresql"}
     on_sbin = {c for c in COMMANDS if os.path.exists(f"/usr/sbin/{c}") or os.path.exists(f"/sbin/{c}")}
     expected = {package_of[c] for c in COMMANDS if c not in present | on_sbin}  # the script also looks in sbin
     line = next(l for l in p.stderr.splitlines() if "apt-get install -y" in l)
