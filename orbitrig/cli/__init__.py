@@ -34,6 +34,7 @@ _AREAS = (
     "design",  # orbitrig design
     "calibrate",  # orbitrig calibrate list|show|loads|runout
     "catalog",  # orbitrig catalog add|list|export
+    "compare",  # orbitrig compare
 )
 
 for _area in _AREAS:
