@@ -74,7 +74,7 @@ def test_pytest_exit_status_passes_through_after_the_install(tmp_path):
     p = _run(tmp_path, _bin(tmp_path, COMMANDS), python, "-q", "tests/daq")
     assert p.returncode == 5, p.stderr
     calls = [l for l in log.read_text().splitlines() if l.startswith("-m ")]
-    assert calls[0].startswith("-m pip install") and calls[0].endswith("-e .[test]")
+    assert calls[0].startswith("-m pip install") and calls[0].endswith("-e .[test,ross]")
     assert calls[1] == "-m pytest -q tests/daq"
     assert len(calls) == 2
 
