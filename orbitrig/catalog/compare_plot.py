@@ -23,7 +23,9 @@ def compare_figure(rows: list[Row], variable: Variable, coefficients: list[str],
     """The figure (matplotlib Figure on Agg); rows of one fit kind."""
     ncol = min(4, len(coefficients))
     nrow = -(-len(coefficients) // ncol)
-    fig = panel_figure(3.3 * ncol + 0.6, 2.6 * nrow + 2.0, top=0.75, bottom=1.0, hspace=0.55, wspace=0.38)
+    extra = 0.2 * title.count("\n")  # in: room for each further title line
+    fig = panel_figure(3.3 * ncol + 0.6, 2.6 * nrow + 2.0 + extra, top=0.75 + extra, bottom=1.0, hspace=0.55,
+                       wspace=0.38)
     runs = runs_of(rows)
     colors = _colors(len(runs))
     xs = np.array([variable.of(r) for r in rows])

@@ -46,8 +46,10 @@ def compare_cmd(
         if not rows:
             raise CatalogUsageError(f"no catalog rows for {lms} {model} {freq_dep} {method}"
                                     + (f" where {where}" if where.strip() else ""))
-        title = f"{lms} {model} freq_dep {freq_dep} {method}: {len(rows)} rows from {len({r['run_id'] for r in rows})} runs" \
-            + (f" ({where})" if where.strip() else "")
+        n_runs = len({r["run_id"] for r in rows})
+        title = (f"{lms} {model} freq_dep {freq_dep} {method}: {len(rows)} rows from {n_runs} run{'s' * (n_runs > 1)}"
+                 + (f" ({where})" if where.strip() else "")
+                 + ("\nconstant terms (\u03a9\u2070) of a frequency-dependent fit" if freq_dep != "none" else ""))
         fig = compare_figure(rows, Variable(against), names, title=title,
                              predicted=read_predicted(predicted) if predicted else None)
         for path in write_figure(fig, out):
