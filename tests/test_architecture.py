@@ -32,8 +32,9 @@ ALLOWED = {
 APP_SHARED = {"orbitrig", "orbitrig.config", "orbitrig.errors"}
 WINGS = {
     "orbitrig.cli": {"orbitrig.cli", "orbitrig.run", "orbitrig.store", "orbitrig.analysis", "orbitrig.service",
-                     "orbitrig.dashboard", "sim"},
-    "orbitrig.service": {"orbitrig.service", "orbitrig.run", "orbitrig.store", "orbitrig.analysis"},
+                     "orbitrig.dashboard", "orbitrig.catalog", "sim"},
+    "orbitrig.service": {"orbitrig.service", "orbitrig.run", "orbitrig.store", "orbitrig.analysis", "orbitrig.catalog"},
+    "orbitrig.catalog": {"orbitrig.catalog", "orbitrig.store", "orbitrig.analysis"},
     "orbitrig.dashboard": {"orbitrig.dashboard", "orbitrig.service.protocol"},
     "orbitrig.run": {"orbitrig.run", "orbitrig.store"},
     "orbitrig.store": {"orbitrig.store", "orbitrig.run.plan"},

@@ -34,6 +34,8 @@ _AREAS = (
     "design",  # orbitrig design
     "calibrate",  # orbitrig calibrate list|show|loads|runout
     "init",  # orbitrig init DIR
+    "catalog",  # orbitrig catalog add|list|export
+    "compare",  # orbitrig compare
 )
 
 for _area in _AREAS:

@@ -17,9 +17,10 @@ def register(app: typer.Typer) -> None:
     @app.command("export")
     def export_cmd(
         directory: Annotated[Path, typer.Argument(metavar="RUN", help="Run directory written by `orbitrig sweep --out DIR`.")],
-        fmt: Annotated[str, typer.Option("--format", help="csv (one orbit table per point and load system, coefficients.csv) | mat (MATLAB run.mat) | tdms (LabVIEW run.tdms) | h5 (the single-file run.h5)")] = "csv",
+        fmt: Annotated[str, typer.Option("--format", help="csv (one orbit table per point and load system, coefficients.csv) | mat (MATLAB run.mat) | tdms (LabVIEW run.tdms) | h5 (the single-file run.h5) | ross (ROSS BearingElement data, ross_bearings.json)")] = "csv",
         out: Annotated[Optional[Path], typer.Option("--out", help="Directory for the files (default RUN/export).")] = None,
         point: Annotated[Optional[list[int]], typer.Option("--point", metavar="N", help="Only this operating point index (repeatable; not with --format h5, the whole run).")] = None,
+        fit: Annotated[str, typer.Option("--fit", help="ross: the stored fit exported, LMS:MODEL:FREQ_DEP:METHOD (LMS '' = every load system).")] = "piezo:kcd11:none:ols",
     ) -> None:
         """Export every complete operating point's orbit tables and results.
 
@@ -29,13 +30,16 @@ def register(app: typer.Typer) -> None:
         from orbitrig.store.export import FORMATS, export_run
         from orbitrig.store.reader import RunDirError
 
-        if fmt not in FORMATS:
-            typer.echo(f"error: --format {fmt!r}: one of {', '.join(FORMATS)}", err=True)
+        if fmt not in (*FORMATS, "ross"):
+            typer.echo(f"error: --format {fmt!r}: one of {', '.join(FORMATS)}, ross", err=True)
             raise typer.Exit(2)
         if point and fmt == "h5":
             typer.echo("error: --point does not apply to --format h5 (run.h5 holds the whole run)", err=True)
             raise typer.Exit(2)
         try:
+            if fmt == "ross":
+                typer.echo(str(_export_ross(directory, out, fit)))
+                return
             done = export_run(directory, fmt, out, point)
         except RunDirError as err:
             typer.echo(f"error: {err}", err=True)
@@ -51,3 +55,24 @@ def register(app: typer.Typer) -> None:
             typer.echo(f"error: {line}", err=True)
         if done.selection.skipped:
             raise typer.Exit(1)
+
+
+def _export_ross(directory: Path, out: Path | None, fit: str) -> Path:
+    """`--format ross`: RUN/export/ross_bearings.json (orbitrig.analysis.ross_export)."""
+    from orbitrig.analysis.ross_export import export_ross
+    from orbitrig.store.errors import storage_error
+    from orbitrig.store.export import EXPORT_DIR
+    from orbitrig.store.reader import read_run
+
+    parts = fit.split(":")
+    if len(parts) < 4 or not parts[1] or not parts[-1]:
+        typer.echo(f"error: --fit {fit!r}: LMS:MODEL:FREQ_DEP:METHOD, e.g. piezo:kcd11:none:ols", err=True)
+        raise typer.Exit(2)
+    lms, model, freq_dep, method = parts[0], parts[1], ":".join(parts[2:-1]), parts[-1]
+    run = read_run(directory)
+    target = out if out is not None else Path(directory) / EXPORT_DIR
+    try:
+        target.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise storage_error(target, "create the export directory", err) from err
+    return export_ross(run, target, lms=lms, model=model, freq_dep=freq_dep, method=method)

@@ -72,12 +72,15 @@ def register(app: typer.Typer) -> None:
         speedup: Optional[float] = typer.Option(None, "--speedup",
                                                 help="simulator time speed-up (--sim; default: as orbitrig sweep)"),
         verbose: bool = typer.Option(False, "--verbose", "-v", help="log at debug level (every event)"),
+        catalog: Optional[str] = typer.Option(
+            None, "--catalog", envvar="ORBITRIG_CATALOG",
+            help="campaign catalog URL: each completed point is added (docs/catalog.md)"),
     ) -> None:
         """Run the rig service: start, watch and stop runs over MQTT."""
         _start(broker=broker, sim=sim, config=config, rig_id=rig_id, prefix=prefix, username=username,
                password_file=password_file, tls_ca=tls_ca, out=out, matrices=matrices,
                supervision_policy=supervision_policy, supervision_timeout=supervision_timeout,
-               client_id=client_id, confirm=confirm, speedup=speedup, verbose=verbose)
+               client_id=client_id, confirm=confirm, speedup=speedup, verbose=verbose, catalog=catalog)
 
 
 def _broker_password(rig_id: str, prefix: str | None, tls_ca: Path | None, username: str | None,
@@ -106,7 +109,8 @@ def _broker_password(rig_id: str, prefix: str | None, tls_ca: Path | None, usern
 def _start(*, broker: str, sim: bool, config: Path | None, rig_id: str, prefix: str | None,
            username: str | None, password_file: Path | None, tls_ca: Path | None, out: Path,
            matrices: Path | None, supervision_policy: str, supervision_timeout: float,
-           client_id: str | None, confirm: str, speedup: float | None, verbose: bool) -> None:
+           client_id: str | None, confirm: str, speedup: float | None, verbose: bool,
+           catalog: str | None = None) -> None:
     import asyncio
     import logging
 
@@ -125,7 +129,8 @@ def _start(*, broker: str, sim: bool, config: Path | None, rig_id: str, prefix: 
         folder = matrices or Path(rig.file).resolve().parent / "matrices"
         settings = ServiceSettings(rig_id=rig_id, matrices_dir=folder, prefix=prefix,
                                    supervision_policy=supervision_policy,  # type: ignore[arg-type]
-                                   supervision_timeout=supervision_timeout, client_id=client_id)
+                                   supervision_timeout=supervision_timeout, client_id=client_id,
+                                   catalog_url=catalog)
     except (ConfigError, ServiceError) as err:
         _fail(str(err))
     if speedup is not None and not 0 < speedup <= 1e4:

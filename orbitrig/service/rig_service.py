@@ -47,6 +47,7 @@ from orbitrig.errors import ConfigError, OrbitrigError
 from orbitrig.run.engine import ProgressEvent, ResultEvent, RunOutcome, StatusEvent
 from orbitrig.service import live as live_feed
 from orbitrig.service.inbox import CommandTriage
+from orbitrig.service.catalog_feed import CatalogFeed
 from orbitrig.service import protocol as proto
 from orbitrig.service.link import BrokerLink
 from orbitrig.service.settings import (  # noqa: F401 - the service's public names
@@ -63,6 +64,7 @@ REDELIVERY_S = 10.0
 # -- the executor as seen from here (orbitrig.run.engine.RunEngine) --------------
 
 class Engine(Protocol):
+    out_dir: Path  # the run directory
     state: str
     run_id: str | None
     waiting_step: str | None
@@ -103,6 +105,7 @@ class RigService:
         self._run_id: str | None = None
         self.triage = CommandTriage(self._on_message, functools.partial(self._reply, behind=True),
                                     lambda: self.link.reply_backlog)
+        self._catalog = CatalogFeed(settings.catalog_url) if settings.catalog_url else None
         self.link = BrokerLink(broker, settings, self.topics, status=lambda: self._status,
                                offline=self._offline_status, on_command=self._on_message,
                                triage=self.triage)
@@ -390,6 +393,8 @@ class RigService:
             self._set_status(event.state, event.run_id, event.message or "", event.since, extra)
         elif isinstance(event, ResultEvent):
             self._send(self.topics.result, proto.result_payload(event.run_id, event.payload), proto.QOS_RESULT)
+            if self._catalog is not None and self._engine is not None:
+                self._catalog.point_completed(self._engine.out_dir, event.payload["point"])
         elif isinstance(event, ProgressEvent):
             self._send(self.topics.progress, proto.progress_payload(
                 event.run_id, event.point, event.points, event.frequency, event.frequencies,

@@ -76,6 +76,8 @@ class ServiceSettings:
     client_id: str | None = None
     #: s the broker keeps the session (subscription, queued QoS 1 commands) after a disconnect
     session_expiry: int = 120
+    #: campaign catalog URL each completed point is added to (orbitrig.service.catalog_feed); None: none
+    catalog_url: str | None = None
 
     @property
     def mqtt_client_id(self) -> str:

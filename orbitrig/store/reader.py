@@ -132,10 +132,16 @@ class Run:
     unreadable: list[str] = field(default_factory=list)
     sim_scenario_name: str = ""  # --sim runs: the simulator scenario (file name, or the default)
     sim_scenario_config: str = ""  # its TOML text ("" the default rig)
+    provenance: dict[str, str] = field(default_factory=dict)  # PROVENANCE_KEYS ("" unknown), times ISO 8601 UTC
+
 
     @property
     def complete_points(self) -> list[Point]:
         return [p for p in self.points if p.complete]
+
+
+#: who made the run, where and when (docs/storage.md); `ended` is "" while the run is running
+PROVENANCE_KEYS = ("operator", "rig_id", "host", "calibration_record", "calibration_record_sha256", "started", "ended")
 
 
 def freq_dep_from_key(key: str) -> str:
@@ -207,6 +213,7 @@ def read_run(directory: str | Path) -> Run:
                 channel_units=[_text(c) for c in h5["channel_units"][()]] if "channel_units" in h5 else [],
                 sim_scenario_name=_text(a.get("sim_scenario_name")),
                 sim_scenario_config=_text(a.get("sim_scenario_config")),
+                provenance={k: _text(a.get(k)) for k in PROVENANCE_KEYS},
             )  # fmt: skip
         except (KeyError, ValueError, TypeError) as err:
             raise RunDirError(path, f"malformed run file: {err}") from err
@@ -236,6 +243,9 @@ def _read_pieces(layout: RunLayout) -> Run:
     scenario = header.get("sim_scenario")
     if isinstance(scenario, dict):
         run.sim_scenario_name, run.sim_scenario_config = str(scenario.get("name", "")), str(scenario.get("text", ""))
+    prov = header.get("provenance") if isinstance(header.get("provenance"), dict) else {}
+    ended = journal.status_at if journal.status != "running" else ""
+    run.provenance = {k: str(prov.get(k, "")) for k in PROVENANCE_KEYS[:-1]} | {"ended": ended}
     for index in layout.point_indexes():
         state = point_state(layout, index)
         try:

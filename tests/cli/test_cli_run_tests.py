@@ -13,7 +13,7 @@ import sys
 from cli_helpers import ROOT
 
 SCRIPT = ROOT / "tools" / "run-tests"
-COMMANDS = ["mosquitto", "mosquitto_pub", "mbpoll", "socat", "chromium", "chromedriver", "strace", "octave-cli"]
+COMMANDS = ["mosquitto", "mosquitto_pub", "mbpoll", "socat", "chromium", "chromedriver", "strace", "octave-cli", "pg_ctlcluster"]
 
 
 def _bin(tmp_path, commands):
@@ -58,7 +58,7 @@ def test_missing_system_packages_are_named_before_anything_runs(tmp_path):
     assert p.returncode == 2, p.stderr
     package_of = {"mosquitto": "mosquitto", "mosquitto_pub": "mosquitto-clients", "mbpoll": "mbpoll",
                   "socat": "socat", "chromium": "chromium", "chromedriver": "chromium-driver", "strace": "strace",
-                  "octave-cli": "octave"}
+                  "octave-cli": "octave", "pg_ctlcluster": "postgresql"}
     on_sbin = {c for c in COMMANDS if os.path.exists(f"/usr/sbin/{c}") or os.path.exists(f"/sbin/{c}")}
     expected = {package_of[c] for c in COMMANDS if c not in present | on_sbin}  # the script also looks in sbin
     line = next(l for l in p.stderr.splitlines() if "apt-get install -y" in l)
@@ -74,7 +74,7 @@ def test_pytest_exit_status_passes_through_after_the_install(tmp_path):
     p = _run(tmp_path, _bin(tmp_path, COMMANDS), python, "-q", "tests/daq")
     assert p.returncode == 5, p.stderr
     calls = [l for l in log.read_text().splitlines() if l.startswith("-m ")]
-    assert calls[0].startswith("-m pip install") and calls[0].endswith("-e .[test]")
+    assert calls[0].startswith("-m pip install") and calls[0].endswith("-e .[test,ross]")
     assert calls[1] == "-m pytest -q tests/daq"
     assert len(calls) == 2
 

@@ -93,7 +93,8 @@ def _record(block, radius, rng, noise, ch, gains, wave_rng) -> BlockRecord:
     )  # fmt: skip
 
 
-def write_synthetic_run(directory: Path, *, noise=1e-3, seed=1, n_points=2, incomplete=1, finished=True) -> Path:
+def write_synthetic_run(directory: Path, *, noise=1e-3, seed=1, n_points=2, incomplete=1, finished=True,
+                        provenance: dict | None = None) -> Path:
     """n_points complete operating points (static eccentricity 0, 0.15, ...) and
     `incomplete` more whose blocks are stored but which are never marked complete.
     finished=False leaves the run as a kill -9 does: status 'running', no run.h5."""
@@ -105,7 +106,8 @@ def write_synthetic_run(directory: Path, *, noise=1e-3, seed=1, n_points=2, inco
     matrix = cfg.matrix_from_text(MATRIX.format(eps=eps), "synthetic.toml")
     ch = rig.channel_index
     gains = np.asarray(rig.gains, dtype=float)
-    store = RunStore.create(directory, rig_text=rig.text, matrix_text=matrix.text, matrix_name=matrix.name, sim=True)
+    store = RunStore.create(directory, rig_text=rig.text, matrix_text=matrix.text, matrix_name=matrix.name, sim=True,
+                            provenance=provenance)
     for point in operating_points(matrix, rig):
         store.begin_point(point)
         recs = []

@@ -1,0 +1,58 @@
+"""Catalog rows as text: CSV (column names with units), JSON, and the `list` table."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from enum import StrEnum
+from typing import Any
+
+from orbitrig.catalog.schema import COLUMN_UNITS, ROW_COLUMNS
+
+
+class ExportFormat(StrEnum):
+    CSV = "csv"
+    JSON = "json"
+
+
+#: the columns `catalog list` shows unless told otherwise
+LIST_COLUMNS = ("run_id", "point", "lms", "model", "freq_dep", "method", "spin_rpm", "pressure_ratio",
+                "static_eccentricity", "dynamic_eccentricity", "Kxx", "Kxx_U", "Cxx", "Cxx_U", "adequacy_verdict")
+
+
+def header(name: str) -> str:
+    """CSV column name with its unit: 'Kxx [N/m]', 'spin [rad/s]', 'point'."""
+    unit = COLUMN_UNITS.get(name)
+    return f"{name} [{unit}]" if unit and name != "spin_rpm" else name
+
+
+def render(rows: list[dict[str, Any]], fmt: ExportFormat) -> bytes:
+    """Every column of ``rows``: CSV (empty cell = NULL) or a JSON list of objects (SI)."""
+    if fmt is ExportFormat.JSON:
+        return (json.dumps(rows, indent=1) + "\n").encode()
+    buf = io.StringIO()
+    out = csv.writer(buf, lineterminator="\n")
+    out.writerow([header(c) for c in ROW_COLUMNS])
+    for row in rows:
+        out.writerow(["" if row.get(c) is None else _cell(row[c]) for c in ROW_COLUMNS])
+    return buf.getvalue().encode()
+
+
+def _cell(value: Any) -> str:
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+def table(rows: list[dict[str, Any]], columns: tuple[str, ...]) -> str:
+    """Rows as aligned text columns (numbers with 4 significant digits)."""
+    cells = [list(columns)] + [[_short(r.get(c)) for c in columns] for r in rows]
+    widths = [max(len(line[i]) for line in cells) for i in range(len(columns))]
+    return "\n".join("  ".join(v.ljust(w) for v, w in zip(line, widths)).rstrip() for line in cells)
+
+
+def _short(value: Any) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)

@@ -1,0 +1,112 @@
+"""A stored run as catalog rows: one per complete operating point and stored fit.
+
+Each row holds the point's conditions (SI), the fit's key (load measuring system, model,
+frequency dependence, method), the twelve constant coefficients K, C, D (N/m, N s/m, kg)
+and their expanded uncertainties U (k = 2), every coefficient of the fit as JSON, the
+adequacy verdict, the run's provenance and its directory (docs/catalog.md).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from orbitrig.store.reader import Point, Run, StoredIdentification
+
+#: the constant coefficients every model reports (absent ones are NULL)
+COEFFICIENTS = tuple(f"{m}{ij}" for m in "KCD" for ij in ("xx", "xy", "yx", "yy"))
+#: SI unit of each coefficient family
+UNITS = {"K": "N/m", "C": "N s/m", "D": "kg"}
+#: k of the expanded uncertainty taken as 2 x std when a fit stores none
+COVERAGE = 2.0
+
+
+def expanded_uncertainty(result: dict[str, Any]) -> tuple[dict[str, float], str]:
+    """U (k = 2) of every coefficient of an identification's JSON and its basis.
+
+    The stored ``expanded_uncertainty`` {k, basis, values} (statistical and calibration)
+    when the fit has one (values by name, or aligned with ``coefficients``); otherwise
+    2 x the statistical standard error, basis "statistical"."""
+    names = list(result.get("coefficients", {}))
+    stored = result.get("expanded_uncertainty")
+    if isinstance(stored, dict) and stored.get("values") is not None:
+        values = stored["values"]
+        if isinstance(values, list):
+            values = dict(zip(names, values))
+        return {k: _number(v) for k, v in values.items()}, str(stored.get("basis", "combined"))
+    std = result.get("std_errors", {})
+    return {k: COVERAGE * _number(std.get(k)) for k in names}, "statistical"
+
+
+def _number(value: Any) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def run_id(run: Run) -> str:
+    """The run's catalog identity: rig id and creation time (ISO 8601 UTC), which
+    stay the same when the directory is moved or copied."""
+    return f"{run.provenance.get('rig_id') or 'rig'}@{run.created}"
+
+
+def run_rows(run: Run, points: list[Point] | None = None) -> list[dict[str, Any]]:
+    """The catalog rows of ``points`` (default: the run's complete points)."""
+    points = run.complete_points if points is None else points
+    common = _run_columns(run)
+    return [{**common, **_point_columns(p), **_fit_columns(i)} for p in points for i in p.identifications]
+
+
+def _run_columns(run: Run) -> dict[str, Any]:
+    prov = run.provenance
+    return {
+        "run_id": run_id(run), "run_path": str(Path(run.directory).resolve()), "run_status": run.status,
+        "created": run.created, "matrix_name": run.matrix_name, "sim": run.sim,
+        "software_version": run.software_version, "operator": prov.get("operator", ""),
+        "rig_id": prov.get("rig_id", ""), "host": prov.get("host", ""),
+        "calibration_record": prov.get("calibration_record", ""),
+        "calibration_record_sha256": prov.get("calibration_record_sha256", ""),
+        "started": prov.get("started", ""), "ended": prov.get("ended", ""),
+    }  # fmt: skip
+
+
+def _point_columns(p: Point) -> dict[str, Any]:
+    s = p.settings
+    return {
+        "point": p.index, "label": s.label, "spin": s.spin, "spin_rpm": s.spin_rpm,
+        "recess_pressure": s.recess_pressure, "pressure_ratio": s.pressure_ratio,
+        "static_eccentricity": s.static_eccentricity, "dynamic_eccentricity": s.dynamic_eccentricity,
+        "orbit_hz": json.dumps(sorted({f.orbit_hz for f in p.frequencies})),
+    }  # fmt: skip
+
+
+def _fit_columns(ident: StoredIdentification) -> dict[str, Any]:
+    from reduction.statistics import not_determined
+
+    row: dict[str, Any] = {"lms": ident.lms, "model": ident.model, "freq_dep": ident.freq_dep,
+                           "method": ident.method, "ok": ident.ok, "error": ident.error or ""}
+    result = ident.result or {}
+    values = {k: _number(v) for k, v in result.get("coefficients", {}).items()}
+    u, basis = expanded_uncertainty(result) if ident.ok else ({}, "")
+    adequacy = result.get("adequacy") or {}
+    row.update(
+        n_frequencies=result.get("n_frequencies"), chi2=_finite(result.get("chi2")),
+        p_value=_finite(result.get("p_value")), u_basis=basis,
+        adequacy_verdict=str(adequacy.get("verdict", "")),
+        adequacy_supported=adequacy.get("supported") if "supported" in adequacy else None,
+        not_determined=" ".join(not_determined(values, u)),
+        coefficients_json=json.dumps({"values": values, "U": u,
+                                      "std": {k: _number(v) for k, v in result.get("std_errors", {}).items()}}),
+    )  # fmt: skip
+    for name in COEFFICIENTS:
+        row[name], row[f"{name}_U"] = _finite(values.get(name)), _finite(u.get(name))
+    return row
+
+
+def _finite(value: Any) -> float | None:
+    """A number for the database: None (NULL) for a missing or non-finite one."""
+    x = _number(value)
+    return x if math.isfinite(x) else None

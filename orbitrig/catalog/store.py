@@ -1,0 +1,94 @@
+"""The catalog database (SQLAlchemy Core): open by URL, add rows idempotently, query.
+
+The default URL is an SQLite file ``catalog.sqlite`` next to the runs; a lab points
+every rig service and user at one server (``postgresql+psycopg://user@host/db``; a bare
+``postgresql://`` URL is given the psycopg 3 driver). Adding a row whose key
+(orbitrig.catalog.schema.KEY) is already there replaces it, in one transaction per call.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Iterable
+
+from sqlalchemy import create_engine, delete, select, tuple_
+from sqlalchemy.engine import Engine
+from sqlalchemy.exc import ArgumentError, SQLAlchemyError
+
+from orbitrig.catalog.errors import CatalogError, CatalogUsageError
+from orbitrig.catalog.schema import KEY, ROW_COLUMNS, fits, metadata
+from orbitrig.catalog.where import parse_where
+
+#: the default catalog file, in the directory holding the runs
+DEFAULT_FILE = "catalog.sqlite"
+
+
+def default_url(runs_dir: Path) -> str:
+    """The SQLite catalog next to the runs in ``runs_dir``."""
+    return f"sqlite:///{(Path(runs_dir) / DEFAULT_FILE).resolve()}"
+
+
+def _driver_url(url: str) -> str:
+    for bare in ("postgresql://", "postgres://"):
+        if url.startswith(bare):
+            return "postgresql+psycopg://" + url[len(bare):]
+    return url
+
+
+def _shown(url: str) -> str:
+    """The URL without its password, for messages."""
+    head, at, tail = url.rpartition("@")
+    if not at or "://" not in head:
+        return url
+    scheme, _, user = head.partition("://")
+    return f"{scheme}://{user.split(':', 1)[0]}@{tail}"
+
+
+class Catalog:
+    """One catalog database. Raises CatalogError (URL named) when it cannot be used."""
+
+    def __init__(self, url: str):
+        self.url = url
+        try:
+            self.engine: Engine = create_engine(_driver_url(url), future=True)
+            metadata.create_all(self.engine)
+        except ArgumentError as err:
+            raise CatalogUsageError(f"--db {_shown(url)}: not a database URL ({err})") from None
+        except (SQLAlchemyError, ImportError) as err:
+            raise CatalogError(f"catalog {_shown(url)}: cannot open ({_reason(err)})") from None
+
+    def close(self) -> None:
+        self.engine.dispose()
+
+    def add(self, rows: Iterable[dict[str, Any]]) -> int:
+        """Insert ``rows``, replacing those with the same key; the number of rows written."""
+        rows = [{c: row.get(c) for c in ROW_COLUMNS} for row in rows]
+        if not rows:
+            return 0
+        keys = [tuple(r[k] for k in KEY) for r in rows]
+        key_columns = tuple_(*(fits.c[k] for k in KEY))
+        try:
+            with self.engine.begin() as conn:
+                conn.execute(delete(fits).where(key_columns.in_(keys)))
+                conn.execute(fits.insert(), rows)
+        except SQLAlchemyError as err:
+            raise CatalogError(f"catalog {_shown(self.url)}: cannot add rows ({_reason(err)})") from None
+        return len(rows)
+
+    def rows(self, where: str = "") -> list[dict[str, Any]]:
+        """The rows matching the --where filter (docs/catalog.md), by run, point and fit."""
+        query = select(*(fits.c[c] for c in ROW_COLUMNS))
+        condition = parse_where(where)
+        if condition is not None:
+            query = query.where(condition)
+        query = query.order_by(*(fits.c[k] for k in ("created", *KEY)))
+        try:
+            with self.engine.connect() as conn:
+                return [dict(r._mapping) for r in conn.execute(query)]
+        except SQLAlchemyError as err:
+            raise CatalogError(f"catalog {_shown(self.url)}: cannot read ({_reason(err)})") from None
+
+
+def _reason(err: Exception) -> str:
+    orig = getattr(err, "orig", None)
+    return str(orig or err).strip().splitlines()[0]

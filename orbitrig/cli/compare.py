@@ -1,0 +1,62 @@
+"""`orbitrig compare`: catalog rows of one fit kind against an operating variable, repeated
+runs overlaid with their chi2 consistency, predicted coefficients from a CSV (docs/catalog.md).
+
+Exit status 0 on success, 2 for a bad option or predicted CSV or no matching rows, 1 when
+the catalog cannot be read or the figure cannot be written.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from orbitrig.cli.catalog import DbOption, RunsOption, WhereOption, _guarded, _open
+
+DEFAULT_COEFFICIENTS = "Kxx,Kxy,Kyx,Kyy,Cxx,Cxy,Cyx,Cyy"
+
+
+def compare_cmd(
+    against: Annotated[str, typer.Option("--against", help="x axis: static_eccentricity | dynamic_eccentricity | pressure_ratio | spin")] = "static_eccentricity",
+    coefficients: Annotated[str, typer.Option("--coefficients", help="Comma-separated, e.g. Kxx,Cxx,Dxx.")] = DEFAULT_COEFFICIENTS,
+    lms: Annotated[str, typer.Option("--lms", help="Load measuring system.")] = "piezo",
+    model: Annotated[str, typer.Option("--model", help="Model of the compared fits.")] = "kcd11",
+    freq_dep: Annotated[str, typer.Option("--freq-dep", help="Frequency dependence of the compared fits.")] = "none",
+    method: Annotated[str, typer.Option("--method", help="Estimation method of the compared fits.")] = "ols",
+    predicted: Annotated[Optional[Path], typer.Option("--predicted", help="CSV of predicted coefficients (docs/catalog.md).")] = None,
+    out: Annotated[Path, typer.Option("--out", help="Directory for compare.png and compare.pdf.")] = Path("."),
+    where: WhereOption = "", db: DbOption = None, runs_dir: RunsOption = Path("runs"),
+) -> None:
+    """Plot coefficients with U bars across catalog rows against one operating variable."""
+    from orbitrig.catalog.compare import Variable
+    from orbitrig.catalog.compare_plot import compare_figure, write_figure
+    from orbitrig.catalog.errors import CatalogUsageError
+    from orbitrig.catalog.predicted import read_predicted
+    from orbitrig.catalog.rows import COEFFICIENTS
+
+    def action():
+        if against not in tuple(Variable):
+            raise CatalogUsageError(f"--against {against!r}: one of {', '.join(Variable)}")
+        names = [c.strip() for c in coefficients.split(",") if c.strip()]
+        if not names or any(c not in COEFFICIENTS for c in names):
+            raise CatalogUsageError(f"--coefficients {coefficients!r}: names among {', '.join(COEFFICIENTS)}")
+        fit = f"lms = {lms} and model = {model} and freq_dep = '{freq_dep}' and method = {method} and ok = true"
+        rows = _open(db, runs_dir).rows(f"{fit} and {where}" if where.strip() else fit)
+        if not rows:
+            raise CatalogUsageError(f"no catalog rows for {lms} {model} {freq_dep} {method}"
+                                    + (f" where {where}" if where.strip() else ""))
+        n_runs = len({r["run_id"] for r in rows})
+        title = (f"{lms} {model} freq_dep {freq_dep} {method}: {len(rows)} rows from {n_runs} run{'s' * (n_runs > 1)}"
+                 + (f" ({where})" if where.strip() else "")
+                 + ("\nconstant terms (\u03a9\u2070) of a frequency-dependent fit" if freq_dep != "none" else ""))
+        fig = compare_figure(rows, Variable(against), names, title=title,
+                             predicted=read_predicted(predicted) if predicted else None)
+        for path in write_figure(fig, out):
+            typer.echo(str(path))
+
+    _guarded(action)
+
+
+def register(app: typer.Typer) -> None:
+    app.command("compare")(compare_cmd)

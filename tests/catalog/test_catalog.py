@@ -1,0 +1,121 @@
+"""The campaign catalog against real databases: an SQLite file and a PostgreSQL server."""
+
+from __future__ import annotations
+
+import asyncio
+import csv
+import io
+import json
+import logging
+
+import pytest
+from typer.testing import CliRunner
+
+from orbitrig.catalog.errors import CatalogUsageError
+from orbitrig.catalog.rows import run_rows
+from orbitrig.catalog.store import Catalog
+from orbitrig.cli import app
+from orbitrig.service.catalog_feed import CatalogFeed
+from orbitrig.store.reader import read_run
+
+N_FITS = 8  # 2 load systems x 4 models per point
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def catalog(request, tmp_path):
+    if request.param == "sqlite":
+        url = f"sqlite:///{tmp_path / 'c.sqlite'}"
+    else:
+        url = request.getfixturevalue("postgres_server")
+    cat = Catalog(url)
+    with cat.engine.begin() as conn:  # the server lives for the session: start each test empty
+        conn.exec_driver_sql("DELETE FROM fits")
+    yield cat
+    cat.close()
+
+
+def test_add_twice_updates_never_duplicates(catalog, catalog_run):
+    run = read_run(catalog_run)
+    rows = run_rows(run)
+    assert catalog.add(rows) == 2 * N_FITS
+    rows[0]["operator"] = "bob"
+    catalog.add(rows)
+    stored = catalog.rows()
+    assert len(stored) == 2 * N_FITS
+    assert sorted(r["operator"] for r in stored).count("bob") == 1
+    kc7 = next(r for r in stored if (r["point"], r["lms"], r["model"]) == (1, "piezo", "kc7"))
+    result = run.points[1].identification("piezo", "kc7", "none").result
+    assert kc7["Kxx"] == pytest.approx(result["coefficients"]["Kxx"], rel=1e-12)
+    assert kc7["Kxx_U"] == pytest.approx(2 * result["std_errors"]["Kxx"], rel=1e-12)
+    assert kc7["Dxx"] is None and kc7["u_basis"] == "statistical"
+    assert (kc7["rig_id"], kc7["calibration_record"], kc7["started"]) == ("rigA", "2026-01-01.toml",
+                                                                          "2026-11-26T10:00:00+00:00")
+    assert kc7["ended"] and kc7["run_path"] == str(catalog_run.resolve()) and kc7["run_id"].startswith("rigA@")
+    refused = [r for r in stored if not r["ok"]]
+    assert {r["model"] for r in refused} == {"kcd12"} and all(r["error"] for r in refused)
+
+
+def test_where_filters_and_binds(catalog, catalog_run):
+    catalog.add(run_rows(read_run(catalog_run)))
+    eccentric = catalog.rows("static_eccentricity > 0.1")
+    assert len(eccentric) == N_FITS and {r["static_eccentricity"] for r in eccentric} == {0.15}
+    picked = catalog.rows("static_eccentricity >= 0 and lms = piezo and model == 'kcd11' and ok = true")
+    assert {(r["point"], r["freq_dep"]) for r in picked} == {(0, "none"), (0, "power:1"), (1, "none"), (1, "power:1")}
+    assert catalog.rows("adequacy_supported = false and lms != strain") != []
+    assert catalog.rows("label = \"x' or '1'='1\"") == []  # a value is a bound parameter, never SQL
+    assert len(catalog.rows()) == 2 * N_FITS
+
+
+@pytest.mark.parametrize("where, says", [
+    ("static_eccentricity > 0.1; drop table fits", "takes a float"),
+    ("1 = 1", "is not 'column op value'"),
+    ("nonsense > 1", "unknown column 'nonsense'"),
+    ("point > 1 and", "'and' without a condition"),
+    ("point ~ 1", "is not 'column op value'"),
+    ("ok = maybe", "takes a bool"),
+])  # fmt: skip
+def test_where_outside_the_grammar_is_refused(catalog, where, says):
+    with pytest.raises(CatalogUsageError, match=says):
+        catalog.rows(where)
+
+
+def test_cli_add_list_export(catalog_run):
+    runner, runs = CliRunner(), catalog_run.parent
+    for _ in range(2):
+        res = runner.invoke(app, ["catalog", "add", str(catalog_run)])
+        assert res.exit_code == 0, res.output
+    assert (runs / "catalog.sqlite").is_file()
+    listed = runner.invoke(app, ["catalog", "list", "--runs", str(runs), "--where", "static_eccentricity > 0.1",
+                                 "--columns", "point,model,Kxx_U"])
+    assert listed.exit_code == 0 and len(listed.output.strip().splitlines()) == 1 + N_FITS
+    exported = runner.invoke(app, ["catalog", "export", "--runs", str(runs)])
+    table = list(csv.DictReader(io.StringIO(exported.output)))
+    assert len(table) == 2 * N_FITS and "Kxx [N/m]" in table[0] and "recess_pressure [Pa]" in table[0]
+    out = runs / "cat.json"
+    res = runner.invoke(app, ["catalog", "export", "--runs", str(runs), "--format", "json", "--out", str(out)])
+    assert res.exit_code == 0 and len(json.loads(out.read_text())) == 2 * N_FITS
+    bad = runner.invoke(app, ["catalog", "list", "--runs", str(runs), "--where", "Kxx >> 1"])
+    assert bad.exit_code == 2 and "Kxx" in bad.output and "Traceback" not in bad.output
+    bad = runner.invoke(app, ["catalog", "add", str(runs / "nowhere")])
+    assert bad.exit_code == 2
+
+
+def test_service_feed_adds_points_and_survives_a_broken_catalog(catalog_run, tmp_path, caplog):
+    url = f"sqlite:///{tmp_path / 'feed.sqlite'}"
+
+    async def feed(target: CatalogFeed):
+        for point in (0, 1, 1):  # a point reported twice stays one set of rows
+            target.point_completed(catalog_run, point)
+        await asyncio.sleep(0)
+        for _ in range(600):
+            if not target._lock.locked() and target.added + target.failed >= 3:
+                return
+            await asyncio.sleep(0.05)
+
+    good = CatalogFeed(url)
+    asyncio.run(feed(good))
+    assert len(Catalog(url).rows()) == 2 * N_FITS
+    broken = CatalogFeed(f"sqlite:///{tmp_path / 'no' / 'such' / 'dir.sqlite'}")
+    with caplog.at_level(logging.WARNING, logger="orbitrig.service.catalog"):
+        asyncio.run(feed(broken))
+    assert broken.added == 0 and broken.failed == 3 and "not added" in caplog.text

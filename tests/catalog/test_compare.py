@@ -1,0 +1,68 @@
+"""orbitrig compare: repeatability chi2 (statistically), predicted CSV, the PNG and PDF."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+from typer.testing import CliRunner
+
+from campaign import ECCENTRICITIES, campaign_rows, law
+from orbitrig.catalog.compare import repeatability
+from orbitrig.catalog.predicted import PredictedError, read_predicted
+from orbitrig.catalog.store import Catalog
+from orbitrig.cli import app
+
+
+def test_chi2_of_two_repeats_by_hand():
+    rows = campaign_rows(n_runs=2)[:1] + campaign_rows(n_runs=2)[len(ECCENTRICITIES):][:1]
+    rows[0].update(Kxx=1.0, Kxx_U=2.0)
+    rows[1].update(Kxx=3.0, Kxx_U=2.0)  # u = 1 each: mean 2, chi2 = 1 + 1 on 1 dof
+    rep = repeatability(rows, "Kxx")
+    assert (rep.chi2, rep.dof, rep.groups) == (pytest.approx(2.0), 1, 1)
+    assert rep.p_value == pytest.approx(chi2.sf(2.0, 1))
+
+
+def test_repeats_scattered_as_their_u_pass_and_larger_scatter_fails():
+    """300 campaigns of 3 runs x 5 points: p < 0.05 in 5 % of them (3 sigma band 1.2 - 8.8 %),
+    mean chi2/dof 1 (+-0.03, 3 sigma ~ 0.02); runs scattered 3x their U fail almost always."""
+    rng = np.random.default_rng(11)
+    reps = [repeatability(campaign_rows(rng=rng), "Kxy") for _ in range(300)]
+    assert all(r.dof == 10 and r.groups == 5 for r in reps)
+    assert 0.012 <= np.mean([r.p_value < 0.05 for r in reps]) <= 0.088
+    assert np.mean([r.chi2 / r.dof for r in reps]) == pytest.approx(1.0, abs=0.03)
+    wide = [repeatability(campaign_rows(rng=rng, scatter=3.0), "Kxy") for _ in range(50)]
+    assert np.mean([r.p_value < 0.05 for r in wide]) >= 0.95
+
+
+def _predicted_csv(path, header_unit="N/m"):
+    lines = ["# bulk-flow code, 1000 rpm", f"static_eccentricity,spin_rpm,Kxx [{header_unit}],Cxx [N s/m]"]
+    lines += [f"{e},1000,{law('Kxx', e)},{law('Cxx', e)}" for e in np.linspace(0, 0.4, 9)]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_predicted_csv_columns_and_errors(tmp_path):
+    table = read_predicted(_predicted_csv(tmp_path / "p.csv"))
+    assert len(table) == 9 and table[4]["Kxx"] == pytest.approx(law("Kxx", 0.2))
+    with pytest.raises(PredictedError, match=r"p2.csv, line 1, column 'Kxx \[MN/m\]'"):
+        read_predicted(_predicted_csv(tmp_path / "p2.csv", "MN/m"))
+    (tmp_path / "p3.csv").write_text("static_eccentricity,Kxx [N/m]\n0.1,abc\n")
+    with pytest.raises(PredictedError, match=r"p3.csv, line 2, column 'Kxx': 'abc'"):
+        read_predicted(tmp_path / "p3.csv")
+
+
+def test_compare_writes_png_and_pdf(tmp_path):
+    Catalog(f"sqlite:///{tmp_path / 'catalog.sqlite'}").add(campaign_rows())
+    runner = CliRunner()
+    res = runner.invoke(app, ["compare", "--runs", str(tmp_path), "--coefficients", "Kxx,Cxx",
+                              "--predicted", str(_predicted_csv(tmp_path / "p.csv")), "--out", str(tmp_path / "fig"),
+                              "--where", "static_eccentricity <= 0.3"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "fig" / "compare.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (tmp_path / "fig" / "compare.pdf").read_bytes()[:5] == b"%PDF-"
+    assert not list((tmp_path / "fig").glob("*.tmp"))
+    for args, says in ((["--against", "load"], "--against 'load'"), (["--coefficients", "Kzz"], "Kzz"),
+                       (["--model", "kc7"], "no catalog rows")):  # fmt: skip
+        bad = runner.invoke(app, ["compare", "--runs", str(tmp_path), "--out", str(tmp_path / "x"), *args])
+        assert bad.exit_code == 2 and says in bad.output

@@ -1,0 +1,52 @@
+"""`orbitrig serve --catalog URL`: each completed point lands in the campaign catalog; a
+catalog that cannot be written is logged and the run completes all the same."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from mqtt_helpers import ACCOUNTS, RigClient, Service, write_matrices
+from orbitrig.catalog.store import Catalog
+
+RIG = "cat-rig"
+
+
+def _serve(broker, work, catalog_url):
+    args = ["--sim", "--broker", broker.url, "--rig-id", RIG, "--username", "orbitrig-service",
+            "--matrices", str(write_matrices(work / "matrices")), "--out", str(work / "runs"),
+            "--speedup", "20", "--confirm", "auto", "--catalog", catalog_url]
+    return Service(args, work, env={"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]})
+
+
+def _run_quick(broker, svc) -> None:
+    rc = RigClient(broker, RIG, svc)
+    try:
+        rc.status("idle", timeout=30)
+        mark = rc.watch.mark()
+        assert rc.command({"cmd": "start", "matrix": "quick"})["ok"] is True
+        idle = rc.status("idle", start=mark, timeout=90)
+        assert "completed" in idle["message"], idle
+    finally:
+        rc.close()
+
+
+@pytest.mark.parametrize("writable", [True, False])
+def test_completed_points_land_in_the_catalog(broker, tmp_path, writable):
+    url = f"sqlite:///{tmp_path / ('catalog.sqlite' if writable else 'missing/dir/catalog.sqlite')}"
+    svc = _serve(broker, tmp_path, url)
+    try:
+        _run_quick(broker, svc)
+        deadline = time.monotonic() + 30
+        while writable and time.monotonic() < deadline and "added" not in svc.text():
+            time.sleep(0.2)
+    finally:
+        assert svc.stop() == 0, svc.text()[-3000:]
+    if not writable:
+        assert "not added" in svc.text()  # logged; the run completed all the same
+        return
+    rows = Catalog(url).rows()
+    run_dir = next((tmp_path / "runs").iterdir())
+    assert {(r["point"], r["lms"], r["model"]) for r in rows} == {(0, "piezo", "kc7"), (0, "strain", "kc7")}
+    assert all(r["run_path"] == str(run_dir.resolve()) and r["Kxx_U"] > 0 for r in rows)

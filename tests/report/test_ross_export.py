@@ -1,0 +1,54 @@
+"""orbitrig export --format ross: the identified bearings as ROSS BearingElement data, loaded
+into ross-rotordynamics (the `ross` extra) for a small rotor's modal analysis."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+from typer.testing import CliRunner
+
+from orbitrig.cli import app
+from orbitrig.store.reader import read_run
+
+
+def _export(run_dir, out, *fit):
+    res = CliRunner().invoke(app, ["export", str(run_dir), "--format", "ross", "--out", str(out), *fit])
+    assert res.exit_code == 0, res.output
+    return json.loads((out / "ross_bearings.json").read_text())
+
+
+def test_export_gives_the_stored_fit_at_the_tested_frequencies(synthetic_run, tmp_path):
+    run = read_run(synthetic_run)
+    doc = _export(synthetic_run, tmp_path / "c")
+    assert [b["point"] for b in doc["bearings"]] == [p.index for p in run.complete_points]
+    for bearing, point in zip(doc["bearings"], run.complete_points):
+        stored = point.identification("piezo", "kcd11", "none").result["coefficients"]
+        np.testing.assert_allclose(bearing["frequency"], np.unique(np.abs(point.tables["piezo"].orbit)))
+        for ross_key, ours in (("kxy", "Kxy"), ("cyx", "Cyx"), ("mxx", "Dxx"), ("kyy", "Kyy")):
+            np.testing.assert_allclose(bearing[ross_key], stored[ours], rtol=1e-9)
+    doc = _export(synthetic_run, tmp_path / "p", "--fit", "strain:kcd11:power:1:ols")
+    bearing = doc["bearings"][0]
+    stored = run.points[0].identification("strain", "kcd11", "power:1").result["coefficients"]
+    w = np.asarray(bearing["frequency"])
+    np.testing.assert_allclose(bearing["kxx"], stored["Kxx"] + stored["Kxx_1"] * w, rtol=1e-9)
+    assert bearing["lms"] == "strain" and "f = -(K d" in doc["conventions"]["force"]
+    bad = CliRunner().invoke(app, ["export", str(synthetic_run), "--format", "ross", "--fit", "piezo:kcd11"])
+    assert bad.exit_code == 2 and "LMS:MODEL:FREQ_DEP:METHOD" in bad.output
+
+
+def test_measured_bearings_in_a_ross_rotor_give_finite_log_decrements(synthetic_run, tmp_path):
+    import ross  # the ross extra (tools/run-tests installs .[test,ross])
+
+    from orbitrig.analysis.ross_export import bearing_elements
+
+    _export(synthetic_run, tmp_path)
+    steel = ross.materials.steel
+    shaft = [ross.ShaftElement(L=0.2, idl=0.0, odl=0.06, material=steel) for _ in range(6)]
+    disk = ross.DiskElement.from_geometry(n=3, material=steel, width=0.07, i_d=0.06, o_d=0.3)
+    bearings = bearing_elements(tmp_path / "ross_bearings.json", [0, 6], point=1)
+    np.testing.assert_allclose(bearings[0].K(40.0)[0, 0], 3.3e7, rtol=0.02)  # K_TRUE xx, interpolated
+    modal = ross.Rotor(shaft, [disk], bearings).run_modal(speed=100.0)
+    log_dec = np.asarray(modal.log_dec)[:6]
+    assert np.all(np.isfinite(log_dec)) and np.all(np.asarray(modal.wd)[:6] > 0)
+    assert np.any(log_dec > 0)  # the film's damping shows in the modes
