@@ -13,6 +13,8 @@ from typing import Annotated, Optional
 
 import typer
 
+from orbitrig.cli.plain_table import OutputFormat, PlainTable
+
 
 def _fail(message: str) -> None:
     typer.echo(f"error: {message}", err=True)
@@ -24,7 +26,8 @@ def reduce_cmd(
     model: Annotated[str, typer.Option("--model", help="kc7 (K, symmetric C) | kc8 (K, C) | kcd11 (K, C, symmetric D) | kcd12 (K, C, D)")],
     freq_dep: Annotated[str, typer.Option("--freq-dep", help="coefficients' dependence on the orbit speed Omega (rad/s): none | power:M (K = K0 + Omega^M KM, likewise C, D) | power:m,n,p (exponents of K, C, D) | power:auto (best M in 1..4) | poly:R (polynomial to Omega^R)")] = "none",
     method: Annotated[str, typer.Option("--method", help="least squares: ols (ordinary) | wls (weighted) | tls (total) | iv (instrumental variables)")] = "ols",
-    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the table.")] = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the table (as --format json).")] = False,
+    fmt: Annotated[OutputFormat, typer.Option("--format", help="text: a plain table, every number in full, split to the terminal's width; csv: the table as CSV; json: one object with every result")] = OutputFormat.TEXT,
 ) -> None:
     """Identify again from a run's stored phasors, without the rig.
 
@@ -33,7 +36,7 @@ def reduce_cmd(
     the run's own results are left untouched.
     """
     from orbitrig.errors import ReductionError
-    from orbitrig.analysis.reduce import csv_path, format_table, reduce_run, write_csv
+    from orbitrig.analysis.reduce import csv_path, reduce_run, table_cells, write_csv
     from orbitrig.store.reader import RunDirError, read_run
 
     try:
@@ -50,15 +53,28 @@ def reduce_cmd(
     if len(refused) == len(rows):
         _fail(f"{model} {freq_dep} ({method}) cannot be identified from any stored table of {directory}")
     path = write_csv(csv_path(directory, model, freq_dep, method), rows, run.sim)
-    if as_json:
+    if as_json or fmt == OutputFormat.JSON:
         out = {"run": str(directory), "csv": str(path), "status": run.status,
                "results": [r.to_dict() for r in rows]}
         typer.echo(json.dumps(out))
+    elif fmt == OutputFormat.CSV:
+        typer.echo(_plain(table_cells(rows)).csv())
     else:
         typer.echo(f"{model} {freq_dep} ({method}) from the stored orbit tables of {directory} "
                    f"(run {run.status}, {len({r.point.index for r in rows})} complete point(s))")
-        typer.echo(format_table(rows))
+        typer.echo(_plain(table_cells(rows)).text())
         typer.echo(f"written: {path}")
+
+
+def _plain(cells: list[list[str]]) -> PlainTable:
+    """The reduce table: point and lms as keys (left), numbers right."""
+    table = PlainTable(key_columns=2)
+    for i, name in enumerate(cells[0]):
+        table.add_column(name, justify="left" if i < 2 else "right")
+    for row in cells[1:]:
+        table.add_row(*row)
+    return table
+
 
 def report_cmd(
     directory: Annotated[Path, typer.Argument(metavar="DIR", help="Run directory written by `orbitrig sweep --out DIR`.")],
