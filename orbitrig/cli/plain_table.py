@@ -73,7 +73,7 @@ class PlainTable:
             current.append(i)
             used += widths[i] + len(GAP)
         blocks.append(current)
-        out = [self.title] if self.title else []
+        out = [wrap(self.title, width)] if self.title else []
         for n, block in enumerate(blocks):
             cols = keys + block
             if n:
