@@ -81,6 +81,10 @@ def report_cmd(
     point: Annotated[Optional[list[int]], typer.Option("--point", metavar="N", help="Only this operating point index (repeatable).")] = None,
     all_frequencies: Annotated[bool, typer.Option("--all-frequencies", help="Force-signal figure (paper Fig. 4) for every orbit frequency, not only the lowest and highest of each whirl direction.")] = False,
     figures: Annotated[Optional[str], typer.Option("--figures", metavar="KINDS", help="Only these figure kinds, comma-separated: forces, coefficients, derived, impedance, coherence, lms, signals, orbits (default: all). The page's tables are always complete.")] = None,
+    width: Annotated[str, typer.Option("--width", help="Figure width: double (a journal's double column, 7.2 in), single (3.5 in) or inches.")] = "double",
+    formats: Annotated[str, typer.Option("--formats", metavar="LIST", help="Files of each figure, comma-separated: png (300 dpi, for the page), pdf (vector; also joined into report.pdf), svg.")] = "png,pdf,svg",
+    coverage: Annotated[float, typer.Option("--coverage", min=0.5, max=5.0, help="Coverage factor k of every band and error bar: +-k u (2: the expanded uncertainty U; 1: one standard uncertainty).")] = 2.0,
+    workers: Annotated[int, typer.Option("--workers", min=1, help="Processes drawing the points in parallel.")] = 2,
 ) -> None:
     """Plots and an HTML page of a stored run, in DIR/plots.
 
@@ -89,18 +93,23 @@ def report_cmd(
     forward/backward dynamic stiffness), identified vs true impedance (simulator runs),
     coherence table, the two load measuring systems, force signals (paper Fig. 4) and
     the measured x-y orbits; DIR/plots/index.html shows them with the coefficients'
-    intervals and uncertainties. Fit warnings and refusals go to standard error.
+    intervals and uncertainties; DIR/plots/report.pdf has every figure in one file.
+    Fit warnings and refusals go to standard error, with a progress bar on a terminal.
     """
     from orbitrig.analysis.report import FIGURES, ReportOptions, make_report
-    from orbitrig.store.reader import RunDirError
+    from orbitrig.cli.report_progress import ReportProgress
+    from orbitrig.store.reader import RunDirError, read_run
 
     kinds = FIGURES if figures is None else tuple(k.strip() for k in figures.split(",") if k.strip())
     unknown = [k for k in kinds if k not in FIGURES]
     if unknown:
         _fail(f"--figures: unknown kind(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")
     try:
-        options = ReportOptions(figures=frozenset(kinds), all_frequencies=all_frequencies)
-        report = make_report(directory, points=point, options=options)
+        options = ReportOptions(figures=frozenset(kinds), all_frequencies=all_frequencies,
+                                style=_style(width, formats, coverage))  # fmt: skip
+        total = len(point) if point else len(read_run(directory).complete_points)
+        with ReportProgress(total) as progress:
+            report = make_report(directory, points=point, options=options, workers=workers, progress=progress)
     except (RunDirError, ValueError) as err:
         _fail(str(err))
     run = report.run
@@ -115,7 +124,26 @@ def report_cmd(
         for line in pr.fit_warnings():
             typer.echo(f"point {pr.point.name} {line}", err=True)
     typer.echo(f"{len(report.plots)} plot(s) in {report.directory}")
+    if report.pdf:
+        typer.echo(f"all figures in one file: {report.pdf}")
     typer.echo(f"open {report.html}")
+
+
+def _style(width: str, formats: str, coverage: float):
+    """The FigureStyle of --width, --formats and --coverage (exit 2 naming a bad value)."""
+    from orbitrig.analysis.plots import COLUMN_WIDTHS, FigureFormat, FigureStyle
+
+    try:
+        inches = COLUMN_WIDTHS[width] if width in COLUMN_WIDTHS else float(width)
+    except ValueError:
+        _fail(f"--width {width!r}: single, double or a width in inches")
+    if not 2.0 <= inches <= 20.0:
+        _fail(f"--width {width}: {inches:g} in is outside 2..20 in")
+    names = [f.strip().lower() for f in formats.split(",") if f.strip()]
+    bad = [f for f in names if f not in set(FigureFormat)]
+    if bad or FigureFormat.PNG not in names:
+        _fail(f"--formats {formats!r}: png (needed by the page) and any of pdf, svg")
+    return FigureStyle(width=inches, formats=tuple(FigureFormat(f) for f in dict.fromkeys(names)), coverage=coverage)
 
 
 def register(app: typer.Typer) -> None:
