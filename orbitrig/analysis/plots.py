@@ -29,8 +29,6 @@ MATRIX_NAMES = {"K": "stiffness", "C": "damping", "D": "inertia"}
 PAIR_LABELS = {"xfx": "x, Fx", "yfx": "y, Fx", "xfy": "x, Fy", "yfy": "y, Fy"}
 DIRECTIONS = ((1, "forward", "-", "o"), (-1, "backward", "--", "s"))
 TRUTH_LABEL = "true (simulator)"
-#: the width (in) the figures' layouts were drawn for; a style's width scales them
-DESIGN_WIDTH = 13.0
 #: journal column widths (in)
 COLUMN_WIDTHS = {"single": 3.5, "double": 7.2}
 
@@ -53,10 +51,6 @@ class FigureStyle:
     dpi: int = 300
     font: float = 6.5
     coverage: float = 2.0
-
-    @property
-    def scale(self) -> float:
-        return self.width / DESIGN_WIDTH
 
     def band_label(self, what: str = "bands and error bars") -> str:
         """The legend's statement of the uncertainty shown, e.g. 'bands and error bars: expanded
@@ -136,7 +130,7 @@ def _figure(w: float, h: float, layout: str | None = "constrained") -> Figure:
     """A figure on an Agg canvas of the design size w x h (in) scaled to the style's width;
     `layout=None` for many small panels (constrained layout's solver costs seconds there),
     placed by the caller with ``subplots_adjust``."""
-    k = STYLE.scale
+    k = STYLE.width / w
     fig = Figure(figsize=(w * k, h * k), dpi=72, layout=layout)
     FigureCanvasAgg(fig)
     return fig
@@ -153,7 +147,7 @@ def panel_figure(w: float, h: float, *, left: float = 0.85, right: float = 0.2, 
     a legend at the bottom): half the saving time of constrained layout, whose solver measures
     every tick label. Put the legend with ``loc="lower center"``."""
     fig = _figure(w, h, layout=None)
-    t = text_scale() / STYLE.scale  # margins in design inches, for the style's text
+    t = text_scale() * w / STYLE.width  # margins in design inches, for the style's text
     fig.subplots_adjust(left=left * t / w, right=1 - right * t / w, top=1 - top * t / h, bottom=bottom * t / h,
                         wspace=wspace, hspace=hspace)  # fmt: skip
     return fig
@@ -182,6 +176,11 @@ def _colors(n: int) -> list:
 
 
 def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
+    """:func:`forces_figure` written to `path`."""
+    return _save(forces_figure(table, fitted, title=title), path)
+
+
+def forces_figure(table, fitted: Sequence[Fitted], *, title: str) -> Figure:
     """The paper's Figure 5 with residuals: (top) measured and reproduced force amplitude against
     Omega/omega for Fx and Fy, one line per identification; (bottom) the residual |F_measured -
     F_reproduced| of each fit per frequency, beside the measured phasor's expanded uncertainty
@@ -238,7 +237,7 @@ def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
     fig.legend(handles, labels, loc="outside lower center", ncols=ncols, fontsize="small",
                title=style().band_label("error bars") + " (amplitude: U/\u221a2)")  # fmt: skip
     fig.suptitle(title)
-    return _save(fig, path)
+    return fig
 
 
 def _min_span(ax, largest: float, fraction: float = 0.05) -> None:

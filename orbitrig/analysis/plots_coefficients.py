@@ -92,8 +92,8 @@ def _draw_truth(axes, mats, truth: dict, spin: float, largest) -> None:
         largest[m] = max(largest[m], float(np.max(np.abs(mat))) * scale)
         for col in range(4):
             i, j = divmod(col, 2)
-            axes[row, col].plot(t_orbit / spin, mat[:, i, j] * scale, "x", color="black", ms=6,
-                                mew=1.5, label=TRUTH_LABEL, zorder=6)  # fmt: skip
+            axes[row, col].plot(t_orbit / spin, mat[:, i, j] * scale, "x", color="black", ms=4,
+                                mew=1.0, label=TRUTH_LABEL, zorder=6)  # fmt: skip
 
 
 def coefficients_figure(fitted: Sequence[Fitted], *, spin: float, orbit: np.ndarray, truth: dict | None,
@@ -103,8 +103,8 @@ def coefficients_figure(fitted: Sequence[Fitted], *, spin: float, orbit: np.ndar
     fig = panel_figure(13, 2.7 * len(mats) + 2.0, bottom=1.35, hspace=0.35)
     axes = np.atleast_2d(fig.subplots(len(mats), 4, sharex=True))
     top = float(np.max(np.abs(orbit))) * 1.05
-    grid = np.linspace(0.0, top, 200)
     tested = np.unique(np.round(np.abs(orbit), 9))
+    grid = np.union1d(np.linspace(0.0, top, 200), tested[[0, -1]])  # the solid part ends on the tested range
     largest = dict.fromkeys(mats, 0.0)  # largest |entry| drawn per matrix, display units
     for fit, color in zip(fitted, _colors(len(fitted))):
         _draw_fit(axes, mats, fit, color, grid, tested, spin, largest)
