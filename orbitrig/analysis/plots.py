@@ -187,7 +187,7 @@ def forces_figure(table, fitted: Sequence[Fitted], *, title: str) -> Figure:
     U = k u (grey) when the table has the phasor uncertainties u_*: a fit whose residuals stay
     under U reproduces the forces within their uncertainty. Error bars on the measured
     amplitude: U/sqrt(2) (the radial part of an isotropic complex error)."""
-    fig = _figure(11, 7.5)
+    fig = panel_figure(11, 9.0, left=1.0, top=1.1, bottom=2.6, hspace=0.3, wspace=0.25)  # legend below
     axes = fig.subplots(2, 2, sharex=True)
     ratio = table.orbit / table.spin
     dirs = whirl_direction(table)
@@ -233,8 +233,8 @@ def forces_figure(table, fitted: Sequence[Fitted], *, title: str) -> Figure:
     if len(set(dirs)) > 1:
         handles += [Line2D([], [], color="gray", ls="-"), Line2D([], [], color="gray", ls="--")]
         labels += ["forward whirl (solid)", "backward whirl (dashed)"]
-    ncols = max(1, min(3, len(labels), 110 // max(len(label) for label in labels)))  # long labels: fewer columns
-    fig.legend(handles, labels, loc="outside lower center", ncols=ncols, fontsize="small",
+    ncols = 1 if max(len(label) for label in labels) > 60 else 2  # long labels (verdicts): one column
+    fig.legend(handles, labels, loc="lower center", ncols=ncols, fontsize="small",
                title=style().band_label("error bars") + " (amplitude: U/\u221a2)")  # fmt: skip
     fig.suptitle(title)
     return fig
@@ -322,7 +322,7 @@ def summary_plot(path, series: dict[str, list[tuple[int, Any]]], truth: list[tup
     """The constant K and C entries of one model at every operating point (x: point
     index), one marker series per load measuring system, error bars of one standard
     error, and the simulator's true values (K0, C0) as black crosses."""
-    fig = _figure(13, 6.8)
+    fig = panel_figure(13, 7.2, bottom=1.5, wspace=0.5)
     axes = fig.subplots(2, 4, sharex=True)
     colors = _colors(len(series))
     offsets = np.linspace(-0.12, 0.12, len(series)) if len(series) > 1 else [0.0]
@@ -356,7 +356,7 @@ def summary_plot(path, series: dict[str, list[tuple[int, Any]]], truth: list[tup
             if row == 1:
                 ax.set_xlabel("operating point  [index]")
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize="small",
+    fig.legend(handles, labels, loc="lower center", ncols=len(labels), fontsize="small",
                title=style().band_label("error bars"))
     fig.suptitle(title)
     return _save(fig, path)

@@ -41,7 +41,7 @@ def _zero_text(zero, spin: float) -> str:
         return "no zero crossing in the tested range"
     w0, sd = zero
     pm = "" if sd is None else f" \u00b1 {coverage() * sd / (2 * np.pi):.2g}"
-    return f"zero at {w0 / (2 * np.pi):.3g}{pm} Hz (\u03a9/\u03c9 = {w0 / spin:.3f})"
+    return f"zero {w0 / (2 * np.pi):.3g}{pm} Hz, \u03a9/\u03c9 {w0 / spin:.3f}"
 
 
 def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title: str) -> Figure:
@@ -56,7 +56,7 @@ def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title
             val, std = (d.c_eff_xx, d.c_eff_xx_std) if e == "xx" else (d.c_eff_yy, d.c_eff_yy_std)
             _band(axes[0, col], x, val, std, colors[k], KNS, lw=1.1, label=label)
             zero = d.c_eff_zero_xx if e == "xx" else d.c_eff_zero_yy
-            zeros[e].append(f"{label}: {_zero_text(zero, spin)}")
+            zeros[e].append(f"{label.split(' (')[0]}: {_zero_text(zero, spin)}")  # the model, without its count
             if zero is not None:
                 axes[0, col].plot(zero[0] / spin, 0.0, "o", color=colors[k], ms=7, mec="black", zorder=6)
         _band(axes[0, 2], x, d.wfr, d.wfr_std, colors[k], 1.0, lw=1.1, label=label)
@@ -68,12 +68,12 @@ def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title
         ax.axhline(0, color="gray", lw=0.8)
         sign = "-" if e == "xx" else "+"
         ax.set_title(f"effective damping C{e} {sign} K{'xy' if e == 'xx' else 'yx'}/\u03a9\n"
-                     + "\n".join(zeros[e]), fontsize="small")  # fmt: skip
+                     + "\n".join(zeros[e]), fontsize="x-small")  # fmt: skip
         ax.set_ylabel(f"C_eff,{e}  [kN s/m]")
     axes[0, 2].set_title("whirl frequency ratio (Kxy - Kyx) / (\u03c9 (Cxx + Cyy))", fontsize="small")
     axes[0, 2].set_ylabel("WFR  [-]")
     for col, part in enumerate(("Re", "Im")):
-        axes[1, col].set_title(f"{part} H: direct dynamic stiffness, forward (solid) / backward (dashed)", fontsize="small")
+        axes[1, col].set_title(f"{part} H, direct dynamic stiffness\nforward solid, backward dashed", fontsize="small")
         axes[1, col].set_ylabel(f"{part} H  [MN/m]")
     axes[1, 2].set_visible(False)
     for ax in axes.flat:
