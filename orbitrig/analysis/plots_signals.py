@@ -138,13 +138,13 @@ def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) 
                      f"B {radii[1] * UM:.3g} \u00b5m", fontsize="small")  # fmt: skip
         ax.set_aspect("equal", adjustable="datalim")
         ax.grid(True, alpha=0.3)
-        ax.tick_params(labelsize="xx-small")
+        ax.tick_params(labelsize="small")
     for ax in axes[n:]:
         ax.set_visible(False)
     for ax in axes[(rows - 1) * cols:(rows - 1) * cols + cols]:
-        ax.set_xlabel("x  [\u00b5m]", fontsize="x-small")
+        ax.set_xlabel("x  [\u00b5m]", fontsize="small")
     for ax in axes[::cols]:
-        ax.set_ylabel("y  [\u00b5m]", fontsize="x-small")
+        ax.set_ylabel("y  [\u00b5m]", fontsize="small")
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncols=len(labels), fontsize="small", frameon=False)
     fig.suptitle(title)

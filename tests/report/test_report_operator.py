@@ -16,7 +16,7 @@ def test_report_of_a_killed_run_says_how_to_continue_it(tmp_path):
     assert f"orbitrig sweep --resume {run}" in r.stdout
 
 
-def test_forces_plot_keeps_agreeing_models_visible(tmp_path, monkeypatch):
+def test_forces_plot_keeps_agreeing_models_visible(tmp_path):
     """kc8 and kcd11 reproduce nearly the same forces: the lines differ in width so neither hides the other."""
     from orbitrig.analysis import plots as plots
     from orbitrig.analysis.report import analyse_point
