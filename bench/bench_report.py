@@ -1,18 +1,23 @@
-"""Cost of `orbitrig report`: seconds per figure kind and per operating point, and what a
-report of the paper's whole test matrix (108 operating points) costs.
+"""Cost of `orbitrig report` on the paper's test matrix: 108 operating points of ~17 figures
+each must be reported in under 2 minutes with 2 worker processes.
 
-Makes a run on the simulator with the paper's orbit frequencies and models but two
-operating points (`orbitrig sweep --sim`, a few seconds), then times the report of each
-figure kind alone and of everything, and extrapolates to the 108 points of
-config/matrices/paper.toml (the report draws each point independently).
+Synthesises a run of N points (tests/report/report_synthetic.py: the sweep's own storage,
+the paper's 10 ratios x 2 directions and 4 models, the same 17 figures per point) and times
+`make_report` with the default style (PNG 300 dpi, PDF, SVG, report.pdf) and 2 workers, then
+PNG only. With fewer than 108 points the time is extrapolated linearly to 108 (the points are
+independent; the summary figure and report.pdf are a small part). On a shared machine the
+wall time says little: the CPU seconds of the main process and the workers, divided by the
+workers, say what idle cores would take. Prints one line per measurement and exits 1 when
+the 108-point report (the smaller projection of the default style) takes 2 minutes or more.
 
-Run: python3 bench/bench_report.py [--points 2]   (prints one line per figure)
+Run: python3 bench/bench_report.py [--points 108] [--workers 2]
 """
 
 from __future__ import annotations
 
 import argparse
-import subprocess
+import os
+import resource
 import sys
 import tempfile
 import time
@@ -20,61 +25,54 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests" / "report"))
 
-from orbitrig import config as cfg  # noqa: E402
-from orbitrig.analysis.report import FIGURES, ReportOptions, make_report  # noqa: E402
+from report_synthetic import write_synthetic_run  # noqa: E402
+
+from orbitrig.analysis.plots import FigureFormat, FigureStyle  # noqa: E402
+from orbitrig.analysis.report import ReportOptions, make_report  # noqa: E402
 
 PAPER_POINTS = 108
+TARGET_S = 120.0
 
 
-def small_paper_matrix(points: int) -> str:
-    """The paper's matrix with `points` operating points (static eccentricities) and 20 revolutions."""
-    text = cfg.default_matrix_path("paper").read_text()
-    eps = ", ".join(f"{0.15 * i:g}" for i in range(points))
-    lines = []
-    for line in text.splitlines():
-        key = line.split("=")[0].strip()
-        if key == "name":
-            line = 'name = "bench-report"\nrevolutions = 20'
-        elif key in ("spin_rpm", "recess_pressure_mpa", "pressure_ratio", "dynamic_eccentricity"):
-            line = f"{key} = [{line.split('[')[1].split(',')[0].rstrip(']')}]"
-        elif key == "static_eccentricity":
-            line = f"static_eccentricity = [{eps}]"
-        lines.append(line)
-    return "\n".join(lines) + "\n"
+def _cpu() -> float:
+    """CPU seconds of this process and of its finished children (the pool's workers)."""
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
 
 
-def main() -> None:
+def measure(run: Path, style: FigureStyle, workers: int, label: str, points: int) -> float:
+    """Report `run` in `style`; print wall and CPU seconds, figures and the 108-point projection
+    (wall time; on a shared machine also CPU time / workers, what idle cores would take); return
+    the smaller projection."""
+    t0, cpu0 = time.perf_counter(), _cpu()
+    report = make_report(run, options=ReportOptions(style=style), workers=workers)
+    dt, cpu = time.perf_counter() - t0, _cpu() - cpu0
+    figures = len(report.plots)
+    wall, idle = dt * PAPER_POINTS / points, cpu / workers * PAPER_POINTS / points
+    print(f"{label:24s} {points:3d} points, {figures:4d} figures: {dt:6.1f} s wall, {cpu:6.1f} s CPU "
+          f"({cpu / figures:.2f} CPU s per figure); {PAPER_POINTS} points: {wall:5.0f} s wall, "
+          f"{idle:5.0f} s on {workers} idle cores (load average {os.getloadavg()[0]:.1f})", flush=True)  # fmt: skip
+    return min(wall, idle)
+
+
+def main() -> int:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--points", type=int, default=2)
+    ap.add_argument("--points", type=int, default=PAPER_POINTS)
+    ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        matrix = Path(tmp) / "bench.toml"
-        matrix.write_text(small_paper_matrix(args.points))
-        run = Path(tmp) / "run"
         t0 = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "orbitrig", "sweep", "--sim", "--matrix", str(matrix), "--out", str(run)],
-                       cwd=ROOT, check=True, capture_output=True)  # fmt: skip
-        print(f"sweep --sim, {args.points} points x 20 frequencies: {time.perf_counter() - t0:.1f} s")
-        for kind in FIGURES:
-            t0 = time.perf_counter()
-            report = make_report(run, options=ReportOptions(figures=frozenset({kind})))
-            dt = time.perf_counter() - t0
-            n = sum(1 for pr in report.points for p in pr.plots if Path(p).stem.startswith(kind))
-            print(f"{kind:13s} {n:3d} figure(s) {dt:6.2f} s  ({dt / max(n, 1):.2f} s per figure, page and tables included)")
-        t0 = time.perf_counter()
-        report = make_report(run)
-        dt = time.perf_counter() - t0
-        n = len(report.plots)
-        per_point = dt / len(report.points)
-        print(f"everything    {n:3d} figure(s) {dt:6.2f} s  ({per_point:.1f} s per point)")
-        t0 = time.perf_counter()
-        make_report(run, options=ReportOptions(figures=frozenset()))
-        tables = time.perf_counter() - t0
-        print(f"page and tables only (--figures ''): {tables:.2f} s")
-        print(f"paper matrix ({PAPER_POINTS} points), extrapolated: {PAPER_POINTS * per_point / 60:.1f} min "
-              f"for everything; one point (--point N): {per_point:.1f} s")  # fmt: skip
+        run = write_synthetic_run(Path(tmp) / "run", n_points=args.points, incomplete=0)
+        print(f"synthetic run, {args.points} points x 20 orbit frequencies: {time.perf_counter() - t0:.1f} s", flush=True)
+        projected = measure(run, FigureStyle(), args.workers, "default (png, pdf, svg)", args.points)
+        measure(run, FigureStyle(formats=(FigureFormat.PNG,)), args.workers, "--formats png", args.points)
+    ok = projected < TARGET_S
+    print(f"{'PASS' if ok else 'MISS'}: {PAPER_POINTS}-point report {projected:.0f} s with {args.workers} workers "
+          f"(target < {TARGET_S:.0f} s)")  # fmt: skip
+    return 0 if ok else 1
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

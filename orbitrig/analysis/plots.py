@@ -1,10 +1,11 @@
-"""PNG plots of one operating point (matplotlib, Agg canvas, no pyplot state).
+"""Figures of one operating point (matplotlib, Agg canvas, no pyplot state).
 
 Every figure takes plain data (an OrbitTable, Identification objects from
-``reduction.identify``, the point's settings and truth) and writes one PNG.
-Axes carry units at the edges: Omega/omega (-), N, deg, MN/m, kN s/m, kg.
-Forward whirl is drawn with filled markers and solid lines, backward whirl
-with open markers and dashed lines.
+``reduction.identify``, the point's settings and truth) and is written as a 300 dpi PNG beside
+a vector PDF (and SVG) of the same name (:class:`FigureStyle`: formats, the journal width,
+the coverage factor of every band and error bar). Axes carry units at the edges: Omega/omega
+(-), N, deg, MN/m, kN s/m, kg. Forward whirl is drawn with filled markers and solid lines,
+backward whirl with open markers and dashed lines.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from __future__ import annotations
 import io
 from collections.abc import Sequence
 from dataclasses import dataclass
+from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
@@ -29,8 +31,89 @@ ENTRIES = ("xx", "xy", "yx", "yy")
 MATRIX_NAMES = {"K": "stiffness", "C": "damping", "D": "apparent inertia (added mass)"}
 PAIR_LABELS = {"xfx": "x, Fx", "yfx": "y, Fx", "xfy": "x, Fy", "yfy": "y, Fy"}
 DIRECTIONS = ((1, "forward", "-", "o"), (-1, "backward", "--", "s"))
-DPI = 110
 TRUTH_LABEL = "true (simulator)"
+#: journal column widths (in)
+COLUMN_WIDTHS = {"single": 3.5, "double": 7.2}
+
+
+class FigureFormat(StrEnum):
+    PNG = "png"
+    PDF = "pdf"
+    SVG = "svg"
+
+
+@dataclass(frozen=True)
+class FigureStyle:
+    """How every figure of a report is drawn and written: ``width`` (in; the journal's double
+    column by default), ``formats`` (PNG for the page, PDF for print and the combined report),
+    PNG resolution (dpi), the text size at that width (pt) and the coverage factor k of every
+    band and error bar (2: the expanded uncertainty U = k u)."""
+
+    width: float = COLUMN_WIDTHS["double"]
+    formats: tuple[FigureFormat, ...] = (FigureFormat.PNG, FigureFormat.PDF, FigureFormat.SVG)
+    dpi: int = 300
+    font: float = 6.5
+    coverage: float = 2.0
+
+    def band_label(self, what: str = "bands and error bars") -> str:
+        """The legend's statement of the uncertainty shown, e.g. 'bands and error bars: expanded
+        uncertainty U (k = 2) of the fit (statistical)'."""
+        kind = "expanded uncertainty U" if self.coverage != 1 else "standard uncertainty u"
+        return f"{what}: \u00b1{kind} (k = {self.coverage:g}), statistical"
+
+
+STYLE = FigureStyle()
+
+
+def use_style(style: FigureStyle) -> None:
+    """Draw every later figure of this process in `style` (text sizes through rcParams)."""
+    import matplotlib
+
+    global STYLE
+    STYLE = style
+    matplotlib.rcParams.update({
+        "font.size": style.font, "axes.titlesize": "medium", "axes.labelsize": "medium",
+        "xtick.labelsize": "small", "ytick.labelsize": "small", "legend.fontsize": "small",
+        "figure.titlesize": "large", "lines.linewidth": 1.0, "lines.markersize": 3.5,
+        "pdf.fonttype": 42, "svg.fonttype": "none", "path.simplify": True,
+    })  # fmt: skip
+
+
+def style() -> FigureStyle:
+    """The style figures are drawn in now (:func:`use_style`)."""
+    return STYLE
+
+
+def coverage() -> float:
+    """The coverage factor k of the current style (bands are +-k u)."""
+    return STYLE.coverage
+
+
+use_style(STYLE)
+
+
+def tested_range(orbit) -> tuple[float, float]:
+    """(lowest, highest) tested |Omega| (rad/s): fits are drawn solid only between them."""
+    w = np.abs(np.asarray(orbit, dtype=float))
+    return float(w.min()), float(w.max())
+
+
+def split_tested(grid: np.ndarray, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Boolean masks of `grid` below, inside and above the tested range (the edges in both
+    neighbours, so the solid and dashed parts join)."""
+    eps = 1e-9 * max(hi, 1.0)
+    return grid <= lo + eps, (grid >= lo - eps) & (grid <= hi + eps), grid >= hi - eps
+
+
+def plot_fit(ax, x: np.ndarray, y: np.ndarray, lo: float, hi: float, *, color, lw: float = 1.2,
+             label: str | None = None, ls: str = "-") -> None:  # fmt: skip
+    """A fitted curve y(x), x = Omega/omega: `ls` over the tested range [lo, hi] (same units as
+    x), thin dotted outside it (an extrapolation, not a result)."""
+    below, inside, above = split_tested(x, lo, hi)
+    ax.plot(x[inside], y[inside], ls, color=color, lw=lw, label=label)
+    for part in (below, above):
+        if part.sum() > 1:
+            ax.plot(x[part], y[part], ":", color=color, lw=0.7 * lw)
 
 
 @dataclass
@@ -47,11 +130,18 @@ def whirl_direction(table) -> np.ndarray:
 
 
 def _figure(w: float, h: float, layout: str | None = "constrained") -> Figure:
-    """A figure on an Agg canvas; `layout=None` for many small panels (constrained layout's
-    solver costs seconds there), placed by the caller with ``subplots_adjust``."""
-    fig = Figure(figsize=(w, h), dpi=DPI, layout=layout)
+    """A figure on an Agg canvas of the design size w x h (in) scaled to the style's width;
+    `layout=None` for many small panels (constrained layout's solver costs seconds there),
+    placed by the caller with ``subplots_adjust``."""
+    k = STYLE.width / w
+    fig = Figure(figsize=(w * k, h * k), dpi=72, layout=layout)
     FigureCanvasAgg(fig)
     return fig
+
+
+def text_scale() -> float:
+    """Margins drawn for 10-pt text, scaled to the style's text size."""
+    return STYLE.font / 10.0
 
 
 def panel_figure(w: float, h: float, *, left: float = 0.85, right: float = 0.2, top: float = 0.95,
@@ -60,26 +150,31 @@ def panel_figure(w: float, h: float, *, left: float = 0.85, right: float = 0.2, 
     a legend at the bottom): half the saving time of constrained layout, whose solver measures
     every tick label. Put the legend with ``loc="lower center"``."""
     fig = _figure(w, h, layout=None)
-    fig.subplots_adjust(left=left / w, right=1 - right / w, top=1 - top / h, bottom=bottom / h,
+    t = text_scale() * w / STYLE.width  # margins in design inches, for the style's text
+    fig.subplots_adjust(left=left * t / w, right=1 - right * t / w, top=1 - top * t / h, bottom=bottom * t / h,
                         wspace=wspace, hspace=hspace)  # fmt: skip
     return fig
 
 
 def save_figure(fig: Figure, path: Path) -> Path:
-    """Write `fig` as PNG to `path` (folders created)."""
+    """Write `fig` to `path` (.png) and beside it in the style's other formats (folders
+    created); returns the PNG's path."""
     return _save(fig, path)
 
 
 def _save(fig: Figure, path: Path) -> Path:
-    """PNG bytes rendered in memory, then written durably (a StorageError names the file)."""
-    path = Path(path)
+    """Each of the style's formats rendered in memory, then written durably (a StorageError
+    names the file); returns the PNG's path."""
+    path = Path(path).with_suffix(".png")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise storage_error(path.parent, "create the folder", err) from err
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI)
-    write_atomic(path, buf.getbuffer())
+    for fmt in STYLE.formats:
+        buf = io.BytesIO()
+        fig.savefig(buf, format=str(fmt), dpi=STYLE.dpi if fmt == FigureFormat.PNG else 72,
+                    metadata=None if fmt == FigureFormat.PNG else {"Creator": "orbitrig report"})  # fmt: skip
+        write_atomic(path.with_suffix(f".{fmt}"), buf.getbuffer())
     return path
 
 
@@ -90,68 +185,69 @@ def _colors(n: int) -> list:
     return [cmap(i % 10) for i in range(n)]
 
 
-def _phase_deg(f: np.ndarray, ref: np.ndarray) -> np.ndarray:
-    """Phase of a force relative to the x displacement (the paper's phi_x = 0), deg, unwrapped."""
-    return np.degrees(np.unwrap(np.angle(f / ref)))
-
-
-def _near(phase: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """Shift each phase by whole turns to lie within 180 deg of ``target``."""
-    return phase - 360.0 * np.round((phase - target) / 360.0)
-
-
 def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
-    """The paper's Figure 5: measured and reproduced force amplitude and phase
-    against Omega/omega, for Fx and Fy, one line per identification. When the table has the
-    phasor uncertainties u_* the measured points carry error bars of two standard
-    uncertainties (amplitude u/sqrt(2), phase u/(sqrt(2)|F|): an isotropic complex error)."""
-    fig = _figure(11, 7.5)
+    """:func:`forces_figure` written to `path`."""
+    return _save(forces_figure(table, fitted, title=title), path)
+
+
+def forces_figure(table, fitted: Sequence[Fitted], *, title: str) -> Figure:
+    """The paper's Figure 5 with residuals: (top) measured and reproduced force amplitude against
+    Omega/omega for Fx and Fy, one line per identification; (bottom) the residual |F_measured -
+    F_reproduced| of each fit per frequency, beside the measured phasor's expanded uncertainty
+    U = k u (grey) when the table has the phasor uncertainties u_*: a fit whose residuals stay
+    under U reproduces the forces within their uncertainty. Error bars on the measured
+    amplitude: U/sqrt(2) (the radial part of an isotropic complex error)."""
+    fig = panel_figure(11, 9.0, left=1.0, top=1.1, bottom=2.6, hspace=0.3, wspace=0.25)  # legend below
     axes = fig.subplots(2, 2, sharex=True)
     ratio = table.orbit / table.spin
     dirs = whirl_direction(table)
     colors = _colors(len(fitted))
+    k = coverage()
     reproduced = [f.identification.reproduce(table) for f in fitted]
     # models that agree draw on top of each other: each later line is thinner, so all stay visible
-    widths = [0.9 + 1.0 * (len(fitted) - 1 - k) for k in range(len(fitted))]
+    widths = [0.7 + 0.6 * (len(fitted) - 1 - n) for n in range(len(fitted))]
     for col, (name, measured) in enumerate((("Fx", table.fx), ("Fy", table.fy))):
-        amp_ax, ph_ax = axes[0, col], axes[1, col]
+        amp_ax, res_ax = axes[0, col], axes[1, col]
         for d, dname, ls, marker in DIRECTIONS:
             sel = np.flatnonzero(dirs == d)
             if sel.size == 0:
                 continue
             sel = sel[np.argsort(ratio[sel])]
-            meas_ph = _phase_deg(measured[sel], table.x[sel])
-            for k, (fit, rep) in enumerate(zip(fitted, reproduced)):
+            for n, (fit, rep) in enumerate(zip(fitted, reproduced)):
                 f = rep[col][sel]
-                amp_ax.plot(ratio[sel], np.abs(f), ls, color=colors[k], lw=widths[k],
-                            label=f"{fit.label}" if d == 1 or not np.any(dirs == 1) else None)
-                ph_ax.plot(ratio[sel], _near(_phase_deg(f, table.x[sel]), meas_ph), ls, color=colors[k],
-                           lw=widths[k])
+                first = d == 1 or not np.any(dirs == 1)
+                amp_ax.plot(ratio[sel], np.abs(f), ls, color=colors[n], lw=widths[n], label=fit.label if first else None)
+                res_ax.plot(ratio[sel], np.abs(measured[sel] - f), ls, marker=marker, color=colors[n], lw=widths[n],
+                            ms=3, mfc=colors[n] if d == 1 else "white")  # fmt: skip
             face = "black" if d == 1 else "white"
             amp_ax.plot(ratio[sel], np.abs(measured[sel]), marker, mfc=face, mec="black", ls="none",
-                        ms=6, label=f"measured, {dname} whirl", zorder=5)
-            ph_ax.plot(ratio[sel], meas_ph, marker, mfc=face, mec="black", ls="none", ms=6, zorder=5)
-            if table.u is not None:  # +-2 std of the averaged phasor: radial and tangential parts of u
-                u = table.u[sel, 2 + col] / np.sqrt(2.0)
-                amp_ax.errorbar(ratio[sel], np.abs(measured[sel]), yerr=2 * u, fmt="none", ecolor="black",
-                                capsize=3, lw=1, zorder=4, gid="measured-uncertainty")
-                ph_ax.errorbar(ratio[sel], meas_ph, yerr=np.degrees(2 * u / np.abs(measured[sel])), fmt="none",
-                               ecolor="black", capsize=3, lw=1, zorder=4, gid="measured-uncertainty")
+                        ms=4, label=f"measured, {dname} whirl", zorder=5)  # fmt: skip
+            if table.u is not None:
+                u = table.u[sel, 2 + col]
+                amp_ax.errorbar(ratio[sel], np.abs(measured[sel]), yerr=k * u / np.sqrt(2.0), fmt="none",
+                                ecolor="black", capsize=1.5, lw=0.6, zorder=4, gid="measured-uncertainty")  # fmt: skip
+                res_ax.plot(ratio[sel], k * u, ls, color="0.55", lw=2.2, alpha=0.6, zorder=1,
+                            label=f"U = {k:g} u of the measured phasor" if d == 1 or not np.any(dirs == 1) else None,
+                            gid="measured-uncertainty")  # fmt: skip
         amp_ax.set_title(f"{name} amplitude")
         amp_ax.set_ylabel(f"|{name}|  [N]")
-        ph_ax.set_title(f"{name} phase (relative to x displacement)")
-        ph_ax.set_ylabel(f"phase of {name}  [deg]")
-        ph_ax.set_xlabel("\u03a9/\u03c9  [-]")
-        for ax in (amp_ax, ph_ax):
+        res_ax.set_title(f"{name} residual: |measured - reproduced| phasor")
+        res_ax.set_ylabel(f"|\u0394{name}|  [N]")
+        res_ax.set_xlabel("\u03a9/\u03c9  [-]")
+        res_ax.set_ylim(bottom=0)
+        for ax in (amp_ax, res_ax):
             ax.grid(True, alpha=0.3)
     handles, labels = axes[0, 0].get_legend_handles_labels()
+    h2, l2 = axes[1, 0].get_legend_handles_labels()
+    handles, labels = handles + h2, labels + l2
     if len(set(dirs)) > 1:
         handles += [Line2D([], [], color="gray", ls="-"), Line2D([], [], color="gray", ls="--")]
-        labels += ["reproduced, forward (solid)", "reproduced, backward (dashed)"]
-    ncols = max(1, min(4, len(labels), 150 // max(len(label) for label in labels)))  # long labels: fewer columns
-    fig.legend(handles, labels, loc="outside lower center", ncols=ncols, fontsize=9)
+        labels += ["forward whirl (solid)", "backward whirl (dashed)"]
+    ncols = 1 if max(len(label) for label in labels) > 60 else 2  # long labels (verdicts): one column
+    fig.legend(handles, labels, loc="lower center", ncols=ncols, fontsize="small",
+               title=style().band_label("error bars") + " (amplitude: U/\u221a2)")  # fmt: skip
     fig.suptitle(title)
-    return _save(fig, path)
+    return fig
 
 
 def _min_span(ax, largest: float, fraction: float = 0.05) -> None:
@@ -208,7 +304,7 @@ def lms_comparison_plot(path, tables: dict[str, Any], fitted: dict[str, Fitted] 
         ax.set_xlabel("\u03a9/\u03c9  [-]")
         ax.axhline(0, color="gray", lw=0.8)
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8)
+        ax.legend(fontsize="x-small")
     if with_bars:
         width = 0.38
         for col, m in enumerate("KC"):
@@ -218,7 +314,7 @@ def lms_comparison_plot(path, tables: dict[str, Any], fitted: dict[str, Fitted] 
             for k, (lms, fit) in enumerate(fitted.items()):
                 ident = fit.identification
                 vals = [ident.coefficients.get(key, np.nan) * scale for key in keys]
-                errs = [(ident.std_errors.get(key) or 0.0) * scale for key in keys]
+                errs = [coverage() * (ident.std_errors.get(key) or 0.0) * scale for key in keys]
                 ax.bar(np.arange(4) + (k - 0.5) * width, vals, width, yerr=errs, capsize=3,
                        color=colors[k], label=f"{lms}: {fit.label}")
             ax.set_xticks(np.arange(4), keys)
@@ -226,7 +322,7 @@ def lms_comparison_plot(path, tables: dict[str, Any], fitted: dict[str, Fitted] 
             ax.set_title(f"{MATRIX_NAMES[m]} identified from each load measuring system")
             ax.axhline(0, color="gray", lw=0.8)
             ax.grid(True, axis="y", alpha=0.3)
-            ax.legend(fontsize=8)
+            ax.legend(fontsize="x-small", title=style().band_label("error bars"), title_fontsize="x-small")
     fig.suptitle(title)
     return _save(fig, path)
 
@@ -236,7 +332,7 @@ def summary_plot(path, series: dict[str, list[tuple[int, Any]]], truth: list[tup
     """The constant K and C entries of one model at every operating point (x: point
     index), one marker series per load measuring system, error bars of one standard
     error, and the simulator's true values (K0, C0) as black crosses."""
-    fig = _figure(13, 6.8)
+    fig = panel_figure(13, 7.2, bottom=1.5, wspace=0.5)
     axes = fig.subplots(2, 4, sharex=True)
     colors = _colors(len(series))
     offsets = np.linspace(-0.12, 0.12, len(series)) if len(series) > 1 else [0.0]
@@ -249,7 +345,7 @@ def summary_plot(path, series: dict[str, list[tuple[int, Any]]], truth: list[tup
                 key = m + e
                 vals = [ident.coefficients.get(key, np.nan) * scale for _, ident in entries]
                 largest[m] = max(largest[m], float(np.nanmax(np.abs(vals))))
-                errs = [(ident.std_errors.get(key) or 0.0) * scale for _, ident in entries]
+                errs = [coverage() * (ident.std_errors.get(key) or 0.0) * scale for _, ident in entries]
                 axes[row, col].errorbar(idx + offsets[k], vals, yerr=errs, fmt="o", ms=4, capsize=2,
                                         color=colors[k], label=f"{lms}, {model}")
     for row, m in enumerate("KC"):
@@ -270,6 +366,7 @@ def summary_plot(path, series: dict[str, list[tuple[int, Any]]], truth: list[tup
             if row == 1:
                 ax.set_xlabel("operating point  [index]")
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncols=len(labels), fontsize=9)
+    fig.legend(handles, labels, loc="lower center", ncols=len(labels), fontsize="small",
+               title=style().band_label("error bars"))
     fig.suptitle(title)
     return _save(fig, path)

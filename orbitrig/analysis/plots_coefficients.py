@@ -1,10 +1,13 @@
 """The paper's Figures 6 and 7: K, C (and D) entries against Omega/omega (Agg, no pyplot).
 
-A frequency-dependent identification is a curve from ``matrices(Omega)`` with a band of one
-standard uncertainty and error bars at the tested frequencies; a constant one is a horizontal
-line with its band. The band is sqrt(g^T Sigma g) with g the entry's gradient in the free
-coefficients and Sigma the fit's covariance (exact for correlated order terms). The
-simulator's true values are black crosses, always inside the axes.
+A frequency-dependent identification is a curve from ``matrices(Omega)`` with a band of the
+expanded uncertainty U = k u (k of the style, 2 by default) and error bars at the tested
+frequencies; a constant one is a horizontal line with its band. Curves are solid over the
+tested orbit range and dotted outside it (extrapolation). u is sqrt(g^T Sigma g) with g the
+entry's gradient in the free coefficients and Sigma the fit's covariance (exact for
+correlated order terms). In simulator runs the truth is drawn as black crosses at the tested
+frequencies, always inside the axes: its per-row K, C, D where stored, else the constant best
+fit of the true impedance (K0, C0, D0).
 """
 
 from __future__ import annotations
@@ -15,7 +18,8 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _colors, _min_span, _save, keep_inside, panel_figure
+from orbitrig.analysis.plots import (ENTRIES, TRUTH_LABEL, Fitted, _colors, _min_span, _save, coverage, keep_inside,
+                                    panel_figure, plot_fit, split_tested, style)  # fmt: skip
 from orbitrig.analysis.reduce import MATRIX_UNITS
 from reduction.derived import entry_gradient
 
@@ -38,6 +42,8 @@ def _draw_fit(axes, mats, fit: Fitted, color, grid, tested, spin, largest) -> No
     on_grid = np.array([ident.matrices(w) for w in grid])  # (n, 3, 2, 2)
     at_tested = np.array([ident.matrices(w) for w in tested])
     constant = all("_" not in key for key in ident.coefficients)
+    k = coverage()
+    _, inside, _ = split_tested(grid, tested.min(), tested.max())
     for row, m in enumerate(mats):
         if not _has(ident, m):
             continue
@@ -48,28 +54,46 @@ def _draw_fit(axes, mats, fit: Fitted, color, grid, tested, spin, largest) -> No
             i, j = divmod(col, 2)
             val = on_grid[:, mi, i, j] * scale
             largest[m] = max(largest[m], float(np.max(np.abs(val))))
-            band = entry_std(ident, m, e, grid) * scale
-            ax.plot(grid / spin, val, color=color, lw=1.6, label=fit.label)
-            ax.fill_between(grid / spin, val - band, val + band, color=color, alpha=0.15, lw=0)
+            band = k * entry_std(ident, m, e, grid[inside]) * scale
+            plot_fit(ax, grid / spin, val, tested.min() / spin, tested.max() / spin, color=color, label=fit.label)
+            ax.fill_between(grid[inside] / spin, val[inside] - band, val[inside] + band, color=color, alpha=0.15, lw=0)
             if not constant:
                 ax.errorbar(tested / spin, at_tested[:, mi, i, j] * scale,
-                            yerr=entry_std(ident, m, e, tested) * scale,
-                            fmt="o", ms=3.5, color=color, capsize=2.5, lw=1)  # fmt: skip
+                            yerr=k * entry_std(ident, m, e, tested) * scale,
+                            fmt="o", ms=2.5, color=color, capsize=1.5, lw=0.8)  # fmt: skip
+
+
+def truth_matrix(truth: dict, matrix: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """(|Omega| (n,) rad/s, true entries (n, 2, 2) SI) of `matrix` ('K', 'C', 'D') at the truth's
+    rows: its per-row values when stored, else its constant best fit (``K0``...) at every row;
+    None when the truth has neither."""
+    orbit = truth.get("orbit")
+    if orbit is None and truth.get("orbit_hz") is not None:
+        orbit = 2 * np.pi * np.asarray(truth["orbit_hz"], dtype=float)
+    if orbit is None or len(orbit) == 0:
+        return None
+    w = np.abs(np.asarray(orbit, dtype=float))
+    per_row = truth.get(matrix)
+    if per_row is not None and np.shape(per_row) == (len(w), 2, 2):
+        return w, np.asarray(per_row, dtype=float)
+    const = truth.get(f"{matrix}0")
+    if const is None:
+        return None
+    return w, np.broadcast_to(np.asarray(const, dtype=float), (len(w), 2, 2))
 
 
 def _draw_truth(axes, mats, truth: dict, spin: float, largest) -> None:
-    t_orbit = 2 * np.pi * np.abs(np.asarray(truth.get("orbit_hz", []), dtype=float))
     for row, m in enumerate(mats):
-        mat = truth.get(m)
-        if mat is None or len(t_orbit) == 0:
+        found = truth_matrix(truth, m)
+        if found is None:
             continue
-        mat = np.asarray(mat, dtype=float)
+        t_orbit, mat = found
         _, scale = MATRIX_UNITS[m]
         largest[m] = max(largest[m], float(np.max(np.abs(mat))) * scale)
         for col in range(4):
             i, j = divmod(col, 2)
-            axes[row, col].plot(t_orbit / spin, mat[:, i, j] * scale, "x", color="black", ms=6,
-                                mew=1.5, label=TRUTH_LABEL, zorder=6)  # fmt: skip
+            axes[row, col].plot(t_orbit / spin, mat[:, i, j] * scale, "x", color="black", ms=4,
+                                mew=1.0, label=TRUTH_LABEL, zorder=6)  # fmt: skip
 
 
 def coefficients_figure(fitted: Sequence[Fitted], *, spin: float, orbit: np.ndarray, truth: dict | None,
@@ -79,8 +103,8 @@ def coefficients_figure(fitted: Sequence[Fitted], *, spin: float, orbit: np.ndar
     fig = panel_figure(13, 2.7 * len(mats) + 2.0, bottom=1.35, hspace=0.35)
     axes = np.atleast_2d(fig.subplots(len(mats), 4, sharex=True))
     top = float(np.max(np.abs(orbit))) * 1.05
-    grid = np.linspace(0.0, top, 200)
     tested = np.unique(np.round(np.abs(orbit), 9))
+    grid = np.union1d(np.linspace(0.0, top, 200), tested[[0, -1]])  # the solid part ends on the tested range
     largest = dict.fromkeys(mats, 0.0)  # largest |entry| drawn per matrix, display units
     for fit, color in zip(fitted, _colors(len(fitted))):
         _draw_fit(axes, mats, fit, color, grid, tested, spin, largest)
@@ -102,8 +126,8 @@ def coefficients_figure(fitted: Sequence[Fitted], *, spin: float, orbit: np.ndar
                 ax.set_xlabel("\u03a9/\u03c9  [-]")
     handles, labels = axes[0, 0].get_legend_handles_labels()
     uniq = dict(zip(labels, handles))
-    fig.legend(list(uniq.values()), list(uniq.keys()), loc="lower center", ncols=min(5, len(uniq)),
-               fontsize=9, title="bands and error bars: \u00b11 standard uncertainty (statistical)")  # fmt: skip
+    fig.legend(list(uniq.values()), list(uniq.keys()), loc="lower center", ncols=min(3, len(uniq)),
+               fontsize="small", title=style().band_label() + "; solid over the tested range, dotted beyond")  # fmt: skip
     fig.suptitle(title)
     return fig
 

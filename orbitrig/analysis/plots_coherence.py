@@ -65,10 +65,10 @@ def coherence_figure(table: CoherenceTable, *, title: str) -> Figure:
     shown = np.round(np.nan_to_num(table.values, nan=0.0), 3)  # coloured as the number reads
     ax.imshow(shown, cmap=cmap, norm=BoundaryNorm(bounds, cmap.N), aspect="auto")
     for (r, c), v in np.ndenumerate(table.values):
-        ax.text(c, r, "-" if not np.isfinite(v) else f"{v:.3f}", ha="center", va="center", fontsize=8)
-    ax.set_xticks(range(n_cols), table.columns, fontsize=8)
+        ax.text(c, r, "-" if not np.isfinite(v) else f"{v:.3f}", ha="center", va="center", fontsize="x-small")
+    ax.set_xticks(range(n_cols), table.columns, fontsize="x-small")
     ax.xaxis.tick_top()
-    ax.set_yticks(range(n_rows), table.rows, fontsize=8)
+    ax.set_yticks(range(n_rows), table.rows, fontsize="x-small")
     ax.set_ylabel("\u03a9/\u03c9  [-], whirl direction")
     for k in range(1, len(table.lms)):
         ax.axvline(4 * k - 0.5, color="black", lw=2)
@@ -78,7 +78,7 @@ def coherence_figure(table: CoherenceTable, *, title: str) -> Figure:
     ax.tick_params(length=0)
     low = np.nanmin(table.values) if np.isfinite(table.values).any() else float("nan")
     handles = [Patch(color=colour, label=label) for _, colour, label in BANDS]
-    fig.legend(handles=handles, loc="outside lower center", ncols=4, fontsize=8,
+    fig.legend(handles=handles, loc="outside lower center", ncols=4, fontsize="x-small",
                title=f"coherence \u03b3\u00b2 between displacement and force (lowest {low:.3f})")  # fmt: skip
     fig.suptitle(title)
     return fig

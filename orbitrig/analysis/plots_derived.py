@@ -2,8 +2,8 @@
 
 - :func:`derived_figure`: effective damping C_eff,xx = Cxx - Kxy/Omega and C_eff,yy =
   Cyy + Kyx/Omega with their zero crossings, the whirl frequency ratio, and the forward /
-  backward direct dynamic stiffness Re and Im H(Omega), each with a band of two standard
-  uncertainties (statistical), one colour per identification;
+  backward direct dynamic stiffness Re and Im H(Omega), each with a band of the expanded
+  uncertainty U = k u (statistical; k of the style, 2 by default), one colour per identification;
 - :func:`impedance_figure`: Re and Im of each entry of the identified Z(Omega) = K + i Omega C
   - Omega^2 D against the simulator's true Z at the tested frequencies (black crosses; the Z of
   its reference K, C, D when the run did not store the true Z).
@@ -19,26 +19,29 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from orbitrig.analysis.plots import ENTRIES, Fitted, _colors, _min_span, keep_inside, panel_figure
+from orbitrig.analysis.plots import (ENTRIES, Fitted, _colors, _min_span, coverage, keep_inside, panel_figure, plot_fit,
+                                    style)  # fmt: skip
 from orbitrig.analysis.quality import TrueImpedance, orbit_grid
 from reduction.derived import Derived
 
 MN, KNS = 1e-6, 1e-3  # N/m -> MN/m, N s/m -> kN s/m
-BAND = 2.0  # bands of +-2 standard uncertainties
 
 
 def _band(ax, x, y, std, color, scale, **kw) -> None:
+    """y (solid over the tested range: the derived quantities are formed at the tested |Omega|)
+    with its band of the style's expanded uncertainty k u."""
     ax.plot(x, y * scale, color=color, **kw)
     if std is not None:
-        ax.fill_between(x, (y - BAND * std) * scale, (y + BAND * std) * scale, color=color, alpha=0.15, lw=0)
+        k = coverage()
+        ax.fill_between(x, (y - k * std) * scale, (y + k * std) * scale, color=color, alpha=0.15, lw=0)
 
 
 def _zero_text(zero, spin: float) -> str:
     if zero is None:
         return "no zero crossing in the tested range"
     w0, sd = zero
-    pm = "" if sd is None else f" \u00b1 {BAND * sd / (2 * np.pi):.2g}"
-    return f"zero at {w0 / (2 * np.pi):.3g}{pm} Hz (\u03a9/\u03c9 = {w0 / spin:.3f})"
+    pm = "" if sd is None else f" \u00b1 {coverage() * sd / (2 * np.pi):.2g}"
+    return f"zero {w0 / (2 * np.pi):.3g}{pm} Hz, \u03a9/\u03c9 {w0 / spin:.3f}"
 
 
 def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title: str) -> Figure:
@@ -51,26 +54,26 @@ def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title
         x = d.orbit / spin
         for col, e in enumerate(("xx", "yy")):
             val, std = (d.c_eff_xx, d.c_eff_xx_std) if e == "xx" else (d.c_eff_yy, d.c_eff_yy_std)
-            _band(axes[0, col], x, val, std, colors[k], KNS, lw=1.6, label=label)
+            _band(axes[0, col], x, val, std, colors[k], KNS, lw=1.1, label=label)
             zero = d.c_eff_zero_xx if e == "xx" else d.c_eff_zero_yy
-            zeros[e].append(f"{label}: {_zero_text(zero, spin)}")
+            zeros[e].append(f"{label.split(' (')[0]}: {_zero_text(zero, spin)}")  # the model, without its count
             if zero is not None:
                 axes[0, col].plot(zero[0] / spin, 0.0, "o", color=colors[k], ms=7, mec="black", zorder=6)
-        _band(axes[0, 2], x, d.wfr, d.wfr_std, colors[k], 1.0, lw=1.6, label=label)
+        _band(axes[0, 2], x, d.wfr, d.wfr_std, colors[k], 1.0, lw=1.1, label=label)
         for col, part in ((0, np.real), (1, np.imag)):
             for h, hstd, ls in ((d.h_forward, d.h_forward_std, "-"), (d.h_backward, d.h_backward_std, "--")):
-                _band(axes[1, col], x, part(h), None if hstd is None else hstd[col], colors[k], MN, lw=1.6, ls=ls)
+                _band(axes[1, col], x, part(h), None if hstd is None else hstd[col], colors[k], MN, lw=1.1, ls=ls)
     for col, e in enumerate(("xx", "yy")):
         ax = axes[0, col]
         ax.axhline(0, color="gray", lw=0.8)
         sign = "-" if e == "xx" else "+"
         ax.set_title(f"effective damping C{e} {sign} K{'xy' if e == 'xx' else 'yx'}/\u03a9\n"
-                     + "\n".join(zeros[e]), fontsize=9)  # fmt: skip
+                     + "\n".join(zeros[e]), fontsize="x-small")  # fmt: skip
         ax.set_ylabel(f"C_eff,{e}  [kN s/m]")
-    axes[0, 2].set_title("whirl frequency ratio (Kxy - Kyx) / (\u03c9 (Cxx + Cyy))", fontsize=9)
+    axes[0, 2].set_title("whirl frequency ratio (Kxy - Kyx) / (\u03c9 (Cxx + Cyy))", fontsize="small")
     axes[0, 2].set_ylabel("WFR  [-]")
     for col, part in enumerate(("Re", "Im")):
-        axes[1, col].set_title(f"{part} H: direct dynamic stiffness, forward (solid) / backward (dashed)", fontsize=9)
+        axes[1, col].set_title(f"{part} H, direct dynamic stiffness\nforward solid, backward dashed", fontsize="small")
         axes[1, col].set_ylabel(f"{part} H  [MN/m]")
     axes[1, 2].set_visible(False)
     for ax in axes.flat:
@@ -81,7 +84,7 @@ def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title
     axes[0, 2].xaxis.set_tick_params(labelbottom=True)
     handles = [Line2D([], [], color=c, lw=2) for c in colors]
     fig.legend(handles, [label for label, _ in derived], loc="lower center", ncols=min(3, len(derived)),
-               fontsize=9, title=f"bands: \u00b1{BAND:g} standard uncertainties (statistical)")  # fmt: skip
+               fontsize="small", title=style().band_label("bands and zero crossings"))  # fmt: skip
     fig.suptitle(title)
     return fig
 
@@ -96,12 +99,13 @@ def impedance_figure(fitted: Sequence[Fitted], truth: TrueImpedance, *, spin: fl
     colors = _colors(len(fitted))
     t_w, t_z = truth.orbit, truth.z
     largest = float(np.max(np.abs(t_z))) * MN  # panels span at least 5 % of it: no magnified noise
+    lo, hi = (float(v) / spin for v in (np.min(np.abs(orbit)), np.max(np.abs(orbit))))
     for k, fit in enumerate(fitted):
         z = fit.identification.impedance(grid)
         for col in range(4):
             i, j = divmod(col, 2)
             for row, part in enumerate((np.real, np.imag)):
-                axes[row, col].plot(grid / spin, part(z[:, i, j]) * MN, color=colors[k], lw=1.6, label=fit.label)
+                plot_fit(axes[row, col], grid / spin, part(z[:, i, j]) * MN, lo, hi, color=colors[k], label=fit.label)
     for col, e in enumerate(ENTRIES):
         i, j = divmod(col, 2)
         for row, (name, part) in enumerate((("Re", np.real), ("Im", np.imag))):
@@ -110,12 +114,13 @@ def impedance_figure(fitted: Sequence[Fitted], truth: TrueImpedance, *, spin: fl
                     zorder=6)  # fmt: skip
             _min_span(ax, largest)
             keep_inside(ax, t_w / spin, part(t_z[:, i, j]) * MN)
-            ax.set_title(f"{name} Z{e}", fontsize=10)
+            ax.set_title(f"{name} Z{e}", fontsize="medium")
             ax.set_ylabel(f"{name} Z{e}  [MN/m]")
             ax.grid(True, alpha=0.3)
             if row == 1:
                 ax.set_xlabel("\u03a9/\u03c9  [-]")
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncols=min(4, len(labels)), fontsize=9)
+    fig.legend(handles, labels, loc="lower center", ncols=min(3, len(labels)), fontsize="small",
+               title="identified: solid over the tested range, dotted beyond")
     fig.suptitle(title)
     return fig

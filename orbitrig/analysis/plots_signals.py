@@ -77,9 +77,9 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
         d = lms_difference(sig, axis)
         ax.set_title(f"(a) {label} averaged over {sig.n_revolutions} revolutions, both load measuring systems\n"
                      f"strain vs piezo: amplitude {d.amplitude_pct:+.2f} %, phase {d.phase_deg:+.2f} deg",
-                     fontsize=10)  # fmt: skip
+                     fontsize="medium")  # fmt: skip
         ax.set_ylabel(f"{label} on the journal  [N]")
-        ax.legend(fontsize=8, loc="upper right", framealpha=0.9)
+        ax.legend(fontsize="x-small", loc="upper right", framealpha=0.9)
         ax = axes[1, col]
         name = FORCE_CHANNELS["piezo"][col]
         deg, mean, raw = sig.of(name)
@@ -90,10 +90,10 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
         ax.plot(deg, mean, "-", color=colors[0], lw=2.2, label=f"average of {sig.n_revolutions}")
         ax.set_title(f"(b) {label} piezo: one revolution against the average\n"
                      f"RMS deviation from the fundamental: raw {rms_raw:.3g} N, average {rms_mean:.3g} N",
-                     fontsize=10)  # fmt: skip
+                     fontsize="medium")  # fmt: skip
         ax.set_ylabel(f"{label} on the journal  [N]")
         ax.set_xlabel("orbit angle after the trigger  [deg]")
-        ax.legend(fontsize=8, loc="upper right", framealpha=0.9)
+        ax.legend(fontsize="x-small", loc="upper right", framealpha=0.9)
     for ax in axes.flat:
         ax.set_xlim(0, 360)
         ax.set_xticks(range(0, 361, 45))
@@ -135,17 +135,17 @@ def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) 
                     lw=0.8, label="commanded radius")  # fmt: skip
         f = sig.frequency
         ax.set_title(f"{f.orbit_hz:.3g} Hz {_direction(sig)}\nmean radius A {radii[0] * UM:.3g}, "
-                     f"B {radii[1] * UM:.3g} \u00b5m", fontsize=9)  # fmt: skip
+                     f"B {radii[1] * UM:.3g} \u00b5m", fontsize="small")  # fmt: skip
         ax.set_aspect("equal", adjustable="datalim")
         ax.grid(True, alpha=0.3)
-        ax.tick_params(labelsize=7)
+        ax.tick_params(labelsize="small")
     for ax in axes[n:]:
         ax.set_visible(False)
     for ax in axes[(rows - 1) * cols:(rows - 1) * cols + cols]:
-        ax.set_xlabel("x  [\u00b5m]", fontsize=8)
+        ax.set_xlabel("x  [\u00b5m]", fontsize="small")
     for ax in axes[::cols]:
-        ax.set_ylabel("y  [\u00b5m]", fontsize=8)
+        ax.set_ylabel("y  [\u00b5m]", fontsize="small")
     handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncols=len(labels), fontsize=9, frameon=False)
+    fig.legend(handles, labels, loc="lower center", ncols=len(labels), fontsize="small", frameon=False)
     fig.suptitle(title)
     return fig

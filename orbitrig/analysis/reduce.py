@@ -175,8 +175,8 @@ def write_csv(path: str | Path, rows: list[Reduced], sim: bool) -> Path:
     return path
 
 
-def format_table(rows: list[Reduced]) -> str:
-    """A terminal table of the constant terms (K in MN/m, C in kN s/m, D in kg) and the
+def table_cells(rows: list[Reduced]) -> list[list[str]]:
+    """The header and the rows (cells as text) of a table of the constant terms (K in MN/m, C in kN s/m, D in kg) and the
     residual (and the exponent M that power:auto chose); a refused (point, lms) shows
     'refused' (the reason goes to standard error).
     In --sim runs each point is followed by a row of the simulator's true values."""
@@ -197,8 +197,5 @@ def format_table(rows: list[Reduced]) -> str:
         truth = true_constants(r.point)
         if truth and (n + 1 == len(rows) or rows[n + 1].point is not r.point):
             lines.append([r.point.name, "true", *(f"{truth[k] * coefficient_unit(k)[1]:.4g}" for k in cols)])
-    widths = [max(len(ln[i]) for ln in lines if i < len(ln)) for i in range(len(lines[0]))]
-    return "\n".join(
-        "  ".join(c.ljust(w) if i < 2 else c.rjust(w) for i, (c, w) in enumerate(zip(ln, widths))).rstrip()
-        for ln in lines
-    )
+    return lines
+

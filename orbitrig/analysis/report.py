@@ -22,7 +22,10 @@ drawn next to the measurements:
 A repeated identification that differs from the stored one is reported
 (``PointReport.mismatches``: a warning of the command and a note in the page).
 
-All go to ``DIR/plots`` with ``index.html`` (see orbitrig.analysis.report_html).
+All go to ``DIR/plots`` with ``index.html`` (see orbitrig.analysis.report_html), each figure
+as PNG (300 dpi, for the page) beside PDF and SVG of the same name (``ReportOptions.style``),
+and ``report.pdf``: every figure's PDF in one file, point by point, for sharing. Points are
+drawn by a pool of worker processes (``workers``).
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from orbitrig.analysis import plots as plots
+from orbitrig.analysis.report_pool import COMBINED_PDF, Progress, combine_pdf, draw_points
 from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_signals
 from orbitrig.analysis.quality import Verdict, adequacy_verdicts, derived_of, true_impedance, warnings_of
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
@@ -56,6 +60,7 @@ class ReportOptions:
 
     figures: frozenset[str] = frozenset(FIGURES)
     all_frequencies: bool = False
+    style: plots.FigureStyle = plots.FigureStyle()
 
 
 @dataclass
@@ -89,6 +94,7 @@ class Report:
     summary: Path | None = None  # summary.png, when more than one point
     skipped: list[str] = field(default_factory=list)  # points asked for and not reported, with why
     notes: list[str] = field(default_factory=list)  # points the run never completed (not asked for by number)
+    pdf: Path | None = None  # report.pdf: every figure in one file
 
     @property
     def plots(self) -> list[Path]:
@@ -259,11 +265,13 @@ def summary_plot_for(report: Report) -> Path | None:
 
 
 def _clear_point(out: Path, name: str) -> None:
-    """Remove an earlier report's figures of point `name` (another subset or other kinds)."""
+    """Remove an earlier report's figures of point `name` (another subset or other kinds), in
+    every format."""
     for kind in FIGURES:
-        for pattern in (f"{kind}_{name}.png", f"{kind}_{name}_*.png"):
-            for old in out.glob(pattern):
-                _remove(old)
+        for fmt in plots.FigureFormat:
+            for pattern in (f"{kind}_{name}.{fmt}", f"{kind}_{name}_*.{fmt}"):
+                for old in out.glob(pattern):
+                    _remove(old)
 
 
 def _remove(path: Path) -> None:
@@ -273,16 +281,28 @@ def _remove(path: Path) -> None:
         raise storage_error(path, "remove", err) from err
 
 
+def _draw_point(run: Run, point: Point, out: Path, options: ReportOptions) -> PointReport:
+    """Analyse one point and draw its figures (in a worker process or here)."""
+    pr = analyse_point(point)
+    _clear_point(out, point.name)
+    _plot_point(run, pr, out, options)
+    return pr
+
+
 def make_report(directory: str | Path, *, points: list[int] | None = None,
-                options: ReportOptions = ReportOptions()) -> Report:
-    """Write ``DIR/plots/*.png`` and ``DIR/plots/index.html``; return what was written.
+                options: ReportOptions = ReportOptions(), workers: int = 1,
+                progress: Progress | None = None) -> Report:  # fmt: skip
+    """Write ``DIR/plots/*.png`` (and .pdf, .svg), ``report.pdf`` and ``index.html``; return what
+    was written.
 
     ``points`` restricts the plots to those operating point indices (all
-    complete points by default); ``options`` picks the figure kinds and whether Figure 4 is drawn
-    for every orbit frequency or the lowest and highest of each direction. Figures of a kind not
-    drawn are removed from DIR/plots (a page never shows a stale one). The points asked for and
-    not complete are named in `skipped` (orbitrig.store.selection). Raises RunDirError when
-    DIR is not a run, StorageError when DIR/plots cannot be written."""
+    complete points by default); ``options`` picks the figure kinds, the style and whether
+    Figure 4 is drawn for every orbit frequency or the lowest and highest of each direction.
+    Figures of a kind not drawn are removed from DIR/plots (a page never shows a stale one).
+    The points asked for and not complete are named in `skipped` (orbitrig.store.selection).
+    ``workers`` processes draw the points; ``progress(done, total, figures)`` is called as each
+    point finishes. Raises RunDirError when DIR is not a run, StorageError when DIR/plots
+    cannot be written."""
     from orbitrig.analysis.report_html import write_html
 
     run = read_run(directory)
@@ -292,13 +312,13 @@ def make_report(directory: str | Path, *, points: list[int] | None = None,
         out.mkdir(exist_ok=True)
     except OSError as err:
         raise storage_error(out, "create the folder", err) from err
+    plots.use_style(options.style)
     report = Report(run, out, [], skipped=selection.skipped, notes=selection.notes)
-    for point in selection.points:
-        pr = analyse_point(point)
-        _clear_point(out, point.name)
-        _plot_point(run, pr, out, options)
-        report.points.append(pr)
-    _remove(out / "summary.png")  # from an earlier report over other points
+    report.points = draw_points(selection.points, lambda point: _draw_point(run, point, out, options),
+                                workers=workers, progress=progress)  # fmt: skip
+    for fmt in plots.FigureFormat:  # from an earlier report over other points
+        _remove(out / f"summary.{fmt}")
     report.summary = summary_plot_for(report)
+    report.pdf = combine_pdf(report.plots, out / COMBINED_PDF)
     report.html = write_html(report, out / "index.html")
     return report

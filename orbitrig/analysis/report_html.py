@@ -199,6 +199,9 @@ def render(report) -> str:
     for name, text in (("rig configuration", run.rig_config), ("matrix configuration", run.matrix_config)):
         if text:
             head.append(f"<details><summary>{name}</summary><pre>{_e(text)}</pre></details>")
+    if report.pdf:
+        head.append(f'<p>Every figure in one file: <a href="{_e(report.pdf.name)}">{_e(report.pdf.name)}</a> '
+                    "(each figure's own vector files lie beside its PNG)</p>")
     if report.summary:
         head.append(_figure(report.summary, report.directory))
     body = [_point_section(run, pr, report.directory) for pr in report.points]

@@ -1,4 +1,6 @@
-"""`orbitrig sweep --dry-run`: the plan's totals first, then every step with its start time."""
+"""`sweep --dry-run`: the plan's totals, the predicted uncertainty of each model (and every
+planned fit it predicts undetermined), one line per operating point; `--steps` adds every
+step with its start time."""
 
 from __future__ import annotations
 
@@ -8,28 +10,57 @@ import sys
 import typer
 
 
-def print_plan(plan) -> None:
+def print_plan(plan, *, steps: bool = False) -> None:
     """Print `plan` (orbitrig.run.plan.Plan): a summary (points, orbit blocks, steps,
     estimated physical time, time per step kind), the predicted uncertainty of each model
-    (orbitrig.cli.dry_run_predict), then one line per step (durations in s)."""
+    (orbitrig.cli.dry_run_predict), one line per operating point, and with `steps` one line
+    per step (durations in s)."""
     try:
-        _print(plan.steps, plan.name, plan.rig, plan.matrix)
+        _print(plan, steps)
     except BrokenPipeError:  # `| head`: the reader has what it wanted
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
 
 
-def _print(steps, name: str, rig, mat) -> None:
+def _print(plan, steps: bool) -> None:
     from orbitrig.cli.dry_run_predict import prediction_lines
     from orbitrig.run.plan import format_duration, summarize
 
-    sm = summarize(steps)
-    typer.echo(f"matrix {name}: {sm.points} operating points, {sm.blocks} orbit blocks, "
-               f"{len(steps)} steps, estimated {format_duration(sm.duration)} (physical time)")  # fmt: skip
+    sm = summarize(plan.steps)
+    typer.echo(f"matrix {plan.name}: {sm.points} operating points, {sm.blocks} orbit blocks, "
+               f"{len(plan.steps)} steps, estimated {format_duration(sm.duration)} (physical time)")  # fmt: skip
     parts = ", ".join(f"{k} {format_duration(v)}" for k, v in sm.by_kind.items())
     typer.echo(f"by step: {parts}")
-    for line in prediction_lines(rig, mat):
+    for line in prediction_lines(plan.rig, plan.matrix):
         typer.echo(line)
     typer.echo("")
+    _print_points(plan)
+    if steps:
+        typer.echo("")
+        _print_steps(plan.steps)
+    else:
+        typer.echo(f"({len(plan.steps)} steps: --steps lists every one with its start time)")
+
+
+def _print_points(plan) -> None:
+    """One line per operating point: its start, duration, blocks and settings."""
+    from orbitrig.run.plan import format_duration
+
+    typer.echo(f"point  {'starts at':>9}  {'duration':>8}  blocks  settings  (times h:mm:ss)")
+    t = 0.0
+    for p in plan.points:
+        d = sum(s.duration for s in plan.point_steps(p.index))
+        typer.echo(f"{p.index:>5d}  {format_duration(t):>9}  {format_duration(d):>8}  "
+                   f"{len(p.blocks):>6}  {p.label}")  # fmt: skip
+        t += d
+    tail = sum(s.duration for s in plan.final_steps)
+    if plan.final_steps:
+        typer.echo(f"{'end':>5}  {format_duration(t):>9}  {format_duration(tail):>8}  {'':>6}  "
+                   + "; ".join(s.describe() for s in plan.final_steps))  # fmt: skip
+
+
+def _print_steps(steps) -> None:
+    from orbitrig.run.plan import format_duration
+
     width = len(str(len(steps)))
     typer.echo(f"{'#':>{width}}  {'starts at':>8}  {'where':10}  {'duration':>10}  step  (times h:mm:ss from the start)")
     t = 0.0

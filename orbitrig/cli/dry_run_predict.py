@@ -12,11 +12,14 @@ the planned orbits cannot identify it (reduction.identifiability.check_plan).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from orbitrig.config import RPM
+
+#: a predicted relative standard error above this (a fraction) leaves a coefficient undetermined
+UNDETERMINED = 1.0
 
 
 @dataclass(frozen=True)
@@ -31,6 +34,10 @@ class ModelPrediction:
     radius: float | None
     best: float | None
     refusal: str | None = None
+    #: coefficient -> (lowest, highest) predicted relative standard error over the (spin,
+    #: radius) where it exceeds UNDETERMINED, and at how many of them
+    undetermined: dict[str, tuple[float, float, int]] = field(default_factory=dict)
+    fits: int = 0  # planned (spin, radius) fits predicted
 
 
 def _directions(mat) -> str:
@@ -91,15 +98,19 @@ def predict_model(rig, mat, model: str, freq_dep: str, noise) -> ModelPrediction
     spec = model_spec(model, freq_dep)
     theta, _ = prior_theta(spec)
     n = block_revolutions(rig, mat)
-    rows = []
+    rows, over = [], {}
     for rpm in spins:
         for eps in sorted(set(mat.operating.dynamic_eccentricity)):
             radius = eps * rig.bearing.clearance
             p = predict(DesignProblem(spec, theta, rpm * RPM, radius, noise.u_revolution, n[0], directions), ratios, n)
             j = int(np.argmax(p.relative))
             rows.append((p.worst, spec.names[j], rpm, radius))
+            for name, rel in zip(spec.names, p.relative):
+                if rel > UNDETERMINED:
+                    lo, hi, count = over.get(name, (np.inf, 0.0, 0))
+                    over[name] = (min(lo, float(rel)), max(hi, float(rel)), count + 1)
     worst = max(rows)
-    return ModelPrediction(label, worst[0], worst[1], worst[2], worst[3], min(rows)[0])
+    return ModelPrediction(label, worst[0], worst[1], worst[2], worst[3], min(rows)[0], None, over, len(rows))
 
 
 def prediction_lines(rig, mat) -> list[str]:
@@ -125,4 +136,16 @@ def prediction_lines(rig, mat) -> list[str]:
         else:
             out.append(f"  {p.label}: worst relative standard error {p.worst * 100:.3g} % ({p.coefficient} at "
                        f"{p.spin_rpm:g} rpm, orbit radius {p.radius * 1e6:.3g} um); best point {p.best * 100:.3g} %")
+            out += undetermined_lines(p)
     return out
+
+
+def undetermined_lines(p: ModelPrediction) -> list[str]:
+    """'    UNDETERMINED: ...' naming each coefficient of a planned fit predicted above 100 %."""
+    if not p.undetermined:
+        return []
+    parts = [f"{name} {lo * 100:.3g}..{hi * 100:.3g} % ({n} of {p.fits})" if n > 1 else
+             f"{name} {lo * 100:.3g} % ({n} of {p.fits})" for name, (lo, hi, n) in p.undetermined.items()]
+    return [f"    UNDETERMINED: predicted relative standard error over {UNDETERMINED * 100:g} % (planned fits "
+            f"per spin and orbit radius): {', '.join(parts)}; more revolutions, a wider ratio range or "
+            "`orbitrig design` may help, else drop the model"]

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import typer
 
+from orbitrig.cli.plain_table import OutputFormat, PlainTable, render, wrap
+
 UNITS = {"K": "N/m", "C": "N s/m", "D": "kg"}
 
 
@@ -38,7 +40,8 @@ def register(app: typer.Typer) -> None:
                                      help="coefficients' dependence on the orbit speed Omega (rad/s): none | power:M (K = K0 + Omega^M KM, likewise C, D) | power:m,n,p (exponents of K, C, D) | power:auto (best M in 1..4) | poly:R (polynomial to Omega^R)"),
         method: str = typer.Option("ols", "--method", help="least squares: ols (ordinary) | wls (weighted) | tls (total) | iv (instrumental variables)"),
         solver: str = typer.Option("qr", "--solver", help="qr | svd | lu (least-squares solver)"),
-        as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
+        as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object (as --format json)."),
+        fmt: OutputFormat = typer.Option(OutputFormat.TEXT, "--format", help="text: plain tables, every number in full at any width; csv: the coefficient and force tables as CSV; json: the result object"),
     ) -> None:
         """Identify rotordynamic coefficients K, C, D from an orbit table."""
         import numpy as np
@@ -58,10 +61,10 @@ def register(app: typer.Typer) -> None:
         except (ArithmeticError, ValueError, np.linalg.LinAlgError) as err:  # the contract: exit 2, reason
             _fail(f"numerical failure of the {method} fit ({type(err).__name__}: {err}); "
                   "check the table's values and units")
-        if as_json:
+        if as_json or fmt == OutputFormat.JSON:
             _write_json(result)
         else:
-            _print_readable(result, table)
+            _print_readable(result, table, fmt)
             for note in result.notes:
                 sys.stderr.write(f"note: {note}\n")
             for warning in result.warnings:
@@ -86,24 +89,26 @@ def _fmt(v) -> str:
     return "-" if v is None or not math.isfinite(v) else f"{v:.4g}"
 
 
-def _print_readable(result, path: Path) -> None:
-    from rich.console import Console
-    from rich.table import Table
+def _print_readable(result, path: Path, fmt: OutputFormat) -> None:
+    """The fit's summary lines (text only) and its two tables, every number in full."""
+    if fmt == OutputFormat.TEXT:
+        fd = result.freq_dep + (f" (chosen M = {result.exponent})" if result.exponent is not None else "")
+        typer.echo(wrap(f"{path}: model {result.model}, freq-dep {fd}, method {result.method}, solver {result.solver}"))
+        typer.echo(wrap(f"{result.n_coefficients} coefficients from {result.n_frequencies} orbit frequencies "
+                   f"(minimum {result.min_frequencies}); condition number {result.condition_number:.4g}; "
+                   f"residual RMS {result.residual_rms:.4g} N; {result.dof} degrees of freedom"))
+        fit = f"AIC {_fmt(result.aic)}, BIC {_fmt(result.bic)}"
+        if result.chi2 is not None:
+            fit = f"chi2 {result.chi2:.4g} (p = {_fmt(result.p_value)}), " + fit
+        typer.echo(wrap(fit))
+        for m, reason in sorted(result.skipped.items()):
+            typer.echo(wrap(f"power:{m} skipped: {reason.splitlines()[0]}"))
+        typer.echo("")
+    typer.echo(render([_coefficient_table(result), _force_table(result)], fmt))
 
-    console = Console()
-    fd = result.freq_dep + (f" (chosen M = {result.exponent})" if result.exponent is not None else "")
-    console.print(f"[bold]{path}[/bold]: model {result.model}, freq-dep {fd}, method {result.method}, "
-                  f"solver {result.solver}")
-    console.print(f"{result.n_coefficients} coefficients from {result.n_frequencies} orbit frequencies "
-                  f"(minimum {result.min_frequencies}); condition number {result.condition_number:.4g}; "
-                  f"residual RMS {result.residual_rms:.4g} N; {result.dof} degrees of freedom")
-    fit = f"AIC {_fmt(result.aic)}, BIC {_fmt(result.bic)}"
-    if result.chi2 is not None:
-        fit = f"chi2 {result.chi2:.4g} (p = {_fmt(result.p_value)}), " + fit
-    console.print(fit)
-    for m, reason in sorted(result.skipped.items()):
-        console.print(f"power:{m} skipped: {reason.splitlines()[0]}")
-    t = Table(title="Coefficients (SI, Omega in rad/s)")
+
+def _coefficient_table(result) -> PlainTable:
+    t = PlainTable(title="Coefficients (SI, Omega in rad/s)")
     for col in ("coefficient", "value", "std error", "rel. std error", "95 % interval", "unit"):
         t.add_column(col, justify="left" if col in ("coefficient", "unit") else "right")
     for key, v in result.coefficients.items():
@@ -112,11 +117,14 @@ def _print_readable(result, path: Path) -> None:
         ci = result.confidence_95.get(key)
         interval = "-" if ci is None else f"[{ci[0]:.4g}, {ci[1]:.4g}]"
         t.add_row(key, f"{v:.5g}", _fmt(se), rel, interval, _unit(key))
-    console.print(t)
-    f = Table(title="Reproduced vs measured force (reproduced minus measured)")
+    return t
+
+
+def _force_table(result) -> PlainTable:
+    f = PlainTable(title="Reproduced vs measured force (reproduced minus measured)")
     for col in ("orbit Hz", "Fx amp %", "Fx phase deg", "Fy amp %", "Fy phase deg"):
         f.add_column(col, justify="right")
     for row in result.fit:
         f.add_row(f"{row['orbit_hz']:.4g}", _fmt(row["fx_amp_err_pct"]), _fmt(row["fx_phase_err_deg"]),
                   _fmt(row["fy_amp_err_pct"]), _fmt(row["fy_phase_err_deg"]))
-    console.print(f)
+    return f

@@ -14,6 +14,8 @@ from typing import Annotated, Optional
 
 import typer
 
+from orbitrig.cli.plain_table import OutputFormat, PlainTable
+
 
 def _fail(message: str, code: int = 2) -> None:
     typer.echo(f"error: {message}", err=True)
@@ -25,7 +27,8 @@ def reduce_cmd(
     model: Annotated[str, typer.Option("--model", help="kc7 (K, symmetric C) | kc8 (K, C) | kcd11 (K, C, symmetric D) | kcd12 (K, C, D)")],
     freq_dep: Annotated[str, typer.Option("--freq-dep", help="coefficients' dependence on the orbit speed Omega (rad/s): none | power:M (K = K0 + Omega^M KM, likewise C, D) | power:m,n,p (exponents of K, C, D) | power:auto (best M in 1..4) | poly:R (polynomial to Omega^R)")] = "none",
     method: Annotated[str, typer.Option("--method", help="least squares: ols (ordinary) | wls (weighted) | tls (total) | iv (instrumental variables)")] = "ols",
-    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the table.")] = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the table (as --format json).")] = False,
+    fmt: Annotated[OutputFormat, typer.Option("--format", help="text: a plain table, every number in full, split to the terminal's width; csv: the table as CSV; json: one object with every result")] = OutputFormat.TEXT,
 ) -> None:
     """Identify again from a run's stored phasors, without the rig.
 
@@ -34,8 +37,8 @@ def reduce_cmd(
     the run's own results are left untouched.
     """
     from orbitrig.errors import ReductionError
-    from orbitrig.analysis.reduce import csv_path, format_table, reduce_run, write_csv
     from orbitrig import open_run
+    from orbitrig.analysis.reduce import csv_path, reduce_run, table_cells, write_csv
     from orbitrig.store.errors import StorageError
     from orbitrig.store.reader import RunDirError
 
@@ -56,21 +59,38 @@ def reduce_cmd(
         path = write_csv(csv_path(directory, model, freq_dep, method), rows, run.sim)
     except StorageError as err:
         _fail(str(err), 1)
-    if as_json:
+    if as_json or fmt == OutputFormat.JSON:
         out = {"run": str(directory), "csv": str(path), "status": run.status,
                "results": [r.to_dict() for r in rows]}
         typer.echo(json.dumps(out))
+    elif fmt == OutputFormat.CSV:
+        typer.echo(_plain(table_cells(rows)).csv())
     else:
         typer.echo(f"{model} {freq_dep} ({method}) from the stored orbit tables of {directory} "
                    f"(run {run.status}, {len({r.point.index for r in rows})} complete point(s))")
-        typer.echo(format_table(rows))
+        typer.echo(_plain(table_cells(rows)).text())
         typer.echo(f"written: {path}")
+
+
+def _plain(cells: list[list[str]]) -> PlainTable:
+    """The reduce table: point and lms as keys (left), numbers right."""
+    table = PlainTable(key_columns=2)
+    for i, name in enumerate(cells[0]):
+        table.add_column(name, justify="left" if i < 2 else "right")
+    for row in cells[1:]:
+        table.add_row(*row)
+    return table
+
 
 def report_cmd(
     directory: Annotated[Path, typer.Argument(metavar="DIR", help="Run directory written by `orbitrig sweep --out DIR`.")],
     point: Annotated[Optional[list[int]], typer.Option("--point", metavar="N", help="Only this operating point index (repeatable).")] = None,
     all_frequencies: Annotated[bool, typer.Option("--all-frequencies", help="Force-signal figure (paper Fig. 4) for every orbit frequency, not only the lowest and highest of each whirl direction.")] = False,
     figures: Annotated[Optional[str], typer.Option("--figures", metavar="KINDS", help="Only these figure kinds, comma-separated: forces, coefficients, derived, impedance, coherence, lms, signals, orbits (default: all). The page's tables are always complete.")] = None,
+    width: Annotated[str, typer.Option("--width", help="Figure width: double (a journal's double column, 7.2 in), single (3.5 in) or inches.")] = "double",
+    formats: Annotated[str, typer.Option("--formats", metavar="LIST", help="Files of each figure, comma-separated: png (300 dpi, for the page), pdf (vector; also joined into report.pdf), svg.")] = "png,pdf,svg",
+    coverage: Annotated[float, typer.Option("--coverage", min=0.5, max=5.0, help="Coverage factor k of every band and error bar: +-k u (2: the expanded uncertainty U; 1: one standard uncertainty).")] = 2.0,
+    workers: Annotated[int, typer.Option("--workers", min=1, help="Processes drawing the points in parallel.")] = 2,
 ) -> None:
     """Plots and an HTML page of a stored run, in DIR/plots.
 
@@ -79,19 +99,24 @@ def report_cmd(
     forward/backward dynamic stiffness), identified vs true impedance (simulator runs),
     coherence table, the two load measuring systems, force signals (paper Fig. 4) and
     the measured x-y orbits; DIR/plots/index.html shows them with the coefficients'
-    intervals and uncertainties. Fit warnings and refusals go to standard error.
+    intervals and uncertainties; DIR/plots/report.pdf has every figure in one file.
+    Fit warnings and refusals go to standard error, with a progress bar on a terminal.
     """
     from orbitrig.analysis.report import FIGURES, ReportOptions, make_report
+    from orbitrig.cli.report_progress import ReportProgress
     from orbitrig.store.errors import StorageError
-    from orbitrig.store.reader import RunDirError
+    from orbitrig.store.reader import RunDirError, read_run
 
     kinds = FIGURES if figures is None else tuple(k.strip() for k in figures.split(",") if k.strip())
     unknown = [k for k in kinds if k not in FIGURES]
     if unknown:
         _fail(f"--figures: unknown kind(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")
     try:
-        options = ReportOptions(figures=frozenset(kinds), all_frequencies=all_frequencies)
-        report = make_report(directory, points=point, options=options)
+        options = ReportOptions(figures=frozenset(kinds), all_frequencies=all_frequencies,
+                                style=_style(width, formats, coverage))  # fmt: skip
+        total = len(point) if point else len(read_run(directory).complete_points)
+        with ReportProgress(total) as progress:
+            report = make_report(directory, points=point, options=options, workers=workers, progress=progress)
     except (RunDirError, ValueError) as err:
         _fail(str(err))
     except StorageError as err:
@@ -108,6 +133,8 @@ def report_cmd(
         for line in pr.fit_warnings():
             typer.echo(f"point {pr.point.name} {line}", err=True)
     typer.echo(f"{len(report.plots)} plot(s) in {report.directory}")
+    if report.pdf:
+        typer.echo(f"all figures in one file: {report.pdf}")
     typer.echo(f"open {report.html}")
     for line in report.notes:
         typer.echo(line, err=True)
@@ -115,6 +142,23 @@ def report_cmd(
         typer.echo(f"error: {line}", err=True)
     if report.skipped:
         raise typer.Exit(1)
+
+
+def _style(width: str, formats: str, coverage: float):
+    """The FigureStyle of --width, --formats and --coverage (exit 2 naming a bad value)."""
+    from orbitrig.analysis.plots import COLUMN_WIDTHS, FigureFormat, FigureStyle
+
+    try:
+        inches = COLUMN_WIDTHS[width] if width in COLUMN_WIDTHS else float(width)
+    except ValueError:
+        _fail(f"--width {width!r}: single, double or a width in inches")
+    if not 2.0 <= inches <= 20.0:
+        _fail(f"--width {width}: {inches:g} in is outside 2..20 in")
+    names = [f.strip().lower() for f in formats.split(",") if f.strip()]
+    bad = [f for f in names if f not in set(FigureFormat)]
+    if bad or FigureFormat.PNG not in names:
+        _fail(f"--formats {formats!r}: png (needed by the page) and any of pdf, svg")
+    return FigureStyle(width=inches, formats=tuple(FigureFormat(f) for f in dict.fromkeys(names)), coverage=coverage)
 
 
 def register(app: typer.Typer) -> None:

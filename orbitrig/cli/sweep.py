@@ -11,6 +11,8 @@ from typing import Optional
 
 import typer
 
+from orbitrig.cli.plain_table import OutputFormat
+
 DEFAULT_SPEEDUP = 40.0  # as orbitrig.cli.simulated_rig.DEFAULT_SPEEDUP (imported only with --sim)
 EXIT = {"completed": 0, "failed": 1, "stopped": 3, "aborted": 4}
 
@@ -28,7 +30,9 @@ def register(app: typer.Typer) -> None:
                  "required on the rig, --sim defaults to matrices/demo.toml",
         ),
         resume: bool = typer.Option(False, "--resume", help="continue the run in --out from its first incomplete point"),
-        dry_run: bool = typer.Option(False, "--dry-run", help="print the plan's totals, then every step with its estimated duration (s); touches no hardware"),
+        dry_run: bool = typer.Option(False, "--dry-run", help="print the plan's totals, the predicted uncertainty of each model and one line per operating point; touches no hardware"),
+        steps: bool = typer.Option(False, "--steps", help="with --dry-run: also every step with its start time and estimated duration (s)"),
+        fmt: OutputFormat = typer.Option(OutputFormat.TEXT, "--format", help="the closing table of coefficients: text (plain, every number in full, split to the terminal's width), csv or json"),
         speedup: float = typer.Option(
             DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"
         ),
@@ -47,10 +51,12 @@ def register(app: typer.Typer) -> None:
 
         Exit 0 completed, 1 failed, 2 bad configuration or usage, 3 stopped, 4 aborted.
         """
-        _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, sim_config, operator)
+        _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, sim_config, operator,
+                       steps=steps, fmt=fmt)
 
 
-def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, sim_config, operator=None) -> None:
+def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, sim_config, operator=None, *,
+                   steps=False, fmt=None) -> None:  # fmt: skip
     """`orbitrig sweep`, its options checked; raises typer.Exit with the run's exit status."""
     from orbitrig.errors import ConfigError, OrbitrigError
 
@@ -64,7 +70,7 @@ def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, 
         if dry_run:
             from orbitrig.cli.dry_run import print_plan
 
-            print_plan(plan)
+            print_plan(plan, steps=steps)
             return
         if out is None:
             raise typer.BadParameter("--out DIR is required (except with --dry-run)", param_hint="--out")
@@ -76,7 +82,7 @@ def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, 
 
         scenario = _scenario(sim_config, resume=resume, out=out) if sim else None
         outcome = asyncio.run(_sweep(plan, out=out, sim=scenario, resume=resume, speedup=speedup,
-                                     operator=operator or _login()))  # fmt: skip
+                                     operator=operator or _login(), fmt=fmt))  # fmt: skip
     except ConfigError as err:
         typer.echo(f"error: {err}", err=True)
         raise typer.Exit(2) from None
@@ -215,7 +221,7 @@ def _login() -> str:
     return getpass.getuser()
 
 
-async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator: str = ""):
+async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator: str = "", fmt=None):
     """Run the plan; ``sim`` the simulator's (SimConfig, Scenario) (None: the real rig)."""
     import contextlib
 
@@ -250,7 +256,7 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator
     console.print(f"run {outcome.status}: {outcome.message}  ({len(outcome.completed_points)} of "
                   f"{outcome.points} points complete in {out})", markup=False)  # fmt: skip
     if outcome.completed_points:
-        print_coefficients(out)
+        print_coefficients(out, fmt or OutputFormat.TEXT)
     return outcome
 
 

@@ -16,9 +16,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from rich.console import Console
-from rich.table import Table
 
+from orbitrig.cli.plain_table import OutputFormat, PlainTable, Transcript
 from orbitrig.run.point_report import judgement_lines
 from orbitrig.store.csvfile import coef_order, fit_truth
 from orbitrig.store.reader import Point, freq_dep_key, read_run
@@ -93,12 +92,12 @@ def _summary_cells(p: Point) -> list[str]:
             f"{max(worst):.2g}" if worst else "-", str(nd), f"{warnings} / {refused}"]  # fmt: skip
 
 
-def _print_summary(console: Console, complete: list[Point], out: Path) -> None:
+def _print_summary(console: Transcript, complete: list[Point], out: Path) -> None:
     """One row per operating point: the main stiffness and damping entries of the first fit
     (piezo), in --sim mode the worst K and C error of every fit, the adequacy verdicts, the
     worst LMS |E_n| and the counts of warnings and refused models."""
-    table = Table(title=f"{len(complete)} operating points (full tables: coefficients.csv, "
-                        f"orbitrig report {out})", title_justify="left")  # fmt: skip
+    table = PlainTable(title=f"{len(complete)} operating points (full tables: coefficients.csv, "
+                             f"orbitrig report {out})")  # fmt: skip
     for col in ("point", "label", "Kxx MN/m", "Kyy MN/m", "Cxx kN s/m", "Cyy kN s/m", "worst K / C error",
                 "|dZ|/|Z|", "freq. dep.", "LMS |E_n|", "n.d.", "warn / refused"):  # fmt: skip
         table.add_column(col, justify="left" if col in ("point", "label") else "right")
@@ -139,13 +138,13 @@ def _cell(d: dict, c: str, err: float | None) -> str:
     return cell + (" n.d." if c in (d.get("not_determined") or []) else "")
 
 
-def _point_table(p: Point) -> tuple[Table, list[str]]:
+def _point_table(p: Point) -> tuple[PlainTable, list[str]]:
     """Each coefficient's row (identified ± U (error against the fit's truth)) followed, in
     --sim runs, by a 'true' row (each fit's own truth) beside the constant best fit."""
     fits = _fits(p)
     truth = p.truth
     names = sorted({k for d in fits.values() for k in d["coefficients"] if "_" not in k}, key=coef_order)
-    table = Table(title=f"point {p.name}  {p.settings.label}", title_justify="left")
+    table = PlainTable(title=f"point {p.name}  {p.settings.label}")
     table.add_column("coef")
     if truth:
         table.add_column("const. fit", justify="right")
@@ -165,14 +164,20 @@ def _point_table(p: Point) -> tuple[Table, list[str]]:
     return table, names
 
 
-def print_coefficients(out: Path) -> None:
+def print_coefficients(out: Path, fmt: OutputFormat = OutputFormat.TEXT) -> None:
     """Identified constant-term coefficients of every complete point with their expanded
-    uncertainty (beside the true ones in --sim mode), then refusals, warnings and verdicts."""
-    console = Console()
+    uncertainty (beside the true ones in --sim mode), then refusals, warnings and verdicts;
+    plain tables (every cell in full, split to the terminal's width), CSV or JSON (`fmt`)."""
+    console = Transcript()
     complete = read_run(out).complete_points
     if len(complete) > DETAIL_POINTS:
         _print_summary(console, complete, out)
-        return
+    else:
+        _print_points(console, complete)
+    console.write(fmt)
+
+
+def _print_points(console: Transcript, complete: list[Point]) -> None:
     for p in complete:
         table, names = _point_table(p)
         console.print(table)
@@ -188,7 +193,7 @@ def print_coefficients(out: Path) -> None:
             console.print(f"point {p.name}: {line}", markup=False)
 
 
-def _truth_notes(console: Console, truth: dict) -> None:
+def _truth_notes(console: Transcript, truth: dict) -> None:
     console.print(TRUE_NOTE, markup=False)
     if "Z_re" in truth:
         console.print(Z_NOTE, markup=False)

@@ -52,7 +52,7 @@ def test_dry_run_lists_steps_and_touches_no_hardware():
         "import sys\n"
         "from typer.testing import CliRunner\n"
         "from orbitrig.cli import app\n"
-        "r = CliRunner().invoke(app, ['sweep', '--sim', '--dry-run'])\n"
+        "r = CliRunner().invoke(app, ['sweep', '--sim', '--dry-run', '--steps'])\n"
         "print(r.output)\n"
         "bad = [m for m in sys.modules if m.split('.')[0] in ('sim', 'daq', 'drives', 'can', 'pymodbus', 'h5py')]\n"
         "print('LOADED', bad)\n"

@@ -41,6 +41,8 @@ def test_help_shows_flags_without_a_value_type(command):
 
 
 def test_sweep_matrix_by_name_prints_totals_first():
+    """The paper's matrix: totals, predictions (naming the undetermined fits), one line per point;
+    --steps adds every step."""
     p = orbitrig("sweep", "--sim", "--dry-run", "--matrix", "paper")
     assert p.returncode == 0, p.stderr
     lines = p.stdout.splitlines()
@@ -48,11 +50,16 @@ def test_sweep_matrix_by_name_prints_totals_first():
                      r"\(physical time\)", lines[0])  # fmt: skip
     assert m, lines[0]
     assert lines[1].startswith("by step: manual settings ")
-    steps = [line for line in lines if re.match(r"\s*\d+\s+\d+:\d\d", line)]
-    assert len(steps) == int(m.group(1))
-    assert lines[2].startswith("predicted uncertainty") and lines[9] == ""  # then 6 models' predictions
-    assert lines.index(steps[0]) == 11  # totals, by step, predictions, blank, header, then the steps
-    assert steps[-1].split()[0] == m.group(1)
+    assert lines[2].startswith("predicted uncertainty")
+    undetermined = [ln for ln in lines if ln.startswith("    UNDETERMINED")]
+    assert len(undetermined) == 3  # kcd11 none, power:1 and power:2: D over 100 %; kc7 fits are not named
+    assert re.search(r"Dyy \d+\.\.929 %", undetermined[0]) and "Dyy 2.48e+03..3.72e+04 %" in undetermined[1]
+    points = [ln for ln in lines if re.fullmatch(r"\s*\d+\s+\d+:\d\d(:\d\d)?\s+\d+:\d\d\s+20\s+w\d+rpm\S+", ln)]
+    assert [int(ln.split()[0]) for ln in points] == list(range(108))
+    assert len(lines) < 150 and f"({m.group(1)} steps: --steps lists every one" in lines[-1]
+    full = orbitrig("sweep", "--sim", "--dry-run", "--matrix", "paper", "--steps").stdout.splitlines()
+    steps = [line for line in full if re.match(r"\s*\d+\s+\d+:\d\d(:\d\d)?\s+(point|end)", line)]
+    assert len(steps) == int(m.group(1)) and steps[-1].split()[0] == m.group(1)
 
 
 def test_sweep_matrix_name_and_file_give_the_same_plan():

@@ -73,7 +73,7 @@ def test_unknown_design_lists_the_known_ones_and_names_the_line(tmp_path):
 
 
 def test_dry_run_of_the_designed_matrix():
-    p = subprocess.run([sys.executable, "-m", "orbitrig", "sweep", "--dry-run", "--matrix", "designed"], cwd=ROOT,
+    p = subprocess.run([sys.executable, "-m", "orbitrig", "sweep", "--dry-run", "--steps", "--matrix", "designed"], cwd=ROOT,
                        capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
     out = p.stdout

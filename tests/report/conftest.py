@@ -13,9 +13,9 @@ def synthetic_run(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def synthetic_report(synthetic_run):
-    """`orbitrig report DIR --point 1` on the synthetic run (plots take ~0.5 s each)."""
+    """`orbitrig report DIR --point 1 --formats png` on the synthetic run (PDF and SVG: test_report_journal)."""
     from typer.testing import CliRunner
 
     from orbitrig.cli import app
 
-    return CliRunner().invoke(app, ["report", str(synthetic_run), "--point", "1"])
+    return CliRunner().invoke(app, ["report", str(synthetic_run), "--point", "1", "--formats", "png"])

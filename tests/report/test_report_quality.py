@@ -107,7 +107,7 @@ def test_derived_quantities_drawn_and_near_the_hand_values(point_report):
     ceff_xx, _, wfr = fig.axes[:3]
     np.testing.assert_allclose(ceff_xx.get_lines()[0].get_ydata(), d.c_eff_xx * 1e-3)
     np.testing.assert_allclose(ceff_xx.get_lines()[0].get_xdata(), d.orbit / t.spin)
-    hz = float(re.search(r"zero at ([\d.]+) \u00b1", ceff_xx.get_title()).group(1))
+    hz = float(re.search(r"zero ([\d.]+) \u00b1", ceff_xx.get_title()).group(1))
     assert hz == pytest.approx(w0_xx / (2 * np.pi), rel=0.02)
     wfr_true = (K_TRUE[0, 1] - K_TRUE[1, 0]) / (t.spin * (C_TRUE[0, 0] + C_TRUE[1, 1]))
     assert wfr.get_lines()[0].get_ydata() == pytest.approx(wfr_true, rel=0.02)
@@ -206,9 +206,10 @@ def test_lms_consistency_table_shows_the_normalised_difference(point_report):
     assert f"<td>{100 * (kb - ka) / abs(ka):+.2f}</td>" in html
 
 
-def test_figure_5_error_bars_from_the_phasor_uncertainty(point_report, monkeypatch):
-    """With u_* in the table the measured forces carry +-2 standard uncertainties: amplitude
-    2 u / sqrt(2), phase 2 u / (sqrt(2) |F|) (an isotropic complex error); without, none."""
+def test_figure_5_error_bars_from_the_phasor_uncertainty(point_report):
+    """With u_* in the table the measured amplitudes carry the expanded uncertainty U = 2 u
+    (radial part U / sqrt(2) of an isotropic complex error) and the residual panels show U per
+    frequency; without u_*, neither."""
     from matplotlib.container import ErrorbarContainer
 
     from orbitrig.analysis import plots
@@ -218,21 +219,18 @@ def test_figure_5_error_bars_from_the_phasor_uncertainty(point_report, monkeypat
     t = OrbitTable(stored.spin, stored.orbit, stored.x, stored.y, stored.fx, stored.fy, gamma2=stored.gamma2)
     u = np.column_stack([np.full(t.orbit.size, 1e-8)] * 2 + [0.01 * np.abs(t.fx), 0.02 * np.abs(t.fy)])
     with_u = OrbitTable(t.spin, t.orbit, t.x, t.y, t.fx, t.fy, gamma2=t.gamma2, n_records=np.full(t.orbit.size, 8), u=u)
-    figs = []
-    monkeypatch.setattr(plots, "_save", lambda fig, path: figs.append(fig) or path)
     fitted = [Fitted("kc7", point_report.results["piezo"][0].identification)]
-    plots.forces_plot("unused.png", t, fitted, title="t")
-    plots.forces_plot("unused.png", with_u, fitted, title="t")
+    figs = [plots.forces_figure(t, fitted, title="t"), plots.forces_figure(with_u, fitted, title="t")]
     assert not any(isinstance(c, ErrorbarContainer) for ax in figs[0].axes for c in ax.containers)
-    amp_fy, phase_fy = figs[1].axes[1], figs[1].axes[3]
-    half = []
-    for ax in (amp_fy, phase_fy):
-        bars = [c for c in ax.containers if isinstance(c, ErrorbarContainer)]
-        assert len(bars) == 2  # forward and backward
-        half.append(np.concatenate([[abs(s[1][1] - s[0][1]) / 2 for s in c.lines[2][0].get_segments()] for c in bars]))
-    # u_fy = 0.02 |Fy|: amplitude bars 2 * 0.02 |Fy| / sqrt(2), phase bars 2 * 0.02 / sqrt(2) rad
-    assert np.sort(half[0]) == pytest.approx(np.sort(2 * 0.02 * np.abs(t.fy) / np.sqrt(2)))
-    assert half[1] == pytest.approx(np.degrees(2 * 0.02 / np.sqrt(2)))
+    assert not any(ln.get_gid() == "measured-uncertainty" for ax in figs[0].axes for ln in ax.get_lines())
+    amp_fy, residual_fy = figs[1].axes[1], figs[1].axes[3]
+    bars = [c for c in amp_fy.containers if isinstance(c, ErrorbarContainer)]
+    assert len(bars) == 2  # forward and backward
+    half = np.concatenate([[abs(s[1][1] - s[0][1]) / 2 for s in c.lines[2][0].get_segments()] for c in bars])
+    # u_fy = 0.02 |Fy|: amplitude bars 2 * 0.02 |Fy| / sqrt(2); residual panel: U = 2 * 0.02 |Fy|
+    assert np.sort(half) == pytest.approx(np.sort(2 * 0.02 * np.abs(t.fy) / np.sqrt(2)))
+    shown = np.concatenate([ln.get_ydata() for ln in residual_fy.get_lines() if ln.get_gid() == "measured-uncertainty"])
+    assert np.sort(shown) == pytest.approx(np.sort(2 * 0.02 * np.abs(t.fy)))
 
 
 def test_identification_table_shows_the_fits_own_truth_and_not_determined(point_report):

@@ -143,7 +143,8 @@ def test_cli_reduce_partial_refusal_keeps_the_other_points(synthetic_run, tmp_pa
 def test_cli_reduce_power_auto_shows_the_chosen_exponent(synthetic_run):
     result = CliRunner().invoke(app, ["reduce", str(synthetic_run), "--model", "kc7", "--freq-dep", "power:auto"])
     assert result.exit_code == 0, result.output
-    header, *rows = result.stdout.splitlines()[1:-1]
+    blocks = "\n".join(result.stdout.splitlines()[1:-1]).split("\n\n")  # a wide table: column blocks
+    header, *rows = blocks[-1].splitlines()  # the last block ends with M, after the key columns
     assert header.split()[-1] == "M"
     data = [r.split() for r in rows if r.split()[1] in ("piezo", "strain")]
     assert len(data) == 4 and all(r[-1] in {"1", "2", "3", "4"} for r in data)

@@ -86,7 +86,7 @@ def test_reduce_is_within_5_percent_of_the_simulator(sweep_run):
 
 
 def test_report_on_the_sweep(sweep_run):
-    p = orbitrig("report", str(sweep_run))
+    p = orbitrig("report", str(sweep_run), "--formats", "png", timeout=300)  # PDF and SVG: test_report_journal
     assert p.returncode == 0, p.stderr
     assert "warning" not in p.stderr  # every stored identification repeated to the same numbers
     plots = sweep_run / "plots"

@@ -1,0 +1,71 @@
+"""Drawing a report's points in parallel, and the combined PDF of the whole report.
+
+:func:`draw_points` hands each operating point to a pool of worker processes (forked, so each
+worker starts with the run already read and the figure style set) and reports progress as
+points finish; one worker, one point or a platform without fork draws in this process.
+:func:`combine_pdf` joins every figure's PDF, point by point, into ``report.pdf``.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+from typing import Any
+
+#: (points done, points in all, figures written so far) after each point
+Progress = Callable[[int, int, int], None]
+COMBINED_PDF = "report.pdf"
+
+_JOB: dict[str, Any] = {}  # what a forked worker draws: {"points": [...], "draw": callable}
+
+
+def _draw(k: int):
+    return _JOB["draw"](_JOB["points"][k])
+
+
+def draw_points(points: list, draw: Callable, *, workers: int = 1, progress: Progress | None = None) -> list:
+    """``draw(point)`` (returning a PointReport) for every point, with up to `workers` processes;
+    results in the order of `points`."""
+    done, figures, results = 0, 0, [None] * len(points)
+    serial = workers <= 1 or len(points) < 2 or "fork" not in multiprocessing.get_all_start_methods()
+    if serial:
+        for k, point in enumerate(points):
+            results[k] = draw(point)
+            done, figures = done + 1, figures + len(results[k].plots)
+            if progress:
+                progress(done, len(points), figures)
+        return results
+    _JOB.update(points=points, draw=draw)
+    try:
+        with ProcessPoolExecutor(min(workers, len(points)), mp_context=multiprocessing.get_context("fork")) as pool:
+            futures = {pool.submit(_draw, k): k for k in range(len(points))}
+            for future in as_completed(futures):
+                k = futures[future]
+                results[k] = future.result()
+                done, figures = done + 1, figures + len(results[k].plots)
+                if progress:
+                    progress(done, len(points), figures)
+    finally:
+        _JOB.clear()
+    return results
+
+
+def combine_pdf(pngs: list[Path], path: Path) -> Path | None:
+    """One PDF of the figures `pngs` (their .pdf beside each), in order, at `path`; None when
+    no figure was written as PDF."""
+    from pypdf import PdfWriter
+
+    pdfs = [p.with_suffix(".pdf") for p in map(Path, pngs) if p.with_suffix(".pdf").exists()]
+    path.unlink(missing_ok=True)
+    if not pdfs:
+        return None
+    writer = PdfWriter()
+    for pdf in pdfs:
+        writer.append(str(pdf), outline_item=pdf.stem)
+    tmp = path.with_suffix(".pdf.tmp")
+    with open(tmp, "wb") as f:
+        writer.write(f)
+    tmp.replace(path)
+    return path

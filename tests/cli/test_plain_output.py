@@ -1,0 +1,122 @@
+"""Terminal output that loses nothing: `identify`, `reduce` and the sweep's closing table at
+80 columns and piped (no cell cut, no line wider than the terminal unless one cell is), and
+the same content as CSV and JSON (`--format`)."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from orbitrig.cli.plain_table import OutputFormat, PlainTable
+
+ROOT = Path(__file__).resolve().parents[2]
+TABLE = ROOT / "examples" / "orbit-tables" / "kcd11-constant.csv"
+sys.path.insert(0, str(ROOT / "tests" / "report"))
+
+
+def run(*args: str, columns: str | None) -> subprocess.CompletedProcess:
+    """`orbitrig ARGS` piped (not a terminal), with COLUMNS set or unset."""
+    env = {k: v for k, v in os.environ.items() if k != "COLUMNS"}
+    if columns is not None:
+        env["COLUMNS"] = columns
+    return subprocess.run([sys.executable, "-m", "orbitrig", *args], cwd=ROOT, env=env, capture_output=True,
+                          text=True, timeout=120, stdin=subprocess.DEVNULL)  # fmt: skip
+
+
+def test_a_table_wider_than_the_terminal_is_split_never_cut():
+    t = PlainTable(title="t")
+    t.add_column("key")
+    for i in range(6):
+        t.add_column(f"column {i}", justify="right")
+    t.add_row("a", *(f"{-9.0571234e6 * (i + 1):.6e}" for i in range(6)))
+    text = t.text(40)
+    assert "..." not in text and "\u2026" not in text
+    assert all(len(line) <= 40 for line in text.splitlines())
+    for i in range(6):
+        assert f"{-9.0571234e6 * (i + 1):.6e}" in text
+    assert text.count("\nkey") == 3  # two columns per block, the key column heading each
+    assert list(csv.reader(io.StringIO(t.csv())))[1][1] == f"{-9.0571234e6:.6e}"
+    t.add_row("b", "x" * 100)  # one cell wider than the terminal: written whole, never cut
+    assert "x" * 100 in t.text(40)
+
+
+@pytest.mark.parametrize("columns", ["80", None])
+def test_identify_at_80_columns_and_piped_keeps_every_number(columns):
+    res = run("identify", str(TABLE), "--model", "kcd11", columns=columns)
+    assert res.returncode == 0, res.stderr
+    text = res.stdout
+    assert "..." not in text and "\u2026" not in text
+    assert max(len(line) for line in text.splitlines()) <= 80  # piped: 80 columns too
+    result = json.loads(run("identify", str(TABLE), "--model", "kcd11", "--json", columns=columns).stdout)
+    for key, value in result["coefficients"].items():
+        assert re.search(rf"^{key}\s+{re.escape(f'{value:.5g}')}\s", text, flags=re.M), key
+        lo, hi = result["confidence_95"][key]
+        assert f"[{lo:.4g}, {hi:.4g}]" in text
+
+
+def test_identify_formats_csv_and_json():
+    as_csv = run("identify", str(TABLE), "--model", "kc8", "--format", "csv", columns="80")
+    assert as_csv.returncode == 0, as_csv.stderr
+    blocks = as_csv.stdout.split("\n\n")
+    assert blocks[0].startswith("# Coefficients") and blocks[1].startswith("# Reproduced vs measured")
+    rows = list(csv.DictReader(io.StringIO(blocks[0].split("\n", 1)[1])))
+    as_json = run("identify", str(TABLE), "--model", "kc8", "--format", "json", columns="80")
+    result = json.loads(as_json.stdout)
+    assert [r["coefficient"] for r in rows] == list(result["coefficients"])
+    assert all(float(r["value"]) == pytest.approx(result["coefficients"][r["coefficient"]], rel=1e-4) for r in rows)
+    assert as_json.stdout == run("identify", str(TABLE), "--model", "kc8", "--json", columns="80").stdout
+
+
+def _cells(text: str) -> set[str]:
+    """The table cells shown that hold a number (runs of text between wide gaps; note sentences,
+    which are folded at 80 columns, left out)."""
+    return {w for w in re.split(r"\s{2,}|\n", text) if re.search(r"\d", w) and len(w) < 40}
+
+
+@pytest.mark.parametrize("n_points", [2, 6])  # full tables per point; one summary row per point
+def test_closing_table_at_80_columns_shows_what_a_wide_terminal_shows(tmp_path, capsys, monkeypatch, n_points):
+    from report_synthetic import write_synthetic_run
+
+    from orbitrig.cli.sweep_summary import print_coefficients
+
+    run_dir = write_synthetic_run(tmp_path / "run", n_points=n_points, incomplete=0)
+    monkeypatch.setenv("COLUMNS", "400")
+    print_coefficients(run_dir)
+    wide = capsys.readouterr().out
+    monkeypatch.setenv("COLUMNS", "80")
+    print_coefficients(run_dir)
+    narrow = capsys.readouterr().out
+    assert max(len(line) for line in narrow.splitlines()) <= 80
+    table_cells = _cells("\n".join(ln for ln in wide.splitlines() if not ln.startswith(("point 0", "K / C", "|dZ|"))))
+    assert table_cells and table_cells <= _cells(narrow)
+    print_coefficients(run_dir, OutputFormat.JSON)
+    data = json.loads(capsys.readouterr().out)
+    if n_points == 6:
+        assert [r["point"] for r in data["tables"][0]["rows"]] == [f"{i:04d}" for i in range(6)]
+    else:
+        assert [t["title"].split()[1] for t in data["tables"]] == ["0000", "0001"]
+        assert {r["coef"] for r in data["tables"][0]["rows"]} >= {"Kxx", "Cyy", "Dxy"}
+    assert any("expanded uncertainty" in n or "worst normalised" in n for n in data["notes"])
+
+
+def test_reduce_formats(tmp_path):
+    from report_synthetic import write_synthetic_run
+
+    run_dir = write_synthetic_run(tmp_path / "run", n_points=1, incomplete=0)
+    text = run("reduce", str(run_dir), "--model", "kcd11", columns="80")
+    assert text.returncode == 0, text.stderr
+    assert max(len(line) for line in text.stdout.splitlines() if not line.startswith(("kcd11", "written"))) <= 80
+    rows = list(csv.DictReader(io.StringIO(run("reduce", str(run_dir), "--model", "kcd11", "--format", "csv",
+                                               columns="80").stdout)))  # fmt: skip
+    assert [(r["point"], r["lms"]) for r in rows] == [("0000", "piezo"), ("0000", "strain"), ("0000", "true")]
+    for r in rows:
+        for key in ("Kxx [MN/m]", "Dyy [kg]"):
+            assert re.search(rf"\s{re.escape(r[key])}(\s|$)", text.stdout)
