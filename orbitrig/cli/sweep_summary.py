@@ -18,8 +18,10 @@ from rich.console import Console
 from rich.table import Table
 
 from orbitrig.run.point_report import judgement_lines
+from orbitrig.run.warning_groups import FitWarnings, warning_lines
 from orbitrig.store.csvfile import coef_order
 from orbitrig.store.reader import Point, freq_dep_key, read_run
+from reduction.statistics import CHI2_ALPHA
 
 #: above this many complete points the final table is one summary row per point
 DETAIL_POINTS = 4
@@ -28,6 +30,15 @@ TRUE_NOTE = ("true = the constant K, C, D best fitting the simulator's true Z(Om
              "orbit speeds; (%) = |identified - true| / largest true entry of the matrix")  # fmt: skip
 Z_NOTE = ("|dZ|/|Z| = worst over the orbit frequencies of |Z_identified - Z_true| / |Z_true| "
           "(Frobenius norms; Z_true the simulator's impedance)")  # fmt: skip
+
+REJECTED_NOTE = (f"* the fit's chi2 adequacy test rejects it (p < {CHI2_ALPHA:g}): the residuals exceed "
+                 "the stated uncertainties")  # fmt: skip
+
+
+def rejected(d: dict) -> bool:
+    """Does the chi2 adequacy test reject this stored fit (p below CHI2_ALPHA)?"""
+    p = d.get("p_value")
+    return isinstance(p, (int, float)) and p < CHI2_ALPHA
 
 
 def compare_with_truth(coefficients: dict, truth: dict) -> dict[str, float]:
@@ -123,8 +134,16 @@ def _print_summary(console: Console, complete: list[Point], out: Path) -> None:
     console.print("freq. dep. = frequency dependence supported by the data (per frequency-dependent fit); "
                   "LMS |E_n| = worst normalised piezo - strain difference (<= 2: consistent)", markup=False)
     for p in complete:
-        for line in judgement_lines(_judged(p), verdicts=False, brief=True):
+        for line in judgement_lines(_judged(p), verdicts=False, brief=True, warnings=False):
             console.print(f"point {p.name}: {line}", markup=False)
+    for line in warning_lines(fit_warnings(complete)):  # each warning once per fit family; all in run.log
+        console.print(f"warning: {line}", markup=False)
+
+
+def fit_warnings(points: list[Point]) -> list[FitWarnings]:
+    """The warnings of every fit that gave coefficients, for orbitrig.run.warning_groups."""
+    return [FitWarnings(int(p.name), i.lms, f"{i.model} {i.freq_dep} {i.method}", tuple(i.result.get("warnings") or []))
+            for p in points for i in p.identifications if i.ok]  # fmt: skip
 
 
 def _point_table(p: Point) -> tuple[Table, list[str]]:
@@ -135,8 +154,8 @@ def _point_table(p: Point) -> tuple[Table, list[str]]:
     table.add_column("coef")
     if truth:
         table.add_column("true", justify="right")
-    for key in fits:
-        table.add_column(key.replace("__none", "").replace("__", " "), justify="right")
+    for key, d in fits.items():
+        table.add_column(key.replace("__none", "").replace("__", " ") + (" *" if rejected(d) else ""), justify="right")
     errs = {k: compare_with_truth(d["coefficients"], truth) for k, d in fits.items()} if truth else {}
     for c in names:
         row = [c]
@@ -160,7 +179,7 @@ def print_coefficients(out: Path) -> None:
     """Identified constant-term coefficients of every complete point with their expanded
     uncertainty (beside the true ones in --sim mode), then refusals, warnings and verdicts."""
     console = Console()
-    complete = read_run(out).complete_points
+    complete = read_run(out, blocks=False).complete_points  # the results, not the blocks
     if len(complete) > DETAIL_POINTS:
         _print_summary(console, complete, out)
         return
@@ -173,6 +192,8 @@ def print_coefficients(out: Path) -> None:
                       "(without a stated calibration: 1.96 x the statistical one)", markup=False)
         if p.truth:
             _truth_notes(console, p.truth)
+        if any(rejected(d) for d in _fits(p).values()):
+            console.print(REJECTED_NOTE, markup=False)
         for line in judgement_lines(_judged(p), brief=True):
             console.print(f"point {p.name}: {line}", markup=False)
 
