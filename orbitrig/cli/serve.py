@@ -9,6 +9,8 @@ from typing import Optional
 
 import typer
 
+from orbitrig.cli.service_log import DEFAULT_BACKUPS, DEFAULT_MAX_MB, setup_service_log
+
 PASSWORD_ENV = "ORBITRIG_MQTT_PASSWORD"
 USERNAME_ENV = "ORBITRIG_MQTT_USERNAME"
 
@@ -72,12 +74,16 @@ def register(app: typer.Typer) -> None:
         speedup: Optional[float] = typer.Option(None, "--speedup",
                                                 help="simulator time speed-up (--sim; default: as orbitrig sweep)"),
         verbose: bool = typer.Option(False, "--verbose", "-v", help="log at debug level (every event)"),
+        log_file: Optional[Path] = typer.Option(None, "--log-file", help="also log to this file, rotated by size"),
+        log_max_mb: float = typer.Option(DEFAULT_MAX_MB, "--log-max-mb", help="MB per log file before it rotates"),
+        log_backups: int = typer.Option(DEFAULT_BACKUPS, "--log-backups", help="rotated log files kept (LOG.1 ...)"),
     ) -> None:
         """Run the rig service: start, watch and stop runs over MQTT."""
         _start(broker=broker, sim=sim, config=config, rig_id=rig_id, prefix=prefix, username=username,
                password_file=password_file, tls_ca=tls_ca, out=out, matrices=matrices,
                supervision_policy=supervision_policy, supervision_timeout=supervision_timeout,
-               client_id=client_id, confirm=confirm, speedup=speedup, verbose=verbose)
+               client_id=client_id, confirm=confirm, speedup=speedup, verbose=verbose,
+               log=(log_file, log_max_mb, log_backups))
 
 
 def _broker_password(rig_id: str, prefix: str | None, tls_ca: Path | None, username: str | None,
@@ -106,17 +112,21 @@ def _broker_password(rig_id: str, prefix: str | None, tls_ca: Path | None, usern
 def _start(*, broker: str, sim: bool, config: Path | None, rig_id: str, prefix: str | None,
            username: str | None, password_file: Path | None, tls_ca: Path | None, out: Path,
            matrices: Path | None, supervision_policy: str, supervision_timeout: float,
-           client_id: str | None, confirm: str, speedup: float | None, verbose: bool) -> None:
+           client_id: str | None, confirm: str, speedup: float | None, verbose: bool,
+           log: tuple[Path | None, float, int] = (None, DEFAULT_MAX_MB, DEFAULT_BACKUPS)) -> None:
     import asyncio
-    import logging
 
     from orbitrig import config as cfg
     from orbitrig.errors import ConfigError
     from orbitrig.service.rig_service import BrokerSettings, ServiceError, ServiceSettings
 
-    logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO,
-                        format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    logging.getLogger("mqtt").setLevel(logging.WARNING)
+    log_file, max_mb, backups = log
+    if not (max_mb > 0 and backups >= 0):
+        _fail(f"--log-max-mb {max_mb:g} / --log-backups {backups}: a size > 0 and a count >= 0")
+    try:
+        setup_service_log(verbose=verbose, log_file=log_file, max_mb=max_mb, backups=backups)
+    except OSError as err:
+        _fail(f"--log-file: cannot open {log_file}: {err.strerror or err}")
     password = _broker_password(rig_id, prefix, tls_ca, username, password_file)
     try:
         rig = cfg.load_rig(config)
