@@ -106,7 +106,8 @@ def soak_serve(runs: int, speedup: float) -> bool:
     pw.chmod(0o600)
     args = ["--sim", "--broker", broker.url, "--rig-id", "soak", "--username", "orbitrig-service",
             "--password-file", str(pw), "--matrices", str(write_matrices(work / "matrices")),
-            "--out", str(work / "runs"), "--speedup", str(speedup)]  # fmt: skip
+            "--out", str(work / "runs"), "--speedup", str(speedup), "--verbose",
+            "--log-file", str(work / "serve-rotating.log"), "--log-max-mb", "0.2", "--log-backups", "2"]  # fmt: skip
     svc = Service(args, work)
     rig = RigClient(broker, "soak", svc)
     after: list[float] = []
@@ -128,7 +129,12 @@ def soak_serve(runs: int, speedup: float) -> bool:
     print(f"serve: {len(after)} runs in {time.monotonic() - t0:.0f} s; RSS after each run (MB): "
           + " ".join(f"{m:.0f}" for m in after))
     print(f"  growth from the first run to the last: {growth:+.1f} MB (limit {LIMIT_SERVE_MB:g})")
-    return len(after) == runs and growth <= LIMIT_SERVE_MB
+    logs = sorted(work.glob("serve-rotating.log*"))
+    sizes = [f.stat().st_size for f in logs]
+    print(f"  service log (--verbose, --log-max-mb 0.2, --log-backups 2): {len(logs)} files, largest "
+          f"{max(sizes, default=0) / 1e3:.0f} kB, {sum(sizes) / 1e3:.0f} kB in all")
+    logs_ok = len(logs) <= 3 and max(sizes, default=0) <= 200_000
+    return len(after) == runs and growth <= LIMIT_SERVE_MB and logs_ok
 
 
 def main() -> int:
