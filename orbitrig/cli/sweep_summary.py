@@ -17,8 +17,9 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
+from orbitrig.analysis.run_warnings import fit_warnings
+from orbitrig.analysis.warning_groups import warning_lines
 from orbitrig.run.point_report import judgement_lines
-from orbitrig.run.warning_groups import FitWarnings, warning_lines
 from orbitrig.store.csvfile import coef_order
 from orbitrig.store.reader import Point, freq_dep_key, read_run
 from reduction.statistics import CHI2_ALPHA
@@ -138,12 +139,6 @@ def _print_summary(console: Console, complete: list[Point], out: Path) -> None:
             console.print(f"point {p.name}: {line}", markup=False)
     for line in warning_lines(fit_warnings(complete)):  # each warning once per fit family; all in run.log
         console.print(f"warning: {line}", markup=False)
-
-
-def fit_warnings(points: list[Point]) -> list[FitWarnings]:
-    """The warnings of every fit that gave coefficients, for orbitrig.run.warning_groups."""
-    return [FitWarnings(int(p.name), i.lms, f"{i.model} {i.freq_dep} {i.method}", tuple(i.result.get("warnings") or []))
-            for p in points for i in p.identifications if i.ok]  # fmt: skip
 
 
 def _point_table(p: Point) -> tuple[Table, list[str]]:

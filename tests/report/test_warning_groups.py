@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from orbitrig.run.warning_groups import FitWarnings, group_warnings, point_ranges, warning_kind, warning_lines
+from orbitrig.analysis.warning_groups import FitWarnings, group_warnings, point_ranges, warning_kind, warning_lines
 from reduction.statistics import chi2_warning
 
 
