@@ -9,6 +9,8 @@ from typing import Optional
 
 import typer
 
+from orbitrig.cli.service_log import DEFAULT_BACKUPS, DEFAULT_MAX_MB, setup_service_log
+
 PASSWORD_ENV = "ORBITRIG_MQTT_PASSWORD"
 USERNAME_ENV = "ORBITRIG_MQTT_USERNAME"
 
@@ -75,12 +77,16 @@ def register(app: typer.Typer) -> None:
         catalog: Optional[str] = typer.Option(
             None, "--catalog", envvar="ORBITRIG_CATALOG",
             help="campaign catalog URL: each completed point is added (docs/catalog.md)"),
+        log_file: Optional[Path] = typer.Option(None, "--log-file", help="also log to this file, rotated by size"),
+        log_max_mb: float = typer.Option(DEFAULT_MAX_MB, "--log-max-mb", help="MB per log file before it rotates"),
+        log_backups: int = typer.Option(DEFAULT_BACKUPS, "--log-backups", help="rotated log files kept (LOG.1 ...)"),
     ) -> None:
         """Run the rig service: start, watch and stop runs over MQTT."""
         _start(broker=broker, sim=sim, config=config, rig_id=rig_id, prefix=prefix, username=username,
                password_file=password_file, tls_ca=tls_ca, out=out, matrices=matrices,
                supervision_policy=supervision_policy, supervision_timeout=supervision_timeout,
-               client_id=client_id, confirm=confirm, speedup=speedup, verbose=verbose, catalog=catalog)
+               client_id=client_id, confirm=confirm, speedup=speedup, verbose=verbose, catalog=catalog,
+               log=(log_file, log_max_mb, log_backups))
 
 
 def _broker_password(rig_id: str, prefix: str | None, tls_ca: Path | None, username: str | None,
@@ -110,17 +116,21 @@ def _start(*, broker: str, sim: bool, config: Path | None, rig_id: str, prefix: 
            username: str | None, password_file: Path | None, tls_ca: Path | None, out: Path,
            matrices: Path | None, supervision_policy: str, supervision_timeout: float,
            client_id: str | None, confirm: str, speedup: float | None, verbose: bool,
-           catalog: str | None = None) -> None:
+           catalog: str | None = None,
+           log: tuple[Path | None, float, int] = (None, DEFAULT_MAX_MB, DEFAULT_BACKUPS)) -> None:
     import asyncio
-    import logging
 
     from orbitrig import config as cfg
     from orbitrig.errors import ConfigError
     from orbitrig.service.rig_service import BrokerSettings, ServiceError, ServiceSettings
 
-    logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO,
-                        format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    logging.getLogger("mqtt").setLevel(logging.WARNING)
+    log_file, max_mb, backups = log
+    if not (max_mb > 0 and backups >= 0):
+        _fail(f"--log-max-mb {max_mb:g} / --log-backups {backups}: a size > 0 and a count >= 0")
+    try:
+        setup_service_log(verbose=verbose, log_file=log_file, max_mb=max_mb, backups=backups)
+    except OSError as err:
+        _fail(f"--log-file: cannot open {log_file}: {err.strerror or err}")
     password = _broker_password(rig_id, prefix, tls_ca, username, password_file)
     try:
         rig = cfg.load_rig(config)

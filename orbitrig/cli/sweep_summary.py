@@ -18,9 +18,12 @@ from pathlib import Path
 import numpy as np
 
 from orbitrig.cli.plain_table import OutputFormat, PlainTable, Transcript
+from orbitrig.analysis.run_warnings import fit_warnings
+from orbitrig.analysis.warning_groups import warning_lines
 from orbitrig.run.point_report import judgement_lines
 from orbitrig.store.csvfile import coef_order, fit_truth
 from orbitrig.store.reader import Point, freq_dep_key, read_run
+from reduction.statistics import CHI2_ALPHA
 
 #: above this many complete points the final table is one summary row per point
 DETAIL_POINTS = 4
@@ -34,6 +37,15 @@ D_NOTE = ("D = apparent inertia (added mass): it absorbs whatever grows with Ome
 ND_NOTE = "n.d. = not determined: the expanded uncertainty U exceeds the magnitude"
 Z_NOTE = ("|dZ|/|Z| = worst over the orbit frequencies of |Z_identified - Z_true| / |Z_true| "
           "(Frobenius norms; Z_true the simulator's impedance)")  # fmt: skip
+
+REJECTED_NOTE = (f"* the fit's chi2 adequacy test rejects it (p < {CHI2_ALPHA:g}): the residuals exceed "
+                 "the stated uncertainties")  # fmt: skip
+
+
+def rejected(d: dict) -> bool:
+    """Does the chi2 adequacy test reject this stored fit (p below CHI2_ALPHA)?"""
+    p = d.get("p_value")
+    return isinstance(p, (int, float)) and p < CHI2_ALPHA
 
 
 def compare_with_truth(d: dict, truth: dict) -> dict[str, float]:
@@ -123,8 +135,10 @@ def _print_summary(console: Transcript, complete: list[Point], out: Path) -> Non
                   "LMS |E_n| = worst normalised piezo - strain difference (<= 2: consistent); "
                   "n.d. = coefficients not determined (U > |value|), over all fits", markup=False)
     for p in complete:
-        for line in judgement_lines(_judged(p), verdicts=False, brief=True):
+        for line in judgement_lines(_judged(p), verdicts=False, brief=True, warnings=False):
             console.print(f"point {p.name}: {line}", markup=False)
+    for line in warning_lines(fit_warnings(complete)):  # each warning once per fit family; all in run.log
+        console.print(f"warning: {line}", markup=False)
 
 
 def _cell(d: dict, c: str, err: float | None) -> str:
@@ -148,8 +162,8 @@ def _point_table(p: Point) -> tuple[PlainTable, list[str]]:
     table.add_column("coef")
     if truth:
         table.add_column("const. fit", justify="right")
-    for key in fits:
-        table.add_column(key.replace("__none", "").replace("__", " "), justify="right")
+    for key, d in fits.items():
+        table.add_column(key.replace("__none", "").replace("__", " ") + (" *" if rejected(d) else ""), justify="right")
     errs = {k: compare_with_truth(d, truth) for k, d in fits.items()} if truth else {}
     trues = {k: fit_truth(d, truth) for k, d in fits.items()} if truth else {}
     for c in names:
@@ -169,7 +183,7 @@ def print_coefficients(out: Path, fmt: OutputFormat = OutputFormat.TEXT) -> None
     uncertainty (beside the true ones in --sim mode), then refusals, warnings and verdicts;
     plain tables (every cell in full, split to the terminal's width), CSV or JSON (`fmt`)."""
     console = Transcript()
-    complete = read_run(out).complete_points
+    complete = read_run(out, blocks=False).complete_points  # the results, not the blocks
     if len(complete) > DETAIL_POINTS:
         _print_summary(console, complete, out)
     else:
@@ -189,6 +203,8 @@ def _print_points(console: Transcript, complete: list[Point]) -> None:
             console.print(D_NOTE, markup=False)
         if p.truth:
             _truth_notes(console, p.truth)
+        if any(rejected(d) for d in _fits(p).values()):
+            console.print(REJECTED_NOTE, markup=False)
         for line in judgement_lines(_judged(p), brief=True):
             console.print(f"point {p.name}: {line}", markup=False)
 

@@ -21,10 +21,10 @@ def point_log_lines(p: OperatingPoint, res: PointResults) -> list[str]:
 
 
 def judgement_lines(fits: list[tuple[str, str, dict | None, str | None]], *, verdicts: bool = True,
-                    brief: bool = False) -> list[str]:  # fmt: skip
+                    brief: bool = False, warnings: bool = True) -> list[str]:  # fmt: skip
     """Lines of (lms, "model freq_dep method", stored JSON or None, refusal or None) fits: refusals
-    (``brief``: their first line; else every line joined by ' | '), warnings, parts not evaluated,
-    and (``verdicts``) the adequacy verdicts and LMS consistency."""
+    (``brief``: their first line; else every line joined by ' | '), (``warnings``) warnings, parts
+    not evaluated, and (``verdicts``) the adequacy verdicts and LMS consistency."""
     lines, compared = [], set()
     for lms, name, d, error in fits:
         if d is None:
@@ -32,7 +32,7 @@ def judgement_lines(fits: list[tuple[str, str, dict | None, str | None]], *, ver
             text = f"{reason[0]} (the full reason is in run.log)" if brief and len(reason) > 1 else " | ".join(reason)
             lines.append(f"{lms} {name}: refused: {text}")
             continue
-        lines += [f"{lms} {name}: warning: {w}" for w in d.get("warnings") or []]
+        lines += [f"{lms} {name}: warning: {w}" for w in d.get("warnings") or [] if warnings]
         for part in ("uncertainty", "derived"):
             if "error" in (d.get(part) or {}):
                 lines.append(f"{lms} {name}: {part} not evaluated: {d[part]['error']}")

@@ -43,6 +43,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal, Protocol
 
+from orbitrig.analysis.run_warnings import closing_warnings
 from orbitrig.errors import ConfigError, OrbitrigError
 from orbitrig.run.engine import ProgressEvent, ResultEvent, RunOutcome, StatusEvent
 from orbitrig.service import live as live_feed
@@ -378,8 +379,9 @@ class RigService:
             return
         status = outcome.status
         log.info("run %s of matrix %r ended: %s", self._run_id, name, status)
+        summary = await asyncio.to_thread(closing_warnings, outcome.out_dir)
         if self._state not in ("idle", "faulted"):
-            self._set_status("idle", self._run_id, f"run {status}")
+            self._set_status("idle", self._run_id, f"run {status}" + "".join(f"; warning: {w}" for w in summary))
 
     # -- executor events --------------------------------------------------------
 

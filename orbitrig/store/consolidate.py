@@ -1,22 +1,24 @@
 """run.h5: the whole run in one HDF5 file, consolidated from the durable pieces.
 
-The file is built in memory and written with `durable.write_atomic` (temporary name,
-fsync, rename): a reader finds the previous run.h5 or the new one, never a torn file,
-and a full disk is an ordinary StorageFullError. Built at the end of a run
-(`RunStore.finalize`) and by `orbitrig export --format h5`. During a run, `RunImage`
-copies each point into the file in memory as soon as it is committed, so the end of
-the run only adds the status and the logs.
+The file is streamed to ``run.h5.tmp`` (`durable.StreamedH5`) and renamed into place
+after an fsync: a reader finds the previous run.h5 or the new one, never a torn file,
+memory stays bounded whatever the size of the run, and a full disk is an ordinary
+StorageFullError. Built at the end of a run (`RunStore.finalize`) and by
+`orbitrig export --format h5`. During a run, `RunImage` copies each point into the
+temporary file as soon as it is committed, so the end of the run only adds the status
+and the logs.
 """
 
 from __future__ import annotations
 
 import json
 import logging
+from pathlib import Path
 
 import h5py
 import numpy as np
 
-from orbitrig.store.durable import h5_image, memory_h5
+from orbitrig.store.durable import StreamedH5
 from orbitrig.store.errors import StorageError
 from orbitrig.store.index import scan
 from orbitrig.store.journal import CAN_DTYPE, CAN_UNITS, DRIVE_DTYPE, DRIVE_UNITS, Journal, read_journal
@@ -43,53 +45,63 @@ def read_header(layout: RunLayout) -> dict:
     return header
 
 
-def run_image(layout: RunLayout) -> bytes:
-    """The bytes of run.h5 for the run directory `layout`."""
+def write_run_file(layout: RunLayout, dest: Path | None = None) -> Path:
+    """Consolidate the run directory `layout` into `dest` (default: its run.h5)."""
     header = read_header(layout)
     journal = read_journal(layout.journal)
     states = scan(layout)
-    return h5_image(lambda f: _build(f, layout, header, journal, states, set()))
+    out = StreamedH5(dest or layout.run_file)
+    try:
+        _build(out.file, layout, header, journal, states, set())
+    except Exception:
+        out.discard()
+        raise
+    return out.commit()
 
 
 class RunImage:
-    """run.h5 under construction in memory; `add_point` copies a committed point in."""
+    """run.h5 under construction in run.h5.tmp; `add_point` copies a committed point in."""
 
     def __init__(self, layout: RunLayout):
         self.layout = layout
-        self._f: h5py.File | None = None
+        self._out: StreamedH5 | None = None
         self._done: set[int] = set()
 
     def add_point(self, index: int) -> None:
-        """Copy committed point `index`; on any failure the image is dropped (`image` then
-        consolidates from the disk), because the point itself is safe in its pieces."""
+        """Copy committed point `index`; on any failure the file is dropped (`write` then
+        consolidates from the pieces), because the point itself is safe in its pieces."""
         try:
-            if self._f is None:
-                self._f = memory_h5()
-                self._f.create_group("points")
-            if _add_point(self._f["points"], self.layout, index, True):
+            if self._out is None:
+                self._out = StreamedH5(self.layout.run_file)
+                self._out.file.create_group("points")
+            if _add_point(self._out.file["points"], self.layout, index, True):
                 self._done.add(index)
-        except (StorageError, OSError, ValueError, KeyError) as err:
+            self._out.file.flush()
+        except Exception as err:  # noqa: BLE001 - h5py reports a failed write in several types
             log.warning("run.h5 will be consolidated at the end (cannot copy point %04d now: %s)", index, err)
             self.close()
 
-    def image(self) -> bytes:
-        """The bytes of run.h5 (the points not copied yet are copied now); closes the image."""
-        if self._f is None:
-            return run_image(self.layout)
+    def write(self) -> Path:
+        """Finish run.h5 (the points not copied yet are copied now) and rename it into place."""
+        out, done = self._out, self._done
+        self._out, self._done = None, set()
+        if out is None:
+            return write_run_file(self.layout)
         try:
             header, journal, states = read_header(self.layout), read_journal(self.layout.journal), scan(self.layout)
-            if any(i not in {st.index for st in states if st.complete} for i in self._done):
-                return run_image(self.layout)  # a copied point is no longer complete: start over
-            _build(self._f, self.layout, header, journal, states, self._done)
-            self._f.flush()
-            return self._f.id.get_file_image()
-        finally:
-            self.close()
+            if any(i not in {st.index for st in states if st.complete} for i in done):
+                out.discard()
+                return write_run_file(self.layout)  # a copied point is no longer complete: start over
+            _build(out.file, self.layout, header, journal, states, done)
+        except Exception:
+            out.discard()
+            raise
+        return out.commit()
 
     def close(self) -> None:
-        if self._f is not None:
-            self._f.close()
-        self._f, self._done = None, set()
+        if self._out is not None:
+            self._out.discard()
+        self._out, self._done = None, set()
 
 
 def _build(f: h5py.File, layout: RunLayout, header: dict, journal: Journal, states, done: set[int]) -> None:

@@ -8,9 +8,11 @@ there) is removed first, never followed, so no write lands outside the directory
 an append-only log and fsyncs it; `read_lines` returns the lines whose newline made
 it to disk and counts a torn tail (or any line that does not parse) instead of failing.
 
-HDF5 never writes to the disk here: `h5_image` builds a file in memory (the core
-driver without a backing store) and returns its bytes, so a full disk is an ordinary
-OSError of `os.write` and never leaves the HDF5 library in a broken state.
+HDF5 never writes to the disk itself: `h5_image` builds a small file in memory (the
+core driver without a backing store) and returns its bytes; `StreamedH5` builds a large
+one (run.h5) through a Python file object on ``NAME.tmp``, so memory stays bounded
+while it grows and a full disk is an ordinary OSError of Python's write. Either way
+the HDF5 library is never left in a broken state.
 Every OSError becomes a StorageError naming the file (orbitrig.store.errors).
 """
 
@@ -183,3 +185,46 @@ def h5_image(build: Callable) -> bytes:
         return f.id.get_file_image()
     finally:
         f.close()
+
+
+class StreamedH5:
+    """An HDF5 file written through Python's file I/O to ``PATH.tmp``; `commit` flushes,
+    fsyncs and renames it to PATH (then fsyncs the directory), `discard` removes it. The
+    file grows on disk as groups are added, so its size never sits in memory."""
+
+    def __init__(self, path: Path):
+        import h5py
+
+        self.path = Path(path)
+        self.tmp = self.path.with_name(self.path.name + TMP_SUFFIX)
+        try:
+            self._fh = open(self.tmp, "w+b")
+        except OSError as err:
+            raise storage_error(self.tmp, "create", err) from err
+        try:
+            self.file = h5py.File(self._fh, "w")
+        except Exception as err:  # noqa: BLE001 - h5py reports a failed write in several types
+            self.discard()
+            raise storage_error(self.tmp, "start an HDF5 file in", err) from err
+
+    def commit(self) -> Path:
+        try:
+            self.file.close()
+            self._fh.flush()
+            os.fsync(self._fh.fileno())
+            self._fh.close()
+            os.replace(self.tmp, self.path)
+        except Exception as err:  # noqa: BLE001
+            self.discard()
+            raise storage_error(self.path, "write", err) from err
+        fsync_dir(self.path.parent)
+        return self.path
+
+    def discard(self) -> None:
+        """Close and remove the temporary file (best effort)."""
+        for close in (getattr(self, "file", None), self._fh):
+            with contextlib.suppress(Exception):
+                if close is not None:
+                    close.close()
+        with contextlib.suppress(OSError):
+            os.unlink(self.tmp)

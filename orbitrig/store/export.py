@@ -67,16 +67,16 @@ def export_run(directory: str | Path, fmt: str, out: str | Path | None = None,
 
 
 def _export_h5(layout: RunLayout, out: Path) -> Path:
-    from orbitrig.store.consolidate import run_image
+    from orbitrig.store.consolidate import write_run_file
 
     path = out / layout.run_file.name
     if layout.has_pieces():
-        data = run_image(layout)
+        return write_run_file(layout, path)
     else:  # a directory holding only run.h5: copy it
         try:
             data = layout.run_file.read_bytes()
         except OSError as err:
             raise storage_error(layout.run_file, "read", err) from err
-    if path.resolve() != layout.run_file.resolve() or layout.has_pieces():
+    if path.resolve() != layout.run_file.resolve():
         write_atomic(path, data)
     return path

@@ -177,8 +177,10 @@ def _open(path: Path):
         raise RunDirError(path, f"not a readable HDF5 file ({err})") from err
 
 
-def read_run(directory: str | Path) -> Run:
-    """Read the run in ``directory`` (docs/storage.md). Raises :class:`RunDirError`."""
+def read_run(directory: str | Path, *, blocks: bool = True) -> Run:
+    """Read the run in ``directory`` (docs/storage.md); ``blocks=False`` leaves out every
+    point's averaged blocks (the results only: bounded memory for a summary).
+    Raises :class:`RunDirError`."""
     directory = Path(directory)
     if not directory.exists():
         raise RunDirError(directory, "no such directory")
@@ -186,7 +188,7 @@ def read_run(directory: str | Path) -> Run:
         raise RunDirError(directory, "not a directory (expected a run directory written by `orbitrig sweep --out DIR`)")
     layout = RunLayout(directory)
     if layout.has_pieces():
-        return _read_pieces(layout)
+        return _read_pieces(layout, blocks)
     path = layout.run_file
     if not path.is_file():
         raise RunDirError(directory, f"not an orbitrig run directory: no {RUN_FILE} (nor {layout.header.name}) in it")
@@ -198,7 +200,7 @@ def read_run(directory: str | Path) -> Run:
             points = []
             for _, g in sorted(h5.get("points", {}).items()):
                 point = _new_point(g.attrs, g.name.rsplit("/", 1)[-1])
-                for fname, fg in sorted(g.get("frequencies", {}).items()):
+                for fname, fg in sorted(g.get("frequencies", {}).items()) if blocks else ():
                     point.frequencies.append(_frequency(fname, fg))
                 _read_results(g, point)
                 points.append(point)
@@ -221,7 +223,7 @@ def read_run(directory: str | Path) -> Run:
             raise RunDirError(path, f"cannot read ({err})") from err
 
 
-def _read_pieces(layout: RunLayout) -> Run:
+def _read_pieces(layout: RunLayout, blocks: bool = True) -> Run:
     from orbitrig.store.consolidate import read_header
     from orbitrig.store.errors import StorageError
     from orbitrig.store.index import point_state
@@ -249,7 +251,7 @@ def _read_pieces(layout: RunLayout) -> Run:
     for index in layout.point_indexes():
         state = point_state(layout, index)
         try:
-            point = read_point(layout, index, complete=state.complete, skipped=run.unreadable)
+            point = read_point(layout, index, complete=state.complete, skipped=run.unreadable, blocks=blocks)
             point.problem = state.problem
         except RunDirError as err:
             if err.file != str(layout.point_file(index)):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -41,12 +42,22 @@ class PointResults:
     truth: dict | None = None
 
 
+#: CAN and drive rows kept between two journal writes (the newest; 20 min at one row per 0.5 s):
+#: a run that waits for days (a confirmation, a suspend trip) neither fills the memory nor the journal
+MONITOR_ROWS_KEPT = 2400
+
+
 class LogBuffer:
-    """Rows gathered between writes (appended to the journal with the next write); thread-safe."""
+    """Rows gathered between writes (appended to the journal with the next write); thread-safe.
+    Of the CAN and drive rows only the newest MONITOR_ROWS_KEPT are kept."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
-        self._rows: dict[str, list] = {"events": [], "can": [], "drives": []}
+        self._rows = self._empty()
+
+    @staticmethod
+    def _empty() -> dict[str, deque]:
+        return {"events": deque(), "can": deque(maxlen=MONITOR_ROWS_KEPT), "drives": deque(maxlen=MONITOR_ROWS_KEPT)}
 
     def add(self, log: str, row: tuple) -> None:
         with self._lock:
@@ -54,11 +65,12 @@ class LogBuffer:
 
     def take(self) -> tuple[list, list, list]:
         with self._lock:
-            rows, self._rows = self._rows, {"events": [], "can": [], "drives": []}
-        return rows["events"], rows["can"], rows["drives"]
+            rows, self._rows = self._rows, self._empty()
+        return list(rows["events"]), list(rows["can"]), list(rows["drives"])
 
     def put_back(self, events: list, can: list, drives: list) -> None:
         """Return rows a failed write could not store (they go with the next write)."""
         with self._lock:
             for name, rows in (("events", events), ("can", can), ("drives", drives)):
-                self._rows[name][:0] = rows
+                now = self._rows[name]
+                self._rows[name] = deque([*rows, *now], maxlen=now.maxlen)  # the newest are kept

@@ -51,7 +51,7 @@ class RunStore:
         self._header: dict = {}
         self._csv_rows: dict[int, list[dict]] = {}
         self._written: dict[int, dict[str, dict]] = {}  # point -> file name -> size, digest
-        self._image = RunImage(self.layout)  # run.h5 in memory, filled as points commit
+        self._image = RunImage(self.layout)  # run.h5.tmp on disk, filled as points commit
         self._log_failed = False
 
     # ---------------------------------------------------------- life cycle
@@ -132,6 +132,7 @@ class RunStore:
         leftover temporary files; return the complete point indexes. `set_aside` lists
         what was moved (also in run.log and the journal)."""
         self.set_aside = []
+        self._image.close()
         done = []
         for st in scan(self.layout):
             if st.complete:
@@ -220,10 +221,8 @@ class RunStore:
 
     def finalize(self) -> Path:
         """Consolidate DIR/run.h5 from the pieces (temporary name, fsync, rename)."""
-        data = self._image.image()
-        self.check_free_space(len(data) + (1 << 16))
-        write_atomic(self.layout.run_file, data)
-        return self.layout.run_file
+        self.check_free_space(_size(self.layout.journal) + (1 << 20))  # the logs still to add
+        return self._image.write()
 
     def _journal(self, lines: list[str]) -> None:
         """Append `lines` and the gathered log rows to the journal in one durable write."""
@@ -295,6 +294,13 @@ def _channels(rig_text: str) -> tuple[list[str], list[str]]:
     except ConfigError:
         return [], []
     return [c.name for c in rig.ordered_channels], [c.unit for c in rig.ordered_channels]
+
+
+def _size(path: Path) -> int:
+    try:
+        return path.stat().st_size
+    except OSError:
+        return 0
 
 
 def _mb(n: int) -> str:

@@ -7,6 +7,7 @@ import csv
 import errno
 import json
 import sys
+import time
 from pathlib import Path
 
 import h5py
@@ -82,19 +83,24 @@ def check_whole(run_dir: Path, points: list[int], blocks_per_point: int) -> None
 
 
 def fill(mnt: Path) -> Path:
-    """Write zeros into mnt/filler until the file system is full."""
+    """Write zeros into mnt/filler until the file system is full (again, when the run frees
+    space meanwhile: it drops its growing run.h5.tmp at the first failed write)."""
     path = mnt / "filler"
-    chunk = b"\0" * 65536
-    with open(path, "wb", buffering=0) as fh:
-        with contextlib.suppress(OSError):
-            while True:
-                fh.write(chunk)
-        with contextlib.suppress(OSError):
-            while True:
-                fh.write(b"\0" * 512)
     probe = mnt / "probe"
-    with pytest.raises(OSError) as err:
-        probe.write_bytes(b"\0" * 8192)
-    assert err.value.errno == errno.ENOSPC
+    with open(path, "wb", buffering=0) as fh:
+        for _ in range(50):
+            for size in (65536, 512):
+                with contextlib.suppress(OSError):
+                    while True:
+                        fh.write(b"\0" * size)
+            try:
+                probe.write_bytes(b"\0" * 8192)
+            except OSError as err:
+                assert err.errno == errno.ENOSPC
+                break
+            probe.unlink()
+            time.sleep(0.05)
+        else:
+            raise AssertionError(f"{mnt} never stayed full")
     probe.unlink(missing_ok=True)
     return path

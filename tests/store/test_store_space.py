@@ -95,3 +95,22 @@ def test_estimates_bound_what_is_written(tmp_path):
     written = sum(f.stat().st_size for f in (tmp_path / "run").rglob("*") if f.is_file())
     whole = plan_bytes(rig, list(make_plan(m, rig).steps))  # two points: about twice this one's share
     assert 2 * written <= whole <= 6 * written
+
+
+def test_a_long_wait_keeps_only_the_newest_monitor_rows():
+    """Days of CAN and drive rows without a point completed: memory and journal stay bounded."""
+    from orbitrig.store.records import MONITOR_ROWS_KEPT, LogBuffer
+
+    buf = LogBuffer()
+    for i in range(3 * MONITOR_ROWS_KEPT):
+        buf.add("can", (float(i),))
+        buf.add("drives", (float(i),))
+    buf.add("events", (0.0, "waiting", "manual settings"))
+    events, can, drives = buf.take()
+    assert len(events) == 1 and len(can) == len(drives) == MONITOR_ROWS_KEPT
+    assert can[0] == (2.0 * MONITOR_ROWS_KEPT,) and can[-1] == (3.0 * MONITOR_ROWS_KEPT - 1,)
+    buf.add("can", (1e9,))
+    buf.put_back(events, can, drives)  # a failed write: they go with the next one, still bounded
+    events, can, drives = buf.take()
+    assert len(can) == MONITOR_ROWS_KEPT and can[-1] == (1e9,) and can[0] == (2.0 * MONITOR_ROWS_KEPT + 1,)
+    assert buf.take() == ([], [], [])

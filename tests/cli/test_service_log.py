@@ -1,0 +1,48 @@
+"""`orbitrig serve --log-file`: the service's own log rotates by size and keeps a bounded
+number of files, whatever a month of status and live messages writes to it."""
+
+from __future__ import annotations
+
+import logging
+import subprocess
+import sys
+from pathlib import Path
+
+from orbitrig.cli.service_log import setup_service_log
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_thousands_of_messages_keep_the_log_files_under_the_stated_size(tmp_path):
+    log_file = tmp_path / "serve.log"
+    root = logging.getLogger()
+    before, level = list(root.handlers), root.level
+    handler = setup_service_log(verbose=True, log_file=log_file, max_mb=0.05, backups=3)
+    try:
+        status = logging.getLogger("orbitrig.service.rig_service")
+        for i in range(20_000):  # a month of a busy service, compressed
+            status.debug("status running run %s: point %d of 108, block %d of 20, eta %.1f s", "paper-1", i % 108,
+                         i % 20, 1e4 / (i + 1))  # fmt: skip
+            if i % 7 == 0:
+                logging.getLogger("orbitrig.service.live").info("live: %d revolutions published", i)
+    finally:
+        handler.close()
+        root.removeHandler(handler)
+        root.handlers[:] = before
+        root.setLevel(level)
+    files = sorted(tmp_path.glob("serve.log*"))
+    assert [f.name for f in files] == ["serve.log", "serve.log.1", "serve.log.2", "serve.log.3"]
+    sizes = [f.stat().st_size for f in files]
+    assert all(s <= 50_000 for s in sizes), sizes
+    assert sum(sizes) > 150_000  # it did rotate through full files
+    assert "point" in log_file.read_text().splitlines()[-1] or "live" in log_file.read_text().splitlines()[-1]
+
+
+def test_bad_log_options_are_a_usage_error(tmp_path):
+    p = subprocess.run([sys.executable, "-m", "orbitrig", "serve", "--broker", "mqtt://127.0.0.1:1", "--log-file",
+                        str(tmp_path / "no" / "such" / "dir.log")], cwd=ROOT, capture_output=True, text=True,
+                       timeout=60)  # fmt: skip
+    assert p.returncode == 2 and "--log-file: cannot open" in p.stderr and "Traceback" not in p.stderr, p.stderr
+    p = subprocess.run([sys.executable, "-m", "orbitrig", "serve", "--broker", "mqtt://127.0.0.1:1", "--log-max-mb",
+                        "0"], cwd=ROOT, capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert p.returncode == 2 and "--log-max-mb 0" in p.stderr, p.stderr
