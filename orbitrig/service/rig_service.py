@@ -40,13 +40,13 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from pathlib import Path
-from typing import Any, Literal, Protocol
+from typing import Any, Literal
 
 from orbitrig.analysis.run_warnings import closing_warnings
 from orbitrig.errors import ConfigError, OrbitrigError
-from orbitrig.run.engine import ProgressEvent, ResultEvent, RunOutcome, StatusEvent
+from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
 from orbitrig.service import live as live_feed
+from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # noqa: F401 - the service's seams
 from orbitrig.service.inbox import CommandTriage
 from orbitrig.service.catalog_feed import CatalogFeed
 from orbitrig.service import protocol as proto
@@ -60,30 +60,6 @@ log = logging.getLogger("orbitrig.service.rig_service")
 
 #: s after a reconnection during which the broker's redeliveries arrive
 REDELIVERY_S = 10.0
-
-
-# -- the executor as seen from here (orbitrig.run.engine.RunEngine) --------------
-
-class Engine(Protocol):
-    out_dir: Path  # the run directory
-    state: str
-    run_id: str | None
-    waiting_step: str | None
-
-    async def run(self, matrix: Any, *, resume: bool = False) -> RunOutcome: ...
-    def subscribe(self, callback: Callable[[Any], None]) -> None: ...
-    operator: str
-    def request_pause(self, by: str | None = None) -> None: ...
-    def request_resume(self, by: str | None = None) -> None: ...
-    def request_stop(self, by: str | None = None) -> None: ...
-    def request_abort(self, by: str | None = None) -> None: ...
-    def confirm(self, step: str, by: str | None = None) -> None: ...
-
-
-#: Makes the executor of one run: ``factory(matrix_name, matrix) -> Engine``.
-EngineFactory = Callable[[str, Any], Engine]
-#: Loads and checks a matrix file: ``loader(path) -> Plan`` (orbitrig.run.plan; raises ConfigError).
-MatrixLoader = Callable[[Path], Any]
 
 
 class RigService:

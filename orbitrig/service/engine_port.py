@@ -1,0 +1,32 @@
+"""The run executor as the rig service sees it (orbitrig.run.engine.RunEngine satisfies it),
+and the factories the service is built with."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, Protocol
+
+from orbitrig.run.engine import RunOutcome
+
+
+class Engine(Protocol):
+    out_dir: Path  # the run directory
+    state: str
+    run_id: str | None
+    waiting_step: str | None
+
+    async def run(self, matrix: Any, *, resume: bool = False) -> RunOutcome: ...
+    def subscribe(self, callback: Callable[[Any], None]) -> None: ...
+    operator: str
+    def request_pause(self, by: str | None = None) -> None: ...
+    def request_resume(self, by: str | None = None) -> None: ...
+    def request_stop(self, by: str | None = None) -> None: ...
+    def request_abort(self, by: str | None = None) -> None: ...
+    def confirm(self, step: str, by: str | None = None) -> None: ...
+
+
+#: Makes the executor of one run: ``factory(matrix_name, matrix) -> Engine``.
+EngineFactory = Callable[[str, Any], Engine]
+#: Loads and checks a matrix file: ``loader(path) -> Plan`` (orbitrig.run.plan; raises ConfigError).
+MatrixLoader = Callable[[Path], Any]
