@@ -81,10 +81,11 @@ def write_atomic(path: Path, data: bytes | memoryview) -> dict:
     return {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
 
 
-def create_new(tmp: Path) -> int:
-    """Open a fresh temporary file for writing (0o644): a leftover at `tmp` (file or symbolic
-    link) is unlinked, never followed; the open itself refuses anything there
-    (``O_EXCL | O_NOFOLLOW``), so a link planted in between makes a StorageError, not a write."""
+def create_new(tmp: Path, readable: bool = False) -> int:
+    """Open a fresh temporary file for writing (0o644; also for reading when ``readable``, as
+    HDF5 needs): a leftover at `tmp` (file or symbolic link) is unlinked, never followed; the
+    open itself refuses anything there (``O_EXCL | O_NOFOLLOW``), so a link planted in between
+    makes a StorageError, not a write."""
     try:
         os.unlink(tmp)
     except FileNotFoundError:
@@ -92,7 +93,8 @@ def create_new(tmp: Path) -> int:
     except OSError as err:
         raise storage_error(tmp, "remove the leftover temporary file", err) from err
     try:
-        return os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+        access = os.O_RDWR if readable else os.O_WRONLY
+        return os.open(tmp, access | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
     except OSError as err:
         raise storage_error(tmp, "create", err) from err
 
@@ -197,10 +199,7 @@ class StreamedH5:
 
         self.path = Path(path)
         self.tmp = self.path.with_name(self.path.name + TMP_SUFFIX)
-        try:
-            self._fh = open(self.tmp, "w+b")
-        except OSError as err:
-            raise storage_error(self.tmp, "create", err) from err
+        self._fh = os.fdopen(create_new(self.tmp, readable=True), "w+b")  # never follows a planted link
         try:
             self.file = h5py.File(self._fh, "w")
         except Exception as err:  # noqa: BLE001 - h5py reports a failed write in several types

@@ -13,7 +13,7 @@ from orbitrig.config import RigConfig
 from orbitrig.run.plan import Acquire, Identify, OperatingPoint, Step
 
 MARGIN = 1.25
-BLOCK_OVERHEAD = 16_384  # HDF5 superblock, object headers, attributes of one block file
+BLOCK_OVERHEAD = 28_672  # HDF5 superblock, object headers, attributes (units, descriptions) of one block file
 RESULTS_OVERHEAD = 12_288  # results file: groups, truth and LMS comparison
 PER_TABLE = 2_048  # one load system's orbit table: headers
 PER_TABLE_ROW = 160  # orbit (2 x 8), 4 complex phasors (64), gamma2 (32), n_records, u (40)
