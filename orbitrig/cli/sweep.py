@@ -12,9 +12,10 @@ from typing import Optional
 import typer
 
 from orbitrig.cli.plain_table import OutputFormat
+from orbitrig.run.states import Outcome
 
 DEFAULT_SPEEDUP = 40.0  # as orbitrig.cli.simulated_rig.DEFAULT_SPEEDUP (imported only with --sim)
-EXIT = {"completed": 0, "failed": 1, "stopped": 3, "aborted": 4}
+EXIT = {Outcome.COMPLETED: 0, Outcome.FAILED: 1, Outcome.STOPPED: 3, Outcome.ABORTED: 4}
 
 
 def register(app: typer.Typer) -> None:
