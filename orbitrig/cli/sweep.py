@@ -257,9 +257,7 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator
     console.print(f"run {outcome.status}: {outcome.message}  ({len(outcome.completed_points)} of "
                   f"{outcome.points} points complete in {out})", markup=False)  # fmt: skip
     if outcome.completed_points:
+        from orbitrig.cli.sweep_summary import print_coefficients  # the closing table
+
         print_coefficients(out, fmt or OutputFormat.TEXT)
     return outcome
-
-
-# the closing table lives in orbitrig.cli.sweep_summary
-from orbitrig.cli.sweep_summary import DETAIL_POINTS, compare_with_truth, print_coefficients  # noqa: E402,F401
