@@ -12,7 +12,7 @@ from typing import Optional
 import typer
 
 from orbitrig.cli.plain_table import OutputFormat
-from orbitrig.run.states import Outcome
+from orbitrig.run.states import ConfirmMode, Outcome
 
 DEFAULT_SPEEDUP = 40.0  # as orbitrig.cli.simulated_rig.DEFAULT_SPEEDUP (imported only with --sim)
 EXIT = {Outcome.COMPLETED: 0, Outcome.FAILED: 1, Outcome.STOPPED: 3, Outcome.ABORTED: 4}
@@ -242,7 +242,7 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator
             from orbitrig.cli.simulated_rig import simulated_rig
 
             _, access = await stack.enter_async_context(simulated_rig(speedup, *sim))
-        engine = RunEngine(plan.rig, out_dir=out, access=access, confirm_mode="auto" if access else "prompt",
+        engine = RunEngine(plan.rig, out_dir=out, access=access, confirm_mode=ConfirmMode.AUTO if access else ConfirmMode.PROMPT,
                            operator=operator)  # fmt: skip
         engine.console_user = operator  # Ctrl-C's pause, stop, abort and the prompts' confirmations
         operator = Operator(engine, console)

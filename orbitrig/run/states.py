@@ -47,6 +47,15 @@ class Outcome(_Word):
     FAILED = "failed"
 
 
+class ConfirmMode(_Word):
+    """Who confirms a manual setting: the terminal's operator (prompt), an MQTT
+    `confirm` command (remote), or nobody: the simulator sets it (auto)."""
+
+    PROMPT = "prompt"
+    REMOTE = "remote"
+    AUTO = "auto"
+
+
 IDLE, RUNNING, PAUSED, WAITING, STOPPING, FAULTED = RunState
 STATES = tuple(RunState)
 COMPLETED, STOPPED, ABORTED, FAILED = Outcome
