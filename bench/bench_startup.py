@@ -9,6 +9,9 @@ Each figure is the median over `runs` fresh interpreter processes (wall time of 
 process, measured here around subprocess.run); the three commands are interleaved run by
 run, so load from other work on the machine falls on all of them alike. The current
 PYTHONPATH is passed on, so a checkout's packages win (run with PYTHONPATH=$PWD).
+Byte-code caching is on in the child processes (PYTHONDONTWRITEBYTECODE is dropped): an
+installed orbitrig has its .pyc files, as numpy and scipy do, and the uncounted first run
+of each command writes them for a checkout.
 
 Run: python3 bench/bench_startup.py [runs]   (default 9; exit 1 if a command misses the target)
 """
@@ -16,6 +19,7 @@ Run: python3 bench/bench_startup.py [runs]   (default 9; exit 1 if a command mis
 from __future__ import annotations
 
 import statistics
+import os
 import subprocess
 import sys
 import time
@@ -28,10 +32,13 @@ COMMANDS = (
 )
 
 
+ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+
+
 def wall_seconds(argv: list[str]) -> float:
     """Wall time of one fresh process running `argv`, s (it must exit 0)."""
     t0 = time.perf_counter()
-    subprocess.run(argv, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    subprocess.run(argv, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=ENV)
     return time.perf_counter() - t0
 
 
