@@ -41,6 +41,7 @@ also at 4n - p = 0), else Student's t with 4n - p degrees of freedom (``interval
 from __future__ import annotations
 
 import math
+from enum import StrEnum
 
 import numpy as np
 
@@ -57,9 +58,21 @@ from reduction.noise import coherence_variances, equation_variances
 from reduction.result import Identification
 from reduction.table import OrbitTable
 
-__all__ = ["METHODS", "Identification", "identify", "circle_orbits"]
+__all__ = ["METHODS", "Method", "Identification", "identify", "circle_orbits"]
 
-METHODS = ("ols", "wls", "tls", "iv")
+
+class Method(StrEnum):
+    """Least-squares estimator: ordinary, weighted, total, instrumental variables."""
+
+    __repr__ = str.__repr__  # messages show 'ols', as the plain string did
+
+    OLS = "ols"
+    WLS = "wls"
+    TLS = "tls"
+    IV = "iv"
+
+
+METHODS = tuple(Method)
 IV_MAX_MISFIT = 0.3  # rms |d - circle| / rms |d| above which the circle instruments are refused
 
 
@@ -120,19 +133,19 @@ def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank
     x0 = reg.lstsq(A_s, b, solver)  # the ols solution (scaled), the first pass of every method
     signal = _signal(spec, table, A_s, b, c, x0, rank_rtol)  # raises when not identifiable on signal
     var = _variances(spec, table, x0 / c, b, method)
-    if method == "wls":  # the weighted regression's own scaling and conditioning
+    if method == Method.WLS:  # the weighted regression's own scaling and conditioning
         rank = analyse(spec, table, A_s * (c / np.sqrt(var)[:, None]), rank_rtol)
         A_s *= c / rank.scale
         c = rank.scale
     P = None  # the estimator's linear map b -> scaled coefficients (iv)
-    if method == "ols":
+    if method == Method.OLS:
         est = reg.ols(A_s, b, solver, rank.unscaled_covariance(), x0)
-    elif method == "wls":
+    elif method == Method.WLS:
         est = reg.wls(A_s, b, 1.0 / var, solver, rank.unscaled_covariance())
         if known:  # second pass: effective variances at the wls coefficients
             var = equation_variances(table.u, impedance(spec, est.x / c, table.orbit))
             est = reg.wls(A_s, b, 1.0 / var, solver)
-    elif method == "iv":
+    elif method == Method.IV:
         Zi = _circle_instruments(spec, table, rank_rtol) / c
         est = reg.iv(A_s, Zi, b, solver)
         if known:
@@ -144,7 +157,7 @@ def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank
     Z = impedance(spec, theta, table.orbit)  # at the estimate: effective variances and the fit
     if known:
         var = equation_variances(table.u, Z)
-        if method == "ols":
+        if method == Method.OLS:
             cov_s = st.sandwich_rows(A_s, var, est.unscaled)
         else:
             cov_s = st.sandwich(P, var) if P is not None else est.unscaled
@@ -155,9 +168,9 @@ def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank
     weak = signal_warning(signal)
     if weak:
         ident.warnings.insert(0, weak)
-    if known and method in ("ols", "wls"):
-        unscaled = rank.unscaled_covariance() if method == "ols" else est.unscaled
-        bias = attenuation_bias(spec, table, theta, c, unscaled, None if method == "ols" else 1.0 / var)
+    if known and method in (Method.OLS, Method.WLS):
+        unscaled = rank.unscaled_covariance() if method == Method.OLS else est.unscaled
+        bias = attenuation_bias(spec, table, theta, c, unscaled, None if method == Method.OLS else 1.0 / var)
         std = np.sqrt(np.clip(np.diag(ident.covariance), 0, None))
         eiv = attenuation_warning(spec, method, bias, std)
         if eiv:
@@ -204,7 +217,7 @@ def _variances(spec, table, theta0, b, method) -> np.ndarray:
         if not floor > 0:
             raise IdentificationError("the table's u_* give no noise on any equation")
         return np.maximum(var, floor)
-    if method != "wls":
+    if method != Method.WLS:
         return np.ones(b.shape)
     if table.gamma2 is None:
         raise IdentificationError(
@@ -223,14 +236,14 @@ def _result(spec, table, method, solver, est, theta, c, cov_s, rank, var, r, Z) 
     notes, warnings = list(spec.notes), []
     chi2 = p_value = None
     if known:
-        chi2 = float(est.rss) if method == "tls" else float(np.sum(r**2 / var))
+        chi2 = float(est.rss) if method == Method.TLS else float(np.sum(r**2 / var))
         p_value = st.chi2_p_value(chi2, dof)
         notes.append("covariance, weights and chi2 from the table's u_x, u_y, u_fx, u_fy "
                      "(force noise plus displacement noise through Z)")
         bad = st.chi2_warning(chi2, dof, p_value)
         if bad:
             warnings.append(bad)
-    elif method == "wls":
+    elif method == Method.WLS:
         notes.append("wls weights from the coherences (no u_* columns): per-record noise ratio "
                      "(1 - gamma^2)/gamma^2 floored at 1/n_records")
     aic, bic = st.information_criteria(chi2 if known else est.rss, 4 * table.n, p, known)
@@ -238,7 +251,7 @@ def _result(spec, table, method, solver, est, theta, c, cov_s, rank, var, r, Z) 
     if ill:
         warnings.append(ill)
     ident = Identification(
-        model=spec.model, freq_dep=spec.freq_dep.text, method=method,
+        model=spec.model, freq_dep=spec.freq_dep.text, method=str(method),
         n_coefficients=p, min_frequencies=spec.min_frequencies, n_frequencies=table.n,
         coefficients={k: float(v) for k, v in spec.expand(theta).items()},
         std_errors={k: (None if not np.isfinite(v) else float(v)) for k, v in spec.expand(std).items()},

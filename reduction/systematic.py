@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from reduction.errors import ReductionError
+from reduction.identify import Method
 from reduction.impedance import impedance_basis, real_rows
 from reduction.noise import coherence_variances, equation_variances
 from reduction.result import Identification
@@ -174,6 +175,6 @@ def _fit_variances(ident: Identification, table: OrbitTable, Z: np.ndarray) -> n
     if table.u is not None:
         var = equation_variances(table.u, Z)
         return np.maximum(var, 1e-12 * float(np.max(var)))
-    if ident.method == "wls" and table.gamma2 is not None:
+    if ident.method == Method.WLS and table.gamma2 is not None:
         return coherence_variances(table.gamma2, table.fx, table.fy, table.n_records)
     return np.ones(4 * table.n)

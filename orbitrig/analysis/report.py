@@ -46,6 +46,7 @@ from orbitrig.store.errors import storage_error
 from orbitrig.store.reader import Point, Run, RunDirError, read_run
 from orbitrig.store.selection import select_points
 from reduction.derived import Derived
+from reduction.identify import Method
 
 PLOTS_DIR = "plots"
 #: figure kinds of a point (file name prefixes); `orbitrig report --figures` picks some
@@ -108,7 +109,7 @@ def fit_label(r: Reduced) -> str:
     if ident is not None and ident.exponent and r.freq_dep == "power:auto":
         fd = f" power:{ident.exponent} (auto)"
     n = f" ({ident.n_coefficients} coef.)" if ident is not None else ""
-    method = "" if r.method == "ols" else f", {r.method}"
+    method = "" if r.method == Method.OLS else f", {r.method}"
     return f"{r.model}{fd}{n}{method}"
 
 

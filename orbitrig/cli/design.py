@@ -14,8 +14,6 @@ from typing import Optional
 
 import typer
 
-from orbitrig.cli.design_report import design_object, designs_dir, print_design, save_design
-
 
 def _fail(message: str) -> None:
     sys.stderr.write(f"orbitrig design: {message}\n")
@@ -84,6 +82,7 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Predict the coefficients' standard errors for a list of orbit frequencies and propose a better list."""
         from orbitrig import config as cfg
+        from orbitrig.cli.design_report import design_object, designs_dir, print_design, save_design
         from orbitrig.errors import OrbitrigError
 
         try:

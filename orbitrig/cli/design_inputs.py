@@ -109,7 +109,7 @@ def model_check(spec, run, spin: float, lms: str, problem, candidate: tuple, pro
     (rad/s) gives the terms the model leaves out; the shift counts with 2 standard
     uncertainties. A list is (ratios, revolutions). None when it holds or cannot be judged."""
     from reduction.errors import ReductionError
-    from reduction.identify import identify
+    from reduction.identify import Method, identify
     from reduction.misfit import list_shift
     from reduction.models import model_spec
 
@@ -122,7 +122,7 @@ def model_check(spec, run, spin: float, lms: str, problem, candidate: tuple, pro
     point = min(points, key=lambda p: (abs(p.settings.spin - spin), p.index))
     table = point.tables[lms]
     try:
-        big = identify(table, model=richer[0], freq_dep=richer[1], method="wls" if table.u is not None else "ols")
+        big = identify(table, model=richer[0], freq_dep=richer[1], method=Method.WLS if table.u is not None else Method.OLS)
         if big.covariance is None:
             return None
         lists = [(r, n, problem.noise_at(r)) for r, n in (candidate, proposal)]

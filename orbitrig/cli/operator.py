@@ -81,12 +81,13 @@ class Operator:
 
     def on_event(self, ev) -> None:
         from orbitrig.run.engine import StatusEvent
+        from orbitrig.run.states import RUNNING, WAITING
 
-        if isinstance(ev, StatusEvent) and ev.state == "running" and self.pending is not None:
+        if isinstance(ev, StatusEvent) and ev.state == RUNNING and self.pending is not None:
             sig, self.pending = self.pending, None
             self.interrupts -= 1
             self.loop.call_soon(self._signal, sig)
-        if isinstance(ev, StatusEvent) and ev.state == "waiting" and self.engine.waiting_step:
+        if isinstance(ev, StatusEvent) and ev.state == WAITING and self.engine.waiting_step:
             self._ask_confirm(ev.message)
 
     def _ask_confirm(self, message: str) -> None:

@@ -122,6 +122,7 @@ def _start(*, broker: str, sim: bool, config: Path | None, rig_id: str, prefix: 
 
     from orbitrig import config as cfg
     from orbitrig.errors import ConfigError
+    from orbitrig.run.states import ConfirmMode
     from orbitrig.service.rig_service import BrokerSettings, ServiceError, ServiceSettings
 
     log_file, max_mb, backups = log
@@ -145,9 +146,9 @@ def _start(*, broker: str, sim: bool, config: Path | None, rig_id: str, prefix: 
         _fail(str(err))
     if speedup is not None and not 0 < speedup <= 1e4:
         _fail(f"--speedup {speedup:g}: a finite factor > 0 and at most 10000")
-    if confirm not in ("remote", "auto"):
+    if confirm not in (ConfirmMode.REMOTE, ConfirmMode.AUTO):
         _fail(f"--confirm: one of remote, auto, not {confirm!r}")
-    if confirm == "auto" and not sim:
+    if confirm == ConfirmMode.AUTO and not sim:
         _fail("--confirm auto only with --sim (a real rig needs an operator)")
     if not folder.is_dir():
         _fail(f"matrix folder: no such folder: {folder} (--matrices)")

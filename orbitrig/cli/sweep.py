@@ -12,9 +12,10 @@ from typing import Optional
 import typer
 
 from orbitrig.cli.plain_table import OutputFormat
+from orbitrig.run.states import ConfirmMode, Outcome
 
 DEFAULT_SPEEDUP = 40.0  # as orbitrig.cli.simulated_rig.DEFAULT_SPEEDUP (imported only with --sim)
-EXIT = {"completed": 0, "failed": 1, "stopped": 3, "aborted": 4}
+EXIT = {Outcome.COMPLETED: 0, Outcome.FAILED: 1, Outcome.STOPPED: 3, Outcome.ABORTED: 4}
 
 
 def register(app: typer.Typer) -> None:
@@ -241,7 +242,7 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator
             from orbitrig.cli.simulated_rig import simulated_rig
 
             _, access = await stack.enter_async_context(simulated_rig(speedup, *sim))
-        engine = RunEngine(plan.rig, out_dir=out, access=access, confirm_mode="auto" if access else "prompt",
+        engine = RunEngine(plan.rig, out_dir=out, access=access, confirm_mode=ConfirmMode.AUTO if access else ConfirmMode.PROMPT,
                            operator=operator)  # fmt: skip
         engine.console_user = operator  # Ctrl-C's pause, stop, abort and the prompts' confirmations
         operator = Operator(engine, console)
@@ -256,9 +257,7 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator
     console.print(f"run {outcome.status}: {outcome.message}  ({len(outcome.completed_points)} of "
                   f"{outcome.points} points complete in {out})", markup=False)  # fmt: skip
     if outcome.completed_points:
+        from orbitrig.cli.sweep_summary import print_coefficients  # the closing table
+
         print_coefficients(out, fmt or OutputFormat.TEXT)
     return outcome
-
-
-# the closing table lives in orbitrig.cli.sweep_summary
-from orbitrig.cli.sweep_summary import DETAIL_POINTS, compare_with_truth, print_coefficients  # noqa: E402,F401

@@ -260,7 +260,7 @@ class Session:
         return {"ok": bool(reply.get("ok")), "error": reply.get("error")}
 
     def _no_reply(self, name: str) -> str:
-        if self.status is not None and self.status.get("state") == "offline":
+        if self.status is not None and self.status.get("state") == proto.OFFLINE:
             return f"{name}: no reply: the rig service is offline"
         log.info("%s by %r: no reply within %.1f s (ACL)", name, self.user, self.settings.reply_timeout)
         return (f"{NOT_AUTHORISED}: {name} — user {self.user!r} may not command this rig "

@@ -28,7 +28,7 @@ from orbitrig.errors import OrbitrigError
 from orbitrig.run.events import RunFailed
 from orbitrig.run.states import FAULTED, IDLE, RUNNING, STOPPING, WAITING, next_state
 from orbitrig.run.supervision import InterlockSupervisor
-from orbitrig.run.interlocks import Trip
+from orbitrig.run.interlocks import SUSPEND, Trip
 from orbitrig.store.writer import now_iso
 
 
@@ -226,7 +226,7 @@ class RunControl:
             await asyncio.wait({task, trip}, return_when=asyncio.FIRST_COMPLETED)
             if task.done():
                 return task.result()
-            raise Suspended(sup.trip or Trip("interlock", "suspend", "interlock"))
+            raise Suspended(sup.trip or Trip("interlock", SUSPEND, "interlock"))
         finally:
             for t in (task, trip):
                 if not t.done():

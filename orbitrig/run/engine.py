@@ -22,7 +22,7 @@ import datetime as _dt
 import logging
 import time
 from pathlib import Path
-from typing import Callable, Literal
+from typing import Callable
 
 from daq.revolutions import Revolution
 
@@ -43,7 +43,7 @@ from orbitrig.run.provenance import Provenance, RunCommand
 from orbitrig.run.requests import OperatorRequests
 from orbitrig.run.rig_io import RigAccess, RigIO, Scenario
 from orbitrig.run.safe_stop import stop_drives
-from orbitrig.run.states import ABORTED, COMPLETED, FAILED, FAULTED, IDLE, STOPPED, STOPPING
+from orbitrig.run.states import ABORTED, COMPLETED, FAILED, FAULTED, IDLE, STOPPED, STOPPING, ConfirmMode
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.store.estimate import plan_bytes, point_bytes
 from orbitrig.store.writer import RunStore, StorageError, StorageFullError
@@ -52,8 +52,8 @@ log = logging.getLogger(__name__)
 
 class RunEngine(OperatorRequests):
     def __init__(self, rig: RigConfig, *, out_dir: Path, access: RigAccess | None = None,
-                 confirm_mode: Literal["prompt", "remote", "auto"] = "prompt", operator: str = ""):  # fmt: skip
-        if confirm_mode not in ("prompt", "remote", "auto"):
+                 confirm_mode: ConfirmMode = ConfirmMode.PROMPT, operator: str = ""):  # fmt: skip
+        if confirm_mode not in tuple(ConfirmMode):
             raise ValueError(f"confirm_mode {confirm_mode!r} is not one of prompt, remote, auto")
         self.rig = rig
         self.out_dir = Path(out_dir)

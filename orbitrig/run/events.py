@@ -4,9 +4,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Literal
+from typing import Callable
 
 from orbitrig.errors import OrbitrigError
+from orbitrig.run.states import Outcome
 
 
 @dataclass(frozen=True)
@@ -40,7 +41,7 @@ Subscriber = Callable[[Event], None]
 
 @dataclass
 class RunOutcome:
-    status: Literal["completed", "stopped", "aborted", "failed"]
+    status: Outcome
     message: str
     run_id: str
     out_dir: Path

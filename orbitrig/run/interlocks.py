@@ -20,18 +20,29 @@ engine retries it and then fails the run (it is not polled here).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import StrEnum
 
 from daq.aux import AuxState
 from drives.state import RigDriveState
 from orbitrig.config import MPA, Interlocks
 
-SUSPEND, FAIL = "suspend", "fail"
+
+class TripAction(StrEnum):
+    """What a trip does to the run: hold it until the condition clears, or end it."""
+
+    __repr__ = str.__repr__  # messages show 'suspend', as the plain string did
+
+    SUSPEND = "suspend"
+    FAIL = "fail"
+
+
+SUSPEND, FAIL = TripAction
 
 
 @dataclass(frozen=True)
 class Trip:
     kind: str
-    action: str  # suspend | fail
+    action: TripAction
     message: str
 
 

@@ -31,6 +31,7 @@ from orbitrig.run.plan import (
 )  # fmt: skip
 from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.rig_io import RigAccess, RigIO
+from orbitrig.run.states import ConfirmMode
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.verification import geometry_problems, pressure_problems
 from orbitrig.store.writer import BlockRecord, PointResults, RunStore
@@ -136,7 +137,7 @@ class PointProcedure:
     @staticmethod
     def estimate_of(step: Step, confirm_mode: str) -> float:
         """Physical seconds still to come for `step` (no operator time in auto mode)."""
-        return 0.0 if isinstance(step, SetManual) and confirm_mode == "auto" else step.duration
+        return 0.0 if isinstance(step, SetManual) and confirm_mode == ConfirmMode.AUTO else step.duration
 
     async def _hold_while_suspended(self) -> None:
         await self.r.control.hold_while_suspended(self.r.supervisor, self.r.rig.interlocks.suspend_timeout_s)
@@ -150,13 +151,13 @@ class PointProcedure:
     async def set_manual(self, step: SetManual, ps: PointState) -> None:
         self.r.access.hands.set_manual(orbit_radius=step.orbit_radius, static_eccentricity=step.static_eccentricity,
                                        recess_pressure=step.recess_pressure, pressure_ratio=step.pressure_ratio)  # fmt: skip
-        if self.r.confirm_mode != "auto" and (step.changed or ps.always_confirm):
+        if self.r.confirm_mode != ConfirmMode.AUTO and (step.changed or ps.always_confirm):
             await self.r.control.ask(step.step_id, "set by hand and confirm: " + step.describe())
 
     async def _not_met(self, p: OperatingPoint, problems: list[str]) -> None:
         """Manual settings missed: the operator corrects and confirms (auto mode: the run fails)."""
         msg = f"point {p.index:04d}: manual settings not met: " + "; ".join(problems)
-        if self.r.confirm_mode == "auto":
+        if self.r.confirm_mode == ConfirmMode.AUTO:
             raise RunFailed(msg)
         await self.r.control.ask(f"verify:{p.index:04d}", msg + "; correct and confirm")
 

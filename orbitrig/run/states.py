@@ -18,9 +18,47 @@ Outcomes of a run: completed | stopped | aborted | failed.
 
 from __future__ import annotations
 
-IDLE, RUNNING, PAUSED, WAITING, STOPPING, FAULTED = "idle", "running", "paused", "waiting", "stopping", "faulted"
-STATES = (IDLE, RUNNING, PAUSED, WAITING, STOPPING, FAULTED)
-COMPLETED, STOPPED, ABORTED, FAILED = "completed", "stopped", "aborted", "failed"
+from enum import StrEnum
+
+
+class _Word(StrEnum):
+    """A closed set of words: equal to, printed and repr'd as its string (messages unchanged)."""
+
+    __repr__ = str.__repr__
+
+
+class RunState(_Word):
+    """A state of the run engine; equal to its string in payloads and files."""
+
+    IDLE = "idle"
+    RUNNING = "running"
+    PAUSED = "paused"
+    WAITING = "waiting"
+    STOPPING = "stopping"
+    FAULTED = "faulted"
+
+
+class Outcome(_Word):
+    """How a run ended (the journal's final status; `running` until then)."""
+
+    COMPLETED = "completed"
+    STOPPED = "stopped"
+    ABORTED = "aborted"
+    FAILED = "failed"
+
+
+class ConfirmMode(_Word):
+    """Who confirms a manual setting: the terminal's operator (prompt), an MQTT
+    `confirm` command (remote), or nobody: the simulator sets it (auto)."""
+
+    PROMPT = "prompt"
+    REMOTE = "remote"
+    AUTO = "auto"
+
+
+IDLE, RUNNING, PAUSED, WAITING, STOPPING, FAULTED = RunState
+STATES = tuple(RunState)
+COMPLETED, STOPPED, ABORTED, FAILED = Outcome
 
 #: what makes the engine change state, and what it means
 EVENTS: dict[str, str] = {

@@ -35,6 +35,7 @@ from orbitrig.service import protocol as proto
 from orbitrig.config import MPA, RPM
 from orbitrig.run.engine import ProgressEvent, RunEngine
 from orbitrig.run.plan import Plan, SetManual
+from orbitrig.run.states import RunState
 
 log = logging.getLogger(__name__)
 
@@ -43,7 +44,7 @@ AUX_UNITS = {"t_recess": "K", "t_groove": "K", "t_supply": "K", "flow": "m^3/s",
              "p_recess_1": "Pa", "p_recess_2": "Pa", "p_recess_3": "Pa", "p_recess_4": "Pa", "beta": "-"}
 #: The manual settings of an operating point and their SI units.
 SETTING_UNITS = {"orbit_radius": "m", "static_eccentricity": "-", "recess_pressure": "Pa", "pressure_ratio": "-"}
-LIVE_STATES = ("running", "paused", "waiting", "stopping")
+LIVE_STATES = (RunState.RUNNING, RunState.PAUSED, RunState.WAITING, RunState.STOPPING)
 
 
 class RevolutionAverage:
@@ -183,7 +184,7 @@ class LiveFeed:
     def waiting_fields(self, state: str) -> dict[str, Any] | None:
         """``{"step", "settings"}`` for a ``waiting`` status, else None."""
         step_id = self.engine.waiting_step
-        if state != "waiting" or not step_id:
+        if state != RunState.WAITING or not step_id:
             return None
         step = self._manual.get(self._manual_point())
         if step is None:

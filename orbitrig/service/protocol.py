@@ -26,13 +26,16 @@ from typing import Annotated, Any, Literal, Union
 from pydantic import (BaseModel, ConfigDict, Field, StringConstraints, TypeAdapter, ValidationError,
                       field_validator)
 
+from orbitrig.run.states import RunState
 from orbitrig.service.command_json import (  # noqa: F401 - part of this contract's names
     MAX_COMMAND_BYTES, CommandError, read_object, type_name as _type_name)
 
 DEFAULT_PREFIX_ROOT = "orbitrig"
 
-#: States of ``<prefix>/status`` (docs/protocols/mqtt.md).
-STATES = ("idle", "running", "paused", "waiting", "stopping", "faulted", "offline")
+#: States of ``<prefix>/status`` (docs/protocols/mqtt.md): the engine's, and ``offline``
+#: (the last will, or the service leaving).
+OFFLINE = "offline"
+STATES = (*RunState, OFFLINE)
 
 #: QoS and retain flag of each topic (docs/protocols/mqtt.md).
 QOS_STATUS, QOS_PROGRESS, QOS_RESULT, QOS_REPLY, QOS_CMD = 1, 0, 1, 1, 1

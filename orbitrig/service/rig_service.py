@@ -45,6 +45,7 @@ from typing import Any, Literal
 from orbitrig.analysis.run_warnings import closing_warnings
 from orbitrig.errors import ConfigError, OrbitrigError
 from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
+from orbitrig.run.states import RunState
 from orbitrig.service import live as live_feed
 from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # noqa: F401 - the service's seams
 from orbitrig.service.inbox import CommandTriage
@@ -77,8 +78,8 @@ class RigService:
         self._engine: Engine | None = None
         self._run_task: asyncio.Task | None = None
         self._live: live_feed.LiveFeed | None = None
-        self._status = proto.status_payload("idle", None, None, "service ready")
-        self._state = "idle"
+        self._status = proto.status_payload(RunState.IDLE, None, None, "service ready")
+        self._state = RunState.IDLE
         self._run_id: str | None = None
         self.triage = CommandTriage(self._on_message, functools.partial(self._reply, behind=True),
                                     lambda: self.link.reply_backlog)
@@ -127,7 +128,7 @@ class RigService:
             await asyncio.wait({conn, stop}, return_when=asyncio.FIRST_COMPLETED)
             log.info("shutting down")
             await self._end_run("service shutting down")
-            self._set_status("offline", self._run_id, "service stopped")
+            self._set_status(proto.OFFLINE, self._run_id, "service stopped")
             self.link.leaving = True
             if self.link.online.is_set():
                 try:
@@ -141,7 +142,7 @@ class RigService:
         await self.link.discard_session()
 
     def _offline_status(self, message: str) -> bytes:
-        return proto.status_payload("offline", self._run_id, None, message)
+        return proto.status_payload(proto.OFFLINE, self._run_id, None, message)
 
     async def _end_run(self, why: str) -> None:
         """Abort an active run and wait (bounded) until the executor has finished."""
@@ -179,7 +180,7 @@ class RigService:
             if self.run_active:
                 log.warning("no broker for %.0f s: supervision lost, policy %r", s.supervision_timeout,
                             s.supervision_policy)
-                if s.supervision_policy == "pause" and self._state in ("running", "waiting"):
+                if s.supervision_policy == "pause" and self._state in (RunState.RUNNING, RunState.WAITING):
                     self._request("pause", "service (supervision lost)")
                 elif s.supervision_policy == "stop":
                     self._request("stop", "service (supervision lost)")
@@ -294,10 +295,10 @@ class RigService:
         return None
 
     def _cmd_pause(self, cmd: proto.Command) -> str | None:
-        return self._control("pause", lambda e: e.request_pause(by=cmd.by), allowed=("running", "waiting"))
+        return self._control("pause", lambda e: e.request_pause(by=cmd.by), allowed=(RunState.RUNNING, RunState.WAITING))
 
     def _cmd_resume(self, cmd: proto.Command) -> str | None:
-        return self._control("resume", lambda e: e.request_resume(by=cmd.by), allowed=("paused",))
+        return self._control("resume", lambda e: e.request_resume(by=cmd.by), allowed=(RunState.PAUSED,))
 
     def _cmd_confirm(self, cmd: proto.Command) -> str | None:
         return self._control("confirm", lambda e: e.confirm(cmd.step, by=cmd.by), allowed=None)
@@ -329,7 +330,7 @@ class RigService:
         engine, task = self._engine, self._run_task
         if task is None or task.done() or engine is None:
             return
-        if what != "pause" and engine.state == "idle":
+        if what != "pause" and engine.state == RunState.IDLE:
             task.cancel()  # the run task has not started yet: it never touches the drives
             return
         requests = {"pause": engine.request_pause, "stop": engine.request_stop, "abort": engine.request_abort,
@@ -346,18 +347,18 @@ class RigService:
         try:
             outcome = await engine.run(matrix)
         except asyncio.CancelledError:
-            self._set_status("idle", self._run_id, f"run of {name!r} cancelled; drives stopped")
+            self._set_status(RunState.IDLE, self._run_id, f"run of {name!r} cancelled; drives stopped")
             raise
         except Exception as err:  # noqa: BLE001 - reported, the service goes on
             log.exception("run of matrix %r failed", name)
-            if self._state != "faulted":
-                self._set_status("faulted", self._run_id, f"run of {name!r} failed: {err}")
+            if self._state != RunState.FAULTED:
+                self._set_status(RunState.FAULTED, self._run_id, f"run of {name!r} failed: {err}")
             return
         status = outcome.status
         log.info("run %s of matrix %r ended: %s", self._run_id, name, status)
         summary = await asyncio.to_thread(closing_warnings, outcome.out_dir)
-        if self._state not in ("idle", "faulted"):
-            self._set_status("idle", self._run_id, f"run {status}" + "".join(f"; warning: {w}" for w in summary))
+        if self._state not in (RunState.IDLE, RunState.FAULTED):
+            self._set_status(RunState.IDLE, self._run_id, f"run {status}" + "".join(f"; warning: {w}" for w in summary))
 
     # -- executor events --------------------------------------------------------
 
