@@ -73,7 +73,7 @@ DATASETS = {
     "wfr": ("1", "whirl frequency ratio"), "wfr_std": ("1", "standard uncertainty of wfr"),
     "Z": ("N/m", "the simulator's true impedance at each row's orbit speed, f_bar = -Z d_bar (row, force, displacement)"),
     "band": ("rad/s", "the |Omega| the best fits use"),
-    "K": ("N/m", "stiffness"), "C": ("N s/m", "damping"), "D": ("kg", "added mass"),
+    "K": ("N/m", "stiffness"), "C": ("N s/m", "damping"), "D": ("kg", "apparent inertia (added mass)"),
     "K0": ("N/m", "constant stiffness term"), "C0": ("N s/m", "constant damping term"), "D0": ("kg", "constant mass term"),
     "Km": ("N/m (rad/s)^-1", "stiffness term multiplying |Omega|^m (attribute exponents)"),
     "Cn": ("N s/m (rad/s)^-1", "damping term multiplying |Omega|^n (attribute exponents)"),
@@ -81,6 +81,12 @@ DATASETS = {
     "channels": ("", "A/D channel names in board order"), "channel_units": ("", "unit of each A/D channel"),
     "events": ("<field>", "the run's events: t (s since the run started), state, message"),
     "can": ("<field>", "CAN sensor node log"), "drives": ("<field>", "drive log"),
+    "commands": ("<field>", "every command that changed the run: at (ISO 8601 UTC), command, by (who sent it), detail"),
+    "expanded_uncertainty": (PER_COEFFICIENT, "expanded uncertainty U (k = 2; attribute basis: combined or statistical), "
+                                              "aligned with names"),
+    "not_determined": ("1", "1 where the coefficient's expanded uncertainty exceeds its magnitude (not determined)"),
+    "truth": (PER_COEFFICIENT, "the simulator's true impedance projected onto this fit's model (same table, weights, "
+                               "constraints, method), aligned with names"),
 }  # fmt: skip
 
 #: attribute name -> (units, description); "" units: text
@@ -117,6 +123,13 @@ ATTRIBUTES = {
     "statistic": ("1", "test statistic"), "test": ("", "F or likelihood ratio"), "alpha": ("1", "significance level"),
     "constant": ("", "the constant fit compared with"), "aic_bic_order": ("", "the fits the aic and bic pairs belong to"), "exponents": ("1", "exponents m, n, p"),
     "form": ("", "the fitted form"),
+    "operator": ("", "who ran the run"), "rig_id": ("", "the rig's id (rig.toml)"), "host": ("", "computer that ran it"),
+    "calibration_record": ("", "active calibration record (config/calibration/NAME.toml)"),
+    "calibration_record_sha256": ("", "SHA-256 of the calibration record's text"),
+    "calibration_record_text": ("", "the calibration record (TOML text)"),
+    "sensor_serials": ("", "serial number of each channel's sensor (JSON)"),
+    "started": ("", "run start, ISO 8601 UTC"), "ended": ("", "run end, ISO 8601 UTC"),
+    "definition": ("", "how the truth was obtained"),
 }  # fmt: skip
 #: attributes that annotate (they describe others; no description of their own)
 _ANNOTATIONS = {"units", "description", "convention", "dimensions", "columns", "rows", "fields", "field_units", "names",
@@ -181,8 +194,11 @@ def annotate_dataset(ds: h5py.Dataset) -> None:
     if units.startswith("<"):  # entries with different units: one attribute per entry
         if "units" in ds.attrs:
             del ds.attrs["units"]
-        for entry, unit in _per_entry_rule(ds, units).items():
+        per_entry = _per_entry_rule(ds, units)
+        for entry, unit in per_entry.items():
             ds.attrs[f"units_{entry}"] = unit
+        if not per_entry:  # a table of text fields only (the command log): dimensionless as a whole
+            ds.attrs["units"] = "1"
     elif ds.dtype.kind not in "OS":  # text has no unit
         ds.attrs["units"] = units or "1"
 

@@ -126,7 +126,7 @@ def test_closed_stdin_at_a_confirmation_stops_the_run_instead_of_hanging(tmp_pat
 
 
 def test_dry_run_has_a_column_header_and_names_steps_in_the_rigs_words():
-    p = _run("sweep", "--sim", "--dry-run")
+    p = _run("sweep", "--sim", "--dry-run", "--steps")  # every step (without --steps: one line per point)
     assert p.returncode == 0, p.stderr
     lines = p.stdout.splitlines()
     assert lines[0].startswith("matrix demo: 1 operating points") and lines[1].startswith("by step: ")  # totals first
