@@ -13,6 +13,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from orbitrig.store.fit_record import COVERAGE_K, expanded_uncertainty, uncertainty_basis
 from orbitrig.store.reader import Point, Run, StoredIdentification
 
 #: the constant coefficients every model reports (absent ones are NULL)
@@ -20,24 +21,7 @@ COEFFICIENTS = tuple(f"{m}{ij}" for m in "KCD" for ij in ("xx", "xy", "yx", "yy"
 #: SI unit of each coefficient family
 UNITS = {"K": "N/m", "C": "N s/m", "D": "kg"}
 #: k of the expanded uncertainty taken as 2 x std when a fit stores none
-COVERAGE = 2.0
-
-
-def expanded_uncertainty(result: dict[str, Any]) -> tuple[dict[str, float], str]:
-    """U (k = 2) of every coefficient of an identification's JSON and its basis.
-
-    The stored ``expanded_uncertainty`` {k, basis, values} (statistical and calibration)
-    when the fit has one (values by name, or aligned with ``coefficients``); otherwise
-    2 x the statistical standard error, basis "statistical"."""
-    names = list(result.get("coefficients", {}))
-    stored = result.get("expanded_uncertainty")
-    if isinstance(stored, dict) and stored.get("values") is not None:
-        values = stored["values"]
-        if isinstance(values, list):
-            values = dict(zip(names, values))
-        return {k: _number(v) for k, v in values.items()}, str(stored.get("basis", "combined"))
-    std = result.get("std_errors", {})
-    return {k: COVERAGE * _number(std.get(k)) for k in names}, "statistical"
+COVERAGE = COVERAGE_K
 
 
 def _number(value: Any) -> float:
@@ -90,7 +74,7 @@ def _fit_columns(ident: StoredIdentification) -> dict[str, Any]:
                            "method": ident.method, "ok": ident.ok, "error": ident.error or ""}
     result = ident.result or {}
     values = {k: _number(v) for k, v in result.get("coefficients", {}).items()}
-    u, basis = expanded_uncertainty(result) if ident.ok else ({}, "")
+    u, basis = (expanded_uncertainty(result), uncertainty_basis(result)) if ident.ok else ({}, "")
     adequacy = result.get("adequacy") or {}
     row.update(
         n_frequencies=result.get("n_frequencies"), chi2=_finite(result.get("chi2")),

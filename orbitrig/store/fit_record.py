@@ -39,6 +39,15 @@ def expanded_uncertainty(result: dict) -> dict[str, float]:
     return {k: COVERAGE_K * _num(std.get(k)) for k in names}
 
 
+def uncertainty_basis(result: dict) -> str:
+    """What :func:`expanded_uncertainty` of ``result`` rests on: "combined" (calibration
+    included) or "statistical" (2 x the standard error, or a sweep without stated calibration)."""
+    stored = result.get("expanded_uncertainty") or {}
+    if stored.get("values"):
+        return str(stored.get("basis", "combined"))
+    return "combined" if (result.get("uncertainty") or {}).get("expanded") else "statistical"
+
+
 @dataclass(frozen=True)
 class FitRecord:
     """One identification of one point and load measuring system (SI)."""
