@@ -124,9 +124,7 @@ def report_cmd(
     run = report.run
     typer.echo(f"run {run.status}: {len(run.complete_points)} complete point(s), "
                f"{len(run.points) - len(run.complete_points)} incomplete")
-    from orbitrig.run.states import RunState
-
-    if run.status == RunState.RUNNING:  # the store says so until the run ends: also after a crash or kill -9
+    if run.status == "running":  # the store says so until the run ends: also after a crash or kill -9
         typer.echo(f"(still running, or interrupted: `orbitrig sweep --resume {directory}` continues an "
                    "interrupted run; add --sim if it was made on the simulator)")
     for pr in report.points:
