@@ -13,11 +13,18 @@ such as ``"\\ud800"``), which no reply could echo.
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import dataclass
 from typing import Any
 
 #: Largest command payload accepted (bytes); a command is a few dozen bytes.
 MAX_COMMAND_BYTES = 4096
+#: Deepest nesting of arrays and objects accepted; a command is one level deep.
+#: Checked before parsing: the parser's own limit (RecursionError) moves with
+#: ``sys.getrecursionlimit()``, which libraries in the same process may raise.
+MAX_NESTING = 32
+
+_STRING = re.compile(r'"(?:[^"\\]|\\.)*"')
 
 
 class CommandError(ValueError):
@@ -56,6 +63,19 @@ def encodable(text: str) -> bool:
     return True
 
 
+def nesting(text: str) -> int:
+    """The deepest nesting of ``[``/``{`` in JSON text, brackets inside strings
+    not counted (unbalanced text counts as far as it goes)."""
+    depth = deepest = 0
+    for ch in _STRING.sub("", text):
+        if ch in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif ch in "]}":
+            depth -= 1
+    return deepest
+
+
 def type_name(value: Any) -> str:
     """The JSON name of a parsed value's type, for reasons."""
     return {dict: "object", list: "array", str: "string", bool: "boolean",
@@ -76,6 +96,8 @@ def read_object(payload: bytes | bytearray | str) -> CommandObject:
         text = payload
     if not text.strip():
         raise CommandError("payload is empty: expected a JSON object with 'cmd' and 'id'")
+    if nesting(text) > MAX_NESTING:
+        raise CommandError(f"payload is not a command: JSON nested too deeply (more than {MAX_NESTING} levels)")
     duplicates: list[str] = []
 
     def pairs(items: list[tuple[str, Any]]) -> dict[str, Any]:

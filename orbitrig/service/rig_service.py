@@ -156,6 +156,10 @@ class RigService:
             log.error("run did not end within %.0f s; cancelling it", self.settings.shutdown_timeout)
             self._run_task.cancel()
             await asyncio.gather(self._run_task, return_exceptions=True)
+        except asyncio.CancelledError:
+            current = asyncio.current_task()
+            if not self._run_task.cancelled() or (current is not None and current.cancelling()):
+                raise  # this task is being cancelled, not only the run it waited for
         except Exception:  # noqa: BLE001 - reported by _run itself
             pass
 
@@ -331,8 +335,9 @@ class RigService:
         if task is None or task.done() or engine is None:
             return
         if what != "pause" and engine.state == RunState.IDLE:
-            task.cancel()  # the run task has not started yet: it never touches the drives
-            return
+            if engine.run_id is None:
+                task.cancel()  # the run task has not started yet: it never touches the drives
+            return  # (or the run has ended and the task is writing its closing summary)
         requests = {"pause": engine.request_pause, "stop": engine.request_stop, "abort": engine.request_abort,
                     "stop_now": lambda by: engine.request_stop_now("the service shutting down", by=by)}  # fmt: skip
         try:

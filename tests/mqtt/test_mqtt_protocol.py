@@ -158,10 +158,26 @@ def test_a_payload_that_cannot_be_read_as_abort_is_still_refused():
     b'{"cmd":"stop","id":"d","x":' + b"[" * 1300 + b"]" * 1300 + b"}",
     "[" * 1400 + "]" * 1400,
 ], ids=["array", "inside-a-stop", "text"])
-def test_deep_nesting_is_refused_not_raised(payload):
-    """json.loads raises RecursionError on deep nesting: it must become a refusal."""
-    with pytest.raises(CommandError, match="nested too deeply"):
-        parse_command(payload)
+@pytest.mark.parametrize("recursion_limit", [None, 100_000])
+def test_deep_nesting_is_refused_not_raised(payload, recursion_limit):
+    """json.loads raises RecursionError on deep nesting, or parses it when a library
+    in the process has raised the recursion limit: either way it is refused."""
+    import sys
+    before = sys.getrecursionlimit()
+    sys.setrecursionlimit(recursion_limit or before)
+    try:
+        with pytest.raises(CommandError, match="nested too deeply"):
+            parse_command(payload)
+    finally:
+        sys.setrecursionlimit(before)
+
+
+@pytest.mark.parametrize("payload", [
+    b'{"cmd":"stop","id":"' + b"[" * 100 + b'"}',
+    b'{"cmd":"stop","id":"a\\"' + b"[" * 40 + b'"}',
+])
+def test_brackets_inside_strings_do_not_count_as_nesting(payload):
+    assert parse_command(payload).cmd == "stop"
 
 
 def test_commands_are_the_models():

@@ -18,4 +18,7 @@ def synthetic_report(synthetic_run):
 
     from orbitrig.cli import app
 
-    return CliRunner().invoke(app, ["report", str(synthetic_run), "--point", "1", "--formats", "png"])
+    result = CliRunner().invoke(app, ["report", str(synthetic_run), "--point", "1", "--formats", "png"])
+    page = synthetic_run / "plots" / "index.html"
+    result.page = page.read_text(encoding="utf-8") if page.exists() else ""  # later reports rewrite it
+    return result

@@ -62,7 +62,7 @@ def test_repeated_identification_that_differs_is_named(synthetic_run):
 
 def test_html_references_every_plot_and_shows_coefficients(synthetic_run, synthetic_report):
     plots = synthetic_run / "plots"
-    html = (plots / "index.html").read_text(encoding="utf-8")
+    html = synthetic_report.page
     sources = set(re.findall(r'<img src="([^"]+)"', html))
     assert sources == {p.name for p in plots.glob("*.png")}
     assert not re.search(r'(src|href)="(https?:)?//', html) and "<script" not in html  # self-contained

@@ -170,7 +170,7 @@ def test_identification_table_shows_interval_budget_warnings(point_report):
 
 def test_page_shows_verdict_beside_figure_5_and_derived_table(synthetic_run, synthetic_report):
     assert synthetic_report.exit_code == 0, synthetic_report.output
-    html = (synthetic_run / "plots" / "index.html").read_text(encoding="utf-8")
+    html = synthetic_report.page
     side = re.search(r'<div class="side">(.*?)</div></div>', html, re.S).group(1)
     assert 'src="forces_0001_piezo.png"' in side and "frequency dependence supported: no (p = " in side
     assert "WFR at 3.33 Hz" in html and "C<sub>eff,xx</sub> = Cxx - Kxy/\u03a9 = 0 at" in html
