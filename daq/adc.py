@@ -40,8 +40,10 @@ class _Collection:
     """One ``acquire`` in progress."""
 
     def __init__(self, averager: StreamingAverager, future: asyncio.Future,
-                 on_revolution: Callable[[Revolution], None] | None) -> None:
+                 on_revolution: Callable[[Revolution], None] | None,
+                 drop: Callable[[np.ndarray], None] = lambda revs: None) -> None:
         self.averager = averager
+        self.drop = drop  # counts revolutions left out (their rev numbers) as off_speed
         self.future = future
         self.on_revolution = on_revolution
         self.period: float | None = None  # first orbit period measured (s)
@@ -50,6 +52,12 @@ class _Collection:
         """Feed revolutions; returns how many were used."""
         if self.future.done():
             return 0
+        off = self.averager.rule.off_speed(revs.period_s)
+        if off.any():  # turned before the drive reached its setpoint (or off it): not this block's
+            self.drop(revs.rev[off])
+            revs = revs.select(~off)
+            if not len(revs):
+                return 0
         if self.period is None:
             known = revs.period_s[~np.isnan(revs.period_s)]
             self.period = float(known[0]) if len(known) else None
@@ -215,7 +223,8 @@ class AdcReader:
         start = self.stats
         loop = asyncio.get_running_loop()
         averager = StreamingAverager(rule, self.gains, self.offsets)
-        self._collection = c = _Collection(averager, loop.create_future(), self.on_revolution)
+        self._collection = c = _Collection(averager, loop.create_future(), self.on_revolution,
+                                           self._assembler.count_dropped)  # fmt: skip
         t0 = loop.time()
         try:
             while not c.future.done():

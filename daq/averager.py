@@ -40,12 +40,18 @@ class AveragingRule:
     """When a block is complete: between ``min_revolutions`` and ``max_revolutions``
     good revolutions; with a ``target`` (relative standard uncertainty of every
     channel's averaged fundamental, a fraction: 0.005 is 0.5 %) as soon as it is met,
-    without one at exactly ``max_revolutions`` (the paper's protocol: ``fixed(50)``)."""
+    without one at exactly ``max_revolutions`` (the paper's protocol: ``fixed(50)``).
+    With ``orbit_speed`` (the set |Omega|, rad/s) a revolution whose measured orbit speed
+    (2 pi / its period on the board clock) is off it by more than ``speed_tolerance`` (a
+    fraction) was not turned at the operating point (data converted before the drive got
+    there, a drive off its setpoint) and is left out (daq.stats ``off_speed``)."""
 
     min_revolutions: int = 50
     max_revolutions: int = 50
     target: float | None = None
     spin_turns: float | None = None  # omega/|Omega|: the target check leaves the spin tones' leakage out
+    orbit_speed: float | None = None  # rad/s, the set |Omega|: revolutions off it are left out
+    speed_tolerance: float = 0.005  # fraction of orbit_speed
 
     def __post_init__(self) -> None:
         lo, hi, t = self.min_revolutions, self.max_revolutions, self.target
@@ -57,6 +63,19 @@ class AveragingRule:
             raise ValueError("an uncertainty target needs min_revolutions >= 2 (a scatter needs two)")
         if t is None and lo != hi:
             raise ValueError(f"without a target min and max must be equal (got {lo}, {hi})")
+        if self.orbit_speed is not None and not (0 < self.orbit_speed < np.inf and 0 < self.speed_tolerance < 1):
+            raise ValueError(f"orbit speed {self.orbit_speed!r} rad/s, tolerance {self.speed_tolerance!r}: "
+                             "need a positive finite speed and a tolerance in (0, 1)")
+
+    def off_speed(self, periods: np.ndarray) -> np.ndarray:
+        """(R,) bool: which revolutions of measured ``periods`` (s; NaN: unknown, kept) were
+        turned off ``orbit_speed`` by more than ``speed_tolerance``."""
+        p = np.asarray(periods, dtype=float)
+        if self.orbit_speed is None:
+            return np.zeros(p.shape, bool)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            off = np.abs(2 * np.pi / (p * self.orbit_speed) - 1) > self.speed_tolerance
+        return off & ~np.isnan(p)
 
     @classmethod
     def fixed(cls, n: int) -> AveragingRule:
@@ -64,11 +83,12 @@ class AveragingRule:
 
     @classmethod
     def adaptive(cls, target: float, min_revolutions: int = 10, max_revolutions: int = 200,
-                 spin_turns: float | None = None) -> AveragingRule:
+                 spin_turns: float | None = None, orbit_speed: float | None = None,
+                 speed_tolerance: float = 0.005) -> AveragingRule:
         """Stop at ``target``; with ``spin_turns`` (omega/|Omega|) the uncertainty checked is
         reduction.noise.mean_uncertainty (the spin tones' rotating leakage is not noise that
         averaging must beat as 1/sqrt(n)), else the plain scatter of the per-revolution phasors."""
-        return cls(min_revolutions, max_revolutions, target, spin_turns)
+        return cls(min_revolutions, max_revolutions, target, spin_turns, orbit_speed, speed_tolerance)
 
 
 @dataclass(frozen=True)

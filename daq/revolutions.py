@@ -76,6 +76,10 @@ class RevolutionBatch:
     def take(self, index: slice) -> "RevolutionBatch":
         return RevolutionBatch(self.rev[index], self.t_us[index], self.period_s[index], self.counts[index], self.slots)
 
+    def select(self, mask: np.ndarray) -> "RevolutionBatch":
+        """The revolutions where ``mask`` (R,) bool is true."""
+        return RevolutionBatch(self.rev[mask], self.t_us[mask], self.period_s[mask], self.counts[mask], self.slots)
+
     def revolutions(self) -> list[Revolution]:
         return [
             Revolution(int(r), int(t), None if np.isnan(p) else float(p), c, self.slots)
@@ -153,6 +157,11 @@ class RevolutionAssembler:
         self._recent_drops.append(rev)
         self.revolutions_dropped += 1
         count(self.drop_reasons, reason)
+
+    def count_dropped(self, revs, reason: str = "off_speed") -> None:
+        """Count revolutions (their rev numbers) that a reader left out after assembly."""
+        for r in np.asarray(revs).ravel():
+            self._drop(int(r), reason)
 
     def push(self, frame: Frame) -> list[Revolution]:
         return self.push_batch(FrameBatch.from_frames([frame])).revolutions()

@@ -126,6 +126,12 @@ class Averaging(_Model):
     timeout_factor: Annotated[float, Field(ge=1.2, le=1_000)] = 3.0
     timeout_margin_s: Annotated[float, Field(ge=0, le=3_600)] = 2.0
     retries: Annotated[int, Field(ge=0, le=10)] = 1
+    orbit_speed_tol_pct: Annotated[float, Field(gt=0, le=50)] = 0.5
+
+    @property
+    def speed_tolerance(self) -> float:
+        """``orbit_speed_tol_pct`` as a fraction (daq.averager.AveragingRule.speed_tolerance)."""
+        return self.orbit_speed_tol_pct / 100.0
 
 
 class Settle(_Model):

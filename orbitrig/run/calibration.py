@@ -126,7 +126,7 @@ class CalibrationSession:
         n = revolutions or roll.revolutions
         period = 2 * np.pi / roll.orbit
         timeout = self.access.time_scale.wall(av.timeout_factor * (n + 1) * period + av.timeout_margin_s) + 2.0
-        rule = AveragingRule(n, n, None, 1.0 / roll.ratio)
+        rule = AveragingRule(n, n, None, 1.0 / roll.ratio, abs(roll.orbit), av.speed_tolerance)
         for attempt in range(av.retries + 1):
             try:
                 return await self.io.acquire(rule, timeout=timeout)

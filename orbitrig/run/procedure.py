@@ -40,15 +40,18 @@ log = logging.getLogger(__name__)
 
 
 
-def averaging_rule(step: Acquire, spin: float) -> AveragingRule:
+def averaging_rule(step: Acquire, spin: float, speed_tolerance: float = 0.005) -> AveragingRule:
     """The daq rule of an Acquire step at spin (rad/s): its block's adaptive target (percent ->
     a fraction, between min and max revolutions), else exactly its `revolutions`; with
     spin_turns = omega/|Omega|, so the check and the block's uncertainty leave the spin tones'
-    leakage out."""
-    a, turns = step.adaptive, spin / abs(step.block.orbit)
+    leakage out; revolutions turned more than ``speed_tolerance`` (fraction) off the block's
+    |Omega| are left out (converted before the orbit drive got there)."""
+    a, orbit = step.adaptive, abs(step.block.orbit)
+    turns = spin / orbit
     if a is None:
-        return AveragingRule(step.revolutions, step.revolutions, None, turns)
-    return AveragingRule.adaptive(a.target_pct / 100.0, a.min_revolutions, a.max_revolutions, spin_turns=turns)
+        return AveragingRule(step.revolutions, step.revolutions, None, turns, orbit, speed_tolerance)
+    return AveragingRule.adaptive(a.target_pct / 100.0, a.min_revolutions, a.max_revolutions, spin_turns=turns,
+                                  orbit_speed=orbit, speed_tolerance=speed_tolerance)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -240,7 +243,8 @@ class PointProcedure:
                 settle_first = True
                 t0 = time.monotonic()
                 r.progress.block(p.blocks.index(b) + 1)
-                avg = await r.control.guarded(r.io.acquire(averaging_rule(step, p.spin), timeout=timeout), r.supervisor)
+                rule = averaging_rule(step, p.spin, av.speed_tolerance)
+                avg = await r.control.guarded(r.io.acquire(rule, timeout=timeout), r.supervisor)
                 self._add_time("acquire", t0)
                 ps.last = block_record(b, avg, r.rig)
                 return

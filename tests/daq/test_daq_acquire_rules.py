@@ -56,3 +56,31 @@ async def test_the_wait_grows_with_revolutions_and_orbit_period(adc):
         await adc.acquire(150, timeout=0.3)
     block = await adc.acquire(150, timeout=0.3, per_revolution=3.0)
     assert block.n_records == 150
+
+
+async def test_revolutions_off_the_set_orbit_speed_are_left_out():
+    """A rule that names the set orbit speed takes only revolutions the timing disk measured
+    within its tolerance: before the drive gets there nothing is averaged (the drops are
+    counted as off_speed), once it holds the new speed the block is made of it alone."""
+    async with SimRig(scenario("clean"), speedup=20.0, can_channel=None) as rig:
+        rig.local_control(spin=2 * math.pi * 30.0, orbit=ORBIT)
+        await asyncio.sleep(0.05)
+        cfg = rig.config.adc
+        async with AdcReader(rig.adc_url, channels=len(cfg.channels), gains=cfg.gains, offsets=cfg.offsets) as adc:
+            rule = AveragingRule(20, 20, None, None, orbit_speed=1.2 * ORBIT, speed_tolerance=0.005)
+            with pytest.raises(DaqTimeoutError, match=r"no good revolution within 0.5 s .*'off_speed': \d+"):
+                await adc.acquire(rule, timeout=0.5)
+            assert adc.stats.drop_reasons["off_speed"] >= 5
+            rig.local_control(spin=2 * math.pi * 30.0, orbit=1.2 * ORBIT)
+            block = await adc.acquire(rule, timeout=20)
+    assert block.n_records == 20 and block.orbit_speed == pytest.approx(1.2 * ORBIT, rel=2e-3)
+    assert np.all(np.abs(2 * np.pi / block.periods / (1.2 * ORBIT) - 1) <= 0.005)
+
+
+def test_the_speed_check_judges_each_period():
+    rule = AveragingRule(5, 5, orbit_speed=2 * math.pi * 10.0, speed_tolerance=0.01)
+    periods = np.array([0.1, 0.1 / 1.009, 0.1 / 1.011, 0.1 * 1.02, np.nan])
+    assert rule.off_speed(periods).tolist() == [False, False, True, True, False]  # unknown period: kept
+    assert not AveragingRule(5, 5).off_speed(periods).any()  # no set speed: nothing judged
+    with pytest.raises(ValueError, match="tolerance"):
+        AveragingRule(5, 5, orbit_speed=1.0, speed_tolerance=0.0)

@@ -103,8 +103,6 @@ def test_operator_mistakes_exit_2(args, message):
     assert p.returncode == 2 and message in p.stderr and "Traceback" not in p.stderr and p.stdout == ""
 
 
-@pytest.mark.xfail(reason="the run's measured ratios no longer round to the planned list (0.454 for 0.5); open, issue 25",
-                   strict=False)
 def test_noise_and_prior_from_a_simulated_run(tmp_path):
     matrix = tmp_path / "small.toml"
     matrix.write_text((ROOT / "config" / "matrices" / "demo.toml").read_text()

@@ -26,13 +26,6 @@ from reduction.impedance import forces
 
 ALPHA = 1e-3
 SCENARIOS = {"clean": "config/sim/clean.toml", "compressible": "config/sim/compressible.toml", "paper": None}
-#: known open: since the calibration corrections (gain matrices, runout with its per-block spin
-#: phase, force delays) entered the sweep, the clean scenario's piezo K and C still land within
-#: 0.1 %, but Z lands 1.2-1.3 of its statistical-only U off the true Z (that U looks ~25 %
-#: tight) and the adequacy test flips; under investigation (issues 20, 22)
-CLEAN_OPEN = pytest.mark.xfail(reason="clean scenario after the calibration corrections: open (issues 20, 22)",
-                               strict=False)
-SCENARIO_PARAMS = [pytest.param(n, marks=CLEAN_OPEN) if n == "clean" else n for n in SCENARIOS]
 #: the model that describes each scenario's bearing
 ADEQUATE = {"clean": "none", "compressible": "power:1", "paper": "none"}
 
@@ -50,7 +43,7 @@ def runs(tmp_path_factory):
     return get
 
 
-@pytest.mark.parametrize("name", SCENARIO_PARAMS)
+@pytest.mark.parametrize("name", SCENARIOS)
 def test_identified_impedance_is_within_its_uncertainty_of_the_true_one(runs, name):
     out, _ = runs(name)
     point = the_point(out)
@@ -63,7 +56,7 @@ def test_identified_impedance_is_within_its_uncertainty_of_the_true_one(runs, na
         assert np.max(impedance_misfit(point, "piezo", ADEQUATE[name], None)) > 1.0
 
 
-@pytest.mark.parametrize("name", SCENARIO_PARAMS)
+@pytest.mark.parametrize("name", SCENARIOS)
 def test_frequency_dependence_is_found_only_in_the_compressible_bearing(runs, name):
     point = the_point(runs(name)[0])
     stored = point.identification("piezo", "kcd11", "power:1").result["adequacy"]
