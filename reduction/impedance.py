@@ -48,7 +48,8 @@ def impedance_basis(spec: ModelSpec, orbit) -> np.ndarray:
     return E
 
 
-_PHASE = {"K": (1.0, 0), "C": (1j, 1), "D": (-1.0, 2)}  # Omega-factor of each matrix: phase x Omega^k
+_PHASE = {"K": (1.0, 0), "C": (1j, 1), "D": (-1.0, 2)}
+IMPEDANCE_ROWS = 65536  # orbit frequencies per block: the (rows, p) complex Omega factors stay small  # Omega-factor of each matrix: phase x Omega^k
 
 
 def impedance_columns(spec: ModelSpec, w: np.ndarray) -> np.ndarray:
@@ -82,25 +83,29 @@ def regression_rows(spec: ModelSpec, orbit, x, y) -> np.ndarray:
     complex intermediate (rows Re fx, Im fx, Re fy, Im fy per orbit frequency)."""
     w = np.atleast_1d(np.asarray(orbit, dtype=float))
     d = (np.asarray(x, dtype=complex), np.asarray(y, dtype=complex))
-    cols = impedance_columns(spec, w)
     A = np.zeros((4 * w.shape[0], spec.n_coefficients), order="F")  # columns contiguous while filled
-    for j, t in enumerate(spec.terms):
-        column = A[:, j]
-        for i, l in t.entries:
-            g = cols[:, j] * d[l]
-            column[2 * i::4] -= g.real
-            column[2 * i + 1::4] -= g.imag
+    for s in range(0, w.shape[0], IMPEDANCE_ROWS):  # the Omega factors of one block of rows at a time
+        e = min(s + IMPEDANCE_ROWS, w.shape[0])
+        cols = impedance_columns(spec, w[s:e])
+        for j, t in enumerate(spec.terms):
+            column = A[4 * s: 4 * e, j]
+            for i, l in t.entries:
+                g = cols[:, j] * d[l][s:e]
+                column[2 * i::4] -= g.real
+                column[2 * i + 1::4] -= g.imag
     return A
 
 
 def impedance(spec: ModelSpec, theta, orbit) -> np.ndarray:
     """Z(Omega) for coefficient values theta (column order): shape (n, 2, 2), N/m."""
     w = np.atleast_1d(np.asarray(orbit, dtype=float))
-    theta = np.asarray(theta, dtype=float)
-    cols = impedance_columns(spec, w)
+    theta = np.asarray(theta, dtype=float).astype(complex)
     Z = np.zeros(w.shape + (2, 2), dtype=complex)
-    for (i, l), J in _filling(spec).items():
-        Z[:, i, l] = cols[:, J] @ theta[J].astype(complex)
+    filling = _filling(spec).items()
+    for s in range(0, max(w.shape[0], 1), IMPEDANCE_ROWS):
+        cols = impedance_columns(spec, w[s: s + IMPEDANCE_ROWS])
+        for (i, l), J in filling:
+            Z[s: s + IMPEDANCE_ROWS, i, l] = cols[:, J] @ theta[J]
     return Z
 
 

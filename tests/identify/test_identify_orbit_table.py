@@ -75,3 +75,26 @@ def test_bad_records_or_uncertainty_name_line_and_column(tmp_path, extra_head, e
         read_orbit_table(path)
     assert info.value.column == column
     assert info.value.line == (1 if reason == "set of four" else 2)
+
+
+@pytest.mark.parametrize("parser", ["pandas", "numpy"])
+def test_both_fast_parsers_read_every_decimal_to_the_same_double(tmp_path, monkeypatch, parser):
+    """The fast path parses with pandas' C reader when pandas is installed, else numpy's:
+    both give exactly the doubles Python's float() gives, at 17 digits and at short ones,
+    and both hand a faulty table to the row-by-row reader (line and column named)."""
+    if parser == "numpy":
+        monkeypatch.setitem(__import__("sys").modules, "pandas", None)  # import pandas -> ImportError
+    rng = np.random.default_rng(7)
+    values = rng.normal(size=(500, 8)) * 10.0 ** rng.integers(-12, 6, size=(500, 8))
+    cells = [[repr(v) if k % 3 else f"{v:.6g}" for k, v in enumerate(row)] for row in values.tolist()]
+    rows = [",".join(["1000", repr(1 + i * 0.37)] + c) for i, c in enumerate(cells)]
+    path = tmp_path / "t.csv"
+    path.write_text(HEAD + "\n" + "\n".join(rows) + "\n\n")
+    t = read_orbit_table(path)
+    expect = np.array([[float(c) for c in row] for row in cells])
+    got = np.stack([t.x.real, t.x.imag, t.y.real, t.y.imag, t.fx.real, t.fx.imag, t.fy.real, t.fy.imag], axis=1)
+    np.testing.assert_array_equal(got, expect)
+    path.write_text(HEAD + "\n" + rows[0] + "\n" + rows[1].replace(cells[1][3], "x7") + "\n")
+    with pytest.raises(TableError) as info:
+        read_orbit_table(path)
+    assert (info.value.line, info.value.column) == (3, "y_im")
