@@ -107,6 +107,9 @@ async def login(request: web.Request) -> web.Response:
         await _end(request.app, old, "signed in again")
     for oldest in _oldest_beyond_cap(request.app, user):
         await _end(request.app, oldest, "the same user signed in elsewhere (oldest session ended)")
+    for other in sessions.values():  # a sign-in in the middle of a run sees its trends so far
+        session.trend.seed(other.trend)
+        break
     sessions[session.token] = session
     log.info("%r signed in (%d sessions)", user, len(sessions))
     response = web.json_response({"user": user, "prefix": session.settings.topics.prefix})

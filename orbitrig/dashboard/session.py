@@ -27,6 +27,7 @@ from typing import Any
 
 import orbitrig.service.protocol as proto
 from orbitrig.dashboard.throttle import ThrottlePolicy
+from orbitrig.dashboard.trend import TrendHistory
 
 log = logging.getLogger("orbitrig.dashboard")
 
@@ -36,6 +37,7 @@ AUTH_REFUSED = {4, 5, 134, 135}
 PAGE_COMMANDS = {"start": ("matrix",), "pause": (), "resume": (), "stop": (), "abort": (),
                  "confirm": ("step",), "status": ()}
 NOT_AUTHORISED = "refused: not authorised"
+TREND_RESEND = 30  # the whole trend history goes to the pages again every this many samples
 
 
 class SignInRefused(Exception):
@@ -62,6 +64,8 @@ class DashboardSettings:
     sessions_per_user: int = 4
     throttle: ThrottlePolicy = ThrottlePolicy()
     request_timeout: float = 10.0
+    trend_period: float = 1.0  # s between trend samples
+    trend_recent_s: float = 1800.0  # s of recent trend samples kept (the run's own view is thinned instead)
 
 
 class Feed:
@@ -105,6 +109,8 @@ class Session:
         self.progress: dict | None = None
         self.live: dict | None = None
         self.results: collections.deque[dict] = collections.deque(maxlen=500)
+        self.trend = TrendHistory(settings.trend_period, settings.trend_recent_s)
+        self.trend_samples = 0
         self.feeds: set[Feed] = set()
         self._pending: dict[str, asyncio.Future] = {}
         self._client: Any = None
@@ -200,6 +206,7 @@ class Session:
         elif topic == t.live:
             self.live = data
             self._broadcast({"type": "live", "data": data})
+            self._trend(data)
         elif topic == t.result:
             self.results.append(data)
             self._broadcast({"type": "result", "data": data})
@@ -207,6 +214,16 @@ class Session:
             fut = self._pending.pop(str(data.get("id")), None)
             if fut is not None and not fut.done():
                 fut.set_result(data)
+
+    def _trend(self, live: dict) -> None:
+        sample = self.trend.add(live, time.time())
+        if sample is None:
+            return
+        self.trend_samples += 1
+        if self.trend_samples % TREND_RESEND == 0:
+            self._broadcast({"type": "trend_history", "data": self.trend.history()})
+        else:
+            self._broadcast({"type": "trend", "sample": sample})
 
     def _broadcast(self, message: dict) -> None:
         for feed in list(self.feeds):
@@ -219,6 +236,7 @@ class Session:
         out += [{"type": k, "data": v} for k, v in (("status", self.status), ("progress", self.progress))
                 if v is not None]
         out += [{"type": "result", "data": r} for r in self.results]
+        out.append({"type": "trend_history", "data": self.trend.history()})
         if self.live is not None:
             out.append({"type": "live", "data": self.live})
         return out

@@ -86,6 +86,8 @@ function handle(msg) {
     case "progress": showProgress(msg.data); break;
     case "live": showLive(msg.data); break;
     case "result": showResult(msg.data); break;
+    case "trend": trends.trendSample(msg.sample); break;
+    case "trend_history": trends.trendHistory(msg.data); break;
     case "signed_out": leave("session ended: " + msg.reason); break;
   }
 }
@@ -156,6 +158,7 @@ function showLive(d) {
   $("op-direction").textContent = d.direction || "—";
   showDrives(d.drives || {});
   showAux(d.aux || {}, d.bands || {});
+  trends.trendBands(d.bands);
   const w = d.waveforms || {};
   const forces = ["fx_piezo", "fy_piezo", "fx_strain", "fy_strain"].filter(n => w[n]);
   const disp = ["x_a", "y_a", "x_b", "y_b"].filter(n => w[n]);
@@ -270,6 +273,7 @@ function wire() {
   $("btn-abort").addEventListener("click", () => $("abort-dialog").showModal());
   $("abort-cancel").addEventListener("click", () => $("abort-dialog").close());
   $("abort-confirm").addEventListener("click", () => { $("abort-dialog").close(); send("abort"); });
+  $("trend-window").addEventListener("change", () => trends.drawTrends());
   $("btn-confirm").addEventListener("click", () => send("confirm", {step: $("manual-step").textContent}));
   ["keydown", "pointerdown", "pointermove", "wheel"].forEach(t => document.addEventListener(t, activity, {passive: true}));
   setInterval(() => { $("live-age").textContent = st.liveAt ? ((Date.now() - st.liveAt) / 1000).toFixed(1) + " s ago" : "—"; }, 500);
