@@ -6,9 +6,11 @@ and a websocket feed per browser.
   connection; on success an HttpOnly, SameSite=Strict session cookie;
 - ``POST /api/logout``, ``GET /api/session``;
 - ``POST /api/cmd`` ``{"cmd", ...}``: one command as the signed-in user;
+- ``POST /api/ack`` ``{"alarm"}``: acknowledges a latched alarm as the signed-in user
+  (orbitrig.dashboard.alarms);
 - ``GET /api/feed``: websocket, server -> page JSON messages ``{"type", ...}``
   (``hello``, ``link``, ``status``, ``progress``, ``live``, ``result``,
-  ``signed_out``); page -> server ``{"type": "active"}`` on user activity.
+  ``trend``, ``trend_history``, ``alarms``, ``signed_out``); page -> server ``{"type": "active"}`` on user activity.
 
 A session ends on sign-out or after ``idle_timeout`` s without a request or
 user activity; a user's new sign-in beyond ``sessions_per_user`` ends that user's
@@ -107,8 +109,9 @@ async def login(request: web.Request) -> web.Response:
         await _end(request.app, old, "signed in again")
     for oldest in _oldest_beyond_cap(request.app, user):
         await _end(request.app, oldest, "the same user signed in elsewhere (oldest session ended)")
-    for other in sessions.values():  # a sign-in in the middle of a run sees its trends so far
+    for other in sessions.values():  # a sign-in in the middle of a run sees its trends and alarms so far
         session.trend.seed(other.trend)
+        session.alarms.seed(other.alarms)
         break
     sessions[session.token] = session
     log.info("%r signed in (%d sessions)", user, len(sessions))
@@ -178,6 +181,20 @@ async def feed(request: web.Request) -> web.StreamResponse:
     return ws
 
 
+async def acknowledge(request: web.Request) -> web.Response:
+    session = _session(request)
+    if session is None:
+        return web.json_response({"ok": False, "error": "not signed in"}, status=401)
+    session.touch()
+    try:
+        body = await request.json()
+    except (ValueError, UnicodeDecodeError):
+        body = None
+    if not isinstance(body, dict) or not isinstance(body.get("alarm"), str):
+        return web.json_response({"ok": False, "error": "expected JSON {alarm}"}, status=400)
+    return web.json_response(await session.acknowledge(body["alarm"]))
+
+
 async def _send_loop(ws: web.WebSocketResponse, queue: Feed) -> None:
     with contextlib.suppress(ConnectionError, RuntimeError):
         while not ws.closed:
@@ -234,6 +251,7 @@ def make_app(settings: DashboardSettings) -> web.Application:
     app.router.add_post("/api/logout", logout)
     app.router.add_get("/api/session", whoami)
     app.router.add_post("/api/cmd", command)
+    app.router.add_post("/api/ack", acknowledge)
     app.router.add_get("/api/feed", feed)
     app.cleanup_ctx.append(_background)
     app.on_shutdown.append(_end_all)

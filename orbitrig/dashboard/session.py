@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 import orbitrig.service.protocol as proto
+from orbitrig.dashboard.alarms import AlarmBook
 from orbitrig.dashboard.throttle import ThrottlePolicy
 from orbitrig.dashboard.trend import TrendHistory
 
@@ -111,6 +112,7 @@ class Session:
         self.results: collections.deque[dict] = collections.deque(maxlen=500)
         self.trend = TrendHistory(settings.trend_period, settings.trend_recent_s)
         self.trend_samples = 0
+        self.alarms = AlarmBook()
         self.feeds: set[Feed] = set()
         self._pending: dict[str, asyncio.Future] = {}
         self._client: Any = None
@@ -200,6 +202,12 @@ class Session:
         if topic == t.status:
             self.status = data
             self._broadcast({"type": "status", "data": data})
+            if self.alarms.on_status(data):
+                self._broadcast({"type": "alarms", "data": self.alarms.listing()})
+        elif topic == t.ack:
+            self._resolve(data)
+            if self.alarms.on_ack(data):
+                self._broadcast({"type": "alarms", "data": self.alarms.listing()})
         elif topic == t.progress:
             self.progress = data
             self._broadcast({"type": "progress", "data": data})
@@ -211,9 +219,13 @@ class Session:
             self.results.append(data)
             self._broadcast({"type": "result", "data": data})
         elif topic == t.reply:
-            fut = self._pending.pop(str(data.get("id")), None)
-            if fut is not None and not fut.done():
-                fut.set_result(data)
+            self._resolve(data)
+
+    def _resolve(self, data: dict) -> None:
+        """A reply (or this session's own acknowledgement back from the broker) for a waiting call."""
+        fut = self._pending.pop(str(data.get("id")), None)
+        if fut is not None and not fut.done():
+            fut.set_result(data)
 
     def _trend(self, live: dict) -> None:
         sample = self.trend.add(live, time.time())
@@ -237,6 +249,7 @@ class Session:
                 if v is not None]
         out += [{"type": "result", "data": r} for r in self.results]
         out.append({"type": "trend_history", "data": self.trend.history()})
+        out.append({"type": "alarms", "data": self.alarms.listing()})
         if self.live is not None:
             out.append({"type": "live", "data": self.live})
         return out
@@ -276,6 +289,34 @@ class Session:
         log.info("%s by %r: %s (%.0f ms)", name, self.user, "ok" if reply.get("ok") else reply.get("error"),
                  (time.monotonic() - t0) * 1e3)
         return {"ok": bool(reply.get("ok")), "error": reply.get("error")}
+
+    async def acknowledge(self, alarm_id: str) -> dict:
+        """Acknowledge a latched alarm as this user: published on ``<prefix>/ack``; done when the
+        broker hands it back (the ACL lets the user publish there), else refused."""
+        alarm = self.alarms.alarms.get(alarm_id)
+        if alarm is None:
+            return {"ok": False, "error": f"acknowledge: no alarm {alarm_id!r}"}
+        if alarm.acked_by is not None:
+            return {"ok": True, "error": None}
+        client = self._client
+        if client is None:
+            return {"ok": False, "error": "no connection to the broker: try again when it is back"}
+        nonce = f"ack-{secrets.token_hex(6)}"
+        fut = asyncio.get_running_loop().create_future()
+        self._pending[nonce] = fut
+        body = {"alarm": alarm_id, "by": self.user, "at": proto.iso8601(), "id": nonce}
+        try:
+            await client.publish(self.settings.topics.ack, json.dumps(body), qos=1, timeout=self.settings.reply_timeout)
+            await asyncio.wait_for(fut, self.settings.reply_timeout)
+        except (TimeoutError, asyncio.TimeoutError):
+            return {"ok": False, "error": f"{NOT_AUTHORISED}: acknowledge — user {self.user!r} may not "
+                                          "acknowledge alarms of this rig (the broker dropped it)"}
+        except Exception as err:  # noqa: BLE001 - aiomqtt errors: the link went away
+            return {"ok": False, "error": f"acknowledge not sent: {err}"}
+        finally:
+            self._pending.pop(nonce, None)
+        log.info("alarm %s acknowledged by %r", alarm_id, self.user)
+        return {"ok": True, "error": None}
 
     def _no_reply(self, name: str) -> str:
         if self.status is not None and self.status.get("state") == proto.OFFLINE:

@@ -66,3 +66,61 @@ def test_trends_draw_the_live_samples_with_bands_and_nice_ticks(broker, dashboar
     late.sign_in("operator", ACCOUNTS["operator"])
     late.signed_in()
     late.wait(lambda: int(canvas(late, "trend-speed").get("samples", 0)) >= 16, 10, "the history on sign-in")
+
+
+def publish_status(broker, state: str, message: str, since: str, run_id: str = "r-alarm") -> None:
+    """A status as the rig service publishes it (not retained: the real service's stays)."""
+    status = {"state": state, "run_id": run_id, "since": since, "message": message}
+    done = broker.pub(f"orbitrig/{RIG}/status", json.dumps(status), user="orbitrig-service")
+    assert done.returncode == 0, done.stderr
+
+
+def alarm_rows(page: Page) -> list[dict]:
+    return page.d.execute_script(
+        "return [...document.querySelectorAll('#alarms tr')].map(r => ({id: r.dataset.alarm, cls: r.className,"
+        " cells: [...r.children].map(c => c.innerText)}))")
+
+
+def test_alarms_latch_until_an_operator_acknowledges_them(broker, dashboard, browsers):
+    operator, viewer = (Page(browsers(), dashboard.url, dashboard) for _ in range(2))
+    for page, user in ((operator, "operator"), (viewer, "viewer")):
+        page.sign_in(user, ACCOUNTS[user])
+        page.signed_in()
+        page.wait_text("link", "online")
+    trip_since = "2026-01-05T10:00:00.000Z"
+    publish_status(broker, "paused", "suspended by interlock: lubricant supply pump is off", trip_since)
+    for page in (operator, viewer):
+        page.wait(lambda p=page: len(alarm_rows(p)) == 1, 10, "the trip in the alarm list")
+        page.wait_text("alarm-count", "1 unacknowledged", 5)
+    row = alarm_rows(viewer)[0]
+    assert row["id"] == f"r-alarm@{trip_since}" and row["cls"] == "unacked"
+    assert row["cells"][1:4] == ["trip", "suspended by interlock: lubricant supply pump is off", "active"]
+
+    # the condition clears: the trip stays latched (unacknowledged) until someone acknowledges it
+    publish_status(broker, "running", "interlock cleared (supply_pump): settling and acquiring the block again",
+                   "2026-01-05T10:00:05.000Z")
+    viewer.wait(lambda: alarm_rows(viewer)[0]["cells"][3] == "cleared", 10, "the trip cleared")
+    assert alarm_rows(viewer)[0]["cls"] == "unacked" and viewer.text("alarm-count") == "1 unacknowledged"
+
+    # a viewer may not acknowledge (the broker drops the message); an operator may
+    viewer.d.find_element("css selector", "#alarms button.ack").click()
+    refused = viewer.wait_text("alarm-result", lambda t: "sent" not in t and t != "", 10)
+    assert "refused: not authorised" in refused and "'viewer' may not acknowledge" in refused
+    assert alarm_rows(operator)[0]["cls"] == "unacked"
+    operator.d.find_element("css selector", "#alarms button.ack").click()
+    assert operator.wait_text("alarm-result", lambda t: "sent" not in t and t != "", 10) == "acknowledge: done"
+    for page in (operator, viewer):
+        page.wait_text("alarm-count", "none unacknowledged", 10)
+        row = alarm_rows(page)[0]
+        assert row["cls"] == "acked" and row["cells"][4].startswith("operator, ")
+        assert not page.d.find_elements("css selector", "#alarms button.ack")
+
+    # a run failed by an interlock is a trip, failed otherwise a fault; newest first
+    publish_status(broker, "faulted", "run of 'demo' failed: interlock: spin drive tripped: fault 7 overcurrent",
+                   "2026-01-05T11:00:00.000Z", "r-alarm-2")
+    publish_status(broker, "faulted", "run of 'demo' failed: no revolutions from the A/D board",
+                   "2026-01-05T12:00:00.000Z", "r-alarm-3")
+    operator.wait(lambda: len(alarm_rows(operator)) == 3, 10, "three alarms")
+    assert [r["cells"][1] for r in alarm_rows(operator)] == ["fault", "trip", "trip"]
+    assert operator.text("alarm-count") == "2 unacknowledged"
+    publish_status(broker, "idle", "run stopped", "2026-01-05T12:00:01.000Z", "r-alarm-3")

@@ -88,6 +88,7 @@ function handle(msg) {
     case "result": showResult(msg.data); break;
     case "trend": trends.trendSample(msg.sample); break;
     case "trend_history": trends.trendHistory(msg.data); break;
+    case "alarms": alarmList.showAlarms(msg.data); break;
     case "signed_out": leave("session ended: " + msg.reason); break;
   }
 }
