@@ -7,8 +7,48 @@ from __future__ import annotations
 import json
 import time
 
-from dash_helpers import RIG, Page
+import pytest
+from dash_helpers import RIG, Dashboard, Page, chromium
 from mqtt_helpers import ACCOUNTS
+
+
+@pytest.fixture(scope="module")
+def dashboard(broker, tmp_path_factory):
+    """The dashboard alone on the broker: these tests publish what the rig service would."""
+    dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", "1.5")
+    yield dash
+    assert dash.stop() == 0, dash.text()[-3000:]
+
+
+@pytest.fixture(scope="module")
+def drivers(tmp_path_factory):
+    """Two headless chromiums for the whole module (an operator's and a viewer's)."""
+    root = tmp_path_factory.mktemp("chromium")
+    made = [chromium(root), chromium(root)]
+    yield made
+    for d in made:
+        d.quit()
+
+
+@pytest.fixture
+def browsers(drivers):
+    """The module's browsers one after the other, each signed out (no session cookie)."""
+    left = list(drivers)
+
+    def make():
+        d = left.pop(0)
+        d.get("about:blank")
+        d.delete_all_cookies()
+        return d
+
+    return make
+
+
+def fresh_page(browsers, dashboard) -> Page:
+    page = Page(browsers(), dashboard.url, dashboard)
+    page.d.delete_all_cookies()  # the dashboard's own cookie (set for its origin)
+    page.d.refresh()
+    return page
 
 
 def live_payload(k: int) -> dict:
@@ -30,7 +70,7 @@ def canvas(page: Page, element_id: str) -> dict[str, str]:
 
 
 def test_trends_draw_the_live_samples_with_bands_and_nice_ticks(broker, dashboard, browsers):
-    page = Page(browsers(), dashboard.url, dashboard)
+    page = fresh_page(browsers, dashboard)
     page.sign_in("viewer", ACCOUNTS["viewer"])
     page.signed_in()
     page.wait_text("link", "online")
@@ -62,7 +102,7 @@ def test_trends_draw_the_live_samples_with_bands_and_nice_ticks(broker, dashboar
     page.d.execute_script("const s = document.getElementById('trend-window'); s.value = 'run';"
                           "s.dispatchEvent(new Event('change'))")
     assert int(canvas(page, "trend-speed")["samples"]) >= 16
-    late = Page(browsers(), dashboard.url, dashboard)
+    late = fresh_page(browsers, dashboard)
     late.sign_in("operator", ACCOUNTS["operator"])
     late.signed_in()
     late.wait(lambda: int(canvas(late, "trend-speed").get("samples", 0)) >= 16, 10, "the history on sign-in")
@@ -82,7 +122,7 @@ def alarm_rows(page: Page) -> list[dict]:
 
 
 def test_alarms_latch_until_an_operator_acknowledges_them(broker, dashboard, browsers):
-    operator, viewer = (Page(browsers(), dashboard.url, dashboard) for _ in range(2))
+    operator, viewer = (fresh_page(browsers, dashboard) for _ in range(2))
     for page, user in ((operator, "operator"), (viewer, "viewer")):
         page.sign_in(user, ACCOUNTS[user])
         page.signed_in()
@@ -124,3 +164,66 @@ def test_alarms_latch_until_an_operator_acknowledges_them(broker, dashboard, bro
     assert [r["cells"][1] for r in alarm_rows(operator)] == ["fault", "trip", "trip"]
     assert operator.text("alarm-count") == "2 unacknowledged"
     publish_status(broker, "idle", "run stopped", "2026-01-05T12:00:01.000Z", "r-alarm-3")
+
+
+def waiting_status(measured_ratio: float) -> dict:
+    """A waiting status as the service publishes it: pressure ratio asked 0.400 (band 0.35..0.45)."""
+    def setting(value, unit, measured, half):
+        return {"value": value, "unit": unit, "measured": measured, "band": [value - half, value + half]}
+    return {"state": "waiting", "run_id": "r-manual", "since": "2026-01-05T13:00:00.000Z", "step": "manual:0000",
+            "message": "waiting for the manual settings of point 0",
+            "settings": {"orbit_radius": setting(5.76e-6, "m", 5.70e-6, 0.864e-6),
+                         "static_eccentricity": setting(0.0, "-", 0.01, 0.05),
+                         "recess_pressure": setting(0.4826e6, "Pa", 0.48e6, 0.04826e6),
+                         "pressure_ratio": setting(0.4, "-", measured_ratio, 0.05)}}
+
+
+def manual_rows(page: Page) -> dict[str, tuple[str, str]]:
+    """{setting: (measured cell text, row class)}."""
+    return {k: tuple(v) for k, v in page.d.execute_script(
+        "const out = {}; document.querySelectorAll('#manual-table tr').forEach(r => {"
+        " out[r.dataset.setting] = [r.children[2].innerText, r.className]; }); return out;").items()}
+
+
+def test_manual_panel_highlights_a_measured_value_outside_its_band(broker, dashboard, browsers):
+    page = fresh_page(browsers, dashboard)
+    page.sign_in("viewer", ACCOUNTS["viewer"])
+    page.signed_in()
+    page.wait_text("link", "online")
+    done = broker.pub(f"orbitrig/{RIG}/status", json.dumps(waiting_status(0.25)), user="orbitrig-service")
+    assert done.returncode == 0, done.stderr
+    page.wait(lambda: page.el("manual").is_displayed(), 10, "the manual setting panel")
+    rows = manual_rows(page)
+    assert rows["pressure_ratio"] == ("0.250 (outside the band)", "outside")  # asked 0.400 +/- 0.05
+    assert rows["recess_pressure"] == ("0.4800", "") and rows["orbit_radius"] == ("5.70", "")
+    assert "0.350 … 0.450" in page.rows("manual-table", "setting")["pressure_ratio"]
+
+    # the live payload carries the settings as measured now: the panel follows it
+    live = {**live_payload(0), "run_id": "r-manual", "settings_measured": {"pressure_ratio": 0.40, "orbit_radius": 7.5e-6}}
+    done = broker.pub(f"orbitrig/{RIG}/live", json.dumps(live), user="orbitrig-service", qos=0)
+    assert done.returncode == 0, done.stderr
+    page.wait(lambda: manual_rows(page)["pressure_ratio"] == ("0.400", ""), 10, "the live pressure ratio")
+    assert manual_rows(page)["orbit_radius"] == ("7.50 (outside the band)", "outside")  # 5.76 um +/- 15 %
+    publish_status(broker, "idle", "run stopped", "2026-01-05T13:00:05.000Z", "r-manual")
+    page.wait(lambda: not page.el("manual").is_displayed(), 10, "the panel to close")
+
+
+def test_sign_out_leaves_nothing_of_the_previous_person(broker, dashboard, browsers):
+    page = fresh_page(browsers, dashboard)
+    page.sign_in("viewer", ACCOUNTS["viewer"])
+    page.signed_in()
+    page.wait_text("link", "online")
+    assert "refused: not authorised" in page.command("btn-pause", "refused")
+    assert "refused: not authorised" in page.text("events")
+    page.el("signout").click()
+    page.wait(lambda: page.el("signin").is_displayed(), 10, "the sign-in form")
+    assert page.el("user").get_attribute("value") == "" and page.el("password").get_attribute("value") == ""
+    page.el("user").send_keys("operator")  # typed into an empty field: nothing appended
+    assert page.el("user").get_attribute("value") == "operator"
+    page.el("password").send_keys(ACCOUNTS["operator"])
+    page.el("signin-btn").click()
+    page.signed_in()
+    page.wait_text("link", "online")
+    assert page.text("who") == "operator"
+    assert page.text("events") == "" and page.text("cmd-result") == ""  # the viewer's refusals are gone
+    assert page.text("alarm-count") and page.rows("aux", "aux")  # the rig's view drawn again
