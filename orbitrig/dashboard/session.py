@@ -4,8 +4,9 @@ The broker authenticates the connection and its ACL decides what the person
 may do: the dashboard adds no rights of its own. The password lives only in
 this object (server-side memory) for the reconnections; it is never logged.
 
-A :class:`Session` keeps what the page needs to draw itself at once (the
-retained status, the latest progress and live payloads, the results so far)
+A :class:`Session` watches one rig of the broker at a time (``select_rig``) and keeps
+what the page needs to draw itself at once (the retained status, the latest progress
+and live payloads, the results so far, the trends and the alarms)
 and fans every rig message out to the session's browser feeds. A command is
 published with a correlation id and answered by the service's reply; a publish
 the ACL drops silently (MQTT 3.1.1) gets no reply: after ``reply_timeout`` it is
@@ -27,6 +28,7 @@ from typing import Any
 
 import orbitrig.service.protocol as proto
 from orbitrig.dashboard.alarms import AlarmBook
+from orbitrig.dashboard.rigs import RigDirectory
 from orbitrig.dashboard.throttle import ThrottlePolicy
 from orbitrig.dashboard.trend import TrendHistory
 
@@ -106,13 +108,12 @@ class Session:
         self.token = secrets.token_urlsafe(32)
         self.last_active = time.monotonic()
         self.link = "connecting"  # online | broker unreachable | connecting
-        self.status: dict | None = None
-        self.progress: dict | None = None
-        self.live: dict | None = None
-        self.results: collections.deque[dict] = collections.deque(maxlen=500)
-        self.trend = TrendHistory(settings.trend_period, settings.trend_recent_s)
-        self.trend_samples = 0
-        self.alarms = AlarmBook()
+        self.status: dict | None
+        self.progress: dict | None
+        self.live: dict | None
+        self.topics = settings.topics  # the rig watched now (select_rig changes it)
+        self.rigs = RigDirectory(settings.topics.prefix)
+        self._forget_rig()
         self.feeds: set[Feed] = set()
         self._pending: dict[str, asyncio.Future] = {}
         self._client: Any = None
@@ -121,6 +122,37 @@ class Session:
 
     def __repr__(self) -> str:  # never the password
         return f"Session(user={self.user!r}, link={self.link!r})"
+
+    def _forget_rig(self) -> None:
+        """Drop what the session knows of the rig it watched."""
+        self.status = self.progress = self.live = None
+        self.results: collections.deque[dict] = collections.deque(maxlen=500)
+        self.trend = TrendHistory(self.settings.trend_period, self.settings.trend_recent_s)
+        self.trend_samples = 0
+        self.alarms = AlarmBook()
+
+    async def select_rig(self, rig_id: str) -> dict:
+        """Watch another rig of the broker (``orbitrig/<rig_id>``) from now on."""
+        if self.rigs.root is None:
+            return {"ok": False, "error": f"this dashboard watches the topic tree {self.topics.prefix} only"}
+        try:
+            new = proto.topics(rig_id)
+        except ValueError as err:
+            return {"ok": False, "error": str(err)}
+        if new == self.topics:
+            return {"ok": True, "prefix": new.prefix}
+        old, client = self.topics, self._client
+        self.topics = new
+        self._forget_rig()
+        self._broadcast({"type": "rig", "prefix": new.prefix})
+        log.info("session of %r: now watching %s", self.user, new.prefix)
+        if client is not None:
+            try:
+                await client.unsubscribe(f"{old.prefix}/#")
+                await client.subscribe(f"{new.prefix}/#", qos=1)  # the new rig's retained status comes
+            except Exception as err:  # noqa: BLE001 - aiomqtt errors: the connection loop subscribes again
+                log.info("session of %r: subscription to %s deferred: %s", self.user, new.prefix, err)
+        return {"ok": True, "prefix": new.prefix}
 
     def touch(self) -> None:
         self.last_active = time.monotonic()
@@ -149,7 +181,9 @@ class Session:
         while not self.closed:
             try:
                 async with self._make_client() as client:
-                    await client.subscribe(f"{self.settings.topics.prefix}/#", qos=1)
+                    await client.subscribe(f"{self.topics.prefix}/#", qos=1)
+                    if self.rigs.pattern is not None:
+                        await client.subscribe(self.rigs.pattern, qos=1)
                     self._client = client
                     if not first.done():
                         first.set_result(None)
@@ -192,13 +226,16 @@ class Session:
     # -- incoming ----------------------------------------------------------------
 
     def _on_message(self, topic: str, raw: Any) -> None:
-        t = self.settings.topics
+        t = self.topics
         try:
             data = json.loads(raw if isinstance(raw, (bytes, bytearray, str)) else b"")
         except (ValueError, RecursionError):
             return
         if not isinstance(data, dict):
             return
+        rig_id = self.rigs.rig_of(topic)
+        if rig_id is not None and self.rigs.on_status(rig_id, data):
+            self._broadcast({"type": "rigs", "data": self.rigs.listing()})
         if topic == t.status:
             self.status = data
             self._broadcast({"type": "status", "data": data})
@@ -243,8 +280,8 @@ class Session:
 
     def snapshot(self) -> list[dict]:
         """What a newly connected page needs to draw the present at once."""
-        out: list[dict] = [{"type": "hello", "user": self.user, "prefix": self.settings.topics.prefix},
-                           {"type": "link", "link": self.link}]
+        out: list[dict] = [{"type": "hello", "user": self.user, "prefix": self.topics.prefix},
+                           {"type": "link", "link": self.link}, {"type": "rigs", "data": self.rigs.listing()}]
         out += [{"type": k, "data": v} for k, v in (("status", self.status), ("progress", self.progress))
                 if v is not None]
         out += [{"type": "result", "data": r} for r in self.results]
@@ -271,7 +308,7 @@ class Session:
         if client is None:
             return {"ok": False, "error": "no connection to the broker: try again when it is back"}
         cid = f"dash-{secrets.token_hex(6)}"
-        topics = self.settings.topics  # stop and abort on their own topic: no flood holds them back
+        topics = self.topics  # stop and abort on their own topic: no flood holds them back
         fut = asyncio.get_running_loop().create_future()
         self._pending[cid] = fut
         t0 = time.monotonic()
@@ -306,7 +343,7 @@ class Session:
         self._pending[nonce] = fut
         body = {"alarm": alarm_id, "by": self.user, "at": proto.iso8601(), "id": nonce}
         try:
-            await client.publish(self.settings.topics.ack, json.dumps(body), qos=1, timeout=self.settings.reply_timeout)
+            await client.publish(self.topics.ack, json.dumps(body), qos=1, timeout=self.settings.reply_timeout)
             await asyncio.wait_for(fut, self.settings.reply_timeout)
         except (TimeoutError, asyncio.TimeoutError):
             return {"ok": False, "error": f"{NOT_AUTHORISED}: acknowledge — user {self.user!r} may not "

@@ -118,7 +118,8 @@ def test_viewer_sees_everything_and_commands_nothing(dashboard, service, browser
     shot = Path(os.environ.get(SCREENSHOT_ENV) or tmp_path / "dashboard.png")
     if not shot.is_absolute():
         shot = REPO / shot
-    operator.d.execute_script("window.scrollTo(0, 0)")
+    operator.d.execute_script("const s = document.getElementById('trend-window'); s.value = 'run';"
+                              "s.dispatchEvent(new Event('change')); window.scrollTo(0, 0)")
     time.sleep(0.2)
     operator.screenshot(shot)
     assert shot.stat().st_size > 20_000

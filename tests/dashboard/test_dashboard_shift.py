@@ -5,10 +5,13 @@ trends, with nice ticks, the service's bands, and a window of the last N minutes
 from __future__ import annotations
 
 import json
+import os
 import time
+from pathlib import Path
 
 import pytest
-from dash_helpers import RIG, Dashboard, Page, chromium
+from dash_helpers import REPO, RIG, Dashboard, Page, chromium
+from selenium.webdriver.support.ui import Select
 from mqtt_helpers import ACCOUNTS
 
 
@@ -44,6 +47,20 @@ def browsers(drivers):
     return make
 
 
+#: Set to a folder (e.g. docs/images) to keep the screenshots the tests take.
+SCREENSHOTS_ENV = "ORBITRIG_DASHBOARD_SCREENSHOTS"
+
+
+def shot(page: Page, element_id: str, name: str, tmp_path: Path) -> None:
+    """A screenshot of one card of the page (docs/images/dashboard-<name>.png when asked for)."""
+    folder = Path(os.environ.get(SCREENSHOTS_ENV) or tmp_path)
+    path = (folder if folder.is_absolute() else REPO / folder) / f"dashboard-{name}.png"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    page.d.execute_script("arguments[0].scrollIntoView({block: 'center'})", page.el(element_id))
+    page.el(element_id).screenshot(str(path))
+    assert path.stat().st_size > 5_000
+
+
 def fresh_page(browsers, dashboard) -> Page:
     page = Page(browsers(), dashboard.url, dashboard)
     page.d.delete_all_cookies()  # the dashboard's own cookie (set for its origin)
@@ -69,7 +86,7 @@ def canvas(page: Page, element_id: str) -> dict[str, str]:
     return page.d.execute_script("return Object.assign({}, document.getElementById(arguments[0]).dataset)", element_id)
 
 
-def test_trends_draw_the_live_samples_with_bands_and_nice_ticks(broker, dashboard, browsers):
+def test_trends_draw_the_live_samples_with_bands_and_nice_ticks(broker, dashboard, browsers, tmp_path):
     page = fresh_page(browsers, dashboard)
     page.sign_in("viewer", ACCOUNTS["viewer"])
     page.signed_in()
@@ -97,6 +114,7 @@ def test_trends_draw_the_live_samples_with_bands_and_nice_ticks(broker, dashboar
     flow = [float(t) for t in canvas(page, "trend-flow")["ticks"].split()]
     assert flow[0] <= 1.5 <= flow[-1] < 3.0  # 2.5e-5 m^3/s = 1.5 l/min
     assert canvas(page, "trend-torque")["series"] == "spin,orbit"
+    shot(page, "trends-card", "trends", tmp_path)
 
     # the whole run's view: the same samples; a page opened later gets the history at once
     page.d.execute_script("const s = document.getElementById('trend-window'); s.value = 'run';"
@@ -121,7 +139,7 @@ def alarm_rows(page: Page) -> list[dict]:
         " cells: [...r.children].map(c => c.innerText)}))")
 
 
-def test_alarms_latch_until_an_operator_acknowledges_them(broker, dashboard, browsers):
+def test_alarms_latch_until_an_operator_acknowledges_them(broker, dashboard, browsers, tmp_path):
     operator, viewer = (fresh_page(browsers, dashboard) for _ in range(2))
     for page, user in ((operator, "operator"), (viewer, "viewer")):
         page.sign_in(user, ACCOUNTS[user])
@@ -163,6 +181,7 @@ def test_alarms_latch_until_an_operator_acknowledges_them(broker, dashboard, bro
     operator.wait(lambda: len(alarm_rows(operator)) == 3, 10, "three alarms")
     assert [r["cells"][1] for r in alarm_rows(operator)] == ["fault", "trip", "trip"]
     assert operator.text("alarm-count") == "2 unacknowledged"
+    shot(operator, "alarms-card", "alarms", tmp_path)
     publish_status(broker, "idle", "run stopped", "2026-01-05T12:00:01.000Z", "r-alarm-3")
 
 
@@ -185,7 +204,7 @@ def manual_rows(page: Page) -> dict[str, tuple[str, str]]:
         " out[r.dataset.setting] = [r.children[2].innerText, r.className]; }); return out;").items()}
 
 
-def test_manual_panel_highlights_a_measured_value_outside_its_band(broker, dashboard, browsers):
+def test_manual_panel_highlights_a_measured_value_outside_its_band(broker, dashboard, browsers, tmp_path):
     page = fresh_page(browsers, dashboard)
     page.sign_in("viewer", ACCOUNTS["viewer"])
     page.signed_in()
@@ -197,6 +216,7 @@ def test_manual_panel_highlights_a_measured_value_outside_its_band(broker, dashb
     assert rows["pressure_ratio"] == ("0.250 (outside the band)", "outside")  # asked 0.400 +/- 0.05
     assert rows["recess_pressure"] == ("0.4800", "") and rows["orbit_radius"] == ("5.70", "")
     assert "0.350 … 0.450" in page.rows("manual-table", "setting")["pressure_ratio"]
+    shot(page, "manual-card", "manual", tmp_path)
 
     # the live payload carries the settings as measured now: the panel follows it
     live = {**live_payload(0), "run_id": "r-manual", "settings_measured": {"pressure_ratio": 0.40, "orbit_radius": 7.5e-6}}
@@ -227,3 +247,43 @@ def test_sign_out_leaves_nothing_of_the_previous_person(broker, dashboard, brows
     assert page.text("who") == "operator"
     assert page.text("events") == "" and page.text("cmd-result") == ""  # the viewer's refusals are gone
     assert page.text("alarm-count") and page.rows("aux", "aux")  # the rig's view drawn again
+
+
+def rig_options(page: Page) -> list[str]:
+    return page.d.execute_script("return [...document.getElementById('rig-select').options].map(o => o.text)")
+
+
+def test_several_rigs_on_one_broker_are_listed_and_selectable(broker, dashboard, browsers):
+    for rig, state in (("rig-b", "idle"), ("rig-c", "offline")):  # retained, as each rig's service leaves them
+        status = {"state": state, "run_id": None, "since": "2026-01-05T14:00:00.000Z", "message": f"{rig} {state}"}
+        done = broker.pub(f"orbitrig/{rig}/status", json.dumps(status), user="orbitrig-service", retain=True)
+        assert done.returncode == 0, done.stderr
+    page = fresh_page(browsers, dashboard)
+    page.sign_in("operator", ACCOUNTS["operator"])
+    page.signed_in()
+    page.wait_text("link", "online")
+    page.wait(lambda: {"rig-b (idle)", "rig-c (offline)"} <= set(rig_options(page)), 10, "the rigs on the broker")
+    assert page.text("rig") == f"orbitrig/{RIG}"
+    publish_status(broker, "paused", "suspended by interlock: lubricant supply pump is off",
+                   "2026-01-05T14:00:01.000Z", "r-here")
+    page.wait_text("alarm-count", lambda t: t.endswith(" unacknowledged") and not t.startswith("none"), 10)
+
+    Select(page.el("rig-select")).select_by_value("rig-b")
+    page.wait_text("rig", "orbitrig/rig-b", 10)
+    page.wait_state("idle", 10)  # rig-b's retained status
+    assert page.text("message") == "rig-b idle"
+    assert page.text("alarm-count") == "none unacknowledged"  # the other rig's alarm is not this one's
+    failed = {"state": "faulted", "run_id": "r-here", "since": "2026-01-05T14:00:02.000Z",
+              "message": "run of 'demo' failed: no revolutions"}  # on the first rig, retained
+    assert broker.pub(f"orbitrig/{RIG}/status", json.dumps(failed), user="orbitrig-service", retain=True).returncode == 0
+    done = broker.pub("orbitrig/rig-b/live", json.dumps(live_payload(0)), user="orbitrig-service", qos=0)
+    assert done.returncode == 0, done.stderr
+    page.wait(lambda: int(canvas(page, "trend-speed").get("samples", 0)) >= 4, 10, "rig-b's trend")
+    assert page.state() == "idle" and page.text("alarm-count") == "none unacknowledged"
+    Select(page.el("rig-select")).select_by_value(RIG)
+    page.wait_text("rig", f"orbitrig/{RIG}", 10)
+    page.wait_state("faulted", 10)  # its retained status, and the alarm it raises
+    page.wait_text("alarm-count", "1 unacknowledged", 10)
+    page.wait(lambda: any("rig-b" in o for o in rig_options(page)), 5, "the rigs listed again")
+    for rig in (RIG, "rig-b", "rig-c"):
+        broker.pub(f"orbitrig/{rig}/status", "", user="orbitrig-service", retain=True)  # clears the retained

@@ -55,9 +55,18 @@ function leave(reason) {
 // the rig's view (the next sign-in's feed draws it again from the server's snapshot)
 function resetView() {
   $("user").value = ""; $("password").value = "";
-  ["events", "results", "alarms", "manual-table", "matrix-names"].forEach(id => clear($(id)));
+  ["events", "matrix-names", "rig-select"].forEach(id => clear($(id)));
+  ["cmd-result", "who", "rig"].forEach(id => { $(id).textContent = ""; });
+  st.rigs = {};
+  clearRigView();
+}
+
+// the view of one rig, emptied when the person leaves or watches another rig
+function clearRigView() {
+  ["results", "manual-table"].forEach(id => clear($(id)));
+  alarmList.showAlarms([]);
   showDrives({}); showAux({}, {});  // every row in place before the first live message: no jump
-  ["cmd-result", "alarm-result", "who", "rig", "run-id", "message", "manual-step"].forEach(id => { $(id).textContent = ""; });
+  ["alarm-result", "run-id", "message", "manual-step"].forEach(id => { $(id).textContent = ""; });
   ["point", "frequency", "revolutions", "eta", "op-spin", "op-orbit", "op-orbit-hz", "op-direction", "state"].forEach(id => { $(id).textContent = "—"; });
   $("state").className = "state"; $("progress-bar").style.width = "0";
   $("matrix").value = "demo";
@@ -98,6 +107,8 @@ function banner(text) { $("offline-banner").textContent = text || ""; show($("of
 function handle(msg) {
   switch (msg.type) {
     case "hello": $("who").textContent = msg.user; $("rig").textContent = msg.prefix; break;
+    case "rigs": showRigs(msg.data); break;
+    case "rig": clearRigView(); $("rig").textContent = msg.prefix; showRigs(st.rigs || {}); break;
     case "link": showLink(msg.link); break;
     case "status": showStatus(msg.data); break;
     case "progress": showProgress(msg.data); break;
@@ -108,6 +119,27 @@ function handle(msg) {
     case "alarms": alarmList.showAlarms(msg.data); break;
     case "signed_out": leave("session ended: " + msg.reason); break;
   }
+}
+
+// the rigs on the broker (id -> state) in the header's selector; the one watched selected
+function showRigs(rigs) {
+  st.rigs = rigs;
+  const sel = $("rig-select"), current = ($("rig").textContent || "").split("/").pop();
+  clear(sel);
+  const ids = Object.keys(rigs);
+  if (current && !ids.includes(current)) ids.unshift(current);
+  ids.forEach(id => {
+    const o = document.createElement("option"); o.value = id;
+    o.textContent = id + " (" + (rigs[id] || "no status") + ")"; o.selected = id === current;
+    sel.appendChild(o);
+  });
+}
+
+async function selectRig() {
+  activity();
+  const r = await api("/api/rig", {rig: $("rig-select").value});
+  if (r.status === 401) { leave("session ended: sign in again"); return; }
+  if (!r.data.ok) { $("cmd-result").className = "cmd-result refused"; $("cmd-result").textContent = "rig: " + r.data.error; }
 }
 
 function showLink(link) {
@@ -288,6 +320,7 @@ function wire() {
   $("abort-cancel").addEventListener("click", () => $("abort-dialog").close());
   $("abort-confirm").addEventListener("click", () => { $("abort-dialog").close(); send("abort"); });
   $("trend-window").addEventListener("change", () => trends.drawTrends());
+  $("rig-select").addEventListener("change", selectRig);
   $("btn-confirm").addEventListener("click", () => send("confirm", {step: $("manual-step").textContent}));
   ["keydown", "pointerdown", "pointermove", "wheel"].forEach(t => document.addEventListener(t, activity, {passive: true}));
   setInterval(() => { $("live-age").textContent = st.liveAt ? ((Date.now() - st.liveAt) / 1000).toFixed(1) + " s ago" : "—"; }, 500);

@@ -132,11 +132,13 @@ function drawTrend(canvas, series, band, win) {
     ctx.strokeStyle = COLOURS[k % COLOURS.length]; ctx.lineWidth = 1.5; ctx.setLineDash(s.dashed ? [5, 3] : []);
     ctx.beginPath();
     let pen = false;
+    let last = null;
     s.points.forEach(([t, v]) => {
       if (v === null || t < t0) { pen = false; return; }
-      pen ? ctx.lineTo(px(t), py(v)) : ctx.moveTo(px(t), py(v)); pen = true;
+      pen ? ctx.lineTo(px(t), py(v)) : ctx.moveTo(px(t), py(v)); pen = true; last = [t, v];
     });
     ctx.stroke();
+    if (last) { ctx.fillStyle = COLOURS[k % COLOURS.length]; ctx.beginPath(); ctx.arc(px(last[0]), py(last[1]), 2.5, 0, 2 * Math.PI); ctx.fill(); }
   });
   ctx.setLineDash([]);
   legend(ctx, series.map(s => s.name), series.map((s, k) => COLOURS[k % COLOURS.length]));
