@@ -40,7 +40,7 @@ AUTH_REFUSED = {4, 5, 134, 135}
 PAGE_COMMANDS = {"start": ("matrix",), "pause": (), "resume": (), "stop": (), "abort": (),
                  "confirm": ("step",), "status": ()}
 NOT_AUTHORISED = "refused: not authorised"
-TREND_RESEND = 30  # the whole trend history goes to the pages again every this many samples
+TREND_RESEND = 300  # the run's trend view (thinned by the server) goes to the pages again every this many samples
 
 
 class SignInRefused(Exception):
@@ -269,10 +269,9 @@ class Session:
         if sample is None:
             return
         self.trend_samples += 1
+        self._broadcast({"type": "trend", "sample": sample, "run_id": self.trend.run_id})
         if self.trend_samples % TREND_RESEND == 0:
-            self._broadcast({"type": "trend_history", "data": self.trend.history()})
-        else:
-            self._broadcast({"type": "trend", "sample": sample})
+            self._broadcast({"type": "trend_history", "data": {**self.trend.history(), "recent": None}})
 
     def _broadcast(self, message: dict) -> None:
         for feed in list(self.feeds):

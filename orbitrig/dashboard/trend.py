@@ -36,7 +36,8 @@ def sample_of(live: dict[str, Any], t: float) -> dict[str, float | None]:
         v: Any = live
         for key in path:
             v = v.get(key) if isinstance(v, dict) else None
-        out[name] = float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) else None
+        ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+        out[name] = float(f"{v:.6g}") if ok else None  # 6 digits: more than any sensor gives
     return out
 
 

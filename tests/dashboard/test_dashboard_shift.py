@@ -120,6 +120,13 @@ def test_trends_draw_the_live_samples_with_bands_and_nice_ticks(broker, dashboar
     page.d.execute_script("const s = document.getElementById('trend-window'); s.value = 'run';"
                           "s.dispatchEvent(new Event('change'))")
     assert int(canvas(page, "trend-speed")["samples"]) >= 16
+    # the page's own arrays stay bounded: 1800 recent samples, the run's view plus 600 since it
+    kept = page.d.execute_script(
+        "const s = trendState.recent[trendState.recent.length - 1], kept = trendState.runKept || 0;"
+        "for (let k = 1; k <= 5000; k++) trends.trendSample(Object.assign({}, s, {t: s.t + k}), trendState.runId);"
+        "return [trendState.recent.length, trendState.run.length, kept, trendState.run[0].t];")
+    assert kept[0] == 1800 and kept[1] == kept[2] + 600  # (the server sends its view every 300 samples)
+
     late = fresh_page(browsers, dashboard)
     late.sign_in("operator", ACCOUNTS["operator"])
     late.signed_in()

@@ -114,7 +114,7 @@ function handle(msg) {
     case "progress": showProgress(msg.data); break;
     case "live": showLive(msg.data); break;
     case "result": resultTable.showResult(msg.data); break;
-    case "trend": trends.trendSample(msg.sample); break;
+    case "trend": trends.trendSample(msg.sample, msg.run_id); break;
     case "trend_history": trends.trendHistory(msg.data); break;
     case "alarms": alarmList.showAlarms(msg.data); break;
     case "signed_out": leave("session ended: " + msg.reason); break;

@@ -102,14 +102,15 @@ function drawOrbit(canvas, x, y) {
   mark(canvas, xs.length, ax);
 }
 
-function clockText(t) { const d = new Date(t * 1000); return d.toTimeString().slice(0, 5); }
+function clockText(t, seconds) { const d = new Date(t * 1000); return d.toTimeString().slice(0, seconds ? 8 : 5); }
 
-// time ticks every 1, 2, 5, 10, 15, 30 min or 1, 2, 6, 12, 24 h over [t0, t1] (s since the epoch)
+// local clock ticks every 10, 15, 30 s, 1, 2, 5, 10, 15, 30 min or 1, 2, 6, 12, 24 h over [t0, t1]
+// (s since the epoch), at most 6
 function timeTicks(t0, t1) {
-  const steps = [60, 120, 300, 600, 900, 1800, 3600, 7200, 21600, 43200, 86400];
+  const steps = [10, 15, 30, 60, 120, 300, 600, 900, 1800, 3600, 7200, 21600, 43200, 86400];
   const step = steps.find(s => (t1 - t0) / s <= 6) || 86400;
   const out = [];
-  for (let t = Math.ceil(t0 / step) * step; t <= t1; t += step) out.push([(t - t0) / (t1 - t0), clockText(t)]);
+  for (let t = Math.ceil(t0 / step) * step; t <= t1; t += step) out.push([(t - t0) / (t1 - t0), clockText(t, step < 60)]);
   return out;
 }
 

@@ -1,10 +1,11 @@
 // Trend charts: speeds, pressures, temperatures, flow and torque over the run or the last N minutes.
-// The dashboard server keeps the history (bounded) and sends it on connect and every 30 samples
-// ("trend_history"); single samples ("trend") arrive in between. The page keeps at most
-// RECENT_MAX recent samples and the server's run view plus the samples since it.
+// The dashboard server keeps the history (bounded) and sends it on connect ("trend_history"), then
+// every sample ("trend"), and its thinned view of the run again every 300 samples (recent: null).
+// The page keeps at most RECENT_MAX recent samples and the server's run view plus at most
+// RUN_TAIL_MAX samples since it.
 "use strict";
 
-const RECENT_MAX = 1800;
+const RECENT_MAX = 1800, RUN_TAIL_MAX = 600;
 const trendState = {recent: [], run: [], runId: null, bands: {}};
 
 // chart id -> [series: [key, label, dashed]], unit text, value in shown unit, band key
@@ -19,17 +20,27 @@ const TREND_CHARTS = {
 
 function trendHistory(h) {
   trendState.runId = h.run_id;
-  trendState.recent = (h.recent || []).slice(-RECENT_MAX);
+  if (h.recent) trendState.recent = h.recent.slice(-RECENT_MAX);
   trendState.run = h.run || [];
-  drawTrends();
+  trendState.runKept = trendState.run.length;
+  scheduleDraw();
 }
 
-function trendSample(s) {
+function trendSample(s, runId) {
+  if (runId !== trendState.runId) Object.assign(trendState, {runId, run: [], runKept: 0});  // a new run
   trendState.recent.push(s);
   if (trendState.recent.length > RECENT_MAX) trendState.recent.splice(0, trendState.recent.length - RECENT_MAX);
   trendState.run.push(s);
-  if (trendState.run.length > 2 * RECENT_MAX) trendState.run.splice(0, trendState.run.length - 2 * RECENT_MAX);
-  drawTrends();
+  const tail = trendState.run.length - (trendState.runKept || 0);  // samples since the server's view
+  if (tail > RUN_TAIL_MAX) trendState.run.splice(trendState.runKept || 0, tail - RUN_TAIL_MAX);
+  scheduleDraw();
+}
+
+// samples arriving together are drawn once, at the next frame
+function scheduleDraw() {
+  if (trendState.drawPending) return;
+  trendState.drawPending = true;
+  requestAnimationFrame(() => { trendState.drawPending = false; drawTrends(); });
 }
 
 function trendBands(bands) { trendState.bands = bands || {}; }
@@ -59,6 +70,6 @@ function drawTrends() {
   });
 }
 
-function trendClear() { trendState.recent = []; trendState.run = []; trendState.bands = {}; }
+function trendClear() { Object.assign(trendState, {recent: [], run: [], runKept: 0, runId: null, bands: {}}); }
 
 window.trends = {trendHistory, trendSample, trendBands, drawTrends, trendClear};
