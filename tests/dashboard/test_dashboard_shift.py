@@ -1,9 +1,11 @@
-"""The dashboard for a shift in a real chromium. Trends: live payloads published on the real broker as the rig
-service would (known values) become the speed, pressure, temperature, flow and torque
-trends, with nice ticks, the service's bands, and a window of the last N minutes or the run."""
+"""The dashboard for a shift in a real chromium, on a real authenticated mosquitto. The tests
+publish what a rig service would (known values, as orbitrig-service): trends with nice ticks
+and the service's bands over the last N minutes or the run; latched alarms and their
+acknowledgement (operators only); the manual panel's band highlight; sign-out; several rigs."""
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import time
@@ -11,8 +13,8 @@ from pathlib import Path
 
 import pytest
 from dash_helpers import REPO, RIG, Dashboard, Page, chromium
-from selenium.webdriver.support.ui import Select
 from mqtt_helpers import ACCOUNTS
+from selenium.webdriver.support.ui import Select
 
 
 @pytest.fixture(scope="module")
@@ -101,7 +103,7 @@ def test_trends_draw_the_live_samples_with_bands_and_nice_ticks(broker, dashboar
     assert speed["series"] == "spin,spin set,orbit,orbit set"
     ticks = [float(t) for t in speed["ticks"].split()]
     assert ticks[0] <= 600 and ticks[-1] >= 1001 and len(ticks) <= 7
-    steps = {round(b - a, 6) for a, b in zip(ticks, ticks[1:])}
+    steps = {round(b - a, 6) for a, b in itertools.pairwise(ticks)}
     assert len(steps) == 1 and steps.pop() in (100.0, 200.0, 250.0, 500.0)  # a round step, no raw extremes
     supply = canvas(page, "trend-supply")
     assert supply["band"] == "0.2,8" and supply["ticks"] == "0 2 4 6 8"  # MPa: the interlock band shown
