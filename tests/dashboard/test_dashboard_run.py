@@ -10,7 +10,7 @@ import re
 import time
 from pathlib import Path
 
-from dash_helpers import REPO, RIG, Page
+from dash_helpers import REPO, RIG, Page, card_shot
 from mqtt_helpers import ACCOUNTS
 
 #: Set to a path (e.g. docs/dashboard.png) to keep the screenshot the test makes.
@@ -123,6 +123,7 @@ def test_viewer_sees_everything_and_commands_nothing(dashboard, service, browser
     time.sleep(0.2)
     operator.screenshot(shot)
     assert shot.stat().st_size > 20_000
+    card_shot(operator, "trends-card", "trends", tmp_path)  # the demo run's trends
 
 
 def test_results_show_values_u_and_units_as_they_arrive(broker, dashboard, browsers):

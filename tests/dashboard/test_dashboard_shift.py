@@ -7,12 +7,10 @@ from __future__ import annotations
 
 import itertools
 import json
-import os
 import time
-from pathlib import Path
 
 import pytest
-from dash_helpers import REPO, RIG, Dashboard, Page, chromium
+from dash_helpers import RIG, Dashboard, Page, card_shot, chromium
 from mqtt_helpers import ACCOUNTS
 from selenium.webdriver.support.ui import Select
 
@@ -49,20 +47,6 @@ def browsers(drivers):
     return make
 
 
-#: Set to a folder (e.g. docs/images) to keep the screenshots the tests take.
-SCREENSHOTS_ENV = "ORBITRIG_DASHBOARD_SCREENSHOTS"
-
-
-def shot(page: Page, element_id: str, name: str, tmp_path: Path) -> None:
-    """A screenshot of one card of the page (docs/images/dashboard-<name>.png when asked for)."""
-    folder = Path(os.environ.get(SCREENSHOTS_ENV) or tmp_path)
-    path = (folder if folder.is_absolute() else REPO / folder) / f"dashboard-{name}.png"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    page.d.execute_script("arguments[0].scrollIntoView({block: 'center'})", page.el(element_id))
-    page.el(element_id).screenshot(str(path))
-    assert path.stat().st_size > 5_000
-
-
 def fresh_page(browsers, dashboard) -> Page:
     page = Page(browsers(), dashboard.url, dashboard)
     page.d.delete_all_cookies()  # the dashboard's own cookie (set for its origin)
@@ -88,7 +72,7 @@ def canvas(page: Page, element_id: str) -> dict[str, str]:
     return page.d.execute_script("return Object.assign({}, document.getElementById(arguments[0]).dataset)", element_id)
 
 
-def test_trends_draw_the_live_samples_with_bands_and_nice_ticks(broker, dashboard, browsers, tmp_path):
+def test_trends_draw_the_live_samples_with_bands_and_nice_ticks(broker, dashboard, browsers):
     page = fresh_page(browsers, dashboard)
     page.sign_in("viewer", ACCOUNTS["viewer"])
     page.signed_in()
@@ -116,7 +100,6 @@ def test_trends_draw_the_live_samples_with_bands_and_nice_ticks(broker, dashboar
     flow = [float(t) for t in canvas(page, "trend-flow")["ticks"].split()]
     assert flow[0] <= 1.5 <= flow[-1] < 3.0  # 2.5e-5 m^3/s = 1.5 l/min
     assert canvas(page, "trend-torque")["series"] == "spin,orbit"
-    shot(page, "trends-card", "trends", tmp_path)
 
     # the whole run's view: the same samples; a page opened later gets the history at once
     page.d.execute_script("const s = document.getElementById('trend-window'); s.value = 'run';"
@@ -190,7 +173,7 @@ def test_alarms_latch_until_an_operator_acknowledges_them(broker, dashboard, bro
     operator.wait(lambda: len(alarm_rows(operator)) == 3, 10, "three alarms")
     assert [r["cells"][1] for r in alarm_rows(operator)] == ["fault", "trip", "trip"]
     assert operator.text("alarm-count") == "2 unacknowledged"
-    shot(operator, "alarms-card", "alarms", tmp_path)
+    card_shot(operator, "alarms-card", "alarms", tmp_path)
     publish_status(broker, "idle", "run stopped", "2026-01-05T12:00:01.000Z", "r-alarm-3")
 
 
@@ -225,7 +208,7 @@ def test_manual_panel_highlights_a_measured_value_outside_its_band(broker, dashb
     assert rows["pressure_ratio"] == ("0.250 (outside the band)", "outside")  # asked 0.400 +/- 0.05
     assert rows["recess_pressure"] == ("0.4800", "") and rows["orbit_radius"] == ("5.70", "")
     assert "0.350 … 0.450" in page.rows("manual-table", "setting")["pressure_ratio"]
-    shot(page, "manual-card", "manual", tmp_path)
+    card_shot(page, "manual-card", "manual", tmp_path)
 
     # the live payload carries the settings as measured now: the panel follows it
     live = {**live_payload(0), "run_id": "r-manual", "settings_measured": {"pressure_ratio": 0.40, "orbit_radius": 7.5e-6}}
