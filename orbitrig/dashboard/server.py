@@ -111,11 +111,7 @@ async def login(request: web.Request) -> web.Response:
         await _end(request.app, old, "signed in again")
     for oldest in _oldest_beyond_cap(request.app, user):
         await _end(request.app, oldest, "the same user signed in elsewhere (oldest session ended)")
-    for other in sessions.values():  # a sign-in in the middle of a run sees its trends and alarms so far
-        if other.topics == session.topics:
-            session.trend.seed(other.trend)
-            session.alarms.seed(other.alarms)
-            break
+    session.adopt(sessions.values())  # a sign-in in the middle of a run sees its trends and alarms so far
     sessions[session.token] = session
     log.info("%r signed in (%d sessions)", user, len(sessions))
     response = web.json_response({"user": user, "prefix": session.topics.prefix})
@@ -212,7 +208,7 @@ async def select_rig(request: web.Request) -> web.Response:
     if isinstance(rig_id, web.Response):
         return rig_id
     assert session is not None
-    return web.json_response(await session.select_rig(rig_id))
+    return web.json_response(await session.select_rig(rig_id, list(request.app[SESSIONS].values())))
 
 
 async def _send_loop(ws: web.WebSocketResponse, queue: Feed) -> None:

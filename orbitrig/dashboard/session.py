@@ -131,8 +131,18 @@ class Session:
         self.trend_samples = 0
         self.alarms = AlarmBook()
 
-    async def select_rig(self, rig_id: str) -> dict:
-        """Watch another rig of the broker (``orbitrig/<rig_id>``) from now on."""
+    def adopt(self, peers: Any) -> None:
+        """Start from the trends and alarms of the first of ``peers`` (sessions) watching the same rig."""
+        peer = next((p for p in peers if p is not self and p.topics == self.topics), None)
+        if peer is not None:
+            self.trend.seed(peer.trend)
+            self.alarms.seed(peer.alarms)
+            self._broadcast({"type": "trend_history", "data": self.trend.history()})
+            self._broadcast({"type": "alarms", "data": self.alarms.listing()})
+
+    async def select_rig(self, rig_id: str, peers: Any = ()) -> dict:
+        """Watch another rig of the broker (``orbitrig/<rig_id>``) from now on (with the trends
+        and alarms of a session of ``peers`` watching it already)."""
         if self.rigs.root is None:
             return {"ok": False, "error": f"this dashboard watches the topic tree {self.topics.prefix} only"}
         try:
@@ -145,6 +155,7 @@ class Session:
         self.topics = new
         self._forget_rig()
         self._broadcast({"type": "rig", "prefix": new.prefix})
+        self.adopt(peers)
         log.info("session of %r: now watching %s", self.user, new.prefix)
         if client is not None:
             try:
