@@ -6,9 +6,13 @@ and a websocket feed per browser.
   connection; on success an HttpOnly, SameSite=Strict session cookie;
 - ``POST /api/logout``, ``GET /api/session``;
 - ``POST /api/cmd`` ``{"cmd", ...}``: one command as the signed-in user;
+- ``POST /api/ack`` ``{"alarm"}``: acknowledges a latched alarm as the signed-in user
+  (orbitrig.dashboard.alarms);
+- ``POST /api/rig`` ``{"rig"}``: the session watches another rig of the broker
+  (orbitrig.dashboard.rigs);
 - ``GET /api/feed``: websocket, server -> page JSON messages ``{"type", ...}``
   (``hello``, ``link``, ``status``, ``progress``, ``live``, ``result``,
-  ``signed_out``); page -> server ``{"type": "active"}`` on user activity.
+  ``trend``, ``trend_history``, ``alarms``, ``rigs``, ``rig``, ``signed_out``); page -> server ``{"type": "active"}`` on user activity.
 
 A session ends on sign-out or after ``idle_timeout`` s without a request or
 user activity; a user's new sign-in beyond ``sessions_per_user`` ends that user's
@@ -107,9 +111,10 @@ async def login(request: web.Request) -> web.Response:
         await _end(request.app, old, "signed in again")
     for oldest in _oldest_beyond_cap(request.app, user):
         await _end(request.app, oldest, "the same user signed in elsewhere (oldest session ended)")
+    session.adopt(sessions.values())  # a sign-in in the middle of a run sees its trends and alarms so far
     sessions[session.token] = session
     log.info("%r signed in (%d sessions)", user, len(sessions))
-    response = web.json_response({"user": user, "prefix": session.settings.topics.prefix})
+    response = web.json_response({"user": user, "prefix": session.topics.prefix})
     response.set_cookie(COOKIE, session.token, httponly=True, samesite="Strict", path="/",
                         secure=request.secure)
     return response
@@ -136,7 +141,7 @@ async def whoami(request: web.Request) -> web.Response:
     if session is None:
         return web.json_response({"error": "not signed in"}, status=401)
     session.touch()
-    return web.json_response({"user": session.user, "prefix": session.settings.topics.prefix})
+    return web.json_response({"user": session.user, "prefix": session.topics.prefix})
 
 
 async def command(request: web.Request) -> web.Response:
@@ -173,6 +178,37 @@ async def feed(request: web.Request) -> web.StreamResponse:
         sender.cancel()
         await asyncio.gather(sender, return_exceptions=True)
     return ws
+
+
+async def _field(request: web.Request, name: str) -> tuple[Session | None, str | web.Response]:
+    """The signed-in session and the text field ``name`` of the JSON body, or the error response."""
+    session = _session(request)
+    if session is None:
+        return None, web.json_response({"ok": False, "error": "not signed in"}, status=401)
+    session.touch()
+    try:
+        body = await request.json()
+    except (ValueError, UnicodeDecodeError):
+        body = None
+    if not isinstance(body, dict) or not isinstance(body.get(name), str):
+        return None, web.json_response({"ok": False, "error": f"expected JSON {{{name}}}"}, status=400)
+    return session, body[name]
+
+
+async def acknowledge(request: web.Request) -> web.Response:
+    session, alarm = await _field(request, "alarm")
+    if isinstance(alarm, web.Response):
+        return alarm
+    assert session is not None
+    return web.json_response(await session.acknowledge(alarm))
+
+
+async def select_rig(request: web.Request) -> web.Response:
+    session, rig_id = await _field(request, "rig")
+    if isinstance(rig_id, web.Response):
+        return rig_id
+    assert session is not None
+    return web.json_response(await session.select_rig(rig_id, list(request.app[SESSIONS].values())))
 
 
 async def _send_loop(ws: web.WebSocketResponse, queue: Feed) -> None:
@@ -231,6 +267,8 @@ def make_app(settings: DashboardSettings) -> web.Application:
     app.router.add_post("/api/logout", logout)
     app.router.add_get("/api/session", whoami)
     app.router.add_post("/api/cmd", command)
+    app.router.add_post("/api/ack", acknowledge)
+    app.router.add_post("/api/rig", select_rig)
     app.router.add_get("/api/feed", feed)
     app.cleanup_ctx.append(_background)
     app.on_shutdown.append(_end_all)

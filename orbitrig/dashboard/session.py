@@ -4,8 +4,9 @@ The broker authenticates the connection and its ACL decides what the person
 may do: the dashboard adds no rights of its own. The password lives only in
 this object (server-side memory) for the reconnections; it is never logged.
 
-A :class:`Session` keeps what the page needs to draw itself at once (the
-retained status, the latest progress and live payloads, the results so far)
+A :class:`Session` watches one rig of the broker at a time (``select_rig``) and keeps
+what the page needs to draw itself at once (the retained status, the latest progress
+and live payloads, the results so far, the trends and the alarms)
 and fans every rig message out to the session's browser feeds. A command is
 published with a correlation id and answered by the service's reply; a publish
 the ACL drops silently (MQTT 3.1.1) gets no reply: after ``reply_timeout`` it is
@@ -26,7 +27,10 @@ from pathlib import Path
 from typing import Any
 
 import orbitrig.service.protocol as proto
+from orbitrig.dashboard.alarms import AlarmBook
+from orbitrig.dashboard.rigs import RigDirectory
 from orbitrig.dashboard.throttle import ThrottlePolicy
+from orbitrig.dashboard.trend import TrendHistory
 
 log = logging.getLogger("orbitrig.dashboard")
 
@@ -36,6 +40,7 @@ AUTH_REFUSED = {4, 5, 134, 135}
 PAGE_COMMANDS = {"start": ("matrix",), "pause": (), "resume": (), "stop": (), "abort": (),
                  "confirm": ("step",), "status": ()}
 NOT_AUTHORISED = "refused: not authorised"
+TREND_RESEND = 300  # the run's trend view (thinned by the server) goes to the pages again every this many samples
 
 
 class SignInRefused(Exception):
@@ -62,6 +67,8 @@ class DashboardSettings:
     sessions_per_user: int = 4
     throttle: ThrottlePolicy = ThrottlePolicy()
     request_timeout: float = 10.0
+    trend_period: float = 1.0  # s between trend samples
+    trend_recent_s: float = 1800.0  # s of recent trend samples kept (the run's own view is thinned instead)
 
 
 class Feed:
@@ -101,10 +108,12 @@ class Session:
         self.token = secrets.token_urlsafe(32)
         self.last_active = time.monotonic()
         self.link = "connecting"  # online | broker unreachable | connecting
-        self.status: dict | None = None
-        self.progress: dict | None = None
-        self.live: dict | None = None
-        self.results: collections.deque[dict] = collections.deque(maxlen=500)
+        self.status: dict | None
+        self.progress: dict | None
+        self.live: dict | None
+        self.topics = settings.topics  # the rig watched now (select_rig changes it)
+        self.rigs = RigDirectory(settings.topics.prefix)
+        self._forget_rig()
         self.feeds: set[Feed] = set()
         self._pending: dict[str, asyncio.Future] = {}
         self._client: Any = None
@@ -113,6 +122,48 @@ class Session:
 
     def __repr__(self) -> str:  # never the password
         return f"Session(user={self.user!r}, link={self.link!r})"
+
+    def _forget_rig(self) -> None:
+        """Drop what the session knows of the rig it watched."""
+        self.status = self.progress = self.live = None
+        self.results: collections.deque[dict] = collections.deque(maxlen=500)
+        self.trend = TrendHistory(self.settings.trend_period, self.settings.trend_recent_s)
+        self.trend_samples = 0
+        self.alarms = AlarmBook()
+
+    def adopt(self, peers: Any) -> None:
+        """Start from the trends and alarms of the first of ``peers`` (sessions) watching the same rig."""
+        peer = next((p for p in peers if p is not self and p.topics == self.topics), None)
+        if peer is not None:
+            self.trend.seed(peer.trend)
+            self.alarms.seed(peer.alarms)
+            self._broadcast({"type": "trend_history", "data": self.trend.history()})
+            self._broadcast({"type": "alarms", "data": self.alarms.listing()})
+
+    async def select_rig(self, rig_id: str, peers: Any = ()) -> dict:
+        """Watch another rig of the broker (``orbitrig/<rig_id>``) from now on (with the trends
+        and alarms of a session of ``peers`` watching it already)."""
+        if self.rigs.root is None:
+            return {"ok": False, "error": f"this dashboard watches the topic tree {self.topics.prefix} only"}
+        try:
+            new = proto.topics(rig_id)
+        except ValueError as err:
+            return {"ok": False, "error": str(err)}
+        if new == self.topics:
+            return {"ok": True, "prefix": new.prefix}
+        old, client = self.topics, self._client
+        self.topics = new
+        self._forget_rig()
+        self._broadcast({"type": "rig", "prefix": new.prefix})
+        self.adopt(peers)
+        log.info("session of %r: now watching %s", self.user, new.prefix)
+        if client is not None:
+            try:
+                await client.unsubscribe(f"{old.prefix}/#")
+                await client.subscribe(f"{new.prefix}/#", qos=1)  # the new rig's retained status comes
+            except Exception as err:  # noqa: BLE001 - aiomqtt errors: the connection loop subscribes again
+                log.info("session of %r: subscription to %s deferred: %s", self.user, new.prefix, err)
+        return {"ok": True, "prefix": new.prefix}
 
     def touch(self) -> None:
         self.last_active = time.monotonic()
@@ -141,7 +192,9 @@ class Session:
         while not self.closed:
             try:
                 async with self._make_client() as client:
-                    await client.subscribe(f"{self.settings.topics.prefix}/#", qos=1)
+                    await client.subscribe(f"{self.topics.prefix}/#", qos=1)
+                    if self.rigs.pattern is not None:
+                        await client.subscribe(self.rigs.pattern, qos=1)
                     self._client = client
                     if not first.done():
                         first.set_result(None)
@@ -184,29 +237,52 @@ class Session:
     # -- incoming ----------------------------------------------------------------
 
     def _on_message(self, topic: str, raw: Any) -> None:
-        t = self.settings.topics
+        t = self.topics
         try:
             data = json.loads(raw if isinstance(raw, (bytes, bytearray, str)) else b"")
         except (ValueError, RecursionError):
             return
         if not isinstance(data, dict):
             return
+        rig_id = self.rigs.rig_of(topic)
+        if rig_id is not None and self.rigs.on_status(rig_id, data):
+            self._broadcast({"type": "rigs", "data": self.rigs.listing()})
         if topic == t.status:
             self.status = data
             self._broadcast({"type": "status", "data": data})
+            if self.alarms.on_status(data):
+                self._broadcast({"type": "alarms", "data": self.alarms.listing()})
+        elif topic == t.ack:
+            self._resolve(data)
+            if self.alarms.on_ack(data):
+                self._broadcast({"type": "alarms", "data": self.alarms.listing()})
         elif topic == t.progress:
             self.progress = data
             self._broadcast({"type": "progress", "data": data})
         elif topic == t.live:
             self.live = data
             self._broadcast({"type": "live", "data": data})
+            self._trend(data)
         elif topic == t.result:
             self.results.append(data)
             self._broadcast({"type": "result", "data": data})
         elif topic == t.reply:
-            fut = self._pending.pop(str(data.get("id")), None)
-            if fut is not None and not fut.done():
-                fut.set_result(data)
+            self._resolve(data)
+
+    def _resolve(self, data: dict) -> None:
+        """A reply (or this session's own acknowledgement back from the broker) for a waiting call."""
+        fut = self._pending.pop(str(data.get("id")), None)
+        if fut is not None and not fut.done():
+            fut.set_result(data)
+
+    def _trend(self, live: dict) -> None:
+        sample = self.trend.add(live, time.time())
+        if sample is None:
+            return
+        self.trend_samples += 1
+        self._broadcast({"type": "trend", "sample": sample, "run_id": self.trend.run_id})
+        if self.trend_samples % TREND_RESEND == 0:
+            self._broadcast({"type": "trend_history", "data": {**self.trend.history(), "recent": None}})
 
     def _broadcast(self, message: dict) -> None:
         for feed in list(self.feeds):
@@ -214,11 +290,13 @@ class Session:
 
     def snapshot(self) -> list[dict]:
         """What a newly connected page needs to draw the present at once."""
-        out: list[dict] = [{"type": "hello", "user": self.user, "prefix": self.settings.topics.prefix},
-                           {"type": "link", "link": self.link}]
+        out: list[dict] = [{"type": "hello", "user": self.user, "prefix": self.topics.prefix},
+                           {"type": "link", "link": self.link}, {"type": "rigs", "data": self.rigs.listing()}]
         out += [{"type": k, "data": v} for k, v in (("status", self.status), ("progress", self.progress))
                 if v is not None]
         out += [{"type": "result", "data": r} for r in self.results]
+        out.append({"type": "trend_history", "data": self.trend.history()})
+        out.append({"type": "alarms", "data": self.alarms.listing()})
         if self.live is not None:
             out.append({"type": "live", "data": self.live})
         return out
@@ -240,7 +318,7 @@ class Session:
         if client is None:
             return {"ok": False, "error": "no connection to the broker: try again when it is back"}
         cid = f"dash-{secrets.token_hex(6)}"
-        topics = self.settings.topics  # stop and abort on their own topic: no flood holds them back
+        topics = self.topics  # stop and abort on their own topic: no flood holds them back
         fut = asyncio.get_running_loop().create_future()
         self._pending[cid] = fut
         t0 = time.monotonic()
@@ -258,6 +336,34 @@ class Session:
         log.info("%s by %r: %s (%.0f ms)", name, self.user, "ok" if reply.get("ok") else reply.get("error"),
                  (time.monotonic() - t0) * 1e3)
         return {"ok": bool(reply.get("ok")), "error": reply.get("error")}
+
+    async def acknowledge(self, alarm_id: str) -> dict:
+        """Acknowledge a latched alarm as this user: published on ``<prefix>/ack``; done when the
+        broker hands it back (the ACL lets the user publish there), else refused."""
+        alarm = self.alarms.alarms.get(alarm_id)
+        if alarm is None:
+            return {"ok": False, "error": f"acknowledge: no alarm {alarm_id!r}"}
+        if alarm.acked_by is not None:
+            return {"ok": True, "error": None}
+        client = self._client
+        if client is None:
+            return {"ok": False, "error": "no connection to the broker: try again when it is back"}
+        nonce = f"ack-{secrets.token_hex(6)}"
+        fut = asyncio.get_running_loop().create_future()
+        self._pending[nonce] = fut
+        body = {"alarm": alarm_id, "by": self.user, "at": proto.iso8601(), "id": nonce}
+        try:
+            await client.publish(self.topics.ack, json.dumps(body), qos=1, timeout=self.settings.reply_timeout)
+            await asyncio.wait_for(fut, self.settings.reply_timeout)
+        except (TimeoutError, asyncio.TimeoutError):
+            return {"ok": False, "error": f"{NOT_AUTHORISED}: acknowledge — user {self.user!r} may not "
+                                          "acknowledge alarms of this rig (the broker dropped it)"}
+        except Exception as err:  # noqa: BLE001 - aiomqtt errors: the link went away
+            return {"ok": False, "error": f"acknowledge not sent: {err}"}
+        finally:
+            self._pending.pop(nonce, None)
+        log.info("alarm %s acknowledged by %r", alarm_id, self.user)
+        return {"ok": True, "error": None}
 
     def _no_reply(self, name: str) -> str:
         if self.status is not None and self.status.get("state") == proto.OFFLINE:

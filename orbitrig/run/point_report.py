@@ -5,6 +5,7 @@ uncertainty budget, the model-adequacy verdicts and the two systems' consistency
 from __future__ import annotations
 
 from orbitrig.run.plan import OperatingPoint
+from orbitrig.store.layout import coefficient_si_unit
 from orbitrig.store.records import PointResults
 
 #: keys of a fit's stored JSON that the result payload carries
@@ -72,6 +73,7 @@ def _row(lms: str, e: dict) -> dict:
         return row
     d = e["json"]
     row.update({k: d[k] for k in PAYLOAD_KEYS if k in d})
+    row["units"] = {k: coefficient_si_unit(k) for k in d.get("coefficients") or {}}
     u = d.get("uncertainty")
     if u:
         row["uncertainty"] = u if "error" in u else {k: u[k] for k in ("k", "systematic", "combined", "expanded")}

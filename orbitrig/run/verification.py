@@ -10,7 +10,7 @@ import math
 from daq.aux import AuxState
 from orbitrig.config import MPA, RigConfig, Verify
 from orbitrig.run.identification import probe_plane
-from orbitrig.run.plan import OperatingPoint
+from orbitrig.run.plan import OperatingPoint, SetManual
 from orbitrig.store.writer import BlockRecord
 
 
@@ -47,3 +47,14 @@ def geometry_problems(rec: BlockRecord, p: OperatingPoint, rig: RigConfig) -> li
         problems.append(f"static eccentricity {ecc:.3f}, want {p.static_eccentricity:g} "
                         f"+/- {v.static_eccentricity_tol:g}")  # fmt: skip
     return problems
+
+
+def setting_bands(p: OperatingPoint | SetManual, v: Verify) -> dict[str, list[float]]:
+    """The band [low, high] (SI) each manual setting of ``p`` is accepted in by the checks above."""
+    def around(value: float, half: float) -> list[float]:
+        return [value - half, value + half]
+
+    return {"orbit_radius": around(p.orbit_radius, v.orbit_radius_tol_pct / 100 * p.orbit_radius),
+            "static_eccentricity": around(p.static_eccentricity, v.static_eccentricity_tol),
+            "recess_pressure": around(p.recess_pressure, v.recess_pressure_tol_pct / 100 * p.recess_pressure),
+            "pressure_ratio": around(p.pressure_ratio, v.pressure_ratio_tol)}

@@ -14,11 +14,15 @@ times a second while the run lives, publishes
 - ``aux``: the CAN sensor values in SI (K, Pa, m^3/s, -), their units in ``units``;
 - ``waveforms``: one averaged revolution per channel, SI (N, m), samples in slot order;
 - ``bands``: interlock and verification bands ``{name: [low, high]}`` in SI
-  (an addition to the spec's field list: the page draws them).
+  (an addition to the spec's field list: the page draws them);
+- ``settings_measured`` (while the run waits for a manual setting): the settings as
+  measured now, SI, as in the waiting status (an addition: the page's manual panel
+  follows them live).
 
 While the run waits for an operator, :meth:`LiveFeed.waiting_fields` gives the
-status fields ``step`` and ``settings`` = ``{name: {"value", "unit", "measured"}}``
-(asked and measured manual settings, SI; ``measured`` null when not measured yet).
+status fields ``step`` and ``settings`` = ``{name: {"value", "unit", "measured", "band"}}``
+(asked and measured manual settings, SI; ``measured`` null when not measured yet; ``band``
+[low, high] accepted by the run's verification, orbitrig.run.verification.setting_bands).
 """
 
 from __future__ import annotations
@@ -36,6 +40,7 @@ from orbitrig.config import MPA, RPM
 from orbitrig.run.engine import ProgressEvent, RunEngine
 from orbitrig.run.plan import Plan, SetManual
 from orbitrig.run.states import RunState
+from orbitrig.run.verification import setting_bands
 
 log = logging.getLogger(__name__)
 
@@ -143,6 +148,7 @@ class LiveFeed:
             "waveforms": {} if mean is None else {n: mean[i] for i, n in enumerate(names)},
             "units": {**{c.name: c.unit for c in self.rig.channels}, **AUX_UNITS},
             "bands": self._bands(),
+            **({"settings_measured": self._measured()} if self.engine.state == RunState.WAITING else {}),
         }
 
     @staticmethod
@@ -163,9 +169,8 @@ class LiveFeed:
             bands["p_supply"] = [lim.supply_pressure_min_mpa * MPA, lim.supply_pressure_max_mpa * MPA]
         step = self._manual.get(self._manual_point())
         if step is not None:
-            v, p = self.rig.verify, step.recess_pressure
-            bands["p_recess"] = [p * (1 - v.recess_pressure_tol_pct / 100), p * (1 + v.recess_pressure_tol_pct / 100)]
-            bands["beta"] = [step.pressure_ratio - v.pressure_ratio_tol, step.pressure_ratio + v.pressure_ratio_tol]
+            accepted = setting_bands(step, self.rig.verify)
+            bands["p_recess"], bands["beta"] = accepted["recess_pressure"], accepted["pressure_ratio"]
         return bands
 
     def _manual_point(self) -> int | None:
@@ -189,11 +194,12 @@ class LiveFeed:
         step = self._manual.get(self._manual_point())
         if step is None:
             return {"step": step_id, "settings": {}}
-        measured = self._measured()
+        measured, bands = self._measured(), setting_bands(step, self.rig.verify)
         asked = {"orbit_radius": step.orbit_radius, "static_eccentricity": step.static_eccentricity,
                  "recess_pressure": step.recess_pressure, "pressure_ratio": step.pressure_ratio}
         return {"step": step_id, "settings": {
-            k: {"value": v, "unit": SETTING_UNITS[k], "measured": measured.get(k)} for k, v in asked.items()}}
+            k: {"value": v, "unit": SETTING_UNITS[k], "measured": measured.get(k), "band": bands[k]}
+            for k, v in asked.items()}}
 
     def _measured(self) -> dict[str, float]:
         """Manual settings as measured now: pressures from CAN, orbit radius and static

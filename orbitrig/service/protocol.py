@@ -80,6 +80,11 @@ class Topics:
         return f"{self.prefix}/cmd"
 
     @property
+    def ack(self) -> str:
+        """Acknowledgements of latched alarms (dashboards, operators): docs/protocols/mqtt.md."""
+        return f"{self.prefix}/ack"
+
+    @property
     def abort(self) -> str:
         """stop and abort only, subscribed at QoS 0: never queued behind other commands."""
         return f"{self.prefix}/abort"

@@ -138,3 +138,18 @@ class Page:
     def screenshot(self, path: Path) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         self.d.save_screenshot(str(path))
+
+
+#: Set to a folder (e.g. docs/images) to keep the screenshots of single cards the tests take.
+SCREENSHOTS_ENV = "ORBITRIG_DASHBOARD_SCREENSHOTS"
+
+
+def card_shot(page: Page, element_id: str, name: str, tmp_path: Path) -> Path:
+    """A screenshot of one card of the page: <$ORBITRIG_DASHBOARD_SCREENSHOTS or tmp_path>/dashboard-<name>.png."""
+    folder = Path(os.environ.get(SCREENSHOTS_ENV) or tmp_path)
+    path = (folder if folder.is_absolute() else REPO / folder) / f"dashboard-{name}.png"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    page.d.execute_script("arguments[0].scrollIntoView({block: 'center'})", page.el(element_id))
+    page.el(element_id).screenshot(str(path))
+    assert path.stat().st_size > 5_000
+    return path

@@ -10,7 +10,7 @@ import re
 import time
 from pathlib import Path
 
-from dash_helpers import REPO, RIG, Page
+from dash_helpers import REPO, RIG, Page, card_shot
 from mqtt_helpers import ACCOUNTS
 
 #: Set to a path (e.g. docs/dashboard.png) to keep the screenshot the test makes.
@@ -25,16 +25,20 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     assert page.text("link") == "online"
     page.el("matrix").clear()
     page.el("matrix").send_keys("demo")
+    before = _layout(page)
     assert "accepted" in page.command("btn-start", "start:")
 
-    # the run asks for the point's manual settings: asked and measured values, and Confirm
+    # the run asks for the point's manual settings: asked and measured values, and Confirm;
+    # the prompt appears in its own place: nothing else on the page moves
     page.wait_state("waiting")
     page.wait(lambda: page.el("manual").is_displayed(), 10, "the manual setting panel")
+    assert _layout(page) == before
     step = page.text("manual-step")
     assert step == "manual:0000"
     rows = page.rows("manual-table", "setting")
     assert set(rows) == {"orbit_radius", "static_eccentricity", "recess_pressure", "pressure_ratio"}
     assert "5.76" in rows["orbit_radius"]  # demo: dynamic eccentricity 0.096 x clearance 60 um
+    assert "4.90 … 6.62" in rows["orbit_radius"]  # the verification's band: +/- 15 %
     assert "0.4826" in rows["recess_pressure"]
     assert "confirm: accepted" in page.command("btn-confirm", "confirm:")
     page.wait_state("running")
@@ -49,6 +53,9 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     page.wait(lambda: page.text("revolutions") != revs0, 10, "revolutions counting")
     assert int(page.el("plot-forces").get_attribute("data-samples")) == 4 * 45  # 4 forces x 45 slots
     assert int(page.el("plot-orbit").get_attribute("data-samples")) == 45
+    assert page.text("op-spin").endswith(" rpm") and page.text("op-orbit").endswith(" rpm")
+    assert page.text("op-orbit-hz").endswith(" Hz")
+    page.wait(lambda: "spin" in (page.el("trend-speed").get_attribute("data-series") or ""), 10, "the speed trend")
     drives = page.rows("drives", "drive")
     assert "1000.0" in drives["spin"] and "running" in drives["spin"]
     aux = page.rows("aux", "aux")
@@ -62,6 +69,14 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     assert "stop: accepted" in page.command("btn-stop", "stop:")
     page.wait_state("idle", 60)
     assert "stopped" in page.text("message")
+
+
+def _layout(page: Page) -> dict[str, tuple[int, int]]:
+    """(left, top) of every card but the manual setting's own, in page pixels."""
+    return page.d.execute_script(
+        "const out = {}; document.querySelectorAll('main > section').forEach((s, i) => {"
+        " const r = s.getBoundingClientRect(); out[s.id || s.className + i] = [Math.round(r.left), Math.round(r.top)]; });"
+        " return out;")
 
 
 def test_viewer_sees_everything_and_commands_nothing(dashboard, service, browsers, tmp_path):
@@ -90,24 +105,29 @@ def test_viewer_sees_everything_and_commands_nothing(dashboard, service, browser
     operator.command("btn-confirm", "confirm: accepted")
     viewer.wait_state("running", 15)
     viewer.wait(lambda: viewer.canvas_updates("plot-orbit") >= 3, 30, "the viewer's orbit plot")
-    # the demo point completes: both load measuring systems x both models, with their 95 % intervals
-    viewer.wait(lambda: len(viewer.d.find_elements("css selector", "#results tr")) == 4, 90, "4 result rows")
+    # the demo point completes: both load measuring systems x both models, one row per coefficient
+    # with its value, U (k = 2) and SI unit
+    fits = "#results tr.fit-first"
+    viewer.wait(lambda: len(viewer.d.find_elements("css selector", fits)) == 4, 90, "4 fits in the results")
     viewer.wait_state("idle", 30)
-    operator.wait(lambda: len(operator.d.find_elements("css selector", "#results tr")) == 4, 10, "results")
+    operator.wait(lambda: len(operator.d.find_elements("css selector", fits)) == 4, 10, "results")
     text = operator.text("results")
-    assert "Kxx" in text and "piezo" in text and "strain" in text
-    assert re.search(r"Kxx\S* \S+ \[\S+, \S+\]", text), text  # value [low, high] from confidence_95
+    assert "piezo" in text and "strain" in text
+    assert re.search(r"\bKxx\s-?[\d.]+(e[+-]\d+)?\s[\d.]+(e[+-]\d+)?\sN/m\b", text), text
+    assert re.search(r"\bCxx\s-?[\d.]+(e[+-]\d+)?\s[\d.]+(e[+-]\d+)?\sN s/m\b", text), text
     shot = Path(os.environ.get(SCREENSHOT_ENV) or tmp_path / "dashboard.png")
     if not shot.is_absolute():
         shot = REPO / shot
-    operator.d.execute_script("window.scrollTo(0, 0)")
+    operator.d.execute_script("const s = document.getElementById('trend-window'); s.value = 'run';"
+                              "s.dispatchEvent(new Event('change')); window.scrollTo(0, 0)")
     time.sleep(0.2)
     operator.screenshot(shot)
     assert shot.stat().st_size > 20_000
+    card_shot(operator, "trends-card", "trends", tmp_path)  # the demo run's trends
 
 
-def test_results_show_intervals_and_warnings_as_they_arrive(broker, dashboard, browsers):
-    """A result of the identification's next version (95 % intervals, warnings) is drawn as it arrives."""
+def test_results_show_values_u_and_units_as_they_arrive(broker, dashboard, browsers):
+    """A result is drawn as it arrives: a row per coefficient with its value, U (k = 2) and unit; a refusal."""
     page = Page(browsers(), dashboard.url, dashboard)
     page.sign_in("viewer", ACCOUNTS["viewer"])
     page.signed_in()
@@ -117,14 +137,18 @@ def test_results_show_intervals_and_warnings_as_they_arrive(broker, dashboard, b
         {"lms": "piezo", "model": "kc8", "freq_dep": "none", "method": "ols",
          "coefficients": {"Kxx": 1.5e7, "Cxx": 2.0e4}, "std_errors": {"Kxx": 1e5, "Cxx": 1e2},
          "confidence_95": {"Kxx": [1.48e7, 1.52e7], "Cxx": [1.98e4, 2.02e4]},
+         "expanded_uncertainty": {"k": 2, "basis": "statistical", "values": {"Kxx": 2e5, "Cxx": 2e2}},
+         "units": {"Kxx": "N/m", "Cxx": "N s/m"},
          "warnings": ["condition number 3.1e6: Kxy poorly determined"]},
         {"lms": "strain", "model": "kcd11", "error": "too few orbit frequencies: 2 < 3"}]}
     done = broker.pub(f"orbitrig/{RIG}/result", json.dumps(result), user="orbitrig-service")
     assert done.returncode == 0, done.stderr
-    page.wait(lambda: len(page.d.find_elements("css selector", "#results tr")) == rows_before + 2, 10, "2 rows")
-    text = page.text("results")
-    assert "Kxx 1.500e+7 [1.480e+7, 1.520e+7]" in text and "Cxx 2.000e+4 [1.980e+4, 2.020e+4]" in text
-    assert "refused: too few orbit frequencies: 2 < 3" in text
+    page.wait(lambda: len(page.d.find_elements("css selector", "#results tr")) == rows_before + 3, 10, "3 rows")
+    rows = page.d.execute_script("return [...document.querySelectorAll('#results tr')].slice(-3)"
+                                 ".map(r => [...r.children].map(c => c.innerText))")
+    assert rows[0] == ["7 w1000rpm", "piezo", "kc8", "Kxx", "1.500e+7", "2.000e+5", "N/m"]
+    assert rows[1] == ["", "", "", "Cxx", "2.000e+4", "200.0", "N s/m"]
+    assert rows[2] == ["7 w1000rpm", "strain", "kcd11", "refused: too few orbit frequencies: 2 < 3"]
     events = page.text("events")
     assert "point 7 piezo kc8: condition number 3.1e6: Kxy poorly determined" in events
     assert "point 7 strain kcd11: too few orbit frequencies: 2 < 3" in events

@@ -29,7 +29,9 @@ def test_waiting_status_and_live_topic(broker, service):
         assert waiting["step"] == "manual:0000"
         settings = waiting["settings"]
         assert set(settings) == {"orbit_radius", "static_eccentricity", "recess_pressure", "pressure_ratio"}
-        assert all(set(v) == {"value", "unit", "measured"} for v in settings.values())
+        assert all(set(v) == {"value", "unit", "measured", "band"} for v in settings.values())
+        assert settings["pressure_ratio"]["band"] == [settings["pressure_ratio"]["value"] - 0.05,
+                                                      settings["pressure_ratio"]["value"] + 0.05]
         assert math.isclose(settings["orbit_radius"]["value"], 0.096 * 60e-6) and settings["orbit_radius"]["unit"] == "m"
         assert math.isclose(settings["recess_pressure"]["value"], 0.4826e6) and settings["recess_pressure"]["unit"] == "Pa"
         assert rc.command({"cmd": "confirm", "step": "manual:0000"})["ok"]

@@ -207,6 +207,7 @@ def test_result_payload_carries_the_warnings_of_a_stored_run(sweep):
     assert any(w.startswith("piezo kcd11 none ols: bad fit: chi2 = ") for w in obj["warnings"])
     row = next(r for r in obj["identification"] if (r["lms"], r["model"], r["freq_dep"]) == ("piezo", "kcd11", "none"))
     assert row["warnings"] and set(row["confidence_95"]) == set(row["coefficients"])
+    assert set(row["units"]) == set(row["coefficients"]) and row["units"]["Kxx"] == "N/m" and row["units"]["Cxy"] == "N s/m"
     u = row["expanded_uncertainty"]
     assert u["basis"] == "combined" and u["values"] == row["uncertainty"]["expanded"]
     assert row["not_determined"] == [k for k, v in row["coefficients"].items() if u["values"][k] > abs(v)]

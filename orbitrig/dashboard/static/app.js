@@ -7,7 +7,6 @@ const $ = id => document.getElementById(id);
 const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0};
 
 function fmt(v, digits) { return (v === null || v === undefined || !isFinite(v)) ? "—" : Number(v).toFixed(digits); }
-function fmtSi(v) { return (v === null || v === undefined || !isFinite(v)) ? "—" : Number(v).toPrecision(4); }
 function show(el, on) { el.hidden = !on; }
 function clear(el) { while (el.firstChild) el.removeChild(el.firstChild); }
 function cell(tr, text, cls) { const td = document.createElement("td"); td.textContent = text; if (cls) td.className = cls; tr.appendChild(td); return td; }
@@ -48,7 +47,34 @@ function enter(who) {
 function leave(reason) {
   if (st.ws) { st.ws.onclose = null; st.ws.close(); st.ws = null; }
   show($("app"), false); show($("signin"), true);
+  resetView();
   $("signin-error").textContent = reason || "";
+}
+
+// nothing of the previous person stays: the form, their commands' outcomes and refusals, and
+// the rig's view (the next sign-in's feed draws it again from the server's snapshot)
+function resetView() {
+  $("user").value = ""; $("password").value = "";
+  ["events", "matrix-names", "rig-select"].forEach(id => clear($(id)));
+  ["cmd-result", "who", "rig"].forEach(id => { $(id).textContent = ""; });
+  st.rigs = {};
+  clearRigView();
+}
+
+// the view of one rig, emptied when the person leaves or watches another rig
+function clearRigView() {
+  ["results", "manual-table"].forEach(id => clear($(id)));
+  alarmList.showAlarms([]);
+  showDrives({}); showAux({}, {});  // every row in place before the first live message: no jump
+  ["alarm-result", "run-id", "message", "manual-step"].forEach(id => { $(id).textContent = ""; });
+  ["point", "frequency", "revolutions", "eta", "op-spin", "op-orbit", "op-orbit-hz", "op-direction", "state"].forEach(id => { $(id).textContent = "—"; });
+  $("state").className = "state"; $("progress-bar").style.width = "0";
+  $("matrix").value = "demo";
+  Object.assign(st, {status: null, liveAt: 0, manual: null});
+  show($("manual"), false); show($("manual-none"), true);
+  trends.trendClear(); trends.drawTrends();
+  document.querySelectorAll("canvas").forEach(c => { c.getContext("2d").clearRect(0, 0, c.width, c.height); c.dataset.updates = "0"; });
+  banner(null);
 }
 
 async function signOut() { await api("/api/logout", {}); leave("signed out"); }
@@ -81,13 +107,39 @@ function banner(text) { $("offline-banner").textContent = text || ""; show($("of
 function handle(msg) {
   switch (msg.type) {
     case "hello": $("who").textContent = msg.user; $("rig").textContent = msg.prefix; break;
+    case "rigs": showRigs(msg.data); break;
+    case "rig": clearRigView(); $("rig").textContent = msg.prefix; showRigs(st.rigs || {}); break;
     case "link": showLink(msg.link); break;
     case "status": showStatus(msg.data); break;
     case "progress": showProgress(msg.data); break;
     case "live": showLive(msg.data); break;
-    case "result": showResult(msg.data); break;
+    case "result": resultTable.showResult(msg.data); break;
+    case "trend": trends.trendSample(msg.sample, msg.run_id); break;
+    case "trend_history": trends.trendHistory(msg.data); break;
+    case "alarms": alarmList.showAlarms(msg.data); break;
     case "signed_out": leave("session ended: " + msg.reason); break;
   }
+}
+
+// the rigs on the broker (id -> state) in the header's selector; the one watched selected
+function showRigs(rigs) {
+  st.rigs = rigs;
+  const sel = $("rig-select"), current = ($("rig").textContent || "").split("/").pop();
+  clear(sel);
+  const ids = Object.keys(rigs);
+  if (current && !ids.includes(current)) ids.unshift(current);
+  ids.forEach(id => {
+    const o = document.createElement("option"); o.value = id;
+    o.textContent = id + " (" + (rigs[id] || "no status") + ")"; o.selected = id === current;
+    sel.appendChild(o);
+  });
+}
+
+async function selectRig() {
+  activity();
+  const r = await api("/api/rig", {rig: $("rig-select").value});
+  if (r.status === 401) { leave("session ended: sign in again"); return; }
+  if (!r.data.ok) { $("cmd-result").className = "cmd-result refused"; $("cmd-result").textContent = "rig: " + r.data.error; }
 }
 
 function showLink(link) {
@@ -115,21 +167,39 @@ function showStatus(s) {
   showManual(s);
 }
 
+const SETTING_LABEL = {orbit_radius: ["orbit radius", "µm", 1e6, 2], static_eccentricity: ["static eccentricity", "", 1, 3],
+  recess_pressure: ["recess pressure", "MPa", 1e-6, 4], pressure_ratio: ["pressure ratio", "", 1, 3]};
+
+// the asked settings of a waiting status; measured values follow the live payload (highlighted outside their band)
 function showManual(s) {
   const waiting = s.state === "waiting" && s.step;
-  show($("manual"), !!waiting);
+  show($("manual"), !!waiting); show($("manual-none"), !waiting);
+  $("manual-card").classList.toggle("asking", !!waiting);
+  st.manual = waiting ? s.settings || {} : null;
+  $("manual-step").textContent = waiting ? s.step : "";
   if (!waiting) return;
-  $("manual-step").textContent = s.step;
   const body = $("manual-table"); clear(body);
-  const label = {orbit_radius: ["orbit radius", "µm", 1e6, 2], static_eccentricity: ["static eccentricity", "", 1, 3],
-                 recess_pressure: ["recess pressure", "MPa", 1e-6, 4], pressure_ratio: ["pressure ratio", "", 1, 3]};
-  Object.entries(s.settings || {}).forEach(([name, v]) => {
-    const [text, unit, k, d] = label[name] || [name, v.unit, 1, 4];
+  Object.entries(st.manual).forEach(([name, v]) => {
+    const [text, unit, k, d] = SETTING_LABEL[name] || [name, v.unit, 1, 4];
     const tr = document.createElement("tr"); tr.dataset.setting = name;
     cell(tr, text + (unit ? " (" + unit + ")" : ""));
     cell(tr, v.value === null ? "—" : fmt(v.value * k, d));
-    cell(tr, v.measured === null || v.measured === undefined ? "not measured yet" : fmt(v.measured * k, d));
+    cell(tr, ""); cell(tr, v.band ? fmt(v.band[0] * k, d) + " … " + fmt(v.band[1] * k, d) : "");
     body.appendChild(tr);
+  });
+  showMeasured(Object.fromEntries(Object.entries(st.manual).map(([n, v]) => [n, v.measured])));
+}
+
+function showMeasured(measured) {
+  if (!st.manual) return;
+  document.querySelectorAll("#manual-table tr").forEach(tr => {
+    const name = tr.dataset.setting, v = st.manual[name], m = measured[name], td = tr.children[2];
+    if (m === undefined) return;
+    const [, , k, d] = SETTING_LABEL[name] || [name, "", 1, 4];
+    const out = m !== null && v && v.band && (m < v.band[0] || m > v.band[1]);
+    td.textContent = m === null ? "not measured yet" : fmt(m * k, d) + (out ? " (outside the band)" : "");
+    td.className = out ? "out" : "";
+    tr.classList.toggle("outside", !!out);
   });
 }
 
@@ -151,11 +221,15 @@ function formatDuration(s) {
 // ---------------------------------------------------------------- live
 function showLive(d) {
   st.liveAt = Date.now();
+  const orbit = (d.drives || {}).orbit;
   $("op-spin").textContent = fmt(d.spin_rpm, 0) + " rpm";
-  $("op-orbit").textContent = fmt(d.orbit_hz, 2) + " Hz";
+  $("op-orbit").textContent = (orbit ? fmt(orbit.actual_rpm, 0) : "—") + " rpm";
+  $("op-orbit-hz").textContent = fmt(d.orbit_hz, 2) + " Hz";
   $("op-direction").textContent = d.direction || "—";
   showDrives(d.drives || {});
   showAux(d.aux || {}, d.bands || {});
+  trends.trendBands(d.bands);
+  if (d.settings_measured) showMeasured(d.settings_measured);
   const w = d.waveforms || {};
   const forces = ["fx_piezo", "fy_piezo", "fx_strain", "fy_strain"].filter(n => w[n]);
   const disp = ["x_a", "y_a", "x_b", "y_b"].filter(n => w[n]);
@@ -203,32 +277,7 @@ function showAux(a, bands) {
   if (a.node_lost) addEvent("warn", "CAN sensor node lost", true);
 }
 
-// ---------------------------------------------------------------- results
-function showResult(r) {
-  const body = $("results");
-  (r.warnings || []).forEach(w => addEvent("warn", "point " + r.point + ": " + w));
-  (r.identification || []).forEach(row => {
-    const tr = document.createElement("tr");
-    const what = (row.lms || "") + " " + (row.model || "");
-    cell(tr, (r.point !== undefined ? r.point : "?") + (r.label ? " " + r.label : ""));
-    cell(tr, row.lms || ""); cell(tr, (row.model || "") + (row.freq_dep && row.freq_dep !== "none" ? " " + row.freq_dep : ""));
-    if (row.error) { cell(tr, "refused: " + row.error, "out"); addEvent("warn", "point " + r.point + " " + what + ": " + row.error); }
-    else cell(tr, coefficientsText(row));
-    (row.warnings || []).forEach(w => addEvent("warn", "point " + r.point + " " + what + ": " + w));
-    body.appendChild(tr);
-  });
-}
-
-// 95 % intervals when the result carries them (confidence_95, identification v2), else +/- 1 std. error
-function coefficientsText(row) {
-  const c = row.coefficients || {}, se = row.std_errors || {}, iv = row.confidence_95 || row.intervals || {};
-  return Object.keys(c).map(k => {
-    const i = iv[k];
-    const unc = i ? " [" + fmtSi(i[0]) + ", " + fmtSi(i[1]) + "]" : (se[k] !== null && se[k] !== undefined ? " ± " + fmtSi(se[k]) : "");
-    return k + " " + fmtSi(c[k]) + unc;
-  }).join("; ");
-}
-
+// ---------------------------------------------------------------- events
 function addEvent(kind, text, once) {
   const list = $("events");
   if (once && list.firstChild && list.firstChild.textContent.endsWith(text)) return;
@@ -270,6 +319,8 @@ function wire() {
   $("btn-abort").addEventListener("click", () => $("abort-dialog").showModal());
   $("abort-cancel").addEventListener("click", () => $("abort-dialog").close());
   $("abort-confirm").addEventListener("click", () => { $("abort-dialog").close(); send("abort"); });
+  $("trend-window").addEventListener("change", () => trends.drawTrends());
+  $("rig-select").addEventListener("change", selectRig);
   $("btn-confirm").addEventListener("click", () => send("confirm", {step: $("manual-step").textContent}));
   ["keydown", "pointerdown", "pointermove", "wheel"].forEach(t => document.addEventListener(t, activity, {passive: true}));
   setInterval(() => { $("live-age").textContent = st.liveAt ? ((Date.now() - st.liveAt) / 1000).toFixed(1) + " s ago" : "—"; }, 500);

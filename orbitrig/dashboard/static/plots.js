@@ -1,68 +1,150 @@
-// Small canvas plots of the averaged revolution (no library: the rig PC is offline).
+// Canvas plots of the live view: one averaged revolution, the orbit and trend charts.
+// Axes use "nice" ticks (1, 2, 2.5, 5 x 10^n) covering the data; legends sit above the plot
+// area, never over a trace.
 "use strict";
 
 const COLOURS = ["#1976d2", "#c62828", "#2e7d32", "#ef6c00", "#6a1b9a", "#00838f", "#5d4037", "#ad1457"];
 
-function niceRange(lo, hi) {
-  if (!isFinite(lo) || !isFinite(hi)) return [-1, 1];
-  if (hi - lo < 1e-12 * Math.max(1, Math.abs(hi))) { const d = Math.abs(hi) * 0.1 || 1; return [lo - d, hi + d]; }
-  const pad = (hi - lo) * 0.08;
-  return [lo - pad, hi + pad];
+// ticks covering [lo, hi]: about `target` round steps; returns {lo, hi, step, ticks}
+function niceTicks(lo, hi, target) {
+  target = target || 5;
+  if (!isFinite(lo) || !isFinite(hi)) { lo = -1; hi = 1; }
+  if (hi - lo < 1e-12 * Math.max(1, Math.abs(hi))) { const d = Math.abs(hi) * 0.1 || 1; lo -= d; hi += d; }
+  const raw = (hi - lo) / target, mag = Math.pow(10, Math.floor(Math.log10(raw)));
+  const step = [1, 2, 2.5, 5, 10].map(f => f * mag).find(s => s >= raw) || 10 * mag;
+  const a = Math.floor(lo / step + 1e-9) * step, b = Math.ceil(hi / step - 1e-9) * step;
+  const ticks = [];
+  for (let v = a; v <= b + step * 1e-6; v += step) ticks.push(Math.abs(v) < step * 1e-9 ? 0 : v);
+  return {lo: a, hi: b, step, ticks};
 }
 
-function fmtTick(v) {
-  const a = Math.abs(v);
-  return a === 0 ? "0" : (a >= 1e4 || a < 1e-2) ? v.toExponential(1) : v.toPrecision(3);
+// a tick label with the digits its step needs (no raw extremes such as -2.94 or -1.8e-3)
+function fmtTick(v, step) {
+  if (Math.abs(v) < 1e-12) return "0";
+  step = step || Math.abs(v);
+  const e = Math.floor(Math.log10(step) + 1e-9), extra = Math.abs(step / Math.pow(10, e) - 2.5) < 1e-6 ? 1 : 0;
+  if (Math.max(Math.abs(v), step) >= 1e5 || step < 1e-3) return v.toExponential(Math.max(0, Math.floor(Math.log10(Math.abs(v)) + 1e-9) - e + extra));
+  return v.toFixed(Math.max(0, extra - e));
 }
 
-function frame(ctx, w, h, m, ylo, yhi, xlabels) {
+const MARGIN = {l: 52, r: 14, t: 22, b: 20};
+
+function frame(ctx, w, h, y, xticks) {
+  const m = MARGIN;
   ctx.clearRect(0, 0, w, h);
-  ctx.strokeStyle = "#cfd8dc"; ctx.fillStyle = "#546e7a"; ctx.font = "10px sans-serif";
+  ctx.strokeStyle = "#cfd8dc"; ctx.fillStyle = "#546e7a"; ctx.font = "10px sans-serif"; ctx.lineWidth = 1;
   ctx.strokeRect(m.l, m.t, w - m.l - m.r, h - m.t - m.b);
-  for (let i = 0; i <= 4; i++) {
-    const v = ylo + (yhi - ylo) * i / 4, y = h - m.b - (h - m.t - m.b) * i / 4;
-    ctx.beginPath(); ctx.moveTo(m.l, y); ctx.lineTo(w - m.r, y); ctx.stroke();
-    ctx.fillText(fmtTick(v), 2, y + 3);
-  }
-  xlabels.forEach(([frac, text]) => ctx.fillText(text, m.l + (w - m.l - m.r) * frac - 8, h - 4));
+  ctx.textAlign = "right"; ctx.textBaseline = "middle";
+  y.ticks.forEach(v => {
+    const py = h - m.b - (h - m.t - m.b) * (v - y.lo) / (y.hi - y.lo);
+    ctx.beginPath(); ctx.moveTo(m.l, py); ctx.lineTo(w - m.r, py); ctx.stroke();
+    ctx.fillText(fmtTick(v, y.step), m.l - 4, py);
+  });
+  ctx.textBaseline = "alphabetic";
+  xticks.forEach(([frac, text], i) => {
+    // the first label starts at its tick, the last ends at it: none is clipped by the canvas edge
+    ctx.textAlign = frac <= 0 ? "left" : frac >= 1 ? "right" : "center";
+    ctx.fillText(text, m.l + (w - m.l - m.r) * frac, h - 5);
+  });
+  ctx.textAlign = "left";
+}
+
+// legend in the top margin, left to right
+function legend(ctx, names, colours) {
+  let x = MARGIN.l;
+  ctx.font = "10px sans-serif"; ctx.textBaseline = "middle";
+  names.forEach((n, k) => {
+    ctx.fillStyle = colours[k]; ctx.fillRect(x, 8, 10, 3);
+    ctx.fillStyle = "#37474f"; ctx.fillText(n, x + 13, 10);
+    x += 20 + ctx.measureText(n).width;
+  });
+  ctx.textBaseline = "alphabetic";
+}
+
+function mark(canvas, samples, y) {
+  canvas.dataset.updates = String(Number(canvas.dataset.updates || 0) + 1);
+  canvas.dataset.samples = String(samples);
+  canvas.dataset.ticks = y.ticks.map(v => fmtTick(v, y.step)).join(" ");
 }
 
 // series: [{name, values}], values over one revolution (samples evenly spread over 360 deg)
 function drawTraces(canvas, series, scale) {
-  const ctx = canvas.getContext("2d"), w = canvas.width, h = canvas.height;
-  const m = {l: 44, r: 8, t: 8, b: 18};
+  const ctx = canvas.getContext("2d"), w = canvas.width, h = canvas.height, m = MARGIN;
   let lo = Infinity, hi = -Infinity;
   series.forEach(s => s.values.forEach(v => { if (v !== null) { lo = Math.min(lo, v * scale); hi = Math.max(hi, v * scale); } }));
-  [lo, hi] = niceRange(lo, hi);
-  frame(ctx, w, h, m, lo, hi, [[0, "0°"], [0.25, "90°"], [0.5, "180°"], [0.75, "270°"], [1, "360°"]]);
+  const y = niceTicks(lo, hi, 4);
+  frame(ctx, w, h, y, [[0, "0°"], [0.25, "90°"], [0.5, "180°"], [0.75, "270°"], [1, "360°"]]);
   series.forEach((s, k) => {
     const n = s.values.length;
     ctx.strokeStyle = COLOURS[k % COLOURS.length]; ctx.lineWidth = 1.5; ctx.beginPath();
     s.values.forEach((v, i) => {
-      const x = m.l + (w - m.l - m.r) * i / Math.max(1, n), y = h - m.b - (h - m.t - m.b) * (v * scale - lo) / (hi - lo);
-      i ? ctx.lineTo(x, y) : ctx.moveTo(x, y);
+      const x = m.l + (w - m.l - m.r) * i / Math.max(1, n), py = h - m.b - (h - m.t - m.b) * (v * scale - y.lo) / (y.hi - y.lo);
+      i ? ctx.lineTo(x, py) : ctx.moveTo(x, py);
     });
     ctx.stroke();
-    ctx.fillStyle = COLOURS[k % COLOURS.length]; ctx.fillText(s.name, w - m.r - 70, m.t + 12 + 11 * k);
   });
-  canvas.dataset.updates = String(Number(canvas.dataset.updates || 0) + 1);
-  canvas.dataset.samples = String(series.reduce((a, s) => a + s.values.length, 0));
+  legend(ctx, series.map(s => s.name), series.map((s, k) => COLOURS[k % COLOURS.length]));
+  mark(canvas, series.reduce((a, s) => a + s.values.length, 0), y);
 }
 
 // x, y: displacements over one revolution (m); drawn in um, equal axes, closed curve
 function drawOrbit(canvas, x, y) {
-  const ctx = canvas.getContext("2d"), w = canvas.width, h = canvas.height;
-  const m = {l: 44, r: 8, t: 8, b: 18};
+  const ctx = canvas.getContext("2d"), w = canvas.width, h = canvas.height, m = MARGIN;
   const xs = x.map(v => v * 1e6), ys = y.map(v => v * 1e6);
-  const r = Math.max(1e-3, ...xs.map(Math.abs), ...ys.map(Math.abs)) * 1.1;
-  frame(ctx, w, h, m, -r, r, [[0, fmtTick(-r)], [0.5, "0"], [1, fmtTick(r)]]);
-  const px = v => m.l + (w - m.l - m.r) * (v + r) / (2 * r), py = v => h - m.b - (h - m.t - m.b) * (v + r) / (2 * r);
+  const r = Math.max(1e-3, ...xs.map(Math.abs), ...ys.map(Math.abs));
+  const ax = niceTicks(-r, r, 4);
+  frame(ctx, w, h, ax, ax.ticks.map(v => [(v - ax.lo) / (ax.hi - ax.lo), fmtTick(v, ax.step)]));
+  const px = v => m.l + (w - m.l - m.r) * (v - ax.lo) / (ax.hi - ax.lo), py = v => h - m.b - (h - m.t - m.b) * (v - ax.lo) / (ax.hi - ax.lo);
   ctx.strokeStyle = "#1976d2"; ctx.lineWidth = 1.8; ctx.beginPath();
   xs.forEach((v, i) => (i ? ctx.lineTo(px(v), py(ys[i])) : ctx.moveTo(px(v), py(ys[i]))));
   ctx.closePath(); ctx.stroke();
   ctx.fillStyle = "#c62828"; ctx.beginPath(); ctx.arc(px(xs[0] || 0), py(ys[0] || 0), 3, 0, 2 * Math.PI); ctx.fill();
-  canvas.dataset.updates = String(Number(canvas.dataset.updates || 0) + 1);
-  canvas.dataset.samples = String(xs.length);
+  mark(canvas, xs.length, ax);
 }
 
-window.orbitPlots = {drawTraces, drawOrbit};
+function clockText(t, seconds) { const d = new Date(t * 1000); return d.toTimeString().slice(0, seconds ? 8 : 5); }
+
+// local clock ticks every 10, 15, 30 s, 1, 2, 5, 10, 15, 30 min or 1, 2, 6, 12, 24 h over [t0, t1]
+// (s since the epoch), at most 6
+function timeTicks(t0, t1) {
+  const steps = [10, 15, 30, 60, 120, 300, 600, 900, 1800, 3600, 7200, 21600, 43200, 86400];
+  const step = steps.find(s => (t1 - t0) / s <= 6) || 86400;
+  const out = [];
+  for (let t = Math.ceil(t0 / step) * step; t <= t1; t += step) out.push([(t - t0) / (t1 - t0), clockText(t, step < 60)]);
+  return out;
+}
+
+// series: [{name, points: [[t, v], ...], dashed}], band [lo, hi] or null (shaded), window [t0, t1] (s)
+function drawTrend(canvas, series, band, win) {
+  const ctx = canvas.getContext("2d"), w = canvas.width, h = canvas.height, m = MARGIN;
+  let lo = Infinity, hi = -Infinity, n = 0;
+  series.forEach(s => s.points.forEach(([, v]) => { if (v !== null) { lo = Math.min(lo, v); hi = Math.max(hi, v); n++; } }));
+  if (band) { lo = Math.min(lo, band[0]); hi = Math.max(hi, band[1]); }
+  const y = niceTicks(lo, hi, 4), [t0, t1] = win;
+  frame(ctx, w, h, y, timeTicks(t0, t1));
+  const px = t => m.l + (w - m.l - m.r) * (t - t0) / Math.max(1e-9, t1 - t0);
+  const py = v => h - m.b - (h - m.t - m.b) * (v - y.lo) / (y.hi - y.lo);
+  if (band) {
+    ctx.fillStyle = "rgba(46,125,50,0.10)"; ctx.fillRect(m.l, py(band[1]), w - m.l - m.r, py(band[0]) - py(band[1]));
+    ctx.strokeStyle = "rgba(46,125,50,0.6)"; ctx.setLineDash([3, 3]);
+    [band[0], band[1]].forEach(v => { ctx.beginPath(); ctx.moveTo(m.l, py(v)); ctx.lineTo(w - m.r, py(v)); ctx.stroke(); });
+  }
+  series.forEach((s, k) => {
+    ctx.strokeStyle = COLOURS[k % COLOURS.length]; ctx.lineWidth = 1.5; ctx.setLineDash(s.dashed ? [5, 3] : []);
+    ctx.beginPath();
+    let pen = false;
+    let last = null;
+    s.points.forEach(([t, v]) => {
+      if (v === null || t < t0) { pen = false; return; }
+      pen ? ctx.lineTo(px(t), py(v)) : ctx.moveTo(px(t), py(v)); pen = true; last = [t, v];
+    });
+    ctx.stroke();
+    if (last) { ctx.fillStyle = COLOURS[k % COLOURS.length]; ctx.beginPath(); ctx.arc(px(last[0]), py(last[1]), 2.5, 0, 2 * Math.PI); ctx.fill(); }
+  });
+  ctx.setLineDash([]);
+  legend(ctx, series.map(s => s.name), series.map((s, k) => COLOURS[k % COLOURS.length]));
+  mark(canvas, n, y);
+  canvas.dataset.band = band ? band.join(",") : "";
+}
+
+window.orbitPlots = {drawTraces, drawOrbit, drawTrend, niceTicks, fmtTick};

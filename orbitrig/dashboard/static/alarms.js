@@ -1,0 +1,46 @@
+// The alarm list: latched interlock trips and failed runs (from the dashboard server's "alarms"
+// messages), each with its acknowledgement (who, when) or an Acknowledge button.
+"use strict";
+
+function localTime(iso) {
+  const d = new Date(iso);
+  return isNaN(d) ? (iso || "—") : d.toLocaleString();
+}
+
+function showAlarms(list) {
+  const body = document.getElementById("alarms"); clear(body);
+  let open = 0;
+  list.forEach(a => {
+    const tr = document.createElement("tr"); tr.dataset.alarm = a.id;
+    tr.className = a.acked_by ? "acked" : "unacked";
+    if (!a.acked_by) open++;
+    cell(tr, localTime(a.since)); cell(tr, a.kind); cell(tr, a.text);
+    cell(tr, a.cleared ? "cleared" : "active", a.cleared ? "" : "out");
+    const ack = cell(tr, a.acked_by ? a.acked_by + ", " + localTime(a.acked_at) : "");
+    if (!a.acked_by) {
+      const b = document.createElement("button"); b.textContent = "Acknowledge"; b.className = "ack";
+      b.addEventListener("click", () => acknowledge(a.id));
+      ack.appendChild(b);
+    }
+    body.appendChild(tr);
+  });
+  const badge = document.getElementById("alarm-count");
+  badge.textContent = open ? open + " unacknowledged" : "none unacknowledged";
+  badge.className = "badge " + (open ? "l-broker" : "l-online");
+  show(document.getElementById("alarms-empty"), list.length === 0);
+}
+
+async function acknowledge(id) {
+  activity();
+  const out = document.getElementById("alarm-result");
+  out.className = "cmd-result"; out.textContent = "acknowledge: sent…";
+  let r;
+  try { r = await api("/api/ack", {alarm: id}); }
+  catch (e) { r = {status: 0, data: {ok: false, error: "dashboard server unreachable"}}; }
+  if (r.status === 401) { leave("session ended: sign in again"); return; }
+  if (r.data.ok) { out.className = "cmd-result ok"; out.textContent = "acknowledge: done"; return; }
+  out.className = "cmd-result refused"; out.textContent = r.data.error || "acknowledge: failed";
+  addEvent("refused", out.textContent);
+}
+
+window.alarmList = {showAlarms};

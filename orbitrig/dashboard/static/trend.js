@@ -1,0 +1,75 @@
+// Trend charts: speeds, pressures, temperatures, flow and torque over the run or the last N minutes.
+// The dashboard server keeps the history (bounded) and sends it on connect ("trend_history"), then
+// every sample ("trend"), and its thinned view of the run again every 300 samples (recent: null).
+// The page keeps at most RECENT_MAX recent samples and the server's run view plus at most
+// RUN_TAIL_MAX samples since it.
+"use strict";
+
+const RECENT_MAX = 1800, RUN_TAIL_MAX = 600;
+const trendState = {recent: [], run: [], runId: null, bands: {}};
+
+// chart id -> [series: [key, label, dashed]], unit text, value in shown unit, band key
+const TREND_CHARTS = {
+  "trend-speed": [[["spin_rpm", "spin"], ["spin_set_rpm", "spin set", true], ["orbit_rpm", "orbit"], ["orbit_set_rpm", "orbit set", true]], "rpm", v => v, null],
+  "trend-supply": [[["p_supply", "supply"]], "MPa", v => v / 1e6, "p_supply"],
+  "trend-recess": [[["p_recess_1", "recess 1"], ["p_recess_2", "recess 2"], ["p_recess_3", "recess 3"], ["p_recess_4", "recess 4"]], "MPa", v => v / 1e6, "p_recess"],
+  "trend-temperature": [[["t_supply", "supply"], ["t_recess", "recess"], ["t_groove", "groove"]], "°C", v => v - 273.15, null],
+  "trend-flow": [[["flow", "flow"]], "l/min", v => v * 6e4, null],
+  "trend-torque": [[["torque_spin", "spin"], ["torque_orbit", "orbit"]], "%", v => v, null],
+};
+
+function trendHistory(h) {
+  trendState.runId = h.run_id;
+  if (h.recent) trendState.recent = h.recent.slice(-RECENT_MAX);
+  trendState.run = h.run || [];
+  trendState.runKept = trendState.run.length;
+  scheduleDraw();
+}
+
+function trendSample(s, runId) {
+  if (runId !== trendState.runId) Object.assign(trendState, {runId, run: [], runKept: 0});  // a new run
+  trendState.recent.push(s);
+  if (trendState.recent.length > RECENT_MAX) trendState.recent.splice(0, trendState.recent.length - RECENT_MAX);
+  trendState.run.push(s);
+  const tail = trendState.run.length - (trendState.runKept || 0);  // samples since the server's view
+  if (tail > RUN_TAIL_MAX) trendState.run.splice(trendState.runKept || 0, tail - RUN_TAIL_MAX);
+  scheduleDraw();
+}
+
+// samples arriving together are drawn once, at the next frame
+function scheduleDraw() {
+  if (trendState.drawPending) return;
+  trendState.drawPending = true;
+  requestAnimationFrame(() => { trendState.drawPending = false; drawTrends(); });
+}
+
+function trendBands(bands) { trendState.bands = bands || {}; }
+
+function trendWindow() {
+  const sel = document.getElementById("trend-window").value;
+  const now = Date.now() / 1000;
+  if (sel === "run") {
+    const data = trendState.run;
+    const t0 = data.length ? data[0].t : now - 60;
+    return [data, [t0, Math.max(now, t0 + 60)]];
+  }
+  return [trendState.recent, [now - Number(sel), now]];
+}
+
+function drawTrends() {
+  const [data, win] = trendWindow();
+  Object.entries(TREND_CHARTS).forEach(([id, [keys, , shown, bandKey]]) => {
+    const series = keys.map(([key, label, dashed]) => ({name: label, dashed,
+      points: data.map(s => [s.t, s[key] === null || s[key] === undefined ? null : shown(s[key])])}))
+      .filter(s => s.points.some(p => p[1] !== null));
+    const raw = bandKey ? trendState.bands[bandKey] : null;
+    const band = raw ? [shown(raw[0]), shown(raw[1])] : null;
+    const canvas = document.getElementById(id);
+    orbitPlots.drawTrend(canvas, series, band, win);
+    canvas.dataset.series = series.map(s => s.name).join(",");
+  });
+}
+
+function trendClear() { Object.assign(trendState, {recent: [], run: [], runKept: 0, runId: null, bands: {}}); }
+
+window.trends = {trendHistory, trendSample, trendBands, drawTrends, trendClear};
