@@ -178,6 +178,12 @@ def plan_time_ratio(rig, ratios, counts, paper_list) -> float:
     return seconds(ratios, counts) / seconds(paper_list, [50] * len(paper_list))
 
 
+def _names() -> list[str]:
+    from reduction.models import model_spec
+
+    return model_spec("kcd11").names
+
+
 def matrix_time_ratio(rig) -> float:
     from orbitrig.config import default_matrix_path, load_matrix
     from orbitrig.run.plan import make_plan, summarize
@@ -207,6 +213,8 @@ def engine_figures(rig, runs: int, pilot_design, paper_list, speedup: float = SP
         "time_ratio_compressible": float(np.mean(res["compressible"]["designed"]["times"])
                                          / np.mean(res["compressible"]["paper"]["times"])),
         "sd_ratio_worst": float(np.max(sd)), "rmse_ratio_worst": float(np.max(rmse)),
+        "sd_ratio": dict(zip(_names(), np.round(sd, 3).tolist())),
+        "rmse_ratio": dict(zip(_names(), np.round(rmse, 3).tolist())),
         "sd_ratio_mc_sigma": 1 / math.sqrt(max(runs - 1, 1)),
         "adequacy_detect": detect,
         "time_ratio_plan": plan_time_ratio(rig, ratios, counts, paper_list),
