@@ -31,6 +31,8 @@ D) of the identified coefficients over repeated runs with different noise seeds;
 ratio carries a Monte Carlo uncertainty of about 1/sqrt(runs - 1) (two SDs of `runs` runs).
 
 Run: python3 bench/bench_rig_time.py [runs]   (default 200 runs per protocol and model)
+Through the engine (sweep --sim in process; figures as JSON, exit 1 on a missed goal):
+     python3 bench/bench_rig_time.py --engine --runs N --json   (bench/bench_rig_time_engine.py)
 """
 
 from __future__ import annotations
@@ -113,9 +115,9 @@ def truth(physics, spec) -> np.ndarray:
     return np.array([mats[t.matrix][t.entries[0]] if t.order == 0 else 0.0 for t in spec.terms])
 
 
-def design(rig, spec):
-    """Pilot (the paper's protocol, seed 10000), then the allocation that matches the paper
-    list's predicted standard errors; (ratios, counts, targets, paper prediction, allocation)."""
+def pilot_problem(rig, spec) -> tuple[DesignProblem, list[float]]:
+    """Pilot (the paper's protocol, seed 10000): the design problem with its smoothed noise per
+    ratio, prior coefficients and orbit radius; and the paper's list."""
     table, _, _ = run_point(new_physics(10_000), rig, PAPER, [AveragingRule.fixed(50)] * len(PAPER))
     per_rev = table.u * np.sqrt(table.n_records)[:, None]
     ratios = np.round(np.asarray(table.orbit) / SPIN, 6)
@@ -123,7 +125,14 @@ def design(rig, spec):
     u_rev = smooth_noise(at, np.array([np.median(per_rev[ratios == r], axis=0) for r in at]))
     theta = identify(table, spec.model, method="wls").theta
     radius = float(np.mean(np.sqrt((np.abs(table.x) ** 2 + np.abs(table.y) ** 2) / 2)))
-    problem = DesignProblem(spec, theta, SPIN, radius, u_rev, 50, noise_ratios=at)
+    return DesignProblem(spec, theta, SPIN, radius, u_rev, 50, noise_ratios=at), PAPER
+
+
+def design(rig, spec):
+    """Pilot, then the allocation that matches the paper list's predicted standard errors;
+    (ratios, counts, targets, paper prediction, allocation)."""
+    problem, _ = pilot_problem(rig, spec)
+    theta, radius = problem.theta, problem.radius
     paper = predict(problem, PAPER)
     d = rig.drives
     grid = allowed_ratios(d.min_ratio, min(d.max_ratio, d.max_orbit_rpm / 1000.0))
@@ -233,14 +242,32 @@ def compare(rig, model: str, runs: int) -> None:
           f"({time.perf_counter() - t0:.1f} s wall)")
 
 
-def main() -> None:
-    runs = int(sys.argv[1]) if len(sys.argv) > 1 else 200
+def main() -> int:
+    import argparse
+    import json
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("runs_pos", nargs="?", type=int, help="runs per protocol (reduction-only mode)")
+    ap.add_argument("--runs", type=int, help="runs per protocol and scenario")
+    ap.add_argument("--engine", action="store_true", help="through the engine: sweep --sim in process "
+                    "(bench/bench_rig_time_engine.py)")
+    ap.add_argument("--json", action="store_true", help="print one JSON object (--engine)")
+    ap.add_argument("--speedup", type=float, default=20.0, help="simulated / wall time (--engine)")
+    args = ap.parse_args()
     rig = load_rig(ROOT / "config" / "rig.toml")
+    if args.engine:
+        from bench_rig_time_engine import engine_figures
+
+        figures = engine_figures(rig, args.runs or 20, pilot_problem, PAPER, args.speedup)
+        print(json.dumps(figures, indent=None if args.json else 1))
+        return 0 if figures["goal_met"] else 1
+    runs = args.runs or args.runs_pos or 200
     print(f"bench_rig_time: {runs} simulated runs per protocol at 1000 rpm, the default simulator scenario "
           "(all disturbances); reduction driven directly on simulated revolutions (no engine)")
     for model in MODELS:
         compare(rig, model, runs)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -33,12 +33,13 @@ from scipy.optimize import minimize
 
 from reduction.design import design_orbits
 from reduction.errors import ReductionError
-from reduction.frequency_list import revolution_time
 from reduction.impedance import forces, impedance, real_rows, regressors
 from reduction.models import ModelSpec
 from reduction.noise import equation_variances
+from reduction.rig_time import revolution_time
 
 MIN_SHARE = 1e-9  # smallest time share the solver may give a ratio (keeps I(w) invertible)
+NEAR = 2  # a constrained exchange moves a ratio at most this many grid steps
 
 
 @dataclass(frozen=True)
@@ -130,9 +131,11 @@ def time_shares(F, tau, scales) -> tuple[np.ndarray, float]:
     return w, float(np.max(g))
 
 
-def _cost(F, tau, s, per_block, keep):
+def _cost(F, tau, s, per_block, keep, admissible=None):
     """(total s, shares, acquisition s) of the ratios ``keep``; total inf when they cannot
-    identify the model."""
+    identify the model or ``admissible(keep)`` says no."""
+    if admissible is not None and not admissible(keep):
+        return float("inf"), None, float("inf")
     try:
         w, T = time_shares(F[keep], tau[keep], s)
     except ReductionError:
@@ -140,27 +143,35 @@ def _cost(F, tau, s, per_block, keep):
     return T + per_block * len(keep), w, T
 
 
-def _support(F, tau, s, per_block):
+def _support(F, tau, s, per_block, admissible=None):
     """The ratios worth their overhead: from all, drop the one with the smallest share while
     that lowers acquisition + overhead; then exchange one kept ratio for another (or drop
-    one) while that helps. Returns (kept indices, their shares, acquisition s)."""
+    one) while that helps. With ``admissible(indices)`` every list tried must pass it: the
+    drop takes the smallest share whose removal passes, and an exchange moves a ratio at
+    most ``NEAR`` grid steps (a local search: the constrained lists are long). Returns (kept
+    indices, their shares, acquisition s)."""
     keep = list(range(tau.size))
-    best, w, T = _cost(F, tau, s, per_block, keep)
+    ok = admissible or (lambda k: True)
+    best, w, T = _cost(F, tau, s, per_block, keep, admissible)
     if not np.isfinite(best):
         raise ReductionError("allocate: these ratios cannot identify the model")
     while len(keep) > 1:
-        trial = keep[:int(np.argmin(w))] + keep[int(np.argmin(w)) + 1:]
-        c, w2, T2 = _cost(F, tau, s, per_block, trial)
+        trials = [t for t in (keep[:i] + keep[i + 1:] for i in np.argsort(w)) if ok(t)]
+        if not trials:
+            break
+        c, w2, T2 = _cost(F, tau, s, per_block, trials[0], admissible)
         if c >= best:
             break
-        keep, best, w, T = trial, c, w2, T2
+        keep, best, w, T = trials[0], c, w2, T2
+    reach = tau.size if admissible is None else NEAR
     improved = True
     while improved:
         improved = False
         moves = [keep[:i] + keep[i + 1:] for i in range(len(keep)) if len(keep) > 1] + \
-                [sorted(keep[:i] + [g] + keep[i + 1:]) for i in range(len(keep)) for g in range(tau.size) if g not in keep]
+                [sorted(keep[:i] + [g] + keep[i + 1:]) for i in range(len(keep)) for g in range(tau.size)
+                 if g not in keep and abs(g - keep[i]) <= reach]
         for trial in moves:
-            c, w2, T2 = _cost(F, tau, s, per_block, trial)
+            c, w2, T2 = _cost(F, tau, s, per_block, trial, admissible)
             if c < best * (1 - 1e-6):
                 keep, best, w, T, improved = trial, c, w2, T2, True
     return np.array(keep), w, T
@@ -180,11 +191,16 @@ def _counts(F, tau, scales, w, T, min_revolutions):
 
 def allocate(spec: ModelSpec, theta, spin: float, radius: float, ratios, u_revolution, scales,
              target: float = 1.0, block_overhead: float = 0.0, min_revolutions: int = 10,
-             directions: str = "both") -> Allocation:
+             directions: str = "both", admissible=None, also=()) -> Allocation:
     """Least-rig-time revolutions per ratio (a subset of ``ratios``) bringing every
     coefficient's standard error to at most ``target`` x ``scales`` (p,) SI; u_revolution
     (k, 4) per-revolution noise at each of ``ratios`` (or (4,) for all); ``block_overhead``
-    s per block (settle + store); every kept block averages at least ``min_revolutions``."""
+    s per block (settle + store); every kept block averages at least ``min_revolutions``;
+    ``admissible(kept ratios (k,)) -> bool`` limits the lists considered (e.g.
+    reduction.adequacy_design.spread_ok); ``also``: further (spec, theta, scales) whose
+    coefficients must reach ``target`` x their scales too (fitted to the same blocks; the
+    information is block-diagonal over the models). The standard errors returned are
+    ``spec``'s."""
     r = np.asarray(ratios, dtype=float)
     order = np.argsort(r)
     r = r[order]
@@ -192,17 +208,31 @@ def allocate(spec: ModelSpec, theta, spin: float, radius: float, ratios, u_revol
         if np.ndim(u_revolution) == 2 else np.asarray(u_revolution, dtype=float)
     if not target > 0:
         raise ReductionError(f"allocate: target must be > 0, got {target:g}")
-    s = np.asarray(scales, dtype=float) * target
-    F = revolution_information(spec, theta, spin, radius, r, u, directions)
+    models = [(spec, theta, scales), *also]
+    s = np.concatenate([np.asarray(sc, dtype=float) for _, _, sc in models]) * target
+    F = _block_diagonal([revolution_information(m, th, spin, radius, r, u, directions) for m, th, _ in models])
     tau = revolution_time(r, spin, directions)
     per_block = block_overhead * (2 if directions == "both" else 1)
-    keep, w, T = _support(F, tau, s, per_block)
+    ok = None if admissible is None else (lambda keep: admissible(r[keep]))
+    keep, w, T = _support(F, tau, s, per_block, ok)
     n, _ = _counts(F[keep], tau[keep], s, w, T, min_revolutions)
-    info = np.einsum("k,kij->ij", n, F[keep])
+    p = spec.n_coefficients
+    info = np.einsum("k,kij->ij", n, F[keep][:, :p, :p])
     se = np.sqrt(np.diag(np.linalg.inv(info)))
     return Allocation(tuple(float(v) for v in r[keep]), tuple(int(v) for v in n), se,
                       float(np.max(se / np.asarray(scales, float))), float(np.sum(n * tau[keep])),
                       per_block * keep.size)
+
+
+def _block_diagonal(parts) -> np.ndarray:
+    """(k, P, P) per-ratio information of several models side by side (P the sum of their p)."""
+    k, sizes = parts[0].shape[0], [f.shape[1] for f in parts]
+    out = np.zeros((k, sum(sizes), sum(sizes)))
+    at = 0
+    for f, p in zip(parts, sizes):
+        out[:, at:at + p, at:at + p] = f
+        at += p
+    return out
 
 
 def adaptive_targets(spec: ModelSpec, theta, spin: float, radius: float, ratios, revolutions, u_revolution,

@@ -32,6 +32,7 @@ import numpy as np
 from reduction.design import design_orbits, predicted_covariance
 from reduction.errors import ReductionError
 from reduction.models import ModelSpec
+from reduction.rig_time import list_time as acquisition_time
 
 RUNOUT_KEEP_AWAY = 0.1  # ratios within this of Omega/omega = 1 are not proposed
 GRID_STEP = 0.05  # ratio step of the search grid
@@ -190,7 +191,8 @@ def best_list(problem: DesignProblem, grid, count: int, score=None) -> tuple[Lis
 def time_to_target(problem: DesignProblem, prediction: ListPrediction, target: float,
                    block_overhead: float = 0.0) -> float:
     """Predicted rig time (s) of a list whose blocks average just enough revolutions
-    (:func:`revolutions_for`) to reach ``target``, plus ``block_overhead`` s per block."""
+    (:func:`revolutions_for`) to reach ``target`` (reduction.rig_time: trigger revolution
+    included), plus ``block_overhead`` s per block."""
     n = revolutions_for(prediction, problem.revolutions, target)
     if n is None:
         return float("inf")
@@ -234,17 +236,3 @@ def revolutions_for(prediction: ListPrediction, revolutions: int, target: float)
     if prediction.relative is None:
         return None
     return max(1, int(np.ceil(revolutions * (prediction.worst / target) ** 2)))
-
-
-def revolution_time(ratios, spin: float, directions: str = "both") -> np.ndarray:
-    """(k,) seconds of one revolution at each ratio, 2 pi / (r omega), summed over its whirl
-    directions (two blocks per ratio for "both")."""
-    r = np.asarray(ratios, dtype=float)
-    return (2 if directions == "both" else 1) * 2 * np.pi / (r * spin)
-
-
-def acquisition_time(ratios, spin: float, revolutions, directions: str = "both") -> float:
-    """Seconds spent averaging: revolutions x :func:`revolution_time`. ``revolutions``: one
-    count or one per ratio."""
-    n = np.broadcast_to(np.asarray(revolutions, dtype=float), np.shape(ratios))
-    return float(np.sum(n * revolution_time(ratios, spin, directions)))

@@ -30,21 +30,22 @@ def _ratio_list(text: str) -> list[float]:
     return values
 
 
-def _candidate(ratios: Optional[str], matrix: Optional[str], rig) -> tuple[list[float], str, float | None, str]:
-    """(ratios, directions, orbit radius m or None, where from)."""
+def _candidate(ratios: Optional[str], matrix: Optional[str], rig) -> tuple[list[float], str, float | None, str, list]:
+    """(ratios, directions, orbit radius m or None, where from, the matrix's (model, freq_dep) pairs)."""
     from orbitrig import config as cfg
 
     if ratios and matrix:
         _fail("give --ratios or --matrix, not both")
     if ratios:
-        return _ratio_list(ratios), "both", None, "--ratios"
+        return _ratio_list(ratios), "both", None, "--ratios", []
     if matrix:
         mat = cfg.load_matrix(cfg.matrix_file(matrix))
         dirs = set(mat.orbit.directions)
         direction = "both" if len(dirs) == 2 else next(iter(dirs))
         radius = min(mat.operating.dynamic_eccentricity) * rig.bearing.clearance
-        return list(mat.orbit.ratio_list), direction, radius, f"matrix {mat.name}"
-    return [round(0.2 + k / 9, 6) for k in range(10)], "both", None, "the paper's list (0.2 to 1.2, 10 ratios)"
+        return (list(mat.orbit.ratio_list), direction, radius, f"matrix {mat.name}",
+                [(m.model, m.freq_dep) for m in mat.models])
+    return [round(0.2 + k / 9, 6) for k in range(10)], "both", None, "the paper's list (0.2 to 1.2, 10 ratios)", []
 
 
 def _noise(noise_from: Optional[Path], lms: str, force: Optional[float], probe_nm: Optional[float]):
@@ -75,6 +76,7 @@ def register(app: typer.Typer) -> None:
         revolutions: Optional[int] = typer.Option(None, "--revolutions", help="Revolutions averaged per block (default: rig.toml [averaging])."),
         target: Optional[float] = typer.Option(None, "--target", help="Worst relative standard error to reach, percent: propose ratios and revolutions per ratio that reach it in the least rig time."),
         match: bool = typer.Option(False, "--match", help="Propose revolutions per ratio that give every coefficient at most the candidate's standard error in the least rig time."),
+        keep_test: bool = typer.Option(True, "--model-test/--no-model-test", help="With --match or --target: keep the adequacy test of the richest frequency-dependent model (the matrix's, else this model's poly:1; --freq-dep if not none): enough ratios spread over the band, its errors at most the candidate's."),
         keep_away: float = typer.Option(0.1, "--keep-away", help="Propose no ratio closer than this to Omega/omega = 1 (runout)."),
         save: Optional[str] = typer.Option(None, "--save", help="Write the proposal to config/designs/NAME.toml (a matrix uses it with [orbit] design = \"NAME\")."),
         rig_path: Optional[Path] = typer.Option(None, "--config", help="Rig configuration (default config/rig.toml)."),
@@ -87,13 +89,14 @@ def register(app: typer.Typer) -> None:
 
         try:
             rig = cfg.load_rig(rig_path)
-            cand, directions, mat_radius, source = _candidate(ratios, matrix, rig)
+            cand, directions, mat_radius, source, mat_models = _candidate(ratios, matrix, rig)
+            tested = [(model, freq_dep)] + mat_models if keep_test else None
             noise, run = _noise(noise_from, lms, force_noise, probe_noise)
             obj = design_object(
                 rig, model=model, freq_dep=freq_dep, spin_rpm=spin, candidate=cand, source=source,
                 directions=directions, radius=radius * 1e-6 if radius is not None else mat_radius,
                 noise=noise, run=run, lms=lms, revolutions=revolutions, target=target, keep_away=keep_away,
-                match=match)
+                match=match, test_models=tested)
             if save:
                 saved = save_design(obj, save, designs_dir(rig_path))
                 sys.stderr.write(f"orbitrig design: wrote {saved}\n")

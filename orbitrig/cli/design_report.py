@@ -32,14 +32,11 @@ def _unit(name: str) -> str:
 
 def rig_time(rig, ratios, spin: float, revolutions, directions: str) -> float:
     """Physical seconds the blocks of ``ratios`` take at spin (rad/s), ``revolutions`` one
-    count or one per ratio; see the module doc."""
-    r = np.asarray(ratios, dtype=float)
-    n = np.broadcast_to(np.asarray(revolutions, dtype=float), r.shape)
-    per_dir = 2 if directions == "both" else 1
-    acquire = per_dir * float(np.sum((n + 1) * 2 * math.pi / (r * spin)))
-    blocks = per_dir * r.size
-    ramps = per_dir * float(np.max(r)) * spin / rig.ramp_rate
-    return acquire + blocks * (rig.settle.hold_s + rig.estimates.store_s) + ramps
+    count or one per ratio (reduction.rig_time.point_time; see the module doc)."""
+    from reduction.rig_time import point_time
+
+    return point_time(ratios, spin, revolutions, directions, rig.settle.hold_s + rig.estimates.store_s,
+                      rig.ramp_rate)
 
 
 def _list_object(rig, problem, pred, revolutions: int, directions: str) -> dict:
@@ -86,23 +83,33 @@ def _candidate_warnings(ratios, lo: float, hi: float, keep_away: float) -> list[
     return out
 
 
-def _allocated(rig, problem, grid, scales, directions: str) -> dict:
+def _allocated(rig, problem, grid, scales, directions: str, test=None, reference=None) -> dict:
     """The proposal as revolutions per ratio (reduction.allocation): every coefficient's
-    standard error at most ``scales`` in the least rig time, with each ratio's adaptive target."""
+    standard error at most ``scales`` in the least rig time, with each ratio's adaptive target;
+    with a ``test`` (reduction.adequacy_design.ModelTest) the list also keeps the adequacy
+    test: K ratios spread over the band, the tested model's errors at most the ``reference``
+    list's ((ratios, revolutions))."""
+    from reduction.adequacy_design import allocate_keeping_test
     from reduction.allocation import adaptive_targets, allocate
 
     from reduction.errors import ReductionError
 
     u = problem.noise_at(grid)
+    overhead = rig.settle.hold_s + rig.estimates.store_s
     try:
-        a = allocate(problem.spec, problem.theta, problem.spin, problem.radius, grid, u, scales,
-                     block_overhead=rig.settle.hold_s + rig.estimates.store_s, directions=directions)
+        if test is None:
+            a = allocate(problem.spec, problem.theta, problem.spin, problem.radius, grid, u, scales,
+                         block_overhead=overhead, directions=directions)
+        else:
+            prior = dict(zip(problem.spec.names, map(float, problem.theta)))
+            a = allocate_keeping_test(test, problem.spec, prior, problem.spin, problem.radius, grid, problem.noise_at,
+                                      reference, block_overhead=overhead, directions=directions, scales=scales)
     except ReductionError as err:
         raise DesignInputError(f"no list of the allowed ratios reaches it: {err}") from None
     u_kept = problem.noise_at(a.ratios)
     names = problem.spec.names
     base = coefficient_scales_of(problem)
-    return {
+    out = {
         "ratios": list(a.ratios),
         "orbit_hz": [round(r * problem.spin / (2 * math.pi), 6) for r in a.ratios],
         "directions": directions,
@@ -115,6 +122,19 @@ def _allocated(rig, problem, grid, scales, directions: str) -> dict:
         "worst_relative_pct": float(np.max(a.std_errors / base)) * 100,
         "rig_time_s": rig_time(rig, a.ratios, problem.spin, a.revolutions, directions),
     }
+    if test is not None:
+        out["test_std_errors"] = {n: float(v) for n, v in zip(test.spec.names, a.test_std_errors)}
+        out["test_worst_vs_reference"] = a.test_worst
+    return out
+
+
+def model_test_object(test, ratios) -> dict:
+    """The model-test constraint as stated in the output, and whether ``ratios`` keep it."""
+    from reduction.adequacy_design import spread_ok
+
+    return {"model": test.spec.model, "freq_dep": test.spec.freq_dep.text, "frequencies": test.frequencies,
+            "band": [test.lo, test.hi], "slices": [round(float(v), 6) for v in test.slices()],
+            "reason": test.reason(), "kept": bool(spread_ok(test, ratios))}
 
 
 def coefficient_scales_of(problem) -> np.ndarray:
@@ -124,8 +144,10 @@ def coefficient_scales_of(problem) -> np.ndarray:
 
 
 def design_object(rig, *, model, freq_dep, spin_rpm, candidate, source, directions, radius, noise,
-                  run, lms, revolutions, target, keep_away, match: bool = False) -> dict:
-    """Predict the candidate list, propose one; the JSON object `design --json` prints."""
+                  run, lms, revolutions, target, keep_away, match: bool = False, test_models=None) -> dict:
+    """Predict the candidate list, propose one; the JSON object `design --json` prints.
+    ``test_models``: (model, freq_dep) pairs whose adequacy test the proposal must keep
+    (reduction.adequacy_design; the candidate list is the reference); None: no such constraint."""
     from orbitrig.cli.design_inputs import model_check, prior_theta
     from reduction.frequency_list import DesignProblem, predict, propose
     from reduction.models import model_spec
@@ -155,13 +177,17 @@ def design_object(rig, *, model, freq_dep, spin_rpm, candidate, source, directio
         "candidate": dict(_list_object(rig, problem, cand, n, directions), source=source,
                           warnings=_candidate_warnings(candidate, lo, hi, keep_away)),
         "match_candidate": match,
+        "model_test": None,
         "warnings": [],
     }
     if match or goal:
         if cand.std_errors is None and match:
             raise DesignInputError("--match: the candidate list cannot identify the model, so there is nothing to match")
         scales = cand.std_errors if match else coefficient_scales_of(problem) * goal
-        out["proposal"] = dict(_allocated(rig, problem, grid, scales, directions), reaches_target=True)
+        test = _model_test(test_models, candidate)
+        out["proposal"] = dict(_allocated(rig, problem, grid, scales, directions, test, (candidate, n)),
+                               reaches_target=True)
+        out["model_test"] = None if test is None else model_test_object(test, out["proposal"]["ratios"])
     else:
         prop = propose(problem, grid, count=len(candidate), block_overhead=overhead)
         out["proposal"] = _list_object(rig, problem, prop.best, n, directions)
@@ -169,6 +195,18 @@ def design_object(rig, *, model, freq_dep, spin_rpm, candidate, source, directio
     warning = model_check(spec, run, spin, lms, problem, (list(cand.ratios), n), (prop["ratios"], prop["revolutions"]))
     out["warnings"] = [warning] if warning else []
     return out
+
+
+def _model_test(test_models, candidate):
+    from reduction.adequacy_design import model_test
+    from reduction.errors import ReductionError
+
+    if test_models is None:
+        return None
+    try:
+        return model_test(list(test_models), candidate)
+    except ReductionError as err:
+        raise DesignInputError(f"the model test: {err} (or give --no-model-test)") from None
 
 
 def _fmt_time(s: float) -> str:
@@ -203,6 +241,9 @@ def print_design(obj: dict) -> None:
         echo(f"warning (candidate): {w}")
     for w in obj.get("warnings", []):
         echo(f"warning (model): {w}")
+    mt = obj.get("model_test")
+    if mt:
+        echo(f"model test kept: {'yes' if mt['kept'] else 'NO'}: {mt['reason']}")
     if obj["target_pct"] is not None:
         ok = p.get("reaches_target")
         echo(f"target {obj['target_pct']:g} %: " + ("reached" if ok else "not reachable on this grid"))

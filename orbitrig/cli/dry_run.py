@@ -32,6 +32,7 @@ def _print(plan, steps: bool) -> None:
     typer.echo(f"by step: {parts}")
     for line in prediction_lines(plan.rig, plan.matrix):
         typer.echo(line)
+    typer.echo(order_line(plan, sm.duration))
     typer.echo("")
     _print_points(plan)
     if steps:
@@ -39,6 +40,19 @@ def _print(plan, steps: bool) -> None:
         _print_steps(plan.steps)
     else:
         typer.echo(f"({len(plan.steps)} steps: --steps lists every one with its start time)")
+
+
+def order_line(plan, duration: float) -> str:
+    """The rig time of the points in the chosen order against the written order (matrix `order`)."""
+    from orbitrig.run.plan import format_duration, make_plan, summarize
+
+    written = list(range(len(plan.points)))
+    how = plan.matrix.order.value
+    if list(plan.order) == written:
+        return f"order of the points: {how}, as written: estimated {format_duration(duration)}"
+    other = summarize(make_plan(plan.matrix, plan.rig, written).steps).duration
+    return (f"order of the points: {how}: estimated {format_duration(duration)}; in the written order "
+            f"{format_duration(other)} ({duration / other:.3f} of it)")
 
 
 def _print_points(plan) -> None:

@@ -3,11 +3,19 @@ the identification models."""
 
 from __future__ import annotations
 
+from enum import StrEnum
 from typing import Annotated, Literal
 
 from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from orbitrig.config.fields import FREQ_DEP, MODELS, Mpa, Ratio, Rpm, Wait, _Model
+
+
+class PointOrder(StrEnum):
+    """The order of a matrix's operating points (the matrix's top-level `order`)."""
+
+    FASTEST = "fastest"
+    WRITTEN = "written"
 
 
 #: the fewest orbit frequencies a matrix may give (per direction)
@@ -157,6 +165,10 @@ class MatrixConfig(_Model):
     revolutions: Revolutions | None = None
     averaging: MatrixAveraging | None = Field(None, validate_default=True)  # checked when absent too
     settle_hold_s: Wait | None = None
+    #: the order of the operating points: "fastest" (the plan orders them to spend the least
+    #: changeover time, orbitrig.run.point_order) or "written" (the product of [operating], in
+    #: key order, the last varying fastest)
+    order: PointOrder = PointOrder.FASTEST
 
     # cross-table checks as field validators, so each error names its key and line
     @field_validator("revolutions")

@@ -169,6 +169,22 @@ class Estimates(_Model):
     store_s: Wait = 0.05
 
 
+class Changeover(_Model):
+    """Seconds the operator needs to change each manual variable and let it settle (the
+    static eccentricity is set by thermal expansion: slow). A point after the first costs the
+    sum over the variables that change; the plan orders the points to spend least."""
+
+    orbit_radius_s: Wait = 120.0
+    static_eccentricity_s: Wait = 120.0
+    recess_pressure_s: Wait = 120.0
+    pressure_ratio_s: Wait = 120.0
+
+    def of(self) -> tuple[float, float, float, float]:
+        """Seconds in the order of OperatingPoint.manual: orbit radius, static eccentricity,
+        recess pressure, pressure ratio."""
+        return (self.orbit_radius_s, self.static_eccentricity_s, self.recess_pressure_s, self.pressure_ratio_s)
+
+
 class RigConfig(_Model):
     name: str = "rig"
     rig_id: str = ""  # the rig's identifier recorded in every run (default: name)
@@ -183,6 +199,8 @@ class RigConfig(_Model):
     verify: Verify = Verify()
     interlocks: Interlocks = Interlocks()
     estimates: Estimates = Estimates()
+    # per manual variable, change + settle seconds; None: every change costs estimates.manual_setting_s
+    changeover: Changeover | None = None
     # the active record's runout taken out of every block's probe phasors (docs/calibration.md)
     subtract_runout: bool = True
     # stated calibration uncertainty; None: not stated (no systematic budget)

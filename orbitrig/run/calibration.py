@@ -28,6 +28,7 @@ from orbitrig.config import LMS, RPM, RigConfig
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.rig_io import RigAccess, RigIO
 from reduction.fourier import phasor
+from reduction.rig_time import block_time
 
 log = logging.getLogger(__name__)
 HOLD_REVOLUTIONS = 3  # read and dropped after a change at the input
@@ -124,8 +125,7 @@ class CalibrationSession:
         """One block of `revolutions` (default `roll.revolutions`) at the slow roll (retried once)."""
         roll, av = self.roll_spec, self.rig.averaging
         n = revolutions or roll.revolutions
-        period = 2 * np.pi / roll.orbit
-        timeout = self.access.time_scale.wall(av.timeout_factor * (n + 1) * period + av.timeout_margin_s) + 2.0
+        timeout = self.access.time_scale.wall(av.timeout_factor * block_time(roll.orbit, n) + av.timeout_margin_s) + 2.0
         rule = AveragingRule(n, n, None, 1.0 / roll.ratio, abs(roll.orbit), av.speed_tolerance)
         for attempt in range(av.retries + 1):
             try:

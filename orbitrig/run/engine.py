@@ -106,6 +106,7 @@ class RunEngine(OperatorRequests):
             raise OrbitrigError(f"a run is active (state {self.state})")
         plan = plan if isinstance(plan, Plan) else make_plan(plan, self.rig)
         store, done = self._open_store(plan, resume)
+        plan = _started_order(plan, store) if resume else plan
         self._start(plan, store, done, resume)
         io = RigIO(self.rig, self.access.endpoints, on_revolution=self._on_revolution)
         status, message = FAILED, "run cancelled"
@@ -126,7 +127,8 @@ class RunEngine(OperatorRequests):
             store = RunStore.create(self.out_dir, rig_text=self.rig.text, matrix_text=plan.matrix.text,
                                     matrix_name=plan.name, sim=self.access.simulated,
                                     scenario_name=sc.name, scenario_text=sc.text,
-                                    provenance=prov.to_dict(), record_text=self.rig.record_text)  # fmt: skip
+                                    provenance=prov.to_dict(), record_text=self.rig.record_text,
+                                    point_order=list(plan.order))  # fmt: skip
             store.log(prov.summary())
             return store, []
         store = RunStore.open_existing(self.out_dir)
@@ -369,3 +371,10 @@ def _cancelling() -> bool:
     """Is the current task itself being cancelled (not only a task it awaited)?"""
     task = asyncio.current_task()
     return task is not None and task.cancelling() > 0
+
+
+def _started_order(plan: Plan, store: RunStore) -> Plan:
+    """A resumed run keeps the order of the operating points it started with (the rig's
+    changeover times may have been edited since); a run that recorded none ran them as written."""
+    order = store.stored_point_order() or list(range(len(plan.points)))
+    return plan if list(plan.order) == order else make_plan(plan.matrix, plan.rig, order)

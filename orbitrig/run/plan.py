@@ -6,8 +6,9 @@ as it is; it touches no hardware, so `orbitrig sweep --dry-run` lists it and
 tests assert the sequence. Durations are PHYSICAL seconds (the time scale of
 a simulated rig is the engine's business).
 
-Per operating point (manual settings outermost, spin innermost, so the
-operator changes the rig as rarely as possible)::
+Operating points in the order that spends the least changeover time
+(orbitrig.run.point_order; the written order is manual settings outermost,
+spin innermost), unless the matrix says `order = "written"`. Per point::
 
     SetManual -> VerifyPressures -> SetSpin -> for each block:
         [SetOrbit] -> Settle -> Acquire -> [VerifyGeometry, first block] -> StoreBlock
@@ -20,12 +21,17 @@ the lowest up: the orbit drive never ramps through zero but once per point.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from orbitrig.config import MPA, RPM, MatrixConfig, ModelSpec, RigConfig, check_matrix_against_rig
+from orbitrig.config import MPA, RPM, MatrixConfig, ModelSpec, PointOrder, RigConfig, check_matrix_against_rig
+from orbitrig.errors import ConfigError
+from orbitrig.run.plan_summary import PlanSummary, format_duration, summarize  # re-exported (their old home)
+from orbitrig.run.point_order import fastest_order, manual_change_s
+from reduction.rig_time import block_time
 
 TWO_PI = 2.0 * math.pi
 DIRECTIONS = {"forward": +1, "backward": -1}
@@ -270,7 +276,7 @@ STEP_KINDS: tuple[type[Step], ...] = (SetManual, VerifyPressures, SetSpin, SetOr
 
 # ---------------------------------------------------------------- expansion
 def operating_points(matrix: MatrixConfig, rig: RigConfig) -> list[OperatingPoint]:
-    """All operating points in plan order (manual settings outer, spin inner)."""
+    """All operating points in the written order (manual settings outer, spin inner)."""
     op = matrix.operating
     ratios = matrix.orbit.ratio_list
     dirs = [DIRECTIONS[d] for d in matrix.orbit.directions]
@@ -291,8 +297,8 @@ def operating_points(matrix: MatrixConfig, rig: RigConfig) -> list[OperatingPoin
 
 
 def acquisition_time(orbit: float, revolutions: int) -> float:
-    """Physical seconds to collect `revolutions` whole revolutions (one more to find the trigger)."""
-    return (revolutions + 1) * TWO_PI / abs(orbit)
+    """Physical seconds to collect `revolutions` whole revolutions (reduction.rig_time.block_time)."""
+    return block_time(orbit, revolutions)
 
 
 @dataclass(frozen=True)
@@ -304,6 +310,7 @@ class Plan:
     points: tuple[OperatingPoint, ...]
     steps: tuple[Step, ...]
     revolutions: int  # the most any block averages (a fixed count, or the adaptive maximum)
+    order: tuple[int, ...] = ()  # per point run, its index in the written order (operating_points)
 
     @property
     def name(self) -> str:
@@ -319,13 +326,22 @@ class Plan:
         return [s for s in self.steps if s.point is None]
 
 
-def make_plan(matrix: MatrixConfig, rig: RigConfig) -> Plan:
-    """Check `matrix` against `rig` (ConfigError naming every problem) and expand it."""
+def make_plan(matrix: MatrixConfig, rig: RigConfig, order: Sequence[int] | None = None) -> Plan:
+    """Check `matrix` against `rig` (ConfigError naming every problem) and expand it; the points
+    run in `order` (indices of the written order; a resume passes the order its run started
+    with), else in the matrix's `order` (orbitrig.run.point_order)."""
     check_matrix_against_rig(matrix, rig)
-    points = operating_points(matrix, rig)
+    written = operating_points(matrix, rig)
+    if order is None:
+        order = fastest_order(rig, written) if matrix.order == PointOrder.FASTEST else range(len(written))
+    order = tuple(int(i) for i in order)
+    if sorted(order) != list(range(len(written))):
+        raise ConfigError(matrix.file, [f"the stored order of the operating points ({len(order)}) does not fit "
+                                        f"the matrix's {len(written)} points"])
+    points = [dataclasses.replace(written[w], index=i) for i, w in enumerate(order)]
     steps = _steps(matrix, rig, points)
     n_rev = max(s.revolutions for s in steps if isinstance(s, Acquire))
-    return Plan(matrix, rig, tuple(points), tuple(steps), n_rev)
+    return Plan(matrix, rig, tuple(points), tuple(steps), n_rev, order)
 
 
 def block_acquire(matrix: MatrixConfig, rig: RigConfig, point: int, b: Block, hold: float) -> Acquire:
@@ -347,11 +363,11 @@ def _steps(matrix: MatrixConfig, rig: RigConfig, points: list[OperatingPoint]) -
     models = tuple(matrix.models)
     steps: list[Step] = []
     spin_now = orbit_now = 0.0
-    manual_prev = None
+    prev = None
     for p in points:
-        changed = p.manual != manual_prev
-        steps.append(SetManual(p.index, est.manual_setting_s if changed else 0.0, *p.manual, changed))
-        manual_prev = p.manual
+        changed = prev is None or p.manual != prev.manual
+        steps.append(SetManual(p.index, manual_change_s(rig, prev, p) if changed else 0.0, *p.manual, changed))
+        prev = p
         steps.append(VerifyPressures(p.index, est.verify_s))
         first = p.blocks[0]
         ramp = max(abs(p.spin - spin_now), abs(first.orbit - orbit_now)) / rate
@@ -371,28 +387,3 @@ def _steps(matrix: MatrixConfig, rig: RigConfig, points: list[OperatingPoint]) -
         steps.append(CompletePoint(p.index, est.store_s))
     steps.append(StopDrives(None, max(spin_now, abs(orbit_now)) / rate))
     return steps
-
-
-@dataclass
-class PlanSummary:
-    points: int
-    blocks: int
-    duration: float  # s, physical
-    by_kind: dict[str, float] = field(default_factory=dict)
-
-
-def summarize(steps: Sequence[Step]) -> PlanSummary:
-    """Points, blocks and estimated time, with the time per kind of step (`Step.word`)."""
-    by_kind: dict[str, float] = {}
-    for s in steps:
-        by_kind[s.word] = by_kind.get(s.word, 0.0) + s.duration
-    points = {s.point for s in steps if s.point is not None}
-    blocks = sum(isinstance(s, Acquire) for s in steps)
-    return PlanSummary(len(points), blocks, sum(by_kind.values()), by_kind)
-
-
-def format_duration(seconds: float) -> str:
-    seconds = int(round(seconds))
-    h, rem = divmod(seconds, 3600)
-    m, s = divmod(rem, 60)
-    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"

@@ -35,6 +35,7 @@ from orbitrig.run.states import ConfirmMode
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.verification import geometry_problems, pressure_problems
 from orbitrig.store.writer import BlockRecord, PointResults, RunStore
+from reduction.rig_time import block_time
 
 log = logging.getLogger(__name__)
 
@@ -234,7 +235,7 @@ class PointProcedure:
         (retried `averaging.retries` times) the block is settled and acquired again."""
         r, p, b = self.r, ps.point, step.block
         av = r.rig.averaging
-        timeout = self.scale.wall(av.timeout_factor * (step.revolutions + 1) * b.period + av.timeout_margin_s) + 2.0
+        timeout = self.scale.wall(av.timeout_factor * block_time(b.orbit, step.revolutions) + av.timeout_margin_s) + 2.0
         attempts = 0
         while True:
             try:

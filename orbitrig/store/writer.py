@@ -58,10 +58,11 @@ class RunStore:
     @classmethod
     def create(cls, out_dir, *, rig_text: str, matrix_text: str, matrix_name: str, sim: bool,
                scenario_name: str = "", scenario_text: str = "", provenance: dict | None = None,
-               record_text: str = "") -> RunStore:  # fmt: skip
+               record_text: str = "", point_order: list[int] | None = None) -> RunStore:  # fmt: skip
         """A new run directory; `scenario_name` / `scenario_text`: the simulator scenario of a
         --sim run (name and TOML text, recorded so that a resume runs the same one);
-        `provenance` (orbitrig.run.provenance) and the active calibration record's text."""
+        `provenance` (orbitrig.run.provenance) and the active calibration record's text;
+        `point_order`: per point run, its index in the matrix's written order (a resume keeps it)."""
         self = cls(out_dir)
         lay = self.layout
         for existing in (lay.header, lay.run_file, lay.journal):
@@ -81,6 +82,8 @@ class RunStore:
             self._header["provenance"] = provenance
         if record_text:
             self._header["calibration_record_text"] = record_text
+        if point_order is not None:
+            self._header["point_order"] = [int(i) for i in point_order]
         fsync_dir(lay.dir)
         write_atomic(lay.header, json.dumps(self._header, indent=1).encode("utf-8"))
         self._journal([journal.status_line("running", "")])
@@ -103,6 +106,13 @@ class RunStore:
         """(rig TOML text, matrix TOML text, sim) of the stored run."""
         h = self._header or read_header(self.layout)
         return str(h["rig_config"]), str(h["matrix_config"]), bool(h["sim"])
+
+    def stored_point_order(self) -> list[int] | None:
+        """Per point, its index in the matrix's written order, as the run started (None: a run
+        written before the order was recorded: the written order)."""
+        h = self._header or read_header(self.layout)
+        order = h.get("point_order")
+        return [int(i) for i in order] if isinstance(order, list) else None
 
     def stored_scenario(self) -> tuple[str, str] | None:
         """(name, TOML text) of the stored run's simulator scenario; None when the run did not

@@ -13,7 +13,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 KEYS = {"model", "freq_dep", "coefficients", "units", "spin_rpm", "orbit_radius_m", "directions", "noise",
-        "prior", "allowed", "target_pct", "candidate", "proposal", "match_candidate", "warnings"}
+        "prior", "allowed", "target_pct", "candidate", "proposal", "match_candidate", "model_test", "warnings"}
 LIST_KEYS = {"ratios", "orbit_hz", "directions", "revolutions", "identifiable", "std_errors", "relative_pct",
              "worst_relative_pct", "rig_time_s"}
 
@@ -48,7 +48,7 @@ def test_json_keys_and_numbers():
 
 def test_target_is_reached_in_less_rig_time():
     obj = json.loads(design("--model", "kc8", "--spin", "1000", "--matrix", "demo", "--target", "0.2",
-                            "--json").stdout)
+                            "--no-model-test", "--json").stdout)
     c, p = obj["candidate"], obj["proposal"]
     assert c["ratios"] == [0.3, 0.5, 0.7, 0.9, 1.2] and obj["target_pct"] == 0.2
     assert p["reaches_target"] is True and p["worst_relative_pct"] <= 0.2 * (1 + 1e-9)
@@ -67,11 +67,12 @@ def test_target_is_reached_in_less_rig_time():
 
 
 def test_match_gives_every_coefficient_the_candidates_error_in_half_the_time():
-    """--match against the paper's list (kcd11, 15 N / 20 nm per revolution, 2.4 um orbit):
-    no coefficient's predicted standard error grows, the rig time halves (hand check: the
-    paper's 20 blocks take 115 s of orbits + 41 s of settling + 4 s of ramps)."""
+    """--match --no-model-test against the paper's list (kcd11, 15 N / 20 nm per revolution,
+    2.4 um orbit): no coefficient's predicted standard error grows, the rig time halves (hand
+    check: the paper's 20 blocks take 115 s of orbits + 41 s of settling + 4 s of ramps)."""
     args = ("--model", "kcd11", "--spin", "1000", "--force-noise", "15", "--probe-noise", "20", "--radius", "2.4")
-    obj = json.loads(design(*args, "--match", "--json").stdout)
+    obj = json.loads(design(*args, "--match", "--no-model-test", "--json").stdout)
+    assert obj["model_test"] is None
     c, p = obj["candidate"], obj["proposal"]
     assert obj["match_candidate"] is True and c["rig_time_s"] == pytest.approx(162.9, abs=0.5)
     for name in obj["coefficients"]:
@@ -80,6 +81,26 @@ def test_match_gives_every_coefficient_the_candidates_error_in_half_the_time():
     assert all(n >= 10 for n in p["revolutions"]) and all(0 < t < 100 for t in p["target_pct"])
     bad = design(*args, "--match", "--target", "1", check=False)
     assert bad.returncode == 2 and "not both" in bad.stderr
+
+
+def test_match_keeps_the_model_test_by_default():
+    """--match (model test on, the paper matrix's models): K = 5 (kcd11 power:1: Omega^0..3 in
+    the real part, plus one), one ratio at least in each fifth of 0.2 .. 1.2, every kcd11 and
+    kcd11 power:1 coefficient at most the paper list's error; it costs rig time (a list for the
+    constant model alone takes half, about 0.65 here), still less than the paper's."""
+    args = ("--model", "kcd11", "--spin", "1000", "--force-noise", "15", "--probe-noise", "20", "--radius", "2.4")
+    obj = json.loads(design(*args, "--matrix", "paper", "--match", "--json").stdout)
+    c, p, mt = obj["candidate"], obj["proposal"], obj["model_test"]
+    assert (mt["model"], mt["freq_dep"], mt["frequencies"], mt["kept"]) == ("kcd11", "power:1", 5, True)
+    assert len(p["ratios"]) >= 5 and "distinct orbit frequencies" in mt["reason"]
+    for a, b in zip(mt["slices"][:-1], mt["slices"][1:]):
+        assert any(a - 1e-9 <= r <= b + 1e-9 for r in p["ratios"])
+    for name in obj["coefficients"]:
+        assert p["std_errors"][name] <= c["std_errors"][name] * (1 + 1e-6)
+    assert p["test_worst_vs_reference"] <= 1 + 1e-6
+    assert 0.5 * c["rig_time_s"] < p["rig_time_s"] < 0.8 * c["rig_time_s"]
+    text = design(*args, "--matrix", "paper", "--match").stdout
+    assert "model test kept: yes: the adequacy test of kcd11 power:1" in text
 
 
 def test_text_output_and_saved_design(tmp_path):

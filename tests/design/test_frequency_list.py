@@ -88,5 +88,5 @@ def test_reference_scales_and_measured_noise_per_ratio():
 
 
 def test_acquisition_time():
-    assert acquisition_time([0.5, 1.0], SPIN, 10) == pytest.approx(2 * 10 * (2 * math.pi / (0.5 * SPIN) + 2 * math.pi / SPIN))
-    assert acquisition_time([0.5], SPIN, [20], "forward") == pytest.approx(20 * 2 * math.pi / (0.5 * SPIN))
+    assert acquisition_time([0.5, 1.0], SPIN, 10) == pytest.approx(2 * 11 * (2 * math.pi / (0.5 * SPIN) + 2 * math.pi / SPIN))
+    assert acquisition_time([0.5], SPIN, [20], "forward") == pytest.approx(21 * 2 * math.pi / (0.5 * SPIN))

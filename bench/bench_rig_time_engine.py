@@ -1,0 +1,227 @@
+"""Rig time measured through the engine: `bench_rig_time.py --engine --runs N [--json]`.
+
+Each run is a one-point sweep --sim in process (orbitrig.cli.simulated_rig + RunEngine, as
+`orbitrig sweep --sim` builds them) at a time speed-up, one noise seed per run, at 1000 rpm,
+scenario `paper` (the paper's rig) and `compressible` (frequency-dependent Z). Protocols:
+
+  paper    : ratios 0.2 .. 1.2 (10), both directions, 50 revolutions per block
+  designed : what `orbitrig design --match` proposes against the paper matrix with the model
+             test kept (reduction.adequacy_design.allocate_keeping_test): noise and prior
+             from a pilot of the paper protocol (bench_rig_time.design's pilot, not counted)
+
+Both identify kcd11 and kcd11 power:1 (wls); the adequacy test is kcd11 none against kcd11
+power:1, rejected at p < 0.01. Rig time of the point: the simulator's own clock (simulated
+seconds) from the point's first progress event to its result; on a loaded machine the
+engine's lag counts as rig time too (both protocols alike). Figures:
+
+  time_ratio        designed / paper, mean rig time of the point, scenario paper
+  sd_ratio_worst    the worst kcd11 coefficient's spread ratio (designed / paper), scenario paper
+  rmse_ratio_worst  the same for the RMS error against the simulator's constant-K, C, D truth
+  adequacy_detect   per protocol, the fraction of compressible runs rejecting the constant model
+  time_ratio_plan   the sweep plan's estimate of the same ratio (no engine lag)
+  matrix_time_ratio the paper matrix's planned rig time (manual settings included) in the
+                    fastest order over the written order (orbitrig.run.point_order)
+
+Goal: time_ratio <= 0.5, sd_ratio_worst <= 1.1, adequacy detection (designed) >= paper's.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+import math
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+SPEEDUP = 20.0
+RETRIES = 2  # a run that fails (e.g. the Modbus link lost on a loaded machine) is run again this often
+
+
+class RunFailedError(RuntimeError):
+    """One simulated run did not complete."""
+ALPHA = 0.01
+SCENARIOS = ("paper", "compressible")
+MODELS = ("none", "power:1")
+MATRIX = """name = "{name}"
+[operating]
+spin_rpm = [1000.0]
+recess_pressure_mpa = [0.4826]
+pressure_ratio = [0.25]
+static_eccentricity = [0.0]
+dynamic_eccentricity = [0.04]
+[orbit]
+ratios = [{ratios}]
+revolutions = [{counts}]
+[[models]]
+model = "kcd11"
+method = "wls"
+[[models]]
+model = "kcd11"
+freq_dep = "power:1"
+method = "wls"
+"""
+
+
+def designed_list(rig, pilot_design) -> tuple[list[float], list[int]]:
+    """The paper matrix's --match proposal with the model test, from the pilot's noise and prior."""
+    from reduction.adequacy_design import allocate_keeping_test, model_test
+    from reduction.frequency_list import allowed_ratios
+    from reduction.models import model_spec
+
+    spec = model_spec("kcd11")
+    problem, paper = pilot_design(rig, spec)
+    test = model_test([("kcd11", "none"), ("kcd11", "power:1")], paper)
+    d = rig.drives
+    grid = allowed_ratios(d.min_ratio, min(d.max_ratio, d.max_orbit_rpm / 1000.0))
+    prior = dict(zip(spec.names, map(float, problem.theta)))
+    a = allocate_keeping_test(test, spec, prior, problem.spin, problem.radius, grid, problem.noise_at, (paper, 50),
+                              block_overhead=rig.settle.hold_s + rig.estimates.store_s)
+    return list(a.ratios), list(a.revolutions)
+
+
+async def _one_run(rig, matrix, scenario: str, seed: int, out: Path, speedup: float) -> float:
+    """Run the one-point matrix on the simulator; the point's simulated seconds."""
+    from orbitrig.cli.simulated_rig import simulated_rig
+    from orbitrig.run.engine import RunEngine
+    from orbitrig.run.events import ProgressEvent, ResultEvent
+    from orbitrig.run.modbus_log import keep_pymodbus_off_the_terminal
+    from orbitrig.run.rig_io import Scenario
+    from orbitrig.run.states import ConfirmMode
+    from sim.config import scenario as sim_scenario
+
+    keep_pymodbus_off_the_terminal()
+    marks: dict[str, float] = {}
+    cfg = dataclasses.replace(sim_scenario(scenario), seed=seed)
+    async with simulated_rig(speedup, cfg, Scenario(scenario)) as (sim, access):
+        engine = RunEngine(rig, out_dir=out, access=access, confirm_mode=ConfirmMode.AUTO, operator="bench")
+
+        def on_event(ev) -> None:
+            if isinstance(ev, ProgressEvent):
+                marks.setdefault("start", sim.clock.now())
+            elif isinstance(ev, ResultEvent):
+                marks["end"] = sim.clock.now()
+
+        engine.subscribe(on_event)
+        outcome = await engine.run(matrix)
+    if str(outcome.status) != "completed" or "end" not in marks:
+        raise RunFailedError(f"{scenario} seed {seed}: run {outcome.status}: {outcome.message}")
+    return marks["end"] - marks["start"]
+
+
+def _read(out: Path) -> tuple[np.ndarray, float]:
+    from orbitrig import open_run
+    from reduction.models import model_spec
+
+    run = open_run(out)
+    coeffs = run.fit(0, "piezo", "kcd11", "none", "wls").result["coefficients"]
+    adequacy = run.fit(0, "piezo", "kcd11", "power:1", "wls").adequacy or {}
+    return (np.array([float(coeffs[n]) for n in model_spec("kcd11").names]),
+            float(adequacy.get("p_value", 1.0)))
+
+
+def _protocol(rig, scenario: str, ratios, counts, runs: int, seed0: int, speedup: float) -> dict:
+    from orbitrig.config import matrix_from_text
+
+    text = MATRIX.format(name="bench", ratios=", ".join(map(str, ratios)), counts=", ".join(map(str, counts)))
+    matrix = matrix_from_text(text, "bench.toml")
+    est, times, p, failed = [], [], [], []
+    for k in range(runs):
+        for attempt in range(RETRIES + 1):  # a loaded machine can lose the Modbus link: run the seed again
+            with tempfile.TemporaryDirectory() as tmp:
+                out = Path(tmp) / "run"
+                try:
+                    seconds = asyncio.run(_one_run(rig, matrix, scenario, seed0 + k, out, speedup))
+                except RunFailedError as err:
+                    failed.append(str(err))
+                    if attempt == RETRIES:
+                        raise
+                    continue
+                theta, pv = _read(out)
+            break
+        times.append(seconds)
+        est.append(theta)
+        p.append(pv)
+    return {"est": np.array(est), "times": np.array(times), "p": np.array(p), "failed": failed}
+
+
+def _truth(rig, scenario: str) -> np.ndarray:
+    """The constant K, C, D best fitting the scenario's true Z over its reference band
+    (bench_rig_time.truth's way), in kcd11's column order."""
+    from reduction.models import model_spec
+    from sim.config import scenario as sim_scenario
+    from sim.fits import constant_fit
+    from sim.physics import RigPhysics
+
+    physics = RigPhysics(sim_scenario(scenario))
+    physics.set_manual(orbit_radius=0.04 * rig.bearing.clearance, static_eccentricity=0.0,
+                       recess_pressure=0.4826e6, pressure_ratio=0.25)
+    spin = 1000 * 2 * math.pi / 60
+    w = np.asarray(physics.cfg.bearing.reference_ratios) * spin
+    mats = constant_fit(w, physics.impedances(spin, w))
+    return np.array([mats[t.matrix][t.entries[0]] for t in model_spec("kcd11").terms])
+
+
+def plan_time_ratio(rig, ratios, counts, paper_list) -> float:
+    """The sweep's own estimate (orbitrig.run.plan, manual settings left out) of the designed
+    point over the paper's: what the measured time_ratio would be on an idle machine."""
+    from orbitrig.config import matrix_from_text
+    from orbitrig.run.plan import make_plan, summarize
+
+    def seconds(r, n) -> float:
+        text = MATRIX.format(name="plan", ratios=", ".join(map(str, r)), counts=", ".join(map(str, n)))
+        sm = summarize(make_plan(matrix_from_text(text, "plan.toml"), rig).steps)
+        return sm.duration - sm.by_kind.get("manual settings", 0.0)
+
+    return seconds(ratios, counts) / seconds(paper_list, [50] * len(paper_list))
+
+
+def _names() -> list[str]:
+    from reduction.models import model_spec
+
+    return model_spec("kcd11").names
+
+
+def matrix_time_ratio(rig) -> float:
+    from orbitrig.config import default_matrix_path, load_matrix
+    from orbitrig.run.plan import make_plan, summarize
+
+    plan = make_plan(load_matrix(default_matrix_path("paper")), rig)
+    written = make_plan(plan.matrix, rig, range(len(plan.points)))
+    return summarize(plan.steps).duration / summarize(written.steps).duration
+
+
+def engine_figures(rig, runs: int, pilot_design, paper_list, speedup: float = SPEEDUP) -> dict:
+    """Every figure of the module doc, and whether the goal is met."""
+    t0 = time.perf_counter()
+    ratios, counts = designed_list(rig, pilot_design)
+    res = {}
+    for i, sc in enumerate(SCENARIOS):
+        res[sc] = {"paper": _protocol(rig, sc, paper_list, [50] * len(paper_list), runs, 1000 * i + 1, speedup),
+                   "designed": _protocol(rig, sc, ratios, counts, runs, 1000 * i + 501, speedup)}
+    p, d = res["paper"]["paper"], res["paper"]["designed"]
+    truth = _truth(rig, "paper")
+    sd = d["est"].std(axis=0, ddof=1) / p["est"].std(axis=0, ddof=1)
+    rmse = np.sqrt(np.mean((d["est"] - truth) ** 2, axis=0)) / np.sqrt(np.mean((p["est"] - truth) ** 2, axis=0))
+    detect = {k: float(np.mean(res["compressible"][k]["p"] < ALPHA)) for k in ("paper", "designed")}
+    out = {
+        "runs": runs, "speedup": speedup, "designed": {"ratios": ratios, "revolutions": counts},
+        "time_s": {sc: {k: float(np.mean(v["times"])) for k, v in r.items()} for sc, r in res.items()},
+        "time_ratio": float(np.mean(d["times"]) / np.mean(p["times"])),
+        "time_ratio_compressible": float(np.mean(res["compressible"]["designed"]["times"])
+                                         / np.mean(res["compressible"]["paper"]["times"])),
+        "sd_ratio_worst": float(np.max(sd)), "rmse_ratio_worst": float(np.max(rmse)),
+        "sd_ratio": dict(zip(_names(), np.round(sd, 3).tolist())),
+        "rmse_ratio": dict(zip(_names(), np.round(rmse, 3).tolist())),
+        "sd_ratio_mc_sigma": 1 / math.sqrt(max(runs - 1, 1)),
+        "adequacy_detect": detect,
+        "time_ratio_plan": plan_time_ratio(rig, ratios, counts, paper_list),
+        "matrix_time_ratio": matrix_time_ratio(rig),
+        "failed_runs_retried": [m for r in res.values() for v in r.values() for m in v["failed"]],
+        "wall_s": round(time.perf_counter() - t0, 1),
+    }
+    out["goal_met"] = bool(out["time_ratio"] <= 0.5 and out["sd_ratio_worst"] <= 1.1
+                           and detect["designed"] >= detect["paper"])
+    return out

@@ -1,0 +1,32 @@
+"""A plan's totals for the dry run and the bench: points, blocks, estimated physical time per
+kind of step (`Step.word`), and durations as h:mm:ss."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+
+@dataclass
+class PlanSummary:
+    points: int
+    blocks: int
+    duration: float  # s, physical
+    by_kind: dict[str, float] = field(default_factory=dict)
+
+
+def summarize(steps: Sequence) -> PlanSummary:
+    """Points, blocks and estimated time, with the time per kind of step (`Step.word`)."""
+    by_kind: dict[str, float] = {}
+    for s in steps:
+        by_kind[s.word] = by_kind.get(s.word, 0.0) + s.duration
+    points = {s.point for s in steps if s.point is not None}
+    blocks = sum(s.word == "acquire" for s in steps)
+    return PlanSummary(len(points), blocks, sum(by_kind.values()), by_kind)
+
+
+def format_duration(seconds: float) -> str:
+    seconds = int(round(seconds))
+    h, rem = divmod(seconds, 3600)
+    m, s = divmod(rem, 60)
+    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"

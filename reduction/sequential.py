@@ -1,0 +1,99 @@
+"""Sequential design of one operating point: after each block, the next orbit ratio and its revolutions.
+
+The point's Fisher information is the sum over the blocks measured so far of n_b times the
+per-revolution information at their ratio (reduction.allocation.revolution_information),
+evaluated at the point's own current coefficients and measured per-revolution noise. The
+next block is the (ratio, revolutions) of the candidates that lowers the largest predicted
+relative standard error (standard error / scale) most per second of rig time (the block in
+every whirl direction, trigger revolution included (reduction.rig_time), plus the per-block
+overhead). The point stops when every coefficient's predicted relative standard error is at
+most the target, or when the next block would pass the time cap.
+
+Candidates come from the caller (the drives' band, away from Omega/omega = 1:
+reduction.frequency_list.allowed_ratios). The information must already be invertible (run
+an initial list first, e.g. the model test's K spread ratios). Pure numerics, SI.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import StrEnum
+
+import numpy as np
+
+from reduction.allocation import revolution_information
+from reduction.errors import ReductionError
+from reduction.rig_time import list_time
+
+STEP_REVOLUTIONS = (10, 20, 50, 100, 200)  # block sizes tried at each candidate ratio
+
+
+class Choice(StrEnum):
+    """Why the sequential design did what it did (stored per block)."""
+
+    NEXT = "largest error reduced most per second"
+    TARGET = "every coefficient at its target"
+    CAP = "time cap reached"
+
+
+@dataclass(frozen=True)
+class NextBlock:
+    """The decision: ``ratio`` and ``revolutions`` of the next block (None, 0 when stopping),
+    why, the block's rig seconds, and the predicted relative standard errors (p,) before and
+    after it (after = before when stopping)."""
+
+    ratio: float | None
+    revolutions: int
+    reason: Choice
+    seconds: float
+    before: np.ndarray
+    after: np.ndarray
+
+
+def block_information(spec, theta, spin: float, radius: float, ratio: float, u_revolution, revolutions: int,
+                      directions: str = "both") -> np.ndarray:
+    """(p, p) information of one measured block (all its directions): revolutions x the
+    per-revolution information at ``ratio`` with the measured noise u (4,)."""
+    F = revolution_information(spec, theta, spin, radius, [ratio], np.asarray(u_revolution, float)[None], directions)
+    return revolutions * F[0]
+
+
+def relative_errors(info, scales) -> np.ndarray:
+    """(p,) predicted standard error / scale; ReductionError when ``info`` is singular."""
+    try:
+        cov = np.linalg.inv(np.asarray(info, dtype=float))
+    except np.linalg.LinAlgError as exc:
+        raise ReductionError("sequential design: the blocks so far cannot identify the model; "
+                             "run an initial list first") from exc
+    d = np.diag(cov)
+    if not np.all(np.isfinite(d)) or np.any(d <= 0):
+        raise ReductionError("sequential design: the blocks so far cannot identify the model; "
+                             "run an initial list first")
+    return np.sqrt(d) / np.asarray(scales, dtype=float)
+
+
+def next_block(spec, theta, spin: float, radius: float, info, candidates, noise_at, scales, target: float,
+               spent_s: float, cap_s: float, per_block_s: float = 0.0, directions: str = "both") -> NextBlock:
+    """The next block of the point (module doc). ``info`` (p, p) so far, ``noise_at(ratios) ->
+    (k, 4)`` per-revolution noise, ``scales`` (p,) SI, ``target`` a fraction, ``spent_s`` the
+    rig seconds spent on the point, ``cap_s`` its cap, ``per_block_s`` settle + store per block."""
+    before = relative_errors(info, scales)
+    if float(np.max(before)) <= target:
+        return NextBlock(None, 0, Choice.TARGET, 0.0, before, before)
+    r = np.asarray(candidates, dtype=float)
+    F = revolution_information(spec, theta, spin, radius, r, noise_at(r), directions)
+    blocks = 2 if directions == "both" else 1
+    best = None
+    for k, ratio in enumerate(r):
+        for n in STEP_REVOLUTIONS:
+            seconds = list_time([ratio], spin, n, directions) + blocks * per_block_s
+            if spent_s + seconds > cap_s:
+                continue
+            after = relative_errors(info + n * F[k], scales)
+            rate = (float(np.max(before)) - float(np.max(after))) / seconds
+            if best is None or rate > best[0]:
+                best = (rate, float(ratio), n, seconds, after)
+    if best is None or best[0] <= 0:
+        return NextBlock(None, 0, Choice.CAP, 0.0, before, before)
+    _, ratio, n, seconds, after = best
+    return NextBlock(ratio, n, Choice.NEXT, seconds, before, after)
