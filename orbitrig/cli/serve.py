@@ -139,7 +139,7 @@ def _start(*, broker: str, sim: bool, config: Path | None, rig_id: str, prefix: 
                                                   tls_ca=tls_ca)
         folder = matrices or Path(rig.file).resolve().parent / "matrices"
         settings = ServiceSettings(rig_id=rig_id, matrices_dir=folder, prefix=prefix,
-                                   supervision_policy=supervision_policy,  # type: ignore[arg-type]
+                                   supervision_policy=supervision_policy,
                                    supervision_timeout=supervision_timeout, client_id=client_id,
                                    catalog_url=catalog)
     except (ConfigError, ServiceError) as err:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import asyncio
 import datetime as _dt
+import functools
 import logging
 import time
 from pathlib import Path
@@ -247,7 +248,7 @@ class RunEngine(OperatorRequests):
                 if p.index in done:
                     continue
                 await control.safe_point()
-                await control.hold_for_room(lambda: self._no_room(plan, p))
+                await control.hold_for_room(functools.partial(self._no_room, plan, p))
                 self._progress.next_point(len(p.blocks))
                 await procedure.run_point(p, plan.point_steps(p.index), first)
                 first = False
@@ -322,7 +323,7 @@ class RunEngine(OperatorRequests):
         for cb in list(self._subs):
             try:
                 cb(ev)
-            except Exception:  # noqa: BLE001 - a subscriber must not break the run
+            except Exception:  # a subscriber must not break the run
                 log.exception("event subscriber failed")
 
     def _state_changed(self, state: str, message: str) -> None:
@@ -351,7 +352,7 @@ class RunEngine(OperatorRequests):
             try:
                 self._store.logs.add("can", can_row(t, self._io.aux.latest()))
                 self._store.logs.add("drives", drive_row(t, self._io.drives.state))
-            except Exception:  # noqa: BLE001 - logging must not break the run
+            except Exception:  # logging must not break the run
                 log.debug("monitor sample failed", exc_info=True)
             await asyncio.sleep(0.5)
 

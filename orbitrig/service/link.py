@@ -205,7 +205,7 @@ class BrokerLink:
                                 tls_params=tls, max_queued_incoming_messages=self.triage.limit,
                                 queue_type=self._new_inbox)
         client.pending_calls_threshold = PUBLISH_WINDOW + 8  # a full window is expected, not a warning
-        read_in_bursts(client._client)  # noqa: SLF001 - aiomqtt's paho client: no public handle
+        read_in_bursts(client._client)  # aiomqtt's paho client: no public handle
         return client
 
     async def run(self) -> None:

@@ -118,7 +118,7 @@ class LiveFeed:
                 if payload is not None:
                     self._send(proto.dumps(payload))
                     self.sent += 1
-            except Exception:  # noqa: BLE001 - the live view must never disturb the run
+            except Exception:  # the live view must never disturb the run
                 log.exception("live payload failed")
             await asyncio.sleep(self.interval)
 

@@ -267,8 +267,8 @@ def parse_command(payload: bytes | bytearray | str) -> Command:
     try:
         model = _COMMANDS.validate_python(obj)
     except ValidationError as err:
-        found = (_field_problem(e, name) for e in err.errors(include_url=False))
-        problems += [p for p in found if p is not None]
+        field_problems = (_field_problem(e, name) for e in err.errors(include_url=False))
+        problems += [p for p in field_problems if p is not None]
     if problems and name in ALWAYS_ACCEPTED:
         # "stop and abort are always accepted": a stray field or a bad id must
         # never keep spinning machinery from stopping. The problems are logged.

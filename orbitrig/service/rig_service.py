@@ -47,7 +47,7 @@ from orbitrig.errors import ConfigError, OrbitrigError
 from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
 from orbitrig.run.states import RunState
 from orbitrig.service import live as live_feed
-from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # noqa: F401 - the service's seams
+from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # the service's seams
 from orbitrig.service.inbox import CommandTriage
 from orbitrig.service.catalog_feed import CatalogFeed
 from orbitrig.service import protocol as proto
@@ -206,7 +206,7 @@ class RigService:
             log.info("refused command %r: %s", payload[:200], err.reason)
             self._reply(err.id, err.reason, behind=True)
             return
-        except Exception as err:  # noqa: BLE001 - no payload may kill the service
+        except Exception as err:  # no payload may kill the service
             log.exception("refused command %r: the parser failed", payload[:200])
             self._reply(None, f"payload cannot be read: {type(err).__name__}", behind=True)
             return
@@ -225,7 +225,7 @@ class RigService:
             log.warning("%s accepted despite: %s", cmd.cmd, "; ".join(cmd.ignored))
         try:
             error = self._handlers[cmd.cmd](cmd)
-        except Exception as err:  # noqa: BLE001 - a command must never kill the service
+        except Exception as err:  # a command must never kill the service
             log.exception("command %s failed", cmd.cmd)
             error = f"{cmd.cmd} failed: {err}"
         if cmd.cmd == "abort":
@@ -256,7 +256,7 @@ class RigService:
         """Every message on ``<prefix>/cmd``; nothing a message does may end the service."""
         try:
             self.handle_command(payload, retained=retained)
-        except Exception as err:  # noqa: BLE001 - last line of defence; handle_command replies itself
+        except Exception as err:  # last line of defence; handle_command replies itself
             log.exception("command %r could not be handled", payload[:200])
             self._reply(None, f"command could not be handled: {type(err).__name__}")
 
@@ -342,7 +342,7 @@ class RigService:
                     "stop_now": lambda by: engine.request_stop_now("the service shutting down", by=by)}  # fmt: skip
         try:
             requests[what](by=by)
-        except Exception:  # noqa: BLE001
+        except Exception:
             log.exception("executor refused %s", what)
             if what != "pause":
                 task.cancel()
@@ -354,7 +354,7 @@ class RigService:
         except asyncio.CancelledError:
             self._set_status(RunState.IDLE, self._run_id, f"run of {name!r} cancelled; drives stopped")
             raise
-        except Exception as err:  # noqa: BLE001 - reported, the service goes on
+        except Exception as err:  # reported, the service goes on
             log.exception("run of matrix %r failed", name)
             if self._state != RunState.FAULTED:
                 self._set_status(RunState.FAULTED, self._run_id, f"run of {name!r} failed: {err}")

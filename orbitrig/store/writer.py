@@ -26,12 +26,12 @@ from orbitrig.store import csvfile, journal, pieces
 from orbitrig.store.consolidate import RunImage, read_header
 from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F401  (the CSV's public names)
 from orbitrig.store.durable import APPEND_FLAGS, TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
-from orbitrig.store.errors import StorageError, StorageFullError, storage_error  # noqa: F401
+from orbitrig.store.errors import StorageError, StorageFullError, storage_error
 from orbitrig.store.index import NEVER_COMPLETED, commit_record, point_state, scan
-from orbitrig.store.journal import now_iso  # noqa: F401  (the engine's timestamps)
+from orbitrig.store.journal import now_iso  # the engine's timestamps
 from orbitrig.store.layout import FORMAT, RunLayout, point_name
 from orbitrig.store.reader import RunDirError, read_point
-from orbitrig.store.records import BlockRecord, LogBuffer, PointResults  # noqa: F401
+from orbitrig.store.records import BlockRecord, LogBuffer, PointResults
 
 log = logging.getLogger(__name__)
 RUN_FILE, CSV_FILE, LOG_FILE = "run.h5", "coefficients.csv", "run.log"
