@@ -18,7 +18,6 @@ of `orbitrig sweep`, MQTT in `orbitrig serve`).
 from __future__ import annotations
 
 import asyncio
-import datetime as _dt
 import functools
 import logging
 import time
@@ -48,6 +47,7 @@ from orbitrig.run.states import ABORTED, COMPLETED, FAILED, FAULTED, IDLE, STOPP
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.store.estimate import plan_bytes, point_bytes
 from orbitrig.store.writer import RunStore, StorageError, StorageFullError
+from rigunits import utc_stamp
 
 log = logging.getLogger(__name__)
 
@@ -140,8 +140,7 @@ class RunEngine(OperatorRequests):
     def _start(self, plan: Plan, store: RunStore, done: list[int], resume: bool) -> None:
         self._store, self._failure = store, None
         self._control.reset()
-        now = _dt.datetime.now(_dt.timezone.utc)  # millisecond resolution: ids stay unique
-        self.run_id = f"{plan.name}-{now.strftime('%Y%m%dT%H%M%S')}.{now.microsecond // 1000:03d}Z"
+        self.run_id = f"{plan.name}-{utc_stamp()}"  # millisecond resolution: ids stay unique
         self._t0 = time.monotonic()
         self.timing.clear()
         self.timing.update(wall=0.0, settle=0.0, acquire=0.0, confirm=0.0, suspended=0.0)

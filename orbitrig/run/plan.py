@@ -26,9 +26,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from orbitrig.config import MPA, RPM, MatrixConfig, ModelSpec, RigConfig, check_matrix_against_rig
+from reduction.whirl import Whirl
+from rigunits import format_duration  # noqa: F401 - the plan's readers print its durations
 
 TWO_PI = 2.0 * math.pi
-DIRECTIONS = {"forward": +1, "backward": -1}
 DIR_TAG = {+1: "fwd", -1: "bwd"}
 
 
@@ -273,7 +274,7 @@ def operating_points(matrix: MatrixConfig, rig: RigConfig) -> list[OperatingPoin
     """All operating points in plan order (manual settings outer, spin inner)."""
     op = matrix.operating
     ratios = matrix.orbit.ratio_list
-    dirs = [DIRECTIONS[d] for d in matrix.orbit.directions]
+    dirs = [Whirl(d).sign for d in matrix.orbit.directions]
     c = rig.bearing.clearance
     points = []
     combos = itertools.product(
@@ -389,10 +390,3 @@ def summarize(steps: Sequence[Step]) -> PlanSummary:
     points = {s.point for s in steps if s.point is not None}
     blocks = sum(isinstance(s, Acquire) for s in steps)
     return PlanSummary(len(points), blocks, sum(by_kind.values()), by_kind)
-
-
-def format_duration(seconds: float) -> str:
-    seconds = int(round(seconds))
-    h, rem = divmod(seconds, 3600)
-    m, s = divmod(rem, 60)
-    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"

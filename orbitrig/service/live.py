@@ -36,6 +36,7 @@ from orbitrig.config import MPA, RPM
 from orbitrig.run.engine import ProgressEvent, RunEngine
 from orbitrig.run.plan import Plan, SetManual
 from orbitrig.run.states import RunState
+from reduction.whirl import Whirl
 
 log = logging.getLogger(__name__)
 
@@ -230,7 +231,7 @@ def _geometry(mean: np.ndarray, slots: np.ndarray, ch: dict[str, int], clearance
 def _direction(orbit: Any) -> str | None:
     """Whirl direction of the orbit drive: the sign of its reference, else of its actual speed."""
     speed = 0.0 if orbit is None else (orbit.reference or orbit.actual)
-    return None if speed == 0 else ("forward" if speed > 0 else "backward")
+    return None if speed == 0 else Whirl.of(speed)
 
 
 def attach(engine: Any, plan: Any, send: Callable[[bytes], None]) -> LiveFeed | None:

@@ -29,6 +29,7 @@ from pydantic import (BaseModel, ConfigDict, Field, StringConstraints, TypeAdapt
 from orbitrig.run.states import RunState
 from orbitrig.service.command_json import (  # noqa: F401 - part of this contract's names
     MAX_COMMAND_BYTES, CommandError, read_object, type_name as _type_name)
+from rigunits import utc_iso
 
 DEFAULT_PREFIX_ROOT = "orbitrig"
 
@@ -285,15 +286,7 @@ def parse_command(payload: bytes | bytearray | str) -> Command:
 
 def iso8601(when: _dt.datetime | float | str | None = None) -> str:
     """ISO-8601 UTC text for a datetime, a POSIX time (s) or now; text passes through."""
-    if isinstance(when, str):
-        return when
-    if when is None:
-        when = _dt.datetime.now(_dt.timezone.utc)
-    elif isinstance(when, (int, float)):
-        when = _dt.datetime.fromtimestamp(float(when), _dt.timezone.utc)
-    elif when.tzinfo is None:
-        when = when.astimezone()  # naive: local time
-    return when.astimezone(_dt.timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+    return when if isinstance(when, str) else utc_iso(when)
 
 
 def _jsonable(value: Any) -> Any:
