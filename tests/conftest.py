@@ -3,8 +3,8 @@ command line, GNU Octave, mount ...) as ``integration``: ``-m "not integration"`
 the in-process rest, ``-m integration`` only these.
 
 A test starts processes if its module's text, or a helper module of its folder that the
-module imports, names one of PROCESS_WORDS; or if it uses a fixture whose source names
-one, or names what it imports from such a helper (the broker, the database server).
+module imports, names one of PROCESS_WORDS; or if it uses a fixture defined in such a
+helper, or whose source names one or what it imports from such a helper (the broker).
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import pytest
 
 PROCESS_WORDS = re.compile(r"\b(subprocess|Popen|create_subprocess_exec|mosquitto|webdriver|chromium|pg_ctl|"
                            r"octave|sys\.executable)\b")
-_IMPORT = re.compile(r"^\s*from\s+(\w+)\s+import\s+\(?([\w\s,]+)\)?|^\s*import\s+(\w+)", re.MULTILINE)
+_IMPORT = re.compile(r"^[ \t]*from[ \t]+(\w+)[ \t]+import[ \t]+(\([^)]*\)|[\w \t,]+)|^[ \t]*import[ \t]+(\w+)", re.MULTILINE)
 
 
 @functools.cache
@@ -33,13 +33,17 @@ def _process_names(module: Path) -> frozenset[str]:
     for source, imported, plain in _IMPORT.findall(module.read_text(encoding="utf-8")):
         helper = module.parent / f"{source or plain}.py"
         if helper != module and _names_a_process(helper):
-            names |= {n.strip() for n in imported.split(",") if n.strip()} | {source or plain}
+            names |= {n.strip() for n in imported.strip("()").split(",") if n.strip()} | {source or plain}
     return frozenset(names)
 
 
 def starts_processes(module: Path) -> bool:
-    """True if the test module's own text, or a helper of its folder it imports, starts processes."""
-    return _names_a_process(module) or bool(_process_names(module))
+    """True if the test module's own text, or a helper of its folder it imports, starts processes,
+    or it names what its folder's conftest imports from such a helper (a fixture asked by name)."""
+    conftest = module.parent / "conftest.py"
+    named = _process_names(conftest) if conftest.is_file() else frozenset()
+    words = set(re.findall(r"\w+", module.read_text(encoding="utf-8")))
+    return _names_a_process(module) or bool(_process_names(module)) or bool(named & words)
 
 
 def _fixture_starts_processes(func: object) -> bool:
@@ -49,6 +53,8 @@ def _fixture_starts_processes(func: object) -> bool:
         return False
     if path.resolve() == Path(__file__).resolve():
         return False
+    if path.name != "conftest.py" and not path.name.startswith("test_") and _names_a_process(path):
+        return True  # a fixture of a helper module that starts processes (the database server)
     words = set(re.findall(r"\w+", source))
     return bool(PROCESS_WORDS.search(source)) or bool(words & _process_names(path))
 
