@@ -11,6 +11,7 @@ Run: python3 bench/bench_identify.py   (prints one line per figure)
 
 from __future__ import annotations
 
+import functools
 import sys
 import timeit
 from pathlib import Path
@@ -19,11 +20,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from reduction.identify import identify  # noqa: E402
-from reduction.impedance import forces, impedance, regression  # noqa: E402
-from reduction.models import model_spec  # noqa: E402
-from reduction.systematic import Calibration, ChannelCalibration, uncertainty_budget  # noqa: E402
-from reduction.table import OrbitTable  # noqa: E402
+from reduction.identify import identify
+from reduction.impedance import forces, impedance, regression
+from reduction.models import model_spec
+from reduction.systematic import Calibration, ChannelCalibration, uncertainty_budget
+from reduction.table import OrbitTable
 
 SPIN = 2 * np.pi * 1000 / 60
 N_FREQ = 20
@@ -81,12 +82,12 @@ def main() -> None:
           f"(target < 5 ms) -> {'met' if t_all < 5e-3 else 'NOT met'}")
     for method, solver in (("ols", "svd"), ("ols", "lu"), ("wls", "qr"), ("iv", "qr"), ("tls", "qr")):
         number = 5 if method == "tls" else 50
-        t = best(lambda: identify(table, "kcd11", "poly:2", method, solver), number)
+        t = best(functools.partial(identify, table, "kcd11", "poly:2", method, solver), number)
         print(f"kcd11 poly:2 ({p} coefficients): identify {method}/{solver}: {t * 1e3:.2f} ms")
     for model, fd in (("kc8", "poly:3"), ("kcd12", "power:3"), ("kcd12", "poly:2")):
         t_other = table_for(model, fd)
         n = model_spec(model, fd).n_coefficients
-        t = best(lambda: identify(t_other, model, fd), 50)
+        t = best(functools.partial(identify, t_other, model, fd), 50)
         print(f"{model} {fd} ({n} coefficients): identify ols/qr: {t * 1e3:.2f} ms")
 
 

@@ -21,15 +21,15 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from orbitrig import config as cfg  # noqa: E402
-from orbitrig.config import LMS  # noqa: E402
-from orbitrig.run.identification import identify_operating_point, orbit_table  # noqa: E402
-from orbitrig.run.plan import make_plan  # noqa: E402
-from orbitrig.store.records import BlockRecord  # noqa: E402
-from reduction.identify import identify  # noqa: E402
-from sim.config import SimConfig  # noqa: E402
-from sim.physics import RigPhysics  # noqa: E402
-from sim.revolutions import revolution_phasors, simulate_revolutions  # noqa: E402
+from orbitrig import config as cfg
+from orbitrig.config import LMS
+from orbitrig.run.identification import identify_operating_point, orbit_table
+from orbitrig.run.plan import make_plan
+from orbitrig.store.records import BlockRecord
+from reduction.identify import identify
+from sim.config import SimConfig
+from sim.physics import RigPhysics
+from sim.revolutions import revolution_phasors, simulate_revolutions
 
 REPEATS = 7
 

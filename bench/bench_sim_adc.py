@@ -24,9 +24,9 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from sim.config import SimConfig, scenario  # noqa: E402
-from sim.physics import RigPhysics  # noqa: E402
-from sim.rig import SimRig  # noqa: E402
+from sim.config import SimConfig, scenario
+from sim.physics import RigPhysics
+from sim.rig import SimRig
 
 READER = r"""
 import os, sys, time, tty, termios

@@ -66,7 +66,7 @@ class _Collection:
             try:
                 for r in revs.take(slice(0, used)).revolutions():
                     self.on_revolution(r)
-            except Exception as err:  # the caller's hook failed: end this acquire with its error
+            except Exception as err:  # noqa: BLE001 - the caller's hook failed: end this acquire with its error
                 self.future.set_exception(err)
                 return used
         if block is not None:

@@ -20,6 +20,7 @@ import math
 import struct
 import time
 from collections.abc import Callable
+from typing import Any
 from dataclasses import dataclass, field
 
 from daq.errors import DaqError
@@ -79,8 +80,8 @@ class AuxSensors:
                  node_id: int = 1, clock: Callable[[], float] = time.monotonic) -> None:
         self.channel, self.interface, self.bitrate, self.node_id = channel, interface, bitrate, node_id
         self._clock = clock
-        self._bus = None
-        self._notifier = None
+        self._bus: Any = None  # can.BusABC once open (python-can imported when opened)
+        self._notifier: Any = None
         self._values: dict[str, object] = {}
         self._times: dict[int, float] = {}  # CAN id offset -> arrival time
         self._p_recess = [math.nan] * 4

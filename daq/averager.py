@@ -300,6 +300,10 @@ class _RunningScatter:
     (numerically stable): the standard uncertainty of their mean after each new
     revolution in O(channels) per revolution."""
 
+    ref: np.ndarray | None
+    s1: np.ndarray | None
+    s2: np.ndarray | None
+
     def __init__(self) -> None:
         self.reset()
 

@@ -24,6 +24,7 @@ Frame errors (``frame_errors`` keys, from :mod:`daq.frames`): ``crc``, ``version
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 
 @dataclass
@@ -61,7 +62,7 @@ class AcquisitionStats:
             self.link_drops - earlier.link_drops,
         )
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return {
             "frames_good": self.frames_good,
             "frames_bad": self.frames_bad,

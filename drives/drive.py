@@ -17,8 +17,8 @@ from dataclasses import dataclass
 from drives import registers as R
 from drives.errors import DriveError, DriveFaultError, DriveLimitError, DriveTimeoutError
 from drives.link import ModbusLink
+from rigunits import RPM
 
-RPM = 2.0 * math.pi / 60.0  # rad/s per rpm
 
 
 def rpm_to_rad_s(rpm: float) -> float:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from drives.drive import DriveStatus
 
@@ -30,7 +31,7 @@ class RigDriveState:
         """Both drives read an actual speed of exactly zero."""
         return bool(self.spin and self.orbit and self.spin.stopped and self.orbit.stopped)
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return {
             "link_ok": self.link_ok,
             "link_error": self.link_error,

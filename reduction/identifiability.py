@@ -44,6 +44,7 @@ from reduction.impedance import regression_rows
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
 from reduction.rank import RANK_RTOL, Rank, design_rank, numerical_rank
 from reduction.table import OrbitTable
+from reduction.whirl import Whirl
 
 MAX_LISTED = 12
 ILL_CONDITIONED_RATIO = 100.0  # warn when cond(table) > 100 x cond(same frequencies, ideal design)
@@ -106,14 +107,14 @@ def _stack(spec: ModelSpec, orbit, x, y) -> np.ndarray:
     return regression_rows(spec, orbit, x, y)
 
 
-def _whirl(table: OrbitTable) -> str:
-    """'forward' / 'backward' if every orbit is (nearly) a circle of that direction, else ''."""
+def _whirl(table: OrbitTable) -> Whirl | None:
+    """The direction if every orbit is (nearly) a circle of that direction, else None."""
     a_f, a_b = table.whirl_components()
     if np.all(np.abs(a_b) <= 1e-3 * np.abs(a_f)):
-        return "forward"
+        return Whirl.FORWARD
     if np.all(np.abs(a_f) <= 1e-3 * np.abs(a_b)):
-        return "backward"
-    return ""
+        return Whirl.BACKWARD
+    return None
 
 
 def _extra_frequencies(table: OrbitTable, count: int) -> np.ndarray:
@@ -314,7 +315,7 @@ def _hints(spec, table, A, rank, rtol) -> list[str]:
         resolved = rank.deficiency - mirrored.deficiency
         if resolved > 0:
             if whirl:
-                other = "backward" if whirl == "forward" else "forward"
+                other = Whirl.BACKWARD if whirl is Whirl.FORWARD else Whirl.FORWARD
                 hints.append(
                     f"every orbit in the table is a {whirl} circular whirl: forward plus backward whirl "
                     f"(adding {other}-whirl orbits at these frequencies) separates {resolved} of these "

@@ -93,7 +93,7 @@ class Budget:
 def systematic_jacobian(ident: Identification, table: OrbitTable) -> tuple[list[str], np.ndarray]:
     """(labels, J): d theta / d beta (p, q) for every calibration error parameter (unit errors:
     relative gain 1, phase 1 rad, delay 1 s), linearised at the fit."""
-    spec, theta = ident.spec, ident.theta
+    spec = ident.spec
     Z = ident.impedance(table.orbit)  # (n, 2, 2)
     A = real_rows(-np.einsum("kpil,kl->kip", impedance_basis(spec, table.orbit), np.stack([table.x, table.y], 1)))
     var = _fit_variances(ident, table, Z)

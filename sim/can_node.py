@@ -11,7 +11,7 @@ import asyncio
 import logging
 import struct
 import time
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -72,7 +72,7 @@ class CanNode:
         self.silent = False
         self.sensor_fault = False
         self.frames_sent = 0
-        self._bus = None
+        self._bus: Any = None  # can.BusABC once open
 
     def open(self) -> None:
         import can  # imported here: only the CAN node needs python-can

@@ -44,6 +44,7 @@ import logging
 import os
 import struct
 from collections.abc import Mapping
+from typing import cast
 
 from pymodbus.constants import ExcCodes
 from pymodbus.framer import FramerType
@@ -210,7 +211,7 @@ async def serve_modbus_tcp(
         trace_pdu=gate.trace_pdu,
     )
     await server.serve_forever(background=True)
-    bound = server.transport.sockets[0].getsockname()[1]
+    bound = cast(asyncio.Server, server.transport).sockets[0].getsockname()[1]
     return ModbusEndpoint(
         url=f"tcp://{host}:{bound}", port=bound, path=None, server=server, gate=gate
     )

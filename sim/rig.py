@@ -67,7 +67,7 @@ class SimRig:
         self.adc_server = AdcServer()
         self.can_node: CanNode | None = None
         self._modbus = []
-        self._control = None
+        self._control: asyncio.Server | None = None
         self._tasks: set[asyncio.Task] = set()
         # slot clock state
         self._g_pos = float(self.physics.rng.uniform(0.0, SLOTS))  # slots passed since start

@@ -12,30 +12,32 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-OURS = ("daq", "drives", "reduction", "sim", "orbitrig", "rigerrors")
+OURS = ("daq", "drives", "reduction", "sim", "orbitrig", "rigerrors", "rigunits")
 
 # package -> packages of ours it may import (module-level or inside functions);
-# rigerrors, the root of the exception tree, imports nothing and every package
-# but sim may import it.
+# rigerrors, the root of the exception tree, and rigunits, the units and the timestamp
+# format, import nothing of ours and every package but sim may import them.
 ALLOWED = {
     "rigerrors": set(),
-    "reduction": {"rigerrors"},
+    "rigunits": set(),
+    "reduction": {"rigerrors", "rigunits"},
     "sim": set(),
-    "daq": {"reduction", "rigerrors"},
-    "drives": {"rigerrors"},
-    "orbitrig": {"daq", "drives", "reduction", "sim", "rigerrors"},
+    "daq": {"reduction", "rigerrors", "rigunits"},
+    "drives": {"rigerrors", "rigunits"},
+    "orbitrig": {"daq", "drives", "reduction", "sim", "rigerrors", "rigunits"},
 }
 
 # the application's wings -> the parts of orbitrig they may import. orbitrig.config
-# and orbitrig.errors are shared by all; cli/ wires everything and is the only
-# wing that knows the simulator exists (it builds it).
-APP_SHARED = {"orbitrig", "orbitrig.config", "orbitrig.errors"}
+# and the neutral top-level modules (errors, the rig's vocabulary) are shared by all;
+# cli/ wires everything and is the only wing that knows the simulator exists (it builds it).
+NEUTRAL = {"errors", "load_systems"}
+APP_SHARED = {"orbitrig", "orbitrig.config"} | {f"orbitrig.{m}" for m in NEUTRAL}
 WINGS = {
     "orbitrig.cli": {"orbitrig.cli", "orbitrig.run", "orbitrig.store", "orbitrig.analysis", "orbitrig.service",
                      "orbitrig.dashboard", "orbitrig.catalog", "sim"},
     "orbitrig.service": {"orbitrig.service", "orbitrig.run", "orbitrig.store", "orbitrig.analysis", "orbitrig.catalog"},
     "orbitrig.catalog": {"orbitrig.catalog", "orbitrig.store", "orbitrig.analysis"},
-    "orbitrig.dashboard": {"orbitrig.dashboard", "orbitrig.service.protocol"},
+    "orbitrig.dashboard": {"orbitrig.dashboard", "orbitrig.service.protocol", "orbitrig.service.reconnect"},
     "orbitrig.run": {"orbitrig.run", "orbitrig.store"},
     "orbitrig.store": {"orbitrig.store", "orbitrig.run.plan"},
     "orbitrig.analysis": {"orbitrig.analysis", "orbitrig.store"},
@@ -109,7 +111,7 @@ def test_application_wings(wing: str) -> None:
 
 
 def test_every_application_module_is_in_a_wing() -> None:
-    loose = {p.stem for p in (ROOT / "orbitrig").glob("*.py")} - {"__init__", "__main__", "errors"}
+    loose = {p.stem for p in (ROOT / "orbitrig").glob("*.py")} - {"__init__", "__main__"} - NEUTRAL
     folders = {p.name for p in (ROOT / "orbitrig").iterdir() if p.is_dir() and p.name != "__pycache__"}
     assert not loose, f"modules outside the wings: {sorted(loose)}"
     assert folders <= {w.split(".")[1] for w in WINGS} | {"data", "config"}, f"unknown wings: {sorted(folders)}"
@@ -144,6 +146,7 @@ def test_rule_checker_catches_a_violation(tmp_path: Path) -> None:
     assert _permitted("drives", "rigerrors")
     assert not _permitted("drives", "reduction.errors")
     assert not _permitted("sim", "rigerrors")
+    assert not _permitted("sim", "rigunits")
     assert _permitted("orbitrig", "sim.rig")
     assert _permitted("sim", "numpy")
 
@@ -246,3 +249,66 @@ def test_sim_branch_checker_catches_one(tmp_path: Path) -> None:
     src.write_text("def f(self, x):\n    if self.sim is not None:\n        x = x / self.speedup\n"
                    "    return 1 if x else 2\n")
     assert _sim_branches(src) == [2]
+
+
+def _runtime_imports(path: Path) -> list[tuple[int, str]]:
+    """``_imports`` without those under ``if TYPE_CHECKING:`` (annotations only)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    typing_only = {node.lineno for block in ast.walk(tree) if isinstance(block, ast.If)
+                   and isinstance(block.test, ast.Name) and block.test.id == "TYPE_CHECKING"
+                   for stmt in block.body for node in ast.walk(stmt) if isinstance(node, (ast.Import, ast.ImportFrom))}
+    return [(line, m) for line, m in _imports(path) if line not in typing_only]
+
+
+def _wing_of(module: str) -> str | None:
+    parts = module.split(".")
+    return ".".join(parts[:2]) if parts[0] == "orbitrig" and ".".join(parts[:2]) in WINGS else None
+
+
+def _wing_graph() -> dict[str, dict[str, str]]:
+    """wing -> {imported wing: the first file:line that imports it} (run-time imports)."""
+    graph: dict[str, dict[str, str]] = {w: {} for w in WINGS}
+    for wing in WINGS:
+        for path in _sources(wing.replace(".", "/")):
+            for line, module in _runtime_imports(path):
+                other = _wing_of(module)
+                if other is not None and other != wing:
+                    graph[wing].setdefault(other, f"{path.relative_to(ROOT)}:{line}")
+    return graph
+
+
+def _cycle(graph: dict[str, dict[str, str]]) -> list[str]:
+    """One cycle of the graph as [a, b, ..., a], or [] when there is none."""
+    done: set[str] = set()
+
+    def visit(node: str, path: list[str]) -> list[str]:
+        if node in path:
+            return path[path.index(node):] + [node]
+        if node in done:
+            return []
+        for nxt in graph.get(node, {}):
+            found = visit(nxt, path + [node])
+            if found:
+                return found
+        done.add(node)
+        return []
+
+    for start in graph:
+        found = visit(start, [])
+        if found:
+            return found
+    return []
+
+
+def test_no_import_cycle_between_wings() -> None:
+    graph = _wing_graph()
+    cycle = _cycle(graph)
+    where = [f"{a} -> {b} ({graph[a][b]})" for a, b in zip(cycle, cycle[1:])]
+    assert not cycle, "import cycle between wings:\n" + "\n".join(where)
+
+
+def test_cycle_finder_finds_a_cycle() -> None:
+    assert _cycle({"a": {"b": ""}, "b": {"c": ""}, "c": {"a": ""}}) == ["a", "b", "c", "a"]
+    assert _cycle({"a": {"b": ""}, "b": {}, "c": {"a": ""}}) == []
+    assert _runtime_imports(ROOT / "orbitrig" / "store" / "writer.py")  # parses; TYPE_CHECKING lines left out
+    assert all(m != "orbitrig.run.plan" for _, m in _runtime_imports(ROOT / "orbitrig" / "store" / "writer.py"))

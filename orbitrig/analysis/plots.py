@@ -26,11 +26,12 @@ from matplotlib.ticker import MaxNLocator
 from orbitrig.analysis.reduce import MATRIX_UNITS
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
+from reduction.whirl import Whirl
 
 ENTRIES = ("xx", "xy", "yx", "yy")
 MATRIX_NAMES = {"K": "stiffness", "C": "damping", "D": "apparent inertia (added mass)"}
 PAIR_LABELS = {"xfx": "x, Fx", "yfx": "y, Fx", "xfy": "x, Fy", "yfy": "y, Fy"}
-DIRECTIONS = ((1, "forward", "-", "o"), (-1, "backward", "--", "s"))
+DIRECTIONS = ((1, Whirl.FORWARD, "-", "o"), (-1, Whirl.BACKWARD, "--", "s"))
 TRUTH_LABEL = "true (simulator)"
 #: journal column widths (in)
 COLUMN_WIDTHS = {"single": 3.5, "double": 7.2}

@@ -22,6 +22,7 @@ from matplotlib.figure import Figure
 from orbitrig.analysis.plots import _colors, _figure, panel_figure
 from orbitrig.analysis.signals import FORCE_CHANNELS, PROBE_PLANES, BlockSignals
 from reduction.fourier import harmonic_fit
+from reduction.whirl import Whirl
 
 UM = 1e6  # m -> um at the edge
 
@@ -58,7 +59,7 @@ def plane_orbit(sig: BlockSignals, x_name: str, y_name: str) -> tuple[np.ndarray
 
 
 def _direction(sig: BlockSignals) -> str:
-    return "forward" if sig.frequency.direction > 0 else "backward"
+    return Whirl.of(sig.frequency.direction)
 
 
 def signals_figure(sig: BlockSignals, *, title: str) -> Figure:

@@ -47,6 +47,7 @@ from orbitrig.store.reader import Point, Run, RunDirError, read_run
 from orbitrig.store.selection import select_points
 from reduction.derived import Derived
 from reduction.identify import Method
+from reduction.whirl import Whirl
 
 PLOTS_DIR = "plots"
 #: figure kinds of a point (file name prefixes); `orbitrig report --figures` picks some
@@ -168,7 +169,7 @@ def _plot_signals(run: Run, pr: PointReport, out: Path, where: str, opts: Report
     if not blocks:
         return
     for f in chosen:
-        direction = "forward" if f.direction > 0 else "backward"
+        direction = Whirl.of(f.direction)
         pr.plots.append(plots.save_figure(plots_signals.signals_figure(
             blocks[f.name], title=f"Force signals at {f.orbit_hz:.4g} Hz {direction} whirl (paper Fig. 4)\n{where}",
         ), out / f"signals_{point.name}_{f.name}.png"))  # fmt: skip

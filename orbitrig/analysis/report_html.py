@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import html
 import math
-from datetime import datetime, timezone
 from pathlib import Path
 
 
@@ -21,6 +20,7 @@ from orbitrig.analysis.report import fit_label, preferred
 from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
 from orbitrig.config import LMS
 from orbitrig.store.durable import write_atomic
+from rigunits import utc_iso
 
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:1.5em auto;max-width:1400px;
@@ -181,7 +181,7 @@ def render(report) -> str:
         f'<tr><th class="l">created</th><td class="l">{_e(run.created)}</td></tr>',
         f'<tr><th class="l">software version</th><td class="l">{_e(run.software_version)}</td></tr>',
         f'<tr><th class="l">operating points</th><td class="l">{len(run.complete_points)} complete{more}</td></tr>',
-        f'<tr><th class="l">report written</th><td class="l">{datetime.now(timezone.utc):%Y-%m-%d %H:%M:%S} UTC</td></tr>',
+        f'<tr><th class="l">report written</th><td class="l">{utc_iso()}</td></tr>',
         "</table>",
     ]
     if report.points:

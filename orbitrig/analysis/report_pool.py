@@ -28,7 +28,8 @@ def _draw(k: int):
 def draw_points(points: list, draw: Callable, *, workers: int = 1, progress: Progress | None = None) -> list:
     """``draw(point)`` (returning a PointReport) for every point, with up to `workers` processes;
     results in the order of `points`."""
-    done, figures, results = 0, 0, [None] * len(points)
+    done, figures = 0, 0
+    results: list[Any] = [None] * len(points)
     serial = workers <= 1 or len(points) < 2 or "fork" not in multiprocessing.get_all_start_methods()
     if serial:
         for k, point in enumerate(points):

@@ -21,6 +21,7 @@ import numpy as np
 from orbitrig.analysis.quality import Verdict, coefficient_rows, has_budget, warnings_of
 from orbitrig.analysis.reduce import Reduced, coefficient_unit, fit_true_values
 from orbitrig.store.csvfile import fit_truth
+from reduction.derived import Derived
 
 DERIVED_K = 2.0  # derived quantities are given +- two standard uncertainties
 D_SENTENCE = ("D is an apparent inertia (added mass): it absorbs everything that grows with \u03a9\u00b2, "
@@ -129,7 +130,7 @@ def verdict_list(verdicts: list[Verdict], labels: dict[int, str]) -> str:
     return f'<ul class="verdict">{"".join(items)}</ul>'
 
 
-def derived_table(derived: list[tuple[Reduced, object]], labels: dict[int, str], spin: float) -> str:
+def derived_table(derived: list[tuple[Reduced, Derived]], labels: dict[int, str], spin: float) -> str:
     """WFR at the lowest and highest tested Omega and the zero crossings of C_eff, +- 2 std."""
     if not derived:
         return ""

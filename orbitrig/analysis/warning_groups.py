@@ -75,7 +75,7 @@ def group_warnings(fits: Iterable[FitWarnings]) -> list[WarningGroup]:
             g["points"].add(f.point)
             g["systems"].add(f.lms)
     out = []
-    for (fit, key), g in warned.items():
+    for (fit, _key_text), g in warned.items():
         clean = {other for other in family_points if other != fit and g["points"] <= family_points[other]}
         for f in fits:
             if f.fit in clean and f.point in g["points"] and any(_head(w) == _head(g["text"]) for w in f.warnings):

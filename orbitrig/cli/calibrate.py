@@ -291,7 +291,6 @@ def _probes(config, opts, span_um, steps, reference_id, reference_u_pct, activat
     import numpy as np
 
     from orbitrig.cli.calibrate_steps import probes_record
-    from orbitrig.config import Reference
 
     ref = _reference(opts, reference_id, reference_u_pct, "simulator: steps applied exactly")
     rig, folder = _rig_and_folder(config)

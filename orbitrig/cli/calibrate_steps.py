@@ -24,7 +24,7 @@ from orbitrig.run.calibration import (
     PROBES, CalibrationSession, SlowRoll, measure_delay, measure_loads, measure_probes, measure_runout,
 )
 from orbitrig.run.rig_io import RigAccess
-from orbitrig.store.journal import now_iso
+from rigunits import now_iso
 from reduction.calibration import fit_delay, fit_gain_matrix, fit_probe, static_loads
 
 FORCE_CHANNELS = ("fx_piezo", "fy_piezo", "fx_strain", "fy_strain")

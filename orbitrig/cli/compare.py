@@ -13,6 +13,7 @@ from typing import Annotated, Optional
 import typer
 
 from orbitrig.cli.catalog import DbOption, RunsOption, WhereOption, _guarded, _open
+from orbitrig.load_systems import LoadSystem
 
 DEFAULT_COEFFICIENTS = "Kxx,Kxy,Kyx,Kyy,Cxx,Cxy,Cyx,Cyy"
 
@@ -20,7 +21,7 @@ DEFAULT_COEFFICIENTS = "Kxx,Kxy,Kyx,Kyy,Cxx,Cxy,Cyx,Cyy"
 def compare_cmd(
     against: Annotated[str, typer.Option("--against", help="x axis: static_eccentricity | dynamic_eccentricity | pressure_ratio | spin")] = "static_eccentricity",
     coefficients: Annotated[str, typer.Option("--coefficients", help="Comma-separated, e.g. Kxx,Cxx,Dxx.")] = DEFAULT_COEFFICIENTS,
-    lms: Annotated[str, typer.Option("--lms", help="Load measuring system.")] = "piezo",
+    lms: Annotated[LoadSystem, typer.Option("--lms", help="Load measuring system.")] = LoadSystem.PIEZO,
     model: Annotated[str, typer.Option("--model", help="Model of the compared fits.")] = "kcd11",
     freq_dep: Annotated[str, typer.Option("--freq-dep", help="Frequency dependence of the compared fits.")] = "none",
     method: Annotated[str, typer.Option("--method", help="Estimation method of the compared fits.")] = "ols",

@@ -14,6 +14,8 @@ from typing import Optional
 
 import typer
 
+from orbitrig.load_systems import LoadSystem
+
 
 def _fail(message: str) -> None:
     sys.stderr.write(f"orbitrig design: {message}\n")
@@ -69,7 +71,7 @@ def register(app: typer.Typer) -> None:
         ratios: Optional[str] = typer.Option(None, "--ratios", help="Candidate orbit ratios |Omega|/omega, e.g. 0.2,0.5,1.2 (both directions)."),
         matrix: Optional[str] = typer.Option(None, "--matrix", help="Take the candidate list, directions and smallest orbit radius from this matrix (NAME in config/matrices or FILE)."),
         noise_from: Optional[Path] = typer.Option(None, "--noise-from", help="Run directory: per-revolution noise (and prior coefficients) measured there."),
-        lms: str = typer.Option("piezo", "--lms", help="Load measuring system whose noise counts: piezo | strain."),
+        lms: LoadSystem = typer.Option(LoadSystem.PIEZO, "--lms", help="Load measuring system whose noise counts: piezo | strain."),
         force_noise: Optional[float] = typer.Option(None, "--force-noise", help="Per-revolution force phasor noise, N (default 20)."),
         probe_noise: Optional[float] = typer.Option(None, "--probe-noise", help="Per-revolution displacement phasor noise, nm (default 100)."),
         radius: Optional[float] = typer.Option(None, "--radius", help="Orbit radius, um (default: the matrix's smallest, else 0.1 x clearance)."),

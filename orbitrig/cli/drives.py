@@ -11,13 +11,12 @@ standard error, and `run` has stopped both drives by then).
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Optional
 
 import typer
 
-from orbitrig.cli.drives_checks import (  # noqa: F401 - effective_limits is part of this command's API
+from orbitrig.cli.drives_checks import (  # effective_limits is part of this command's API
     check_seconds, effective_limits, open_config,
 )
 from orbitrig.cli.drives_hold import _drive_line, _hold, _state_lines

@@ -30,7 +30,6 @@ class Operator:
         self.pending = None  # a signal received before the run started (re-requested at its start)
 
     def install(self) -> None:
-        import signal
         import sys
 
         for sig in SIGNALS:

@@ -139,7 +139,7 @@ def _start(*, broker: str, sim: bool, config: Path | None, rig_id: str, prefix: 
                                                   tls_ca=tls_ca)
         folder = matrices or Path(rig.file).resolve().parent / "matrices"
         settings = ServiceSettings(rig_id=rig_id, matrices_dir=folder, prefix=prefix,
-                                   supervision_policy=supervision_policy,  # type: ignore[arg-type]
+                                   supervision_policy=supervision_policy,
                                    supervision_timeout=supervision_timeout, client_id=client_id,
                                    catalog_url=catalog)
     except (ConfigError, ServiceError) as err:
@@ -162,12 +162,12 @@ def _start(*, broker: str, sim: bool, config: Path | None, rig_id: str, prefix: 
 def build_service(rig, settings, broker_settings, *, out: Path, sim_rig=None, confirm: str = "remote"):
     """The RigService of `orbitrig serve`: each run gets a fresh RunEngine (the engine of
     `orbitrig sweep`; on the simulator `sim_rig` when given) writing to OUT/<date>-<matrix>/."""
-    import datetime as dt
 
     from orbitrig import config as cfg
     from orbitrig.run.engine import RunEngine
     from orbitrig.run.plan import make_plan
     from orbitrig.service.rig_service import RigService
+    from rigunits import utc_stamp
 
     access = None
     if sim_rig is not None:
@@ -180,7 +180,7 @@ def build_service(rig, settings, broker_settings, *, out: Path, sim_rig=None, co
         return make_plan(cfg.load_matrix(path), rig)
 
     def new_engine(name: str, matrix):
-        stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+        stamp = utc_stamp()
         run_dir, n = out / f"{stamp}-{name}", 1
         while run_dir.exists():
             n += 1

@@ -245,15 +245,15 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator
         engine = RunEngine(plan.rig, out_dir=out, access=access, confirm_mode=ConfirmMode.AUTO if access else ConfirmMode.PROMPT,
                            operator=operator)  # fmt: skip
         engine.console_user = operator  # Ctrl-C's pause, stop, abort and the prompts' confirmations
-        operator = Operator(engine, console)
-        engine.subscribe(operator.on_event)
+        console_operator = Operator(engine, console)
+        engine.subscribe(console_operator.on_event)
         with SweepProgress(console, revolutions=plan.revolutions) as bars:
             engine.subscribe(bars)
-            operator.install()
+            console_operator.install()
             try:
                 outcome = await engine.run(plan, resume=resume)
             finally:
-                operator.uninstall()
+                console_operator.uninstall()
     console.print(f"run {outcome.status}: {outcome.message}  ({len(outcome.completed_points)} of "
                   f"{outcome.points} points complete in {out})", markup=False)  # fmt: skip
     if outcome.completed_points:

@@ -23,7 +23,7 @@ from orbitrig.config.fields import (  # noqa: F401 - the package's public names
     CHANNEL_NAMES, FREQ_DEP, LMS, MODELS, MPA, RPM, DeviceId, Mpa, NonNeg, Pos, Ratio, Rpm, Seconds, Wait,
 )
 from orbitrig.config.designs import apply_design
-from orbitrig.config.home import (  # noqa: F401
+from orbitrig.config.home import (
     HOME_ENV, MATRICES, RIG_FILE, config_home, known_names, named_file, search_folders, shipped_config,
 )
 from orbitrig.config.lab import write_lab  # noqa: F401

@@ -2,17 +2,16 @@
 
 from __future__ import annotations
 
-import math
 import re
 from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field
 
-RPM = 2.0 * math.pi / 60.0  # rad/s per rpm
-MPA = 1.0e6  # Pa per MPa
+from orbitrig.load_systems import LMS  # noqa: F401 - the configuration's names
+from rigunits import MPA, RPM  # noqa: F401 - the configuration's names
+
 
 CHANNEL_NAMES = ("fx_piezo", "fy_piezo", "fx_strain", "fy_strain", "x_a", "y_a", "x_b", "y_b")
-LMS = ("piezo", "strain")
 MODELS = ("kc7", "kc8", "kcd11", "kcd12")
 FREQ_DEP = re.compile(r"^(none|power:auto|power:[1-9]\d*|power:[1-9]\d*,[1-9]\d*,[1-9]\d*|poly:[1-9]\d*)$")
 

@@ -9,6 +9,7 @@ from typing import Annotated, Literal
 from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from orbitrig.config.fields import FREQ_DEP, MODELS, Mpa, Ratio, Rpm, Wait, _Model
+from reduction.whirl import Whirl
 
 
 class PointOrder(StrEnum):
@@ -50,7 +51,7 @@ class Orbit(_Model):
     ratio_start: Ratio | None = None
     ratio_stop: Ratio | None = None
     count: Annotated[int, Field(ge=MIN_RATIOS, le=100)] | None = None
-    directions: Annotated[list[Literal["forward", "backward"]], Field(min_length=1)] = ["forward", "backward"]
+    directions: Annotated[list[Whirl], Field(min_length=1)] = [Whirl.FORWARD, Whirl.BACKWARD]
     revolutions: list[Revolutions] | None = None
     target_pct: list[TargetPct] | None = None
 

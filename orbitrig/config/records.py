@@ -26,6 +26,7 @@ from orbitrig.config.calibration import CalibrationUncertainty, Percent
 from orbitrig.config.fields import _Model
 from orbitrig.config.toml_out import render
 from orbitrig.errors import ConfigError
+from orbitrig.load_systems import LoadSystem
 
 FOLDER = "calibration"
 NAME = re.compile(r"^\d{4}-\d\d-\d\dT\d{6}Z-[a-z]+$")
@@ -119,7 +120,7 @@ class CalibrationRecord(_Model):
     previous: str = ""  # the record this one started from
     software: str = ""
     reference: Reference | None = None
-    loads: dict[Literal["piezo", "strain"], LoadGains] = {}
+    loads: dict[LoadSystem, LoadGains] = {}
     runout: Runout | None = None
     delay: dict[Literal["fx_piezo", "fy_piezo", "fx_strain", "fy_strain"], ChannelDelay] = {}
     probes: dict[Literal["x_a", "y_a", "x_b", "y_b"], ProbeGain] = {}

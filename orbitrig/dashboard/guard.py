@@ -101,5 +101,5 @@ class RequestDeadline(asyncio.Protocol):
         self.timer = None
         peer = self.transport.get_extra_info("peername") if self.transport else None
         log.info("closed the connection of %s: a request not read in full within %g s", peer, self.limit)
-        if self.transport is not None:
+        if isinstance(self.transport, asyncio.WriteTransport):
             self.transport.abort()

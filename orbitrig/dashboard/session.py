@@ -27,15 +27,15 @@ from pathlib import Path
 from typing import Any
 
 import orbitrig.service.protocol as proto
+from daq.backoff import Backoff
 from orbitrig.dashboard.alarms import AlarmBook
 from orbitrig.dashboard.rigs import RigDirectory
 from orbitrig.dashboard.throttle import ThrottlePolicy
 from orbitrig.dashboard.trend import TrendHistory
+from orbitrig.service.reconnect import credentials_refused, reconnecting
 
 log = logging.getLogger("orbitrig.dashboard")
 
-#: CONNACK reason codes meaning "your credentials are refused" (MQTT 3.1.1 and 5).
-AUTH_REFUSED = {4, 5, 134, 135}
 #: Commands the page may send and the fields each takes besides ``cmd``.
 PAGE_COMMANDS = {"start": ("matrix",), "pause": (), "resume": (), "stop": (), "abort": (),
                  "confirm": ("step",), "status": ()}
@@ -186,39 +186,41 @@ class Session:
         await first
 
     async def _connection_loop(self, first: asyncio.Future) -> None:
+        await reconnecting(lambda: self._connection(first), Backoff(0.2, 5.0), log, stop=lambda: self.closed)
+
+    async def _connection(self, first: asyncio.Future) -> bool:
+        """One broker connection until it is lost; True if it came up. A refusal at
+        sign-in, or of credentials that worked before, ends the session."""
         import aiomqtt
 
-        delay = 0.2
-        while not self.closed:
-            try:
-                async with self._make_client() as client:
-                    await client.subscribe(f"{self.topics.prefix}/#", qos=1)
-                    if self.rigs.pattern is not None:
-                        await client.subscribe(self.rigs.pattern, qos=1)
-                    self._client = client
-                    if not first.done():
-                        first.set_result(None)
-                    self._set_link("online")
-                    delay = 0.2
-                    async for message in client.messages:
-                        self._on_message(str(message.topic), message.payload)
-            except aiomqtt.MqttError as err:
-                self._client = None
-                rc = getattr(getattr(err, "rc", None), "value", getattr(err, "rc", None))
-                refused = isinstance(err, aiomqtt.MqttCodeError) and rc in AUTH_REFUSED
+        connected = False
+        try:
+            async with self._make_client() as client:
+                await client.subscribe(f"{self.topics.prefix}/#", qos=1)
+                if self.rigs.pattern is not None:
+                    await client.subscribe(self.rigs.pattern, qos=1)
+                self._client, connected = client, True
                 if not first.done():
-                    first.set_exception(SignInRefused(
-                        "refused: wrong user name or password" if refused
-                        else f"cannot reach the broker {self.settings.host}:{self.settings.port}", refused))
-                    return
-                if refused:
-                    log.warning("broker no longer accepts %r: session ended", self.user)
-                    self._broadcast({"type": "signed_out", "reason": "the broker refused your credentials"})
-                    self.closed = True
-                    return
+                    first.set_result(None)
+                self._set_link("online")
+                async for message in client.messages:
+                    self._on_message(str(message.topic), message.payload)
+            return True
+        except aiomqtt.MqttError as err:
+            self._client = None
+            refused = credentials_refused(err)
+            if not first.done():
+                first.set_exception(SignInRefused(
+                    "refused: wrong user name or password" if refused
+                    else f"cannot reach the broker {self.settings.host}:{self.settings.port}", refused))
+                self.closed = True
+            elif refused:
+                log.warning("broker no longer accepts %r: session ended", self.user)
+                self._broadcast({"type": "signed_out", "reason": "the broker refused your credentials"})
+                self.closed = True
+            else:
                 self._set_link("broker unreachable")
-            await asyncio.sleep(delay)
-            delay = min(5.0, delay * 2)
+            return connected
 
     def _set_link(self, link: str) -> None:
         if link != self.link:

@@ -15,7 +15,7 @@ import time
 from typing import Awaitable, Callable
 
 from orbitrig.run.events import RunFailed
-from orbitrig.store.writer import StorageError
+from orbitrig.store.errors import StorageError
 
 log = logging.getLogger(__name__)
 

@@ -29,7 +29,7 @@ from orbitrig.run.events import RunFailed
 from orbitrig.run.states import FAULTED, IDLE, RUNNING, STOPPING, WAITING, next_state
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.interlocks import SUSPEND, Trip
-from orbitrig.store.writer import now_iso
+from rigunits import now_iso
 
 
 class StopRun(Exception):

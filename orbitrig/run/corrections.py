@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from orbitrig.config import LMS, RigConfig
-from orbitrig.store.writer import BlockRecord
+from orbitrig.store.records import BlockRecord
 from reduction.calibration import correct_forces, correct_lag
 from reduction.runout import remove_runout
 

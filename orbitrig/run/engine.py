@@ -18,7 +18,7 @@ of `orbitrig sweep`, MQTT in `orbitrig serve`).
 from __future__ import annotations
 
 import asyncio
-import datetime as _dt
+import functools
 import logging
 import time
 from pathlib import Path
@@ -47,6 +47,7 @@ from orbitrig.run.states import ABORTED, COMPLETED, FAILED, FAULTED, IDLE, STOPP
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.store.estimate import plan_bytes, point_bytes
 from orbitrig.store.writer import RunStore, StorageError, StorageFullError
+from rigunits import utc_stamp
 
 log = logging.getLogger(__name__)
 
@@ -141,8 +142,7 @@ class RunEngine(OperatorRequests):
     def _start(self, plan: Plan, store: RunStore, done: list[int], resume: bool) -> None:
         self._store, self._failure = store, None
         self._control.reset()
-        now = _dt.datetime.now(_dt.timezone.utc)  # millisecond resolution: ids stay unique
-        self.run_id = f"{plan.name}-{now.strftime('%Y%m%dT%H%M%S')}.{now.microsecond // 1000:03d}Z"
+        self.run_id = f"{plan.name}-{utc_stamp()}"  # millisecond resolution: ids stay unique
         self._t0 = time.monotonic()
         self.timing.clear()
         self.timing.update(wall=0.0, settle=0.0, acquire=0.0, confirm=0.0, suspended=0.0)
@@ -249,7 +249,7 @@ class RunEngine(OperatorRequests):
                 if p.index in done:
                     continue
                 await control.safe_point()
-                await control.hold_for_room(lambda: self._no_room(plan, p))
+                await control.hold_for_room(functools.partial(self._no_room, plan, p))
                 self._progress.next_point(len(p.blocks))
                 await procedure.run_point(p, plan.point_steps(p.index), first)
                 first = False
@@ -324,7 +324,7 @@ class RunEngine(OperatorRequests):
         for cb in list(self._subs):
             try:
                 cb(ev)
-            except Exception:  # noqa: BLE001 - a subscriber must not break the run
+            except Exception:  # a subscriber must not break the run
                 log.exception("event subscriber failed")
 
     def _state_changed(self, state: str, message: str) -> None:
@@ -353,7 +353,7 @@ class RunEngine(OperatorRequests):
             try:
                 self._store.logs.add("can", can_row(t, self._io.aux.latest()))
                 self._store.logs.add("drives", drive_row(t, self._io.drives.state))
-            except Exception:  # noqa: BLE001 - logging must not break the run
+            except Exception:  # logging must not break the run
                 log.debug("monitor sample failed", exc_info=True)
             await asyncio.sleep(0.5)
 

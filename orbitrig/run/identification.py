@@ -15,12 +15,12 @@ import numpy as np
 
 from orbitrig.config import LMS, CalibrationUncertainty, RigConfig
 from orbitrig.run.corrections import Corrections
-from orbitrig.run.plan import Block, OperatingPoint
+from orbitrig.run.plan import Block
 from orbitrig.run.point_analysis import analyse_point
 from daq.averager import AveragedBlock
 from orbitrig.run.model_truth import model_truth
 from orbitrig.run.truth import point_truth, true_impedance  # noqa: F401  (point_truth: the engine's truth step)
-from orbitrig.store.writer import BlockRecord, PointResults
+from orbitrig.store.records import BlockRecord, PointResults
 from reduction.coherence import orbit_coherences
 from reduction.errors import ReductionError
 from reduction.noise import mean_uncertainty

@@ -32,9 +32,9 @@ from orbitrig.errors import ConfigError
 from orbitrig.run.plan_summary import PlanSummary, format_duration, summarize  # re-exported (their old home)
 from orbitrig.run.point_order import fastest_order, manual_change_s
 from reduction.rig_time import block_time
+from reduction.whirl import Whirl
 
 TWO_PI = 2.0 * math.pi
-DIRECTIONS = {"forward": +1, "backward": -1}
 DIR_TAG = {+1: "fwd", -1: "bwd"}
 
 
@@ -279,7 +279,7 @@ def operating_points(matrix: MatrixConfig, rig: RigConfig) -> list[OperatingPoin
     """All operating points in the written order (manual settings outer, spin inner)."""
     op = matrix.operating
     ratios = matrix.orbit.ratio_list
-    dirs = [DIRECTIONS[d] for d in matrix.orbit.directions]
+    dirs = [Whirl(d).sign for d in matrix.orbit.directions]
     c = rig.bearing.clearance
     points = []
     combos = itertools.product(

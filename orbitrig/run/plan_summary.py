@@ -6,6 +6,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+from rigunits import format_duration  # noqa: F401 - the plan's readers print its durations
+
 
 @dataclass
 class PlanSummary:
@@ -23,10 +25,3 @@ def summarize(steps: Sequence) -> PlanSummary:
     points = {s.point for s in steps if s.point is not None}
     blocks = sum(s.word == "acquire" for s in steps)
     return PlanSummary(len(points), blocks, sum(by_kind.values()), by_kind)
-
-
-def format_duration(seconds: float) -> str:
-    seconds = int(round(seconds))
-    h, rem = divmod(seconds, 3600)
-    m, s = divmod(rem, 60)
-    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"

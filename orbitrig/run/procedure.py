@@ -34,7 +34,8 @@ from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.states import ConfirmMode
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.verification import geometry_problems, pressure_problems
-from orbitrig.store.writer import BlockRecord, PointResults, RunStore
+from orbitrig.store.records import BlockRecord, PointResults
+from orbitrig.store.writer import RunStore
 from reduction.rig_time import block_time
 
 log = logging.getLogger(__name__)

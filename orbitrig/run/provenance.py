@@ -3,7 +3,7 @@
 `Provenance.of_run` gathers it when a run starts: the operator (``--operator`` of `orbitrig
 sweep`, or the MQTT / dashboard user who sent ``start``), the software version, the rig id and
 the sensors' serial numbers (rig.toml), the active calibration record (name and SHA-256 of its
-text), the host and the start time. Times are ISO 8601 UTC (orbitrig.store.journal.now_iso).
+text), the host and the start time. Times are ISO 8601 UTC (rigunits.now_iso).
 It goes into run.json (``provenance``) and run.h5's root attributes; the end time is the last
 status line of the journal. Every command that changes the run (start, confirm, pause,
 resume, stop, abort) is logged with who sent it and when (`command_line`, `RunStore.command`).
@@ -17,7 +17,7 @@ from enum import StrEnum
 
 from orbitrig import __version__
 from orbitrig.config import RigConfig, digest
-from orbitrig.store.journal import now_iso
+from rigunits import now_iso
 
 #: who sent a command when nobody said (an MQTT client that gave no "by")
 UNNAMED = "unnamed"

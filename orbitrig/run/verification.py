@@ -11,7 +11,7 @@ from daq.aux import AuxState
 from orbitrig.config import MPA, RigConfig, Verify
 from orbitrig.run.identification import probe_plane
 from orbitrig.run.plan import OperatingPoint, SetManual
-from orbitrig.store.writer import BlockRecord
+from orbitrig.store.records import BlockRecord
 
 
 def pressure_problems(aux: AuxState, p: OperatingPoint, v: Verify) -> list[str]:

@@ -13,6 +13,7 @@ import asyncio
 import logging
 import threading
 from pathlib import Path
+from typing import Any
 
 log = logging.getLogger("orbitrig.service.catalog")
 
@@ -20,7 +21,7 @@ log = logging.getLogger("orbitrig.service.catalog")
 class CatalogFeed:
     def __init__(self, url: str):
         self.url = url
-        self._catalog = None
+        self._catalog: Any = None  # a Catalog once the first point arrives
         self._lock = threading.Lock()  # one write at a time, in order of completion
         self.added = 0  # points added so far
         self.failed = 0  # points that could not be added

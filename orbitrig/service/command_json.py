@@ -31,7 +31,7 @@ class CommandError(ValueError):
     """A command payload that is refused. ``id`` is the correlation id when one
     could be read (a string), else None; ``reason`` is the text for the reply."""
 
-    def __init__(self, reason: str, id: str | None = None):  # noqa: A002
+    def __init__(self, reason: str, id: str | None = None):
         super().__init__(reason)
         self.reason = reason
         self.id = id

@@ -174,5 +174,5 @@ class CommandInbox(asyncio.Queue):
                 self._overflow(message)
                 return
             super().put_nowait(message)
-        except Exception:  # noqa: BLE001 - one message must not end the link
+        except Exception:  # one message must not end the link
             log.exception("a command could not be taken in")

@@ -32,7 +32,8 @@ from typing import Any
 from orbitrig.service import protocol as proto
 from daq.backoff import Backoff
 from orbitrig.service.inbox import CommandInbox, CommandTriage
-from orbitrig.service.settings import AUTH_REFUSED, BrokerSettings, ServiceError, ServiceSettings
+from orbitrig.service.reconnect import credentials_refused, reconnecting
+from orbitrig.service.settings import BrokerSettings, ServiceError, ServiceSettings
 
 log = logging.getLogger("orbitrig.service.link")
 
@@ -205,18 +206,12 @@ class BrokerLink:
                                 tls_params=tls, max_queued_incoming_messages=self.triage.limit,
                                 queue_type=self._new_inbox)
         client.pending_calls_threshold = PUBLISH_WINDOW + 8  # a full window is expected, not a warning
-        read_in_bursts(client._client)  # noqa: SLF001 - aiomqtt's paho client: no public handle
+        read_in_bursts(client._client)  # aiomqtt's paho client: no public handle
         return client
 
     async def run(self) -> None:
         """Connect, and reconnect after every loss, until cancelled."""
-        backoff = Backoff(self.settings.reconnect_initial, self.settings.reconnect_max)
-        while True:
-            if await self._session():
-                backoff.reset()
-            delay = backoff.next_delay()
-            log.info("reconnecting in %.2f s", delay)
-            await asyncio.sleep(delay)
+        await reconnecting(self._session, Backoff(self.settings.reconnect_initial, self.settings.reconnect_max), log)
 
     async def _session(self) -> bool:
         """One connection, until it is lost. True if it carried traffic
@@ -249,10 +244,7 @@ class BrokerLink:
         return t_connected is not None and time.monotonic() - t_connected > TRAFFIC_S
 
     def _connection_failed(self, err: Exception, *, connected: bool) -> None:
-        import aiomqtt
-
-        rc = getattr(getattr(err, "rc", None), "value", getattr(err, "rc", None))
-        if self.connections == 0 and isinstance(err, aiomqtt.MqttCodeError) and rc in AUTH_REFUSED:
+        if self.connections == 0 and credentials_refused(err):
             raise ServiceError(f"broker {self.where} refused the credentials of "
                                f"{self.broker.username!r}: {err}") from None
         if connected:

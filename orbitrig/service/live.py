@@ -41,6 +41,7 @@ from orbitrig.run.engine import ProgressEvent, RunEngine
 from orbitrig.run.plan import Plan, SetManual
 from orbitrig.run.states import RunState
 from orbitrig.run.verification import setting_bands
+from reduction.whirl import Whirl
 
 log = logging.getLogger(__name__)
 
@@ -123,7 +124,7 @@ class LiveFeed:
                 if payload is not None:
                     self._send(proto.dumps(payload))
                     self.sent += 1
-            except Exception:  # noqa: BLE001 - the live view must never disturb the run
+            except Exception:  # the live view must never disturb the run
                 log.exception("live payload failed")
             await asyncio.sleep(self.interval)
 
@@ -236,7 +237,7 @@ def _geometry(mean: np.ndarray, slots: np.ndarray, ch: dict[str, int], clearance
 def _direction(orbit: Any) -> str | None:
     """Whirl direction of the orbit drive: the sign of its reference, else of its actual speed."""
     speed = 0.0 if orbit is None else (orbit.reference or orbit.actual)
-    return None if speed == 0 else ("forward" if speed > 0 else "backward")
+    return None if speed == 0 else Whirl.of(speed)
 
 
 def attach(engine: Any, plan: Any, send: Callable[[bytes], None]) -> LiveFeed | None:

@@ -29,6 +29,7 @@ from pydantic import (BaseModel, ConfigDict, Field, StringConstraints, TypeAdapt
 from orbitrig.run.states import RunState
 from orbitrig.service.command_json import (  # noqa: F401 - part of this contract's names
     MAX_COMMAND_BYTES, CommandError, read_object, type_name as _type_name)
+from rigunits import utc_iso
 
 DEFAULT_PREFIX_ROOT = "orbitrig"
 
@@ -272,8 +273,8 @@ def parse_command(payload: bytes | bytearray | str) -> Command:
     try:
         model = _COMMANDS.validate_python(obj)
     except ValidationError as err:
-        found = (_field_problem(e, name) for e in err.errors(include_url=False))
-        problems += [p for p in found if p is not None]
+        field_problems = (_field_problem(e, name) for e in err.errors(include_url=False))
+        problems += [p for p in field_problems if p is not None]
     if problems and name in ALWAYS_ACCEPTED:
         # "stop and abort are always accepted": a stray field or a bad id must
         # never keep spinning machinery from stopping. The problems are logged.
@@ -290,15 +291,7 @@ def parse_command(payload: bytes | bytearray | str) -> Command:
 
 def iso8601(when: _dt.datetime | float | str | None = None) -> str:
     """ISO-8601 UTC text for a datetime, a POSIX time (s) or now; text passes through."""
-    if isinstance(when, str):
-        return when
-    if when is None:
-        when = _dt.datetime.now(_dt.timezone.utc)
-    elif isinstance(when, (int, float)):
-        when = _dt.datetime.fromtimestamp(float(when), _dt.timezone.utc)
-    elif when.tzinfo is None:
-        when = when.astimezone()  # naive: local time
-    return when.astimezone(_dt.timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+    return when if isinstance(when, str) else utc_iso(when)
 
 
 def _jsonable(value: Any) -> Any:

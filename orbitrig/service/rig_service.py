@@ -47,13 +47,13 @@ from orbitrig.errors import ConfigError, OrbitrigError
 from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
 from orbitrig.run.states import RunState
 from orbitrig.service import live as live_feed
-from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # noqa: F401 - the service's seams
+from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # the service's seams
 from orbitrig.service.inbox import CommandTriage
 from orbitrig.service.catalog_feed import CatalogFeed
 from orbitrig.service import protocol as proto
 from orbitrig.service.link import BrokerLink
 from orbitrig.service.settings import (  # noqa: F401 - the service's public names
-    SUPERVISION_POLICIES, BrokerSettings, ServiceError, ServiceSettings, SupervisionPolicy,
+    SUPERVISION_POLICIES, BrokerSettings, CommandRefused, ServiceError, ServiceSettings, SupervisionPolicy,
     default_client_id,
 )
 
@@ -93,7 +93,7 @@ class RigService:
         #: (id, bytes) of recent commands -> number of the connection they came on
         self._handled: collections.OrderedDict[tuple[str, bytes], int] = collections.OrderedDict()
         #: command name -> handler returning None (ok) or the reason of a refusal
-        self._handlers: dict[str, Callable[[proto.Command], str | None]] = {
+        self._handlers: dict[str, Callable[[proto.Command], None]] = {
             "start": self._cmd_start, "pause": self._cmd_pause, "resume": self._cmd_resume,
             "stop": self._cmd_stop, "abort": self._cmd_abort, "confirm": self._cmd_confirm,
             "status": self._cmd_status,
@@ -184,9 +184,9 @@ class RigService:
             if self.run_active:
                 log.warning("no broker for %.0f s: supervision lost, policy %r", s.supervision_timeout,
                             s.supervision_policy)
-                if s.supervision_policy == "pause" and self._state in (RunState.RUNNING, RunState.WAITING):
+                if s.supervision_policy is SupervisionPolicy.PAUSE and self._state in (RunState.RUNNING, RunState.WAITING):
                     self._request("pause", "service (supervision lost)")
-                elif s.supervision_policy == "stop":
+                elif s.supervision_policy is SupervisionPolicy.STOP:
                     self._request("stop", "service (supervision lost)")
             await self.link.online.wait()
 
@@ -206,7 +206,7 @@ class RigService:
             log.info("refused command %r: %s", payload[:200], err.reason)
             self._reply(err.id, err.reason, behind=True)
             return
-        except Exception as err:  # noqa: BLE001 - no payload may kill the service
+        except Exception as err:  # no payload may kill the service
             log.exception("refused command %r: the parser failed", payload[:200])
             self._reply(None, f"payload cannot be read: {type(err).__name__}", behind=True)
             return
@@ -223,9 +223,12 @@ class RigService:
         log.info("command %s (id %r)", cmd.cmd, cmd.id)
         if cmd.ignored:
             log.warning("%s accepted despite: %s", cmd.cmd, "; ".join(cmd.ignored))
+        error = None
         try:
-            error = self._handlers[cmd.cmd](cmd)
-        except Exception as err:  # noqa: BLE001 - a command must never kill the service
+            self._handlers[cmd.cmd](cmd)
+        except CommandRefused as refusal:
+            error = refusal.reason
+        except Exception as err:  # a command must never kill the service
             log.exception("command %s failed", cmd.cmd)
             error = f"{cmd.cmd} failed: {err}"
         if cmd.cmd == "abort":
@@ -256,7 +259,7 @@ class RigService:
         """Every message on ``<prefix>/cmd``; nothing a message does may end the service."""
         try:
             self.handle_command(payload, retained=retained)
-        except Exception as err:  # noqa: BLE001 - last line of defence; handle_command replies itself
+        except Exception as err:  # last line of defence; handle_command replies itself
             log.exception("command %r could not be handled", payload[:200])
             self._reply(None, f"command could not be handled: {type(err).__name__}")
 
@@ -269,23 +272,22 @@ class RigService:
         self.link.send(self.topics.reply, payload, proto.QOS_REPLY, behind=behind)
 
 
-    def _cmd_status(self, cmd: proto.Command) -> str | None:
+    def _cmd_status(self, cmd: proto.Command) -> None:
         self._send(self.topics.status, self._status, proto.QOS_STATUS, True)
-        return None
 
-    def _cmd_start(self, cmd: proto.Command) -> str | None:
+    def _cmd_start(self, cmd: proto.Command) -> None:
         if self.run_active:
-            return (f"a run is active (run {self._run_id}, state {self._state}): "
-                    "stop or abort it before starting another")
+            raise CommandRefused(f"a run is active (run {self._run_id}, state {self._state}): "
+                                 "stop or abort it before starting another")
         folder = self.settings.matrices_dir
         path = folder / f"{cmd.matrix}.toml"
         if not path.is_file():
             names = sorted(p.stem for p in folder.glob("*.toml")) if folder.is_dir() else []
-            return f"no matrix {cmd.matrix!r} in the matrix folder (available: {', '.join(names) or 'none'})"
+            raise CommandRefused(f"no matrix {cmd.matrix!r} in the matrix folder (available: {', '.join(names) or 'none'})")
         try:
             matrix = self._load_matrix(path)
         except ConfigError as err:
-            return f"matrix {cmd.matrix!r} is invalid: {'; '.join(err.problems)}"
+            raise CommandRefused(f"matrix {cmd.matrix!r} is invalid: {'; '.join(err.problems)}") from err
         engine = self._engine_factory(cmd.matrix, matrix)
         engine.operator = cmd.by or ""  # recorded in the run with every command's sender
         engine.subscribe(self._on_event)
@@ -296,36 +298,32 @@ class RigService:
         self._live = live_feed.attach(engine, matrix, lambda p: self._send(self.topics.live, p, proto.QOS_LIVE))
         if self._live is not None:
             self._tg.create_task(self._live.run(self._run_task), name=f"live-{cmd.matrix}")
-        return None
 
-    def _cmd_pause(self, cmd: proto.Command) -> str | None:
-        return self._control("pause", lambda e: e.request_pause(by=cmd.by), allowed=(RunState.RUNNING, RunState.WAITING))
+    def _cmd_pause(self, cmd: proto.Command) -> None:
+        self._control("pause", lambda e: e.request_pause(by=cmd.by), allowed=(RunState.RUNNING, RunState.WAITING))
 
-    def _cmd_resume(self, cmd: proto.Command) -> str | None:
-        return self._control("resume", lambda e: e.request_resume(by=cmd.by), allowed=(RunState.PAUSED,))
+    def _cmd_resume(self, cmd: proto.Command) -> None:
+        self._control("resume", lambda e: e.request_resume(by=cmd.by), allowed=(RunState.PAUSED,))
 
-    def _cmd_confirm(self, cmd: proto.Command) -> str | None:
-        return self._control("confirm", lambda e: e.confirm(cmd.step, by=cmd.by), allowed=None)
+    def _cmd_confirm(self, cmd: proto.Command) -> None:
+        self._control("confirm", lambda e: e.confirm(cmd.step, by=cmd.by), allowed=None)
 
-    def _cmd_stop(self, cmd: proto.Command) -> str | None:
-        self._request("stop", cmd.by)
-        return None  # always accepted
+    def _cmd_stop(self, cmd: proto.Command) -> None:
+        self._request("stop", cmd.by)  # always accepted
 
-    def _cmd_abort(self, cmd: proto.Command) -> str | None:
-        self._request("abort", cmd.by)
-        return None  # always accepted
+    def _cmd_abort(self, cmd: proto.Command) -> None:
+        self._request("abort", cmd.by)  # always accepted
 
-    def _control(self, what: str, call: Callable[[Engine], None], allowed: tuple[str, ...] | None) -> str | None:
+    def _control(self, what: str, call: Callable[[Engine], None], allowed: tuple[str, ...] | None) -> None:
         if not self.run_active or self._engine is None:
-            return f"no run is active: nothing to {what}"
+            raise CommandRefused(f"no run is active: nothing to {what}")
         state = self._engine.state
         if allowed is not None and state not in allowed:
-            return f"cannot {what} while the run is {state}"
+            raise CommandRefused(f"cannot {what} while the run is {state}")
         try:
             call(self._engine)
         except (OrbitrigError, ValueError, RuntimeError) as err:
-            return f"cannot {what}: {err}"
-        return None
+            raise CommandRefused(f"cannot {what}: {err}") from err
 
     def _request(self, what: Literal["pause", "stop", "abort", "stop_now"], by: str | None = None) -> None:
         """Ask the executor to pause/stop/abort; never raises. If the executor
@@ -342,7 +340,7 @@ class RigService:
                     "stop_now": lambda by: engine.request_stop_now("the service shutting down", by=by)}  # fmt: skip
         try:
             requests[what](by=by)
-        except Exception:  # noqa: BLE001
+        except Exception:
             log.exception("executor refused %s", what)
             if what != "pause":
                 task.cancel()
@@ -354,7 +352,7 @@ class RigService:
         except asyncio.CancelledError:
             self._set_status(RunState.IDLE, self._run_id, f"run of {name!r} cancelled; drives stopped")
             raise
-        except Exception as err:  # noqa: BLE001 - reported, the service goes on
+        except Exception as err:  # reported, the service goes on
             log.exception("run of matrix %r failed", name)
             if self._state != RunState.FAULTED:
                 self._set_status(RunState.FAULTED, self._run_id, f"run of {name!r} failed: {err}")

@@ -6,20 +6,36 @@ from __future__ import annotations
 import dataclasses
 import math
 from pathlib import Path
-from typing import Any, Literal
+from enum import StrEnum
+from typing import Any
 from urllib.parse import urlsplit
 
 from orbitrig.errors import OrbitrigError
 from orbitrig.service import protocol as proto
 
-SupervisionPolicy = Literal["keep", "pause", "stop"]
-SUPERVISION_POLICIES: tuple[str, ...] = ("keep", "pause", "stop")
-#: CONNACK reason codes meaning "your credentials are refused" (MQTT 3.1.1 and 5).
-AUTH_REFUSED = frozenset({4, 5, 134, 135})
+
+
+class SupervisionPolicy(StrEnum):
+    """What the service does to a run when the executor's supervision times out."""
+
+    KEEP = "keep"
+    PAUSE = "pause"
+    STOP = "stop"
+
+
+SUPERVISION_POLICIES: tuple[SupervisionPolicy, ...] = tuple(SupervisionPolicy)
 
 
 class ServiceError(OrbitrigError):
     """The service cannot run (bad broker URL, credentials refused, ...)."""
+
+
+class CommandRefused(OrbitrigError):
+    """A command handler's refusal; ``reason`` is the reply's error text (the service goes on)."""
+
+    def __init__(self, reason: str):
+        self.reason = reason
+        super().__init__(reason)
 
 
 # -- settings -----------------------------------------------------------------
@@ -66,7 +82,7 @@ class ServiceSettings:
     rig_id: str
     matrices_dir: Path
     prefix: str | None = None
-    supervision_policy: SupervisionPolicy = "keep"
+    supervision_policy: SupervisionPolicy = SupervisionPolicy.KEEP
     supervision_timeout: float = 60.0
     reconnect_initial: float = 0.2
     reconnect_max: float = 30.0
@@ -87,6 +103,7 @@ class ServiceSettings:
         if self.supervision_policy not in SUPERVISION_POLICIES:
             raise ServiceError(f"supervision policy {self.supervision_policy!r}: "
                                f"one of {', '.join(SUPERVISION_POLICIES)}")
+        object.__setattr__(self, "supervision_policy", SupervisionPolicy(self.supervision_policy))
         if not 0 < self.supervision_timeout < math.inf:
             raise ServiceError(f"supervision timeout must be a finite number of seconds > 0, "
                                f"not {self.supervision_timeout!r}")

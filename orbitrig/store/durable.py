@@ -202,7 +202,7 @@ class StreamedH5:
         self._fh = os.fdopen(create_new(self.tmp, readable=True), "w+b")  # never follows a planted link
         try:
             self.file = h5py.File(self._fh, "w")
-        except Exception as err:  # noqa: BLE001 - h5py reports a failed write in several types
+        except Exception as err:  # h5py reports a failed write in several types
             self.discard()
             raise storage_error(self.tmp, "start an HDF5 file in", err) from err
 
@@ -213,7 +213,7 @@ class StreamedH5:
             os.fsync(self._fh.fileno())
             self._fh.close()
             os.replace(self.tmp, self.path)
-        except Exception as err:  # noqa: BLE001
+        except Exception as err:
             self.discard()
             raise storage_error(self.path, "write", err) from err
         fsync_dir(self.path.parent)

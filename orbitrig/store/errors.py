@@ -1,8 +1,11 @@
-"""Storage errors: every failure to write or read a run directory is a StorageError.
+"""The store's errors: every failure to write or read a run directory is a StorageError;
+a directory that is not a readable run (missing or damaged files, an unknown format) is a
+RunDirError.
 
     OrbitrigError
     +-- StorageError(path, reason)              the run directory cannot be written or read
-        +-- StorageFullError(path, needed, free)  no space left (ENOSPC, EDQUOT) or too little free
+    |   +-- StorageFullError(path, needed, free)  no space left (ENOSPC, EDQUOT) or too little free
+    +-- RunDirError(file, reason)               not a readable orbitrig run directory
 
 No storage function lets an OSError or an HDF5 library error escape: `storage_error`
 turns one into the matching StorageError, naming the file.
@@ -32,6 +35,15 @@ class StorageFullError(StorageError):
     def __init__(self, path: str | os.PathLike, reason: str, *, needed: int | None = None, free: int | None = None):
         self.needed, self.free = needed, free
         super().__init__(path, reason)
+
+
+class RunDirError(OrbitrigError):
+    """DIR is not a readable orbitrig run directory; ``file`` names the culprit."""
+
+    def __init__(self, file: str | os.PathLike, reason: str):
+        self.file = str(file)
+        self.reason = reason
+        super().__init__(f"{self.file}: {reason}")
 
 
 def storage_error(path: str | os.PathLike, doing: str, err: BaseException) -> StorageError:

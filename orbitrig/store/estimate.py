@@ -7,10 +7,13 @@ run.h5, which holds a second copy of every piece. Pure arithmetic on the plan.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING, Any
 
 from orbitrig.config import RigConfig
-from orbitrig.run.plan import Acquire, Identify, OperatingPoint, Step
+
+if TYPE_CHECKING:  # annotation only: the store does not import the run wing
+    from orbitrig.run.plan import OperatingPoint
 
 MARGIN = 1.25
 BLOCK_OVERHEAD = 28_672  # HDF5 superblock, object headers, attributes (units, descriptions) of one block file
@@ -52,14 +55,18 @@ def point_bytes(rig: RigConfig, point: OperatingPoint, revolutions: int | Sequen
     return int(raw * MARGIN)
 
 
-def plan_bytes(rig: RigConfig, steps: list[Step]) -> int:
-    """Everything the plan `steps` writes: every point's pieces, then run.h5 (a second copy)."""
+def plan_bytes(rig: RigConfig, steps: Iterable[Any]) -> int:
+    """Everything the plan `steps` writes: every point's pieces, then run.h5 (a second copy).
+    Of the steps (orbitrig.run.plan) the acquisitions (a ``revolutions`` count) and the
+    identifications (``models``) of a point count."""
     blocks: dict[int, list[int]] = {}
     models: dict[int, int] = {}
     for s in steps:
-        if isinstance(s, Acquire) and s.point is not None:
+        if s.point is None:
+            continue
+        if hasattr(s, "revolutions"):
             blocks.setdefault(s.point, []).append(s.revolutions)
-        elif isinstance(s, Identify) and s.point is not None:
+        elif hasattr(s, "models"):
             models[s.point] = len(s.models)
     pieces = 0
     for p, revs in blocks.items():

@@ -23,7 +23,7 @@ from orbitrig.store import export_content as content
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import StorageError
 from orbitrig.store.fit_record import BUDGET_PARTS, point_fits
-from orbitrig.store.layout import LMS_ORDER
+from orbitrig.load_systems import LMS
 
 
 _TEXT = {"unit_string": ""}  # a text channel
@@ -75,7 +75,7 @@ def _point_objects(p, channels: list[str], channel_units: list[str]) -> list:
 
     objs = []
     settings = _numeric(content.settings(p)) | {"label": p.settings.label}
-    for lms in [k for k in LMS_ORDER if k in p.tables] + [k for k in p.tables if k not in LMS_ORDER]:
+    for lms in [k for k in LMS if k in p.tables] + [k for k in p.tables if k not in LMS]:
         group = f"point {p.name} {lms}"
         objs += [GroupObject(group, settings)] + _channels(group, content.table_columns(p.tables[lms]))
     for fit in point_fits(p):

@@ -32,6 +32,7 @@ import h5py
 import numpy as np
 
 from orbitrig.store.pieces import fixed_text, put, strings
+from reduction.whirl import Whirl
 
 PER_COEFFICIENT = "SI per coefficient (see dataset units)"
 SOURCE_UNITS = "per source: 1 (gain, sensitivity), rad (phase), s (delay)"
@@ -118,7 +119,7 @@ def _derived(g: h5py.Group, d: dict, names: list[str]) -> None:
         if zero is not None:
             put(g, f"c_eff_zero_{k}", 2 * math.pi * np.array([_num(v) for v in zero]), "rad/s",
                 columns=strings(("omega_0", "std")), meaning="zero crossing of C_eff")
-    for k in ("forward", "backward"):
+    for k in Whirl:
         h = np.asarray(d[f"h_{k}_re"], dtype=np.float64) + 1j * np.asarray(d[f"h_{k}_im"], dtype=np.float64)
         put(g, f"h_{k}", h, "N/m", meaning=f"{k} direct dynamic stiffness H")
         if d.get(f"h_{k}_std") is not None:

@@ -10,7 +10,6 @@ status is the last ``status`` line that made it to disk.
 
 from __future__ import annotations
 
-import datetime as _dt
 import json
 import math
 from dataclasses import dataclass, field
@@ -18,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from orbitrig.store.durable import read_lines
+from rigunits import now_iso
 
 CAN_FIELDS = ("t_recess", "t_groove", "t_supply", "flow", "p_supply", "p_recess1", "p_recess2", "p_recess3",
               "p_recess4", "beta", "sensor_fault", "pump_off", "node_lost")  # fmt: skip
@@ -28,10 +28,6 @@ DRIVE_UNITS = ("s", "rad/s", "rad/s", "rad/s", "rad/s", "status word", "status w
                "fraction of nominal", "fraction of nominal")  # fmt: skip
 CAN_DTYPE = np.dtype([("t", "f8")] + [(f, "f8") for f in CAN_FIELDS])
 DRIVE_DTYPE = np.dtype([("t", "f8")] + [(f, "f8") for f in DRIVE_FIELDS])
-
-
-def now_iso() -> str:
-    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
 
 
 def line(kind: str, **fields) -> str:

@@ -36,7 +36,6 @@ _POINT_DIR = re.compile(r"\d{4}")
 _BLOCK_FILE = re.compile(r"\d{2}_(fwd|bwd)\.h5")
 
 #: the two load measuring systems, in the order of the coherence rows
-LMS_ORDER = ("piezo", "strain")
 #: coherence columns: (displacement, force) pairs
 COHERENCE_PAIRS = ("xfx", "yfx", "xfy", "yfy")
 #: columns of an orbit table's `u` (standard uncertainty of each phasor)

@@ -11,15 +11,19 @@ from __future__ import annotations
 
 import json
 import math
+from typing import TYPE_CHECKING
 
 import h5py
 import numpy as np
 
-from orbitrig.run.plan import OperatingPoint
+from orbitrig.load_systems import LMS
 from orbitrig.store.annotate import annotate
-from orbitrig.store.layout import (BLOCK_ATTR_UNITS, COHERENCE_PAIRS, IDENT_ATTR_UNITS, LMS_ORDER,
+from orbitrig.store.layout import (BLOCK_ATTR_UNITS, COHERENCE_PAIRS, IDENT_ATTR_UNITS,
                                    MATRIX_SI, TABLE_ATTR_UNITS, U_COLUMNS, U_UNITS, coefficient_si_unit)  # fmt: skip
 from orbitrig.store.records import BlockRecord, PointResults
+
+if TYPE_CHECKING:  # annotation only: the store does not import the run wing
+    from orbitrig.run.plan import OperatingPoint
 
 STR = h5py.string_dtype()
 IDENT_SCALARS = ("n_coefficients", "min_frequencies", "n_frequencies", "condition_number", "residual_rms",
@@ -95,7 +99,7 @@ def write_block(g: h5py.Group, rec: BlockRecord, channels: list[str], units: lis
     if rec.uncertainty is not None:
         put(g, "uncertainty", np.asarray(rec.uncertainty, dtype=np.float64), per_channel,
             meaning="standard uncertainty of each averaged phasor")
-    put(g, "coherence", np.asarray(rec.coherence, dtype=np.float64), "1", rows=strings(LMS_ORDER),
+    put(g, "coherence", np.asarray(rec.coherence, dtype=np.float64), "1", rows=strings(LMS),
         columns=strings(COHERENCE_PAIRS), meaning="gamma^2 between displacement and force")
     st = g.create_group("stats")
     for k, v in rec.stats.items():

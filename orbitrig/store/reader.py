@@ -22,18 +22,9 @@ from typing import Any
 
 import numpy as np
 
-from orbitrig.errors import OrbitrigError
+from orbitrig.store.errors import RunDirError
 from orbitrig.store.layout import COHERENCE_PAIRS, READABLE_FORMATS, RUN_FILE, RunLayout  # noqa: F401
 from orbitrig.store.index import NEVER_COMPLETED
-
-
-class RunDirError(OrbitrigError):
-    """DIR is not a readable orbitrig run directory; ``file`` names the culprit."""
-
-    def __init__(self, file: str | Path, reason: str):
-        self.file = str(file)
-        self.reason = reason
-        super().__init__(f"{self.file}: {reason}")
 
 
 @dataclass(frozen=True)

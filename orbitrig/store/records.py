@@ -5,10 +5,12 @@ from __future__ import annotations
 import threading
 from collections import deque
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from orbitrig.run.plan import Block
+if TYPE_CHECKING:  # the plan's types only annotate: the store does not import the run wing
+    from orbitrig.run.plan import Block
 
 
 @dataclass

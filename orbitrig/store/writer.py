@@ -14,24 +14,26 @@ orbitrig.store.layout and docs/storage.md.
 from __future__ import annotations
 
 import contextlib
-import datetime as _dt
 import json
 import logging
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from orbitrig import __version__
-from orbitrig.run.plan import OperatingPoint
 from orbitrig.store import csvfile, journal, pieces
 from orbitrig.store.consolidate import RunImage, read_header
 from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F401  (the CSV's public names)
 from orbitrig.store.durable import APPEND_FLAGS, TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
-from orbitrig.store.errors import StorageError, StorageFullError, storage_error  # noqa: F401
+from orbitrig.store.errors import StorageError, StorageFullError, storage_error
 from orbitrig.store.index import NEVER_COMPLETED, commit_record, point_state, scan
-from orbitrig.store.journal import now_iso  # noqa: F401  (the engine's timestamps)
 from orbitrig.store.layout import FORMAT, RunLayout, point_name
 from orbitrig.store.reader import RunDirError, read_point
-from orbitrig.store.records import BlockRecord, LogBuffer, PointResults  # noqa: F401
+from orbitrig.store.records import BlockRecord, LogBuffer, PointResults
+from rigunits import now_iso, utc_iso
+
+if TYPE_CHECKING:  # annotation only: the store does not import the run wing
+    from orbitrig.run.plan import OperatingPoint
 
 log = logging.getLogger(__name__)
 RUN_FILE, CSV_FILE, LOG_FILE = "run.h5", "coefficients.csv", "run.log"
@@ -263,7 +265,7 @@ class RunStore:
     # -------------------------------------------------------------- run.log
     def log(self, message: str) -> None:
         """A line of the human-readable run.log (best effort: a full disk must not stop the run)."""
-        stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+        stamp = utc_iso()
         try:
             with open(os.open(self.log_path, APPEND_FLAGS, 0o644), "a", encoding="utf-8") as fh:
                 fh.write(f"{stamp} {message}\n")

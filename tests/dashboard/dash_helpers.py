@@ -80,7 +80,7 @@ class Page:
     def wait(self, pred: Callable[[], bool], timeout: float = 30.0, what: str = "condition") -> None:
         try:
             WebDriverWait(self.d, timeout, poll_frequency=0.1).until(lambda _: pred())
-        except Exception as err:  # noqa: BLE001 - re-raised with the page's state
+        except Exception as err:  # re-raised with the page's state
             state = self._describe()
             log = self.dashboard.text()[-2000:] if self.dashboard else ""
             raise AssertionError(f"timed out waiting for {what}: {state}\n--- dashboard log ---\n{log}") from err

@@ -163,7 +163,7 @@ def _check_provenance(run: Path, record: str, record_text: str) -> None:
         assert json.loads(a["sensor_serials"])["fx_strain"] == "SG-0417-X"
         assert a["calibration_record"] == record and a["calibration_record_text"] == record_text
         assert a["calibration_record_sha256"] == hashlib.sha256(record_text.encode()).hexdigest()
-        assert a["started"].endswith("+00:00") and a["ended"] >= a["started"]
+        assert a["started"].endswith("Z") and a["ended"] >= a["started"]
         commands = [(c["command"].decode(), c["by"].decode()) for c in f["logs/commands"][()]]
         assert commands == [("start", "ada")]
     log = (run / "run.log").read_text()

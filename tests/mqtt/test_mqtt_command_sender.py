@@ -52,7 +52,7 @@ def test_every_command_that_changed_the_run_is_logged_with_its_sender(broker, tm
         rows = f["logs/commands"][()]
         assert [(r["command"].decode(), r["by"].decode()) for r in rows] == want
         at = [r["at"].decode() for r in rows]
-        assert at == sorted(at) and all(t.endswith("+00:00") for t in at)
+        assert at == sorted(at) and all(t.endswith("Z") for t in at)
         assert f.attrs["operator"] == "alice" and f.attrs["status"] == "stopped"
         assert f.attrs["started"] <= at[0] and f.attrs["ended"] >= at[-1]
     log = (run / "run.log").read_text()

@@ -7,6 +7,7 @@ import json
 import math
 
 import numpy as np
+import pydantic
 import pytest
 
 from orbitrig.service.protocol import (
@@ -187,7 +188,7 @@ def test_commands_are_the_models():
     assert COMMAND_FIELDS == {"start": ("matrix",), "confirm": ("step",), "pause": (), "resume": (),
                               "stop": (), "abort": (), "status": ()}
     assert StartCommand.model_validate({"cmd": "start", "id": "1", "matrix": "quick"}).matrix == "quick"
-    with pytest.raises(Exception):
+    with pytest.raises(pydantic.ValidationError):
         ConfirmCommand.model_validate({"cmd": "confirm", "id": "1", "step": 5})  # strict: no coercion
 
 

@@ -23,7 +23,6 @@ from reduction.errors import IdentifiabilityError
 from reduction.excitation import CLEAR_REFUSE, CLEAR_WARN, displacement_noise, excitation_ratios, signal_design
 from reduction.identifiability import analyse, check_signal, ill_conditioning
 from reduction.identify import identify
-from reduction.impedance import real_rows, regressors
 from reduction.models import model_spec
 from reduction.table import OrbitTable
 

@@ -113,7 +113,7 @@ def test_orbit_figure_one_panel_per_frequency_with_both_planes(synthetic_run, ru
         stated = [float(v) for v in re.findall(r"[AB] ([\d.]+)", radii)]
         lines = {ln.get_label(): ln for ln in ax.get_lines()}
         stored = _stored(synthetic_run, "0000", f.name)
-        for plane, (xn, yn) in (("A", ("x_a", "y_a")), ("B", ("x_b", "y_b"))):
+        for plane, (xn, _yn) in (("A", ("x_a", "y_a")), ("B", ("x_b", "y_b"))):
             x, y = lines[f"plane {plane}"].get_xdata() / 1e6, lines[f"plane {plane}"].get_ydata() / 1e6
             c = CH[xn]
             np.testing.assert_allclose(x[:-1], stored["mean"][c][np.argsort(stored["slots"][c])])

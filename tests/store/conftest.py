@@ -6,7 +6,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "report"))  # the synthetic-run writer
 
-from report_synthetic import write_synthetic_run  # noqa: E402
+from report_synthetic import write_synthetic_run
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,6 @@ import time
 from pathlib import Path
 
 import h5py
-import pytest
 
 from orbitrig.store.index import scan
 from orbitrig.store.layout import RunLayout

@@ -1,0 +1,53 @@
+"""The rig's units at the edges and its one timestamp format, in a module of its own.
+
+SI inside (rad/s, Pa, s); rpm, MPa and clock text only where a person or a file
+meets the code. Every package but ``sim`` (which re-derives its scales so that a
+shared mistake cannot cancel out in the tests) may import this module; it imports
+only the standard library.
+
+Timestamps: ISO 8601 in UTC with milliseconds and a ``Z``, e.g.
+``2026-11-27T01:30:05.123Z`` (files, logs, MQTT payloads); the compact form of
+the same instant, ``20261127T013005.123Z``, names runs and folders.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import math
+
+RPM = 2.0 * math.pi / 60.0  # rad/s per rpm
+MPA = 1.0e6  # Pa per MPa
+MINUTE = 60.0  # s
+HOUR = 3600.0  # s
+
+
+def format_duration(seconds: float) -> str:
+    """h:mm:ss, or m:ss under an hour (rounded to the second)."""
+    whole = int(round(seconds))
+    h, rem = divmod(whole, int(HOUR))
+    m, s = divmod(rem, int(MINUTE))
+    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
+
+
+def _utc(when: _dt.datetime | float | None) -> _dt.datetime:
+    if when is None:
+        return _dt.datetime.now(_dt.timezone.utc)
+    if isinstance(when, (int, float)):
+        return _dt.datetime.fromtimestamp(float(when), _dt.timezone.utc)
+    return when.astimezone(_dt.timezone.utc)  # a naive datetime is taken as local time
+
+
+def utc_iso(when: _dt.datetime | float | None = None) -> str:
+    """The timestamp text of a datetime, a POSIX time (s) or now."""
+    return _utc(when).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def now_iso() -> str:
+    """Now as timestamp text."""
+    return utc_iso()
+
+
+def utc_stamp(when: _dt.datetime | float | None = None) -> str:
+    """The compact form (no separators), for run ids and folder names."""
+    t = _utc(when)
+    return f"{t:%Y%m%dT%H%M%S}.{t.microsecond // 1000:03d}Z"

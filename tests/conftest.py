@@ -1,0 +1,69 @@
+"""Marks the tests that start processes (a broker, a browser, a database server, the
+command line, GNU Octave, mount ...) as ``integration``: ``-m "not integration"`` runs
+the in-process rest, ``-m integration`` only these.
+
+A test starts processes if its module's text, or a helper module of its folder that the
+module imports, names one of PROCESS_WORDS; or if it uses a fixture defined in such a
+helper, or whose source names one or what it imports from such a helper (the broker).
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect
+import re
+from pathlib import Path
+
+import pytest
+
+PROCESS_WORDS = re.compile(r"\b(subprocess|Popen|create_subprocess_exec|mosquitto|webdriver|chromium|pg_ctl|"
+                           r"octave|sys\.executable)\b")
+_IMPORT = re.compile(r"^[ \t]*from[ \t]+(\w+)[ \t]+import[ \t]+(\([^)]*\)|[\w \t,]+)|^[ \t]*import[ \t]+(\w+)", re.MULTILINE)
+
+
+@functools.cache
+def _names_a_process(path: Path) -> bool:
+    return path.is_file() and bool(PROCESS_WORDS.search(path.read_text(encoding="utf-8")))
+
+
+@functools.cache
+def _process_names(module: Path) -> frozenset[str]:
+    """The names `module` imports from helper modules of its folder that start processes."""
+    names: set[str] = set()
+    for source, imported, plain in _IMPORT.findall(module.read_text(encoding="utf-8")):
+        helper = module.parent / f"{source or plain}.py"
+        if helper != module and _names_a_process(helper):
+            names |= {n.strip() for n in imported.strip("()").split(",") if n.strip()} | {source or plain}
+    return frozenset(names)
+
+
+def starts_processes(module: Path) -> bool:
+    """True if the test module's own text, or a helper of its folder it imports, starts processes,
+    or it names what its folder's conftest imports from such a helper (a fixture asked by name)."""
+    conftest = module.parent / "conftest.py"
+    named = _process_names(conftest) if conftest.is_file() else frozenset()
+    words = set(re.findall(r"\w+", module.read_text(encoding="utf-8")))
+    return _names_a_process(module) or bool(_process_names(module)) or bool(named & words)
+
+
+def _fixture_starts_processes(func: object) -> bool:
+    try:
+        source, path = inspect.getsource(func), Path(inspect.getfile(func))  # type: ignore[arg-type]
+    except (OSError, TypeError):
+        return False
+    if path.resolve() == Path(__file__).resolve():
+        return False
+    if path.name != "conftest.py" and not path.name.startswith("test_") and _names_a_process(path):
+        return True  # a fixture of a helper module that starts processes (the database server)
+    words = set(re.findall(r"\w+", source))
+    return bool(PROCESS_WORDS.search(source)) or bool(words & _process_names(path))
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    for item in items:
+        path = Path(str(item.fspath))
+        defs = getattr(getattr(item, "_fixtureinfo", None), "name2fixturedefs", {})
+        uses = any(_fixture_starts_processes(d.func) for name in getattr(item, "fixturenames", ())
+                   for d in defs.get(name, ()))
+        if uses or (path.suffix == ".py" and starts_processes(path)):
+            item.add_marker(pytest.mark.integration)

@@ -1,0 +1,69 @@
+"""The one timestamp format, the units at the edges and the rig's closed sets of words."""
+
+from __future__ import annotations
+
+import asyncio
+import datetime as dt
+import logging
+import math
+import random
+import re
+
+from daq.backoff import Backoff
+from orbitrig.load_systems import LMS, LoadSystem
+from orbitrig.service.reconnect import reconnecting
+from reduction.whirl import Whirl
+from rigunits import MPA, RPM, format_duration, now_iso, utc_iso, utc_stamp
+
+STAMP = re.compile(r"^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z$")
+
+
+def test_one_utc_timestamp_format() -> None:
+    assert utc_iso(0.0) == "1970-01-01T00:00:00.000Z"
+    assert utc_iso(1.2345) == "1970-01-01T00:00:01.234Z"
+    plus_two = dt.datetime(2026, 11, 27, 3, 30, 5, 123456, tzinfo=dt.timezone(dt.timedelta(hours=2)))
+    assert utc_iso(plus_two) == "2026-11-27T01:30:05.123Z"  # any zone comes out in UTC
+    assert utc_stamp(plus_two) == "20261127T013005.123Z"
+    assert STAMP.match(now_iso())
+    assert dt.datetime.fromisoformat(now_iso()).tzinfo == dt.timezone.utc  # Python reads it back as UTC
+    before, t = dt.datetime.now(dt.timezone.utc), dt.datetime.fromisoformat(now_iso())
+    assert abs((t - before).total_seconds()) < 5.0
+
+
+def test_units_and_durations() -> None:
+    assert math.isclose(3000 * RPM, 100 * math.pi)
+    assert MPA == 1e6
+    assert format_duration(59.6) == "1:00"
+    assert format_duration(3 * 3600 + 62) == "3:01:02"
+
+
+def test_closed_sets_keep_their_words() -> None:
+    assert [str(w) for w in Whirl] == ["forward", "backward"]
+    assert (Whirl.FORWARD.sign, Whirl.BACKWARD.sign) == (1, -1)
+    assert Whirl.of(-3.0) is Whirl.BACKWARD and Whirl.of(0.1) is Whirl.FORWARD
+    assert LMS == ("piezo", "strain") and LoadSystem("strain") is LoadSystem.STRAIN
+    assert f"fx_{LoadSystem.PIEZO}" == "fx_piezo"
+
+
+def test_reconnecting_backs_off_with_jitter_and_resets_after_traffic() -> None:
+    carried = [False, False, False, True, False]
+    calls: list[float] = []
+    sleeps: list[float] = []
+    backoff = Backoff(0.01, 0.04, rng=random.Random(1))
+    original = backoff.next_delay
+
+    def recorded() -> float:
+        sleeps.append(original())
+        return sleeps[-1]
+
+    backoff.next_delay = recorded  # type: ignore[method-assign]
+
+    async def session() -> bool:
+        calls.append(len(calls))
+        return carried[len(calls) - 1]
+
+    asyncio.run(reconnecting(session, backoff, logging.getLogger("test"), stop=lambda: len(calls) == len(carried)))
+    assert len(calls) == len(carried) and len(sleeps) == len(carried) - 1  # no wait after the last
+    ceilings = [0.01, 0.02, 0.04, 0.01]  # doubling to the maximum; back to the start after traffic
+    assert all(c / 2 <= s <= c for s, c in zip(sleeps, ceilings)), sleeps
+    assert len(set(sleeps)) == len(sleeps)  # jittered
