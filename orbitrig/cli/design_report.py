@@ -9,6 +9,8 @@ are the same for every list and left out.
 
 from __future__ import annotations
 
+from typing import Any
+
 import math
 from pathlib import Path
 
@@ -96,6 +98,7 @@ def _allocated(rig, problem, grid, scales, directions: str, test=None, reference
 
     u = problem.noise_at(grid)
     overhead = rig.settle.hold_s + rig.estimates.store_s
+    a: Any  # reduction.allocation.Allocation, or TestedAllocation when the model test is kept
     try:
         if test is None:
             a = allocate(problem.spec, problem.theta, problem.spin, problem.radius, grid, u, scales,
