@@ -113,6 +113,7 @@ class PointProcedure:
     # ------------------------------------------------------------- driving
     async def run_point(self, p: OperatingPoint, steps: list[Step], first: bool) -> None:
         r = self.r
+        await r.background.wait_for_points()  # bounded memory: no pile of points awaiting identification
         r.background.spawn(r.background.write(r.store.begin_point, p), f"begin point {p.index:04d}")
         r.store.log(f"point {p.index:04d} {p.label}: begin")
         r.supervisor.pressure_armed = False
@@ -295,4 +296,4 @@ class PointProcedure:
             r.store.log(f"point {p.index:04d} {p.label}: complete")
             r.emit(ResultEvent(r.run_id, result_payload(r.run_id, p, res)))
 
-        r.background.spawn(complete(), f"complete point {p.index:04d}")
+        r.background.spawn_point(complete(), f"complete point {p.index:04d}")
