@@ -63,7 +63,9 @@ def slope_per_100(samples: list[tuple[int, float]]) -> float:
 
 async def soak_sweep(points: int | None, speedup: float) -> bool:
     from orbitrig.cli.simulated_rig import simulated_rig
+    from orbitrig.run.heap import tune_heap
 
+    tune_heap()  # as `orbitrig sweep` does at its start
     rig = cfg.load_rig(None)
     plan = make_plan(_subset(cfg.load_matrix(cfg.default_matrix_path("paper")), points), rig)
     samples: list[tuple[int, float]] = []

@@ -23,6 +23,7 @@ from orbitrig.run.background import Background
 from orbitrig.run.control import RunControl, StopRun, Suspended
 from orbitrig.run.corrections import Corrections
 from orbitrig.run.events import ResultEvent, RunFailed
+from orbitrig.run.heap import trim_heap
 from orbitrig.run.identification import block_record, identify_operating_point, point_truth
 from orbitrig.run.point_report import point_log_lines, result_payload
 from orbitrig.run.plan import (
@@ -295,5 +296,6 @@ class PointProcedure:
             await r.background.write(r.store.complete_point, p.index)
             r.store.log(f"point {p.index:04d} {p.label}: complete")
             r.emit(ResultEvent(r.run_id, result_payload(r.run_id, p, res)))
+            trim_heap()  # the point's blocks are freed: their memory goes back to the system
 
         r.background.spawn_point(complete(), f"complete point {p.index:04d}")

@@ -45,6 +45,7 @@ from typing import Any, Literal
 from orbitrig.analysis.run_warnings import closing_warnings
 from orbitrig.errors import ConfigError, OrbitrigError
 from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
+from orbitrig.run.heap import trim_heap
 from orbitrig.run.states import RunState
 from orbitrig.service import live as live_feed
 from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # noqa: F401 - the service's seams
@@ -362,6 +363,7 @@ class RigService:
         status = outcome.status
         log.info("run %s of matrix %r ended: %s", self._run_id, name, status)
         summary = await asyncio.to_thread(closing_warnings, outcome.out_dir)
+        trim_heap()  # what the run freed goes back to the system before the next run
         if self._state not in (RunState.IDLE, RunState.FAULTED):
             self._set_status(RunState.IDLE, self._run_id, f"run {status}" + "".join(f"; warning: {w}" for w in summary))
 
