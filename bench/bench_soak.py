@@ -68,6 +68,10 @@ async def soak_sweep(points: int | None, speedup: float, watchdog_s: float = 0.0
 
     tune_heap()  # as `orbitrig sweep` does at its start
     rig = cfg.load_rig(None)
+    if watchdog_s:  # with it, Modbus requests may take 0.5 s (a loaded machine; the link loss declared later)
+        text = rig.text.replace("timeout_s = 0.15", "timeout_s = 0.5").replace(
+            "comm_loss_timeout_s = 1.0", f"comm_loss_timeout_s = {watchdog_s:g}")
+        rig = cfg.rig_from_text(text, str(cfg.default_rig_path()))
     plan = make_plan(_subset(cfg.load_matrix(cfg.default_matrix_path("paper")), points), rig)
     samples: list[tuple[int, float]] = []
 
