@@ -68,9 +68,12 @@ async def soak_sweep(points: int | None, speedup: float, watchdog_s: float = 0.0
 
     tune_heap()  # as `orbitrig sweep` does at its start
     rig = cfg.load_rig(None)
-    if watchdog_s:  # with it, Modbus requests may take 0.5 s (a loaded machine; the link loss declared later)
-        text = rig.text.replace("timeout_s = 0.15", "timeout_s = 0.5").replace(
-            "comm_loss_timeout_s = 1.0", f"comm_loss_timeout_s = {watchdog_s:g}")
+    if watchdog_s:  # a loaded machine: Modbus requests may take 0.5 s, an acquisition S s more
+        text = rig.text
+        for old, new in (("timeout_s = 0.15", "timeout_s = 0.5"), ("timeout_margin_s = 2.0", f"timeout_margin_s = {watchdog_s * speedup:g}"),
+                         ("comm_loss_timeout_s = 1.0", f"comm_loss_timeout_s = {watchdog_s:g}")):  # fmt: skip
+            assert old in text, old
+            text = text.replace(old, new)
         rig = cfg.rig_from_text(text, str(cfg.default_rig_path()))
     plan = make_plan(_subset(cfg.load_matrix(cfg.default_matrix_path("paper")), points), rig)
     samples: list[tuple[int, float]] = []
@@ -156,7 +159,8 @@ def main() -> int:
     ap.add_argument("--speedup", type=float, default=80.0)
     ap.add_argument("--runs", type=int, default=10)
     ap.add_argument("--sim-watchdog", type=float, default=0.0, metavar="S",
-                    help="the in-process sweep's simulated drives trip on a link silent for S s (default: theirs, 1 s)")
+                    help="a loaded machine: the in-process sweep's simulated drives trip on a link silent for S s "
+                         "(default: theirs, 1 s), acquisitions wait S s longer and Modbus requests 0.5 s")
     ap.add_argument("--skip-sweep", action="store_true")
     ap.add_argument("--skip-serve", action="store_true")
     args = ap.parse_args()

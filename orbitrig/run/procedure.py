@@ -296,6 +296,6 @@ class PointProcedure:
             await r.background.write(r.store.complete_point, p.index)
             r.store.log(f"point {p.index:04d} {p.label}: complete")
             r.emit(ResultEvent(r.run_id, result_payload(r.run_id, p, res)))
-            trim_heap()  # the point's blocks are freed: their memory goes back to the system
+            await asyncio.to_thread(trim_heap)  # the point's blocks are freed: back to the system
 
         r.background.spawn_point(complete(), f"complete point {p.index:04d}")
