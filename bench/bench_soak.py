@@ -70,7 +70,9 @@ async def soak_sweep(points: int | None, speedup: float, watchdog_s: float = 0.0
     rig = cfg.load_rig(None)
     if watchdog_s:  # a loaded machine: Modbus requests may take 0.5 s, an acquisition S s more
         text = rig.text
-        for old, new in (("timeout_s = 0.15", "timeout_s = 0.5"), ("timeout_margin_s = 2.0", f"timeout_margin_s = {watchdog_s * speedup:g}"),
+        polls = max(3, int(0.7 * watchdog_s / 0.6))  # the link declared lost after 70 % of S
+        for old, new in (("timeout_s = 0.15", "timeout_s = 0.5"), ("link_loss_polls = 3", f"link_loss_polls = {polls}"),
+                         ("timeout_margin_s = 2.0", f"timeout_margin_s = {watchdog_s * speedup:g}"),
                          ("comm_loss_timeout_s = 1.0", f"comm_loss_timeout_s = {watchdog_s:g}")):  # fmt: skip
             assert old in text, old
             text = text.replace(old, new)
@@ -160,7 +162,8 @@ def main() -> int:
     ap.add_argument("--runs", type=int, default=10)
     ap.add_argument("--sim-watchdog", type=float, default=0.0, metavar="S",
                     help="a loaded machine: the in-process sweep's simulated drives trip on a link silent for S s "
-                         "(default: theirs, 1 s), acquisitions wait S s longer and Modbus requests 0.5 s")
+                         "(default: theirs, 1 s), acquisitions wait S s longer, Modbus requests 0.5 s, and the "
+                         "link is declared lost after 0.7 S s")
     ap.add_argument("--skip-sweep", action="store_true")
     ap.add_argument("--skip-serve", action="store_true")
     args = ap.parse_args()

@@ -36,10 +36,11 @@ def _glibc():
         return None
     try:
         libc = ctypes.CDLL(None)
-    except OSError:
+        for name in ("mallopt", "malloc_trim", "gnu_get_libc_version"):
+            libc[name]  # AttributeError where the C library lacks it (musl, another libc)
+    except (OSError, AttributeError):
         return None
-    names = ("mallopt", "malloc_trim", "gnu_get_libc_version")
-    return libc if all(hasattr(libc, n) for n in names) else None
+    return libc
 
 
 def tune_heap() -> None:
