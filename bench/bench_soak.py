@@ -137,8 +137,12 @@ def soak_serve(runs: int, speedup: float) -> bool:
                 break
             run_id = rig.status("waiting", start=mark, timeout=60)["run_id"]
             assert rig.command({"cmd": "confirm", "step": "manual:0000"}, timeout=30)["ok"] is True
-            rig.status(lambda s, r=run_id: s["state"] == "idle" and s["run_id"] == r, start=mark, timeout=180)
+            end = rig.status(lambda s, r=run_id: s["state"] in ("idle", "faulted") and s["run_id"] == r, start=mark,
+                             timeout=180)  # fmt: skip
             after.append(rss_mb(svc.proc.pid))
+            if end["state"] == "faulted":  # e.g. the simulator starved on a loaded machine
+                print(f"serve: run {len(after)} faulted: {end['message']}")
+                break
     finally:
         rig.close()
         svc.stop()
