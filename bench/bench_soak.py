@@ -12,7 +12,7 @@ Prints the figures; exits 1 when the sweep grows by more than 20 MB per 100 poin
 the first ten, or the service by more than 20 MB from the end of its first run to the
 end of its last.
 
-    python3 bench/bench_soak.py [--points 108] [--speedup 80] [--runs 10] [--skip-sweep] [--skip-serve]
+    python3 bench/bench_soak.py [--points 108] [--speedup 80] [--runs 10] [--sim-watchdog S] [--skip-sweep] [--skip-serve]
 """
 
 from __future__ import annotations
@@ -37,6 +37,7 @@ from orbitrig import config as cfg  # noqa: E402
 from orbitrig.run.engine import RunEngine  # noqa: E402
 from orbitrig.run.events import ResultEvent  # noqa: E402
 from orbitrig.run.plan import make_plan  # noqa: E402
+from sim.drive_registers import COMM_LOSS_TIMEOUT  # noqa: E402
 
 LIMIT_PER_100_POINTS_MB = 20.0
 LIMIT_SERVE_MB = 20.0
@@ -61,10 +62,21 @@ def slope_per_100(samples: list[tuple[int, float]]) -> float:
     return 100 * sum((p - mx) * (m - my) for p, m in samples) / sxx if sxx else 0.0
 
 
-async def soak_sweep(points: int | None, speedup: float) -> bool:
+async def soak_sweep(points: int | None, speedup: float, watchdog_s: float = 0.0) -> bool:
     from orbitrig.cli.simulated_rig import simulated_rig
+    from orbitrig.run.heap import tune_heap
 
+    tune_heap()  # as `orbitrig sweep` does at its start
     rig = cfg.load_rig(None)
+    if watchdog_s:  # a loaded machine: Modbus requests may take 0.5 s, an acquisition S s more
+        text = rig.text
+        polls = max(3, int(0.7 * watchdog_s / 0.6))  # the link declared lost after 70 % of S
+        for old, new in (("timeout_s = 0.15", "timeout_s = 0.5"), ("link_loss_polls = 3", f"link_loss_polls = {polls}"),
+                         ("timeout_margin_s = 2.0", f"timeout_margin_s = {watchdog_s * speedup:g}"),
+                         ("comm_loss_timeout_s = 1.0", f"comm_loss_timeout_s = {watchdog_s:g}")):  # fmt: skip
+            assert old in text, old
+            text = text.replace(old, new)
+        rig = cfg.rig_from_text(text, str(cfg.default_rig_path()))
     plan = make_plan(_subset(cfg.load_matrix(cfg.default_matrix_path("paper")), points), rig)
     samples: list[tuple[int, float]] = []
 
@@ -75,7 +87,10 @@ async def soak_sweep(points: int | None, speedup: float) -> bool:
     out = Path(tempfile.mkdtemp(prefix="bench-soak-")) / "run"
     start = rss_mb()
     t0 = time.monotonic()
-    async with simulated_rig(speedup) as (_, access):
+    async with simulated_rig(speedup) as (sim, access):
+        if watchdog_s:  # a loaded machine stalls the one process of rig and simulator for over 1 s
+            for drive in sim.drives.values():
+                drive._params[COMM_LOSS_TIMEOUT] = round(watchdog_s * 10)  # in 0.1 s, as the register
         engine = RunEngine(rig, out_dir=out, access=access, confirm_mode="auto")
         engine.subscribe(on_event)
         outcome = await engine.run(plan)
@@ -116,11 +131,18 @@ def soak_serve(runs: int, speedup: float) -> bool:
         rig.status(lambda s: True, timeout=60)
         for _ in range(runs):
             mark = rig.watch.mark()
-            assert rig.command({"cmd": "start", "matrix": "quick"}, timeout=30)["ok"] is True
+            reply = rig.command({"cmd": "start", "matrix": "quick"}, timeout=30)
+            if reply.get("ok") is not True:
+                print(f"serve: start refused after {len(after)} runs: {reply}")
+                break
             run_id = rig.status("waiting", start=mark, timeout=60)["run_id"]
             assert rig.command({"cmd": "confirm", "step": "manual:0000"}, timeout=30)["ok"] is True
-            rig.status(lambda s, r=run_id: s["state"] == "idle" and s["run_id"] == r, start=mark, timeout=180)
+            end = rig.status(lambda s, r=run_id: s["state"] in ("idle", "faulted") and s["run_id"] == r, start=mark,
+                             timeout=180)  # fmt: skip
             after.append(rss_mb(svc.proc.pid))
+            if end["state"] == "faulted":  # e.g. the simulator starved on a loaded machine
+                print(f"serve: run {len(after)} faulted: {end['message']}")
+                break
     finally:
         rig.close()
         svc.stop()
@@ -142,13 +164,17 @@ def main() -> int:
     ap.add_argument("--points", type=int, default=None, help="about this many points of the paper matrix")
     ap.add_argument("--speedup", type=float, default=80.0)
     ap.add_argument("--runs", type=int, default=10)
+    ap.add_argument("--sim-watchdog", type=float, default=0.0, metavar="S",
+                    help="a loaded machine: the in-process sweep's simulated drives trip on a link silent for S s "
+                         "(default: theirs, 1 s), acquisitions wait S s longer, Modbus requests 0.5 s, and the "
+                         "link is declared lost after 0.7 S s")
     ap.add_argument("--skip-sweep", action="store_true")
     ap.add_argument("--skip-serve", action="store_true")
     args = ap.parse_args()
     logging.basicConfig(level=logging.ERROR)
     ok = True
     if not args.skip_sweep:
-        ok &= asyncio.run(soak_sweep(args.points, args.speedup))
+        ok &= asyncio.run(soak_sweep(args.points, args.speedup, args.sim_watchdog))
     if not args.skip_serve:
         ok &= soak_serve(args.runs, min(args.speedup, 50.0))
     print("PASS" if ok else "FAIL")

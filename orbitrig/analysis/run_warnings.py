@@ -18,6 +18,12 @@ def fit_warnings(points: list[Point]) -> list[FitWarnings]:
             for p in points for i in p.identifications if i.ok]  # fmt: skip
 
 
+def result_fit_warnings(payload: dict) -> list[FitWarnings]:
+    """The warnings of every fit of a published point result (orbitrig.run.point_report)."""
+    return [FitWarnings(int(payload["point"]), r["lms"], f"{r['model']} {r['freq_dep']} {r['method']}",
+                        tuple(r.get("warnings") or [])) for r in payload["identification"] if "error" not in r]  # fmt: skip
+
+
 def run_warning_lines(directory: Path) -> list[str]:
     """Each distinct warning of the run's complete points once per fit family."""
     return warning_lines(fit_warnings(read_run(directory, blocks=False).complete_points))

@@ -198,9 +198,11 @@ async def _serve(rig, settings, broker_settings, *, out: Path, sim: bool, speedu
 
     shutdown = asyncio.Event()
     loop = asyncio.get_running_loop()
+    from orbitrig.run.heap import tune_heap
     from orbitrig.run.modbus_log import keep_pymodbus_off_the_terminal
 
     keep_pymodbus_off_the_terminal()
+    tune_heap()  # bounded memory over months (orbitrig.run.heap)
     services = []
 
     def on_signal() -> None:  # the first: the run stops at once with a ramp; another: it aborts

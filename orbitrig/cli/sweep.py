@@ -232,9 +232,11 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator
     from orbitrig.cli.progress import SweepProgress
     from orbitrig.run.engine import RunEngine
 
+    from orbitrig.run.heap import tune_heap
     from orbitrig.run.modbus_log import keep_pymodbus_off_the_terminal
 
     keep_pymodbus_off_the_terminal()
+    tune_heap()  # bounded memory over months (orbitrig.run.heap)
     console = Console(stderr=True)
     async with contextlib.AsyncExitStack() as stack:
         access = None

@@ -19,7 +19,7 @@ import numpy as np
 
 from orbitrig.cli.plain_table import OutputFormat, PlainTable, Transcript
 from orbitrig.analysis.run_warnings import fit_warnings
-from orbitrig.analysis.warning_groups import warning_lines
+from orbitrig.analysis.warning_groups import point_ranges, warning_lines
 from orbitrig.run.point_report import judgement_lines
 from orbitrig.store.csvfile import coef_order, fit_truth
 from orbitrig.store.reader import Point, freq_dep_key, read_run
@@ -40,6 +40,8 @@ Z_NOTE = ("|dZ|/|Z| = worst over the orbit frequencies of |Z_identified - Z_true
 
 REJECTED_NOTE = (f"* the fit's chi2 adequacy test rejects it (p < {CHI2_ALPHA:g}): the residuals exceed "
                  "the stated uncertainties")  # fmt: skip
+REJECTED_COUNT_NOTE = (f"rejected * = fits the chi2 adequacy test rejects (p < {CHI2_ALPHA:g}): their residuals "
+                       "exceed the stated uncertainties")  # fmt: skip
 
 
 def rejected(d: dict) -> bool:
@@ -101,7 +103,24 @@ def _summary_cells(p: Point) -> list[str]:
     refused = sum(1 for i in p.identifications if not i.ok)
     nd = sum(len(d.get("not_determined") or []) for d in fits)
     return [f"{sum(verdicts)} of {len(verdicts)} yes" if verdicts else "-",
-            f"{max(worst):.2g}" if worst else "-", str(nd), f"{warnings} / {refused}"]  # fmt: skip
+            f"{max(worst):.2g}" if worst else "-", str(nd), f"{sum(rejected(d) for d in fits)} of {len(fits)}",
+            f"{warnings} / {refused}"]  # fmt: skip
+
+
+def rejected_lines(complete: list[Point]) -> list[str]:
+    """Per fit family the chi2 adequacy test rejects somewhere: which systems, at how many
+    of its points and which ('kc7 none ols, piezo, strain: at 5 of 6 points (0000-0004)')."""
+    families: dict[str, dict] = {}
+    for p in complete:
+        for i in p.identifications:
+            if i.ok:
+                f = families.setdefault(f"{i.model} {i.freq_dep} {i.method}", {"all": set(), "at": set(), "lms": set()})
+                f["all"].add(int(p.name))
+                if rejected(i.result):
+                    f["at"].add(int(p.name))
+                    f["lms"].add(i.lms)
+    return [f"{fit}, {', '.join(sorted(f['lms']))}: at {len(f['at'])} of {len(f['all'])} points "
+            f"({point_ranges(f['at'])})" for fit, f in sorted(families.items()) if f["at"]]  # fmt: skip
 
 
 def _print_summary(console: Transcript, complete: list[Point], out: Path) -> None:
@@ -111,7 +130,7 @@ def _print_summary(console: Transcript, complete: list[Point], out: Path) -> Non
     table = PlainTable(title=f"{len(complete)} operating points (full tables: coefficients.csv, "
                              f"orbitrig report {out})")  # fmt: skip
     for col in ("point", "label", "Kxx MN/m", "Kyy MN/m", "Cxx kN s/m", "Cyy kN s/m", "worst K / C error",
-                "|dZ|/|Z|", "freq. dep.", "LMS |E_n|", "n.d.", "warn / refused"):  # fmt: skip
+                "|dZ|/|Z|", "freq. dep.", "LMS |E_n|", "n.d.", "rejected *", "warn / refused"):  # fmt: skip
         table.add_column(col, justify="left" if col in ("point", "label") else "right")
     for p in complete:
         fits = _fits(p)
@@ -134,6 +153,10 @@ def _print_summary(console: Transcript, complete: list[Point], out: Path) -> Non
     console.print("freq. dep. = frequency dependence supported by the data (per frequency-dependent fit); "
                   "LMS |E_n| = worst normalised piezo - strain difference (<= 2: consistent); "
                   "n.d. = coefficients not determined (U > |value|), over all fits", markup=False)
+    if lines := rejected_lines(complete):
+        console.print(REJECTED_COUNT_NOTE, markup=False)
+        for line in lines:
+            console.print(f"rejected: {line}", markup=False)
     for p in complete:
         for line in judgement_lines(_judged(p), verdicts=False, brief=True, warnings=False):
             console.print(f"point {p.name}: {line}", markup=False)

@@ -5,6 +5,12 @@ lock), so a block is never written after the point that holds it is marked
 complete. A stop or an abort waits for what is in flight (never cut off).
 The first failure is reported at once to `on_failure` (the engine ends the
 run: drives to a safe stop first) and raised by `check`.
+
+A point's records (its blocks: raw counts, means, phasors) stay in memory until the
+point is identified, stored and complete. At most POINTS_IN_FLIGHT earlier points may
+still be on their way when the next one begins (`wait_for_points`): a machine that
+identifies more slowly than the rig measures (a loaded computer, a simulator at a high
+speed-up) makes the run wait between points instead of piling records up.
 """
 
 from __future__ import annotations
@@ -12,12 +18,14 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
+from collections import deque
 from typing import Awaitable, Callable
 
 from orbitrig.run.events import RunFailed
 from orbitrig.store.errors import StorageError
 
 log = logging.getLogger(__name__)
+POINTS_IN_FLIGHT = 1  # earlier points still identified or stored while the next one is measured
 
 
 class Background:
@@ -25,6 +33,7 @@ class Background:
         self.timing = timing
         self._on_failure = on_failure
         self._pending: set[asyncio.Task] = set()
+        self._points: deque[asyncio.Task] = deque()  # each point's completion, oldest first
         self._writes = asyncio.Lock()
         self.error: BaseException | None = None
 
@@ -37,11 +46,29 @@ class Background:
             finally:
                 self.timing["store"] = self.timing.get("store", 0.0) + time.monotonic() - t
 
-    def spawn(self, coro: Awaitable, name: str) -> None:
+    def spawn(self, coro: Awaitable, name: str) -> asyncio.Task:
         task = asyncio.ensure_future(coro)
         task.set_name(name)
         self._pending.add(task)
         task.add_done_callback(self._done)
+        return task
+
+    def spawn_point(self, coro: Awaitable, name: str) -> None:
+        """A point's completion (identified, stored, committed): counted by `wait_for_points`."""
+        self._points.append(self.spawn(coro, name))
+
+    async def wait_for_points(self, limit: int = POINTS_IN_FLIGHT) -> None:
+        """Wait until at most `limit` points are still on their way to completion (none is
+        cancelled, even if this wait is); the seconds waited count as timing["backlog"]."""
+        t = time.monotonic()
+        while self._points:
+            if self._points[0].done():
+                self._points.popleft()
+            elif len(self._points) > limit:
+                await asyncio.wait({self._points[0]})
+            else:
+                break
+        self.timing["backlog"] = self.timing.get("backlog", 0.0) + time.monotonic() - t
 
     def _done(self, task: asyncio.Task) -> None:
         self._pending.discard(task)

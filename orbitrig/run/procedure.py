@@ -23,6 +23,7 @@ from orbitrig.run.background import Background
 from orbitrig.run.control import RunControl, StopRun, Suspended
 from orbitrig.run.corrections import Corrections
 from orbitrig.run.events import ResultEvent, RunFailed
+from orbitrig.run.heap import trim_heap
 from orbitrig.run.identification import block_record, identify_operating_point, point_truth
 from orbitrig.run.point_report import point_log_lines, result_payload
 from orbitrig.run.plan import (
@@ -118,6 +119,7 @@ class PointProcedure:
     # ------------------------------------------------------------- driving
     async def run_point(self, p: OperatingPoint, steps: list[Step], first: bool) -> None:
         r = self.r
+        await r.background.wait_for_points()  # bounded memory: no pile of points awaiting identification
         r.background.spawn(r.background.write(r.store.begin_point, p), f"begin point {p.index:04d}")
         r.store.log(f"point {p.index:04d} {p.label}: begin")
         r.supervisor.pressure_armed = False
@@ -300,5 +302,6 @@ class PointProcedure:
             await r.background.write(r.store.complete_point, p.index)
             r.store.log(f"point {p.index:04d} {p.label}: complete")
             r.emit(ResultEvent(r.run_id, result_payload(r.run_id, p, res)))
+            await asyncio.to_thread(trim_heap)  # the point's blocks are freed: back to the system
 
-        r.background.spawn(complete(), f"complete point {p.index:04d}")
+        r.background.spawn_point(complete(), f"complete point {p.index:04d}")

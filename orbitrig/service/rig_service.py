@@ -42,9 +42,11 @@ import time
 from collections.abc import Callable
 from typing import Any, Literal
 
-from orbitrig.analysis.run_warnings import closing_warnings
+from orbitrig.analysis.run_warnings import closing_warnings, result_fit_warnings
+from orbitrig.analysis.warning_groups import warning_lines
 from orbitrig.errors import ConfigError, OrbitrigError
 from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
+from orbitrig.run.heap import trim_heap
 from orbitrig.run.states import RunState
 from orbitrig.service import live as live_feed
 from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # the service's seams
@@ -77,6 +79,7 @@ class RigService:
         self._load_matrix = load_matrix
         self._engine: Engine | None = None
         self._run_task: asyncio.Task | None = None
+        self._fit_warnings: list = []  # FitWarnings of the run's completed points (grouped in each result)
         self._live: live_feed.LiveFeed | None = None
         self._status = proto.status_payload(RunState.IDLE, None, None, "service ready")
         self._state = RunState.IDLE
@@ -271,7 +274,6 @@ class RigService:
         payload = proto.reply_ok(cid) if error is None else proto.reply_error(cid, error)
         self.link.send(self.topics.reply, payload, proto.QOS_REPLY, behind=behind)
 
-
     def _cmd_status(self, cmd: proto.Command) -> None:
         self._send(self.topics.status, self._status, proto.QOS_STATUS, True)
 
@@ -292,7 +294,7 @@ class RigService:
         engine.operator = cmd.by or ""  # recorded in the run with every command's sender
         engine.subscribe(self._on_event)
         self._engine = engine
-        self._run_id = engine.run_id
+        self._run_id, self._fit_warnings = engine.run_id, []
         assert self._tg is not None
         self._run_task = self._tg.create_task(self._run(engine, cmd.matrix, matrix), name=f"run-{cmd.matrix}")
         self._live = live_feed.attach(engine, matrix, lambda p: self._send(self.topics.live, p, proto.QOS_LIVE))
@@ -360,6 +362,7 @@ class RigService:
         status = outcome.status
         log.info("run %s of matrix %r ended: %s", self._run_id, name, status)
         summary = await asyncio.to_thread(closing_warnings, outcome.out_dir)
+        trim_heap()  # what the run freed goes back to the system before the next run
         if self._state not in (RunState.IDLE, RunState.FAULTED):
             self._set_status(RunState.IDLE, self._run_id, f"run {status}" + "".join(f"; warning: {w}" for w in summary))
 
@@ -371,10 +374,14 @@ class RigService:
             self._loop.call_soon_threadsafe(self._on_event, event)
             return
         if isinstance(event, StatusEvent):
+            if event.state == RunState.IDLE and self.run_active:
+                return  # the run's closing idle status (with its grouped warnings) follows from _run
             extra = self._live.waiting_fields(event.state) if self._live is not None else None
             self._set_status(event.state, event.run_id, event.message or "", event.since, extra)
         elif isinstance(event, ResultEvent):
-            self._send(self.topics.result, proto.result_payload(event.run_id, event.payload), proto.QOS_RESULT)
+            self._fit_warnings += result_fit_warnings(event.payload)  # the run's warnings so far, grouped
+            payload = {**event.payload, "warning_groups": warning_lines(self._fit_warnings)}
+            self._send(self.topics.result, proto.result_payload(event.run_id, payload), proto.QOS_RESULT)
             if self._catalog is not None and self._engine is not None:
                 self._catalog.point_completed(self._engine.out_dir, event.payload["point"])
         elif isinstance(event, ProgressEvent):

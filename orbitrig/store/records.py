@@ -47,32 +47,48 @@ class PointResults:
 #: CAN and drive rows kept between two journal writes (the newest; 20 min at one row per 0.5 s):
 #: a run that waits for days (a confirmation, a suspend trip) neither fills the memory nor the journal
 MONITOR_ROWS_KEPT = 2400
+#: state changes kept between two journal writes (the newest; a count stands for the rest)
+EVENTS_KEPT = 500
 
 
 class LogBuffer:
     """Rows gathered between writes (appended to the journal with the next write); thread-safe.
-    Of the CAN and drive rows only the newest MONITOR_ROWS_KEPT are kept."""
+    Of the CAN and drive rows only the newest MONITOR_ROWS_KEPT are kept, of the events the
+    newest EVENTS_KEPT (the first event taken then says how many were left out)."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self._rows = self._empty()
+        self._events_left_out = 0
 
     @staticmethod
     def _empty() -> dict[str, deque]:
-        return {"events": deque(), "can": deque(maxlen=MONITOR_ROWS_KEPT), "drives": deque(maxlen=MONITOR_ROWS_KEPT)}
+        kept = {"events": EVENTS_KEPT, "can": MONITOR_ROWS_KEPT, "drives": MONITOR_ROWS_KEPT}
+        return {name: deque(maxlen=n) for name, n in kept.items()}
 
     def add(self, log: str, row: tuple) -> None:
         with self._lock:
-            self._rows[log].append(row)
+            rows = self._rows[log]
+            if log == "events" and len(rows) == rows.maxlen:
+                self._events_left_out += 1
+            rows.append(row)
 
     def take(self) -> tuple[list, list, list]:
         with self._lock:
             rows, self._rows = self._rows, self._empty()
-        return list(rows["events"]), list(rows["can"]), list(rows["drives"])
+            left_out, self._events_left_out = self._events_left_out, 0
+        events = list(rows["events"])
+        if left_out:
+            t, state, _ = events[0]
+            events.insert(0, (t, state, f"{left_out} earlier events left out (only the newest {EVENTS_KEPT} kept)"))
+        return events, list(rows["can"]), list(rows["drives"])
 
     def put_back(self, events: list, can: list, drives: list) -> None:
         """Return rows a failed write could not store (they go with the next write)."""
         with self._lock:
             for name, rows in (("events", events), ("can", can), ("drives", drives)):
                 now = self._rows[name]
-                self._rows[name] = deque([*rows, *now], maxlen=now.maxlen)  # the newest are kept
+                merged = [*rows, *now]
+                if name == "events":
+                    self._events_left_out += max(0, len(merged) - EVENTS_KEPT)
+                self._rows[name] = deque(merged, maxlen=now.maxlen)  # the newest are kept

@@ -28,6 +28,7 @@ from orbitrig.store.durable import APPEND_FLAGS, TMP_SUFFIX, append_lines, fsync
 from orbitrig.store.errors import StorageError, StorageFullError, storage_error
 from orbitrig.store.index import NEVER_COMPLETED, commit_record, point_state, scan
 from orbitrig.store.layout import FORMAT, RunLayout, point_name
+from orbitrig.store.quota import COMMANDS_HEAD, COMMANDS_TAIL, RUN_LOG_HEAD, RUN_LOG_TAIL, LineQuota
 from orbitrig.store.reader import RunDirError, read_point
 from orbitrig.store.records import BlockRecord, LogBuffer, PointResults
 from rigunits import now_iso, utc_iso
@@ -55,6 +56,9 @@ class RunStore:
         self._written: dict[int, dict[str, dict]] = {}  # point -> file name -> size, digest
         self._image = RunImage(self.layout)  # run.h5.tmp on disk, filled as points commit
         self._log_failed = False
+        # between two completed points the logs grow by a bounded number of lines (orbitrig.store.quota)
+        self._log_quota = LineQuota(RUN_LOG_HEAD, RUN_LOG_TAIL)
+        self._command_quota = LineQuota(COMMANDS_HEAD, COMMANDS_TAIL)
 
     # ---------------------------------------------------------- life cycle
     @classmethod
@@ -134,8 +138,10 @@ class RunStore:
         /logs/commands) and a run.log line. Best effort: a storage failure is logged."""
         at = now_iso()
         self.log(f"command {command} by {by}" + (f" ({detail})" if detail else ""))
+        entry = journal.line("command", command=command, by=by, at=at, detail=detail)
         try:
-            self._journal([journal.line("command", command=command, by=by, at=at, detail=detail)])
+            if self._command_quota.offer(entry):
+                self._journal([entry])
         except StorageError as err:
             log.error("cannot journal the command %s by %s: %s", command, by, err)
 
@@ -210,7 +216,8 @@ class RunStore:
         """Commit the point: its commit record names every file with size and digest."""
         rec = commit_record(self.layout, point, self._written.pop(point, None))
         write_atomic(self.layout.commit_file(point), json.dumps(rec, indent=1).encode())
-        self._journal([journal.line("point", point=point, action="complete")])
+        self._journal([*self._close_quotas(f"point {point_name(point)}"), journal.line("point", point=point,
+                                                                                         action="complete")])
         self._image.add_point(point)
         self.write_csv()
 
@@ -218,9 +225,10 @@ class RunStore:
         """Record the run's status; a final status (not 'running') also consolidates run.h5.
         When run.h5 cannot be written the journal records the run as failed (best effort:
         the disk may be full) and the StorageError is raised."""
-        self._journal([journal.status_line(status, message)])
         if status == "running":
+            self._journal([journal.status_line(status, message)])
             return
+        self._journal([*self._close_quotas("the run's end"), journal.status_line(status, message)])
         try:
             self.finalize()
         except StorageError as err:
@@ -264,15 +272,37 @@ class RunStore:
 
     # -------------------------------------------------------------- run.log
     def log(self, message: str) -> None:
-        """A line of the human-readable run.log (best effort: a full disk must not stop the run)."""
+        """A line of the human-readable run.log (best effort: a full disk must not stop the run).
+        Between two completed points the first RUN_LOG_HEAD lines are written at once, the
+        newest RUN_LOG_TAIL held until the interval closes, the rest counted."""
         stamp = utc_iso()
+        line = f"{stamp} {message}\n"
+        if self._log_quota.offer(line):
+            self._append_log(line)
+
+    def _append_log(self, text: str) -> None:
         try:
             with open(os.open(self.log_path, APPEND_FLAGS, 0o644), "a", encoding="utf-8") as fh:
-                fh.write(f"{stamp} {message}\n")
+                fh.write(text)
         except OSError as err:
             if not self._log_failed:
                 log.error("cannot write %s: %s (further run.log lines are lost)", self.log_path, err)
             self._log_failed = True
+
+    def _close_quotas(self, until: str) -> list[str]:
+        """Close the logs' interval at `until`: run.log gets what was left out of it (a count,
+        then the newest lines held); returned: the journal lines to append (the same for commands)."""
+        text, commands = self._log_quota.close(), self._command_quota.close()
+        if text.tail:
+            note = f"{text.count + len(text.tail)} lines since the last completed point were not written at once"
+            stamp = utc_iso()
+            self._append_log(f"{stamp} run.log: {note} (until {until}): {text.count} left out, the newest "
+                             f"{len(text.tail)} follow\n" + "".join(text.tail))
+        if not commands.tail:
+            return []
+        note = f"{commands.count} commands left out (the journal keeps {COMMANDS_HEAD} per point and the newest)"
+        left = [journal.line("command", command="(left out)", by="", at=now_iso(), detail=note)]
+        return (left if commands.count else []) + commands.tail
 
     # --------------------------------------------------------------- reading
     def completed_points(self) -> list[int]:

@@ -4,6 +4,7 @@ mosquitto, driven by independent clients (mosquitto_pub / mosquitto_sub)."""
 from __future__ import annotations
 
 import json
+import re
 import signal
 import time
 from pathlib import Path
@@ -192,7 +193,8 @@ def test_result_carries_intervals_uncertainty_verdicts_and_refusals(rig, service
     assert rig.command({"cmd": "start", "matrix": "judged"})["ok"] is True
     rig.status("waiting", start=mark)
     assert rig.command({"cmd": "confirm", "step": "manual:0000"})["ok"] is True
-    assert "completed" in rig.status("idle", start=mark, timeout=60)["message"]
+    idle = rig.status("idle", start=mark, timeout=60)
+    assert "completed" in idle["message"]
     (msg,) = rig.watch.on("result", mark)
     res = msg.json()
     rows = {(r["lms"], r["model"], r["freq_dep"]): r for r in res["identification"]}
@@ -209,6 +211,12 @@ def test_result_carries_intervals_uncertainty_verdicts_and_refusals(rig, service
     assert "too few orbit frequencies" in rows[("piezo", "kcd12", "poly:4")]["error"]
     assert [(r["lms"], r["model"]) for r in res["refused"]] == [("piezo", "kcd12"), ("strain", "kcd12")]
     assert isinstance(res["warnings"], list)
+    # the warnings grouped per fit family: in each result (the run so far) and in the closing idle status,
+    # the one idle status of the run (sent once its closing summary is read from the stored run)
+    assert res["warnings"] and res["warning_groups"]
+    assert all(re.fullmatch(r".+, .+: .+ at 1 of 1 points \(0000\).*", g) for g in res["warning_groups"])
+    assert idle["message"] == "run completed" + "".join(f"; warning: {g}" for g in res["warning_groups"])
+    assert [m.json()["state"] for m in rig.watch.on("status", mark)].count("idle") == 1
 
 
 # -- the broker and the service go away -----------------------------------------

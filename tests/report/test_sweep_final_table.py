@@ -6,11 +6,16 @@ import re
 
 from report_synthetic import write_synthetic_run
 
-from orbitrig.cli.sweep_summary import DETAIL_POINTS, print_coefficients
+from orbitrig.cli import sweep_summary
+from orbitrig.cli.sweep_summary import DETAIL_POINTS, print_coefficients, rejected
+from orbitrig.store.reader import read_run
 
 
 def test_many_points_print_one_summary_row_each(tmp_path, capsys, monkeypatch):
     monkeypatch.setenv("COLUMNS", "220")
+    # the synthetic fits' stated uncertainties are generous (p about 1): rejecting every p below 1
+    # marks the fits whose residuals are not negligible (kc7 without the true D), not the others
+    monkeypatch.setattr(sweep_summary, "CHI2_ALPHA", 1.0)
     run = write_synthetic_run(tmp_path / "run", n_points=DETAIL_POINTS + 2, incomplete=1)
     print_coefficients(run)
     out = capsys.readouterr().out
@@ -20,6 +25,15 @@ def test_many_points_print_one_summary_row_each(tmp_path, capsys, monkeypatch):
     errors = [float(k) for k, _ in re.findall(r"(\d+\.\d) % / (\d+\.\d) %", out)]
     assert len(errors) == DETAIL_POINTS + 2 and max(errors) < 5.0
     assert "Kxx" not in re.sub(r"Kxx MN/m", "", out)  # no per-coefficient tables
+    # fits the chi2 adequacy test rejects: counted per point and named per fit family with their points
+    stored = read_run(run, blocks=False).complete_points
+    for p in stored:
+        n = sum(rejected(i.result) for i in p.identifications if i.ok)
+        assert re.search(rf"^\S*\s*{p.name}\s.*\s{n} of {sum(i.ok for i in p.identifications)}\s", out, flags=re.M), p.name
+    families = {f"{i.model} {i.freq_dep} {i.method}" for p in stored for i in p.identifications if i.ok and rejected(i.result)}
+    every = {f"{i.model} {i.freq_dep} {i.method}" for p in stored for i in p.identifications if i.ok}
+    assert families and families != every and "rejected * = fits the chi2 adequacy test rejects" in out
+    assert sorted(re.findall(r"^rejected: (.+?), (?:piezo|strain)", out, flags=re.M)) == sorted(families)
 
 
 def test_few_points_print_the_full_tables(tmp_path, capsys, monkeypatch):
@@ -29,6 +43,16 @@ def test_few_points_print_the_full_tables(tmp_path, capsys, monkeypatch):
     out = capsys.readouterr().out
     titles = re.findall(r"^point \d{4}  \S", out, flags=re.M)  # one table per point, then its judgement lines
     assert len(titles) == 2 and "Cyy" in out and "operating points" not in out
+    stored = read_run(run, blocks=False).complete_points
+    assert not any(rejected(i.result) for p in stored for i in p.identifications if i.ok)
+    assert " *" not in out and "adequacy test rejects" not in out  # nothing rejected, nothing marked
+    monkeypatch.setattr(sweep_summary, "CHI2_ALPHA", 1.0)  # as above: the fits with residuals are rejected
+    print_coefficients(run)
+    out = capsys.readouterr().out
+    marked = re.findall(r"(piezo|strain) (\S+) (\S+) \*", out)
+    expected = {(i.lms, i.model, i.method) for p in stored for i in p.identifications if i.ok and rejected(i.result)
+                and i.freq_dep == "none"}  # fmt: skip
+    assert expected and set(marked) >= expected and "* the fit's chi2 adequacy test rejects it" in out
 
 
 def test_the_full_table_marks_not_determined_coefficients_and_names_d(tmp_path, capsys, monkeypatch):
