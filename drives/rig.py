@@ -67,7 +67,8 @@ class RigDrives:
         (`state.link_ok` False, the sweep's interlock); fewer are counted and
         logged only. None: 3, lowered without a warning to fit the watchdog.
     accel_time, decel_time, comm_loss_timeout : s; written to both drives on
-        entry when given (the drives must be stopped then).
+        entry when given and different from what a drive holds (a drive must be
+        stopped to take a new value).
     state_timeout : s for a drive to confirm a state change on its status word.
     """
 
@@ -117,9 +118,10 @@ class RigDrives:
             await self.link.connect()
             for d in self._drives:
                 await d.read_parameters()
-            if any(v is not None for v in self._params.values()):
-                for d in self._drives:
-                    await d.configure(**self._params)
+            for d in self._drives:
+                changed = self._params_to_write(d)
+                if changed:
+                    await d.configure(**changed)
             self._poll.fit_heartbeat()
             statuses = [await self._clear_stale_comm_loss(d) for d in self._drives]
             self._poll.publish(statuses, link_ok=True)
@@ -155,6 +157,19 @@ class RigDrives:
                 raise errors[0]
         finally:
             await self.link.close()
+
+    def _params_to_write(self, drive: Drive) -> dict[str, float]:
+        """The given parameters that differ from what `drive` holds (s; one register unit
+        apart at most counts as equal): a drive that already holds them, running or not,
+        is left alone."""
+        held = drive.params
+        out = {}
+        for name, value in self._params.items():
+            if value is None:
+                continue
+            if held is None or abs(getattr(held, name) - value) >= R.TIME_UNIT / 2:
+                out[name] = value
+        return out
 
     async def _clear_stale_comm_loss(self, drive: Drive) -> DriveStatus:
         """A drive at standstill showing fault 7510 (the previous client went away)

@@ -25,12 +25,15 @@ def drive_limits(d: Drives) -> DriveLimits:
                        max_ratio=d.max_ratio)  # fmt: skip
 
 
-def rig_drives(url: str, d: Drives, limits: DriveLimits | None = None) -> RigDrives:
+def rig_drives(url: str, d: Drives, limits: DriveLimits | None = None, *, watchdog: bool = False) -> RigDrives:
     """RigDrives at `url` with the configured ids, timeout, poll interval and link-loss polls;
-    `limits` default to the configured ones."""
+    `limits` default to the configured ones. ``watchdog``: the drives are given the configured
+    ``comm_loss_timeout_s`` on entry (their parameters are volatile: a power cycle restores
+    the drive's default), as a run needs; a status read leaves them as they are."""
     return RigDrives(url, drive_limits(d) if limits is None else limits, poll_interval=d.poll_interval_s,
                      spin_id=d.spin_id, orbit_id=d.orbit_id, timeout=d.timeout_s,
-                     link_loss_polls=d.link_loss_polls)  # fmt: skip
+                     link_loss_polls=d.link_loss_polls,
+                     comm_loss_timeout=d.comm_loss_timeout_s if watchdog else None)
 
 
 def modbus_link(url: str, d: Drives) -> ModbusLink:

@@ -134,7 +134,7 @@ class RigIO:
                           offsets=rig.offsets, on_revolution=self._revolution)  # fmt: skip
             )
             # entered last, so it is closed first: the drives stop before the links go
-            self.drives = await self._stack.enter_async_context(rig_drives(e.modbus_url, rig.drives))
+            self.drives = await self._stack.enter_async_context(rig_drives(e.modbus_url, rig.drives, watchdog=True))
         except BaseException:
             await self._stack.aclose()
             raise

@@ -209,3 +209,20 @@ async def test_warns_when_one_lost_request_would_trip_the_watchdog(tcp_sim, capl
     async with rig(tcp_sim, timeout=0.3, comm_loss_timeout=1.0):
         pass
     assert "single lost request" not in caplog.text
+
+
+async def test_entry_writes_only_parameters_the_drives_do_not_hold(sim):
+    """The configured watchdog reaches a drive that was power-cycled to its default (1.0 s);
+    a client entering while the drives run with the values held writes nothing (a write
+    would be refused with exception 03 while running)."""
+    assert sim.models[1].parameter(PARAM["COMM_LOSS_TIMEOUT"]) == 10  # the drive's default
+    async with rig(sim, comm_loss_timeout=0.7) as r:
+        assert sim.models[1].parameter(PARAM["COMM_LOSS_TIMEOUT"]) == 7
+        assert sim.models[2].parameter(PARAM["COMM_LOSS_TIMEOUT"]) == 7
+        await r.set_speeds(300 * RPM, 0.0)
+        await r.wait_settled(hold=0.1, timeout=5)
+        assert r._params_to_write(r.spin) == r._params_to_write(r.orbit) == {}  # held: nothing to write
+        r._params["comm_loss_timeout"] = 0.9
+        assert r._params_to_write(r.spin) == {"comm_loss_timeout": 0.9}
+        with pytest.raises(DriveExceptionResponse):  # what that write meets while running
+            await r.spin.configure(comm_loss_timeout=0.9)
