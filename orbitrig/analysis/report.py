@@ -35,8 +35,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from orbitrig.analysis import plots as plots
-from orbitrig.analysis.report_pool import COMBINED_PDF, Progress, combine_pdf, draw_points
-from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_signals
+from orbitrig.analysis.report_pdf import COMBINED_PDF, combine_pdf
+from orbitrig.analysis.report_pool import Progress, draw_points
+from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_signals, report_cache
 from orbitrig.analysis.quality import Verdict, adequacy_verdicts, derived_of, true_impedance, warnings_of
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.errors import ReductionError
@@ -283,10 +284,16 @@ def _remove(path: Path) -> None:
 
 
 def _draw_point(run: Run, point: Point, out: Path, options: ReportOptions) -> PointReport:
-    """Analyse one point and draw its figures (in a worker process or here)."""
+    """Analyse one point and draw its figures (in a worker process or here), or reuse those an
+    earlier report drew from the same inputs (orbitrig.analysis.report_cache)."""
     pr = analyse_point(point)
+    key = report_cache.point_key(point, options)
+    if report_cache.reuse(pr, out, key, options.style.formats):
+        return pr
+    report_cache.forget(out, point.name)
     _clear_point(out, point.name)
     _plot_point(run, pr, out, options)
+    report_cache.remember(pr, out, key)
     return pr
 
 
