@@ -192,9 +192,10 @@ def png_bytes(fig: Figure, dpi: float) -> bytes:
     try:
         fig.set_dpi(dpi)
         fig.canvas.draw()
-        rgb = np.asarray(fig.canvas.buffer_rgba())[..., :3]
+        width, height = fig.canvas.get_width_height(physical=True)
+        rgba = Image.frombuffer("RGBA", (width, height), fig.canvas.buffer_rgba(), "raw", "RGBA", 0, 1)
         buf = io.BytesIO()
-        Image.fromarray(rgb).save(buf, format="png", dpi=(dpi, dpi))
+        rgba.convert("RGB").save(buf, format="png", dpi=(dpi, dpi))
     finally:
         fig.set_dpi(screen)
     return buf.getvalue()
