@@ -23,9 +23,11 @@ A repeated identification that differs from the stored one is reported
 (``PointReport.mismatches``: a warning of the command and a note in the page).
 
 All go to ``DIR/plots`` with ``index.html`` (see orbitrig.analysis.report_html), each figure
-as PNG (300 dpi, for the page) beside PDF and SVG of the same name (``ReportOptions.style``),
-and ``report.pdf``: every figure's PDF in one file, point by point, for sharing. Points are
-drawn by a pool of worker processes (``workers``).
+as PNG (300 dpi, for the page), optionally beside PDF and SVG of the same name
+(``ReportOptions.style``), and ``report.pdf``: every figure in one file, point by point, for
+sharing (orbitrig.analysis.report_pdf). Points are drawn by a pool of worker processes
+(``workers``); a point whose inputs are unchanged keeps the figures an earlier report drew
+(orbitrig.analysis.report_cache).
 """
 
 from __future__ import annotations
@@ -300,8 +302,8 @@ def _draw_point(run: Run, point: Point, out: Path, options: ReportOptions) -> Po
 def make_report(directory: str | Path, *, points: list[int] | None = None,
                 options: ReportOptions = ReportOptions(), workers: int = 1,
                 progress: Progress | None = None) -> Report:  # fmt: skip
-    """Write ``DIR/plots/*.png`` (and .pdf, .svg), ``report.pdf`` and ``index.html``; return what
-    was written.
+    """Write ``DIR/plots/*.png`` (and .pdf, .svg when asked for), ``report.pdf`` and
+    ``index.html``; return what was written.
 
     ``points`` restricts the plots to those operating point indices (all
     complete points by default); ``options`` picks the figure kinds, the style and whether
