@@ -1,9 +1,10 @@
 """Figures of one operating point (matplotlib, Agg canvas, no pyplot state).
 
 Every figure takes plain data (an OrbitTable, Identification objects from
-``reduction.identify``, the point's settings and truth) and is written as a 300 dpi PNG beside
-a vector PDF (and SVG) of the same name (:class:`FigureStyle`: formats, the journal width,
-the coverage factor of every band and error bar). Axes carry units at the edges: Omega/omega
+``reduction.identify``, the point's settings and truth) and is written as a 300 dpi PNG (RGB,
+no alpha: report.pdf embeds its pixels as they are), optionally beside a vector PDF and SVG of
+the same name (:class:`FigureStyle`: formats, the journal width, the coverage factor of every
+band and error bar). Axes carry units at the edges: Omega/omega
 (-), N, deg, MN/m, kN s/m, kg. Forward whirl is drawn with filled markers and solid lines,
 backward whirl with open markers and dashed lines.
 """
@@ -46,12 +47,12 @@ class FigureFormat(StrEnum):
 @dataclass(frozen=True)
 class FigureStyle:
     """How every figure of a report is drawn and written: ``width`` (in; the journal's double
-    column by default), ``formats`` (PNG for the page, PDF for print and the combined report),
-    PNG resolution (dpi), the text size at that width (pt) and the coverage factor k of every
+    column by default), ``formats`` (PNG for the page; PDF and SVG, vector, for print: each
+    costs about as much as the PNG again, so they are asked for), PNG resolution (dpi), the text size at that width (pt) and the coverage factor k of every
     band and error bar (2: the expanded uncertainty U = k u)."""
 
     width: float = COLUMN_WIDTHS["double"]
-    formats: tuple[FigureFormat, ...] = (FigureFormat.PNG, FigureFormat.PDF, FigureFormat.SVG)
+    formats: tuple[FigureFormat, ...] = (FigureFormat.PNG,)
     dpi: int = 300
     font: float = 6.5
     coverage: float = 2.0
@@ -77,6 +78,7 @@ def use_style(style: FigureStyle) -> None:
         "xtick.labelsize": "small", "ytick.labelsize": "small", "legend.fontsize": "small",
         "figure.titlesize": "large", "lines.linewidth": 1.0, "lines.markersize": 3.5,
         "pdf.fonttype": 42, "svg.fonttype": "none", "path.simplify": True,
+        "axes.titley": 1.0,  # titles at a fixed height: no search for overlapping tick labels per draw
     })  # fmt: skip
 
 
@@ -171,12 +173,33 @@ def _save(fig: Figure, path: Path) -> Path:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise storage_error(path.parent, "create the folder", err) from err
-    for fmt in STYLE.formats:
-        buf = io.BytesIO()
-        fig.savefig(buf, format=str(fmt), dpi=STYLE.dpi if fmt == FigureFormat.PNG else 72,
-                    metadata=None if fmt == FigureFormat.PNG else {"Creator": "orbitrig report"})  # fmt: skip
-        write_atomic(path.with_suffix(f".{fmt}"), buf.getbuffer())
+    for fmt in (FigureFormat.PNG, *(f for f in STYLE.formats if f != FigureFormat.PNG)):
+        if fmt == FigureFormat.PNG:
+            data = png_bytes(fig, STYLE.dpi)
+        else:
+            buf = io.BytesIO()
+            fig.savefig(buf, format=str(fmt), dpi=72, metadata={"Creator": "orbitrig report"})
+            data = buf.getbuffer()
+        write_atomic(path.with_suffix(f".{fmt}"), data)
     return path
+
+
+def png_bytes(fig: Figure, dpi: float) -> bytes:
+    """`fig` drawn on its Agg canvas at `dpi` and encoded as an RGB PNG (the figure is opaque:
+    no alpha channel, so report.pdf can carry the PNG's compressed pixels unchanged)."""
+    from PIL import Image
+
+    screen = fig.dpi
+    try:
+        fig.set_dpi(dpi)
+        fig.canvas.draw()
+        width, height = fig.canvas.get_width_height(physical=True)
+        rgba = Image.frombuffer("RGBA", (width, height), fig.canvas.buffer_rgba(), "raw", "RGBA", 0, 1)
+        buf = io.BytesIO()
+        rgba.convert("RGB").save(buf, format="png", dpi=(dpi, dpi))
+    finally:
+        fig.set_dpi(screen)
+    return buf.getvalue()
 
 
 def _colors(n: int) -> list:

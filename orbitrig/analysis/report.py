@@ -23,9 +23,11 @@ A repeated identification that differs from the stored one is reported
 (``PointReport.mismatches``: a warning of the command and a note in the page).
 
 All go to ``DIR/plots`` with ``index.html`` (see orbitrig.analysis.report_html), each figure
-as PNG (300 dpi, for the page) beside PDF and SVG of the same name (``ReportOptions.style``),
-and ``report.pdf``: every figure's PDF in one file, point by point, for sharing. Points are
-drawn by a pool of worker processes (``workers``).
+as PNG (300 dpi, for the page), optionally beside PDF and SVG of the same name
+(``ReportOptions.style``), and ``report.pdf``: every figure in one file, point by point, for
+sharing (orbitrig.analysis.report_pdf). Points are drawn by a pool of worker processes
+(``workers``); a point whose inputs are unchanged keeps the figures an earlier report drew
+(orbitrig.analysis.report_cache).
 """
 
 from __future__ import annotations
@@ -35,8 +37,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from orbitrig.analysis import plots as plots
-from orbitrig.analysis.report_pool import COMBINED_PDF, Progress, combine_pdf, draw_points
-from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_signals
+from orbitrig.analysis.report_pdf import COMBINED_PDF, combine_pdf
+from orbitrig.analysis.report_pool import Progress, draw_points
+from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_signals, report_cache
 from orbitrig.analysis.quality import Verdict, adequacy_verdicts, derived_of, true_impedance, warnings_of
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.errors import ReductionError
@@ -284,18 +287,24 @@ def _remove(path: Path) -> None:
 
 
 def _draw_point(run: Run, point: Point, out: Path, options: ReportOptions) -> PointReport:
-    """Analyse one point and draw its figures (in a worker process or here)."""
+    """Analyse one point and draw its figures (in a worker process or here), or reuse those an
+    earlier report drew from the same inputs (orbitrig.analysis.report_cache)."""
     pr = analyse_point(point)
+    key = report_cache.point_key(point, options)
+    if report_cache.reuse(pr, out, key, options.style.formats):
+        return pr
+    report_cache.forget(out, point.name)
     _clear_point(out, point.name)
     _plot_point(run, pr, out, options)
+    report_cache.remember(pr, out, key)
     return pr
 
 
 def make_report(directory: str | Path, *, points: list[int] | None = None,
                 options: ReportOptions = ReportOptions(), workers: int = 1,
                 progress: Progress | None = None) -> Report:  # fmt: skip
-    """Write ``DIR/plots/*.png`` (and .pdf, .svg), ``report.pdf`` and ``index.html``; return what
-    was written.
+    """Write ``DIR/plots/*.png`` (and .pdf, .svg when asked for), ``report.pdf`` and
+    ``index.html``; return what was written.
 
     ``points`` restricts the plots to those operating point indices (all
     complete points by default); ``options`` picks the figure kinds, the style and whether

@@ -1,9 +1,8 @@
-"""Drawing a report's points in parallel, and the combined PDF of the whole report.
+"""Drawing a report's points in parallel.
 
 :func:`draw_points` hands each operating point to a pool of worker processes (forked, so each
 worker starts with the run already read and the figure style set) and reports progress as
 points finish; one worker, one point or a platform without fork draws in this process.
-:func:`combine_pdf` joins every figure's PDF, point by point, into ``report.pdf``.
 """
 
 from __future__ import annotations
@@ -11,12 +10,10 @@ from __future__ import annotations
 import multiprocessing
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from pathlib import Path
 from typing import Any
 
 #: (points done, points in all, figures written so far) after each point
 Progress = Callable[[int, int, int], None]
-COMBINED_PDF = "report.pdf"
 
 _JOB: dict[str, Any] = {}  # what a forked worker draws: {"points": [...], "draw": callable}
 
@@ -52,21 +49,3 @@ def draw_points(points: list, draw: Callable, *, workers: int = 1, progress: Pro
         _JOB.clear()
     return results
 
-
-def combine_pdf(pngs: list[Path], path: Path) -> Path | None:
-    """One PDF of the figures `pngs` (their .pdf beside each), in order, at `path`; None when
-    no figure was written as PDF."""
-    from pypdf import PdfWriter
-
-    pdfs = [p.with_suffix(".pdf") for p in map(Path, pngs) if p.with_suffix(".pdf").exists()]
-    path.unlink(missing_ok=True)
-    if not pdfs:
-        return None
-    writer = PdfWriter()
-    for pdf in pdfs:
-        writer.append(str(pdf), outline_item=pdf.stem)
-    tmp = path.with_suffix(".pdf.tmp")
-    with open(tmp, "wb") as f:
-        writer.write(f)
-    tmp.replace(path)
-    return path

@@ -88,7 +88,7 @@ def report_cmd(
     all_frequencies: Annotated[bool, typer.Option("--all-frequencies", help="Force-signal figure (paper Fig. 4) for every orbit frequency, not only the lowest and highest of each whirl direction.")] = False,
     figures: Annotated[Optional[str], typer.Option("--figures", metavar="KINDS", help="Only these figure kinds, comma-separated: forces, coefficients, derived, impedance, coherence, lms, signals, orbits (default: all). The page's tables are always complete.")] = None,
     width: Annotated[str, typer.Option("--width", help="Figure width: double (a journal's double column, 7.2 in), single (3.5 in) or inches.")] = "double",
-    formats: Annotated[str, typer.Option("--formats", metavar="LIST", help="Files of each figure, comma-separated: png (300 dpi, for the page), pdf (vector; also joined into report.pdf), svg.")] = "png,pdf,svg",
+    formats: Annotated[str, typer.Option("--formats", metavar="LIST", help="Files of each figure, comma-separated: png (300 dpi, for the page), pdf (vector; then report.pdf joins these), svg. Each vector format costs about as much time as the PNG.")] = "png",
     coverage: Annotated[float, typer.Option("--coverage", min=0.5, max=5.0, help="Coverage factor k of every band and error bar: +-k u (2: the expanded uncertainty U; 1: one standard uncertainty).")] = 2.0,
     workers: Annotated[int, typer.Option("--workers", min=1, help="Processes drawing the points in parallel.")] = 2,
 ) -> None:

@@ -133,7 +133,7 @@ def test_single_column_width(point, tmp_path):
     from orbitrig.analysis.plots_coherence import coherence_figure, coherence_table
 
     pt, _ = point
-    plots.use_style(plots.FigureStyle(width=plots.COLUMN_WIDTHS["single"]))
+    plots.use_style(plots.FigureStyle(width=plots.COLUMN_WIDTHS["single"], formats=tuple(FMT)))
     try:
         png = plots.save_figure(coherence_figure(coherence_table(pt.tables), title="t"), tmp_path / "c.png")
     finally:
@@ -147,13 +147,15 @@ def test_formats_sizes_and_the_combined_pdf(tmp_path):
     run = write_synthetic_run(tmp_path / "run", n_points=2, incomplete=0)
     inches = plots.COLUMN_WIDTHS["double"]
     calls = []
-    options = ReportOptions(figures=frozenset({"lms"}), style=plots.FigureStyle(width=inches))
+    style = plots.FigureStyle(width=inches, formats=(FMT.PNG, FMT.PDF, FMT.SVG))  # vector: asked for
+    options = ReportOptions(figures=frozenset({"lms"}), style=style)
     report = make_report(run, options=options, workers=2, progress=lambda *a: calls.append(a))
     assert [c[:2] for c in sorted(calls)] == [(1, 2), (2, 2)] and calls[-1][2] == len(report.plots) - 1
     for png in report.plots:
         _check_files(png, inches)
     combined = PdfReader(report.pdf)
-    assert len(combined.pages) == len(report.plots)  # every figure, the summary included
+    assert len(combined.pages) == len(report.plots)  # every figure, the summary included, vector
+    assert [float(p.mediabox.width) for p in combined.pages] == pytest.approx([inches * 72] * 3, abs=1)
     assert [p.name for p in report.plots] == ["lms_0000.png", "lms_0001.png", "summary.png"]
 
 

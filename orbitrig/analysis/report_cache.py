@@ -1,0 +1,85 @@
+"""Figures reused across reports: a point whose inputs did not change is not drawn again.
+
+After a point's figures are written, ``DIR/plots/.figures/PPPP.json`` records their names and
+a key: SHA-256 of the point as read from the store (settings, orbit tables, stored fits, truth),
+the report options (figure kinds, frequencies, style) and the source of the code that draws
+them (orbitrig.analysis, reduction) with the matplotlib version. A later report with the same
+key, whose files are all present in every format, reuses them. The record is removed before a
+point is drawn, so a report cut short never leaves a record of half-drawn figures.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+import pickle
+from pathlib import Path
+
+from orbitrig.store.durable import write_atomic
+from orbitrig.store.errors import storage_error
+
+CACHE_DIR = ".figures"
+
+
+@functools.cache
+def _code_digest() -> str:
+    """SHA-256 of the drawing and reduction code (a new version draws every figure again)."""
+    import matplotlib
+
+    import orbitrig.analysis
+    import reduction
+
+    h = hashlib.sha256(matplotlib.__version__.encode())
+    for package in (orbitrig.analysis, reduction):
+        for source in sorted(Path(package.__file__).parent.glob("*.py")):
+            h.update(source.name.encode() + source.read_bytes())
+    return h.hexdigest()
+
+
+def point_key(point, options) -> str:
+    """The key of one point's figures (stored Point, ReportOptions)."""
+    h = hashlib.sha256(_code_digest().encode())
+    h.update(repr((sorted(options.figures), options.all_frequencies, options.style)).encode())
+    h.update(pickle.dumps(point, protocol=5))
+    return h.hexdigest()
+
+
+def _record(out: Path, name: str) -> Path:
+    return out / CACHE_DIR / f"{name}.json"
+
+
+def reuse(pr, out: Path, key: str, formats) -> bool:
+    """Fill `pr.plots` and `pr.unreadable` from the record of point `pr.point` when its key is
+    `key` and every figure is there in every format; False (nothing changed) otherwise."""
+    try:
+        record = json.loads(_record(out, pr.point.name).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    if not isinstance(record, dict) or record.get("key") != key:
+        return False
+    pngs = [out / name for name in record.get("plots", [])]
+    if not all(png.with_suffix(f".{fmt}").is_file() for png in pngs for fmt in formats):
+        return False
+    pr.plots, pr.unreadable = pngs, list(record.get("unreadable", []))
+    return True
+
+
+def forget(out: Path, name: str) -> None:
+    """Remove the record of point `name` (its figures are about to be drawn again)."""
+    path = _record(out, name)
+    try:
+        path.unlink(missing_ok=True)
+    except OSError as err:
+        raise storage_error(path, "remove", err) from err
+
+
+def remember(pr, out: Path, key: str) -> None:
+    """Record the figures just drawn for point `pr.point` under `key`."""
+    path = _record(out, pr.point.name)
+    try:
+        path.parent.mkdir(exist_ok=True)
+    except OSError as err:
+        raise storage_error(path.parent, "create the folder", err) from err
+    record = {"key": key, "plots": [p.name for p in pr.plots], "unreadable": pr.unreadable}
+    write_atomic(path, json.dumps(record, indent=1).encode())
