@@ -32,7 +32,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests" / "report"))
 
-from report_synthetic import write_synthetic_run
+from report_synthetic import write_synthetic_run  # noqa: E402 - after the path of the tests
 
 PAPER_POINTS = 108
 TARGET_S = 120.0

@@ -194,7 +194,7 @@ def png_bytes(fig: Figure, dpi: float) -> bytes:
         fig.set_dpi(dpi)
         fig.canvas.draw()
         width, height = fig.canvas.get_width_height(physical=True)
-        rgba = Image.frombuffer("RGBA", (width, height), fig.canvas.buffer_rgba(), "raw", "RGBA", 0, 1)
+        rgba = Image.frombuffer("RGBA", (width, height), fig.canvas.buffer_rgba(), "raw", "RGBA", 0, 1)  # type: ignore[attr-defined]  # Agg
         buf = io.BytesIO()
         rgba.convert("RGB").save(buf, format="png", dpi=(dpi, dpi))
     finally:
