@@ -12,10 +12,12 @@ import argparse
 import asyncio
 import contextlib
 import json
+import os
 import sys
 
 from sim.config import SimConfig, load_sim_config, sim_config_from_data
-from sim.rig import SimRig, serve_until_signalled
+from sim.rig import SimRig
+from sim.serve import serve_until_signalled
 
 
 def _args(argv: list[str] | None) -> argparse.Namespace:
@@ -34,6 +36,9 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--can-hub", type=int, default=None, metavar="PORT",
                     help="the CAN bus between processes: a TCP hub on PORT (0: any free; python-can "
                          "interface 'serial', channel socket://127.0.0.1:PORT, sim.can_tcp)")
+    ap.add_argument("--nice", type=int, default=0,
+                    help="change this process's nice value by N (negative: before the host's other work, "
+                         "as drives that are machines of their own; ignored where not permitted)")
     ap.add_argument("--parent-pid", type=int, default=None,
                     help="end when this process ends or closes our standard input")
     return ap.parse_args(argv)
@@ -60,6 +65,9 @@ async def _serve(a: argparse.Namespace, cfg: SimConfig) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     a = _args(argv)
+    if a.nice:
+        with contextlib.suppress(OSError):  # PermissionError: an unprivileged user may only lower it
+            os.nice(a.nice)
     if a.parent_pid is not None:
         from sim.parent import end_with_parent
 

@@ -224,7 +224,7 @@ class DriveModel:
             if self._remote:
                 self._ref = self._ref_reg
         if CW in updates:
-            self.control_words.append((self._w, updates[CW]))
+            self.control_words.append((time.monotonic(), updates[CW]))
             self._write_cw(updates[CW])
 
     def inject_fault(self, code: int) -> None:

@@ -16,7 +16,6 @@ from __future__ import annotations
 import ctypes
 import os
 import signal
-import sys
 import threading
 
 PR_SET_PDEATHSIG = 1
@@ -36,8 +35,8 @@ def end_with_parent(parent_pid: int) -> None:
 
 def _terminate_at_eof() -> None:
     try:
-        while sys.stdin.buffer.read(4096):
+        while os.read(0, 4096):  # unbuffered: no lock that interpreter shutdown could find held
             pass
-    except (OSError, ValueError):
+    except OSError:
         pass
     os.kill(os.getpid(), signal.SIGTERM)

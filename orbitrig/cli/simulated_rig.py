@@ -44,6 +44,10 @@ from orbitrig.run.rig_io import Endpoints, RigAccess, Scenario, TimeScale
 DEFAULT_SPEEDUP = 40.0
 #: wall seconds the simulator process may take to announce its endpoints (a loaded machine)
 START_TIMEOUT = 120.0
+#: the simulator's nice value relative to the application's: its drives, A/D board and CAN
+#: node stand for machines with processors of their own, which the host's load never delays
+#: (applied where permitted: root or CAP_SYS_NICE; otherwise it runs at the application's)
+SIMULATOR_NICE = -10
 #: wall seconds it may take to end after its standard input closed, before SIGKILL
 STOP_TIMEOUT = 10.0
 
@@ -203,7 +207,7 @@ async def simulated_rig(speedup: float = DEFAULT_SPEEDUP, config=None,
 def _command(speedup: float, config) -> list[str]:
     args = [sys.executable, "-m", "sim", "--modbus-port", "0", "--adc-port", "0", "--no-adc-pty",
             "--control-port", "0", "--can-hub", "0", "--speedup", repr(float(speedup)),
-            "--parent-pid", str(os.getpid())]  # fmt: skip
+            "--nice", str(SIMULATOR_NICE), "--parent-pid", str(os.getpid())]  # fmt: skip
     if config is not None:
         from sim.config import sim_config_to_data
 
