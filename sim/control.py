@@ -27,6 +27,8 @@ import logging
 
 import numpy as np
 
+from sim.drive_registers import CW
+
 log = logging.getLogger(__name__)
 
 
@@ -55,9 +57,13 @@ def _impedances(rig, req: dict) -> dict:
 
 
 def _drives(rig, req: dict) -> dict:
-    """Per drive (Modbus device id): state, actual speed (rpm), faults, the last control words."""
+    """Per drive (Modbus device id), now: state, actual speed (rpm), faults, the control word it
+    holds and the last ones written, time stamped."""
+    for d in rig.drives.values():
+        d.advance()
     return {"drives": {str(dev): {"state": d.state, "rpm": d.actual_rpm, "fault": d.fault_code,
-                                  "faults": list(d.faults), "control_words": [list(w) for w in d.control_words]}
+                                  "faults": list(d.faults), "control_word": d.read(CW, 1)[0],
+                                  "control_words": [list(w) for w in d.control_words]}
                        for dev, d in rig.drives.items()}}  # fmt: skip
 
 
