@@ -84,6 +84,10 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, RuntimeError) as err:  # a port in use (pymodbus: RuntimeError "Could not start listen")
         print(f"python -m sim: {err}", file=sys.stderr)
         return 1
+    if a.parent_pid is not None:  # every server is closed: end now, the application waits for it
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(0)
     return 0
 
 

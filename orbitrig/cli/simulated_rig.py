@@ -29,16 +29,20 @@ import importlib.util
 import json
 import os
 import socket
+import subprocess
 import sys
 import tempfile
 import threading
 from collections.abc import AsyncIterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from orbitrig.errors import OrbitrigError
-from orbitrig.run.rig_io import Endpoints, RigAccess, Scenario, TimeScale
+
+if TYPE_CHECKING:  # imported where used: the simulator starts before the engine's links are imported
+    from orbitrig.run.rig_io import Endpoints, RigAccess, Scenario
 
 #: simulator time / wall time of `orbitrig sweep --sim` and `orbitrig serve --sim`
 DEFAULT_SPEEDUP = 40.0
@@ -167,12 +171,14 @@ class SimulatorTruth:
 class SimulatorProcess:
     """A running `python -m sim` child: its announced `endpoints`, its control `link`."""
 
-    def __init__(self, speedup: float, endpoints: dict, proc: asyncio.subprocess.Process):
+    def __init__(self, speedup: float, endpoints: dict, proc: subprocess.Popen):
         self.speedup, self.endpoints, self.proc = speedup, endpoints, proc
         self.link = SimulatorLink(endpoints["control"])
 
     @property
     def access_endpoints(self) -> Endpoints:
+        from orbitrig.run.rig_io import Endpoints
+
         e = self.endpoints
         return Endpoints(e["modbus"], e["adc"], e["can"], "serial")
 
@@ -184,6 +190,8 @@ class SimulatorProcess:
 def simulated_access(sim, scenario: Scenario | None = None) -> RigAccess:
     """How the engine reaches a simulator: a SimulatorProcess, or a sim.rig.SimRig running in
     this process (tests that reach into it); `scenario`: what it runs, recorded in the run."""
+    from orbitrig.run.rig_io import Endpoints, RigAccess, TimeScale
+
     if isinstance(sim, SimulatorProcess):
         link, endpoints = sim.link, sim.access_endpoints
     else:
@@ -193,15 +201,81 @@ def simulated_access(sim, scenario: Scenario | None = None) -> RigAccess:
 
 
 @contextlib.asynccontextmanager
-async def simulated_rig(speedup: float = DEFAULT_SPEEDUP, config=None,
-                        scenario: Scenario | None = None) -> AsyncIterator[tuple[SimulatorProcess, RigAccess]]:  # fmt: skip
+async def simulated_rig(speedup: float = DEFAULT_SPEEDUP, config=None, scenario: Scenario | None = None,
+                        started: SimulatorStart | None = None) -> AsyncIterator[tuple[SimulatorProcess, RigAccess]]:  # fmt: skip
     """A simulator process of scenario `config` (a sim.config.SimConfig; default: the paper's
-    rig) and its access; `scenario` names it in the run (the config's file and text)."""
-    sim = await _start(speedup, config)
+    rig) and its access; `scenario` names it in the run (the config's file and text).
+    `started`: the process `start_simulator` started earlier with the same arguments."""
+    started = started or start_simulator(speedup, config)
+    try:
+        sim = SimulatorProcess(speedup, await started.ready(), started.proc)
+    except BaseException:
+        await started.end()
+        raise
     try:
         yield sim, simulated_access(sim, scenario)
     finally:
-        await _stop(sim)
+        sim.link.close()
+        await started.end()
+
+
+def start_simulator(speedup: float = DEFAULT_SPEEDUP, config=None) -> SimulatorStart:
+    """Start the simulator process now (it takes a second or more to import and listen);
+    `simulated_rig(..., started=)` waits for it. Whoever starts it passes it on at once."""
+    return SimulatorStart(_command(speedup, config))
+
+
+class SimulatorStart:
+    """A `python -m sim` child from its start to its end: the ready line, the stop."""
+
+    def __init__(self, command: list[str]):
+        self.log = tempfile.TemporaryFile()  # its stderr: shown only when it fails to start
+        try:
+            self.proc = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log,
+                                         env=_environment(), start_new_session=True)  # fmt: skip
+        except OSError as err:
+            self.log.close()
+            raise SimulatorError(f"the simulator process could not start: {err}") from None
+
+    async def ready(self) -> dict:
+        """Its endpoints, once it announces them; SimulatorError with its last word if it does not."""
+        try:
+            line = await asyncio.wait_for(asyncio.to_thread(self.proc.stdout.readline), START_TIMEOUT)
+            endpoints = json.loads(line) if line.startswith(b"{") else None
+        except (asyncio.TimeoutError, ValueError):
+            endpoints = None
+        if endpoints is None:
+            await self._ended()
+            self.log.seek(0)
+            said = self.log.read().decode(errors="replace").strip().splitlines()
+            self.log.close()
+            raise SimulatorError("the simulator process did not start (python -m sim, exit status "
+                                 f"{self.proc.returncode}){': ' + said[-1] if said else ''}")  # fmt: skip
+        return endpoints
+
+    async def end(self) -> None:
+        """Close its standard input (it ends itself cleanly); SIGKILL after STOP_TIMEOUT."""
+        try:
+            await self._ended()
+        finally:
+            self.log.close()
+
+    async def _ended(self) -> None:
+        self.proc.stdin.close()
+        try:
+            await asyncio.to_thread(self.proc.wait, STOP_TIMEOUT)
+        except subprocess.TimeoutExpired:
+            self._kill()
+            await asyncio.to_thread(self.proc.wait)
+        except asyncio.CancelledError:
+            self._kill()
+            raise
+        finally:
+            self.proc.stdout.close()
+
+    def _kill(self) -> None:
+        with contextlib.suppress(ProcessLookupError):
+            self.proc.kill()
 
 
 def _command(speedup: float, config) -> list[str]:
@@ -220,56 +294,3 @@ def _environment() -> dict:
     root = str(Path(importlib.util.find_spec("sim").origin).resolve().parents[1])
     path = os.environ.get("PYTHONPATH", "")
     return dict(os.environ, PYTHONPATH=root + (os.pathsep + path if path else ""))
-
-
-async def _start(speedup: float, config) -> SimulatorProcess:
-    log = tempfile.TemporaryFile()  # its stderr: shown only when it fails to start
-    try:
-        proc = await asyncio.create_subprocess_exec(
-            *_command(speedup, config), stdin=asyncio.subprocess.PIPE, stdout=asyncio.subprocess.PIPE,
-            stderr=log, env=_environment(), start_new_session=True)  # fmt: skip
-    except OSError as err:
-        log.close()
-        raise SimulatorError(f"the simulator process could not start: {err}") from None
-    try:
-        line = await asyncio.wait_for(proc.stdout.readline(), START_TIMEOUT)
-        endpoints = json.loads(line) if line.startswith(b"{") else None
-    except (asyncio.TimeoutError, ValueError):
-        endpoints = None
-    except BaseException:
-        await _end(proc)
-        log.close()
-        raise
-    if endpoints is None:
-        await _end(proc)
-        log.seek(0)
-        said = log.read().decode(errors="replace").strip().splitlines()
-        log.close()
-        raise SimulatorError("the simulator process did not start (python -m sim, exit status "
-                             f"{proc.returncode}){': ' + said[-1] if said else ''}")  # fmt: skip
-    log.close()
-    return SimulatorProcess(speedup, endpoints, proc)
-
-
-async def _stop(sim: SimulatorProcess) -> None:
-    sim.link.close()
-    await _end(sim.proc)
-
-
-async def _end(proc: asyncio.subprocess.Process) -> None:
-    """Close its standard input (it ends itself cleanly); SIGKILL after STOP_TIMEOUT."""
-    if proc.stdin is not None:
-        proc.stdin.close()
-    try:
-        await asyncio.wait_for(asyncio.shield(proc.wait()), STOP_TIMEOUT)
-    except asyncio.TimeoutError:
-        _kill(proc)
-        await proc.wait()
-    except asyncio.CancelledError:
-        _kill(proc)
-        raise
-
-
-def _kill(proc: asyncio.subprocess.Process) -> None:
-    with contextlib.suppress(ProcessLookupError):
-        proc.kill()
