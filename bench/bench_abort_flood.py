@@ -4,8 +4,9 @@ Target: < 200 ms from the abort's publish to both drives commanded to stop,
 while a second operator client publishes 5000 commands at full speed. A real
 mosquitto (password file, the project's ACL and the shipped config's queue and
 in-flight limits), the rig service as `orbitrig serve --sim` builds it (in this
-process, so the simulated drives' register writes can be time stamped, as in
-bench_abort_latency.py). Per trial: a run is started and both drives spun up;
+process) on the simulator in its own process, as `serve --sim` runs it; the
+simulated drives time stamp each control word written to them on the host's
+monotonic clock (the simulator's control API, command `drives`). Per trial: a run is started and both drives spun up;
 the flooding client (tests/mqtt/mqtt_flood.py, its own process) publishes its
 commands (QoS 1, or alternating QoS 0 and 1); when the broker has taken half of
 them, the operator (paho, own connection) publishes `abort`. On one clock:
@@ -30,14 +31,13 @@ import json
 import logging
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO), str(REPO / "tests" / "mqtt"), str(REPO / "bench")]
 
-from bench_abort_latency import Operator, watch_control_words  # noqa: E402
+from bench_abort_latency import CW_STOPPING, Operator  # noqa: E402
 from mqtt_helpers import ACCOUNTS, MATRIX, Broker  # noqa: E402  (the tests' broker set-up)
 
 FLOODER = REPO / "tests" / "mqtt" / "mqtt_flood.py"
@@ -95,7 +95,7 @@ class LoopLag:
 
 
 async def one_trial(op: TimedOperator, service, broker: Broker, qos: str, count: int,
-                    stops: dict, armed: threading.Event, lag: LoopLag, via: str) -> dict:
+                    sim, lag: LoopLag, via: str) -> dict:
     op.progress_revs = 0
     op.send("start", matrix="bench")
     await asyncio.to_thread(op.wait, lambda: op.progress_revs >= 20, 60)  # both drives at speed
@@ -103,22 +103,32 @@ async def one_trial(op: TimedOperator, service, broker: Broker, qos: str, count:
     service.abort_arrived = None
     lag.take()
     proc = await flood(broker.port, op.prefix, count, qos)
-    stops.clear()
     op.seen.clear()
-    armed.set()
     t_pub = op.abort(via)
     await asyncio.to_thread(op.wait, lambda: op.status.get("state") in ("idle", "faulted"), 120)
-    armed.clear()
     worst_lag = lag.take()
     summary = json.loads((await asyncio.wait_for(proc.stdout.read(), 180)).decode().strip().splitlines()[-1])
     await proc.wait()
     after = dict(service.triage.counts)
     counted = {k: after.get(k, 0) - before.get(k, 0) for k in after}
+    stops = await asyncio.to_thread(first_stops, sim, t_pub)
     stop_ms = (max(stops.values()) - t_pub) * 1e3 if len(stops) == 2 else float("inf")
     arrive_ms = (service.abort_arrived - t_pub) * 1e3 if service.abort_arrived else float("inf")
     stopping_ms = (op.seen["stopping"] - t_pub) * 1e3 if "stopping" in op.seen else float("inf")
     return {"stop_ms": stop_ms, "arrive_ms": arrive_ms, "stopping_ms": stopping_ms, "outcome": op.status.get("message", ""),
             "flood": summary, "service": counted, "lag_ms": worst_lag * 1e3}
+
+
+def first_stops(sim, since: float) -> dict[int, float]:
+    """When each simulated drive was first written a stopping control word after `since`
+    (time.monotonic: one clock for every process of the host)."""
+    drives = sim.link.call("drives")["drives"]
+    stops = {}
+    for device, d in drives.items():
+        times = [t for t, cw in d["control_words"] if t >= since and cw & CW_STOPPING != CW_STOPPING]
+        if times:
+            stops[int(device)] = min(times)
+    return stops
 
 
 def timed_arrival(service) -> None:
@@ -138,7 +148,7 @@ async def main(trials: int, speedup: float, count: int, modes: list[str], via: s
     from orbitrig.cli.serve import build_service
     from orbitrig.config import load_rig
     from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
-    from sim.rig import SimRig
+    from orbitrig.cli.simulated_rig import simulated_rig
 
     logging.basicConfig(level=logging.WARNING)
     work = Path(tempfile.mkdtemp(prefix="bench-abort-flood-"))
@@ -147,12 +157,9 @@ async def main(trials: int, speedup: float, count: int, modes: list[str], via: s
         MATRIX.format(name="bench", revs=400, ratios="[0.5, 0.7, 0.9]", directions='["forward"]'))
     broker = Broker(work / "broker", bind_ids=True)
     broker.start()
-    stops: dict[int, float] = {}
-    armed = threading.Event()
     failures = 0
     try:
-        async with SimRig(speedup=speedup, adc_pty=False) as sim_rig:
-            watch_control_words(sim_rig, stops, {}, armed)
+        async with simulated_rig(speedup) as (sim_rig, _):
             settings = ServiceSettings(rig_id="bench", matrices_dir=work / "matrices")
             creds = BrokerSettings.from_url(broker.service_url, username="orbitrig-service",
                                             password=ACCOUNTS["orbitrig-service"])
@@ -168,7 +175,7 @@ async def main(trials: int, speedup: float, count: int, modes: list[str], via: s
                 await asyncio.to_thread(op.wait, lambda: op.status.get("state") == "idle", 30)
                 for qos in modes:
                     for trial in range(trials):
-                        r = await one_trial(op, service, broker, qos, count, stops, armed, lag, via)
+                        r = await one_trial(op, service, broker, qos, count, sim_rig, lag, via)
                         ok = r["stop_ms"] < TARGET_MS and "aborted" in r["outcome"]
                         failures += not ok
                         print(f"QoS {qos:>5} trial {trial + 1}: abort -> both drives stopping "
@@ -191,8 +198,7 @@ async def main(trials: int, speedup: float, count: int, modes: list[str], via: s
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trials", type=int, default=3)
-    ap.add_argument("--speedup", type=float, default=5.0,
-                    help="simulator speed-up (the simulator shares the service's CPU; a real rig does not)")
+    ap.add_argument("--speedup", type=float, default=5.0, help="simulator speed-up")
     ap.add_argument("--count", type=int, default=5000)
     ap.add_argument("--qos", nargs="+", default=["1", "mixed"], choices=("1", "mixed"))
     ap.add_argument("--via", default="abort", choices=("abort", "cmd"),

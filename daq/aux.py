@@ -95,7 +95,12 @@ class AuxSensors:
         return self
 
     async def __aexit__(self, *exc) -> None:
-        self.close()
+        if self._notifier is not None:
+            self._notifier.stop()
+            self._notifier = None
+        bus, self._bus = self._bus, None
+        if bus is not None:  # off the loop: closing a serial-over-TCP bus (pyserial socket://) waits 0.3 s
+            await asyncio.to_thread(bus.shutdown)
 
     def open(self) -> None:
         """Open the bus (in a running loop); raises DaqError naming the channel if it cannot."""

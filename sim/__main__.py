@@ -1,41 +1,93 @@
-"""`python -m sim`: the simulated rig without the application (same as `orbitrig sim`)."""
+"""`python -m sim`: the simulated rig without the application (as `orbitrig sim`).
+
+Prints the endpoints as one JSON line on stdout once every server listens (the
+ready handshake), then serves until SIGINT or SIGTERM. As the child of an
+application (`--parent-pid`) it also ends when that process ends or closes its
+standard input (sim.parent). docs/protocols/sim-control.md: the control API.
+"""
 
 from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
+import json
+import os
 import sys
 
-from sim.config import SimConfig, load_sim_config
-from sim.rig import SimRig, serve_until_signalled
+from sim.config import SimConfig, load_sim_config, sim_config_from_data
+from sim.rig import SimRig
+from sim.serve import serve_until_signalled
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m sim", description=__doc__)
+def _args(argv: list[str] | None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(prog="python -m sim", description=__doc__.split("\n\n")[0])
     ap.add_argument("--config", help="simulator TOML (see config/sim.toml)")
+    ap.add_argument("--config-json", help="the simulator configuration as JSON (sim.config.sim_config_to_data)")
     ap.add_argument("--modbus-port", type=int, default=5020)
     ap.add_argument("--adc-port", type=int, default=5000)
+    ap.add_argument("--adc-pty", action=argparse.BooleanOptionalAction, default=True,
+                    help="also stream the A/D frames on a pty")
     ap.add_argument("--control-port", type=int, default=0)
     ap.add_argument("--speedup", type=float, default=None)
     ap.add_argument("--modbus-rtu", action="store_true", help="also serve Modbus RTU on a pty")
     ap.add_argument("--can-channel", default=None)
     ap.add_argument("--can-interface", default="virtual")
-    a = ap.parse_args(argv)
+    ap.add_argument("--can-hub", type=int, default=None, metavar="PORT",
+                    help="the CAN bus between processes: a TCP hub on PORT (0: any free; python-can "
+                         "interface 'serial', channel socket://127.0.0.1:PORT, sim.can_tcp)")
+    ap.add_argument("--nice", type=int, default=0,
+                    help="change this process's nice value by N (negative: before the host's other work, "
+                         "as drives that are machines of their own; ignored where not permitted)")
+    ap.add_argument("--parent-pid", type=int, default=None,
+                    help="end when this process ends or closes our standard input")
+    return ap.parse_args(argv)
+
+
+def _config(a: argparse.Namespace) -> SimConfig:
+    if a.config_json:
+        return sim_config_from_data(json.loads(a.config_json), "--config-json")
+    return load_sim_config(a.config) if a.config else SimConfig()
+
+
+async def _serve(a: argparse.Namespace, cfg: SimConfig) -> None:
+    from sim.can_tcp import CanTcpHub
+
+    async with contextlib.AsyncExitStack() as stack:
+        can = dict(can_channel=a.can_channel, can_interface=a.can_interface)
+        if a.can_hub is not None:
+            hub = await stack.enter_async_context(CanTcpHub(port=a.can_hub))
+            can = dict(can_channel=hub.url, can_interface="serial")
+        rig = SimRig(cfg, speedup=a.speedup, modbus_port=a.modbus_port, adc_port=a.adc_port, adc_pty=a.adc_pty,
+                     modbus_rtu_pty=a.modbus_rtu, control_port=a.control_port, **can)  # fmt: skip
+        await serve_until_signalled(rig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    a = _args(argv)
+    if a.nice:
+        with contextlib.suppress(OSError):  # PermissionError: an unprivileged user may only lower it
+            os.nice(a.nice)
+    if a.parent_pid is not None:
+        from sim.parent import end_with_parent
+
+        end_with_parent(a.parent_pid)
     try:
-        cfg = load_sim_config(a.config) if a.config else SimConfig()
+        cfg = _config(a)
         if a.speedup is not None and not a.speedup > 0:
             raise ValueError("--speedup must be > 0")
-    except ValueError as err:
+    except ValueError as err:  # json.JSONDecodeError included
         print(f"python -m sim: {err}", file=sys.stderr)
         return 2
-    rig = SimRig(cfg, speedup=a.speedup, modbus_port=a.modbus_port, adc_port=a.adc_port,
-                 modbus_rtu_pty=a.modbus_rtu, can_channel=a.can_channel,
-                 can_interface=a.can_interface, control_port=a.control_port)
     try:
-        asyncio.run(serve_until_signalled(rig))
-    except OSError as err:
+        asyncio.run(_serve(a, cfg))
+    except (OSError, RuntimeError) as err:  # a port in use (pymodbus: RuntimeError "Could not start listen")
         print(f"python -m sim: {err}", file=sys.stderr)
         return 1
+    if a.parent_pid is not None:  # every server is closed: end now, the application waits for it
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(0)
     return 0
 
 

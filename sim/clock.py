@@ -38,3 +38,30 @@ class SimClock:
         return self._sim_ref + (self._wall() - self._wall_ref) * self._speedup
 
     __call__ = now
+
+
+class AwakeClock:
+    """Wall time (s, monotonic) without this simulator process's own stalls.
+
+    The simulated drives' comm-loss watchdog runs on it. A real drive is a machine of
+    its own and is never late; this process can be (other processes take the CPU, its
+    worker thread holds the interpreter lock), and a request that waited in its socket
+    while it stood still must not count as a request that came late. A task calls
+    ``tick()`` every few ms; time beyond ``grace`` s between two ticks (also while the
+    next tick is overdue) was a stall and does not count. When the master is silent
+    and this process runs, the clock runs with wall time: the watchdog trips as it should.
+    """
+
+    def __init__(self, grace: float = 0.1, *, wall=time.monotonic):
+        self._wall, self.grace = wall, grace
+        self._last = wall()
+        self.stalled = 0.0  # s not counted so far
+
+    def tick(self) -> None:
+        t = self._wall()
+        self.stalled += max(0.0, t - self._last - self.grace)
+        self._last = t
+
+    def __call__(self) -> float:
+        t = self._wall()
+        return t - self.stalled - max(0.0, t - self._last - self.grace)

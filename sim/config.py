@@ -287,11 +287,22 @@ def load_sim_config(path: str | Path) -> SimConfig:
 def sim_config_from_text(text: str, source: str = "<text>") -> SimConfig:
     """A SimConfig from TOML text (as a scenario file; "" is the default rig). ValueError
     naming `source` and the key."""
-    path = source
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
-        raise ValueError(f"{path}: {err}") from err
+        raise ValueError(f"{source}: {err}") from err
+    return sim_config_from_data(data, source)
+
+
+def sim_config_to_data(cfg: SimConfig) -> dict:
+    """A SimConfig as plain data (SI field names, lists; JSON-ready): sim_config_from_data
+    makes the same SimConfig of it (how the simulator process receives its scenario)."""
+    return dataclasses.asdict(cfg)
+
+
+def sim_config_from_data(data: dict, source: str = "<data>") -> SimConfig:
+    """A SimConfig from parsed TOML or from sim_config_to_data. ValueError naming `source` and the key."""
+    path = source
     problems: list[str] = []
     classes = {
         "bearing": BearingConfig, "geometry": GeometryConfig, "adc": AdcConfig,

@@ -43,6 +43,7 @@ current ramp acceleration (rpm/s, signed).
 
 from __future__ import annotations
 
+import collections
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -112,6 +113,7 @@ class DriveModel:
         self._params = dict(PARAMETER_DEFAULTS)
         self._cw_reg = 0  # last written CW (reads back)
         self._cw = 0  # last accepted CW (REMOTE = 1)
+        self.control_words = collections.deque(maxlen=64)  # (wall s, CW) of the last CW writes
         self._ref_reg = 0  # last written REF, int16
         self._ref = 0  # last accepted REF, int16
         self._ref2 = 0
@@ -222,6 +224,7 @@ class DriveModel:
             if self._remote:
                 self._ref = self._ref_reg
         if CW in updates:
+            self.control_words.append((time.monotonic(), updates[CW]))
             self._write_cw(updates[CW])
 
     def inject_fault(self, code: int) -> None:

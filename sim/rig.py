@@ -9,8 +9,8 @@ The orbit spindle angle is integrated from the orbit drive's actual speed; every
 slot edge it passes is converted (sequential: channel s mod C; simultaneous:
 all channels), quantised and framed, and whole frames go to the TCP serial
 device server and the pty. Physics and the board clock run in simulated time
-(SimClock, `speedup` x wall time); the Modbus watchdog and the CAN periods stay
-in wall time.
+(SimClock, `speedup` x wall time); the CAN periods stay in wall time, the drives'
+comm-loss watchdog in wall time without this process's own stalls (AwakeClock).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from sim.adc_board import SLOTS, AdcBoard
 from sim.adc_server import AdcServer
 from sim.can_node import CanNode
 from sim.chain import calibration_errors
-from sim.clock import SimClock
+from sim.clock import AwakeClock, SimClock
 from sim.config import SimConfig
 from sim.fits import constant_fit, power_fit
 from sim.physics import RigPhysics
@@ -49,6 +49,7 @@ class SimRig:
                  tick: float = 0.01, max_slots_per_tick: int = 400_000):
         self.config = config or SimConfig()
         self.clock = SimClock(speedup if speedup is not None else self.config.speedup)
+        self.awake = AwakeClock()  # the drives' watchdog time: wall time without this process's stalls
         self.physics = RigPhysics(self.config)
         adc = self.config.adc
         self.board = AdcBoard(channels=len(adc.channels), mode=adc.mode, frame_slots=adc.frame_slots,
@@ -97,8 +98,8 @@ class SimRig:
         from sim.modbus_server import serve_modbus_rtu_pty, serve_modbus_tcp
 
         self.drives = {
-            1: DriveModel(1, clock=self.clock.now, bidirectional=False),
-            2: DriveModel(2, clock=self.clock.now, bidirectional=True),
+            1: DriveModel(1, clock=self.clock.now, bidirectional=False, wall_clock=self.awake),
+            2: DriveModel(2, clock=self.clock.now, bidirectional=True, wall_clock=self.awake),
         }
         tcp = await serve_modbus_tcp(self.drives, host="127.0.0.1", port=self._ports["modbus"])
         self._modbus.append(tcp)
@@ -115,6 +116,7 @@ class SimRig:
             self._control = await serve_control(self, port=self._ports["control"])
             self.control_url = f"tcp://127.0.0.1:{self._control.sockets[0].getsockname()[1]}"
         self._t_last = self.clock.now()
+        self._spawn(self._tick_awake(), "sim-awake-clock")
         self._spawn(self._run_board(), "sim-adc-board")
         if self.can_channel is not None:
             self.can_node = CanNode(self.can_channel, self.aux_state, interface=self._can_interface)
@@ -277,6 +279,11 @@ class SimRig:
         else:
             raise ValueError(f"unknown fault {fault!r}; known: {', '.join(FAULTS)}")
 
+    async def _tick_awake(self) -> None:
+        while True:
+            self.awake.tick()
+            await asyncio.sleep(0.01)
+
     # ------------------------------------------------------------ the board
     async def _run_board(self) -> None:
         while True:
@@ -373,28 +380,3 @@ class SimRig:
             sl = slice((k - g0) % C, None, C)
             vals[sl] = ph.channel_values(k, theta[sl], t[sl], spin_angle[sl], orbit_inst[sl], spin, orbit)
         return board.quantize(vals, board.channel_of_slot(g))
-
-
-async def serve_until_signalled(rig: SimRig, out=None) -> None:
-    """Run ``rig`` in the foreground: print its endpoints as one JSON line on
-    ``out`` (stdout), then serve until SIGINT or SIGTERM; exits cleanly."""
-    import json
-    import signal
-    import sys
-
-    out = out or sys.stdout
-    stop = asyncio.Event()
-    loop = asyncio.get_running_loop()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        loop.add_signal_handler(sig, stop.set)
-    try:
-        async with rig:
-            ep = rig.endpoints()
-            if ep["modbus_rtu"] is None:
-                del ep["modbus_rtu"]
-            out.write(json.dumps(ep) + "\n")
-            out.flush()
-            await stop.wait()
-    finally:
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            loop.remove_signal_handler(sig)

@@ -37,7 +37,8 @@ def register(app: typer.Typer) -> None:
 
         from sim.can_tcp import CanTcpHub
         from sim.config import SimConfig, load_sim_config
-        from sim.rig import SimRig, serve_until_signalled
+        from sim.rig import SimRig
+        from sim.serve import serve_until_signalled
 
         try:
             cfg = load_sim_config(config) if config is not None else SimConfig()

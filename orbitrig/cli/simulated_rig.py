@@ -1,128 +1,296 @@
 """The built-in simulator as the run engine sees it: the one place that builds it.
 
-`simulated_rig(speedup)` starts an in-process `sim.rig.SimRig` (Modbus TCP,
-A/D over a TCP socket, a python-can virtual bus) and yields it with its
-`RigAccess`: the simulator's endpoints, its speed-up as the time scale, its
-manual settings as the operator's hands, its bearing's true impedance Z(Omega)
-(and best fits of it) as the truth stored beside the identified coefficients, and
-the scenario it runs (recorded in the run). The engine gets only the access.
+`simulated_rig(speedup)` starts the simulator in a process of its own
+(`python -m sim`, sim/__main__.py) and yields it with its `RigAccess`: the
+simulator's endpoints (Modbus TCP, the A/D board over TCP, the CAN bus over a
+TCP hub: python-can interface "serial", sim/can_tcp.py), its speed-up as the
+time scale, its manual settings as the operator's hands, its bearing's true
+impedance Z(Omega) (and best fits of it) as the truth stored beside the
+identified coefficients, and the scenario it runs (recorded in the run). The
+engine gets only the access.
+
+Why a process: the simulated drives trip on communication loss (fault 7510)
+when a request is 1 s late, as real ones do. In the application's process the
+simulator's physics and servers shared the interpreter lock with the service, so
+a busy service made the *simulator* late. Hands and truth reach the process over
+its control API (JSON lines on loopback TCP, docs/protocols/sim-control.md).
+
+The child ends with the application: it runs in a session of its own (a Ctrl-C
+on the terminal is the application's to handle, the drives ramp down under its
+control), and it gets SIGTERM when its parent dies or closes the child's standard
+input (sim/parent.py).
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import importlib.util
+import json
+import os
+import socket
+import subprocess
+import sys
+import tempfile
 import threading
 from collections.abc import AsyncIterator
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from orbitrig.run.rig_io import Endpoints, RigAccess, Scenario, TimeScale
-from sim.config import SimConfig
-from sim.rig import SimRig
+from orbitrig.errors import OrbitrigError
+
+if TYPE_CHECKING:  # imported where used: the simulator starts before the engine's links are imported
+    from orbitrig.run.rig_io import Endpoints, RigAccess, Scenario
 
 #: simulator time / wall time of `orbitrig sweep --sim` and `orbitrig serve --sim`
 DEFAULT_SPEEDUP = 40.0
+#: wall seconds the simulator process may take to announce its endpoints (a loaded machine)
+START_TIMEOUT = 120.0
+#: the simulator's nice value relative to the application's: its drives, A/D board and CAN
+#: node stand for machines with processors of their own, which the host's load never delays
+#: (applied where permitted: root or CAP_SYS_NICE; otherwise it runs at the application's)
+SIMULATOR_NICE = -10
+#: wall seconds it may take to end after its standard input closed, before SIGKILL
+STOP_TIMEOUT = 10.0
+
+
+#: wall seconds one control request may take (the truth of a long point list on a loaded machine)
+CALL_TIMEOUT = 60.0
+
+
+class SimulatorError(OrbitrigError):
+    """The simulator process did not start, or its control API failed or refused a request."""
+
+
+class SimulatorLink:
+    """The control API of a simulator process (JSON lines on loopback TCP), one request at a
+    time from any thread. `call` blocks; `acall` waits in a worker thread."""
+
+    def __init__(self, url: str):
+        host, port = url.removeprefix("tcp://").rsplit(":", 1)
+        self.address = (host, int(port))
+        self._lock = threading.Lock()
+        self._sock: socket.socket | None = None
+        self._lines = None
+
+    def call(self, cmd: str, **fields) -> dict:
+        """The reply of request `cmd` with `fields` (SI); SimulatorError when it is not ok."""
+        with self._lock:
+            try:
+                if self._sock is None:
+                    self._sock = socket.create_connection(self.address, timeout=CALL_TIMEOUT)
+                    self._lines = self._sock.makefile("rb")
+                self._sock.sendall(json.dumps({"cmd": cmd, **fields}).encode() + b"\n")
+                line = self._lines.readline()
+            except OSError as err:
+                self._drop()
+                raise SimulatorError(f"simulator control {cmd}: {err}") from None
+        if not line:
+            raise SimulatorError(f"simulator control {cmd}: the simulator closed its control connection")
+        reply = json.loads(line)
+        if not reply.get("ok"):
+            raise SimulatorError(f"simulator control {cmd}: {reply.get('error')}")
+        return reply
+
+    async def acall(self, cmd: str, **fields) -> dict:
+        return await asyncio.to_thread(self.call, cmd, **fields)
+
+    def close(self) -> None:
+        with self._lock:
+            self._drop()
+
+    def _drop(self) -> None:
+        if self._sock is not None:
+            self._lines.close()
+            self._sock.close()
+            self._sock = self._lines = None
+
+
+class InProcessLink:
+    """The same requests answered by a sim.rig.SimRig running in this process (tests that
+    reach into the simulator): each request is handled at once, in the caller's thread."""
+
+    def __init__(self, rig):
+        self.rig = rig
+
+    def call(self, cmd: str, **fields) -> dict:
+        from sim.control import handle
+
+        reply = handle(self.rig, {"cmd": cmd, **fields})
+        if not reply["ok"]:
+            raise SimulatorError(f"simulator control {cmd}: {reply['error']}")
+        return reply
+
+    async def acall(self, cmd: str, **fields) -> dict:
+        return self.call(cmd, **fields)
 
 
 class SimulatorHands:
-    """The operator's hands on the simulator: the manual settings move it at once."""
+    """The operator's hands on the simulator: the manual settings move it at once (SI)."""
 
-    def __init__(self, sim: SimRig):
-        self.sim = sim
+    def __init__(self, link):
+        self.link = link
 
-    def set_manual(self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float,
-                   pressure_ratio: float) -> None:  # fmt: skip
-        self.sim.set_manual(orbit_radius=orbit_radius, static_eccentricity=static_eccentricity,
-                            recess_pressure=recess_pressure, pressure_ratio=pressure_ratio)  # fmt: skip
+    async def set_manual(self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float,
+                         pressure_ratio: float) -> None:  # fmt: skip
+        await self.link.acall("set_manual", orbit_radius=orbit_radius, static_eccentricity=static_eccentricity,
+                              recess_pressure=recess_pressure, pressure_ratio=pressure_ratio)  # fmt: skip
 
     async def apply_load(self, fx: float, fy: float) -> None:
         """A known static calibration load (N) on the simulator's journal, at once."""
-        self.sim.physics.apply_load(fx, fy)
+        await self.link.acall("apply_load", fx=fx, fy=fy)
 
     async def apply_displacement(self, dx: float, dy: float) -> None:
         """A known static step (m) of the simulator's journal under the probes (0, 0: removed)."""
-        self.sim.physics.apply_displacement(dx, dy)
+        await self.link.acall("apply_displacement", dx=dx, dy=dy)
 
     async def apply_reference(self, force: float, probe: float) -> None:
         """A calibrator on every channel's input of the simulator (N, m; 0, 0: removed)."""
-        self.sim.physics.apply_reference(force, probe)
+        await self.link.acall("apply_reference", force=force, probe=probe)
 
 
 class SimulatorTruth:
-    """The simulator's bearing at its present manual settings (SI; spin, orbits rad/s)."""
+    """The simulator's bearing at its present manual settings (SI; spin, orbits rad/s).
+    Blocking calls: the engine makes them in a worker thread."""
 
-    def __init__(self, sim: SimRig):
-        self.sim = sim
+    def __init__(self, link):
+        self.link = link
 
     def impedance(self, spin: float, orbits: np.ndarray) -> np.ndarray:
         """True Z (n, 2, 2) of the linearised bearing (f_bar = -Z d_bar)."""
-        return self.sim.true_impedances(spin, orbits)
+        z = self.link.call("impedances", spin=float(spin), orbits=np.asarray(orbits, dtype=float).tolist())
+        return np.asarray(z["re"], dtype=float) + 1j * np.asarray(z["im"], dtype=float)
 
     def reference_fits(self, spin: float, orbits: np.ndarray) -> dict:
         """Constant and Eq. 15 best fits of the true Z over `orbits` (sim.fits)."""
-        return self.sim.reference_fits(spin, orbits)
+        return self.link.call("reference_fits", spin=float(spin), orbits=np.asarray(orbits, dtype=float).tolist())["fits"]
 
 
-def simulated_access(sim: SimRig, scenario: Scenario | None = None) -> RigAccess:
-    """How the engine reaches a running SimRig (`scenario`: what it runs, recorded in the run)."""
-    return RigAccess(
-        endpoints=Endpoints(sim.modbus_url, sim.adc_url, sim.can_channel, "virtual"),
-        time_scale=TimeScale(sim.speedup), hands=SimulatorHands(sim), truth=SimulatorTruth(sim),
-        simulated=True, scenario=scenario,
-    )  # fmt: skip
+class SimulatorProcess:
+    """A running `python -m sim` child: its announced `endpoints`, its control `link`."""
+
+    def __init__(self, speedup: float, endpoints: dict, proc: subprocess.Popen):
+        self.speedup, self.endpoints, self.proc = speedup, endpoints, proc
+        self.link = SimulatorLink(endpoints["control"])
+
+    @property
+    def access_endpoints(self) -> Endpoints:
+        from orbitrig.run.rig_io import Endpoints
+
+        e = self.endpoints
+        return Endpoints(e["modbus"], e["adc"], e["can"], "serial")
+
+    def inject(self, fault: str, **kw) -> None:
+        """A fault of the simulator (sim.rig.FAULTS), through its control API."""
+        self.link.call("inject", fault=fault, **kw)
+
+
+def simulated_access(sim, scenario: Scenario | None = None) -> RigAccess:
+    """How the engine reaches a simulator: a SimulatorProcess, or a sim.rig.SimRig running in
+    this process (tests that reach into it); `scenario`: what it runs, recorded in the run."""
+    from orbitrig.run.rig_io import Endpoints, RigAccess, TimeScale
+
+    if isinstance(sim, SimulatorProcess):
+        link, endpoints = sim.link, sim.access_endpoints
+    else:
+        link, endpoints = InProcessLink(sim), Endpoints(sim.modbus_url, sim.adc_url, sim.can_channel, "virtual")
+    return RigAccess(endpoints=endpoints, time_scale=TimeScale(sim.speedup), hands=SimulatorHands(link),
+                     truth=SimulatorTruth(link), simulated=True, scenario=scenario)  # fmt: skip
 
 
 @contextlib.asynccontextmanager
-async def simulated_rig(speedup: float = DEFAULT_SPEEDUP, config: SimConfig | None = None,
-                        scenario: Scenario | None = None) -> AsyncIterator[tuple[SimRig, RigAccess]]:  # fmt: skip
-    """A running SimRig of scenario `config` (default: the paper's rig; no pty: the A/D
-    board over TCP) and its access; `scenario` names it in the run (the config's file and text).
-
-    The simulator runs on an event loop of its own, in a thread: its physics and its
-    servers never hold up the loop that polls its drives (as on the rig, where they are
-    other machines). Manual settings and the truth are plain calls into it."""
-    host = _SimulatorThread(config, speedup)
-    sim = await host.start()
+async def simulated_rig(speedup: float = DEFAULT_SPEEDUP, config=None, scenario: Scenario | None = None,
+                        started: SimulatorStart | None = None) -> AsyncIterator[tuple[SimulatorProcess, RigAccess]]:  # fmt: skip
+    """A simulator process of scenario `config` (a sim.config.SimConfig; default: the paper's
+    rig) and its access; `scenario` names it in the run (the config's file and text).
+    `started`: the process `start_simulator` started earlier with the same arguments."""
+    started = started or start_simulator(speedup, config)
+    try:
+        sim = SimulatorProcess(speedup, await started.ready(), started.proc)
+    except BaseException:
+        await started.end()
+        raise
     try:
         yield sim, simulated_access(sim, scenario)
     finally:
-        await host.stop()
+        sim.link.close()
+        await started.end()
 
 
-class _SimulatorThread:
-    """A SimRig served by its own event loop in a daemon thread."""
+def start_simulator(speedup: float = DEFAULT_SPEEDUP, config=None) -> SimulatorStart:
+    """Start the simulator process now (it takes a second or more to import and listen);
+    `simulated_rig(..., started=)` waits for it. Whoever starts it passes it on at once."""
+    return SimulatorStart(_command(speedup, config))
 
-    def __init__(self, config: SimConfig | None, speedup: float):
-        self.config, self.speedup = config, speedup
-        self.ready = threading.Event()
-        self.sim: SimRig | None = None
-        self.error: BaseException | None = None
-        self._loop: asyncio.AbstractEventLoop | None = None
-        self._stop: asyncio.Event | None = None
-        self._thread = threading.Thread(target=lambda: asyncio.run(self._serve()), name="simulator", daemon=True)
 
-    async def _serve(self) -> None:
-        self._loop, self._stop = asyncio.get_running_loop(), asyncio.Event()
+class SimulatorStart:
+    """A `python -m sim` child from its start to its end: the ready line, the stop."""
+
+    def __init__(self, command: list[str]):
+        self.log = tempfile.TemporaryFile()  # its stderr: shown only when it fails to start
         try:
-            async with SimRig(self.config, speedup=self.speedup, adc_pty=False) as sim:
-                self.sim = sim
-                self.ready.set()
-                await self._stop.wait()
-        except BaseException as err:  # noqa: BLE001 - raised again in the caller's thread
-            self.error = err
+            self.proc = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log,
+                                         env=_environment(), start_new_session=True)  # fmt: skip
+        except OSError as err:
+            self.log.close()
+            raise SimulatorError(f"the simulator process could not start: {err}") from None
+
+    async def ready(self) -> dict:
+        """Its endpoints, once it announces them; SimulatorError with its last word if it does not."""
+        try:
+            line = await asyncio.wait_for(asyncio.to_thread(self.proc.stdout.readline), START_TIMEOUT)
+            endpoints = json.loads(line) if line.startswith(b"{") else None
+        except (asyncio.TimeoutError, ValueError):
+            endpoints = None
+        if endpoints is None:
+            await self._ended()
+            self.log.seek(0)
+            said = self.log.read().decode(errors="replace").strip().splitlines()
+            self.log.close()
+            raise SimulatorError("the simulator process did not start (python -m sim, exit status "
+                                 f"{self.proc.returncode}){': ' + said[-1] if said else ''}")  # fmt: skip
+        return endpoints
+
+    async def end(self) -> None:
+        """Close its standard input (it ends itself cleanly); SIGKILL after STOP_TIMEOUT."""
+        try:
+            await self._ended()
         finally:
-            self.ready.set()
+            self.log.close()
 
-    async def start(self) -> SimRig:
-        self._thread.start()
-        await asyncio.to_thread(self.ready.wait)
-        if self.sim is None:
-            raise self.error or RuntimeError("the simulator did not start")
-        return self.sim
+    async def _ended(self) -> None:
+        self.proc.stdin.close()
+        try:
+            await asyncio.to_thread(self.proc.wait, STOP_TIMEOUT)
+        except subprocess.TimeoutExpired:
+            self._kill()
+            await asyncio.to_thread(self.proc.wait)
+        except asyncio.CancelledError:
+            self._kill()
+            raise
+        finally:
+            self.proc.stdout.close()
 
-    async def stop(self) -> None:
-        if self._loop is not None and not self._loop.is_closed():
-            with contextlib.suppress(RuntimeError):  # its loop already ended
-                self._loop.call_soon_threadsafe(self._stop.set)
-        await asyncio.to_thread(self._thread.join, 30.0)
+    def _kill(self) -> None:
+        with contextlib.suppress(ProcessLookupError):
+            self.proc.kill()
+
+
+def _command(speedup: float, config) -> list[str]:
+    args = [sys.executable, "-m", "sim", "--modbus-port", "0", "--adc-port", "0", "--no-adc-pty",
+            "--control-port", "0", "--can-hub", "0", "--speedup", repr(float(speedup)),
+            "--nice", str(SIMULATOR_NICE), "--parent-pid", str(os.getpid())]  # fmt: skip
+    if config is not None:
+        from sim.config import sim_config_to_data
+
+        args += ["--config-json", json.dumps(sim_config_to_data(config))]
+    return args
+
+
+def _environment() -> dict:
+    """This environment, with the `sim` package this process would import first on the path."""
+    root = str(Path(importlib.util.find_spec("sim").origin).resolve().parents[1])
+    path = os.environ.get("PYTHONPATH", "")
+    return dict(os.environ, PYTHONPATH=root + (os.pathsep + path if path else ""))

@@ -224,6 +224,11 @@ def _login() -> str:
 
 async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator: str = "", fmt=None):
     """Run the plan; ``sim`` the simulator's (SimConfig, Scenario) (None: the real rig)."""
+    started = None
+    if sim is not None:  # it boots in its own process while this one imports the engine
+        from orbitrig.cli.simulated_rig import start_simulator
+
+        started = start_simulator(speedup, sim[0])
     import contextlib
 
     from rich.console import Console
@@ -243,7 +248,7 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator
         if sim is not None:
             from orbitrig.cli.simulated_rig import simulated_rig
 
-            _, access = await stack.enter_async_context(simulated_rig(speedup, *sim))
+            _, access = await stack.enter_async_context(simulated_rig(speedup, *sim, started=started))
         engine = RunEngine(plan.rig, out_dir=out, access=access, confirm_mode=ConfirmMode.AUTO if access else ConfirmMode.PROMPT,
                            operator=operator)  # fmt: skip
         engine.console_user = operator  # Ctrl-C's pause, stop, abort and the prompts' confirmations

@@ -105,8 +105,8 @@ class CalibrationSession:
         """Orbit radius and static eccentricity zero, the pressures set, then spin and orbit
         spindle at their speeds until both hold them."""
         self.roll_spec = roll
-        self.access.hands.set_manual(orbit_radius=0.0, static_eccentricity=0.0,
-                                     recess_pressure=roll.recess_pressure, pressure_ratio=roll.pressure_ratio)  # fmt: skip
+        await self.access.hands.set_manual(orbit_radius=0.0, static_eccentricity=0.0,
+                                           recess_pressure=roll.recess_pressure, pressure_ratio=roll.pressure_ratio)  # fmt: skip
         scale, s = self.access.time_scale, self.rig.settle
         try:
             await self.io.drives.set_speeds(roll.spin, roll.orbit)

@@ -156,8 +156,8 @@ class PointProcedure:
 
     # ----------------------------------------------------- manual settings
     async def set_manual(self, step: SetManual, ps: PointState) -> None:
-        self.r.access.hands.set_manual(orbit_radius=step.orbit_radius, static_eccentricity=step.static_eccentricity,
-                                       recess_pressure=step.recess_pressure, pressure_ratio=step.pressure_ratio)  # fmt: skip
+        await self.r.access.hands.set_manual(orbit_radius=step.orbit_radius, static_eccentricity=step.static_eccentricity,
+                                             recess_pressure=step.recess_pressure, pressure_ratio=step.pressure_ratio)  # fmt: skip
         if self.r.confirm_mode != ConfirmMode.AUTO and (step.changed or ps.always_confirm):
             await self.r.control.ask(step.step_id, "set by hand and confirm: " + step.describe())
 

@@ -59,15 +59,15 @@ class TimeScale:
 class Hands(Protocol):
     """Whoever sets orbit radius (m), static eccentricity, recess pressure (Pa) and pressure ratio."""
 
-    def set_manual(self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float,
-                   pressure_ratio: float) -> None: ...  # fmt: skip
+    async def set_manual(self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float,
+                         pressure_ratio: float) -> None: ...  # fmt: skip
 
 
 class OperatorHands:
     """The real rig: the operator sets the values by hand; the engine asks for a confirmation."""
 
-    def set_manual(self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float,
-                   pressure_ratio: float) -> None:  # fmt: skip
+    async def set_manual(self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float,
+                         pressure_ratio: float) -> None:  # fmt: skip
         return None
 
 

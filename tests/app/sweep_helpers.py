@@ -56,23 +56,55 @@ class Recorder:
         return prog[-1].frequency if prog else 0
 
 
+class SimulatorView:
+    """The simulator process as the sweep tests look into it: through its control API
+    (docs/protocols/sim-control.md), speeds rad/s, drive speeds rpm."""
+
+    def __init__(self, sim):
+        self.link = sim.link
+        self.last: dict | None = None  # after the simulator ended: its state and drives then
+
+    def freeze(self) -> None:
+        """Keep what the simulator says now; the view answers with it once the process is gone."""
+        self.last = {"state": self.link.call("state"), "drives": self.link.call("drives")}
+
+    def _ask(self, cmd: str) -> dict:
+        return self.last[cmd] if self.last is not None else self.link.call(cmd)
+
+    @property
+    def speeds(self) -> tuple[float, float]:
+        state = self._ask("state")
+        return state["spin"], state["orbit"]
+
+    def inject(self, fault: str, **kw) -> None:
+        self.link.call("inject", fault=fault, **kw)
+
+    def set_manual(self, **settings) -> None:
+        self.link.call("set_manual", **settings)
+
+    def drive(self, device: int) -> dict:
+        """Drive `device` now: state, rpm, fault, control_word (the one it holds), control_words."""
+        return self._ask("drives")["drives"][str(device)]
+
+
 @contextlib.asynccontextmanager
 async def running(tmp_path, matrix, rig=None, speedup=SPEEDUP, **engine_kw):
-    """A SimRig and a RunEngine running `matrix` on `rig` (default config/rig.toml) in a task:
-    yields (sim, engine, recorder, run task)."""
-    from orbitrig.cli.simulated_rig import simulated_access
+    """The simulator (its own process, as `sweep --sim` runs it) and a RunEngine running `matrix`
+    on `rig` (default config/rig.toml) in a task: yields (SimulatorView, engine, recorder, run task)."""
+    from orbitrig.cli.simulated_rig import simulated_rig
     from orbitrig.run.engine import RunEngine
-    from sim.rig import SimRig
 
-    async with SimRig(speedup=speedup, adc_pty=False) as sim:
+    async with simulated_rig(speedup) as (sim, access):
         engine_kw.setdefault("confirm_mode", "auto")
-        eng = RunEngine(rig or cfg.load_rig(), out_dir=tmp_path / "run", access=simulated_access(sim), **engine_kw)
+        eng = RunEngine(rig or cfg.load_rig(), out_dir=tmp_path / "run", access=access, **engine_kw)
         rec = Recorder()
         eng.subscribe(rec)
         run = asyncio.create_task(eng.run(matrix))
+        view = SimulatorView(sim)
         try:
-            yield sim, eng, rec, run
+            yield view, eng, rec, run
         finally:
             if not run.done():
                 run.cancel()
                 await asyncio.gather(run, return_exceptions=True)
+            view.freeze()

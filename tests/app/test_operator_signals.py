@@ -43,4 +43,4 @@ async def test_a_second_ctrl_c_while_confirming_aborts(tmp_path, monkeypatch, be
             os.close(write_end)
     assert outcome.status == "aborted", outcome.message
     assert "Ctrl-C again: aborting" in out.getvalue()
-    assert sim.drives[1].read(0, 1)[0] == sim.drives[2].read(0, 1)[0] == CW_EMERGENCY
+    assert sim.drive(1)["control_word"] == sim.drive(2)["control_word"] == CW_EMERGENCY

@@ -32,18 +32,16 @@ def _rig(**interlocks):
 
 def _commanded(sim) -> tuple[int, int]:
     """The control words the drives hold (spin, orbit)."""
-    return sim.drives[1].read(0, 1)[0], sim.drives[2].read(0, 1)[0]
+    return sim.drive(1)["control_word"], sim.drive(2)["control_word"]
 
 
 def _faults(sim) -> tuple[int, int]:
-    return sim.drives[1].fault_code, sim.drives[2].fault_code
+    return sim.drive(1)["fault"], sim.drive(2)["fault"]
 
 
 def _standstill(sim) -> bool:
-    """Both drive models at zero speed now (advanced to the present)."""
-    for d in (1, 2):
-        sim.drives[d].advance()
-    return sim.drives[1].actual_rpm == 0 and sim.drives[2].actual_rpm == 0
+    """Both drive models at zero speed now."""
+    return sim.drive(1)["rpm"] == 0 and sim.drive(2)["rpm"] == 0
 
 
 @pytest.mark.parametrize("paused", [False, True], ids=["running", "paused-by-the-operator"])

@@ -486,6 +486,31 @@ def test_comm_loss_counts_wall_time_not_simulated_time(clocks):
     assert d.fault_code == 7510
 
 
+def test_comm_loss_on_the_awake_clock_skips_the_simulators_own_stalls(clocks):
+    """sim.clock.AwakeClock: a stall of the simulator process (its ticks late) does not count
+    against the master; a silent master while the simulator runs trips as on wall time."""
+    from sim.clock import AwakeClock
+
+    awake = AwakeClock(grace=0.1, wall=clocks.wall_clock)
+    d = DriveModel(2, clock=clocks.sim_clock, bidirectional=True, wall_clock=awake)
+    at_speed(clocks, d, 600)
+    d.note_request()
+    clocks.tick(0.05, wall=2.5)  # the simulator stood still 2.5 s: the request waited in its socket
+    d.note_request()  # handled before the simulator's own tick, as after a real stall
+    awake.tick()
+    assert not d.faults and awake.stalled == pytest.approx(2.4)  # all but the 0.1 s grace
+    for _ in range(9):  # then silence while the simulator ticks every 0.1 s: 0.9 s
+        clocks.tick(0.01, wall=0.1)
+        awake.tick()
+    d.advance()
+    assert not d.faults
+    for _ in range(2):  # 1.1 s of silence
+        clocks.tick(0.01, wall=0.1)
+        awake.tick()
+    d.advance()
+    assert d.fault_code == 7510 and awake.stalled == pytest.approx(2.4)
+
+
 def test_requests_feed_watchdog_and_timeout_parameter(clocks):
     d = make(clocks)
     d.write(COMM_LOSS_TIMEOUT, [30])

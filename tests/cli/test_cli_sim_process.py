@@ -1,0 +1,94 @@
+"""The simulator of `--sim` in a process of its own (orbitrig/cli/simulated_rig.py):
+hands and truth over its control API, the scenario handed over whole, no orphan."""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from orbitrig.cli.simulated_rig import SimulatorError, simulated_rig
+from sim.config import scenario
+from sim.fits import constant_fit, power_fit
+from sim.physics import RigPhysics
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    with open(f"/proc/{pid}/stat") as f:  # a zombie has ended
+        return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+
+
+async def test_hands_and_truth_reach_the_simulator_process():
+    cfg = scenario("clean")  # not the default: the scenario (and its seed) must cross over
+    async with simulated_rig(40.0, cfg) as (sim, access):
+        assert sim.proc.pid != os.getpid() and alive(sim.proc.pid)
+        assert access.endpoints.can_interface == "serial" and access.endpoints.can_channel.startswith("socket://")
+        await access.hands.set_manual(orbit_radius=5e-6, static_eccentricity=0.2, recess_pressure=0.6e6,
+                                      pressure_ratio=0.45)  # fmt: skip
+        manual = (await sim.link.acall("state"))["manual"]
+        assert manual == {"orbit_radius": 5e-6, "static_eccentricity": 0.2, "recess_pressure": 0.6e6,
+                          "pressure_ratio": 0.45}  # fmt: skip
+        orbits = np.array([40.0, 80.0, 120.0])
+        z = await asyncio.to_thread(access.truth.impedance, 200.0, orbits)
+        fits = await asyncio.to_thread(access.truth.reference_fits, 200.0, orbits)
+    here = RigPhysics(cfg)
+    here.set_manual(orbit_radius=5e-6, static_eccentricity=0.2, recess_pressure=0.6e6, pressure_ratio=0.45)
+    assert np.array_equal(z, here.impedances(200.0, orbits))  # JSON carries doubles exactly
+    want = {"constant": constant_fit(orbits, z), "power": power_fit(orbits, z)}
+    for kind, names in (("constant", "KCD"), ("power", ("K0", "Km", "C0", "Cn", "D0", "Dp"))):
+        for name in names:
+            assert np.allclose(fits[kind][name], want[kind][name], rtol=1e-12, atol=0), (kind, name)
+    assert not alive(sim.proc.pid)  # ended with the context
+
+
+async def test_a_simulator_that_cannot_start_is_one_error_with_its_reason():
+    with pytest.raises(SimulatorError, match=r"did not start.*--speedup must be > 0"):
+        async with simulated_rig(-1.0):
+            pass
+
+
+HOLDER = """
+import asyncio, sys
+from orbitrig.cli.simulated_rig import simulated_rig
+async def main():
+    async with simulated_rig(10.0) as (sim, access):
+        print(sim.proc.pid, access.endpoints.modbus_url, flush=True)
+        await asyncio.sleep(600)
+asyncio.run(main())
+"""
+
+
+def test_no_orphan_when_the_application_is_killed():
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    app = subprocess.Popen([sys.executable, "-c", HOLDER], stdout=subprocess.PIPE, text=True, env=env)
+    try:
+        child, modbus = app.stdout.readline().split()
+        child = int(child)
+        assert alive(child)
+        os.kill(app.pid, signal.SIGKILL)  # no clean-up of its own: the kernel and the pipe tell
+        app.wait(timeout=30)
+        end = time.monotonic() + 10
+        while alive(child) and time.monotonic() < end:
+            time.sleep(0.05)
+        assert not alive(child), "the simulator outlived the application"
+        host, port = modbus.removeprefix("tcp://").rsplit(":", 1)
+        with pytest.raises(OSError):  # nobody holds its port any more
+            socket.create_connection((host, int(port)), timeout=2).close()
+    finally:
+        if app.poll() is None:
+            app.kill()
+            app.wait()
