@@ -35,7 +35,7 @@ import tempfile
 import threading
 from collections.abc import AsyncIterator
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, BinaryIO
 
 import numpy as np
 
@@ -73,13 +73,13 @@ class SimulatorLink:
         self.address = (host, int(port))
         self._lock = threading.Lock()
         self._sock: socket.socket | None = None
-        self._lines = None
+        self._lines: BinaryIO | None = None
 
     def call(self, cmd: str, **fields) -> dict:
         """The reply of request `cmd` with `fields` (SI); SimulatorError when it is not ok."""
         with self._lock:
             try:
-                if self._sock is None:
+                if self._sock is None or self._lines is None:
                     self._sock = socket.create_connection(self.address, timeout=CALL_TIMEOUT)
                     self._lines = self._sock.makefile("rb")
                 self._sock.sendall(json.dumps({"cmd": cmd, **fields}).encode() + b"\n")
@@ -102,10 +102,11 @@ class SimulatorLink:
             self._drop()
 
     def _drop(self) -> None:
-        if self._sock is not None:
+        if self._lines is not None:
             self._lines.close()
+        if self._sock is not None:
             self._sock.close()
-            self._sock = self._lines = None
+        self._sock = self._lines = None
 
 
 class InProcessLink:
