@@ -37,7 +37,6 @@ from orbitrig import config as cfg  # noqa: E402
 from orbitrig.run.engine import RunEngine  # noqa: E402
 from orbitrig.run.events import ResultEvent  # noqa: E402
 from orbitrig.run.plan import make_plan  # noqa: E402
-from sim.drive_registers import COMM_LOSS_TIMEOUT  # noqa: E402
 
 LIMIT_PER_100_POINTS_MB = 20.0
 LIMIT_SERVE_MB = 20.0
@@ -88,9 +87,6 @@ async def soak_sweep(points: int | None, speedup: float, watchdog_s: float = 0.0
     start = rss_mb()
     t0 = time.monotonic()
     async with simulated_rig(speedup) as (sim, access):
-        if watchdog_s:  # a loaded machine stalls the one process of rig and simulator for over 1 s
-            for drive in sim.drives.values():
-                drive._params[COMM_LOSS_TIMEOUT] = round(watchdog_s * 10)  # in 0.1 s, as the register
         engine = RunEngine(rig, out_dir=out, access=access, confirm_mode="auto")
         engine.subscribe(on_event)
         outcome = await engine.run(plan)

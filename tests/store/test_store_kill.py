@@ -17,7 +17,7 @@ from typer.testing import CliRunner
 from orbitrig.cli import app
 from orbitrig.store.reader import read_run
 
-from store_checks import ROOT, check_whole, orbitrig_cmd, small_matrix
+from store_checks import ROOT, check_whole, orbitrig_cmd, small_matrix, traced_rig_config
 
 MATRIX = small_matrix("crash", revolutions=10)
 BLOCKS = 6  # 3 ratios x forward, backward
@@ -36,7 +36,8 @@ def _killed_sweep(tmp_path, calls: str, k: int):
     out = tmp_path / "run"
     cmd = ["strace", "-f", "-qq", "-o", "/dev/null", "-e", f"trace={STORAGE_CALLS}",
            "-e", f"inject={calls}:signal=KILL:when={k}",
-           *orbitrig_cmd("sweep", "--sim", "--matrix", str(matrix), "--out", str(out))]  # fmt: skip
+           *orbitrig_cmd("sweep", "--sim", "--config", str(traced_rig_config(tmp_path)), "--matrix", str(matrix),
+                        "--out", str(out))]  # fmt: skip
     p = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert p.returncode in (-signal.SIGKILL, 128 + signal.SIGKILL), f"not killed at {calls} #{k}:\n{p.stderr}"
     return out
