@@ -50,7 +50,7 @@ def measure(run: Path, args: list[str], workers: int, label: str, points: int) -
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
     t0, cpu0 = time.perf_counter(), _children_cpu()
     done = subprocess.run([sys.executable, "-m", "orbitrig", "report", str(run), "--workers", str(workers), *args],
-                          env=env, capture_output=True, text=True, check=False)  # fmt: skip
+                          env=env, capture_output=True, text=True, check=False)
     dt, cpu = time.perf_counter() - t0, _children_cpu() - cpu0
     if done.returncode != 0:
         sys.exit(f"{label}: orbitrig report exited {done.returncode}: {done.stderr.strip()[-2000:]}")
@@ -58,7 +58,7 @@ def measure(run: Path, args: list[str], workers: int, label: str, points: int) -
     wall, idle = dt * PAPER_POINTS / points, cpu / workers * PAPER_POINTS / points
     print(f"{label:28s} {points:3d} points, {figures:4d} figures: {dt:6.1f} s wall, {cpu:6.1f} s CPU "
           f"({cpu / figures:.2f} CPU s per figure); {PAPER_POINTS} points: {wall:5.0f} s wall, "
-          f"{idle:5.0f} s on {workers} idle cores (load average {os.getloadavg()[0]:.1f})", flush=True)  # fmt: skip
+          f"{idle:5.0f} s on {workers} idle cores (load average {os.getloadavg()[0]:.1f})", flush=True)
     return min(wall, idle)
 
 
@@ -90,7 +90,7 @@ def main() -> int:
             measure(run, ["--formats", "png,pdf,svg"], args.workers, "--formats png,pdf,svg", args.points)
     ok = cold < TARGET_S
     print(f"{'PASS' if ok else 'MISS'}: {PAPER_POINTS}-point report {cold:.0f} s with {args.workers} workers "
-          f"(target < {TARGET_S:.0f} s)")  # fmt: skip
+          f"(target < {TARGET_S:.0f} s)")
     return 0 if ok else 1
 
 

@@ -72,7 +72,7 @@ async def soak_sweep(points: int | None, speedup: float, watchdog_s: float = 0.0
         polls = max(3, int(0.7 * watchdog_s / 0.6))  # the link declared lost after 70 % of S
         for old, new in (("timeout_s = 0.15", "timeout_s = 0.5"), ("link_loss_polls = 3", f"link_loss_polls = {polls}"),
                          ("timeout_margin_s = 2.0", f"timeout_margin_s = {watchdog_s * speedup:g}"),
-                         ("comm_loss_timeout_s = 1.0", f"comm_loss_timeout_s = {watchdog_s:g}")):  # fmt: skip
+                         ("comm_loss_timeout_s = 1.0", f"comm_loss_timeout_s = {watchdog_s:g}")):
             assert old in text, old
             text = text.replace(old, new)
         rig = cfg.rig_from_text(text, str(cfg.default_rig_path()))
@@ -118,7 +118,7 @@ def soak_serve(runs: int, speedup: float) -> bool:
     args = ["--sim", "--broker", broker.url, "--rig-id", "soak", "--username", "orbitrig-service",
             "--password-file", str(pw), "--matrices", str(write_matrices(work / "matrices")),
             "--out", str(work / "runs"), "--speedup", str(speedup), "--verbose",
-            "--log-file", str(work / "serve-rotating.log"), "--log-max-mb", "0.2", "--log-backups", "2"]  # fmt: skip
+            "--log-file", str(work / "serve-rotating.log"), "--log-max-mb", "0.2", "--log-backups", "2"]
     svc = Service(args, work)
     rig = RigClient(broker, "soak", svc)
     after: list[float] = []
@@ -134,7 +134,7 @@ def soak_serve(runs: int, speedup: float) -> bool:
             run_id = rig.status("waiting", start=mark, timeout=60)["run_id"]
             assert rig.command({"cmd": "confirm", "step": "manual:0000"}, timeout=30)["ok"] is True
             end = rig.status(lambda s, r=run_id: s["state"] in ("idle", "faulted") and s["run_id"] == r, start=mark,
-                             timeout=180)  # fmt: skip
+                             timeout=180)
             after.append(rss_mb(svc.proc.pid))
             if end["state"] == "faulted":  # e.g. the simulator starved on a loaded machine
                 print(f"serve: run {len(after)} faulted: {end['message']}")

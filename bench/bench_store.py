@@ -63,7 +63,7 @@ def _record(block, n: int, rng) -> BlockRecord:
         mean=rng.standard_normal((8, 45)), record_phasors=ph * (1 + 0.01 * rng.standard_normal((n, 8))), phasors=ph,
         dc=np.zeros(8), rms_residual=np.zeros(8), coherence=np.full((2, 4), 0.99), uncertainty=np.abs(ph) * 1e-3,
         n_records=n, stop_reason="count", stats={"frames_good": n},
-    )  # fmt: skip
+    )
 
 
 def _ms(xs: list[float]) -> str:

@@ -224,7 +224,7 @@ class AdcReader:
         loop = asyncio.get_running_loop()
         averager = StreamingAverager(rule, self.gains, self.offsets)
         self._collection = c = _Collection(averager, loop.create_future(), self.on_revolution,
-                                           self._assembler.count_dropped)  # fmt: skip
+                                           self._assembler.count_dropped)
         t0 = loop.time()
         try:
             while not c.future.done():

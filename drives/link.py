@@ -182,7 +182,7 @@ class ModbusLink:
         rsp = await self._retried(
             device_id, address, _FC_READ, "read", retries,
             lambda c: c.read_holding_registers(address, count=count, device_id=device_id),
-        )  # fmt: skip
+        )
         words = list(rsp.registers)
         if len(words) != count:
             self._fail(device_id, address, f"asked for {count} registers, got {len(words)}")

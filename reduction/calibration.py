@@ -69,7 +69,7 @@ def static_loads(magnitude: float) -> np.ndarray:
     """The default load set (n, 2), N: none, +-x, +-y and the two diagonals, each of `magnitude`."""
     d = magnitude / np.sqrt(2.0)
     return np.array([[0, 0], [magnitude, 0], [-magnitude, 0], [0, magnitude], [0, -magnitude], [d, d], [d, -d]],
-                    dtype=float)  # fmt: skip
+                    dtype=float)
 
 
 @dataclass(frozen=True)
@@ -97,7 +97,7 @@ def fit_delay(frequencies: np.ndarray, lag: np.ndarray) -> DelayFit:
     s2 = float(np.sum(res**2) / (len(f) - 2))
     cov = s2 * np.linalg.inv(A.T @ A)
     return DelayFit(float(coef[0]), float(coef[1]), float(np.sqrt(cov[0, 0])), float(np.sqrt(cov[1, 1])),
-                    float(np.sqrt(s2)))  # fmt: skip
+                    float(np.sqrt(s2)))
 
 
 def correct_lag(values: np.ndarray, orbit: np.ndarray, phase: float, delay: float) -> np.ndarray:
@@ -131,4 +131,4 @@ def fit_probe(steps: np.ndarray, reading: np.ndarray, reference_u: float) -> Pro
     s2 = float(np.sum(res**2) / (len(d) - 2))
     var = s2 * np.linalg.inv(A.T @ A)[0, 0] + (reference_u * coef[0]) ** 2
     return ProbeFit(float(coef[0]), float(np.sqrt(var)), float(coef[1]),
-                    float(np.max(np.abs(res)) / np.ptp(d)), float(np.sqrt(s2)))  # fmt: skip
+                    float(np.max(np.abs(res)) / np.ptp(d)), float(np.sqrt(s2)))

@@ -59,7 +59,7 @@ async def _serve(a: argparse.Namespace, cfg: SimConfig) -> None:
             hub = await stack.enter_async_context(CanTcpHub(port=a.can_hub))
             can = dict(can_channel=hub.url, can_interface="serial")
         rig = SimRig(cfg, speedup=a.speedup, modbus_port=a.modbus_port, adc_port=a.adc_port, adc_pty=a.adc_pty,
-                     modbus_rtu_pty=a.modbus_rtu, control_port=a.control_port, **can)  # fmt: skip
+                     modbus_rtu_pty=a.modbus_rtu, control_port=a.control_port, **can)
         await serve_until_signalled(rig)
 
 

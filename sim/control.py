@@ -64,7 +64,7 @@ def _drives(rig, req: dict) -> dict:
     return {"drives": {str(dev): {"state": d.state, "rpm": d.actual_rpm, "fault": d.fault_code,
                                   "faults": list(d.faults), "control_word": d.read(CW, 1)[0],
                                   "control_words": [list(w) for w in d.control_words]}
-                       for dev, d in rig.drives.items()}}  # fmt: skip
+                       for dev, d in rig.drives.items()}}
 
 
 #: cmd -> (rig, request without "cmd") -> the reply's fields

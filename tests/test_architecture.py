@@ -187,7 +187,7 @@ def test_application_modules_and_functions_are_small() -> None:
         found.update(_too_long(path))
     new = {k: v for k, v in found.items() if k not in NOT_YET_SPLIT}
     assert not new, (f"over {MAX_MODULE_LINES} lines per module or {MAX_FUNCTION_LINES} per function: "
-                     + ", ".join(f"{k} ({v})" for k, v in sorted(new.items())))  # fmt: skip
+                     + ", ".join(f"{k} ({v})" for k, v in sorted(new.items())))
     fixed = NOT_YET_SPLIT - set(found)
     assert not fixed, f"now within the limits, remove from NOT_YET_SPLIT: {sorted(fixed)}"
 
@@ -209,14 +209,14 @@ def test_size_checker_catches_a_long_function(tmp_path: Path, monkeypatch) -> No
 def _calls(path: Path, names: set[str]) -> list[int]:
     tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
     return [n.lineno for n in ast.walk(tree)
-            if isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id in names]  # fmt: skip
+            if isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id in names]
 
 
 @pytest.mark.parametrize("wing", ["orbitrig/run", "orbitrig/cli"])
 def test_typed_seams_no_getattr(wing: str) -> None:
     """The run engine and the command line reach daq, drives and the simulator through types."""
     bad = [f"{p.relative_to(ROOT)}:{line}" for p in sorted((ROOT / wing).rglob("*.py"))
-           for line in _calls(p, {"getattr", "hasattr"})]  # fmt: skip
+           for line in _calls(p, {"getattr", "hasattr"})]
     assert not bad, "getattr/hasattr on our own objects:\n" + "\n".join(bad)
 
 

@@ -79,7 +79,7 @@ def use_style(style: FigureStyle) -> None:
         "figure.titlesize": "large", "lines.linewidth": 1.0, "lines.markersize": 3.5,
         "pdf.fonttype": 42, "svg.fonttype": "none", "path.simplify": True,
         "axes.titley": 1.0,  # titles at a fixed height: no search for overlapping tick labels per draw
-    })  # fmt: skip
+    })
 
 
 def style() -> FigureStyle:
@@ -109,7 +109,7 @@ def split_tested(grid: np.ndarray, lo: float, hi: float) -> tuple[np.ndarray, np
 
 
 def plot_fit(ax, x: np.ndarray, y: np.ndarray, lo: float, hi: float, *, color, lw: float = 1.2,
-             label: str | None = None, ls: str = "-") -> None:  # fmt: skip
+             label: str | None = None, ls: str = "-") -> None:
     """A fitted curve y(x), x = Omega/omega: `ls` over the tested range [lo, hi] (same units as
     x), thin dotted outside it (an extrapolation, not a result)."""
     below, inside, above = split_tested(x, lo, hi)
@@ -148,14 +148,14 @@ def text_scale() -> float:
 
 
 def panel_figure(w: float, h: float, *, left: float = 0.85, right: float = 0.2, top: float = 0.95,
-                 bottom: float = 1.15, wspace: float = 0.42, hspace: float = 0.42) -> Figure:  # fmt: skip
+                 bottom: float = 1.15, wspace: float = 0.42, hspace: float = 0.42) -> Figure:
     """A figure of many panels with fixed margins in inches (room for a two-line title on top and
     a legend at the bottom): half the saving time of constrained layout, whose solver measures
     every tick label. Put the legend with ``loc="lower center"``."""
     fig = _figure(w, h, layout=None)
     t = text_scale() * w / STYLE.width  # margins in design inches, for the style's text
     fig.subplots_adjust(left=left * t / w, right=1 - right * t / w, top=1 - top * t / h, bottom=bottom * t / h,
-                        wspace=wspace, hspace=hspace)  # fmt: skip
+                        wspace=wspace, hspace=hspace)
     return fig
 
 
@@ -242,17 +242,17 @@ def forces_figure(table, fitted: Sequence[Fitted], *, title: str) -> Figure:
                 first = d == 1 or not np.any(dirs == 1)
                 amp_ax.plot(ratio[sel], np.abs(f), ls, color=colors[n], lw=widths[n], label=fit.label if first else None)
                 res_ax.plot(ratio[sel], np.abs(measured[sel] - f), ls, marker=marker, color=colors[n], lw=widths[n],
-                            ms=3, mfc=colors[n] if d == 1 else "white")  # fmt: skip
+                            ms=3, mfc=colors[n] if d == 1 else "white")
             face = "black" if d == 1 else "white"
             amp_ax.plot(ratio[sel], np.abs(measured[sel]), marker, mfc=face, mec="black", ls="none",
-                        ms=4, label=f"measured, {dname} whirl", zorder=5)  # fmt: skip
+                        ms=4, label=f"measured, {dname} whirl", zorder=5)
             if table.u is not None:
                 u = table.u[sel, 2 + col]
                 amp_ax.errorbar(ratio[sel], np.abs(measured[sel]), yerr=k * u / np.sqrt(2.0), fmt="none",
-                                ecolor="black", capsize=1.5, lw=0.6, zorder=4, gid="measured-uncertainty")  # fmt: skip
+                                ecolor="black", capsize=1.5, lw=0.6, zorder=4, gid="measured-uncertainty")
                 res_ax.plot(ratio[sel], k * u, ls, color="0.55", lw=2.2, alpha=0.6, zorder=1,
                             label=f"U = {k:g} u of the measured phasor" if d == 1 or not np.any(dirs == 1) else None,
-                            gid="measured-uncertainty")  # fmt: skip
+                            gid="measured-uncertainty")
         amp_ax.set_title(f"{name} amplitude")
         amp_ax.set_ylabel(f"|{name}|  [N]")
         res_ax.set_title(f"{name} residual: |measured - reproduced| phasor")
@@ -269,7 +269,7 @@ def forces_figure(table, fitted: Sequence[Fitted], *, title: str) -> Figure:
         labels += ["forward whirl (solid)", "backward whirl (dashed)"]
     ncols = 1 if max(len(label) for label in labels) > 60 else 2  # long labels (verdicts): one column
     fig.legend(handles, labels, loc="lower center", ncols=ncols, fontsize="small",
-               title=style().band_label("error bars") + " (amplitude: U/\u221a2)")  # fmt: skip
+               title=style().band_label("error bars") + " (amplitude: U/\u221a2)")
     fig.suptitle(title)
     return fig
 

@@ -19,7 +19,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from orbitrig.analysis.plots import (ENTRIES, TRUTH_LABEL, Fitted, _colors, _min_span, _save, coverage, keep_inside,
-                                    panel_figure, plot_fit, split_tested, style)  # fmt: skip
+                                    panel_figure, plot_fit, split_tested, style)
 from orbitrig.analysis.reduce import MATRIX_UNITS
 from reduction.derived import entry_gradient
 
@@ -60,7 +60,7 @@ def _draw_fit(axes, mats, fit: Fitted, color, grid, tested, spin, largest) -> No
             if not constant:
                 ax.errorbar(tested / spin, at_tested[:, mi, i, j] * scale,
                             yerr=k * entry_std(ident, m, e, tested) * scale,
-                            fmt="o", ms=2.5, color=color, capsize=1.5, lw=0.8)  # fmt: skip
+                            fmt="o", ms=2.5, color=color, capsize=1.5, lw=0.8)
 
 
 def truth_matrix(truth: dict, matrix: str) -> tuple[np.ndarray, np.ndarray] | None:
@@ -93,11 +93,11 @@ def _draw_truth(axes, mats, truth: dict, spin: float, largest) -> None:
         for col in range(4):
             i, j = divmod(col, 2)
             axes[row, col].plot(t_orbit / spin, mat[:, i, j] * scale, "x", color="black", ms=4,
-                                mew=1.0, label=TRUTH_LABEL, zorder=6)  # fmt: skip
+                                mew=1.0, label=TRUTH_LABEL, zorder=6)
 
 
 def coefficients_figure(fitted: Sequence[Fitted], *, spin: float, orbit: np.ndarray, truth: dict | None,
-                        title: str) -> Figure:  # fmt: skip
+                        title: str) -> Figure:
     """K, C, D entries of every identification in `fitted` against Omega/omega (one model)."""
     mats = [m for m in "KCD" if any(_has(f.identification, m) for f in fitted)]
     fig = panel_figure(13, 2.7 * len(mats) + 2.0, bottom=1.35, hspace=0.35)
@@ -127,12 +127,12 @@ def coefficients_figure(fitted: Sequence[Fitted], *, spin: float, orbit: np.ndar
     handles, labels = axes[0, 0].get_legend_handles_labels()
     uniq = dict(zip(labels, handles))
     fig.legend(list(uniq.values()), list(uniq.keys()), loc="lower center", ncols=min(3, len(uniq)),
-               fontsize="small", title=style().band_label() + "; solid over the tested range, dotted beyond")  # fmt: skip
+               fontsize="small", title=style().band_label() + "; solid over the tested range, dotted beyond")
     fig.suptitle(title)
     return fig
 
 
 def coefficients_plot(path, fitted: Sequence[Fitted], *, spin: float, orbit: np.ndarray, truth: dict | None,
-                      title: str) -> Path:  # fmt: skip
+                      title: str) -> Path:
     """:func:`coefficients_figure` written to `path` (PNG)."""
     return _save(coefficients_figure(fitted, spin=spin, orbit=orbit, truth=truth, title=title), path)

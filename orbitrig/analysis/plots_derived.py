@@ -20,7 +20,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from orbitrig.analysis.plots import (ENTRIES, Fitted, _colors, _min_span, coverage, keep_inside, panel_figure, plot_fit,
-                                    style)  # fmt: skip
+                                    style)
 from orbitrig.analysis.quality import TrueImpedance, orbit_grid
 from reduction.derived import Derived
 
@@ -68,7 +68,7 @@ def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title
         ax.axhline(0, color="gray", lw=0.8)
         sign = "-" if e == "xx" else "+"
         ax.set_title(f"effective damping C{e} {sign} K{'xy' if e == 'xx' else 'yx'}/\u03a9\n"
-                     + "\n".join(zeros[e]), fontsize="x-small")  # fmt: skip
+                     + "\n".join(zeros[e]), fontsize="x-small")
         ax.set_ylabel(f"C_eff,{e}  [kN s/m]")
     axes[0, 2].set_title("whirl frequency ratio (Kxy - Kyx) / (\u03c9 (Cxx + Cyy))", fontsize="small")
     axes[0, 2].set_ylabel("WFR  [-]")
@@ -84,13 +84,13 @@ def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title
     axes[0, 2].xaxis.set_tick_params(labelbottom=True)
     handles = [Line2D([], [], color=c, lw=2) for c in colors]
     fig.legend(handles, [label for label, _ in derived], loc="lower center", ncols=min(3, len(derived)),
-               fontsize="small", title=style().band_label("bands and zero crossings"))  # fmt: skip
+               fontsize="small", title=style().band_label("bands and zero crossings"))
     fig.suptitle(title)
     return fig
 
 
 def impedance_figure(fitted: Sequence[Fitted], truth: TrueImpedance, *, spin: float,
-                     orbit: np.ndarray, title: str) -> Figure:  # fmt: skip
+                     orbit: np.ndarray, title: str) -> Figure:
     """Re and Im of Z_xx, Z_xy, Z_yx, Z_yy [MN/m]: identified models (lines) and the simulator's
     true Z at its frequencies (crosses, kept inside the axes)."""
     fig = panel_figure(14, 7.2, bottom=1.0, hspace=0.3, wspace=0.45)
@@ -111,7 +111,7 @@ def impedance_figure(fitted: Sequence[Fitted], truth: TrueImpedance, *, spin: fl
         for row, (name, part) in enumerate((("Re", np.real), ("Im", np.imag))):
             ax = axes[row, col]
             ax.plot(t_w / spin, part(t_z[:, i, j]) * MN, "x", color="black", ms=6, mew=1.5, label=truth.label,
-                    zorder=6)  # fmt: skip
+                    zorder=6)
             _min_span(ax, largest)
             keep_inside(ax, t_w / spin, part(t_z[:, i, j]) * MN)
             ax.set_title(f"{name} Z{e}", fontsize="medium")

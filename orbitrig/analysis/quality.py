@@ -46,7 +46,7 @@ def coefficient_rows(r: Reduced) -> list[CoefficientRow]:
         rows.append(CoefficientRow(
             key, value, ident.std_errors.get(key), None if ci is None else (float(ci[0]), float(ci[1])),
             sys_u.get(key), expanded.get(key), budget.get("k") if expanded else None,
-        ))  # fmt: skip
+        ))
     return rows
 
 
@@ -82,7 +82,7 @@ def adequacy_verdicts(lms: str, results: list[Reduced]) -> list[Verdict]:
     out = []
     for dep in (r for r in results if r.freq_dep != "none"):
         const = next((r for r in results if (r.model, r.method, r.freq_dep) == (dep.model, dep.method, "none")),
-                     None)  # fmt: skip
+                     None)
         if const is None:
             const = identify_point(dep.point, lms, dep.model, "none", dep.method)
         if const.identification is None:
@@ -101,7 +101,7 @@ def lms_normalised_difference(a: Reduced, b: Reduced) -> dict[str, float | None]
     the report could use); None when the two fits are not of one model."""
     try:
         return lms_consistency(a.identification, a.point.tables[a.lms], b.identification, b.point.tables[b.lms],
-                               Calibration(), Calibration())  # fmt: skip
+                               Calibration(), Calibration())
     except (ReductionError, KeyError):
         return None
 

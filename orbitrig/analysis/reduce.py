@@ -155,11 +155,11 @@ def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, 
             "static_eccentricity": s.static_eccentricity, "dynamic_eccentricity": s.dynamic_eccentricity,
             "lms": r.lms, "model": r.model, "freq_dep": r.freq_dep, "method": r.method,
             "error": one_line(r.error or ""), "not_determined": " ".join((r.stored or {}).get("not_determined") or []),
-        }  # fmt: skip
+        }
         ident = r.identification
         if ident is not None:
             d.update({"n_frequencies": ident.n_frequencies, "condition_number": ident.condition_number,
-                      "residual_rms [N]": ident.residual_rms})  # fmt: skip
+                      "residual_rms [N]": ident.residual_rms})
             for k in keys:
                 d[coefficient_column(k)] = ident.coefficients.get(k)
                 d[coefficient_column(k, "std")] = ident.std_errors.get(k)

@@ -84,9 +84,9 @@ class PointReport:
         """'<lms> <model> <freq-dep> warns: <text>' for every warning of a repeated or stored fit,
         and '<lms> <model> <freq-dep> refused: <reason>' for every stored refusal."""
         out = [f"{r.lms} {r.model} {r.freq_dep} warns: {w}" for rs in self.results.values() for r in rs
-               for w in warnings_of(r)]  # fmt: skip
+               for w in warnings_of(r)]
         out += [f"{i.lms} {i.model} {i.freq_dep} refused: {(i.error or '').splitlines()[0]}"
-                for i in self.point.identifications if not i.ok]  # fmt: skip
+                for i in self.point.identifications if not i.ok]
         return out + self.unreadable
 
 
@@ -175,13 +175,13 @@ def _plot_signals(run: Run, pr: PointReport, out: Path, where: str, opts: Report
         direction = Whirl.of(f.direction)
         pr.plots.append(plots.save_figure(plots_signals.signals_figure(
             blocks[f.name], title=f"Force signals at {f.orbit_hz:.4g} Hz {direction} whirl (paper Fig. 4)\n{where}",
-        ), out / f"signals_{point.name}_{f.name}.png"))  # fmt: skip
+        ), out / f"signals_{point.name}_{f.name}.png"))
     if "orbits" not in opts.figures:
         return
     pr.plots.append(plots.save_figure(plots_signals.orbits_figure(
         list(blocks.values()), radius=point.settings.orbit_radius,
         title=f"Measured orbits (averaged displacements), both probe planes\n{where}",
-    ), out / f"orbits_{point.name}.png"))  # fmt: skip
+    ), out / f"orbits_{point.name}.png"))
 
 
 def _plot_lms(pr: PointReport, lms: str, out: Path, where: str, opts: ReportOptions) -> None:
@@ -192,30 +192,30 @@ def _plot_lms(pr: PointReport, lms: str, out: Path, where: str, opts: ReportOpti
     verdict = {id(v.dependent): v.text for v in pr.verdicts.get(lms, [])}
     fitted = [plots.Fitted(fit_label(r), r.identification) for r in results]
     with_verdicts = [plots.Fitted(f.label + (f" \u2014 {verdict[id(r)]}" if id(r) in verdict else ""),
-                                  f.identification) for f, r in zip(fitted, results)]  # fmt: skip
+                                  f.identification) for f, r in zip(fitted, results)]
     if "forces" in opts.figures:
         pr.plots.append(plots.forces_plot(
             out / f"forces_{point.name}_{lms}.png", table, with_verdicts,
             title=f"Measured and reproduced forces (paper Fig. 5), {lms} load cells\n{where}",
-        ))  # fmt: skip
+        ))
     for model in dict.fromkeys(r.model for r in results) if "coefficients" in opts.figures else ():
         group = [f for f, r in zip(fitted, results) if r.model == model]
         pr.plots.append(plots_coefficients.coefficients_plot(
             out / f"coefficients_{point.name}_{lms}_{model}.png", group,
             spin=table.spin, orbit=table.orbit, truth=point.truth,
             title=f"Rotordynamic coefficients, model {model}, {lms} load cells\n{where}",
-        ))  # fmt: skip
+        ))
     if pr.derived.get(lms) and "derived" in opts.figures:
         pr.plots.append(plots.save_figure(plots_derived.derived_figure(
             [(fit_label(r), d) for r, d in pr.derived[lms]], spin=table.spin,
             title=f"Derived quantities, {lms} load cells\n{where}",
-        ), out / f"derived_{point.name}_{lms}.png"))  # fmt: skip
+        ), out / f"derived_{point.name}_{lms}.png"))
     truth = true_impedance(point.truth)
     if truth is not None and fitted and "impedance" in opts.figures:
         pr.plots.append(plots.save_figure(plots_derived.impedance_figure(
             fitted, truth, spin=table.spin, orbit=table.orbit,
             title=f"Identified impedance Z(\u03a9) against the {truth.label}, {lms} load cells\n{where}",
-        ), out / f"impedance_{point.name}_{lms}.png"))  # fmt: skip
+        ), out / f"impedance_{point.name}_{lms}.png"))
 
 
 def _plot_point(run: Run, pr: PointReport, out: Path, opts: ReportOptions) -> None:
@@ -230,7 +230,7 @@ def _plot_point(run: Run, pr: PointReport, out: Path, opts: ReportOptions) -> No
     if coherence is not None and "coherence" in opts.figures:
         pr.plots.append(plots.save_figure(plots_coherence.coherence_figure(
             coherence, title=f"Coherence between motion and force signals (paper Table 1)\n{where}",
-        ), out / f"coherence_{point.name}.png"))  # fmt: skip
+        ), out / f"coherence_{point.name}.png"))
     if all(lms in point.tables for lms in LMS) and "lms" in opts.figures:
         found = preferred(pr)
         pair = {lms: plots.Fitted(fit_label(r), r.identification) for lms, r in found.items()} if found else None
@@ -302,7 +302,7 @@ def _draw_point(run: Run, point: Point, out: Path, options: ReportOptions) -> Po
 
 def make_report(directory: str | Path, *, points: list[int] | None = None,
                 options: ReportOptions = ReportOptions(), workers: int = 1,
-                progress: Progress | None = None) -> Report:  # fmt: skip
+                progress: Progress | None = None) -> Report:
     """Write ``DIR/plots/*.png`` (and .pdf, .svg when asked for), ``report.pdf`` and
     ``index.html``; return what was written.
 
@@ -326,7 +326,7 @@ def make_report(directory: str | Path, *, points: list[int] | None = None,
     plots.use_style(options.style)
     report = Report(run, out, [], skipped=selection.skipped, notes=selection.notes)
     report.points = draw_points(selection.points, lambda point: _draw_point(run, point, out, options),
-                                workers=workers, progress=progress)  # fmt: skip
+                                workers=workers, progress=progress)
     for fmt in plots.FigureFormat:  # from an earlier report over other points
         _remove(out / f"summary.{fmt}")
     report.summary = summary_plot_for(report)

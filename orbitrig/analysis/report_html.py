@@ -103,7 +103,7 @@ def _lms_section(pr, out_dir: Path, lms: str, truth: dict, taken: set) -> list[s
     forces = _pick(pr, out_dir, taken, f"forces_{p.name}_{lms}")
     if forces:
         h.append('<div class="side">' + forces[0] + '<div><h4>Model adequacy</h4>'
-                 + verdict_list(pr.verdicts.get(lms, []), labels) + "</div></div>")  # fmt: skip
+                 + verdict_list(pr.verdicts.get(lms, []), labels) + "</div></div>")
     h.append(lms_tables(results, truth, [labels[id(r)] for r in results]))
     h += _pick(pr, out_dir, taken, *(f"coefficients_{p.name}_{lms}_{m}" for m in dict.fromkeys(r.model for r in results)))
     if pr.derived.get(lms):

@@ -120,13 +120,13 @@ def raster_pdf(pngs: list[Path], out: BinaryIO) -> None:
         pw, ph = w * 72.0 / dpi, h * 72.0 / dpi
         content, image = 4 + 3 * k, 5 + 3 * k  # the page itself is object 3 + 3 k
         obj(b"<< /Type /Page /Parent 2 0 R /MediaBox [0 0 %.3f %.3f] /Contents %d 0 R "
-            b"/Resources << /XObject << /Im0 %d 0 R >> >> >>" % (pw, ph, content, image))  # fmt: skip
+            b"/Resources << /XObject << /Im0 %d 0 R >> >> >>" % (pw, ph, content, image))
         draw = b"q %.3f 0 0 %.3f 0 0 cm /Im0 Do Q" % (pw, ph)
         obj(b"<< /Length %d >>\nstream\n%s\nendstream" % (len(draw), draw))
         obj(b"<< /Type /XObject /Subtype /Image /Width %d /Height %d /ColorSpace /DeviceRGB "
             b"/BitsPerComponent 8 /Filter /FlateDecode /DecodeParms << /Predictor 15 /Colors 3 "
             b"/BitsPerComponent 8 /Columns %d >> /Length %d >>\nstream\n" % (w, h, w, len(pixels))
-            + pixels + b"\nendstream")  # fmt: skip
+            + pixels + b"\nendstream")
     xref = out.tell() - start
     out.write(b"xref\n0 %d\n0000000000 65535 f \n" % (len(offsets) + 1))
     out.write(b"".join(b"%010d 00000 n \n" % o for o in offsets))

@@ -26,7 +26,7 @@ from reduction.derived import Derived
 DERIVED_K = 2.0  # derived quantities are given +- two standard uncertainties
 D_SENTENCE = ("D is an apparent inertia (added mass): it absorbs everything that grows with \u03a9\u00b2, "
               "here mostly the recesses' compressibility and the measuring chain's delay, not only the "
-              "fluid's own inertia.")  # fmt: skip
+              "fluid's own inertia.")
 
 
 def fmt(value, digits: int = 4) -> str:
@@ -69,7 +69,7 @@ def identification_table(r: Reduced, truth: dict[str, float], label: str, with_b
     nd = set((r.stored or {}).get("not_determined") or [])
     k = next((row.k for row in rows if row.k is not None), 2.0)
     head = ['<th class="l">coefficient</th>', '<th class="l">unit</th>', "<th>value</th>",
-            "<th>std error<br>(statistical)</th>", "<th>95 % interval<br>(Student t)</th>"]  # fmt: skip
+            "<th>std error<br>(statistical)</th>", "<th>95 % interval<br>(Student t)</th>"]
     if with_budget:
         head += ["<th>systematic u<br>(calibration)</th>", f"<th>expanded U<br>(combined, k = {k:g})</th>"]
     if truth:
@@ -82,15 +82,15 @@ def identification_table(r: Reduced, truth: dict[str, float], label: str, with_b
         cells = [value, fmt(None if row.std is None else row.std * scale, 2), ci]
         if with_budget:
             cells += [fmt(None if row.systematic is None else row.systematic * scale, 2),
-                      fmt(None if row.expanded is None else row.expanded * scale, 2)]  # fmt: skip
+                      fmt(None if row.expanded is None else row.expanded * scale, 2)]
         if truth:
             t = truth.get(row.key)
             cells.append(fmt(t * scale) if t is not None else "-")
         body.append(f'<tr><th class="l">{_e(row.key)}</th><td class="l">{_e(unit)}</td>'
-                    + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")  # fmt: skip
+                    + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")
     span = len(head) - 1
     body += [f'<tr><th class="l">{_e(name)}</th><td colspan="{span}" class="l">{value}</td></tr>'
-             for name, value in _quality(r.identification)]  # fmt: skip
+             for name, value in _quality(r.identification)]
     out = [f"<h4>{_e(label)} ({_e(r.method)})</h4>", f"<table><tr>{''.join(head)}</tr>{''.join(body)}</table>"]
     notes = (["n.d. = not determined: the expanded uncertainty U (k = 2) exceeds the value."] if nd else [])
     notes += [D_SENTENCE] if any(row.key.startswith("D") for row in rows) else []
@@ -111,7 +111,7 @@ def lms_tables(results: list[Reduced], truth: dict[str, float], labels: list[str
     out = [identification_table(r, truth, label, with_budget) for r, label in zip(results, labels)]
     if results and not with_budget:
         out.append('<p class="muted">Systematic (calibration) uncertainty: not stored in this run; '
-                   "the uncertainties above are statistical only.</p>")  # fmt: skip
+                   "the uncertainties above are statistical only.</p>")
     return "\n".join(out)
 
 
@@ -125,7 +125,7 @@ def verdict_list(verdicts: list[Verdict], labels: dict[int, str]) -> str:
         a = v.adequacy
         extra = "" if a is None else (
             f" \u2014 {_e(a.test)} test, dof {a.dof[0]}/{a.dof[1]}; AIC {fmt(a.aic[0], 5)} (constant) vs "
-            f"{fmt(a.aic[1], 5)}; BIC {fmt(a.bic[0], 5)} vs {fmt(a.bic[1], 5)}")  # fmt: skip
+            f"{fmt(a.aic[1], 5)}; BIC {fmt(a.bic[0], 5)} vs {fmt(a.bic[1], 5)}")
         items.append(f"<li><b>{_e(labels.get(id(v.dependent), v.dependent.model))}</b>: {_e(v.text)}{extra}</li>")
     return f'<ul class="verdict">{"".join(items)}</ul>'
 
@@ -156,7 +156,7 @@ def derived_table(derived: list[tuple[Reduced, Derived]], labels: dict[int, str]
             "<th>C<sub>eff,xx</sub> = Cxx - Kxy/\u03a9 = 0 at</th><th>C<sub>eff,yy</sub> = Cyy + Kyx/\u03a9 = 0 at</th></tr>")
     return (f"<table>{head}{''.join(rows)}</table>"
             '<p class="muted">\u00b1 two standard uncertainties (statistical, linearised for WFR and '
-            "the zero crossings).</p>")  # fmt: skip
+            "the zero crossings).</p>")
 
 
 def consistency_table(a: Reduced, b: Reduced, en: dict[str, float | None], label: str) -> str:

@@ -53,7 +53,7 @@ def point_bearing(point: Point, lms: str, model: str, freq_dep: str, method: str
     mats = np.array([ident.matrices(w) for w in frequency])  # (n, 3: K C D, 2, 2)
     out: dict[str, Any] = {"point": point.index, "label": point.settings.label, "lms": lms, "model": model,
                            "freq_dep": freq_dep, "method": method, "spin": point.settings.spin,
-                           "frequency": frequency.tolist()}  # fmt: skip
+                           "frequency": frequency.tolist()}
     for m, letter in enumerate("kcm"):
         for e, (i, j) in zip(ENTRIES, ((0, 0), (0, 1), (1, 0), (1, 1))):
             out[f"{letter}{e}"] = mats[:, m, i, j].tolist()
@@ -64,7 +64,7 @@ def export_ross(run: Run, out: Path, *, lms: str = "piezo", model: str = "kcd11"
                 method: str = "ols") -> Path:
     """Write ``out``/ross_bearings.json for every complete point; returns the file."""
     bearings = [b for p in run.complete_points for name in ([lms] if lms else sorted(p.tables))
-                if (b := point_bearing(p, name, model, freq_dep, method)) is not None]  # fmt: skip
+                if (b := point_bearing(p, name, model, freq_dep, method)) is not None]
     doc = {"format": FORMAT, "run": str(run.directory), "created": run.created, "conventions": CONVENTIONS,
            "bearings": bearings}
     path = Path(out) / FILE

@@ -97,7 +97,7 @@ def read_block_signals(run: Run, point: Point, frequency: Frequency, revolution:
             raise RunDirError(Path(h5.filename), f"block {point.name}/{frequency.name}: {err}") from err
     if mean.shape != slots.shape or raw.shape != mean.shape:
         raise RunDirError(run.directory, f"block {point.name}/{frequency.name}: mean {mean.shape}, "
-                          f"slots {slots.shape}, raw revolution {raw.shape} differ")  # fmt: skip
+                          f"slots {slots.shape}, raw revolution {raw.shape} differ")
     return BlockSignals(frequency, channels, 2 * np.pi * slots / 360.0, mean, raw, k, n)
 
 
@@ -106,7 +106,7 @@ def default_frequencies(point: Point) -> list[Frequency]:
     chosen: list[Frequency] = []
     for direction in (1, -1):
         blocks = sorted((f for f in point.frequencies if f.direction == direction and f.complete),
-                        key=lambda f: f.orbit_hz)  # fmt: skip
+                        key=lambda f: f.orbit_hz)
         for f in blocks[:1] + blocks[-1:]:
             if f not in chosen:
                 chosen.append(f)

@@ -39,7 +39,7 @@ class WarningGroup:
 
     def text(self, all_systems: tuple[str, ...]) -> str:
         who = "both systems" if len(all_systems) == 2 and set(self.systems) == set(all_systems) else \
-            ", ".join(self.systems)  # fmt: skip
+            ", ".join(self.systems)
         line = f"{self.fit}, {who}: {self.head} at {len(self.points)} of {self.total} points ({point_ranges(self.points)})"
         if self.why:
             line += f" - {self.why}"
@@ -82,7 +82,7 @@ def group_warnings(fits: Iterable[FitWarnings]) -> list[WarningGroup]:
                 clean.discard(f.fit)
         head, why = warning_kind(g["text"])
         out.append(WarningGroup(fit, tuple(sorted(g["systems"])), head, why, tuple(sorted(g["points"])),
-                                len(family_points[fit]), tuple(sorted(clean))[:SEE_MOST]))  # fmt: skip
+                                len(family_points[fit]), tuple(sorted(clean))[:SEE_MOST]))
     return sorted(out, key=lambda g: (g.fit, -len(g.points), g.head))
 
 

@@ -80,7 +80,7 @@ def repeatability(rows: list[Row], coefficient: str) -> Repeatability:
     total, dof, n_groups = 0.0, 0, 0
     for group in repeat_groups(rows):
         pairs = [(r[coefficient], r[f"{coefficient}_U"] / COVERAGE) for r in group
-                 if r.get(coefficient) is not None and r.get(f"{coefficient}_U")]  # fmt: skip
+                 if r.get(coefficient) is not None and r.get(f"{coefficient}_U")]
         if len(pairs) < 2:
             continue
         x, u = np.array(pairs).T

@@ -36,7 +36,7 @@ def compare_figure(rows: list[Row], variable: Variable, coefficients: list[str],
         scale, unit = SCALE[name[0]]
         for (run_id, run_rows), color, dx in zip(runs.items(), colors, offsets):
             pts = [(variable.of(r) + dx, r[name] * scale, (r[f"{name}_U"] or 0.0) * scale)
-                   for r in run_rows if r.get(name) is not None]  # fmt: skip
+                   for r in run_rows if r.get(name) is not None]
             if pts:
                 x, y, u = np.array(sorted(pts)).T
                 ax.errorbar(x, y, yerr=u, fmt="o-", ms=4, lw=0.8, capsize=3, color=color, label=run_id)
@@ -54,7 +54,7 @@ def compare_figure(rows: list[Row], variable: Variable, coefficients: list[str],
 def _draw_predicted(ax, predicted: list[dict[str, float]], variable: Variable, name: str, scale: float) -> None:
     column = _PREDICTED_X.get(variable, variable.value)
     pts = sorted((p[column], p[name]) for p in predicted
-                 if column in p and np.isfinite(p.get(name, np.nan)))  # fmt: skip
+                 if column in p and np.isfinite(p.get(name, np.nan)))
     if pts:
         x, y = np.array(pts).T
         ax.plot(x, y * scale, "k--", lw=1.2, label="predicted")

@@ -54,7 +54,7 @@ def _run_columns(run: Run) -> dict[str, Any]:
         "calibration_record": prov.get("calibration_record", ""),
         "calibration_record_sha256": prov.get("calibration_record_sha256", ""),
         "started": prov.get("started", ""), "ended": prov.get("ended", ""),
-    }  # fmt: skip
+    }
 
 
 def _point_columns(p: Point) -> dict[str, Any]:
@@ -64,7 +64,7 @@ def _point_columns(p: Point) -> dict[str, Any]:
         "recess_pressure": s.recess_pressure, "pressure_ratio": s.pressure_ratio,
         "static_eccentricity": s.static_eccentricity, "dynamic_eccentricity": s.dynamic_eccentricity,
         "orbit_hz": json.dumps(sorted({f.orbit_hz for f in p.frequencies})),
-    }  # fmt: skip
+    }
 
 
 def _fit_columns(ident: StoredIdentification) -> dict[str, Any]:
@@ -84,7 +84,7 @@ def _fit_columns(ident: StoredIdentification) -> dict[str, Any]:
         not_determined=" ".join(not_determined(values, u)),
         coefficients_json=json.dumps({"values": values, "U": u,
                                       "std": {k: _number(v) for k, v in result.get("std_errors", {}).items()}}),
-    )  # fmt: skip
+    )
     for name in COEFFICIENTS:
         row[name], row[f"{name}_U"] = _finite(values.get(name)), _finite(u.get(name))
     return row

@@ -29,7 +29,7 @@ def _columns() -> list[Column]:
             Column("lms", String(40), nullable=False), Column("model", String(40), nullable=False),
             Column("freq_dep", String(80), nullable=False), Column("method", String(40), nullable=False),
             Column("ok", Boolean, nullable=False), Column("sim", Boolean), Column("n_frequencies", Integer),
-            Column("adequacy_supported", Boolean)]  # fmt: skip
+            Column("adequacy_supported", Boolean)]
     cols += [Column(name, Text) for name in _TEXT]
     cols += [Column(name, Float) for name in _FLOAT]
     for name in COEFFICIENTS:

@@ -33,7 +33,7 @@ _REF_U = "its certificate's relative standard uncertainty (%); required on the r
 
 def register(app: typer.Typer) -> None:
     cal = typer.Typer(help="Calibrate the load measuring systems and probes; the calibration records.",
-                      no_args_is_help=True)  # fmt: skip
+                      no_args_is_help=True)
     app.add_typer(cal, name="calibrate")
     for name, command in (("list", list_), ("show", show), ("loads", loads), ("runout", runout), ("delay", delay),
                           ("probes", probes)):
@@ -46,7 +46,7 @@ def list_(config: Optional[Path] = _CONFIG) -> None:
 
 
 def show(name: Optional[str] = typer.Argument(None, help="record name (default: the active record)"),
-         config: Optional[Path] = _CONFIG) -> None:  # fmt: skip
+         config: Optional[Path] = _CONFIG) -> None:
     """Print one calibration record (its TOML text) and its SHA-256."""
     _guarded(lambda: _show(name, config))
 
@@ -65,7 +65,7 @@ def loads(
     activate: bool = _ACTIVATE,
     sim_config: Optional[Path] = _SIM_CONFIG,
     speedup: float = _SPEEDUP,
-) -> None:  # fmt: skip
+) -> None:
     """Static loads -> each load measuring system's 2 x 2 gain matrix.
 
     Known static loads in x and y (the default set: none, +-x, +-y, two diagonals), read by both
@@ -86,7 +86,7 @@ def runout(
     activate: bool = _ACTIVATE,
     sim_config: Optional[Path] = _SIM_CONFIG,
     speedup: float = _SPEEDUP,
-) -> None:  # fmt: skip
+) -> None:
     """Slow roll without orbit -> each probe's runout at 1x and 2x spin.
 
     Slow roll at low spin without orbit (orbit radius zero, the orbit spindle at the spin speed):
@@ -108,7 +108,7 @@ def delay(
     activate: bool = _ACTIVATE,
     sim_config: Optional[Path] = _SIM_CONFIG,
     speedup: float = _SPEEDUP,
-) -> None:  # fmt: skip
+) -> None:
     """Phase reference -> each force channel's phase and time delay behind the probes.
 
     A reference signal locked to the orbit spindle on every channel's input, read at several
@@ -133,7 +133,7 @@ def probes(
     activate: bool = _ACTIVATE,
     sim_config: Optional[Path] = _SIM_CONFIG,
     speedup: float = _SPEEDUP,
-) -> None:  # fmt: skip
+) -> None:
     """Displacement steps -> each probe's gain and linearity.
 
     Known static steps of the journal (a micrometer), first along x, then along y, read by the probes
@@ -225,7 +225,7 @@ def _write(rig, folder, record, activate: bool, what: str) -> None:
     from orbitrig.config import write_record
 
     header = (f"orbitrig calibration record (docs/calibration.md), written by `orbitrig calibrate {record.step}`.\n"
-              f"{what}")  # fmt: skip
+              f"{what}")
     name, _ = write_record(folder, record, header)
     typer.echo(f"calibration record {name} written to {folder}")
     if activate:
@@ -239,7 +239,7 @@ def _reference(opts, reference_id, reference_u_pct, simulated: str):
 
     if not opts.sim and (reference_id is None or reference_u_pct is None):
         raise typer.BadParameter("on the rig give the reference: --reference-id ID --reference-u-pct U",
-                                 param_hint="--reference-id")  # fmt: skip
+                                 param_hint="--reference-id")
     return Reference(id=reference_id or simulated, uncertainty_pct=reference_u_pct or 0.0)
 
 
@@ -253,7 +253,7 @@ def _loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> Non
     record = asyncio.run(loads_record(rig, opts, load_n, ref, lambda m: typer.echo(m, err=True)))
     for lms, g in record.loads.items():
         typer.echo(f"{lms}: gain matrix {g.gain} (u {[[f'{u:.2g}' for u in row] for row in g.gain_u]}), "
-                   f"residual {g.residual_n:.3g} N")  # fmt: skip
+                   f"residual {g.residual_n:.3g} N")
     _write(rig, folder, record, activate, "Units: gain 1 (f_journal = gain @ f_read + offset_n), offset_n and "
            "residual_n N; [uncertainty] gain_pct percent, phase_deg degrees, delay_us microseconds (k = 1).")
 
@@ -280,7 +280,7 @@ def _delay(config, opts, speeds, amplitudes, activate) -> None:
     record = asyncio.run(delay_record(rig, opts, speeds, amplitudes, lambda m: typer.echo(m, err=True)))
     for name, d in record.delay.items():
         typer.echo(f"{name}: lags the probes by {d.phase_deg:.4f} deg (u {d.phase_u_deg:.2g}) "
-                   f"+ {d.delay_us:.2f} us (u {d.delay_u_us:.2g})")  # fmt: skip
+                   f"+ {d.delay_us:.2f} us (u {d.delay_u_us:.2g})")
     _write(rig, folder, record, activate, "Units: [delay] phase_deg degrees, delay_us microseconds: the force "
            "channel lags the probes by phase_deg + 360 f delay_us 1e-6 degrees at f Hz.")
 

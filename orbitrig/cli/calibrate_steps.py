@@ -99,7 +99,7 @@ def _base(rig: RigConfig, opts: StepOptions, step: RecordStep) -> dict:
 
 
 async def loads_record(rig: RigConfig, opts: StepOptions, load_n: float, reference: Reference,
-                       note) -> CalibrationRecord:  # fmt: skip
+                       note) -> CalibrationRecord:
     """`calibrate loads`: the default load set of `load_n` N, each system's gain matrix fitted."""
     loads = static_loads(load_n)
     async with rig_access(rig, opts) as (access, hands):
@@ -113,7 +113,7 @@ async def loads_record(rig: RigConfig, opts: StepOptions, load_n: float, referen
     for lms in LMS:
         fit = fit_gain_matrix(loads, readings[lms], u_ref)
         data["loads"][lms] = LoadGains(gain=fit.gain.tolist(), gain_u=fit.gain_u.tolist(), offset_n=fit.offset.tolist(),
-                                       residual_n=fit.residual_rms, loads=len(loads)).model_dump()  # fmt: skip
+                                       residual_n=fit.residual_rms, loads=len(loads)).model_dump()
         for axis, u in zip(("fx", "fy"), fit.relative_gain_u()):
             data["uncertainty"][f"{axis}_{lms}"]["gain_pct"] = float(u * 100.0)
     return CalibrationRecord.model_validate(data)
@@ -133,12 +133,12 @@ async def runout_record(rig: RigConfig, opts: StepOptions, note) -> CalibrationR
 
 
 async def delay_record(rig: RigConfig, opts: StepOptions, speeds_rpm: list[float], amplitudes: tuple[float, float],
-                       note) -> CalibrationRecord:  # fmt: skip
+                       note) -> CalibrationRecord:
     """`calibrate delay`: the phase reference read at each slow-roll speed; each force channel's lag
     behind the probes fitted as a constant phase plus a time delay."""
     base = opts.roll()
     rolls = [SlowRoll(rpm * RPM / DELAY_RATIO, base.recess_pressure, base.pressure_ratio, base.revolutions, DELAY_RATIO)
-             for rpm in speeds_rpm]  # fmt: skip
+             for rpm in speeds_rpm]
     async with rig_access(rig, opts) as (access, hands):
         async with CalibrationSession(rig, access, note) as session:
             freqs, lags = await measure_delay(session, hands, rolls, amplitudes)
@@ -147,14 +147,14 @@ async def delay_record(rig: RigConfig, opts: StepOptions, speeds_rpm: list[float
     for name in FORCE_CHANNELS:
         fit = fit_delay(freqs, lags[name])
         d = ChannelDelay(phase_deg=float(np.degrees(fit.phase)), delay_us=fit.delay * 1e6,
-                         phase_u_deg=float(np.degrees(fit.phase_u)), delay_u_us=fit.delay_u * 1e6)  # fmt: skip
+                         phase_u_deg=float(np.degrees(fit.phase_u)), delay_u_us=fit.delay_u * 1e6)
         data["delay"][name] = d.model_dump()
         data["uncertainty"][name].update(phase_deg=d.phase_u_deg, delay_us=d.delay_u_us)
     return CalibrationRecord.model_validate(data)
 
 
 async def probes_record(rig: RigConfig, opts: StepOptions, steps: np.ndarray, reference: Reference,
-                        note) -> CalibrationRecord:  # fmt: skip
+                        note) -> CalibrationRecord:
     """`calibrate probes`: known displacement steps along x, then y; each probe's gain and linearity."""
     async with rig_access(rig, opts) as (access, hands):
         async with CalibrationSession(rig, access, note) as session:
@@ -166,7 +166,7 @@ async def probes_record(rig: RigConfig, opts: StepOptions, steps: np.ndarray, re
     for p in PROBES:
         fit = fit_probe(steps, readings[p], reference.uncertainty_pct / 100.0)
         data["probes"][p] = ProbeGain(gain=fit.gain, gain_u=fit.gain_u, linearity_pct=fit.linearity * 100,
-                                      span_um=float(np.ptp(steps)) * 1e6, steps=len(steps)).model_dump()  # fmt: skip
+                                      span_um=float(np.ptp(steps)) * 1e6, steps=len(steps)).model_dump()
         data["uncertainty"][p]["gain_pct"] = fit.gain_u / fit.gain * 100.0
     data["uncertainty"]["probe_sensitivity_pct"] = reference.uncertainty_pct  # common to all: the reference
     return CalibrationRecord.model_validate(data)

@@ -28,7 +28,7 @@ DEFAULT_FORCE_NOISE = 20.0  # N per revolution, fx and fy (the simulator's defau
 DEFAULT_PROBE_NOISE = 100e-9  # m per revolution, x and y (there: 20 to 160 nm, growing with the orbit ratio)
 NOMINAL = {"Kxx": 3.8e7, "Kxy": 6.0e6, "Kyx": -6.0e6, "Kyy": 4.0e7,
            "Cxx": 1.0e5, "Cxy": 2.0e3, "Cyx": 2.0e3, "Cyy": 1.1e5,
-           "Dxx": 4.0, "Dxy": 0.05, "Dyx": 0.05, "Dyy": 4.2}  # fmt: skip  (SI; higher orders 0)
+           "Dxx": 4.0, "Dxy": 0.05, "Dyx": 0.05, "Dyy": 4.2}  # (SI; higher orders 0)
 
 
 class DesignInputError(OrbitrigError):

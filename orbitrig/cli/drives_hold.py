@@ -61,7 +61,7 @@ async def _hold(rig, refs: tuple[int, int], status_every: float, interrupt) -> i
     from orbitrig.run.safe_stop import stop_drives
 
     typer.echo("holding at the setpoint; Ctrl-C, SIGTERM or SIGHUP ramps both drives to zero "
-               "(a second one: emergency stop)", err=True)  # fmt: skip
+               "(a second one: emergency stop)", err=True)
     interrupt.holding = True
     t0 = last = time.monotonic()
     elsewhere = None

@@ -27,7 +27,7 @@ def _print(plan, steps: bool) -> None:
 
     sm = summarize(plan.steps)
     typer.echo(f"matrix {plan.name}: {sm.points} operating points, {sm.blocks} orbit blocks, "
-               f"{len(plan.steps)} steps, estimated {format_duration(sm.duration)} (physical time)")  # fmt: skip
+               f"{len(plan.steps)} steps, estimated {format_duration(sm.duration)} (physical time)")
     parts = ", ".join(f"{k} {format_duration(v)}" for k, v in sm.by_kind.items())
     typer.echo(f"by step: {parts}")
     for line in prediction_lines(plan.rig, plan.matrix):
@@ -64,12 +64,12 @@ def _print_points(plan) -> None:
     for p in plan.points:
         d = sum(s.duration for s in plan.point_steps(p.index))
         typer.echo(f"{p.index:>5d}  {format_duration(t):>9}  {format_duration(d):>8}  "
-                   f"{len(p.blocks):>6}  {p.label}")  # fmt: skip
+                   f"{len(p.blocks):>6}  {p.label}")
         t += d
     tail = sum(s.duration for s in plan.final_steps)
     if plan.final_steps:
         typer.echo(f"{'end':>5}  {format_duration(t):>9}  {format_duration(tail):>8}  {'':>6}  "
-                   + "; ".join(s.describe() for s in plan.final_steps))  # fmt: skip
+                   + "; ".join(s.describe() for s in plan.final_steps))
 
 
 def _print_steps(steps) -> None:

@@ -75,7 +75,7 @@ class Operator:
             self._ask("paused at the next safe point: [r]esume, [s]top, [a]bort? (Ctrl-C again aborts) ", self._choice)
         else:
             self.console.print(f"{_name(sig)}: stopping now, both drives ramp to zero (a second signal aborts)",
-                               style="bold red", markup=False)  # fmt: skip
+                               style="bold red", markup=False)
             self.engine.request_stop_now(_name(sig))
 
     def on_event(self, ev) -> None:
@@ -92,7 +92,7 @@ class Operator:
     def _ask_confirm(self, message: str) -> None:
         step = self.engine.waiting_step
         self._ask(f"{message}\npress Enter to confirm {step} (or type stop / abort): ",
-                  lambda ans: self._confirm(step, ans))  # fmt: skip
+                  lambda ans: self._confirm(step, ans))
 
     def _ask(self, prompt: str, handle) -> None:
         import asyncio
@@ -117,7 +117,7 @@ class Operator:
 
     def _no_operator(self) -> None:
         self.console.print("\nstandard input is closed, nobody can answer: stopping the run "
-                           "(continue later with --resume)", style="bold red", markup=False)  # fmt: skip
+                           "(continue later with --resume)", style="bold red", markup=False)
         self.engine.request_stop()
 
     def _choice(self, ans: str) -> None:

@@ -113,7 +113,7 @@ def report_cmd(
         _fail(f"--figures: unknown kind(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")
     try:
         options = ReportOptions(figures=frozenset(kinds), all_frequencies=all_frequencies,
-                                style=_style(width, formats, coverage))  # fmt: skip
+                                style=_style(width, formats, coverage))
         total = len(point) if point else len(read_run(directory).complete_points)
         with ReportProgress(total) as progress:
             report = make_report(directory, points=point, options=options, workers=workers, progress=progress)

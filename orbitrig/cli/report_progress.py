@@ -22,7 +22,7 @@ class ReportProgress:
             self.bar = Progress(TextColumn("report"), BarColumn(), MofNCompleteColumn(), TextColumn("points,"),
                                 TextColumn("{task.fields[figures]} figures"), TimeElapsedColumn(),
                                 TextColumn("ETA"), TimeRemainingColumn(),
-                                console=Console(file=self.stream), transient=False)  # fmt: skip
+                                console=Console(file=self.stream), transient=False)
             self.task = self.bar.add_task("report", total=total, figures=0)
 
     def __enter__(self) -> ReportProgress:

@@ -18,7 +18,7 @@ DEFAULT_BACKUPS = 5  # older files kept beside the current one
 
 
 def setup_service_log(*, verbose: bool, log_file: Path | None = None, max_mb: float = DEFAULT_MAX_MB,
-                      backups: int = DEFAULT_BACKUPS) -> logging.Handler | None:  # fmt: skip
+                      backups: int = DEFAULT_BACKUPS) -> logging.Handler | None:
     """Log to standard error and, given `log_file`, to a rotating file (returned).
     Raises OSError when the file cannot be opened."""
     level = logging.DEBUG if verbose else logging.INFO
@@ -28,7 +28,7 @@ def setup_service_log(*, verbose: bool, log_file: Path | None = None, max_mb: fl
     if log_file is None:
         return None
     handler = logging.handlers.RotatingFileHandler(log_file, maxBytes=int(max_mb * 1e6), backupCount=backups,
-                                                   encoding="utf-8")  # fmt: skip
+                                                   encoding="utf-8")
     handler.setFormatter(logging.Formatter(LOG_FORMAT))
     logging.getLogger().addHandler(handler)
     return handler

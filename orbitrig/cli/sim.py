@@ -56,14 +56,14 @@ def register(app: typer.Typer) -> None:
                     hub = await stack.enter_async_context(CanTcpHub(port=can_port))
                     can = dict(can_channel=hub.url, can_interface="serial")
                 rig = SimRig(cfg, speedup=speedup, modbus_port=modbus_port, adc_port=adc_port,
-                             modbus_rtu_pty=modbus_rtu, control_port=control_port, **can)  # fmt: skip
+                             modbus_rtu_pty=modbus_rtu, control_port=control_port, **can)
                 await serve_until_signalled(rig, out=_Announce(can["can_interface"], speedup or cfg.speedup))
 
         try:
             asyncio.run(run())
         except (OSError, RuntimeError) as err:  # a port in use (pymodbus says RuntimeError "Could not start listen")
             typer.echo(f"orbitrig sim: {err} (ports: Modbus {modbus_port}, A/D {adc_port}, CAN {can_port}, "
-                       f"control {control_port}; is another simulator running? 0 picks a free port)", err=True)  # fmt: skip
+                       f"control {control_port}; is another simulator running? 0 picks a free port)", err=True)
             raise typer.Exit(1) from None
 
 
@@ -89,7 +89,7 @@ class _Announce:
 def describe_endpoints(ep: dict, can_interface: str, speedup: float) -> str:
     """The endpoints object of the simulator in words, with the rig.toml keys that reach them."""
     lines = [f"orbitrig sim: the simulated rig runs (simulated time = {speedup:g} x wall time); Ctrl-C ends it.",
-             f"  drives     Modbus TCP {ep['modbus']}, device ids 1 (spin) and 2 (orbit)"]  # fmt: skip
+             f"  drives     Modbus TCP {ep['modbus']}, device ids 1 (spin) and 2 (orbit)"]
     if ep.get("modbus_rtu"):
         lines.append(f"             Modbus RTU on {ep['modbus_rtu']}")
     pty = f" and the pty {ep['adc_pty']}" if ep.get("adc_pty") else ""

@@ -135,9 +135,9 @@ class SimulatorHands:
         self.link = link
 
     async def set_manual(self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float,
-                         pressure_ratio: float) -> None:  # fmt: skip
+                         pressure_ratio: float) -> None:
         await self.link.acall("set_manual", orbit_radius=orbit_radius, static_eccentricity=static_eccentricity,
-                              recess_pressure=recess_pressure, pressure_ratio=pressure_ratio)  # fmt: skip
+                              recess_pressure=recess_pressure, pressure_ratio=pressure_ratio)
 
     async def apply_load(self, fx: float, fy: float) -> None:
         """A known static calibration load (N) on the simulator's journal, at once."""
@@ -198,12 +198,12 @@ def simulated_access(sim, scenario: Scenario | None = None) -> RigAccess:
     else:
         link, endpoints = InProcessLink(sim), Endpoints(sim.modbus_url, sim.adc_url, sim.can_channel, "virtual")
     return RigAccess(endpoints=endpoints, time_scale=TimeScale(sim.speedup), hands=SimulatorHands(link),
-                     truth=SimulatorTruth(link), simulated=True, scenario=scenario)  # fmt: skip
+                     truth=SimulatorTruth(link), simulated=True, scenario=scenario)
 
 
 @contextlib.asynccontextmanager
 async def simulated_rig(speedup: float = DEFAULT_SPEEDUP, config=None, scenario: Scenario | None = None,
-                        started: SimulatorStart | None = None) -> AsyncIterator[tuple[SimulatorProcess, RigAccess]]:  # fmt: skip
+                        started: SimulatorStart | None = None) -> AsyncIterator[tuple[SimulatorProcess, RigAccess]]:
     """A simulator process of scenario `config` (a sim.config.SimConfig; default: the paper's
     rig) and its access; `scenario` names it in the run (the config's file and text).
     `started`: the process `start_simulator` started earlier with the same arguments."""
@@ -233,7 +233,7 @@ class SimulatorStart:
         self.log = tempfile.TemporaryFile()  # its stderr: shown only when it fails to start
         try:
             self.proc = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log,
-                                         env=_environment(), start_new_session=True)  # fmt: skip
+                                         env=_environment(), start_new_session=True)
         except OSError as err:
             self.log.close()
             raise SimulatorError(f"the simulator process could not start: {err}") from None
@@ -251,7 +251,7 @@ class SimulatorStart:
             said = self.log.read().decode(errors="replace").strip().splitlines()
             self.log.close()
             raise SimulatorError("the simulator process did not start (python -m sim, exit status "
-                                 f"{self.proc.returncode}){': ' + said[-1] if said else ''}")  # fmt: skip
+                                 f"{self.proc.returncode}){': ' + said[-1] if said else ''}")
         return endpoints
 
     async def end(self) -> None:
@@ -282,7 +282,7 @@ class SimulatorStart:
 def _command(speedup: float, config) -> list[str]:
     args = [sys.executable, "-m", "sim", "--modbus-port", "0", "--adc-port", "0", "--no-adc-pty",
             "--control-port", "0", "--can-hub", "0", "--speedup", repr(float(speedup)),
-            "--nice", str(SIMULATOR_NICE), "--parent-pid", str(os.getpid())]  # fmt: skip
+            "--nice", str(SIMULATOR_NICE), "--parent-pid", str(os.getpid())]
     if config is not None:
         from sim.config import sim_config_to_data
 

@@ -57,7 +57,7 @@ def register(app: typer.Typer) -> None:
 
 
 def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, sim_config, operator=None, *,
-                   steps=False, fmt=None) -> None:  # fmt: skip
+                   steps=False, fmt=None) -> None:
     """`orbitrig sweep`, its options checked; raises typer.Exit with the run's exit status."""
     from orbitrig.errors import ConfigError, OrbitrigError
 
@@ -83,7 +83,7 @@ def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, 
 
         scenario = _scenario(sim_config, resume=resume, out=out) if sim else None
         outcome = asyncio.run(_sweep(plan, out=out, sim=scenario, resume=resume, speedup=speedup,
-                                     operator=operator or _login(), fmt=fmt))  # fmt: skip
+                                     operator=operator or _login(), fmt=fmt))
     except ConfigError as err:
         typer.echo(f"error: {err}", err=True)
         raise typer.Exit(2) from None
@@ -110,7 +110,7 @@ def _scenario(path, *, resume: bool, out):
         name, text = stored
         if path is not None and _read(path) != text:
             raise ConfigError(str(path), [f"differs from the simulator scenario of the run being resumed in {out} "
-                                          f"({name}); resume without --sim-config (the stored one is used)"])  # fmt: skip
+                                          f"({name}); resume without --sim-config (the stored one is used)"])
         where = f"{out}/run.json: sim_scenario ({name})"
         typer.echo(f"simulator scenario of the run: {name}", err=True)
     else:
@@ -166,19 +166,19 @@ def _configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
         rig_text, matrix_text, was_sim = store.stored_configs()
         if was_sim != sim:
             raise ConfigError(str(store.path), [f"this run was made {'on the simulator' if was_sim else 'on the rig'}: "
-                                                f"resume it {'with' if was_sim else 'without'} --sim"])  # fmt: skip
+                                                f"resume it {'with' if was_sim else 'without'} --sim"])
         rig = cfg.load_rig(config) if config else cfg.rig_from_text(rig_text, f"{store.path}:rig_config",
-                                                                    store.stored_record())  # fmt: skip
+                                                                    store.stored_record())
         matrix = cfg.matrix_file(matrix, rig_path=config) if matrix else None
         mat = cfg.load_matrix(matrix) if matrix else cfg.matrix_from_text(matrix_text, f"{store.path}:matrix_config")
         if matrix and mat.text != matrix_text:  # before the simulator or any drive is started
             raise ConfigError(mat.file, [f"differs from the matrix of the run being resumed in {store.path}; "
-                                         "resume without --matrix (the stored one is used)"])  # fmt: skip
+                                         "resume without --matrix (the stored one is used)"])
         return rig, mat
     rig = cfg.load_rig(config)
     if matrix is None and not sim and not dry_run:
         raise typer.BadParameter("--matrix NAME|FILE is required on the rig (--sim defaults to the demo)",
-                                 param_hint="--matrix")  # fmt: skip
+                                 param_hint="--matrix")
     path = cfg.matrix_file(matrix, rig_path=config) if matrix else cfg.default_matrix_path(rig_path=config)
     return rig, cfg.load_matrix(path)
 
@@ -212,7 +212,7 @@ def _check_rig_answers(rig) -> None:
         lines = "\n".join(f"  {p}" for p in problems)
         typer.echo(f"error: the rig does not answer ([transports] in {rig.file}):\n{lines}\n"
                    "Nothing was started and no run directory was made. On a machine without the rig, "
-                   "run on the built-in simulator: orbitrig sweep --sim ...", err=True)  # fmt: skip
+                   "run on the built-in simulator: orbitrig sweep --sim ...", err=True)
         raise typer.Exit(2)
 
 
@@ -250,7 +250,7 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator
 
             _, access = await stack.enter_async_context(simulated_rig(speedup, *sim, started=started))
         engine = RunEngine(plan.rig, out_dir=out, access=access, confirm_mode=ConfirmMode.AUTO if access else ConfirmMode.PROMPT,
-                           operator=operator)  # fmt: skip
+                           operator=operator)
         engine.console_user = operator  # Ctrl-C's pause, stop, abort and the prompts' confirmations
         console_operator = Operator(engine, console)
         engine.subscribe(console_operator.on_event)
@@ -262,7 +262,7 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator
             finally:
                 console_operator.uninstall()
     console.print(f"run {outcome.status}: {outcome.message}  ({len(outcome.completed_points)} of "
-                  f"{outcome.points} points complete in {out})", markup=False)  # fmt: skip
+                  f"{outcome.points} points complete in {out})", markup=False)
     if outcome.completed_points:
         from orbitrig.cli.sweep_summary import print_coefficients  # the closing table
 

@@ -64,7 +64,7 @@ def matrix_file(arg: str | Path, folder: Path | None = None, rig_path: Path | st
     names = sorted(p.stem for p in folder.glob("*.toml")) if folder else known_names(MATRICES, rig_path)
     where = folder or " or ".join(str(f) for f in search_folders(MATRICES, rig_path))
     raise ConfigError(str(arg), [f"no such file, and no matrix of that name in {where} "
-                                 f"(available: {', '.join(names) or 'none'})"])  # fmt: skip
+                                 f"(available: {', '.join(names) or 'none'})"])
 
 
 def _parse(text: str, file: str) -> dict:
@@ -109,7 +109,7 @@ def _read_default(path: Path | str | None, default: Path, option: str) -> tuple[
     if path is not None or default.is_file():
         return _read(path or default)
     raise ConfigError(str(default), [f"the default file is not there: give {option} FILE, set {HOME_ENV} to a "
-                                     "folder made by `orbitrig init DIR`, or run in such a folder"])  # fmt: skip
+                                     "folder made by `orbitrig init DIR`, or run in such a folder"])
 
 
 def load_rig(path: Path | str | None = None) -> RigConfig:

@@ -40,7 +40,7 @@ def write_lab(folder: Path, broker_dir: Path | None = None, force: bool = False)
     folder = Path(folder)
     if (folder / RIG_FILE).exists() and not force:
         raise ConfigError(str(folder / RIG_FILE), ["already there: a lab configuration exists in this folder "
-                                                   "(--force overwrites it)"])  # fmt: skip
+                                                   "(--force overwrites it)"])
     shipped = shipped_config()
     written = [_copy(shipped / RIG_FILE, folder / RIG_FILE)]
     for kind in (MATRICES, DESIGNS):

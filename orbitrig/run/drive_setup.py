@@ -22,7 +22,7 @@ UNLIMITED = DriveLimits(math.inf, math.inf)
 def drive_limits(d: Drives) -> DriveLimits:
     """The configured speed (rad/s) and orbit/spin ratio limits of [drives]."""
     return DriveLimits(max_spin=d.max_spin_rpm * RPM, max_orbit=d.max_orbit_rpm * RPM, min_ratio=d.min_ratio,
-                       max_ratio=d.max_ratio)  # fmt: skip
+                       max_ratio=d.max_ratio)
 
 
 def rig_drives(url: str, d: Drives, limits: DriveLimits | None = None, *, watchdog: bool = False) -> RigDrives:

@@ -32,7 +32,7 @@ from orbitrig.run.background import Background
 from orbitrig.run.control import RunControl, StopRun
 from orbitrig.run.events import (  # noqa: F401 - the engine's public names
     Event, ProgressEvent, ResultEvent, RunFailed, RunOutcome, StatusEvent, Subscriber,
-)  # fmt: skip
+)
 from orbitrig.run.interlocks import Trip
 from orbitrig.run.log_rows import can_row, drive_row
 from orbitrig.run.modbus_log import pymodbus_into
@@ -53,7 +53,7 @@ log = logging.getLogger(__name__)
 
 class RunEngine(OperatorRequests):
     def __init__(self, rig: RigConfig, *, out_dir: Path, access: RigAccess | None = None,
-                 confirm_mode: ConfirmMode = ConfirmMode.PROMPT, operator: str = ""):  # fmt: skip
+                 confirm_mode: ConfirmMode = ConfirmMode.PROMPT, operator: str = ""):
         if confirm_mode not in tuple(ConfirmMode):
             raise ValueError(f"confirm_mode {confirm_mode!r} is not one of prompt, remote, auto")
         self.rig = rig
@@ -129,14 +129,14 @@ class RunEngine(OperatorRequests):
                                     matrix_name=plan.name, sim=self.access.simulated,
                                     scenario_name=sc.name, scenario_text=sc.text,
                                     provenance=prov.to_dict(), record_text=self.rig.record_text,
-                                    point_order=list(plan.order))  # fmt: skip
+                                    point_order=list(plan.order))
             store.log(prov.summary())
             return store, []
         store = RunStore.open_existing(self.out_dir)
         _, matrix_text, _ = store.stored_configs()
         if plan.matrix.text and plan.matrix.text != matrix_text:
             raise ConfigError(plan.matrix.file, ["differs from the matrix of the run being resumed "
-                                                 f"in {store.path}; resume with the stored matrix"])  # fmt: skip
+                                                 f"in {store.path}; resume with the stored matrix"])
         return store, store.prepare_resume()
 
     def _start(self, plan: Plan, store: RunStore, done: list[int], resume: bool) -> None:
@@ -151,10 +151,10 @@ class RunEngine(OperatorRequests):
         todo = [p for p in plan.points if p.index not in done]
         kept = {p.index for p in todo}
         remaining = sum(PointProcedure.estimate_of(s, self.confirm_mode) for s in plan.steps
-                        if s.point is None or s.point in kept)  # fmt: skip
+                        if s.point is None or s.point in kept)
         self._progress.start(self.run_id, len(todo), remaining)
         store.log(f"{'resume' if resume else 'start'} run {self.run_id}: matrix {plan.name}, "
-                  f"{len(todo)} of {len(plan.points)} points to run, sim={self.access.simulated}")  # fmt: skip
+                  f"{len(todo)} of {len(plan.points)} points to run, sim={self.access.simulated}")
         for line in store.set_aside:  # incomplete or damaged points a resume put aside
             self._log_event(line)
         try:
@@ -209,7 +209,7 @@ class RunEngine(OperatorRequests):
         """Run `body` beside the interlock supervisor and the log monitor."""
         supervisor.sample()
         helpers = [asyncio.create_task(supervisor.watch(), name="interlocks"),
-                   asyncio.create_task(self._monitor(), name="run-monitor")]  # fmt: skip
+                   asyncio.create_task(self._monitor(), name="run-monitor")]
         self._body = asyncio.create_task(body, name="run-body")
         if self._failure is not None or self._control.abort_requested or self._control.stop_now:  # while opening
             self._body.cancel()
@@ -223,11 +223,11 @@ class RunEngine(OperatorRequests):
 
     def _procedure(self, io: RigIO) -> PointProcedure:
         supervisor = InterlockSupervisor(lambda: (io.aux.latest(), io.drives.state), self.rig.interlocks,
-                                         self._interlock_failed)  # fmt: skip
+                                         self._interlock_failed)
         return PointProcedure(RunParts(
             self.rig, self.access, io, self._store, self._control, supervisor, self._background, self._progress,
             self.timing, self.confirm_mode, self.run_id, self._emit, self._log_event,
-        ))  # fmt: skip
+        ))
 
     def _interlock_failed(self, trip: Trip) -> None:
         """A fail trip: the run ends at once (drives stopping in the cleanup)."""
@@ -308,7 +308,7 @@ class RunEngine(OperatorRequests):
             if status != FAILED:  # a failed run keeps its first cause
                 status, message = FAILED, f"storage failed: the run's status and run.h5 could not be written: {err}"
         for what, action in (("write coefficients.csv", store.write_csv),
-                             ("close the run log", lambda: store.log(f"run {self.run_id} ended: {status}: {message}"))):  # fmt: skip
+                             ("close the run log", lambda: store.log(f"run {self.run_id} ended: {status}: {message}"))):
             try:
                 action()
             except Exception as err:  # noqa: BLE001

@@ -50,12 +50,12 @@ def block_record(block: Block, blk: AveragedBlock, rig: RigConfig) -> BlockRecor
         rms_residual=np.asarray(blk.rms_residual), coherence=coh, stats=stats,
         uncertainty=np.asarray(blk.uncertainty), n_records=blk.n_records, stop_reason=blk.stop_reason,
         revolutions=np.asarray(blk.revs),
-    )  # fmt: skip
+    )
 
 
 def identify_operating_point(spin: float, recs: list[BlockRecord], ch: dict[str, int], models,
                              truth: dict | None = None, calibration: CalibrationUncertainty | None = None,
-                             corrections: Corrections | None = None) -> PointResults:  # fmt: skip
+                             corrections: Corrections | None = None) -> PointResults:
     """One operating point's results: the orbit table of each load measuring system (forward
     and backward blocks together; ``corrections``, the active calibration record's force gain
     matrices and probe runout, applied), every model of ``models`` (ModelSpec) identified on each
@@ -85,7 +85,7 @@ def identify_operating_point(spin: float, recs: list[BlockRecord], ch: dict[str,
 
 
 def orbit_table(spin: float, recs: list[BlockRecord], ch: dict[str, int], lms: str,
-                corrections: Corrections | None = None, probes: list | None = None) -> OrbitTable:  # fmt: skip
+                corrections: Corrections | None = None, probes: list | None = None) -> OrbitTable:
     """Orbit table of one point for one load measuring system (Omega > 0, direction in the phasors),
     with each row's revolution count and the standard uncertainty of its phasors
     (:func:`row_uncertainty`; x, y the per-revolution probe-plane means); the forces through the
@@ -95,17 +95,17 @@ def orbit_table(spin: float, recs: list[BlockRecord], ch: dict[str, int], lms: s
     corr = corrections or Corrections()
     ph = np.array([p for p, _ in probes])
     orbit = np.array([r.measured_orbit_speed if math.isfinite(r.measured_orbit_speed) and r.measured_orbit_speed > 0
-                      else abs(r.block.orbit) for r in recs])  # fmt: skip
+                      else abs(r.block.orbit) for r in recs])
     i = LMS.index(lms)
     x, y = probe_plane(ph, ch)
     n_records = np.array([len(r.record_phasors) for r in recs])
     u = np.array([row_uncertainty(rp, ch, lms, spin / abs(r.block.orbit), r.revolutions,
                                   lambda fx, fy, o=abs(r.block.orbit): corr.forces(lms, fx, fy, o))
-                  for r, (_, rp) in zip(recs, probes)])  # fmt: skip
+                  for r, (_, rp) in zip(recs, probes)])
     fx, fy = corr.forces(lms, ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]], orbit)
     return OrbitTable(spin=spin, orbit=orbit, x=x, y=y, fx=fx, fy=fy,
                       gamma2=np.array([r.coherence[i] for r in recs]), n_records=n_records,
-                      u=u if np.all(np.isfinite(u)) else None)  # fmt: skip
+                      u=u if np.all(np.isfinite(u)) else None)
 
 
 def row_uncertainty(record_phasors: np.ndarray, ch: dict[str, int], lms: str, spin_turns: float,
@@ -131,7 +131,7 @@ def lms_comparison(recs: list[BlockRecord], ch: dict[str, int], corrections: Cor
     ph = np.array([r.phasors for r in recs]) if recs else np.zeros((0, len(ch)), complex)
     corr, orbit = corrections or Corrections(), np.array([abs(r.block.orbit) for r in recs])
     forces = {lms: dict(zip(("fx", "fy"), corr.forces(lms, ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]], orbit)))
-              for lms in LMS}  # fmt: skip
+              for lms in LMS}
     for f in ("fx", "fy"):
         ratio = forces["strain"][f] / forces["piezo"][f]
         out[f"{f}_amp_ratio"] = np.abs(ratio).round(6).tolist()

@@ -21,7 +21,7 @@ from reduction.result import Identification
 from reduction.table import OrbitTable
 
 DEFINITION = ("the fit's model (constraints, frequency dependence, method, weights) identified on the "
-              "point's orbit table with noise-free forces -Z_true d at the table's displacements")  # fmt: skip
+              "point's orbit table with noise-free forces -Z_true d at the table's displacements")
 
 
 def model_truth(ident: Identification, table: OrbitTable, z_true: np.ndarray) -> dict:

@@ -271,7 +271,7 @@ class StopDrives(Step):
 
 #: every step kind of a plan (the engine has one handler for each)
 STEP_KINDS: tuple[type[Step], ...] = (SetManual, VerifyPressures, SetSpin, SetOrbit, Settle, Acquire,
-                                      VerifyGeometry, StoreBlock, Identify, CompletePoint, StopDrives)  # fmt: skip
+                                      VerifyGeometry, StoreBlock, Identify, CompletePoint, StopDrives)
 
 
 # ---------------------------------------------------------------- expansion

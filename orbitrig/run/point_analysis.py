@@ -57,11 +57,11 @@ def lms_calibration(stated: CalibrationUncertainty, lms: str) -> Calibration:
         return ChannelCalibration((ca.gain + cb.gain) / 2, (ca.phase + cb.phase) / 2, (ca.delay + cb.delay) / 2)
 
     return Calibration(x=mean("x_a", "x_b"), y=mean("y_a", "y_b"), fx=chan(f"fx_{lms}"), fy=chan(f"fy_{lms}"),
-                       sensitivity=stated.probe_sensitivity)  # fmt: skip
+                       sensitivity=stated.probe_sensitivity)
 
 
 def analyse_point(spin: float, tables: dict[str, OrbitTable], fits: dict[tuple[str, str], Identification],
-                  idents: dict, stated: CalibrationUncertainty | None, grid: np.ndarray) -> None:  # fmt: skip
+                  idents: dict, stated: CalibrationUncertainty | None, grid: np.ndarray) -> None:
     """Add budget, adequacy, LMS consistency and derived quantities to the stored JSON of every
     fit in ``idents`` ((lms, ModelSpec.key) -> {"spec", "json"}); ``fits`` the same fits'
     Identification objects; ``grid`` the point's orbit frequencies for the derived quantities
@@ -110,7 +110,7 @@ def _budget(ident: Identification, table: OrbitTable, cal: Calibration, budgets:
     budgets[where] = b
     _, sigma = cal.parameters()
     return {"k": b.k, "statistical": b.statistical, "systematic": b.systematic, "combined": b.combined,
-            "expanded": b.expanded, "sources": list(b.labels), "source_std": [float(s) for s in sigma]}  # fmt: skip
+            "expanded": b.expanded, "sources": list(b.labels), "source_std": [float(s) for s in sigma]}
 
 
 def _derived(ident: Identification, grid: np.ndarray, spin: float, budget: Budget | None) -> dict:
@@ -123,7 +123,7 @@ def _derived(ident: Identification, grid: np.ndarray, spin: float, budget: Budge
 
 def _adequacy(ident: Identification, table: OrbitTable, fits: dict, lms: str, spec) -> dict:
     constant = next((f for (ls, _), f in fits.items() if ls == lms and f.model == ident.model
-                     and f.freq_dep == "none" and f.method == ident.method), None)  # fmt: skip
+                     and f.freq_dep == "none" and f.method == ident.method), None)
     if constant is None:  # not configured: fitted here for the test only
         constant = identify(table, model=spec.model, freq_dep="none", method=spec.method)
     out = frequency_dependence(constant, ident).to_dict()
@@ -139,4 +139,4 @@ def _consistency(a: Identification, ta: OrbitTable, b: Identification, tb: Orbit
     worst = max(values) if values else None
     return {"e_n": en, "max_abs": worst, "consistent": worst is not None and worst <= CONSISTENT_EN,
             "basis": "combined" if cal is not None else "statistical", "limit": CONSISTENT_EN,
-            "pair": f"{LMS[0]} - {LMS[1]}"}  # fmt: skip
+            "pair": f"{LMS[0]} - {LMS[1]}"}

@@ -11,18 +11,18 @@ from orbitrig.store.records import PointResults
 #: keys of a fit's stored JSON that the result payload carries
 PAYLOAD_KEYS = ("coefficients", "std_errors", "confidence_95", "condition_number", "residual_rms", "dof",
                 "chi2", "p_value", "aic", "bic", "notes", "warnings", "exponent", "expanded_uncertainty",
-                "not_determined", "truth")  # fmt: skip
+                "not_determined", "truth")
 
 
 def point_log_lines(p: OperatingPoint, res: PointResults) -> list[str]:
     """One line per refusal, warning, adequacy verdict and LMS consistency check of the point."""
     fits = [(lms, f"{e['spec'].model} {e['spec'].freq_dep} {e['spec'].method}", e.get("json"), e.get("error"))
-            for (lms, _), e in res.identifications.items()]  # fmt: skip
+            for (lms, _), e in res.identifications.items()]
     return [f"point {p.index:04d}: {line}" for line in judgement_lines(fits)]
 
 
 def judgement_lines(fits: list[tuple[str, str, dict | None, str | None]], *, verdicts: bool = True,
-                    brief: bool = False, warnings: bool = True) -> list[str]:  # fmt: skip
+                    brief: bool = False, warnings: bool = True) -> list[str]:
     """Lines of (lms, "model freq_dep method", stored JSON or None, refusal or None) fits: refusals
     (``brief``: their first line; else every line joined by ' | '), (``warnings``) warnings, parts
     not evaluated, and (``verdicts``) the adequacy verdicts and LMS consistency."""
@@ -94,9 +94,9 @@ def result_payload(run_id: str | None, p: OperatingPoint, res: PointResults) -> 
     out["adequacy"] = [{"lms": r["lms"], "model": r["model"], "freq_dep": r["freq_dep"], "method": r["method"],
                         **({"verdict": r["adequacy"]["verdict"], "supported": r["adequacy"]["supported"],
                             "p_value": r["adequacy"]["p_value"]} if "verdict" in r["adequacy"] else r["adequacy"])}
-                       for r in rows if "adequacy" in r]  # fmt: skip
+                       for r in rows if "adequacy" in r]
     out["warnings"] = [f"{r['lms']} {r['model']} {r['freq_dep']} {r['method']}: {w}"
-                       for r in rows for w in r.get("warnings") or []]  # fmt: skip
+                       for r in rows for w in r.get("warnings") or []]
     out["refused"] = [{k: r[k] for k in ("lms", "model", "freq_dep", "method", "error")} for r in rows if "error" in r]
     if res.truth is not None:
         out["truth"] = {k: res.truth[k] for k in ("K0", "C0", "D0")}

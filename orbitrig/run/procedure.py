@@ -29,7 +29,7 @@ from orbitrig.run.point_report import point_log_lines, result_payload
 from orbitrig.run.plan import (
     Acquire, CompletePoint, Identify, OperatingPoint, SetManual, SetOrbit, SetSpin, Settle, Step, StopDrives,
     StoreBlock, VerifyGeometry, VerifyPressures,
-)  # fmt: skip
+)
 from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.states import ConfirmMode
@@ -54,7 +54,7 @@ def averaging_rule(step: Acquire, spin: float, speed_tolerance: float = 0.005) -
     if a is None:
         return AveragingRule(step.revolutions, step.revolutions, None, turns, orbit, speed_tolerance)
     return AveragingRule.adaptive(a.target_pct / 100.0, a.min_revolutions, a.max_revolutions, spin_turns=turns,
-                                  orbit_speed=orbit, speed_tolerance=speed_tolerance)  # fmt: skip
+                                  orbit_speed=orbit, speed_tolerance=speed_tolerance)
 
 
 @dataclass(frozen=True)
@@ -72,7 +72,7 @@ BEFORE: dict[type[Step], Before] = {
     SetOrbit: Before(True, True), Settle: Before(None, True), Acquire: Before(None, True),
     VerifyGeometry: Before(None, True), StoreBlock: Before(None, False), Identify: Before(False, False),
     CompletePoint: Before(None, False), StopDrives: Before(None, False),
-}  # fmt: skip
+}
 
 
 @dataclass
@@ -114,7 +114,7 @@ class PointProcedure:
             SetOrbit: self.set_orbit, Settle: self.settle, Acquire: self.acquire,
             VerifyGeometry: self.verify_geometry, StoreBlock: self.store_block, Identify: self.identify,
             CompletePoint: self.complete_point, StopDrives: self.stop_drives,
-        }  # fmt: skip
+        }
 
     # ------------------------------------------------------------- driving
     async def run_point(self, p: OperatingPoint, steps: list[Step], first: bool) -> None:
@@ -157,7 +157,7 @@ class PointProcedure:
     # ----------------------------------------------------- manual settings
     async def set_manual(self, step: SetManual, ps: PointState) -> None:
         await self.r.access.hands.set_manual(orbit_radius=step.orbit_radius, static_eccentricity=step.static_eccentricity,
-                                             recess_pressure=step.recess_pressure, pressure_ratio=step.pressure_ratio)  # fmt: skip
+                                             recess_pressure=step.recess_pressure, pressure_ratio=step.pressure_ratio)
         if self.r.confirm_mode != ConfirmMode.AUTO and (step.changed or ps.always_confirm):
             await self.r.control.ask(step.step_id, "set by hand and confirm: " + step.describe())
 
@@ -218,7 +218,7 @@ class PointProcedure:
         timeout = self.scale.wall(r.rig.settle.timeout_s) + 5.0
         try:
             await r.control.guarded(r.io.drives.wait_settled(hold=self.scale.wall(step.hold), timeout=timeout),
-                                    r.supervisor)  # fmt: skip
+                                    r.supervisor)
         except DriveError as err:
             raise RunFailed(f"point {p.index:04d} [{step.block.tag}]: drives did not settle: {err}") from err
         self._add_time("settle", t0)
@@ -257,7 +257,7 @@ class PointProcedure:
             except (DaqError, TimeoutError) as err:
                 attempts += 1
                 msg = (f"point {p.index:04d} [{b.tag}]: acquisition failed ({type(err).__name__}: {err}); "
-                       "orbit trigger lost or A/D link down?")  # fmt: skip
+                       "orbit trigger lost or A/D link down?")
                 r.note(msg)
                 if attempts > av.retries:
                     raise RunFailed(msg) from err
@@ -283,7 +283,7 @@ class PointProcedure:
             t0 = time.monotonic()
             truth = None if r.access.truth is None else await asyncio.to_thread(point_truth, p, recs, r.access.truth)
             res = await asyncio.to_thread(identify_operating_point, p.spin, recs, r.rig.channel_index, step.models,
-                                          truth, r.rig.calibration_uncertainty, Corrections.of_rig(r.rig))  # fmt: skip
+                                          truth, r.rig.calibration_uncertainty, Corrections.of_rig(r.rig))
             self._add_time("identify", t0)
             for line in point_log_lines(p, res):
                 r.store.log(line)

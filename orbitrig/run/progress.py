@@ -48,4 +48,4 @@ class ProgressMeter:
         self._last = now
         eta = self.scale.wall(max(0.0, self.remaining))
         self._emit(ProgressEvent(self.run_id, self.point, self.points, self.frequency, self.frequencies,
-                                 self.revolutions, round(eta, 1)))  # fmt: skip
+                                 self.revolutions, round(eta, 1)))

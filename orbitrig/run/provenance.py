@@ -53,7 +53,7 @@ class Provenance:
                    rig_id=rig.rig_id or rig.name, sensor_serials=serials,
                    calibration_record=rig.calibration_record or "",
                    calibration_record_sha256=digest(rig.record_text) if rig.record_text else "",
-                   host=socket.gethostname(), started=now_iso())  # fmt: skip
+                   host=socket.gethostname(), started=now_iso())
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -63,7 +63,7 @@ class Provenance:
         cal = f"{self.calibration_record} (sha256 {self.calibration_record_sha256[:12]})" \
             if self.calibration_record else "none"
         return (f"provenance: operator {self.operator}, {self.software_version}, rig {self.rig_id}, "
-                f"host {self.host}, calibration record {cal}")  # fmt: skip
+                f"host {self.host}, calibration record {cal}")
 
 
 def command_line(command: RunCommand, by: str | None, detail: str = "") -> str:

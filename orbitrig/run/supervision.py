@@ -27,7 +27,7 @@ from orbitrig.run.interlocks import Trip
 
 class InterlockSupervisor:
     def __init__(self, read: Callable[[], tuple[AuxState | None, RigDriveState | None]], cfg: Interlocks,
-                 on_fail: Callable[[Trip], None], *, period: float = 0.05):  # fmt: skip
+                 on_fail: Callable[[Trip], None], *, period: float = 0.05):
         self._read = read
         self.cfg = cfg
         self._on_fail = on_fail
@@ -68,7 +68,7 @@ class InterlockSupervisor:
         limit = self.cfg.can_heartbeat_timeout_s
         if lost and now - self._lost_since >= limit:
             return [Trip("can_heartbeat", interlocks.FAIL, f"CAN sensor node lost for more than {limit:g} s "
-                         "(no heartbeat): supply pressure and pump are not watched")] + trips  # fmt: skip
+                         "(no heartbeat): supply pressure and pump are not watched")] + trips
         return trips
 
     async def watch(self) -> None:

@@ -24,7 +24,7 @@ def pressure_problems(aux: AuxState, p: OperatingPoint, v: Verify) -> list[str]:
     pr = sum(aux.p_recess) / len(aux.p_recess)
     if abs(pr - p.recess_pressure) > v.recess_pressure_tol_pct / 100 * p.recess_pressure:
         problems.append(f"recess pressure {pr / MPA:.4f} MPa, want {p.recess_pressure / MPA:.4f} MPa "
-                        f"+/- {v.recess_pressure_tol_pct:g} %")  # fmt: skip
+                        f"+/- {v.recess_pressure_tol_pct:g} %")
     beta = aux.beta if math.isfinite(aux.beta) else pr / aux.p_supply
     if abs(beta - p.pressure_ratio) > v.pressure_ratio_tol:
         problems.append(f"pressure ratio {beta:.3f}, want {p.pressure_ratio:g} +/- {v.pressure_ratio_tol:g}")
@@ -42,10 +42,10 @@ def geometry_problems(rec: BlockRecord, p: OperatingPoint, rig: RigConfig) -> li
     problems = []
     if abs(radius - p.orbit_radius) > v.orbit_radius_tol_pct / 100 * p.orbit_radius:
         problems.append(f"orbit radius {radius * 1e6:.2f} um, want {p.orbit_radius * 1e6:.2f} um "
-                        f"+/- {v.orbit_radius_tol_pct:g} %")  # fmt: skip
+                        f"+/- {v.orbit_radius_tol_pct:g} %")
     if abs(ecc - p.static_eccentricity) > v.static_eccentricity_tol:
         problems.append(f"static eccentricity {ecc:.3f}, want {p.static_eccentricity:g} "
-                        f"+/- {v.static_eccentricity_tol:g}")  # fmt: skip
+                        f"+/- {v.static_eccentricity_tol:g}")
     return problems
 
 

@@ -339,7 +339,7 @@ class RigService:
                 task.cancel()  # the run task has not started yet: it never touches the drives
             return  # (or the run has ended and the task is writing its closing summary)
         requests = {"pause": engine.request_pause, "stop": engine.request_stop, "abort": engine.request_abort,
-                    "stop_now": lambda by: engine.request_stop_now("the service shutting down", by=by)}  # fmt: skip
+                    "stop_now": lambda by: engine.request_stop_now("the service shutting down", by=by)}
         try:
             requests[what](by=by)
         except Exception:

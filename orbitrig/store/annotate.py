@@ -87,7 +87,7 @@ DATASETS = {
     "not_determined": ("1", "1 where the coefficient's expanded uncertainty exceeds its magnitude (not determined)"),
     "truth": (PER_COEFFICIENT, "the simulator's true impedance projected onto this fit's model (same table, weights, "
                                "constraints, method), aligned with names"),
-}  # fmt: skip
+}
 
 #: attribute name -> (units, description); "" units: text
 ATTRIBUTES = {
@@ -130,7 +130,7 @@ ATTRIBUTES = {
     "sensor_serials": ("", "serial number of each channel's sensor (JSON)"),
     "started": ("", "run start, ISO 8601 UTC"), "ended": ("", "run end, ISO 8601 UTC"),
     "definition": ("", "how the truth was obtained"),
-}  # fmt: skip
+}
 #: attributes that annotate (they describe others; no description of their own)
 _ANNOTATIONS = {"units", "description", "convention", "dimensions", "columns", "rows", "fields", "field_units", "names",
                 "meaning"}

@@ -23,7 +23,7 @@ CSV_HEAD = [
     "point", "label", "spin_rpm", "recess_pressure_mpa", "pressure_ratio", "static_eccentricity",
     "dynamic_eccentricity", "lms", "model", "freq_dep", "method", "n_frequencies", "condition_number",
     "residual_rms [N]", "error", "not_determined",
-]  # fmt: skip
+]
 
 
 def coefficient_column(key: str, kind: str = "") -> str:
@@ -76,7 +76,7 @@ def point_rows(point, sim: bool) -> list[dict]:
         "point": point.index, "label": st.label, "spin_rpm": f"{st.spin_rpm:.6g}",
         "recess_pressure_mpa": f"{st.recess_pressure / 1e6:.6g}", "pressure_ratio": f"{st.pressure_ratio:.6g}",
         "static_eccentricity": f"{st.static_eccentricity:.6g}", "dynamic_eccentricity": f"{st.dynamic_eccentricity:.6g}",
-    }  # fmt: skip
+    }
     truth = point.truth if sim else None
     rows = []
     for ident in point.identifications:
@@ -85,7 +85,7 @@ def point_rows(point, sim: bool) -> list[dict]:
         if d is not None:
             row.update({"freq_dep": d["freq_dep"], "method": d["method"], "n_frequencies": d["n_frequencies"],
                         "condition_number": _num(d["condition_number"], ".6g"),
-                        "residual_rms [N]": _num(d["residual_rms"], ".6g"), "error": ""})  # fmt: skip
+                        "residual_rms [N]": _num(d["residual_rms"], ".6g"), "error": ""})
             expanded = expanded_uncertainty(d)
             for k, v in d["coefficients"].items():
                 row[coefficient_column(k)] = _num(v, ".8g")

@@ -26,7 +26,7 @@ def provenance(run) -> dict[str, str]:
     return {"software_version": run.software_version, "created": run.created, "status": run.status,
             "status_message": run.status_message, "sim": str(bool(run.sim)).lower(), "matrix_name": run.matrix_name,
             "rig_config": run.rig_config, "matrix_config": run.matrix_config,
-            "sim_scenario_name": run.sim_scenario_name}  # fmt: skip
+            "sim_scenario_name": run.sim_scenario_name}
 
 
 def settings(point) -> dict[str, tuple[float, str]]:
@@ -45,7 +45,7 @@ def fit_arrays(fit: FitRecord) -> dict:
     budget's parts and k, the adequacy numbers and verdict, E_n, ``not_determined`` (1 where U
     exceeds the magnitude) and the fit's own ``truth`` (--sim) aligned with names."""
     d = {"names": fit.names, "units": fit.units, "value": fit.value, "std": fit.std, "U": fit.U,
-         "error": fit.error}  # fmt: skip
+         "error": fit.error}
     if fit.covariance is not None:
         d["covariance"], d["covariance_names"] = fit.covariance, fit.covariance_names
     d.update({part: fit.budget[part] for part in BUDGET_PARTS if part in fit.budget})
@@ -80,7 +80,7 @@ def derived_columns(fit: FitRecord) -> dict[str, tuple[np.ndarray, str]]:
             std = np.asarray(d.get(f"{name}_std"), dtype=float)
             cols.update({f"{name}_re": (np.asarray(d[f"{name}_re"], dtype=float), "N/m"),
                          f"{name}_im": (np.asarray(d[f"{name}_im"], dtype=float), "N/m"),
-                         f"{name}_std_re": (std[0], "N/m"), f"{name}_std_im": (std[1], "N/m")})  # fmt: skip
+                         f"{name}_std_re": (std[0], "N/m"), f"{name}_std_im": (std[1], "N/m")})
     return cols
 
 
@@ -89,7 +89,7 @@ def truth_arrays(truth: dict | None) -> dict[str, tuple[np.ndarray, str]]:
     if not truth:
         return {}
     out = {k: (np.asarray(truth[k], dtype=float), u) for k, u in (("K0", "N/m"), ("C0", "N s/m"), ("D0", "kg"))
-           if k in truth}  # fmt: skip
+           if k in truth}
     if "Z_re" in truth:
         out["Z"] = (np.asarray(truth["Z_re"], dtype=float) + 1j * np.asarray(truth["Z_im"], dtype=float), "N/m")
         out["orbit"] = (np.asarray(truth["orbit"], dtype=float), "rad/s")
@@ -105,7 +105,7 @@ def waveform_arrays(point, channels: list[str]) -> list[dict]:
         if "mean" not in w:
             continue
         b = {"name": f.name, "orbit_hz": f.orbit_hz, "direction": f.direction, "n_records": f.n_records,
-             "mean": w["mean"], "theta": 2 * math.pi * np.asarray(w["slots"], dtype=float) / 360.0}  # fmt: skip
+             "mean": w["mean"], "theta": 2 * math.pi * np.asarray(w["slots"], dtype=float) / 360.0}
         b.update({k: w[k] for k in ("dc", "phasors", "uncertainty") if k in w})
         b["channels"] = channels
         blocks.append(b)

@@ -25,7 +25,7 @@ from orbitrig.store.fit_record import BUDGET_PARTS, point_fits
 from orbitrig.store.orbit_table import write_orbit_table
 
 FIT_HEAD = ["point", "lms", "model", "freq_dep", "method", "name", "unit", "value", "std", "U",
-            *BUDGET_PARTS, "e_n [1]", "true", "error"]  # fmt: skip
+            *BUDGET_PARTS, "e_n [1]", "true", "error"]
 
 
 def _render(rows: list[list]) -> bytes:
@@ -51,7 +51,7 @@ def _fit_rows(p, sim: bool) -> list[list]:
             true = csvfile.fit_truth(fit.result, p.truth if sim else None).get(name)
             e_n = _cell(d["e_n"][j]) if "e_n" in d else ""
             rows.append(head + [name, fit.units[j], _cell(d["value"][j]), _cell(d["std"][j]), _cell(d["U"][j]),
-                                *parts, e_n, _cell(true), ""])  # fmt: skip
+                                *parts, e_n, _cell(true), ""])
     return rows
 
 

@@ -40,7 +40,7 @@ def _channels(group: str, columns: dict[str, tuple[np.ndarray, str]]) -> list:
     from nptdms import ChannelObject
 
     return [ChannelObject(group, name, np.asarray(values), {"unit_string": unit})
-            for name, (values, unit) in columns.items()]  # fmt: skip
+            for name, (values, unit) in columns.items()]
 
 
 def _fit_objects(p, fit) -> list:
@@ -52,18 +52,18 @@ def _fit_objects(p, fit) -> list:
     props |= _numeric({k: (float(np.ravel(v)[0]) if np.size(v) == 1 else str(list(np.ravel(v))), "1")
                        for k, v in d.items() if k == "k" or (k.startswith("adequacy_") and k != "adequacy_verdict")})
     objs = [GroupObject(group, props), ChannelObject(group, "name", np.array(fit.names, dtype=str), _TEXT),
-            ChannelObject(group, "unit", np.array(fit.units, dtype=str), _TEXT)]  # fmt: skip
+            ChannelObject(group, "unit", np.array(fit.units, dtype=str), _TEXT)]
     per_row = {"value": d["value"], "std": d["std"], "U": d["U"]}
     per_row |= {part: d[part] for part in (*BUDGET_PARTS, "e_n") if part in d}
     objs += [ChannelObject(group, k, np.asarray(v, dtype=float), {"unit_string": "1" if k == "e_n" else "see unit"})
-             for k, v in per_row.items()]  # fmt: skip
+             for k, v in per_row.items()]
     if "covariance" in d:
         cg = f"covariance {p.name} {fit.key}"
         unit = dict(zip(fit.names, fit.units))
         objs += [GroupObject(cg, {"description": "covariance; entry (row, column) in unit(row) x unit(column)"}),
-                 ChannelObject(cg, "name", np.array(d["covariance_names"], dtype=str), _TEXT)]  # fmt: skip
+                 ChannelObject(cg, "name", np.array(d["covariance_names"], dtype=str), _TEXT)]
         objs += [ChannelObject(cg, n, d["covariance"][:, j], {"unit_string": f"({unit[n]}) x unit(row)"})
-                 for j, n in enumerate(d["covariance_names"])]  # fmt: skip
+                 for j, n in enumerate(d["covariance_names"])]
     derived = content.derived_columns(fit)
     if derived:
         objs += [GroupObject(f"derived {p.name} {fit.key}", {})] + _channels(f"derived {p.name} {fit.key}", derived)
@@ -91,14 +91,14 @@ def _point_objects(p, channels: list[str], channel_units: list[str]) -> list:
     for b in content.waveform_arrays(p, channels):
         group = f"waveforms {p.name} {b['name']}"
         objs.append(GroupObject(group, _numeric({"orbit_hz": (b["orbit_hz"], "Hz"), "direction": (b["direction"], "1"),
-                                                 "n_records": (b["n_records"], "1")})))  # fmt: skip
+                                                 "n_records": (b["n_records"], "1")})))
         for c, (name, unit) in enumerate(zip(channels, channel_units)):
             props = {"unit_string": unit}
             props |= {k: float(b[k][c]) for k in ("dc", "uncertainty") if k in b}
             if "phasors" in b:
                 props |= {"phasor_re": float(b["phasors"][c].real), "phasor_im": float(b["phasors"][c].imag)}
             objs += [ChannelObject(group, name, b["mean"][c], props),
-                     ChannelObject(group, f"{name}_theta", b["theta"][c], {"unit_string": "rad"})]  # fmt: skip
+                     ChannelObject(group, f"{name}_theta", b["theta"][c], {"unit_string": "rad"})]
     return objs
 
 
@@ -122,7 +122,7 @@ def export_tdms(run, points: list, out: Path) -> list[Path]:
     from nptdms import RootObject, TdmsWriter
 
     objects = [RootObject({"title": f"orbitrig run {run.directory.name}", **content.provenance(run),
-                           "sim": bool(run.sim)})]  # fmt: skip
+                           "sim": bool(run.sim)})]
     for p in points:
         objects += _point_objects(p, run.channels, run.channel_units)
     objects += _coefficient_objects(run, points)

@@ -50,7 +50,7 @@ def write_fit_analysis(h: h5py.Group, d: dict, names: list[str]) -> None:
     """The uncertainty, adequacy, lms_consistency and derived parts of the fit's JSON ``d``."""
     write_fit_values(h, d, names)
     for part, writer in (("uncertainty", _uncertainty), ("adequacy", _adequacy),
-                         ("lms_consistency", _consistency), ("derived", _derived)):  # fmt: skip
+                         ("lms_consistency", _consistency), ("derived", _derived)):
         if not d.get(part):
             continue
         g = h.create_group(part)
@@ -84,7 +84,7 @@ def _uncertainty(g: h5py.Group, u: dict, names: list[str]) -> None:
     for k, what in (("statistical", "standard uncertainty from the fit (type A)"),
                     ("systematic", "standard uncertainty from the stated calibration (type B)"),
                     ("combined", "combined standard uncertainty"),
-                    ("expanded", "expanded uncertainty, k times combined")):  # fmt: skip
+                    ("expanded", "expanded uncertainty, k times combined")):
         put(g, k, _vector(u[k], names), PER_COEFFICIENT, meaning=what)
     g.create_dataset("sources", data=fixed_text(u["sources"]))
     put(g, "source_std", np.asarray(u["source_std"], dtype=np.float64), SOURCE_UNITS,
@@ -96,13 +96,13 @@ def _adequacy(g: h5py.Group, a: dict, names: list[str]) -> None:
                     "statistic": _num(a["statistic"]), "test": a["test"], "dof": np.asarray(a["dof"], dtype=np.int64),
                     "alpha": float(a["alpha"]), "aic": np.asarray([_num(v) for v in a["aic"]]),
                     "bic": np.asarray([_num(v) for v in a["bic"]]), "constant": a["constant"],
-                    "aic_bic_order": "constant, this fit"})  # fmt: skip
+                    "aic_bic_order": "constant, this fit"})
 
 
 def _consistency(g: h5py.Group, c: dict, names: list[str]) -> None:
     put(g, "e_n", _vector(c["e_n"], names), "1", meaning=f"normalised difference {c['pair']}")
     g.attrs.update({"max_abs": _num(c["max_abs"]), "consistent": bool(c["consistent"]), "basis": c["basis"],
-                    "limit": float(c["limit"]), "pair": c["pair"]})  # fmt: skip
+                    "limit": float(c["limit"]), "pair": c["pair"]})
 
 
 def _derived(g: h5py.Group, d: dict, names: list[str]) -> None:

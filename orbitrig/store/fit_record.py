@@ -32,7 +32,7 @@ def expanded_uncertainty(result: dict) -> dict[str, float]:
     (statistical only). NaN where none is known."""
     names = list(result.get("coefficients") or {})
     budget = ((result.get("expanded_uncertainty") or {}).get("values")
-              or (result.get("uncertainty") or {}).get("expanded"))  # fmt: skip
+              or (result.get("uncertainty") or {}).get("expanded"))
     if budget:
         return {k: _num(budget.get(k)) for k in names}
     std = result.get("std_errors") or {}
@@ -96,10 +96,10 @@ def fit_record(point: int, lms: str, model: str, freq_dep: str, method: str, res
         None if cov is None else np.array([[_num(v) for v in row] for row in cov], dtype=float),
         list(result.get("free") or names) if cov is not None else [], budget,
         result.get("adequacy"), result.get("derived"), result.get("lms_consistency"), result,
-    )  # fmt: skip
+    )
 
 
 def point_fits(point) -> list[FitRecord]:
     """Every stored identification of an orbitrig.store.reader.Point, in stored order."""
     return [fit_record(point.index, i.lms, i.model, i.freq_dep, i.method, i.result, i.error)
-            for i in point.identifications]  # fmt: skip
+            for i in point.identifications]

@@ -16,7 +16,7 @@ from orbitrig.store.orbit_table import orbit_table_columns
 
 SETTINGS_UNITS = {"label": "", "complete": "", "spin": "rad/s", "spin_rpm": "rpm", "recess_pressure": "Pa",
                   "pressure_ratio": "1", "static_eccentricity": "1", "dynamic_eccentricity": "1",
-                  "orbit_radius": "m", "n_frequencies": "1"}  # fmt: skip
+                  "orbit_radius": "m", "n_frequencies": "1"}
 FIT_KEYS = ("point", "lms", "model", "freq_dep", "method")
 
 
@@ -37,7 +37,7 @@ def points_frame(points):
         st = p.settings
         for k in SETTINGS_UNITS:
             rows[k].append(len(p.frequencies) if k == "n_frequencies" else p.complete if k == "complete"
-                           else getattr(st, k))  # fmt: skip
+                           else getattr(st, k))
         rows["point"].append(p.index)
     return _frame(rows, SETTINGS_UNITS, "point")
 
@@ -125,7 +125,7 @@ def waveforms_dataset(point, channels: list[str], channel_units: list[str]):
     dims = ("block", "channel", "angle")
     data = {"mean": (dims, stack("mean"), {"description": "synchronous average over the revolutions", **per_channel})}
     for key, name, what in (("dc", "dc", "mean value"), ("phasors", "phasor", "fundamental phasor, q = Re(q_bar exp(i theta))"),
-                            ("uncertainty", "uncertainty", "standard uncertainty of the phasor")):  # fmt: skip
+                            ("uncertainty", "uncertainty", "standard uncertainty of the phasor")):
         if all(key in b.waveform for b in blocks):
             data[name] = (dims[:2], stack(key), {"description": what, **per_channel})
     coords = {
@@ -135,5 +135,5 @@ def waveforms_dataset(point, channels: list[str], channel_units: list[str]):
         "direction": ("block", [b.direction for b in blocks], {"units": "1", "description": "+1 forward, -1 backward"}),
         "n_records": ("block", [b.n_records for b in blocks], {"units": "1"}),
         "theta": (dims, 2 * np.pi * stack("slots") / 360.0, {"units": "rad", "description": "orbit angle after the trigger"}),
-    }  # fmt: skip
+    }
     return xr.Dataset(data, coords=coords, attrs={"point": point.index})

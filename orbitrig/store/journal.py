@@ -20,12 +20,12 @@ from orbitrig.store.durable import read_lines
 from rigunits import now_iso
 
 CAN_FIELDS = ("t_recess", "t_groove", "t_supply", "flow", "p_supply", "p_recess1", "p_recess2", "p_recess3",
-              "p_recess4", "beta", "sensor_fault", "pump_off", "node_lost")  # fmt: skip
+              "p_recess4", "beta", "sensor_fault", "pump_off", "node_lost")
 CAN_UNITS = ("s", "K", "K", "K", "m^3/s", "Pa", "Pa", "Pa", "Pa", "Pa", "1", "1 (flag)", "1 (flag)", "1 (flag)")
 DRIVE_FIELDS = ("spin_ref", "spin_act", "orbit_ref", "orbit_act", "spin_status", "orbit_status",
-                "spin_fault", "orbit_fault", "spin_torque", "orbit_torque")  # fmt: skip
+                "spin_fault", "orbit_fault", "spin_torque", "orbit_torque")
 DRIVE_UNITS = ("s", "rad/s", "rad/s", "rad/s", "rad/s", "status word", "status word", "fault code", "fault code",
-               "fraction of nominal", "fraction of nominal")  # fmt: skip
+               "fraction of nominal", "fraction of nominal")
 CAN_DTYPE = np.dtype([("t", "f8")] + [(f, "f8") for f in CAN_FIELDS])
 DRIVE_DTYPE = np.dtype([("t", "f8")] + [(f, "f8") for f in DRIVE_FIELDS])
 

@@ -238,7 +238,7 @@ def _in_range(col: dict[str, np.ndarray], first: dict[str, float]) -> bool:
 #: the unit a column may state in its header ("orbit_hz [Hz]"); the table's units are fixed
 COLUMN_UNITS = {"spin_rpm": "rpm", "orbit_hz": "Hz", **{f"{q}_{p}": u for q, u in (("x", "m"), ("y", "m"), ("fx", "N"),
                 ("fy", "N")) for p in ("re", "im")}, **dict.fromkeys(GAMMA2, "1"), RECORDS: "1", "direction": "1",
-                **dict(zip(UNCERTAINTY, ("m", "m", "N", "N")))}  # fmt: skip
+                **dict(zip(UNCERTAINTY, ("m", "m", "N", "N")))}
 _WITH_UNIT = re.compile(r"^(?P<name>\S+)\s*\[(?P<unit>[^\]]*)\]$")
 
 

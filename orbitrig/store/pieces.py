@@ -19,7 +19,7 @@ import numpy as np
 from orbitrig.load_systems import LMS
 from orbitrig.store.annotate import annotate
 from orbitrig.store.layout import (BLOCK_ATTR_UNITS, COHERENCE_PAIRS, IDENT_ATTR_UNITS,
-                                   MATRIX_SI, TABLE_ATTR_UNITS, U_COLUMNS, U_UNITS, coefficient_si_unit)  # fmt: skip
+                                   MATRIX_SI, TABLE_ATTR_UNITS, U_COLUMNS, U_UNITS, coefficient_si_unit)
 from orbitrig.store.records import BlockRecord, PointResults
 
 if TYPE_CHECKING:  # annotation only: the store does not import the run wing
@@ -27,7 +27,7 @@ if TYPE_CHECKING:  # annotation only: the store does not import the run wing
 
 STR = h5py.string_dtype()
 IDENT_SCALARS = ("n_coefficients", "min_frequencies", "n_frequencies", "condition_number", "residual_rms",
-                 "dof", "chi2", "p_value", "aic", "bic", "exponent")  # fmt: skip
+                 "dof", "chi2", "p_value", "aic", "bic", "exponent")
 
 
 def to_json(obj) -> str:
@@ -65,7 +65,7 @@ def point_settings(point: OperatingPoint) -> dict:
         "recess_pressure": point.recess_pressure, "pressure_ratio": point.pressure_ratio,
         "static_eccentricity": point.static_eccentricity, "dynamic_eccentricity": point.dynamic_eccentricity,
         "orbit_radius": point.orbit_radius, "label": point.label,
-    }  # fmt: skip
+    }
 
 
 def write_block(g: h5py.Group, rec: BlockRecord, channels: list[str], units: list[str]) -> None:
@@ -77,7 +77,7 @@ def write_block(g: h5py.Group, rec: BlockRecord, channels: list[str], units: lis
     a.update({"orbit": b.orbit, "orbit_hz": b.orbit_hz, "direction": b.direction,
               "measured_orbit_speed": rec.measured_orbit_speed, "stop_reason": rec.stop_reason,
               "n_records": int(rec.n_records if rec.n_records is not None else len(rec.raw_counts)),
-              "complete": True, "units_of_attributes": BLOCK_ATTR_UNITS})  # fmt: skip
+              "complete": True, "units_of_attributes": BLOCK_ATTR_UNITS})
     a["channels"], a["channel_units"] = chan, strings(units)
     put(g, "raw_counts", np.asarray(rec.raw_counts, dtype=np.int16), "count",
         dimensions="revolution, channel, sample")
@@ -127,7 +127,7 @@ def _write_table(h: h5py.Group, t) -> None:
     put(h, "orbit", np.asarray(t.orbit, dtype=np.float64), "rad/s")
     put(h, "orbit_hz", np.asarray(t.orbit, dtype=np.float64) / (2 * math.pi), "Hz")
     meanings = (("m", "x displacement"), ("m", "y displacement"), ("N", "x force on the journal"),
-                ("N", "y force on the journal"))  # fmt: skip
+                ("N", "y force on the journal"))
     for (name, z), (unit, what) in zip(t.phasors.items(), meanings):
         put(h, name, np.asarray(z, dtype=np.complex128), unit, meaning=what,
             convention="q = Re(q_bar exp(i Omega t))")
@@ -147,7 +147,7 @@ def _float(v) -> float:
 def _write_identification(h: h5py.Group, entry: dict) -> None:
     spec = entry["spec"]
     h.attrs.update({"model": spec.model, "freq_dep": spec.freq_dep, "method": spec.method,
-                    "units_of_attributes": IDENT_ATTR_UNITS})  # fmt: skip
+                    "units_of_attributes": IDENT_ATTR_UNITS})
     if "json" not in entry:
         h.attrs["error"] = entry["error"]
         return
@@ -180,7 +180,7 @@ def _write_identification(h: h5py.Group, entry: dict) -> None:
 
 #: SI unit of each coefficient of the Eq. 15 power fit ({m}: its exponent)
 POWER_FIT_UNITS = {"K0": "N/m", "Km": "N/m (rad/s)^-{m}", "C0": "N s/m", "Cn": "N s/m (rad/s)^-{n}",
-                   "D0": "kg", "Dp": "kg (rad/s)^-{p}"}  # fmt: skip
+                   "D0": "kg", "Dp": "kg (rad/s)^-{p}"}
 
 
 def write_truth(h: h5py.Group, truth: dict) -> None:

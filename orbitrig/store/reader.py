@@ -207,7 +207,7 @@ def read_run(directory: str | Path, *, blocks: bool = True) -> Run:
                 sim_scenario_name=_text(a.get("sim_scenario_name")),
                 sim_scenario_config=_text(a.get("sim_scenario_config")),
                 provenance={k: _text(a.get(k)) for k in PROVENANCE_KEYS},
-            )  # fmt: skip
+            )
         except (KeyError, ValueError, TypeError) as err:
             raise RunDirError(path, f"malformed run file: {err}") from err
         except OSError as err:
@@ -232,7 +232,7 @@ def _read_pieces(layout: RunLayout, blocks: bool = True) -> Run:
         rig_config=str(header.get("rig_config", "")), matrix_config=str(header.get("matrix_config", "")),
         points=[], channels=list(header.get("channels", [])), channel_units=list(header.get("channel_units", [])),
         torn=journal.torn,
-    )  # fmt: skip
+    )
     scenario = header.get("sim_scenario")
     if isinstance(scenario, dict):
         run.sim_scenario_name, run.sim_scenario_config = str(scenario.get("name", "")), str(scenario.get("text", ""))
@@ -293,7 +293,7 @@ def _new_point(a, name: str) -> Point:
     )
     complete = bool(a.get("complete", False))
     return Point(index=int(a.get("index", int(name))), name=name, complete=complete, settings=settings,
-                 problem="" if complete else NEVER_COMPLETED)  # fmt: skip
+                 problem="" if complete else NEVER_COMPLETED)
 
 
 def _frequency(name: str, fg) -> Frequency:
@@ -304,7 +304,7 @@ def _frequency(name: str, fg) -> Frequency:
         name=name, orbit=float(fa.get("orbit", np.nan)), orbit_hz=float(fa.get("orbit_hz", np.nan)),
         direction=int(fa.get("direction", 1)), complete=bool(fa.get("complete", False)), coherence=coh,
         n_records=int(fa.get("n_records", 0)), waveform=waveform,
-    )  # fmt: skip
+    )
 
 
 _WAVEFORM = ("mean", "slots", "dc", "phasors", "uncertainty")
@@ -323,7 +323,7 @@ def _table(tg, spin: float):
         x=np.asarray(tg["x"][()], dtype=complex), y=np.asarray(tg["y"][()], dtype=complex),
         fx=np.asarray(tg["fx"][()], dtype=complex), fy=np.asarray(tg["fy"][()], dtype=complex),
         gamma2=np.asarray(tg["gamma2"][()], dtype=float) if "gamma2" in tg else None, **extra,
-    )  # fmt: skip
+    )
 
 
 def _read_results(g, point: Point) -> None:

@@ -76,7 +76,7 @@ class RunData:
             if p.index == point:
                 return p
         raise KeyError(f"{self.run.directory}: no operating point {point} "
-                       f"(points: {', '.join(str(p.index) for p in self.run.points) or 'none'})")  # fmt: skip
+                       f"(points: {', '.join(str(p.index) for p in self.run.points) or 'none'})")
 
     @property
     def points(self):
@@ -109,7 +109,7 @@ class RunData:
             if (f.lms, f.model, f.freq_dep, f.method) == (lms, model, freq_dep, method):
                 return Fit(f)
         raise KeyError(f"point {point}: no fit {lms} {model} {freq_dep} {method} "
-                       f"(fits: {', '.join(f.key for f in fits) or 'none'})")  # fmt: skip
+                       f"(fits: {', '.join(f.key for f in fits) or 'none'})")
 
     def truth(self, point: int) -> dict | None:
         """--sim runs: the simulator's true impedance and its best fits (K0, C0, D0, ...), SI."""

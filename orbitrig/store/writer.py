@@ -64,7 +64,7 @@ class RunStore:
     @classmethod
     def create(cls, out_dir, *, rig_text: str, matrix_text: str, matrix_name: str, sim: bool,
                scenario_name: str = "", scenario_text: str = "", provenance: dict | None = None,
-               record_text: str = "", point_order: list[int] | None = None) -> RunStore:  # fmt: skip
+               record_text: str = "", point_order: list[int] | None = None) -> RunStore:
         """A new run directory; `scenario_name` / `scenario_text`: the simulator scenario of a
         --sim run (name and TOML text, recorded so that a resume runs the same one);
         `provenance` (orbitrig.run.provenance) and the active calibration record's text;
@@ -81,7 +81,7 @@ class RunStore:
         channels, units = _channels(rig_text)
         self._header = {"format": FORMAT, "software_version": _versions(), "created": now_iso(), "sim": bool(sim),
                         "matrix_name": matrix_name, "channels": channels, "channel_units": units,
-                        "rig_config": rig_text, "matrix_config": matrix_text}  # fmt: skip
+                        "rig_config": rig_text, "matrix_config": matrix_text}
         if sim:
             self._header["sim_scenario"] = {"name": scenario_name, "text": scenario_text}
         if provenance is not None:
@@ -103,7 +103,7 @@ class RunStore:
         if not lay.has_pieces():
             if lay.run_file.exists():
                 raise StorageError(lay.run_file, "holds a finished copy of a run but not its pieces "
-                                   f"({lay.header.name}, {lay.points.name}/): it cannot be resumed")  # fmt: skip
+                                   f"({lay.header.name}, {lay.points.name}/): it cannot be resumed")
             raise StorageError(lay.header, "does not exist: nothing to resume")
         self._header = read_header(lay)
         return self
@@ -268,7 +268,7 @@ class RunStore:
         if free < n_bytes:
             raise StorageFullError(self.dir, f"needs {_mb(n_bytes)} free, {_mb(free)} left: free space on this "
                                    "disk (or choose another --out), then resume the run",
-                                   needed=int(n_bytes), free=int(free))  # fmt: skip
+                                   needed=int(n_bytes), free=int(free))
 
     # -------------------------------------------------------------- run.log
     def log(self, message: str) -> None:

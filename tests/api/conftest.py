@@ -29,7 +29,7 @@ def sim_run(tmp_path_factory) -> Path:
         done = subprocess.run([sys.executable, "-m", "orbitrig", "sweep", "--sim", "--sim-config", "clean",
                                "--speedup", "10", "--config", str(rig), "--matrix", str(matrix),
                                "--out", str(tmp / attempt)],
-                              cwd=ROOT, env=env, capture_output=True, text=True, timeout=180)  # fmt: skip
+                              cwd=ROOT, env=env, capture_output=True, text=True, timeout=180)
         if done.returncode == 0 or _point_complete(tmp / attempt / "run.h5"):  # a trip while stopping at the end
             return tmp / attempt
     raise AssertionError(done.stderr[-3000:])

@@ -39,7 +39,7 @@ def test_import_is_cheap_and_plain_access_needs_no_pandas(sim_run):
             f"r = orbitrig.open_run({str(sim_run)!r}); n = len(r.fits());"
             "print(n, sorted(m for m in ('pandas', 'xarray') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], env={**os.environ, "PYTHONPATH": str(ROOT)},
-                         capture_output=True, text=True, timeout=60, check=True).stdout.splitlines()  # fmt: skip
+                         capture_output=True, text=True, timeout=60, check=True).stdout.splitlines()
     assert out == ["[]", "4 []"]
 
 

@@ -35,7 +35,7 @@ def stored(sim_run):
             "c_eff_xx": g["derived/c_eff_xx"][()], "K0": f["points/0000/truth/fits/constant/K"][()],
             "mean": f["points/0000/frequencies/03_bwd/mean"][()], "fx": f["points/0000/table/piezo/fx"][()],
             "version": f.attrs["software_version"], "truth_orbit": f["points/0000/truth/orbit"][()],
-        }  # fmt: skip
+        }
 
 
 @pytest.fixture(scope="module")
@@ -142,7 +142,7 @@ def test_octave_loads_the_mat_export(exported, stored, tmp_path):
               "printf('fx %.17g %.17g\\n', [real(fx) imag(fx)]');\n"
               "printf('version %s\\n', m.run.software_version);\n")
     done = subprocess.run(["octave-cli", "--no-gui", "--norc", "--eval", script], capture_output=True, text=True,
-                          timeout=120, cwd=tmp_path)  # fmt: skip
+                          timeout=120, cwd=tmp_path)
     lines = done.stdout.splitlines()
     assert "cov 11 11 11" in lines, done.stdout + done.stderr[-2000:]
     np.testing.assert_array_equal([float(ln.split()[1]) for ln in lines if ln.startswith("U ")], stored["U"])

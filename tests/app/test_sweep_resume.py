@@ -47,7 +47,7 @@ def test_kill_9_mid_run_then_resume(tmp_path):
     log = out / "run.log"
     proc = subprocess.Popen(orbitrig_cmd("sweep", "--sim", "--sim-config", "config/sim/clean.toml", "--matrix",
                                          str(matrix), "--out", str(out)),
-                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         # kill once a point is complete and a later one has stored a block (identification and
         # storage run in the background, so which points these are depends on the machine's load)

@@ -41,7 +41,7 @@ class Sweep:
         self.proc = subprocess.Popen(orbitrig_cmd("sweep", "--sim", "--matrix", str(tmp_path / "m.toml"),
                                                   "--out", str(self.out), *extra),
                                      cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                     stderr=subprocess.PIPE, text=True)  # fmt: skip
+                                     stderr=subprocess.PIPE, text=True)
 
     def text(self) -> str:
         return self.log.read_text() if self.log.exists() else ""

@@ -73,7 +73,7 @@ def test_where_filters_and_binds(catalog, catalog_run):
     ("point > 1 and", "'and' without a condition"),
     ("point ~ 1", "is not 'column op value'"),
     ("ok = maybe", "takes a bool"),
-])  # fmt: skip
+])
 def test_where_outside_the_grammar_is_refused(catalog, where, says):
     with pytest.raises(CatalogUsageError, match=says):
         catalog.rows(where)

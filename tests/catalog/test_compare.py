@@ -57,12 +57,12 @@ def test_compare_writes_png_and_pdf(tmp_path):
     runner = CliRunner()
     res = runner.invoke(app, ["compare", "--runs", str(tmp_path), "--coefficients", "Kxx,Cxx",
                               "--predicted", str(_predicted_csv(tmp_path / "p.csv")), "--out", str(tmp_path / "fig"),
-                              "--where", "static_eccentricity <= 0.3"])  # fmt: skip
+                              "--where", "static_eccentricity <= 0.3"])
     assert res.exit_code == 0, res.output
     assert (tmp_path / "fig" / "compare.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (tmp_path / "fig" / "compare.pdf").read_bytes()[:5] == b"%PDF-"
     assert not list((tmp_path / "fig").glob("*.tmp"))
     for args, says in ((["--against", "load"], "--against 'load'"), (["--coefficients", "Kzz"], "Kzz"),
-                       (["--model", "kc7"], "no catalog rows")):  # fmt: skip
+                       (["--model", "kc7"], "no catalog rows")):
         bad = runner.invoke(app, ["compare", "--runs", str(tmp_path), "--out", str(tmp_path / "x"), *args])
         assert bad.exit_code == 2 and says in bad.output

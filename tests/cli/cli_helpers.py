@@ -15,7 +15,7 @@ def orbitrig(*args: str, timeout: float = 120, cwd: Path = ROOT, **kw) -> subpro
     """`orbitrig ARGS...` (as `python -m orbitrig`), output captured as text, wide terminal."""
     env = {**os.environ, "COLUMNS": "200", "NO_COLOR": "1"}
     return subprocess.run([sys.executable, "-m", "orbitrig", *args], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=timeout, stdin=subprocess.DEVNULL, **kw)  # fmt: skip
+                          text=True, timeout=timeout, stdin=subprocess.DEVNULL, **kw)
 
 
 def closed_port() -> int:

@@ -10,7 +10,7 @@ from cli_helpers import orbitrig
 import orbitrig as package
 
 COMMANDS = ["identify", "sim", "acquire", "sweep", "reduce", "report", "serve", "version",
-            "drives", "drives status", "drives run", "drives stop"]  # fmt: skip
+            "drives", "drives status", "drives run", "drives stop"]
 
 
 def test_version_option_prints_the_package_version():
@@ -47,7 +47,7 @@ def test_sweep_matrix_by_name_prints_totals_first():
     assert p.returncode == 0, p.stderr
     lines = p.stdout.splitlines()
     m = re.fullmatch(r"matrix paper: 108 operating points, 2160 orbit blocks, (\d+) steps, estimated (\S+) "
-                     r"\(physical time\)", lines[0])  # fmt: skip
+                     r"\(physical time\)", lines[0])
     assert m, lines[0]
     assert lines[1].startswith("by step: manual settings ")
     assert lines[2].startswith("predicted uncertainty")

@@ -48,7 +48,7 @@ def _run(tmp_path, path_dir, python, *args):
     # /usr/sbin and /sbin are searched by the script itself; keep them out of this test's reach
     env = {"PATH": str(path_dir), "PYTHON": str(python), "HOME": str(tmp_path)}
     return subprocess.run([str(path_dir / "bash"), str(SCRIPT), *args], cwd=tmp_path, env=env,
-                          capture_output=True, text=True, timeout=60)  # fmt: skip
+                          capture_output=True, text=True, timeout=60)
 
 
 def test_missing_system_packages_are_named_before_anything_runs(tmp_path):

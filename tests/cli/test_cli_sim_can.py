@@ -48,7 +48,7 @@ async def test_hub_delivers_every_frame_to_the_other_nodes_only():
         try:
             await asyncio.sleep(0.1)  # the hub accepts the connections
             sent = [can.Message(arbitration_id=0x181 + i, data=bytes([i] * (i % 9)), is_extended_id=False)
-                    for i in range(20)]  # fmt: skip
+                    for i in range(20)]
             for msg in sent:
                 sender.send(msg)
             for bus in readers:
@@ -70,7 +70,7 @@ async def test_hub_delivers_every_frame_to_the_other_nodes_only():
 def sim_process():
     p = subprocess.Popen([sys.executable, "-m", "orbitrig", "sim", "--modbus-port", "0", "--adc-port", "0",
                           "--can-port", "0", "--speedup", "10"], cwd=ROOT, stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True)  # fmt: skip
+                         stderr=subprocess.PIPE, text=True)
     try:
         yield p
     finally:
@@ -98,7 +98,7 @@ async def test_orbitrig_sim_says_what_it_serves_and_its_can_node_reaches_another
     err = sim_process.stderr.read()
     assert rc == 0, err
     for what in ("drives", ep["modbus"], "A/D board", ep["adc"], ep["adc_pty"], "CAN node",
-                 "interface 'serial'", ep["can"], "Ctrl-C"):  # fmt: skip
+                 "interface 'serial'", ep["can"], "Ctrl-C"):
         assert what in err, what
     assert f'can_interface = "serial", can_channel = "{ep["can"]}"' in err
     assert "Traceback" not in err

@@ -28,7 +28,7 @@ def run(*args: str, columns: str | None) -> subprocess.CompletedProcess:
     if columns is not None:
         env["COLUMNS"] = columns
     return subprocess.run([sys.executable, "-m", "orbitrig", *args], cwd=ROOT, env=env, capture_output=True,
-                          text=True, timeout=120, stdin=subprocess.DEVNULL)  # fmt: skip
+                          text=True, timeout=120, stdin=subprocess.DEVNULL)
 
 
 def test_a_table_wider_than_the_terminal_is_split_never_cut():
@@ -115,7 +115,7 @@ def test_reduce_formats(tmp_path):
     assert text.returncode == 0, text.stderr
     assert max(len(line) for line in text.stdout.splitlines() if not line.startswith(("kcd11", "written"))) <= 80
     rows = list(csv.DictReader(io.StringIO(run("reduce", str(run_dir), "--model", "kcd11", "--format", "csv",
-                                               columns="80").stdout)))  # fmt: skip
+                                               columns="80").stdout)))
     assert [(r["point"], r["lms"]) for r in rows] == [("0000", "piezo"), ("0000", "strain"), ("0000", "true")]
     for r in rows:
         for key in ("Kxx [MN/m]", "Dyy [kg]"):

@@ -22,7 +22,7 @@ def test_thousands_of_messages_keep_the_log_files_under_the_stated_size(tmp_path
         status = logging.getLogger("orbitrig.service.rig_service")
         for i in range(20_000):  # a month of a busy service, compressed
             status.debug("status running run %s: point %d of 108, block %d of 20, eta %.1f s", "paper-1", i % 108,
-                         i % 20, 1e4 / (i + 1))  # fmt: skip
+                         i % 20, 1e4 / (i + 1))
             if i % 7 == 0:
                 logging.getLogger("orbitrig.service.live").info("live: %d revolutions published", i)
     finally:
@@ -41,8 +41,8 @@ def test_thousands_of_messages_keep_the_log_files_under_the_stated_size(tmp_path
 def test_bad_log_options_are_a_usage_error(tmp_path):
     p = subprocess.run([sys.executable, "-m", "orbitrig", "serve", "--broker", "mqtt://127.0.0.1:1", "--log-file",
                         str(tmp_path / "no" / "such" / "dir.log")], cwd=ROOT, capture_output=True, text=True,
-                       timeout=60)  # fmt: skip
+                       timeout=60)
     assert p.returncode == 2 and "--log-file: cannot open" in p.stderr and "Traceback" not in p.stderr, p.stderr
     p = subprocess.run([sys.executable, "-m", "orbitrig", "serve", "--broker", "mqtt://127.0.0.1:1", "--log-max-mb",
-                        "0"], cwd=ROOT, capture_output=True, text=True, timeout=60)  # fmt: skip
+                        "0"], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert p.returncode == 2 and "--log-max-mb 0" in p.stderr, p.stderr

@@ -15,7 +15,7 @@ import pytest
 
 from orbitrig.config import (
     CalibrationRecord, activate, digest, list_names, load_rig, read_record, rig_from_text, write_record,
-)  # fmt: skip
+)
 from orbitrig.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -78,7 +78,7 @@ def test_a_design_beside_the_matrix_folder_wins(lab):
 def test_init_refuses_an_existing_configuration(lab):
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     done = subprocess.run([sys.executable, "-m", "orbitrig", "init", str(lab)], capture_output=True, text=True,
-                          env=env, timeout=60)  # fmt: skip
+                          env=env, timeout=60)
     assert done.returncode == 2, done.stderr
     assert f"{lab / 'rig.toml'}: already there" in done.stderr
     assert "Traceback" not in done.stderr

@@ -71,7 +71,7 @@ def _averaged(physics: RigPhysics, orbit: float, n: int, t0: float) -> SimpleNam
         orbit_speed=abs(orbit), raw_counts=np.zeros((0,) + values.shape[1:], np.int16), slots=slots, gains=gains,
         offsets=np.zeros(len(gains)), mean=values.mean(axis=0), record_phasors=rp, phasors=rp.mean(axis=0),
         dc=values.mean(axis=(0, 2)), rms_residual=np.zeros(len(gains)), stats=_Stats(),
-        uncertainty=np.zeros(len(gains)), n_records=n, stop_reason="count", revs=np.arange(n))  # fmt: skip
+        uncertainty=np.zeros(len(gains)), n_records=n, stop_reason="count", revs=np.arange(n))
 
 
 def calibrated(cfg, stated, rng: np.random.Generator):
@@ -89,10 +89,10 @@ def calibrated(cfg, stated, rng: np.random.Generator):
         gain[f"{axis}_a"] = gain[f"{axis}_b"] = float(rng.normal(0.0, math.hypot((a + b) / 2, stated.probe_sensitivity)))
     chain = replace(cfg.chain, enabled=True, gain_error=tuple(gain[n] for n in names), probe_sensitivity_error=0.0,
                     force_delay=float(rng.normal(0.0, stated.channel("fx_piezo").delay)),
-                    filter_cutoff=cfg.chain.filter_cutoff if cfg.chain.enabled else (0.0,) * len(names))  # fmt: skip
+                    filter_cutoff=cfg.chain.filter_cutoff if cfg.chain.enabled else (0.0,) * len(names))
     lms = replace(cfg.lms, piezo_gain_error=0.0, strain_gain_error=0.0,
                   piezo_phase_lag=float(rng.normal(0.0, stated.channel("fx_piezo").phase)),
-                  strain_phase_lag=float(rng.normal(0.0, stated.channel("fx_strain").phase)))  # fmt: skip
+                  strain_phase_lag=float(rng.normal(0.0, stated.channel("fx_strain").phase)))
     return replace(cfg, chain=chain, lms=lms)
 
 

@@ -78,7 +78,7 @@ def _probe_revolutions(rho: float, runout: np.ndarray, phi0: float, noise: float
     for n in revs:
         psi = phi0 + 2 * np.pi * rho * (n - revs[0]) + rho * theta
         v = np.real(d[:, None] * np.exp(1j * theta)) + np.real(runout[:, :1] * np.exp(1j * psi)
-                                                              + runout[:, 1:] * np.exp(2j * psi))  # fmt: skip
+                                                              + runout[:, 1:] * np.exp(2j * psi))
         rec.append(phasor(v + rng.normal(0, noise, v.shape), theta))
     return np.array(rec), d, theta, revs
 

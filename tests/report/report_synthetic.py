@@ -90,7 +90,7 @@ def _record(block, radius, rng, noise, ch, gains, wave_rng) -> BlockRecord:
         mean=mean, record_phasors=records, phasors=ph, dc=0.1 * np.abs(ph),
         rms_residual=np.zeros(8), coherence=np.clip(0.995 - 0.04 * rng.random((2, 4)), 0, 1),
         stats={"frames_good": N_REV, "revolutions_used": N_REV},
-    )  # fmt: skip
+    )
 
 
 def write_synthetic_run(directory: Path, *, noise=1e-3, seed=1, n_points=2, incomplete=1, finished=True,
@@ -122,7 +122,7 @@ def write_synthetic_run(directory: Path, *, noise=1e-3, seed=1, n_points=2, inco
             "orbit_hz": [r.block.orbit_hz for r in recs], "orbit": [r.block.orbit for r in recs],
             "K": [K_TRUE.tolist()] * n, "C": [C_TRUE.tolist()] * n, "D": [D_TRUE.tolist()] * n,
             "K0": K_TRUE.tolist(), "C0": C_TRUE.tolist(), "D0": D_TRUE.tolist(),
-        }  # fmt: skip
+        }
         store.write_results(point.index, identify_operating_point(point.spin, recs, ch, matrix.models, truth))
         store.complete_point(point.index)
     if finished:

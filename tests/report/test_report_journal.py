@@ -33,7 +33,7 @@ def _fitted(pr, lms="piezo", model="kcd11"):
 def _coefficients(pt, pr, truth):
     table = pt.tables["piezo"]
     return plots_coefficients.coefficients_figure(_fitted(pr), spin=table.spin, orbit=table.orbit, truth=truth,
-                                                  title="t")  # fmt: skip
+                                                  title="t")
 
 
 @pytest.mark.parametrize("stored", ["per row", "constant best fit only"])

@@ -40,7 +40,7 @@ def test_report_writes_every_plot(synthetic_run, synthetic_report):
         "impedance_0001_piezo.png", "impedance_0001_strain.png",
         "coherence_0001.png", "lms_0001.png", "orbits_0001.png",
         "signals_0001_00_fwd.png", "signals_0001_09_fwd.png", "signals_0001_00_bwd.png", "signals_0001_09_bwd.png",
-    }  # fmt: skip
+    }
     for path in plots.glob("*.png"):
         w, h = png_size(path)
         assert w >= 800 and h >= 400

@@ -43,7 +43,7 @@ def test_coherence_is_a_coloured_table_of_the_stored_values(point_report):
     assert table.rows[0] == "0.200 fwd" and table.rows[-1] == "1.200 bwd"
     piezo = point.tables["piezo"]
     first_bwd = int(np.flatnonzero((piezo.orbit / piezo.spin > 0.19) & (piezo.orbit / piezo.spin < 0.21)
-                                   & (np.imag(np.conj(piezo.x) * piezo.y) > 0))[0])  # fmt: skip
+                                   & (np.imag(np.conj(piezo.x) * piezo.y) > 0))[0])
     np.testing.assert_array_equal(table.values[10, :4], piezo.gamma2[first_bwd])
     fig = coherence_figure(table, title="t")
     ax = fig.axes[0]
@@ -69,7 +69,7 @@ def test_truth_markers_stay_inside_the_axes_even_far_from_the_fit(point_report):
     truth["K"] = (np.asarray(truth["K"]) * 3).tolist()  # far outside what the fit draws
     t = point.tables["piezo"]
     fig = coefficients_figure([Fitted(fit_label(r), r.identification)], spin=t.spin, orbit=t.orbit, truth=truth,
-                              title="t")  # fmt: skip
+                              title="t")
     crosses = 0
     for ax in fig.axes:
         for line in ax.get_lines():

@@ -24,7 +24,7 @@ MODELS = (("kcd11", "none"), ("kc8", "none"), ("kcd11", "power:1"))
 
 def orbitrig(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "orbitrig", *args], cwd=ROOT, capture_output=True, text=True,
-                          timeout=timeout)  # fmt: skip
+                          timeout=timeout)
 
 
 @pytest.fixture(scope="session")
@@ -98,7 +98,7 @@ def test_report_on_the_sweep(sweep_run):
         "derived_0000_piezo.png", "derived_0000_strain.png", "impedance_0000_piezo.png", "impedance_0000_strain.png",
         "orbits_0000.png", "signals_0000_00_fwd.png", "signals_0000_04_fwd.png", "signals_0000_00_bwd.png",
         "signals_0000_04_bwd.png",
-    ])  # fmt: skip
+    ])
     for name in pngs:
         data = (plots / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 30_000

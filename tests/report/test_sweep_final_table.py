@@ -51,7 +51,7 @@ def test_few_points_print_the_full_tables(tmp_path, capsys, monkeypatch):
     out = capsys.readouterr().out
     marked = re.findall(r"(piezo|strain) (\S+) (\S+) \*", out)
     expected = {(i.lms, i.model, i.method) for p in stored for i in p.identifications if i.ok and rejected(i.result)
-                and i.freq_dep == "none"}  # fmt: skip
+                and i.freq_dep == "none"}
     assert expected and set(marked) >= expected and "* the fit's chi2 adequacy test rejects it" in out
 
 

@@ -33,7 +33,7 @@ def test_disk_full_mid_run_exits_cleanly_and_keeps_the_completed_points(tiny_dis
     matrix.write_text(MATRIX)
     out = tiny_disk / "run"
     proc = subprocess.Popen(orbitrig_cmd("sweep", "--sim", "--matrix", str(matrix), "--out", str(out)), cwd=ROOT,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 60
         while not _point_committed(out, 0):
@@ -53,7 +53,7 @@ def test_disk_full_mid_run_exits_cleanly_and_keeps_the_completed_points(tiny_dis
     assert not all(p.complete for p in run.points)
     filler.unlink()
     p = subprocess.run(orbitrig_cmd("sweep", "--sim", "--resume", str(out)), cwd=ROOT, capture_output=True,
-                       text=True, timeout=120)  # fmt: skip
+                       text=True, timeout=120)
     assert p.returncode == 0, p.stdout + p.stderr
     check_whole(out, [0, 1, 2], 6)
 

@@ -29,7 +29,7 @@ def test_run_h5_states_units_and_names(synthetic):
     with h5py.File(synthetic / "run.h5", "r") as f:
         assert f.attrs["format"] == "orbitrig-run/2" and f.attrs["status"] == "stopped"
         assert _s(f["channels"][()]) == ["fx_piezo", "fy_piezo", "fx_strain", "fy_strain",
-                                                           "x_a", "y_a", "x_b", "y_b"]  # fmt: skip
+                                                           "x_a", "y_a", "x_b", "y_b"]
         assert _s(f["channel_units"][()]) == ["N"] * 4 + ["m"] * 4
         missing = []
 
@@ -133,7 +133,7 @@ def test_export_csv_orbit_tables_read_back(synthetic, tmp_path):
     files = _export(synthetic, "csv", tmp_path)
     assert [p.rsplit("/", 1)[-1] for p in files][:6] == ["point_0000_piezo.csv", "point_0000_strain.csv",
                                                          "point_0001_piezo.csv", "point_0001_strain.csv",
-                                                         "coefficients.csv", "fits.csv"]  # fmt: skip
+                                                         "coefficients.csv", "fits.csv"]
     table = read_run(synthetic).points[0].tables["strain"]
     back = read_orbit_table(tmp_path / "point_0000_strain.csv")
     np.testing.assert_allclose(back.orbit, table.orbit, rtol=1e-15)  # stored as orbit_hz
@@ -181,7 +181,7 @@ def test_orbit_table_uncertainty_and_block_stop_reason_round_trip(tmp_path):
     p = operating_points(m, rig)[0]
     t = OrbitTable(spin=p.spin, orbit=np.array([10.0, 20.0]), x=np.ones(2, complex), y=-1j * np.ones(2),
                    fx=np.ones(2, complex), fy=np.ones(2, complex), n_records=np.array([50, 73]),
-                   u=np.array([[1e-8, 2e-8, 0.5, 0.6], [1.5e-8, 2.5e-8, 0.7, 0.8]]))  # fmt: skip
+                   u=np.array([[1e-8, 2e-8, 0.5, 0.6], [1.5e-8, 2.5e-8, 0.7, 0.8]]))
     store = RunStore.create(tmp_path / "run", rig_text=rig.text, matrix_text=m.text, matrix_name=m.name, sim=False)
     store.begin_point(p)
     b = p.blocks[0]
@@ -190,7 +190,7 @@ def test_orbit_table_uncertainty_and_block_stop_reason_round_trip(tmp_path):
         slots=np.zeros((8, 45), np.int16), gains=np.ones(8), offsets=np.zeros(8), mean=np.zeros((8, 45)),
         record_phasors=np.zeros((73, 8), complex), phasors=np.ones(8, complex), dc=np.zeros(8),
         rms_residual=np.zeros(8), coherence=np.ones((2, 4)), uncertainty=np.full(8, 0.25), n_records=73,
-        stop_reason="target"))  # fmt: skip
+        stop_reason="target"))
     spec = ModelSpec(model="kc8")
     store.write_results(p.index, PointResults({"piezo": t}, {("piezo", spec.key): {"spec": spec, "error": "x\ny"}}, {}))
     store.complete_point(p.index)

@@ -27,7 +27,7 @@ def _record(block, n=20) -> BlockRecord:
         mean=rng.standard_normal((8, 45)), record_phasors=rng.standard_normal((n, 8)) + 0j, phasors=np.ones(8, complex),
         dc=np.zeros(8), rms_residual=np.zeros(8), coherence=np.ones((2, 4)), uncertainty=np.full(8, 1e-3),
         n_records=n, stop_reason="count",
-    )  # fmt: skip
+    )
 
 
 def _setup(directory):

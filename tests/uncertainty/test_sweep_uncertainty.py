@@ -48,7 +48,7 @@ freq_dep = "poly:4"
 def orbitrig(*args: str, cwd: Path = ROOT, timeout: float = 240) -> subprocess.CompletedProcess:
     env = {**os.environ, "COLUMNS": "200"}
     return subprocess.run([sys.executable, "-m", "orbitrig", *args], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=timeout)  # fmt: skip
+                          text=True, timeout=timeout)
 
 
 @pytest.fixture(scope="module")
@@ -57,7 +57,7 @@ def sweep(tmp_path_factory):
     (work / "judged.toml").write_text(MATRIX)
     out = work / "run"
     res = orbitrig("sweep", "--sim", "--sim-config", "config/sim/compressible.toml", "--matrix",
-                   str(work / "judged.toml"), "--out", str(out))  # fmt: skip
+                   str(work / "judged.toml"), "--out", str(out))
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     return out, res.stdout + res.stderr
 
