@@ -112,5 +112,6 @@ def test_the_default_wait_scales_with_revolutions_and_orbit_period(monkeypatch):
         r = CliRunner().invoke(app, ["acquire", "--adc", url, "--revolutions", "150", "--json"])
         assert r.exit_code == 0, r.output
         assert json.loads(r.stdout)["revolutions_used"] == 150
-        r = CliRunner().invoke(app, ["acquire", "--adc", url, "--revolutions", "150", "--timeout", "0.3"])
-        assert r.exit_code == 2 and "of 150 good revolutions within 0.3 s" in r.output
+        # 1000 revolutions take 4 s: more than a stalled simulator's catch-up can deliver in 0.3 s
+        r = CliRunner().invoke(app, ["acquire", "--adc", url, "--revolutions", "1000", "--timeout", "0.3"])
+        assert r.exit_code == 2 and "of 1000 good revolutions within 0.3 s" in r.output

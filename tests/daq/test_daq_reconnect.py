@@ -82,6 +82,8 @@ async def test_delays_start_short_again_after_data_flowed():
         async with reader:
             await asyncio.sleep(WINDOW)
     # every connection delivered good frames: every reconnect waits at most the first ceiling
-    gaps = np.diff(accepts)
-    assert len(accepts) >= 15 and np.max(gaps) < 0.2
+    # (one gap may be longer: a busy machine can stall the test's loop once; a backoff that
+    # grew would make every later gap long)
+    gaps = np.sort(np.diff(accepts))
+    assert len(accepts) >= 15 and gaps[-2] < 0.2, gaps[-3:]
     assert reader.stats.frames_good >= 8 * len(accepts) - 8
