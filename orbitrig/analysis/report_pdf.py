@@ -9,14 +9,12 @@ is the figure's size in inches. A PNG that is not 8-bit RGB is converted (PIL) f
 
 from __future__ import annotations
 
-import contextlib
-import os
 import struct
 import zlib
 from pathlib import Path
 from typing import BinaryIO
 
-from orbitrig.store.durable import TMP_SUFFIX, create_new, fsync_dir
+from orbitrig.store.durable import atomic_file
 from orbitrig.store.errors import storage_error
 
 COMBINED_PDF = "report.pdf"
@@ -31,21 +29,11 @@ def combine_pdf(pngs: list[Path], path: Path) -> Path | None:
     if not pngs:
         return None
     vectors = [p.with_suffix(".pdf") for p in pngs]
-    tmp = path.with_name(path.name + TMP_SUFFIX)
-    try:
-        with os.fdopen(create_new(tmp), "wb") as f:  # streamed: a large report is not held in memory
-            if all(v.exists() for v in vectors):
-                _join_vector(vectors, f)
-            else:
-                raster_pdf(pngs, f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except OSError as err:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise storage_error(path, "write", err) from err
-    fsync_dir(path.parent)
+    with atomic_file(path) as f:  # streamed: a large report is not held in memory
+        if all(v.exists() for v in vectors):
+            _join_vector(vectors, f)
+        else:
+            raster_pdf(pngs, f)
     return path
 
 

@@ -19,6 +19,8 @@ import dataclasses
 from enum import StrEnum
 from typing import Any
 
+from orbitrig.service.protocol import RunState
+
 SUSPENDED = "suspended by interlock:"
 CLEARED = "interlock cleared"
 
@@ -50,7 +52,7 @@ def _raised(status: dict[str, Any]) -> Alarm | None:
     run_id, since = status.get("run_id"), str(status.get("since") or "")
     if message.startswith(SUSPENDED):
         kind = AlarmKind.TRIP
-    elif state == "faulted":
+    elif state == RunState.FAULTED:
         kind = AlarmKind.TRIP if "interlock" in message else AlarmKind.FAULT
     else:
         return None

@@ -24,8 +24,9 @@ import itertools
 import json
 import os
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import BinaryIO
 
 from orbitrig.store.errors import StorageError, storage_error
 
@@ -63,22 +64,31 @@ def write_atomic(path: Path, data: bytes | memoryview) -> dict:
 
     On any failure the temporary file is removed and a StorageError is raised; the
     previous content of `path` (if any) is untouched."""
+    with atomic_file(path) as f:
+        f.write(data)
+    return {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+
+
+@contextlib.contextmanager
+def atomic_file(path: Path) -> Iterator[BinaryIO]:
+    """A binary file on ``NAME.tmp`` that becomes `path` as one durable step when the block
+    ends (flush, fsync, rename, fsync dir), for content written piece by piece. On an
+    OSError the temporary file is removed and a StorageError naming `path` is raised; the
+    previous content of `path` (if any) is untouched."""
     path = Path(path)
     tmp = path.with_name(path.name + TMP_SUFFIX)
     fd = create_new(tmp)
     try:
-        try:
-            _write_all(fd, data)
-            os.fsync(fd)
-        finally:
-            os.close(fd)
+        with os.fdopen(fd, "wb") as f:
+            yield f
+            f.flush()
+            os.fsync(f.fileno())
         os.replace(tmp, path)
     except OSError as err:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise storage_error(path, "write", err) from err
     fsync_dir(path.parent)
-    return {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
 
 
 def create_new(tmp: Path, readable: bool = False) -> int:
