@@ -48,6 +48,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from bench_rig_time_engine import TABLE1_POINT  # noqa: E402
 from daq.averager import AveragingRule, StreamingAverager  # noqa: E402
 from daq.revolutions import RevolutionBatch  # noqa: E402
 from orbitrig.config import RPM, load_rig, matrix_from_text  # noqa: E402
@@ -143,17 +144,7 @@ def design(rig, spec):
     return list(alloc.ratios), list(alloc.revolutions), targets, paper, alloc
 
 
-MATRIX = """name = "{name}"
-[operating]
-spin_rpm = [1000.0]
-recess_pressure_mpa = [0.4826]
-pressure_ratio = [0.25]
-static_eccentricity = [0.0]
-dynamic_eccentricity = [0.04]
-[orbit]
-ratios = [{ratios}]
-revolutions = [{counts}]
-[[models]]
+MATRIX = TABLE1_POINT + """[[models]]
 model = "{model}"
 """
 

@@ -45,7 +45,8 @@ class RunFailedError(RuntimeError):
 ALPHA = 0.01
 SCENARIOS = ("paper", "compressible")
 MODELS = ("none", "power:1")
-MATRIX = """name = "{name}"
+#: the paper's Table 1 operating point with a list of ratios and revolutions (both benches)
+TABLE1_POINT = """name = "{name}"
 [operating]
 spin_rpm = [1000.0]
 recess_pressure_mpa = [0.4826]
@@ -55,7 +56,8 @@ dynamic_eccentricity = [0.04]
 [orbit]
 ratios = [{ratios}]
 revolutions = [{counts}]
-[[models]]
+"""
+MATRIX = TABLE1_POINT + """[[models]]
 model = "kcd11"
 method = "wls"
 [[models]]
