@@ -1,8 +1,9 @@
 """Storage and identification in the background, overlapping the next motion.
 
-Writes run in a worker thread, one at a time, in submission order (a FIFO
+Writes run in one storage thread, one at a time, in submission order (a FIFO
 lock), so a block is never written after the point that holds it is marked
-complete. A stop or an abort waits for what is in flight (never cut off).
+complete; the same thread makes every write, so the order of the syscalls on
+disk is the order of submission. A stop or an abort waits for what is in flight (never cut off).
 The first failure is reported at once to `on_failure` (the engine ends the
 run: drives to a safe stop first) and raised by `check`.
 
@@ -19,6 +20,7 @@ import asyncio
 import logging
 import time
 from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 from typing import Awaitable, Callable
 
 from orbitrig.run.events import RunFailed
@@ -26,6 +28,7 @@ from orbitrig.store.errors import StorageError
 
 log = logging.getLogger(__name__)
 POINTS_IN_FLIGHT = 1  # earlier points still identified or stored while the next one is measured
+STORAGE_THREAD = ThreadPoolExecutor(max_workers=1, thread_name_prefix="orbitrig-storage")  # started on first use
 
 
 class Background:
@@ -42,7 +45,7 @@ class Background:
         async with self._writes:
             t = time.monotonic()
             try:
-                return await asyncio.to_thread(fn, *args)
+                return await asyncio.get_running_loop().run_in_executor(STORAGE_THREAD, fn, *args)
             finally:
                 self.timing["store"] = self.timing.get("store", 0.0) + time.monotonic() - t
 
