@@ -17,6 +17,9 @@ from orbitrig.store.layout import COMMIT_FILE, POINT_FILE, RunLayout
 
 #: the problem of a point whose run never committed it (stopped, killed, still running)
 NEVER_COMPLETED = "never completed (no commit record)"
+#: the problem of a point whose folder exists but whose settings record was never written
+#: (the run was cut between the two): nothing of it is stored, nothing is damaged
+NEVER_BEGUN = "never begun (no settings record)"
 
 
 @dataclass(frozen=True)

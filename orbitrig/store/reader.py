@@ -121,6 +121,7 @@ class Run:
     channel_units: list[str] = field(default_factory=list)
     torn: int = 0
     unreadable: list[str] = field(default_factory=list)
+    unbegun: list[int] = field(default_factory=list)  # point folders without a settings record (cut at its start)
     sim_scenario_name: str = ""  # --sim runs: the simulator scenario (file name, or the default)
     sim_scenario_config: str = ""  # its TOML text ("" the default rig)
     provenance: dict[str, str] = field(default_factory=dict)  # PROVENANCE_KEYS ("" unknown), times ISO 8601 UTC
@@ -241,6 +242,9 @@ def _read_pieces(layout: RunLayout, blocks: bool = True) -> Run:
     run.provenance = {k: str(prov.get(k, "")) for k in PROVENANCE_KEYS[:-1]} | {"ended": ended}
     for index in layout.point_indexes():
         state = point_state(layout, index)
+        if not state.complete and not layout.point_file(index).exists():
+            run.unbegun.append(index)  # cut between creating the point's folder and storing its settings
+            continue
         try:
             point = read_point(layout, index, complete=state.complete, skipped=run.unreadable, blocks=blocks)
             point.problem = state.problem

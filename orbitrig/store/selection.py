@@ -4,8 +4,8 @@ every point it skips, named with the reason.
 Asked for: the points given (``--point N``), or, without them, every point the run
 committed (a commit record exists). A point asked for that is not complete (damaged,
 missing, unreadable) is *skipped*: named, and the command exits non-zero. A point the
-run never committed (a stopped or interrupted run) is only *noted* when nobody asked
-for it by number.
+run never committed (a stopped or interrupted run), or never began to store, is only
+*noted* when nobody asked for it by number.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
-from orbitrig.store.index import NEVER_COMPLETED
+from orbitrig.store.index import NEVER_BEGUN, NEVER_COMPLETED
 from orbitrig.store.layout import point_name
 from orbitrig.store.reader import Point, Run
 
@@ -47,6 +47,7 @@ def select_points(run: Run, wanted: Iterable[int] | None = None) -> Selection:
                 continue
             (sel.notes if p.problem == NEVER_COMPLETED else sel.skipped).append(
                 f"point {p.name} {'not included' if p.problem == NEVER_COMPLETED else 'skipped'}: {p.problem}")
+        sel.notes += [f"point {point_name(i)} not included: {NEVER_BEGUN}" for i in run.unbegun]
         listed = {p.name for p in run.points}
         sel.skipped += [f"skipped: unreadable {u}" for u in run.unreadable
                         if not any(f"/{name}/" in u for name in listed)]
@@ -58,7 +59,7 @@ def select_points(run: Run, wanted: Iterable[int] | None = None) -> Selection:
             sel.points.append(p)
             continue
         name = point_name(index) if p is None else p.name
-        why = p.problem if p is not None else "no such point in the run"
+        why = p.problem if p is not None else NEVER_BEGUN if index in run.unbegun else "no such point in the run"
         details = _unreadable_of(run, name)
         sel.skipped.append(f"point {name} skipped: {why}" + "".join(f"; unreadable {u}" for u in details))
     return sel

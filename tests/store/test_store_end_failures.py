@@ -98,3 +98,19 @@ def test_export_of_an_undamaged_stopped_run_notes_the_point_never_completed(synt
     assert r.exit_code == 0 and "point 0002 not included: never completed" in r.stderr, r.output
     r = CliRunner().invoke(app, ["export", str(synthetic), "--point", "2", "--out", str(tmp_path / "y")])
     assert r.exit_code == 1 and "error: point 0002 skipped: never completed" in r.stderr, r.output
+
+
+def test_a_point_cut_before_its_settings_were_stored_is_noted_not_an_error(synthetic, tmp_path):
+    """A kill between creating a point's folder and storing its settings leaves an empty
+    folder: nothing of that point is stored and nothing is damaged (strace kill at fsync 23)."""
+    run = tmp_path / "run"
+    shutil.copytree(synthetic, run)
+    (run / "points" / "0003").mkdir()
+    r = CliRunner().invoke(app, ["export", str(run), "--out", str(tmp_path / "x")])
+    assert r.exit_code == 0 and "point 0003 not included: never begun (no settings record)" in r.stderr, r.output
+    r = CliRunner().invoke(app, ["export", str(run), "--point", "3", "--out", str(tmp_path / "y")])
+    assert r.exit_code == 1 and "error: point 0003 skipped: never begun" in r.stderr, r.output
+    (run / "points" / "0004").mkdir()
+    (run / "points" / "0004" / "point.json").write_text("{torn")  # a settings record that is there but torn
+    r = CliRunner().invoke(app, ["export", str(run), "--out", str(tmp_path / "z")])
+    assert r.exit_code == 1 and "unreadable point settings" in r.stderr, r.output
