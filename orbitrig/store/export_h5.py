@@ -69,6 +69,8 @@ def _copy_run_file(src_path: Path, f: h5py.File) -> None:
 
 def octave_layout(f: h5py.File) -> None:
     """Rewrite the open run file `f` in place into the layout of the module docstring."""
+    if ATTRIBUTES in f:  # a file exported before: mirrored again
+        del f[ATTRIBUTES]
     objects: list[h5py.Group | h5py.Dataset] = [f]
     f.visititems(lambda _, obj: objects.append(obj))
     mirror = f.create_group(ATTRIBUTES)
@@ -91,8 +93,9 @@ def _octave_value(data: np.ndarray) -> np.ndarray:
         return out
     if data.dtype.kind == "b":
         return data.astype(np.uint8)
-    if data.dtype.kind in "OU":  # variable-length text
-        return fixed_text(data.ravel()).reshape(data.shape)
+    if data.dtype.kind in "OU":  # variable-length text (h5py reads a dataset's as bytes)
+        text = [v.decode("utf-8") if isinstance(v, bytes) else v for v in data.ravel()]
+        return fixed_text(text).reshape(data.shape)
     return data
 
 

@@ -18,7 +18,9 @@ import pytest
 from nptdms import TdmsFile
 from scipy.io import loadmat
 
+from orbitrig.store.errors import RunDirError
 from orbitrig.store.export import export_run
+from orbitrig.store.export_h5 import octave_layout
 from orbitrig.store.orbit_table import read_orbit_table
 from orbitrig.store.reader import read_run
 
@@ -142,32 +144,64 @@ def test_h5_export_is_run_h5_in_the_layout_octave_reads(exported, stored, tmp_pa
         np.testing.assert_array_equal(fx["real"] + 1j * fx["imag"], stored["fx"])
         events = f["logs/events"]
         assert isinstance(events, h5py.Group) and list(events["state"][()]) == list(stored["events"]["state"])
-        mirrored = []
-        f.visititems(lambda name, obj: mirrored.extend(_octave_readable(f, name, obj)))
-        assert len(mirrored) > 2000 and f["attributes/software_version"][()].decode() == stored["version"]
+        counts = {"attributes": 0, "mirrored": 0}
+        f.visititems(lambda name, obj: _octave_readable(name, obj, counts))
+        assert counts["mirrored"] == counts["attributes"] + len(f.attrs) > 2000
+        for name in ("", "points/0000", "points/0000/table/piezo", "points/0000/table/piezo/fx", "logs/events",
+                     f"points/0000/identification/{FIT}", f"points/0000/identification/{FIT}/coefficients"):
+            _same_attributes(f, name)
     shutil.copy(path, tmp_path / "run.h5")  # orbitrig reads the export as it reads run.h5
     table = read_run(tmp_path).points[0].tables["piezo"]
     np.testing.assert_array_equal(table.fx, stored["fx"])
 
 
-def _octave_readable(f: h5py.File, name: str, obj) -> list[str]:
-    """Check that `obj` is a dataset type Octave's load reads (numbers, fixed-length text,
-    real/imag compounds) and that its attributes are mirrored under /attributes; the names mirrored."""
+def _octave_readable(name: str, obj, counts: dict) -> None:
+    """`obj` is what Octave's load reads (numbers, fixed-length text, real/imag compounds);
+    counts the attributes of the tree and the datasets mirroring them under /attributes."""
     if isinstance(obj, h5py.Dataset):
         dt = obj.dtype
         assert dt.kind in "iufS" or dt.names == ("real", "imag"), f"{name}: {dt}"
-        assert h5py.check_string_dtype(dt) is None or h5py.check_string_dtype(dt).length is not None, name
-    if name.startswith("attributes"):
-        return []
+        counts["mirrored"] += name.startswith("attributes/")
+    counts["attributes"] += len(obj.attrs) if not name.startswith("attributes/") else 0
+
+
+def _same_attributes(f: h5py.File, name: str) -> None:
+    obj = f[name or "/"]
     for key, value in obj.attrs.items():
-        copy = f[f"attributes/{name}/{key}"][()]
+        copy = f["/".join(filter(None, ("attributes", name, key)))][()]
         if isinstance(value, str):
             assert copy.decode() == value, f"{name}: {key}"
         elif isinstance(value, np.ndarray) and value.dtype.kind == "O":
             assert [c.decode() for c in copy] == list(value), f"{name}: {key}"
         else:
             np.testing.assert_array_equal(copy, value, err_msg=f"{name}: {key}")
-    return [f"{name}/{key}" for key in obj.attrs]
+
+
+def test_h5_export_of_a_folder_holding_only_run_h5(sim_run, exported, tmp_path):
+    """A copy of run.h5 alone in a folder (sent to a colleague) exports to the same layout."""
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    shutil.copy(sim_run / "run.h5", alone / "run.h5")
+    (path,) = export_run(alone, "h5", tmp_path / "out").files
+    with h5py.File(path, "r") as f, h5py.File(exported["dir"] / "run.h5", "r") as first:
+        np.testing.assert_array_equal(f["points/0000/table/piezo/fx"][()], first["points/0000/table/piezo/fx"][()])
+        assert sorted(f["logs/can"]) == sorted(first["logs/can"]) and sorted(f["attributes"]) == sorted(first["attributes"])
+        assert f["attributes/points/0000/table/piezo/fx/units"][()] == b"N"
+    with pytest.raises(RunDirError, match="would replace the run's own run.h5"):
+        export_run(alone, "h5", alone)
+
+
+def test_octave_layout_names_an_attribute_that_a_member_shadows(tmp_path):
+    with h5py.File(tmp_path / "t.h5", "w") as f:
+        g = f.create_group("g")
+        g.attrs["d"], g.attrs["ok"] = "the group's d", np.bool_(True)
+        g.create_dataset("d", data=np.array(["a", "bb"], dtype=h5py.string_dtype())).attrs["units"] = "m"
+        for _ in range(2):  # a file exported before is laid out again the same
+            octave_layout(f)
+            assert f["attributes/g/d/units"][()] == b"m" and f["attributes/g/d_attribute"][()] == b"the group's d"
+            assert f["attributes/g/ok"].dtype == np.uint8 and f["attributes/g/ok"][()] == 1
+            assert list(f["g/d"][()]) == [b"a", b"bb"] and f["g/d"].attrs["units"] == "m"
+            assert sorted(f["attributes/g"]) == ["d", "d_attribute", "ok"]
 
 
 def test_octave_loads_the_h5_export(exported, stored, tmp_path):
