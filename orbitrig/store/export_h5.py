@@ -24,6 +24,7 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+from h5py import h5d, h5s, h5t
 
 from orbitrig.store.consolidate import build_run_file
 from orbitrig.store.durable import StreamedH5
@@ -75,8 +76,9 @@ def octave_layout(f: h5py.File) -> None:
     f.visititems(lambda _, obj: objects.append(obj))
     mirror = f.create_group(ATTRIBUTES)
     with_attrs = [(o, mirror.require_group(o.name.lstrip("/")) if o.name != "/" else mirror) for o in objects if o.attrs]
-    for obj, dest in with_attrs:  # every destination group exists before any attribute is written
-        _mirror_attributes(obj, dest)
+    taken = {o.name for o, _ in with_attrs}  # every destination group exists before any attribute is written
+    for obj, dest in with_attrs:
+        _mirror_attributes(obj, dest, taken)
     for ds in (o for o in objects if isinstance(o, h5py.Dataset)):
         dt = ds.dtype
         if dt.names is not None and set(dt.names) != {"real", "imag"}:
@@ -116,10 +118,21 @@ def _table_as_columns(ds: h5py.Dataset) -> None:
         g.create_dataset(field, data=_octave_value(np.asarray(data[field])))
 
 
-def _mirror_attributes(obj, dest: h5py.Group) -> None:
+def _mirror_attributes(obj, dest: h5py.Group, taken: set[str]) -> None:
+    """Each attribute of `obj` as a dataset in `dest`; `taken`: the HDF5 names of the objects
+    whose attributes have a group of that name in the mirror."""
     for key, value in obj.attrs.items():
         name = key.replace("/", "_")
-        if name in dest:
+        if f"{obj.name.rstrip('/')}/{name}" in taken:
             name += "_attribute"
         data = np.asarray(value.encode("utf-8") if isinstance(value, str) else value)
-        dest.create_dataset(name, data=_octave_value(data))
+        _small_dataset(dest, name, _octave_value(data))
+
+
+def _small_dataset(group: h5py.Group, name: str, data: np.ndarray) -> None:
+    """A dataset through h5py's low-level API: several times faster than `create_dataset`
+    for the thousands of small ones the attributes make."""
+    space = h5s.create(h5s.SCALAR) if data.ndim == 0 else h5s.create_simple(data.shape)
+    ds = h5d.create(group.id, name.encode("utf-8"), h5t.py_create(data.dtype), space)
+    if data.size:
+        ds.write(h5s.ALL, h5s.ALL, np.ascontiguousarray(data))
