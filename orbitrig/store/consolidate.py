@@ -47,16 +47,18 @@ def read_header(layout: RunLayout) -> dict:
 
 def write_run_file(layout: RunLayout, dest: Path | None = None) -> Path:
     """Consolidate the run directory `layout` into `dest` (default: its run.h5)."""
-    header = read_header(layout)
-    journal = read_journal(layout.journal)
-    states = scan(layout)
     out = StreamedH5(dest or layout.run_file)
     try:
-        _build(out.file, layout, header, journal, states, set())
+        build_run_file(out.file, layout)
     except Exception:
         out.discard()
         raise
     return out.commit()
+
+
+def build_run_file(f: h5py.File, layout: RunLayout) -> None:
+    """Write the whole run (header, every point's pieces, logs) into the open file `f`."""
+    _build(f, layout, read_header(layout), read_journal(layout.journal), scan(layout), set())
 
 
 class RunImage:

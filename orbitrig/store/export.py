@@ -8,7 +8,7 @@ adequacy, the simulator's truth, and (mat, tdms, h5) the averaged waveforms:
 - ``csv``: orbitrig.store.export_csv;
 - ``mat``: ``run.mat`` (MATLAB, GNU Octave), orbitrig.store.export_mat;
 - ``tdms``: ``run.tdms`` (NI LabVIEW), orbitrig.store.export_tdms;
-- ``h5``: ``run.h5``, the consolidated single file (docs/storage.md).
+- ``h5``: ``run.h5``, the whole run in one file that GNU Octave reads too, orbitrig.store.export_h5.
 
 Every file is written to a temporary name and renamed into place; every failure
 is a StorageError naming the file. Every point asked for and not exported is named
@@ -21,7 +21,6 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
 from orbitrig.store.layout import RunLayout
 from orbitrig.store.reader import read_run
@@ -57,26 +56,12 @@ def export_run(directory: str | Path, fmt: str, out: str | Path | None = None,
     except OSError as err:
         raise storage_error(out, "create the export directory", err) from err
     if fmt == "h5":
-        return Exported([_export_h5(layout, out)], selection)
+        from orbitrig.store.export_h5 import export_h5
+
+        return Exported([export_h5(layout, out)], selection)
     from orbitrig.store.export_csv import export_csv
     from orbitrig.store.export_mat import export_mat
     from orbitrig.store.export_tdms import export_tdms
 
     write = {"csv": export_csv, "mat": export_mat, "tdms": export_tdms}[fmt]
     return Exported(write(run, selection.points, out), selection)
-
-
-def _export_h5(layout: RunLayout, out: Path) -> Path:
-    from orbitrig.store.consolidate import write_run_file
-
-    path = out / layout.run_file.name
-    if layout.has_pieces():
-        return write_run_file(layout, path)
-    else:  # a directory holding only run.h5: copy it
-        try:
-            data = layout.run_file.read_bytes()
-        except OSError as err:
-            raise storage_error(layout.run_file, "read", err) from err
-    if path.resolve() != layout.run_file.resolve():
-        write_atomic(path, data)
-    return path

@@ -160,6 +160,22 @@ def _json_attr(attrs, name: str) -> Any:
     return None if raw is None else json.loads(_text(raw))
 
 
+#: a complex dataset in the h5 export's layout (orbitrig.store.export_h5), which GNU Octave reads
+OCTAVE_COMPLEX = np.dtype([("real", "<f8"), ("imag", "<f8")])
+
+
+def stored_values(ds) -> np.ndarray:
+    """The values of dataset `ds`; complex from either layout: run.h5's (h5py's members r, i)
+    or the h5 export's (members real, imag)."""
+    data = ds[()]
+    names = getattr(data, "dtype", np.dtype(float)).names
+    if names is not None and set(names) == {"real", "imag"}:
+        out = np.empty(data.shape, np.complex128)
+        out.real, out.imag = data["real"], data["imag"]
+        return out
+    return np.asarray(data)
+
+
 def _open(path: Path):
     import h5py
 
@@ -303,7 +319,7 @@ def _new_point(a, name: str) -> Point:
 def _frequency(name: str, fg) -> Frequency:
     fa = fg.attrs
     coh = np.asarray(fg["coherence"][()], dtype=float) if "coherence" in fg else None
-    waveform = {k: np.asarray(fg[k][()]) for k in _WAVEFORM if k in fg}
+    waveform = {k: stored_values(fg[k]) for k in _WAVEFORM if k in fg}
     return Frequency(
         name=name, orbit=float(fa.get("orbit", np.nan)), orbit_hz=float(fa.get("orbit_hz", np.nan)),
         direction=int(fa.get("direction", 1)), complete=bool(fa.get("complete", False)), coherence=coh,
@@ -324,8 +340,8 @@ def _table(tg, spin: float):
         extra["u"] = np.asarray(tg["u"][()], dtype=float)
     return OrbitTable(
         spin=float(tg.attrs.get("spin", spin)), orbit=np.asarray(tg["orbit"][()], dtype=float),
-        x=np.asarray(tg["x"][()], dtype=complex), y=np.asarray(tg["y"][()], dtype=complex),
-        fx=np.asarray(tg["fx"][()], dtype=complex), fy=np.asarray(tg["fy"][()], dtype=complex),
+        x=stored_values(tg["x"]).astype(complex), y=stored_values(tg["y"]).astype(complex),
+        fx=stored_values(tg["fx"]).astype(complex), fy=stored_values(tg["fy"]).astype(complex),
         gamma2=np.asarray(tg["gamma2"][()], dtype=float) if "gamma2" in tg else None, **extra,
     )
 

@@ -51,8 +51,4 @@ def synthetic_run(tmp_path_factory) -> Path:
     sys.path.insert(0, str(ROOT / "tests" / "report"))
     from report_synthetic import write_synthetic_run
 
-    from orbitrig.store.export import export_run
-
-    run = write_synthetic_run(tmp_path_factory.mktemp("synthetic") / "run")
-    export_run(run, "h5", run)  # run.h5 beside the pieces
-    return run
+    return write_synthetic_run(tmp_path_factory.mktemp("synthetic") / "run")  # finished: run.h5 beside the pieces

@@ -1,12 +1,14 @@
 """Every export carries the same content, read back by independent readers (scipy.io,
 npTDMS, csv, pint, GNU Octave) against run.h5 read with h5py: coefficients with std and
 U, the covariance with its names (11 x 11 for kcd11's 11 free coefficients), the budget,
-derived quantities, truth, provenance and (mat, tdms) the averaged waveforms."""
+derived quantities, truth, provenance and (mat, tdms, h5) the averaged waveforms; GNU Octave
+loads the .mat and the exported .h5."""
 
 from __future__ import annotations
 
 import csv
 import json
+import shutil
 import subprocess
 
 import h5py
@@ -16,8 +18,11 @@ import pytest
 from nptdms import TdmsFile
 from scipy.io import loadmat
 
+from orbitrig.store.errors import RunDirError
 from orbitrig.store.export import export_run
+from orbitrig.store.export_h5 import octave_layout
 from orbitrig.store.orbit_table import read_orbit_table
+from orbitrig.store.reader import read_run
 
 UREG = pint.UnitRegistry()
 FIT = "piezo__kcd11__none__ols"
@@ -35,6 +40,8 @@ def stored(sim_run):
             "c_eff_xx": g["derived/c_eff_xx"][()], "K0": f["points/0000/truth/fits/constant/K"][()],
             "mean": f["points/0000/frequencies/03_bwd/mean"][()], "fx": f["points/0000/table/piezo/fx"][()],
             "version": f.attrs["software_version"], "truth_orbit": f["points/0000/truth/orbit"][()],
+            "phasors": f["points/0000/frequencies/03_bwd/phasors"][()], "Z": f["points/0000/truth/Z"][()],
+            "events": f["logs/events"][()],
         }
 
 
@@ -125,12 +132,114 @@ def test_csv(exported, stored):
         assert dict(csv.reader(fh))["software_version"] == stored["version"]
 
 
-def test_h5_export_is_the_run_file(exported, stored):
-    with h5py.File(exported["dir"] / "run.h5", "r") as f:
+def test_h5_export_is_run_h5_in_the_layout_octave_reads(exported, stored, tmp_path):
+    path = exported["dir"] / "run.h5"
+    with h5py.File(path, "r") as f:
         g = f[f"points/0000/identification/{FIT}"]
         np.testing.assert_array_equal(g["uncertainty/expanded"][()], stored["U"])
         assert g["coefficients"].attrs["units_Kxx"] == "N/m" and "description" in g["coefficients"].attrs
         assert json.loads(g.attrs["json"])["free"] == stored["cov_names"]
+        fx = f["points/0000/table/piezo/fx"][()]
+        assert fx.dtype.names == ("real", "imag")
+        np.testing.assert_array_equal(fx["real"] + 1j * fx["imag"], stored["fx"])
+        events = f["logs/events"]
+        assert isinstance(events, h5py.Group) and list(events["state"][()]) == list(stored["events"]["state"])
+        counts = {"attributes": 0, "mirrored": 0}
+        f.visititems(lambda name, obj: _octave_readable(name, obj, counts))
+        assert counts["mirrored"] == counts["attributes"] + len(f.attrs) > 2000
+        for name in ("", "points/0000", "points/0000/table/piezo", "points/0000/table/piezo/fx", "logs/events",
+                     f"points/0000/identification/{FIT}", f"points/0000/identification/{FIT}/coefficients"):
+            _same_attributes(f, name)
+    shutil.copy(path, tmp_path / "run.h5")  # orbitrig reads the export as it reads run.h5
+    table = read_run(tmp_path).points[0].tables["piezo"]
+    np.testing.assert_array_equal(table.fx, stored["fx"])
+
+
+def _octave_readable(name: str, obj, counts: dict) -> None:
+    """`obj` is what Octave's load reads (numbers, fixed-length text, real/imag compounds);
+    counts the attributes of the tree and the datasets mirroring them under /attributes."""
+    if isinstance(obj, h5py.Dataset):
+        dt = obj.dtype
+        assert dt.kind in "iufS" or dt.names == ("real", "imag"), f"{name}: {dt}"
+        counts["mirrored"] += name.startswith("attributes/")
+    counts["attributes"] += len(obj.attrs) if not name.startswith("attributes/") else 0
+
+
+def _same_attributes(f: h5py.File, name: str) -> None:
+    obj = f[name or "/"]
+    for key, value in obj.attrs.items():
+        copy = f["/".join(filter(None, ("attributes", name, key)))][()]
+        if isinstance(value, str):
+            assert copy.decode() == value, f"{name}: {key}"
+        elif isinstance(value, np.ndarray) and value.dtype.kind == "O":
+            assert [c.decode() for c in copy] == list(value), f"{name}: {key}"
+        else:
+            np.testing.assert_array_equal(copy, value, err_msg=f"{name}: {key}")
+
+
+def test_h5_export_of_a_folder_holding_only_run_h5(sim_run, exported, tmp_path):
+    """A copy of run.h5 alone in a folder (sent to a colleague) exports to the same layout."""
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    shutil.copy(sim_run / "run.h5", alone / "run.h5")
+    (path,) = export_run(alone, "h5", tmp_path / "out").files
+    with h5py.File(path, "r") as f, h5py.File(exported["dir"] / "run.h5", "r") as first:
+        np.testing.assert_array_equal(f["points/0000/table/piezo/fx"][()], first["points/0000/table/piezo/fx"][()])
+        assert sorted(f["logs/can"]) == sorted(first["logs/can"]) and sorted(f["attributes"]) == sorted(first["attributes"])
+        assert f["attributes/points/0000/table/piezo/fx/units"][()] == b"N"
+    with pytest.raises(RunDirError, match="would replace the run's own run.h5"):
+        export_run(alone, "h5", alone)
+
+
+def test_octave_layout_names_an_attribute_that_a_member_shadows(tmp_path):
+    with h5py.File(tmp_path / "t.h5", "w") as f:
+        g = f.create_group("g")
+        g.attrs["d"], g.attrs["ok"] = "the group's d", np.bool_(True)
+        g.create_dataset("d", data=np.array(["a", "bb"], dtype=h5py.string_dtype())).attrs["units"] = "m"
+        for _ in range(2):  # a file exported before is laid out again the same
+            octave_layout(f)
+            assert f["attributes/g/d/units"][()] == b"m" and f["attributes/g/d_attribute"][()] == b"the group's d"
+            assert f["attributes/g/ok"].dtype == np.uint8 and f["attributes/g/ok"][()] == 1
+            assert list(f["g/d"][()]) == [b"a", b"bb"] and f["g/d"].attrs["units"] == "m"
+            assert sorted(f["attributes/g"]) == ["d", "d_attribute", "ok"]
+
+
+def test_octave_loads_the_h5_export(exported, stored, tmp_path):
+    """One octave-cli start: Octave's load gives complex phasors, coefficients with U, a log
+    column and the software version, equal to the last bit to what h5py reads in run.h5."""
+    script = (f"x = load('{exported['dir'] / 'run.h5'}');\n"
+              "p = x.points._0000; k = p.identification." + FIT + ";\n"
+              "fx = p.table.piezo.fx; printf('fx %.17g %.17g\\n', [real(fx(:)) imag(fx(:))]');\n"
+              "ph = p.frequencies._03_bwd.phasors; printf('ph %.17g %.17g\\n', [real(ph(:)) imag(ph(:))]');\n"
+              "printf('Zsize %d %d %d\\n', size(p.truth.Z)); Z = p.truth.Z(:);\n"
+              "printf('Z %.17g %.17g\\n', [real(Z) imag(Z)]');\n"
+              "printf('coef %s %.17g %.17g\\n', [cellstr(k.names)'; num2cell(k.coefficients(:))';"
+              " num2cell(k.uncertainty.expanded(:))']{:});\n"
+              "printf('t %.17g\\n', x.logs.events.t); printf('state %s\\n', cellstr(x.logs.events.state){:});\n"
+              "printf('version %s\\n', x.attributes.software_version);\n"
+              "printf('unit %s\\n', x.attributes.points._0000.table.piezo.fx.units);\n")
+    done = subprocess.run(["octave-cli", "--no-gui", "--norc", "--eval", script], capture_output=True, text=True,
+                          timeout=120, cwd=tmp_path)
+    assert done.returncode == 0 and "warning" not in done.stderr, done.stdout[-2000:] + done.stderr[-2000:]
+    rows = {}
+    for line in done.stdout.splitlines():
+        key, _, rest = line.partition(" ")
+        rows.setdefault(key, []).append(rest)
+
+    def complex_rows(key):
+        return np.array([complex(*map(float, r.split())) for r in rows[key]])
+
+    np.testing.assert_array_equal(complex_rows("fx"), stored["fx"])
+    np.testing.assert_array_equal(complex_rows("ph"), stored["phasors"])
+    assert rows["Zsize"] == [" ".join(map(str, stored["Z"].shape[::-1]))]  # Octave lists HDF5's dimensions reversed
+    np.testing.assert_array_equal(complex_rows("Z"), stored["Z"].ravel())
+    coef = [r.split() for r in rows["coef"]]
+    assert [c[0] for c in coef] == stored["names"]
+    np.testing.assert_array_equal([float(c[1]) for c in coef], stored["value"])
+    np.testing.assert_array_equal([float(c[2]) for c in coef], stored["U"])
+    np.testing.assert_array_equal([float(t) for t in rows["t"]], stored["events"]["t"])
+    assert rows["state"] == [s.decode() for s in stored["events"]["state"]]
+    assert rows["version"] == [stored["version"]] and rows["unit"] == ["N"]
 
 
 def test_octave_loads_the_mat_export(exported, stored, tmp_path):
