@@ -106,7 +106,7 @@ class RigDrives:
         # state, command (raw REFs while running) and the failure wait_settled raises
         self._poll = DrivePoll(
             self.link, self._drives, poll_interval=self.poll_interval,
-            link_loss_polls=int(link_loss_polls), loss_polls_given=loss_polls_given,
+            link_loss_polls=int(link_loss_polls), loss_polls_given=loss_polls_given, stops=self._stops,
         )
         self._poll_task: asyncio.Task | None = None
         self._release = False

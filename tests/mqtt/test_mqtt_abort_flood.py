@@ -2,8 +2,10 @@
 a real mosquitto with the shipped client-id binding and flow limits, `orbitrig
 serve --sim` running a sweep, a flooding operator client (mqtt_flood.py, 5000
 QoS 1 commands at full speed) and an abort from a second operator client on
-<prefix>/abort in the middle of the flood. Timing bounds here are generous (the
-machine may be busy); bench/bench_abort_flood.py holds the 200 ms target."""
+<prefix>/abort in the middle of the flood. The abort's first act is the drives'
+emergency stop (run.log says when it went out), before the run unwinds. Timing
+bounds here are generous (the machine may be busy); bench/bench_abort_flood.py
+holds the 200 ms target."""
 
 from __future__ import annotations
 
@@ -50,7 +52,7 @@ def running(bound, tmp_path):
         svc.stop()
 
 
-def test_abort_gets_through_a_flood_of_commands(bound, running):
+def test_abort_gets_through_a_flood_of_commands(bound, running, tmp_path):
     svc, rc = running
     flood = subprocess.Popen([sys.executable, str(FLOODER), "--port", str(bound.port), "--prefix", rc.prefix,
                               "--count", "5000", "--qos", "1", "--password", ACCOUNTS["operator"]],
@@ -69,6 +71,13 @@ def test_abort_gets_through_a_flood_of_commands(bound, running):
     finally:
         if flood.poll() is None:
             flood.kill()
+    # the emergency stop went to both drives on the abort itself, before the run unwound
+    # and its cleanup stopped them again (run.log, in order)
+    run_log = next((tmp_path / "runs").rglob("run.log")).read_text()
+    sent = re.search(r"drives: emergency stop \(OFF3\) sent on the abort in (\d+) ms(.*)", run_log)
+    assert sent and not sent.group(2), run_log[-2000:]
+    assert int(sent.group(1)) < 2000, sent.group(0)
+    assert sent.start() < run_log.index("drives: emergency stop (OFF3); standstill after"), run_log[-2000:]
     # every flood command the service took was answered or counted as dropped, and
     # it answered its last one soon after the flood was out: no endless backlog
     log = svc.text()
