@@ -45,30 +45,33 @@ class OperatorRequests:
     def request_abort(self, by: str | None = None) -> None:
         """Abort: both drives get the emergency stop at once (their stop words ahead of
         everything waiting for the drives' link, not after the run has unwound), then the
-        run is cancelled; its cleanup repeats the stop and waits for standstill."""
+        run is cancelled; its cleanup repeats the stop and waits for standstill. The
+        command is recorded (a durable write) once the stop words are out."""
+        sending = None
         if self._control.request_abort():
-            self._stop_drives_now()
+            sending = self._stop_drives_now()
             if self._body is not None and not self._body.done():
                 self._body.cancel()
-        self._command(RunCommand.ABORT, by)
+        if sending is None:
+            self._command(RunCommand.ABORT, by)
+            return
+        t0 = time.monotonic()
+        sending.add_done_callback(lambda task: self._stopped_now(task, t0, by))
 
-    def _stop_drives_now(self) -> None:
+    def _stop_drives_now(self) -> asyncio.Task | None:
         drives = self._io.drives if self._io is not None else None
         if drives is None:
-            return  # the rig is not open: nothing moves
+            return None  # the rig is not open: nothing moves
         try:
-            sending = drives.stop_now(emergency=True)
+            return drives.stop_now(emergency=True)
         except DriveError:
-            return  # closed already: the cleanup has stopped them
-        t0 = time.monotonic()
-        sending.add_done_callback(lambda task: self._stopped_now(task, t0))
+            return None  # closed already: the cleanup has stopped them
 
-    def _stopped_now(self, task: asyncio.Task, t0: float) -> None:
-        if task.cancelled():
-            return
-        errors = task.exception() or task.result()
+    def _stopped_now(self, task: asyncio.Task, t0: float, by: str | None) -> None:
+        errors = "cancelled" if task.cancelled() else task.exception() or task.result()
         self._log_event(f"drives: emergency stop (OFF3) sent on the abort in {(time.monotonic() - t0) * 1e3:.0f} ms"
                         + (f"; not delivered: {errors}" if errors else ""))
+        self._command(RunCommand.ABORT, by)
 
     def request_stop_now(self, why: str, by: str | None = None) -> None:
         """Stop at once (`why`, e.g. 'SIGTERM'): the block under way is dropped, both drives ramp
