@@ -14,7 +14,8 @@ that paho client (aiomqtt gives no public handle on it):
 - :func:`shed_before_decoding`: a PUBLISH on the command topic is first offered,
   as raw bytes, to ``shed(payload, retained)``; a command the service has no room
   for is answered busy or dropped there (and acknowledged to the broker) without
-  paho decoding it. About a third of the cost of a flood message is left.
+  paho decoding it (no properties, message object or subscription match for
+  a command that is not going to be carried out).
 """
 
 from __future__ import annotations
