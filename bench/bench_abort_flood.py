@@ -29,6 +29,7 @@ import argparse
 import asyncio
 import json
 import logging
+import os
 import sys
 import tempfile
 import time
@@ -178,7 +179,8 @@ async def main(trials: int, speedup: float, count: int, modes: list[str], via: s
                         r = await one_trial(op, service, broker, qos, count, sim_rig, lag, via)
                         ok = r["stop_ms"] < TARGET_MS and "aborted" in r["outcome"]
                         failures += not ok
-                        print(f"QoS {qos:>5} trial {trial + 1}: abort -> both drives stopping "
+                        load = os.getloadavg()[0]
+                        print(f"QoS {qos:>5} trial {trial + 1} (load {load:.1f}): abort -> both drives stopping "
                               f"{r['stop_ms']:7.1f} ms (in the service after {r['arrive_ms']:.1f} ms), status stopping {r['stopping_ms']:7.1f} ms, "
                               f"{r['outcome']!r}, worst loop lag {r['lag_ms']:.0f} ms | flood {r['flood']} | service {r['service']}"
                               f"{'' if ok else '  <-- MISS'}", flush=True)

@@ -303,16 +303,18 @@ class Drive:
         """rad/s of a raw REF/ACT value."""
         return rpm_to_rad_s(R.ref_to_rpm(raw, self._scale_rpm))
 
-    async def write_reference(self, raw: int, *, retries: int | None = None) -> None:
-        """Write REF (idempotent: retried on a timeout, `write_retries` times by default)."""
+    async def write_reference(self, raw: int, *, retries: int | None = None, urgent: bool = False) -> None:
+        """Write REF (idempotent: retried on a timeout, `write_retries` times by default);
+        `urgent`: before every request waiting for the link (a stop)."""
         retries = self.write_retries if retries is None else retries
-        await self.link.write(self.device_id, R.REF, [R.to_word(raw)], retries=retries)
+        await self.link.write(self.device_id, R.REF, [R.to_word(raw)], retries=retries, urgent=urgent)
 
     # -- state machine ----------------------------------------------------------
-    async def write_control(self, word: int, *, retries: int | None = None) -> None:
-        """Write CW (idempotent: retried on a timeout, `write_retries` times by default)."""
+    async def write_control(self, word: int, *, retries: int | None = None, urgent: bool = False) -> None:
+        """Write CW (idempotent: retried on a timeout, `write_retries` times by default);
+        `urgent`: before every request waiting for the link (a stop)."""
         retries = self.write_retries if retries is None else retries
-        await self.link.write(self.device_id, R.CW, [word], retries=retries)
+        await self.link.write(self.device_id, R.CW, [word], retries=retries, urgent=urgent)
 
     async def wait_status(
         self,

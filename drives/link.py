@@ -40,6 +40,7 @@ from drives.errors import (
 )
 from drives.registers import register_name
 from drives.rtu import RtuLine
+from drives.turns import Turns
 
 log = logging.getLogger(__name__)
 
@@ -104,7 +105,7 @@ class ModbusLink:
         self.timeout = float(timeout)
         self.names = dict(names or {})
         self._client = None
-        self._lock = asyncio.Lock()
+        self._lock = Turns()  # a stop's requests go before the others waiting (`urgent`)
         self._abandoned: asyncio.Future | None = None  # RTU exchange of a cancelled caller
         self.requests = 0  # answered requests (including exception responses)
         self.failures = 0  # requests without a valid answer
@@ -125,6 +126,10 @@ class ModbusLink:
         """Close the connection; idempotent."""
         async with self._lock:
             self._drop()
+
+    def reserved(self):
+        """A context: while open only urgent requests (a stop's) get the link (drives/turns.py)."""
+        return self._lock.reserved()
 
     async def __aenter__(self) -> ModbusLink:
         await self.connect()
@@ -189,14 +194,16 @@ class ModbusLink:
         return words
 
     async def write(
-        self, device_id: int, address: int, values: Sequence[int], *, retries: int = 0
+        self, device_id: int, address: int, values: Sequence[int], *, retries: int = 0,
+        urgent: bool = False,
     ) -> None:
         """Write unsigned 16-bit words from `address`: FC06 for one, FC16 for several.
 
         `retries` : further tries after a request timeout (DriveTimeoutError),
         for idempotent writes only (a register set to a value: sending it twice
         is harmless). Each retry is logged; an exception response or a link
-        error is never retried.
+        error is never retried. `urgent` (a stop): goes before every request
+        waiting for the link (the one under way finishes first).
         """
         values = [int(v) for v in values]
         for v in values:
@@ -210,13 +217,13 @@ class ModbusLink:
             fc, call = _FC_WRITE_MULTIPLE, lambda c: c.write_registers(
                 address, values, device_id=device_id
             )
-        await self._retried(device_id, address, fc, "write", retries, call)
+        await self._retried(device_id, address, fc, "write", retries, call, urgent)
 
-    async def _retried(self, device_id, address, function_code, what, retries, call):
+    async def _retried(self, device_id, address, function_code, what, retries, call, urgent=False):
         """`_request`, tried again up to `retries` times after a timeout (each retry logged)."""
         for attempt in range(retries + 1):
             try:
-                return await self._request(device_id, address, function_code, call)
+                return await self._request(device_id, address, function_code, call, urgent)
             except DriveTimeoutError as err:
                 if attempt >= retries:
                     raise
@@ -235,11 +242,11 @@ class ModbusLink:
         self._drop()
         raise DriveLinkError(f"{what} on {self.url}", **self._error_kw(device_id, address))
 
-    async def _request(self, device_id, address, function_code, call):
+    async def _request(self, device_id, address, function_code, call, urgent=False):
         from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 
         kw = self._error_kw(device_id, address)
-        async with self._lock:
+        async with self._lock.turn(urgent):
             await self._settle_abandoned()
             await self._ensure_connected_for(device_id, address)
             exchange = asyncio.ensure_future(asyncio.wait_for(call(self._client), self.timeout + 0.5))

@@ -29,7 +29,7 @@ from drives.errors import DriveError, DriveFaultError, DriveLinkError
 from drives.limits import fmt_speed
 from drives.link import ModbusLink
 from drives.state import RigDriveState
-from drives.stop import send_stop
+from drives.stop import StopSender
 
 log = logging.getLogger(__name__)
 
@@ -50,9 +50,10 @@ class DrivePoll:
     """
 
     def __init__(self, link: ModbusLink, drives: tuple[Drive, Drive], *, poll_interval: float,
-                 link_loss_polls: int, loss_polls_given: bool):
+                 link_loss_polls: int, loss_polls_given: bool, stops: StopSender | None = None):
         self.link = link
         self.drives = drives
+        self._stops = stops or StopSender(drives)  # the owner's: its stops and these never interleave
         self.poll_interval = poll_interval
         self.link_loss_polls = link_loss_polls
         self._loss_polls_given = loss_polls_given
@@ -208,7 +209,7 @@ class DrivePoll:
             return statuses
         log.error("drive link restored after %.1f s; %s; stopping both", down, problem)
         self._trip_handled = True
-        await send_stop(self.drives)
+        await asyncio.shield(self._stops.send())
         self.command = None
         self.fail(problem)
         return statuses
@@ -228,6 +229,6 @@ class DrivePoll:
             fault_code=st.fault_code,
         )
         log.error("%s; ramping both drives to zero", err)
-        await send_stop(self.drives)  # delivered before anyone hears of the fault
+        await asyncio.shield(self._stops.send())  # delivered before anyone hears of the fault
         self.command = None
         self.fail(err)

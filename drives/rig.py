@@ -36,6 +36,7 @@ Safety rules this class keeps:
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import time
 
@@ -47,7 +48,7 @@ from drives.link import ModbusLink
 from drives.pair import drive_names, drive_pair
 from drives.poll import DrivePoll
 from drives.state import RigDriveState
-from drives.stop import send_stop
+from drives.stop import StopSender
 
 log = logging.getLogger(__name__)
 
@@ -90,8 +91,7 @@ class RigDrives:
         if not poll_interval > 0:
             raise ValueError(f"poll_interval {poll_interval} s is not positive")
         loss_polls_given = link_loss_polls is not None
-        if link_loss_polls is None:
-            link_loss_polls = 3
+        link_loss_polls = 3 if link_loss_polls is None else link_loss_polls
         if int(link_loss_polls) != link_loss_polls or link_loss_polls < 1:
             raise ValueError(f"link_loss_polls {link_loss_polls} is not a positive integer")
         self.url = url
@@ -100,12 +100,13 @@ class RigDrives:
         self.link = ModbusLink(url, timeout=timeout, names=drive_names(spin_id, orbit_id))
         self.spin, self.orbit = drive_pair(self.link, spin_id, orbit_id, state_timeout=state_timeout)
         self._drives = (self.spin, self.orbit)
+        self._stops = StopSender(self._drives)
         self._params = {"accel_time": accel_time, "decel_time": decel_time,
                         "comm_loss_timeout": comm_loss_timeout}
         # state, command (raw REFs while running) and the failure wait_settled raises
         self._poll = DrivePoll(
             self.link, self._drives, poll_interval=self.poll_interval,
-            link_loss_polls=int(link_loss_polls), loss_polls_given=loss_polls_given,
+            link_loss_polls=int(link_loss_polls), loss_polls_given=loss_polls_given, stops=self._stops,
         )
         self._poll_task: asyncio.Task | None = None
         self._release = False
@@ -252,7 +253,7 @@ class RigDrives:
             log.info("drives commanded: spin %s, orbit %s", fmt_speed(spin), fmt_speed(orbit))
         except BaseException:
             self._poll.command = None
-            await self._safe_stop()
+            await self._safe_stop(emergency=self._emergency)  # an abort's stop_now stays an emergency
             raise
 
     async def wait_settled(self, *, hold: float, timeout: float) -> RigDriveState:
@@ -287,10 +288,8 @@ class RigDrives:
                     + self._describe(st),
                     register=R.SW,
                 )
-            try:
+            with contextlib.suppress(asyncio.TimeoutError):
                 await asyncio.wait_for(tick.wait(), remaining)
-            except asyncio.TimeoutError:
-                pass
 
     async def stop(
         self, *, emergency: bool = False, wait: bool = True, timeout: float | None = None
@@ -325,10 +324,17 @@ class RigDrives:
                     f"drives not at zero speed within {timeout:g} s: " + self._describe(st),
                     register=R.ACT,
                 )
-            try:
+            with contextlib.suppress(asyncio.TimeoutError):
                 await asyncio.wait_for(tick.wait(), remaining)
-            except asyncio.TimeoutError:
-                pass
+
+    def stop_now(self, *, emergency: bool = True) -> asyncio.Task:
+        """Send the stop to both drives now, ahead of every request waiting for the link, without
+        waiting for the caller to unwind (an abort's first act); the task's result: the delivery
+        errors. `stop()` afterwards repeats it and waits for standstill."""
+        self._require_open()
+        self._poll.command = None
+        self._emergency = self._emergency or emergency
+        return self._stops.send(emergency=emergency)
 
     async def reset_faults(self) -> None:
         """Reset both drives' faults (RESET edge); DriveFaultError if a cause is still active."""
@@ -379,9 +385,7 @@ class RigDrives:
         Returns the delivery errors (logged); a cancellation that arrived
         during the stop is re-raised once the stop has been sent.
         """
-        task = asyncio.get_running_loop().create_task(
-            send_stop(self._drives, emergency=emergency), name="drives-safe-stop"
-        )
+        task = self._stops.send(emergency=emergency)  # after a stop under way, never interleaved
         cancelled = False
         while not task.done():
             try:

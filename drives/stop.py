@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import logging
 
 from drives import registers as R
@@ -10,11 +12,34 @@ from drives.errors import DriveError, DriveTimeoutError
 log = logging.getLogger(__name__)
 
 
+class StopSender:
+    """The stops of one set of drives, each in a task of its own (delivered even if whoever
+    asked is cancelled), one after another: a stop asked while one is under way goes out
+    once that one has (their words never interleave on the link)."""
+
+    def __init__(self, drives):
+        self.drives = drives
+        self._last: asyncio.Task | None = None
+
+    def send(self, *, emergency: bool = False) -> asyncio.Task:
+        """Start a stop now; the task's result: the delivery errors (`send_stop`)."""
+        before = self._last
+        self._last = asyncio.get_running_loop().create_task(self._after(before, emergency), name="drives-stop")
+        return self._last
+
+    async def _after(self, before: asyncio.Task | None, emergency: bool) -> list[DriveError]:
+        if before is not None and not before.done():
+            await asyncio.wait([before])
+        return await send_stop(self.drives, emergency=emergency)
+
+
 async def send_stop(drives, *, emergency: bool = False) -> list[DriveError]:
     """Stop words to every drive (OFF1 ramp stop, or OFF3 emergency stop), then
     zero references so that no later start jumps back to the old speed.
 
-    Control words go out first, to all drives, before anything else; a drive
+    Control words go out first, to all drives, before anything else (ahead of
+    every request waiting for the link, the poll's and the run's, and none of
+    theirs between the stop's own); a drive
     that does not take it does not keep the others from getting theirs: each
     gets one try first, and only then are the timed-out ones retried
     (`Drive.write_retries`), so one silent drive delays the other's stop word by
@@ -22,11 +47,14 @@ async def send_stop(drives, *, emergency: bool = False) -> list[DriveError]:
     Returns the delivery errors (logged), one per drive that missed its stop word.
     """
     word = R.CW_EMERGENCY_STOP if emergency else R.CW_RAMP_STOP
-    errors = await _to_each(drives, lambda d, retries: d.write_control(word, retries=retries))
-    for err in errors:
-        log.error("stop command not delivered: %s", err)
-    for err in await _to_each(drives, lambda d, retries: d.write_reference(0, retries=retries)):
-        log.warning("zero reference not delivered: %s", err)
+    with contextlib.ExitStack() as links:
+        for link in {id(d.link): d.link for d in drives}.values():
+            links.enter_context(link.reserved())  # the stop's words back to back
+        errors = await _to_each(drives, lambda d, retries: d.write_control(word, retries=retries, urgent=True))
+        for err in errors:
+            log.error("stop command not delivered: %s", err)
+        for err in await _to_each(drives, lambda d, retries: d.write_reference(0, retries=retries, urgent=True)):
+            log.warning("zero reference not delivered: %s", err)
     return errors
 
 

@@ -230,7 +230,11 @@ class RunEngine(OperatorRequests):
         ))
 
     def _interlock_failed(self, trip: Trip) -> None:
-        """A fail trip: the run ends at once (drives stopping in the cleanup)."""
+        """A fail trip: the run ends at once (drives stopping in the cleanup). After an
+        abort the drives are being stopped already: the trip is logged, the run ends aborted."""
+        if self._control.abort_requested and self._failure is None:
+            self._log_event(f"interlock while aborting (the drives are stopping): {trip.message}")
+            return
         self._failure = trip
         self._log_event(f"interlock: {trip.message}")
         if self._body is not None and not self._body.done():

@@ -4,11 +4,18 @@ confirm), each logged with who sent it and when (run.log and run.h5's command lo
 from __future__ import annotations
 
 import asyncio
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
+from drives.errors import DriveError
 from orbitrig.config import RigConfig
 from orbitrig.run.control import RunControl
 from orbitrig.run.provenance import UNNAMED, RunCommand
 from orbitrig.store.writer import RunStore
+
+if TYPE_CHECKING:
+    from orbitrig.run.rig_io import RigIO
 
 
 class OperatorRequests:
@@ -20,6 +27,8 @@ class OperatorRequests:
     _control: RunControl
     _body: asyncio.Task | None
     _store: RunStore | None
+    _io: RigIO | None
+    _log_event: Callable[..., None]
 
     def request_pause(self, by: str | None = None) -> None:
         self._control.request_pause()
@@ -34,8 +43,34 @@ class OperatorRequests:
         self._command(RunCommand.STOP, by)
 
     def request_abort(self, by: str | None = None) -> None:
-        if self._control.request_abort() and self._body is not None and not self._body.done():
-            self._body.cancel()
+        """Abort: both drives get the emergency stop at once (their stop words ahead of
+        everything waiting for the drives' link, not after the run has unwound), then the
+        run is cancelled; its cleanup repeats the stop and waits for standstill. The
+        command is recorded (a durable write) once the stop words are out."""
+        sending = None
+        if self._control.request_abort():
+            sending = self._stop_drives_now()
+            if self._body is not None and not self._body.done():
+                self._body.cancel()
+        if sending is None:
+            self._command(RunCommand.ABORT, by)
+            return
+        t0 = time.monotonic()
+        sending.add_done_callback(lambda task: self._stopped_now(task, t0, by))
+
+    def _stop_drives_now(self) -> asyncio.Task | None:
+        drives = self._io.drives if self._io is not None else None
+        if drives is None:
+            return None  # the rig is not open: nothing moves
+        try:
+            return drives.stop_now(emergency=True)
+        except DriveError:
+            return None  # closed already: the cleanup has stopped them
+
+    def _stopped_now(self, task: asyncio.Task, t0: float, by: str | None) -> None:
+        errors = "cancelled" if task.cancelled() else task.exception() or task.result()
+        self._log_event(f"drives: emergency stop (OFF3) sent on the abort in {(time.monotonic() - t0) * 1e3:.0f} ms"
+                        + (f"; not delivered: {errors}" if errors else ""))
         self._command(RunCommand.ABORT, by)
 
     def request_stop_now(self, why: str, by: str | None = None) -> None:

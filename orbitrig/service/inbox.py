@@ -127,6 +127,15 @@ class CommandTriage:
             await asyncio.sleep(self._commands.wait_s())
         await asyncio.sleep(0)
 
+    def shed(self, payload: bytes, retained: bool) -> bool:
+        """A command read while ``limit`` wait, before it is decoded: answered busy or
+        dropped (True), unless it may name stop or abort (False: taken in as usual)."""
+        if _may_name_at_once(payload):
+            return False
+        self.counts["received"] += 1
+        self.overflow(payload, retained)
+        return True
+
     def overflow(self, payload: bytes, retained: bool) -> None:
         """A command beyond ``limit`` waiting: answered busy, or dropped."""
         if self._backlog() < REPLY_BACKLOG and self._busy.take():

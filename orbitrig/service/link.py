@@ -24,13 +24,13 @@ import asyncio
 import collections
 import dataclasses
 import logging
-import select
 import time
 from collections.abc import Callable
 from typing import Any
 
 from orbitrig.service import protocol as proto
 from daq.backoff import Backoff
+from orbitrig.service.flood_read import read_in_bursts, shed_before_decoding
 from orbitrig.service.inbox import CommandInbox, CommandTriage
 from orbitrig.service.reconnect import credentials_refused, reconnecting
 from orbitrig.service.settings import BrokerSettings, ServiceError, ServiceSettings
@@ -41,8 +41,6 @@ log = logging.getLogger("orbitrig.service.link")
 TRAFFIC_S = 5.0
 #: messages handed to the MQTT client at once (it keeps its own in-flight limit)
 PUBLISH_WINDOW = 64
-#: packets read off the socket in one turn of the event loop, at most
-READ_BURST = 64
 
 
 @dataclasses.dataclass
@@ -52,27 +50,6 @@ class Outgoing:
     qos: int
     retain: bool = False
     behind: bool = False  # a reply to an ordinary command: sent when nothing else waits
-
-
-def read_in_bursts(paho_client: Any, burst: int = READ_BURST) -> None:
-    """Make ``paho_client.loop_read`` read up to ``burst`` packets while the socket
-    has more. paho reads one packet per call when it has little to send, and the
-    event loop calls it once per turn: a flood would queue up in the socket
-    (an abort behind it) while the loop turns over."""
-    from paho.mqtt.client import MQTTErrorCode
-
-    one = paho_client.loop_read
-
-    def loop_read(max_packets: int = 1) -> Any:
-        rc = one()
-        for _ in range(burst - 1):
-            sock = paho_client.socket()
-            if rc != MQTTErrorCode.MQTT_ERR_SUCCESS or sock is None or not select.select([sock], [], [], 0)[0]:
-                break
-            rc = one()
-        return rc
-
-    paho_client.loop_read = loop_read
 
 
 class BrokerLink:
@@ -183,6 +160,12 @@ class BrokerLink:
             return True
         return self.triage.at_once(self._payload(message), bool(message.retain))
 
+    def _shed(self, payload: bytes, retained: bool) -> bool:
+        """A message on ``<prefix>/cmd`` before it is decoded: True if answered busy or
+        dropped there (the queue is full and it cannot be a stop or an abort)."""
+        inbox = self._inbox
+        return inbox is not None and inbox.full() and self.triage.shed(payload, retained)
+
     def _overflow(self, message: Any) -> None:
         self.triage.overflow(self._payload(message), bool(message.retain))
 
@@ -206,7 +189,9 @@ class BrokerLink:
                                 tls_params=tls, max_queued_incoming_messages=self.triage.limit,
                                 queue_type=self._new_inbox)
         client.pending_calls_threshold = PUBLISH_WINDOW + 8  # a full window is expected, not a warning
-        read_in_bursts(client._client)  # aiomqtt's paho client: no public handle
+        paho = client._client  # aiomqtt's paho client: no public handle
+        read_in_bursts(paho, taken_at_once=lambda: self.triage.counts["at once"])
+        shed_before_decoding(paho, self.topics.cmd, self._shed)
         return client
 
     async def run(self) -> None:

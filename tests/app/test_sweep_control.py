@@ -1,6 +1,7 @@
 """RunEngine control on the real simulator: confirm, pause/resume, stop, abort, interlocks."""
 
 import asyncio
+import time
 
 import h5py
 import pytest
@@ -8,6 +9,8 @@ import pytest
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.engine import StatusEvent
 from sweep_helpers import running, small_matrix, wait_for
+
+CW_EMERGENCY = 0x047B  # spec control word (OFF3), written out on purpose
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -65,10 +68,18 @@ async def test_abort_emergency_ramp_keeps_complete_data(tmp_path):
     out = tmp_path / "run"
     async with running(tmp_path, small_matrix(spin_rpm=[1000.0, 2000.0])) as (sim, eng, rec, run):
         await wait_for(lambda: rec.blocks_done() >= 3, what="three blocks")
+        t_abort = time.monotonic()
         eng.request_abort()
         outcome = await run
         assert _spindles_stopped(sim)
+        # the emergency stop word reached both drives on the abort itself (generous bound: a busy host)
+        first = [min((t for t, cw in sim.drive(dev)["control_words"] if t >= t_abort and cw == CW_EMERGENCY),
+                     default=float("inf")) for dev in (1, 2)]
+        assert max(first) - t_abort < 2.0, first
     assert outcome.status == "aborted"
+    log = (out / "run.log").read_text()  # sent before the run unwound, repeated by its cleanup
+    assert log.index("drives: emergency stop (OFF3) sent on the abort in ") < log.index(
+        "drives: emergency stop (OFF3); standstill after"), log[-2000:]
     status, message, pts = _stored(out)
     assert status == "aborted" and "abort" in message
     assert list(pts) == ["0000"] and not pts["0000"][0]

@@ -2,8 +2,10 @@
 a real mosquitto with the shipped client-id binding and flow limits, `orbitrig
 serve --sim` running a sweep, a flooding operator client (mqtt_flood.py, 5000
 QoS 1 commands at full speed) and an abort from a second operator client on
-<prefix>/abort in the middle of the flood. Timing bounds here are generous (the
-machine may be busy); bench/bench_abort_flood.py holds the 200 ms target."""
+<prefix>/abort in the middle of the flood. The abort's first act is the drives'
+emergency stop (run.log says when it went out), before the run unwinds. Timing
+bounds here are generous (the machine may be busy); bench/bench_abort_flood.py
+holds the 200 ms target."""
 
 from __future__ import annotations
 
@@ -50,7 +52,7 @@ def running(bound, tmp_path):
         svc.stop()
 
 
-def test_abort_gets_through_a_flood_of_commands(bound, running):
+def test_abort_gets_through_a_flood_of_commands(bound, running, tmp_path):
     svc, rc = running
     flood = subprocess.Popen([sys.executable, str(FLOODER), "--port", str(bound.port), "--prefix", rc.prefix,
                               "--count", "5000", "--qos", "1", "--password", ACCOUNTS["operator"]],
@@ -59,7 +61,7 @@ def test_abort_gets_through_a_flood_of_commands(bound, running):
         assert flood.stdout.readline().strip() == b"half"
         mark = rc.watch.mark()
         t_abort = time.monotonic()
-        assert bound.pub(f"{rc.prefix}/abort", json.dumps({"cmd": "abort", "id": "flood-abort"})).returncode == 0
+        assert bound.pub(f"{rc.prefix}/abort", json.dumps({"cmd": "abort", "id": "operator-abort"})).returncode == 0
         stopping = rc._wait(lambda m: m.topic.endswith("/status") and m.json()["state"] == "stopping",
                             20, mark, "status stopping")
         assert stopping.t - t_abort < 3.0, f"abort took {stopping.t - t_abort:.2f} s to reach the executor"
@@ -69,7 +71,15 @@ def test_abort_gets_through_a_flood_of_commands(bound, running):
     finally:
         if flood.poll() is None:
             flood.kill()
-    # every flood command the service took was answered or counted as dropped, and
+    # the emergency stop went to both drives on the abort itself, before the run unwound
+    # and its cleanup stopped them again (run.log, in order)
+    run_log = next((tmp_path / "runs").rglob("run.log")).read_text()
+    sent = re.search(r"drives: emergency stop \(OFF3\) sent on the abort in (\d+) ms(.*)", run_log)
+    assert sent and not sent.group(2), run_log[-2000:]
+    assert int(sent.group(1)) < 2000, sent.group(0)
+    assert sent.start() < run_log.index("drives: emergency stop (OFF3); standstill after"), run_log[-2000:]
+    # every flood command the service took was answered or counted as dropped (the flooder
+    # counts replies to ids "flood-...": not the abort's), and
     # it answered its last one soon after the flood was out: no endless backlog
     log = svc.text()
     dropped = sum(int(n) for n in re.findall(r"answered busy, (\d+) dropped unanswered", log))

@@ -229,3 +229,34 @@ def test_cli_speedup_must_be_finite_and_positive(broker, value):
     done = _serve_cli("--broker", broker.url, "--sim", "--speedup", value,
                       env={"ORBITRIG_MQTT_PASSWORD": "x", "ORBITRIG_MQTT_USERNAME": "orbitrig-service"})
     assert done.returncode == 2 and "--speedup" in done.stderr and "Traceback" not in done.stderr
+
+
+async def test_a_flood_is_answered_busy_or_counted_and_a_stop_amid_it_is_carried_out(broker, tmp_path):
+    """5000 mixed QoS 0/1 commands from another operator: those that find the queue full
+    are answered busy or dropped from their raw bytes (orbitrig/service/flood_read.py),
+    every one counted; a stop sent in the middle is still read, carried out and answered."""
+    import json
+    import sys
+
+    service = _service(broker, tmp_path, "flood1")
+    async with running(service):
+        rc = RigClient(broker, "flood1")
+        try:
+            await wait(rc.status, "idle")
+            flood = await asyncio.create_subprocess_exec(
+                sys.executable, str(Path(__file__).with_name("mqtt_flood.py")), "--port", str(broker.port),
+                "--prefix", "orbitrig/flood1", "--count", "5000", "--qos", "mixed", "--quiet", "1",
+                "--password", ACCOUNTS["operator"], stdout=asyncio.subprocess.PIPE)
+            assert (await asyncio.wait_for(flood.stdout.readline(), 60)).strip() == b"half"
+            assert (await wait(rc.command, {"cmd": "stop"}, 20))["ok"] is True
+            summary = json.loads((await asyncio.wait_for(flood.stdout.read(), 120)).decode().splitlines()[-1])
+            await flood.wait()
+        finally:
+            rc.close()
+    counts = service.triage.counts
+    assert counts["at once"] == 1
+    assert 0 < counts["received"] <= 5001 and counts["busy"] + counts["dropped"] > 0, counts
+    # each reply the flood got was sent by the service (busy ones counted), none twice
+    assert summary["busy"] <= counts["busy"], (summary, counts)
+    assert summary["ok"] + summary["refused"] + counts["busy"] + counts["dropped"] <= counts["received"] - 1
+    assert summary["seconds"] - summary["out_s"] < 10, summary  # no backlog long after the flood

@@ -1,0 +1,93 @@
+"""How the rig service reads its broker connection, so that a flood of commands
+costs it little and holds back neither a stop nor the drives' poll.
+
+aiomqtt runs paho's ``loop_read`` from the event loop each time the socket is
+readable; paho then reads one packet and decodes it whole (properties, a message
+object, the subscription match) before the service sees it. Two adjustments of
+that paho client (aiomqtt gives no public handle on it):
+
+- :func:`read_in_bursts`: one turn of the loop reads up to ``burst`` packets
+  while the socket has more (one per turn would let a flood pile up in the
+  socket, an abort behind it), but at most ``budget_s`` s of reading, and it ends
+  right after a message carried out at once (a stop or an abort), so the drives'
+  stop goes out before anything more is read;
+- :func:`shed_before_decoding`: a PUBLISH on the command topic is first offered,
+  as raw bytes, to ``shed(payload, retained)``; a command the service has no room
+  for is answered busy or dropped there (and acknowledged to the broker) without
+  paho decoding it (no properties, message object or subscription match for
+  a command that is not going to be carried out).
+"""
+
+from __future__ import annotations
+
+import select
+import time
+from collections.abc import Callable
+from typing import Any
+
+#: packets read off the socket in one turn of the event loop, at most
+READ_BURST = 64
+#: s of reading in one turn of the event loop, at most (then the loop's other work goes on)
+READ_BUDGET_S = 0.005
+
+
+def read_in_bursts(paho_client: Any, burst: int = READ_BURST, *, taken_at_once: Callable[[], int] = lambda: 0,
+                   budget_s: float = READ_BUDGET_S) -> None:
+    """Make ``paho_client.loop_read`` read up to ``burst`` packets while the socket has
+    more, for at most ``budget_s`` s, and stop right after a message carried out at once
+    (``taken_at_once()``, a count, changed)."""
+    from paho.mqtt.client import MQTTErrorCode
+
+    one = paho_client.loop_read
+
+    def loop_read(max_packets: int = 1) -> Any:
+        t0, urgent = time.monotonic(), taken_at_once()
+        rc = one()
+        for _ in range(burst - 1):
+            if taken_at_once() != urgent or time.monotonic() - t0 > budget_s:
+                break
+            sock = paho_client.socket()
+            if rc != MQTTErrorCode.MQTT_ERR_SUCCESS or sock is None or not select.select([sock], [], [], 0)[0]:
+                break
+            rc = one()
+        return rc
+
+    paho_client.loop_read = loop_read
+
+
+def shed_before_decoding(paho_client: Any, topic: str, shed: Callable[[bytes, bool], bool]) -> None:
+    """Offer every QoS 0 or 1 PUBLISH on ``topic`` (MQTT 5) to ``shed(payload, retained)``
+    before paho decodes it; True: dealt with (paho only acknowledges a QoS 1 one)."""
+    from paho.mqtt.client import MQTTv5, MQTTErrorCode
+
+    decode = paho_client._handle_publish
+    wanted = topic.encode()
+
+    def handle_publish() -> Any:
+        fixed, raw = paho_client._in_packet["command"], paho_client._in_packet["packet"]
+        qos = (fixed & 0x06) >> 1
+        if qos > 1 or paho_client._protocol != MQTTv5:
+            return decode()
+        end = 2 + int.from_bytes(raw[:2], "big")
+        if raw[2:end] != wanted:
+            return decode()
+        mid = int.from_bytes(raw[end:end + 2], "big") if qos else 0
+        start = _after_properties(raw, end + (2 if qos else 0))
+        if start is None or not shed(bytes(raw[start:]), bool(fixed & 0x01)):
+            return decode()
+        return paho_client._send_puback(mid) if qos else MQTTErrorCode.MQTT_ERR_SUCCESS
+
+    paho_client._handle_publish = handle_publish
+
+
+def _after_properties(raw: bytes, at: int) -> int | None:
+    """Where the payload starts: after the properties' length (a variable byte integer,
+    at most 4 bytes) and the properties; None if the packet is too short (paho decides)."""
+    length, shift = 0, 0
+    for i in range(at, min(at + 4, len(raw))):
+        length |= (raw[i] & 0x7F) << shift
+        shift += 7
+        if not raw[i] & 0x80:
+            start = i + 1 + length
+            return start if start <= len(raw) else None
+    return None
