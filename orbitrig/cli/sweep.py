@@ -222,8 +222,10 @@ def _login() -> str:
     return getpass.getuser()
 
 
-async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator: str = "", fmt=None):
-    """Run the plan; ``sim`` the simulator's (SimConfig, Scenario) (None: the real rig)."""
+async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator: str = "", fmt=None,
+                 subscribers=()):
+    """Run the plan; ``sim`` the simulator's (SimConfig, Scenario) (None: the real rig);
+    ``subscribers``: more event callbacks of the engine (bench/bench_soak.py samples memory)."""
     started = None
     if sim is not None:  # it boots in its own process while this one imports the engine
         from orbitrig.cli.simulated_rig import start_simulator
@@ -254,6 +256,8 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator
         engine.console_user = operator  # Ctrl-C's pause, stop, abort and the prompts' confirmations
         console_operator = Operator(engine, console)
         engine.subscribe(console_operator.on_event)
+        for callback in subscribers:
+            engine.subscribe(callback)
         with SweepProgress(console, revolutions=plan.revolutions) as bars:
             engine.subscribe(bars)
             console_operator.install()

@@ -301,7 +301,7 @@ class PointProcedure:
             res = await results
             await r.background.write(r.store.complete_point, p.index)
             r.store.log(f"point {p.index:04d} {p.label}: complete")
-            r.emit(ResultEvent(r.run_id, result_payload(r.run_id, p, res)))
             await asyncio.to_thread(trim_heap)  # the point's blocks are freed: back to the system
+            r.emit(ResultEvent(r.run_id, result_payload(r.run_id, p, res)))
 
         r.background.spawn_point(complete(), f"complete point {p.index:04d}")

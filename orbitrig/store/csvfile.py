@@ -16,6 +16,9 @@ from __future__ import annotations
 
 import csv
 import io
+import sys
+from dataclasses import dataclass
+
 from orbitrig.store.fit_record import expanded_uncertainty
 from orbitrig.store.layout import coefficient_si_unit
 
@@ -117,6 +120,43 @@ def columns(rows: list[dict]) -> list[str]:
 def render(rows: list[dict]) -> bytes:
     """The whole file's bytes (UTF-8, header + one line per row)."""
     return render_table(columns(rows), rows)
+
+
+@dataclass(frozen=True)
+class PointCsv:
+    """One complete point's rows as a run keeps them between two writes of the file: its
+    coefficient keys, its own columns and its rows as CSV text in those columns (about a
+    tenth of the memory of the rows as dicts)."""
+
+    keys: tuple[str, ...]
+    fields: tuple[str, ...]
+    body: str
+
+    @classmethod
+    def of(cls, rows: list[dict]) -> PointCsv:
+        fields = [sys.intern(c) for c in columns(rows)]
+        buf = io.StringIO(newline="")
+        csv.DictWriter(buf, fieldnames=fields, restval="", extrasaction="ignore", lineterminator="\n").writerows(rows)
+        keys = dict.fromkeys(sys.intern(k) for r in rows for k in r["_keys"])
+        return cls(tuple(keys), tuple(fields), buf.getvalue())
+
+
+def render_points(points: list[PointCsv]) -> bytes:
+    """The whole file's bytes from each point's kept rows; the same bytes as `render` of
+    their rows as dicts."""
+    keys = sorted(dict.fromkeys(k for p in points for k in p.keys), key=coef_order)
+    cols = CSV_HEAD + [coefficient_column(k, kind) for k in keys for kind in ("", "std", "U")]
+    have = {f for p in points for f in p.fields}
+    cols += [c for c in (coefficient_column(k, "true") for k in keys) if c in have]
+    buf = io.StringIO(newline="")
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(cols)
+    for p in points:
+        at = {f: i for i, f in enumerate(p.fields)}
+        where = [at.get(c) for c in cols]
+        for cells in csv.reader(io.StringIO(p.body, newline="")):
+            w.writerow(["" if i is None else cells[i] for i in where])
+    return buf.getvalue().encode("utf-8")
 
 
 def render_table(fieldnames: list[str], rows: list[dict]) -> bytes:

@@ -52,7 +52,7 @@ class RunStore:
         self.logs = LogBuffer()
         self.set_aside: list[str] = []  # what prepare_resume set aside, one message each
         self._header: dict = {}
-        self._csv_rows: dict[int, list[dict]] = {}
+        self._csv_points: dict[int, csvfile.PointCsv] = {}  # complete point -> its rows, kept compact
         self._written: dict[int, dict[str, dict]] = {}  # point -> file name -> size, digest
         self._image = RunImage(self.layout)  # run.h5.tmp on disk, filled as points commit
         self._log_failed = False
@@ -163,7 +163,7 @@ class RunStore:
         with contextlib.suppress(OSError):
             self.layout.run_file.unlink()  # a stale copy: consolidated again when the run ends
         self._journal([journal.status_line("running", "resumed")])
-        self._csv_rows.clear()
+        self._csv_points.clear()
         self.write_csv()
         return sorted(done)
 
@@ -308,22 +308,22 @@ class RunStore:
     def completed_points(self) -> list[int]:
         return [st.index for st in scan(self.layout) if st.complete]
 
-    def csv_rows(self) -> list[dict]:
-        """The rows of coefficients.csv (each complete point read once, then remembered)."""
+    def csv_points(self) -> list[csvfile.PointCsv]:
+        """The rows of coefficients.csv, per complete point (each read once, then kept as CSV text)."""
         sim = bool(self._header.get("sim", False))
-        rows = []
+        points = []
         for i in self.completed_points():
-            if i not in self._csv_rows:
+            if i not in self._csv_points:
                 try:
                     point = read_point(self.layout, i, complete=True, blocks=False)
                 except RunDirError as err:
                     raise StorageError(err.file, f"cannot read the stored results: {err.reason}") from err
-                self._csv_rows[i] = csvfile.point_rows(point, sim)
-            rows += self._csv_rows[i]
-        return rows
+                self._csv_points[i] = csvfile.PointCsv.of(csvfile.point_rows(point, sim))
+            points.append(self._csv_points[i])
+        return points
 
     def write_csv(self) -> None:
-        write_atomic(self.csv_path, csvfile.render(self.csv_rows()))
+        write_atomic(self.csv_path, csvfile.render_points(self.csv_points()))
 
 
 def _channels(rig_text: str) -> tuple[list[str], list[str]]:

@@ -81,6 +81,21 @@ def test_coefficients_csv_has_units_and_one_line_per_row(synthetic):
     assert float(ok[0]["Kxx [N/m]"]) > 1e7 and float(ok[0]["true_Kxx [N/m]"]) == pytest.approx(3.3e7)
 
 
+def test_points_kept_as_csv_text_render_the_same_file(synthetic):
+    """A run keeps each complete point's rows as CSV text in its own columns (bounded memory);
+    the file made from them is the file made from the rows, also when points differ in their
+    columns (a point without truth, a point without some models)."""
+    from orbitrig.store import csvfile
+
+    rows = [csvfile.point_rows(p, True) for p in read_run(synthetic, blocks=False).complete_points]
+    assert len(rows) == 2 and len(rows[0]) == 8
+    mixed = [rows[0][2:5], [{k: v for k, v in r.items() if not k.startswith("true_")} for r in rows[1]], rows[0]]
+    for points in (rows, mixed):
+        kept = [csvfile.PointCsv.of(p) for p in points]
+        assert csvfile.render_points(kept) == csvfile.render([r for p in points for r in p])
+    assert csvfile.render_points([csvfile.PointCsv.of(p) for p in rows]) == (synthetic / "coefficients.csv").read_bytes()
+
+
 def _export(run, fmt, out):
     r = CliRunner().invoke(app, ["export", str(run), "--format", fmt, "--out", str(out)])
     assert r.exit_code == 0, r.output
