@@ -5,9 +5,10 @@ per-revolution information at their ratio (reduction.allocation.revolution_infor
 evaluated at the point's own current coefficients and measured per-revolution noise. The
 next block is the (ratio, revolutions) of the candidates that lowers the largest predicted
 relative standard error (standard error / scale) most per second of rig time (the block in
-every whirl direction, trigger revolution included (reduction.rig_time), plus the per-block
-overhead). The point stops when every coefficient's predicted relative standard error is at
-most the target, or when the next block would pass the time cap.
+its whirl direction(s), trigger revolution included (reduction.rig_time), plus the per-block
+overhead and, given the orbit speed now and the ramp rate, the orbit drive's ramp to it). The
+point stops when every coefficient's predicted relative standard error is at most the target,
+or when the next block would pass the time cap.
 
 Candidates come from the caller (the drives' band, away from Omega/omega = 1:
 reduction.frequency_list.allowed_ratios). The information must already be invertible (run
@@ -40,7 +41,8 @@ class Choice(StrEnum):
 class NextBlock:
     """The decision: ``ratio`` and ``revolutions`` of the next block (None, 0 when stopping),
     why, the block's rig seconds, and the predicted relative standard errors (p,) before and
-    after it (after = before when stopping)."""
+    after it (after = before when stopping); ``direction`` its whirl option ("forward",
+    "backward" or "both")."""
 
     ratio: float | None
     revolutions: int
@@ -48,6 +50,7 @@ class NextBlock:
     seconds: float
     before: np.ndarray
     after: np.ndarray
+    direction: str = "both"
 
 
 def block_information(spec, theta, spin: float, radius: float, ratio: float, u_revolution, revolutions: int,
@@ -72,28 +75,51 @@ def relative_errors(info, scales) -> np.ndarray:
     return np.sqrt(d) / np.asarray(scales, dtype=float)
 
 
+def reference_errors(spec, theta, spin: float, radius: float, ratios, u_revolution, revolutions: int,
+                     directions: str = "both") -> np.ndarray:
+    """(p,) predicted standard errors (SI) of a reference list: ``ratios`` each averaging
+    ``revolutions`` in ``directions``, per-revolution noise u (k, 4) - what "match the paper's
+    list" asks every coefficient to reach."""
+    F = revolution_information(spec, theta, spin, radius, ratios, u_revolution, directions)
+    return relative_errors(revolutions * F.sum(axis=0), np.ones(F.shape[1]))
+
+
 def next_block(spec, theta, spin: float, radius: float, info, candidates, noise_at, scales, target: float,
-               spent_s: float, cap_s: float, per_block_s: float = 0.0, directions: str = "both") -> NextBlock:
+               spent_s: float, cap_s: float, per_block_s: float = 0.0, directions="both",
+               orbit_now: float | None = None, ramp_rate: float | None = None) -> NextBlock:
     """The next block of the point (module doc). ``info`` (p, p) so far, ``noise_at(ratios) ->
     (k, 4)`` per-revolution noise, ``scales`` (p,) SI, ``target`` a fraction, ``spent_s`` the
-    rig seconds spent on the point, ``cap_s`` its cap, ``per_block_s`` settle + store per block."""
+    rig seconds spent on the point, ``cap_s`` its cap, ``per_block_s`` settle + store per block,
+    ``directions`` one whirl option or several to choose from ("forward", "backward", "both");
+    ``orbit_now`` (rad/s, signed) and ``ramp_rate`` (rad/s per s) add the ramp to each block."""
     before = relative_errors(info, scales)
     if float(np.max(before)) <= target:
         return NextBlock(None, 0, Choice.TARGET, 0.0, before, before)
     r = np.asarray(candidates, dtype=float)
-    F = revolution_information(spec, theta, spin, radius, r, noise_at(r), directions)
-    blocks = 2 if directions == "both" else 1
+    options = (directions,) if isinstance(directions, str) else tuple(directions)
     best = None
-    for k, ratio in enumerate(r):
-        for n in STEP_REVOLUTIONS:
-            seconds = list_time([ratio], spin, n, directions) + blocks * per_block_s
-            if spent_s + seconds > cap_s:
-                continue
-            after = relative_errors(info + n * F[k], scales)
-            rate = (float(np.max(before)) - float(np.max(after))) / seconds
-            if best is None or rate > best[0]:
-                best = (rate, float(ratio), n, seconds, after)
+    for d in options:
+        F = revolution_information(spec, theta, spin, radius, r, noise_at(r), d)
+        blocks = 2 if d == "both" else 1
+        for k, ratio in enumerate(r):
+            ramp = _ramp_s(ratio * spin, d, orbit_now, ramp_rate)
+            for n in STEP_REVOLUTIONS:
+                seconds = list_time([ratio], spin, n, d) + blocks * per_block_s + ramp
+                if spent_s + seconds > cap_s:
+                    continue
+                after = relative_errors(info + n * F[k], scales)
+                rate = (float(np.max(before)) - float(np.max(after))) / seconds
+                if best is None or rate > best[0]:
+                    best = (rate, float(ratio), n, seconds, after, d)
     if best is None or best[0] <= 0:
         return NextBlock(None, 0, Choice.CAP, 0.0, before, before)
-    _, ratio, n, seconds, after = best
-    return NextBlock(ratio, n, Choice.NEXT, seconds, before, after)
+    _, ratio, n, seconds, after, d = best
+    return NextBlock(ratio, n, Choice.NEXT, seconds, before, after, d)
+
+
+def _ramp_s(orbit: float, direction: str, orbit_now: float | None, ramp_rate: float | None) -> float:
+    """Seconds the orbit drive ramps from ``orbit_now`` to the block's first orbit speed."""
+    if orbit_now is None or ramp_rate is None:
+        return 0.0
+    sign = -1.0 if direction == "backward" else 1.0
+    return abs(sign * orbit - orbit_now) / ramp_rate
