@@ -24,7 +24,7 @@ import numpy as np
 
 from reduction.allocation import revolution_information
 from reduction.errors import ReductionError
-from reduction.rig_time import list_time
+from reduction.rig_time import TRIGGER_REVOLUTIONS
 
 STEP_REVOLUTIONS = (10, 20, 50, 100, 200)  # block sizes tried at each candidate ratio
 
@@ -96,25 +96,35 @@ def next_block(spec, theta, spin: float, radius: float, info, candidates, noise_
     if float(np.max(before)) <= target:
         return NextBlock(None, 0, Choice.TARGET, 0.0, before, before)
     r = np.asarray(candidates, dtype=float)
+    n = np.asarray(STEP_REVOLUTIONS, dtype=float)
+    scales = np.asarray(scales, dtype=float)
     options = (directions,) if isinstance(directions, str) else tuple(directions)
     best = None
-    for d in options:
+    for d in options:  # every (ratio, revolutions) of a direction at once: (k, m) candidates
         F = revolution_information(spec, theta, spin, radius, r, noise_at(r), d)
         blocks = 2 if d == "both" else 1
-        for k, ratio in enumerate(r):
-            ramp = _ramp_s(ratio * spin, d, orbit_now, ramp_rate)
-            for n in STEP_REVOLUTIONS:
-                seconds = list_time([ratio], spin, n, d) + blocks * per_block_s + ramp
-                if spent_s + seconds > cap_s:
-                    continue
-                after = relative_errors(info + n * F[k], scales)
-                rate = (float(np.max(before)) - float(np.max(after))) / seconds
-                if best is None or rate > best[0]:
-                    best = (rate, float(ratio), n, seconds, after, d)
+        ramp = np.array([_ramp_s(ratio * spin, d, orbit_now, ramp_rate) for ratio in r])
+        seconds = blocks * ((n[None] + TRIGGER_REVOLUTIONS) * 2 * np.pi / (r[:, None] * spin) + per_block_s) \
+            + ramp[:, None]
+        after = _batch_relative(info[None, None] + n[None, :, None, None] * F[:, None], scales)  # (k, m, p)
+        rate = (float(np.max(before)) - np.max(after, axis=2)) / seconds
+        rate = np.where(spent_s + seconds <= cap_s, rate, -np.inf)
+        k, j = np.unravel_index(int(np.argmax(rate)), rate.shape)
+        if np.isfinite(rate[k, j]) and (best is None or rate[k, j] > best[0]):
+            best = (float(rate[k, j]), float(r[k]), int(n[j]), float(seconds[k, j]), after[k, j], d)
     if best is None or best[0] <= 0:
         return NextBlock(None, 0, Choice.CAP, 0.0, before, before)
-    _, ratio, n, seconds, after, d = best
-    return NextBlock(ratio, n, Choice.NEXT, seconds, before, after, d)
+    _, ratio, revs, secs, aft, d = best
+    return NextBlock(ratio, revs, Choice.NEXT, secs, before, aft, d)
+
+
+def _batch_relative(info, scales) -> np.ndarray:
+    """(..., p) standard error / scale of a stack of informations (..., p, p); inf where singular."""
+    try:
+        d = np.diagonal(np.linalg.inv(info), axis1=-2, axis2=-1)
+    except np.linalg.LinAlgError:
+        return np.full(info.shape[:-1], np.inf)
+    return np.where(d > 0, np.sqrt(np.abs(d)), np.inf) / scales
 
 
 def _ramp_s(orbit: float, direction: str, orbit_now: float | None, ramp_rate: float | None) -> float:
