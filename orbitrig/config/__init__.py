@@ -27,7 +27,7 @@ from orbitrig.config.home import (
     HOME_ENV, MATRICES, RIG_FILE, config_home, known_names, named_file, search_folders, shipped_config,
 )
 from orbitrig.config.lab import write_lab  # noqa: F401
-from orbitrig.config.sequential import SequentialDesign, candidate_problems  # noqa: F401
+from orbitrig.config.sequential import SequentialDesign, band_candidates, candidate_problems  # noqa: F401
 from orbitrig.config.matrix import MatrixAveraging, MatrixConfig, ModelSpec, Operating, Orbit, PointOrder  # noqa: F401
 from orbitrig.config.messages import _line_of, _problems
 from orbitrig.config.records import (  # noqa: F401

@@ -15,8 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from orbitrig.config import RPM, MatrixConfig, RigConfig
-from orbitrig.config.sequential import band_candidates
+from orbitrig.config import RPM, MatrixConfig, RigConfig, band_candidates
 
 
 @dataclass(frozen=True)
