@@ -24,6 +24,8 @@ engine's lag counts as rig time too (both protocols alike). Figures:
   rmse_ratio_worst  the same for the RMS error against the simulator's constant-K, C, D truth
   adequacy_detect   per protocol, the fraction of compressible runs rejecting the constant model
   time_ratio_plan   the sweep plan's estimate of the same ratio (no engine lag; designed only)
+  blocks_s          (sequential) mean rig seconds of the point's blocks at its stop, counted as the
+                    plan counts them (no engine lag, no decision time), scenario paper
   matrix_time_ratio the paper matrix's planned rig time (manual settings included) in the
                     fastest order over the written order (orbitrig.run.point_order)
 
@@ -140,15 +142,22 @@ async def _one_run(rig, matrix, scenario: str, seed: int, out: Path, speedup: fl
     return marks["end"] - marks["start"]
 
 
-def _read(out: Path) -> tuple[np.ndarray, float]:
+def _read(out: Path) -> tuple[np.ndarray, float, float]:
+    """(kcd11 coefficients, adequacy p-value, a sequential point's rig seconds of blocks at its
+    stop, counted the plan's way without engine lag; nan for a fixed list)."""
+    import h5py
+
     from orbitrig import open_run
     from reduction.models import model_spec
 
     run = open_run(out)
     coeffs = run.fit(0, "piezo", "kcd11", "none", "wls").result["coefficients"]
     adequacy = run.fit(0, "piezo", "kcd11", "power:1", "wls").adequacy or {}
+    with h5py.File(out / "run.h5") as f:
+        g = f["points"]["0000"]
+        blocks_s = float(g["sequential"].attrs["spent_s"]) if "sequential" in g else math.nan
     return (np.array([float(coeffs[n]) for n in model_spec("kcd11").names]),
-            float(adequacy.get("p_value", 1.0)))
+            float(adequacy.get("p_value", 1.0)), blocks_s)
 
 
 def list_matrix(ratios, counts) -> str:
@@ -156,8 +165,9 @@ def list_matrix(ratios, counts) -> str:
     return MATRIX.format(name="bench", ratios=", ".join(map(str, ratios)), counts=", ".join(map(str, counts)))
 
 
-def _seed_run(rig, scenario: str, matrix, seed: int, speedup: float, failed: list) -> tuple[float, np.ndarray, float]:
-    """(rig seconds, kcd11 coefficients, adequacy p-value) of one seed, run again on a failure."""
+def _seed_run(rig, scenario: str, matrix, seed: int, speedup: float, failed: list) -> tuple:
+    """(rig seconds, kcd11 coefficients, adequacy p-value, blocks' seconds) of one seed, run again
+    on a failure."""
     for attempt in range(RETRIES + 1):  # a loaded machine can lose the Modbus link: run the seed again
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / "run"
@@ -168,8 +178,7 @@ def _seed_run(rig, scenario: str, matrix, seed: int, speedup: float, failed: lis
                 if attempt == RETRIES:
                     raise
                 continue
-            theta, pv = _read(out)
-            return seconds, theta, pv
+            return (seconds, *_read(out))
     raise AssertionError("unreachable")
 
 
@@ -179,19 +188,21 @@ def _runs(rig, texts: dict, runs: int, speedup: float, partial: Path | None) -> 
     from orbitrig.config import matrix_from_text
 
     matrices = {k: matrix_from_text(t, "bench.toml") for k, t in texts.items()}
-    res = {sc: {k: {"est": [], "times": [], "p": [], "failed": []} for k in texts} for sc in SCENARIOS}
+    res = {sc: {k: {"est": [], "times": [], "p": [], "blocks_s": [], "failed": []} for k in texts} for sc in SCENARIOS}
     for n in range(runs):
         for i, sc in enumerate(SCENARIOS):
             for j, k in enumerate(texts):
                 r = res[sc][k]
-                seconds, theta, pv = _seed_run(rig, sc, matrices[k], 1000 * i + 500 * j + 1 + n, speedup, r["failed"])
+                seconds, theta, pv, blocks_s = _seed_run(rig, sc, matrices[k], 1000 * i + 500 * j + 1 + n, speedup,
+                                                         r["failed"])
+                r["blocks_s"].append(blocks_s)
                 r["times"].append(seconds)
                 r["est"].append(theta)
                 r["p"].append(pv)
                 if partial is not None:
                     with partial.open("a") as f:
                         f.write(json.dumps({"scenario": sc, "protocol": k, "run": n, "seconds": seconds,
-                                            "theta": theta.tolist(), "p": pv}) + "\n")
+                                            "theta": theta.tolist(), "p": pv, "blocks_s": blocks_s}) + "\n")
     return {sc: {k: {**v, "est": np.array(v["est"]), "times": np.array(v["times"]), "p": np.array(v["p"])}
                  for k, v in r.items()} for sc, r in res.items()}
 
@@ -276,7 +287,8 @@ def engine_figures(rig, runs: int, pilot_design, paper_list, speedup: float = SP
         figures["designed"].update(ratios=ratios, revolutions=counts,
                                    time_ratio_plan=plan_time_ratio(rig, ratios, counts, paper_list))
     if "sequential" in figures:
-        figures["sequential"].update(initial_ratios=SPREAD, cap_s=SEQUENTIAL_CAP_S)
+        figures["sequential"].update(initial_ratios=SPREAD, cap_s=SEQUENTIAL_CAP_S,
+                                     blocks_s=float(np.mean(res["paper"]["sequential"]["blocks_s"])))
     out = {
         "runs": runs, "speedup": speedup,
         "time_s": {sc: {k: float(np.mean(v["times"])) for k, v in r.items()} for sc, r in res.items()},
