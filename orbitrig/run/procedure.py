@@ -134,7 +134,9 @@ class PointProcedure:
         for step in steps:
             await self.run_step(step, ps)
 
-    async def run_step(self, step: Step, ps: PointState | None) -> None:
+    async def run_step(self, step: Step, ps: PointState | None, counted: bool = True) -> None:
+        """Run one step after its safe point and interlock hold; ``counted``: its estimate leaves the
+        ETA (a sequential point's chosen blocks are inside their ChooseBlocks step's bound)."""
         r = self.r
         r.background.check()
         before = BEFORE[type(step)]
@@ -143,7 +145,8 @@ class PointProcedure:
         if before.interlocks:
             await self._hold_while_suspended()
         await self.handlers[type(step)](step, ps)
-        r.progress.spent(self.estimate(step))
+        if counted:
+            r.progress.spent(self.estimate(step))
 
     def estimate(self, step: Step) -> float:
         return self.estimate_of(step, self.r.confirm_mode)
@@ -305,7 +308,7 @@ class PointProcedure:
             if c.ratio not in step.rule.candidates:  # the plan's candidates only, whatever the numerics say
                 raise RunFailed(f"point {p.index:04d}: sequential design chose ratio {c.ratio:g}, not a candidate")
             for sub in chosen_steps(step, p.spin, c, freq, recs[-1].block.orbit, r.rig.estimates.store_s):
-                await self.run_step(sub, ps)
+                await self.run_step(sub, ps, counted=False)
             freq += 1
 
     async def identify(self, step: Identify, ps: PointState) -> None:
