@@ -37,11 +37,12 @@ candidates = {candidates}
 model = "kcd11"
 """
 INITIAL = 10  # blocks of the initial list (5 ratios x 2 directions)
-#: as precise as the demo's list at 20 revolutions per block: reached in about a minute of blocks
+#: as precise as the demo's list at 30 revolutions per block (the initial list alone: about 1.6 times the
+#: errors), reached in about a minute of blocks
 MATCH = "match_ratios = [0.3, 0.5, 0.7, 0.9, 1.2]\nmatch_revolutions = {n}"
 
 
-def matrix(target=MATCH.format(n=20), cap=600.0, candidates=CANDIDATES) -> cfg.MatrixConfig:
+def matrix(target=MATCH.format(n=30), cap=600.0, candidates=CANDIDATES) -> cfg.MatrixConfig:
     return cfg.matrix_from_text(MATRIX.format(target=target, cap=cap, candidates=candidates), "seq.toml")
 
 
