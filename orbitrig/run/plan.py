@@ -36,6 +36,7 @@ from orbitrig.run.steps import (  # noqa: F401 - the step kinds, re-exported (th
     SetOrbit, SetSpin, Settle, Step, StopDrives, StoreBlock, VerifyGeometry, VerifyPressures,
 )
 from reduction.rig_time import block_time
+from reduction.sequential import STEP_REVOLUTIONS
 from reduction.whirl import Whirl
 
 
@@ -113,7 +114,7 @@ class Plan:
     rig: RigConfig  # the rig it was checked against
     points: tuple[OperatingPoint, ...]
     steps: tuple[Step, ...]
-    revolutions: int  # the most any block averages (a fixed count, or the adaptive maximum)
+    revolutions: int  # the most any block averages (a fixed count, the adaptive maximum, a chosen block's most)
     order: tuple[int, ...] = ()  # per point run, its index in the written order (operating_points)
 
     @property
@@ -144,7 +145,8 @@ def make_plan(matrix: MatrixConfig, rig: RigConfig, order: Sequence[int] | None 
                                         f"the matrix's {len(written)} points"])
     points = [dataclasses.replace(written[w], index=i) for i, w in enumerate(order)]
     steps = _steps(matrix, rig, points)
-    n_rev = max(s.revolutions for s in steps if isinstance(s, Acquire))
+    n_rev = max(s.revolutions if isinstance(s, Acquire) else max(STEP_REVOLUTIONS)
+                for s in steps if isinstance(s, (Acquire, ChooseBlocks)))
     return Plan(matrix, rig, tuple(points), tuple(steps), n_rev, order)
 
 
