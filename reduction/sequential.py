@@ -7,8 +7,9 @@ next block is the (ratio, revolutions) of the candidates that lowers the largest
 relative standard error (standard error / scale) most per second of rig time, measured as
 the gain in its precision 1 / error^2 (which grows with the revolutions as the information
 does: a gain in the error itself shrinks with every revolution and would favour small blocks,
-each paying the settle hold; on the nominal kcd11 bearing the point then takes about 0.85
-instead of 0.97 of the paper protocol's rig time) (the block in
+each paying the settle hold; on the nominal kcd11 bearing, matching the paper list's errors
+from a five-ratio initial list, the point then takes 0.81 instead of 0.94 of the paper
+protocol's rig time, ramps counted) (the block in
 its whirl direction(s), trigger revolution included (reduction.rig_time), plus the per-block
 overhead and, given the orbit speed now and the ramp rate, the orbit drive's ramp to it). The
 point stops when every coefficient's predicted relative standard error is at most the target,
