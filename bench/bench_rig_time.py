@@ -31,7 +31,8 @@ D) of the identified coefficients over repeated runs with different noise seeds;
 ratio carries a Monte Carlo uncertainty of about 1/sqrt(runs - 1) (two SDs of `runs` runs).
 
 Run: python3 bench/bench_rig_time.py [runs]   (default 200 runs per protocol and model)
-Through the engine (sweep --sim in process; figures as JSON, exit 1 on a missed goal):
+Through the engine (sweep --sim in process; figures as JSON per protocol, designed and
+sequential; exit 1 when no protocol meets the goal):
      python3 bench/bench_rig_time.py --engine --runs N --json   (bench/bench_rig_time_engine.py)
 """
 
@@ -244,12 +245,16 @@ def main() -> int:
                     "(bench/bench_rig_time_engine.py)")
     ap.add_argument("--json", action="store_true", help="print one JSON object (--engine)")
     ap.add_argument("--speedup", type=float, default=20.0, help="simulated / wall time (--engine)")
+    ap.add_argument("--protocols", default="designed,sequential",
+                    help="protocols against the paper's (--engine): designed, sequential")
+    ap.add_argument("--partial", type=Path, help="append each run's figures to this file as it ends (--engine)")
     args = ap.parse_args()
     rig = load_rig(ROOT / "config" / "rig.toml")
     if args.engine:
         from bench_rig_time_engine import engine_figures
 
-        figures = engine_figures(rig, args.runs or 20, pilot_problem, PAPER, args.speedup)
+        figures = engine_figures(rig, args.runs or 20, pilot_problem, PAPER, args.speedup,
+                                 tuple(args.protocols.split(",")), args.partial)
         print(json.dumps(figures, indent=None if args.json else 1))
         return 0 if figures["goal_met"] else 1
     runs = args.runs or args.runs_pos or 200

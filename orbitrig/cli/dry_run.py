@@ -33,6 +33,8 @@ def _print(plan, steps: bool) -> None:
     for line in prediction_lines(plan.rig, plan.matrix):
         typer.echo(line)
     typer.echo(order_line(plan, sm.duration))
+    for line in sequential_lines(plan, sm.duration):
+        typer.echo(line)
     typer.echo("")
     _print_points(plan)
     if steps:
@@ -53,6 +55,25 @@ def order_line(plan, duration: float) -> str:
     other = summarize(make_plan(plan.matrix, plan.rig, written).steps).duration
     return (f"order of the points: {how}: estimated {format_duration(duration)}; in the written order "
             f"{format_duration(other)} ({duration / other:.3f} of it)")
+
+
+def sequential_lines(plan, duration: float) -> list[str]:
+    """The bounds of a sequential matrix: the plan's time with no chosen block and with every
+    point at its cap, and each spin's candidate ratios (what the engine may choose from)."""
+    from orbitrig.run.plan import ChooseBlocks, format_duration
+
+    chosen = [s for s in plan.steps if isinstance(s, ChooseBlocks)]
+    if not chosen:
+        return []
+    least = duration - sum(s.duration for s in chosen)
+    lines = [f"sequential: {len(chosen)} points; estimated {format_duration(least)} (no block chosen: the target met "
+             f"by the initial list) to {format_duration(duration)} (every point at its cap of "
+             f"{chosen[0].rule.cap_s:g} s of blocks)"]
+    spins = {p.index: p.spin_rpm for p in plan.points}
+    for rpm in sorted(set(spins.values())):
+        rule = next(s.rule for s in chosen if spins[s.point] == rpm)
+        lines.append(f"  at {rpm:g} rpm: {rule.describe()}")
+    return lines
 
 
 def _print_points(plan) -> None:

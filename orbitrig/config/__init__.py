@@ -27,6 +27,7 @@ from orbitrig.config.home import (
     HOME_ENV, MATRICES, RIG_FILE, config_home, known_names, named_file, search_folders, shipped_config,
 )
 from orbitrig.config.lab import write_lab  # noqa: F401
+from orbitrig.config.sequential import SequentialDesign, band_candidates, candidate_problems  # noqa: F401
 from orbitrig.config.matrix import MatrixAveraging, MatrixConfig, ModelSpec, Operating, Orbit, PointOrder  # noqa: F401
 from orbitrig.config.messages import _line_of, _problems
 from orbitrig.config.records import (  # noqa: F401
@@ -176,5 +177,12 @@ def check_matrix_against_rig(matrix: MatrixConfig, rig: RigConfig) -> None:
         problems.append(f"{at_ratio}key 'orbit': ratio {lo:g} is below the rig's drives.min_ratio = {d.min_ratio:g}")
     if d.max_ratio is not None and hi > d.max_ratio:
         problems.append(f"{at_ratio}key 'orbit': ratio {hi:g} is above the rig's drives.max_ratio = {d.max_ratio:g}")
+    problems += _sequential_problems(matrix, rig)
     if problems:
         raise ConfigError(matrix.file, problems)
+
+
+def _sequential_problems(matrix: MatrixConfig, rig: RigConfig) -> list[str]:
+    """A sequential matrix's candidates and reference list against the drive limits (with the line)."""
+    at = _line_of(matrix.text, ("sequential",))
+    return [f"line {at}: {p}" if at else p for p in candidate_problems(matrix, rig)]

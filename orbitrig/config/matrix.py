@@ -9,6 +9,7 @@ from typing import Annotated, Literal
 from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from orbitrig.config.fields import FREQ_DEP, MODELS, Mpa, Ratio, Rpm, Wait, _Model
+from orbitrig.config.sequential import SequentialDesign
 from reduction.whirl import Whirl
 
 
@@ -54,6 +55,8 @@ class Orbit(_Model):
     directions: Annotated[list[Whirl], Field(min_length=1)] = [Whirl.FORWARD, Whirl.BACKWARD]
     revolutions: list[Revolutions] | None = None
     target_pct: list[TargetPct] | None = None
+    #: after the list above, blocks chosen one by one within the matrix's [sequential] bounds
+    sequential: bool = False
 
     @field_validator("revolutions", "target_pct")
     @classmethod
@@ -170,6 +173,8 @@ class MatrixConfig(_Model):
     #: changeover time, orbitrig.run.point_order) or "written" (the product of [operating], in
     #: key order, the last varying fastest)
     order: PointOrder = PointOrder.FASTEST
+    #: the bounds of a sequential point (orbitrig.config.sequential); with [orbit] sequential = true
+    sequential: SequentialDesign | None = Field(None, validate_default=True)  # checked when absent too
 
     # cross-table checks as field validators, so each error names its key and line
     @field_validator("revolutions")
@@ -200,6 +205,25 @@ class MatrixConfig(_Model):
         if problems:
             raise ValueError("; ".join(problems))
         return a
+
+    @field_validator("sequential")
+    @classmethod
+    def _sequential_bounds(cls, v, info: ValidationInfo):
+        orbit = info.data.get("orbit")
+        if orbit is None:
+            return v
+        if orbit.sequential and v is None:
+            raise ValueError("'orbit.sequential = true' needs a [sequential] table: 'target_pct' or 'match_ratios', "
+                             "'cap_s' (rig seconds per point)")
+        if v is not None and not orbit.sequential:
+            raise ValueError("a [sequential] table needs 'orbit.sequential = true'")
+        return v
+
+    @property
+    def sequential_model(self) -> str | None:
+        """The model a sequential point designs for (None: not sequential)."""
+        s = self.sequential
+        return None if s is None else s.model or self.models[0].model
 
     _file: str = PrivateAttr("<matrix>")
     _text: str = PrivateAttr("")

@@ -36,7 +36,7 @@ from orbitrig.run.events import (  # noqa: F401 - the engine's public names
 from orbitrig.run.interlocks import Trip
 from orbitrig.run.log_rows import can_row, drive_row
 from orbitrig.run.modbus_log import pymodbus_into
-from orbitrig.run.plan import Acquire, Plan, make_plan
+from orbitrig.run.plan import Acquire, ChooseBlocks, Plan, make_plan
 from orbitrig.run.procedure import PointProcedure, RunParts
 from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.provenance import Provenance, RunCommand
@@ -167,7 +167,7 @@ class RunEngine(OperatorRequests):
     def _no_room(self, plan: Plan, p) -> str | None:
         """Why the disk cannot take point `p` (None: it can)."""
         models = len(plan.matrix.models)
-        counts = [s.revolutions for s in plan.point_steps(p.index) if isinstance(s, Acquire)]  # most per block
+        counts = [s.revolutions for s in plan.point_steps(p.index) if isinstance(s, (Acquire, ChooseBlocks))]  # most per block
         try:
             self._store.check_free_space(point_bytes(self.rig, p, counts, models))
         except StorageFullError as err:

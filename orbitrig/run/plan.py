@@ -12,7 +12,7 @@ spin innermost), unless the matrix says `order = "written"`. Per point::
 
     SetManual -> VerifyPressures -> SetSpin -> for each block:
         [SetOrbit] -> Settle -> Acquire -> [VerifyGeometry, first block] -> StoreBlock
-    -> Identify -> CompletePoint
+    -> [ChooseBlocks: a sequential point's blocks chosen at run time] -> Identify -> CompletePoint
     ... StopDrives
 
 Blocks run forward whirl from the highest |Omega| down, then backward from
@@ -23,42 +23,21 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from orbitrig.config import MPA, RPM, MatrixConfig, ModelSpec, PointOrder, RigConfig, check_matrix_against_rig
+from orbitrig.config import MPA, RPM, MatrixConfig, PointOrder, RigConfig, check_matrix_against_rig
 from orbitrig.errors import ConfigError
 from orbitrig.run.plan_summary import PlanSummary, format_duration, summarize  # noqa: F401 - re-exported (their old home)
 from orbitrig.run.point_order import fastest_order, manual_change_s
+from orbitrig.run.sequential_rule import sequential_rule
+from orbitrig.run.steps import (  # noqa: F401 - the step kinds, re-exported (their old home)
+    DIR_TAG, STEP_KINDS, TWO_PI, Acquire, AdaptiveTarget, Block, ChooseBlocks, CompletePoint, Identify, SetManual,
+    SetOrbit, SetSpin, Settle, Step, StopDrives, StoreBlock, VerifyGeometry, VerifyPressures,
+)
 from reduction.rig_time import block_time
+from reduction.sequential import STEP_REVOLUTIONS
 from reduction.whirl import Whirl
-
-TWO_PI = 2.0 * math.pi
-DIR_TAG = {+1: "fwd", -1: "bwd"}
-
-
-@dataclass(frozen=True)
-class Block:
-    """One orbit frequency and direction of an operating point."""
-
-    freq: int  # index of |Omega| in the point's ascending frequency list
-    direction: int  # +1 forward, -1 backward
-    orbit: float  # rad/s, signed
-
-    @property
-    def tag(self) -> str:
-        """Storage name, e.g. '03_bwd'."""
-        return f"{self.freq:02d}_{DIR_TAG[self.direction]}"
-
-    @property
-    def orbit_hz(self) -> float:
-        return abs(self.orbit) / TWO_PI
-
-    @property
-    def period(self) -> float:
-        """Orbit period, physical s."""
-        return TWO_PI / abs(self.orbit)
 
 
 @dataclass(frozen=True)
@@ -100,180 +79,6 @@ class OperatingPoint:
         }
 
 
-# ------------------------------------------------------------------ steps
-@dataclass(frozen=True)
-class Step:
-    """One step of the plan; `duration` is its estimated physical time (s)."""
-
-    point: int | None
-    duration: float  # estimated, physical s
-
-    #: the step's kind in the dry run's summary ("store" covers blocks and points)
-    word = "step"
-
-    def describe(self) -> str:  # pragma: no cover - overridden
-        return type(self).__name__
-
-
-@dataclass(frozen=True)
-class SetManual(Step):
-    """The operator's hands set orbit radius, static eccentricity and pressures (SI)."""
-
-    orbit_radius: float
-    static_eccentricity: float
-    recess_pressure: float
-    pressure_ratio: float
-    changed: bool  # differs from the previous point's settings
-
-    word = "manual settings"
-
-    @property
-    def step_id(self) -> str:
-        return f"manual:{self.point:04d}"
-
-    def describe(self) -> str:
-        what = "set by hand" if self.changed else "unchanged, confirm"
-        return (
-            f"manual settings ({what}): orbit radius {self.orbit_radius * 1e6:.2f} um, "
-            f"static eccentricity {self.static_eccentricity:g}, recess pressure "
-            f"{self.recess_pressure / MPA:.4g} MPa, pressure ratio {self.pressure_ratio:g}"
-        )
-
-
-@dataclass(frozen=True)
-class VerifyPressures(Step):
-    """Recess pressure and pressure ratio from CAN against the point's settings."""
-
-    word = "verify"
-
-    def describe(self) -> str:
-        return "verify recess pressure and ratio from CAN"
-
-
-@dataclass(frozen=True)
-class SetSpin(Step):
-    spin: float  # rad/s
-    orbit: float  # rad/s signed: the point's first block, set together
-
-    word = "spin changes"
-
-    def describe(self) -> str:
-        return f"set spin {self.spin / RPM:.0f} rpm (orbit {self.orbit / RPM:+.1f} rpm)"
-
-
-@dataclass(frozen=True)
-class SetOrbit(Step):
-    block: Block
-
-    word = "orbit changes"
-
-    def describe(self) -> str:
-        return f"set orbit {self.block.orbit / RPM:+.1f} rpm [{self.block.tag}]"
-
-
-@dataclass(frozen=True)
-class Settle(Step):
-    block: Block
-    hold: float  # s at setpoint
-
-    word = "settle"
-
-    def describe(self) -> str:
-        return f"settle, {self.hold:g} s at setpoint [{self.block.tag}]"
-
-
-@dataclass(frozen=True)
-class AdaptiveTarget:
-    """A block's adaptive averaging: until every channel's relative phasor uncertainty <= `target_pct`
-    (percent), between min and max good revolutions; `expected`: its ratio's [orbit] `revolutions`."""
-
-    target_pct: float
-    min_revolutions: int
-    max_revolutions: int
-    expected: int | None = None
-
-
-@dataclass(frozen=True)
-class Acquire(Step):
-    """Average exactly `revolutions` good revolutions (the block's count), or adaptively
-    (`revolutions` is then the maximum, what the timeout and storage estimate assume; the
-    duration assumes the expected count, else the maximum); after an interlock suspension
-    the block is settled again (`hold` s at setpoint) and acquired anew."""
-
-    block: Block
-    revolutions: int
-    hold: float  # s at setpoint when the block must be settled again
-    adaptive: AdaptiveTarget | None = None  # None: exactly `revolutions`
-
-    word = "acquire"
-
-    def describe(self) -> str:
-        a, what = self.adaptive, f"{self.revolutions} revolutions"
-        if a is not None:
-            about = "" if a.expected is None else f", about {a.expected} expected"
-            what = f"{a.min_revolutions}..{a.max_revolutions} revolutions (until every channel <= {a.target_pct:g} %{about})"
-        return f"acquire {what} at {self.block.orbit_hz:.3f} Hz [{self.block.tag}]"
-
-
-@dataclass(frozen=True)
-class VerifyGeometry(Step):
-    """Orbit radius and static eccentricity of the block just acquired (probes); when
-    they miss and the operator corrects them, `acquire` is repeated."""
-
-    acquire: Acquire
-
-    word = "verify"
-
-    def describe(self) -> str:
-        return "verify orbit radius and static eccentricity from the displacement probes"
-
-
-@dataclass(frozen=True)
-class StoreBlock(Step):
-    block: Block
-
-    word = "store"
-
-    def describe(self) -> str:
-        return f"store [{self.block.tag}]"
-
-
-@dataclass(frozen=True)
-class Identify(Step):
-    models: tuple[ModelSpec, ...]
-
-    word = "identify"
-
-    def describe(self) -> str:
-        names = ", ".join(f"{m.model}/{m.freq_dep}/{m.method}" for m in self.models)
-        return f"identify ({names}) for piezo and strain, compare the two"
-
-
-@dataclass(frozen=True)
-class CompletePoint(Step):
-    """Store the point's results and mark it complete (after the identification)."""
-
-    word = "store"
-
-    def describe(self) -> str:
-        return "store point, mark complete"
-
-
-@dataclass(frozen=True)
-class StopDrives(Step):
-    """The run's last step: both drives ramp to zero."""
-
-    word = "stop drives"
-
-    def describe(self) -> str:
-        return "ramp both drives to zero"
-
-
-#: every step kind of a plan (the engine has one handler for each)
-STEP_KINDS: tuple[type[Step], ...] = (SetManual, VerifyPressures, SetSpin, SetOrbit, Settle, Acquire,
-                                      VerifyGeometry, StoreBlock, Identify, CompletePoint, StopDrives)
-
-
 # ---------------------------------------------------------------- expansion
 def operating_points(matrix: MatrixConfig, rig: RigConfig) -> list[OperatingPoint]:
     """All operating points in the written order (manual settings outer, spin inner)."""
@@ -309,7 +114,7 @@ class Plan:
     rig: RigConfig  # the rig it was checked against
     points: tuple[OperatingPoint, ...]
     steps: tuple[Step, ...]
-    revolutions: int  # the most any block averages (a fixed count, or the adaptive maximum)
+    revolutions: int  # the most any block averages (a fixed count, the adaptive maximum, a chosen block's most)
     order: tuple[int, ...] = ()  # per point run, its index in the written order (operating_points)
 
     @property
@@ -340,7 +145,8 @@ def make_plan(matrix: MatrixConfig, rig: RigConfig, order: Sequence[int] | None 
                                         f"the matrix's {len(written)} points"])
     points = [dataclasses.replace(written[w], index=i) for i, w in enumerate(order)]
     steps = _steps(matrix, rig, points)
-    n_rev = max(s.revolutions for s in steps if isinstance(s, Acquire))
+    n_rev = max(s.revolutions if isinstance(s, Acquire) else max(STEP_REVOLUTIONS)
+                for s in steps if isinstance(s, (Acquire, ChooseBlocks)))
     return Plan(matrix, rig, tuple(points), tuple(steps), n_rev, order)
 
 
@@ -383,7 +189,17 @@ def _steps(matrix: MatrixConfig, rig: RigConfig, points: list[OperatingPoint]) -
             if j == 0:
                 steps.append(VerifyGeometry(p.index, 0.0, acquire))
             steps.append(StoreBlock(p.index, est.store_s, b))
+        if (rule := sequential_rule(matrix, rig, p.spin)) is not None:
+            steps.append(_choose_blocks(rule, hold, p, steps))
         steps.append(Identify(p.index, est.identify_s * len(models) * 2, models))
         steps.append(CompletePoint(p.index, est.store_s))
     steps.append(StopDrives(None, max(spin_now, abs(orbit_now)) / rate))
     return steps
+
+
+def _choose_blocks(rule, hold: float, p: OperatingPoint, steps: list[Step]) -> ChooseBlocks:
+    """A sequential point's chosen blocks: at most the cap less the initial blocks' estimate."""
+    initial = sum(s.duration for s in steps if s.point == p.index and isinstance(s, (Settle, Acquire, StoreBlock)))
+    most = max(0.0, rule.cap_s - initial)
+    revolutions = int(most * max(rule.candidates) * p.spin / TWO_PI) + 1
+    return ChooseBlocks(p.index, most, rule, hold, 1 + max(b.freq for b in p.blocks), revolutions)

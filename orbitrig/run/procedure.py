@@ -10,6 +10,7 @@ by the rig's `TimeScale`.
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import logging
 import time
 from dataclasses import dataclass, field
@@ -27,17 +28,20 @@ from orbitrig.run.heap import trim_heap
 from orbitrig.run.identification import block_record, identify_operating_point, point_truth
 from orbitrig.run.point_report import point_log_lines, result_payload
 from orbitrig.run.plan import (
-    Acquire, CompletePoint, Identify, OperatingPoint, SetManual, SetOrbit, SetSpin, Settle, Step, StopDrives,
-    StoreBlock, VerifyGeometry, VerifyPressures,
+    Acquire, ChooseBlocks, CompletePoint, Identify, OperatingPoint, SetManual, SetOrbit, SetSpin, Settle, Step,
+    StopDrives, StoreBlock, VerifyGeometry, VerifyPressures,
 )
 from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.rig_io import RigAccess, RigIO
+from orbitrig.run.sequential_point import MAX_BLOCK_INDEX, choice_line, choose, chosen_steps
 from orbitrig.run.states import ConfirmMode
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.verification import geometry_problems, pressure_problems
-from orbitrig.store.records import BlockRecord, PointResults
+from orbitrig.store.records import BlockChoice, BlockRecord, PointResults
 from orbitrig.store.writer import RunStore
+from reduction.errors import ReductionError
 from reduction.rig_time import block_time
+from reduction.sequential import Choice
 
 log = logging.getLogger(__name__)
 
@@ -70,7 +74,8 @@ class Before:
 BEFORE: dict[type[Step], Before] = {
     SetManual: Before(True, True), VerifyPressures: Before(None, True), SetSpin: Before(True, True),
     SetOrbit: Before(True, True), Settle: Before(None, True), Acquire: Before(None, True),
-    VerifyGeometry: Before(None, True), StoreBlock: Before(None, False), Identify: Before(False, False),
+    VerifyGeometry: Before(None, True), StoreBlock: Before(None, False), ChooseBlocks: Before(None, False),
+    Identify: Before(False, False),
     CompletePoint: Before(None, False), StopDrives: Before(None, False),
 }
 
@@ -84,6 +89,7 @@ class PointState:
     last: BlockRecord | None = None
     records: dict[str, BlockRecord] = field(default_factory=dict)
     results: asyncio.Future | None = None  # PointResults, computed in the background
+    sequential: BlockChoice | None = None  # a sequential point's last decision (why it stopped)
 
 
 @dataclass
@@ -112,7 +118,8 @@ class PointProcedure:
         self.handlers: dict[type[Step], Callable[[Step, PointState | None], Awaitable[None]]] = {
             SetManual: self.set_manual, VerifyPressures: self.verify_pressures, SetSpin: self.set_spin,
             SetOrbit: self.set_orbit, Settle: self.settle, Acquire: self.acquire,
-            VerifyGeometry: self.verify_geometry, StoreBlock: self.store_block, Identify: self.identify,
+            VerifyGeometry: self.verify_geometry, StoreBlock: self.store_block, ChooseBlocks: self.choose_blocks,
+            Identify: self.identify,
             CompletePoint: self.complete_point, StopDrives: self.stop_drives,
         }
 
@@ -127,7 +134,9 @@ class PointProcedure:
         for step in steps:
             await self.run_step(step, ps)
 
-    async def run_step(self, step: Step, ps: PointState | None) -> None:
+    async def run_step(self, step: Step, ps: PointState | None, counted: bool = True) -> None:
+        """Run one step after its safe point and interlock hold; ``counted``: its estimate leaves the
+        ETA (a sequential point's chosen blocks are inside their ChooseBlocks step's bound)."""
         r = self.r
         r.background.check()
         before = BEFORE[type(step)]
@@ -136,7 +145,8 @@ class PointProcedure:
         if before.interlocks:
             await self._hold_while_suspended()
         await self.handlers[type(step)](step, ps)
-        r.progress.spent(self.estimate(step))
+        if counted:
+            r.progress.spent(self.estimate(step))
 
     def estimate(self, step: Step) -> float:
         return self.estimate_of(step, self.r.confirm_mode)
@@ -246,7 +256,7 @@ class PointProcedure:
                     await self._settle_once(p, step)
                 settle_first = True
                 t0 = time.monotonic()
-                r.progress.block(p.blocks.index(b) + 1)
+                r.progress.block(len(ps.records) + 1)
                 rule = averaging_rule(step, p.spin, av.speed_tolerance)
                 avg = await r.control.guarded(r.io.acquire(rule, timeout=timeout), r.supervisor)
                 self._add_time("acquire", t0)
@@ -264,7 +274,8 @@ class PointProcedure:
 
     # --------------------------------------------------------------- record
     async def store_block(self, step: StoreBlock, ps: PointState) -> None:
-        r, rec = self.r, ps.last
+        r = self.r
+        rec = ps.last if step.choice is None else dataclasses.replace(ps.last, choice=step.choice)
         ps.records[step.block.tag] = rec
         r.background.spawn(self._write_block(ps.point, rec), f"store {ps.point.index:04d}/{step.block.tag}")
         if r.control.stop_requested and len(ps.records) < len(ps.point.blocks):
@@ -273,6 +284,32 @@ class PointProcedure:
     async def _write_block(self, p: OperatingPoint, rec: BlockRecord) -> None:
         await self.r.background.write(self.r.store.write_block, p.index, rec)
         self.r.store.log(f"point {p.index:04d}: stored {rec.block.tag}")
+
+    async def choose_blocks(self, step: ChooseBlocks, ps: PointState) -> None:
+        """A sequential point after its initial list: choose the next block (in a worker thread:
+        reduction numerics), run it through the plan's own step kinds, again, until the target
+        or the cap. A stop request ends the point unfinished (a resume runs it again)."""
+        r, p, freq = self.r, ps.point, step.first_freq
+        while True:
+            if r.control.stop_requested:
+                raise StopRun
+            recs = list(ps.records.values())
+            try:
+                c = await asyncio.to_thread(choose, step.rule, p.spin, recs, r.rig.channel_index,
+                                            Corrections.of_rig(r.rig))
+            except (ReductionError, ValueError, FloatingPointError) as err:
+                raise RunFailed(f"point {p.index:04d}: sequential design: {err}") from err
+            if c.ratio is not None and freq > MAX_BLOCK_INDEX:  # no block name left: as at the cap
+                c = dataclasses.replace(c, reason=Choice.CAP.name.lower(), ratio=None, revolutions=0, seconds=0.0, after=c.before)
+            r.store.log(choice_line(p.index, c))
+            if c.ratio is None:
+                ps.sequential = c
+                return
+            if c.ratio not in step.rule.candidates:  # the plan's candidates only, whatever the numerics say
+                raise RunFailed(f"point {p.index:04d}: sequential design chose ratio {c.ratio:g}, not a candidate")
+            for sub in chosen_steps(step, p.spin, c, freq, recs[-1].block.orbit, r.rig.estimates.store_s):
+                await self.run_step(sub, ps, counted=False)
+            freq += 1
 
     async def identify(self, step: Identify, ps: PointState) -> None:
         """Identify every model for both load measuring systems (and a simulated rig's truth), in a
@@ -284,6 +321,7 @@ class PointProcedure:
             truth = None if r.access.truth is None else await asyncio.to_thread(point_truth, p, recs, r.access.truth)
             res = await asyncio.to_thread(identify_operating_point, p.spin, recs, r.rig.channel_index, step.models,
                                           truth, r.rig.calibration_uncertainty, Corrections.of_rig(r.rig))
+            res.sequential = ps.sequential
             self._add_time("identify", t0)
             for line in point_log_lines(p, res):
                 r.store.log(line)

@@ -84,6 +84,9 @@ DATASETS = {
     "commands": ("<field>", "every command that changed the run: at (ISO 8601 UTC), command, by (who sent it), detail"),
     "expanded_uncertainty": (PER_COEFFICIENT, "expanded uncertainty U (k = 2; attribute basis: combined or statistical), "
                                               "aligned with names"),
+    "coefficient_names": ("", "the coefficients a sequential decision judged, aligned with before and after"),
+    "before": ("1", "each coefficient's predicted relative standard error (standard error / scale) before the decision"),
+    "after": ("1", "each coefficient's predicted relative standard error after the chosen block"),
     "not_determined": ("1", "1 where the coefficient's expanded uncertainty exceeds its magnitude (not determined)"),
     "truth": (PER_COEFFICIENT, "the simulator's true impedance projected onto this fit's model (same table, weights, "
                                "constraints, method), aligned with names"),
@@ -130,6 +133,10 @@ ATTRIBUTES = {
     "sensor_serials": ("", "serial number of each channel's sensor (JSON)"),
     "started": ("", "run start, ISO 8601 UTC"), "ended": ("", "run end, ISO 8601 UTC"),
     "definition": ("", "how the truth was obtained"),
+    "reason": ("", "why the sequential design chose this block (next) or stopped (target, cap)"),
+    "ratio": ("1", "orbit ratio |Omega|/omega chosen (nan: stopped)"), "whirl": ("", "forward, backward or both"),
+    "revolutions": ("1", "revolutions chosen"), "seconds": ("s", "rig seconds the chosen block takes"),
+    "spent_s": ("s", "rig seconds of the point's blocks before the decision"),
 }
 #: attributes that annotate (they describe others; no description of their own)
 _ANNOTATIONS = {"units", "description", "convention", "dimensions", "columns", "rows", "fields", "field_units", "names",

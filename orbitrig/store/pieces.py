@@ -20,7 +20,7 @@ from orbitrig.load_systems import LMS
 from orbitrig.store.annotate import annotate
 from orbitrig.store.layout import (BLOCK_ATTR_UNITS, COHERENCE_PAIRS, IDENT_ATTR_UNITS,
                                    MATRIX_SI, TABLE_ATTR_UNITS, U_COLUMNS, U_UNITS, coefficient_si_unit)
-from orbitrig.store.records import BlockRecord, PointResults
+from orbitrig.store.records import BlockChoice, BlockRecord, PointResults
 
 if TYPE_CHECKING:  # annotation only: the store does not import the run wing
     from orbitrig.run.plan import OperatingPoint
@@ -104,7 +104,21 @@ def write_block(g: h5py.Group, rec: BlockRecord, channels: list[str], units: lis
     st = g.create_group("stats")
     for k, v in rec.stats.items():
         st.attrs[k] = to_json(v) if isinstance(v, (dict, list)) else v
+    if rec.choice is not None:
+        write_choice(g.create_group("sequential"), rec.choice)
     annotate(g)
+
+
+def write_choice(g: h5py.Group, c: BlockChoice) -> None:
+    """A sequential point's decision: why, what (ratio, direction, revolutions, seconds), the rig
+    seconds spent before it, and each coefficient's predicted relative standard error before and
+    after it (fractions of the coefficient's scale)."""
+    g.attrs.update({"reason": c.reason, "ratio": math.nan if c.ratio is None else c.ratio, "whirl": c.direction,
+                    "revolutions": c.revolutions, "seconds": c.seconds, "spent_s": c.spent_s})
+    g.create_dataset("coefficient_names", data=fixed_text(c.coefficients))
+    put(g, "before", np.asarray(c.before, dtype=np.float64), "1", meaning="predicted relative standard error "
+        "(standard error / scale) of each coefficient before the decision")
+    put(g, "after", np.asarray(c.after, dtype=np.float64), "1", meaning="the same, predicted after the chosen block")
 
 
 def write_results(g: h5py.Group, res: PointResults) -> None:
@@ -118,6 +132,8 @@ def write_results(g: h5py.Group, res: PointResults) -> None:
     if res.truth is not None:
         write_truth(g.create_group("truth"), res.truth)
     g.create_group("lms_comparison").attrs["json"] = to_json(res.lms_comparison)
+    if res.sequential is not None:
+        write_choice(g.create_group("sequential"), res.sequential)
     annotate(g)
 
 

@@ -13,6 +13,25 @@ if TYPE_CHECKING:  # the plan's types only annotate: the store does not import t
     from orbitrig.run.plan import Block
 
 
+@dataclass(frozen=True)
+class BlockChoice:
+    """Why a sequential point chose a block (or stopped): ``reason`` "next" (the block lowering the
+    largest predicted relative error most per second), "target" or "cap" (the names of
+    reduction.sequential.Choice, lower case), the ratio, direction ("forward", "backward", "both"), revolutions and rig seconds of
+    the choice, the rig seconds its blocks had spent before it, the model's coefficient names,
+    and each one's predicted relative standard error (fraction of its scale) before and after."""
+
+    reason: str
+    ratio: float | None
+    direction: str
+    revolutions: int
+    seconds: float
+    spent_s: float
+    coefficients: tuple[str, ...]
+    before: tuple[float, ...]
+    after: tuple[float, ...]
+
+
 @dataclass
 class BlockRecord:
     """Everything stored for one orbit frequency and direction."""
@@ -34,6 +53,7 @@ class BlockRecord:
     n_records: int | None = None  # revolutions averaged (None: the rows of raw_counts)
     stop_reason: str = ""  # why averaging stopped: "count" | "target" | "max" ("" unknown)
     revolutions: np.ndarray | None = None  # (N,) the A/D board's revolution number of each record
+    choice: BlockChoice | None = None  # a sequential point's reason for this block
 
 
 @dataclass
@@ -42,6 +62,7 @@ class PointResults:
     identifications: dict  # (lms, ModelSpec.key) -> {"spec": ModelSpec, "json": dict | "error": str}
     lms_comparison: dict
     truth: dict | None = None
+    sequential: BlockChoice | None = None  # a sequential point's last decision (target or cap)
 
 
 #: CAN and drive rows kept between two journal writes (the newest; 20 min at one row per 0.5 s):

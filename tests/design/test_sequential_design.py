@@ -1,5 +1,6 @@
 """reduction.sequential: the next block of a sequentially designed point (the pure chooser;
-the sweep does not use it yet). Hand-checkable promises on the nominal kcd11 bearing."""
+the sweep's use of it: tests/app/test_sweep_sequential.py). Hand-checkable promises on the
+nominal kcd11 bearing."""
 
 from __future__ import annotations
 

@@ -1,0 +1,110 @@
+"""A sequential point at run time: from the blocks measured so far to the next block.
+
+`choose` (pure, CPU-bound: the engine calls it in a worker thread) builds the point's piezo
+orbit table from its own blocks, identifies the rule's model on it (wls), takes each block's
+measured per-revolution noise (its u x sqrt(n); smoothed across the ratios for the
+candidates, reduction.frequency_list.smooth_noise), sums the blocks' Fisher information at
+those coefficients and asks reduction.sequential.next_block for the next block among the
+rule's candidates. The rig seconds spent are counted as the plan counts them: per block its
+revolutions + 1 orbit periods, the settle hold and the store estimate, and the orbit ramps
+between the blocks in the order they ran. `chosen_steps` turns the choice into the plan's
+own step kinds (SetOrbit, Settle, Acquire of the chosen count, StoreBlock with the reason).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from orbitrig.config import LMS
+from orbitrig.run.corrections import Corrections
+from orbitrig.run.identification import orbit_table
+from orbitrig.run.sequential_rule import SequentialRule
+from orbitrig.run.steps import Acquire, Block, ChooseBlocks, SetOrbit, Settle, Step, StoreBlock
+from orbitrig.store.records import BlockChoice, BlockRecord
+from reduction.frequency_list import coefficient_scales, smooth_noise
+from reduction.identify import identify
+from reduction.models import model_spec
+from reduction.rig_time import block_time
+from reduction.sequential import Choice, block_information, next_block, reference_errors
+from reduction.whirl import Whirl
+
+#: the most blocks a point can name (storage tags are two digits)
+MAX_BLOCK_INDEX = 99
+
+
+def spent_seconds(rule: SequentialRule, recs: list[BlockRecord]) -> float:
+    """Rig seconds of the blocks ``recs`` (in the order they ran): revolutions + trigger,
+    settle hold and store per block, the orbit ramps between them."""
+    orbits = np.array([r.block.orbit for r in recs])
+    n = np.array([r.n_records if r.n_records is not None else len(r.record_phasors) for r in recs])
+    ramps = float(np.sum(np.abs(np.diff(orbits)))) / rule.ramp_rate
+    return float(np.sum(block_time(orbits, n))) + len(recs) * rule.per_block_s + ramps
+
+
+def _noise(table, ratios: np.ndarray):
+    """Per-revolution noise (k, 4) per block and the smoothed ``noise_at(ratios)`` of the candidates."""
+    if table.u is None or table.n_records is None:
+        raise ValueError("the blocks' phasor uncertainties are not finite")
+    per_rev = table.u * np.sqrt(table.n_records)[:, None]
+    at = np.unique(np.round(ratios, 9))
+    smooth = smooth_noise(at, np.array([np.median(per_rev[np.round(ratios, 9) == r], axis=0) for r in at]))
+
+    def noise_at(r) -> np.ndarray:
+        r = np.atleast_1d(np.asarray(r, dtype=float))
+        return np.stack([np.interp(r, at, smooth[:, c]) for c in range(4)], axis=1)
+
+    return per_rev, noise_at
+
+
+def choose(rule: SequentialRule, spin: float, recs: list[BlockRecord], ch: dict[str, int],
+           corrections: Corrections | None = None) -> BlockChoice:
+    """The next block of the point whose blocks so far are ``recs`` (in the order they ran), or
+    the stop (reason target or cap). Raises ReductionError/ValueError when the blocks cannot
+    identify the model."""
+    corr = corrections or Corrections()
+    spec = model_spec(rule.model)
+    probes = [(corr.probe_phasors(r, ch, spin), corr.probe_records(r, ch, spin)) for r in recs]
+    table = orbit_table(spin, recs, ch, LMS[0], corr, probes)
+    theta = identify(table, rule.model, method="wls").theta
+    ratios = np.array([abs(r.block.orbit) / spin for r in recs])
+    per_rev, noise_at = _noise(table, ratios)
+    radius = float(np.mean(np.sqrt((np.abs(table.x) ** 2 + np.abs(table.y) ** 2) / 2)))
+    info = sum(block_information(spec, theta, spin, radius, ratios[k], per_rev[k], int(table.n_records[k]),
+                                 str(Whirl.of(recs[k].block.direction))) for k in range(len(recs)))
+    if rule.target is None:
+        match = np.asarray(rule.match_ratios)
+        both = "both" if len(rule.directions) == 2 else rule.directions[0]
+        scales, target = reference_errors(spec, theta, spin, radius, match, noise_at(match), rule.match_revolutions,
+                                          both), 1.0
+    else:
+        scales, target = coefficient_scales(spec, theta, spin), rule.target
+    spent = spent_seconds(rule, recs)
+    nb = next_block(spec, theta, spin, radius, info, rule.candidates, noise_at, scales, target, spent, rule.cap_s,
+                    rule.per_block_s, rule.directions, recs[-1].block.orbit, rule.ramp_rate)
+    return BlockChoice(nb.reason.name.lower(), nb.ratio, nb.direction, nb.revolutions, nb.seconds, spent, tuple(spec.names),
+                       tuple(float(v) for v in nb.before), tuple(float(v) for v in nb.after))
+
+
+def chosen_steps(step: ChooseBlocks, spin: float, choice: BlockChoice, freq: int, orbit_now: float,
+                 store_s: float) -> list[Step]:
+    """The steps of the chosen block(s): per direction (forward first for "both") SetOrbit,
+    Settle, Acquire of exactly the chosen revolutions, StoreBlock carrying the choice."""
+    signs = (+1, -1) if choice.direction == "both" else (Whirl(choice.direction).sign,)
+    out: list[Step] = []
+    for sign in signs:
+        b = Block(freq, sign, sign * float(choice.ratio) * spin)
+        n = choice.revolutions
+        out += [SetOrbit(step.point, abs(b.orbit - orbit_now) / step.rule.ramp_rate, b),
+                Settle(step.point, step.hold, b, step.hold),
+                Acquire(step.point, block_time(b.orbit, n), b, n, step.hold),
+                StoreBlock(step.point, store_s, b, choice)]
+        orbit_now = b.orbit
+    return out
+
+
+def choice_line(point: int, c: BlockChoice) -> str:
+    """The run log's line of one decision."""
+    what = (f"{c.direction} ratio {c.ratio:g}, {c.revolutions} revolutions ({c.seconds:.1f} s)"
+            if c.ratio is not None else "stop")
+    return (f"point {point:04d}: sequential: {what}: {Choice[c.reason.upper()].value}; largest predicted relative error "
+            f"{max(c.before) * 100:.3g} % -> {max(c.after) * 100:.3g} % after {c.spent_s:.1f} s of blocks")
