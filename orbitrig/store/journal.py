@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from orbitrig.store.durable import read_lines
+from orbitrig.store.status import RunStatus
 from rigunits import now_iso
 
 CAN_FIELDS = ("t_recess", "t_groove", "t_supply", "flow", "p_supply", "p_recess1", "p_recess2", "p_recess3",
@@ -34,8 +35,8 @@ def line(kind: str, **fields) -> str:
     return json.dumps({"k": kind, **fields}, separators=(",", ":"))
 
 
-def status_line(status: str, message: str) -> str:
-    return line("status", status=status, message=message, at=now_iso())
+def status_line(status: RunStatus, message: str) -> str:
+    return line("status", status=str(status), message=message, at=now_iso())
 
 
 def log_lines(events: list, can: list, drives: list) -> list[str]:
@@ -55,7 +56,7 @@ def _num(v) -> float | None:
 class Journal:
     """What the journal says, as far as it made it to disk."""
 
-    status: str = "running"
+    status: RunStatus = RunStatus.RUNNING
     status_message: str = ""
     status_at: str = ""  # ISO 8601 UTC time of the last status line (the run's end once final)
     commands: list = field(default_factory=list)  # (at, command, by, detail)
@@ -73,7 +74,7 @@ def read_journal(path) -> Journal:
         try:
             k = r.get("k")
             if k == "status":
-                j.status, j.status_message = str(r["status"]), str(r.get("message", ""))
+                j.status, j.status_message = RunStatus.read(r["status"]), str(r.get("message", ""))
                 j.status_at = str(r.get("at", ""))
             elif k == "command":
                 j.commands.append((str(r["at"]), str(r["command"]), str(r["by"]), str(r.get("detail", ""))))
