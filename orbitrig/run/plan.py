@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 from orbitrig.config import MPA, RPM, MatrixConfig, ModelSpec, PointOrder, RigConfig, check_matrix_against_rig
 from orbitrig.errors import ConfigError
-from orbitrig.run.plan_summary import PlanSummary, format_duration, summarize  # noqa: F401 - re-exported (their old home)
+from orbitrig.run.plan_summary import PlanSummary, summarize  # noqa: F401 - re-exported (their old home)
 from orbitrig.run.point_order import fastest_order, manual_change_s
 from reduction.rig_time import block_time
 from reduction.whirl import Whirl
