@@ -48,8 +48,7 @@ def _point_complete(path: Path) -> bool:
 def synthetic_run(tmp_path_factory) -> Path:
     """The report tests' synthetic run (frequency-dependent fits with their adequacy test, a
     refused model, an incomplete point), consolidated into run.h5."""
-    sys.path.insert(0, str(ROOT / "tests" / "report"))
-    from report_synthetic import write_synthetic_run
+    from support.report_synthetic import write_synthetic_run
 
     from orbitrig.store.export import export_run
 

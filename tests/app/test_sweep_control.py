@@ -7,7 +7,7 @@ import pytest
 
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.engine import StatusEvent
-from sweep_helpers import running, small_matrix, wait_for
+from support.sweep_helpers import running, small_matrix, wait_for
 
 pytestmark = pytest.mark.timeout(120)
 
