@@ -38,6 +38,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
+from types import TracebackType
 
 from drives import registers as R
 from drives.drive import Drive, DriveStatus, SettleDetector
@@ -107,7 +108,7 @@ class RigDrives:
             self.link, self._drives, poll_interval=self.poll_interval,
             link_loss_polls=int(link_loss_polls), loss_polls_given=loss_polls_given,
         )
-        self._poll_task: asyncio.Task | None = None
+        self._poll_task: asyncio.Task[None] | None = None
         self._release = False
         self._emergency = False  # the last stop was an emergency stop: exit repeats it
         self.stop_errors: list[DriveError] = []  # delivery failures of the last stop command
@@ -131,7 +132,8 @@ class RigDrives:
             raise
         return self
 
-    async def __aexit__(self, exc_type, exc, tb) -> None:
+    async def __aexit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                        tb: TracebackType | None) -> None:
         cancelled = False
         try:
             task, self._poll_task = self._poll_task, None

@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 import logging
+from collections.abc import Awaitable, Callable, Sequence
+from typing import TYPE_CHECKING
 
 from drives import registers as R
 from drives.errors import DriveError, DriveTimeoutError
 
+if TYPE_CHECKING:
+    from drives.drive import Drive
+
 log = logging.getLogger(__name__)
 
 
-async def send_stop(drives, *, emergency: bool = False) -> list[DriveError]:
+async def send_stop(drives: Sequence[Drive], *, emergency: bool = False) -> list[DriveError]:
     """Stop words to every drive (OFF1 ramp stop, or OFF3 emergency stop), then
     zero references so that no later start jumps back to the old speed.
 
@@ -30,7 +35,7 @@ async def send_stop(drives, *, emergency: bool = False) -> list[DriveError]:
     return errors
 
 
-async def _to_each(drives, write) -> list[DriveError]:
+async def _to_each(drives: Sequence[Drive], write: Callable[[Drive, int], Awaitable[None]]) -> list[DriveError]:
     """`write(drive, retries)` to every drive: one try each, then the retries of
     those that timed out. Returns the errors of the drives that missed it."""
     errors: dict[int, DriveError] = {}

@@ -4,6 +4,8 @@ uncertainty budget, the model-adequacy verdicts and the two systems' consistency
 
 from __future__ import annotations
 
+from typing import Any
+
 from orbitrig.run.plan import OperatingPoint
 from orbitrig.store.layout import coefficient_si_unit
 from orbitrig.store.records import PointResults
@@ -21,7 +23,7 @@ def point_log_lines(p: OperatingPoint, res: PointResults) -> list[str]:
     return [f"point {p.index:04d}: {line}" for line in judgement_lines(fits)]
 
 
-def judgement_lines(fits: list[tuple[str, str, dict | None, str | None]], *, verdicts: bool = True,
+def judgement_lines(fits: list[tuple[str, str, dict[str, Any] | None, str | None]], *, verdicts: bool = True,
                     brief: bool = False, warnings: bool = True) -> list[str]:
     """Lines of (lms, "model freq_dep method", stored JSON or None, refusal or None) fits: refusals
     (``brief``: their first line; else every line joined by ' | '), (``warnings``) warnings, parts
@@ -45,7 +47,7 @@ def judgement_lines(fits: list[tuple[str, str, dict | None, str | None]], *, ver
     return lines
 
 
-def adequacy_text(a: dict) -> str:
+def adequacy_text(a: dict[str, Any]) -> str:
     """'frequency dependence supported: no (p = 0.94); AIC 812 / 815, BIC 840 / 858 (constant / this)'."""
     if "error" in a:
         return f"frequency dependence not tested: {a['error']}"
@@ -54,7 +56,7 @@ def adequacy_text(a: dict) -> str:
             f"BIC {bic[0]:.6g} / {bic[1]:.6g} (constant / this)")
 
 
-def consistency_text(c: dict) -> str:
+def consistency_text(c: dict[str, Any]) -> str:
     """'load measuring systems piezo - strain: consistent (chi2 = 9.1 on 12 coefficients <= 21
     at the 5 % level, combined uncertainty); max |E_n| = 1.3'."""
     if "error" in c:
@@ -70,7 +72,7 @@ def consistency_text(c: dict) -> str:
             f"{c['basis']} uncertainty); max |E_n| = {c['max_abs']:.3g}")
 
 
-def _row(lms: str, e: dict) -> dict:
+def _row(lms: str, e: dict[str, Any]) -> dict[str, Any]:
     spec = e["spec"]
     row = {"lms": lms, "model": spec.model, "freq_dep": spec.freq_dep, "method": spec.method}
     if "error" in e:
@@ -88,7 +90,7 @@ def _row(lms: str, e: dict) -> dict:
     return row
 
 
-def result_payload(run_id: str | None, p: OperatingPoint, res: PointResults) -> dict:
+def result_payload(run_id: str | None, p: OperatingPoint, res: PointResults) -> dict[str, Any]:
     """The point's results as published (MQTT result topic): settings, one row per fit (its
     coefficients, std_errors, confidence_95, warnings, notes, uncertainty budget, expanded
     uncertainty, not_determined, its own truth in --sim runs, adequacy, LMS consistency, or the

@@ -8,6 +8,7 @@ import asyncio
 from orbitrig.config import RigConfig
 from orbitrig.run.control import RunControl
 from orbitrig.run.provenance import UNNAMED, RunCommand
+from orbitrig.run.states import Outcome
 from orbitrig.store.writer import RunStore
 
 
@@ -18,7 +19,7 @@ class OperatorRequests:
     rig: RigConfig
     console_user: str | None
     _control: RunControl
-    _body: asyncio.Task | None
+    _body: asyncio.Task[Outcome] | None
     _store: RunStore | None
 
     def request_pause(self, by: str | None = None) -> None:

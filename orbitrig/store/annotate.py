@@ -139,7 +139,7 @@ _ANNOTATIONS = {"units", "description", "convention", "dimensions", "columns", "
                 "meaning"}
 
 
-def _is_text(value) -> bool:
+def _is_text(value: object) -> bool:
     return isinstance(value, (str, bytes)) or np.asarray(value).dtype.kind in "OSU"
 
 
@@ -164,8 +164,9 @@ def _per_entry_rule(ds: h5py.Dataset, rule: str) -> dict[str, str]:
     return {f: _parseable(u) for f, u in zip(fields, units) if ds.dtype[f].kind in "fiub"}
 
 
-def _names_near(g: h5py.Group):
-    return g["names"][()] if "names" in g else g.parent["names"][()]
+def _names_near(g: h5py.Group) -> np.ndarray:
+    names: np.ndarray = g["names"][()] if "names" in g else g.parent["names"][()]
+    return names
 
 
 def _source_unit(name: str) -> str:
@@ -178,7 +179,7 @@ def _parseable(unit: str) -> str:
     return unit if unit and not any(w in unit for w in ("flag", "word", "code", "fraction")) else "1"
 
 
-def _s(v) -> str:
+def _s(v: object) -> str:
     return v.decode("utf-8") if isinstance(v, bytes) else str(v)
 
 
@@ -206,7 +207,7 @@ def annotate_dataset(ds: h5py.Dataset) -> None:
         ds.attrs["units"] = units or "1"
 
 
-def annotate_attributes(obj) -> None:
+def annotate_attributes(obj: h5py.HLObject) -> None:
     """``A__description`` (and ``A__units`` when numeric) for every attribute A of ``obj``."""
     for name in list(obj.attrs):
         if name in _ANNOTATIONS or "__" in name or name.startswith("units_"):
