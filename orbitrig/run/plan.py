@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 from orbitrig.config import MPA, RPM, MatrixConfig, ModelSpec, PointOrder, RigConfig, check_matrix_against_rig
 from orbitrig.errors import ConfigError
-from orbitrig.run.plan_summary import PlanSummary, summarize  # noqa: F401 - re-exported (their old home)
+from orbitrig.run.plan_summary import PlanSummary as PlanSummary, summarize as summarize  # their old home
 from orbitrig.run.point_order import fastest_order, manual_change_s
 from reduction.rig_time import block_time
 from reduction.whirl import Whirl
@@ -87,7 +87,7 @@ class OperatingPoint:
     def manual(self) -> tuple[float, float, float, float]:
         return (self.orbit_radius, self.static_eccentricity, self.recess_pressure, self.pressure_ratio)
 
-    def settings(self) -> dict:
+    def settings(self) -> dict[str, float | str]:
         """Settings at the edges' units (for CSV, MQTT results, reports)."""
         return {
             "point": self.index,
@@ -352,7 +352,10 @@ def block_acquire(matrix: MatrixConfig, rig: RigConfig, point: int, b: Block, ho
         n = expected or matrix.revolutions or rig.averaging.revolutions
         return Acquire(point, acquisition_time(b.orbit, n), b, n, hold)
     target = matrix.orbit.target_pct_at(b.freq)
-    rule = AdaptiveTarget(a.target_pct if target is None else target, a.min_revolutions, a.max_revolutions, expected)
+    pct = a.target_pct if target is None else target
+    if pct is None:  # the matrix's validation requires one of the two
+        raise ConfigError(matrix.file, [f"[averaging] target_pct or [orbit] target_pct: none for ratio {b.freq}"])
+    rule = AdaptiveTarget(pct, a.min_revolutions, a.max_revolutions, expected)
     return Acquire(point, acquisition_time(b.orbit, expected or a.max_revolutions), b, a.max_revolutions, hold, rule)
 
 

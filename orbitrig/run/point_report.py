@@ -97,7 +97,8 @@ def result_payload(run_id: str | None, p: OperatingPoint, res: PointResults) -> 
     refusal), and per point the adequacy verdicts, every warning, the refused fits and (--sim)
     the constant best fit of the true Z."""
     rows = [_row(lms, e) for (lms, _), e in res.identifications.items()]
-    out = {"run_id": run_id, **p.settings(), "identification": rows, "lms_comparison": res.lms_comparison}
+    out: dict[str, Any] = {"run_id": run_id, **p.settings(), "identification": rows,
+                           "lms_comparison": res.lms_comparison}
     out["adequacy"] = [{"lms": r["lms"], "model": r["model"], "freq_dep": r["freq_dep"], "method": r["method"],
                         **({"verdict": r["adequacy"]["verdict"], "supported": r["adequacy"]["supported"],
                             "p_value": r["adequacy"]["p_value"]} if "verdict" in r["adequacy"] else r["adequacy"])}
