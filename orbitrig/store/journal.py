@@ -12,7 +12,10 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -27,11 +30,13 @@ DRIVE_FIELDS = ("spin_ref", "spin_act", "orbit_ref", "orbit_act", "spin_status",
                 "spin_fault", "orbit_fault", "spin_torque", "orbit_torque")
 DRIVE_UNITS = ("s", "rad/s", "rad/s", "rad/s", "rad/s", "status word", "status word", "fault code", "fault code",
                "fraction of nominal", "fraction of nominal")
+#: a state change of the run: (t s since the start, state, message)
+EventRow = tuple[float, str, str]
 CAN_DTYPE = np.dtype([("t", "f8")] + [(f, "f8") for f in CAN_FIELDS])
 DRIVE_DTYPE = np.dtype([("t", "f8")] + [(f, "f8") for f in DRIVE_FIELDS])
 
 
-def line(kind: str, **fields) -> str:
+def line(kind: str, **fields: object) -> str:
     return json.dumps({"k": kind, **fields}, separators=(",", ":"))
 
 
@@ -39,7 +44,7 @@ def status_line(status: RunStatus, message: str) -> str:
     return line("status", status=str(status), message=message, at=now_iso())
 
 
-def log_lines(events: list, can: list, drives: list) -> list[str]:
+def log_lines(events: Sequence[EventRow], can: Sequence[Sequence[float]], drives: Sequence[Sequence[float]]) -> list[str]:
     """Journal lines of the rows gathered by a LogBuffer."""
     out = [line("event", t=float(t), state=str(s), message=str(m)) for t, s, m in events]
     out += [line("can", row=[_num(v) for v in r]) for r in can]
@@ -47,7 +52,7 @@ def log_lines(events: list, can: list, drives: list) -> list[str]:
     return out
 
 
-def _num(v) -> float | None:
+def _num(v: float) -> float | None:
     v = float(v)
     return v if math.isfinite(v) else None
 
@@ -59,15 +64,15 @@ class Journal:
     status: RunStatus = RunStatus.RUNNING
     status_message: str = ""
     status_at: str = ""  # ISO 8601 UTC time of the last status line (the run's end once final)
-    commands: list = field(default_factory=list)  # (at, command, by, detail)
-    events: list = field(default_factory=list)  # (t, state, message)
-    can: list = field(default_factory=list)  # rows of CAN_DTYPE
-    drives: list = field(default_factory=list)  # rows of DRIVE_DTYPE
-    points: list = field(default_factory=list)  # the point and block records, in order
+    commands: list[tuple[str, str, str, str]] = field(default_factory=list)  # (at, command, by, detail)
+    events: list[EventRow] = field(default_factory=list)  # (t, state, message)
+    can: list[tuple[float, ...]] = field(default_factory=list)  # rows of CAN_DTYPE
+    drives: list[tuple[float, ...]] = field(default_factory=list)  # rows of DRIVE_DTYPE
+    points: list[dict[str, Any]] = field(default_factory=list)  # the point and block records, in order
     torn: int = 0  # lines ignored (torn tail or unreadable)
 
 
-def read_journal(path) -> Journal:
+def read_journal(path: Path) -> Journal:
     records, torn = read_lines(path)
     j = Journal(torn=torn)
     for r in records:
@@ -81,7 +86,7 @@ def read_journal(path) -> Journal:
             elif k == "event":
                 j.events.append((float(r["t"]), str(r["state"]), str(r["message"])))
             elif k in ("can", "drives"):
-                n = len(CAN_DTYPE.names if k == "can" else DRIVE_DTYPE.names)
+                n = 1 + len(CAN_FIELDS if k == "can" else DRIVE_FIELDS)  # t and the fields
                 row = [math.nan if v is None else float(v) for v in r["row"]][:n]
                 (j.can if k == "can" else j.drives).append(tuple(row + [math.nan] * (n - len(row))))
             elif k in ("point", "block"):
