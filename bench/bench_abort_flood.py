@@ -36,10 +36,10 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "tests" / "mqtt"), str(REPO / "bench")]
+sys.path.insert(0, str(REPO))  # run as a script: the repository root (bench/ is the script's own folder)
 
 from bench_abort_latency import CW_STOPPING, Operator  # noqa: E402
-from mqtt_helpers import ACCOUNTS, MATRIX, Broker  # noqa: E402  (the tests' broker set-up)
+from tests.support.mqtt_helpers import ACCOUNTS, MATRIX, Broker  # noqa: E402  (the tests' broker set-up)
 
 FLOODER = REPO / "tests" / "mqtt" / "mqtt_flood.py"
 TARGET_MS = 200.0

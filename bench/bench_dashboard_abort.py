@@ -34,11 +34,11 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "tests" / "mqtt"), str(REPO / "tests" / "dashboard"), str(REPO / "bench")]
+sys.path.insert(0, str(REPO))  # run as a script: the repository root (bench/ is the script's own folder)
 
 from bench_abort_latency import Operator, watch_control_words  # noqa: E402
-from dash_helpers import Dashboard, Page, chromium  # noqa: E402  (the tests' browser set-up)
-from mqtt_helpers import ACCOUNTS, MATRIX, Broker  # noqa: E402
+from tests.support.dash_helpers import Dashboard, Page, chromium  # noqa: E402  (the tests' browser set-up)
+from tests.support.mqtt_helpers import ACCOUNTS, MATRIX, Broker  # noqa: E402
 
 
 def click_abort(page: Page) -> float:

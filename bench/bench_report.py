@@ -1,7 +1,7 @@
 """Cost of `orbitrig report` on the paper's test matrix: 108 operating points of ~17 figures
 each must be reported in under 2 minutes with 2 worker processes.
 
-Synthesises a run of N points (tests/report/report_synthetic.py: the sweep's own storage,
+Synthesises a run of N points (tests/support/report_synthetic.py: the sweep's own storage,
 the paper's 10 ratios x 2 directions and 4 models, the same 17 figures per point; `--run DIR`
 keeps it for the next bench) and times `orbitrig report DIR --workers 2` end to end in a
 subprocess, three times: cold with the defaults (PNG 300 dpi, report.pdf from the PNGs), again
@@ -29,10 +29,9 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "tests" / "report"))
+sys.path.insert(0, str(ROOT))  # run as a script: the repository root (bench/ is the script's own folder)
 
-from report_synthetic import write_synthetic_run  # noqa: E402 - after the path of the tests
+from tests.support.report_synthetic import write_synthetic_run  # noqa: E402 - after the path of the root
 
 PAPER_POINTS = 108
 TARGET_S = 120.0

@@ -39,9 +39,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "bench"))
-sys.path.insert(0, str(ROOT / "tests" / "mqtt"))
+sys.path.insert(0, str(ROOT))  # run as a script: the repository root (bench/ is the script's own folder)
 
 from bench_sweep import _subset  # noqa: E402
 
@@ -191,7 +189,7 @@ def logs_bounded(s: list[Sample], out: Path) -> bool:
 
 
 def soak_serve(runs: int, speedup: float) -> bool:
-    from mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, write_matrices
+    from tests.support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, write_matrices
 
     work = Path(tempfile.mkdtemp(prefix="bench-soak-serve-"))
     broker = Broker(work / "broker")

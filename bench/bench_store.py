@@ -35,6 +35,7 @@ from orbitrig.run.identification import identify_operating_point  # noqa: E402
 from orbitrig.run.plan import make_plan, operating_points  # noqa: E402
 from orbitrig.store.estimate import plan_bytes  # noqa: E402
 from orbitrig.store.writer import BlockRecord, RunStore  # noqa: E402
+from orbitrig.store.status import RunStatus  # noqa: E402
 
 MATRIX = """
 name = "bench-store"
@@ -104,7 +105,7 @@ def main() -> None:
         per_point.append(time.perf_counter() - t)
     pieces = sum(f.stat().st_size for f in out.rglob("*") if f.is_file())
     t = time.perf_counter()
-    store.set_status("completed", "bench")  # consolidates run.h5
+    store.set_status(RunStatus.COMPLETED, "bench")  # consolidates run.h5
     consolidate = time.perf_counter() - t
     size = (out / "run.h5").stat().st_size
     block_size = (out / "points/0000" / f"{operating_points(matrix, rig)[0].blocks[0].tag}.h5").stat().st_size

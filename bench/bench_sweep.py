@@ -30,7 +30,9 @@ sys.path.insert(0, str(ROOT))
 
 from orbitrig import config as cfg  # noqa: E402
 from orbitrig.run.engine import RunEngine  # noqa: E402
-from orbitrig.run.plan import Acquire, SetOrbit, SetSpin, Settle, StopDrives, format_duration, make_plan  # noqa: E402
+from orbitrig.run.plan import make_plan  # noqa: E402
+from orbitrig.run.steps import Acquire, SetOrbit, SetSpin, Settle, StopDrives  # noqa: E402
+from rigunits import format_duration  # noqa: E402
 
 PHYSICAL = (SetSpin, SetOrbit, Settle, Acquire, StopDrives)
 

@@ -39,7 +39,7 @@ from daq.transport import ByteLink, open_link
 class _Collection:
     """One ``acquire`` in progress."""
 
-    def __init__(self, averager: StreamingAverager, future: asyncio.Future,
+    def __init__(self, averager: StreamingAverager, future: asyncio.Future[AveragedBlock],
                  on_revolution: Callable[[Revolution], None] | None,
                  drop: Callable[[np.ndarray], None] = lambda revs: None) -> None:
         self.averager = averager
@@ -102,7 +102,7 @@ class AdcReader:
         self._assembler = RevolutionAssembler(channels, mode)  # raises ValueError on a bad scan
         self._link: ByteLink | None = None
         self._collection: _Collection | None = None
-        self._reconnect_task: asyncio.Task | None = None
+        self._reconnect_task: asyncio.Task[None] | None = None
         self._closed = False
         self._flowed = False  # good frames arrived on the current link
         self._revolutions_used = 0
@@ -114,7 +114,7 @@ class AdcReader:
         await self.open()
         return self
 
-    async def __aexit__(self, *exc) -> None:
+    async def __aexit__(self, *exc: object) -> None:
         await self.aclose()
 
     async def open(self) -> None:

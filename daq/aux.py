@@ -20,10 +20,13 @@ import math
 import struct
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from dataclasses import dataclass, field
 
 from daq.errors import DaqError
+
+if TYPE_CHECKING:
+    import can
 
 STALE_AFTER = 0.5  # s
 LOST_AFTER = 1.5  # s
@@ -82,7 +85,7 @@ class AuxSensors:
         self._clock = clock
         self._bus: Any = None  # can.BusABC once open (python-can imported when opened)
         self._notifier: Any = None
-        self._values: dict[str, object] = {}
+        self._values: dict[str, float] = {}
         self._times: dict[int, float] = {}  # CAN id offset -> arrival time
         self._p_recess = [math.nan] * 4
         self._heartbeat: int | None = None
@@ -94,7 +97,7 @@ class AuxSensors:
         self.open()
         return self
 
-    async def __aexit__(self, *exc) -> None:
+    async def __aexit__(self, *exc: object) -> None:
         if self._notifier is not None:
             self._notifier.stop()
             self._notifier = None
@@ -106,7 +109,7 @@ class AuxSensors:
         """Open the bus (in a running loop); raises DaqError naming the channel if it cannot."""
         import can  # only the CAN reader needs python-can
 
-        kwargs = {} if self.interface == "virtual" else {"bitrate": self.bitrate}
+        kwargs: dict[str, Any] = {} if self.interface == "virtual" else {"bitrate": self.bitrate}
         try:
             self._bus = can.Bus(interface=self.interface, channel=self.channel, **kwargs)
         except (can.CanError, OSError, ValueError, ImportError) as err:
@@ -127,7 +130,7 @@ class AuxSensors:
             self._bus.shutdown()
             self._bus = None
 
-    def _on_message(self, msg) -> None:
+    def _on_message(self, msg: can.Message) -> None:
         if msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
             return
         kind = msg.arbitration_id - self.node_id
@@ -168,7 +171,8 @@ class AuxSensors:
         ages["p_recess"] = max(age.get(0x280, math.inf), age.get(0x380, math.inf))
         v = self._values
         p_supply = float(v.get("p_supply", math.nan))
-        p_recess = tuple(self._p_recess)
+        p = self._p_recess
+        p_recess = (p[0], p[1], p[2], p[3])
         beta = sum(p_recess) / 4 / p_supply if p_supply > 0 else math.nan
         ages["beta"] = max(ages["p_recess"], ages["p_supply"])
         hb_age = age.get(0x700, math.inf)

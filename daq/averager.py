@@ -74,8 +74,9 @@ class AveragingRule:
         if self.orbit_speed is None:
             return np.zeros(p.shape, bool)
         with np.errstate(divide="ignore", invalid="ignore"):
-            off = np.abs(2 * np.pi / (p * self.orbit_speed) - 1) > self.speed_tolerance
-        return off & ~np.isnan(p)
+            off: np.ndarray = np.abs(2 * np.pi / (p * self.orbit_speed) - 1) > self.speed_tolerance
+        kept: np.ndarray = off & ~np.isnan(p)
+        return kept
 
     @classmethod
     def fixed(cls, n: int) -> AveragingRule:
@@ -141,7 +142,8 @@ class AveragedBlock:
     def relative_uncertainty(self) -> np.ndarray:
         """(C,) uncertainty / |phasors| (inf for a zero phasor)."""
         with np.errstate(divide="ignore", invalid="ignore"):
-            return self.uncertainty / np.abs(self.phasors)
+            rel: np.ndarray = self.uncertainty / np.abs(self.phasors)
+        return rel
 
 
 def phasor_weights(theta: np.ndarray) -> np.ndarray:
@@ -171,7 +173,7 @@ class StreamingAverager:
         self._gains = None if gains is None else np.asarray(gains, np.float64)
         self._offsets = None if offsets is None else np.asarray(offsets, np.float64)
         hi = rule.max_revolutions
-        self._counts: np.ndarray | None = None  # (max, C, S) int16: the block's revolutions
+        self._counts = np.zeros((0, 0, 0), np.int16)  # (max, C, S) int16: the block's revolutions (none: no layout yet)
         self._records = np.zeros((hi, 0), complex)  # (max, C) per-revolution phasors
         self._revs, self._t_us = np.zeros(hi, np.int64), np.zeros(hi, np.int64)
         self._periods = np.zeros(hi)
@@ -226,7 +228,7 @@ class StreamingAverager:
 
     def _prepare(self, shape: tuple[int, int], slots: np.ndarray) -> None:
         """Buffers and phasor weights for this scan layout (a new layout starts a new block)."""
-        if self._counts is not None and self._counts.shape[1:] == shape and np.array_equal(slots, self._slots):
+        if self._counts.shape[1:] == shape and np.array_equal(slots, self._slots):
             return
         c, s = shape
         for name, v in (("gains", self._gains), ("offsets", self._offsets)):
@@ -248,7 +250,7 @@ class StreamingAverager:
         room = rule.max_revolutions - self._n
         if rule.target is not None:
             if rule.spin_turns is not None:
-                used = self._first_met_tones(records, revs)
+                used = self._first_met_tones(records, revs, rule.target, rule.spin_turns)
             else:
                 used = self._running.first_met(records, rule.target, rule.min_revolutions)
             if used:
@@ -259,15 +261,15 @@ class StreamingAverager:
             return room, STOP_COUNT if rule.target is None else STOP_MAX
         return r, None
 
-    def _first_met_tones(self, records: np.ndarray, revs_new: np.ndarray) -> int:
+    def _first_met_tones(self, records: np.ndarray, revs_new: np.ndarray, target: float, spin_turns: float) -> int:
         """Like _RunningScatter.first_met with the spin tones fitted out (rule.spin_turns)."""
         rule = self.rule
         every = np.concatenate([self._records[:self._n], records])
         revs = np.concatenate([self._revs[:self._n], revs_new])
-        u = prefix_mean_uncertainty(every, rule.spin_turns, start=self._n, revolutions=revs)
+        u = prefix_mean_uncertainty(every, spin_turns, start=self._n, revolutions=revs)
         m = self._n + 1 + np.arange(len(records))
         mean = np.abs(np.cumsum(every, axis=0)[self._n:] / m[:, None])
-        ok = np.all(u <= rule.target * mean, axis=1) & (m >= max(rule.min_revolutions, 2))
+        ok = np.all(u <= target * mean, axis=1) & (m >= max(rule.min_revolutions, 2))
         hit = np.flatnonzero(ok)
         return int(hit[0]) + 1 if len(hit) else 0
 
@@ -311,29 +313,31 @@ class _RunningScatter:
         self.n = 0
         self.ref = self.s1 = self.s2 = None
 
-    def _cumulative(self, records: np.ndarray):
-        if self.ref is None:
+    def _cumulative(self, records: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(the reference record, cumulative sums of the differences and of their squared
+        magnitudes after each of ``records``)."""
+        if self.ref is None or self.s1 is None or self.s2 is None:
             self.ref = records[0].copy()
             self.s1, self.s2 = np.zeros_like(self.ref), np.zeros(self.ref.shape)
         d = records - self.ref
-        return self.s1 + np.cumsum(d, axis=0), self.s2 + np.cumsum(d.real**2 + d.imag**2, axis=0)
+        return self.ref, self.s1 + np.cumsum(d, axis=0), self.s2 + np.cumsum(d.real**2 + d.imag**2, axis=0)
 
     def first_met(self, records: np.ndarray, target: float, min_n: int) -> int:
         """Revolutions of ``records`` (R, C) after which every channel's uncertainty
         of the mean is at most ``target`` times the mean's magnitude, at a count of at
         least ``min_n`` (and 2); 0 if none."""
-        s1, s2 = self._cumulative(records)
+        ref, s1, s2 = self._cumulative(records)
         m = (self.n + 1 + np.arange(len(records), dtype=float))[:, None]
         with np.errstate(divide="ignore", invalid="ignore"):
             var = (s2 - (s1.real**2 + s1.imag**2) / m) / (m - 1)
             u = np.sqrt(np.maximum(var, 0.0) / m)
-            ok = np.all(u <= target * np.abs(self.ref + s1 / m), axis=1) & (m[:, 0] >= max(min_n, 2))
+            ok = np.all(u <= target * np.abs(ref + s1 / m), axis=1) & (m[:, 0] >= max(min_n, 2))
         hit = np.flatnonzero(ok)
         return int(hit[0]) + 1 if len(hit) else 0
 
     def add(self, records: np.ndarray) -> None:
         if not len(records):
             return
-        s1, s2 = self._cumulative(records)
+        _, s1, s2 = self._cumulative(records)
         self.s1, self.s2 = s1[-1], s2[-1]
         self.n += len(records)

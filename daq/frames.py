@@ -238,7 +238,7 @@ class FrameDecoder:
                     continue
                 problem = "crc"
             else:
-                problem = header_problem(ver, flags, fs, ns, nch)
+                problem = header_problem(ver, flags, fs, ns, nch) or "header"  # the inline check failed: never None
             self.frames_bad += 1
             count(self.frame_errors, problem)
             scan = c + 1

@@ -28,6 +28,7 @@ which it stalled or jumped has no true period and is dropped (``bad_clock``).
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -158,7 +159,7 @@ class RevolutionAssembler:
         self.revolutions_dropped += 1
         count(self.drop_reasons, reason)
 
-    def count_dropped(self, revs, reason: str = "off_speed") -> None:
+    def count_dropped(self, revs: np.ndarray | Sequence[int], reason: str = "off_speed") -> None:
         """Count revolutions (their rev numbers) that a reader left out after assembly."""
         for r in np.asarray(revs).ravel():
             self._drop(int(r), reason)
@@ -266,7 +267,8 @@ class RevolutionAssembler:
                                np.ascontiguousarray(counts.transpose(0, 2, 1)), self.slots)
 
 
-def _steady_clock(dt_frame, n_slots, first, last, period_us, rel_tol=0.05, abs_tol_us=2.0):
+def _steady_clock(dt_frame: np.ndarray, n_slots: np.ndarray, first: np.ndarray, last: np.ndarray,
+                  period_us: np.ndarray, rel_tol: float = 0.05, abs_tol_us: float = 2.0) -> np.ndarray:
     """For each revolution (frames first..last, then the next trigger at last+1):
     did the board clock advance steadily, each frame's step within ``rel_tol``
     (+ ``abs_tol_us`` for the clock's 1 us rounding) of its slots' share of the
@@ -279,13 +281,15 @@ def _steady_clock(dt_frame, n_slots, first, last, period_us, rel_tol=0.05, abs_t
     step = np.repeat(first + 1 - offsets, lengths) + np.arange(int(lengths.sum()))
     expected = n_slots[step - 1] * np.repeat(period_us / SLOTS_PER_REV, lengths)
     bad = np.abs(dt_frame[step] - expected) > rel_tol * expected + abs_tol_us
-    return np.add.reduceat(bad, offsets) == 0
+    steady: np.ndarray = np.add.reduceat(bad, offsets) == 0
+    return steady
 
 
 class _BreakReasons:
     """Why frame i does not continue frame i-1 (a drop reason)."""
 
-    def __init__(self, b: FrameBatch, trig, overrun, mode_ok, seq_ok, prev_rev, clock_ok) -> None:
+    def __init__(self, b: FrameBatch, trig: np.ndarray, overrun: np.ndarray, mode_ok: np.ndarray,
+                 seq_ok: np.ndarray, prev_rev: np.ndarray, clock_ok: np.ndarray) -> None:
         self.b, self.trig, self.overrun, self.mode_ok = b, trig, overrun, mode_ok
         self.seq_ok, self.prev_rev, self.clock_ok = seq_ok, prev_rev, clock_ok
 

@@ -108,7 +108,8 @@ async def open_link(url: str, on_data: Callable[[bytes], None], on_lost: Callabl
     return _open_serial(url, on_data, on_lost)
 
 
-async def _open_socket(url, on_data, on_lost, timeout) -> ByteLink:
+async def _open_socket(url: str, on_data: Callable[[bytes], None], on_lost: Callable[[Exception], None],
+                       timeout: float) -> ByteLink:
     parts = urlsplit(url)
     try:
         host, port = parts.hostname, parts.port
@@ -133,7 +134,7 @@ async def _open_socket(url, on_data, on_lost, timeout) -> ByteLink:
     return ByteLink(url, sock.fileno(), sock.recv, sock.close, on_data, on_lost)
 
 
-def _open_serial(url, on_data, on_lost) -> ByteLink:
+def _open_serial(url: str, on_data: Callable[[bytes], None], on_lost: Callable[[Exception], None]) -> ByteLink:
     import serial  # pyserial: only serial ports need it
 
     path, _, query = url.partition("?")

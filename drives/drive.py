@@ -15,7 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from drives import registers as R
-from drives.errors import DriveError, DriveFaultError, DriveLimitError, DriveTimeoutError
+from drives.errors import DriveError, DriveFaultError, DriveLimitError, DriveTimeoutError, ErrorContext
 from drives.link import ModbusLink
 from rigunits import RPM
 
@@ -106,7 +106,7 @@ class DriveStatus:
     def fault(self) -> str:
         return R.fault_name(self.fault_code)
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, object]:
         """JSON-ready summary (speeds in rpm: this is for people and the CLI)."""
         sw = self.status_word
         return {
@@ -189,7 +189,7 @@ class Drive:
         self._scale_rpm: int | None = None
         self._max_rpm: int | None = None
 
-    def _kw(self, register: int | None = None, fault_code: int | None = None) -> dict:
+    def _kw(self, register: int | None = None, fault_code: int | None = None) -> ErrorContext:
         return {
             "drive": self.device_id,
             "drive_name": self.name,
@@ -253,11 +253,11 @@ class Drive:
         retried after a timeout `read_retries` times by default."""
         if self._scale_rpm is None:
             await self.read_parameters()
+        scale, _ = self._scales()
         first, count = R.PROCESS_DATA
         retries = self.read_retries if retries is None else retries
         w = await self.link.read(self.device_id, first, count, retries=retries)
         ref, act = R.from_word(w[R.REF]), R.from_word(w[R.ACT])
-        scale = self._scale_rpm
         return DriveStatus(
             name=self.name,
             device_id=self.device_id,
@@ -278,8 +278,7 @@ class Drive:
 
         Pure check against the parameters read from the drive; nothing is sent.
         """
-        if self._scale_rpm is None:
-            raise DriveError("parameters not read yet", **self._kw(R.SPEED_SCALE))
+        scale, max_rpm = self._scales()
         if not math.isfinite(speed):
             raise DriveLimitError(f"speed {speed} rad/s is not finite", **self._kw(R.REF))
         if speed < 0 and not self.bidirectional:
@@ -288,20 +287,26 @@ class Drive:
                 **self._kw(R.REF),
             )
         rpm = rad_s_to_rpm(speed)
-        if abs(rpm) > self._max_rpm + 1e-9:
+        if abs(rpm) > max_rpm + 1e-9:
             raise DriveLimitError(
                 f"speed {speed:.3f} rad/s ({rpm:.1f} rpm) exceeds the drive's "
                 f"MAX_SPEED of {self._max_rpm} rpm",
                 **self._kw(R.MAX_SPEED),
             )
         try:
-            return R.rpm_to_ref(rpm, self._scale_rpm)
+            return R.rpm_to_ref(rpm, scale)
         except ValueError as err:
             raise DriveLimitError(str(err), **self._kw(R.REF)) from err
 
     def speed_of(self, raw: int) -> float:
         """rad/s of a raw REF/ACT value."""
-        return rpm_to_rad_s(R.ref_to_rpm(raw, self._scale_rpm))
+        return rpm_to_rad_s(R.ref_to_rpm(raw, self._scales()[0]))
+
+    def _scales(self) -> tuple[int, int]:
+        """(SPEED_SCALE, MAX_SPEED) in rpm as read from the drive; DriveError before they are read."""
+        if self._scale_rpm is None or self._max_rpm is None:
+            raise DriveError("parameters not read yet", **self._kw(R.SPEED_SCALE))
+        return self._scale_rpm, self._max_rpm
 
     async def write_reference(self, raw: int, *, retries: int | None = None, urgent: bool = False) -> None:
         """Write REF (idempotent: retried on a timeout, `write_retries` times by default);

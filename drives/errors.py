@@ -13,9 +13,21 @@ and the fault code with its meaning, whichever apply.
 
 from __future__ import annotations
 
+from typing import TypedDict
+
 from rigerrors import OrbitrigError
 
 from drives.registers import EXCEPTION_NAMES, fault_name, register_name
+
+
+
+class ErrorContext(TypedDict, total=False):
+    """Where a drive error happened: the keyword arguments every DriveError takes."""
+
+    drive: int | None
+    drive_name: str | None
+    register: int | None
+    fault_code: int | None
 
 
 class DriveError(OrbitrigError):

@@ -29,18 +29,30 @@ from __future__ import annotations
 
 import asyncio
 import logging
-from collections.abc import Mapping, Sequence
+from collections.abc import Awaitable, Callable, Mapping, Sequence
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, NoReturn
 from urllib.parse import parse_qs, urlsplit
 
 from drives.errors import (
     DriveExceptionResponse,
     DriveLinkError,
     DriveTimeoutError,
+    ErrorContext,
 )
 from drives.registers import register_name
 from drives.rtu import RtuLine
 from drives.turns import Turns
+
+if TYPE_CHECKING:
+    from pymodbus.client import AsyncModbusTcpClient
+
+# The answer of a request: pymodbus' response PDU (TCP) or RtuAnswer (RTU), both with
+# dev_id, function_code, registers, exception_code and isError(); pymodbus types its
+# responses per function code, so the common shape is not a declared type.
+_Answer = Any
+_Call = Callable[["RtuLine | AsyncModbusTcpClient"], Awaitable[_Answer]]
 
 log = logging.getLogger(__name__)
 
@@ -52,9 +64,9 @@ class LinkAddress:
     """A parsed Modbus URL."""
 
     kind: str  # "tcp" | "rtu"
-    host: str | None = None  # tcp
-    port: int | None = None  # tcp
-    path: str | None = None  # rtu: serial device
+    host: str = ""  # tcp
+    port: int = 0  # tcp
+    path: str = ""  # rtu: serial device
     baud: int = 19200  # rtu
 
 
@@ -104,9 +116,9 @@ class ModbusLink:
         self.address = parse_modbus_url(url)
         self.timeout = float(timeout)
         self.names = dict(names or {})
-        self._client = None
+        self._client: RtuLine | AsyncModbusTcpClient | None = None
         self._lock = Turns()  # a stop's requests go before the others waiting (`urgent`)
-        self._abandoned: asyncio.Future | None = None  # RTU exchange of a cancelled caller
+        self._abandoned: asyncio.Future[_Answer] | None = None  # RTU exchange of a cancelled caller
         self.requests = 0  # answered requests (including exception responses)
         self.failures = 0  # requests without a valid answer
         self.connects = 0  # successful (re)connections
@@ -127,7 +139,7 @@ class ModbusLink:
         async with self._lock:
             self._drop()
 
-    def reserved(self):
+    def reserved(self) -> AbstractContextManager[None]:
         """A context: while open only urgent requests (a stop's) get the link (drives/turns.py)."""
         return self._lock.reserved()
 
@@ -135,10 +147,10 @@ class ModbusLink:
         await self.connect()
         return self
 
-    async def __aexit__(self, *exc) -> None:
+    async def __aexit__(self, *exc: object) -> None:
         await self.close()
 
-    def _new_client(self):
+    def _new_client(self) -> RtuLine | AsyncModbusTcpClient:
         from pymodbus.client import AsyncModbusTcpClient
 
         a = self.address
@@ -219,37 +231,44 @@ class ModbusLink:
             )
         await self._retried(device_id, address, fc, "write", retries, call, urgent)
 
-    async def _retried(self, device_id, address, function_code, what, retries, call, urgent=False):
+    async def _retried(self, device_id: int, address: int, function_code: int, what: str, retries: int,
+                       call: _Call, urgent: bool = False) -> _Answer:
         """`_request`, tried again up to `retries` times after a timeout (each retry logged)."""
-        for attempt in range(retries + 1):
+        attempt = 0
+        while True:
             try:
                 return await self._request(device_id, address, function_code, call, urgent)
             except DriveTimeoutError as err:
                 if attempt >= retries:
                     raise
+                attempt += 1
                 self.retries += 1
                 log.warning(
                     "%s (id %d) %s %s: %s; retry %d of %d",
                     self.names.get(device_id, "drive"), device_id, register_name(address), what,
-                    err.reason, attempt + 1, retries,
+                    err.reason, attempt, retries,
                 )
 
-    def _error_kw(self, device_id: int, address: int) -> dict:
+    def _error_kw(self, device_id: int, address: int) -> ErrorContext:
         return {"drive": device_id, "drive_name": self.names.get(device_id), "register": address}
 
-    def _fail(self, device_id: int, address: int, what: str):
+    def _fail(self, device_id: int, address: int, what: str) -> NoReturn:
         self.failures += 1
         self._drop()
         raise DriveLinkError(f"{what} on {self.url}", **self._error_kw(device_id, address))
 
-    async def _request(self, device_id, address, function_code, call, urgent=False):
+    async def _request(self, device_id: int, address: int, function_code: int, call: _Call,
+                       urgent: bool = False) -> _Answer:
         from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 
         kw = self._error_kw(device_id, address)
         async with self._lock.turn(urgent):
             await self._settle_abandoned()
             await self._ensure_connected_for(device_id, address)
-            exchange = asyncio.ensure_future(asyncio.wait_for(call(self._client), self.timeout + 0.5))
+            client = self._client
+            if client is None:
+                self._fail(device_id, address, "not connected")
+            exchange = asyncio.ensure_future(asyncio.wait_for(call(client), self.timeout + 0.5))
             try:
                 rsp = await asyncio.shield(exchange)
             except asyncio.CancelledError:

@@ -22,6 +22,7 @@ import dataclasses
 import logging
 import math
 import time
+from collections.abc import Sequence
 
 from drives import registers as R
 from drives.drive import Drive, DriveStatus
@@ -79,7 +80,7 @@ class DrivePoll:
     def fit_heartbeat(self) -> None:
         """Lower `link_loss_polls` (and warn) when the drives' watchdog would trip
         before a link loss is declared."""
-        watchdogs = [d.params.comm_loss_timeout for d in self.drives if d.params.comm_loss_timeout]
+        watchdogs = [d.params.comm_loss_timeout for d in self.drives if d.params and d.params.comm_loss_timeout]
         if not watchdogs:
             return
         gap = self.link.timeout + self.poll_interval  # longest silence after a lost request
@@ -101,7 +102,7 @@ class DrivePoll:
             )
             self.link_loss_polls = fit
 
-    def publish(self, statuses, *, link_ok: bool, link_error: str | None = None) -> None:
+    def publish(self, statuses: Sequence[DriveStatus] | None, *, link_ok: bool, link_error: str | None = None) -> None:
         """A new `state` from `statuses` (None: keep the last drive statuses); wakes `tick`."""
         old = self.state
         spin, orbit = statuses if statuses else (old.spin, old.orbit)

@@ -39,6 +39,7 @@ import asyncio
 import contextlib
 import logging
 import time
+from types import TracebackType
 
 from drives import registers as R
 from drives.drive import Drive, DriveStatus, SettleDetector
@@ -108,7 +109,7 @@ class RigDrives:
             self.link, self._drives, poll_interval=self.poll_interval,
             link_loss_polls=int(link_loss_polls), loss_polls_given=loss_polls_given, stops=self._stops,
         )
-        self._poll_task: asyncio.Task | None = None
+        self._poll_task: asyncio.Task[None] | None = None
         self._release = False
         self._emergency = False  # the last stop was an emergency stop: exit repeats it
         self.stop_errors: list[DriveError] = []  # delivery failures of the last stop command
@@ -132,7 +133,8 @@ class RigDrives:
             raise
         return self
 
-    async def __aexit__(self, exc_type, exc, tb) -> None:
+    async def __aexit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                        tb: TracebackType | None) -> None:
         cancelled = False
         try:
             task, self._poll_task = self._poll_task, None
@@ -327,7 +329,7 @@ class RigDrives:
             with contextlib.suppress(asyncio.TimeoutError):
                 await asyncio.wait_for(tick.wait(), remaining)
 
-    def stop_now(self, *, emergency: bool = True) -> asyncio.Task:
+    def stop_now(self, *, emergency: bool = True) -> asyncio.Task[list[DriveError]]:
         """Send the stop to both drives now, ahead of every request waiting for the link, without
         waiting for the caller to unwind (an abort's first act); the task's result: the delivery
         errors. `stop()` afterwards repeats it and waits for standstill."""

@@ -34,6 +34,7 @@ import os
 import struct
 import termios
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 log = logging.getLogger(__name__)
@@ -120,7 +121,7 @@ class _Pending:
     device_id: int
     function_code: int
     request: bytes  # the request PDU after the function code
-    future: asyncio.Future
+    future: asyncio.Future[RtuAnswer]
 
 
 class RtuLine:
@@ -192,7 +193,7 @@ class RtuLine:
     async def write_register(self, address: int, value: int, *, device_id: int) -> RtuAnswer:
         return await self._exchange(device_id, 6, struct.pack(">HH", address, value))
 
-    async def write_registers(self, address: int, values, *, device_id: int) -> RtuAnswer:
+    async def write_registers(self, address: int, values: Sequence[int], *, device_id: int) -> RtuAnswer:
         n = len(values)
         return await self._exchange(
             device_id, 16, struct.pack(f">HHB{n}H", address, n, 2 * n, *values)
@@ -226,6 +227,8 @@ class RtuLine:
             await asyncio.sleep(wait)
 
     def _write(self, adu: bytes) -> None:
+        if self._fd is None:
+            raise ConnectionError(f"{self.path} is not open")
         try:
             n = os.write(self._fd, adu)
         except (BlockingIOError, InterruptedError):
@@ -243,6 +246,8 @@ class RtuLine:
 
     # -- receiving --------------------------------------------------------------
     def _on_readable(self) -> None:
+        if self._fd is None:  # closed while the callback was queued
+            return
         try:
             data = os.read(self._fd, 4096)
         except (BlockingIOError, InterruptedError):
@@ -252,9 +257,8 @@ class RtuLine:
             self._fail_pending(err)
             return
         if not data:  # VMIN = 1: readable with nothing to read is a hang-up
-            err = ConnectionError(f"{self.path} hung up")
             self.close()
-            self._fail_pending(err)
+            self._fail_pending(ConnectionError(f"{self.path} hung up"))
             return
         self._last_activity = max(self._last_activity, time.monotonic())
         self._rx += data
@@ -269,7 +273,7 @@ class RtuLine:
             if start:
                 self.noise_bytes += start
             answer = self._accept(p, adu) if p is not None and not p.future.done() else None
-            if answer is not None:
+            if answer is not None and p is not None:
                 self._dirty = False
                 p.future.set_result(answer)
                 if self._rx:

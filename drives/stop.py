@@ -5,9 +5,14 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+from collections.abc import Awaitable, Callable, Sequence
+from typing import TYPE_CHECKING
 
 from drives import registers as R
 from drives.errors import DriveError, DriveTimeoutError
+
+if TYPE_CHECKING:
+    from drives.drive import Drive
 
 log = logging.getLogger(__name__)
 
@@ -17,23 +22,23 @@ class StopSender:
     asked is cancelled), one after another: a stop asked while one is under way goes out
     once that one has (their words never interleave on the link)."""
 
-    def __init__(self, drives):
+    def __init__(self, drives: Sequence[Drive]):
         self.drives = drives
-        self._last: asyncio.Task | None = None
+        self._last: asyncio.Task[list[DriveError]] | None = None
 
-    def send(self, *, emergency: bool = False) -> asyncio.Task:
+    def send(self, *, emergency: bool = False) -> asyncio.Task[list[DriveError]]:
         """Start a stop now; the task's result: the delivery errors (`send_stop`)."""
         before = self._last
         self._last = asyncio.get_running_loop().create_task(self._after(before, emergency), name="drives-stop")
         return self._last
 
-    async def _after(self, before: asyncio.Task | None, emergency: bool) -> list[DriveError]:
+    async def _after(self, before: asyncio.Task[list[DriveError]] | None, emergency: bool) -> list[DriveError]:
         if before is not None and not before.done():
             await asyncio.wait([before])
         return await send_stop(self.drives, emergency=emergency)
 
 
-async def send_stop(drives, *, emergency: bool = False) -> list[DriveError]:
+async def send_stop(drives: Sequence[Drive], *, emergency: bool = False) -> list[DriveError]:
     """Stop words to every drive (OFF1 ramp stop, or OFF3 emergency stop), then
     zero references so that no later start jumps back to the old speed.
 
@@ -58,7 +63,7 @@ async def send_stop(drives, *, emergency: bool = False) -> list[DriveError]:
     return errors
 
 
-async def _to_each(drives, write) -> list[DriveError]:
+async def _to_each(drives: Sequence[Drive], write: Callable[[Drive, int], Awaitable[None]]) -> list[DriveError]:
     """`write(drive, retries)` to every drive: one try each, then the retries of
     those that timed out. Returns the errors of the drives that missed it."""
     errors: dict[int, DriveError] = {}

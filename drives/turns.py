@@ -26,7 +26,7 @@ class Turns:
     def __init__(self) -> None:
         self._held = False
         self._reserved = 0
-        self._waiting: dict[bool, collections.deque[asyncio.Future]] = {True: collections.deque(),
+        self._waiting: dict[bool, collections.deque[asyncio.Future[None]]] = {True: collections.deque(),
                                                                         False: collections.deque()}
 
     def locked(self) -> bool:

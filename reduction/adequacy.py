@@ -41,7 +41,7 @@ class Adequacy:
     def verdict(self) -> str:
         return f"frequency dependence supported: {'yes' if self.supported else 'no'} (p = {self.p_value:.3g})"
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, object]:
         return {"supported": self.supported, "p_value": self.p_value, "statistic": self.statistic,
                 "test": self.test, "dof": list(self.dof), "alpha": self.alpha,
                 "aic": list(self.aic), "bic": list(self.bic), "verdict": self.verdict}
@@ -58,6 +58,8 @@ def frequency_dependence(constant: Identification, dependent: Identification, al
         raise ReductionError("frequency_dependence needs two fits of one table with one method")
     q = len(dependent.free) - len(constant.free)
     if constant.known_noise:
+        if constant.chi2 is None or dependent.chi2 is None:
+            raise ReductionError("frequency_dependence: a fit with stated noise has no chi2")
         stat = max(constant.chi2 - dependent.chi2, 0.0)
         p = float(stats.chi2.sf(stat, q))
         test, dof = "likelihood ratio", (q, 0)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from reduction.errors import ReductionError
 from reduction.impedance import impedance_columns
 from reduction.models import ModelSpec
 from reduction.table import OrbitTable
@@ -33,9 +34,12 @@ def attenuation_bias(spec: ModelSpec, table: OrbitTable, theta: np.ndarray, scal
     """(p,) first-order bias (SI, column order) of ols (``weights`` None) or wls (weights
     (4n,) the inverse equation variances) from the table's displacement noise u_x, u_y;
     ``unscaled`` is (A_s^T W A_s)^-1 of the column-scaled (by ``scale``) regression."""
+    if table.u is None:
+        raise ReductionError("attenuation_bias needs the table's u_x, u_y (displacement noise)")
+    u = table.u
     w = np.ones((table.n, 2)) if weights is None else np.asarray(weights).reshape(table.n, 2, 2)[:, :, 0]
     p = spec.n_coefficients
-    filling = {}  # Z's entry (i, l) -> the coefficients whose basis fills it
+    filling: dict[tuple[int, int], list[int]] = {}  # Z's entry (i, l) -> the coefficients whose basis fills it
     for j, t in enumerate(spec.terms):
         for i, l in t.entries:
             filling.setdefault((i, l), []).append(j)
@@ -44,10 +48,11 @@ def attenuation_bias(spec: ModelSpec, table: OrbitTable, theta: np.ndarray, scal
         cols = impedance_columns(spec, table.orbit[s: s + ROWS])
         for (i, l), J in filling.items():
             e = cols[:, J]
-            weight = w[s: s + ROWS, i] * table.u[s: s + ROWS, l] ** 2
+            weight = w[s: s + ROWS, i] * u[s: s + ROWS, l] ** 2
             sigma[np.ix_(J, J)] += (np.conj(e).T @ (e * weight[:, None])).real
     sigma_s = sigma / np.outer(scale, scale)
-    return -(unscaled @ (sigma_s @ (theta * scale))) / scale
+    bias: np.ndarray = -(unscaled @ (sigma_s @ (theta * scale))) / scale
+    return bias
 
 
 def attenuation_warning(spec: ModelSpec, method: str, bias: np.ndarray, std: np.ndarray) -> str | None:

@@ -29,7 +29,8 @@ class GainFit:
 
     def relative_gain_u(self) -> np.ndarray:
         """(2,) relative standard uncertainty of each axis' gain, cross term included (1)."""
-        return np.sqrt(np.sum(self.gain_u**2, axis=1)) / np.abs(np.diag(self.gain))
+        rel: np.ndarray = np.sqrt(np.sum(self.gain_u**2, axis=1)) / np.abs(np.diag(self.gain))
+        return rel
 
 
 def fit_gain_matrix(reference: np.ndarray, reading: np.ndarray, reference_u: float) -> GainFit:
@@ -103,7 +104,8 @@ def fit_delay(frequencies: np.ndarray, lag: np.ndarray) -> DelayFit:
 def correct_lag(values: np.ndarray, orbit: np.ndarray, phase: float, delay: float) -> np.ndarray:
     """Phasors of a channel that lags by phase + |Omega| delay (rad, s), brought in step with the
     reference channels; `orbit` (rad/s) broadcast against `values`."""
-    return np.asarray(values) * np.exp(1j * (phase + np.abs(np.asarray(orbit)) * delay))
+    corrected: np.ndarray = np.asarray(values) * np.exp(1j * (phase + np.abs(np.asarray(orbit)) * delay))
+    return corrected
 
 
 @dataclass(frozen=True)

@@ -8,11 +8,12 @@ gamma^2 = |G_xf|^2 / (G_xx G_ff) in [0, 1] (the paper's factor 2 / (2 pi n_d) ca
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from reduction.errors import ReductionError
 
 
-def coherence(x_records, f_records, axis: int = 0) -> np.ndarray:
+def coherence(x_records: ArrayLike, f_records: ArrayLike, axis: int = 0) -> np.ndarray:
     """gamma^2 of input phasors ``x_records`` and output phasors ``f_records`` (complex,
     broadcast together) over the records along ``axis``. NaN where either power is zero."""
     X = np.asarray(x_records, dtype=complex)
@@ -32,7 +33,7 @@ def coherence(x_records, f_records, axis: int = 0) -> np.ndarray:
     return np.clip(g, 0.0, 1.0)
 
 
-def orbit_coherences(x, y, fx, fy, axis: int = 0) -> np.ndarray:
+def orbit_coherences(x: ArrayLike, y: ArrayLike, fx: ArrayLike, fy: ArrayLike, axis: int = 0) -> np.ndarray:
     """The four coherences of an orbit table row, last axis ordered xfx, yfx, xfy, yfy
     (the table's gamma2 columns), from per-record phasors with records along ``axis``."""
     return np.stack([coherence(x, fx, axis), coherence(y, fx, axis),

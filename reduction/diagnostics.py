@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
+from typing import overload
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 
 FIT_KEYS = ("orbit_hz", "fx_amp_err_pct", "fx_phase_err_deg", "fy_amp_err_pct", "fy_phase_err_deg")
 
 
-class FitRows(Sequence):
+class FitRows(Sequence[dict[str, float | None]]):
     """The ``fit`` entries as a sequence of dicts, kept as columns (NaN for None) so that a
     long table's rows become dicts only when they are read."""
 
@@ -20,12 +22,20 @@ class FitRows(Sequence):
     def __len__(self) -> int:
         return int(self.columns["orbit_hz"].shape[0])
 
-    def __getitem__(self, k):
+    @overload
+    def __getitem__(self, k: int) -> dict[str, float | None]: ...
+
+    @overload
+    def __getitem__(self, k: slice) -> list[dict[str, float | None]]: ...
+
+    def __getitem__(self, k: int | slice) -> dict[str, float | None] | list[dict[str, float | None]]:
         if isinstance(k, slice):
             return [self[i] for i in range(*k.indices(len(self)))]
         return {key: _value(col[k]) for key, col in self.columns.items()}
 
-    def __eq__(self, other) -> bool:
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Iterable):
+            return NotImplemented
         return list(self) == list(other)
 
     def json_rows(self, start: int, stop: int) -> str:
@@ -41,7 +51,7 @@ def _value(v: float) -> float | None:
     return float(v) if np.isfinite(v) else None
 
 
-def fit_errors(orbit, fx, fy, fx_rep, fy_rep) -> FitRows:
+def fit_errors(orbit: ArrayLike, fx: ArrayLike, fy: ArrayLike, fx_rep: ArrayLike, fy_rep: ArrayLike) -> FitRows:
     """Per orbit frequency: the spec's ``fit`` entries.
 
     amp_err_pct = 100 (|f_rep| - |f_meas|) / |f_meas|, phase_err_deg = arg(f_rep / f_meas)
@@ -58,7 +68,7 @@ def fit_errors(orbit, fx, fy, fx_rep, fy_rep) -> FitRows:
     return FitRows(cols)
 
 
-def residual_rms(fx, fy, fx_rep, fy_rep) -> float:
+def residual_rms(fx: ArrayLike, fy: ArrayLike, fx_rep: ArrayLike, fy_rep: ArrayLike) -> float:
     """RMS over the 4n real equations (Re/Im of fx, fy) of measured minus reproduced, N."""
-    r = np.concatenate([np.asarray(fx) - fx_rep, np.asarray(fy) - fy_rep])
+    r = np.concatenate([np.asarray(fx) - np.asarray(fx_rep), np.asarray(fy) - np.asarray(fy_rep)])
     return float(np.sqrt(np.mean(r.real**2 + r.imag**2) / 2))

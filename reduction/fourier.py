@@ -13,6 +13,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from reduction.errors import ReductionError
 
@@ -26,7 +27,7 @@ class HarmonicFit(NamedTuple):
     rms_residual: np.ndarray
 
 
-def _aligned(samples, theta, axis: int) -> tuple[np.ndarray, np.ndarray]:
+def _aligned(samples: ArrayLike, theta: ArrayLike, axis: int) -> tuple[np.ndarray, np.ndarray]:
     q = np.asarray(samples, dtype=float)
     th = np.asarray(theta, dtype=float)
     if q.ndim == 0:
@@ -46,7 +47,7 @@ def _aligned(samples, theta, axis: int) -> tuple[np.ndarray, np.ndarray]:
     return np.moveaxis(q, axis, -1), np.moveaxis(th, axis, -1)
 
 
-def harmonic_fit(samples, theta, harmonic: int = 1, axis: int = -1) -> HarmonicFit:
+def harmonic_fit(samples: ArrayLike, theta: ArrayLike, harmonic: int = 1, axis: int = -1) -> HarmonicFit:
     """Fit mean + Re(q_bar e^{i h theta}) to ``samples`` taken at angles ``theta`` (rad).
 
     ``theta`` broadcasts against ``samples`` (e.g. one angle row per channel, shared by
@@ -77,7 +78,7 @@ def harmonic_fit(samples, theta, harmonic: int = 1, axis: int = -1) -> HarmonicF
     return HarmonicFit(mean, a + 1j * b, rms)
 
 
-def phasor(samples, theta, harmonic: int = 1, axis: int = -1) -> np.ndarray:
+def phasor(samples: ArrayLike, theta: ArrayLike, harmonic: int = 1, axis: int = -1) -> np.ndarray:
     """Complex amplitude q_bar of harmonic h at arbitrary known angles (least squares);
     q(theta) = mean + Re(q_bar e^{i h theta}). See :func:`harmonic_fit`."""
     return harmonic_fit(samples, theta, harmonic, axis).phasor

@@ -17,11 +17,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from reduction.design import design_orbits
 from reduction.impedance import impedance, real_rows, regressors
 from reduction.models import ModelSpec
 from reduction.noise import equation_variances
+
+
+#: a frequency list: (ratios, revolutions (one or per ratio), per-revolution noise u (4,) or (k, 4))
+DesignList = tuple[ArrayLike, ArrayLike, ArrayLike]
 
 
 @dataclass(frozen=True)
@@ -34,8 +39,8 @@ class ListShift:
     std: np.ndarray
 
 
-def _projection(small: ModelSpec, rich: ModelSpec, theta_rich, spin: float, radius: float, ratios,
-                revolutions, u_revolution, directions: str) -> np.ndarray:
+def _projection(small: ModelSpec, rich: ModelSpec, theta_rich: ArrayLike, spin: float, radius: float, ratios: ArrayLike,
+                revolutions: ArrayLike, u_revolution: ArrayLike, directions: str) -> np.ndarray:
     """(p_small, p_rich): the small model's WLS estimate per unit of each rich coefficient."""
     r = np.asarray(ratios, dtype=float)
     per = 2 if directions == "both" else 1
@@ -46,11 +51,12 @@ def _projection(small: ModelSpec, rich: ModelSpec, theta_rich, spin: float, radi
     w = 1.0 / var
     A = real_rows(regressors(small, orbit, x, y))
     B = real_rows(regressors(rich, orbit, x, y))
-    return np.linalg.solve(A.T @ (A * w[:, None]), A.T @ (B * w[:, None]))
+    projection: np.ndarray = np.linalg.solve(A.T @ (A * w[:, None]), A.T @ (B * w[:, None]))
+    return projection
 
 
-def list_shift(small: ModelSpec, rich: ModelSpec, theta_rich, cov_rich, spin: float, radius: float,
-               list_a: tuple, list_b: tuple, directions: str = "both") -> ListShift:
+def list_shift(small: ModelSpec, rich: ModelSpec, theta_rich: ArrayLike, cov_rich: ArrayLike, spin: float, radius: float,
+               list_a: DesignList, list_b: DesignList, directions: str = "both") -> ListShift:
     """Expected shift of ``small``'s estimates from list a to list b; a list is (ratios,
     revolutions (one or per ratio), per-revolution noise u (4,) or (k, 4) of x, y (m), fx,
     fy (N)); theta_rich, cov_rich: the richer model's coefficients and covariance (SI)."""

@@ -22,10 +22,14 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import cached_property
+from typing import TypeVar
 
 from reduction.errors import ReductionError
+
+T = TypeVar("T")
 
 ENTRIES = ("xx", "xy", "yx", "yy")
 _INDEX = {"x": 0, "y": 1}
@@ -52,6 +56,12 @@ class FreqDep:
     @property
     def auto(self) -> bool:
         return self.orders is None
+
+    def fixed_orders(self) -> dict[str, tuple[int, ...]]:
+        """The orders per matrix; ReductionError for power:auto (no fixed coefficient list)."""
+        if self.orders is None:
+            raise ReductionError("power:auto has no fixed coefficient list: resolve the exponent first")
+        return self.orders
 
 
 def _int(text: str, spec: str) -> int:
@@ -134,7 +144,7 @@ class ModelSpec:
 
     def orders(self, matrix: str) -> tuple[int, ...]:
         """Fitted orders of ``matrix`` (K without the absorbed orders)."""
-        rs = self.freq_dep.orders[matrix]
+        rs = self.freq_dep.fixed_orders()[matrix]
         return tuple(r for r in rs if not (matrix == "K" and r in self.absorbed))
 
     def keys(self) -> list[str]:
@@ -169,7 +179,7 @@ class ModelSpec:
                 column[coefficient_name(t.matrix, "xy"[i] + "xy"[l], t.order)] = j
         return tuple((k, column[k]) for k in self.keys())
 
-    def expand(self, values) -> dict:
+    def expand(self, values: Iterable[T]) -> dict[str, T]:
         """Free coefficient values (column order) -> {key: value}, symmetric pairs repeated."""
         values = list(values)
         return {k: values[j] for k, j in self._key_columns}
@@ -183,13 +193,12 @@ def model_spec(model: str, freq_dep: str | FreqDep = "none") -> ModelSpec:
     if model not in MODELS:
         raise ReductionError(f"unknown model {model!r}: use one of {', '.join(MODELS)}")
     fd = freq_dep if isinstance(freq_dep, FreqDep) else parse_freq_dep(freq_dep)
-    if fd.auto:
-        raise ReductionError("power:auto has no fixed coefficient list: resolve the exponent first")
+    orders = fd.fixed_orders()  # ReductionError for power:auto
     has_d = "D" in MODELS[model]
-    absorbed = tuple(r for r in fd.orders["K"] if has_d and r - 2 in fd.orders["D"])
+    absorbed = tuple(r for r in orders["K"] if has_d and r - 2 in orders["D"])
     terms = []
     for matrix, symmetric in MODELS[model].items():
-        for r in fd.orders[matrix]:
+        for r in orders[matrix]:
             if matrix == "K" and r in absorbed:
                 continue
             for e in ENTRIES:

@@ -8,9 +8,11 @@ triangular`), so a long table costs passes over its rows and one block of memory
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from reduction.impedance import regression_rows
 from reduction.models import ModelSpec
@@ -33,7 +35,8 @@ class Rank:
     def unscaled_covariance(self) -> np.ndarray:
         """(A_s^T A_s)^-1 of the column-scaled matrix (full rank only)."""
         s = self.singular_values
-        return (self.vt.T / s**2) @ self.vt
+        cov: np.ndarray = (self.vt.T / s**2) @ self.vt
+        return cov
 
     @property
     def deficiency(self) -> int:
@@ -53,7 +56,7 @@ def numerical_rank(A: np.ndarray, rtol: float = RANK_RTOL) -> Rank:
     return _rank_of(triangular(A)[0], A.shape[0], rtol)
 
 
-def design_rank(spec: ModelSpec, orbit, x, y, rtol: float = RANK_RTOL) -> Rank:
+def design_rank(spec: ModelSpec, orbit: ArrayLike, x: np.ndarray, y: np.ndarray, rtol: float = RANK_RTOL) -> Rank:
     """:func:`numerical_rank` of the regression of orbits (orbit rad/s, x, y m), its rows
     built block by block: a long table's design is never whole in memory."""
     orbit = np.asarray(orbit, dtype=float)
@@ -62,7 +65,7 @@ def design_rank(spec: ModelSpec, orbit, x, y, rtol: float = RANK_RTOL) -> Rank:
         return numerical_rank(regression_rows(spec, orbit, x, y), rtol)
     step = CHUNK_ROWS // 4
 
-    def blocks():
+    def blocks() -> Iterator[np.ndarray]:
         for s in range(0, n, step):
             yield regression_rows(spec, orbit[s: s + step], x[s: s + step], y[s: s + step])
 

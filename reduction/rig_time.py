@@ -10,7 +10,10 @@ highest |Omega| at the ramp rate for "both" (once for one direction). Seconds, p
 
 from __future__ import annotations
 
+from typing import overload
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 TRIGGER_REVOLUTIONS = 1  # revolutions spent finding the trigger before a block's first whole one
 
@@ -19,22 +22,31 @@ def _per_direction(directions: str) -> int:
     return 2 if directions == "both" else 1
 
 
-def revolution_time(ratios, spin: float, directions: str = "both") -> np.ndarray:
+def revolution_time(ratios: ArrayLike, spin: float, directions: str = "both") -> np.ndarray:
     """(k,) seconds of one revolution at each ratio, 2 pi / (r omega), summed over its whirl
     directions (two blocks per ratio for "both")."""
     r = np.asarray(ratios, dtype=float)
-    return _per_direction(directions) * 2 * np.pi / (r * spin)
+    t: np.ndarray = _per_direction(directions) * 2 * np.pi / (r * spin)
+    return t
 
 
-def block_time(orbit, revolutions):
+@overload
+def block_time(orbit: float, revolutions: float) -> float: ...
+
+
+@overload
+def block_time(orbit: np.ndarray, revolutions: ArrayLike) -> np.ndarray: ...
+
+
+def block_time(orbit: float | np.ndarray, revolutions: ArrayLike) -> float | np.ndarray:
     """Seconds of one block (or an array of blocks): (revolutions + 1) x 2 pi / |orbit|
     (orbit rad/s, signed or not)."""
     n = np.asarray(revolutions, dtype=float) + TRIGGER_REVOLUTIONS
-    t = n * 2 * np.pi / np.abs(np.asarray(orbit, dtype=float))
+    t: np.ndarray = n * 2 * np.pi / np.abs(np.asarray(orbit, dtype=float))
     return float(t) if np.ndim(t) == 0 else t
 
 
-def list_time(ratios, spin: float, revolutions, directions: str = "both") -> float:
+def list_time(ratios: ArrayLike, spin: float, revolutions: ArrayLike, directions: str = "both") -> float:
     """Seconds averaging the blocks of ``ratios`` (each ratio's ``revolutions``, one count or one
     per ratio, in every direction), trigger revolutions included."""
     r = np.asarray(ratios, dtype=float)
@@ -42,7 +54,7 @@ def list_time(ratios, spin: float, revolutions, directions: str = "both") -> flo
     return float(_per_direction(directions) * np.sum(block_time(r * spin, n)))
 
 
-def point_time(ratios, spin: float, revolutions, directions: str = "both", per_block_s: float = 0.0,
+def point_time(ratios: ArrayLike, spin: float, revolutions: ArrayLike, directions: str = "both", per_block_s: float = 0.0,
                ramp_rate: float | None = None) -> float:
     """Seconds of a point's blocks: :func:`list_time` + blocks x ``per_block_s`` (settle hold,
     store) + the orbit ramps at ``ramp_rate`` (rad/s per s; None: left out)."""

@@ -31,7 +31,8 @@ CHI2_ALPHA = 1e-3  # warn when the chi2 test rejects the stated uncertainties at
 
 def sandwich(P: np.ndarray, variances: np.ndarray) -> np.ndarray:
     """P diag(variances) P^T: the covariance of x = P b for independent b of given variances."""
-    return (P * variances[None, :]) @ P.T
+    cov: np.ndarray = (P * variances[None, :]) @ P.T
+    return cov
 
 
 def sandwich_rows(A: np.ndarray, variances: np.ndarray, bread: np.ndarray, rows: int = 32768) -> np.ndarray:
@@ -42,13 +43,15 @@ def sandwich_rows(A: np.ndarray, variances: np.ndarray, bread: np.ndarray, rows:
     for s in range(0, A.shape[0], rows):
         block = A[s: s + rows]
         meat += (block * variances[s: s + rows, None]).T @ block
-    return bread @ meat @ bread
+    cov: np.ndarray = bread @ meat @ bread
+    return cov
 
 
 def pseudo_inverse(A: np.ndarray) -> np.ndarray:
     """(A^T A)^-1 A^T for A of full column rank (by SVD)."""
     U, s, Vt = np.linalg.svd(A, full_matrices=False)
-    return (Vt.T / s) @ U.T
+    pinv: np.ndarray = (Vt.T / s) @ U.T
+    return pinv
 
 
 class Interval(StrEnum):

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from reduction.errors import ReductionError
 
@@ -17,7 +18,7 @@ GAMMA2_COLUMNS = ("xfx", "yfx", "xfy", "yfy")  # order of OrbitTable.gamma2's la
 U_COLUMNS = ("x", "y", "fx", "fy")  # order of OrbitTable.u's last axis
 
 
-def _complex_1d(name: str, value, n: int | None) -> np.ndarray:
+def _complex_1d(name: str, value: ArrayLike, n: int | None) -> np.ndarray:
     arr = np.asarray(value, dtype=complex)
     if arr.ndim != 1:
         raise ReductionError(f"OrbitTable.{name} must be one-dimensional, got shape {arr.shape}")
@@ -113,15 +114,16 @@ class OrbitTable:
 
     def forward(self) -> np.ndarray:
         """(n,) bool: the row's orbit turns from +x towards +y (Im(conj(x) y) < 0)."""
-        return np.imag(np.conj(self.x) * self.y) < 0
+        fwd: np.ndarray = np.imag(np.conj(self.x) * self.y) < 0
+        return fwd
 
-    def subset(self, rows) -> OrbitTable:
+    def subset(self, rows: np.ndarray | slice) -> OrbitTable:
         """A table of the selected rows (index array or boolean mask)."""
-        def pick(a):
+        def pick(a: np.ndarray | None) -> np.ndarray | None:
             return None if a is None else a[rows]
         return OrbitTable(self.spin, self.orbit[rows], self.x[rows], self.y[rows],
                           self.fx[rows], self.fy[rows], pick(self.gamma2), pick(self.n_records), pick(self.u))
 
-    def with_phasors(self, x, y, fx, fy) -> OrbitTable:
+    def with_phasors(self, x: np.ndarray, y: np.ndarray, fx: np.ndarray, fy: np.ndarray) -> OrbitTable:
         """The same table (frequencies, coherences, uncertainties) with other phasors."""
         return OrbitTable(self.spin, self.orbit, x, y, fx, fy, self.gamma2, self.n_records, self.u)

@@ -2,8 +2,8 @@
 command line, GNU Octave, mount ...) as ``integration``: ``-m "not integration"`` runs
 the in-process rest, ``-m integration`` only these.
 
-A test starts processes if its module's text, or a helper module of its folder that the
-module imports, names one of PROCESS_WORDS; or if it uses a fixture defined in such a
+A test starts processes if its module's text, or a helper module it imports (of its folder
+or of tests/support), names one of PROCESS_WORDS; or if it uses a fixture defined in such a
 helper, or whose source names one or what it imports from such a helper (the broker).
 """
 
@@ -18,7 +18,10 @@ import pytest
 
 PROCESS_WORDS = re.compile(r"\b(subprocess|Popen|create_subprocess_exec|mosquitto|webdriver|chromium|pg_ctl|"
                            r"octave|sys\.executable)\b")
-_IMPORT = re.compile(r"^[ \t]*from[ \t]+(\w+)[ \t]+import[ \t]+(\([^)]*\)|[\w \t,]+)|^[ \t]*import[ \t]+(\w+)", re.MULTILINE)
+# `from support.X import ...` (tests/support), `from .X import ...` (inside tests/support), `from X import ...`
+_IMPORT = re.compile(r"^[ \t]*from[ \t]+(?:support\.|\.)?(\w+)[ \t]+import[ \t]+(\([^)]*\)|[\w \t,]+)"
+                     r"|^[ \t]*import[ \t]+(?:support\.)?(\w+)", re.MULTILINE)
+SUPPORT = Path(__file__).resolve().parent / "support"  # the helpers the tests share
 
 
 @functools.cache
@@ -28,10 +31,11 @@ def _names_a_process(path: Path) -> bool:
 
 @functools.cache
 def _process_names(module: Path) -> frozenset[str]:
-    """The names `module` imports from helper modules of its folder that start processes."""
+    """The names `module` imports from helper modules (its folder's or tests/support's) that start processes."""
     names: set[str] = set()
     for source, imported, plain in _IMPORT.findall(module.read_text(encoding="utf-8")):
-        helper = module.parent / f"{source or plain}.py"
+        name = f"{source or plain}.py"
+        helper = module.parent / name if (module.parent / name).is_file() else SUPPORT / name
         if helper != module and _names_a_process(helper):
             names |= {n.strip() for n in imported.strip("()").split(",") if n.strip()} | {source or plain}
     return frozenset(names)

@@ -16,7 +16,7 @@ from orbitrig.analysis.reduce import Reduced, identify_point
 from reduction.adequacy import Adequacy, frequency_dependence
 from reduction.derived import Derived, derived_quantities
 from reduction.errors import ReductionError
-from reduction.systematic import Calibration, lms_consistency
+from reduction.systematic import Calibration, LmsAgreement, lms_agreement
 
 #: the budget columns a stored identification may carry under "uncertainty" (SI std per key)
 BUDGET_PARTS = ("statistical", "systematic", "combined", "expanded")
@@ -95,13 +95,14 @@ def adequacy_verdicts(lms: str, results: list[Reduced]) -> list[Verdict]:
     return out
 
 
-def lms_normalised_difference(a: Reduced, b: Reduced) -> dict[str, float | None] | None:
+def lms_normalised_difference(a: Reduced, b: Reduced) -> LmsAgreement | None:
     """E_n = (a - b) / u(a - b) of each coefficient of one model identified from two load
-    measuring systems (statistical uncertainties only: the run states no calibration budget
-    the report could use); None when the two fits are not of one model."""
+    measuring systems and their joint chi2 test at the family-wise 5 % level (statistical
+    uncertainties only: the run states no calibration budget the report could use); None
+    when the two fits are not of one model."""
     try:
-        return lms_consistency(a.identification, a.point.tables[a.lms], b.identification, b.point.tables[b.lms],
-                               Calibration(), Calibration())
+        return lms_agreement(a.identification, a.point.tables[a.lms], b.identification, b.point.tables[b.lms],
+                             Calibration(), Calibration())
     except (ReductionError, KeyError):
         return None
 

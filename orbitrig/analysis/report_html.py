@@ -132,9 +132,9 @@ def _point_section(run, pr, out_dir: Path) -> str:
     found = preferred(pr)
     if len(found) == 2:
         a, b = found["piezo"], found["strain"]
-        en = lms_normalised_difference(a, b)
-        if en is not None:
-            h.append(consistency_table(a, b, en, fit_label(a)))
+        agreement = lms_normalised_difference(a, b)
+        if agreement is not None:
+            h.append(consistency_table(a, b, agreement, fit_label(a)))
     h += _pick(pr, out_dir, taken, f"lms_{p.name}", f"orbits_{p.name}")
     h += [_figure(png, out_dir) for png in pr.plots if Path(png).stem not in taken]  # signals, and any other
     return "\n".join(h)
@@ -166,7 +166,6 @@ def _points_table(report) -> str:
 
 def render(report) -> str:
     run = report.run
-    status = run.status if run.status in ("completed", "stopped", "aborted", "failed", "running") else "unknown"
     incomplete = [p.name for p in run.points if not p.complete]
     more = f", {len(incomplete)} incomplete ({', '.join(incomplete)})" if incomplete else ""
     head = [
@@ -174,7 +173,7 @@ def render(report) -> str:
         '<html lang="en"><head><meta charset="utf-8">',
         f"<title>orbitrig run {_e(run.directory.name)}</title><style>{CSS}</style></head><body>",
         f"<h1>orbitrig run <code>{_e(run.directory.name)}</code></h1>",
-        f'<p>Status: <span class="status {status}">{_e(run.status)}</span> {_e(run.status_message)}</p>',
+        f'<p>Status: <span class="status {run.status}">{_e(run.status)}</span> {_e(run.status_message)}</p>',
         "<table>",
         f'<tr><th class="l">matrix</th><td class="l">{_e(run.matrix_name)}</td></tr>',
         f'<tr><th class="l">mode</th><td class="l">{"simulator (--sim)" if run.sim else "rig"}</td></tr>',

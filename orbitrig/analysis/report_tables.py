@@ -22,6 +22,7 @@ from orbitrig.analysis.quality import Verdict, coefficient_rows, has_budget, war
 from orbitrig.analysis.reduce import Reduced, coefficient_unit, fit_true_values
 from orbitrig.store.csvfile import fit_truth
 from reduction.derived import Derived
+from reduction.systematic import LmsAgreement
 
 DERIVED_K = 2.0  # derived quantities are given +- two standard uncertainties
 D_SENTENCE = ("D is an apparent inertia (added mass): it absorbs everything that grows with \u03a9\u00b2, "
@@ -159,23 +160,33 @@ def derived_table(derived: list[tuple[Reduced, Derived]], labels: dict[int, str]
             "the zero crossings).</p>")
 
 
-def consistency_table(a: Reduced, b: Reduced, en: dict[str, float | None], label: str) -> str:
+def consistency_table(a: Reduced, b: Reduced, ag: LmsAgreement, label: str) -> str:
     """The two load measuring systems' coefficients of one model side by side with their
-    relative difference and the normalised difference E_n (|E_n| > 2 marked)."""
-    rows = []
+    relative difference and the normalised difference E_n (marked beyond the family-wise
+    per-coefficient limit), and the joint chi2 verdict at its level (5 %)."""
+    rows, en, mark = [], ag.e_n, ag.e_n_limit()
     for key, va in a.identification.coefficients.items():
         vb = b.identification.coefficients.get(key)
         unit, scale = coefficient_unit(key)
         rel = "-" if vb is None or va == 0 else f"{100 * (vb - va) / abs(va):+.2f}"
         e = en.get(key)
         cell = "-" if e is None else f"{e:+.2f}"
-        cls = ' class="err"' if e is not None and abs(e) > 2 else ""
+        cls = ' class="err"' if e is not None and mark is not None and abs(e) > mark else ""
         rows.append(f'<tr><th class="l">{_e(key)}</th><td class="l">{_e(unit)}</td><td>{fmt(va * scale)}</td>'
                     f"<td>{fmt(None if vb is None else vb * scale)}</td><td>{rel}</td><td{cls}>{cell}</td></tr>")
     head = (f'<tr><th class="l">{_e(label)}</th><th class="l">unit</th><th>{_e(a.lms)}</th><th>{_e(b.lms)}</th>'
             f"<th>({_e(b.lms)} - {_e(a.lms)}) / |{_e(a.lms)}| [%]</th><th>E<sub>n</sub></th></tr>")
     return (f"<h4>Two load measuring systems: consistency</h4><table>{head}{''.join(rows)}</table>"
             f'<p class="muted">E<sub>n</sub> = (a - b) / u(a - b), a = {_e(a.lms)}, b = {_e(b.lms)}, with the '
-            "statistical uncertainties of both fits "
-            "(no calibration budget stored); |E<sub>n</sub>| &gt; 2: the systems disagree beyond their "
-            "uncertainty.</p>")
+            "statistical uncertainties of both fits (no calibration budget stored). "
+            f"{_e(_joint_verdict(ag))}</p>")
+
+
+def _joint_verdict(ag: LmsAgreement) -> str:
+    """The joint test in words, and the per-coefficient limit the marks use."""
+    if ag.chi2 is None or ag.limit is None:
+        return "Not compared jointly: no uncertainty."
+    verdict = "consistent" if ag.consistent else "NOT consistent"
+    return (f"All coefficients at once: {verdict}, chi2 = {ag.chi2:.3g} on {ag.dof} "
+            f"{'<=' if ag.consistent else '>'} {ag.limit:.3g} (false-flag probability {100 * ag.level:g} %); "
+            f"one coefficient alone is marked beyond |E_n| = {ag.e_n_limit():.2f} (Sidak, same level).")

@@ -47,7 +47,7 @@ def run_rows(run: Run, points: list[Point] | None = None) -> list[dict[str, Any]
 def _run_columns(run: Run) -> dict[str, Any]:
     prov = run.provenance
     return {
-        "run_id": run_id(run), "run_path": str(Path(run.directory).resolve()), "run_status": run.status,
+        "run_id": run_id(run), "run_path": str(Path(run.directory).resolve()), "run_status": str(run.status),
         "created": run.created, "matrix_name": run.matrix_name, "sim": run.sim,
         "software_version": run.software_version, "operator": prov.get("operator", ""),
         "rig_id": prov.get("rig_id", ""), "host": prov.get("host", ""),

@@ -125,9 +125,9 @@ def model_check(spec, run, spin: float, lms: str, problem, candidate: tuple, pro
         big = identify(table, model=richer[0], freq_dep=richer[1], method=Method.WLS if table.u is not None else Method.OLS)
         if big.covariance is None:
             return None
-        lists = [(r, n, problem.noise_at(r)) for r, n in (candidate, proposal)]
+        list_a, list_b = ((r, n, problem.noise_at(r)) for r, n in (candidate, proposal))
         sh = list_shift(spec, model_spec(*richer), big.theta, big.covariance, problem.spin, problem.radius,
-                        *lists, problem.directions)
+                        list_a, list_b, problem.directions)
         se = predict(problem, candidate[0]).std_errors
     except ReductionError:
         return None

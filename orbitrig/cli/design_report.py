@@ -21,6 +21,7 @@ from orbitrig.cli.design_inputs import DesignInputError
 from orbitrig.config import RPM, default_rig_path
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
+from rigunits import format_duration
 
 DESIGNS_DIR = "designs"  # next to config/matrices: config/designs/NAME.toml
 _UNITS = {"K": "N/m", "C": "N s/m", "D": "kg"}
@@ -212,11 +213,6 @@ def _model_test(test_models, candidate):
         raise DesignInputError(f"the model test: {err} (or give --no-model-test)") from None
 
 
-def _fmt_time(s: float) -> str:
-    s = int(round(s))
-    return f"{s // 3600}:{s % 3600 // 60:02d}:{s % 60:02d}"
-
-
 def _revolutions_text(lst: dict) -> str:
     n = lst["revolutions"]
     if not isinstance(n, list):
@@ -239,7 +235,7 @@ def print_design(obj: dict) -> None:
     for label, lst in (("candidate", c), ("proposal ", p)):
         worst = "not identifiable" if lst["worst_relative_pct"] is None else f"worst {lst['worst_relative_pct']:.3g} %"
         echo(f"{label}: {len(lst['ratios'])} ratios x {lst['directions']}, {_revolutions_text(lst)}, "
-             f"rig time {_fmt_time(lst['rig_time_s'])}, {worst}: {', '.join(f'{r:g}' for r in lst['ratios'])}")
+             f"rig time {format_duration(lst['rig_time_s'])}, {worst}: {', '.join(f'{r:g}' for r in lst['ratios'])}")
     for w in c["warnings"]:
         echo(f"warning (candidate): {w}")
     for w in obj.get("warnings", []):

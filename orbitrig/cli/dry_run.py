@@ -23,7 +23,8 @@ def print_plan(plan, *, steps: bool = False) -> None:
 
 def _print(plan, steps: bool) -> None:
     from orbitrig.cli.dry_run_predict import prediction_lines
-    from orbitrig.run.plan import format_duration, summarize
+    from orbitrig.run.plan import summarize
+    from rigunits import format_duration
 
     sm = summarize(plan.steps)
     typer.echo(f"matrix {plan.name}: {sm.points} operating points, {sm.blocks} orbit blocks, "
@@ -46,7 +47,8 @@ def _print(plan, steps: bool) -> None:
 
 def order_line(plan, duration: float) -> str:
     """The rig time of the points in the chosen order against the written order (matrix `order`)."""
-    from orbitrig.run.plan import format_duration, make_plan, summarize
+    from orbitrig.run.plan import make_plan, summarize
+    from rigunits import format_duration
 
     written = list(range(len(plan.points)))
     how = plan.matrix.order.value
@@ -60,7 +62,8 @@ def order_line(plan, duration: float) -> str:
 def sequential_lines(plan, duration: float) -> list[str]:
     """The bounds of a sequential matrix: the plan's time with no chosen block and with every
     point at its cap, and each spin's candidate ratios (what the engine may choose from)."""
-    from orbitrig.run.plan import ChooseBlocks, format_duration
+    from orbitrig.run.steps import ChooseBlocks
+    from rigunits import format_duration
 
     chosen = [s for s in plan.steps if isinstance(s, ChooseBlocks)]
     if not chosen:
@@ -78,7 +81,7 @@ def sequential_lines(plan, duration: float) -> list[str]:
 
 def _print_points(plan) -> None:
     """One line per operating point: its start, duration, blocks and settings."""
-    from orbitrig.run.plan import format_duration
+    from rigunits import format_duration
 
     typer.echo(f"point  {'starts at':>9}  {'duration':>8}  blocks  settings  (times h:mm:ss)")
     t = 0.0
@@ -94,7 +97,7 @@ def _print_points(plan) -> None:
 
 
 def _print_steps(steps) -> None:
-    from orbitrig.run.plan import format_duration
+    from rigunits import format_duration
 
     width = len(str(len(steps)))
     typer.echo(f"{'#':>{width}}  {'starts at':>8}  {'where':10}  {'duration':>10}  step  (times h:mm:ss from the start)")

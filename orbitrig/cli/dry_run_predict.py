@@ -60,7 +60,8 @@ def block_revolutions(rig, mat) -> list[int]:
 def adaptive_line(rig, mat) -> str | None:
     """With [averaging]: the acquisition time if every block stopped at the minimum, and at
     the maximum (the plan's durations assume each ratio's expected count, else the maximum)."""
-    from orbitrig.run.plan import acquisition_time, format_duration, operating_points
+    from orbitrig.run.plan import acquisition_time, operating_points
+    from rigunits import format_duration
 
     a = mat.averaging
     if a is None:

@@ -11,7 +11,7 @@ from rich.text import Text
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
-from orbitrig.run.plan import format_duration
+from rigunits import format_duration
 from orbitrig.run.states import RunState
 
 

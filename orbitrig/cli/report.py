@@ -121,10 +121,17 @@ def report_cmd(
         _fail(str(err))
     except StorageError as err:
         _fail(str(err), 1)
+    _summary(directory, report)
+
+
+def _summary(directory: Path, report) -> None:
+    """What `report` made, its warnings on standard error; exit 1 when a point was skipped."""
+    from orbitrig.store.status import RunStatus
+
     run = report.run
     typer.echo(f"run {run.status}: {len(run.complete_points)} complete point(s), "
                f"{len(run.points) - len(run.complete_points)} incomplete")
-    if run.status == "running":  # the store says so until the run ends: also after a crash or kill -9
+    if run.status == RunStatus.RUNNING:  # the store says so until the run ends: also after a crash or kill -9
         typer.echo(f"(still running, or interrupted: `orbitrig sweep --resume {directory}` continues an "
                    "interrupted run; add --sim if it was made on the simulator)")
     for pr in report.points:

@@ -151,7 +151,8 @@ def _print_summary(console: Transcript, complete: list[Point], out: Path) -> Non
         console.print("K / C error: worst over all fits; " + TRUE_NOTE, markup=False)
         console.print(Z_NOTE + "; of the fit that reproduces Z best", markup=False)
     console.print("freq. dep. = frequency dependence supported by the data (per frequency-dependent fit); "
-                  "LMS |E_n| = worst normalised piezo - strain difference (<= 2: consistent); "
+                  "LMS |E_n| = worst normalised piezo - strain difference (the per-point verdict tests all "
+                  "coefficients at once: chi2 at the 5 % level); "
                   "n.d. = coefficients not determined (U > |value|), over all fits", markup=False)
     if lines := rejected_lines(complete):
         console.print(REJECTED_COUNT_NOTE, markup=False)

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import asyncio
 import time
-from typing import Awaitable, Callable
+from typing import Awaitable, Callable, TypeVar
 
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.events import RunFailed
@@ -30,6 +30,8 @@ from orbitrig.run.states import FAULTED, IDLE, RUNNING, STOPPING, WAITING, next_
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.interlocks import SUSPEND, Trip
 from rigunits import now_iso
+
+T = TypeVar("T")
 
 
 class StopRun(Exception):
@@ -218,7 +220,7 @@ class RunControl:
         self._add_time("suspended", t0)
         self.fire("clear", f"interlock cleared ({trip.kind}): settling and acquiring the block again")
 
-    async def guarded(self, aw: Awaitable, sup: InterlockSupervisor):
+    async def guarded(self, aw: Awaitable[T], sup: InterlockSupervisor) -> T:
         """Await `aw`; Suspended (and `aw` cancelled) if an interlock suspends the run meanwhile."""
         task = asyncio.ensure_future(aw)
         trip = asyncio.ensure_future(sup.tripped.wait())

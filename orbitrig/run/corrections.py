@@ -47,15 +47,14 @@ class Corrections:
         gains = {p: g.gain for p, g in rec.probes.items()}
         return cls({lms: rec.force_gain(lms) for lms in LMS if lms in rec.loads}, runout, lags, gains)
 
-    def forces(self, lms: str, fx: np.ndarray, fy: np.ndarray, orbit) -> tuple[np.ndarray, np.ndarray]:
+    def forces(self, lms: str, fx: np.ndarray, fy: np.ndarray, orbit: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         """(fx, fy) of system ``lms`` corrected: each channel's lag at |orbit| (rad/s, broadcast
         against the phasors) taken out, then the gain matrix."""
-        out = []
-        for axis, f in (("fx", fx), ("fy", fy)):
-            lag = self.lags.get(f"{axis}_{lms}")
-            out.append(f if lag is None else correct_lag(f, orbit, *lag))
+        lag_x, lag_y = self.lags.get(f"fx_{lms}"), self.lags.get(f"fy_{lms}")
+        fx = fx if lag_x is None else correct_lag(fx, np.asarray(orbit), *lag_x)
+        fy = fy if lag_y is None else correct_lag(fy, np.asarray(orbit), *lag_y)
         gain = self.force_gains.get(lms)
-        return tuple(out) if gain is None else correct_forces(gain, *out)
+        return (fx, fy) if gain is None else correct_forces(gain, fx, fy)
 
     def probe_records(self, rec: BlockRecord, ch: dict[str, int], spin: float) -> np.ndarray:
         """(N, C) the block's per-revolution phasors, the probes' runout taken out and their

@@ -36,14 +36,17 @@ from orbitrig.run.events import (  # noqa: F401 - the engine's public names
 from orbitrig.run.interlocks import Trip
 from orbitrig.run.log_rows import can_row, drive_row
 from orbitrig.run.modbus_log import pymodbus_into
-from orbitrig.run.plan import Acquire, ChooseBlocks, Plan, make_plan
+from orbitrig.run.plan import Plan, make_plan
+from orbitrig.run.steps import Acquire, ChooseBlocks
 from orbitrig.run.procedure import PointProcedure, RunParts
 from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.provenance import Provenance, RunCommand
 from orbitrig.run.requests import OperatorRequests
 from orbitrig.run.rig_io import RigAccess, RigIO, Scenario
 from orbitrig.run.safe_stop import stop_drives
-from orbitrig.run.states import ABORTED, COMPLETED, FAILED, FAULTED, IDLE, STOPPED, STOPPING, ConfirmMode
+from orbitrig.run.states import (
+    ABORTED, COMPLETED, FAILED, FAULTED, IDLE, STOPPED, STOPPING, ConfirmMode, Outcome, stored_status,
+)
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.store.estimate import plan_bytes, point_bytes
 from orbitrig.store.writer import RunStore, StorageError, StorageFullError
@@ -69,7 +72,7 @@ class RunEngine(OperatorRequests):
         self._control = RunControl(self._state_changed, self._log_event)
         self._store: RunStore | None = None
         self._io: RigIO | None = None
-        self._body: asyncio.Task | None = None
+        self._body: asyncio.Task[Outcome] | None = None
         self._failure: Trip | None = None
         self._t0 = time.monotonic()
         self._progress = ProgressMeter(self._emit, self.access.time_scale)
@@ -174,7 +177,7 @@ class RunEngine(OperatorRequests):
             return f"not enough free disk space: {err}"
         return None
 
-    async def _operate(self, io: RigIO, plan: Plan, done: set[int]) -> tuple[str, str]:
+    async def _operate(self, io: RigIO, plan: Plan, done: set[int]) -> tuple[Outcome, str]:
         """Open the rig and execute the plan: (status, message)."""
         try:
             try:
@@ -205,7 +208,7 @@ class RunEngine(OperatorRequests):
             log.exception("run failed")
             return FAILED, f"{type(err).__name__}: {err}"
 
-    async def _watched(self, body, supervisor: InterlockSupervisor) -> str:
+    async def _watched(self, body, supervisor: InterlockSupervisor) -> Outcome:
         """Run `body` beside the interlock supervisor and the log monitor."""
         supervisor.sample()
         helpers = [asyncio.create_task(supervisor.watch(), name="interlocks"),
@@ -246,7 +249,7 @@ class RunEngine(OperatorRequests):
         if self._body is not None and not self._body.done():
             self._body.cancel()
 
-    async def _execute(self, plan: Plan, done: set[int], procedure: PointProcedure) -> str:
+    async def _execute(self, plan: Plan, done: set[int], procedure: PointProcedure) -> Outcome:
         control, first = self._control, True
         try:
             for p in plan.points:
@@ -266,7 +269,7 @@ class RunEngine(OperatorRequests):
         return STOPPED if control.stop_requested else COMPLETED
 
     # ------------------------------------------------------- the one finally
-    async def _make_safe(self, io: RigIO, store: RunStore, status: str, message: str) -> tuple[str, str]:
+    async def _make_safe(self, io: RigIO, store: RunStore, status: Outcome, message: str) -> tuple[Outcome, str]:
         """Every exit path: drives to a safe stop first, then the links, then storage; each
         failure logged, the rest still done. A failure is reported (state faulted) once the
         drives are safe. Returns the final (status, message): aborted after an abort while
@@ -302,11 +305,11 @@ class RunEngine(OperatorRequests):
         _, line = await stop_drives(drives, self._control.aborted, emergency=emergency, timeout=timeout)
         self._log_event(line)
 
-    def _record_end(self, store: RunStore, status: str, message: str) -> tuple[str, str]:
+    def _record_end(self, store: RunStore, status: Outcome, message: str) -> tuple[Outcome, str]:
         """The run's status, run.h5, coefficients.csv and run.log's last line. A run whose
         status or run.h5 cannot be written ends failed, whatever it was (the reason said)."""
         try:
-            store.set_status(status, message)
+            store.set_status(stored_status(status), message)
         except Exception as err:  # noqa: BLE001 - the other records are still written
             self._cleanup_failed("write the run status and run.h5", err)
             if status != FAILED:  # a failed run keeps its first cause

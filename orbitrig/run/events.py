@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.states import Outcome
@@ -32,7 +32,7 @@ class ProgressEvent:
 @dataclass(frozen=True)
 class ResultEvent:
     run_id: str | None
-    payload: dict
+    payload: dict[str, Any]
 
 
 Event = StatusEvent | ProgressEvent | ResultEvent

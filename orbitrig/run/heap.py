@@ -30,7 +30,7 @@ MMAP_THRESHOLD = 256 * 1024  # bytes: larger blocks are mapped, and unmapped whe
 _M_MMAP_THRESHOLD, _M_ARENA_MAX = -3, -8  # mallopt parameters (malloc.h)
 
 
-def _glibc():
+def _glibc() -> ctypes.CDLL | None:
     """The C library when it is glibc with mallopt and malloc_trim, else None."""
     if not sys.platform.startswith("linux"):
         return None

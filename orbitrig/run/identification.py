@@ -15,7 +15,7 @@ import numpy as np
 
 from orbitrig.config import LMS, CalibrationUncertainty, RigConfig
 from orbitrig.run.corrections import Corrections
-from orbitrig.run.plan import Block
+from orbitrig.run.steps import Block
 from orbitrig.run.point_analysis import analyse_point
 from daq.averager import AveragedBlock
 from orbitrig.run.model_truth import model_truth

@@ -9,7 +9,7 @@ from drives.drive import DriveStatus
 from drives.state import RigDriveState
 
 
-def can_row(t: float, aux: AuxState) -> tuple:
+def can_row(t: float, aux: AuxState) -> tuple[float, ...]:
     """t (s since the run started), temperatures, flow, pressures (SI), flags as 0/1."""
     pr = [float(v) for v in aux.p_recess][:4]
     pr += [math.nan] * (4 - len(pr))
@@ -23,7 +23,7 @@ def _drive_values(d: DriveStatus | None) -> list[float]:
     return [float(d.reference), float(d.actual), float(d.status_word), float(d.fault_code), float(d.torque)]
 
 
-def drive_row(t: float, st: RigDriveState) -> tuple:
+def drive_row(t: float, st: RigDriveState) -> tuple[float, ...]:
     """t, reference and actual speeds (rad/s), status words, fault codes, torques of spin and orbit."""
     s, o = _drive_values(st.spin), _drive_values(st.orbit)
     return (t, s[0], s[1], o[0], o[1], s[2], o[2], s[3], o[3], s[4], o[4])

@@ -13,6 +13,7 @@ Pure (no I/O); stored under the fit's JSON key ``truth`` ({"coefficients", "defi
 
 from __future__ import annotations
 
+from typing import Any
 import numpy as np
 
 from reduction.errors import ReductionError
@@ -24,7 +25,7 @@ DEFINITION = ("the fit's model (constraints, frequency dependence, method, weigh
               "point's orbit table with noise-free forces -Z_true d at the table's displacements")
 
 
-def model_truth(ident: Identification, table: OrbitTable, z_true: np.ndarray) -> dict:
+def model_truth(ident: Identification, table: OrbitTable, z_true: np.ndarray) -> dict[str, Any]:
     """{"coefficients": {key: SI value}, "definition"} of fit ``ident`` (made from ``table``)
     against the true impedance ``z_true`` (n, 2, 2) complex at the table's rows (same order);
     {"error": reason} when the noise-free fit cannot be made."""

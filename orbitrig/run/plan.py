@@ -28,11 +28,11 @@ from dataclasses import dataclass
 
 from orbitrig.config import MPA, RPM, MatrixConfig, PointOrder, RigConfig, check_matrix_against_rig
 from orbitrig.errors import ConfigError
-from orbitrig.run.plan_summary import PlanSummary, format_duration, summarize  # noqa: F401 - re-exported (their old home)
+from orbitrig.run.plan_summary import PlanSummary as PlanSummary, summarize as summarize  # their old home
 from orbitrig.run.point_order import fastest_order, manual_change_s
-from orbitrig.run.sequential_rule import sequential_rule
-from orbitrig.run.steps import (  # noqa: F401 - the step kinds, re-exported (their old home)
-    DIR_TAG, STEP_KINDS, TWO_PI, Acquire, AdaptiveTarget, Block, ChooseBlocks, CompletePoint, Identify, SetManual,
+from orbitrig.run.sequential_rule import SequentialRule, sequential_rule
+from orbitrig.run.steps import (
+    TWO_PI, Acquire, AdaptiveTarget, Block, ChooseBlocks, CompletePoint, Identify, SetManual,
     SetOrbit, SetSpin, Settle, Step, StopDrives, StoreBlock, VerifyGeometry, VerifyPressures,
 )
 from reduction.rig_time import block_time
@@ -66,7 +66,7 @@ class OperatingPoint:
     def manual(self) -> tuple[float, float, float, float]:
         return (self.orbit_radius, self.static_eccentricity, self.recess_pressure, self.pressure_ratio)
 
-    def settings(self) -> dict:
+    def settings(self) -> dict[str, float | str]:
         """Settings at the edges' units (for CSV, MQTT results, reports)."""
         return {
             "point": self.index,
@@ -158,7 +158,10 @@ def block_acquire(matrix: MatrixConfig, rig: RigConfig, point: int, b: Block, ho
         n = expected or matrix.revolutions or rig.averaging.revolutions
         return Acquire(point, acquisition_time(b.orbit, n), b, n, hold)
     target = matrix.orbit.target_pct_at(b.freq)
-    rule = AdaptiveTarget(a.target_pct if target is None else target, a.min_revolutions, a.max_revolutions, expected)
+    pct = a.target_pct if target is None else target
+    if pct is None:  # the matrix's validation requires one of the two
+        raise ConfigError(matrix.file, [f"[averaging] target_pct or [orbit] target_pct: none for ratio {b.freq}"])
+    rule = AdaptiveTarget(pct, a.min_revolutions, a.max_revolutions, expected)
     return Acquire(point, acquisition_time(b.orbit, expected or a.max_revolutions), b, a.max_revolutions, hold, rule)
 
 
@@ -197,7 +200,7 @@ def _steps(matrix: MatrixConfig, rig: RigConfig, points: list[OperatingPoint]) -
     return steps
 
 
-def _choose_blocks(rule, hold: float, p: OperatingPoint, steps: list[Step]) -> ChooseBlocks:
+def _choose_blocks(rule: SequentialRule, hold: float, p: OperatingPoint, steps: list[Step]) -> ChooseBlocks:
     """A sequential point's chosen blocks: at most the cap less the initial blocks' estimate."""
     initial = sum(s.duration for s in steps if s.point == p.index and isinstance(s, (Settle, Acquire, StoreBlock)))
     most = max(0.0, rule.cap_s - initial)

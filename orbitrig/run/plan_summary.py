@@ -1,12 +1,14 @@
 """A plan's totals for the dry run and the bench: points, blocks, estimated physical time per
-kind of step (`Step.word`), and durations as h:mm:ss."""
+kind of step (`Step.word`); rigunits.format_duration prints them."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
-from rigunits import format_duration  # noqa: F401 - the plan's readers print its durations
+if TYPE_CHECKING:
+    from orbitrig.run.steps import Step
 
 
 @dataclass
@@ -17,7 +19,7 @@ class PlanSummary:
     by_kind: dict[str, float] = field(default_factory=dict)
 
 
-def summarize(steps: Sequence) -> PlanSummary:
+def summarize(steps: Sequence[Step]) -> PlanSummary:
     """Points, blocks and estimated time, with the time per kind of step (`Step.word`)."""
     by_kind: dict[str, float] = {}
     for s in steps:

@@ -9,8 +9,11 @@ object of `identify --json`) under its own key:
   rig's stated calibration uncertainty (absent when the rig states none);
 - ``adequacy`` (frequency-dependent fits only): reduction.adequacy.frequency_dependence
   against the constant fit of the same model and method, plus "constant" (its spec);
-- ``lms_consistency``: {"e_n": {key: E_n}, "max_abs", "consistent", "basis"}, the
-  normalised difference piezo - strain of the same model (reduction.systematic.lms_consistency);
+- ``lms_consistency``: {"e_n": {key: E_n}, "max_abs", "consistent", "test": "chi2", "chi2",
+  "dof", "level", "limit", "p_value", "basis", "pair"}: the normalised difference piezo - strain
+  of the same model per coefficient, and ``consistent`` judged for all coefficients at once
+  (chi2 <= limit, the chi2(dof) quantile at the family-wise false-flag level, 5 %;
+  reduction.systematic.lms_agreement);
 - ``expanded_uncertainty``: {"k": 2, "basis": "combined" | "statistical", "values": {key: U}},
   the expanded uncertainty of every coefficient: k times the combined standard uncertainty
   (statistical and calibration), or k times the statistical one when the rig states no
@@ -33,13 +36,11 @@ from reduction.errors import ReductionError
 from reduction.identify import identify
 from reduction.result import Identification
 from reduction.statistics import not_determined
-from reduction.systematic import Budget, Calibration, ChannelCalibration, lms_consistency, uncertainty_budget
+from reduction.systematic import Budget, Calibration, ChannelCalibration, lms_agreement, uncertainty_budget
 from reduction.table import OrbitTable
 
 #: coverage factor of the expanded uncertainty U (as the budget's)
 K_EXPANDED = 2.0
-#: |E_n| up to this value: the two load measuring systems agree (k = 2)
-CONSISTENT_EN = 2.0
 _FAILURES = (ReductionError, np.linalg.LinAlgError, ValueError, ZeroDivisionError)
 
 
@@ -134,9 +135,7 @@ def _adequacy(ident: Identification, table: OrbitTable, fits: dict, lms: str, sp
 def _consistency(a: Identification, ta: OrbitTable, b: Identification, tb: OrbitTable, cal) -> dict:
     none = Calibration()
     ca, cb = (cal[LMS[0]], cal[LMS[1]]) if cal is not None else (none, none)
-    en = lms_consistency(a, ta, b, tb, ca, cb)
-    values = [abs(v) for v in en.values() if v is not None]
-    worst = max(values) if values else None
-    return {"e_n": en, "max_abs": worst, "consistent": worst is not None and worst <= CONSISTENT_EN,
-            "basis": "combined" if cal is not None else "statistical", "limit": CONSISTENT_EN,
-            "pair": f"{LMS[0]} - {LMS[1]}"}
+    ag = lms_agreement(a, ta, b, tb, ca, cb)
+    return {"e_n": ag.e_n, "max_abs": ag.max_abs, "consistent": ag.consistent, "test": "chi2", "chi2": ag.chi2,
+            "dof": ag.dof, "level": ag.level, "limit": ag.limit, "p_value": ag.p_value,
+            "basis": "combined" if cal is not None else "statistical", "pair": f"{LMS[0]} - {LMS[1]}"}

@@ -13,13 +13,17 @@ the written order is kept when the heuristic does not beat it. A matrix with
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from orbitrig.config import RigConfig
 
+if TYPE_CHECKING:
+    from orbitrig.run.plan import OperatingPoint
 
-def manual_change_s(rig: RigConfig, before, after) -> float:
+
+def manual_change_s(rig: RigConfig, before: OperatingPoint | None, after: OperatingPoint) -> float:
     """Seconds of the manual settings going from point ``before`` (None: nothing set yet) to
     ``after`` (OperatingPoint.manual tuples are compared)."""
     if before is None:
@@ -28,24 +32,25 @@ def manual_change_s(rig: RigConfig, before, after) -> float:
     return float(sum(t for t, a, b in zip(per, before.manual, after.manual) if a != b))
 
 
-def _costs(rig: RigConfig, points: Sequence) -> np.ndarray:
+def _costs(rig: RigConfig, points: Sequence[OperatingPoint]) -> np.ndarray:
     """(n, n) seconds from point i to point j: manual changes + the spin ramp."""
     per = np.array(rig.changeover.of() if rig.changeover is not None else (rig.estimates.manual_setting_s,) * 4)
     manual = np.array([p.manual for p in points], dtype=float).reshape(len(points), 4)
     spin = np.array([p.spin for p in points], dtype=float)
     changed = manual[:, None, :] != manual[None, :, :]
-    return changed.astype(float) @ per + np.abs(spin[:, None] - spin[None, :]) / rig.ramp_rate
+    costs: np.ndarray = changed.astype(float) @ per + np.abs(spin[:, None] - spin[None, :]) / rig.ramp_rate
+    return costs
 
 
-def changeover_s(rig: RigConfig, points: Sequence, order: Sequence[int]) -> float:
+def changeover_s(rig: RigConfig, points: Sequence[OperatingPoint], order: Sequence[int]) -> float:
     """Total seconds of manual settings and spin ramps between points, visited in ``order``
     (indices into ``points``), the first point's set-up included."""
     if not order:
         return 0.0
     c = _costs(rig, points)
     first = points[order[0]]
-    return manual_change_s(rig, None, first) + first.spin / rig.ramp_rate + float(
-        sum(c[a, b] for a, b in zip(order[:-1], order[1:])))
+    return float(manual_change_s(rig, None, first) + first.spin / rig.ramp_rate
+                 + sum(c[a, b] for a, b in zip(order[:-1], order[1:])))
 
 
 def _path(c: np.ndarray, order: list[int]) -> float:
@@ -81,7 +86,7 @@ def _two_opt(c: np.ndarray, order: list[int]) -> list[int]:
     return order
 
 
-def fastest_order(rig: RigConfig, points: Sequence) -> list[int]:
+def fastest_order(rig: RigConfig, points: Sequence[OperatingPoint]) -> list[int]:
     """Indices into ``points`` (written order) in the order that spends the least changeover
     time by the heuristic of the module doc; the written order when it is as fast."""
     n = len(points)

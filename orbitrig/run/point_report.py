@@ -4,6 +4,8 @@ uncertainty budget, the model-adequacy verdicts and the two systems' consistency
 
 from __future__ import annotations
 
+from typing import Any
+
 from orbitrig.run.plan import OperatingPoint
 from orbitrig.store.layout import coefficient_si_unit
 from orbitrig.store.records import PointResults
@@ -21,7 +23,7 @@ def point_log_lines(p: OperatingPoint, res: PointResults) -> list[str]:
     return [f"point {p.index:04d}: {line}" for line in judgement_lines(fits)]
 
 
-def judgement_lines(fits: list[tuple[str, str, dict | None, str | None]], *, verdicts: bool = True,
+def judgement_lines(fits: list[tuple[str, str, dict[str, Any] | None, str | None]], *, verdicts: bool = True,
                     brief: bool = False, warnings: bool = True) -> list[str]:
     """Lines of (lms, "model freq_dep method", stored JSON or None, refusal or None) fits: refusals
     (``brief``: their first line; else every line joined by ' | '), (``warnings``) warnings, parts
@@ -45,7 +47,7 @@ def judgement_lines(fits: list[tuple[str, str, dict | None, str | None]], *, ver
     return lines
 
 
-def adequacy_text(a: dict) -> str:
+def adequacy_text(a: dict[str, Any]) -> str:
     """'frequency dependence supported: no (p = 0.94); AIC 812 / 815, BIC 840 / 858 (constant / this)'."""
     if "error" in a:
         return f"frequency dependence not tested: {a['error']}"
@@ -54,18 +56,23 @@ def adequacy_text(a: dict) -> str:
             f"BIC {bic[0]:.6g} / {bic[1]:.6g} (constant / this)")
 
 
-def consistency_text(c: dict) -> str:
-    """'load measuring systems piezo - strain: max |E_n| = 1.3 (consistent within k = 2, combined)'."""
+def consistency_text(c: dict[str, Any]) -> str:
+    """'load measuring systems piezo - strain: consistent (chi2 = 9.1 on 12 coefficients <= 21
+    at the 5 % level, combined uncertainty); max |E_n| = 1.3'."""
     if "error" in c:
         return f"load measuring systems not compared: {c['error']}"
     if c["max_abs"] is None:
         return "load measuring systems not compared: no uncertainty"
     verdict = "consistent" if c["consistent"] else "NOT consistent"
-    return (f"load measuring systems {c['pair']}: max |E_n| = {c['max_abs']:.3g} "
-            f"({verdict} within |E_n| <= {c['limit']:g}, {c['basis']} uncertainty)")
+    if c.get("chi2") is None:  # a run stored before the joint test: |E_n| per coefficient
+        return (f"load measuring systems {c['pair']}: max |E_n| = {c['max_abs']:.3g} "
+                f"({verdict} within |E_n| <= {c['limit']:g}, {c['basis']} uncertainty)")
+    return (f"load measuring systems {c['pair']}: {verdict} (chi2 = {c['chi2']:.3g} on {c['dof']} coefficients "
+            f"{'<=' if c['consistent'] else '>'} {c['limit']:.3g} at the {100 * c['level']:g} % level, "
+            f"{c['basis']} uncertainty); max |E_n| = {c['max_abs']:.3g}")
 
 
-def _row(lms: str, e: dict) -> dict:
+def _row(lms: str, e: dict[str, Any]) -> dict[str, Any]:
     spec = e["spec"]
     row = {"lms": lms, "model": spec.model, "freq_dep": spec.freq_dep, "method": spec.method}
     if "error" in e:
@@ -83,14 +90,15 @@ def _row(lms: str, e: dict) -> dict:
     return row
 
 
-def result_payload(run_id: str | None, p: OperatingPoint, res: PointResults) -> dict:
+def result_payload(run_id: str | None, p: OperatingPoint, res: PointResults) -> dict[str, Any]:
     """The point's results as published (MQTT result topic): settings, one row per fit (its
     coefficients, std_errors, confidence_95, warnings, notes, uncertainty budget, expanded
     uncertainty, not_determined, its own truth in --sim runs, adequacy, LMS consistency, or the
     refusal), and per point the adequacy verdicts, every warning, the refused fits and (--sim)
     the constant best fit of the true Z."""
     rows = [_row(lms, e) for (lms, _), e in res.identifications.items()]
-    out = {"run_id": run_id, **p.settings(), "identification": rows, "lms_comparison": res.lms_comparison}
+    out: dict[str, Any] = {"run_id": run_id, **p.settings(), "identification": rows,
+                           "lms_comparison": res.lms_comparison}
     out["adequacy"] = [{"lms": r["lms"], "model": r["model"], "freq_dep": r["freq_dep"], "method": r["method"],
                         **({"verdict": r["adequacy"]["verdict"], "supported": r["adequacy"]["supported"],
                             "p_value": r["adequacy"]["p_value"]} if "verdict" in r["adequacy"] else r["adequacy"])}

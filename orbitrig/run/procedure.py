@@ -27,9 +27,10 @@ from orbitrig.run.events import ResultEvent, RunFailed
 from orbitrig.run.heap import trim_heap
 from orbitrig.run.identification import block_record, identify_operating_point, point_truth
 from orbitrig.run.point_report import point_log_lines, result_payload
-from orbitrig.run.plan import (
-    Acquire, ChooseBlocks, CompletePoint, Identify, OperatingPoint, SetManual, SetOrbit, SetSpin, Settle, Step,
-    StopDrives, StoreBlock, VerifyGeometry, VerifyPressures,
+from orbitrig.run.plan import OperatingPoint
+from orbitrig.run.steps import (
+    Acquire, ChooseBlocks, CompletePoint, Identify, SetManual, SetOrbit, SetSpin, Settle, Step, StopDrives, StoreBlock,
+    VerifyGeometry, VerifyPressures,
 )
 from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.rig_io import RigAccess, RigIO

@@ -11,6 +11,7 @@ resume, stop, abort) is logged with who sent it and when (`command_line`, `RunSt
 
 from __future__ import annotations
 
+from typing import Any
 import socket
 from dataclasses import asdict, dataclass, field
 from enum import StrEnum
@@ -55,7 +56,7 @@ class Provenance:
                    calibration_record_sha256=digest(rig.record_text) if rig.record_text else "",
                    host=socket.gethostname(), started=now_iso())
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
     def summary(self) -> str:

@@ -12,6 +12,7 @@ from drives.errors import DriveError
 from orbitrig.config import RigConfig
 from orbitrig.run.control import RunControl
 from orbitrig.run.provenance import UNNAMED, RunCommand
+from orbitrig.run.states import Outcome
 from orbitrig.store.writer import RunStore
 
 if TYPE_CHECKING:
@@ -25,7 +26,7 @@ class OperatorRequests:
     rig: RigConfig
     console_user: str | None
     _control: RunControl
-    _body: asyncio.Task | None
+    _body: asyncio.Task[Outcome] | None
     _store: RunStore | None
     _io: RigIO | None
     _log_event: Callable[..., None]
@@ -58,7 +59,7 @@ class OperatorRequests:
         t0 = time.monotonic()
         sending.add_done_callback(lambda task: self._stopped_now(task, t0, by))
 
-    def _stop_drives_now(self) -> asyncio.Task | None:
+    def _stop_drives_now(self) -> asyncio.Task[list[DriveError]] | None:
         drives = self._io.drives if self._io is not None else None
         if drives is None:
             return None  # the rig is not open: nothing moves
@@ -67,7 +68,7 @@ class OperatorRequests:
         except DriveError:
             return None  # closed already: the cleanup has stopped them
 
-    def _stopped_now(self, task: asyncio.Task, t0: float, by: str | None) -> None:
+    def _stopped_now(self, task: asyncio.Task[list[DriveError]], t0: float, by: str | None) -> None:
         errors = "cancelled" if task.cancelled() else task.exception() or task.result()
         self._log_event(f"drives: emergency stop (OFF3) sent on the abort in {(time.monotonic() - t0) * 1e3:.0f} ms"
                         + (f"; not delivered: {errors}" if errors else ""))

@@ -18,12 +18,13 @@ from __future__ import annotations
 
 import contextlib
 from dataclasses import dataclass, field
-from typing import Callable, Protocol
+from typing import Any, Callable, Protocol
 
 import numpy as np
 from daq.adc import AdcReader
 from daq.averager import AveragedBlock, AveragingRule
 from daq.aux import AuxSensors
+from daq.errors import DaqError
 from daq.revolutions import Revolution
 from drives.rig import RigDrives
 from orbitrig.config import RigConfig
@@ -79,7 +80,7 @@ class TruthSource(Protocol):
         Z = K + i|Omega| C - Omega^2 D for a bearing that has constant coefficients."""
         ...
 
-    def reference_fits(self, spin: float, orbits: np.ndarray) -> dict:
+    def reference_fits(self, spin: float, orbits: np.ndarray) -> dict[str, dict[str, Any]]:
         """Best fits of the true Z over `orbits`: {"constant": {"K", "C", "D"}, "power":
         {"K0", "Km", "C0", "Cn", "D0", "Dp", "exponents"}} (the paper's Eq. 15), 2x2 each."""
         ...
@@ -140,7 +141,7 @@ class RigIO:
             raise
         return self
 
-    async def __aexit__(self, *exc) -> None:
+    async def __aexit__(self, *exc: object) -> None:
         await self._stack.aclose()
 
     def _revolution(self, rev: Revolution) -> None:
@@ -149,4 +150,6 @@ class RigIO:
 
     async def acquire(self, rule: AveragingRule | int, *, timeout: float) -> AveragedBlock:
         """Average good revolutions by `rule` (wall `timeout` s); the block carries their raw counts."""
+        if self.adc is None:
+            raise DaqError("the A/D board is not open: acquire inside `async with RigIO(...)`")
         return await self.adc.acquire(rule, timeout=timeout)

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 from enum import StrEnum
 
+from orbitrig.store.status import RunStatus
+
 
 class _Word(StrEnum):
     """A closed set of words: equal to, printed and repr'd as its string (messages unchanged)."""
@@ -39,12 +41,18 @@ class RunState(_Word):
 
 
 class Outcome(_Word):
-    """How a run ended (the journal's final status; `running` until then)."""
+    """How a run ended: the final statuses the store records (its RunStatus words;
+    `running` until then)."""
 
-    COMPLETED = "completed"
-    STOPPED = "stopped"
-    ABORTED = "aborted"
-    FAILED = "failed"
+    COMPLETED = RunStatus.COMPLETED.value
+    STOPPED = RunStatus.STOPPED.value
+    ABORTED = RunStatus.ABORTED.value
+    FAILED = RunStatus.FAILED.value
+
+
+def stored_status(outcome: Outcome) -> RunStatus:
+    """The status the store records for a run that ended with `outcome`."""
+    return RunStatus(outcome.value)
 
 
 class ConfirmMode(_Word):
@@ -80,7 +88,7 @@ EVENTS: dict[str, str] = {
 _ACTIVE = (RUNNING, PAUSED, WAITING)
 
 #: (state, event) -> next state
-TRANSITIONS: dict[tuple[str, str], str] = {
+TRANSITIONS: dict[tuple[RunState, str], RunState] = {
     (IDLE, "start"): RUNNING,
     (FAULTED, "start"): RUNNING,
     (RUNNING, "pause"): PAUSED,
@@ -98,7 +106,7 @@ TRANSITIONS: dict[tuple[str, str], str] = {
 }
 
 
-def next_state(state: str, event: str) -> str:
+def next_state(state: RunState, event: str) -> RunState:
     """The state after `event` in `state`; LookupError if the table has no such transition."""
     try:
         return TRANSITIONS[(state, event)]

@@ -64,9 +64,9 @@ class InterlockSupervisor:
         """`trips`, a CAN heartbeat lost for longer than its timeout made a fail trip."""
         lost = any(t.kind == "can_heartbeat" for t in trips)
         now = time.monotonic()
-        self._lost_since = (self._lost_since or now) if lost else None
+        since = self._lost_since = (self._lost_since or now) if lost else None
         limit = self.cfg.can_heartbeat_timeout_s
-        if lost and now - self._lost_since >= limit:
+        if since is not None and now - since >= limit:
             return [Trip("can_heartbeat", interlocks.FAIL, f"CAN sensor node lost for more than {limit:g} s "
                          "(no heartbeat): supply pressure and pump are not watched")] + trips
         return trips

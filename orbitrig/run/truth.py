@@ -16,8 +16,10 @@ Pure (no I/O).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from orbitrig.run.plan import OperatingPoint
 from orbitrig.run.rig_io import TruthSource
@@ -38,7 +40,7 @@ def row_orbit(rec: BlockRecord) -> float:
     return math.copysign(speed, rec.block.direction)
 
 
-def point_truth(p: OperatingPoint, recs: list[BlockRecord], source: TruthSource) -> dict:
+def point_truth(p: OperatingPoint, recs: list[BlockRecord], source: TruthSource) -> dict[str, Any]:
     """The truth of point `p` as stored (JSON-ready): orbit, orbit_hz, Z_re, Z_im per row,
     band, fits {"constant", "power"}, K0 C0 D0."""
     recs = sorted(recs, key=lambda r: (r.block.freq, -r.block.direction))
@@ -56,24 +58,26 @@ def point_truth(p: OperatingPoint, recs: list[BlockRecord], source: TruthSource)
     }
 
 
-def true_impedance(truth: dict) -> np.ndarray:
+def true_impedance(truth: dict[str, Any]) -> np.ndarray:
     """The stored true Z (n, 2, 2) complex of a point's truth."""
-    return np.asarray(truth["Z_re"], dtype=float) + 1j * np.asarray(truth["Z_im"], dtype=float)
+    z: np.ndarray = np.asarray(truth["Z_re"], dtype=float) + 1j * np.asarray(truth["Z_im"], dtype=float)
+    return z
 
 
-def stored_impedance(result: dict, orbits) -> np.ndarray:
+def stored_impedance(result: dict[str, Any], orbits: ArrayLike) -> np.ndarray:
     """Z(Omega) (n, 2, 2) of a stored identification (its JSON object) at `orbits` rad/s."""
     fd = result["freq_dep"]
     if fd == "power:auto":
         fd = f"power:{result['exponent']}"
     spec = model_spec(result["model"], fd)
-    theta = [result["coefficients"].get(k) for k in spec.names]
-    theta = np.array([math.nan if v is None else float(v) for v in theta])
+    values = [result["coefficients"].get(k) for k in spec.names]
+    theta = np.array([math.nan if v is None else float(v) for v in values])
     return impedance(spec, theta, np.abs(np.asarray(orbits, dtype=float)))
 
 
-def impedance_deviation(result: dict, truth: dict) -> np.ndarray:
+def impedance_deviation(result: dict[str, Any], truth: dict[str, Any]) -> np.ndarray:
     """|Z_identified - Z_true| / |Z_true| (Frobenius norms) at each truth row (n,)."""
     z_true = true_impedance(truth)
     z_id = stored_impedance(result, truth["orbit"])
-    return np.linalg.norm(z_id - z_true, axis=(1, 2)) / np.linalg.norm(z_true, axis=(1, 2))
+    dev: np.ndarray = np.linalg.norm(z_id - z_true, axis=(1, 2)) / np.linalg.norm(z_true, axis=(1, 2))
+    return dev

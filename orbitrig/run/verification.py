@@ -10,7 +10,8 @@ import math
 from daq.aux import AuxState
 from orbitrig.config import MPA, RigConfig, Verify
 from orbitrig.run.identification import probe_plane
-from orbitrig.run.plan import OperatingPoint, SetManual
+from orbitrig.run.plan import OperatingPoint
+from orbitrig.run.steps import SetManual
 from orbitrig.store.records import BlockRecord
 
 

@@ -38,7 +38,8 @@ import numpy as np
 from orbitrig.service import protocol as proto
 from orbitrig.config import MPA, RPM
 from orbitrig.run.engine import ProgressEvent, RunEngine
-from orbitrig.run.plan import Plan, SetManual
+from orbitrig.run.plan import Plan
+from orbitrig.run.steps import SetManual
 from orbitrig.run.states import RunState
 from orbitrig.run.verification import setting_bands
 from reduction.whirl import Whirl

@@ -116,14 +116,17 @@ ATTRIBUTES = {
     "error": ("", "why this could not be evaluated"), "json": ("", "the whole result as JSON"),
     "n_coefficients": ("1", "coefficients identified"), "min_frequencies": ("1", "orbit frequencies the model needs"),
     "n_frequencies": ("1", "orbit frequencies used"), "condition_number": ("1", "condition number of the regression"),
-    "residual_rms": ("N", "RMS force residual"), "dof": ("1", "degrees of freedom"), "chi2": ("1", "chi-square of the fit"),
+    "residual_rms": ("N", "RMS force residual"), "dof": ("1", "degrees of freedom"), "chi2": ("1", "chi-square of the fit, or of the two load measuring systems' joint difference"),
     "p_value": ("1", "p-value"), "aic": ("1", "Akaike information criterion"), "bic": ("1", "Bayesian information criterion"),
     "exponent": ("1", "exponent chosen by power:auto"), "k": ("1", "coverage factor of the expanded uncertainty"),
     "covariance": ("", "covariance behind the standard uncertainties: combined or statistical"),
-    "max_abs": ("1", "largest |E_n|"), "consistent": ("1", "true when max_abs <= limit"), "limit": ("1", "largest consistent |E_n|"),
+    "max_abs": ("1", "largest |E_n|"),
+    "consistent": ("1", "true when chi2 <= limit: the two systems agree on all coefficients at the family-wise level"),
+    "limit": ("1", "chi2(dof) quantile at 1 - level (a run stored before the joint test: the largest consistent |E_n|)"),
+    "level": ("1", "family-wise probability that two consistent systems are flagged (0.05)"),
     "basis": ("", "uncertainty the comparison uses"), "pair": ("", "the systems compared"),
     "verdict": ("", "frequency dependence supported or not"), "supported": ("1", "true when the test supports it"),
-    "statistic": ("1", "test statistic"), "test": ("", "F or likelihood ratio"), "alpha": ("1", "significance level"),
+    "statistic": ("1", "test statistic"), "test": ("", "F, likelihood ratio, or chi2 (the two systems' joint test)"), "alpha": ("1", "significance level"),
     "constant": ("", "the constant fit compared with"), "aic_bic_order": ("", "the fits the aic and bic pairs belong to"), "exponents": ("1", "exponents m, n, p"),
     "form": ("", "the fitted form"),
     "operator": ("", "who ran the run"), "rig_id": ("", "the rig's id (rig.toml)"), "host": ("", "computer that ran it"),
@@ -143,7 +146,7 @@ _ANNOTATIONS = {"units", "description", "convention", "dimensions", "columns", "
                 "meaning"}
 
 
-def _is_text(value) -> bool:
+def _is_text(value: object) -> bool:
     return isinstance(value, (str, bytes)) or np.asarray(value).dtype.kind in "OSU"
 
 
@@ -168,8 +171,9 @@ def _per_entry_rule(ds: h5py.Dataset, rule: str) -> dict[str, str]:
     return {f: _parseable(u) for f, u in zip(fields, units) if ds.dtype[f].kind in "fiub"}
 
 
-def _names_near(g: h5py.Group):
-    return g["names"][()] if "names" in g else g.parent["names"][()]
+def _names_near(g: h5py.Group) -> np.ndarray:
+    names: np.ndarray = g["names"][()] if "names" in g else g.parent["names"][()]
+    return names
 
 
 def _source_unit(name: str) -> str:
@@ -182,7 +186,7 @@ def _parseable(unit: str) -> str:
     return unit if unit and not any(w in unit for w in ("flag", "word", "code", "fraction")) else "1"
 
 
-def _s(v) -> str:
+def _s(v: object) -> str:
     return v.decode("utf-8") if isinstance(v, bytes) else str(v)
 
 
@@ -210,7 +214,7 @@ def annotate_dataset(ds: h5py.Dataset) -> None:
         ds.attrs["units"] = units or "1"
 
 
-def annotate_attributes(obj) -> None:
+def annotate_attributes(obj: h5py.HLObject) -> None:
     """``A__description`` (and ``A__units`` when numeric) for every attribute A of ``obj``."""
     for name in list(obj.attrs):
         if name in _ANNOTATIONS or "__" in name or name.startswith("units_"):

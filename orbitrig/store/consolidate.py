@@ -115,7 +115,7 @@ def _build(f: h5py.File, layout: RunLayout, header: dict, journal: Journal, stat
     scenario = header.get("sim_scenario")
     if isinstance(scenario, dict):  # the simulator scenario of a --sim run: name and TOML text
         a["sim_scenario_name"], a["sim_scenario_config"] = str(scenario.get("name", "")), str(scenario.get("text", ""))
-    a["status"], a["status_message"] = journal.status, journal.status_message
+    a["status"], a["status_message"] = str(journal.status), journal.status_message
     _provenance(a, header, journal)
     f.create_dataset("channels", data=fixed_text(header.get("channels", [])))
     f.create_dataset("channel_units", data=fixed_text(header.get("channel_units", [])))
@@ -139,7 +139,7 @@ def _provenance(a, header: dict, journal: Journal) -> None:
         a[k] = str(prov.get(k, ""))
     a["sensor_serials"] = json.dumps(prov.get("sensor_serials", {}))
     a["calibration_record_text"] = str(header.get("calibration_record_text", ""))
-    a["ended"] = journal.status_at if journal.status != "running" else ""
+    a["ended"] = journal.status_at if journal.status.final else ""
 
 
 def _add_point(pts: h5py.Group, layout: RunLayout, index: int, complete: bool) -> bool:

@@ -26,9 +26,12 @@ import os
 import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import BinaryIO
+from typing import TYPE_CHECKING, Any, BinaryIO
 
 from orbitrig.store.errors import StorageError, storage_error
+
+if TYPE_CHECKING:
+    import h5py
 
 TMP_SUFFIX = ".tmp"
 #: an append-only log: created when missing, a symbolic link at its name refused (never followed)
@@ -58,7 +61,7 @@ def _write_all(fd: int, data: bytes | memoryview) -> None:
         view = view[n:]
 
 
-def write_atomic(path: Path, data: bytes | memoryview) -> dict:
+def write_atomic(path: Path, data: bytes | memoryview) -> dict[str, int | str]:
     """Write `data` to `path` as one durable step (temp name, fsync, rename, fsync dir);
     return {"size": bytes, "sha256": hex digest} of what was written.
 
@@ -136,7 +139,7 @@ def _ends_with_newline(path: Path) -> bool:
         return fh.read(1) == b"\n"
 
 
-def read_lines(path: Path) -> tuple[list[dict], int]:
+def read_lines(path: Path) -> tuple[list[dict[str, Any]], int]:
     """The JSON objects of an append-only log, and how many lines were torn or unreadable."""
     try:
         data = Path(path).read_bytes()
@@ -176,7 +179,7 @@ def digest(path: Path) -> tuple[int, str]:
     return size, h.hexdigest()
 
 
-def memory_h5():
+def memory_h5() -> h5py.File:
     """A new HDF5 file that lives in memory only (the core driver without a backing store)."""
     import h5py
 
@@ -188,13 +191,14 @@ def memory_h5():
         raise StorageError(name, f"cannot build an HDF5 file in memory: {err}") from err
 
 
-def h5_image(build: Callable) -> bytes:
+def h5_image(build: Callable[[h5py.File], object]) -> bytes:
     """The bytes of an HDF5 file built in memory by ``build(h5py.File)``."""
     f = memory_h5()
     try:
         build(f)
         f.flush()
-        return f.id.get_file_image()
+        image: bytes = f.id.get_file_image()
+        return image
     finally:
         f.close()
 

@@ -24,7 +24,7 @@ _FULL = {errno.ENOSPC, errno.EDQUOT}
 class StorageError(OrbitrigError):
     """The run directory cannot be created, resumed, written or read; ``path`` names the file."""
 
-    def __init__(self, path: str | os.PathLike, reason: str):
+    def __init__(self, path: str | os.PathLike[str], reason: str):
         self.path, self.reason = str(path), reason
         super().__init__(f"{self.path}: {reason}")
 
@@ -32,7 +32,7 @@ class StorageError(OrbitrigError):
 class StorageFullError(StorageError):
     """The file system of the run directory is full (or has less free space than a write needs)."""
 
-    def __init__(self, path: str | os.PathLike, reason: str, *, needed: int | None = None, free: int | None = None):
+    def __init__(self, path: str | os.PathLike[str], reason: str, *, needed: int | None = None, free: int | None = None):
         self.needed, self.free = needed, free
         super().__init__(path, reason)
 
@@ -40,13 +40,13 @@ class StorageFullError(StorageError):
 class RunDirError(OrbitrigError):
     """DIR is not a readable orbitrig run directory; ``file`` names the culprit."""
 
-    def __init__(self, file: str | os.PathLike, reason: str):
+    def __init__(self, file: str | os.PathLike[str], reason: str):
         self.file = str(file)
         self.reason = reason
         super().__init__(f"{self.file}: {reason}")
 
 
-def storage_error(path: str | os.PathLike, doing: str, err: BaseException) -> StorageError:
+def storage_error(path: str | os.PathLike[str], doing: str, err: BaseException) -> StorageError:
     """The StorageError for `err` raised while `doing` (e.g. 'write', 'rename') on `path`."""
     if isinstance(err, StorageError):
         return err

@@ -23,7 +23,7 @@ ADEQUACY_NUMBERS = ("supported", "p_value", "statistic", "dof", "alpha")
 
 def provenance(run) -> dict[str, str]:
     """Text describing where the data came from."""
-    return {"software_version": run.software_version, "created": run.created, "status": run.status,
+    return {"software_version": run.software_version, "created": run.created, "status": str(run.status),
             "status_message": run.status_message, "sim": str(bool(run.sim)).lower(), "matrix_name": run.matrix_name,
             "rig_config": run.rig_config, "matrix_config": run.matrix_config,
             "sim_scenario_name": run.sim_scenario_name}

@@ -9,7 +9,8 @@ when the sweep evaluated it (docs/storage.md):
 - ``adequacy/``: attributes ``verdict``, ``supported``, ``p_value``, ``statistic``, ``test``,
   ``dof``, ``alpha``, ``aic``, ``bic`` (constant, this fit), ``constant``;
 - ``lms_consistency/``: ``e_n`` aligned with ``names`` (1), attributes ``max_abs``,
-  ``consistent``, ``basis``, ``limit``, ``pair``;
+  ``consistent`` (the joint chi2 within ``limit`` at the family-wise ``level``), ``test``,
+  ``chi2``, ``dof``, ``level``, ``p_value``, ``basis``, ``limit``, ``pair``;
 - ``derived/``: at the point's planned orbit frequencies ``orbit`` (rad/s), ``orbit_hz``,
   ``c_eff_xx``/``c_eff_yy`` (+ ``_std``, N s/m), ``h_forward``/``h_backward`` (complex, N/m;
   ``_std`` columns re, im), ``wfr`` (+ ``_std``, 1), ``c_eff_zero_xx``/``_yy`` (Omega_0,
@@ -102,7 +103,10 @@ def _adequacy(g: h5py.Group, a: dict, names: list[str]) -> None:
 def _consistency(g: h5py.Group, c: dict, names: list[str]) -> None:
     put(g, "e_n", _vector(c["e_n"], names), "1", meaning=f"normalised difference {c['pair']}")
     g.attrs.update({"max_abs": _num(c["max_abs"]), "consistent": bool(c["consistent"]), "basis": c["basis"],
-                    "limit": float(c["limit"]), "pair": c["pair"]})
+                    "limit": _num(c["limit"]), "pair": c["pair"]})
+    if "chi2" in c:  # the joint test (absent in a fit stored before it)
+        g.attrs.update({"test": c["test"], "chi2": _num(c["chi2"]), "dof": int(c["dof"]), "level": float(c["level"]),
+                        "p_value": _num(c["p_value"])})
 
 
 def _derived(g: h5py.Group, d: dict, names: list[str]) -> None:

@@ -7,6 +7,7 @@ missing, torn or altered) makes the point incomplete; `problem` says why.
 
 from __future__ import annotations
 
+from typing import Any
 import json
 from dataclasses import dataclass
 
@@ -29,7 +30,7 @@ class PointState:
     problem: str = ""  # why it is not complete ("" when complete)
 
 
-def commit_record(layout: RunLayout, index: int, known: dict | None = None) -> dict:
+def commit_record(layout: RunLayout, index: int, known: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
     """The content of a new commit record: every file of the point with its size and digest
     (`known`: name -> {"size", "sha256"} of files this process wrote; the others are read)."""
     d = layout.point_dir(index)

@@ -12,11 +12,15 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from orbitrig.store.durable import read_lines
+from orbitrig.store.status import RunStatus
 from rigunits import now_iso
 
 CAN_FIELDS = ("t_recess", "t_groove", "t_supply", "flow", "p_supply", "p_recess1", "p_recess2", "p_recess3",
@@ -26,19 +30,21 @@ DRIVE_FIELDS = ("spin_ref", "spin_act", "orbit_ref", "orbit_act", "spin_status",
                 "spin_fault", "orbit_fault", "spin_torque", "orbit_torque")
 DRIVE_UNITS = ("s", "rad/s", "rad/s", "rad/s", "rad/s", "status word", "status word", "fault code", "fault code",
                "fraction of nominal", "fraction of nominal")
+#: a state change of the run: (t s since the start, state, message)
+EventRow = tuple[float, str, str]
 CAN_DTYPE = np.dtype([("t", "f8")] + [(f, "f8") for f in CAN_FIELDS])
 DRIVE_DTYPE = np.dtype([("t", "f8")] + [(f, "f8") for f in DRIVE_FIELDS])
 
 
-def line(kind: str, **fields) -> str:
+def line(kind: str, **fields: object) -> str:
     return json.dumps({"k": kind, **fields}, separators=(",", ":"))
 
 
-def status_line(status: str, message: str) -> str:
-    return line("status", status=status, message=message, at=now_iso())
+def status_line(status: RunStatus, message: str) -> str:
+    return line("status", status=str(status), message=message, at=now_iso())
 
 
-def log_lines(events: list, can: list, drives: list) -> list[str]:
+def log_lines(events: Sequence[EventRow], can: Sequence[Sequence[float]], drives: Sequence[Sequence[float]]) -> list[str]:
     """Journal lines of the rows gathered by a LogBuffer."""
     out = [line("event", t=float(t), state=str(s), message=str(m)) for t, s, m in events]
     out += [line("can", row=[_num(v) for v in r]) for r in can]
@@ -46,7 +52,7 @@ def log_lines(events: list, can: list, drives: list) -> list[str]:
     return out
 
 
-def _num(v) -> float | None:
+def _num(v: float) -> float | None:
     v = float(v)
     return v if math.isfinite(v) else None
 
@@ -55,32 +61,32 @@ def _num(v) -> float | None:
 class Journal:
     """What the journal says, as far as it made it to disk."""
 
-    status: str = "running"
+    status: RunStatus = RunStatus.RUNNING
     status_message: str = ""
     status_at: str = ""  # ISO 8601 UTC time of the last status line (the run's end once final)
-    commands: list = field(default_factory=list)  # (at, command, by, detail)
-    events: list = field(default_factory=list)  # (t, state, message)
-    can: list = field(default_factory=list)  # rows of CAN_DTYPE
-    drives: list = field(default_factory=list)  # rows of DRIVE_DTYPE
-    points: list = field(default_factory=list)  # the point and block records, in order
+    commands: list[tuple[str, str, str, str]] = field(default_factory=list)  # (at, command, by, detail)
+    events: list[EventRow] = field(default_factory=list)  # (t, state, message)
+    can: list[tuple[float, ...]] = field(default_factory=list)  # rows of CAN_DTYPE
+    drives: list[tuple[float, ...]] = field(default_factory=list)  # rows of DRIVE_DTYPE
+    points: list[dict[str, Any]] = field(default_factory=list)  # the point and block records, in order
     torn: int = 0  # lines ignored (torn tail or unreadable)
 
 
-def read_journal(path) -> Journal:
+def read_journal(path: Path) -> Journal:
     records, torn = read_lines(path)
     j = Journal(torn=torn)
     for r in records:
         try:
             k = r.get("k")
             if k == "status":
-                j.status, j.status_message = str(r["status"]), str(r.get("message", ""))
+                j.status, j.status_message = RunStatus.read(r["status"]), str(r.get("message", ""))
                 j.status_at = str(r.get("at", ""))
             elif k == "command":
                 j.commands.append((str(r["at"]), str(r["command"]), str(r["by"]), str(r.get("detail", ""))))
             elif k == "event":
                 j.events.append((float(r["t"]), str(r["state"]), str(r["message"])))
             elif k in ("can", "drives"):
-                n = len(CAN_DTYPE.names if k == "can" else DRIVE_DTYPE.names)
+                n = 1 + len(CAN_FIELDS if k == "can" else DRIVE_FIELDS)  # t and the fields
                 row = [math.nan if v is None else float(v) for v in r["row"]][:n]
                 (j.can if k == "can" else j.drives).append(tuple(row + [math.nan] * (n - len(row))))
             elif k in ("point", "block"):

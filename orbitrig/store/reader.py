@@ -25,6 +25,7 @@ import numpy as np
 from orbitrig.store.errors import RunDirError
 from orbitrig.store.layout import COHERENCE_PAIRS, READABLE_FORMATS, RUN_FILE, RunLayout  # noqa: F401
 from orbitrig.store.index import NEVER_COMPLETED
+from orbitrig.store.status import RunStatus
 
 
 @dataclass(frozen=True)
@@ -108,7 +109,7 @@ class Run:
     """A run directory as read from disk (`torn`: journal lines ignored, `unreadable`: pieces skipped)."""
 
     directory: Path
-    status: str
+    status: RunStatus
     status_message: str
     sim: bool
     software_version: str
@@ -214,7 +215,7 @@ def read_run(directory: str | Path, *, blocks: bool = True) -> Run:
                 points.append(point)
             a = h5.attrs
             return Run(
-                directory=directory, status=_text(a.get("status"), "unknown"),
+                directory=directory, status=RunStatus.read(_text(a.get("status"))),
                 status_message=_text(a.get("status_message")), sim=bool(a.get("sim", False)),
                 software_version=_text(a.get("software_version")), created=_text(a.get("created")),
                 matrix_name=_text(a.get("matrix_name")), rig_config=_text(a.get("rig_config")),
@@ -254,7 +255,7 @@ def _read_pieces(layout: RunLayout, blocks: bool = True) -> Run:
     if isinstance(scenario, dict):
         run.sim_scenario_name, run.sim_scenario_config = str(scenario.get("name", "")), str(scenario.get("text", ""))
     prov = header.get("provenance") if isinstance(header.get("provenance"), dict) else {}
-    ended = journal.status_at if journal.status != "running" else ""
+    ended = journal.status_at if journal.status.final else ""
     run.provenance = {k: str(prov.get(k, "")) for k in PROVENANCE_KEYS[:-1]} | {"ended": ended}
     for index in layout.point_indexes():
         state = point_state(layout, index)

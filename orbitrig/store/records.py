@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:  # the plan's types only annotate: the store does not import the run wing
-    from orbitrig.run.plan import Block
+    from orbitrig.run.steps import Block
 
 
 @dataclass(frozen=True)

@@ -54,12 +54,12 @@ def select_points(run: Run, wanted: Iterable[int] | None = None) -> Selection:
         return sel
     sel = Selection([])
     for index in sorted(set(wanted)):
-        p = by_index.get(index)
-        if p is not None and p.complete:
-            sel.points.append(p)
+        found = by_index.get(index)
+        if found is not None and found.complete:
+            sel.points.append(found)
             continue
-        name = point_name(index) if p is None else p.name
-        why = p.problem if p is not None else NEVER_BEGUN if index in run.unbegun else "no such point in the run"
+        name = point_name(index) if found is None else found.name
+        why = found.problem if found is not None else NEVER_BEGUN if index in run.unbegun else "no such point in the run"
         details = _unreadable_of(run, name)
         sel.skipped.append(f"point {name} skipped: {why}" + "".join(f"; unreadable {u}" for u in details))
     return sel

@@ -31,6 +31,7 @@ from orbitrig.store.layout import FORMAT, RunLayout, point_name
 from orbitrig.store.quota import COMMANDS_HEAD, COMMANDS_TAIL, RUN_LOG_HEAD, RUN_LOG_TAIL, LineQuota
 from orbitrig.store.reader import RunDirError, read_point
 from orbitrig.store.records import BlockRecord, LogBuffer, PointResults
+from orbitrig.store.status import RunStatus
 from rigunits import now_iso, utc_iso
 
 if TYPE_CHECKING:  # annotation only: the store does not import the run wing
@@ -92,7 +93,7 @@ class RunStore:
             self._header["point_order"] = [int(i) for i in point_order]
         fsync_dir(lay.dir)
         write_atomic(lay.header, json.dumps(self._header, indent=1).encode("utf-8"))
-        self._journal([journal.status_line("running", "")])
+        self._journal([journal.status_line(RunStatus.RUNNING, "")])
         self.write_csv()
         return self
 
@@ -162,7 +163,7 @@ class RunStore:
                 tmp.unlink()
         with contextlib.suppress(OSError):
             self.layout.run_file.unlink()  # a stale copy: consolidated again when the run ends
-        self._journal([journal.status_line("running", "resumed")])
+        self._journal([journal.status_line(RunStatus.RUNNING, "resumed")])
         self._csv_points.clear()
         self.write_csv()
         return sorted(done)
@@ -221,11 +222,12 @@ class RunStore:
         self._image.add_point(point)
         self.write_csv()
 
-    def set_status(self, status: str, message: str = "") -> None:
-        """Record the run's status; a final status (not 'running') also consolidates run.h5.
+    def set_status(self, status: RunStatus, message: str = "") -> None:
+        """Record the run's status; a final status (not running) also consolidates run.h5.
         When run.h5 cannot be written the journal records the run as failed (best effort:
         the disk may be full) and the StorageError is raised."""
-        if status == "running":
+        status = RunStatus(status)  # also an Outcome of orbitrig.run.states: the same words
+        if not status.final:
             self._journal([journal.status_line(status, message)])
             return
         self._journal([*self._close_quotas("the run's end"), journal.status_line(status, message)])
@@ -233,7 +235,7 @@ class RunStore:
             self.finalize()
         except StorageError as err:
             with contextlib.suppress(StorageError):
-                self._journal([journal.status_line("failed", f"run.h5 could not be written: {err}")])
+                self._journal([journal.status_line(RunStatus.FAILED, f"run.h5 could not be written: {err}")])
             raise
 
     def flush_logs(self) -> None:

@@ -48,7 +48,6 @@ def _point_complete(path: Path) -> bool:
 def synthetic_run(tmp_path_factory) -> Path:
     """The report tests' synthetic run (frequency-dependent fits with their adequacy test, a
     refused model, an incomplete point), consolidated into run.h5."""
-    sys.path.insert(0, str(ROOT / "tests" / "report"))
-    from report_synthetic import write_synthetic_run
+    from support.report_synthetic import write_synthetic_run
 
     return write_synthetic_run(tmp_path_factory.mktemp("synthetic") / "run")  # finished: run.h5 beside the pieces

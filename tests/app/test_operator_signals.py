@@ -12,7 +12,7 @@ import pytest
 from rich.console import Console
 
 from orbitrig.cli.operator import Operator
-from sweep_helpers import running, small_matrix, wait_for
+from support.sweep_helpers import running, small_matrix, wait_for
 
 pytestmark = pytest.mark.timeout(60)
 CW_EMERGENCY = 0x047B  # spec control word, written out on purpose

@@ -10,7 +10,8 @@ from orbitrig import config as cfg
 from orbitrig.cli.dry_run import order_line
 from orbitrig.errors import ConfigError
 from orbitrig.run.engine import _started_order
-from orbitrig.run.plan import SetManual, make_plan, summarize
+from orbitrig.run.plan import make_plan, summarize
+from orbitrig.run.steps import SetManual
 from orbitrig.run.point_order import changeover_s
 from orbitrig.store.writer import RunStore
 

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from orbitrig.run import plan, procedure, states
+from orbitrig.run import plan, procedure, states, steps
 from orbitrig.run.states import TRANSITIONS, next_state
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -45,8 +45,8 @@ def test_the_documented_table_is_the_code_table():
 
 
 def test_every_step_kind_has_one_handler_and_one_rule():
-    kinds = set(plan.STEP_KINDS)
-    assert kinds == {c for c in vars(plan).values() if isinstance(c, type) and issubclass(c, plan.Step)} - {plan.Step}
+    kinds = set(steps.STEP_KINDS)
+    assert kinds == {c for c in vars(steps).values() if isinstance(c, type) and issubclass(c, steps.Step)} - {steps.Step}
     assert set(procedure.BEFORE) == kinds
     assert set(procedure.PointProcedure(parts_stub()).handlers) == kinds
 
@@ -55,7 +55,7 @@ def test_every_step_kind_occurs_in_a_plan():
     from orbitrig import config as cfg
 
     p = plan.make_plan(cfg.load_matrix(), cfg.load_rig())
-    assert {type(s) for s in p.steps} == set(plan.STEP_KINDS)
+    assert {type(s) for s in p.steps} == set(steps.STEP_KINDS)
 
 
 def parts_stub():

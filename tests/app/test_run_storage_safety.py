@@ -17,7 +17,7 @@ from orbitrig.run.plan import make_plan
 from orbitrig.store.estimate import plan_bytes, point_bytes
 from orbitrig.store.writer import RunStore, StorageFullError
 from sim.rig import SimRig
-from sweep_helpers import SPEEDUP, small_matrix, wait_for
+from support.sweep_helpers import SPEEDUP, small_matrix, wait_for
 
 pytestmark = pytest.mark.timeout(120)
 

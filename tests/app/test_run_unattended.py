@@ -9,7 +9,7 @@ import time
 import pytest
 
 from orbitrig import config as cfg
-from sweep_helpers import running, small_matrix, wait_for
+from support.sweep_helpers import running, small_matrix, wait_for
 
 pytestmark = pytest.mark.timeout(90)
 

@@ -8,7 +8,7 @@ import pytest
 
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.engine import StatusEvent
-from sweep_helpers import running, small_matrix, wait_for
+from support.sweep_helpers import running, small_matrix, wait_for
 
 CW_EMERGENCY = 0x047B  # spec control word (OFF3), written out on purpose
 

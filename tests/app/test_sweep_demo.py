@@ -10,7 +10,7 @@ import h5py
 
 from orbitrig.cli.sweep_summary import compare_with_truth
 
-from sweep_helpers import ROOT, orbitrig_cmd
+from support.sweep_helpers import ROOT, orbitrig_cmd
 
 
 def test_demo_sweep_identifies_within_5_percent(tmp_path):

@@ -7,7 +7,8 @@ import sys
 import pytest
 
 from orbitrig import config as cfg
-from orbitrig.run.plan import Acquire, SetManual, SetSpin, StopDrives, make_plan, summarize
+from orbitrig.run.plan import make_plan, summarize
+from orbitrig.run.steps import Acquire, SetManual, SetSpin, StopDrives
 
 RPM = 2 * math.pi / 60
 

@@ -13,7 +13,7 @@ import pytest
 
 from orbitrig.store.reader import read_run
 
-from sweep_helpers import ROOT, orbitrig_cmd
+from support.sweep_helpers import ROOT, orbitrig_cmd
 
 MATRIX = """
 name = "crash"

@@ -12,7 +12,8 @@ import pytest
 from orbitrig import config as cfg
 from orbitrig.cli.dry_run import sequential_lines
 from orbitrig.errors import ConfigError
-from orbitrig.run.plan import ChooseBlocks, make_plan, summarize
+from orbitrig.run.plan import make_plan, summarize
+from orbitrig.run.steps import ChooseBlocks
 
 from sweep_helpers import running, wait_for
 

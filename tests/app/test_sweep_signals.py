@@ -9,7 +9,7 @@ import time
 import h5py
 import pytest
 
-from sweep_helpers import ROOT, orbitrig_cmd
+from support.sweep_helpers import ROOT, orbitrig_cmd
 
 pytestmark = pytest.mark.timeout(120)
 

@@ -1,15 +1,11 @@
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "report"))  # the synthetic-run writer
-
-from report_synthetic import write_synthetic_run
-
-from pg_server import postgres_server  # noqa: F401 - fixture
+from support.pg_server import postgres_server  # noqa: F401 - fixture
+from support.report_synthetic import write_synthetic_run
 
 PROVENANCE = {"operator": "alice", "software_version": "orbitrig test", "rig_id": "rigA",
               "calibration_record": "2026-01-01.toml", "calibration_record_sha256": "ab" * 32,

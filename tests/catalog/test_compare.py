@@ -7,7 +7,7 @@ import pytest
 from scipy.stats import chi2
 from typer.testing import CliRunner
 
-from campaign import ECCENTRICITIES, campaign_rows, law
+from support.campaign import ECCENTRICITIES, campaign_rows, law
 from orbitrig.catalog.compare import repeatability
 from orbitrig.catalog.predicted import PredictedError, read_predicted
 from orbitrig.catalog.store import Catalog

@@ -7,7 +7,7 @@ import re
 import subprocess
 
 import pytest
-from cli_helpers import ROOT
+from support.cli_helpers import ROOT
 
 TEXT_SUFFIXES = {".py", ".md", ".toml", ".conf", ".txt", ".cfg", ".example", ""}
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import re
 
-from cli_helpers import ROOT, closed_port, orbitrig
+from support.cli_helpers import ROOT, closed_port, orbitrig
 
 
 def _rig_without_answer(tmp_path):

@@ -11,7 +11,7 @@ import shlex
 import shutil
 
 import pytest
-from cli_helpers import ROOT, orbitrig
+from support.cli_helpers import ROOT, orbitrig
 
 README = ROOT / "README.md"
 

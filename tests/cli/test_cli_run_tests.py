@@ -10,7 +10,7 @@ import os
 import subprocess
 import sys
 
-from cli_helpers import ROOT
+from support.cli_helpers import ROOT
 
 SCRIPT = ROOT / "tools" / "run-tests"
 COMMANDS = ["mosquitto", "mosquitto_pub", "mbpoll", "socat", "chromium", "chromedriver", "strace", "octave-cli", "pg_ctlcluster"]

@@ -13,7 +13,7 @@ import time
 
 import can
 import pytest
-from cli_helpers import ROOT
+from support.cli_helpers import ROOT
 
 from daq.aux import AuxSensors
 from sim.can_tcp import CanTcpHub, split_frames

@@ -19,7 +19,6 @@ from orbitrig.cli.plain_table import OutputFormat, PlainTable
 
 ROOT = Path(__file__).resolve().parents[2]
 TABLE = ROOT / "examples" / "orbit-tables" / "kcd11-constant.csv"
-sys.path.insert(0, str(ROOT / "tests" / "report"))
 
 
 def run(*args: str, columns: str | None) -> subprocess.CompletedProcess:
@@ -83,7 +82,7 @@ def _cells(text: str) -> set[str]:
 
 @pytest.mark.parametrize("n_points", [2, 6])  # full tables per point; one summary row per point
 def test_closing_table_at_80_columns_shows_what_a_wide_terminal_shows(tmp_path, capsys, monkeypatch, n_points):
-    from report_synthetic import write_synthetic_run
+    from support.report_synthetic import write_synthetic_run
 
     from orbitrig.cli.sweep_summary import print_coefficients
 
@@ -108,7 +107,7 @@ def test_closing_table_at_80_columns_shows_what_a_wide_terminal_shows(tmp_path, 
 
 
 def test_reduce_formats(tmp_path):
-    from report_synthetic import write_synthetic_run
+    from support.report_synthetic import write_synthetic_run
 
     run_dir = write_synthetic_run(tmp_path / "run", n_points=1, incomplete=0)
     text = run("reduce", str(run_dir), "--model", "kcd11", columns="80")

@@ -17,7 +17,8 @@ from hypothesis import strategies as st
 
 from orbitrig.config import load_matrix, load_rig
 from orbitrig.errors import ConfigError
-from orbitrig.run.plan import format_duration, make_plan, summarize
+from orbitrig.run.plan import make_plan, summarize
+from rigunits import format_duration
 
 REPO = Path(__file__).resolve().parents[2]
 RIG_TEXT = (REPO / "config" / "rig.toml").read_bytes()

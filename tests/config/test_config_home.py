@@ -16,10 +16,9 @@ import pytest
 from orbitrig import config as cfg
 from orbitrig.config.lab import write_lab
 from orbitrig.errors import ConfigError
+from support.mqtt_helpers import ACCOUNTS, MOSQUITTO, free_port, wait_port
 
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "tests" / "mqtt"))
-from mqtt_helpers import ACCOUNTS, MOSQUITTO, free_port, wait_port  # noqa: E402
 
 
 @pytest.fixture

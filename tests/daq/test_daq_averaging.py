@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from daq_encoder import signal, stream
+from support.daq_encoder import signal, stream
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 

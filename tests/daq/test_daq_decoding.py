@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from daq_encoder import OVERRUN, SIMULTANEOUS, TRIGGER, frame, signal, slot_samples, stream
+from support.daq_encoder import OVERRUN, SIMULTANEOUS, TRIGGER, frame, signal, slot_samples, stream
 
 from daq.averager import StreamingAverager
 from daq.frames import FrameDecoder

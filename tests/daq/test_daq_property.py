@@ -4,7 +4,7 @@ that was not sent intact (compared with what was sent)."""
 from __future__ import annotations
 
 import numpy as np
-from daq_encoder import signal, stream
+from support.daq_encoder import signal, stream
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 

@@ -9,7 +9,7 @@ import random
 
 import numpy as np
 import pytest
-from daq_encoder import signal, stream
+from support.daq_encoder import signal, stream
 
 from daq.adc import AdcReader
 from daq.backoff import Backoff

@@ -9,7 +9,7 @@ import os
 
 import numpy as np
 import pytest
-from daq_oracle import WireTap
+from support.daq_oracle import WireTap
 
 from daq.adc import AdcReader
 from daq.errors import DaqLinkError, DaqTimeoutError

@@ -4,8 +4,8 @@ ACL), `orbitrig serve --sim`, `orbitrig dashboard` and headless chromium."""
 from __future__ import annotations
 
 import pytest
-from dash_helpers import REPO, RIG, Dashboard, chromium
-from mqtt_helpers import ACCOUNTS, Broker, Service
+from support.dash_helpers import REPO, RIG, Dashboard, chromium
+from support.mqtt_helpers import ACCOUNTS, Broker, Service
 
 SPEEDUP = "5"  # the demo matrix runs for ~20 s: time to pause, resume and stop it
 

@@ -15,8 +15,8 @@ import urllib.request
 
 import pytest
 
-from dash_helpers import RIG, Dashboard, Page
-from mqtt_helpers import ACCOUNTS
+from support.dash_helpers import RIG, Dashboard, Page
+from support.mqtt_helpers import ACCOUNTS
 
 pytestmark = pytest.mark.timeout(150)
 

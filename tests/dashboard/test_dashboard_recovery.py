@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import signal
 
-from dash_helpers import Page
-from mqtt_helpers import ACCOUNTS
+from support.dash_helpers import Page
+from support.mqtt_helpers import ACCOUNTS
 
 
 def test_service_restart_and_broker_restart(broker, service, dashboard, browsers):

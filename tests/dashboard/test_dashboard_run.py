@@ -10,8 +10,8 @@ import re
 import time
 from pathlib import Path
 
-from dash_helpers import REPO, RIG, Page, card_shot
-from mqtt_helpers import ACCOUNTS
+from support.dash_helpers import REPO, RIG, Page, card_shot
+from support.mqtt_helpers import ACCOUNTS
 
 #: Set to a path (e.g. docs/dashboard.png) to keep the screenshot the test makes.
 SCREENSHOT_ENV = "ORBITRIG_DASHBOARD_SCREENSHOT"

@@ -10,8 +10,8 @@ import time
 import urllib.error
 import urllib.request
 
-from dash_helpers import RIG, Dashboard, Page
-from mqtt_helpers import ACCOUNTS
+from support.dash_helpers import RIG, Dashboard, Page
+from support.mqtt_helpers import ACCOUNTS
 
 
 def test_wrong_password_is_refused(dashboard, browsers):
@@ -101,8 +101,8 @@ def test_https_and_no_plain_http_off_loopback(broker, tmp_path):
     import subprocess
     import sys
 
-    from dash_helpers import REPO
-    from mqtt_helpers import make_test_ca
+    from support.dash_helpers import REPO
+    from support.mqtt_helpers import make_test_ca
 
     refused = subprocess.run([sys.executable, "-m", "orbitrig", "dashboard", "--broker", broker.url,
                               "--http", "0.0.0.0:8080"], cwd=REPO, capture_output=True, text=True, timeout=60)

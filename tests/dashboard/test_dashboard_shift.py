@@ -10,8 +10,8 @@ import json
 import time
 
 import pytest
-from dash_helpers import RIG, Dashboard, Page, card_shot, chromium
-from mqtt_helpers import ACCOUNTS
+from support.dash_helpers import RIG, Dashboard, Page, card_shot, chromium
+from support.mqtt_helpers import ACCOUNTS
 
 
 @pytest.fixture(scope="module")

@@ -9,8 +9,8 @@ import math
 
 import numpy as np
 
-from dash_helpers import RIG
-from mqtt_helpers import RigClient
+from support.dash_helpers import RIG
+from support.mqtt_helpers import RigClient
 
 from orbitrig.service.live import RevolutionAverage, _geometry
 

@@ -10,7 +10,8 @@ import pytest
 
 from orbitrig import config as cfg
 from orbitrig.errors import ConfigError
-from orbitrig.run.plan import Acquire, make_plan
+from orbitrig.run.plan import make_plan
+from orbitrig.run.steps import Acquire
 from orbitrig.run.procedure import averaging_rule
 from orbitrig.store.estimate import block_bytes, point_bytes
 

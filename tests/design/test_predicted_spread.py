@@ -18,7 +18,7 @@ from orbitrig.cli.design_inputs import NOMINAL
 from reduction.frequency_list import DesignProblem, predict
 from reduction.identify import identify
 from reduction.models import model_spec
-from sim_blocks import simulated_table, table_noise
+from support.sim_blocks import simulated_table, table_noise
 
 SPIN = 1000 * 2 * np.pi / 60
 RADIUS = 6e-6

@@ -13,7 +13,8 @@ import pytest
 from orbitrig import config as cfg
 from orbitrig.cli.simulated_rig import simulated_access
 from orbitrig.run.engine import RunEngine
-from orbitrig.run.plan import Acquire, make_plan
+from orbitrig.run.plan import make_plan
+from orbitrig.run.steps import Acquire
 from orbitrig.run.procedure import averaging_rule
 from reduction.noise import revolution_residuals
 from sim.rig import SimRig

@@ -3,7 +3,7 @@ from __future__ import annotations
 import logging
 
 import pytest
-from drives_testkit import SimDrives, make_models, serve
+from support.drives_testkit import SimDrives, make_models, serve
 
 
 @pytest.fixture(params=["tcp", "rtu"])

@@ -8,7 +8,7 @@ import signal
 import sys
 
 import pytest
-from drives_testkit import CW_RAMP_STOP, CW_RUN, ROOT, run_cli, subprocess_env
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, ROOT, run_cli, subprocess_env
 
 pytestmark = pytest.mark.timeout(30)  # a hang fails fast, with a traceback
 

@@ -8,7 +8,7 @@ import signal
 import sys
 
 import pytest
-from drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, ROOT, SimDrives, make_models, serve, subprocess_env
+from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, ROOT, SimDrives, make_models, serve, subprocess_env
 
 pytestmark = pytest.mark.timeout(60)
 SW_AT_SETPOINT = 0x100

@@ -6,7 +6,7 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from drives_testkit import CW_RUN, RPM, open_rig
+from support.drives_testkit import CW_RUN, RPM, open_rig
 
 from drives.errors import DriveTimeoutError
 from drives.limits import DriveLimits

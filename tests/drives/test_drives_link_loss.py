@@ -11,7 +11,7 @@ import signal
 import sys
 
 import pytest
-from drives_testkit import CW_RAMP_STOP, CW_RUN, ROOT, RPM, open_rig, subprocess_env
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, ROOT, RPM, open_rig, subprocess_env
 
 from drives.errors import DriveFaultError, DriveLinkError
 from drives.limits import DriveLimits

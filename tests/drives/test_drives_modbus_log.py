@@ -8,7 +8,7 @@ import logging
 import re
 
 import pytest
-from drives_testkit import RPM, open_rig
+from support.drives_testkit import RPM, open_rig
 
 from drives.limits import DriveLimits
 from orbitrig.run.modbus_log import BURST_HEAD, RECORD_CHARS, pymodbus_into

@@ -10,7 +10,7 @@ import asyncio
 import math
 
 import pytest
-from drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, PARAM, RPM, open_rig, set_parameter
+from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, PARAM, RPM, open_rig, set_parameter
 
 from drives.errors import (
     DriveError,

@@ -8,7 +8,7 @@ import os
 import time
 
 import pytest
-from drives_testkit import make_models, serve
+from support.drives_testkit import make_models, serve
 
 from drives.link import ModbusLink
 from drives.rtu import RtuLine, crc16, frame, inter_frame_silence, next_frame

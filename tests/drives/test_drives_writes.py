@@ -9,7 +9,7 @@ import asyncio
 import logging
 
 import pytest
-from drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, open_rig
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, open_rig
 
 from drives.errors import DriveExceptionResponse, DriveTimeoutError
 from drives.limits import DriveLimits

@@ -25,11 +25,11 @@ import h5py
 import numpy as np
 import pytest
 
-from e2e_sweep import MATRIX, ROOT, TABLE1_RATIOS
+from support.e2e_sweep import MATRIX, ROOT, TABLE1_RATIOS
 from orbitrig.config import LMS, ModelSpec, load_rig, read_record, rig_from_text
 from orbitrig.run.corrections import Corrections
 from orbitrig.run.identification import identify_operating_point
-from orbitrig.run.plan import Block
+from orbitrig.run.steps import Block
 from orbitrig.store.reader import read_run
 from orbitrig.store.writer import RunStore
 from sim.config import SimConfig

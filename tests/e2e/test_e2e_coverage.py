@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import pytest
 
-from coverage_points import SCENARIOS, covered, measured_point
+from support.coverage_points import SCENARIOS, covered, measured_point
 
 SEEDS = range(1, 13)
 RATIOS = [0.247, 0.569, 0.871, 1.247]  # four of Table 1's, spanning it

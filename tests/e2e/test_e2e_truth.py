@@ -19,7 +19,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from e2e_sweep import impedance_misfit, stated_calibration, sweep, the_point
+from support.e2e_sweep import impedance_misfit, stated_calibration, sweep, the_point
 from reduction.adequacy import frequency_dependence
 from reduction.identify import identify
 from reduction.impedance import forces

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from reduction_synthetic import frequencies, keys_of, orbit_table, truth
+from support.reduction_synthetic import frequencies, keys_of, orbit_table, truth
 from orbitrig.cli import app
 from orbitrig.store.orbit_table import write_orbit_table
 

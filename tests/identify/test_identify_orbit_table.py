@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from reduction_synthetic import frequencies, orbit_table, truth
+from support.reduction_synthetic import frequencies, orbit_table, truth
 from orbitrig.errors import TableError
 from orbitrig.store.orbit_table import read_orbit_table, write_orbit_table
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from mqtt_helpers import Broker
+from support.mqtt_helpers import Broker
 
 
 @pytest.fixture(scope="module")

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, write_matrices
+from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, write_matrices
 
 RIG = "flood-rig"
 FLOODER = Path(__file__).with_name("mqtt_flood.py")

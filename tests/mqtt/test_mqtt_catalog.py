@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from mqtt_helpers import ACCOUNTS, RigClient, Service, write_matrices
+from support.mqtt_helpers import ACCOUNTS, RigClient, Service, write_matrices
 from orbitrig.catalog.store import Catalog
 
 RIG = "cat-rig"

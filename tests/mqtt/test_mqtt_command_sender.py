@@ -7,7 +7,7 @@ from __future__ import annotations
 import h5py
 import pytest
 
-from mqtt_helpers import ACCOUNTS, RigClient, Service, write_matrices
+from support.mqtt_helpers import ACCOUNTS, RigClient, Service, write_matrices
 from orbitrig.service.protocol import CommandError, parse_command
 
 RIG = "sender-rig"

@@ -25,7 +25,7 @@ import tty
 import pytest
 from pymodbus.client import ModbusTcpClient
 
-from mqtt_helpers import ACCOUNTS, REPO, Broker, RigClient, Service, write_matrices
+from support.mqtt_helpers import ACCOUNTS, REPO, Broker, RigClient, Service, write_matrices
 from orbitrig.config import rig_from_text
 
 FAULT_COMM_LOSS = 7510

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from mqtt_helpers import ACCOUNTS, Broker, CutProxy, RigClient, Service, retained, write_matrices
+from support.mqtt_helpers import ACCOUNTS, Broker, CutProxy, RigClient, Service, retained, write_matrices
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings, default_client_id
 
 RIG = "hard-rig"

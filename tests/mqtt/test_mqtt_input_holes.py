@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from mqtt_helpers import ACCOUNTS, RigClient, Service, write_matrices
+from support.mqtt_helpers import ACCOUNTS, RigClient, Service, write_matrices
 
 RIG = "holes-rig"
 ENV = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}

@@ -7,7 +7,7 @@ from __future__ import annotations
 import subprocess
 import sys
 
-from mqtt_helpers import ACCOUNTS, REPO, RigClient, Service, retained, write_matrices
+from support.mqtt_helpers import ACCOUNTS, REPO, RigClient, Service, retained, write_matrices
 
 
 def test_serve_uses_the_configured_prefix(broker, tmp_path):

@@ -8,7 +8,7 @@ import asyncio
 import json
 from pathlib import Path
 
-from mqtt_helpers import ACCOUNTS, RigClient, write_matrices
+from support.mqtt_helpers import ACCOUNTS, RigClient, write_matrices
 from orbitrig.config import load_matrix
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 import subprocess
 import time
 
-from mqtt_helpers import ACCOUNTS, Watcher
+from support.mqtt_helpers import ACCOUNTS, Watcher
 
 
 def _sub_once(broker, user, password=None):

@@ -12,7 +12,7 @@ from pathlib import Path
 import h5py
 import pytest
 
-from mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, write_matrices
+from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, write_matrices
 
 RIG = "sim-rig"
 PROGRESS_KEYS = {"run_id", "point", "points", "frequency", "frequencies", "revolutions", "eta_s"}

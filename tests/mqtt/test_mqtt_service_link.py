@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from mqtt_helpers import ACCOUNTS, Broker, RigClient, Watcher, retained
+from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Watcher, retained
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceError, ServiceSettings
 
 
@@ -174,7 +174,7 @@ def _serve_cli(*args: str, env: dict | None = None) -> subprocess.CompletedProce
     import os
     import sys
 
-    from mqtt_helpers import REPO
+    from support.mqtt_helpers import REPO
 
     full = {**os.environ, "PYTHONPATH": str(REPO), **(env or {})}
     full.pop("ORBITRIG_MQTT_PASSWORD", None) if env is None else None

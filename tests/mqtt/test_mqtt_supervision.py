@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from mqtt_helpers import ACCOUNTS, Broker, RigClient, retained, write_matrices
+from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, retained, write_matrices
 from orbitrig.cli.serve import build_service
 from orbitrig.config import load_rig
 from orbitrig.service.rig_service import BrokerSettings, ServiceSettings

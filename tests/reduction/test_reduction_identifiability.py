@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from reduction_synthetic import frequencies, orbit_table, truth
+from support.reduction_synthetic import frequencies, orbit_table, truth
 from reduction.errors import IdentifiabilityError
 from reduction.identifiability import numerical_rank
 from reduction.identify import identify

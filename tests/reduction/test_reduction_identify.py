@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from reduction_synthetic import frequencies, keys_of, orbit_table, truth
+from support.reduction_synthetic import frequencies, keys_of, orbit_table, truth
 from reduction.errors import IdentificationError, ReductionError
 from reduction.identify import identify
 from reduction.models import parse_freq_dep

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from reduction_synthetic import SPIN, frequencies, impedance, keys_of, orbit_table, truth
+from support.reduction_synthetic import SPIN, frequencies, impedance, keys_of, orbit_table, truth
 from reduction.adequacy import frequency_dependence
 from reduction.design import design_orbits, predicted_covariance
 from reduction.identify import identify

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from reduction_synthetic import SPIN, impedance, keys_of, truth
+from support.reduction_synthetic import SPIN, impedance, keys_of, truth
 from orbitrig.cli import app
 from orbitrig.store.orbit_table import write_orbit_table
 from reduction.design import design_orbits

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from reduction_synthetic import frequencies, keys_of, orbit_table, truth
+from support.reduction_synthetic import frequencies, keys_of, orbit_table, truth
 from reduction.adequacy import frequency_dependence
 from reduction.design import design_orbits, predicted_covariance
 from reduction.errors import ReductionError

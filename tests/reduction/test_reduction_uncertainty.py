@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from reduction_synthetic import frequencies, keys_of, orbit_table, truth
+from support.reduction_synthetic import frequencies, keys_of, orbit_table, truth
 from reduction.derived import derived_quantities
 from reduction.identify import identify
 from reduction.noise import phasor_uncertainty

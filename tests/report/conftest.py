@@ -2,7 +2,7 @@ from __future__ import annotations
 
 import pytest
 
-from report_synthetic import write_synthetic_run
+from support.report_synthetic import write_synthetic_run
 
 
 @pytest.fixture(scope="session")

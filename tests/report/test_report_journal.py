@@ -142,7 +142,7 @@ def test_single_column_width(point, tmp_path):
 
 
 def test_formats_sizes_and_the_combined_pdf(tmp_path):
-    from report_synthetic import write_synthetic_run
+    from support.report_synthetic import write_synthetic_run
 
     run = write_synthetic_run(tmp_path / "run", n_points=2, incomplete=0)
     inches = plots.COLUMN_WIDTHS["double"]

@@ -4,7 +4,7 @@ from typer.testing import CliRunner
 
 from orbitrig.cli import app
 
-from report_synthetic import write_synthetic_run
+from support.report_synthetic import write_synthetic_run
 
 
 def test_report_of_a_killed_run_says_how_to_continue_it(tmp_path):

@@ -114,7 +114,7 @@ def test_summary_plot_over_points(synthetic_run, tmp_path):
 
 def test_report_of_one_point_drops_an_earlier_summary(tmp_path):
     """`report --point N` after a full report must not leave the old summary.png behind."""
-    from report_synthetic import write_synthetic_run
+    from support.report_synthetic import write_synthetic_run
 
     from orbitrig.analysis.report import ReportOptions, make_report
 
@@ -130,7 +130,7 @@ def test_report_of_one_point_drops_an_earlier_summary(tmp_path):
 def test_report_kinds_and_all_frequencies_replace_an_earlier_report(tmp_path):
     """--figures draws only those kinds and removes the point's other figures; --all-frequencies
     draws Figure 4 for every stored orbit frequency."""
-    from report_synthetic import write_synthetic_run
+    from support.report_synthetic import write_synthetic_run
 
     run = write_synthetic_run(tmp_path / "run", n_points=1, incomplete=0)
     stale = run / "plots" / "forces_0000_piezo.png"

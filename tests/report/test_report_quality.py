@@ -20,7 +20,7 @@ from orbitrig.analysis.quality import adequacy_verdicts, derived_of, true_impeda
 from orbitrig.analysis.report import analyse_point, fit_label
 from orbitrig.analysis.report_tables import identification_table, verdict_list
 from orbitrig.store.reader import read_run
-from report_synthetic import C_TRUE, D_TRUE, K_TRUE
+from support.report_synthetic import C_TRUE, D_TRUE, K_TRUE
 
 
 @pytest.fixture(scope="module")
@@ -196,12 +196,16 @@ def test_lms_consistency_table_shows_the_normalised_difference(point_report):
 
     found = preferred(point_report)
     a, b = found["piezo"], found["strain"]
-    en = lms_normalised_difference(a, b)
+    ag = lms_normalised_difference(a, b)
+    en = ag.e_n
     ka, kb = a.identification.coefficients["Kxx"], b.identification.coefficients["Kxx"]
     assert 100 * (kb - ka) / ka == pytest.approx(1.8, abs=0.3)
     u = np.hypot(a.identification.std_errors["Kxx"], b.identification.std_errors["Kxx"])
     assert en["Kxx"] == pytest.approx((ka - kb) / u, rel=1e-6) and en["Kxx"] < -2
-    html = consistency_table(a, b, en, "kcd11 (11 coef.)")
+    html = consistency_table(a, b, ag, "kcd11 (11 coef.)")
+    # 1.8 % on every coefficient: far beyond the joint limit, and Kxx beyond the per-coefficient mark
+    assert not ag.consistent and ag.dof == 11 and ag.chi2 > ag.limit and "NOT consistent" in html
+    assert abs(en["Kxx"]) > ag.e_n_limit() > 2
     assert f'<td class="err">{en["Kxx"]:+.2f}</td>' in html
     assert f"<td>{100 * (kb - ka) / abs(ka):+.2f}</td>" in html
 

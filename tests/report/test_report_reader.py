@@ -7,7 +7,7 @@ import shutil
 import h5py
 import numpy as np
 import pytest
-from report_synthetic import K_TRUE
+from support.report_synthetic import K_TRUE
 
 from orbitrig.store.reader import RunDirError, freq_dep_from_key, freq_dep_key, read_run
 from reduction.table import OrbitTable

@@ -11,7 +11,7 @@ import h5py
 
 import numpy as np
 import pytest
-from report_synthetic import C_TRUE, K_TRUE
+from support.report_synthetic import C_TRUE, K_TRUE
 from typer.testing import CliRunner
 
 from orbitrig.cli import app

@@ -14,7 +14,7 @@ from orbitrig.analysis.plots_signals import lms_difference, orbits_figure, signa
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.config import load_rig
 from orbitrig.store.reader import read_run
-from report_synthetic import N_REV, STRAIN_GAIN
+from support.report_synthetic import N_REV, STRAIN_GAIN
 
 CH = load_rig().channel_index
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import re
 
-from report_synthetic import write_synthetic_run
+from support.report_synthetic import write_synthetic_run
 
 from orbitrig.cli import sweep_summary
 from orbitrig.cli.sweep_summary import DETAIL_POINTS, print_coefficients, rejected

@@ -11,7 +11,7 @@ import pytest
 
 from sim.config import AdcConfig, GeometryConfig, NoiseConfig, SimConfig, load_sim_config
 from sim.rig import SimRig
-from sim_reader import channel_samples, fundamental, parse, read_pty, read_tcp, revolutions
+from support.sim_reader import channel_samples, fundamental, parse, read_pty, read_tcp, revolutions
 
 GAINS = np.array([0.1] * 4 + [5e-9] * 4)
 SPIN = 150.0  # rad/s

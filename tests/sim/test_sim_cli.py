@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from sim_reader import parse, revolutions
+from support.sim_reader import parse, revolutions
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -12,7 +12,7 @@ import pytest
 
 from sim.config import SimConfig
 from sim.rig import SimRig
-from sim_reader import parse, read_tcp, revolutions
+from support.sim_reader import parse, read_tcp, revolutions
 
 ORBIT = 2 * math.pi * 20.0
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from sim.config import NoiseConfig, SimConfig
 from sim.rig import SimRig
-from sim_reader import channel_samples, fundamental, parse, read_tcp, revolutions
+from support.sim_reader import channel_samples, fundamental, parse, read_tcp, revolutions
 
 GAINS = np.array([0.1] * 4 + [5e-9] * 4)
 SPIN = 150.0

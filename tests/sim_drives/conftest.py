@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 from pymodbus.client import AsyncModbusTcpClient
-from sim_drive_helpers import SpeedupClock
+from support.sim_drive_helpers import SpeedupClock
 
 from sim.drive_model import DriveModel
 from sim.modbus_server import serve_modbus_tcp

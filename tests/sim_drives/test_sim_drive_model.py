@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from sim_drive_helpers import (
+from support.sim_drive_helpers import (
     ABOVE_LIMIT, ACCEL_TIME, ACT, ALARM, AT_SETPOINT, AT_SETPOINT_BAND, COAST,
     COMM_LOSS_TIMEOUT, CW, DECEL_TIME, EMERGENCY, FAULT, MAX_SPEED, OFF_2_STA, OFF_3_STA,
     RAMP_STOP, RDY_ON, RDY_REF, RDY_RUN, READY, REF, REF2, REMOTE, RESET, RUN, SPEED_SCALE,

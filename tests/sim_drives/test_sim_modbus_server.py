@@ -16,7 +16,7 @@ import tty
 import pytest
 from pymodbus.client import AsyncModbusSerialClient, AsyncModbusTcpClient
 from pymodbus.exceptions import ModbusIOException
-from sim_drive_helpers import (
+from support.sim_drive_helpers import (
     ABOVE_LIMIT, ACT, AT_SETPOINT, COAST, COMM_LOSS_TIMEOUT, CW, DECEL_TIME, EMERGENCY, FAULT,
     MAX_SPEED, OFF_2_STA, OFF_3_STA, RAMP_STOP, RDY_ON, RDY_REF, RDY_RUN, READY, REF, REF2,
     REMOTE, RESET, RUN, SW, TORQUE, TRIPPED, ref_counts, s16, u16,

@@ -1,12 +1,8 @@
 import subprocess
-import sys
-from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "report"))  # the synthetic-run writer
-
-from report_synthetic import write_synthetic_run
+from support.report_synthetic import write_synthetic_run
 
 
 @pytest.fixture(scope="module")

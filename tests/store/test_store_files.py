@@ -16,6 +16,7 @@ from typer.testing import CliRunner
 from orbitrig.cli import app
 from orbitrig.store.reader import read_run
 from orbitrig.store.orbit_table import read_orbit_table
+from orbitrig.store.status import RunStatus
 
 def _s(values) -> list[str]:
     """Strings of an HDF5 string dataset or attribute (bytes or str, as h5py returns them)."""
@@ -158,7 +159,7 @@ def test_export_csv_orbit_tables_read_back(synthetic, tmp_path):
 
 
 def test_export_h5_of_a_cut_run_and_bad_arguments(tmp_path):
-    from report_synthetic import write_synthetic_run
+    from support.report_synthetic import write_synthetic_run
 
     run = write_synthetic_run(tmp_path / "cut", n_points=1, incomplete=1, finished=False)
     assert not (run / "run.h5").exists()
@@ -209,7 +210,7 @@ def test_orbit_table_uncertainty_and_block_stop_reason_round_trip(tmp_path):
     spec = ModelSpec(model="kc8")
     store.write_results(p.index, PointResults({"piezo": t}, {("piezo", spec.key): {"spec": spec, "error": "x\ny"}}, {}))
     store.complete_point(p.index)
-    store.set_status("completed", "")
+    store.set_status(RunStatus.COMPLETED, "")
     with h5py.File(tmp_path / "run/run.h5", "r") as f:
         fr = f[f"points/0000/frequencies/{b.tag}"]
         assert (fr.attrs["n_records"], fr.attrs["stop_reason"]) == (73, "target")

@@ -17,7 +17,7 @@ from typer.testing import CliRunner
 from orbitrig.cli import app
 from orbitrig.store.reader import read_run
 
-from store_checks import ROOT, check_whole, orbitrig_cmd, small_matrix, traced_rig_config
+from support.store_checks import ROOT, check_whole, orbitrig_cmd, small_matrix, traced_rig_config
 
 MATRIX = small_matrix("crash", revolutions=10)
 BLOCKS = 6  # 3 ratios x forward, backward

@@ -11,6 +11,7 @@ from orbitrig import config as cfg
 from orbitrig.config import ModelSpec
 from orbitrig.run.plan import operating_points
 from orbitrig.store.writer import BlockRecord, PointResults, RunStore, StorageError
+from orbitrig.store.status import RunStatus
 from reduction.table import OrbitTable
 
 
@@ -87,7 +88,7 @@ def test_store_layout_resume_and_csv(tmp_path):
     assert list(rows[0])[:15] == ["point", "label", "spin_rpm", "recess_pressure_mpa", "pressure_ratio",
                                   "static_eccentricity", "dynamic_eccentricity", "lms", "model", "freq_dep",
                                   "method", "n_frequencies", "condition_number", "residual_rms [N]", "error"]
-    r.set_status("completed", "done")  # a final status consolidates run.h5
+    r.set_status(RunStatus.COMPLETED, "done")  # a final status consolidates run.h5
     with h5py.File(r.path, "r") as f:
         assert f.attrs["status"] == "completed" and list(f["points"]) == ["0000"]
 

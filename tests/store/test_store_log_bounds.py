@@ -9,11 +9,12 @@ import json
 
 import h5py
 import pytest
-from report_synthetic import write_synthetic_run
+from support.report_synthetic import write_synthetic_run
 
 from orbitrig.store.quota import COMMANDS_HEAD, COMMANDS_TAIL, RUN_LOG_HEAD, RUN_LOG_TAIL
 from orbitrig.store.records import EVENTS_KEPT, MONITOR_ROWS_KEPT
 from orbitrig.store.writer import RunStore
+from orbitrig.store.status import RunStatus
 
 pytestmark = pytest.mark.timeout(120)
 FLOOD = 4_000  # state changes, commands and run.log lines while no point completes
@@ -44,7 +45,7 @@ def test_a_long_wait_grows_the_logs_by_a_bounded_amount(tmp_path):
                      "can": COMMANDS_HEAD + MONITOR_ROWS_KEPT}, grown
     assert len(store.log_path.read_text().splitlines()) - log_before == RUN_LOG_HEAD
 
-    store.set_status("stopped", "after the wait")  # closes the interval: counts and the newest lines
+    store.set_status(RunStatus.STOPPED, "after the wait")  # closes the interval: counts and the newest lines
     journal = [json.loads(line) for line in store.layout.journal.read_text().splitlines()]
     commands = [r for r in journal if r["k"] == "command"]
     assert len(commands) == COMMANDS_HEAD + 1 + COMMANDS_TAIL

@@ -13,8 +13,9 @@ from orbitrig.store.errors import StorageError, StorageFullError
 from orbitrig.store.estimate import block_bytes, plan_bytes, point_bytes, results_bytes
 from orbitrig.store.reader import read_run
 from orbitrig.store.writer import BlockRecord, RunStore
+from orbitrig.store.status import RunStatus
 
-from store_checks import fill, small_matrix
+from support.store_checks import fill, small_matrix
 
 MATRIX = small_matrix("space", revolutions=20)
 
@@ -48,7 +49,7 @@ def test_full_disk_is_a_storage_full_error_and_the_store_recovers(tiny_disk):
     assert err.value.path.endswith("01_fwd.h5") or err.value.path.endswith(".h5.tmp")
     assert not list((tiny_disk / "run").rglob("*.tmp"))  # the torn temporary file is gone
     with pytest.raises(StorageFullError):
-        store.set_status("failed", "disk full")  # the journal cannot take it either: an error, not a crash
+        store.set_status(RunStatus.FAILED, "disk full")  # the journal cannot take it either: an error, not a crash
     store.log("still alive")  # run.log is best effort: no exception
     with pytest.raises(StorageFullError, match="needs .* free"):
         store.check_free_space(1)
@@ -91,7 +92,7 @@ def test_estimates_bound_what_is_written(tmp_path):
     assert results <= results_bytes(len(p.blocks), 1) <= 2.5 * results
     point = sum(f.stat().st_size for f in (tmp_path / "run/points/0000").iterdir())
     assert point <= point_bytes(rig, p, 20, 1) <= 2 * point
-    store.set_status("stopped", "one point")
+    store.set_status(RunStatus.STOPPED, "one point")
     written = sum(f.stat().st_size for f in (tmp_path / "run").rglob("*") if f.is_file())
     whole = plan_bytes(rig, list(make_plan(m, rig).steps))  # two points: about twice this one's share
     assert 2 * written <= whole <= 6 * written

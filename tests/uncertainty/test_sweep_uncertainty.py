@@ -127,6 +127,9 @@ def test_adequacy_consistency_and_derived_quantities_are_stored(sweep):
         c = g["identification/piezo__kcd11__none__ols/lms_consistency"]
         assert c.attrs["basis"] == "combined" and c["e_n"].attrs["units"] == "1"
         assert 0 < c.attrs["max_abs"] == np.nanmax(np.abs(c["e_n"][()]))
+        # the verdict is the joint chi2 of all 12 coefficients at the family-wise 5 % level
+        assert c.attrs["test"] == "chi2" and c.attrs["level"] == 0.05 and c.attrs["dof"] == 12
+        assert c.attrs["consistent"] == (c.attrs["chi2"] <= c.attrs["limit"]) and c.attrs["limit"] == pytest.approx(21.026, abs=1e-3)
         d = g["identification/piezo__kcd11__none__ols/derived"]
         np.testing.assert_allclose(d["orbit_hz"][()], np.array([0.3, 0.5, 0.7, 0.9, 1.2]) * 1000 / 60, rtol=1e-9)
         fit = json.loads(g["identification/piezo__kcd11__none__ols"].attrs["json"])

@@ -16,9 +16,8 @@ from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import WebDriverWait
 
 REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO / "tests" / "mqtt"))
 
-from mqtt_helpers import free_port, interrupt, wait_port  # noqa: E402
+from .mqtt_helpers import free_port, interrupt, wait_port  # noqa: E402
 
 RIG = "dash-rig"  # rig id of the service the tests start
 CHROMIUM = "/usr/bin/chromium"

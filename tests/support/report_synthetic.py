@@ -13,6 +13,7 @@ from orbitrig import config as cfg
 from orbitrig.run.identification import identify_operating_point
 from orbitrig.run.plan import operating_points
 from orbitrig.store.writer import BlockRecord, RunStore
+from orbitrig.store.status import RunStatus
 
 MATRIX = """
 name = "synthetic"
@@ -126,5 +127,5 @@ def write_synthetic_run(directory: Path, *, noise=1e-3, seed=1, n_points=2, inco
         store.write_results(point.index, identify_operating_point(point.spin, recs, ch, matrix.models, truth))
         store.complete_point(point.index)
     if finished:
-        store.set_status("stopped" if incomplete else "completed", "synthetic run")
+        store.set_status(RunStatus.STOPPED if incomplete else RunStatus.COMPLETED, "synthetic run")
     return directory

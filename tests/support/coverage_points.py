@@ -24,7 +24,7 @@ import numpy as np
 
 from orbitrig.config import ModelSpec, load_rig
 from orbitrig.run.identification import block_record, identify_operating_point
-from orbitrig.run.plan import Block
+from orbitrig.run.steps import Block
 from orbitrig.run.truth import point_truth
 from sim.config import CHANNEL_GAINS, load_sim_config
 from sim.fits import constant_fit, power_fit
