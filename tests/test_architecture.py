@@ -39,7 +39,7 @@ WINGS = {
     "orbitrig.catalog": {"orbitrig.catalog", "orbitrig.store", "orbitrig.analysis"},
     "orbitrig.dashboard": {"orbitrig.dashboard", "orbitrig.service.protocol", "orbitrig.service.reconnect"},
     "orbitrig.run": {"orbitrig.run", "orbitrig.store"},
-    "orbitrig.store": {"orbitrig.store", "orbitrig.run.plan"},
+    "orbitrig.store": {"orbitrig.store", "orbitrig.run.plan", "orbitrig.run.steps"},
     "orbitrig.analysis": {"orbitrig.analysis", "orbitrig.store"},
 }
 # I/O libraries the pure numerical core must never import

@@ -15,7 +15,7 @@ from orbitrig.errors import ConfigError
 from orbitrig.run.plan import make_plan, summarize
 from orbitrig.run.steps import ChooseBlocks
 
-from sweep_helpers import running, wait_for
+from support.sweep_helpers import running, wait_for
 
 CANDIDATES = [0.3, 0.65, 1.5]
 MATRIX = """

@@ -7,7 +7,7 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from drives_testkit import CW_EMERGENCY, CW_RUN, RPM, open_rig
+from support.drives_testkit import CW_EMERGENCY, CW_RUN, RPM, open_rig
 
 from drives.drive import Drive
 from drives.limits import DriveLimits
