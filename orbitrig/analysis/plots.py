@@ -34,6 +34,8 @@ MATRIX_NAMES = {"K": "stiffness", "C": "damping", "D": "apparent inertia (added 
 PAIR_LABELS = {"xfx": "x, Fx", "yfx": "y, Fx", "xfy": "x, Fy", "yfy": "y, Fy"}
 DIRECTIONS = ((1, Whirl.FORWARD, "-", "o"), (-1, Whirl.BACKWARD, "--", "s"))
 TRUTH_LABEL = "true (simulator)"
+#: zlib level of the PNGs: 1 encodes about twice as fast as the default 6, files about 12 % larger
+PNG_COMPRESSION = 1
 #: journal column widths (in)
 COLUMN_WIDTHS = {"single": 3.5, "double": 7.2}
 
@@ -196,7 +198,7 @@ def png_bytes(fig: Figure, dpi: float) -> bytes:
         width, height = fig.canvas.get_width_height(physical=True)
         rgba = Image.frombuffer("RGBA", (width, height), fig.canvas.buffer_rgba(), "raw", "RGBA", 0, 1)  # type: ignore[attr-defined]  # Agg
         buf = io.BytesIO()
-        rgba.convert("RGB").save(buf, format="png", dpi=(dpi, dpi))
+        rgba.convert("RGB").save(buf, format="png", dpi=(dpi, dpi), compress_level=PNG_COMPRESSION)
     finally:
         fig.set_dpi(screen)
     return buf.getvalue()

@@ -286,7 +286,7 @@ def _remove(path: Path) -> None:
         raise storage_error(path, "remove", err) from err
 
 
-def _draw_point(run: Run, point: Point, out: Path, options: ReportOptions) -> PointReport:
+def draw_point(run: Run, point: Point, out: Path, options: ReportOptions) -> PointReport:
     """Analyse one point and draw its figures (in a worker process or here), or reuse those an
     earlier report drew from the same inputs (orbitrig.analysis.report_cache)."""
     pr = analyse_point(point)
@@ -325,7 +325,7 @@ def make_report(directory: str | Path, *, points: list[int] | None = None,
         raise storage_error(out, "create the folder", err) from err
     plots.use_style(options.style)
     report = Report(run, out, [], skipped=selection.skipped, notes=selection.notes)
-    report.points = draw_points(selection.points, lambda point: _draw_point(run, point, out, options),
+    report.points = draw_points(selection.points, lambda point: draw_point(run, point, out, options),
                                 workers=workers, progress=progress)
     for fmt in plots.FigureFormat:  # from an earlier report over other points
         _remove(out / f"summary.{fmt}")

@@ -42,6 +42,7 @@ def register(app: typer.Typer) -> None:
             "paper's rig, config/sim.toml); a shipped one by NAME: paper, clean, compressible (config/sim/)"
         ),
         operator: Optional[str] = typer.Option(None, "--operator", help="who runs the sweep, recorded in the run (default: the login name)"),
+        draw_figures: bool = typer.Option(True, "--draw-figures/--no-draw-figures", help="draw each completed point's report figures in a process at the lowest CPU priority, so `orbitrig report` afterwards reuses them"),
     ) -> None:
         """Run a test matrix: manual settings, speeds, settle, acquire, identify, store.
 
@@ -53,11 +54,11 @@ def register(app: typer.Typer) -> None:
         Exit 0 completed, 1 failed, 2 bad configuration or usage, 3 stopped, 4 aborted.
         """
         _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, sim_config, operator,
-                       steps=steps, fmt=fmt)
+                       steps=steps, fmt=fmt, draw_figures=draw_figures)
 
 
 def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, sim_config, operator=None, *,
-                   steps=False, fmt=None) -> None:
+                   steps=False, fmt=None, draw_figures=False) -> None:
     """`orbitrig sweep`, its options checked; raises typer.Exit with the run's exit status."""
     from orbitrig.errors import ConfigError, OrbitrigError
 
@@ -83,7 +84,7 @@ def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, 
 
         scenario = _scenario(sim_config, resume=resume, out=out) if sim else None
         outcome = asyncio.run(_sweep(plan, out=out, sim=scenario, resume=resume, speedup=speedup,
-                                     operator=operator or _login(), fmt=fmt))
+                                     operator=operator or _login(), fmt=fmt, draw_figures=draw_figures))
     except ConfigError as err:
         typer.echo(f"error: {err}", err=True)
         raise typer.Exit(2) from None
@@ -216,13 +217,29 @@ def _check_rig_answers(rig) -> None:
         raise typer.Exit(2)
 
 
+def _figures_ahead(stack, out: Path):
+    """An event subscriber handing each completed point to the figures' drawing process, which
+    ends with `stack`."""
+    from orbitrig.analysis.report_ahead import FiguresAhead
+    from orbitrig.run.events import ResultEvent
+
+    ahead = FiguresAhead(out)
+    stack.callback(ahead.close)
+
+    def on_event(event) -> None:
+        if isinstance(event, ResultEvent):
+            ahead.point_complete(int(event.payload["point"]))
+    return on_event
+
+
 def _login() -> str:
     import getpass
 
     return getpass.getuser()
 
 
-async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator: str = "", fmt=None):
+async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator: str = "", fmt=None,
+                 draw_figures: bool = False):
     """Run the plan; ``sim`` the simulator's (SimConfig, Scenario) (None: the real rig)."""
     started = None
     if sim is not None:  # it boots in its own process while this one imports the engine
@@ -254,6 +271,8 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator
         engine.console_user = operator  # Ctrl-C's pause, stop, abort and the prompts' confirmations
         console_operator = Operator(engine, console)
         engine.subscribe(console_operator.on_event)
+        if draw_figures:  # the report's figures of each completed point (orbitrig.analysis.report_ahead)
+            engine.subscribe(_figures_ahead(stack, out))
         with SweepProgress(console, revolutions=plan.revolutions) as bars:
             engine.subscribe(bars)
             console_operator.install()
