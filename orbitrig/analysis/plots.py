@@ -12,6 +12,7 @@ backward whirl with open markers and dashed lines.
 from __future__ import annotations
 
 import io
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import StrEnum
@@ -161,6 +162,45 @@ def panel_figure(w: float, h: float, *, left: float = 0.85, right: float = 0.2, 
     return fig
 
 
+_PANELS = threading.local()  # this thread's figures of panels, by shape (reused: see panels)
+
+
+def panels(w: float, h: float, rows: int, cols: int, *, sharex: bool = True, **margins: float) -> tuple[Figure, Any]:
+    """(figure, 2-d array of axes) of :func:`panel_figure` with rows x cols panels: the figure
+    this thread drew last of the same shape and style, emptied, or a new one. Reusing the axes
+    (their axis objects, tick marks and labels) halves the cost of drawing a figure; the caller
+    sets every title and label again. Valid until the next call of the same shape."""
+    key = (w, h, rows, cols, sharex, tuple(sorted(margins.items())), STYLE)
+    cache = _PANELS.__dict__.setdefault("figures", {})
+    if key in cache:
+        fig, axes = cache[key]
+        _empty(fig)
+        return fig, axes
+    fig = panel_figure(w, h, **margins)
+    axes = np.atleast_2d(fig.subplots(rows, cols, sharex=sharex, squeeze=False))
+    cache[key] = fig, axes
+    return fig, axes
+
+
+def _empty(fig: Figure) -> None:
+    """Remove what was drawn on `fig` (data, legends, titles), the axes kept, as newly made:
+    limits found from the data again, colour cycle restarted."""
+    for legend in list(fig.legends):
+        legend.remove()
+    for ax in fig.axes:
+        for artist in [*ax.lines, *ax.collections, *ax.patches, *ax.texts, *ax.images]:
+            artist.remove()
+        ax.containers.clear()
+        if ax.get_legend() is not None:
+            ax.get_legend().remove()
+        ax.set_prop_cycle(None)
+        ax.set_title("")
+        ax.set_xlabel("")
+        ax.set_ylabel("")
+        ax.relim()
+        ax.set_autoscale_on(True)
+
+
 def save_figure(fig: Figure, path: Path) -> Path:
     """Write `fig` to `path` (.png) and beside it in the style's other formats (folders
     created); returns the PNG's path."""
@@ -223,8 +263,7 @@ def forces_figure(table, fitted: Sequence[Fitted], *, title: str) -> Figure:
     U = k u (grey) when the table has the phasor uncertainties u_*: a fit whose residuals stay
     under U reproduces the forces within their uncertainty. Error bars on the measured
     amplitude: U/sqrt(2) (the radial part of an isotropic complex error)."""
-    fig = panel_figure(11, 9.0, left=1.0, top=1.1, bottom=2.6, hspace=0.3, wspace=0.25)  # legend below
-    axes = fig.subplots(2, 2, sharex=True)
+    fig, axes = panels(11, 9.0, 2, 2, left=1.0, top=1.1, bottom=2.6, hspace=0.3, wspace=0.25)  # legend below
     ratio = table.orbit / table.spin
     dirs = whirl_direction(table)
     colors = _colors(len(fitted))

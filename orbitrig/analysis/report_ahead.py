@@ -84,6 +84,13 @@ class FiguresAhead:
         except OSError:  # cannot start, pipe full (BlockingIOError) or the process gone
             self.dropped.append(index)
 
+    def on_event(self, event) -> None:
+        """A run engine's subscriber: a point's published result (its payload names the point)
+        hands that point over."""
+        payload = getattr(event, "payload", None)
+        if isinstance(payload, dict) and isinstance(payload.get("point"), int):
+            self.point_complete(payload["point"])
+
     @property
     def pid(self) -> int | None:
         """The drawing process's id while it runs (None before the first point)."""

@@ -217,21 +217,6 @@ def _check_rig_answers(rig) -> None:
         raise typer.Exit(2)
 
 
-def _figures_ahead(stack, out: Path):
-    """An event subscriber handing each completed point to the figures' drawing process, which
-    ends with `stack`."""
-    from orbitrig.analysis.report_ahead import FiguresAhead
-    from orbitrig.run.events import ResultEvent
-
-    ahead = FiguresAhead(out)
-    stack.callback(ahead.close)
-
-    def on_event(event) -> None:
-        if isinstance(event, ResultEvent):
-            ahead.point_complete(int(event.payload["point"]))
-    return on_event
-
-
 def _login() -> str:
     import getpass
 
@@ -271,8 +256,12 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator
         engine.console_user = operator  # Ctrl-C's pause, stop, abort and the prompts' confirmations
         console_operator = Operator(engine, console)
         engine.subscribe(console_operator.on_event)
-        if draw_figures:  # the report's figures of each completed point (orbitrig.analysis.report_ahead)
-            engine.subscribe(_figures_ahead(stack, out))
+        if draw_figures:  # the report's figures of each completed point, drawn at the lowest priority
+            from orbitrig.analysis.report_ahead import FiguresAhead
+
+            ahead = FiguresAhead(out)
+            stack.callback(ahead.close)
+            engine.subscribe(ahead.on_event)
         with SweepProgress(console, revolutions=plan.revolutions) as bars:
             engine.subscribe(bars)
             console_operator.install()
