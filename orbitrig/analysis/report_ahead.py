@@ -21,7 +21,8 @@ from pathlib import Path
 
 from orbitrig.errors import OrbitrigError
 
-CLOSE_TIMEOUT_S = 5.0  # for the drawing process to end after SIGTERM, before SIGKILL
+CLOSE_TIMEOUT_S = 0.5  # for the drawing process to end after SIGTERM, before SIGKILL (at SCHED_IDLE
+# on a busy machine it may get no processor to end by itself: the sweep does not wait for it)
 
 
 def lowest_priority() -> None:
