@@ -17,7 +17,11 @@ simulator runs in a process of its own, as `sweep --sim` starts it
 (orbitrig/cli/simulated_rig.py), at a higher priority where permitted: its
 drives stand for machines the host's load does not delay.
 
-    python3 bench/bench_loop_lag.py [--matrix demo] [--hogs N] [--target-ms 250] [--speedup 40]
+`--draw-figures` also draws each completed point's report figures in the background, as
+`orbitrig sweep` does by default (orbitrig.analysis.report_ahead), to show that the drawing
+process never delays the loop.
+
+    python3 bench/bench_loop_lag.py [--matrix demo] [--hogs N] [--target-ms 250] [--speedup 40] [--draw-figures]
 
 Not part of the test suite (strict timing on a shared machine).
 """
@@ -37,6 +41,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from orbitrig import config as cfg  # noqa: E402
+from orbitrig.analysis.report_ahead import FiguresAhead  # noqa: E402
 from orbitrig.cli.simulated_rig import simulated_rig  # noqa: E402
 from orbitrig.run.engine import RunEngine  # noqa: E402
 from orbitrig.run.plan import make_plan  # noqa: E402
@@ -105,7 +110,8 @@ model = "kc8"
 """
 
 
-async def sweep(matrix: str, speedup: float, stalls: list | None = None) -> tuple[str, list[float], list[float]]:
+async def sweep(matrix: str, speedup: float, stalls: list | None = None,
+                draw_figures: bool = False) -> tuple[str, list[float], list[float]]:
     rig = cfg.load_rig(None)
     mat = cfg.matrix_from_text(FOUR_POINTS, "four points") if matrix == "four" else cfg.load_matrix(cfg.matrix_file(matrix))
     plan = make_plan(mat, rig)
@@ -114,6 +120,9 @@ async def sweep(matrix: str, speedup: float, stalls: list | None = None) -> tupl
     with tempfile.TemporaryDirectory() as tmp:
         async with simulated_rig(speedup) as (_, access):
             engine = RunEngine(rig, out_dir=Path(tmp) / "run", access=access, confirm_mode="auto")
+            ahead = FiguresAhead(Path(tmp) / "run")  # as `sweep --draw-figures`
+            if draw_figures:
+                engine.subscribe(ahead.on_event)
             tasks = [asyncio.create_task(_heartbeat(engine, lags, [] if stalls is None else stalls)),
                      asyncio.create_task(_poll_gaps(engine, gaps))]
             try:
@@ -121,6 +130,10 @@ async def sweep(matrix: str, speedup: float, stalls: list | None = None) -> tupl
             finally:
                 for t in tasks:
                     t.cancel()
+                drawn = ahead.pid is not None
+                ahead.close()
+    if draw_figures and not drawn:
+        print("--draw-figures: the drawing process never started (no point completed)")
     return f"{outcome.status}: {outcome.message}", lags, gaps
 
 def _pct(values: list[float], q: float) -> float:
@@ -134,6 +147,8 @@ def main() -> int:
     ap.add_argument("--hogs", type=int, default=os.cpu_count() or 1, help="busy processes (default: one per core)")
     ap.add_argument("--target-ms", type=float, default=250.0)
     ap.add_argument("--speedup", type=float, default=40.0)
+    ap.add_argument("--draw-figures", action="store_true",
+                    help="draw each completed point's report figures in the background, as `sweep` does")
     a = ap.parse_args()
     hogs = [multiprocessing.Process(target=_hog, daemon=True) for _ in range(a.hogs)]
     for h in hogs:
@@ -141,12 +156,13 @@ def main() -> int:
     t0 = time.monotonic()
     try:
         stalls: list[tuple[float, float, float]] = []
-        result, lags, gaps = asyncio.run(sweep(a.matrix, a.speedup, stalls))
+        result, lags, gaps = asyncio.run(sweep(a.matrix, a.speedup, stalls, a.draw_figures))
     finally:
         for h in hogs:
             h.kill()
     worst = max(lags) * 1e3
-    print(f"sweep ({a.matrix}, speedup {a.speedup:g}) with {a.hogs} CPU hog(s): {result}; {time.monotonic() - t0:.1f} s wall")
+    drawing = ", figures drawn during the sweep" if a.draw_figures else ""
+    print(f"sweep ({a.matrix}, speedup {a.speedup:g}) with {a.hogs} CPU hog(s){drawing}: {result}; {time.monotonic() - t0:.1f} s wall")
     print(f"loop lag over {len(lags)} heartbeats of {TICK * 1e3:.0f} ms: worst {worst:.1f} ms, "
           f"99.9 % {_pct(lags, 0.999) * 1e3:.1f} ms, 99 % {_pct(lags, 0.99) * 1e3:.1f} ms, median {_pct(lags, 0.5) * 1e3:.1f} ms")
     print(f"drive polls: {len(gaps) + 1}, worst gap between two {max(gaps, default=0) * 1e3:.1f} ms")

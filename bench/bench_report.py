@@ -4,9 +4,11 @@ each must be reported in under 2 minutes with 2 worker processes.
 Synthesises a run of N points (tests/support/report_synthetic.py: the sweep's own storage,
 the paper's 10 ratios x 2 directions and 4 models, the same 17 figures per point; `--run DIR`
 keeps it for the next bench) and times `orbitrig report DIR --workers 2` end to end in a
-subprocess, three times: cold with the defaults (PNG 300 dpi, report.pdf from the PNGs), again
-on the unchanged run (every figure reused), and cold with `--formats png,pdf,svg` (vector
-files of every figure; `--vector` only). With fewer than 108 points the time is extrapolated
+subprocess: cold with the defaults (PNG 300 dpi, report.pdf from the PNGs), again on the
+unchanged run (every figure reused), after a sweep (the figures of every point but the last
+drawn during the sweep, as `orbitrig sweep` leaves them: orbitrig.analysis.report_ahead draws
+each completed point and is stopped with the sweep) and cold with `--formats png,pdf,svg`
+(vector files of every figure; `--vector` only). With fewer than 108 points the time is extrapolated
 linearly to 108 (the points are independent; the summary figure and report.pdf are a small
 part). On a shared machine the wall time says little: the CPU seconds of the report and its
 workers, divided by the workers, say what idle cores would take. Prints one line per
@@ -84,6 +86,8 @@ def main() -> int:
         run = synthetic(args.run or Path(tmp), args.points)
         cold = measure(run, [], args.workers, "default (png, report.pdf)", args.points)
         measure(run, [], args.workers, "again, run unchanged", args.points)
+        max((run / "plots" / ".figures").glob("*.json")).unlink()  # the last point: not drawn ahead
+        measure(run, [], args.workers, "after a sweep", args.points)
         if args.vector:
             shutil.rmtree(run / "plots")
             measure(run, ["--formats", "png,pdf,svg"], args.workers, "--formats png,pdf,svg", args.points)

@@ -19,7 +19,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from orbitrig.analysis.plots import (ENTRIES, TRUTH_LABEL, Fitted, _colors, _min_span, _save, coverage, keep_inside,
-                                    panel_figure, plot_fit, split_tested, style)
+                                    panels, plot_fit, split_tested, style)
 from orbitrig.analysis.reduce import MATRIX_UNITS
 from reduction.derived import entry_gradient
 
@@ -100,8 +100,7 @@ def coefficients_figure(fitted: Sequence[Fitted], *, spin: float, orbit: np.ndar
                         title: str) -> Figure:
     """K, C, D entries of every identification in `fitted` against Omega/omega (one model)."""
     mats = [m for m in "KCD" if any(_has(f.identification, m) for f in fitted)]
-    fig = panel_figure(13, 2.7 * len(mats) + 2.0, bottom=1.35, hspace=0.35)
-    axes = np.atleast_2d(fig.subplots(len(mats), 4, sharex=True))
+    fig, axes = panels(13, 2.7 * len(mats) + 2.0, len(mats), 4, bottom=1.35, hspace=0.35)
     top = float(np.max(np.abs(orbit))) * 1.05
     tested = np.unique(np.round(np.abs(orbit), 9))
     grid = np.union1d(np.linspace(0.0, top, 200), tested[[0, -1]])  # the solid part ends on the tested range

@@ -19,7 +19,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from orbitrig.analysis.plots import (ENTRIES, Fitted, _colors, _min_span, coverage, keep_inside, panel_figure, plot_fit,
+from orbitrig.analysis.plots import (ENTRIES, Fitted, _colors, _min_span, coverage, keep_inside, panels, plot_fit,
                                     style)
 from orbitrig.analysis.quality import TrueImpedance, orbit_grid
 from reduction.derived import Derived
@@ -46,8 +46,7 @@ def _zero_text(zero, spin: float) -> str:
 
 def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title: str) -> Figure:
     """C_eff (xx, yy), WFR, Re H and Im H (forward solid, backward dashed) against Omega/omega."""
-    fig = panel_figure(14, 9.0, top=1.6, bottom=1.3, hspace=0.75, wspace=0.3)
-    axes = fig.subplots(2, 3, sharex=True)
+    fig, axes = panels(14, 9.0, 2, 3, top=1.6, bottom=1.3, hspace=0.75, wspace=0.3)
     colors = _colors(len(derived))
     zeros = {"xx": [], "yy": []}
     for k, (label, d) in enumerate(derived):
@@ -93,8 +92,7 @@ def impedance_figure(fitted: Sequence[Fitted], truth: TrueImpedance, *, spin: fl
                      orbit: np.ndarray, title: str) -> Figure:
     """Re and Im of Z_xx, Z_xy, Z_yx, Z_yy [MN/m]: identified models (lines) and the simulator's
     true Z at its frequencies (crosses, kept inside the axes)."""
-    fig = panel_figure(14, 7.2, bottom=1.0, hspace=0.3, wspace=0.45)
-    axes = fig.subplots(2, 4, sharex=True)
+    fig, axes = panels(14, 7.2, 2, 4, bottom=1.0, hspace=0.3, wspace=0.45)
     grid = orbit_grid(orbit)
     colors = _colors(len(fitted))
     t_w, t_z = truth.orbit, truth.z

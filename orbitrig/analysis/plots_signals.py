@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from matplotlib.figure import Figure
 
-from orbitrig.analysis.plots import _colors, _figure, panel_figure
+from orbitrig.analysis.plots import _colors, _figure, panels
 from orbitrig.analysis.signals import FORCE_CHANNELS, PROBE_PLANES, BlockSignals
 from reduction.fourier import harmonic_fit
 from reduction.whirl import Whirl
@@ -66,8 +66,7 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
     """Figure 4 of the paper for one block: row (a) both systems' averaged Fx and Fy, the
     amplitude and phase difference in each panel's title; row (b) one raw revolution of the
     piezoelectric forces against their average, with the RMS deviation from the fundamental."""
-    fig = panel_figure(12, 8.0, left=0.9, top=1.35, bottom=0.65, hspace=0.36, wspace=0.22)
-    axes = fig.subplots(2, 2, sharex=True)
+    fig, axes = panels(12, 8.0, 2, 2, left=0.9, top=1.35, bottom=0.65, hspace=0.36, wspace=0.22)
     colors = _colors(2)
     for col, axis in enumerate(("fx", "fy")):
         label = f"F{axis[1]}"

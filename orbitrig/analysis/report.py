@@ -39,7 +39,7 @@ from pathlib import Path
 from orbitrig.analysis import plots as plots
 from orbitrig.analysis.report_pdf import COMBINED_PDF, combine_pdf
 from orbitrig.analysis.report_pool import Progress, draw_points
-from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_signals, report_cache
+from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_lms, plots_signals, report_cache
 from orbitrig.analysis.quality import Verdict, adequacy_verdicts, derived_of, true_impedance, warnings_of
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.errors import ReductionError
@@ -234,7 +234,7 @@ def _plot_point(run: Run, pr: PointReport, out: Path, opts: ReportOptions) -> No
     if all(lms in point.tables for lms in LMS) and "lms" in opts.figures:
         found = preferred(pr)
         pair = {lms: plots.Fitted(fit_label(r), r.identification) for lms, r in found.items()} if found else None
-        pr.plots.append(plots.lms_comparison_plot(
+        pr.plots.append(plots_lms.lms_comparison_plot(
             out / f"lms_{point.name}.png", {lms: point.tables[lms] for lms in LMS}, pair,
             title=f"Two load measuring systems: strain gauge vs piezoelectric\n{where}",
         ))
@@ -286,7 +286,7 @@ def _remove(path: Path) -> None:
         raise storage_error(path, "remove", err) from err
 
 
-def _draw_point(run: Run, point: Point, out: Path, options: ReportOptions) -> PointReport:
+def draw_point(run: Run, point: Point, out: Path, options: ReportOptions) -> PointReport:
     """Analyse one point and draw its figures (in a worker process or here), or reuse those an
     earlier report drew from the same inputs (orbitrig.analysis.report_cache)."""
     pr = analyse_point(point)
@@ -325,7 +325,7 @@ def make_report(directory: str | Path, *, points: list[int] | None = None,
         raise storage_error(out, "create the folder", err) from err
     plots.use_style(options.style)
     report = Report(run, out, [], skipped=selection.skipped, notes=selection.notes)
-    report.points = draw_points(selection.points, lambda point: _draw_point(run, point, out, options),
+    report.points = draw_points(selection.points, lambda point: draw_point(run, point, out, options),
                                 workers=workers, progress=progress)
     for fmt in plots.FigureFormat:  # from an earlier report over other points
         _remove(out / f"summary.{fmt}")

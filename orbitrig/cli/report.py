@@ -114,7 +114,7 @@ def report_cmd(
     try:
         options = ReportOptions(figures=frozenset(kinds), all_frequencies=all_frequencies,
                                 style=_style(width, formats, coverage))
-        total = len(point) if point else len(read_run(directory).complete_points)
+        total = len(point) if point else len(read_run(directory, blocks=False).complete_points)
         with ReportProgress(total) as progress:
             report = make_report(directory, points=point, options=options, workers=workers, progress=progress)
     except (RunDirError, ValueError) as err:

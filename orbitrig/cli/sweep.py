@@ -42,6 +42,7 @@ def register(app: typer.Typer) -> None:
             "paper's rig, config/sim.toml); a shipped one by NAME: paper, clean, compressible (config/sim/)"
         ),
         operator: Optional[str] = typer.Option(None, "--operator", help="who runs the sweep, recorded in the run (default: the login name)"),
+        draw_figures: bool = typer.Option(True, "--draw-figures/--no-draw-figures", help="draw each completed point's report figures in a process at the lowest CPU priority, so `orbitrig report` afterwards reuses them"),
     ) -> None:
         """Run a test matrix: manual settings, speeds, settle, acquire, identify, store.
 
@@ -53,11 +54,11 @@ def register(app: typer.Typer) -> None:
         Exit 0 completed, 1 failed, 2 bad configuration or usage, 3 stopped, 4 aborted.
         """
         _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, sim_config, operator,
-                       steps=steps, fmt=fmt)
+                       steps=steps, fmt=fmt, draw_figures=draw_figures)
 
 
 def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, sim_config, operator=None, *,
-                   steps=False, fmt=None) -> None:
+                   steps=False, fmt=None, draw_figures=False) -> None:
     """`orbitrig sweep`, its options checked; raises typer.Exit with the run's exit status."""
     from orbitrig.errors import ConfigError, OrbitrigError
 
@@ -83,7 +84,7 @@ def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, 
 
         scenario = _scenario(sim_config, resume=resume, out=out) if sim else None
         outcome = asyncio.run(_sweep(plan, out=out, sim=scenario, resume=resume, speedup=speedup,
-                                     operator=operator or _login(), fmt=fmt))
+                                     operator=operator or _login(), fmt=fmt, draw_figures=draw_figures))
     except ConfigError as err:
         typer.echo(f"error: {err}", err=True)
         raise typer.Exit(2) from None
@@ -223,9 +224,10 @@ def _login() -> str:
 
 
 async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator: str = "", fmt=None,
-                 subscribers=()):
+                 subscribers=(), draw_figures: bool = False):
     """Run the plan; ``sim`` the simulator's (SimConfig, Scenario) (None: the real rig);
-    ``subscribers``: more event callbacks of the engine (bench/bench_soak.py samples memory)."""
+    ``subscribers``: more event callbacks of the engine (bench/bench_soak.py samples memory);
+    ``draw_figures``: the report's figures of each completed point drawn during the run."""
     started = None
     if sim is not None:  # it boots in its own process while this one imports the engine
         from orbitrig.cli.simulated_rig import start_simulator
@@ -258,6 +260,12 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator
         engine.subscribe(console_operator.on_event)
         for callback in subscribers:
             engine.subscribe(callback)
+        if draw_figures:  # the report's figures of each completed point, drawn at the lowest priority
+            from orbitrig.analysis.report_ahead import FiguresAhead
+
+            ahead = FiguresAhead(out)
+            stack.callback(ahead.close)
+            engine.subscribe(ahead.on_event)
         with SweepProgress(console, revolutions=plan.revolutions) as bars:
             engine.subscribe(bars)
             console_operator.install()

@@ -232,7 +232,16 @@ def read_run(directory: str | Path, *, blocks: bool = True) -> Run:
             raise RunDirError(path, f"cannot read ({err})") from err
 
 
-def _read_pieces(layout: RunLayout, blocks: bool = True) -> Run:
+def read_run_points(directory: str | Path, indexes: list[int]) -> Run:
+    """The run in pieces in ``directory`` with only the points ``indexes`` (the others not read):
+    what a sweep has stored so far of those points, while it goes on. Raises RunDirError."""
+    layout = RunLayout(Path(directory))
+    if not layout.has_pieces():
+        raise RunDirError(Path(directory), "no run in pieces (a run being written) in it")
+    return _read_pieces(layout, True, indexes)
+
+
+def _read_pieces(layout: RunLayout, blocks: bool = True, indexes: list[int] | None = None) -> Run:
     from orbitrig.store.consolidate import read_header
     from orbitrig.store.errors import StorageError
     from orbitrig.store.index import point_state
@@ -257,7 +266,7 @@ def _read_pieces(layout: RunLayout, blocks: bool = True) -> Run:
     prov = header.get("provenance") if isinstance(header.get("provenance"), dict) else {}
     ended = journal.status_at if journal.status.final else ""
     run.provenance = {k: str(prov.get(k, "")) for k in PROVENANCE_KEYS[:-1]} | {"ended": ended}
-    for index in layout.point_indexes():
+    for index in layout.point_indexes() if indexes is None else indexes:
         state = point_state(layout, index)
         if not state.complete and not layout.point_file(index).exists():
             run.unbegun.append(index)  # cut between creating the point's folder and storing its settings

@@ -102,7 +102,9 @@ def write_synthetic_run(directory: Path, *, noise=1e-3, seed=1, n_points=2, inco
     directory = Path(directory)
     rng = np.random.default_rng(seed)
     wave_rng = np.random.default_rng(seed + 1000)  # waveforms only: the phasors stay as before
-    eps = ", ".join(f"{0.15 * i:g}" for i in range(n_points + incomplete))
+    total = n_points + incomplete
+    step = 0.15 if total <= 6 else 0.9 / (total - 1)  # static eccentricity < 1 for a bench's 108 points
+    eps = ", ".join(f"{step * i:g}" for i in range(total))
     rig = cfg.load_rig()
     matrix = cfg.matrix_from_text(MATRIX.format(eps=eps), "synthetic.toml")
     ch = rig.channel_index
