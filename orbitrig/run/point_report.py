@@ -57,7 +57,7 @@ def adequacy_text(a: dict[str, Any]) -> str:
 
 
 def consistency_text(c: dict[str, Any]) -> str:
-    """'load measuring systems piezo - strain: consistent (chi2 = 9.1 on 12 coefficients <= 21
+    """'load measuring systems piezo - strain: consistent (chi2 = 9.1 on 11 coefficients <= 19.7
     at the 5 % level, combined uncertainty); max |E_n| = 1.3'."""
     if "error" in c:
         return f"load measuring systems not compared: {c['error']}"

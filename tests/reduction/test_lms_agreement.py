@@ -90,3 +90,14 @@ def test_the_real_fits_decide_by_their_joint_chi2_and_a_gain_mismatch_is_not_con
     bare = dataclasses.replace(a, covariance=None)
     none = lms_agreement(bare, ta, bare, ta, Calibration(), Calibration())
     assert none.chi2 is None and none.dof == 0 and not none.consistent
+
+
+def test_the_joint_chi2_keeps_every_coefficient_whatever_its_unit():
+    """Hand check: K in N/m has variances near 1e12, D in kg near 1e-2; the rank is judged on
+    the correlations, so both count and chi2 is the plain sum of squared z-scores."""
+    cov = np.diag([4e12, 9e12, 1e-2, 4e-2])
+    d = np.array([2e6, -3e6, 0.1, 0.4])
+    chi2, dof = joint_chi2(d, cov)
+    assert dof == 4 and chi2 == pytest.approx(1.0 + 1.0 + 1.0 + 4.0, rel=1e-12)
+    cov[3, 3] = 0.0  # a coefficient held fixed: left out
+    assert joint_chi2(d, cov) == (pytest.approx(3.0, rel=1e-12), 3)
