@@ -17,6 +17,7 @@ from __future__ import annotations
 import csv
 import io
 import sys
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 from orbitrig.store.fit_record import expanded_uncertainty
@@ -106,15 +107,16 @@ def point_rows(point, sim: bool) -> list[dict]:
 
 
 def columns(rows: list[dict]) -> list[str]:
-    """CSV_HEAD, then each coefficient, its standard error and expanded uncertainty, then the
-    true values."""
-    keys: list[str] = []
-    for r in rows:
-        keys += [k for k in r["_keys"] if k not in keys]
-    keys.sort(key=coef_order)
-    cols = CSV_HEAD + [coefficient_column(k, kind) for k in keys for kind in ("", "std", "U")]
-    true = [k for k in keys if any(coefficient_column(k, "true") in r for r in rows)]
-    return cols + [coefficient_column(k, "true") for k in true]
+    """The file's columns for `rows` as dicts (`_layout`)."""
+    return _layout((k for r in rows for k in r["_keys"]), lambda c: any(c in r for r in rows))
+
+
+def _layout(keys: Iterable[str], has: Callable[[str], bool]) -> list[str]:
+    """CSV_HEAD, then each coefficient of `keys`, its standard error and expanded uncertainty,
+    then the true values of those whose true column some row `has`."""
+    ordered = sorted(dict.fromkeys(keys), key=coef_order)
+    cols = CSV_HEAD + [coefficient_column(k, kind) for k in ordered for kind in ("", "std", "U")]
+    return cols + [c for c in (coefficient_column(k, "true") for k in ordered) if has(c)]
 
 
 def render(rows: list[dict]) -> bytes:
@@ -144,10 +146,8 @@ class PointCsv:
 def render_points(points: list[PointCsv]) -> bytes:
     """The whole file's bytes from each point's kept rows; the same bytes as `render` of
     their rows as dicts."""
-    keys = sorted(dict.fromkeys(k for p in points for k in p.keys), key=coef_order)
-    cols = CSV_HEAD + [coefficient_column(k, kind) for k in keys for kind in ("", "std", "U")]
     have = {f for p in points for f in p.fields}
-    cols += [c for c in (coefficient_column(k, "true") for k in keys) if c in have]
+    cols = _layout((k for p in points for k in p.keys), have.__contains__)
     buf = io.StringIO(newline="")
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(cols)
