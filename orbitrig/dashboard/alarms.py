@@ -75,7 +75,7 @@ class AlarmBook:
             self.alarms[alarm.id] = alarm
             self._bound()
             return True
-        if str(status.get("message") or "").startswith(CLEARED) or status.get("state") == "idle":
+        if str(status.get("message") or "").startswith(CLEARED) or status.get("state") == RunState.IDLE:
             stale = [a for a in self.alarms.values()
                      if a.kind == AlarmKind.TRIP and not a.cleared and a.run_id == status.get("run_id")]
             for a in stale:
