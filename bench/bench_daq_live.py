@@ -75,10 +75,20 @@ def writer_source(conn, mode: str, frame_slots: int = 45) -> None:
                 samples = revs[r % len(revs)]
                 for fs in range(0, 360, frame_slots):
                     ns = min(frame_slots, 360 - fs)
-                    body = struct.pack("<BBHIHBBI", 1, (1 if fs == 0 else 0) | flag_mode, seq & 0xFFFF,
-                                       r & 0xFFFFFFFF, fs, ns, n_ch,
-                                       (r * period_us + fs * period_us // 360) & 0xFFFFFFFF) \
-                        + samples[fs:fs + ns].tobytes()
+                    body = (
+                        struct.pack(
+                            "<BBHIHBBI",
+                            1,
+                            (1 if fs == 0 else 0) | flag_mode,
+                            seq & 0xFFFF,
+                            r & 0xFFFFFFFF,
+                            fs,
+                            ns,
+                            n_ch,
+                            (r * period_us + fs * period_us // 360) & 0xFFFFFFFF,
+                        )
+                        + samples[fs : fs + ns].tobytes()
+                    )
                     out.append(b"\xa5\x5a" + body + struct.pack("<H", crc_hqx(body, 0xFFFF)))
                     seq += 1
                 r += 1
@@ -88,7 +98,7 @@ def writer_source(conn, mode: str, frame_slots: int = 45) -> None:
             break
         if writable:
             try:
-                pending = pending[os.write(master, pending):]
+                pending = pending[os.write(master, pending) :]
             except BlockingIOError:
                 pass
     conn.send([])
@@ -97,8 +107,9 @@ def writer_source(conn, mode: str, frame_slots: int = 45) -> None:
 
 
 # ------------------------------------------------------------------ reader
-async def measure(path: str, mode: str, seconds: float, expected_revs_per_s: float | None,
-                  conn) -> tuple[float, object, float]:
+async def measure(
+    path: str, mode: str, seconds: float, expected_revs_per_s: float | None, conn
+) -> tuple[float, object, float]:
     channels = 8
     spr = 360 * (channels if mode == "simultaneous" else 1)
     async with AdcReader(path, channels=channels, mode=mode) as adc:
@@ -145,10 +156,12 @@ def report(name, rate, block, elapsed, src_lost) -> bool:
     extra = ""
     if src_lost is not None:
         extra = f"; simulator during the run: board frames lost {src_lost[0]}, pty chunks dropped {src_lost[1]}"
-    print(f"  {name}: {rate / 1e6:6.2f} M samples/s over {elapsed:.1f} s, {stats.revolutions_used} revolutions "
-          f"of {span} numbered; dropped {stats.revolutions_dropped} {stats.drop_reasons or ''}, "
-          f"frames bad {stats.frames_bad}, bytes skipped {stats.bytes_skipped}, link drops {stats.link_drops}"
-          f"{extra} -> {'zero loss' if loss == 0 else 'LOSS'}")
+    print(
+        f"  {name}: {rate / 1e6:6.2f} M samples/s over {elapsed:.1f} s, {stats.revolutions_used} revolutions "
+        f"of {span} numbered; dropped {stats.revolutions_dropped} {stats.drop_reasons or ''}, "
+        f"frames bad {stats.frames_bad}, bytes skipped {stats.bytes_skipped}, link drops {stats.link_drops}"
+        f"{extra} -> {'zero loss' if loss == 0 else 'LOSS'}"
+    )
     return loss == 0
 
 
@@ -162,8 +175,9 @@ def main() -> None:
     print(f"live over a pty, AdcReader.acquire end to end ({args.seconds:g} s per run)")
     speedup = {"simultaneous": args.speedup, "sequential": args.speedup_sequential}
     for mode in ("simultaneous", "sequential"):
-        result = run_source(sim_source, (mode, speedup[mode], args.orbit_hz), mode, args.seconds,
-                            args.orbit_hz * speedup[mode])
+        result = run_source(
+            sim_source, (mode, speedup[mode], args.orbit_hz), mode, args.seconds, args.orbit_hz * speedup[mode]
+        )
         report(f"simulator {mode:12s} x{speedup[mode]:g} at {args.orbit_hz:g} Hz", *result)
     for mode in ("simultaneous", "sequential"):
         report(f"own writer {mode:12s}", *run_source(writer_source, (mode,), mode, args.seconds, None))

@@ -51,8 +51,9 @@ def click_abort(page: Page) -> float:
     return t
 
 
-async def trials_loop(page, watcher, sim_rig, stops: dict, words: dict, armed: threading.Event,
-                      trials: int) -> list[float]:
+async def trials_loop(
+    page, watcher, sim_rig, stops: dict, words: dict, armed: threading.Event, trials: int
+) -> list[float]:
     """Start a run, let both drives spin up, abort from the page; click -> stop latency (ms) per trial."""
     rows: list[float] = []
     for trial in range(trials):
@@ -68,8 +69,11 @@ async def trials_loop(page, watcher, sim_rig, stops: dict, words: dict, armed: t
         if len(stops) != 2:
             raise RuntimeError(f"trial {trial}: stop commands seen for drives {sorted(stops)} only")
         rows.append((max(stops.values()) - t_click) * 1e3)
-        print(f"trial {trial + 1}: spin {spin:6.0f} rpm, orbit {orbit:+6.0f} rpm | click 'Abort now' -> "
-              f"both drives stopping {rows[-1]:6.1f} ms (CW {words[1]:#06x}, {words[2]:#06x})", flush=True)
+        print(
+            f"trial {trial + 1}: spin {spin:6.0f} rpm, orbit {orbit:+6.0f} rpm | click 'Abort now' -> "
+            f"both drives stopping {rows[-1]:6.1f} ms (CW {words[1]:#06x}, {words[2]:#06x})",
+            flush=True,
+        )
     return rows
 
 
@@ -83,7 +87,8 @@ async def main(trials: int, speedup: float) -> None:
     work = Path(tempfile.mkdtemp(prefix="bench-dash-abort-"))
     (work / "matrices").mkdir()
     (work / "matrices" / "bench.toml").write_text(
-        MATRIX.format(name="bench", revs=200, ratios="[0.5, 0.7, 0.9]", directions='["forward"]'))
+        MATRIX.format(name="bench", revs=200, ratios="[0.5, 0.7, 0.9]", directions='["forward"]')
+    )
     broker = Broker(work / "broker")
     broker.start()
     stops: dict[int, float] = {}
@@ -95,10 +100,10 @@ async def main(trials: int, speedup: float) -> None:
         async with SimRig(speedup=speedup, adc_pty=False) as sim_rig:
             watch_control_words(sim_rig, stops, words, armed)
             settings = ServiceSettings(rig_id="bench", matrices_dir=work / "matrices")
-            creds = BrokerSettings.from_url(broker.url, username="orbitrig-service",
-                                            password=ACCOUNTS["orbitrig-service"])
-            service = build_service(load_rig(), settings, creds, out=work / "runs", sim_rig=sim_rig,
-                                    confirm="auto")
+            creds = BrokerSettings.from_url(
+                broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]
+            )
+            service = build_service(load_rig(), settings, creds, out=work / "runs", sim_rig=sim_rig, confirm="auto")
             shutdown = asyncio.Event()
             serving = asyncio.create_task(service.serve(shutdown), name="bench-service")
             watcher = await asyncio.to_thread(Operator, broker.port, "orbitrig/bench")
@@ -122,9 +127,11 @@ async def main(trials: int, speedup: float) -> None:
                 await serving
     finally:
         broker.stop()
-    print(f"\ndashboard abort latency over {len(rows)} trials (click -> both drives commanded to stop): "
-          f"median {statistics.median(rows):.1f} ms, min {min(rows):.1f} ms, max {max(rows):.1f} ms "
-          f"(target < 200 ms: {'met' if max(rows) < 200 else 'NOT met'})")
+    print(
+        f"\ndashboard abort latency over {len(rows)} trials (click -> both drives commanded to stop): "
+        f"median {statistics.median(rows):.1f} ms, min {min(rows):.1f} ms, max {max(rows):.1f} ms "
+        f"(target < 200 ms: {'met' if max(rows) < 200 else 'NOT met'})"
+    )
 
 
 if __name__ == "__main__":

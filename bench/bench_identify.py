@@ -33,7 +33,8 @@ CALIBRATION = Calibration(
     y=ChannelCalibration(gain=0.005, phase=np.radians(0.05), delay=1e-6),
     fx=ChannelCalibration(gain=0.01, phase=np.radians(0.3), delay=10e-6),
     fy=ChannelCalibration(gain=0.01, phase=np.radians(0.3), delay=10e-6),
-    sensitivity=0.01)
+    sensitivity=0.01,
+)
 
 
 def table_for(model: str, freq_dep: str, seed: int = 0) -> OrbitTable:
@@ -62,24 +63,33 @@ def best(fn, number: int) -> float:
 
 
 def main() -> None:
-    print(f"orbitrig identification benchmark: {N_FREQ} orbit frequencies x (forward + backward whirl) = "
-          f"{2 * N_FREQ} rows, {8 * N_FREQ} real equations")
+    print(
+        f"orbitrig identification benchmark: {N_FREQ} orbit frequencies x (forward + backward whirl) = "
+        f"{2 * N_FREQ} rows, {8 * N_FREQ} real equations"
+    )
     table = table_for("kcd11", "poly:2")
     spec = model_spec("kcd11", "poly:2")
     p = spec.n_coefficients
     print(f"kcd11 poly:2: {p} coefficients (the paper's 33 less the absorbed K order 2)")
-    print(f"kcd11 poly:2: build regression (impedance basis reused): "
-          f"{best(lambda: regression(spec, table.orbit, table.x, table.y, table.fx, table.fy), 200) * 1e6:.0f} us")
+    print(
+        f"kcd11 poly:2: build regression (impedance basis reused): "
+        f"{best(lambda: regression(spec, table.orbit, table.x, table.y, table.fx, table.fy), 200) * 1e6:.0f} us"
+    )
     ident = identify(table, "kcd11", "poly:2")
     t_id = best(lambda: identify(table, "kcd11", "poly:2"), 50)
     t_sys = best(lambda: uncertainty_budget(ident, table, CALIBRATION), 50)
     t_all = best(lambda: uncertainty_budget(identify(table, "kcd11", "poly:2"), table, CALIBRATION), 50)
-    print(f"kcd11 poly:2 ols/qr: identify (rank analysis, covariance, intervals, chi2, AIC/BIC, "
-          f"conditioning check): {t_id * 1e3:.2f} ms")
-    print(f"kcd11 poly:2: systematic propagation (14 calibration parameters, linearised) + budget: "
-          f"{t_sys * 1e3:.2f} ms")
-    print(f"kcd11 poly:2: identify + covariance + systematic propagation: {t_all * 1e3:.2f} ms "
-          f"(target < 5 ms) -> {'met' if t_all < 5e-3 else 'NOT met'}")
+    print(
+        f"kcd11 poly:2 ols/qr: identify (rank analysis, covariance, intervals, chi2, AIC/BIC, "
+        f"conditioning check): {t_id * 1e3:.2f} ms"
+    )
+    print(
+        f"kcd11 poly:2: systematic propagation (14 calibration parameters, linearised) + budget: {t_sys * 1e3:.2f} ms"
+    )
+    print(
+        f"kcd11 poly:2: identify + covariance + systematic propagation: {t_all * 1e3:.2f} ms "
+        f"(target < 5 ms) -> {'met' if t_all < 5e-3 else 'NOT met'}"
+    )
     for method, solver in (("ols", "svd"), ("ols", "lu"), ("wls", "qr"), ("iv", "qr"), ("tls", "qr")):
         number = 5 if method == "tls" else 50
         t = best(functools.partial(identify, table, "kcd11", "poly:2", method, solver), number)

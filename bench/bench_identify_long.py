@@ -44,23 +44,41 @@ def write_table(path: Path, rows: int, seed: int = 0) -> None:
     s = 0.01 * np.sqrt(np.mean(np.abs(fx) ** 2))
     fx = fx + s / np.sqrt(2) * (rng.standard_normal(rows) + 1j * rng.standard_normal(rows))
     fy = fy + s / np.sqrt(2) * (rng.standard_normal(rows) + 1j * rng.standard_normal(rows))
-    cols = [np.full(rows, SPIN_RPM), w / (2 * np.pi), x.real, x.imag, y.real, y.imag, fx.real, fx.imag,
-            fy.real, fy.imag, np.full(rows, 20e-9), np.full(rows, 20e-9), np.full(rows, s), np.full(rows, s)]
+    cols = [
+        np.full(rows, SPIN_RPM),
+        w / (2 * np.pi),
+        x.real,
+        x.imag,
+        y.real,
+        y.imag,
+        fx.real,
+        fx.imag,
+        fy.real,
+        fy.imag,
+        np.full(rows, 20e-9),
+        np.full(rows, 20e-9),
+        np.full(rows, s),
+        np.full(rows, s),
+    ]
     header = "spin_rpm,orbit_hz,x_re,x_im,y_re,y_im,fx_re,fx_im,fy_re,fy_im,u_x,u_y,u_fx,u_fy"
     np.savetxt(path, np.column_stack(cols), delimiter=",", header=header, comments="", fmt="%.17g")
 
 
 def run(path: Path) -> tuple[float, float, float, dict]:
     """(wall time s, CPU time s, peak RSS MB, result) of one identify run on one core."""
-    env = dict(os.environ, PYTHONPATH=str(ROOT), OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1",
-               MKL_NUM_THREADS="1")
+    env = dict(os.environ, PYTHONPATH=str(ROOT), OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
     core = min(os.sched_getaffinity(0))
     out_path, err_path = path.with_suffix(".json"), path.with_suffix(".err")
     with open(out_path, "w") as out, open(err_path, "w") as err:
         start = time.perf_counter()
-        p = subprocess.Popen([sys.executable, "-m", "orbitrig", "identify", str(path), "--model", "kcd11", "--json"],
-                             cwd=ROOT, env=env, stdout=out, stderr=err,
-                             preexec_fn=lambda: os.sched_setaffinity(0, {core}))
+        p = subprocess.Popen(
+            [sys.executable, "-m", "orbitrig", "identify", str(path), "--model", "kcd11", "--json"],
+            cwd=ROOT,
+            env=env,
+            stdout=out,
+            stderr=err,
+            preexec_fn=lambda: os.sched_setaffinity(0, {core}),
+        )
         _, status, usage = os.wait4(p.pid, 0)  # this child's own peak memory
         elapsed = time.perf_counter() - start
     p.returncode = os.waitstatus_to_exitcode(status)
@@ -78,14 +96,18 @@ def main() -> None:
             write_table(path, rows)
             elapsed, cpu, mb, result = run(path)
             kxx = result["coefficients"]["Kxx"]
-            print(f"identify kcd11, {rows} rows ({path.stat().st_size / 1e6:.0f} MB CSV), one core: CPU {cpu:.1f} s "
-                  f"(wall {elapsed:.1f} s), peak {mb:.0f} MB; Kxx = {kxx:.4g} N/m (true {K[0, 0]:.4g}), "
-                  f"{len(result['fit'])} fit rows")
+            print(
+                f"identify kcd11, {rows} rows ({path.stat().st_size / 1e6:.0f} MB CSV), one core: CPU {cpu:.1f} s "
+                f"(wall {elapsed:.1f} s), peak {mb:.0f} MB; Kxx = {kxx:.4g} N/m (true {K[0, 0]:.4g}), "
+                f"{len(result['fit'])} fit rows"
+            )
             if rows == TARGET_ROWS:
                 met = cpu < TARGET_S and mb < TARGET_MB
                 ok &= met
-                print(f"target {TARGET_ROWS} rows under {TARGET_S:g} s and {TARGET_MB:g} MB: "
-                      + ("met" if met else "NOT met"))
+                print(
+                    f"target {TARGET_ROWS} rows under {TARGET_S:g} s and {TARGET_MB:g} MB: "
+                    + ("met" if met else "NOT met")
+                )
     sys.exit(0 if ok else 1)
 
 

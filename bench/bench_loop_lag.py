@@ -110,10 +110,15 @@ model = "kc8"
 """
 
 
-async def sweep(matrix: str, speedup: float, stalls: list | None = None,
-                draw_figures: bool = False) -> tuple[str, list[float], list[float]]:
+async def sweep(
+    matrix: str, speedup: float, stalls: list | None = None, draw_figures: bool = False
+) -> tuple[str, list[float], list[float]]:
     rig = cfg.load_rig(None)
-    mat = cfg.matrix_from_text(FOUR_POINTS, "four points") if matrix == "four" else cfg.load_matrix(cfg.matrix_file(matrix))
+    mat = (
+        cfg.matrix_from_text(FOUR_POINTS, "four points")
+        if matrix == "four"
+        else cfg.load_matrix(cfg.matrix_file(matrix))
+    )
     plan = make_plan(mat, rig)
     lags: list[float] = []
     gaps: list[float] = []
@@ -123,8 +128,10 @@ async def sweep(matrix: str, speedup: float, stalls: list | None = None,
             ahead = FiguresAhead(Path(tmp) / "run")  # as `sweep --draw-figures`
             if draw_figures:
                 engine.subscribe(ahead.on_event)
-            tasks = [asyncio.create_task(_heartbeat(engine, lags, [] if stalls is None else stalls)),
-                     asyncio.create_task(_poll_gaps(engine, gaps))]
+            tasks = [
+                asyncio.create_task(_heartbeat(engine, lags, [] if stalls is None else stalls)),
+                asyncio.create_task(_poll_gaps(engine, gaps)),
+            ]
             try:
                 outcome = await engine.run(plan)
             finally:
@@ -135,6 +142,7 @@ async def sweep(matrix: str, speedup: float, stalls: list | None = None,
     if draw_figures and not drawn:
         print("--draw-figures: the drawing process never started (no point completed)")
     return f"{outcome.status}: {outcome.message}", lags, gaps
+
 
 def _pct(values: list[float], q: float) -> float:
     s = sorted(values)
@@ -147,8 +155,11 @@ def main() -> int:
     ap.add_argument("--hogs", type=int, default=os.cpu_count() or 1, help="busy processes (default: one per core)")
     ap.add_argument("--target-ms", type=float, default=250.0)
     ap.add_argument("--speedup", type=float, default=40.0)
-    ap.add_argument("--draw-figures", action="store_true",
-                    help="draw each completed point's report figures in the background, as `sweep` does")
+    ap.add_argument(
+        "--draw-figures",
+        action="store_true",
+        help="draw each completed point's report figures in the background, as `sweep` does",
+    )
     a = ap.parse_args()
     hogs = [multiprocessing.Process(target=_hog, daemon=True) for _ in range(a.hogs)]
     for h in hogs:
@@ -162,13 +173,19 @@ def main() -> int:
             h.kill()
     worst = max(lags) * 1e3
     drawing = ", figures drawn during the sweep" if a.draw_figures else ""
-    print(f"sweep ({a.matrix}, speedup {a.speedup:g}) with {a.hogs} CPU hog(s){drawing}: {result}; {time.monotonic() - t0:.1f} s wall")
-    print(f"loop lag over {len(lags)} heartbeats of {TICK * 1e3:.0f} ms: worst {worst:.1f} ms, "
-          f"99.9 % {_pct(lags, 0.999) * 1e3:.1f} ms, 99 % {_pct(lags, 0.99) * 1e3:.1f} ms, median {_pct(lags, 0.5) * 1e3:.1f} ms")
+    print(
+        f"sweep ({a.matrix}, speedup {a.speedup:g}) with {a.hogs} CPU hog(s){drawing}: {result}; {time.monotonic() - t0:.1f} s wall"
+    )
+    print(
+        f"loop lag over {len(lags)} heartbeats of {TICK * 1e3:.0f} ms: worst {worst:.1f} ms, "
+        f"99.9 % {_pct(lags, 0.999) * 1e3:.1f} ms, 99 % {_pct(lags, 0.99) * 1e3:.1f} ms, median {_pct(lags, 0.5) * 1e3:.1f} ms"
+    )
     print(f"drive polls: {len(gaps) + 1}, worst gap between two {max(gaps, default=0) * 1e3:.1f} ms")
     lag_s, ran_s, waited_s = (sum(s[i] for s in stalls) for i in range(3))
-    print(f"{len(stalls)} lags over 100 ms, {lag_s * 1e3:.0f} ms in all: the loop's thread ran {ran_s * 1e3:.0f} ms "
-          f"of it and waited for a processor {waited_s * 1e3:.0f} ms")
+    print(
+        f"{len(stalls)} lags over 100 ms, {lag_s * 1e3:.0f} ms in all: the loop's thread ran {ran_s * 1e3:.0f} ms "
+        f"of it and waited for a processor {waited_s * 1e3:.0f} ms"
+    )
     ok = worst <= a.target_ms and result.startswith("completed")
     print(f"target: worst loop lag <= {a.target_ms:g} ms and the run completed: {'met' if ok else 'MISSED'}")
     return 0 if ok else 1

@@ -42,10 +42,22 @@ def point_records(rig, point, revolutions: int = 50) -> list[BlockRecord]:
         slots, values = simulate_revolutions(ph, point.spin, b.orbit, revolutions)
         rp = revolution_phasors(slots, values)
         empty = np.zeros(0)
-        recs.append(BlockRecord(block=b, measured_orbit_speed=abs(b.orbit), raw_counts=np.zeros((revolutions, 0, 0)),
-                                slots=slots, gains=empty, offsets=empty, mean=empty, record_phasors=rp,
-                                phasors=rp.mean(axis=0), dc=empty, rms_residual=empty,
-                                coherence=np.full((2, 4), 0.95)))
+        recs.append(
+            BlockRecord(
+                block=b,
+                measured_orbit_speed=abs(b.orbit),
+                raw_counts=np.zeros((revolutions, 0, 0)),
+                slots=slots,
+                gains=empty,
+                offsets=empty,
+                mean=empty,
+                record_phasors=rp,
+                phasors=rp.mean(axis=0),
+                dc=empty,
+                rms_residual=empty,
+                coherence=np.full((2, 4), 0.95),
+            )
+        )
     return recs
 
 
@@ -71,8 +83,9 @@ def main() -> None:
             for m in models:
                 identify(tables[lms], model=m.model, freq_dep=m.freq_dep, method=m.method)
 
-    full = median_time(lambda: identify_operating_point(point.spin, recs, ch, models, None,
-                                                        rig.calibration_uncertainty))
+    full = median_time(
+        lambda: identify_operating_point(point.spin, recs, ch, models, None, rig.calibration_uncertainty)
+    )
     plain = median_time(bare)
     names = ", ".join(f"{m.model} {m.freq_dep}" for m in models)
     print(f"paper point 0000: {len(point.blocks)} blocks, models {names}, 2 load measuring systems")

@@ -85,7 +85,7 @@ def run_point(physics, rig, ratios, rules):
     rule_of = dict(zip(ratios, rules))
     rows, us, ns, orbits, t = [], [], [], [], 0.0
     for direction in (+1, -1):
-        for r in (sorted(ratios, reverse=True) if direction > 0 else sorted(ratios)):
+        for r in sorted(ratios, reverse=True) if direction > 0 else sorted(ratios):
             rule = rule_of[r]
             orbit = direction * r * SPIN
             period = 2 * math.pi / abs(orbit)
@@ -104,8 +104,9 @@ def run_point(physics, rig, ratios, rules):
             orbits.append(abs(orbit))
     t += 2 * max(ratios) * SPIN / rig.ramp_rate
     rows = np.array(rows)
-    table = OrbitTable(SPIN, np.array(orbits), rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3],
-                       n_records=np.array(ns), u=np.array(us))
+    table = OrbitTable(
+        SPIN, np.array(orbits), rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], n_records=np.array(ns), u=np.array(us)
+    )
     return table, ns, t
 
 
@@ -138,24 +139,37 @@ def design(rig, spec):
     paper = predict(problem, PAPER)
     d = rig.drives
     grid = allowed_ratios(d.min_ratio, min(d.max_ratio, d.max_orbit_rpm / 1000.0))
-    alloc = allocate(spec, theta, SPIN, radius, grid, problem.noise_at(grid), paper.std_errors,
-                     block_overhead=rig.settle.hold_s + rig.estimates.store_s)
-    targets = adaptive_targets(spec, theta, SPIN, radius, alloc.ratios, alloc.revolutions,
-                               problem.noise_at(alloc.ratios))
+    alloc = allocate(
+        spec,
+        theta,
+        SPIN,
+        radius,
+        grid,
+        problem.noise_at(grid),
+        paper.std_errors,
+        block_overhead=rig.settle.hold_s + rig.estimates.store_s,
+    )
+    targets = adaptive_targets(
+        spec, theta, SPIN, radius, alloc.ratios, alloc.revolutions, problem.noise_at(alloc.ratios)
+    )
     return list(alloc.ratios), list(alloc.revolutions), targets, paper, alloc
 
 
-MATRIX = TABLE1_POINT + """[[models]]
+MATRIX = (
+    TABLE1_POINT
+    + """[[models]]
 model = "{model}"
 """
+)
 
 
 def plan_seconds(rig, model: str, ratios, counts) -> tuple[float, float]:
     """The sweep's own estimate (orbitrig.run.plan) of a one-point matrix at these ratios and
     fixed counts: (whole point incl. manual settings, identification and the final stop;
     the same without the manual settings), physical seconds."""
-    text = MATRIX.format(name="bench", ratios=", ".join(map(str, ratios)), counts=", ".join(map(str, counts)),
-                         model=model)
+    text = MATRIX.format(
+        name="bench", ratios=", ".join(map(str, ratios)), counts=", ".join(map(str, counts)), model=model
+    )
     plan = summarize(make_plan(matrix_from_text(text), rig).steps)
     return plan.duration, plan.duration - plan.by_kind.get("manual settings", 0.0)
 
@@ -175,9 +189,11 @@ def misfit_line(rig, spec, ratios, counts) -> str:
     pilot = list_shift(spec, rich, fit.theta, fit.covariance, SPIN, radius, *lists)
     true = list_shift(spec, rich, truth(new_physics(1), rich), np.zeros((12, 12)), SPIN, radius, *lists)
     j = int(np.argmax(np.abs(true.shift)))
-    return (f"  misfit: {spec.model} has no D; moving to the designed list shifts {spec.names[j]} by "
-            f"{true.shift[j]:.3g} on the true Z (pilot's kcd12 fit predicts {pilot.shift[j]:.3g} +- "
-            f"{2 * pilot.std[j]:.3g}, 2 sigma)")
+    return (
+        f"  misfit: {spec.model} has no D; moving to the designed list shifts {spec.names[j]} by "
+        f"{true.shift[j]:.3g} on the true Z (pilot's kcd12 fit predicts {pilot.shift[j]:.3g} +- "
+        f"{2 * pilot.std[j]:.3g}, 2 sigma)"
+    )
 
 
 def achieved(rig, spec, ratios, rules, runs: int):
@@ -199,39 +215,53 @@ def compare(rig, model: str, runs: int) -> None:
     spec = model_spec(model)
     ratios, counts, targets, paper_pred, alloc = design(rig, spec)
     fixed = [AveragingRule.fixed(n) for n in counts]
-    adaptive = [AveragingRule.adaptive(float(t), min(MIN_REVOLUTIONS, n), MAX_FACTOR * n, spin_turns=1 / r)
-                for t, n, r in zip(targets, counts, ratios)]
+    adaptive = [
+        AveragingRule.adaptive(float(t), min(MIN_REVOLUTIONS, n), MAX_FACTOR * n, spin_turns=1 / r)
+        for t, n, r in zip(targets, counts, ratios)
+    ]
     sd_p, rms_p, t_p, _ = achieved(rig, spec, PAPER, [AveragingRule.fixed(50)] * len(PAPER), runs)
     sd_f, rms_f, t_f, _ = achieved(rig, spec, ratios, fixed, runs)
     sd_a, rms_a, t_a, used = achieved(rig, spec, ratios, adaptive, runs)
-    print(f"\n{model}: designed ratios {', '.join(f'{r:g}' for r in ratios)} x both, revolutions "
-          f"{', '.join(map(str, counts))} (predicted rig time {alloc.rig_time_s:.1f} s + ramps); adaptive targets "
-          f"{', '.join(f'{t * 100:.3g}' for t in targets)} % (used per block: mean "
-          f"{', '.join(f'{m:.0f}' for m in used.mean(axis=0))}, range {used.min()}..{used.max()})")
-    print(f"  rig time: paper {t_p:.1f} s; designed fixed {t_f:.1f} s (ratio {t_f / t_p:.3f}); "
-          f"designed adaptive {t_a:.1f} s (ratio {t_a / t_p:.3f})")
-    print(f"  {'coef':6} {'paper SD':>10} {'predicted':>10} {'SD fixed':>9} {'predicted':>9} {'SD adapt':>9} "
-          f"{'paper RMS':>10} {'RMS fixed':>10} {'RMS adapt':>10}   (designed: ratio to paper)")
+    print(
+        f"\n{model}: designed ratios {', '.join(f'{r:g}' for r in ratios)} x both, revolutions "
+        f"{', '.join(map(str, counts))} (predicted rig time {alloc.rig_time_s:.1f} s + ramps); adaptive targets "
+        f"{', '.join(f'{t * 100:.3g}' for t in targets)} % (used per block: mean "
+        f"{', '.join(f'{m:.0f}' for m in used.mean(axis=0))}, range {used.min()}..{used.max()})"
+    )
+    print(
+        f"  rig time: paper {t_p:.1f} s; designed fixed {t_f:.1f} s (ratio {t_f / t_p:.3f}); "
+        f"designed adaptive {t_a:.1f} s (ratio {t_a / t_p:.3f})"
+    )
+    print(
+        f"  {'coef':6} {'paper SD':>10} {'predicted':>10} {'SD fixed':>9} {'predicted':>9} {'SD adapt':>9} "
+        f"{'paper RMS':>10} {'RMS fixed':>10} {'RMS adapt':>10}   (designed: ratio to paper)"
+    )
     for k, name in enumerate(spec.names):
-        print(f"  {name:6} {sd_p[k]:10.4g} {paper_pred.std_errors[k]:10.4g} {sd_f[k] / sd_p[k]:9.3f} "
-              f"{alloc.std_errors[k] / paper_pred.std_errors[k]:9.3f} {sd_a[k] / sd_p[k]:9.3f} "
-              f"{rms_p[k]:10.4g} {rms_f[k] / rms_p[k]:10.3f} {rms_a[k] / rms_p[k]:10.3f}")
+        print(
+            f"  {name:6} {sd_p[k]:10.4g} {paper_pred.std_errors[k]:10.4g} {sd_f[k] / sd_p[k]:9.3f} "
+            f"{alloc.std_errors[k] / paper_pred.std_errors[k]:9.3f} {sd_a[k] / sd_p[k]:9.3f} "
+            f"{rms_p[k]:10.4g} {rms_f[k] / rms_p[k]:10.3f} {rms_a[k] / rms_p[k]:10.3f}"
+        )
     whole_p, acq_p = plan_seconds(rig, model, PAPER, [50] * len(PAPER))
     whole_d, acq_d = plan_seconds(rig, model, ratios, counts)
     acq_a = acq_d + (t_a - t_f)  # the adaptive blocks' revolutions instead of the fixed counts
-    print(f"  the sweep's plan of the point (spin and orbit ramps, verification, identification; no manual "
-          f"settings): paper {acq_p:.1f} s, designed fixed {acq_d:.1f} s (ratio {acq_d / acq_p:.3f}), designed "
-          f"adaptive {acq_a:.1f} s (ratio {acq_a / acq_p:.3f}); with the 120 s of manual settings {whole_p:.0f} s "
-          f"vs {whole_d:.0f} s (ratio {whole_d / whole_p:.3f})")
+    print(
+        f"  the sweep's plan of the point (spin and orbit ramps, verification, identification; no manual "
+        f"settings): paper {acq_p:.1f} s, designed fixed {acq_d:.1f} s (ratio {acq_d / acq_p:.3f}), designed "
+        f"adaptive {acq_a:.1f} s (ratio {acq_a / acq_p:.3f}); with the 120 s of manual settings {whole_p:.0f} s "
+        f"vs {whole_d:.0f} s (ratio {whole_d / whole_p:.3f})"
+    )
     line = misfit_line(rig, spec, ratios, counts)
     if line:
         print(line)
     mc = 1 / math.sqrt(runs - 1)
-    print(f"  worst SD ratio: fixed {np.max(sd_f / sd_p):.3f}, adaptive {np.max(sd_a / sd_p):.3f} (Monte Carlo "
-          f"1 sigma of one ratio ~{mc:.3f}); worst RMS ratio: fixed {np.max(rms_f / rms_p):.3f}, adaptive "
-          f"{np.max(rms_a / rms_p):.3f}; RIG TIME RATIO fixed {t_f / t_p:.3f}, adaptive {t_a / t_p:.3f} (sweep plan "
-          f"{acq_d / acq_p:.3f}, {acq_a / acq_p:.3f})  "
-          f"({time.perf_counter() - t0:.1f} s wall)")
+    print(
+        f"  worst SD ratio: fixed {np.max(sd_f / sd_p):.3f}, adaptive {np.max(sd_a / sd_p):.3f} (Monte Carlo "
+        f"1 sigma of one ratio ~{mc:.3f}); worst RMS ratio: fixed {np.max(rms_f / rms_p):.3f}, adaptive "
+        f"{np.max(rms_a / rms_p):.3f}; RIG TIME RATIO fixed {t_f / t_p:.3f}, adaptive {t_a / t_p:.3f} (sweep plan "
+        f"{acq_d / acq_p:.3f}, {acq_a / acq_p:.3f})  "
+        f"({time.perf_counter() - t0:.1f} s wall)"
+    )
 
 
 def main() -> int:
@@ -241,25 +271,34 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("runs_pos", nargs="?", type=int, help="runs per protocol (reduction-only mode)")
     ap.add_argument("--runs", type=int, help="runs per protocol and scenario")
-    ap.add_argument("--engine", action="store_true", help="through the engine: sweep --sim in process "
-                    "(bench/bench_rig_time_engine.py)")
+    ap.add_argument(
+        "--engine",
+        action="store_true",
+        help="through the engine: sweep --sim in process (bench/bench_rig_time_engine.py)",
+    )
     ap.add_argument("--json", action="store_true", help="print one JSON object (--engine)")
     ap.add_argument("--speedup", type=float, default=20.0, help="simulated / wall time (--engine)")
-    ap.add_argument("--protocols", default="designed,sequential",
-                    help="protocols against the paper's (--engine): designed, sequential")
+    ap.add_argument(
+        "--protocols",
+        default="designed,sequential",
+        help="protocols against the paper's (--engine): designed, sequential",
+    )
     ap.add_argument("--partial", type=Path, help="append each run's figures to this file as it ends (--engine)")
     args = ap.parse_args()
     rig = load_rig(ROOT / "config" / "rig.toml")
     if args.engine:
         from bench_rig_time_engine import engine_figures
 
-        figures = engine_figures(rig, args.runs or 20, pilot_problem, PAPER, args.speedup,
-                                 tuple(args.protocols.split(",")), args.partial)
+        figures = engine_figures(
+            rig, args.runs or 20, pilot_problem, PAPER, args.speedup, tuple(args.protocols.split(",")), args.partial
+        )
         print(json.dumps(figures, indent=None if args.json else 1))
         return 0 if figures["goal_met"] else 1
     runs = args.runs or args.runs_pos or 200
-    print(f"bench_rig_time: {runs} simulated runs per protocol at 1000 rpm, the default simulator scenario "
-          "(all disturbances); reduction driven directly on simulated revolutions (no engine)")
+    print(
+        f"bench_rig_time: {runs} simulated runs per protocol at 1000 rpm, the default simulator scenario "
+        "(all disturbances); reduction driven directly on simulated revolutions (no engine)"
+    )
     for model in MODELS:
         compare(rig, model, runs)
     return 0

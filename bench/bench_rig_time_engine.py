@@ -51,6 +51,8 @@ RETRIES = 2  # a run that fails (e.g. the Modbus link lost on a loaded machine) 
 
 class RunFailedError(RuntimeError):
     """One simulated run did not complete."""
+
+
 ALPHA = 0.01
 SCENARIOS = ("paper", "compressible")
 MODELS = ("none", "power:1")
@@ -66,7 +68,9 @@ dynamic_eccentricity = [0.04]
 ratios = [{ratios}]
 revolutions = [{counts}]
 """
-MATRIX = TABLE1_POINT + """[[models]]
+MATRIX = (
+    TABLE1_POINT
+    + """[[models]]
 model = "kcd11"
 method = "wls"
 [[models]]
@@ -74,6 +78,7 @@ model = "kcd11"
 freq_dep = "power:1"
 method = "wls"
 """
+)
 
 SPREAD = [0.2, 0.4, 0.65, 0.8, 1.2]  # the sequential protocol's initial list: one ratio per slice of 0.2..1.2
 SEQUENTIAL_CAP_S = 200.0  # rig seconds of a sequential point's blocks (the paper's take about 160 s)
@@ -89,8 +94,12 @@ PROTOCOLS = ("designed", "sequential")
 def sequential_matrix(paper_list) -> str:
     """The sequential protocol's matrix text (the [orbit] table's last key, then the bounds)."""
     head, models = MATRIX.split("[[models]]", 1)
-    return (head.format(name="bench", ratios=", ".join(map(str, SPREAD)), counts=", ".join(["10"] * len(SPREAD)))
-            + SEQUENTIAL.format(paper=", ".join(map(str, paper_list)), cap=SEQUENTIAL_CAP_S) + "[[models]]" + models)
+    return (
+        head.format(name="bench", ratios=", ".join(map(str, SPREAD)), counts=", ".join(["10"] * len(SPREAD)))
+        + SEQUENTIAL.format(paper=", ".join(map(str, paper_list)), cap=SEQUENTIAL_CAP_S)
+        + "[[models]]"
+        + models
+    )
 
 
 def designed_list(rig, pilot_design) -> tuple[list[float], list[int]]:
@@ -105,8 +114,17 @@ def designed_list(rig, pilot_design) -> tuple[list[float], list[int]]:
     d = rig.drives
     grid = allowed_ratios(d.min_ratio, min(d.max_ratio, d.max_orbit_rpm / 1000.0))
     prior = dict(zip(spec.names, map(float, problem.theta)))
-    a = allocate_keeping_test(test, spec, prior, problem.spin, problem.radius, grid, problem.noise_at, (paper, 50),
-                              block_overhead=rig.settle.hold_s + rig.estimates.store_s)
+    a = allocate_keeping_test(
+        test,
+        spec,
+        prior,
+        problem.spin,
+        problem.radius,
+        grid,
+        problem.noise_at,
+        (paper, 50),
+        block_overhead=rig.settle.hold_s + rig.estimates.store_s,
+    )
     return list(a.ratios), list(a.revolutions)
 
 
@@ -156,8 +174,11 @@ def _read(out: Path) -> tuple[np.ndarray, float, float]:
     with h5py.File(out / "run.h5") as f:
         g = f["points"]["0000"]
         blocks_s = float(g["sequential"].attrs["spent_s"]) if "sequential" in g else math.nan
-    return (np.array([float(coeffs[n]) for n in model_spec("kcd11").names]),
-            float(adequacy.get("p_value", 1.0)), blocks_s)
+    return (
+        np.array([float(coeffs[n]) for n in model_spec("kcd11").names]),
+        float(adequacy.get("p_value", 1.0)),
+        blocks_s,
+    )
 
 
 def list_matrix(ratios, counts) -> str:
@@ -193,18 +214,36 @@ def _runs(rig, texts: dict, runs: int, speedup: float, partial: Path | None) -> 
         for i, sc in enumerate(SCENARIOS):
             for j, k in enumerate(texts):
                 r = res[sc][k]
-                seconds, theta, pv, blocks_s = _seed_run(rig, sc, matrices[k], 1000 * i + 500 * j + 1 + n, speedup,
-                                                         r["failed"])
+                seconds, theta, pv, blocks_s = _seed_run(
+                    rig, sc, matrices[k], 1000 * i + 500 * j + 1 + n, speedup, r["failed"]
+                )
                 r["blocks_s"].append(blocks_s)
                 r["times"].append(seconds)
                 r["est"].append(theta)
                 r["p"].append(pv)
                 if partial is not None:
                     with partial.open("a") as f:
-                        f.write(json.dumps({"scenario": sc, "protocol": k, "run": n, "seconds": seconds,
-                                            "theta": theta.tolist(), "p": pv, "blocks_s": blocks_s}) + "\n")
-    return {sc: {k: {**v, "est": np.array(v["est"]), "times": np.array(v["times"]), "p": np.array(v["p"])}
-                 for k, v in r.items()} for sc, r in res.items()}
+                        f.write(
+                            json.dumps(
+                                {
+                                    "scenario": sc,
+                                    "protocol": k,
+                                    "run": n,
+                                    "seconds": seconds,
+                                    "theta": theta.tolist(),
+                                    "p": pv,
+                                    "blocks_s": blocks_s,
+                                }
+                            )
+                            + "\n"
+                        )
+    return {
+        sc: {
+            k: {**v, "est": np.array(v["est"]), "times": np.array(v["times"]), "p": np.array(v["p"])}
+            for k, v in r.items()
+        }
+        for sc, r in res.items()
+    }
 
 
 def _truth(rig, scenario: str) -> np.ndarray:
@@ -216,8 +255,12 @@ def _truth(rig, scenario: str) -> np.ndarray:
     from sim.physics import RigPhysics
 
     physics = RigPhysics(sim_scenario(scenario))
-    physics.set_manual(orbit_radius=0.04 * rig.bearing.clearance, static_eccentricity=0.0,
-                       recess_pressure=0.4826e6, pressure_ratio=0.25)
+    physics.set_manual(
+        orbit_radius=0.04 * rig.bearing.clearance,
+        static_eccentricity=0.0,
+        recess_pressure=0.4826e6,
+        pressure_ratio=0.25,
+    )
     spin = 1000 * 2 * math.pi / 60
     w = np.asarray(physics.cfg.bearing.reference_ratios) * spin
     mats = constant_fit(w, physics.impedances(spin, w))
@@ -260,13 +303,17 @@ def _ratios(p: dict, d: dict, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return sd, rmse
 
 
-def engine_figures(rig, runs: int, pilot_design, paper_list, speedup: float = SPEEDUP,
-                   protocols=PROTOCOLS, partial: Path | None = None) -> dict:
+def engine_figures(
+    rig, runs: int, pilot_design, paper_list, speedup: float = SPEEDUP, protocols=PROTOCOLS, partial: Path | None = None
+) -> dict:
     """Every figure of the module doc, per protocol, and whether its goal is met."""
     t0 = time.perf_counter()
     ratios, counts = designed_list(rig, pilot_design)
-    texts = {"paper": list_matrix(paper_list, [50] * len(paper_list)), "designed": list_matrix(ratios, counts),
-             "sequential": sequential_matrix(paper_list)}
+    texts = {
+        "paper": list_matrix(paper_list, [50] * len(paper_list)),
+        "designed": list_matrix(ratios, counts),
+        "sequential": sequential_matrix(paper_list),
+    }
     res = _runs(rig, {k: texts[k] for k in ("paper", *protocols)}, runs, speedup, partial)
     truth = _truth(rig, "paper")
     detect = {k: float(np.mean(res["compressible"][k]["p"] < ALPHA)) for k in ("paper", *protocols)}
@@ -275,24 +322,34 @@ def engine_figures(rig, runs: int, pilot_design, paper_list, speedup: float = SP
     for k in protocols:
         d = res["paper"][k]
         sd, rmse = _ratios(p, d, truth)
-        f = {"time_ratio": float(np.mean(d["times"]) / np.mean(p["times"])),
-             "time_ratio_compressible": float(np.mean(res["compressible"][k]["times"])
-                                              / np.mean(res["compressible"]["paper"]["times"])),
-             "sd_ratio_worst": float(np.max(sd)), "rmse_ratio_worst": float(np.max(rmse)),
-             "sd_ratio": dict(zip(_names(), np.round(sd, 3).tolist())),
-             "rmse_ratio": dict(zip(_names(), np.round(rmse, 3).tolist()))}
+        f = {
+            "time_ratio": float(np.mean(d["times"]) / np.mean(p["times"])),
+            "time_ratio_compressible": float(
+                np.mean(res["compressible"][k]["times"]) / np.mean(res["compressible"]["paper"]["times"])
+            ),
+            "sd_ratio_worst": float(np.max(sd)),
+            "rmse_ratio_worst": float(np.max(rmse)),
+            "sd_ratio": dict(zip(_names(), np.round(sd, 3).tolist())),
+            "rmse_ratio": dict(zip(_names(), np.round(rmse, 3).tolist())),
+        }
         f["goal_met"] = bool(f["time_ratio"] <= 0.5 and f["sd_ratio_worst"] <= 1.1 and detect[k] >= detect["paper"])
         figures[k] = f
     if "designed" in figures:
-        figures["designed"].update(ratios=ratios, revolutions=counts,
-                                   time_ratio_plan=plan_time_ratio(rig, ratios, counts, paper_list))
+        figures["designed"].update(
+            ratios=ratios, revolutions=counts, time_ratio_plan=plan_time_ratio(rig, ratios, counts, paper_list)
+        )
     if "sequential" in figures:
-        figures["sequential"].update(initial_ratios=SPREAD, cap_s=SEQUENTIAL_CAP_S,
-                                     blocks_s=float(np.mean(res["paper"]["sequential"]["blocks_s"])))
+        figures["sequential"].update(
+            initial_ratios=SPREAD,
+            cap_s=SEQUENTIAL_CAP_S,
+            blocks_s=float(np.mean(res["paper"]["sequential"]["blocks_s"])),
+        )
     out = {
-        "runs": runs, "speedup": speedup,
+        "runs": runs,
+        "speedup": speedup,
         "time_s": {sc: {k: float(np.mean(v["times"])) for k, v in r.items()} for sc, r in res.items()},
-        "protocols": figures, "adequacy_detect": detect,
+        "protocols": figures,
+        "adequacy_detect": detect,
         "sd_ratio_mc_sigma": 1 / math.sqrt(max(runs - 1, 1)),
         "matrix_time_ratio": matrix_time_ratio(rig),
         "failed_runs_retried": [m for r in res.values() for v in r.values() for m in v["failed"]],

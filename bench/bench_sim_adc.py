@@ -70,8 +70,8 @@ async def live(speedup: float, seconds: float) -> tuple[float, float, int]:
     async with SimRig(SimConfig(), speedup=speedup, can_channel=None) as rig:
         rig.local_control(spin=200.0, orbit=2 * math.pi * 40.0)  # 2400 rpm orbit
         proc = await asyncio.create_subprocess_exec(
-            sys.executable, "-c", READER, rig.adc_pty_path, str(seconds),
-            stdout=subprocess.PIPE)
+            sys.executable, "-c", READER, rig.adc_pty_path, str(seconds), stdout=subprocess.PIPE
+        )
         cpu0 = time.process_time()
         t0 = time.monotonic()
         out, _ = await proc.communicate()
@@ -89,14 +89,18 @@ def main() -> None:
     for name in ("paper", "compressible"):
         print(f"film solve per operating point ({name}, eps_d 0.096): {film_solve(scenario(name)) * 1e3:.2f} ms CPU")
     print(f"offline (physics + encode, 8 ch sequential, paper's rig): {offline() / 1e6:.2f} M samples per CPU second")
-    print(f"offline (physics + encode, 8 ch sequential, clean): {offline(cfg=scenario('clean')) / 1e6:.2f} "
-          "M samples per CPU second")
+    print(
+        f"offline (physics + encode, 8 ch sequential, clean): {offline(cfg=scenario('clean')) / 1e6:.2f} "
+        "M samples per CPU second"
+    )
     for speedup in (50, 100, 200, 400):
         rate, cpu, dropped = asyncio.run(live(speedup, args.seconds))
         generated = speedup * 40 * 360
-        print(f"live pty, speed-up {speedup:4d} (board makes {generated / 1e6:.2f} M samples/s): "
-              f"delivered {rate / 1e6:.2f} M samples/s, simulator CPU {cpu * 100:.0f} % of one core "
-              f"({rate / cpu / 1e6:.1f} M samples per CPU second), chunks dropped {dropped}")
+        print(
+            f"live pty, speed-up {speedup:4d} (board makes {generated / 1e6:.2f} M samples/s): "
+            f"delivered {rate / 1e6:.2f} M samples/s, simulator CPU {cpu * 100:.0f} % of one core "
+            f"({rate / cpu / 1e6:.1f} M samples per CPU second), chunks dropped {dropped}"
+        )
 
 
 if __name__ == "__main__":

@@ -92,7 +92,9 @@ class PointSampler:
             s = Sample(done, rss_mb(), held, _lines(self.out / "run.log"), _size(self.out / "journal.jsonl"))
             self.samples.append(s)
             with open(self.out.parent / "samples.txt", "a") as fh:  # to watch a long soak
-                fh.write(f"{time.monotonic():.1f} {s.points} {s.rss:.1f} {s.held} {s.run_log_lines} {s.journal_bytes}\n")
+                fh.write(
+                    f"{time.monotonic():.1f} {s.points} {s.rss:.1f} {s.held} {s.run_log_lines} {s.journal_bytes}\n"
+                )
 
 
 def _lines(path: Path) -> int:
@@ -136,9 +138,12 @@ def _rig(watchdog_s: float, speedup: float):
         return rig
     text = rig.text
     polls = max(3, int(0.7 * watchdog_s / 0.6))  # the link declared lost after 70 % of S
-    for old, new in (("timeout_s = 0.15", "timeout_s = 0.5"), ("link_loss_polls = 3", f"link_loss_polls = {polls}"),
-                     ("timeout_margin_s = 2.0", f"timeout_margin_s = {watchdog_s * speedup:g}"),
-                     ("comm_loss_timeout_s = 1.0", f"comm_loss_timeout_s = {watchdog_s:g}")):
+    for old, new in (
+        ("timeout_s = 0.15", "timeout_s = 0.5"),
+        ("link_loss_polls = 3", f"link_loss_polls = {polls}"),
+        ("timeout_margin_s = 2.0", f"timeout_margin_s = {watchdog_s * speedup:g}"),
+        ("comm_loss_timeout_s = 1.0", f"comm_loss_timeout_s = {watchdog_s:g}"),
+    ):
         assert old in text, old
         text = text.replace(old, new)
     return cfg.rig_from_text(text, str(cfg.default_rig_path()))
@@ -153,25 +158,41 @@ async def soak_sweep(points: int | None, speedup: float, watchdog_s: float = 0.0
     sampler = PointSampler(out)
     start = rss_mb()
     t0 = time.monotonic()
-    with open(out.parent / "terminal.txt", "w") as term, contextlib.redirect_stdout(term), \
-            contextlib.redirect_stderr(term):  # the progress bars and the closing table
-        outcome = await _sweep(plan, out=out, sim=_scenario(None, resume=False, out=out), resume=False,
-                               speedup=speedup, operator="bench", subscribers=[sampler])
+    with (
+        open(out.parent / "terminal.txt", "w") as term,
+        contextlib.redirect_stdout(term),
+        contextlib.redirect_stderr(term),
+    ):  # the progress bars and the closing table
+        outcome = await _sweep(
+            plan,
+            out=out,
+            sim=_scenario(None, resume=False, out=out),
+            resume=False,
+            speedup=speedup,
+            operator="bench",
+            subscribers=[sampler],
+        )
     wall = time.monotonic() - t0
     s = sampler.samples
-    print(f"sweep: {outcome.status}, {len(s)} of {len(plan.points)} points in {wall:.0f} s at speed-up {speedup:g}"
-          f"{f', drive watchdog {watchdog_s:g} s' if watchdog_s else ''} ({out})")
+    print(
+        f"sweep: {outcome.status}, {len(s)} of {len(plan.points)} points in {wall:.0f} s at speed-up {speedup:g}"
+        f"{f', drive watchdog {watchdog_s:g} s' if watchdog_s else ''} ({out})"
+    )
     if len(s) <= FIRST_POINTS_LEFT_OUT + 3:
         print(f"  {outcome.message}: too few points for a growth figure")
         return False
     slope, err, per_block, rms = growth_fit(s)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print("  RSS sampled when each point is complete (after its heap trim), with the next point's blocks then held")
-    print(f"  RSS start {start:.0f} MB, after point 10 {s[9].rss:.0f} MB, after the last point {s[-1].rss:.0f} MB, "
-          f"after the closing table {rss_mb():.0f} MB, peak {peak:.0f} MB")
-    print(f"  growth after the first ten points: {slope:+.1f} +- {err:.1f} MB per 100 points (limit "
-          f"{LIMIT_PER_100_POINTS_MB:g}); {per_block:.2f} MB per held block (0 to {max(x.held for x in s)} held), "
-          f"residual {rms:.1f} MB rms")
+    print(
+        f"  RSS start {start:.0f} MB, after point 10 {s[9].rss:.0f} MB, after the last point {s[-1].rss:.0f} MB, "
+        f"after the closing table {rss_mb():.0f} MB, peak {peak:.0f} MB"
+    )
+    print(
+        f"  growth after the first ten points: {slope:+.1f} +- {err:.1f} MB per 100 points (limit "
+        f"{LIMIT_PER_100_POINTS_MB:g}); {per_block:.2f} MB per held block (0 to {max(x.held for x in s)} held), "
+        f"residual {rms:.1f} MB rms"
+    )
     return (outcome.status == "completed") & (slope <= LIMIT_PER_100_POINTS_MB) & logs_bounded(s, out)
 
 
@@ -180,11 +201,16 @@ def logs_bounded(s: list[Sample], out: Path) -> bool:
     quota = RUN_LOG_HEAD + RUN_LOG_TAIL + 1
     log_steps = [b.run_log_lines - a.run_log_lines for a, b in zip(s, s[1:])]
     journal_steps = [b.journal_bytes - a.journal_bytes for a, b in zip(s, s[1:])]
-    end_lines, end_bytes = _lines(out / "run.log") - s[-1].run_log_lines, _size(out / "journal.jsonl") - s[-1].journal_bytes
-    print(f"  run.log: {_lines(out / 'run.log')} lines, at most {max(log_steps)} between two completed points "
-          f"(quota {quota}), {end_lines} after the last; journal: {_size(out / 'journal.jsonl') / 1e6:.1f} MB, "
-          f"{min(journal_steps) / 1e3:.0f} to {max(journal_steps) / 1e3:.0f} kB per point, "
-          f"{end_bytes / 1e3:.0f} kB after the last")
+    end_lines, end_bytes = (
+        _lines(out / "run.log") - s[-1].run_log_lines,
+        _size(out / "journal.jsonl") - s[-1].journal_bytes,
+    )
+    print(
+        f"  run.log: {_lines(out / 'run.log')} lines, at most {max(log_steps)} between two completed points "
+        f"(quota {quota}), {end_lines} after the last; journal: {_size(out / 'journal.jsonl') / 1e6:.1f} MB, "
+        f"{min(journal_steps) / 1e3:.0f} to {max(journal_steps) / 1e3:.0f} kB per point, "
+        f"{end_bytes / 1e3:.0f} kB after the last"
+    )
     return max(log_steps) <= quota and end_lines <= quota
 
 
@@ -197,10 +223,30 @@ def soak_serve(runs: int, speedup: float) -> bool:
     pw = work / "service.pw"
     pw.write_text(ACCOUNTS["orbitrig-service"] + "\n")
     pw.chmod(0o600)
-    args = ["--sim", "--broker", broker.url, "--rig-id", "soak", "--username", "orbitrig-service",
-            "--password-file", str(pw), "--matrices", str(write_matrices(work / "matrices")),
-            "--out", str(work / "runs"), "--speedup", str(speedup), "--verbose",
-            "--log-file", str(work / "serve-rotating.log"), "--log-max-mb", "0.2", "--log-backups", "2"]
+    args = [
+        "--sim",
+        "--broker",
+        broker.url,
+        "--rig-id",
+        "soak",
+        "--username",
+        "orbitrig-service",
+        "--password-file",
+        str(pw),
+        "--matrices",
+        str(write_matrices(work / "matrices")),
+        "--out",
+        str(work / "runs"),
+        "--speedup",
+        str(speedup),
+        "--verbose",
+        "--log-file",
+        str(work / "serve-rotating.log"),
+        "--log-max-mb",
+        "0.2",
+        "--log-backups",
+        "2",
+    ]
     svc = Service(args, work)
     rig = RigClient(broker, "soak", svc)
     after: list[float] = []
@@ -218,13 +264,17 @@ def soak_serve(runs: int, speedup: float) -> bool:
     if not after:
         return False
     growth = after[-1] - after[0]
-    print(f"serve: {len(after)} runs in {time.monotonic() - t0:.0f} s at speed-up {speedup:g}; RSS after each run "
-          "(MB): " + " ".join(f"{m:.0f}" for m in after))
+    print(
+        f"serve: {len(after)} runs in {time.monotonic() - t0:.0f} s at speed-up {speedup:g}; RSS after each run "
+        "(MB): " + " ".join(f"{m:.0f}" for m in after)
+    )
     print(f"  growth from the first run to the last: {growth:+.1f} MB (limit {LIMIT_SERVE_MB:g})")
     logs = sorted(work.glob("serve-rotating.log*"))
     sizes = [f.stat().st_size for f in logs]
-    print(f"  service log (--verbose, --log-max-mb 0.2, --log-backups 2): {len(logs)} files, largest "
-          f"{max(sizes, default=0) / 1e3:.0f} kB, {sum(sizes) / 1e3:.0f} kB in all (quota 3 x 200 kB)")
+    print(
+        f"  service log (--verbose, --log-max-mb 0.2, --log-backups 2): {len(logs)} files, largest "
+        f"{max(sizes, default=0) / 1e3:.0f} kB, {sum(sizes) / 1e3:.0f} kB in all (quota 3 x 200 kB)"
+    )
     logs_ok = len(logs) <= 3 and max(sizes, default=0) <= 200_000
     return len(after) == runs and growth <= LIMIT_SERVE_MB and logs_ok
 
@@ -238,8 +288,9 @@ def _one_run(rig) -> bool:
         return False
     run_id = rig.status("waiting", start=mark, timeout=60)["run_id"]
     assert rig.command({"cmd": "confirm", "step": "manual:0000"}, timeout=30)["ok"] is True
-    end = rig.status(lambda s, r=run_id: s["state"] in ("idle", "faulted") and s["run_id"] == r, start=mark,
-                     timeout=180)
+    end = rig.status(
+        lambda s, r=run_id: s["state"] in ("idle", "faulted") and s["run_id"] == r, start=mark, timeout=180
+    )
     if end["state"] == "faulted":  # e.g. the simulator starved on a loaded machine
         print(f"serve: run {run_id} faulted: {end['message']}")
         return False
@@ -251,10 +302,15 @@ def main() -> int:
     ap.add_argument("--points", type=int, default=None, help="about this many points of the paper matrix")
     ap.add_argument("--speedup", type=float, default=80.0)
     ap.add_argument("--runs", type=int, default=10)
-    ap.add_argument("--sim-watchdog", type=float, default=0.0, metavar="S",
-                    help="a loaded machine: the sweep's simulated drives trip on a link silent for S s "
-                         "(default: theirs, 1 s), acquisitions wait S s longer, Modbus requests 0.5 s, and the "
-                         "link is declared lost after 0.7 S s")
+    ap.add_argument(
+        "--sim-watchdog",
+        type=float,
+        default=0.0,
+        metavar="S",
+        help="a loaded machine: the sweep's simulated drives trip on a link silent for S s "
+        "(default: theirs, 1 s), acquisitions wait S s longer, Modbus requests 0.5 s, and the "
+        "link is declared lost after 0.7 S s",
+    )
     ap.add_argument("--skip-sweep", action="store_true")
     ap.add_argument("--skip-serve", action="store_true")
     args = ap.parse_args()

@@ -59,11 +59,22 @@ model = "kc8"
 def _record(block, n: int, rng) -> BlockRecord:
     ph = rng.standard_normal(8) + 1j * rng.standard_normal(8)
     return BlockRecord(
-        block=block, measured_orbit_speed=abs(block.orbit), raw_counts=rng.integers(-3000, 3000, (n, 8, 45), dtype=np.int16),
-        slots=np.arange(360, dtype=np.int16).reshape(45, 8).T, gains=np.full(8, 1e-3), offsets=np.zeros(8),
-        mean=rng.standard_normal((8, 45)), record_phasors=ph * (1 + 0.01 * rng.standard_normal((n, 8))), phasors=ph,
-        dc=np.zeros(8), rms_residual=np.zeros(8), coherence=np.full((2, 4), 0.99), uncertainty=np.abs(ph) * 1e-3,
-        n_records=n, stop_reason="count", stats={"frames_good": n},
+        block=block,
+        measured_orbit_speed=abs(block.orbit),
+        raw_counts=rng.integers(-3000, 3000, (n, 8, 45), dtype=np.int16),
+        slots=np.arange(360, dtype=np.int16).reshape(45, 8).T,
+        gains=np.full(8, 1e-3),
+        offsets=np.zeros(8),
+        mean=rng.standard_normal((8, 45)),
+        record_phasors=ph * (1 + 0.01 * rng.standard_normal((n, 8))),
+        phasors=ph,
+        dc=np.zeros(8),
+        rms_residual=np.zeros(8),
+        coherence=np.full((2, 4), 0.99),
+        uncertainty=np.abs(ph) * 1e-3,
+        n_records=n,
+        stop_reason="count",
+        stats={"frames_good": n},
     )
 
 
@@ -113,8 +124,10 @@ def main() -> None:
     print(f"block write + fsync + rename (+ journal): {_ms(per_block)}   ({block_size / 1e3:.1f} kB each)")
     print(f"point results + commit + CSV + run.h5 copy: {_ms(per_point)}")
     print(f"  (identification of the point, for scale: {_ms(per_identify)})")
-    print(f"run.h5 at the end (status, logs, write): {consolidate:.3f} s for {size / 1e6:.2f} MB "
-          f"({consolidate / max(1, args.points):.3f} s per point); pieces {pieces / 1e6:.2f} MB")
+    print(
+        f"run.h5 at the end (status, logs, write): {consolidate:.3f} s for {size / 1e6:.2f} MB "
+        f"({consolidate / max(1, args.points):.3f} s per point); pieces {pieces / 1e6:.2f} MB"
+    )
     est = plan_bytes(rig, list(make_plan(matrix, rig).steps))
     print(f"estimate (plan_bytes) {est / 1e6:.2f} MB for {(pieces + size) / 1e6:.2f} MB written")
 

@@ -77,8 +77,10 @@ async def main() -> None:
     ideal = physical / args.speedup
     n_points = len({s.point for s in steps if s.point is not None})
     blocks = sum(isinstance(s, Acquire) for s in steps)
-    print(f"matrix {matrix.name}: {n_points} points, {blocks} blocks; physical ramps+settle+acquisition "
-          f"{format_duration(physical)} (acquisition {format_duration(acquire)}); speed-up {args.speedup:g}")
+    print(
+        f"matrix {matrix.name}: {n_points} points, {blocks} blocks; physical ramps+settle+acquisition "
+        f"{format_duration(physical)} (acquisition {format_duration(acquire)}); speed-up {args.speedup:g}"
+    )
     out = args.out or Path(tempfile.mkdtemp(prefix="bench-sweep-")) / "run"
     async with simulated_rig(args.speedup) as (_, access):
         engine = RunEngine(rig, out_dir=out, access=access, confirm_mode="auto")
@@ -91,11 +93,15 @@ async def main() -> None:
     print(f"ideal (physical/speed-up) {ideal:9.1f} s")
     print(f"orchestration overhead    {100 * (wall / ideal - 1):9.1f} %   (target < 5 %)")
     waits = sum(tm.get(k, 0) for k in ("settle", "acquire", "verify"))
-    print(f"  waiting on the rig: settle {tm.get('settle', 0):.1f} s, acquisition {tm.get('acquire', 0):.1f} s "
-          f"(ideal {acquire / args.speedup:.1f} s), CAN pressure checks {tm.get('verify', 0):.1f} s; "
-          f"everything else {wall - waits:.1f} s")
-    print(f"  in the background, overlapping the waits: identification {tm.get('identify', 0):.1f} s, "
-          f"storage {tm.get('store', 0):.1f} s")
+    print(
+        f"  waiting on the rig: settle {tm.get('settle', 0):.1f} s, acquisition {tm.get('acquire', 0):.1f} s "
+        f"(ideal {acquire / args.speedup:.1f} s), CAN pressure checks {tm.get('verify', 0):.1f} s; "
+        f"everything else {wall - waits:.1f} s"
+    )
+    print(
+        f"  in the background, overlapping the waits: identification {tm.get('identify', 0):.1f} s, "
+        f"storage {tm.get('store', 0):.1f} s"
+    )
 
 
 if __name__ == "__main__":

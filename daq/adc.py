@@ -39,9 +39,13 @@ from daq.transport import ByteLink, open_link
 class _Collection:
     """One ``acquire`` in progress."""
 
-    def __init__(self, averager: StreamingAverager, future: asyncio.Future[AveragedBlock],
-                 on_revolution: Callable[[Revolution], None] | None,
-                 drop: Callable[[np.ndarray], None] = lambda revs: None) -> None:
+    def __init__(
+        self,
+        averager: StreamingAverager,
+        future: asyncio.Future[AveragedBlock],
+        on_revolution: Callable[[Revolution], None] | None,
+        drop: Callable[[np.ndarray], None] = lambda revs: None,
+    ) -> None:
         self.averager = averager
         self.drop = drop  # counts revolutions left out (their rev numbers) as off_speed
         self.future = future
@@ -86,11 +90,20 @@ class AdcReader:
     ``reconnects``: reconnect attempts made.
     """
 
-    def __init__(self, url: str, *, channels: int = 8, mode: str = "sequential",
-                 gains: Sequence[float] | None = None, offsets: Sequence[float] | None = None,
-                 on_revolution: Callable[[Revolution], None] | None = None,
-                 reconnect: bool = True, open_timeout: float = 5.0,
-                 max_backoff: float = 2.0, backoff: Backoff | None = None) -> None:
+    def __init__(
+        self,
+        url: str,
+        *,
+        channels: int = 8,
+        mode: str = "sequential",
+        gains: Sequence[float] | None = None,
+        offsets: Sequence[float] | None = None,
+        on_revolution: Callable[[Revolution], None] | None = None,
+        reconnect: bool = True,
+        open_timeout: float = 5.0,
+        max_backoff: float = 2.0,
+        backoff: Backoff | None = None,
+    ) -> None:
         self.url = url
         self.channels, self.mode = channels, mode
         self.gains, self.offsets = gains, offsets
@@ -146,9 +159,13 @@ class AdcReader:
     def stats(self) -> AcquisitionStats:
         d, a = self._decoder, self._assembler
         return AcquisitionStats(
-            frames_good=d.frames_good, frames_bad=d.frames_bad, bytes_skipped=d.bytes_skipped,
-            revolutions_used=self._revolutions_used, revolutions_dropped=a.revolutions_dropped,
-            drop_reasons=dict(a.drop_reasons), frame_errors=dict(d.frame_errors),
+            frames_good=d.frames_good,
+            frames_bad=d.frames_bad,
+            bytes_skipped=d.bytes_skipped,
+            revolutions_used=self._revolutions_used,
+            revolutions_dropped=a.revolutions_dropped,
+            drop_reasons=dict(a.drop_reasons),
+            frame_errors=dict(d.frame_errors),
             link_drops=self.link_drops,
         )
 
@@ -178,7 +195,8 @@ class AdcReader:
             return
         if self._reconnect_task is None:
             self._reconnect_task = asyncio.get_running_loop().create_task(
-                self._reconnect_loop(), name=f"adc-reconnect {self.url}")
+                self._reconnect_loop(), name=f"adc-reconnect {self.url}"
+            )
 
     def _fail(self, err: Exception) -> None:
         c = self._collection
@@ -199,8 +217,9 @@ class AdcReader:
             return
 
     # ------------------------------------------------------------ acquisition
-    async def acquire(self, rule: AveragingRule | int = 50, *, timeout: float,
-                      per_revolution: float | None = None) -> AveragedBlock:
+    async def acquire(
+        self, rule: AveragingRule | int = 50, *, timeout: float, per_revolution: float | None = None
+    ) -> AveragedBlock:
         """Average the good revolutions received after this call as ``rule`` says
         (an ``AveragingRule``, or n for the fixed rule of n revolutions).
 
@@ -223,8 +242,9 @@ class AdcReader:
         start = self.stats
         loop = asyncio.get_running_loop()
         averager = StreamingAverager(rule, self.gains, self.offsets)
-        self._collection = c = _Collection(averager, loop.create_future(), self.on_revolution,
-                                           self._assembler.count_dropped)
+        self._collection = c = _Collection(
+            averager, loop.create_future(), self.on_revolution, self._assembler.count_dropped
+        )
         t0 = loop.time()
         try:
             while not c.future.done():
@@ -248,5 +268,6 @@ class AdcReader:
             f"{self.url}: {what} within {waited:.4g} s (frames good {s.frames_good}, bad {s.frames_bad}, "
             f"bytes skipped {s.bytes_skipped}, revolutions dropped {s.revolutions_dropped} "
             f"{s.drop_reasons or ''}, link drops {s.link_drops}"
-            + (f", last link error: {self.link_error}" if s.link_drops or not self.connected else "") + ")"
+            + (f", last link error: {self.link_error}" if s.link_drops or not self.connected else "")
+            + ")"
         )

@@ -39,9 +39,14 @@ _LPM = 1e-3 / 60.0  # m^3/s per L/min
 _LENGTH = {0x180: 8, 0x280: 8, 0x380: 4, 0x700: 1}
 # value name -> the frame (CAN id offset from the node id) that carries it
 _SOURCE = {
-    "t_recess": 0x180, "t_groove": 0x180, "t_supply": 0x180, "flow": 0x180,
-    "p_supply": 0x280, "p_recess": 0x280,  # p_recess 1..3 here, 4 in 0x380
-    "sensor_fault": 0x380, "pump_off": 0x380,
+    "t_recess": 0x180,
+    "t_groove": 0x180,
+    "t_supply": 0x180,
+    "flow": 0x180,
+    "p_supply": 0x280,
+    "p_recess": 0x280,  # p_recess 1..3 here, 4 in 0x380
+    "sensor_fault": 0x380,
+    "pump_off": 0x380,
 }
 
 
@@ -79,8 +84,15 @@ class AuxState:
 class AuxSensors:
     """Async context manager reading the sensor node ``node_id`` on a python-can bus."""
 
-    def __init__(self, channel: str, *, interface: str = "socketcan", bitrate: int = 500_000,
-                 node_id: int = 1, clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(
+        self,
+        channel: str,
+        *,
+        interface: str = "socketcan",
+        bitrate: int = 500_000,
+        node_id: int = 1,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         self.channel, self.interface, self.bitrate, self.node_id = channel, interface, bitrate, node_id
         self._clock = clock
         self._bus: Any = None  # can.BusABC once open (python-can imported when opened)
@@ -118,8 +130,7 @@ class AuxSensors:
         ids = [0x180 + base, 0x280 + base, 0x380 + base, 0x700 + base]
         self._bus.set_filters([{"can_id": i, "can_mask": 0x7FF, "extended": False} for i in ids])
         self._opened_at = self._clock()
-        self._notifier = can.Notifier(self._bus, [self._on_message], timeout=0.1,
-                                      loop=asyncio.get_running_loop())
+        self._notifier = can.Notifier(self._bus, [self._on_message], timeout=0.1, loop=asyncio.get_running_loop())
 
     def close(self) -> None:
         """Idempotent."""
@@ -142,8 +153,12 @@ class AuxSensors:
         try:
             if kind == 0x180:
                 tr, tg, ts, flow = struct.unpack_from("<hhhH", data)
-                self._values.update(t_recess=tr / 100 + _KELVIN, t_groove=tg / 100 + _KELVIN,
-                                    t_supply=ts / 100 + _KELVIN, flow=flow / 100 * _LPM)
+                self._values.update(
+                    t_recess=tr / 100 + _KELVIN,
+                    t_groove=tg / 100 + _KELVIN,
+                    t_supply=ts / 100 + _KELVIN,
+                    flow=flow / 100 * _LPM,
+                )
             elif kind == 0x280:
                 ps, p1, p2, p3 = struct.unpack_from("<HHHH", data)
                 self._values["p_supply"] = ps * 1e3
@@ -177,11 +192,17 @@ class AuxSensors:
         ages["beta"] = max(ages["p_recess"], ages["p_supply"])
         hb_age = age.get(0x700, math.inf)
         return AuxState(
-            t_recess=float(v.get("t_recess", math.nan)), t_groove=float(v.get("t_groove", math.nan)),
-            t_supply=float(v.get("t_supply", math.nan)), flow=float(v.get("flow", math.nan)),
-            p_supply=p_supply, p_recess=p_recess, beta=beta,
-            sensor_fault=bool(v.get("sensor_fault", False)), pump_off=bool(v.get("pump_off", False)),
-            heartbeat_state=self._heartbeat, heartbeat_age=hb_age,
+            t_recess=float(v.get("t_recess", math.nan)),
+            t_groove=float(v.get("t_groove", math.nan)),
+            t_supply=float(v.get("t_supply", math.nan)),
+            flow=float(v.get("flow", math.nan)),
+            p_supply=p_supply,
+            p_recess=p_recess,
+            beta=beta,
+            sensor_fault=bool(v.get("sensor_fault", False)),
+            pump_off=bool(v.get("pump_off", False)),
+            heartbeat_state=self._heartbeat,
+            heartbeat_age=hb_age,
             node_lost=now - self._times.get(0x700, self._opened_at) > LOST_AFTER,
             ages=ages,
         )

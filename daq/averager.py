@@ -64,8 +64,10 @@ class AveragingRule:
         if t is None and lo != hi:
             raise ValueError(f"without a target min and max must be equal (got {lo}, {hi})")
         if self.orbit_speed is not None and not (0 < self.orbit_speed < np.inf and 0 < self.speed_tolerance < 1):
-            raise ValueError(f"orbit speed {self.orbit_speed!r} rad/s, tolerance {self.speed_tolerance!r}: "
-                             "need a positive finite speed and a tolerance in (0, 1)")
+            raise ValueError(
+                f"orbit speed {self.orbit_speed!r} rad/s, tolerance {self.speed_tolerance!r}: "
+                "need a positive finite speed and a tolerance in (0, 1)"
+            )
 
     def off_speed(self, periods: np.ndarray) -> np.ndarray:
         """(R,) bool: which revolutions of measured ``periods`` (s; NaN: unknown, kept) were
@@ -83,9 +85,15 @@ class AveragingRule:
         return cls(n, n, None)
 
     @classmethod
-    def adaptive(cls, target: float, min_revolutions: int = 10, max_revolutions: int = 200,
-                 spin_turns: float | None = None, orbit_speed: float | None = None,
-                 speed_tolerance: float = 0.005) -> AveragingRule:
+    def adaptive(
+        cls,
+        target: float,
+        min_revolutions: int = 10,
+        max_revolutions: int = 200,
+        spin_turns: float | None = None,
+        orbit_speed: float | None = None,
+        speed_tolerance: float = 0.005,
+    ) -> AveragingRule:
         """Stop at ``target``; with ``spin_turns`` (omega/|Omega|) the uncertainty checked is
         reduction.noise.mean_uncertainty (the spin tones' rotating leakage is not noise that
         averaging must beat as 1/sqrt(n)), else the plain scatter of the per-revolution phasors."""
@@ -163,8 +171,12 @@ class StreamingAverager:
     completed block and start the next one.
     """
 
-    def __init__(self, rule: AveragingRule | int = 50, gains: Sequence[float] | None = None,
-                 offsets: Sequence[float] | None = None) -> None:
+    def __init__(
+        self,
+        rule: AveragingRule | int = 50,
+        gains: Sequence[float] | None = None,
+        offsets: Sequence[float] | None = None,
+    ) -> None:
         if not isinstance(rule, AveragingRule):  # a count: the fixed rule
             if int(rule) != rule or rule < 1:
                 raise ValueError(f"n_revolutions must be an integer >= 1, not {rule}")
@@ -195,8 +207,9 @@ class StreamingAverager:
 
     def push(self, rev: Revolution) -> AveragedBlock | None:
         period = np.nan if rev.period_s is None else rev.period_s
-        batch = RevolutionBatch(np.array([rev.rev]), np.array([rev.t_us]), np.array([period]),
-                                rev.counts[None], rev.slots)
+        batch = RevolutionBatch(
+            np.array([rev.rev]), np.array([rev.t_us]), np.array([period]), rev.counts[None], rev.slots
+        )
         blocks = self.push_batch(batch)
         return blocks[0] if blocks else None
 
@@ -234,8 +247,10 @@ class StreamingAverager:
         for name, v in (("gains", self._gains), ("offsets", self._offsets)):
             if v is not None and v.shape != (c,):
                 raise ValueError(f"{name} has {v.size} values for {c} channels")
-        self._cal = (np.ones(c) if self._gains is None else self._gains,
-                     np.zeros(c) if self._offsets is None else self._offsets)
+        self._cal = (
+            np.ones(c) if self._gains is None else self._gains,
+            np.zeros(c) if self._offsets is None else self._offsets,
+        )
         self._counts = np.empty((self.rule.max_revolutions, c, s), np.int16)
         self._records = np.empty((self.rule.max_revolutions, c), complex)
         self._slots = np.array(slots)
@@ -264,11 +279,11 @@ class StreamingAverager:
     def _first_met_tones(self, records: np.ndarray, revs_new: np.ndarray, target: float, spin_turns: float) -> int:
         """Like _RunningScatter.first_met with the spin tones fitted out (rule.spin_turns)."""
         rule = self.rule
-        every = np.concatenate([self._records[:self._n], records])
-        revs = np.concatenate([self._revs[:self._n], revs_new])
+        every = np.concatenate([self._records[: self._n], records])
+        revs = np.concatenate([self._revs[: self._n], revs_new])
         u = prefix_mean_uncertainty(every, spin_turns, start=self._n, revolutions=revs)
         m = self._n + 1 + np.arange(len(records))
-        mean = np.abs(np.cumsum(every, axis=0)[self._n:] / m[:, None])
+        mean = np.abs(np.cumsum(every, axis=0)[self._n :] / m[:, None])
         ok = np.all(u <= target * mean, axis=1) & (m >= max(rule.min_revolutions, 2))
         hit = np.flatnonzero(ok)
         return int(hit[0]) + 1 if len(hit) else 0
@@ -287,12 +302,26 @@ class StreamingAverager:
         self._n = 0
         self._running.reset()
         return AveragedBlock(
-            orbit_speed=float(speed), slots=self._slots.copy(), theta=theta, mean=mean, phasors=fit.phasor,
-            uncertainty=(phasor_uncertainty(records, axis=0) if self.rule.spin_turns is None
-                         else mean_uncertainty(records, self.rule.spin_turns, self._revs[:n])),
-            record_phasors=records, rms_residual=fit.rms_residual,
-            dc=fit.mean, raw_counts=counts, gains=gains.copy(), offsets=offsets.copy(),
-            revs=self._revs[:n].copy(), t_us=self._t_us[:n].copy(), periods=periods, stop_reason=reason,
+            orbit_speed=float(speed),
+            slots=self._slots.copy(),
+            theta=theta,
+            mean=mean,
+            phasors=fit.phasor,
+            uncertainty=(
+                phasor_uncertainty(records, axis=0)
+                if self.rule.spin_turns is None
+                else mean_uncertainty(records, self.rule.spin_turns, self._revs[:n])
+            ),
+            record_phasors=records,
+            rms_residual=fit.rms_residual,
+            dc=fit.mean,
+            raw_counts=counts,
+            gains=gains.copy(),
+            offsets=offsets.copy(),
+            revs=self._revs[:n].copy(),
+            t_us=self._t_us[:n].copy(),
+            periods=periods,
+            stop_reason=reason,
             rule=self.rule,
         )
 

@@ -15,8 +15,9 @@ import random
 class Backoff:
     """Delays (s) for successive reconnect attempts; ``rng`` for reproducible jitter."""
 
-    def __init__(self, initial: float = 0.05, maximum: float = 2.0, factor: float = 2.0,
-                 rng: random.Random | None = None) -> None:
+    def __init__(
+        self, initial: float = 0.05, maximum: float = 2.0, factor: float = 2.0, rng: random.Random | None = None
+    ) -> None:
         if not (0 < initial <= maximum < float("inf")) or not factor >= 1:
             raise ValueError(f"backoff: need 0 < initial ({initial}) <= maximum ({maximum}) < inf, factor >= 1")
         self.initial, self.maximum, self.factor = initial, maximum, factor
@@ -25,7 +26,7 @@ class Backoff:
 
     def ceiling(self) -> float:
         """Upper bound d_k (s) of the next delay."""
-        return min(self.initial * self.factor**min(self.attempts, 64), self.maximum)
+        return min(self.initial * self.factor ** min(self.attempts, 64), self.maximum)
 
     def next_delay(self) -> float:
         """The delay (s) before the next attempt; counts the attempt."""

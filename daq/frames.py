@@ -36,8 +36,19 @@ MAX_FRAME = HEADER_SIZE + 2 * 255 * 255 + CRC_SIZE
 _LAST_SYNC_BYTE0 = SYNC[0]
 _RESERVED = 0xFF & ~(FLAG_TRIGGER | FLAG_OVERRUN | FLAG_SIMULTANEOUS)
 _CHECKED = struct.Struct("<2xBB6xHBB")  # version flags first_slot n_slots n_ch
-_HEADER_DTYPE = np.dtype([("sync", "<u2"), ("version", "u1"), ("flags", "u1"), ("seq", "<u2"), ("rev", "<u4"),
-                          ("first_slot", "<u2"), ("n_slots", "u1"), ("n_ch", "u1"), ("t_us", "<u4")])
+_HEADER_DTYPE = np.dtype(
+    [
+        ("sync", "<u2"),
+        ("version", "u1"),
+        ("flags", "u1"),
+        ("seq", "<u2"),
+        ("rev", "<u4"),
+        ("first_slot", "<u2"),
+        ("n_slots", "u1"),
+        ("n_ch", "u1"),
+        ("t_us", "<u4"),
+    ]
+)
 
 
 @dataclass(frozen=True)
@@ -96,8 +107,16 @@ class FrameBatch:
 
     def _columns(self) -> tuple[np.ndarray, ...]:
         """The per-frame header columns, in constructor order (before ``start``)."""
-        return (self.flags, self.seq, self.rev, self.first_slot, self.n_slots, self.n_ch, self.t_us,
-                self.skipped_before)
+        return (
+            self.flags,
+            self.seq,
+            self.rev,
+            self.first_slot,
+            self.n_slots,
+            self.n_ch,
+            self.t_us,
+            self.skipped_before,
+        )
 
     @classmethod
     def empty(cls) -> "FrameBatch":
@@ -135,11 +154,19 @@ class FrameBatch:
         out = []
         for i in range(len(self)):
             ns, nc, s = int(self.n_slots[i]), int(self.n_ch[i]), int(self.start[i])
-            out.append(Frame(
-                int(self.flags[i]), int(self.seq[i]), int(self.rev[i]), int(self.first_slot[i]),
-                ns, nc, int(self.t_us[i]), self.samples[s:s + ns * nc].reshape(ns, nc),
-                int(self.skipped_before[i]),
-            ))
+            out.append(
+                Frame(
+                    int(self.flags[i]),
+                    int(self.seq[i]),
+                    int(self.rev[i]),
+                    int(self.first_slot[i]),
+                    ns,
+                    nc,
+                    int(self.t_us[i]),
+                    self.samples[s : s + ns * nc].reshape(ns, nc),
+                    int(self.skipped_before[i]),
+                )
+            )
         return out
 
 
@@ -221,13 +248,20 @@ class FrameDecoder:
                 break
             ver, flags, fs, ns, nch = unpack(buf, c)
             # the checks of header_problem(), inline (this loop runs once per frame)
-            if (ver == VERSION and not flags & _RESERVED and ns and nch and fs + ns <= SLOTS_PER_REV
-                    and (fs == 0 or not flags & FLAG_TRIGGER) and (nch == 1 or flags & FLAG_SIMULTANEOUS)):
+            if (
+                ver == VERSION
+                and not flags & _RESERVED
+                and ns
+                and nch
+                and fs + ns <= SLOTS_PER_REV
+                and (fs == 0 or not flags & FLAG_TRIGGER)
+                and (nch == 1 or flags & FLAG_SIMULTANEOUS)
+            ):
                 end = c + HEADER_SIZE + 2 * ns * nch + CRC_SIZE
                 if end > n:
                     keep, need = c, end
                     break
-                if crc_hqx(mv[c + 2:end - 2], 0xFFFF) == buf[end - 2] | (buf[end - 1] << 8):
+                if crc_hqx(mv[c + 2 : end - 2], 0xFFFF) == buf[end - 2] | (buf[end - 1] << 8):
                     if c > pos:
                         self._skip(c - pos)
                     if self._skip_run:
@@ -258,7 +292,7 @@ class FrameDecoder:
         for i, k in skips:
             skipped[i] = k
         sizes = cols[4] * cols[5]
-        payload = b"".join([mv[a:a + 2 * z] for a, z in zip((p + HEADER_SIZE).tolist(), sizes.tolist())])
+        payload = b"".join([mv[a : a + 2 * z] for a, z in zip((p + HEADER_SIZE).tolist(), sizes.tolist())])
         start = np.zeros(len(starts), np.int64)
         np.cumsum(sizes[:-1], out=start[1:])
         return FrameBatch(*cols, skipped, start, np.frombuffer(payload, "<i2").astype(np.int16, copy=False))

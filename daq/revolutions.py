@@ -95,8 +95,13 @@ class RevolutionBatch:
             return cls(z, z, np.zeros(0), np.zeros((0, *slots.shape), np.int16), slots)
         if len(parts) == 1:
             return parts[0]
-        return cls(np.concatenate([p.rev for p in parts]), np.concatenate([p.t_us for p in parts]),
-                   np.concatenate([p.period_s for p in parts]), np.concatenate([p.counts for p in parts]), slots)
+        return cls(
+            np.concatenate([p.rev for p in parts]),
+            np.concatenate([p.t_us for p in parts]),
+            np.concatenate([p.period_s for p in parts]),
+            np.concatenate([p.counts for p in parts]),
+            slots,
+        )
 
 
 def channel_slots(channels: int, mode: str) -> np.ndarray:
@@ -194,8 +199,15 @@ class RevolutionAssembler:
         prev_rev = np.concatenate(([p_rev], rev[:-1]))
         dt_frame = (t - np.concatenate(([p_t], t[:-1]))) & _U32  # board clock step (us)
         clock_ok = (dt_frame > 0) & (dt_frame < 1 << 31)
-        cont = (seq_ok & (rev == prev_rev) & (fs == np.concatenate(([p_end], end[:-1])))
-                & ~trig & ~overrun & mode_ok & clock_ok)
+        cont = (
+            seq_ok
+            & (rev == prev_rev)
+            & (fs == np.concatenate(([p_end], end[:-1])))
+            & ~trig
+            & ~overrun
+            & mode_ok
+            & clock_ok
+        )
         # frame 0 starts the carried chain, or continues a fragment that was not carried
         # (dropped, or discarded after start/reset), or starts anew
         tail = bool(cont[0]) and not len(self._carry)
@@ -263,12 +275,20 @@ class RevolutionAssembler:
         else:
             counts = flat.reshape(r_count, SLOTS_PER_REV, self.channels)
         self.revolutions_good += r_count
-        return RevolutionBatch(rev[good_first], t[good_first], period,
-                               np.ascontiguousarray(counts.transpose(0, 2, 1)), self.slots)
+        return RevolutionBatch(
+            rev[good_first], t[good_first], period, np.ascontiguousarray(counts.transpose(0, 2, 1)), self.slots
+        )
 
 
-def _steady_clock(dt_frame: np.ndarray, n_slots: np.ndarray, first: np.ndarray, last: np.ndarray,
-                  period_us: np.ndarray, rel_tol: float = 0.05, abs_tol_us: float = 2.0) -> np.ndarray:
+def _steady_clock(
+    dt_frame: np.ndarray,
+    n_slots: np.ndarray,
+    first: np.ndarray,
+    last: np.ndarray,
+    period_us: np.ndarray,
+    rel_tol: float = 0.05,
+    abs_tol_us: float = 2.0,
+) -> np.ndarray:
     """For each revolution (frames first..last, then the next trigger at last+1):
     did the board clock advance steadily, each frame's step within ``rel_tol``
     (+ ``abs_tol_us`` for the clock's 1 us rounding) of its slots' share of the
@@ -288,8 +308,16 @@ def _steady_clock(dt_frame: np.ndarray, n_slots: np.ndarray, first: np.ndarray, 
 class _BreakReasons:
     """Why frame i does not continue frame i-1 (a drop reason)."""
 
-    def __init__(self, b: FrameBatch, trig: np.ndarray, overrun: np.ndarray, mode_ok: np.ndarray,
-                 seq_ok: np.ndarray, prev_rev: np.ndarray, clock_ok: np.ndarray) -> None:
+    def __init__(
+        self,
+        b: FrameBatch,
+        trig: np.ndarray,
+        overrun: np.ndarray,
+        mode_ok: np.ndarray,
+        seq_ok: np.ndarray,
+        prev_rev: np.ndarray,
+        clock_ok: np.ndarray,
+    ) -> None:
         self.b, self.trig, self.overrun, self.mode_ok = b, trig, overrun, mode_ok
         self.seq_ok, self.prev_rev, self.clock_ok = seq_ok, prev_rev, clock_ok
 

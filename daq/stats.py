@@ -40,8 +40,13 @@ class AcquisitionStats:
 
     def copy(self) -> "AcquisitionStats":
         return AcquisitionStats(
-            self.frames_good, self.frames_bad, self.bytes_skipped, self.revolutions_used,
-            self.revolutions_dropped, dict(self.drop_reasons), dict(self.frame_errors),
+            self.frames_good,
+            self.frames_bad,
+            self.bytes_skipped,
+            self.revolutions_used,
+            self.revolutions_dropped,
+            dict(self.drop_reasons),
+            dict(self.frame_errors),
             self.link_drops,
         )
 

@@ -30,8 +30,15 @@ _RCVBUF = 1 << 22
 class ByteLink:
     """An open, non-blocking byte source on the running loop."""
 
-    def __init__(self, url: str, fd: int, recv: Callable[[int], bytes], closer: Callable[[], None],
-                 on_data: Callable[[bytes], None], on_lost: Callable[[Exception], None]) -> None:
+    def __init__(
+        self,
+        url: str,
+        fd: int,
+        recv: Callable[[int], bytes],
+        closer: Callable[[], None],
+        on_data: Callable[[bytes], None],
+        on_lost: Callable[[Exception], None],
+    ) -> None:
         self.url = url
         self._fd = fd
         self._recv = recv
@@ -95,21 +102,25 @@ class ByteLink:
             pass
 
 
-async def open_link(url: str, on_data: Callable[[bytes], None], on_lost: Callable[[Exception], None],
-                    *, timeout: float = 5.0) -> ByteLink:
+async def open_link(
+    url: str, on_data: Callable[[bytes], None], on_lost: Callable[[Exception], None], *, timeout: float = 5.0
+) -> ByteLink:
     """Open ``url`` (see module doc); raises DaqLinkError naming the URL if it cannot."""
     if url.startswith("socket://"):
         return await _open_socket(url, on_data, on_lost, timeout)
     if url.startswith("tcp://"):
-        raise DaqLinkError(f"{url}: the A/D board takes pyserial URLs; for a TCP serial device server "
-                           f"write socket://{url.removeprefix('tcp://')} (tcp:// is the Modbus drives' URL)")
+        raise DaqLinkError(
+            f"{url}: the A/D board takes pyserial URLs; for a TCP serial device server "
+            f"write socket://{url.removeprefix('tcp://')} (tcp:// is the Modbus drives' URL)"
+        )
     if "://" in url:
         raise DaqLinkError(f"{url}: unsupported URL (use socket://host:port or a device path)")
     return _open_serial(url, on_data, on_lost)
 
 
-async def _open_socket(url: str, on_data: Callable[[bytes], None], on_lost: Callable[[Exception], None],
-                       timeout: float) -> ByteLink:
+async def _open_socket(
+    url: str, on_data: Callable[[bytes], None], on_lost: Callable[[Exception], None], timeout: float
+) -> ByteLink:
     parts = urlsplit(url)
     try:
         host, port = parts.hostname, parts.port

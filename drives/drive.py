@@ -20,7 +20,6 @@ from drives.link import ModbusLink
 from rigunits import RPM
 
 
-
 def rpm_to_rad_s(rpm: float) -> float:
     return rpm * RPM
 
@@ -233,9 +232,7 @@ class Drive:
                 continue
             word = round(value / unit)  # the drive refuses values outside its range (exc. 03)
             if not 0 <= word <= 0xFFFF:
-                raise DriveLimitError(
-                    f"{value:g} does not fit the register (unit {unit:g})", **self._kw(address)
-                )
+                raise DriveLimitError(f"{value:g} does not fit the register (unit {unit:g})", **self._kw(address))
             given[address] = word
         if given:
             # One FC16 over the contiguous range (gaps keep the values just read), so
@@ -289,8 +286,7 @@ class Drive:
         rpm = rad_s_to_rpm(speed)
         if abs(rpm) > max_rpm + 1e-9:
             raise DriveLimitError(
-                f"speed {speed:.3f} rad/s ({rpm:.1f} rpm) exceeds the drive's "
-                f"MAX_SPEED of {self._max_rpm} rpm",
+                f"speed {speed:.3f} rad/s ({rpm:.1f} rpm) exceeds the drive's MAX_SPEED of {self._max_rpm} rpm",
                 **self._kw(R.MAX_SPEED),
             )
         try:
@@ -337,13 +333,10 @@ class Drive:
             if ok(st):
                 return st
             if st.tripped and fail_on_trip:
-                raise DriveFaultError(
-                    f"tripped while waiting for {what}", **self._kw(R.FAULT, st.fault_code)
-                )
+                raise DriveFaultError(f"tripped while waiting for {what}", **self._kw(R.FAULT, st.fault_code))
             if time.monotonic() >= deadline:
                 raise DriveTimeoutError(
-                    f"{what} not reached within {timeout:g} s "
-                    f"(status word 0x{st.status_word:04X}: {st.state})",
+                    f"{what} not reached within {timeout:g} s (status word 0x{st.status_word:04X}: {st.state})",
                     **self._kw(R.SW),
                 )
             await asyncio.sleep(0.02)
@@ -355,9 +348,7 @@ class Drive:
         """
         st = await self.read_status()
         if st.tripped:
-            raise DriveFaultError(
-                "tripped; reset the fault before starting", **self._kw(R.FAULT, st.fault_code)
-            )
+            raise DriveFaultError("tripped; reset the fault before starting", **self._kw(R.FAULT, st.fault_code))
         await self.write_reference(raw_ref)
         if st.running and st.control_word == R.CW_RUN:
             return st
@@ -389,11 +380,10 @@ class Drive:
         await self.write_control(R.CW_READY)
         try:
             return await self.wait_status(
-                lambda s: not s.tripped, "fault cleared",
+                lambda s: not s.tripped,
+                "fault cleared",
                 timeout=min(self.state_timeout, 0.5),
                 fail_on_trip=False,
             )
         except DriveTimeoutError as err:
-            raise DriveFaultError(
-                "fault reset refused: the cause is still active", **self._kw(R.FAULT, code)
-            ) from err
+            raise DriveFaultError("fault reset refused: the cause is still active", **self._kw(R.FAULT, code)) from err

@@ -20,7 +20,6 @@ from rigerrors import OrbitrigError
 from drives.registers import EXCEPTION_NAMES, fault_name, register_name
 
 
-
 class ErrorContext(TypedDict, total=False):
     """Where a drive error happened: the keyword arguments every DriveError takes."""
 

@@ -32,15 +32,17 @@ class DriveLimits:
     max_ratio: float | None = None
 
     def __post_init__(self) -> None:
-        for name, value in (("max_spin", self.max_spin), ("max_orbit", self.max_orbit),
-                            ("min_ratio", self.min_ratio), ("max_ratio", self.max_ratio)):
+        for name, value in (
+            ("max_spin", self.max_spin),
+            ("max_orbit", self.max_orbit),
+            ("min_ratio", self.min_ratio),
+            ("max_ratio", self.max_ratio),
+        ):
             if value is not None and not value >= 0:
                 raise ValueError(f"DriveLimits.{name} = {value} must be >= 0")
         if self.min_ratio is not None and self.max_ratio is not None:
             if self.min_ratio > self.max_ratio:
-                raise ValueError(
-                    f"DriveLimits.min_ratio = {self.min_ratio} > max_ratio = {self.max_ratio}"
-                )
+                raise ValueError(f"DriveLimits.min_ratio = {self.min_ratio} > max_ratio = {self.max_ratio}")
 
     def check(self, spin: float, orbit: float, *, spin_id: int = 1, orbit_id: int = 2) -> None:
         """Raise DriveLimitError if (spin, orbit) is outside the limits (pure)."""
@@ -49,17 +51,23 @@ class DriveLimits:
         if spin < 0:
             raise DriveLimitError(
                 f"spin {fmt_speed(spin)} is negative; the spin drive turns one way only",
-                drive=spin_id, drive_name="spin", register=R.REF,
+                drive=spin_id,
+                drive_name="spin",
+                register=R.REF,
             )
         if spin > self.max_spin:
             raise DriveLimitError(
                 f"spin {fmt_speed(spin)} exceeds the limit max_spin = {fmt_speed(self.max_spin)}",
-                drive=spin_id, drive_name="spin", register=R.REF,
+                drive=spin_id,
+                drive_name="spin",
+                register=R.REF,
             )
         if abs(orbit) > self.max_orbit:
             raise DriveLimitError(
                 f"orbit |{fmt_speed(orbit)}| exceeds the limit max_orbit = {fmt_speed(self.max_orbit)}",
-                drive=orbit_id, drive_name="orbit", register=R.REF,
+                drive=orbit_id,
+                drive_name="orbit",
+                register=R.REF,
             )
         if self.min_ratio is None and self.max_ratio is None or orbit == 0:
             return

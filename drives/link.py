@@ -197,7 +197,11 @@ class ModbusLink:
         is harmless to repeat. A link error or an exception response is not retried.
         """
         rsp = await self._retried(
-            device_id, address, _FC_READ, "read", retries,
+            device_id,
+            address,
+            _FC_READ,
+            "read",
+            retries,
             lambda c: c.read_holding_registers(address, count=count, device_id=device_id),
         )
         words = list(rsp.registers)
@@ -206,7 +210,12 @@ class ModbusLink:
         return words
 
     async def write(
-        self, device_id: int, address: int, values: Sequence[int], *, retries: int = 0,
+        self,
+        device_id: int,
+        address: int,
+        values: Sequence[int],
+        *,
+        retries: int = 0,
         urgent: bool = False,
     ) -> None:
         """Write unsigned 16-bit words from `address`: FC06 for one, FC16 for several.
@@ -222,17 +231,21 @@ class ModbusLink:
             if not 0 <= v <= 0xFFFF:
                 raise ValueError(f"{register_name(address)}: {v} is not a 16-bit word")
         if len(values) == 1:
-            fc, call = _FC_WRITE_SINGLE, lambda c: c.write_register(
-                address, values[0], device_id=device_id
-            )
+            fc, call = _FC_WRITE_SINGLE, lambda c: c.write_register(address, values[0], device_id=device_id)
         else:
-            fc, call = _FC_WRITE_MULTIPLE, lambda c: c.write_registers(
-                address, values, device_id=device_id
-            )
+            fc, call = _FC_WRITE_MULTIPLE, lambda c: c.write_registers(address, values, device_id=device_id)
         await self._retried(device_id, address, fc, "write", retries, call, urgent)
 
-    async def _retried(self, device_id: int, address: int, function_code: int, what: str, retries: int,
-                       call: _Call, urgent: bool = False) -> _Answer:
+    async def _retried(
+        self,
+        device_id: int,
+        address: int,
+        function_code: int,
+        what: str,
+        retries: int,
+        call: _Call,
+        urgent: bool = False,
+    ) -> _Answer:
         """`_request`, tried again up to `retries` times after a timeout (each retry logged)."""
         attempt = 0
         while True:
@@ -245,8 +258,13 @@ class ModbusLink:
                 self.retries += 1
                 log.warning(
                     "%s (id %d) %s %s: %s; retry %d of %d",
-                    self.names.get(device_id, "drive"), device_id, register_name(address), what,
-                    err.reason, attempt, retries,
+                    self.names.get(device_id, "drive"),
+                    device_id,
+                    register_name(address),
+                    what,
+                    err.reason,
+                    attempt,
+                    retries,
                 )
 
     def _error_kw(self, device_id: int, address: int) -> ErrorContext:
@@ -257,8 +275,9 @@ class ModbusLink:
         self._drop()
         raise DriveLinkError(f"{what} on {self.url}", **self._error_kw(device_id, address))
 
-    async def _request(self, device_id: int, address: int, function_code: int, call: _Call,
-                       urgent: bool = False) -> _Answer:
+    async def _request(
+        self, device_id: int, address: int, function_code: int, call: _Call, urgent: bool = False
+    ) -> _Answer:
         from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 
         kw = self._error_kw(device_id, address)
@@ -286,9 +305,7 @@ class ModbusLink:
                     self._drop()  # a new connection cannot receive the late answer
                 # RTU: the line stays open; it settles (a late answer lands and is
                 # discarded) before the next request
-                raise DriveTimeoutError(
-                    f"no answer within {self.timeout:g} s on {self.url}", **kw
-                ) from err
+                raise DriveTimeoutError(f"no answer within {self.timeout:g} s on {self.url}", **kw) from err
             except (ConnectionException, ModbusException, OSError) as err:
                 self.failures += 1
                 self._drop()
@@ -306,8 +323,7 @@ class ModbusLink:
                 self._fail(
                     device_id,
                     address,
-                    f"answer FC{rsp.function_code} from id {rsp.dev_id} "
-                    f"does not match request FC{function_code}",
+                    f"answer FC{rsp.function_code} from id {rsp.dev_id} does not match request FC{function_code}",
                 )
             self.requests += 1
             return rsp

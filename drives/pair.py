@@ -17,8 +17,7 @@ def drive_names(spin_id: int, orbit_id: int) -> dict[int, str]:
     return {spin_id: "spin", orbit_id: "orbit"}
 
 
-def drive_pair(link: ModbusLink, spin_id: int, orbit_id: int, *,
-               state_timeout: float = 2.0) -> tuple[Drive, Drive]:
+def drive_pair(link: ModbusLink, spin_id: int, orbit_id: int, *, state_timeout: float = 2.0) -> tuple[Drive, Drive]:
     """(spin, orbit) drives at the given device ids of `link`."""
     drive_names(spin_id, orbit_id)
     spin = Drive(link, spin_id, "spin", bidirectional=False, state_timeout=state_timeout)

@@ -50,8 +50,16 @@ class DrivePoll:
         a poll that raised), kept until `acknowledge()`.
     """
 
-    def __init__(self, link: ModbusLink, drives: tuple[Drive, Drive], *, poll_interval: float,
-                 link_loss_polls: int, loss_polls_given: bool, stops: StopSender | None = None):
+    def __init__(
+        self,
+        link: ModbusLink,
+        drives: tuple[Drive, Drive],
+        *,
+        poll_interval: float,
+        link_loss_polls: int,
+        loss_polls_given: bool,
+        stops: StopSender | None = None,
+    ):
         self.link = link
         self.drives = drives
         self._stops = stops or StopSender(drives)  # the owner's: its stops and these never interleave
@@ -88,7 +96,9 @@ class DrivePoll:
             log.warning(
                 "request timeout %.2f s + poll interval %.2f s is not below the drives' "
                 "COMM_LOSS_TIMEOUT of %.1f s: a single lost request trips them",
-                self.link.timeout, self.poll_interval, min(watchdogs),
+                self.link.timeout,
+                self.poll_interval,
+                min(watchdogs),
             )
             self.link_loss_polls = 1
         elif self.link_loss_polls * gap >= min(watchdogs):
@@ -97,8 +107,12 @@ class DrivePoll:
                 "link_loss_polls %d x (request timeout %.2f s + poll interval %.2f s) = %.2f s "
                 "is not below the drives' COMM_LOSS_TIMEOUT of %.1f s: the link is declared "
                 "lost after %d failed poll(s) instead",
-                self.link_loss_polls, self.link.timeout, self.poll_interval,
-                self.link_loss_polls * gap, min(watchdogs), fit,
+                self.link_loss_polls,
+                self.link.timeout,
+                self.poll_interval,
+                self.link_loss_polls * gap,
+                min(watchdogs),
+                fit,
             )
             self.link_loss_polls = fit
 
@@ -161,7 +175,9 @@ class DrivePoll:
             return
         log.warning(
             "drive poll failed (%d in a row; link declared lost at %d): %s",
-            in_row, self.link_loss_polls, err,
+            in_row,
+            self.link_loss_polls,
+            err,
         )
         self.state = dataclasses.replace(
             old, poll_failures=old.poll_failures + 1, failed_in_row=in_row, link_error=str(err)
@@ -192,7 +208,9 @@ class DrivePoll:
             if st.tripped:
                 problem = DriveFaultError(
                     f"tripped while the link was down ({down:.1f} s)",
-                    drive=st.device_id, drive_name=st.name, register=R.FAULT,
+                    drive=st.device_id,
+                    drive_name=st.name,
+                    register=R.FAULT,
                     fault_code=st.fault_code,
                 )
                 break
@@ -202,7 +220,9 @@ class DrivePoll:
                     problem = DriveLinkError(
                         f"link was down {down:.1f} s; found {st.state} with REF "
                         f"{fmt_speed(st.reference)} instead of running at {fmt_speed(d.speed_of(want))}",
-                        drive=st.device_id, drive_name=st.name, register=R.REF,
+                        drive=st.device_id,
+                        drive_name=st.name,
+                        register=R.REF,
                     )
                     break
         if problem is None:
@@ -226,7 +246,10 @@ class DrivePoll:
         self._trip_handled = True
         st = tripped[0]
         err = DriveFaultError(
-            "tripped", drive=st.device_id, drive_name=st.name, register=R.FAULT,
+            "tripped",
+            drive=st.device_id,
+            drive_name=st.name,
+            register=R.FAULT,
             fault_code=st.fault_code,
         )
         log.error("%s; ramping both drives to zero", err)

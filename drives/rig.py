@@ -102,12 +102,15 @@ class RigDrives:
         self.spin, self.orbit = drive_pair(self.link, spin_id, orbit_id, state_timeout=state_timeout)
         self._drives = (self.spin, self.orbit)
         self._stops = StopSender(self._drives)
-        self._params = {"accel_time": accel_time, "decel_time": decel_time,
-                        "comm_loss_timeout": comm_loss_timeout}
+        self._params = {"accel_time": accel_time, "decel_time": decel_time, "comm_loss_timeout": comm_loss_timeout}
         # state, command (raw REFs while running) and the failure wait_settled raises
         self._poll = DrivePoll(
-            self.link, self._drives, poll_interval=self.poll_interval,
-            link_loss_polls=int(link_loss_polls), loss_polls_given=loss_polls_given, stops=self._stops,
+            self.link,
+            self._drives,
+            poll_interval=self.poll_interval,
+            link_loss_polls=int(link_loss_polls),
+            loss_polls_given=loss_polls_given,
+            stops=self._stops,
         )
         self._poll_task: asyncio.Task[None] | None = None
         self._release = False
@@ -133,8 +136,9 @@ class RigDrives:
             raise
         return self
 
-    async def __aexit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                        tb: TracebackType | None) -> None:
+    async def __aexit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
         cancelled = False
         try:
             task, self._poll_task = self._poll_task, None
@@ -182,7 +186,8 @@ class RigDrives:
         if st.tripped and st.fault_code == R.FAULT_COMM_LOSS and st.stopped:
             log.warning(
                 "%s drive (id %d): resetting fault 7510 left by a previous client (at standstill)",
-                drive.name, drive.device_id,
+                drive.name,
+                drive.device_id,
             )
             try:
                 st = await drive.reset_fault()
@@ -235,16 +240,16 @@ class RigDrives:
         self.limits.check(spin, orbit, spin_id=self.spin.device_id, orbit_id=self.orbit.device_id)
         refs = (self.spin.reference_for(spin), self.orbit.reference_for(orbit))
         if not self._poll.state.link_ok:
-            raise DriveLinkError(
-                f"link to the drives is down ({self._poll.state.link_error}); nothing commanded"
-            )
+            raise DriveLinkError(f"link to the drives is down ({self._poll.state.link_error}); nothing commanded")
         try:
             statuses = [await d.read_status() for d in self._drives]
             for st in statuses:
                 if st.tripped:
                     raise DriveFaultError(
                         "tripped; call reset_faults() before commanding speeds",
-                        drive=st.device_id, drive_name=st.name, register=R.FAULT,
+                        drive=st.device_id,
+                        drive_name=st.name,
+                        register=R.FAULT,
                         fault_code=st.fault_code,
                     )
             self._poll.acknowledge()
@@ -286,16 +291,13 @@ class RigDrives:
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 raise DriveTimeoutError(
-                    f"not at setpoint (AT_SETPOINT held {hold:g} s) within {timeout:g} s: "
-                    + self._describe(st),
+                    f"not at setpoint (AT_SETPOINT held {hold:g} s) within {timeout:g} s: " + self._describe(st),
                     register=R.SW,
                 )
             with contextlib.suppress(asyncio.TimeoutError):
                 await asyncio.wait_for(tick.wait(), remaining)
 
-    async def stop(
-        self, *, emergency: bool = False, wait: bool = True, timeout: float | None = None
-    ) -> None:
+    async def stop(self, *, emergency: bool = False, wait: bool = True, timeout: float | None = None) -> None:
         """Ramp both drives to zero (OFF1), or emergency-stop them (OFF3).
 
         Sends the stop to both drives even if one fails (then raises the first

@@ -158,8 +158,13 @@ class RtuLine:
 
         try:
             port = serial.Serial(
-                self.path, baudrate=self.baud, bytesize=8, parity="N", stopbits=1,
-                timeout=0, exclusive=True,
+                self.path,
+                baudrate=self.baud,
+                bytesize=8,
+                parity="N",
+                stopbits=1,
+                timeout=0,
+                exclusive=True,
             )
         except (serial.SerialException, ValueError) as err:
             raise OSError(f"cannot open {self.path}: {err}") from err
@@ -195,9 +200,7 @@ class RtuLine:
 
     async def write_registers(self, address: int, values: Sequence[int], *, device_id: int) -> RtuAnswer:
         n = len(values)
-        return await self._exchange(
-            device_id, 16, struct.pack(f">HHB{n}H", address, n, 2 * n, *values)
-        )
+        return await self._exchange(device_id, 16, struct.pack(f">HHB{n}H", address, n, 2 * n, *values))
 
     async def _exchange(self, device_id: int, fc: int, request: bytes) -> RtuAnswer:
         async with self._lock:

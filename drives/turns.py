@@ -26,8 +26,10 @@ class Turns:
     def __init__(self) -> None:
         self._held = False
         self._reserved = 0
-        self._waiting: dict[bool, collections.deque[asyncio.Future[None]]] = {True: collections.deque(),
-                                                                        False: collections.deque()}
+        self._waiting: dict[bool, collections.deque[asyncio.Future[None]]] = {
+            True: collections.deque(),
+            False: collections.deque(),
+        }
 
     def locked(self) -> bool:
         return self._held

@@ -26,21 +26,32 @@ def _args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--config-json", help="the simulator configuration as JSON (sim.config.sim_config_to_data)")
     ap.add_argument("--modbus-port", type=int, default=5020)
     ap.add_argument("--adc-port", type=int, default=5000)
-    ap.add_argument("--adc-pty", action=argparse.BooleanOptionalAction, default=True,
-                    help="also stream the A/D frames on a pty")
+    ap.add_argument(
+        "--adc-pty", action=argparse.BooleanOptionalAction, default=True, help="also stream the A/D frames on a pty"
+    )
     ap.add_argument("--control-port", type=int, default=0)
     ap.add_argument("--speedup", type=float, default=None)
     ap.add_argument("--modbus-rtu", action="store_true", help="also serve Modbus RTU on a pty")
     ap.add_argument("--can-channel", default=None)
     ap.add_argument("--can-interface", default="virtual")
-    ap.add_argument("--can-hub", type=int, default=None, metavar="PORT",
-                    help="the CAN bus between processes: a TCP hub on PORT (0: any free; python-can "
-                         "interface 'serial', channel socket://127.0.0.1:PORT, sim.can_tcp)")
-    ap.add_argument("--nice", type=int, default=0,
-                    help="change this process's nice value by N (negative: before the host's other work, "
-                         "as drives that are machines of their own; ignored where not permitted)")
-    ap.add_argument("--parent-pid", type=int, default=None,
-                    help="end when this process ends or closes our standard input")
+    ap.add_argument(
+        "--can-hub",
+        type=int,
+        default=None,
+        metavar="PORT",
+        help="the CAN bus between processes: a TCP hub on PORT (0: any free; python-can "
+        "interface 'serial', channel socket://127.0.0.1:PORT, sim.can_tcp)",
+    )
+    ap.add_argument(
+        "--nice",
+        type=int,
+        default=0,
+        help="change this process's nice value by N (negative: before the host's other work, "
+        "as drives that are machines of their own; ignored where not permitted)",
+    )
+    ap.add_argument(
+        "--parent-pid", type=int, default=None, help="end when this process ends or closes our standard input"
+    )
     return ap.parse_args(argv)
 
 
@@ -58,8 +69,16 @@ async def _serve(a: argparse.Namespace, cfg: SimConfig) -> None:
         if a.can_hub is not None:
             hub = await stack.enter_async_context(CanTcpHub(port=a.can_hub))
             can = dict(can_channel=hub.url, can_interface="serial")
-        rig = SimRig(cfg, speedup=a.speedup, modbus_port=a.modbus_port, adc_port=a.adc_port, adc_pty=a.adc_pty,
-                     modbus_rtu_pty=a.modbus_rtu, control_port=a.control_port, **can)
+        rig = SimRig(
+            cfg,
+            speedup=a.speedup,
+            modbus_port=a.modbus_port,
+            adc_port=a.adc_port,
+            adc_pty=a.adc_pty,
+            modbus_rtu_pty=a.modbus_rtu,
+            control_port=a.control_port,
+            **can,
+        )
         await serve_until_signalled(rig)
 
 

@@ -35,8 +35,16 @@ class AdcBoard:
     incremented), ``stalled`` board clock frozen.
     """
 
-    def __init__(self, *, channels: int = 8, mode: str = "sequential", frame_slots: int = 45,
-                 gains=None, offsets=None, rng: np.random.Generator | None = None):
+    def __init__(
+        self,
+        *,
+        channels: int = 8,
+        mode: str = "sequential",
+        frame_slots: int = 45,
+        gains=None,
+        offsets=None,
+        rng: np.random.Generator | None = None,
+    ):
         if mode == "simultaneous":
             if not 1 <= channels <= 255:  # n_ch = C is a u8
                 raise ValueError(f"channel count {channels} outside 1..255 (simultaneous mode)")
@@ -131,8 +139,10 @@ class AdcBoard:
             else:
                 stamp = int(t_us[start - g0])
                 self._stall_us = stamp
-            body = _HEADER.pack(VERSION, flags, seq, self.rev, start % SLOTS, end - start, n_ch, stamp) \
-                + counts[start - g0:end - g0].tobytes()
+            body = (
+                _HEADER.pack(VERSION, flags, seq, self.rev, start % SLOTS, end - start, n_ch, stamp)
+                + counts[start - g0 : end - g0].tobytes()
+            )
             frame = SYNC + body + _CRC.pack(binascii.crc_hqx(body, 0xFFFF))
             if self.corrupt > 0:
                 self.corrupt -= 1

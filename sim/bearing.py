@@ -72,10 +72,17 @@ def bearing_geometry(b, clearance: float) -> BearingGeometry:
     volume = s * l * b.recess_depth + b.feed_volume
     mass = math.pi * b.density * R * L**3 / (12 * clearance) if b.fluid_inertia else 0.0
     return BearingGeometry(
-        clearance=clearance, area_eff=area_eff, area_squeeze=area_eff,
-        flow_factor=(2 * s / l_a + 2 * l / l_c) / 12, couette_length=l * math.sin(th / 2),
-        radius=R, volume=volume, bulk_modulus=b.bulk_modulus if b.compressible else math.inf,
-        viscosity=b.viscosity, added_mass=mass)
+        clearance=clearance,
+        area_eff=area_eff,
+        area_squeeze=area_eff,
+        flow_factor=(2 * s / l_a + 2 * l / l_c) / 12,
+        couette_length=l * math.sin(th / 2),
+        radius=R,
+        volume=volume,
+        bulk_modulus=b.bulk_modulus if b.compressible else math.inf,
+        viscosity=b.viscosity,
+        added_mass=mass,
+    )
 
 
 @dataclass(frozen=True)
@@ -104,8 +111,7 @@ class HydrostaticBearing:
         g = self.g
         return g.flow_factor * np.asarray(h) ** 3 / g.viscosity
 
-    def set_supply(self, recess_pressure: float, pressure_ratio: float, X0: float = 0.0,
-                   Y0: float = 0.0) -> Supply:
+    def set_supply(self, recess_pressure: float, pressure_ratio: float, X0: float = 0.0, Y0: float = 0.0) -> Supply:
         """The operator's setting: supply p_s = p_r / beta, restrictor adjusted until the
         recesses' mean pressure reads p_r with the journal at rest at (X0, Y0). Centred,
         k_o = G(c) p_r / sqrt(p_s - p_r) in closed form; off centre by bisection on k_o."""
@@ -178,8 +184,9 @@ class HydrostaticBearing:
         return Z - (w * w * g.added_mass)[:, :, None] * np.eye(2)
 
     # ---------------------------------------------------------------- periodic
-    def periodic_pressures(self, X, Y, Xd, Yd, w: float, spin: float, supply: Supply,
-                           tol: float = 1e-10, max_iter: int = 200) -> np.ndarray:
+    def periodic_pressures(
+        self, X, Y, Xd, Yd, w: float, spin: float, supply: Supply, tol: float = 1e-10, max_iter: int = 200
+    ) -> np.ndarray:
         """Steady periodic recess pressures (4, N) along one orbit period.
 
         X, Y (N,) journal centre on a uniform grid of the orbit angle in time

@@ -45,8 +45,16 @@ def encode_aux(state: dict, *, node_id: int = 1, sensor_fault: bool = False) -> 
     p = state["p_recess"]
     status = (STATUS_SENSOR_FAULT if sensor_fault else 0) | (STATUS_PUMP_OFF if state["pump_off"] else 0)
     return [
-        (0x180 + node_id, struct.pack("<hhhH", c(state["t_recess"]), c(state["t_groove"]),
-                                      c(state["t_supply"]), _u16(state["flow"] * 60000.0 * 100.0))),
+        (
+            0x180 + node_id,
+            struct.pack(
+                "<hhhH",
+                c(state["t_recess"]),
+                c(state["t_groove"]),
+                c(state["t_supply"]),
+                _u16(state["flow"] * 60000.0 * 100.0),
+            ),
+        ),
         (0x280 + node_id, struct.pack("<HHHH", kpa(state["p_supply"]), kpa(p[0]), kpa(p[1]), kpa(p[2]))),
         (0x380 + node_id, struct.pack("<HH", kpa(p[3]), status)),
     ]
@@ -60,8 +68,16 @@ class CanNode:
     ``sensor_fault`` (status bit 0).
     """
 
-    def __init__(self, channel: str, state: Callable[[], dict], *, interface: str = "virtual",
-                 node_id: int = 1, period: float = 0.1, heartbeat_period: float = 0.5):
+    def __init__(
+        self,
+        channel: str,
+        state: Callable[[], dict],
+        *,
+        interface: str = "virtual",
+        node_id: int = 1,
+        period: float = 0.1,
+        heartbeat_period: float = 0.5,
+    ):
         self.channel = channel
         self.interface = interface
         self._state = state
@@ -99,8 +115,7 @@ class CanNode:
                 if not self.silent:
                     if k % every == 0 and not self.heartbeat_lost:
                         self._send(0x700 + self.node_id, bytes([HEARTBEAT_OPERATIONAL]))
-                    for can_id, data in encode_aux(self._state(), node_id=self.node_id,
-                                                   sensor_fault=self.sensor_fault):
+                    for can_id, data in encode_aux(self._state(), node_id=self.node_id, sensor_fault=self.sensor_fault):
                         self._send(can_id, data)
                 k += 1
                 await asyncio.sleep(max(0.0, t0 + k * self.period - time.monotonic()))

@@ -89,6 +89,11 @@ def calibration_errors(cfg: SimConfig) -> dict:
     def mean(a: str, b: str) -> dict:
         return {k: (per[a][k] + per[b][k]) / 2 for k in ("gain", "phase", "delay")}
 
-    return {"channels": per, "sensitivity": s, "x": mean("x_a", "x_b"), "y": mean("y_a", "y_b"),
-            "fx": {k: per["fx_piezo"][k] for k in ("gain", "phase", "delay")},
-            "fy": {k: per["fy_piezo"][k] for k in ("gain", "phase", "delay")}}
+    return {
+        "channels": per,
+        "sensitivity": s,
+        "x": mean("x_a", "x_b"),
+        "y": mean("y_a", "y_b"),
+        "fx": {k: per["fx_piezo"][k] for k in ("gain", "phase", "delay")},
+        "fy": {k: per["fy_piezo"][k] for k in ("gain", "phase", "delay")},
+    }

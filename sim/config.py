@@ -195,14 +195,23 @@ def validate(cfg: SimConfig) -> list[str]:
         p.append("speedup must be > 0")
     ch = cfg.chain
     if len(ch.gain_error) != len(CHANNEL_NAMES) or len(ch.filter_cutoff) != len(CHANNEL_NAMES):
-        p.append(f"chain.gain_error and chain.filter_cutoff need {len(CHANNEL_NAMES)} values "
-                 f"(order {', '.join(CHANNEL_NAMES)})")
+        p.append(
+            f"chain.gain_error and chain.filter_cutoff need {len(CHANNEL_NAMES)} values "
+            f"(order {', '.join(CHANNEL_NAMES)})"
+        )
     if any(f < 0 for f in ch.filter_cutoff):
         p.append("chain.filter_cutoff must be >= 0 Hz (0: no filter)")
     b = cfg.bearing
-    positive = dict(diameter=b.diameter, length=b.length, recess_length=b.recess_length,
-                    recess_angle=b.recess_angle, recess_depth=b.recess_depth,
-                    bulk_modulus=b.bulk_modulus, viscosity=b.viscosity, density=b.density)
+    positive = dict(
+        diameter=b.diameter,
+        length=b.length,
+        recess_length=b.recess_length,
+        recess_angle=b.recess_angle,
+        recess_depth=b.recess_depth,
+        bulk_modulus=b.bulk_modulus,
+        viscosity=b.viscosity,
+        density=b.density,
+    )
     p += [f"bearing.{name} must be > 0" for name, v in positive.items() if not v > 0]
     if not (b.recess_length < b.length and b.recess_angle < math.pi / 2):
         p.append("bearing: the recesses must leave lands (recess_length < length, recess_angle < 90 deg)")
@@ -305,8 +314,13 @@ def sim_config_from_data(data: dict, source: str = "<data>") -> SimConfig:
     path = source
     problems: list[str] = []
     classes = {
-        "bearing": BearingConfig, "geometry": GeometryConfig, "adc": AdcConfig,
-        "lms": LmsConfig, "chain": ChainConfig, "noise": NoiseConfig, "supply": SupplyConfig,
+        "bearing": BearingConfig,
+        "geometry": GeometryConfig,
+        "adc": AdcConfig,
+        "lms": LmsConfig,
+        "chain": ChainConfig,
+        "noise": NoiseConfig,
+        "supply": SupplyConfig,
     }
     kwargs = {}
     for key, value in data.items():

@@ -61,10 +61,19 @@ def _drives(rig, req: dict) -> dict:
     holds and the last ones written, time stamped."""
     for d in rig.drives.values():
         d.advance()
-    return {"drives": {str(dev): {"state": d.state, "rpm": d.actual_rpm, "fault": d.fault_code,
-                                  "faults": list(d.faults), "control_word": d.read(CW, 1)[0],
-                                  "control_words": [list(w) for w in d.control_words]}
-                       for dev, d in rig.drives.items()}}
+    return {
+        "drives": {
+            str(dev): {
+                "state": d.state,
+                "rpm": d.actual_rpm,
+                "fault": d.fault_code,
+                "faults": list(d.faults),
+                "control_word": d.read(CW, 1)[0],
+                "control_words": [list(w) for w in d.control_words],
+            }
+            for dev, d in rig.drives.items()
+        }
+    }
 
 
 #: cmd -> (rig, request without "cmd") -> the reply's fields

@@ -45,8 +45,9 @@ class Disturbances:
         self._orders = rng.uniform(0, TWO_PI, (n, len(noise.bearing_orders)))
         self._spin = rng.uniform(0, TWO_PI, (n, len(noise.spin_force)))
         self._runout = rng.uniform(0, TWO_PI, (2, len(noise.runout)))  # per probe plane
-        self._res_f, self._res_a = resonance_lines(noise.resonance_frequency, noise.resonance_damping,
-                                                   noise.resonance_force)
+        self._res_f, self._res_a = resonance_lines(
+            noise.resonance_frequency, noise.resonance_damping, noise.resonance_force
+        )
         self._res_phase = rng.uniform(0, TWO_PI, (n, RESONANCE_LINES))
 
     def add(self, k: int, val: np.ndarray, t: np.ndarray, spin_angle: np.ndarray) -> np.ndarray:

@@ -50,24 +50,82 @@ from collections.abc import Callable, Sequence
 
 from .drive_faults import CommWatchdog, FaultLatch
 from .drive_registers import (
-    ACCEL_TIME, ACT, AT_SETPOINT_BAND, COMM_LOSS_FAULT, COMM_LOSS_TIMEOUT, CW, CW_OFF1,
-    CW_OFF2, CW_OFF3, CW_RAMP_HOLD, CW_RAMP_IN_ZERO, CW_RAMP_OUT_ZERO, CW_REMOTE, CW_RESET,
-    CW_RUN, DECEL_TIME, FAULT, FAULT_REACTIONS, ILLEGAL_ADDRESS, ILLEGAL_FUNCTION,
-    ILLEGAL_VALUE, MAX_SPEED, PARAMETER_DEFAULTS, PARAMETER_RANGES, REF, REF2,
-    REF_FULL_SCALE, SPEED_SCALE, SW, TORQUE, DriveModbusException, check_parameter_ranges,
-    check_read, check_write, clip16, int16, limit_reference, uint16,
+    ACCEL_TIME,
+    ACT,
+    AT_SETPOINT_BAND,
+    COMM_LOSS_FAULT,
+    COMM_LOSS_TIMEOUT,
+    CW,
+    CW_OFF1,
+    CW_OFF2,
+    CW_OFF3,
+    CW_RAMP_HOLD,
+    CW_RAMP_IN_ZERO,
+    CW_RAMP_OUT_ZERO,
+    CW_REMOTE,
+    CW_RESET,
+    CW_RUN,
+    DECEL_TIME,
+    FAULT,
+    FAULT_REACTIONS,
+    ILLEGAL_ADDRESS,
+    ILLEGAL_FUNCTION,
+    ILLEGAL_VALUE,
+    MAX_SPEED,
+    PARAMETER_DEFAULTS,
+    PARAMETER_RANGES,
+    REF,
+    REF2,
+    REF_FULL_SCALE,
+    SPEED_SCALE,
+    SW,
+    TORQUE,
+    DriveModbusException,
+    check_parameter_ranges,
+    check_read,
+    check_write,
+    clip16,
+    int16,
+    limit_reference,
+    uint16,
 )
 from .drive_states import (
-    EMERGENCY_FACTOR, ENABLED, FAULTED, INHIBITED, OFF1_ACTIVE, OFF3_ACTIVE, READY,
-    modulating, motion, ramp_phase, settle, status_word,
+    EMERGENCY_FACTOR,
+    ENABLED,
+    FAULTED,
+    INHIBITED,
+    OFF1_ACTIVE,
+    OFF3_ACTIVE,
+    READY,
+    modulating,
+    motion,
+    ramp_phase,
+    settle,
+    status_word,
 )
 
 __all__ = [  # the register map is re-exported: importers use sim.drive_model for both
-    "DriveModel", "DriveModbusException", "ILLEGAL_FUNCTION", "ILLEGAL_ADDRESS", "ILLEGAL_VALUE",
-    "CW", "REF", "REF2", "SW", "ACT", "TORQUE", "FAULT",
-    "SPEED_SCALE", "MAX_SPEED", "ACCEL_TIME", "DECEL_TIME",
-    "COMM_LOSS_TIMEOUT", "AT_SETPOINT_BAND",
-    "PARAMETER_DEFAULTS", "PARAMETER_RANGES", "FAULT_REACTIONS",
+    "DriveModel",
+    "DriveModbusException",
+    "ILLEGAL_FUNCTION",
+    "ILLEGAL_ADDRESS",
+    "ILLEGAL_VALUE",
+    "CW",
+    "REF",
+    "REF2",
+    "SW",
+    "ACT",
+    "TORQUE",
+    "FAULT",
+    "SPEED_SCALE",
+    "MAX_SPEED",
+    "ACCEL_TIME",
+    "DECEL_TIME",
+    "COMM_LOSS_TIMEOUT",
+    "AT_SETPOINT_BAND",
+    "PARAMETER_DEFAULTS",
+    "PARAMETER_RANGES",
+    "FAULT_REACTIONS",
 ]
 
 
@@ -303,9 +361,7 @@ class DriveModel:
         """(reference rpm after limiting, whether it was limited)."""
         if self._local:
             return self._local_rpm, False
-        return limit_reference(
-            self._ref, self._params[SPEED_SCALE], self._params[MAX_SPEED], self.bidirectional
-        )
+        return limit_reference(self._ref, self._params[SPEED_SCALE], self._params[MAX_SPEED], self.bidirectional)
 
     # -------------------------------------------------------- state machine
     def _write_cw(self, value: int) -> None:

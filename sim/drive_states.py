@@ -40,9 +40,23 @@ from __future__ import annotations
 import math
 
 from .drive_registers import (
-    CW_OFF1, CW_OFF2, CW_OFF3, CW_RAMP_HOLD, CW_RAMP_IN_ZERO, CW_RAMP_OUT_ZERO, CW_RUN,
-    SW_ABOVE_LIMIT, SW_ALARM, SW_AT_SETPOINT, SW_OFF_2_STA, SW_OFF_3_STA, SW_RDY_ON,
-    SW_RDY_REF, SW_RDY_RUN, SW_REMOTE, SW_TRIPPED,
+    CW_OFF1,
+    CW_OFF2,
+    CW_OFF3,
+    CW_RAMP_HOLD,
+    CW_RAMP_IN_ZERO,
+    CW_RAMP_OUT_ZERO,
+    CW_RUN,
+    SW_ABOVE_LIMIT,
+    SW_ALARM,
+    SW_AT_SETPOINT,
+    SW_OFF_2_STA,
+    SW_OFF_3_STA,
+    SW_RDY_ON,
+    SW_RDY_REF,
+    SW_RDY_RUN,
+    SW_REMOTE,
+    SW_TRIPPED,
 )
 
 # States.
@@ -77,8 +91,7 @@ def settle(state: str, cw: int, speed: float) -> str:
         elif state == READY_RUN:
             new = READY if not off1 else (ENABLED if run else READY_RUN)
         elif state == ENABLED:
-            new = (OFF1_ACTIVE if speed != 0.0 else READY) if not off1 else (
-                ENABLED if run else READY_RUN)
+            new = (OFF1_ACTIVE if speed != 0.0 else READY) if not off1 else (ENABLED if run else READY_RUN)
         elif state == OFF1_ACTIVE:
             new = (ENABLED if run else READY_RUN) if off1 else OFF1_ACTIVE
         else:  # OFF3_ACTIVE runs to standstill whatever OFF3 does meanwhile
@@ -94,9 +107,7 @@ def modulating(state: str, fault_ramp: bool) -> bool:
     return state in (ENABLED, OFF1_ACTIVE, OFF3_ACTIVE) or (state == FAULTED and fault_ramp)
 
 
-def status_word(
-    state: str, cw: int, *, alarm: bool, at_setpoint: bool, remote: bool, above_limit: bool
-) -> int:
+def status_word(state: str, cw: int, *, alarm: bool, at_setpoint: bool, remote: bool, above_limit: bool) -> int:
     """The status word of `state` under the accepted control word `cw`.
 
     `at_setpoint` counts only in OPERATION ENABLED.

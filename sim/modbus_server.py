@@ -199,9 +199,7 @@ class ModbusEndpoint:
         return f"ModbusEndpoint({self.url!r})"
 
 
-async def serve_modbus_tcp(
-    drives: Mapping[int, DriveModel], host: str = "127.0.0.1", port: int = 0
-) -> ModbusEndpoint:
+async def serve_modbus_tcp(drives: Mapping[int, DriveModel], host: str = "127.0.0.1", port: int = 0) -> ModbusEndpoint:
     """Serve `drives` ({device id: model}) as Modbus TCP on host:port (0 = any free port)."""
     gate = _Gate(drives, answer_unknown=True)
     server = ModbusTcpServer(
@@ -212,9 +210,7 @@ async def serve_modbus_tcp(
     )
     await server.serve_forever(background=True)
     bound = cast(asyncio.Server, server.transport).sockets[0].getsockname()[1]
-    return ModbusEndpoint(
-        url=f"tcp://{host}:{bound}", port=bound, path=None, server=server, gate=gate
-    )
+    return ModbusEndpoint(url=f"tcp://{host}:{bound}", port=bound, path=None, server=server, gate=gate)
 
 
 # ------------------------------------------------------------------ RTU

@@ -85,15 +85,22 @@ class RigPhysics:
         self.applied_displacement = np.zeros(2)  # m (x, y): a micrometer's static step of the journal
 
     # ---------------------------------------------------------------- settings
-    def set_manual(self, *, orbit_radius=None, static_eccentricity=None,
-                   recess_pressure=None, pressure_ratio=None) -> None:
+    def set_manual(
+        self, *, orbit_radius=None, static_eccentricity=None, recess_pressure=None, pressure_ratio=None
+    ) -> None:
         """Change the manual settings (m, -, Pa, -); ValueError when impossible."""
         new = replace(
             self.manual,
-            **{k: float(v) for k, v in dict(
-                orbit_radius=orbit_radius, static_eccentricity=static_eccentricity,
-                recess_pressure=recess_pressure, pressure_ratio=pressure_ratio,
-            ).items() if v is not None},
+            **{
+                k: float(v)
+                for k, v in dict(
+                    orbit_radius=orbit_radius,
+                    static_eccentricity=static_eccentricity,
+                    recess_pressure=recess_pressure,
+                    pressure_ratio=pressure_ratio,
+                ).items()
+                if v is not None
+            },
         )
         c = self.cfg.geometry.clearance
         if new.orbit_radius < 0 or new.static_eccentricity < 0:
@@ -101,7 +108,8 @@ class RigPhysics:
         if new.orbit_radius * (1 + abs(self.cfg.geometry.ellipticity)) + new.static_eccentricity * c >= c:
             raise ValueError(
                 f"orbit_radius {new.orbit_radius:.3g} m with static_eccentricity "
-                f"{new.static_eccentricity:.3g} touches the clearance c = {c:.3g} m")
+                f"{new.static_eccentricity:.3g} touches the clearance c = {c:.3g} m"
+            )
         if new.recess_pressure < 0:
             raise ValueError("recess_pressure must be >= 0")
         if not 0 < new.pressure_ratio < 1:
@@ -163,8 +171,17 @@ class RigPhysics:
             return F
         psi = TWO_PI * np.arange(GRID) / GRID
         c, sn = np.cos(psi), np.sin(psi)
-        f = self.bearing.periodic_force(X0 + a * c, Y0 + s * b * sn, -a * w * sn, s * b * w * c,
-                                        -a * w * w * c, -s * b * w * w * sn, w, spin, self.supply)
+        f = self.bearing.periodic_force(
+            X0 + a * c,
+            Y0 + s * b * sn,
+            -a * w * sn,
+            s * b * w * c,
+            -a * w * w * c,
+            -s * b * w * w * sn,
+            w,
+            spin,
+            self.supply,
+        )
         spec = np.fft.rfft(f, axis=1)[:, : HARMONICS + 1] / GRID
         spec[:, 1:] *= 2.0
         return spec  # f = Re sum_h spec_h e^{i h psi}
@@ -242,8 +259,7 @@ class RigPhysics:
     def true_phasors(self, spin: float, orbit: float) -> dict[str, complex]:
         """Noise-free fundamental phasor of every channel (engineering units),
         trigger phase and chain included: what an ideal reader gets, q = Re(q_bar e^{i theta})."""
-        return {ch.name: complex(self.channel_harmonics(k, spin, orbit)[1])
-                for k, ch in enumerate(self.channels)}
+        return {ch.name: complex(self.channel_harmonics(k, spin, orbit)[1]) for k, ch in enumerate(self.channels)}
 
     # ---------------------------------------------------------------- signals
     def _white_std(self, ch: _Channel) -> float:
@@ -259,8 +275,16 @@ class RigPhysics:
             return np.ones_like(t)
         return 1.0 + nz.speed_ripple * np.sin(TWO_PI * nz.ripple_frequency * t + self._ripple_phase)
 
-    def channel_values(self, k: int, theta: np.ndarray, t: np.ndarray, spin_angle: np.ndarray,
-                       orbit_inst: np.ndarray, spin: float, orbit: float) -> np.ndarray:
+    def channel_values(
+        self,
+        k: int,
+        theta: np.ndarray,
+        t: np.ndarray,
+        spin_angle: np.ndarray,
+        orbit_inst: np.ndarray,
+        spin: float,
+        orbit: float,
+    ) -> np.ndarray:
         """Engineering values of channel k at the given samples.
 
         theta: orbit angle after the trigger (rad, time order); t: simulated

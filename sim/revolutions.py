@@ -18,8 +18,9 @@ SLOTS = 360
 SLOT_ANGLE = 2.0 * math.pi / SLOTS
 
 
-def simulate_revolutions(physics: RigPhysics, spin: float, orbit: float, n: int, *,
-                         mode: str = "sequential", t0: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+def simulate_revolutions(
+    physics: RigPhysics, spin: float, orbit: float, n: int, *, mode: str = "sequential", t0: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
     """(slots (C, S), values (n, C, S)) of n consecutive revolutions at spin, orbit (rad/s).
 
     Sequential scan: channel k is converted at slots k, k + C, ... (S = 360 / C);
@@ -40,8 +41,8 @@ def simulate_revolutions(physics: RigPhysics, spin: float, orbit: float, n: int,
     orbit_inst = np.full(n * slots.shape[1], float(orbit))
     for k in range(C):
         values[:, k, :] = physics.channel_values(
-            k, np.tile(theta[k], n), t[:, slots[k]].ravel(), spin_angle[:, slots[k]].ravel(),
-            orbit_inst, spin, orbit).reshape(n, -1)
+            k, np.tile(theta[k], n), t[:, slots[k]].ravel(), spin_angle[:, slots[k]].ravel(), orbit_inst, spin, orbit
+        ).reshape(n, -1)
     return slots, values
 
 

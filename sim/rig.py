@@ -35,25 +35,50 @@ log = logging.getLogger(__name__)
 
 RPM = 2.0 * math.pi / 60.0  # rad/s per rpm
 SLOT_ANGLE = 2.0 * math.pi / SLOTS
-FAULTS = ("corrupt_bytes", "drop_frames", "missing_trigger", "stall_clock", "close_adc_link",
-          "drive_trip", "modbus_timeout", "can_heartbeat_loss", "clear")
+FAULTS = (
+    "corrupt_bytes",
+    "drop_frames",
+    "missing_trigger",
+    "stall_clock",
+    "close_adc_link",
+    "drive_trip",
+    "modbus_timeout",
+    "can_heartbeat_loss",
+    "clear",
+)
 
 
 class SimRig:
     """The simulated rig (async context manager); see docs/architecture.md."""
 
-    def __init__(self, config: SimConfig | None = None, *, speedup: float | None = None,
-                 modbus_port: int = 0, adc_port: int = 0, adc_pty: bool = True,
-                 modbus_rtu_pty: bool = False, can_channel: str | None = "orbitrig-sim",
-                 control_port: int | None = None, can_interface: str = "virtual",
-                 tick: float = 0.01, max_slots_per_tick: int = 400_000):
+    def __init__(
+        self,
+        config: SimConfig | None = None,
+        *,
+        speedup: float | None = None,
+        modbus_port: int = 0,
+        adc_port: int = 0,
+        adc_pty: bool = True,
+        modbus_rtu_pty: bool = False,
+        can_channel: str | None = "orbitrig-sim",
+        control_port: int | None = None,
+        can_interface: str = "virtual",
+        tick: float = 0.01,
+        max_slots_per_tick: int = 400_000,
+    ):
         self.config = config or SimConfig()
         self.clock = SimClock(speedup if speedup is not None else self.config.speedup)
         self.awake = AwakeClock()  # the drives' watchdog time: wall time without this process's stalls
         self.physics = RigPhysics(self.config)
         adc = self.config.adc
-        self.board = AdcBoard(channels=len(adc.channels), mode=adc.mode, frame_slots=adc.frame_slots,
-                              gains=adc.gains, offsets=adc.offsets, rng=self.physics.rng)
+        self.board = AdcBoard(
+            channels=len(adc.channels),
+            mode=adc.mode,
+            frame_slots=adc.frame_slots,
+            gains=adc.gains,
+            offsets=adc.offsets,
+            rng=self.physics.rng,
+        )
         self._ports = dict(modbus=modbus_port, adc=adc_port, control=control_port)
         self._adc_pty, self._modbus_rtu_pty = adc_pty, modbus_rtu_pty
         self._can_interface = can_interface
@@ -169,9 +194,14 @@ class SimRig:
 
     def endpoints(self) -> dict:
         """The endpoints JSON object printed by `orbitrig sim`."""
-        return {"modbus": self.modbus_url, "adc": self.adc_url, "adc_pty": self.adc_pty_path,
-                "control": self.control_url, "can": self.can_channel,
-                "modbus_rtu": self.modbus_rtu_path}
+        return {
+            "modbus": self.modbus_url,
+            "adc": self.adc_url,
+            "adc_pty": self.adc_pty_path,
+            "control": self.control_url,
+            "can": self.can_channel,
+            "modbus_rtu": self.modbus_rtu_path,
+        }
 
     # ------------------------------------------------------------ operator
     def local_control(self, *, spin: float, orbit: float) -> None:
@@ -179,12 +209,17 @@ class SimRig:
         self.drives[1].local_control(spin / RPM)
         self.drives[2].local_control(orbit / RPM)
 
-    def set_manual(self, *, orbit_radius=None, static_eccentricity=None,
-                   recess_pressure=None, pressure_ratio=None) -> None:
+    def set_manual(
+        self, *, orbit_radius=None, static_eccentricity=None, recess_pressure=None, pressure_ratio=None
+    ) -> None:
         """Manual settings: orbit radius (m), static eccentricity eps_s (-),
         recess supply pressure (Pa), pressure ratio beta (-)."""
-        self.physics.set_manual(orbit_radius=orbit_radius, static_eccentricity=static_eccentricity,
-                                recess_pressure=recess_pressure, pressure_ratio=pressure_ratio)
+        self.physics.set_manual(
+            orbit_radius=orbit_radius,
+            static_eccentricity=static_eccentricity,
+            recess_pressure=recess_pressure,
+            pressure_ratio=pressure_ratio,
+        )
 
     def true_impedance(self, spin: float, orbit: float) -> np.ndarray:
         """True Z (2x2 complex) of the linearised bearing at spin and orbit (rad/s, orbit
@@ -230,12 +265,22 @@ class SimRig:
     def state(self) -> dict:
         m = self.physics.manual
         return {
-            "sim_time": self.clock.now(), "speedup": self.clock.speedup,
-            "spin": self._spin_last, "orbit": self._orbit_last,
-            "manual": {"orbit_radius": m.orbit_radius, "static_eccentricity": m.static_eccentricity,
-                       "recess_pressure": m.recess_pressure, "pressure_ratio": m.pressure_ratio},
-            "board": {"seq": self.board.seq, "rev": self.board.rev,
-                      "frames_sent": self.board.frames_sent, "frames_lost": self.board.frames_lost},
+            "sim_time": self.clock.now(),
+            "speedup": self.clock.speedup,
+            "spin": self._spin_last,
+            "orbit": self._orbit_last,
+            "manual": {
+                "orbit_radius": m.orbit_radius,
+                "static_eccentricity": m.static_eccentricity,
+                "recess_pressure": m.recess_pressure,
+                "pressure_ratio": m.pressure_ratio,
+            },
+            "board": {
+                "seq": self.board.seq,
+                "rev": self.board.rev,
+                "frames_sent": self.board.frames_sent,
+                "frames_lost": self.board.frames_lost,
+            },
             "endpoints": self.endpoints(),
         }
 
@@ -338,8 +383,7 @@ class SimRig:
         if dt <= 0:
             return None
         ripple = float(self.physics.ripple(np.array(self._t_last + 0.5 * dt)))
-        tick = (self._t_last, dt, self._spin_last, spin, self._orbit_last, orbit,
-                self._spin_angle, self._g_pos, ripple)
+        tick = (self._t_last, dt, self._spin_last, spin, self._orbit_last, orbit, self._spin_angle, self._g_pos, ripple)
         self._g_pos += 0.5 * (abs(self._orbit_last) + abs(orbit)) * ripple * dt / SLOT_ANGLE
         self._spin_angle += 0.5 * (self._spin_last + spin) * ripple * dt  # unwrapped: ball-pass orders
         self._t_last, self._spin_last, self._orbit_last = now, spin, orbit

@@ -16,11 +16,16 @@ from pathlib import Path
 
 import pytest
 
-PROCESS_WORDS = re.compile(r"\b(subprocess|Popen|create_subprocess_exec|mosquitto|webdriver|chromium|pg_ctl|"
-                           r"octave|sys\.executable)\b")
+PROCESS_WORDS = re.compile(
+    r"\b(subprocess|Popen|create_subprocess_exec|mosquitto|webdriver|chromium|pg_ctl|"
+    r"octave|sys\.executable)\b"
+)
 # `from support.X import ...` (tests/support), `from .X import ...` (inside tests/support), `from X import ...`
-_IMPORT = re.compile(r"^[ \t]*from[ \t]+(?:support\.|\.)?(\w+)[ \t]+import[ \t]+(\([^)]*\)|[\w \t,]+)"
-                     r"|^[ \t]*import[ \t]+(?:support\.)?(\w+)", re.MULTILINE)
+_IMPORT = re.compile(
+    r"^[ \t]*from[ \t]+(?:support\.|\.)?(\w+)[ \t]+import[ \t]+(\([^)]*\)|[\w \t,]+)"
+    r"|^[ \t]*import[ \t]+(?:support\.)?(\w+)",
+    re.MULTILINE,
+)
 SUPPORT = Path(__file__).resolve().parent / "support"  # the helpers the tests share
 
 
@@ -67,7 +72,8 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         path = Path(str(item.fspath))
         defs = getattr(getattr(item, "_fixtureinfo", None), "name2fixturedefs", {})
-        uses = any(_fixture_starts_processes(d.func) for name in getattr(item, "fixturenames", ())
-                   for d in defs.get(name, ()))
+        uses = any(
+            _fixture_starts_processes(d.func) for name in getattr(item, "fixturenames", ()) for d in defs.get(name, ())
+        )
         if uses or (path.suffix == ".py" and starts_processes(path)):
             item.add_marker(pytest.mark.integration)

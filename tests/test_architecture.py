@@ -33,8 +33,16 @@ ALLOWED = {
 NEUTRAL = {"errors", "load_systems"}
 APP_SHARED = {"orbitrig", "orbitrig.config"} | {f"orbitrig.{m}" for m in NEUTRAL}
 WINGS = {
-    "orbitrig.cli": {"orbitrig.cli", "orbitrig.run", "orbitrig.store", "orbitrig.analysis", "orbitrig.service",
-                     "orbitrig.dashboard", "orbitrig.catalog", "sim"},
+    "orbitrig.cli": {
+        "orbitrig.cli",
+        "orbitrig.run",
+        "orbitrig.store",
+        "orbitrig.analysis",
+        "orbitrig.service",
+        "orbitrig.dashboard",
+        "orbitrig.catalog",
+        "sim",
+    },
     "orbitrig.service": {"orbitrig.service", "orbitrig.run", "orbitrig.store", "orbitrig.analysis", "orbitrig.catalog"},
     "orbitrig.catalog": {"orbitrig.catalog", "orbitrig.store", "orbitrig.analysis"},
     "orbitrig.dashboard": {"orbitrig.dashboard", "orbitrig.service.protocol", "orbitrig.service.reconnect"},
@@ -154,8 +162,9 @@ def test_rule_checker_catches_a_violation(tmp_path: Path) -> None:
 def test_relative_imports_are_resolved(tmp_path: Path) -> None:
     """``from ..daq import frames`` inside sim/ is an import from daq."""
     src = tmp_path / "mod.py"
-    src.write_text("from ..daq import frames\nfrom . import physics\nfrom .. import drives\n"
-                   "from .drive_model import DriveModel\n")
+    src.write_text(
+        "from ..daq import frames\nfrom . import physics\nfrom .. import drives\nfrom .drive_model import DriveModel\n"
+    )
     found = [m for _, m in _imports(src, ("sim", "mod"))]
     assert found == ["daq", "sim.physics", "drives", "sim.drive_model"]
     assert [m for m in found if not _permitted("sim", m)] == ["daq", "drives"]
@@ -186,16 +195,21 @@ def test_application_modules_and_functions_are_small() -> None:
     for path in _sources("orbitrig"):
         found.update(_too_long(path))
     new = {k: v for k, v in found.items() if k not in NOT_YET_SPLIT}
-    assert not new, (f"over {MAX_MODULE_LINES} lines per module or {MAX_FUNCTION_LINES} per function: "
-                     + ", ".join(f"{k} ({v})" for k, v in sorted(new.items())))
+    assert not new, f"over {MAX_MODULE_LINES} lines per module or {MAX_FUNCTION_LINES} per function: " + ", ".join(
+        f"{k} ({v})" for k, v in sorted(new.items())
+    )
     fixed = NOT_YET_SPLIT - set(found)
     assert not fixed, f"now within the limits, remove from NOT_YET_SPLIT: {sorted(fixed)}"
 
 
 def test_every_module_of_ours_is_small() -> None:
     """The module limit holds in every package (the function limit is checked in orbitrig/)."""
-    long = {p.relative_to(ROOT).as_posix(): n for pkg in OURS for p in _sources(pkg)
-            if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES}
+    long = {
+        p.relative_to(ROOT).as_posix(): n
+        for pkg in OURS
+        for p in _sources(pkg)
+        if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES
+    }
     assert not long, f"over {MAX_MODULE_LINES} lines: {long}"
 
 
@@ -208,15 +222,21 @@ def test_size_checker_catches_a_long_function(tmp_path: Path, monkeypatch) -> No
 
 def _calls(path: Path, names: set[str]) -> list[int]:
     tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
-    return [n.lineno for n in ast.walk(tree)
-            if isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id in names]
+    return [
+        n.lineno
+        for n in ast.walk(tree)
+        if isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id in names
+    ]
 
 
 @pytest.mark.parametrize("wing", ["orbitrig/run", "orbitrig/cli"])
 def test_typed_seams_no_getattr(wing: str) -> None:
     """The run engine and the command line reach daq, drives and the simulator through types."""
-    bad = [f"{p.relative_to(ROOT)}:{line}" for p in sorted((ROOT / wing).rglob("*.py"))
-           for line in _calls(p, {"getattr", "hasattr"})]
+    bad = [
+        f"{p.relative_to(ROOT)}:{line}"
+        for p in sorted((ROOT / wing).rglob("*.py"))
+        for line in _calls(p, {"getattr", "hasattr"})
+    ]
     assert not bad, "getattr/hasattr on our own objects:\n" + "\n".join(bad)
 
 
@@ -246,17 +266,23 @@ def test_no_simulator_branch_on_the_run_path(wing: str) -> None:
 
 def test_sim_branch_checker_catches_one(tmp_path: Path) -> None:
     src = tmp_path / "m.py"
-    src.write_text("def f(self, x):\n    if self.sim is not None:\n        x = x / self.speedup\n"
-                   "    return 1 if x else 2\n")
+    src.write_text(
+        "def f(self, x):\n    if self.sim is not None:\n        x = x / self.speedup\n    return 1 if x else 2\n"
+    )
     assert _sim_branches(src) == [2]
 
 
 def _runtime_imports(path: Path) -> list[tuple[int, str]]:
     """``_imports`` without those under ``if TYPE_CHECKING:`` (annotations only)."""
     tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
-    typing_only = {node.lineno for block in ast.walk(tree) if isinstance(block, ast.If)
-                   and isinstance(block.test, ast.Name) and block.test.id == "TYPE_CHECKING"
-                   for stmt in block.body for node in ast.walk(stmt) if isinstance(node, (ast.Import, ast.ImportFrom))}
+    typing_only = {
+        node.lineno
+        for block in ast.walk(tree)
+        if isinstance(block, ast.If) and isinstance(block.test, ast.Name) and block.test.id == "TYPE_CHECKING"
+        for stmt in block.body
+        for node in ast.walk(stmt)
+        if isinstance(node, (ast.Import, ast.ImportFrom))
+    }
     return [(line, m) for line, m in _imports(path) if line not in typing_only]
 
 
@@ -283,7 +309,7 @@ def _cycle(graph: dict[str, dict[str, str]]) -> list[str]:
 
     def visit(node: str, path: list[str]) -> list[str]:
         if node in path:
-            return path[path.index(node):] + [node]
+            return path[path.index(node) :] + [node]
         if node in done:
             return []
         for nxt in graph.get(node, {}):

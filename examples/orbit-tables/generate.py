@@ -55,8 +55,17 @@ def _table(matrices, hz, shapes, u_d, u_f_rel, seed, with_u=True, gamma2=False):
     if gamma2:  # coherences of 50 records with the same per-record noise
         rel = np.sqrt(50) * u_f / np.maximum(np.abs(np.stack([fx, fx, fy, fy], 1)), 1e-30)
         g = 1 / (1 + rel**2)
-    return OrbitTable(2 * math.pi * SPIN_RPM / 60, w, x + noise(u_d), y + noise(u_d), fx + noise(u_f),
-                      fy + noise(u_f), g, np.full(w.size, 50) if with_u else None, u if with_u else None)
+    return OrbitTable(
+        2 * math.pi * SPIN_RPM / 60,
+        w,
+        x + noise(u_d),
+        y + noise(u_d),
+        fx + noise(u_f),
+        fy + noise(u_f),
+        g,
+        np.full(w.size, 50) if with_u else None,
+        u if with_u else None,
+    )
 
 
 def _keys(matrices):
@@ -72,31 +81,77 @@ def main() -> None:
     hz = np.linspace(10.0, 60.0, 10)
     both = [(RADIUS, 0.0), (0.0, RADIUS)]  # forward and backward circles
     w_ref = 2 * math.pi * 35.0
-    poly = {("K", 0): K0, ("K", 1): (np.array(K0) * 0.1 / w_ref).tolist(),
-            ("C", 0): C0, ("C", 1): (np.array(C0) * 0.1 / w_ref).tolist(),
-            ("C", 2): (np.array(C0) * 0.05 / w_ref**2).tolist(),
-            ("D", 0): D0, ("D", 1): (np.array(D0) * 0.1 / w_ref).tolist(),
-            ("D", 2): (np.array(D0) * 0.05 / w_ref**2).tolist()}
+    poly = {
+        ("K", 0): K0,
+        ("K", 1): (np.array(K0) * 0.1 / w_ref).tolist(),
+        ("C", 0): C0,
+        ("C", 1): (np.array(C0) * 0.1 / w_ref).tolist(),
+        ("C", 2): (np.array(C0) * 0.05 / w_ref**2).tolist(),
+        ("D", 0): D0,
+        ("D", 1): (np.array(D0) * 0.1 / w_ref).tolist(),
+        ("D", 2): (np.array(D0) * 0.05 / w_ref**2).tolist(),
+    }
     const = {("K", 0): K0, ("C", 0): C0, ("D", 0): D0}
     ellipse = [(RADIUS * 0.99, RADIUS * 0.01)]  # forward, 2 % ellipticity, one fixed shape
     examples = {
-        "kcd11-constant.csv": (const, hz, both, 1e-8, 2e-3, 1, True, False,
-                               "--model kcd11 --method wls", "constant K, C, D (D symmetric); u_* columns"),
-        "kcd11-poly2.csv": (poly, np.linspace(10.0, 60.0, 12), both, 1e-9, 2e-4, 2, True, False,
-                            "--model kcd11 --freq-dep poly:2",
-                            "the paper's 33-coefficient model: fitted as 29 (K order 2 absorbed by D)"),
-        "kc8-coherence.csv": ({("K", 0): K0, ("C", 0): C0}, hz, both, 0.0, 1e-3, 3, False, True,
-                              "--model kc8 --method wls", "coherences only (no u_*): wls falls back on them"),
-        "forward-ellipse.csv": ({("K", 0): K0, ("C", 0): C0, ("K", 1): (np.array(K0) * 0.1 / w_ref).tolist(),
-                                 ("C", 1): (np.array(C0) * 0.1 / w_ref).tolist()}, hz, ellipse, 1e-9, 1e-3, 4,
-                                True, False, "--model kc8 --freq-dep power:1",
-                                "forward whirl only, one fixed 2 % ellipse: power:1 is refused (exit 2)"),
+        "kcd11-constant.csv": (
+            const,
+            hz,
+            both,
+            1e-8,
+            2e-3,
+            1,
+            True,
+            False,
+            "--model kcd11 --method wls",
+            "constant K, C, D (D symmetric); u_* columns",
+        ),
+        "kcd11-poly2.csv": (
+            poly,
+            np.linspace(10.0, 60.0, 12),
+            both,
+            1e-9,
+            2e-4,
+            2,
+            True,
+            False,
+            "--model kcd11 --freq-dep poly:2",
+            "the paper's 33-coefficient model: fitted as 29 (K order 2 absorbed by D)",
+        ),
+        "kc8-coherence.csv": (
+            {("K", 0): K0, ("C", 0): C0},
+            hz,
+            both,
+            0.0,
+            1e-3,
+            3,
+            False,
+            True,
+            "--model kc8 --method wls",
+            "coherences only (no u_*): wls falls back on them",
+        ),
+        "forward-ellipse.csv": (
+            {
+                ("K", 0): K0,
+                ("C", 0): C0,
+                ("K", 1): (np.array(K0) * 0.1 / w_ref).tolist(),
+                ("C", 1): (np.array(C0) * 0.1 / w_ref).tolist(),
+            },
+            hz,
+            ellipse,
+            1e-9,
+            1e-3,
+            4,
+            True,
+            False,
+            "--model kc8 --freq-dep power:1",
+            "forward whirl only, one fixed 2 % ellipse: power:1 is refused (exit 2)",
+        ),
     }
     truth = {}
     for name, (mats, f, shapes, u_d, u_f, seed, with_u, gamma2, args, what) in examples.items():
         write_orbit_table(HERE / name, _table(mats, f, shapes, u_d, u_f, seed, with_u, gamma2))
-        truth[name] = {"command": args, "description": what, "spin_rpm": SPIN_RPM,
-                       "coefficients": _keys(mats)}
+        truth[name] = {"command": args, "description": what, "spin_rpm": SPIN_RPM, "coefficients": _keys(mats)}
     truth["forward-ellipse.csv"]["exit_status"] = 2
     (HERE / "truth.json").write_text(json.dumps(truth, indent=2) + "\n")
 

@@ -38,8 +38,12 @@ class Variable(StrEnum):
 
     @property
     def label(self) -> str:
-        return {"static_eccentricity": "static eccentricity \u03b5s", "pressure_ratio": "pressure ratio \u03b2",
-                "dynamic_eccentricity": "dynamic eccentricity \u03b5d", "spin": "spin \u03c9 [rpm]"}[self.value]
+        return {
+            "static_eccentricity": "static eccentricity \u03b5s",
+            "pressure_ratio": "pressure ratio \u03b2",
+            "dynamic_eccentricity": "dynamic eccentricity \u03b5d",
+            "spin": "spin \u03c9 [rpm]",
+        }[self.value]
 
     def of(self, row: Row) -> float:
         """The row's value on the x axis (spin in rpm, the others as stored)."""
@@ -79,8 +83,11 @@ def repeatability(rows: list[Row], coefficient: str) -> Repeatability:
 
     total, dof, n_groups = 0.0, 0, 0
     for group in repeat_groups(rows):
-        pairs = [(r[coefficient], r[f"{coefficient}_U"] / COVERAGE) for r in group
-                 if r.get(coefficient) is not None and r.get(f"{coefficient}_U")]
+        pairs = [
+            (r[coefficient], r[f"{coefficient}_U"] / COVERAGE)
+            for r in group
+            if r.get(coefficient) is not None and r.get(f"{coefficient}_U")
+        ]
         if len(pairs) < 2:
             continue
         x, u = np.array(pairs).T

@@ -18,14 +18,21 @@ SCALE = {"K": (1e-6, "MN/m"), "C": (1e-3, "kN s/m"), "D": (1.0, "kg")}
 _PREDICTED_X = {Variable.SPIN: "spin_rpm"}
 
 
-def compare_figure(rows: list[Row], variable: Variable, coefficients: list[str], *, title: str,
-                   predicted: list[dict[str, float]] | None = None):
+def compare_figure(
+    rows: list[Row],
+    variable: Variable,
+    coefficients: list[str],
+    *,
+    title: str,
+    predicted: list[dict[str, float]] | None = None,
+):
     """The figure (matplotlib Figure on Agg); rows of one fit kind."""
     ncol = min(4, len(coefficients))
     nrow = -(-len(coefficients) // ncol)
     extra = 0.2 * title.count("\n")  # in: room for each further title line
-    fig = panel_figure(3.3 * ncol + 0.6, 2.6 * nrow + 2.0 + extra, top=0.75 + extra, bottom=1.0, hspace=0.55,
-                       wspace=0.38)
+    fig = panel_figure(
+        3.3 * ncol + 0.6, 2.6 * nrow + 2.0 + extra, top=0.75 + extra, bottom=1.0, hspace=0.55, wspace=0.38
+    )
     runs = runs_of(rows)
     colors = _colors(len(runs))
     xs = np.array([variable.of(r) for r in rows])
@@ -35,8 +42,11 @@ def compare_figure(rows: list[Row], variable: Variable, coefficients: list[str],
         ax = fig.add_subplot(nrow, ncol, k + 1)
         scale, unit = SCALE[name[0]]
         for (run_id, run_rows), color, dx in zip(runs.items(), colors, offsets):
-            pts = [(variable.of(r) + dx, r[name] * scale, (r[f"{name}_U"] or 0.0) * scale)
-                   for r in run_rows if r.get(name) is not None]
+            pts = [
+                (variable.of(r) + dx, r[name] * scale, (r[f"{name}_U"] or 0.0) * scale)
+                for r in run_rows
+                if r.get(name) is not None
+            ]
             if pts:
                 x, y, u = np.array(sorted(pts)).T
                 ax.errorbar(x, y, yerr=u, fmt="o-", ms=4, lw=0.8, capsize=3, color=color, label=run_id)
@@ -53,8 +63,7 @@ def compare_figure(rows: list[Row], variable: Variable, coefficients: list[str],
 
 def _draw_predicted(ax, predicted: list[dict[str, float]], variable: Variable, name: str, scale: float) -> None:
     column = _PREDICTED_X.get(variable, variable.value)
-    pts = sorted((p[column], p[name]) for p in predicted
-                 if column in p and np.isfinite(p.get(name, np.nan)))
+    pts = sorted((p[column], p[name]) for p in predicted if column in p and np.isfinite(p.get(name, np.nan)))
     if pts:
         x, y = np.array(pts).T
         ax.plot(x, y * scale, "k--", lw=1.2, label="predicted")

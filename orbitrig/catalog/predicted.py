@@ -31,8 +31,10 @@ def _column(name: str, file: Path) -> str:
     key, _, unit = name.partition(" [")
     if key in COEFFICIENTS and unit == f"{UNITS[key[0]]}]":
         return key
-    raise PredictedError(f"{file}, line 1, column {name!r}: not one of {', '.join(CONDITION_COLUMNS)} "
-                         f"or 'KEY [unit]' (e.g. 'Kxx [N/m]', 'Cxy [N s/m]', 'Dxx [kg]')")
+    raise PredictedError(
+        f"{file}, line 1, column {name!r}: not one of {', '.join(CONDITION_COLUMNS)} "
+        f"or 'KEY [unit]' (e.g. 'Kxx [N/m]', 'Cxy [N s/m]', 'Dxx [kg]')"
+    )
 
 
 def read_predicted(path: Path) -> list[dict[str, float]]:

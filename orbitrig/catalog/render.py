@@ -17,8 +17,23 @@ class ExportFormat(StrEnum):
 
 
 #: the columns `catalog list` shows unless told otherwise
-LIST_COLUMNS = ("run_id", "point", "lms", "model", "freq_dep", "method", "spin_rpm", "pressure_ratio",
-                "static_eccentricity", "dynamic_eccentricity", "Kxx", "Kxx_U", "Cxx", "Cxx_U", "adequacy_verdict")
+LIST_COLUMNS = (
+    "run_id",
+    "point",
+    "lms",
+    "model",
+    "freq_dep",
+    "method",
+    "spin_rpm",
+    "pressure_ratio",
+    "static_eccentricity",
+    "dynamic_eccentricity",
+    "Kxx",
+    "Kxx_U",
+    "Cxx",
+    "Cxx_U",
+    "adequacy_verdict",
+)
 
 
 def header(name: str) -> str:

@@ -47,22 +47,34 @@ def run_rows(run: Run, points: list[Point] | None = None) -> list[dict[str, Any]
 def _run_columns(run: Run) -> dict[str, Any]:
     prov = run.provenance
     return {
-        "run_id": run_id(run), "run_path": str(Path(run.directory).resolve()), "run_status": str(run.status),
-        "created": run.created, "matrix_name": run.matrix_name, "sim": run.sim,
-        "software_version": run.software_version, "operator": prov.get("operator", ""),
-        "rig_id": prov.get("rig_id", ""), "host": prov.get("host", ""),
+        "run_id": run_id(run),
+        "run_path": str(Path(run.directory).resolve()),
+        "run_status": str(run.status),
+        "created": run.created,
+        "matrix_name": run.matrix_name,
+        "sim": run.sim,
+        "software_version": run.software_version,
+        "operator": prov.get("operator", ""),
+        "rig_id": prov.get("rig_id", ""),
+        "host": prov.get("host", ""),
         "calibration_record": prov.get("calibration_record", ""),
         "calibration_record_sha256": prov.get("calibration_record_sha256", ""),
-        "started": prov.get("started", ""), "ended": prov.get("ended", ""),
+        "started": prov.get("started", ""),
+        "ended": prov.get("ended", ""),
     }
 
 
 def _point_columns(p: Point) -> dict[str, Any]:
     s = p.settings
     return {
-        "point": p.index, "label": s.label, "spin": s.spin, "spin_rpm": s.spin_rpm,
-        "recess_pressure": s.recess_pressure, "pressure_ratio": s.pressure_ratio,
-        "static_eccentricity": s.static_eccentricity, "dynamic_eccentricity": s.dynamic_eccentricity,
+        "point": p.index,
+        "label": s.label,
+        "spin": s.spin,
+        "spin_rpm": s.spin_rpm,
+        "recess_pressure": s.recess_pressure,
+        "pressure_ratio": s.pressure_ratio,
+        "static_eccentricity": s.static_eccentricity,
+        "dynamic_eccentricity": s.dynamic_eccentricity,
         "orbit_hz": json.dumps(sorted({f.orbit_hz for f in p.frequencies})),
     }
 
@@ -70,20 +82,29 @@ def _point_columns(p: Point) -> dict[str, Any]:
 def _fit_columns(ident: StoredIdentification) -> dict[str, Any]:
     from reduction.statistics import not_determined
 
-    row: dict[str, Any] = {"lms": ident.lms, "model": ident.model, "freq_dep": ident.freq_dep,
-                           "method": ident.method, "ok": ident.ok, "error": ident.error or ""}
+    row: dict[str, Any] = {
+        "lms": ident.lms,
+        "model": ident.model,
+        "freq_dep": ident.freq_dep,
+        "method": ident.method,
+        "ok": ident.ok,
+        "error": ident.error or "",
+    }
     result = ident.result or {}
     values = {k: _number(v) for k, v in result.get("coefficients", {}).items()}
     u, basis = (expanded_uncertainty(result), uncertainty_basis(result)) if ident.ok else ({}, "")
     adequacy = result.get("adequacy") or {}
     row.update(
-        n_frequencies=result.get("n_frequencies"), chi2=_finite(result.get("chi2")),
-        p_value=_finite(result.get("p_value")), u_basis=basis,
+        n_frequencies=result.get("n_frequencies"),
+        chi2=_finite(result.get("chi2")),
+        p_value=_finite(result.get("p_value")),
+        u_basis=basis,
         adequacy_verdict=str(adequacy.get("verdict", "")),
         adequacy_supported=adequacy.get("supported") if "supported" in adequacy else None,
         not_determined=" ".join(not_determined(values, u)),
-        coefficients_json=json.dumps({"values": values, "U": u,
-                                      "std": {k: _number(v) for k, v in result.get("std_errors", {}).items()}}),
+        coefficients_json=json.dumps(
+            {"values": values, "U": u, "std": {k: _number(v) for k, v in result.get("std_errors", {}).items()}}
+        ),
     )
     for name in COEFFICIENTS:
         row[name], row[f"{name}_U"] = _finite(values.get(name)), _finite(u.get(name))

@@ -12,24 +12,62 @@ metadata = MetaData()
 #: the unique key: re-adding a row with the same key replaces it
 KEY = ("run_id", "point", "lms", "model", "freq_dep", "method")
 
-_TEXT = ("run_path", "run_status", "created", "matrix_name", "software_version", "operator", "rig_id", "host",
-         "calibration_record", "calibration_record_sha256", "started", "ended", "label", "orbit_hz", "error",
-         "u_basis", "adequacy_verdict", "not_determined", "coefficients_json")
-_FLOAT = ("spin", "spin_rpm", "recess_pressure", "pressure_ratio", "static_eccentricity",
-          "dynamic_eccentricity", "chi2", "p_value")
+_TEXT = (
+    "run_path",
+    "run_status",
+    "created",
+    "matrix_name",
+    "software_version",
+    "operator",
+    "rig_id",
+    "host",
+    "calibration_record",
+    "calibration_record_sha256",
+    "started",
+    "ended",
+    "label",
+    "orbit_hz",
+    "error",
+    "u_basis",
+    "adequacy_verdict",
+    "not_determined",
+    "coefficients_json",
+)
+_FLOAT = (
+    "spin",
+    "spin_rpm",
+    "recess_pressure",
+    "pressure_ratio",
+    "static_eccentricity",
+    "dynamic_eccentricity",
+    "chi2",
+    "p_value",
+)
 
 #: column -> unit, for the columns that have one (the rest are counts, ratios or text)
-COLUMN_UNITS = {"spin": "rad/s", "spin_rpm": "rpm", "recess_pressure": "Pa",
-                **{c: UNITS[c[0]] for c in COEFFICIENTS}, **{f"{c}_U": UNITS[c[0]] for c in COEFFICIENTS}}
+COLUMN_UNITS = {
+    "spin": "rad/s",
+    "spin_rpm": "rpm",
+    "recess_pressure": "Pa",
+    **{c: UNITS[c[0]] for c in COEFFICIENTS},
+    **{f"{c}_U": UNITS[c[0]] for c in COEFFICIENTS},
+}
 
 
 def _columns() -> list[Column]:
-    cols = [Column("id", Integer, primary_key=True, autoincrement=True),
-            Column("run_id", String(200), nullable=False), Column("point", Integer, nullable=False),
-            Column("lms", String(40), nullable=False), Column("model", String(40), nullable=False),
-            Column("freq_dep", String(80), nullable=False), Column("method", String(40), nullable=False),
-            Column("ok", Boolean, nullable=False), Column("sim", Boolean), Column("n_frequencies", Integer),
-            Column("adequacy_supported", Boolean)]
+    cols = [
+        Column("id", Integer, primary_key=True, autoincrement=True),
+        Column("run_id", String(200), nullable=False),
+        Column("point", Integer, nullable=False),
+        Column("lms", String(40), nullable=False),
+        Column("model", String(40), nullable=False),
+        Column("freq_dep", String(80), nullable=False),
+        Column("method", String(40), nullable=False),
+        Column("ok", Boolean, nullable=False),
+        Column("sim", Boolean),
+        Column("n_frequencies", Integer),
+        Column("adequacy_supported", Boolean),
+    ]
     cols += [Column(name, Text) for name in _TEXT]
     cols += [Column(name, Float) for name in _FLOAT]
     for name in COEFFICIENTS:

@@ -31,7 +31,7 @@ def default_url(runs_dir: Path) -> str:
 def _driver_url(url: str) -> str:
     for bare in ("postgresql://", "postgres://"):
         if url.startswith(bare):
-            return "postgresql+psycopg://" + url[len(bare):]
+            return "postgresql+psycopg://" + url[len(bare) :]
     return url
 
 

@@ -21,8 +21,15 @@ from sqlalchemy.sql.elements import ColumnElement
 from orbitrig.catalog.errors import CatalogUsageError
 from orbitrig.catalog.schema import fits
 
-_OPERATORS = {"=": operator.eq, "==": operator.eq, "!=": operator.ne, "<": operator.lt, "<=": operator.le,
-              ">": operator.gt, ">=": operator.ge}
+_OPERATORS = {
+    "=": operator.eq,
+    "==": operator.eq,
+    "!=": operator.ne,
+    "<": operator.lt,
+    "<=": operator.le,
+    ">": operator.gt,
+    ">=": operator.ge,
+}
 _CONDITION = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)(==|!=|<=|>=|=|<|>)(.+)$")
 
 
@@ -50,12 +57,14 @@ def parse_where(text: str) -> ColumnElement | None:
 def _condition(part: str, text: str) -> ColumnElement:
     m = _CONDITION.match(part)
     if m is None:
-        raise CatalogUsageError(f"--where {text!r}: {part!r} is not 'column op value' "
-                                f"(op one of {' '.join(_OPERATORS)})")
+        raise CatalogUsageError(
+            f"--where {text!r}: {part!r} is not 'column op value' (op one of {' '.join(_OPERATORS)})"
+        )
     name, op, raw = m.groups()
     if name not in fits.c or name == "id":
-        raise CatalogUsageError(f"--where {text!r}: unknown column {name!r}; columns: "
-                                f"{', '.join(c for c in fits.c.keys() if c != 'id')}")
+        raise CatalogUsageError(
+            f"--where {text!r}: unknown column {name!r}; columns: {', '.join(c for c in fits.c.keys() if c != 'id')}"
+        )
     column = fits.c[name]
     return _OPERATORS[op](column, _value(column, raw, text))
 
@@ -72,6 +81,7 @@ def _value(column, raw: str, text: str):
         if isinstance(kind, Float):
             return float(raw)
     except ValueError:
-        raise CatalogUsageError(f"--where {text!r}: column {column.name!r} takes a "
-                                f"{kind.python_type.__name__}, not {raw!r}") from None
+        raise CatalogUsageError(
+            f"--where {text!r}: column {column.name!r} takes a {kind.python_type.__name__}, not {raw!r}"
+        ) from None
     return raw

@@ -52,8 +52,9 @@ def _print_version(value: bool) -> None:
 
 @app.callback()
 def _root(
-    version: bool = typer.Option(False, "--version", is_eager=True, callback=_print_version,
-                                 help="Print the software version and exit."),
+    version: bool = typer.Option(
+        False, "--version", is_eager=True, callback=_print_version, help="Print the software version and exit."
+    ),
 ) -> None:
     """Fluid-film bearing test rig: acquisition, drives, sweep, identification."""
 

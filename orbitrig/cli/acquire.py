@@ -9,9 +9,13 @@ from typing import Optional
 import typer
 
 FIRST_WAIT_S = 10.0  # automatic timeout: wait this long for the orbit's first good revolution
-_HINT_TURNING = ("is the orbit turning? start it with `orbitrig drives run --spin RPM --orbit RPM --hold` "
-                 "in another shell, and check the A/D board's trigger and clock")
-_HINT_LINK = "is the A/D board (or `orbitrig sim`) serving there? set [transports] adc_url in the rig config or pass --adc"
+_HINT_TURNING = (
+    "is the orbit turning? start it with `orbitrig drives run --spin RPM --orbit RPM --hold` "
+    "in another shell, and check the A/D board's trigger and clock"
+)
+_HINT_LINK = (
+    "is the A/D board (or `orbitrig sim`) serving there? set [transports] adc_url in the rig config or pass --adc"
+)
 
 
 def block_summary(block) -> dict:
@@ -32,9 +36,15 @@ def block_summary(block) -> dict:
         "orbit_hz": None if math.isnan(orbit_hz) else orbit_hz,
         "stop_reason": block.stop_reason,
         "channels": [
-            {"index": k, "re": float(q.real), "im": float(q.imag), "amplitude": float(abs(q)),
-             "phase_deg": float(np.degrees(np.angle(q))), "rms_residual": float(r),
-             "uncertainty": float(u) if math.isfinite(u) else None}
+            {
+                "index": k,
+                "re": float(q.real),
+                "im": float(q.imag),
+                "amplitude": float(abs(q)),
+                "phase_deg": float(np.degrees(np.angle(q))),
+                "rms_residual": float(r),
+                "uncertainty": float(u) if math.isfinite(u) else None,
+            }
             for k, (q, r, u) in enumerate(zip(block.phasors, block.rms_residual, block.uncertainty))
         ],
     }
@@ -113,8 +123,9 @@ def _acquire(scan: _Scan, rule, timeout: float | None):
     wait, per_rev = (timeout, None) if timeout is not None else (FIRST_WAIT_S, scan.timeout_factor)
 
     async def run():
-        async with AdcReader(scan.adc, channels=scan.channels, mode=scan.mode, gains=scan.gains,
-                             offsets=scan.offsets, reconnect=True) as reader:
+        async with AdcReader(
+            scan.adc, channels=scan.channels, mode=scan.mode, gains=scan.gains, offsets=scan.offsets, reconnect=True
+        ) as reader:
             return await reader.acquire(rule, timeout=wait, per_revolution=per_rev)
 
     try:
@@ -137,38 +148,65 @@ def _print_table(block, labels: dict[int, tuple[str, str]]) -> None:
     s = block.stats
     reasons = f" {dict(s.drop_reasons)}" if s.drop_reasons else ""
     stop = "" if block.stop_reason == "count" else f" (stopped: {block.stop_reason})"
-    typer.echo(f"{out['revolutions_used']} revolutions averaged{stop}, {out['revolutions_dropped']} dropped"
-               f"{reasons}, frames bad {out['frames_bad']}, "
-               f"bytes skipped {out['bytes_skipped']}, orbit {out['orbit_hz'] or float('nan'):.4f} Hz")
-    typer.echo(f"{'ch':>3} {'re':>12} {'im':>12} {'amplitude':>12} {'phase deg':>10} {'rms resid':>12} "
-               f"{'u %':>8}  unit   name")
+    typer.echo(
+        f"{out['revolutions_used']} revolutions averaged{stop}, {out['revolutions_dropped']} dropped"
+        f"{reasons}, frames bad {out['frames_bad']}, "
+        f"bytes skipped {out['bytes_skipped']}, orbit {out['orbit_hz'] or float('nan'):.4f} Hz"
+    )
+    typer.echo(
+        f"{'ch':>3} {'re':>12} {'im':>12} {'amplitude':>12} {'phase deg':>10} {'rms resid':>12} {'u %':>8}  unit   name"
+    )
     for c in out["channels"]:
         name, unit = labels.get(c["index"], ("", "counts"))
-        rel = float("nan") if c["uncertainty"] is None or not c["amplitude"] else 100 * c["uncertainty"] / c["amplitude"]
-        typer.echo(f"{c['index']:>3} {c['re']:>12.5g} {c['im']:>12.5g} {c['amplitude']:>12.5g} "
-                   f"{c['phase_deg']:>10.3f} {c['rms_residual']:>12.5g} {rel:>8.3f}  {unit:<6} {name}".rstrip())
+        rel = (
+            float("nan") if c["uncertainty"] is None or not c["amplitude"] else 100 * c["uncertainty"] / c["amplitude"]
+        )
+        typer.echo(
+            f"{c['index']:>3} {c['re']:>12.5g} {c['im']:>12.5g} {c['amplitude']:>12.5g} "
+            f"{c['phase_deg']:>10.3f} {c['rms_residual']:>12.5g} {rel:>8.3f}  {unit:<6} {name}".rstrip()
+        )
 
 
 def register(app: typer.Typer) -> None:
     @app.command("acquire")
     def acquire(
-        adc: Optional[str] = typer.Option(None, "--adc", help="A/D board URL: /dev/ttyUSB0, a pty path, "
-                                          "socket://host:port (default: the rig config's adc_url)."),
-        channels: Optional[int] = typer.Option(None, "--channels", help="Channels in the scan list (default: "
-                                               "the rig config's, else 8)."),
-        mode: Optional[str] = typer.Option(None, "--mode", help="sequential | simultaneous (default: the rig "
-                                           "config's, else sequential)."),
-        revolutions: int = typer.Option(50, "--revolutions", min=1, help="Good revolutions to average "
-                                        "(with --target: the most)."),
-        target: Optional[float] = typer.Option(None, "--target", help="Stop as soon as every channel's phasor "
-                                               "uncertainty is below this percentage of its amplitude."),
+        adc: Optional[str] = typer.Option(
+            None,
+            "--adc",
+            help="A/D board URL: /dev/ttyUSB0, a pty path, socket://host:port (default: the rig config's adc_url).",
+        ),
+        channels: Optional[int] = typer.Option(
+            None, "--channels", help="Channels in the scan list (default: the rig config's, else 8)."
+        ),
+        mode: Optional[str] = typer.Option(
+            None, "--mode", help="sequential | simultaneous (default: the rig config's, else sequential)."
+        ),
+        revolutions: int = typer.Option(
+            50, "--revolutions", min=1, help="Good revolutions to average (with --target: the most)."
+        ),
+        target: Optional[float] = typer.Option(
+            None,
+            "--target",
+            help="Stop as soon as every channel's phasor uncertainty is below this percentage of its amplitude.",
+        ),
         min_revolutions: int = typer.Option(10, "--min-revolutions", min=2, help="With --target: the fewest."),
-        timeout: Optional[float] = typer.Option(None, "--timeout", min=0.001, max=1e6, help="Seconds to wait "
-                                                "(default: 10 s for the first revolution plus the rig config's "
-                                                "timeout_factor x revolutions x measured orbit period)."),
-        rig: Optional[Path] = typer.Option(None, "--rig", "--config", help="Rig config (default: config/rig.toml "
-                                           "of the orbitrig source tree): URL, scan and calibration to "
-                                           "engineering units (SI)."),
+        timeout: Optional[float] = typer.Option(
+            None,
+            "--timeout",
+            min=0.001,
+            max=1e6,
+            help="Seconds to wait "
+            "(default: 10 s for the first revolution plus the rig config's "
+            "timeout_factor x revolutions x measured orbit period).",
+        ),
+        rig: Optional[Path] = typer.Option(
+            None,
+            "--rig",
+            "--config",
+            help="Rig config (default: config/rig.toml "
+            "of the orbitrig source tree): URL, scan and calibration to "
+            "engineering units (SI).",
+        ),
         counts: bool = typer.Option(False, "--counts", help="Raw counts (gain 1, offset 0), not calibrated."),
         as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
     ) -> None:

@@ -32,11 +32,18 @@ _REF_U = "its certificate's relative standard uncertainty (%); required on the r
 
 
 def register(app: typer.Typer) -> None:
-    cal = typer.Typer(help="Calibrate the load measuring systems and probes; the calibration records.",
-                      no_args_is_help=True)
+    cal = typer.Typer(
+        help="Calibrate the load measuring systems and probes; the calibration records.", no_args_is_help=True
+    )
     app.add_typer(cal, name="calibrate")
-    for name, command in (("list", list_), ("show", show), ("loads", loads), ("runout", runout), ("delay", delay),
-                          ("probes", probes)):
+    for name, command in (
+        ("list", list_),
+        ("show", show),
+        ("loads", loads),
+        ("runout", runout),
+        ("delay", delay),
+        ("probes", probes),
+    ):
         cal.command(name)(command)
 
 
@@ -45,8 +52,10 @@ def list_(config: Optional[Path] = _CONFIG) -> None:
     _guarded(lambda: _list(config))
 
 
-def show(name: Optional[str] = typer.Argument(None, help="record name (default: the active record)"),
-         config: Optional[Path] = _CONFIG) -> None:
+def show(
+    name: Optional[str] = typer.Argument(None, help="record name (default: the active record)"),
+    config: Optional[Path] = _CONFIG,
+) -> None:
     """Print one calibration record (its TOML text) and its SHA-256."""
     _guarded(lambda: _show(name, config))
 
@@ -54,10 +63,12 @@ def show(name: Optional[str] = typer.Argument(None, help="record name (default: 
 def loads(
     sim: bool = typer.Option(False, "--sim", help="on the built-in simulator (it applies the loads)"),
     load_n: float = typer.Option(500.0, "--load-n", min=1.0, help="magnitude of each static load (N)"),
-    reference_id: Optional[str] = typer.Option(None, "--reference-id",
-                                               help="the reference's id (dead-weight set, load cell); required on the rig"),
+    reference_id: Optional[str] = typer.Option(
+        None, "--reference-id", help="the reference's id (dead-weight set, load cell); required on the rig"
+    ),
     reference_u_pct: Optional[float] = typer.Option(None, "--reference-u-pct", min=0.0, max=50.0, help=_REF_U),
-    config: Optional[Path] = _CONFIG, operator: Optional[str] = _OPERATOR,
+    config: Optional[Path] = _CONFIG,
+    operator: Optional[str] = _OPERATOR,
     spin_rpm: float = typer.Option(300.0, "--spin-rpm", min=1.0, help="slow roll speed (rpm)"),
     revolutions: int = typer.Option(50, "--revolutions", min=2, max=10_000, help="revolutions averaged per reading"),
     recess_pressure_mpa: float = _RECESS,
@@ -78,7 +89,8 @@ def loads(
 
 def runout(
     sim: bool = typer.Option(False, "--sim", help="on the built-in simulator"),
-    config: Optional[Path] = _CONFIG, operator: Optional[str] = _OPERATOR,
+    config: Optional[Path] = _CONFIG,
+    operator: Optional[str] = _OPERATOR,
     spin_rpm: float = typer.Option(100.0, "--spin-rpm", min=1.0, help="slow roll speed (rpm)"),
     revolutions: int = typer.Option(100, "--revolutions", min=2, max=10_000, help="revolutions averaged"),
     recess_pressure_mpa: float = _RECESS,
@@ -97,11 +109,15 @@ def runout(
 
 def delay(
     sim: bool = typer.Option(False, "--sim", help="on the built-in simulator (it connects the reference)"),
-    speeds_rpm: str = typer.Option("300,600,900,1200,1500", "--speeds-rpm",
-                                   help="orbit spindle speeds (rpm, the spin at 1/0.7 times), comma separated"),
+    speeds_rpm: str = typer.Option(
+        "300,600,900,1200,1500",
+        "--speeds-rpm",
+        help="orbit spindle speeds (rpm, the spin at 1/0.7 times), comma separated",
+    ),
     reference_n: float = typer.Option(1000.0, "--reference-n", min=0.001, help="reference on the force channels (N)"),
     reference_um: float = typer.Option(20.0, "--reference-um", min=0.001, help="reference on the probes (um)"),
-    config: Optional[Path] = _CONFIG, operator: Optional[str] = _OPERATOR,
+    config: Optional[Path] = _CONFIG,
+    operator: Optional[str] = _OPERATOR,
     revolutions: int = typer.Option(100, "--revolutions", min=2, max=10_000, help="revolutions averaged per speed"),
     recess_pressure_mpa: float = _RECESS,
     pressure_ratio: float = _RATIO,
@@ -125,7 +141,8 @@ def probes(
     steps: int = typer.Option(5, "--steps", min=3, max=101, help="number of steps over the span"),
     reference_id: Optional[str] = typer.Option(None, "--reference-id", help="the micrometer's id; required on the rig"),
     reference_u_pct: Optional[float] = typer.Option(None, "--reference-u-pct", min=0.0, max=50.0, help=_REF_U),
-    config: Optional[Path] = _CONFIG, operator: Optional[str] = _OPERATOR,
+    config: Optional[Path] = _CONFIG,
+    operator: Optional[str] = _OPERATOR,
     spin_rpm: float = typer.Option(300.0, "--spin-rpm", min=1.0, help="slow roll speed (rpm)"),
     revolutions: int = typer.Option(50, "--revolutions", min=2, max=10_000, help="revolutions averaged per step"),
     recess_pressure_mpa: float = _RECESS,
@@ -224,13 +241,14 @@ def _write(rig, folder, record, activate: bool, what: str) -> None:
     from orbitrig.config import activate as make_active
     from orbitrig.config import write_record
 
-    header = (f"orbitrig calibration record (docs/calibration.md), written by `orbitrig calibrate {record.step}`.\n"
-              f"{what}")
+    header = (
+        f"orbitrig calibration record (docs/calibration.md), written by `orbitrig calibrate {record.step}`.\n{what}"
+    )
     name, _ = write_record(folder, record, header)
     typer.echo(f"calibration record {name} written to {folder}")
     if activate:
         make_active(rig.file, name)
-        typer.echo(f"{rig.file}: calibration_record = \"{name}\" (active)")
+        typer.echo(f'{rig.file}: calibration_record = "{name}" (active)')
 
 
 def _reference(opts, reference_id, reference_u_pct, simulated: str):
@@ -238,8 +256,9 @@ def _reference(opts, reference_id, reference_u_pct, simulated: str):
     from orbitrig.config import Reference
 
     if not opts.sim and (reference_id is None or reference_u_pct is None):
-        raise typer.BadParameter("on the rig give the reference: --reference-id ID --reference-u-pct U",
-                                 param_hint="--reference-id")
+        raise typer.BadParameter(
+            "on the rig give the reference: --reference-id ID --reference-u-pct U", param_hint="--reference-id"
+        )
     return Reference(id=reference_id or simulated, uncertainty_pct=reference_u_pct or 0.0)
 
 
@@ -252,10 +271,18 @@ def _loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> Non
     rig, folder = _rig_and_folder(config)
     record = asyncio.run(loads_record(rig, opts, load_n, ref, lambda m: typer.echo(m, err=True)))
     for lms, g in record.loads.items():
-        typer.echo(f"{lms}: gain matrix {g.gain} (u {[[f'{u:.2g}' for u in row] for row in g.gain_u]}), "
-                   f"residual {g.residual_n:.3g} N")
-    _write(rig, folder, record, activate, "Units: gain 1 (f_journal = gain @ f_read + offset_n), offset_n and "
-           "residual_n N; [uncertainty] gain_pct percent, phase_deg degrees, delay_us microseconds (k = 1).")
+        typer.echo(
+            f"{lms}: gain matrix {g.gain} (u {[[f'{u:.2g}' for u in row] for row in g.gain_u]}), "
+            f"residual {g.residual_n:.3g} N"
+        )
+    _write(
+        rig,
+        folder,
+        record,
+        activate,
+        "Units: gain 1 (f_journal = gain @ f_read + offset_n), offset_n and "
+        "residual_n N; [uncertainty] gain_pct percent, phase_deg degrees, delay_us microseconds (k = 1).",
+    )
 
 
 def _runout(config, opts, activate) -> None:
@@ -279,10 +306,18 @@ def _delay(config, opts, speeds, amplitudes, activate) -> None:
     rig, folder = _rig_and_folder(config)
     record = asyncio.run(delay_record(rig, opts, speeds, amplitudes, lambda m: typer.echo(m, err=True)))
     for name, d in record.delay.items():
-        typer.echo(f"{name}: lags the probes by {d.phase_deg:.4f} deg (u {d.phase_u_deg:.2g}) "
-                   f"+ {d.delay_us:.2f} us (u {d.delay_u_us:.2g})")
-    _write(rig, folder, record, activate, "Units: [delay] phase_deg degrees, delay_us microseconds: the force "
-           "channel lags the probes by phase_deg + 360 f delay_us 1e-6 degrees at f Hz.")
+        typer.echo(
+            f"{name}: lags the probes by {d.phase_deg:.4f} deg (u {d.phase_u_deg:.2g}) "
+            f"+ {d.delay_us:.2f} us (u {d.delay_u_us:.2g})"
+        )
+    _write(
+        rig,
+        folder,
+        record,
+        activate,
+        "Units: [delay] phase_deg degrees, delay_us microseconds: the force "
+        "channel lags the probes by phase_deg + 360 f delay_us 1e-6 degrees at f Hz.",
+    )
 
 
 def _probes(config, opts, span_um, steps, reference_id, reference_u_pct, activate) -> None:
@@ -298,5 +333,10 @@ def _probes(config, opts, span_um, steps, reference_id, reference_u_pct, activat
     record = asyncio.run(probes_record(rig, opts, grid, ref, lambda m: typer.echo(m, err=True)))
     for p, g in record.probes.items():
         typer.echo(f"{p}: gain {g.gain:.5f} (u {g.gain_u:.2g}), linearity {g.linearity_pct:.3g} % of {g.span_um:g} um")
-    _write(rig, folder, record, activate, "Units: [probes] gain 1 (x_journal = gain x_read), linearity_pct percent "
-           "of span_um micrometres.")
+    _write(
+        rig,
+        folder,
+        record,
+        activate,
+        "Units: [probes] gain 1 (x_journal = gain x_read), linearity_pct percent of span_um micrometres.",
+    )

@@ -18,10 +18,23 @@ import typer
 from orbitrig import __version__
 from orbitrig.config import LMS, MPA, RPM, CalibrationUncertainty, RigConfig
 from orbitrig.config import (
-    CalibrationRecord, ChannelDelay, LoadGains, ProbeGain, ProbeRunout, Reference, RecordStep, Runout,
+    CalibrationRecord,
+    ChannelDelay,
+    LoadGains,
+    ProbeGain,
+    ProbeRunout,
+    Reference,
+    RecordStep,
+    Runout,
 )
 from orbitrig.run.calibration import (
-    PROBES, CalibrationSession, SlowRoll, measure_delay, measure_loads, measure_probes, measure_runout,
+    PROBES,
+    CalibrationSession,
+    SlowRoll,
+    measure_delay,
+    measure_loads,
+    measure_probes,
+    measure_runout,
 )
 from orbitrig.run.rig_io import RigAccess
 from rigunits import now_iso
@@ -55,19 +68,30 @@ class OperatorLoads:
     the terminal (Ctrl-C ends the step)."""
 
     async def apply_load(self, fx: float, fy: float) -> None:
-        what = "remove every calibration load" if fx == 0 and fy == 0 else \
-            f"apply the static load fx = {fx:+.1f} N, fy = {fy:+.1f} N on the journal"
+        what = (
+            "remove every calibration load"
+            if fx == 0 and fy == 0
+            else f"apply the static load fx = {fx:+.1f} N, fy = {fy:+.1f} N on the journal"
+        )
         await asyncio.to_thread(typer.prompt, f"{what}, then press Enter", default="", show_default=False)
 
     async def apply_displacement(self, dx: float, dy: float) -> None:
-        what = "remove the displacement step" if dx == 0 and dy == 0 else \
-            f"step the journal by x = {dx * 1e6:+.2f} um, y = {dy * 1e6:+.2f} um (micrometer)"
+        what = (
+            "remove the displacement step"
+            if dx == 0 and dy == 0
+            else f"step the journal by x = {dx * 1e6:+.2f} um, y = {dy * 1e6:+.2f} um (micrometer)"
+        )
         await asyncio.to_thread(typer.prompt, f"{what}, then press Enter", default="", show_default=False)
 
     async def apply_reference(self, force: float, probe: float) -> None:
-        what = "disconnect the phase reference and reconnect the sensors" if force == 0 and probe == 0 else \
-            (f"connect the phase reference (locked to the orbit spindle) to every channel's input: "
-             f"{force:g} N on the force channels, {probe * 1e6:g} um on the probes")
+        what = (
+            "disconnect the phase reference and reconnect the sensors"
+            if force == 0 and probe == 0
+            else (
+                f"connect the phase reference (locked to the orbit spindle) to every channel's input: "
+                f"{force:g} N on the force channels, {probe * 1e6:g} um on the probes"
+            )
+        )
         await asyncio.to_thread(typer.prompt, f"{what}, then press Enter", default="", show_default=False)
 
 
@@ -91,15 +115,25 @@ async def rig_access(rig: RigConfig, opts: StepOptions):
 def _base(rig: RigConfig, opts: StepOptions, step: RecordStep) -> dict:
     """The new record's fields from the active record (or rig.toml), its date and operator set."""
     old = rig.record
-    base = old.model_dump() if old is not None else {
-        "uncertainty": (rig.calibration_uncertainty or CalibrationUncertainty()).model_dump()}
-    base.update(date=now_iso(), operator=opts.operator, rig=rig.name, step=step,
-                previous=rig.calibration_record or "", software=f"orbitrig {__version__}")
+    base = (
+        old.model_dump()
+        if old is not None
+        else {"uncertainty": (rig.calibration_uncertainty or CalibrationUncertainty()).model_dump()}
+    )
+    base.update(
+        date=now_iso(),
+        operator=opts.operator,
+        rig=rig.name,
+        step=step,
+        previous=rig.calibration_record or "",
+        software=f"orbitrig {__version__}",
+    )
     return base
 
 
-async def loads_record(rig: RigConfig, opts: StepOptions, load_n: float, reference: Reference,
-                       note) -> CalibrationRecord:
+async def loads_record(
+    rig: RigConfig, opts: StepOptions, load_n: float, reference: Reference, note
+) -> CalibrationRecord:
     """`calibrate loads`: the default load set of `load_n` N, each system's gain matrix fitted."""
     loads = static_loads(load_n)
     async with rig_access(rig, opts) as (access, hands):
@@ -112,8 +146,13 @@ async def loads_record(rig: RigConfig, opts: StepOptions, load_n: float, referen
     u_ref = reference.uncertainty_pct / 100.0
     for lms in LMS:
         fit = fit_gain_matrix(loads, readings[lms], u_ref)
-        data["loads"][lms] = LoadGains(gain=fit.gain.tolist(), gain_u=fit.gain_u.tolist(), offset_n=fit.offset.tolist(),
-                                       residual_n=fit.residual_rms, loads=len(loads)).model_dump()
+        data["loads"][lms] = LoadGains(
+            gain=fit.gain.tolist(),
+            gain_u=fit.gain_u.tolist(),
+            offset_n=fit.offset.tolist(),
+            residual_n=fit.residual_rms,
+            loads=len(loads),
+        ).model_dump()
         for axis, u in zip(("fx", "fy"), fit.relative_gain_u()):
             data["uncertainty"][f"{axis}_{lms}"]["gain_pct"] = float(u * 100.0)
     return CalibrationRecord.model_validate(data)
@@ -132,13 +171,16 @@ async def runout_record(rig: RigConfig, opts: StepOptions, note) -> CalibrationR
     return CalibrationRecord.model_validate(data)
 
 
-async def delay_record(rig: RigConfig, opts: StepOptions, speeds_rpm: list[float], amplitudes: tuple[float, float],
-                       note) -> CalibrationRecord:
+async def delay_record(
+    rig: RigConfig, opts: StepOptions, speeds_rpm: list[float], amplitudes: tuple[float, float], note
+) -> CalibrationRecord:
     """`calibrate delay`: the phase reference read at each slow-roll speed; each force channel's lag
     behind the probes fitted as a constant phase plus a time delay."""
     base = opts.roll()
-    rolls = [SlowRoll(rpm * RPM / DELAY_RATIO, base.recess_pressure, base.pressure_ratio, base.revolutions, DELAY_RATIO)
-             for rpm in speeds_rpm]
+    rolls = [
+        SlowRoll(rpm * RPM / DELAY_RATIO, base.recess_pressure, base.pressure_ratio, base.revolutions, DELAY_RATIO)
+        for rpm in speeds_rpm
+    ]
     async with rig_access(rig, opts) as (access, hands):
         async with CalibrationSession(rig, access, note) as session:
             freqs, lags = await measure_delay(session, hands, rolls, amplitudes)
@@ -146,15 +188,20 @@ async def delay_record(rig: RigConfig, opts: StepOptions, speeds_rpm: list[float
     data["delay"] = {}
     for name in FORCE_CHANNELS:
         fit = fit_delay(freqs, lags[name])
-        d = ChannelDelay(phase_deg=float(np.degrees(fit.phase)), delay_us=fit.delay * 1e6,
-                         phase_u_deg=float(np.degrees(fit.phase_u)), delay_u_us=fit.delay_u * 1e6)
+        d = ChannelDelay(
+            phase_deg=float(np.degrees(fit.phase)),
+            delay_us=fit.delay * 1e6,
+            phase_u_deg=float(np.degrees(fit.phase_u)),
+            delay_u_us=fit.delay_u * 1e6,
+        )
         data["delay"][name] = d.model_dump()
         data["uncertainty"][name].update(phase_deg=d.phase_u_deg, delay_us=d.delay_u_us)
     return CalibrationRecord.model_validate(data)
 
 
-async def probes_record(rig: RigConfig, opts: StepOptions, steps: np.ndarray, reference: Reference,
-                        note) -> CalibrationRecord:
+async def probes_record(
+    rig: RigConfig, opts: StepOptions, steps: np.ndarray, reference: Reference, note
+) -> CalibrationRecord:
     """`calibrate probes`: known displacement steps along x, then y; each probe's gain and linearity."""
     async with rig_access(rig, opts) as (access, hands):
         async with CalibrationSession(rig, access, note) as session:
@@ -165,8 +212,13 @@ async def probes_record(rig: RigConfig, opts: StepOptions, steps: np.ndarray, re
     data["probes"] = {}
     for p in PROBES:
         fit = fit_probe(steps, readings[p], reference.uncertainty_pct / 100.0)
-        data["probes"][p] = ProbeGain(gain=fit.gain, gain_u=fit.gain_u, linearity_pct=fit.linearity * 100,
-                                      span_um=float(np.ptp(steps)) * 1e6, steps=len(steps)).model_dump()
+        data["probes"][p] = ProbeGain(
+            gain=fit.gain,
+            gain_u=fit.gain_u,
+            linearity_pct=fit.linearity * 100,
+            span_um=float(np.ptp(steps)) * 1e6,
+            steps=len(steps),
+        ).model_dump()
         data["uncertainty"][p]["gain_pct"] = fit.gain_u / fit.gain * 100.0
     data["uncertainty"]["probe_sensitivity_pct"] = reference.uncertainty_pct  # common to all: the reference
     return CalibrationRecord.model_validate(data)

@@ -12,12 +12,15 @@ from typing import Annotated, Optional
 
 import typer
 
-catalog_app = typer.Typer(help="The campaign catalog: one row per operating point and fit, across runs.",
-                          no_args_is_help=True)
+catalog_app = typer.Typer(
+    help="The campaign catalog: one row per operating point and fit, across runs.", no_args_is_help=True
+)
 
 CATALOG_ENV = "ORBITRIG_CATALOG"
-_DB_HELP = (f"Catalog database URL (sqlite:///FILE, postgresql://user@host/db; else ${CATALOG_ENV}; "
-            "default: catalog.sqlite in the runs' directory).")
+_DB_HELP = (
+    f"Catalog database URL (sqlite:///FILE, postgresql://user@host/db; else ${CATALOG_ENV}; "
+    "default: catalog.sqlite in the runs' directory)."
+)
 DbOption = Annotated[Optional[str], typer.Option("--db", envvar=CATALOG_ENV, help=_DB_HELP)]
 RunsOption = Annotated[Path, typer.Option("--runs", help="Directory holding the runs (and the default catalog).")]
 WhereOption = Annotated[str, typer.Option("--where", help="Filter: 'column op value [and ...]' (docs/catalog.md).")]
@@ -46,8 +49,9 @@ def _guarded(action) -> None:
 
 
 @catalog_app.command("add")
-def add_cmd(runs: Annotated[list[Path], typer.Argument(metavar="RUN...", help="Run directories.")],
-            db: DbOption = None) -> None:
+def add_cmd(
+    runs: Annotated[list[Path], typer.Argument(metavar="RUN...", help="Run directories.")], db: DbOption = None
+) -> None:
     """Add (or update) every complete point and fit of each RUN."""
     from orbitrig.catalog.rows import run_rows
     from orbitrig.store.reader import read_run
@@ -63,8 +67,12 @@ def add_cmd(runs: Annotated[list[Path], typer.Argument(metavar="RUN...", help="R
 
 
 @catalog_app.command("list")
-def list_cmd(where: WhereOption = "", db: DbOption = None, runs_dir: RunsOption = Path("runs"),
-             columns: Annotated[str, typer.Option("--columns", help="Comma-separated columns to show.")] = "") -> None:
+def list_cmd(
+    where: WhereOption = "",
+    db: DbOption = None,
+    runs_dir: RunsOption = Path("runs"),
+    columns: Annotated[str, typer.Option("--columns", help="Comma-separated columns to show.")] = "",
+) -> None:
     """Show the rows matching --where as a table."""
     from orbitrig.catalog.errors import CatalogUsageError
     from orbitrig.catalog.render import LIST_COLUMNS, table
@@ -81,9 +89,13 @@ def list_cmd(where: WhereOption = "", db: DbOption = None, runs_dir: RunsOption 
 
 
 @catalog_app.command("export")
-def export_cmd(fmt: Annotated[str, typer.Option("--format", help="csv | json")] = "csv",
-               out: Annotated[Optional[Path], typer.Option("--out", help="File to write (default: standard output).")] = None,
-               where: WhereOption = "", db: DbOption = None, runs_dir: RunsOption = Path("runs")) -> None:
+def export_cmd(
+    fmt: Annotated[str, typer.Option("--format", help="csv | json")] = "csv",
+    out: Annotated[Optional[Path], typer.Option("--out", help="File to write (default: standard output).")] = None,
+    where: WhereOption = "",
+    db: DbOption = None,
+    runs_dir: RunsOption = Path("runs"),
+) -> None:
     """Every column of the rows matching --where, as CSV or JSON."""
     from orbitrig.catalog.errors import CatalogUsageError
     from orbitrig.catalog.render import ExportFormat, render

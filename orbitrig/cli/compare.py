@@ -19,15 +19,24 @@ DEFAULT_COEFFICIENTS = "Kxx,Kxy,Kyx,Kyy,Cxx,Cxy,Cyx,Cyy"
 
 
 def compare_cmd(
-    against: Annotated[str, typer.Option("--against", help="x axis: static_eccentricity | dynamic_eccentricity | pressure_ratio | spin")] = "static_eccentricity",
-    coefficients: Annotated[str, typer.Option("--coefficients", help="Comma-separated, e.g. Kxx,Cxx,Dxx.")] = DEFAULT_COEFFICIENTS,
+    against: Annotated[
+        str,
+        typer.Option("--against", help="x axis: static_eccentricity | dynamic_eccentricity | pressure_ratio | spin"),
+    ] = "static_eccentricity",
+    coefficients: Annotated[
+        str, typer.Option("--coefficients", help="Comma-separated, e.g. Kxx,Cxx,Dxx.")
+    ] = DEFAULT_COEFFICIENTS,
     lms: Annotated[LoadSystem, typer.Option("--lms", help="Load measuring system.")] = LoadSystem.PIEZO,
     model: Annotated[str, typer.Option("--model", help="Model of the compared fits.")] = "kcd11",
     freq_dep: Annotated[str, typer.Option("--freq-dep", help="Frequency dependence of the compared fits.")] = "none",
     method: Annotated[str, typer.Option("--method", help="Estimation method of the compared fits.")] = "ols",
-    predicted: Annotated[Optional[Path], typer.Option("--predicted", help="CSV of predicted coefficients (docs/catalog.md).")] = None,
+    predicted: Annotated[
+        Optional[Path], typer.Option("--predicted", help="CSV of predicted coefficients (docs/catalog.md).")
+    ] = None,
     out: Annotated[Path, typer.Option("--out", help="Directory for compare.png and compare.pdf.")] = Path("."),
-    where: WhereOption = "", db: DbOption = None, runs_dir: RunsOption = Path("runs"),
+    where: WhereOption = "",
+    db: DbOption = None,
+    runs_dir: RunsOption = Path("runs"),
 ) -> None:
     """Plot coefficients with U bars across catalog rows against one operating variable."""
     from orbitrig.catalog.compare import Variable
@@ -45,14 +54,18 @@ def compare_cmd(
         fit = f"lms = {lms} and model = {model} and freq_dep = '{freq_dep}' and method = {method} and ok = true"
         rows = _open(db, runs_dir).rows(f"{fit} and {where}" if where.strip() else fit)
         if not rows:
-            raise CatalogUsageError(f"no catalog rows for {lms} {model} {freq_dep} {method}"
-                                    + (f" where {where}" if where.strip() else ""))
+            raise CatalogUsageError(
+                f"no catalog rows for {lms} {model} {freq_dep} {method}" + (f" where {where}" if where.strip() else "")
+            )
         n_runs = len({r["run_id"] for r in rows})
-        title = (f"{lms} {model} freq_dep {freq_dep} {method}: {len(rows)} rows from {n_runs} run{'s' * (n_runs > 1)}"
-                 + (f" ({where})" if where.strip() else "")
-                 + ("\nconstant terms (\u03a9\u2070) of a frequency-dependent fit" if freq_dep != "none" else ""))
-        fig = compare_figure(rows, Variable(against), names, title=title,
-                             predicted=read_predicted(predicted) if predicted else None)
+        title = (
+            f"{lms} {model} freq_dep {freq_dep} {method}: {len(rows)} rows from {n_runs} run{'s' * (n_runs > 1)}"
+            + (f" ({where})" if where.strip() else "")
+            + ("\nconstant terms (\u03a9\u2070) of a frequency-dependent fit" if freq_dep != "none" else "")
+        )
+        fig = compare_figure(
+            rows, Variable(against), names, title=title, predicted=read_predicted(predicted) if predicted else None
+        )
         for path in write_figure(fig, out):
             typer.echo(str(path))
 

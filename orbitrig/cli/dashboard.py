@@ -37,8 +37,10 @@ def _https_context(cert: Path | None, key: Path | None, host: str):
         _fail("--https-cert and --https-key go together")
     if cert is None:
         if not _loopback(host):
-            _fail(f"--http {host}: plain HTTP only on loopback (passwords are sent at sign-in); "
-                  "give --https-cert and --https-key, or serve on 127.0.0.1 behind a TLS reverse proxy")
+            _fail(
+                f"--http {host}: plain HTTP only on loopback (passwords are sent at sign-in); "
+                "give --https-cert and --https-key, or serve on 127.0.0.1 behind a TLS reverse proxy"
+            )
         return None
     ctx = ssl.create_default_context(ssl.Purpose.CLIENT_AUTH)
     try:
@@ -48,8 +50,9 @@ def _https_context(cert: Path | None, key: Path | None, host: str):
     return ctx
 
 
-def _limits(sessions_per_user: int, signin_delay: float, lockout_after: int, lockout: float,
-            request_timeout: float) -> dict:
+def _limits(
+    sessions_per_user: int, signin_delay: float, lockout_after: int, lockout: float, request_timeout: float
+) -> dict:
     """The dashboard's limits as DashboardSettings fields (exit 2 on a value out of range)."""
     import math
 
@@ -59,15 +62,29 @@ def _limits(sessions_per_user: int, signin_delay: float, lockout_after: int, loc
         _fail("--sessions-per-user must be 1..64")
     if lockout_after < 1:
         _fail("--lockout-after must be >= 1")
-    for name, value in (("--signin-delay", signin_delay), ("--lockout", lockout), ("--request-timeout", request_timeout)):
+    for name, value in (
+        ("--signin-delay", signin_delay),
+        ("--lockout", lockout),
+        ("--request-timeout", request_timeout),
+    ):
         if not (math.isfinite(value) and 0 < value <= 86_400):
             _fail(f"{name} must be > 0 s and at most a day")
-    return {"sessions_per_user": sessions_per_user, "request_timeout": request_timeout,
-            "throttle": ThrottlePolicy(delay=signin_delay, lock_after=lockout_after, lockout=lockout)}
+    return {
+        "sessions_per_user": sessions_per_user,
+        "request_timeout": request_timeout,
+        "throttle": ThrottlePolicy(delay=signin_delay, lock_after=lockout_after, lockout=lockout),
+    }
 
 
-def _settings(broker: str, rig_id: str, prefix: str | None, tls_ca: Path | None, idle_timeout: float,
-              reply_timeout: float, limits: dict):
+def _settings(
+    broker: str,
+    rig_id: str,
+    prefix: str | None,
+    tls_ca: Path | None,
+    idle_timeout: float,
+    reply_timeout: float,
+    limits: dict,
+):
     from orbitrig.dashboard.session import DashboardSettings
     from orbitrig.service.protocol import topics, validate_rig_id
     from orbitrig.service.rig_service import BrokerSettings, ServiceError
@@ -85,8 +102,16 @@ def _settings(broker: str, rig_id: str, prefix: str | None, tls_ca: Path | None,
         where = BrokerSettings.from_url(broker, tls_ca=tls_ca)
     except ServiceError as err:
         _fail(str(err))
-    return DashboardSettings(host=where.host, port=where.port, topics=tree, tls=where.tls, tls_ca=tls_ca,
-                             idle_timeout=idle_timeout, reply_timeout=reply_timeout, **limits)
+    return DashboardSettings(
+        host=where.host,
+        port=where.port,
+        topics=tree,
+        tls=where.tls,
+        tls_ca=tls_ca,
+        idle_timeout=idle_timeout,
+        reply_timeout=reply_timeout,
+        **limits,
+    )
 
 
 def register(app: typer.Typer) -> None:
@@ -101,16 +126,21 @@ def register(app: typer.Typer) -> None:
         tls_ca: Optional[Path] = typer.Option(None, "--tls-ca", help="CA file: TLS to the broker"),
         idle_timeout: float = typer.Option(1800.0, "--idle-timeout", help="s without activity that end a session"),
         reply_timeout: float = typer.Option(
-            3.0, "--reply-timeout", help="s to wait for the service's reply before a command counts as refused"),
+            3.0, "--reply-timeout", help="s to wait for the service's reply before a command counts as refused"
+        ),
         sessions_per_user: int = typer.Option(
-            4, "--sessions-per-user", help="sessions one broker user may hold; a new sign-in ends the oldest"),
+            4, "--sessions-per-user", help="sessions one broker user may hold; a new sign-in ends the oldest"
+        ),
         signin_delay: float = typer.Option(
-            0.25, "--signin-delay", help="s before the next sign-in after a refused one; doubles with every refusal"),
+            0.25, "--signin-delay", help="s before the next sign-in after a refused one; doubles with every refusal"
+        ),
         lockout_after: int = typer.Option(
-            5, "--lockout-after", help="refused sign-ins that lock a user name out (a client address: 4x)"),
+            5, "--lockout-after", help="refused sign-ins that lock a user name out (a client address: 4x)"
+        ),
         lockout: float = typer.Option(300.0, "--lockout", help="s a lockout lasts (the right password waits too)"),
         request_timeout: float = typer.Option(
-            10.0, "--request-timeout", help="s a request's head and body must arrive within (slow clients cut)"),
+            10.0, "--request-timeout", help="s a request's head and body must arrive within (slow clients cut)"
+        ),
         verbose: bool = typer.Option(False, "--verbose", "-v", help="log at debug level"),
     ) -> None:
         """Serve the live view of a rig: sign in with your broker user name and password."""
@@ -118,8 +148,9 @@ def register(app: typer.Typer) -> None:
         import logging
         import signal
 
-        logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO,
-                            format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+        logging.basicConfig(
+            level=logging.DEBUG if verbose else logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s"
+        )
         logging.getLogger("mqtt").setLevel(logging.WARNING)
         limits = _limits(sessions_per_user, signin_delay, lockout_after, lockout, request_timeout)
         settings = _settings(broker, rig_id, prefix, tls_ca, idle_timeout, reply_timeout, limits)

@@ -45,8 +45,13 @@ def _candidate(ratios: Optional[str], matrix: Optional[str], rig) -> tuple[list[
         dirs = set(mat.orbit.directions)
         direction = "both" if len(dirs) == 2 else next(iter(dirs))
         radius = min(mat.operating.dynamic_eccentricity) * rig.bearing.clearance
-        return (list(mat.orbit.ratio_list), direction, radius, f"matrix {mat.name}",
-                [(m.model, m.freq_dep) for m in mat.models])
+        return (
+            list(mat.orbit.ratio_list),
+            direction,
+            radius,
+            f"matrix {mat.name}",
+            [(m.model, m.freq_dep) for m in mat.models],
+        )
     return [round(0.2 + k / 9, 6) for k in range(10)], "both", None, "the paper's list (0.2 to 1.2, 10 ratios)", []
 
 
@@ -68,19 +73,55 @@ def register(app: typer.Typer) -> None:
         model: str = typer.Option(..., "--model", help="kc7 | kc8 | kcd11 | kcd12"),
         freq_dep: str = typer.Option("none", "--freq-dep", help="none | power:M | power:m,n,p | poly:R (as identify)"),
         spin: float = typer.Option(..., "--spin", help="Journal spin speed, rpm."),
-        ratios: Optional[str] = typer.Option(None, "--ratios", help="Candidate orbit ratios |Omega|/omega, e.g. 0.2,0.5,1.2 (both directions)."),
-        matrix: Optional[str] = typer.Option(None, "--matrix", help="Take the candidate list, directions and smallest orbit radius from this matrix (NAME in config/matrices or FILE)."),
-        noise_from: Optional[Path] = typer.Option(None, "--noise-from", help="Run directory: per-revolution noise (and prior coefficients) measured there."),
-        lms: LoadSystem = typer.Option(LoadSystem.PIEZO, "--lms", help="Load measuring system whose noise counts: piezo | strain."),
-        force_noise: Optional[float] = typer.Option(None, "--force-noise", help="Per-revolution force phasor noise, N (default 20)."),
-        probe_noise: Optional[float] = typer.Option(None, "--probe-noise", help="Per-revolution displacement phasor noise, nm (default 100)."),
-        radius: Optional[float] = typer.Option(None, "--radius", help="Orbit radius, um (default: the matrix's smallest, else 0.1 x clearance)."),
-        revolutions: Optional[int] = typer.Option(None, "--revolutions", help="Revolutions averaged per block (default: rig.toml [averaging])."),
-        target: Optional[float] = typer.Option(None, "--target", help="Worst relative standard error to reach, percent: propose ratios and revolutions per ratio that reach it in the least rig time."),
-        match: bool = typer.Option(False, "--match", help="Propose revolutions per ratio that give every coefficient at most the candidate's standard error in the least rig time."),
-        keep_test: bool = typer.Option(True, "--model-test/--no-model-test", help="With --match or --target: keep the adequacy test of the richest frequency-dependent model (the matrix's, else this model's poly:1; --freq-dep if not none): enough ratios spread over the band, its errors at most the candidate's."),
-        keep_away: float = typer.Option(0.1, "--keep-away", help="Propose no ratio closer than this to Omega/omega = 1 (runout)."),
-        save: Optional[str] = typer.Option(None, "--save", help="Write the proposal to config/designs/NAME.toml (a matrix uses it with [orbit] design = \"NAME\")."),
+        ratios: Optional[str] = typer.Option(
+            None, "--ratios", help="Candidate orbit ratios |Omega|/omega, e.g. 0.2,0.5,1.2 (both directions)."
+        ),
+        matrix: Optional[str] = typer.Option(
+            None,
+            "--matrix",
+            help="Take the candidate list, directions and smallest orbit radius from this matrix (NAME in config/matrices or FILE).",
+        ),
+        noise_from: Optional[Path] = typer.Option(
+            None, "--noise-from", help="Run directory: per-revolution noise (and prior coefficients) measured there."
+        ),
+        lms: LoadSystem = typer.Option(
+            LoadSystem.PIEZO, "--lms", help="Load measuring system whose noise counts: piezo | strain."
+        ),
+        force_noise: Optional[float] = typer.Option(
+            None, "--force-noise", help="Per-revolution force phasor noise, N (default 20)."
+        ),
+        probe_noise: Optional[float] = typer.Option(
+            None, "--probe-noise", help="Per-revolution displacement phasor noise, nm (default 100)."
+        ),
+        radius: Optional[float] = typer.Option(
+            None, "--radius", help="Orbit radius, um (default: the matrix's smallest, else 0.1 x clearance)."
+        ),
+        revolutions: Optional[int] = typer.Option(
+            None, "--revolutions", help="Revolutions averaged per block (default: rig.toml [averaging])."
+        ),
+        target: Optional[float] = typer.Option(
+            None,
+            "--target",
+            help="Worst relative standard error to reach, percent: propose ratios and revolutions per ratio that reach it in the least rig time.",
+        ),
+        match: bool = typer.Option(
+            False,
+            "--match",
+            help="Propose revolutions per ratio that give every coefficient at most the candidate's standard error in the least rig time.",
+        ),
+        keep_test: bool = typer.Option(
+            True,
+            "--model-test/--no-model-test",
+            help="With --match or --target: keep the adequacy test of the richest frequency-dependent model (the matrix's, else this model's poly:1; --freq-dep if not none): enough ratios spread over the band, its errors at most the candidate's.",
+        ),
+        keep_away: float = typer.Option(
+            0.1, "--keep-away", help="Propose no ratio closer than this to Omega/omega = 1 (runout)."
+        ),
+        save: Optional[str] = typer.Option(
+            None,
+            "--save",
+            help='Write the proposal to config/designs/NAME.toml (a matrix uses it with [orbit] design = "NAME").',
+        ),
         rig_path: Optional[Path] = typer.Option(None, "--config", help="Rig configuration (default config/rig.toml)."),
         as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
     ) -> None:
@@ -95,10 +136,23 @@ def register(app: typer.Typer) -> None:
             tested = [(model, freq_dep)] + mat_models if keep_test else None
             noise, run = _noise(noise_from, lms, force_noise, probe_noise)
             obj = design_object(
-                rig, model=model, freq_dep=freq_dep, spin_rpm=spin, candidate=cand, source=source,
-                directions=directions, radius=radius * 1e-6 if radius is not None else mat_radius,
-                noise=noise, run=run, lms=lms, revolutions=revolutions, target=target, keep_away=keep_away,
-                match=match, test_models=tested)
+                rig,
+                model=model,
+                freq_dep=freq_dep,
+                spin_rpm=spin,
+                candidate=cand,
+                source=source,
+                directions=directions,
+                radius=radius * 1e-6 if radius is not None else mat_radius,
+                noise=noise,
+                run=run,
+                lms=lms,
+                revolutions=revolutions,
+                target=target,
+                keep_away=keep_away,
+                match=match,
+                test_models=tested,
+            )
             if save:
                 saved = save_design(obj, save, designs_dir(rig_path))
                 sys.stderr.write(f"orbitrig design: wrote {saved}\n")

@@ -26,9 +26,20 @@ from rigerrors import OrbitrigError
 
 DEFAULT_FORCE_NOISE = 20.0  # N per revolution, fx and fy (the simulator's default scenario: 16 to 25 N)
 DEFAULT_PROBE_NOISE = 100e-9  # m per revolution, x and y (there: 20 to 160 nm, growing with the orbit ratio)
-NOMINAL = {"Kxx": 3.8e7, "Kxy": 6.0e6, "Kyx": -6.0e6, "Kyy": 4.0e7,
-           "Cxx": 1.0e5, "Cxy": 2.0e3, "Cyx": 2.0e3, "Cyy": 1.1e5,
-           "Dxx": 4.0, "Dxy": 0.05, "Dyx": 0.05, "Dyy": 4.2}  # (SI; higher orders 0)
+NOMINAL = {
+    "Kxx": 3.8e7,
+    "Kxy": 6.0e6,
+    "Kyx": -6.0e6,
+    "Kyy": 4.0e7,
+    "Cxx": 1.0e5,
+    "Cxy": 2.0e3,
+    "Cyx": 2.0e3,
+    "Cyy": 1.1e5,
+    "Dxx": 4.0,
+    "Dxy": 0.05,
+    "Dyx": 0.05,
+    "Dyy": 4.2,
+}  # (SI; higher orders 0)
 
 
 class DesignInputError(OrbitrigError):
@@ -48,8 +59,10 @@ class Noise:
 
 
 def stated_noise(force: float = DEFAULT_FORCE_NOISE, probe: float = DEFAULT_PROBE_NOISE) -> Noise:
-    return Noise(np.array([probe, probe, force, force], dtype=float),
-                 f"stated: {force:g} N (forces), {probe * 1e9:g} nm (displacements) per revolution")
+    return Noise(
+        np.array([probe, probe, force, force], dtype=float),
+        f"stated: {force:g} N (forces), {probe * 1e9:g} nm (displacements) per revolution",
+    )
 
 
 def _row_noise(table, probe: float) -> np.ndarray | None:
@@ -72,16 +85,19 @@ def run_noise(run, lms: str, probe: float = DEFAULT_PROBE_NOISE) -> Noise:
     tables = [p.tables[lms] for p in run.complete_points if lms in p.tables]
     found = [(t, r) for t in tables for r in [_row_noise(t, probe)] if r is not None]
     if not found:
-        raise DesignInputError(f"{run.directory}: no complete point with an orbit table of the "
-                               f"{lms} system carrying uncertainties or coherences")
+        raise DesignInputError(
+            f"{run.directory}: no complete point with an orbit table of the "
+            f"{lms} system carrying uncertainties or coherences"
+        )
     rows = np.concatenate([r for _, r in found], axis=0)
     ratios = np.round(np.concatenate([np.abs(t.orbit) / t.spin for t, _ in found]), 3)
     at = np.unique(ratios)
     u = smooth_noise(at, np.array([np.median(rows[ratios == r], axis=0) for r in at]))
     radius = float(np.median(np.concatenate([np.sqrt((np.abs(t.x) ** 2 + np.abs(t.y) ** 2) / 2) for t, _ in found])))
     how = "u_* columns" if any(t.u is not None for t, _ in found) else "coherences"
-    return Noise(u, f"measured: run {run.directory} ({lms}, {how}; median per orbit ratio of {len(rows)} rows)",
-                 at, radius)
+    return Noise(
+        u, f"measured: run {run.directory} ({lms}, {how}; median per orbit ratio of {len(rows)} rows)", at, radius
+    )
 
 
 def prior_theta(spec, run=None, spin: float | None = None, lms: str = "piezo") -> tuple[np.ndarray, str]:
@@ -96,8 +112,10 @@ def prior_theta(spec, run=None, spin: float | None = None, lms: str = "piezo") -
         if found:
             _, index, coeffs = min(found, key=lambda f: f[:2])
             if all(coeffs.get(n) is not None for n in spec.names):
-                return (np.array([float(coeffs[n]) for n in spec.names]),
-                        f"identified: run {run.directory}, point {index:04d} ({lms})")
+                return (
+                    np.array([float(coeffs[n]) for n in spec.names]),
+                    f"identified: run {run.directory}, point {index:04d} ({lms})",
+                )
     return np.array([NOMINAL.get(n, 0.0) for n in spec.names]), "nominal (60 mm hydrostatic bearing)"
 
 
@@ -122,12 +140,23 @@ def model_check(spec, run, spin: float, lms: str, problem, candidate: tuple, pro
     point = min(points, key=lambda p: (abs(p.settings.spin - spin), p.index))
     table = point.tables[lms]
     try:
-        big = identify(table, model=richer[0], freq_dep=richer[1], method=Method.WLS if table.u is not None else Method.OLS)
+        big = identify(
+            table, model=richer[0], freq_dep=richer[1], method=Method.WLS if table.u is not None else Method.OLS
+        )
         if big.covariance is None:
             return None
         list_a, list_b = ((r, n, problem.noise_at(r)) for r, n in (candidate, proposal))
-        sh = list_shift(spec, model_spec(*richer), big.theta, big.covariance, problem.spin, problem.radius,
-                        list_a, list_b, problem.directions)
+        sh = list_shift(
+            spec,
+            model_spec(*richer),
+            big.theta,
+            big.covariance,
+            problem.spin,
+            problem.radius,
+            list_a,
+            list_b,
+            problem.directions,
+        )
         se = predict(problem, candidate[0]).std_errors
     except ReductionError:
         return None
@@ -138,9 +167,13 @@ def model_check(spec, run, spin: float, lms: str, problem, candidate: tuple, pro
     name, model = spec.names[j], spec.model
     where = f"point {point.index:04d} of run {run.directory}"
     if abs(sh.shift[j]) > 2 * sh.std[j]:
-        return (f"the data of {where} show terms {model} leaves out ({' '.join(richer)}): from the candidate list "
-                f"to the proposal they move {name} by {sh.shift[j]:.3g} +- {2 * sh.std[j]:.3g} (2 sigma), up to "
-                f"{reach[j]:.2g} x the candidate's standard error: the proposal estimates something else")
-    return (f"{model} leaves out terms of {' '.join(richer)} that the data of {where} cannot rule out: from the "
-            f"candidate list to the proposal they could move {name} by up to {abs(sh.shift[j]) + 2 * sh.std[j]:.3g} "
-            f"({reach[j]:.2g} x the candidate's standard error); compare the two lists on the rig before relying on it")
+        return (
+            f"the data of {where} show terms {model} leaves out ({' '.join(richer)}): from the candidate list "
+            f"to the proposal they move {name} by {sh.shift[j]:.3g} +- {2 * sh.std[j]:.3g} (2 sigma), up to "
+            f"{reach[j]:.2g} x the candidate's standard error: the proposal estimates something else"
+        )
+    return (
+        f"{model} leaves out terms of {' '.join(richer)} that the data of {where} cannot rule out: from the "
+        f"candidate list to the proposal they could move {name} by up to {abs(sh.shift[j]) + 2 * sh.std[j]:.3g} "
+        f"({reach[j]:.2g} x the candidate's standard error); compare the two lists on the rig before relying on it"
+    )

@@ -17,7 +17,9 @@ from typing import Optional
 import typer
 
 from orbitrig.cli.drives_checks import (  # effective_limits is part of this command's API
-    check_seconds, effective_limits, open_config,
+    check_seconds,
+    effective_limits,
+    open_config,
 )
 from orbitrig.cli.drives_hold import _drive_line, _hold, _state_lines
 
@@ -65,16 +67,15 @@ def _add_run(drives_app: typer.Typer) -> None:
     @drives_app.command("run")
     def run(
         spin: float = typer.Option(..., "--spin", help="Spin speed omega, rpm (>= 0)."),
-        orbit: float = typer.Option(
-            ..., "--orbit", help="Orbit speed Omega, rpm; negative = backward whirl."
-        ),
+        orbit: float = typer.Option(..., "--orbit", help="Orbit speed Omega, rpm; negative = backward whirl."),
         modbus: Optional[str] = typer.Option(None, "--modbus", help=_MODBUS_HELP),
         config: Optional[Path] = typer.Option(None, "--config", help=_CONFIG_HELP),
         max_spin: Optional[float] = typer.Option(
             None, "--max-spin", help="Refuse a spin speed above this, rpm (<= drives.max_spin_rpm)."
         ),
         max_orbit: Optional[float] = typer.Option(
-            None, "--max-orbit",
+            None,
+            "--max-orbit",
             help="Refuse an |orbit| speed above this, rpm (<= drives.max_orbit_rpm).",
         ),
         min_ratio: Optional[float] = typer.Option(
@@ -83,19 +84,16 @@ def _add_run(drives_app: typer.Typer) -> None:
         max_ratio: Optional[float] = typer.Option(
             None, "--max-ratio", help="Largest |Omega|/omega (<= drives.max_ratio)."
         ),
-        settle: float = typer.Option(
-            1.0, "--settle", help="Seconds both drives must hold AT_SETPOINT."
-        ),
+        settle: float = typer.Option(1.0, "--settle", help="Seconds both drives must hold AT_SETPOINT."),
         timeout: float = typer.Option(120.0, "--timeout", help="Seconds to reach the setpoint."),
         hold: bool = typer.Option(
-            False, "--hold",
+            False,
+            "--hold",
             help="Stay at the setpoint, polling (the drives' watchdog heartbeat), until "
             "Ctrl-C, SIGTERM or SIGHUP; then ramp both to zero and exit 0 (a second signal "
             "during the ramp: emergency stop, exit 4).",
         ),
-        status_every: float = typer.Option(
-            5.0, "--status-every", help="With --hold: seconds between status lines."
-        ),
+        status_every: float = typer.Option(5.0, "--status-every", help="With --hold: seconds between status lines."),
         spin_id: Optional[int] = typer.Option(None, help=_SPIN_ID_HELP),
         orbit_id: Optional[int] = typer.Option(None, help=_ORBIT_ID_HELP),
     ) -> None:
@@ -112,19 +110,43 @@ def _add_run(drives_app: typer.Typer) -> None:
         if another client stops a drive or changes its reference meanwhile, it
         says which, ramps both to zero and exits 2.
         """
-        _run_command(spin=spin, orbit=orbit, modbus=modbus, config=config, max_spin=max_spin,
-                     max_orbit=max_orbit, min_ratio=min_ratio, max_ratio=max_ratio, settle=settle,
-                     timeout=timeout, hold=hold, status_every=status_every, spin_id=spin_id,
-                     orbit_id=orbit_id)
+        _run_command(
+            spin=spin,
+            orbit=orbit,
+            modbus=modbus,
+            config=config,
+            max_spin=max_spin,
+            max_orbit=max_orbit,
+            min_ratio=min_ratio,
+            max_ratio=max_ratio,
+            settle=settle,
+            timeout=timeout,
+            hold=hold,
+            status_every=status_every,
+            spin_id=spin_id,
+            orbit_id=orbit_id,
+        )
 
 
-def _run_command(*, spin: float, orbit: float, modbus: str | None, config: Path | None,
-                 max_spin: float | None, max_orbit: float | None, min_ratio: float | None,
-                 max_ratio: float | None, settle: float, timeout: float, hold: bool,
-                 status_every: float, spin_id: int | None, orbit_id: int | None) -> None:
+def _run_command(
+    *,
+    spin: float,
+    orbit: float,
+    modbus: str | None,
+    config: Path | None,
+    max_spin: float | None,
+    max_orbit: float | None,
+    min_ratio: float | None,
+    max_ratio: float | None,
+    settle: float,
+    timeout: float,
+    hold: bool,
+    status_every: float,
+    spin_id: int | None,
+    orbit_id: int | None,
+) -> None:
     """`drives run` after typer: checks (exit 2, nothing sent), then the run."""
-    if not check_seconds("run", settle=(settle, True), timeout=(timeout, False),
-                         status_every=(status_every, False)):
+    if not check_seconds("run", settle=(settle, True), timeout=(timeout, False), status_every=(status_every, False)):
         raise typer.Exit(2)
     opened = open_config("run", config, modbus, spin_id, orbit_id, required=True)
     if opened is None:
@@ -132,8 +154,12 @@ def _run_command(*, spin: float, orbit: float, modbus: str | None, config: Path 
     url, d = opened
     try:
         limits = effective_limits(
-            d, max_spin=max_spin, max_orbit=max_orbit, min_ratio=min_ratio,
-            max_ratio=max_ratio, file=_config_name(config),
+            d,
+            max_spin=max_spin,
+            max_orbit=max_orbit,
+            min_ratio=min_ratio,
+            max_ratio=max_ratio,
+            file=_config_name(config),
         )
     except ValueError as err:
         typer.echo(f"orbitrig drives run refused (limit): {err}; nothing sent", err=True)
@@ -142,8 +168,7 @@ def _run_command(*, spin: float, orbit: float, modbus: str | None, config: Path 
 
     raise typer.Exit(
         _run_async(
-            lambda intr: _run(url, d, limits, spin * RPM, orbit * RPM, settle, timeout,
-                              hold, status_every, intr),
+            lambda intr: _run(url, d, limits, spin * RPM, orbit * RPM, settle, timeout, hold, status_every, intr),
             "run",
         )
     )
@@ -288,10 +313,7 @@ def _stop_outcome(rig) -> str:
     if rig is None or rig.link.connects == 0:
         return "nothing sent"
     if rig.stop_errors:
-        return (
-            f"stop NOT delivered ({rig.stop_errors[0]}); the drives' comm-loss watchdog "
-            "stops them"
-        )
+        return f"stop NOT delivered ({rig.stop_errors[0]}); the drives' comm-loss watchdog stops them"
     return "stop sent to both drives"
 
 
@@ -309,8 +331,7 @@ async def _status(url: str, json_out: bool, d) -> int:
     out: dict = {"modbus": url}
     names = {d.spin_id: "spin", d.orbit_id: "orbit"}
     async with ModbusLink(url, timeout=d.timeout_s, names=names) as link:
-        for name, device_id, bidirectional in (("spin", d.spin_id, False),
-                                               ("orbit", d.orbit_id, True)):
+        for name, device_id, bidirectional in (("spin", d.spin_id, False), ("orbit", d.orbit_id, True)):
             drive = Drive(link, device_id, name, bidirectional=bidirectional)
             params = await drive.read_parameters()
             st = (await drive.read_status()).to_dict()

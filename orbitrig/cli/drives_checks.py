@@ -22,15 +22,17 @@ def check_seconds(command: str, **options: tuple[float | None, bool]) -> bool:
         low_ok = value >= 0 if zero_ok else value > 0
         if not (math.isfinite(value) and low_ok and value <= MAX_SECONDS):
             bound = ">= 0" if zero_ok else "> 0"
-            problems.append(f"--{name.replace('_', '-')} {value:g} s must be finite, {bound} "
-                            f"and at most {MAX_SECONDS:g} s")
+            problems.append(
+                f"--{name.replace('_', '-')} {value:g} s must be finite, {bound} and at most {MAX_SECONDS:g} s"
+            )
     if problems:
         typer.echo(f"orbitrig drives {command}: {'; '.join(problems)}; nothing sent", err=True)
     return not problems
 
 
-def effective_limits(d, *, max_spin=None, max_orbit=None, min_ratio=None, max_ratio=None,
-                     file: str = "the rig configuration"):
+def effective_limits(
+    d, *, max_spin=None, max_orbit=None, min_ratio=None, max_ratio=None, file: str = "the rig configuration"
+):
     """DriveLimits (rad/s) of the rig's [drives] section `d`, tightened by the
     command line's values (rpm, ratios). ValueError naming the option if one
     is looser than the configuration (or contradicts another)."""
@@ -55,8 +57,7 @@ def effective_limits(d, *, max_spin=None, max_orbit=None, min_ratio=None, max_ra
         return value
 
     spin = tighter("--max-spin", max_spin, "max_spin_rpm", d.max_spin_rpm, upper=True, unit=" rpm")
-    orbit = tighter("--max-orbit", max_orbit, "max_orbit_rpm", d.max_orbit_rpm, upper=True,
-                    unit=" rpm")
+    orbit = tighter("--max-orbit", max_orbit, "max_orbit_rpm", d.max_orbit_rpm, upper=True, unit=" rpm")
     lo = tighter("--min-ratio", min_ratio, "min_ratio", d.min_ratio, upper=False)
     hi = tighter("--max-ratio", max_ratio, "max_ratio", d.max_ratio, upper=True)
     if not problems and lo is not None and hi is not None and lo > hi:
@@ -82,8 +83,8 @@ def open_config(command, config, modbus, spin_id, orbit_id, *, required: bool):
             typer.echo(f"orbitrig drives {command} failed (config): {err}", err=True)
             return None
         typer.echo(
-            f"orbitrig drives {command}: configuration not used ({err}); "
-            "built-in [drives] defaults", err=True,
+            f"orbitrig drives {command}: configuration not used ({err}); built-in [drives] defaults",
+            err=True,
         )
         url, d = modbus, Drives()
     ids = {}
@@ -91,14 +92,16 @@ def open_config(command, config, modbus, spin_id, orbit_id, *, required: bool):
         if value is None:
             continue
         if not MIN_DEVICE_ID <= value <= MAX_DEVICE_ID:
-            typer.echo(f"orbitrig drives {command}: {option} {value} is not a Modbus device id "
-                       f"({MIN_DEVICE_ID}..{MAX_DEVICE_ID}); nothing sent", err=True)
+            typer.echo(
+                f"orbitrig drives {command}: {option} {value} is not a Modbus device id "
+                f"({MIN_DEVICE_ID}..{MAX_DEVICE_ID}); nothing sent",
+                err=True,
+            )
             return None
         ids[key] = value
     if ids:
         d = d.model_copy(update=ids)
         if d.spin_id == d.orbit_id:
-            typer.echo(f"orbitrig drives {command}: spin and orbit id are both {d.spin_id}",
-                       err=True)
+            typer.echo(f"orbitrig drives {command}: spin and orbit id are both {d.spin_id}", err=True)
             return None
     return url, d

@@ -27,10 +27,7 @@ def _hold_line(state, held: float) -> str:
             flag = "at setpoint" if d["at_setpoint"] else d["state"]
             parts.append(f"{s.name} {d['actual_rpm']:.1f} rpm ({flag})")
     link = "link ok" if state.link_ok else f"LINK DOWN ({state.link_error})"
-    return (
-        f"holding {held:.0f} s: {', '.join(parts)}; {link}, polls {state.polls}, "
-        f"poll failures {state.poll_failures}"
-    )
+    return f"holding {held:.0f} s: {', '.join(parts)}; {link}, polls {state.polls}, poll failures {state.poll_failures}"
 
 
 def stopped_elsewhere(state, refs: tuple[int, int]) -> str | None:
@@ -44,8 +41,10 @@ def stopped_elsewhere(state, refs: tuple[int, int]) -> str | None:
         if not s.running:
             found.append(f"the {s.name} drive (id {s.device_id}) is no longer running ({s.state})")
         elif s.reference_raw != ref:
-            found.append(f"the {s.name} drive (id {s.device_id}) was given another reference "
-                         f"({s.to_dict()['reference_rpm']:.1f} rpm)")
+            found.append(
+                f"the {s.name} drive (id {s.device_id}) was given another reference "
+                f"({s.to_dict()['reference_rpm']:.1f} rpm)"
+            )
     return "; ".join(found) or None
 
 
@@ -60,8 +59,10 @@ async def _hold(rig, refs: tuple[int, int], status_every: float, interrupt) -> i
     from drives.errors import DriveLinkError
     from orbitrig.run.safe_stop import stop_drives
 
-    typer.echo("holding at the setpoint; Ctrl-C, SIGTERM or SIGHUP ramps both drives to zero "
-               "(a second one: emergency stop)", err=True)
+    typer.echo(
+        "holding at the setpoint; Ctrl-C, SIGTERM or SIGHUP ramps both drives to zero (a second one: emergency stop)",
+        err=True,
+    )
     interrupt.holding = True
     t0 = last = time.monotonic()
     elsewhere = None
@@ -72,8 +73,9 @@ async def _hold(rig, refs: tuple[int, int], status_every: float, interrupt) -> i
             pass
         state = rig.check()  # a trip found by the poll (both already stopping)
         if not state.link_ok:
-            raise DriveLinkError(f"link lost while holding ({state.link_error}); the drives' "
-                                 "comm-loss watchdog stops them")
+            raise DriveLinkError(
+                f"link lost while holding ({state.link_error}); the drives' comm-loss watchdog stops them"
+            )
         elsewhere = stopped_elsewhere(state, refs)
         now = time.monotonic()
         if now - last >= status_every and not interrupt.event.is_set() and elsewhere is None:
@@ -81,8 +83,11 @@ async def _hold(rig, refs: tuple[int, int], status_every: float, interrupt) -> i
             typer.echo(_hold_line(state, now - t0))
     held = time.monotonic() - t0
     if elsewhere is not None:
-        typer.echo(f"orbitrig drives run: after {held:.0f} s at the setpoint {elsewhere}: "
-                   "stopped or changed by another client; ramping both drives to zero", err=True)
+        typer.echo(
+            f"orbitrig drives run: after {held:.0f} s at the setpoint {elsewhere}: "
+            "stopped or changed by another client; ramping both drives to zero",
+            err=True,
+        )
     else:
         typer.echo(f"{interrupt.received[-1].name}: ramping both drives to zero", err=True)
     interrupt.holding, interrupt.ramping = False, True
@@ -90,8 +95,10 @@ async def _hold(rig, refs: tuple[int, int], status_every: float, interrupt) -> i
     interrupt.ramping = False
     _state_lines(rig.state)
     ramp = time.monotonic() - t0 - held
-    typer.echo(f"held the setpoint for {held:.0f} s; both drives stopped (standstill {ramp:.1f} s later)"
-               + ("; the hold was ended by another client" if elsewhere else ""))
+    typer.echo(
+        f"held the setpoint for {held:.0f} s; both drives stopped (standstill {ramp:.1f} s later)"
+        + ("; the hold was ended by another client" if elsewhere else "")
+    )
     if escalated:
         typer.echo(f"{interrupt.received[-1].name} again during the ramp: {line}", err=True)
         return 4

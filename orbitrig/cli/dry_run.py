@@ -27,8 +27,10 @@ def _print(plan, steps: bool) -> None:
     from rigunits import format_duration
 
     sm = summarize(plan.steps)
-    typer.echo(f"matrix {plan.name}: {sm.points} operating points, {sm.blocks} orbit blocks, "
-               f"{len(plan.steps)} steps, estimated {format_duration(sm.duration)} (physical time)")
+    typer.echo(
+        f"matrix {plan.name}: {sm.points} operating points, {sm.blocks} orbit blocks, "
+        f"{len(plan.steps)} steps, estimated {format_duration(sm.duration)} (physical time)"
+    )
     parts = ", ".join(f"{k} {format_duration(v)}" for k, v in sm.by_kind.items())
     typer.echo(f"by step: {parts}")
     for line in prediction_lines(plan.rig, plan.matrix):
@@ -55,8 +57,10 @@ def order_line(plan, duration: float) -> str:
     if list(plan.order) == written:
         return f"order of the points: {how}, as written: estimated {format_duration(duration)}"
     other = summarize(make_plan(plan.matrix, plan.rig, written).steps).duration
-    return (f"order of the points: {how}: estimated {format_duration(duration)}; in the written order "
-            f"{format_duration(other)} ({duration / other:.3f} of it)")
+    return (
+        f"order of the points: {how}: estimated {format_duration(duration)}; in the written order "
+        f"{format_duration(other)} ({duration / other:.3f} of it)"
+    )
 
 
 def sequential_lines(plan, duration: float) -> list[str]:
@@ -69,9 +73,11 @@ def sequential_lines(plan, duration: float) -> list[str]:
     if not chosen:
         return []
     least = duration - sum(s.duration for s in chosen)
-    lines = [f"sequential: {len(chosen)} points; estimated {format_duration(least)} (no block chosen: the target met "
-             f"by the initial list) to {format_duration(duration)} (every point at its cap of "
-             f"{chosen[0].rule.cap_s:g} s of blocks)"]
+    lines = [
+        f"sequential: {len(chosen)} points; estimated {format_duration(least)} (no block chosen: the target met "
+        f"by the initial list) to {format_duration(duration)} (every point at its cap of "
+        f"{chosen[0].rule.cap_s:g} s of blocks)"
+    ]
     spins = {p.index: p.spin_rpm for p in plan.points}
     for rpm in sorted(set(spins.values())):
         rule = next(s.rule for s in chosen if spins[s.point] == rpm)
@@ -87,20 +93,23 @@ def _print_points(plan) -> None:
     t = 0.0
     for p in plan.points:
         d = sum(s.duration for s in plan.point_steps(p.index))
-        typer.echo(f"{p.index:>5d}  {format_duration(t):>9}  {format_duration(d):>8}  "
-                   f"{len(p.blocks):>6}  {p.label}")
+        typer.echo(f"{p.index:>5d}  {format_duration(t):>9}  {format_duration(d):>8}  {len(p.blocks):>6}  {p.label}")
         t += d
     tail = sum(s.duration for s in plan.final_steps)
     if plan.final_steps:
-        typer.echo(f"{'end':>5}  {format_duration(t):>9}  {format_duration(tail):>8}  {'':>6}  "
-                   + "; ".join(s.describe() for s in plan.final_steps))
+        typer.echo(
+            f"{'end':>5}  {format_duration(t):>9}  {format_duration(tail):>8}  {'':>6}  "
+            + "; ".join(s.describe() for s in plan.final_steps)
+        )
 
 
 def _print_steps(steps) -> None:
     from rigunits import format_duration
 
     width = len(str(len(steps)))
-    typer.echo(f"{'#':>{width}}  {'starts at':>8}  {'where':10}  {'duration':>10}  step  (times h:mm:ss from the start)")
+    typer.echo(
+        f"{'#':>{width}}  {'starts at':>8}  {'where':10}  {'duration':>10}  step  (times h:mm:ss from the start)"
+    )
     t = 0.0
     for i, s in enumerate(steps, 1):
         where = f"point {s.point:04d}" if s.point is not None else "end       "

@@ -70,12 +70,13 @@ def adaptive_line(rig, mat) -> str | None:
     lo = sum(acquisition_time(w, a.min_revolutions) for w in orbits)
     hi = sum(acquisition_time(w, a.max_revolutions) for w in orbits)
     targets = mat.orbit.target_pct
-    target = (f"{a.target_pct:g} %" if targets is None else
-              f"its ratio's target ({min(targets):g}..{max(targets):g} %)")
+    target = f"{a.target_pct:g} %" if targets is None else f"its ratio's target ({min(targets):g}..{max(targets):g} %)"
     assumed = "the maximum" if mat.orbit.revolutions is None else "each ratio's expected revolutions"
-    return (f"adaptive averaging: every channel <= {target} in {a.min_revolutions}..{a.max_revolutions} "
-            f"revolutions per block: acquiring takes {format_duration(lo)} .. {format_duration(hi)} "
-            f"(the estimate above assumes {assumed})")
+    return (
+        f"adaptive averaging: every channel <= {target} in {a.min_revolutions}..{a.max_revolutions} "
+        f"revolutions per block: acquiring takes {format_duration(lo)} .. {format_duration(hi)} "
+        f"(the estimate above assumes {assumed})"
+    )
 
 
 def predict_model(rig, mat, model: str, freq_dep: str, noise) -> ModelPrediction:
@@ -126,8 +127,10 @@ def prediction_lines(rig, mat) -> list[str]:
         counts = ", ".join(map(str, n)) + " revolutions per ratio" + (" (the expected counts)" if adaptive else "")
     else:
         counts = f"{n[0]} revolutions per block" + (", the adaptive minimum" if adaptive else "")
-    out.append(f"predicted uncertainty (Cramer-Rao; noise {noise.source}; {counts}; nominal prior coefficients; "
-               "`orbitrig design` proposes lists):")
+    out.append(
+        f"predicted uncertainty (Cramer-Rao; noise {noise.source}; {counts}; nominal prior coefficients; "
+        "`orbitrig design` proposes lists):"
+    )
     for m in mat.models:
         p = predict_model(rig, mat, m.model, m.freq_dep, noise)
         if p.refusal:
@@ -135,8 +138,10 @@ def prediction_lines(rig, mat) -> list[str]:
         elif p.worst is None:
             out.append(f"  {p.label}: identifiable (the exponent is chosen at identification; not predicted)")
         else:
-            out.append(f"  {p.label}: worst relative standard error {p.worst * 100:.3g} % ({p.coefficient} at "
-                       f"{p.spin_rpm:g} rpm, orbit radius {p.radius * 1e6:.3g} um); best point {p.best * 100:.3g} %")
+            out.append(
+                f"  {p.label}: worst relative standard error {p.worst * 100:.3g} % ({p.coefficient} at "
+                f"{p.spin_rpm:g} rpm, orbit radius {p.radius * 1e6:.3g} um); best point {p.best * 100:.3g} %"
+            )
             out += undetermined_lines(p)
     return out
 
@@ -145,8 +150,14 @@ def undetermined_lines(p: ModelPrediction) -> list[str]:
     """'    UNDETERMINED: ...' naming each coefficient of a planned fit predicted above 100 %."""
     if not p.undetermined:
         return []
-    parts = [f"{name} {lo * 100:.3g}..{hi * 100:.3g} % ({n} of {p.fits})" if n > 1 else
-             f"{name} {lo * 100:.3g} % ({n} of {p.fits})" for name, (lo, hi, n) in p.undetermined.items()]
-    return [f"    UNDETERMINED: predicted relative standard error over {UNDETERMINED * 100:g} % (planned fits "
-            f"per spin and orbit radius): {', '.join(parts)}; more revolutions, a wider ratio range or "
-            "`orbitrig design` may help, else drop the model"]
+    parts = [
+        f"{name} {lo * 100:.3g}..{hi * 100:.3g} % ({n} of {p.fits})"
+        if n > 1
+        else f"{name} {lo * 100:.3g} % ({n} of {p.fits})"
+        for name, (lo, hi, n) in p.undetermined.items()
+    ]
+    return [
+        f"    UNDETERMINED: predicted relative standard error over {UNDETERMINED * 100:g} % (planned fits "
+        f"per spin and orbit radius): {', '.join(parts)}; more revolutions, a wider ratio range or "
+        "`orbitrig design` may help, else drop the model"
+    ]

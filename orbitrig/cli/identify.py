@@ -35,13 +35,26 @@ def register(app: typer.Typer) -> None:
     @app.command("identify")
     def identify_cmd(
         table: Path = typer.Argument(..., help="Orbit table CSV (columns: docs/orbit-table.md)."),
-        model: str = typer.Option(..., "--model", help="kc7 (K, symmetric C) | kc8 (K, C) | kcd11 (K, C, symmetric D) | kcd12 (K, C, D)"),
-        freq_dep: str = typer.Option("none", "--freq-dep",
-                                     help="coefficients' dependence on the orbit speed Omega (rad/s): none | power:M (K = K0 + Omega^M KM, likewise C, D) | power:m,n,p (exponents of K, C, D) | power:auto (best M in 1..4) | poly:R (polynomial to Omega^R)"),
-        method: str = typer.Option("ols", "--method", help="least squares: ols (ordinary) | wls (weighted) | tls (total) | iv (instrumental variables)"),
+        model: str = typer.Option(
+            ..., "--model", help="kc7 (K, symmetric C) | kc8 (K, C) | kcd11 (K, C, symmetric D) | kcd12 (K, C, D)"
+        ),
+        freq_dep: str = typer.Option(
+            "none",
+            "--freq-dep",
+            help="coefficients' dependence on the orbit speed Omega (rad/s): none | power:M (K = K0 + Omega^M KM, likewise C, D) | power:m,n,p (exponents of K, C, D) | power:auto (best M in 1..4) | poly:R (polynomial to Omega^R)",
+        ),
+        method: str = typer.Option(
+            "ols",
+            "--method",
+            help="least squares: ols (ordinary) | wls (weighted) | tls (total) | iv (instrumental variables)",
+        ),
         solver: str = typer.Option("qr", "--solver", help="qr | svd | lu (least-squares solver)"),
         as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object (as --format json)."),
-        fmt: OutputFormat = typer.Option(OutputFormat.TEXT, "--format", help="text: plain tables, every number in full at any width; csv: the coefficient and force tables as CSV; json: the result object"),
+        fmt: OutputFormat = typer.Option(
+            OutputFormat.TEXT,
+            "--format",
+            help="text: plain tables, every number in full at any width; csv: the coefficient and force tables as CSV; json: the result object",
+        ),
     ) -> None:
         """Identify rotordynamic coefficients K, C, D from an orbit table."""
         import numpy as np
@@ -59,8 +72,10 @@ def register(app: typer.Typer) -> None:
         except OrbitrigError as err:
             _fail(str(err))
         except (ArithmeticError, ValueError, np.linalg.LinAlgError) as err:  # the contract: exit 2, reason
-            _fail(f"numerical failure of the {method} fit ({type(err).__name__}: {err}); "
-                  "check the table's values and units")
+            _fail(
+                f"numerical failure of the {method} fit ({type(err).__name__}: {err}); "
+                "check the table's values and units"
+            )
         if as_json or fmt == OutputFormat.JSON:
             _write_json(result)
         else:
@@ -94,9 +109,13 @@ def _print_readable(result, path: Path, fmt: OutputFormat) -> None:
     if fmt == OutputFormat.TEXT:
         fd = result.freq_dep + (f" (chosen M = {result.exponent})" if result.exponent is not None else "")
         typer.echo(wrap(f"{path}: model {result.model}, freq-dep {fd}, method {result.method}, solver {result.solver}"))
-        typer.echo(wrap(f"{result.n_coefficients} coefficients from {result.n_frequencies} orbit frequencies "
-                   f"(minimum {result.min_frequencies}); condition number {result.condition_number:.4g}; "
-                   f"residual RMS {result.residual_rms:.4g} N; {result.dof} degrees of freedom"))
+        typer.echo(
+            wrap(
+                f"{result.n_coefficients} coefficients from {result.n_frequencies} orbit frequencies "
+                f"(minimum {result.min_frequencies}); condition number {result.condition_number:.4g}; "
+                f"residual RMS {result.residual_rms:.4g} N; {result.dof} degrees of freedom"
+            )
+        )
         fit = f"AIC {_fmt(result.aic)}, BIC {_fmt(result.bic)}"
         if result.chi2 is not None:
             fit = f"chi2 {result.chi2:.4g} (p = {_fmt(result.p_value)}), " + fit
@@ -125,6 +144,11 @@ def _force_table(result) -> PlainTable:
     for col in ("orbit Hz", "Fx amp %", "Fx phase deg", "Fy amp %", "Fy phase deg"):
         f.add_column(col, justify="right")
     for row in result.fit:
-        f.add_row(f"{row['orbit_hz']:.4g}", _fmt(row["fx_amp_err_pct"]), _fmt(row["fx_phase_err_deg"]),
-                  _fmt(row["fy_amp_err_pct"]), _fmt(row["fy_phase_err_deg"]))
+        f.add_row(
+            f"{row['orbit_hz']:.4g}",
+            _fmt(row["fx_amp_err_pct"]),
+            _fmt(row["fx_phase_err_deg"]),
+            _fmt(row["fy_amp_err_pct"]),
+            _fmt(row["fy_phase_err_deg"]),
+        )
     return f

@@ -15,10 +15,17 @@ import typer
 def register(app: typer.Typer) -> None:
     @app.command("init")
     def init_cmd(
-        directory: Annotated[Path, typer.Argument(metavar="DIR", help="The lab configuration folder (made if missing).")],
-        broker_dir: Annotated[Optional[Path], typer.Option(
-            "--broker-dir", help="Folder the broker reads its password file, ACL and TLS files from, written into "
-                                 "mosquitto.conf (default DIR/mosquitto).")] = None,
+        directory: Annotated[
+            Path, typer.Argument(metavar="DIR", help="The lab configuration folder (made if missing).")
+        ],
+        broker_dir: Annotated[
+            Optional[Path],
+            typer.Option(
+                "--broker-dir",
+                help="Folder the broker reads its password file, ACL and TLS files from, written into "
+                "mosquitto.conf (default DIR/mosquitto).",
+            ),
+        ] = None,
         force: Annotated[bool, typer.Option("--force", help="Overwrite an existing configuration in DIR.")] = False,
     ) -> None:
         """Write rig.toml, matrices/, designs/, calibration/ and mosquitto/ into DIR.
@@ -35,5 +42,7 @@ def register(app: typer.Typer) -> None:
             raise typer.Exit(2) from None
         for path in files:
             typer.echo(str(path))
-        typer.echo(f"lab configuration in {directory}: edit rig.toml; commands run in this folder, with "
-                   f"{HOME_ENV}={directory.resolve()}, or with --config {directory / 'rig.toml'} use it")
+        typer.echo(
+            f"lab configuration in {directory}: edit rig.toml; commands run in this folder, with "
+            f"{HOME_ENV}={directory.resolve()}, or with --config {directory / 'rig.toml'} use it"
+        )

@@ -74,8 +74,11 @@ class Operator:
             self.engine.request_pause()
             self._ask("paused at the next safe point: [r]esume, [s]top, [a]bort? (Ctrl-C again aborts) ", self._choice)
         else:
-            self.console.print(f"{_name(sig)}: stopping now, both drives ramp to zero (a second signal aborts)",
-                               style="bold red", markup=False)
+            self.console.print(
+                f"{_name(sig)}: stopping now, both drives ramp to zero (a second signal aborts)",
+                style="bold red",
+                markup=False,
+            )
             self.engine.request_stop_now(_name(sig))
 
     def on_event(self, ev) -> None:
@@ -91,8 +94,9 @@ class Operator:
 
     def _ask_confirm(self, message: str) -> None:
         step = self.engine.waiting_step
-        self._ask(f"{message}\npress Enter to confirm {step} (or type stop / abort): ",
-                  lambda ans: self._confirm(step, ans))
+        self._ask(
+            f"{message}\npress Enter to confirm {step} (or type stop / abort): ", lambda ans: self._confirm(step, ans)
+        )
 
     def _ask(self, prompt: str, handle) -> None:
         import asyncio
@@ -100,7 +104,9 @@ class Operator:
         if self.asking is not None:
             self.asking.cancel()
         self._start_reader()
-        self.console.print(prompt, style="bold yellow", markup=False)  # a whole line: the live bars redraw over a partial one
+        self.console.print(
+            prompt, style="bold yellow", markup=False
+        )  # a whole line: the live bars redraw over a partial one
         if self.eof:
             self._no_operator()
             return
@@ -116,8 +122,11 @@ class Operator:
         self.asking = asyncio.ensure_future(ask())
 
     def _no_operator(self) -> None:
-        self.console.print("\nstandard input is closed, nobody can answer: stopping the run "
-                           "(continue later with --resume)", style="bold red", markup=False)
+        self.console.print(
+            "\nstandard input is closed, nobody can answer: stopping the run (continue later with --resume)",
+            style="bold red",
+            markup=False,
+        )
         self.engine.request_stop()
 
     def _choice(self, ans: str) -> None:

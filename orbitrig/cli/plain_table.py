@@ -37,8 +37,13 @@ def terminal_width() -> int:
 
 def wrap(text: str, width: int | None = None) -> str:
     """`text` folded at spaces to the terminal's width, continuation lines indented (no word cut)."""
-    return textwrap.fill(text, terminal_width() if width is None else width, subsequent_indent="  ",
-                         break_long_words=False, break_on_hyphens=False)
+    return textwrap.fill(
+        text,
+        terminal_width() if width is None else width,
+        subsequent_indent="  ",
+        break_long_words=False,
+        break_on_hyphens=False,
+    )
 
 
 @dataclass

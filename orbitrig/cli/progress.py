@@ -47,7 +47,9 @@ class SweepProgress:
             self.progress.update(self.freqs, total=max(ev.frequencies, 1), completed=max(ev.frequency - 1, 0))
             self.progress.update(self.revs, completed=min(ev.revolutions, self.progress.tasks[2].total))
         elif isinstance(ev, StatusEvent):
-            style = {RunState.FAULTED: "bold red", RunState.WAITING: "bold yellow", RunState.PAUSED: "yellow"}.get(ev.state, "")
+            style = {RunState.FAULTED: "bold red", RunState.WAITING: "bold yellow", RunState.PAUSED: "yellow"}.get(
+                ev.state, ""
+            )
             self.progress.console.log(Text(f"{ev.state}: ", style=style) + Text(ev.message))
         elif isinstance(ev, ResultEvent):
             p = ev.payload

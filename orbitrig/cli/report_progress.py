@@ -19,10 +19,18 @@ class ReportProgress:
         self.start = time.monotonic()
         self.bar = None
         if self.stream.isatty() and total > 0:
-            self.bar = Progress(TextColumn("report"), BarColumn(), MofNCompleteColumn(), TextColumn("points,"),
-                                TextColumn("{task.fields[figures]} figures"), TimeElapsedColumn(),
-                                TextColumn("ETA"), TimeRemainingColumn(),
-                                console=Console(file=self.stream), transient=False)
+            self.bar = Progress(
+                TextColumn("report"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TextColumn("points,"),
+                TextColumn("{task.fields[figures]} figures"),
+                TimeElapsedColumn(),
+                TextColumn("ETA"),
+                TimeRemainingColumn(),
+                console=Console(file=self.stream),
+                transient=False,
+            )
             self.task = self.bar.add_task("report", total=total, figures=0)
 
     def __enter__(self) -> ReportProgress:
@@ -39,6 +47,8 @@ class ReportProgress:
         if self.bar:
             self.bar.stop()
         else:
-            self.stream.write(f"report: {self.done} of {self.total} point(s), {self.figures} figure(s) drawn "
-                              f"in {time.monotonic() - self.start:.1f} s\n")
+            self.stream.write(
+                f"report: {self.done} of {self.total} point(s), {self.figures} figure(s) drawn "
+                f"in {time.monotonic() - self.start:.1f} s\n"
+            )
             self.stream.flush()

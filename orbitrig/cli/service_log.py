@@ -17,8 +17,9 @@ DEFAULT_MAX_MB = 10.0  # MB (1e6 bytes) per file
 DEFAULT_BACKUPS = 5  # older files kept beside the current one
 
 
-def setup_service_log(*, verbose: bool, log_file: Path | None = None, max_mb: float = DEFAULT_MAX_MB,
-                      backups: int = DEFAULT_BACKUPS) -> logging.Handler | None:
+def setup_service_log(
+    *, verbose: bool, log_file: Path | None = None, max_mb: float = DEFAULT_MAX_MB, backups: int = DEFAULT_BACKUPS
+) -> logging.Handler | None:
     """Log to standard error and, given `log_file`, to a rotating file (returned).
     Raises OSError when the file cannot be opened."""
     level = logging.DEBUG if verbose else logging.INFO
@@ -27,8 +28,9 @@ def setup_service_log(*, verbose: bool, log_file: Path | None = None, max_mb: fl
     logging.getLogger("mqtt").setLevel(logging.WARNING)
     if log_file is None:
         return None
-    handler = logging.handlers.RotatingFileHandler(log_file, maxBytes=int(max_mb * 1e6), backupCount=backups,
-                                                   encoding="utf-8")
+    handler = logging.handlers.RotatingFileHandler(
+        log_file, maxBytes=int(max_mb * 1e6), backupCount=backups, encoding="utf-8"
+    )
     handler.setFormatter(logging.Formatter(LOG_FORMAT))
     logging.getLogger().addHandler(handler)
     return handler

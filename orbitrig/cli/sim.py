@@ -17,13 +17,31 @@ def register(app: typer.Typer) -> None:
     @app.command("sim")
     def sim(
         config: Optional[Path] = typer.Option(None, "--config", help="Simulator TOML (see config/sim.toml)."),
-        modbus_port: int = typer.Option(5020, "--modbus-port", min=0, max=65535, help="Modbus TCP port of both drives (0 = any free)."),
-        adc_port: int = typer.Option(5000, "--adc-port", min=0, max=65535, help="A/D TCP serial device server port (0 = any free)."),
-        speedup: Optional[float] = typer.Option(None, "--speedup", help="Simulated time / wall time (default from config, 1)."),
-        control_port: int = typer.Option(0, "--control-port", min=0, max=65535, help="JSON-lines control API port (0 = any free)."),
+        modbus_port: int = typer.Option(
+            5020, "--modbus-port", min=0, max=65535, help="Modbus TCP port of both drives (0 = any free)."
+        ),
+        adc_port: int = typer.Option(
+            5000, "--adc-port", min=0, max=65535, help="A/D TCP serial device server port (0 = any free)."
+        ),
+        speedup: Optional[float] = typer.Option(
+            None, "--speedup", help="Simulated time / wall time (default from config, 1)."
+        ),
+        control_port: int = typer.Option(
+            0, "--control-port", min=0, max=65535, help="JSON-lines control API port (0 = any free)."
+        ),
         modbus_rtu: bool = typer.Option(False, "--modbus-rtu/--no-modbus-rtu", help="Also serve Modbus RTU on a pty."),
-        can_port: int = typer.Option(CAN_PORT, "--can-port", min=0, max=65535, help="TCP port of the CAN bus: python-can interface 'serial', channel socket://127.0.0.1:PORT (0 = any free)."),
-        can_channel: Optional[str] = typer.Option(None, "--can-channel", help="Put the CAN node on this python-can channel instead (e.g. vcan0 with --can-interface socketcan)."),
+        can_port: int = typer.Option(
+            CAN_PORT,
+            "--can-port",
+            min=0,
+            max=65535,
+            help="TCP port of the CAN bus: python-can interface 'serial', channel socket://127.0.0.1:PORT (0 = any free).",
+        ),
+        can_channel: Optional[str] = typer.Option(
+            None,
+            "--can-channel",
+            help="Put the CAN node on this python-can channel instead (e.g. vcan0 with --can-interface socketcan).",
+        ),
         can_interface: str = typer.Option("virtual", "--can-interface", help="python-can interface of --can-channel."),
     ) -> None:
         """Run the simulated rig: drives (Modbus ids 1, 2), A/D board (TCP + pty), CAN sensor node (TCP).
@@ -55,15 +73,25 @@ def register(app: typer.Typer) -> None:
                 if can_channel is None:  # the bus other processes can reach
                     hub = await stack.enter_async_context(CanTcpHub(port=can_port))
                     can = dict(can_channel=hub.url, can_interface="serial")
-                rig = SimRig(cfg, speedup=speedup, modbus_port=modbus_port, adc_port=adc_port,
-                             modbus_rtu_pty=modbus_rtu, control_port=control_port, **can)
+                rig = SimRig(
+                    cfg,
+                    speedup=speedup,
+                    modbus_port=modbus_port,
+                    adc_port=adc_port,
+                    modbus_rtu_pty=modbus_rtu,
+                    control_port=control_port,
+                    **can,
+                )
                 await serve_until_signalled(rig, out=_Announce(can["can_interface"], speedup or cfg.speedup))
 
         try:
             asyncio.run(run())
         except (OSError, RuntimeError) as err:  # a port in use (pymodbus says RuntimeError "Could not start listen")
-            typer.echo(f"orbitrig sim: {err} (ports: Modbus {modbus_port}, A/D {adc_port}, CAN {can_port}, "
-                       f"control {control_port}; is another simulator running? 0 picks a free port)", err=True)
+            typer.echo(
+                f"orbitrig sim: {err} (ports: Modbus {modbus_port}, A/D {adc_port}, CAN {can_port}, "
+                f"control {control_port}; is another simulator running? 0 picks a free port)",
+                err=True,
+            )
             raise typer.Exit(1) from None
 
 
@@ -88,8 +116,10 @@ class _Announce:
 
 def describe_endpoints(ep: dict, can_interface: str, speedup: float) -> str:
     """The endpoints object of the simulator in words, with the rig.toml keys that reach them."""
-    lines = [f"orbitrig sim: the simulated rig runs (simulated time = {speedup:g} x wall time); Ctrl-C ends it.",
-             f"  drives     Modbus TCP {ep['modbus']}, device ids 1 (spin) and 2 (orbit)"]
+    lines = [
+        f"orbitrig sim: the simulated rig runs (simulated time = {speedup:g} x wall time); Ctrl-C ends it.",
+        f"  drives     Modbus TCP {ep['modbus']}, device ids 1 (spin) and 2 (orbit)",
+    ]
     if ep.get("modbus_rtu"):
         lines.append(f"             Modbus RTU on {ep['modbus_rtu']}")
     pty = f" and the pty {ep['adc_pty']}" if ep.get("adc_pty") else ""
@@ -98,7 +128,12 @@ def describe_endpoints(ep: dict, can_interface: str, speedup: float) -> str:
         lines.append(f"  CAN node   python-can interface '{can_interface}', channel {ep['can']}")
     if ep.get("control"):
         lines.append(f"  control    {ep['control']} (JSON lines)")
-    lines.append("In config/rig.toml [transports]: adc_url = \"%s\", modbus_url = \"%s\"%s."
-                 % (ep["adc"], ep["modbus"],
-                    f", can_interface = \"{can_interface}\", can_channel = \"{ep['can']}\"" if ep.get("can") else ""))
+    lines.append(
+        'In config/rig.toml [transports]: adc_url = "%s", modbus_url = "%s"%s.'
+        % (
+            ep["adc"],
+            ep["modbus"],
+            f', can_interface = "{can_interface}", can_channel = "{ep["can"]}"' if ep.get("can") else "",
+        )
+    )
     return "\n".join(lines) + "\n"

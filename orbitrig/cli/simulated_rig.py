@@ -134,10 +134,16 @@ class SimulatorHands:
     def __init__(self, link):
         self.link = link
 
-    async def set_manual(self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float,
-                         pressure_ratio: float) -> None:
-        await self.link.acall("set_manual", orbit_radius=orbit_radius, static_eccentricity=static_eccentricity,
-                              recess_pressure=recess_pressure, pressure_ratio=pressure_ratio)
+    async def set_manual(
+        self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float, pressure_ratio: float
+    ) -> None:
+        await self.link.acall(
+            "set_manual",
+            orbit_radius=orbit_radius,
+            static_eccentricity=static_eccentricity,
+            recess_pressure=recess_pressure,
+            pressure_ratio=pressure_ratio,
+        )
 
     async def apply_load(self, fx: float, fy: float) -> None:
         """A known static calibration load (N) on the simulator's journal, at once."""
@@ -166,7 +172,9 @@ class SimulatorTruth:
 
     def reference_fits(self, spin: float, orbits: np.ndarray) -> dict:
         """Constant and Eq. 15 best fits of the true Z over `orbits` (sim.fits)."""
-        return self.link.call("reference_fits", spin=float(spin), orbits=np.asarray(orbits, dtype=float).tolist())["fits"]
+        return self.link.call("reference_fits", spin=float(spin), orbits=np.asarray(orbits, dtype=float).tolist())[
+            "fits"
+        ]
 
 
 class SimulatorProcess:
@@ -197,13 +205,23 @@ def simulated_access(sim, scenario: Scenario | None = None) -> RigAccess:
         link, endpoints = sim.link, sim.access_endpoints
     else:
         link, endpoints = InProcessLink(sim), Endpoints(sim.modbus_url, sim.adc_url, sim.can_channel, "virtual")
-    return RigAccess(endpoints=endpoints, time_scale=TimeScale(sim.speedup), hands=SimulatorHands(link),
-                     truth=SimulatorTruth(link), simulated=True, scenario=scenario)
+    return RigAccess(
+        endpoints=endpoints,
+        time_scale=TimeScale(sim.speedup),
+        hands=SimulatorHands(link),
+        truth=SimulatorTruth(link),
+        simulated=True,
+        scenario=scenario,
+    )
 
 
 @contextlib.asynccontextmanager
-async def simulated_rig(speedup: float = DEFAULT_SPEEDUP, config=None, scenario: Scenario | None = None,
-                        started: SimulatorStart | None = None) -> AsyncIterator[tuple[SimulatorProcess, RigAccess]]:
+async def simulated_rig(
+    speedup: float = DEFAULT_SPEEDUP,
+    config=None,
+    scenario: Scenario | None = None,
+    started: SimulatorStart | None = None,
+) -> AsyncIterator[tuple[SimulatorProcess, RigAccess]]:
     """A simulator process of scenario `config` (a sim.config.SimConfig; default: the paper's
     rig) and its access; `scenario` names it in the run (the config's file and text).
     `started`: the process `start_simulator` started earlier with the same arguments."""
@@ -232,8 +250,14 @@ class SimulatorStart:
     def __init__(self, command: list[str]):
         self.log = tempfile.TemporaryFile()  # its stderr: shown only when it fails to start
         try:
-            self.proc = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log,
-                                         env=_environment(), start_new_session=True)
+            self.proc = subprocess.Popen(
+                command,
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=self.log,
+                env=_environment(),
+                start_new_session=True,
+            )
         except OSError as err:
             self.log.close()
             raise SimulatorError(f"the simulator process could not start: {err}") from None
@@ -250,8 +274,10 @@ class SimulatorStart:
             self.log.seek(0)
             said = self.log.read().decode(errors="replace").strip().splitlines()
             self.log.close()
-            raise SimulatorError("the simulator process did not start (python -m sim, exit status "
-                                 f"{self.proc.returncode}){': ' + said[-1] if said else ''}")
+            raise SimulatorError(
+                "the simulator process did not start (python -m sim, exit status "
+                f"{self.proc.returncode}){': ' + said[-1] if said else ''}"
+            )
         return endpoints
 
     async def end(self) -> None:
@@ -280,9 +306,26 @@ class SimulatorStart:
 
 
 def _command(speedup: float, config) -> list[str]:
-    args = [sys.executable, "-m", "sim", "--modbus-port", "0", "--adc-port", "0", "--no-adc-pty",
-            "--control-port", "0", "--can-hub", "0", "--speedup", repr(float(speedup)),
-            "--nice", str(SIMULATOR_NICE), "--parent-pid", str(os.getpid())]
+    args = [
+        sys.executable,
+        "-m",
+        "sim",
+        "--modbus-port",
+        "0",
+        "--adc-port",
+        "0",
+        "--no-adc-pty",
+        "--control-port",
+        "0",
+        "--can-hub",
+        "0",
+        "--speedup",
+        repr(float(speedup)),
+        "--nice",
+        str(SIMULATOR_NICE),
+        "--parent-pid",
+        str(os.getpid()),
+    ]
     if config is not None:
         from sim.config import sim_config_to_data
 

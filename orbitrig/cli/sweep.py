@@ -24,25 +24,52 @@ def register(app: typer.Typer) -> None:
         run_dir: Optional[Path] = typer.Argument(None, help="the run directory, as --out (`--resume DIR`)"),
         out: Optional[Path] = typer.Option(None, "--out", help="run directory (run.h5, coefficients.csv, run.log)"),
         sim: bool = typer.Option(False, "--sim", help="run on the built-in simulator over loopback protocols"),
-        config: Optional[Path] = typer.Option(None, "--config", help="rig configuration TOML (default: rig.toml of $ORBITRIG_HOME, of the current directory, or shipped; see `orbitrig init`)"),
-        matrix: Optional[str] = typer.Option(
-            None, "--matrix", metavar="NAME|FILE",
-            help="test matrix: a TOML file, or a name from the configuration's matrices/ (demo, paper); "
-                 "required on the rig, --sim defaults to matrices/demo.toml",
+        config: Optional[Path] = typer.Option(
+            None,
+            "--config",
+            help="rig configuration TOML (default: rig.toml of $ORBITRIG_HOME, of the current directory, or shipped; see `orbitrig init`)",
         ),
-        resume: bool = typer.Option(False, "--resume", help="continue the run in --out from its first incomplete point"),
-        dry_run: bool = typer.Option(False, "--dry-run", help="print the plan's totals, the predicted uncertainty of each model and one line per operating point; touches no hardware"),
-        steps: bool = typer.Option(False, "--steps", help="with --dry-run: also every step with its start time and estimated duration (s)"),
-        fmt: OutputFormat = typer.Option(OutputFormat.TEXT, "--format", help="the closing table of coefficients: text (plain, every number in full, split to the terminal's width), csv or json"),
+        matrix: Optional[str] = typer.Option(
+            None,
+            "--matrix",
+            metavar="NAME|FILE",
+            help="test matrix: a TOML file, or a name from the configuration's matrices/ (demo, paper); "
+            "required on the rig, --sim defaults to matrices/demo.toml",
+        ),
+        resume: bool = typer.Option(
+            False, "--resume", help="continue the run in --out from its first incomplete point"
+        ),
+        dry_run: bool = typer.Option(
+            False,
+            "--dry-run",
+            help="print the plan's totals, the predicted uncertainty of each model and one line per operating point; touches no hardware",
+        ),
+        steps: bool = typer.Option(
+            False, "--steps", help="with --dry-run: also every step with its start time and estimated duration (s)"
+        ),
+        fmt: OutputFormat = typer.Option(
+            OutputFormat.TEXT,
+            "--format",
+            help="the closing table of coefficients: text (plain, every number in full, split to the terminal's width), csv or json",
+        ),
         speedup: float = typer.Option(
             DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"
         ),
         sim_config: Optional[Path] = typer.Option(
-            None, "--sim-config", metavar="NAME|FILE", help="simulator scenario TOML (--sim only; default the "
-            "paper's rig, config/sim.toml); a shipped one by NAME: paper, clean, compressible (config/sim/)"
+            None,
+            "--sim-config",
+            metavar="NAME|FILE",
+            help="simulator scenario TOML (--sim only; default the "
+            "paper's rig, config/sim.toml); a shipped one by NAME: paper, clean, compressible (config/sim/)",
         ),
-        operator: Optional[str] = typer.Option(None, "--operator", help="who runs the sweep, recorded in the run (default: the login name)"),
-        draw_figures: bool = typer.Option(True, "--draw-figures/--no-draw-figures", help="draw each completed point's report figures in a process at the lowest CPU priority, so `orbitrig report` afterwards reuses them"),
+        operator: Optional[str] = typer.Option(
+            None, "--operator", help="who runs the sweep, recorded in the run (default: the login name)"
+        ),
+        draw_figures: bool = typer.Option(
+            True,
+            "--draw-figures/--no-draw-figures",
+            help="draw each completed point's report figures in a process at the lowest CPU priority, so `orbitrig report` afterwards reuses them",
+        ),
     ) -> None:
         """Run a test matrix: manual settings, speeds, settle, acquire, identify, store.
 
@@ -53,12 +80,39 @@ def register(app: typer.Typer) -> None:
 
         Exit 0 completed, 1 failed, 2 bad configuration or usage, 3 stopped, 4 aborted.
         """
-        _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, sim_config, operator,
-                       steps=steps, fmt=fmt, draw_figures=draw_figures)
+        _sweep_command(
+            run_dir,
+            out,
+            sim,
+            config,
+            matrix,
+            resume,
+            dry_run,
+            speedup,
+            sim_config,
+            operator,
+            steps=steps,
+            fmt=fmt,
+            draw_figures=draw_figures,
+        )
 
 
-def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, sim_config, operator=None, *,
-                   steps=False, fmt=None, draw_figures=False) -> None:
+def _sweep_command(
+    run_dir,
+    out,
+    sim,
+    config,
+    matrix,
+    resume,
+    dry_run,
+    speedup,
+    sim_config,
+    operator=None,
+    *,
+    steps=False,
+    fmt=None,
+    draw_figures=False,
+) -> None:
     """`orbitrig sweep`, its options checked; raises typer.Exit with the run's exit status."""
     from orbitrig.errors import ConfigError, OrbitrigError
 
@@ -83,8 +137,18 @@ def _sweep_command(run_dir, out, sim, config, matrix, resume, dry_run, speedup, 
         import asyncio
 
         scenario = _scenario(sim_config, resume=resume, out=out) if sim else None
-        outcome = asyncio.run(_sweep(plan, out=out, sim=scenario, resume=resume, speedup=speedup,
-                                     operator=operator or _login(), fmt=fmt, draw_figures=draw_figures))
+        outcome = asyncio.run(
+            _sweep(
+                plan,
+                out=out,
+                sim=scenario,
+                resume=resume,
+                speedup=speedup,
+                operator=operator or _login(),
+                fmt=fmt,
+                draw_figures=draw_figures,
+            )
+        )
     except ConfigError as err:
         typer.echo(f"error: {err}", err=True)
         raise typer.Exit(2) from None
@@ -110,8 +174,13 @@ def _scenario(path, *, resume: bool, out):
     if stored is not None:
         name, text = stored
         if path is not None and _read(path) != text:
-            raise ConfigError(str(path), [f"differs from the simulator scenario of the run being resumed in {out} "
-                                          f"({name}); resume without --sim-config (the stored one is used)"])
+            raise ConfigError(
+                str(path),
+                [
+                    f"differs from the simulator scenario of the run being resumed in {out} "
+                    f"({name}); resume without --sim-config (the stored one is used)"
+                ],
+            )
         where = f"{out}/run.json: sim_scenario ({name})"
         typer.echo(f"simulator scenario of the run: {name}", err=True)
     else:
@@ -166,20 +235,34 @@ def _configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
         store = RunStore.open_existing(out)
         rig_text, matrix_text, was_sim = store.stored_configs()
         if was_sim != sim:
-            raise ConfigError(str(store.path), [f"this run was made {'on the simulator' if was_sim else 'on the rig'}: "
-                                                f"resume it {'with' if was_sim else 'without'} --sim"])
-        rig = cfg.load_rig(config) if config else cfg.rig_from_text(rig_text, f"{store.path}:rig_config",
-                                                                    store.stored_record())
+            raise ConfigError(
+                str(store.path),
+                [
+                    f"this run was made {'on the simulator' if was_sim else 'on the rig'}: "
+                    f"resume it {'with' if was_sim else 'without'} --sim"
+                ],
+            )
+        rig = (
+            cfg.load_rig(config)
+            if config
+            else cfg.rig_from_text(rig_text, f"{store.path}:rig_config", store.stored_record())
+        )
         matrix = cfg.matrix_file(matrix, rig_path=config) if matrix else None
         mat = cfg.load_matrix(matrix) if matrix else cfg.matrix_from_text(matrix_text, f"{store.path}:matrix_config")
         if matrix and mat.text != matrix_text:  # before the simulator or any drive is started
-            raise ConfigError(mat.file, [f"differs from the matrix of the run being resumed in {store.path}; "
-                                         "resume without --matrix (the stored one is used)"])
+            raise ConfigError(
+                mat.file,
+                [
+                    f"differs from the matrix of the run being resumed in {store.path}; "
+                    "resume without --matrix (the stored one is used)"
+                ],
+            )
         return rig, mat
     rig = cfg.load_rig(config)
     if matrix is None and not sim and not dry_run:
-        raise typer.BadParameter("--matrix NAME|FILE is required on the rig (--sim defaults to the demo)",
-                                 param_hint="--matrix")
+        raise typer.BadParameter(
+            "--matrix NAME|FILE is required on the rig (--sim defaults to the demo)", param_hint="--matrix"
+        )
     path = cfg.matrix_file(matrix, rig_path=config) if matrix else cfg.default_matrix_path(rig_path=config)
     return rig, cfg.load_matrix(path)
 
@@ -211,9 +294,12 @@ def _check_rig_answers(rig) -> None:
     problems = asyncio.run(unreachable_transports(rig))
     if problems:
         lines = "\n".join(f"  {p}" for p in problems)
-        typer.echo(f"error: the rig does not answer ([transports] in {rig.file}):\n{lines}\n"
-                   "Nothing was started and no run directory was made. On a machine without the rig, "
-                   "run on the built-in simulator: orbitrig sweep --sim ...", err=True)
+        typer.echo(
+            f"error: the rig does not answer ([transports] in {rig.file}):\n{lines}\n"
+            "Nothing was started and no run directory was made. On a machine without the rig, "
+            "run on the built-in simulator: orbitrig sweep --sim ...",
+            err=True,
+        )
         raise typer.Exit(2)
 
 
@@ -223,8 +309,18 @@ def _login() -> str:
     return getpass.getuser()
 
 
-async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator: str = "", fmt=None,
-                 subscribers=(), draw_figures: bool = False):
+async def _sweep(
+    plan,
+    *,
+    out: Path,
+    sim,
+    resume: bool,
+    speedup: float,
+    operator: str = "",
+    fmt=None,
+    subscribers=(),
+    draw_figures: bool = False,
+):
     """Run the plan; ``sim`` the simulator's (SimConfig, Scenario) (None: the real rig);
     ``subscribers``: more event callbacks of the engine (bench/bench_soak.py samples memory);
     ``draw_figures``: the report's figures of each completed point drawn during the run."""
@@ -253,8 +349,13 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator
             from orbitrig.cli.simulated_rig import simulated_rig
 
             _, access = await stack.enter_async_context(simulated_rig(speedup, *sim, started=started))
-        engine = RunEngine(plan.rig, out_dir=out, access=access, confirm_mode=ConfirmMode.AUTO if access else ConfirmMode.PROMPT,
-                           operator=operator)
+        engine = RunEngine(
+            plan.rig,
+            out_dir=out,
+            access=access,
+            confirm_mode=ConfirmMode.AUTO if access else ConfirmMode.PROMPT,
+            operator=operator,
+        )
         engine.console_user = operator  # Ctrl-C's pause, stop, abort and the prompts' confirmations
         console_operator = Operator(engine, console)
         engine.subscribe(console_operator.on_event)
@@ -273,8 +374,11 @@ async def _sweep(plan, *, out: Path, sim, resume: bool, speedup: float, operator
                 outcome = await engine.run(plan, resume=resume)
             finally:
                 console_operator.uninstall()
-    console.print(f"run {outcome.status}: {outcome.message}  ({len(outcome.completed_points)} of "
-                  f"{outcome.points} points complete in {out})", markup=False)
+    console.print(
+        f"run {outcome.status}: {outcome.message}  ({len(outcome.completed_points)} of "
+        f"{outcome.points} points complete in {out})",
+        markup=False,
+    )
     if outcome.completed_points:
         from orbitrig.cli.sweep_summary import print_coefficients  # the closing table
 

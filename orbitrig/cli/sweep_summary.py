@@ -28,20 +28,29 @@ from reduction.statistics import CHI2_ALPHA
 #: above this many complete points the final table is one summary row per point
 DETAIL_POINTS = 4
 _COEF_UNIT = {"K": "N/m", "C": "N s/m", "D": "kg"}
-TRUE_NOTE = ("true = the simulator's true Z(Omega) projected onto each fit's model (its constraints, "
-             "frequency dependence, frequencies and weights); (%) = |identified - true| / largest true entry "
-             "of the matrix; const. fit = the constant K, C, D best fitting the true Z over the point's orbit "
-             "speeds")
-D_NOTE = ("D = apparent inertia (added mass): it absorbs whatever grows with Omega^2, here mostly the "
-          "recesses' compressibility and the measuring chain's delay, not only the fluid's inertia")
+TRUE_NOTE = (
+    "true = the simulator's true Z(Omega) projected onto each fit's model (its constraints, "
+    "frequency dependence, frequencies and weights); (%) = |identified - true| / largest true entry "
+    "of the matrix; const. fit = the constant K, C, D best fitting the true Z over the point's orbit "
+    "speeds"
+)
+D_NOTE = (
+    "D = apparent inertia (added mass): it absorbs whatever grows with Omega^2, here mostly the "
+    "recesses' compressibility and the measuring chain's delay, not only the fluid's inertia"
+)
 ND_NOTE = "n.d. = not determined: the expanded uncertainty U exceeds the magnitude"
-Z_NOTE = ("|dZ|/|Z| = worst over the orbit frequencies of |Z_identified - Z_true| / |Z_true| "
-          "(Frobenius norms; Z_true the simulator's impedance)")
+Z_NOTE = (
+    "|dZ|/|Z| = worst over the orbit frequencies of |Z_identified - Z_true| / |Z_true| "
+    "(Frobenius norms; Z_true the simulator's impedance)"
+)
 
-REJECTED_NOTE = (f"* the fit's chi2 adequacy test rejects it (p < {CHI2_ALPHA:g}): the residuals exceed "
-                 "the stated uncertainties")
-REJECTED_COUNT_NOTE = (f"rejected * = fits the chi2 adequacy test rejects (p < {CHI2_ALPHA:g}): their residuals "
-                       "exceed the stated uncertainties")
+REJECTED_NOTE = (
+    f"* the fit's chi2 adequacy test rejects it (p < {CHI2_ALPHA:g}): the residuals exceed the stated uncertainties"
+)
+REJECTED_COUNT_NOTE = (
+    f"rejected * = fits the chi2 adequacy test rejects (p < {CHI2_ALPHA:g}): their residuals "
+    "exceed the stated uncertainties"
+)
 
 
 def rejected(d: dict) -> bool:
@@ -81,8 +90,7 @@ def best_impedance_error(fits, truth: dict | None) -> str:
 
 def _fits(p: Point) -> dict[str, dict]:
     """Stored JSON of every fit that gave coefficients, by storage key (lms__model__fd__method)."""
-    return {f"{i.lms}__{i.model}__{freq_dep_key(i.freq_dep)}__{i.method}": i.result
-            for i in p.identifications if i.ok}
+    return {f"{i.lms}__{i.model}__{freq_dep_key(i.freq_dep)}__{i.method}": i.result for i in p.identifications if i.ok}
 
 
 def _judged(p: Point) -> list[tuple[str, str, dict | None, str | None]]:
@@ -98,13 +106,19 @@ def _summary_cells(p: Point) -> list[str]:
     """Adequacy, LMS consistency and warnings/refusals of one point, for the summary row."""
     fits = _fits(p).values()
     verdicts = [d["adequacy"]["supported"] for d in fits if "supported" in (d.get("adequacy") or {})]
-    worst = [d["lms_consistency"]["max_abs"] for d in fits if (d.get("lms_consistency") or {}).get("max_abs") is not None]
+    worst = [
+        d["lms_consistency"]["max_abs"] for d in fits if (d.get("lms_consistency") or {}).get("max_abs") is not None
+    ]
     warnings = sum(len(d.get("warnings") or []) for d in fits)
     refused = sum(1 for i in p.identifications if not i.ok)
     nd = sum(len(d.get("not_determined") or []) for d in fits)
-    return [f"{sum(verdicts)} of {len(verdicts)} yes" if verdicts else "-",
-            f"{max(worst):.2g}" if worst else "-", str(nd), f"{sum(rejected(d) for d in fits)} of {len(fits)}",
-            f"{warnings} / {refused}"]
+    return [
+        f"{sum(verdicts)} of {len(verdicts)} yes" if verdicts else "-",
+        f"{max(worst):.2g}" if worst else "-",
+        str(nd),
+        f"{sum(rejected(d) for d in fits)} of {len(fits)}",
+        f"{warnings} / {refused}",
+    ]
 
 
 def rejected_lines(complete: list[Point]) -> list[str]:
@@ -119,25 +133,42 @@ def rejected_lines(complete: list[Point]) -> list[str]:
                 if rejected(i.result):
                     f["at"].add(int(p.name))
                     f["lms"].add(i.lms)
-    return [f"{fit}, {', '.join(sorted(f['lms']))}: at {len(f['at'])} of {len(f['all'])} points "
-            f"({point_ranges(f['at'])})" for fit, f in sorted(families.items()) if f["at"]]
+    return [
+        f"{fit}, {', '.join(sorted(f['lms']))}: at {len(f['at'])} of {len(f['all'])} points ({point_ranges(f['at'])})"
+        for fit, f in sorted(families.items())
+        if f["at"]
+    ]
 
 
 def _print_summary(console: Transcript, complete: list[Point], out: Path) -> None:
     """One row per operating point: the main stiffness and damping entries of the first fit
     (piezo), in --sim mode the worst K and C error of every fit, the adequacy verdicts, the
     worst LMS |E_n| and the counts of warnings and refused models."""
-    table = PlainTable(title=f"{len(complete)} operating points (full tables: coefficients.csv, "
-                             f"orbitrig report {out})")
-    for col in ("point", "label", "Kxx MN/m", "Kyy MN/m", "Cxx kN s/m", "Cyy kN s/m", "worst K / C error",
-                "|dZ|/|Z|", "freq. dep.", "LMS |E_n|", "n.d.", "rejected *", "warn / refused"):
+    table = PlainTable(title=f"{len(complete)} operating points (full tables: coefficients.csv, orbitrig report {out})")
+    for col in (
+        "point",
+        "label",
+        "Kxx MN/m",
+        "Kyy MN/m",
+        "Cxx kN s/m",
+        "Cyy kN s/m",
+        "worst K / C error",
+        "|dZ|/|Z|",
+        "freq. dep.",
+        "LMS |E_n|",
+        "n.d.",
+        "rejected *",
+        "warn / refused",
+    ):
         table.add_column(col, justify="left" if col in ("point", "label") else "right")
     for p in complete:
         fits = _fits(p)
         first = next((d["coefficients"] for k, d in sorted(fits.items()) if k.startswith("piezo")), None)
         row = [p.name, p.settings.label]
-        row += [f"{first[c] * scale:.4g}" if first and c in first else "-"
-                for c, scale in (("Kxx", 1e-6), ("Kyy", 1e-6), ("Cxx", 1e-3), ("Cyy", 1e-3))]
+        row += [
+            f"{first[c] * scale:.4g}" if first and c in first else "-"
+            for c, scale in (("Kxx", 1e-6), ("Kyy", 1e-6), ("Cxx", 1e-3), ("Cyy", 1e-3))
+        ]
         if p.truth:
             errs = [compare_with_truth(d, p.truth) for d in fits.values()]
             k = max((e[c] for e in errs for c in e if c[0] == "K"), default=float("nan"))
@@ -150,10 +181,13 @@ def _print_summary(console: Transcript, complete: list[Point], out: Path) -> Non
     if any(p.truth for p in complete):
         console.print("K / C error: worst over all fits; " + TRUE_NOTE, markup=False)
         console.print(Z_NOTE + "; of the fit that reproduces Z best", markup=False)
-    console.print("freq. dep. = frequency dependence supported by the data (per frequency-dependent fit); "
-                  "LMS |E_n| = worst normalised piezo - strain difference (the per-point verdict tests all "
-                  "coefficients at once: chi2 at the 5 % level); "
-                  "n.d. = coefficients not determined (U > |value|), over all fits", markup=False)
+    console.print(
+        "freq. dep. = frequency dependence supported by the data (per frequency-dependent fit); "
+        "LMS |E_n| = worst normalised piezo - strain difference (the per-point verdict tests all "
+        "coefficients at once: chi2 at the 5 % level); "
+        "n.d. = coefficients not determined (U > |value|), over all fits",
+        markup=False,
+    )
     if lines := rejected_lines(complete):
         console.print(REJECTED_COUNT_NOTE, markup=False)
         for line in lines:
@@ -194,8 +228,14 @@ def _point_table(p: Point) -> tuple[PlainTable, list[str]]:
         row = [c] + ([f"{truth[c[0] + '0']['xy'.index(c[1])]['xy'.index(c[2])]:.4g}"] if truth else [])
         table.add_row(*row, *(_cell(d, c, errs.get(key, {}).get(c)) for key, d in fits.items()))
         if truth:
-            table.add_row("  true", "", *("" if c not in trues[k] or c not in d["coefficients"] else f"{trues[k][c]:.4g}"
-                                          for k, d in fits.items()))
+            table.add_row(
+                "  true",
+                "",
+                *(
+                    "" if c not in trues[k] or c not in d["coefficients"] else f"{trues[k][c]:.4g}"
+                    for k, d in fits.items()
+                ),
+            )
     z_errs = [worst_impedance_error(d, truth) for d in fits.values()]
     if any(e is not None for e in z_errs):
         table.add_row("|dZ|/|Z|", "", *("-" if e is None else f"{e:.2f} %" for e in z_errs))
@@ -219,10 +259,15 @@ def _print_points(console: Transcript, complete: list[Point]) -> None:
     for p in complete:
         table, names = _point_table(p)
         console.print(table)
-        console.print("units: " + ", ".join(f"{m} {u}" for m, u in _COEF_UNIT.items() if any(c[0] == m for c in names)),
-                      markup=False)
-        console.print("\u00b1 = expanded uncertainty U (k = 2): statistical and calibration combined "
-                      "(without a stated calibration: statistical only); " + ND_NOTE, markup=False)
+        console.print(
+            "units: " + ", ".join(f"{m} {u}" for m, u in _COEF_UNIT.items() if any(c[0] == m for c in names)),
+            markup=False,
+        )
+        console.print(
+            "\u00b1 = expanded uncertainty U (k = 2): statistical and calibration combined "
+            "(without a stated calibration: statistical only); " + ND_NOTE,
+            markup=False,
+        )
         if any(c[0] == "D" for c in names):
             console.print(D_NOTE, markup=False)
         if p.truth:
@@ -239,5 +284,8 @@ def _truth_notes(console: Transcript, truth: dict) -> None:
         console.print(Z_NOTE, markup=False)
     top = max(truth["orbit"], key=abs)
     k, d = (max(abs(v) for row in truth[m] for v in row) for m in ("K0", "D0"))
-    console.print(f"D acts as Omega^2 D: at the highest orbit speed that is {100 * top**2 * d / k:.2g} % "
-                  "of the largest K entry, so D is weakly determined here", markup=False)
+    console.print(
+        f"D acts as Omega^2 D: at the highest orbit speed that is {100 * top**2 * d / k:.2g} % "
+        "of the largest K entry, so D is weakly determined here",
+        markup=False,
+    )

@@ -20,25 +20,68 @@ from pydantic import ValidationError
 
 from orbitrig.config.calibration import CalibrationUncertainty, ChannelUncertainty  # noqa: F401
 from orbitrig.config.fields import (  # noqa: F401 - the package's public names
-    CHANNEL_NAMES, FREQ_DEP, LMS, MODELS, MPA, RPM, DeviceId, Mpa, NonNeg, Pos, Ratio, Rpm, Seconds, Wait,
+    CHANNEL_NAMES,
+    FREQ_DEP,
+    LMS,
+    MODELS,
+    MPA,
+    RPM,
+    DeviceId,
+    Mpa,
+    NonNeg,
+    Pos,
+    Ratio,
+    Rpm,
+    Seconds,
+    Wait,
 )
 from orbitrig.config.designs import apply_design
 from orbitrig.config.home import (
-    HOME_ENV, MATRICES, RIG_FILE, config_home, known_names, named_file, search_folders, shipped_config,
+    HOME_ENV,
+    MATRICES,
+    RIG_FILE,
+    config_home,
+    known_names,
+    named_file,
+    search_folders,
+    shipped_config,
 )
 from orbitrig.config.lab import write_lab  # noqa: F401
 from orbitrig.config.sequential import SequentialDesign, band_candidates, candidate_problems  # noqa: F401
 from orbitrig.config.matrix import MatrixAveraging, MatrixConfig, ModelSpec, Operating, Orbit, PointOrder  # noqa: F401
 from orbitrig.config.messages import _line_of, _problems
 from orbitrig.config.records import (  # noqa: F401
-    CalibrationRecord, ChannelDelay, LoadGains, ProbeGain, ProbeRunout, RecordStep, Reference, Runout, activate, digest, folder_of,
-    list_names, read_record, record_from_text, write_record,
+    CalibrationRecord,
+    ChannelDelay,
+    LoadGains,
+    ProbeGain,
+    ProbeRunout,
+    RecordStep,
+    Reference,
+    Runout,
+    activate,
+    digest,
+    folder_of,
+    list_names,
+    read_record,
+    record_from_text,
+    write_record,
 )
 from orbitrig.config.rig import (  # noqa: F401
-    LINK_LOSS_MARGIN, Averaging, Bearing, Channel, Drives, Estimates, Interlocks, RigConfig, Settle,
-    Transports, Verify,
+    LINK_LOSS_MARGIN,
+    Averaging,
+    Bearing,
+    Channel,
+    Drives,
+    Estimates,
+    Interlocks,
+    RigConfig,
+    Settle,
+    Transports,
+    Verify,
 )
 from orbitrig.errors import ConfigError
+
 
 def default_rig_path() -> Path:
     """rig.toml of the lab configuration (orbitrig.config.home: $ORBITRIG_HOME, the current
@@ -64,8 +107,9 @@ def matrix_file(arg: str | Path, folder: Path | None = None, rig_path: Path | st
         return named
     names = sorted(p.stem for p in folder.glob("*.toml")) if folder else known_names(MATRICES, rig_path)
     where = folder or " or ".join(str(f) for f in search_folders(MATRICES, rig_path))
-    raise ConfigError(str(arg), [f"no such file, and no matrix of that name in {where} "
-                                 f"(available: {', '.join(names) or 'none'})"])
+    raise ConfigError(
+        str(arg), [f"no such file, and no matrix of that name in {where} (available: {', '.join(names) or 'none'})"]
+    )
 
 
 def _parse(text: str, file: str) -> dict:
@@ -102,15 +146,21 @@ def decode_text(data: bytes, file: str) -> str:
         return data.decode("utf-8")
     except UnicodeDecodeError as err:
         line = data.count(b"\n", 0, err.start) + 1
-        raise ConfigError(file, [f"line {line}: not UTF-8 text ({err.reason} at byte {err.start}); "
-                                 "save the file as UTF-8"]) from None
+        raise ConfigError(
+            file, [f"line {line}: not UTF-8 text ({err.reason} at byte {err.start}); save the file as UTF-8"]
+        ) from None
 
 
 def _read_default(path: Path | str | None, default: Path, option: str) -> tuple[str, str]:
     if path is not None or default.is_file():
         return _read(path or default)
-    raise ConfigError(str(default), [f"the default file is not there: give {option} FILE, set {HOME_ENV} to a "
-                                     "folder made by `orbitrig init DIR`, or run in such a folder"])
+    raise ConfigError(
+        str(default),
+        [
+            f"the default file is not there: give {option} FILE, set {HOME_ENV} to a "
+            "folder made by `orbitrig init DIR`, or run in such a folder"
+        ],
+    )
 
 
 def load_rig(path: Path | str | None = None) -> RigConfig:
@@ -129,7 +179,9 @@ def rig_from_text(text: str, file: str = "<rig config>", record_text: str | None
         return rig
     if record_text is None:
         beside = folder_of(file) if Path(file).is_file() else None
-        folder = beside if beside is not None and (beside / f"{name}.toml").is_file() else shipped_config() / "calibration"
+        folder = (
+            beside if beside is not None and (beside / f"{name}.toml").is_file() else shipped_config() / "calibration"
+        )
         record, record_text = read_record(folder, name)
     else:
         record = record_from_text(record_text, f"{file}: calibration record {name}")
@@ -158,7 +210,9 @@ def check_matrix_against_rig(matrix: MatrixConfig, rig: RigConfig) -> None:
     d = rig.drives
     text = matrix.text
     spin_at = _line_of(text, ("operating", "spin_rpm"))
-    ratio_at = _line_of(text, ("orbit", "ratios")) or _line_of(text, ("orbit", "ratio_stop")) or _line_of(text, ("orbit",))
+    ratio_at = (
+        _line_of(text, ("orbit", "ratios")) or _line_of(text, ("orbit", "ratio_stop")) or _line_of(text, ("orbit",))
+    )
     at_spin = f"line {spin_at}: " if spin_at else ""
     at_ratio = f"line {ratio_at}: " if ratio_at else ""
     for rpm in matrix.operating.spin_rpm:

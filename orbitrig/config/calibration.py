@@ -68,6 +68,13 @@ class CalibrationUncertainty(_Model):
 
     def channel(self, name: str) -> ChannelUncertainty:
         """The uncertainty of channel ``name`` (one of CHANNEL_NAMES)."""
-        return {"fx_piezo": self.fx_piezo, "fy_piezo": self.fy_piezo, "fx_strain": self.fx_strain,
-                "fy_strain": self.fy_strain, "x_a": self.x_a, "y_a": self.y_a, "x_b": self.x_b,
-                "y_b": self.y_b}[name]
+        return {
+            "fx_piezo": self.fx_piezo,
+            "fy_piezo": self.fy_piezo,
+            "fx_strain": self.fx_strain,
+            "fy_strain": self.fy_strain,
+            "x_a": self.x_a,
+            "y_a": self.y_a,
+            "x_b": self.x_b,
+            "y_b": self.y_b,
+        }[name]

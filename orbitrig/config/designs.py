@@ -39,8 +39,9 @@ def _read_design(path: Path) -> tuple[dict | None, str | None]:
         data = tomllib.loads(path.read_bytes().decode("utf-8"))
     except FileNotFoundError:
         known = known_names(DESIGNS)
-        return None, f"no design file {path}" + (f" (designs: {', '.join(known)})" if known else
-                                                 "; write one with `orbitrig design ... --save NAME`")
+        return None, f"no design file {path}" + (
+            f" (designs: {', '.join(known)})" if known else "; write one with `orbitrig design ... --save NAME`"
+        )
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, RecursionError) as err:
         return None, f"design file {path} cannot be read: {err}"
     ratios = data.get("ratios")
@@ -48,10 +49,13 @@ def _read_design(path: Path) -> tuple[dict | None, str | None]:
         return None, f"design file {path}: 'ratios' must be a non-empty list of numbers > 0"
     for key, ok, what in _PER_RATIO:
         values = data.get(key)
-        if values is not None and not (isinstance(values, list) and len(values) == len(ratios)
-                                       and all(ok(v) for v in values)):
-            return None, (f"design file {path}: '{key}' must be a list of {len(ratios)} {what}, "
-                          f"one per entry of 'ratios' (got {values!r:.60})")
+        if values is not None and not (
+            isinstance(values, list) and len(values) == len(ratios) and all(ok(v) for v in values)
+        ):
+            return None, (
+                f"design file {path}: '{key}' must be a list of {len(ratios)} {what}, "
+                f"one per entry of 'ratios' (got {values!r:.60})"
+            )
     return data, None
 
 
@@ -61,8 +65,11 @@ def _number(v) -> bool:
 
 #: per-ratio keys of a design file: (key, check of one value, what the values must be)
 _PER_RATIO = (
-    ("revolutions", lambda v: isinstance(v, int) and not isinstance(v, bool) and 2 <= v <= 10_000,
-     "whole numbers 2..10000"),
+    (
+        "revolutions",
+        lambda v: isinstance(v, int) and not isinstance(v, bool) and 2 <= v <= 10_000,
+        "whole numbers 2..10000",
+    ),
     ("target_pct", lambda v: _number(v) and 0 < v < 100, "numbers between 0 and 100 (percent)"),
 )
 
@@ -78,7 +85,9 @@ def apply_design(data: dict, file: str) -> list[str]:
     if not isinstance(name, str) or not name.strip():
         return ["key 'orbit.design': a design name (config/designs/NAME.toml) or FILE.toml"]
     if any(k in orbit for k in _SPEC_KEYS):
-        return ["key 'orbit': give 'design' or the ratios ('ratios', or 'ratio_start', 'ratio_stop', 'count'), not both"]
+        return [
+            "key 'orbit': give 'design' or the ratios ('ratios', or 'ratio_start', 'ratio_stop', 'count'), not both"
+        ]
     design, problem = _read_design(design_path(name, file))
     if problem:
         return [f"key 'orbit.design': {problem}"]
@@ -88,7 +97,11 @@ def apply_design(data: dict, file: str) -> list[str]:
     if "revolutions" in design and "revolutions" not in orbit and "revolutions" not in data:
         orbit["revolutions"] = list(design["revolutions"])
     averaging = data.get("averaging")
-    if ("target_pct" in design and "target_pct" not in orbit and isinstance(averaging, dict)
-            and "target_pct" not in averaging):
+    if (
+        "target_pct" in design
+        and "target_pct" not in orbit
+        and isinstance(averaging, dict)
+        and "target_pct" not in averaging
+    ):
         orbit["target_pct"] = [float(v) for v in design["target_pct"]]
     return []

@@ -20,8 +20,14 @@ MOSQUITTO = "mosquitto"
 CALIBRATION = "calibration"
 _BROKER_FILES = ("acl", "passwd.example", "README.md")
 # mosquitto.conf keys that name a file (or folder) of the broker, and the file they name
-_BROKER_PATHS = {"password_file": "passwd", "acl_file": "acl", "cafile": "ca.crt",
-                 "certfile": "broker.crt", "keyfile": "broker.key", "persistence_location": "data/"}
+_BROKER_PATHS = {
+    "password_file": "passwd",
+    "acl_file": "acl",
+    "cafile": "ca.crt",
+    "certfile": "broker.crt",
+    "keyfile": "broker.key",
+    "persistence_location": "data/",
+}
 _CALIBRATION_README = """\
 # Calibration records
 
@@ -39,8 +45,9 @@ def write_lab(folder: Path, broker_dir: Path | None = None, force: bool = False)
     Raises ConfigError if ``folder`` already holds a rig.toml and ``force`` is false."""
     folder = Path(folder)
     if (folder / RIG_FILE).exists() and not force:
-        raise ConfigError(str(folder / RIG_FILE), ["already there: a lab configuration exists in this folder "
-                                                   "(--force overwrites it)"])
+        raise ConfigError(
+            str(folder / RIG_FILE), ["already there: a lab configuration exists in this folder (--force overwrites it)"]
+        )
     shipped = shipped_config()
     written = [_copy(shipped / RIG_FILE, folder / RIG_FILE)]
     for kind in (MATRICES, DESIGNS):
@@ -57,6 +64,7 @@ def write_lab(folder: Path, broker_dir: Path | None = None, force: bool = False)
 
 def broker_conf(text: str, broker: Path) -> str:
     """The shipped mosquitto.conf with every file it names in the folder ``broker``."""
+
     def repoint(match: re.Match) -> str:
         name = _BROKER_PATHS[match["key"]]
         target = str(broker / name) + ("/" if name.endswith("/") else "")

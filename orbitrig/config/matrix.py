@@ -65,11 +65,14 @@ class Orbit(_Model):
             return values
         ratios = info.data["ratios"]
         if ratios is None:
-            raise ValueError("gives one value per entry of 'ratios': it needs 'ratios' (or a design), "
-                             "not 'ratio_start', 'ratio_stop', 'count'")
+            raise ValueError(
+                "gives one value per entry of 'ratios': it needs 'ratios' (or a design), "
+                "not 'ratio_start', 'ratio_stop', 'count'"
+            )
         if len(values) != len(ratios):
-            raise ValueError(f"has {len(values)} values and 'ratios' {len(ratios)}: give one per ratio, "
-                             "in the order of 'ratios'")
+            raise ValueError(
+                f"has {len(values)} values and 'ratios' {len(ratios)}: give one per ratio, in the order of 'ratios'"
+            )
         return values
 
     @model_validator(mode="after")
@@ -81,14 +84,15 @@ class Orbit(_Model):
         if self.ratios is None and any(v is None for v in rng):
             problems.append("give 'ratios' (a list) or all of 'ratio_start', 'ratio_stop', 'count'")
         if self.ratios is not None and len(self.ratios) < MIN_RATIOS:
-            problems.append(f"'ratios' has {len(self.ratios)} value(s): give at least {MIN_RATIOS} orbit frequencies "
-                            "(one cannot separate the stiffness K from the added mass D or a frequency dependence)")
+            problems.append(
+                f"'ratios' has {len(self.ratios)} value(s): give at least {MIN_RATIOS} orbit frequencies "
+                "(one cannot separate the stiffness K from the added mass D or a frequency dependence)"
+            )
         if self.ratios is not None and len(set(self.ratios)) != len(self.ratios):
             problems.append("'ratios' has repeated values")
         if len(set(self.directions)) != len(self.directions):
             problems.append("'directions' has repeated values")
-        if (self.count is not None and self.count > 1 and None not in rng
-                and self.ratio_start >= self.ratio_stop):
+        if self.count is not None and self.count > 1 and None not in rng and self.ratio_start >= self.ratio_stop:
             problems.append("ratio_start must be smaller than ratio_stop")
         if problems:
             raise ValueError("; ".join(problems))
@@ -155,8 +159,9 @@ class MatrixAveraging(_Model):
     @model_validator(mode="after")
     def _order(self):
         if self.min_revolutions > self.max_revolutions:
-            raise ValueError(f"min_revolutions ({self.min_revolutions}) must not exceed "
-                             f"max_revolutions ({self.max_revolutions})")
+            raise ValueError(
+                f"min_revolutions ({self.min_revolutions}) must not exceed max_revolutions ({self.max_revolutions})"
+            )
         return self
 
 
@@ -182,8 +187,10 @@ class MatrixConfig(_Model):
     def _one_fixed_count(cls, v, info: ValidationInfo):
         orbit = info.data.get("orbit")
         if v is not None and orbit is not None and orbit.revolutions is not None:
-            raise ValueError("give the top-level 'revolutions' (one count for every block) or 'orbit.revolutions' "
-                             "(one per ratio), not both")
+            raise ValueError(
+                "give the top-level 'revolutions' (one count for every block) or 'orbit.revolutions' "
+                "(one per ratio), not both"
+            )
         return v
 
     @field_validator("averaging")
@@ -195,13 +202,16 @@ class MatrixConfig(_Model):
         if a is not None and info.data.get("revolutions") is not None:
             problems.append("give 'revolutions' (a fixed count) or an [averaging] table (adaptive), not both")
         if a is None and targets is not None:
-            problems.append("'orbit.target_pct' (adaptive targets per ratio) needs an [averaging] table "
-                            "(min_revolutions, max_revolutions)")
+            problems.append(
+                "'orbit.target_pct' (adaptive targets per ratio) needs an [averaging] table "
+                "(min_revolutions, max_revolutions)"
+            )
         if a is not None and a.target_pct is not None and targets is not None:
             problems.append("give 'averaging.target_pct' (one target) or 'orbit.target_pct' (one per ratio), not both")
         if a is not None and a.target_pct is None and targets is None and orbit is not None:
-            problems.append("[averaging] needs a target: 'averaging.target_pct' (percent) or 'orbit.target_pct' "
-                            "(one per ratio)")
+            problems.append(
+                "[averaging] needs a target: 'averaging.target_pct' (percent) or 'orbit.target_pct' (one per ratio)"
+            )
         if problems:
             raise ValueError("; ".join(problems))
         return a
@@ -213,8 +223,10 @@ class MatrixConfig(_Model):
         if orbit is None:
             return v
         if orbit.sequential and v is None:
-            raise ValueError("'orbit.sequential = true' needs a [sequential] table: 'target_pct' or 'match_ratios', "
-                             "'cap_s' (rig seconds per point)")
+            raise ValueError(
+                "'orbit.sequential = true' needs a [sequential] table: 'target_pct' or 'match_ratios', "
+                "'cap_s' (rig seconds per point)"
+            )
         if v is not None and not orbit.sequential:
             raise ValueError("a [sequential] table needs 'orbit.sequential = true'")
         return v

@@ -53,6 +53,7 @@ def _skipped(part) -> bool:
     text = str(part)
     return text in _LOC_SKIP_NAMES or text.startswith(_LOC_SKIP_PREFIXES)
 
+
 _HEADER = re.compile(r"^\s*(\[\[?)\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
 _KEY = re.compile(r"^\s*([A-Za-z0-9_\-\"']+)\s*=")
 

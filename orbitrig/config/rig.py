@@ -11,7 +11,15 @@ from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_
 
 from orbitrig.config.calibration import CalibrationUncertainty
 from orbitrig.config.fields import (
-    CHANNEL_NAMES, RPM, DeviceId, Mpa, Ratio, Rpm, Seconds, Wait, _Model,
+    CHANNEL_NAMES,
+    RPM,
+    DeviceId,
+    Mpa,
+    Ratio,
+    Rpm,
+    Seconds,
+    Wait,
+    _Model,
 )
 
 
@@ -22,8 +30,9 @@ class Transports(_Model):
     can_channel: str = "can0"
     # python-can interface names: socketcan on a Linux rig, serial/slcan for USB
     # adapters, virtual for in-process tests
-    can_interface: Literal["socketcan", "serial", "slcan", "pcan", "kvaser", "ixxat",
-                           "vector", "socketcand", "virtual"] = "socketcan"
+    can_interface: Literal[
+        "socketcan", "serial", "slcan", "pcan", "kvaser", "ixxat", "vector", "socketcand", "virtual"
+    ] = "socketcan"
     can_bitrate: Annotated[int, Field(gt=0, le=10_000_000)] = 500_000
     can_node_id: Annotated[int, Field(ge=1, le=127)] = 1
 
@@ -57,8 +66,10 @@ class Channel(_Model):
         if gain < 0 and not signed:
             raise ValueError(f"gain {gain:g} {unit} per count: a displacement probe's gain must be positive")
         if not low <= abs(gain) <= high:
-            raise ValueError(f"gain {gain:g} {unit} per count is not physical: |gain| between {low:g} and "
-                             f"{high:g} {unit} per count (full scale {low * 32768:.3g}..{high * 32768:.3g} {unit})")
+            raise ValueError(
+                f"gain {gain:g} {unit} per count is not physical: |gain| between {low:g} and "
+                f"{high:g} {unit} per count (full scale {low * 32768:.3g}..{high * 32768:.3g} {unit})"
+            )
         return gain
 
     @field_validator("offset")
@@ -91,11 +102,15 @@ class Drives(_Model):
     spin_id: DeviceId = 1
     orbit_id: DeviceId = 2
     poll_interval_s: Annotated[float, Field(gt=0, le=60)] = 0.1
-    timeout_s: Annotated[float, Field(gt=0, le=60)] = 0.15  # Modbus request timeout, s (an RTU exchange at 19200 baud takes ~20 ms)
+    timeout_s: Annotated[float, Field(gt=0, le=60)] = (
+        0.15  # Modbus request timeout, s (an RTU exchange at 19200 baud takes ~20 ms)
+    )
     # consecutive failed polls that declare the drive link lost (the sweep's drive_link interlock)
     link_loss_polls: Annotated[int, Field(ge=1, le=100)] = 3
     comm_loss_timeout_s: Annotated[float, Field(gt=0, le=3_600)] = 1.0  # the drives' own COMM_LOSS_TIMEOUT
-    ramp_rpm_per_s: Annotated[float, Field(gt=0, le=1e6)] = Field(600.0, description="drive ramp rate, for time estimates")
+    ramp_rpm_per_s: Annotated[float, Field(gt=0, le=1e6)] = Field(
+        600.0, description="drive ramp rate, for time estimates"
+    )
     stop_timeout_s: Annotated[float, Field(gt=0, le=3_600)] = 30.0
 
     @property
@@ -110,14 +125,21 @@ class Drives(_Model):
         if self.spin_id == self.orbit_id:
             raise ValueError("spin_id and orbit_id must differ")
         t, wd = self.link_loss_time_s, self.comm_loss_timeout_s
-        what = (f"link_loss_polls {self.link_loss_polls} x (poll_interval_s {self.poll_interval_s:g} + "
-                f"timeout_s {self.timeout_s:g}) = {t:.2f} s")
+        what = (
+            f"link_loss_polls {self.link_loss_polls} x (poll_interval_s {self.poll_interval_s:g} + "
+            f"timeout_s {self.timeout_s:g}) = {t:.2f} s"
+        )
         if t >= wd:
-            raise ValueError(f"{what} is not below comm_loss_timeout_s = {wd:g} s: the drives would "
-                             "stop on their own watchdog before the link loss is declared")
+            raise ValueError(
+                f"{what} is not below comm_loss_timeout_s = {wd:g} s: the drives would "
+                "stop on their own watchdog before the link loss is declared"
+            )
         if t > LINK_LOSS_MARGIN * wd:
-            warnings.warn(f"[drives] {what} is close to comm_loss_timeout_s = {wd:g} s "
-                          f"(keep it under {LINK_LOSS_MARGIN:g} x)", UserWarning, stacklevel=2)
+            warnings.warn(
+                f"[drives] {what} is close to comm_loss_timeout_s = {wd:g} s (keep it under {LINK_LOSS_MARGIN:g} x)",
+                UserWarning,
+                stacklevel=2,
+            )
         return self
 
 

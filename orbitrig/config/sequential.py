@@ -73,17 +73,26 @@ def candidate_problems(matrix: MatrixConfig, rig: RigConfig) -> list[str]:
         for r in ratios or ():
             top = max(matrix.operating.spin_rpm) * r
             if d.min_ratio is not None and r < d.min_ratio:
-                problems.append(f"key 'sequential.{key}': ratio {r:g} is below the rig's drives.min_ratio = {d.min_ratio:g}")
+                problems.append(
+                    f"key 'sequential.{key}': ratio {r:g} is below the rig's drives.min_ratio = {d.min_ratio:g}"
+                )
             if d.max_ratio is not None and r > d.max_ratio:
-                problems.append(f"key 'sequential.{key}': ratio {r:g} is above the rig's drives.max_ratio = {d.max_ratio:g}")
+                problems.append(
+                    f"key 'sequential.{key}': ratio {r:g} is above the rig's drives.max_ratio = {d.max_ratio:g}"
+                )
             if top > d.max_orbit_rpm:
-                problems.append(f"key 'sequential.{key}': ratio {r:g} gives {top:g} rpm orbit, above the rig's "
-                                f"drives.max_orbit_rpm = {d.max_orbit_rpm:g}")
+                problems.append(
+                    f"key 'sequential.{key}': ratio {r:g} gives {top:g} rpm orbit, above the rig's "
+                    f"drives.max_orbit_rpm = {d.max_orbit_rpm:g}"
+                )
             if key == "candidates" and abs(r - 1.0) < RUNOUT_KEEP_AWAY - 1e-9:
-                problems.append(f"key 'sequential.candidates': ratio {r:g} is within {RUNOUT_KEEP_AWAY:g} of "
-                                "Omega/omega = 1 (the orbit cannot be told from the spindle's runout)")
+                problems.append(
+                    f"key 'sequential.candidates': ratio {r:g} is within {RUNOUT_KEEP_AWAY:g} of "
+                    "Omega/omega = 1 (the orbit cannot be told from the spindle's runout)"
+                )
     for rpm in matrix.operating.spin_rpm:
         if s.candidates is None and not band_candidates(rig, rpm):
-            problems.append(f"key 'sequential': no candidate ratio in the drives' band at {rpm:g} rpm; "
-                            "give 'sequential.candidates'")
+            problems.append(
+                f"key 'sequential': no candidate ratio in the drives' band at {rpm:g} rpm; give 'sequential.candidates'"
+            )
     return problems

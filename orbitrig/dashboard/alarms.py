@@ -76,8 +76,11 @@ class AlarmBook:
             self._bound()
             return True
         if str(status.get("message") or "").startswith(CLEARED) or status.get("state") == RunState.IDLE:
-            stale = [a for a in self.alarms.values()
-                     if a.kind == AlarmKind.TRIP and not a.cleared and a.run_id == status.get("run_id")]
+            stale = [
+                a
+                for a in self.alarms.values()
+                if a.kind == AlarmKind.TRIP and not a.cleared and a.run_id == status.get("run_id")
+            ]
             for a in stale:
                 a.cleared = True
             return bool(stale)

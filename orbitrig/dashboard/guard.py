@@ -72,7 +72,7 @@ class RequestDeadline(asyncio.Protocol):
                 if len(self.head) > MAX_HEAD:
                     self._stop_watching()
                 return
-            head, rest = bytes(self.head[:end]), bytes(self.head[end + 4:])
+            head, rest = bytes(self.head[:end]), bytes(self.head[end + 4 :])
             self.head.clear()
             if _UNWATCHED.search(head):
                 self._stop_watching()

@@ -115,8 +115,7 @@ async def login(request: web.Request) -> web.Response:
     sessions[session.token] = session
     log.info("%r signed in (%d sessions)", user, len(sessions))
     response = web.json_response({"user": user, "prefix": session.topics.prefix})
-    response.set_cookie(COOKIE, session.token, httponly=True, samesite="Strict", path="/",
-                        secure=request.secure)
+    response.set_cookie(COOKIE, session.token, httponly=True, samesite="Strict", path="/", secure=request.secure)
     return response
 
 
@@ -124,7 +123,7 @@ def _oldest_beyond_cap(app: web.Application, user: str) -> list[Session]:
     """The sessions of `user` to end so that a new one keeps them within sessions_per_user
     (the oldest first: the sessions dict keeps the sign-in order)."""
     own = [s for s in app[SESSIONS].values() if s.user == user]
-    return own[:max(0, len(own) - app[SETTINGS].sessions_per_user + 1)]
+    return own[: max(0, len(own) - app[SETTINGS].sessions_per_user + 1)]
 
 
 async def logout(request: web.Request) -> web.Response:
@@ -275,17 +274,26 @@ def make_app(settings: DashboardSettings) -> web.Application:
     return app
 
 
-async def serve(settings: DashboardSettings, host: str, port: int, shutdown: asyncio.Event, *,
-                ssl_context: Any = None) -> None:
+async def serve(
+    settings: DashboardSettings, host: str, port: int, shutdown: asyncio.Event, *, ssl_context: Any = None
+) -> None:
     """Serve until ``shutdown`` is set (HTTPS with ``ssl_context``)."""
     runner = web.AppRunner(make_app(settings), access_log=None, keepalive_timeout=KEEPALIVE_S)
     await runner.setup()
     handler = runner.server
     assert handler is not None
     server = await asyncio.get_running_loop().create_server(
-        lambda: RequestDeadline(handler(), settings.request_timeout), host, port, ssl=ssl_context)
-    log.info("dashboard on %s://%s:%d/ (broker %s:%d, topics %s/#)", "https" if ssl_context else "http", host,
-             port, settings.host, settings.port, settings.topics.prefix)
+        lambda: RequestDeadline(handler(), settings.request_timeout), host, port, ssl=ssl_context
+    )
+    log.info(
+        "dashboard on %s://%s:%d/ (broker %s:%d, topics %s/#)",
+        "https" if ssl_context else "http",
+        host,
+        port,
+        settings.host,
+        settings.port,
+        settings.topics.prefix,
+    )
     try:
         await shutdown.wait()
     finally:

@@ -37,8 +37,15 @@ from orbitrig.service.reconnect import credentials_refused, reconnecting
 log = logging.getLogger("orbitrig.dashboard")
 
 #: Commands the page may send and the fields each takes besides ``cmd``.
-PAGE_COMMANDS = {"start": ("matrix",), "pause": (), "resume": (), "stop": (), "abort": (),
-                 "confirm": ("step",), "status": ()}
+PAGE_COMMANDS = {
+    "start": ("matrix",),
+    "pause": (),
+    "resume": (),
+    "stop": (),
+    "abort": (),
+    "confirm": ("step",),
+    "status": (),
+}
 NOT_AUTHORISED = "refused: not authorised"
 TREND_RESEND = 300  # the run's trend view (thinned by the server) goes to the pages again every this many samples
 
@@ -175,9 +182,17 @@ class Session:
 
         s = self.settings
         tls = aiomqtt.TLSParameters(ca_certs=str(s.tls_ca) if s.tls_ca else None) if s.tls else None
-        return aiomqtt.Client(s.host, s.port, username=self.user, password=self.__password,
-                              identifier=f"mosq-orbitrig-dashboard-{self.user}-{self.token[:8]}",
-                              clean_session=True, keepalive=s.keepalive, timeout=10, tls_params=tls)
+        return aiomqtt.Client(
+            s.host,
+            s.port,
+            username=self.user,
+            password=self.__password,
+            identifier=f"mosq-orbitrig-dashboard-{self.user}-{self.token[:8]}",
+            clean_session=True,
+            keepalive=s.keepalive,
+            timeout=10,
+            tls_params=tls,
+        )
 
     async def open(self) -> None:
         """Connect as the user; raises SignInRefused (wrong credentials, no broker)."""
@@ -210,9 +225,14 @@ class Session:
             self._client = None
             refused = credentials_refused(err)
             if not first.done():
-                first.set_exception(SignInRefused(
-                    "refused: wrong user name or password" if refused
-                    else f"cannot reach the broker {self.settings.host}:{self.settings.port}", refused))
+                first.set_exception(
+                    SignInRefused(
+                        "refused: wrong user name or password"
+                        if refused
+                        else f"cannot reach the broker {self.settings.host}:{self.settings.port}",
+                        refused,
+                    )
+                )
                 self.closed = True
             elif refused:
                 log.warning("broker no longer accepts %r: session ended", self.user)
@@ -292,10 +312,14 @@ class Session:
 
     def snapshot(self) -> list[dict]:
         """What a newly connected page needs to draw the present at once."""
-        out: list[dict] = [{"type": "hello", "user": self.user, "prefix": self.topics.prefix},
-                           {"type": "link", "link": self.link}, {"type": "rigs", "data": self.rigs.listing()}]
-        out += [{"type": k, "data": v} for k, v in (("status", self.status), ("progress", self.progress))
-                if v is not None]
+        out: list[dict] = [
+            {"type": "hello", "user": self.user, "prefix": self.topics.prefix},
+            {"type": "link", "link": self.link},
+            {"type": "rigs", "data": self.rigs.listing()},
+        ]
+        out += [
+            {"type": k, "data": v} for k, v in (("status", self.status), ("progress", self.progress)) if v is not None
+        ]
         out += [{"type": "result", "data": r} for r in self.results]
         out.append({"type": "trend_history", "data": self.trend.history()})
         out.append({"type": "alarms", "data": self.alarms.listing()})
@@ -325,9 +349,12 @@ class Session:
         self._pending[cid] = fut
         t0 = time.monotonic()
         try:
-            await client.publish(topics.abort if name in proto.ALWAYS_ACCEPTED else topics.cmd,
-                                 json.dumps({**body, "id": cid}),
-                                 qos=proto.QOS_CMD, timeout=self.settings.reply_timeout)
+            await client.publish(
+                topics.abort if name in proto.ALWAYS_ACCEPTED else topics.cmd,
+                json.dumps({**body, "id": cid}),
+                qos=proto.QOS_CMD,
+                timeout=self.settings.reply_timeout,
+            )
             reply = await asyncio.wait_for(fut, self.settings.reply_timeout)
         except (TimeoutError, asyncio.TimeoutError):
             return {"ok": False, "error": self._no_reply(name)}
@@ -335,8 +362,13 @@ class Session:
             return {"ok": False, "error": f"{name} not sent: {err}"}
         finally:
             self._pending.pop(cid, None)
-        log.info("%s by %r: %s (%.0f ms)", name, self.user, "ok" if reply.get("ok") else reply.get("error"),
-                 (time.monotonic() - t0) * 1e3)
+        log.info(
+            "%s by %r: %s (%.0f ms)",
+            name,
+            self.user,
+            "ok" if reply.get("ok") else reply.get("error"),
+            (time.monotonic() - t0) * 1e3,
+        )
         return {"ok": bool(reply.get("ok")), "error": reply.get("error")}
 
     async def acknowledge(self, alarm_id: str) -> dict:
@@ -358,8 +390,11 @@ class Session:
             await client.publish(self.topics.ack, json.dumps(body), qos=1, timeout=self.settings.reply_timeout)
             await asyncio.wait_for(fut, self.settings.reply_timeout)
         except (TimeoutError, asyncio.TimeoutError):
-            return {"ok": False, "error": f"{NOT_AUTHORISED}: acknowledge — user {self.user!r} may not "
-                                          "acknowledge alarms of this rig (the broker dropped it)"}
+            return {
+                "ok": False,
+                "error": f"{NOT_AUTHORISED}: acknowledge — user {self.user!r} may not "
+                "acknowledge alarms of this rig (the broker dropped it)",
+            }
         except Exception as err:  # noqa: BLE001 - aiomqtt errors: the link went away
             return {"ok": False, "error": f"acknowledge not sent: {err}"}
         finally:
@@ -371,5 +406,7 @@ class Session:
         if self.status is not None and self.status.get("state") == proto.OFFLINE:
             return f"{name}: no reply: the rig service is offline"
         log.info("%s by %r: no reply within %.1f s (ACL)", name, self.user, self.settings.reply_timeout)
-        return (f"{NOT_AUTHORISED}: {name} — user {self.user!r} may not command this rig "
-                "(the broker dropped the command; no reply from the rig service)")
+        return (
+            f"{NOT_AUTHORISED}: {name} — user {self.user!r} may not command this rig "
+            "(the broker dropped the command; no reply from the rig service)"
+        )

@@ -68,8 +68,10 @@ class SignInThrottle:
         for key in (("user", user), ("address", address)):
             wait, locked = self._wait_of(key, now)
             if locked:
-                return (f"too many refused sign-ins for {'this user' if key[0] == 'user' else 'this address'}: "
-                        f"locked for {math.ceil(wait)} s more (lockout {self.policy.lockout:g} s)")
+                return (
+                    f"too many refused sign-ins for {'this user' if key[0] == 'user' else 'this address'}: "
+                    f"locked for {math.ceil(wait)} s more (lockout {self.policy.lockout:g} s)"
+                )
             if wait > 0:
                 return f"too many refused sign-ins: try again in {wait:.1f} s"
         return None

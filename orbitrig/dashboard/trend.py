@@ -21,11 +21,27 @@ from typing import Any
 
 #: The quantities of a sample: name -> (where in the live payload, key).
 TREND_KEYS: dict[str, tuple[str, ...]] = {
-    "spin_rpm": ("drives", "spin", "actual_rpm"), "spin_set_rpm": ("drives", "spin", "reference_rpm"),
-    "orbit_rpm": ("drives", "orbit", "actual_rpm"), "orbit_set_rpm": ("drives", "orbit", "reference_rpm"),
-    "torque_spin": ("drives", "spin", "torque_pct"), "torque_orbit": ("drives", "orbit", "torque_pct"),
-    **{k: ("aux", k) for k in ("p_supply", "p_recess_1", "p_recess_2", "p_recess_3", "p_recess_4",
-                               "t_supply", "t_recess", "t_groove", "flow", "beta")},
+    "spin_rpm": ("drives", "spin", "actual_rpm"),
+    "spin_set_rpm": ("drives", "spin", "reference_rpm"),
+    "orbit_rpm": ("drives", "orbit", "actual_rpm"),
+    "orbit_set_rpm": ("drives", "orbit", "reference_rpm"),
+    "torque_spin": ("drives", "spin", "torque_pct"),
+    "torque_orbit": ("drives", "orbit", "torque_pct"),
+    **{
+        k: ("aux", k)
+        for k in (
+            "p_supply",
+            "p_recess_1",
+            "p_recess_2",
+            "p_recess_3",
+            "p_recess_4",
+            "t_supply",
+            "t_recess",
+            "t_groove",
+            "flow",
+            "beta",
+        )
+    },
 }
 
 

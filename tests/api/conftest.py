@@ -23,13 +23,35 @@ def sim_run(tmp_path_factory) -> Path:
     matrix.write_text(text.replace('name = "demo"', 'name = "small"\nrevolutions = 10'))
     rig = tmp / "rig.toml"
     text = (ROOT / "config" / "rig.toml").read_text()
-    rig.write_text(text.replace("timeout_s = 0.15", "timeout_s = 0.3").replace("link_loss_polls = 3", "link_loss_polls = 2"))
+    rig.write_text(
+        text.replace("timeout_s = 0.15", "timeout_s = 0.3").replace("link_loss_polls = 3", "link_loss_polls = 2")
+    )
     env = {**os.environ, "PYTHONPATH": str(ROOT), "COLUMNS": "200"}
     for attempt in ("run", "run2"):  # a drive answer lost under heavy load: one retry, as a person would
-        done = subprocess.run([sys.executable, "-m", "orbitrig", "sweep", "--sim", "--sim-config", "clean",
-                               "--speedup", "10", "--config", str(rig), "--matrix", str(matrix),
-                               "--out", str(tmp / attempt)],
-                              cwd=ROOT, env=env, capture_output=True, text=True, timeout=180)
+        done = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "orbitrig",
+                "sweep",
+                "--sim",
+                "--sim-config",
+                "clean",
+                "--speedup",
+                "10",
+                "--config",
+                str(rig),
+                "--matrix",
+                str(matrix),
+                "--out",
+                str(tmp / attempt),
+            ],
+            cwd=ROOT,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=180,
+        )
         if done.returncode == 0 or _point_complete(tmp / attempt / "run.h5"):  # a trip while stopping at the end
             return tmp / attempt
     raise AssertionError(done.stderr[-3000:])

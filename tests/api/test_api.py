@@ -34,12 +34,20 @@ def h5(sim_run):
 
 
 def test_import_is_cheap_and_plain_access_needs_no_pandas(sim_run):
-    code = ("import sys, orbitrig; heavy = ('pandas', 'xarray', 'h5py', 'scipy', 'matplotlib');"
-            "print(sorted(m for m in heavy if m in sys.modules));"
-            f"r = orbitrig.open_run({str(sim_run)!r}); n = len(r.fits());"
-            "print(n, sorted(m for m in ('pandas', 'xarray') if m in sys.modules))")
-    out = subprocess.run([sys.executable, "-c", code], env={**os.environ, "PYTHONPATH": str(ROOT)},
-                         capture_output=True, text=True, timeout=60, check=True).stdout.splitlines()
+    code = (
+        "import sys, orbitrig; heavy = ('pandas', 'xarray', 'h5py', 'scipy', 'matplotlib');"
+        "print(sorted(m for m in heavy if m in sys.modules));"
+        f"r = orbitrig.open_run({str(sim_run)!r}); n = len(r.fits());"
+        "print(n, sorted(m for m in ('pandas', 'xarray') if m in sys.modules))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    ).stdout.splitlines()
     assert out == ["[]", "4 []"]
 
 

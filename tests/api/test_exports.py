@@ -34,13 +34,21 @@ def stored(sim_run):
     with h5py.File(sim_run / "run.h5", "r") as f:
         g = f[f"points/0000/identification/{FIT}"]
         return {
-            "names": list(g["names"].asstr()[()]), "value": g["coefficients"][()], "std": g["std_errors"][()],
-            "U": g["uncertainty/expanded"][()], "combined": g["uncertainty/combined"][()],
-            "cov": g["covariance"][()], "cov_names": list(g["covariance"].attrs["names"]),
-            "c_eff_xx": g["derived/c_eff_xx"][()], "K0": f["points/0000/truth/fits/constant/K"][()],
-            "mean": f["points/0000/frequencies/03_bwd/mean"][()], "fx": f["points/0000/table/piezo/fx"][()],
-            "version": f.attrs["software_version"], "truth_orbit": f["points/0000/truth/orbit"][()],
-            "phasors": f["points/0000/frequencies/03_bwd/phasors"][()], "Z": f["points/0000/truth/Z"][()],
+            "names": list(g["names"].asstr()[()]),
+            "value": g["coefficients"][()],
+            "std": g["std_errors"][()],
+            "U": g["uncertainty/expanded"][()],
+            "combined": g["uncertainty/combined"][()],
+            "cov": g["covariance"][()],
+            "cov_names": list(g["covariance"].attrs["names"]),
+            "c_eff_xx": g["derived/c_eff_xx"][()],
+            "K0": f["points/0000/truth/fits/constant/K"][()],
+            "mean": f["points/0000/frequencies/03_bwd/mean"][()],
+            "fx": f["points/0000/table/piezo/fx"][()],
+            "version": f.attrs["software_version"],
+            "truth_orbit": f["points/0000/truth/orbit"][()],
+            "phasors": f["points/0000/frequencies/03_bwd/phasors"][()],
+            "Z": f["points/0000/truth/Z"][()],
             "events": f["logs/events"][()],
         }
 
@@ -100,7 +108,10 @@ def test_tdms(exported, stored):
     coef = tdms["coefficients"]
     k = stored["names"].index("Kxy")
     # the columns of coefficients.csv, U printed to 6 significant digits there
-    assert np.isclose(coef["Kxy_U"][:], stored["U"][k], rtol=1e-5).any() and coef["Kxy_U"].properties["unit_string"] == "N/m"
+    assert (
+        np.isclose(coef["Kxy_U"][:], stored["U"][k], rtol=1e-5).any()
+        and coef["Kxy_U"].properties["unit_string"] == "N/m"
+    )
     _units_parse(c.properties["unit_string"] for g in tdms.groups() for c in g.channels())
 
 
@@ -147,8 +158,15 @@ def test_h5_export_is_run_h5_in_the_layout_octave_reads(exported, stored, tmp_pa
         counts = {"attributes": 0, "mirrored": 0}
         f.visititems(lambda name, obj: _octave_readable(name, obj, counts))
         assert counts["mirrored"] == counts["attributes"] + len(f.attrs) > 2000
-        for name in ("", "points/0000", "points/0000/table/piezo", "points/0000/table/piezo/fx", "logs/events",
-                     f"points/0000/identification/{FIT}", f"points/0000/identification/{FIT}/coefficients"):
+        for name in (
+            "",
+            "points/0000",
+            "points/0000/table/piezo",
+            "points/0000/table/piezo/fx",
+            "logs/events",
+            f"points/0000/identification/{FIT}",
+            f"points/0000/identification/{FIT}/coefficients",
+        ):
             _same_attributes(f, name)
     shutil.copy(path, tmp_path / "run.h5")  # orbitrig reads the export as it reads run.h5
     table = read_run(tmp_path).points[0].tables["piezo"]
@@ -185,7 +203,9 @@ def test_h5_export_of_a_folder_holding_only_run_h5(sim_run, exported, tmp_path):
     (path,) = export_run(alone, "h5", tmp_path / "out").files
     with h5py.File(path, "r") as f, h5py.File(exported["dir"] / "run.h5", "r") as first:
         np.testing.assert_array_equal(f["points/0000/table/piezo/fx"][()], first["points/0000/table/piezo/fx"][()])
-        assert sorted(f["logs/can"]) == sorted(first["logs/can"]) and sorted(f["attributes"]) == sorted(first["attributes"])
+        assert sorted(f["logs/can"]) == sorted(first["logs/can"]) and sorted(f["attributes"]) == sorted(
+            first["attributes"]
+        )
         assert f["attributes/points/0000/table/piezo/fx/units"][()] == b"N"
     with pytest.raises(RunDirError, match="would replace the run's own run.h5"):
         export_run(alone, "h5", alone)
@@ -207,19 +227,26 @@ def test_octave_layout_names_an_attribute_that_a_member_shadows(tmp_path):
 def test_octave_loads_the_h5_export(exported, stored, tmp_path):
     """One octave-cli start: Octave's load gives complex phasors, coefficients with U, a log
     column and the software version, equal to the last bit to what h5py reads in run.h5."""
-    script = (f"x = load('{exported['dir'] / 'run.h5'}');\n"
-              "p = x.points._0000; k = p.identification." + FIT + ";\n"
-              "fx = p.table.piezo.fx; printf('fx %.17g %.17g\\n', [real(fx(:)) imag(fx(:))]');\n"
-              "ph = p.frequencies._03_bwd.phasors; printf('ph %.17g %.17g\\n', [real(ph(:)) imag(ph(:))]');\n"
-              "printf('Zsize %d %d %d\\n', size(p.truth.Z)); Z = p.truth.Z(:);\n"
-              "printf('Z %.17g %.17g\\n', [real(Z) imag(Z)]');\n"
-              "printf('coef %s %.17g %.17g\\n', [cellstr(k.names)'; num2cell(k.coefficients(:))';"
-              " num2cell(k.uncertainty.expanded(:))']{:});\n"
-              "printf('t %.17g\\n', x.logs.events.t); printf('state %s\\n', cellstr(x.logs.events.state){:});\n"
-              "printf('version %s\\n', x.attributes.software_version);\n"
-              "printf('unit %s\\n', x.attributes.points._0000.table.piezo.fx.units);\n")
-    done = subprocess.run(["octave-cli", "--no-gui", "--norc", "--eval", script], capture_output=True, text=True,
-                          timeout=120, cwd=tmp_path)
+    script = (
+        f"x = load('{exported['dir'] / 'run.h5'}');\n"
+        "p = x.points._0000; k = p.identification." + FIT + ";\n"
+        "fx = p.table.piezo.fx; printf('fx %.17g %.17g\\n', [real(fx(:)) imag(fx(:))]');\n"
+        "ph = p.frequencies._03_bwd.phasors; printf('ph %.17g %.17g\\n', [real(ph(:)) imag(ph(:))]');\n"
+        "printf('Zsize %d %d %d\\n', size(p.truth.Z)); Z = p.truth.Z(:);\n"
+        "printf('Z %.17g %.17g\\n', [real(Z) imag(Z)]');\n"
+        "printf('coef %s %.17g %.17g\\n', [cellstr(k.names)'; num2cell(k.coefficients(:))';"
+        " num2cell(k.uncertainty.expanded(:))']{:});\n"
+        "printf('t %.17g\\n', x.logs.events.t); printf('state %s\\n', cellstr(x.logs.events.state){:});\n"
+        "printf('version %s\\n', x.attributes.software_version);\n"
+        "printf('unit %s\\n', x.attributes.points._0000.table.piezo.fx.units);\n"
+    )
+    done = subprocess.run(
+        ["octave-cli", "--no-gui", "--norc", "--eval", script],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+    )
     assert done.returncode == 0 and "warning" not in done.stderr, done.stdout[-2000:] + done.stderr[-2000:]
     rows = {}
     for line in done.stdout.splitlines():
@@ -243,15 +270,22 @@ def test_octave_loads_the_h5_export(exported, stored, tmp_path):
 
 
 def test_octave_loads_the_mat_export(exported, stored, tmp_path):
-    script = (f"m = load('{exported['dir'] / 'run.mat'}');\n"
-              f"k = m.points.p0000.identification.{FIT};\n"
-              "printf('U %.17g\\n', k.U);\n"
-              "printf('cov %d %d %d\\n', size(k.covariance), numel(k.covariance_names));\n"
-              "fx = m.points.p0000.piezo.fx;\n"
-              "printf('fx %.17g %.17g\\n', [real(fx) imag(fx)]');\n"
-              "printf('version %s\\n', m.run.software_version);\n")
-    done = subprocess.run(["octave-cli", "--no-gui", "--norc", "--eval", script], capture_output=True, text=True,
-                          timeout=120, cwd=tmp_path)
+    script = (
+        f"m = load('{exported['dir'] / 'run.mat'}');\n"
+        f"k = m.points.p0000.identification.{FIT};\n"
+        "printf('U %.17g\\n', k.U);\n"
+        "printf('cov %d %d %d\\n', size(k.covariance), numel(k.covariance_names));\n"
+        "fx = m.points.p0000.piezo.fx;\n"
+        "printf('fx %.17g %.17g\\n', [real(fx) imag(fx)]');\n"
+        "printf('version %s\\n', m.run.software_version);\n"
+    )
+    done = subprocess.run(
+        ["octave-cli", "--no-gui", "--norc", "--eval", script],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+    )
     lines = done.stdout.splitlines()
     assert "cov 11 11 11" in lines, done.stdout + done.stderr[-2000:]
     np.testing.assert_array_equal([float(ln.split()[1]) for ln in lines if ln.startswith("U ")], stored["U"])

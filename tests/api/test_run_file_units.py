@@ -13,8 +13,19 @@ import pint
 import pytest
 
 UREG = pint.UnitRegistry()
-_ANNOTATIONS = {"units", "description", "convention", "dimensions", "columns", "rows", "fields", "field_units",
-                "names", "meaning", "units_of_attributes"}
+_ANNOTATIONS = {
+    "units",
+    "description",
+    "convention",
+    "dimensions",
+    "columns",
+    "rows",
+    "fields",
+    "field_units",
+    "names",
+    "meaning",
+    "units_of_attributes",
+}
 
 
 def _parses(unit: str, where: str) -> None:
@@ -97,14 +108,21 @@ def test_octave_loads_run_h5(sim_run, tmp_path):
         g = f["points/0000/identification/strain__kcd11__none__ols"]
         expected = g["coefficients"][()]
         orbit_hz = f["points/0000/table/piezo/orbit_hz"][()]
-    script = (f"x = load('{sim_run / 'run.h5'}');\n"
-              "k = x.points.('_0000').identification.strain__kcd11__none__ols;\n"
-              "printf('names %s\\n', strjoin(cellstr(k.names)', ','));\n"
-              "printf('coef %.17g\\n', k.coefficients);\n"
-              "printf('orbit_hz %.17g\\n', x.points.('_0000').table.piezo.orbit_hz);\n"
-              "printf('channels %s\\n', strjoin(cellstr(x.channels)', ','));\n")
-    done = subprocess.run(["octave-cli", "--no-gui", "--norc", "--eval", script], capture_output=True, text=True,
-                          timeout=120, cwd=tmp_path)
+    script = (
+        f"x = load('{sim_run / 'run.h5'}');\n"
+        "k = x.points.('_0000').identification.strain__kcd11__none__ols;\n"
+        "printf('names %s\\n', strjoin(cellstr(k.names)', ','));\n"
+        "printf('coef %.17g\\n', k.coefficients);\n"
+        "printf('orbit_hz %.17g\\n', x.points.('_0000').table.piezo.orbit_hz);\n"
+        "printf('channels %s\\n', strjoin(cellstr(x.channels)', ','));\n"
+    )
+    done = subprocess.run(
+        ["octave-cli", "--no-gui", "--norc", "--eval", script],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+    )
     lines = done.stdout.splitlines()
     assert "names Kxx,Kxy,Kyx,Kyy,Cxx,Cxy,Cyx,Cyy,Dxx,Dxy,Dyx,Dyy" in lines, done.stdout + done.stderr[-2000:]
     assert "channels fx_piezo,fy_piezo,fx_strain,fy_strain,x_a,y_a,x_b,y_b" in lines

@@ -22,8 +22,10 @@ freq_dep = "{fd}"
 """
 
 
-@pytest.mark.parametrize("fd", [f"power:{MAX_ORDER + 1}", f"poly:{MAX_ORDER + 4}", f"power:1,2,{MAX_ORDER + 1}",
-                                "none\n", "power:0", "poly:2,2"])
+@pytest.mark.parametrize(
+    "fd",
+    [f"power:{MAX_ORDER + 1}", f"poly:{MAX_ORDER + 4}", f"power:1,2,{MAX_ORDER + 1}", "none\n", "power:0", "poly:2,2"],
+)
 def test_freq_dep_beyond_the_identification_limits_is_a_config_error(tmp_path, fd):
     path = tmp_path / "m.toml"
     path.write_text(MATRIX.format(fd=fd.replace("\n", "\\n")))

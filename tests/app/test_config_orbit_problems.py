@@ -19,13 +19,20 @@ model = "kc7"
 """
 
 
-@pytest.mark.parametrize("orbit, problems", [
-    ('ratios = [0.3, 0.3]\ndirections = ["forward", "forward"]',
-     ["'ratios' has repeated values", "'directions' has repeated values"]),
-    ('ratios = [0.3]\nratio_start = 1.2\nratio_stop = 0.2\ncount = 3',
-     ["not both", "ratio_start must be smaller than ratio_stop"]),
-    ("ratio_stop = 1.2\ncount = 5", ["all of 'ratio_start', 'ratio_stop', 'count'"]),
-])
+@pytest.mark.parametrize(
+    "orbit, problems",
+    [
+        (
+            'ratios = [0.3, 0.3]\ndirections = ["forward", "forward"]',
+            ["'ratios' has repeated values", "'directions' has repeated values"],
+        ),
+        (
+            "ratios = [0.3]\nratio_start = 1.2\nratio_stop = 0.2\ncount = 3",
+            ["not both", "ratio_start must be smaller than ratio_stop"],
+        ),
+        ("ratio_stop = 1.2\ncount = 5", ["all of 'ratio_start', 'ratio_stop', 'count'"]),
+    ],
+)
 def test_every_orbit_problem_is_named(tmp_path, orbit, problems):
     path = tmp_path / "m.toml"
     path.write_text(MATRIX.format(orbit=orbit))

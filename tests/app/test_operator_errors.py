@@ -53,8 +53,9 @@ def test_missing_matrix_key_names_its_table_line():
     text = "\n".join(line for line in DEMO_TEXT.splitlines() if not line.startswith("spin_rpm"))
     with pytest.raises(ConfigError) as info:
         cfg.matrix_from_text(text, "m.toml")
-    assert info.value.problems == [f"line {_line_no(text, '[operating]')}: key 'operating.spin_rpm': "
-                                   "required key is missing"]
+    assert info.value.problems == [
+        f"line {_line_no(text, '[operating]')}: key 'operating.spin_rpm': required key is missing"
+    ]
 
 
 def test_matrix_beyond_drive_limits_is_refused_before_the_simulator_starts(tmp_path):
@@ -102,17 +103,37 @@ def test_closed_stdin_at_a_confirmation_stops_the_run_instead_of_hanging(tmp_pat
     """On the rig (no --sim) a manual-settings prompt with nobody to answer stops the run safely."""
     import json
 
-    sim = subprocess.Popen(orbitrig_cmd("sim", "--modbus-port", "0", "--adc-port", "0", "--can-port", "0"), cwd=ROOT,
-                           stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    sim = subprocess.Popen(
+        orbitrig_cmd("sim", "--modbus-port", "0", "--adc-port", "0", "--can-port", "0"),
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
     try:
         ends = json.loads(sim.stdout.readline())
         rig = tmp_path / "rig.toml"
-        rig.write_text(RIG_TEXT.replace('"socket://127.0.0.1:5000"', json.dumps(ends["adc"]), 1)
-                       .replace('"tcp://127.0.0.1:5020"', json.dumps(ends["modbus"]), 1)
-                       .replace('can_interface = "socketcan"', 'can_interface = "virtual"', 1))
-        p = subprocess.run(orbitrig_cmd("sweep", "--config", str(rig), "--matrix", str(cfg.default_matrix_path("demo")),
-                                        "--out", str(tmp_path / "run")),
-                           cwd=ROOT, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60)
+        rig.write_text(
+            RIG_TEXT.replace('"socket://127.0.0.1:5000"', json.dumps(ends["adc"]), 1)
+            .replace('"tcp://127.0.0.1:5020"', json.dumps(ends["modbus"]), 1)
+            .replace('can_interface = "socketcan"', 'can_interface = "virtual"', 1)
+        )
+        p = subprocess.run(
+            orbitrig_cmd(
+                "sweep",
+                "--config",
+                str(rig),
+                "--matrix",
+                str(cfg.default_matrix_path("demo")),
+                "--out",
+                str(tmp_path / "run"),
+            ),
+            cwd=ROOT,
+            stdin=subprocess.DEVNULL,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
         assert p.returncode == 3, p.stderr
         assert "standard input is closed" in p.stderr and "Traceback" not in p.stderr
         status = _run("drives", "status", "--modbus", ends["modbus"], "--json")
@@ -185,4 +206,6 @@ def test_missing_default_config_says_how_to_give_one(tmp_path, monkeypatch):
         with pytest.raises(ConfigError) as info:
             load()
         assert info.value.file.startswith(str(tmp_path / "config"))
-        assert info.value.problems[0].startswith(f"the default file is not there: give {option} FILE, set ORBITRIG_HOME")
+        assert info.value.problems[0].startswith(
+            f"the default file is not there: give {option} FILE, set ORBITRIG_HOME"
+        )

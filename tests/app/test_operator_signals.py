@@ -33,8 +33,10 @@ async def test_a_second_ctrl_c_while_confirming_aborts(tmp_path, monkeypatch, be
             await wait_for(lambda: "[r]esume, [s]top, [a]bort" in out.getvalue(), what="the pause prompt")
             if between is not None:
                 operator._choice(between)  # the operator's typed answer
-                await wait_for(lambda: "press Enter to confirm" in out.getvalue().split("[a]bort")[-1],
-                               what="the confirmation asked again")
+                await wait_for(
+                    lambda: "press Enter to confirm" in out.getvalue().split("[a]bort")[-1],
+                    what="the confirmation asked again",
+                )
             assert eng.state == "waiting" and not run.done()
             os.kill(os.getpid(), signal.SIGINT)
             outcome = await asyncio.wait_for(run, 20)

@@ -43,8 +43,11 @@ def small(order: str = ""):
 
 
 def manual(plan):
-    return [(s.static_eccentricity, round(s.recess_pressure / 1e6, 4), s.duration) for s in plan.steps
-            if isinstance(s, SetManual)]
+    return [
+        (s.static_eccentricity, round(s.recess_pressure / 1e6, 4), s.duration)
+        for s in plan.steps
+        if isinstance(s, SetManual)
+    ]
 
 
 def test_the_slow_variable_changes_once_and_each_change_costs_its_own_time():
@@ -89,13 +92,22 @@ def test_dry_run_prints_both_rig_times_of_the_paper_matrix():
 def test_a_stored_order_is_kept_on_resume_and_a_wrong_one_refused(tmp_path):
     rig = rig_with()
     plan = make_plan(small(), rig)
-    store = RunStore.create(tmp_path / "run", rig_text=rig.text, matrix_text=plan.matrix.text, matrix_name="small",
-                            sim=True, point_order=[3, 2, 1, 0])
+    store = RunStore.create(
+        tmp_path / "run",
+        rig_text=rig.text,
+        matrix_text=plan.matrix.text,
+        matrix_name="small",
+        sim=True,
+        point_order=[3, 2, 1, 0],
+    )
     assert RunStore.open_existing(tmp_path / "run").stored_point_order() == [3, 2, 1, 0]
     resumed = _started_order(plan, store)
-    assert resumed.order == (3, 2, 1, 0) and resumed.points[0].label == make_plan(small(), rig, range(4)).points[3].label
-    old = RunStore.create(tmp_path / "old", rig_text=rig.text, matrix_text=plan.matrix.text, matrix_name="small",
-                          sim=True)
+    assert (
+        resumed.order == (3, 2, 1, 0) and resumed.points[0].label == make_plan(small(), rig, range(4)).points[3].label
+    )
+    old = RunStore.create(
+        tmp_path / "old", rig_text=rig.text, matrix_text=plan.matrix.text, matrix_name="small", sim=True
+    )
     assert _started_order(plan, old).order == (0, 1, 2, 3)  # recorded before the order was: as written
     with pytest.raises(ConfigError, match="does not fit the matrix's 4 points"):
         make_plan(small(), rig, [0, 1, 2])

@@ -46,7 +46,9 @@ def test_the_documented_table_is_the_code_table():
 
 def test_every_step_kind_has_one_handler_and_one_rule():
     kinds = set(steps.STEP_KINDS)
-    assert kinds == {c for c in vars(steps).values() if isinstance(c, type) and issubclass(c, steps.Step)} - {steps.Step}
+    assert kinds == {c for c in vars(steps).values() if isinstance(c, type) and issubclass(c, steps.Step)} - {
+        steps.Step
+    }
     assert set(procedure.BEFORE) == kinds
     assert set(procedure.PointProcedure(parts_stub()).handlers) == kinds
 

@@ -17,8 +17,10 @@ pytestmark = pytest.mark.timeout(120)
 
 def _stored(out):
     with h5py.File(out / "run.h5", "r") as f:
-        pts = {n: (bool(g.attrs["complete"]), {t: bool(b.attrs["complete"]) for t, b in g["frequencies"].items()})
-               for n, g in f["points"].items()}
+        pts = {
+            n: (bool(g.attrs["complete"]), {t: bool(b.attrs["complete"]) for t, b in g["frequencies"].items()})
+            for n, g in f["points"].items()
+        }
         return str(f.attrs["status"]), str(f.attrs["status_message"]), pts
 
 
@@ -73,13 +75,19 @@ async def test_abort_emergency_ramp_keeps_complete_data(tmp_path):
         outcome = await run
         assert _spindles_stopped(sim)
         # the emergency stop word reached both drives on the abort itself (generous bound: a busy host)
-        first = [min((t for t, cw in sim.drive(dev)["control_words"] if t >= t_abort and cw == CW_EMERGENCY),
-                     default=float("inf")) for dev in (1, 2)]
+        first = [
+            min(
+                (t for t, cw in sim.drive(dev)["control_words"] if t >= t_abort and cw == CW_EMERGENCY),
+                default=float("inf"),
+            )
+            for dev in (1, 2)
+        ]
         assert max(first) - t_abort < 2.0, first
     assert outcome.status == "aborted"
     log = (out / "run.log").read_text()  # sent before the run unwound, repeated by its cleanup
     assert log.index("drives: emergency stop (OFF3) sent on the abort in ") < log.index(
-        "drives: emergency stop (OFF3); standstill after"), log[-2000:]
+        "drives: emergency stop (OFF3); standstill after"
+    ), log[-2000:]
     status, message, pts = _stored(out)
     assert status == "aborted" and "abort" in message
     assert list(pts) == ["0000"] and not pts["0000"][0]

@@ -15,8 +15,13 @@ from support.sweep_helpers import ROOT, orbitrig_cmd
 
 def test_demo_sweep_identifies_within_5_percent(tmp_path):
     out = tmp_path / "run"
-    p = subprocess.run(orbitrig_cmd("sweep", "--sim", "--sim-config", "config/sim/clean.toml", "--out", str(out)), cwd=ROOT, capture_output=True,
-                       text=True, timeout=120)
+    p = subprocess.run(
+        orbitrig_cmd("sweep", "--sim", "--sim-config", "config/sim/clean.toml", "--out", str(out)),
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert p.returncode == 0, p.stdout + p.stderr
     assert "true" in p.stdout and "piezo kcd11" in p.stdout and "Kxx" in p.stdout
 
@@ -34,7 +39,12 @@ def test_demo_sweep_identifies_within_5_percent(tmp_path):
             assert (fr["coherence"][()] > 0.9).all()
         truth = json.loads(g["truth"].attrs["json"])
         checked = 0
-        for name in ("piezo__kcd11__none__ols", "strain__kcd11__none__ols", "piezo__kc8__none__ols", "strain__kc8__none__ols"):
+        for name in (
+            "piezo__kcd11__none__ols",
+            "strain__kcd11__none__ols",
+            "piezo__kc8__none__ols",
+            "strain__kc8__none__ols",
+        ):
             fit = json.loads(g["identification"][name].attrs["json"])
             errs = compare_with_truth(fit, truth)  # against the fit's own truth
             for key, pct in errs.items():

@@ -17,8 +17,7 @@ def test_demo_plan_sequence():
     rig, m = cfg.load_rig(), cfg.load_matrix()
     steps = list(make_plan(m, rig).steps)
     kinds = [type(s).__name__ for s in steps]
-    assert kinds[:7] == ["SetManual", "VerifyPressures", "SetSpin", "Settle", "Acquire", "VerifyGeometry",
-                         "StoreBlock"]
+    assert kinds[:7] == ["SetManual", "VerifyPressures", "SetSpin", "Settle", "Acquire", "VerifyGeometry", "StoreBlock"]
     assert kinds[-3:] == ["Identify", "CompletePoint", "StopDrives"]
     acq = [s for s in steps if isinstance(s, Acquire)]
     assert len(acq) == 10  # 5 frequencies x 2 directions

@@ -45,9 +45,14 @@ def test_kill_9_mid_run_then_resume(tmp_path):
     matrix.write_text(MATRIX)
     out = tmp_path / "run"
     log = out / "run.log"
-    proc = subprocess.Popen(orbitrig_cmd("sweep", "--sim", "--sim-config", "config/sim/clean.toml", "--matrix",
-                                         str(matrix), "--out", str(out)),
-                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        orbitrig_cmd(
+            "sweep", "--sim", "--sim-config", "config/sim/clean.toml", "--matrix", str(matrix), "--out", str(out)
+        ),
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         # kill once a point is complete and a later one has stored a block (identification and
         # storage run in the background, so which points these are depends on the machine's load)
@@ -69,8 +74,9 @@ def test_kill_9_mid_run_then_resume(tmp_path):
     assert done and partial, (done, partial)
     assert sorted({r["point"] for r in csv.DictReader(open(out / "coefficients.csv"))}) == [str(int(n)) for n in done]
 
-    p = subprocess.run(orbitrig_cmd("sweep", "--sim", "--resume", str(out)), cwd=ROOT,
-                       capture_output=True, text=True, timeout=120)
+    p = subprocess.run(
+        orbitrig_cmd("sweep", "--sim", "--resume", str(out)), cwd=ROOT, capture_output=True, text=True, timeout=120
+    )
     assert p.returncode == 0, p.stdout + p.stderr
     assert "simulator scenario of the run: config/sim/clean.toml" in p.stderr  # stored, not given again
     for point in read_run(out).points:  # the clean bearing (Z exactly constant K, C, D) at every point
@@ -93,27 +99,40 @@ def test_kill_9_mid_run_then_resume(tmp_path):
             assert all(b.attrs["complete"] for b in g["frequencies"].values())
             assert g["frequencies/00_fwd/raw_counts"].shape[0] == 10
     rows = list(csv.DictReader(open(out / "coefficients.csv")))
-    assert sorted((r["point"], r["lms"]) for r in rows) == sorted((str(i), l) for i in range(4) for l in ("piezo", "strain"))
+    assert sorted((r["point"], r["lms"]) for r in rows) == sorted(
+        (str(i), l) for i in range(4) for l in ("piezo", "strain")
+    )
 
-    again = subprocess.run(orbitrig_cmd("sweep", "--sim", "--out", str(out)), cwd=ROOT, capture_output=True,
-                           text=True, timeout=60)
+    again = subprocess.run(
+        orbitrig_cmd("sweep", "--sim", "--out", str(out)), cwd=ROOT, capture_output=True, text=True, timeout=60
+    )
     assert again.returncode == 2 and "already exists: use --resume" in again.stderr
 
 
 @pytest.mark.timeout(120)
-@pytest.mark.parametrize("answer, code, status", [("ctrl-c", 4, "aborted"), ("s\n", 3, "stopped"), ("r\n", 0, "completed")])
+@pytest.mark.parametrize(
+    "answer, code, status", [("ctrl-c", 4, "aborted"), ("s\n", 3, "stopped"), ("r\n", 0, "completed")]
+)
 def test_ctrl_c_pauses_and_asks_twice_aborts(tmp_path, answer, code, status):
     matrix = tmp_path / "crash.toml"
     matrix.write_text(MATRIX)
     out = tmp_path / "run"
     log = out / "run.log"
-    proc = subprocess.Popen(orbitrig_cmd("sweep", "--sim", "--matrix", str(matrix), "--out", str(out)),
-                            cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+    proc = subprocess.Popen(
+        orbitrig_cmd("sweep", "--sim", "--matrix", str(matrix), "--out", str(out)),
+        cwd=ROOT,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
     def alive(deadline: float) -> None:
         if proc.poll() is not None:  # say why: the sweep's own words
-            raise AssertionError(f"sweep exited with {proc.returncode}:\n{proc.stderr.read()}\n"
-                                 f"{log.read_text() if log.exists() else '(no run.log)'}")
+            raise AssertionError(
+                f"sweep exited with {proc.returncode}:\n{proc.stderr.read()}\n"
+                f"{log.read_text() if log.exists() else '(no run.log)'}"
+            )
         assert time.monotonic() < deadline, "timed out"
 
     try:

@@ -52,8 +52,17 @@ def _decisions(run_dir):
     with h5py.File(run_dir / "run.h5") as f:
         p = f["points"]["0000"]
         spin = float(p.attrs["spin"])
-        chosen = [(tag, abs(float(g.attrs["orbit"])) / spin, dict(g["sequential"].attrs), g["sequential"]["before"][()],
-                   g["sequential"]["after"][()]) for tag, g in sorted(p["frequencies"].items()) if "sequential" in g]
+        chosen = [
+            (
+                tag,
+                abs(float(g.attrs["orbit"])) / spin,
+                dict(g["sequential"].attrs),
+                g["sequential"]["before"][()],
+                g["sequential"]["after"][()],
+            )
+            for tag, g in sorted(p["frequencies"].items())
+            if "sequential" in g
+        ]
         tags = sorted(p["frequencies"])
         return chosen, dict(p["sequential"].attrs), p["sequential"]["before"][()], tags
 
@@ -66,8 +75,13 @@ def test_plan_lists_and_checks_the_candidates():
     assert step.first_freq == 5 and 0 < step.duration < 600
     lines = sequential_lines(plan, summarize(plan.steps).duration)
     assert "cap of 600 s" in lines[0] and "candidate ratios 0.3, 0.65, 1.5 (forward, backward)" in lines[1]
-    default = make_plan(cfg.matrix_from_text(MATRIX.format(target="target_pct = 5", cap=600, candidates="[0.3]").replace(
-        "candidates = [0.3]\n", ""), "seq.toml"), rig)
+    default = make_plan(
+        cfg.matrix_from_text(
+            MATRIX.format(target="target_pct = 5", cap=600, candidates="[0.3]").replace("candidates = [0.3]\n", ""),
+            "seq.toml",
+        ),
+        rig,
+    )
     (rule,) = [s.rule for s in default.steps if isinstance(s, ChooseBlocks)]
     assert rule.candidates[0] == pytest.approx(0.1) and rule.candidates[-1] == pytest.approx(1.5)
     assert all(abs(r - 1) >= 0.1 - 1e-9 for r in rule.candidates)  # the drives' band, clear of Omega = omega
@@ -81,8 +95,10 @@ def test_a_sequential_matrix_needs_its_bounds():
     with pytest.raises(ConfigError, match=r"needs a \[sequential\] table"):
         cfg.matrix_from_text(MATRIX.split("[sequential]")[0] + '[[models]]\nmodel = "kcd11"\n', "seq.toml")
     with pytest.raises(ConfigError, match="give one target"):
-        cfg.matrix_from_text(MATRIX.format(target="target_pct = 40\nmatch_ratios = [0.5, 1.2]", cap=60,
-                                           candidates=CANDIDATES), "seq.toml")
+        cfg.matrix_from_text(
+            MATRIX.format(target="target_pct = 40\nmatch_ratios = [0.5, 1.2]", cap=60, candidates=CANDIDATES),
+            "seq.toml",
+        )
 
 
 async def test_sequential_point_chooses_among_the_candidates_until_its_target(tmp_path):
@@ -110,14 +126,18 @@ async def test_stopped_sequential_point_restarts_on_resume_and_stops_at_its_cap(
     m = matrix(target=MATCH.format(n=500), cap=70.0)  # a target no block reaches in 70 s
     log = tmp_path / "run" / "run.log"
     async with running(tmp_path, m) as (_, eng, _, run):
-        await wait_for(lambda: log.exists() and re.search(r"point 0000: stored 0[5-9]_", log.read_text()), 40,
-                       "a chosen block stored")
+        await wait_for(
+            lambda: log.exists() and re.search(r"point 0000: stored 0[5-9]_", log.read_text()),
+            40,
+            "a chosen block stored",
+        )
         eng.request_stop()
         outcome = await asyncio.wait_for(run, 30)
     assert str(outcome.status) == "stopped" and outcome.completed_points == []
     async with simulated_rig(40.0) as (_, access):
-        outcome = await RunEngine(cfg.load_rig(), out_dir=tmp_path / "run", access=access,
-                                  confirm_mode="auto").run(m, resume=True)
+        outcome = await RunEngine(cfg.load_rig(), out_dir=tmp_path / "run", access=access, confirm_mode="auto").run(
+            m, resume=True
+        )
     assert str(outcome.status) == "completed", outcome.message
     assert list((tmp_path / "run" / "aside").iterdir())  # the stopped attempt, put aside whole
     chosen, last, final, _ = _decisions(tmp_path / "run")

@@ -38,10 +38,14 @@ class Sweep:
         (tmp_path / "m.toml").write_text(MATRIX)
         self.out = tmp_path / "run"
         self.log = self.out / "run.log"
-        self.proc = subprocess.Popen(orbitrig_cmd("sweep", "--sim", "--matrix", str(tmp_path / "m.toml"),
-                                                  "--out", str(self.out), *extra),
-                                     cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                     stderr=subprocess.PIPE, text=True)
+        self.proc = subprocess.Popen(
+            orbitrig_cmd("sweep", "--sim", "--matrix", str(tmp_path / "m.toml"), "--out", str(self.out), *extra),
+            cwd=ROOT,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
 
     def text(self) -> str:
         return self.log.read_text() if self.log.exists() else ""

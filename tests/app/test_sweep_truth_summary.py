@@ -16,13 +16,23 @@ ORBIT = np.array([25.9, -25.9, 60.0, -60.0, 130.6, -130.6])
 def _truth(scale_c: float = 1.0) -> dict:
     w = np.abs(ORBIT)[:, None, None]
     z = K + 1j * w * C * scale_c - w**2 * D
-    return {"orbit": ORBIT.tolist(), "Z_re": z.real.tolist(), "Z_im": z.imag.tolist(),
-            "K0": K.tolist(), "C0": C.tolist(), "D0": D.tolist()}
+    return {
+        "orbit": ORBIT.tolist(),
+        "Z_re": z.real.tolist(),
+        "Z_im": z.imag.tolist(),
+        "K0": K.tolist(),
+        "C0": C.tolist(),
+        "D0": D.tolist(),
+    }
 
 
 def _result(factor: float) -> dict:
-    coef = {f"{m}{a}{b}": factor * float(M[i, j]) for m, M in zip("KCD", (K, C, D))
-            for i, a in enumerate("xy") for j, b in enumerate("xy")}
+    coef = {
+        f"{m}{a}{b}": factor * float(M[i, j])
+        for m, M in zip("KCD", (K, C, D))
+        for i, a in enumerate("xy")
+        for j, b in enumerate("xy")
+    }
     return {"model": "kcd12", "freq_dep": "none", "coefficients": coef}
 
 

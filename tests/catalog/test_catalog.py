@@ -48,8 +48,11 @@ def test_add_twice_updates_never_duplicates(catalog, catalog_run):
     assert kc7["Kxx"] == pytest.approx(result["coefficients"]["Kxx"], rel=1e-12)
     assert kc7["Kxx_U"] == pytest.approx(2 * result["std_errors"]["Kxx"], rel=1e-12)
     assert kc7["Dxx"] is None and kc7["u_basis"] == "statistical"
-    assert (kc7["rig_id"], kc7["calibration_record"], kc7["started"]) == ("rigA", "2026-01-01.toml",
-                                                                          "2026-11-26T10:00:00+00:00")
+    assert (kc7["rig_id"], kc7["calibration_record"], kc7["started"]) == (
+        "rigA",
+        "2026-01-01.toml",
+        "2026-11-26T10:00:00+00:00",
+    )
     assert kc7["ended"] and kc7["run_path"] == str(catalog_run.resolve()) and kc7["run_id"].startswith("rigA@")
     refused = [r for r in stored if not r["ok"]]
     assert {r["model"] for r in refused} == {"kcd12"} and all(r["error"] for r in refused)
@@ -66,14 +69,17 @@ def test_where_filters_and_binds(catalog, catalog_run):
     assert len(catalog.rows()) == 2 * N_FITS
 
 
-@pytest.mark.parametrize("where, says", [
-    ("static_eccentricity > 0.1; drop table fits", "takes a float"),
-    ("1 = 1", "is not 'column op value'"),
-    ("nonsense > 1", "unknown column 'nonsense'"),
-    ("point > 1 and", "'and' without a condition"),
-    ("point ~ 1", "is not 'column op value'"),
-    ("ok = maybe", "takes a bool"),
-])
+@pytest.mark.parametrize(
+    "where, says",
+    [
+        ("static_eccentricity > 0.1; drop table fits", "takes a float"),
+        ("1 = 1", "is not 'column op value'"),
+        ("nonsense > 1", "unknown column 'nonsense'"),
+        ("point > 1 and", "'and' without a condition"),
+        ("point ~ 1", "is not 'column op value'"),
+        ("ok = maybe", "takes a bool"),
+    ],
+)
 def test_where_outside_the_grammar_is_refused(catalog, where, says):
     with pytest.raises(CatalogUsageError, match=says):
         catalog.rows(where)
@@ -85,8 +91,19 @@ def test_cli_add_list_export(catalog_run):
         res = runner.invoke(app, ["catalog", "add", str(catalog_run)])
         assert res.exit_code == 0, res.output
     assert (runs / "catalog.sqlite").is_file()
-    listed = runner.invoke(app, ["catalog", "list", "--runs", str(runs), "--where", "static_eccentricity > 0.1",
-                                 "--columns", "point,model,Kxx_U"])
+    listed = runner.invoke(
+        app,
+        [
+            "catalog",
+            "list",
+            "--runs",
+            str(runs),
+            "--where",
+            "static_eccentricity > 0.1",
+            "--columns",
+            "point,model,Kxx_U",
+        ],
+    )
     assert listed.exit_code == 0 and len(listed.output.strip().splitlines()) == 1 + N_FITS
     exported = runner.invoke(app, ["catalog", "export", "--runs", str(runs)])
     table = list(csv.DictReader(io.StringIO(exported.output)))

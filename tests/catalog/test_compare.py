@@ -15,7 +15,7 @@ from orbitrig.cli import app
 
 
 def test_chi2_of_two_repeats_by_hand():
-    rows = campaign_rows(n_runs=2)[:1] + campaign_rows(n_runs=2)[len(ECCENTRICITIES):][:1]
+    rows = campaign_rows(n_runs=2)[:1] + campaign_rows(n_runs=2)[len(ECCENTRICITIES) :][:1]
     rows[0].update(Kxx=1.0, Kxx_U=2.0)
     rows[1].update(Kxx=3.0, Kxx_U=2.0)  # u = 1 each: mean 2, chi2 = 1 + 1 on 1 dof
     rep = repeatability(rows, "Kxx")
@@ -55,14 +55,30 @@ def test_predicted_csv_columns_and_errors(tmp_path):
 def test_compare_writes_png_and_pdf(tmp_path):
     Catalog(f"sqlite:///{tmp_path / 'catalog.sqlite'}").add(campaign_rows())
     runner = CliRunner()
-    res = runner.invoke(app, ["compare", "--runs", str(tmp_path), "--coefficients", "Kxx,Cxx",
-                              "--predicted", str(_predicted_csv(tmp_path / "p.csv")), "--out", str(tmp_path / "fig"),
-                              "--where", "static_eccentricity <= 0.3"])
+    res = runner.invoke(
+        app,
+        [
+            "compare",
+            "--runs",
+            str(tmp_path),
+            "--coefficients",
+            "Kxx,Cxx",
+            "--predicted",
+            str(_predicted_csv(tmp_path / "p.csv")),
+            "--out",
+            str(tmp_path / "fig"),
+            "--where",
+            "static_eccentricity <= 0.3",
+        ],
+    )
     assert res.exit_code == 0, res.output
     assert (tmp_path / "fig" / "compare.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (tmp_path / "fig" / "compare.pdf").read_bytes()[:5] == b"%PDF-"
     assert not list((tmp_path / "fig").glob("*.tmp"))
-    for args, says in ((["--against", "load"], "--against 'load'"), (["--coefficients", "Kzz"], "Kzz"),
-                       (["--model", "kc7"], "no catalog rows")):
+    for args, says in (
+        (["--against", "load"], "--against 'load'"),
+        (["--coefficients", "Kzz"], "Kzz"),
+        (["--model", "kc7"], "no catalog rows"),
+    ):
         bad = runner.invoke(app, ["compare", "--runs", str(tmp_path), "--out", str(tmp_path / "x"), *args])
         assert bad.exit_code == 2 and says in bad.output

@@ -9,8 +9,20 @@ from support.cli_helpers import orbitrig
 
 import orbitrig as package
 
-COMMANDS = ["identify", "sim", "acquire", "sweep", "reduce", "report", "serve", "version",
-            "drives", "drives status", "drives run", "drives stop"]
+COMMANDS = [
+    "identify",
+    "sim",
+    "acquire",
+    "sweep",
+    "reduce",
+    "report",
+    "serve",
+    "version",
+    "drives",
+    "drives status",
+    "drives run",
+    "drives stop",
+]
 
 
 def test_version_option_prints_the_package_version():
@@ -46,8 +58,11 @@ def test_sweep_matrix_by_name_prints_totals_first():
     p = orbitrig("sweep", "--sim", "--dry-run", "--matrix", "paper")
     assert p.returncode == 0, p.stderr
     lines = p.stdout.splitlines()
-    m = re.fullmatch(r"matrix paper: 108 operating points, 2160 orbit blocks, (\d+) steps, estimated (\S+) "
-                     r"\(physical time\)", lines[0])
+    m = re.fullmatch(
+        r"matrix paper: 108 operating points, 2160 orbit blocks, (\d+) steps, estimated (\S+) "
+        r"\(physical time\)",
+        lines[0],
+    )
     assert m, lines[0]
     assert lines[1].startswith("by step: manual settings ")
     assert lines[2].startswith("predicted uncertainty")

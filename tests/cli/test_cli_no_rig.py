@@ -12,8 +12,12 @@ def _rig_without_answer(tmp_path):
     """config/rig.toml with every transport pointed at a port nothing listens on."""
     adc, modbus, can = closed_port(), closed_port(), closed_port()
     text = (ROOT / "config" / "rig.toml").read_text()
-    subs = {"adc_url": f"socket://127.0.0.1:{adc}", "modbus_url": f"tcp://127.0.0.1:{modbus}",
-            "can_channel": f"socket://127.0.0.1:{can}", "can_interface": "serial"}
+    subs = {
+        "adc_url": f"socket://127.0.0.1:{adc}",
+        "modbus_url": f"tcp://127.0.0.1:{modbus}",
+        "can_channel": f"socket://127.0.0.1:{can}",
+        "can_interface": "serial",
+    }
     for key, value in subs.items():
         text, n = re.subn(rf'(?m)^{key}\s*=\s*"[^"]*"', f'{key} = "{value}"', text)
         assert n == 1, key

@@ -13,7 +13,17 @@ import sys
 from support.cli_helpers import ROOT
 
 SCRIPT = ROOT / "tools" / "run-tests"
-COMMANDS = ["mosquitto", "mosquitto_pub", "mbpoll", "socat", "chromium", "chromedriver", "strace", "octave-cli", "pg_ctlcluster"]
+COMMANDS = [
+    "mosquitto",
+    "mosquitto_pub",
+    "mbpoll",
+    "socat",
+    "chromium",
+    "chromedriver",
+    "strace",
+    "octave-cli",
+    "pg_ctlcluster",
+]
 
 
 def _bin(tmp_path, commands):
@@ -47,8 +57,9 @@ def _fake_python(tmp_path, pytest_status: int):
 def _run(tmp_path, path_dir, python, *args):
     # /usr/sbin and /sbin are searched by the script itself; keep them out of this test's reach
     env = {"PATH": str(path_dir), "PYTHON": str(python), "HOME": str(tmp_path)}
-    return subprocess.run([str(path_dir / "bash"), str(SCRIPT), *args], cwd=tmp_path, env=env,
-                          capture_output=True, text=True, timeout=60)
+    return subprocess.run(
+        [str(path_dir / "bash"), str(SCRIPT), *args], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60
+    )
 
 
 def test_missing_system_packages_are_named_before_anything_runs(tmp_path):
@@ -56,9 +67,17 @@ def test_missing_system_packages_are_named_before_anything_runs(tmp_path):
     python, log = _fake_python(tmp_path, 0)
     p = _run(tmp_path, _bin(tmp_path, present), python, "-q")
     assert p.returncode == 2, p.stderr
-    package_of = {"mosquitto": "mosquitto", "mosquitto_pub": "mosquitto-clients", "mbpoll": "mbpoll",
-                  "socat": "socat", "chromium": "chromium", "chromedriver": "chromium-driver", "strace": "strace",
-                  "octave-cli": "octave", "pg_ctlcluster": "postgresql"}
+    package_of = {
+        "mosquitto": "mosquitto",
+        "mosquitto_pub": "mosquitto-clients",
+        "mbpoll": "mbpoll",
+        "socat": "socat",
+        "chromium": "chromium",
+        "chromedriver": "chromium-driver",
+        "strace": "strace",
+        "octave-cli": "octave",
+        "pg_ctlcluster": "postgresql",
+    }
     on_sbin = {c for c in COMMANDS if os.path.exists(f"/usr/sbin/{c}") or os.path.exists(f"/sbin/{c}")}
     expected = {package_of[c] for c in COMMANDS if c not in present | on_sbin}  # the script also looks in sbin
     line = next(l for l in p.stderr.splitlines() if "apt-get install -y" in l)

@@ -47,8 +47,10 @@ async def test_hub_delivers_every_frame_to_the_other_nodes_only():
         readers = [can.Bus(interface="serial", channel=hub.url, timeout=0.05) for _ in range(2)]
         try:
             await asyncio.sleep(0.1)  # the hub accepts the connections
-            sent = [can.Message(arbitration_id=0x181 + i, data=bytes([i] * (i % 9)), is_extended_id=False)
-                    for i in range(20)]
+            sent = [
+                can.Message(arbitration_id=0x181 + i, data=bytes([i] * (i % 9)), is_extended_id=False)
+                for i in range(20)
+            ]
             for msg in sent:
                 sender.send(msg)
             for bus in readers:
@@ -68,9 +70,26 @@ async def test_hub_delivers_every_frame_to_the_other_nodes_only():
 
 @pytest.fixture
 def sim_process():
-    p = subprocess.Popen([sys.executable, "-m", "orbitrig", "sim", "--modbus-port", "0", "--adc-port", "0",
-                          "--can-port", "0", "--speedup", "10"], cwd=ROOT, stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True)
+    p = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "orbitrig",
+            "sim",
+            "--modbus-port",
+            "0",
+            "--adc-port",
+            "0",
+            "--can-port",
+            "0",
+            "--speedup",
+            "10",
+        ],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         yield p
     finally:
@@ -97,8 +116,17 @@ async def test_orbitrig_sim_says_what_it_serves_and_its_can_node_reaches_another
     rc = await asyncio.to_thread(sim_process.wait, 20)
     err = sim_process.stderr.read()
     assert rc == 0, err
-    for what in ("drives", ep["modbus"], "A/D board", ep["adc"], ep["adc_pty"], "CAN node",
-                 "interface 'serial'", ep["can"], "Ctrl-C"):
+    for what in (
+        "drives",
+        ep["modbus"],
+        "A/D board",
+        ep["adc"],
+        ep["adc_pty"],
+        "CAN node",
+        "interface 'serial'",
+        ep["can"],
+        "Ctrl-C",
+    ):
         assert what in err, what
     assert f'can_interface = "serial", can_channel = "{ep["can"]}"' in err
     assert "Traceback" not in err

@@ -54,11 +54,16 @@ async def test_hands_and_truth_reach_the_simulator_process():
     async with simulated_rig(40.0, cfg) as (sim, access):
         assert sim.proc.pid != os.getpid() and alive(sim.proc.pid)
         assert access.endpoints.can_interface == "serial" and access.endpoints.can_channel.startswith("socket://")
-        await access.hands.set_manual(orbit_radius=5e-6, static_eccentricity=0.2, recess_pressure=0.6e6,
-                                      pressure_ratio=0.45)
+        await access.hands.set_manual(
+            orbit_radius=5e-6, static_eccentricity=0.2, recess_pressure=0.6e6, pressure_ratio=0.45
+        )
         manual = (await sim.link.acall("state"))["manual"]
-        assert manual == {"orbit_radius": 5e-6, "static_eccentricity": 0.2, "recess_pressure": 0.6e6,
-                          "pressure_ratio": 0.45}
+        assert manual == {
+            "orbit_radius": 5e-6,
+            "static_eccentricity": 0.2,
+            "recess_pressure": 0.6e6,
+            "pressure_ratio": 0.45,
+        }
         orbits = np.array([40.0, 80.0, 120.0])
         z = await asyncio.to_thread(access.truth.impedance, 200.0, orbits)
         fits = await asyncio.to_thread(access.truth.reference_fits, 200.0, orbits)

@@ -22,8 +22,15 @@ pytestmark = pytest.mark.timeout(240)
 
 
 def _run(*args, cwd, env, timeout=120):
-    done = subprocess.run([str(a) for a in args], cwd=cwd, env=env, capture_output=True, text=True,
-                          timeout=timeout, stdin=subprocess.DEVNULL)
+    done = subprocess.run(
+        [str(a) for a in args],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        stdin=subprocess.DEVNULL,
+    )
     assert done.returncode == 0, f"{args}: exit {done.returncode}\n{done.stdout[-2000:]}\n{done.stderr[-3000:]}"
     return done
 
@@ -34,13 +41,30 @@ def installed(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("wheel")
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "ORBITRIG_HOME")}
     env.update(COLUMNS="200", NO_COLOR="1", PIP_DISABLE_PIP_VERSION_CHECK="1")
-    _run(sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", "-w", tmp / "dist", ROOT,
-         cwd=tmp, env=env)
+    _run(
+        sys.executable,
+        "-m",
+        "pip",
+        "wheel",
+        "-q",
+        "--no-deps",
+        "--no-build-isolation",
+        "-w",
+        tmp / "dist",
+        ROOT,
+        cwd=tmp,
+        env=env,
+    )
     (wheel,) = (tmp / "dist").glob("orbitrig-*.whl")
     shipped = set(zipfile.ZipFile(wheel).namelist())
-    assert {"orbitrig/data/rig.toml", "orbitrig/data/matrices/demo.toml", "orbitrig/data/designs/kcd11-demo.toml",
-            "orbitrig/data/mosquitto/mosquitto.conf", "sim/scenarios/sim.toml",
-            "sim/scenarios/sim/clean.toml"} <= shipped
+    assert {
+        "orbitrig/data/rig.toml",
+        "orbitrig/data/matrices/demo.toml",
+        "orbitrig/data/designs/kcd11-demo.toml",
+        "orbitrig/data/mosquitto/mosquitto.conf",
+        "sim/scenarios/sim.toml",
+        "sim/scenarios/sim/clean.toml",
+    } <= shipped
     _run(sys.executable, "-m", "venv", "--system-site-packages", "--without-pip", tmp / "venv", cwd=tmp, env=env)
     bin_dir = tmp / "venv" / "bin"
     _run(bin_dir / "python", "-m", "pip", "install", "-q", "--no-index", wheel, cwd=tmp, env=env)
@@ -49,8 +73,13 @@ def installed(tmp_path_factory):
 
 def test_installed_package_is_the_wheel(installed, tmp_path):
     bin_dir, env = installed
-    done = _run(bin_dir / "python", "-c", "import orbitrig, sim.config; print(orbitrig.__file__); "
-                "print(sim.config.scenario_path('clean'))", cwd=tmp_path, env=env)
+    done = _run(
+        bin_dir / "python",
+        "-c",
+        "import orbitrig, sim.config; print(orbitrig.__file__); print(sim.config.scenario_path('clean'))",
+        cwd=tmp_path,
+        env=env,
+    )
     for line in done.stdout.split():
         assert line.startswith(str(bin_dir.parent)), done.stdout  # not the source tree
 
@@ -62,11 +91,24 @@ def test_init_then_sweep_sim_in_the_lab_folder(installed, tmp_path):
     rig = lab / "rig.toml"
     text = rig.read_text().replace('name = "double-spool rig"', 'name = "lab rig 7"')
     # a loaded test machine answers Modbus slower: 0.3 s, the loss still declared before the 1 s watchdog
-    rig.write_text(text.replace("timeout_s = 0.15", "timeout_s = 0.3").replace("link_loss_polls = 3", "link_loss_polls = 2"))
+    rig.write_text(
+        text.replace("timeout_s = 0.15", "timeout_s = 0.3").replace("link_loss_polls = 3", "link_loss_polls = 2")
+    )
     demo = lab / "matrices" / "demo.toml"
     demo.write_text(demo.read_text().replace('name = "demo"', 'name = "lab demo"\nrevolutions = 20'))
-    _run(bin_dir / "orbitrig", "sweep", "--sim", "--sim-config", "clean", "--speedup", "10", "--out", tmp_path / "run",
-         cwd=lab, env=env)
+    _run(
+        bin_dir / "orbitrig",
+        "sweep",
+        "--sim",
+        "--sim-config",
+        "clean",
+        "--speedup",
+        "10",
+        "--out",
+        tmp_path / "run",
+        cwd=lab,
+        env=env,
+    )
     with h5py.File(tmp_path / "run" / "run.h5", "r") as f:
         assert 'name = "lab rig 7"' in f.attrs["rig_config"]
         assert f.attrs["matrix_name"] == "lab demo"
@@ -83,9 +125,14 @@ def test_environment_variable_and_shipped_defaults(installed, tmp_path):
     elsewhere.mkdir()
     shipped = _run(bin_dir / "orbitrig", "sweep", "--sim", "--dry-run", cwd=elsewhere, env=env)
     assert "demo" in shipped.stdout
-    refused = subprocess.run([bin_dir / "orbitrig", "sweep", "--sim", "--dry-run"], cwd=elsewhere,
-                             env={**env, "ORBITRIG_HOME": str(tmp_path / "lab")}, capture_output=True, text=True,
-                             timeout=60)
+    refused = subprocess.run(
+        [bin_dir / "orbitrig", "sweep", "--sim", "--dry-run"],
+        cwd=elsewhere,
+        env={**env, "ORBITRIG_HOME": str(tmp_path / "lab")},
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert refused.returncode == 2
     assert f"{tmp_path / 'lab' / 'matrices' / 'demo.toml'}" in refused.stderr
     assert "drives.max_spin_rpm = 900" in refused.stderr

@@ -26,8 +26,15 @@ def run(*args: str, columns: str | None) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if k != "COLUMNS"}
     if columns is not None:
         env["COLUMNS"] = columns
-    return subprocess.run([sys.executable, "-m", "orbitrig", *args], cwd=ROOT, env=env, capture_output=True,
-                          text=True, timeout=120, stdin=subprocess.DEVNULL)
+    return subprocess.run(
+        [sys.executable, "-m", "orbitrig", *args],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        stdin=subprocess.DEVNULL,
+    )
 
 
 def test_a_table_wider_than_the_terminal_is_split_never_cut():
@@ -113,8 +120,11 @@ def test_reduce_formats(tmp_path):
     text = run("reduce", str(run_dir), "--model", "kcd11", columns="80")
     assert text.returncode == 0, text.stderr
     assert max(len(line) for line in text.stdout.splitlines() if not line.startswith(("kcd11", "written"))) <= 80
-    rows = list(csv.DictReader(io.StringIO(run("reduce", str(run_dir), "--model", "kcd11", "--format", "csv",
-                                               columns="80").stdout)))
+    rows = list(
+        csv.DictReader(
+            io.StringIO(run("reduce", str(run_dir), "--model", "kcd11", "--format", "csv", columns="80").stdout)
+        )
+    )
     assert [(r["point"], r["lms"]) for r in rows] == [("0000", "piezo"), ("0000", "strain"), ("0000", "true")]
     for r in rows:
         for key in ("Kxx [MN/m]", "Dyy [kg]"):

@@ -21,8 +21,13 @@ def test_thousands_of_messages_keep_the_log_files_under_the_stated_size(tmp_path
     try:
         status = logging.getLogger("orbitrig.service.rig_service")
         for i in range(20_000):  # a month of a busy service, compressed
-            status.debug("status running run %s: point %d of 108, block %d of 20, eta %.1f s", "paper-1", i % 108,
-                         i % 20, 1e4 / (i + 1))
+            status.debug(
+                "status running run %s: point %d of 108, block %d of 20, eta %.1f s",
+                "paper-1",
+                i % 108,
+                i % 20,
+                1e4 / (i + 1),
+            )
             if i % 7 == 0:
                 logging.getLogger("orbitrig.service.live").info("live: %d revolutions published", i)
     finally:
@@ -39,10 +44,28 @@ def test_thousands_of_messages_keep_the_log_files_under_the_stated_size(tmp_path
 
 
 def test_bad_log_options_are_a_usage_error(tmp_path):
-    p = subprocess.run([sys.executable, "-m", "orbitrig", "serve", "--broker", "mqtt://127.0.0.1:1", "--log-file",
-                        str(tmp_path / "no" / "such" / "dir.log")], cwd=ROOT, capture_output=True, text=True,
-                       timeout=60)
+    p = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "orbitrig",
+            "serve",
+            "--broker",
+            "mqtt://127.0.0.1:1",
+            "--log-file",
+            str(tmp_path / "no" / "such" / "dir.log"),
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert p.returncode == 2 and "--log-file: cannot open" in p.stderr and "Traceback" not in p.stderr, p.stderr
-    p = subprocess.run([sys.executable, "-m", "orbitrig", "serve", "--broker", "mqtt://127.0.0.1:1", "--log-max-mb",
-                        "0"], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    p = subprocess.run(
+        [sys.executable, "-m", "orbitrig", "serve", "--broker", "mqtt://127.0.0.1:1", "--log-max-mb", "0"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert p.returncode == 2 and "--log-max-mb 0" in p.stderr, p.stderr

@@ -14,7 +14,14 @@ import numpy as np
 import pytest
 
 from orbitrig.config import (
-    CalibrationRecord, activate, digest, list_names, load_rig, read_record, rig_from_text, write_record,
+    CalibrationRecord,
+    activate,
+    digest,
+    list_names,
+    load_rig,
+    read_record,
+    rig_from_text,
+    write_record,
 )
 from orbitrig.errors import ConfigError
 
@@ -29,9 +36,14 @@ def _rig_copy(tmp: Path) -> Path:
 
 def _loads_record(rig, date: str = "2026-12-01T08:30:00+00:00") -> CalibrationRecord:
     data = rig.record.model_dump()
-    data.update(date=date, operator="ada", step="loads", previous=rig.calibration_record,
-                reference={"id": "DW-7 dead weights", "uncertainty_pct": 0.02},
-                loads={"strain": {"gain": [[0.98, 0.001], [0.0, 0.99]], "gain_u": [[1e-4, 1e-4], [1e-4, 1e-4]]}})
+    data.update(
+        date=date,
+        operator="ada",
+        step="loads",
+        previous=rig.calibration_record,
+        reference={"id": "DW-7 dead weights", "uncertainty_pct": 0.02},
+        loads={"strain": {"gain": [[0.98, 0.001], [0.0, 0.99]], "gain_u": [[1e-4, 1e-4], [1e-4, 1e-4]]}},
+    )
     data["uncertainty"]["fx_strain"]["gain_pct"] = 0.01
     return CalibrationRecord.model_validate(data)
 
@@ -83,8 +95,14 @@ def test_a_missing_or_bad_record_is_refused_naming_the_file(tmp_path):
 
 
 def _orbitrig(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "orbitrig", *args], cwd=ROOT, capture_output=True, text=True,
-                          timeout=60, env={**os.environ, "COLUMNS": "200", "PYTHONPATH": str(ROOT)})
+    return subprocess.run(
+        [sys.executable, "-m", "orbitrig", *args],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env={**os.environ, "COLUMNS": "200", "PYTHONPATH": str(ROOT)},
+    )
 
 
 def test_calibrate_list_and_show_print_the_history(tmp_path):
@@ -95,7 +113,9 @@ def test_calibrate_list_and_show_print_the_history(tmp_path):
     assert p.returncode == 0, p.stderr
     lines = p.stdout.splitlines()
     assert lines[0].startswith(f"* {rig.calibration_record}") and "initial" in lines[0]  # oldest first
-    assert lines[1].startswith(f"  {name}") and "operator ada" in lines[1] and "DW-7 dead weights (u 0.02 %)" in lines[1]
+    assert (
+        lines[1].startswith(f"  {name}") and "operator ada" in lines[1] and "DW-7 dead weights (u 0.02 %)" in lines[1]
+    )
     p = _orbitrig("calibrate", "show", name, "--config", str(rig_file))
     assert p.returncode == 0 and f"# sha256 {digest(text)}" in p.stdout and p.stdout.endswith(text)
     p = _orbitrig("calibrate", "show", "2020-01-01T000000Z-none", "--config", str(rig_file))

@@ -24,9 +24,29 @@ REPO = Path(__file__).resolve().parents[2]
 RIG_TEXT = (REPO / "config" / "rig.toml").read_bytes()
 MATRIX_TEXT = (REPO / "config" / "matrices" / "demo.toml").read_bytes()
 _VALUE = re.compile(rb"(?m)^(\s*[A-Za-z_]+\s*=\s*)([^#\n]+?)(\s*(#.*)?)$")
-HOSTILE = [b"inf", b"-inf", b"nan", b"+nan", b"1e308", b"-1e308", b"1e-320", b"0", b"-1",
-           b"99999999999999999999999", b"-0.0", b'"text"', b"true", b"[]", b"[inf, nan]", b"{}",
-           b"{ a = 1 }", b"1979-05-27", b"[[1]]", b"''", b"0x7fffffffffffffff"]
+HOSTILE = [
+    b"inf",
+    b"-inf",
+    b"nan",
+    b"+nan",
+    b"1e308",
+    b"-1e308",
+    b"1e-320",
+    b"0",
+    b"-1",
+    b"99999999999999999999999",
+    b"-0.0",
+    b'"text"',
+    b"true",
+    b"[]",
+    b"[inf, nan]",
+    b"{}",
+    b"{ a = 1 }",
+    b"1979-05-27",
+    b"[[1]]",
+    b"''",
+    b"0x7fffffffffffffff",
+]
 
 
 def _value_spans(text: bytes) -> list[tuple[int, int]]:
@@ -57,7 +77,7 @@ def mutated(draw, text: bytes) -> bytes:
             elif kind == "insert":
                 data[i:i] = draw(st.binary(min_size=1, max_size=4))
             else:
-                del data[i:i + draw(st.integers(1, 8))]
+                del data[i : i + draw(st.integers(1, 8))]
     return bytes(data)
 
 
@@ -113,7 +133,8 @@ def test_mutated_files_load_or_are_refused_by_name(tmp_path, rig, matrix):
 
 DESIGN_TEXT = (REPO / "config" / "designs" / "kcd11-demo.toml").read_bytes()
 DESIGN_MATRIX = MATRIX_TEXT.replace(b"ratios = [0.3, 0.5, 0.7, 0.9, 1.2]", b'design = "d.toml"').replace(
-    b'directions = ["forward", "backward"]', b"")
+    b'directions = ["forward", "backward"]', b""
+)
 
 
 @settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -157,8 +178,12 @@ CLI_CASES = [
     (RIG_TEXT, MATRIX_TEXT.replace(b'name = "demo"', b"name = 3"), 2, "key 'name'"),
     (RIG_TEXT, MATRIX_TEXT.replace(b"[0.3, 0.5, 0.7, 0.9, 1.2]", b"[]"), 2, "key 'orbit': 'ratios' has 0 value(s)"),
     (RIG_TEXT, MATRIX_TEXT.replace(b"[0.3, 0.5, 0.7, 0.9, 1.2]", b"[0.5]"), 2, "give at least 2 orbit frequencies"),
-    (RIG_TEXT, MATRIX_TEXT.replace(b"ratios = [0.3, 0.5, 0.7, 0.9, 1.2]",
-                                   b"ratio_start = 0.3\nratio_stop = 0.9\ncount = 1"), 2, "key 'orbit.count'"),
+    (
+        RIG_TEXT,
+        MATRIX_TEXT.replace(b"ratios = [0.3, 0.5, 0.7, 0.9, 1.2]", b"ratio_start = 0.3\nratio_stop = 0.9\ncount = 1"),
+        2,
+        "key 'orbit.count'",
+    ),
     (RIG_TEXT.replace(b"gain = 0.1", b"gain = 1e308", 1), MATRIX_TEXT, 2, "key 'channels[0].gain': gain 1e+308"),
     (RIG_TEXT.replace(b"gain = 0.1", b"gain = 0", 1), MATRIX_TEXT, 2, "key 'channels[0].gain': gain must be non-zero"),
     (RIG_TEXT.replace(b"gain = 5e-9", b"gain = -5e-9", 1), MATRIX_TEXT, 2, "key 'channels[4].gain'"),
@@ -171,9 +196,23 @@ CLI_CASES = [
 def test_cli_dry_run_exits_0_or_2_with_a_message(tmp_path, rig, matrix, code, says):
     (tmp_path / "rig.toml").write_bytes(rig)
     (tmp_path / "m.toml").write_bytes(matrix)
-    done = subprocess.run([sys.executable, "-m", "orbitrig", "sweep", "--dry-run", "--config",
-                           str(tmp_path / "rig.toml"), "--matrix", str(tmp_path / "m.toml")],
-                          cwd=REPO, capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "orbitrig",
+            "sweep",
+            "--dry-run",
+            "--config",
+            str(tmp_path / "rig.toml"),
+            "--matrix",
+            str(tmp_path / "m.toml"),
+        ],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == code, done.stderr[-2000:]
     assert "Traceback" not in done.stderr and says in done.stderr
     if code == 2:  # one line naming the file and the line

@@ -28,8 +28,9 @@ def lab(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     folder = tmp_path / "lab"
     write_lab(folder)
-    (folder / "rig.toml").write_text((folder / "rig.toml").read_text().replace(
-        'name = "double-spool rig"', 'name = "lab rig"'))
+    (folder / "rig.toml").write_text(
+        (folder / "rig.toml").read_text().replace('name = "double-spool rig"', 'name = "lab rig"')
+    )
     return folder
 
 
@@ -54,7 +55,8 @@ def test_lookup_order_config_then_env_then_cwd(lab, tmp_path, monkeypatch):
 
 def test_matrix_names_from_the_lab_first(lab, monkeypatch):
     (lab / "matrices" / "demo.toml").write_text(
-        (lab / "matrices" / "demo.toml").read_text().replace('name = "demo"', 'name = "lab demo"'))
+        (lab / "matrices" / "demo.toml").read_text().replace('name = "demo"', 'name = "lab demo"')
+    )
     (lab / "matrices" / "mine.toml").write_text((lab / "matrices" / "demo.toml").read_text())
     (lab / "matrices" / "paper.toml").unlink()  # then the shipped one
     assert cfg.load_matrix(cfg.matrix_file("demo", rig_path=lab / "rig.toml")).name == "lab demo"
@@ -76,8 +78,9 @@ def test_a_design_beside_the_matrix_folder_wins(lab):
 
 def test_init_refuses_an_existing_configuration(lab):
     env = {**os.environ, "PYTHONPATH": str(REPO)}
-    done = subprocess.run([sys.executable, "-m", "orbitrig", "init", str(lab)], capture_output=True, text=True,
-                          env=env, timeout=60)
+    done = subprocess.run(
+        [sys.executable, "-m", "orbitrig", "init", str(lab)], capture_output=True, text=True, env=env, timeout=60
+    )
     assert done.returncode == 2, done.stderr
     assert f"{lab / 'rig.toml'}: already there" in done.stderr
     assert "Traceback" not in done.stderr

@@ -21,8 +21,13 @@ OFFSETS = np.array([1.0, 0.0, -2.5, 0.0, 1e-6, 0.0, 0.0, -3e-6])
 
 def batch(counts: np.ndarray, mode: str = "sequential", rev0: int = 0, period: float = 0.08) -> RevolutionBatch:
     r = len(counts)
-    return RevolutionBatch(rev0 + np.arange(r, dtype=np.int64), 80_000 * np.arange(r, dtype=np.int64),
-                           np.full(r, period), counts, channel_slots(counts.shape[1], mode))
+    return RevolutionBatch(
+        rev0 + np.arange(r, dtype=np.int64),
+        80_000 * np.arange(r, dtype=np.int64),
+        np.full(r, period),
+        counts,
+        channel_slots(counts.shape[1], mode),
+    )
 
 
 def test_raw_counts_reproduce_the_mean_exactly():
@@ -106,13 +111,20 @@ def test_spin_tones_do_not_keep_an_adaptive_block_going():
     assert np.all(aware.uncertainty <= 0.005 * np.abs(aware.phasors) * (1 + 1e-9))
     # fed one revolution at a time, the same block
     one = StreamingAverager(AveragingRule.adaptive(0.005, 5, 400, spin_turns=1 / 0.7))
-    blocks = [b for i in range(60) for b in one.push_batch(batch(counts[i:i + 1], rev0=i))]
+    blocks = [b for i in range(60) for b in one.push_batch(batch(counts[i : i + 1], rev0=i))]
     assert blocks[0].n_records == aware.n_records
 
 
 def test_rules_refuse_nonsense():
-    for args in [(0, 5, None), (6, 5, None), (3, 5, None), (1, 5, 0.01), (5, 10, 0.0), (5, 10, float("inf")),
-                 (5, 10, float("nan"))]:
+    for args in [
+        (0, 5, None),
+        (6, 5, None),
+        (3, 5, None),
+        (1, 5, 0.01),
+        (5, 10, 0.0),
+        (5, 10, float("inf")),
+        (5, 10, float("nan")),
+    ]:
         with pytest.raises(ValueError):
             AveragingRule(*args)
     assert AveragingRule() == AveragingRule.fixed(50)
@@ -151,17 +163,24 @@ def test_scatter_uncertainty_formula():
 RULES = st.one_of(
     st.integers(1, 12).map(AveragingRule.fixed),
     st.tuples(st.integers(2, 10), st.integers(0, 10), st.floats(1e-4, 0.5)).map(
-        lambda t: AveragingRule.adaptive(t[2], t[0], t[0] + t[1])),
+        lambda t: AveragingRule.adaptive(t[2], t[0], t[0] + t[1])
+    ),
     st.tuples(st.integers(2, 10), st.integers(0, 10), st.floats(1e-4, 0.5), st.floats(0.6, 5.0)).map(
-        lambda t: AveragingRule.adaptive(t[2], t[0], t[0] + t[1], spin_turns=t[3])),
+        lambda t: AveragingRule.adaptive(t[2], t[0], t[0] + t[1], spin_turns=t[3])
+    ),
 )
-DAMAGE = st.lists(st.tuples(st.sampled_from(["flip", "drop"]), st.integers(0, 10**6), st.integers(1, 255)),
-                  max_size=8)
+DAMAGE = st.lists(st.tuples(st.sampled_from(["flip", "drop"]), st.integers(0, 10**6), st.integers(1, 255)), max_size=8)
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(rule=RULES, damage=DAMAGE, noise=st.floats(0, 2000), seed=st.integers(0, 2**16),
-       cuts=st.lists(st.integers(0, 10**6), max_size=10), layout=st.sampled_from([(8, 45), (4, 90), (2, 180)]))
+@given(
+    rule=RULES,
+    damage=DAMAGE,
+    noise=st.floats(0, 2000),
+    seed=st.integers(0, 2**16),
+    cuts=st.lists(st.integers(0, 10**6), max_size=10),
+    layout=st.sampled_from([(8, 45), (4, 90), (2, 180)]),
+)
 def test_adaptive_blocks_stay_in_bounds_and_never_average_damage(rule, damage, noise, seed, cuts, layout):
     channels, frame_slots = layout
     counts = signal(40, channels, "sequential", noise=noise, seed=seed)

@@ -22,9 +22,17 @@ ORBIT = 2 * math.pi * 12.5
 
 async def orbitrig(*args: str) -> tuple[int, str, str]:
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    p = await asyncio.create_subprocess_exec(sys.executable, "-m", "orbitrig", "acquire", *args,
-                                             stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
-                                             cwd=ROOT, env=env)
+    p = await asyncio.create_subprocess_exec(
+        sys.executable,
+        "-m",
+        "orbitrig",
+        "acquire",
+        *args,
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.PIPE,
+        cwd=ROOT,
+        env=env,
+    )
     out, err = await p.communicate()
     return p.returncode, out.decode(), err.decode()
 
@@ -41,8 +49,15 @@ async def test_json_over_tcp_in_counts(rig):
     code, out, err = await orbitrig("--adc", rig.adc_url, "--json", "--revolutions", "40", "--counts")
     assert code == 0, err
     d = json.loads(out)
-    assert list(d) == ["revolutions_used", "revolutions_dropped", "frames_bad", "bytes_skipped",
-                       "orbit_hz", "stop_reason", "channels"]
+    assert list(d) == [
+        "revolutions_used",
+        "revolutions_dropped",
+        "frames_bad",
+        "bytes_skipped",
+        "orbit_hz",
+        "stop_reason",
+        "channels",
+    ]
     assert d["stop_reason"] == "count"
     assert d["revolutions_used"] == 40 and d["revolutions_dropped"] == 0 and d["frames_bad"] == 0
     assert d["orbit_hz"] == pytest.approx(12.5, rel=2e-3)
@@ -60,8 +75,9 @@ async def test_json_over_tcp_in_counts(rig):
 
 
 async def test_table_over_pty_with_rig_config(rig):
-    code, out, err = await orbitrig("--adc", rig.adc_pty_path, "--rig", str(ROOT / "config" / "rig.toml"),
-                                    "--revolutions", "20")
+    code, out, err = await orbitrig(
+        "--adc", rig.adc_pty_path, "--rig", str(ROOT / "config" / "rig.toml"), "--revolutions", "20"
+    )
     assert code == 0, err
     assert out.startswith("20 revolutions averaged, 0 dropped")
     rows = [line.split() for line in out.splitlines()[2:]]

@@ -26,8 +26,16 @@ pytestmark = pytest.mark.timeout(60)
 
 
 async def acquire(*args: str) -> tuple[int, str, str]:
-    p = await asyncio.create_subprocess_exec(sys.executable, "-m", "orbitrig", "acquire", *args, cwd=ROOT,
-                                             stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
+    p = await asyncio.create_subprocess_exec(
+        sys.executable,
+        "-m",
+        "orbitrig",
+        "acquire",
+        *args,
+        cwd=ROOT,
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.PIPE,
+    )
     out, err = await p.communicate()
     return p.returncode, out.decode(), err.decode()
 
@@ -49,14 +57,16 @@ async def test_calibrated_by_the_rig_config_by_default(rig):
 
 
 async def test_adaptive_averaging_from_the_command_line(rig):
-    code, out, err = await acquire("--adc", rig.adc_url, "--target", "0.5", "--min-revolutions", "5",
-                                   "--revolutions", "300", "--json")
+    code, out, err = await acquire(
+        "--adc", rig.adc_url, "--target", "0.5", "--min-revolutions", "5", "--revolutions", "300", "--json"
+    )
     assert code == 0, err
     d = json.loads(out)
     assert d["stop_reason"] == "target" and 5 <= d["revolutions_used"] < 300
     assert all(c["uncertainty"] <= 0.005 * c["amplitude"] for c in d["channels"])
-    code, out, err = await acquire("--adc", rig.adc_url, "--target", "1e-6", "--min-revolutions", "5",
-                                   "--revolutions", "20")
+    code, out, err = await acquire(
+        "--adc", rig.adc_url, "--target", "1e-6", "--min-revolutions", "5", "--revolutions", "20"
+    )
     assert code == 0, err
     assert out.startswith("20 revolutions averaged (stopped: max), 0 dropped")
     assert "u %" in out.splitlines()[1]

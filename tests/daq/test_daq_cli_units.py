@@ -16,8 +16,16 @@ pytestmark = pytest.mark.timeout(60)
 
 
 async def _acquire(*args: str) -> tuple[int, str, str]:
-    p = await asyncio.create_subprocess_exec(sys.executable, "-m", "orbitrig", "acquire", *args, cwd=ROOT,
-                                             stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
+    p = await asyncio.create_subprocess_exec(
+        sys.executable,
+        "-m",
+        "orbitrig",
+        "acquire",
+        *args,
+        cwd=ROOT,
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.PIPE,
+    )
     out, err = await p.communicate()
     return p.returncode, out.decode(), err.decode()
 
@@ -26,15 +34,23 @@ async def test_rows_name_channel_and_unit():
     async with SimRig(speedup=20.0, can_channel=None) as rig:
         rig.local_control(spin=150.0, orbit=2 * math.pi * 12.5)
         await asyncio.sleep(0.05)
-        code, out, err = await _acquire("--adc", rig.adc_url, "--rig", str(ROOT / "config" / "rig.toml"),
-                                        "--revolutions", "10")
+        code, out, err = await _acquire(
+            "--adc", rig.adc_url, "--rig", str(ROOT / "config" / "rig.toml"), "--revolutions", "10"
+        )
         assert code == 0, err
         lines = out.splitlines()
         assert lines[0].startswith("10 revolutions averaged, 0 dropped, frames bad 0")
         assert lines[1].split()[-2:] == ["unit", "name"]
         assert [row.split()[-2:] for row in lines[2:]] == [
-            ["N", "fx_piezo"], ["N", "fy_piezo"], ["N", "fx_strain"], ["N", "fy_strain"],
-            ["m", "x_a"], ["m", "y_a"], ["m", "x_b"], ["m", "y_b"]]
+            ["N", "fx_piezo"],
+            ["N", "fy_piezo"],
+            ["N", "fx_strain"],
+            ["N", "fy_strain"],
+            ["m", "x_a"],
+            ["m", "y_a"],
+            ["m", "x_b"],
+            ["m", "y_b"],
+        ]
         code, out, err = await _acquire("--adc", rig.adc_url, "--revolutions", "5", "--counts")
         assert code == 0, err
         assert all(row.split()[-1] == "counts" for row in out.splitlines()[2:])

@@ -14,7 +14,7 @@ from reduction.fourier import phasor
 
 def run(data: bytes, channels=8, mode="sequential", chunk=997):
     dec, asm = FrameDecoder(), RevolutionAssembler(channels, mode)
-    parts = [asm.push_batch(dec.feed_batch(data[i:i + chunk])) for i in range(0, len(data), chunk)]
+    parts = [asm.push_batch(dec.feed_batch(data[i : i + chunk])) for i in range(0, len(data), chunk)]
     parts.append(asm.flush())
     revs = [r for p in parts for r in p.revolutions()]
     return dec, asm, revs
@@ -25,10 +25,16 @@ def check_intact(revs, counts, rev0=0):
         np.testing.assert_array_equal(r.counts, counts[(r.rev - rev0) & 0xFFFFFFFF])
 
 
-@pytest.mark.parametrize("mode,channels,frame_slots", [
-    ("sequential", 8, 45), ("sequential", 8, 180), ("sequential", 4, 120),
-    ("simultaneous", 8, 45), ("simultaneous", 3, 72),
-])
+@pytest.mark.parametrize(
+    "mode,channels,frame_slots",
+    [
+        ("sequential", 8, 45),
+        ("sequential", 8, 180),
+        ("sequential", 4, 120),
+        ("simultaneous", 8, 45),
+        ("simultaneous", 3, 72),
+    ],
+)
 def test_clean_stream_all_revolutions_exact(mode, channels, frame_slots):
     counts = signal(12, channels, mode, noise=3)
     frames, _ = stream(counts, mode, frame_slots=frame_slots)
@@ -109,6 +115,7 @@ def test_corrupt_frame_counted_and_dropped():
         f = list(f)
         f[19] = f[19][:30] + bytes([f[19][30] ^ 0x10]) + f[19][31:]
         return f
+
     counts, (dec, asm, revs) = faulty(flip)
     assert 2 not in [r.rev for r in revs] and len(revs) == 7
     assert dec.frame_errors == {"crc": 1} and dec.frames_bad == 1
@@ -143,6 +150,7 @@ def test_rev_mismatch_and_early_trigger():
         f[12] = frame(0, 12, 99, 180, z, 120_000)  # rev 1, wrong rev number
         f[26] = frame(TRIGGER, 26, 4, 0, z, 260_000)  # a trigger inside rev 3 (slot 90)
         return f
+
     counts, (dec, asm, revs) = faulty(mutate)
     # rev 1: broken by a frame with rev 99 (a fragment without trigger, counted once more);
     # rev 3: cut short by a stray trigger frame, whose one-frame "revolution 4" is dropped too;
@@ -155,6 +163,7 @@ def test_rev_mismatch_and_early_trigger():
 def test_garbage_between_frames_keeps_revolutions():
     def mutate(f, m):
         return [x + (b"\xa5\x5a\x01garbage" if i % 5 == 2 else b"") for i, x in enumerate(f)]
+
     counts, (dec, asm, revs) = faulty(mutate)
     assert len(revs) == 8 and asm.revolutions_dropped == 0
     assert dec.bytes_skipped == 10 * len([i for i in range(64) if i % 5 == 2])
@@ -182,7 +191,7 @@ def test_reset_discards_revolution_in_progress():
     dec, asm = FrameDecoder(), RevolutionAssembler()
     first = asm.push_batch(dec.feed_batch(data[: len(data) // 2 + 100]))
     asm.reset()
-    rest = asm.push_batch(dec.feed_batch(data[len(data) // 2 + 100:]))
+    rest = asm.push_batch(dec.feed_batch(data[len(data) // 2 + 100 :]))
     assert list(first.rev) == [0] and list(rest.rev) == [2] and asm.revolutions_dropped == 0
 
 
@@ -236,8 +245,14 @@ def test_stalled_board_clock_drops_revolutions_without_a_period():
     stall = 2 * 80_000 + 30_000  # clock frozen from rev 2, slot 135 until rev 5
     for i, m in enumerate(meta):
         if 2 <= m["index"] < 5 and (m["index"], m["first_slot"]) >= (2, 135):
-            frames[i] = frame(m["first_slot"] == 0, m["seq"], m["rev"], m["first_slot"],
-                              slot_samples(counts[m["index"]], "sequential")[m["first_slot"]:m["first_slot"] + 45], stall)
+            frames[i] = frame(
+                m["first_slot"] == 0,
+                m["seq"],
+                m["rev"],
+                m["first_slot"],
+                slot_samples(counts[m["index"]], "sequential")[m["first_slot"] : m["first_slot"] + 45],
+                stall,
+            )
     dec, asm, revs = run(b"".join(frames))
     assert [r.rev for r in revs] == [0, 1, 5, 6, 7]
     assert asm.drop_reasons == {"bad_clock": 3}

@@ -23,24 +23,35 @@ def decode(data: bytes, cuts: list[int], channels: int, mode: str):
 
 
 @SETTINGS
-@given(data=st.binary(max_size=4000), cuts=st.lists(st.integers(0, 4000), max_size=8),
-       mode=st.sampled_from(["sequential", "simultaneous"]))
+@given(
+    data=st.binary(max_size=4000),
+    cuts=st.lists(st.integers(0, 4000), max_size=8),
+    mode=st.sampled_from(["sequential", "simultaneous"]),
+)
 def test_arbitrary_bytes(data, cuts, mode):
     dec, asm, revs = decode(data, cuts, 8, mode)
     assert revs == []
     assert dec.bytes_skipped + dec.pending <= len(data)
 
 
-MUTATION = st.tuples(st.sampled_from(["flip", "delete", "insert", "drop_frame", "dup_frame"]),
-                     st.integers(0, 10**9), st.integers(0, 255), st.integers(1, 40))
+MUTATION = st.tuples(
+    st.sampled_from(["flip", "delete", "insert", "drop_frame", "dup_frame"]),
+    st.integers(0, 10**9),
+    st.integers(0, 255),
+    st.integers(1, 40),
+)
 
 
 @SETTINGS
-@given(mode=st.sampled_from(["sequential", "simultaneous"]),
-       layout=st.sampled_from([(8, 45), (8, 180), (4, 120), (2, 255)]),
-       seq0=st.integers(0, 65535), rev0=st.integers(0, 2**32 - 1),
-       mutations=st.lists(MUTATION, max_size=6), cuts=st.lists(st.integers(0, 10**6), max_size=10),
-       seed=st.integers(0, 2**16))
+@given(
+    mode=st.sampled_from(["sequential", "simultaneous"]),
+    layout=st.sampled_from([(8, 45), (8, 180), (4, 120), (2, 255)]),
+    seq0=st.integers(0, 65535),
+    rev0=st.integers(0, 2**32 - 1),
+    mutations=st.lists(MUTATION, max_size=6),
+    cuts=st.lists(st.integers(0, 10**6), max_size=10),
+    seed=st.integers(0, 2**16),
+)
 def test_damaged_streams_never_yield_damaged_revolutions(mode, layout, seq0, rev0, mutations, cuts, seed):
     channels, frame_slots = layout
     if mode == "simultaneous":
@@ -65,7 +76,7 @@ def test_damaged_streams_never_yield_damaged_revolutions(mode, layout, seq0, rev
             if kind == "flip":
                 p[k] ^= 1 << (value % 8)
             else:
-                del p[k:k + length]
+                del p[k : k + length]
     still_sent = {bytes(p) for p in pieces}  # a revolution is intact if each of its frames still is
     damaged = {m["index"] for f, m in zip(frames, meta) if f not in still_sent}
     data = b"".join(pieces)

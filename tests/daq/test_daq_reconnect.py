@@ -58,8 +58,11 @@ def good_frames() -> bytes:
     return b"".join(frames)
 
 
-@pytest.mark.parametrize("payload", [b"", np.random.default_rng(0).integers(0, 256, 3000, np.uint8).tobytes()],
-                         ids=["accept-close", "garbage-close"])
+@pytest.mark.parametrize(
+    "payload",
+    [b"", np.random.default_rng(0).integers(0, 256, 3000, np.uint8).tobytes()],
+    ids=["accept-close", "garbage-close"],
+)
 async def test_a_peer_that_closes_at_once_is_not_hammered(payload):
     server, url, accepts = await serve(payload)
     async with server:

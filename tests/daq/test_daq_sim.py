@@ -73,8 +73,9 @@ async def acquire_with_fault(rig, url, fault=None, *, at=10, mode="sequential", 
         if fault is not None and len(used) == at:
             fault() if callable(fault) else rig.inject(fault, **kw)
 
-    async with AdcReader(url, channels=len(cfg.channels), mode=mode, gains=cfg.gains,
-                         offsets=cfg.offsets, on_revolution=hook) as adc:
+    async with AdcReader(
+        url, channels=len(cfg.channels), mode=mode, gains=cfg.gains, offsets=cfg.offsets, on_revolution=hook
+    ) as adc:
         block = await adc.acquire(N, timeout=20)
     return block, used
 

@@ -35,8 +35,17 @@ def crc16_ccitt_false(data: bytes) -> int:
     return crc
 
 
-def body(flags: int, seq: int, rev: int, first_slot: int, n_slots: int, n_ch: int, t_us: int,
-         samples: list[int], version: int = 1) -> bytes:
+def body(
+    flags: int,
+    seq: int,
+    rev: int,
+    first_slot: int,
+    n_slots: int,
+    n_ch: int,
+    t_us: int,
+    samples: list[int],
+    version: int = 1,
+) -> bytes:
     """version .. last sample byte, from the spec's offset table (little-endian)."""
     b = bytes([version, flags]) + seq.to_bytes(2, "little") + rev.to_bytes(4, "little")
     b += first_slot.to_bytes(2, "little") + bytes([n_slots, n_ch]) + t_us.to_bytes(4, "little")
@@ -56,7 +65,14 @@ def test_golden_frame_decodes_field_by_field():
     wire = golden(0x05, 0x1234, 0x89ABCDEF, 0, 2, 2, 0xFEDCBA98, [1, -2, 0x1234, -32768])
     (f,) = FrameDecoder().feed(wire)
     assert (f.flags, f.seq, f.rev, f.first_slot, f.n_slots, f.n_ch, f.t_us) == (
-        0x05, 0x1234, 0x89ABCDEF, 0, 2, 2, 0xFEDCBA98)
+        0x05,
+        0x1234,
+        0x89ABCDEF,
+        0,
+        2,
+        2,
+        0xFEDCBA98,
+    )
     assert f.trigger and f.simultaneous and not f.overrun
     np.testing.assert_array_equal(f.samples, [[1, -2], [0x1234, -32768]])  # slot-major
 
@@ -96,9 +112,11 @@ def test_header_fields_outside_the_spec_are_rejected(name):
 
 
 def test_header_limits_inside_the_spec_are_accepted():
-    frames = [golden(0x02, 1, 0, 359, 1, 1, 0, [5]),                    # last slot alone, OVERRUN
-              golden(0x05, 2, 0, 0, 255, 1, 0, [0] * 255),               # 255 slots, simultaneous C=1
-              golden(0x04, 3, 0, 0, 1, 255, 0, list(range(255)))]        # n_ch 255
+    frames = [
+        golden(0x02, 1, 0, 359, 1, 1, 0, [5]),  # last slot alone, OVERRUN
+        golden(0x05, 2, 0, 0, 255, 1, 0, [0] * 255),  # 255 slots, simultaneous C=1
+        golden(0x04, 3, 0, 0, 1, 255, 0, list(range(255))),
+    ]  # n_ch 255
     dec = FrameDecoder()
     got = dec.feed(b"".join(frames))
     assert [(f.first_slot, f.n_slots, f.n_ch) for f in got] == [(359, 1, 1), (0, 255, 1), (0, 1, 255)]
@@ -112,16 +130,20 @@ def test_sequential_scan_of_any_divisor_of_360(channels):
     assert asm.slots.shape == (channels, 360 // channels)
     np.testing.assert_array_equal(asm.slots[-1], np.arange(channels - 1, 360, channels))
     samples = np.arange(360)
-    wire = b"".join(golden(0x01 if fs == 0 else 0, i, 9, fs, 90, 1, 1000 * i, samples[fs:fs + 90])
-                    for i, fs in enumerate(range(0, 360, 90)))
+    wire = b"".join(
+        golden(0x01 if fs == 0 else 0, i, 9, fs, 90, 1, 1000 * i, samples[fs : fs + 90])
+        for i, fs in enumerate(range(0, 360, 90))
+    )
     wire += golden(0x01, 4, 10, 0, 90, 1, 4000, samples[:90])
     revs = asm.push_batch(FrameDecoder().feed_batch(wire)).revolutions()
     assert len(revs) == 1 and revs[0].period_s == pytest.approx(4000e-6)
     np.testing.assert_array_equal(revs[0].counts, asm.slots)  # sample value = its slot
 
 
-@pytest.mark.parametrize("channels,mode", [(7, "sequential"), (0, "sequential"), (720, "sequential"),
-                                           (256, "simultaneous"), (0, "simultaneous")])
+@pytest.mark.parametrize(
+    "channels,mode",
+    [(7, "sequential"), (0, "sequential"), (720, "sequential"), (256, "simultaneous"), (0, "simultaneous")],
+)
 def test_scan_sizes_outside_the_spec_are_refused(channels, mode):
     with pytest.raises(ValueError, match=f"channels={channels}"):
         RevolutionAssembler(channels, mode)
@@ -145,6 +167,7 @@ async def test_aux_lengths_and_unsigned_fields_are_the_specs():
     tx = can.Bus(interface="virtual", channel=channel)
     try:
         async with AuxSensors(channel, interface="virtual", clock=FakeClock()) as aux:
+
             def send(can_id, data):
                 tx.send(can.Message(arbitration_id=can_id, data=data, is_extended_id=False))
 
@@ -153,8 +176,8 @@ async def test_aux_lengths_and_unsigned_fields_are_the_specs():
             send(0x381, struct.pack("<HH", 65000, 0x0002))
             send(0x701, b"\x05")
             send(0x381, struct.pack("<HHHH", 1, 0x0001, 0, 0))  # 8 bytes: not the spec's layout
-            send(0x181, bytes(4))                              # too short
-            send(0x701, b"\x05\x00")                           # heartbeat is 1 byte
+            send(0x181, bytes(4))  # too short
+            send(0x701, b"\x05\x00")  # heartbeat is 1 byte
             for _ in range(200):
                 if aux.frames_received + aux.frames_malformed >= 7:
                     break
@@ -200,8 +223,9 @@ async def test_whirl_direction_shows_in_the_phasors_not_in_the_slot_order(direct
     spin, orbit = 2 * np.pi * 30.0, direction * 2 * np.pi * 12.5
     async with SimRig(cfg, speedup=20.0, can_channel=None, adc_pty=False) as rig:
         rig.local_control(spin=spin, orbit=orbit)
-        async with AdcReader(rig.adc_url, channels=8, mode="sequential", gains=cfg.adc.gains,
-                             offsets=cfg.adc.offsets) as adc:
+        async with AdcReader(
+            rig.adc_url, channels=8, mode="sequential", gains=cfg.adc.gains, offsets=cfg.adc.offsets
+        ) as adc:
             block = await adc.acquire(4, timeout=20)
         truth = rig.true_phasors(spin, orbit)
     names = list(cfg.adc.channels)

@@ -18,9 +18,23 @@ class ServiceHolder:
         pw = work / "service.pw"
         pw.write_text(ACCOUNTS["orbitrig-service"] + "\n")
         pw.chmod(0o600)
-        self.args = ["--sim", "--broker", broker.service_url, "--rig-id", RIG, "--username", "orbitrig-service",
-                     "--password-file", str(pw), "--matrices", str(REPO / "config" / "matrices"),
-                     "--out", str(work / "runs"), "--speedup", SPEEDUP]
+        self.args = [
+            "--sim",
+            "--broker",
+            broker.service_url,
+            "--rig-id",
+            RIG,
+            "--username",
+            "orbitrig-service",
+            "--password-file",
+            str(pw),
+            "--matrices",
+            str(REPO / "config" / "matrices"),
+            "--out",
+            str(work / "runs"),
+            "--speedup",
+            SPEEDUP,
+        ]
         self.proc = Service(self.args, work)
 
     def restart(self) -> None:

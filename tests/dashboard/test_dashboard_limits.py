@@ -24,8 +24,12 @@ pytestmark = pytest.mark.timeout(150)
 def _login(url: str, user: str, password: str, cookie: str | None = None) -> tuple[int, dict, str | None]:
     """POST /api/login with a fresh client: (status, body, the session cookie's value)."""
     headers = {"Content-Type": "application/json", **({"Cookie": cookie} if cookie else {})}
-    req = urllib.request.Request(url + "api/login", method="POST", headers=headers,
-                                 data=json.dumps({"user": user, "password": password}).encode())
+    req = urllib.request.Request(
+        url + "api/login",
+        method="POST",
+        headers=headers,
+        data=json.dumps({"user": user, "password": password}).encode(),
+    )
     try:
         with urllib.request.urlopen(req, timeout=20) as r:
             token = re.search(r"orbitrig_session=([^;]+)", r.headers["Set-Cookie"]).group(1)
@@ -62,7 +66,7 @@ def test_signin_delay_grows_per_user_then_a_lockout_the_right_password_waits_out
                 asked.append(_wait_asked(body))
                 time.sleep(asked[-1] + 0.05)
         assert [round(a / 0.2) for a in asked] == [1, 2, 4]  # 0.2 s doubling (margins: the answer's own time)
-        assert all(0.2 * 2 ** k - 0.15 <= a <= 0.2 * 2 ** k for k, a in enumerate(asked))
+        assert all(0.2 * 2**k - 0.15 <= a <= 0.2 * 2**k for k, a in enumerate(asked))
         t_locked = time.monotonic()
         status, body, _ = _login(dash.url, "operator", ACCOUNTS["operator"])
         assert status == 429 and "locked for" in body["error"] and "lockout 3 s" in body["error"], body
@@ -128,7 +132,7 @@ def _closed_within(sock: socket.socket, limit: float, trickle: bytes = b"") -> f
             return time.monotonic() - t0
         if trickle:
             try:
-                sock.sendall(trickle[i % len(trickle):i % len(trickle) + 1])
+                sock.sendall(trickle[i % len(trickle) : i % len(trickle) + 1])
             except (BrokenPipeError, ConnectionResetError):
                 return time.monotonic() - t0
     raise AssertionError(f"connection still open after {limit} s")
@@ -140,8 +144,10 @@ def test_held_connections_are_cut_after_the_request_timeout_and_the_feed_is_not(
         cases = {
             "silent": b"",
             "slow head": b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n",
-            "slow body": (b"POST /api/login HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
-                          b"Content-Length: 200\r\n\r\n{\"user\":"),
+            "slow body": (
+                b"POST /api/login HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+                b'Content-Length: 200\r\n\r\n{"user":'
+            ),
         }
         for what, start in cases.items():
             with socket.create_connection(("127.0.0.1", dash.port), timeout=5) as s:
@@ -152,9 +158,11 @@ def test_held_connections_are_cut_after_the_request_timeout_and_the_feed_is_not(
         assert "not read in full within 1.5 s" in dash.text()
         _, _, token = _login(dash.url, "viewer", ACCOUNTS["viewer"])
         with socket.create_connection(("127.0.0.1", dash.port), timeout=5) as s:  # the page's feed
-            s.sendall(f"GET /api/feed HTTP/1.1\r\nHost: 127.0.0.1:{dash.port}\r\nUpgrade: websocket\r\n"
-                      "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
-                      f"Sec-WebSocket-Version: 13\r\nCookie: orbitrig_session={token}\r\n\r\n".encode())
+            s.sendall(
+                f"GET /api/feed HTTP/1.1\r\nHost: 127.0.0.1:{dash.port}\r\nUpgrade: websocket\r\n"
+                "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                f"Sec-WebSocket-Version: 13\r\nCookie: orbitrig_session={token}\r\n\r\n".encode()
+            )
             assert s.recv(4096).startswith(b"HTTP/1.1 101")
             time.sleep(3.0)  # twice the request timeout
             s.settimeout(1.0)

@@ -76,7 +76,8 @@ def _layout(page: Page) -> dict[str, tuple[int, int]]:
     return page.d.execute_script(
         "const out = {}; document.querySelectorAll('main > section').forEach((s, i) => {"
         " const r = s.getBoundingClientRect(); out[s.id || s.className + i] = [Math.round(r.left), Math.round(r.top)]; });"
-        " return out;")
+        " return out;"
+    )
 
 
 def test_viewer_sees_everything_and_commands_nothing(dashboard, service, browsers, tmp_path):
@@ -118,8 +119,10 @@ def test_viewer_sees_everything_and_commands_nothing(dashboard, service, browser
     shot = Path(os.environ.get(SCREENSHOT_ENV) or tmp_path / "dashboard.png")
     if not shot.is_absolute():
         shot = REPO / shot
-    operator.d.execute_script("const s = document.getElementById('trend-window'); s.value = 'run';"
-                              "s.dispatchEvent(new Event('change')); window.scrollTo(0, 0)")
+    operator.d.execute_script(
+        "const s = document.getElementById('trend-window'); s.value = 'run';"
+        "s.dispatchEvent(new Event('change')); window.scrollTo(0, 0)"
+    )
     time.sleep(0.2)
     operator.screenshot(shot)
     assert shot.stat().st_size > 20_000
@@ -133,19 +136,32 @@ def test_results_show_values_u_and_units_as_they_arrive(broker, dashboard, brows
     page.signed_in()
     page.wait_text("link", "online")
     rows_before = len(page.d.find_elements("css selector", "#results tr"))
-    result = {"run_id": "r-test", "point": 7, "label": "w1000rpm", "identification": [
-        {"lms": "piezo", "model": "kc8", "freq_dep": "none", "method": "ols",
-         "coefficients": {"Kxx": 1.5e7, "Cxx": 2.0e4}, "std_errors": {"Kxx": 1e5, "Cxx": 1e2},
-         "confidence_95": {"Kxx": [1.48e7, 1.52e7], "Cxx": [1.98e4, 2.02e4]},
-         "expanded_uncertainty": {"k": 2, "basis": "statistical", "values": {"Kxx": 2e5, "Cxx": 2e2}},
-         "units": {"Kxx": "N/m", "Cxx": "N s/m"},
-         "warnings": ["condition number 3.1e6: Kxy poorly determined"]},
-        {"lms": "strain", "model": "kcd11", "error": "too few orbit frequencies: 2 < 3"}]}
+    result = {
+        "run_id": "r-test",
+        "point": 7,
+        "label": "w1000rpm",
+        "identification": [
+            {
+                "lms": "piezo",
+                "model": "kc8",
+                "freq_dep": "none",
+                "method": "ols",
+                "coefficients": {"Kxx": 1.5e7, "Cxx": 2.0e4},
+                "std_errors": {"Kxx": 1e5, "Cxx": 1e2},
+                "confidence_95": {"Kxx": [1.48e7, 1.52e7], "Cxx": [1.98e4, 2.02e4]},
+                "expanded_uncertainty": {"k": 2, "basis": "statistical", "values": {"Kxx": 2e5, "Cxx": 2e2}},
+                "units": {"Kxx": "N/m", "Cxx": "N s/m"},
+                "warnings": ["condition number 3.1e6: Kxy poorly determined"],
+            },
+            {"lms": "strain", "model": "kcd11", "error": "too few orbit frequencies: 2 < 3"},
+        ],
+    }
     done = broker.pub(f"orbitrig/{RIG}/result", json.dumps(result), user="orbitrig-service")
     assert done.returncode == 0, done.stderr
     page.wait(lambda: len(page.d.find_elements("css selector", "#results tr")) == rows_before + 3, 10, "3 rows")
-    rows = page.d.execute_script("return [...document.querySelectorAll('#results tr')].slice(-3)"
-                                 ".map(r => [...r.children].map(c => c.innerText))")
+    rows = page.d.execute_script(
+        "return [...document.querySelectorAll('#results tr')].slice(-3).map(r => [...r.children].map(c => c.innerText))"
+    )
     assert rows[0] == ["7 w1000rpm", "piezo", "kc8", "Kxx", "1.500e+7", "2.000e+5", "N/m"]
     assert rows[1] == ["", "", "", "Cxx", "2.000e+4", "200.0", "N s/m"]
     assert rows[2] == ["7 w1000rpm", "strain", "kcd11", "refused: too few orbit frequencies: 2 < 3"]

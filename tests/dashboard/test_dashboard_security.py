@@ -37,7 +37,8 @@ def test_session_cookie_storage_and_sign_out(dashboard, browsers, service):
     storage = page.d.execute_script(
         "return JSON.stringify([document.cookie, Object.entries(localStorage), Object.entries(sessionStorage),"
         " location.href, document.documentElement.outerHTML,"
-        " Array.from(document.querySelectorAll('input')).map(i => i.value)])")
+        " Array.from(document.querySelectorAll('input')).map(i => i.value)])"
+    )
     assert secret not in storage and cookie["value"] not in storage
     assert secret not in dashboard.text() and secret not in service.text()
     page.el("signout").click()
@@ -45,7 +46,9 @@ def test_session_cookie_storage_and_sign_out(dashboard, browsers, service):
     page.wait_text("signin-error", "signed out")
     assert page.d.get_cookies() == []
     # the old session id is dead on the server too
-    req = urllib.request.Request(dashboard.url + "api/session", headers={"Cookie": f"orbitrig_session={cookie['value']}"})
+    req = urllib.request.Request(
+        dashboard.url + "api/session", headers={"Cookie": f"orbitrig_session={cookie['value']}"}
+    )
     try:
         urllib.request.urlopen(req, timeout=5)
         raise AssertionError("the session survived its sign-out")
@@ -59,8 +62,9 @@ def _client():
 
 
 def _post(opener, url, body):
-    req = urllib.request.Request(url, data=json.dumps(body).encode(), method="POST",
-                                 headers={"Content-Type": "application/json"})
+    req = urllib.request.Request(
+        url, data=json.dumps(body).encode(), method="POST", headers={"Content-Type": "application/json"}
+    )
     try:
         with opener.open(req, timeout=15) as r:
             return r.status, json.loads(r.read())
@@ -104,18 +108,34 @@ def test_https_and_no_plain_http_off_loopback(broker, tmp_path):
     from support.dash_helpers import REPO
     from support.mqtt_helpers import make_test_ca
 
-    refused = subprocess.run([sys.executable, "-m", "orbitrig", "dashboard", "--broker", broker.url,
-                              "--http", "0.0.0.0:8080"], cwd=REPO, capture_output=True, text=True, timeout=60)
+    refused = subprocess.run(
+        [sys.executable, "-m", "orbitrig", "dashboard", "--broker", broker.url, "--http", "0.0.0.0:8080"],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert refused.returncode == 2 and "plain HTTP only on loopback" in refused.stderr
 
     ca = make_test_ca(tmp_path)  # also server.crt / server.key for 127.0.0.1
-    dash = Dashboard(broker.url, RIG, tmp_path, "--https-cert", str(tmp_path / "server.crt"),
-                     "--https-key", str(tmp_path / "server.key"))
+    dash = Dashboard(
+        broker.url,
+        RIG,
+        tmp_path,
+        "--https-cert",
+        str(tmp_path / "server.crt"),
+        "--https-key",
+        str(tmp_path / "server.key"),
+    )
     try:
         assert dash.url.startswith("https://")
         ctx = ssl.create_default_context(cafile=str(ca))
-        req = urllib.request.Request(dash.url + "api/login", method="POST", headers={"Content-Type": "application/json"},
-                                     data=json.dumps({"user": "viewer", "password": ACCOUNTS["viewer"]}).encode())
+        req = urllib.request.Request(
+            dash.url + "api/login",
+            method="POST",
+            headers={"Content-Type": "application/json"},
+            data=json.dumps({"user": "viewer", "password": ACCOUNTS["viewer"]}).encode(),
+        )
         with urllib.request.urlopen(req, timeout=15, context=ctx) as r:
             cookie = r.headers["Set-Cookie"]
         assert "HttpOnly" in cookie and "SameSite=Strict" in cookie and "Secure" in cookie

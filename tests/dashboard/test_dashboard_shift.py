@@ -55,16 +55,36 @@ def fresh_page(browsers, dashboard) -> Page:
 
 def live_payload(k: int) -> dict:
     """A live payload of run r-trend: spin 1000 rpm, orbit 600 rpm, pressures and temperatures."""
-    return {"run_id": "r-trend", "point": 1, "frequency": 1, "direction": "forward", "revolutions": k,
-            "orbit_hz": 10.0, "spin_rpm": 1000.0,
-            "drives": {"link_ok": True,
-                       "spin": {"reference_rpm": 1000.0, "actual_rpm": 998.0 + k, "torque_pct": 20.0, "state": "running"},
-                       "orbit": {"reference_rpm": 600.0, "actual_rpm": 600.0, "torque_pct": 5.0, "state": "running"}},
-            "aux": {"p_supply": 2.0e6, "p_recess_1": 0.47e6, "p_recess_2": 0.48e6, "p_recess_3": 0.49e6,
-                    "p_recess_4": 0.50e6, "t_supply": 313.15, "t_recess": 318.15, "t_groove": 320.15,
-                    "flow": 2.5e-5, "beta": 0.40, "node_lost": False},
-            "waveforms": {}, "units": {}, "bands": {"p_supply": [0.2e6, 8.0e6], "p_recess": [0.432e6, 0.528e6],
-                                                    "beta": [0.35, 0.45]}}
+    return {
+        "run_id": "r-trend",
+        "point": 1,
+        "frequency": 1,
+        "direction": "forward",
+        "revolutions": k,
+        "orbit_hz": 10.0,
+        "spin_rpm": 1000.0,
+        "drives": {
+            "link_ok": True,
+            "spin": {"reference_rpm": 1000.0, "actual_rpm": 998.0 + k, "torque_pct": 20.0, "state": "running"},
+            "orbit": {"reference_rpm": 600.0, "actual_rpm": 600.0, "torque_pct": 5.0, "state": "running"},
+        },
+        "aux": {
+            "p_supply": 2.0e6,
+            "p_recess_1": 0.47e6,
+            "p_recess_2": 0.48e6,
+            "p_recess_3": 0.49e6,
+            "p_recess_4": 0.50e6,
+            "t_supply": 313.15,
+            "t_recess": 318.15,
+            "t_groove": 320.15,
+            "flow": 2.5e-5,
+            "beta": 0.40,
+            "node_lost": False,
+        },
+        "waveforms": {},
+        "units": {},
+        "bands": {"p_supply": [0.2e6, 8.0e6], "p_recess": [0.432e6, 0.528e6], "beta": [0.35, 0.45]},
+    }
 
 
 def canvas(page: Page, element_id: str) -> dict[str, str]:
@@ -101,14 +121,16 @@ def test_trends_draw_the_live_samples_with_bands_and_nice_ticks(broker, dashboar
     assert canvas(page, "trend-torque")["series"] == "spin,orbit"
 
     # the whole run's view: the same samples; a page opened later gets the history at once
-    page.d.execute_script("const s = document.getElementById('trend-window'); s.value = 'run';"
-                          "s.dispatchEvent(new Event('change'))")
+    page.d.execute_script(
+        "const s = document.getElementById('trend-window'); s.value = 'run';s.dispatchEvent(new Event('change'))"
+    )
     assert int(canvas(page, "trend-speed")["samples"]) >= 16
     # the page's own arrays stay bounded: 1800 recent samples, the run's view plus 600 since it
     kept = page.d.execute_script(
         "const s = trendState.recent[trendState.recent.length - 1], kept = trendState.runKept || 0;"
         "for (let k = 1; k <= 5000; k++) trends.trendSample(Object.assign({}, s, {t: s.t + k}), trendState.runId);"
-        "return [trendState.recent.length, trendState.run.length, kept, trendState.run[0].t];")
+        "return [trendState.recent.length, trendState.run.length, kept, trendState.run[0].t];"
+    )
     assert kept[0] == 1800 and kept[1] == kept[2] + 600  # (the server sends its view every 300 samples)
 
     late = fresh_page(browsers, dashboard)
@@ -127,7 +149,8 @@ def publish_status(broker, state: str, message: str, since: str, run_id: str = "
 def alarm_rows(page: Page) -> list[dict]:
     return page.d.execute_script(
         "return [...document.querySelectorAll('#alarms tr')].map(r => ({id: r.dataset.alarm, cls: r.className,"
-        " cells: [...r.children].map(c => c.innerText)}))")
+        " cells: [...r.children].map(c => c.innerText)}))"
+    )
 
 
 def test_alarms_latch_until_an_operator_acknowledges_them(broker, dashboard, browsers, tmp_path):
@@ -146,8 +169,12 @@ def test_alarms_latch_until_an_operator_acknowledges_them(broker, dashboard, bro
     assert row["cells"][1:4] == ["trip", "suspended by interlock: lubricant supply pump is off", "active"]
 
     # the condition clears: the trip stays latched (unacknowledged) until someone acknowledges it
-    publish_status(broker, "running", "interlock cleared (supply_pump): settling and acquiring the block again",
-                   "2026-01-05T10:00:05.000Z")
+    publish_status(
+        broker,
+        "running",
+        "interlock cleared (supply_pump): settling and acquiring the block again",
+        "2026-01-05T10:00:05.000Z",
+    )
     viewer.wait(lambda: alarm_rows(viewer)[0]["cells"][3] == "cleared", 10, "the trip cleared")
     assert alarm_rows(viewer)[0]["cls"] == "unacked" and viewer.text("alarm-count") == "1 unacknowledged"
 
@@ -165,10 +192,20 @@ def test_alarms_latch_until_an_operator_acknowledges_them(broker, dashboard, bro
         assert not page.d.find_elements("css selector", "#alarms button.ack")
 
     # a run failed by an interlock is a trip, failed otherwise a fault; newest first
-    publish_status(broker, "faulted", "run of 'demo' failed: interlock: spin drive tripped: fault 7 overcurrent",
-                   "2026-01-05T11:00:00.000Z", "r-alarm-2")
-    publish_status(broker, "faulted", "run of 'demo' failed: no revolutions from the A/D board",
-                   "2026-01-05T12:00:00.000Z", "r-alarm-3")
+    publish_status(
+        broker,
+        "faulted",
+        "run of 'demo' failed: interlock: spin drive tripped: fault 7 overcurrent",
+        "2026-01-05T11:00:00.000Z",
+        "r-alarm-2",
+    )
+    publish_status(
+        broker,
+        "faulted",
+        "run of 'demo' failed: no revolutions from the A/D board",
+        "2026-01-05T12:00:00.000Z",
+        "r-alarm-3",
+    )
     operator.wait(lambda: len(alarm_rows(operator)) == 3, 10, "three alarms")
     assert [r["cells"][1] for r in alarm_rows(operator)] == ["fault", "trip", "trip"]
     assert operator.text("alarm-count") == "2 unacknowledged"
@@ -178,21 +215,34 @@ def test_alarms_latch_until_an_operator_acknowledges_them(broker, dashboard, bro
 
 def waiting_status(measured_ratio: float) -> dict:
     """A waiting status as the service publishes it: pressure ratio asked 0.400 (band 0.35..0.45)."""
+
     def setting(value, unit, measured, half):
         return {"value": value, "unit": unit, "measured": measured, "band": [value - half, value + half]}
-    return {"state": "waiting", "run_id": "r-manual", "since": "2026-01-05T13:00:00.000Z", "step": "manual:0000",
-            "message": "waiting for the manual settings of point 0",
-            "settings": {"orbit_radius": setting(5.76e-6, "m", 5.70e-6, 0.864e-6),
-                         "static_eccentricity": setting(0.0, "-", 0.01, 0.05),
-                         "recess_pressure": setting(0.4826e6, "Pa", 0.48e6, 0.04826e6),
-                         "pressure_ratio": setting(0.4, "-", measured_ratio, 0.05)}}
+
+    return {
+        "state": "waiting",
+        "run_id": "r-manual",
+        "since": "2026-01-05T13:00:00.000Z",
+        "step": "manual:0000",
+        "message": "waiting for the manual settings of point 0",
+        "settings": {
+            "orbit_radius": setting(5.76e-6, "m", 5.70e-6, 0.864e-6),
+            "static_eccentricity": setting(0.0, "-", 0.01, 0.05),
+            "recess_pressure": setting(0.4826e6, "Pa", 0.48e6, 0.04826e6),
+            "pressure_ratio": setting(0.4, "-", measured_ratio, 0.05),
+        },
+    }
 
 
 def manual_rows(page: Page) -> dict[str, tuple[str, str]]:
     """{setting: (measured cell text, row class)}."""
-    return {k: tuple(v) for k, v in page.d.execute_script(
-        "const out = {}; document.querySelectorAll('#manual-table tr').forEach(r => {"
-        " out[r.dataset.setting] = [r.children[2].innerText, r.className]; }); return out;").items()}
+    return {
+        k: tuple(v)
+        for k, v in page.d.execute_script(
+            "const out = {}; document.querySelectorAll('#manual-table tr').forEach(r => {"
+            " out[r.dataset.setting] = [r.children[2].innerText, r.className]; }); return out;"
+        ).items()
+    }
 
 
 def test_manual_panel_highlights_a_measured_value_outside_its_band(broker, dashboard, browsers, tmp_path):
@@ -210,7 +260,11 @@ def test_manual_panel_highlights_a_measured_value_outside_its_band(broker, dashb
     card_shot(page, "manual-card", "manual", tmp_path)
 
     # the live payload carries the settings as measured now: the panel follows it
-    live = {**live_payload(0), "run_id": "r-manual", "settings_measured": {"pressure_ratio": 0.40, "orbit_radius": 7.5e-6}}
+    live = {
+        **live_payload(0),
+        "run_id": "r-manual",
+        "settings_measured": {"pressure_ratio": 0.40, "orbit_radius": 7.5e-6},
+    }
     done = broker.pub(f"orbitrig/{RIG}/live", json.dumps(live), user="orbitrig-service", qos=0)
     assert done.returncode == 0, done.stderr
     page.wait(lambda: manual_rows(page)["pressure_ratio"] == ("0.400", ""), 10, "the live pressure ratio")
@@ -242,8 +296,10 @@ def test_sign_out_leaves_nothing_of_the_previous_person(broker, dashboard, brows
 
 def choose_rig(page: Page, rig_id: str) -> None:
     """Pick a rig in the header's selector (in one go: the options are redrawn as statuses arrive)."""
-    page.d.execute_script("const s = document.getElementById('rig-select'); s.value = arguments[0];"
-                          "s.dispatchEvent(new Event('change'))", rig_id)
+    page.d.execute_script(
+        "const s = document.getElementById('rig-select'); s.value = arguments[0];s.dispatchEvent(new Event('change'))",
+        rig_id,
+    )
 
 
 def rig_options(page: Page) -> list[str]:
@@ -261,8 +317,9 @@ def test_several_rigs_on_one_broker_are_listed_and_selectable(broker, dashboard,
     page.wait_text("link", "online")
     page.wait(lambda: {"rig-b (idle)", "rig-c (offline)"} <= set(rig_options(page)), 10, "the rigs on the broker")
     assert page.text("rig") == f"orbitrig/{RIG}"
-    publish_status(broker, "paused", "suspended by interlock: lubricant supply pump is off",
-                   "2026-01-05T14:00:01.000Z", "r-here")
+    publish_status(
+        broker, "paused", "suspended by interlock: lubricant supply pump is off", "2026-01-05T14:00:01.000Z", "r-here"
+    )
     page.wait_text("alarm-count", lambda t: t.endswith(" unacknowledged") and not t.startswith("none"), 10)
 
     choose_rig(page, "rig-b")
@@ -270,9 +327,15 @@ def test_several_rigs_on_one_broker_are_listed_and_selectable(broker, dashboard,
     page.wait_state("idle", 10)  # rig-b's retained status
     assert page.text("message") == "rig-b idle"
     assert page.text("alarm-count") == "none unacknowledged"  # the other rig's alarm is not this one's
-    failed = {"state": "faulted", "run_id": "r-here", "since": "2026-01-05T14:00:02.000Z",
-              "message": "run of 'demo' failed: no revolutions"}  # on the first rig, retained
-    assert broker.pub(f"orbitrig/{RIG}/status", json.dumps(failed), user="orbitrig-service", retain=True).returncode == 0
+    failed = {
+        "state": "faulted",
+        "run_id": "r-here",
+        "since": "2026-01-05T14:00:02.000Z",
+        "message": "run of 'demo' failed: no revolutions",
+    }  # on the first rig, retained
+    assert (
+        broker.pub(f"orbitrig/{RIG}/status", json.dumps(failed), user="orbitrig-service", retain=True).returncode == 0
+    )
     done = broker.pub("orbitrig/rig-b/live", json.dumps(live_payload(0)), user="orbitrig-service", qos=0)
     assert done.returncode == 0, done.stderr
     page.wait(lambda: int(canvas(page, "trend-speed").get("samples", 0)) >= 4, 10, "rig-b's trend")
@@ -287,8 +350,14 @@ def test_several_rigs_on_one_broker_are_listed_and_selectable(broker, dashboard,
     choose_rig(page, RIG)
     page.wait_text("rig", f"orbitrig/{RIG}", 10)
     page.wait_state("faulted", 10)  # its retained status, and the alarm it raises (beside the alarms of
-    page.wait(lambda: {"id": "r-here@2026-01-05T14:00:02.000Z", "cls": "unacked"}.items()  # sessions on it)
-              <= next((r for r in alarm_rows(page) if r["id"].startswith("r-here@")), {}).items(), 10, "the alarm")
+    page.wait(
+        lambda: (
+            {"id": "r-here@2026-01-05T14:00:02.000Z", "cls": "unacked"}.items()  # sessions on it)
+            <= next((r for r in alarm_rows(page) if r["id"].startswith("r-here@")), {}).items()
+        ),
+        10,
+        "the alarm",
+    )
     page.wait(lambda: any("rig-b" in o for o in rig_options(page)), 5, "the rigs listed again")
     for rig in (RIG, "rig-b", "rig-c"):
         broker.pub(f"orbitrig/{rig}/status", "", user="orbitrig-service", retain=True)  # clears the retained

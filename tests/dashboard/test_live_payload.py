@@ -14,8 +14,19 @@ from support.mqtt_helpers import RigClient
 
 from orbitrig.service.live import RevolutionAverage, _geometry
 
-LIVE_KEYS = {"run_id", "point", "frequency", "direction", "revolutions", "orbit_hz", "spin_rpm", "drives",
-             "aux", "waveforms", "units"}
+LIVE_KEYS = {
+    "run_id",
+    "point",
+    "frequency",
+    "direction",
+    "revolutions",
+    "orbit_hz",
+    "spin_rpm",
+    "drives",
+    "aux",
+    "waveforms",
+    "units",
+}
 CHANNELS = ["fx_piezo", "fy_piezo", "fx_strain", "fy_strain", "x_a", "y_a", "x_b", "y_b"]
 
 
@@ -30,14 +41,24 @@ def test_waiting_status_and_live_topic(broker, service):
         settings = waiting["settings"]
         assert set(settings) == {"orbit_radius", "static_eccentricity", "recess_pressure", "pressure_ratio"}
         assert all(set(v) == {"value", "unit", "measured", "band"} for v in settings.values())
-        assert settings["pressure_ratio"]["band"] == [settings["pressure_ratio"]["value"] - 0.05,
-                                                      settings["pressure_ratio"]["value"] + 0.05]
-        assert math.isclose(settings["orbit_radius"]["value"], 0.096 * 60e-6) and settings["orbit_radius"]["unit"] == "m"
-        assert math.isclose(settings["recess_pressure"]["value"], 0.4826e6) and settings["recess_pressure"]["unit"] == "Pa"
+        assert settings["pressure_ratio"]["band"] == [
+            settings["pressure_ratio"]["value"] - 0.05,
+            settings["pressure_ratio"]["value"] + 0.05,
+        ]
+        assert (
+            math.isclose(settings["orbit_radius"]["value"], 0.096 * 60e-6) and settings["orbit_radius"]["unit"] == "m"
+        )
+        assert (
+            math.isclose(settings["recess_pressure"]["value"], 0.4826e6) and settings["recess_pressure"]["unit"] == "Pa"
+        )
         assert rc.command({"cmd": "confirm", "step": "manual:0000"})["ok"]
 
-        first = rc.watch.wait_for(lambda m: m.topic.endswith("/live") and len(m.json()["waveforms"]) == 8
-                                  and m.json()["revolutions"] >= 10, 60, start=mark, what="live with waveforms")
+        first = rc.watch.wait_for(
+            lambda m: m.topic.endswith("/live") and len(m.json()["waveforms"]) == 8 and m.json()["revolutions"] >= 10,
+            60,
+            start=mark,
+            what="live with waveforms",
+        )
         n0 = rc.watch.mark()
         rc.watch.wait_for(lambda m: m.t > first.t + 3.0, 10, start=n0, what="3 s of messages")
         lives = [m for m in rc.watch.on("live", n0 - 1) if m.t <= first.t + 3.0]
@@ -84,8 +105,9 @@ def test_geometry_of_a_circular_orbit_with_a_static_offset():
     slots = np.array([np.arange(k, 360, 8) for k in (4, 5, 6, 7)])  # the probes' slots, sequential mode
     theta = slots * 2 * np.pi / 360
     R, x0, y0, c = 6e-6, 3e-6, -4e-6, 60e-6
-    mean = np.array([x0 + R * np.cos(theta[0]), y0 + R * np.sin(theta[1]),
-                     x0 + R * np.cos(theta[2]), y0 + R * np.sin(theta[3])])
+    mean = np.array(
+        [x0 + R * np.cos(theta[0]), y0 + R * np.sin(theta[1]), x0 + R * np.cos(theta[2]), y0 + R * np.sin(theta[3])]
+    )
     geo = _geometry(mean, slots, ch, c)
     assert math.isclose(geo["orbit_radius"], R, rel_tol=1e-9)
     assert math.isclose(geo["static_eccentricity"], 5e-6 / c, rel_tol=1e-9)

@@ -5,10 +5,14 @@ from __future__ import annotations
 
 from orbitrig.dashboard.trend import TREND_KEYS, TrendHistory, sample_of
 
-LIVE = {"run_id": "r1", "drives": {"spin": {"actual_rpm": 1000.0, "reference_rpm": 1000.0, "torque_pct": 12.5},
-                                   "orbit": {"actual_rpm": -600.0, "reference_rpm": -600.0, "torque_pct": 3.0}},
-        "aux": {"p_supply": 2.0e6, "p_recess_1": 0.48e6, "t_supply": 313.15, "flow": 1e-4, "beta": 0.4,
-                "node_lost": False}}
+LIVE = {
+    "run_id": "r1",
+    "drives": {
+        "spin": {"actual_rpm": 1000.0, "reference_rpm": 1000.0, "torque_pct": 12.5},
+        "orbit": {"actual_rpm": -600.0, "reference_rpm": -600.0, "torque_pct": 3.0},
+    },
+    "aux": {"p_supply": 2.0e6, "p_recess_1": 0.48e6, "t_supply": 313.15, "flow": 1e-4, "beta": 0.4, "node_lost": False},
+}
 
 
 def test_a_sample_takes_speeds_torques_and_sensors_in_the_payloads_units():

@@ -15,8 +15,22 @@ pytestmark = pytest.mark.timeout(30)  # a hang fails fast, with a traceback
 
 async def test_run_status_stop(sim):
     code, out, err = await run_cli(
-        "drives", "run", "--modbus", sim.url, "--spin", "1200", "--orbit", "-600",
-        "--max-spin", "2000", "--max-orbit", "1000", "--settle", "0.1", "--timeout", "10",
+        "drives",
+        "run",
+        "--modbus",
+        sim.url,
+        "--spin",
+        "1200",
+        "--orbit",
+        "-600",
+        "--max-spin",
+        "2000",
+        "--max-orbit",
+        "1000",
+        "--settle",
+        "0.1",
+        "--timeout",
+        "10",
     )
     assert code == 0, err
     assert "spin  (id 1): running, at setpoint" in out
@@ -37,8 +51,16 @@ async def test_run_status_stop(sim):
 
 async def test_run_refused_by_a_limit_sends_nothing(tcp_sim):
     code, out, err = await run_cli(
-        "drives", "run", "--modbus", tcp_sim.url, "--spin", "1500", "--orbit", "100",
-        "--max-spin", "1000",
+        "drives",
+        "run",
+        "--modbus",
+        tcp_sim.url,
+        "--spin",
+        "1500",
+        "--orbit",
+        "100",
+        "--max-spin",
+        "1000",
     )
     assert code == 2
     assert "failed (limit)" in err and "spin drive (id 1)" in err and "nothing sent" in err
@@ -49,8 +71,20 @@ async def test_run_refused_by_a_limit_sends_nothing(tcp_sim):
 async def test_run_fails_on_a_trip_and_stops_both(tcp_sim):
     sim = tcp_sim
     task = asyncio.create_task(
-        run_cli("drives", "run", "--modbus", sim.url, "--spin", "1000", "--orbit", "500",
-                "--settle", "20", "--timeout", "30")
+        run_cli(
+            "drives",
+            "run",
+            "--modbus",
+            sim.url,
+            "--spin",
+            "1000",
+            "--orbit",
+            "500",
+            "--settle",
+            "20",
+            "--timeout",
+            "30",
+        )
     )
     await sim.wait_for(lambda: sim.regs(2)["CW"] == CW_RUN, 10, "run started")
     sim.models[2].inject_fault(4210)
@@ -64,8 +98,18 @@ async def test_run_fails_on_a_trip_and_stops_both(tcp_sim):
 
 async def test_run_timeout_stops_both(tcp_sim):
     code, out, err = await run_cli(
-        "drives", "run", "--modbus", tcp_sim.url, "--spin", "2400", "--orbit", "2400",
-        "--settle", "1", "--timeout", "0.2",
+        "drives",
+        "run",
+        "--modbus",
+        tcp_sim.url,
+        "--spin",
+        "2400",
+        "--orbit",
+        "2400",
+        "--settle",
+        "1",
+        "--timeout",
+        "0.2",
     )
     assert code == 2 and "failed (timeout)" in err, err
     assert tcp_sim.regs(1)["CW"] == tcp_sim.regs(2)["CW"] == CW_RAMP_STOP
@@ -75,15 +119,28 @@ async def test_run_timeout_stops_both(tcp_sim):
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 async def test_signal_during_run_stops_both(sim, sig):
     proc = await asyncio.create_subprocess_exec(
-        sys.executable, "-m", "orbitrig", "drives", "run", "--modbus", sim.url,
-        "--spin", "1000", "--orbit", "-800", "--settle", "30", "--timeout", "60",
-        cwd=ROOT, env=subprocess_env(),
-        stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
+        sys.executable,
+        "-m",
+        "orbitrig",
+        "drives",
+        "run",
+        "--modbus",
+        sim.url,
+        "--spin",
+        "1000",
+        "--orbit",
+        "-800",
+        "--settle",
+        "30",
+        "--timeout",
+        "60",
+        cwd=ROOT,
+        env=subprocess_env(),
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.PIPE,
     )
     try:
-        await sim.wait_for(
-            lambda: sim.regs(1)["SW"] & 0x100 and sim.regs(2)["SW"] & 0x100, 10, "at setpoint"
-        )
+        await sim.wait_for(lambda: sim.regs(1)["SW"] & 0x100 and sim.regs(2)["SW"] & 0x100, 10, "at setpoint")
         proc.send_signal(sig)
         out, err = await asyncio.wait_for(proc.communicate(), 10)
     finally:
@@ -100,8 +157,16 @@ async def test_signal_during_run_stops_both(sim, sig):
 async def test_emergency_stop_cli(tcp_sim):
     sim = tcp_sim
     code, _, err = await run_cli(
-        "drives", "run", "--modbus", sim.url, "--spin", "2000", "--orbit", "1000",
-        "--settle", "0.05",
+        "drives",
+        "run",
+        "--modbus",
+        sim.url,
+        "--spin",
+        "2000",
+        "--orbit",
+        "1000",
+        "--settle",
+        "0.05",
     )
     assert code == 0, err
     code, out, err = await run_cli("drives", "stop", "--modbus", sim.url, "--emergency")
@@ -113,8 +178,16 @@ async def test_emergency_stop_cli(tcp_sim):
 async def test_stop_still_stops_the_drive_that_answers(tcp_sim):
     sim = tcp_sim
     code, _, err = await run_cli(
-        "drives", "run", "--modbus", sim.url, "--spin", "1500", "--orbit", "500",
-        "--settle", "0.05",
+        "drives",
+        "run",
+        "--modbus",
+        sim.url,
+        "--spin",
+        "1500",
+        "--orbit",
+        "500",
+        "--settle",
+        "0.05",
     )
     assert code == 0, err
     # device id 3 is not on the network (the TCP gateway answers exception 0x0B)

@@ -40,8 +40,7 @@ def untouched(sim) -> bool:
 
 async def test_limits_come_from_the_config_and_options_only_tighten(tcp_sim, tmp_path):
     sim = tcp_sim
-    cfg = rig_config(tmp_path, sim.url, max_spin_rpm=1000.0, max_orbit_rpm=500.0,
-                     min_ratio=0.1, max_ratio=1.0)
+    cfg = rig_config(tmp_path, sim.url, max_spin_rpm=1000.0, max_orbit_rpm=500.0, min_ratio=0.1, max_ratio=1.0)
     refused = [
         (["--spin", "1500", "--orbit", "300"], "max_spin"),  # over the config's 1000 rpm
         (["--spin", "800", "--orbit", "-600"], "max_orbit"),
@@ -59,9 +58,7 @@ async def test_limits_come_from_the_config_and_options_only_tighten(tcp_sim, tmp
         (["--max-ratio", "2"], "--max-ratio 2 is above the rig's drives.max_ratio = 1"),
     ]
     for args, message in looser:  # a legal speed, refused for the looser limit alone
-        code, out, err = await run_cli(
-            "drives", "run", "--config", cfg, "--spin", "600", "--orbit", "300", *args
-        )
+        code, out, err = await run_cli("drives", "run", "--config", cfg, "--spin", "600", "--orbit", "300", *args)
         assert code == 2 and message in err and "only tighten" in err and "nothing sent" in err, err
         assert cfg in err
     assert untouched(sim)  # nothing was written by any of them
@@ -106,15 +103,32 @@ async def test_url_from_the_config_run_status_stop(tcp_sim, tmp_path):
 async def test_hold_keeps_the_drives_at_speed_and_stops_them_on_sigint(sim, tmp_path):
     cfg = rig_config(tmp_path, sim.url)
     proc = await asyncio.create_subprocess_exec(
-        sys.executable, "-m", "orbitrig", "drives", "run", "--config", cfg,
-        "--spin", "900", "--orbit", "-450", "--settle", "0.05", "--hold", "--status-every", "0.5",
-        cwd=ROOT, env=subprocess_env(),
-        stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
+        sys.executable,
+        "-m",
+        "orbitrig",
+        "drives",
+        "run",
+        "--config",
+        cfg,
+        "--spin",
+        "900",
+        "--orbit",
+        "-450",
+        "--settle",
+        "0.05",
+        "--hold",
+        "--status-every",
+        "0.5",
+        cwd=ROOT,
+        env=subprocess_env(),
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.PIPE,
     )
     try:
         await sim.wait_for(
             lambda: sim.regs(1)["SW"] & SW_AT_SETPOINT and sim.regs(2)["SW"] & SW_AT_SETPOINT,
-            10, "at setpoint",
+            10,
+            "at setpoint",
         )
         assert sim.models[1].parameter(104) == 10  # the drives' watchdog: 1 s
         await asyncio.sleep(2.0)  # twice the watchdog: only the hold's polling keeps them going
@@ -138,15 +152,18 @@ async def test_hold_keeps_the_drives_at_speed_and_stops_them_on_sigint(sim, tmp_
         assert regs["CW"] == CW_RAMP_STOP and regs["FAULT"] == 0 and regs["ACT"] == 0, regs
 
 
-@pytest.mark.parametrize("args, says", [
-    (["--timeout", "-1"], "--timeout -1 s must be finite, > 0"),
-    (["--timeout", "nan"], "--timeout nan s must be finite"),
-    (["--timeout", "inf"], "--timeout inf s must be finite"),
-    (["--settle", "nan"], "--settle nan s must be finite, >= 0"),
-    (["--status-every", "0"], "--status-every 0 s must be finite, > 0"),
-    (["--spin-id", "999999"], "--spin-id 999999 is not a Modbus device id (1..247)"),
-    (["--orbit-id", "0"], "--orbit-id 0 is not a Modbus device id (1..247)"),
-])
+@pytest.mark.parametrize(
+    "args, says",
+    [
+        (["--timeout", "-1"], "--timeout -1 s must be finite, > 0"),
+        (["--timeout", "nan"], "--timeout nan s must be finite"),
+        (["--timeout", "inf"], "--timeout inf s must be finite"),
+        (["--settle", "nan"], "--settle nan s must be finite, >= 0"),
+        (["--status-every", "0"], "--status-every 0 s must be finite, > 0"),
+        (["--spin-id", "999999"], "--spin-id 999999 is not a Modbus device id (1..247)"),
+        (["--orbit-id", "0"], "--orbit-id 0 is not a Modbus device id (1..247)"),
+    ],
+)
 async def test_run_refuses_bad_options_and_sends_nothing(tcp_sim, tmp_path, args, says):
     cfg = rig_config(tmp_path, tcp_sim.url)
     code, out, err = await run_cli("drives", "run", "--config", cfg, "--spin", "900", "--orbit", "300", *args)
@@ -156,8 +173,7 @@ async def test_run_refuses_bad_options_and_sends_nothing(tcp_sim, tmp_path, args
 
 
 async def test_stop_refuses_a_timeout_that_is_not_finite(tcp_sim, tmp_path):
-    code, out, err = await run_cli("drives", "stop", "--config", rig_config(tmp_path, tcp_sim.url),
-                                   "--timeout", "nan")
+    code, out, err = await run_cli("drives", "stop", "--config", rig_config(tmp_path, tcp_sim.url), "--timeout", "nan")
     assert code == 2 and "--timeout nan s must be finite" in err and untouched(tcp_sim)
 
 
@@ -165,14 +181,32 @@ async def test_hold_notices_the_drives_stopped_by_another_client(tcp_sim, tmp_pa
     sim = tcp_sim
     cfg = rig_config(tmp_path, sim.url)
     proc = await asyncio.create_subprocess_exec(
-        sys.executable, "-m", "orbitrig", "drives", "run", "--config", cfg,
-        "--spin", "900", "--orbit", "450", "--settle", "0.05", "--hold", "--status-every", "0.5",
-        cwd=ROOT, env=subprocess_env(), stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
+        sys.executable,
+        "-m",
+        "orbitrig",
+        "drives",
+        "run",
+        "--config",
+        cfg,
+        "--spin",
+        "900",
+        "--orbit",
+        "450",
+        "--settle",
+        "0.05",
+        "--hold",
+        "--status-every",
+        "0.5",
+        cwd=ROOT,
+        env=subprocess_env(),
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.PIPE,
     )
     try:
         await sim.wait_for(
             lambda: sim.regs(1)["SW"] & SW_AT_SETPOINT and sim.regs(2)["SW"] & SW_AT_SETPOINT,
-            10, "at setpoint",
+            10,
+            "at setpoint",
         )
         code, _, stop_err = await run_cli("drives", "stop", "--config", cfg)  # another client
         assert code == 0, stop_err

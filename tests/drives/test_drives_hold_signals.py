@@ -27,9 +27,26 @@ async def slow_sim() -> SimDrives:
 
 async def _hold(sim: SimDrives):
     proc = await asyncio.create_subprocess_exec(
-        sys.executable, "-m", "orbitrig", "drives", "run", "--modbus", sim.url,
-        "--spin", "1500", "--orbit", "-750", "--settle", "0.05", "--timeout", "30", "--hold",
-        cwd=ROOT, env=subprocess_env(), stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
+        sys.executable,
+        "-m",
+        "orbitrig",
+        "drives",
+        "run",
+        "--modbus",
+        sim.url,
+        "--spin",
+        "1500",
+        "--orbit",
+        "-750",
+        "--settle",
+        "0.05",
+        "--timeout",
+        "30",
+        "--hold",
+        cwd=ROOT,
+        env=subprocess_env(),
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.PIPE,
     )
     said = b""
     while b"holding at the setpoint" not in said:  # the command's own word that it holds
@@ -67,8 +84,7 @@ async def test_a_second_signal_during_the_ramp_is_an_emergency_stop(slow_sim):
     sim = slow_sim
     proc = await _hold(sim)
     proc.send_signal(signal.SIGTERM)
-    await sim.wait_for(lambda: sim.regs(1)["CW"] == CW_RAMP_STOP and sim.regs(2)["CW"] == CW_RAMP_STOP,
-                       10, "ramp stop")
+    await sim.wait_for(lambda: sim.regs(1)["CW"] == CW_RAMP_STOP and sim.regs(2)["CW"] == CW_RAMP_STOP, 10, "ramp stop")
     assert sim.rpm(1) > 100  # still ramping down
     proc.send_signal(signal.SIGINT)
     code, err = await _finish(proc)

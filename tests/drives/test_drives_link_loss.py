@@ -66,8 +66,13 @@ asyncio.run(main())
 
 async def test_drives_stop_by_themselves_when_the_client_dies(sim):
     proc = await asyncio.create_subprocess_exec(
-        sys.executable, "-c", CLIENT, sim.url,
-        cwd=ROOT, env=subprocess_env(), stdout=asyncio.subprocess.PIPE,
+        sys.executable,
+        "-c",
+        CLIENT,
+        sim.url,
+        cwd=ROOT,
+        env=subprocess_env(),
+        stdout=asyncio.subprocess.PIPE,
     )
     try:
         line = await asyncio.wait_for(proc.stdout.readline(), 15)
@@ -77,9 +82,7 @@ async def test_drives_stop_by_themselves_when_the_client_dies(sim):
     finally:
         proc.send_signal(signal.SIGKILL)  # no cleanup code runs in the client
         await proc.wait()
-    took = await sim.wait_for(
-        lambda: sim.regs(1)["FAULT"] == 7510 and sim.regs(2)["FAULT"] == 7510, 3, "fault 7510"
-    )
+    took = await sim.wait_for(lambda: sim.regs(1)["FAULT"] == 7510 and sim.regs(2)["FAULT"] == 7510, 3, "fault 7510")
     assert took > 0.2  # the watchdog, 0.5 s after the last request
     await sim.wait_stopped(timeout=3)
     # no stop command reached them: they stopped on their own
@@ -111,9 +114,7 @@ async def test_link_loss_longer_than_the_watchdog(sim):
         await r.wait_settled(hold=0.05, timeout=5)
         sim.endpoint.set_unresponsive(True)
         # the drives' own watchdog stops them
-        await sim.wait_for(
-            lambda: sim.regs(1)["FAULT"] == 7510 and sim.regs(2)["FAULT"] == 7510, 3, "7510"
-        )
+        await sim.wait_for(lambda: sim.regs(1)["FAULT"] == 7510 and sim.regs(2)["FAULT"] == 7510, 3, "7510")
         await sim.wait_stopped(timeout=3)
         assert not r.state.link_ok
         sim.endpoint.set_unresponsive(False)

@@ -25,7 +25,11 @@ RPM = 2 * math.pi / 60
 
 def test_control_words_are_the_specs_typical_words():
     assert (R.CW_READY, R.CW_RUN, R.CW_RAMP_STOP, R.CW_EMERGENCY_STOP, R.CW_RESET) == (
-        0x0476, 0x047F, 0x047E, 0x047B, 0x04F6,
+        0x0476,
+        0x047F,
+        0x047E,
+        0x047B,
+        0x04F6,
     )
 
 
@@ -53,8 +57,7 @@ def test_errors_name_drive_register_and_fault():
     err = DriveFaultError("tripped", drive=1, drive_name="spin", register=R.FAULT, fault_code=2310)
     assert str(err) == "spin drive (id 1), register FAULT (6), fault 2310 (overcurrent): tripped"
     assert (err.drive, err.register, err.fault_code) == (1, 6, 2310)
-    exc = DriveExceptionResponse("write refused", exception_code=3, drive=2, drive_name="orbit",
-                                 register=R.ACCEL_TIME)
+    exc = DriveExceptionResponse("write refused", exception_code=3, drive=2, drive_name="orbit", register=R.ACCEL_TIME)
     assert exc.exception_code == 3
     assert "orbit drive (id 2)" in str(exc) and "ACCEL_TIME (102)" in str(exc)
     assert "exception 03 (illegal data value)" in str(exc)

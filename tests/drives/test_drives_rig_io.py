@@ -14,9 +14,7 @@ pytestmark = pytest.mark.timeout(30)
 
 async def test_rig_io_passes_the_configured_drive_link_settings():
     rig = load_rig()
-    d = rig.drives.model_copy(
-        update={"link_loss_polls": 2, "timeout_s": 0.12, "poll_interval_s": 0.08}
-    )
+    d = rig.drives.model_copy(update={"link_loss_polls": 2, "timeout_s": 0.12, "poll_interval_s": 0.08})
     rig = rig.model_copy(update={"drives": d})
     async with SimRig(speedup=10) as sim:
         async with RigIO(rig, simulated_access(sim).endpoints) as io:

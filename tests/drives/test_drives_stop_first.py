@@ -29,8 +29,10 @@ async def test_urgent_waiters_go_first_each_kind_in_order_and_a_cancelled_one_pa
             await asyncio.sleep(0)
 
     await turns.acquire()  # held: everyone below waits
-    tasks = [asyncio.create_task(one(n, u)) for n, u in
-             (("poll-1", False), ("run", False), ("stop-cw", True), ("poll-2", False), ("stop-ref", True))]
+    tasks = [
+        asyncio.create_task(one(n, u))
+        for n, u in (("poll-1", False), ("run", False), ("stop-cw", True), ("poll-2", False), ("stop-ref", True))
+    ]
     cancelled = asyncio.create_task(one("cancelled", True))
     await asyncio.sleep(0.01)
     assert turns.waiting(True) == 3 and turns.waiting(False) == 3

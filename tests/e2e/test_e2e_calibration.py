@@ -39,8 +39,14 @@ SPEEDUP = 20.0  # half the sweep's default: the drives' watchdog holds with both
 
 
 def orbitrig(*args: str, timeout: float) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "orbitrig", *args], cwd=ROOT, capture_output=True, text=True,
-                          timeout=timeout, stdin=subprocess.DEVNULL)
+    return subprocess.run(
+        [sys.executable, "-m", "orbitrig", *args],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        stdin=subprocess.DEVNULL,
+    )
 
 
 def _calibrated_config(tmp: Path, scenario: str | None, steps: tuple[str, ...]) -> tuple[Path, dict[str, str]]:
@@ -50,8 +56,17 @@ def _calibrated_config(tmp: Path, scenario: str | None, steps: tuple[str, ...]) 
     shutil.copytree(ROOT / "config/calibration", tmp / "calibration")
     names = {}
     for step in steps:
-        args = ["calibrate", step, "--sim", "--config", str(tmp / "rig.toml"), "--operator", "ada",
-                "--speedup", str(SPEEDUP)] + (["--sim-config", scenario] if scenario else [])
+        args = [
+            "calibrate",
+            step,
+            "--sim",
+            "--config",
+            str(tmp / "rig.toml"),
+            "--operator",
+            "ada",
+            "--speedup",
+            str(SPEEDUP),
+        ] + (["--sim-config", scenario] if scenario else [])
         p = orbitrig(*args, timeout=STEP_S)
         assert p.returncode == 0, p.stdout + p.stderr
         names[step] = load_rig(tmp / "rig.toml").calibration_record
@@ -61,8 +76,20 @@ def _calibrated_config(tmp: Path, scenario: str | None, steps: tuple[str, ...]) 
 
 def _sweep(tmp: Path, rig: Path, scenario: str | None) -> Path:
     (tmp / "table1.toml").write_text(MATRIX.format(ratios=TABLE1_RATIOS))
-    args = ["sweep", "--sim", "--matrix", str(tmp / "table1.toml"), "--out", str(tmp / "run"), "--config", str(rig),
-            "--speedup", str(SPEEDUP), "--operator", "ada"] + (["--sim-config", scenario] if scenario else [])
+    args = [
+        "sweep",
+        "--sim",
+        "--matrix",
+        str(tmp / "table1.toml"),
+        "--out",
+        str(tmp / "run"),
+        "--config",
+        str(rig),
+        "--speedup",
+        str(SPEEDUP),
+        "--operator",
+        "ada",
+    ] + (["--sim-config", scenario] if scenario else [])
     p = orbitrig(*args, timeout=170)
     assert p.returncode == 0, p.stdout + p.stderr
     return tmp / "run"
@@ -75,11 +102,17 @@ def _blocks(run: Path) -> tuple[float, list]:
         recs = []
         for name, b in sorted(g["frequencies"].items()):
             a = b.attrs
-            recs.append(SimpleNamespace(
-                block=Block(int(name[:2]), int(a["direction"]), float(a["orbit"])),
-                measured_orbit_speed=float(a["measured_orbit_speed"]), phasors=b["phasors"][()],
-                record_phasors=b["record_phasors"][()], revolutions=b["revolutions"][()], slots=b["slots"][()],
-                coherence=b["coherence"][()]))
+            recs.append(
+                SimpleNamespace(
+                    block=Block(int(name[:2]), int(a["direction"]), float(a["orbit"])),
+                    measured_orbit_speed=float(a["measured_orbit_speed"]),
+                    phasors=b["phasors"][()],
+                    record_phasors=b["record_phasors"][()],
+                    revolutions=b["revolutions"][()],
+                    slots=b["slots"][()],
+                    coherence=b["coherence"][()],
+                )
+            )
         return float(g.attrs["spin"]), recs
 
 

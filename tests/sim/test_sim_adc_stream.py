@@ -23,8 +23,9 @@ def ideal_config(mode="sequential", **noise) -> SimConfig:
     a static offset (LMS errors kept)."""
     cfg = load_sim_config("config/sim/clean.toml")
     cfg.noise = NoiseConfig(enabled=False) if not noise else NoiseConfig(**noise)
-    cfg.geometry = dataclasses.replace(GeometryConfig(), ellipticity=0.0, probe_tilt=0.0, probe_misalignment=0.0,
-                                       static_eccentricity=0.2)
+    cfg.geometry = dataclasses.replace(
+        GeometryConfig(), ellipticity=0.0, probe_tilt=0.0, probe_misalignment=0.0, static_eccentricity=0.2
+    )
     cfg.adc = dataclasses.replace(AdcConfig(), mode=mode)
     return cfg
 

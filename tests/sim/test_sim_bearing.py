@@ -105,8 +105,18 @@ def test_ninety_degree_rotation_symmetry_of_the_centred_journal():
     b, n, wo = ph.bearing, 64, 60.0
     psi = 2 * np.pi * np.arange(n) / n
     r = 0.3 * c
-    path = lambda ph0: (r * np.cos(psi + ph0), r * np.sin(psi + ph0), -r * wo * np.sin(psi + ph0),  # noqa: E731
-                        r * wo * np.cos(psi + ph0), -r * wo**2 * np.cos(psi + ph0), -r * wo**2 * np.sin(psi + ph0))
+
+    def path(ph0):
+        a = psi + ph0
+        return (
+            r * np.cos(a),
+            r * np.sin(a),
+            -r * wo * np.sin(a),
+            r * wo * np.cos(a),
+            -r * wo**2 * np.cos(a),
+            -r * wo**2 * np.sin(a),
+        )
+
     f0 = b.periodic_force(*path(0.0), wo, 104.7, ph.supply)
     f90 = b.periodic_force(*path(np.pi / 2), wo, 104.7, ph.supply)
     np.testing.assert_allclose(f90, Q @ f0, atol=1e-9 * np.abs(f0).max())

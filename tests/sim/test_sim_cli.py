@@ -22,8 +22,7 @@ ROOT = Path(__file__).resolve().parents[2]
 def start(*args: str, module: str = "orbitrig") -> subprocess.Popen:
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     cmd = [sys.executable, "-m", "orbitrig", "sim"] if module == "orbitrig" else [sys.executable, "-m", "sim"]
-    return subprocess.Popen([*cmd, *args], cwd=ROOT, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen([*cmd, *args], cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
 def control(port: int, obj: dict) -> dict:
@@ -32,13 +31,16 @@ def control(port: int, obj: dict) -> dict:
         return json.loads(s.makefile().readline())
 
 
-@pytest.mark.parametrize(("module", "sig"), [("orbitrig", signal.SIGINT), ("orbitrig", signal.SIGTERM),
-                                           ("sim", signal.SIGINT)],
-                         ids=["ctrl-c", "sigterm", "python-m-sim"])
+@pytest.mark.parametrize(
+    ("module", "sig"),
+    [("orbitrig", signal.SIGINT), ("orbitrig", signal.SIGTERM), ("sim", signal.SIGINT)],
+    ids=["ctrl-c", "sigterm", "python-m-sim"],
+)
 def test_sim_command_runs_streams_and_stops_cleanly(module, sig):
     can = ("--can-port", "0") if module == "orbitrig" else ()  # orbitrig sim: CAN on a TCP bus by default
-    proc = start("--modbus-port", "0", "--adc-port", "0", *can, "--speedup", "5", "--config", "config/sim.toml",
-                 module=module)
+    proc = start(
+        "--modbus-port", "0", "--adc-port", "0", *can, "--speedup", "5", "--config", "config/sim.toml", module=module
+    )
     try:
         ep = json.loads(proc.stdout.readline())
         assert set(ep) == {"modbus", "adc", "adc_pty", "control", "can"}

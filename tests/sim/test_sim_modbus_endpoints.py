@@ -62,8 +62,24 @@ async def test_both_drives_on_tcp_and_rtu():
         assert shutil.which("mbpoll"), "mbpoll is needed (apt-get install mbpoll)"
         port = rig.modbus_url.rsplit(":", 1)[1]
         proc = await asyncio.create_subprocess_exec(
-            "mbpoll", "-m", "tcp", "-p", port, "-a", "2", "-r", "101", "-c", "2", "-t", "4", "-1",
-            "127.0.0.1", stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE)
+            "mbpoll",
+            "-m",
+            "tcp",
+            "-p",
+            port,
+            "-a",
+            "2",
+            "-r",
+            "101",
+            "-c",
+            "2",
+            "-t",
+            "4",
+            "-1",
+            "127.0.0.1",
+            stdout=asyncio.subprocess.PIPE,
+            stderr=asyncio.subprocess.PIPE,
+        )
         out, err = await asyncio.wait_for(proc.communicate(), 10)
         assert proc.returncode == 0, err
         # reference numbers are address + 1: SPEED_SCALE (100), MAX_SPEED (101)

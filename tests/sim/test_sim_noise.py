@@ -23,15 +23,26 @@ async def record(cfg: SimConfig, orbit: float):
         true = rig.true_phasors(SPIN, orbit)
     revs = revolutions(parse(data)[0])[:M]
     assert len(revs) == M
-    per_rev = np.array([[fundamental(channel_samples(c, k)[1] * GAINS[k], channel_samples(c, k)[0])
-                         for k in range(8)] for _, _, c in revs])  # (M, 8)
+    per_rev = np.array(
+        [
+            [fundamental(channel_samples(c, k)[1] * GAINS[k], channel_samples(c, k)[0]) for k in range(8)]
+            for _, _, c in revs
+        ]
+    )  # (M, 8)
     return per_rev, np.array(list(true.values()))
 
 
 async def test_white_noise_and_jitter_average_within_the_statistical_band():
     cfg = SimConfig()
-    cfg.noise = NoiseConfig(runout=(), spin_force=(), bearing_orders=(), resonance_force=0.0, line_force=0.0,
-                            line_probe=0.0, speed_ripple=0.0)
+    cfg.noise = NoiseConfig(
+        runout=(),
+        spin_force=(),
+        bearing_orders=(),
+        resonance_force=0.0,
+        line_force=0.0,
+        line_probe=0.0,
+        speed_ripple=0.0,
+    )
     per_rev, true = await record(cfg, 2 * math.pi * 13.7)
     nz = cfg.noise
     white = np.array([nz.piezo_white] * 2 + [nz.strain_white] * 2 + [nz.probe_white] * 4)

@@ -121,8 +121,10 @@ def test_supply_state_responds_to_the_operating_point():
 
 def test_config_file_with_edge_units(tmp_path):
     p = tmp_path / "sim.toml"
-    p.write_text('speedup = 4\n[geometry]\nclearance_um = 80\n[adc]\ntrigger_phase_deg = 45\n'
-                 'mode = "simultaneous"\n[supply]\nrecess_pressure_mpa = 1.5\nt_supply_degc = 50\n')
+    p.write_text(
+        "speedup = 4\n[geometry]\nclearance_um = 80\n[adc]\ntrigger_phase_deg = 45\n"
+        'mode = "simultaneous"\n[supply]\nrecess_pressure_mpa = 1.5\nt_supply_degc = 50\n'
+    )
     cfg = load_sim_config(p)
     assert cfg.speedup == 4 and cfg.geometry.clearance == pytest.approx(80e-6)
     assert cfg.adc.trigger_phase == pytest.approx(math.pi / 4) and cfg.adc.mode == "simultaneous"

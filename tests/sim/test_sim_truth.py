@@ -29,8 +29,12 @@ def test_table1_operating_point_coherence_lies_in_the_papers_range(seed):
     Omega/omega of Table 1, 50 revolutions each: all four piezo coherences in 0.91-0.996."""
     cfg = SimConfig(seed=seed)
     ph = RigPhysics(cfg)
-    ph.set_manual(orbit_radius=0.04 * cfg.geometry.clearance, static_eccentricity=0.0,
-                  recess_pressure=0.4826e6, pressure_ratio=0.25)
+    ph.set_manual(
+        orbit_radius=0.04 * cfg.geometry.clearance,
+        static_eccentricity=0.0,
+        recess_pressure=0.4826e6,
+        pressure_ratio=0.25,
+    )
     gammas, t0 = [], 0.0
     for ratio in TABLE1_RATIOS:
         orbit = ratio * SPIN

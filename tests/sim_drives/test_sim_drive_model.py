@@ -4,10 +4,39 @@ from __future__ import annotations
 
 import pytest
 from support.sim_drive_helpers import (
-    ABOVE_LIMIT, ACCEL_TIME, ACT, ALARM, AT_SETPOINT, AT_SETPOINT_BAND, COAST,
-    COMM_LOSS_TIMEOUT, CW, DECEL_TIME, EMERGENCY, FAULT, MAX_SPEED, OFF_2_STA, OFF_3_STA,
-    RAMP_STOP, RDY_ON, RDY_REF, RDY_RUN, READY, REF, REF2, REMOTE, RESET, RUN, SPEED_SCALE,
-    SW, TORQUE, TRIPPED, FakeClocks, ref_counts, s16, u16,
+    ABOVE_LIMIT,
+    ACCEL_TIME,
+    ACT,
+    ALARM,
+    AT_SETPOINT,
+    AT_SETPOINT_BAND,
+    COAST,
+    COMM_LOSS_TIMEOUT,
+    CW,
+    DECEL_TIME,
+    EMERGENCY,
+    FAULT,
+    MAX_SPEED,
+    OFF_2_STA,
+    OFF_3_STA,
+    RAMP_STOP,
+    RDY_ON,
+    RDY_REF,
+    RDY_RUN,
+    READY,
+    REF,
+    REF2,
+    REMOTE,
+    RESET,
+    RUN,
+    SPEED_SCALE,
+    SW,
+    TORQUE,
+    TRIPPED,
+    FakeClocks,
+    ref_counts,
+    s16,
+    u16,
 )
 
 from sim.drive_model import DriveModbusException, DriveModel
@@ -22,8 +51,7 @@ def clocks():
 
 
 def make(clocks, *, bidirectional=True, device_id=2):
-    return DriveModel(device_id, clock=clocks.sim_clock, bidirectional=bidirectional,
-                      wall_clock=clocks.wall_clock)
+    return DriveModel(device_id, clock=clocks.sim_clock, bidirectional=bidirectional, wall_clock=clocks.wall_clock)
 
 
 def reg(drive, address):
@@ -72,8 +100,10 @@ def test_unknown_address_reads_exception_02(clocks, address, count):
     assert exc.value.code == 2
 
 
-@pytest.mark.parametrize("address,values", [(SW, [1]), (ACT, [1]), (TORQUE, [1]), (FAULT, [0]),
-                                            (2, [0, 0]), (7, [1]), (106, [1]), (99, [1, 2])])
+@pytest.mark.parametrize(
+    "address,values",
+    [(SW, [1]), (ACT, [1]), (TORQUE, [1]), (FAULT, [0]), (2, [0, 0]), (7, [1]), (106, [1]), (99, [1, 2])],
+)
 def test_write_read_only_or_unknown_address_is_02_and_changes_nothing(clocks, address, values):
     d = make(clocks)
     before = d.read(0, 7) + d.read(100, 6)
@@ -254,9 +284,18 @@ def test_parameter_write_while_running_is_03_and_changes_nothing(clocks):
     assert reg(d, ACCEL_TIME) == 7
 
 
-@pytest.mark.parametrize("address,value", [(SPEED_SCALE, 0), (SPEED_SCALE, 40000), (MAX_SPEED, 30001),
-                                           (ACCEL_TIME, 0), (DECEL_TIME, 0), (COMM_LOSS_TIMEOUT, 6001),
-                                           (AT_SETPOINT_BAND, 3001)])
+@pytest.mark.parametrize(
+    "address,value",
+    [
+        (SPEED_SCALE, 0),
+        (SPEED_SCALE, 40000),
+        (MAX_SPEED, 30001),
+        (ACCEL_TIME, 0),
+        (DECEL_TIME, 0),
+        (COMM_LOSS_TIMEOUT, 6001),
+        (AT_SETPOINT_BAND, 3001),
+    ],
+)
 def test_parameter_out_of_range_is_03(clocks, address, value):
     d = make(clocks)
     with pytest.raises(DriveModbusException) as exc:

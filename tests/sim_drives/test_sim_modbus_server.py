@@ -17,9 +17,34 @@ import pytest
 from pymodbus.client import AsyncModbusSerialClient, AsyncModbusTcpClient
 from pymodbus.exceptions import ModbusIOException
 from support.sim_drive_helpers import (
-    ABOVE_LIMIT, ACT, AT_SETPOINT, COAST, COMM_LOSS_TIMEOUT, CW, DECEL_TIME, EMERGENCY, FAULT,
-    MAX_SPEED, OFF_2_STA, OFF_3_STA, RAMP_STOP, RDY_ON, RDY_REF, RDY_RUN, READY, REF, REF2,
-    REMOTE, RESET, RUN, SW, TORQUE, TRIPPED, ref_counts, s16, u16,
+    ABOVE_LIMIT,
+    ACT,
+    AT_SETPOINT,
+    COAST,
+    COMM_LOSS_TIMEOUT,
+    CW,
+    DECEL_TIME,
+    EMERGENCY,
+    FAULT,
+    MAX_SPEED,
+    OFF_2_STA,
+    OFF_3_STA,
+    RAMP_STOP,
+    RDY_ON,
+    RDY_REF,
+    RDY_RUN,
+    READY,
+    REF,
+    REF2,
+    REMOTE,
+    RESET,
+    RUN,
+    SW,
+    TORQUE,
+    TRIPPED,
+    ref_counts,
+    s16,
+    u16,
 )
 
 from sim.modbus_server import serve_modbus_rtu_pty
@@ -158,8 +183,7 @@ async def test_parameter_write_while_running_is_03_and_changes_nothing(client):
 
 async def test_unknown_and_read_only_addresses_are_02(client):
     for address, count in [(7, 1), (5, 3), (99, 1), (106, 1), (500, 2)]:
-        assert await exception_code(
-            client.read_holding_registers(address, count=count, device_id=2)) == 2
+        assert await exception_code(client.read_holding_registers(address, count=count, device_id=2)) == 2
     for address in (SW, ACT, TORQUE, FAULT, 7, 200):
         assert await exception_code(client.write_register(address, 1, device_id=2)) == 2
     assert await exception_code(client.write_registers(1, [1, 2, 3], device_id=2)) == 2
@@ -376,8 +400,8 @@ async def mbpoll(*args):
     """Run mbpoll (reference numbers = address + 1) off the event loop."""
     assert MBPOLL, "mbpoll is not installed: apt-get install mbpoll (the README's test prerequisites)"
     proc = await asyncio.to_thread(
-        subprocess.run, [MBPOLL, "-1", "-o", "1", *args],
-        capture_output=True, text=True, timeout=20)
+        subprocess.run, [MBPOLL, "-1", "-o", "1", *args], capture_output=True, text=True, timeout=20
+    )
     return proc
 
 

@@ -26,10 +26,23 @@ def campaign_rows(n_runs: int = 3, rng=None, scatter: float = 1.0) -> list[dict]
     for run in range(n_runs):
         for point, eps in enumerate(ECCENTRICITIES):
             row = dict.fromkeys(ROW_COLUMNS)
-            row.update(run_id=f"rigA@2026-11-2{run}T10:00:00+00:00", created=f"2026-11-2{run}T10:00:00+00:00",
-                       point=point, lms="piezo", model="kcd11", freq_dep="none", method="ols", ok=True,
-                       spin=104.72, spin_rpm=1000.0, recess_pressure=482600.0, pressure_ratio=0.25,
-                       static_eccentricity=eps, dynamic_eccentricity=0.04, run_path=f"/runs/{run}")
+            row.update(
+                run_id=f"rigA@2026-11-2{run}T10:00:00+00:00",
+                created=f"2026-11-2{run}T10:00:00+00:00",
+                point=point,
+                lms="piezo",
+                model="kcd11",
+                freq_dep="none",
+                method="ols",
+                ok=True,
+                spin=104.72,
+                spin_rpm=1000.0,
+                recess_pressure=482600.0,
+                pressure_ratio=0.25,
+                static_eccentricity=eps,
+                dynamic_eccentricity=0.04,
+                run_path=f"/runs/{run}",
+            )
             for name in COEFFICIENTS:
                 true, u = law(name, eps), abs(law(name, eps)) * U_REL
                 row[name], row[f"{name}_U"] = true + scatter * u / 2 * rng.standard_normal(), u

@@ -14,8 +14,16 @@ ROOT = Path(__file__).resolve().parents[2]
 def orbitrig(*args: str, timeout: float = 120, cwd: Path = ROOT, **kw) -> subprocess.CompletedProcess:
     """`orbitrig ARGS...` (as `python -m orbitrig`), output captured as text, wide terminal."""
     env = {**os.environ, "COLUMNS": "200", "NO_COLOR": "1"}
-    return subprocess.run([sys.executable, "-m", "orbitrig", *args], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=timeout, stdin=subprocess.DEVNULL, **kw)
+    return subprocess.run(
+        [sys.executable, "-m", "orbitrig", *args],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        stdin=subprocess.DEVNULL,
+        **kw,
+    )
 
 
 def closed_port() -> int:

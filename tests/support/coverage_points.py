@@ -32,7 +32,11 @@ from sim.physics import RigPhysics
 from sim.revolutions import revolution_phasors, simulate_revolutions
 
 ROOT = Path(__file__).resolve().parents[2]
-SCENARIOS = {"paper": "config/sim.toml", "clean": "config/sim/clean.toml", "compressible": "config/sim/compressible.toml"}
+SCENARIOS = {
+    "paper": "config/sim.toml",
+    "clean": "config/sim/clean.toml",
+    "compressible": "config/sim/compressible.toml",
+}
 #: the paper's Table 1 operating point
 SPIN = 1000.0 * 2 * math.pi / 60
 TABLE1 = dict(recess_pressure=0.4826e6, pressure_ratio=0.25, static_eccentricity=0.0)
@@ -68,10 +72,22 @@ def _averaged(physics: RigPhysics, orbit: float, n: int, t0: float) -> SimpleNam
     values = np.round(values / gains[:, None]) * gains[:, None]  # the board's counts
     rp = revolution_phasors(slots, values)
     return SimpleNamespace(
-        orbit_speed=abs(orbit), raw_counts=np.zeros((0,) + values.shape[1:], np.int16), slots=slots, gains=gains,
-        offsets=np.zeros(len(gains)), mean=values.mean(axis=0), record_phasors=rp, phasors=rp.mean(axis=0),
-        dc=values.mean(axis=(0, 2)), rms_residual=np.zeros(len(gains)), stats=_Stats(),
-        uncertainty=np.zeros(len(gains)), n_records=n, stop_reason="count", revs=np.arange(n))
+        orbit_speed=abs(orbit),
+        raw_counts=np.zeros((0,) + values.shape[1:], np.int16),
+        slots=slots,
+        gains=gains,
+        offsets=np.zeros(len(gains)),
+        mean=values.mean(axis=0),
+        record_phasors=rp,
+        phasors=rp.mean(axis=0),
+        dc=values.mean(axis=(0, 2)),
+        rms_residual=np.zeros(len(gains)),
+        stats=_Stats(),
+        uncertainty=np.zeros(len(gains)),
+        n_records=n,
+        stop_reason="count",
+        revs=np.arange(n),
+    )
 
 
 def calibrated(cfg, stated, rng: np.random.Generator):
@@ -86,13 +102,24 @@ def calibrated(cfg, stated, rng: np.random.Generator):
     gain = {n: float(rng.normal(0.0, stated.channel(n).gain)) for n in names if n.startswith("f")}
     for axis in "xy":
         a, b = stated.channel(f"{axis}_a").gain, stated.channel(f"{axis}_b").gain
-        gain[f"{axis}_a"] = gain[f"{axis}_b"] = float(rng.normal(0.0, math.hypot((a + b) / 2, stated.probe_sensitivity)))
-    chain = replace(cfg.chain, enabled=True, gain_error=tuple(gain[n] for n in names), probe_sensitivity_error=0.0,
-                    force_delay=float(rng.normal(0.0, stated.channel("fx_piezo").delay)),
-                    filter_cutoff=cfg.chain.filter_cutoff if cfg.chain.enabled else (0.0,) * len(names))
-    lms = replace(cfg.lms, piezo_gain_error=0.0, strain_gain_error=0.0,
-                  piezo_phase_lag=float(rng.normal(0.0, stated.channel("fx_piezo").phase)),
-                  strain_phase_lag=float(rng.normal(0.0, stated.channel("fx_strain").phase)))
+        gain[f"{axis}_a"] = gain[f"{axis}_b"] = float(
+            rng.normal(0.0, math.hypot((a + b) / 2, stated.probe_sensitivity))
+        )
+    chain = replace(
+        cfg.chain,
+        enabled=True,
+        gain_error=tuple(gain[n] for n in names),
+        probe_sensitivity_error=0.0,
+        force_delay=float(rng.normal(0.0, stated.channel("fx_piezo").delay)),
+        filter_cutoff=cfg.chain.filter_cutoff if cfg.chain.enabled else (0.0,) * len(names),
+    )
+    lms = replace(
+        cfg.lms,
+        piezo_gain_error=0.0,
+        strain_gain_error=0.0,
+        piezo_phase_lag=float(rng.normal(0.0, stated.channel("fx_piezo").phase)),
+        strain_phase_lag=float(rng.normal(0.0, stated.channel("fx_strain").phase)),
+    )
     return replace(cfg, chain=chain, lms=lms)
 
 

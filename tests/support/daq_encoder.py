@@ -15,8 +15,10 @@ def frame(flags: int, seq: int, rev: int, first_slot: int, samples: np.ndarray, 
     """samples: int16 (n_slots, n_ch), slot-major."""
     samples = np.asarray(samples, np.int16)
     n_slots, n_ch = samples.shape
-    body = struct.pack("<BBHIHBBI", 1, flags, seq & 0xFFFF, rev & 0xFFFFFFFF, first_slot,
-                       n_slots, n_ch, t_us & 0xFFFFFFFF) + samples.astype("<i2").tobytes()
+    body = (
+        struct.pack("<BBHIHBBI", 1, flags, seq & 0xFFFF, rev & 0xFFFFFFFF, first_slot, n_slots, n_ch, t_us & 0xFFFFFFFF)
+        + samples.astype("<i2").tobytes()
+    )
     return b"\xa5\x5a" + body + struct.pack("<H", crc_hqx(body, 0xFFFF))
 
 
@@ -31,13 +33,16 @@ def slot_samples(counts: np.ndarray, mode: str) -> np.ndarray:
     return counts.T.copy()
 
 
-def signal(n_revs: int, channels: int, mode: str, *, phasors=None, dc=None, noise=0.0,
-           harmonic2=0.0, seed=0) -> np.ndarray:
+def signal(
+    n_revs: int, channels: int, mode: str, *, phasors=None, dc=None, noise=0.0, harmonic2=0.0, seed=0
+) -> np.ndarray:
     """Counts (R, C, S): dc + Re(q e^{i theta}) + harmonic2 * cos(2 theta) + noise,
     theta = 2 pi slot / 360 at each channel's own slots."""
     rng = np.random.default_rng(seed)
     if phasors is None:
-        phasors = 1000 * np.exp(1j * np.linspace(0, 2 * np.pi, channels, endpoint=False)) * (1 + np.arange(channels) / 4)
+        phasors = (
+            1000 * np.exp(1j * np.linspace(0, 2 * np.pi, channels, endpoint=False)) * (1 + np.arange(channels) / 4)
+        )
     if dc is None:
         dc = 50.0 * np.arange(channels)
     s = 360 // channels if mode == "sequential" else 360
@@ -46,13 +51,26 @@ def signal(n_revs: int, channels: int, mode: str, *, phasors=None, dc=None, nois
     else:
         slots = np.tile(np.arange(360), (channels, 1))
     theta = 2 * np.pi * slots / 360
-    base = np.asarray(dc)[:, None] + np.real(np.asarray(phasors)[:, None] * np.exp(1j * theta)) + harmonic2 * np.cos(2 * theta)
+    base = (
+        np.asarray(dc)[:, None]
+        + np.real(np.asarray(phasors)[:, None] * np.exp(1j * theta))
+        + harmonic2 * np.cos(2 * theta)
+    )
     x = base[None] + noise * rng.standard_normal((n_revs, channels, s))
     return np.clip(np.round(x), -32768, 32767).astype(np.int16)
 
 
-def stream(counts: np.ndarray, mode: str, *, frame_slots: int = 45, seq0: int = 0, rev0: int = 0,
-           t0: int = 0, period_us: int = 80_000, flags_extra=None) -> tuple[list[bytes], list[dict]]:
+def stream(
+    counts: np.ndarray,
+    mode: str,
+    *,
+    frame_slots: int = 45,
+    seq0: int = 0,
+    rev0: int = 0,
+    t0: int = 0,
+    period_us: int = 80_000,
+    flags_extra=None,
+) -> tuple[list[bytes], list[dict]]:
     """Frames of revolutions counts (R, C, S). Returns (frame bytes list, frame metadata)."""
     frames, meta = [], []
     seq = seq0
@@ -65,7 +83,7 @@ def stream(counts: np.ndarray, mode: str, *, frame_slots: int = 45, seq0: int = 
             if flags_extra:
                 flags |= flags_extra(r, fs)
             t = t_rev + int(fs * period_us / 360)
-            frames.append(frame(flags, seq, rev0 + r, fs, slots[fs:fs + ns], t))
+            frames.append(frame(flags, seq, rev0 + r, fs, slots[fs : fs + ns], t))
             meta.append({"rev": (rev0 + r) & 0xFFFFFFFF, "index": r, "first_slot": fs, "seq": seq & 0xFFFF})
             seq += 1
     return frames, meta

@@ -31,13 +31,17 @@ class WireTap:
         buf = b"".join(self.chunks)
         out, i = [], 0
         while i + 20 <= len(buf):
-            if buf[i:i + 2] != b"\xa5\x5a":
+            if buf[i : i + 2] != b"\xa5\x5a":
                 i += 1
                 continue
-            ver, flags, seq, rev, fs, ns, nch, t = struct.unpack("<BBHIHBBI", buf[i + 2:i + 18])
+            ver, flags, seq, rev, fs, ns, nch, t = struct.unpack("<BBHIHBBI", buf[i + 2 : i + 18])
             end = i + 20 + 2 * ns * nch
-            if ver == 1 and end <= len(buf) and crc_hqx(buf[i + 2:end - 2], 0xFFFF) == struct.unpack("<H", buf[end - 2:end])[0]:
-                out.append((flags, seq, rev, fs, np.frombuffer(buf[i + 18:end - 2], "<i2").reshape(ns, nch)))
+            if (
+                ver == 1
+                and end <= len(buf)
+                and crc_hqx(buf[i + 2 : end - 2], 0xFFFF) == struct.unpack("<H", buf[end - 2 : end])[0]
+            ):
+                out.append((flags, seq, rev, fs, np.frombuffer(buf[i + 18 : end - 2], "<i2").reshape(ns, nch)))
                 i = end
             else:
                 i += 1

@@ -22,9 +22,18 @@ from .mqtt_helpers import free_port, interrupt, wait_port  # noqa: E402
 RIG = "dash-rig"  # rig id of the service the tests start
 CHROMIUM = "/usr/bin/chromium"
 CHROMEDRIVER = "/usr/bin/chromedriver"
-CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                  "--disable-dev-shm-usage", "--window-size=1400,1500")
+CHROMIUM_FLAGS = (
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--disable-dev-shm-usage",
+    "--window-size=1400,1500",
+)
 
 
 class Dashboard:
@@ -34,12 +43,31 @@ class Dashboard:
         self.port = free_port()
         self.url = f"{'https' if '--https-cert' in extra else 'http'}://127.0.0.1:{self.port}/"
         self.log = Path(workdir) / f"dashboard-{self.port}.log"
-        env = {**os.environ, "PYTHONUNBUFFERED": "1",
-               "PYTHONPATH": os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p)}
+        env = {
+            **os.environ,
+            "PYTHONUNBUFFERED": "1",
+            "PYTHONPATH": os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p),
+        }
         with open(self.log, "ab") as log:
             self.proc = subprocess.Popen(
-                [sys.executable, "-m", "orbitrig", "dashboard", "--broker", broker_url, "--rig-id", rig_id,
-                 "--http", f"127.0.0.1:{self.port}", *extra], stdout=log, stderr=log, env=env, cwd=REPO)
+                [
+                    sys.executable,
+                    "-m",
+                    "orbitrig",
+                    "dashboard",
+                    "--broker",
+                    broker_url,
+                    "--rig-id",
+                    rig_id,
+                    "--http",
+                    f"127.0.0.1:{self.port}",
+                    *extra,
+                ],
+                stdout=log,
+                stderr=log,
+                env=env,
+                cwd=REPO,
+            )
         try:
             wait_port(self.port, timeout=30)
         except TimeoutError:
@@ -86,8 +114,10 @@ class Page:
 
     def _describe(self) -> str:
         try:
-            return ", ".join(f"{i}={self.text(i)!r}" for i in ("state", "message", "link", "cmd-result",
-                                                              "signin-error", "offline-banner"))
+            return ", ".join(
+                f"{i}={self.text(i)!r}"
+                for i in ("state", "message", "link", "cmd-result", "signin-error", "offline-banner")
+            )
         except Exception as err:  # noqa: BLE001
             return f"(page not readable: {err})"
 
@@ -129,7 +159,10 @@ class Page:
         """Rows of a table body redrawn live, read in one go: {data-<key>: row text}."""
         return self.d.execute_script(
             "const out = {}; document.querySelectorAll('#' + arguments[0] + ' tr').forEach("
-            "r => { out[r.dataset[arguments[1]]] = r.innerText; }); return out;", tbody_id, key)
+            "r => { out[r.dataset[arguments[1]]] = r.innerText; }); return out;",
+            tbody_id,
+            key,
+        )
 
     def canvas_updates(self, element_id: str) -> int:
         return int(self.el(element_id).get_attribute("data-updates") or 0)

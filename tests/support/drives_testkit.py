@@ -58,9 +58,7 @@ class SimDrives:
         return time.monotonic() - t0
 
     async def wait_stopped(self, timeout: float = 3.0) -> float:
-        return await self.wait_for(
-            lambda: self.regs(1)["ACT"] == 0 and self.regs(2)["ACT"] == 0, timeout, "standstill"
-        )
+        return await self.wait_for(lambda: self.regs(1)["ACT"] == 0 and self.regs(2)["ACT"] == 0, timeout, "standstill")
 
 
 def open_rig(sim: SimDrives, limits: DriveLimits, **kw) -> RigDrives:
@@ -104,9 +102,14 @@ PARAM = {
 async def run_cli(*args: str, timeout: float = 20.0) -> tuple[int, str, str]:
     """`python -m orbitrig <args>` in a subprocess while this loop keeps serving."""
     proc = await asyncio.create_subprocess_exec(
-        sys.executable, "-m", "orbitrig", *args,
-        cwd=ROOT, env=subprocess_env(),
-        stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE,
+        sys.executable,
+        "-m",
+        "orbitrig",
+        *args,
+        cwd=ROOT,
+        env=subprocess_env(),
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.PIPE,
     )
     try:
         out, err = await asyncio.wait_for(proc.communicate(), timeout)

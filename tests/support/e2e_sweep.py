@@ -55,8 +55,19 @@ def sweep(tmp: Path, scenario: str | None) -> tuple[Path, str]:
     matrix = tmp / "table1.toml"
     matrix.write_text(MATRIX.format(ratios=TABLE1_RATIOS))
     out = tmp / "run"
-    cmd = [sys.executable, "-m", "orbitrig", "sweep", "--sim", "--matrix", str(matrix), "--out", str(out),
-           "--speedup", str(SPEEDUP)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "orbitrig",
+        "sweep",
+        "--sim",
+        "--matrix",
+        str(matrix),
+        "--out",
+        str(out),
+        "--speedup",
+        str(SPEEDUP),
+    ]
     if scenario is not None:
         cmd += ["--sim-config", scenario]
     p = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=170)
@@ -78,8 +89,9 @@ def stated_calibration(out: Path, lms: str) -> Calibration:
     return lms_calibration(rig.calibration_uncertainty, lms)
 
 
-def impedance_misfit(point: Point, lms: str, freq_dep: str, calibration: Calibration | None,
-                     stored_budget: bool = False) -> np.ndarray:
+def impedance_misfit(
+    point: Point, lms: str, freq_dep: str, calibration: Calibration | None, stored_budget: bool = False
+) -> np.ndarray:
     """Per orbit frequency: |Z_identified - Z_true| / (K_COVERAGE u(Z)), u(Z) the root of the
     summed variances of Z's eight real parts from the fit's covariance (+ the systematic
     budget of `calibration`; `stored_budget`: check it equals the one the sweep stored).

@@ -47,16 +47,44 @@ def wait_port(port: int, timeout: float = 5.0) -> None:
 
 def make_test_ca(folder: Path) -> Path:
     """A throw-away CA and a server certificate for 127.0.0.1 (openssl); returns the CA file."""
+
     def ssl(*args: str) -> None:
         subprocess.run(["openssl", *args], cwd=folder, check=True, capture_output=True)
 
-    ssl("req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "2", "-subj", "/CN=orbitrig test CA",
-        "-keyout", "ca.key", "-out", "ca.crt")
-    ssl("req", "-newkey", "rsa:2048", "-nodes", "-subj", "/CN=127.0.0.1",
-        "-keyout", "server.key", "-out", "server.csr")
+    ssl(
+        "req",
+        "-x509",
+        "-newkey",
+        "rsa:2048",
+        "-nodes",
+        "-days",
+        "2",
+        "-subj",
+        "/CN=orbitrig test CA",
+        "-keyout",
+        "ca.key",
+        "-out",
+        "ca.crt",
+    )
+    ssl("req", "-newkey", "rsa:2048", "-nodes", "-subj", "/CN=127.0.0.1", "-keyout", "server.key", "-out", "server.csr")
     (folder / "san.ext").write_text("subjectAltName=IP:127.0.0.1,DNS:localhost\n")
-    ssl("x509", "-req", "-in", "server.csr", "-CA", "ca.crt", "-CAkey", "ca.key", "-CAcreateserial",
-        "-days", "2", "-extfile", "san.ext", "-out", "server.crt")
+    ssl(
+        "x509",
+        "-req",
+        "-in",
+        "server.csr",
+        "-CA",
+        "ca.crt",
+        "-CAkey",
+        "ca.key",
+        "-CAcreateserial",
+        "-days",
+        "2",
+        "-extfile",
+        "san.ext",
+        "-out",
+        "server.crt",
+    )
     return folder / "ca.crt"
 
 
@@ -86,8 +114,15 @@ class Broker:
     service's own listener on ``service_port`` (``service_url``); ``persist``:
     sessions and retained messages survive a restart."""
 
-    def __init__(self, workdir: Path, port: int | None = None, *, tls: bool = False,
-                 bind_ids: bool = False, persist: bool = False):
+    def __init__(
+        self,
+        workdir: Path,
+        port: int | None = None,
+        *,
+        tls: bool = False,
+        bind_ids: bool = False,
+        persist: bool = False,
+    ):
         self.dir = Path(workdir)
         self.tls = tls
         self.dir.mkdir(parents=True, exist_ok=True)
@@ -99,13 +134,11 @@ class Broker:
         tls_lines = ""
         if tls:
             self.ca = make_test_ca(self.dir)
-            tls_lines = (f"cafile {self.ca}\ncertfile {self.dir / 'server.crt'}\n"
-                         f"keyfile {self.dir / 'server.key'}\n")
+            tls_lines = f"cafile {self.ca}\ncertfile {self.dir / 'server.crt'}\nkeyfile {self.dir / 'server.key'}\n"
         ids, service_listener = client_id_lines() if bind_ids else ([], [])
         if bind_ids:
             service_listener = [f"listener {self.service_port} 127.0.0.1", *service_listener, ""]
-        persistence = (f"persistence true\npersistence_location {self.dir}/\n" if persist
-                       else "persistence false\n")
+        persistence = f"persistence true\npersistence_location {self.dir}/\n" if persist else "persistence false\n"
         self.conf = self.dir / "mosquitto.conf"
         self.conf.write_text(
             "user root\n"  # root-run mosquitto would drop privileges and lose the files
@@ -114,12 +147,14 @@ class Broker:
             f"password_file {self.passwd}\n"
             f"acl_file {EXAMPLE_ACL}\n"
             + "".join(f"{ln}\n" for ln in flow_limit_lines())
-            + "".join(f"{ln}\n" for ln in ids) + "\n".join(service_listener) +
-            f"listener {self.port} 127.0.0.1\n"
+            + "".join(f"{ln}\n" for ln in ids)
+            + "\n".join(service_listener)
+            + f"listener {self.port} 127.0.0.1\n"
             f"{tls_lines}"
             f"{persistence}"
             "log_dest stderr\n"
-            "log_type error\nlog_type warning\nlog_type notice\nlog_type information\n")
+            "log_type error\nlog_type warning\nlog_type notice\nlog_type information\n"
+        )
         self.log = self.dir / "mosquitto.log"
         self.proc: subprocess.Popen | None = None
 
@@ -160,8 +195,16 @@ class Broker:
             args += ["-u", user, "-P", ACCOUNTS[user]]
         return args
 
-    def pub(self, topic: str, payload: str | bytes, *, user: str | None = "operator",
-            qos: int = 1, version: int | None = None, retain: bool = False) -> subprocess.CompletedProcess:
+    def pub(
+        self,
+        topic: str,
+        payload: str | bytes,
+        *,
+        user: str | None = "operator",
+        qos: int = 1,
+        version: int | None = None,
+        retain: bool = False,
+    ) -> subprocess.CompletedProcess:
         """Publish one message with mosquitto_pub (payload from standard input)."""
         args = ["mosquitto_pub", *self.client_args(user), "-q", str(qos), "-t", topic, "-s"]
         if version:
@@ -174,15 +217,36 @@ class Broker:
 
 def retained(broker: "Broker", topic: str, user: str = "viewer", wait: float = 2.0) -> "Msg | None":
     """The retained message on ``topic`` now (a fresh subscription), or None."""
-    done = subprocess.run(["mosquitto_sub", *broker.client_args(user), "-t", topic, "-q", "1",
-                           "--retained-only", "-C", "1", "-W", str(int(max(1, wait))), "-F", "%j"],
-                          capture_output=True, timeout=wait + 10)
+    done = subprocess.run(
+        [
+            "mosquitto_sub",
+            *broker.client_args(user),
+            "-t",
+            topic,
+            "-q",
+            "1",
+            "--retained-only",
+            "-C",
+            "1",
+            "-W",
+            str(int(max(1, wait))),
+            "-F",
+            "%j",
+        ],
+        capture_output=True,
+        timeout=wait + 10,
+    )
     line = done.stdout.decode("utf-8", "surrogateescape").strip()
     if not line:
         return None
     obj = json.loads(line)
-    return Msg(obj["topic"], obj["payload"].encode("utf-8", "surrogateescape"), obj["qos"],
-               bool(obj["retain"]), time.monotonic())
+    return Msg(
+        obj["topic"],
+        obj["payload"].encode("utf-8", "surrogateescape"),
+        obj["qos"],
+        bool(obj["retain"]),
+        time.monotonic(),
+    )
 
 
 @dataclass
@@ -210,8 +274,18 @@ class Watcher:
         self._cond = threading.Condition()
         filters = [self.topic] if isinstance(self.topic, str) else list(self.topic)
         self.proc = subprocess.Popen(
-            ["mosquitto_sub", *self.broker.client_args(self.user), "-q", "1",
-             *(a for t in filters for a in ("-t", t)), "-F", "%j"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+            [
+                "mosquitto_sub",
+                *self.broker.client_args(self.user),
+                "-q",
+                "1",
+                *(a for t in filters for a in ("-t", t)),
+                "-F",
+                "%j",
+            ],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
         self._thread = threading.Thread(target=self._read, daemon=True)
         self._thread.start()
 
@@ -219,14 +293,20 @@ class Watcher:
         assert self.proc.stdout is not None
         for line in self.proc.stdout:
             obj = json.loads(line.decode("utf-8", "surrogateescape"))
-            msg = Msg(obj["topic"], obj["payload"].encode("utf-8", "surrogateescape"),
-                      obj["qos"], bool(obj["retain"]), time.monotonic())
+            msg = Msg(
+                obj["topic"],
+                obj["payload"].encode("utf-8", "surrogateescape"),
+                obj["qos"],
+                bool(obj["retain"]),
+                time.monotonic(),
+            )
             with self._cond:
                 self.messages.append(msg)
                 self._cond.notify_all()
 
-    def wait_for(self, pred: Callable[[Msg], bool], timeout: float = 10.0, *, start: int = 0,
-                 what: str = "a message") -> Msg:
+    def wait_for(
+        self, pred: Callable[[Msg], bool], timeout: float = 10.0, *, start: int = 0, what: str = "a message"
+    ) -> Msg:
         """First message (from index ``start``) matching ``pred``."""
         deadline = time.monotonic() + timeout
         with self._cond:
@@ -258,16 +338,16 @@ class Watcher:
 class RigClient:
     """An operator (publishing commands) plus a viewer (watching the rig's topics)."""
 
-    def __init__(self, broker: Broker, rig_id: str, service: "Service | None" = None,
-                 watch: tuple[str, ...] = ("#",)):
+    def __init__(self, broker: Broker, rig_id: str, service: "Service | None" = None, watch: tuple[str, ...] = ("#",)):
         self.broker = broker
         self.service = service  # its log is shown when a wait fails
         self.prefix = f"orbitrig/{rig_id}"
         self.watch = Watcher(broker, tuple(f"{self.prefix}/{t}" for t in watch))
         self._n = 0
 
-    def send(self, obj: dict | str | bytes, *, user: str = "operator", cid: str | None = None,
-             version: int | None = None) -> str:
+    def send(
+        self, obj: dict | str | bytes, *, user: str = "operator", cid: str | None = None, version: int | None = None
+    ) -> str:
         """Publish a command; a dict without ``id`` gets a fresh one. Returns the id."""
         if isinstance(obj, dict):
             obj = dict(obj)
@@ -290,8 +370,12 @@ class RigClient:
             raise AssertionError(f"{err}\n--- serve log (tail) ---\n{self.service.text()[-3000:]}") from None
 
     def reply(self, cid: str | None, timeout: float = 10.0, start: int = 0) -> dict:
-        msg = self._wait(lambda m: m.topic == f"{self.prefix}/reply" and m.json().get("id") == cid,
-                         timeout, start, f"reply to {cid!r}")
+        msg = self._wait(
+            lambda m: m.topic == f"{self.prefix}/reply" and m.json().get("id") == cid,
+            timeout,
+            start,
+            f"reply to {cid!r}",
+        )
         assert msg.qos == 1
         return msg.json()
 
@@ -302,8 +386,9 @@ class RigClient:
 
     def status(self, state: str | Callable[[dict], bool], timeout: float = 30.0, start: int = 0) -> dict:
         pred = (lambda s: s["state"] == state) if isinstance(state, str) else state
-        msg = self._wait(lambda m: m.topic == f"{self.prefix}/status" and pred(m.json()),
-                         timeout, start, f"status {state}")
+        msg = self._wait(
+            lambda m: m.topic == f"{self.prefix}/status" and pred(m.json()), timeout, start, f"status {state}"
+        )
         assert msg.qos == 1
         return msg.json()
 
@@ -319,8 +404,9 @@ class Service:
         path = os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p)
         full_env = {**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONPATH": path, **(env or {})}
         with open(self.log, "ab") as log:
-            self.proc = subprocess.Popen([sys.executable, "-m", "orbitrig", "serve", *args],
-                                         stdout=log, stderr=log, env=full_env, cwd=workdir)
+            self.proc = subprocess.Popen(
+                [sys.executable, "-m", "orbitrig", "serve", *args], stdout=log, stderr=log, env=full_env, cwd=workdir
+            )
 
     def text(self) -> str:
         return self.log.read_text(errors="replace")
@@ -371,15 +457,22 @@ model = "kc7"
 
 def write_matrices(folder: Path) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / "quick.toml").write_text(MATRIX.format(
-        name="quick", revs=10, ratios="[0.5, 0.8]", directions='["forward", "backward"]'))
-    (folder / "long.toml").write_text(MATRIX.format(
-        name="long", revs=60, ratios="[0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.2]",
-        directions='["forward", "backward"]'))
+    (folder / "quick.toml").write_text(
+        MATRIX.format(name="quick", revs=10, ratios="[0.5, 0.8]", directions='["forward", "backward"]')
+    )
+    (folder / "long.toml").write_text(
+        MATRIX.format(
+            name="long",
+            revs=60,
+            ratios="[0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.2]",
+            directions='["forward", "backward"]',
+        )
+    )
     # judged fits: a frequency-dependent model (adequacy) and one the data cannot identify (refused)
-    (folder / "judged.toml").write_text(MATRIX.format(
-        name="judged", revs=10, ratios="[0.3, 0.6, 0.9, 1.2]", directions='["forward", "backward"]')
-        + '\n[[models]]\nmodel = "kc7"\nfreq_dep = "power:1"\n\n[[models]]\nmodel = "kcd12"\nfreq_dep = "poly:4"\n')
+    (folder / "judged.toml").write_text(
+        MATRIX.format(name="judged", revs=10, ratios="[0.3, 0.6, 0.9, 1.2]", directions='["forward", "backward"]')
+        + '\n[[models]]\nmodel = "kc7"\nfreq_dep = "power:1"\n\n[[models]]\nmodel = "kcd12"\nfreq_dep = "poly:4"\n'
+    )
     return folder
 
 

@@ -46,11 +46,15 @@ def postgres_server():
         shutil.chown(base, PG_USER)
         shutil.chown(sock, PG_USER)
     port = _free_port()
-    subprocess.run(_as_user(_pg_bin("initdb"), "-D", str(data), "-A", "trust", "-U", "postgres"),
-                   check=True, capture_output=True)
+    subprocess.run(
+        _as_user(_pg_bin("initdb"), "-D", str(data), "-A", "trust", "-U", "postgres"), check=True, capture_output=True
+    )
     options = f"-k {sock} -p {port} -c listen_addresses='' -c fsync=off"
-    subprocess.run(_as_user(_pg_bin("pg_ctl"), "-D", str(data), "-o", options, "-w", "-l", str(base / "log"),
-                            "start"), check=True, capture_output=True)
+    subprocess.run(
+        _as_user(_pg_bin("pg_ctl"), "-D", str(data), "-o", options, "-w", "-l", str(base / "log"), "start"),
+        check=True,
+        capture_output=True,
+    )
     try:
         yield f"postgresql://postgres@/postgres?host={sock}&port={port}"
     finally:

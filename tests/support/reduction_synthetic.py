@@ -49,8 +49,9 @@ def impedance(true: dict, w: np.ndarray) -> np.ndarray:
     return Z
 
 
-def orbit_table(true: dict, orbit_hz, shapes=("forward", "backward"), radius: float = 5e-6,
-                gamma2=None, phase: float = 0.3) -> OrbitTable:
+def orbit_table(
+    true: dict, orbit_hz, shapes=("forward", "backward"), radius: float = 5e-6, gamma2=None, phase: float = 0.3
+) -> OrbitTable:
     """One row per (frequency, shape); shapes: forward | backward | ellipse (a, b, tilt)."""
     w, x, y = [], [], []
     for f in orbit_hz:

@@ -86,16 +86,25 @@ def _record(block, radius, rng, noise, ch, gains, wave_rng) -> BlockRecord:
         records[:, ch[f"{axis}_strain"]] = records[:, ch[f"{axis}_piezo"]] * STRAIN_GAIN
     slots, counts, mean = _waveforms(ph, records, gains, wave_rng)
     return BlockRecord(
-        block=block, measured_orbit_speed=w, raw_counts=counts,
-        slots=slots, gains=gains, offsets=np.zeros(8),
-        mean=mean, record_phasors=records, phasors=ph, dc=0.1 * np.abs(ph),
-        rms_residual=np.zeros(8), coherence=np.clip(0.995 - 0.04 * rng.random((2, 4)), 0, 1),
+        block=block,
+        measured_orbit_speed=w,
+        raw_counts=counts,
+        slots=slots,
+        gains=gains,
+        offsets=np.zeros(8),
+        mean=mean,
+        record_phasors=records,
+        phasors=ph,
+        dc=0.1 * np.abs(ph),
+        rms_residual=np.zeros(8),
+        coherence=np.clip(0.995 - 0.04 * rng.random((2, 4)), 0, 1),
         stats={"frames_good": N_REV, "revolutions_used": N_REV},
     )
 
 
-def write_synthetic_run(directory: Path, *, noise=1e-3, seed=1, n_points=2, incomplete=1, finished=True,
-                        provenance: dict | None = None) -> Path:
+def write_synthetic_run(
+    directory: Path, *, noise=1e-3, seed=1, n_points=2, incomplete=1, finished=True, provenance: dict | None = None
+) -> Path:
     """n_points complete operating points (static eccentricity 0, 0.15, ...) and
     `incomplete` more whose blocks are stored but which are never marked complete.
     finished=False leaves the run as a kill -9 does: status 'running', no run.h5."""
@@ -109,8 +118,9 @@ def write_synthetic_run(directory: Path, *, noise=1e-3, seed=1, n_points=2, inco
     matrix = cfg.matrix_from_text(MATRIX.format(eps=eps), "synthetic.toml")
     ch = rig.channel_index
     gains = np.asarray(rig.gains, dtype=float)
-    store = RunStore.create(directory, rig_text=rig.text, matrix_text=matrix.text, matrix_name=matrix.name, sim=True,
-                            provenance=provenance)
+    store = RunStore.create(
+        directory, rig_text=rig.text, matrix_text=matrix.text, matrix_name=matrix.name, sim=True, provenance=provenance
+    )
     for point in operating_points(matrix, rig):
         store.begin_point(point)
         recs = []
@@ -122,9 +132,14 @@ def write_synthetic_run(directory: Path, *, noise=1e-3, seed=1, n_points=2, inco
         recs.sort(key=lambda r: (r.block.freq, -r.block.direction))
         n = len(recs)
         truth = {
-            "orbit_hz": [r.block.orbit_hz for r in recs], "orbit": [r.block.orbit for r in recs],
-            "K": [K_TRUE.tolist()] * n, "C": [C_TRUE.tolist()] * n, "D": [D_TRUE.tolist()] * n,
-            "K0": K_TRUE.tolist(), "C0": C_TRUE.tolist(), "D0": D_TRUE.tolist(),
+            "orbit_hz": [r.block.orbit_hz for r in recs],
+            "orbit": [r.block.orbit for r in recs],
+            "K": [K_TRUE.tolist()] * n,
+            "C": [C_TRUE.tolist()] * n,
+            "D": [D_TRUE.tolist()] * n,
+            "K0": K_TRUE.tolist(),
+            "C0": C_TRUE.tolist(),
+            "D0": D_TRUE.tolist(),
         }
         store.write_results(point.index, identify_operating_point(point.spin, recs, ch, matrix.models, truth))
         store.complete_point(point.index)

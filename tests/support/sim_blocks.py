@@ -41,8 +41,14 @@ def channel_phasors(x: complex, y: complex, fx: complex, fy: complex) -> np.ndar
     return np.array([fx, fy, fx, fy, x, y, x, y], dtype=complex)
 
 
-def averaged_block(truth: np.ndarray, sample_rms: np.ndarray, rule: AveragingRule, rng,
-                   period: float = 0.1, damaged: tuple[int, ...] = ()) -> AveragedBlock:
+def averaged_block(
+    truth: np.ndarray,
+    sample_rms: np.ndarray,
+    rule: AveragingRule,
+    rng,
+    period: float = 0.1,
+    damaged: tuple[int, ...] = (),
+) -> AveragedBlock:
     """Average revolutions of the true channel phasors ``truth`` (8,) with white noise of
     ``sample_rms`` (8,) per sample; revolutions listed in ``damaged`` carry a wild value
     (1e4 counts) in channel 0 and must never be averaged (they are left out of the batch,
@@ -55,8 +61,9 @@ def averaged_block(truth: np.ndarray, sample_rms: np.ndarray, rule: AveragingRul
     keep = np.array([k not in damaged for k in range(n)])
     counts[~keep, 0, :] = 10_000
     revs = np.arange(n, dtype=np.int64)[keep]
-    batch = RevolutionBatch(revs, (revs * period * 1e6).astype(np.int64), np.full(revs.size, period),
-                            counts[keep], SLOTS)
+    batch = RevolutionBatch(
+        revs, (revs * period * 1e6).astype(np.int64), np.full(revs.size, period), counts[keep], SLOTS
+    )
     used, block = StreamingAverager(rule, GAINS, np.zeros(8)).take(batch)
     assert block is not None, f"{used} revolutions did not complete a block"
     return block
@@ -69,8 +76,9 @@ def block_row(block: AveragedBlock) -> tuple[np.ndarray, np.ndarray]:
     return recs.mean(axis=0), phasor_uncertainty(recs, axis=0)
 
 
-def simulated_table(spec, theta, spin: float, ratios, radius: float, force_rms: float, probe_rms: float,
-                    rule: AveragingRule, rng) -> tuple[OrbitTable, list[AveragedBlock]]:
+def simulated_table(
+    spec, theta, spin: float, ratios, radius: float, force_rms: float, probe_rms: float, rule: AveragingRule, rng
+) -> tuple[OrbitTable, list[AveragedBlock]]:
     """One simulated run at one operating point: circular orbits of ``radius`` at ``ratios``
     x spin in both directions, forces f = -Z(theta) d, blocks averaged under ``rule``."""
     orbit, x, y = design_orbits(np.asarray(ratios) * spin / (2 * np.pi), "both", radius)
@@ -78,13 +86,20 @@ def simulated_table(spec, theta, spin: float, ratios, radius: float, force_rms: 
     rms = np.array([force_rms] * 4 + [probe_rms] * 4)
     rows, us, blocks = [], [], []
     for k in range(orbit.size):
-        block = averaged_block(channel_phasors(x[k], y[k], fx[k], fy[k]), rms, rule, rng,
-                               period=2 * np.pi / orbit[k])
+        block = averaged_block(channel_phasors(x[k], y[k], fx[k], fy[k]), rms, rule, rng, period=2 * np.pi / orbit[k])
         row, u = block_row(block)
         rows.append(row)
         us.append(u)
         blocks.append(block)
     rows = np.array(rows)
-    table = OrbitTable(spin, orbit, rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3],
-                       n_records=np.array([b.n_records for b in blocks]), u=np.array(us))
+    table = OrbitTable(
+        spin,
+        orbit,
+        rows[:, 0],
+        rows[:, 1],
+        rows[:, 2],
+        rows[:, 3],
+        n_records=np.array([b.n_records for b in blocks]),
+        u=np.array(us),
+    )
     return table, blocks

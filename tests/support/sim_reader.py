@@ -40,7 +40,7 @@ def parse(buf: bytes):
             continue
         if j + size > len(buf):
             return frames, bad, j
-        body = buf[j + 2: j + size - 2]
+        body = buf[j + 2 : j + size - 2]
         (crc,) = struct.unpack_from("<H", buf, j + size - 2)
         if binascii.crc_hqx(body, 0xFFFF) != crc:
             bad += 1
@@ -89,8 +89,9 @@ def fundamental(values: np.ndarray, slots: np.ndarray) -> complex:
     return complex(2.0 / len(values) * np.sum(values * np.exp(-1j * theta)))
 
 
-async def read_tcp(port: int, *, seconds: float | None = None, min_revs: int | None = None,
-                   timeout: float = 20.0, channels: int = 8) -> bytes:
+async def read_tcp(
+    port: int, *, seconds: float | None = None, min_revs: int | None = None, timeout: float = 20.0, channels: int = 8
+) -> bytes:
     """Bytes from the TCP serial device server, for `seconds` or until min_revs complete revolutions."""
     reader, writer = await asyncio.open_connection("127.0.0.1", port)
     buf = bytearray()

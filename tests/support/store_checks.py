@@ -43,8 +43,11 @@ def traced_rig_config(folder: Path) -> Path:
     and a patient Modbus link, for sweeps run under strace: every traced system call stops
     the process (and the simulator's) for a while, which is not what such a test is about."""
     text = (ROOT / "config" / "rig.toml").read_text()
-    for old, new in (("timeout_s = 0.15", "timeout_s = 0.5"), ("link_loss_polls = 3", "link_loss_polls = 5"),
-                     ("comm_loss_timeout_s = 1.0", "comm_loss_timeout_s = 5.0")):
+    for old, new in (
+        ("timeout_s = 0.15", "timeout_s = 0.5"),
+        ("link_loss_polls = 3", "link_loss_polls = 5"),
+        ("comm_loss_timeout_s = 1.0", "comm_loss_timeout_s = 5.0"),
+    ):
         assert old in text, old
         text = text.replace(old, new)
     path = folder / "rig.toml"
