@@ -38,8 +38,7 @@ def rig_time(rig, ratios, spin: float, revolutions, directions: str) -> float:
     count or one per ratio (reduction.rig_time.point_time; see the module doc)."""
     from reduction.rig_time import point_time
 
-    return point_time(ratios, spin, revolutions, directions, rig.settle.hold_s + rig.estimates.store_s,
-                      rig.ramp_rate)
+    return point_time(ratios, spin, revolutions, directions, rig.settle.hold_s + rig.estimates.store_s, rig.ramp_rate)
 
 
 def _list_object(rig, problem, pred, revolutions: int, directions: str) -> dict:
@@ -64,8 +63,11 @@ def _noise_object(noise) -> dict:
     cols = ("x", "y", "fx", "fy")
     if noise.ratios is None:
         return {"u_revolution": dict(zip(cols, map(float, u))), "source": noise.source}
-    return {"u_revolution": {c: [float(v) for v in u[:, k]] for k, c in enumerate(cols)},
-            "ratios": [float(r) for r in noise.ratios], "source": noise.source}
+    return {
+        "u_revolution": {c: [float(v) for v in u[:, k]] for k, c in enumerate(cols)},
+        "ratios": [float(r) for r in noise.ratios],
+        "source": noise.source,
+    }
 
 
 def _band(rig, spin_rpm: float, keep_away: float):
@@ -80,8 +82,12 @@ def _band(rig, spin_rpm: float, keep_away: float):
 
 
 def _candidate_warnings(ratios, lo: float, hi: float, keep_away: float) -> list[str]:
-    out = [f"ratio {r:g} is within {keep_away:g} of Omega/omega = 1: the orbit is hard to tell from the "
-           "spindle's runout there" for r in ratios if abs(r - 1) < keep_away]
+    out = [
+        f"ratio {r:g} is within {keep_away:g} of Omega/omega = 1: the orbit is hard to tell from the "
+        "spindle's runout there"
+        for r in ratios
+        if abs(r - 1) < keep_away
+    ]
     out += [f"ratio {r:g} is outside the drives' band {lo:g} .. {hi:.3g}" for r in ratios if not lo <= r <= hi]
     return out
 
@@ -102,12 +108,32 @@ def _allocated(rig, problem, grid, scales, directions: str, test=None, reference
     a: Any  # reduction.allocation.Allocation, or TestedAllocation when the model test is kept
     try:
         if test is None:
-            a = allocate(problem.spec, problem.theta, problem.spin, problem.radius, grid, u, scales,
-                         block_overhead=overhead, directions=directions)
+            a = allocate(
+                problem.spec,
+                problem.theta,
+                problem.spin,
+                problem.radius,
+                grid,
+                u,
+                scales,
+                block_overhead=overhead,
+                directions=directions,
+            )
         else:
             prior = dict(zip(problem.spec.names, map(float, problem.theta)))
-            a = allocate_keeping_test(test, problem.spec, prior, problem.spin, problem.radius, grid, problem.noise_at,
-                                      reference, block_overhead=overhead, directions=directions, scales=scales)
+            a = allocate_keeping_test(
+                test,
+                problem.spec,
+                prior,
+                problem.spin,
+                problem.radius,
+                grid,
+                problem.noise_at,
+                reference,
+                block_overhead=overhead,
+                directions=directions,
+                scales=scales,
+            )
     except ReductionError as err:
         raise DesignInputError(f"no list of the allowed ratios reaches it: {err}") from None
     u_kept = problem.noise_at(a.ratios)
@@ -118,8 +144,12 @@ def _allocated(rig, problem, grid, scales, directions: str, test=None, reference
         "orbit_hz": [round(r * problem.spin / (2 * math.pi), 6) for r in a.ratios],
         "directions": directions,
         "revolutions": list(a.revolutions),
-        "target_pct": [round(float(t) * 100, 4) for t in adaptive_targets(
-            problem.spec, problem.theta, problem.spin, problem.radius, a.ratios, a.revolutions, u_kept, directions)],
+        "target_pct": [
+            round(float(t) * 100, 4)
+            for t in adaptive_targets(
+                problem.spec, problem.theta, problem.spin, problem.radius, a.ratios, a.revolutions, u_kept, directions
+            )
+        ],
         "identifiable": True,
         "std_errors": {n: float(v) for n, v in zip(names, a.std_errors)},
         "relative_pct": {n: float(v) * 100 for n, v in zip(names, a.std_errors / base)},
@@ -136,9 +166,15 @@ def model_test_object(test, ratios) -> dict:
     """The model-test constraint as stated in the output, and whether ``ratios`` keep it."""
     from reduction.adequacy_design import spread_ok
 
-    return {"model": test.spec.model, "freq_dep": test.spec.freq_dep.text, "frequencies": test.frequencies,
-            "band": [test.lo, test.hi], "slices": [round(float(v), 6) for v in test.slices()],
-            "reason": test.reason(), "kept": bool(spread_ok(test, ratios))}
+    return {
+        "model": test.spec.model,
+        "freq_dep": test.spec.freq_dep.text,
+        "frequencies": test.frequencies,
+        "band": [test.lo, test.hi],
+        "slices": [round(float(v), 6) for v in test.slices()],
+        "reason": test.reason(),
+        "kept": bool(spread_ok(test, ratios)),
+    }
 
 
 def coefficient_scales_of(problem) -> np.ndarray:
@@ -147,8 +183,25 @@ def coefficient_scales_of(problem) -> np.ndarray:
     return coefficient_scales(problem.spec, problem.theta, problem.spin)
 
 
-def design_object(rig, *, model, freq_dep, spin_rpm, candidate, source, directions, radius, noise,
-                  run, lms, revolutions, target, keep_away, match: bool = False, test_models=None) -> dict:
+def design_object(
+    rig,
+    *,
+    model,
+    freq_dep,
+    spin_rpm,
+    candidate,
+    source,
+    directions,
+    radius,
+    noise,
+    run,
+    lms,
+    revolutions,
+    target,
+    keep_away,
+    match: bool = False,
+    test_models=None,
+) -> dict:
     """Predict the candidate list, propose one; the JSON object `design --json` prints.
     ``test_models``: (model, freq_dep) pairs whose adequacy test the proposal must keep
     (reduction.adequacy_design; the candidate list is the reference); None: no such constraint."""
@@ -171,26 +224,36 @@ def design_object(rig, *, model, freq_dep, spin_rpm, candidate, source, directio
     if goal is not None and match:
         raise DesignInputError("give --target or --match, not both")
     out = {
-        "model": model, "freq_dep": spec.freq_dep.text, "coefficients": spec.names,
+        "model": model,
+        "freq_dep": spec.freq_dep.text,
+        "coefficients": spec.names,
         "units": {name: _unit(name) for name in spec.names},
-        "spin_rpm": spin_rpm, "orbit_radius_m": radius, "directions": directions,
+        "spin_rpm": spin_rpm,
+        "orbit_radius_m": radius,
+        "directions": directions,
         "noise": _noise_object(noise),
         "prior": {"coefficients": dict(zip(spec.names, map(float, theta))), "source": prior_source},
         "allowed": {"ratio_min": lo, "ratio_max": hi, "keep_away_from_1": keep_away, "grid": list(map(float, grid))},
         "target_pct": target,
-        "candidate": dict(_list_object(rig, problem, cand, n, directions), source=source,
-                          warnings=_candidate_warnings(candidate, lo, hi, keep_away)),
+        "candidate": dict(
+            _list_object(rig, problem, cand, n, directions),
+            source=source,
+            warnings=_candidate_warnings(candidate, lo, hi, keep_away),
+        ),
         "match_candidate": match,
         "model_test": None,
         "warnings": [],
     }
     if match or goal:
         if cand.std_errors is None and match:
-            raise DesignInputError("--match: the candidate list cannot identify the model, so there is nothing to match")
+            raise DesignInputError(
+                "--match: the candidate list cannot identify the model, so there is nothing to match"
+            )
         scales = cand.std_errors if match else coefficient_scales_of(problem) * goal
         test = _model_test(test_models, candidate)
-        out["proposal"] = dict(_allocated(rig, problem, grid, scales, directions, test, (candidate, n)),
-                               reaches_target=True)
+        out["proposal"] = dict(
+            _allocated(rig, problem, grid, scales, directions, test, (candidate, n)), reaches_target=True
+        )
         out["model_test"] = None if test is None else model_test_object(test, out["proposal"]["ratios"])
     else:
         prop = propose(problem, grid, count=len(candidate), block_overhead=overhead)
@@ -218,24 +281,31 @@ def _revolutions_text(lst: dict) -> str:
     if not isinstance(n, list):
         return f"{n} revolutions"
     text = "revolutions " + ", ".join(map(str, n))
-    return text + (" (adaptive targets " + ", ".join(f"{t:.3g}" for t in lst["target_pct"]) + " %)"
-                   if lst.get("target_pct") else "")
+    return text + (
+        " (adaptive targets " + ", ".join(f"{t:.3g}" for t in lst["target_pct"]) + " %)"
+        if lst.get("target_pct")
+        else ""
+    )
 
 
 def print_design(obj: dict) -> None:
     """Readable form: settings, the two lists, one line per coefficient."""
     c, p = obj["candidate"], obj["proposal"]
     echo = typer.echo
-    echo(f"model {obj['model']} ({obj['freq_dep']}), spin {obj['spin_rpm']:g} rpm, orbit radius "
-         f"{obj['orbit_radius_m'] * 1e6:.3g} um, directions {obj['directions']}")
+    echo(
+        f"model {obj['model']} ({obj['freq_dep']}), spin {obj['spin_rpm']:g} rpm, orbit radius "
+        f"{obj['orbit_radius_m'] * 1e6:.3g} um, directions {obj['directions']}"
+    )
     echo(f"noise {obj['noise']['source']}")
     echo(f"prior coefficients: {obj['prior']['source']}")
     a = obj["allowed"]
     echo(f"allowed ratios {a['ratio_min']:g} .. {a['ratio_max']:.3g}, none within {a['keep_away_from_1']:g} of 1")
     for label, lst in (("candidate", c), ("proposal ", p)):
         worst = "not identifiable" if lst["worst_relative_pct"] is None else f"worst {lst['worst_relative_pct']:.3g} %"
-        echo(f"{label}: {len(lst['ratios'])} ratios x {lst['directions']}, {_revolutions_text(lst)}, "
-             f"rig time {format_duration(lst['rig_time_s'])}, {worst}: {', '.join(f'{r:g}' for r in lst['ratios'])}")
+        echo(
+            f"{label}: {len(lst['ratios'])} ratios x {lst['directions']}, {_revolutions_text(lst)}, "
+            f"rig time {format_duration(lst['rig_time_s'])}, {worst}: {', '.join(f'{r:g}' for r in lst['ratios'])}"
+        )
     for w in c["warnings"]:
         echo(f"warning (candidate): {w}")
     for w in obj.get("warnings", []):
@@ -247,7 +317,9 @@ def print_design(obj: dict) -> None:
         ok = p.get("reaches_target")
         echo(f"target {obj['target_pct']:g} %: " + ("reached" if ok else "not reachable on this grid"))
     echo("")
-    echo(f"{'coefficient':12} {'unit':16} {'prior':>11} {'candidate SE':>13} {'rel %':>8} {'proposal SE':>13} {'rel %':>8}")
+    echo(
+        f"{'coefficient':12} {'unit':16} {'prior':>11} {'candidate SE':>13} {'rel %':>8} {'proposal SE':>13} {'rel %':>8}"
+    )
     for name in obj["coefficients"]:
         cells = []
         for lst in (c, p):
@@ -275,14 +347,20 @@ def save_design(obj: dict, name: str, folder: Path | None = None) -> Path:
     goal += " --match" if obj.get("match_candidate") else ""
     n = p["revolutions"]
     per_ratio = isinstance(n, list)
-    lines = [f"# orbitrig design --model {obj['model']} --freq-dep {obj['freq_dep']} --spin {obj['spin_rpm']:g}{goal}",
-             f"# candidate: {obj['candidate']['source']}; orbit radius {obj['orbit_radius_m'] * 1e6:.3g} um",
-             f"# predicted worst relative standard error {p['worst_relative_pct']:.3g} %, rig time "
-             f"{p['rig_time_s']:.0f} s per operating point; noise {obj['noise']['source']}",
-             f'model = "{obj["model"]}"', f'freq_dep = "{obj["freq_dep"]}"', f"spin_rpm = {obj['spin_rpm']:g}",
-             "ratios = [" + ", ".join(f"{r:g}" for r in p["ratios"]) + "]",
-             ("revolutions = [" + ", ".join(map(str, n)) + "]") if per_ratio else f"revolutions = [{', '.join([str(n)] * len(p['ratios']))}]",
-             "directions = " + ('["forward", "backward"]' if p["directions"] == "both" else f'["{p["directions"]}"]')]
+    lines = [
+        f"# orbitrig design --model {obj['model']} --freq-dep {obj['freq_dep']} --spin {obj['spin_rpm']:g}{goal}",
+        f"# candidate: {obj['candidate']['source']}; orbit radius {obj['orbit_radius_m'] * 1e6:.3g} um",
+        f"# predicted worst relative standard error {p['worst_relative_pct']:.3g} %, rig time "
+        f"{p['rig_time_s']:.0f} s per operating point; noise {obj['noise']['source']}",
+        f'model = "{obj["model"]}"',
+        f'freq_dep = "{obj["freq_dep"]}"',
+        f"spin_rpm = {obj['spin_rpm']:g}",
+        "ratios = [" + ", ".join(f"{r:g}" for r in p["ratios"]) + "]",
+        ("revolutions = [" + ", ".join(map(str, n)) + "]")
+        if per_ratio
+        else f"revolutions = [{', '.join([str(n)] * len(p['ratios']))}]",
+        "directions = " + ('["forward", "backward"]' if p["directions"] == "both" else f'["{p["directions"]}"]'),
+    ]
     if per_ratio and p.get("target_pct"):
         lines.append("target_pct = [" + ", ".join(f"{t:g}" for t in p["target_pct"]) + "]")
     path = folder / f"{name}.toml"
