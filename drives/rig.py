@@ -291,7 +291,7 @@ class RigDrives:
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 raise DriveTimeoutError(
-                    f"not at setpoint (AT_SETPOINT held {hold:g} s) within {timeout:g} s: " + self._describe(st),
+                    f"not at setpoint (AT_SETPOINT held {hold:g} s) within {timeout:g} s: " + st.describe(),
                     register=R.SW,
                 )
             with contextlib.suppress(asyncio.TimeoutError):
@@ -325,7 +325,7 @@ class RigDrives:
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 raise DriveTimeoutError(
-                    f"drives not at zero speed within {timeout:g} s: " + self._describe(st),
+                    f"drives not at zero speed within {timeout:g} s: " + st.describe(),
                     register=R.ACT,
                 )
             with contextlib.suppress(asyncio.TimeoutError):
@@ -370,18 +370,6 @@ class RigDrives:
             t = t / 10 if emergency else t
             worst = max(worst, t + (60.0 if st.tripped else 0.0))
         return 1.5 * worst + 2.0 + 4 * self.poll_interval
-
-    def _describe(self, st: RigDriveState) -> str:
-        parts = []
-        for s in (st.spin, st.orbit):
-            if s is not None:
-                parts.append(
-                    f"{s.name} (id {s.device_id}) {s.state}, REF {fmt_speed(s.reference)}, "
-                    f"ACT {fmt_speed(s.actual)}, fault {s.fault_code}"
-                )
-        if not st.link_ok:
-            parts.append(f"link down: {st.link_error}")
-        return "; ".join(parts)
 
     async def _safe_stop(self, *, emergency: bool = False) -> list[DriveError]:
         """Deliver the stop to both drives even if the calling task is cancelled meanwhile.

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from drives.drive import DriveStatus
+from drives.limits import fmt_speed
 
 
 @dataclass(frozen=True)
@@ -30,6 +31,18 @@ class RigDriveState:
     def stopped(self) -> bool:
         """Both drives read an actual speed of exactly zero."""
         return bool(self.spin and self.orbit and self.spin.stopped and self.orbit.stopped)
+
+    def describe(self) -> str:
+        """Each drive's state, reference, actual speed and fault, and a link that is down: for messages."""
+        parts = [
+            f"{s.name} (id {s.device_id}) {s.state}, REF {fmt_speed(s.reference)}, "
+            f"ACT {fmt_speed(s.actual)}, fault {s.fault_code}"
+            for s in (self.spin, self.orbit)
+            if s is not None
+        ]
+        if not self.link_ok:
+            parts.append(f"link down: {self.link_error}")
+        return "; ".join(parts)
 
     def to_dict(self) -> dict[str, Any]:
         return {

@@ -48,47 +48,8 @@ import math
 import time
 from collections.abc import Callable, Sequence
 
+from . import drive_registers as R
 from .drive_faults import CommWatchdog, FaultLatch
-from .drive_registers import (
-    ACCEL_TIME,
-    ACT,
-    AT_SETPOINT_BAND,
-    COMM_LOSS_FAULT,
-    COMM_LOSS_TIMEOUT,
-    CW,
-    CW_OFF1,
-    CW_OFF2,
-    CW_OFF3,
-    CW_RAMP_HOLD,
-    CW_RAMP_IN_ZERO,
-    CW_RAMP_OUT_ZERO,
-    CW_REMOTE,
-    CW_RESET,
-    CW_RUN,
-    DECEL_TIME,
-    FAULT,
-    FAULT_REACTIONS,
-    ILLEGAL_ADDRESS,
-    ILLEGAL_FUNCTION,
-    ILLEGAL_VALUE,
-    MAX_SPEED,
-    PARAMETER_DEFAULTS,
-    PARAMETER_RANGES,
-    REF,
-    REF2,
-    REF_FULL_SCALE,
-    SPEED_SCALE,
-    SW,
-    TORQUE,
-    DriveModbusException,
-    check_parameter_ranges,
-    check_read,
-    check_write,
-    clip16,
-    int16,
-    limit_reference,
-    uint16,
-)
 from .drive_states import (
     EMERGENCY_FACTOR,
     ENABLED,
@@ -103,30 +64,6 @@ from .drive_states import (
     settle,
     status_word,
 )
-
-__all__ = [  # the register map is re-exported: importers use sim.drive_model for both
-    "DriveModel",
-    "DriveModbusException",
-    "ILLEGAL_FUNCTION",
-    "ILLEGAL_ADDRESS",
-    "ILLEGAL_VALUE",
-    "CW",
-    "REF",
-    "REF2",
-    "SW",
-    "ACT",
-    "TORQUE",
-    "FAULT",
-    "SPEED_SCALE",
-    "MAX_SPEED",
-    "ACCEL_TIME",
-    "DECEL_TIME",
-    "COMM_LOSS_TIMEOUT",
-    "AT_SETPOINT_BAND",
-    "PARAMETER_DEFAULTS",
-    "PARAMETER_RANGES",
-    "FAULT_REACTIONS",
-]
 
 
 class DriveModel:
@@ -168,7 +105,7 @@ class DriveModel:
         self._rated_rpm = float(rated_rpm)
         self._friction = float(friction)
 
-        self._params = dict(PARAMETER_DEFAULTS)
+        self._params = dict(R.PARAMETER_DEFAULTS)
         self._cw_reg = 0  # last written CW (reads back)
         self._cw = 0  # last accepted CW (REMOTE = 1)
         self.control_words = collections.deque(maxlen=64)  # (wall s, CW) of the last CW writes
@@ -242,12 +179,12 @@ class DriveModel:
         t_now = max(float(self._clock()), self._t)
         w_now = float(self._wall())
         frac = None
-        if COMM_LOSS_FAULT not in self._faults.latched:
-            frac = self._watchdog.expired(self._params[COMM_LOSS_TIMEOUT], self._w, w_now)
+        if R.COMM_LOSS_FAULT not in self._faults.latched:
+            frac = self._watchdog.expired(self._params[R.COMM_LOSS_TIMEOUT], self._w, w_now)
         if frac is not None:
             self._integrate_to(self._t + frac * (t_now - self._t))
-            self._trip(COMM_LOSS_FAULT)
-            self._faults.causes.add(COMM_LOSS_FAULT)
+            self._trip(R.COMM_LOSS_FAULT)
+            self._faults.causes.add(R.COMM_LOSS_FAULT)
         self._integrate_to(t_now)
         self._w = max(w_now, self._w)
 
@@ -255,40 +192,40 @@ class DriveModel:
         """A valid request addressed to this drive arrived: feed the watchdog."""
         self.advance()
         self._watchdog.feed(self._w)
-        self._faults.causes.discard(COMM_LOSS_FAULT)
+        self._faults.causes.discard(R.COMM_LOSS_FAULT)
 
     def read(self, address: int, count: int) -> list[int]:
         """Function code 03: `count` registers from `address` as uint16."""
-        addresses = check_read(address, count)
+        addresses = R.check_read(address, count)
         self.advance()
-        return [uint16(self._register(a)) for a in addresses]
+        return [R.uint16(self._register(a)) for a in addresses]
 
     def write(self, address: int, values: Sequence[int]) -> None:
         """Function codes 06 / 16: write uint16 `values` from `address`, all or nothing."""
-        updates = check_write(address, values)
+        updates = R.check_write(address, values)
         self.advance()
-        params = {a: v for a, v in updates.items() if a in PARAMETER_DEFAULTS}
+        params = {a: v for a, v in updates.items() if a in R.PARAMETER_DEFAULTS}
         if params:
             if self._modulating():
-                raise DriveModbusException(ILLEGAL_VALUE, "parameter write while running")
-            check_parameter_ranges(params)
+                raise R.DriveModbusException(R.ILLEGAL_VALUE, "parameter write while running")
+            R.check_parameter_ranges(params)
             self._params.update(params)
-            if COMM_LOSS_TIMEOUT in params:
+            if R.COMM_LOSS_TIMEOUT in params:
                 self._watchdog.feed(self._w)  # a new timeout starts counting now
-        if REF2 in updates:
-            self._ref2 = int16(updates[REF2])
-        if REF in updates:
-            self._ref_reg = int16(updates[REF])
+        if R.REF2 in updates:
+            self._ref2 = R.int16(updates[R.REF2])
+        if R.REF in updates:
+            self._ref_reg = R.int16(updates[R.REF])
             if self._remote:
                 self._ref = self._ref_reg
-        if CW in updates:
-            self.control_words.append((time.monotonic(), updates[CW]))
-            self._write_cw(updates[CW])
+        if R.CW in updates:
+            self.control_words.append((time.monotonic(), updates[R.CW]))
+            self._write_cw(updates[R.CW])
 
     def inject_fault(self, code: int) -> None:
         """Trip with `code` (2310, 4210, 7301, 7510); its cause stays until cleared."""
-        if code not in FAULT_REACTIONS:
-            raise ValueError(f"unknown fault code {code}; known: {sorted(FAULT_REACTIONS)}")
+        if code not in R.FAULT_REACTIONS:
+            raise ValueError(f"unknown fault code {code}; known: {sorted(R.FAULT_REACTIONS)}")
         self.advance()
         self._faults.causes.add(code)
         self._trip(code)
@@ -317,32 +254,32 @@ class DriveModel:
         self._local = True
         self._remote = False
         self._watchdog.armed = False
-        limit = float(self._params[MAX_SPEED])
+        limit = float(self._params[R.MAX_SPEED])
         self._local_rpm = math.copysign(min(abs(float(rpm)), limit), rpm)
         self._speed = self._local_rpm
         self._alpha = 0.0
-        self._cw = CW_OFF2 | CW_OFF3 | CW_RAMP_OUT_ZERO | CW_RAMP_HOLD | CW_RAMP_IN_ZERO
+        self._cw = R.CW_OFF2 | R.CW_OFF3 | R.CW_RAMP_OUT_ZERO | R.CW_RAMP_HOLD | R.CW_RAMP_IN_ZERO
         if rpm != 0:
-            self._cw |= CW_OFF1 | CW_RUN
+            self._cw |= R.CW_OFF1 | R.CW_RUN
             self._state = ENABLED
         else:
             self._state = READY
 
     # ------------------------------------------------------------ registers
     def _register(self, address: int) -> int:
-        if address == CW:
+        if address == R.CW:
             return self._cw_reg
-        if address == REF:
+        if address == R.REF:
             return self._ref_reg
-        if address == REF2:
+        if address == R.REF2:
             return self._ref2
-        if address == SW:
+        if address == R.SW:
             return self._status_word()
-        if address == ACT:
-            return clip16(self._speed * REF_FULL_SCALE / self._params[SPEED_SCALE])
-        if address == TORQUE:
-            return clip16(10000.0 * self.torque)
-        if address == FAULT:
+        if address == R.ACT:
+            return R.clip16(self._speed * R.REF_FULL_SCALE / self._params[R.SPEED_SCALE])
+        if address == R.TORQUE:
+            return R.clip16(10000.0 * self.torque)
+        if address == R.FAULT:
             return self.fault_code
         return self._params[address]
 
@@ -352,7 +289,7 @@ class DriveModel:
             self._state,
             self._cw,
             alarm=self._alarm,
-            at_setpoint=abs(self._speed - ref) <= self._params[AT_SETPOINT_BAND],
+            at_setpoint=abs(self._speed - ref) <= self._params[R.AT_SETPOINT_BAND],
             remote=self._remote,
             above_limit=limited,
         )
@@ -361,12 +298,12 @@ class DriveModel:
         """(reference rpm after limiting, whether it was limited)."""
         if self._local:
             return self._local_rpm, False
-        return limit_reference(self._ref, self._params[SPEED_SCALE], self._params[MAX_SPEED], self.bidirectional)
+        return R.limit_reference(self._ref, self._params[R.SPEED_SCALE], self._params[R.MAX_SPEED], self.bidirectional)
 
     # -------------------------------------------------------- state machine
     def _write_cw(self, value: int) -> None:
         self._cw_reg = value
-        if not value & CW_REMOTE:
+        if not value & R.CW_REMOTE:
             self._remote = False  # stored, not acted on; the watchdog stays armed
             return
         self._watchdog.arm(self._w)  # arming starts a fresh timeout
@@ -374,7 +311,7 @@ class DriveModel:
         self._local = False
         self._ref = self._ref_reg
         old, self._cw = self._cw, value
-        if value & CW_RESET and not old & CW_RESET:
+        if value & R.CW_RESET and not old & R.CW_RESET:
             self._reset_faults()
         self._evaluate()
 
@@ -392,7 +329,7 @@ class DriveModel:
     def _trip(self, code: int) -> None:
         was_powered = self._powered()
         self._faults.latch(code)
-        if FAULT_REACTIONS[code] == "coast":
+        if R.FAULT_REACTIONS[code] == "coast":
             self._fault_ramp = False
         elif self._state != FAULTED:
             self._fault_ramp = was_powered and self._speed != 0.0
@@ -410,13 +347,13 @@ class DriveModel:
     # ------------------------------------------------------------- dynamics
     def _motion(self) -> tuple[float | None, float, float]:
         """(target rpm or None = hold, accel rate, decel rate) for the current state."""
-        scale = float(self._params[SPEED_SCALE])
+        scale = float(self._params[R.SPEED_SCALE])
         return motion(
             self._state,
             self._cw,
             reference=self._limited_reference()[0],
-            accel=scale / (0.1 * self._params[ACCEL_TIME]),
-            decel=scale / (0.1 * self._params[DECEL_TIME]),
+            accel=scale / (0.1 * self._params[R.ACCEL_TIME]),
+            decel=scale / (0.1 * self._params[R.DECEL_TIME]),
             coast_decel=self._coast_decel,
             fault_ramp=self._fault_ramp,
             fault_ramp_factor=self._fault_ramp_factor,

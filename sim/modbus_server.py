@@ -52,7 +52,8 @@ from pymodbus.pdu import ModbusPDU
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
-from .drive_model import DriveModbusException, DriveModel
+from .drive_model import DriveModel
+from .drive_registers import DriveModbusException
 from .pty import close_fds, open_raw_pty
 from .rtu_frames import MAX_ADU, crc16, find_request, with_crc
 

@@ -29,23 +29,13 @@ from sim.chain import calibration_errors
 from sim.clock import AwakeClock, SimClock
 from sim.config import SimConfig
 from sim.fits import constant_fit, power_fit
+from sim.injection import inject
 from sim.physics import RigPhysics
 
 log = logging.getLogger(__name__)
 
 RPM = 2.0 * math.pi / 60.0  # rad/s per rpm
 SLOT_ANGLE = 2.0 * math.pi / SLOTS
-FAULTS = (
-    "corrupt_bytes",
-    "drop_frames",
-    "missing_trigger",
-    "stall_clock",
-    "close_adc_link",
-    "drive_trip",
-    "modbus_timeout",
-    "can_heartbeat_loss",
-    "clear",
-)
 
 
 class SimRig:
@@ -92,7 +82,7 @@ class SimRig:
         self.drives: dict = {}
         self.adc_server = AdcServer()
         self.can_node: CanNode | None = None
-        self._modbus = []
+        self.modbus_servers: list = []  # the Modbus/TCP server and the RTU pty server, when open
         self._control: asyncio.Server | None = None
         self._tasks: set[asyncio.Task] = set()
         # slot clock state
@@ -127,11 +117,11 @@ class SimRig:
             2: DriveModel(2, clock=self.clock.now, bidirectional=True, wall_clock=self.awake),
         }
         tcp = await serve_modbus_tcp(self.drives, host="127.0.0.1", port=self._ports["modbus"])
-        self._modbus.append(tcp)
+        self.modbus_servers.append(tcp)
         self.modbus_url = tcp.url
         if self._modbus_rtu_pty:
             rtu = await serve_modbus_rtu_pty(self.drives)
-            self._modbus.append(rtu)
+            self.modbus_servers.append(rtu)
             self.modbus_rtu_path = rtu.path
         await self.adc_server.start(port=self._ports["adc"], pty=self._adc_pty)
         self.adc_url = self.adc_server.url
@@ -171,10 +161,10 @@ class SimRig:
         if self._control is not None:
             self._control.close()
             self._control = None
-        for ep in self._modbus:
+        for ep in self.modbus_servers:
             with contextlib.suppress(Exception):
                 await ep.aclose()
-        self._modbus.clear()
+        self.modbus_servers.clear()
         await self.adc_server.aclose()
 
     # ------------------------------------------------------------ properties
@@ -285,44 +275,8 @@ class SimRig:
         }
 
     def inject(self, fault: str, **kw) -> None:
-        """Fault injection; see FAULTS. Counts/switches as keywords:
-        corrupt_bytes(count=1), drop_frames(count=1), missing_trigger(count=1),
-        stall_clock(on=True), close_adc_link(reopen_after=1.0 s wall),
-        drive_trip(drive=1|2, code=2310), modbus_timeout(on=True),
-        can_heartbeat_loss(on=True), clear (every fault off, drive causes gone)."""
-        b = self.board
-        if fault == "corrupt_bytes":
-            b.corrupt += int(kw.get("count", 1))
-        elif fault == "drop_frames":
-            b.drop += int(kw.get("count", 1))
-        elif fault == "missing_trigger":
-            b.missed_triggers += int(kw.get("count", 1))
-        elif fault == "stall_clock":
-            b.stalled = bool(kw.get("on", True))
-        elif fault == "close_adc_link":
-            self.adc_server.close_link(reopen_after=float(kw.get("reopen_after", 1.0)))
-        elif fault == "drive_trip":
-            drive = int(kw.get("drive", 2))
-            if drive not in self.drives:
-                raise ValueError(f"drive_trip: no drive {drive} (1 = spin, 2 = orbit)")
-            self.drives[drive].inject_fault(int(kw.get("code", 2310)))
-        elif fault == "modbus_timeout":
-            for ep in self._modbus:
-                ep.set_unresponsive(bool(kw.get("on", True)))
-        elif fault == "can_heartbeat_loss":
-            if self.can_node is not None:
-                self.can_node.heartbeat_lost = bool(kw.get("on", True))
-        elif fault == "clear":
-            b.corrupt = b.drop = b.missed_triggers = 0
-            b.stalled = False
-            for ep in self._modbus:
-                ep.set_unresponsive(False)
-            for d in self.drives.values():
-                d.clear_fault_cause()
-            if self.can_node is not None:
-                self.can_node.heartbeat_lost = False
-        else:
-            raise ValueError(f"unknown fault {fault!r}; known: {', '.join(FAULTS)}")
+        """Inject one of the faults sim.injection.SimFault names (see sim.injection.inject)."""
+        inject(self, fault, **kw)
 
     async def _tick_awake(self) -> None:
         while True:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional
+from typing import Annotated, Optional
 
 import typer
 
@@ -167,48 +167,69 @@ def _print_table(block, labels: dict[int, tuple[str, str]]) -> None:
         )
 
 
+Adc = Annotated[
+    Optional[str],
+    typer.Option(
+        "--adc",
+        help="A/D board URL: /dev/ttyUSB0, a pty path, socket://host:port (default: the rig config's adc_url).",
+    ),
+]
+Channels = Annotated[
+    Optional[int], typer.Option("--channels", help="Channels in the scan list (default: the rig config's, else 8).")
+]
+Mode = Annotated[
+    Optional[str],
+    typer.Option("--mode", help="sequential | simultaneous (default: the rig config's, else sequential)."),
+]
+Revolutions = Annotated[
+    int, typer.Option("--revolutions", min=1, help="Good revolutions to average (with --target: the most).")
+]
+Target = Annotated[
+    Optional[float],
+    typer.Option(
+        "--target",
+        help="Stop as soon as every channel's phasor uncertainty is below this percentage of its amplitude.",
+    ),
+]
+MinRevolutions = Annotated[int, typer.Option("--min-revolutions", min=2, help="With --target: the fewest.")]
+Timeout = Annotated[
+    Optional[float],
+    typer.Option(
+        "--timeout",
+        min=0.001,
+        max=1e6,
+        help="Seconds to wait "
+        "(default: 10 s for the first revolution plus the rig config's "
+        "timeout_factor x revolutions x measured orbit period).",
+    ),
+]
+Rig = Annotated[
+    Optional[Path],
+    typer.Option(
+        "--rig",
+        "--config",
+        help="Rig config (default: config/rig.toml "
+        "of the orbitrig source tree): URL, scan and calibration to "
+        "engineering units (SI).",
+    ),
+]
+Counts = Annotated[bool, typer.Option("--counts", help="Raw counts (gain 1, offset 0), not calibrated.")]
+AsJson = Annotated[bool, typer.Option("--json", help="Print one JSON object.")]
+
+
 def register(app: typer.Typer) -> None:
     @app.command("acquire")
     def acquire(
-        adc: Optional[str] = typer.Option(
-            None,
-            "--adc",
-            help="A/D board URL: /dev/ttyUSB0, a pty path, socket://host:port (default: the rig config's adc_url).",
-        ),
-        channels: Optional[int] = typer.Option(
-            None, "--channels", help="Channels in the scan list (default: the rig config's, else 8)."
-        ),
-        mode: Optional[str] = typer.Option(
-            None, "--mode", help="sequential | simultaneous (default: the rig config's, else sequential)."
-        ),
-        revolutions: int = typer.Option(
-            50, "--revolutions", min=1, help="Good revolutions to average (with --target: the most)."
-        ),
-        target: Optional[float] = typer.Option(
-            None,
-            "--target",
-            help="Stop as soon as every channel's phasor uncertainty is below this percentage of its amplitude.",
-        ),
-        min_revolutions: int = typer.Option(10, "--min-revolutions", min=2, help="With --target: the fewest."),
-        timeout: Optional[float] = typer.Option(
-            None,
-            "--timeout",
-            min=0.001,
-            max=1e6,
-            help="Seconds to wait "
-            "(default: 10 s for the first revolution plus the rig config's "
-            "timeout_factor x revolutions x measured orbit period).",
-        ),
-        rig: Optional[Path] = typer.Option(
-            None,
-            "--rig",
-            "--config",
-            help="Rig config (default: config/rig.toml "
-            "of the orbitrig source tree): URL, scan and calibration to "
-            "engineering units (SI).",
-        ),
-        counts: bool = typer.Option(False, "--counts", help="Raw counts (gain 1, offset 0), not calibrated."),
-        as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+        adc: Adc = None,
+        channels: Channels = None,
+        mode: Mode = None,
+        revolutions: Revolutions = 50,
+        target: Target = None,
+        min_revolutions: MinRevolutions = 10,
+        timeout: Timeout = None,
+        rig: Rig = None,
+        counts: Counts = False,
+        as_json: AsJson = False,
     ) -> None:
         """Average good revolutions of the clocked A/D board; print each channel's fundamental.
 

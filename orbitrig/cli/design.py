@@ -14,6 +14,7 @@ from typing import Optional
 
 import typer
 
+from orbitrig.cli import design_options as opt
 from orbitrig.load_systems import LoadSystem
 
 
@@ -70,64 +71,28 @@ def _noise(noise_from: Optional[Path], lms: str, force: Optional[float], probe_n
 def register(app: typer.Typer) -> None:
     @app.command("design")
     def design_cmd(
-        model: str = typer.Option(..., "--model", help="kc7 | kc8 | kcd11 | kcd12"),
-        freq_dep: str = typer.Option("none", "--freq-dep", help="none | power:M | power:m,n,p | poly:R (as identify)"),
-        spin: float = typer.Option(..., "--spin", help="Journal spin speed, rpm."),
-        ratios: Optional[str] = typer.Option(
-            None, "--ratios", help="Candidate orbit ratios |Omega|/omega, e.g. 0.2,0.5,1.2 (both directions)."
-        ),
-        matrix: Optional[str] = typer.Option(
-            None,
-            "--matrix",
-            help="Take the candidate list, directions and smallest orbit radius from this matrix (NAME in config/matrices or FILE).",
-        ),
-        noise_from: Optional[Path] = typer.Option(
-            None, "--noise-from", help="Run directory: per-revolution noise (and prior coefficients) measured there."
-        ),
-        lms: LoadSystem = typer.Option(
-            LoadSystem.PIEZO, "--lms", help="Load measuring system whose noise counts: piezo | strain."
-        ),
-        force_noise: Optional[float] = typer.Option(
-            None, "--force-noise", help="Per-revolution force phasor noise, N (default 20)."
-        ),
-        probe_noise: Optional[float] = typer.Option(
-            None, "--probe-noise", help="Per-revolution displacement phasor noise, nm (default 100)."
-        ),
-        radius: Optional[float] = typer.Option(
-            None, "--radius", help="Orbit radius, um (default: the matrix's smallest, else 0.1 x clearance)."
-        ),
-        revolutions: Optional[int] = typer.Option(
-            None, "--revolutions", help="Revolutions averaged per block (default: rig.toml [averaging])."
-        ),
-        target: Optional[float] = typer.Option(
-            None,
-            "--target",
-            help="Worst relative standard error to reach, percent: propose ratios and revolutions per ratio that reach it in the least rig time.",
-        ),
-        match: bool = typer.Option(
-            False,
-            "--match",
-            help="Propose revolutions per ratio that give every coefficient at most the candidate's standard error in the least rig time.",
-        ),
-        keep_test: bool = typer.Option(
-            True,
-            "--model-test/--no-model-test",
-            help="With --match or --target: keep the adequacy test of the richest frequency-dependent model (the matrix's, else this model's poly:1; --freq-dep if not none): enough ratios spread over the band, its errors at most the candidate's.",
-        ),
-        keep_away: float = typer.Option(
-            0.1, "--keep-away", help="Propose no ratio closer than this to Omega/omega = 1 (runout)."
-        ),
-        save: Optional[str] = typer.Option(
-            None,
-            "--save",
-            help='Write the proposal to config/designs/NAME.toml (a matrix uses it with [orbit] design = "NAME").',
-        ),
-        rig_path: Optional[Path] = typer.Option(None, "--config", help="Rig configuration (default config/rig.toml)."),
-        as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+        model: opt.Model,
+        spin: opt.Spin,
+        freq_dep: opt.FreqDep = "none",
+        ratios: opt.Ratios = None,
+        matrix: opt.Matrix = None,
+        noise_from: opt.NoiseFrom = None,
+        lms: opt.Lms = LoadSystem.PIEZO,
+        force_noise: opt.ForceNoise = None,
+        probe_noise: opt.ProbeNoise = None,
+        radius: opt.Radius = None,
+        revolutions: opt.Revolutions = None,
+        target: opt.Target = None,
+        match: opt.Match = False,
+        keep_test: opt.KeepTest = True,
+        keep_away: opt.KeepAway = 0.1,
+        save: opt.Save = None,
+        rig_path: opt.RigPath = None,
+        as_json: opt.AsJson = False,
     ) -> None:
         """Predict the coefficients' standard errors for a list of orbit frequencies and propose a better list."""
         from orbitrig import config as cfg
-        from orbitrig.cli.design_report import design_object, designs_dir, print_design, save_design
+        from orbitrig.cli.design_report import DesignRequest, design_object, designs_dir, print_design, save_design
         from orbitrig.errors import OrbitrigError
 
         try:
@@ -135,8 +100,7 @@ def register(app: typer.Typer) -> None:
             cand, directions, mat_radius, source, mat_models = _candidate(ratios, matrix, rig)
             tested = [(model, freq_dep)] + mat_models if keep_test else None
             noise, run = _noise(noise_from, lms, force_noise, probe_noise)
-            obj = design_object(
-                rig,
+            request = DesignRequest(
                 model=model,
                 freq_dep=freq_dep,
                 spin_rpm=spin,
@@ -153,6 +117,7 @@ def register(app: typer.Typer) -> None:
                 match=match,
                 test_models=tested,
             )
+            obj = design_object(rig, request)
             if save:
                 saved = save_design(obj, save, designs_dir(rig_path))
                 sys.stderr.write(f"orbitrig design: wrote {saved}\n")

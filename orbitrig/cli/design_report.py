@@ -9,10 +9,10 @@ are the same for every list and left out.
 
 from __future__ import annotations
 
-from typing import Any
-
 import math
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import typer
@@ -98,44 +98,9 @@ def _allocated(rig, problem, grid, scales, directions: str, test=None, reference
     with a ``test`` (reduction.adequacy_design.ModelTest) the list also keeps the adequacy
     test: K ratios spread over the band, the tested model's errors at most the ``reference``
     list's ((ratios, revolutions))."""
-    from reduction.adequacy_design import allocate_keeping_test
-    from reduction.allocation import adaptive_targets, allocate
+    from reduction.allocation import adaptive_targets
 
-    from reduction.errors import ReductionError
-
-    u = problem.noise_at(grid)
-    overhead = rig.settle.hold_s + rig.estimates.store_s
-    a: Any  # reduction.allocation.Allocation, or TestedAllocation when the model test is kept
-    try:
-        if test is None:
-            a = allocate(
-                problem.spec,
-                problem.theta,
-                problem.spin,
-                problem.radius,
-                grid,
-                u,
-                scales,
-                block_overhead=overhead,
-                directions=directions,
-            )
-        else:
-            prior = dict(zip(problem.spec.names, map(float, problem.theta)))
-            a = allocate_keeping_test(
-                test,
-                problem.spec,
-                prior,
-                problem.spin,
-                problem.radius,
-                grid,
-                problem.noise_at,
-                reference,
-                block_overhead=overhead,
-                directions=directions,
-                scales=scales,
-            )
-    except ReductionError as err:
-        raise DesignInputError(f"no list of the allowed ratios reaches it: {err}") from None
+    a = _allocation(problem, grid, scales, directions, rig.settle.hold_s + rig.estimates.store_s, test, reference)
     u_kept = problem.noise_at(a.ratios)
     names = problem.spec.names
     base = coefficient_scales_of(problem)
@@ -162,6 +127,44 @@ def _allocated(rig, problem, grid, scales, directions: str, test=None, reference
     return out
 
 
+def _allocation(problem, grid, scales, directions: str, overhead: float, test, reference) -> Any:
+    """reduction.allocation.allocate over ``grid``, or with a ``test`` allocate_keeping_test
+    (a TestedAllocation); ``overhead``: s per block besides the revolutions."""
+    from reduction.adequacy_design import allocate_keeping_test
+    from reduction.allocation import allocate
+    from reduction.errors import ReductionError
+
+    try:
+        if test is None:
+            return allocate(
+                problem.spec,
+                problem.theta,
+                problem.spin,
+                problem.radius,
+                grid,
+                problem.noise_at(grid),
+                scales,
+                block_overhead=overhead,
+                directions=directions,
+            )
+        prior = dict(zip(problem.spec.names, map(float, problem.theta)))
+        return allocate_keeping_test(
+            test,
+            problem.spec,
+            prior,
+            problem.spin,
+            problem.radius,
+            grid,
+            problem.noise_at,
+            reference,
+            block_overhead=overhead,
+            directions=directions,
+            scales=scales,
+        )
+    except ReductionError as err:
+        raise DesignInputError(f"no list of the allowed ratios reaches it: {err}") from None
+
+
 def model_test_object(test, ratios) -> dict:
     """The model-test constraint as stated in the output, and whether ``ratios`` keep it."""
     from reduction.adequacy_design import spread_ok
@@ -183,85 +186,100 @@ def coefficient_scales_of(problem) -> np.ndarray:
     return coefficient_scales(problem.spec, problem.theta, problem.spin)
 
 
-def design_object(
-    rig,
-    *,
-    model,
-    freq_dep,
-    spin_rpm,
-    candidate,
-    source,
-    directions,
-    radius,
-    noise,
-    run,
-    lms,
-    revolutions,
-    target,
-    keep_away,
-    match: bool = False,
-    test_models=None,
-) -> dict:
+@dataclass(frozen=True)
+class DesignRequest:
+    """What `orbitrig design` asks for: the model at a spin, the candidate list of orbit ratios
+    and where it came from, the noise and prior, and what the proposal must reach."""
+
+    model: str
+    freq_dep: str
+    spin_rpm: float
+    candidate: list[float]  # orbit ratios |Omega|/omega
+    source: str  # where the candidate list came from
+    directions: str  # forward | backward | both
+    radius: float | None  # orbit radius, m; None: the noise's, else 0.1 x clearance
+    noise: Any  # orbitrig.cli.design_inputs: stated or measured per-revolution noise
+    run: Any  # the run the noise and the prior coefficients were measured in, or None
+    lms: str
+    revolutions: int | None  # per block; None: rig.toml [averaging]
+    target: float | None  # worst relative standard error to reach, percent
+    keep_away: float  # no proposed ratio this close to 1
+    match: bool = False  # reach the candidate's standard errors
+    test_models: list | None = None  # (model, freq_dep) pairs whose adequacy test the proposal keeps
+
+
+def design_object(rig, req: DesignRequest) -> dict:
     """Predict the candidate list, propose one; the JSON object `design --json` prints.
-    ``test_models``: (model, freq_dep) pairs whose adequacy test the proposal must keep
+    ``req.test_models``: (model, freq_dep) pairs whose adequacy test the proposal must keep
     (reduction.adequacy_design; the candidate list is the reference); None: no such constraint."""
     from orbitrig.cli.design_inputs import model_check, prior_theta
-    from reduction.frequency_list import DesignProblem, predict, propose
+    from reduction.frequency_list import DesignProblem, predict
     from reduction.models import model_spec
 
-    if not spin_rpm > 0:
-        raise DesignInputError(f"--spin must be > 0 rpm, got {spin_rpm:g}")
-    spec = model_spec(model, freq_dep)
-    spin = spin_rpm * RPM
-    radius = radius if radius is not None else noise.radius or 0.1 * rig.bearing.clearance
-    n = revolutions or rig.averaging.revolutions
-    theta, prior_source = prior_theta(spec, run, spin, lms)
-    problem = DesignProblem(spec, theta, spin, radius, noise.u_revolution, n, directions, noise_ratios=noise.ratios)
-    grid, lo, hi = _band(rig, spin_rpm, keep_away)
-    cand = predict(problem, candidate)
-    overhead = rig.settle.hold_s + rig.estimates.store_s
-    goal = target / 100 if target is not None else None
-    if goal is not None and match:
+    if not req.spin_rpm > 0:
+        raise DesignInputError(f"--spin must be > 0 rpm, got {req.spin_rpm:g}")
+    spec = model_spec(req.model, req.freq_dep)
+    spin, noise = req.spin_rpm * RPM, req.noise
+    radius = req.radius if req.radius is not None else noise.radius or 0.1 * rig.bearing.clearance
+    n = req.revolutions or rig.averaging.revolutions
+    theta, prior_source = prior_theta(spec, req.run, spin, req.lms)
+    problem = DesignProblem(spec, theta, spin, radius, noise.u_revolution, n, req.directions, noise_ratios=noise.ratios)
+    grid, lo, hi = _band(rig, req.spin_rpm, req.keep_away)
+    cand = predict(problem, req.candidate)
+    goal = req.target / 100 if req.target is not None else None
+    if goal is not None and req.match:
         raise DesignInputError("give --target or --match, not both")
     out = {
-        "model": model,
+        "model": req.model,
         "freq_dep": spec.freq_dep.text,
         "coefficients": spec.names,
         "units": {name: _unit(name) for name in spec.names},
-        "spin_rpm": spin_rpm,
+        "spin_rpm": req.spin_rpm,
         "orbit_radius_m": radius,
-        "directions": directions,
+        "directions": req.directions,
         "noise": _noise_object(noise),
         "prior": {"coefficients": dict(zip(spec.names, map(float, theta))), "source": prior_source},
-        "allowed": {"ratio_min": lo, "ratio_max": hi, "keep_away_from_1": keep_away, "grid": list(map(float, grid))},
-        "target_pct": target,
+        "allowed": {
+            "ratio_min": lo,
+            "ratio_max": hi,
+            "keep_away_from_1": req.keep_away,
+            "grid": list(map(float, grid)),
+        },
+        "target_pct": req.target,
         "candidate": dict(
-            _list_object(rig, problem, cand, n, directions),
-            source=source,
-            warnings=_candidate_warnings(candidate, lo, hi, keep_away),
+            _list_object(rig, problem, cand, n, req.directions),
+            source=req.source,
+            warnings=_candidate_warnings(req.candidate, lo, hi, req.keep_away),
         ),
-        "match_candidate": match,
+        "match_candidate": req.match,
         "model_test": None,
         "warnings": [],
     }
-    if match or goal:
-        if cand.std_errors is None and match:
-            raise DesignInputError(
-                "--match: the candidate list cannot identify the model, so there is nothing to match"
-            )
-        scales = cand.std_errors if match else coefficient_scales_of(problem) * goal
-        test = _model_test(test_models, candidate)
-        out["proposal"] = dict(
-            _allocated(rig, problem, grid, scales, directions, test, (candidate, n)), reaches_target=True
-        )
-        out["model_test"] = None if test is None else model_test_object(test, out["proposal"]["ratios"])
-    else:
-        prop = propose(problem, grid, count=len(candidate), block_overhead=overhead)
-        out["proposal"] = _list_object(rig, problem, prop.best, n, directions)
-    prop = out["proposal"]
-    warning = model_check(spec, run, spin, lms, problem, (list(cand.ratios), n), (prop["ratios"], prop["revolutions"]))
+    out["proposal"], out["model_test"] = _proposal(
+        rig, problem, cand, grid, candidate=req.candidate, n=n, match=req.match, goal=goal, test_models=req.test_models
+    )
+    prop, ratios = out["proposal"], list(cand.ratios)
+    warning = model_check(spec, req.run, spin, req.lms, problem, (ratios, n), (prop["ratios"], prop["revolutions"]))
     out["warnings"] = [warning] if warning else []
     return out
+
+
+def _proposal(rig, problem, cand, grid, *, candidate, n: int, match: bool, goal, test_models):
+    """(the proposed list, the model test it keeps or None). With ``goal`` (relative standard
+    error) or ``match`` (the candidate's errors ``cand``): revolutions per ratio reaching it in
+    the least rig time; else the best list of as many ratios as the candidate at ``n`` revolutions."""
+    from reduction.frequency_list import propose
+
+    directions = problem.directions
+    if not (match or goal):
+        best = propose(problem, grid, count=len(candidate), block_overhead=rig.settle.hold_s + rig.estimates.store_s)
+        return _list_object(rig, problem, best.best, n, directions), None
+    if cand.std_errors is None and match:
+        raise DesignInputError("--match: the candidate list cannot identify the model, so there is nothing to match")
+    scales = cand.std_errors if match else coefficient_scales_of(problem) * goal
+    test = _model_test(test_models, candidate)
+    proposal = dict(_allocated(rig, problem, grid, scales, directions, test, (candidate, n)), reaches_target=True)
+    return proposal, None if test is None else model_test_object(test, proposal["ratios"])
 
 
 def _model_test(test_models, candidate):

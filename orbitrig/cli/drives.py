@@ -12,24 +12,16 @@ standard error, and `run` has stopped both drives by then).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
 
 import typer
 
+from orbitrig.cli import drives_options as opt
 from orbitrig.cli.drives_checks import (  # effective_limits is part of this command's API
     check_seconds,
     effective_limits,
     open_config,
 )
 from orbitrig.cli.drives_hold import _drive_line, _hold, _state_lines
-
-_MODBUS_HELP = (
-    "Modbus URL of the drives: tcp://host:port or rtu:///dev/ttyX?baud=19200 "
-    "(default: transports.modbus_url of the rig configuration)"
-)
-_CONFIG_HELP = "Rig configuration TOML (default: config/rig.toml of the orbitrig source tree)."
-_SPIN_ID_HELP = "Device id of the spin drive (default: drives.spin_id of the rig configuration)."
-_ORBIT_ID_HELP = "Device id of the orbit drive (default: drives.orbit_id of the rig configuration)."
 
 
 def register(app: typer.Typer) -> None:
@@ -46,11 +38,11 @@ def register(app: typer.Typer) -> None:
 def _add_status(drives_app: typer.Typer) -> None:
     @drives_app.command("status")
     def status(
-        modbus: Optional[str] = typer.Option(None, "--modbus", help=_MODBUS_HELP),
-        config: Optional[Path] = typer.Option(None, "--config", help=_CONFIG_HELP),
-        json_out: bool = typer.Option(False, "--json", help="One JSON object on standard output."),
-        spin_id: Optional[int] = typer.Option(None, help=_SPIN_ID_HELP),
-        orbit_id: Optional[int] = typer.Option(None, help=_ORBIT_ID_HELP),
+        modbus: opt.Modbus = None,
+        config: opt.Config = None,
+        json_out: opt.JsonOut = False,
+        spin_id: opt.SpinId = None,
+        orbit_id: opt.OrbitId = None,
     ) -> None:
         """Print both drives' state, reference and actual speed (rpm), torque and fault.
 
@@ -66,36 +58,20 @@ def _add_status(drives_app: typer.Typer) -> None:
 def _add_run(drives_app: typer.Typer) -> None:
     @drives_app.command("run")
     def run(
-        spin: float = typer.Option(..., "--spin", help="Spin speed omega, rpm (>= 0)."),
-        orbit: float = typer.Option(..., "--orbit", help="Orbit speed Omega, rpm; negative = backward whirl."),
-        modbus: Optional[str] = typer.Option(None, "--modbus", help=_MODBUS_HELP),
-        config: Optional[Path] = typer.Option(None, "--config", help=_CONFIG_HELP),
-        max_spin: Optional[float] = typer.Option(
-            None, "--max-spin", help="Refuse a spin speed above this, rpm (<= drives.max_spin_rpm)."
-        ),
-        max_orbit: Optional[float] = typer.Option(
-            None,
-            "--max-orbit",
-            help="Refuse an |orbit| speed above this, rpm (<= drives.max_orbit_rpm).",
-        ),
-        min_ratio: Optional[float] = typer.Option(
-            None, "--min-ratio", help="Smallest |Omega|/omega (>= drives.min_ratio)."
-        ),
-        max_ratio: Optional[float] = typer.Option(
-            None, "--max-ratio", help="Largest |Omega|/omega (<= drives.max_ratio)."
-        ),
-        settle: float = typer.Option(1.0, "--settle", help="Seconds both drives must hold AT_SETPOINT."),
-        timeout: float = typer.Option(120.0, "--timeout", help="Seconds to reach the setpoint."),
-        hold: bool = typer.Option(
-            False,
-            "--hold",
-            help="Stay at the setpoint, polling (the drives' watchdog heartbeat), until "
-            "Ctrl-C, SIGTERM or SIGHUP; then ramp both to zero and exit 0 (a second signal "
-            "during the ramp: emergency stop, exit 4).",
-        ),
-        status_every: float = typer.Option(5.0, "--status-every", help="With --hold: seconds between status lines."),
-        spin_id: Optional[int] = typer.Option(None, help=_SPIN_ID_HELP),
-        orbit_id: Optional[int] = typer.Option(None, help=_ORBIT_ID_HELP),
+        spin: opt.Spin,
+        orbit: opt.Orbit,
+        modbus: opt.Modbus = None,
+        config: opt.Config = None,
+        max_spin: opt.MaxSpin = None,
+        max_orbit: opt.MaxOrbit = None,
+        min_ratio: opt.MinRatio = None,
+        max_ratio: opt.MaxRatio = None,
+        settle: opt.Settle = 1.0,
+        timeout: opt.Timeout = 120.0,
+        hold: opt.Hold = False,
+        status_every: opt.StatusEvery = 5.0,
+        spin_id: opt.SpinId = None,
+        orbit_id: opt.OrbitId = None,
     ) -> None:
         """Bring both drives to speed; exit 0 once both hold their setpoint.
 
@@ -177,16 +153,12 @@ def _run_command(
 def _add_stop(drives_app: typer.Typer) -> None:
     @drives_app.command("stop")
     def stop(
-        modbus: Optional[str] = typer.Option(None, "--modbus", help=_MODBUS_HELP),
-        config: Optional[Path] = typer.Option(None, "--config", help=_CONFIG_HELP),
-        emergency: bool = typer.Option(
-            False, "--emergency", help="Emergency stop (OFF3, fastest ramp) instead of OFF1."
-        ),
-        timeout: Optional[float] = typer.Option(
-            None, "--timeout", help="Seconds to reach zero (default: from the ramp times)."
-        ),
-        spin_id: Optional[int] = typer.Option(None, help=_SPIN_ID_HELP),
-        orbit_id: Optional[int] = typer.Option(None, help=_ORBIT_ID_HELP),
+        modbus: opt.Modbus = None,
+        config: opt.Config = None,
+        emergency: opt.Emergency = False,
+        timeout: opt.StopTimeout = None,
+        spin_id: opt.SpinId = None,
+        orbit_id: opt.OrbitId = None,
     ) -> None:
         """Stop both drives; returns once both read zero speed."""
         if not check_seconds("stop", timeout=(timeout, False)):

@@ -13,36 +13,39 @@ from typing import Annotated, Optional
 import typer
 
 
+RunDir = Annotated[Path, typer.Argument(metavar="RUN", help="Run directory written by `orbitrig sweep --out DIR`.")]
+Format = Annotated[
+    str,
+    typer.Option(
+        "--format",
+        help="csv (one orbit table per point and load system, coefficients.csv) | mat (MATLAB run.mat) | tdms (LabVIEW run.tdms) | h5 (the whole run in one run.h5 that GNU Octave loads too) | ross (ROSS BearingElement data, ross_bearings.json)",
+    ),
+]
+Out = Annotated[Optional[Path], typer.Option("--out", help="Directory for the files (default RUN/export).")]
+Points = Annotated[
+    Optional[list[int]],
+    typer.Option(
+        "--point",
+        metavar="N",
+        help="Only this operating point index (repeatable; not with --format h5, the whole run).",
+    ),
+]
+Fit = Annotated[
+    str,
+    typer.Option(
+        "--fit", help="ross: the stored fit exported, LMS:MODEL:FREQ_DEP:METHOD (LMS '' = every load system)."
+    ),
+]
+
+
 def register(app: typer.Typer) -> None:
     @app.command("export")
     def export_cmd(
-        directory: Annotated[
-            Path, typer.Argument(metavar="RUN", help="Run directory written by `orbitrig sweep --out DIR`.")
-        ],
-        fmt: Annotated[
-            str,
-            typer.Option(
-                "--format",
-                help="csv (one orbit table per point and load system, coefficients.csv) | mat (MATLAB run.mat) | tdms (LabVIEW run.tdms) | h5 (the whole run in one run.h5 that GNU Octave loads too) | ross (ROSS BearingElement data, ross_bearings.json)",
-            ),
-        ] = "csv",
-        out: Annotated[
-            Optional[Path], typer.Option("--out", help="Directory for the files (default RUN/export).")
-        ] = None,
-        point: Annotated[
-            Optional[list[int]],
-            typer.Option(
-                "--point",
-                metavar="N",
-                help="Only this operating point index (repeatable; not with --format h5, the whole run).",
-            ),
-        ] = None,
-        fit: Annotated[
-            str,
-            typer.Option(
-                "--fit", help="ross: the stored fit exported, LMS:MODEL:FREQ_DEP:METHOD (LMS '' = every load system)."
-            ),
-        ] = "piezo:kcd11:none:ols",
+        directory: RunDir,
+        fmt: Format = "csv",
+        out: Out = None,
+        point: Points = None,
+        fit: Fit = "piezo:kcd11:none:ols",
     ) -> None:
         """Export every complete operating point's orbit tables and results.
 

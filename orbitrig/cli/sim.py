@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import json
 import sys
-from pathlib import Path
-from typing import Optional
 
 import typer
+
+from orbitrig.cli import sim_options as opt
 
 #: default TCP port of the simulator's CAN bus (python-can `serial` framing)
 CAN_PORT = 5010
@@ -16,33 +16,15 @@ CAN_PORT = 5010
 def register(app: typer.Typer) -> None:
     @app.command("sim")
     def sim(
-        config: Optional[Path] = typer.Option(None, "--config", help="Simulator TOML (see config/sim.toml)."),
-        modbus_port: int = typer.Option(
-            5020, "--modbus-port", min=0, max=65535, help="Modbus TCP port of both drives (0 = any free)."
-        ),
-        adc_port: int = typer.Option(
-            5000, "--adc-port", min=0, max=65535, help="A/D TCP serial device server port (0 = any free)."
-        ),
-        speedup: Optional[float] = typer.Option(
-            None, "--speedup", help="Simulated time / wall time (default from config, 1)."
-        ),
-        control_port: int = typer.Option(
-            0, "--control-port", min=0, max=65535, help="JSON-lines control API port (0 = any free)."
-        ),
-        modbus_rtu: bool = typer.Option(False, "--modbus-rtu/--no-modbus-rtu", help="Also serve Modbus RTU on a pty."),
-        can_port: int = typer.Option(
-            CAN_PORT,
-            "--can-port",
-            min=0,
-            max=65535,
-            help="TCP port of the CAN bus: python-can interface 'serial', channel socket://127.0.0.1:PORT (0 = any free).",
-        ),
-        can_channel: Optional[str] = typer.Option(
-            None,
-            "--can-channel",
-            help="Put the CAN node on this python-can channel instead (e.g. vcan0 with --can-interface socketcan).",
-        ),
-        can_interface: str = typer.Option("virtual", "--can-interface", help="python-can interface of --can-channel."),
+        config: opt.Config = None,
+        modbus_port: opt.ModbusPort = 5020,
+        adc_port: opt.AdcPort = 5000,
+        speedup: opt.Speedup = None,
+        control_port: opt.ControlPort = 0,
+        modbus_rtu: opt.ModbusRtu = False,
+        can_port: opt.CanPort = CAN_PORT,
+        can_channel: opt.CanChannel = None,
+        can_interface: opt.CanInterface = "virtual",
     ) -> None:
         """Run the simulated rig: drives (Modbus ids 1, 2), A/D board (TCP + pty), CAN sensor node (TCP).
 
@@ -51,41 +33,12 @@ def register(app: typer.Typer) -> None:
         stream whenever the orbit spindle turns; the CAN node sends all the time.
         """
         import asyncio
-        import contextlib
 
-        from sim.can_tcp import CanTcpHub
-        from sim.config import SimConfig, load_sim_config
-        from sim.rig import SimRig
-        from sim.serve import serve_until_signalled
-
+        cfg = _sim_config(config, speedup)
+        ports = dict(modbus_port=modbus_port, adc_port=adc_port, control_port=control_port, modbus_rtu_pty=modbus_rtu)
+        can = dict(can_port=can_port, can_channel=can_channel, can_interface=can_interface)
         try:
-            cfg = load_sim_config(config) if config is not None else SimConfig()
-        except ValueError as err:
-            typer.echo(f"orbitrig sim: {err}", err=True)
-            raise typer.Exit(2) from err
-        if speedup is not None and not speedup > 0:
-            typer.echo("orbitrig sim: --speedup must be > 0", err=True)
-            raise typer.Exit(2)
-
-        async def run() -> None:
-            async with contextlib.AsyncExitStack() as stack:
-                can = dict(can_channel=can_channel, can_interface=can_interface)
-                if can_channel is None:  # the bus other processes can reach
-                    hub = await stack.enter_async_context(CanTcpHub(port=can_port))
-                    can = dict(can_channel=hub.url, can_interface="serial")
-                rig = SimRig(
-                    cfg,
-                    speedup=speedup,
-                    modbus_port=modbus_port,
-                    adc_port=adc_port,
-                    modbus_rtu_pty=modbus_rtu,
-                    control_port=control_port,
-                    **can,
-                )
-                await serve_until_signalled(rig, out=_Announce(can["can_interface"], speedup or cfg.speedup))
-
-        try:
-            asyncio.run(run())
+            asyncio.run(_serve(cfg, speedup, ports, **can))
         except (OSError, RuntimeError) as err:  # a port in use (pymodbus says RuntimeError "Could not start listen")
             typer.echo(
                 f"orbitrig sim: {err} (ports: Modbus {modbus_port}, A/D {adc_port}, CAN {can_port}, "
@@ -93,6 +46,39 @@ def register(app: typer.Typer) -> None:
                 err=True,
             )
             raise typer.Exit(1) from None
+
+
+def _sim_config(path, speedup):
+    """The simulator configuration of --config (default: the paper's rig); exit 2 if it or --speedup is bad."""
+    from sim.config import SimConfig, load_sim_config
+
+    try:
+        cfg = load_sim_config(path) if path is not None else SimConfig()
+    except ValueError as err:
+        typer.echo(f"orbitrig sim: {err}", err=True)
+        raise typer.Exit(2) from err
+    if speedup is not None and not speedup > 0:
+        typer.echo("orbitrig sim: --speedup must be > 0", err=True)
+        raise typer.Exit(2)
+    return cfg
+
+
+async def _serve(cfg, speedup, ports: dict, *, can_port: int, can_channel, can_interface: str) -> None:
+    """Serve the simulated rig until a signal ends it; its CAN node on a TCP bus other processes
+    reach (at `can_port`), or on `can_channel` when one is given."""
+    import contextlib
+
+    from sim.can_tcp import CanTcpHub
+    from sim.rig import SimRig
+    from sim.serve import serve_until_signalled
+
+    async with contextlib.AsyncExitStack() as stack:
+        can = dict(can_channel=can_channel, can_interface=can_interface)
+        if can_channel is None:  # the bus other processes can reach
+            hub = await stack.enter_async_context(CanTcpHub(port=can_port))
+            can = dict(can_channel=hub.url, can_interface="serial")
+        rig = SimRig(cfg, speedup=speedup, **ports, **can)
+        await serve_until_signalled(rig, out=_Announce(can["can_interface"], speedup or cfg.speedup))
 
 
 class _Announce:

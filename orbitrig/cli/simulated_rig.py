@@ -192,7 +192,7 @@ class SimulatorProcess:
         return Endpoints(e["modbus"], e["adc"], e["can"], "serial")
 
     def inject(self, fault: str, **kw) -> None:
-        """A fault of the simulator (sim.rig.FAULTS), through its control API."""
+        """A fault of the simulator (sim.injection.SimFault), through its control API."""
         self.link.call("inject", fault=fault, **kw)
 
 

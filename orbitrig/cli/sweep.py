@@ -7,10 +7,10 @@ Exit status: 0 completed, 1 failed, 2 bad configuration or usage, 3 stopped,
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
 
 import typer
 
+from orbitrig.cli import sweep_options as opt
 from orbitrig.cli.plain_table import OutputFormat
 from orbitrig.run.states import ConfirmMode, Outcome
 
@@ -21,55 +21,19 @@ EXIT = {Outcome.COMPLETED: 0, Outcome.FAILED: 1, Outcome.STOPPED: 3, Outcome.ABO
 def register(app: typer.Typer) -> None:
     @app.command("sweep")
     def sweep(
-        run_dir: Optional[Path] = typer.Argument(None, help="the run directory, as --out (`--resume DIR`)"),
-        out: Optional[Path] = typer.Option(None, "--out", help="run directory (run.h5, coefficients.csv, run.log)"),
-        sim: bool = typer.Option(False, "--sim", help="run on the built-in simulator over loopback protocols"),
-        config: Optional[Path] = typer.Option(
-            None,
-            "--config",
-            help="rig configuration TOML (default: rig.toml of $ORBITRIG_HOME, of the current directory, or shipped; see `orbitrig init`)",
-        ),
-        matrix: Optional[str] = typer.Option(
-            None,
-            "--matrix",
-            metavar="NAME|FILE",
-            help="test matrix: a TOML file, or a name from the configuration's matrices/ (demo, paper); "
-            "required on the rig, --sim defaults to matrices/demo.toml",
-        ),
-        resume: bool = typer.Option(
-            False, "--resume", help="continue the run in --out from its first incomplete point"
-        ),
-        dry_run: bool = typer.Option(
-            False,
-            "--dry-run",
-            help="print the plan's totals, the predicted uncertainty of each model and one line per operating point; touches no hardware",
-        ),
-        steps: bool = typer.Option(
-            False, "--steps", help="with --dry-run: also every step with its start time and estimated duration (s)"
-        ),
-        fmt: OutputFormat = typer.Option(
-            OutputFormat.TEXT,
-            "--format",
-            help="the closing table of coefficients: text (plain, every number in full, split to the terminal's width), csv or json",
-        ),
-        speedup: float = typer.Option(
-            DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)"
-        ),
-        sim_config: Optional[Path] = typer.Option(
-            None,
-            "--sim-config",
-            metavar="NAME|FILE",
-            help="simulator scenario TOML (--sim only; default the "
-            "paper's rig, config/sim.toml); a shipped one by NAME: paper, clean, compressible (config/sim/)",
-        ),
-        operator: Optional[str] = typer.Option(
-            None, "--operator", help="who runs the sweep, recorded in the run (default: the login name)"
-        ),
-        draw_figures: bool = typer.Option(
-            True,
-            "--draw-figures/--no-draw-figures",
-            help="draw each completed point's report figures in a process at the lowest CPU priority, so `orbitrig report` afterwards reuses them",
-        ),
+        run_dir: opt.RunDir = None,
+        out: opt.Out = None,
+        sim: opt.Sim = False,
+        config: opt.Config = None,
+        matrix: opt.Matrix = None,
+        resume: opt.Resume = False,
+        dry_run: opt.DryRun = False,
+        steps: opt.Steps = False,
+        fmt: opt.Format = OutputFormat.TEXT,
+        speedup: opt.Speedup = DEFAULT_SPEEDUP,
+        sim_config: opt.SimConfig = None,
+        operator: opt.Operator = None,
+        draw_figures: opt.DrawFigures = True,
     ) -> None:
         """Run a test matrix: manual settings, speeds, settle, acquire, identify, store.
 
@@ -114,7 +78,7 @@ def _sweep_command(
     draw_figures=False,
 ) -> None:
     """`orbitrig sweep`, its options checked; raises typer.Exit with the run's exit status."""
-    from orbitrig.errors import ConfigError, OrbitrigError
+    from orbitrig.errors import OrbitrigError
 
     if run_dir is not None and out is not None and run_dir != out:
         raise typer.BadParameter(f"two run directories: {run_dir} and --out {out}", param_hint="DIR")
@@ -128,37 +92,49 @@ def _sweep_command(
 
             print_plan(plan, steps=steps)
             return
-        if out is None:
-            raise typer.BadParameter("--out DIR is required (except with --dry-run)", param_hint="--out")
-        if not sim:
-            _check_rig_answers(plan.rig)
-        if not resume:
-            _check_out(out)
-        import asyncio
-
-        scenario = _scenario(sim_config, resume=resume, out=out) if sim else None
-        outcome = asyncio.run(
-            _sweep(
-                plan,
-                out=out,
-                sim=scenario,
-                resume=resume,
-                speedup=speedup,
-                operator=operator or _login(),
-                fmt=fmt,
-                draw_figures=draw_figures,
-            )
+        outcome = _run_plan(
+            plan,
+            out=out,
+            sim=sim,
+            sim_config=sim_config,
+            resume=resume,
+            speedup=speedup,
+            operator=operator or _login(),
+            fmt=fmt,
+            draw_figures=draw_figures,
         )
-    except ConfigError as err:
-        typer.echo(f"error: {err}", err=True)
-        raise typer.Exit(2) from None
-    except OrbitrigError as err:
+    except OrbitrigError as err:  # a configuration error among them
         typer.echo(f"error: {err}", err=True)
         raise typer.Exit(2) from None
     except OSError as err:  # a file the run needs cannot be written (disk full, permissions)
         typer.echo(f"error: {err.filename or out}: {err.strerror or err}", err=True)
         raise typer.Exit(1) from None
     raise typer.Exit(EXIT[outcome.status])
+
+
+def _run_plan(plan, *, out, sim: bool, sim_config, resume: bool, speedup: float, operator: str, fmt, draw_figures):
+    """Run a checked plan: the rig must answer and --out be writable before anything starts."""
+    if out is None:
+        raise typer.BadParameter("--out DIR is required (except with --dry-run)", param_hint="--out")
+    if not sim:
+        _check_rig_answers(plan.rig)
+    if not resume:
+        _check_out(out)
+    import asyncio
+
+    scenario = _scenario(sim_config, resume=resume, out=out) if sim else None
+    return asyncio.run(
+        _sweep(
+            plan,
+            out=out,
+            sim=scenario,
+            resume=resume,
+            speedup=speedup,
+            operator=operator,
+            fmt=fmt,
+            draw_figures=draw_figures,
+        )
+    )
 
 
 def _scenario(path, *, resume: bool, out):
@@ -333,10 +309,7 @@ async def _sweep(
 
     from rich.console import Console
 
-    from orbitrig.cli.operator import Operator
     from orbitrig.cli.progress import SweepProgress
-    from orbitrig.run.engine import RunEngine
-
     from orbitrig.run.heap import tune_heap
     from orbitrig.run.modbus_log import keep_pymodbus_off_the_terminal
 
@@ -349,16 +322,7 @@ async def _sweep(
             from orbitrig.cli.simulated_rig import simulated_rig
 
             _, access = await stack.enter_async_context(simulated_rig(speedup, *sim, started=started))
-        engine = RunEngine(
-            plan.rig,
-            out_dir=out,
-            access=access,
-            confirm_mode=ConfirmMode.AUTO if access else ConfirmMode.PROMPT,
-            operator=operator,
-        )
-        engine.console_user = operator  # Ctrl-C's pause, stop, abort and the prompts' confirmations
-        console_operator = Operator(engine, console)
-        engine.subscribe(console_operator.on_event)
+        engine, console_operator = _engine(plan, out=out, access=access, operator=operator, console=console)
         for callback in subscribers:
             engine.subscribe(callback)
         if draw_figures:  # the report's figures of each completed point, drawn at the lowest priority
@@ -374,6 +338,31 @@ async def _sweep(
                 outcome = await engine.run(plan, resume=resume)
             finally:
                 console_operator.uninstall()
+    _print_outcome(console, outcome, out, fmt)
+    return outcome
+
+
+def _engine(plan, *, out: Path, access, operator: str, console):
+    """The run engine of this sweep (prompts confirmed by the operator on the rig, automatic on the
+    simulator) and its console operator: Ctrl-C's pause, stop and abort, the prompts' answers."""
+    from orbitrig.cli.operator import Operator
+    from orbitrig.run.engine import RunEngine
+
+    engine = RunEngine(
+        plan.rig,
+        out_dir=out,
+        access=access,
+        confirm_mode=ConfirmMode.AUTO if access else ConfirmMode.PROMPT,
+        operator=operator,
+    )
+    engine.console_user = operator
+    console_operator = Operator(engine, console)
+    engine.subscribe(console_operator.on_event)
+    return engine, console_operator
+
+
+def _print_outcome(console, outcome, out: Path, fmt) -> None:
+    """The run's closing line and, when a point completed, the table of its coefficients."""
     console.print(
         f"run {outcome.status}: {outcome.message}  ({len(outcome.completed_points)} of "
         f"{outcome.points} points complete in {out})",
@@ -383,4 +372,3 @@ async def _sweep(
         from orbitrig.cli.sweep_summary import print_coefficients  # the closing table
 
         print_coefficients(out, fmt or OutputFormat.TEXT)
-    return outcome

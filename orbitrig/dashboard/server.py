@@ -35,7 +35,8 @@ from typing import Any
 from aiohttp import WSMsgType, web
 
 from orbitrig.dashboard.guard import RequestDeadline
-from orbitrig.dashboard.session import DashboardSettings, Feed, Session, SignInRefused
+from orbitrig.dashboard.feed import Feed, FeedType
+from orbitrig.dashboard.session import DashboardSettings, Session, SignInRefused
 from orbitrig.dashboard.throttle import SignInThrottle
 
 log = logging.getLogger("orbitrig.dashboard")
@@ -215,7 +216,7 @@ async def _send_loop(ws: web.WebSocketResponse, queue: Feed) -> None:
         while not ws.closed:
             for message in await queue.take():
                 await ws.send_str(json.dumps(message, allow_nan=False, default=str))
-                if message.get("type") == "signed_out":
+                if message.get("type") == FeedType.SIGNED_OUT:
                     await ws.close()
                     return
 

@@ -29,6 +29,7 @@ from typing import Any
 import orbitrig.service.protocol as proto
 from daq.backoff import Backoff
 from orbitrig.dashboard.alarms import AlarmBook
+from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
 from orbitrig.dashboard.rigs import RigDirectory
 from orbitrig.dashboard.throttle import ThrottlePolicy
 from orbitrig.dashboard.trend import TrendHistory
@@ -78,33 +79,6 @@ class DashboardSettings:
     trend_recent_s: float = 1800.0  # s of recent trend samples kept (the run's own view is thinned instead)
 
 
-class Feed:
-    """The messages waiting for one browser connection; only the newest ``live``
-    payload is kept (a slow browser skips frames, never falls behind)."""
-
-    def __init__(self, limit: int = 2000):
-        self.queue: collections.deque[dict] = collections.deque(maxlen=limit)
-        self.live: dict | None = None
-        self.wake = asyncio.Event()
-
-    def put(self, message: dict) -> None:
-        if message.get("type") == "live":
-            self.live = message
-        else:
-            self.queue.append(message)
-        self.wake.set()
-
-    async def take(self) -> list[dict]:
-        await self.wake.wait()
-        self.wake.clear()
-        out = list(self.queue)
-        self.queue.clear()
-        if self.live is not None:
-            out.append(self.live)
-            self.live = None
-        return out
-
-
 class Session:
     """One browser session = one broker user's MQTT connection."""
 
@@ -114,7 +88,7 @@ class Session:
         self.__password = password
         self.token = secrets.token_urlsafe(32)
         self.last_active = time.monotonic()
-        self.link = "connecting"  # online | broker unreachable | connecting
+        self.link = BrokerLink.CONNECTING
         self.status: dict | None
         self.progress: dict | None
         self.live: dict | None
@@ -128,7 +102,7 @@ class Session:
         self.closed = False
 
     def __repr__(self) -> str:  # never the password
-        return f"Session(user={self.user!r}, link={self.link!r})"
+        return f"Session(user={self.user!r}, link={str(self.link)!r})"
 
     def _forget_rig(self) -> None:
         """Drop what the session knows of the rig it watched."""
@@ -144,8 +118,8 @@ class Session:
         if peer is not None:
             self.trend.seed(peer.trend)
             self.alarms.seed(peer.alarms)
-            self._broadcast({"type": "trend_history", "data": self.trend.history()})
-            self._broadcast({"type": "alarms", "data": self.alarms.listing()})
+            self._broadcast({"type": FeedType.TREND_HISTORY, "data": self.trend.history()})
+            self._broadcast({"type": FeedType.ALARMS, "data": self.alarms.listing()})
 
     async def select_rig(self, rig_id: str, peers: Any = ()) -> dict:
         """Watch another rig of the broker (``orbitrig/<rig_id>``) from now on (with the trends
@@ -161,7 +135,7 @@ class Session:
         old, client = self.topics, self._client
         self.topics = new
         self._forget_rig()
-        self._broadcast({"type": "rig", "prefix": new.prefix})
+        self._broadcast({"type": FeedType.RIG, "prefix": new.prefix})
         self.adopt(peers)
         log.info("session of %r: now watching %s", self.user, new.prefix)
         if client is not None:
@@ -217,7 +191,7 @@ class Session:
                 self._client, connected = client, True
                 if not first.done():
                     first.set_result(None)
-                self._set_link("online")
+                self._set_link(BrokerLink.ONLINE)
                 async for message in client.messages:
                     self._on_message(str(message.topic), message.payload)
             return True
@@ -236,21 +210,21 @@ class Session:
                 self.closed = True
             elif refused:
                 log.warning("broker no longer accepts %r: session ended", self.user)
-                self._broadcast({"type": "signed_out", "reason": "the broker refused your credentials"})
+                self._broadcast({"type": FeedType.SIGNED_OUT, "reason": "the broker refused your credentials"})
                 self.closed = True
             else:
-                self._set_link("broker unreachable")
+                self._set_link(BrokerLink.UNREACHABLE)
             return connected
 
-    def _set_link(self, link: str) -> None:
+    def _set_link(self, link: BrokerLink) -> None:
         if link != self.link:
             self.link = link
             log.info("session of %r: broker link %s", self.user, link)
-            self._broadcast({"type": "link", "link": link})
+            self._broadcast({"type": FeedType.LINK, "link": link})
 
     async def close(self, reason: str) -> None:
         self.closed = True
-        self._broadcast({"type": "signed_out", "reason": reason})
+        self._broadcast({"type": FeedType.SIGNED_OUT, "reason": reason})
         if self._task is not None:
             self._task.cancel()
             await asyncio.gather(self._task, return_exceptions=True)
@@ -268,26 +242,26 @@ class Session:
             return
         rig_id = self.rigs.rig_of(topic)
         if rig_id is not None and self.rigs.on_status(rig_id, data):
-            self._broadcast({"type": "rigs", "data": self.rigs.listing()})
+            self._broadcast({"type": FeedType.RIGS, "data": self.rigs.listing()})
         if topic == t.status:
             self.status = data
-            self._broadcast({"type": "status", "data": data})
+            self._broadcast({"type": FeedType.STATUS, "data": data})
             if self.alarms.on_status(data):
-                self._broadcast({"type": "alarms", "data": self.alarms.listing()})
+                self._broadcast({"type": FeedType.ALARMS, "data": self.alarms.listing()})
         elif topic == t.ack:
             self._resolve(data)
             if self.alarms.on_ack(data):
-                self._broadcast({"type": "alarms", "data": self.alarms.listing()})
+                self._broadcast({"type": FeedType.ALARMS, "data": self.alarms.listing()})
         elif topic == t.progress:
             self.progress = data
-            self._broadcast({"type": "progress", "data": data})
+            self._broadcast({"type": FeedType.PROGRESS, "data": data})
         elif topic == t.live:
             self.live = data
-            self._broadcast({"type": "live", "data": data})
+            self._broadcast({"type": FeedType.LIVE, "data": data})
             self._trend(data)
         elif topic == t.result:
             self.results.append(data)
-            self._broadcast({"type": "result", "data": data})
+            self._broadcast({"type": FeedType.RESULT, "data": data})
         elif topic == t.reply:
             self._resolve(data)
 
@@ -302,9 +276,9 @@ class Session:
         if sample is None:
             return
         self.trend_samples += 1
-        self._broadcast({"type": "trend", "sample": sample, "run_id": self.trend.run_id})
+        self._broadcast({"type": FeedType.TREND, "sample": sample, "run_id": self.trend.run_id})
         if self.trend_samples % TREND_RESEND == 0:
-            self._broadcast({"type": "trend_history", "data": {**self.trend.history(), "recent": None}})
+            self._broadcast({"type": FeedType.TREND_HISTORY, "data": {**self.trend.history(), "recent": None}})
 
     def _broadcast(self, message: dict) -> None:
         for feed in list(self.feeds):
@@ -313,18 +287,20 @@ class Session:
     def snapshot(self) -> list[dict]:
         """What a newly connected page needs to draw the present at once."""
         out: list[dict] = [
-            {"type": "hello", "user": self.user, "prefix": self.topics.prefix},
-            {"type": "link", "link": self.link},
-            {"type": "rigs", "data": self.rigs.listing()},
+            {"type": FeedType.HELLO, "user": self.user, "prefix": self.topics.prefix},
+            {"type": FeedType.LINK, "link": self.link},
+            {"type": FeedType.RIGS, "data": self.rigs.listing()},
         ]
         out += [
-            {"type": k, "data": v} for k, v in (("status", self.status), ("progress", self.progress)) if v is not None
+            {"type": k, "data": v}
+            for k, v in ((FeedType.STATUS, self.status), (FeedType.PROGRESS, self.progress))
+            if v is not None
         ]
-        out += [{"type": "result", "data": r} for r in self.results]
-        out.append({"type": "trend_history", "data": self.trend.history()})
-        out.append({"type": "alarms", "data": self.alarms.listing()})
+        out += [{"type": FeedType.RESULT, "data": r} for r in self.results]
+        out.append({"type": FeedType.TREND_HISTORY, "data": self.trend.history()})
+        out.append({"type": FeedType.ALARMS, "data": self.alarms.listing()})
         if self.live is not None:
-            out.append({"type": "live", "data": self.live})
+            out.append({"type": FeedType.LIVE, "data": self.live})
         return out
 
     # -- commands ----------------------------------------------------------------

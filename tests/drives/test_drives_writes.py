@@ -13,7 +13,7 @@ from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, open_rig
 
 from drives.errors import DriveExceptionResponse, DriveTimeoutError
 from drives.limits import DriveLimits
-from sim import drive_model as dm
+from sim import drive_registers as sim_registers
 
 pytestmark = pytest.mark.timeout(30)
 
@@ -76,7 +76,7 @@ def _outage_on_first_write(sim, link, address: int, duration: float) -> list[flo
 async def test_speed_command_survives_a_lost_frame(sim, caplog):
     caplog.set_level(logging.WARNING, logger="drives")
     async with open_rig(sim, LIMITS) as r:
-        started = _outage_on_first_write(sim, r.link, dm.REF, 0.15)  # < 2 request timeouts
+        started = _outage_on_first_write(sim, r.link, sim_registers.REF, 0.15)  # < 2 request timeouts
         await r.set_speeds(900 * RPM, -300 * RPM)
         await r.wait_settled(hold=0.05, timeout=5)
         assert started and r.link.retries >= 1

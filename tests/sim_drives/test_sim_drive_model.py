@@ -39,7 +39,8 @@ from support.sim_drive_helpers import (
     u16,
 )
 
-from sim.drive_model import DriveModbusException, DriveModel
+from sim.drive_model import DriveModel
+from sim.drive_registers import DriveModbusException
 
 # Defaults: SPEED_SCALE 3000 rpm, ACCEL/DECEL 5 s per 3000 rpm -> 600 rpm/s.
 RATE = 600.0

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from drives.limits import DriveLimits
 from drives.rig import RigDrives
-from sim import drive_model as dm
+from sim import drive_registers as sim_registers
 from sim.drive_model import DriveModel
 from sim.modbus_server import ModbusEndpoint, serve_modbus_rtu_pty, serve_modbus_tcp
 
@@ -92,10 +92,10 @@ def set_parameter(model: DriveModel, address: int, value: int) -> None:
 
 
 PARAM = {
-    "SPEED_SCALE": dm.SPEED_SCALE,
-    "MAX_SPEED": dm.MAX_SPEED,
-    "COMM_LOSS_TIMEOUT": dm.COMM_LOSS_TIMEOUT,
-    "DECEL_TIME": dm.DECEL_TIME,
+    "SPEED_SCALE": sim_registers.SPEED_SCALE,
+    "MAX_SPEED": sim_registers.MAX_SPEED,
+    "COMM_LOSS_TIMEOUT": sim_registers.COMM_LOSS_TIMEOUT,
+    "DECEL_TIME": sim_registers.DECEL_TIME,
 }
 
 

@@ -1,0 +1,76 @@
+"""The options of `orbitrig design` (typer Annotated aliases): speeds rpm, noise N and nm, radius um."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from orbitrig.load_systems import LoadSystem
+
+Model = Annotated[str, typer.Option("--model", help="kc7 | kc8 | kcd11 | kcd12")]
+FreqDep = Annotated[str, typer.Option("--freq-dep", help="none | power:M | power:m,n,p | poly:R (as identify)")]
+Spin = Annotated[float, typer.Option("--spin", help="Journal spin speed, rpm.")]
+Ratios = Annotated[
+    Optional[str],
+    typer.Option("--ratios", help="Candidate orbit ratios |Omega|/omega, e.g. 0.2,0.5,1.2 (both directions)."),
+]
+Matrix = Annotated[
+    Optional[str],
+    typer.Option(
+        "--matrix",
+        help="Take the candidate list, directions and smallest orbit radius from this matrix (NAME in config/matrices or FILE).",
+    ),
+]
+NoiseFrom = Annotated[
+    Optional[Path],
+    typer.Option("--noise-from", help="Run directory: per-revolution noise (and prior coefficients) measured there."),
+]
+Lms = Annotated[LoadSystem, typer.Option("--lms", help="Load measuring system whose noise counts: piezo | strain.")]
+ForceNoise = Annotated[
+    Optional[float], typer.Option("--force-noise", help="Per-revolution force phasor noise, N (default 20).")
+]
+ProbeNoise = Annotated[
+    Optional[float], typer.Option("--probe-noise", help="Per-revolution displacement phasor noise, nm (default 100).")
+]
+Radius = Annotated[
+    Optional[float],
+    typer.Option("--radius", help="Orbit radius, um (default: the matrix's smallest, else 0.1 x clearance)."),
+]
+Revolutions = Annotated[
+    Optional[int], typer.Option("--revolutions", help="Revolutions averaged per block (default: rig.toml [averaging]).")
+]
+Target = Annotated[
+    Optional[float],
+    typer.Option(
+        "--target",
+        help="Worst relative standard error to reach, percent: propose ratios and revolutions per ratio that reach it in the least rig time.",
+    ),
+]
+Match = Annotated[
+    bool,
+    typer.Option(
+        "--match",
+        help="Propose revolutions per ratio that give every coefficient at most the candidate's standard error in the least rig time.",
+    ),
+]
+KeepTest = Annotated[
+    bool,
+    typer.Option(
+        "--model-test/--no-model-test",
+        help="With --match or --target: keep the adequacy test of the richest frequency-dependent model (the matrix's, else this model's poly:1; --freq-dep if not none): enough ratios spread over the band, its errors at most the candidate's.",
+    ),
+]
+KeepAway = Annotated[
+    float, typer.Option("--keep-away", help="Propose no ratio closer than this to Omega/omega = 1 (runout).")
+]
+Save = Annotated[
+    Optional[str],
+    typer.Option(
+        "--save",
+        help='Write the proposal to config/designs/NAME.toml (a matrix uses it with [orbit] design = "NAME").',
+    ),
+]
+RigPath = Annotated[Optional[Path], typer.Option("--config", help="Rig configuration (default config/rig.toml).")]
+AsJson = Annotated[bool, typer.Option("--json", help="Print one JSON object.")]

@@ -1,0 +1,40 @@
+"""The options of `orbitrig sim` (typer Annotated aliases): ports, time scale, CAN bus."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+Config = Annotated[Optional[Path], typer.Option("--config", help="Simulator TOML (see config/sim.toml).")]
+ModbusPort = Annotated[
+    int, typer.Option("--modbus-port", min=0, max=65535, help="Modbus TCP port of both drives (0 = any free).")
+]
+AdcPort = Annotated[
+    int, typer.Option("--adc-port", min=0, max=65535, help="A/D TCP serial device server port (0 = any free).")
+]
+Speedup = Annotated[
+    Optional[float], typer.Option("--speedup", help="Simulated time / wall time (default from config, 1).")
+]
+ControlPort = Annotated[
+    int, typer.Option("--control-port", min=0, max=65535, help="JSON-lines control API port (0 = any free).")
+]
+ModbusRtu = Annotated[bool, typer.Option("--modbus-rtu/--no-modbus-rtu", help="Also serve Modbus RTU on a pty.")]
+CanPort = Annotated[
+    int,
+    typer.Option(
+        "--can-port",
+        min=0,
+        max=65535,
+        help="TCP port of the CAN bus: python-can interface 'serial', channel socket://127.0.0.1:PORT (0 = any free).",
+    ),
+]
+CanChannel = Annotated[
+    Optional[str],
+    typer.Option(
+        "--can-channel",
+        help="Put the CAN node on this python-can channel instead (e.g. vcan0 with --can-interface socketcan).",
+    ),
+]
+CanInterface = Annotated[str, typer.Option("--can-interface", help="python-can interface of --can-channel.")]

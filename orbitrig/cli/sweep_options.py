@@ -1,0 +1,68 @@
+"""The options of `orbitrig sweep` (typer Annotated aliases)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from orbitrig.cli.plain_table import OutputFormat
+
+RunDir = Annotated[Optional[Path], typer.Argument(help="the run directory, as --out (`--resume DIR`)")]
+Out = Annotated[Optional[Path], typer.Option("--out", help="run directory (run.h5, coefficients.csv, run.log)")]
+Sim = Annotated[bool, typer.Option("--sim", help="run on the built-in simulator over loopback protocols")]
+Config = Annotated[
+    Optional[Path],
+    typer.Option(
+        "--config",
+        help="rig configuration TOML (default: rig.toml of $ORBITRIG_HOME, of the current directory, or shipped; see `orbitrig init`)",
+    ),
+]
+Matrix = Annotated[
+    Optional[str],
+    typer.Option(
+        "--matrix",
+        metavar="NAME|FILE",
+        help="test matrix: a TOML file, or a name from the configuration's matrices/ (demo, paper); "
+        "required on the rig, --sim defaults to matrices/demo.toml",
+    ),
+]
+Resume = Annotated[bool, typer.Option("--resume", help="continue the run in --out from its first incomplete point")]
+DryRun = Annotated[
+    bool,
+    typer.Option(
+        "--dry-run",
+        help="print the plan's totals, the predicted uncertainty of each model and one line per operating point; touches no hardware",
+    ),
+]
+Steps = Annotated[
+    bool, typer.Option("--steps", help="with --dry-run: also every step with its start time and estimated duration (s)")
+]
+Format = Annotated[
+    OutputFormat,
+    typer.Option(
+        "--format",
+        help="the closing table of coefficients: text (plain, every number in full, split to the terminal's width), csv or json",
+    ),
+]
+Speedup = Annotated[float, typer.Option("--speedup", min=0.01, help="simulator time / wall time (--sim only)")]
+SimConfig = Annotated[
+    Optional[Path],
+    typer.Option(
+        "--sim-config",
+        metavar="NAME|FILE",
+        help="simulator scenario TOML (--sim only; default the "
+        "paper's rig, config/sim.toml); a shipped one by NAME: paper, clean, compressible (config/sim/)",
+    ),
+]
+Operator = Annotated[
+    Optional[str], typer.Option("--operator", help="who runs the sweep, recorded in the run (default: the login name)")
+]
+DrawFigures = Annotated[
+    bool,
+    typer.Option(
+        "--draw-figures/--no-draw-figures",
+        help="draw each completed point's report figures in a process at the lowest CPU priority, so `orbitrig report` afterwards reuses them",
+    ),
+]
