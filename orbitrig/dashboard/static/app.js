@@ -106,18 +106,18 @@ function banner(text) { $("offline-banner").textContent = text || ""; show($("of
 
 function handle(msg) {
   switch (msg.type) {
-    case "hello": $("who").textContent = msg.user; $("rig").textContent = msg.prefix; break;
-    case "rigs": showRigs(msg.data); break;
-    case "rig": clearRigView(); $("rig").textContent = msg.prefix; showRigs(st.rigs || {}); break;
-    case "link": showLink(msg.link); break;
-    case "status": showStatus(msg.data); break;
-    case "progress": showProgress(msg.data); break;
-    case "live": showLive(msg.data); break;
-    case "result": resultTable.showResult(msg.data); break;
-    case "trend": trends.trendSample(msg.sample, msg.run_id); break;
-    case "trend_history": trends.trendHistory(msg.data); break;
-    case "alarms": alarmList.showAlarms(msg.data); break;
-    case "signed_out": leave("session ended: " + msg.reason); break;
+    case FeedType.HELLO: $("who").textContent = msg.user; $("rig").textContent = msg.prefix; break;
+    case FeedType.RIGS: showRigs(msg.data); break;
+    case FeedType.RIG: clearRigView(); $("rig").textContent = msg.prefix; showRigs(st.rigs || {}); break;
+    case FeedType.LINK: showLink(msg.link); break;
+    case FeedType.STATUS: showStatus(msg.data); break;
+    case FeedType.PROGRESS: showProgress(msg.data); break;
+    case FeedType.LIVE: showLive(msg.data); break;
+    case FeedType.RESULT: resultTable.showResult(msg.data); break;
+    case FeedType.TREND: trends.trendSample(msg.sample, msg.run_id); break;
+    case FeedType.TREND_HISTORY: trends.trendHistory(msg.data); break;
+    case FeedType.ALARMS: alarmList.showAlarms(msg.data); break;
+    case FeedType.SIGNED_OUT: leave("session ended: " + msg.reason); break;
   }
 }
 
@@ -145,9 +145,9 @@ async function selectRig() {
 function showLink(link) {
   const el = $("link");
   el.textContent = link;
-  el.className = "badge " + (link === "online" ? "l-online" : "l-broker");
-  if (link !== "online") banner("offline: broker unreachable — reconnecting");
-  else if (st.status && st.status.state === "offline") banner("offline: the rig service is not connected");
+  el.className = "badge " + (link === BrokerLink.ONLINE ? "l-online" : "l-broker");
+  if (link !== BrokerLink.ONLINE) banner("offline: broker unreachable — reconnecting");
+  else if (st.status && st.status.state === RunState.OFFLINE) banner("offline: the rig service is not connected");
   else banner(null);
 }
 
@@ -160,10 +160,10 @@ function showStatus(s) {
   el.className = "state s-" + s.state;
   $("run-id").textContent = s.run_id || "";
   $("message").textContent = s.message || "";
-  if ($("link").textContent === "online") banner(s.state === "offline" ? "offline: the rig service is not connected" : null);
-  const warn = s.state === "faulted" || /interlock|not met|failed|lost/i.test(s.message || "");
+  if ($("link").textContent === BrokerLink.ONLINE) banner(s.state === RunState.OFFLINE ? "offline: the rig service is not connected" : null);
+  const warn = s.state === RunState.FAULTED || /interlock|not met|failed|lost/i.test(s.message || "");
   if (warn && !(prev && prev.message === s.message)) addEvent("warn", s.state + ": " + s.message);
-  if (s.state === "idle" && /completed/.test(s.message || "")) $("progress-bar").style.width = "100%";
+  if (s.state === RunState.IDLE && (s.message || "").includes(Outcome.COMPLETED)) $("progress-bar").style.width = "100%";
   showManual(s);
 }
 
@@ -172,7 +172,7 @@ const SETTING_LABEL = {orbit_radius: ["orbit radius", "µm", 1e6, 2], static_ecc
 
 // the asked settings of a waiting status; measured values follow the live payload (highlighted outside their band)
 function showManual(s) {
-  const waiting = s.state === "waiting" && s.step;
+  const waiting = s.state === RunState.WAITING && s.step;
   show($("manual"), !!waiting); show($("manual-none"), !waiting);
   $("manual-card").classList.toggle("asking", !!waiting);
   st.manual = waiting ? s.settings || {} : null;
@@ -312,16 +312,16 @@ function fillMatrices(names) {
 function wire() {
   $("signin-form").addEventListener("submit", signIn);
   $("signout").addEventListener("click", signOut);
-  $("btn-start").addEventListener("click", () => send("start", {matrix: $("matrix").value.trim()}));
-  $("btn-pause").addEventListener("click", () => send("pause"));
-  $("btn-resume").addEventListener("click", () => send("resume"));
-  $("btn-stop").addEventListener("click", () => send("stop"));
+  $("btn-start").addEventListener("click", () => send(Command.START, {matrix: $("matrix").value.trim()}));
+  $("btn-pause").addEventListener("click", () => send(Command.PAUSE));
+  $("btn-resume").addEventListener("click", () => send(Command.RESUME));
+  $("btn-stop").addEventListener("click", () => send(Command.STOP));
   $("btn-abort").addEventListener("click", () => $("abort-dialog").showModal());
   $("abort-cancel").addEventListener("click", () => $("abort-dialog").close());
-  $("abort-confirm").addEventListener("click", () => { $("abort-dialog").close(); send("abort"); });
+  $("abort-confirm").addEventListener("click", () => { $("abort-dialog").close(); send(Command.ABORT); });
   $("trend-window").addEventListener("change", () => trends.drawTrends());
   $("rig-select").addEventListener("change", selectRig);
-  $("btn-confirm").addEventListener("click", () => send("confirm", {step: $("manual-step").textContent}));
+  $("btn-confirm").addEventListener("click", () => send(Command.CONFIRM, {step: $("manual-step").textContent}));
   ["keydown", "pointerdown", "pointermove", "wheel"].forEach(t => document.addEventListener(t, activity, {passive: true}));
   setInterval(() => { $("live-age").textContent = st.liveAt ? ((Date.now() - st.liveAt) / 1000).toFixed(1) + " s ago" : "—"; }, 500);
 }

@@ -1,0 +1,25 @@
+// The closed sets of words the rig service and the dashboard server send, one frozen table each,
+// used everywhere in the page; tests/dashboard/test_dashboard_words.py checks each against its
+// Python home. Loaded before the other scripts.
+"use strict";
+
+// the `state` of <prefix>/status: the run engine's (orbitrig.run.states.RunState), and offline
+// (orbitrig.service.protocol.OFFLINE: the service's last will)
+const RunState = Object.freeze({IDLE: "idle", RUNNING: "running", PAUSED: "paused", WAITING: "waiting",
+  STOPPING: "stopping", FAULTED: "faulted", OFFLINE: "offline"});
+
+// how a run ended (orbitrig.run.states.Outcome), as the idle status's message says it
+const Outcome = Object.freeze({COMPLETED: "completed", STOPPED: "stopped", ABORTED: "aborted", FAILED: "failed"});
+
+// the commands the page sends (orbitrig.run.provenance.RunCommand; the server takes those of
+// orbitrig.dashboard.session.PAGE_COMMANDS)
+const Command = Object.freeze({START: "start", CONFIRM: "confirm", PAUSE: "pause", RESUME: "resume", STOP: "stop",
+  ABORT: "abort"});
+
+// the session's connection to the broker (orbitrig.dashboard.feed.BrokerLink)
+const BrokerLink = Object.freeze({CONNECTING: "connecting", ONLINE: "online", UNREACHABLE: "broker unreachable"});
+
+// the `type` of a feed message (orbitrig.dashboard.feed.FeedType)
+const FeedType = Object.freeze({HELLO: "hello", LINK: "link", RIGS: "rigs", RIG: "rig", STATUS: "status",
+  PROGRESS: "progress", LIVE: "live", RESULT: "result", TREND: "trend", TREND_HISTORY: "trend_history",
+  ALARMS: "alarms", SIGNED_OUT: "signed_out"});

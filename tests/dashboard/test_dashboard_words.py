@@ -1,0 +1,61 @@
+"""The page's closed sets of words (static/words.js) against their Python homes, and the page's
+scripts using those tables instead of spelling the words out."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+import orbitrig.dashboard
+from orbitrig.dashboard.feed import BrokerLink, FeedType
+from orbitrig.dashboard.session import PAGE_COMMANDS
+from orbitrig.run.provenance import RunCommand
+from orbitrig.run.states import Outcome, RunState
+from orbitrig.service import protocol
+
+STATIC = Path(orbitrig.dashboard.__file__).parent / "static"
+_TABLE = re.compile(r"const (\w+) = Object\.freeze\(\{(.*?)\}\);", re.DOTALL)
+_ENTRY = re.compile(r'(\w+): "([^"]*)"')
+
+
+def _tables() -> dict[str, dict[str, str]]:
+    text = (STATIC / "words.js").read_text(encoding="utf-8")
+    return {name: dict(_ENTRY.findall(body)) for name, body in _TABLE.findall(text)}
+
+
+def _members(enum) -> dict[str, str]:
+    return {m.name: m.value for m in enum}
+
+
+def test_each_table_of_the_page_is_its_python_enum():
+    tables = _tables()
+    assert set(tables) == {"RunState", "Outcome", "Command", "BrokerLink", "FeedType"}
+    assert tables["RunState"] == {**_members(RunState), "OFFLINE": protocol.OFFLINE}
+    assert set(tables["RunState"].values()) == set(protocol.STATES)  # the states of <prefix>/status
+    assert tables["Outcome"] == _members(Outcome)
+    assert tables["Command"] == _members(RunCommand)
+    assert set(tables["Command"].values()) <= set(PAGE_COMMANDS)  # the server lets the page send each
+    assert tables["BrokerLink"] == _members(BrokerLink)
+    assert tables["FeedType"] == _members(FeedType)
+
+
+def test_the_page_handles_every_feed_message_type():
+    app = (STATIC / "app.js").read_text(encoding="utf-8")
+    assert set(re.findall(r"case FeedType\.(\w+):", app)) == set(_members(FeedType))
+
+
+def test_every_status_state_has_its_badge_colour():
+    css = (STATIC / "style.css").read_text(encoding="utf-8")
+    assert {s for s in protocol.STATES if not re.search(rf"\.s-{s}\b", css)} == set()
+
+
+@pytest.mark.parametrize("script", sorted(p.name for p in STATIC.glob("*.js") if p.name != "words.js"))
+def test_no_script_spells_out_a_word_of_the_tables(script):
+    """A comparison, a case or a command sent with a bare word of a table is one the tables do not
+    keep in step with Python."""
+    words = {w for table in _tables().values() for w in table.values()}
+    text = (STATIC / script).read_text(encoding="utf-8")
+    spelled = re.findall(r'(?:[!=]==|case|send\()\s*"([^"]*)"', text)
+    assert sorted(w for w in spelled if w in words) == []
