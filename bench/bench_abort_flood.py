@@ -70,8 +70,20 @@ class TimedOperator(Operator):
 async def flood(port: int, prefix: str, count: int, qos: str) -> asyncio.subprocess.Process:
     """Start the flooding client; returns it once half the flood is out."""
     proc = await asyncio.create_subprocess_exec(
-        sys.executable, str(FLOODER), "--port", str(port), "--prefix", prefix, "--count", str(count),
-        "--qos", qos, "--password", ACCOUNTS["operator"], stdout=asyncio.subprocess.PIPE)
+        sys.executable,
+        str(FLOODER),
+        "--port",
+        str(port),
+        "--prefix",
+        prefix,
+        "--count",
+        str(count),
+        "--qos",
+        qos,
+        "--password",
+        ACCOUNTS["operator"],
+        stdout=asyncio.subprocess.PIPE,
+    )
     line = await asyncio.wait_for(proc.stdout.readline(), 120)
     if line.strip() != b"half":
         raise RuntimeError(f"flooder: {line!r}")
@@ -95,8 +107,9 @@ class LoopLag:
         return worst
 
 
-async def one_trial(op: TimedOperator, service, broker: Broker, qos: str, count: int,
-                    sim, lag: LoopLag, via: str) -> dict:
+async def one_trial(
+    op: TimedOperator, service, broker: Broker, qos: str, count: int, sim, lag: LoopLag, via: str
+) -> dict:
     op.progress_revs = 0
     op.send("start", matrix="bench")
     await asyncio.to_thread(op.wait, lambda: op.progress_revs >= 20, 60)  # both drives at speed
@@ -116,8 +129,15 @@ async def one_trial(op: TimedOperator, service, broker: Broker, qos: str, count:
     stop_ms = (max(stops.values()) - t_pub) * 1e3 if len(stops) == 2 else float("inf")
     arrive_ms = (service.abort_arrived - t_pub) * 1e3 if service.abort_arrived else float("inf")
     stopping_ms = (op.seen["stopping"] - t_pub) * 1e3 if "stopping" in op.seen else float("inf")
-    return {"stop_ms": stop_ms, "arrive_ms": arrive_ms, "stopping_ms": stopping_ms, "outcome": op.status.get("message", ""),
-            "flood": summary, "service": counted, "lag_ms": worst_lag * 1e3}
+    return {
+        "stop_ms": stop_ms,
+        "arrive_ms": arrive_ms,
+        "stopping_ms": stopping_ms,
+        "outcome": op.status.get("message", ""),
+        "flood": summary,
+        "service": counted,
+        "lag_ms": worst_lag * 1e3,
+    }
 
 
 def first_stops(sim, since: float) -> dict[int, float]:
@@ -155,17 +175,18 @@ async def main(trials: int, speedup: float, count: int, modes: list[str], via: s
     work = Path(tempfile.mkdtemp(prefix="bench-abort-flood-"))
     (work / "matrices").mkdir()
     (work / "matrices" / "bench.toml").write_text(  # long blocks: abort lands mid-acquisition
-        MATRIX.format(name="bench", revs=400, ratios="[0.5, 0.7, 0.9]", directions='["forward"]'))
+        MATRIX.format(name="bench", revs=400, ratios="[0.5, 0.7, 0.9]", directions='["forward"]')
+    )
     broker = Broker(work / "broker", bind_ids=True)
     broker.start()
     failures = 0
     try:
         async with simulated_rig(speedup) as (sim_rig, _):
             settings = ServiceSettings(rig_id="bench", matrices_dir=work / "matrices")
-            creds = BrokerSettings.from_url(broker.service_url, username="orbitrig-service",
-                                            password=ACCOUNTS["orbitrig-service"])
-            service = build_service(load_rig(), settings, creds, out=work / "runs", sim_rig=sim_rig,
-                                    confirm="auto")
+            creds = BrokerSettings.from_url(
+                broker.service_url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]
+            )
+            service = build_service(load_rig(), settings, creds, out=work / "runs", sim_rig=sim_rig, confirm="auto")
             timed_arrival(service)
             shutdown = asyncio.Event()
             serving = asyncio.create_task(service.serve(shutdown), name="bench-service")
@@ -180,10 +201,13 @@ async def main(trials: int, speedup: float, count: int, modes: list[str], via: s
                         ok = r["stop_ms"] < TARGET_MS and "aborted" in r["outcome"]
                         failures += not ok
                         load = os.getloadavg()[0]
-                        print(f"QoS {qos:>5} trial {trial + 1} (load {load:.1f}): abort -> both drives stopping "
-                              f"{r['stop_ms']:7.1f} ms (in the service after {r['arrive_ms']:.1f} ms), status stopping {r['stopping_ms']:7.1f} ms, "
-                              f"{r['outcome']!r}, worst loop lag {r['lag_ms']:.0f} ms | flood {r['flood']} | service {r['service']}"
-                              f"{'' if ok else '  <-- MISS'}", flush=True)
+                        print(
+                            f"QoS {qos:>5} trial {trial + 1} (load {load:.1f}): abort -> both drives stopping "
+                            f"{r['stop_ms']:7.1f} ms (in the service after {r['arrive_ms']:.1f} ms), status stopping {r['stopping_ms']:7.1f} ms, "
+                            f"{r['outcome']!r}, worst loop lag {r['lag_ms']:.0f} ms | flood {r['flood']} | service {r['service']}"
+                            f"{'' if ok else '  <-- MISS'}",
+                            flush=True,
+                        )
             finally:
                 op.close()
                 lagging.cancel()
@@ -192,8 +216,10 @@ async def main(trials: int, speedup: float, count: int, modes: list[str], via: s
     finally:
         broker.stop()
     dropped = broker.log.read_text().count("Outgoing messages are being dropped")
-    print(f"\nbroker reported dropping queued messages {dropped} times (its queue limit, by design); "
-          f"target < {TARGET_MS:.0f} ms and run aborted: {'met' if not failures else f'{failures} trial(s) missed'}")
+    print(
+        f"\nbroker reported dropping queued messages {dropped} times (its queue limit, by design); "
+        f"target < {TARGET_MS:.0f} ms and run aborted: {'met' if not failures else f'{failures} trial(s) missed'}"
+    )
     return 1 if failures else 0
 
 
@@ -203,7 +229,11 @@ if __name__ == "__main__":
     ap.add_argument("--speedup", type=float, default=5.0, help="simulator speed-up")
     ap.add_argument("--count", type=int, default=5000)
     ap.add_argument("--qos", nargs="+", default=["1", "mixed"], choices=("1", "mixed"))
-    ap.add_argument("--via", default="abort", choices=("abort", "cmd"),
-                    help="the abort's topic: <prefix>/abort (default) or <prefix>/cmd, behind the flood")
+    ap.add_argument(
+        "--via",
+        default="abort",
+        choices=("abort", "cmd"),
+        help="the abort's topic: <prefix>/abort (default) or <prefix>/cmd, behind the flood",
+    )
     args = ap.parse_args()
     sys.exit(asyncio.run(main(args.trials, args.speedup, args.count, args.qos, args.via)))

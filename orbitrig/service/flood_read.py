@@ -31,8 +31,13 @@ READ_BURST = 64
 READ_BUDGET_S = 0.005
 
 
-def read_in_bursts(paho_client: Any, burst: int = READ_BURST, *, taken_at_once: Callable[[], int] = lambda: 0,
-                   budget_s: float = READ_BUDGET_S) -> None:
+def read_in_bursts(
+    paho_client: Any,
+    burst: int = READ_BURST,
+    *,
+    taken_at_once: Callable[[], int] = lambda: 0,
+    budget_s: float = READ_BUDGET_S,
+) -> None:
     """Make ``paho_client.loop_read`` read up to ``burst`` packets while the socket has
     more, for at most ``budget_s`` s, and stop right after a message carried out at once
     (``taken_at_once()``, a count, changed)."""
@@ -71,7 +76,7 @@ def shed_before_decoding(paho_client: Any, topic: str, shed: Callable[[bytes, bo
         end = 2 + int.from_bytes(raw[:2], "big")
         if raw[2:end] != wanted:
             return decode()
-        mid = int.from_bytes(raw[end:end + 2], "big") if qos else 0
+        mid = int.from_bytes(raw[end : end + 2], "big") if qos else 0
         start = _after_properties(raw, end + (2 if qos else 0))
         if start is None or not shed(bytes(raw[start:]), bool(fixed & 0x01)):
             return decode()

@@ -58,9 +58,17 @@ class BrokerLink:
     retained)`` gets each ordinary message on ``<prefix>/cmd`` in turn,
     ``triage`` sees every one as it arrives."""
 
-    def __init__(self, broker: BrokerSettings, settings: ServiceSettings, topics: proto.Topics, *,
-                 status: Callable[[], bytes], offline: Callable[[str], bytes],
-                 on_command: Callable[[bytes, bool], None], triage: CommandTriage):
+    def __init__(
+        self,
+        broker: BrokerSettings,
+        settings: ServiceSettings,
+        topics: proto.Topics,
+        *,
+        status: Callable[[], bytes],
+        offline: Callable[[str], bytes],
+        on_command: Callable[[bytes, bool], None],
+        triage: CommandTriage,
+    ):
         self.broker, self.settings, self.topics = broker, settings, topics
         self._status, self._offline, self._on_command = status, offline, on_command
         self.triage = triage
@@ -119,8 +127,9 @@ class BrokerLink:
         while True:
             while self._sending or self._out or self._replies:
                 self._sending = self._sending or self._next_batch()
-                await asyncio.gather(*(client.publish(m.topic, m.payload, qos=m.qos, retain=m.retain)
-                                       for m in self._sending))
+                await asyncio.gather(
+                    *(client.publish(m.topic, m.payload, qos=m.qos, retain=m.retain) for m in self._sending)
+                )
                 self._sending = []
             self.drained.set()
             self._wake.clear()
@@ -177,17 +186,28 @@ class BrokerLink:
         from paho.mqtt.properties import Properties
 
         b = self.broker
-        will = aiomqtt.Will(self.topics.status, self._offline("connection to the rig service lost"),
-                            qos=proto.QOS_STATUS, retain=True)
+        will = aiomqtt.Will(
+            self.topics.status, self._offline("connection to the rig service lost"), qos=proto.QOS_STATUS, retain=True
+        )
         tls = aiomqtt.TLSParameters(ca_certs=str(b.tls_ca) if b.tls_ca else None) if b.tls else None
         session = Properties(PacketTypes.CONNECT)
         session.SessionExpiryInterval = 0 if clean_start else self.settings.session_expiry
-        client = aiomqtt.Client(b.host, b.port, username=b.username, password=b.password,
-                                identifier=self.settings.mqtt_client_id, will=None if clean_start else will,
-                                protocol=aiomqtt.ProtocolVersion.V5, clean_start=clean_start,
-                                properties=session, keepalive=b.keepalive, timeout=b.timeout,
-                                tls_params=tls, max_queued_incoming_messages=self.triage.limit,
-                                queue_type=self._new_inbox)
+        client = aiomqtt.Client(
+            b.host,
+            b.port,
+            username=b.username,
+            password=b.password,
+            identifier=self.settings.mqtt_client_id,
+            will=None if clean_start else will,
+            protocol=aiomqtt.ProtocolVersion.V5,
+            clean_start=clean_start,
+            properties=session,
+            keepalive=b.keepalive,
+            timeout=b.timeout,
+            tls_params=tls,
+            max_queued_incoming_messages=self.triage.limit,
+            queue_type=self._new_inbox,
+        )
         client.pending_calls_threshold = PUBLISH_WINDOW + 8  # a full window is expected, not a warning
         paho = client._client  # aiomqtt's paho client: no public handle
         read_in_bursts(paho, taken_at_once=lambda: self.triage.counts["at once"])
@@ -206,13 +226,19 @@ class BrokerLink:
         t_connected = None
         try:
             async with self._client() as client:
-                await client.subscribe([(self.topics.cmd, proto.QOS_CMD),
-                                        (self.topics.abort, proto.QOS_ABORT_SUBSCRIPTION)])
+                await client.subscribe(
+                    [(self.topics.cmd, proto.QOS_CMD), (self.topics.abort, proto.QOS_ABORT_SUBSCRIPTION)]
+                )
                 t_connected = self.connected_at = time.monotonic()
                 self.connections += 1
-                log.info("connected to %s as %r (client id %r); commands on %s, stop and abort also on %s",
-                         self.where, self.broker.username, self.settings.mqtt_client_id, self.topics.cmd,
-                         self.topics.abort)
+                log.info(
+                    "connected to %s as %r (client id %r); commands on %s, stop and abort also on %s",
+                    self.where,
+                    self.broker.username,
+                    self.settings.mqtt_client_id,
+                    self.topics.cmd,
+                    self.topics.abort,
+                )
                 self.offline.clear()
                 self.online.set()
                 try:
@@ -230,8 +256,9 @@ class BrokerLink:
 
     def _connection_failed(self, err: Exception, *, connected: bool) -> None:
         if self.connections == 0 and credentials_refused(err):
-            raise ServiceError(f"broker {self.where} refused the credentials of "
-                               f"{self.broker.username!r}: {err}") from None
+            raise ServiceError(
+                f"broker {self.where} refused the credentials of {self.broker.username!r}: {err}"
+            ) from None
         if connected:
             log.warning("connection to %s lost: %s", self.where, err)
         else:
@@ -243,8 +270,12 @@ class BrokerLink:
         if self.leaving and self.drained.is_set():
             return  # the owner's offline status has been delivered
         try:
-            await asyncio.wait_for(client.publish(self.topics.status, self._offline("rig service stopped"), qos=proto.QOS_STATUS,
-                                                  retain=True), 3.0)
+            await asyncio.wait_for(
+                client.publish(
+                    self.topics.status, self._offline("rig service stopped"), qos=proto.QOS_STATUS, retain=True
+                ),
+                3.0,
+            )
         except Exception as err:  # noqa: BLE001 - the link may be gone: the last will covers that
             log.debug("could not publish offline on the way out: %s", err)
 

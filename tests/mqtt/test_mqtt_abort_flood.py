@@ -35,17 +35,39 @@ def bound(tmp_path_factory):
 
 @pytest.fixture
 def running(bound, tmp_path):
-    svc = Service(["--sim", "--broker", bound.service_url, "--rig-id", RIG, "--username", "orbitrig-service",
-                   "--matrices", str(write_matrices(tmp_path / "matrices")), "--out", str(tmp_path / "runs"),
-                   "--speedup", "5", "--confirm", "auto"], tmp_path, env=ENV)
+    svc = Service(
+        [
+            "--sim",
+            "--broker",
+            bound.service_url,
+            "--rig-id",
+            RIG,
+            "--username",
+            "orbitrig-service",
+            "--matrices",
+            str(write_matrices(tmp_path / "matrices")),
+            "--out",
+            str(tmp_path / "runs"),
+            "--speedup",
+            "5",
+            "--confirm",
+            "auto",
+        ],
+        tmp_path,
+        env=ENV,
+    )
     # status and progress only: with the flood's commands and replies a viewer's own
     # queue at the broker would overflow too (the broker drops what does not fit)
     rc = RigClient(bound, RIG, svc, watch=("status", "progress"))
     try:
         rc.status("idle", timeout=30)
         rc.send({"cmd": "start", "matrix": "long"})
-        rc._wait(lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] >= 10, 60, 0,
-                 "both drives at speed, the orbit being acquired")
+        rc._wait(
+            lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] >= 10,
+            60,
+            0,
+            "both drives at speed, the orbit being acquired",
+        )
         yield svc, rc
     finally:
         rc.close()
@@ -54,16 +76,31 @@ def running(bound, tmp_path):
 
 def test_abort_gets_through_a_flood_of_commands(bound, running, tmp_path):
     svc, rc = running
-    flood = subprocess.Popen([sys.executable, str(FLOODER), "--port", str(bound.port), "--prefix", rc.prefix,
-                              "--count", "5000", "--qos", "1", "--password", ACCOUNTS["operator"]],
-                             stdout=subprocess.PIPE)
+    flood = subprocess.Popen(
+        [
+            sys.executable,
+            str(FLOODER),
+            "--port",
+            str(bound.port),
+            "--prefix",
+            rc.prefix,
+            "--count",
+            "5000",
+            "--qos",
+            "1",
+            "--password",
+            ACCOUNTS["operator"],
+        ],
+        stdout=subprocess.PIPE,
+    )
     try:
         assert flood.stdout.readline().strip() == b"half"
         mark = rc.watch.mark()
         t_abort = time.monotonic()
         assert bound.pub(f"{rc.prefix}/abort", json.dumps({"cmd": "abort", "id": "operator-abort"})).returncode == 0
-        stopping = rc._wait(lambda m: m.topic.endswith("/status") and m.json()["state"] == "stopping",
-                            20, mark, "status stopping")
+        stopping = rc._wait(
+            lambda m: m.topic.endswith("/status") and m.json()["state"] == "stopping", 20, mark, "status stopping"
+        )
         assert stopping.t - t_abort < 3.0, f"abort took {stopping.t - t_abort:.2f} s to reach the executor"
         ended = rc.status("idle", timeout=60, start=mark)
         assert "aborted" in ended["message"], ended

@@ -11,8 +11,7 @@ from support.mqtt_helpers import ACCOUNTS, Watcher
 
 
 def _sub_once(broker, user, password=None):
-    args = ["mosquitto_sub", "-h", "127.0.0.1", "-p", str(broker.port), "-t", "orbitrig/#",
-            "-C", "1", "-W", "3"]
+    args = ["mosquitto_sub", "-h", "127.0.0.1", "-p", str(broker.port), "-t", "orbitrig/#", "-C", "1", "-W", "3"]
     if user:
         args += ["-u", user, "-P", password if password is not None else ACCOUNTS[user]]
     return subprocess.run(args, capture_output=True, text=True, timeout=10)
