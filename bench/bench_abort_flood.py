@@ -114,7 +114,7 @@ async def one_trial(
     op.send("start", matrix="bench")
     await asyncio.to_thread(op.wait, lambda: op.progress_revs >= 20, 60)  # both drives at speed
     before = dict(service.triage.counts)
-    service.abort_arrived = None
+    service.abort_arrived, service.abort_via = None, "-"
     lag.take()
     proc = await flood(broker.port, op.prefix, count, qos)
     op.seen.clear()
@@ -136,6 +136,7 @@ async def one_trial(
         "outcome": op.status.get("message", ""),
         "flood": summary,
         "service": counted,
+        "via": service.abort_via,
         "lag_ms": worst_lag * 1e3,
     }
 
@@ -153,9 +154,17 @@ def first_stops(sim, since: float) -> dict[int, float]:
 
 
 def timed_arrival(service) -> None:
-    """Note when the service takes the bench's abort (``service.abort_arrived``, time.monotonic)."""
-    handle = service.handle_command
+    """Note when the service takes the bench's abort (``service.abort_arrived``, time.monotonic)
+    and off which connection (``service.abort_via``: abort, main)."""
+    handle, urgent = service.handle_command, service.triage.urgent
     service.abort_arrived = None
+
+    def noted_urgent(payload: bytes, retained: bool, **kw) -> None:
+        if service.abort_arrived is None and b"bench-abort-" in payload:
+            service.abort_via = str(kw.get("via", "main"))
+        urgent(payload, retained, **kw)
+
+    service.triage.urgent = noted_urgent
 
     def timed_handle(payload: bytes, *, retained: bool = False) -> None:
         if service.abort_arrived is None and b"bench-abort-" in payload:
@@ -165,10 +174,11 @@ def timed_arrival(service) -> None:
     service.handle_command = timed_handle
 
 
-async def main(trials: int, speedup: float, count: int, modes: list[str], via: str) -> int:
+async def main(trials: int, speedup: float, count: int, modes: list[str], via: str, abort_connection: bool) -> int:
     from orbitrig.cli.serve import build_service
     from orbitrig.config import load_rig
     from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
+    from orbitrig.service.settings import AbortAccount
     from orbitrig.cli.simulated_rig import simulated_rig
 
     logging.basicConfig(level=logging.WARNING)
@@ -183,8 +193,13 @@ async def main(trials: int, speedup: float, count: int, modes: list[str], via: s
     try:
         async with simulated_rig(speedup) as (sim_rig, _):
             settings = ServiceSettings(rig_id="bench", matrices_dir=work / "matrices")
+            # the shipped setup: the service's account and its abort connection's (config/mosquitto/)
+            abort = AbortAccount("orbitrig-service-abort", ACCOUNTS["orbitrig-service-abort"])
             creds = BrokerSettings.from_url(
-                broker.service_url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]
+                broker.service_url,
+                username="orbitrig-service",
+                password=ACCOUNTS["orbitrig-service"],
+                abort=abort if abort_connection else None,
             )
             service = build_service(load_rig(), settings, creds, out=work / "runs", sim_rig=sim_rig, confirm="auto")
             timed_arrival(service)
@@ -203,7 +218,7 @@ async def main(trials: int, speedup: float, count: int, modes: list[str], via: s
                         load = os.getloadavg()[0]
                         print(
                             f"QoS {qos:>5} trial {trial + 1} (load {load:.1f}): abort -> both drives stopping "
-                            f"{r['stop_ms']:7.1f} ms (in the service after {r['arrive_ms']:.1f} ms), status stopping {r['stopping_ms']:7.1f} ms, "
+                            f"{r['stop_ms']:7.1f} ms (in the service after {r['arrive_ms']:.1f} ms, {r['via']} connection), status stopping {r['stopping_ms']:7.1f} ms, "
                             f"{r['outcome']!r}, worst loop lag {r['lag_ms']:.0f} ms | flood {r['flood']} | service {r['service']}"
                             f"{'' if ok else '  <-- MISS'}",
                             flush=True,
@@ -235,5 +250,11 @@ if __name__ == "__main__":
         choices=("abort", "cmd"),
         help="the abort's topic: <prefix>/abort (default) or <prefix>/cmd, behind the flood",
     )
+    ap.add_argument(
+        "--no-abort-connection",
+        dest="abort_connection",
+        action="store_false",
+        help="the service without its abort connection (aborts share the main connection with the flood)",
+    )
     args = ap.parse_args()
-    sys.exit(asyncio.run(main(args.trials, args.speedup, args.count, args.qos, args.via)))
+    sys.exit(asyncio.run(main(args.trials, args.speedup, args.count, args.qos, args.via, args.abort_connection)))

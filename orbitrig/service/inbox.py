@@ -139,6 +139,8 @@ class CommandTriage:
         self._logged = collections.Counter()
         self._logged_at = 0.0
         self.copies = AbortCopies()
+        #: called after each stop or abort carried out at once (the drives' stop under way)
+        self.after_at_once: Callable[[], None] = lambda: None
 
     def at_once(self, payload: bytes, retained: bool) -> bool:
         """Carry out a stop or abort now (True); False: the command is to wait its turn."""
@@ -150,6 +152,7 @@ class CommandTriage:
             return False
         self.counts["at once"] += 1
         self._handle(payload, retained=retained)
+        self.after_at_once()
         return True
 
     def urgent(self, payload: bytes, retained: bool, *, via: Connection = Connection.MAIN) -> None:
@@ -168,6 +171,7 @@ class CommandTriage:
         if name in AT_ONCE:
             self.counts["at once"] += 1
             self._handle(payload, retained=retained)
+            self.after_at_once()
             log.info("abort topic: %s read off the %s connection", name, via)  # after: the stop first
             return
         self._reply(

@@ -55,6 +55,7 @@ from orbitrig.service.inbox import CommandTriage
 from orbitrig.service.abort_link import AbortLink
 from orbitrig.service.catalog_feed import CatalogFeed
 from orbitrig.service.commands import CommandHandling
+from orbitrig.service.flood_read import STOP_HOLD_S
 from orbitrig.service import protocol as proto
 from orbitrig.service.link import BrokerLink
 from orbitrig.service.settings import (  # noqa: F401 - the service's public names
@@ -110,6 +111,7 @@ class RigService(CommandHandling):
         )
         #: the second connection, for <prefix>/abort alone (None: not configured)
         self.abort_link = AbortLink(broker, broker.abort, settings, self.topics, self.triage) if broker.abort else None
+        self.triage.after_at_once = self._let_the_stop_go_first
         self._tg: asyncio.TaskGroup | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread = threading.get_ident()
@@ -171,6 +173,13 @@ class RigService(CommandHandling):
         # (a fault inside the group cancels the connection task, whose session
         # publishes offline on its way out: BrokerLink._leave)
         await self.link.discard_session()
+
+    def _let_the_stop_go_first(self) -> None:
+        """After a stop or abort: while the abort connection is up to take the next one,
+        the main connection (a flood, maybe) is left unread for STOP_HOLD_S, so that the
+        drives' stop words get the processor first."""
+        if self.abort_link is not None and self.abort_link.up:
+            self.link.hold_reading(STOP_HOLD_S)
 
     def _offline_status(self, message: str) -> bytes:
         return proto.status_payload(proto.OFFLINE, self._run_id, None, message)
