@@ -12,12 +12,19 @@ commands (QoS 1, or alternating QoS 0 and 1); when the broker has taken half of
 them, the operator (paho, own connection) publishes `abort`. On one clock:
 
   t_pub       just before the operator's publish call;
-  t_stop      both simulated drives applied a stopping control word;
+  t_arrive    the service took the abort (and off which connection: its abort
+              connection, or the main one, whichever brought it first);
+  t_stop      both simulated drives applied a stopping control word (each drive's
+              time printed too: the first waits for a Modbus request in flight,
+              the second for the first's answer);
   t_stopping  the operator saw status `stopping`.
 
-Printed per trial: t_stop - t_pub (the figure held to 200 ms), t_stopping -
-t_pub, the run's outcome, the flood's replies (ok / busy / refused) and what
-the service counted (commands received, answered busy, dropped).
+Printed per trial: t_stop - t_pub (the figure held to 200 ms), t_arrive - t_pub,
+t_stopping - t_pub, the run's outcome, the event loop's worst lag, the flood's
+replies (ok / busy / refused) and what the service counted (commands received,
+answered busy, dropped, second copies of the abort). The service connects as the
+shipped config sets it up (config/mosquitto/: its account and its abort account);
+``--no-abort-connection`` runs it without the second connection.
 Exit status 1 when any trial misses 200 ms or does not end aborted.
 
     python3 bench/bench_abort_flood.py [--trials 3] [--count 5000] [--qos 1 mixed]
@@ -131,6 +138,7 @@ async def one_trial(
     stopping_ms = (op.seen["stopping"] - t_pub) * 1e3 if "stopping" in op.seen else float("inf")
     return {
         "stop_ms": stop_ms,
+        "drives_ms": "/".join(f"{(stops[d] - t_pub) * 1e3:.0f}" for d in sorted(stops)),
         "arrive_ms": arrive_ms,
         "stopping_ms": stopping_ms,
         "outcome": op.status.get("message", ""),
@@ -218,7 +226,7 @@ async def main(trials: int, speedup: float, count: int, modes: list[str], via: s
                         load = os.getloadavg()[0]
                         print(
                             f"QoS {qos:>5} trial {trial + 1} (load {load:.1f}): abort -> both drives stopping "
-                            f"{r['stop_ms']:7.1f} ms (in the service after {r['arrive_ms']:.1f} ms, {r['via']} connection), status stopping {r['stopping_ms']:7.1f} ms, "
+                            f"{r['stop_ms']:7.1f} ms (in the service after {r['arrive_ms']:.1f} ms, {r['via']} connection; drive 1/2 {r['drives_ms']} ms), status stopping {r['stopping_ms']:7.1f} ms, "
                             f"{r['outcome']!r}, worst loop lag {r['lag_ms']:.0f} ms | flood {r['flood']} | service {r['service']}"
                             f"{'' if ok else '  <-- MISS'}",
                             flush=True,
