@@ -72,6 +72,9 @@ class AbortLink:
                 err,
                 self.topics.abort,
             )
+        except Exception:  # a fault of this connection must not end the service: the main one goes on
+            self.refused = "failed"
+            log.exception("abort connection failed; stop and abort are still taken on the main connection")
 
     def _client(self) -> Any:
         import aiomqtt
