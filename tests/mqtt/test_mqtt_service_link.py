@@ -218,6 +218,28 @@ def test_cli_refused_credentials_exit_1(broker, tmp_path):
     assert "refused the credentials of 'orbitrig-service'" in done.stderr
 
 
+@pytest.mark.parametrize(
+    "args, why",
+    [
+        (["--no-abort-connection", "--abort-username", "x"], "--no-abort-connection: no --abort-username"),
+        (["--abort-password-file", "{open}"], "--abort-password-file: {open} is accessible by other users"),
+        (["--abort-username", "x", "--abort-password-file", "{empty}"], "--abort-password-file: {empty} is empty"),
+    ],
+)
+def test_cli_checks_the_abort_account_options(broker, tmp_path, args, why):
+    files = {"open": tmp_path / "open", "empty": tmp_path / "empty"}
+    files["open"].write_text("pw\n")
+    files["open"].chmod(0o644)
+    files["empty"].write_text("")
+    files["empty"].chmod(0o600)
+    names = {k: str(v) for k, v in files.items()}
+    env = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}
+    args = [a.format(**names) for a in args]
+    done = _serve_cli("--broker", broker.url, "--username", "orbitrig-service", *args, env=env)
+    assert done.returncode == 2, done.stderr
+    assert why.format(**names) in done.stderr and "Traceback" not in done.stderr
+
+
 @pytest.mark.parametrize("mode", [0o644, 0o640, 0o604, 0o606, 0o620])
 def test_cli_refuses_a_password_file_others_can_access(broker, tmp_path, mode):
     pw = tmp_path / "pw"
