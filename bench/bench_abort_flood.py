@@ -12,12 +12,19 @@ commands (QoS 1, or alternating QoS 0 and 1); when the broker has taken half of
 them, the operator (paho, own connection) publishes `abort`. On one clock:
 
   t_pub       just before the operator's publish call;
-  t_stop      both simulated drives applied a stopping control word;
+  t_arrive    the service took the abort (and off which connection: its abort
+              connection, or the main one, whichever brought it first);
+  t_stop      both simulated drives applied a stopping control word (each drive's
+              time printed too: the first waits for a Modbus request in flight,
+              the second for the first's answer);
   t_stopping  the operator saw status `stopping`.
 
-Printed per trial: t_stop - t_pub (the figure held to 200 ms), t_stopping -
-t_pub, the run's outcome, the flood's replies (ok / busy / refused) and what
-the service counted (commands received, answered busy, dropped).
+Printed per trial: t_stop - t_pub (the figure held to 200 ms), t_arrive - t_pub,
+t_stopping - t_pub, the run's outcome, the event loop's worst lag, the flood's
+replies (ok / busy / refused) and what the service counted (commands received,
+answered busy, dropped, second copies of the abort). The service connects as the
+shipped config sets it up (config/mosquitto/: its account and its abort account);
+``--no-abort-connection`` runs it without the second connection.
 Exit status 1 when any trial misses 200 ms or does not end aborted.
 
     python3 bench/bench_abort_flood.py [--trials 3] [--count 5000] [--qos 1 mixed]
@@ -70,8 +77,20 @@ class TimedOperator(Operator):
 async def flood(port: int, prefix: str, count: int, qos: str) -> asyncio.subprocess.Process:
     """Start the flooding client; returns it once half the flood is out."""
     proc = await asyncio.create_subprocess_exec(
-        sys.executable, str(FLOODER), "--port", str(port), "--prefix", prefix, "--count", str(count),
-        "--qos", qos, "--password", ACCOUNTS["operator"], stdout=asyncio.subprocess.PIPE)
+        sys.executable,
+        str(FLOODER),
+        "--port",
+        str(port),
+        "--prefix",
+        prefix,
+        "--count",
+        str(count),
+        "--qos",
+        qos,
+        "--password",
+        ACCOUNTS["operator"],
+        stdout=asyncio.subprocess.PIPE,
+    )
     line = await asyncio.wait_for(proc.stdout.readline(), 120)
     if line.strip() != b"half":
         raise RuntimeError(f"flooder: {line!r}")
@@ -95,13 +114,14 @@ class LoopLag:
         return worst
 
 
-async def one_trial(op: TimedOperator, service, broker: Broker, qos: str, count: int,
-                    sim, lag: LoopLag, via: str) -> dict:
+async def one_trial(
+    op: TimedOperator, service, broker: Broker, qos: str, count: int, sim, lag: LoopLag, via: str
+) -> dict:
     op.progress_revs = 0
     op.send("start", matrix="bench")
     await asyncio.to_thread(op.wait, lambda: op.progress_revs >= 20, 60)  # both drives at speed
     before = dict(service.triage.counts)
-    service.abort_arrived = None
+    service.abort_arrived, service.abort_via = None, "-"
     lag.take()
     proc = await flood(broker.port, op.prefix, count, qos)
     op.seen.clear()
@@ -116,8 +136,17 @@ async def one_trial(op: TimedOperator, service, broker: Broker, qos: str, count:
     stop_ms = (max(stops.values()) - t_pub) * 1e3 if len(stops) == 2 else float("inf")
     arrive_ms = (service.abort_arrived - t_pub) * 1e3 if service.abort_arrived else float("inf")
     stopping_ms = (op.seen["stopping"] - t_pub) * 1e3 if "stopping" in op.seen else float("inf")
-    return {"stop_ms": stop_ms, "arrive_ms": arrive_ms, "stopping_ms": stopping_ms, "outcome": op.status.get("message", ""),
-            "flood": summary, "service": counted, "lag_ms": worst_lag * 1e3}
+    return {
+        "stop_ms": stop_ms,
+        "drives_ms": "/".join(f"{(stops[d] - t_pub) * 1e3:.0f}" for d in sorted(stops)),
+        "arrive_ms": arrive_ms,
+        "stopping_ms": stopping_ms,
+        "outcome": op.status.get("message", ""),
+        "flood": summary,
+        "service": counted,
+        "via": service.abort_via,
+        "lag_ms": worst_lag * 1e3,
+    }
 
 
 def first_stops(sim, since: float) -> dict[int, float]:
@@ -133,9 +162,17 @@ def first_stops(sim, since: float) -> dict[int, float]:
 
 
 def timed_arrival(service) -> None:
-    """Note when the service takes the bench's abort (``service.abort_arrived``, time.monotonic)."""
-    handle = service.handle_command
+    """Note when the service takes the bench's abort (``service.abort_arrived``, time.monotonic)
+    and off which connection (``service.abort_via``: abort, main)."""
+    handle, urgent = service.handle_command, service.triage.urgent
     service.abort_arrived = None
+
+    def noted_urgent(payload: bytes, retained: bool, **kw) -> None:
+        if service.abort_arrived is None and b"bench-abort-" in payload:
+            service.abort_via = str(kw.get("via", "main"))
+        urgent(payload, retained, **kw)
+
+    service.triage.urgent = noted_urgent
 
     def timed_handle(payload: bytes, *, retained: bool = False) -> None:
         if service.abort_arrived is None and b"bench-abort-" in payload:
@@ -145,27 +182,34 @@ def timed_arrival(service) -> None:
     service.handle_command = timed_handle
 
 
-async def main(trials: int, speedup: float, count: int, modes: list[str], via: str) -> int:
+async def main(trials: int, speedup: float, count: int, modes: list[str], via: str, abort_connection: bool) -> int:
     from orbitrig.cli.serve import build_service
     from orbitrig.config import load_rig
     from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
+    from orbitrig.service.settings import AbortAccount
     from orbitrig.cli.simulated_rig import simulated_rig
 
     logging.basicConfig(level=logging.WARNING)
     work = Path(tempfile.mkdtemp(prefix="bench-abort-flood-"))
     (work / "matrices").mkdir()
     (work / "matrices" / "bench.toml").write_text(  # long blocks: abort lands mid-acquisition
-        MATRIX.format(name="bench", revs=400, ratios="[0.5, 0.7, 0.9]", directions='["forward"]'))
+        MATRIX.format(name="bench", revs=400, ratios="[0.5, 0.7, 0.9]", directions='["forward"]')
+    )
     broker = Broker(work / "broker", bind_ids=True)
     broker.start()
     failures = 0
     try:
         async with simulated_rig(speedup) as (sim_rig, _):
             settings = ServiceSettings(rig_id="bench", matrices_dir=work / "matrices")
-            creds = BrokerSettings.from_url(broker.service_url, username="orbitrig-service",
-                                            password=ACCOUNTS["orbitrig-service"])
-            service = build_service(load_rig(), settings, creds, out=work / "runs", sim_rig=sim_rig,
-                                    confirm="auto")
+            # the shipped setup: the service's account and its abort connection's (config/mosquitto/)
+            abort = AbortAccount("orbitrig-service-abort", ACCOUNTS["orbitrig-service-abort"])
+            creds = BrokerSettings.from_url(
+                broker.service_url,
+                username="orbitrig-service",
+                password=ACCOUNTS["orbitrig-service"],
+                abort=abort if abort_connection else None,
+            )
+            service = build_service(load_rig(), settings, creds, out=work / "runs", sim_rig=sim_rig, confirm="auto")
             timed_arrival(service)
             shutdown = asyncio.Event()
             serving = asyncio.create_task(service.serve(shutdown), name="bench-service")
@@ -180,10 +224,13 @@ async def main(trials: int, speedup: float, count: int, modes: list[str], via: s
                         ok = r["stop_ms"] < TARGET_MS and "aborted" in r["outcome"]
                         failures += not ok
                         load = os.getloadavg()[0]
-                        print(f"QoS {qos:>5} trial {trial + 1} (load {load:.1f}): abort -> both drives stopping "
-                              f"{r['stop_ms']:7.1f} ms (in the service after {r['arrive_ms']:.1f} ms), status stopping {r['stopping_ms']:7.1f} ms, "
-                              f"{r['outcome']!r}, worst loop lag {r['lag_ms']:.0f} ms | flood {r['flood']} | service {r['service']}"
-                              f"{'' if ok else '  <-- MISS'}", flush=True)
+                        print(
+                            f"QoS {qos:>5} trial {trial + 1} (load {load:.1f}): abort -> both drives stopping "
+                            f"{r['stop_ms']:7.1f} ms (in the service after {r['arrive_ms']:.1f} ms, {r['via']} connection; drive 1/2 {r['drives_ms']} ms), status stopping {r['stopping_ms']:7.1f} ms, "
+                            f"{r['outcome']!r}, worst loop lag {r['lag_ms']:.0f} ms | flood {r['flood']} | service {r['service']}"
+                            f"{'' if ok else '  <-- MISS'}",
+                            flush=True,
+                        )
             finally:
                 op.close()
                 lagging.cancel()
@@ -192,8 +239,10 @@ async def main(trials: int, speedup: float, count: int, modes: list[str], via: s
     finally:
         broker.stop()
     dropped = broker.log.read_text().count("Outgoing messages are being dropped")
-    print(f"\nbroker reported dropping queued messages {dropped} times (its queue limit, by design); "
-          f"target < {TARGET_MS:.0f} ms and run aborted: {'met' if not failures else f'{failures} trial(s) missed'}")
+    print(
+        f"\nbroker reported dropping queued messages {dropped} times (its queue limit, by design); "
+        f"target < {TARGET_MS:.0f} ms and run aborted: {'met' if not failures else f'{failures} trial(s) missed'}"
+    )
     return 1 if failures else 0
 
 
@@ -203,7 +252,17 @@ if __name__ == "__main__":
     ap.add_argument("--speedup", type=float, default=5.0, help="simulator speed-up")
     ap.add_argument("--count", type=int, default=5000)
     ap.add_argument("--qos", nargs="+", default=["1", "mixed"], choices=("1", "mixed"))
-    ap.add_argument("--via", default="abort", choices=("abort", "cmd"),
-                    help="the abort's topic: <prefix>/abort (default) or <prefix>/cmd, behind the flood")
+    ap.add_argument(
+        "--via",
+        default="abort",
+        choices=("abort", "cmd"),
+        help="the abort's topic: <prefix>/abort (default) or <prefix>/cmd, behind the flood",
+    )
+    ap.add_argument(
+        "--no-abort-connection",
+        dest="abort_connection",
+        action="store_false",
+        help="the service without its abort connection (aborts share the main connection with the flood)",
+    )
     args = ap.parse_args()
-    sys.exit(asyncio.run(main(args.trials, args.speedup, args.count, args.qos, args.via)))
+    sys.exit(asyncio.run(main(args.trials, args.speedup, args.count, args.qos, args.via, args.abort_connection)))

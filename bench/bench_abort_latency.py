@@ -109,7 +109,8 @@ async def main(trials: int, speedup: float) -> None:
     work = Path(tempfile.mkdtemp(prefix="bench-abort-"))
     (work / "matrices").mkdir()
     (work / "matrices" / "bench.toml").write_text(  # long blocks: abort lands mid-acquisition
-        MATRIX.format(name="bench", revs=200, ratios="[0.5, 0.7, 0.9]", directions='["forward"]'))
+        MATRIX.format(name="bench", revs=200, ratios="[0.5, 0.7, 0.9]", directions='["forward"]')
+    )
     broker = Broker(work / "broker")
     broker.start()
     stops: dict[int, float] = {}
@@ -120,10 +121,10 @@ async def main(trials: int, speedup: float) -> None:
         async with SimRig(speedup=speedup, adc_pty=False) as sim_rig:
             watch_control_words(sim_rig, stops, words, armed)
             settings = ServiceSettings(rig_id="bench", matrices_dir=work / "matrices")
-            creds = BrokerSettings.from_url(broker.url, username="orbitrig-service",
-                                            password=ACCOUNTS["orbitrig-service"])
-            service = build_service(load_rig(), settings, creds, out=work / "runs", sim_rig=sim_rig,
-                                    confirm="auto")
+            creds = BrokerSettings.from_url(
+                broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]
+            )
+            service = build_service(load_rig(), settings, creds, out=work / "runs", sim_rig=sim_rig, confirm="auto")
             handle = service.handle_command
 
             def timed_handle(payload: bytes, *, retained: bool = False) -> None:
@@ -152,12 +153,20 @@ async def main(trials: int, speedup: float) -> None:
                     if len(stops) != 2:
                         raise RuntimeError(f"trial {trial}: stop commands seen for drives {sorted(stops)} only")
                     t_arr = arrivals[0]
-                    rows.append(((t_arr - t_pub) * 1e3, (max(stops.values()) - t_arr) * 1e3,
-                                 (max(stops.values()) - t_pub) * 1e3))
-                    print(f"trial {trial + 1}: spin {spin:6.0f} rpm, orbit {orbit:+6.0f} rpm | "
-                          f"broker {rows[-1][0]:6.1f} ms + service/executor/Modbus {rows[-1][1]:6.1f} ms "
-                          f"= abort -> both drives stopping {rows[-1][2]:6.1f} ms "
-                          f"(CW {words[1]:#06x}, {words[2]:#06x})", flush=True)
+                    rows.append(
+                        (
+                            (t_arr - t_pub) * 1e3,
+                            (max(stops.values()) - t_arr) * 1e3,
+                            (max(stops.values()) - t_pub) * 1e3,
+                        )
+                    )
+                    print(
+                        f"trial {trial + 1}: spin {spin:6.0f} rpm, orbit {orbit:+6.0f} rpm | "
+                        f"broker {rows[-1][0]:6.1f} ms + service/executor/Modbus {rows[-1][1]:6.1f} ms "
+                        f"= abort -> both drives stopping {rows[-1][2]:6.1f} ms "
+                        f"(CW {words[1]:#06x}, {words[2]:#06x})",
+                        flush=True,
+                    )
             finally:
                 op.close()
                 shutdown.set()
@@ -165,9 +174,11 @@ async def main(trials: int, speedup: float) -> None:
     finally:
         broker.stop()
     total = [r[2] for r in rows]
-    print(f"\nabort latency over {len(total)} trials (publish -> both drives commanded to stop): "
-          f"median {statistics.median(total):.1f} ms, min {min(total):.1f} ms, max {max(total):.1f} ms "
-          f"(target < 200 ms: {'met' if max(total) < 200 else 'NOT met'})")
+    print(
+        f"\nabort latency over {len(total)} trials (publish -> both drives commanded to stop): "
+        f"median {statistics.median(total):.1f} ms, min {min(total):.1f} ms, max {max(total):.1f} ms "
+        f"(target < 200 ms: {'met' if max(total) < 200 else 'NOT met'})"
+    )
 
 
 if __name__ == "__main__":

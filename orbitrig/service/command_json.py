@@ -49,8 +49,10 @@ class CommandObject:
     def problems(self) -> list[str]:
         """The reasons to refuse it, for the reply (empty: nothing to object to)."""
         out = [f"key {k!r} given more than once: ambiguous, refused" for k in self.duplicates]
-        out += [f"field {k!r} cannot be encoded as UTF-8 (a lone surrogate escape such as \\ud800)"
-                for k in self.unencodable]
+        out += [
+            f"field {k!r} cannot be encoded as UTF-8 (a lone surrogate escape such as \\ud800)"
+            for k in self.unencodable
+        ]
         return out
 
 
@@ -78,8 +80,15 @@ def nesting(text: str) -> int:
 
 def type_name(value: Any) -> str:
     """The JSON name of a parsed value's type, for reasons."""
-    return {dict: "object", list: "array", str: "string", bool: "boolean",
-            int: "number", float: "number", type(None): "null"}.get(type(value), type(value).__name__)
+    return {
+        dict: "object",
+        list: "array",
+        str: "string",
+        bool: "boolean",
+        int: "number",
+        float: "number",
+        type(None): "null",
+    }.get(type(value), type(value).__name__)
 
 
 def read_object(payload: bytes | bytearray | str) -> CommandObject:
@@ -132,6 +141,7 @@ def peek(payload: bytes) -> tuple[str | None, str | None]:
     if "cmd" in found.duplicates:
         return None, None
     name, cid = found.fields.get("cmd"), found.fields.get("id")
-    return (name if isinstance(name, str) else None,
-            cid if isinstance(cid, str) and "id" not in found.unencodable and "id" not in found.duplicates
-            else None)
+    return (
+        name if isinstance(name, str) else None,
+        cid if isinstance(cid, str) and "id" not in found.unencodable and "id" not in found.duplicates else None,
+    )

@@ -3,7 +3,7 @@ costs it little and holds back neither a stop nor the drives' poll.
 
 aiomqtt runs paho's ``loop_read`` from the event loop each time the socket is
 readable; paho then reads one packet and decodes it whole (properties, a message
-object, the subscription match) before the service sees it. Two adjustments of
+object, the subscription match) before the service sees it. Three adjustments of
 that paho client (aiomqtt gives no public handle on it):
 
 - :func:`read_in_bursts`: one turn of the loop reads up to ``burst`` packets
@@ -11,6 +11,9 @@ that paho client (aiomqtt gives no public handle on it):
   socket, an abort behind it), but at most ``budget_s`` s of reading, and it ends
   right after a message carried out at once (a stop or an abort), so the drives'
   stop goes out before anything more is read;
+- :func:`hold_reading`: the socket left unread for a moment (after a stop or an
+  abort, while the abort connection is up to take the next one), so that the
+  drives' stop words get the processor rather than the flood;
 - :func:`shed_before_decoding`: a PUBLISH on the command topic is first offered,
   as raw bytes, to ``shed(payload, retained)``; a command the service has no room
   for is answered busy or dropped there (and acknowledged to the broker) without
@@ -29,10 +32,18 @@ from typing import Any
 READ_BURST = 64
 #: s of reading in one turn of the event loop, at most (then the loop's other work goes on)
 READ_BUDGET_S = 0.005
+#: s the main connection is left unread after a stop or an abort (while the abort
+#: connection is up): about the time the drives' two stop words take on a busy host
+STOP_HOLD_S = 0.15
 
 
-def read_in_bursts(paho_client: Any, burst: int = READ_BURST, *, taken_at_once: Callable[[], int] = lambda: 0,
-                   budget_s: float = READ_BUDGET_S) -> None:
+def read_in_bursts(
+    paho_client: Any,
+    burst: int = READ_BURST,
+    *,
+    taken_at_once: Callable[[], int] = lambda: 0,
+    budget_s: float = READ_BUDGET_S,
+) -> None:
     """Make ``paho_client.loop_read`` read up to ``burst`` packets while the socket has
     more, for at most ``budget_s`` s, and stop right after a message carried out at once
     (``taken_at_once()``, a count, changed)."""
@@ -55,6 +66,37 @@ def read_in_bursts(paho_client: Any, burst: int = READ_BURST, *, taken_at_once: 
     paho_client.loop_read = loop_read
 
 
+def hold_reading(paho_client: Any, seconds: float) -> bool:
+    """Leave ``paho_client``'s socket unread for ``seconds`` s: the event loop stops watching
+    it and watches it again afterwards with the same callback (aiomqtt's reader), unless the
+    socket was closed meanwhile. False if there was nothing to hold (no socket, not watched,
+    held already, or a loop without a selector to ask for the callback)."""
+    import asyncio
+
+    sock = paho_client.socket()
+    loop = asyncio.get_running_loop()
+    selector = getattr(loop, "_selector", None)
+    if sock is None or selector is None:
+        return False
+    fd = sock.fileno()
+    try:
+        reader = selector.get_key(fd).data[0]
+    except (KeyError, ValueError):
+        return False
+    if reader is None:
+        return False
+    callback, args = reader._callback, reader._args  # (remove_reader clears them)
+    if not loop.remove_reader(fd):
+        return False
+
+    def read_again() -> None:
+        if paho_client.socket() is sock and sock.fileno() == fd:
+            loop.add_reader(fd, callback, *(args or ()))
+
+    loop.call_later(seconds, read_again)
+    return True
+
+
 def shed_before_decoding(paho_client: Any, topic: str, shed: Callable[[bytes, bool], bool]) -> None:
     """Offer every QoS 0 or 1 PUBLISH on ``topic`` (MQTT 5) to ``shed(payload, retained)``
     before paho decodes it; True: dealt with (paho only acknowledges a QoS 1 one)."""
@@ -71,7 +113,7 @@ def shed_before_decoding(paho_client: Any, topic: str, shed: Callable[[bytes, bo
         end = 2 + int.from_bytes(raw[:2], "big")
         if raw[2:end] != wanted:
             return decode()
-        mid = int.from_bytes(raw[end:end + 2], "big") if qos else 0
+        mid = int.from_bytes(raw[end : end + 2], "big") if qos else 0
         start = _after_properties(raw, end + (2 if qos else 0))
         if start is None or not shed(bytes(raw[start:]), bool(fixed & 0x01)):
             return decode()

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import asyncio
 import collections
+import enum
 import logging
 import time
 from collections.abc import Callable
@@ -46,6 +47,8 @@ BUSY_RATE = 50.0
 REPLY_BACKLOG = 256
 #: commands carried out as they arrive (docs/protocols/mqtt.md: always accepted)
 AT_ONCE = proto.ALWAYS_ACCEPTED
+#: s within which the same bytes on <prefix>/abort from the other connection are a second copy
+COPY_WINDOW_S = 30.0
 BUSY = "busy: {n} commands are waiting; this one was not carried out (send it again later)"
 
 
@@ -79,13 +82,54 @@ class Allowance:
         return max(0.0, (1.0 - self._tokens) / self.rate)
 
 
+class Connection(enum.StrEnum):
+    """The service's two connections to the broker that read ``<prefix>/abort``."""
+
+    MAIN = "main"  # the service's session: commands, and stop and abort as a fallback
+    ABORT = "abort"  # its own account, <prefix>/abort alone (orbitrig.service.abort_link)
+
+
+class AbortCopies:
+    """Each message on ``<prefix>/abort`` reaches the service twice, once on each
+    connection that reads it, in either order. The first copy counts; the second,
+    the same bytes from the other connection within ``window_s``, is dropped. Copies
+    are matched one to one, so an operator repeating the same abort is carried out
+    again; a copy one connection never got (it was down) leaves an entry that expires."""
+
+    def __init__(self, window_s: float = COPY_WINDOW_S, keep: int = 256):
+        self.window_s = window_s
+        self._unmatched: dict[Connection, collections.deque[tuple[float, bytes]]] = {
+            c: collections.deque(maxlen=keep) for c in Connection
+        }
+
+    def first(self, via: Connection, payload: bytes) -> bool:
+        """True for the first copy of a message (carry it out), False for its second."""
+        now = time.monotonic()
+        for entries in self._unmatched.values():
+            while entries and now - entries[0][0] > self.window_s:
+                entries.popleft()
+        other = self._unmatched[Connection.ABORT if via is Connection.MAIN else Connection.MAIN]
+        for entry in other:
+            if entry[1] == payload:
+                other.remove(entry)
+                return False
+        self._unmatched[via].append((now, bytes(payload)))
+        return True
+
+
 class CommandTriage:
     """What happens to each command as it arrives. ``handle(payload, retained)``
     carries one out and replies; ``reply(cid, error)`` sends a reply;
     ``reply_backlog()`` is the number of replies not yet sent."""
 
-    def __init__(self, handle: Callable[..., None], reply: Callable[[str | None, str], None],
-                 reply_backlog: Callable[[], int], *, limit: int = WAITING_LIMIT):
+    def __init__(
+        self,
+        handle: Callable[..., None],
+        reply: Callable[[str | None, str], None],
+        reply_backlog: Callable[[], int],
+        *,
+        limit: int = WAITING_LIMIT,
+    ):
         self._handle, self._reply, self._backlog = handle, reply, reply_backlog
         self.limit = limit
         #: received, at once (stop/abort), busy (answered, not carried out), dropped (unanswered)
@@ -94,6 +138,9 @@ class CommandTriage:
         self._busy = Allowance(BUSY_RATE, burst=BUSY_RATE)
         self._logged = collections.Counter()
         self._logged_at = 0.0
+        self.copies = AbortCopies()
+        #: called after each stop or abort carried out at once (the drives' stop under way)
+        self.after_at_once: Callable[[], None] = lambda: None
 
     def at_once(self, payload: bytes, retained: bool) -> bool:
         """Carry out a stop or abort now (True); False: the command is to wait its turn."""
@@ -105,20 +152,32 @@ class CommandTriage:
             return False
         self.counts["at once"] += 1
         self._handle(payload, retained=retained)
+        self.after_at_once()
         return True
 
-    def urgent(self, payload: bytes, retained: bool) -> None:
-        """A message on ``<prefix>/abort``: a stop or abort is carried out now;
-        anything else is refused there (it belongs on ``<prefix>/cmd``)."""
+    def urgent(self, payload: bytes, retained: bool, *, via: Connection = Connection.MAIN) -> None:
+        """A message on ``<prefix>/abort`` read off connection ``via``: a stop or abort
+        is carried out now; anything else is refused there (it belongs on
+        ``<prefix>/cmd``). The copy of a message the other connection delivered
+        already is dropped (:class:`AbortCopies`): carried out and answered once."""
+        if not self.copies.first(via, payload):
+            self.counts["second copy"] += 1
+            log.info(
+                "abort topic: dropped the %s connection's copy of %r (carried out once already)", via, payload[:80]
+            )
+            return
         self.counts["received"] += 1
         name, cid = command_json.peek(payload)
         if name in AT_ONCE:
             self.counts["at once"] += 1
             self._handle(payload, retained=retained)
+            self.after_at_once()
+            log.info("abort topic: %s read off the %s connection", name, via)  # after: the stop first
             return
-        self._reply(cid[:proto.MAX_ID_CHARS] if cid else None,
-                    f"only stop and abort are taken on the abort topic, not {name!r}: "
-                    "send other commands on the command topic")
+        self._reply(
+            cid[: proto.MAX_ID_CHARS] if cid else None,
+            f"only stop and abort are taken on the abort topic, not {name!r}: send other commands on the command topic",
+        )
 
     async def turn(self) -> None:
         """Wait until the next ordinary command may be carried out (``COMMAND_RATE``);
@@ -141,7 +200,7 @@ class CommandTriage:
         if self._backlog() < REPLY_BACKLOG and self._busy.take():
             _, cid = command_json.peek(payload)
             self.counts["busy"] += 1
-            self._reply(cid[:proto.MAX_ID_CHARS] if cid else None, BUSY.format(n=self.limit))
+            self._reply(cid[: proto.MAX_ID_CHARS] if cid else None, BUSY.format(n=self.limit))
         else:
             self.counts["dropped"] += 1
         self._report()
@@ -151,8 +210,13 @@ class CommandTriage:
         if now - self._logged_at < 1.0:
             return
         busy, dropped = (self.counts[k] - self._logged[k] for k in ("busy", "dropped"))
-        log.warning("command flood: %d commands answered busy, %d dropped unanswered since the last report "
-                    "(%d received in all)", busy, dropped, self.counts["received"])
+        log.warning(
+            "command flood: %d commands answered busy, %d dropped unanswered since the last report "
+            "(%d received in all)",
+            busy,
+            dropped,
+            self.counts["received"],
+        )
         self._logged = collections.Counter(self.counts)
         self._logged_at = now
 
@@ -170,8 +234,7 @@ class CommandInbox(asyncio.Queue):
     the queue, or ``overflow(message)`` when ``maxsize`` wait already. Never
     raises (an exception here would end the connection)."""
 
-    def __init__(self, maxsize: int = 0, *, take_now: Callable[[Any], bool],
-                 overflow: Callable[[Any], None]):
+    def __init__(self, maxsize: int = 0, *, take_now: Callable[[Any], bool], overflow: Callable[[Any], None]):
         super().__init__(maxsize)
         self._take_now, self._overflow = take_now, overflow
 

@@ -13,9 +13,10 @@ link (a clean disconnect does not trigger the will).
 Commands come in through :class:`orbitrig.service.inbox.CommandInbox` (stop
 and abort carried out as they are read off the socket, the rest queued and
 bounded). Going out, replies to ordinary commands wait in a lane of their own,
-sent only when nothing else waits: a flood of replies never holds back a
-status or a result. Messages go out ``PUBLISH_WINDOW`` at a time, without
-waiting for each acknowledgement in turn.
+handed over only when no status or result waits, and published beside them:
+a status or a result never waits for the acknowledgements of a flood of
+replies (nor they for its). Each lane sends ``PUBLISH_WINDOW`` messages at a
+time, without waiting for each acknowledgement in turn.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from typing import Any
 
 from orbitrig.service import protocol as proto
 from daq.backoff import Backoff
-from orbitrig.service.flood_read import read_in_bursts, shed_before_decoding
+from orbitrig.service.flood_read import hold_reading, read_in_bursts, shed_before_decoding
 from orbitrig.service.inbox import CommandInbox, CommandTriage
 from orbitrig.service.reconnect import credentials_refused, reconnecting
 from orbitrig.service.settings import BrokerSettings, ServiceError, ServiceSettings
@@ -58,17 +59,27 @@ class BrokerLink:
     retained)`` gets each ordinary message on ``<prefix>/cmd`` in turn,
     ``triage`` sees every one as it arrives."""
 
-    def __init__(self, broker: BrokerSettings, settings: ServiceSettings, topics: proto.Topics, *,
-                 status: Callable[[], bytes], offline: Callable[[str], bytes],
-                 on_command: Callable[[bytes, bool], None], triage: CommandTriage):
+    def __init__(
+        self,
+        broker: BrokerSettings,
+        settings: ServiceSettings,
+        topics: proto.Topics,
+        *,
+        status: Callable[[], bytes],
+        offline: Callable[[str], bytes],
+        on_command: Callable[[bytes, bool], None],
+        triage: CommandTriage,
+    ):
         self.broker, self.settings, self.topics = broker, settings, topics
         self._status, self._offline, self._on_command = status, offline, on_command
         self.triage = triage
         self._out: collections.deque[Outgoing] = collections.deque(maxlen=10_000)
         self._replies: collections.deque[Outgoing] = collections.deque()
-        self._sending: list[Outgoing] = []  # handed to the client, not yet acknowledged
+        #: per lane (behind: replies), handed to the client, not yet acknowledged
+        self._sending: dict[bool, list[Outgoing]] = {False: [], True: []}
         self._inbox: CommandInbox | None = None  # the current connection's
-        self._wake = asyncio.Event()
+        self._paho: Any = None  # the current connection's paho client
+        self._wakes = {False: asyncio.Event(), True: asyncio.Event()}  # per lane (behind: replies)
         self.drained = asyncio.Event()
         self.online = asyncio.Event()
         self.offline = asyncio.Event()
@@ -96,35 +107,48 @@ class BrokerLink:
             return  # the same status waits to be sent already (a repeated "status" command)
         (self._replies if behind else self._out).append(Outgoing(topic, payload, qos, retain, behind))
         self.drained.clear()
-        self._wake.set()
+        self._wakes[behind].set()
 
-    def _next_batch(self) -> list[Outgoing]:
+    @staticmethod
+    def _next_batch(lane: collections.deque[Outgoing]) -> list[Outgoing]:
         batch: list[Outgoing] = []
-        for lane in (self._out, self._replies):
-            while lane and len(batch) < PUBLISH_WINDOW:
-                batch.append(lane.popleft())
+        while lane and len(batch) < PUBLISH_WINDOW:
+            batch.append(lane.popleft())
         return batch
 
     async def _publish_loop(self, client: Any) -> None:
-        """Deliver the outgoing lanes in order, the current status first; what
-        was handed over but not acknowledged when a link dropped goes again."""
-        unsent = [m for m in self._sending if m.topic != self.topics.status]
+        """Deliver the outgoing lanes, the current status first; what was handed
+        over but not acknowledged when a link dropped goes again."""
+        unsent = [m for lane in self._sending.values() for m in lane if m.topic != self.topics.status]
         pending = [m for m in self._out if m.topic != self.topics.status]
         self._out.clear()
         self._out.append(Outgoing(self.topics.status, self._status(), proto.QOS_STATUS, True))
         self._out.extend(m for m in unsent if not m.behind)
         self._out.extend(pending)
         self._replies.extendleft(reversed([m for m in unsent if m.behind]))
-        self._sending = []
+        self._sending = {False: [], True: []}
+        async with asyncio.TaskGroup() as lanes:
+            lanes.create_task(self._lane(client, behind=False), name="mqtt-publish-status")
+            lanes.create_task(self._lane(client, behind=True), name="mqtt-publish-replies")
+
+    async def _lane(self, client: Any, *, behind: bool) -> None:
+        """One lane, PUBLISH_WINDOW messages at a time, each batch after the last one's
+        acknowledgements. Replies (``behind``) are handed over only while no status or
+        result waits; those never wait for the replies' acknowledgements."""
+        queue, wake = (self._replies, self._wakes[True]) if behind else (self._out, self._wakes[False])
         while True:
-            while self._sending or self._out or self._replies:
-                self._sending = self._sending or self._next_batch()
-                await asyncio.gather(*(client.publish(m.topic, m.payload, qos=m.qos, retain=m.retain)
-                                       for m in self._sending))
-                self._sending = []
-            self.drained.set()
-            self._wake.clear()
-            await self._wake.wait()
+            while self._sending[behind] or (queue and not (behind and self._out)):
+                self._sending[behind] = self._sending[behind] or self._next_batch(queue)
+                if not behind and not self._out:
+                    self._wakes[True].set()  # handed over in order: the replies' turn
+                await asyncio.gather(
+                    *(client.publish(m.topic, m.payload, qos=m.qos, retain=m.retain) for m in self._sending[behind])
+                )
+                self._sending[behind] = []
+            if not (self._out or self._replies or self._sending[False] or self._sending[True]):
+                self.drained.set()
+            wake.clear()
+            await wake.wait()
 
     async def _command_loop(self, client: Any) -> None:
         """Ordinary commands in turn, as fast as the triage allows (stop and abort
@@ -177,22 +201,39 @@ class BrokerLink:
         from paho.mqtt.properties import Properties
 
         b = self.broker
-        will = aiomqtt.Will(self.topics.status, self._offline("connection to the rig service lost"),
-                            qos=proto.QOS_STATUS, retain=True)
+        will = aiomqtt.Will(
+            self.topics.status, self._offline("connection to the rig service lost"), qos=proto.QOS_STATUS, retain=True
+        )
         tls = aiomqtt.TLSParameters(ca_certs=str(b.tls_ca) if b.tls_ca else None) if b.tls else None
         session = Properties(PacketTypes.CONNECT)
         session.SessionExpiryInterval = 0 if clean_start else self.settings.session_expiry
-        client = aiomqtt.Client(b.host, b.port, username=b.username, password=b.password,
-                                identifier=self.settings.mqtt_client_id, will=None if clean_start else will,
-                                protocol=aiomqtt.ProtocolVersion.V5, clean_start=clean_start,
-                                properties=session, keepalive=b.keepalive, timeout=b.timeout,
-                                tls_params=tls, max_queued_incoming_messages=self.triage.limit,
-                                queue_type=self._new_inbox)
+        client = aiomqtt.Client(
+            b.host,
+            b.port,
+            username=b.username,
+            password=b.password,
+            identifier=self.settings.mqtt_client_id,
+            will=None if clean_start else will,
+            protocol=aiomqtt.ProtocolVersion.V5,
+            clean_start=clean_start,
+            properties=session,
+            keepalive=b.keepalive,
+            timeout=b.timeout,
+            tls_params=tls,
+            max_queued_incoming_messages=self.triage.limit,
+            queue_type=self._new_inbox,
+        )
         client.pending_calls_threshold = PUBLISH_WINDOW + 8  # a full window is expected, not a warning
         paho = client._client  # aiomqtt's paho client: no public handle
         read_in_bursts(paho, taken_at_once=lambda: self.triage.counts["at once"])
         shed_before_decoding(paho, self.topics.cmd, self._shed)
+        if not clean_start:
+            self._paho = paho
         return client
+
+    def hold_reading(self, seconds: float) -> bool:
+        """Leave the connection unread for ``seconds`` s (flood_read.hold_reading)."""
+        return self._paho is not None and hold_reading(self._paho, seconds)
 
     async def run(self) -> None:
         """Connect, and reconnect after every loss, until cancelled."""
@@ -206,13 +247,19 @@ class BrokerLink:
         t_connected = None
         try:
             async with self._client() as client:
-                await client.subscribe([(self.topics.cmd, proto.QOS_CMD),
-                                        (self.topics.abort, proto.QOS_ABORT_SUBSCRIPTION)])
+                await client.subscribe(
+                    [(self.topics.cmd, proto.QOS_CMD), (self.topics.abort, proto.QOS_ABORT_SUBSCRIPTION)]
+                )
                 t_connected = self.connected_at = time.monotonic()
                 self.connections += 1
-                log.info("connected to %s as %r (client id %r); commands on %s, stop and abort also on %s",
-                         self.where, self.broker.username, self.settings.mqtt_client_id, self.topics.cmd,
-                         self.topics.abort)
+                log.info(
+                    "connected to %s as %r (client id %r); commands on %s, stop and abort also on %s",
+                    self.where,
+                    self.broker.username,
+                    self.settings.mqtt_client_id,
+                    self.topics.cmd,
+                    self.topics.abort,
+                )
                 self.offline.clear()
                 self.online.set()
                 try:
@@ -230,8 +277,9 @@ class BrokerLink:
 
     def _connection_failed(self, err: Exception, *, connected: bool) -> None:
         if self.connections == 0 and credentials_refused(err):
-            raise ServiceError(f"broker {self.where} refused the credentials of "
-                               f"{self.broker.username!r}: {err}") from None
+            raise ServiceError(
+                f"broker {self.where} refused the credentials of {self.broker.username!r}: {err}"
+            ) from None
         if connected:
             log.warning("connection to %s lost: %s", self.where, err)
         else:
@@ -243,8 +291,12 @@ class BrokerLink:
         if self.leaving and self.drained.is_set():
             return  # the owner's offline status has been delivered
         try:
-            await asyncio.wait_for(client.publish(self.topics.status, self._offline("rig service stopped"), qos=proto.QOS_STATUS,
-                                                  retain=True), 3.0)
+            await asyncio.wait_for(
+                client.publish(
+                    self.topics.status, self._offline("rig service stopped"), qos=proto.QOS_STATUS, retain=True
+                ),
+                3.0,
+            )
         except Exception as err:  # noqa: BLE001 - the link may be gone: the last will covers that
             log.debug("could not publish offline on the way out: %s", err)
 

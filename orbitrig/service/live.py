@@ -47,8 +47,18 @@ from reduction.whirl import Whirl
 log = logging.getLogger(__name__)
 
 #: CAN sensor values of the live payload and their SI units.
-AUX_UNITS = {"t_recess": "K", "t_groove": "K", "t_supply": "K", "flow": "m^3/s", "p_supply": "Pa",
-             "p_recess_1": "Pa", "p_recess_2": "Pa", "p_recess_3": "Pa", "p_recess_4": "Pa", "beta": "-"}
+AUX_UNITS = {
+    "t_recess": "K",
+    "t_groove": "K",
+    "t_supply": "K",
+    "flow": "m^3/s",
+    "p_supply": "Pa",
+    "p_recess_1": "Pa",
+    "p_recess_2": "Pa",
+    "p_recess_3": "Pa",
+    "p_recess_4": "Pa",
+    "beta": "-",
+}
 #: The manual settings of an operating point and their SI units.
 SETTING_UNITS = {"orbit_radius": "m", "static_eccentricity": "-", "recess_pressure": "Pa", "pressure_ratio": "-"}
 LIVE_STATES = (RunState.RUNNING, RunState.PAUSED, RunState.WAITING, RunState.STOPPING)
@@ -88,8 +98,7 @@ class RevolutionAverage:
 class LiveFeed:
     """The live view of one run; see the module docstring."""
 
-    def __init__(self, engine: RunEngine, plan: Plan, send: Callable[[bytes], None], *,
-                 rate_hz: float = 5.0):
+    def __init__(self, engine: RunEngine, plan: Plan, send: Callable[[bytes], None], *, rate_hz: float = 5.0):
         self.engine = engine
         self.rig = engine.rig
         self._send = send
@@ -141,9 +150,12 @@ class LiveFeed:
         period = self.average.period_s
         orbit_hz = (1.0 / period) if period else (abs(orbit.actual) / (2 * math.pi) if orbit else None)
         return {
-            "run_id": self.engine.run_id, "point": self._point, "frequency": self._frequency,
+            "run_id": self.engine.run_id,
+            "point": self._point,
+            "frequency": self._frequency,
             "direction": _direction(orbit),
-            "revolutions": self._revolutions, "orbit_hz": orbit_hz,
+            "revolutions": self._revolutions,
+            "orbit_hz": orbit_hz,
             "spin_rpm": None if spin is None else spin.actual / RPM,
             "drives": drives.to_dict(),
             "aux": self._aux(io),
@@ -158,8 +170,14 @@ class LiveFeed:
         a = io.aux.latest() if io.aux is not None else None
         if a is None:
             return {}
-        out: dict[str, Any] = {"t_recess": a.t_recess, "t_groove": a.t_groove, "t_supply": a.t_supply,
-                               "flow": a.flow, "p_supply": a.p_supply, "beta": a.beta}
+        out: dict[str, Any] = {
+            "t_recess": a.t_recess,
+            "t_groove": a.t_groove,
+            "t_supply": a.t_supply,
+            "flow": a.flow,
+            "p_supply": a.p_supply,
+            "beta": a.beta,
+        }
         out.update({f"p_recess_{i + 1}": v for i, v in enumerate(a.p_recess)})
         out.update(sensor_fault=a.sensor_fault, pump_off=a.pump_off, node_lost=a.node_lost)
         return out
@@ -197,11 +215,19 @@ class LiveFeed:
         if step is None:
             return {"step": step_id, "settings": {}}
         measured, bands = self._measured(), setting_bands(step, self.rig.verify)
-        asked = {"orbit_radius": step.orbit_radius, "static_eccentricity": step.static_eccentricity,
-                 "recess_pressure": step.recess_pressure, "pressure_ratio": step.pressure_ratio}
-        return {"step": step_id, "settings": {
-            k: {"value": v, "unit": SETTING_UNITS[k], "measured": measured.get(k), "band": bands[k]}
-            for k, v in asked.items()}}
+        asked = {
+            "orbit_radius": step.orbit_radius,
+            "static_eccentricity": step.static_eccentricity,
+            "recess_pressure": step.recess_pressure,
+            "pressure_ratio": step.pressure_ratio,
+        }
+        return {
+            "step": step_id,
+            "settings": {
+                k: {"value": v, "unit": SETTING_UNITS[k], "measured": measured.get(k), "band": bands[k]}
+                for k, v in asked.items()
+            },
+        }
 
     def _measured(self) -> dict[str, float]:
         """Manual settings as measured now: pressures from CAN, orbit radius and static

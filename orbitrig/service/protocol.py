@@ -23,12 +23,15 @@ import re
 from dataclasses import dataclass
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import (BaseModel, ConfigDict, Field, StringConstraints, TypeAdapter, ValidationError,
-                      field_validator)
+from pydantic import BaseModel, ConfigDict, Field, StringConstraints, TypeAdapter, ValidationError, field_validator
 
 from orbitrig.run.states import RunState
 from orbitrig.service.command_json import (  # noqa: F401 - part of this contract's names
-    MAX_COMMAND_BYTES, CommandError, read_object, type_name as _type_name)
+    MAX_COMMAND_BYTES,
+    CommandError,
+    read_object,
+    type_name as _type_name,
+)
 from rigunits import utc_iso
 
 DEFAULT_PREFIX_ROOT = "orbitrig"
@@ -53,6 +56,7 @@ _TOPIC_LEVEL_FORBIDDEN = set("/+#\x00")
 
 
 # -- topics -------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class Topics:
@@ -122,6 +126,7 @@ def topics(rig_id: str, prefix: str | None = None) -> Topics:
 
 # -- commands -----------------------------------------------------------------
 
+
 @dataclass(frozen=True)
 class Command:
     """A validated command. ``matrix`` is set for ``start``, ``step`` for ``confirm``."""
@@ -176,7 +181,8 @@ class StartCommand(_Sent):
         if not is_matrix_name(v):
             raise ValueError(
                 f"field 'matrix' must be a matrix name from the matrix folder, not a path: {v!r} "
-                "(letters, digits, '_', '-', '.'; no '/', no '..', no leading '.')")
+                "(letters, digits, '_', '-', '.'; no '/', no '..', no leading '.')"
+            )
         return v
 
 
@@ -282,12 +288,17 @@ def parse_command(payload: bytes | bytearray | str) -> Command:
         return Command(cmd=name, id=cid, ignored=tuple(problems), by=by[:64] if by else None)
     if problems:
         raise CommandError("; ".join(problems), cid)
-    return Command(cmd=model.cmd, id=model.id,
-                   matrix=model.matrix if isinstance(model, StartCommand) else None,
-                   step=model.step if isinstance(model, ConfirmCommand) else None, by=model.by)
+    return Command(
+        cmd=model.cmd,
+        id=model.id,
+        matrix=model.matrix if isinstance(model, StartCommand) else None,
+        step=model.step if isinstance(model, ConfirmCommand) else None,
+        by=model.by,
+    )
 
 
 # -- payloads -----------------------------------------------------------------
+
 
 def iso8601(when: _dt.datetime | float | str | None = None) -> str:
     """ISO-8601 UTC text for a datetime, a POSIX time (s) or now; text passes through."""
@@ -317,28 +328,47 @@ def _jsonable(value: Any) -> Any:
 
 def dumps(obj: dict[str, Any]) -> bytes:
     """Compact UTF-8 JSON of ``obj`` (made JSON-safe first)."""
-    return json.dumps(_jsonable(obj), separators=(",", ":"), ensure_ascii=False,
-                      allow_nan=False).encode("utf-8")
+    return json.dumps(_jsonable(obj), separators=(",", ":"), ensure_ascii=False, allow_nan=False).encode("utf-8")
 
 
-def status_payload(state: str, run_id: str | None = None,
-                   since: _dt.datetime | float | str | None = None,
-                   message: str | None = None, extra: dict[str, Any] | None = None) -> bytes:
+def status_payload(
+    state: str,
+    run_id: str | None = None,
+    since: _dt.datetime | float | str | None = None,
+    message: str | None = None,
+    extra: dict[str, Any] | None = None,
+) -> bytes:
     """``{"state", "run_id", "since", "message"}`` for ``<prefix>/status``, plus ``extra``
     (while ``waiting``: ``step`` and ``settings``, see orbitrig.service.live)."""
     if state not in STATES:
         raise ValueError(f"unknown state {state!r} (one of {', '.join(STATES)})")
-    return dumps({"state": state, "run_id": run_id, "since": iso8601(since),
-                  "message": "" if message is None else str(message), **(extra or {})})
+    return dumps(
+        {
+            "state": state,
+            "run_id": run_id,
+            "since": iso8601(since),
+            "message": "" if message is None else str(message),
+            **(extra or {}),
+        }
+    )
 
 
-def progress_payload(run_id: str | None, point: int, points: int, frequency: int,
-                     frequencies: int, revolutions: int, eta_s: float | None) -> bytes:
+def progress_payload(
+    run_id: str | None, point: int, points: int, frequency: int, frequencies: int, revolutions: int, eta_s: float | None
+) -> bytes:
     """``{"run_id", "point", "points", "frequency", "frequencies", "revolutions",
     "eta_s"}`` for ``<prefix>/progress`` (``eta_s`` in s, null when unknown)."""
-    return dumps({"run_id": run_id, "point": point, "points": points,
-                  "frequency": frequency, "frequencies": frequencies,
-                  "revolutions": revolutions, "eta_s": eta_s})
+    return dumps(
+        {
+            "run_id": run_id,
+            "point": point,
+            "points": points,
+            "frequency": frequency,
+            "frequencies": frequencies,
+            "revolutions": revolutions,
+            "eta_s": eta_s,
+        }
+    )
 
 
 def result_payload(run_id: str | None, payload: dict[str, Any]) -> bytes:

@@ -33,8 +33,13 @@ def credentials_refused(err: BaseException) -> bool:
     return isinstance(err, aiomqtt.MqttCodeError) and return_code(err) in AUTH_REFUSED
 
 
-async def reconnecting(session: Callable[[], Awaitable[bool]], backoff: Backoff, log: logging.Logger, *,
-                       stop: Callable[[], bool] = lambda: False) -> None:
+async def reconnecting(
+    session: Callable[[], Awaitable[bool]],
+    backoff: Backoff,
+    log: logging.Logger,
+    *,
+    stop: Callable[[], bool] = lambda: False,
+) -> None:
     """``session()`` again and again until ``stop()`` or cancellation; an exception of
     ``session`` ends the loop (a refusal the caller cannot recover from)."""
     while not stop():

@@ -25,7 +25,9 @@ than ``supervision_timeout`` applies ``supervision_policy`` to a running run
 once: ``keep`` (go on), ``pause`` or ``stop``. ``stop`` and ``abort`` are
 always accepted and go straight to the executor as they are read off the
 connection, whatever it is doing and however many commands wait (also on
-``<prefix>/abort``; orbitrig.service.inbox). A matrix is chosen by name only,
+``<prefix>/abort``; orbitrig.service.inbox), and ``<prefix>/abort`` has a broker
+connection of its own besides (orbitrig.service.abort_link), so that no flood on
+the main connection is ahead of an abort. A matrix is chosen by name only,
 from the configured matrix folder.
 
 Background work runs in named tasks owned by one TaskGroup.
@@ -38,40 +40,50 @@ import collections
 import functools
 import logging
 import threading
-import time
 from collections.abc import Callable
-from typing import Any, Literal
+from typing import Any
 
 from orbitrig.analysis.run_warnings import closing_warnings, result_fit_warnings
 from orbitrig.analysis.warning_groups import warning_lines
-from orbitrig.errors import ConfigError, OrbitrigError
+from orbitrig.errors import ConfigError
 from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
 from orbitrig.run.heap import trim_heap
 from orbitrig.run.states import RunState
 from orbitrig.service import live as live_feed
 from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # the service's seams
 from orbitrig.service.inbox import CommandTriage
+from orbitrig.service.abort_link import AbortLink
 from orbitrig.service.catalog_feed import CatalogFeed
+from orbitrig.service.commands import CommandHandling
+from orbitrig.service.flood_read import STOP_HOLD_S
 from orbitrig.service import protocol as proto
 from orbitrig.service.link import BrokerLink
 from orbitrig.service.settings import (  # noqa: F401 - the service's public names
-    SUPERVISION_POLICIES, BrokerSettings, CommandRefused, ServiceError, ServiceSettings, SupervisionPolicy,
+    SUPERVISION_POLICIES,
+    BrokerSettings,
+    CommandRefused,
+    ServiceError,
+    ServiceSettings,
+    SupervisionPolicy,
     default_client_id,
 )
 
 log = logging.getLogger("orbitrig.service.rig_service")
 
-#: s after a reconnection during which the broker's redeliveries arrive
-REDELIVERY_S = 10.0
 
-
-class RigService:
+class RigService(CommandHandling):
     """MQTT front end of one rig. ``await service.serve(shutdown)`` runs until
     ``shutdown`` is set (then an active run is aborted, ``offline`` is
     published and the connection closed) or a fatal error."""
 
-    def __init__(self, settings: ServiceSettings, broker: BrokerSettings, *,
-                 engine_factory: EngineFactory, load_matrix: MatrixLoader):
+    def __init__(
+        self,
+        settings: ServiceSettings,
+        broker: BrokerSettings,
+        *,
+        engine_factory: EngineFactory,
+        load_matrix: MatrixLoader,
+    ):
         self.settings = settings
         self.broker = broker
         self.topics = proto.topics(settings.rig_id, settings.prefix)
@@ -84,12 +96,22 @@ class RigService:
         self._status = proto.status_payload(RunState.IDLE, None, None, "service ready")
         self._state = RunState.IDLE
         self._run_id: str | None = None
-        self.triage = CommandTriage(self._on_message, functools.partial(self._reply, behind=True),
-                                    lambda: self.link.reply_backlog)
+        self.triage = CommandTriage(
+            self._on_message, functools.partial(self._reply, behind=True), lambda: self.link.reply_backlog
+        )
         self._catalog = CatalogFeed(settings.catalog_url) if settings.catalog_url else None
-        self.link = BrokerLink(broker, settings, self.topics, status=lambda: self._status,
-                               offline=self._offline_status, on_command=self._on_message,
-                               triage=self.triage)
+        self.link = BrokerLink(
+            broker,
+            settings,
+            self.topics,
+            status=lambda: self._status,
+            offline=self._offline_status,
+            on_command=self._on_message,
+            triage=self.triage,
+        )
+        #: the second connection, for <prefix>/abort alone (None: not configured)
+        self.abort_link = AbortLink(broker, broker.abort, settings, self.topics, self.triage) if broker.abort else None
+        self.triage.after_at_once = self._let_the_stop_go_first
         self._tg: asyncio.TaskGroup | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._thread = threading.get_ident()
@@ -97,16 +119,16 @@ class RigService:
         self._handled: collections.OrderedDict[tuple[str, bytes], int] = collections.OrderedDict()
         #: command name -> handler returning None (ok) or the reason of a refusal
         self._handlers: dict[str, Callable[[proto.Command], None]] = {
-            "start": self._cmd_start, "pause": self._cmd_pause, "resume": self._cmd_resume,
-            "stop": self._cmd_stop, "abort": self._cmd_abort, "confirm": self._cmd_confirm,
+            "start": self._cmd_start,
+            "pause": self._cmd_pause,
+            "resume": self._cmd_resume,
+            "stop": self._cmd_stop,
+            "abort": self._cmd_abort,
+            "confirm": self._cmd_confirm,
             "status": self._cmd_status,
         }
 
     # -- public state -----------------------------------------------------------
-
-    @property
-    def run_active(self) -> bool:
-        return self._run_task is not None and not self._run_task.done()
 
     @property
     def state(self) -> str:
@@ -128,6 +150,14 @@ class RigService:
             conn = tg.create_task(self.link.run(), name="mqtt-connection")
             sup = tg.create_task(self._supervision_loop(), name="supervision-watchdog")
             stop = tg.create_task(shutdown.wait(), name="shutdown-signal")
+            tasks = [conn, sup, stop]
+            if self.abort_link is not None:
+                tasks.append(tg.create_task(self.abort_link.run(), name="mqtt-abort-connection"))
+            else:
+                log.warning(
+                    "no abort connection: stop and abort come through the main connection only, "
+                    "where a flood of commands may hold them back (orbitrig serve --abort-username)"
+                )
             await asyncio.wait({conn, stop}, return_when=asyncio.FIRST_COMPLETED)
             log.info("shutting down")
             await self._end_run("service shutting down")
@@ -138,11 +168,18 @@ class RigService:
                     await asyncio.wait_for(self.link.drained.wait(), 5.0)
                 except TimeoutError:
                     log.warning("could not deliver every message before shutdown")
-            for task in (conn, sup, stop):
+            for task in tasks:
                 task.cancel()
         # (a fault inside the group cancels the connection task, whose session
         # publishes offline on its way out: BrokerLink._leave)
         await self.link.discard_session()
+
+    def _let_the_stop_go_first(self) -> None:
+        """After a stop or abort: while the abort connection is up to take the next one,
+        the main connection (a flood, maybe) is left unread for STOP_HOLD_S, so that the
+        drives' stop words get the processor first."""
+        if self.abort_link is not None and self.abort_link.up:
+            self.link.hold_reading(STOP_HOLD_S)
 
     def _offline_status(self, message: str) -> bytes:
         return proto.status_payload(proto.OFFLINE, self._run_id, None, message)
@@ -185,167 +222,17 @@ class RigService:
             except TimeoutError:
                 pass
             if self.run_active:
-                log.warning("no broker for %.0f s: supervision lost, policy %r", s.supervision_timeout,
-                            s.supervision_policy)
-                if s.supervision_policy is SupervisionPolicy.PAUSE and self._state in (RunState.RUNNING, RunState.WAITING):
+                log.warning(
+                    "no broker for %.0f s: supervision lost, policy %r", s.supervision_timeout, s.supervision_policy
+                )
+                if s.supervision_policy is SupervisionPolicy.PAUSE and self._state in (
+                    RunState.RUNNING,
+                    RunState.WAITING,
+                ):
                     self._request("pause", "service (supervision lost)")
                 elif s.supervision_policy is SupervisionPolicy.STOP:
                     self._request("stop", "service (supervision lost)")
             await self.link.online.wait()
-
-    # -- commands ---------------------------------------------------------------
-
-    def handle_command(self, payload: bytes, *, retained: bool = False) -> None:
-        """Validate and execute one command; publish exactly one reply.
-
-        A retained command (``<prefix>/cmd`` is not retained) is stale: the broker
-        hands it to every new subscription, so executing it would, e.g., start a run at
-        each reconnection. It is refused (one reply) and changes nothing. A
-        redelivery of a command already handled (QoS 1 after a reconnection) is
-        dropped: it was executed and answered once."""
-        try:
-            cmd = proto.parse_command(payload)
-        except proto.CommandError as err:
-            log.info("refused command %r: %s", payload[:200], err.reason)
-            self._reply(err.id, err.reason, behind=True)
-            return
-        except Exception as err:  # no payload may kill the service
-            log.exception("refused command %r: the parser failed", payload[:200])
-            self._reply(None, f"payload cannot be read: {type(err).__name__}", behind=True)
-            return
-        if self._redelivered(cmd, payload):
-            log.warning("dropped redelivered command %s (id %r): handled already", cmd.cmd, cmd.id)
-            return
-        if retained:
-            log.warning("refused retained command %s (id %r)", cmd.cmd, cmd.id)
-            self._reply(cmd.id, f"retained command {cmd.cmd!r} refused: publish commands without the "
-                                "retain flag (a retained command is replayed on every reconnection); "
-                                "clear it with an empty retained message")
-            return
-        t0 = time.monotonic()
-        log.info("command %s (id %r)", cmd.cmd, cmd.id)
-        if cmd.ignored:
-            log.warning("%s accepted despite: %s", cmd.cmd, "; ".join(cmd.ignored))
-        error = None
-        try:
-            self._handlers[cmd.cmd](cmd)
-        except CommandRefused as refusal:
-            error = refusal.reason
-        except Exception as err:  # a command must never kill the service
-            log.exception("command %s failed", cmd.cmd)
-            error = f"{cmd.cmd} failed: {err}"
-        if cmd.cmd == "abort":
-            log.info("abort requested of the executor %.1f ms after the message arrived",
-                     (time.monotonic() - t0) * 1e3)
-        self._reply(cmd.id, error, behind=cmd.cmd not in proto.ALWAYS_ACCEPTED)
-
-    def _redelivered(self, cmd: proto.Command, payload: bytes) -> bool:
-        """True for the broker's redelivery of a command handled before the link
-        dropped (its acknowledgement was lost): the same id and bytes, handled
-        during an earlier connection, arriving within REDELIVERY_S of this one.
-        An operator repeating a command later is not affected."""
-        if cmd.id is None:
-            return False
-        key = (cmd.id, bytes(payload))
-        earlier = self._handled.get(key)
-        now, link = time.monotonic(), self.link
-        if (earlier is not None and earlier < link.connections
-                and now - link.connected_at < REDELIVERY_S):
-            return True
-        self._handled[key] = link.connections
-        self._handled.move_to_end(key)
-        if len(self._handled) > 256:
-            self._handled.popitem(last=False)
-        return False
-
-    def _on_message(self, payload: bytes, retained: bool) -> None:
-        """Every message on ``<prefix>/cmd``; nothing a message does may end the service."""
-        try:
-            self.handle_command(payload, retained=retained)
-        except Exception as err:  # last line of defence; handle_command replies itself
-            log.exception("command %r could not be handled", payload[:200])
-            self._reply(None, f"command could not be handled: {type(err).__name__}")
-
-    def _send(self, topic: str, payload: bytes, qos: int, retain: bool = False) -> None:
-        self.link.send(topic, payload, qos, retain)
-
-    def _reply(self, cid: str | None, error: str | None, *, behind: bool = False) -> None:
-        """One reply; ``behind``: to an ordinary command (sent after statuses and results)."""
-        payload = proto.reply_ok(cid) if error is None else proto.reply_error(cid, error)
-        self.link.send(self.topics.reply, payload, proto.QOS_REPLY, behind=behind)
-
-    def _cmd_status(self, cmd: proto.Command) -> None:
-        self._send(self.topics.status, self._status, proto.QOS_STATUS, True)
-
-    def _cmd_start(self, cmd: proto.Command) -> None:
-        if self.run_active:
-            raise CommandRefused(f"a run is active (run {self._run_id}, state {self._state}): "
-                                 "stop or abort it before starting another")
-        folder = self.settings.matrices_dir
-        path = folder / f"{cmd.matrix}.toml"
-        if not path.is_file():
-            names = sorted(p.stem for p in folder.glob("*.toml")) if folder.is_dir() else []
-            raise CommandRefused(f"no matrix {cmd.matrix!r} in the matrix folder (available: {', '.join(names) or 'none'})")
-        try:
-            matrix = self._load_matrix(path)
-        except ConfigError as err:
-            raise CommandRefused(f"matrix {cmd.matrix!r} is invalid: {'; '.join(err.problems)}") from err
-        engine = self._engine_factory(cmd.matrix, matrix)
-        engine.operator = cmd.by or ""  # recorded in the run with every command's sender
-        engine.subscribe(self._on_event)
-        self._engine = engine
-        self._run_id, self._fit_warnings = engine.run_id, []
-        assert self._tg is not None
-        self._run_task = self._tg.create_task(self._run(engine, cmd.matrix, matrix), name=f"run-{cmd.matrix}")
-        self._live = live_feed.attach(engine, matrix, lambda p: self._send(self.topics.live, p, proto.QOS_LIVE))
-        if self._live is not None:
-            self._tg.create_task(self._live.run(self._run_task), name=f"live-{cmd.matrix}")
-
-    def _cmd_pause(self, cmd: proto.Command) -> None:
-        self._control("pause", lambda e: e.request_pause(by=cmd.by), allowed=(RunState.RUNNING, RunState.WAITING))
-
-    def _cmd_resume(self, cmd: proto.Command) -> None:
-        self._control("resume", lambda e: e.request_resume(by=cmd.by), allowed=(RunState.PAUSED,))
-
-    def _cmd_confirm(self, cmd: proto.Command) -> None:
-        self._control("confirm", lambda e: e.confirm(cmd.step, by=cmd.by), allowed=None)
-
-    def _cmd_stop(self, cmd: proto.Command) -> None:
-        self._request("stop", cmd.by)  # always accepted
-
-    def _cmd_abort(self, cmd: proto.Command) -> None:
-        self._request("abort", cmd.by)  # always accepted
-
-    def _control(self, what: str, call: Callable[[Engine], None], allowed: tuple[str, ...] | None) -> None:
-        if not self.run_active or self._engine is None:
-            raise CommandRefused(f"no run is active: nothing to {what}")
-        state = self._engine.state
-        if allowed is not None and state not in allowed:
-            raise CommandRefused(f"cannot {what} while the run is {state}")
-        try:
-            call(self._engine)
-        except (OrbitrigError, ValueError, RuntimeError) as err:
-            raise CommandRefused(f"cannot {what}: {err}") from err
-
-    def _request(self, what: Literal["pause", "stop", "abort", "stop_now"], by: str | None = None) -> None:
-        """Ask the executor to pause/stop/abort; never raises. If the executor
-        refuses a stop or abort, the run task is cancelled (its cleanup ramps
-        both drives to zero)."""
-        engine, task = self._engine, self._run_task
-        if task is None or task.done() or engine is None:
-            return
-        if what != "pause" and engine.state == RunState.IDLE:
-            if engine.run_id is None:
-                task.cancel()  # the run task has not started yet: it never touches the drives
-            return  # (or the run has ended and the task is writing its closing summary)
-        requests = {"pause": engine.request_pause, "stop": engine.request_stop, "abort": engine.request_abort,
-                    "stop_now": lambda by: engine.request_stop_now("the service shutting down", by=by)}
-        try:
-            requests[what](by=by)
-        except Exception:
-            log.exception("executor refused %s", what)
-            if what != "pause":
-                task.cancel()
 
     async def _run(self, engine: Engine, name: str, matrix: Any) -> None:
         log.info("run of matrix %r starting", name)
@@ -366,6 +253,36 @@ class RigService:
         if self._state not in (RunState.IDLE, RunState.FAULTED):
             self._set_status(RunState.IDLE, self._run_id, f"run {status}" + "".join(f"; warning: {w}" for w in summary))
 
+    def _cmd_start(self, cmd: proto.Command) -> None:
+        if self.run_active:
+            raise CommandRefused(
+                f"a run is active (run {self._run_id}, state {self._state}): stop or abort it before starting another"
+            )
+        folder = self.settings.matrices_dir
+        path = folder / f"{cmd.matrix}.toml"
+        if not path.is_file():
+            names = sorted(p.stem for p in folder.glob("*.toml")) if folder.is_dir() else []
+            raise CommandRefused(
+                f"no matrix {cmd.matrix!r} in the matrix folder (available: {', '.join(names) or 'none'})"
+            )
+        try:
+            matrix = self._load_matrix(path)
+        except ConfigError as err:
+            raise CommandRefused(f"matrix {cmd.matrix!r} is invalid: {'; '.join(err.problems)}") from err
+        engine = self._engine_factory(cmd.matrix, matrix)
+        engine.operator = cmd.by or ""  # recorded in the run with every command's sender
+        engine.subscribe(self._on_event)
+        self._engine = engine
+        self._run_id, self._fit_warnings = engine.run_id, []
+        assert self._tg is not None
+        self._run_task = self._tg.create_task(self._run(engine, cmd.matrix, matrix), name=f"run-{cmd.matrix}")
+        self._live = live_feed.attach(engine, matrix, lambda p: self._send(self.topics.live, p, proto.QOS_LIVE))
+        if self._live is not None:
+            self._tg.create_task(self._live.run(self._run_task), name=f"live-{cmd.matrix}")
+
+    def _send(self, topic: str, payload: bytes, qos: int, retain: bool = False) -> None:
+        self.link.send(topic, payload, qos, retain)
+
     # -- executor events --------------------------------------------------------
 
     def _on_event(self, event: StatusEvent | ResultEvent | ProgressEvent) -> None:
@@ -385,14 +302,30 @@ class RigService:
             if self._catalog is not None and self._engine is not None:
                 self._catalog.point_completed(self._engine.out_dir, event.payload["point"])
         elif isinstance(event, ProgressEvent):
-            self._send(self.topics.progress, proto.progress_payload(
-                event.run_id, event.point, event.points, event.frequency, event.frequencies,
-                event.revolutions, event.eta_s), proto.QOS_PROGRESS)
+            self._send(
+                self.topics.progress,
+                proto.progress_payload(
+                    event.run_id,
+                    event.point,
+                    event.points,
+                    event.frequency,
+                    event.frequencies,
+                    event.revolutions,
+                    event.eta_s,
+                ),
+                proto.QOS_PROGRESS,
+            )
         else:
             log.debug("ignored event %r", event)
 
-    def _set_status(self, state: str, run_id: str | None, message: str | None, since: Any = None,
-                    extra: dict[str, Any] | None = None) -> None:
+    def _set_status(
+        self,
+        state: str,
+        run_id: str | None,
+        message: str | None,
+        since: Any = None,
+        extra: dict[str, Any] | None = None,
+    ) -> None:
         self._state, self._run_id = state, run_id
         self._status = proto.status_payload(state, run_id, since, message, extra)
         self._send(self.topics.status, self._status, proto.QOS_STATUS, True)

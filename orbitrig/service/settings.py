@@ -14,7 +14,6 @@ from orbitrig.errors import OrbitrigError
 from orbitrig.service import protocol as proto
 
 
-
 class SupervisionPolicy(StrEnum):
     """What the service does to a run when the executor's supervision times out."""
 
@@ -40,6 +39,21 @@ class CommandRefused(OrbitrigError):
 
 # -- settings -----------------------------------------------------------------
 
+
+@dataclasses.dataclass(frozen=True)
+class AbortAccount:
+    """The broker account of the service's second connection, which reads
+    ``<prefix>/abort`` alone (orbitrig.service.abort_link); ``username`` None: an
+    anonymous connection (a broker without authentication)."""
+
+    username: str | None
+    password: str | None = dataclasses.field(default=None, repr=False)
+
+
+#: The abort connection's account name beside the service's (``orbitrig serve --abort-username``).
+ABORT_ACCOUNT_SUFFIX = "-abort"
+
+
 @dataclasses.dataclass(frozen=True)
 class BrokerSettings:
     """Where and how to connect. ``keepalive`` (s): the broker publishes the last
@@ -53,6 +67,9 @@ class BrokerSettings:
     tls_ca: Path | None = None
     keepalive: int = 10
     timeout: float = 10.0
+    #: the account of the abort connection; None: no second connection (stop and abort
+    #: then come through the main connection only, behind any flood of commands there)
+    abort: AbortAccount | None = None
 
     @classmethod
     def from_url(cls, url: str, **kw: Any) -> BrokerSettings:
@@ -62,8 +79,10 @@ class BrokerSettings:
         if parts.scheme not in ("mqtt", "mqtts") or not parts.hostname:
             raise ServiceError(f"broker URL {url!r}: expected mqtt://host:port or mqtts://host:port")
         if parts.username or parts.password:
-            raise ServiceError(f"broker URL {url!r}: credentials do not belong in the URL "
-                               "(use --username and --password-file or ORBITRIG_MQTT_PASSWORD)")
+            raise ServiceError(
+                f"broker URL {url!r}: credentials do not belong in the URL "
+                "(use --username and --password-file or ORBITRIG_MQTT_PASSWORD)"
+            )
         if parts.path not in ("", "/") or parts.query:
             raise ServiceError(f"broker URL {url!r}: no path or query expected")
         try:
@@ -71,8 +90,7 @@ class BrokerSettings:
         except ValueError as err:
             raise ServiceError(f"broker URL {url!r}: {err}") from None
         tls = parts.scheme == "mqtts" or kw.get("tls_ca") is not None
-        return cls(host=parts.hostname, port=port or (8883 if parts.scheme == "mqtts" else 1883),
-                   tls=tls, **kw)
+        return cls(host=parts.hostname, port=port or (8883 if parts.scheme == "mqtts" else 1883), tls=tls, **kw)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -99,14 +117,23 @@ class ServiceSettings:
     def mqtt_client_id(self) -> str:
         return self.client_id or default_client_id(self.rig_id, self.prefix)
 
+    @property
+    def abort_client_id(self) -> str:
+        """The abort connection's client id: the service's with ``-abort`` (a broker
+        configured as config/mosquitto/ replaces it with the abort account's name)."""
+        suffix = ABORT_ACCOUNT_SUFFIX
+        return self.mqtt_client_id.encode()[: 128 - len(suffix)].decode(errors="ignore") + suffix
+
     def __post_init__(self) -> None:
         if self.supervision_policy not in SUPERVISION_POLICIES:
-            raise ServiceError(f"supervision policy {self.supervision_policy!r}: "
-                               f"one of {', '.join(SUPERVISION_POLICIES)}")
+            raise ServiceError(
+                f"supervision policy {self.supervision_policy!r}: one of {', '.join(SUPERVISION_POLICIES)}"
+            )
         object.__setattr__(self, "supervision_policy", SupervisionPolicy(self.supervision_policy))
         if not 0 < self.supervision_timeout < math.inf:
-            raise ServiceError(f"supervision timeout must be a finite number of seconds > 0, "
-                               f"not {self.supervision_timeout!r}")
+            raise ServiceError(
+                f"supervision timeout must be a finite number of seconds > 0, not {self.supervision_timeout!r}"
+            )
         if self.client_id is not None and not 0 < len(self.client_id.encode()) <= 128:
             raise ServiceError("client id must have 1 to 128 bytes")
 

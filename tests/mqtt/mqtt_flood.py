@@ -27,8 +27,13 @@ import paho.mqtt.client as mqtt
 
 #: Ordinary commands an operator might repeat, none of which changes a run
 #: (refused while a run is active or harmless); a start names no matrix there is.
-FLOOD_CYCLE = ({"cmd": "start", "matrix": "no-such-matrix"}, {"cmd": "status"},
-               {"cmd": "confirm", "step": "manual:9999"}, {"cmd": "resume"}, {"cmd": "no-such-command"})
+FLOOD_CYCLE = (
+    {"cmd": "start", "matrix": "no-such-matrix"},
+    {"cmd": "status"},
+    {"cmd": "confirm", "step": "manual:9999"},
+    {"cmd": "resume"},
+    {"cmd": "no-such-command"},
+)
 
 
 def main() -> None:
@@ -67,8 +72,7 @@ def main() -> None:
         if acked == args.count:
             out_at[0] = time.monotonic()
 
-    client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=f"mosq-flood-{os.getpid()}",
-                         protocol=mqtt.MQTTv5)
+    client = mqtt.Client(mqtt.CallbackAPIVersion.VERSION2, client_id=f"mosq-flood-{os.getpid()}", protocol=mqtt.MQTTv5)
     client.username_pw_set(args.user, args.password)
     client.on_message = on_message
     client.on_publish = on_publish
@@ -92,8 +96,17 @@ def main() -> None:
     client.loop_stop()
     client.disconnect()
     with lock:
-        print(json.dumps({"published": args.count, "seconds": round(seconds, 3),
-                          "out_s": round(out_at[0] - t0, 3) if out_at[0] else None, **replies}), flush=True)
+        print(
+            json.dumps(
+                {
+                    "published": args.count,
+                    "seconds": round(seconds, 3),
+                    "out_s": round(out_at[0] - t0, 3) if out_at[0] else None,
+                    **replies,
+                }
+            ),
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

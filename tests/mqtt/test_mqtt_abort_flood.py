@@ -5,10 +5,17 @@ QoS 1 commands at full speed) and an abort from a second operator client on
 <prefix>/abort in the middle of the flood. The abort's first act is the drives'
 emergency stop (run.log says when it went out), before the run unwinds. Timing
 bounds here are generous (the machine may be busy); bench/bench_abort_flood.py
-holds the 200 ms target."""
+holds the 200 ms target.
+
+The service reads <prefix>/abort on a connection of its own (the account
+orbitrig-service-abort of config/mosquitto/) besides its main connection; with
+that account refused it takes aborts on the main connection alone. Both ways are
+run with a flood; an abort arriving on both connections is carried out and
+answered once."""
 
 from __future__ import annotations
 
+import asyncio
 import json
 import re
 import subprocess
@@ -18,7 +25,10 @@ from pathlib import Path
 
 import pytest
 
-from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, write_matrices
+from orbitrig.service.inbox import AbortCopies, Connection
+from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
+from orbitrig.service.settings import AbortAccount
+from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, Watcher, write_matrices
 
 RIG = "flood-rig"
 FLOODER = Path(__file__).with_name("mqtt_flood.py")
@@ -33,19 +43,46 @@ def bound(tmp_path_factory):
     b.stop()
 
 
-@pytest.fixture
-def running(bound, tmp_path):
-    svc = Service(["--sim", "--broker", bound.service_url, "--rig-id", RIG, "--username", "orbitrig-service",
-                   "--matrices", str(write_matrices(tmp_path / "matrices")), "--out", str(tmp_path / "runs"),
-                   "--speedup", "5", "--confirm", "auto"], tmp_path, env=ENV)
+#: how the service's abort connection fares: its account (the shipped setup), or refused
+ABORT_ACCOUNT = {"abort account": {}, "account refused": {"ORBITRIG_MQTT_ABORT_PASSWORD": "not-the-password"}}
+
+
+@pytest.fixture(params=sorted(ABORT_ACCOUNT))
+def running(bound, tmp_path, request):
+    svc = Service(
+        [
+            "--sim",
+            "--broker",
+            bound.service_url,
+            "--rig-id",
+            RIG,
+            "--username",
+            "orbitrig-service",
+            "--matrices",
+            str(write_matrices(tmp_path / "matrices")),
+            "--out",
+            str(tmp_path / "runs"),
+            "--speedup",
+            "5",
+            "--confirm",
+            "auto",
+        ],
+        tmp_path,
+        env={**ENV, **ABORT_ACCOUNT[request.param]},
+    )
+    svc.abort_account = request.param
     # status and progress only: with the flood's commands and replies a viewer's own
     # queue at the broker would overflow too (the broker drops what does not fit)
     rc = RigClient(bound, RIG, svc, watch=("status", "progress"))
     try:
         rc.status("idle", timeout=30)
         rc.send({"cmd": "start", "matrix": "long"})
-        rc._wait(lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] >= 10, 60, 0,
-                 "both drives at speed, the orbit being acquired")
+        rc._wait(
+            lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] >= 10,
+            60,
+            0,
+            "both drives at speed, the orbit being acquired",
+        )
         yield svc, rc
     finally:
         rc.close()
@@ -54,16 +91,35 @@ def running(bound, tmp_path):
 
 def test_abort_gets_through_a_flood_of_commands(bound, running, tmp_path):
     svc, rc = running
-    flood = subprocess.Popen([sys.executable, str(FLOODER), "--port", str(bound.port), "--prefix", rc.prefix,
-                              "--count", "5000", "--qos", "1", "--password", ACCOUNTS["operator"]],
-                             stdout=subprocess.PIPE)
+    if svc.abort_account == "abort account":
+        assert "abort connection to 127.0.0.1" in svc.text(), svc.text()[-2000:]
+    else:
+        assert "refused the abort connection's account 'orbitrig-service-abort'" in svc.text(), svc.text()[-2000:]
+    flood = subprocess.Popen(
+        [
+            sys.executable,
+            str(FLOODER),
+            "--port",
+            str(bound.port),
+            "--prefix",
+            rc.prefix,
+            "--count",
+            "5000",
+            "--qos",
+            "1",
+            "--password",
+            ACCOUNTS["operator"],
+        ],
+        stdout=subprocess.PIPE,
+    )
     try:
         assert flood.stdout.readline().strip() == b"half"
         mark = rc.watch.mark()
         t_abort = time.monotonic()
         assert bound.pub(f"{rc.prefix}/abort", json.dumps({"cmd": "abort", "id": "operator-abort"})).returncode == 0
-        stopping = rc._wait(lambda m: m.topic.endswith("/status") and m.json()["state"] == "stopping",
-                            20, mark, "status stopping")
+        stopping = rc._wait(
+            lambda m: m.topic.endswith("/status") and m.json()["state"] == "stopping", 20, mark, "status stopping"
+        )
         assert stopping.t - t_abort < 3.0, f"abort took {stopping.t - t_abort:.2f} s to reach the executor"
         ended = rc.status("idle", timeout=60, start=mark)
         assert "aborted" in ended["message"], ended
@@ -88,8 +144,90 @@ def test_abort_gets_through_a_flood_of_commands(bound, running, tmp_path):
     assert summary["out_s"] is not None and summary["seconds"] - summary["out_s"] < 10, summary
     if summary["busy"] or dropped:
         assert "command flood:" in log
+    # the main connection, left unread for a moment after the abort, kept its session
+    assert "connection to 127.0.0.1" not in log.split("command abort (id 'operator-abort')")[1], log[-3000:]
+    assert "Traceback" not in log, log[-3000:]
+    # carried out and answered once, off the abort connection when it has its account
+    assert log.count("command abort (id 'operator-abort')") == 1, log[-3000:]
+    via = "abort" if svc.abort_account == "abort account" else "main"
+    assert f"abort topic: abort read off the {via} connection" in log, log[-3000:]
     replies = RigClient(bound, RIG, svc, watch=("reply",))
     try:
         assert replies.command({"cmd": "status"}, timeout=10)["ok"] is True  # ordinary commands work again
     finally:
         replies.close()
+
+
+# -- each message on the abort topic carried out and answered once --------------------
+
+
+def _idle_service(broker: Broker, tmp_path: Path, rig: str, abort_password: str) -> RigService:
+    """The service in process, no run (nothing to start), with its abort connection."""
+    settings = ServiceSettings(rig_id=rig, matrices_dir=tmp_path)
+    account = AbortAccount("orbitrig-service-abort", abort_password)
+    creds = BrokerSettings.from_url(
+        broker.service_url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"], abort=account
+    )
+    return RigService(settings, creds, engine_factory=None, load_matrix=None)
+
+
+async def _replies_to(service: RigService, broker: Broker, rig: str, messages: list[tuple[str, dict]]) -> list:
+    """Publish each (topic, command) as the operator; every reply seen within 2 s after the last."""
+    stop = asyncio.Event()
+    serving = asyncio.create_task(service.serve(stop))
+    watch = Watcher(broker, f"orbitrig/{rig}/reply")
+    try:
+        for _ in range(100):  # both connections up (or the abort connection given up)
+            if service.link.online.is_set() and (service.abort_link.up or service.abort_link.refused):
+                break
+            await asyncio.sleep(0.05)
+        await asyncio.sleep(0.3)  # the viewer subscribed
+        for topic, cmd in messages:
+            done = await asyncio.to_thread(broker.pub, f"orbitrig/{rig}/{topic}", json.dumps(cmd))
+            assert done.returncode == 0, done.stderr
+        await asyncio.sleep(2.0)
+        return [m.json() for m in watch.messages]
+    finally:
+        watch.close()
+        stop.set()
+        await asyncio.wait_for(serving, 10)
+
+
+@pytest.mark.parametrize("abort_password", [ACCOUNTS["orbitrig-service-abort"], "not-the-password"])
+async def test_an_abort_on_both_connections_is_answered_once(bound, tmp_path, caplog, abort_password):
+    service = _idle_service(bound, tmp_path, "twice-rig", abort_password)
+    replies = await _replies_to(
+        service,
+        bound,
+        "twice-rig",
+        [
+            ("abort", {"cmd": "abort", "id": "a1"}),
+            ("abort", {"cmd": "abort", "id": "a1"}),  # the same again: a second abort, answered again
+            ("abort", {"cmd": "stop", "id": "s1"}),
+            ("abort", {"cmd": "status", "id": "q1"}),  # not taken there: refused, once
+        ],
+    )
+    ids = [r["id"] for r in replies]
+    assert sorted(ids) == ["a1", "a1", "q1", "s1"], replies
+    assert [r["ok"] for r in replies if r["id"] != "q1"] == [True, True, True]
+    assert "only stop and abort are taken on the abort topic" in next(r for r in replies if r["id"] == "q1")["error"]
+    if abort_password == ACCOUNTS["orbitrig-service-abort"]:
+        assert service.abort_link.connections == 1 and service.abort_link.refused is None
+        assert service.triage.counts["second copy"] == 4  # each message's later copy, dropped
+    else:  # the main connection alone takes them; the warning says so
+        assert service.abort_link.connections == 0 and "refused" in service.abort_link.refused
+        assert service.triage.counts["second copy"] == 0
+        assert "still taken on orbitrig/twice-rig/abort through the main connection" in caplog.text
+
+
+def test_abort_copies_are_matched_one_to_one():
+    copies = AbortCopies(window_s=30.0)
+    a, b = b'{"cmd":"abort","id":"x"}', b'{"cmd":"abort","id":"y"}'
+    assert copies.first(Connection.ABORT, a) and copies.first(Connection.ABORT, a)  # two publishes
+    assert copies.first(Connection.MAIN, b)
+    assert not copies.first(Connection.MAIN, a) and not copies.first(Connection.MAIN, a)  # their copies
+    assert not copies.first(Connection.ABORT, b)
+    assert copies.first(Connection.MAIN, a)  # a third publish: no copy of it seen yet
+    copies.window_s = 0.0
+    time.sleep(0.01)
+    assert copies.first(Connection.ABORT, a)  # too late to be a copy: expired

@@ -14,9 +14,25 @@ RIG = "cat-rig"
 
 
 def _serve(broker, work, catalog_url):
-    args = ["--sim", "--broker", broker.url, "--rig-id", RIG, "--username", "orbitrig-service",
-            "--matrices", str(write_matrices(work / "matrices")), "--out", str(work / "runs"),
-            "--speedup", "20", "--confirm", "auto", "--catalog", catalog_url]
+    args = [
+        "--sim",
+        "--broker",
+        broker.url,
+        "--rig-id",
+        RIG,
+        "--username",
+        "orbitrig-service",
+        "--matrices",
+        str(write_matrices(work / "matrices")),
+        "--out",
+        str(work / "runs"),
+        "--speedup",
+        "20",
+        "--confirm",
+        "auto",
+        "--catalog",
+        catalog_url,
+    ]
     return Service(args, work, env={"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]})
 
 

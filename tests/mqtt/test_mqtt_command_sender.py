@@ -26,9 +26,23 @@ def test_every_command_that_changed_the_run_is_logged_with_its_sender(broker, tm
     pw = tmp_path / "service.pw"
     pw.write_text(ACCOUNTS["orbitrig-service"] + "\n")
     pw.chmod(0o600)
-    args = ["--sim", "--broker", broker.url, "--rig-id", RIG, "--username", "orbitrig-service", "--password-file",
-            str(pw), "--matrices", str(write_matrices(tmp_path / "matrices")), "--out", str(tmp_path / "runs"),
-            "--speedup", "20"]
+    args = [
+        "--sim",
+        "--broker",
+        broker.url,
+        "--rig-id",
+        RIG,
+        "--username",
+        "orbitrig-service",
+        "--password-file",
+        str(pw),
+        "--matrices",
+        str(write_matrices(tmp_path / "matrices")),
+        "--out",
+        str(tmp_path / "runs"),
+        "--speedup",
+        "20",
+    ]
     svc = Service(args, tmp_path)
     rig = RigClient(broker, RIG, svc)
     try:

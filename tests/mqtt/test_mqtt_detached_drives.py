@@ -29,6 +29,8 @@ from support.mqtt_helpers import ACCOUNTS, REPO, Broker, RigClient, Service, wri
 from orbitrig.config import rig_from_text
 
 FAULT_COMM_LOSS = 7510
+
+
 class NullModem:
     """Two ptys joined back to back (a null-modem cable), relayed by a thread of
     this test process, which outlives the service under test."""
@@ -75,10 +77,27 @@ def detached_sim(tmp_path):
     cable = NullModem()
     sim = None
     try:
-        sim = subprocess.Popen([sys.executable, "-m", "orbitrig", "sim", "--modbus-port", "0", "--adc-port", "0",
-                                "--can-interface", "serial", "--can-channel", cable.paths[0], "--speedup", "20"],
-                               stdout=subprocess.PIPE, stderr=open(tmp_path / "sim.log", "wb"),
-                               env={**os.environ, "PYTHONPATH": str(REPO)})
+        sim = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "orbitrig",
+                "sim",
+                "--modbus-port",
+                "0",
+                "--adc-port",
+                "0",
+                "--can-interface",
+                "serial",
+                "--can-channel",
+                cable.paths[0],
+                "--speedup",
+                "20",
+            ],
+            stdout=subprocess.PIPE,
+            stderr=open(tmp_path / "sim.log", "wb"),
+            env={**os.environ, "PYTHONPATH": str(REPO)},
+        )
         line = sim.stdout.readline()
         assert line, (tmp_path / "sim.log").read_text()
         endpoints = json.loads(line)
@@ -102,8 +121,12 @@ def control(endpoints: dict, **request) -> dict:
 
 def rig_config(endpoints: dict) -> str:
     text = (REPO / "config" / "rig.toml").read_text()
-    for key, value in (("modbus_url", endpoints["modbus"]), ("adc_url", endpoints["adc"]),
-                       ("can_channel", endpoints["can_rig_end"]), ("can_interface", "serial")):
+    for key, value in (
+        ("modbus_url", endpoints["modbus"]),
+        ("adc_url", endpoints["adc"]),
+        ("can_channel", endpoints["can_rig_end"]),
+        ("can_interface", "serial"),
+    ):
         text, n = re.subn(rf'^{key} = "[^"]*"', f'{key} = "{value}"', text, flags=re.M)
         assert n == 1, key
     return text
@@ -117,16 +140,36 @@ def test_sigkill_offline_and_drives_stop_on_their_watchdog(detached_sim, tmp_pat
 
     b = Broker(tmp_path / "broker")
     b.start()
-    svc = Service(["--config", str(tmp_path / "rig.toml"), "--broker", b.url, "--rig-id", "detached",
-                   "--username", "orbitrig-service", "--matrices", str(write_matrices(tmp_path / "matrices")),
-                   "--out", str(tmp_path / "runs")], tmp_path,
-                  env={"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]})
+    svc = Service(
+        [
+            "--config",
+            str(tmp_path / "rig.toml"),
+            "--broker",
+            b.url,
+            "--rig-id",
+            "detached",
+            "--username",
+            "orbitrig-service",
+            "--matrices",
+            str(write_matrices(tmp_path / "matrices")),
+            "--out",
+            str(tmp_path / "runs"),
+        ],
+        tmp_path,
+        env={"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]},
+    )
     rc = RigClient(b, "detached", svc)
     try:
         rc.status("idle", timeout=30)
         # the operator's hands: the matrix's manual settings on the rig
-        control(ep, cmd="set_manual", orbit_radius=0.096 * 60e-6, static_eccentricity=0.0,
-                recess_pressure=0.4826e6, pressure_ratio=0.4)
+        control(
+            ep,
+            cmd="set_manual",
+            orbit_radius=0.096 * 60e-6,
+            static_eccentricity=0.0,
+            recess_pressure=0.4826e6,
+            pressure_ratio=0.4,
+        )
         assert rc.command({"cmd": "start", "matrix": "long"})["ok"] is True
         assert "'manual:0000'" in rc.status("waiting")["message"]
         assert rc.command({"cmd": "confirm", "step": "manual:0000"})["ok"] is True

@@ -30,9 +30,23 @@ def bound(tmp_path_factory):
 
 
 def serve(url: str, work: Path, rig: str = RIG) -> Service:
-    args = ["--sim", "--broker", url, "--rig-id", rig, "--username", "orbitrig-service",
-            "--matrices", str(write_matrices(work / "matrices")), "--out", str(work / "runs"),
-            "--speedup", "20", "--confirm", "auto"]
+    args = [
+        "--sim",
+        "--broker",
+        url,
+        "--rig-id",
+        rig,
+        "--username",
+        "orbitrig-service",
+        "--matrices",
+        str(write_matrices(work / "matrices")),
+        "--out",
+        str(work / "runs"),
+        "--speedup",
+        "20",
+        "--confirm",
+        "auto",
+    ]
     return Service(args, work, env=ENV)
 
 
@@ -50,8 +64,11 @@ def started(bound, tmp_path):
 
 def _connect_as(broker: Broker, port: int, client_id: str) -> subprocess.CompletedProcess:
     """A viewer connects with ``client_id`` for about 2 s (mosquitto_sub)."""
-    return subprocess.run(["mosquitto_sub", *broker.client_args("viewer", port), "-i", client_id,
-                           "-t", "orbitrig/none", "-W", "2"], capture_output=True, timeout=15)
+    return subprocess.run(
+        ["mosquitto_sub", *broker.client_args("viewer", port), "-i", client_id, "-t", "orbitrig/none", "-W", "2"],
+        capture_output=True,
+        timeout=15,
+    )
 
 
 def test_a_viewer_cannot_take_the_service_client_id(bound, started):
@@ -59,9 +76,9 @@ def test_a_viewer_cannot_take_the_service_client_id(bound, started):
     asked = default_client_id(RIG)
     assert asked.startswith("mosq-")
     attempts = [
-        (bound.port, asked),               # the id the service asks for: another session, no takeover
+        (bound.port, asked),  # the id the service asks for: another session, no takeover
         (bound.port, "orbitrig-service"),  # the id the broker gave the service: refused
-        (bound.service_port, asked),       # the service listener: the viewer's id becomes "viewer"
+        (bound.service_port, asked),  # the service listener: the viewer's id becomes "viewer"
         (bound.service_port, "orbitrig-service"),
     ]
     for port, cid in attempts:
@@ -151,9 +168,12 @@ def test_offline_is_retained_after_any_exit(bound, tmp_path, how):
 async def test_a_cancelled_service_says_offline(bound, tmp_path):
     """A way out that is neither a shutdown request nor a lost link."""
     settings = ServiceSettings(rig_id="cancelled", matrices_dir=write_matrices(tmp_path / "m"))
-    service = RigService(settings, BrokerSettings.from_url(bound.service_url, username="orbitrig-service",
-                                                           password=ACCOUNTS["orbitrig-service"]),
-                         engine_factory=lambda name, m: None, load_matrix=lambda p: None)
+    service = RigService(
+        settings,
+        BrokerSettings.from_url(bound.service_url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]),
+        engine_factory=lambda name, m: None,
+        load_matrix=lambda p: None,
+    )
     task = asyncio.create_task(service.serve(asyncio.Event()))
     for _ in range(100):
         if service.connections:
@@ -172,11 +192,15 @@ async def test_backoff_is_not_reset_by_connections_that_carry_no_traffic(bound, 
     through): reconnections thin out (jittered exponential backoff, reset only
     after a session stayed up for a while) instead of repeating every 0.1 s."""
     proxy = CutProxy(bound.service_port, lifetime=0.3)
-    settings = ServiceSettings(rig_id="dropped", matrices_dir=write_matrices(tmp_path / "m"),
-                               reconnect_initial=0.2, reconnect_max=30.0)
-    service = RigService(settings, BrokerSettings.from_url(proxy.url, username="orbitrig-service",
-                                                           password=ACCOUNTS["orbitrig-service"]),
-                         engine_factory=lambda name, m: None, load_matrix=lambda p: None)
+    settings = ServiceSettings(
+        rig_id="dropped", matrices_dir=write_matrices(tmp_path / "m"), reconnect_initial=0.2, reconnect_max=30.0
+    )
+    service = RigService(
+        settings,
+        BrokerSettings.from_url(proxy.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]),
+        engine_factory=lambda name, m: None,
+        load_matrix=lambda p: None,
+    )
     stop = asyncio.Event()
     task = asyncio.create_task(service.serve(stop))
     try:
@@ -197,8 +221,9 @@ def test_a_redelivery_after_a_reconnection_is_executed_once(tmp_path):
     import time as _time
 
     settings = ServiceSettings(rig_id="redeliver", matrices_dir=write_matrices(tmp_path / "m"))
-    service = RigService(settings, BrokerSettings("127.0.0.1"), engine_factory=lambda name, m: None,
-                         load_matrix=lambda p: None)
+    service = RigService(
+        settings, BrokerSettings("127.0.0.1"), engine_factory=lambda name, m: None, load_matrix=lambda p: None
+    )
     sent = []
     service.link.send = lambda topic, payload, qos, retain=False, behind=False: sent.append((topic, payload))
     payload = b'{"cmd":"status","id":"a1"}'

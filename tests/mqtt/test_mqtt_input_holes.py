@@ -18,9 +18,27 @@ ENV = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}
 @pytest.fixture(scope="module")
 def rig(broker, tmp_path_factory):
     work = tmp_path_factory.mktemp("holes")
-    svc = Service(["--sim", "--broker", broker.url, "--rig-id", RIG, "--username", "orbitrig-service",
-                   "--matrices", str(write_matrices(work / "matrices")), "--out", str(work / "runs"),
-                   "--speedup", "20", "--confirm", "auto"], work, env=ENV)
+    svc = Service(
+        [
+            "--sim",
+            "--broker",
+            broker.url,
+            "--rig-id",
+            RIG,
+            "--username",
+            "orbitrig-service",
+            "--matrices",
+            str(write_matrices(work / "matrices")),
+            "--out",
+            str(work / "runs"),
+            "--speedup",
+            "20",
+            "--confirm",
+            "auto",
+        ],
+        work,
+        env=ENV,
+    )
     rc = RigClient(broker, RIG, svc)
     try:
         rc.status("idle", timeout=30)
@@ -47,11 +65,9 @@ def refused_without_effect(rig: RigClient, payload: bytes, cid: str | None) -> s
 
 
 def test_duplicate_keys_are_refused(rig):
-    reason = refused_without_effect(
-        rig, b'{"cmd":"status","cmd":"start","id":"dup-1","matrix":"quick"}', "dup-1")
+    reason = refused_without_effect(rig, b'{"cmd":"status","cmd":"start","id":"dup-1","matrix":"quick"}', "dup-1")
     assert "'cmd' given more than once" in reason
-    reason = refused_without_effect(
-        rig, b'{"cmd":"start","id":"dup-2","matrix":"nope","matrix":"quick"}', "dup-2")
+    reason = refused_without_effect(rig, b'{"cmd":"start","id":"dup-2","matrix":"nope","matrix":"quick"}', "dup-2")
     assert "'matrix' given more than once" in reason
 
 

@@ -11,8 +11,20 @@ from support.mqtt_helpers import ACCOUNTS, REPO, RigClient, Service, retained, w
 
 
 def test_serve_uses_the_configured_prefix(broker, tmp_path):
-    args = ["--broker", broker.url, "--rig-id", "rig9", "--prefix", "orbitrig/labA", "--username", "orbitrig-service",
-            "--matrices", str(write_matrices(tmp_path / "matrices")), "--out", str(tmp_path / "runs")]
+    args = [
+        "--broker",
+        broker.url,
+        "--rig-id",
+        "rig9",
+        "--prefix",
+        "orbitrig/labA",
+        "--username",
+        "orbitrig-service",
+        "--matrices",
+        str(write_matrices(tmp_path / "matrices")),
+        "--out",
+        str(tmp_path / "runs"),
+    ]
     svc = Service(args, tmp_path, env={"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]})
     rc = RigClient(broker, "labA", svc)  # watches orbitrig/labA/#
     try:
@@ -27,6 +39,11 @@ def test_serve_uses_the_configured_prefix(broker, tmp_path):
 
 
 def test_bad_prefix_is_a_usage_error(tmp_path):
-    p = subprocess.run([sys.executable, "-m", "orbitrig", "serve", "--broker", "mqtt://127.0.0.1:1",
-                        "--prefix", "orbitrig/+/x"], capture_output=True, text=True, cwd=REPO, timeout=60)
+    p = subprocess.run(
+        [sys.executable, "-m", "orbitrig", "serve", "--broker", "mqtt://127.0.0.1:1", "--prefix", "orbitrig/+/x"],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+        timeout=60,
+    )
     assert p.returncode == 2 and p.stdout == "" and "--prefix" in p.stderr and "wildcards" in p.stderr

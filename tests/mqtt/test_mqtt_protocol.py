@@ -11,16 +11,28 @@ import pydantic
 import pytest
 
 from orbitrig.service.protocol import (
-    STATES, Command, CommandError, parse_command, progress_payload, reply_error, reply_ok,
-    result_payload, status_payload, topics,
+    STATES,
+    Command,
+    CommandError,
+    parse_command,
+    progress_payload,
+    reply_error,
+    reply_ok,
+    result_payload,
+    status_payload,
+    topics,
 )
 
 
 def test_topics_under_default_prefix():
     t = topics("rig7")
     assert (t.status, t.progress, t.result, t.cmd, t.reply) == (
-        "orbitrig/rig7/status", "orbitrig/rig7/progress", "orbitrig/rig7/result",
-        "orbitrig/rig7/cmd", "orbitrig/rig7/reply")
+        "orbitrig/rig7/status",
+        "orbitrig/rig7/progress",
+        "orbitrig/rig7/result",
+        "orbitrig/rig7/cmd",
+        "orbitrig/rig7/reply",
+    )
     assert topics("x", prefix="lab/a/rig").cmd == "lab/a/rig/cmd"
 
 
@@ -36,43 +48,53 @@ def test_bad_prefix(prefix):
         topics("r", prefix=prefix)
 
 
-@pytest.mark.parametrize("payload, cmd", [
-    (b'{"cmd":"start","id":"1","matrix":"quick"}', Command("start", "1", matrix="quick")),
-    (b'{"cmd":"start","id":"1","matrix":"sweep_2.v1-b"}', Command("start", "1", matrix="sweep_2.v1-b")),
-    (b'{"cmd":"pause","id":"a"}', Command("pause", "a")),
-    (b'{"cmd":"resume","id":"a"}', Command("resume", "a")),
-    (b'{"id":"a","cmd":"stop"}', Command("stop", "a")),
-    (b'{"cmd":"abort","id":"a"}', Command("abort", "a")),
-    (b'{"cmd":"status","id":"a"}', Command("status", "a")),
-    (b'{"cmd":"confirm","id":"a","step":"orbit_radius:p0"}', Command("confirm", "a", step="orbit_radius:p0")),
-    ('{"cmd":"pause","id":"\u00e9t\u00e9"}'.encode(), Command("pause", "\u00e9t\u00e9")),
-])
+@pytest.mark.parametrize(
+    "payload, cmd",
+    [
+        (b'{"cmd":"start","id":"1","matrix":"quick"}', Command("start", "1", matrix="quick")),
+        (b'{"cmd":"start","id":"1","matrix":"sweep_2.v1-b"}', Command("start", "1", matrix="sweep_2.v1-b")),
+        (b'{"cmd":"pause","id":"a"}', Command("pause", "a")),
+        (b'{"cmd":"resume","id":"a"}', Command("resume", "a")),
+        (b'{"id":"a","cmd":"stop"}', Command("stop", "a")),
+        (b'{"cmd":"abort","id":"a"}', Command("abort", "a")),
+        (b'{"cmd":"status","id":"a"}', Command("status", "a")),
+        (b'{"cmd":"confirm","id":"a","step":"orbit_radius:p0"}', Command("confirm", "a", step="orbit_radius:p0")),
+        ('{"cmd":"pause","id":"\u00e9t\u00e9"}'.encode(), Command("pause", "\u00e9t\u00e9")),
+    ],
+)
 def test_valid_commands(payload, cmd):
     assert parse_command(payload) == cmd
 
 
-@pytest.mark.parametrize("payload, cid, reason", [
-    (b"", None, "payload is empty"),
-    (b"start quick", None, "payload is not JSON: Expecting value at line 1 column 1"),
-    (b'{"cmd":"stop","id":"x"', None, "payload is not JSON"),
-    (b"\xff\xfe", None, "payload is not UTF-8"),
-    (b"[1, 2]", None, "payload must be a JSON object, got array"),
-    (b'"stop"', None, "payload must be a JSON object, got string"),
-    (b'{"id":"q"}', "q", "missing field 'cmd'"),
-    (b'{"cmd":3,"id":"q"}', "q", "field 'cmd' must be a string, got number"),
-    (b'{"cmd":"launch","id":"q"}', "q", "unknown command 'launch' (known: abort, confirm, pause, resume, start, status, stop)"),
-    (b'{"cmd":"pause"}', None, "missing field 'id'"),
-    (b'{"cmd":"pause","id":7}', None, "field 'id' must be a string, got number"),
-    (b'{"cmd":"pause","id":""}', None, "field 'id' must have 1 to 128 characters"),
-    (b'{"cmd":"start","id":"q"}', "q", "missing field 'matrix' for command 'start'"),
-    (b'{"cmd":"start","id":"q","matrix":5}', "q", "field 'matrix' must be a string, got number"),
-    (b'{"cmd":"start","id":"q","matrix":"quick","speed":3}', "q", "unexpected field 'speed' for command 'start'"),
-    (b'{"cmd":"pause","id":"q","matrix":"quick"}', "q", "unexpected field 'matrix' for command 'pause'"),
-    (b'{"cmd":"start","id":"q","matrix":"demo","now":true}', "q", "unexpected field 'now' for command 'start'"),
-    (b'{"cmd":"confirm","id":"q"}', "q", "missing field 'step' for command 'confirm'"),
-    (b'{"cmd":"confirm","id":"q","step":null}', "q", "field 'step' must be a string, got null"),
-    (b'{"cmd":"confirm","id":"q","step":""}', "q", "field 'step' must be 1 to 128 printable characters"),
-])
+@pytest.mark.parametrize(
+    "payload, cid, reason",
+    [
+        (b"", None, "payload is empty"),
+        (b"start quick", None, "payload is not JSON: Expecting value at line 1 column 1"),
+        (b'{"cmd":"stop","id":"x"', None, "payload is not JSON"),
+        (b"\xff\xfe", None, "payload is not UTF-8"),
+        (b"[1, 2]", None, "payload must be a JSON object, got array"),
+        (b'"stop"', None, "payload must be a JSON object, got string"),
+        (b'{"id":"q"}', "q", "missing field 'cmd'"),
+        (b'{"cmd":3,"id":"q"}', "q", "field 'cmd' must be a string, got number"),
+        (
+            b'{"cmd":"launch","id":"q"}',
+            "q",
+            "unknown command 'launch' (known: abort, confirm, pause, resume, start, status, stop)",
+        ),
+        (b'{"cmd":"pause"}', None, "missing field 'id'"),
+        (b'{"cmd":"pause","id":7}', None, "field 'id' must be a string, got number"),
+        (b'{"cmd":"pause","id":""}', None, "field 'id' must have 1 to 128 characters"),
+        (b'{"cmd":"start","id":"q"}', "q", "missing field 'matrix' for command 'start'"),
+        (b'{"cmd":"start","id":"q","matrix":5}', "q", "field 'matrix' must be a string, got number"),
+        (b'{"cmd":"start","id":"q","matrix":"quick","speed":3}', "q", "unexpected field 'speed' for command 'start'"),
+        (b'{"cmd":"pause","id":"q","matrix":"quick"}', "q", "unexpected field 'matrix' for command 'pause'"),
+        (b'{"cmd":"start","id":"q","matrix":"demo","now":true}', "q", "unexpected field 'now' for command 'start'"),
+        (b'{"cmd":"confirm","id":"q"}', "q", "missing field 'step' for command 'confirm'"),
+        (b'{"cmd":"confirm","id":"q","step":null}', "q", "field 'step' must be a string, got null"),
+        (b'{"cmd":"confirm","id":"q","step":""}', "q", "field 'step' must be 1 to 128 printable characters"),
+    ],
+)
 def test_bad_commands_have_precise_reasons(payload, cid, reason):
     with pytest.raises(CommandError) as info:
         parse_command(payload)
@@ -80,10 +102,23 @@ def test_bad_commands_have_precise_reasons(payload, cid, reason):
     assert reason in info.value.reason
 
 
-@pytest.mark.parametrize("matrix", [
-    "../quick", "/etc/passwd", "sub/quick", "..", ".hidden", "a\\b", "~root", "quick\n", "", "x" * 65,
-    "C:quick", "a..b",
-])
+@pytest.mark.parametrize(
+    "matrix",
+    [
+        "../quick",
+        "/etc/passwd",
+        "sub/quick",
+        "..",
+        ".hidden",
+        "a\\b",
+        "~root",
+        "quick\n",
+        "",
+        "x" * 65,
+        "C:quick",
+        "a..b",
+    ],
+)
 def test_matrix_must_be_a_name_not_a_path(matrix):
     with pytest.raises(CommandError, match="not a path") as info:
         parse_command(json.dumps({"cmd": "start", "id": "m", "matrix": matrix}))
@@ -107,8 +142,7 @@ def test_oversized_payload_refused():
 def test_status_payload():
     since = dt.datetime(2026, 1, 2, 3, 4, 5, 678000, tzinfo=dt.timezone.utc)
     obj = json.loads(status_payload("running", "run-1", since, "point 1"))
-    assert obj == {"state": "running", "run_id": "run-1", "since": "2026-01-02T03:04:05.678Z",
-                   "message": "point 1"}
+    assert obj == {"state": "running", "run_id": "run-1", "since": "2026-01-02T03:04:05.678Z", "message": "point 1"}
     for state in STATES:
         assert json.loads(status_payload(state))["state"] == state
     obj = json.loads(status_payload("idle", since=0.0))
@@ -119,16 +153,38 @@ def test_status_payload():
 
 def test_progress_payload_keys():
     obj = json.loads(progress_payload("r", 2, 5, 3, 8, 50, 12.5))
-    assert obj == {"run_id": "r", "point": 2, "points": 5, "frequency": 3, "frequencies": 8,
-                   "revolutions": 50, "eta_s": 12.5}
+    assert obj == {
+        "run_id": "r",
+        "point": 2,
+        "points": 5,
+        "frequency": 3,
+        "frequencies": 8,
+        "revolutions": 50,
+        "eta_s": 12.5,
+    }
 
 
 def test_result_payload_is_plain_json():
-    payload = {"point": 0, "spin_rpm": np.float64(1200.0), "coefficients": {"Kxx": np.float32(1.5e7)},
-               "orbit_hz": np.array([1.0, 2.0]), "bad": math.nan, "z": 1 + 2j, "ok": np.bool_(True)}
+    payload = {
+        "point": 0,
+        "spin_rpm": np.float64(1200.0),
+        "coefficients": {"Kxx": np.float32(1.5e7)},
+        "orbit_hz": np.array([1.0, 2.0]),
+        "bad": math.nan,
+        "z": 1 + 2j,
+        "ok": np.bool_(True),
+    }
     obj = json.loads(result_payload("r9", payload))
-    assert obj == {"run_id": "r9", "point": 0, "spin_rpm": 1200.0, "coefficients": {"Kxx": 1.5e7},
-                   "orbit_hz": [1.0, 2.0], "bad": None, "z": [1.0, 2.0], "ok": True}
+    assert obj == {
+        "run_id": "r9",
+        "point": 0,
+        "spin_rpm": 1200.0,
+        "coefficients": {"Kxx": 1.5e7},
+        "orbit_hz": [1.0, 2.0],
+        "bad": None,
+        "z": [1.0, 2.0],
+        "ok": True,
+    }
     assert json.loads(result_payload("r9", {"run_id": "own"}))["run_id"] == "own"
 
 
@@ -137,11 +193,14 @@ def test_replies():
     assert json.loads(reply_error(None, "no")) == {"id": None, "ok": False, "error": "no"}
 
 
-@pytest.mark.parametrize("payload, cid, ignored", [
-    (b'{"cmd":"stop","id":"q","now":true}', "q", "unexpected field 'now' for command 'stop'"),
-    (b'{"cmd":"abort"}', None, "missing field 'id'"),
-    (b'{"cmd":"abort","id":7,"reason":"smoke"}', None, "field 'id' must be a string"),
-])
+@pytest.mark.parametrize(
+    "payload, cid, ignored",
+    [
+        (b'{"cmd":"stop","id":"q","now":true}', "q", "unexpected field 'now' for command 'stop'"),
+        (b'{"cmd":"abort"}', None, "missing field 'id'"),
+        (b'{"cmd":"abort","id":7,"reason":"smoke"}', None, "field 'id' must be a string"),
+    ],
+)
 def test_stop_and_abort_are_always_accepted(payload, cid, ignored):
     """docs/protocols/mqtt.md: stop and abort are always accepted, even with wrong fields."""
     cmd = parse_command(payload)
@@ -154,16 +213,21 @@ def test_a_payload_that_cannot_be_read_as_abort_is_still_refused():
         parse_command(b'{"command":"abort","id":"a"}')
 
 
-@pytest.mark.parametrize("payload", [
-    b"[" * 1500 + b"]" * 1500,
-    b'{"cmd":"stop","id":"d","x":' + b"[" * 1300 + b"]" * 1300 + b"}",
-    "[" * 1400 + "]" * 1400,
-], ids=["array", "inside-a-stop", "text"])
+@pytest.mark.parametrize(
+    "payload",
+    [
+        b"[" * 1500 + b"]" * 1500,
+        b'{"cmd":"stop","id":"d","x":' + b"[" * 1300 + b"]" * 1300 + b"}",
+        "[" * 1400 + "]" * 1400,
+    ],
+    ids=["array", "inside-a-stop", "text"],
+)
 @pytest.mark.parametrize("recursion_limit", [None, 100_000])
 def test_deep_nesting_is_refused_not_raised(payload, recursion_limit):
     """json.loads raises RecursionError on deep nesting, or parses it when a library
     in the process has raised the recursion limit: either way it is refused."""
     import sys
+
     before = sys.getrecursionlimit()
     sys.setrecursionlimit(recursion_limit or before)
     try:
@@ -173,10 +237,13 @@ def test_deep_nesting_is_refused_not_raised(payload, recursion_limit):
         sys.setrecursionlimit(before)
 
 
-@pytest.mark.parametrize("payload", [
-    b'{"cmd":"stop","id":"' + b"[" * 100 + b'"}',
-    b'{"cmd":"stop","id":"a\\"' + b"[" * 40 + b'"}',
-])
+@pytest.mark.parametrize(
+    "payload",
+    [
+        b'{"cmd":"stop","id":"' + b"[" * 100 + b'"}',
+        b'{"cmd":"stop","id":"a\\"' + b"[" * 40 + b'"}',
+    ],
+)
 def test_brackets_inside_strings_do_not_count_as_nesting(payload):
     assert parse_command(payload).cmd == "stop"
 
@@ -185,20 +252,30 @@ def test_commands_are_the_models():
     """The command table is derived from the pydantic models, one per argument set."""
     from orbitrig.service.protocol import COMMAND_FIELDS, ConfirmCommand, StartCommand
 
-    assert COMMAND_FIELDS == {"start": ("matrix",), "confirm": ("step",), "pause": (), "resume": (),
-                              "stop": (), "abort": (), "status": ()}
+    assert COMMAND_FIELDS == {
+        "start": ("matrix",),
+        "confirm": ("step",),
+        "pause": (),
+        "resume": (),
+        "stop": (),
+        "abort": (),
+        "status": (),
+    }
     assert StartCommand.model_validate({"cmd": "start", "id": "1", "matrix": "quick"}).matrix == "quick"
     with pytest.raises(pydantic.ValidationError):
         ConfirmCommand.model_validate({"cmd": "confirm", "id": "1", "step": 5})  # strict: no coercion
 
 
-@pytest.mark.parametrize("payload, reason", [
-    (b'{"cmd":"pause","id":true}', "field 'id' must be a string, got boolean"),
-    (b'{"cmd":"start","id":"q","matrix":["quick"]}', "field 'matrix' must be a string, got array"),
-    (b'{"cmd":"confirm","id":"q","step":{"a":1}}', "field 'step' must be a string, got object"),
-    (b'{"cmd":"status","id":"q","cmd2":1}', "unexpected field 'cmd2' for command 'status'"),
-    (b'{"cmd":"resume","id":"' + b"x" * 129 + b'"}', "field 'id' must have 1 to 128 characters"),
-])
+@pytest.mark.parametrize(
+    "payload, reason",
+    [
+        (b'{"cmd":"pause","id":true}', "field 'id' must be a string, got boolean"),
+        (b'{"cmd":"start","id":"q","matrix":["quick"]}', "field 'matrix' must be a string, got array"),
+        (b'{"cmd":"confirm","id":"q","step":{"a":1}}', "field 'step' must be a string, got object"),
+        (b'{"cmd":"status","id":"q","cmd2":1}', "unexpected field 'cmd2' for command 'status'"),
+        (b'{"cmd":"resume","id":"' + b"x" * 129 + b'"}', "field 'id' must have 1 to 128 characters"),
+    ],
+)
 def test_every_wrong_field_has_its_reason(payload, reason):
     with pytest.raises(CommandError) as info:
         parse_command(payload)

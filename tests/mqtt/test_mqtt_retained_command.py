@@ -22,14 +22,17 @@ async def test_retained_start_is_refused_and_starts_nothing(broker, tmp_path: Pa
         started.append(name)
         raise RuntimeError("engine not available in this test")
 
-    done = await asyncio.to_thread(broker.pub, topic, json.dumps({"cmd": "start", "id": "stale", "matrix": "quick"}),
-                                   retain=True)
+    done = await asyncio.to_thread(
+        broker.pub, topic, json.dumps({"cmd": "start", "id": "stale", "matrix": "quick"}), retain=True
+    )
     assert done.returncode == 0, done.stderr
     rc = RigClient(broker, rig_id)
     service = RigService(
         ServiceSettings(rig_id=rig_id, matrices_dir=write_matrices(tmp_path / "matrices")),
         BrokerSettings.from_url(broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]),
-        engine_factory=factory, load_matrix=load_matrix)
+        engine_factory=factory,
+        load_matrix=load_matrix,
+    )
     stop = asyncio.Event()
     task = asyncio.create_task(service.serve(stop))
     try:

@@ -11,8 +11,7 @@ from support.mqtt_helpers import ACCOUNTS, Watcher
 
 
 def _sub_once(broker, user, password=None):
-    args = ["mosquitto_sub", "-h", "127.0.0.1", "-p", str(broker.port), "-t", "orbitrig/#",
-            "-C", "1", "-W", "3"]
+    args = ["mosquitto_sub", "-h", "127.0.0.1", "-p", str(broker.port), "-t", "orbitrig/#", "-C", "1", "-W", "3"]
     if user:
         args += ["-u", user, "-P", password if password is not None else ACCOUNTS[user]]
     return subprocess.run(args, capture_output=True, text=True, timeout=10)
@@ -86,3 +85,25 @@ def test_only_operators_may_publish_on_the_abort_topic(broker):
         assert [m.payload for m in svc.messages] == [b'{"cmd":"abort","id":"by-operator"}']
     finally:
         svc.close()
+
+
+def test_the_abort_account_only_reads_the_abort_topic(broker):
+    # the service's abort connection: reads <prefix>/abort, nothing else, and publishes nothing
+    abort = Watcher(
+        broker, ("orbitrig/r5/abort", "orbitrig/r5/cmd", "orbitrig/r5/status"), user="orbitrig-service-abort"
+    )
+    view = Watcher(broker, "orbitrig/r5/#", user="viewer")
+    try:
+        time.sleep(0.3)
+        assert broker.pub("orbitrig/r5/cmd", '{"cmd":"status","id":"c"}').returncode == 0
+        broker.pub("orbitrig/r5/status", '{"state":"idle"}', user="orbitrig-service-abort")
+        broker.pub("orbitrig/r5/abort", '{"cmd":"abort","id":"by-abort-account"}', user="orbitrig-service-abort")
+        assert broker.pub("orbitrig/r5/abort", '{"cmd":"abort","id":"by-operator"}').returncode == 0
+        abort.wait_for(lambda m: b"by-operator" in m.payload, 5)
+        view.wait_for(lambda m: b"by-operator" in m.payload, 5)
+        time.sleep(0.2)
+        assert [m.payload for m in abort.messages] == [b'{"cmd":"abort","id":"by-operator"}']
+        assert [m.topic for m in view.messages] == ["orbitrig/r5/cmd", "orbitrig/r5/abort"]
+    finally:
+        abort.close()
+        view.close()

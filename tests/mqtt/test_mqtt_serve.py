@@ -18,10 +18,24 @@ RIG = "sim-rig"
 PROGRESS_KEYS = {"run_id", "point", "points", "frequency", "frequencies", "revolutions", "eta_s"}
 STATUS_KEYS = {"state", "run_id", "since", "message"}
 
+
 def serve_args(broker: Broker, workdir: Path, *extra: str) -> list[str]:
-    return ["--sim", "--broker", broker.url, "--rig-id", RIG, "--username", "orbitrig-service",
-            "--matrices", str(write_matrices(workdir / "matrices")), "--out", str(workdir / "runs"),
-            "--speedup", "20", *extra]
+    return [
+        "--sim",
+        "--broker",
+        broker.url,
+        "--rig-id",
+        RIG,
+        "--username",
+        "orbitrig-service",
+        "--matrices",
+        str(write_matrices(workdir / "matrices")),
+        "--out",
+        str(workdir / "runs"),
+        "--speedup",
+        "20",
+        *extra,
+    ]
 
 
 def run_status(workdir: Path, run_id: str) -> str:
@@ -59,8 +73,11 @@ def rig(broker, service):
     except AssertionError:
         raise AssertionError("service not idle:\n" + service.text()[-3000:]) from None
     yield rc
-    if service.proc.poll() is None and rc.watch.on("status") and rc.watch.on("status")[-1].json()["state"] not in (
-            "idle", "faulted"):
+    if (
+        service.proc.poll() is None
+        and rc.watch.on("status")
+        and rc.watch.on("status")[-1].json()["state"] not in ("idle", "faulted")
+    ):
         rc.command({"cmd": "abort"})
         rc.status("idle", timeout=30)
     rc.close()
@@ -77,10 +94,17 @@ BAD = [
     (b'{"id": "b1"}', "b1", "missing field 'cmd'"),
     (b'{"cmd": "launch", "id": "b2"}', "b2", "unknown command 'launch'"),
     (b'{"cmd": "start", "id": "b3"}', "b3", "missing field 'matrix' for command 'start'"),
-    (b'{"cmd": "start", "id": "b4", "matrix": "quick", "spin_rpm": 9000}', "b4",
-     "unexpected field 'spin_rpm' for command 'start'"),
+    (
+        b'{"cmd": "start", "id": "b4", "matrix": "quick", "spin_rpm": 9000}',
+        "b4",
+        "unexpected field 'spin_rpm' for command 'start'",
+    ),
     (b'{"cmd": "start", "id": "b5", "matrix": "../../etc/passwd"}', "b5", "not a path"),
-    (b'{"cmd": "start", "id": "b6", "matrix": "nope"}', "b6", "no matrix 'nope' in the matrix folder (available: judged, long, quick)"),
+    (
+        b'{"cmd": "start", "id": "b6", "matrix": "nope"}',
+        "b6",
+        "no matrix 'nope' in the matrix folder (available: judged, long, quick)",
+    ),
     (b'{"cmd": "confirm", "id": "b7", "step": 3}', "b7", "field 'step' must be a string, got number"),
     (b'{"cmd": "pause", "id": 8}', None, "field 'id' must be a string"),
     (b'{"cmd": "pause", "id": "b9"}', "b9", "no run is active: nothing to pause"),
@@ -131,8 +155,9 @@ def test_remote_run_confirm_pause_resume_stop(rig, service):
     assert rig.command({"cmd": "confirm", "step": "manual:0000"})["ok"] is True
     rig.status("running", start=m)
 
-    prog = rig.watch.wait_for(lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] > 0,
-                              30, start=mark, what="progress")
+    prog = rig.watch.wait_for(
+        lambda m: m.topic.endswith("/progress") and m.json()["revolutions"] > 0, 30, start=mark, what="progress"
+    )
     assert prog.qos == 0 and set(prog.json()) == PROGRESS_KEYS and prog.json()["run_id"] == run_id
     assert prog.json()["points"] == 1 and prog.json()["frequencies"] == 16
 
@@ -221,6 +246,7 @@ def test_result_carries_intervals_uncertainty_verdicts_and_refusals(rig, service
 
 
 # -- the broker and the service go away -----------------------------------------
+
 
 class OwnRun:
     """A broker and a `serve --sim --confirm auto` of the test's own (the password

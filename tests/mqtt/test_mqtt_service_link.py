@@ -19,8 +19,9 @@ def _no_engine(name, matrix):
     raise AssertionError("no run is started in these tests")
 
 
-def _service(broker: Broker, tmp_path: Path, rig_id: str, *, password: str = ACCOUNTS["orbitrig-service"],
-             **kw) -> RigService:
+def _service(
+    broker: Broker, tmp_path: Path, rig_id: str, *, password: str = ACCOUNTS["orbitrig-service"], **kw
+) -> RigService:
     matrices = tmp_path / "matrices"
     matrices.mkdir(exist_ok=True)
     (matrices / "quick.toml").write_text("name = 'quick'\n")
@@ -28,10 +29,14 @@ def _service(broker: Broker, tmp_path: Path, rig_id: str, *, password: str = ACC
     settings = ServiceSettings(rig_id=rig_id, matrices_dir=matrices, **kw)
     from orbitrig.config import load_matrix
 
-    return RigService(settings, BrokerSettings.from_url(broker.url, username="orbitrig-service",
-                                                        password=password,
-                                                        tls_ca=getattr(broker, "ca", None)),
-                      engine_factory=_no_engine, load_matrix=load_matrix)
+    return RigService(
+        settings,
+        BrokerSettings.from_url(
+            broker.url, username="orbitrig-service", password=password, tls_ca=getattr(broker, "ca", None)
+        ),
+        engine_factory=_no_engine,
+        load_matrix=load_matrix,
+    )
 
 
 @contextlib.asynccontextmanager
@@ -49,21 +54,29 @@ async def wait(fn, *args, **kw):
     return await asyncio.to_thread(fn, *args, **kw)
 
 
-@pytest.mark.parametrize("url, host, port, tls", [
-    ("mqtt://127.0.0.1:1884", "127.0.0.1", 1884, False),
-    ("mqtt://broker.lab", "broker.lab", 1883, False),
-    ("mqtts://broker.lab", "broker.lab", 8883, True),
-])
+@pytest.mark.parametrize(
+    "url, host, port, tls",
+    [
+        ("mqtt://127.0.0.1:1884", "127.0.0.1", 1884, False),
+        ("mqtt://broker.lab", "broker.lab", 1883, False),
+        ("mqtts://broker.lab", "broker.lab", 8883, True),
+    ],
+)
 def test_broker_url(url, host, port, tls):
     b = BrokerSettings.from_url(url)
     assert (b.host, b.port, b.tls) == (host, port, tls)
 
 
-@pytest.mark.parametrize("url, why", [
-    ("tcp://h:1", "expected mqtt://"), ("mqtt://", "expected mqtt://"),
-    ("mqtt://u:pw@h:1", "credentials do not belong in the URL"), ("mqtt://h:1/x", "no path"),
-    ("mqtt://h:99999", "out of range"),
-])
+@pytest.mark.parametrize(
+    "url, why",
+    [
+        ("tcp://h:1", "expected mqtt://"),
+        ("mqtt://", "expected mqtt://"),
+        ("mqtt://u:pw@h:1", "credentials do not belong in the URL"),
+        ("mqtt://h:1/x", "no path"),
+        ("mqtt://h:99999", "out of range"),
+    ],
+)
 def test_bad_broker_url(url, why):
     with pytest.raises(ServiceError, match=why):
         BrokerSettings.from_url(url)
@@ -108,9 +121,15 @@ async def test_commands_without_a_run(broker, tmp_path):
                 ({"cmd": "pause"}, "no run is active: nothing to pause"),
                 ({"cmd": "resume"}, "no run is active: nothing to resume"),
                 ({"cmd": "confirm", "step": "orbit_radius"}, "no run is active: nothing to confirm"),
-                ({"cmd": "start", "matrix": "nope"}, "no matrix 'nope' in the matrix folder (available: broken, quick)"),
+                (
+                    {"cmd": "start", "matrix": "nope"},
+                    "no matrix 'nope' in the matrix folder (available: broken, quick)",
+                ),
                 ({"cmd": "start", "matrix": "broken"}, "matrix 'broken' is invalid: not valid TOML"),
-                ({"cmd": "start", "matrix": "quick"}, "matrix 'quick' is invalid: key 'operating': required key is missing"),
+                (
+                    {"cmd": "start", "matrix": "quick"},
+                    "matrix 'quick' is invalid: key 'operating': required key is missing",
+                ),
                 ({"cmd": "start", "matrix": "/etc/passwd"}, "not a path"),
             ]
             for cmd, why in cases:
@@ -178,8 +197,9 @@ def _serve_cli(*args: str, env: dict | None = None) -> subprocess.CompletedProce
 
     full = {**os.environ, "PYTHONPATH": str(REPO), **(env or {})}
     full.pop("ORBITRIG_MQTT_PASSWORD", None) if env is None else None
-    return subprocess.run([sys.executable, "-m", "orbitrig", "serve", *args], capture_output=True, text=True,
-                          env=full, timeout=60)
+    return subprocess.run(
+        [sys.executable, "-m", "orbitrig", "serve", *args], capture_output=True, text=True, env=full, timeout=60
+    )
 
 
 def test_cli_needs_a_password_from_file_or_environment(broker):
@@ -196,6 +216,28 @@ def test_cli_refused_credentials_exit_1(broker, tmp_path):
     done = _serve_cli("--broker", broker.url, "--username", "orbitrig-service", "--password-file", str(pw))
     assert done.returncode == 1, done.stderr
     assert "refused the credentials of 'orbitrig-service'" in done.stderr
+
+
+@pytest.mark.parametrize(
+    "args, why",
+    [
+        (["--no-abort-connection", "--abort-username", "x"], "--no-abort-connection: no --abort-username"),
+        (["--abort-password-file", "{open}"], "--abort-password-file: {open} is accessible by other users"),
+        (["--abort-username", "x", "--abort-password-file", "{empty}"], "--abort-password-file: {empty} is empty"),
+    ],
+)
+def test_cli_checks_the_abort_account_options(broker, tmp_path, args, why):
+    files = {"open": tmp_path / "open", "empty": tmp_path / "empty"}
+    files["open"].write_text("pw\n")
+    files["open"].chmod(0o644)
+    files["empty"].write_text("")
+    files["empty"].chmod(0o600)
+    names = {k: str(v) for k, v in files.items()}
+    env = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}
+    args = [a.format(**names) for a in args]
+    done = _serve_cli("--broker", broker.url, "--username", "orbitrig-service", *args, env=env)
+    assert done.returncode == 2, done.stderr
+    assert why.format(**names) in done.stderr and "Traceback" not in done.stderr
 
 
 @pytest.mark.parametrize("mode", [0o644, 0o640, 0o604, 0o606, 0o620])
@@ -219,15 +261,26 @@ def test_cli_refuses_a_password_file_that_is_not_utf8(broker, tmp_path):
 
 @pytest.mark.parametrize("value", ["nan", "inf", "-1", "0"])
 def test_cli_supervision_timeout_must_be_finite_and_positive(broker, value):
-    done = _serve_cli("--broker", broker.url, "--supervision-timeout", value,
-                      env={"ORBITRIG_MQTT_PASSWORD": "x", "ORBITRIG_MQTT_USERNAME": "orbitrig-service"})
+    done = _serve_cli(
+        "--broker",
+        broker.url,
+        "--supervision-timeout",
+        value,
+        env={"ORBITRIG_MQTT_PASSWORD": "x", "ORBITRIG_MQTT_USERNAME": "orbitrig-service"},
+    )
     assert done.returncode == 2 and "supervision timeout must be a finite number" in done.stderr, done.stderr
 
 
 @pytest.mark.parametrize("value", ["nan", "inf", "0"])
 def test_cli_speedup_must_be_finite_and_positive(broker, value):
-    done = _serve_cli("--broker", broker.url, "--sim", "--speedup", value,
-                      env={"ORBITRIG_MQTT_PASSWORD": "x", "ORBITRIG_MQTT_USERNAME": "orbitrig-service"})
+    done = _serve_cli(
+        "--broker",
+        broker.url,
+        "--sim",
+        "--speedup",
+        value,
+        env={"ORBITRIG_MQTT_PASSWORD": "x", "ORBITRIG_MQTT_USERNAME": "orbitrig-service"},
+    )
     assert done.returncode == 2 and "--speedup" in done.stderr and "Traceback" not in done.stderr
 
 
@@ -244,9 +297,22 @@ async def test_a_flood_is_answered_busy_or_counted_and_a_stop_amid_it_is_carried
         try:
             await wait(rc.status, "idle")
             flood = await asyncio.create_subprocess_exec(
-                sys.executable, str(Path(__file__).with_name("mqtt_flood.py")), "--port", str(broker.port),
-                "--prefix", "orbitrig/flood1", "--count", "5000", "--qos", "mixed", "--quiet", "1",
-                "--password", ACCOUNTS["operator"], stdout=asyncio.subprocess.PIPE)
+                sys.executable,
+                str(Path(__file__).with_name("mqtt_flood.py")),
+                "--port",
+                str(broker.port),
+                "--prefix",
+                "orbitrig/flood1",
+                "--count",
+                "5000",
+                "--qos",
+                "mixed",
+                "--quiet",
+                "1",
+                "--password",
+                ACCOUNTS["operator"],
+                stdout=asyncio.subprocess.PIPE,
+            )
             assert (await asyncio.wait_for(flood.stdout.readline(), 60)).strip() == b"half"
             assert (await wait(rc.command, {"cmd": "stop"}, 20))["ok"] is True
             summary = json.loads((await asyncio.wait_for(flood.stdout.read(), 120)).decode().splitlines()[-1])

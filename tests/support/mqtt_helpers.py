@@ -24,7 +24,12 @@ EXAMPLE_CONF = REPO / "config" / "mosquitto" / "mosquitto.conf"
 MOSQUITTO = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
 
 #: The accounts of the example ACL and the passwords the tests give them.
-ACCOUNTS = {"orbitrig-service": "svc-secret", "operator": "op-secret", "viewer": "view-secret"}
+ACCOUNTS = {
+    "orbitrig-service": "svc-secret",
+    "orbitrig-service-abort": "svc-secret",  # the service's abort connection: the same password
+    "operator": "op-secret",
+    "viewer": "view-secret",
+}
 
 
 def free_port() -> int:

@@ -1,0 +1,143 @@
+"""The rig service's second broker connection, for ``<prefix>/abort`` alone.
+
+A broker delivers one connection's messages in order: on the service's main
+connection an abort waits in the socket behind every command of a flood read
+before it. This connection reads nothing but ``<prefix>/abort`` (QoS 0
+subscription, clean session, no last will, an account of its own:
+:class:`orbitrig.service.settings.AbortAccount`), so no flood is ahead of an
+abort on it. Each message is handed to the triage's stop/abort fast path as it
+is read off the socket (``CommandTriage.urgent``), on the service's event loop;
+replies and statuses go out on the main connection.
+
+The main connection keeps its own subscription to ``<prefix>/abort``: an abort
+reaches the service on both, and the second copy is dropped (``AbortCopies``).
+Without this connection (not configured, its account refused by the broker, or
+denied ``<prefix>/abort`` by the ACL) the service still takes every abort, on
+the main connection, and says so with a warning when it starts.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import logging
+import time
+from typing import Any
+
+from daq.backoff import Backoff
+from orbitrig.service import protocol as proto
+from orbitrig.service.inbox import CommandInbox, CommandTriage, Connection
+from orbitrig.service.reconnect import credentials_refused, reconnecting
+from orbitrig.service.settings import AbortAccount, BrokerSettings, ServiceError, ServiceSettings
+
+log = logging.getLogger("orbitrig.service.abort_link")
+
+#: a connection that stayed up this long (s) after subscribing resets the backoff
+TRAFFIC_S = 5.0
+
+
+class AbortConnectionRefused(ServiceError):
+    """The broker refused the abort connection's account or its subscription (the
+    service goes on without it)."""
+
+
+@dataclasses.dataclass
+class AbortLink:
+    """The abort connection of one rig service: ``await run()`` until cancelled.
+    ``up`` is True while it is subscribed; ``refused`` says why it gave up."""
+
+    broker: BrokerSettings
+    account: AbortAccount
+    settings: ServiceSettings
+    topics: proto.Topics
+    triage: CommandTriage
+    up: bool = False
+    connections: int = 0
+    refused: str | None = None
+
+    @property
+    def where(self) -> str:
+        return f"{self.broker.host}:{self.broker.port}"
+
+    async def run(self) -> None:
+        """Connect and reconnect (jittered backoff) until cancelled; on a refusal, warn and end."""
+        try:
+            backoff = Backoff(self.settings.reconnect_initial, self.settings.reconnect_max)
+            await reconnecting(self._session, backoff, log)
+        except AbortConnectionRefused as err:
+            self.refused = str(err)
+            log.warning(
+                "%s: stop and abort are still taken on %s through the main connection, but there they "
+                "may wait behind a flood of commands (config/mosquitto/README.md, the abort account)",
+                err,
+                self.topics.abort,
+            )
+        except Exception:  # a fault of this connection must not end the service: the main one goes on
+            self.refused = "failed"
+            log.exception("abort connection failed; stop and abort are still taken on the main connection")
+
+    def _client(self) -> Any:
+        import aiomqtt
+
+        b, account = self.broker, self.account
+        tls = aiomqtt.TLSParameters(ca_certs=str(b.tls_ca) if b.tls_ca else None) if b.tls else None
+        return aiomqtt.Client(
+            b.host,
+            b.port,
+            username=account.username,
+            password=account.password,
+            identifier=self.settings.abort_client_id,
+            protocol=aiomqtt.ProtocolVersion.V5,
+            clean_start=True,
+            keepalive=b.keepalive,
+            timeout=b.timeout,
+            tls_params=tls,
+            queue_type=functools.partial(CommandInbox, take_now=self._take, overflow=lambda message: None),
+        )
+
+    def _take(self, message: Any) -> bool:
+        """Every message as it is read off the socket: to the fast path (``<prefix>/abort`` only)."""
+        if str(message.topic) == self.topics.abort:
+            payload = message.payload
+            data = bytes(payload) if isinstance(payload, (bytes, bytearray)) else str(payload or "").encode()
+            self.triage.urgent(data, bool(message.retain), via=Connection.ABORT)
+        return True
+
+    async def _session(self) -> bool:
+        """One connection until it is lost; True if it carried traffic (up for TRAFFIC_S)."""
+        import aiomqtt
+
+        t_up = None
+        try:
+            async with self._client() as client:
+                granted = await client.subscribe(self.topics.abort, qos=proto.QOS_ABORT_SUBSCRIPTION)
+                self._check_granted(granted)
+                t_up, self.up = time.monotonic(), True
+                self.connections += 1
+                log.info(
+                    "abort connection to %s as %r (client id %r): stop and abort on %s",
+                    self.where,
+                    self.account.username,
+                    self.settings.abort_client_id,
+                    self.topics.abort,
+                )
+                async for _ in client.messages:
+                    pass  # every message is taken as it is read (_take); nothing is queued
+        except aiomqtt.MqttError as err:
+            if credentials_refused(err) and self.connections == 0:
+                raise AbortConnectionRefused(
+                    f"broker {self.where} refused the abort connection's account {self.account.username!r}: {err}"
+                ) from None
+            log.warning("abort connection to %s %s: %s", self.where, "lost" if self.up else "failed", err)
+        finally:
+            self.up = False
+        return t_up is not None and time.monotonic() - t_up > TRAFFIC_S
+
+    def _check_granted(self, granted: Any) -> None:
+        """A subscription the broker refused (MQTT 5 reason code >= 0x80: the ACL) ends the link."""
+        codes = [getattr(code, "value", code) for code in (granted or ())]
+        if any(isinstance(code, int) and code >= 0x80 for code in codes):
+            raise AbortConnectionRefused(
+                f"broker {self.where} refused the abort connection's account {self.account.username!r} "
+                f"the subscription to {self.topics.abort} (reason code {codes[0]}: its ACL)"
+            )

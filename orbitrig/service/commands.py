@@ -1,0 +1,176 @@
+"""The rig service's commands: each one validated, carried out and answered once
+(docs/protocols/mqtt.md, "Commands"); a handler refuses by raising
+:class:`CommandRefused`, which :meth:`CommandHandling.handle_command` turns into
+the ``ok: false`` reply. ``stop`` and ``abort`` are always accepted."""
+
+from __future__ import annotations
+
+import asyncio
+import collections
+import logging
+import time
+from collections.abc import Callable
+from typing import Literal
+
+from orbitrig.errors import OrbitrigError
+from orbitrig.run.states import RunState
+from orbitrig.service import protocol as proto
+from orbitrig.service.engine_port import Engine
+from orbitrig.service.link import BrokerLink
+from orbitrig.service.settings import CommandRefused
+
+log = logging.getLogger("orbitrig.service.rig_service")
+
+#: s after a reconnection during which the broker's redeliveries arrive
+REDELIVERY_S = 10.0
+
+
+class CommandHandling:
+    """The command side of :class:`orbitrig.service.rig_service.RigService` (a mixin:
+    the attributes below are the service's)."""
+
+    topics: proto.Topics
+    link: BrokerLink
+    _engine: Engine | None
+    _run_task: asyncio.Task | None
+    _run_id: str | None
+    _state: str
+    _status: bytes
+    #: (id, bytes) of recent commands -> number of the connection they came on
+    _handled: collections.OrderedDict[tuple[str, bytes], int]
+    #: command name -> handler (raises CommandRefused to refuse)
+    _handlers: dict[str, Callable[[proto.Command], None]]
+
+    @property
+    def run_active(self) -> bool:
+        return self._run_task is not None and not self._run_task.done()
+
+    def handle_command(self, payload: bytes, *, retained: bool = False) -> None:
+        """Validate and execute one command; publish exactly one reply.
+
+        A retained command (``<prefix>/cmd`` is not retained) is stale: the broker
+        hands it to every new subscription, so executing it would, e.g., start a run at
+        each reconnection. It is refused (one reply) and changes nothing. A
+        redelivery of a command already handled (QoS 1 after a reconnection) is
+        dropped: it was executed and answered once."""
+        try:
+            cmd = proto.parse_command(payload)
+        except proto.CommandError as err:
+            log.info("refused command %r: %s", payload[:200], err.reason)
+            self._reply(err.id, err.reason, behind=True)
+            return
+        except Exception as err:  # no payload may kill the service
+            log.exception("refused command %r: the parser failed", payload[:200])
+            self._reply(None, f"payload cannot be read: {type(err).__name__}", behind=True)
+            return
+        if self._redelivered(cmd, payload):
+            log.warning("dropped redelivered command %s (id %r): handled already", cmd.cmd, cmd.id)
+            return
+        if retained:
+            log.warning("refused retained command %s (id %r)", cmd.cmd, cmd.id)
+            self._reply(
+                cmd.id,
+                f"retained command {cmd.cmd!r} refused: publish commands without the "
+                "retain flag (a retained command is replayed on every reconnection); "
+                "clear it with an empty retained message",
+            )
+            return
+        t0 = time.monotonic()
+        log.info("command %s (id %r)", cmd.cmd, cmd.id)
+        if cmd.ignored:
+            log.warning("%s accepted despite: %s", cmd.cmd, "; ".join(cmd.ignored))
+        error = None
+        try:
+            self._handlers[cmd.cmd](cmd)
+        except CommandRefused as refusal:
+            error = refusal.reason
+        except Exception as err:  # a command must never kill the service
+            log.exception("command %s failed", cmd.cmd)
+            error = f"{cmd.cmd} failed: {err}"
+        if cmd.cmd == "abort":
+            log.info("abort requested of the executor %.1f ms after the message arrived", (time.monotonic() - t0) * 1e3)
+        self._reply(cmd.id, error, behind=cmd.cmd not in proto.ALWAYS_ACCEPTED)
+
+    def _redelivered(self, cmd: proto.Command, payload: bytes) -> bool:
+        """True for the broker's redelivery of a command handled before the link
+        dropped (its acknowledgement was lost): the same id and bytes, handled
+        during an earlier connection, arriving within REDELIVERY_S of this one.
+        An operator repeating a command later is not affected."""
+        if cmd.id is None:
+            return False
+        key = (cmd.id, bytes(payload))
+        earlier = self._handled.get(key)
+        now, link = time.monotonic(), self.link
+        if earlier is not None and earlier < link.connections and now - link.connected_at < REDELIVERY_S:
+            return True
+        self._handled[key] = link.connections
+        self._handled.move_to_end(key)
+        if len(self._handled) > 256:
+            self._handled.popitem(last=False)
+        return False
+
+    def _on_message(self, payload: bytes, retained: bool) -> None:
+        """Every message on ``<prefix>/cmd``; nothing a message does may end the service."""
+        try:
+            self.handle_command(payload, retained=retained)
+        except Exception as err:  # last line of defence; handle_command replies itself
+            log.exception("command %r could not be handled", payload[:200])
+            self._reply(None, f"command could not be handled: {type(err).__name__}")
+
+    def _reply(self, cid: str | None, error: str | None, *, behind: bool = False) -> None:
+        """One reply; ``behind``: to an ordinary command (sent after statuses and results)."""
+        payload = proto.reply_ok(cid) if error is None else proto.reply_error(cid, error)
+        self.link.send(self.topics.reply, payload, proto.QOS_REPLY, behind=behind)
+
+    def _cmd_status(self, cmd: proto.Command) -> None:
+        self.link.send(self.topics.status, self._status, proto.QOS_STATUS, True)
+
+    def _cmd_pause(self, cmd: proto.Command) -> None:
+        self._control("pause", lambda e: e.request_pause(by=cmd.by), allowed=(RunState.RUNNING, RunState.WAITING))
+
+    def _cmd_resume(self, cmd: proto.Command) -> None:
+        self._control("resume", lambda e: e.request_resume(by=cmd.by), allowed=(RunState.PAUSED,))
+
+    def _cmd_confirm(self, cmd: proto.Command) -> None:
+        self._control("confirm", lambda e: e.confirm(cmd.step, by=cmd.by), allowed=None)
+
+    def _cmd_stop(self, cmd: proto.Command) -> None:
+        self._request("stop", cmd.by)  # always accepted
+
+    def _cmd_abort(self, cmd: proto.Command) -> None:
+        self._request("abort", cmd.by)  # always accepted
+
+    def _control(self, what: str, call: Callable[[Engine], None], allowed: tuple[str, ...] | None) -> None:
+        if not self.run_active or self._engine is None:
+            raise CommandRefused(f"no run is active: nothing to {what}")
+        state = self._engine.state
+        if allowed is not None and state not in allowed:
+            raise CommandRefused(f"cannot {what} while the run is {state}")
+        try:
+            call(self._engine)
+        except (OrbitrigError, ValueError, RuntimeError) as err:
+            raise CommandRefused(f"cannot {what}: {err}") from err
+
+    def _request(self, what: Literal["pause", "stop", "abort", "stop_now"], by: str | None = None) -> None:
+        """Ask the executor to pause/stop/abort; never raises. If the executor
+        refuses a stop or abort, the run task is cancelled (its cleanup ramps
+        both drives to zero)."""
+        engine, task = self._engine, self._run_task
+        if task is None or task.done() or engine is None:
+            return
+        if what != "pause" and engine.state == RunState.IDLE:
+            if engine.run_id is None:
+                task.cancel()  # the run task has not started yet: it never touches the drives
+            return  # (or the run has ended and the task is writing its closing summary)
+        requests = {
+            "pause": engine.request_pause,
+            "stop": engine.request_stop,
+            "abort": engine.request_abort,
+            "stop_now": lambda by: engine.request_stop_now("the service shutting down", by=by),
+        }
+        try:
+            requests[what](by=by)
+        except Exception:
+            log.exception("executor refused %s", what)
+            if what != "pause":
+                task.cancel()
