@@ -69,20 +69,32 @@ def choose(rule: SequentialRule, spin: float, recs: list[BlockRecord], ch: dict[
     ratios = np.array([abs(r.block.orbit) / spin for r in recs])
     per_rev, noise_at = _noise(table, ratios)
     radius = float(np.mean(np.sqrt((np.abs(table.x) ** 2 + np.abs(table.y) ** 2) / 2)))
-    info = sum(block_information(spec, theta, spin, radius, ratios[k], per_rev[k], int(table.n_records[k]),
-                                 str(Whirl.of(recs[k].block.direction))) for k in range(len(recs)))
-    if rule.target is None:
-        match = np.asarray(rule.match_ratios)
-        both = "both" if len(rule.directions) == 2 else rule.directions[0]
-        scales, target = reference_errors(spec, theta, spin, radius, match, noise_at(match), rule.match_revolutions,
-                                          both), 1.0
-    else:
-        scales, target = coefficient_scales(spec, theta, spin), rule.target
+    info = _information(spec, theta, spin, radius, table, ratios, per_rev, recs)
+    scales, target = _scales(rule, spec, theta, spin, radius, noise_at)
     spent = spent_seconds(rule, recs)
     nb = next_block(spec, theta, spin, radius, info, rule.candidates, noise_at, scales, target, spent, rule.cap_s,
                     rule.per_block_s, rule.directions, recs[-1].block.orbit, rule.ramp_rate)
     return BlockChoice(nb.reason.name.lower(), nb.ratio, nb.direction, nb.revolutions, nb.seconds, spent, tuple(spec.names),
                        tuple(float(v) for v in nb.before), tuple(float(v) for v in nb.after))
+
+
+def _information(spec, theta, spin: float, radius: float, table, ratios: np.ndarray, per_rev: np.ndarray,
+                 recs: list[BlockRecord]):
+    """The Fisher information of the point's blocks at ``theta``, summed over the blocks (each
+    at its ratio, per-revolution noise, revolution count and whirl direction)."""
+    return sum(block_information(spec, theta, spin, radius, ratios[k], per_rev[k], int(table.n_records[k]),
+                                 str(Whirl.of(recs[k].block.direction))) for k in range(len(recs)))
+
+
+def _scales(rule: SequentialRule, spec, theta, spin: float, radius: float, noise_at):
+    """The coefficients' scales of the relative errors and the target on them: with no target
+    in the rule, the errors the rule's matching design would reach (target 1); else each
+    coefficient's own scale and the rule's target."""
+    if rule.target is None:
+        match = np.asarray(rule.match_ratios)
+        both = "both" if len(rule.directions) == 2 else rule.directions[0]
+        return reference_errors(spec, theta, spin, radius, match, noise_at(match), rule.match_revolutions, both), 1.0
+    return coefficient_scales(spec, theta, spin), rule.target
 
 
 def chosen_steps(step: ChooseBlocks, spin: float, choice: BlockChoice, freq: int, orbit_now: float,

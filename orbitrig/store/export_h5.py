@@ -31,7 +31,7 @@ from orbitrig.store.durable import StreamedH5
 from orbitrig.store.errors import RunDirError, StorageError, storage_error
 from orbitrig.store.layout import RunLayout
 from orbitrig.store.pieces import fixed_text
-from orbitrig.store.reader import OCTAVE_COMPLEX, stored_values
+from orbitrig.store.h5_values import OCTAVE_COMPLEX, stored_values
 
 ATTRIBUTES = "attributes"
 

@@ -79,6 +79,19 @@ def write_block(g: h5py.Group, rec: BlockRecord, channels: list[str], units: lis
               "n_records": int(rec.n_records if rec.n_records is not None else len(rec.raw_counts)),
               "complete": True, "units_of_attributes": BLOCK_ATTR_UNITS})
     a["channels"], a["channel_units"] = chan, strings(units)
+    _write_signals(g, rec, per_channel)
+    _write_phasors(g, rec, per_channel)
+    st = g.create_group("stats")
+    for k, v in rec.stats.items():
+        st.attrs[k] = to_json(v) if isinstance(v, (dict, list)) else v
+    if rec.choice is not None:
+        write_choice(g.create_group("sequential"), rec.choice)
+    annotate(g)
+
+
+def _write_signals(g: h5py.Group, rec: BlockRecord, per_channel: str) -> None:
+    """A block's samples: raw counts, their slots, the channels' calibration, the synchronous
+    average and what is left of each revolution around it."""
     put(g, "raw_counts", np.asarray(rec.raw_counts, dtype=np.int16), "count",
         dimensions="revolution, channel, sample")
     put(g, "slots", np.asarray(rec.slots, dtype=np.int16), "slot (1/360 of an orbit revolution after the trigger)",
@@ -89,6 +102,11 @@ def write_block(g: h5py.Group, rec: BlockRecord, channels: list[str], units: lis
         meaning="synchronous average over the revolutions")
     put(g, "dc", np.asarray(rec.dc, dtype=np.float64), per_channel)
     put(g, "rms_residual", np.asarray(rec.rms_residual, dtype=np.float64), per_channel)
+
+
+def _write_phasors(g: h5py.Group, rec: BlockRecord, per_channel: str) -> None:
+    """A block's phasors: per revolution and averaged (with their uncertainty), the revolutions
+    averaged and the coherence of each displacement-force pair."""
     put(g, "record_phasors", np.asarray(rec.record_phasors, dtype=np.complex128), per_channel,
         dimensions="revolution, channel", convention="q = Re(q_bar exp(i Omega t))")
     put(g, "phasors", np.asarray(rec.phasors, dtype=np.complex128), per_channel,
@@ -101,12 +119,6 @@ def write_block(g: h5py.Group, rec: BlockRecord, channels: list[str], units: lis
             meaning="standard uncertainty of each averaged phasor")
     put(g, "coherence", np.asarray(rec.coherence, dtype=np.float64), "1", rows=strings(LMS),
         columns=strings(COHERENCE_PAIRS), meaning="gamma^2 between displacement and force")
-    st = g.create_group("stats")
-    for k, v in rec.stats.items():
-        st.attrs[k] = to_json(v) if isinstance(v, (dict, list)) else v
-    if rec.choice is not None:
-        write_choice(g.create_group("sequential"), rec.choice)
-    annotate(g)
 
 
 def write_choice(g: h5py.Group, c: BlockChoice) -> None:

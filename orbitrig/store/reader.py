@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from orbitrig.store.errors import RunDirError
+from orbitrig.store.h5_values import json_attr, open_h5, stored_values, text
 from orbitrig.store.layout import COHERENCE_PAIRS, READABLE_FORMATS, RUN_FILE, RunLayout  # noqa: F401
 from orbitrig.store.index import NEVER_COMPLETED
 from orbitrig.store.status import RunStatus
@@ -148,44 +149,6 @@ def freq_dep_key(freq_dep: str) -> str:
     return freq_dep.replace(":", "_").replace(",", "_")
 
 
-def _text(value: Any, default: str = "") -> str:
-    if value is None:
-        return default
-    if isinstance(value, bytes):
-        return value.decode("utf-8", "replace")
-    return str(value)
-
-
-def _json_attr(attrs, name: str) -> Any:
-    raw = attrs.get(name)
-    return None if raw is None else json.loads(_text(raw))
-
-
-#: a complex dataset in the h5 export's layout (orbitrig.store.export_h5), which GNU Octave reads
-OCTAVE_COMPLEX = np.dtype([("real", "<f8"), ("imag", "<f8")])
-
-
-def stored_values(ds) -> np.ndarray:
-    """The values of dataset `ds`; complex from either layout: run.h5's (h5py's members r, i)
-    or the h5 export's (members real, imag)."""
-    data = ds[()]
-    names = getattr(data, "dtype", np.dtype(float)).names
-    if names is not None and set(names) == {"real", "imag"}:
-        out = np.empty(data.shape, np.complex128)
-        out.real, out.imag = data["real"], data["imag"]
-        return out
-    return np.asarray(data)
-
-
-def _open(path: Path):
-    import h5py
-
-    try:
-        return h5py.File(path, "r")
-    except OSError as err:
-        raise RunDirError(path, f"not a readable HDF5 file ({err})") from err
-
-
 def read_run(directory: str | Path, *, blocks: bool = True) -> Run:
     """Read the run in ``directory`` (docs/storage.md); ``blocks=False`` leaves out every
     point's averaged blocks (the results only: bounded memory for a summary).
@@ -201,8 +164,8 @@ def read_run(directory: str | Path, *, blocks: bool = True) -> Run:
     path = layout.run_file
     if not path.is_file():
         raise RunDirError(directory, f"not an orbitrig run directory: no {RUN_FILE} (nor {layout.header.name}) in it")
-    with _open(path) as h5:
-        fmt = _text(h5.attrs.get("format"))
+    with open_h5(path) as h5:
+        fmt = text(h5.attrs.get("format"))
         if fmt not in READABLE_FORMATS:
             raise RunDirError(path, f"format attribute is {fmt or 'missing'!r}, expected {READABLE_FORMATS[-1]!r}")
         try:
@@ -215,16 +178,16 @@ def read_run(directory: str | Path, *, blocks: bool = True) -> Run:
                 points.append(point)
             a = h5.attrs
             return Run(
-                directory=directory, status=RunStatus.read(_text(a.get("status"))),
-                status_message=_text(a.get("status_message")), sim=bool(a.get("sim", False)),
-                software_version=_text(a.get("software_version")), created=_text(a.get("created")),
-                matrix_name=_text(a.get("matrix_name")), rig_config=_text(a.get("rig_config")),
-                matrix_config=_text(a.get("matrix_config")), points=points,
-                channels=[_text(c) for c in h5["channels"][()]] if "channels" in h5 else [],
-                channel_units=[_text(c) for c in h5["channel_units"][()]] if "channel_units" in h5 else [],
-                sim_scenario_name=_text(a.get("sim_scenario_name")),
-                sim_scenario_config=_text(a.get("sim_scenario_config")),
-                provenance={k: _text(a.get(k)) for k in PROVENANCE_KEYS},
+                directory=directory, status=RunStatus.read(text(a.get("status"))),
+                status_message=text(a.get("status_message")), sim=bool(a.get("sim", False)),
+                software_version=text(a.get("software_version")), created=text(a.get("created")),
+                matrix_name=text(a.get("matrix_name")), rig_config=text(a.get("rig_config")),
+                matrix_config=text(a.get("matrix_config")), points=points,
+                channels=[text(c) for c in h5["channels"][()]] if "channels" in h5 else [],
+                channel_units=[text(c) for c in h5["channel_units"][()]] if "channel_units" in h5 else [],
+                sim_scenario_name=text(a.get("sim_scenario_name")),
+                sim_scenario_config=text(a.get("sim_scenario_config")),
+                provenance={k: text(a.get(k)) for k in PROVENANCE_KEYS},
             )
         except (KeyError, ValueError, TypeError) as err:
             raise RunDirError(path, f"malformed run file: {err}") from err
@@ -296,14 +259,14 @@ def read_point(layout: RunLayout, index: int, *, complete: bool, skipped: list[s
         raise RunDirError(path, f"unreadable point settings ({type(err).__name__}: {err})") from err
     for tag in layout.block_tags(index) if blocks else ():
         try:
-            with _open(layout.block_file(index, tag)) as fg:
+            with open_h5(layout.block_file(index, tag)) as fg:
                 point.frequencies.append(_frequency(tag, fg))
         except (RunDirError, OSError, KeyError, ValueError) as err:
             if skipped is not None:
                 skipped.append(f"{layout.block_file(index, tag)}: {err}")
     if complete:
         try:
-            with _open(layout.results_file(index)) as rg:
+            with open_h5(layout.results_file(index)) as rg:
                 _read_results(rg, point)
         except (RunDirError, OSError, KeyError, ValueError, TypeError) as err:
             raise RunDirError(layout.results_file(index), f"malformed results of a complete point: {err}") from err
@@ -319,7 +282,7 @@ def _new_point(a, name: str) -> Point:
         static_eccentricity=float(a.get("static_eccentricity", np.nan)),
         dynamic_eccentricity=float(a.get("dynamic_eccentricity", np.nan)),
         orbit_radius=float(a.get("orbit_radius", np.nan)),
-        label=_text(a.get("label"), name),
+        label=text(a.get("label"), name),
     )
     complete = bool(a.get("complete", False))
     return Point(index=int(a.get("index", int(name))), name=name, complete=complete, settings=settings,
@@ -363,18 +326,18 @@ def _read_results(g, point: Point) -> None:
     for key, ig in sorted(g.get("identification", {}).items()):
         lms, model, fd_key = key.split("__", 2)
         ia = ig.attrs
-        result = _json_attr(ia, "json")
+        result = json_attr(ia, "json")
         point.identifications.append(
             StoredIdentification(
                 lms=lms,
-                model=_text(ia.get("model"), model),
-                freq_dep=_text(ia.get("freq_dep")) or freq_dep_from_key(fd_key),
+                model=text(ia.get("model"), model),
+                freq_dep=text(ia.get("freq_dep")) or freq_dep_from_key(fd_key),
                 result=result,
-                error=_text(ia.get("error")) or None,
-                method=_text(ia.get("method")) or str((result or {}).get("method", "ols")),
+                error=text(ia.get("error")) or None,
+                method=text(ia.get("method")) or str((result or {}).get("method", "ols")),
             )
         )
     if "truth" in g:
-        point.truth = _json_attr(g["truth"].attrs, "json")
+        point.truth = json_attr(g["truth"].attrs, "json")
     if "lms_comparison" in g:
-        point.lms_comparison = _json_attr(g["lms_comparison"].attrs, "json")
+        point.lms_comparison = json_attr(g["lms_comparison"].attrs, "json")
