@@ -86,10 +86,12 @@ class ModelTest:
 
     def reason(self) -> str:
         real, imag = entry_powers(self.spec)
-        return (f"the adequacy test of {self.spec.model} {self.spec.freq_dep.text} against the constant model needs "
-                f"at least {self.frequencies} distinct orbit frequencies ({max(len(real), len(imag))} powers of Omega "
-                f"per matrix entry, plus one to test them), one at least in each of {self.frequencies} equal slices "
-                f"of {self.lo:g} .. {self.hi:g}, and the reference list's standard errors of its coefficients")
+        return (
+            f"the adequacy test of {self.spec.model} {self.spec.freq_dep.text} against the constant model needs "
+            f"at least {self.frequencies} distinct orbit frequencies ({max(len(real), len(imag))} powers of Omega "
+            f"per matrix entry, plus one to test them), one at least in each of {self.frequencies} equal slices "
+            f"of {self.lo:g} .. {self.hi:g}, and the reference list's standard errors of its coefficients"
+        )
 
 
 def model_test(models: list[tuple[str, str]], reference_ratios) -> ModelTest:
@@ -98,8 +100,10 @@ def model_test(models: list[tuple[str, str]], reference_ratios) -> ModelTest:
     r = np.asarray(reference_ratios, dtype=float)
     k = frequencies_needed(spec)
     if np.unique(r).size < k:
-        raise ReductionError(f"the reference list has {np.unique(r).size} distinct ratios; the adequacy test of "
-                             f"{spec.model} {spec.freq_dep.text} needs {k}")
+        raise ReductionError(
+            f"the reference list has {np.unique(r).size} distinct ratios; the adequacy test of "
+            f"{spec.model} {spec.freq_dep.text} needs {k}"
+        )
     return ModelTest(spec, k, float(r.min()), float(r.max()))
 
 
@@ -135,9 +139,20 @@ def _std_errors(spec, theta, spin, radius, ratios, revolutions, u, directions) -
     return np.sqrt(np.diag(np.linalg.inv(info)))
 
 
-def allocate_keeping_test(test: ModelTest, spec: ModelSpec, prior: dict, spin: float, radius: float, grid,
-                          noise_at, reference, block_overhead: float = 0.0, directions: str = "both",
-                          min_revolutions: int = 10, scales=None) -> TestedAllocation:
+def allocate_keeping_test(
+    test: ModelTest,
+    spec: ModelSpec,
+    prior: dict,
+    spin: float,
+    radius: float,
+    grid,
+    noise_at,
+    reference,
+    block_overhead: float = 0.0,
+    directions: str = "both",
+    min_revolutions: int = 10,
+    scales=None,
+) -> TestedAllocation:
     """Revolutions per ratio of ``grid`` in the least rig time such that every coefficient of
     ``spec`` and of ``test.spec`` has at most the standard error of the ``reference`` list
     ((ratios, revolutions per ratio)) and the list passes :func:`spread_ok`. ``prior``:
@@ -154,10 +169,23 @@ def allocate_keeping_test(test: ModelTest, spec: ModelSpec, prior: dict, spin: f
     if scales is not None:
         ref_se[0] = np.asarray(scales, dtype=float)
     grid = np.asarray(grid, dtype=float)
-    a = allocate(spec, thetas[0], spin, radius, grid, noise_at(grid), ref_se[0], block_overhead=block_overhead,
-                 min_revolutions=min_revolutions, directions=directions, admissible=lambda r: spread_ok(test, r),
-                 also=[(test.spec, thetas[1], ref_se[1])])
-    se = [_std_errors(s, t, spin, radius, a.ratios, a.revolutions, noise_at(a.ratios), directions)
-          for s, t in zip(specs, thetas)]
+    a = allocate(
+        spec,
+        thetas[0],
+        spin,
+        radius,
+        grid,
+        noise_at(grid),
+        ref_se[0],
+        block_overhead=block_overhead,
+        min_revolutions=min_revolutions,
+        directions=directions,
+        admissible=lambda r: spread_ok(test, r),
+        also=[(test.spec, thetas[1], ref_se[1])],
+    )
+    se = [
+        _std_errors(s, t, spin, radius, a.ratios, a.revolutions, noise_at(a.ratios), directions)
+        for s, t in zip(specs, thetas)
+    ]
     worst = [float(np.max(e / r)) for e, r in zip(se, ref_se)]
     return TestedAllocation(a.ratios, a.revolutions, se[0], se[1], worst[0], worst[1])

@@ -60,8 +60,9 @@ class Allocation:
         return self.acquisition_s + self.overhead_s
 
 
-def revolution_information(spec: ModelSpec, theta, spin: float, radius: float, ratios, u_revolution,
-                           directions: str = "both") -> np.ndarray:
+def revolution_information(
+    spec: ModelSpec, theta, spin: float, radius: float, ratios, u_revolution, directions: str = "both"
+) -> np.ndarray:
     """(k, p, p) Fisher information of ONE revolution at each ratio (all its directions),
     circular orbits of ``radius`` (m), per-revolution noise u (k, 4) of x, y (m), fx, fy (N);
     displacement noise is propagated through Z at ``theta``."""
@@ -116,13 +117,23 @@ def time_shares(F, tau, scales) -> tuple[np.ndarray, float]:
         except np.linalg.LinAlgError:
             return np.full(scales.size, 1e30), np.zeros((scales.size, k))
 
-    cons = [{"type": "ineq", "fun": lambda v: v[-1] - safe(v[:-1])[0] / z0,
-             "jac": lambda v: np.hstack([-safe(v[:-1])[1] / z0, np.ones((scales.size, 1))])},
-            {"type": "eq", "fun": lambda v: np.sum(v[:-1]) - 1.0,
-             "jac": lambda v: np.append(np.ones(k), 0.0)[None]}]
-    res = minimize(lambda v: v[-1], np.append(w0, 1.0), jac=lambda v: np.append(np.zeros(k), 1.0),
-                   method="SLSQP", constraints=cons, bounds=[(MIN_SHARE, 1.0)] * k + [(0, None)],
-                   options={"maxiter": 300, "ftol": 1e-10})
+    cons = [
+        {
+            "type": "ineq",
+            "fun": lambda v: v[-1] - safe(v[:-1])[0] / z0,
+            "jac": lambda v: np.hstack([-safe(v[:-1])[1] / z0, np.ones((scales.size, 1))]),
+        },
+        {"type": "eq", "fun": lambda v: np.sum(v[:-1]) - 1.0, "jac": lambda v: np.append(np.ones(k), 0.0)[None]},
+    ]
+    res = minimize(
+        lambda v: v[-1],
+        np.append(w0, 1.0),
+        jac=lambda v: np.append(np.zeros(k), 1.0),
+        method="SLSQP",
+        constraints=cons,
+        bounds=[(MIN_SHARE, 1.0)] * k + [(0, None)],
+        options={"maxiter": 300, "ftol": 1e-10},
+    )
     w = np.maximum(res.x[:-1], MIN_SHARE)
     w = w / w.sum()
     g, _ = at(w)
@@ -156,7 +167,7 @@ def _support(F, tau, s, per_block, admissible=None):
     if not np.isfinite(best):
         raise ReductionError("allocate: these ratios cannot identify the model")
     while len(keep) > 1:
-        trials = [t for t in (keep[:i] + keep[i + 1:] for i in np.argsort(w)) if ok(t)]
+        trials = [t for t in (keep[:i] + keep[i + 1 :] for i in np.argsort(w)) if ok(t)]
         if not trials:
             break
         c, w2, T2 = _cost(F, tau, s, per_block, trials[0], admissible)
@@ -167,9 +178,12 @@ def _support(F, tau, s, per_block, admissible=None):
     improved = True
     while improved:
         improved = False
-        moves = [keep[:i] + keep[i + 1:] for i in range(len(keep)) if len(keep) > 1] + \
-                [sorted(keep[:i] + [g] + keep[i + 1:]) for i in range(len(keep)) for g in range(tau.size)
-                 if g not in keep and abs(g - keep[i]) <= reach]
+        moves = [keep[:i] + keep[i + 1 :] for i in range(len(keep)) if len(keep) > 1] + [
+            sorted(keep[:i] + [g] + keep[i + 1 :])
+            for i in range(len(keep))
+            for g in range(tau.size)
+            if g not in keep and abs(g - keep[i]) <= reach
+        ]
         for trial in moves:
             c, w2, T2 = _cost(F, tau, s, per_block, trial, admissible)
             if c < best * (1 - 1e-6):
@@ -189,9 +203,21 @@ def _counts(F, tau, scales, w, T, min_revolutions):
     return n.astype(int), worst
 
 
-def allocate(spec: ModelSpec, theta, spin: float, radius: float, ratios, u_revolution, scales,
-             target: float = 1.0, block_overhead: float = 0.0, min_revolutions: int = 10,
-             directions: str = "both", admissible=None, also=()) -> Allocation:
+def allocate(
+    spec: ModelSpec,
+    theta,
+    spin: float,
+    radius: float,
+    ratios,
+    u_revolution,
+    scales,
+    target: float = 1.0,
+    block_overhead: float = 0.0,
+    min_revolutions: int = 10,
+    directions: str = "both",
+    admissible=None,
+    also=(),
+) -> Allocation:
     """Least-rig-time revolutions per ratio (a subset of ``ratios``) bringing every
     coefficient's standard error to at most ``target`` x ``scales`` (p,) SI; u_revolution
     (k, 4) per-revolution noise at each of ``ratios`` (or (4,) for all); ``block_overhead``
@@ -204,8 +230,11 @@ def allocate(spec: ModelSpec, theta, spin: float, radius: float, ratios, u_revol
     r = np.asarray(ratios, dtype=float)
     order = np.argsort(r)
     r = r[order]
-    u = np.broadcast_to(np.asarray(u_revolution, dtype=float), (len(order), 4))[order] \
-        if np.ndim(u_revolution) == 2 else np.asarray(u_revolution, dtype=float)
+    u = (
+        np.broadcast_to(np.asarray(u_revolution, dtype=float), (len(order), 4))[order]
+        if np.ndim(u_revolution) == 2
+        else np.asarray(u_revolution, dtype=float)
+    )
     if not target > 0:
         raise ReductionError(f"allocate: target must be > 0, got {target:g}")
     models = [(spec, theta, scales), *also]
@@ -219,9 +248,14 @@ def allocate(spec: ModelSpec, theta, spin: float, radius: float, ratios, u_revol
     p = spec.n_coefficients
     info = np.einsum("k,kij->ij", n, F[keep][:, :p, :p])
     se = np.sqrt(np.diag(np.linalg.inv(info)))
-    return Allocation(tuple(float(v) for v in r[keep]), tuple(int(v) for v in n), se,
-                      float(np.max(se / np.asarray(scales, float))), float(np.sum(n * tau[keep])),
-                      per_block * keep.size)
+    return Allocation(
+        tuple(float(v) for v in r[keep]),
+        tuple(int(v) for v in n),
+        se,
+        float(np.max(se / np.asarray(scales, float))),
+        float(np.sum(n * tau[keep])),
+        per_block * keep.size,
+    )
 
 
 def _block_diagonal(parts) -> np.ndarray:
@@ -230,13 +264,14 @@ def _block_diagonal(parts) -> np.ndarray:
     out = np.zeros((k, sum(sizes), sum(sizes)))
     at = 0
     for f, p in zip(parts, sizes):
-        out[:, at:at + p, at:at + p] = f
+        out[:, at : at + p, at : at + p] = f
         at += p
     return out
 
 
-def adaptive_targets(spec: ModelSpec, theta, spin: float, radius: float, ratios, revolutions, u_revolution,
-                     directions: str = "both") -> np.ndarray:
+def adaptive_targets(
+    spec: ModelSpec, theta, spin: float, radius: float, ratios, revolutions, u_revolution, directions: str = "both"
+) -> np.ndarray:
     """(k,) relative standard uncertainty (fraction) of the noisiest phasor after ``revolutions``
     (k,) at each ratio: max over x, y (u / radius) and fx, fy (u / |f|, f = -Z d on the
     circular orbit at ``theta``, the smaller force of the ratio's directions). As an adaptive

@@ -57,15 +57,23 @@ class Derived:
         def pair(p):
             return None if p is None else [arr(p[0]), arr(p[1])]
 
-        return {"orbit_hz": arr(self.orbit / (2 * np.pi)),
-                "c_eff_xx": arr(self.c_eff_xx), "c_eff_xx_std": arr(self.c_eff_xx_std),
-                "c_eff_yy": arr(self.c_eff_yy), "c_eff_yy_std": arr(self.c_eff_yy_std),
-                "c_eff_zero_xx_hz": _zero_hz(self.c_eff_zero_xx), "c_eff_zero_yy_hz": _zero_hz(self.c_eff_zero_yy),
-                "h_forward_re": arr(self.h_forward.real), "h_forward_im": arr(self.h_forward.imag),
-                "h_forward_std": pair(self.h_forward_std),
-                "h_backward_re": arr(self.h_backward.real), "h_backward_im": arr(self.h_backward.imag),
-                "h_backward_std": pair(self.h_backward_std),
-                "wfr": arr(self.wfr), "wfr_std": arr(self.wfr_std)}
+        return {
+            "orbit_hz": arr(self.orbit / (2 * np.pi)),
+            "c_eff_xx": arr(self.c_eff_xx),
+            "c_eff_xx_std": arr(self.c_eff_xx_std),
+            "c_eff_yy": arr(self.c_eff_yy),
+            "c_eff_yy_std": arr(self.c_eff_yy_std),
+            "c_eff_zero_xx_hz": _zero_hz(self.c_eff_zero_xx),
+            "c_eff_zero_yy_hz": _zero_hz(self.c_eff_zero_yy),
+            "h_forward_re": arr(self.h_forward.real),
+            "h_forward_im": arr(self.h_forward.imag),
+            "h_forward_std": pair(self.h_forward_std),
+            "h_backward_re": arr(self.h_backward.real),
+            "h_backward_im": arr(self.h_backward.imag),
+            "h_backward_std": pair(self.h_backward_std),
+            "wfr": arr(self.wfr),
+            "wfr_std": arr(self.wfr_std),
+        }
 
 
 def _zero_hz(z):
@@ -115,13 +123,20 @@ def derived_quantities(ident: Identification, orbit, spin: float, cov: np.ndarra
         wfr = n_val / (spin * d_val)
         g_wfr = (num * d_val[:, None] - den * n_val[:, None]) / (spin * d_val[:, None] ** 2)
     return Derived(
-        orbit=w, c_eff_xx=g_xx @ theta, c_eff_yy=g_yy @ theta,
-        c_eff_xx_std=_std(g_xx, cov), c_eff_yy_std=_std(g_yy, cov),
-        c_eff_zero_xx=_zero(ident, w, "xx", cov), c_eff_zero_yy=_zero(ident, w, "yy", cov),
-        h_forward=g_hf @ theta, h_backward=g_hb @ theta,
+        orbit=w,
+        c_eff_xx=g_xx @ theta,
+        c_eff_yy=g_yy @ theta,
+        c_eff_xx_std=_std(g_xx, cov),
+        c_eff_yy_std=_std(g_yy, cov),
+        c_eff_zero_xx=_zero(ident, w, "xx", cov),
+        c_eff_zero_yy=_zero(ident, w, "yy", cov),
+        h_forward=g_hf @ theta,
+        h_backward=g_hb @ theta,
         h_forward_std=None if cov is None else (_std(g_hf.real, cov), _std(g_hf.imag, cov)),
         h_backward_std=None if cov is None else (_std(g_hb.real, cov), _std(g_hb.imag, cov)),
-        wfr=wfr, wfr_std=None if cov is None or spin <= 0 else _std(g_wfr, cov))
+        wfr=wfr,
+        wfr_std=None if cov is None or spin <= 0 else _std(g_wfr, cov),
+    )
 
 
 def _c_eff(ident, entry, w):

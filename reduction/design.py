@@ -96,7 +96,9 @@ def reference_design(orbit) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return w2, x, y
 
 
-def yardstick_design(orbit, min_frequencies: int, directions: str = "both") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def yardstick_design(
+    orbit, min_frequencies: int, directions: str = "both"
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(orbit, x, y): unit circles in ``directions`` (the whirl directions the table has:
     "forward" | "backward" | "both") at as many frequencies as the table has distinct ones
     (at least ``min_frequencies``, at most ``YARDSTICK_MAX``), spread evenly from
@@ -121,7 +123,7 @@ def design_orbits(orbit_hz, directions, radius: float) -> tuple[np.ndarray, np.n
     for f, d in zip(hz, dirs):
         if d not in ("forward", "backward", "both"):
             raise ReductionError(f"design_orbits: unknown direction {d!r}")
-        for sign in ((-1j,) if d == "forward" else (1j,) if d == "backward" else (-1j, 1j)):
+        for sign in (-1j,) if d == "forward" else (1j,) if d == "backward" else (-1j, 1j):
             w.append(2 * np.pi * f)
             y.append(sign * radius)
     return np.array(w), np.full(len(w), complex(radius)), np.array(y)
@@ -144,8 +146,10 @@ def predicted_covariance(spec: ModelSpec, orbit, x, y, u, theta=None) -> np.ndar
     if np.any(var <= 0):
         raise ReductionError("predicted_covariance: every equation needs a noise > 0")
     if A.shape[0] < A.shape[1]:
-        raise ReductionError(f"predicted_covariance: {A.shape[0]} real equations cannot identify "
-                             f"{A.shape[1]} coefficients (need at least {-(-A.shape[1] // 4)} orbit frequencies)")
+        raise ReductionError(
+            f"predicted_covariance: {A.shape[0]} real equations cannot identify "
+            f"{A.shape[1]} coefficients (need at least {-(-A.shape[1] // 4)} orbit frequencies)"
+        )
     Aw = A / np.sqrt(var)[:, None]
     c = np.linalg.norm(Aw, axis=0)
     c = np.where(c > 0, c, 1.0)

@@ -65,8 +65,9 @@ class SignalDesign:
         return bool(self.removed)
 
 
-def displacement_noise(table: OrbitTable, residual: np.ndarray | None = None,
-                       Z: np.ndarray | None = None, dof: int = 0) -> np.ndarray:
+def displacement_noise(
+    table: OrbitTable, residual: np.ndarray | None = None, Z: np.ndarray | None = None, dof: int = 0
+) -> np.ndarray:
     """(n, 2) noise u_x, u_y (m) of each row's displacement phasors: the table's u_* columns,
     else the equivalent displacement noise of the real residual (4n,) through Z (n, 2, 2):
     u_d^2 = 2 s^2 / ||Z_k||_F^2 per component, s^2 = RSS / dof per real equation; never
@@ -89,8 +90,9 @@ def excitation_ratios(x, y, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     the rows' u_x, u_y), and the main axis (..., 2). Leading axes are a batch of tables."""
     x, y = np.asarray(x, dtype=complex), np.asarray(y, dtype=complex)
     xy = np.sum((x * np.conj(y)).real, axis=-1)
-    gram = np.stack([np.stack([np.sum(np.abs(x) ** 2, axis=-1), xy], -1),
-                     np.stack([xy, np.sum(np.abs(y) ** 2, axis=-1)], -1)], -2)  # S S^T, (..., 2, 2)
+    gram = np.stack(
+        [np.stack([np.sum(np.abs(x) ** 2, axis=-1), xy], -1), np.stack([xy, np.sum(np.abs(y) ** 2, axis=-1)], -1)], -2
+    )  # S S^T, (..., 2, 2)
     s2, U = np.linalg.eigh(gram)  # ascending: minor first
     energy = np.einsum("...ij,...i->...j", U**2, np.sum(np.asarray(u, dtype=float) ** 2, axis=-2))
     s = np.sqrt(np.clip(s2, 0.0, None))
@@ -128,8 +130,10 @@ def signal_design(table: OrbitTable, noise: np.ndarray) -> SignalDesign:
             removed.append(f"the {name} ({g.rows}): excitation {g.major:.2g} times its noise")
         elif g.minor < CLEAR_REFUSE:
             x[rows], y[rows] = _project(x[rows], y[rows], g.axis)
-            removed.append(f"the {name} ({g.rows}): excitation across the orbits' main axis "
-                           f"({_angle(g.axis)}) {g.minor:.2g} times its noise")
+            removed.append(
+                f"the {name} ({g.rows}): excitation across the orbits' main axis "
+                f"({_angle(g.axis)}) {g.minor:.2g} times its noise"
+            )
         elif g.minor < CLEAR_WARN:
             weak.append(f"the {name} ({g.rows}): excitation across the main axis {g.minor:.2g} times its noise")
     g = _judge("table", table.x, table.y, noise)
@@ -137,8 +141,10 @@ def signal_design(table: OrbitTable, noise: np.ndarray) -> SignalDesign:
     if g.major >= CLEAR_REFUSE and g.minor < CLEAR_REFUSE:
         x, y = _project(x, y, g.axis)
         if not removed:
-            removed.append(f"the whole table ({g.rows} rows): excitation across the orbits' main axis "
-                           f"({_angle(g.axis)}) {g.minor:.2g} times its noise")
+            removed.append(
+                f"the whole table ({g.rows} rows): excitation across the orbits' main axis "
+                f"({_angle(g.axis)}) {g.minor:.2g} times its noise"
+            )
     elif CLEAR_REFUSE <= g.minor < CLEAR_WARN and not weak:
         weak.append(f"the whole table: excitation across the main axis {g.minor:.2g} times its noise")
     return SignalDesign(x, y, groups, removed, weak)
@@ -155,7 +161,10 @@ def signal_warning(design: SignalDesign) -> str | None:
     parts = design.removed + design.weak
     if not parts:
         return None
-    return ("weak excitation: the displacement is not clear of its noise in " + "; ".join(parts)
-            + f" (orbitrig wants at least {CLEAR_WARN:g} times; u_x, u_y, else the residual's equivalent). "
-            "The coefficients this direction drives are poorly determined; a larger orbit in that "
-            "direction (forward and backward circles) would determine them.")
+    return (
+        "weak excitation: the displacement is not clear of its noise in "
+        + "; ".join(parts)
+        + f" (orbitrig wants at least {CLEAR_WARN:g} times; u_x, u_y, else the residual's equivalent). "
+        "The coefficients this direction drives are poorly determined; a larger orbit in that "
+        "direction (forward and backward circles) would determine them."
+    )

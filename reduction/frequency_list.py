@@ -110,8 +110,11 @@ def predict(problem: DesignProblem, ratios, revolutions=None) -> ListPrediction:
     of ``ratios``, both directions alike)."""
     order = np.argsort(np.asarray(ratios, dtype=float), kind="stable")
     r = tuple(float(np.asarray(ratios, dtype=float)[i]) for i in order)
-    n = (np.full(len(r), float(problem.revolutions)) if revolutions is None
-         else np.asarray(revolutions, dtype=float)[order])
+    n = (
+        np.full(len(r), float(problem.revolutions))
+        if revolutions is None
+        else np.asarray(revolutions, dtype=float)[order]
+    )
     hz = np.asarray(r) * problem.spin / (2 * np.pi)
     orbit, x, y = design_orbits(hz, problem.directions, problem.radius)
     per = orbit.size // max(len(r), 1)
@@ -146,8 +149,7 @@ def smooth_noise(ratios, u_revolution) -> np.ndarray:
     return np.exp(np.outer(r, coef[0]) + coef[1])
 
 
-def allowed_ratios(lo: float, hi: float, step: float = GRID_STEP,
-                   keep_away: float = RUNOUT_KEEP_AWAY) -> np.ndarray:
+def allowed_ratios(lo: float, hi: float, step: float = GRID_STEP, keep_away: float = RUNOUT_KEEP_AWAY) -> np.ndarray:
     """Grid of ratios in [lo, hi] (multiples of ``step``) at least ``keep_away`` from 1."""
     if not 0 < lo < hi:
         raise ReductionError(f"allowed_ratios: need 0 < lo < hi, got {lo:g}, {hi:g}")
@@ -177,7 +179,7 @@ def best_list(problem: DesignProblem, grid, count: int, score=None) -> tuple[Lis
             for g in range(grid.size):
                 if g in picks:
                     continue
-                trial = picks[:pos] + [g] + picks[pos + 1:]
+                trial = picks[:pos] + [g] + picks[pos + 1 :]
                 pred = predict(problem, grid[trial])
                 evaluated += 1
                 s = score(pred)
@@ -188,8 +190,9 @@ def best_list(problem: DesignProblem, grid, count: int, score=None) -> tuple[Lis
     return best, evaluated
 
 
-def time_to_target(problem: DesignProblem, prediction: ListPrediction, target: float,
-                   block_overhead: float = 0.0) -> float:
+def time_to_target(
+    problem: DesignProblem, prediction: ListPrediction, target: float, block_overhead: float = 0.0
+) -> float:
     """Predicted rig time (s) of a list whose blocks average just enough revolutions
     (:func:`revolutions_for`) to reach ``target`` (reduction.rig_time: trigger revolution
     included), plus ``block_overhead`` s per block."""
@@ -200,8 +203,9 @@ def time_to_target(problem: DesignProblem, prediction: ListPrediction, target: f
     return acquisition_time(prediction.ratios, problem.spin, n, problem.directions) + blocks * block_overhead
 
 
-def propose(problem: DesignProblem, grid, *, count: int | None = None, target: float | None = None,
-            block_overhead: float = 0.0) -> Proposal:
+def propose(
+    problem: DesignProblem, grid, *, count: int | None = None, target: float | None = None, block_overhead: float = 0.0
+) -> Proposal:
     """Best list of ``count`` frequencies (lowest worst relative standard error), or, with
     ``target`` (a fraction), the list that reaches it in the least rig time: for every
     count, the list minimising :func:`time_to_target`; the cheapest count wins, so a
@@ -216,8 +220,10 @@ def propose(problem: DesignProblem, grid, *, count: int | None = None, target: f
         return Proposal(best, None, None, n)
     if not target > 0:
         raise ReductionError(f"propose: target must be > 0, got {target:g}")
+
     def cost(pred):
         return time_to_target(problem, pred, target, block_overhead)
+
     total, best, best_cost = 0, None, float("inf")
     top = grid.size if count is None else min(count, grid.size)
     for k in range(max(1, min(problem.spec.min_frequencies, top)), top + 1):

@@ -76,9 +76,16 @@ METHODS = tuple(Method)
 IV_MAX_MISFIT = 0.3  # rms |d - circle| / rms |d| above which the circle instruments are refused
 
 
-def identify(table: OrbitTable, model: str = "kcd11", freq_dep: str = "none", method: str = "ols",
-             solver: str = "qr", *, rank_rtol: float = RANK_RTOL,
-             tls_ratio: float | None = None) -> Identification:
+def identify(
+    table: OrbitTable,
+    model: str = "kcd11",
+    freq_dep: str = "none",
+    method: str = "ols",
+    solver: str = "qr",
+    *,
+    rank_rtol: float = RANK_RTOL,
+    tls_ratio: float | None = None,
+) -> Identification:
     """Identify ``model`` (kc7 | kc8 | kcd11 | kcd12) with ``freq_dep`` (none | power:M |
     power:m,n,p | power:auto | poly:R) from ``table`` by ``method`` (ols | wls | tls | iv)
     using ``solver`` (qr | svd | lu) for the linear least-squares steps.
@@ -110,20 +117,25 @@ def identify(table: OrbitTable, model: str = "kcd11", freq_dep: str = "none", me
             f"{model} with freq-dep power:auto: no exponent M in "
             f"{AUTO_EXPONENTS[0]}..{AUTO_EXPONENTS[-1]} is identifiable from this table.\n\n"
             + "\n\n".join(f"power:{m}: {err}" for m, err in refused.items()),
-            [f"power:{m}: {c}" for m, err in refused.items() for c in err.combinations])
+            [f"power:{m}: {c}" for m, err in refused.items() for c in err.combinations],
+        )
     best_m = min(results, key=lambda m: results[m].cost)
     best = results[best_m]
     best.exponent = best_m
     best.freq_dep = "power:auto"
     best.skipped = {m: str(err) for m, err in refused.items()}
-    best.notes.append(f"power:auto chose the exponent M = {best_m} (least residual of M in "
-                      + ", ".join(str(m) for m in results) + ")"
-                      + (f"; not identifiable: M = {', '.join(str(m) for m in refused)}" if refused else ""))
+    best.notes.append(
+        f"power:auto chose the exponent M = {best_m} (least residual of M in "
+        + ", ".join(str(m) for m in results)
+        + ")"
+        + (f"; not identifiable: M = {', '.join(str(m) for m in refused)}" if refused else "")
+    )
     return best
 
 
-def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank_rtol: float,
-              tls_ratio: float | None) -> Identification:
+def _identify(
+    table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank_rtol: float, tls_ratio: float | None
+) -> Identification:
     A, b = _regression(spec, table)
     known = table.u is not None
     rank = analyse(spec, table, A, rank_rtol)  # raises when not identifiable
@@ -163,8 +175,7 @@ def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank
             cov_s = st.sandwich(P, var) if P is not None else est.unscaled
     else:
         cov_s = est.cov
-    ident = _result(spec, table, method, solver, est, theta, c, cov_s, rank, var if known else None,
-                    b - A_s @ est.x, Z)
+    ident = _result(spec, table, method, solver, est, theta, c, cov_s, rank, var if known else None, b - A_s @ est.x, Z)
     weak = signal_warning(signal)
     if weak:
         ident.warnings.insert(0, weak)
@@ -186,8 +197,9 @@ def _signal(spec, table, A_s, b, c, x0, rtol):
         noise = displacement_noise(table)
     else:
         theta0 = x0 / c
-        noise = displacement_noise(table, b - A_s @ x0, impedance(spec, theta0, table.orbit),
-                                   4 * table.n - spec.n_coefficients)
+        noise = displacement_noise(
+            table, b - A_s @ x0, impedance(spec, theta0, table.orbit), 4 * table.n - spec.n_coefficients
+        )
     design = signal_design(table, noise)
     check_signal(spec, table, design, rtol)
     return design
@@ -196,13 +208,18 @@ def _signal(spec, table, A_s, b, c, x0, rtol):
 def _regression(spec: ModelSpec, table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:
     with np.errstate(over="ignore", invalid="ignore"):
         A, b = regression(spec, table.orbit, table.x, table.y, table.fx, table.fy)
-        finite = (np.all(np.isfinite(A)) and np.all(np.isfinite(b))
-                  and np.isfinite(np.linalg.norm(A)) and np.isfinite(np.linalg.norm(b)))
+        finite = (
+            np.all(np.isfinite(A))
+            and np.all(np.isfinite(b))
+            and np.isfinite(np.linalg.norm(A))
+            and np.isfinite(np.linalg.norm(b))
+        )
     if not finite:
         raise IdentificationError(
             f"{spec.model} with freq-dep {spec.freq_dep.text}: the regression exceeds the floating-point "
             "range (Omega^r times the displacements, or the forces, are too large); check the table's "
-            "units (orbit_hz in Hz, phasors in m and N)")
+            "units (orbit_hz in Hz, phasors in m and N)"
+        )
     return A, b
 
 
@@ -222,7 +239,8 @@ def _variances(spec, table, theta0, b, method) -> np.ndarray:
     if table.gamma2 is None:
         raise IdentificationError(
             "--method wls needs u_x, u_y, u_fx, u_fy columns or coherence values (gamma2_xfx, gamma2_yfx, "
-            "gamma2_xfy, gamma2_yfy); the table has neither")
+            "gamma2_xfy, gamma2_yfy); the table has neither"
+        )
     return coherence_variances(table.gamma2, table.fx, table.fy, table.n_records)
 
 
@@ -238,29 +256,54 @@ def _result(spec, table, method, solver, est, theta, c, cov_s, rank, var, r, Z) 
     if known:
         chi2 = float(est.rss) if method == Method.TLS else float(np.sum(r**2 / var))
         p_value = st.chi2_p_value(chi2, dof)
-        notes.append("covariance, weights and chi2 from the table's u_x, u_y, u_fx, u_fy "
-                     "(force noise plus displacement noise through Z)")
+        notes.append(
+            "covariance, weights and chi2 from the table's u_x, u_y, u_fx, u_fy "
+            "(force noise plus displacement noise through Z)"
+        )
         bad = st.chi2_warning(chi2, dof, p_value)
         if bad:
             warnings.append(bad)
     elif method == Method.WLS:
-        notes.append("wls weights from the coherences (no u_* columns): per-record noise ratio "
-                     "(1 - gamma^2)/gamma^2 floored at 1/n_records")
+        notes.append(
+            "wls weights from the coherences (no u_* columns): per-record noise ratio "
+            "(1 - gamma^2)/gamma^2 floored at 1/n_records"
+        )
     aic, bic = st.information_criteria(chi2 if known else est.rss, 4 * table.n, p, known)
     ill = ill_conditioning(spec, table, rank)
     if ill:
         warnings.append(ill)
     ident = Identification(
-        model=spec.model, freq_dep=spec.freq_dep.text, method=str(method),
-        n_coefficients=p, min_frequencies=spec.min_frequencies, n_frequencies=table.n,
+        model=spec.model,
+        freq_dep=spec.freq_dep.text,
+        method=str(method),
+        n_coefficients=p,
+        min_frequencies=spec.min_frequencies,
+        n_frequencies=table.n,
         coefficients={k: float(v) for k, v in spec.expand(theta).items()},
         std_errors={k: (None if not np.isfinite(v) else float(v)) for k, v in spec.expand(std).items()},
-        condition_number=rank.condition_number, residual_rms=0.0, fit=[], solver=solver,
-        spec=spec, theta=theta, cost=est.rss, free=spec.names, covariance=cov, dof=dof,
-        confidence_95={k: (None if not np.all(np.isfinite(v)) else (float(v[0]), float(v[1])))
-                       for k, v in spec.expand(list(ci)).items()},
-        chi2=chi2, p_value=p_value, aic=aic, bic=bic, notes=notes, warnings=warnings, known_noise=known,
-        interval=interval)
+        condition_number=rank.condition_number,
+        residual_rms=0.0,
+        fit=[],
+        solver=solver,
+        spec=spec,
+        theta=theta,
+        cost=est.rss,
+        free=spec.names,
+        covariance=cov,
+        dof=dof,
+        confidence_95={
+            k: (None if not np.all(np.isfinite(v)) else (float(v[0]), float(v[1])))
+            for k, v in spec.expand(list(ci)).items()
+        },
+        chi2=chi2,
+        p_value=p_value,
+        aic=aic,
+        bic=bic,
+        notes=notes,
+        warnings=warnings,
+        known_noise=known,
+        interval=interval,
+    )
     half = st.quantile(interval, dof) * np.asarray(list(spec.expand(std).values()))
     ident.not_determined = st.not_determined(ident.coefficients, dict(zip(ident.coefficients, half)))
     fx_rep, fy_rep = forces(Z, table.x, table.y)  # ident.reproduce(table), Z computed once
@@ -301,7 +344,8 @@ def circle_orbits(table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:
         if rows.size == 1:
             raise IdentificationError(
                 "iv needs at least two orbits of each whirl direction present "
-                "(the instruments are leave-one-out circles)")
+                "(the instruments are leave-one-out circles)"
+            )
         if rows.size:
             x_hat[rows] = (np.sum(a[rows]) - a[rows]) / (rows.size - 1)
     y_hat = np.where(forward, -1j, 1j) * x_hat
@@ -310,15 +354,19 @@ def circle_orbits(table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:
 
 def _circle_instruments(spec: ModelSpec, table: OrbitTable, rank_rtol: float) -> np.ndarray:
     x_hat, y_hat = circle_orbits(table)
-    misfit = np.sqrt(np.mean(np.abs(table.x - x_hat) ** 2 + np.abs(table.y - y_hat) ** 2)
-                     / np.mean(np.abs(table.x) ** 2 + np.abs(table.y) ** 2))
+    misfit = np.sqrt(
+        np.mean(np.abs(table.x - x_hat) ** 2 + np.abs(table.y - y_hat) ** 2)
+        / np.mean(np.abs(table.x) ** 2 + np.abs(table.y) ** 2)
+    )
     if misfit > IV_MAX_MISFIT:
         raise IdentificationError(
             f"iv: the orbits are not circles of common radius and trigger phase (misfit {misfit:.0%} "
-            f"> {IV_MAX_MISFIT:.0%}), so the circle instruments do not fit this table; use --method tls")
+            f"> {IV_MAX_MISFIT:.0%}), so the circle instruments do not fit this table; use --method tls"
+        )
     Z = real_rows(regressors(spec, table.orbit, x_hat, y_hat))
     if numerical_rank(Z, rank_rtol).deficiency:
         raise IdentificationError(
             "iv: the circular-orbit instruments cannot separate this model's coefficients "
-            "(e.g. a single whirl direction); use --method tls")
+            "(e.g. a single whirl direction); use --method tls"
+        )
     return Z

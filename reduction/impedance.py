@@ -15,9 +15,11 @@ import numpy as np
 from reduction.models import ModelSpec
 
 # Omega-factor of each matrix inside Z
-_FACTOR = {"K": lambda w: np.ones_like(w, dtype=complex),
-           "C": lambda w: 1j * w,
-           "D": lambda w: -(w.astype(complex) ** 2)}
+_FACTOR = {
+    "K": lambda w: np.ones_like(w, dtype=complex),
+    "C": lambda w: 1j * w,
+    "D": lambda w: -(w.astype(complex) ** 2),
+}
 
 
 _last_basis: tuple = (None, b"", None)  # (spec, orbit key, E): one identification reuses its basis
@@ -88,11 +90,11 @@ def regression_rows(spec: ModelSpec, orbit, x, y) -> np.ndarray:
         e = min(s + IMPEDANCE_ROWS, w.shape[0])
         cols = impedance_columns(spec, w[s:e])
         for j, t in enumerate(spec.terms):
-            column = A[4 * s: 4 * e, j]
+            column = A[4 * s : 4 * e, j]
             for i, l in t.entries:
                 g = cols[:, j] * d[l][s:e]
-                column[2 * i::4] -= g.real
-                column[2 * i + 1::4] -= g.imag
+                column[2 * i :: 4] -= g.real
+                column[2 * i + 1 :: 4] -= g.imag
     return A
 
 
@@ -103,9 +105,9 @@ def impedance(spec: ModelSpec, theta, orbit) -> np.ndarray:
     Z = np.zeros(w.shape + (2, 2), dtype=complex)
     filling = _filling(spec).items()
     for s in range(0, max(w.shape[0], 1), IMPEDANCE_ROWS):
-        cols = impedance_columns(spec, w[s: s + IMPEDANCE_ROWS])
+        cols = impedance_columns(spec, w[s : s + IMPEDANCE_ROWS])
         for (i, l), J in filling:
-            Z[s: s + IMPEDANCE_ROWS, i, l] = cols[:, J] @ theta[J]
+            Z[s : s + IMPEDANCE_ROWS, i, l] = cols[:, J] @ theta[J]
     return Z
 
 

@@ -95,8 +95,9 @@ def revolution_noise(record_phasors, spin_turns: float, revolutions=None, harmon
     return _tone_fit(record_phasors, spin_turns, harmonics, revolutions)[1]
 
 
-def revolution_residuals(record_phasors, spin_turns: float, revolutions=None,
-                         harmonics=SPIN_HARMONICS) -> tuple[np.ndarray, np.ndarray]:
+def revolution_residuals(
+    record_phasors, spin_turns: float, revolutions=None, harmonics=SPIN_HARMONICS
+) -> tuple[np.ndarray, np.ndarray]:
     """((n, C) what each revolution's phasor differs from the mean and the fitted spin tones,
     (C,) their standard deviation :func:`revolution_noise`): a disturbed revolution stands out."""
     return _tone_fit(record_phasors, spin_turns, harmonics, revolutions)
@@ -115,8 +116,9 @@ def mean_uncertainty(record_phasors, spin_turns: float, revolutions=None, harmon
     return u if np.all(np.isfinite(u)) else phasor_uncertainty(q, axis=0)
 
 
-def prefix_mean_uncertainty(record_phasors, spin_turns: float, start: int = 0, revolutions=None,
-                            harmonics=SPIN_HARMONICS) -> np.ndarray:
+def prefix_mean_uncertainty(
+    record_phasors, spin_turns: float, start: int = 0, revolutions=None, harmonics=SPIN_HARMONICS
+) -> np.ndarray:
     """(n - start, C): :func:`mean_uncertainty` of the first m records for every
     m = start+1..n at once (each m with the tones m revolutions resolve; inf where m is too
     small to fit them). Cumulative sums and batched small solves, one batch per tone set."""

@@ -69,8 +69,8 @@ def _gram(blocks, T=None) -> np.ndarray:
 def _blocks(A, b):
     """[A | b] in blocks of ``CHUNK_ROWS`` rows."""
     for s in range(0, A.shape[0], CHUNK_ROWS):
-        block = A[s: s + CHUNK_ROWS]
-        yield block if b is None else np.column_stack([block, b[s: s + CHUNK_ROWS]])
+        block = A[s : s + CHUNK_ROWS]
+        yield block if b is None else np.column_stack([block, b[s : s + CHUNK_ROWS]])
 
 
 def _cholesky_qr2(blocks) -> np.ndarray | None:
@@ -145,7 +145,8 @@ def _lu_refined(A: np.ndarray, b: np.ndarray, max_iter: int = 30) -> np.ndarray:
     if not np.all(np.isfinite(x)) or not step <= 1e-6 * max(size, np.finfo(float).tiny):
         raise IdentificationError(
             "lu: iterative refinement of the normal equations did not converge "
-            "(regression too ill-conditioned for the normal equations); use --solver qr or svd")
+            "(regression too ill-conditioned for the normal equations); use --solver qr or svd"
+        )
     return x
 
 
@@ -165,8 +166,9 @@ def _finish(A_eff: np.ndarray, x: np.ndarray, r: np.ndarray, cov_matrix: np.ndar
     return Estimate(x, rss / dof * unscaled, rss, dof, unscaled)
 
 
-def ols(A: np.ndarray, b: np.ndarray, solver: str = "qr", unscaled: np.ndarray | None = None,
-        x: np.ndarray | None = None) -> Estimate:
+def ols(
+    A: np.ndarray, b: np.ndarray, solver: str = "qr", unscaled: np.ndarray | None = None, x: np.ndarray | None = None
+) -> Estimate:
     """Ordinary least squares; cov = s^2 (A^T A)^-1 with s^2 = rss / (m - p); ``unscaled``
     is (A^T A)^-1 when the caller has it already (else computed by SVD), ``x`` the solution
     when the caller has solved it already with ``solver``."""
@@ -174,8 +176,9 @@ def ols(A: np.ndarray, b: np.ndarray, solver: str = "qr", unscaled: np.ndarray |
     return _finish(A, x, b - A @ x, unscaled)
 
 
-def wls(A: np.ndarray, b: np.ndarray, weights: np.ndarray, solver: str = "qr",
-        unscaled: np.ndarray | None = None) -> Estimate:
+def wls(
+    A: np.ndarray, b: np.ndarray, weights: np.ndarray, solver: str = "qr", unscaled: np.ndarray | None = None
+) -> Estimate:
     """Weighted least squares, weights = inverse variances of b (any common scale):
     minimises sum w r^2; cov = s^2 (A^T W A)^-1, s^2 = weighted rss / (m - p); ``unscaled``
     is (A^T W A)^-1 when the caller has it already."""
@@ -202,8 +205,9 @@ def iv(A: np.ndarray, Z: np.ndarray, b: np.ndarray, solver: str = "qr") -> Estim
     return _finish(A, x, r, (Vt.T / s**2) @ Vt)
 
 
-def structured_tls(G: np.ndarray, f: np.ndarray, E: np.ndarray, var_f: np.ndarray, var_d: np.ndarray,
-                   x0: np.ndarray) -> Estimate:
+def structured_tls(
+    G: np.ndarray, f: np.ndarray, E: np.ndarray, var_f: np.ndarray, var_d: np.ndarray, x0: np.ndarray
+) -> Estimate:
     """Total least squares of f = -Z(x) d with noise on both the displacements d and forces f.
 
     Maximum likelihood for independent circular complex noise on every displacement phasor
@@ -237,8 +241,16 @@ def structured_tls(G: np.ndarray, f: np.ndarray, E: np.ndarray, var_f: np.ndarra
         F = whitened(np.vstack([x, x + np.diag(h)]))
         return ((F[1:] - F[0]) / h[:, None]).T
 
-    sol = least_squares(lambda x: whitened(x[None])[0], x0, jac=jacobian, method="lm",
-                        xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=200 * (p + 1))
+    sol = least_squares(
+        lambda x: whitened(x[None])[0],
+        x0,
+        jac=jacobian,
+        method="lm",
+        xtol=1e-14,
+        ftol=1e-14,
+        gtol=1e-14,
+        max_nfev=200 * (p + 1),
+    )
     if not np.all(np.isfinite(sol.x)):
         raise IdentificationError("tls: the total least squares iteration did not converge")
     return _finish(sol.jac, sol.x, sol.fun)

@@ -62,22 +62,34 @@ class Identification:
         ``fit=False`` leaves the per-row ``fit`` out (a long table's writer streams it)."""
         cov = None if self.covariance is None else [[_num(v) for v in row] for row in self.covariance]
         d = {
-            "model": self.model, "freq_dep": self.freq_dep, "method": self.method,
-            "n_coefficients": self.n_coefficients, "min_frequencies": self.min_frequencies,
+            "model": self.model,
+            "freq_dep": self.freq_dep,
+            "method": self.method,
+            "n_coefficients": self.n_coefficients,
+            "min_frequencies": self.min_frequencies,
             "n_frequencies": self.n_frequencies,
             "coefficients": {k: _num(v) for k, v in self.coefficients.items()},
             "std_errors": {k: _num(v) for k, v in self.std_errors.items()},
-            "confidence_95": {k: (None if v is None else [_num(v[0]), _num(v[1])])
-                              for k, v in self.confidence_95.items()},
-            "free": list(self.free), "covariance": cov, "dof": int(self.dof),
+            "confidence_95": {
+                k: (None if v is None else [_num(v[0]), _num(v[1])]) for k, v in self.confidence_95.items()
+            },
+            "free": list(self.free),
+            "covariance": cov,
+            "dof": int(self.dof),
             "condition_number": _num(self.condition_number),
             "residual_rms": _num(self.residual_rms),
         }
         if self.chi2 is not None:
             d["chi2"], d["p_value"] = _num(self.chi2), _num(self.p_value)
-        d.update(aic=_num(self.aic), bic=_num(self.bic), interval=str(self.interval),
-                 not_determined=list(self.not_determined), notes=list(self.notes), warnings=list(self.warnings),
-                 **({"fit": [{k: _num(v) for k, v in row.items()} for row in self.fit]} if fit else {}))
+        d.update(
+            aic=_num(self.aic),
+            bic=_num(self.bic),
+            interval=str(self.interval),
+            not_determined=list(self.not_determined),
+            notes=list(self.notes),
+            warnings=list(self.warnings),
+            **({"fit": [{k: _num(v) for k, v in row.items()} for row in self.fit]} if fit else {}),
+        )
         if self.exponent is not None:
             d["exponent"] = self.exponent
         return d

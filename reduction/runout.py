@@ -85,33 +85,39 @@ def _best_phase(p: np.ndarray, a: np.ndarray, b: np.ndarray, hs: np.ndarray) -> 
     return float((phi[i] + shift * (2 * np.pi / GRID)) % (2 * np.pi))
 
 
-def runout_phasors(runout: np.ndarray, theta: np.ndarray, spin_turns: float, revolutions: np.ndarray,
-                   spin_phase: float) -> np.ndarray:
+def runout_phasors(
+    runout: np.ndarray, theta: np.ndarray, spin_turns: float, revolutions: np.ndarray, spin_phase: float
+) -> np.ndarray:
     """(N, P) runout in each revolution's orbit phasor: ``runout`` (P, H) complex R_h per probe (m),
     ``theta`` (P, S) each probe's sampling angles (rad), ``revolutions`` (N,) board revolution
     numbers, ``spin_phase`` phi_0 (rad) at the first of them."""
-    a, b, hs = _basis(np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns,
-                      _steps(revolutions))
+    a, b, hs = _basis(
+        np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns, _steps(revolutions)
+    )
     return _at(a, b, hs, spin_phase)
 
 
-def fit_spin_phase(record_phasors: np.ndarray, runout: np.ndarray, theta: np.ndarray, spin_turns: float,
-                   revolutions: np.ndarray) -> float:
+def fit_spin_phase(
+    record_phasors: np.ndarray, runout: np.ndarray, theta: np.ndarray, spin_turns: float, revolutions: np.ndarray
+) -> float:
     """phi_0 (rad) that best explains the scatter of the probes' per-revolution phasors
     ``record_phasors`` (N, P) by the runout (least squares over a grid of one turn refined by a
     parabola, each probe's mean free)."""
     p = _checked(record_phasors)
-    a, b, hs = _basis(np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns,
-                      _steps(revolutions))
+    a, b, hs = _basis(
+        np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns, _steps(revolutions)
+    )
     return _best_phase(p, a, b, hs)
 
 
-def remove_runout(record_phasors: np.ndarray, runout: np.ndarray, theta: np.ndarray, spin_turns: float,
-                  revolutions: np.ndarray) -> np.ndarray:
+def remove_runout(
+    record_phasors: np.ndarray, runout: np.ndarray, theta: np.ndarray, spin_turns: float, revolutions: np.ndarray
+) -> np.ndarray:
     """The probes' per-revolution phasors (N, P) with the runout (spin phase fitted) taken out."""
     p = _checked(record_phasors)
-    a, b, hs = _basis(np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns,
-                      _steps(revolutions))
+    a, b, hs = _basis(
+        np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns, _steps(revolutions)
+    )
     return p - _at(a, b, hs, _best_phase(p, a, b, hs))
 
 

@@ -58,8 +58,9 @@ class NextBlock:
     direction: str = "both"
 
 
-def block_information(spec, theta, spin: float, radius: float, ratio: float, u_revolution, revolutions: int,
-                      directions: str = "both") -> np.ndarray:
+def block_information(
+    spec, theta, spin: float, radius: float, ratio: float, u_revolution, revolutions: int, directions: str = "both"
+) -> np.ndarray:
     """(p, p) information of one measured block (all its directions): revolutions x the
     per-revolution information at ``ratio`` with the measured noise u (4,)."""
     F = revolution_information(spec, theta, spin, radius, [ratio], np.asarray(u_revolution, float)[None], directions)
@@ -71,17 +72,20 @@ def relative_errors(info, scales) -> np.ndarray:
     try:
         cov = np.linalg.inv(np.asarray(info, dtype=float))
     except np.linalg.LinAlgError as exc:
-        raise ReductionError("sequential design: the blocks so far cannot identify the model; "
-                             "run an initial list first") from exc
+        raise ReductionError(
+            "sequential design: the blocks so far cannot identify the model; run an initial list first"
+        ) from exc
     d = np.diag(cov)
     if not np.all(np.isfinite(d)) or np.any(d <= 0):
-        raise ReductionError("sequential design: the blocks so far cannot identify the model; "
-                             "run an initial list first")
+        raise ReductionError(
+            "sequential design: the blocks so far cannot identify the model; run an initial list first"
+        )
     return np.sqrt(d) / np.asarray(scales, dtype=float)
 
 
-def reference_errors(spec, theta, spin: float, radius: float, ratios, u_revolution, revolutions: int,
-                     directions: str = "both") -> np.ndarray:
+def reference_errors(
+    spec, theta, spin: float, radius: float, ratios, u_revolution, revolutions: int, directions: str = "both"
+) -> np.ndarray:
     """(p,) predicted standard errors (SI) of a reference list: ``ratios`` each averaging
     ``revolutions`` in ``directions``, per-revolution noise u (k, 4) - what "match the paper's
     list" asks every coefficient to reach."""
@@ -89,9 +93,23 @@ def reference_errors(spec, theta, spin: float, radius: float, ratios, u_revoluti
     return relative_errors(revolutions * F.sum(axis=0), np.ones(F.shape[1]))
 
 
-def next_block(spec, theta, spin: float, radius: float, info, candidates, noise_at, scales, target: float,
-               spent_s: float, cap_s: float, per_block_s: float = 0.0, directions="both",
-               orbit_now: float | None = None, ramp_rate: float | None = None) -> NextBlock:
+def next_block(
+    spec,
+    theta,
+    spin: float,
+    radius: float,
+    info,
+    candidates,
+    noise_at,
+    scales,
+    target: float,
+    spent_s: float,
+    cap_s: float,
+    per_block_s: float = 0.0,
+    directions="both",
+    orbit_now: float | None = None,
+    ramp_rate: float | None = None,
+) -> NextBlock:
     """The next block of the point (module doc). ``info`` (p, p) so far, ``noise_at(ratios) ->
     (k, 4)`` per-revolution noise, ``scales`` (p,) SI, ``target`` a fraction, ``spent_s`` the
     rig seconds spent on the point, ``cap_s`` its cap, ``per_block_s`` settle + store per block,
@@ -109,8 +127,9 @@ def next_block(spec, theta, spin: float, radius: float, info, candidates, noise_
         F = revolution_information(spec, theta, spin, radius, r, noise_at(r), d)
         blocks = 2 if d == "both" else 1
         ramp = np.array([_ramp_s(ratio * spin, d, orbit_now, ramp_rate) for ratio in r])
-        seconds = blocks * ((n[None] + TRIGGER_REVOLUTIONS) * 2 * np.pi / (r[:, None] * spin) + per_block_s) \
-            + ramp[:, None]
+        seconds = (
+            blocks * ((n[None] + TRIGGER_REVOLUTIONS) * 2 * np.pi / (r[:, None] * spin) + per_block_s) + ramp[:, None]
+        )
         after = _batch_relative(info[None, None] + n[None, :, None, None] * F[:, None], scales)  # (k, m, p)
         rate = (1.0 / np.max(after, axis=2) ** 2 - 1.0 / float(np.max(before)) ** 2) / seconds
         rate = np.where(spent_s + seconds <= cap_s, rate, -np.inf)

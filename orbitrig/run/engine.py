@@ -31,7 +31,13 @@ from orbitrig.errors import OrbitrigError
 from orbitrig.run.background import Background
 from orbitrig.run.control import RunControl, StopRun
 from orbitrig.run.events import (  # noqa: F401 - the engine's public names
-    Event, ProgressEvent, ResultEvent, RunFailed, RunOutcome, StatusEvent, Subscriber,
+    Event,
+    ProgressEvent,
+    ResultEvent,
+    RunFailed,
+    RunOutcome,
+    StatusEvent,
+    Subscriber,
 )
 from orbitrig.run.interlocks import Trip
 from orbitrig.run.log_rows import can_row, drive_row
@@ -45,7 +51,15 @@ from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.run_dir import completed_points, no_room, open_store, record_end
 from orbitrig.run.safe_stop import stop_drives
 from orbitrig.run.states import (
-    ABORTED, COMPLETED, FAILED, FAULTED, IDLE, STOPPED, STOPPING, ConfirmMode, Outcome,
+    ABORTED,
+    COMPLETED,
+    FAILED,
+    FAULTED,
+    IDLE,
+    STOPPED,
+    STOPPING,
+    ConfirmMode,
+    Outcome,
 )
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.store.estimate import plan_bytes
@@ -54,9 +68,17 @@ from rigunits import utc_stamp
 
 log = logging.getLogger(__name__)
 
+
 class RunEngine(OperatorRequests):
-    def __init__(self, rig: RigConfig, *, out_dir: Path, access: RigAccess | None = None,
-                 confirm_mode: ConfirmMode = ConfirmMode.PROMPT, operator: str = ""):
+    def __init__(
+        self,
+        rig: RigConfig,
+        *,
+        out_dir: Path,
+        access: RigAccess | None = None,
+        confirm_mode: ConfirmMode = ConfirmMode.PROMPT,
+        operator: str = "",
+    ):
         if confirm_mode not in tuple(ConfirmMode):
             raise ValueError(f"confirm_mode {confirm_mode!r} is not one of prompt, remote, auto")
         self.rig = rig
@@ -135,11 +157,14 @@ class RunEngine(OperatorRequests):
         self._background = Background(self.timing, self._background_failed)
         todo = [p for p in plan.points if p.index not in done]
         kept = {p.index for p in todo}
-        remaining = sum(PointProcedure.estimate_of(s, self.confirm_mode) for s in plan.steps
-                        if s.point is None or s.point in kept)
+        remaining = sum(
+            PointProcedure.estimate_of(s, self.confirm_mode) for s in plan.steps if s.point is None or s.point in kept
+        )
         self._progress.start(self.run_id, len(todo), remaining)
-        store.log(f"{'resume' if resume else 'start'} run {self.run_id}: matrix {plan.name}, "
-                  f"{len(todo)} of {len(plan.points)} points to run, sim={self.access.simulated}")
+        store.log(
+            f"{'resume' if resume else 'start'} run {self.run_id}: matrix {plan.name}, "
+            f"{len(todo)} of {len(plan.points)} points to run, sim={self.access.simulated}"
+        )
         for line in store.set_aside:  # incomplete or damaged points a resume put aside
             self._log_event(line)
         try:
@@ -183,8 +208,10 @@ class RunEngine(OperatorRequests):
     async def _watched(self, body, supervisor: InterlockSupervisor) -> Outcome:
         """Run `body` beside the interlock supervisor and the log monitor."""
         supervisor.sample()
-        helpers = [asyncio.create_task(supervisor.watch(), name="interlocks"),
-                   asyncio.create_task(self._monitor(), name="run-monitor")]
+        helpers = [
+            asyncio.create_task(supervisor.watch(), name="interlocks"),
+            asyncio.create_task(self._monitor(), name="run-monitor"),
+        ]
         self._body = asyncio.create_task(body, name="run-body")
         if self._failure is not None or self._control.abort_requested or self._control.stop_now:  # while opening
             self._body.cancel()
@@ -197,12 +224,26 @@ class RunEngine(OperatorRequests):
             await asyncio.gather(*helpers, return_exceptions=True)
 
     def _procedure(self, io: RigIO) -> PointProcedure:
-        supervisor = InterlockSupervisor(lambda: (io.aux.latest(), io.drives.state), self.rig.interlocks,
-                                         self._interlock_failed)
-        return PointProcedure(RunParts(
-            self.rig, self.access, io, self._store, self._control, supervisor, self._background, self._progress,
-            self.timing, self.confirm_mode, self.run_id, self._emit, self._log_event,
-        ))
+        supervisor = InterlockSupervisor(
+            lambda: (io.aux.latest(), io.drives.state), self.rig.interlocks, self._interlock_failed
+        )
+        return PointProcedure(
+            RunParts(
+                self.rig,
+                self.access,
+                io,
+                self._store,
+                self._control,
+                supervisor,
+                self._background,
+                self._progress,
+                self.timing,
+                self.confirm_mode,
+                self.run_id,
+                self._emit,
+                self._log_event,
+            )
+        )
 
     def _interlock_failed(self, trip: Trip) -> None:
         """A fail trip: the run ends at once (drives stopping in the cleanup). After an

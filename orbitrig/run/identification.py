@@ -44,18 +44,35 @@ def block_record(block: Block, blk: AveragedBlock, rig: RigConfig) -> BlockRecor
     coh = np.array([orbit_coherences(x, y, rp[:, ch[f"fx_{lms}"]], rp[:, ch[f"fy_{lms}"]]) for lms in LMS])
     stats = {k: v for k, v in blk.stats.to_dict().items() if isinstance(v, (int, float, dict))}
     return BlockRecord(
-        block=block, measured_orbit_speed=float(blk.orbit_speed), raw_counts=blk.raw_counts, slots=blk.slots,
-        gains=np.asarray(blk.gains), offsets=np.asarray(blk.offsets), mean=np.asarray(blk.mean),
-        record_phasors=rp, phasors=np.asarray(blk.phasors), dc=np.asarray(blk.dc),
-        rms_residual=np.asarray(blk.rms_residual), coherence=coh, stats=stats,
-        uncertainty=np.asarray(blk.uncertainty), n_records=blk.n_records, stop_reason=blk.stop_reason,
+        block=block,
+        measured_orbit_speed=float(blk.orbit_speed),
+        raw_counts=blk.raw_counts,
+        slots=blk.slots,
+        gains=np.asarray(blk.gains),
+        offsets=np.asarray(blk.offsets),
+        mean=np.asarray(blk.mean),
+        record_phasors=rp,
+        phasors=np.asarray(blk.phasors),
+        dc=np.asarray(blk.dc),
+        rms_residual=np.asarray(blk.rms_residual),
+        coherence=coh,
+        stats=stats,
+        uncertainty=np.asarray(blk.uncertainty),
+        n_records=blk.n_records,
+        stop_reason=blk.stop_reason,
         revolutions=np.asarray(blk.revs),
     )
 
 
-def identify_operating_point(spin: float, recs: list[BlockRecord], ch: dict[str, int], models,
-                             truth: dict | None = None, calibration: CalibrationUncertainty | None = None,
-                             corrections: Corrections | None = None) -> PointResults:
+def identify_operating_point(
+    spin: float,
+    recs: list[BlockRecord],
+    ch: dict[str, int],
+    models,
+    truth: dict | None = None,
+    calibration: CalibrationUncertainty | None = None,
+    corrections: Corrections | None = None,
+) -> PointResults:
     """One operating point's results: the orbit table of each load measuring system (forward
     and backward blocks together; ``corrections``, the active calibration record's force gain
     matrices and probe runout, applied), every model of ``models`` (ModelSpec) identified on each
@@ -84,8 +101,14 @@ def identify_operating_point(spin: float, recs: list[BlockRecord], ch: dict[str,
     return PointResults(tables, idents, lms_comparison(recs, ch, corr), truth)
 
 
-def orbit_table(spin: float, recs: list[BlockRecord], ch: dict[str, int], lms: str,
-                corrections: Corrections | None = None, probes: list | None = None) -> OrbitTable:
+def orbit_table(
+    spin: float,
+    recs: list[BlockRecord],
+    ch: dict[str, int],
+    lms: str,
+    corrections: Corrections | None = None,
+    probes: list | None = None,
+) -> OrbitTable:
     """Orbit table of one point for one load measuring system (Omega > 0, direction in the phasors),
     with each row's revolution count and the standard uncertainty of its phasors
     (:func:`row_uncertainty`; x, y the per-revolution probe-plane means); the forces through the
@@ -94,22 +117,52 @@ def orbit_table(spin: float, recs: list[BlockRecord], ch: dict[str, int], lms: s
     probes = probes or [(r.phasors, r.record_phasors) for r in recs]
     corr = corrections or Corrections()
     ph = np.array([p for p, _ in probes])
-    orbit = np.array([r.measured_orbit_speed if math.isfinite(r.measured_orbit_speed) and r.measured_orbit_speed > 0
-                      else abs(r.block.orbit) for r in recs])
+    orbit = np.array(
+        [
+            r.measured_orbit_speed
+            if math.isfinite(r.measured_orbit_speed) and r.measured_orbit_speed > 0
+            else abs(r.block.orbit)
+            for r in recs
+        ]
+    )
     i = LMS.index(lms)
     x, y = probe_plane(ph, ch)
     n_records = np.array([len(r.record_phasors) for r in recs])
-    u = np.array([row_uncertainty(rp, ch, lms, spin / abs(r.block.orbit), r.revolutions,
-                                  lambda fx, fy, o=abs(r.block.orbit): corr.forces(lms, fx, fy, o))
-                  for r, (_, rp) in zip(recs, probes)])
+    u = np.array(
+        [
+            row_uncertainty(
+                rp,
+                ch,
+                lms,
+                spin / abs(r.block.orbit),
+                r.revolutions,
+                lambda fx, fy, o=abs(r.block.orbit): corr.forces(lms, fx, fy, o),
+            )
+            for r, (_, rp) in zip(recs, probes)
+        ]
+    )
     fx, fy = corr.forces(lms, ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]], orbit)
-    return OrbitTable(spin=spin, orbit=orbit, x=x, y=y, fx=fx, fy=fy,
-                      gamma2=np.array([r.coherence[i] for r in recs]), n_records=n_records,
-                      u=u if np.all(np.isfinite(u)) else None)
+    return OrbitTable(
+        spin=spin,
+        orbit=orbit,
+        x=x,
+        y=y,
+        fx=fx,
+        fy=fy,
+        gamma2=np.array([r.coherence[i] for r in recs]),
+        n_records=n_records,
+        u=u if np.all(np.isfinite(u)) else None,
+    )
 
 
-def row_uncertainty(record_phasors: np.ndarray, ch: dict[str, int], lms: str, spin_turns: float,
-                    revolutions: np.ndarray | None = None, correct=None) -> np.ndarray:
+def row_uncertainty(
+    record_phasors: np.ndarray,
+    ch: dict[str, int],
+    lms: str,
+    spin_turns: float,
+    revolutions: np.ndarray | None = None,
+    correct=None,
+) -> np.ndarray:
     """(u_x, u_y, u_fx, u_fy) of one block (m, m, N, N): the standard uncertainty of each mean
     (reduction.noise.mean_uncertainty: the scatter with the spin tones' rotating leakage taken
     out, plus what those tones leave in the mean); ``spin_turns`` = omega / |Omega|,
@@ -130,8 +183,10 @@ def lms_comparison(recs: list[BlockRecord], ch: dict[str, int], corrections: Cor
     out: dict = {"orbit_hz": [r.block.orbit_hz for r in recs], "direction": [r.block.direction for r in recs]}
     ph = np.array([r.phasors for r in recs]) if recs else np.zeros((0, len(ch)), complex)
     corr, orbit = corrections or Corrections(), np.array([abs(r.block.orbit) for r in recs])
-    forces = {lms: dict(zip(("fx", "fy"), corr.forces(lms, ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]], orbit)))
-              for lms in LMS}
+    forces = {
+        lms: dict(zip(("fx", "fy"), corr.forces(lms, ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]], orbit)))
+        for lms in LMS
+    }
     for f in ("fx", "fy"):
         ratio = forces["strain"][f] / forces["piezo"][f]
         out[f"{f}_amp_ratio"] = np.abs(ratio).round(6).tolist()

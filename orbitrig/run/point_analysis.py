@@ -57,12 +57,23 @@ def lms_calibration(stated: CalibrationUncertainty, lms: str) -> Calibration:
         ca, cb = chan(a), chan(b)
         return ChannelCalibration((ca.gain + cb.gain) / 2, (ca.phase + cb.phase) / 2, (ca.delay + cb.delay) / 2)
 
-    return Calibration(x=mean("x_a", "x_b"), y=mean("y_a", "y_b"), fx=chan(f"fx_{lms}"), fy=chan(f"fy_{lms}"),
-                       sensitivity=stated.probe_sensitivity)
+    return Calibration(
+        x=mean("x_a", "x_b"),
+        y=mean("y_a", "y_b"),
+        fx=chan(f"fx_{lms}"),
+        fy=chan(f"fy_{lms}"),
+        sensitivity=stated.probe_sensitivity,
+    )
 
 
-def analyse_point(spin: float, tables: dict[str, OrbitTable], fits: dict[tuple[str, str], Identification],
-                  idents: dict, stated: CalibrationUncertainty | None, grid: np.ndarray) -> None:
+def analyse_point(
+    spin: float,
+    tables: dict[str, OrbitTable],
+    fits: dict[tuple[str, str], Identification],
+    idents: dict,
+    stated: CalibrationUncertainty | None,
+    grid: np.ndarray,
+) -> None:
     """Add budget, adequacy, LMS consistency and derived quantities to the stored JSON of every
     fit in ``idents`` ((lms, ModelSpec.key) -> {"spec", "json"}); ``fits`` the same fits'
     Identification objects; ``grid`` the point's orbit frequencies for the derived quantities
@@ -110,8 +121,15 @@ def _budget(ident: Identification, table: OrbitTable, cal: Calibration, budgets:
     b = uncertainty_budget(ident, table, cal)
     budgets[where] = b
     _, sigma = cal.parameters()
-    return {"k": b.k, "statistical": b.statistical, "systematic": b.systematic, "combined": b.combined,
-            "expanded": b.expanded, "sources": list(b.labels), "source_std": [float(s) for s in sigma]}
+    return {
+        "k": b.k,
+        "statistical": b.statistical,
+        "systematic": b.systematic,
+        "combined": b.combined,
+        "expanded": b.expanded,
+        "sources": list(b.labels),
+        "source_std": [float(s) for s in sigma],
+    }
 
 
 def _derived(ident: Identification, grid: np.ndarray, spin: float, budget: Budget | None) -> dict:
@@ -123,8 +141,14 @@ def _derived(ident: Identification, grid: np.ndarray, spin: float, budget: Budge
 
 
 def _adequacy(ident: Identification, table: OrbitTable, fits: dict, lms: str, spec) -> dict:
-    constant = next((f for (ls, _), f in fits.items() if ls == lms and f.model == ident.model
-                     and f.freq_dep == "none" and f.method == ident.method), None)
+    constant = next(
+        (
+            f
+            for (ls, _), f in fits.items()
+            if ls == lms and f.model == ident.model and f.freq_dep == "none" and f.method == ident.method
+        ),
+        None,
+    )
     if constant is None:  # not configured: fitted here for the test only
         constant = identify(table, model=spec.model, freq_dep="none", method=spec.method)
     out = frequency_dependence(constant, ident).to_dict()
@@ -136,6 +160,16 @@ def _consistency(a: Identification, ta: OrbitTable, b: Identification, tb: Orbit
     none = Calibration()
     ca, cb = (cal[LMS[0]], cal[LMS[1]]) if cal is not None else (none, none)
     ag = lms_agreement(a, ta, b, tb, ca, cb)
-    return {"e_n": ag.e_n, "max_abs": ag.max_abs, "consistent": ag.consistent, "test": "chi2", "chi2": ag.chi2,
-            "dof": ag.dof, "level": ag.level, "limit": ag.limit, "p_value": ag.p_value,
-            "basis": "combined" if cal is not None else "statistical", "pair": f"{LMS[0]} - {LMS[1]}"}
+    return {
+        "e_n": ag.e_n,
+        "max_abs": ag.max_abs,
+        "consistent": ag.consistent,
+        "test": "chi2",
+        "chi2": ag.chi2,
+        "dof": ag.dof,
+        "level": ag.level,
+        "limit": ag.limit,
+        "p_value": ag.p_value,
+        "basis": "combined" if cal is not None else "statistical",
+        "pair": f"{LMS[0]} - {LMS[1]}",
+    }

@@ -81,7 +81,10 @@ def record_end(
         if status != FAILED:  # a failed run keeps its first cause
             status, message = FAILED, f"storage failed: the run's status and run.h5 could not be written: {err}"
     last_line = f"run {run_id} ended: {status}: {message}"
-    for what, action in (("write coefficients.csv", store.write_csv), ("close the run log", lambda: store.log(last_line))):
+    for what, action in (
+        ("write coefficients.csv", store.write_csv),
+        ("close the run log", lambda: store.log(last_line)),
+    ):
         try:
             action()
         except Exception as err:  # noqa: BLE001

@@ -56,8 +56,13 @@ def _noise(table, ratios: np.ndarray):
     return per_rev, noise_at
 
 
-def choose(rule: SequentialRule, spin: float, recs: list[BlockRecord], ch: dict[str, int],
-           corrections: Corrections | None = None) -> BlockChoice:
+def choose(
+    rule: SequentialRule,
+    spin: float,
+    recs: list[BlockRecord],
+    ch: dict[str, int],
+    corrections: Corrections | None = None,
+) -> BlockChoice:
     """The next block of the point whose blocks so far are ``recs`` (in the order they ran), or
     the stop (reason target or cap). Raises ReductionError/ValueError when the blocks cannot
     identify the model."""
@@ -72,18 +77,54 @@ def choose(rule: SequentialRule, spin: float, recs: list[BlockRecord], ch: dict[
     info = _information(spec, theta, spin, radius, table, ratios, per_rev, recs)
     scales, target = _scales(rule, spec, theta, spin, radius, noise_at)
     spent = spent_seconds(rule, recs)
-    nb = next_block(spec, theta, spin, radius, info, rule.candidates, noise_at, scales, target, spent, rule.cap_s,
-                    rule.per_block_s, rule.directions, recs[-1].block.orbit, rule.ramp_rate)
-    return BlockChoice(nb.reason.name.lower(), nb.ratio, nb.direction, nb.revolutions, nb.seconds, spent, tuple(spec.names),
-                       tuple(float(v) for v in nb.before), tuple(float(v) for v in nb.after))
+    nb = next_block(
+        spec,
+        theta,
+        spin,
+        radius,
+        info,
+        rule.candidates,
+        noise_at,
+        scales,
+        target,
+        spent,
+        rule.cap_s,
+        rule.per_block_s,
+        rule.directions,
+        recs[-1].block.orbit,
+        rule.ramp_rate,
+    )
+    return BlockChoice(
+        nb.reason.name.lower(),
+        nb.ratio,
+        nb.direction,
+        nb.revolutions,
+        nb.seconds,
+        spent,
+        tuple(spec.names),
+        tuple(float(v) for v in nb.before),
+        tuple(float(v) for v in nb.after),
+    )
 
 
-def _information(spec, theta, spin: float, radius: float, table, ratios: np.ndarray, per_rev: np.ndarray,
-                 recs: list[BlockRecord]):
+def _information(
+    spec, theta, spin: float, radius: float, table, ratios: np.ndarray, per_rev: np.ndarray, recs: list[BlockRecord]
+):
     """The Fisher information of the point's blocks at ``theta``, summed over the blocks (each
     at its ratio, per-revolution noise, revolution count and whirl direction)."""
-    return sum(block_information(spec, theta, spin, radius, ratios[k], per_rev[k], int(table.n_records[k]),
-                                 str(Whirl.of(recs[k].block.direction))) for k in range(len(recs)))
+    return sum(
+        block_information(
+            spec,
+            theta,
+            spin,
+            radius,
+            ratios[k],
+            per_rev[k],
+            int(table.n_records[k]),
+            str(Whirl.of(recs[k].block.direction)),
+        )
+        for k in range(len(recs))
+    )
 
 
 def _scales(rule: SequentialRule, spec, theta, spin: float, radius: float, noise_at):
@@ -97,8 +138,9 @@ def _scales(rule: SequentialRule, spec, theta, spin: float, radius: float, noise
     return coefficient_scales(spec, theta, spin), rule.target
 
 
-def chosen_steps(step: ChooseBlocks, spin: float, choice: BlockChoice, freq: int, orbit_now: float,
-                 store_s: float) -> list[Step]:
+def chosen_steps(
+    step: ChooseBlocks, spin: float, choice: BlockChoice, freq: int, orbit_now: float, store_s: float
+) -> list[Step]:
     """The steps of the chosen block(s): per direction (forward first for "both") SetOrbit,
     Settle, Acquire of exactly the chosen revolutions, StoreBlock carrying the choice."""
     signs = (+1, -1) if choice.direction == "both" else (Whirl(choice.direction).sign,)
@@ -106,17 +148,24 @@ def chosen_steps(step: ChooseBlocks, spin: float, choice: BlockChoice, freq: int
     for sign in signs:
         b = Block(freq, sign, sign * float(choice.ratio) * spin)
         n = choice.revolutions
-        out += [SetOrbit(step.point, abs(b.orbit - orbit_now) / step.rule.ramp_rate, b),
-                Settle(step.point, step.hold, b, step.hold),
-                Acquire(step.point, block_time(b.orbit, n), b, n, step.hold),
-                StoreBlock(step.point, store_s, b, choice)]
+        out += [
+            SetOrbit(step.point, abs(b.orbit - orbit_now) / step.rule.ramp_rate, b),
+            Settle(step.point, step.hold, b, step.hold),
+            Acquire(step.point, block_time(b.orbit, n), b, n, step.hold),
+            StoreBlock(step.point, store_s, b, choice),
+        ]
         orbit_now = b.orbit
     return out
 
 
 def choice_line(point: int, c: BlockChoice) -> str:
     """The run log's line of one decision."""
-    what = (f"{c.direction} ratio {c.ratio:g}, {c.revolutions} revolutions ({c.seconds:.1f} s)"
-            if c.ratio is not None else "stop")
-    return (f"point {point:04d}: sequential: {what}: {Choice[c.reason.upper()].value}; largest predicted relative error "
-            f"{max(c.before) * 100:.3g} % -> {max(c.after) * 100:.3g} % after {c.spent_s:.1f} s of blocks")
+    what = (
+        f"{c.direction} ratio {c.ratio:g}, {c.revolutions} revolutions ({c.seconds:.1f} s)"
+        if c.ratio is not None
+        else "stop"
+    )
+    return (
+        f"point {point:04d}: sequential: {what}: {Choice[c.reason.upper()].value}; largest predicted relative error "
+        f"{max(c.before) * 100:.3g} % -> {max(c.after) * 100:.3g} % after {c.spent_s:.1f} s of blocks"
+    )

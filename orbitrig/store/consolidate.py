@@ -192,12 +192,31 @@ def _fixed_rows(rows: list, dtype: np.dtype) -> np.ndarray:
 
 
 def _write_logs(lg: h5py.Group, journal: Journal) -> None:
-    put(lg, "events", _fixed_rows(journal.events, EVENT_DTYPE), "t: s since the run started",
-        fields=strings(EVENT_DTYPE.names))
-    put(lg, "commands", _fixed_rows(journal.commands, COMMAND_DTYPE), "at: ISO 8601 UTC; by: who sent the command",
-        fields=strings(COMMAND_DTYPE.names), field_units=strings([""] * len(COMMAND_DTYPE.names)))
-    for name, rows, dt, units in (("can", journal.can, CAN_DTYPE, CAN_UNITS),
-                                  ("drives", journal.drives, DRIVE_DTYPE, DRIVE_UNITS)):
+    put(
+        lg,
+        "events",
+        _fixed_rows(journal.events, EVENT_DTYPE),
+        "t: s since the run started",
+        fields=strings(EVENT_DTYPE.names),
+    )
+    put(
+        lg,
+        "commands",
+        _fixed_rows(journal.commands, COMMAND_DTYPE),
+        "at: ISO 8601 UTC; by: who sent the command",
+        fields=strings(COMMAND_DTYPE.names),
+        field_units=strings([""] * len(COMMAND_DTYPE.names)),
+    )
+    for name, rows, dt, units in (
+        ("can", journal.can, CAN_DTYPE, CAN_UNITS),
+        ("drives", journal.drives, DRIVE_DTYPE, DRIVE_UNITS),
+    ):
         data = np.array(rows, dtype=dt) if rows else np.zeros(0, dt)
-        put(lg, name, data, "; ".join(f"{n}: {u}" for n, u in zip(dt.names, units)),
-            fields=strings(dt.names), field_units=strings(units))
+        put(
+            lg,
+            name,
+            data,
+            "; ".join(f"{n}: {u}" for n, u in zip(dt.names, units)),
+            fields=strings(dt.names),
+            field_units=strings(units),
+        )

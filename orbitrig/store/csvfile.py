@@ -24,9 +24,22 @@ from orbitrig.store.fit_record import expanded_uncertainty
 from orbitrig.store.layout import coefficient_si_unit
 
 CSV_HEAD = [
-    "point", "label", "spin_rpm", "recess_pressure_mpa", "pressure_ratio", "static_eccentricity",
-    "dynamic_eccentricity", "lms", "model", "freq_dep", "method", "n_frequencies", "condition_number",
-    "residual_rms [N]", "error", "not_determined",
+    "point",
+    "label",
+    "spin_rpm",
+    "recess_pressure_mpa",
+    "pressure_ratio",
+    "static_eccentricity",
+    "dynamic_eccentricity",
+    "lms",
+    "model",
+    "freq_dep",
+    "method",
+    "n_frequencies",
+    "condition_number",
+    "residual_rms [N]",
+    "error",
+    "not_determined",
 ]
 
 
@@ -77,9 +90,13 @@ def point_rows(point, sim: bool) -> list[dict]:
     """The rows of one complete point (an orbitrig.store.reader.Point)."""
     st = point.settings
     base = {
-        "point": point.index, "label": st.label, "spin_rpm": f"{st.spin_rpm:.6g}",
-        "recess_pressure_mpa": f"{st.recess_pressure / 1e6:.6g}", "pressure_ratio": f"{st.pressure_ratio:.6g}",
-        "static_eccentricity": f"{st.static_eccentricity:.6g}", "dynamic_eccentricity": f"{st.dynamic_eccentricity:.6g}",
+        "point": point.index,
+        "label": st.label,
+        "spin_rpm": f"{st.spin_rpm:.6g}",
+        "recess_pressure_mpa": f"{st.recess_pressure / 1e6:.6g}",
+        "pressure_ratio": f"{st.pressure_ratio:.6g}",
+        "static_eccentricity": f"{st.static_eccentricity:.6g}",
+        "dynamic_eccentricity": f"{st.dynamic_eccentricity:.6g}",
     }
     truth = point.truth if sim else None
     rows = []
@@ -87,9 +104,16 @@ def point_rows(point, sim: bool) -> list[dict]:
         row = dict(base, lms=ident.lms, model=ident.model, _keys=[])
         d = ident.result
         if d is not None:
-            row.update({"freq_dep": d["freq_dep"], "method": d["method"], "n_frequencies": d["n_frequencies"],
-                        "condition_number": _num(d["condition_number"], ".6g"),
-                        "residual_rms [N]": _num(d["residual_rms"], ".6g"), "error": ""})
+            row.update(
+                {
+                    "freq_dep": d["freq_dep"],
+                    "method": d["method"],
+                    "n_frequencies": d["n_frequencies"],
+                    "condition_number": _num(d["condition_number"], ".6g"),
+                    "residual_rms [N]": _num(d["residual_rms"], ".6g"),
+                    "error": "",
+                }
+            )
             expanded = expanded_uncertainty(d)
             for k, v in d["coefficients"].items():
                 row[coefficient_column(k)] = _num(v, ".8g")

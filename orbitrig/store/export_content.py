@@ -23,10 +23,17 @@ ADEQUACY_NUMBERS = ("supported", "p_value", "statistic", "dof", "alpha")
 
 def provenance(run) -> dict[str, str]:
     """Text describing where the data came from."""
-    return {"software_version": run.software_version, "created": run.created, "status": str(run.status),
-            "status_message": run.status_message, "sim": str(bool(run.sim)).lower(), "matrix_name": run.matrix_name,
-            "rig_config": run.rig_config, "matrix_config": run.matrix_config,
-            "sim_scenario_name": run.sim_scenario_name}
+    return {
+        "software_version": run.software_version,
+        "created": run.created,
+        "status": str(run.status),
+        "status_message": run.status_message,
+        "sim": str(bool(run.sim)).lower(),
+        "matrix_name": run.matrix_name,
+        "rig_config": run.rig_config,
+        "matrix_config": run.matrix_config,
+        "sim_scenario_name": run.sim_scenario_name,
+    }
 
 
 def settings(point) -> dict[str, tuple[float, str]]:
@@ -44,8 +51,7 @@ def fit_arrays(fit: FitRecord) -> dict:
     """One fit as arrays: names, units, value, std, U, covariance (+ covariance_names), the
     budget's parts and k, the adequacy numbers and verdict, E_n, ``not_determined`` (1 where U
     exceeds the magnitude) and the fit's own ``truth`` (--sim) aligned with names."""
-    d = {"names": fit.names, "units": fit.units, "value": fit.value, "std": fit.std, "U": fit.U,
-         "error": fit.error}
+    d = {"names": fit.names, "units": fit.units, "value": fit.value, "std": fit.std, "U": fit.U, "error": fit.error}
     if fit.covariance is not None:
         d["covariance"], d["covariance_names"] = fit.covariance, fit.covariance_names
     d.update({part: fit.budget[part] for part in BUDGET_PARTS if part in fit.budget})
@@ -78,9 +84,14 @@ def derived_columns(fit: FitRecord) -> dict[str, tuple[np.ndarray, str]]:
     for name in ("h_forward", "h_backward"):
         if f"{name}_re" in d:
             std = np.asarray(d.get(f"{name}_std"), dtype=float)
-            cols.update({f"{name}_re": (np.asarray(d[f"{name}_re"], dtype=float), "N/m"),
-                         f"{name}_im": (np.asarray(d[f"{name}_im"], dtype=float), "N/m"),
-                         f"{name}_std_re": (std[0], "N/m"), f"{name}_std_im": (std[1], "N/m")})
+            cols.update(
+                {
+                    f"{name}_re": (np.asarray(d[f"{name}_re"], dtype=float), "N/m"),
+                    f"{name}_im": (np.asarray(d[f"{name}_im"], dtype=float), "N/m"),
+                    f"{name}_std_re": (std[0], "N/m"),
+                    f"{name}_std_im": (std[1], "N/m"),
+                }
+            )
     return cols
 
 
@@ -88,8 +99,11 @@ def truth_arrays(truth: dict | None) -> dict[str, tuple[np.ndarray, str]]:
     """The simulator's truth: K0, C0, D0 (2 x 2), and Z (complex, row x 2 x 2) at ``orbit``."""
     if not truth:
         return {}
-    out = {k: (np.asarray(truth[k], dtype=float), u) for k, u in (("K0", "N/m"), ("C0", "N s/m"), ("D0", "kg"))
-           if k in truth}
+    out = {
+        k: (np.asarray(truth[k], dtype=float), u)
+        for k, u in (("K0", "N/m"), ("C0", "N s/m"), ("D0", "kg"))
+        if k in truth
+    }
     if "Z_re" in truth:
         out["Z"] = (np.asarray(truth["Z_re"], dtype=float) + 1j * np.asarray(truth["Z_im"], dtype=float), "N/m")
         out["orbit"] = (np.asarray(truth["orbit"], dtype=float), "rad/s")
@@ -104,8 +118,14 @@ def waveform_arrays(point, channels: list[str]) -> list[dict]:
         w = f.waveform
         if "mean" not in w:
             continue
-        b = {"name": f.name, "orbit_hz": f.orbit_hz, "direction": f.direction, "n_records": f.n_records,
-             "mean": w["mean"], "theta": 2 * math.pi * np.asarray(w["slots"], dtype=float) / 360.0}
+        b = {
+            "name": f.name,
+            "orbit_hz": f.orbit_hz,
+            "direction": f.direction,
+            "n_records": f.n_records,
+            "mean": w["mean"],
+            "theta": 2 * math.pi * np.asarray(w["slots"], dtype=float) / 360.0,
+        }
         b.update({k: w[k] for k in ("dc", "phasors", "uncertainty") if k in w})
         b["channels"] = channels
         blocks.append(b)

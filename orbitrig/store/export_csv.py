@@ -24,8 +24,22 @@ from orbitrig.store.durable import write_atomic
 from orbitrig.store.fit_record import BUDGET_PARTS, point_fits
 from orbitrig.store.orbit_table import write_orbit_table
 
-FIT_HEAD = ["point", "lms", "model", "freq_dep", "method", "name", "unit", "value", "std", "U",
-            *BUDGET_PARTS, "e_n [1]", "true", "error"]
+FIT_HEAD = [
+    "point",
+    "lms",
+    "model",
+    "freq_dep",
+    "method",
+    "name",
+    "unit",
+    "value",
+    "std",
+    "U",
+    *BUDGET_PARTS,
+    "e_n [1]",
+    "true",
+    "error",
+]
 
 
 def _render(rows: list[list]) -> bytes:
@@ -50,8 +64,20 @@ def _fit_rows(p, sim: bool) -> list[list]:
             parts = [_cell(d[part][j]) if part in d else "" for part in BUDGET_PARTS]
             true = csvfile.fit_truth(fit.result, p.truth if sim else None).get(name)
             e_n = _cell(d["e_n"][j]) if "e_n" in d else ""
-            rows.append(head + [name, fit.units[j], _cell(d["value"][j]), _cell(d["std"][j]), _cell(d["U"][j]),
-                                *parts, e_n, _cell(true), ""])
+            rows.append(
+                head
+                + [
+                    name,
+                    fit.units[j],
+                    _cell(d["value"][j]),
+                    _cell(d["std"][j]),
+                    _cell(d["U"][j]),
+                    *parts,
+                    e_n,
+                    _cell(true),
+                    "",
+                ]
+            )
     return rows
 
 

@@ -75,7 +75,9 @@ def octave_layout(f: h5py.File) -> None:
     objects: list[h5py.Group | h5py.Dataset] = [f]
     f.visititems(lambda _, obj: objects.append(obj))
     mirror = f.create_group(ATTRIBUTES)
-    with_attrs = [(o, mirror.require_group(o.name.lstrip("/")) if o.name != "/" else mirror) for o in objects if o.attrs]
+    with_attrs = [
+        (o, mirror.require_group(o.name.lstrip("/")) if o.name != "/" else mirror) for o in objects if o.attrs
+    ]
     taken = {o.name for o, _ in with_attrs}  # every destination group exists before any attribute is written
     for obj, dest in with_attrs:
         _mirror_attributes(obj, dest, taken)

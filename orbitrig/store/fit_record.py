@@ -31,8 +31,9 @@ def expanded_uncertainty(result: dict) -> dict[str, float]:
     stated), else the stored budget's expanded uncertainty, else 2 x the standard error
     (statistical only). NaN where none is known."""
     names = list(result.get("coefficients") or {})
-    budget = ((result.get("expanded_uncertainty") or {}).get("values")
-              or (result.get("uncertainty") or {}).get("expanded"))
+    budget = (result.get("expanded_uncertainty") or {}).get("values") or (result.get("uncertainty") or {}).get(
+        "expanded"
+    )
     if budget:
         return {k: _num(budget.get(k)) for k in names}
     std = result.get("std_errors") or {}
@@ -77,8 +78,9 @@ class FitRecord:
         return f"{self.lms}__{self.model}__{self.freq_dep.replace(':', '_').replace(',', '_')}__{self.method}"
 
 
-def fit_record(point: int, lms: str, model: str, freq_dep: str, method: str, result: dict | None,
-               error: str | None = None) -> FitRecord:
+def fit_record(
+    point: int, lms: str, model: str, freq_dep: str, method: str, result: dict | None, error: str | None = None
+) -> FitRecord:
     """The FitRecord of a stored identification (``result`` None: a refused model)."""
     if result is None:
         return FitRecord(point, lms, model, freq_dep, method, error or "")
@@ -91,15 +93,29 @@ def fit_record(point: int, lms: str, model: str, freq_dep: str, method: str, res
     if budget:
         budget["k"] = np.array(float(unc.get("k", COVERAGE_K)))
     return FitRecord(
-        point, lms, model, freq_dep, method, error or "", names, [coefficient_si_unit(k) for k in names],
-        vector(result.get("coefficients")), vector(result.get("std_errors")), np.array([U[k] for k in names]),
+        point,
+        lms,
+        model,
+        freq_dep,
+        method,
+        error or "",
+        names,
+        [coefficient_si_unit(k) for k in names],
+        vector(result.get("coefficients")),
+        vector(result.get("std_errors")),
+        np.array([U[k] for k in names]),
         None if cov is None else np.array([[_num(v) for v in row] for row in cov], dtype=float),
-        list(result.get("free") or names) if cov is not None else [], budget,
-        result.get("adequacy"), result.get("derived"), result.get("lms_consistency"), result,
+        list(result.get("free") or names) if cov is not None else [],
+        budget,
+        result.get("adequacy"),
+        result.get("derived"),
+        result.get("lms_consistency"),
+        result,
     )
 
 
 def point_fits(point) -> list[FitRecord]:
     """Every stored identification of an orbitrig.store.reader.Point, in stored order."""
-    return [fit_record(point.index, i.lms, i.model, i.freq_dep, i.method, i.result, i.error)
-            for i in point.identifications]
+    return [
+        fit_record(point.index, i.lms, i.model, i.freq_dep, i.method, i.result, i.error) for i in point.identifications
+    ]

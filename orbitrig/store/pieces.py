@@ -18,16 +18,35 @@ import numpy as np
 
 from orbitrig.load_systems import LMS
 from orbitrig.store.annotate import annotate
-from orbitrig.store.layout import (BLOCK_ATTR_UNITS, COHERENCE_PAIRS, IDENT_ATTR_UNITS,
-                                   MATRIX_SI, TABLE_ATTR_UNITS, U_COLUMNS, U_UNITS, coefficient_si_unit)
+from orbitrig.store.layout import (
+    BLOCK_ATTR_UNITS,
+    COHERENCE_PAIRS,
+    IDENT_ATTR_UNITS,
+    MATRIX_SI,
+    TABLE_ATTR_UNITS,
+    U_COLUMNS,
+    U_UNITS,
+    coefficient_si_unit,
+)
 from orbitrig.store.records import BlockChoice, BlockRecord, PointResults
 
 if TYPE_CHECKING:  # annotation only: the store does not import the run wing
     from orbitrig.run.plan import OperatingPoint
 
 STR = h5py.string_dtype()
-IDENT_SCALARS = ("n_coefficients", "min_frequencies", "n_frequencies", "condition_number", "residual_rms",
-                 "dof", "chi2", "p_value", "aic", "bic", "exponent")
+IDENT_SCALARS = (
+    "n_coefficients",
+    "min_frequencies",
+    "n_frequencies",
+    "condition_number",
+    "residual_rms",
+    "dof",
+    "chi2",
+    "p_value",
+    "aic",
+    "bic",
+    "exponent",
+)
 
 
 def to_json(obj) -> str:
@@ -61,10 +80,15 @@ def put(g: h5py.Group, name: str, data, units: str, **attrs) -> h5py.Dataset:
 def point_settings(point: OperatingPoint) -> dict:
     """The attributes of a point (point.json and /points/PPPP in run.h5), SI."""
     return {
-        "index": point.index, "spin": point.spin, "spin_rpm": point.spin_rpm,
-        "recess_pressure": point.recess_pressure, "pressure_ratio": point.pressure_ratio,
-        "static_eccentricity": point.static_eccentricity, "dynamic_eccentricity": point.dynamic_eccentricity,
-        "orbit_radius": point.orbit_radius, "label": point.label,
+        "index": point.index,
+        "spin": point.spin,
+        "spin_rpm": point.spin_rpm,
+        "recess_pressure": point.recess_pressure,
+        "pressure_ratio": point.pressure_ratio,
+        "static_eccentricity": point.static_eccentricity,
+        "dynamic_eccentricity": point.dynamic_eccentricity,
+        "orbit_radius": point.orbit_radius,
+        "label": point.label,
     }
 
 
@@ -74,10 +98,18 @@ def write_block(g: h5py.Group, rec: BlockRecord, channels: list[str], units: lis
     chan = strings(channels)
     per_channel = " or ".join(dict.fromkeys(units)) + " per channel (see channel_units)"
     a = g.attrs
-    a.update({"orbit": b.orbit, "orbit_hz": b.orbit_hz, "direction": b.direction,
-              "measured_orbit_speed": rec.measured_orbit_speed, "stop_reason": rec.stop_reason,
-              "n_records": int(rec.n_records if rec.n_records is not None else len(rec.raw_counts)),
-              "complete": True, "units_of_attributes": BLOCK_ATTR_UNITS})
+    a.update(
+        {
+            "orbit": b.orbit,
+            "orbit_hz": b.orbit_hz,
+            "direction": b.direction,
+            "measured_orbit_speed": rec.measured_orbit_speed,
+            "stop_reason": rec.stop_reason,
+            "n_records": int(rec.n_records if rec.n_records is not None else len(rec.raw_counts)),
+            "complete": True,
+            "units_of_attributes": BLOCK_ATTR_UNITS,
+        }
+    )
     a["channels"], a["channel_units"] = chan, strings(units)
     _write_signals(g, rec, per_channel)
     _write_phasors(g, rec, per_channel)
@@ -92,14 +124,24 @@ def write_block(g: h5py.Group, rec: BlockRecord, channels: list[str], units: lis
 def _write_signals(g: h5py.Group, rec: BlockRecord, per_channel: str) -> None:
     """A block's samples: raw counts, their slots, the channels' calibration, the synchronous
     average and what is left of each revolution around it."""
-    put(g, "raw_counts", np.asarray(rec.raw_counts, dtype=np.int16), "count",
-        dimensions="revolution, channel, sample")
-    put(g, "slots", np.asarray(rec.slots, dtype=np.int16), "slot (1/360 of an orbit revolution after the trigger)",
-        dimensions="channel, sample")
+    put(g, "raw_counts", np.asarray(rec.raw_counts, dtype=np.int16), "count", dimensions="revolution, channel, sample")
+    put(
+        g,
+        "slots",
+        np.asarray(rec.slots, dtype=np.int16),
+        "slot (1/360 of an orbit revolution after the trigger)",
+        dimensions="channel, sample",
+    )
     put(g, "gains", np.asarray(rec.gains, dtype=np.float64), per_channel.replace("per", "/count per"))
     put(g, "offsets", np.asarray(rec.offsets, dtype=np.float64), per_channel)
-    put(g, "mean", np.asarray(rec.mean, dtype=np.float64), per_channel, dimensions="channel, sample",
-        meaning="synchronous average over the revolutions")
+    put(
+        g,
+        "mean",
+        np.asarray(rec.mean, dtype=np.float64),
+        per_channel,
+        dimensions="channel, sample",
+        meaning="synchronous average over the revolutions",
+    )
     put(g, "dc", np.asarray(rec.dc, dtype=np.float64), per_channel)
     put(g, "rms_residual", np.asarray(rec.rms_residual, dtype=np.float64), per_channel)
 
@@ -107,29 +149,71 @@ def _write_signals(g: h5py.Group, rec: BlockRecord, per_channel: str) -> None:
 def _write_phasors(g: h5py.Group, rec: BlockRecord, per_channel: str) -> None:
     """A block's phasors: per revolution and averaged (with their uncertainty), the revolutions
     averaged and the coherence of each displacement-force pair."""
-    put(g, "record_phasors", np.asarray(rec.record_phasors, dtype=np.complex128), per_channel,
-        dimensions="revolution, channel", convention="q = Re(q_bar exp(i Omega t))")
-    put(g, "phasors", np.asarray(rec.phasors, dtype=np.complex128), per_channel,
-        convention="q = Re(q_bar exp(i Omega t))")
+    put(
+        g,
+        "record_phasors",
+        np.asarray(rec.record_phasors, dtype=np.complex128),
+        per_channel,
+        dimensions="revolution, channel",
+        convention="q = Re(q_bar exp(i Omega t))",
+    )
+    put(
+        g,
+        "phasors",
+        np.asarray(rec.phasors, dtype=np.complex128),
+        per_channel,
+        convention="q = Re(q_bar exp(i Omega t))",
+    )
     if rec.revolutions is not None:
-        put(g, "revolutions", np.asarray(rec.revolutions, dtype=np.int64), "1", dimensions="revolution",
-            meaning="the A/D board's revolution number of each averaged revolution (gaps: dropped ones)")
+        put(
+            g,
+            "revolutions",
+            np.asarray(rec.revolutions, dtype=np.int64),
+            "1",
+            dimensions="revolution",
+            meaning="the A/D board's revolution number of each averaged revolution (gaps: dropped ones)",
+        )
     if rec.uncertainty is not None:
-        put(g, "uncertainty", np.asarray(rec.uncertainty, dtype=np.float64), per_channel,
-            meaning="standard uncertainty of each averaged phasor")
-    put(g, "coherence", np.asarray(rec.coherence, dtype=np.float64), "1", rows=strings(LMS),
-        columns=strings(COHERENCE_PAIRS), meaning="gamma^2 between displacement and force")
+        put(
+            g,
+            "uncertainty",
+            np.asarray(rec.uncertainty, dtype=np.float64),
+            per_channel,
+            meaning="standard uncertainty of each averaged phasor",
+        )
+    put(
+        g,
+        "coherence",
+        np.asarray(rec.coherence, dtype=np.float64),
+        "1",
+        rows=strings(LMS),
+        columns=strings(COHERENCE_PAIRS),
+        meaning="gamma^2 between displacement and force",
+    )
 
 
 def write_choice(g: h5py.Group, c: BlockChoice) -> None:
     """A sequential point's decision: why, what (ratio, direction, revolutions, seconds), the rig
     seconds spent before it, and each coefficient's predicted relative standard error before and
     after it (fractions of the coefficient's scale)."""
-    g.attrs.update({"reason": c.reason, "ratio": math.nan if c.ratio is None else c.ratio, "whirl": c.direction,
-                    "revolutions": c.revolutions, "seconds": c.seconds, "spent_s": c.spent_s})
+    g.attrs.update(
+        {
+            "reason": c.reason,
+            "ratio": math.nan if c.ratio is None else c.ratio,
+            "whirl": c.direction,
+            "revolutions": c.revolutions,
+            "seconds": c.seconds,
+            "spent_s": c.spent_s,
+        }
+    )
     g.create_dataset("coefficient_names", data=fixed_text(c.coefficients))
-    put(g, "before", np.asarray(c.before, dtype=np.float64), "1", meaning="predicted relative standard error "
-        "(standard error / scale) of each coefficient before the decision")
+    put(
+        g,
+        "before",
+        np.asarray(c.before, dtype=np.float64),
+        "1",
+        meaning="predicted relative standard error (standard error / scale) of each coefficient before the decision",
+    )
     put(g, "after", np.asarray(c.after, dtype=np.float64), "1", meaning="the same, predicted after the chosen block")
 
 
@@ -154,18 +238,27 @@ def _write_table(h: h5py.Group, t) -> None:
     h.attrs["units_of_attributes"] = TABLE_ATTR_UNITS
     put(h, "orbit", np.asarray(t.orbit, dtype=np.float64), "rad/s")
     put(h, "orbit_hz", np.asarray(t.orbit, dtype=np.float64) / (2 * math.pi), "Hz")
-    meanings = (("m", "x displacement"), ("m", "y displacement"), ("N", "x force on the journal"),
-                ("N", "y force on the journal"))
+    meanings = (
+        ("m", "x displacement"),
+        ("m", "y displacement"),
+        ("N", "x force on the journal"),
+        ("N", "y force on the journal"),
+    )
     for (name, z), (unit, what) in zip(t.phasors.items(), meanings):
-        put(h, name, np.asarray(z, dtype=np.complex128), unit, meaning=what,
-            convention="q = Re(q_bar exp(i Omega t))")
+        put(h, name, np.asarray(z, dtype=np.complex128), unit, meaning=what, convention="q = Re(q_bar exp(i Omega t))")
     if t.gamma2 is not None:
         put(h, "gamma2", np.asarray(t.gamma2, dtype=np.float64), "1", columns=strings(COHERENCE_PAIRS))
     if t.n_records is not None:
         put(h, "n_records", np.asarray(t.n_records, dtype=np.int64), "1")
     if t.u is not None:
-        put(h, "u", np.asarray(t.u, dtype=np.float64), ", ".join(U_UNITS), columns=strings(U_COLUMNS),
-            meaning="standard uncertainty of each averaged phasor")
+        put(
+            h,
+            "u",
+            np.asarray(t.u, dtype=np.float64),
+            ", ".join(U_UNITS),
+            columns=strings(U_COLUMNS),
+            meaning="standard uncertainty of each averaged phasor",
+        )
 
 
 def _float(v) -> float:
@@ -174,8 +267,9 @@ def _float(v) -> float:
 
 def _write_identification(h: h5py.Group, entry: dict) -> None:
     spec = entry["spec"]
-    h.attrs.update({"model": spec.model, "freq_dep": spec.freq_dep, "method": spec.method,
-                    "units_of_attributes": IDENT_ATTR_UNITS})
+    h.attrs.update(
+        {"model": spec.model, "freq_dep": spec.freq_dep, "method": spec.method, "units_of_attributes": IDENT_ATTR_UNITS}
+    )
     if "json" not in entry:
         h.attrs["error"] = entry["error"]
         return
@@ -193,8 +287,14 @@ def _write_identification(h: h5py.Group, entry: dict) -> None:
     put(h, "std_errors", np.array([_float(std.get(k)) for k in names]), unit, meaning="one standard deviation")
     ci = d.get("confidence_95")
     if ci:
-        put(h, "interval_95", np.array([[_float(v) for v in (ci.get(k) or (None, None))] for k in names]).reshape(-1, 2),
-            unit, columns=strings(("low", "high")), meaning="two-sided 95 % confidence interval")
+        put(
+            h,
+            "interval_95",
+            np.array([[_float(v) for v in (ci.get(k) or (None, None))] for k in names]).reshape(-1, 2),
+            unit,
+            columns=strings(("low", "high")),
+            meaning="two-sided 95 % confidence interval",
+        )
     if d.get("free") and d.get("covariance") is not None:
         free = list(d["free"])
         cov = np.array([[_float(v) for v in row] for row in d["covariance"]], dtype=np.float64).reshape(len(free), -1)
@@ -207,8 +307,14 @@ def _write_identification(h: h5py.Group, entry: dict) -> None:
 
 
 #: SI unit of each coefficient of the Eq. 15 power fit ({m}: its exponent)
-POWER_FIT_UNITS = {"K0": "N/m", "Km": "N/m (rad/s)^-{m}", "C0": "N s/m", "Cn": "N s/m (rad/s)^-{n}",
-                   "D0": "kg", "Dp": "kg (rad/s)^-{p}"}
+POWER_FIT_UNITS = {
+    "K0": "N/m",
+    "Km": "N/m (rad/s)^-{m}",
+    "C0": "N s/m",
+    "Cn": "N s/m (rad/s)^-{n}",
+    "D0": "kg",
+    "Dp": "kg (rad/s)^-{p}",
+}
 
 
 def write_truth(h: h5py.Group, truth: dict) -> None:
@@ -222,8 +328,14 @@ def write_truth(h: h5py.Group, truth: dict) -> None:
     put(h, "orbit", np.asarray(truth["orbit"], dtype=np.float64), "rad/s", meaning="signed (< 0 backward)")
     put(h, "orbit_hz", np.asarray(truth["orbit_hz"], dtype=np.float64), "Hz")
     z = np.asarray(truth["Z_re"], dtype=np.float64) + 1j * np.asarray(truth["Z_im"], dtype=np.float64)
-    put(h, "Z", z.reshape(-1, 2, 2), "N/m", dimensions="orbit row, force (fx, fy), displacement (x, y)",
-        convention="f_bar = -Z d_bar, Z = K + i|Omega| C - Omega^2 D for constant coefficients")
+    put(
+        h,
+        "Z",
+        z.reshape(-1, 2, 2),
+        "N/m",
+        dimensions="orbit row, force (fx, fy), displacement (x, y)",
+        convention="f_bar = -Z d_bar, Z = K + i|Omega| C - Omega^2 D for constant coefficients",
+    )
     fits = h.create_group("fits")
     put(fits, "band", np.asarray(truth["band"], dtype=np.float64), "rad/s", meaning="|Omega| the fits use")
     const = fits.create_group("constant")

@@ -128,7 +128,6 @@ class Run:
     sim_scenario_config: str = ""  # its TOML text ("" the default rig)
     provenance: dict[str, str] = field(default_factory=dict)  # PROVENANCE_KEYS ("" unknown), times ISO 8601 UTC
 
-
     @property
     def complete_points(self) -> list[Point]:
         return [p for p in self.points if p.complete]
@@ -178,11 +177,16 @@ def read_run(directory: str | Path, *, blocks: bool = True) -> Run:
                 points.append(point)
             a = h5.attrs
             return Run(
-                directory=directory, status=RunStatus.read(text(a.get("status"))),
-                status_message=text(a.get("status_message")), sim=bool(a.get("sim", False)),
-                software_version=text(a.get("software_version")), created=text(a.get("created")),
-                matrix_name=text(a.get("matrix_name")), rig_config=text(a.get("rig_config")),
-                matrix_config=text(a.get("matrix_config")), points=points,
+                directory=directory,
+                status=RunStatus.read(text(a.get("status"))),
+                status_message=text(a.get("status_message")),
+                sim=bool(a.get("sim", False)),
+                software_version=text(a.get("software_version")),
+                created=text(a.get("created")),
+                matrix_name=text(a.get("matrix_name")),
+                rig_config=text(a.get("rig_config")),
+                matrix_config=text(a.get("matrix_config")),
+                points=points,
                 channels=[text(c) for c in h5["channels"][()]] if "channels" in h5 else [],
                 channel_units=[text(c) for c in h5["channel_units"][()]] if "channel_units" in h5 else [],
                 sim_scenario_name=text(a.get("sim_scenario_name")),
@@ -216,11 +220,18 @@ def _read_pieces(layout: RunLayout, blocks: bool = True, indexes: list[int] | No
     except StorageError as err:
         raise RunDirError(err.path, err.reason) from err
     run = Run(
-        directory=layout.dir, status=journal.status, status_message=journal.status_message,
-        sim=bool(header.get("sim", False)), software_version=str(header.get("software_version", "")),
-        created=str(header.get("created", "")), matrix_name=str(header.get("matrix_name", "")),
-        rig_config=str(header.get("rig_config", "")), matrix_config=str(header.get("matrix_config", "")),
-        points=[], channels=list(header.get("channels", [])), channel_units=list(header.get("channel_units", [])),
+        directory=layout.dir,
+        status=journal.status,
+        status_message=journal.status_message,
+        sim=bool(header.get("sim", False)),
+        software_version=str(header.get("software_version", "")),
+        created=str(header.get("created", "")),
+        matrix_name=str(header.get("matrix_name", "")),
+        rig_config=str(header.get("rig_config", "")),
+        matrix_config=str(header.get("matrix_config", "")),
+        points=[],
+        channels=list(header.get("channels", [])),
+        channel_units=list(header.get("channel_units", [])),
         torn=journal.torn,
     )
     scenario = header.get("sim_scenario")
@@ -246,8 +257,9 @@ def _read_pieces(layout: RunLayout, blocks: bool = True, indexes: list[int] | No
     return run
 
 
-def read_point(layout: RunLayout, index: int, *, complete: bool, skipped: list[str] | None = None,
-               blocks: bool = True) -> Point:
+def read_point(
+    layout: RunLayout, index: int, *, complete: bool, skipped: list[str] | None = None, blocks: bool = True
+) -> Point:
     """One point of a run in pieces: settings, its readable blocks (unless blocks=False;
     the unreadable ones are named in `skipped`) and, when `complete`, its results.
     Raises RunDirError."""
@@ -285,8 +297,13 @@ def _new_point(a, name: str) -> Point:
         label=text(a.get("label"), name),
     )
     complete = bool(a.get("complete", False))
-    return Point(index=int(a.get("index", int(name))), name=name, complete=complete, settings=settings,
-                 problem="" if complete else NEVER_COMPLETED)
+    return Point(
+        index=int(a.get("index", int(name))),
+        name=name,
+        complete=complete,
+        settings=settings,
+        problem="" if complete else NEVER_COMPLETED,
+    )
 
 
 def _frequency(name: str, fg) -> Frequency:
@@ -294,9 +311,14 @@ def _frequency(name: str, fg) -> Frequency:
     coh = np.asarray(fg["coherence"][()], dtype=float) if "coherence" in fg else None
     waveform = {k: stored_values(fg[k]) for k in _WAVEFORM if k in fg}
     return Frequency(
-        name=name, orbit=float(fa.get("orbit", np.nan)), orbit_hz=float(fa.get("orbit_hz", np.nan)),
-        direction=int(fa.get("direction", 1)), complete=bool(fa.get("complete", False)), coherence=coh,
-        n_records=int(fa.get("n_records", 0)), waveform=waveform,
+        name=name,
+        orbit=float(fa.get("orbit", np.nan)),
+        orbit_hz=float(fa.get("orbit_hz", np.nan)),
+        direction=int(fa.get("direction", 1)),
+        complete=bool(fa.get("complete", False)),
+        coherence=coh,
+        n_records=int(fa.get("n_records", 0)),
+        waveform=waveform,
     )
 
 
@@ -312,10 +334,14 @@ def _table(tg, spin: float):
     if "u" in tg:
         extra["u"] = np.asarray(tg["u"][()], dtype=float)
     return OrbitTable(
-        spin=float(tg.attrs.get("spin", spin)), orbit=np.asarray(tg["orbit"][()], dtype=float),
-        x=stored_values(tg["x"]).astype(complex), y=stored_values(tg["y"]).astype(complex),
-        fx=stored_values(tg["fx"]).astype(complex), fy=stored_values(tg["fy"]).astype(complex),
-        gamma2=np.asarray(tg["gamma2"][()], dtype=float) if "gamma2" in tg else None, **extra,
+        spin=float(tg.attrs.get("spin", spin)),
+        orbit=np.asarray(tg["orbit"][()], dtype=float),
+        x=stored_values(tg["x"]).astype(complex),
+        y=stored_values(tg["y"]).astype(complex),
+        fx=stored_values(tg["fx"]).astype(complex),
+        fy=stored_values(tg["fy"]).astype(complex),
+        gamma2=np.asarray(tg["gamma2"][()], dtype=float) if "gamma2" in tg else None,
+        **extra,
     )
 
 

@@ -63,9 +63,20 @@ class RunStore:
 
     # ---------------------------------------------------------- life cycle
     @classmethod
-    def create(cls, out_dir, *, rig_text: str, matrix_text: str, matrix_name: str, sim: bool,
-               scenario_name: str = "", scenario_text: str = "", provenance: dict | None = None,
-               record_text: str = "", point_order: list[int] | None = None) -> RunStore:
+    def create(
+        cls,
+        out_dir,
+        *,
+        rig_text: str,
+        matrix_text: str,
+        matrix_name: str,
+        sim: bool,
+        scenario_name: str = "",
+        scenario_text: str = "",
+        provenance: dict | None = None,
+        record_text: str = "",
+        point_order: list[int] | None = None,
+    ) -> RunStore:
         """A new run directory; `scenario_name` / `scenario_text`: the simulator scenario of a
         --sim run (name and TOML text, recorded so that a resume runs the same one);
         `provenance` (orbitrig.run.provenance) and the active calibration record's text;
@@ -80,9 +91,17 @@ class RunStore:
         except OSError as err:
             raise storage_error(lay.points, "create the run directory", err) from err
         channels, units = _channels(rig_text)
-        self._header = {"format": FORMAT, "software_version": _versions(), "created": now_iso(), "sim": bool(sim),
-                        "matrix_name": matrix_name, "channels": channels, "channel_units": units,
-                        "rig_config": rig_text, "matrix_config": matrix_text}
+        self._header = {
+            "format": FORMAT,
+            "software_version": _versions(),
+            "created": now_iso(),
+            "sim": bool(sim),
+            "matrix_name": matrix_name,
+            "channels": channels,
+            "channel_units": units,
+            "rig_config": rig_text,
+            "matrix_config": matrix_text,
+        }
         if sim:
             self._header["sim_scenario"] = {"name": scenario_name, "text": scenario_text}
         if provenance is not None:
@@ -103,8 +122,11 @@ class RunStore:
         lay = self.layout
         if not lay.has_pieces():
             if lay.run_file.exists():
-                raise StorageError(lay.run_file, "holds a finished copy of a run but not its pieces "
-                                   f"({lay.header.name}, {lay.points.name}/): it cannot be resumed")
+                raise StorageError(
+                    lay.run_file,
+                    "holds a finished copy of a run but not its pieces "
+                    f"({lay.header.name}, {lay.points.name}/): it cannot be resumed",
+                )
             raise StorageError(lay.header, "does not exist: nothing to resume")
         self._header = read_header(lay)
         return self
@@ -217,8 +239,9 @@ class RunStore:
         """Commit the point: its commit record names every file with size and digest."""
         rec = commit_record(self.layout, point, self._written.pop(point, None))
         write_atomic(self.layout.commit_file(point), json.dumps(rec, indent=1).encode())
-        self._journal([*self._close_quotas(f"point {point_name(point)}"), journal.line("point", point=point,
-                                                                                         action="complete")])
+        self._journal(
+            [*self._close_quotas(f"point {point_name(point)}"), journal.line("point", point=point, action="complete")]
+        )
         self._image.add_point(point)
         self.write_csv()
 
@@ -268,9 +291,13 @@ class RunStore:
         """Raise StorageFullError when fewer than `n_bytes` are free for the run directory."""
         free = self.free_bytes()
         if free < n_bytes:
-            raise StorageFullError(self.dir, f"needs {_mb(n_bytes)} free, {_mb(free)} left: free space on this "
-                                   "disk (or choose another --out), then resume the run",
-                                   needed=int(n_bytes), free=int(free))
+            raise StorageFullError(
+                self.dir,
+                f"needs {_mb(n_bytes)} free, {_mb(free)} left: free space on this "
+                "disk (or choose another --out), then resume the run",
+                needed=int(n_bytes),
+                free=int(free),
+            )
 
     # -------------------------------------------------------------- run.log
     def log(self, message: str) -> None:
@@ -298,8 +325,10 @@ class RunStore:
         if text.tail:
             note = f"{text.count + len(text.tail)} lines since the last completed point were not written at once"
             stamp = utc_iso()
-            self._append_log(f"{stamp} run.log: {note} (until {until}): {text.count} left out, the newest "
-                             f"{len(text.tail)} follow\n" + "".join(text.tail))
+            self._append_log(
+                f"{stamp} run.log: {note} (until {until}): {text.count} left out, the newest "
+                f"{len(text.tail)} follow\n" + "".join(text.tail)
+            )
         if not commands.tail:
             return []
         note = f"{commands.count} commands left out (the journal keeps {COMMANDS_HEAD} per point and the newest)"
