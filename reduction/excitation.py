@@ -29,7 +29,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from reduction.arrays import ComplexArray, FloatArray
 from reduction.table import OrbitTable
 
 CLEAR_REFUSE = 3.0  # excitation below 3 x its noise: no shape (left out of the design)
@@ -75,41 +77,44 @@ def displacement_noise(
     size = np.sqrt(np.abs(table.x) ** 2 + np.abs(table.y) ** 2)
     floor = np.repeat((CROSS_TALK * size)[:, None], 2, axis=1)
     if table.u is not None:
-        return np.maximum(table.u[:, :2], floor)
+        measured: FloatArray = np.maximum(table.u[:, :2], floor)
+        return measured
     if residual is None or Z is None or dof <= 0:
         return floor
     s2 = float(residual @ residual) / dof
     zf2 = np.sum(np.abs(Z) ** 2, axis=(1, 2))
     u = np.sqrt(np.where(zf2 > 0, 2 * s2 / np.where(zf2 > 0, zf2, 1.0), 0.0))
-    return np.maximum(u[:, None], floor)
+    equivalent: FloatArray = np.maximum(u[:, None], floor)
+    return equivalent
 
 
-def excitation_ratios(x, y, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def excitation_ratios(x: ArrayLike, y: ArrayLike, u: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:
     """(major, minor, axis): the singular values of the orbit-shape matrix of rows x, y (m,
     last axis) over the square root of the noise energy along their directions (u (..., n, 2)
     the rows' u_x, u_y), and the main axis (..., 2). Leading axes are a batch of tables."""
-    x, y = np.asarray(x, dtype=complex), np.asarray(y, dtype=complex)
-    xy = np.sum((x * np.conj(y)).real, axis=-1)
+    xc, yc = np.asarray(x, dtype=complex), np.asarray(y, dtype=complex)
+    xy = np.sum((xc * np.conj(yc)).real, axis=-1)
     gram = np.stack(
-        [np.stack([np.sum(np.abs(x) ** 2, axis=-1), xy], -1), np.stack([xy, np.sum(np.abs(y) ** 2, axis=-1)], -1)], -2
+        [np.stack([np.sum(np.abs(xc) ** 2, axis=-1), xy], -1), np.stack([xy, np.sum(np.abs(yc) ** 2, axis=-1)], -1)], -2
     )  # S S^T, (..., 2, 2)
     s2, U = np.linalg.eigh(gram)  # ascending: minor first
     energy = np.einsum("...ij,...i->...j", U**2, np.sum(np.asarray(u, dtype=float) ** 2, axis=-2))
     s = np.sqrt(np.clip(s2, 0.0, None))
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(energy > 0, s / np.sqrt(np.where(energy > 0, energy, 1.0)), np.inf)
+        ratio: FloatArray = np.where(energy > 0, s / np.sqrt(np.where(energy > 0, energy, 1.0)), np.inf)
     ratio = np.where(s > 0, ratio, 0.0)
-    return ratio[..., 1], ratio[..., 0], U[..., :, 1]
+    axis: FloatArray = U[..., :, 1]
+    return ratio[..., 1], ratio[..., 0], axis
 
 
-def _judge(name: str, x, y, u) -> GroupSignal:
+def _judge(name: str, x: ComplexArray, y: ComplexArray, u: FloatArray) -> GroupSignal:
     major, minor, axis = excitation_ratios(x, y, u)
     return GroupSignal(name, x.size, float(major), float(minor), axis)
 
 
-def _project(x, y, axis):
+def _project(x: ComplexArray, y: ComplexArray, axis: FloatArray) -> tuple[ComplexArray, ComplexArray]:
     """Rows projected onto the real axis (the orbit flattened to a line along it)."""
-    along = axis[0] * x + axis[1] * y
+    along: ComplexArray = axis[0] * x + axis[1] * y
     return axis[0] * along, axis[1] * along
 
 
@@ -150,7 +155,7 @@ def signal_design(table: OrbitTable, noise: np.ndarray) -> SignalDesign:
     return SignalDesign(x, y, groups, removed, weak)
 
 
-def _angle(axis) -> str:
+def _angle(axis: FloatArray) -> str:
     deg = round(float(np.degrees(np.arctan2(axis[1], axis[0])))) % 180
     return f"main axis at {deg} deg from x"
 

@@ -35,8 +35,12 @@ and generic elliptical orbits (whatever remains then is structural: no data sepa
 
 from __future__ import annotations
 
-import numpy as np
+from collections.abc import Sequence
 
+import numpy as np
+from numpy.typing import ArrayLike
+
+from reduction.arrays import FloatArray
 from reduction.design import YARDSTICK_SPAN, design_orbits, idealised_design, reference_design, yardstick_design
 from reduction.errors import IdentifiabilityError
 from reduction.excitation import SignalDesign
@@ -106,7 +110,7 @@ def _determined(combo: str, all_combos: list[str]) -> str | None:
     return f"{tokens[0]} {flip} {tokens[2]}"
 
 
-def _stack(spec: ModelSpec, orbit, x, y) -> np.ndarray:
+def _stack(spec: ModelSpec, orbit: ArrayLike, x: ArrayLike, y: ArrayLike) -> FloatArray:
     return regression_rows(spec, orbit, x, y)
 
 
@@ -166,7 +170,7 @@ def check_signal(spec: ModelSpec, table: OrbitTable, signal: SignalDesign, rtol:
         )
     cleaned = table.with_phasors(signal.x, signal.y, table.fx, table.fy).subset(keep)
     if cleaned.n < spec.min_frequencies:
-        raise _refusal(spec, cleaned, None, None, rtol, "few", cause)
+        raise _too_few_clear(spec, cleaned, cause)
     x, y, _ = idealised_design(cleaned)
     if design_rank(spec, cleaned.orbit, x, y, rtol).deficiency:
         A = _stack(spec, cleaned.orbit, x, y)
@@ -174,7 +178,7 @@ def check_signal(spec: ModelSpec, table: OrbitTable, signal: SignalDesign, rtol:
         raise _refusal(spec, cleaned.with_phasors(x, y, cleaned.fx, cleaned.fy), A, rank, rtol, "signal", cause)
 
 
-def check_plan(model: str, freq_dep: str, orbit_hz, directions) -> None:
+def check_plan(model: str, freq_dep: str, orbit_hz: ArrayLike, directions: str | Sequence[str]) -> None:
     """Before a run: raise IdentifiabilityError when circular orbits at ``orbit_hz`` (Hz) in
     ``directions`` ("forward" | "backward" | "both", one for all or one per frequency) cannot
     identify ``model`` with ``freq_dep`` (power:auto: when no exponent M can)."""
@@ -248,22 +252,31 @@ def _variance_factors(rank: Rank) -> np.ndarray:
     """diag((A_s^T A_s)^-1) of the column-scaled regression (unit-noise variance factors)."""
     s = rank.singular_values[: rank.n_columns]
     with np.errstate(divide="ignore"):
-        return np.sum((rank.vt.T / s) ** 2, axis=1)
+        factors: FloatArray = np.sum((rank.vt.T / s) ** 2, axis=1)
+    return factors
 
 
-def _refusal(spec, table, A, rank, rtol, kind, cause="") -> IdentifiabilityError:
+def _too_few_clear(spec: ModelSpec, table: OrbitTable, cause: str) -> IdentifiabilityError:
+    """Fewer rows left than the model needs once the directions not clear of their noise
+    (``cause``) are taken out."""
+    p = spec.n_coefficients
+    head = f"{spec.model} with freq-dep {spec.freq_dep.text} ({p} coefficients) cannot be identified from this table"
+    return IdentifiabilityError(
+        f"{head}: the displacement is not clear of its noise in {cause}; the {table.n} rows left "
+        f"are fewer than the {spec.min_frequencies} orbit frequencies {p} coefficients need.",
+        list(spec.names),
+    )
+
+
+def _refusal(
+    spec: ModelSpec, table: OrbitTable, A: FloatArray, rank: Rank, rtol: float, kind: str, cause: str = ""
+) -> IdentifiabilityError:
     """kind: "few" (too few frequencies), "ideal" (the idealised one-shape-per-direction
     design is rank-deficient), "signal" (so is the design without the directions not clear
     of their noise, ``cause``) or "" (the regression itself is)."""
     p = spec.n_coefficients
     names = spec.names
     head = f"{spec.model} with freq-dep {spec.freq_dep.text} ({p} coefficients) cannot be identified from this table"
-    if kind == "few" and cause:
-        return IdentifiabilityError(
-            f"{head}: the displacement is not clear of its noise in {cause}; the {table.n} rows left "
-            f"are fewer than the {spec.min_frequencies} orbit frequencies {p} coefficients need.",
-            list(names),
-        )
     combos = combinations(rank, names)
     lines = []
     if kind == "few":
@@ -309,7 +322,7 @@ def _refusal(spec, table, A, rank, rtol, kind, cause="") -> IdentifiabilityError
     return IdentifiabilityError("\n".join(lines), combos)
 
 
-def _hints(spec, table, A, rank, rtol) -> list[str]:
+def _hints(spec: ModelSpec, table: OrbitTable, A: FloatArray, rank: Rank, rtol: float) -> list[str]:
     rng = np.random.default_rng(0)
     scale = float(np.sqrt(np.mean(np.abs(table.x) ** 2 + np.abs(table.y) ** 2)) or 1.0)
     n_gen = 3 * spec.min_frequencies + 3

@@ -51,10 +51,13 @@ from reduction.attenuation import attenuation_bias, attenuation_warning
 from reduction.diagnostics import fit_errors, residual_rms
 from reduction.errors import IdentificationError, IdentifiabilityError, ReductionError
 from reduction.excitation import displacement_noise, signal_design, signal_warning
-from reduction.identifiability import RANK_RTOL, analyse, check_signal, ill_conditioning, numerical_rank
+from reduction.arrays import ComplexArray, FloatArray
+from reduction.excitation import SignalDesign
+from reduction.identifiability import analyse, check_signal, ill_conditioning
 from reduction.impedance import forces, impedance, impedance_basis, real_rows, regression, regressors
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
 from reduction.noise import coherence_variances, equation_variances
+from reduction.rank import RANK_RTOL, Rank, numerical_rank
 from reduction.result import Identification
 from reduction.table import OrbitTable
 
@@ -137,7 +140,8 @@ def _identify(
     table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank_rtol: float, tls_ratio: float | None
 ) -> Identification:
     A, b = _regression(spec, table)
-    known = table.u is not None
+    u = table.u
+    known = u is not None
     rank = analyse(spec, table, A, rank_rtol)  # raises when not identifiable
     c = rank.scale
     A_s = A
@@ -154,8 +158,8 @@ def _identify(
         est = reg.ols(A_s, b, solver, rank.unscaled_covariance(), x0)
     elif method == Method.WLS:
         est = reg.wls(A_s, b, 1.0 / var, solver, rank.unscaled_covariance())
-        if known:  # second pass: effective variances at the wls coefficients
-            var = equation_variances(table.u, impedance(spec, est.x / c, table.orbit))
+        if u is not None:  # second pass: effective variances at the wls coefficients
+            var = equation_variances(u, impedance(spec, est.x / c, table.orbit))
             est = reg.wls(A_s, b, 1.0 / var, solver)
     elif method == Method.IV:
         Zi = _circle_instruments(spec, table, rank_rtol) / c
@@ -167,9 +171,10 @@ def _identify(
         est = _tls(spec, table, A_s, b, c, solver, tls_ratio)
     theta = est.x / c
     Z = impedance(spec, theta, table.orbit)  # at the estimate: effective variances and the fit
-    if known:
-        var = equation_variances(table.u, Z)
-        if method == Method.OLS:
+    cov_s: FloatArray | None
+    if u is not None:
+        var = equation_variances(u, Z)
+        if method == Method.OLS and est.unscaled is not None:  # ols: always (reduction.regression._finish)
             cov_s = st.sandwich_rows(A_s, var, est.unscaled)
         else:
             cov_s = st.sandwich(P, var) if P is not None else est.unscaled
@@ -181,15 +186,18 @@ def _identify(
         ident.warnings.insert(0, weak)
     if known and method in (Method.OLS, Method.WLS):
         unscaled = rank.unscaled_covariance() if method == Method.OLS else est.unscaled
-        bias = attenuation_bias(spec, table, theta, c, unscaled, None if method == Method.OLS else 1.0 / var)
-        std = np.sqrt(np.clip(np.diag(ident.covariance), 0, None))
-        eiv = attenuation_warning(spec, method, bias, std)
-        if eiv:
-            ident.warnings.append(eiv)
+        if unscaled is not None and ident.covariance is not None:  # both are, with u_* and ols or wls
+            bias = attenuation_bias(spec, table, theta, c, unscaled, None if method == Method.OLS else 1.0 / var)
+            std = np.sqrt(np.clip(np.diag(ident.covariance), 0, None))
+            eiv = attenuation_warning(spec, method, bias, std)
+            if eiv:
+                ident.warnings.append(eiv)
     return ident
 
 
-def _signal(spec, table, A_s, b, c, x0, rtol):
+def _signal(
+    spec: ModelSpec, table: OrbitTable, A_s: FloatArray, b: FloatArray, c: FloatArray, x0: FloatArray, rtol: float
+) -> SignalDesign:
     """The design without the displacement directions not clear of their noise (u_x, u_y,
     else the residual of a first ols fit); raises IdentifiabilityError when it cannot
     identify ``spec``."""
@@ -205,7 +213,7 @@ def _signal(spec, table, A_s, b, c, x0, rtol):
     return design
 
 
-def _regression(spec: ModelSpec, table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:
+def _regression(spec: ModelSpec, table: OrbitTable) -> tuple[FloatArray, FloatArray]:
     with np.errstate(over="ignore", invalid="ignore"):
         A, b = regression(spec, table.orbit, table.x, table.y, table.fx, table.fy)
         finite = (
@@ -223,7 +231,7 @@ def _regression(spec: ModelSpec, table: OrbitTable) -> tuple[np.ndarray, np.ndar
     return A, b
 
 
-def _variances(spec, table, theta0, b, method) -> np.ndarray:
+def _variances(spec: ModelSpec, table: OrbitTable, theta0: FloatArray, b: FloatArray, method: str) -> FloatArray:
     """Variances of the 4n equations: from u_* (effective, at a first ols fit), else from the
     coherences for wls, else ones."""
     if table.u is not None:
@@ -233,7 +241,8 @@ def _variances(spec, table, theta0, b, method) -> np.ndarray:
         floor = 1e-12 * float(np.max(var))
         if not floor > 0:
             raise IdentificationError("the table's u_* give no noise on any equation")
-        return np.maximum(var, floor)
+        floored: FloatArray = np.maximum(var, floor)
+        return floored
     if method != Method.WLS:
         return np.ones(b.shape)
     if table.gamma2 is None:
@@ -244,7 +253,20 @@ def _variances(spec, table, theta0, b, method) -> np.ndarray:
     return coherence_variances(table.gamma2, table.fx, table.fy, table.n_records)
 
 
-def _result(spec, table, method, solver, est, theta, c, cov_s, rank, var, r, Z) -> Identification:
+def _result(
+    spec: ModelSpec,
+    table: OrbitTable,
+    method: str,
+    solver: str,
+    est: reg.Estimate,
+    theta: FloatArray,
+    c: FloatArray,
+    cov_s: FloatArray | None,
+    rank: Rank,
+    var: FloatArray | None,
+    r: FloatArray,
+    Z: ComplexArray,
+) -> Identification:
     known = var is not None
     p, dof = spec.n_coefficients, 4 * table.n - spec.n_coefficients
     cov = None if cov_s is None else cov_s / np.outer(c, c)
@@ -252,8 +274,9 @@ def _result(spec, table, method, solver, est, theta, c, cov_s, rank, var, r, Z) 
     interval = st.Interval.NORMAL if known else st.Interval.STUDENT_T
     ci = st.intervals(theta, std, dof, interval=interval)
     notes, warnings = list(spec.notes), []
-    chi2 = p_value = None
-    if known:
+    chi2: float | None = None
+    p_value: float | None = None
+    if var is not None:
         chi2 = float(est.rss) if method == Method.TLS else float(np.sum(r**2 / var))
         p_value = st.chi2_p_value(chi2, dof)
         notes.append(
@@ -268,7 +291,7 @@ def _result(spec, table, method, solver, est, theta, c, cov_s, rank, var, r, Z) 
             "wls weights from the coherences (no u_* columns): per-record noise ratio "
             "(1 - gamma^2)/gamma^2 floored at 1/n_records"
         )
-    aic, bic = st.information_criteria(chi2 if known else est.rss, 4 * table.n, p, known)
+    aic, bic = st.information_criteria(chi2 if chi2 is not None else est.rss, 4 * table.n, p, known)
     ill = ill_conditioning(spec, table, rank)
     if ill:
         warnings.append(ill)
@@ -312,7 +335,15 @@ def _result(spec, table, method, solver, est, theta, c, cov_s, rank, var, r, Z) 
     return ident
 
 
-def _tls(spec, table, A_s, b, c, solver, ratio):
+def _tls(
+    spec: ModelSpec,
+    table: OrbitTable,
+    A_s: FloatArray,
+    b: FloatArray,
+    c: FloatArray,
+    solver: str,
+    ratio: float | None,
+) -> reg.Estimate:
     d = np.stack([table.x, table.y], axis=1)
     f = np.stack([table.fx, table.fy], axis=1)
     if table.u is not None:
@@ -331,7 +362,7 @@ def _tls(spec, table, A_s, b, c, solver, ratio):
     return reg.structured_tls(G, f, E, var_f, var_d, x0)
 
 
-def circle_orbits(table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:
+def circle_orbits(table: OrbitTable) -> tuple[ComplexArray, ComplexArray]:
     """The iv instruments' orbits: per row, the circle of the row's dominant whirl direction
     whose complex radius is the mean of that direction's dominant component over the OTHER
     rows of the same direction (leave-one-out). Returns (x_hat, y_hat), m."""
@@ -348,11 +379,11 @@ def circle_orbits(table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:
             )
         if rows.size:
             x_hat[rows] = (np.sum(a[rows]) - a[rows]) / (rows.size - 1)
-    y_hat = np.where(forward, -1j, 1j) * x_hat
+    y_hat: ComplexArray = np.where(forward, -1j, 1j) * x_hat
     return x_hat, y_hat
 
 
-def _circle_instruments(spec: ModelSpec, table: OrbitTable, rank_rtol: float) -> np.ndarray:
+def _circle_instruments(spec: ModelSpec, table: OrbitTable, rank_rtol: float) -> FloatArray:
     x_hat, y_hat = circle_orbits(table)
     misfit = np.sqrt(
         np.mean(np.abs(table.x - x_hat) ** 2 + np.abs(table.y - y_hat) ** 2)

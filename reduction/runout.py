@@ -21,20 +21,26 @@ import functools
 
 import numpy as np
 
+from numpy.typing import ArrayLike
+
+from reduction.arrays import ComplexArray, FloatArray, IntArray
 from reduction.errors import ReductionError
 from reduction.fourier import phasor
 
 GRID = 720  # phi_0 candidates over one turn
 
 
-def phasor_weights(theta: np.ndarray) -> np.ndarray:
+def phasor_weights(theta: ArrayLike) -> ComplexArray:
     """(P, S) weights w with q_bar = w . samples, the least-squares fundamental at angles theta (P, S)."""
-    theta = np.asarray(theta, dtype=float)
-    p, s = theta.shape
-    return phasor(np.broadcast_to(np.eye(s), (p, s, s)), theta[:, None, :])
+    angles = np.asarray(theta, dtype=float)
+    p, s = angles.shape
+    w: ComplexArray = phasor(np.broadcast_to(np.eye(s), (p, s, s)), angles[:, None, :])
+    return w
 
 
-def _basis(runout: np.ndarray, theta: np.ndarray, spin_turns: float, steps: np.ndarray):
+def _basis(
+    runout: ComplexArray, theta: FloatArray, spin_turns: float, steps: FloatArray
+) -> tuple[ComplexArray, ComplexArray, IntArray]:
     """(a, b, h): q_k(phi_0) = sum_h a[h] e^{i h phi_0} + b[h] e^{-i h phi_0}, a and b (H, N, P)."""
     w = phasor_weights(theta)  # (P, S)
     hs = np.arange(1, runout.shape[1] + 1)
@@ -46,14 +52,16 @@ def _basis(runout: np.ndarray, theta: np.ndarray, spin_turns: float, steps: np.n
     return a, b, hs
 
 
-def _steps(revolutions) -> np.ndarray:
+def _steps(revolutions: ArrayLike) -> FloatArray:
     r = np.asarray(revolutions, dtype=float)
-    return r - r[0]
+    steps: FloatArray = r - r[0]
+    return steps
 
 
 def _at(a: np.ndarray, b: np.ndarray, hs: np.ndarray, spin_phase: float) -> np.ndarray:
     e = np.exp(1j * hs * spin_phase)[:, None, None]
-    return np.sum(a * e + b * np.conj(e), axis=0)
+    q: ComplexArray = np.sum(a * e + b * np.conj(e), axis=0)
+    return q
 
 
 @functools.lru_cache(maxsize=4)
@@ -118,10 +126,11 @@ def remove_runout(
     a, b, hs = _basis(
         np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns, _steps(revolutions)
     )
-    return p - _at(a, b, hs, _best_phase(p, a, b, hs))
+    cleaned: ComplexArray = p - _at(a, b, hs, _best_phase(p, a, b, hs))
+    return cleaned
 
 
-def _checked(record_phasors) -> np.ndarray:
+def _checked(record_phasors: ArrayLike) -> ComplexArray:
     p = np.asarray(record_phasors, dtype=complex)
     if p.ndim != 2 or p.shape[0] < 3:
         raise ReductionError("at least 3 revolutions are needed to fit the spin phase of the runout")

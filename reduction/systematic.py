@@ -59,16 +59,17 @@ class Calibration:
 
     def parameters(self) -> tuple[list[str], np.ndarray]:
         """(labels, standard uncertainties) of every error parameter, e.g. "fx.delay"."""
-        labels, sigma = [], []
+        labels: list[str] = []
+        values: list[float] = []
         for c in CHANNELS:
             ch = getattr(self, c)
             for kind in ("gain", "phase", "delay"):
                 labels.append(f"{c}.{kind}")
-                sigma.append(getattr(ch, kind))
+                values.append(getattr(ch, kind))
             if c in DISPLACEMENT_CHANNELS:
                 labels.append(f"{c}.sensitivity")
-                sigma.append(self.sensitivity)
-        sigma = np.array(sigma, dtype=float)
+                values.append(self.sensitivity)
+        sigma = np.array(values, dtype=float)
         if not np.all(np.isfinite(sigma)) or np.any(sigma < 0):
             raise ReductionError("calibration uncertainties must be finite and >= 0")
         return labels, sigma
@@ -135,6 +136,7 @@ def uncertainty_budget(ident: Identification, table: OrbitTable, calibration: Ca
     sys_std = np.sqrt(np.clip(np.diag(cov_sys), 0, None))
     comb_std = None if cov_comb is None else np.sqrt(np.clip(np.diag(cov_comb), 0, None))
     systematic = {key: float(v) for key, v in spec.expand(sys_std).items()}
+    combined: dict[str, float | None]
     if comb_std is None:
         combined = {key: None for key in systematic}
     else:
