@@ -47,17 +47,17 @@ import numpy as np
 
 from reduction import regression as reg
 from reduction import statistics as st
+from reduction.arrays import ComplexArray, FloatArray
 from reduction.attenuation import attenuation_bias, attenuation_warning
 from reduction.diagnostics import fit_errors, residual_rms
 from reduction.errors import IdentificationError, IdentifiabilityError, ReductionError
-from reduction.excitation import displacement_noise, signal_design, signal_warning
-from reduction.arrays import ComplexArray, FloatArray
-from reduction.excitation import SignalDesign
+from reduction.excitation import SignalDesign, displacement_noise, signal_design, signal_warning
 from reduction.identifiability import analyse, check_signal, ill_conditioning
-from reduction.impedance import forces, impedance, impedance_basis, real_rows, regression, regressors
+from reduction.impedance import forces, impedance, impedance_basis, regression, regressors
+from reduction.instruments import circle_instruments, circle_orbits
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
 from reduction.noise import coherence_variances, equation_variances
-from reduction.rank import RANK_RTOL, Rank, numerical_rank
+from reduction.rank import RANK_RTOL, Rank
 from reduction.result import Identification
 from reduction.table import OrbitTable
 
@@ -76,7 +76,6 @@ class Method(StrEnum):
 
 
 METHODS = tuple(Method)
-IV_MAX_MISFIT = 0.3  # rms |d - circle| / rms |d| above which the circle instruments are refused
 
 
 def identify(
@@ -162,7 +161,7 @@ def _identify(
             var = equation_variances(u, impedance(spec, est.x / c, table.orbit))
             est = reg.wls(A_s, b, 1.0 / var, solver)
     elif method == Method.IV:
-        Zi = _circle_instruments(spec, table, rank_rtol) / c
+        Zi = circle_instruments(spec, table, rank_rtol) / c
         est = reg.iv(A_s, Zi, b, solver)
         if known:
             Qz, _ = np.linalg.qr(Zi)
@@ -360,44 +359,3 @@ def _tls(
     G = regressors(spec, table.orbit, table.x, table.y) / c
     E = impedance_basis(spec, table.orbit) / c[None, :, None, None]
     return reg.structured_tls(G, f, E, var_f, var_d, x0)
-
-
-def circle_orbits(table: OrbitTable) -> tuple[ComplexArray, ComplexArray]:
-    """The iv instruments' orbits: per row, the circle of the row's dominant whirl direction
-    whose complex radius is the mean of that direction's dominant component over the OTHER
-    rows of the same direction (leave-one-out). Returns (x_hat, y_hat), m."""
-    a_f, a_b = table.whirl_components()
-    forward = np.abs(a_f) >= np.abs(a_b)
-    a = np.where(forward, a_f, a_b)
-    x_hat = np.empty(table.n, dtype=complex)
-    for direction in (True, False):
-        rows = np.flatnonzero(forward == direction)
-        if rows.size == 1:
-            raise IdentificationError(
-                "iv needs at least two orbits of each whirl direction present "
-                "(the instruments are leave-one-out circles)"
-            )
-        if rows.size:
-            x_hat[rows] = (np.sum(a[rows]) - a[rows]) / (rows.size - 1)
-    y_hat: ComplexArray = np.where(forward, -1j, 1j) * x_hat
-    return x_hat, y_hat
-
-
-def _circle_instruments(spec: ModelSpec, table: OrbitTable, rank_rtol: float) -> FloatArray:
-    x_hat, y_hat = circle_orbits(table)
-    misfit = np.sqrt(
-        np.mean(np.abs(table.x - x_hat) ** 2 + np.abs(table.y - y_hat) ** 2)
-        / np.mean(np.abs(table.x) ** 2 + np.abs(table.y) ** 2)
-    )
-    if misfit > IV_MAX_MISFIT:
-        raise IdentificationError(
-            f"iv: the orbits are not circles of common radius and trigger phase (misfit {misfit:.0%} "
-            f"> {IV_MAX_MISFIT:.0%}), so the circle instruments do not fit this table; use --method tls"
-        )
-    Z = real_rows(regressors(spec, table.orbit, x_hat, y_hat))
-    if numerical_rank(Z, rank_rtol).deficiency:
-        raise IdentificationError(
-            "iv: the circular-orbit instruments cannot separate this model's coefficients "
-            "(e.g. a single whirl direction); use --method tls"
-        )
-    return Z
