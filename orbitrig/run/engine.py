@@ -63,7 +63,8 @@ from orbitrig.run.states import (
 )
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.store.estimate import plan_bytes
-from orbitrig.store.writer import RunStore, StorageError, StorageFullError
+from orbitrig.store.errors import StorageError, StorageFullError
+from orbitrig.store.writer import RunStore
 from rigunits import utc_stamp
 
 log = logging.getLogger(__name__)

@@ -9,22 +9,28 @@ average of the two probes of each axis (x_a, x_b and y_a, y_b).
 
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
-from orbitrig.config import LMS, CalibrationUncertainty, RigConfig
+from orbitrig.config import LMS, CalibrationUncertainty, ModelSpec, RigConfig
 from orbitrig.run.corrections import Corrections
 from orbitrig.run.steps import Block
 from orbitrig.run.point_analysis import analyse_point
 from daq.averager import AveragedBlock
 from orbitrig.run.model_truth import model_truth
-from orbitrig.run.truth import point_truth, true_impedance  # noqa: F401  (point_truth: the engine's truth step)
-from orbitrig.store.records import BlockRecord, PointResults
+from orbitrig.run.truth import true_impedance
+from orbitrig.store.records import BlockRecord, IdentificationEntry, PointResults
+from reduction.arrays import ComplexArray, FloatArray
 from reduction.coherence import orbit_coherences
 from reduction.errors import ReductionError
 from reduction.noise import mean_uncertainty
 from reduction.identify import identify
+from reduction.result import Identification
 from reduction.table import OrbitTable
 
 
@@ -68,8 +74,8 @@ def identify_operating_point(
     spin: float,
     recs: list[BlockRecord],
     ch: dict[str, int],
-    models,
-    truth: dict | None = None,
+    models: Sequence[ModelSpec],
+    truth: dict[str, Any] | None = None,
     calibration: CalibrationUncertainty | None = None,
     corrections: Corrections | None = None,
 ) -> PointResults:
@@ -83,8 +89,9 @@ def identify_operating_point(
     recs = sorted(recs, key=lambda r: (r.block.freq, -r.block.direction))
     corr = corrections or Corrections()
     probes = [(corr.probe_phasors(r, ch, spin), corr.probe_records(r, ch, spin)) for r in recs]
-    tables = {lms: orbit_table(spin, recs, ch, lms, corr, probes) for lms in LMS}
-    idents, fits = {}, {}
+    tables: dict[str, OrbitTable] = {lms: orbit_table(spin, recs, ch, lms, corr, probes) for lms in LMS}
+    idents: dict[tuple[str, str], IdentificationEntry] = {}
+    fits: dict[tuple[str, str], Identification] = {}
     for lms in LMS:
         for spec in models:
             try:
@@ -107,7 +114,7 @@ def orbit_table(
     ch: dict[str, int],
     lms: str,
     corrections: Corrections | None = None,
-    probes: list | None = None,
+    probes: list[tuple[ComplexArray, ComplexArray]] | None = None,
 ) -> OrbitTable:
     """Orbit table of one point for one load measuring system (Omega > 0, direction in the phasors),
     with each row's revolution count and the standard uncertainty of its phasors
@@ -136,7 +143,7 @@ def orbit_table(
                 lms,
                 spin / abs(r.block.orbit),
                 r.revolutions,
-                lambda fx, fy, o=abs(r.block.orbit): corr.forces(lms, fx, fy, o),
+                functools.partial(corr.forces, lms, orbit=abs(r.block.orbit)),
             )
             for r, (_, rp) in zip(recs, probes)
         ]
@@ -156,13 +163,13 @@ def orbit_table(
 
 
 def row_uncertainty(
-    record_phasors: np.ndarray,
+    record_phasors: ComplexArray,
     ch: dict[str, int],
     lms: str,
     spin_turns: float,
-    revolutions: np.ndarray | None = None,
-    correct=None,
-) -> np.ndarray:
+    revolutions: npt.NDArray[np.int64] | None = None,
+    correct: Callable[[ComplexArray, ComplexArray], tuple[ComplexArray, ComplexArray]] | None = None,
+) -> FloatArray:
     """(u_x, u_y, u_fx, u_fy) of one block (m, m, N, N): the standard uncertainty of each mean
     (reduction.noise.mean_uncertainty: the scatter with the spin tones' rotating leakage taken
     out, plus what those tones leave in the mean); ``spin_turns`` = omega / |Omega|,
@@ -177,13 +184,15 @@ def row_uncertainty(
     return mean_uncertainty(per_rev, spin_turns, revolutions)
 
 
-def lms_comparison(recs: list[BlockRecord], ch: dict[str, int], corrections: Corrections | None = None) -> dict:
+def lms_comparison(
+    recs: list[BlockRecord], ch: dict[str, int], corrections: Corrections | None = None
+) -> dict[str, Any]:
     """Strain vs piezo forces per block (each through its ``corrections``): amplitude ratio and
     phase difference (deg)."""
-    out: dict = {"orbit_hz": [r.block.orbit_hz for r in recs], "direction": [r.block.direction for r in recs]}
+    out: dict[str, Any] = {"orbit_hz": [r.block.orbit_hz for r in recs], "direction": [r.block.direction for r in recs]}
     ph = np.array([r.phasors for r in recs]) if recs else np.zeros((0, len(ch)), complex)
     corr, orbit = corrections or Corrections(), np.array([abs(r.block.orbit) for r in recs])
-    forces = {
+    forces: dict[str, dict[str, ComplexArray]] = {
         lms: dict(zip(("fx", "fy"), corr.forces(lms, ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]], orbit)))
         for lms in LMS
     }

@@ -8,7 +8,7 @@ from typing import Any
 
 from orbitrig.run.plan import OperatingPoint
 from orbitrig.store.layout import coefficient_si_unit
-from orbitrig.store.records import PointResults
+from orbitrig.store.records import IdentificationEntry, PointResults
 
 #: keys of a fit's stored JSON that the result payload carries
 PAYLOAD_KEYS = (
@@ -100,7 +100,7 @@ def consistency_text(c: dict[str, Any]) -> str:
     )
 
 
-def _row(lms: str, e: dict[str, Any]) -> dict[str, Any]:
+def _row(lms: str, e: IdentificationEntry) -> dict[str, Any]:
     spec = e["spec"]
     row = {"lms": lms, "model": spec.model, "freq_dep": spec.freq_dep, "method": spec.method}
     if "error" in e:

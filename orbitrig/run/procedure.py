@@ -25,9 +25,10 @@ from orbitrig.run.control import RunControl, StopRun, Suspended
 from orbitrig.run.corrections import Corrections
 from orbitrig.run.events import ResultEvent, RunFailed
 from orbitrig.run.heap import trim_heap
-from orbitrig.run.identification import block_record, identify_operating_point, point_truth
+from orbitrig.run.identification import block_record, identify_operating_point
 from orbitrig.run.point_report import point_log_lines, result_payload
 from orbitrig.run.plan import OperatingPoint
+from orbitrig.run.truth import point_truth
 from orbitrig.run.steps import (
     Acquire,
     ChooseBlocks,

@@ -20,7 +20,8 @@ from orbitrig.run.rig_io import RigAccess, Scenario
 from orbitrig.run.states import FAILED, Outcome, stored_status
 from orbitrig.run.steps import Acquire, ChooseBlocks
 from orbitrig.store.estimate import point_bytes
-from orbitrig.store.writer import RunStore, StorageError, StorageFullError
+from orbitrig.store.errors import StorageError, StorageFullError
+from orbitrig.store.writer import RunStore
 
 log = logging.getLogger(__name__)
 

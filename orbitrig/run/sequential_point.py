@@ -14,6 +14,7 @@ own step kinds (SetOrbit, Settle, Acquire of the chosen count, StoreBlock with t
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from orbitrig.config import LMS
 from orbitrig.run.corrections import Corrections
@@ -21,11 +22,13 @@ from orbitrig.run.identification import orbit_table
 from orbitrig.run.sequential_rule import SequentialRule
 from orbitrig.run.steps import Acquire, Block, ChooseBlocks, SetOrbit, Settle, Step, StoreBlock
 from orbitrig.store.records import BlockChoice, BlockRecord
+from reduction.arrays import FloatArray, NoiseAt
 from reduction.frequency_list import coefficient_scales, smooth_noise
 from reduction.identify import identify
-from reduction.models import model_spec
+from reduction.models import ModelSpec, model_spec
 from reduction.rig_time import block_time
 from reduction.sequential import Choice, block_information, next_block, reference_errors
+from reduction.table import OrbitTable
 from reduction.whirl import Whirl
 
 #: the most blocks a point can name (storage tags are two digits)
@@ -41,7 +44,7 @@ def spent_seconds(rule: SequentialRule, recs: list[BlockRecord]) -> float:
     return float(np.sum(block_time(orbits, n))) + len(recs) * rule.per_block_s + ramps
 
 
-def _noise(table, ratios: np.ndarray):
+def _noise(table: OrbitTable, ratios: FloatArray) -> tuple[FloatArray, NoiseAt]:
     """Per-revolution noise (k, 4) per block and the smoothed ``noise_at(ratios)`` of the candidates."""
     if table.u is None or table.n_records is None:
         raise ValueError("the blocks' phasor uncertainties are not finite")
@@ -49,8 +52,8 @@ def _noise(table, ratios: np.ndarray):
     at = np.unique(np.round(ratios, 9))
     smooth = smooth_noise(at, np.array([np.median(per_rev[np.round(ratios, 9) == r], axis=0) for r in at]))
 
-    def noise_at(r) -> np.ndarray:
-        r = np.atleast_1d(np.asarray(r, dtype=float))
+    def noise_at(ratio: ArrayLike) -> FloatArray:
+        r = np.atleast_1d(np.asarray(ratio, dtype=float))
         return np.stack([np.interp(r, at, smooth[:, c]) for c in range(4)], axis=1)
 
     return per_rev, noise_at
@@ -108,11 +111,21 @@ def choose(
 
 
 def _information(
-    spec, theta, spin: float, radius: float, table, ratios: np.ndarray, per_rev: np.ndarray, recs: list[BlockRecord]
-):
+    spec: ModelSpec,
+    theta: FloatArray,
+    spin: float,
+    radius: float,
+    table: OrbitTable,
+    ratios: FloatArray,
+    per_rev: FloatArray,
+    recs: list[BlockRecord],
+) -> FloatArray:
     """The Fisher information of the point's blocks at ``theta``, summed over the blocks (each
     at its ratio, per-revolution noise, revolution count and whirl direction)."""
-    return sum(
+    n_records = table.n_records
+    if n_records is None:
+        raise ValueError("the blocks' revolution counts are not known")
+    blocks = [
         block_information(
             spec,
             theta,
@@ -120,14 +133,20 @@ def _information(
             radius,
             ratios[k],
             per_rev[k],
-            int(table.n_records[k]),
+            int(n_records[k]),
             str(Whirl.of(recs[k].block.direction)),
         )
         for k in range(len(recs))
-    )
+    ]
+    info = blocks[0]
+    for b in blocks[1:]:  # in the blocks' order, as they ran
+        info = info + b
+    return info
 
 
-def _scales(rule: SequentialRule, spec, theta, spin: float, radius: float, noise_at):
+def _scales(
+    rule: SequentialRule, spec: ModelSpec, theta: FloatArray, spin: float, radius: float, noise_at: NoiseAt
+) -> tuple[FloatArray, float]:
     """The coefficients' scales of the relative errors and the target on them: with no target
     in the rule, the errors the rule's matching design would reach (target 1); else each
     coefficient's own scale and the rule's target."""
@@ -143,6 +162,8 @@ def chosen_steps(
 ) -> list[Step]:
     """The steps of the chosen block(s): per direction (forward first for "both") SetOrbit,
     Settle, Acquire of exactly the chosen revolutions, StoreBlock carrying the choice."""
+    if choice.ratio is None:
+        raise ValueError(f"a {choice.reason} decision chooses no block")
     signs = (+1, -1) if choice.direction == "both" else (Whirl(choice.direction).sign,)
     out: list[Step] = []
     for sign in signs:

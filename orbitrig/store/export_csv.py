@@ -16,13 +16,21 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from orbitrig.store import csvfile
 from orbitrig.store import export_content as content
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.fit_record import BUDGET_PARTS, point_fits
 from orbitrig.store.orbit_table import write_orbit_table
+
+if TYPE_CHECKING:
+    from orbitrig.store.reader import Point, Run
+
+#: a CSV row: numbers and text
+Row = Sequence[object]
 
 FIT_HEAD = [
     "point",
@@ -42,18 +50,18 @@ FIT_HEAD = [
 ]
 
 
-def _render(rows: list[list]) -> bytes:
+def _render(rows: Sequence[Row]) -> bytes:
     buf = io.StringIO(newline="")
     csv.writer(buf, lineterminator="\n").writerows(rows)
     return buf.getvalue().encode("utf-8")
 
 
-def _cell(v) -> str:
+def _cell(v: float | None) -> str:
     return "" if v is None or (isinstance(v, float) and math.isnan(v)) else repr(float(v))
 
 
-def _fit_rows(p, sim: bool) -> list[list]:
-    rows = []
+def _fit_rows(p: Point, sim: bool) -> list[Row]:
+    rows: list[Row] = []
     for fit in point_fits(p):
         d = content.fit_arrays(fit)
         head = [p.index, fit.lms, fit.model, fit.freq_dep, fit.method]
@@ -81,13 +89,15 @@ def _fit_rows(p, sim: bool) -> list[list]:
     return rows
 
 
-def _table_files(p, out: Path) -> list[Path]:
+def _table_files(p: Point, out: Path) -> list[Path]:
     files = []
     for fit in point_fits(p):
         d = content.fit_arrays(fit)
         if "covariance" in d:
             names = d["covariance_names"]
-            rows = [["name"] + names] + [[n] + [_cell(v) for v in row] for n, row in zip(names, d["covariance"])]
+            rows: list[Row] = [["name", *names]] + [
+                [n] + [_cell(v) for v in row] for n, row in zip(names, d["covariance"])
+            ]
             files.append(out / f"covariance_{p.name}_{fit.key}.csv")
             write_atomic(files[-1], _render(rows))
         derived = content.derived_columns(fit)
@@ -100,7 +110,7 @@ def _table_files(p, out: Path) -> list[Path]:
     return files
 
 
-def export_csv(run, points: list, out: Path) -> list[Path]:
+def export_csv(run: Run, points: list[Point], out: Path) -> list[Path]:
     files = []
     for p in points:
         for lms, table in p.tables.items():

@@ -120,7 +120,7 @@ def _table_as_columns(ds: h5py.Dataset) -> None:
         g.create_dataset(field, data=_octave_value(np.asarray(data[field])))
 
 
-def _mirror_attributes(obj, dest: h5py.Group, taken: set[str]) -> None:
+def _mirror_attributes(obj: h5py.Group | h5py.Dataset, dest: h5py.Group, taken: set[str]) -> None:
     """Each attribute of `obj` as a dataset in `dest`; `taken`: the HDF5 names of the objects
     whose attributes have a group of that name in the mirror."""
     for key, value in obj.attrs.items():

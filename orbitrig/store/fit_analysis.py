@@ -28,6 +28,7 @@ no such coefficient; attribute ``definition``, or only ``error``).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import h5py
 import numpy as np
@@ -39,15 +40,15 @@ PER_COEFFICIENT = "SI per coefficient (see dataset units)"
 SOURCE_UNITS = "per source: 1 (gain, sensitivity), rad (phase), s (delay)"
 
 
-def _num(v) -> float:
+def _num(v: Any) -> float:
     return math.nan if v is None else float(v)
 
 
-def _vector(d: dict, names: list[str]) -> np.ndarray:
+def _vector(d: dict[str, Any], names: list[str]) -> np.ndarray:
     return np.array([_num(d.get(k)) for k in names], dtype=np.float64)
 
 
-def write_fit_analysis(h: h5py.Group, d: dict, names: list[str]) -> None:
+def write_fit_analysis(h: h5py.Group, d: dict[str, Any], names: list[str]) -> None:
     """The uncertainty, adequacy, lms_consistency and derived parts of the fit's JSON ``d``."""
     write_fit_values(h, d, names)
     for part, writer in (
@@ -65,7 +66,7 @@ def write_fit_analysis(h: h5py.Group, d: dict, names: list[str]) -> None:
             writer(g, d[part], names)
 
 
-def write_fit_values(h: h5py.Group, d: dict, names: list[str]) -> None:
+def write_fit_values(h: h5py.Group, d: dict[str, Any], names: list[str]) -> None:
     """The expanded uncertainty, not_determined and the fit's own truth of the fit's JSON ``d``."""
     if d.get("expanded_uncertainty"):
         e = d["expanded_uncertainty"]
@@ -103,7 +104,7 @@ def write_fit_values(h: h5py.Group, d: dict, names: list[str]) -> None:
             )
 
 
-def _uncertainty(g: h5py.Group, u: dict, names: list[str]) -> None:
+def _uncertainty(g: h5py.Group, u: dict[str, Any], names: list[str]) -> None:
     g.attrs["k"] = float(u["k"])
     for k, what in (
         ("statistical", "standard uncertainty from the fit (type A)"),
@@ -122,7 +123,7 @@ def _uncertainty(g: h5py.Group, u: dict, names: list[str]) -> None:
     )
 
 
-def _adequacy(g: h5py.Group, a: dict, names: list[str]) -> None:
+def _adequacy(g: h5py.Group, a: dict[str, Any], names: list[str]) -> None:
     g.attrs.update(
         {
             "verdict": a["verdict"],
@@ -140,7 +141,7 @@ def _adequacy(g: h5py.Group, a: dict, names: list[str]) -> None:
     )
 
 
-def _consistency(g: h5py.Group, c: dict, names: list[str]) -> None:
+def _consistency(g: h5py.Group, c: dict[str, Any], names: list[str]) -> None:
     put(g, "e_n", _vector(c["e_n"], names), "1", meaning=f"normalised difference {c['pair']}")
     g.attrs.update(
         {
@@ -163,7 +164,7 @@ def _consistency(g: h5py.Group, c: dict, names: list[str]) -> None:
         )
 
 
-def _derived(g: h5py.Group, d: dict, names: list[str]) -> None:
+def _derived(g: h5py.Group, d: dict[str, Any], names: list[str]) -> None:
     hz = np.asarray(d["orbit_hz"], dtype=np.float64)
     g.attrs["covariance"] = d.get("covariance", "")
     put(g, "orbit", 2 * math.pi * hz, "rad/s")

@@ -11,21 +11,27 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from orbitrig.store.layout import coefficient_si_unit
+
+if TYPE_CHECKING:
+    from orbitrig.store.reader import Point
+
+Floats = npt.NDArray[np.float64]
 
 BUDGET_PARTS = ("statistical", "systematic", "combined", "expanded")
 COVERAGE_K = 2.0  # U = 2 x std when the run stored no budget
 
 
-def _num(v) -> float:
+def _num(v: Any) -> float:
     return math.nan if v is None else float(v)
 
 
-def expanded_uncertainty(result: dict) -> dict[str, float]:
+def expanded_uncertainty(result: dict[str, Any]) -> dict[str, float]:
     """U of each coefficient of an `identify --json` object as stored (SI): the sweep's
     ``expanded_uncertainty`` (orbitrig.run.point_analysis: k = 2, calibration included when
     stated), else the stored budget's expanded uncertainty, else 2 x the standard error
@@ -40,7 +46,7 @@ def expanded_uncertainty(result: dict) -> dict[str, float]:
     return {k: COVERAGE_K * _num(std.get(k)) for k in names}
 
 
-def uncertainty_basis(result: dict) -> str:
+def uncertainty_basis(result: dict[str, Any]) -> str:
     """What :func:`expanded_uncertainty` of ``result`` rests on: "combined" (calibration
     included) or "statistical" (2 x the standard error, or a sweep without stated calibration)."""
     stored = result.get("expanded_uncertainty") or {}
@@ -61,12 +67,12 @@ class FitRecord:
     error: str = ""  # why the model was refused ("" for a fit)
     names: list[str] = field(default_factory=list)
     units: list[str] = field(default_factory=list)
-    value: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    std: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    U: np.ndarray = field(default_factory=lambda: np.zeros(0))  # expanded uncertainty, see expanded_uncertainty
-    covariance: np.ndarray | None = None  # (q, q) over covariance_names
+    value: Floats = field(default_factory=lambda: np.zeros(0))
+    std: Floats = field(default_factory=lambda: np.zeros(0))
+    U: Floats = field(default_factory=lambda: np.zeros(0))  # expanded uncertainty, see expanded_uncertainty
+    covariance: Floats | None = None  # (q, q) over covariance_names
     covariance_names: list[str] = field(default_factory=list)
-    budget: dict[str, np.ndarray] = field(default_factory=dict)  # BUDGET_PARTS aligned with names; "k"
+    budget: dict[str, Floats] = field(default_factory=dict)  # BUDGET_PARTS aligned with names; "k"
     adequacy: dict[str, Any] | None = None
     derived: dict[str, Any] | None = None
     lms_consistency: dict[str, Any] | None = None
@@ -79,13 +85,22 @@ class FitRecord:
 
 
 def fit_record(
-    point: int, lms: str, model: str, freq_dep: str, method: str, result: dict | None, error: str | None = None
+    point: int,
+    lms: str,
+    model: str,
+    freq_dep: str,
+    method: str,
+    result: dict[str, Any] | None,
+    error: str | None = None,
 ) -> FitRecord:
     """The FitRecord of a stored identification (``result`` None: a refused model)."""
     if result is None:
         return FitRecord(point, lms, model, freq_dep, method, error or "")
     names = list(result.get("coefficients") or {})
-    vector = lambda d: np.array([_num((d or {}).get(k)) for k in names], dtype=float)  # noqa: E731
+
+    def vector(d: dict[str, Any] | None) -> Floats:
+        return np.array([_num((d or {}).get(k)) for k in names], dtype=float)
+
     U = expanded_uncertainty(result)
     cov = result.get("covariance")
     unc = result.get("uncertainty") or {}
@@ -114,7 +129,7 @@ def fit_record(
     )
 
 
-def point_fits(point) -> list[FitRecord]:
+def point_fits(point: Point) -> list[FitRecord]:
     """Every stored identification of an orbitrig.store.reader.Point, in stored order."""
     return [
         fit_record(point.index, i.lms, i.model, i.freq_dep, i.method, i.result, i.error) for i in point.identifications

@@ -79,16 +79,19 @@ def status_line(status: RunStatus, message: str) -> str:
 
 
 def log_lines(
-    events: Sequence[EventRow], can: Sequence[Sequence[float]], drives: Sequence[Sequence[float]]
+    events: Sequence[Sequence[float | str]],
+    can: Sequence[Sequence[float | str]],
+    drives: Sequence[Sequence[float | str]],
 ) -> list[str]:
-    """Journal lines of the rows gathered by a LogBuffer."""
+    """Journal lines of the rows gathered by a LogBuffer (events: t, state, message; CAN and
+    drive rows: t and numbers)."""
     out = [line("event", t=float(t), state=str(s), message=str(m)) for t, s, m in events]
     out += [line("can", row=[_num(v) for v in r]) for r in can]
     out += [line("drives", row=[_num(v) for v in r]) for r in drives]
     return out
 
 
-def _num(v: float) -> float | None:
+def _num(v: float | str) -> float | None:
     v = float(v)
     return v if math.isfinite(v) else None
 

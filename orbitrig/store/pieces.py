@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import json
 import math
-from typing import TYPE_CHECKING
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, Any
 
 import h5py
 import numpy as np
+import numpy.typing as npt
 
 from orbitrig.load_systems import LMS
 from orbitrig.store.annotate import annotate
@@ -28,10 +30,11 @@ from orbitrig.store.layout import (
     U_UNITS,
     coefficient_si_unit,
 )
-from orbitrig.store.records import BlockChoice, BlockRecord, PointResults
+from orbitrig.store.records import BlockChoice, BlockRecord, IdentificationEntry, PointResults
 
 if TYPE_CHECKING:  # annotation only: the store does not import the run wing
     from orbitrig.run.plan import OperatingPoint
+    from reduction.table import OrbitTable
 
 STR = h5py.string_dtype()
 IDENT_SCALARS = (
@@ -49,24 +52,24 @@ IDENT_SCALARS = (
 )
 
 
-def to_json(obj) -> str:
+def to_json(obj: object) -> str:
     """JSON text of plain data that may hold numpy scalars or arrays (e.g. counters, truth)."""
     return json.dumps(obj, default=lambda o: o.tolist() if isinstance(o, (np.generic, np.ndarray)) else str(o))
 
 
-def strings(values) -> np.ndarray:
+def strings(values: Iterable[str]) -> npt.NDArray[np.object_]:
     """Text for an attribute (variable-length UTF-8)."""
     return np.array(list(values), dtype=STR)
 
 
-def fixed_text(values) -> np.ndarray:
+def fixed_text(values: Iterable[object]) -> npt.NDArray[np.bytes_]:
     """Text for a dataset: fixed-length UTF-8 bytes (GNU Octave's load cannot read
     variable-length strings; h5py's ``.asstr()`` and MATLAB's h5read read both)."""
     encoded = [str(v).encode("utf-8") for v in values]
     return np.array(encoded, dtype=f"S{max([1, *map(len, encoded)])}")
 
 
-def put(g: h5py.Group, name: str, data, units: str, **attrs) -> h5py.Dataset:
+def put(g: h5py.Group, name: str, data: npt.ArrayLike, units: str, **attrs: object) -> h5py.Dataset:
     """A dataset with its units (and other attributes)."""
     if isinstance(data, np.ndarray) and data.dtype == STR:
         data = fixed_text(data)
@@ -77,7 +80,7 @@ def put(g: h5py.Group, name: str, data, units: str, **attrs) -> h5py.Dataset:
     return ds
 
 
-def point_settings(point: OperatingPoint) -> dict:
+def point_settings(point: OperatingPoint) -> dict[str, Any]:
     """The attributes of a point (point.json and /points/PPPP in run.h5), SI."""
     return {
         "index": point.index,
@@ -233,7 +236,7 @@ def write_results(g: h5py.Group, res: PointResults) -> None:
     annotate(g)
 
 
-def _write_table(h: h5py.Group, t) -> None:
+def _write_table(h: h5py.Group, t: OrbitTable) -> None:
     h.attrs["spin"] = t.spin
     h.attrs["units_of_attributes"] = TABLE_ATTR_UNITS
     put(h, "orbit", np.asarray(t.orbit, dtype=np.float64), "rad/s")
@@ -261,11 +264,11 @@ def _write_table(h: h5py.Group, t) -> None:
         )
 
 
-def _float(v) -> float:
+def _float(v: Any) -> float:
     return math.nan if v is None else float(v)
 
 
-def _write_identification(h: h5py.Group, entry: dict) -> None:
+def _write_identification(h: h5py.Group, entry: IdentificationEntry) -> None:
     spec = entry["spec"]
     h.attrs.update(
         {"model": spec.model, "freq_dep": spec.freq_dep, "method": spec.method, "units_of_attributes": IDENT_ATTR_UNITS}
@@ -317,7 +320,7 @@ POWER_FIT_UNITS = {
 }
 
 
-def write_truth(h: h5py.Group, truth: dict) -> None:
+def write_truth(h: h5py.Group, truth: dict[str, Any]) -> None:
     """The simulator's truth of a point (orbitrig.run.truth): the JSON in attribute ``json``
     and, when the truth holds the true impedance, numeric datasets with units: ``orbit``,
     ``orbit_hz``, ``Z`` (row, 2, 2) and the best fits under ``fits/constant`` and ``fits/power``."""

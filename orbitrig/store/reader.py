@@ -18,15 +18,21 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
-from orbitrig.store.errors import RunDirError
+from orbitrig.store.errors import RunDirError as RunDirError  # its readers' error, imported from here too
 from orbitrig.store.h5_values import json_attr, open_h5, stored_values, text
-from orbitrig.store.layout import COHERENCE_PAIRS, READABLE_FORMATS, RUN_FILE, RunLayout  # noqa: F401
+from orbitrig.store.layout import READABLE_FORMATS, RUN_FILE, RunLayout
 from orbitrig.store.index import NEVER_COMPLETED
 from orbitrig.store.status import RunStatus
+
+if TYPE_CHECKING:
+    import h5py
+
+    from reduction.table import OrbitTable
 
 
 @dataclass(frozen=True)
@@ -60,11 +66,11 @@ class Frequency:
     orbit_hz: float  # > 0
     direction: int  # +1 forward, -1 backward
     complete: bool
-    coherence: np.ndarray | None  # (2, 4): rows piezo|strain, cols xfx, yfx, xfy, yfy
+    coherence: npt.NDArray[np.float64] | None  # (2, 4): rows piezo|strain, cols xfx, yfx, xfy, yfy
     n_records: int = 0  # revolutions averaged
     #: the averaged block, SI per channel (N or m): mean (C, S), slots (C, S), dc (C,),
     #: phasors (C,) complex, uncertainty (C,) when measured
-    waveform: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    waveform: dict[str, npt.NDArray[Any]] = field(default_factory=dict, repr=False)
 
 
 @dataclass(frozen=True)
@@ -92,10 +98,10 @@ class Point:
     complete: bool
     settings: Settings
     frequencies: list[Frequency] = field(default_factory=list)
-    tables: dict[str, Any] = field(default_factory=dict)  # lms -> OrbitTable
+    tables: dict[str, OrbitTable] = field(default_factory=dict)  # lms -> orbit table
     identifications: list[StoredIdentification] = field(default_factory=list)
     truth: dict[str, Any] | None = None
-    lms_comparison: Any = None
+    lms_comparison: dict[str, Any] | None = None
     problem: str = ""  # why the point is not complete ("" when complete; orbitrig.store.index)
 
     def identification(self, lms: str, model: str, freq_dep: str) -> StoredIdentification | None:
@@ -237,7 +243,8 @@ def _read_pieces(layout: RunLayout, blocks: bool = True, indexes: list[int] | No
     scenario = header.get("sim_scenario")
     if isinstance(scenario, dict):
         run.sim_scenario_name, run.sim_scenario_config = str(scenario.get("name", "")), str(scenario.get("text", ""))
-    prov = header.get("provenance") if isinstance(header.get("provenance"), dict) else {}
+    stored = header.get("provenance")
+    prov = stored if isinstance(stored, dict) else {}
     ended = journal.status_at if journal.status.final else ""
     run.provenance = {k: str(prov.get(k, "")) for k in PROVENANCE_KEYS[:-1]} | {"ended": ended}
     for index in layout.point_indexes() if indexes is None else indexes:
@@ -285,7 +292,7 @@ def read_point(
     return point
 
 
-def _new_point(a, name: str) -> Point:
+def _new_point(a: h5py.AttributeManager | dict[str, Any], name: str) -> Point:
     settings = Settings(
         spin=float(a["spin"]),
         spin_rpm=float(a.get("spin_rpm", float(a["spin"]) * 30.0 / np.pi)),
@@ -306,7 +313,7 @@ def _new_point(a, name: str) -> Point:
     )
 
 
-def _frequency(name: str, fg) -> Frequency:
+def _frequency(name: str, fg: h5py.File | h5py.Group) -> Frequency:
     fa = fg.attrs
     coh = np.asarray(fg["coherence"][()], dtype=float) if "coherence" in fg else None
     waveform = {k: stored_values(fg[k]) for k in _WAVEFORM if k in fg}
@@ -325,7 +332,7 @@ def _frequency(name: str, fg) -> Frequency:
 _WAVEFORM = ("mean", "slots", "dc", "phasors", "uncertainty")
 
 
-def _table(tg, spin: float):
+def _table(tg: h5py.Group, spin: float) -> OrbitTable:
     from reduction.table import OrbitTable
 
     extra = {}  # orbit-table v2 columns, stored when the sweep had them
@@ -345,7 +352,7 @@ def _table(tg, spin: float):
     )
 
 
-def _read_results(g, point: Point) -> None:
+def _read_results(g: h5py.File | h5py.Group, point: Point) -> None:
     """The results groups (table, identification, truth, lms_comparison) of `point`."""
     for lms, tg in sorted(g.get("table", {}).items()):
         point.tables[lms] = _table(tg, point.settings.spin)

@@ -18,18 +18,18 @@ import json
 import logging
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from orbitrig import __version__
 from orbitrig.store import csvfile, journal, pieces
 from orbitrig.store.consolidate import RunImage, read_header
 from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F401  (the CSV's public names)
 from orbitrig.store.durable import APPEND_FLAGS, TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
-from orbitrig.store.errors import StorageError, StorageFullError, storage_error
+from orbitrig.store.errors import RunDirError, StorageError, StorageFullError, storage_error
 from orbitrig.store.index import NEVER_COMPLETED, commit_record, point_state, scan
 from orbitrig.store.layout import FORMAT, RunLayout, point_name
 from orbitrig.store.quota import COMMANDS_HEAD, COMMANDS_TAIL, RUN_LOG_HEAD, RUN_LOG_TAIL, LineQuota
-from orbitrig.store.reader import RunDirError, read_point
+from orbitrig.store.reader import read_point
 from orbitrig.store.records import BlockRecord, LogBuffer, PointResults
 from orbitrig.store.status import RunStatus
 from rigunits import now_iso, utc_iso
@@ -52,9 +52,9 @@ class RunStore:
         self.log_path = self.layout.log
         self.logs = LogBuffer()
         self.set_aside: list[str] = []  # what prepare_resume set aside, one message each
-        self._header: dict = {}
+        self._header: dict[str, Any] = {}  # run.json
         self._csv_points: dict[int, csvfile.PointCsv] = {}  # complete point -> its rows, kept compact
-        self._written: dict[int, dict[str, dict]] = {}  # point -> file name -> size, digest
+        self._written: dict[int, dict[str, dict[str, Any]]] = {}  # point -> file name -> size, digest
         self._image = RunImage(self.layout)  # run.h5.tmp on disk, filled as points commit
         self._log_failed = False
         # between two completed points the logs grow by a bounded number of lines (orbitrig.store.quota)
@@ -65,7 +65,7 @@ class RunStore:
     @classmethod
     def create(
         cls,
-        out_dir,
+        out_dir: Path | str,
         *,
         rig_text: str,
         matrix_text: str,
@@ -73,7 +73,7 @@ class RunStore:
         sim: bool,
         scenario_name: str = "",
         scenario_text: str = "",
-        provenance: dict | None = None,
+        provenance: dict[str, str] | None = None,
         record_text: str = "",
         point_order: list[int] | None = None,
     ) -> RunStore:
@@ -117,7 +117,7 @@ class RunStore:
         return self
 
     @classmethod
-    def open_existing(cls, out_dir) -> RunStore:
+    def open_existing(cls, out_dir: Path | str) -> RunStore:
         self = cls(out_dir)
         lay = self.layout
         if not lay.has_pieces():
