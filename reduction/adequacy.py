@@ -42,9 +42,17 @@ class Adequacy:
         return f"frequency dependence supported: {'yes' if self.supported else 'no'} (p = {self.p_value:.3g})"
 
     def to_dict(self) -> dict[str, object]:
-        return {"supported": self.supported, "p_value": self.p_value, "statistic": self.statistic,
-                "test": self.test, "dof": list(self.dof), "alpha": self.alpha,
-                "aic": list(self.aic), "bic": list(self.bic), "verdict": self.verdict}
+        return {
+            "supported": self.supported,
+            "p_value": self.p_value,
+            "statistic": self.statistic,
+            "test": self.test,
+            "dof": list(self.dof),
+            "alpha": self.alpha,
+            "aic": list(self.aic),
+            "bic": list(self.bic),
+            "verdict": self.verdict,
+        }
 
 
 def frequency_dependence(constant: Identification, dependent: Identification, alpha: float = ALPHA) -> Adequacy:
@@ -52,9 +60,13 @@ def frequency_dependence(constant: Identification, dependent: Identification, al
     with the same method. Raises ReductionError when they are not nested fits of one table."""
     if not set(constant.free) < set(dependent.free):
         raise ReductionError(
-            f"{constant.model} {constant.freq_dep} is not nested in {dependent.model} {dependent.freq_dep}")
+            f"{constant.model} {constant.freq_dep} is not nested in {dependent.model} {dependent.freq_dep}"
+        )
     if (constant.n_frequencies, constant.method, constant.known_noise) != (
-            dependent.n_frequencies, dependent.method, dependent.known_noise):
+        dependent.n_frequencies,
+        dependent.method,
+        dependent.known_noise,
+    ):
         raise ReductionError("frequency_dependence needs two fits of one table with one method")
     q = len(dependent.free) - len(constant.free)
     if constant.known_noise:
@@ -70,5 +82,6 @@ def frequency_dependence(constant: Identification, dependent: Identification, al
         stat = max(rss0 - rss1, 0.0) / q / (rss1 / dependent.dof) if rss1 > 0 else float("inf")
         p = float(stats.f.sf(stat, q, dependent.dof))
         test, dof = "F", (q, dependent.dof)
-    return Adequacy(p < alpha, p, float(stat), test, dof, alpha,
-                    (constant.aic, dependent.aic), (constant.bic, dependent.bic))
+    return Adequacy(
+        p < alpha, p, float(stat), test, dof, alpha, (constant.aic, dependent.aic), (constant.bic, dependent.bic)
+    )

@@ -26,7 +26,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from reduction.arrays import FloatArray, NoiseAt
 from reduction.errors import ReductionError
 from reduction.models import ModelSpec, model_spec
 
@@ -86,24 +88,28 @@ class ModelTest:
 
     def reason(self) -> str:
         real, imag = entry_powers(self.spec)
-        return (f"the adequacy test of {self.spec.model} {self.spec.freq_dep.text} against the constant model needs "
-                f"at least {self.frequencies} distinct orbit frequencies ({max(len(real), len(imag))} powers of Omega "
-                f"per matrix entry, plus one to test them), one at least in each of {self.frequencies} equal slices "
-                f"of {self.lo:g} .. {self.hi:g}, and the reference list's standard errors of its coefficients")
+        return (
+            f"the adequacy test of {self.spec.model} {self.spec.freq_dep.text} against the constant model needs "
+            f"at least {self.frequencies} distinct orbit frequencies ({max(len(real), len(imag))} powers of Omega "
+            f"per matrix entry, plus one to test them), one at least in each of {self.frequencies} equal slices "
+            f"of {self.lo:g} .. {self.hi:g}, and the reference list's standard errors of its coefficients"
+        )
 
 
-def model_test(models: list[tuple[str, str]], reference_ratios) -> ModelTest:
+def model_test(models: list[tuple[str, str]], reference_ratios: ArrayLike) -> ModelTest:
     """The constraint for a matrix of ``models`` whose reference list is ``reference_ratios``."""
     spec = richest(models)
     r = np.asarray(reference_ratios, dtype=float)
     k = frequencies_needed(spec)
     if np.unique(r).size < k:
-        raise ReductionError(f"the reference list has {np.unique(r).size} distinct ratios; the adequacy test of "
-                             f"{spec.model} {spec.freq_dep.text} needs {k}")
+        raise ReductionError(
+            f"the reference list has {np.unique(r).size} distinct ratios; the adequacy test of "
+            f"{spec.model} {spec.freq_dep.text} needs {k}"
+        )
     return ModelTest(spec, k, float(r.min()), float(r.max()))
 
 
-def spread_ok(test: ModelTest, ratios) -> bool:
+def spread_ok(test: ModelTest, ratios: ArrayLike) -> bool:
     """At least K distinct ratios, one at least in each slice (edges inclusive, 1e-9 slack)."""
     r = np.unique(np.round(np.asarray(ratios, dtype=float), 9))
     if r.size < test.frequencies:
@@ -121,23 +127,44 @@ class TestedAllocation:
 
     ratios: tuple[float, ...]
     revolutions: tuple[int, ...]
-    std_errors: np.ndarray
-    test_std_errors: np.ndarray
+    std_errors: FloatArray
+    test_std_errors: FloatArray
     worst: float
     test_worst: float
 
 
-def _std_errors(spec, theta, spin, radius, ratios, revolutions, u, directions) -> np.ndarray:
+def _std_errors(
+    spec: ModelSpec,
+    theta: FloatArray,
+    spin: float,
+    radius: float,
+    ratios: ArrayLike,
+    revolutions: ArrayLike,
+    u: FloatArray,
+    directions: str,
+) -> FloatArray:
     from reduction.allocation import revolution_information
 
     F = revolution_information(spec, theta, spin, radius, ratios, u, directions)
     info = np.einsum("k,kij->ij", np.asarray(revolutions, dtype=float), F)
-    return np.sqrt(np.diag(np.linalg.inv(info)))
+    se: FloatArray = np.sqrt(np.diag(np.linalg.inv(info)))
+    return se
 
 
-def allocate_keeping_test(test: ModelTest, spec: ModelSpec, prior: dict, spin: float, radius: float, grid,
-                          noise_at, reference, block_overhead: float = 0.0, directions: str = "both",
-                          min_revolutions: int = 10, scales=None) -> TestedAllocation:
+def allocate_keeping_test(
+    test: ModelTest,
+    spec: ModelSpec,
+    prior: dict[str, float],
+    spin: float,
+    radius: float,
+    grid: ArrayLike,
+    noise_at: NoiseAt,
+    reference: tuple[ArrayLike, ArrayLike],
+    block_overhead: float = 0.0,
+    directions: str = "both",
+    min_revolutions: int = 10,
+    scales: ArrayLike | None = None,
+) -> TestedAllocation:
     """Revolutions per ratio of ``grid`` in the least rig time such that every coefficient of
     ``spec`` and of ``test.spec`` has at most the standard error of the ``reference`` list
     ((ratios, revolutions per ratio)) and the list passes :func:`spread_ok`. ``prior``:
@@ -153,11 +180,24 @@ def allocate_keeping_test(test: ModelTest, spec: ModelSpec, prior: dict, spin: f
     ref_se = [_std_errors(s, t, spin, radius, ref_r, ref_n, noise_at(ref_r), directions) for s, t in zip(specs, thetas)]
     if scales is not None:
         ref_se[0] = np.asarray(scales, dtype=float)
-    grid = np.asarray(grid, dtype=float)
-    a = allocate(spec, thetas[0], spin, radius, grid, noise_at(grid), ref_se[0], block_overhead=block_overhead,
-                 min_revolutions=min_revolutions, directions=directions, admissible=lambda r: spread_ok(test, r),
-                 also=[(test.spec, thetas[1], ref_se[1])])
-    se = [_std_errors(s, t, spin, radius, a.ratios, a.revolutions, noise_at(a.ratios), directions)
-          for s, t in zip(specs, thetas)]
+    ratios = np.asarray(grid, dtype=float)
+    a = allocate(
+        spec,
+        thetas[0],
+        spin,
+        radius,
+        ratios,
+        noise_at(ratios),
+        ref_se[0],
+        block_overhead=block_overhead,
+        min_revolutions=min_revolutions,
+        directions=directions,
+        admissible=lambda r: spread_ok(test, r),
+        also=[(test.spec, thetas[1], ref_se[1])],
+    )
+    se = [
+        _std_errors(s, t, spin, radius, a.ratios, a.revolutions, noise_at(a.ratios), directions)
+        for s, t in zip(specs, thetas)
+    ]
     worst = [float(np.max(e / r)) for e, r in zip(se, ref_se)]
     return TestedAllocation(a.ratios, a.revolutions, se[0], se[1], worst[0], worst[1])

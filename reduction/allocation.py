@@ -26,11 +26,14 @@ Everything SI; ratios are fractions of the spin speed; no I/O.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import minimize
 
+from reduction.arrays import FloatArray, IntArray
 from reduction.design import design_orbits
 from reduction.errors import ReductionError
 from reduction.impedance import forces, impedance, real_rows, regressors
@@ -41,6 +44,11 @@ from reduction.rig_time import revolution_time
 MIN_SHARE = 1e-9  # smallest time share the solver may give a ratio (keeps I(w) invertible)
 NEAR = 2  # a constrained exchange moves a ratio at most this many grid steps
 
+#: the objective's pieces at time shares w: (g (p,), its gradient (p, k))
+WorstVariance = Callable[[FloatArray], tuple[FloatArray, FloatArray]]
+#: may the candidates of these indices form a list (None: any may)
+Admissible = Callable[[list[int]], bool]
+
 
 @dataclass(frozen=True)
 class Allocation:
@@ -50,7 +58,7 @@ class Allocation:
 
     ratios: tuple[float, ...]
     revolutions: tuple[int, ...]
-    std_errors: np.ndarray
+    std_errors: FloatArray
     worst: float
     acquisition_s: float
     overhead_s: float
@@ -60,8 +68,15 @@ class Allocation:
         return self.acquisition_s + self.overhead_s
 
 
-def revolution_information(spec: ModelSpec, theta, spin: float, radius: float, ratios, u_revolution,
-                           directions: str = "both") -> np.ndarray:
+def revolution_information(
+    spec: ModelSpec,
+    theta: ArrayLike,
+    spin: float,
+    radius: float,
+    ratios: ArrayLike,
+    u_revolution: ArrayLike,
+    directions: str = "both",
+) -> FloatArray:
     """(k, p, p) Fisher information of ONE revolution at each ratio (all its directions),
     circular orbits of ``radius`` (m), per-revolution noise u (k, 4) of x, y (m), fx, fy (N);
     displacement noise is propagated through Z at ``theta``."""
@@ -74,15 +89,16 @@ def revolution_information(spec: ModelSpec, theta, spin: float, radius: float, r
     if np.any(var <= 0):
         raise ReductionError("revolution_information: every equation needs a noise > 0")
     Aw = (A / np.sqrt(var)[:, None]).reshape(r.size, 4 * per, -1)
-    return np.einsum("kei,kej->kij", Aw, Aw)
+    info: FloatArray = np.einsum("kei,kej->kij", Aw, Aw)
+    return info
 
 
-def _worst_variance(F, scales):
+def _worst_variance(F: FloatArray, scales: FloatArray) -> WorstVariance:
     """Objective pieces at shares w: g(w) (p,) = diag(I^-1) / scales^2 and its (p, k) gradient
     (diag(I^-1) / s^2 = diag((S I S)^-1) with S = diag(scales))."""
     Fs = F * np.outer(scales, scales)[None]
 
-    def at(w):
+    def at(w: FloatArray) -> tuple[FloatArray, FloatArray]:
         info = np.einsum("k,kij->ij", w, Fs)
         G = np.linalg.inv(info)
         g = np.diag(G)
@@ -93,14 +109,14 @@ def _worst_variance(F, scales):
     return at
 
 
-def time_shares(F, tau, scales) -> tuple[np.ndarray, float]:
+def time_shares(F: ArrayLike, tau: ArrayLike, scales: ArrayLike) -> tuple[FloatArray, float]:
     """(w (k,), T): acquisition-time shares minimising the acquisition time T (s) at which
     every coefficient's standard error equals its ``scales`` entry. F (k, p, p) information
     per revolution, tau (k,) seconds per revolution."""
-    F, tau, scales = np.asarray(F, float), np.asarray(tau, float), np.asarray(scales, float)
-    k = tau.size
-    per_second = F / tau[:, None, None]
-    at = _worst_variance(per_second, scales)
+    info, times, s = np.asarray(F, float), np.asarray(tau, float), np.asarray(scales, float)
+    k = times.size
+    per_second = info / times[:, None, None]
+    at = _worst_variance(per_second, s)
     w0 = np.full(k, 1.0 / k)
     try:
         g0, _ = at(w0)
@@ -110,20 +126,30 @@ def time_shares(F, tau, scales) -> tuple[np.ndarray, float]:
         raise ReductionError("time_shares: these ratios cannot identify the model")
     z0 = float(np.max(g0))
 
-    def safe(w):
+    def safe(w: FloatArray) -> tuple[FloatArray, FloatArray]:
         try:
             return at(np.maximum(w, MIN_SHARE))
         except np.linalg.LinAlgError:
-            return np.full(scales.size, 1e30), np.zeros((scales.size, k))
+            return np.full(s.size, 1e30), np.zeros((s.size, k))
 
-    cons = [{"type": "ineq", "fun": lambda v: v[-1] - safe(v[:-1])[0] / z0,
-             "jac": lambda v: np.hstack([-safe(v[:-1])[1] / z0, np.ones((scales.size, 1))])},
-            {"type": "eq", "fun": lambda v: np.sum(v[:-1]) - 1.0,
-             "jac": lambda v: np.append(np.ones(k), 0.0)[None]}]
-    res = minimize(lambda v: v[-1], np.append(w0, 1.0), jac=lambda v: np.append(np.zeros(k), 1.0),
-                   method="SLSQP", constraints=cons, bounds=[(MIN_SHARE, 1.0)] * k + [(0, None)],
-                   options={"maxiter": 300, "ftol": 1e-10})
-    w = np.maximum(res.x[:-1], MIN_SHARE)
+    cons = [
+        {
+            "type": "ineq",
+            "fun": lambda v: v[-1] - safe(v[:-1])[0] / z0,
+            "jac": lambda v: np.hstack([-safe(v[:-1])[1] / z0, np.ones((s.size, 1))]),
+        },
+        {"type": "eq", "fun": lambda v: np.sum(v[:-1]) - 1.0, "jac": lambda v: np.append(np.ones(k), 0.0)[None]},
+    ]
+    res = minimize(
+        lambda v: v[-1],
+        np.append(w0, 1.0),
+        jac=lambda v: np.append(np.zeros(k), 1.0),
+        method="SLSQP",
+        constraints=cons,
+        bounds=[(MIN_SHARE, 1.0)] * k + [(0, None)],
+        options={"maxiter": 300, "ftol": 1e-10},
+    )
+    w: FloatArray = np.maximum(res.x[:-1], MIN_SHARE)
     w = w / w.sum()
     g, _ = at(w)
     if float(np.max(g)) > z0:  # the solver did worse than the even split
@@ -131,19 +157,28 @@ def time_shares(F, tau, scales) -> tuple[np.ndarray, float]:
     return w, float(np.max(g))
 
 
-def _cost(F, tau, s, per_block, keep, admissible=None):
-    """(total s, shares, acquisition s) of the ratios ``keep``; total inf when they cannot
-    identify the model or ``admissible(keep)`` says no."""
+def _cost(
+    F: FloatArray,
+    tau: FloatArray,
+    s: FloatArray,
+    per_block: float,
+    keep: list[int],
+    admissible: Admissible | None = None,
+) -> tuple[float, FloatArray, float]:
+    """(total s, shares, acquisition s) of the ratios ``keep``; total inf (and no shares) when
+    they cannot identify the model or ``admissible(keep)`` says no."""
     if admissible is not None and not admissible(keep):
-        return float("inf"), None, float("inf")
+        return float("inf"), np.empty(0), float("inf")
     try:
         w, T = time_shares(F[keep], tau[keep], s)
     except ReductionError:
-        return float("inf"), None, float("inf")
+        return float("inf"), np.empty(0), float("inf")
     return T + per_block * len(keep), w, T
 
 
-def _support(F, tau, s, per_block, admissible=None):
+def _support(
+    F: FloatArray, tau: FloatArray, s: FloatArray, per_block: float, admissible: Admissible | None = None
+) -> tuple[IntArray, FloatArray, float]:
     """The ratios worth their overhead: from all, drop the one with the smallest share while
     that lowers acquisition + overhead; then exchange one kept ratio for another (or drop
     one) while that helps. With ``admissible(indices)`` every list tried must pass it: the
@@ -156,7 +191,7 @@ def _support(F, tau, s, per_block, admissible=None):
     if not np.isfinite(best):
         raise ReductionError("allocate: these ratios cannot identify the model")
     while len(keep) > 1:
-        trials = [t for t in (keep[:i] + keep[i + 1:] for i in np.argsort(w)) if ok(t)]
+        trials = [t for t in (keep[:i] + keep[i + 1 :] for i in np.argsort(w)) if ok(t)]
         if not trials:
             break
         c, w2, T2 = _cost(F, tau, s, per_block, trials[0], admissible)
@@ -167,17 +202,22 @@ def _support(F, tau, s, per_block, admissible=None):
     improved = True
     while improved:
         improved = False
-        moves = [keep[:i] + keep[i + 1:] for i in range(len(keep)) if len(keep) > 1] + \
-                [sorted(keep[:i] + [g] + keep[i + 1:]) for i in range(len(keep)) for g in range(tau.size)
-                 if g not in keep and abs(g - keep[i]) <= reach]
+        moves = [keep[:i] + keep[i + 1 :] for i in range(len(keep)) if len(keep) > 1] + [
+            sorted(keep[:i] + [g] + keep[i + 1 :])
+            for i in range(len(keep))
+            for g in range(tau.size)
+            if g not in keep and abs(g - keep[i]) <= reach
+        ]
         for trial in moves:
             c, w2, T2 = _cost(F, tau, s, per_block, trial, admissible)
             if c < best * (1 - 1e-6):
                 keep, best, w, T, improved = trial, c, w2, T2, True
-    return np.array(keep), w, T
+    return np.array(keep, dtype=np.int64), w, T
 
 
-def _counts(F, tau, scales, w, T, min_revolutions):
+def _counts(
+    F: FloatArray, tau: FloatArray, scales: FloatArray, w: FloatArray, T: float, min_revolutions: int
+) -> tuple[IntArray, float]:
     """Rounded revolutions (k,) reaching the target, and their worst variance ratio."""
     n = np.maximum(np.ceil(w * T / tau - 1e-9), min_revolutions)
     for _ in range(50):
@@ -189,9 +229,21 @@ def _counts(F, tau, scales, w, T, min_revolutions):
     return n.astype(int), worst
 
 
-def allocate(spec: ModelSpec, theta, spin: float, radius: float, ratios, u_revolution, scales,
-             target: float = 1.0, block_overhead: float = 0.0, min_revolutions: int = 10,
-             directions: str = "both", admissible=None, also=()) -> Allocation:
+def allocate(
+    spec: ModelSpec,
+    theta: ArrayLike,
+    spin: float,
+    radius: float,
+    ratios: ArrayLike,
+    u_revolution: ArrayLike,
+    scales: ArrayLike,
+    target: float = 1.0,
+    block_overhead: float = 0.0,
+    min_revolutions: int = 10,
+    directions: str = "both",
+    admissible: Callable[[FloatArray], bool] | None = None,
+    also: Sequence[tuple[ModelSpec, ArrayLike, ArrayLike]] = (),
+) -> Allocation:
     """Least-rig-time revolutions per ratio (a subset of ``ratios``) bringing every
     coefficient's standard error to at most ``target`` x ``scales`` (p,) SI; u_revolution
     (k, 4) per-revolution noise at each of ``ratios`` (or (4,) for all); ``block_overhead``
@@ -204,8 +256,11 @@ def allocate(spec: ModelSpec, theta, spin: float, radius: float, ratios, u_revol
     r = np.asarray(ratios, dtype=float)
     order = np.argsort(r)
     r = r[order]
-    u = np.broadcast_to(np.asarray(u_revolution, dtype=float), (len(order), 4))[order] \
-        if np.ndim(u_revolution) == 2 else np.asarray(u_revolution, dtype=float)
+    u = (
+        np.broadcast_to(np.asarray(u_revolution, dtype=float), (len(order), 4))[order]
+        if np.ndim(u_revolution) == 2
+        else np.asarray(u_revolution, dtype=float)
+    )
     if not target > 0:
         raise ReductionError(f"allocate: target must be > 0, got {target:g}")
     models = [(spec, theta, scales), *also]
@@ -213,30 +268,43 @@ def allocate(spec: ModelSpec, theta, spin: float, radius: float, ratios, u_revol
     F = _block_diagonal([revolution_information(m, th, spin, radius, r, u, directions) for m, th, _ in models])
     tau = revolution_time(r, spin, directions)
     per_block = block_overhead * (2 if directions == "both" else 1)
-    ok = None if admissible is None else (lambda keep: admissible(r[keep]))
+    ok: Admissible | None = None if admissible is None else (lambda keep: admissible(r[keep]))
     keep, w, T = _support(F, tau, s, per_block, ok)
     n, _ = _counts(F[keep], tau[keep], s, w, T, min_revolutions)
     p = spec.n_coefficients
     info = np.einsum("k,kij->ij", n, F[keep][:, :p, :p])
     se = np.sqrt(np.diag(np.linalg.inv(info)))
-    return Allocation(tuple(float(v) for v in r[keep]), tuple(int(v) for v in n), se,
-                      float(np.max(se / np.asarray(scales, float))), float(np.sum(n * tau[keep])),
-                      per_block * keep.size)
+    return Allocation(
+        tuple(float(v) for v in r[keep]),
+        tuple(int(v) for v in n),
+        se,
+        float(np.max(se / np.asarray(scales, float))),
+        float(np.sum(n * tau[keep])),
+        per_block * keep.size,
+    )
 
 
-def _block_diagonal(parts) -> np.ndarray:
+def _block_diagonal(parts: Sequence[FloatArray]) -> FloatArray:
     """(k, P, P) per-ratio information of several models side by side (P the sum of their p)."""
     k, sizes = parts[0].shape[0], [f.shape[1] for f in parts]
     out = np.zeros((k, sum(sizes), sum(sizes)))
     at = 0
     for f, p in zip(parts, sizes):
-        out[:, at:at + p, at:at + p] = f
+        out[:, at : at + p, at : at + p] = f
         at += p
     return out
 
 
-def adaptive_targets(spec: ModelSpec, theta, spin: float, radius: float, ratios, revolutions, u_revolution,
-                     directions: str = "both") -> np.ndarray:
+def adaptive_targets(
+    spec: ModelSpec,
+    theta: ArrayLike,
+    spin: float,
+    radius: float,
+    ratios: ArrayLike,
+    revolutions: ArrayLike,
+    u_revolution: ArrayLike,
+    directions: str = "both",
+) -> FloatArray:
     """(k,) relative standard uncertainty (fraction) of the noisiest phasor after ``revolutions``
     (k,) at each ratio: max over x, y (u / radius) and fx, fy (u / |f|, f = -Z d on the
     circular orbit at ``theta``, the smaller force of the ratio's directions). As an adaptive
@@ -248,4 +316,5 @@ def adaptive_targets(spec: ModelSpec, theta, spin: float, radius: float, ratios,
     fx, fy = forces(impedance(spec, np.asarray(theta, float), orbit), x, y)
     f = np.min(np.minimum(np.abs(fx), np.abs(fy)).reshape(r.size, per), axis=1)
     rel = np.maximum(np.max(u[:, :2], axis=1) / radius, np.max(u[:, 2:], axis=1) / f)
-    return rel / np.sqrt(np.asarray(revolutions, dtype=float))
+    out: FloatArray = rel / np.sqrt(np.asarray(revolutions, dtype=float))
+    return out

@@ -29,8 +29,14 @@ LISTED = 8
 ROWS = 65536  # rows per block of the noise sum
 
 
-def attenuation_bias(spec: ModelSpec, table: OrbitTable, theta: np.ndarray, scale: np.ndarray,
-                     unscaled: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+def attenuation_bias(
+    spec: ModelSpec,
+    table: OrbitTable,
+    theta: np.ndarray,
+    scale: np.ndarray,
+    unscaled: np.ndarray,
+    weights: np.ndarray | None = None,
+) -> np.ndarray:
     """(p,) first-order bias (SI, column order) of ols (``weights`` None) or wls (weights
     (4n,) the inverse equation variances) from the table's displacement noise u_x, u_y;
     ``unscaled`` is (A_s^T W A_s)^-1 of the column-scaled (by ``scale``) regression."""
@@ -45,10 +51,10 @@ def attenuation_bias(spec: ModelSpec, table: OrbitTable, theta: np.ndarray, scal
             filling.setdefault((i, l), []).append(j)
     sigma = np.zeros((p, p))
     for s in range(0, table.n, ROWS):
-        cols = impedance_columns(spec, table.orbit[s: s + ROWS])
+        cols = impedance_columns(spec, table.orbit[s : s + ROWS])
         for (i, l), J in filling.items():
             e = cols[:, J]
-            weight = w[s: s + ROWS, i] * u[s: s + ROWS, l] ** 2
+            weight = w[s : s + ROWS, i] * u[s : s + ROWS, l] ** 2
             sigma[np.ix_(J, J)] += (np.conj(e).T @ (e * weight[:, None])).real
     sigma_s = sigma / np.outer(scale, scale)
     bias: np.ndarray = -(unscaled @ (sigma_s @ (theta * scale))) / scale
@@ -66,6 +72,8 @@ def attenuation_warning(spec: ModelSpec, method: str, bias: np.ndarray, std: np.
     order = [j for j in np.argsort(-ratio) if ratio[j] > EIV_BIAS_FRACTION]
     listed = ", ".join(f"{spec.names[j]} ({ratio[j]:.2g} SE)" for j in order[:LISTED])
     more = f" and {len(order) - LISTED} more" if len(order) > LISTED else ""
-    return (f"displacement noise: {method} is biased towards zero (errors in variables, about u_d^2 / R^2 "
-            f"relative) by more than {EIV_BIAS_FRACTION:g} standard errors on {listed}{more}; "
-            "--method tls (or iv) removes that bias.")
+    return (
+        f"displacement noise: {method} is biased towards zero (errors in variables, about u_d^2 / R^2 "
+        f"relative) by more than {EIV_BIAS_FRACTION:g} standard errors on {listed}{more}; "
+        "--method tls (or iv) removes that bias."
+    )

@@ -69,8 +69,9 @@ def correct_forces(gain: np.ndarray, fx: np.ndarray, fy: np.ndarray) -> tuple[np
 def static_loads(magnitude: float) -> np.ndarray:
     """The default load set (n, 2), N: none, +-x, +-y and the two diagonals, each of `magnitude`."""
     d = magnitude / np.sqrt(2.0)
-    return np.array([[0, 0], [magnitude, 0], [-magnitude, 0], [0, magnitude], [0, -magnitude], [d, d], [d, -d]],
-                    dtype=float)
+    return np.array(
+        [[0, 0], [magnitude, 0], [-magnitude, 0], [0, magnitude], [0, -magnitude], [d, d], [d, -d]], dtype=float
+    )
 
 
 @dataclass(frozen=True)
@@ -97,8 +98,9 @@ def fit_delay(frequencies: np.ndarray, lag: np.ndarray) -> DelayFit:
     res = y - A @ coef
     s2 = float(np.sum(res**2) / (len(f) - 2))
     cov = s2 * np.linalg.inv(A.T @ A)
-    return DelayFit(float(coef[0]), float(coef[1]), float(np.sqrt(cov[0, 0])), float(np.sqrt(cov[1, 1])),
-                    float(np.sqrt(s2)))
+    return DelayFit(
+        float(coef[0]), float(coef[1]), float(np.sqrt(cov[0, 0])), float(np.sqrt(cov[1, 1])), float(np.sqrt(s2))
+    )
 
 
 def correct_lag(values: np.ndarray, orbit: np.ndarray, phase: float, delay: float) -> np.ndarray:
@@ -132,5 +134,6 @@ def fit_probe(steps: np.ndarray, reading: np.ndarray, reference_u: float) -> Pro
     res = d - A @ coef
     s2 = float(np.sum(res**2) / (len(d) - 2))
     var = s2 * np.linalg.inv(A.T @ A)[0, 0] + (reference_u * coef[0]) ** 2
-    return ProbeFit(float(coef[0]), float(np.sqrt(var)), float(coef[1]),
-                    float(np.max(np.abs(res)) / np.ptp(d)), float(np.sqrt(s2)))
+    return ProbeFit(
+        float(coef[0]), float(np.sqrt(var)), float(coef[1]), float(np.max(np.abs(res)) / np.ptp(d)), float(np.sqrt(s2))
+    )

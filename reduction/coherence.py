@@ -36,5 +36,6 @@ def coherence(x_records: ArrayLike, f_records: ArrayLike, axis: int = 0) -> np.n
 def orbit_coherences(x: ArrayLike, y: ArrayLike, fx: ArrayLike, fy: ArrayLike, axis: int = 0) -> np.ndarray:
     """The four coherences of an orbit table row, last axis ordered xfx, yfx, xfy, yfy
     (the table's gamma2 columns), from per-record phasors with records along ``axis``."""
-    return np.stack([coherence(x, fx, axis), coherence(y, fx, axis),
-                     coherence(x, fy, axis), coherence(y, fy, axis)], axis=-1)
+    return np.stack(
+        [coherence(x, fx, axis), coherence(y, fx, axis), coherence(x, fy, axis), coherence(y, fy, axis)], axis=-1
+    )

@@ -19,13 +19,19 @@ the WFR and Omega_0 are linearised (first order). Sigma is the covariance passed
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import brentq
 
+from reduction.arrays import ComplexArray, FloatArray
 from reduction.errors import ReductionError
 from reduction.impedance import impedance_basis
 from reduction.result import Identification
+
+#: a zero crossing of C_eff: (Omega_0 rad/s, its std or None)
+Zero = tuple[float, float | None]
 
 _IDX = {"xx": (0, 0), "xy": (0, 1), "yx": (1, 0), "yy": (1, 1)}
 
@@ -36,45 +42,53 @@ class Derived:
     deviation (None when the identification has no covariance). Zero crossings are
     (Omega_0 rad/s, std) or None when C_eff does not change sign on the grid."""
 
-    orbit: np.ndarray
-    c_eff_xx: np.ndarray
-    c_eff_yy: np.ndarray
-    c_eff_xx_std: np.ndarray | None
-    c_eff_yy_std: np.ndarray | None
-    c_eff_zero_xx: tuple[float, float | None] | None
-    c_eff_zero_yy: tuple[float, float | None] | None
-    h_forward: np.ndarray  # complex, N/m
-    h_backward: np.ndarray
-    h_forward_std: tuple[np.ndarray, np.ndarray] | None  # (Re, Im)
-    h_backward_std: tuple[np.ndarray, np.ndarray] | None
-    wfr: np.ndarray
-    wfr_std: np.ndarray | None
+    orbit: FloatArray
+    c_eff_xx: FloatArray
+    c_eff_yy: FloatArray
+    c_eff_xx_std: FloatArray | None
+    c_eff_yy_std: FloatArray | None
+    c_eff_zero_xx: Zero | None
+    c_eff_zero_yy: Zero | None
+    h_forward: ComplexArray  # N/m
+    h_backward: ComplexArray
+    h_forward_std: tuple[FloatArray, FloatArray] | None  # (Re, Im)
+    h_backward_std: tuple[FloatArray, FloatArray] | None
+    wfr: FloatArray
+    wfr_std: FloatArray | None
 
-    def to_dict(self) -> dict:
-        def arr(a):
+    def to_dict(self) -> dict[str, Any]:
+        def arr(a: FloatArray | None) -> list[float] | None:
             return None if a is None else [float(v) for v in np.asarray(a)]
 
-        def pair(p):
+        def pair(p: tuple[FloatArray, FloatArray] | None) -> list[list[float] | None] | None:
             return None if p is None else [arr(p[0]), arr(p[1])]
 
-        return {"orbit_hz": arr(self.orbit / (2 * np.pi)),
-                "c_eff_xx": arr(self.c_eff_xx), "c_eff_xx_std": arr(self.c_eff_xx_std),
-                "c_eff_yy": arr(self.c_eff_yy), "c_eff_yy_std": arr(self.c_eff_yy_std),
-                "c_eff_zero_xx_hz": _zero_hz(self.c_eff_zero_xx), "c_eff_zero_yy_hz": _zero_hz(self.c_eff_zero_yy),
-                "h_forward_re": arr(self.h_forward.real), "h_forward_im": arr(self.h_forward.imag),
-                "h_forward_std": pair(self.h_forward_std),
-                "h_backward_re": arr(self.h_backward.real), "h_backward_im": arr(self.h_backward.imag),
-                "h_backward_std": pair(self.h_backward_std),
-                "wfr": arr(self.wfr), "wfr_std": arr(self.wfr_std)}
+        return {
+            "orbit_hz": arr(self.orbit / (2 * np.pi)),
+            "c_eff_xx": arr(self.c_eff_xx),
+            "c_eff_xx_std": arr(self.c_eff_xx_std),
+            "c_eff_yy": arr(self.c_eff_yy),
+            "c_eff_yy_std": arr(self.c_eff_yy_std),
+            "c_eff_zero_xx_hz": _zero_hz(self.c_eff_zero_xx),
+            "c_eff_zero_yy_hz": _zero_hz(self.c_eff_zero_yy),
+            "h_forward_re": arr(self.h_forward.real),
+            "h_forward_im": arr(self.h_forward.imag),
+            "h_forward_std": pair(self.h_forward_std),
+            "h_backward_re": arr(self.h_backward.real),
+            "h_backward_im": arr(self.h_backward.imag),
+            "h_backward_std": pair(self.h_backward_std),
+            "wfr": arr(self.wfr),
+            "wfr_std": arr(self.wfr_std),
+        }
 
 
-def _zero_hz(z):
+def _zero_hz(z: Zero | None) -> list[float | None] | None:
     if z is None:
         return None
     return [z[0] / (2 * np.pi), None if z[1] is None else z[1] / (2 * np.pi)]
 
 
-def entry_gradient(ident: Identification, matrix: str, entry: str, orbit) -> np.ndarray:
+def entry_gradient(ident: Identification, matrix: str, entry: str, orbit: ArrayLike) -> FloatArray:
     """G (n, p) with matrix_entry(Omega_k) = G[k] @ theta, e.g. ("K", "xy"): K_xy(Omega)."""
     w = np.atleast_1d(np.asarray(orbit, dtype=float))
     G = np.zeros((w.size, len(ident.spec.terms)))
@@ -85,22 +99,22 @@ def entry_gradient(ident: Identification, matrix: str, entry: str, orbit) -> np.
     return G
 
 
-def _std(G: np.ndarray, cov: np.ndarray | None) -> np.ndarray | None:
-    if cov is None:
-        return None
-    return np.sqrt(np.clip(np.einsum("kp,pq,kq->k", G, cov, G), 0, None))
+def _std(G: FloatArray, cov: FloatArray) -> FloatArray:
+    """One standard deviation of each row's G[k] @ theta under covariance ``cov``."""
+    var: FloatArray = np.einsum("kp,pq,kq->k", G, cov, G)
+    return np.sqrt(np.clip(var, 0, None))
 
 
-def derived_quantities(ident: Identification, orbit, spin: float, cov: np.ndarray | None = None) -> Derived:
+def derived_quantities(ident: Identification, orbit: ArrayLike, spin: float, cov: ArrayLike | None = None) -> Derived:
     """C_eff, its zero crossings, H_forward / H_backward and the WFR on ``orbit`` (rad/s, > 0)
     for journal spin ``spin`` (rad/s, > 0 for the WFR); ``cov`` defaults to the fit's."""
     w = np.atleast_1d(np.asarray(orbit, dtype=float))
     if w.size == 0 or np.any(w <= 0) or not np.all(np.isfinite(w)):
         raise ReductionError("derived_quantities: orbit frequencies must be finite and > 0 rad/s")
-    cov = ident.covariance if cov is None else np.asarray(cov, dtype=float)
+    sigma = ident.covariance if cov is None else np.asarray(cov, dtype=float)
     theta = ident.theta
 
-    def grad(m, e):
+    def grad(m: str, e: str) -> FloatArray:
         return entry_gradient(ident, m, e, w)
 
     g_xx, g_yy = _c_eff(ident, "xx", w), _c_eff(ident, "yy", w)
@@ -115,17 +129,25 @@ def derived_quantities(ident: Identification, orbit, spin: float, cov: np.ndarra
         wfr = n_val / (spin * d_val)
         g_wfr = (num * d_val[:, None] - den * n_val[:, None]) / (spin * d_val[:, None] ** 2)
     return Derived(
-        orbit=w, c_eff_xx=g_xx @ theta, c_eff_yy=g_yy @ theta,
-        c_eff_xx_std=_std(g_xx, cov), c_eff_yy_std=_std(g_yy, cov),
-        c_eff_zero_xx=_zero(ident, w, "xx", cov), c_eff_zero_yy=_zero(ident, w, "yy", cov),
-        h_forward=g_hf @ theta, h_backward=g_hb @ theta,
-        h_forward_std=None if cov is None else (_std(g_hf.real, cov), _std(g_hf.imag, cov)),
-        h_backward_std=None if cov is None else (_std(g_hb.real, cov), _std(g_hb.imag, cov)),
-        wfr=wfr, wfr_std=None if cov is None or spin <= 0 else _std(g_wfr, cov))
+        orbit=w,
+        c_eff_xx=g_xx @ theta,
+        c_eff_yy=g_yy @ theta,
+        c_eff_xx_std=None if sigma is None else _std(g_xx, sigma),
+        c_eff_yy_std=None if sigma is None else _std(g_yy, sigma),
+        c_eff_zero_xx=_zero(ident, w, "xx", sigma),
+        c_eff_zero_yy=_zero(ident, w, "yy", sigma),
+        h_forward=g_hf @ theta,
+        h_backward=g_hb @ theta,
+        h_forward_std=None if sigma is None else (_std(g_hf.real, sigma), _std(g_hf.imag, sigma)),
+        h_backward_std=None if sigma is None else (_std(g_hb.real, sigma), _std(g_hb.imag, sigma)),
+        wfr=wfr,
+        wfr_std=None if sigma is None or spin <= 0 else _std(g_wfr, sigma),
+    )
 
 
-def _c_eff(ident, entry, w):
-    w = np.atleast_1d(np.asarray(w, dtype=float))
+def _c_eff(ident: Identification, entry: str, orbit: ArrayLike) -> FloatArray:
+    w = np.atleast_1d(np.asarray(orbit, dtype=float))
+    g: FloatArray
     if entry == "xx":
         g = entry_gradient(ident, "C", "xx", w) - entry_gradient(ident, "K", "xy", w) / w[:, None]
     else:
@@ -133,7 +155,7 @@ def _c_eff(ident, entry, w):
     return g
 
 
-def _zero(ident, w, entry, cov):
+def _zero(ident: Identification, w: FloatArray, entry: str, cov: FloatArray | None) -> Zero | None:
     """First sign change of C_eff on the grid, refined by bisection; its std by the implicit
     function rule std(C_eff(Omega_0)) / |dC_eff/dOmega|."""
     vals = _c_eff(ident, entry, w) @ ident.theta
@@ -142,7 +164,7 @@ def _zero(ident, w, entry, cov):
         return None
     k = int(change[0])
 
-    def f(x):
+    def f(x: float) -> float:
         return float((_c_eff(ident, entry, x) @ ident.theta)[0])
 
     w0 = brentq(f, w[k], w[k + 1], xtol=1e-12 * w[k + 1])

@@ -28,8 +28,12 @@ effective variance at the given coefficients (first order in the displacement no
 
 from __future__ import annotations
 
-import numpy as np
+from collections.abc import Sequence
 
+import numpy as np
+from numpy.typing import ArrayLike
+
+from reduction.arrays import BoolArray, ComplexArray, FloatArray
 from reduction.errors import ReductionError
 from reduction.impedance import impedance, real_rows, regressors
 from reduction.models import ModelSpec
@@ -43,18 +47,18 @@ YARDSTICK_MAX = 64  # at most this many frequencies in the yardstick design
 REFERENCE_MAX = 4096  # the same-frequency reference of a long table uses this many of its frequencies
 
 
-def orbit_shapes(x, y) -> tuple[np.ndarray, np.ndarray]:
+def orbit_shapes(x: ArrayLike, y: ArrayLike) -> tuple[BoolArray, ComplexArray]:
     """(forward (n,) bool, shapes (n, 2) complex): each orbit's unit-norm (x, y) with the
     phase of its dominant whirl component removed; a zero orbit has shape (0, 0)."""
-    x, y = np.asarray(x, dtype=complex), np.asarray(y, dtype=complex)
-    v = np.stack([x, y], axis=1)
-    a_f, a_b = (x + 1j * y) / 2, (x - 1j * y) / 2
-    forward = np.imag(np.conj(x) * y) < 0
+    xc, yc = np.asarray(x, dtype=complex), np.asarray(y, dtype=complex)
+    v = np.stack([xc, yc], axis=1)
+    a_f, a_b = (xc + 1j * yc) / 2, (xc - 1j * yc) / 2
+    forward: BoolArray = np.imag(np.conj(xc) * yc) < 0
     dom = np.where(forward, a_f, a_b)
     size = np.linalg.norm(v, axis=1)
     ok = (size > 0) & (np.abs(dom) > 0)
     phase = np.where(ok, dom / np.where(ok, np.abs(dom), 1.0), 1.0)
-    shapes = np.where(ok[:, None], v / (np.where(ok, size, 1.0) * phase)[:, None], 0.0)
+    shapes: ComplexArray = np.where(ok[:, None], v / (np.where(ok, size, 1.0) * phase)[:, None], 0.0)
     return forward, shapes
 
 
@@ -84,7 +88,7 @@ def idealised_design(table: OrbitTable, spread: float = SHAPE_SPREAD) -> tuple[n
     return ideal[:, 0], ideal[:, 1], fixed
 
 
-def reference_design(orbit) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def reference_design(orbit: ArrayLike) -> tuple[FloatArray, ComplexArray, ComplexArray]:
     """(orbit, x, y): forward and backward unit circles at every distinct frequency (a long
     table's: at ``REFERENCE_MAX`` of them, evenly picked in order)."""
     w = np.unique(np.asarray(orbit, dtype=float))
@@ -96,7 +100,9 @@ def reference_design(orbit) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return w2, x, y
 
 
-def yardstick_design(orbit, min_frequencies: int, directions: str = "both") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def yardstick_design(
+    orbit: ArrayLike, min_frequencies: int, directions: str = "both"
+) -> tuple[FloatArray, ComplexArray, ComplexArray]:
     """(orbit, x, y): unit circles in ``directions`` (the whirl directions the table has:
     "forward" | "backward" | "both") at as many frequencies as the table has distinct ones
     (at least ``min_frequencies``, at most ``YARDSTICK_MAX``), spread evenly from
@@ -109,7 +115,9 @@ def yardstick_design(orbit, min_frequencies: int, directions: str = "both") -> t
     return design_orbits(np.linspace(top / YARDSTICK_SPAN, top, count) / (2 * np.pi), directions, 1.0)
 
 
-def design_orbits(orbit_hz, directions, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def design_orbits(
+    orbit_hz: ArrayLike, directions: str | Sequence[str], radius: float
+) -> tuple[FloatArray, ComplexArray, ComplexArray]:
     """(orbit rad/s, x, y m) of circular orbits of ``radius`` (m) at ``orbit_hz`` (Hz), one
     row per (frequency, direction); directions: "forward" | "backward" | "both" per
     frequency (one value for all, or one per frequency)."""
@@ -117,35 +125,40 @@ def design_orbits(orbit_hz, directions, radius: float) -> tuple[np.ndarray, np.n
     dirs = [directions] * hz.size if isinstance(directions, str) else list(directions)
     if len(dirs) != hz.size:
         raise ReductionError("design_orbits: one direction per frequency, or one for all")
-    w, y = [], []
+    w: list[float] = []
+    y: list[complex] = []
     for f, d in zip(hz, dirs):
         if d not in ("forward", "backward", "both"):
             raise ReductionError(f"design_orbits: unknown direction {d!r}")
-        for sign in ((-1j,) if d == "forward" else (1j,) if d == "backward" else (-1j, 1j)):
+        for sign in (-1j,) if d == "forward" else (1j,) if d == "backward" else (-1j, 1j):
             w.append(2 * np.pi * f)
             y.append(sign * radius)
     return np.array(w), np.full(len(w), complex(radius)), np.array(y)
 
 
-def predicted_covariance(spec: ModelSpec, orbit, x, y, u, theta=None) -> np.ndarray:
+def predicted_covariance(
+    spec: ModelSpec, orbit: ArrayLike, x: ArrayLike, y: ArrayLike, u: ArrayLike, theta: ArrayLike | None = None
+) -> FloatArray:
     """Cramer-Rao bound (p, p) of the free coefficients (SI, column order of ``spec``) for a
     design: orbit (rad/s), x, y (m) per row, u the standard uncertainties sqrt(E|err|^2) of
     the averaged phasors x, y (m), fx, fy (N) - (n, 4) or (4,) for every row. theta (the
     coefficients at which displacement noise is propagated through Z) may be omitted when
     u_x = u_y = 0. Raises ReductionError when the design cannot identify ``spec``."""
-    orbit = np.asarray(orbit, dtype=float)
-    u = np.broadcast_to(np.asarray(u, dtype=float), (orbit.size, 4))
+    w = np.asarray(orbit, dtype=float)
+    noise = np.broadcast_to(np.asarray(u, dtype=float), (w.size, 4))
     if theta is None:
-        if np.any(u[:, :2] > 0):
+        if np.any(noise[:, :2] > 0):
             raise ReductionError("predicted_covariance: displacement noise needs the coefficients theta")
         theta = np.zeros(spec.n_coefficients)
-    A = real_rows(regressors(spec, orbit, x, y))
-    var = equation_variances(u, impedance(spec, theta, orbit))
+    A = real_rows(regressors(spec, w, x, y))
+    var = equation_variances(noise, impedance(spec, theta, w))
     if np.any(var <= 0):
         raise ReductionError("predicted_covariance: every equation needs a noise > 0")
     if A.shape[0] < A.shape[1]:
-        raise ReductionError(f"predicted_covariance: {A.shape[0]} real equations cannot identify "
-                             f"{A.shape[1]} coefficients (need at least {-(-A.shape[1] // 4)} orbit frequencies)")
+        raise ReductionError(
+            f"predicted_covariance: {A.shape[0]} real equations cannot identify "
+            f"{A.shape[1]} coefficients (need at least {-(-A.shape[1] // 4)} orbit frequencies)"
+        )
     Aw = A / np.sqrt(var)[:, None]
     c = np.linalg.norm(Aw, axis=0)
     c = np.where(c > 0, c, 1.0)
@@ -153,4 +166,5 @@ def predicted_covariance(spec: ModelSpec, orbit, x, y, u, theta=None) -> np.ndar
     if s[-1] <= 1e-12 * s[0]:
         raise ReductionError("predicted_covariance: the design cannot identify this model (rank-deficient)")
     cov_s = (Vt.T / s**2) @ Vt
-    return cov_s / np.outer(c, c)
+    cov: FloatArray = cov_s / np.outer(c, c)
+    return cov

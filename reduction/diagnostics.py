@@ -42,8 +42,11 @@ class FitRows(Sequence[dict[str, float | None]]):
         """Rows start..stop as JSON objects joined by ", " (NaN written as null): orbit_hz
         exactly, the errors to 7 significant digits (percent and degrees need no more)."""
         cols = [self.columns[k][start:stop].tolist() for k in FIT_KEYS]
-        text = ", ".join('{"orbit_hz": %r, "fx_amp_err_pct": %.6e, "fx_phase_err_deg": %.6e, '
-                         '"fy_amp_err_pct": %.6e, "fy_phase_err_deg": %.6e}' % row for row in zip(*cols))
+        text = ", ".join(
+            '{"orbit_hz": %r, "fx_amp_err_pct": %.6e, "fx_phase_err_deg": %.6e, '
+            '"fy_amp_err_pct": %.6e, "fy_phase_err_deg": %.6e}' % row
+            for row in zip(*cols)
+        )
         return text.replace("nan", "null").replace("-inf", "null").replace("inf", "null")
 
 

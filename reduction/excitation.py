@@ -29,7 +29,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from reduction.arrays import ComplexArray, FloatArray
 from reduction.table import OrbitTable
 
 CLEAR_REFUSE = 3.0  # excitation below 3 x its noise: no shape (left out of the design)
@@ -65,8 +67,9 @@ class SignalDesign:
         return bool(self.removed)
 
 
-def displacement_noise(table: OrbitTable, residual: np.ndarray | None = None,
-                       Z: np.ndarray | None = None, dof: int = 0) -> np.ndarray:
+def displacement_noise(
+    table: OrbitTable, residual: np.ndarray | None = None, Z: np.ndarray | None = None, dof: int = 0
+) -> np.ndarray:
     """(n, 2) noise u_x, u_y (m) of each row's displacement phasors: the table's u_* columns,
     else the equivalent displacement noise of the real residual (4n,) through Z (n, 2, 2):
     u_d^2 = 2 s^2 / ||Z_k||_F^2 per component, s^2 = RSS / dof per real equation; never
@@ -74,40 +77,44 @@ def displacement_noise(table: OrbitTable, residual: np.ndarray | None = None,
     size = np.sqrt(np.abs(table.x) ** 2 + np.abs(table.y) ** 2)
     floor = np.repeat((CROSS_TALK * size)[:, None], 2, axis=1)
     if table.u is not None:
-        return np.maximum(table.u[:, :2], floor)
+        measured: FloatArray = np.maximum(table.u[:, :2], floor)
+        return measured
     if residual is None or Z is None or dof <= 0:
         return floor
     s2 = float(residual @ residual) / dof
     zf2 = np.sum(np.abs(Z) ** 2, axis=(1, 2))
     u = np.sqrt(np.where(zf2 > 0, 2 * s2 / np.where(zf2 > 0, zf2, 1.0), 0.0))
-    return np.maximum(u[:, None], floor)
+    equivalent: FloatArray = np.maximum(u[:, None], floor)
+    return equivalent
 
 
-def excitation_ratios(x, y, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def excitation_ratios(x: ArrayLike, y: ArrayLike, u: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:
     """(major, minor, axis): the singular values of the orbit-shape matrix of rows x, y (m,
     last axis) over the square root of the noise energy along their directions (u (..., n, 2)
     the rows' u_x, u_y), and the main axis (..., 2). Leading axes are a batch of tables."""
-    x, y = np.asarray(x, dtype=complex), np.asarray(y, dtype=complex)
-    xy = np.sum((x * np.conj(y)).real, axis=-1)
-    gram = np.stack([np.stack([np.sum(np.abs(x) ** 2, axis=-1), xy], -1),
-                     np.stack([xy, np.sum(np.abs(y) ** 2, axis=-1)], -1)], -2)  # S S^T, (..., 2, 2)
+    xc, yc = np.asarray(x, dtype=complex), np.asarray(y, dtype=complex)
+    xy = np.sum((xc * np.conj(yc)).real, axis=-1)
+    gram = np.stack(
+        [np.stack([np.sum(np.abs(xc) ** 2, axis=-1), xy], -1), np.stack([xy, np.sum(np.abs(yc) ** 2, axis=-1)], -1)], -2
+    )  # S S^T, (..., 2, 2)
     s2, U = np.linalg.eigh(gram)  # ascending: minor first
     energy = np.einsum("...ij,...i->...j", U**2, np.sum(np.asarray(u, dtype=float) ** 2, axis=-2))
     s = np.sqrt(np.clip(s2, 0.0, None))
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(energy > 0, s / np.sqrt(np.where(energy > 0, energy, 1.0)), np.inf)
+        ratio: FloatArray = np.where(energy > 0, s / np.sqrt(np.where(energy > 0, energy, 1.0)), np.inf)
     ratio = np.where(s > 0, ratio, 0.0)
-    return ratio[..., 1], ratio[..., 0], U[..., :, 1]
+    axis: FloatArray = U[..., :, 1]
+    return ratio[..., 1], ratio[..., 0], axis
 
 
-def _judge(name: str, x, y, u) -> GroupSignal:
+def _judge(name: str, x: ComplexArray, y: ComplexArray, u: FloatArray) -> GroupSignal:
     major, minor, axis = excitation_ratios(x, y, u)
     return GroupSignal(name, x.size, float(major), float(minor), axis)
 
 
-def _project(x, y, axis):
+def _project(x: ComplexArray, y: ComplexArray, axis: FloatArray) -> tuple[ComplexArray, ComplexArray]:
     """Rows projected onto the real axis (the orbit flattened to a line along it)."""
-    along = axis[0] * x + axis[1] * y
+    along: ComplexArray = axis[0] * x + axis[1] * y
     return axis[0] * along, axis[1] * along
 
 
@@ -128,8 +135,10 @@ def signal_design(table: OrbitTable, noise: np.ndarray) -> SignalDesign:
             removed.append(f"the {name} ({g.rows}): excitation {g.major:.2g} times its noise")
         elif g.minor < CLEAR_REFUSE:
             x[rows], y[rows] = _project(x[rows], y[rows], g.axis)
-            removed.append(f"the {name} ({g.rows}): excitation across the orbits' main axis "
-                           f"({_angle(g.axis)}) {g.minor:.2g} times its noise")
+            removed.append(
+                f"the {name} ({g.rows}): excitation across the orbits' main axis "
+                f"({_angle(g.axis)}) {g.minor:.2g} times its noise"
+            )
         elif g.minor < CLEAR_WARN:
             weak.append(f"the {name} ({g.rows}): excitation across the main axis {g.minor:.2g} times its noise")
     g = _judge("table", table.x, table.y, noise)
@@ -137,14 +146,16 @@ def signal_design(table: OrbitTable, noise: np.ndarray) -> SignalDesign:
     if g.major >= CLEAR_REFUSE and g.minor < CLEAR_REFUSE:
         x, y = _project(x, y, g.axis)
         if not removed:
-            removed.append(f"the whole table ({g.rows} rows): excitation across the orbits' main axis "
-                           f"({_angle(g.axis)}) {g.minor:.2g} times its noise")
+            removed.append(
+                f"the whole table ({g.rows} rows): excitation across the orbits' main axis "
+                f"({_angle(g.axis)}) {g.minor:.2g} times its noise"
+            )
     elif CLEAR_REFUSE <= g.minor < CLEAR_WARN and not weak:
         weak.append(f"the whole table: excitation across the main axis {g.minor:.2g} times its noise")
     return SignalDesign(x, y, groups, removed, weak)
 
 
-def _angle(axis) -> str:
+def _angle(axis: FloatArray) -> str:
     deg = round(float(np.degrees(np.arctan2(axis[1], axis[0])))) % 180
     return f"main axis at {deg} deg from x"
 
@@ -155,7 +166,10 @@ def signal_warning(design: SignalDesign) -> str | None:
     parts = design.removed + design.weak
     if not parts:
         return None
-    return ("weak excitation: the displacement is not clear of its noise in " + "; ".join(parts)
-            + f" (orbitrig wants at least {CLEAR_WARN:g} times; u_x, u_y, else the residual's equivalent). "
-            "The coefficients this direction drives are poorly determined; a larger orbit in that "
-            "direction (forward and backward circles) would determine them.")
+    return (
+        "weak excitation: the displacement is not clear of its noise in "
+        + "; ".join(parts)
+        + f" (orbitrig wants at least {CLEAR_WARN:g} times; u_x, u_y, else the residual's equivalent). "
+        "The coefficients this direction drives are poorly determined; a larger orbit in that "
+        "direction (forward and backward circles) would determine them."
+    )

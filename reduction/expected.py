@@ -29,6 +29,7 @@ def noise_free_fit(ident: Identification, table: OrbitTable, z: np.ndarray) -> d
         raise ValueError(f"the impedance has shape {z.shape}, the table {len(table.orbit)} rows")
     fx, fy = forces(z, table.x, table.y)
     freq_dep = f"power:{ident.exponent}" if ident.freq_dep == "power:auto" else ident.freq_dep
-    exact = identify(dataclasses.replace(table, fx=fx, fy=fy), model=ident.model, freq_dep=freq_dep,
-                     method=ident.method)
+    exact = identify(
+        dataclasses.replace(table, fx=fx, fy=fy), model=ident.model, freq_dep=freq_dep, method=ident.method
+    )
     return {k: float(v) for k, v in exact.coefficients.items()}

@@ -67,8 +67,7 @@ def harmonic_fit(samples: ArrayLike, theta: ArrayLike, harmonic: int = 1, axis: 
     scale = np.sum(one, axis=-1)[..., None, None]
     det = np.linalg.det(N / scale)
     if np.any(np.abs(det) < 1e-10):
-        raise ReductionError(
-            f"the sample angles cannot resolve harmonic {harmonic} (need at least 3 distinct phases)")
+        raise ReductionError(f"the sample angles cannot resolve harmonic {harmonic} (need at least 3 distinct phases)")
     batch = np.broadcast_shapes(N.shape[:-2], rhs.shape[:-1])
     N, rhs = np.broadcast_to(N, batch + (3, 3)), np.broadcast_to(rhs, batch + (3,))
     coef = np.linalg.solve(N, rhs[..., None])[..., 0]

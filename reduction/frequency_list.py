@@ -25,10 +25,13 @@ fewest frequencies whose best list reaches it.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from reduction.arrays import FloatArray
 from reduction.design import design_orbits, predicted_covariance
 from reduction.errors import ReductionError
 from reduction.models import ModelSpec
@@ -55,13 +58,14 @@ class DesignProblem:
     scales: np.ndarray | None = None  # (p,) what "relative" divides by; None: coefficient_scales
     noise_ratios: np.ndarray | None = None  # (m,) ratios where u_revolution (m, 4) was measured
 
-    def noise_at(self, ratios) -> np.ndarray:
+    def noise_at(self, ratios: ArrayLike) -> FloatArray:
         """(n, 4) per-revolution noise at ``ratios``: the stated (4,), or the measured
         (m, 4) interpolated linearly in the ratio (held constant beyond the ends)."""
         r = np.asarray(ratios, dtype=float)
         u = np.asarray(self.u_revolution, dtype=float)
         if self.noise_ratios is None:
-            return np.broadcast_to(u, (r.size, 4)).copy()
+            stated: FloatArray = np.broadcast_to(u, (r.size, 4)).copy()
+            return stated
         order = np.argsort(self.noise_ratios)
         nr, u = np.asarray(self.noise_ratios, dtype=float)[order], u[order]
         return np.stack([np.interp(r, nr, u[:, c]) for c in range(4)], axis=1)
@@ -89,14 +93,14 @@ class Proposal:
     evaluated: int
 
 
-def coefficient_scales(spec: ModelSpec, theta, spin: float) -> np.ndarray:
+def coefficient_scales(spec: ModelSpec, theta: ArrayLike, spin: float) -> FloatArray:
     """(p,) size of each coefficient's matrix: RMS of the constant term's diagonal at theta,
     divided by spin^order (SI). A matrix whose diagonal is zero gets scale 1."""
-    theta = np.asarray(theta, dtype=float)
-    diag = {}
+    values = np.asarray(theta, dtype=float)
+    diag: dict[str, list[float]] = {}
     for j, t in enumerate(spec.terms):
         if t.order == 0 and t.entries[0][0] == t.entries[0][1]:
-            diag.setdefault(t.matrix, []).append(theta[j])
+            diag.setdefault(t.matrix, []).append(values[j])
     out = np.empty(spec.n_coefficients)
     for j, t in enumerate(spec.terms):
         size = float(np.sqrt(np.mean(np.square(diag.get(t.matrix, [0.0])))))
@@ -104,14 +108,17 @@ def coefficient_scales(spec: ModelSpec, theta, spin: float) -> np.ndarray:
     return out
 
 
-def predict(problem: DesignProblem, ratios, revolutions=None) -> ListPrediction:
+def predict(problem: DesignProblem, ratios: ArrayLike, revolutions: ArrayLike | None = None) -> ListPrediction:
     """Predicted (Cramer-Rao) standard errors of the list ``ratios`` (|Omega|/omega), each
     block averaging ``problem.revolutions``, or ``revolutions`` (one per ratio, in the order
     of ``ratios``, both directions alike)."""
     order = np.argsort(np.asarray(ratios, dtype=float), kind="stable")
     r = tuple(float(np.asarray(ratios, dtype=float)[i]) for i in order)
-    n = (np.full(len(r), float(problem.revolutions)) if revolutions is None
-         else np.asarray(revolutions, dtype=float)[order])
+    n = (
+        np.full(len(r), float(problem.revolutions))
+        if revolutions is None
+        else np.asarray(revolutions, dtype=float)[order]
+    )
     hz = np.asarray(r) * problem.spin / (2 * np.pi)
     orbit, x, y = design_orbits(hz, problem.directions, problem.radius)
     per = orbit.size // max(len(r), 1)
@@ -130,7 +137,7 @@ def predict(problem: DesignProblem, ratios, revolutions=None) -> ListPrediction:
     return ListPrediction(r, se, rel, float(np.max(rel)))
 
 
-def smooth_noise(ratios, u_revolution) -> np.ndarray:
+def smooth_noise(ratios: ArrayLike, u_revolution: ArrayLike) -> FloatArray:
     """(m, 4) per-revolution noise measured at ``ratios`` (m,), smoothed: per channel a
     straight line in the ratio through log u (least squares; the mean with fewer than three
     ratios). One block's noise figure scatters by about 1/sqrt(2 n); a design that trusted
@@ -141,13 +148,14 @@ def smooth_noise(ratios, u_revolution) -> np.ndarray:
         raise ReductionError("smooth_noise: every noise figure must be finite and > 0")
     logu = np.log(u)
     if r.size < 3 or np.ptp(r) == 0:
-        return np.exp(np.broadcast_to(np.mean(logu, axis=0), logu.shape)).copy()
+        mean: FloatArray = np.exp(np.broadcast_to(np.mean(logu, axis=0), logu.shape)).copy()
+        return mean
     coef = np.polyfit(r, logu, 1)  # (2, 4)
-    return np.exp(np.outer(r, coef[0]) + coef[1])
+    line: FloatArray = np.exp(np.outer(r, coef[0]) + coef[1])
+    return line
 
 
-def allowed_ratios(lo: float, hi: float, step: float = GRID_STEP,
-                   keep_away: float = RUNOUT_KEEP_AWAY) -> np.ndarray:
+def allowed_ratios(lo: float, hi: float, step: float = GRID_STEP, keep_away: float = RUNOUT_KEEP_AWAY) -> np.ndarray:
     """Grid of ratios in [lo, hi] (multiples of ``step``) at least ``keep_away`` from 1."""
     if not 0 < lo < hi:
         raise ReductionError(f"allowed_ratios: need 0 < lo < hi, got {lo:g}, {hi:g}")
@@ -159,28 +167,33 @@ def allowed_ratios(lo: float, hi: float, step: float = GRID_STEP,
     return grid
 
 
-def best_list(problem: DesignProblem, grid, count: int, score=None) -> tuple[ListPrediction, int]:
+def best_list(
+    problem: DesignProblem,
+    grid: ArrayLike,
+    count: int,
+    score: Callable[[ListPrediction], float] | None = None,
+) -> tuple[ListPrediction, int]:
     """The exchange algorithm's best list of ``count`` distinct grid ratios (and how many
     lists it evaluated); ``score(prediction) -> float`` is minimised, default the worst
     relative standard error."""
-    score = score or (lambda pred: pred.worst)
-    grid = np.unique(np.asarray(grid, dtype=float))
-    if not 1 <= count <= grid.size:
-        raise ReductionError(f"best_list: {count} frequencies from a grid of {grid.size}")
-    picks = list(np.unique(np.round(np.linspace(0, grid.size - 1, count)).astype(int)))
-    picks += [i for i in range(grid.size) if i not in picks][: count - len(picks)]
-    best = predict(problem, grid[picks])
-    best_score, evaluated = score(best), 1
+    judge = score or (lambda pred: pred.worst)
+    ratios = np.unique(np.asarray(grid, dtype=float))
+    if not 1 <= count <= ratios.size:
+        raise ReductionError(f"best_list: {count} frequencies from a grid of {ratios.size}")
+    picks = [int(i) for i in np.unique(np.round(np.linspace(0, ratios.size - 1, count)).astype(int))]
+    picks += [i for i in range(ratios.size) if i not in picks][: count - len(picks)]
+    best = predict(problem, ratios[picks])
+    best_score, evaluated = judge(best), 1
     for _ in range(MAX_PASSES):
         improved = False
         for pos in range(count):
-            for g in range(grid.size):
+            for g in range(ratios.size):
                 if g in picks:
                     continue
-                trial = picks[:pos] + [g] + picks[pos + 1:]
-                pred = predict(problem, grid[trial])
+                trial = picks[:pos] + [g] + picks[pos + 1 :]
+                pred = predict(problem, ratios[trial])
                 evaluated += 1
-                s = score(pred)
+                s = judge(pred)
                 if s < best_score * (1 - 1e-9):
                     best, best_score, picks, improved = pred, s, trial, True
         if not improved:
@@ -188,8 +201,9 @@ def best_list(problem: DesignProblem, grid, count: int, score=None) -> tuple[Lis
     return best, evaluated
 
 
-def time_to_target(problem: DesignProblem, prediction: ListPrediction, target: float,
-                   block_overhead: float = 0.0) -> float:
+def time_to_target(
+    problem: DesignProblem, prediction: ListPrediction, target: float, block_overhead: float = 0.0
+) -> float:
     """Predicted rig time (s) of a list whose blocks average just enough revolutions
     (:func:`revolutions_for`) to reach ``target`` (reduction.rig_time: trigger revolution
     included), plus ``block_overhead`` s per block."""
@@ -200,34 +214,42 @@ def time_to_target(problem: DesignProblem, prediction: ListPrediction, target: f
     return acquisition_time(prediction.ratios, problem.spin, n, problem.directions) + blocks * block_overhead
 
 
-def propose(problem: DesignProblem, grid, *, count: int | None = None, target: float | None = None,
-            block_overhead: float = 0.0) -> Proposal:
+def propose(
+    problem: DesignProblem,
+    grid: ArrayLike,
+    *,
+    count: int | None = None,
+    target: float | None = None,
+    block_overhead: float = 0.0,
+) -> Proposal:
     """Best list of ``count`` frequencies (lowest worst relative standard error), or, with
     ``target`` (a fraction), the list that reaches it in the least rig time: for every
     count, the list minimising :func:`time_to_target`; the cheapest count wins, so a
     per-block overhead favours fewer frequencies. ``reached`` says whether the stated
     ``problem.revolutions`` already reach the target (else :func:`revolutions_for` says
     how many the blocks need)."""
-    grid = np.unique(np.asarray(grid, dtype=float))
+    ratios = np.unique(np.asarray(grid, dtype=float))
     if target is None:
         if count is None:
             raise ReductionError("propose: give a count or a target")
-        best, n = best_list(problem, grid, min(count, grid.size))
+        best, n = best_list(problem, ratios, min(count, ratios.size))
         return Proposal(best, None, None, n)
     if not target > 0:
         raise ReductionError(f"propose: target must be > 0, got {target:g}")
-    def cost(pred):
+
+    def cost(pred: ListPrediction) -> float:
         return time_to_target(problem, pred, target, block_overhead)
-    total, best, best_cost = 0, None, float("inf")
-    top = grid.size if count is None else min(count, grid.size)
+
+    total, cheapest, best_cost = 0, None, float("inf")
+    top = ratios.size if count is None else min(count, ratios.size)
     for k in range(max(1, min(problem.spec.min_frequencies, top)), top + 1):
-        pred, n = best_list(problem, grid, k, score=cost)
+        pred, n = best_list(problem, ratios, k, score=cost)
         total += n
         if cost(pred) < best_cost:
-            best, best_cost = pred, cost(pred)
-    if best is None:
-        best = pred
-    return Proposal(best, target, best.worst <= target, total)
+            cheapest, best_cost = pred, cost(pred)
+    if cheapest is None:
+        cheapest = pred
+    return Proposal(cheapest, target, cheapest.worst <= target, total)
 
 
 def revolutions_for(prediction: ListPrediction, revolutions: int, target: float) -> int | None:

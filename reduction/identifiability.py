@@ -35,8 +35,12 @@ and generic elliptical orbits (whatever remains then is structural: no data sepa
 
 from __future__ import annotations
 
-import numpy as np
+from collections.abc import Sequence
 
+import numpy as np
+from numpy.typing import ArrayLike
+
+from reduction.arrays import FloatArray
 from reduction.design import YARDSTICK_SPAN, design_orbits, idealised_design, reference_design, yardstick_design
 from reduction.errors import IdentifiabilityError
 from reduction.excitation import SignalDesign
@@ -80,8 +84,11 @@ def combinations(rank: Rank, names: list[str]) -> list[str]:
         for j in np.flatnonzero(keep):
             a = theta[j]
             mag = abs(a)
-            factor = "" if abs(mag - 1) < 1e-6 else (
-                f"{round(mag)}*" if abs(mag - round(mag)) < 1e-6 * mag else f"{mag:.4g}*")
+            factor = (
+                ""
+                if abs(mag - 1) < 1e-6
+                else (f"{round(mag)}*" if abs(mag - round(mag)) < 1e-6 * mag else f"{mag:.4g}*")
+            )
             sign = "-" if a < 0 else "+"
             parts.append((sign, factor + names[j]))
         text = parts[0][1] + "".join(f" {s} {t}" for s, t in parts[1:])
@@ -103,7 +110,7 @@ def _determined(combo: str, all_combos: list[str]) -> str | None:
     return f"{tokens[0]} {flip} {tokens[2]}"
 
 
-def _stack(spec: ModelSpec, orbit, x, y) -> np.ndarray:
+def _stack(spec: ModelSpec, orbit: ArrayLike, x: ArrayLike, y: ArrayLike) -> FloatArray:
     return regression_rows(spec, orbit, x, y)
 
 
@@ -124,8 +131,7 @@ def _extra_frequencies(table: OrbitTable, count: int) -> np.ndarray:
     return np.linspace(lo, hi, count)
 
 
-def analyse(spec: ModelSpec, table: OrbitTable, A: np.ndarray | None = None,
-            rtol: float = RANK_RTOL) -> Rank:
+def analyse(spec: ModelSpec, table: OrbitTable, A: np.ndarray | None = None, rtol: float = RANK_RTOL) -> Rank:
     """Check that ``table`` identifies ``spec``; raise :class:`IdentifiabilityError` if not.
 
     Order of the checks: enough frequencies; the idealised design (each whirl direction at
@@ -159,10 +165,12 @@ def check_signal(spec: ModelSpec, table: OrbitTable, signal: SignalDesign, rtol:
     if not np.any(keep):
         raise IdentifiabilityError(
             f"{spec.model} with freq-dep {spec.freq_dep.text} cannot be identified from this table: no "
-            f"displacement is clear of its noise ({cause}); every coefficient is undetermined.", list(spec.names))
+            f"displacement is clear of its noise ({cause}); every coefficient is undetermined.",
+            list(spec.names),
+        )
     cleaned = table.with_phasors(signal.x, signal.y, table.fx, table.fy).subset(keep)
     if cleaned.n < spec.min_frequencies:
-        raise _refusal(spec, cleaned, None, None, rtol, "few", cause)
+        raise _too_few_clear(spec, cleaned, cause)
     x, y, _ = idealised_design(cleaned)
     if design_rank(spec, cleaned.orbit, x, y, rtol).deficiency:
         A = _stack(spec, cleaned.orbit, x, y)
@@ -170,7 +178,7 @@ def check_signal(spec: ModelSpec, table: OrbitTable, signal: SignalDesign, rtol:
         raise _refusal(spec, cleaned.with_phasors(x, y, cleaned.fx, cleaned.fy), A, rank, rtol, "signal", cause)
 
 
-def check_plan(model: str, freq_dep: str, orbit_hz, directions) -> None:
+def check_plan(model: str, freq_dep: str, orbit_hz: ArrayLike, directions: str | Sequence[str]) -> None:
     """Before a run: raise IdentifiabilityError when circular orbits at ``orbit_hz`` (Hz) in
     ``directions`` ("forward" | "backward" | "both", one for all or one per frequency) cannot
     identify ``model`` with ``freq_dep`` (power:auto: when no exponent M can)."""
@@ -191,7 +199,8 @@ def check_plan(model: str, freq_dep: str, orbit_hz, directions) -> None:
     raise IdentifiabilityError(
         f"{model} with freq-dep power:auto: no exponent M in {AUTO_EXPONENTS[0]}..{AUTO_EXPONENTS[-1]} "
         "is identifiable from the planned orbits.\n\n" + "\n\n".join(f"power:{m}: {e}" for m, e in refused.items()),
-        [f"power:{m}: {c}" for m, e in refused.items() for c in e.combinations])
+        [f"power:{m}: {c}" for m, e in refused.items() for c in e.combinations],
+    )
 
 
 def ill_conditioning(spec: ModelSpec, table: OrbitTable, rank: Rank) -> str | None:
@@ -223,62 +232,80 @@ def ill_conditioning(spec: ModelSpec, table: OrbitTable, rank: Rank) -> str | No
         return None
     inflation = np.maximum(np.sqrt(factors / _variance_factors(ref)) if relative else 0.0, absolute)
     order = np.argsort(-inflation)
-    weak = [spec.names[j] for j in order
-            if inflation[j] >= max(0.1 * inflation[order[0]], np.sqrt(ILL_CONDITIONED_RATIO))]
+    weak = [
+        spec.names[j] for j in order if inflation[j] >= max(0.1 * inflation[order[0]], np.sqrt(ILL_CONDITIONED_RATIO))
+    ]
     weak = weak or [spec.names[order[0]]]
     listed = ", ".join(weak[:WEAK_LISTED]) + (f" and {len(weak) - WEAK_LISTED} more" if len(weak) > WEAK_LISTED else "")
     n_yard = len(np.unique(yard_design[0]))
-    return (f"ill-conditioned: condition number {cond:.3g}, {cond / cond_ref:.3g} times that of the same "
-            f"frequencies with forward and backward circular orbits ({cond_ref:.3g}; orbitrig warns above "
-            f"{ILL_CONDITIONED_RATIO:g} times); standard errors up to {np.max(absolute):.3g} times those of "
-            f"{'forward and backward' if directions == 'both' else directions} circles at {n_yard} frequencies spread over 1/{YARDSTICK_SPAN:g} .. 1 of the "
-            f"highest (orbitrig warns above {MAX_SE_INFLATION:g} times); poorly determined: {listed}. Forward "
-            "and backward whirl of similar size at well separated frequencies would determine them.")
+    return (
+        f"ill-conditioned: condition number {cond:.3g}, {cond / cond_ref:.3g} times that of the same "
+        f"frequencies with forward and backward circular orbits ({cond_ref:.3g}; orbitrig warns above "
+        f"{ILL_CONDITIONED_RATIO:g} times); standard errors up to {np.max(absolute):.3g} times those of "
+        f"{'forward and backward' if directions == 'both' else directions} circles at {n_yard} frequencies spread over 1/{YARDSTICK_SPAN:g} .. 1 of the "
+        f"highest (orbitrig warns above {MAX_SE_INFLATION:g} times); poorly determined: {listed}. Forward "
+        "and backward whirl of similar size at well separated frequencies would determine them."
+    )
 
 
 def _variance_factors(rank: Rank) -> np.ndarray:
     """diag((A_s^T A_s)^-1) of the column-scaled regression (unit-noise variance factors)."""
     s = rank.singular_values[: rank.n_columns]
     with np.errstate(divide="ignore"):
-        return np.sum((rank.vt.T / s) ** 2, axis=1)
+        factors: FloatArray = np.sum((rank.vt.T / s) ** 2, axis=1)
+    return factors
 
 
-def _refusal(spec, table, A, rank, rtol, kind, cause="") -> IdentifiabilityError:
+def _too_few_clear(spec: ModelSpec, table: OrbitTable, cause: str) -> IdentifiabilityError:
+    """Fewer rows left than the model needs once the directions not clear of their noise
+    (``cause``) are taken out."""
+    p = spec.n_coefficients
+    head = f"{spec.model} with freq-dep {spec.freq_dep.text} ({p} coefficients) cannot be identified from this table"
+    return IdentifiabilityError(
+        f"{head}: the displacement is not clear of its noise in {cause}; the {table.n} rows left "
+        f"are fewer than the {spec.min_frequencies} orbit frequencies {p} coefficients need.",
+        list(spec.names),
+    )
+
+
+def _refusal(
+    spec: ModelSpec, table: OrbitTable, A: FloatArray, rank: Rank, rtol: float, kind: str, cause: str = ""
+) -> IdentifiabilityError:
     """kind: "few" (too few frequencies), "ideal" (the idealised one-shape-per-direction
     design is rank-deficient), "signal" (so is the design without the directions not clear
     of their noise, ``cause``) or "" (the regression itself is)."""
     p = spec.n_coefficients
     names = spec.names
     head = f"{spec.model} with freq-dep {spec.freq_dep.text} ({p} coefficients) cannot be identified from this table"
-    if kind == "few" and cause:
-        return IdentifiabilityError(
-            f"{head}: the displacement is not clear of its noise in {cause}; the {table.n} rows left "
-            f"are fewer than the {spec.min_frequencies} orbit frequencies {p} coefficients need.", list(names))
     combos = combinations(rank, names)
     lines = []
     if kind == "few":
         lines.append(
             f"{head}: too few orbit frequencies: {p} coefficients need at least {spec.min_frequencies} "
-            f"orbit frequencies (4 real equations each), the table has {table.n}.")
+            f"orbit frequencies (4 real equations each), the table has {table.n}."
+        )
     elif kind == "signal":
         lines.append(
             f"{head}: the excitation is not clear of the displacement noise in {cause} (u_x, u_y, "
             "else the residual's equivalent; at least 0.5 % of each orbit). Such a direction "
             "carries noise, not an orbit shape (e.g. a line orbit whose other axis is only probe "
-            "noise); without it the regression is rank-deficient.")
+            "noise); without it the regression is rank-deficient."
+        )
     elif kind == "ideal":
         lines.append(
             f"{head}: the orbits of each whirl direction have one common shape (idealised to it: "
             "a circle or the mean ellipse), and on that design the regression is rank-deficient; "
             "a fixed orbit shape separates nothing a circle cannot, and the orbits' small "
             "differences in shape are imperfection and noise, which would separate the terms "
-            "below only with meaningless precision.")
+            "below only with meaningless precision."
+        )
     else:
         lines.append(f"{head}: the regression is rank-deficient.")
     lines.append(
         f"The regression ({4 * table.n} real equations) has numerical rank {rank.rank} of {p} "
         f"(SVD of the column-scaled matrix, relative tolerance {rtol:g}). The forces do not change "
-        "when the coefficients move along these directions, so the coefficients in each cannot be separated:")
+        "when the coefficients move along these directions, so the coefficients in each cannot be separated:"
+    )
     for c in combos[:MAX_LISTED]:
         fixed = _determined(c, combos)
         lines.append(f"  {c}" + (f"   (only {fixed} is determined)" if fixed else ""))
@@ -286,14 +313,16 @@ def _refusal(spec, table, A, rank, rtol, kind, cause="") -> IdentifiabilityError
         lines.append(f"  ... and {len(combos) - MAX_LISTED} more")
     lines.append("What would separate them:")
     if kind == "signal":
-        lines.append("  - an excitation across the orbits' main axis well above the probe noise: forward and "
-                     "backward circular whirl, or ellipses whose minor axis stands clear of the noise.")
+        lines.append(
+            "  - an excitation across the orbits' main axis well above the probe noise: forward and "
+            "backward circular whirl, or ellipses whose minor axis stands clear of the noise."
+        )
     else:
         lines += ["  - " + h for h in _hints(spec, table, A, rank, rtol)]
     return IdentifiabilityError("\n".join(lines), combos)
 
 
-def _hints(spec, table, A, rank, rtol) -> list[str]:
+def _hints(spec: ModelSpec, table: OrbitTable, A: FloatArray, rank: Rank, rtol: float) -> list[str]:
     rng = np.random.default_rng(0)
     scale = float(np.sqrt(np.mean(np.abs(table.x) ** 2 + np.abs(table.y) ** 2)) or 1.0)
     n_gen = 3 * spec.min_frequencies + 3
@@ -304,9 +333,14 @@ def _hints(spec, table, A, rank, rtol) -> list[str]:
     mirrored = numerical_rank(np.vstack([A, mirror_rows]), rtol)
     idx = np.arange(n_gen) % table.n
     w_more = w_gen * 1.0137  # distinct from the table's
-    more = np.vstack([A, mirror_rows,
-                      _stack(spec, w_more, table.x[idx], table.y[idx]),
-                      _stack(spec, w_more, np.conj(table.x[idx]), np.conj(table.y[idx]))])
+    more = np.vstack(
+        [
+            A,
+            mirror_rows,
+            _stack(spec, w_more, table.x[idx], table.y[idx]),
+            _stack(spec, w_more, np.conj(table.x[idx]), np.conj(table.y[idx])),
+        ]
+    )
     more_rank = numerical_rank(more, rtol)
     hints = []
     structural = generic.deficiency
@@ -319,17 +353,21 @@ def _hints(spec, table, A, rank, rtol) -> list[str]:
                 hints.append(
                     f"every orbit in the table is a {whirl} circular whirl: forward plus backward whirl "
                     f"(adding {other}-whirl orbits at these frequencies) separates {resolved} of these "
-                    "directions; orbits of one fixed elliptical shape would not.")
+                    "directions; orbits of one fixed elliptical shape would not."
+                )
             else:
-                hints.append(f"orbits whirling the other way round at these frequencies (backward-whirl orbits "
-                             f"beside forward ones, or the reverse) separate {resolved} of these directions; "
-                             "orbits of the same fixed shape would not.")
+                hints.append(
+                    f"orbits whirling the other way round at these frequencies (backward-whirl orbits "
+                    f"beside forward ones, or the reverse) separate {resolved} of these directions; "
+                    "orbits of the same fixed shape would not."
+                )
         rest = mirrored.deficiency - more_rank.deficiency
         if rest > 0:
             distinct = len(np.unique(np.round(table.orbit, 9)))
             hints.append(
                 f"more distinct orbit frequencies (the table has {distinct}, each giving at most 8 real "
-                f"equations with both whirl directions) separate {rest} of these directions.")
+                f"equations with both whirl directions) separate {rest} of these directions."
+            )
         rest = more_rank.deficiency - structural
         if rest > 0:
             hints.append(f"non-circular (elliptical) orbits separate {rest} of these directions.")
@@ -338,5 +376,6 @@ def _hints(spec, table, A, rank, rtol) -> list[str]:
         hints.append(
             "no orbit data can separate " + ", ".join(gen_combos) + ": these terms have the same "
             "dependence on Omega for every orbit (e.g. Omega^2 K_2 and the inertia term -Omega^2 D); "
-            "use a model with fewer terms (e.g. no D matrix, or a lower order or another exponent).")
+            "use a model with fewer terms (e.g. no D matrix, or a lower order or another exponent)."
+        )
     return hints

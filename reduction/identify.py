@@ -47,14 +47,17 @@ import numpy as np
 
 from reduction import regression as reg
 from reduction import statistics as st
+from reduction.arrays import ComplexArray, FloatArray
 from reduction.attenuation import attenuation_bias, attenuation_warning
 from reduction.diagnostics import fit_errors, residual_rms
 from reduction.errors import IdentificationError, IdentifiabilityError, ReductionError
-from reduction.excitation import displacement_noise, signal_design, signal_warning
-from reduction.identifiability import RANK_RTOL, analyse, check_signal, ill_conditioning, numerical_rank
-from reduction.impedance import forces, impedance, impedance_basis, real_rows, regression, regressors
+from reduction.excitation import SignalDesign, displacement_noise, signal_design, signal_warning
+from reduction.identifiability import analyse, check_signal, ill_conditioning
+from reduction.impedance import forces, impedance, impedance_basis, regression, regressors
+from reduction.instruments import circle_instruments, circle_orbits
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
 from reduction.noise import coherence_variances, equation_variances
+from reduction.rank import RANK_RTOL, Rank
 from reduction.result import Identification
 from reduction.table import OrbitTable
 
@@ -73,12 +76,18 @@ class Method(StrEnum):
 
 
 METHODS = tuple(Method)
-IV_MAX_MISFIT = 0.3  # rms |d - circle| / rms |d| above which the circle instruments are refused
 
 
-def identify(table: OrbitTable, model: str = "kcd11", freq_dep: str = "none", method: str = "ols",
-             solver: str = "qr", *, rank_rtol: float = RANK_RTOL,
-             tls_ratio: float | None = None) -> Identification:
+def identify(
+    table: OrbitTable,
+    model: str = "kcd11",
+    freq_dep: str = "none",
+    method: str = "ols",
+    solver: str = "qr",
+    *,
+    rank_rtol: float = RANK_RTOL,
+    tls_ratio: float | None = None,
+) -> Identification:
     """Identify ``model`` (kc7 | kc8 | kcd11 | kcd12) with ``freq_dep`` (none | power:M |
     power:m,n,p | power:auto | poly:R) from ``table`` by ``method`` (ols | wls | tls | iv)
     using ``solver`` (qr | svd | lu) for the linear least-squares steps.
@@ -110,22 +119,28 @@ def identify(table: OrbitTable, model: str = "kcd11", freq_dep: str = "none", me
             f"{model} with freq-dep power:auto: no exponent M in "
             f"{AUTO_EXPONENTS[0]}..{AUTO_EXPONENTS[-1]} is identifiable from this table.\n\n"
             + "\n\n".join(f"power:{m}: {err}" for m, err in refused.items()),
-            [f"power:{m}: {c}" for m, err in refused.items() for c in err.combinations])
+            [f"power:{m}: {c}" for m, err in refused.items() for c in err.combinations],
+        )
     best_m = min(results, key=lambda m: results[m].cost)
     best = results[best_m]
     best.exponent = best_m
     best.freq_dep = "power:auto"
     best.skipped = {m: str(err) for m, err in refused.items()}
-    best.notes.append(f"power:auto chose the exponent M = {best_m} (least residual of M in "
-                      + ", ".join(str(m) for m in results) + ")"
-                      + (f"; not identifiable: M = {', '.join(str(m) for m in refused)}" if refused else ""))
+    best.notes.append(
+        f"power:auto chose the exponent M = {best_m} (least residual of M in "
+        + ", ".join(str(m) for m in results)
+        + ")"
+        + (f"; not identifiable: M = {', '.join(str(m) for m in refused)}" if refused else "")
+    )
     return best
 
 
-def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank_rtol: float,
-              tls_ratio: float | None) -> Identification:
+def _identify(
+    table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank_rtol: float, tls_ratio: float | None
+) -> Identification:
     A, b = _regression(spec, table)
-    known = table.u is not None
+    u = table.u
+    known = u is not None
     rank = analyse(spec, table, A, rank_rtol)  # raises when not identifiable
     c = rank.scale
     A_s = A
@@ -142,11 +157,11 @@ def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank
         est = reg.ols(A_s, b, solver, rank.unscaled_covariance(), x0)
     elif method == Method.WLS:
         est = reg.wls(A_s, b, 1.0 / var, solver, rank.unscaled_covariance())
-        if known:  # second pass: effective variances at the wls coefficients
-            var = equation_variances(table.u, impedance(spec, est.x / c, table.orbit))
+        if u is not None:  # second pass: effective variances at the wls coefficients
+            var = equation_variances(u, impedance(spec, est.x / c, table.orbit))
             est = reg.wls(A_s, b, 1.0 / var, solver)
     elif method == Method.IV:
-        Zi = _circle_instruments(spec, table, rank_rtol) / c
+        Zi = circle_instruments(spec, table, rank_rtol) / c
         est = reg.iv(A_s, Zi, b, solver)
         if known:
             Qz, _ = np.linalg.qr(Zi)
@@ -155,30 +170,33 @@ def _identify(table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank
         est = _tls(spec, table, A_s, b, c, solver, tls_ratio)
     theta = est.x / c
     Z = impedance(spec, theta, table.orbit)  # at the estimate: effective variances and the fit
-    if known:
-        var = equation_variances(table.u, Z)
-        if method == Method.OLS:
+    cov_s: FloatArray | None
+    if u is not None:
+        var = equation_variances(u, Z)
+        if method == Method.OLS and est.unscaled is not None:  # ols: always (reduction.regression._finish)
             cov_s = st.sandwich_rows(A_s, var, est.unscaled)
         else:
             cov_s = st.sandwich(P, var) if P is not None else est.unscaled
     else:
         cov_s = est.cov
-    ident = _result(spec, table, method, solver, est, theta, c, cov_s, rank, var if known else None,
-                    b - A_s @ est.x, Z)
+    ident = _result(spec, table, method, solver, est, theta, c, cov_s, rank, var if known else None, b - A_s @ est.x, Z)
     weak = signal_warning(signal)
     if weak:
         ident.warnings.insert(0, weak)
     if known and method in (Method.OLS, Method.WLS):
         unscaled = rank.unscaled_covariance() if method == Method.OLS else est.unscaled
-        bias = attenuation_bias(spec, table, theta, c, unscaled, None if method == Method.OLS else 1.0 / var)
-        std = np.sqrt(np.clip(np.diag(ident.covariance), 0, None))
-        eiv = attenuation_warning(spec, method, bias, std)
-        if eiv:
-            ident.warnings.append(eiv)
+        if unscaled is not None and ident.covariance is not None:  # both are, with u_* and ols or wls
+            bias = attenuation_bias(spec, table, theta, c, unscaled, None if method == Method.OLS else 1.0 / var)
+            std = np.sqrt(np.clip(np.diag(ident.covariance), 0, None))
+            eiv = attenuation_warning(spec, method, bias, std)
+            if eiv:
+                ident.warnings.append(eiv)
     return ident
 
 
-def _signal(spec, table, A_s, b, c, x0, rtol):
+def _signal(
+    spec: ModelSpec, table: OrbitTable, A_s: FloatArray, b: FloatArray, c: FloatArray, x0: FloatArray, rtol: float
+) -> SignalDesign:
     """The design without the displacement directions not clear of their noise (u_x, u_y,
     else the residual of a first ols fit); raises IdentifiabilityError when it cannot
     identify ``spec``."""
@@ -186,27 +204,33 @@ def _signal(spec, table, A_s, b, c, x0, rtol):
         noise = displacement_noise(table)
     else:
         theta0 = x0 / c
-        noise = displacement_noise(table, b - A_s @ x0, impedance(spec, theta0, table.orbit),
-                                   4 * table.n - spec.n_coefficients)
+        noise = displacement_noise(
+            table, b - A_s @ x0, impedance(spec, theta0, table.orbit), 4 * table.n - spec.n_coefficients
+        )
     design = signal_design(table, noise)
     check_signal(spec, table, design, rtol)
     return design
 
 
-def _regression(spec: ModelSpec, table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:
+def _regression(spec: ModelSpec, table: OrbitTable) -> tuple[FloatArray, FloatArray]:
     with np.errstate(over="ignore", invalid="ignore"):
         A, b = regression(spec, table.orbit, table.x, table.y, table.fx, table.fy)
-        finite = (np.all(np.isfinite(A)) and np.all(np.isfinite(b))
-                  and np.isfinite(np.linalg.norm(A)) and np.isfinite(np.linalg.norm(b)))
+        finite = (
+            np.all(np.isfinite(A))
+            and np.all(np.isfinite(b))
+            and np.isfinite(np.linalg.norm(A))
+            and np.isfinite(np.linalg.norm(b))
+        )
     if not finite:
         raise IdentificationError(
             f"{spec.model} with freq-dep {spec.freq_dep.text}: the regression exceeds the floating-point "
             "range (Omega^r times the displacements, or the forces, are too large); check the table's "
-            "units (orbit_hz in Hz, phasors in m and N)")
+            "units (orbit_hz in Hz, phasors in m and N)"
+        )
     return A, b
 
 
-def _variances(spec, table, theta0, b, method) -> np.ndarray:
+def _variances(spec: ModelSpec, table: OrbitTable, theta0: FloatArray, b: FloatArray, method: str) -> FloatArray:
     """Variances of the 4n equations: from u_* (effective, at a first ols fit), else from the
     coherences for wls, else ones."""
     if table.u is not None:
@@ -216,17 +240,32 @@ def _variances(spec, table, theta0, b, method) -> np.ndarray:
         floor = 1e-12 * float(np.max(var))
         if not floor > 0:
             raise IdentificationError("the table's u_* give no noise on any equation")
-        return np.maximum(var, floor)
+        floored: FloatArray = np.maximum(var, floor)
+        return floored
     if method != Method.WLS:
         return np.ones(b.shape)
     if table.gamma2 is None:
         raise IdentificationError(
             "--method wls needs u_x, u_y, u_fx, u_fy columns or coherence values (gamma2_xfx, gamma2_yfx, "
-            "gamma2_xfy, gamma2_yfy); the table has neither")
+            "gamma2_xfy, gamma2_yfy); the table has neither"
+        )
     return coherence_variances(table.gamma2, table.fx, table.fy, table.n_records)
 
 
-def _result(spec, table, method, solver, est, theta, c, cov_s, rank, var, r, Z) -> Identification:
+def _result(
+    spec: ModelSpec,
+    table: OrbitTable,
+    method: str,
+    solver: str,
+    est: reg.Estimate,
+    theta: FloatArray,
+    c: FloatArray,
+    cov_s: FloatArray | None,
+    rank: Rank,
+    var: FloatArray | None,
+    r: FloatArray,
+    Z: ComplexArray,
+) -> Identification:
     known = var is not None
     p, dof = spec.n_coefficients, 4 * table.n - spec.n_coefficients
     cov = None if cov_s is None else cov_s / np.outer(c, c)
@@ -234,33 +273,59 @@ def _result(spec, table, method, solver, est, theta, c, cov_s, rank, var, r, Z) 
     interval = st.Interval.NORMAL if known else st.Interval.STUDENT_T
     ci = st.intervals(theta, std, dof, interval=interval)
     notes, warnings = list(spec.notes), []
-    chi2 = p_value = None
-    if known:
+    chi2: float | None = None
+    p_value: float | None = None
+    if var is not None:
         chi2 = float(est.rss) if method == Method.TLS else float(np.sum(r**2 / var))
         p_value = st.chi2_p_value(chi2, dof)
-        notes.append("covariance, weights and chi2 from the table's u_x, u_y, u_fx, u_fy "
-                     "(force noise plus displacement noise through Z)")
+        notes.append(
+            "covariance, weights and chi2 from the table's u_x, u_y, u_fx, u_fy "
+            "(force noise plus displacement noise through Z)"
+        )
         bad = st.chi2_warning(chi2, dof, p_value)
         if bad:
             warnings.append(bad)
     elif method == Method.WLS:
-        notes.append("wls weights from the coherences (no u_* columns): per-record noise ratio "
-                     "(1 - gamma^2)/gamma^2 floored at 1/n_records")
-    aic, bic = st.information_criteria(chi2 if known else est.rss, 4 * table.n, p, known)
+        notes.append(
+            "wls weights from the coherences (no u_* columns): per-record noise ratio "
+            "(1 - gamma^2)/gamma^2 floored at 1/n_records"
+        )
+    aic, bic = st.information_criteria(chi2 if chi2 is not None else est.rss, 4 * table.n, p, known)
     ill = ill_conditioning(spec, table, rank)
     if ill:
         warnings.append(ill)
     ident = Identification(
-        model=spec.model, freq_dep=spec.freq_dep.text, method=str(method),
-        n_coefficients=p, min_frequencies=spec.min_frequencies, n_frequencies=table.n,
+        model=spec.model,
+        freq_dep=spec.freq_dep.text,
+        method=str(method),
+        n_coefficients=p,
+        min_frequencies=spec.min_frequencies,
+        n_frequencies=table.n,
         coefficients={k: float(v) for k, v in spec.expand(theta).items()},
         std_errors={k: (None if not np.isfinite(v) else float(v)) for k, v in spec.expand(std).items()},
-        condition_number=rank.condition_number, residual_rms=0.0, fit=[], solver=solver,
-        spec=spec, theta=theta, cost=est.rss, free=spec.names, covariance=cov, dof=dof,
-        confidence_95={k: (None if not np.all(np.isfinite(v)) else (float(v[0]), float(v[1])))
-                       for k, v in spec.expand(list(ci)).items()},
-        chi2=chi2, p_value=p_value, aic=aic, bic=bic, notes=notes, warnings=warnings, known_noise=known,
-        interval=interval)
+        condition_number=rank.condition_number,
+        residual_rms=0.0,
+        fit=[],
+        solver=solver,
+        spec=spec,
+        theta=theta,
+        cost=est.rss,
+        free=spec.names,
+        covariance=cov,
+        dof=dof,
+        confidence_95={
+            k: (None if not np.all(np.isfinite(v)) else (float(v[0]), float(v[1])))
+            for k, v in spec.expand(list(ci)).items()
+        },
+        chi2=chi2,
+        p_value=p_value,
+        aic=aic,
+        bic=bic,
+        notes=notes,
+        warnings=warnings,
+        known_noise=known,
+        interval=interval,
+    )
     half = st.quantile(interval, dof) * np.asarray(list(spec.expand(std).values()))
     ident.not_determined = st.not_determined(ident.coefficients, dict(zip(ident.coefficients, half)))
     fx_rep, fy_rep = forces(Z, table.x, table.y)  # ident.reproduce(table), Z computed once
@@ -269,7 +334,15 @@ def _result(spec, table, method, solver, est, theta, c, cov_s, rank, var, r, Z) 
     return ident
 
 
-def _tls(spec, table, A_s, b, c, solver, ratio):
+def _tls(
+    spec: ModelSpec,
+    table: OrbitTable,
+    A_s: FloatArray,
+    b: FloatArray,
+    c: FloatArray,
+    solver: str,
+    ratio: float | None,
+) -> reg.Estimate:
     d = np.stack([table.x, table.y], axis=1)
     f = np.stack([table.fx, table.fy], axis=1)
     if table.u is not None:
@@ -286,39 +359,3 @@ def _tls(spec, table, A_s, b, c, solver, ratio):
     G = regressors(spec, table.orbit, table.x, table.y) / c
     E = impedance_basis(spec, table.orbit) / c[None, :, None, None]
     return reg.structured_tls(G, f, E, var_f, var_d, x0)
-
-
-def circle_orbits(table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:
-    """The iv instruments' orbits: per row, the circle of the row's dominant whirl direction
-    whose complex radius is the mean of that direction's dominant component over the OTHER
-    rows of the same direction (leave-one-out). Returns (x_hat, y_hat), m."""
-    a_f, a_b = table.whirl_components()
-    forward = np.abs(a_f) >= np.abs(a_b)
-    a = np.where(forward, a_f, a_b)
-    x_hat = np.empty(table.n, dtype=complex)
-    for direction in (True, False):
-        rows = np.flatnonzero(forward == direction)
-        if rows.size == 1:
-            raise IdentificationError(
-                "iv needs at least two orbits of each whirl direction present "
-                "(the instruments are leave-one-out circles)")
-        if rows.size:
-            x_hat[rows] = (np.sum(a[rows]) - a[rows]) / (rows.size - 1)
-    y_hat = np.where(forward, -1j, 1j) * x_hat
-    return x_hat, y_hat
-
-
-def _circle_instruments(spec: ModelSpec, table: OrbitTable, rank_rtol: float) -> np.ndarray:
-    x_hat, y_hat = circle_orbits(table)
-    misfit = np.sqrt(np.mean(np.abs(table.x - x_hat) ** 2 + np.abs(table.y - y_hat) ** 2)
-                     / np.mean(np.abs(table.x) ** 2 + np.abs(table.y) ** 2))
-    if misfit > IV_MAX_MISFIT:
-        raise IdentificationError(
-            f"iv: the orbits are not circles of common radius and trigger phase (misfit {misfit:.0%} "
-            f"> {IV_MAX_MISFIT:.0%}), so the circle instruments do not fit this table; use --method tls")
-    Z = real_rows(regressors(spec, table.orbit, x_hat, y_hat))
-    if numerical_rank(Z, rank_rtol).deficiency:
-        raise IdentificationError(
-            "iv: the circular-orbit instruments cannot separate this model's coefficients "
-            "(e.g. a single whirl direction); use --method tls")
-    return Z

@@ -10,20 +10,30 @@ shape (circular forward or backward, elliptical, ...).
 
 from __future__ import annotations
 
-import numpy as np
+from collections.abc import Callable
 
+import numpy as np
+from numpy.typing import ArrayLike
+
+from reduction.arrays import ComplexArray, FloatArray
 from reduction.models import ModelSpec
 
 # Omega-factor of each matrix inside Z
-_FACTOR = {"K": lambda w: np.ones_like(w, dtype=complex),
-           "C": lambda w: 1j * w,
-           "D": lambda w: -(w.astype(complex) ** 2)}
+_FACTOR: dict[str, Callable[[FloatArray], ComplexArray]] = {
+    "K": lambda w: np.ones_like(w, dtype=complex),
+    "C": lambda w: np.asarray(1j * w, dtype=complex),
+    "D": lambda w: -(w.astype(complex) ** 2),
+}
 
 
-_last_basis: tuple = (None, b"", None)  # (spec, orbit key, E): one identification reuses its basis
+_last_basis: tuple[ModelSpec | None, bytes, ComplexArray | None] = (
+    None,
+    b"",
+    None,
+)  # (spec, orbit key, E): one identification reuses its basis
 
 
-def impedance_basis(spec: ModelSpec, orbit) -> np.ndarray:
+def impedance_basis(spec: ModelSpec, orbit: ArrayLike) -> ComplexArray:
     """E with Z(Omega_k) = sum_j theta_j E[k, j]: shape (n, p, 2, 2), complex (N/m per unit).
 
     Read-only; the last (spec, orbit) pair's basis is kept and reused.
@@ -32,10 +42,10 @@ def impedance_basis(spec: ModelSpec, orbit) -> np.ndarray:
     key = w.tobytes() + str(w.shape).encode()
     global _last_basis
     last_spec, last_key, last_E = _last_basis  # one read: another thread may replace it
-    if last_spec is spec and last_key == key:
+    if last_spec is spec and last_key == key and last_E is not None:
         return last_E
     factor = {m: f(w) for m, f in _FACTOR.items()}
-    powers = {}
+    powers: dict[int, FloatArray] = {}
     E = np.zeros(w.shape + (spec.n_coefficients, 2, 2), dtype=complex)
     for j, t in enumerate(spec.terms):
         if t.order not in powers:
@@ -52,10 +62,10 @@ _PHASE = {"K": (1.0, 0), "C": (1j, 1), "D": (-1.0, 2)}
 IMPEDANCE_ROWS = 65536  # orbit frequencies per block: the (rows, p) complex Omega factors stay small  # Omega-factor of each matrix: phase x Omega^k
 
 
-def impedance_columns(spec: ModelSpec, w: np.ndarray) -> np.ndarray:
+def impedance_columns(spec: ModelSpec, w: FloatArray) -> ComplexArray:
     """(n, p) complex: each free coefficient's Omega factor (1, i Omega or -Omega^2, times
     Omega^r) - the one nonzero value its basis matrix holds at its entries."""
-    powers = {}
+    powers: dict[int, FloatArray] = {}
     out = np.empty(w.shape + (spec.n_coefficients,), dtype=complex)
     for j, t in enumerate(spec.terms):
         phase, k = _PHASE[t.matrix]
@@ -66,7 +76,7 @@ def impedance_columns(spec: ModelSpec, w: np.ndarray) -> np.ndarray:
     return out
 
 
-def regressors(spec: ModelSpec, orbit, x, y) -> np.ndarray:
+def regressors(spec: ModelSpec, orbit: ArrayLike, x: ArrayLike, y: ArrayLike) -> ComplexArray:
     """G with (fx, fy)_k = G[k] @ theta: shape (n, 2, p), complex, G = -E d (N per unit)."""
     w = np.atleast_1d(np.asarray(orbit, dtype=float))
     d = np.stack([np.asarray(x, dtype=complex), np.asarray(y, dtype=complex)], axis=-1)
@@ -78,7 +88,7 @@ def regressors(spec: ModelSpec, orbit, x, y) -> np.ndarray:
     return G
 
 
-def regression_rows(spec: ModelSpec, orbit, x, y) -> np.ndarray:
+def regression_rows(spec: ModelSpec, orbit: ArrayLike, x: ArrayLike, y: ArrayLike) -> FloatArray:
     """real_rows(regressors(...)) filled column by column: (4n, p) real, no (n, 2, p)
     complex intermediate (rows Re fx, Im fx, Re fy, Im fy per orbit frequency)."""
     w = np.atleast_1d(np.asarray(orbit, dtype=float))
@@ -88,51 +98,53 @@ def regression_rows(spec: ModelSpec, orbit, x, y) -> np.ndarray:
         e = min(s + IMPEDANCE_ROWS, w.shape[0])
         cols = impedance_columns(spec, w[s:e])
         for j, t in enumerate(spec.terms):
-            column = A[4 * s: 4 * e, j]
+            column = A[4 * s : 4 * e, j]
             for i, l in t.entries:
                 g = cols[:, j] * d[l][s:e]
-                column[2 * i::4] -= g.real
-                column[2 * i + 1::4] -= g.imag
+                column[2 * i :: 4] -= g.real
+                column[2 * i + 1 :: 4] -= g.imag
     return A
 
 
-def impedance(spec: ModelSpec, theta, orbit) -> np.ndarray:
+def impedance(spec: ModelSpec, theta: ArrayLike, orbit: ArrayLike) -> ComplexArray:
     """Z(Omega) for coefficient values theta (column order): shape (n, 2, 2), N/m."""
     w = np.atleast_1d(np.asarray(orbit, dtype=float))
-    theta = np.asarray(theta, dtype=float).astype(complex)
+    coefficients = np.asarray(theta, dtype=float).astype(complex)
     Z = np.zeros(w.shape + (2, 2), dtype=complex)
     filling = _filling(spec).items()
     for s in range(0, max(w.shape[0], 1), IMPEDANCE_ROWS):
-        cols = impedance_columns(spec, w[s: s + IMPEDANCE_ROWS])
+        cols = impedance_columns(spec, w[s : s + IMPEDANCE_ROWS])
         for (i, l), J in filling:
-            Z[s: s + IMPEDANCE_ROWS, i, l] = cols[:, J] @ theta[J]
+            Z[s : s + IMPEDANCE_ROWS, i, l] = cols[:, J] @ coefficients[J]
     return Z
 
 
 def _filling(spec: ModelSpec) -> dict[tuple[int, int], list[int]]:
     """Z's entry (i, l) -> the free coefficients whose basis fills it."""
-    out = {}
+    out: dict[tuple[int, int], list[int]] = {}
     for j, t in enumerate(spec.terms):
         for i, l in t.entries:
             out.setdefault((i, l), []).append(j)
     return out
 
 
-def forces(Z, x, y) -> tuple[np.ndarray, np.ndarray]:
+def forces(Z: ArrayLike, x: ArrayLike, y: ArrayLike) -> tuple[ComplexArray, ComplexArray]:
     """f = -Z d: force phasors (N) on the journal from Z (n, 2, 2) and displacements (m)."""
-    Z = np.asarray(Z)
-    x, y = np.asarray(x, dtype=complex), np.asarray(y, dtype=complex)
-    return -(Z[..., 0, 0] * x + Z[..., 0, 1] * y), -(Z[..., 1, 0] * x + Z[..., 1, 1] * y)
+    z = np.asarray(Z, dtype=complex)
+    xc, yc = np.asarray(x, dtype=complex), np.asarray(y, dtype=complex)
+    return -(z[..., 0, 0] * xc + z[..., 0, 1] * yc), -(z[..., 1, 0] * xc + z[..., 1, 1] * yc)
 
 
-def real_rows(G: np.ndarray) -> np.ndarray:
+def real_rows(G: ArrayLike) -> FloatArray:
     """Complex (n, 2, ...) -> real (4n, ...) with rows Re fx, Im fx, Re fy, Im fy per frequency."""
-    G = np.asarray(G)
-    R = np.stack([G.real, G.imag], axis=2)  # (n, 2, 2, ...): [k, force, re/im]
-    return R.reshape((4 * G.shape[0],) + G.shape[2:])
+    g = np.asarray(G)
+    R = np.stack([g.real, g.imag], axis=2)  # (n, 2, 2, ...): [k, force, re/im]
+    return R.reshape((4 * g.shape[0],) + g.shape[2:])
 
 
-def regression(spec: ModelSpec, orbit, x, y, fx, fy) -> tuple[np.ndarray, np.ndarray]:
+def regression(
+    spec: ModelSpec, orbit: ArrayLike, x: ArrayLike, y: ArrayLike, fx: ArrayLike, fy: ArrayLike
+) -> tuple[FloatArray, FloatArray]:
     """The real regression A theta = b: A (4n, p), b (4n,) in N."""
     A = regression_rows(spec, orbit, x, y)
     b = real_rows(np.stack([np.asarray(fx, dtype=complex), np.asarray(fy, dtype=complex)], axis=-1))

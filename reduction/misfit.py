@@ -39,8 +39,17 @@ class ListShift:
     std: np.ndarray
 
 
-def _projection(small: ModelSpec, rich: ModelSpec, theta_rich: ArrayLike, spin: float, radius: float, ratios: ArrayLike,
-                revolutions: ArrayLike, u_revolution: ArrayLike, directions: str) -> np.ndarray:
+def _projection(
+    small: ModelSpec,
+    rich: ModelSpec,
+    theta_rich: ArrayLike,
+    spin: float,
+    radius: float,
+    ratios: ArrayLike,
+    revolutions: ArrayLike,
+    u_revolution: ArrayLike,
+    directions: str,
+) -> np.ndarray:
     """(p_small, p_rich): the small model's WLS estimate per unit of each rich coefficient."""
     r = np.asarray(ratios, dtype=float)
     per = 2 if directions == "both" else 1
@@ -55,13 +64,23 @@ def _projection(small: ModelSpec, rich: ModelSpec, theta_rich: ArrayLike, spin: 
     return projection
 
 
-def list_shift(small: ModelSpec, rich: ModelSpec, theta_rich: ArrayLike, cov_rich: ArrayLike, spin: float, radius: float,
-               list_a: DesignList, list_b: DesignList, directions: str = "both") -> ListShift:
+def list_shift(
+    small: ModelSpec,
+    rich: ModelSpec,
+    theta_rich: ArrayLike,
+    cov_rich: ArrayLike,
+    spin: float,
+    radius: float,
+    list_a: DesignList,
+    list_b: DesignList,
+    directions: str = "both",
+) -> ListShift:
     """Expected shift of ``small``'s estimates from list a to list b; a list is (ratios,
     revolutions (one or per ratio), per-revolution noise u (4,) or (k, 4) of x, y (m), fx,
     fy (N)); theta_rich, cov_rich: the richer model's coefficients and covariance (SI)."""
-    J = (_projection(small, rich, theta_rich, spin, radius, *list_b, directions)
-         - _projection(small, rich, theta_rich, spin, radius, *list_a, directions))
+    J = _projection(small, rich, theta_rich, spin, radius, *list_b, directions) - _projection(
+        small, rich, theta_rich, spin, radius, *list_a, directions
+    )
     shift = J @ np.asarray(theta_rich, dtype=float)
     std = np.sqrt(np.clip(np.einsum("ij,jk,ik->i", J, np.asarray(cov_rich, dtype=float), J), 0.0, None))
     return ListShift(shift, std)

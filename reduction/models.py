@@ -77,8 +77,7 @@ def parse_freq_dep(spec: str) -> FreqDep:
         return FreqDep("none", {"K": (0,), "C": (0,), "D": (0,)}, "none")
     kind, sep, arg = s.partition(":")
     if not sep or kind not in ("power", "poly"):
-        raise ReductionError(
-            f"unknown freq-dep {spec!r}: use none, power:M, power:m,n,p, power:auto or poly:R")
+        raise ReductionError(f"unknown freq-dep {spec!r}: use none, power:M, power:m,n,p, power:auto or poly:R")
     if kind == "power" and arg.strip() == "auto":
         return FreqDep("power:auto", None, "power")
     parts = [_int(p, spec) for p in arg.split(",")]
@@ -166,8 +165,13 @@ class ModelSpec:
                 f"K order {r} (Kxx_{r} .. Kyy_{r}) is not fitted: Omega^{r} K_{r} and the inertia term "
                 f"-Omega^{r} {dname} have the same regressor for every orbit, so {dname} carries "
                 f"that term (its reported value is {dname} - K_{r})"
-                + ("; the skew-symmetric part of K_%d, a skew-symmetric inertia, is not represented" % r
-                   if MODELS[self.model].get("D") else "") + ".")
+                + (
+                    "; the skew-symmetric part of K_%d, a skew-symmetric inertia, is not represented" % r
+                    if MODELS[self.model].get("D")
+                    else ""
+                )
+                + "."
+            )
         return out
 
     @cached_property

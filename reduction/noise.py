@@ -15,15 +15,19 @@ Without u_*, ``wls`` falls back on the coherences, :func:`coherence_variances`.
 
 from __future__ import annotations
 
-import numpy as np
+from collections.abc import Iterable
 
+import numpy as np
+from numpy.typing import ArrayLike
+
+from reduction.arrays import ComplexArray, FloatArray
 from reduction.errors import ReductionError
 
 SPIN_HARMONICS = (1, 2)  # spin harmonics whose leakage is fitted out of the scatter (runout, unbalance)
 DEFAULT_RECORDS = 50  # revolutions per averaged phasor assumed when a table has no n_records
 
 
-def phasor_uncertainty(record_phasors, axis: int = 0) -> np.ndarray:
+def phasor_uncertainty(record_phasors: ArrayLike, axis: int = 0) -> FloatArray:
     """Standard uncertainty of the mean of per-record (per-revolution) complex phasors:
     sqrt(sum_s |q_s - q_mean|^2 / (n - 1)) / sqrt(n), along ``axis`` (inf for n = 1).
 
@@ -37,10 +41,11 @@ def phasor_uncertainty(record_phasors, axis: int = 0) -> np.ndarray:
         return np.full(np.delete(q.shape, axis % q.ndim), np.inf)
     dev = q - np.mean(q, axis=axis, keepdims=True)
     scatter2 = np.sum(np.abs(dev) ** 2, axis=axis) / (n - 1)
-    return np.sqrt(scatter2 / n)
+    u: FloatArray = np.sqrt(scatter2 / n)
+    return u
 
 
-def _advances(n: int, spin_turns: float, harmonics) -> tuple[float, ...]:
+def _advances(n: int, spin_turns: float, harmonics: Iterable[int]) -> tuple[float, ...]:
     """Phase advances per revolution (turns mod 1) of the mean (0) and of the spin tones
     h x spin, both signs, that n revolutions tell apart from the mean and from each other
     (two tones whose advances coincide mod one turn leak as one)."""
@@ -53,7 +58,7 @@ def _advances(n: int, spin_turns: float, harmonics) -> tuple[float, ...]:
     return tuple(advances)
 
 
-def _positions(n: int, revolutions) -> np.ndarray:
+def _positions(n: int, revolutions: ArrayLike | None) -> FloatArray:
     """(n,) revolution k of each record, counted from the first: the board's revolution
     numbers when given (a dropped revolution leaves a gap the tones still turn through)."""
     if revolutions is None:
@@ -61,10 +66,13 @@ def _positions(n: int, revolutions) -> np.ndarray:
     revs = np.asarray(revolutions, dtype=float)
     if revs.shape != (n,):
         raise ReductionError(f"revolution numbers: {revs.size} for {n} records")
-    return revs - revs[0]
+    k: FloatArray = revs - revs[0]
+    return k
 
 
-def _tone_fit(record_phasors, spin_turns: float, harmonics, revolutions=None):
+def _tone_fit(
+    record_phasors: ArrayLike, spin_turns: float, harmonics: Iterable[int], revolutions: ArrayLike | None = None
+) -> tuple[ComplexArray, FloatArray]:
     """(residuals (n, C), white (C,)) of the least-squares fit of the mean and the resolvable
     spin tones."""
     q = np.asarray(record_phasors, dtype=complex)
@@ -73,12 +81,17 @@ def _tone_fit(record_phasors, spin_turns: float, harmonics, revolutions=None):
     if n <= X.shape[1]:
         raise ReductionError(f"{n} revolutions cannot separate {X.shape[1] - 1} spin tones and the mean")
     coef, *_ = np.linalg.lstsq(X, q, rcond=None)
-    resid = q - X @ coef
-    white = np.sqrt(np.sum(np.abs(resid) ** 2, axis=0) / (n - X.shape[1]))
+    resid: ComplexArray = q - X @ coef
+    white: FloatArray = np.sqrt(np.sum(np.abs(resid) ** 2, axis=0) / (n - X.shape[1]))
     return resid, white
 
 
-def revolution_noise(record_phasors, spin_turns: float, revolutions=None, harmonics=SPIN_HARMONICS) -> np.ndarray:
+def revolution_noise(
+    record_phasors: ArrayLike,
+    spin_turns: float,
+    revolutions: ArrayLike | None = None,
+    harmonics: Iterable[int] = SPIN_HARMONICS,
+) -> FloatArray:
     """Per-revolution standard uncertainty sqrt(E|e|^2) of each channel's phasor (same unit),
     with the spin-synchronous tones taken out of the scatter.
 
@@ -95,14 +108,23 @@ def revolution_noise(record_phasors, spin_turns: float, revolutions=None, harmon
     return _tone_fit(record_phasors, spin_turns, harmonics, revolutions)[1]
 
 
-def revolution_residuals(record_phasors, spin_turns: float, revolutions=None,
-                         harmonics=SPIN_HARMONICS) -> tuple[np.ndarray, np.ndarray]:
+def revolution_residuals(
+    record_phasors: ArrayLike,
+    spin_turns: float,
+    revolutions: ArrayLike | None = None,
+    harmonics: Iterable[int] = SPIN_HARMONICS,
+) -> tuple[ComplexArray, FloatArray]:
     """((n, C) what each revolution's phasor differs from the mean and the fitted spin tones,
     (C,) their standard deviation :func:`revolution_noise`): a disturbed revolution stands out."""
     return _tone_fit(record_phasors, spin_turns, harmonics, revolutions)
 
 
-def mean_uncertainty(record_phasors, spin_turns: float, revolutions=None, harmonics=SPIN_HARMONICS) -> np.ndarray:
+def mean_uncertainty(
+    record_phasors: ArrayLike,
+    spin_turns: float,
+    revolutions: ArrayLike | None = None,
+    harmonics: Iterable[int] = SPIN_HARMONICS,
+) -> FloatArray:
     """Standard uncertainty sqrt(E|mean - true|^2) of the plain mean of per-revolution phasors
     (n, C): the white part sigma^2 / n (:func:`revolution_noise`) plus what each fitted spin
     tone a e^{i phi k} leaves in the mean, |a|^2 |mean_k e^{i phi k}|^2 (the last row of
@@ -115,8 +137,13 @@ def mean_uncertainty(record_phasors, spin_turns: float, revolutions=None, harmon
     return u if np.all(np.isfinite(u)) else phasor_uncertainty(q, axis=0)
 
 
-def prefix_mean_uncertainty(record_phasors, spin_turns: float, start: int = 0, revolutions=None,
-                            harmonics=SPIN_HARMONICS) -> np.ndarray:
+def prefix_mean_uncertainty(
+    record_phasors: ArrayLike,
+    spin_turns: float,
+    start: int = 0,
+    revolutions: ArrayLike | None = None,
+    harmonics: Iterable[int] = SPIN_HARMONICS,
+) -> FloatArray:
     """(n - start, C): :func:`mean_uncertainty` of the first m records for every
     m = start+1..n at once (each m with the tones m revolutions resolve; inf where m is too
     small to fit them). Cumulative sums and batched small solves, one batch per tone set."""
@@ -149,20 +176,22 @@ def prefix_mean_uncertainty(record_phasors, spin_turns: float, start: int = 0, r
     return out
 
 
-def equation_variances(u: np.ndarray, Z: np.ndarray) -> np.ndarray:
+def equation_variances(u: ArrayLike, Z: ComplexArray) -> FloatArray:
     """Variances of the 4n real equations (rows Re fx, Im fx, Re fy, Im fy per frequency).
 
     u (n, 4): standard uncertainties of x, y (m), fx, fy (N); Z (n, 2, 2) the impedance
     (N/m) at each row. Each real part carries half of the complex residual's E|r|^2.
     """
-    u = np.asarray(u, dtype=float)
-    ud2 = u[:, :2] ** 2  # (n, 2)
-    uf2 = u[:, 2:] ** 2
-    var = uf2 + np.einsum("kij,kj->ki", np.abs(Z) ** 2, ud2)  # (n, 2) complex E|r|^2
+    uu = np.asarray(u, dtype=float)
+    ud2 = uu[:, :2] ** 2  # (n, 2)
+    uf2 = uu[:, 2:] ** 2
+    var: FloatArray = uf2 + np.einsum("kij,kj->ki", np.abs(Z) ** 2, ud2)  # (n, 2) complex E|r|^2
     return np.repeat(var / 2, 2, axis=1).reshape(-1)
 
 
-def coherence_variances(gamma2, fx, fy, n_records=None) -> np.ndarray:
+def coherence_variances(
+    gamma2: ArrayLike, fx: ArrayLike, fy: ArrayLike, n_records: ArrayLike | None = None
+) -> FloatArray:
     """Relative variances (any common scale) of the 4n real equations from the coherences.
 
     A force phasor of coherence gamma^2 with the motion has, per record, the noise-to-signal
@@ -177,12 +206,12 @@ def coherence_variances(gamma2, fx, fy, n_records=None) -> np.ndarray:
     has no n_records.
     """
     g = np.asarray(gamma2, dtype=float)
-    fx, fy = np.asarray(fx, dtype=complex), np.asarray(fy, dtype=complex)
+    fxc, fyc = np.asarray(fx, dtype=complex), np.asarray(fy, dtype=complex)
     n = np.full(g.shape[0], float(DEFAULT_RECORDS)) if n_records is None else np.asarray(n_records, float)
     gx = np.clip((g[:, 0] + g[:, 1]) / 2, 1e-12, 1.0)
     gy = np.clip((g[:, 2] + g[:, 3]) / 2, 1e-12, 1.0)
-    mag2 = np.stack([np.abs(fx) ** 2, np.abs(fy) ** 2], axis=1)
+    mag2 = np.stack([np.abs(fxc) ** 2, np.abs(fyc) ** 2], axis=1)
     mag2 = np.maximum(mag2, 1e-12 * max(float(np.mean(mag2)), np.finfo(float).tiny))
     rho = np.maximum(np.stack([(1 - gx) / gx, (1 - gy) / gy], axis=1), 1.0 / n[:, None])
-    var = mag2 * rho / n[:, None]
+    var: FloatArray = mag2 * rho / n[:, None]
     return np.repeat(var, 2, axis=1).reshape(-1)

@@ -67,7 +67,7 @@ def design_rank(spec: ModelSpec, orbit: ArrayLike, x: np.ndarray, y: np.ndarray,
 
     def blocks() -> Iterator[np.ndarray]:
         for s in range(0, n, step):
-            yield regression_rows(spec, orbit[s: s + step], x[s: s + step], y[s: s + step])
+            yield regression_rows(spec, orbit[s : s + step], x[s : s + step], y[s : s + step])
 
     return _rank_of(triangular_blocks(blocks, 4 * n, spec.n_coefficients), 4 * n, rtol)
 

@@ -17,12 +17,17 @@ squares for noisy displacements, maximum likelihood with isotropic phasor noise)
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
 
+from reduction.arrays import FloatArray
 from reduction.errors import IdentificationError, ReductionError
+
+#: a regression's rows, block by block (a callable: each call yields them again from the top)
+Blocks = Callable[[], Iterator[FloatArray]]
 
 SOLVERS = ("qr", "svd", "lu")
 CHUNK_ROWS = 32768  # real equations per block of the blocked QR (memory: one block, not the table)
@@ -56,24 +61,26 @@ def condition_number(A: np.ndarray) -> float:
     return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
 
 
-def _gram(blocks, T=None) -> np.ndarray:
+def _gram(blocks: Blocks, T: FloatArray | None = None) -> FloatArray:
     """The Gram matrix of the stacked row ``blocks`` (each a callable's yield, (rows, q)),
     or of the blocks times T (q, q) on the right."""
-    G = None
+    G: FloatArray | None = None
     for block in blocks():
         q = block if T is None else block @ T
         G = q.T @ q if G is None else G + q.T @ q
+    if G is None:
+        raise ReductionError("a regression without rows has no Gram matrix")
     return G
 
 
-def _blocks(A, b):
+def _blocks(A: FloatArray, b: FloatArray | None) -> Iterator[FloatArray]:
     """[A | b] in blocks of ``CHUNK_ROWS`` rows."""
     for s in range(0, A.shape[0], CHUNK_ROWS):
-        block = A[s: s + CHUNK_ROWS]
-        yield block if b is None else np.column_stack([block, b[s: s + CHUNK_ROWS]])
+        block = A[s : s + CHUNK_ROWS]
+        yield block if b is None else np.column_stack([block, b[s : s + CHUNK_ROWS]])
 
 
-def _cholesky_qr2(blocks) -> np.ndarray | None:
+def _cholesky_qr2(blocks: Blocks) -> FloatArray | None:
     """R of the stacked row ``blocks`` (a callable yielding them; called twice) by Cholesky
     QR twice (the Gram matrix of the rows, then of the rows made orthonormal by the first R):
     as accurate as Householder for condition numbers up to about 1e8, at the speed of a
@@ -85,10 +92,11 @@ def _cholesky_qr2(blocks) -> np.ndarray | None:
         R2 = np.linalg.cholesky(_gram(blocks, R1_inv)).T
     except np.linalg.LinAlgError:
         return None
-    return R2 @ R1 if np.all(np.isfinite(R2)) else None
+    R: FloatArray = R2 @ R1
+    return R if np.all(np.isfinite(R2)) else None
 
 
-def triangular_blocks(blocks, n_equations: int, p: int) -> np.ndarray:
+def triangular_blocks(blocks: Blocks, n_equations: int, p: int) -> FloatArray:
     """R (min(m, p), p) of a regression given as a callable yielding its row blocks (called
     up to three times; the matrix itself is never whole in memory): Cholesky QR twice for a
     long one (over ``LONG_TABLE`` equations), else or when that fails blocked Householder."""
@@ -96,7 +104,8 @@ def triangular_blocks(blocks, n_equations: int, p: int) -> np.ndarray:
     if R is None:
         R = np.zeros((0, p))
         for block in blocks():
-            R = np.linalg.qr(np.vstack([R, block]), mode="r")
+            # numpy's stubs: qr(mode="r") returns R alone, not a QRResult
+            R = np.linalg.qr(np.vstack([R, block]), mode="r")  # type: ignore[assignment]
     return np.triu(R[: min(R.shape[0], p)])
 
 
@@ -119,10 +128,12 @@ def lstsq(A: np.ndarray, b: np.ndarray, solver: str = "qr") -> np.ndarray:
     """
     if solver == "qr":
         R, z = triangular(A, b)
-        return sla.solve_triangular(R, z)
+        x: FloatArray = sla.solve_triangular(R, z)
+        return x
     if solver == "svd":
         U, s, Vt = np.linalg.svd(A, full_matrices=False)
-        return Vt.T @ ((U.T @ b) / (s if np.ndim(b) == 1 else s[:, None]))
+        x = Vt.T @ ((U.T @ b) / (s if np.ndim(b) == 1 else s[:, None]))
+        return x
     if solver == "lu":
         return _lu_refined(A, b)
     raise ReductionError(f"unknown solver {solver!r}: use one of {', '.join(SOLVERS)}")
@@ -131,28 +142,30 @@ def lstsq(A: np.ndarray, b: np.ndarray, solver: str = "qr") -> np.ndarray:
 def _lu_refined(A: np.ndarray, b: np.ndarray, max_iter: int = 30) -> np.ndarray:
     """Normal equations by LU (Crout-like, partial pivoting) with iterative improvement."""
     lu = sla.lu_factor(A.T @ A, check_finite=False)
-    x = sla.lu_solve(lu, A.T @ b, check_finite=False)
+    x: FloatArray = sla.lu_solve(lu, A.T @ b, check_finite=False)
     prev, step, size = np.inf, np.inf, 0.0
     for _ in range(max_iter):
         if not np.all(np.isfinite(x)):
             break
         dx = sla.lu_solve(lu, A.T @ (b - A @ x), check_finite=False)
         x = x + dx
-        step, size = np.linalg.norm(dx), np.linalg.norm(x)
+        step, size = float(np.linalg.norm(dx)), float(np.linalg.norm(x))
         if step <= 4 * _EPS * size or step >= 0.5 * prev:
             break
         prev = step
     if not np.all(np.isfinite(x)) or not step <= 1e-6 * max(size, np.finfo(float).tiny):
         raise IdentificationError(
             "lu: iterative refinement of the normal equations did not converge "
-            "(regression too ill-conditioned for the normal equations); use --solver qr or svd")
+            "(regression too ill-conditioned for the normal equations); use --solver qr or svd"
+        )
     return x
 
 
 def _covariance(A_eff: np.ndarray, sigma2: float) -> np.ndarray:
     """sigma2 (A^T A)^-1 via the SVD of A (full column rank)."""
     _, s, Vt = np.linalg.svd(A_eff, full_matrices=False)
-    return sigma2 * (Vt.T / s**2) @ Vt
+    cov: FloatArray = sigma2 * (Vt.T / s**2) @ Vt
+    return cov
 
 
 def _finish(A_eff: np.ndarray, x: np.ndarray, r: np.ndarray, cov_matrix: np.ndarray | None = None) -> Estimate:
@@ -165,8 +178,9 @@ def _finish(A_eff: np.ndarray, x: np.ndarray, r: np.ndarray, cov_matrix: np.ndar
     return Estimate(x, rss / dof * unscaled, rss, dof, unscaled)
 
 
-def ols(A: np.ndarray, b: np.ndarray, solver: str = "qr", unscaled: np.ndarray | None = None,
-        x: np.ndarray | None = None) -> Estimate:
+def ols(
+    A: np.ndarray, b: np.ndarray, solver: str = "qr", unscaled: np.ndarray | None = None, x: np.ndarray | None = None
+) -> Estimate:
     """Ordinary least squares; cov = s^2 (A^T A)^-1 with s^2 = rss / (m - p); ``unscaled``
     is (A^T A)^-1 when the caller has it already (else computed by SVD), ``x`` the solution
     when the caller has solved it already with ``solver``."""
@@ -174,8 +188,9 @@ def ols(A: np.ndarray, b: np.ndarray, solver: str = "qr", unscaled: np.ndarray |
     return _finish(A, x, b - A @ x, unscaled)
 
 
-def wls(A: np.ndarray, b: np.ndarray, weights: np.ndarray, solver: str = "qr",
-        unscaled: np.ndarray | None = None) -> Estimate:
+def wls(
+    A: np.ndarray, b: np.ndarray, weights: np.ndarray, solver: str = "qr", unscaled: np.ndarray | None = None
+) -> Estimate:
     """Weighted least squares, weights = inverse variances of b (any common scale):
     minimises sum w r^2; cov = s^2 (A^T W A)^-1, s^2 = weighted rss / (m - p); ``unscaled``
     is (A^T W A)^-1 when the caller has it already."""
@@ -202,8 +217,9 @@ def iv(A: np.ndarray, Z: np.ndarray, b: np.ndarray, solver: str = "qr") -> Estim
     return _finish(A, x, r, (Vt.T / s**2) @ Vt)
 
 
-def structured_tls(G: np.ndarray, f: np.ndarray, E: np.ndarray, var_f: np.ndarray, var_d: np.ndarray,
-                   x0: np.ndarray) -> Estimate:
+def structured_tls(
+    G: np.ndarray, f: np.ndarray, E: np.ndarray, var_f: np.ndarray, var_d: np.ndarray, x0: np.ndarray
+) -> Estimate:
     """Total least squares of f = -Z(x) d with noise on both the displacements d and forces f.
 
     Maximum likelihood for independent circular complex noise on every displacement phasor
@@ -224,7 +240,7 @@ def structured_tls(G: np.ndarray, f: np.ndarray, E: np.ndarray, var_f: np.ndarra
     Sf = np.asarray(var_f, dtype=float)[..., None] * np.eye(2)
     Sd = np.asarray(var_d, dtype=float)
 
-    def whitened(X):  # X (m, p) -> (m, 4n): every candidate at once
+    def whitened(X: FloatArray) -> FloatArray:  # X (m, p) -> (m, 4n): every candidate at once
         Z = np.einsum("kpil,mp->mkil", E, X)
         M = Sf + (Z * Sd[:, None, :]) @ np.conj(np.swapaxes(Z, -1, -2))
         L = np.linalg.cholesky(M)
@@ -232,13 +248,22 @@ def structured_tls(G: np.ndarray, f: np.ndarray, E: np.ndarray, var_f: np.ndarra
         e = np.sqrt(2) * np.linalg.solve(L, r[..., None])[..., 0]
         return np.concatenate([e.real.reshape(len(X), -1), e.imag.reshape(len(X), -1)], axis=1)
 
-    def jacobian(x):  # forward differences, all p columns in one batched evaluation
-        h = np.sqrt(_EPS) * np.maximum(1.0, np.abs(x))
+    def jacobian(x: FloatArray) -> FloatArray:  # forward differences, all p columns in one batched evaluation
+        h: FloatArray = np.sqrt(_EPS) * np.maximum(1.0, np.abs(x))
         F = whitened(np.vstack([x, x + np.diag(h)]))
-        return ((F[1:] - F[0]) / h[:, None]).T
+        J: FloatArray = (F[1:] - F[0]) / h[:, None]
+        return J.T
 
-    sol = least_squares(lambda x: whitened(x[None])[0], x0, jac=jacobian, method="lm",
-                        xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=200 * (p + 1))
+    sol = least_squares(
+        lambda x: whitened(x[None])[0],
+        x0,
+        jac=jacobian,
+        method="lm",
+        xtol=1e-14,
+        ftol=1e-14,
+        gtol=1e-14,
+        max_nfev=200 * (p + 1),
+    )
     if not np.all(np.isfinite(sol.x)):
         raise IdentificationError("tls: the total least squares iteration did not converge")
     return _finish(sol.jac, sol.x, sol.fun)

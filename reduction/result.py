@@ -5,9 +5,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
+from reduction.arrays import ComplexArray, FloatArray
 from reduction.impedance import forces, impedance
 from reduction.models import ModelSpec
 from reduction.table import OrbitTable
@@ -36,15 +39,15 @@ class Identification:
     std_errors: dict[str, float | None]
     condition_number: float
     residual_rms: float
-    fit: Sequence[dict]  # reduction.diagnostics.FitRows: one dict per row, read lazily
+    fit: Sequence[dict[str, Any]]  # reduction.diagnostics.FitRows: one dict per row, read lazily
+    spec: ModelSpec = field(repr=False)
+    theta: FloatArray = field(repr=False)  # free coefficients, column order
     exponent: int | None = None
     solver: str = "qr"
-    spec: ModelSpec | None = field(default=None, repr=False)
-    theta: np.ndarray | None = field(default=None, repr=False)  # free coefficients, column order
     cost: float = field(default=float("nan"), repr=False)  # the estimator's minimised objective (RSS)
     skipped: dict[int, str] = field(default_factory=dict, repr=False)  # power:auto: M -> reason
     free: list[str] = field(default_factory=list)
-    covariance: np.ndarray | None = field(default=None, repr=False)  # (p, p) SI, or None
+    covariance: FloatArray | None = field(default=None, repr=False)  # (p, p) SI, or None
     dof: int = 0
     confidence_95: dict[str, tuple[float, float] | None] = field(default_factory=dict)
     chi2: float | None = None
@@ -57,32 +60,44 @@ class Identification:
     interval: str = "student_t"  # reduction.statistics.Interval
     not_determined: list[str] = field(default_factory=list)
 
-    def to_dict(self, fit: bool = True) -> dict:
+    def to_dict(self, fit: bool = True) -> dict[str, Any]:
         """The contract's JSON object (``exponent`` added for power:auto); NaN/inf -> None.
         ``fit=False`` leaves the per-row ``fit`` out (a long table's writer streams it)."""
         cov = None if self.covariance is None else [[_num(v) for v in row] for row in self.covariance]
-        d = {
-            "model": self.model, "freq_dep": self.freq_dep, "method": self.method,
-            "n_coefficients": self.n_coefficients, "min_frequencies": self.min_frequencies,
+        d: dict[str, Any] = {
+            "model": self.model,
+            "freq_dep": self.freq_dep,
+            "method": self.method,
+            "n_coefficients": self.n_coefficients,
+            "min_frequencies": self.min_frequencies,
             "n_frequencies": self.n_frequencies,
             "coefficients": {k: _num(v) for k, v in self.coefficients.items()},
             "std_errors": {k: _num(v) for k, v in self.std_errors.items()},
-            "confidence_95": {k: (None if v is None else [_num(v[0]), _num(v[1])])
-                              for k, v in self.confidence_95.items()},
-            "free": list(self.free), "covariance": cov, "dof": int(self.dof),
+            "confidence_95": {
+                k: (None if v is None else [_num(v[0]), _num(v[1])]) for k, v in self.confidence_95.items()
+            },
+            "free": list(self.free),
+            "covariance": cov,
+            "dof": int(self.dof),
             "condition_number": _num(self.condition_number),
             "residual_rms": _num(self.residual_rms),
         }
         if self.chi2 is not None:
             d["chi2"], d["p_value"] = _num(self.chi2), _num(self.p_value)
-        d.update(aic=_num(self.aic), bic=_num(self.bic), interval=str(self.interval),
-                 not_determined=list(self.not_determined), notes=list(self.notes), warnings=list(self.warnings),
-                 **({"fit": [{k: _num(v) for k, v in row.items()} for row in self.fit]} if fit else {}))
+        d.update(
+            aic=_num(self.aic),
+            bic=_num(self.bic),
+            interval=str(self.interval),
+            not_determined=list(self.not_determined),
+            notes=list(self.notes),
+            warnings=list(self.warnings),
+            **({"fit": [{k: _num(v) for k, v in row.items()} for row in self.fit]} if fit else {}),
+        )
         if self.exponent is not None:
             d["exponent"] = self.exponent
         return d
 
-    def matrices(self, orbit: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def matrices(self, orbit: float) -> tuple[FloatArray, FloatArray, FloatArray]:
         """(K, C, D) 2x2 at orbit frequency Omega (rad/s), summed over their fitted orders
         (K(Omega) = sum_r Omega^r K^(r)); D is zeros for a model without D."""
         w = float(orbit)
@@ -92,16 +107,16 @@ class Identification:
                 out[t.matrix][i, j] += v * w**t.order
         return out["K"], out["C"], out["D"]
 
-    def impedance(self, orbit) -> np.ndarray:
+    def impedance(self, orbit: ArrayLike) -> ComplexArray:
         """Z(Omega) = K + i Omega C - Omega^2 D, shape (n, 2, 2), N/m."""
         return impedance(self.spec, self.theta, orbit)
 
-    def reproduce(self, table: OrbitTable) -> tuple[np.ndarray, np.ndarray]:
+    def reproduce(self, table: OrbitTable) -> tuple[ComplexArray, ComplexArray]:
         """Reproduced force phasors (fx, fy), N, f = -Z(Omega) d from the table's displacements."""
         return forces(self.impedance(table.orbit), table.x, table.y)
 
 
-def _num(v):
+def _num(v: Any) -> float | None:
     if v is None:
         return None
     v = float(v)

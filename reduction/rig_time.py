@@ -54,8 +54,14 @@ def list_time(ratios: ArrayLike, spin: float, revolutions: ArrayLike, directions
     return float(_per_direction(directions) * np.sum(block_time(r * spin, n)))
 
 
-def point_time(ratios: ArrayLike, spin: float, revolutions: ArrayLike, directions: str = "both", per_block_s: float = 0.0,
-               ramp_rate: float | None = None) -> float:
+def point_time(
+    ratios: ArrayLike,
+    spin: float,
+    revolutions: ArrayLike,
+    directions: str = "both",
+    per_block_s: float = 0.0,
+    ramp_rate: float | None = None,
+) -> float:
     """Seconds of a point's blocks: :func:`list_time` + blocks x ``per_block_s`` (settle hold,
     store) + the orbit ramps at ``ramp_rate`` (rad/s per s; None: left out)."""
     r = np.asarray(ratios, dtype=float)

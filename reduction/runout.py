@@ -21,20 +21,26 @@ import functools
 
 import numpy as np
 
+from numpy.typing import ArrayLike
+
+from reduction.arrays import ComplexArray, FloatArray, IntArray
 from reduction.errors import ReductionError
 from reduction.fourier import phasor
 
 GRID = 720  # phi_0 candidates over one turn
 
 
-def phasor_weights(theta: np.ndarray) -> np.ndarray:
+def phasor_weights(theta: ArrayLike) -> ComplexArray:
     """(P, S) weights w with q_bar = w . samples, the least-squares fundamental at angles theta (P, S)."""
-    theta = np.asarray(theta, dtype=float)
-    p, s = theta.shape
-    return phasor(np.broadcast_to(np.eye(s), (p, s, s)), theta[:, None, :])
+    angles = np.asarray(theta, dtype=float)
+    p, s = angles.shape
+    w: ComplexArray = phasor(np.broadcast_to(np.eye(s), (p, s, s)), angles[:, None, :])
+    return w
 
 
-def _basis(runout: np.ndarray, theta: np.ndarray, spin_turns: float, steps: np.ndarray):
+def _basis(
+    runout: ComplexArray, theta: FloatArray, spin_turns: float, steps: FloatArray
+) -> tuple[ComplexArray, ComplexArray, IntArray]:
     """(a, b, h): q_k(phi_0) = sum_h a[h] e^{i h phi_0} + b[h] e^{-i h phi_0}, a and b (H, N, P)."""
     w = phasor_weights(theta)  # (P, S)
     hs = np.arange(1, runout.shape[1] + 1)
@@ -46,14 +52,16 @@ def _basis(runout: np.ndarray, theta: np.ndarray, spin_turns: float, steps: np.n
     return a, b, hs
 
 
-def _steps(revolutions) -> np.ndarray:
+def _steps(revolutions: ArrayLike) -> FloatArray:
     r = np.asarray(revolutions, dtype=float)
-    return r - r[0]
+    steps: FloatArray = r - r[0]
+    return steps
 
 
 def _at(a: np.ndarray, b: np.ndarray, hs: np.ndarray, spin_phase: float) -> np.ndarray:
     e = np.exp(1j * hs * spin_phase)[:, None, None]
-    return np.sum(a * e + b * np.conj(e), axis=0)
+    q: ComplexArray = np.sum(a * e + b * np.conj(e), axis=0)
+    return q
 
 
 @functools.lru_cache(maxsize=4)
@@ -85,37 +93,44 @@ def _best_phase(p: np.ndarray, a: np.ndarray, b: np.ndarray, hs: np.ndarray) -> 
     return float((phi[i] + shift * (2 * np.pi / GRID)) % (2 * np.pi))
 
 
-def runout_phasors(runout: np.ndarray, theta: np.ndarray, spin_turns: float, revolutions: np.ndarray,
-                   spin_phase: float) -> np.ndarray:
+def runout_phasors(
+    runout: np.ndarray, theta: np.ndarray, spin_turns: float, revolutions: np.ndarray, spin_phase: float
+) -> np.ndarray:
     """(N, P) runout in each revolution's orbit phasor: ``runout`` (P, H) complex R_h per probe (m),
     ``theta`` (P, S) each probe's sampling angles (rad), ``revolutions`` (N,) board revolution
     numbers, ``spin_phase`` phi_0 (rad) at the first of them."""
-    a, b, hs = _basis(np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns,
-                      _steps(revolutions))
+    a, b, hs = _basis(
+        np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns, _steps(revolutions)
+    )
     return _at(a, b, hs, spin_phase)
 
 
-def fit_spin_phase(record_phasors: np.ndarray, runout: np.ndarray, theta: np.ndarray, spin_turns: float,
-                   revolutions: np.ndarray) -> float:
+def fit_spin_phase(
+    record_phasors: np.ndarray, runout: np.ndarray, theta: np.ndarray, spin_turns: float, revolutions: np.ndarray
+) -> float:
     """phi_0 (rad) that best explains the scatter of the probes' per-revolution phasors
     ``record_phasors`` (N, P) by the runout (least squares over a grid of one turn refined by a
     parabola, each probe's mean free)."""
     p = _checked(record_phasors)
-    a, b, hs = _basis(np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns,
-                      _steps(revolutions))
+    a, b, hs = _basis(
+        np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns, _steps(revolutions)
+    )
     return _best_phase(p, a, b, hs)
 
 
-def remove_runout(record_phasors: np.ndarray, runout: np.ndarray, theta: np.ndarray, spin_turns: float,
-                  revolutions: np.ndarray) -> np.ndarray:
+def remove_runout(
+    record_phasors: np.ndarray, runout: np.ndarray, theta: np.ndarray, spin_turns: float, revolutions: np.ndarray
+) -> np.ndarray:
     """The probes' per-revolution phasors (N, P) with the runout (spin phase fitted) taken out."""
     p = _checked(record_phasors)
-    a, b, hs = _basis(np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns,
-                      _steps(revolutions))
-    return p - _at(a, b, hs, _best_phase(p, a, b, hs))
+    a, b, hs = _basis(
+        np.asarray(runout, dtype=complex), np.asarray(theta, dtype=float), spin_turns, _steps(revolutions)
+    )
+    cleaned: ComplexArray = p - _at(a, b, hs, _best_phase(p, a, b, hs))
+    return cleaned
 
 
-def _checked(record_phasors) -> np.ndarray:
+def _checked(record_phasors: ArrayLike) -> ComplexArray:
     p = np.asarray(record_phasors, dtype=complex)
     if p.ndim != 2 or p.shape[0] < 3:
         raise ReductionError("at least 3 revolutions are needed to fit the spin phase of the runout")

@@ -22,13 +22,17 @@ an initial list first, e.g. the model test's K spread ratios). Pure numerics, SI
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from reduction.allocation import revolution_information
+from reduction.arrays import FloatArray, NoiseAt
 from reduction.errors import ReductionError
+from reduction.models import ModelSpec
 from reduction.rig_time import TRIGGER_REVOLUTIONS
 
 STEP_REVOLUTIONS = (10, 20, 50, 100, 200)  # block sizes tried at each candidate ratio
@@ -53,35 +57,55 @@ class NextBlock:
     revolutions: int
     reason: Choice
     seconds: float
-    before: np.ndarray
-    after: np.ndarray
+    before: FloatArray
+    after: FloatArray
     direction: str = "both"
 
 
-def block_information(spec, theta, spin: float, radius: float, ratio: float, u_revolution, revolutions: int,
-                      directions: str = "both") -> np.ndarray:
+def block_information(
+    spec: ModelSpec,
+    theta: ArrayLike,
+    spin: float,
+    radius: float,
+    ratio: float,
+    u_revolution: ArrayLike,
+    revolutions: int,
+    directions: str = "both",
+) -> FloatArray:
     """(p, p) information of one measured block (all its directions): revolutions x the
     per-revolution information at ``ratio`` with the measured noise u (4,)."""
     F = revolution_information(spec, theta, spin, radius, [ratio], np.asarray(u_revolution, float)[None], directions)
-    return revolutions * F[0]
+    info: FloatArray = revolutions * F[0]
+    return info
 
 
-def relative_errors(info, scales) -> np.ndarray:
+def relative_errors(info: ArrayLike, scales: ArrayLike) -> FloatArray:
     """(p,) predicted standard error / scale; ReductionError when ``info`` is singular."""
     try:
         cov = np.linalg.inv(np.asarray(info, dtype=float))
     except np.linalg.LinAlgError as exc:
-        raise ReductionError("sequential design: the blocks so far cannot identify the model; "
-                             "run an initial list first") from exc
+        raise ReductionError(
+            "sequential design: the blocks so far cannot identify the model; run an initial list first"
+        ) from exc
     d = np.diag(cov)
     if not np.all(np.isfinite(d)) or np.any(d <= 0):
-        raise ReductionError("sequential design: the blocks so far cannot identify the model; "
-                             "run an initial list first")
-    return np.sqrt(d) / np.asarray(scales, dtype=float)
+        raise ReductionError(
+            "sequential design: the blocks so far cannot identify the model; run an initial list first"
+        )
+    relative: FloatArray = np.sqrt(d) / np.asarray(scales, dtype=float)
+    return relative
 
 
-def reference_errors(spec, theta, spin: float, radius: float, ratios, u_revolution, revolutions: int,
-                     directions: str = "both") -> np.ndarray:
+def reference_errors(
+    spec: ModelSpec,
+    theta: ArrayLike,
+    spin: float,
+    radius: float,
+    ratios: ArrayLike,
+    u_revolution: ArrayLike,
+    revolutions: int,
+    directions: str = "both",
+) -> FloatArray:
     """(p,) predicted standard errors (SI) of a reference list: ``ratios`` each averaging
     ``revolutions`` in ``directions``, per-revolution noise u (k, 4) - what "match the paper's
     list" asks every coefficient to reach."""
@@ -89,9 +113,23 @@ def reference_errors(spec, theta, spin: float, radius: float, ratios, u_revoluti
     return relative_errors(revolutions * F.sum(axis=0), np.ones(F.shape[1]))
 
 
-def next_block(spec, theta, spin: float, radius: float, info, candidates, noise_at, scales, target: float,
-               spent_s: float, cap_s: float, per_block_s: float = 0.0, directions="both",
-               orbit_now: float | None = None, ramp_rate: float | None = None) -> NextBlock:
+def next_block(
+    spec: ModelSpec,
+    theta: ArrayLike,
+    spin: float,
+    radius: float,
+    info: FloatArray,
+    candidates: ArrayLike,
+    noise_at: NoiseAt,
+    scales: ArrayLike,
+    target: float,
+    spent_s: float,
+    cap_s: float,
+    per_block_s: float = 0.0,
+    directions: str | Sequence[str] = "both",
+    orbit_now: float | None = None,
+    ramp_rate: float | None = None,
+) -> NextBlock:
     """The next block of the point (module doc). ``info`` (p, p) so far, ``noise_at(ratios) ->
     (k, 4)`` per-revolution noise, ``scales`` (p,) SI, ``target`` a fraction, ``spent_s`` the
     rig seconds spent on the point, ``cap_s`` its cap, ``per_block_s`` settle + store per block,
@@ -102,16 +140,17 @@ def next_block(spec, theta, spin: float, radius: float, info, candidates, noise_
         return NextBlock(None, 0, Choice.TARGET, 0.0, before, before)
     r = np.asarray(candidates, dtype=float)
     n = np.asarray(STEP_REVOLUTIONS, dtype=float)
-    scales = np.asarray(scales, dtype=float)
+    s = np.asarray(scales, dtype=float)
     options = (directions,) if isinstance(directions, str) else tuple(directions)
-    best = None
+    best: tuple[float, float, int, float, FloatArray, str] | None = None
     for d in options:  # every (ratio, revolutions) of a direction at once: (k, m) candidates
         F = revolution_information(spec, theta, spin, radius, r, noise_at(r), d)
         blocks = 2 if d == "both" else 1
         ramp = np.array([_ramp_s(ratio * spin, d, orbit_now, ramp_rate) for ratio in r])
-        seconds = blocks * ((n[None] + TRIGGER_REVOLUTIONS) * 2 * np.pi / (r[:, None] * spin) + per_block_s) \
-            + ramp[:, None]
-        after = _batch_relative(info[None, None] + n[None, :, None, None] * F[:, None], scales)  # (k, m, p)
+        seconds = (
+            blocks * ((n[None] + TRIGGER_REVOLUTIONS) * 2 * np.pi / (r[:, None] * spin) + per_block_s) + ramp[:, None]
+        )
+        after = _batch_relative(info[None, None] + n[None, :, None, None] * F[:, None], s)  # (k, m, p)
         rate = (1.0 / np.max(after, axis=2) ** 2 - 1.0 / float(np.max(before)) ** 2) / seconds
         rate = np.where(spent_s + seconds <= cap_s, rate, -np.inf)
         k, j = np.unravel_index(int(np.argmax(rate)), rate.shape)
@@ -123,13 +162,14 @@ def next_block(spec, theta, spin: float, radius: float, info, candidates, noise_
     return NextBlock(ratio, revs, Choice.NEXT, secs, before, aft, d)
 
 
-def _batch_relative(info, scales) -> np.ndarray:
+def _batch_relative(info: FloatArray, scales: FloatArray) -> FloatArray:
     """(..., p) standard error / scale of a stack of informations (..., p, p); inf where singular."""
     try:
         d = np.diagonal(np.linalg.inv(info), axis1=-2, axis2=-1)
     except np.linalg.LinAlgError:
         return np.full(info.shape[:-1], np.inf)
-    return np.where(d > 0, np.sqrt(np.abs(d)), np.inf) / scales
+    relative: FloatArray = np.where(d > 0, np.sqrt(np.abs(d)), np.inf) / scales
+    return relative
 
 
 def _ramp_s(orbit: float, direction: str, orbit_now: float | None, ramp_rate: float | None) -> float:

@@ -41,8 +41,8 @@ def sandwich_rows(A: np.ndarray, variances: np.ndarray, bread: np.ndarray, rows:
     p = A.shape[1]
     meat = np.zeros((p, p))
     for s in range(0, A.shape[0], rows):
-        block = A[s: s + rows]
-        meat += (block * variances[s: s + rows, None]).T @ block
+        block = A[s : s + rows]
+        meat += (block * variances[s : s + rows, None]).T @ block
     cov: np.ndarray = bread @ meat @ bread
     return cov
 
@@ -73,8 +73,9 @@ def quantile(interval: Interval, dof: int, level: float = 0.95) -> float:
     return t_quantile(dof, level)
 
 
-def intervals(theta: np.ndarray, std: np.ndarray, dof: int, level: float = 0.95,
-              interval: Interval = Interval.STUDENT_T) -> np.ndarray:
+def intervals(
+    theta: np.ndarray, std: np.ndarray, dof: int, level: float = 0.95, interval: Interval = Interval.STUDENT_T
+) -> np.ndarray:
     """(p, 2) two-sided intervals theta -+ q std, q from :func:`quantile` (NaN where std is
     NaN, or dof = 0 with student_t)."""
     half = quantile(interval, dof, level) * np.asarray(std, dtype=float)
@@ -91,11 +92,15 @@ def chi2_warning(chi2: float, dof: int, p: float) -> str | None:
     if not math.isfinite(p):
         return None
     if p < CHI2_ALPHA:
-        return (f"bad fit: chi2 = {chi2:.4g} for {dof} degrees of freedom (p = {p:.2g}): the residuals "
-                "exceed the stated u_* uncertainties; the model misses something or u_* are understated")
+        return (
+            f"bad fit: chi2 = {chi2:.4g} for {dof} degrees of freedom (p = {p:.2g}): the residuals "
+            "exceed the stated u_* uncertainties; the model misses something or u_* are understated"
+        )
     if p > 1 - CHI2_ALPHA:
-        return (f"chi2 = {chi2:.4g} for {dof} degrees of freedom (p = {p:.4g}): the residuals are far "
-                "smaller than the stated u_* uncertainties, which look overstated")
+        return (
+            f"chi2 = {chi2:.4g} for {dof} degrees of freedom (p = {p:.4g}): the residuals are far "
+            "smaller than the stated u_* uncertainties, which look overstated"
+        )
     return None
 
 

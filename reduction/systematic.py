@@ -59,16 +59,17 @@ class Calibration:
 
     def parameters(self) -> tuple[list[str], np.ndarray]:
         """(labels, standard uncertainties) of every error parameter, e.g. "fx.delay"."""
-        labels, sigma = [], []
+        labels: list[str] = []
+        values: list[float] = []
         for c in CHANNELS:
             ch = getattr(self, c)
             for kind in ("gain", "phase", "delay"):
                 labels.append(f"{c}.{kind}")
-                sigma.append(getattr(ch, kind))
+                values.append(getattr(ch, kind))
             if c in DISPLACEMENT_CHANNELS:
                 labels.append(f"{c}.sensitivity")
-                sigma.append(self.sensitivity)
-        sigma = np.array(sigma, dtype=float)
+                values.append(self.sensitivity)
+        sigma = np.array(values, dtype=float)
         if not np.all(np.isfinite(sigma)) or np.any(sigma < 0):
             raise ReductionError("calibration uncertainties must be finite and >= 0")
         return labels, sigma
@@ -100,8 +101,12 @@ def systematic_jacobian(ident: Identification, table: OrbitTable) -> tuple[list[
     var = _fit_variances(ident, table, Z)
     P = pseudo_inverse(A / np.sqrt(var)[:, None]) / np.sqrt(var)[None, :]
     d = {"x": table.x, "y": table.y, "fx": table.fx, "fy": table.fy}
-    factors = {"gain": np.ones(table.n), "phase": np.full(table.n, -1j), "delay": -1j * table.orbit,
-               "sensitivity": np.ones(table.n)}
+    factors = {
+        "gain": np.ones(table.n),
+        "phase": np.full(table.n, -1j),
+        "delay": -1j * table.orbit,
+        "sensitivity": np.ones(table.n),
+    }
     labels, cols = [], []
     zero = np.zeros(table.n, dtype=complex)
     for c in CHANNELS:
@@ -117,8 +122,7 @@ def systematic_jacobian(ident: Identification, table: OrbitTable) -> tuple[list[
     return labels, J
 
 
-def uncertainty_budget(ident: Identification, table: OrbitTable, calibration: Calibration,
-                       k: float = 2.0) -> Budget:
+def uncertainty_budget(ident: Identification, table: OrbitTable, calibration: Calibration, k: float = 2.0) -> Budget:
     """Statistical (the fit's covariance), systematic (calibration, linearised) and combined
     standard uncertainties of every coefficient, and the expanded uncertainty k * combined."""
     labels, J = systematic_jacobian(ident, table)
@@ -132,6 +136,7 @@ def uncertainty_budget(ident: Identification, table: OrbitTable, calibration: Ca
     sys_std = np.sqrt(np.clip(np.diag(cov_sys), 0, None))
     comb_std = None if cov_comb is None else np.sqrt(np.clip(np.diag(cov_comb), 0, None))
     systematic = {key: float(v) for key, v in spec.expand(sys_std).items()}
+    combined: dict[str, float | None]
     if comb_std is None:
         combined = {key: None for key in systematic}
     else:
@@ -140,8 +145,14 @@ def uncertainty_budget(ident: Identification, table: OrbitTable, calibration: Ca
     return Budget(dict(ident.std_errors), systematic, combined, expanded, k, cov_sys, cov_comb, labels, J)
 
 
-def lms_difference(a: Identification, table_a: OrbitTable, b: Identification, table_b: OrbitTable,
-                   calibration_a: Calibration, calibration_b: Calibration) -> tuple[np.ndarray, np.ndarray]:
+def lms_difference(
+    a: Identification,
+    table_a: OrbitTable,
+    b: Identification,
+    table_b: OrbitTable,
+    calibration_a: Calibration,
+    calibration_b: Calibration,
+) -> tuple[np.ndarray, np.ndarray]:
     """(a - b, its covariance) of the free coefficients of two load measuring systems'
     identifications of one operating point (same model; SI, free-coefficient order).
 
@@ -158,16 +169,25 @@ def lms_difference(a: Identification, table_a: OrbitTable, b: Identification, ta
     shared = np.array([lab.split(".")[0] in DISPLACEMENT_CHANNELS for lab in labels])
     Jd = Ja[:, shared] - Jb[:, shared]
     sd = (sa[shared] + sb[shared]) / 2  # one set of probes: the two configs should agree
-    cov = (Jd * sd**2) @ Jd.T + (Ja[:, ~shared] * sa[~shared] ** 2) @ Ja[:, ~shared].T \
+    cov = (
+        (Jd * sd**2) @ Jd.T
+        + (Ja[:, ~shared] * sa[~shared] ** 2) @ Ja[:, ~shared].T
         + (Jb[:, ~shared] * sb[~shared] ** 2) @ Jb[:, ~shared].T
+    )
     for ident in (a, b):
         if ident.covariance is not None:
             cov = cov + ident.covariance
     return a.theta - b.theta, cov
 
 
-def lms_consistency(a: Identification, table_a: OrbitTable, b: Identification, table_b: OrbitTable,
-                    calibration_a: Calibration, calibration_b: Calibration) -> dict[str, float | None]:
+def lms_consistency(
+    a: Identification,
+    table_a: OrbitTable,
+    b: Identification,
+    table_b: OrbitTable,
+    calibration_a: Calibration,
+    calibration_b: Calibration,
+) -> dict[str, float | None]:
     """Normalised difference E_n = (a - b) / u(a - b) of every common coefficient of two load
     measuring systems' identifications (:func:`lms_difference`), one coefficient at a time.
     Whether the systems agree is judged for all coefficients at once (:func:`lms_agreement`)."""
@@ -218,9 +238,15 @@ class LmsAgreement:
 LMS_LEVEL = 0.05  # family-wise probability that two consistent systems are flagged
 
 
-def lms_agreement(a: Identification, table_a: OrbitTable, b: Identification, table_b: OrbitTable,
-                  calibration_a: Calibration, calibration_b: Calibration,
-                  level: float = LMS_LEVEL) -> LmsAgreement:
+def lms_agreement(
+    a: Identification,
+    table_a: OrbitTable,
+    b: Identification,
+    table_b: OrbitTable,
+    calibration_a: Calibration,
+    calibration_b: Calibration,
+    level: float = LMS_LEVEL,
+) -> LmsAgreement:
     """Whether two load measuring systems agree on all coefficients at once, at the
     family-wise ``level`` (default 5 %): chi2 of the joint difference with its covariance
     (:class:`LmsAgreement`). Exact for linear fits with stated noise (u_* columns) and a
@@ -233,8 +259,7 @@ def lms_agreement(a: Identification, table_a: OrbitTable, b: Identification, tab
     chi2, dof = joint_chi2(diff, cov)
     if dof == 0 or not np.isfinite(chi2):
         return LmsAgreement(en, None, 0, level, None, None)
-    return LmsAgreement(en, float(chi2), dof, level, float(stats.chi2.isf(level, dof)),
-                        float(stats.chi2.sf(chi2, dof)))
+    return LmsAgreement(en, float(chi2), dof, level, float(stats.chi2.isf(level, dof)), float(stats.chi2.sf(chi2, dof)))
 
 
 def joint_chi2(diff: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, int]:

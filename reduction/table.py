@@ -119,10 +119,21 @@ class OrbitTable:
 
     def subset(self, rows: np.ndarray | slice) -> OrbitTable:
         """A table of the selected rows (index array or boolean mask)."""
+
         def pick(a: np.ndarray | None) -> np.ndarray | None:
             return None if a is None else a[rows]
-        return OrbitTable(self.spin, self.orbit[rows], self.x[rows], self.y[rows],
-                          self.fx[rows], self.fy[rows], pick(self.gamma2), pick(self.n_records), pick(self.u))
+
+        return OrbitTable(
+            self.spin,
+            self.orbit[rows],
+            self.x[rows],
+            self.y[rows],
+            self.fx[rows],
+            self.fy[rows],
+            pick(self.gamma2),
+            pick(self.n_records),
+            pick(self.u),
+        )
 
     def with_phasors(self, x: np.ndarray, y: np.ndarray, fx: np.ndarray, fy: np.ndarray) -> OrbitTable:
         """The same table (frequencies, coherences, uncertainties) with other phasors."""

@@ -21,12 +21,14 @@ import logging
 import time
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
-from typing import Awaitable, Callable
+from collections.abc import Callable, Coroutine
+from typing import TypeVar
 
 from orbitrig.run.events import RunFailed
 from orbitrig.store.errors import StorageError
 
 log = logging.getLogger(__name__)
+T = TypeVar("T")
 POINTS_IN_FLIGHT = 1  # earlier points still identified or stored while the next one is measured
 STORAGE_THREAD = ThreadPoolExecutor(max_workers=1, thread_name_prefix="orbitrig-storage")  # started on first use
 
@@ -35,12 +37,12 @@ class Background:
     def __init__(self, timing: dict[str, float], on_failure: Callable[[BaseException], None] | None = None):
         self.timing = timing
         self._on_failure = on_failure
-        self._pending: set[asyncio.Task] = set()
-        self._points: deque[asyncio.Task] = deque()  # each point's completion, oldest first
+        self._pending: set[asyncio.Task[object]] = set()
+        self._points: deque[asyncio.Task[object]] = deque()  # each point's completion, oldest first
         self._writes = asyncio.Lock()
         self.error: BaseException | None = None
 
-    async def write(self, fn: Callable, *args):
+    async def write(self, fn: Callable[..., T], *args: object) -> T:
         """One storage write, in a thread, after every write submitted before it."""
         async with self._writes:
             t = time.monotonic()
@@ -49,14 +51,14 @@ class Background:
             finally:
                 self.timing["store"] = self.timing.get("store", 0.0) + time.monotonic() - t
 
-    def spawn(self, coro: Awaitable, name: str) -> asyncio.Task:
+    def spawn(self, coro: Coroutine[object, object, object], name: str) -> asyncio.Task[object]:
         task = asyncio.ensure_future(coro)
         task.set_name(name)
         self._pending.add(task)
         task.add_done_callback(self._done)
         return task
 
-    def spawn_point(self, coro: Awaitable, name: str) -> None:
+    def spawn_point(self, coro: Coroutine[object, object, object], name: str) -> None:
         """A point's completion (identified, stored, committed): counted by `wait_for_points`."""
         self._points.append(self.spawn(coro, name))
 
@@ -73,13 +75,14 @@ class Background:
                 break
         self.timing["backlog"] = self.timing.get("backlog", 0.0) + time.monotonic() - t
 
-    def _done(self, task: asyncio.Task) -> None:
+    def _done(self, task: asyncio.Task[object]) -> None:
         self._pending.discard(task)
-        if not task.cancelled() and task.exception() is not None and self.error is None:
-            self.error = task.exception()
-            log.error("%s failed: %s", task.get_name(), self.error)
+        error = None if task.cancelled() else task.exception()
+        if error is not None and self.error is None:
+            self.error = error
+            log.error("%s failed: %s", task.get_name(), error)
             if self._on_failure is not None:
-                self._on_failure(self.error)
+                self._on_failure(error)
 
     def failure_message(self) -> str | None:
         """What failed in the background, for the operator (None: nothing failed)."""

@@ -105,15 +105,20 @@ class CalibrationSession:
         """Orbit radius and static eccentricity zero, the pressures set, then spin and orbit
         spindle at their speeds until both hold them."""
         self.roll_spec = roll
-        await self.access.hands.set_manual(orbit_radius=0.0, static_eccentricity=0.0,
-                                           recess_pressure=roll.recess_pressure, pressure_ratio=roll.pressure_ratio)
+        await self.access.hands.set_manual(
+            orbit_radius=0.0,
+            static_eccentricity=0.0,
+            recess_pressure=roll.recess_pressure,
+            pressure_ratio=roll.pressure_ratio,
+        )
         scale, s = self.access.time_scale, self.rig.settle
         try:
             await self.io.drives.set_speeds(roll.spin, roll.orbit)
             await self.io.drives.wait_settled(hold=scale.wall(s.hold_s), timeout=scale.wall(s.timeout_s) + 5.0)
         except DriveError as err:
-            raise CalibrationFailed(f"slow roll at spin {roll.spin / RPM:.0f} rpm, orbit {roll.orbit / RPM:.0f} rpm: "
-                                    f"{err}") from err
+            raise CalibrationFailed(
+                f"slow roll at spin {roll.spin / RPM:.0f} rpm, orbit {roll.orbit / RPM:.0f} rpm: {err}"
+            ) from err
 
     async def hold(self) -> None:
         """After a change at the input (a load, the reference): `settle.hold_s` physical seconds,
@@ -149,8 +154,10 @@ async def measure_loads(session: CalibrationSession, hands: LoadHands, loads: np
             blk = await session.average()
             for lms in LMS:
                 out[lms].append([blk.dc[ch[f"fx_{lms}"]], blk.dc[ch[f"fy_{lms}"]]])
-            session.note(f"load ({fx:+.1f}, {fy:+.1f}) N read: "
-                         + ", ".join(f"{lms} ({r[-1][0]:+.2f}, {r[-1][1]:+.2f}) N" for lms, r in out.items()))
+            session.note(
+                f"load ({fx:+.1f}, {fy:+.1f}) N read: "
+                + ", ".join(f"{lms} ({r[-1][0]:+.2f}, {r[-1][1]:+.2f}) N" for lms, r in out.items())
+            )
     finally:
         await hands.apply_load(0.0, 0.0)
     return {lms: np.array(v) for lms, v in out.items()}
@@ -184,15 +191,18 @@ async def measure_probes(session: CalibrationSession, hands: ProbeHands, steps: 
                 for p in PROBES:
                     if p.startswith(axis):
                         out[p].append(blk.dc[ch[p]])
-                session.note(f"step {axis} {d * 1e6:+.2f} um read: " + ", ".join(
-                    f"{p} {out[p][-1] * 1e6:+.3f} um" for p in PROBES if p.startswith(axis)))
+                session.note(
+                    f"step {axis} {d * 1e6:+.2f} um read: "
+                    + ", ".join(f"{p} {out[p][-1] * 1e6:+.3f} um" for p in PROBES if p.startswith(axis))
+                )
     finally:
         await hands.apply_displacement(0.0, 0.0)
     return {p: np.array(v) for p, v in out.items()}
 
 
-async def measure_delay(session: CalibrationSession, hands: ReferenceHands, rolls: list[SlowRoll],
-                        amplitudes: tuple[float, float]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+async def measure_delay(
+    session: CalibrationSession, hands: ReferenceHands, rolls: list[SlowRoll], amplitudes: tuple[float, float]
+) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """The reference read at each slow roll of `rolls` (its orbit frequency; a ratio off 1 keeps
     the probes' runout out of the average): (frequencies Hz (n,), {channel: (n,) lag (rad)
     behind the mean of the four probes}); the reference removed after."""
@@ -209,8 +219,10 @@ async def measure_delay(session: CalibrationSession, hands: ReferenceHands, roll
             freqs.append(roll.orbit / (2 * np.pi))
             for name, i in ch.items():
                 lags[name].append(-np.angle(ph[i] / ref))
-            session.note(f"reference at {freqs[-1]:.2f} Hz: force channels lag the probes by "
-                         + ", ".join(f"{n} {np.degrees(lags[n][-1]):.3f} deg" for n in ch if n.startswith("f")))
+            session.note(
+                f"reference at {freqs[-1]:.2f} Hz: force channels lag the probes by "
+                + ", ".join(f"{n} {np.degrees(lags[n][-1]):.3f} deg" for n in ch if n.startswith("f"))
+            )
     finally:
         await hands.apply_reference(0.0, 0.0)
     return np.array(freqs), {name: np.array(v) for name, v in lags.items()}

@@ -144,10 +144,14 @@ class RunControl:
         if limit is None:
             await self.wake.wait()
             return
-        await _first(self.wake, timeout=max(0.0, t0 + limit - time.monotonic()))  # not wait_for: it can swallow a cancel
+        await _first(
+            self.wake, timeout=max(0.0, t0 + limit - time.monotonic())
+        )  # not wait_for: it can swallow a cancel
         if time.monotonic() - t0 >= limit and not self.stop_requested:
-            self.request_stop(f"nobody can answer ({self.state} for {limit:g} s, no terminal and no MQTT): "
-                              "stopping the run (continue later with --resume)")
+            self.request_stop(
+                f"nobody can answer ({self.state} for {limit:g} s, no terminal and no MQTT): "
+                "stopping the run (continue later with --resume)"
+            )
 
     async def safe_point(self, allow_stop: bool = True) -> None:
         """Honour a stop (StopRun) or a pause here."""

@@ -47,7 +47,9 @@ class Corrections:
         gains = {p: g.gain for p, g in rec.probes.items()}
         return cls({lms: rec.force_gain(lms) for lms in LMS if lms in rec.loads}, runout, lags, gains)
 
-    def forces(self, lms: str, fx: np.ndarray, fy: np.ndarray, orbit: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+    def forces(
+        self, lms: str, fx: np.ndarray, fy: np.ndarray, orbit: np.ndarray | float
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(fx, fy) of system ``lms`` corrected: each channel's lag at |orbit| (rad/s, broadcast
         against the phasors) taken out, then the gain matrix."""
         lag_x, lag_y = self.lags.get(f"fx_{lms}"), self.lags.get(f"fy_{lms}")

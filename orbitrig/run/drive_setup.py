@@ -21,8 +21,9 @@ UNLIMITED = DriveLimits(math.inf, math.inf)
 
 def drive_limits(d: Drives) -> DriveLimits:
     """The configured speed (rad/s) and orbit/spin ratio limits of [drives]."""
-    return DriveLimits(max_spin=d.max_spin_rpm * RPM, max_orbit=d.max_orbit_rpm * RPM, min_ratio=d.min_ratio,
-                       max_ratio=d.max_ratio)
+    return DriveLimits(
+        max_spin=d.max_spin_rpm * RPM, max_orbit=d.max_orbit_rpm * RPM, min_ratio=d.min_ratio, max_ratio=d.max_ratio
+    )
 
 
 def rig_drives(url: str, d: Drives, limits: DriveLimits | None = None, *, watchdog: bool = False) -> RigDrives:
@@ -30,10 +31,16 @@ def rig_drives(url: str, d: Drives, limits: DriveLimits | None = None, *, watchd
     `limits` default to the configured ones. ``watchdog``: the drives are given the configured
     ``comm_loss_timeout_s`` on entry (their parameters are volatile: a power cycle restores
     the drive's default), as a run needs; a status read leaves them as they are."""
-    return RigDrives(url, drive_limits(d) if limits is None else limits, poll_interval=d.poll_interval_s,
-                     spin_id=d.spin_id, orbit_id=d.orbit_id, timeout=d.timeout_s,
-                     link_loss_polls=d.link_loss_polls,
-                     comm_loss_timeout=d.comm_loss_timeout_s if watchdog else None)
+    return RigDrives(
+        url,
+        drive_limits(d) if limits is None else limits,
+        poll_interval=d.poll_interval_s,
+        spin_id=d.spin_id,
+        orbit_id=d.orbit_id,
+        timeout=d.timeout_s,
+        link_loss_polls=d.link_loss_polls,
+        comm_loss_timeout=d.comm_loss_timeout_s if watchdog else None,
+    )
 
 
 def modbus_link(url: str, d: Drives) -> ModbusLink:

@@ -26,37 +26,60 @@ from typing import Callable
 
 from daq.revolutions import Revolution
 
-from orbitrig.config import ConfigError, MatrixConfig, RigConfig
+from orbitrig.config import MatrixConfig, RigConfig
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.background import Background
 from orbitrig.run.control import RunControl, StopRun
 from orbitrig.run.events import (  # noqa: F401 - the engine's public names
-    Event, ProgressEvent, ResultEvent, RunFailed, RunOutcome, StatusEvent, Subscriber,
+    Event,
+    ProgressEvent,
+    ResultEvent,
+    RunFailed,
+    RunOutcome,
+    StatusEvent,
+    Subscriber,
 )
 from orbitrig.run.interlocks import Trip
 from orbitrig.run.log_rows import can_row, drive_row
 from orbitrig.run.modbus_log import pymodbus_into
 from orbitrig.run.plan import Plan, make_plan
-from orbitrig.run.steps import Acquire, ChooseBlocks
 from orbitrig.run.procedure import PointProcedure, RunParts
 from orbitrig.run.progress import ProgressMeter
-from orbitrig.run.provenance import Provenance, RunCommand
+from orbitrig.run.provenance import RunCommand
 from orbitrig.run.requests import OperatorRequests
-from orbitrig.run.rig_io import RigAccess, RigIO, Scenario
+from orbitrig.run.rig_io import RigAccess, RigIO
+from orbitrig.run.run_dir import completed_points, no_room, open_store, record_end
 from orbitrig.run.safe_stop import stop_drives
 from orbitrig.run.states import (
-    ABORTED, COMPLETED, FAILED, FAULTED, IDLE, STOPPED, STOPPING, ConfirmMode, Outcome, stored_status,
+    ABORTED,
+    COMPLETED,
+    FAILED,
+    FAULTED,
+    IDLE,
+    STOPPED,
+    STOPPING,
+    ConfirmMode,
+    Outcome,
 )
 from orbitrig.run.supervision import InterlockSupervisor
-from orbitrig.store.estimate import plan_bytes, point_bytes
-from orbitrig.store.writer import RunStore, StorageError, StorageFullError
+from orbitrig.store.estimate import plan_bytes
+from orbitrig.store.errors import StorageError, StorageFullError
+from orbitrig.store.writer import RunStore
 from rigunits import utc_stamp
 
 log = logging.getLogger(__name__)
 
+
 class RunEngine(OperatorRequests):
-    def __init__(self, rig: RigConfig, *, out_dir: Path, access: RigAccess | None = None,
-                 confirm_mode: ConfirmMode = ConfirmMode.PROMPT, operator: str = ""):
+    def __init__(
+        self,
+        rig: RigConfig,
+        *,
+        out_dir: Path,
+        access: RigAccess | None = None,
+        confirm_mode: ConfirmMode = ConfirmMode.PROMPT,
+        operator: str = "",
+    ):
         if confirm_mode not in tuple(ConfirmMode):
             raise ValueError(f"confirm_mode {confirm_mode!r} is not one of prompt, remote, auto")
         self.rig = rig
@@ -109,7 +132,7 @@ class RunEngine(OperatorRequests):
         if self.state not in (IDLE, FAULTED):
             raise OrbitrigError(f"a run is active (state {self.state})")
         plan = plan if isinstance(plan, Plan) else make_plan(plan, self.rig)
-        store, done = self._open_store(plan, resume)
+        store, done = open_store(plan, self.rig, self.access, self.operator, self.out_dir, resume)
         plan = _started_order(plan, store) if resume else plan
         self._start(plan, store, done, resume)
         io = RigIO(self.rig, self.access.endpoints, on_revolution=self._on_revolution)
@@ -122,25 +145,7 @@ class RunEngine(OperatorRequests):
                 raise
             finally:
                 status, message = await self._make_safe(io, store, status, message)
-        return RunOutcome(status, message, self.run_id, self.out_dir, _completed(store), len(plan.points))
-
-    def _open_store(self, plan: Plan, resume: bool) -> tuple[RunStore, list[int]]:
-        if not resume:
-            sc = self.access.scenario or Scenario("")
-            prov = Provenance.of_run(self.rig, self.operator)
-            store = RunStore.create(self.out_dir, rig_text=self.rig.text, matrix_text=plan.matrix.text,
-                                    matrix_name=plan.name, sim=self.access.simulated,
-                                    scenario_name=sc.name, scenario_text=sc.text,
-                                    provenance=prov.to_dict(), record_text=self.rig.record_text,
-                                    point_order=list(plan.order))
-            store.log(prov.summary())
-            return store, []
-        store = RunStore.open_existing(self.out_dir)
-        _, matrix_text, _ = store.stored_configs()
-        if plan.matrix.text and plan.matrix.text != matrix_text:
-            raise ConfigError(plan.matrix.file, ["differs from the matrix of the run being resumed "
-                                                 f"in {store.path}; resume with the stored matrix"])
-        return store, store.prepare_resume()
+        return RunOutcome(status, message, self.run_id, self.out_dir, completed_points(store), len(plan.points))
 
     def _start(self, plan: Plan, store: RunStore, done: list[int], resume: bool) -> None:
         self._store, self._failure = store, None
@@ -153,11 +158,14 @@ class RunEngine(OperatorRequests):
         self._background = Background(self.timing, self._background_failed)
         todo = [p for p in plan.points if p.index not in done]
         kept = {p.index for p in todo}
-        remaining = sum(PointProcedure.estimate_of(s, self.confirm_mode) for s in plan.steps
-                        if s.point is None or s.point in kept)
+        remaining = sum(
+            PointProcedure.estimate_of(s, self.confirm_mode) for s in plan.steps if s.point is None or s.point in kept
+        )
         self._progress.start(self.run_id, len(todo), remaining)
-        store.log(f"{'resume' if resume else 'start'} run {self.run_id}: matrix {plan.name}, "
-                  f"{len(todo)} of {len(plan.points)} points to run, sim={self.access.simulated}")
+        store.log(
+            f"{'resume' if resume else 'start'} run {self.run_id}: matrix {plan.name}, "
+            f"{len(todo)} of {len(plan.points)} points to run, sim={self.access.simulated}"
+        )
         for line in store.set_aside:  # incomplete or damaged points a resume put aside
             self._log_event(line)
         try:
@@ -166,16 +174,6 @@ class RunEngine(OperatorRequests):
             self._log_event(f"warning: the whole plan may not fit ({err}); the run pauses before a point that does not")
         self._control.fire("start", f"run {self.run_id} started" + (" (resumed)" if resume else ""))
         self._command(RunCommand.START, self.operator, f"run {self.run_id}" + (", resumed" if resume else ""))
-
-    def _no_room(self, plan: Plan, p) -> str | None:
-        """Why the disk cannot take point `p` (None: it can)."""
-        models = len(plan.matrix.models)
-        counts = [s.revolutions for s in plan.point_steps(p.index) if isinstance(s, (Acquire, ChooseBlocks))]  # most per block
-        try:
-            self._store.check_free_space(point_bytes(self.rig, p, counts, models))
-        except StorageFullError as err:
-            return f"not enough free disk space: {err}"
-        return None
 
     async def _operate(self, io: RigIO, plan: Plan, done: set[int]) -> tuple[Outcome, str]:
         """Open the rig and execute the plan: (status, message)."""
@@ -211,8 +209,10 @@ class RunEngine(OperatorRequests):
     async def _watched(self, body, supervisor: InterlockSupervisor) -> Outcome:
         """Run `body` beside the interlock supervisor and the log monitor."""
         supervisor.sample()
-        helpers = [asyncio.create_task(supervisor.watch(), name="interlocks"),
-                   asyncio.create_task(self._monitor(), name="run-monitor")]
+        helpers = [
+            asyncio.create_task(supervisor.watch(), name="interlocks"),
+            asyncio.create_task(self._monitor(), name="run-monitor"),
+        ]
         self._body = asyncio.create_task(body, name="run-body")
         if self._failure is not None or self._control.abort_requested or self._control.stop_now:  # while opening
             self._body.cancel()
@@ -225,12 +225,26 @@ class RunEngine(OperatorRequests):
             await asyncio.gather(*helpers, return_exceptions=True)
 
     def _procedure(self, io: RigIO) -> PointProcedure:
-        supervisor = InterlockSupervisor(lambda: (io.aux.latest(), io.drives.state), self.rig.interlocks,
-                                         self._interlock_failed)
-        return PointProcedure(RunParts(
-            self.rig, self.access, io, self._store, self._control, supervisor, self._background, self._progress,
-            self.timing, self.confirm_mode, self.run_id, self._emit, self._log_event,
-        ))
+        supervisor = InterlockSupervisor(
+            lambda: (io.aux.latest(), io.drives.state), self.rig.interlocks, self._interlock_failed
+        )
+        return PointProcedure(
+            RunParts(
+                self.rig,
+                self.access,
+                io,
+                self._store,
+                self._control,
+                supervisor,
+                self._background,
+                self._progress,
+                self.timing,
+                self.confirm_mode,
+                self.run_id,
+                self._emit,
+                self._log_event,
+            )
+        )
 
     def _interlock_failed(self, trip: Trip) -> None:
         """A fail trip: the run ends at once (drives stopping in the cleanup). After an
@@ -256,7 +270,7 @@ class RunEngine(OperatorRequests):
                 if p.index in done:
                     continue
                 await control.safe_point()
-                await control.hold_for_room(functools.partial(self._no_room, plan, p))
+                await control.hold_for_room(functools.partial(no_room, self._store, self.rig, plan, p))
                 self._progress.next_point(len(p.blocks))
                 await procedure.run_point(p, plan.point_steps(p.index), first)
                 first = False
@@ -294,7 +308,7 @@ class RunEngine(OperatorRequests):
         if status == FAILED:  # reported once the drives are safe
             self._control.fire("fail", message)
         self.timing["wall"] = time.monotonic() - self._t0
-        ended = self._record_end(store, status, message)
+        ended = record_end(store, self.run_id, status, message, self._cleanup_failed)
         if ended != (status, message):
             self._control.fire("fail", ended[1])
         elif status != FAILED:
@@ -304,23 +318,6 @@ class RunEngine(OperatorRequests):
     async def _stop_drives(self, drives, emergency: bool, timeout: float) -> None:
         _, line = await stop_drives(drives, self._control.aborted, emergency=emergency, timeout=timeout)
         self._log_event(line)
-
-    def _record_end(self, store: RunStore, status: Outcome, message: str) -> tuple[Outcome, str]:
-        """The run's status, run.h5, coefficients.csv and run.log's last line. A run whose
-        status or run.h5 cannot be written ends failed, whatever it was (the reason said)."""
-        try:
-            store.set_status(stored_status(status), message)
-        except Exception as err:  # noqa: BLE001 - the other records are still written
-            self._cleanup_failed("write the run status and run.h5", err)
-            if status != FAILED:  # a failed run keeps its first cause
-                status, message = FAILED, f"storage failed: the run's status and run.h5 could not be written: {err}"
-        for what, action in (("write coefficients.csv", store.write_csv),
-                             ("close the run log", lambda: store.log(f"run {self.run_id} ended: {status}: {message}"))):
-            try:
-                action()
-            except Exception as err:  # noqa: BLE001
-                self._cleanup_failed(what, err)
-        return status, message
 
     def _cleanup_failed(self, what: str, err: BaseException) -> None:
         log.error("cleanup: cannot %s: %s: %s", what, type(err).__name__, err)
@@ -363,15 +360,6 @@ class RunEngine(OperatorRequests):
             except Exception:  # logging must not break the run
                 log.debug("monitor sample failed", exc_info=True)
             await asyncio.sleep(0.5)
-
-
-def _completed(store: RunStore) -> list[int]:
-    """The points the run file marks complete ([] if it cannot be read after a storage failure)."""
-    try:
-        return store.completed_points()
-    except (StorageError, OSError) as err:
-        log.error("cannot read the completed points: %s", err)
-        return []
 
 
 def _cancelling() -> bool:

@@ -9,22 +9,28 @@ average of the two probes of each axis (x_a, x_b and y_a, y_b).
 
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
-from orbitrig.config import LMS, CalibrationUncertainty, RigConfig
+from orbitrig.config import LMS, CalibrationUncertainty, ModelSpec, RigConfig
 from orbitrig.run.corrections import Corrections
 from orbitrig.run.steps import Block
 from orbitrig.run.point_analysis import analyse_point
 from daq.averager import AveragedBlock
 from orbitrig.run.model_truth import model_truth
-from orbitrig.run.truth import point_truth, true_impedance  # noqa: F401  (point_truth: the engine's truth step)
-from orbitrig.store.records import BlockRecord, PointResults
+from orbitrig.run.truth import true_impedance
+from orbitrig.store.records import BlockRecord, IdentificationEntry, PointResults
+from reduction.arrays import ComplexArray, FloatArray
 from reduction.coherence import orbit_coherences
 from reduction.errors import ReductionError
 from reduction.noise import mean_uncertainty
 from reduction.identify import identify
+from reduction.result import Identification
 from reduction.table import OrbitTable
 
 
@@ -44,18 +50,35 @@ def block_record(block: Block, blk: AveragedBlock, rig: RigConfig) -> BlockRecor
     coh = np.array([orbit_coherences(x, y, rp[:, ch[f"fx_{lms}"]], rp[:, ch[f"fy_{lms}"]]) for lms in LMS])
     stats = {k: v for k, v in blk.stats.to_dict().items() if isinstance(v, (int, float, dict))}
     return BlockRecord(
-        block=block, measured_orbit_speed=float(blk.orbit_speed), raw_counts=blk.raw_counts, slots=blk.slots,
-        gains=np.asarray(blk.gains), offsets=np.asarray(blk.offsets), mean=np.asarray(blk.mean),
-        record_phasors=rp, phasors=np.asarray(blk.phasors), dc=np.asarray(blk.dc),
-        rms_residual=np.asarray(blk.rms_residual), coherence=coh, stats=stats,
-        uncertainty=np.asarray(blk.uncertainty), n_records=blk.n_records, stop_reason=blk.stop_reason,
+        block=block,
+        measured_orbit_speed=float(blk.orbit_speed),
+        raw_counts=blk.raw_counts,
+        slots=blk.slots,
+        gains=np.asarray(blk.gains),
+        offsets=np.asarray(blk.offsets),
+        mean=np.asarray(blk.mean),
+        record_phasors=rp,
+        phasors=np.asarray(blk.phasors),
+        dc=np.asarray(blk.dc),
+        rms_residual=np.asarray(blk.rms_residual),
+        coherence=coh,
+        stats=stats,
+        uncertainty=np.asarray(blk.uncertainty),
+        n_records=blk.n_records,
+        stop_reason=blk.stop_reason,
         revolutions=np.asarray(blk.revs),
     )
 
 
-def identify_operating_point(spin: float, recs: list[BlockRecord], ch: dict[str, int], models,
-                             truth: dict | None = None, calibration: CalibrationUncertainty | None = None,
-                             corrections: Corrections | None = None) -> PointResults:
+def identify_operating_point(
+    spin: float,
+    recs: list[BlockRecord],
+    ch: dict[str, int],
+    models: Sequence[ModelSpec],
+    truth: dict[str, Any] | None = None,
+    calibration: CalibrationUncertainty | None = None,
+    corrections: Corrections | None = None,
+) -> PointResults:
     """One operating point's results: the orbit table of each load measuring system (forward
     and backward blocks together; ``corrections``, the active calibration record's force gain
     matrices and probe runout, applied), every model of ``models`` (ModelSpec) identified on each
@@ -66,8 +89,9 @@ def identify_operating_point(spin: float, recs: list[BlockRecord], ch: dict[str,
     recs = sorted(recs, key=lambda r: (r.block.freq, -r.block.direction))
     corr = corrections or Corrections()
     probes = [(corr.probe_phasors(r, ch, spin), corr.probe_records(r, ch, spin)) for r in recs]
-    tables = {lms: orbit_table(spin, recs, ch, lms, corr, probes) for lms in LMS}
-    idents, fits = {}, {}
+    tables: dict[str, OrbitTable] = {lms: orbit_table(spin, recs, ch, lms, corr, probes) for lms in LMS}
+    idents: dict[tuple[str, str], IdentificationEntry] = {}
+    fits: dict[tuple[str, str], Identification] = {}
     for lms in LMS:
         for spec in models:
             try:
@@ -84,8 +108,14 @@ def identify_operating_point(spin: float, recs: list[BlockRecord], ch: dict[str,
     return PointResults(tables, idents, lms_comparison(recs, ch, corr), truth)
 
 
-def orbit_table(spin: float, recs: list[BlockRecord], ch: dict[str, int], lms: str,
-                corrections: Corrections | None = None, probes: list | None = None) -> OrbitTable:
+def orbit_table(
+    spin: float,
+    recs: list[BlockRecord],
+    ch: dict[str, int],
+    lms: str,
+    corrections: Corrections | None = None,
+    probes: list[tuple[ComplexArray, ComplexArray]] | None = None,
+) -> OrbitTable:
     """Orbit table of one point for one load measuring system (Omega > 0, direction in the phasors),
     with each row's revolution count and the standard uncertainty of its phasors
     (:func:`row_uncertainty`; x, y the per-revolution probe-plane means); the forces through the
@@ -94,22 +124,52 @@ def orbit_table(spin: float, recs: list[BlockRecord], ch: dict[str, int], lms: s
     probes = probes or [(r.phasors, r.record_phasors) for r in recs]
     corr = corrections or Corrections()
     ph = np.array([p for p, _ in probes])
-    orbit = np.array([r.measured_orbit_speed if math.isfinite(r.measured_orbit_speed) and r.measured_orbit_speed > 0
-                      else abs(r.block.orbit) for r in recs])
+    orbit = np.array(
+        [
+            r.measured_orbit_speed
+            if math.isfinite(r.measured_orbit_speed) and r.measured_orbit_speed > 0
+            else abs(r.block.orbit)
+            for r in recs
+        ]
+    )
     i = LMS.index(lms)
     x, y = probe_plane(ph, ch)
     n_records = np.array([len(r.record_phasors) for r in recs])
-    u = np.array([row_uncertainty(rp, ch, lms, spin / abs(r.block.orbit), r.revolutions,
-                                  lambda fx, fy, o=abs(r.block.orbit): corr.forces(lms, fx, fy, o))
-                  for r, (_, rp) in zip(recs, probes)])
+    u = np.array(
+        [
+            row_uncertainty(
+                rp,
+                ch,
+                lms,
+                spin / abs(r.block.orbit),
+                r.revolutions,
+                functools.partial(corr.forces, lms, orbit=abs(r.block.orbit)),
+            )
+            for r, (_, rp) in zip(recs, probes)
+        ]
+    )
     fx, fy = corr.forces(lms, ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]], orbit)
-    return OrbitTable(spin=spin, orbit=orbit, x=x, y=y, fx=fx, fy=fy,
-                      gamma2=np.array([r.coherence[i] for r in recs]), n_records=n_records,
-                      u=u if np.all(np.isfinite(u)) else None)
+    return OrbitTable(
+        spin=spin,
+        orbit=orbit,
+        x=x,
+        y=y,
+        fx=fx,
+        fy=fy,
+        gamma2=np.array([r.coherence[i] for r in recs]),
+        n_records=n_records,
+        u=u if np.all(np.isfinite(u)) else None,
+    )
 
 
-def row_uncertainty(record_phasors: np.ndarray, ch: dict[str, int], lms: str, spin_turns: float,
-                    revolutions: np.ndarray | None = None, correct=None) -> np.ndarray:
+def row_uncertainty(
+    record_phasors: ComplexArray,
+    ch: dict[str, int],
+    lms: str,
+    spin_turns: float,
+    revolutions: npt.NDArray[np.int64] | None = None,
+    correct: Callable[[ComplexArray, ComplexArray], tuple[ComplexArray, ComplexArray]] | None = None,
+) -> FloatArray:
     """(u_x, u_y, u_fx, u_fy) of one block (m, m, N, N): the standard uncertainty of each mean
     (reduction.noise.mean_uncertainty: the scatter with the spin tones' rotating leakage taken
     out, plus what those tones leave in the mean); ``spin_turns`` = omega / |Omega|,
@@ -124,14 +184,18 @@ def row_uncertainty(record_phasors: np.ndarray, ch: dict[str, int], lms: str, sp
     return mean_uncertainty(per_rev, spin_turns, revolutions)
 
 
-def lms_comparison(recs: list[BlockRecord], ch: dict[str, int], corrections: Corrections | None = None) -> dict:
+def lms_comparison(
+    recs: list[BlockRecord], ch: dict[str, int], corrections: Corrections | None = None
+) -> dict[str, Any]:
     """Strain vs piezo forces per block (each through its ``corrections``): amplitude ratio and
     phase difference (deg)."""
-    out: dict = {"orbit_hz": [r.block.orbit_hz for r in recs], "direction": [r.block.direction for r in recs]}
+    out: dict[str, Any] = {"orbit_hz": [r.block.orbit_hz for r in recs], "direction": [r.block.direction for r in recs]}
     ph = np.array([r.phasors for r in recs]) if recs else np.zeros((0, len(ch)), complex)
     corr, orbit = corrections or Corrections(), np.array([abs(r.block.orbit) for r in recs])
-    forces = {lms: dict(zip(("fx", "fy"), corr.forces(lms, ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]], orbit)))
-              for lms in LMS}
+    forces: dict[str, dict[str, ComplexArray]] = {
+        lms: dict(zip(("fx", "fy"), corr.forces(lms, ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]], orbit)))
+        for lms in LMS
+    }
     for f in ("fx", "fy"):
         ratio = forces["strain"][f] / forces["piezo"][f]
         out[f"{f}_amp_ratio"] = np.abs(ratio).round(6).tolist()

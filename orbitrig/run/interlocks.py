@@ -46,8 +46,7 @@ class Trip:
     message: str
 
 
-def check(aux: AuxState | None, drives: RigDriveState | None, cfg: Interlocks, *,
-          pressure_armed: bool) -> list[Trip]:
+def check(aux: AuxState | None, drives: RigDriveState | None, cfg: Interlocks, *, pressure_armed: bool) -> list[Trip]:
     """Trips in force given the latest CAN sensor state `aux` and drive state `drives` (either may be None).
     The supply pressure is watched only once `pressure_armed` (the point's pressures were verified)."""
     trips = _drive_trips(drives) if drives is not None else []
@@ -77,6 +76,7 @@ def _supply_trips(aux: AuxState, cfg: Interlocks, pressure_armed: bool) -> list[
     p = aux.p_supply
     lo, hi = cfg.supply_pressure_min_mpa, cfg.supply_pressure_max_mpa
     if not aux.stale("p_supply") and not lo * MPA <= p <= hi * MPA:
-        trips.append(Trip("supply_pressure", SUSPEND,
-                          f"supply pressure {p / MPA:.3f} MPa outside the band {lo:g}..{hi:g} MPa"))
+        trips.append(
+            Trip("supply_pressure", SUSPEND, f"supply pressure {p / MPA:.3f} MPa outside the band {lo:g}..{hi:g} MPa")
+        )
     return trips

@@ -13,8 +13,19 @@ def can_row(t: float, aux: AuxState) -> tuple[float, ...]:
     """t (s since the run started), temperatures, flow, pressures (SI), flags as 0/1."""
     pr = [float(v) for v in aux.p_recess][:4]
     pr += [math.nan] * (4 - len(pr))
-    return (t, aux.t_recess, aux.t_groove, aux.t_supply, aux.flow, aux.p_supply, *pr, aux.beta,
-            float(aux.sensor_fault), float(aux.pump_off), float(aux.node_lost))
+    return (
+        t,
+        aux.t_recess,
+        aux.t_groove,
+        aux.t_supply,
+        aux.flow,
+        aux.p_supply,
+        *pr,
+        aux.beta,
+        float(aux.sensor_fault),
+        float(aux.pump_off),
+        float(aux.node_lost),
+    )
 
 
 def _drive_values(d: DriveStatus | None) -> list[float]:

@@ -68,6 +68,15 @@ class _ToRunLog(logging.Handler):
             self._write(f"{self._left_out} more records of this burst left out ({self._lines_left_out} lines)")
         self._kept = self._left_out = self._lines_left_out = 0
 
+    @contextlib.contextmanager
+    def held(self) -> Iterator[None]:
+        """Hold the handler's lock (logging.Handler's own, under which `emit` runs)."""
+        self.acquire()
+        try:
+            yield
+        finally:
+            self.release()
+
     def _write(self, text: str) -> None:
         if self.run_logs:
             self.run_logs[-1].log(f"debug pymodbus {text}")
@@ -96,12 +105,12 @@ def keep_pymodbus_off_the_terminal() -> None:
 def pymodbus_into(run_log: RunLog) -> Iterator[None]:
     """While inside: pymodbus' records are lines of `run_log` (RunStore.log)."""
     h = _handler()
-    with h.lock:
+    with h.held():
         h.end_burst()
         h.run_logs.append(run_log)
     try:
         yield
     finally:
-        with h.lock:
+        with h.held():
             h.end_burst()  # the count of a burst goes into the log of the run it happened in
             h.run_logs.remove(run_log)

@@ -21,8 +21,10 @@ from reduction.expected import noise_free_fit
 from reduction.result import Identification
 from reduction.table import OrbitTable
 
-DEFINITION = ("the fit's model (constraints, frequency dependence, method, weights) identified on the "
-              "point's orbit table with noise-free forces -Z_true d at the table's displacements")
+DEFINITION = (
+    "the fit's model (constraints, frequency dependence, method, weights) identified on the "
+    "point's orbit table with noise-free forces -Z_true d at the table's displacements"
+)
 
 
 def model_truth(ident: Identification, table: OrbitTable, z_true: np.ndarray) -> dict[str, Any]:

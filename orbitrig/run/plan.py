@@ -32,8 +32,22 @@ from orbitrig.run.plan_summary import PlanSummary as PlanSummary, summarize as s
 from orbitrig.run.point_order import fastest_order, manual_change_s
 from orbitrig.run.sequential_rule import SequentialRule, sequential_rule
 from orbitrig.run.steps import (
-    TWO_PI, Acquire, AdaptiveTarget, Block, ChooseBlocks, CompletePoint, Identify, SetManual,
-    SetOrbit, SetSpin, Settle, Step, StopDrives, StoreBlock, VerifyGeometry, VerifyPressures,
+    TWO_PI,
+    Acquire,
+    AdaptiveTarget,
+    Block,
+    ChooseBlocks,
+    CompletePoint,
+    Identify,
+    SetManual,
+    SetOrbit,
+    SetSpin,
+    Settle,
+    Step,
+    StopDrives,
+    StoreBlock,
+    VerifyGeometry,
+    VerifyPressures,
 )
 from reduction.rig_time import block_time
 from reduction.sequential import STEP_REVOLUTIONS
@@ -141,12 +155,20 @@ def make_plan(matrix: MatrixConfig, rig: RigConfig, order: Sequence[int] | None 
         order = fastest_order(rig, written) if matrix.order == PointOrder.FASTEST else range(len(written))
     order = tuple(int(i) for i in order)
     if sorted(order) != list(range(len(written))):
-        raise ConfigError(matrix.file, [f"the stored order of the operating points ({len(order)}) does not fit "
-                                        f"the matrix's {len(written)} points"])
+        raise ConfigError(
+            matrix.file,
+            [
+                f"the stored order of the operating points ({len(order)}) does not fit "
+                f"the matrix's {len(written)} points"
+            ],
+        )
     points = [dataclasses.replace(written[w], index=i) for i, w in enumerate(order)]
     steps = _steps(matrix, rig, points)
-    n_rev = max(s.revolutions if isinstance(s, Acquire) else max(STEP_REVOLUTIONS)
-                for s in steps if isinstance(s, (Acquire, ChooseBlocks)))
+    n_rev = max(
+        s.revolutions if isinstance(s, Acquire) else max(STEP_REVOLUTIONS)
+        for s in steps
+        if isinstance(s, (Acquire, ChooseBlocks))
+    )
     return Plan(matrix, rig, tuple(points), tuple(steps), n_rev, order)
 
 

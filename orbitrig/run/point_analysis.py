@@ -27,9 +27,14 @@ A step that cannot be evaluated stores {"error": reason} under its key instead.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
 
-from orbitrig.config import LMS, CalibrationUncertainty
+from orbitrig.config import LMS, CalibrationUncertainty, ModelSpec
+from orbitrig.store.records import IdentificationEntry
+from reduction.arrays import FloatArray
 from reduction.adequacy import frequency_dependence
 from reduction.derived import derived_quantities
 from reduction.errors import ReductionError
@@ -57,17 +62,30 @@ def lms_calibration(stated: CalibrationUncertainty, lms: str) -> Calibration:
         ca, cb = chan(a), chan(b)
         return ChannelCalibration((ca.gain + cb.gain) / 2, (ca.phase + cb.phase) / 2, (ca.delay + cb.delay) / 2)
 
-    return Calibration(x=mean("x_a", "x_b"), y=mean("y_a", "y_b"), fx=chan(f"fx_{lms}"), fy=chan(f"fy_{lms}"),
-                       sensitivity=stated.probe_sensitivity)
+    return Calibration(
+        x=mean("x_a", "x_b"),
+        y=mean("y_a", "y_b"),
+        fx=chan(f"fx_{lms}"),
+        fy=chan(f"fy_{lms}"),
+        sensitivity=stated.probe_sensitivity,
+    )
 
 
-def analyse_point(spin: float, tables: dict[str, OrbitTable], fits: dict[tuple[str, str], Identification],
-                  idents: dict, stated: CalibrationUncertainty | None, grid: np.ndarray) -> None:
+def analyse_point(
+    spin: float,
+    tables: dict[str, OrbitTable],
+    fits: dict[tuple[str, str], Identification],
+    idents: dict[tuple[str, str], IdentificationEntry],
+    stated: CalibrationUncertainty | None,
+    grid: FloatArray,
+) -> None:
     """Add budget, adequacy, LMS consistency and derived quantities to the stored JSON of every
     fit in ``idents`` ((lms, ModelSpec.key) -> {"spec", "json"}); ``fits`` the same fits'
     Identification objects; ``grid`` the point's orbit frequencies for the derived quantities
     (rad/s, > 0: the planned ones, forward and backward blocks of one frequency are one)."""
-    cal = {lms: lms_calibration(stated, lms) for lms in LMS} if stated is not None else None
+    cal: dict[str, Calibration] | None = (
+        {lms: lms_calibration(stated, lms) for lms in LMS} if stated is not None else None
+    )
     budgets: dict[tuple[str, str], Budget] = {}
     for (lms, key), ident in fits.items():
         d = idents[(lms, key)]["json"]
@@ -88,7 +106,7 @@ def analyse_point(spin: float, tables: dict[str, OrbitTable], fits: dict[tuple[s
             idents[(lms, key)]["json"]["lms_consistency"] = out
 
 
-def expanded_uncertainty(d: dict) -> dict:
+def expanded_uncertainty(d: dict[str, Any]) -> dict[str, Any]:
     """{"k", "basis", "values"} of a fit's stored JSON ``d``: its budget's expanded (combined)
     uncertainty where there is one, else K_EXPANDED times the statistical standard error."""
     u = d.get("uncertainty") or {}
@@ -99,32 +117,57 @@ def expanded_uncertainty(d: dict) -> dict:
     return {"k": K_EXPANDED, "basis": "statistical", "values": values}
 
 
-def _guarded(fn, *args) -> dict:
+def _guarded(fn: Callable[..., dict[str, Any]], *args: object) -> dict[str, Any]:
     try:
         return fn(*args)
     except _FAILURES as err:
         return {"error": str(err)}
 
 
-def _budget(ident: Identification, table: OrbitTable, cal: Calibration, budgets: dict, where) -> dict:
+def _budget(
+    ident: Identification,
+    table: OrbitTable,
+    cal: Calibration,
+    budgets: dict[tuple[str, str], Budget],
+    where: tuple[str, str],
+) -> dict[str, Any]:
     b = uncertainty_budget(ident, table, cal)
     budgets[where] = b
     _, sigma = cal.parameters()
-    return {"k": b.k, "statistical": b.statistical, "systematic": b.systematic, "combined": b.combined,
-            "expanded": b.expanded, "sources": list(b.labels), "source_std": [float(s) for s in sigma]}
+    return {
+        "k": b.k,
+        "statistical": b.statistical,
+        "systematic": b.systematic,
+        "combined": b.combined,
+        "expanded": b.expanded,
+        "sources": list(b.labels),
+        "source_std": [float(s) for s in sigma],
+    }
 
 
-def _derived(ident: Identification, grid: np.ndarray, spin: float, budget: Budget | None) -> dict:
-    combined = budget is not None and budget.covariance_combined is not None
-    cov = budget.covariance_combined if combined else None
+def _derived(ident: Identification, grid: FloatArray, spin: float, budget: Budget | None) -> dict[str, Any]:
+    cov = budget.covariance_combined if budget is not None else None
+    combined = cov is not None
     d = derived_quantities(ident, grid, spin, cov=cov).to_dict()
     d["covariance"] = "combined" if combined else ("statistical" if ident.covariance is not None else "none")
     return d
 
 
-def _adequacy(ident: Identification, table: OrbitTable, fits: dict, lms: str, spec) -> dict:
-    constant = next((f for (ls, _), f in fits.items() if ls == lms and f.model == ident.model
-                     and f.freq_dep == "none" and f.method == ident.method), None)
+def _adequacy(
+    ident: Identification,
+    table: OrbitTable,
+    fits: dict[tuple[str, str], Identification],
+    lms: str,
+    spec: ModelSpec,
+) -> dict[str, Any]:
+    constant = next(
+        (
+            f
+            for (ls, _), f in fits.items()
+            if ls == lms and f.model == ident.model and f.freq_dep == "none" and f.method == ident.method
+        ),
+        None,
+    )
     if constant is None:  # not configured: fitted here for the test only
         constant = identify(table, model=spec.model, freq_dep="none", method=spec.method)
     out = frequency_dependence(constant, ident).to_dict()
@@ -132,10 +175,22 @@ def _adequacy(ident: Identification, table: OrbitTable, fits: dict, lms: str, sp
     return out
 
 
-def _consistency(a: Identification, ta: OrbitTable, b: Identification, tb: OrbitTable, cal) -> dict:
+def _consistency(
+    a: Identification, ta: OrbitTable, b: Identification, tb: OrbitTable, cal: dict[str, Calibration] | None
+) -> dict[str, Any]:
     none = Calibration()
     ca, cb = (cal[LMS[0]], cal[LMS[1]]) if cal is not None else (none, none)
     ag = lms_agreement(a, ta, b, tb, ca, cb)
-    return {"e_n": ag.e_n, "max_abs": ag.max_abs, "consistent": ag.consistent, "test": "chi2", "chi2": ag.chi2,
-            "dof": ag.dof, "level": ag.level, "limit": ag.limit, "p_value": ag.p_value,
-            "basis": "combined" if cal is not None else "statistical", "pair": f"{LMS[0]} - {LMS[1]}"}
+    return {
+        "e_n": ag.e_n,
+        "max_abs": ag.max_abs,
+        "consistent": ag.consistent,
+        "test": "chi2",
+        "chi2": ag.chi2,
+        "dof": ag.dof,
+        "level": ag.level,
+        "limit": ag.limit,
+        "p_value": ag.p_value,
+        "basis": "combined" if cal is not None else "statistical",
+        "pair": f"{LMS[0]} - {LMS[1]}",
+    }

@@ -49,8 +49,11 @@ def changeover_s(rig: RigConfig, points: Sequence[OperatingPoint], order: Sequen
         return 0.0
     c = _costs(rig, points)
     first = points[order[0]]
-    return float(manual_change_s(rig, None, first) + first.spin / rig.ramp_rate
-                 + sum(c[a, b] for a, b in zip(order[:-1], order[1:])))
+    return float(
+        manual_change_s(rig, None, first)
+        + first.spin / rig.ramp_rate
+        + sum(c[a, b] for a, b in zip(order[:-1], order[1:]))
+    )
 
 
 def _path(c: np.ndarray, order: list[int]) -> float:
@@ -81,7 +84,7 @@ def _two_opt(c: np.ndarray, order: list[int]) -> list[int]:
                 old = c[a, b] + (c[d, e] if e is not None else 0.0)
                 new = c[a, d] + (c[b, e] if e is not None else 0.0)
                 if new < old - 1e-9:
-                    order = order[:i] + order[i:j + 1][::-1] + order[j + 1:]
+                    order = order[:i] + order[i : j + 1][::-1] + order[j + 1 :]
                     improved = True
     return order
 

@@ -8,23 +8,45 @@ from typing import Any
 
 from orbitrig.run.plan import OperatingPoint
 from orbitrig.store.layout import coefficient_si_unit
-from orbitrig.store.records import PointResults
+from orbitrig.store.records import IdentificationEntry, PointResults
 
 #: keys of a fit's stored JSON that the result payload carries
-PAYLOAD_KEYS = ("coefficients", "std_errors", "confidence_95", "condition_number", "residual_rms", "dof",
-                "chi2", "p_value", "aic", "bic", "notes", "warnings", "exponent", "expanded_uncertainty",
-                "not_determined", "truth")
+PAYLOAD_KEYS = (
+    "coefficients",
+    "std_errors",
+    "confidence_95",
+    "condition_number",
+    "residual_rms",
+    "dof",
+    "chi2",
+    "p_value",
+    "aic",
+    "bic",
+    "notes",
+    "warnings",
+    "exponent",
+    "expanded_uncertainty",
+    "not_determined",
+    "truth",
+)
 
 
 def point_log_lines(p: OperatingPoint, res: PointResults) -> list[str]:
     """One line per refusal, warning, adequacy verdict and LMS consistency check of the point."""
-    fits = [(lms, f"{e['spec'].model} {e['spec'].freq_dep} {e['spec'].method}", e.get("json"), e.get("error"))
-            for (lms, _), e in res.identifications.items()]
+    fits = [
+        (lms, f"{e['spec'].model} {e['spec'].freq_dep} {e['spec'].method}", e.get("json"), e.get("error"))
+        for (lms, _), e in res.identifications.items()
+    ]
     return [f"point {p.index:04d}: {line}" for line in judgement_lines(fits)]
 
 
-def judgement_lines(fits: list[tuple[str, str, dict[str, Any] | None, str | None]], *, verdicts: bool = True,
-                    brief: bool = False, warnings: bool = True) -> list[str]:
+def judgement_lines(
+    fits: list[tuple[str, str, dict[str, Any] | None, str | None]],
+    *,
+    verdicts: bool = True,
+    brief: bool = False,
+    warnings: bool = True,
+) -> list[str]:
     """Lines of (lms, "model freq_dep method", stored JSON or None, refusal or None) fits: refusals
     (``brief``: their first line; else every line joined by ' | '), (``warnings``) warnings, parts
     not evaluated, and (``verdicts``) the adequacy verdicts and LMS consistency."""
@@ -52,8 +74,10 @@ def adequacy_text(a: dict[str, Any]) -> str:
     if "error" in a:
         return f"frequency dependence not tested: {a['error']}"
     aic, bic = a["aic"], a["bic"]
-    return (f"{a['verdict']} against {a['constant']}; AIC {aic[0]:.6g} / {aic[1]:.6g}, "
-            f"BIC {bic[0]:.6g} / {bic[1]:.6g} (constant / this)")
+    return (
+        f"{a['verdict']} against {a['constant']}; AIC {aic[0]:.6g} / {aic[1]:.6g}, "
+        f"BIC {bic[0]:.6g} / {bic[1]:.6g} (constant / this)"
+    )
 
 
 def consistency_text(c: dict[str, Any]) -> str:
@@ -65,14 +89,18 @@ def consistency_text(c: dict[str, Any]) -> str:
         return "load measuring systems not compared: no uncertainty"
     verdict = "consistent" if c["consistent"] else "NOT consistent"
     if c.get("chi2") is None:  # a run stored before the joint test: |E_n| per coefficient
-        return (f"load measuring systems {c['pair']}: max |E_n| = {c['max_abs']:.3g} "
-                f"({verdict} within |E_n| <= {c['limit']:g}, {c['basis']} uncertainty)")
-    return (f"load measuring systems {c['pair']}: {verdict} (chi2 = {c['chi2']:.3g} on {c['dof']} coefficients "
-            f"{'<=' if c['consistent'] else '>'} {c['limit']:.3g} at the {100 * c['level']:g} % level, "
-            f"{c['basis']} uncertainty); max |E_n| = {c['max_abs']:.3g}")
+        return (
+            f"load measuring systems {c['pair']}: max |E_n| = {c['max_abs']:.3g} "
+            f"({verdict} within |E_n| <= {c['limit']:g}, {c['basis']} uncertainty)"
+        )
+    return (
+        f"load measuring systems {c['pair']}: {verdict} (chi2 = {c['chi2']:.3g} on {c['dof']} coefficients "
+        f"{'<=' if c['consistent'] else '>'} {c['limit']:.3g} at the {100 * c['level']:g} % level, "
+        f"{c['basis']} uncertainty); max |E_n| = {c['max_abs']:.3g}"
+    )
 
 
-def _row(lms: str, e: dict[str, Any]) -> dict[str, Any]:
+def _row(lms: str, e: IdentificationEntry) -> dict[str, Any]:
     spec = e["spec"]
     row = {"lms": lms, "model": spec.model, "freq_dep": spec.freq_dep, "method": spec.method}
     if "error" in e:
@@ -97,14 +125,34 @@ def result_payload(run_id: str | None, p: OperatingPoint, res: PointResults) -> 
     refusal), and per point the adequacy verdicts, every warning, the refused fits and (--sim)
     the constant best fit of the true Z."""
     rows = [_row(lms, e) for (lms, _), e in res.identifications.items()]
-    out: dict[str, Any] = {"run_id": run_id, **p.settings(), "identification": rows,
-                           "lms_comparison": res.lms_comparison}
-    out["adequacy"] = [{"lms": r["lms"], "model": r["model"], "freq_dep": r["freq_dep"], "method": r["method"],
-                        **({"verdict": r["adequacy"]["verdict"], "supported": r["adequacy"]["supported"],
-                            "p_value": r["adequacy"]["p_value"]} if "verdict" in r["adequacy"] else r["adequacy"])}
-                       for r in rows if "adequacy" in r]
-    out["warnings"] = [f"{r['lms']} {r['model']} {r['freq_dep']} {r['method']}: {w}"
-                       for r in rows for w in r.get("warnings") or []]
+    out: dict[str, Any] = {
+        "run_id": run_id,
+        **p.settings(),
+        "identification": rows,
+        "lms_comparison": res.lms_comparison,
+    }
+    out["adequacy"] = [
+        {
+            "lms": r["lms"],
+            "model": r["model"],
+            "freq_dep": r["freq_dep"],
+            "method": r["method"],
+            **(
+                {
+                    "verdict": r["adequacy"]["verdict"],
+                    "supported": r["adequacy"]["supported"],
+                    "p_value": r["adequacy"]["p_value"],
+                }
+                if "verdict" in r["adequacy"]
+                else r["adequacy"]
+            ),
+        }
+        for r in rows
+        if "adequacy" in r
+    ]
+    out["warnings"] = [
+        f"{r['lms']} {r['model']} {r['freq_dep']} {r['method']}: {w}" for r in rows for w in r.get("warnings") or []
+    ]
     out["refused"] = [{k: r[k] for k in ("lms", "model", "freq_dep", "method", "error")} for r in rows if "error" in r]
     if res.truth is not None:
         out["truth"] = {k: res.truth[k] for k in ("K0", "C0", "D0")}

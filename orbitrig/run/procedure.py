@@ -25,12 +25,24 @@ from orbitrig.run.control import RunControl, StopRun, Suspended
 from orbitrig.run.corrections import Corrections
 from orbitrig.run.events import ResultEvent, RunFailed
 from orbitrig.run.heap import trim_heap
-from orbitrig.run.identification import block_record, identify_operating_point, point_truth
+from orbitrig.run.identification import block_record, identify_operating_point
 from orbitrig.run.point_report import point_log_lines, result_payload
 from orbitrig.run.plan import OperatingPoint
+from orbitrig.run.truth import point_truth
 from orbitrig.run.steps import (
-    Acquire, ChooseBlocks, CompletePoint, Identify, SetManual, SetOrbit, SetSpin, Settle, Step, StopDrives, StoreBlock,
-    VerifyGeometry, VerifyPressures,
+    Acquire,
+    ChooseBlocks,
+    CompletePoint,
+    Identify,
+    SetManual,
+    SetOrbit,
+    SetSpin,
+    Settle,
+    Step,
+    StopDrives,
+    StoreBlock,
+    VerifyGeometry,
+    VerifyPressures,
 )
 from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.rig_io import RigAccess, RigIO
@@ -47,7 +59,6 @@ from reduction.sequential import Choice
 log = logging.getLogger(__name__)
 
 
-
 def averaging_rule(step: Acquire, spin: float, speed_tolerance: float = 0.005) -> AveragingRule:
     """The daq rule of an Acquire step at spin (rad/s): its block's adaptive target (percent ->
     a fraction, between min and max revolutions), else exactly its `revolutions`; with
@@ -58,8 +69,14 @@ def averaging_rule(step: Acquire, spin: float, speed_tolerance: float = 0.005) -
     turns = spin / orbit
     if a is None:
         return AveragingRule(step.revolutions, step.revolutions, None, turns, orbit, speed_tolerance)
-    return AveragingRule.adaptive(a.target_pct / 100.0, a.min_revolutions, a.max_revolutions, spin_turns=turns,
-                                  orbit_speed=orbit, speed_tolerance=speed_tolerance)
+    return AveragingRule.adaptive(
+        a.target_pct / 100.0,
+        a.min_revolutions,
+        a.max_revolutions,
+        spin_turns=turns,
+        orbit_speed=orbit,
+        speed_tolerance=speed_tolerance,
+    )
 
 
 @dataclass(frozen=True)
@@ -73,11 +90,18 @@ class Before:
 
 #: every frequency of a point is stored before Identify: a stop lets the identification finish
 BEFORE: dict[type[Step], Before] = {
-    SetManual: Before(True, True), VerifyPressures: Before(None, True), SetSpin: Before(True, True),
-    SetOrbit: Before(True, True), Settle: Before(None, True), Acquire: Before(None, True),
-    VerifyGeometry: Before(None, True), StoreBlock: Before(None, False), ChooseBlocks: Before(None, False),
+    SetManual: Before(True, True),
+    VerifyPressures: Before(None, True),
+    SetSpin: Before(True, True),
+    SetOrbit: Before(True, True),
+    Settle: Before(None, True),
+    Acquire: Before(None, True),
+    VerifyGeometry: Before(None, True),
+    StoreBlock: Before(None, False),
+    ChooseBlocks: Before(None, False),
     Identify: Before(False, False),
-    CompletePoint: Before(None, False), StopDrives: Before(None, False),
+    CompletePoint: Before(None, False),
+    StopDrives: Before(None, False),
 }
 
 
@@ -117,11 +141,18 @@ class PointProcedure:
         self.r = parts
         self.scale = parts.access.time_scale
         self.handlers: dict[type[Step], Callable[[Step, PointState | None], Awaitable[None]]] = {
-            SetManual: self.set_manual, VerifyPressures: self.verify_pressures, SetSpin: self.set_spin,
-            SetOrbit: self.set_orbit, Settle: self.settle, Acquire: self.acquire,
-            VerifyGeometry: self.verify_geometry, StoreBlock: self.store_block, ChooseBlocks: self.choose_blocks,
+            SetManual: self.set_manual,
+            VerifyPressures: self.verify_pressures,
+            SetSpin: self.set_spin,
+            SetOrbit: self.set_orbit,
+            Settle: self.settle,
+            Acquire: self.acquire,
+            VerifyGeometry: self.verify_geometry,
+            StoreBlock: self.store_block,
+            ChooseBlocks: self.choose_blocks,
             Identify: self.identify,
-            CompletePoint: self.complete_point, StopDrives: self.stop_drives,
+            CompletePoint: self.complete_point,
+            StopDrives: self.stop_drives,
         }
 
     # ------------------------------------------------------------- driving
@@ -167,8 +198,12 @@ class PointProcedure:
 
     # ----------------------------------------------------- manual settings
     async def set_manual(self, step: SetManual, ps: PointState) -> None:
-        await self.r.access.hands.set_manual(orbit_radius=step.orbit_radius, static_eccentricity=step.static_eccentricity,
-                                             recess_pressure=step.recess_pressure, pressure_ratio=step.pressure_ratio)
+        await self.r.access.hands.set_manual(
+            orbit_radius=step.orbit_radius,
+            static_eccentricity=step.static_eccentricity,
+            recess_pressure=step.recess_pressure,
+            pressure_ratio=step.pressure_ratio,
+        )
         if self.r.confirm_mode != ConfirmMode.AUTO and (step.changed or ps.always_confirm):
             await self.r.control.ask(step.step_id, "set by hand and confirm: " + step.describe())
 
@@ -208,7 +243,9 @@ class PointProcedure:
         try:
             await self.r.io.drives.set_speeds(spin, orbit)
         except DriveError as err:
-            raise RunFailed(f"cannot set speeds spin {spin / RPM:.0f} rpm, orbit {orbit / RPM:+.0f} rpm: {err}") from err
+            raise RunFailed(
+                f"cannot set speeds spin {spin / RPM:.0f} rpm, orbit {orbit / RPM:+.0f} rpm: {err}"
+            ) from err
         self.r.note(f"speeds set: spin {spin / RPM:.0f} rpm, orbit {orbit / RPM:+.1f} rpm")
 
     async def set_spin(self, step: SetSpin, ps: PointState) -> None:
@@ -228,8 +265,9 @@ class PointProcedure:
         r, t0 = self.r, time.monotonic()
         timeout = self.scale.wall(r.rig.settle.timeout_s) + 5.0
         try:
-            await r.control.guarded(r.io.drives.wait_settled(hold=self.scale.wall(step.hold), timeout=timeout),
-                                    r.supervisor)
+            await r.control.guarded(
+                r.io.drives.wait_settled(hold=self.scale.wall(step.hold), timeout=timeout), r.supervisor
+            )
         except DriveError as err:
             raise RunFailed(f"point {p.index:04d} [{step.block.tag}]: drives did not settle: {err}") from err
         self._add_time("settle", t0)
@@ -267,8 +305,10 @@ class PointProcedure:
                 await self._hold_while_suspended()
             except (DaqError, TimeoutError) as err:
                 attempts += 1
-                msg = (f"point {p.index:04d} [{b.tag}]: acquisition failed ({type(err).__name__}: {err}); "
-                       "orbit trigger lost or A/D link down?")
+                msg = (
+                    f"point {p.index:04d} [{b.tag}]: acquisition failed ({type(err).__name__}: {err}); "
+                    "orbit trigger lost or A/D link down?"
+                )
                 r.note(msg)
                 if attempts > av.retries:
                     raise RunFailed(msg) from err
@@ -296,12 +336,15 @@ class PointProcedure:
                 raise StopRun
             recs = list(ps.records.values())
             try:
-                c = await asyncio.to_thread(choose, step.rule, p.spin, recs, r.rig.channel_index,
-                                            Corrections.of_rig(r.rig))
+                c = await asyncio.to_thread(
+                    choose, step.rule, p.spin, recs, r.rig.channel_index, Corrections.of_rig(r.rig)
+                )
             except (ReductionError, ValueError, FloatingPointError) as err:
                 raise RunFailed(f"point {p.index:04d}: sequential design: {err}") from err
             if c.ratio is not None and freq > MAX_BLOCK_INDEX:  # no block name left: as at the cap
-                c = dataclasses.replace(c, reason=Choice.CAP.name.lower(), ratio=None, revolutions=0, seconds=0.0, after=c.before)
+                c = dataclasses.replace(
+                    c, reason=Choice.CAP.name.lower(), ratio=None, revolutions=0, seconds=0.0, after=c.before
+                )
             r.store.log(choice_line(p.index, c))
             if c.ratio is None:
                 ps.sequential = c
@@ -320,8 +363,16 @@ class PointProcedure:
         async def results() -> PointResults:
             t0 = time.monotonic()
             truth = None if r.access.truth is None else await asyncio.to_thread(point_truth, p, recs, r.access.truth)
-            res = await asyncio.to_thread(identify_operating_point, p.spin, recs, r.rig.channel_index, step.models,
-                                          truth, r.rig.calibration_uncertainty, Corrections.of_rig(r.rig))
+            res = await asyncio.to_thread(
+                identify_operating_point,
+                p.spin,
+                recs,
+                r.rig.channel_index,
+                step.models,
+                truth,
+                r.rig.calibration_uncertainty,
+                Corrections.of_rig(r.rig),
+            )
             res.sequential = ps.sequential
             self._add_time("identify", t0)
             for line in point_log_lines(p, res):

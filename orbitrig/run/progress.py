@@ -47,5 +47,8 @@ class ProgressMeter:
             return
         self._last = now
         eta = self.scale.wall(max(0.0, self.remaining))
-        self._emit(ProgressEvent(self.run_id, self.point, self.points, self.frequency, self.frequencies,
-                                 self.revolutions, round(eta, 1)))
+        self._emit(
+            ProgressEvent(
+                self.run_id, self.point, self.points, self.frequency, self.frequencies, self.revolutions, round(eta, 1)
+            )
+        )

@@ -50,21 +50,31 @@ class Provenance:
     def of_run(cls, rig: RigConfig, operator: str) -> "Provenance":
         """The provenance of a run starting now on ``rig``, started by ``operator``."""
         serials = {c.name: c.serial for c in rig.ordered_channels}
-        return cls(operator=operator or UNNAMED, software_version=f"orbitrig {__version__}",
-                   rig_id=rig.rig_id or rig.name, sensor_serials=serials,
-                   calibration_record=rig.calibration_record or "",
-                   calibration_record_sha256=digest(rig.record_text) if rig.record_text else "",
-                   host=socket.gethostname(), started=now_iso())
+        return cls(
+            operator=operator or UNNAMED,
+            software_version=f"orbitrig {__version__}",
+            rig_id=rig.rig_id or rig.name,
+            sensor_serials=serials,
+            calibration_record=rig.calibration_record or "",
+            calibration_record_sha256=digest(rig.record_text) if rig.record_text else "",
+            host=socket.gethostname(),
+            started=now_iso(),
+        )
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
     def summary(self) -> str:
         """One line for run.log."""
-        cal = f"{self.calibration_record} (sha256 {self.calibration_record_sha256[:12]})" \
-            if self.calibration_record else "none"
-        return (f"provenance: operator {self.operator}, {self.software_version}, rig {self.rig_id}, "
-                f"host {self.host}, calibration record {cal}")
+        cal = (
+            f"{self.calibration_record} (sha256 {self.calibration_record_sha256[:12]})"
+            if self.calibration_record
+            else "none"
+        )
+        return (
+            f"provenance: operator {self.operator}, {self.software_version}, rig {self.rig_id}, "
+            f"host {self.host}, calibration record {cal}"
+        )
 
 
 def command_line(command: RunCommand, by: str | None, detail: str = "") -> str:

@@ -70,8 +70,10 @@ class OperatorRequests:
 
     def _stopped_now(self, task: asyncio.Task[list[DriveError]], t0: float, by: str | None) -> None:
         errors = "cancelled" if task.cancelled() else task.exception() or task.result()
-        self._log_event(f"drives: emergency stop (OFF3) sent on the abort in {(time.monotonic() - t0) * 1e3:.0f} ms"
-                        + (f"; not delivered: {errors}" if errors else ""))
+        self._log_event(
+            f"drives: emergency stop (OFF3) sent on the abort in {(time.monotonic() - t0) * 1e3:.0f} ms"
+            + (f"; not delivered: {errors}" if errors else "")
+        )
         self._command(RunCommand.ABORT, by)
 
     def request_stop_now(self, why: str, by: str | None = None) -> None:
@@ -100,4 +102,3 @@ class OperatorRequests:
     def _command(self, command: RunCommand, by: str | None, detail: str = "") -> None:
         if self._store is not None:
             self._store.command(command, by or self.console_user or UNNAMED, detail)
-

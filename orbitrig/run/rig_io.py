@@ -60,15 +60,17 @@ class TimeScale:
 class Hands(Protocol):
     """Whoever sets orbit radius (m), static eccentricity, recess pressure (Pa) and pressure ratio."""
 
-    async def set_manual(self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float,
-                         pressure_ratio: float) -> None: ...
+    async def set_manual(
+        self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float, pressure_ratio: float
+    ) -> None: ...
 
 
 class OperatorHands:
     """The real rig: the operator sets the values by hand; the engine asks for a confirmation."""
 
-    async def set_manual(self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float,
-                         pressure_ratio: float) -> None:
+    async def set_manual(
+        self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float, pressure_ratio: float
+    ) -> None:
         return None
 
 
@@ -114,8 +116,9 @@ class RigAccess:
 class RigIO:
     """The open links of one run: `drives`, `adc`, `aux` (entered in that reverse order)."""
 
-    def __init__(self, rig: RigConfig, endpoints: Endpoints, *,
-                 on_revolution: Callable[[Revolution], None] | None = None):
+    def __init__(
+        self, rig: RigConfig, endpoints: Endpoints, *, on_revolution: Callable[[Revolution], None] | None = None
+    ):
         self.rig = rig
         self.endpoints = endpoints
         self._on_revolution = on_revolution
@@ -131,8 +134,14 @@ class RigIO:
                 AuxSensors(e.can_channel, interface=e.can_interface, bitrate=t.can_bitrate, node_id=t.can_node_id)
             )
             self.adc = await self._stack.enter_async_context(
-                AdcReader(e.adc_url, channels=len(rig.channels), mode=t.adc_mode, gains=rig.gains,
-                          offsets=rig.offsets, on_revolution=self._revolution)
+                AdcReader(
+                    e.adc_url,
+                    channels=len(rig.channels),
+                    mode=t.adc_mode,
+                    gains=rig.gains,
+                    offsets=rig.offsets,
+                    on_revolution=self._revolution,
+                )
             )
             # entered last, so it is closed first: the drives stop before the links go
             self.drives = await self._stack.enter_async_context(rig_drives(e.modbus_url, rig.drives, watchdog=True))

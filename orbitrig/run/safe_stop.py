@@ -15,8 +15,9 @@ import time
 from drives.rig import RigDrives
 
 
-async def stop_drives(drives: RigDrives, aborted: asyncio.Event, *, emergency: bool,
-                      timeout: float | None) -> tuple[bool, str]:
+async def stop_drives(
+    drives: RigDrives, aborted: asyncio.Event, *, emergency: bool, timeout: float | None
+) -> tuple[bool, str]:
     """Stop both drives (`timeout` wall s to standstill, None: the drives' own ramp time with a
     margin); (escalated to an emergency stop, log line)."""
     t0 = time.monotonic()
@@ -39,12 +40,17 @@ async def stop_drives(drives: RigDrives, aborted: asyncio.Event, *, emergency: b
             escalated = True
             await drives.stop(emergency=True, wait=True, timeout=timeout)
     kind = "emergency stop (OFF3)" if emergency or escalated else "ramp stop (OFF1)"
-    return escalated, (f"drives: {kind}{' after an abort during the ramp' if escalated else ''}; "
-                       f"standstill after {time.monotonic() - t0:.1f} s: {_speeds(drives)}")
+    return escalated, (
+        f"drives: {kind}{' after an abort during the ramp' if escalated else ''}; "
+        f"standstill after {time.monotonic() - t0:.1f} s: {_speeds(drives)}"
+    )
 
 
 def _speeds(drives: RigDrives) -> str:
     st = drives.state
-    parts = [f"{s.name} ACT {s.to_dict()['actual_rpm']:.0f} rpm, fault {s.fault_code}"
-             for s in (st.spin, st.orbit) if s is not None]
+    parts = [
+        f"{s.name} ACT {s.to_dict()['actual_rpm']:.0f} rpm, fault {s.fault_code}"
+        for s in (st.spin, st.orbit)
+        if s is not None
+    ]
     return "; ".join(parts) or "no drive state"

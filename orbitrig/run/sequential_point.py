@@ -14,6 +14,7 @@ own step kinds (SetOrbit, Settle, Acquire of the chosen count, StoreBlock with t
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from orbitrig.config import LMS
 from orbitrig.run.corrections import Corrections
@@ -21,11 +22,13 @@ from orbitrig.run.identification import orbit_table
 from orbitrig.run.sequential_rule import SequentialRule
 from orbitrig.run.steps import Acquire, Block, ChooseBlocks, SetOrbit, Settle, Step, StoreBlock
 from orbitrig.store.records import BlockChoice, BlockRecord
+from reduction.arrays import FloatArray, NoiseAt
 from reduction.frequency_list import coefficient_scales, smooth_noise
 from reduction.identify import identify
-from reduction.models import model_spec
+from reduction.models import ModelSpec, model_spec
 from reduction.rig_time import block_time
 from reduction.sequential import Choice, block_information, next_block, reference_errors
+from reduction.table import OrbitTable
 from reduction.whirl import Whirl
 
 #: the most blocks a point can name (storage tags are two digits)
@@ -41,7 +44,7 @@ def spent_seconds(rule: SequentialRule, recs: list[BlockRecord]) -> float:
     return float(np.sum(block_time(orbits, n))) + len(recs) * rule.per_block_s + ramps
 
 
-def _noise(table, ratios: np.ndarray):
+def _noise(table: OrbitTable, ratios: FloatArray) -> tuple[FloatArray, NoiseAt]:
     """Per-revolution noise (k, 4) per block and the smoothed ``noise_at(ratios)`` of the candidates."""
     if table.u is None or table.n_records is None:
         raise ValueError("the blocks' phasor uncertainties are not finite")
@@ -49,15 +52,20 @@ def _noise(table, ratios: np.ndarray):
     at = np.unique(np.round(ratios, 9))
     smooth = smooth_noise(at, np.array([np.median(per_rev[np.round(ratios, 9) == r], axis=0) for r in at]))
 
-    def noise_at(r) -> np.ndarray:
-        r = np.atleast_1d(np.asarray(r, dtype=float))
+    def noise_at(ratio: ArrayLike) -> FloatArray:
+        r = np.atleast_1d(np.asarray(ratio, dtype=float))
         return np.stack([np.interp(r, at, smooth[:, c]) for c in range(4)], axis=1)
 
     return per_rev, noise_at
 
 
-def choose(rule: SequentialRule, spin: float, recs: list[BlockRecord], ch: dict[str, int],
-           corrections: Corrections | None = None) -> BlockChoice:
+def choose(
+    rule: SequentialRule,
+    spin: float,
+    recs: list[BlockRecord],
+    ch: dict[str, int],
+    corrections: Corrections | None = None,
+) -> BlockChoice:
     """The next block of the point whose blocks so far are ``recs`` (in the order they ran), or
     the stop (reason target or cap). Raises ReductionError/ValueError when the blocks cannot
     identify the model."""
@@ -69,42 +77,116 @@ def choose(rule: SequentialRule, spin: float, recs: list[BlockRecord], ch: dict[
     ratios = np.array([abs(r.block.orbit) / spin for r in recs])
     per_rev, noise_at = _noise(table, ratios)
     radius = float(np.mean(np.sqrt((np.abs(table.x) ** 2 + np.abs(table.y) ** 2) / 2)))
-    info = sum(block_information(spec, theta, spin, radius, ratios[k], per_rev[k], int(table.n_records[k]),
-                                 str(Whirl.of(recs[k].block.direction))) for k in range(len(recs)))
+    info = _information(spec, theta, spin, radius, table, ratios, per_rev, recs)
+    scales, target = _scales(rule, spec, theta, spin, radius, noise_at)
+    spent = spent_seconds(rule, recs)
+    nb = next_block(
+        spec,
+        theta,
+        spin,
+        radius,
+        info,
+        rule.candidates,
+        noise_at,
+        scales,
+        target,
+        spent,
+        rule.cap_s,
+        rule.per_block_s,
+        rule.directions,
+        recs[-1].block.orbit,
+        rule.ramp_rate,
+    )
+    return BlockChoice(
+        nb.reason.name.lower(),
+        nb.ratio,
+        nb.direction,
+        nb.revolutions,
+        nb.seconds,
+        spent,
+        tuple(spec.names),
+        tuple(float(v) for v in nb.before),
+        tuple(float(v) for v in nb.after),
+    )
+
+
+def _information(
+    spec: ModelSpec,
+    theta: FloatArray,
+    spin: float,
+    radius: float,
+    table: OrbitTable,
+    ratios: FloatArray,
+    per_rev: FloatArray,
+    recs: list[BlockRecord],
+) -> FloatArray:
+    """The Fisher information of the point's blocks at ``theta``, summed over the blocks (each
+    at its ratio, per-revolution noise, revolution count and whirl direction)."""
+    n_records = table.n_records
+    if n_records is None:
+        raise ValueError("the blocks' revolution counts are not known")
+    blocks = [
+        block_information(
+            spec,
+            theta,
+            spin,
+            radius,
+            ratios[k],
+            per_rev[k],
+            int(n_records[k]),
+            str(Whirl.of(recs[k].block.direction)),
+        )
+        for k in range(len(recs))
+    ]
+    info = blocks[0]
+    for b in blocks[1:]:  # in the blocks' order, as they ran
+        info = info + b
+    return info
+
+
+def _scales(
+    rule: SequentialRule, spec: ModelSpec, theta: FloatArray, spin: float, radius: float, noise_at: NoiseAt
+) -> tuple[FloatArray, float]:
+    """The coefficients' scales of the relative errors and the target on them: with no target
+    in the rule, the errors the rule's matching design would reach (target 1); else each
+    coefficient's own scale and the rule's target."""
     if rule.target is None:
         match = np.asarray(rule.match_ratios)
         both = "both" if len(rule.directions) == 2 else rule.directions[0]
-        scales, target = reference_errors(spec, theta, spin, radius, match, noise_at(match), rule.match_revolutions,
-                                          both), 1.0
-    else:
-        scales, target = coefficient_scales(spec, theta, spin), rule.target
-    spent = spent_seconds(rule, recs)
-    nb = next_block(spec, theta, spin, radius, info, rule.candidates, noise_at, scales, target, spent, rule.cap_s,
-                    rule.per_block_s, rule.directions, recs[-1].block.orbit, rule.ramp_rate)
-    return BlockChoice(nb.reason.name.lower(), nb.ratio, nb.direction, nb.revolutions, nb.seconds, spent, tuple(spec.names),
-                       tuple(float(v) for v in nb.before), tuple(float(v) for v in nb.after))
+        return reference_errors(spec, theta, spin, radius, match, noise_at(match), rule.match_revolutions, both), 1.0
+    return coefficient_scales(spec, theta, spin), rule.target
 
 
-def chosen_steps(step: ChooseBlocks, spin: float, choice: BlockChoice, freq: int, orbit_now: float,
-                 store_s: float) -> list[Step]:
+def chosen_steps(
+    step: ChooseBlocks, spin: float, choice: BlockChoice, freq: int, orbit_now: float, store_s: float
+) -> list[Step]:
     """The steps of the chosen block(s): per direction (forward first for "both") SetOrbit,
     Settle, Acquire of exactly the chosen revolutions, StoreBlock carrying the choice."""
+    if choice.ratio is None:
+        raise ValueError(f"a {choice.reason} decision chooses no block")
     signs = (+1, -1) if choice.direction == "both" else (Whirl(choice.direction).sign,)
     out: list[Step] = []
     for sign in signs:
         b = Block(freq, sign, sign * float(choice.ratio) * spin)
         n = choice.revolutions
-        out += [SetOrbit(step.point, abs(b.orbit - orbit_now) / step.rule.ramp_rate, b),
-                Settle(step.point, step.hold, b, step.hold),
-                Acquire(step.point, block_time(b.orbit, n), b, n, step.hold),
-                StoreBlock(step.point, store_s, b, choice)]
+        out += [
+            SetOrbit(step.point, abs(b.orbit - orbit_now) / step.rule.ramp_rate, b),
+            Settle(step.point, step.hold, b, step.hold),
+            Acquire(step.point, block_time(b.orbit, n), b, n, step.hold),
+            StoreBlock(step.point, store_s, b, choice),
+        ]
         orbit_now = b.orbit
     return out
 
 
 def choice_line(point: int, c: BlockChoice) -> str:
     """The run log's line of one decision."""
-    what = (f"{c.direction} ratio {c.ratio:g}, {c.revolutions} revolutions ({c.seconds:.1f} s)"
-            if c.ratio is not None else "stop")
-    return (f"point {point:04d}: sequential: {what}: {Choice[c.reason.upper()].value}; largest predicted relative error "
-            f"{max(c.before) * 100:.3g} % -> {max(c.after) * 100:.3g} % after {c.spent_s:.1f} s of blocks")
+    what = (
+        f"{c.direction} ratio {c.ratio:g}, {c.revolutions} revolutions ({c.seconds:.1f} s)"
+        if c.ratio is not None
+        else "stop"
+    )
+    return (
+        f"point {point:04d}: sequential: {what}: {Choice[c.reason.upper()].value}; largest predicted relative error "
+        f"{max(c.before) * 100:.3g} % -> {max(c.after) * 100:.3g} % after {c.spent_s:.1f} s of blocks"
+    )

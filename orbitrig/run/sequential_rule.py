@@ -37,11 +37,16 @@ class SequentialRule:
     ramp_rate: float
 
     def describe(self) -> str:
-        goal = (f"every {self.model} coefficient within {self.target * 100:g} % of its size" if self.target is not None
-                else f"every {self.model} coefficient as precise as ratios {', '.join(f'{r:g}' for r in self.match_ratios)}"
-                     f" at {self.match_revolutions} revolutions")
-        return (f"sequential blocks until {goal}, or {self.cap_s:g} s of blocks; candidate ratios "
-                f"{', '.join(f'{r:g}' for r in self.candidates)} ({', '.join(self.directions)})")
+        goal = (
+            f"every {self.model} coefficient within {self.target * 100:g} % of its size"
+            if self.target is not None
+            else f"every {self.model} coefficient as precise as ratios {', '.join(f'{r:g}' for r in self.match_ratios)}"
+            f" at {self.match_revolutions} revolutions"
+        )
+        return (
+            f"sequential blocks until {goal}, or {self.cap_s:g} s of blocks; candidate ratios "
+            f"{', '.join(f'{r:g}' for r in self.candidates)} ({', '.join(self.directions)})"
+        )
 
 
 def sequential_rule(matrix: MatrixConfig, rig: RigConfig, spin: float) -> SequentialRule | None:
@@ -52,8 +57,13 @@ def sequential_rule(matrix: MatrixConfig, rig: RigConfig, spin: float) -> Sequen
     hold = rig.settle.hold_s if matrix.settle_hold_s is None else matrix.settle_hold_s
     candidates = tuple(sorted(s.candidates)) if s.candidates is not None else band_candidates(rig, spin / RPM)
     return SequentialRule(
-        model=matrix.sequential_model or "", target=None if s.target_pct is None else s.target_pct / 100.0,
-        match_ratios=tuple(sorted(s.match_ratios or ())), match_revolutions=s.match_revolutions, cap_s=s.cap_s,
-        candidates=candidates, directions=tuple(str(w) for w in matrix.orbit.directions),
-        per_block_s=hold + rig.estimates.store_s, ramp_rate=rig.ramp_rate,
+        model=matrix.sequential_model or "",
+        target=None if s.target_pct is None else s.target_pct / 100.0,
+        match_ratios=tuple(sorted(s.match_ratios or ())),
+        match_revolutions=s.match_revolutions,
+        cap_s=s.cap_s,
+        candidates=candidates,
+        directions=tuple(str(w) for w in matrix.orbit.directions),
+        per_block_s=hold + rig.estimates.store_s,
+        ramp_rate=rig.ramp_rate,
     )

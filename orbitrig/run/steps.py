@@ -40,7 +40,6 @@ class Block:
         return TWO_PI / abs(self.orbit)
 
 
-
 # ------------------------------------------------------------------ steps
 @dataclass(frozen=True)
 class Step:
@@ -232,7 +231,17 @@ class ChooseBlocks(Step):
 
 
 #: every step kind of a plan (the engine has one handler for each)
-STEP_KINDS: tuple[type[Step], ...] = (SetManual, VerifyPressures, SetSpin, SetOrbit, Settle, Acquire,
-                                      VerifyGeometry, StoreBlock, ChooseBlocks, Identify, CompletePoint, StopDrives)
-
-
+STEP_KINDS: tuple[type[Step], ...] = (
+    SetManual,
+    VerifyPressures,
+    SetSpin,
+    SetOrbit,
+    Settle,
+    Acquire,
+    VerifyGeometry,
+    StoreBlock,
+    ChooseBlocks,
+    Identify,
+    CompletePoint,
+    StopDrives,
+)

@@ -26,8 +26,14 @@ from orbitrig.run.interlocks import Trip
 
 
 class InterlockSupervisor:
-    def __init__(self, read: Callable[[], tuple[AuxState | None, RigDriveState | None]], cfg: Interlocks,
-                 on_fail: Callable[[Trip], None], *, period: float = 0.05):
+    def __init__(
+        self,
+        read: Callable[[], tuple[AuxState | None, RigDriveState | None]],
+        cfg: Interlocks,
+        on_fail: Callable[[Trip], None],
+        *,
+        period: float = 0.05,
+    ):
         self._read = read
         self.cfg = cfg
         self._on_fail = on_fail
@@ -67,8 +73,14 @@ class InterlockSupervisor:
         since = self._lost_since = (self._lost_since or now) if lost else None
         limit = self.cfg.can_heartbeat_timeout_s
         if since is not None and now - since >= limit:
-            return [Trip("can_heartbeat", interlocks.FAIL, f"CAN sensor node lost for more than {limit:g} s "
-                         "(no heartbeat): supply pressure and pump are not watched")] + trips
+            return [
+                Trip(
+                    "can_heartbeat",
+                    interlocks.FAIL,
+                    f"CAN sensor node lost for more than {limit:g} s "
+                    "(no heartbeat): supply pressure and pump are not watched",
+                )
+            ] + trips
         return trips
 
     async def watch(self) -> None:

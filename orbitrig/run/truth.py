@@ -28,9 +28,11 @@ from reduction.impedance import impedance
 from reduction.models import model_spec
 
 #: the truth's definition, stored with it
-DEFINITION = ("Z: the simulator's true impedance at each row's orbit speed, f_bar = -Z d_bar (N/m); "
-              "fits: best fits of Z over band (the point's |Omega|), constant K, C, D and Eq. 15 power form; "
-              "K0, C0, D0 = fits.constant")
+DEFINITION = (
+    "Z: the simulator's true impedance at each row's orbit speed, f_bar = -Z d_bar (N/m); "
+    "fits: best fits of Z over band (the point's |Omega|), constant K, C, D and Eq. 15 power form; "
+    "K0, C0, D0 = fits.constant"
+)
 
 
 def row_orbit(rec: BlockRecord) -> float:
@@ -49,12 +51,20 @@ def point_truth(p: OperatingPoint, recs: list[BlockRecord], source: TruthSource)
     band = np.unique(np.abs(orbit))
     fits = source.reference_fits(p.spin, band)
     const = {k: np.asarray(v, dtype=float).tolist() for k, v in fits["constant"].items()}
-    power = {k: (list(v) if k == "exponents" else np.asarray(v, dtype=float).tolist())
-             for k, v in fits["power"].items()}
+    power = {
+        k: (list(v) if k == "exponents" else np.asarray(v, dtype=float).tolist()) for k, v in fits["power"].items()
+    }
     return {
-        "definition": DEFINITION, "orbit": orbit.tolist(), "orbit_hz": [r.block.orbit_hz for r in recs],
-        "Z_re": z.real.tolist(), "Z_im": z.imag.tolist(), "band": band.tolist(),
-        "fits": {"constant": const, "power": power}, "K0": const["K"], "C0": const["C"], "D0": const["D"],
+        "definition": DEFINITION,
+        "orbit": orbit.tolist(),
+        "orbit_hz": [r.block.orbit_hz for r in recs],
+        "Z_re": z.real.tolist(),
+        "Z_im": z.imag.tolist(),
+        "band": band.tolist(),
+        "fits": {"constant": const, "power": power},
+        "K0": const["K"],
+        "C0": const["C"],
+        "D0": const["D"],
     }
 
 

@@ -24,8 +24,10 @@ def pressure_problems(aux: AuxState, p: OperatingPoint, v: Verify) -> list[str]:
     problems = []
     pr = sum(aux.p_recess) / len(aux.p_recess)
     if abs(pr - p.recess_pressure) > v.recess_pressure_tol_pct / 100 * p.recess_pressure:
-        problems.append(f"recess pressure {pr / MPA:.4f} MPa, want {p.recess_pressure / MPA:.4f} MPa "
-                        f"+/- {v.recess_pressure_tol_pct:g} %")
+        problems.append(
+            f"recess pressure {pr / MPA:.4f} MPa, want {p.recess_pressure / MPA:.4f} MPa "
+            f"+/- {v.recess_pressure_tol_pct:g} %"
+        )
     beta = aux.beta if math.isfinite(aux.beta) else pr / aux.p_supply
     if abs(beta - p.pressure_ratio) > v.pressure_ratio_tol:
         problems.append(f"pressure ratio {beta:.3f}, want {p.pressure_ratio:g} +/- {v.pressure_ratio_tol:g}")
@@ -42,20 +44,25 @@ def geometry_problems(rec: BlockRecord, p: OperatingPoint, rig: RigConfig) -> li
     ecc = math.hypot(x0, y0) / c
     problems = []
     if abs(radius - p.orbit_radius) > v.orbit_radius_tol_pct / 100 * p.orbit_radius:
-        problems.append(f"orbit radius {radius * 1e6:.2f} um, want {p.orbit_radius * 1e6:.2f} um "
-                        f"+/- {v.orbit_radius_tol_pct:g} %")
+        problems.append(
+            f"orbit radius {radius * 1e6:.2f} um, want {p.orbit_radius * 1e6:.2f} um +/- {v.orbit_radius_tol_pct:g} %"
+        )
     if abs(ecc - p.static_eccentricity) > v.static_eccentricity_tol:
-        problems.append(f"static eccentricity {ecc:.3f}, want {p.static_eccentricity:g} "
-                        f"+/- {v.static_eccentricity_tol:g}")
+        problems.append(
+            f"static eccentricity {ecc:.3f}, want {p.static_eccentricity:g} +/- {v.static_eccentricity_tol:g}"
+        )
     return problems
 
 
 def setting_bands(p: OperatingPoint | SetManual, v: Verify) -> dict[str, list[float]]:
     """The band [low, high] (SI) each manual setting of ``p`` is accepted in by the checks above."""
+
     def around(value: float, half: float) -> list[float]:
         return [value - half, value + half]
 
-    return {"orbit_radius": around(p.orbit_radius, v.orbit_radius_tol_pct / 100 * p.orbit_radius),
-            "static_eccentricity": around(p.static_eccentricity, v.static_eccentricity_tol),
-            "recess_pressure": around(p.recess_pressure, v.recess_pressure_tol_pct / 100 * p.recess_pressure),
-            "pressure_ratio": around(p.pressure_ratio, v.pressure_ratio_tol)}
+    return {
+        "orbit_radius": around(p.orbit_radius, v.orbit_radius_tol_pct / 100 * p.orbit_radius),
+        "static_eccentricity": around(p.static_eccentricity, v.static_eccentricity_tol),
+        "recess_pressure": around(p.recess_pressure, v.recess_pressure_tol_pct / 100 * p.recess_pressure),
+        "pressure_ratio": around(p.pressure_ratio, v.pressure_ratio_tol),
+    }

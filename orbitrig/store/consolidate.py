@@ -13,14 +13,17 @@ from __future__ import annotations
 
 import json
 import logging
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
+import numpy.typing as npt
 
 from orbitrig.store.durable import StreamedH5
 from orbitrig.store.errors import StorageError
-from orbitrig.store.index import scan
+from orbitrig.store.index import PointState, scan
 from orbitrig.store.journal import CAN_DTYPE, CAN_UNITS, DRIVE_DTYPE, DRIVE_UNITS, Journal, read_journal
 from orbitrig.store.layout import FORMAT, POINT_ATTR_UNITS, RunLayout, point_name
 from orbitrig.store.annotate import annotate, annotate_attributes, annotate_dataset
@@ -32,7 +35,7 @@ EVENT_DTYPE = np.dtype([("t", "f8"), ("state", STR), ("message", STR)])
 COMMAND_DTYPE = np.dtype([("at", STR), ("command", STR), ("by", STR), ("detail", STR)])
 
 
-def read_header(layout: RunLayout) -> dict:
+def read_header(layout: RunLayout) -> dict[str, Any]:
     """run.json as a dict; StorageError when it is missing or unreadable."""
     try:
         header = json.loads(layout.header.read_bytes())
@@ -106,7 +109,14 @@ class RunImage:
         self._out, self._done = None, set()
 
 
-def _build(f: h5py.File, layout: RunLayout, header: dict, journal: Journal, states, done: set[int]) -> None:
+def _build(
+    f: h5py.File,
+    layout: RunLayout,
+    header: dict[str, Any],
+    journal: Journal,
+    states: list[PointState],
+    done: set[int],
+) -> None:
     a = f.attrs
     a["format"] = FORMAT
     for k in ("software_version", "created", "rig_config", "matrix_config", "matrix_name"):
@@ -130,7 +140,7 @@ def _build(f: h5py.File, layout: RunLayout, header: dict, journal: Journal, stat
     annotate(f["logs"])
 
 
-def _provenance(a, header: dict, journal: Journal) -> None:
+def _provenance(a: h5py.AttributeManager, header: dict[str, Any], journal: Journal) -> None:
     """Who made the run, with what, where, when (orbitrig.run.provenance), as root attributes."""
     prov = header.get("provenance")
     if not isinstance(prov, dict):
@@ -160,7 +170,7 @@ def _add_point(pts: h5py.Group, layout: RunLayout, index: int, complete: bool) -
     return True
 
 
-def _settings(layout: RunLayout, index: int) -> dict | None:
+def _settings(layout: RunLayout, index: int) -> dict[str, Any] | None:
     try:
         s = json.loads(layout.point_file(index).read_bytes())
     except (OSError, ValueError, RecursionError):
@@ -168,7 +178,7 @@ def _settings(layout: RunLayout, index: int) -> dict | None:
     return s if isinstance(s, dict) else None
 
 
-def _copy_root(path, dest: h5py.Group, name: str | None) -> None:
+def _copy_root(path: Path, dest: h5py.Group, name: str | None) -> None:
     """Copy a piece's root into `dest` (as group `name`, or its members when None)."""
     try:
         with h5py.File(path, "r") as src:
@@ -181,10 +191,17 @@ def _copy_root(path, dest: h5py.Group, name: str | None) -> None:
         raise StorageError(path, f"cannot read this piece of the run: {err}") from err
 
 
-def _fixed_rows(rows: list, dtype: np.dtype) -> np.ndarray:
+def _fields(dtype: np.dtype[np.void]) -> tuple[str, ...]:
+    """The field names of a compound dtype (numpy's stubs: None for a plain one)."""
+    if dtype.names is None:
+        raise ValueError(f"{dtype} is not a compound dtype")
+    return dtype.names
+
+
+def _fixed_rows(rows: Sequence[tuple[object, ...]], dtype: np.dtype[np.void]) -> npt.NDArray[np.void]:
     """Log rows as a compound array whose text fields are fixed-length (``fixed_text``)."""
     data = np.array(rows, dtype=dtype) if rows else np.zeros(0, dtype)
-    cols = {k: fixed_text(data[k]) if dtype[k] == STR else data[k] for k in dtype.names}
+    cols = {k: fixed_text(data[k]) if dtype[k] == STR else data[k] for k in _fields(dtype)}
     out = np.zeros(len(data), [(k, v.dtype) for k, v in cols.items()])
     for k, v in cols.items():
         out[k] = v
@@ -192,12 +209,31 @@ def _fixed_rows(rows: list, dtype: np.dtype) -> np.ndarray:
 
 
 def _write_logs(lg: h5py.Group, journal: Journal) -> None:
-    put(lg, "events", _fixed_rows(journal.events, EVENT_DTYPE), "t: s since the run started",
-        fields=strings(EVENT_DTYPE.names))
-    put(lg, "commands", _fixed_rows(journal.commands, COMMAND_DTYPE), "at: ISO 8601 UTC; by: who sent the command",
-        fields=strings(COMMAND_DTYPE.names), field_units=strings([""] * len(COMMAND_DTYPE.names)))
-    for name, rows, dt, units in (("can", journal.can, CAN_DTYPE, CAN_UNITS),
-                                  ("drives", journal.drives, DRIVE_DTYPE, DRIVE_UNITS)):
+    put(
+        lg,
+        "events",
+        _fixed_rows(journal.events, EVENT_DTYPE),
+        "t: s since the run started",
+        fields=strings(_fields(EVENT_DTYPE)),
+    )
+    put(
+        lg,
+        "commands",
+        _fixed_rows(journal.commands, COMMAND_DTYPE),
+        "at: ISO 8601 UTC; by: who sent the command",
+        fields=strings(_fields(COMMAND_DTYPE)),
+        field_units=strings([""] * len(_fields(COMMAND_DTYPE))),
+    )
+    for name, rows, dt, units in (
+        ("can", journal.can, CAN_DTYPE, CAN_UNITS),
+        ("drives", journal.drives, DRIVE_DTYPE, DRIVE_UNITS),
+    ):
         data = np.array(rows, dtype=dt) if rows else np.zeros(0, dt)
-        put(lg, name, data, "; ".join(f"{n}: {u}" for n, u in zip(dt.names, units)),
-            fields=strings(dt.names), field_units=strings(units))
+        put(
+            lg,
+            name,
+            data,
+            "; ".join(f"{n}: {u}" for n, u in zip(_fields(dt), units)),
+            fields=strings(_fields(dt)),
+            field_units=strings(units),
+        )

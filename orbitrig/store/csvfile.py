@@ -19,14 +19,34 @@ import io
 import sys
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 from orbitrig.store.fit_record import expanded_uncertainty
 from orbitrig.store.layout import coefficient_si_unit
 
+if TYPE_CHECKING:
+    from orbitrig.store.reader import Point
+
+#: one row of coefficients.csv: column name -> cell
+CsvRow = dict[str, Any]
+
 CSV_HEAD = [
-    "point", "label", "spin_rpm", "recess_pressure_mpa", "pressure_ratio", "static_eccentricity",
-    "dynamic_eccentricity", "lms", "model", "freq_dep", "method", "n_frequencies", "condition_number",
-    "residual_rms [N]", "error", "not_determined",
+    "point",
+    "label",
+    "spin_rpm",
+    "recess_pressure_mpa",
+    "pressure_ratio",
+    "static_eccentricity",
+    "dynamic_eccentricity",
+    "lms",
+    "model",
+    "freq_dep",
+    "method",
+    "n_frequencies",
+    "condition_number",
+    "residual_rms [N]",
+    "error",
+    "not_determined",
 ]
 
 
@@ -39,7 +59,7 @@ def coefficient_column(key: str, kind: str = "") -> str:
     return f"{'true_' if kind == 'true' else ''}{key} [{unit}]"
 
 
-def coef_order(key: str) -> tuple:
+def coef_order(key: str) -> tuple[int, int, str, str]:
     """Kxx, Kxy, Kyx, Kyy, Cxx, ..., Dyy, then the Omega^r terms (Kxx_1, ...)."""
     base, _, r = key.partition("_")
     return (int(r) if r.isdigit() else 0, "KCD".find(base[:1]), base[1:], key)
@@ -50,13 +70,13 @@ def one_line(text: str) -> str:
     return " | ".join(part.strip() for part in str(text).splitlines() if part.strip())
 
 
-def true_entry(truth: dict, key: str) -> float:
+def true_entry(truth: dict[str, Any], key: str) -> float:
     """True constant-term value of coefficient `key` ('Kxy' ...) at the lowest |Omega|."""
     mat = truth[key[0] + "0"]
     return float(mat["xy".index(key[1])]["xy".index(key[2])])
 
 
-def fit_truth(d: dict | None, truth: dict | None) -> dict[str, float]:
+def fit_truth(d: dict[str, Any] | None, truth: dict[str, Any] | None) -> dict[str, float]:
     """The true value of every coefficient of a stored fit ``d``: its own truth (the true Z
     projected onto its model) when stored, else the point's constant best fit (constant
     terms only); {} without a truth."""
@@ -68,18 +88,22 @@ def fit_truth(d: dict | None, truth: dict | None) -> dict[str, float]:
     return {k: true_entry(truth, k) for k in d["coefficients"] if "_" not in k and f"{k[0]}0" in truth}
 
 
-def _num(v, fmt: str) -> str:
+def _num(v: float | None, fmt: str) -> str:
     """A CSV cell: the number in `fmt`, empty for null (the identify JSON's non-finite values)."""
     return "" if v is None else format(float(v), fmt)
 
 
-def point_rows(point, sim: bool) -> list[dict]:
+def point_rows(point: Point, sim: bool) -> list[CsvRow]:
     """The rows of one complete point (an orbitrig.store.reader.Point)."""
     st = point.settings
     base = {
-        "point": point.index, "label": st.label, "spin_rpm": f"{st.spin_rpm:.6g}",
-        "recess_pressure_mpa": f"{st.recess_pressure / 1e6:.6g}", "pressure_ratio": f"{st.pressure_ratio:.6g}",
-        "static_eccentricity": f"{st.static_eccentricity:.6g}", "dynamic_eccentricity": f"{st.dynamic_eccentricity:.6g}",
+        "point": point.index,
+        "label": st.label,
+        "spin_rpm": f"{st.spin_rpm:.6g}",
+        "recess_pressure_mpa": f"{st.recess_pressure / 1e6:.6g}",
+        "pressure_ratio": f"{st.pressure_ratio:.6g}",
+        "static_eccentricity": f"{st.static_eccentricity:.6g}",
+        "dynamic_eccentricity": f"{st.dynamic_eccentricity:.6g}",
     }
     truth = point.truth if sim else None
     rows = []
@@ -87,9 +111,16 @@ def point_rows(point, sim: bool) -> list[dict]:
         row = dict(base, lms=ident.lms, model=ident.model, _keys=[])
         d = ident.result
         if d is not None:
-            row.update({"freq_dep": d["freq_dep"], "method": d["method"], "n_frequencies": d["n_frequencies"],
-                        "condition_number": _num(d["condition_number"], ".6g"),
-                        "residual_rms [N]": _num(d["residual_rms"], ".6g"), "error": ""})
+            row.update(
+                {
+                    "freq_dep": d["freq_dep"],
+                    "method": d["method"],
+                    "n_frequencies": d["n_frequencies"],
+                    "condition_number": _num(d["condition_number"], ".6g"),
+                    "residual_rms [N]": _num(d["residual_rms"], ".6g"),
+                    "error": "",
+                }
+            )
             expanded = expanded_uncertainty(d)
             for k, v in d["coefficients"].items():
                 row[coefficient_column(k)] = _num(v, ".8g")
@@ -106,7 +137,7 @@ def point_rows(point, sim: bool) -> list[dict]:
     return rows
 
 
-def columns(rows: list[dict]) -> list[str]:
+def columns(rows: list[CsvRow]) -> list[str]:
     """The file's columns for `rows` as dicts (`_layout`)."""
     return _layout((k for r in rows for k in r["_keys"]), lambda c: any(c in r for r in rows))
 
@@ -119,7 +150,7 @@ def _layout(keys: Iterable[str], has: Callable[[str], bool]) -> list[str]:
     return cols + [c for c in (coefficient_column(k, "true") for k in ordered) if has(c)]
 
 
-def render(rows: list[dict]) -> bytes:
+def render(rows: list[CsvRow]) -> bytes:
     """The whole file's bytes (UTF-8, header + one line per row)."""
     return render_table(columns(rows), rows)
 
@@ -135,7 +166,7 @@ class PointCsv:
     body: str
 
     @classmethod
-    def of(cls, rows: list[dict]) -> PointCsv:
+    def of(cls, rows: list[CsvRow]) -> PointCsv:
         fields = [sys.intern(c) for c in columns(rows)]
         buf = io.StringIO(newline="")
         csv.DictWriter(buf, fieldnames=fields, restval="", extrasaction="ignore", lineterminator="\n").writerows(rows)
@@ -159,7 +190,7 @@ def render_points(points: list[PointCsv]) -> bytes:
     return buf.getvalue().encode("utf-8")
 
 
-def render_table(fieldnames: list[str], rows: list[dict]) -> bytes:
+def render_table(fieldnames: list[str], rows: list[CsvRow]) -> bytes:
     """A coefficients-layout CSV's bytes: the header `fieldnames`, one line per row (missing
     cells empty, keys not in `fieldnames` ignored). The one writer of coefficients.csv and of
     `orbitrig reduce`'s file; write the bytes with orbitrig.store.durable.write_atomic."""

@@ -32,7 +32,9 @@ class StorageError(OrbitrigError):
 class StorageFullError(StorageError):
     """The file system of the run directory is full (or has less free space than a write needs)."""
 
-    def __init__(self, path: str | os.PathLike[str], reason: str, *, needed: int | None = None, free: int | None = None):
+    def __init__(
+        self, path: str | os.PathLike[str], reason: str, *, needed: int | None = None, free: int | None = None
+    ):
         self.needed, self.free = needed, free
         super().__init__(path, reason)
 

@@ -38,8 +38,9 @@ class Exported:
     selection: Selection
 
 
-def export_run(directory: str | Path, fmt: str, out: str | Path | None = None,
-               points: Iterable[int] | None = None) -> Exported:
+def export_run(
+    directory: str | Path, fmt: str, out: str | Path | None = None, points: Iterable[int] | None = None
+) -> Exported:
     """Write the export of the run in `directory` as `fmt` into `out` (default DIR/export):
     the complete points among `points` (None: all; h5 always holds the whole run).
     Raises RunDirError (not a run) or StorageError."""

@@ -9,43 +9,65 @@ truth, and the averaged waveforms. Units are SI strings pint parses.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from orbitrig.store.fit_record import BUDGET_PARTS, FitRecord
 from orbitrig.store.frames import SETTINGS_UNITS
 from orbitrig.store.orbit_table import orbit_table_columns
+
+if TYPE_CHECKING:
+    from orbitrig.store.reader import Point, Run
+    from reduction.table import OrbitTable
+
+#: a column: values and their unit
+Column = tuple[npt.NDArray[Any], str]
 
 #: derived quantities: name -> unit (each also with _std)
 DERIVED_UNITS = {"c_eff_xx": "N s/m", "c_eff_yy": "N s/m", "wfr": "1"}
 ADEQUACY_NUMBERS = ("supported", "p_value", "statistic", "dof", "alpha")
 
 
-def provenance(run) -> dict[str, str]:
+def provenance(run: Run) -> dict[str, str]:
     """Text describing where the data came from."""
-    return {"software_version": run.software_version, "created": run.created, "status": str(run.status),
-            "status_message": run.status_message, "sim": str(bool(run.sim)).lower(), "matrix_name": run.matrix_name,
-            "rig_config": run.rig_config, "matrix_config": run.matrix_config,
-            "sim_scenario_name": run.sim_scenario_name}
+    return {
+        "software_version": run.software_version,
+        "created": run.created,
+        "status": str(run.status),
+        "status_message": run.status_message,
+        "sim": str(bool(run.sim)).lower(),
+        "matrix_name": run.matrix_name,
+        "rig_config": run.rig_config,
+        "matrix_config": run.matrix_config,
+        "sim_scenario_name": run.sim_scenario_name,
+    }
 
 
-def settings(point) -> dict[str, tuple[float, str]]:
+def settings(point: Point) -> dict[str, tuple[float, str]]:
     """The point's numeric settings: name -> (value, unit)."""
     st = point.settings
     return {k: (float(getattr(st, k)), u) for k, u in SETTINGS_UNITS.items() if u and k != "n_frequencies"}
 
 
-def table_columns(table) -> dict[str, tuple[np.ndarray, str]]:
+def table_columns(table: OrbitTable) -> dict[str, Column]:
     """The orbit-table columns with ``direction`` (+1 forward, -1 backward), as the CSV has them."""
     return orbit_table_columns(table, direction=True)
 
 
-def fit_arrays(fit: FitRecord) -> dict:
+def fit_arrays(fit: FitRecord) -> dict[str, Any]:
     """One fit as arrays: names, units, value, std, U, covariance (+ covariance_names), the
     budget's parts and k, the adequacy numbers and verdict, E_n, ``not_determined`` (1 where U
     exceeds the magnitude) and the fit's own ``truth`` (--sim) aligned with names."""
-    d = {"names": fit.names, "units": fit.units, "value": fit.value, "std": fit.std, "U": fit.U,
-         "error": fit.error}
+    d: dict[str, Any] = {
+        "names": fit.names,
+        "units": fit.units,
+        "value": fit.value,
+        "std": fit.std,
+        "U": fit.U,
+        "error": fit.error,
+    }
     if fit.covariance is not None:
         d["covariance"], d["covariance_names"] = fit.covariance, fit.covariance_names
     d.update({part: fit.budget[part] for part in BUDGET_PARTS if part in fit.budget})
@@ -65,12 +87,12 @@ def fit_arrays(fit: FitRecord) -> dict:
     return d
 
 
-def derived_columns(fit: FitRecord) -> dict[str, tuple[np.ndarray, str]]:
+def derived_columns(fit: FitRecord) -> dict[str, Column]:
     """The derived quantities at the point's orbit frequencies: name -> (values, unit)."""
     d = fit.derived or {}
     if "orbit_hz" not in d:
         return {}
-    cols = {"orbit_hz": (np.asarray(d["orbit_hz"], dtype=float), "Hz")}
+    cols: dict[str, Column] = {"orbit_hz": (np.asarray(d["orbit_hz"], dtype=float), "Hz")}
     for name, unit in DERIVED_UNITS.items():
         for key in (name, f"{name}_std"):
             if key in d:
@@ -78,25 +100,33 @@ def derived_columns(fit: FitRecord) -> dict[str, tuple[np.ndarray, str]]:
     for name in ("h_forward", "h_backward"):
         if f"{name}_re" in d:
             std = np.asarray(d.get(f"{name}_std"), dtype=float)
-            cols.update({f"{name}_re": (np.asarray(d[f"{name}_re"], dtype=float), "N/m"),
-                         f"{name}_im": (np.asarray(d[f"{name}_im"], dtype=float), "N/m"),
-                         f"{name}_std_re": (std[0], "N/m"), f"{name}_std_im": (std[1], "N/m")})
+            cols.update(
+                {
+                    f"{name}_re": (np.asarray(d[f"{name}_re"], dtype=float), "N/m"),
+                    f"{name}_im": (np.asarray(d[f"{name}_im"], dtype=float), "N/m"),
+                    f"{name}_std_re": (std[0], "N/m"),
+                    f"{name}_std_im": (std[1], "N/m"),
+                }
+            )
     return cols
 
 
-def truth_arrays(truth: dict | None) -> dict[str, tuple[np.ndarray, str]]:
+def truth_arrays(truth: dict[str, Any] | None) -> dict[str, Column]:
     """The simulator's truth: K0, C0, D0 (2 x 2), and Z (complex, row x 2 x 2) at ``orbit``."""
     if not truth:
         return {}
-    out = {k: (np.asarray(truth[k], dtype=float), u) for k, u in (("K0", "N/m"), ("C0", "N s/m"), ("D0", "kg"))
-           if k in truth}
+    out: dict[str, Column] = {
+        k: (np.asarray(truth[k], dtype=float), u)
+        for k, u in (("K0", "N/m"), ("C0", "N s/m"), ("D0", "kg"))
+        if k in truth
+    }
     if "Z_re" in truth:
         out["Z"] = (np.asarray(truth["Z_re"], dtype=float) + 1j * np.asarray(truth["Z_im"], dtype=float), "N/m")
         out["orbit"] = (np.asarray(truth["orbit"], dtype=float), "rad/s")
     return out
 
 
-def waveform_arrays(point, channels: list[str]) -> list[dict]:
+def waveform_arrays(point: Point, channels: list[str]) -> list[dict[str, Any]]:
     """Each block's averaged revolution: name, orbit_hz, direction, n_records, and per
     channel mean (S,), theta (S,, rad), dc, phasor (complex), uncertainty."""
     blocks = []
@@ -104,15 +134,21 @@ def waveform_arrays(point, channels: list[str]) -> list[dict]:
         w = f.waveform
         if "mean" not in w:
             continue
-        b = {"name": f.name, "orbit_hz": f.orbit_hz, "direction": f.direction, "n_records": f.n_records,
-             "mean": w["mean"], "theta": 2 * math.pi * np.asarray(w["slots"], dtype=float) / 360.0}
+        b: dict[str, Any] = {
+            "name": f.name,
+            "orbit_hz": f.orbit_hz,
+            "direction": f.direction,
+            "n_records": f.n_records,
+            "mean": w["mean"],
+            "theta": 2 * math.pi * np.asarray(w["slots"], dtype=float) / 360.0,
+        }
         b.update({k: w[k] for k in ("dc", "phasors", "uncertainty") if k in w})
         b["channels"] = channels
         blocks.append(b)
     return blocks
 
 
-def _number(v):
+def _number(v: Any) -> float | npt.NDArray[np.float64]:
     """A stored number (None: NaN; a list, e.g. an F test's two dof: an array)."""
     if isinstance(v, (list, tuple)):
         return np.array([math.nan if x is None else float(x) for x in v])

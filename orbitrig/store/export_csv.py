@@ -16,7 +16,9 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from orbitrig.store import csvfile
 from orbitrig.store import export_content as content
@@ -24,22 +26,42 @@ from orbitrig.store.durable import write_atomic
 from orbitrig.store.fit_record import BUDGET_PARTS, point_fits
 from orbitrig.store.orbit_table import write_orbit_table
 
-FIT_HEAD = ["point", "lms", "model", "freq_dep", "method", "name", "unit", "value", "std", "U",
-            *BUDGET_PARTS, "e_n [1]", "true", "error"]
+if TYPE_CHECKING:
+    from orbitrig.store.reader import Point, Run
+
+#: a CSV row: numbers and text
+Row = Sequence[object]
+
+FIT_HEAD = [
+    "point",
+    "lms",
+    "model",
+    "freq_dep",
+    "method",
+    "name",
+    "unit",
+    "value",
+    "std",
+    "U",
+    *BUDGET_PARTS,
+    "e_n [1]",
+    "true",
+    "error",
+]
 
 
-def _render(rows: list[list]) -> bytes:
+def _render(rows: Sequence[Row]) -> bytes:
     buf = io.StringIO(newline="")
     csv.writer(buf, lineterminator="\n").writerows(rows)
     return buf.getvalue().encode("utf-8")
 
 
-def _cell(v) -> str:
+def _cell(v: float | None) -> str:
     return "" if v is None or (isinstance(v, float) and math.isnan(v)) else repr(float(v))
 
 
-def _fit_rows(p, sim: bool) -> list[list]:
-    rows = []
+def _fit_rows(p: Point, sim: bool) -> list[Row]:
+    rows: list[Row] = []
     for fit in point_fits(p):
         d = content.fit_arrays(fit)
         head = [p.index, fit.lms, fit.model, fit.freq_dep, fit.method]
@@ -50,18 +72,32 @@ def _fit_rows(p, sim: bool) -> list[list]:
             parts = [_cell(d[part][j]) if part in d else "" for part in BUDGET_PARTS]
             true = csvfile.fit_truth(fit.result, p.truth if sim else None).get(name)
             e_n = _cell(d["e_n"][j]) if "e_n" in d else ""
-            rows.append(head + [name, fit.units[j], _cell(d["value"][j]), _cell(d["std"][j]), _cell(d["U"][j]),
-                                *parts, e_n, _cell(true), ""])
+            rows.append(
+                head
+                + [
+                    name,
+                    fit.units[j],
+                    _cell(d["value"][j]),
+                    _cell(d["std"][j]),
+                    _cell(d["U"][j]),
+                    *parts,
+                    e_n,
+                    _cell(true),
+                    "",
+                ]
+            )
     return rows
 
 
-def _table_files(p, out: Path) -> list[Path]:
+def _table_files(p: Point, out: Path) -> list[Path]:
     files = []
     for fit in point_fits(p):
         d = content.fit_arrays(fit)
         if "covariance" in d:
             names = d["covariance_names"]
-            rows = [["name"] + names] + [[n] + [_cell(v) for v in row] for n, row in zip(names, d["covariance"])]
+            rows: list[Row] = [["name", *names]] + [
+                [n] + [_cell(v) for v in row] for n, row in zip(names, d["covariance"])
+            ]
             files.append(out / f"covariance_{p.name}_{fit.key}.csv")
             write_atomic(files[-1], _render(rows))
         derived = content.derived_columns(fit)
@@ -74,7 +110,7 @@ def _table_files(p, out: Path) -> list[Path]:
     return files
 
 
-def export_csv(run, points: list, out: Path) -> list[Path]:
+def export_csv(run: Run, points: list[Point], out: Path) -> list[Path]:
     files = []
     for p in points:
         for lms, table in p.tables.items():

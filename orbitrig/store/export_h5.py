@@ -31,7 +31,7 @@ from orbitrig.store.durable import StreamedH5
 from orbitrig.store.errors import RunDirError, StorageError, storage_error
 from orbitrig.store.layout import RunLayout
 from orbitrig.store.pieces import fixed_text
-from orbitrig.store.reader import OCTAVE_COMPLEX, stored_values
+from orbitrig.store.h5_values import OCTAVE_COMPLEX, stored_values
 
 ATTRIBUTES = "attributes"
 
@@ -75,7 +75,9 @@ def octave_layout(f: h5py.File) -> None:
     objects: list[h5py.Group | h5py.Dataset] = [f]
     f.visititems(lambda _, obj: objects.append(obj))
     mirror = f.create_group(ATTRIBUTES)
-    with_attrs = [(o, mirror.require_group(o.name.lstrip("/")) if o.name != "/" else mirror) for o in objects if o.attrs]
+    with_attrs = [
+        (o, mirror.require_group(o.name.lstrip("/")) if o.name != "/" else mirror) for o in objects if o.attrs
+    ]
     taken = {o.name for o, _ in with_attrs}  # every destination group exists before any attribute is written
     for obj, dest in with_attrs:
         _mirror_attributes(obj, dest, taken)
@@ -118,7 +120,7 @@ def _table_as_columns(ds: h5py.Dataset) -> None:
         g.create_dataset(field, data=_octave_value(np.asarray(data[field])))
 
 
-def _mirror_attributes(obj, dest: h5py.Group, taken: set[str]) -> None:
+def _mirror_attributes(obj: h5py.Group | h5py.Dataset, dest: h5py.Group, taken: set[str]) -> None:
     """Each attribute of `obj` as a dataset in `dest`; `taken`: the HDF5 names of the objects
     whose attributes have a group of that name in the mirror."""
     for key, value in obj.attrs.items():

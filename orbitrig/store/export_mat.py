@@ -25,10 +25,22 @@ from orbitrig.store.errors import StorageError
 from orbitrig.store.fit_record import point_fits
 
 UNITS = {
-    "spin": "rad/s", "spin_rpm": "rpm", "recess_pressure": "Pa", "orbit_radius": "m", "orbit": "rad/s",
-    "orbit_hz": "Hz", "x": "m", "y": "m", "fx": "N", "fy": "N", "gamma2": "1", "direction": "1",
-    "coefficients": "per coefficient: identification.*.units", "covariance": "units_i x units_j",
-    "mean": "per channel: run.channel_units", "theta": "rad",
+    "spin": "rad/s",
+    "spin_rpm": "rpm",
+    "recess_pressure": "Pa",
+    "orbit_radius": "m",
+    "orbit": "rad/s",
+    "orbit_hz": "Hz",
+    "x": "m",
+    "y": "m",
+    "fx": "N",
+    "fy": "N",
+    "gamma2": "1",
+    "direction": "1",
+    "coefficients": "per coefficient: identification.*.units",
+    "covariance": "units_i x units_j",
+    "mean": "per channel: run.channel_units",
+    "theta": "rad",
     "convention": "phasors q = Re(q_bar exp(i theta)); forces on the journal, f_bar = -Z d_bar",
 }
 
@@ -49,17 +61,32 @@ def cell(values) -> np.ndarray:
 
 def _fit_struct(fit, ident) -> dict:
     d = content.fit_arrays(fit)
-    s = {"lms": fit.lms, "model": fit.model, "freq_dep": fit.freq_dep, "method": fit.method, "error": fit.error,
-         "names": cell(d["names"]), "units": cell(d["units"]), "coefficients": d["value"],
-         "std_errors": d["std"], "U": d["U"]}
+    s = {
+        "lms": fit.lms,
+        "model": fit.model,
+        "freq_dep": fit.freq_dep,
+        "method": fit.method,
+        "error": fit.error,
+        "names": cell(d["names"]),
+        "units": cell(d["units"]),
+        "coefficients": d["value"],
+        "std_errors": d["std"],
+        "U": d["U"],
+    }
     result = ident.result or {}
     ci = result.get("confidence_95") or {}
-    s["interval_95"] = np.array([[np.nan if v is None else float(v) for v in (ci.get(k) or (None, None))]
-                                 for k in fit.names]).reshape(-1, 2)
+    s["interval_95"] = np.array(
+        [[np.nan if v is None else float(v) for v in (ci.get(k) or (None, None))] for k in fit.names]
+    ).reshape(-1, 2)
     if "covariance" in d:
         s["covariance"], s["covariance_names"] = d["covariance"], cell(d["covariance_names"])
-    s.update({k: v for k, v in d.items() if k.startswith(("adequacy_", "statistical", "systematic", "combined",
-                                                              "expanded", "e_n")) or k == "k"})
+    s.update(
+        {
+            k: v
+            for k, v in d.items()
+            if k.startswith(("adequacy_", "statistical", "systematic", "combined", "expanded", "e_n")) or k == "k"
+        }
+    )
     for k in ("n_frequencies", "condition_number", "residual_rms", "dof", "chi2", "p_value", "aic", "bic"):
         if k in result:
             s[k] = np.nan if result[k] is None else float(result[k])
@@ -82,16 +109,24 @@ def point_struct(p, channels: list[str], channel_units: list[str]) -> dict:
         cols = content.table_columns(table)
         t = {"orbit": np.asarray(table.orbit, dtype=float), **table.phasors}
         t.update({k: v for k, (v, _) in cols.items() if not k.endswith(("_re", "_im"))})
-        t["units"] = {"orbit": "rad/s", "x": "m", "y": "m", "fx": "N", "fy": "N",
-                      **{k: u for k, (_, u) in cols.items() if not k.endswith(("_re", "_im"))}}
+        t["units"] = {
+            "orbit": "rad/s",
+            "x": "m",
+            "y": "m",
+            "fx": "N",
+            "fy": "N",
+            **{k: u for k, (_, u) in cols.items() if not k.endswith(("_re", "_im"))},
+        }
         s[lms] = t
     s["identification"] = {field(f.key): _fit_struct(f, i) for f, i in zip(point_fits(p), p.identifications)}
     truth = content.truth_arrays(p.truth)
     if truth:
         s["truth"] = {k: v for k, (v, _) in truth.items()} | {"units": {k: u for k, (_, u) in truth.items()}}
-    s["waveforms"] = {field(f"b{b['name']}"): {k: v for k, v in b.items() if k != "channels"}
-                      | {"channels": cell(channels), "channel_units": cell(channel_units)}
-                      for b in content.waveform_arrays(p, channels)}
+    s["waveforms"] = {
+        field(f"b{b['name']}"): {k: v for k, v in b.items() if k != "channels"}
+        | {"channels": cell(channels), "channel_units": cell(channel_units)}
+        for b in content.waveform_arrays(p, channels)
+    }
     return s
 
 
@@ -99,8 +134,13 @@ def export_mat(run, points: list, out: Path) -> list[Path]:
     from scipy.io import savemat
 
     data = {
-        "run": {**content.provenance(run), "directory": str(run.directory), "sim": bool(run.sim),
-                "channels": cell(run.channels), "channel_units": cell(run.channel_units)},
+        "run": {
+            **content.provenance(run),
+            "directory": str(run.directory),
+            "sim": bool(run.sim),
+            "channels": cell(run.channels),
+            "channel_units": cell(run.channel_units),
+        },
         "units": UNITS,
         "points": {f"p{p.name}": point_struct(p, run.channels, run.channel_units) for p in points},
     }

@@ -39,8 +39,10 @@ def _numeric(props: dict[str, tuple[float, str]]) -> dict:
 def _channels(group: str, columns: dict[str, tuple[np.ndarray, str]]) -> list:
     from nptdms import ChannelObject
 
-    return [ChannelObject(group, name, np.asarray(values), {"unit_string": unit})
-            for name, (values, unit) in columns.items()]
+    return [
+        ChannelObject(group, name, np.asarray(values), {"unit_string": unit})
+        for name, (values, unit) in columns.items()
+    ]
 
 
 def _fit_objects(p, fit) -> list:
@@ -49,21 +51,35 @@ def _fit_objects(p, fit) -> list:
     d = content.fit_arrays(fit)
     group = f"fit {p.name} {fit.key}"
     props = {"error": fit.error, "adequacy_verdict": d.get("adequacy_verdict", "")}
-    props |= _numeric({k: (float(np.ravel(v)[0]) if np.size(v) == 1 else str(list(np.ravel(v))), "1")
-                       for k, v in d.items() if k == "k" or (k.startswith("adequacy_") and k != "adequacy_verdict")})
-    objs = [GroupObject(group, props), ChannelObject(group, "name", np.array(fit.names, dtype=str), _TEXT),
-            ChannelObject(group, "unit", np.array(fit.units, dtype=str), _TEXT)]
+    props |= _numeric(
+        {
+            k: (float(np.ravel(v)[0]) if np.size(v) == 1 else str(list(np.ravel(v))), "1")
+            for k, v in d.items()
+            if k == "k" or (k.startswith("adequacy_") and k != "adequacy_verdict")
+        }
+    )
+    objs = [
+        GroupObject(group, props),
+        ChannelObject(group, "name", np.array(fit.names, dtype=str), _TEXT),
+        ChannelObject(group, "unit", np.array(fit.units, dtype=str), _TEXT),
+    ]
     per_row = {"value": d["value"], "std": d["std"], "U": d["U"]}
     per_row |= {part: d[part] for part in (*BUDGET_PARTS, "e_n") if part in d}
-    objs += [ChannelObject(group, k, np.asarray(v, dtype=float), {"unit_string": "1" if k == "e_n" else "see unit"})
-             for k, v in per_row.items()]
+    objs += [
+        ChannelObject(group, k, np.asarray(v, dtype=float), {"unit_string": "1" if k == "e_n" else "see unit"})
+        for k, v in per_row.items()
+    ]
     if "covariance" in d:
         cg = f"covariance {p.name} {fit.key}"
         unit = dict(zip(fit.names, fit.units))
-        objs += [GroupObject(cg, {"description": "covariance; entry (row, column) in unit(row) x unit(column)"}),
-                 ChannelObject(cg, "name", np.array(d["covariance_names"], dtype=str), _TEXT)]
-        objs += [ChannelObject(cg, n, d["covariance"][:, j], {"unit_string": f"({unit[n]}) x unit(row)"})
-                 for j, n in enumerate(d["covariance_names"])]
+        objs += [
+            GroupObject(cg, {"description": "covariance; entry (row, column) in unit(row) x unit(column)"}),
+            ChannelObject(cg, "name", np.array(d["covariance_names"], dtype=str), _TEXT),
+        ]
+        objs += [
+            ChannelObject(cg, n, d["covariance"][:, j], {"unit_string": f"({unit[n]}) x unit(row)"})
+            for j, n in enumerate(d["covariance_names"])
+        ]
     derived = content.derived_columns(fit)
     if derived:
         objs += [GroupObject(f"derived {p.name} {fit.key}", {})] + _channels(f"derived {p.name} {fit.key}", derived)
@@ -90,15 +106,27 @@ def _point_objects(p, channels: list[str], channel_units: list[str]) -> list:
         objs += _channels(f"truth {p.name}", flat)
     for b in content.waveform_arrays(p, channels):
         group = f"waveforms {p.name} {b['name']}"
-        objs.append(GroupObject(group, _numeric({"orbit_hz": (b["orbit_hz"], "Hz"), "direction": (b["direction"], "1"),
-                                                 "n_records": (b["n_records"], "1")})))
+        objs.append(
+            GroupObject(
+                group,
+                _numeric(
+                    {
+                        "orbit_hz": (b["orbit_hz"], "Hz"),
+                        "direction": (b["direction"], "1"),
+                        "n_records": (b["n_records"], "1"),
+                    }
+                ),
+            )
+        )
         for c, (name, unit) in enumerate(zip(channels, channel_units)):
             props = {"unit_string": unit}
             props |= {k: float(b[k][c]) for k in ("dc", "uncertainty") if k in b}
             if "phasors" in b:
                 props |= {"phasor_re": float(b["phasors"][c].real), "phasor_im": float(b["phasors"][c].imag)}
-            objs += [ChannelObject(group, name, b["mean"][c], props),
-                     ChannelObject(group, f"{name}_theta", b["theta"][c], {"unit_string": "rad"})]
+            objs += [
+                ChannelObject(group, name, b["mean"][c], props),
+                ChannelObject(group, f"{name}_theta", b["theta"][c], {"unit_string": "rad"}),
+            ]
     return objs
 
 
@@ -109,7 +137,7 @@ def _coefficient_objects(run, points) -> list:
     objs = [GroupObject("coefficients", {"description": "the columns of coefficients.csv"})]
     for col in csvfile.columns(rows):
         cells = [str(r.get(col, "")) for r in rows]
-        unit = col[col.index("[") + 1: -1] if col.endswith("]") else ""
+        unit = col[col.index("[") + 1 : -1] if col.endswith("]") else ""
         if col in ("label", "lms", "model", "freq_dep", "method", "error", "not_determined"):
             values = np.array(cells, dtype=str)
         else:
@@ -121,8 +149,9 @@ def _coefficient_objects(run, points) -> list:
 def export_tdms(run, points: list, out: Path) -> list[Path]:
     from nptdms import RootObject, TdmsWriter
 
-    objects = [RootObject({"title": f"orbitrig run {run.directory.name}", **content.provenance(run),
-                           "sim": bool(run.sim)})]
+    objects = [
+        RootObject({"title": f"orbitrig run {run.directory.name}", **content.provenance(run), "sim": bool(run.sim)})
+    ]
     for p in points:
         objects += _point_objects(p, run.channels, run.channel_units)
     objects += _coefficient_objects(run, points)

@@ -28,6 +28,7 @@ no such coefficient; attribute ``definition``, or only ``error``).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import h5py
 import numpy as np
@@ -39,19 +40,23 @@ PER_COEFFICIENT = "SI per coefficient (see dataset units)"
 SOURCE_UNITS = "per source: 1 (gain, sensitivity), rad (phase), s (delay)"
 
 
-def _num(v) -> float:
+def _num(v: Any) -> float:
     return math.nan if v is None else float(v)
 
 
-def _vector(d: dict, names: list[str]) -> np.ndarray:
+def _vector(d: dict[str, Any], names: list[str]) -> np.ndarray:
     return np.array([_num(d.get(k)) for k in names], dtype=np.float64)
 
 
-def write_fit_analysis(h: h5py.Group, d: dict, names: list[str]) -> None:
+def write_fit_analysis(h: h5py.Group, d: dict[str, Any], names: list[str]) -> None:
     """The uncertainty, adequacy, lms_consistency and derived parts of the fit's JSON ``d``."""
     write_fit_values(h, d, names)
-    for part, writer in (("uncertainty", _uncertainty), ("adequacy", _adequacy),
-                         ("lms_consistency", _consistency), ("derived", _derived)):
+    for part, writer in (
+        ("uncertainty", _uncertainty),
+        ("adequacy", _adequacy),
+        ("lms_consistency", _consistency),
+        ("derived", _derived),
+    ):
         if not d.get(part):
             continue
         g = h.create_group(part)
@@ -61,68 +66,129 @@ def write_fit_analysis(h: h5py.Group, d: dict, names: list[str]) -> None:
             writer(g, d[part], names)
 
 
-def write_fit_values(h: h5py.Group, d: dict, names: list[str]) -> None:
+def write_fit_values(h: h5py.Group, d: dict[str, Any], names: list[str]) -> None:
     """The expanded uncertainty, not_determined and the fit's own truth of the fit's JSON ``d``."""
     if d.get("expanded_uncertainty"):
         e = d["expanded_uncertainty"]
-        put(h, "expanded_uncertainty", _vector(e["values"], names), PER_COEFFICIENT, k=float(e["k"]),
-            basis=e["basis"], meaning="expanded uncertainty U, k times the combined standard uncertainty")
+        put(
+            h,
+            "expanded_uncertainty",
+            _vector(e["values"], names),
+            PER_COEFFICIENT,
+            k=float(e["k"]),
+            basis=e["basis"],
+            meaning="expanded uncertainty U, k times the combined standard uncertainty",
+        )
     if "not_determined" in d:
         nd = list(d["not_determined"])
-        put(h, "not_determined", np.array([k in nd for k in names], dtype=np.uint8), "1", names=strings(nd),
-            meaning="1: the expanded uncertainty exceeds the magnitude (not determined)")
+        put(
+            h,
+            "not_determined",
+            np.array([k in nd for k in names], dtype=np.uint8),
+            "1",
+            names=strings(nd),
+            meaning="1: the expanded uncertainty exceeds the magnitude (not determined)",
+        )
     t = d.get("truth")
     if t:
         if "error" in t:
             h.create_group("truth").attrs["error"] = str(t["error"])
         else:
-            put(h, "truth", _vector(t["coefficients"], names), PER_COEFFICIENT, definition=t["definition"],
-                meaning="the simulator's true Z(Omega) projected onto this fit's model")
+            put(
+                h,
+                "truth",
+                _vector(t["coefficients"], names),
+                PER_COEFFICIENT,
+                definition=t["definition"],
+                meaning="the simulator's true Z(Omega) projected onto this fit's model",
+            )
 
 
-def _uncertainty(g: h5py.Group, u: dict, names: list[str]) -> None:
+def _uncertainty(g: h5py.Group, u: dict[str, Any], names: list[str]) -> None:
     g.attrs["k"] = float(u["k"])
-    for k, what in (("statistical", "standard uncertainty from the fit (type A)"),
-                    ("systematic", "standard uncertainty from the stated calibration (type B)"),
-                    ("combined", "combined standard uncertainty"),
-                    ("expanded", "expanded uncertainty, k times combined")):
+    for k, what in (
+        ("statistical", "standard uncertainty from the fit (type A)"),
+        ("systematic", "standard uncertainty from the stated calibration (type B)"),
+        ("combined", "combined standard uncertainty"),
+        ("expanded", "expanded uncertainty, k times combined"),
+    ):
         put(g, k, _vector(u[k], names), PER_COEFFICIENT, meaning=what)
     g.create_dataset("sources", data=fixed_text(u["sources"]))
-    put(g, "source_std", np.asarray(u["source_std"], dtype=np.float64), SOURCE_UNITS,
-        meaning="stated standard uncertainty of each calibration error")
+    put(
+        g,
+        "source_std",
+        np.asarray(u["source_std"], dtype=np.float64),
+        SOURCE_UNITS,
+        meaning="stated standard uncertainty of each calibration error",
+    )
 
 
-def _adequacy(g: h5py.Group, a: dict, names: list[str]) -> None:
-    g.attrs.update({"verdict": a["verdict"], "supported": bool(a["supported"]), "p_value": _num(a["p_value"]),
-                    "statistic": _num(a["statistic"]), "test": a["test"], "dof": np.asarray(a["dof"], dtype=np.int64),
-                    "alpha": float(a["alpha"]), "aic": np.asarray([_num(v) for v in a["aic"]]),
-                    "bic": np.asarray([_num(v) for v in a["bic"]]), "constant": a["constant"],
-                    "aic_bic_order": "constant, this fit"})
+def _adequacy(g: h5py.Group, a: dict[str, Any], names: list[str]) -> None:
+    g.attrs.update(
+        {
+            "verdict": a["verdict"],
+            "supported": bool(a["supported"]),
+            "p_value": _num(a["p_value"]),
+            "statistic": _num(a["statistic"]),
+            "test": a["test"],
+            "dof": np.asarray(a["dof"], dtype=np.int64),
+            "alpha": float(a["alpha"]),
+            "aic": np.asarray([_num(v) for v in a["aic"]]),
+            "bic": np.asarray([_num(v) for v in a["bic"]]),
+            "constant": a["constant"],
+            "aic_bic_order": "constant, this fit",
+        }
+    )
 
 
-def _consistency(g: h5py.Group, c: dict, names: list[str]) -> None:
+def _consistency(g: h5py.Group, c: dict[str, Any], names: list[str]) -> None:
     put(g, "e_n", _vector(c["e_n"], names), "1", meaning=f"normalised difference {c['pair']}")
-    g.attrs.update({"max_abs": _num(c["max_abs"]), "consistent": bool(c["consistent"]), "basis": c["basis"],
-                    "limit": _num(c["limit"]), "pair": c["pair"]})
+    g.attrs.update(
+        {
+            "max_abs": _num(c["max_abs"]),
+            "consistent": bool(c["consistent"]),
+            "basis": c["basis"],
+            "limit": _num(c["limit"]),
+            "pair": c["pair"],
+        }
+    )
     if "chi2" in c:  # the joint test (absent in a fit stored before it)
-        g.attrs.update({"test": c["test"], "chi2": _num(c["chi2"]), "dof": int(c["dof"]), "level": float(c["level"]),
-                        "p_value": _num(c["p_value"])})
+        g.attrs.update(
+            {
+                "test": c["test"],
+                "chi2": _num(c["chi2"]),
+                "dof": int(c["dof"]),
+                "level": float(c["level"]),
+                "p_value": _num(c["p_value"]),
+            }
+        )
 
 
-def _derived(g: h5py.Group, d: dict, names: list[str]) -> None:
+def _derived(g: h5py.Group, d: dict[str, Any], names: list[str]) -> None:
     hz = np.asarray(d["orbit_hz"], dtype=np.float64)
     g.attrs["covariance"] = d.get("covariance", "")
     put(g, "orbit", 2 * math.pi * hz, "rad/s")
     put(g, "orbit_hz", hz, "Hz")
     for k in ("xx", "yy"):
-        put(g, f"c_eff_{k}", np.asarray(d[f"c_eff_{k}"], dtype=np.float64), "N s/m",
-            meaning=f"effective damping C_eff,{k}")
+        put(
+            g,
+            f"c_eff_{k}",
+            np.asarray(d[f"c_eff_{k}"], dtype=np.float64),
+            "N s/m",
+            meaning=f"effective damping C_eff,{k}",
+        )
         if d.get(f"c_eff_{k}_std") is not None:
             put(g, f"c_eff_{k}_std", np.asarray(d[f"c_eff_{k}_std"], dtype=np.float64), "N s/m")
         zero = d.get(f"c_eff_zero_{k}_hz")
         if zero is not None:
-            put(g, f"c_eff_zero_{k}", 2 * math.pi * np.array([_num(v) for v in zero]), "rad/s",
-                columns=strings(("omega_0", "std")), meaning="zero crossing of C_eff")
+            put(
+                g,
+                f"c_eff_zero_{k}",
+                2 * math.pi * np.array([_num(v) for v in zero]),
+                "rad/s",
+                columns=strings(("omega_0", "std")),
+                meaning="zero crossing of C_eff",
+            )
     for k in Whirl:
         h = np.asarray(d[f"h_{k}_re"], dtype=np.float64) + 1j * np.asarray(d[f"h_{k}_im"], dtype=np.float64)
         put(g, f"h_{k}", h, "N/m", meaning=f"{k} direct dynamic stiffness H")

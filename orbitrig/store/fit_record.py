@@ -11,35 +11,42 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from orbitrig.store.layout import coefficient_si_unit
+
+if TYPE_CHECKING:
+    from orbitrig.store.reader import Point
+
+Floats = npt.NDArray[np.float64]
 
 BUDGET_PARTS = ("statistical", "systematic", "combined", "expanded")
 COVERAGE_K = 2.0  # U = 2 x std when the run stored no budget
 
 
-def _num(v) -> float:
+def _num(v: Any) -> float:
     return math.nan if v is None else float(v)
 
 
-def expanded_uncertainty(result: dict) -> dict[str, float]:
+def expanded_uncertainty(result: dict[str, Any]) -> dict[str, float]:
     """U of each coefficient of an `identify --json` object as stored (SI): the sweep's
     ``expanded_uncertainty`` (orbitrig.run.point_analysis: k = 2, calibration included when
     stated), else the stored budget's expanded uncertainty, else 2 x the standard error
     (statistical only). NaN where none is known."""
     names = list(result.get("coefficients") or {})
-    budget = ((result.get("expanded_uncertainty") or {}).get("values")
-              or (result.get("uncertainty") or {}).get("expanded"))
+    budget = (result.get("expanded_uncertainty") or {}).get("values") or (result.get("uncertainty") or {}).get(
+        "expanded"
+    )
     if budget:
         return {k: _num(budget.get(k)) for k in names}
     std = result.get("std_errors") or {}
     return {k: COVERAGE_K * _num(std.get(k)) for k in names}
 
 
-def uncertainty_basis(result: dict) -> str:
+def uncertainty_basis(result: dict[str, Any]) -> str:
     """What :func:`expanded_uncertainty` of ``result`` rests on: "combined" (calibration
     included) or "statistical" (2 x the standard error, or a sweep without stated calibration)."""
     stored = result.get("expanded_uncertainty") or {}
@@ -60,12 +67,12 @@ class FitRecord:
     error: str = ""  # why the model was refused ("" for a fit)
     names: list[str] = field(default_factory=list)
     units: list[str] = field(default_factory=list)
-    value: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    std: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    U: np.ndarray = field(default_factory=lambda: np.zeros(0))  # expanded uncertainty, see expanded_uncertainty
-    covariance: np.ndarray | None = None  # (q, q) over covariance_names
+    value: Floats = field(default_factory=lambda: np.zeros(0))
+    std: Floats = field(default_factory=lambda: np.zeros(0))
+    U: Floats = field(default_factory=lambda: np.zeros(0))  # expanded uncertainty, see expanded_uncertainty
+    covariance: Floats | None = None  # (q, q) over covariance_names
     covariance_names: list[str] = field(default_factory=list)
-    budget: dict[str, np.ndarray] = field(default_factory=dict)  # BUDGET_PARTS aligned with names; "k"
+    budget: dict[str, Floats] = field(default_factory=dict)  # BUDGET_PARTS aligned with names; "k"
     adequacy: dict[str, Any] | None = None
     derived: dict[str, Any] | None = None
     lms_consistency: dict[str, Any] | None = None
@@ -77,13 +84,23 @@ class FitRecord:
         return f"{self.lms}__{self.model}__{self.freq_dep.replace(':', '_').replace(',', '_')}__{self.method}"
 
 
-def fit_record(point: int, lms: str, model: str, freq_dep: str, method: str, result: dict | None,
-               error: str | None = None) -> FitRecord:
+def fit_record(
+    point: int,
+    lms: str,
+    model: str,
+    freq_dep: str,
+    method: str,
+    result: dict[str, Any] | None,
+    error: str | None = None,
+) -> FitRecord:
     """The FitRecord of a stored identification (``result`` None: a refused model)."""
     if result is None:
         return FitRecord(point, lms, model, freq_dep, method, error or "")
     names = list(result.get("coefficients") or {})
-    vector = lambda d: np.array([_num((d or {}).get(k)) for k in names], dtype=float)  # noqa: E731
+
+    def vector(d: dict[str, Any] | None) -> Floats:
+        return np.array([_num((d or {}).get(k)) for k in names], dtype=float)
+
     U = expanded_uncertainty(result)
     cov = result.get("covariance")
     unc = result.get("uncertainty") or {}
@@ -91,15 +108,29 @@ def fit_record(point: int, lms: str, model: str, freq_dep: str, method: str, res
     if budget:
         budget["k"] = np.array(float(unc.get("k", COVERAGE_K)))
     return FitRecord(
-        point, lms, model, freq_dep, method, error or "", names, [coefficient_si_unit(k) for k in names],
-        vector(result.get("coefficients")), vector(result.get("std_errors")), np.array([U[k] for k in names]),
+        point,
+        lms,
+        model,
+        freq_dep,
+        method,
+        error or "",
+        names,
+        [coefficient_si_unit(k) for k in names],
+        vector(result.get("coefficients")),
+        vector(result.get("std_errors")),
+        np.array([U[k] for k in names]),
         None if cov is None else np.array([[_num(v) for v in row] for row in cov], dtype=float),
-        list(result.get("free") or names) if cov is not None else [], budget,
-        result.get("adequacy"), result.get("derived"), result.get("lms_consistency"), result,
+        list(result.get("free") or names) if cov is not None else [],
+        budget,
+        result.get("adequacy"),
+        result.get("derived"),
+        result.get("lms_consistency"),
+        result,
     )
 
 
-def point_fits(point) -> list[FitRecord]:
+def point_fits(point: Point) -> list[FitRecord]:
     """Every stored identification of an orbitrig.store.reader.Point, in stored order."""
-    return [fit_record(point.index, i.lms, i.model, i.freq_dep, i.method, i.result, i.error)
-            for i in point.identifications]
+    return [
+        fit_record(point.index, i.lms, i.model, i.freq_dep, i.method, i.result, i.error) for i in point.identifications
+    ]

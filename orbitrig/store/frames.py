@@ -14,9 +14,18 @@ import numpy as np
 from orbitrig.store.fit_record import BUDGET_PARTS, FitRecord
 from orbitrig.store.orbit_table import orbit_table_columns
 
-SETTINGS_UNITS = {"label": "", "complete": "", "spin": "rad/s", "spin_rpm": "rpm", "recess_pressure": "Pa",
-                  "pressure_ratio": "1", "static_eccentricity": "1", "dynamic_eccentricity": "1",
-                  "orbit_radius": "m", "n_frequencies": "1"}
+SETTINGS_UNITS = {
+    "label": "",
+    "complete": "",
+    "spin": "rad/s",
+    "spin_rpm": "rpm",
+    "recess_pressure": "Pa",
+    "pressure_ratio": "1",
+    "static_eccentricity": "1",
+    "dynamic_eccentricity": "1",
+    "orbit_radius": "m",
+    "n_frequencies": "1",
+}
 FIT_KEYS = ("point", "lms", "model", "freq_dep", "method")
 
 
@@ -36,8 +45,9 @@ def points_frame(points):
     for p in points:
         st = p.settings
         for k in SETTINGS_UNITS:
-            rows[k].append(len(p.frequencies) if k == "n_frequencies" else p.complete if k == "complete"
-                           else getattr(st, k))
+            rows[k].append(
+                len(p.frequencies) if k == "n_frequencies" else p.complete if k == "complete" else getattr(st, k)
+            )
         rows["point"].append(p.index)
     return _frame(rows, SETTINGS_UNITS, "point")
 
@@ -46,7 +56,9 @@ def table_frame(table):
     """An orbit table (reduction.table.OrbitTable) in the orbit-table CSV's columns (rpm, Hz,
     m, N; gamma2_*, n_records, u_* when measured) and ``direction`` (+1 forward, -1 backward)."""
     cols = orbit_table_columns(table, direction=True)
-    return _frame({name: values for name, (values, _) in cols.items()}, {name: unit for name, (_, unit) in cols.items()})
+    return _frame(
+        {name: values for name, (values, _) in cols.items()}, {name: unit for name, (_, unit) in cols.items()}
+    )
 
 
 def coefficients_frame(fits: list[FitRecord]):
@@ -124,16 +136,24 @@ def waveforms_dataset(point, channels: list[str], channel_units: list[str]):
     per_channel = {f"units_{c}": u for c, u in zip(channels, channel_units)}
     dims = ("block", "channel", "angle")
     data = {"mean": (dims, stack("mean"), {"description": "synchronous average over the revolutions", **per_channel})}
-    for key, name, what in (("dc", "dc", "mean value"), ("phasors", "phasor", "fundamental phasor, q = Re(q_bar exp(i theta))"),
-                            ("uncertainty", "uncertainty", "standard uncertainty of the phasor")):
+    for key, name, what in (
+        ("dc", "dc", "mean value"),
+        ("phasors", "phasor", "fundamental phasor, q = Re(q_bar exp(i theta))"),
+        ("uncertainty", "uncertainty", "standard uncertainty of the phasor"),
+    ):
         if all(key in b.waveform for b in blocks):
             data[name] = (dims[:2], stack(key), {"description": what, **per_channel})
     coords = {
-        "block": [b.name for b in blocks], "channel": list(channels),
+        "block": [b.name for b in blocks],
+        "channel": list(channels),
         "unit": ("channel", list(channel_units)),
         "orbit_hz": ("block", [b.orbit_hz for b in blocks], {"units": "Hz"}),
         "direction": ("block", [b.direction for b in blocks], {"units": "1", "description": "+1 forward, -1 backward"}),
         "n_records": ("block", [b.n_records for b in blocks], {"units": "1"}),
-        "theta": (dims, 2 * np.pi * stack("slots") / 360.0, {"units": "rad", "description": "orbit angle after the trigger"}),
+        "theta": (
+            dims,
+            2 * np.pi * stack("slots") / 360.0,
+            {"units": "rad", "description": "orbit angle after the trigger"},
+        ),
     }
     return xr.Dataset(data, coords=coords, attrs={"point": point.index})

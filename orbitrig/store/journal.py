@@ -23,13 +23,47 @@ from orbitrig.store.durable import read_lines
 from orbitrig.store.status import RunStatus
 from rigunits import now_iso
 
-CAN_FIELDS = ("t_recess", "t_groove", "t_supply", "flow", "p_supply", "p_recess1", "p_recess2", "p_recess3",
-              "p_recess4", "beta", "sensor_fault", "pump_off", "node_lost")
+CAN_FIELDS = (
+    "t_recess",
+    "t_groove",
+    "t_supply",
+    "flow",
+    "p_supply",
+    "p_recess1",
+    "p_recess2",
+    "p_recess3",
+    "p_recess4",
+    "beta",
+    "sensor_fault",
+    "pump_off",
+    "node_lost",
+)
 CAN_UNITS = ("s", "K", "K", "K", "m^3/s", "Pa", "Pa", "Pa", "Pa", "Pa", "1", "1 (flag)", "1 (flag)", "1 (flag)")
-DRIVE_FIELDS = ("spin_ref", "spin_act", "orbit_ref", "orbit_act", "spin_status", "orbit_status",
-                "spin_fault", "orbit_fault", "spin_torque", "orbit_torque")
-DRIVE_UNITS = ("s", "rad/s", "rad/s", "rad/s", "rad/s", "status word", "status word", "fault code", "fault code",
-               "fraction of nominal", "fraction of nominal")
+DRIVE_FIELDS = (
+    "spin_ref",
+    "spin_act",
+    "orbit_ref",
+    "orbit_act",
+    "spin_status",
+    "orbit_status",
+    "spin_fault",
+    "orbit_fault",
+    "spin_torque",
+    "orbit_torque",
+)
+DRIVE_UNITS = (
+    "s",
+    "rad/s",
+    "rad/s",
+    "rad/s",
+    "rad/s",
+    "status word",
+    "status word",
+    "fault code",
+    "fault code",
+    "fraction of nominal",
+    "fraction of nominal",
+)
 #: a state change of the run: (t s since the start, state, message)
 EventRow = tuple[float, str, str]
 CAN_DTYPE = np.dtype([("t", "f8")] + [(f, "f8") for f in CAN_FIELDS])
@@ -44,15 +78,20 @@ def status_line(status: RunStatus, message: str) -> str:
     return line("status", status=str(status), message=message, at=now_iso())
 
 
-def log_lines(events: Sequence[EventRow], can: Sequence[Sequence[float]], drives: Sequence[Sequence[float]]) -> list[str]:
-    """Journal lines of the rows gathered by a LogBuffer."""
+def log_lines(
+    events: Sequence[Sequence[float | str]],
+    can: Sequence[Sequence[float | str]],
+    drives: Sequence[Sequence[float | str]],
+) -> list[str]:
+    """Journal lines of the rows gathered by a LogBuffer (events: t, state, message; CAN and
+    drive rows: t and numbers)."""
     out = [line("event", t=float(t), state=str(s), message=str(m)) for t, s, m in events]
     out += [line("can", row=[_num(v) for v in r]) for r in can]
     out += [line("drives", row=[_num(v) for v in r]) for r in drives]
     return out
 
 
-def _num(v: float) -> float | None:
+def _num(v: float | str) -> float | None:
     v = float(v)
     return v if math.isfinite(v) else None
 

@@ -45,8 +45,10 @@ U_UNITS = ("m", "m", "N", "N")
 MATRIX_SI = {"K": "N/m", "C": "N s/m", "D": "kg"}
 
 #: units of the attributes of each kind of group (HDF5 attributes cannot carry attributes)
-POINT_ATTR_UNITS = ("spin: rad/s; spin_rpm: rpm; recess_pressure: Pa; pressure_ratio: 1; "
-                    "static_eccentricity: 1; dynamic_eccentricity: 1; orbit_radius: m")
+POINT_ATTR_UNITS = (
+    "spin: rad/s; spin_rpm: rpm; recess_pressure: Pa; pressure_ratio: 1; "
+    "static_eccentricity: 1; dynamic_eccentricity: 1; orbit_radius: m"
+)
 BLOCK_ATTR_UNITS = "orbit: rad/s (signed, < 0 backward); orbit_hz: Hz; measured_orbit_speed: rad/s; n_records: 1"
 TABLE_ATTR_UNITS = "spin: rad/s"
 IDENT_ATTR_UNITS = "condition_number: 1; residual_rms: N; dof: 1; chi2: 1; p_value: 1"

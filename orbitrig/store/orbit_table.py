@@ -102,9 +102,14 @@ def _table(file: str, col: dict[str, np.ndarray]) -> OrbitTable:
         return OrbitTable(
             spin=float(col["spin_rpm"][0]) * RPM,
             orbit=2 * math.pi * col["orbit_hz"],
-            x=col["x_re"] + 1j * col["x_im"], y=col["y_re"] + 1j * col["y_im"],
-            fx=col["fx_re"] + 1j * col["fx_im"], fy=col["fy_re"] + 1j * col["fy_im"],
-            gamma2=gamma2, n_records=col.get(RECORDS), u=u)
+            x=col["x_re"] + 1j * col["x_im"],
+            y=col["y_re"] + 1j * col["y_im"],
+            fx=col["fx_re"] + 1j * col["fx_im"],
+            fy=col["fy_re"] + 1j * col["fy_im"],
+            gamma2=gamma2,
+            n_records=col.get(RECORDS),
+            u=u,
+        )
     except ReductionError as err:  # defensive: every check above should have caught it
         raise TableError(file, None, None, str(err)) from err
 
@@ -115,10 +120,13 @@ def _not_utf8(data: bytes, file: str) -> TableError:
     except UnicodeDecodeError as err:
         start = data.rfind(b"\n", 0, err.start) + 1
         line = data[: err.start].count(b"\n") + 1
-        field = data[start: err.start].count(b",") + 1
-        return TableError(file, line, f"field {field}",
-                          f"not UTF-8 text: byte 0x{data[err.start]:02x} ({err.reason}); "
-                          "save the table as UTF-8 CSV")
+        field = data[start : err.start].count(b",") + 1
+        return TableError(
+            file,
+            line,
+            f"field {field}",
+            f"not UTF-8 text: byte 0x{data[err.start]:02x} ({err.reason}); save the table as UTF-8 CSV",
+        )
     return TableError(file, None, None, "not UTF-8 text; save the table as UTF-8 CSV")
 
 
@@ -138,8 +146,12 @@ def _load_columns(file: str, fh) -> dict[str, np.ndarray] | None:
         data = _parse_numbers(fh)
     except ValueError:
         return None
-    if data is None or len(data) != len(header) or data[0].shape[0] == 0 \
-            or not all(np.all(np.isfinite(c)) for c in data):
+    if (
+        data is None
+        or len(data) != len(header)
+        or data[0].shape[0] == 0
+        or not all(np.all(np.isfinite(c)) for c in data)
+    ):
         return None
     col = {name: data[header.index(name)] for name in wanted}
     return col if _in_range(col, {name: col[name][0] for name in wanted}) else None
@@ -213,8 +225,12 @@ def _block(file, rows, lines, wanted, index, n_header, first) -> dict[str, np.nd
     out = []
     for line, fields in zip(lines, rows):
         if len(fields) > n_header and any(f.strip() for f in fields[n_header:]):
-            raise TableError(file, line, f"#{n_header + 1} (no header)",
-                             f"{len(fields)} fields but the header has {n_header} columns")
+            raise TableError(
+                file,
+                line,
+                f"#{n_header + 1} (no header)",
+                f"{len(fields)} fields but the header has {n_header} columns",
+            )
         row = {name: _cell(file, line, name, fields, index[name], n_header) for name in wanted}
         _check_row(file, line, row, first or (out[0] if out else None))
         out.append(row)
@@ -223,8 +239,9 @@ def _block(file, rows, lines, wanted, index, n_header, first) -> dict[str, np.nd
 
 def _in_range(col: dict[str, np.ndarray], first: dict[str, float]) -> bool:
     """Every value of the block within the checks of ``_check_row``."""
-    ok = bool(np.all(col["orbit_hz"] > 0) and np.all(col["spin_rpm"] >= 0)
-              and np.all(col["spin_rpm"] == first["spin_rpm"]))
+    ok = bool(
+        np.all(col["orbit_hz"] > 0) and np.all(col["spin_rpm"] >= 0) and np.all(col["spin_rpm"] == first["spin_rpm"])
+    )
     for g in GAMMA2:
         ok = ok and (g not in col or bool(np.all((col[g] >= 0) & (col[g] <= 1))))
     for c in UNCERTAINTY:
@@ -236,9 +253,15 @@ def _in_range(col: dict[str, np.ndarray], first: dict[str, float]) -> bool:
 
 
 #: the unit a column may state in its header ("orbit_hz [Hz]"); the table's units are fixed
-COLUMN_UNITS = {"spin_rpm": "rpm", "orbit_hz": "Hz", **{f"{q}_{p}": u for q, u in (("x", "m"), ("y", "m"), ("fx", "N"),
-                ("fy", "N")) for p in ("re", "im")}, **dict.fromkeys(GAMMA2, "1"), RECORDS: "1", "direction": "1",
-                **dict(zip(UNCERTAINTY, ("m", "m", "N", "N")))}
+COLUMN_UNITS = {
+    "spin_rpm": "rpm",
+    "orbit_hz": "Hz",
+    **{f"{q}_{p}": u for q, u in (("x", "m"), ("y", "m"), ("fx", "N"), ("fy", "N")) for p in ("re", "im")},
+    **dict.fromkeys(GAMMA2, "1"),
+    RECORDS: "1",
+    "direction": "1",
+    **dict(zip(UNCERTAINTY, ("m", "m", "N", "N"))),
+}
 _WITH_UNIT = re.compile(r"^(?P<name>\S+)\s*\[(?P<unit>[^\]]*)\]$")
 
 
@@ -269,8 +292,7 @@ def _wanted_columns(file: str, header: list[str], header_line: int) -> tuple[str
         present = [g for g in group if g in seen]
         if present and len(present) != len(group):
             missing = next(g for g in group if g not in seen)
-            raise TableError(file, header_line, missing,
-                             f"{what} columns come as a set of four: {', '.join(group)}")
+            raise TableError(file, header_line, missing, f"{what} columns come as a set of four: {', '.join(group)}")
         wanted += group if present else ()
     return wanted + ((RECORDS,) if RECORDS in seen else ())
 
@@ -293,9 +315,13 @@ def _check_row(file: str, line: int, row: dict, first: dict | None) -> None:
     if row["spin_rpm"] < 0:
         raise TableError(file, line, "spin_rpm", f"spin speed must be >= 0 rpm, got {row['spin_rpm']:g}")
     if first is not None and row["spin_rpm"] != first["spin_rpm"]:
-        raise TableError(file, line, "spin_rpm",
-                         f"spin speed {row['spin_rpm']:g} rpm differs from the first row's "
-                         f"{first['spin_rpm']:g} rpm (one operating point per table)")
+        raise TableError(
+            file,
+            line,
+            "spin_rpm",
+            f"spin speed {row['spin_rpm']:g} rpm differs from the first row's "
+            f"{first['spin_rpm']:g} rpm (one operating point per table)",
+        )
     for g in GAMMA2:
         if g in row and not 0.0 <= row[g] <= 1.0:
             raise TableError(file, line, g, f"coherence must lie in [0, 1], got {row[g]:g}")
@@ -336,6 +362,7 @@ def write_orbit_table(path: str | Path, table: OrbitTable, units: bool = False) 
     w = csv.writer(fh, lineterminator="\r\n")
     w.writerow([f"{name} [{unit}]" if units else name for name, (_, unit) in cols.items()])
     for k in range(table.n):
-        w.writerow([str(int(v[k])) if name in (RECORDS, "direction") else repr(float(v[k]))
-                    for name, (v, _) in cols.items()])
+        w.writerow(
+            [str(int(v[k])) if name in (RECORDS, "direction") else repr(float(v[k])) for name, (v, _) in cols.items()]
+        )
     write_atomic(Path(path), fh.getvalue().encode("utf-8"))

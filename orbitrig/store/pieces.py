@@ -11,43 +11,65 @@ from __future__ import annotations
 
 import json
 import math
-from typing import TYPE_CHECKING
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, Any
 
 import h5py
 import numpy as np
+import numpy.typing as npt
 
 from orbitrig.load_systems import LMS
 from orbitrig.store.annotate import annotate
-from orbitrig.store.layout import (BLOCK_ATTR_UNITS, COHERENCE_PAIRS, IDENT_ATTR_UNITS,
-                                   MATRIX_SI, TABLE_ATTR_UNITS, U_COLUMNS, U_UNITS, coefficient_si_unit)
-from orbitrig.store.records import BlockChoice, BlockRecord, PointResults
+from orbitrig.store.layout import (
+    BLOCK_ATTR_UNITS,
+    COHERENCE_PAIRS,
+    IDENT_ATTR_UNITS,
+    MATRIX_SI,
+    TABLE_ATTR_UNITS,
+    U_COLUMNS,
+    U_UNITS,
+    coefficient_si_unit,
+)
+from orbitrig.store.records import BlockChoice, BlockRecord, IdentificationEntry, PointResults
 
 if TYPE_CHECKING:  # annotation only: the store does not import the run wing
     from orbitrig.run.plan import OperatingPoint
+    from reduction.table import OrbitTable
 
 STR = h5py.string_dtype()
-IDENT_SCALARS = ("n_coefficients", "min_frequencies", "n_frequencies", "condition_number", "residual_rms",
-                 "dof", "chi2", "p_value", "aic", "bic", "exponent")
+IDENT_SCALARS = (
+    "n_coefficients",
+    "min_frequencies",
+    "n_frequencies",
+    "condition_number",
+    "residual_rms",
+    "dof",
+    "chi2",
+    "p_value",
+    "aic",
+    "bic",
+    "exponent",
+)
 
 
-def to_json(obj) -> str:
+def to_json(obj: object) -> str:
     """JSON text of plain data that may hold numpy scalars or arrays (e.g. counters, truth)."""
     return json.dumps(obj, default=lambda o: o.tolist() if isinstance(o, (np.generic, np.ndarray)) else str(o))
 
 
-def strings(values) -> np.ndarray:
+def strings(values: Iterable[str]) -> npt.NDArray[np.object_]:
     """Text for an attribute (variable-length UTF-8)."""
     return np.array(list(values), dtype=STR)
 
 
-def fixed_text(values) -> np.ndarray:
+def fixed_text(values: Iterable[object]) -> npt.NDArray[np.bytes_]:
     """Text for a dataset: fixed-length UTF-8 bytes (GNU Octave's load cannot read
     variable-length strings; h5py's ``.asstr()`` and MATLAB's h5read read both)."""
     encoded = [str(v).encode("utf-8") for v in values]
     return np.array(encoded, dtype=f"S{max([1, *map(len, encoded)])}")
 
 
-def put(g: h5py.Group, name: str, data, units: str, **attrs) -> h5py.Dataset:
+def put(g: h5py.Group, name: str, data: npt.ArrayLike, units: str, **attrs: object) -> h5py.Dataset:
     """A dataset with its units (and other attributes)."""
     if isinstance(data, np.ndarray) and data.dtype == STR:
         data = fixed_text(data)
@@ -58,13 +80,18 @@ def put(g: h5py.Group, name: str, data, units: str, **attrs) -> h5py.Dataset:
     return ds
 
 
-def point_settings(point: OperatingPoint) -> dict:
+def point_settings(point: OperatingPoint) -> dict[str, Any]:
     """The attributes of a point (point.json and /points/PPPP in run.h5), SI."""
     return {
-        "index": point.index, "spin": point.spin, "spin_rpm": point.spin_rpm,
-        "recess_pressure": point.recess_pressure, "pressure_ratio": point.pressure_ratio,
-        "static_eccentricity": point.static_eccentricity, "dynamic_eccentricity": point.dynamic_eccentricity,
-        "orbit_radius": point.orbit_radius, "label": point.label,
+        "index": point.index,
+        "spin": point.spin,
+        "spin_rpm": point.spin_rpm,
+        "recess_pressure": point.recess_pressure,
+        "pressure_ratio": point.pressure_ratio,
+        "static_eccentricity": point.static_eccentricity,
+        "dynamic_eccentricity": point.dynamic_eccentricity,
+        "orbit_radius": point.orbit_radius,
+        "label": point.label,
     }
 
 
@@ -74,33 +101,21 @@ def write_block(g: h5py.Group, rec: BlockRecord, channels: list[str], units: lis
     chan = strings(channels)
     per_channel = " or ".join(dict.fromkeys(units)) + " per channel (see channel_units)"
     a = g.attrs
-    a.update({"orbit": b.orbit, "orbit_hz": b.orbit_hz, "direction": b.direction,
-              "measured_orbit_speed": rec.measured_orbit_speed, "stop_reason": rec.stop_reason,
-              "n_records": int(rec.n_records if rec.n_records is not None else len(rec.raw_counts)),
-              "complete": True, "units_of_attributes": BLOCK_ATTR_UNITS})
+    a.update(
+        {
+            "orbit": b.orbit,
+            "orbit_hz": b.orbit_hz,
+            "direction": b.direction,
+            "measured_orbit_speed": rec.measured_orbit_speed,
+            "stop_reason": rec.stop_reason,
+            "n_records": int(rec.n_records if rec.n_records is not None else len(rec.raw_counts)),
+            "complete": True,
+            "units_of_attributes": BLOCK_ATTR_UNITS,
+        }
+    )
     a["channels"], a["channel_units"] = chan, strings(units)
-    put(g, "raw_counts", np.asarray(rec.raw_counts, dtype=np.int16), "count",
-        dimensions="revolution, channel, sample")
-    put(g, "slots", np.asarray(rec.slots, dtype=np.int16), "slot (1/360 of an orbit revolution after the trigger)",
-        dimensions="channel, sample")
-    put(g, "gains", np.asarray(rec.gains, dtype=np.float64), per_channel.replace("per", "/count per"))
-    put(g, "offsets", np.asarray(rec.offsets, dtype=np.float64), per_channel)
-    put(g, "mean", np.asarray(rec.mean, dtype=np.float64), per_channel, dimensions="channel, sample",
-        meaning="synchronous average over the revolutions")
-    put(g, "dc", np.asarray(rec.dc, dtype=np.float64), per_channel)
-    put(g, "rms_residual", np.asarray(rec.rms_residual, dtype=np.float64), per_channel)
-    put(g, "record_phasors", np.asarray(rec.record_phasors, dtype=np.complex128), per_channel,
-        dimensions="revolution, channel", convention="q = Re(q_bar exp(i Omega t))")
-    put(g, "phasors", np.asarray(rec.phasors, dtype=np.complex128), per_channel,
-        convention="q = Re(q_bar exp(i Omega t))")
-    if rec.revolutions is not None:
-        put(g, "revolutions", np.asarray(rec.revolutions, dtype=np.int64), "1", dimensions="revolution",
-            meaning="the A/D board's revolution number of each averaged revolution (gaps: dropped ones)")
-    if rec.uncertainty is not None:
-        put(g, "uncertainty", np.asarray(rec.uncertainty, dtype=np.float64), per_channel,
-            meaning="standard uncertainty of each averaged phasor")
-    put(g, "coherence", np.asarray(rec.coherence, dtype=np.float64), "1", rows=strings(LMS),
-        columns=strings(COHERENCE_PAIRS), meaning="gamma^2 between displacement and force")
+    _write_signals(g, rec, per_channel)
+    _write_phasors(g, rec, per_channel)
     st = g.create_group("stats")
     for k, v in rec.stats.items():
         st.attrs[k] = to_json(v) if isinstance(v, (dict, list)) else v
@@ -109,15 +124,99 @@ def write_block(g: h5py.Group, rec: BlockRecord, channels: list[str], units: lis
     annotate(g)
 
 
+def _write_signals(g: h5py.Group, rec: BlockRecord, per_channel: str) -> None:
+    """A block's samples: raw counts, their slots, the channels' calibration, the synchronous
+    average and what is left of each revolution around it."""
+    put(g, "raw_counts", np.asarray(rec.raw_counts, dtype=np.int16), "count", dimensions="revolution, channel, sample")
+    put(
+        g,
+        "slots",
+        np.asarray(rec.slots, dtype=np.int16),
+        "slot (1/360 of an orbit revolution after the trigger)",
+        dimensions="channel, sample",
+    )
+    put(g, "gains", np.asarray(rec.gains, dtype=np.float64), per_channel.replace("per", "/count per"))
+    put(g, "offsets", np.asarray(rec.offsets, dtype=np.float64), per_channel)
+    put(
+        g,
+        "mean",
+        np.asarray(rec.mean, dtype=np.float64),
+        per_channel,
+        dimensions="channel, sample",
+        meaning="synchronous average over the revolutions",
+    )
+    put(g, "dc", np.asarray(rec.dc, dtype=np.float64), per_channel)
+    put(g, "rms_residual", np.asarray(rec.rms_residual, dtype=np.float64), per_channel)
+
+
+def _write_phasors(g: h5py.Group, rec: BlockRecord, per_channel: str) -> None:
+    """A block's phasors: per revolution and averaged (with their uncertainty), the revolutions
+    averaged and the coherence of each displacement-force pair."""
+    put(
+        g,
+        "record_phasors",
+        np.asarray(rec.record_phasors, dtype=np.complex128),
+        per_channel,
+        dimensions="revolution, channel",
+        convention="q = Re(q_bar exp(i Omega t))",
+    )
+    put(
+        g,
+        "phasors",
+        np.asarray(rec.phasors, dtype=np.complex128),
+        per_channel,
+        convention="q = Re(q_bar exp(i Omega t))",
+    )
+    if rec.revolutions is not None:
+        put(
+            g,
+            "revolutions",
+            np.asarray(rec.revolutions, dtype=np.int64),
+            "1",
+            dimensions="revolution",
+            meaning="the A/D board's revolution number of each averaged revolution (gaps: dropped ones)",
+        )
+    if rec.uncertainty is not None:
+        put(
+            g,
+            "uncertainty",
+            np.asarray(rec.uncertainty, dtype=np.float64),
+            per_channel,
+            meaning="standard uncertainty of each averaged phasor",
+        )
+    put(
+        g,
+        "coherence",
+        np.asarray(rec.coherence, dtype=np.float64),
+        "1",
+        rows=strings(LMS),
+        columns=strings(COHERENCE_PAIRS),
+        meaning="gamma^2 between displacement and force",
+    )
+
+
 def write_choice(g: h5py.Group, c: BlockChoice) -> None:
     """A sequential point's decision: why, what (ratio, direction, revolutions, seconds), the rig
     seconds spent before it, and each coefficient's predicted relative standard error before and
     after it (fractions of the coefficient's scale)."""
-    g.attrs.update({"reason": c.reason, "ratio": math.nan if c.ratio is None else c.ratio, "whirl": c.direction,
-                    "revolutions": c.revolutions, "seconds": c.seconds, "spent_s": c.spent_s})
+    g.attrs.update(
+        {
+            "reason": c.reason,
+            "ratio": math.nan if c.ratio is None else c.ratio,
+            "whirl": c.direction,
+            "revolutions": c.revolutions,
+            "seconds": c.seconds,
+            "spent_s": c.spent_s,
+        }
+    )
     g.create_dataset("coefficient_names", data=fixed_text(c.coefficients))
-    put(g, "before", np.asarray(c.before, dtype=np.float64), "1", meaning="predicted relative standard error "
-        "(standard error / scale) of each coefficient before the decision")
+    put(
+        g,
+        "before",
+        np.asarray(c.before, dtype=np.float64),
+        "1",
+        meaning="predicted relative standard error (standard error / scale) of each coefficient before the decision",
+    )
     put(g, "after", np.asarray(c.after, dtype=np.float64), "1", meaning="the same, predicted after the chosen block")
 
 
@@ -137,33 +236,43 @@ def write_results(g: h5py.Group, res: PointResults) -> None:
     annotate(g)
 
 
-def _write_table(h: h5py.Group, t) -> None:
+def _write_table(h: h5py.Group, t: OrbitTable) -> None:
     h.attrs["spin"] = t.spin
     h.attrs["units_of_attributes"] = TABLE_ATTR_UNITS
     put(h, "orbit", np.asarray(t.orbit, dtype=np.float64), "rad/s")
     put(h, "orbit_hz", np.asarray(t.orbit, dtype=np.float64) / (2 * math.pi), "Hz")
-    meanings = (("m", "x displacement"), ("m", "y displacement"), ("N", "x force on the journal"),
-                ("N", "y force on the journal"))
+    meanings = (
+        ("m", "x displacement"),
+        ("m", "y displacement"),
+        ("N", "x force on the journal"),
+        ("N", "y force on the journal"),
+    )
     for (name, z), (unit, what) in zip(t.phasors.items(), meanings):
-        put(h, name, np.asarray(z, dtype=np.complex128), unit, meaning=what,
-            convention="q = Re(q_bar exp(i Omega t))")
+        put(h, name, np.asarray(z, dtype=np.complex128), unit, meaning=what, convention="q = Re(q_bar exp(i Omega t))")
     if t.gamma2 is not None:
         put(h, "gamma2", np.asarray(t.gamma2, dtype=np.float64), "1", columns=strings(COHERENCE_PAIRS))
     if t.n_records is not None:
         put(h, "n_records", np.asarray(t.n_records, dtype=np.int64), "1")
     if t.u is not None:
-        put(h, "u", np.asarray(t.u, dtype=np.float64), ", ".join(U_UNITS), columns=strings(U_COLUMNS),
-            meaning="standard uncertainty of each averaged phasor")
+        put(
+            h,
+            "u",
+            np.asarray(t.u, dtype=np.float64),
+            ", ".join(U_UNITS),
+            columns=strings(U_COLUMNS),
+            meaning="standard uncertainty of each averaged phasor",
+        )
 
 
-def _float(v) -> float:
+def _float(v: Any) -> float:
     return math.nan if v is None else float(v)
 
 
-def _write_identification(h: h5py.Group, entry: dict) -> None:
+def _write_identification(h: h5py.Group, entry: IdentificationEntry) -> None:
     spec = entry["spec"]
-    h.attrs.update({"model": spec.model, "freq_dep": spec.freq_dep, "method": spec.method,
-                    "units_of_attributes": IDENT_ATTR_UNITS})
+    h.attrs.update(
+        {"model": spec.model, "freq_dep": spec.freq_dep, "method": spec.method, "units_of_attributes": IDENT_ATTR_UNITS}
+    )
     if "json" not in entry:
         h.attrs["error"] = entry["error"]
         return
@@ -181,8 +290,14 @@ def _write_identification(h: h5py.Group, entry: dict) -> None:
     put(h, "std_errors", np.array([_float(std.get(k)) for k in names]), unit, meaning="one standard deviation")
     ci = d.get("confidence_95")
     if ci:
-        put(h, "interval_95", np.array([[_float(v) for v in (ci.get(k) or (None, None))] for k in names]).reshape(-1, 2),
-            unit, columns=strings(("low", "high")), meaning="two-sided 95 % confidence interval")
+        put(
+            h,
+            "interval_95",
+            np.array([[_float(v) for v in (ci.get(k) or (None, None))] for k in names]).reshape(-1, 2),
+            unit,
+            columns=strings(("low", "high")),
+            meaning="two-sided 95 % confidence interval",
+        )
     if d.get("free") and d.get("covariance") is not None:
         free = list(d["free"])
         cov = np.array([[_float(v) for v in row] for row in d["covariance"]], dtype=np.float64).reshape(len(free), -1)
@@ -195,11 +310,17 @@ def _write_identification(h: h5py.Group, entry: dict) -> None:
 
 
 #: SI unit of each coefficient of the Eq. 15 power fit ({m}: its exponent)
-POWER_FIT_UNITS = {"K0": "N/m", "Km": "N/m (rad/s)^-{m}", "C0": "N s/m", "Cn": "N s/m (rad/s)^-{n}",
-                   "D0": "kg", "Dp": "kg (rad/s)^-{p}"}
+POWER_FIT_UNITS = {
+    "K0": "N/m",
+    "Km": "N/m (rad/s)^-{m}",
+    "C0": "N s/m",
+    "Cn": "N s/m (rad/s)^-{n}",
+    "D0": "kg",
+    "Dp": "kg (rad/s)^-{p}",
+}
 
 
-def write_truth(h: h5py.Group, truth: dict) -> None:
+def write_truth(h: h5py.Group, truth: dict[str, Any]) -> None:
     """The simulator's truth of a point (orbitrig.run.truth): the JSON in attribute ``json``
     and, when the truth holds the true impedance, numeric datasets with units: ``orbit``,
     ``orbit_hz``, ``Z`` (row, 2, 2) and the best fits under ``fits/constant`` and ``fits/power``."""
@@ -210,8 +331,14 @@ def write_truth(h: h5py.Group, truth: dict) -> None:
     put(h, "orbit", np.asarray(truth["orbit"], dtype=np.float64), "rad/s", meaning="signed (< 0 backward)")
     put(h, "orbit_hz", np.asarray(truth["orbit_hz"], dtype=np.float64), "Hz")
     z = np.asarray(truth["Z_re"], dtype=np.float64) + 1j * np.asarray(truth["Z_im"], dtype=np.float64)
-    put(h, "Z", z.reshape(-1, 2, 2), "N/m", dimensions="orbit row, force (fx, fy), displacement (x, y)",
-        convention="f_bar = -Z d_bar, Z = K + i|Omega| C - Omega^2 D for constant coefficients")
+    put(
+        h,
+        "Z",
+        z.reshape(-1, 2, 2),
+        "N/m",
+        dimensions="orbit row, force (fx, fy), displacement (x, y)",
+        convention="f_bar = -Z d_bar, Z = K + i|Omega| C - Omega^2 D for constant coefficients",
+    )
     fits = h.create_group("fits")
     put(fits, "band", np.asarray(truth["band"], dtype=np.float64), "rad/s", meaning="|Omega| the fits use")
     const = fits.create_group("constant")

@@ -18,14 +18,21 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
-from orbitrig.store.errors import RunDirError
-from orbitrig.store.layout import COHERENCE_PAIRS, READABLE_FORMATS, RUN_FILE, RunLayout  # noqa: F401
+from orbitrig.store.errors import RunDirError as RunDirError  # its readers' error, imported from here too
+from orbitrig.store.h5_values import json_attr, open_h5, stored_values, text
+from orbitrig.store.layout import READABLE_FORMATS, RUN_FILE, RunLayout
 from orbitrig.store.index import NEVER_COMPLETED
 from orbitrig.store.status import RunStatus
+
+if TYPE_CHECKING:
+    import h5py
+
+    from reduction.table import OrbitTable
 
 
 @dataclass(frozen=True)
@@ -59,11 +66,11 @@ class Frequency:
     orbit_hz: float  # > 0
     direction: int  # +1 forward, -1 backward
     complete: bool
-    coherence: np.ndarray | None  # (2, 4): rows piezo|strain, cols xfx, yfx, xfy, yfy
+    coherence: npt.NDArray[np.float64] | None  # (2, 4): rows piezo|strain, cols xfx, yfx, xfy, yfy
     n_records: int = 0  # revolutions averaged
     #: the averaged block, SI per channel (N or m): mean (C, S), slots (C, S), dc (C,),
     #: phasors (C,) complex, uncertainty (C,) when measured
-    waveform: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    waveform: dict[str, npt.NDArray[Any]] = field(default_factory=dict, repr=False)
 
 
 @dataclass(frozen=True)
@@ -91,10 +98,10 @@ class Point:
     complete: bool
     settings: Settings
     frequencies: list[Frequency] = field(default_factory=list)
-    tables: dict[str, Any] = field(default_factory=dict)  # lms -> OrbitTable
+    tables: dict[str, OrbitTable] = field(default_factory=dict)  # lms -> orbit table
     identifications: list[StoredIdentification] = field(default_factory=list)
     truth: dict[str, Any] | None = None
-    lms_comparison: Any = None
+    lms_comparison: dict[str, Any] | None = None
     problem: str = ""  # why the point is not complete ("" when complete; orbitrig.store.index)
 
     def identification(self, lms: str, model: str, freq_dep: str) -> StoredIdentification | None:
@@ -127,7 +134,6 @@ class Run:
     sim_scenario_config: str = ""  # its TOML text ("" the default rig)
     provenance: dict[str, str] = field(default_factory=dict)  # PROVENANCE_KEYS ("" unknown), times ISO 8601 UTC
 
-
     @property
     def complete_points(self) -> list[Point]:
         return [p for p in self.points if p.complete]
@@ -148,44 +154,6 @@ def freq_dep_key(freq_dep: str) -> str:
     return freq_dep.replace(":", "_").replace(",", "_")
 
 
-def _text(value: Any, default: str = "") -> str:
-    if value is None:
-        return default
-    if isinstance(value, bytes):
-        return value.decode("utf-8", "replace")
-    return str(value)
-
-
-def _json_attr(attrs, name: str) -> Any:
-    raw = attrs.get(name)
-    return None if raw is None else json.loads(_text(raw))
-
-
-#: a complex dataset in the h5 export's layout (orbitrig.store.export_h5), which GNU Octave reads
-OCTAVE_COMPLEX = np.dtype([("real", "<f8"), ("imag", "<f8")])
-
-
-def stored_values(ds) -> np.ndarray:
-    """The values of dataset `ds`; complex from either layout: run.h5's (h5py's members r, i)
-    or the h5 export's (members real, imag)."""
-    data = ds[()]
-    names = getattr(data, "dtype", np.dtype(float)).names
-    if names is not None and set(names) == {"real", "imag"}:
-        out = np.empty(data.shape, np.complex128)
-        out.real, out.imag = data["real"], data["imag"]
-        return out
-    return np.asarray(data)
-
-
-def _open(path: Path):
-    import h5py
-
-    try:
-        return h5py.File(path, "r")
-    except OSError as err:
-        raise RunDirError(path, f"not a readable HDF5 file ({err})") from err
-
-
 def read_run(directory: str | Path, *, blocks: bool = True) -> Run:
     """Read the run in ``directory`` (docs/storage.md); ``blocks=False`` leaves out every
     point's averaged blocks (the results only: bounded memory for a summary).
@@ -201,8 +169,8 @@ def read_run(directory: str | Path, *, blocks: bool = True) -> Run:
     path = layout.run_file
     if not path.is_file():
         raise RunDirError(directory, f"not an orbitrig run directory: no {RUN_FILE} (nor {layout.header.name}) in it")
-    with _open(path) as h5:
-        fmt = _text(h5.attrs.get("format"))
+    with open_h5(path) as h5:
+        fmt = text(h5.attrs.get("format"))
         if fmt not in READABLE_FORMATS:
             raise RunDirError(path, f"format attribute is {fmt or 'missing'!r}, expected {READABLE_FORMATS[-1]!r}")
         try:
@@ -215,16 +183,21 @@ def read_run(directory: str | Path, *, blocks: bool = True) -> Run:
                 points.append(point)
             a = h5.attrs
             return Run(
-                directory=directory, status=RunStatus.read(_text(a.get("status"))),
-                status_message=_text(a.get("status_message")), sim=bool(a.get("sim", False)),
-                software_version=_text(a.get("software_version")), created=_text(a.get("created")),
-                matrix_name=_text(a.get("matrix_name")), rig_config=_text(a.get("rig_config")),
-                matrix_config=_text(a.get("matrix_config")), points=points,
-                channels=[_text(c) for c in h5["channels"][()]] if "channels" in h5 else [],
-                channel_units=[_text(c) for c in h5["channel_units"][()]] if "channel_units" in h5 else [],
-                sim_scenario_name=_text(a.get("sim_scenario_name")),
-                sim_scenario_config=_text(a.get("sim_scenario_config")),
-                provenance={k: _text(a.get(k)) for k in PROVENANCE_KEYS},
+                directory=directory,
+                status=RunStatus.read(text(a.get("status"))),
+                status_message=text(a.get("status_message")),
+                sim=bool(a.get("sim", False)),
+                software_version=text(a.get("software_version")),
+                created=text(a.get("created")),
+                matrix_name=text(a.get("matrix_name")),
+                rig_config=text(a.get("rig_config")),
+                matrix_config=text(a.get("matrix_config")),
+                points=points,
+                channels=[text(c) for c in h5["channels"][()]] if "channels" in h5 else [],
+                channel_units=[text(c) for c in h5["channel_units"][()]] if "channel_units" in h5 else [],
+                sim_scenario_name=text(a.get("sim_scenario_name")),
+                sim_scenario_config=text(a.get("sim_scenario_config")),
+                provenance={k: text(a.get(k)) for k in PROVENANCE_KEYS},
             )
         except (KeyError, ValueError, TypeError) as err:
             raise RunDirError(path, f"malformed run file: {err}") from err
@@ -253,17 +226,25 @@ def _read_pieces(layout: RunLayout, blocks: bool = True, indexes: list[int] | No
     except StorageError as err:
         raise RunDirError(err.path, err.reason) from err
     run = Run(
-        directory=layout.dir, status=journal.status, status_message=journal.status_message,
-        sim=bool(header.get("sim", False)), software_version=str(header.get("software_version", "")),
-        created=str(header.get("created", "")), matrix_name=str(header.get("matrix_name", "")),
-        rig_config=str(header.get("rig_config", "")), matrix_config=str(header.get("matrix_config", "")),
-        points=[], channels=list(header.get("channels", [])), channel_units=list(header.get("channel_units", [])),
+        directory=layout.dir,
+        status=journal.status,
+        status_message=journal.status_message,
+        sim=bool(header.get("sim", False)),
+        software_version=str(header.get("software_version", "")),
+        created=str(header.get("created", "")),
+        matrix_name=str(header.get("matrix_name", "")),
+        rig_config=str(header.get("rig_config", "")),
+        matrix_config=str(header.get("matrix_config", "")),
+        points=[],
+        channels=list(header.get("channels", [])),
+        channel_units=list(header.get("channel_units", [])),
         torn=journal.torn,
     )
     scenario = header.get("sim_scenario")
     if isinstance(scenario, dict):
         run.sim_scenario_name, run.sim_scenario_config = str(scenario.get("name", "")), str(scenario.get("text", ""))
-    prov = header.get("provenance") if isinstance(header.get("provenance"), dict) else {}
+    stored = header.get("provenance")
+    prov = stored if isinstance(stored, dict) else {}
     ended = journal.status_at if journal.status.final else ""
     run.provenance = {k: str(prov.get(k, "")) for k in PROVENANCE_KEYS[:-1]} | {"ended": ended}
     for index in layout.point_indexes() if indexes is None else indexes:
@@ -283,8 +264,9 @@ def _read_pieces(layout: RunLayout, blocks: bool = True, indexes: list[int] | No
     return run
 
 
-def read_point(layout: RunLayout, index: int, *, complete: bool, skipped: list[str] | None = None,
-               blocks: bool = True) -> Point:
+def read_point(
+    layout: RunLayout, index: int, *, complete: bool, skipped: list[str] | None = None, blocks: bool = True
+) -> Point:
     """One point of a run in pieces: settings, its readable blocks (unless blocks=False;
     the unreadable ones are named in `skipped`) and, when `complete`, its results.
     Raises RunDirError."""
@@ -296,21 +278,21 @@ def read_point(layout: RunLayout, index: int, *, complete: bool, skipped: list[s
         raise RunDirError(path, f"unreadable point settings ({type(err).__name__}: {err})") from err
     for tag in layout.block_tags(index) if blocks else ():
         try:
-            with _open(layout.block_file(index, tag)) as fg:
+            with open_h5(layout.block_file(index, tag)) as fg:
                 point.frequencies.append(_frequency(tag, fg))
         except (RunDirError, OSError, KeyError, ValueError) as err:
             if skipped is not None:
                 skipped.append(f"{layout.block_file(index, tag)}: {err}")
     if complete:
         try:
-            with _open(layout.results_file(index)) as rg:
+            with open_h5(layout.results_file(index)) as rg:
                 _read_results(rg, point)
         except (RunDirError, OSError, KeyError, ValueError, TypeError) as err:
             raise RunDirError(layout.results_file(index), f"malformed results of a complete point: {err}") from err
     return point
 
 
-def _new_point(a, name: str) -> Point:
+def _new_point(a: h5py.AttributeManager | dict[str, Any], name: str) -> Point:
     settings = Settings(
         spin=float(a["spin"]),
         spin_rpm=float(a.get("spin_rpm", float(a["spin"]) * 30.0 / np.pi)),
@@ -319,28 +301,38 @@ def _new_point(a, name: str) -> Point:
         static_eccentricity=float(a.get("static_eccentricity", np.nan)),
         dynamic_eccentricity=float(a.get("dynamic_eccentricity", np.nan)),
         orbit_radius=float(a.get("orbit_radius", np.nan)),
-        label=_text(a.get("label"), name),
+        label=text(a.get("label"), name),
     )
     complete = bool(a.get("complete", False))
-    return Point(index=int(a.get("index", int(name))), name=name, complete=complete, settings=settings,
-                 problem="" if complete else NEVER_COMPLETED)
+    return Point(
+        index=int(a.get("index", int(name))),
+        name=name,
+        complete=complete,
+        settings=settings,
+        problem="" if complete else NEVER_COMPLETED,
+    )
 
 
-def _frequency(name: str, fg) -> Frequency:
+def _frequency(name: str, fg: h5py.File | h5py.Group) -> Frequency:
     fa = fg.attrs
     coh = np.asarray(fg["coherence"][()], dtype=float) if "coherence" in fg else None
     waveform = {k: stored_values(fg[k]) for k in _WAVEFORM if k in fg}
     return Frequency(
-        name=name, orbit=float(fa.get("orbit", np.nan)), orbit_hz=float(fa.get("orbit_hz", np.nan)),
-        direction=int(fa.get("direction", 1)), complete=bool(fa.get("complete", False)), coherence=coh,
-        n_records=int(fa.get("n_records", 0)), waveform=waveform,
+        name=name,
+        orbit=float(fa.get("orbit", np.nan)),
+        orbit_hz=float(fa.get("orbit_hz", np.nan)),
+        direction=int(fa.get("direction", 1)),
+        complete=bool(fa.get("complete", False)),
+        coherence=coh,
+        n_records=int(fa.get("n_records", 0)),
+        waveform=waveform,
     )
 
 
 _WAVEFORM = ("mean", "slots", "dc", "phasors", "uncertainty")
 
 
-def _table(tg, spin: float):
+def _table(tg: h5py.Group, spin: float) -> OrbitTable:
     from reduction.table import OrbitTable
 
     extra = {}  # orbit-table v2 columns, stored when the sweep had them
@@ -349,32 +341,36 @@ def _table(tg, spin: float):
     if "u" in tg:
         extra["u"] = np.asarray(tg["u"][()], dtype=float)
     return OrbitTable(
-        spin=float(tg.attrs.get("spin", spin)), orbit=np.asarray(tg["orbit"][()], dtype=float),
-        x=stored_values(tg["x"]).astype(complex), y=stored_values(tg["y"]).astype(complex),
-        fx=stored_values(tg["fx"]).astype(complex), fy=stored_values(tg["fy"]).astype(complex),
-        gamma2=np.asarray(tg["gamma2"][()], dtype=float) if "gamma2" in tg else None, **extra,
+        spin=float(tg.attrs.get("spin", spin)),
+        orbit=np.asarray(tg["orbit"][()], dtype=float),
+        x=stored_values(tg["x"]).astype(complex),
+        y=stored_values(tg["y"]).astype(complex),
+        fx=stored_values(tg["fx"]).astype(complex),
+        fy=stored_values(tg["fy"]).astype(complex),
+        gamma2=np.asarray(tg["gamma2"][()], dtype=float) if "gamma2" in tg else None,
+        **extra,
     )
 
 
-def _read_results(g, point: Point) -> None:
+def _read_results(g: h5py.File | h5py.Group, point: Point) -> None:
     """The results groups (table, identification, truth, lms_comparison) of `point`."""
     for lms, tg in sorted(g.get("table", {}).items()):
         point.tables[lms] = _table(tg, point.settings.spin)
     for key, ig in sorted(g.get("identification", {}).items()):
         lms, model, fd_key = key.split("__", 2)
         ia = ig.attrs
-        result = _json_attr(ia, "json")
+        result = json_attr(ia, "json")
         point.identifications.append(
             StoredIdentification(
                 lms=lms,
-                model=_text(ia.get("model"), model),
-                freq_dep=_text(ia.get("freq_dep")) or freq_dep_from_key(fd_key),
+                model=text(ia.get("model"), model),
+                freq_dep=text(ia.get("freq_dep")) or freq_dep_from_key(fd_key),
                 result=result,
-                error=_text(ia.get("error")) or None,
-                method=_text(ia.get("method")) or str((result or {}).get("method", "ols")),
+                error=text(ia.get("error")) or None,
+                method=text(ia.get("method")) or str((result or {}).get("method", "ols")),
             )
         )
     if "truth" in g:
-        point.truth = _json_attr(g["truth"].attrs, "json")
+        point.truth = json_attr(g["truth"].attrs, "json")
     if "lms_comparison" in g:
-        point.lms_comparison = _json_attr(g["lms_comparison"].attrs, "json")
+        point.lms_comparison = json_attr(g["lms_comparison"].attrs, "json")

@@ -5,12 +5,18 @@ from __future__ import annotations
 import threading
 from collections import deque
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, NotRequired, TypedDict
 
 import numpy as np
+import numpy.typing as npt
 
 if TYPE_CHECKING:  # the plan's types only annotate: the store does not import the run wing
+    from orbitrig.config import ModelSpec
     from orbitrig.run.steps import Block
+    from reduction.table import OrbitTable
+
+#: a row of the journal's event, CAN or drive log: time (s since the start) and values or texts
+LogRow = tuple[float | str, ...]
 
 
 @dataclass(frozen=True)
@@ -38,30 +44,38 @@ class BlockRecord:
 
     block: Block
     measured_orbit_speed: float  # rad/s, |Omega| from trigger timestamps
-    raw_counts: np.ndarray  # int16 (N, C, S)
-    slots: np.ndarray  # (C, S)
-    gains: np.ndarray  # (C,) engineering unit per count
-    offsets: np.ndarray  # (C,) engineering unit
-    mean: np.ndarray  # (C, S) engineering units
-    record_phasors: np.ndarray  # (N, C)
-    phasors: np.ndarray  # (C,)
-    dc: np.ndarray  # (C,)
-    rms_residual: np.ndarray  # (C,)
-    coherence: np.ndarray  # (2, 4) piezo|strain x (xfx, yfx, xfy, yfy)
-    stats: dict = field(default_factory=dict)
-    uncertainty: np.ndarray | None = None  # (C,) standard uncertainty of `phasors` (N, m)
+    raw_counts: npt.NDArray[np.int16]  # (N, C, S)
+    slots: npt.NDArray[np.integer[Any]]  # (C, S)
+    gains: npt.NDArray[np.float64]  # (C,) engineering unit per count
+    offsets: npt.NDArray[np.float64]  # (C,) engineering unit
+    mean: npt.NDArray[np.float64]  # (C, S) engineering units
+    record_phasors: npt.NDArray[np.complex128]  # (N, C)
+    phasors: npt.NDArray[np.complex128]  # (C,)
+    dc: npt.NDArray[np.float64]  # (C,)
+    rms_residual: npt.NDArray[np.float64]  # (C,)
+    coherence: npt.NDArray[np.float64]  # (2, 4) piezo|strain x (xfx, yfx, xfy, yfy)
+    stats: dict[str, Any] = field(default_factory=dict)  # the averager's counters (JSON values)
+    uncertainty: npt.NDArray[np.float64] | None = None  # (C,) standard uncertainty of `phasors` (N, m)
     n_records: int | None = None  # revolutions averaged (None: the rows of raw_counts)
     stop_reason: str = ""  # why averaging stopped: "count" | "target" | "max" ("" unknown)
-    revolutions: np.ndarray | None = None  # (N,) the A/D board's revolution number of each record
+    revolutions: npt.NDArray[np.int64] | None = None  # (N,) the A/D board's revolution number of each record
     choice: BlockChoice | None = None  # a sequential point's reason for this block
+
+
+class IdentificationEntry(TypedDict):
+    """One model identified on one load system's table: the fit's JSON object, or why it was refused."""
+
+    spec: ModelSpec
+    json: NotRequired[dict[str, Any]]
+    error: NotRequired[str]
 
 
 @dataclass
 class PointResults:
-    tables: dict  # lms -> reduction.table.OrbitTable
-    identifications: dict  # (lms, ModelSpec.key) -> {"spec": ModelSpec, "json": dict | "error": str}
-    lms_comparison: dict
-    truth: dict | None = None
+    tables: dict[str, OrbitTable]  # lms -> orbit table
+    identifications: dict[tuple[str, str], IdentificationEntry]  # (lms, ModelSpec.key) -> entry
+    lms_comparison: dict[str, Any]  # JSON object (orbitrig.run.identification.lms_comparison)
+    truth: dict[str, Any] | None = None  # JSON object (orbitrig.run.truth)
     sequential: BlockChoice | None = None  # a sequential point's last decision (target or cap)
 
 
@@ -83,18 +97,18 @@ class LogBuffer:
         self._events_left_out = 0
 
     @staticmethod
-    def _empty() -> dict[str, deque]:
+    def _empty() -> dict[str, deque[LogRow]]:
         kept = {"events": EVENTS_KEPT, "can": MONITOR_ROWS_KEPT, "drives": MONITOR_ROWS_KEPT}
         return {name: deque(maxlen=n) for name, n in kept.items()}
 
-    def add(self, log: str, row: tuple) -> None:
+    def add(self, log: str, row: LogRow) -> None:
         with self._lock:
             rows = self._rows[log]
             if log == "events" and len(rows) == rows.maxlen:
                 self._events_left_out += 1
             rows.append(row)
 
-    def take(self) -> tuple[list, list, list]:
+    def take(self) -> tuple[list[LogRow], list[LogRow], list[LogRow]]:
         with self._lock:
             rows, self._rows = self._rows, self._empty()
             left_out, self._events_left_out = self._events_left_out, 0
@@ -104,7 +118,7 @@ class LogBuffer:
             events.insert(0, (t, state, f"{left_out} earlier events left out (only the newest {EVENTS_KEPT} kept)"))
         return events, list(rows["can"]), list(rows["drives"])
 
-    def put_back(self, events: list, can: list, drives: list) -> None:
+    def put_back(self, events: list[LogRow], can: list[LogRow], drives: list[LogRow]) -> None:
         """Return rows a failed write could not store (they go with the next write)."""
         with self._lock:
             for name, rows in (("events", events), ("can", can), ("drives", drives)):

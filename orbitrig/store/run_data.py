@@ -75,8 +75,10 @@ class RunData:
         for p in self.run.points:
             if p.index == point:
                 return p
-        raise KeyError(f"{self.run.directory}: no operating point {point} "
-                       f"(points: {', '.join(str(p.index) for p in self.run.points) or 'none'})")
+        raise KeyError(
+            f"{self.run.directory}: no operating point {point} "
+            f"(points: {', '.join(str(p.index) for p in self.run.points) or 'none'})"
+        )
 
     @property
     def points(self):
@@ -108,8 +110,10 @@ class RunData:
         for f in fits:
             if (f.lms, f.model, f.freq_dep, f.method) == (lms, model, freq_dep, method):
                 return Fit(f)
-        raise KeyError(f"point {point}: no fit {lms} {model} {freq_dep} {method} "
-                       f"(fits: {', '.join(f.key for f in fits) or 'none'})")
+        raise KeyError(
+            f"point {point}: no fit {lms} {model} {freq_dep} {method} "
+            f"(fits: {', '.join(f.key for f in fits) or 'none'})"
+        )
 
     def truth(self, point: int) -> dict | None:
         """--sim runs: the simulator's true impedance and its best fits (K0, C0, D0, ...), SI."""

@@ -46,11 +46,13 @@ def select_points(run: Run, wanted: Iterable[int] | None = None) -> Selection:
             if p.complete:
                 continue
             (sel.notes if p.problem == NEVER_COMPLETED else sel.skipped).append(
-                f"point {p.name} {'not included' if p.problem == NEVER_COMPLETED else 'skipped'}: {p.problem}")
+                f"point {p.name} {'not included' if p.problem == NEVER_COMPLETED else 'skipped'}: {p.problem}"
+            )
         sel.notes += [f"point {point_name(i)} not included: {NEVER_BEGUN}" for i in run.unbegun]
         listed = {p.name for p in run.points}
-        sel.skipped += [f"skipped: unreadable {u}" for u in run.unreadable
-                        if not any(f"/{name}/" in u for name in listed)]
+        sel.skipped += [
+            f"skipped: unreadable {u}" for u in run.unreadable if not any(f"/{name}/" in u for name in listed)
+        ]
         return sel
     sel = Selection([])
     for index in sorted(set(wanted)):
@@ -59,7 +61,9 @@ def select_points(run: Run, wanted: Iterable[int] | None = None) -> Selection:
             sel.points.append(found)
             continue
         name = point_name(index) if found is None else found.name
-        why = found.problem if found is not None else NEVER_BEGUN if index in run.unbegun else "no such point in the run"
+        why = (
+            found.problem if found is not None else NEVER_BEGUN if index in run.unbegun else "no such point in the run"
+        )
         details = _unreadable_of(run, name)
         sel.skipped.append(f"point {name} skipped: {why}" + "".join(f"; unreadable {u}" for u in details))
     return sel

@@ -18,18 +18,18 @@ import json
 import logging
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from orbitrig import __version__
 from orbitrig.store import csvfile, journal, pieces
 from orbitrig.store.consolidate import RunImage, read_header
 from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F401  (the CSV's public names)
 from orbitrig.store.durable import APPEND_FLAGS, TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
-from orbitrig.store.errors import StorageError, StorageFullError, storage_error
+from orbitrig.store.errors import RunDirError, StorageError, StorageFullError, storage_error
 from orbitrig.store.index import NEVER_COMPLETED, commit_record, point_state, scan
 from orbitrig.store.layout import FORMAT, RunLayout, point_name
 from orbitrig.store.quota import COMMANDS_HEAD, COMMANDS_TAIL, RUN_LOG_HEAD, RUN_LOG_TAIL, LineQuota
-from orbitrig.store.reader import RunDirError, read_point
+from orbitrig.store.reader import read_point
 from orbitrig.store.records import BlockRecord, LogBuffer, PointResults
 from orbitrig.store.status import RunStatus
 from rigunits import now_iso, utc_iso
@@ -52,9 +52,9 @@ class RunStore:
         self.log_path = self.layout.log
         self.logs = LogBuffer()
         self.set_aside: list[str] = []  # what prepare_resume set aside, one message each
-        self._header: dict = {}
+        self._header: dict[str, Any] = {}  # run.json
         self._csv_points: dict[int, csvfile.PointCsv] = {}  # complete point -> its rows, kept compact
-        self._written: dict[int, dict[str, dict]] = {}  # point -> file name -> size, digest
+        self._written: dict[int, dict[str, dict[str, Any]]] = {}  # point -> file name -> size, digest
         self._image = RunImage(self.layout)  # run.h5.tmp on disk, filled as points commit
         self._log_failed = False
         # between two completed points the logs grow by a bounded number of lines (orbitrig.store.quota)
@@ -63,9 +63,20 @@ class RunStore:
 
     # ---------------------------------------------------------- life cycle
     @classmethod
-    def create(cls, out_dir, *, rig_text: str, matrix_text: str, matrix_name: str, sim: bool,
-               scenario_name: str = "", scenario_text: str = "", provenance: dict | None = None,
-               record_text: str = "", point_order: list[int] | None = None) -> RunStore:
+    def create(
+        cls,
+        out_dir: Path | str,
+        *,
+        rig_text: str,
+        matrix_text: str,
+        matrix_name: str,
+        sim: bool,
+        scenario_name: str = "",
+        scenario_text: str = "",
+        provenance: dict[str, str] | None = None,
+        record_text: str = "",
+        point_order: list[int] | None = None,
+    ) -> RunStore:
         """A new run directory; `scenario_name` / `scenario_text`: the simulator scenario of a
         --sim run (name and TOML text, recorded so that a resume runs the same one);
         `provenance` (orbitrig.run.provenance) and the active calibration record's text;
@@ -80,9 +91,17 @@ class RunStore:
         except OSError as err:
             raise storage_error(lay.points, "create the run directory", err) from err
         channels, units = _channels(rig_text)
-        self._header = {"format": FORMAT, "software_version": _versions(), "created": now_iso(), "sim": bool(sim),
-                        "matrix_name": matrix_name, "channels": channels, "channel_units": units,
-                        "rig_config": rig_text, "matrix_config": matrix_text}
+        self._header = {
+            "format": FORMAT,
+            "software_version": _versions(),
+            "created": now_iso(),
+            "sim": bool(sim),
+            "matrix_name": matrix_name,
+            "channels": channels,
+            "channel_units": units,
+            "rig_config": rig_text,
+            "matrix_config": matrix_text,
+        }
         if sim:
             self._header["sim_scenario"] = {"name": scenario_name, "text": scenario_text}
         if provenance is not None:
@@ -98,13 +117,16 @@ class RunStore:
         return self
 
     @classmethod
-    def open_existing(cls, out_dir) -> RunStore:
+    def open_existing(cls, out_dir: Path | str) -> RunStore:
         self = cls(out_dir)
         lay = self.layout
         if not lay.has_pieces():
             if lay.run_file.exists():
-                raise StorageError(lay.run_file, "holds a finished copy of a run but not its pieces "
-                                   f"({lay.header.name}, {lay.points.name}/): it cannot be resumed")
+                raise StorageError(
+                    lay.run_file,
+                    "holds a finished copy of a run but not its pieces "
+                    f"({lay.header.name}, {lay.points.name}/): it cannot be resumed",
+                )
             raise StorageError(lay.header, "does not exist: nothing to resume")
         self._header = read_header(lay)
         return self
@@ -217,8 +239,9 @@ class RunStore:
         """Commit the point: its commit record names every file with size and digest."""
         rec = commit_record(self.layout, point, self._written.pop(point, None))
         write_atomic(self.layout.commit_file(point), json.dumps(rec, indent=1).encode())
-        self._journal([*self._close_quotas(f"point {point_name(point)}"), journal.line("point", point=point,
-                                                                                         action="complete")])
+        self._journal(
+            [*self._close_quotas(f"point {point_name(point)}"), journal.line("point", point=point, action="complete")]
+        )
         self._image.add_point(point)
         self.write_csv()
 
@@ -268,9 +291,13 @@ class RunStore:
         """Raise StorageFullError when fewer than `n_bytes` are free for the run directory."""
         free = self.free_bytes()
         if free < n_bytes:
-            raise StorageFullError(self.dir, f"needs {_mb(n_bytes)} free, {_mb(free)} left: free space on this "
-                                   "disk (or choose another --out), then resume the run",
-                                   needed=int(n_bytes), free=int(free))
+            raise StorageFullError(
+                self.dir,
+                f"needs {_mb(n_bytes)} free, {_mb(free)} left: free space on this "
+                "disk (or choose another --out), then resume the run",
+                needed=int(n_bytes),
+                free=int(free),
+            )
 
     # -------------------------------------------------------------- run.log
     def log(self, message: str) -> None:
@@ -298,8 +325,10 @@ class RunStore:
         if text.tail:
             note = f"{text.count + len(text.tail)} lines since the last completed point were not written at once"
             stamp = utc_iso()
-            self._append_log(f"{stamp} run.log: {note} (until {until}): {text.count} left out, the newest "
-                             f"{len(text.tail)} follow\n" + "".join(text.tail))
+            self._append_log(
+                f"{stamp} run.log: {note} (until {until}): {text.count} left out, the newest "
+                f"{len(text.tail)} follow\n" + "".join(text.tail)
+            )
         if not commands.tail:
             return []
         note = f"{commands.count} commands left out (the journal keeps {COMMANDS_HEAD} per point and the newest)"

@@ -14,8 +14,7 @@ import numpy as np
 import pytest
 
 from reduction.adequacy import frequency_dependence
-from reduction.adequacy_design import (allocate_keeping_test, frequencies_needed, model_test, richest,
-                                       spread_ok)
+from reduction.adequacy_design import allocate_keeping_test, frequencies_needed, model_test, richest, spread_ok
 from reduction.design import design_orbits
 from reduction.errors import ReductionError
 from reduction.frequency_list import allowed_ratios
@@ -28,8 +27,14 @@ from sim.physics import RigPhysics
 
 SPIN = 1000 * 2 * math.pi / 60
 PAPER = [round(0.2 + k / 9, 6) for k in range(10)]
-PAPER_MODELS = [("kc7", "none"), ("kcd11", "none"), ("kc7", "power:1"), ("kcd11", "power:1"),
-                ("kc7", "power:2"), ("kcd11", "power:2")]
+PAPER_MODELS = [
+    ("kc7", "none"),
+    ("kcd11", "none"),
+    ("kc7", "power:1"),
+    ("kcd11", "power:1"),
+    ("kc7", "power:2"),
+    ("kcd11", "power:2"),
+]
 RADIUS = 2.4e-6
 # per revolution x, y (m), fx, fy (N): the level at which the paper's list detects the
 # compressible bearing's frequency dependence in about 60 % of runs (a test with room both ways)
@@ -37,12 +42,15 @@ U = np.array([120e-9, 120e-9, 3.0, 3.0])
 RUNS = 100
 
 
-@pytest.mark.parametrize("model, freq_dep, k", [
-    ("kcd11", "poly:2", 6),   # real part: K0, K1, D0..D2 -> Omega^0..4 (K2 goes into D0)
-    ("kcd11", "power:1", 5),  # Omega^0, 1, 2, 3
-    ("kcd11", "power:2", 4),  # Omega^0, 2, 4 (K2 absorbed)
-    ("kc7", "power:2", 3),    # real Omega^0, 2; imaginary Omega^1, 3
-])
+@pytest.mark.parametrize(
+    "model, freq_dep, k",
+    [
+        ("kcd11", "poly:2", 6),  # real part: K0, K1, D0..D2 -> Omega^0..4 (K2 goes into D0)
+        ("kcd11", "power:1", 5),  # Omega^0, 1, 2, 3
+        ("kcd11", "power:2", 4),  # Omega^0, 2, 4 (K2 absorbed)
+        ("kc7", "power:2", 3),  # real Omega^0, 2; imaginary Omega^1, 3
+    ],
+)
 def test_frequencies_needed_counts_the_powers_of_omega_per_entry(model, freq_dep, k):
     assert frequencies_needed(model_spec(model, freq_dep)) == k
 
@@ -68,8 +76,9 @@ def _compressible():
     physics = RigPhysics(scenario("compressible"))
     w = np.asarray(PAPER) * SPIN
     mats = constant_fit(w, physics.impedances(SPIN, w))
-    prior = {f"{m}{a}{b}": float(M[i, j]) for m, M in mats.items()
-             for i, a in enumerate("xy") for j, b in enumerate("xy")}
+    prior = {
+        f"{m}{a}{b}": float(M[i, j]) for m, M in mats.items() for i, a in enumerate("xy") for j, b in enumerate("xy")
+    }
     return physics, prior
 
 
@@ -102,13 +111,24 @@ def test_designed_list_detects_the_compressible_bearing_as_often_as_the_paper_li
     physics, prior = _compressible()
     test = model_test(PAPER_MODELS, PAPER)
     grid = allowed_ratios(0.1, 1.5, step=0.1)
-    a = allocate_keeping_test(test, model_spec("kcd11"), prior, SPIN, RADIUS, grid,
-                              lambda r: np.broadcast_to(U, (np.size(r), 4)), (PAPER, 50), block_overhead=2.05)
+    a = allocate_keeping_test(
+        test,
+        model_spec("kcd11"),
+        prior,
+        SPIN,
+        RADIUS,
+        grid,
+        lambda r: np.broadcast_to(U, (np.size(r), 4)),
+        (PAPER, 50),
+        block_overhead=2.05,
+    )
     assert spread_ok(test, a.ratios) and len(a.ratios) >= 5
     assert a.worst <= 1 + 1e-6 and a.test_worst <= 1 + 1e-6  # every coefficient of both models
+
     # it still saves rig time: revolutions x period, both directions, against 10 x 50
     def acquisition(ratios, n):
         return float(np.sum(np.asarray(n, float) * 2 * 2 * np.pi / (np.asarray(ratios) * SPIN)))
+
     assert acquisition(a.ratios, a.revolutions) < 0.8 * acquisition(PAPER, [50] * 10)
     paper = _detected(physics, PAPER, 50, seed=1)
     designed = _detected(physics, a.ratios, a.revolutions, seed=2)

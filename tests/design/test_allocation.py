@@ -87,7 +87,9 @@ def test_dropped_revolutions_keep_the_tone_in_step():
     leave the tone in the residual scatter."""
     rng = np.random.default_rng(5)
     revs = np.r_[np.arange(20), np.arange(30, 80)]
-    q = 3.0 * np.exp(2j * np.pi * (1 / 0.7) * revs) + (rng.standard_normal(70) + 1j * rng.standard_normal(70)) / math.sqrt(2)
+    q = 3.0 * np.exp(2j * np.pi * (1 / 0.7) * revs) + (
+        rng.standard_normal(70) + 1j * rng.standard_normal(70)
+    ) / math.sqrt(2)
     right = revolution_noise(q[:, None], 1 / 0.7, revolutions=revs)[0]
     wrong = revolution_noise(q[:, None], 1 / 0.7)[0]
     assert right == pytest.approx(1.0, abs=0.25) and wrong > 1.5
@@ -108,8 +110,7 @@ def test_kc8_goes_to_the_top_ratio():
     """K (information per second ~ r) and C (~ r^3) are both cheapest at the highest ratio,
     and one frequency in both directions identifies the 8 coefficients."""
     spec = model_spec("kc8")
-    a = allocate(spec, theta(spec), SPIN, RADIUS, allowed_ratios(0.2, 1.5), U, paper_errors(spec),
-                 block_overhead=2.05)
+    a = allocate(spec, theta(spec), SPIN, RADIUS, allowed_ratios(0.2, 1.5), U, paper_errors(spec), block_overhead=2.05)
     assert a.ratios == (1.5,)
     assert a.worst <= 1.0
     assert a.revolutions[0] >= 10
@@ -167,9 +168,12 @@ def test_allocated_counts_give_the_predicted_spread():
     rng = np.random.default_rng(4)
     est = []
     for _ in range(1000):
-        noise = [u[:, c] * (rng.standard_normal(n.size) + 1j * rng.standard_normal(n.size)) / math.sqrt(2) for c in range(4)]
-        table = OrbitTable(SPIN, orbit, x + noise[0], y + noise[1], fx + noise[2], fy + noise[3],
-                           n_records=n.astype(int), u=u)
+        noise = [
+            u[:, c] * (rng.standard_normal(n.size) + 1j * rng.standard_normal(n.size)) / math.sqrt(2) for c in range(4)
+        ]
+        table = OrbitTable(
+            SPIN, orbit, x + noise[0], y + noise[1], fx + noise[2], fy + noise[3], n_records=n.astype(int), u=u
+        )
         est.append(identify(table, "kcd11", method="wls").theta)
     spread = np.std(np.array(est), axis=0, ddof=1)
     assert spread / a.std_errors == pytest.approx(np.ones(spec.n_coefficients), abs=0.15)

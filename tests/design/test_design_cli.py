@@ -12,15 +12,41 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-KEYS = {"model", "freq_dep", "coefficients", "units", "spin_rpm", "orbit_radius_m", "directions", "noise",
-        "prior", "allowed", "target_pct", "candidate", "proposal", "match_candidate", "model_test", "warnings"}
-LIST_KEYS = {"ratios", "orbit_hz", "directions", "revolutions", "identifiable", "std_errors", "relative_pct",
-             "worst_relative_pct", "rig_time_s"}
+KEYS = {
+    "model",
+    "freq_dep",
+    "coefficients",
+    "units",
+    "spin_rpm",
+    "orbit_radius_m",
+    "directions",
+    "noise",
+    "prior",
+    "allowed",
+    "target_pct",
+    "candidate",
+    "proposal",
+    "match_candidate",
+    "model_test",
+    "warnings",
+}
+LIST_KEYS = {
+    "ratios",
+    "orbit_hz",
+    "directions",
+    "revolutions",
+    "identifiable",
+    "std_errors",
+    "relative_pct",
+    "worst_relative_pct",
+    "rig_time_s",
+}
 
 
 def design(*args: str, check: bool = True) -> subprocess.CompletedProcess:
-    p = subprocess.run([sys.executable, "-m", "orbitrig", "design", *args], cwd=ROOT, capture_output=True,
-                       text=True, timeout=120)
+    p = subprocess.run(
+        [sys.executable, "-m", "orbitrig", "design", *args], cwd=ROOT, capture_output=True, text=True, timeout=120
+    )
     if check:
         assert p.returncode == 0, p.stderr
     return p
@@ -47,22 +73,39 @@ def test_json_keys_and_numbers():
 
 
 def test_target_is_reached_in_less_rig_time():
-    obj = json.loads(design("--model", "kc8", "--spin", "1000", "--matrix", "demo", "--target", "0.2",
-                            "--no-model-test", "--json").stdout)
+    obj = json.loads(
+        design(
+            "--model", "kc8", "--spin", "1000", "--matrix", "demo", "--target", "0.2", "--no-model-test", "--json"
+        ).stdout
+    )
     c, p = obj["candidate"], obj["proposal"]
     assert c["ratios"] == [0.3, 0.5, 0.7, 0.9, 1.2] and obj["target_pct"] == 0.2
     assert p["reaches_target"] is True and p["worst_relative_pct"] <= 0.2 * (1 + 1e-9)
     assert len(p["revolutions"]) == len(p["ratios"]) == len(p["target_pct"])  # one count, one target per ratio
     # the candidate list with just enough revolutions to reach the target takes longer
     n_c = int(np.ceil(50 * (c["worst_relative_pct"] / 0.2) ** 2))
-    c_at_target = json.loads(design("--model", "kc8", "--spin", "1000", "--matrix", "demo", "--revolutions",
-                                    str(n_c), "--json").stdout)["candidate"]
+    c_at_target = json.loads(
+        design("--model", "kc8", "--spin", "1000", "--matrix", "demo", "--revolutions", str(n_c), "--json").stdout
+    )["candidate"]
     assert c_at_target["worst_relative_pct"] <= 0.2 * (1 + 1e-9)
     assert p["rig_time_s"] < c_at_target["rig_time_s"]
     # variance ~ 1/n: the predicted errors scale with the revolutions stated (kc8 goes to one ratio)
     assert len(p["ratios"]) == 1
-    halved = json.loads(design("--model", "kc8", "--spin", "1000", "--ratios", ",".join(map(str, p["ratios"])),
-                               "--revolutions", str(4 * p["revolutions"][0]), "--radius", "5.76", "--json").stdout)["candidate"]
+    halved = json.loads(
+        design(
+            "--model",
+            "kc8",
+            "--spin",
+            "1000",
+            "--ratios",
+            ",".join(map(str, p["ratios"])),
+            "--revolutions",
+            str(4 * p["revolutions"][0]),
+            "--radius",
+            "5.76",
+            "--json",
+        ).stdout
+    )["candidate"]
     assert halved["worst_relative_pct"] == pytest.approx(p["worst_relative_pct"] / 2, rel=1e-6)
 
 
@@ -113,12 +156,15 @@ def test_text_output_and_saved_design(tmp_path):
     assert saved["model"] == "kc8" and len(saved["ratios"]) == len(saved["revolutions"]) == len(saved["target_pct"])
 
 
-@pytest.mark.parametrize("args, message", [
-    (("--model", "kcd11", "--spin", "3000"), "above the rig's drives.max_spin_rpm = 2500"),
-    (("--model", "kcd11", "--spin", "1000", "--ratios", "0.2,x"), "give numbers"),
-    (("--model", "kcd13", "--spin", "1000"), "unknown model 'kcd13'"),
-    (("--model", "kcd11", "--spin", "1000", "--ratios", "0.5", "--matrix", "demo"), "not both"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (("--model", "kcd11", "--spin", "3000"), "above the rig's drives.max_spin_rpm = 2500"),
+        (("--model", "kcd11", "--spin", "1000", "--ratios", "0.2,x"), "give numbers"),
+        (("--model", "kcd13", "--spin", "1000"), "unknown model 'kcd13'"),
+        (("--model", "kcd11", "--spin", "1000", "--ratios", "0.5", "--matrix", "demo"), "not both"),
+    ],
+)
 def test_operator_mistakes_exit_2(args, message):
     p = design(*args, check=False)
     assert p.returncode == 2 and message in p.stderr and "Traceback" not in p.stderr and p.stdout == ""
@@ -126,11 +172,31 @@ def test_operator_mistakes_exit_2(args, message):
 
 def test_noise_and_prior_from_a_simulated_run(tmp_path):
     matrix = tmp_path / "small.toml"
-    matrix.write_text((ROOT / "config" / "matrices" / "demo.toml").read_text()
-                      .replace('name = "demo"', 'name = "small"\nrevolutions = 10'))
+    matrix.write_text(
+        (ROOT / "config" / "matrices" / "demo.toml")
+        .read_text()
+        .replace('name = "demo"', 'name = "small"\nrevolutions = 10')
+    )
     run = tmp_path / "run"
-    p = subprocess.run([sys.executable, "-m", "orbitrig", "sweep", "--sim", "--matrix", str(matrix), "--out", str(run),
-                        "--speedup", "40"], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    p = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "orbitrig",
+            "sweep",
+            "--sim",
+            "--matrix",
+            str(matrix),
+            "--out",
+            str(run),
+            "--speedup",
+            "40",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert p.returncode == 0, p.stderr
     obj = json.loads(design("--model", "kcd11", "--spin", "1000", "--noise-from", str(run), "--json").stdout)
     noise = obj["noise"]
@@ -140,8 +206,11 @@ def test_noise_and_prior_from_a_simulated_run(tmp_path):
     assert obj["prior"]["coefficients"]["Kxx"] > 1e7
     assert 1e-6 < obj["orbit_radius_m"] < 1e-5  # the run's measured orbit (demo: eps_d 0.096)
     # kc8 has no D: the run cannot vouch that moving the frequencies leaves its K alone
-    kc8 = json.loads(design("--model", "kc8", "--spin", "1000", "--noise-from", str(run), "--match", "--no-model-test",
-                            "--json").stdout)
+    kc8 = json.loads(
+        design(
+            "--model", "kc8", "--spin", "1000", "--noise-from", str(run), "--match", "--no-model-test", "--json"
+        ).stdout
+    )
     assert kc8["proposal"]["ratios"] == [1.5] and len(kc8["warnings"]) == 1
     assert "kc8 leaves out terms of kcd12" in kc8["warnings"][0] or "terms kc8 leaves out" in kc8["warnings"][0]
     p = design("--model", "kcd11", "--spin", "1000", "--noise-from", str(tmp_path), check=False)

@@ -47,14 +47,20 @@ def test_a_design_file_next_to_the_matrix(tmp_path):
     assert mat.orbit.ratio_list == [0.4, 1.3] and mat.orbit.directions == ["backward"]
 
 
-@pytest.mark.parametrize("orbit, extra, message", [
-    ('design = "kcd11-demo"\nratios = [0.5]', "", "give 'design' or the ratios"),
-    ('design = "nosuch"', "", "no design file"),
-    ('design = "kcd11-demo"', "top: revolutions = 40\n[averaging]\ntarget_pct = 1", "not both"),
-    ('design = "kcd11-demo"', "[averaging]\ntarget_pct = 1\nmin_revolutions = 50\nmax_revolutions = 20",
-     "must not exceed"),
-    ('design = "kcd11-demo"', "[averaging]\ntarget_pct = 0", "target_pct"),
-])
+@pytest.mark.parametrize(
+    "orbit, extra, message",
+    [
+        ('design = "kcd11-demo"\nratios = [0.5]', "", "give 'design' or the ratios"),
+        ('design = "nosuch"', "", "no design file"),
+        ('design = "kcd11-demo"', "top: revolutions = 40\n[averaging]\ntarget_pct = 1", "not both"),
+        (
+            'design = "kcd11-demo"',
+            "[averaging]\ntarget_pct = 1\nmin_revolutions = 50\nmax_revolutions = 20",
+            "must not exceed",
+        ),
+        ('design = "kcd11-demo"', "[averaging]\ntarget_pct = 0", "target_pct"),
+    ],
+)
 def test_mistakes_are_named(tmp_path, orbit, extra, message):
     path = tmp_path / "bad.toml"
     path.write_text(with_orbit(orbit, extra))
@@ -73,8 +79,13 @@ def test_unknown_design_lists_the_known_ones_and_names_the_line(tmp_path):
 
 
 def test_dry_run_of_the_designed_matrix():
-    p = subprocess.run([sys.executable, "-m", "orbitrig", "sweep", "--dry-run", "--steps", "--matrix", "designed"], cwd=ROOT,
-                       capture_output=True, text=True, timeout=120)
+    p = subprocess.run(
+        [sys.executable, "-m", "orbitrig", "sweep", "--dry-run", "--steps", "--matrix", "designed"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert p.returncode == 0, p.stderr
     out = p.stdout
     assert "4 orbit blocks" in out.splitlines()[0]
@@ -85,5 +96,7 @@ def test_dry_run_of_the_designed_matrix():
     assert f"{counts} revolutions per ratio (the expected counts)" in out
     # each block's expected count (the duration's) and its own target
     n_top, t_top = design["revolutions"][-1], design["target_pct"][-1]
-    assert f"acquire 20..400 revolutions (until every channel <= {t_top:g} %, about {n_top} expected) at 25.000 Hz" in out
+    assert (
+        f"acquire 20..400 revolutions (until every channel <= {t_top:g} %, about {n_top} expected) at 25.000 Hz" in out
+    )
     assert "(the estimate above assumes each ratio's expected revolutions)" in out

@@ -18,8 +18,13 @@ DEMO = (ROOT / "config" / "matrices" / "demo.toml").read_text()
 
 
 def dry_run(matrix: Path) -> str:
-    p = subprocess.run([sys.executable, "-m", "orbitrig", "sweep", "--dry-run", "--matrix", str(matrix)], cwd=ROOT,
-                       capture_output=True, text=True, timeout=120)
+    p = subprocess.run(
+        [sys.executable, "-m", "orbitrig", "sweep", "--dry-run", "--matrix", str(matrix)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert p.returncode == 0, p.stderr
     return p.stdout
 
@@ -27,8 +32,9 @@ def dry_run(matrix: Path) -> str:
 def worst_pct(model: str, ratios, radius: float, revolutions: int = 50, directions: str = "both") -> float:
     spec = model_spec(model)
     theta = np.array([NOMINAL.get(n, 0.0) for n in spec.names])
-    problem = DesignProblem(spec, theta, 1000 * 2 * np.pi / 60, radius, stated_noise().u_revolution, revolutions,
-                            directions)
+    problem = DesignProblem(
+        spec, theta, 1000 * 2 * np.pi / 60, radius, stated_noise().u_revolution, revolutions, directions
+    )
     return predict(problem, ratios).worst * 100
 
 
@@ -55,9 +61,11 @@ def test_demo_predictions_match_the_design(tmp_path):
 
 def test_models_the_planned_orbits_cannot_identify(tmp_path):
     one_way = tmp_path / "forward.toml"
-    one_way.write_text(DEMO.replace('name = "demo"', 'name = "forward"')
-                       .replace('directions = ["forward", "backward"]', 'directions = ["forward"]')
-                       .replace("ratios = [0.3, 0.5, 0.7, 0.9, 1.2]", "ratios = [0.3, 0.5]"))
+    one_way.write_text(
+        DEMO.replace('name = "demo"', 'name = "forward"')
+        .replace('directions = ["forward", "backward"]', 'directions = ["forward"]')
+        .replace("ratios = [0.3, 0.5, 0.7, 0.9, 1.2]", "ratios = [0.3, 0.5]")
+    )
     out = dry_run(one_way)
     refused = [ln for ln in out.splitlines() if "CANNOT be identified" in ln]
     assert any(ln.startswith("  kcd11 none:") for ln in refused), out[:2000]

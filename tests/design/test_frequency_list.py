@@ -10,8 +10,17 @@ import pytest
 from orbitrig.cli.design_inputs import NOMINAL
 from reduction.design import design_orbits, predicted_covariance
 from reduction.errors import ReductionError
-from reduction.frequency_list import (DesignProblem, acquisition_time, allowed_ratios, best_list,
-                                      coefficient_scales, predict, propose, revolutions_for, time_to_target)
+from reduction.frequency_list import (
+    DesignProblem,
+    acquisition_time,
+    allowed_ratios,
+    best_list,
+    coefficient_scales,
+    predict,
+    propose,
+    revolutions_for,
+    time_to_target,
+)
 from reduction.models import model_spec
 
 SPIN = 1000 * 2 * math.pi / 60
@@ -81,12 +90,21 @@ def test_reference_scales_and_measured_noise_per_ratio():
     relative_to_paper = predict(problem(scales=paper.std_errors), PAPER)
     assert relative_to_paper.relative == pytest.approx(np.ones(11))
     measured = problem(noise_ratios=np.array([0.2, 1.2]))
-    measured = DesignProblem(p.spec, p.theta, SPIN, 6e-6, np.array([[1e-7, 1e-7, 10, 10], [3e-7, 3e-7, 30, 30]]),
-                             noise_ratios=np.array([0.2, 1.2]))
-    assert measured.noise_at([0.1, 0.7, 2.0]) == pytest.approx(np.array([[1e-7, 1e-7, 10, 10], [2e-7, 2e-7, 20, 20],
-                                                                         [3e-7, 3e-7, 30, 30]]))
+    measured = DesignProblem(
+        p.spec,
+        p.theta,
+        SPIN,
+        6e-6,
+        np.array([[1e-7, 1e-7, 10, 10], [3e-7, 3e-7, 30, 30]]),
+        noise_ratios=np.array([0.2, 1.2]),
+    )
+    assert measured.noise_at([0.1, 0.7, 2.0]) == pytest.approx(
+        np.array([[1e-7, 1e-7, 10, 10], [2e-7, 2e-7, 20, 20], [3e-7, 3e-7, 30, 30]])
+    )
 
 
 def test_acquisition_time():
-    assert acquisition_time([0.5, 1.0], SPIN, 10) == pytest.approx(2 * 11 * (2 * math.pi / (0.5 * SPIN) + 2 * math.pi / SPIN))
+    assert acquisition_time([0.5, 1.0], SPIN, 10) == pytest.approx(
+        2 * 11 * (2 * math.pi / (0.5 * SPIN) + 2 * math.pi / SPIN)
+    )
     assert acquisition_time([0.5], SPIN, [20], "forward") == pytest.approx(21 * 2 * math.pi / (0.5 * SPIN))

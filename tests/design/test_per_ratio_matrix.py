@@ -37,25 +37,53 @@ def acquires(mat) -> dict[str, Acquire]:
     return {s.block.tag: s for s in make_plan(mat, cfg.load_rig()).steps if isinstance(s, Acquire)}
 
 
-@pytest.mark.parametrize("orbit, extra, key, message", [
-    (RATIOS + "\nrevolutions = [30, 40]", "", "orbit.revolutions", "has 2 values and 'ratios' 3"),
-    (RATIOS + "\nrevolutions = [30, 1, 40]", "", "orbit.revolutions[1]", "greater than or equal to 2"),
-    (RATIOS + "\nrevolutions = [30, 10001, 40]", "", "orbit.revolutions[1]", "less than or equal to 10000"),
-    (RATIOS + "\nrevolutions = [30, 2.5, 40]", "", "orbit.revolutions[1]", "integer"),
-    ("ratio_start = 0.3\nratio_stop = 1.2\ncount = 2\nrevolutions = [30, 40]", "", "orbit.revolutions",
-     "needs 'ratios'"),
-    (RATIOS + "\nrevolutions = [30, 40, 50]", "top: revolutions = 40", "revolutions",
-     "'orbit.revolutions' (one per ratio), not both"),
-    (RATIOS + "\ntarget_pct = [1, 2]", "[averaging]\nmin_revolutions = 5", "orbit.target_pct",
-     "has 2 values and 'ratios' 3"),
-    (RATIOS + "\ntarget_pct = [1, 0, 2]", "[averaging]", "orbit.target_pct[1]", "greater than 0"),
-    (RATIOS + "\ntarget_pct = [1, 100, 2]", "[averaging]", "orbit.target_pct[1]", "less than 100"),
-    (RATIOS + "\ntarget_pct = [1, 2, 3]", "", "averaging", "'orbit.target_pct' (adaptive targets per ratio) needs an [averaging] table"),
-    (RATIOS + "\ntarget_pct = [1, 2, 3]", "[averaging]\ntarget_pct = 2", "averaging",
-     "give 'averaging.target_pct' (one target) or 'orbit.target_pct' (one per ratio), not both"),
-    (RATIOS, "[averaging]\nmin_revolutions = 5", "averaging",
-     "needs a target: 'averaging.target_pct' (percent) or 'orbit.target_pct'"),
-])
+@pytest.mark.parametrize(
+    "orbit, extra, key, message",
+    [
+        (RATIOS + "\nrevolutions = [30, 40]", "", "orbit.revolutions", "has 2 values and 'ratios' 3"),
+        (RATIOS + "\nrevolutions = [30, 1, 40]", "", "orbit.revolutions[1]", "greater than or equal to 2"),
+        (RATIOS + "\nrevolutions = [30, 10001, 40]", "", "orbit.revolutions[1]", "less than or equal to 10000"),
+        (RATIOS + "\nrevolutions = [30, 2.5, 40]", "", "orbit.revolutions[1]", "integer"),
+        (
+            "ratio_start = 0.3\nratio_stop = 1.2\ncount = 2\nrevolutions = [30, 40]",
+            "",
+            "orbit.revolutions",
+            "needs 'ratios'",
+        ),
+        (
+            RATIOS + "\nrevolutions = [30, 40, 50]",
+            "top: revolutions = 40",
+            "revolutions",
+            "'orbit.revolutions' (one per ratio), not both",
+        ),
+        (
+            RATIOS + "\ntarget_pct = [1, 2]",
+            "[averaging]\nmin_revolutions = 5",
+            "orbit.target_pct",
+            "has 2 values and 'ratios' 3",
+        ),
+        (RATIOS + "\ntarget_pct = [1, 0, 2]", "[averaging]", "orbit.target_pct[1]", "greater than 0"),
+        (RATIOS + "\ntarget_pct = [1, 100, 2]", "[averaging]", "orbit.target_pct[1]", "less than 100"),
+        (
+            RATIOS + "\ntarget_pct = [1, 2, 3]",
+            "",
+            "averaging",
+            "'orbit.target_pct' (adaptive targets per ratio) needs an [averaging] table",
+        ),
+        (
+            RATIOS + "\ntarget_pct = [1, 2, 3]",
+            "[averaging]\ntarget_pct = 2",
+            "averaging",
+            "give 'averaging.target_pct' (one target) or 'orbit.target_pct' (one per ratio), not both",
+        ),
+        (
+            RATIOS,
+            "[averaging]\nmin_revolutions = 5",
+            "averaging",
+            "needs a target: 'averaging.target_pct' (percent) or 'orbit.target_pct'",
+        ),
+    ],
+)
 def test_mistakes_name_the_key(tmp_path, orbit, extra, key, message):
     text = problem(tmp_path, orbit, extra)
     assert f"key '{key}': " in text and message in text, text
@@ -96,27 +124,33 @@ def test_fixed_counts_per_ratio_in_the_plan(tmp_path):
     rig = cfg.load_rig()
     counts = [a.revolutions for a in acq.values()]
     assert point_bytes(rig, plan.points[0], counts, 2) < point_bytes(rig, plan.points[0], 14, 2)
-    assert point_bytes(rig, plan.points[0], counts, 2) - point_bytes(rig, plan.points[0], [6] * 6, 2) == \
-        pytest.approx(1.25 * 2 * (block_bytes(rig, 9) - block_bytes(rig, 6) + block_bytes(rig, 14) - block_bytes(rig, 6)),
-                      abs=2)
+    assert point_bytes(rig, plan.points[0], counts, 2) - point_bytes(rig, plan.points[0], [6] * 6, 2) == pytest.approx(
+        1.25 * 2 * (block_bytes(rig, 9) - block_bytes(rig, 6) + block_bytes(rig, 14) - block_bytes(rig, 6)), abs=2
+    )
 
 
 def test_adaptive_targets_per_ratio_in_the_plan(tmp_path):
-    mat = load(tmp_path, RATIOS + "\ntarget_pct = [3.5, 1.5, 2.5]",
-               "[averaging]\nmin_revolutions = 8\nmax_revolutions = 60")
+    mat = load(
+        tmp_path, RATIOS + "\ntarget_pct = [3.5, 1.5, 2.5]", "[averaging]\nmin_revolutions = 8\nmax_revolutions = 60"
+    )
     acq = acquires(mat)
     for tag, t in {"00": 1.5, "01": 2.5, "02": 3.5}.items():
         a = acq[f"{tag}_bwd"]
         rule = averaging_rule(a, 1000 * RPM)
         assert (rule.min_revolutions, rule.max_revolutions, rule.target) == (8, 60, pytest.approx(t / 100))
-        assert rule.spin_turns == pytest.approx(1000 * RPM / abs(a.block.orbit))  # the stop check fits the spin tones out
+        assert rule.spin_turns == pytest.approx(
+            1000 * RPM / abs(a.block.orbit)
+        )  # the stop check fits the spin tones out
         assert a.revolutions == 60 and a.duration == pytest.approx(61 / a.block.orbit_hz)  # no expected count
         assert f"8..60 revolutions (until every channel <= {t:g} %) at" in a.describe()
 
 
 def test_expected_counts_set_the_adaptive_durations(tmp_path):
-    mat = load(tmp_path, RATIOS + "\nrevolutions = [14, 6, 90]",
-               "[averaging]\ntarget_pct = 2\nmin_revolutions = 8\nmax_revolutions = 60")
+    mat = load(
+        tmp_path,
+        RATIOS + "\nrevolutions = [14, 6, 90]",
+        "[averaging]\ntarget_pct = 2\nmin_revolutions = 8\nmax_revolutions = 60",
+    )
     acq = acquires(mat)
     # 6 below the minimum counts as 8; 90 above the maximum as 60
     for tag, n in {"00": 8, "01": 60, "02": 14}.items():
@@ -128,19 +162,22 @@ def test_expected_counts_set_the_adaptive_durations(tmp_path):
     assert make_plan(mat, cfg.load_rig()).revolutions == 60
 
 
-DESIGN = "ratios = [1.2, 0.5, 0.8]\ndirections = [\"backward\"]\n"
+DESIGN = 'ratios = [1.2, 0.5, 0.8]\ndirections = ["backward"]\n'
 
 
-@pytest.mark.parametrize("body, key", [
-    ("revolutions = [14, 6]", "revolutions"),
-    ("revolutions = 27", "revolutions"),
-    ("revolutions = [14, 6, 1]", "revolutions"),
-    ("revolutions = [14, 6.5, 9]", "revolutions"),
-    ("revolutions = [14, true, 9]", "revolutions"),
-    ("target_pct = [1, 2]", "target_pct"),
-    ("target_pct = [1, 100, 2]", "target_pct"),
-    ("target_pct = [1, \"2\", 3]", "target_pct"),
-])
+@pytest.mark.parametrize(
+    "body, key",
+    [
+        ("revolutions = [14, 6]", "revolutions"),
+        ("revolutions = 27", "revolutions"),
+        ("revolutions = [14, 6, 1]", "revolutions"),
+        ("revolutions = [14, 6.5, 9]", "revolutions"),
+        ("revolutions = [14, true, 9]", "revolutions"),
+        ("target_pct = [1, 2]", "target_pct"),
+        ("target_pct = [1, 100, 2]", "target_pct"),
+        ('target_pct = [1, "2", 3]', "target_pct"),
+    ],
+)
 def test_design_file_mistakes_name_the_file_and_key(tmp_path, body, key):
     (tmp_path / "d.toml").write_text(DESIGN + body + "\n")
     text = problem(tmp_path, 'design = "d.toml"', "[averaging]\nmin_revolutions = 5")

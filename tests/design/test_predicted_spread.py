@@ -41,10 +41,16 @@ def test_predicted_std_errors_match_the_spread(model, ratios, revolutions):
     predicted = predict(problem, ratios).std_errors
     rng = np.random.default_rng(16)
     rule = AveragingRule.fixed(revolutions)
-    estimates = np.array([
-        identify(simulated_table(spec, theta, SPIN, ratios, RADIUS, FORCE_RMS, PROBE_RMS, rule, rng)[0],
-                 model, method="wls").theta
-        for _ in range(RUNS)])
+    estimates = np.array(
+        [
+            identify(
+                simulated_table(spec, theta, SPIN, ratios, RADIUS, FORCE_RMS, PROBE_RMS, rule, rng)[0],
+                model,
+                method="wls",
+            ).theta
+            for _ in range(RUNS)
+        ]
+    )
     spread = estimates.std(axis=0, ddof=1)
     ratio = spread / predicted
     assert np.all(np.abs(ratio - 1) < TOLERANCE), dict(zip(spec.names, np.round(ratio, 3)))

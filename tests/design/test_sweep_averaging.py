@@ -27,8 +27,9 @@ SPEEDUP = 40.0
 
 def matrix(averaging: str, ratios: str = "[0.5, 1.2]") -> cfg.MatrixConfig:
     text = (ROOT / "config" / "matrices" / "demo.toml").read_text()
-    text = text.replace('name = "demo"', 'name = "adaptive"').replace("ratios = [0.3, 0.5, 0.7, 0.9, 1.2]",
-                                                                       f"ratios = {ratios}")
+    text = text.replace('name = "demo"', 'name = "adaptive"').replace(
+        "ratios = [0.3, 0.5, 0.7, 0.9, 1.2]", f"ratios = {ratios}"
+    )
     return cfg.matrix_from_text(text + "\n[averaging]\n" + averaging, "adaptive.toml")
 
 
@@ -37,12 +38,20 @@ def stored_blocks(out: Path) -> list[dict]:
     with h5py.File(out / "run.h5", "r") as f:
         for g in f["points"].values():
             for tag, b in g["frequencies"].items():
-                blocks.append({"tag": tag, "n": int(b.attrs["n_records"]), "why": str(b.attrs["stop_reason"]),
-                               "rows": b["raw_counts"].shape[0], "used": int(b["stats"].attrs.get("revolutions_used", -1))
-                               if "stats" in b else -1,
-                               "dropped": int(b["stats"].attrs.get("revolutions_dropped", 0)) if "stats" in b else 0,
-                               "record_phasors": b["record_phasors"][()], "u": b["uncertainty"][()],
-                               "revolutions": b["revolutions"][()], "spin_turns": 1000 * RPM / abs(b.attrs["orbit"])})
+                blocks.append(
+                    {
+                        "tag": tag,
+                        "n": int(b.attrs["n_records"]),
+                        "why": str(b.attrs["stop_reason"]),
+                        "rows": b["raw_counts"].shape[0],
+                        "used": int(b["stats"].attrs.get("revolutions_used", -1)) if "stats" in b else -1,
+                        "dropped": int(b["stats"].attrs.get("revolutions_dropped", 0)) if "stats" in b else 0,
+                        "record_phasors": b["record_phasors"][()],
+                        "u": b["uncertainty"][()],
+                        "revolutions": b["revolutions"][()],
+                        "spin_turns": 1000 * RPM / abs(b.attrs["orbit"]),
+                    }
+                )
     return blocks
 
 
@@ -65,11 +74,15 @@ def test_the_plan_carries_the_matrix_rule():
     rules = [averaging_rule(s, plan.points[s.point].spin) for s in steps]
     assert {(r.min_revolutions, r.max_revolutions, round(r.target, 12)) for r in rules} == {(12, 80, 0.005)}
     # the stop check fits the spin tones out: omega/|Omega| of each block
-    assert all(r.spin_turns == pytest.approx(plan.points[s.point].spin / abs(s.block.orbit)) for r, s in zip(rules, steps))
+    assert all(
+        r.spin_turns == pytest.approx(plan.points[s.point].spin / abs(s.block.orbit)) for r, s in zip(rules, steps)
+    )
     assert plan.revolutions == 80  # storage and time estimates take the maximum
     fixed = make_plan(cfg.load_matrix(cfg.matrix_file("demo")), rig)
-    assert {(r.min_revolutions, r.max_revolutions, r.target)
-            for r in (averaging_rule(s, 1.0) for s in fixed.steps if isinstance(s, Acquire))} == {(50, 50, None)}  # the paper's fixed 50
+    assert {
+        (r.min_revolutions, r.max_revolutions, r.target)
+        for r in (averaging_rule(s, 1.0) for s in fixed.steps if isinstance(s, Acquire))
+    } == {(50, 50, None)}  # the paper's fixed 50
 
 
 async def test_loose_target_stops_at_the_minimum(tmp_path):
@@ -86,8 +99,9 @@ async def test_unreachable_target_stops_at_the_maximum(tmp_path):
 
 
 async def test_damaged_revolutions_are_never_averaged(tmp_path):
-    blocks = await run_sweep(tmp_path, matrix("target_pct = 3\nmin_revolutions = 10\nmax_revolutions = 30\n"),
-                             damage=True)
+    blocks = await run_sweep(
+        tmp_path, matrix("target_pct = 3\nmin_revolutions = 10\nmax_revolutions = 30\n"), damage=True
+    )
     assert sum(b["dropped"] for b in blocks) > 0  # the damage reached the blocks
     for b in blocks:
         assert 10 <= b["n"] <= 30 and b["rows"] == b["n"] == b["used"], b["tag"]

@@ -22,13 +22,20 @@ def sweep(tmp_path: Path, orbit_keys: str, extra: str = "") -> dict[str, tuple[i
     path = tmp_path / "perratio.toml"
     path.write_text(text.replace('name = "demo"', 'name = "perratio"') + extra)
     out = tmp_path / "run"
-    p = subprocess.run([sys.executable, "-m", "orbitrig", "sweep", "--sim", "--matrix", str(path), "--out", str(out)],
-                       cwd=ROOT, capture_output=True, text=True, timeout=240)
+    p = subprocess.run(
+        [sys.executable, "-m", "orbitrig", "sweep", "--sim", "--matrix", str(path), "--out", str(out)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=240,
+    )
     assert p.returncode == 0, p.stdout + p.stderr
     with h5py.File(out / "run.h5", "r") as f:
         assert f.attrs["status"] == "completed"
-        return {tag: (int(b.attrs["n_records"]), str(b.attrs["stop_reason"]), b["raw_counts"].shape[0])
-                for tag, b in f["points/0000/frequencies"].items()}
+        return {
+            tag: (int(b.attrs["n_records"]), str(b.attrs["stop_reason"]), b["raw_counts"].shape[0])
+            for tag, b in f["points/0000/frequencies"].items()
+        }
 
 
 def test_each_block_averages_its_ratios_count(tmp_path):
@@ -41,7 +48,9 @@ def test_each_block_averages_its_ratios_count(tmp_path):
 
 
 def test_each_block_stops_at_its_ratios_target(tmp_path):
-    blocks = sweep(tmp_path, "target_pct = [50, 0.001, 50]", "\n[averaging]\nmin_revolutions = 5\nmax_revolutions = 15\n")
+    blocks = sweep(
+        tmp_path, "target_pct = [50, 0.001, 50]", "\n[averaging]\nmin_revolutions = 5\nmax_revolutions = 15\n"
+    )
     assert len(blocks) == 6
     for tag, (n, why, rows) in blocks.items():
         assert 5 <= n <= 15 and rows == n and why in ("target", "max"), tag

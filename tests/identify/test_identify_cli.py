@@ -17,10 +17,29 @@ from orbitrig.store.orbit_table import write_orbit_table
 
 ROOT = Path(__file__).resolve().parents[2]
 TRUE = truth("kcd11", {"K": (0,), "C": (0,), "D": (0,)})
-SPEC_KEYS = ["model", "freq_dep", "method", "n_coefficients", "min_frequencies", "n_frequencies",
-             "coefficients", "std_errors", "confidence_95", "free", "covariance", "dof",
-             "condition_number", "residual_rms", "aic", "bic", "interval", "not_determined", "notes",
-             "warnings", "fit"]
+SPEC_KEYS = [
+    "model",
+    "freq_dep",
+    "method",
+    "n_coefficients",
+    "min_frequencies",
+    "n_frequencies",
+    "coefficients",
+    "std_errors",
+    "confidence_95",
+    "free",
+    "covariance",
+    "dof",
+    "condition_number",
+    "residual_rms",
+    "aic",
+    "bic",
+    "interval",
+    "not_determined",
+    "notes",
+    "warnings",
+    "fit",
+]
 
 
 @pytest.fixture
@@ -53,8 +72,9 @@ def test_json_output_follows_the_spec(runner, table_csv):
 @pytest.mark.parametrize("method", ["wls", "tls", "iv"])
 @pytest.mark.parametrize("solver", ["svd", "lu"])
 def test_methods_and_solvers(runner, table_csv, method, solver):
-    res = runner.invoke(app, ["identify", str(table_csv), "--model", "kcd11", "--method", method,
-                              "--solver", solver, "--json"])
+    res = runner.invoke(
+        app, ["identify", str(table_csv), "--model", "kcd11", "--method", method, "--solver", solver, "--json"]
+    )
     assert res.exit_code == 0, res.stderr
     d = json.loads(res.stdout)
     assert d["method"] == method
@@ -139,13 +159,24 @@ GOOD_HEADER = "spin_rpm,orbit_hz,x_re,x_im,y_re,y_im,fx_re,fx_im,fy_re,fy_im"
         (GOOD_HEADER + "\n1000,5,1e-6,0,0,-1e-6,1,2,3,4\n1000,0,1e-6,0,0,-1e-6,1,2,3,4\n", 3, "orbit_hz"),
         (GOOD_HEADER + "\n1000,5,1e-6,0,0,-1e-6,1,2,3,4\n1000,6,1e-6,0,0,-1e-6,1,2\n", 3, "fy_re"),
         (GOOD_HEADER + "\n1000,5,1e-6,0,0,-1e-6,1,2,3,4\n\n2000,6,1e-6,0,0,-1e-6,1,2,3,4\n", 4, "spin_rpm"),
-        (GOOD_HEADER + ",gamma2_xfx,gamma2_yfx,gamma2_xfy,gamma2_yfy\n1000,5,1e-6,0,0,-1e-6,1,2,3,4,1,1,1.5,1\n",
-         2, "gamma2_xfy"),
+        (
+            GOOD_HEADER + ",gamma2_xfx,gamma2_yfx,gamma2_xfy,gamma2_yfy\n1000,5,1e-6,0,0,-1e-6,1,2,3,4,1,1,1.5,1\n",
+            2,
+            "gamma2_xfy",
+        ),
         (GOOD_HEADER + ",gamma2_xfx\n1000,5,1e-6,0,0,-1e-6,1,2,3,4,1\n", 1, "gamma2_yfx"),
         (GOOD_HEADER + "\n1000,5,1e-6,0,0,-1e-6,1,2,3,nan\n", 2, "fy_im"),
     ],
-    ids=["not-a-number", "missing-column", "orbit-zero", "short-row", "two-spins", "gamma-range",
-         "gamma-incomplete", "nan"],
+    ids=[
+        "not-a-number",
+        "missing-column",
+        "orbit-zero",
+        "short-row",
+        "two-spins",
+        "gamma-range",
+        "gamma-incomplete",
+        "nan",
+    ],
 )
 def test_malformed_table_names_line_and_column(runner, tmp_path, text, line, column):
     path = tmp_path / "bad.csv"
@@ -163,14 +194,24 @@ def test_missing_file_exit_2(runner, tmp_path):
 
 def test_real_process_streams(table_csv, tmp_path):
     """The installed entry point as a user runs it: stdout pure JSON, refusals on stderr."""
-    ok = subprocess.run([sys.executable, "-m", "orbitrig", "identify", str(table_csv), "--model", "kc7", "--json"],
-                        capture_output=True, text=True, cwd=ROOT, timeout=60)
+    ok = subprocess.run(
+        [sys.executable, "-m", "orbitrig", "identify", str(table_csv), "--model", "kc7", "--json"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=60,
+    )
     assert ok.returncode == 0, ok.stderr
     assert json.loads(ok.stdout)["n_coefficients"] == 7
     bad = tmp_path / "bad.csv"
     bad.write_text(GOOD_HEADER + "\n1000,5,1e-6,0,0,-1e-6,1,2,3,x\n")
-    err = subprocess.run([sys.executable, "-m", "orbitrig", "identify", str(bad), "--model", "kc7", "--json"],
-                         capture_output=True, text=True, cwd=ROOT, timeout=60)
+    err = subprocess.run(
+        [sys.executable, "-m", "orbitrig", "identify", str(bad), "--model", "kc7", "--json"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=60,
+    )
     assert err.returncode == 2 and err.stdout == ""
     assert "line 2" in err.stderr and "column 'fy_im'" in err.stderr
 
@@ -190,8 +231,14 @@ def test_ill_conditioned_fit_warns_on_stderr_and_in_json(runner, tmp_path):
     true = truth("kc8", {"K": (0, 1), "C": (0, 1)})
     fwd = orbit_table(true, frequencies(8), ("forward",))
     bwd = orbit_table(true, frequencies(8), ("backward",), radius=5e-9)  # backward whirl 1000 times smaller
-    table = type(fwd)(fwd.spin, np.r_[fwd.orbit, bwd.orbit], np.r_[fwd.x, bwd.x], np.r_[fwd.y, bwd.y],
-                      np.r_[fwd.fx, bwd.fx], np.r_[fwd.fy, bwd.fy])
+    table = type(fwd)(
+        fwd.spin,
+        np.r_[fwd.orbit, bwd.orbit],
+        np.r_[fwd.x, bwd.x],
+        np.r_[fwd.y, bwd.y],
+        np.r_[fwd.fx, bwd.fx],
+        np.r_[fwd.fy, bwd.fy],
+    )
     path = tmp_path / "t.csv"
     write_orbit_table(path, table)
     res = runner.invoke(app, ["identify", str(path), "--model", "kc8", "--freq-dep", "power:1"])

@@ -13,15 +13,41 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples" / "orbit-tables"
 TRUTH = json.loads((EXAMPLES / "truth.json").read_text())
-V3_KEYS = ["model", "freq_dep", "method", "n_coefficients", "min_frequencies", "n_frequencies",
-           "coefficients", "std_errors", "confidence_95", "free", "covariance", "dof",
-           "condition_number", "residual_rms", "chi2", "p_value", "aic", "bic", "interval", "not_determined", "notes",
-           "warnings", "fit"]
+V3_KEYS = [
+    "model",
+    "freq_dep",
+    "method",
+    "n_coefficients",
+    "min_frequencies",
+    "n_frequencies",
+    "coefficients",
+    "std_errors",
+    "confidence_95",
+    "free",
+    "covariance",
+    "dof",
+    "condition_number",
+    "residual_rms",
+    "chi2",
+    "p_value",
+    "aic",
+    "bic",
+    "interval",
+    "not_determined",
+    "notes",
+    "warnings",
+    "fit",
+]
 
 
 def _identify(name: str, args: str, *extra: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "orbitrig", "identify", str(EXAMPLES / name), *args.split(), *extra],
-                          cwd=ROOT, capture_output=True, text=True, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "orbitrig", "identify", str(EXAMPLES / name), *args.split(), *extra],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
 
 
 @pytest.mark.parametrize("name", sorted(TRUTH))

@@ -133,8 +133,13 @@ def test_values_beyond_the_floating_point_range_exit_2(tmp_path, lines):
 def test_real_process_never_prints_a_traceback(tmp_path, lines):
     path = tmp_path / "t.csv"
     path.write_text("note," + lines[0] + "\n" + '"' + "a" * 200_000 + '",' + lines[1] + "\n")
-    res = subprocess.run([sys.executable, "-m", "orbitrig", "identify", str(path), "--model", "kc7", "--json"],
-                         capture_output=True, text=True, cwd=ROOT, timeout=60)
+    res = subprocess.run(
+        [sys.executable, "-m", "orbitrig", "identify", str(path), "--model", "kc7", "--json"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=60,
+    )
     assert res.returncode == 2 and res.stdout == "" and "Traceback" not in res.stderr
 
 
@@ -146,8 +151,11 @@ def test_power_mnp_keys_carry_each_matrix_exponent(tmp_path):
     assert res.exit_code == 0, res.stderr
     d = json.loads(res.stdout)
     assert (d["freq_dep"], d["n_coefficients"], d["min_frequencies"]) == ("power:1,2,3", 22, 6)
-    want = [f"{m}{e}{s}" for m, s in (("K", ""), ("K", "_1"), ("C", ""), ("C", "_2"), ("D", ""), ("D", "_3"))
-            for e in ("xx", "xy", "yx", "yy")]
+    want = [
+        f"{m}{e}{s}"
+        for m, s in (("K", ""), ("K", "_1"), ("C", ""), ("C", "_2"), ("D", ""), ("D", "_3"))
+        for e in ("xx", "xy", "yx", "yy")
+    ]
     assert list(d["coefficients"]) == want and list(d["std_errors"]) == want
     assert d["coefficients"]["Dxy_3"] == d["coefficients"]["Dyx_3"]
     assert d["std_errors"]["Dxy"] == d["std_errors"]["Dyx"]

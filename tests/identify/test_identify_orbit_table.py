@@ -23,8 +23,9 @@ def test_round_trip_is_exact(tmp_path):
 
 def test_units_column_order_and_extra_columns(tmp_path):
     path = tmp_path / "t.csv"
-    path.write_text("note,orbit_hz,spin_rpm,x_re,x_im,y_re,y_im,fx_re,fx_im,fy_re,fy_im\n"
-                    "a,10,600,1e-6,0,0,-1e-6,1,2,3,4\n")
+    path.write_text(
+        "note,orbit_hz,spin_rpm,x_re,x_im,y_re,y_im,fx_re,fx_im,fy_re,fy_im\na,10,600,1e-6,0,0,-1e-6,1,2,3,4\n"
+    )
     t = read_orbit_table(path)
     assert t.spin == pytest.approx(2 * np.pi * 10) and t.orbit[0] == pytest.approx(2 * np.pi * 10)
     assert t.y[0] == -1e-6j and t.fy[0] == 3 + 4j and t.gamma2 is None
@@ -51,8 +52,9 @@ HEAD = "spin_rpm,orbit_hz,x_re,x_im,y_re,y_im,fx_re,fx_im,fy_re,fy_im"
 def test_records_and_uncertainty_columns_round_trip(tmp_path):
     clean = orbit_table(truth("kc8", {"K": (0,), "C": (0,)}), frequencies(3))
     u = np.tile([1e-8, 2e-8, 0.5, 0.7], (clean.n, 1))
-    table = type(clean)(clean.spin, clean.orbit, clean.x, clean.y, clean.fx, clean.fy, None,
-                        np.arange(40, 40 + clean.n), u)
+    table = type(clean)(
+        clean.spin, clean.orbit, clean.x, clean.y, clean.fx, clean.fy, None, np.arange(40, 40 + clean.n), u
+    )
     path = tmp_path / "t.csv"
     write_orbit_table(path, table)
     assert path.read_text().splitlines()[0].endswith("n_records,u_x,u_y,u_fx,u_fy")
@@ -61,13 +63,16 @@ def test_records_and_uncertainty_columns_round_trip(tmp_path):
     np.testing.assert_array_equal(back.n_records, np.arange(40, 40 + clean.n))
 
 
-@pytest.mark.parametrize("extra_head, extra_row, column, reason", [
-    (",u_x,u_y,u_fx", ",1e-9,1e-9,0.1", "u_fy", "set of four"),
-    (",u_x,u_y,u_fx,u_fy", ",1e-9,-1e-9,0.1,0.1", "u_y", "must be >= 0"),
-    (",u_x,u_y,u_fx,u_fy", ",1e-9,1e-9,abc,0.1", "u_fx", "not a number"),
-    (",n_records", ",12.5", "n_records", "whole number"),
-    (",n_records", ",0", "n_records", "whole number >= 1"),
-])
+@pytest.mark.parametrize(
+    "extra_head, extra_row, column, reason",
+    [
+        (",u_x,u_y,u_fx", ",1e-9,1e-9,0.1", "u_fy", "set of four"),
+        (",u_x,u_y,u_fx,u_fy", ",1e-9,-1e-9,0.1,0.1", "u_y", "must be >= 0"),
+        (",u_x,u_y,u_fx,u_fy", ",1e-9,1e-9,abc,0.1", "u_fx", "not a number"),
+        (",n_records", ",12.5", "n_records", "whole number"),
+        (",n_records", ",0", "n_records", "whole number >= 1"),
+    ],
+)
 def test_bad_records_or_uncertainty_name_line_and_column(tmp_path, extra_head, extra_row, column, reason):
     path = tmp_path / "t.csv"
     path.write_text(f"{HEAD}{extra_head}\n1000,5,1e-6,0,0,-1e-6,1,2,3,4{extra_row}\n")

@@ -13,15 +13,25 @@ from scipy import stats
 from support.reduction_synthetic import frequencies, orbit_table, truth
 from reduction.identify import identify
 from reduction.systematic import (
-    LMS_LEVEL, Calibration, ChannelCalibration, joint_chi2, lms_agreement, lms_difference,
+    LMS_LEVEL,
+    Calibration,
+    ChannelCalibration,
+    joint_chi2,
+    lms_agreement,
+    lms_difference,
 )
 from reduction.table import OrbitTable
 
 TRUE = truth("kcd12", {"K": (0,), "C": (0,), "D": (0,)})
 CLEAN = orbit_table(TRUE, frequencies(6))
 U_F = 0.01 * float(np.sqrt(np.mean(np.abs(CLEAN.fx) ** 2)))  # 1 % force noise, stated (u_fx, u_fy)
-CAL = Calibration(fx=ChannelCalibration(gain=0.002), fy=ChannelCalibration(gain=0.002),
-                  x=ChannelCalibration(gain=0.003), y=ChannelCalibration(gain=0.003), sensitivity=0.002)
+CAL = Calibration(
+    fx=ChannelCalibration(gain=0.002),
+    fy=ChannelCalibration(gain=0.002),
+    x=ChannelCalibration(gain=0.003),
+    y=ChannelCalibration(gain=0.003),
+    sensitivity=0.002,
+)
 DRAWS = 4000
 # binomial standard deviation of a rate near 5 % over DRAWS is 0.0034; 0.015 is 4.4 of it
 RATE_TOLERANCE = 0.015

@@ -49,8 +49,10 @@ def test_reference_uncertainty_adds_to_every_entry():
     assert np.allclose(fit.relative_gain_u(), np.sqrt(np.sum((0.001 * G_TRUE) ** 2, 1)) / np.abs(np.diag(G_TRUE)))
 
 
-@pytest.mark.parametrize("loads, why", [(static_loads(500.0)[:3], "at least 4"),
-                                        (np.array([[0, 0], [1, 0], [2, 0], [3, 0.0]]), "span both axes")])
+@pytest.mark.parametrize(
+    "loads, why",
+    [(static_loads(500.0)[:3], "at least 4"), (np.array([[0, 0], [1, 0], [2, 0], [3, 0.0]]), "span both axes")],
+)
 def test_too_few_or_one_axis_loads_are_refused(loads, why):
     with pytest.raises(ReductionError, match=why):
         fit_gain_matrix(loads, loads * 1.01, 0.0)
@@ -77,8 +79,9 @@ def _probe_revolutions(rho: float, runout: np.ndarray, phi0: float, noise: float
     rec = []
     for n in revs:
         psi = phi0 + 2 * np.pi * rho * (n - revs[0]) + rho * theta
-        v = np.real(d[:, None] * np.exp(1j * theta)) + np.real(runout[:, :1] * np.exp(1j * psi)
-                                                              + runout[:, 1:] * np.exp(2j * psi))
+        v = np.real(d[:, None] * np.exp(1j * theta)) + np.real(
+            runout[:, :1] * np.exp(1j * psi) + runout[:, 1:] * np.exp(2j * psi)
+        )
         rec.append(phasor(v + rng.normal(0, noise, v.shape), theta))
     return np.array(rec), d, theta, revs
 

@@ -71,7 +71,9 @@ from hypothesis import strategies as st  # noqa: E402
 @settings(max_examples=60, deadline=None)
 @given(
     slots=st.lists(st.integers(0, 359), min_size=3, max_size=60, unique=True),
-    re=st.floats(-1e3, 1e3), im=st.floats(-1e3, 1e3), mean=st.floats(-1e3, 1e3),
+    re=st.floats(-1e3, 1e3),
+    im=st.floats(-1e3, 1e3),
+    mean=st.floats(-1e3, 1e3),
     harmonic=st.integers(1, 3),
 )
 def test_any_well_spread_slots_recover_the_phasor(slots, re, im, mean, harmonic):

@@ -79,8 +79,14 @@ def test_ill_conditioned_identifiable_fit_is_fitted_with_a_warning():
     true = truth("kc8", {"K": (0, 1), "C": (0, 1)})
     fwd = orbit_table(true, frequencies(8), ("forward",))
     bwd = orbit_table(true, frequencies(8), ("backward",), radius=5e-9)  # 1000 times smaller
-    table = type(fwd)(fwd.spin, np.r_[fwd.orbit, bwd.orbit], np.r_[fwd.x, bwd.x], np.r_[fwd.y, bwd.y],
-                      np.r_[fwd.fx, bwd.fx], np.r_[fwd.fy, bwd.fy])
+    table = type(fwd)(
+        fwd.spin,
+        np.r_[fwd.orbit, bwd.orbit],
+        np.r_[fwd.x, bwd.x],
+        np.r_[fwd.y, bwd.y],
+        np.r_[fwd.fx, bwd.fx],
+        np.r_[fwd.fy, bwd.fy],
+    )
     result = identify(table, "kc8", "power:1")
     assert len(result.warnings) == 1 and result.warnings[0].startswith("ill-conditioned")
     assert "poorly determined: " in result.warnings[0] and "Kxx_1" in result.warnings[0]
@@ -130,8 +136,14 @@ def test_noisy_forward_circles_are_refused_like_exact_ones():
     assert "Kxx_1 - Cxy" in info.value.combinations
     # the same noise on forward plus backward circles identifies fine
     both = orbit_table(true, frequencies(10))
-    noisy_both = type(both)(both.spin, both.orbit, both.x + np.tile(noise[0], 2)[: both.n],
-                            both.y + np.tile(noise[1], 2)[: both.n], both.fx, both.fy)
+    noisy_both = type(both)(
+        both.spin,
+        both.orbit,
+        both.x + np.tile(noise[0], 2)[: both.n],
+        both.y + np.tile(noise[1], 2)[: both.n],
+        both.fx,
+        both.fy,
+    )
     assert identify(noisy_both, "kc8", "power:1").n_coefficients == 16
 
 

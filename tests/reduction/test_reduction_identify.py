@@ -13,9 +13,18 @@ from reduction.models import parse_freq_dep
 ELLIPSES = (("forward",), (5e-6, 2e-6, 0.4), (3e-6, -4e-6, 1.1))  # b < 0: backward-whirling ellipse
 
 IDENTIFIABLE = [
-    ("kc7", "none"), ("kc8", "none"), ("kcd11", "none"), ("kcd12", "none"),
-    ("kc7", "power:1"), ("kc8", "power:2"), ("kcd11", "power:1"), ("kcd12", "power:3"),
-    ("kcd11", "power:1,3,4"), ("kc7", "poly:2"), ("kc8", "poly:3"), ("kcd12", "poly:1"),
+    ("kc7", "none"),
+    ("kc8", "none"),
+    ("kcd11", "none"),
+    ("kcd12", "none"),
+    ("kc7", "power:1"),
+    ("kc8", "power:2"),
+    ("kcd11", "power:1"),
+    ("kcd12", "power:3"),
+    ("kcd11", "power:1,3,4"),
+    ("kc7", "poly:2"),
+    ("kc8", "poly:3"),
+    ("kcd12", "poly:1"),
 ]
 
 
@@ -55,9 +64,14 @@ def test_solvers_agree_to_rounding_on_noisy_data():
     rng = np.random.default_rng(3)
     true = truth("kcd11", {"K": (0, 1), "C": (0, 1), "D": (0, 1)})
     table = orbit_table(true, frequencies(12))
-    noisy = type(table)(table.spin, table.orbit, table.x, table.y,
-                        table.fx * (1 + 0.01 * rng.standard_normal(table.n)),
-                        table.fy + 5 * rng.standard_normal(table.n))
+    noisy = type(table)(
+        table.spin,
+        table.orbit,
+        table.x,
+        table.y,
+        table.fx * (1 + 0.01 * rng.standard_normal(table.n)),
+        table.fy + 5 * rng.standard_normal(table.n),
+    )
     results = {s: identify(noisy, "kcd11", "power:1", solver=s) for s in ("qr", "svd", "lu")}
     ref = results["qr"].coefficients
     for s in ("svd", "lu"):
@@ -83,20 +97,50 @@ def test_to_dict_is_the_spec_object():
     true = truth("kcd11", {"K": (0,), "C": (0,), "D": (0,)})
     table = orbit_table(true, frequencies(5))
     d = identify(table, "kcd11").to_dict()
-    assert list(d) == ["model", "freq_dep", "method", "n_coefficients", "min_frequencies", "n_frequencies",
-                       "coefficients", "std_errors", "confidence_95", "free", "covariance", "dof",
-                       "condition_number", "residual_rms", "aic", "bic", "interval", "not_determined", "notes", "warnings",
-                       "fit"]
+    assert list(d) == [
+        "model",
+        "freq_dep",
+        "method",
+        "n_coefficients",
+        "min_frequencies",
+        "n_frequencies",
+        "coefficients",
+        "std_errors",
+        "confidence_95",
+        "free",
+        "covariance",
+        "dof",
+        "condition_number",
+        "residual_rms",
+        "aic",
+        "bic",
+        "interval",
+        "not_determined",
+        "notes",
+        "warnings",
+        "fit",
+    ]
     assert (d["model"], d["freq_dep"], d["method"]) == ("kcd11", "none", "ols")
     assert (d["n_coefficients"], d["min_frequencies"], d["n_frequencies"]) == (11, 3, 10)
-    assert list(d["coefficients"]) == ["Kxx", "Kxy", "Kyx", "Kyy", "Cxx", "Cxy", "Cyx", "Cyy",
-                                       "Dxx", "Dxy", "Dyx", "Dyy"]
+    assert list(d["coefficients"]) == [
+        "Kxx",
+        "Kxy",
+        "Kyx",
+        "Kyy",
+        "Cxx",
+        "Cxy",
+        "Cyx",
+        "Cyy",
+        "Dxx",
+        "Dxy",
+        "Dyx",
+        "Dyy",
+    ]
     assert list(d["std_errors"]) == list(d["coefficients"])
     assert d["coefficients"]["Dxy"] == d["coefficients"]["Dyx"]
     assert d["condition_number"] >= 1
     assert len(d["fit"]) == 10
-    assert set(d["fit"][0]) == {"orbit_hz", "fx_amp_err_pct", "fx_phase_err_deg", "fy_amp_err_pct",
-                                "fy_phase_err_deg"}
+    assert set(d["fit"][0]) == {"orbit_hz", "fx_amp_err_pct", "fx_phase_err_deg", "fy_amp_err_pct", "fy_phase_err_deg"}
     assert d["fit"][0]["orbit_hz"] == pytest.approx(table.orbit[0] / (2 * np.pi))
 
 
@@ -141,8 +185,14 @@ def test_unknown_options_are_refused(kw):
         identify(orbit_table(true, frequencies(4)), **args)
 
 
-V2_ABSORBED = [("kcd11", "power:2", 18), ("kcd11", "poly:2", 29), ("kcd12", "power:2", 20),
-               ("kcd12", "poly:2", 32), ("kcd11", "power:4,2,2", 18), ("kcd12", "power:2,1,1", 20)]
+V2_ABSORBED = [
+    ("kcd11", "power:2", 18),
+    ("kcd11", "poly:2", 29),
+    ("kcd12", "power:2", 20),
+    ("kcd12", "poly:2", 32),
+    ("kcd11", "power:4,2,2", 18),
+    ("kcd12", "power:2,1,1", 20),
+]
 
 
 @pytest.mark.parametrize("model, freq_dep, count", V2_ABSORBED)

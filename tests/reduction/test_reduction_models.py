@@ -11,13 +11,23 @@ from reduction.models import model_spec, parse_freq_dep
 @pytest.mark.parametrize(
     "model, freq_dep, n, min_freq",
     [
-        ("kc7", "none", 7, 2), ("kc8", "none", 8, 2), ("kcd11", "none", 11, 3), ("kcd12", "none", 12, 3),
+        ("kc7", "none", 7, 2),
+        ("kc8", "none", 8, 2),
+        ("kcd11", "none", 11, 3),
+        ("kcd12", "none", 12, 3),
         # the paper's counts where no K order is absorbed: 14 -> 4, 21 -> 6, 22 (power:1) -> 6
-        ("kc7", "power:1", 14, 4), ("kc7", "poly:2", 21, 6), ("kcd11", "power:1,2,3", 22, 6),
-        ("kcd11", "power:1", 22, 6), ("kc8", "power:2", 16, 4),
+        ("kc7", "power:1", 14, 4),
+        ("kc7", "poly:2", 21, 6),
+        ("kcd11", "power:1,2,3", 22, 6),
+        ("kcd11", "power:1", 22, 6),
+        ("kc8", "power:2", 16, 4),
         # v2: inertia absorbs the colliding stiffness orders (22 -> 18, 33 -> 29, 24 -> 20, 36 -> 32)
-        ("kcd11", "power:2", 18, 5), ("kcd11", "poly:2", 29, 8), ("kcd12", "power:2", 20, 5),
-        ("kcd12", "poly:2", 32, 8), ("kcd11", "power:2,1,1", 18, 5), ("kcd11", "power:4,2,2", 18, 5),
+        ("kcd11", "power:2", 18, 5),
+        ("kcd11", "poly:2", 29, 8),
+        ("kcd12", "power:2", 20, 5),
+        ("kcd12", "poly:2", 32, 8),
+        ("kcd11", "power:2,1,1", 18, 5),
+        ("kcd11", "power:4,2,2", 18, 5),
     ],
 )
 def test_counts_and_minimum_frequencies(model, freq_dep, n, min_freq):

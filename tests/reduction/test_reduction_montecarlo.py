@@ -55,18 +55,36 @@ def _heteroscedastic(rng, count, gamma_one_row=None):
     if gamma_one_row is not None:
         g[gamma_one_row] = 1.0
     avg = rel / np.sqrt(n_rec)
-    return [OrbitTable(clean.spin, clean.orbit, clean.x, clean.y,
-                       clean.fx + _cnoise(rng, avg * np.abs(clean.fx), clean.n),
-                       clean.fy + _cnoise(rng, avg * np.abs(clean.fy), clean.n), g, np.full(clean.n, n_rec))
-            for _ in range(count)]
+    return [
+        OrbitTable(
+            clean.spin,
+            clean.orbit,
+            clean.x,
+            clean.y,
+            clean.fx + _cnoise(rng, avg * np.abs(clean.fx), clean.n),
+            clean.fy + _cnoise(rng, avg * np.abs(clean.fy), clean.n),
+            g,
+            np.full(clean.n, n_rec),
+        )
+        for _ in range(count)
+    ]
 
 
 def test_95_percent_intervals_cover_the_truth_95_percent_of_the_time_ols():
     rng = np.random.default_rng(21)
     clean = orbit_table(TRUE, frequencies(6))
     s = 0.01 * np.sqrt(np.mean(np.abs(clean.fx) ** 2))
-    tables = [OrbitTable(clean.spin, clean.orbit, clean.x, clean.y, clean.fx + _cnoise(rng, s, clean.n),
-                         clean.fy + _cnoise(rng, s, clean.n)) for _ in range(N_TABLES)]
+    tables = [
+        OrbitTable(
+            clean.spin,
+            clean.orbit,
+            clean.x,
+            clean.y,
+            clean.fx + _cnoise(rng, s, clean.n),
+            clean.fy + _cnoise(rng, s, clean.n),
+        )
+        for _ in range(N_TABLES)
+    ]
     _, _, lo, hi = _fits(tables, "ols")
     cov = _coverage(lo, hi)
     # 1000 tables: a coverage estimate has a standard error of 0.7 %; 93..97 % is +-2.9 sigma
@@ -100,9 +118,18 @@ def test_tls_and_iv_remove_the_attenuation_bias_of_ols():
     sd = 0.2 * radius  # displacement noise: OLS attenuates the coefficients by about 4 %
     sf = 0.001 * np.sqrt(np.mean(np.abs(clean.fx) ** 2))
     u = np.tile([sd, sd, sf, sf], (n, 1))
-    tables = [OrbitTable(clean.spin, clean.orbit, clean.x + _cnoise(rng, sd, n), clean.y + _cnoise(rng, sd, n),
-                         clean.fx + _cnoise(rng, sf, n), clean.fy + _cnoise(rng, sf, n), u=u)
-              for _ in range(250)]
+    tables = [
+        OrbitTable(
+            clean.spin,
+            clean.orbit,
+            clean.x + _cnoise(rng, sd, n),
+            clean.y + _cnoise(rng, sd, n),
+            clean.fx + _cnoise(rng, sf, n),
+            clean.fy + _cnoise(rng, sf, n),
+            u=u,
+        )
+        for _ in range(250)
+    ]
     bias, mc_err = {}, {}
     for method in ("ols", "tls", "iv"):
         est = np.array([[identify(t, "kc8", "none", method).coefficients[k] for k in KEYS] for t in tables])
@@ -124,8 +151,7 @@ def test_ols_standard_errors_match_the_cramer_rao_bound_of_the_design():
     s = 0.01 * np.sqrt(np.mean(np.abs(fx) ** 2))
     crb = np.sqrt(np.diag(predicted_covariance(spec, orbit, x, y, [0.0, 0.0, s, s])))
     n = orbit.size
-    tables = [OrbitTable(SPIN, orbit, x, y, fx + _cnoise(rng, s, n), fy + _cnoise(rng, s, n))
-              for _ in range(N_TABLES)]
+    tables = [OrbitTable(SPIN, orbit, x, y, fx + _cnoise(rng, s, n), fy + _cnoise(rng, s, n)) for _ in range(N_TABLES)]
     est, se, _, _ = _fits(tables, "ols")
     crb_keys = np.array([dict(zip(spec.keys(), spec.expand(crb).values()))[k] for k in KEYS])
     assert np.all(np.abs(se.mean(axis=0) / crb_keys - 1) < 0.10), dict(zip(KEYS, (se.mean(0) / crb_keys).round(3)))
@@ -138,8 +164,14 @@ def test_frequency_dependence_test_has_its_nominal_false_positive_rate():
     s = 0.01 * np.sqrt(np.mean(np.abs(clean.fx) ** 2))
     hits, p_values = 0, []
     for _ in range(N_TABLES):
-        t = OrbitTable(clean.spin, clean.orbit, clean.x, clean.y, clean.fx + _cnoise(rng, s, clean.n),
-                       clean.fy + _cnoise(rng, s, clean.n))
+        t = OrbitTable(
+            clean.spin,
+            clean.orbit,
+            clean.x,
+            clean.y,
+            clean.fx + _cnoise(rng, s, clean.n),
+            clean.fy + _cnoise(rng, s, clean.n),
+        )
         a = frequency_dependence(identify(t, "kc8", "none"), identify(t, "kc8", "power:1"))
         hits += a.supported
         p_values.append(a.p_value)

@@ -33,9 +33,17 @@ def test_reported_std_errors_match_the_spread_over_trials():
     rng = np.random.default_rng(11)
     clean = orbit_table(TRUE, frequencies(6))
     s = 0.01 * np.sqrt(np.mean(np.abs(clean.fx) ** 2))
-    trials = [OrbitTable(clean.spin, clean.orbit, clean.x, clean.y,
-                         clean.fx + _cnoise(rng, s, clean.n), clean.fy + _cnoise(rng, s, clean.n))
-              for _ in range(400)]
+    trials = [
+        OrbitTable(
+            clean.spin,
+            clean.orbit,
+            clean.x,
+            clean.y,
+            clean.fx + _cnoise(rng, s, clean.n),
+            clean.fy + _cnoise(rng, s, clean.n),
+        )
+        for _ in range(400)
+    ]
     est, se = _run(trials, "ols")
     ratio = est.std(axis=0, ddof=1) / se.mean(axis=0)
     # 400 trials: the sample std is good to ~3.5 % (1 sigma); allow 4 sigma
@@ -52,10 +60,19 @@ def test_coherence_weights_reduce_the_spread_and_keep_std_errors_honest():
     gamma2 = 1 / (1 + rel**2)  # coherent power over total power
     g = np.repeat(gamma2[:, None], 4, axis=1)
     avg = rel / np.sqrt(n_rec)  # relative noise of the average of n_rec records
-    trials = [OrbitTable(clean.spin, clean.orbit, clean.x, clean.y,
-                         clean.fx + _cnoise(rng, avg * np.abs(clean.fx), clean.n),
-                         clean.fy + _cnoise(rng, avg * np.abs(clean.fy), clean.n), g, np.full(clean.n, n_rec))
-              for _ in range(300)]
+    trials = [
+        OrbitTable(
+            clean.spin,
+            clean.orbit,
+            clean.x,
+            clean.y,
+            clean.fx + _cnoise(rng, avg * np.abs(clean.fx), clean.n),
+            clean.fy + _cnoise(rng, avg * np.abs(clean.fy), clean.n),
+            g,
+            np.full(clean.n, n_rec),
+        )
+        for _ in range(300)
+    ]
     wls, wse = _run(trials, "wls")
     ols, _ = _run(trials, "ols")
     ratio = wls.std(axis=0, ddof=1) / wse.mean(axis=0)
@@ -69,9 +86,17 @@ def test_tls_and_iv_remove_the_bias_of_least_squares_with_noisy_displacements():
     sd = 0.1 * 5e-6  # 10 % displacement noise (orbit radius 5 um)
     sf = 0.01 * np.sqrt(np.mean(np.abs(clean.fx) ** 2 + np.abs(clean.fy) ** 2) / 2)
     n = clean.n
-    trials = [OrbitTable(clean.spin, clean.orbit, clean.x + _cnoise(rng, sd, n), clean.y + _cnoise(rng, sd, n),
-                         clean.fx + _cnoise(rng, sf, n), clean.fy + _cnoise(rng, sf, n))
-              for _ in range(300)]
+    trials = [
+        OrbitTable(
+            clean.spin,
+            clean.orbit,
+            clean.x + _cnoise(rng, sd, n),
+            clean.y + _cnoise(rng, sd, n),
+            clean.fx + _cnoise(rng, sf, n),
+            clean.fy + _cnoise(rng, sf, n),
+        )
+        for _ in range(300)
+    ]
     z = {}
     for method, kw in (("ols", {}), ("tls", {"tls_ratio": sf / sd}), ("iv", {})):
         est, _ = _run(trials, method, **kw)
@@ -87,5 +112,6 @@ def test_iv_refuses_orbits_that_are_not_one_circle():
     true = truth("kc8", {"K": (0,), "C": (0,)})
     table = orbit_table(true, frequencies(6), ((5e-6, 2e-6, 0.3), (3e-6, -4e-6, 1.1)))
     from reduction.errors import IdentificationError
+
     with pytest.raises(IdentificationError, match="circle"):
         identify(table, "kc8", method="iv")

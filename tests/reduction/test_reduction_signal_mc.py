@@ -44,8 +44,15 @@ def _table(rng, orbit, x, y, force_rel=0.01, probe=PROBE, with_u=True, true=TRUE
     fx, fy = -(Z[:, 0, 0] * x + Z[:, 0, 1] * y), -(Z[:, 1, 0] * x + Z[:, 1, 1] * y)
     sf = force_rel * np.sqrt(np.mean(np.abs(fx) ** 2 + np.abs(fy) ** 2))
     u = np.tile([probe, probe, sf, sf], (n, 1)) if with_u else None
-    return OrbitTable(SPIN, orbit, x + _cnoise(rng, probe, n), y + _cnoise(rng, probe, n),
-                      fx + _cnoise(rng, sf, n), fy + _cnoise(rng, sf, n), u=u)
+    return OrbitTable(
+        SPIN,
+        orbit,
+        x + _cnoise(rng, probe, n),
+        y + _cnoise(rng, probe, n),
+        fx + _cnoise(rng, sf, n),
+        fy + _cnoise(rng, sf, n),
+        u=u,
+    )
 
 
 def _line_orbits(n=16):

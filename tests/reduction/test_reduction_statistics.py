@@ -24,8 +24,17 @@ def _noisy(true=TRUE, n_freq=8, rel=0.01, seed=0, with_u=True, u_scale=1.0):
     s = rel * np.sqrt(np.mean(np.abs(clean.fx) ** 2))
     noise = s / np.sqrt(2) * (rng.standard_normal((2, clean.n)) + 1j * rng.standard_normal((2, clean.n)))
     u = np.tile([0.0, 0.0, s * u_scale, s * u_scale], (clean.n, 1)) if with_u else None
-    return OrbitTable(clean.spin, clean.orbit, clean.x, clean.y, clean.fx + noise[0], clean.fy + noise[1],
-                      None, np.full(clean.n, 50) if with_u else None, u)
+    return OrbitTable(
+        clean.spin,
+        clean.orbit,
+        clean.x,
+        clean.y,
+        clean.fx + noise[0],
+        clean.fy + noise[1],
+        None,
+        np.full(clean.n, 50) if with_u else None,
+        u,
+    )
 
 
 def test_covariance_intervals_and_dof():

@@ -37,8 +37,9 @@ def test_gain_error_on_the_force_channels_scales_k_c_d_by_the_gain():
 def test_a_force_channel_delay_shifts_d_by_minus_c_tau():
     ident, table = _fit()
     tau = 10e-6
-    budget = uncertainty_budget(ident, table, Calibration(fx=ChannelCalibration(delay=tau),
-                                                          fy=ChannelCalibration(delay=tau)))
+    budget = uncertainty_budget(
+        ident, table, Calibration(fx=ChannelCalibration(delay=tau), fy=ChannelCalibration(delay=tau))
+    )
     j = budget.labels.index("fx.delay")
     col = dict(zip(ident.free, budget.jacobian[:, j]))
     # f e^{-i Omega tau} ~ f (1 - i Omega tau): C -> C - K tau, D -> D - C tau
@@ -55,11 +56,21 @@ def test_budget_keeps_statistical_systematic_and_combined_apart():
     rng = np.random.default_rng(3)
     clean = orbit_table(TRUE, frequencies(10))
     s = 1e-3 * np.sqrt(np.mean(np.abs(clean.fx) ** 2))
-    noisy = OrbitTable(clean.spin, clean.orbit, clean.x, clean.y,
-                       clean.fx + s * rng.standard_normal(clean.n), clean.fy + s * rng.standard_normal(clean.n))
+    noisy = OrbitTable(
+        clean.spin,
+        clean.orbit,
+        clean.x,
+        clean.y,
+        clean.fx + s * rng.standard_normal(clean.n),
+        clean.fy + s * rng.standard_normal(clean.n),
+    )
     ident = identify(noisy, "kcd12")
-    cal = Calibration(fx=ChannelCalibration(gain=0.005, phase=np.radians(0.1)), fy=ChannelCalibration(gain=0.005),
-                      x=ChannelCalibration(gain=0.002), sensitivity=0.01)
+    cal = Calibration(
+        fx=ChannelCalibration(gain=0.005, phase=np.radians(0.1)),
+        fy=ChannelCalibration(gain=0.005),
+        x=ChannelCalibration(gain=0.002),
+        sensitivity=0.01,
+    )
     b = uncertainty_budget(ident, noisy, cal)
     for key in ident.coefficients:
         assert b.combined[key] == pytest.approx(np.hypot(b.statistical[key], b.systematic[key]), rel=1e-9)
@@ -73,8 +84,12 @@ def test_load_systems_agree_within_uncertainty_and_a_gain_mismatch_shows():
     piezo = orbit_table(TRUE, frequencies(10))
     strain = OrbitTable(piezo.spin, piezo.orbit, piezo.x, piezo.y, piezo.fx * 1.03, piezo.fy * 1.03)
     a, b = identify(piezo, "kcd12"), identify(strain, "kcd12")
-    cal = Calibration(fx=ChannelCalibration(gain=0.005), fy=ChannelCalibration(gain=0.005),
-                      x=ChannelCalibration(gain=0.01), y=ChannelCalibration(gain=0.01))
+    cal = Calibration(
+        fx=ChannelCalibration(gain=0.005),
+        fy=ChannelCalibration(gain=0.005),
+        x=ChannelCalibration(gain=0.01),
+        y=ChannelCalibration(gain=0.01),
+    )
     en = lms_consistency(a, piezo, b, strain, cal, cal)
     # Kxx: difference -3 % of Kxx; u(diff)^2 = (0.5 % of each system's Kxx)^2 plus the shared x-probe
     # gain (1 %), which moves both Kxx alike and leaves only 1 % of their 3 % difference
@@ -113,8 +128,10 @@ def test_derived_uncertainty_is_the_covariance_propagation():
     expect = np.sqrt(cov[i["Cxx"], i["Cxx"]] + cov[i["Kxy"], i["Kxy"]] / w**2)
     assert np.allclose(d.c_eff_xx_std, expect, rtol=1e-12)
     # Re H_f = (Kxx + Kyy)/2 - Omega (Cyx - Cxy)/2
-    re_f = np.sqrt((cov[i["Kxx"], i["Kxx"]] + cov[i["Kyy"], i["Kyy"]]
-                    + w**2 * (cov[i["Cxy"], i["Cxy"]] + cov[i["Cyx"], i["Cyx"]])) / 4)
+    re_f = np.sqrt(
+        (cov[i["Kxx"], i["Kxx"]] + cov[i["Kyy"], i["Kyy"]] + w**2 * (cov[i["Cxy"], i["Cxy"]] + cov[i["Cyx"], i["Cyx"]]))
+        / 4
+    )
     assert np.allclose(d.h_forward_std[0], re_f, rtol=1e-12)
 
 
@@ -139,18 +156,26 @@ def _calibration_error(rng, ch: ChannelCalibration, orbit, sensitivity: float = 
 @pytest.mark.slow
 def test_linearised_systematic_propagation_matches_a_monte_carlo_of_calibration_errors():
     ident, table = _fit()
-    cal = Calibration(x=ChannelCalibration(gain=0.005, phase=np.radians(0.1), delay=2e-6),
-                      y=ChannelCalibration(gain=0.005, phase=np.radians(0.1), delay=2e-6),
-                      fx=ChannelCalibration(gain=0.01, phase=np.radians(0.3), delay=10e-6),
-                      fy=ChannelCalibration(gain=0.01, phase=np.radians(0.3), delay=10e-6), sensitivity=0.01)
+    cal = Calibration(
+        x=ChannelCalibration(gain=0.005, phase=np.radians(0.1), delay=2e-6),
+        y=ChannelCalibration(gain=0.005, phase=np.radians(0.1), delay=2e-6),
+        fx=ChannelCalibration(gain=0.01, phase=np.radians(0.3), delay=10e-6),
+        fy=ChannelCalibration(gain=0.01, phase=np.radians(0.3), delay=10e-6),
+        sensitivity=0.01,
+    )
     budget = uncertainty_budget(ident, table, cal)
     rng = np.random.default_rng(8)
     draws = []
     w = table.orbit
     for _ in range(400):
-        t = OrbitTable(table.spin, w, table.x * _calibration_error(rng, cal.x, w, cal.sensitivity),
-                       table.y * _calibration_error(rng, cal.y, w, cal.sensitivity),
-                       table.fx * _calibration_error(rng, cal.fx, w), table.fy * _calibration_error(rng, cal.fy, w))
+        t = OrbitTable(
+            table.spin,
+            w,
+            table.x * _calibration_error(rng, cal.x, w, cal.sensitivity),
+            table.y * _calibration_error(rng, cal.y, w, cal.sensitivity),
+            table.fx * _calibration_error(rng, cal.fx, w),
+            table.fy * _calibration_error(rng, cal.fy, w),
+        )
         draws.append([identify(t, "kcd12").coefficients[k] for k in VALUES])
     spread = np.std(draws, axis=0, ddof=1)
     linear = np.array([budget.systematic[k] for k in VALUES])

@@ -15,7 +15,9 @@ def test_every_outcome_is_a_final_stored_status_with_the_same_word():
 
 def test_the_journal_reads_the_word_it_wrote_and_unknown_for_a_foreign_word(tmp_path):
     path = tmp_path / "journal.jsonl"
-    path.write_text(status_line(RunStatus.RUNNING, "") + "\n" + status_line(RunStatus.ABORTED, "by the operator") + "\n")
+    path.write_text(
+        status_line(RunStatus.RUNNING, "") + "\n" + status_line(RunStatus.ABORTED, "by the operator") + "\n"
+    )
     j = read_journal(path)
     assert j.status is RunStatus.ABORTED and j.status_message == "by the operator"
     assert '"status":"aborted"' in path.read_text()  # the file keeps the bare word

@@ -32,8 +32,13 @@ def test_disk_full_mid_run_exits_cleanly_and_keeps_the_completed_points(tiny_dis
     matrix = tmp_path / "full.toml"
     matrix.write_text(MATRIX)
     out = tiny_disk / "run"
-    proc = subprocess.Popen(orbitrig_cmd("sweep", "--sim", "--matrix", str(matrix), "--out", str(out)), cwd=ROOT,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        orbitrig_cmd("sweep", "--sim", "--matrix", str(matrix), "--out", str(out)),
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         deadline = time.monotonic() + 60
         while not _point_committed(out, 0):
@@ -52,8 +57,9 @@ def test_disk_full_mid_run_exits_cleanly_and_keeps_the_completed_points(tiny_dis
     assert run.points[0].complete and run.points[0].tables
     assert not all(p.complete for p in run.points)
     filler.unlink()
-    p = subprocess.run(orbitrig_cmd("sweep", "--sim", "--resume", str(out)), cwd=ROOT, capture_output=True,
-                       text=True, timeout=120)
+    p = subprocess.run(
+        orbitrig_cmd("sweep", "--sim", "--resume", str(out)), cwd=ROOT, capture_output=True, text=True, timeout=120
+    )
     assert p.returncode == 0, p.stdout + p.stderr
     check_whole(out, [0, 1, 2], 6)
 

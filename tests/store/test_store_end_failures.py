@@ -42,8 +42,14 @@ def test_no_room_for_run_h5_fails_the_run_and_full_or_read_only_disks_fail_in_on
     matrix = tmp_path / "one.toml"
     matrix.write_text(small_matrix("one", revolutions=20, spin_rpm=(1000.0,)))
     out = small_disk / "run"
-    r = subprocess.run(orbitrig_cmd("sweep", "--sim", "--matrix", str(matrix), "--out", str(out)), cwd=ROOT,
-                       capture_output=True, text=True, timeout=180, stdin=subprocess.DEVNULL)
+    r = subprocess.run(
+        orbitrig_cmd("sweep", "--sim", "--matrix", str(matrix), "--out", str(out)),
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=180,
+        stdin=subprocess.DEVNULL,
+    )
     text = " ".join((r.stdout + r.stderr).split())  # the summary is wrapped to the terminal
     assert r.returncode == 1, text
     assert "run failed" in text and "run.h5 could not be written" in text and "run completed" not in text, text
@@ -53,15 +59,20 @@ def test_no_room_for_run_h5_fails_the_run_and_full_or_read_only_disks_fail_in_on
     assert [p.complete for p in run.points] == [True]  # the measured point is kept
 
     fill(small_disk)  # now nothing fits
-    for args, says in ((["reduce", str(out), "--model", "kc8"], "No space left on device"),
-                       (["report", str(out), "--figures", "coefficients"], "No space left on device")):
-        _one_line_error(subprocess.run(orbitrig_cmd(*args), cwd=ROOT, capture_output=True, text=True, timeout=120),
-                        says)
+    for args, says in (
+        (["reduce", str(out), "--model", "kc8"], "No space left on device"),
+        (["report", str(out), "--figures", "coefficients"], "No space left on device"),
+    ):
+        _one_line_error(
+            subprocess.run(orbitrig_cmd(*args), cwd=ROOT, capture_output=True, text=True, timeout=120), says
+        )
     (small_disk / "filler").unlink()
     subprocess.run(["mount", "-o", "remount,ro", str(small_disk)], check=True)
     for args in (["reduce", str(out), "--model", "kc8"], ["report", str(out), "--figures", "coefficients"]):
-        _one_line_error(subprocess.run(orbitrig_cmd(*args), cwd=ROOT, capture_output=True, text=True, timeout=120),
-                        "Read-only file system")
+        _one_line_error(
+            subprocess.run(orbitrig_cmd(*args), cwd=ROOT, capture_output=True, text=True, timeout=120),
+            "Read-only file system",
+        )
 
 
 def _damage(run, name: str) -> None:
@@ -85,8 +96,9 @@ def test_export_and_report_name_a_point_with_a_damaged_block(synthetic, tmp_path
     assert not [n for n in written if "_0000" in n] and "coefficients.csv" in written  # nothing of point 0
     r = runner.invoke(app, ["export", str(run), "--point", "1", "--out", str(tmp_path / "one")])
     assert r.exit_code == 0 and "skipped" not in r.stderr, r.output
-    r = runner.invoke(app, ["export", str(run), "--point", "0", "--point", "1", "--format", "mat",
-                            "--out", str(tmp_path / "mat")])
+    r = runner.invoke(
+        app, ["export", str(run), "--point", "0", "--point", "1", "--format", "mat", "--out", str(tmp_path / "mat")]
+    )
     assert r.exit_code == 1 and "point 0000 skipped: 03_fwd.h5 is damaged" in r.stderr, r.output
     r = runner.invoke(app, ["report", str(run), "--figures", "coefficients"])
     assert r.exit_code == 1 and "error: point 0000 skipped: 03_fwd.h5 is damaged" in r.stderr, r.output

@@ -18,6 +18,7 @@ from orbitrig.store.reader import read_run
 from orbitrig.store.orbit_table import read_orbit_table
 from orbitrig.store.status import RunStatus
 
+
 def _s(values) -> list[str]:
     """Strings of an HDF5 string dataset or attribute (bytes or str, as h5py returns them)."""
     return [v.decode() if isinstance(v, bytes) else str(v) for v in values]
@@ -29,8 +30,7 @@ UNIT_COLUMN = re.compile(r"(true_)?[KCD][xy]{2}(_\d+)?(_std|_U)? \[(N/m|N s/m|kg
 def test_run_h5_states_units_and_names(synthetic):
     with h5py.File(synthetic / "run.h5", "r") as f:
         assert f.attrs["format"] == "orbitrig-run/2" and f.attrs["status"] == "stopped"
-        assert _s(f["channels"][()]) == ["fx_piezo", "fy_piezo", "fx_strain", "fy_strain",
-                                                           "x_a", "y_a", "x_b", "y_b"]
+        assert _s(f["channels"][()]) == ["fx_piezo", "fy_piezo", "fx_strain", "fy_strain", "x_a", "y_a", "x_b", "y_b"]
         assert _s(f["channel_units"][()]) == ["N"] * 4 + ["m"] * 4
         missing = []
 
@@ -62,8 +62,7 @@ def test_run_h5_states_units_and_names(synthetic):
         np.testing.assert_array_equal(ident["std_errors"][()], [stored["std_errors"][k] for k in names])
         assert ident.attrs["residual_rms"] == pytest.approx(stored["residual_rms"])
         power = g["identification/piezo__kcd11__power_1__ols"]
-        assert dict(zip(_s(power["names"][()]), _s(power["units"][()])))[
-            "Cxy_1"] == "N s/m (rad/s)^-1"
+        assert dict(zip(_s(power["names"][()]), _s(power["units"][()])))["Cxy_1"] == "N s/m (rad/s)^-1"
         refused = g["identification/piezo__kcd12__poly_8__ols"]
         assert "rank-deficient" in refused.attrs["error"] and "coefficients" not in refused
 
@@ -94,7 +93,9 @@ def test_points_kept_as_csv_text_render_the_same_file(synthetic):
     for points in (rows, mixed):
         kept = [csvfile.PointCsv.of(p) for p in points]
         assert csvfile.render_points(kept) == csvfile.render([r for p in points for r in p])
-    assert csvfile.render_points([csvfile.PointCsv.of(p) for p in rows]) == (synthetic / "coefficients.csv").read_bytes()
+    assert (
+        csvfile.render_points([csvfile.PointCsv.of(p) for p in rows]) == (synthetic / "coefficients.csv").read_bytes()
+    )
 
 
 def _export(run, fmt, out):
@@ -147,9 +148,14 @@ def test_export_tdms_reads_in_nptdms(synthetic, tmp_path):
 
 def test_export_csv_orbit_tables_read_back(synthetic, tmp_path):
     files = _export(synthetic, "csv", tmp_path)
-    assert [p.rsplit("/", 1)[-1] for p in files][:6] == ["point_0000_piezo.csv", "point_0000_strain.csv",
-                                                         "point_0001_piezo.csv", "point_0001_strain.csv",
-                                                         "coefficients.csv", "fits.csv"]
+    assert [p.rsplit("/", 1)[-1] for p in files][:6] == [
+        "point_0000_piezo.csv",
+        "point_0000_strain.csv",
+        "point_0001_piezo.csv",
+        "point_0001_strain.csv",
+        "coefficients.csv",
+        "fits.csv",
+    ]
     table = read_run(synthetic).points[0].tables["strain"]
     back = read_orbit_table(tmp_path / "point_0000_strain.csv")
     np.testing.assert_allclose(back.orbit, table.orbit, rtol=1e-15)  # stored as orbit_hz
@@ -165,7 +171,10 @@ def test_export_h5_of_a_cut_run_and_bad_arguments(tmp_path):
     assert not (run / "run.h5").exists()
     (path,) = _export(run, "h5", tmp_path / "out")
     with h5py.File(path, "r") as f:
-        assert f.attrs["status"] == "running" and [bool(g.attrs["complete"]) for g in f["points"].values()] == [True, False]
+        assert f.attrs["status"] == "running" and [bool(g.attrs["complete"]) for g in f["points"].values()] == [
+            True,
+            False,
+        ]
     r = CliRunner().invoke(app, ["export", str(run), "--format", "xls"])
     assert r.exit_code == 2 and "csv, mat, tdms, h5" in r.stderr
     r = CliRunner().invoke(app, ["export", str(tmp_path / "nope")])
@@ -195,18 +204,39 @@ def test_orbit_table_uncertainty_and_block_stop_reason_round_trip(tmp_path):
 
     rig, m = cfg.load_rig(), cfg.load_matrix(cfg.default_matrix_path("demo"))
     p = operating_points(m, rig)[0]
-    t = OrbitTable(spin=p.spin, orbit=np.array([10.0, 20.0]), x=np.ones(2, complex), y=-1j * np.ones(2),
-                   fx=np.ones(2, complex), fy=np.ones(2, complex), n_records=np.array([50, 73]),
-                   u=np.array([[1e-8, 2e-8, 0.5, 0.6], [1.5e-8, 2.5e-8, 0.7, 0.8]]))
+    t = OrbitTable(
+        spin=p.spin,
+        orbit=np.array([10.0, 20.0]),
+        x=np.ones(2, complex),
+        y=-1j * np.ones(2),
+        fx=np.ones(2, complex),
+        fy=np.ones(2, complex),
+        n_records=np.array([50, 73]),
+        u=np.array([[1e-8, 2e-8, 0.5, 0.6], [1.5e-8, 2.5e-8, 0.7, 0.8]]),
+    )
     store = RunStore.create(tmp_path / "run", rig_text=rig.text, matrix_text=m.text, matrix_name=m.name, sim=False)
     store.begin_point(p)
     b = p.blocks[0]
-    store.write_block(p.index, BlockRecord(
-        block=b, measured_orbit_speed=abs(b.orbit), raw_counts=np.zeros((73, 8, 45), np.int16),
-        slots=np.zeros((8, 45), np.int16), gains=np.ones(8), offsets=np.zeros(8), mean=np.zeros((8, 45)),
-        record_phasors=np.zeros((73, 8), complex), phasors=np.ones(8, complex), dc=np.zeros(8),
-        rms_residual=np.zeros(8), coherence=np.ones((2, 4)), uncertainty=np.full(8, 0.25), n_records=73,
-        stop_reason="target"))
+    store.write_block(
+        p.index,
+        BlockRecord(
+            block=b,
+            measured_orbit_speed=abs(b.orbit),
+            raw_counts=np.zeros((73, 8, 45), np.int16),
+            slots=np.zeros((8, 45), np.int16),
+            gains=np.ones(8),
+            offsets=np.zeros(8),
+            mean=np.zeros((8, 45)),
+            record_phasors=np.zeros((73, 8), complex),
+            phasors=np.ones(8, complex),
+            dc=np.zeros(8),
+            rms_residual=np.zeros(8),
+            coherence=np.ones((2, 4)),
+            uncertainty=np.full(8, 0.25),
+            n_records=73,
+            stop_reason="target",
+        ),
+    )
     spec = ModelSpec(model="kc8")
     store.write_results(p.index, PointResults({"piezo": t}, {("piezo", spec.key): {"spec": spec, "error": "x\ny"}}, {}))
     store.complete_point(p.index)
@@ -228,4 +258,6 @@ def test_orbit_table_uncertainty_and_block_stop_reason_round_trip(tmp_path):
     assert header[-6:] == ["n_records [1]", "u_x [m]", "u_y [m]", "u_fx [N]", "u_fy [N]", "direction [1]"]
     table = read_orbit_table(tmp_path / "csv/point_0000_piezo.csv")
     np.testing.assert_array_equal(table.u, t.u)
-    assert (tmp_path / "run/coefficients.csv").read_text().splitlines()[1].endswith("x | y,")  # the error, then not_determined (empty)
+    assert (
+        (tmp_path / "run/coefficients.csv").read_text().splitlines()[1].endswith("x | y,")
+    )  # the error, then not_determined (empty)

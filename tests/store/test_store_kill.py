@@ -25,8 +25,11 @@ STORAGE_CALLS = "write,pwrite64,fsync,rename,renameat,renameat2"
 # (syscalls counted, K): the run is killed at the K-th call of one of them by one thread;
 # fsync and rename happen only in the storage's durable steps, write also in logs and output
 DEFAULT = [("fsync", 1), ("rename", 3), ("fsync", 7), ("fsync", 16), ("write", 30), ("rename", 9)]
-LONG = [("fsync", k) for k in range(1, 36, 2)] + [("rename", k) for k in range(1, 14, 2)] + \
-       [("write", k) for k in (5, 15, 25, 35, 45)]
+LONG = (
+    [("fsync", k) for k in range(1, 36, 2)]
+    + [("rename", k) for k in range(1, 14, 2)]
+    + [("write", k) for k in (5, 15, 25, 35, 45)]
+)
 CASES = LONG if os.environ.get("ORBITRIG_KILL_POINTS") == "all" else DEFAULT
 
 
@@ -34,10 +37,20 @@ def _killed_sweep(tmp_path, calls: str, k: int):
     matrix = tmp_path / "crash.toml"
     matrix.write_text(MATRIX)
     out = tmp_path / "run"
-    cmd = ["strace", "-f", "-qq", "-o", "/dev/null", "-e", f"trace={STORAGE_CALLS}",
-           "-e", f"inject={calls}:signal=KILL:when={k}",
-           *orbitrig_cmd("sweep", "--sim", "--config", str(traced_rig_config(tmp_path)), "--matrix", str(matrix),
-                        "--out", str(out))]
+    cmd = [
+        "strace",
+        "-f",
+        "-qq",
+        "-o",
+        "/dev/null",
+        "-e",
+        f"trace={STORAGE_CALLS}",
+        "-e",
+        f"inject={calls}:signal=KILL:when={k}",
+        *orbitrig_cmd(
+            "sweep", "--sim", "--config", str(traced_rig_config(tmp_path)), "--matrix", str(matrix), "--out", str(out)
+        ),
+    ]
     p = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert p.returncode in (-signal.SIGKILL, 128 + signal.SIGKILL), f"not killed at {calls} #{k}:\n{p.stderr}"
     return out
@@ -52,18 +65,28 @@ def test_kill_at_a_write_then_resume_stores_every_point_once(tmp_path, calls, k)
         cut = read_run(out)  # whatever resume can read, the readers read
         assert cut.status in ("running", "completed")  # completed: killed while consolidating run.h5
         assert runner.invoke(app, ["export", str(out), "--format", "h5", "--out", str(tmp_path / "cut")]).exit_code == 0
-        p = subprocess.run(orbitrig_cmd("sweep", "--sim", "--resume", str(out)), cwd=ROOT, capture_output=True,
-                           text=True, timeout=120)
+        p = subprocess.run(
+            orbitrig_cmd("sweep", "--sim", "--resume", str(out)), cwd=ROOT, capture_output=True, text=True, timeout=120
+        )
         assert p.returncode == 0, p.stdout + p.stderr
         aside = sorted(x.name for x in (out / "aside").iterdir()) if (out / "aside").exists() else []
         for name in aside:  # what was set aside is named on the terminal and in run.log
-            assert f"set aside as aside/{name}" in p.stderr and f"set aside as aside/{name}" in (out / "run.log").read_text()
+            assert (
+                f"set aside as aside/{name}" in p.stderr
+                and f"set aside as aside/{name}" in (out / "run.log").read_text()
+            )
     else:  # killed before the run's header was durable: there is no run to resume
-        p = subprocess.run(orbitrig_cmd("sweep", "--sim", "--resume", str(out)), cwd=ROOT, capture_output=True,
-                           text=True, timeout=60)
+        p = subprocess.run(
+            orbitrig_cmd("sweep", "--sim", "--resume", str(out)), cwd=ROOT, capture_output=True, text=True, timeout=60
+        )
         assert p.returncode == 2 and "nothing to resume" in p.stderr, p.stderr
-        p = subprocess.run(orbitrig_cmd("sweep", "--sim", "--matrix", str(tmp_path / "crash.toml"), "--out", str(out)),
-                           cwd=ROOT, capture_output=True, text=True, timeout=120)
+        p = subprocess.run(
+            orbitrig_cmd("sweep", "--sim", "--matrix", str(tmp_path / "crash.toml"), "--out", str(out)),
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         assert p.returncode == 0, p.stdout + p.stderr
     check_whole(out, [0, 1], BLOCKS)
     assert read_run(out).status == "completed"

@@ -18,23 +18,50 @@ from reduction.table import OrbitTable
 def _record(block, n=3):
     rng = np.random.default_rng(block.freq)
     return BlockRecord(
-        block=block, measured_orbit_speed=abs(block.orbit), raw_counts=rng.integers(-100, 100, (n, 8, 45), dtype=np.int16),
-        slots=np.arange(360, dtype=np.int16).reshape(45, 8).T, gains=np.ones(8), offsets=np.zeros(8),
-        mean=np.zeros((8, 45)), record_phasors=np.ones((n, 8), complex), phasors=np.ones(8, complex),
-        dc=np.zeros(8), rms_residual=np.zeros(8), coherence=np.ones((2, 4)),
+        block=block,
+        measured_orbit_speed=abs(block.orbit),
+        raw_counts=rng.integers(-100, 100, (n, 8, 45), dtype=np.int16),
+        slots=np.arange(360, dtype=np.int16).reshape(45, 8).T,
+        gains=np.ones(8),
+        offsets=np.zeros(8),
+        mean=np.zeros((8, 45)),
+        record_phasors=np.ones((n, 8), complex),
+        phasors=np.ones(8, complex),
+        dc=np.zeros(8),
+        rms_residual=np.zeros(8),
+        coherence=np.ones((2, 4)),
         stats={"frames_good": 10, "drop_reasons": {"crc": 1}},
     )
 
 
 def _results(p):
-    t = OrbitTable(spin=p.spin, orbit=np.array([1.0, 2.0]), x=np.ones(2, complex), y=-1j * np.ones(2),
-                   fx=np.ones(2, complex), fy=np.ones(2, complex), gamma2=np.ones((2, 4)))
+    t = OrbitTable(
+        spin=p.spin,
+        orbit=np.array([1.0, 2.0]),
+        x=np.ones(2, complex),
+        y=-1j * np.ones(2),
+        fx=np.ones(2, complex),
+        fy=np.ones(2, complex),
+        gamma2=np.ones((2, 4)),
+    )
     spec = ModelSpec(model="kc8")
-    ident = {"model": "kc8", "freq_dep": "none", "method": "ols", "n_coefficients": 8, "min_frequencies": 2,
-             "n_frequencies": 2, "coefficients": {"Kxx": 3e7, "Cxx": 8e4}, "std_errors": {"Kxx": 1e5, "Cxx": None},
-             "condition_number": 3.0, "residual_rms": 0.1, "fit": []}
-    idents = {("piezo", spec.key): {"spec": spec, "json": ident},
-              ("strain", spec.key): {"spec": spec, "error": "too few frequencies"}}
+    ident = {
+        "model": "kc8",
+        "freq_dep": "none",
+        "method": "ols",
+        "n_coefficients": 8,
+        "min_frequencies": 2,
+        "n_frequencies": 2,
+        "coefficients": {"Kxx": 3e7, "Cxx": 8e4},
+        "std_errors": {"Kxx": 1e5, "Cxx": None},
+        "condition_number": 3.0,
+        "residual_rms": 0.1,
+        "fit": [],
+    }
+    idents = {
+        ("piezo", spec.key): {"spec": spec, "json": ident},
+        ("strain", spec.key): {"spec": spec, "error": "too few frequencies"},
+    }
     truth = {"orbit_hz": [1.0], "K0": [[3.1e7, 0], [0, 3e7]], "C0": [[8e4, 0], [0, 8e4]], "D0": [[1, 0], [0, 1]]}
     return PointResults({"piezo": t, "strain": t}, idents, {"fx_amp_ratio": [1.0]}, truth)
 
@@ -75,8 +102,10 @@ def test_store_layout_resume_and_csv(tmp_path):
 
     r = RunStore.open_existing(tmp_path)
     assert r.prepare_resume() == [0]
-    assert r.set_aside == ["point 0001 set aside as aside/0001.incomplete.1 (never completed (no commit record)); "
-                           "it will be measured again"]
+    assert r.set_aside == [
+        "point 0001 set aside as aside/0001.incomplete.1 (never completed (no commit record)); "
+        "it will be measured again"
+    ]
     assert (tmp_path / "aside/0001.incomplete.1/09_fwd.h5").is_file()  # kept, never deleted
     assert "resume: point 0001 set aside" in (tmp_path / "run.log").read_text()
     assert not s.path.exists()  # the stale copy is gone until the run ends again
@@ -85,9 +114,23 @@ def test_store_layout_resume_and_csv(tmp_path):
     assert float(rows[0]["Kxx [N/m]"]) == 3e7 and float(rows[0]["true_Kxx [N/m]"]) == 3.1e7
     assert rows[0]["Cxx_std [N s/m]"] == ""
     assert rows[1]["error"] == "too few frequencies" and rows[1]["Kxx [N/m]"] == ""
-    assert list(rows[0])[:15] == ["point", "label", "spin_rpm", "recess_pressure_mpa", "pressure_ratio",
-                                  "static_eccentricity", "dynamic_eccentricity", "lms", "model", "freq_dep",
-                                  "method", "n_frequencies", "condition_number", "residual_rms [N]", "error"]
+    assert list(rows[0])[:15] == [
+        "point",
+        "label",
+        "spin_rpm",
+        "recess_pressure_mpa",
+        "pressure_ratio",
+        "static_eccentricity",
+        "dynamic_eccentricity",
+        "lms",
+        "model",
+        "freq_dep",
+        "method",
+        "n_frequencies",
+        "condition_number",
+        "residual_rms [N]",
+        "error",
+    ]
     r.set_status(RunStatus.COMPLETED, "done")  # a final status consolidates run.h5
     with h5py.File(r.path, "r") as f:
         assert f.attrs["status"] == "completed" and list(f["points"]) == ["0000"]

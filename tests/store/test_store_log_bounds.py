@@ -41,8 +41,11 @@ def test_a_long_wait_grows_the_logs_by_a_bounded_amount(tmp_path):
     store.flush_logs()
     grown = {k: n - before.get(k, 0) for k, n in kinds(store.layout.journal).items() if n > before.get(k, 0)}
     # each of the first COMMANDS_HEAD commands is a journal write taking the one event and CAN row before it
-    assert grown == {"command": COMMANDS_HEAD, "event": COMMANDS_HEAD + EVENTS_KEPT + 1,
-                     "can": COMMANDS_HEAD + MONITOR_ROWS_KEPT}, grown
+    assert grown == {
+        "command": COMMANDS_HEAD,
+        "event": COMMANDS_HEAD + EVENTS_KEPT + 1,
+        "can": COMMANDS_HEAD + MONITOR_ROWS_KEPT,
+    }, grown
     assert len(store.log_path.read_text().splitlines()) - log_before == RUN_LOG_HEAD
 
     store.set_status(RunStatus.STOPPED, "after the wait")  # closes the interval: counts and the newest lines

@@ -23,11 +23,21 @@ MATRIX = small_matrix("space", revolutions=20)
 def _record(block, n=20) -> BlockRecord:
     rng = np.random.default_rng(block.freq)
     return BlockRecord(
-        block=block, measured_orbit_speed=abs(block.orbit), raw_counts=rng.integers(-3000, 3000, (n, 8, 45), dtype=np.int16),
-        slots=np.arange(360, dtype=np.int16).reshape(45, 8).T, gains=np.ones(8), offsets=np.zeros(8),
-        mean=rng.standard_normal((8, 45)), record_phasors=rng.standard_normal((n, 8)) + 0j, phasors=np.ones(8, complex),
-        dc=np.zeros(8), rms_residual=np.zeros(8), coherence=np.ones((2, 4)), uncertainty=np.full(8, 1e-3),
-        n_records=n, stop_reason="count",
+        block=block,
+        measured_orbit_speed=abs(block.orbit),
+        raw_counts=rng.integers(-3000, 3000, (n, 8, 45), dtype=np.int16),
+        slots=np.arange(360, dtype=np.int16).reshape(45, 8).T,
+        gains=np.ones(8),
+        offsets=np.zeros(8),
+        mean=rng.standard_normal((8, 45)),
+        record_phasors=rng.standard_normal((n, 8)) + 0j,
+        phasors=np.ones(8, complex),
+        dc=np.zeros(8),
+        rms_residual=np.zeros(8),
+        coherence=np.ones((2, 4)),
+        uncertainty=np.full(8, 1e-3),
+        n_records=n,
+        stop_reason="count",
     )
 
 

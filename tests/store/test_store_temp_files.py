@@ -59,8 +59,10 @@ def test_reduce_and_report_never_follow_a_planted_link(synthetic, tmp_path):
     run = tmp_path / "run"
     shutil.copytree(synthetic, run, symlinks=True)
     (run / "plots").mkdir()
-    victims = [_plant(run / "reduce_kc8_none_ols.csv.tmp", tmp_path / "victim_a"),
-               _plant(run / "plots" / "index.html.tmp", tmp_path / "victim_b")]
+    victims = [
+        _plant(run / "reduce_kc8_none_ols.csv.tmp", tmp_path / "victim_a"),
+        _plant(run / "plots" / "index.html.tmp", tmp_path / "victim_b"),
+    ]
     r = CliRunner().invoke(app, ["reduce", str(run), "--model", "kc8"])
     assert r.exit_code == 0, r.output
     r = CliRunner().invoke(app, ["report", str(run), "--point", "1", "--figures", "coefficients"])

@@ -47,8 +47,9 @@ freq_dep = "poly:4"
 
 def orbitrig(*args: str, cwd: Path = ROOT, timeout: float = 240) -> subprocess.CompletedProcess:
     env = {**os.environ, "COLUMNS": "200"}
-    return subprocess.run([sys.executable, "-m", "orbitrig", *args], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "orbitrig", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout
+    )
 
 
 @pytest.fixture(scope="module")
@@ -56,8 +57,16 @@ def sweep(tmp_path_factory):
     work = tmp_path_factory.mktemp("judged")
     (work / "judged.toml").write_text(MATRIX)
     out = work / "run"
-    res = orbitrig("sweep", "--sim", "--sim-config", "config/sim/compressible.toml", "--matrix",
-                   str(work / "judged.toml"), "--out", str(out))
+    res = orbitrig(
+        "sweep",
+        "--sim",
+        "--sim-config",
+        "config/sim/compressible.toml",
+        "--matrix",
+        str(work / "judged.toml"),
+        "--out",
+        str(out),
+    )
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     return out, res.stdout + res.stderr
 
@@ -130,7 +139,9 @@ def test_adequacy_consistency_and_derived_quantities_are_stored(sweep):
         # the verdict is the joint chi2 of kcd11's 11 free coefficients (D symmetric: Dxy = Dyx)
         # at the family-wise 5 % level: limit chi2(11) 95 % quantile = 19.675
         assert c.attrs["test"] == "chi2" and c.attrs["level"] == 0.05 and c.attrs["dof"] == 11
-        assert c.attrs["consistent"] == (c.attrs["chi2"] <= c.attrs["limit"]) and c.attrs["limit"] == pytest.approx(19.675, abs=1e-3)
+        assert c.attrs["consistent"] == (c.attrs["chi2"] <= c.attrs["limit"]) and c.attrs["limit"] == pytest.approx(
+            19.675, abs=1e-3
+        )
         d = g["identification/piezo__kcd11__none__ols/derived"]
         np.testing.assert_allclose(d["orbit_hz"][()], np.array([0.3, 0.5, 0.7, 0.9, 1.2]) * 1000 / 60, rtol=1e-9)
         fit = json.loads(g["identification/piezo__kcd11__none__ols"].attrs["json"])
@@ -212,7 +223,11 @@ def test_result_payload_carries_the_warnings_of_a_stored_run(sweep):
     assert any(w.startswith("piezo kcd11 none ols: bad fit: chi2 = ") for w in obj["warnings"])
     row = next(r for r in obj["identification"] if (r["lms"], r["model"], r["freq_dep"]) == ("piezo", "kcd11", "none"))
     assert row["warnings"] and set(row["confidence_95"]) == set(row["coefficients"])
-    assert set(row["units"]) == set(row["coefficients"]) and row["units"]["Kxx"] == "N/m" and row["units"]["Cxy"] == "N s/m"
+    assert (
+        set(row["units"]) == set(row["coefficients"])
+        and row["units"]["Kxx"] == "N/m"
+        and row["units"]["Cxy"] == "N s/m"
+    )
     u = row["expanded_uncertainty"]
     assert u["basis"] == "combined" and u["values"] == row["uncertainty"]["expanded"]
     assert row["not_determined"] == [k for k, v in row["coefficients"].items() if u["values"][k] > abs(v)]

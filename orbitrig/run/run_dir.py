@@ -1,0 +1,102 @@
+"""The run directory as the engine uses it: opened new or for a resume, room for each
+point, and the records of the run's end.
+
+A new run records its configurations, provenance, simulator scenario and point order; a
+resumed one must be given the matrix it was started with (or none) and sets aside its
+incomplete points (orbitrig.store.writer). The end records are written whatever happened:
+a failure to write one is reported through ``failed`` and the others are still written.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from pathlib import Path
+
+from orbitrig.config import ConfigError, RigConfig
+from orbitrig.run.plan import OperatingPoint, Plan
+from orbitrig.run.provenance import Provenance
+from orbitrig.run.rig_io import RigAccess, Scenario
+from orbitrig.run.states import FAILED, Outcome, stored_status
+from orbitrig.run.steps import Acquire, ChooseBlocks
+from orbitrig.store.estimate import point_bytes
+from orbitrig.store.errors import StorageError, StorageFullError
+from orbitrig.store.writer import RunStore
+
+log = logging.getLogger(__name__)
+
+
+def open_store(
+    plan: Plan, rig: RigConfig, access: RigAccess, operator: str, out_dir: Path, resume: bool
+) -> tuple[RunStore, list[int]]:
+    """The run's directory in ``out_dir`` and the points it holds complete ([] for a new run).
+    Raises ConfigError when a resume is given another matrix than the stored one."""
+    if not resume:
+        sc = access.scenario or Scenario("")
+        prov = Provenance.of_run(rig, operator)
+        store = RunStore.create(
+            out_dir,
+            rig_text=rig.text,
+            matrix_text=plan.matrix.text,
+            matrix_name=plan.name,
+            sim=access.simulated,
+            scenario_name=sc.name,
+            scenario_text=sc.text,
+            provenance=prov.to_dict(),
+            record_text=rig.record_text,
+            point_order=list(plan.order),
+        )
+        store.log(prov.summary())
+        return store, []
+    store = RunStore.open_existing(out_dir)
+    _, matrix_text, _ = store.stored_configs()
+    if plan.matrix.text and plan.matrix.text != matrix_text:
+        raise ConfigError(
+            plan.matrix.file,
+            [f"differs from the matrix of the run being resumed in {store.path}; resume with the stored matrix"],
+        )
+    return store, store.prepare_resume()
+
+
+def no_room(store: RunStore, rig: RigConfig, plan: Plan, point: OperatingPoint) -> str | None:
+    """Why the disk cannot take ``point`` (None: it can)."""
+    models = len(plan.matrix.models)
+    steps = plan.point_steps(point.index)
+    counts = [s.revolutions for s in steps if isinstance(s, (Acquire, ChooseBlocks))]  # most per block
+    try:
+        store.check_free_space(point_bytes(rig, point, counts, models))
+    except StorageFullError as err:
+        return f"not enough free disk space: {err}"
+    return None
+
+
+def record_end(
+    store: RunStore, run_id: str | None, status: Outcome, message: str, failed: Callable[[str, BaseException], None]
+) -> tuple[Outcome, str]:
+    """The run's status, run.h5, coefficients.csv and run.log's last line. A run whose
+    status or run.h5 cannot be written ends failed, whatever it was (the reason said)."""
+    try:
+        store.set_status(stored_status(status), message)
+    except Exception as err:  # noqa: BLE001 - the other records are still written
+        failed("write the run status and run.h5", err)
+        if status != FAILED:  # a failed run keeps its first cause
+            status, message = FAILED, f"storage failed: the run's status and run.h5 could not be written: {err}"
+    last_line = f"run {run_id} ended: {status}: {message}"
+    for what, action in (
+        ("write coefficients.csv", store.write_csv),
+        ("close the run log", lambda: store.log(last_line)),
+    ):
+        try:
+            action()
+        except Exception as err:  # noqa: BLE001
+            failed(what, err)
+    return status, message
+
+
+def completed_points(store: RunStore) -> list[int]:
+    """The points the run file marks complete ([] if it cannot be read after a storage failure)."""
+    try:
+        return store.completed_points()
+    except (StorageError, OSError) as err:
+        log.error("cannot read the completed points: %s", err)
+        return []
