@@ -27,13 +27,10 @@ from typing import Any
 from daq.backoff import Backoff
 from orbitrig.service import protocol as proto
 from orbitrig.service.inbox import CommandInbox, CommandTriage, Connection
-from orbitrig.service.reconnect import credentials_refused, reconnecting
+from orbitrig.service.reconnect import TRAFFIC_S, credentials_refused, reconnecting
 from orbitrig.service.settings import AbortAccount, BrokerSettings, ServiceError, ServiceSettings
 
 log = logging.getLogger("orbitrig.service.abort_link")
-
-#: a connection that stayed up this long (s) after subscribing resets the backoff
-TRAFFIC_S = 5.0
 
 
 class AbortConnectionRefused(ServiceError):

@@ -33,13 +33,11 @@ from orbitrig.service import protocol as proto
 from daq.backoff import Backoff
 from orbitrig.service.flood_read import hold_reading, read_in_bursts, shed_before_decoding
 from orbitrig.service.inbox import CommandInbox, CommandTriage
-from orbitrig.service.reconnect import credentials_refused, reconnecting
+from orbitrig.service.reconnect import TRAFFIC_S, credentials_refused, reconnecting
 from orbitrig.service.settings import BrokerSettings, ServiceError, ServiceSettings
 
 log = logging.getLogger("orbitrig.service.link")
 
-#: a connection that stayed up this long (s) after subscribing resets the backoff
-TRAFFIC_S = 5.0
 #: messages handed to the MQTT client at once (it keeps its own in-flight limit)
 PUBLISH_WINDOW = 64
 

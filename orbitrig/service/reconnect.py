@@ -16,6 +16,9 @@ from collections.abc import Awaitable, Callable
 
 from daq.backoff import Backoff
 
+#: a connection that stayed up this long (s) after subscribing carried traffic: it resets the backoff
+TRAFFIC_S = 5.0
+
 #: CONNACK reason codes meaning "your credentials are refused" (MQTT 3.1.1 and 5).
 AUTH_REFUSED = frozenset({4, 5, 134, 135})
 
