@@ -50,16 +50,24 @@ def measure(run: Path, args: list[str], workers: int, label: str, points: int) -
     108-point projection (wall; CPU / workers, what idle cores would take); return the smaller."""
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
     t0, cpu0 = time.perf_counter(), _children_cpu()
-    done = subprocess.run([sys.executable, "-m", "orbitrig", "report", str(run), "--workers", str(workers), *args],
-                          env=env, capture_output=True, text=True, check=False)
+    done = subprocess.run(
+        [sys.executable, "-m", "orbitrig", "report", str(run), "--workers", str(workers), *args],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     dt, cpu = time.perf_counter() - t0, _children_cpu() - cpu0
     if done.returncode != 0:
         sys.exit(f"{label}: orbitrig report exited {done.returncode}: {done.stderr.strip()[-2000:]}")
     figures = len(list((run / "plots").glob("*.png")))
     wall, idle = dt * PAPER_POINTS / points, cpu / workers * PAPER_POINTS / points
-    print(f"{label:28s} {points:3d} points, {figures:4d} figures: {dt:6.1f} s wall, {cpu:6.1f} s CPU "
-          f"({cpu / figures:.2f} CPU s per figure); {PAPER_POINTS} points: {wall:5.0f} s wall, "
-          f"{idle:5.0f} s on {workers} idle cores (load average {os.getloadavg()[0]:.1f})", flush=True)
+    print(
+        f"{label:28s} {points:3d} points, {figures:4d} figures: {dt:6.1f} s wall, {cpu:6.1f} s CPU "
+        f"({cpu / figures:.2f} CPU s per figure); {PAPER_POINTS} points: {wall:5.0f} s wall, "
+        f"{idle:5.0f} s on {workers} idle cores (load average {os.getloadavg()[0]:.1f})",
+        flush=True,
+    )
     return min(wall, idle)
 
 
@@ -92,8 +100,10 @@ def main() -> int:
             shutil.rmtree(run / "plots")
             measure(run, ["--formats", "png,pdf,svg"], args.workers, "--formats png,pdf,svg", args.points)
     ok = cold < TARGET_S
-    print(f"{'PASS' if ok else 'MISS'}: {PAPER_POINTS}-point report {cold:.0f} s with {args.workers} workers "
-          f"(target < {TARGET_S:.0f} s)")
+    print(
+        f"{'PASS' if ok else 'MISS'}: {PAPER_POINTS}-point report {cold:.0f} s with {args.workers} workers "
+        f"(target < {TARGET_S:.0f} s)"
+    )
     return 0 if ok else 1
 
 

@@ -76,13 +76,23 @@ def use_style(style: FigureStyle) -> None:
 
     global STYLE
     STYLE = style
-    matplotlib.rcParams.update({
-        "font.size": style.font, "axes.titlesize": "medium", "axes.labelsize": "medium",
-        "xtick.labelsize": "small", "ytick.labelsize": "small", "legend.fontsize": "small",
-        "figure.titlesize": "large", "lines.linewidth": 1.0, "lines.markersize": 3.5,
-        "pdf.fonttype": 42, "svg.fonttype": "none", "path.simplify": True,
-        "axes.titley": 1.0,  # titles at a fixed height: no search for overlapping tick labels per draw
-    })
+    matplotlib.rcParams.update(
+        {
+            "font.size": style.font,
+            "axes.titlesize": "medium",
+            "axes.labelsize": "medium",
+            "xtick.labelsize": "small",
+            "ytick.labelsize": "small",
+            "legend.fontsize": "small",
+            "figure.titlesize": "large",
+            "lines.linewidth": 1.0,
+            "lines.markersize": 3.5,
+            "pdf.fonttype": 42,
+            "svg.fonttype": "none",
+            "path.simplify": True,
+            "axes.titley": 1.0,  # titles at a fixed height: no search for overlapping tick labels per draw
+        }
+    )
 
 
 def style() -> FigureStyle:
@@ -111,8 +121,18 @@ def split_tested(grid: np.ndarray, lo: float, hi: float) -> tuple[np.ndarray, np
     return grid <= lo + eps, (grid >= lo - eps) & (grid <= hi + eps), grid >= hi - eps
 
 
-def plot_fit(ax, x: np.ndarray, y: np.ndarray, lo: float, hi: float, *, color, lw: float = 1.2,
-             label: str | None = None, ls: str = "-") -> None:
+def plot_fit(
+    ax,
+    x: np.ndarray,
+    y: np.ndarray,
+    lo: float,
+    hi: float,
+    *,
+    color,
+    lw: float = 1.2,
+    label: str | None = None,
+    ls: str = "-",
+) -> None:
     """A fitted curve y(x), x = Omega/omega: `ls` over the tested range [lo, hi] (same units as
     x), thin dotted outside it (an extrapolation, not a result)."""
     below, inside, above = split_tested(x, lo, hi)
@@ -150,15 +170,30 @@ def text_scale() -> float:
     return STYLE.font / 10.0
 
 
-def panel_figure(w: float, h: float, *, left: float = 0.85, right: float = 0.2, top: float = 0.95,
-                 bottom: float = 1.15, wspace: float = 0.42, hspace: float = 0.42) -> Figure:
+def panel_figure(
+    w: float,
+    h: float,
+    *,
+    left: float = 0.85,
+    right: float = 0.2,
+    top: float = 0.95,
+    bottom: float = 1.15,
+    wspace: float = 0.42,
+    hspace: float = 0.42,
+) -> Figure:
     """A figure of many panels with fixed margins in inches (room for a two-line title on top and
     a legend at the bottom): half the saving time of constrained layout, whose solver measures
     every tick label. Put the legend with ``loc="lower center"``."""
     fig = _figure(w, h, layout=None)
     t = text_scale() * w / STYLE.width  # margins in design inches, for the style's text
-    fig.subplots_adjust(left=left * t / w, right=1 - right * t / w, top=1 - top * t / h, bottom=bottom * t / h,
-                        wspace=wspace, hspace=hspace)
+    fig.subplots_adjust(
+        left=left * t / w,
+        right=1 - right * t / w,
+        top=1 - top * t / h,
+        bottom=bottom * t / h,
+        wspace=wspace,
+        hspace=hspace,
+    )
     return fig
 
 
@@ -281,19 +316,55 @@ def forces_figure(table, fitted: Sequence[Fitted], *, title: str) -> Figure:
             for n, (fit, rep) in enumerate(zip(fitted, reproduced)):
                 f = rep[col][sel]
                 first = d == 1 or not np.any(dirs == 1)
-                amp_ax.plot(ratio[sel], np.abs(f), ls, color=colors[n], lw=widths[n], label=fit.label if first else None)
-                res_ax.plot(ratio[sel], np.abs(measured[sel] - f), ls, marker=marker, color=colors[n], lw=widths[n],
-                            ms=3, mfc=colors[n] if d == 1 else "white")
+                amp_ax.plot(
+                    ratio[sel], np.abs(f), ls, color=colors[n], lw=widths[n], label=fit.label if first else None
+                )
+                res_ax.plot(
+                    ratio[sel],
+                    np.abs(measured[sel] - f),
+                    ls,
+                    marker=marker,
+                    color=colors[n],
+                    lw=widths[n],
+                    ms=3,
+                    mfc=colors[n] if d == 1 else "white",
+                )
             face = "black" if d == 1 else "white"
-            amp_ax.plot(ratio[sel], np.abs(measured[sel]), marker, mfc=face, mec="black", ls="none",
-                        ms=4, label=f"measured, {dname} whirl", zorder=5)
+            amp_ax.plot(
+                ratio[sel],
+                np.abs(measured[sel]),
+                marker,
+                mfc=face,
+                mec="black",
+                ls="none",
+                ms=4,
+                label=f"measured, {dname} whirl",
+                zorder=5,
+            )
             if table.u is not None:
                 u = table.u[sel, 2 + col]
-                amp_ax.errorbar(ratio[sel], np.abs(measured[sel]), yerr=k * u / np.sqrt(2.0), fmt="none",
-                                ecolor="black", capsize=1.5, lw=0.6, zorder=4, gid="measured-uncertainty")
-                res_ax.plot(ratio[sel], k * u, ls, color="0.55", lw=2.2, alpha=0.6, zorder=1,
-                            label=f"U = {k:g} u of the measured phasor" if d == 1 or not np.any(dirs == 1) else None,
-                            gid="measured-uncertainty")
+                amp_ax.errorbar(
+                    ratio[sel],
+                    np.abs(measured[sel]),
+                    yerr=k * u / np.sqrt(2.0),
+                    fmt="none",
+                    ecolor="black",
+                    capsize=1.5,
+                    lw=0.6,
+                    zorder=4,
+                    gid="measured-uncertainty",
+                )
+                res_ax.plot(
+                    ratio[sel],
+                    k * u,
+                    ls,
+                    color="0.55",
+                    lw=2.2,
+                    alpha=0.6,
+                    zorder=1,
+                    label=f"U = {k:g} u of the measured phasor" if d == 1 or not np.any(dirs == 1) else None,
+                    gid="measured-uncertainty",
+                )
         amp_ax.set_title(f"{name} amplitude")
         amp_ax.set_ylabel(f"|{name}|  [N]")
         res_ax.set_title(f"{name} residual: |measured - reproduced| phasor")
@@ -309,8 +380,14 @@ def forces_figure(table, fitted: Sequence[Fitted], *, title: str) -> Figure:
         handles += [Line2D([], [], color="gray", ls="-"), Line2D([], [], color="gray", ls="--")]
         labels += ["forward whirl (solid)", "backward whirl (dashed)"]
     ncols = 1 if max(len(label) for label in labels) > 60 else 2  # long labels (verdicts): one column
-    fig.legend(handles, labels, loc="lower center", ncols=ncols, fontsize="small",
-               title=style().band_label("error bars") + " (amplitude: U/\u221a2)")
+    fig.legend(
+        handles,
+        labels,
+        loc="lower center",
+        ncols=ncols,
+        fontsize="small",
+        title=style().band_label("error bars") + " (amplitude: U/\u221a2)",
+    )
     fig.suptitle(title)
     return fig
 
@@ -338,8 +415,9 @@ def keep_inside(ax, xs, ys, margin: float = 0.05) -> None:
             put(min(lo, lim.min() - margin * span), max(hi, lim.max() + margin * span))
 
 
-def summary_plot(path, series: dict[str, list[tuple[int, Any]]], truth: list[tuple[int, dict]], *,
-                 model: str, title: str) -> Path:
+def summary_plot(
+    path, series: dict[str, list[tuple[int, Any]]], truth: list[tuple[int, dict]], *, model: str, title: str
+) -> Path:
     """The constant K and C entries of one model at every operating point (x: point
     index), one marker series per load measuring system, error bars of one standard
     error, and the simulator's true values (K0, C0) as black crosses."""
@@ -357,8 +435,16 @@ def summary_plot(path, series: dict[str, list[tuple[int, Any]]], truth: list[tup
                 vals = [ident.coefficients.get(key, np.nan) * scale for _, ident in entries]
                 largest[m] = max(largest[m], float(np.nanmax(np.abs(vals))))
                 errs = [coverage() * (ident.std_errors.get(key) or 0.0) * scale for _, ident in entries]
-                axes[row, col].errorbar(idx + offsets[k], vals, yerr=errs, fmt="o", ms=4, capsize=2,
-                                        color=colors[k], label=f"{lms}, {model}")
+                axes[row, col].errorbar(
+                    idx + offsets[k],
+                    vals,
+                    yerr=errs,
+                    fmt="o",
+                    ms=4,
+                    capsize=2,
+                    color=colors[k],
+                    label=f"{lms}, {model}",
+                )
     for row, m in enumerate("KC"):
         unit, scale = MATRIX_UNITS[m]
         for col, e in enumerate(ENTRIES):
@@ -377,7 +463,8 @@ def summary_plot(path, series: dict[str, list[tuple[int, Any]]], truth: list[tup
             if row == 1:
                 ax.set_xlabel("operating point  [index]")
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncols=len(labels), fontsize="small",
-               title=style().band_label("error bars"))
+    fig.legend(
+        handles, labels, loc="lower center", ncols=len(labels), fontsize="small", title=style().band_label("error bars")
+    )
     fig.suptitle(title)
     return _save(fig, path)

@@ -18,8 +18,20 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from orbitrig.analysis.plots import (ENTRIES, TRUTH_LABEL, Fitted, _colors, _min_span, _save, coverage, keep_inside,
-                                    panels, plot_fit, split_tested, style)
+from orbitrig.analysis.plots import (
+    ENTRIES,
+    TRUTH_LABEL,
+    Fitted,
+    _colors,
+    _min_span,
+    _save,
+    coverage,
+    keep_inside,
+    panels,
+    plot_fit,
+    split_tested,
+    style,
+)
 from orbitrig.analysis.reduce import MATRIX_UNITS
 from reduction.derived import entry_gradient
 
@@ -58,9 +70,16 @@ def _draw_fit(axes, mats, fit: Fitted, color, grid, tested, spin, largest) -> No
             plot_fit(ax, grid / spin, val, tested.min() / spin, tested.max() / spin, color=color, label=fit.label)
             ax.fill_between(grid[inside] / spin, val[inside] - band, val[inside] + band, color=color, alpha=0.15, lw=0)
             if not constant:
-                ax.errorbar(tested / spin, at_tested[:, mi, i, j] * scale,
-                            yerr=k * entry_std(ident, m, e, tested) * scale,
-                            fmt="o", ms=2.5, color=color, capsize=1.5, lw=0.8)
+                ax.errorbar(
+                    tested / spin,
+                    at_tested[:, mi, i, j] * scale,
+                    yerr=k * entry_std(ident, m, e, tested) * scale,
+                    fmt="o",
+                    ms=2.5,
+                    color=color,
+                    capsize=1.5,
+                    lw=0.8,
+                )
 
 
 def truth_matrix(truth: dict, matrix: str) -> tuple[np.ndarray, np.ndarray] | None:
@@ -92,12 +111,14 @@ def _draw_truth(axes, mats, truth: dict, spin: float, largest) -> None:
         largest[m] = max(largest[m], float(np.max(np.abs(mat))) * scale)
         for col in range(4):
             i, j = divmod(col, 2)
-            axes[row, col].plot(t_orbit / spin, mat[:, i, j] * scale, "x", color="black", ms=4,
-                                mew=1.0, label=TRUTH_LABEL, zorder=6)
+            axes[row, col].plot(
+                t_orbit / spin, mat[:, i, j] * scale, "x", color="black", ms=4, mew=1.0, label=TRUTH_LABEL, zorder=6
+            )
 
 
-def coefficients_figure(fitted: Sequence[Fitted], *, spin: float, orbit: np.ndarray, truth: dict | None,
-                        title: str) -> Figure:
+def coefficients_figure(
+    fitted: Sequence[Fitted], *, spin: float, orbit: np.ndarray, truth: dict | None, title: str
+) -> Figure:
     """K, C, D entries of every identification in `fitted` against Omega/omega (one model)."""
     mats = [m for m in "KCD" if any(_has(f.identification, m) for f in fitted)]
     fig, axes = panels(13, 2.7 * len(mats) + 2.0, len(mats), 4, bottom=1.35, hspace=0.35)
@@ -125,13 +146,20 @@ def coefficients_figure(fitted: Sequence[Fitted], *, spin: float, orbit: np.ndar
                 ax.set_xlabel("\u03a9/\u03c9  [-]")
     handles, labels = axes[0, 0].get_legend_handles_labels()
     uniq = dict(zip(labels, handles))
-    fig.legend(list(uniq.values()), list(uniq.keys()), loc="lower center", ncols=min(3, len(uniq)),
-               fontsize="small", title=style().band_label() + "; solid over the tested range, dotted beyond")
+    fig.legend(
+        list(uniq.values()),
+        list(uniq.keys()),
+        loc="lower center",
+        ncols=min(3, len(uniq)),
+        fontsize="small",
+        title=style().band_label() + "; solid over the tested range, dotted beyond",
+    )
     fig.suptitle(title)
     return fig
 
 
-def coefficients_plot(path, fitted: Sequence[Fitted], *, spin: float, orbit: np.ndarray, truth: dict | None,
-                      title: str) -> Path:
+def coefficients_plot(
+    path, fitted: Sequence[Fitted], *, spin: float, orbit: np.ndarray, truth: dict | None, title: str
+) -> Path:
     """:func:`coefficients_figure` written to `path` (PNG)."""
     return _save(coefficients_figure(fitted, spin=spin, orbit=orbit, truth=truth, title=title), path)

@@ -17,8 +17,12 @@ from matplotlib.patches import Patch
 from orbitrig.analysis.plots import PAIR_LABELS, _figure, whirl_direction
 
 #: (lower bound, colour, label) of each gamma^2 band, best first
-BANDS = ((0.99, "#1a9850", "\u2265 0.99"), (0.95, "#a6d96a", "0.95 \u2013 0.99"),
-         (0.90, "#fee08b", "0.90 \u2013 0.95"), (0.0, "#f46d43", "< 0.90"))
+BANDS = (
+    (0.99, "#1a9850", "\u2265 0.99"),
+    (0.95, "#a6d96a", "0.95 \u2013 0.99"),
+    (0.90, "#fee08b", "0.90 \u2013 0.95"),
+    (0.0, "#f46d43", "< 0.90"),
+)
 
 
 def band_colour(gamma2: float) -> str:
@@ -78,7 +82,12 @@ def coherence_figure(table: CoherenceTable, *, title: str) -> Figure:
     ax.tick_params(length=0)
     low = np.nanmin(table.values) if np.isfinite(table.values).any() else float("nan")
     handles = [Patch(color=colour, label=label) for _, colour, label in BANDS]
-    fig.legend(handles=handles, loc="outside lower center", ncols=4, fontsize="x-small",
-               title=f"coherence \u03b3\u00b2 between displacement and force (lowest {low:.3f})")
+    fig.legend(
+        handles=handles,
+        loc="outside lower center",
+        ncols=4,
+        fontsize="x-small",
+        title=f"coherence \u03b3\u00b2 between displacement and force (lowest {low:.3f})",
+    )
     fig.suptitle(title)
     return fig

@@ -8,13 +8,22 @@ from typing import Any
 
 import numpy as np
 
-from orbitrig.analysis.plots import (DIRECTIONS, ENTRIES, MATRIX_NAMES, Fitted, _colors, _figure, _save, coverage,
-                                    style, whirl_direction)
+from orbitrig.analysis.plots import (
+    DIRECTIONS,
+    ENTRIES,
+    MATRIX_NAMES,
+    Fitted,
+    _colors,
+    _figure,
+    _save,
+    coverage,
+    style,
+    whirl_direction,
+)
 from orbitrig.analysis.reduce import MATRIX_UNITS
 
 
-def lms_comparison_plot(path, tables: dict[str, Any], fitted: dict[str, Fitted] | None, *,
-                        title: str) -> Path:
+def lms_comparison_plot(path, tables: dict[str, Any], fitted: dict[str, Fitted] | None, *, title: str) -> Path:
     """The two load measuring systems side by side: strain-gauge force relative
     to piezoelectric (amplitude difference in %, phase difference in deg) per
     frequency, and the constant K and C of one identification from each."""
@@ -32,10 +41,24 @@ def lms_comparison_plot(path, tables: dict[str, Any], fitted: dict[str, Fitted] 
             if sel.size == 0:
                 continue
             sel = sel[np.argsort(ratio[sel])]
-            axes[0, 0].plot(ratio[sel], 100 * (np.abs(rel[sel]) - 1), ls=ls, marker=marker, color=colors[c],
-                            mfc=colors[c] if d == 1 else "white", label=f"{name}, {dname}")
-            axes[0, 1].plot(ratio[sel], np.degrees(np.angle(rel[sel])), ls=ls, marker=marker, color=colors[c],
-                            mfc=colors[c] if d == 1 else "white", label=f"{name}, {dname}")
+            axes[0, 0].plot(
+                ratio[sel],
+                100 * (np.abs(rel[sel]) - 1),
+                ls=ls,
+                marker=marker,
+                color=colors[c],
+                mfc=colors[c] if d == 1 else "white",
+                label=f"{name}, {dname}",
+            )
+            axes[0, 1].plot(
+                ratio[sel],
+                np.degrees(np.angle(rel[sel])),
+                ls=ls,
+                marker=marker,
+                color=colors[c],
+                mfc=colors[c] if d == 1 else "white",
+                label=f"{name}, {dname}",
+            )
     axes[0, 0].set_ylabel("|F strain| / |F piezo| - 1  [%]")
     axes[0, 0].set_title("amplitude difference, strain vs piezo")
     axes[0, 1].set_ylabel("phase(F strain) - phase(F piezo)  [deg]")
@@ -55,8 +78,15 @@ def lms_comparison_plot(path, tables: dict[str, Any], fitted: dict[str, Fitted] 
                 ident = fit.identification
                 vals = [ident.coefficients.get(key, np.nan) * scale for key in keys]
                 errs = [coverage() * (ident.std_errors.get(key) or 0.0) * scale for key in keys]
-                ax.bar(np.arange(4) + (k - 0.5) * width, vals, width, yerr=errs, capsize=3,
-                       color=colors[k], label=f"{lms}: {fit.label}")
+                ax.bar(
+                    np.arange(4) + (k - 0.5) * width,
+                    vals,
+                    width,
+                    yerr=errs,
+                    capsize=3,
+                    color=colors[k],
+                    label=f"{lms}: {fit.label}",
+                )
             ax.set_xticks(np.arange(4), keys)
             ax.set_ylabel(f"{MATRIX_NAMES[m]}  [{unit}]")
             ax.set_title(f"{MATRIX_NAMES[m]} identified from each load measuring system")

@@ -74,10 +74,18 @@ class FiguresAhead:
         try:
             if self._process is None:
                 self._process = subprocess.Popen(
-                    [sys.executable, "-m", "orbitrig.analysis.report_ahead", str(self.directory),
-                     *sorted(self.figures or ())],
-                    stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                    start_new_session=True)  # Ctrl-C reaches the sweep only
+                    [
+                        sys.executable,
+                        "-m",
+                        "orbitrig.analysis.report_ahead",
+                        str(self.directory),
+                        *sorted(self.figures or ()),
+                    ],
+                    stdin=subprocess.PIPE,
+                    stdout=subprocess.DEVNULL,
+                    stderr=subprocess.DEVNULL,
+                    start_new_session=True,
+                )  # Ctrl-C reaches the sweep only
                 assert self._process.stdin is not None
                 os.set_blocking(self._process.stdin.fileno(), False)
             assert self._process.stdin is not None

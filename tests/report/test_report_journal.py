@@ -32,8 +32,9 @@ def _fitted(pr, lms="piezo", model="kcd11"):
 
 def _coefficients(pt, pr, truth):
     table = pt.tables["piezo"]
-    return plots_coefficients.coefficients_figure(_fitted(pr), spin=table.spin, orbit=table.orbit, truth=truth,
-                                                  title="t")
+    return plots_coefficients.coefficients_figure(
+        _fitted(pr), spin=table.spin, orbit=table.orbit, truth=truth, title="t"
+    )
 
 
 @pytest.mark.parametrize("stored", ["per row", "constant best fit only"])
@@ -116,7 +117,7 @@ def _png_width_and_dpi(path):
     data = path.read_bytes()
     width = struct.unpack(">I", data[16:20])[0]
     at = data.index(b"pHYs")
-    ppm = struct.unpack(">I", data[at + 4:at + 8])[0]
+    ppm = struct.unpack(">I", data[at + 4 : at + 8])[0]
     return width, ppm * 0.0254
 
 

@@ -42,8 +42,13 @@ def test_coherence_is_a_coloured_table_of_the_stored_values(point_report):
     assert table.lms == ["piezo", "strain"] and table.values.shape == (20, 8)
     assert table.rows[0] == "0.200 fwd" and table.rows[-1] == "1.200 bwd"
     piezo = point.tables["piezo"]
-    first_bwd = int(np.flatnonzero((piezo.orbit / piezo.spin > 0.19) & (piezo.orbit / piezo.spin < 0.21)
-                                   & (np.imag(np.conj(piezo.x) * piezo.y) > 0))[0])
+    first_bwd = int(
+        np.flatnonzero(
+            (piezo.orbit / piezo.spin > 0.19)
+            & (piezo.orbit / piezo.spin < 0.21)
+            & (np.imag(np.conj(piezo.x) * piezo.y) > 0)
+        )[0]
+    )
     np.testing.assert_array_equal(table.values[10, :4], piezo.gamma2[first_bwd])
     fig = coherence_figure(table, title="t")
     ax = fig.axes[0]
@@ -68,8 +73,9 @@ def test_truth_markers_stay_inside_the_axes_even_far_from_the_fit(point_report):
     truth = copy.deepcopy(point.truth)
     truth["K"] = (np.asarray(truth["K"]) * 3).tolist()  # far outside what the fit draws
     t = point.tables["piezo"]
-    fig = coefficients_figure([Fitted(fit_label(r), r.identification)], spin=t.spin, orbit=t.orbit, truth=truth,
-                              title="t")
+    fig = coefficients_figure(
+        [Fitted(fit_label(r), r.identification)], spin=t.spin, orbit=t.orbit, truth=truth, title="t"
+    )
     crosses = 0
     for ax in fig.axes:
         for line in ax.get_lines():
@@ -159,9 +165,12 @@ def test_identification_table_shows_interval_budget_warnings(point_report):
     html = identification_table(r, {}, "kcd11", with_budget=False)
     lo, hi = ident.confidence_95["Kxy"]
     assert f"[{lo * 1e-6:.4g}, {hi * 1e-6:.4g}]" in html
-    assert f"{ident.aic:.5g} / {ident.bic:.5g}" in html and f"<td colspan=\"4\" class=\"l\">{ident.dof}</td>" in html
-    r.stored = dict(r.stored or {}, warnings=["Cxy is ill-conditioned"],
-                    uncertainty={"k": 2.0, "systematic": {"Kxy": 12345.0}, "expanded": {"Kxy": 67890.0}})
+    assert f"{ident.aic:.5g} / {ident.bic:.5g}" in html and f'<td colspan="4" class="l">{ident.dof}</td>' in html
+    r.stored = dict(
+        r.stored or {},
+        warnings=["Cxy is ill-conditioned"],
+        uncertainty={"k": 2.0, "systematic": {"Kxy": 12345.0}, "expanded": {"Kxy": 67890.0}},
+    )
     html = identification_table(r, {}, "kcd11", with_budget=True)
     assert "warning: Cxy is ill-conditioned" in html
     assert "expanded U<br>(combined, k = 2)" in html
