@@ -39,7 +39,8 @@ from pathlib import Path
 from orbitrig.analysis import plots as plots
 from orbitrig.analysis.report_pdf import COMBINED_PDF, combine_pdf
 from orbitrig.analysis.report_pool import Progress, draw_points
-from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_lms, plots_signals, report_cache
+from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_forces, plots_lms, plots_signals
+from orbitrig.analysis import plots_summary, report_cache
 from orbitrig.analysis.quality import Verdict, adequacy_verdicts, derived_of, true_impedance, warnings_of
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.errors import ReductionError
@@ -216,7 +217,7 @@ def _plot_lms(pr: PointReport, lms: str, out: Path, where: str, opts: ReportOpti
     ]
     if "forces" in opts.figures:
         pr.plots.append(
-            plots.forces_plot(
+            plots_forces.forces_plot(
                 out / f"forces_{point.name}_{lms}.png",
                 table,
                 with_verdicts,
@@ -317,7 +318,7 @@ def summary_plot_for(report: Report) -> Path | None:
         return None
     series = {lms: [(pr.point.index, found[lms].identification) for pr, found in chosen] for lms in LMS}
     truth = [(pr.point.index, pr.point.truth) for pr, _ in chosen if pr.point.truth]
-    return plots.summary_plot(
+    return plots_summary.summary_plot(
         report.directory / "summary.png",
         series,
         truth,

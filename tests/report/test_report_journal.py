@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from pypdf import PdfReader
 
-from orbitrig.analysis import plots, plots_coefficients
+from orbitrig.analysis import plots, plots_coefficients, plots_forces
 from orbitrig.analysis.reduce import MATRIX_UNITS
 from orbitrig.analysis.report import ReportOptions, analyse_point, fit_label, make_report
 from orbitrig.cli.report_progress import ReportProgress
@@ -99,7 +99,7 @@ def test_residual_panels_show_measured_minus_reproduced(point):
     pt, pr = point
     table = pt.tables["piezo"]
     fitted = _fitted(pr, model="kc7")
-    fig = plots.forces_figure(table, fitted, title="t")
+    fig = plots_forces.forces_figure(table, fitted, title="t")
     ax = next(ax for ax in fig.axes if ax.get_title().startswith("Fy residual"))
     ratio = table.orbit / table.spin
     forward = np.flatnonzero(plots.whirl_direction(table) == 1)

@@ -225,7 +225,7 @@ def test_figure_5_error_bars_from_the_phasor_uncertainty(point_report):
     frequency; without u_*, neither."""
     from matplotlib.container import ErrorbarContainer
 
-    from orbitrig.analysis import plots
+    from orbitrig.analysis import plots_forces
     from reduction.table import OrbitTable
 
     stored = point_report.point.tables["piezo"]
@@ -233,7 +233,7 @@ def test_figure_5_error_bars_from_the_phasor_uncertainty(point_report):
     u = np.column_stack([np.full(t.orbit.size, 1e-8)] * 2 + [0.01 * np.abs(t.fx), 0.02 * np.abs(t.fy)])
     with_u = OrbitTable(t.spin, t.orbit, t.x, t.y, t.fx, t.fy, gamma2=t.gamma2, n_records=np.full(t.orbit.size, 8), u=u)
     fitted = [Fitted("kc7", point_report.results["piezo"][0].identification)]
-    fig = plots.forces_figure(with_u, fitted, title="t")  # a figure is valid until the next of its shape
+    fig = plots_forces.forces_figure(with_u, fitted, title="t")  # a figure is valid until the next of its shape
     amp_fy, residual_fy = fig.axes[1], fig.axes[3]
     bars = [c for c in amp_fy.containers if isinstance(c, ErrorbarContainer)]
     assert len(bars) == 2  # forward and backward
@@ -242,7 +242,7 @@ def test_figure_5_error_bars_from_the_phasor_uncertainty(point_report):
     assert np.sort(half) == pytest.approx(np.sort(2 * 0.02 * np.abs(t.fy) / np.sqrt(2)))
     shown = np.concatenate([ln.get_ydata() for ln in residual_fy.get_lines() if ln.get_gid() == "measured-uncertainty"])
     assert np.sort(shown) == pytest.approx(np.sort(2 * 0.02 * np.abs(t.fy)))
-    fig = plots.forces_figure(t, fitted, title="t")  # the same figure, emptied: no bar of the last one left
+    fig = plots_forces.forces_figure(t, fitted, title="t")  # the same figure, emptied: no bar of the last one left
     assert not any(isinstance(c, ErrorbarContainer) for ax in fig.axes for c in ax.containers)
     assert not any(ln.get_gid() == "measured-uncertainty" for ax in fig.axes for ln in ax.get_lines())
 
