@@ -148,17 +148,20 @@ def png_bytes(fig, dpi: float) -> bytes:
     """`fig` (on a :class:`ReportCanvas` or any Agg canvas) drawn at `dpi` and encoded as an
     8-bit RGB PNG stating its resolution (the figure is opaque: no alpha channel, so report.pdf
     can carry the PNG's compressed pixels unchanged)."""
+    from PIL import Image
+
     screen = fig.dpi
     try:
         fig.set_dpi(dpi)
         fig.canvas.draw()
         width, height = fig.canvas.get_width_height(physical=True)
-        rgba = np.asarray(fig.canvas.buffer_rgba())
+        rgba = Image.frombuffer("RGBA", (width, height), fig.canvas.buffer_rgba(), "raw", "RGBA", 0, 1)
+        rgb = np.asarray(rgba.convert("RGB"))
     finally:
         fig.set_dpi(screen)
     rows = np.empty((height, 1 + 3 * width), np.uint8)
     rows[:, 0] = 0  # filter type None on every row
-    rows[:, 1:].reshape(height, width, 3)[:] = rgba[:, :, :3]
+    rows[:, 1:] = rgb.reshape(height, -1)
     per_metre = round(dpi / 0.0254)
     return b"".join(
         (

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from orbitrig.analysis.canvas import ReportCanvas, png_bytes
 from orbitrig.store.durable import write_atomic
@@ -31,6 +32,9 @@ MATRIX_NAMES = {"K": "stiffness", "C": "damping", "D": "apparent inertia (added 
 PAIR_LABELS = {"xfx": "x, Fx", "yfx": "y, Fx", "xfy": "x, Fy", "yfy": "y, Fy"}
 DIRECTIONS = ((1, Whirl.FORWARD, "-", "o"), (-1, Whirl.BACKWARD, "--", "s"))
 TRUTH_LABEL = "true (simulator)"
+#: ticks of each panel axis: at most MAX_TICKS intervals, at 1, 2, 2.5 or 5 times a power of 10
+MAX_TICKS = 5
+TICK_STEPS = (1, 2, 2.5, 5, 10)
 #: journal column widths (in)
 COLUMN_WIDTHS = {"single": 3.5, "double": 7.2}
 
@@ -207,6 +211,9 @@ def panels(w: float, h: float, rows: int, cols: int, *, sharex: bool = True, **m
         return fig, axes
     fig = panel_figure(w, h, **margins)
     axes = np.atleast_2d(fig.subplots(rows, cols, sharex=sharex, squeeze=False))
+    for ax in axes.flat:  # a journal panel reads 4 to 6 ticks an axis (matplotlib's 'auto' puts up to 9)
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=TICK_STEPS))
+        ax.yaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=TICK_STEPS))
     cache[key] = fig, axes
     return fig, axes
 

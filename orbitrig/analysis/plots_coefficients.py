@@ -35,6 +35,9 @@ from orbitrig.analysis.plots import (
 from orbitrig.analysis.reduce import MATRIX_UNITS
 from reduction.derived import entry_gradient
 
+#: points of each fitted curve over 0..1.05 max |Omega| (a panel is about 1.5 in wide: 60 points an inch)
+CURVE_POINTS = 100
+
 
 def entry_std(ident, matrix: str, entry: str, orbit: np.ndarray) -> np.ndarray:
     """One standard uncertainty of matrix entry (e.g. "K", "xy") at each Omega (rad/s), SI;
@@ -124,12 +127,13 @@ def coefficients_figure(
     fig, axes = panels(13, 2.7 * len(mats) + 2.0, len(mats), 4, bottom=1.35, hspace=0.35)
     top = float(np.max(np.abs(orbit))) * 1.05
     tested = np.unique(np.round(np.abs(orbit), 9))
-    grid = np.union1d(np.linspace(0.0, top, 200), tested[[0, -1]])  # the solid part ends on the tested range
+    grid = np.union1d(np.linspace(0.0, top, CURVE_POINTS), tested[[0, -1]])  # the solid part ends on the tested range
     largest = dict.fromkeys(mats, 0.0)  # largest |entry| drawn per matrix, display units
     for fit, color in zip(fitted, _colors(len(fitted))):
         _draw_fit(axes, mats, fit, color, grid, tested, spin, largest)
     if truth:
         _draw_truth(axes, mats, truth, spin, largest)
+    axes[0, 0].set_xlim(0, top / spin)  # shared by every panel
     for row, m in enumerate(mats):
         unit, _ = MATRIX_UNITS[m]
         for col, e in enumerate(ENTRIES):
@@ -137,7 +141,6 @@ def coefficients_figure(
             ax.set_title(f"{m}{e}")
             ax.set_ylabel(f"{m}{e}  [{unit}]")
             ax.grid(True, alpha=0.3)
-            ax.set_xlim(0, top / spin)
             _min_span(ax, largest[m])
             for line in ax.get_lines():  # the truth crosses, whatever limits were chosen
                 if line.get_label() == TRUTH_LABEL:
