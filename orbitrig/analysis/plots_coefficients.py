@@ -25,7 +25,9 @@ from orbitrig.analysis.plots import (
     _colors,
     _min_span,
     _save,
+    band,
     coverage,
+    error_bars,
     keep_inside,
     panels,
     plot_fit,
@@ -69,19 +71,13 @@ def _draw_fit(axes, mats, fit: Fitted, color, grid, tested, spin, largest) -> No
             i, j = divmod(col, 2)
             val = on_grid[:, mi, i, j] * scale
             largest[m] = max(largest[m], float(np.max(np.abs(val))))
-            band = k * entry_std(ident, m, e, grid[inside]) * scale
+            bands = k * entry_std(ident, m, e, grid[inside]) * scale
             plot_fit(ax, grid / spin, val, tested.min() / spin, tested.max() / spin, color=color, label=fit.label)
-            ax.fill_between(grid[inside] / spin, val[inside] - band, val[inside] + band, color=color, alpha=0.15, lw=0)
+            band(ax, grid[inside] / spin, val[inside] - bands, val[inside] + bands, color=color)
             if not constant:
-                ax.errorbar(
-                    tested / spin,
-                    at_tested[:, mi, i, j] * scale,
-                    yerr=k * entry_std(ident, m, e, tested) * scale,
-                    fmt="o",
-                    ms=2.5,
-                    color=color,
-                    capsize=1.5,
-                    lw=0.8,
+                err = k * entry_std(ident, m, e, tested) * scale
+                error_bars(
+                    ax, tested / spin, at_tested[:, mi, i, j] * scale, err, color=color, ms=2.5, capsize=1.5, lw=0.8
                 )
 
 

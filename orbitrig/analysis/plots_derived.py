@@ -19,7 +19,18 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from orbitrig.analysis.plots import ENTRIES, Fitted, _colors, _min_span, coverage, keep_inside, panels, plot_fit, style
+from orbitrig.analysis.plots import (
+    ENTRIES,
+    Fitted,
+    _colors,
+    _min_span,
+    band,
+    coverage,
+    keep_inside,
+    panels,
+    plot_fit,
+    style,
+)
 from orbitrig.analysis.quality import TrueImpedance, orbit_grid
 from reduction.derived import Derived
 
@@ -32,7 +43,7 @@ def _band(ax, x, y, std, color, scale, **kw) -> None:
     ax.plot(x, y * scale, color=color, **kw)
     if std is not None:
         k = coverage()
-        ax.fill_between(x, (y - k * std) * scale, (y + k * std) * scale, color=color, alpha=0.15, lw=0)
+        band(ax, x, (y - k * std) * scale, (y + k * std) * scale, color=color)
 
 
 def _zero_text(zero, spin: float) -> str:
