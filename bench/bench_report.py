@@ -92,7 +92,7 @@ def main() -> int:
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         run = synthetic(args.run or Path(tmp), args.points)
-        cold = measure(run, [], args.workers, "default (png, report.pdf)", args.points)
+        cold = measure(run, [], args.workers, "cold, default (png, pdf)", args.points)
         measure(run, [], args.workers, "again, run unchanged", args.points)
         max((run / "plots" / ".figures").glob("*.json")).unlink()  # the last point: not drawn ahead
         measure(run, [], args.workers, "after a sweep", args.points)
@@ -101,7 +101,7 @@ def main() -> int:
             measure(run, ["--formats", "png,pdf,svg"], args.workers, "--formats png,pdf,svg", args.points)
     ok = cold < TARGET_S
     print(
-        f"{'PASS' if ok else 'MISS'}: {PAPER_POINTS}-point report {cold:.0f} s with {args.workers} workers "
+        f"{'PASS' if ok else 'MISS'}: cold {PAPER_POINTS}-point report {cold:.0f} s with {args.workers} workers "
         f"(target < {TARGET_S:.0f} s)"
     )
     return 0 if ok else 1

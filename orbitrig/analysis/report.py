@@ -365,6 +365,7 @@ def make_report(
     options: ReportOptions = ReportOptions(),
     workers: int = 1,
     progress: Progress | None = None,
+    run: Run | None = None,
 ) -> Report:
     """Write ``DIR/plots/*.png`` (and .pdf, .svg when asked for), ``report.pdf`` and
     ``index.html``; return what was written.
@@ -375,11 +376,11 @@ def make_report(
     Figures of a kind not drawn are removed from DIR/plots (a page never shows a stale one).
     The points asked for and not complete are named in `skipped` (orbitrig.store.selection).
     ``workers`` processes draw the points; ``progress(done, total, figures)`` is called as each
-    point finishes. Raises RunDirError when DIR is not a run, StorageError when DIR/plots
-    cannot be written."""
+    point finishes; ``run``: DIR as the caller read it already (``read_run``). Raises RunDirError
+    when DIR is not a run, StorageError when DIR/plots cannot be written."""
     from orbitrig.analysis.report_html import write_html
 
-    run = read_run(directory)
+    run = read_run(directory) if run is None else run
     selection = select_points(run, points)
     out = Path(directory) / PLOTS_DIR
     try:

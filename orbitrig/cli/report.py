@@ -195,9 +195,10 @@ def report_cmd(
         options = ReportOptions(
             figures=frozenset(kinds), all_frequencies=all_frequencies, style=_style(width, formats, coverage)
         )
-        total = len(point) if point else len(read_run(directory, blocks=False).complete_points)
+        run = read_run(directory)  # once: the progress bar's total and the report's data
+        total = len(point) if point else len(run.complete_points)
         with ReportProgress(total) as progress:
-            report = make_report(directory, points=point, options=options, workers=workers, progress=progress)
+            report = make_report(directory, points=point, options=options, workers=workers, progress=progress, run=run)
     except (RunDirError, ValueError) as err:
         _fail(str(err))
     except StorageError as err:
