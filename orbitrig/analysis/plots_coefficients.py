@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import (
     ENTRIES,
     TRUTH_LABEL,
@@ -136,7 +137,7 @@ def coefficients_figure(
             ax = axes[row, col]
             ax.set_title(f"{m}{e}")
             ax.set_ylabel(f"{m}{e}  [{unit}]")
-            ax.grid(True, alpha=0.3)
+            light_grid(ax)
             _min_span(ax, largest[m])
             for line in ax.get_lines():  # the truth crosses, whatever limits were chosen
                 if line.get_label() == TRUTH_LABEL:

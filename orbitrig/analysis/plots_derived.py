@@ -19,6 +19,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
+from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import (
     ENTRIES,
     Fitted,
@@ -88,7 +89,7 @@ def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title
         axes[1, col].set_ylabel(f"{part} H  [MN/m]")
     axes[1, 2].set_visible(False)
     for ax in axes.flat:
-        ax.grid(True, alpha=0.3)
+        light_grid(ax)
     for ax in axes[1, :2]:
         ax.set_xlabel("\u03a9/\u03c9  [-]")
     axes[0, 2].set_xlabel("\u03a9/\u03c9  [-]")
@@ -132,7 +133,7 @@ def impedance_figure(
             keep_inside(ax, t_w / spin, part(t_z[:, i, j]) * MN)
             ax.set_title(f"{name} Z{e}", fontsize="medium")
             ax.set_ylabel(f"{name} Z{e}  [MN/m]")
-            ax.grid(True, alpha=0.3)
+            light_grid(ax)
             if row == 1:
                 ax.set_xlabel("\u03a9/\u03c9  [-]")
     handles, labels = axes[0, 0].get_legend_handles_labels()

@@ -11,6 +11,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
+from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import DIRECTIONS, Fitted, _colors, _save, coverage, panels, style, whirl_direction
 
 
@@ -43,7 +44,7 @@ def forces_figure(table, fitted: Sequence[Fitted], *, title: str) -> Figure:
         res_ax.set_xlabel("\u03a9/\u03c9  [-]")
         res_ax.set_ylim(bottom=0)
         for ax in (amp_ax, res_ax):
-            ax.grid(True, alpha=0.3)
+            light_grid(ax)
     _legend(fig, axes, both_directions=len(set(dirs)) > 1)
     fig.suptitle(title)
     return fig

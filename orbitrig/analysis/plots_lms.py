@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import (
     DIRECTIONS,
     ENTRIES,
@@ -60,7 +61,7 @@ def _differences(axes, a, b) -> None:
     for ax in axes:
         ax.set_xlabel("\u03a9/\u03c9  [-]")
         ax.axhline(0, color="gray", lw=0.8)
-        ax.grid(True, alpha=0.3)
+        light_grid(ax)
         ax.legend(fontsize="x-small")
 
 
@@ -82,5 +83,5 @@ def _coefficient_bars(axes, fitted: dict[str, Fitted]) -> None:
         ax.set_ylabel(f"{MATRIX_NAMES[m]}  [{unit}]")
         ax.set_title(f"{MATRIX_NAMES[m]} identified from each load measuring system")
         ax.axhline(0, color="gray", lw=0.8)
-        ax.grid(True, axis="y", alpha=0.3)
+        light_grid(ax, "y")
         ax.legend(fontsize="x-small", title=style().band_label("error bars"), title_fontsize="x-small")

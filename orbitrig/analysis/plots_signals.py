@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from matplotlib.figure import Figure
 
+from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import _colors, panels
 from orbitrig.analysis.signals import FORCE_CHANNELS, PROBE_PLANES, BlockSignals
 from reduction.fourier import harmonic_fit
@@ -101,7 +102,7 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
     for ax in axes.flat:
         ax.set_xlim(0, 360)
         ax.set_xticks(range(0, 361, 45))
-        ax.grid(True, alpha=0.3)
+        light_grid(ax)
     fig.suptitle(title)
     return fig
 
@@ -157,5 +158,5 @@ def _orbit_panel(ax, sig: BlockSignals, radius: float) -> None:
         fontsize="small",
     )
     ax.set_aspect("equal", adjustable="datalim")
-    ax.grid(True, alpha=0.3)
+    light_grid(ax)
     ax.tick_params(labelsize="small")

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 from matplotlib.ticker import MaxNLocator
 
+from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import (
     ENTRIES,
     TRUTH_LABEL,
@@ -63,7 +64,7 @@ def summary_plot(
                 ax.plot(*zip(*pts), "x", color="black", ms=6, mew=1.5, label=TRUTH_LABEL)
             ax.set_title(f"{m}{e}")
             ax.set_ylabel(f"{m}{e}  [{unit}]")
-            ax.grid(True, alpha=0.3)
+            light_grid(ax)
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
             _min_span(ax, largest[m])
             if pts:
