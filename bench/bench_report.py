@@ -1,19 +1,19 @@
 """Cost of `orbitrig report` on the paper's test matrix: 108 operating points of ~17 figures
-each must be reported in under 2 minutes with 2 worker processes.
+each must be reported in under 2 minutes with 2 worker processes, cold (no figure drawn before).
 
 Synthesises a run of N points (tests/support/report_synthetic.py: the sweep's own storage,
-the paper's 10 ratios x 2 directions and 4 models, the same 17 figures per point; `--run DIR`
-keeps it for the next bench) and times `orbitrig report DIR --workers 2` end to end in a
-subprocess: cold with the defaults (PNG 300 dpi, report.pdf from the PNGs), again on the
-unchanged run (every figure reused), after a sweep (the figures of every point but the last
-drawn during the sweep, as `orbitrig sweep` leaves them: orbitrig.analysis.report_ahead draws
-each completed point and is stopped with the sweep) and cold with `--formats png,pdf,svg`
-(vector files of every figure; `--vector` only). With fewer than 108 points the time is extrapolated
-linearly to 108 (the points are independent; the summary figure and report.pdf are a small
-part). On a shared machine the wall time says little: the CPU seconds of the report and its
-workers, divided by the workers, say what idle cores would take. Prints one line per
-measurement and exits 1 when the cold 108-point default report (the smaller projection)
-takes 2 minutes or more.
+the paper's 10 ratios x 2 directions and 4 models, the same 17 figures per point; writing 108
+points takes several minutes, so `--run DIR` keeps it for the next bench) and times `orbitrig
+report DIR --workers 2` end to end in a subprocess: cold with the defaults (PNG 300 dpi,
+report.pdf from the PNGs), again on the unchanged run (every figure reused), after a sweep (the
+figures of every point but the last drawn during the sweep, as `orbitrig sweep` leaves them:
+orbitrig.analysis.report_ahead draws each completed point and is stopped with the sweep) and
+cold with `--formats png,pdf,svg` (vector files of every figure; `--vector` only). With fewer
+than 108 points the time is extrapolated linearly to 108 (the points are independent; the
+summary figure and report.pdf are a small part). On a shared machine the wall time says
+little: the CPU seconds of the report and its workers, divided by the workers, say what idle
+cores would take. Prints one line per measurement and exits 1 when the cold 108-point default
+report (the smaller projection) takes 2 minutes or more.
 
 Run: python3 bench/bench_report.py [--points 108] [--workers 2] [--run DIR] [--vector]
 """
