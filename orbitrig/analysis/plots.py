@@ -13,19 +13,17 @@ from __future__ import annotations
 
 import io
 import threading
-from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
-from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
-from orbitrig.analysis.reduce import MATRIX_UNITS
+from orbitrig.analysis.canvas import ReportCanvas, png_bytes
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
 from reduction.whirl import Whirl
@@ -35,8 +33,9 @@ MATRIX_NAMES = {"K": "stiffness", "C": "damping", "D": "apparent inertia (added 
 PAIR_LABELS = {"xfx": "x, Fx", "yfx": "y, Fx", "xfy": "x, Fy", "yfy": "y, Fy"}
 DIRECTIONS = ((1, Whirl.FORWARD, "-", "o"), (-1, Whirl.BACKWARD, "--", "s"))
 TRUTH_LABEL = "true (simulator)"
-#: zlib level of the PNGs: 1 encodes about twice as fast as the default 6, files about 12 % larger
-PNG_COMPRESSION = 1
+#: ticks of each panel axis: at most MAX_TICKS intervals, at 1, 2, 2.5 or 5 times a power of 10
+MAX_TICKS = 5
+TICK_STEPS = (1, 2, 2.5, 5, 10)
 #: journal column widths (in)
 COLUMN_WIDTHS = {"single": 3.5, "double": 7.2}
 
@@ -76,13 +75,23 @@ def use_style(style: FigureStyle) -> None:
 
     global STYLE
     STYLE = style
-    matplotlib.rcParams.update({
-        "font.size": style.font, "axes.titlesize": "medium", "axes.labelsize": "medium",
-        "xtick.labelsize": "small", "ytick.labelsize": "small", "legend.fontsize": "small",
-        "figure.titlesize": "large", "lines.linewidth": 1.0, "lines.markersize": 3.5,
-        "pdf.fonttype": 42, "svg.fonttype": "none", "path.simplify": True,
-        "axes.titley": 1.0,  # titles at a fixed height: no search for overlapping tick labels per draw
-    })
+    matplotlib.rcParams.update(
+        {
+            "font.size": style.font,
+            "axes.titlesize": "medium",
+            "axes.labelsize": "medium",
+            "xtick.labelsize": "small",
+            "ytick.labelsize": "small",
+            "legend.fontsize": "small",
+            "figure.titlesize": "large",
+            "lines.linewidth": 1.0,
+            "lines.markersize": 3.5,
+            "pdf.fonttype": 42,
+            "svg.fonttype": "none",
+            "path.simplify": True,
+            "axes.titley": 1.0,  # titles at a fixed height: no search for overlapping tick labels per draw
+        }
+    )
 
 
 def style() -> FigureStyle:
@@ -111,8 +120,18 @@ def split_tested(grid: np.ndarray, lo: float, hi: float) -> tuple[np.ndarray, np
     return grid <= lo + eps, (grid >= lo - eps) & (grid <= hi + eps), grid >= hi - eps
 
 
-def plot_fit(ax, x: np.ndarray, y: np.ndarray, lo: float, hi: float, *, color, lw: float = 1.2,
-             label: str | None = None, ls: str = "-") -> None:
+def plot_fit(
+    ax,
+    x: np.ndarray,
+    y: np.ndarray,
+    lo: float,
+    hi: float,
+    *,
+    color,
+    lw: float = 1.2,
+    label: str | None = None,
+    ls: str = "-",
+) -> None:
     """A fitted curve y(x), x = Omega/omega: `ls` over the tested range [lo, hi] (same units as
     x), thin dotted outside it (an extrapolation, not a result)."""
     below, inside, above = split_tested(x, lo, hi)
@@ -120,6 +139,32 @@ def plot_fit(ax, x: np.ndarray, y: np.ndarray, lo: float, hi: float, *, color, l
     for part in (below, above):
         if part.sum() > 1:
             ax.plot(x[part], y[part], ":", color=color, lw=0.7 * lw)
+
+
+def band(ax, x: np.ndarray, lo: np.ndarray, hi: np.ndarray, *, color, alpha: float = 0.15) -> None:
+    """Shade lo..hi over x, as ``fill_between`` does, without its cost: fill_between finds the
+    band's data limits through the axes' transform, which autoscales every axes sharing x
+    after each band; here the limits are added as data and the axes scale once when drawn."""
+    verts = np.column_stack([np.r_[x, x[::-1]], np.r_[lo, hi[::-1]]])
+    ax.add_collection(PolyCollection([verts], facecolors=[color], alpha=alpha, linewidths=0), autolim=False)
+    _add_limits(ax, verts)
+
+
+def error_bars(
+    ax, x: np.ndarray, y: np.ndarray, err: np.ndarray, *, color, ms: float, capsize: float, lw: float
+) -> None:
+    """Markers at (x, y) with vertical bars y +- err and caps (capsize: half-width, pt), as
+    ``errorbar(fmt="o")`` draws them, the bars a LineCollection (see :func:`band`)."""
+    ax.vlines(x, y - err, y + err, colors=[color], linewidths=lw)
+    ax.plot(x, y, "o", ms=ms, color=color)
+    ax.plot(np.r_[x, x], np.r_[y - err, y + err], "_", ms=2 * capsize, mew=lw, color=color)
+
+
+def _add_limits(ax, xy: np.ndarray) -> None:
+    ok = np.all(np.isfinite(xy), axis=1)
+    if ok.any():
+        ax.update_datalim(xy[ok])
+        ax._request_autoscale_view()
 
 
 @dataclass
@@ -141,7 +186,7 @@ def _figure(w: float, h: float, layout: str | None = "constrained") -> Figure:
     placed by the caller with ``subplots_adjust``."""
     k = STYLE.width / w
     fig = Figure(figsize=(w * k, h * k), dpi=72, layout=layout)
-    FigureCanvasAgg(fig)
+    ReportCanvas(fig)
     return fig
 
 
@@ -150,15 +195,30 @@ def text_scale() -> float:
     return STYLE.font / 10.0
 
 
-def panel_figure(w: float, h: float, *, left: float = 0.85, right: float = 0.2, top: float = 0.95,
-                 bottom: float = 1.15, wspace: float = 0.42, hspace: float = 0.42) -> Figure:
+def panel_figure(
+    w: float,
+    h: float,
+    *,
+    left: float = 0.85,
+    right: float = 0.2,
+    top: float = 0.95,
+    bottom: float = 1.15,
+    wspace: float = 0.42,
+    hspace: float = 0.42,
+) -> Figure:
     """A figure of many panels with fixed margins in inches (room for a two-line title on top and
     a legend at the bottom): half the saving time of constrained layout, whose solver measures
     every tick label. Put the legend with ``loc="lower center"``."""
     fig = _figure(w, h, layout=None)
     t = text_scale() * w / STYLE.width  # margins in design inches, for the style's text
-    fig.subplots_adjust(left=left * t / w, right=1 - right * t / w, top=1 - top * t / h, bottom=bottom * t / h,
-                        wspace=wspace, hspace=hspace)
+    fig.subplots_adjust(
+        left=left * t / w,
+        right=1 - right * t / w,
+        top=1 - top * t / h,
+        bottom=bottom * t / h,
+        wspace=wspace,
+        hspace=hspace,
+    )
     return fig
 
 
@@ -178,6 +238,9 @@ def panels(w: float, h: float, rows: int, cols: int, *, sharex: bool = True, **m
         return fig, axes
     fig = panel_figure(w, h, **margins)
     axes = np.atleast_2d(fig.subplots(rows, cols, sharex=sharex, squeeze=False))
+    for ax in axes.flat:  # a journal panel reads 4 to 6 ticks an axis (matplotlib's 'auto' puts up to 9)
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=TICK_STEPS))
+        ax.yaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=TICK_STEPS))
     cache[key] = fig, axes
     return fig, axes
 
@@ -226,93 +289,11 @@ def _save(fig: Figure, path: Path) -> Path:
     return path
 
 
-def png_bytes(fig: Figure, dpi: float) -> bytes:
-    """`fig` drawn on its Agg canvas at `dpi` and encoded as an RGB PNG (the figure is opaque:
-    no alpha channel, so report.pdf can carry the PNG's compressed pixels unchanged)."""
-    from PIL import Image
-
-    screen = fig.dpi
-    try:
-        fig.set_dpi(dpi)
-        fig.canvas.draw()
-        width, height = fig.canvas.get_width_height(physical=True)
-        rgba = Image.frombuffer("RGBA", (width, height), fig.canvas.buffer_rgba(), "raw", "RGBA", 0, 1)  # type: ignore[attr-defined]  # Agg
-        buf = io.BytesIO()
-        rgba.convert("RGB").save(buf, format="png", dpi=(dpi, dpi), compress_level=PNG_COMPRESSION)
-    finally:
-        fig.set_dpi(screen)
-    return buf.getvalue()
-
-
 def _colors(n: int) -> list:
     import matplotlib
 
     cmap = matplotlib.colormaps["tab10"]
     return [cmap(i % 10) for i in range(n)]
-
-
-def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
-    """:func:`forces_figure` written to `path`."""
-    return _save(forces_figure(table, fitted, title=title), path)
-
-
-def forces_figure(table, fitted: Sequence[Fitted], *, title: str) -> Figure:
-    """The paper's Figure 5 with residuals: (top) measured and reproduced force amplitude against
-    Omega/omega for Fx and Fy, one line per identification; (bottom) the residual |F_measured -
-    F_reproduced| of each fit per frequency, beside the measured phasor's expanded uncertainty
-    U = k u (grey) when the table has the phasor uncertainties u_*: a fit whose residuals stay
-    under U reproduces the forces within their uncertainty. Error bars on the measured
-    amplitude: U/sqrt(2) (the radial part of an isotropic complex error)."""
-    fig, axes = panels(11, 9.0, 2, 2, left=1.0, top=1.1, bottom=2.6, hspace=0.3, wspace=0.25)  # legend below
-    ratio = table.orbit / table.spin
-    dirs = whirl_direction(table)
-    colors = _colors(len(fitted))
-    k = coverage()
-    reproduced = [f.identification.reproduce(table) for f in fitted]
-    # models that agree draw on top of each other: each later line is thinner, so all stay visible
-    widths = [0.7 + 0.6 * (len(fitted) - 1 - n) for n in range(len(fitted))]
-    for col, (name, measured) in enumerate((("Fx", table.fx), ("Fy", table.fy))):
-        amp_ax, res_ax = axes[0, col], axes[1, col]
-        for d, dname, ls, marker in DIRECTIONS:
-            sel = np.flatnonzero(dirs == d)
-            if sel.size == 0:
-                continue
-            sel = sel[np.argsort(ratio[sel])]
-            for n, (fit, rep) in enumerate(zip(fitted, reproduced)):
-                f = rep[col][sel]
-                first = d == 1 or not np.any(dirs == 1)
-                amp_ax.plot(ratio[sel], np.abs(f), ls, color=colors[n], lw=widths[n], label=fit.label if first else None)
-                res_ax.plot(ratio[sel], np.abs(measured[sel] - f), ls, marker=marker, color=colors[n], lw=widths[n],
-                            ms=3, mfc=colors[n] if d == 1 else "white")
-            face = "black" if d == 1 else "white"
-            amp_ax.plot(ratio[sel], np.abs(measured[sel]), marker, mfc=face, mec="black", ls="none",
-                        ms=4, label=f"measured, {dname} whirl", zorder=5)
-            if table.u is not None:
-                u = table.u[sel, 2 + col]
-                amp_ax.errorbar(ratio[sel], np.abs(measured[sel]), yerr=k * u / np.sqrt(2.0), fmt="none",
-                                ecolor="black", capsize=1.5, lw=0.6, zorder=4, gid="measured-uncertainty")
-                res_ax.plot(ratio[sel], k * u, ls, color="0.55", lw=2.2, alpha=0.6, zorder=1,
-                            label=f"U = {k:g} u of the measured phasor" if d == 1 or not np.any(dirs == 1) else None,
-                            gid="measured-uncertainty")
-        amp_ax.set_title(f"{name} amplitude")
-        amp_ax.set_ylabel(f"|{name}|  [N]")
-        res_ax.set_title(f"{name} residual: |measured - reproduced| phasor")
-        res_ax.set_ylabel(f"|\u0394{name}|  [N]")
-        res_ax.set_xlabel("\u03a9/\u03c9  [-]")
-        res_ax.set_ylim(bottom=0)
-        for ax in (amp_ax, res_ax):
-            ax.grid(True, alpha=0.3)
-    handles, labels = axes[0, 0].get_legend_handles_labels()
-    h2, l2 = axes[1, 0].get_legend_handles_labels()
-    handles, labels = handles + h2, labels + l2
-    if len(set(dirs)) > 1:
-        handles += [Line2D([], [], color="gray", ls="-"), Line2D([], [], color="gray", ls="--")]
-        labels += ["forward whirl (solid)", "backward whirl (dashed)"]
-    ncols = 1 if max(len(label) for label in labels) > 60 else 2  # long labels (verdicts): one column
-    fig.legend(handles, labels, loc="lower center", ncols=ncols, fontsize="small",
-               title=style().band_label("error bars") + " (amplitude: U/\u221a2)")
-    fig.suptitle(title)
-    return fig
 
 
 def _min_span(ax, largest: float, fraction: float = 0.05) -> None:
@@ -336,48 +317,3 @@ def keep_inside(ax, xs, ys, margin: float = 0.05) -> None:
         span = max(hi - lo, float(np.ptp(lim)), 1e-12)
         if lim.min() <= lo or lim.max() >= hi:
             put(min(lo, lim.min() - margin * span), max(hi, lim.max() + margin * span))
-
-
-def summary_plot(path, series: dict[str, list[tuple[int, Any]]], truth: list[tuple[int, dict]], *,
-                 model: str, title: str) -> Path:
-    """The constant K and C entries of one model at every operating point (x: point
-    index), one marker series per load measuring system, error bars of one standard
-    error, and the simulator's true values (K0, C0) as black crosses."""
-    fig = panel_figure(13, 7.2, bottom=1.5, wspace=0.5)
-    axes = fig.subplots(2, 4, sharex=True)
-    colors = _colors(len(series))
-    offsets = np.linspace(-0.12, 0.12, len(series)) if len(series) > 1 else [0.0]
-    largest = {"K": 0.0, "C": 0.0}
-    for k, (lms, entries) in enumerate(series.items()):
-        idx = np.array([i for i, _ in entries], dtype=float)
-        for row, m in enumerate("KC"):
-            unit, scale = MATRIX_UNITS[m]
-            for col, e in enumerate(ENTRIES):
-                key = m + e
-                vals = [ident.coefficients.get(key, np.nan) * scale for _, ident in entries]
-                largest[m] = max(largest[m], float(np.nanmax(np.abs(vals))))
-                errs = [coverage() * (ident.std_errors.get(key) or 0.0) * scale for _, ident in entries]
-                axes[row, col].errorbar(idx + offsets[k], vals, yerr=errs, fmt="o", ms=4, capsize=2,
-                                        color=colors[k], label=f"{lms}, {model}")
-    for row, m in enumerate("KC"):
-        unit, scale = MATRIX_UNITS[m]
-        for col, e in enumerate(ENTRIES):
-            ax = axes[row, col]
-            i, j = divmod(col, 2)
-            pts = [(idx, t[f"{m}0"][i][j] * scale) for idx, t in truth if t and f"{m}0" in t]
-            if pts:
-                ax.plot(*zip(*pts), "x", color="black", ms=6, mew=1.5, label=TRUTH_LABEL)
-            ax.set_title(f"{m}{e}")
-            ax.set_ylabel(f"{m}{e}  [{unit}]")
-            ax.grid(True, alpha=0.3)
-            ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-            _min_span(ax, largest[m])
-            if pts:
-                keep_inside(ax, *zip(*pts))
-            if row == 1:
-                ax.set_xlabel("operating point  [index]")
-    handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncols=len(labels), fontsize="small",
-               title=style().band_label("error bars"))
-    fig.suptitle(title)
-    return _save(fig, path)

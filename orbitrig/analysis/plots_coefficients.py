@@ -18,10 +18,28 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from orbitrig.analysis.plots import (ENTRIES, TRUTH_LABEL, Fitted, _colors, _min_span, _save, coverage, keep_inside,
-                                    panels, plot_fit, split_tested, style)
+from orbitrig.analysis.grid import light_grid
+from orbitrig.analysis.plots import (
+    ENTRIES,
+    TRUTH_LABEL,
+    Fitted,
+    _colors,
+    _min_span,
+    _save,
+    band,
+    coverage,
+    error_bars,
+    keep_inside,
+    panels,
+    plot_fit,
+    split_tested,
+    style,
+)
 from orbitrig.analysis.reduce import MATRIX_UNITS
 from reduction.derived import entry_gradient
+
+#: points of each fitted curve over 0..1.05 max |Omega| (a panel is about 1.5 in wide: 60 points an inch)
+CURVE_POINTS = 100
 
 
 def entry_std(ident, matrix: str, entry: str, orbit: np.ndarray) -> np.ndarray:
@@ -54,13 +72,14 @@ def _draw_fit(axes, mats, fit: Fitted, color, grid, tested, spin, largest) -> No
             i, j = divmod(col, 2)
             val = on_grid[:, mi, i, j] * scale
             largest[m] = max(largest[m], float(np.max(np.abs(val))))
-            band = k * entry_std(ident, m, e, grid[inside]) * scale
+            bands = k * entry_std(ident, m, e, grid[inside]) * scale
             plot_fit(ax, grid / spin, val, tested.min() / spin, tested.max() / spin, color=color, label=fit.label)
-            ax.fill_between(grid[inside] / spin, val[inside] - band, val[inside] + band, color=color, alpha=0.15, lw=0)
+            band(ax, grid[inside] / spin, val[inside] - bands, val[inside] + bands, color=color)
             if not constant:
-                ax.errorbar(tested / spin, at_tested[:, mi, i, j] * scale,
-                            yerr=k * entry_std(ident, m, e, tested) * scale,
-                            fmt="o", ms=2.5, color=color, capsize=1.5, lw=0.8)
+                err = k * entry_std(ident, m, e, tested) * scale
+                error_bars(
+                    ax, tested / spin, at_tested[:, mi, i, j] * scale, err, color=color, ms=2.5, capsize=1.5, lw=0.8
+                )
 
 
 def truth_matrix(truth: dict, matrix: str) -> tuple[np.ndarray, np.ndarray] | None:
@@ -92,31 +111,33 @@ def _draw_truth(axes, mats, truth: dict, spin: float, largest) -> None:
         largest[m] = max(largest[m], float(np.max(np.abs(mat))) * scale)
         for col in range(4):
             i, j = divmod(col, 2)
-            axes[row, col].plot(t_orbit / spin, mat[:, i, j] * scale, "x", color="black", ms=4,
-                                mew=1.0, label=TRUTH_LABEL, zorder=6)
+            axes[row, col].plot(
+                t_orbit / spin, mat[:, i, j] * scale, "x", color="black", ms=4, mew=1.0, label=TRUTH_LABEL, zorder=6
+            )
 
 
-def coefficients_figure(fitted: Sequence[Fitted], *, spin: float, orbit: np.ndarray, truth: dict | None,
-                        title: str) -> Figure:
+def coefficients_figure(
+    fitted: Sequence[Fitted], *, spin: float, orbit: np.ndarray, truth: dict | None, title: str
+) -> Figure:
     """K, C, D entries of every identification in `fitted` against Omega/omega (one model)."""
     mats = [m for m in "KCD" if any(_has(f.identification, m) for f in fitted)]
     fig, axes = panels(13, 2.7 * len(mats) + 2.0, len(mats), 4, bottom=1.35, hspace=0.35)
     top = float(np.max(np.abs(orbit))) * 1.05
     tested = np.unique(np.round(np.abs(orbit), 9))
-    grid = np.union1d(np.linspace(0.0, top, 200), tested[[0, -1]])  # the solid part ends on the tested range
+    grid = np.union1d(np.linspace(0.0, top, CURVE_POINTS), tested[[0, -1]])  # the solid part ends on the tested range
     largest = dict.fromkeys(mats, 0.0)  # largest |entry| drawn per matrix, display units
     for fit, color in zip(fitted, _colors(len(fitted))):
         _draw_fit(axes, mats, fit, color, grid, tested, spin, largest)
     if truth:
         _draw_truth(axes, mats, truth, spin, largest)
+    axes[0, 0].set_xlim(0, top / spin)  # shared by every panel
     for row, m in enumerate(mats):
         unit, _ = MATRIX_UNITS[m]
         for col, e in enumerate(ENTRIES):
             ax = axes[row, col]
             ax.set_title(f"{m}{e}")
             ax.set_ylabel(f"{m}{e}  [{unit}]")
-            ax.grid(True, alpha=0.3)
-            ax.set_xlim(0, top / spin)
+            light_grid(ax)
             _min_span(ax, largest[m])
             for line in ax.get_lines():  # the truth crosses, whatever limits were chosen
                 if line.get_label() == TRUTH_LABEL:
@@ -125,13 +146,20 @@ def coefficients_figure(fitted: Sequence[Fitted], *, spin: float, orbit: np.ndar
                 ax.set_xlabel("\u03a9/\u03c9  [-]")
     handles, labels = axes[0, 0].get_legend_handles_labels()
     uniq = dict(zip(labels, handles))
-    fig.legend(list(uniq.values()), list(uniq.keys()), loc="lower center", ncols=min(3, len(uniq)),
-               fontsize="small", title=style().band_label() + "; solid over the tested range, dotted beyond")
+    fig.legend(
+        list(uniq.values()),
+        list(uniq.keys()),
+        loc="lower center",
+        ncols=min(3, len(uniq)),
+        fontsize="small",
+        title=style().band_label() + "; solid over the tested range, dotted beyond",
+    )
     fig.suptitle(title)
     return fig
 
 
-def coefficients_plot(path, fitted: Sequence[Fitted], *, spin: float, orbit: np.ndarray, truth: dict | None,
-                      title: str) -> Path:
+def coefficients_plot(
+    path, fitted: Sequence[Fitted], *, spin: float, orbit: np.ndarray, truth: dict | None, title: str
+) -> Path:
     """:func:`coefficients_figure` written to `path` (PNG)."""
     return _save(coefficients_figure(fitted, spin=spin, orbit=orbit, truth=truth, title=title), path)

@@ -14,11 +14,15 @@ from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from orbitrig.analysis.plots import PAIR_LABELS, _figure, whirl_direction
+from orbitrig.analysis.plots import PAIR_LABELS, panels, whirl_direction
 
 #: (lower bound, colour, label) of each gamma^2 band, best first
-BANDS = ((0.99, "#1a9850", "\u2265 0.99"), (0.95, "#a6d96a", "0.95 \u2013 0.99"),
-         (0.90, "#fee08b", "0.90 \u2013 0.95"), (0.0, "#f46d43", "< 0.90"))
+BANDS = (
+    (0.99, "#1a9850", "\u2265 0.99"),
+    (0.95, "#a6d96a", "0.95 \u2013 0.99"),
+    (0.90, "#fee08b", "0.90 \u2013 0.95"),
+    (0.0, "#f46d43", "< 0.90"),
+)
 
 
 def band_colour(gamma2: float) -> str:
@@ -58,12 +62,15 @@ def coherence_table(tables: dict) -> CoherenceTable | None:
 def coherence_figure(table: CoherenceTable, *, title: str) -> Figure:
     """The coloured table: one cell per (frequency, pair), gamma^2 written in the cell."""
     n_rows, n_cols = table.values.shape
-    fig = _figure(1.05 * n_cols + 2.2, 0.3 * n_rows + 2.3)
-    ax = fig.add_subplot()
+    fig, axes = panels(1.05 * n_cols + 2.2, 0.3 * n_rows + 2.3, 1, 1, left=1.7, right=0.2, top=1.3, bottom=0.85)
+    ax = axes[0, 0]
     bounds = [0.0] + [low for low, _, _ in reversed(BANDS[:-1])] + [1.0 + 1e-9]
     cmap = ListedColormap([colour for _, colour, _ in reversed(BANDS)])
     shown = np.round(np.nan_to_num(table.values, nan=0.0), 3)  # coloured as the number reads
-    ax.imshow(shown, cmap=cmap, norm=BoundaryNorm(bounds, cmap.N), aspect="auto")
+    edges_x, edges_y = np.arange(n_cols + 1) - 0.5, np.arange(n_rows + 1) - 0.5
+    ax.pcolormesh(edges_x, edges_y, shown, cmap=cmap, norm=BoundaryNorm(bounds, cmap.N))
+    ax.set_xlim(-0.5, n_cols - 0.5)
+    ax.set_ylim(n_rows - 0.5, -0.5)  # first row on top, as a table reads
     for (r, c), v in np.ndenumerate(table.values):
         ax.text(c, r, "-" if not np.isfinite(v) else f"{v:.3f}", ha="center", va="center", fontsize="x-small")
     ax.set_xticks(range(n_cols), table.columns, fontsize="x-small")
@@ -78,7 +85,12 @@ def coherence_figure(table: CoherenceTable, *, title: str) -> Figure:
     ax.tick_params(length=0)
     low = np.nanmin(table.values) if np.isfinite(table.values).any() else float("nan")
     handles = [Patch(color=colour, label=label) for _, colour, label in BANDS]
-    fig.legend(handles=handles, loc="outside lower center", ncols=4, fontsize="x-small",
-               title=f"coherence \u03b3\u00b2 between displacement and force (lowest {low:.3f})")
+    fig.legend(
+        handles=handles,
+        loc="lower center",
+        ncols=4,
+        fontsize="x-small",
+        title=f"coherence \u03b3\u00b2 between displacement and force (lowest {low:.3f})",
+    )
     fig.suptitle(title)
     return fig

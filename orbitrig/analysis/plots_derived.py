@@ -19,8 +19,19 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from orbitrig.analysis.plots import (ENTRIES, Fitted, _colors, _min_span, coverage, keep_inside, panels, plot_fit,
-                                    style)
+from orbitrig.analysis.grid import light_grid
+from orbitrig.analysis.plots import (
+    ENTRIES,
+    Fitted,
+    _colors,
+    _min_span,
+    band,
+    coverage,
+    keep_inside,
+    panels,
+    plot_fit,
+    style,
+)
 from orbitrig.analysis.quality import TrueImpedance, orbit_grid
 from reduction.derived import Derived
 
@@ -33,7 +44,7 @@ def _band(ax, x, y, std, color, scale, **kw) -> None:
     ax.plot(x, y * scale, color=color, **kw)
     if std is not None:
         k = coverage()
-        ax.fill_between(x, (y - k * std) * scale, (y + k * std) * scale, color=color, alpha=0.15, lw=0)
+        band(ax, x, (y - k * std) * scale, (y + k * std) * scale, color=color)
 
 
 def _zero_text(zero, spin: float) -> str:
@@ -66,8 +77,10 @@ def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title
         ax = axes[0, col]
         ax.axhline(0, color="gray", lw=0.8)
         sign = "-" if e == "xx" else "+"
-        ax.set_title(f"effective damping C{e} {sign} K{'xy' if e == 'xx' else 'yx'}/\u03a9\n"
-                     + "\n".join(zeros[e]), fontsize="x-small")
+        ax.set_title(
+            f"effective damping C{e} {sign} K{'xy' if e == 'xx' else 'yx'}/\u03a9\n" + "\n".join(zeros[e]),
+            fontsize="x-small",
+        )
         ax.set_ylabel(f"C_eff,{e}  [kN s/m]")
     axes[0, 2].set_title("whirl frequency ratio (Kxy - Kyx) / (\u03c9 (Cxx + Cyy))", fontsize="small")
     axes[0, 2].set_ylabel("WFR  [-]")
@@ -76,20 +89,27 @@ def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title
         axes[1, col].set_ylabel(f"{part} H  [MN/m]")
     axes[1, 2].set_visible(False)
     for ax in axes.flat:
-        ax.grid(True, alpha=0.3)
+        light_grid(ax)
     for ax in axes[1, :2]:
         ax.set_xlabel("\u03a9/\u03c9  [-]")
     axes[0, 2].set_xlabel("\u03a9/\u03c9  [-]")
     axes[0, 2].xaxis.set_tick_params(labelbottom=True)
     handles = [Line2D([], [], color=c, lw=2) for c in colors]
-    fig.legend(handles, [label for label, _ in derived], loc="lower center", ncols=min(3, len(derived)),
-               fontsize="small", title=style().band_label("bands and zero crossings"))
+    fig.legend(
+        handles,
+        [label for label, _ in derived],
+        loc="lower center",
+        ncols=min(3, len(derived)),
+        fontsize="small",
+        title=style().band_label("bands and zero crossings"),
+    )
     fig.suptitle(title)
     return fig
 
 
-def impedance_figure(fitted: Sequence[Fitted], truth: TrueImpedance, *, spin: float,
-                     orbit: np.ndarray, title: str) -> Figure:
+def impedance_figure(
+    fitted: Sequence[Fitted], truth: TrueImpedance, *, spin: float, orbit: np.ndarray, title: str
+) -> Figure:
     """Re and Im of Z_xx, Z_xy, Z_yx, Z_yy [MN/m]: identified models (lines) and the simulator's
     true Z at its frequencies (crosses, kept inside the axes)."""
     fig, axes = panels(14, 7.2, 2, 4, bottom=1.0, hspace=0.3, wspace=0.45)
@@ -108,17 +128,22 @@ def impedance_figure(fitted: Sequence[Fitted], truth: TrueImpedance, *, spin: fl
         i, j = divmod(col, 2)
         for row, (name, part) in enumerate((("Re", np.real), ("Im", np.imag))):
             ax = axes[row, col]
-            ax.plot(t_w / spin, part(t_z[:, i, j]) * MN, "x", color="black", ms=6, mew=1.5, label=truth.label,
-                    zorder=6)
+            ax.plot(t_w / spin, part(t_z[:, i, j]) * MN, "x", color="black", ms=6, mew=1.5, label=truth.label, zorder=6)
             _min_span(ax, largest)
             keep_inside(ax, t_w / spin, part(t_z[:, i, j]) * MN)
             ax.set_title(f"{name} Z{e}", fontsize="medium")
             ax.set_ylabel(f"{name} Z{e}  [MN/m]")
-            ax.grid(True, alpha=0.3)
+            light_grid(ax)
             if row == 1:
                 ax.set_xlabel("\u03a9/\u03c9  [-]")
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncols=min(3, len(labels)), fontsize="small",
-               title="identified: solid over the tested range, dotted beyond")
+    fig.legend(
+        handles,
+        labels,
+        loc="lower center",
+        ncols=min(3, len(labels)),
+        fontsize="small",
+        title="identified: solid over the tested range, dotted beyond",
+    )
     fig.suptitle(title)
     return fig

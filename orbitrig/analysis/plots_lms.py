@@ -8,20 +8,39 @@ from typing import Any
 
 import numpy as np
 
-from orbitrig.analysis.plots import (DIRECTIONS, ENTRIES, MATRIX_NAMES, Fitted, _colors, _figure, _save, coverage,
-                                    style, whirl_direction)
+from orbitrig.analysis.grid import light_grid
+from orbitrig.analysis.plots import (
+    DIRECTIONS,
+    ENTRIES,
+    MATRIX_NAMES,
+    Fitted,
+    _colors,
+    panels,
+    _save,
+    coverage,
+    style,
+    whirl_direction,
+)
 from orbitrig.analysis.reduce import MATRIX_UNITS
 
 
-def lms_comparison_plot(path, tables: dict[str, Any], fitted: dict[str, Fitted] | None, *,
-                        title: str) -> Path:
+def lms_comparison_plot(path, tables: dict[str, Any], fitted: dict[str, Fitted] | None, *, title: str) -> Path:
     """The two load measuring systems side by side: strain-gauge force relative
     to piezoelectric (amplitude difference in %, phase difference in deg) per
     frequency, and the constant K and C of one identification from each."""
-    a, b = tables["piezo"], tables["strain"]
     with_bars = bool(fitted) and len(fitted) == 2
-    fig = _figure(12, 7.5 if with_bars else 4.2)
-    axes = fig.subplots(2 if with_bars else 1, 2, squeeze=False)
+    rows = 2 if with_bars else 1
+    fig, axes = panels(12, 7.5 if with_bars else 4.2, rows, 2, sharex=False, top=1.35, bottom=0.8, hspace=0.45)
+    _differences(axes[0], tables["piezo"], tables["strain"])
+    if with_bars:
+        assert fitted is not None
+        _coefficient_bars(axes[1], fitted)
+    fig.suptitle(title)
+    return _save(fig, path)
+
+
+def _differences(axes, a, b) -> None:
+    """Strain vs piezo per frequency: amplitude difference (%) in axes[0], phase (deg) in axes[1]."""
     ratio = a.orbit / a.spin
     dirs = whirl_direction(a)
     colors = _colors(2)
@@ -32,36 +51,37 @@ def lms_comparison_plot(path, tables: dict[str, Any], fitted: dict[str, Fitted] 
             if sel.size == 0:
                 continue
             sel = sel[np.argsort(ratio[sel])]
-            axes[0, 0].plot(ratio[sel], 100 * (np.abs(rel[sel]) - 1), ls=ls, marker=marker, color=colors[c],
-                            mfc=colors[c] if d == 1 else "white", label=f"{name}, {dname}")
-            axes[0, 1].plot(ratio[sel], np.degrees(np.angle(rel[sel])), ls=ls, marker=marker, color=colors[c],
-                            mfc=colors[c] if d == 1 else "white", label=f"{name}, {dname}")
-    axes[0, 0].set_ylabel("|F strain| / |F piezo| - 1  [%]")
-    axes[0, 0].set_title("amplitude difference, strain vs piezo")
-    axes[0, 1].set_ylabel("phase(F strain) - phase(F piezo)  [deg]")
-    axes[0, 1].set_title("phase difference, strain vs piezo")
-    for ax in axes[0]:
+            look = {"ls": ls, "marker": marker, "color": colors[c], "mfc": colors[c] if d == 1 else "white"}
+            axes[0].plot(ratio[sel], 100 * (np.abs(rel[sel]) - 1), label=f"{name}, {dname}", **look)
+            axes[1].plot(ratio[sel], np.degrees(np.angle(rel[sel])), label=f"{name}, {dname}", **look)
+    axes[0].set_ylabel("|F strain| / |F piezo| - 1  [%]")
+    axes[0].set_title("amplitude difference, strain vs piezo")
+    axes[1].set_ylabel("phase(F strain) - phase(F piezo)  [deg]")
+    axes[1].set_title("phase difference, strain vs piezo")
+    for ax in axes:
         ax.set_xlabel("\u03a9/\u03c9  [-]")
         ax.axhline(0, color="gray", lw=0.8)
-        ax.grid(True, alpha=0.3)
+        light_grid(ax)
         ax.legend(fontsize="x-small")
-    if with_bars:
-        width = 0.38
-        for col, m in enumerate("KC"):
-            ax = axes[1, col]
-            unit, scale = MATRIX_UNITS[m]
-            keys = [m + e for e in ENTRIES]
-            for k, (lms, fit) in enumerate(fitted.items()):
-                ident = fit.identification
-                vals = [ident.coefficients.get(key, np.nan) * scale for key in keys]
-                errs = [coverage() * (ident.std_errors.get(key) or 0.0) * scale for key in keys]
-                ax.bar(np.arange(4) + (k - 0.5) * width, vals, width, yerr=errs, capsize=3,
-                       color=colors[k], label=f"{lms}: {fit.label}")
-            ax.set_xticks(np.arange(4), keys)
-            ax.set_ylabel(f"{MATRIX_NAMES[m]}  [{unit}]")
-            ax.set_title(f"{MATRIX_NAMES[m]} identified from each load measuring system")
-            ax.axhline(0, color="gray", lw=0.8)
-            ax.grid(True, axis="y", alpha=0.3)
-            ax.legend(fontsize="x-small", title=style().band_label("error bars"), title_fontsize="x-small")
-    fig.suptitle(title)
-    return _save(fig, path)
+
+
+def _coefficient_bars(axes, fitted: dict[str, Fitted]) -> None:
+    """The constant K (axes[0]) and C (axes[1]) identified from each system, with error bars."""
+    width = 0.38
+    colors = _colors(2)
+    for col, m in enumerate("KC"):
+        ax = axes[col]
+        unit, scale = MATRIX_UNITS[m]
+        keys = [m + e for e in ENTRIES]
+        for k, (lms, fit) in enumerate(fitted.items()):
+            ident = fit.identification
+            vals = [ident.coefficients.get(key, np.nan) * scale for key in keys]
+            errs = [coverage() * (ident.std_errors.get(key) or 0.0) * scale for key in keys]
+            x = np.arange(4) + (k - 0.5) * width
+            ax.bar(x, vals, width, yerr=errs, capsize=3, color=colors[k], label=f"{lms}: {fit.label}")
+        ax.set_xticks(np.arange(4), keys)
+        ax.set_ylabel(f"{MATRIX_NAMES[m]}  [{unit}]")
+        ax.set_title(f"{MATRIX_NAMES[m]} identified from each load measuring system")
+        ax.axhline(0, color="gray", lw=0.8)
+        light_grid(ax, "y")
+        ax.legend(fontsize="x-small", title=style().band_label("error bars"), title_fontsize="x-small")

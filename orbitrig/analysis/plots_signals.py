@@ -19,7 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 from matplotlib.figure import Figure
 
-from orbitrig.analysis.plots import _colors, _figure, panels
+from orbitrig.analysis.grid import light_grid
+from orbitrig.analysis.plots import _colors, panels
 from orbitrig.analysis.signals import FORCE_CHANNELS, PROBE_PLANES, BlockSignals
 from reduction.fourier import harmonic_fit
 from reduction.whirl import Whirl
@@ -75,9 +76,11 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
             deg, mean, _ = sig.of(FORCE_CHANNELS[lms][col])
             ax.plot(deg, mean, "-", color=colors[k], lw=2.4 - 1.2 * k, label=f"{lms}")
         d = lms_difference(sig, axis)
-        ax.set_title(f"(a) {label} averaged over {sig.n_revolutions} revolutions, both load measuring systems\n"
-                     f"strain vs piezo: amplitude {d.amplitude_pct:+.2f} %, phase {d.phase_deg:+.2f} deg",
-                     fontsize="medium")
+        ax.set_title(
+            f"(a) {label} averaged over {sig.n_revolutions} revolutions, both load measuring systems\n"
+            f"strain vs piezo: amplitude {d.amplitude_pct:+.2f} %, phase {d.phase_deg:+.2f} deg",
+            fontsize="medium",
+        )
         ax.set_ylabel(f"{label} on the journal  [N]")
         ax.legend(fontsize="x-small", loc="upper right", framealpha=0.9)
         ax = axes[1, col]
@@ -88,16 +91,18 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
         rms_mean = float(fundamental(sig.theta[i], sig.mean[i]).rms_residual)
         ax.plot(deg, raw, ".-", color="0.5", lw=0.8, ms=3.5, label=f"revolution {sig.revolution + 1} (raw)")
         ax.plot(deg, mean, "-", color=colors[0], lw=2.2, label=f"average of {sig.n_revolutions}")
-        ax.set_title(f"(b) {label} piezo: one revolution against the average\n"
-                     f"RMS deviation from the fundamental: raw {rms_raw:.3g} N, average {rms_mean:.3g} N",
-                     fontsize="medium")
+        ax.set_title(
+            f"(b) {label} piezo: one revolution against the average\n"
+            f"RMS deviation from the fundamental: raw {rms_raw:.3g} N, average {rms_mean:.3g} N",
+            fontsize="medium",
+        )
         ax.set_ylabel(f"{label} on the journal  [N]")
         ax.set_xlabel("orbit angle after the trigger  [deg]")
         ax.legend(fontsize="x-small", loc="upper right", framealpha=0.9)
     for ax in axes.flat:
         ax.set_xlim(0, 360)
         ax.set_xticks(range(0, 361, 45))
-        ax.grid(True, alpha=0.3)
+        light_grid(ax)
     fig.suptitle(title)
     return fig
 
@@ -110,38 +115,14 @@ def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) 
     cols = min(5, max(1, n))
     rows = max(1, math.ceil(n / cols))
     width, height = 2.7 * cols + 0.8, 2.9 * rows + 1.6
-    fig = _figure(width, height, layout=None)
-    fig.subplots_adjust(left=0.7 / width, right=1 - 0.15 / width, bottom=1.0 / height, top=1 - 1.25 / height,
-                        wspace=0.35, hspace=0.45)
-    axes = fig.subplots(rows, cols, squeeze=False).ravel()
-    colors = _colors(2)
-    circle = np.linspace(0, 2 * np.pi, 121)
+    margins = {"left": 0.7, "right": 0.15, "top": 1.25, "bottom": 1.0, "wspace": 0.35, "hspace": 0.45}
+    fig, grid = panels(width, height, rows, cols, sharex=False, **margins)
+    axes = grid.ravel()
     for ax, sig in zip(axes, blocks):
-        centre, radii = [], []
-        for k, (plane, (xn, yn)) in enumerate(PROBE_PLANES.items()):
-            x, y = plane_orbit(sig, xn, yn)
-            ax.plot(np.append(x, x[0]) * UM, np.append(y, y[0]) * UM, "-", color=colors[k], lw=1.4,
-                    label=f"plane {plane}")
-            if k == 0:  # the trigger (0 deg) and the sense of the motion
-                ax.plot(x[0] * UM, y[0] * UM, "o", color="black", ms=4, label="trigger (0 deg)")
-                j = max(1, len(x) // 12)
-                ax.annotate("", xy=(x[j] * UM, y[j] * UM), xytext=(x[0] * UM, y[0] * UM),
-                            arrowprops={"arrowstyle": "->", "color": "black", "lw": 1.2})
-            centre.append((x.mean(), y.mean()))
-            radii.append(float(np.mean(np.hypot(x - x.mean(), y - y.mean()))))
-        cx, cy = np.mean(centre, axis=0)
-        if math.isfinite(radius) and radius > 0:
-            ax.plot((cx + radius * np.cos(circle)) * UM, (cy + radius * np.sin(circle)) * UM, "--", color="0.4",
-                    lw=0.8, label="commanded radius")
-        f = sig.frequency
-        ax.set_title(f"{f.orbit_hz:.3g} Hz {_direction(sig)}\nmean radius A {radii[0] * UM:.3g}, "
-                     f"B {radii[1] * UM:.3g} \u00b5m", fontsize="small")
-        ax.set_aspect("equal", adjustable="datalim")
-        ax.grid(True, alpha=0.3)
-        ax.tick_params(labelsize="small")
+        _orbit_panel(ax, sig, radius)
     for ax in axes[n:]:
         ax.set_visible(False)
-    for ax in axes[(rows - 1) * cols:(rows - 1) * cols + cols]:
+    for ax in axes[(rows - 1) * cols : (rows - 1) * cols + cols]:
         ax.set_xlabel("x  [\u00b5m]", fontsize="small")
     for ax in axes[::cols]:
         ax.set_ylabel("y  [\u00b5m]", fontsize="small")
@@ -149,3 +130,33 @@ def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) 
     fig.legend(handles, labels, loc="lower center", ncols=len(labels), fontsize="small", frameon=False)
     fig.suptitle(title)
     return fig
+
+
+def _orbit_panel(ax, sig: BlockSignals, radius: float) -> None:
+    """Both probe planes' orbits of one block, the trigger and the sense of the motion, the
+    commanded radius (m) about the measured centre and each plane's mean radius in the title."""
+    colors = _colors(2)
+    circle = np.linspace(0, 2 * np.pi, 121)
+    centre, radii = [], []
+    for k, (plane, (xn, yn)) in enumerate(PROBE_PLANES.items()):
+        x, y = plane_orbit(sig, xn, yn)
+        ax.plot(np.append(x, x[0]) * UM, np.append(y, y[0]) * UM, "-", color=colors[k], lw=1.4, label=f"plane {plane}")
+        if k == 0:  # the trigger (0 deg) and the sense of the motion
+            ax.plot(x[0] * UM, y[0] * UM, "o", color="black", ms=4, label="trigger (0 deg)")
+            j = max(1, len(x) // 12)
+            arrow = {"arrowstyle": "->", "color": "black", "lw": 1.2}
+            ax.annotate("", xy=(x[j] * UM, y[j] * UM), xytext=(x[0] * UM, y[0] * UM), arrowprops=arrow)
+        centre.append((x.mean(), y.mean()))
+        radii.append(float(np.mean(np.hypot(x - x.mean(), y - y.mean()))))
+    cx, cy = np.mean(centre, axis=0)
+    if math.isfinite(radius) and radius > 0:
+        xs, ys = (cx + radius * np.cos(circle)) * UM, (cy + radius * np.sin(circle)) * UM
+        ax.plot(xs, ys, "--", color="0.4", lw=0.8, label="commanded radius")
+    f = sig.frequency
+    ax.set_title(
+        f"{f.orbit_hz:.3g} Hz {_direction(sig)}\nmean radius A {radii[0] * UM:.3g}, B {radii[1] * UM:.3g} \u00b5m",
+        fontsize="small",
+    )
+    ax.set_aspect("equal", adjustable="datalim")
+    light_grid(ax)
+    ax.tick_params(labelsize="small")

@@ -43,10 +43,17 @@ def coefficient_rows(r: Reduced) -> list[CoefficientRow]:
     rows = []
     for key, value in ident.coefficients.items():
         ci = ident.confidence_95.get(key)
-        rows.append(CoefficientRow(
-            key, value, ident.std_errors.get(key), None if ci is None else (float(ci[0]), float(ci[1])),
-            sys_u.get(key), expanded.get(key), budget.get("k") if expanded else None,
-        ))
+        rows.append(
+            CoefficientRow(
+                key,
+                value,
+                ident.std_errors.get(key),
+                None if ci is None else (float(ci[0]), float(ci[1])),
+                sys_u.get(key),
+                expanded.get(key),
+                budget.get("k") if expanded else None,
+            )
+        )
     return rows
 
 
@@ -81,8 +88,7 @@ def adequacy_verdicts(lms: str, results: list[Reduced]) -> list[Verdict]:
     model and method (repeated here when the run did not ask for it)."""
     out = []
     for dep in (r for r in results if r.freq_dep != "none"):
-        const = next((r for r in results if (r.model, r.method, r.freq_dep) == (dep.model, dep.method, "none")),
-                     None)
+        const = next((r for r in results if (r.model, r.method, r.freq_dep) == (dep.model, dep.method, "none")), None)
         if const is None:
             const = identify_point(dep.point, lms, dep.model, "none", dep.method)
         if const.identification is None:
@@ -101,8 +107,14 @@ def lms_normalised_difference(a: Reduced, b: Reduced) -> LmsAgreement | None:
     uncertainties only: the run states no calibration budget the report could use); None
     when the two fits are not of one model."""
     try:
-        return lms_agreement(a.identification, a.point.tables[a.lms], b.identification, b.point.tables[b.lms],
-                             Calibration(), Calibration())
+        return lms_agreement(
+            a.identification,
+            a.point.tables[a.lms],
+            b.identification,
+            b.point.tables[b.lms],
+            Calibration(),
+            Calibration(),
+        )
     except (ReductionError, KeyError):
         return None
 

@@ -92,8 +92,7 @@ def reduce_run(
     points = [p for p in run.complete_points if any(lms in p.tables for lms in lms_names)]
     if not points:
         raise ReductionError(
-            f"{run.directory}: no complete operating point with an orbit table "
-            f"(run status: {run.status})"
+            f"{run.directory}: no complete operating point with an orbit table (run status: {run.status})"
         )
     return [
         identify_point(point, lms, model, freq_dep, method)
@@ -150,16 +149,29 @@ def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, 
     for r, true in zip(rows, trues):
         s = r.point.settings
         d: dict[str, Any] = {
-            "point": r.point.index, "label": s.label, "spin_rpm": s.spin_rpm,
-            "recess_pressure_mpa": s.recess_pressure / 1e6, "pressure_ratio": s.pressure_ratio,
-            "static_eccentricity": s.static_eccentricity, "dynamic_eccentricity": s.dynamic_eccentricity,
-            "lms": r.lms, "model": r.model, "freq_dep": r.freq_dep, "method": r.method,
-            "error": one_line(r.error or ""), "not_determined": " ".join((r.stored or {}).get("not_determined") or []),
+            "point": r.point.index,
+            "label": s.label,
+            "spin_rpm": s.spin_rpm,
+            "recess_pressure_mpa": s.recess_pressure / 1e6,
+            "pressure_ratio": s.pressure_ratio,
+            "static_eccentricity": s.static_eccentricity,
+            "dynamic_eccentricity": s.dynamic_eccentricity,
+            "lms": r.lms,
+            "model": r.model,
+            "freq_dep": r.freq_dep,
+            "method": r.method,
+            "error": one_line(r.error or ""),
+            "not_determined": " ".join((r.stored or {}).get("not_determined") or []),
         }
         ident = r.identification
         if ident is not None:
-            d.update({"n_frequencies": ident.n_frequencies, "condition_number": ident.condition_number,
-                      "residual_rms [N]": ident.residual_rms})
+            d.update(
+                {
+                    "n_frequencies": ident.n_frequencies,
+                    "condition_number": ident.condition_number,
+                    "residual_rms [N]": ident.residual_rms,
+                }
+            )
             for k in keys:
                 d[coefficient_column(k)] = ident.coefficients.get(k)
                 d[coefficient_column(k, "std")] = ident.std_errors.get(k)
@@ -182,7 +194,9 @@ def table_cells(rows: list[Reduced]) -> list[list[str]]:
     In --sim runs each point is followed by a row of the simulator's true values."""
     cols = [k for k in CONSTANT_KEYS if any(r.identification and k in r.identification.coefficients for r in rows)]
     auto = any(r.identification is not None and r.identification.exponent is not None for r in rows)
-    lines = [["point", "lms", *(f"{k} [{coefficient_unit(k)[0]}]" for k in cols), "resid [N]", *(["M"] if auto else [])]]
+    lines = [
+        ["point", "lms", *(f"{k} [{coefficient_unit(k)[0]}]" for k in cols), "resid [N]", *(["M"] if auto else [])]
+    ]
     for n, r in enumerate(rows):
         cells = [r.point.name, r.lms]
         if r.identification is None:
@@ -198,4 +212,3 @@ def table_cells(rows: list[Reduced]) -> list[list[str]]:
         if truth and (n + 1 == len(rows) or rows[n + 1].point is not r.point):
             lines.append([r.point.name, "true", *(f"{truth[k] * coefficient_unit(k)[1]:.4g}" for k in cols)])
     return lines
-

@@ -39,7 +39,8 @@ from pathlib import Path
 from orbitrig.analysis import plots as plots
 from orbitrig.analysis.report_pdf import COMBINED_PDF, combine_pdf
 from orbitrig.analysis.report_pool import Progress, draw_points
-from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_lms, plots_signals, report_cache
+from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_forces, plots_lms, plots_signals
+from orbitrig.analysis import plots_summary, report_cache
 from orbitrig.analysis.quality import Verdict, adequacy_verdicts, derived_of, true_impedance, warnings_of
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.errors import ReductionError
@@ -83,10 +84,17 @@ class PointReport:
     def fit_warnings(self) -> list[str]:
         """'<lms> <model> <freq-dep> warns: <text>' for every warning of a repeated or stored fit,
         and '<lms> <model> <freq-dep> refused: <reason>' for every stored refusal."""
-        out = [f"{r.lms} {r.model} {r.freq_dep} warns: {w}" for rs in self.results.values() for r in rs
-               for w in warnings_of(r)]
-        out += [f"{i.lms} {i.model} {i.freq_dep} refused: {(i.error or '').splitlines()[0]}"
-                for i in self.point.identifications if not i.ok]
+        out = [
+            f"{r.lms} {r.model} {r.freq_dep} warns: {w}"
+            for rs in self.results.values()
+            for r in rs
+            for w in warnings_of(r)
+        ]
+        out += [
+            f"{i.lms} {i.model} {i.freq_dep} refused: {(i.error or '').splitlines()[0]}"
+            for i in self.point.identifications
+            if not i.ok
+        ]
         return out + self.unreadable
 
 
@@ -173,15 +181,27 @@ def _plot_signals(run: Run, pr: PointReport, out: Path, where: str, opts: Report
         return
     for f in chosen:
         direction = Whirl.of(f.direction)
-        pr.plots.append(plots.save_figure(plots_signals.signals_figure(
-            blocks[f.name], title=f"Force signals at {f.orbit_hz:.4g} Hz {direction} whirl (paper Fig. 4)\n{where}",
-        ), out / f"signals_{point.name}_{f.name}.png"))
+        pr.plots.append(
+            plots.save_figure(
+                plots_signals.signals_figure(
+                    blocks[f.name],
+                    title=f"Force signals at {f.orbit_hz:.4g} Hz {direction} whirl (paper Fig. 4)\n{where}",
+                ),
+                out / f"signals_{point.name}_{f.name}.png",
+            )
+        )
     if "orbits" not in opts.figures:
         return
-    pr.plots.append(plots.save_figure(plots_signals.orbits_figure(
-        list(blocks.values()), radius=point.settings.orbit_radius,
-        title=f"Measured orbits (averaged displacements), both probe planes\n{where}",
-    ), out / f"orbits_{point.name}.png"))
+    pr.plots.append(
+        plots.save_figure(
+            plots_signals.orbits_figure(
+                list(blocks.values()),
+                radius=point.settings.orbit_radius,
+                title=f"Measured orbits (averaged displacements), both probe planes\n{where}",
+            ),
+            out / f"orbits_{point.name}.png",
+        )
+    )
 
 
 def _plot_lms(pr: PointReport, lms: str, out: Path, where: str, opts: ReportOptions) -> None:
@@ -191,31 +211,56 @@ def _plot_lms(pr: PointReport, lms: str, out: Path, where: str, opts: ReportOpti
     results = pr.results.get(lms, [])
     verdict = {id(v.dependent): v.text for v in pr.verdicts.get(lms, [])}
     fitted = [plots.Fitted(fit_label(r), r.identification) for r in results]
-    with_verdicts = [plots.Fitted(f.label + (f" \u2014 {verdict[id(r)]}" if id(r) in verdict else ""),
-                                  f.identification) for f, r in zip(fitted, results)]
+    with_verdicts = [
+        plots.Fitted(f.label + (f" \u2014 {verdict[id(r)]}" if id(r) in verdict else ""), f.identification)
+        for f, r in zip(fitted, results)
+    ]
     if "forces" in opts.figures:
-        pr.plots.append(plots.forces_plot(
-            out / f"forces_{point.name}_{lms}.png", table, with_verdicts,
-            title=f"Measured and reproduced forces (paper Fig. 5), {lms} load cells\n{where}",
-        ))
+        pr.plots.append(
+            plots_forces.forces_plot(
+                out / f"forces_{point.name}_{lms}.png",
+                table,
+                with_verdicts,
+                title=f"Measured and reproduced forces (paper Fig. 5), {lms} load cells\n{where}",
+            )
+        )
     for model in dict.fromkeys(r.model for r in results) if "coefficients" in opts.figures else ():
         group = [f for f, r in zip(fitted, results) if r.model == model]
-        pr.plots.append(plots_coefficients.coefficients_plot(
-            out / f"coefficients_{point.name}_{lms}_{model}.png", group,
-            spin=table.spin, orbit=table.orbit, truth=point.truth,
-            title=f"Rotordynamic coefficients, model {model}, {lms} load cells\n{where}",
-        ))
+        pr.plots.append(
+            plots_coefficients.coefficients_plot(
+                out / f"coefficients_{point.name}_{lms}_{model}.png",
+                group,
+                spin=table.spin,
+                orbit=table.orbit,
+                truth=point.truth,
+                title=f"Rotordynamic coefficients, model {model}, {lms} load cells\n{where}",
+            )
+        )
     if pr.derived.get(lms) and "derived" in opts.figures:
-        pr.plots.append(plots.save_figure(plots_derived.derived_figure(
-            [(fit_label(r), d) for r, d in pr.derived[lms]], spin=table.spin,
-            title=f"Derived quantities, {lms} load cells\n{where}",
-        ), out / f"derived_{point.name}_{lms}.png"))
+        pr.plots.append(
+            plots.save_figure(
+                plots_derived.derived_figure(
+                    [(fit_label(r), d) for r, d in pr.derived[lms]],
+                    spin=table.spin,
+                    title=f"Derived quantities, {lms} load cells\n{where}",
+                ),
+                out / f"derived_{point.name}_{lms}.png",
+            )
+        )
     truth = true_impedance(point.truth)
     if truth is not None and fitted and "impedance" in opts.figures:
-        pr.plots.append(plots.save_figure(plots_derived.impedance_figure(
-            fitted, truth, spin=table.spin, orbit=table.orbit,
-            title=f"Identified impedance Z(\u03a9) against the {truth.label}, {lms} load cells\n{where}",
-        ), out / f"impedance_{point.name}_{lms}.png"))
+        pr.plots.append(
+            plots.save_figure(
+                plots_derived.impedance_figure(
+                    fitted,
+                    truth,
+                    spin=table.spin,
+                    orbit=table.orbit,
+                    title=f"Identified impedance Z(\u03a9) against the {truth.label}, {lms} load cells\n{where}",
+                ),
+                out / f"impedance_{point.name}_{lms}.png",
+            )
+        )
 
 
 def _plot_point(run: Run, pr: PointReport, out: Path, opts: ReportOptions) -> None:
@@ -228,16 +273,26 @@ def _plot_point(run: Run, pr: PointReport, out: Path, opts: ReportOptions) -> No
             _plot_lms(pr, lms, out, where, opts)
     coherence = plots_coherence.coherence_table(point.tables)
     if coherence is not None and "coherence" in opts.figures:
-        pr.plots.append(plots.save_figure(plots_coherence.coherence_figure(
-            coherence, title=f"Coherence between motion and force signals (paper Table 1)\n{where}",
-        ), out / f"coherence_{point.name}.png"))
+        pr.plots.append(
+            plots.save_figure(
+                plots_coherence.coherence_figure(
+                    coherence,
+                    title=f"Coherence between motion and force signals (paper Table 1)\n{where}",
+                ),
+                out / f"coherence_{point.name}.png",
+            )
+        )
     if all(lms in point.tables for lms in LMS) and "lms" in opts.figures:
         found = preferred(pr)
         pair = {lms: plots.Fitted(fit_label(r), r.identification) for lms, r in found.items()} if found else None
-        pr.plots.append(plots_lms.lms_comparison_plot(
-            out / f"lms_{point.name}.png", {lms: point.tables[lms] for lms in LMS}, pair,
-            title=f"Two load measuring systems: strain gauge vs piezoelectric\n{where}",
-        ))
+        pr.plots.append(
+            plots_lms.lms_comparison_plot(
+                out / f"lms_{point.name}.png",
+                {lms: point.tables[lms] for lms in LMS},
+                pair,
+                title=f"Two load measuring systems: strain gauge vs piezoelectric\n{where}",
+            )
+        )
 
 
 def preferred(pr: PointReport, model: tuple[str, str] | None = None) -> dict[str, Reduced]:
@@ -263,8 +318,11 @@ def summary_plot_for(report: Report) -> Path | None:
         return None
     series = {lms: [(pr.point.index, found[lms].identification) for pr, found in chosen] for lms in LMS}
     truth = [(pr.point.index, pr.point.truth) for pr, _ in chosen if pr.point.truth]
-    return plots.summary_plot(
-        report.directory / "summary.png", series, truth, model=spec[0],
+    return plots_summary.summary_plot(
+        report.directory / "summary.png",
+        series,
+        truth,
+        model=spec[0],
         title=f"Constant coefficients ({spec[0]}) at every operating point, run {report.run.directory.name}",
     )
 
@@ -300,9 +358,15 @@ def draw_point(run: Run, point: Point, out: Path, options: ReportOptions) -> Poi
     return pr
 
 
-def make_report(directory: str | Path, *, points: list[int] | None = None,
-                options: ReportOptions = ReportOptions(), workers: int = 1,
-                progress: Progress | None = None) -> Report:
+def make_report(
+    directory: str | Path,
+    *,
+    points: list[int] | None = None,
+    options: ReportOptions = ReportOptions(),
+    workers: int = 1,
+    progress: Progress | None = None,
+    run: Run | None = None,
+) -> Report:
     """Write ``DIR/plots/*.png`` (and .pdf, .svg when asked for), ``report.pdf`` and
     ``index.html``; return what was written.
 
@@ -312,11 +376,11 @@ def make_report(directory: str | Path, *, points: list[int] | None = None,
     Figures of a kind not drawn are removed from DIR/plots (a page never shows a stale one).
     The points asked for and not complete are named in `skipped` (orbitrig.store.selection).
     ``workers`` processes draw the points; ``progress(done, total, figures)`` is called as each
-    point finishes. Raises RunDirError when DIR is not a run, StorageError when DIR/plots
-    cannot be written."""
+    point finishes; ``run``: DIR as the caller read it already (``read_run``). Raises RunDirError
+    when DIR is not a run, StorageError when DIR/plots cannot be written."""
     from orbitrig.analysis.report_html import write_html
 
-    run = read_run(directory)
+    run = read_run(directory) if run is None else run
     selection = select_points(run, points)
     out = Path(directory) / PLOTS_DIR
     try:
@@ -325,8 +389,9 @@ def make_report(directory: str | Path, *, points: list[int] | None = None,
         raise storage_error(out, "create the folder", err) from err
     plots.use_style(options.style)
     report = Report(run, out, [], skipped=selection.skipped, notes=selection.notes)
-    report.points = draw_points(selection.points, lambda point: draw_point(run, point, out, options),
-                                workers=workers, progress=progress)
+    report.points = draw_points(
+        selection.points, lambda point: draw_point(run, point, out, options), workers=workers, progress=progress
+    )
     for fmt in plots.FigureFormat:  # from an earlier report over other points
         _remove(out / f"summary.{fmt}")
     report.summary = summary_plot_for(report)

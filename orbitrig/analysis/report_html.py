@@ -40,6 +40,7 @@ img{max-width:100%;border:1px solid #ddd;margin:.4em 0}
 details pre{background:#f7f7f7;padding:.6em;overflow-x:auto}
 """
 
+
 def _e(text) -> str:
     return html.escape(str(text))
 
@@ -62,17 +63,23 @@ def _coherence_table(point) -> str:
     table = coherence_table(point.tables)
     if table is None:
         return ""
-    head1 = '<tr><th class="l" rowspan="2">\u03a9/\u03c9, whirl</th>' + "".join(
-        f'<th colspan="4">{_e(lms)} load cells</th>' for lms in table.lms) + "</tr>"
+    head1 = (
+        '<tr><th class="l" rowspan="2">\u03a9/\u03c9, whirl</th>'
+        + "".join(f'<th colspan="4">{_e(lms)} load cells</th>' for lms in table.lms)
+        + "</tr>"
+    )
     head2 = "<tr>" + "".join(f"<th>\u03b3\u00b2 {_e(v)}</th>" for v in PAIR_LABELS.values()) * len(table.lms) + "</tr>"
     rows = "".join(
         f'<tr><td class="l">{_e(label)}</td>'
-        + "".join(f'<td style="background:{band_colour(v)}">{fmt_coherence(v)}</td>' for v in values) + "</tr>"
+        + "".join(f'<td style="background:{band_colour(v)}">{fmt_coherence(v)}</td>' for v in values)
+        + "</tr>"
         for label, values in zip(table.rows, table.values)
     )
     legend = " ".join(f'<span class="band" style="background:{c}">{_e(t)}</span>' for _, c, t in BANDS)
-    return (f"<h3>Coherence between motion and force signals</h3><table>{head1}{head2}{rows}</table>"
-            f'<p class="muted">\u03b3\u00b2 bands: {legend}</p>')
+    return (
+        f"<h3>Coherence between motion and force signals</h3><table>{head1}{head2}{rows}</table>"
+        f'<p class="muted">\u03b3\u00b2 bands: {legend}</p>'
+    )
 
 
 def fmt_coherence(v: float) -> str:
@@ -102,10 +109,17 @@ def _lms_section(pr, out_dir: Path, lms: str, truth: dict, taken: set) -> list[s
     h += [f'<p class="err">{_e(i.model)} {_e(i.freq_dep)} refused: {_e(i.error)}</p>' for i in refused]
     forces = _pick(pr, out_dir, taken, f"forces_{p.name}_{lms}")
     if forces:
-        h.append('<div class="side">' + forces[0] + '<div><h4>Model adequacy</h4>'
-                 + verdict_list(pr.verdicts.get(lms, []), labels) + "</div></div>")
+        h.append(
+            '<div class="side">'
+            + forces[0]
+            + "<div><h4>Model adequacy</h4>"
+            + verdict_list(pr.verdicts.get(lms, []), labels)
+            + "</div></div>"
+        )
     h.append(lms_tables(results, truth, [labels[id(r)] for r in results]))
-    h += _pick(pr, out_dir, taken, *(f"coefficients_{p.name}_{lms}_{m}" for m in dict.fromkeys(r.model for r in results)))
+    h += _pick(
+        pr, out_dir, taken, *(f"coefficients_{p.name}_{lms}_{m}" for m in dict.fromkeys(r.model for r in results))
+    )
     if pr.derived.get(lms):
         h.append("<h4>Derived quantities</h4>")
         h.append(derived_table(pr.derived[lms], labels, p.settings.spin))
@@ -120,8 +134,11 @@ def _point_section(run, pr, out_dir: Path) -> str:
     truth = true_constants(p)
     taken: set = set()
     if pr.mismatches:
-        h.append('<p class="err">Repeating the stored identifications gave different numbers:<br>'
-                 + "<br>".join(_e(m) for m in pr.mismatches) + "</p>")
+        h.append(
+            '<p class="err">Repeating the stored identifications gave different numbers:<br>'
+            + "<br>".join(_e(m) for m in pr.mismatches)
+            + "</p>"
+        )
     if pr.unreadable:
         h.append('<p class="err">' + "<br>".join(_e(m) for m in pr.unreadable) + "</p>")
     for lms in LMS:
@@ -143,14 +160,18 @@ def _point_section(run, pr, out_dir: Path) -> str:
 def _figure(png: Path, out_dir: Path) -> str:
     rel = Path(png).relative_to(out_dir)
     name = _e(rel.as_posix())
-    return (f'<figure><a href="{name}"><img src="{name}" alt="{_e(rel.stem)}"></a>'
-            f'<figcaption class="muted">{_e(rel.name)} (full size: click)</figcaption></figure>')
+    return (
+        f'<figure><a href="{name}"><img src="{name}" alt="{_e(rel.stem)}"></a>'
+        f'<figcaption class="muted">{_e(rel.name)} (full size: click)</figcaption></figure>'
+    )
 
 
 def _points_table(report) -> str:
     """One row per reported point: its settings, linked to its section."""
-    head = ("<tr><th>point</th><th class=\"l\">label</th><th>\u03c9 [rpm]</th><th>p<sub>r</sub> [MPa]</th>"
-            "<th>\u03b2</th><th>\u03b5<sub>s</sub></th><th>\u03b5<sub>d</sub></th><th>models identified</th></tr>")
+    head = (
+        '<tr><th>point</th><th class="l">label</th><th>\u03c9 [rpm]</th><th>p<sub>r</sub> [MPa]</th>'
+        "<th>\u03b2</th><th>\u03b5<sub>s</sub></th><th>\u03b5<sub>d</sub></th><th>models identified</th></tr>"
+    )
     rows = []
     for pr in report.points:
         s = pr.point.settings
@@ -187,20 +208,25 @@ def render(report) -> str:
         head.append(_points_table(report))
     else:
         head.append('<p class="err">No complete operating point to report.</p>')
-    head.append('<p class="muted">Units: K in MN/m, C in kN s/m, D in kg (SI at the source). '
-                "Std error: one statistical standard uncertainty of the regression; 95 % interval: Student t "
-                "with 4n - p degrees of freedom; expanded U: k times the combined (statistical and systematic) "
-                "standard uncertainty. Higher-order terms multiply \u03a9^r with \u03a9 in rad/s.</p>")
+    head.append(
+        '<p class="muted">Units: K in MN/m, C in kN s/m, D in kg (SI at the source). '
+        "Std error: one statistical standard uncertainty of the regression; 95 % interval: Student t "
+        "with 4n - p degrees of freedom; expanded U: k times the combined (statistical and systematic) "
+        "standard uncertainty. Higher-order terms multiply \u03a9^r with \u03a9 in rad/s.</p>"
+    )
     files = sorted(run.directory.glob("*.csv"))
     if files:
-        head.append("<p>Tables: " + " \u00b7 ".join(
-            f'<a href="../{_e(f.name)}">{_e(f.name)}</a>' for f in files) + "</p>")
+        head.append(
+            "<p>Tables: " + " \u00b7 ".join(f'<a href="../{_e(f.name)}">{_e(f.name)}</a>' for f in files) + "</p>"
+        )
     for name, text in (("rig configuration", run.rig_config), ("matrix configuration", run.matrix_config)):
         if text:
             head.append(f"<details><summary>{name}</summary><pre>{_e(text)}</pre></details>")
     if report.pdf:
-        head.append(f'<p>Every figure in one file: <a href="{_e(report.pdf.name)}">{_e(report.pdf.name)}</a> '
-                    "(each figure's own vector files lie beside its PNG)</p>")
+        head.append(
+            f'<p>Every figure in one file: <a href="{_e(report.pdf.name)}">{_e(report.pdf.name)}</a> '
+            "(each figure's own vector files lie beside its PNG)</p>"
+        )
     if report.summary:
         head.append(_figure(report.summary, report.directory))
     body = [_point_section(run, pr, report.directory) for pr in report.points]

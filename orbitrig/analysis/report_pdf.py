@@ -62,8 +62,8 @@ def png_image(path: Path) -> tuple[int, int, float, bytes]:
     width = height = 0
     dpi, rgb, idat, at = 72.0, False, [], len(_PNG_SIGNATURE)
     while at + 8 <= len(data):
-        length, kind = struct.unpack(">I4s", data[at:at + 8])
-        body = data[at + 8:at + 8 + length]
+        length, kind = struct.unpack(">I4s", data[at : at + 8])
+        body = data[at + 8 : at + 8 + length]
         if kind == b"IHDR":
             width, height, depth, colour, _, _, interlace = struct.unpack(">IIBBBBB", body)
             rgb = depth == 8 and colour == 2 and interlace == 0
@@ -84,7 +84,7 @@ def _converted(path: Path, dpi: float) -> tuple[int, int, float, bytes]:
     with Image.open(path) as img:
         img = img.convert("RGB")
         w, h, raw = img.width, img.height, img.tobytes()
-    rows = b"".join(b"\x00" + raw[r * 3 * w:(r + 1) * 3 * w] for r in range(h))
+    rows = b"".join(b"\x00" + raw[r * 3 * w : (r + 1) * 3 * w] for r in range(h))
     return w, h, dpi, zlib.compress(rows, 6)
 
 
@@ -107,14 +107,20 @@ def raster_pdf(pngs: list[Path], out: BinaryIO) -> None:
         w, h, dpi, pixels = png_image(png)
         pw, ph = w * 72.0 / dpi, h * 72.0 / dpi
         content, image = 4 + 3 * k, 5 + 3 * k  # the page itself is object 3 + 3 k
-        obj(b"<< /Type /Page /Parent 2 0 R /MediaBox [0 0 %.3f %.3f] /Contents %d 0 R "
-            b"/Resources << /XObject << /Im0 %d 0 R >> >> >>" % (pw, ph, content, image))
+        obj(
+            b"<< /Type /Page /Parent 2 0 R /MediaBox [0 0 %.3f %.3f] /Contents %d 0 R "
+            b"/Resources << /XObject << /Im0 %d 0 R >> >> >>" % (pw, ph, content, image)
+        )
         draw = b"q %.3f 0 0 %.3f 0 0 cm /Im0 Do Q" % (pw, ph)
         obj(b"<< /Length %d >>\nstream\n%s\nendstream" % (len(draw), draw))
-        obj(b"<< /Type /XObject /Subtype /Image /Width %d /Height %d /ColorSpace /DeviceRGB "
+        obj(
+            b"<< /Type /XObject /Subtype /Image /Width %d /Height %d /ColorSpace /DeviceRGB "
             b"/BitsPerComponent 8 /Filter /FlateDecode /DecodeParms << /Predictor 15 /Colors 3 "
-            b"/BitsPerComponent 8 /Columns %d >> /Length %d >>\nstream\n" % (w, h, w, len(pixels))
-            + pixels + b"\nendstream")
+            b"/BitsPerComponent 8 /Columns %d >> /Length %d >>\nstream\n"
+            % (w, h, w, len(pixels))
+            + pixels
+            + b"\nendstream"
+        )
     xref = out.tell() - start
     out.write(b"xref\n0 %d\n0000000000 65535 f \n" % (len(offsets) + 1))
     out.write(b"".join(b"%010d 00000 n \n" % o for o in offsets))

@@ -48,4 +48,3 @@ def draw_points(points: list, draw: Callable, *, workers: int = 1, progress: Pro
     finally:
         _JOB.clear()
     return results
-

@@ -25,9 +25,11 @@ from reduction.derived import Derived
 from reduction.systematic import LmsAgreement
 
 DERIVED_K = 2.0  # derived quantities are given +- two standard uncertainties
-D_SENTENCE = ("D is an apparent inertia (added mass): it absorbs everything that grows with \u03a9\u00b2, "
-              "here mostly the recesses' compressibility and the measuring chain's delay, not only the "
-              "fluid's own inertia.")
+D_SENTENCE = (
+    "D is an apparent inertia (added mass): it absorbs everything that grows with \u03a9\u00b2, "
+    "here mostly the recesses' compressibility and the measuring chain's delay, not only the "
+    "fluid's own inertia."
+)
 
 
 def fmt(value, digits: int = 4) -> str:
@@ -65,12 +67,19 @@ def identification_table(r: Reduced, truth: dict[str, float], label: str, with_b
     """One identification: coefficients with their uncertainties, quality rows, warnings, notes."""
     rows = coefficient_rows(r)
     stored = ((r.stored or {}).get("truth") or {}).get("coefficients")
-    own = fit_truth(r.stored, r.point.truth) if stored else fit_true_values(r) if "Z_re" in (r.point.truth or {}) else {}
+    own = (
+        fit_truth(r.stored, r.point.truth) if stored else fit_true_values(r) if "Z_re" in (r.point.truth or {}) else {}
+    )
     truth = own or truth
     nd = set((r.stored or {}).get("not_determined") or [])
     k = next((row.k for row in rows if row.k is not None), 2.0)
-    head = ['<th class="l">coefficient</th>', '<th class="l">unit</th>', "<th>value</th>",
-            "<th>std error<br>(statistical)</th>", "<th>95 % interval<br>(Student t)</th>"]
+    head = [
+        '<th class="l">coefficient</th>',
+        '<th class="l">unit</th>',
+        "<th>value</th>",
+        "<th>std error<br>(statistical)</th>",
+        "<th>95 % interval<br>(Student t)</th>",
+    ]
     if with_budget:
         head += ["<th>systematic u<br>(calibration)</th>", f"<th>expanded U<br>(combined, k = {k:g})</th>"]
     if truth:
@@ -82,18 +91,25 @@ def identification_table(r: Reduced, truth: dict[str, float], label: str, with_b
         value = fmt(row.value * scale) + (" <b>n.d.</b>" if row.key in nd else "")
         cells = [value, fmt(None if row.std is None else row.std * scale, 2), ci]
         if with_budget:
-            cells += [fmt(None if row.systematic is None else row.systematic * scale, 2),
-                      fmt(None if row.expanded is None else row.expanded * scale, 2)]
+            cells += [
+                fmt(None if row.systematic is None else row.systematic * scale, 2),
+                fmt(None if row.expanded is None else row.expanded * scale, 2),
+            ]
         if truth:
             t = truth.get(row.key)
             cells.append(fmt(t * scale) if t is not None else "-")
-        body.append(f'<tr><th class="l">{_e(row.key)}</th><td class="l">{_e(unit)}</td>'
-                    + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")
+        body.append(
+            f'<tr><th class="l">{_e(row.key)}</th><td class="l">{_e(unit)}</td>'
+            + "".join(f"<td>{c}</td>" for c in cells)
+            + "</tr>"
+        )
     span = len(head) - 1
-    body += [f'<tr><th class="l">{_e(name)}</th><td colspan="{span}" class="l">{value}</td></tr>'
-             for name, value in _quality(r.identification)]
+    body += [
+        f'<tr><th class="l">{_e(name)}</th><td colspan="{span}" class="l">{value}</td></tr>'
+        for name, value in _quality(r.identification)
+    ]
     out = [f"<h4>{_e(label)} ({_e(r.method)})</h4>", f"<table><tr>{''.join(head)}</tr>{''.join(body)}</table>"]
-    notes = (["n.d. = not determined: the expanded uncertainty U (k = 2) exceeds the value."] if nd else [])
+    notes = ["n.d. = not determined: the expanded uncertainty U (k = 2) exceeds the value."] if nd else []
     notes += [D_SENTENCE] if any(row.key.startswith("D") for row in rows) else []
     if notes:
         out.append('<p class="muted">' + " ".join(_e(n) for n in notes) + "</p>")
@@ -111,8 +127,10 @@ def lms_tables(results: list[Reduced], truth: dict[str, float], labels: list[str
     with_budget = has_budget(results)
     out = [identification_table(r, truth, label, with_budget) for r, label in zip(results, labels)]
     if results and not with_budget:
-        out.append('<p class="muted">Systematic (calibration) uncertainty: not stored in this run; '
-                   "the uncertainties above are statistical only.</p>")
+        out.append(
+            '<p class="muted">Systematic (calibration) uncertainty: not stored in this run; '
+            "the uncertainties above are statistical only.</p>"
+        )
     return "\n".join(out)
 
 
@@ -124,9 +142,14 @@ def verdict_list(verdicts: list[Verdict], labels: dict[int, str]) -> str:
     items = []
     for v in verdicts:
         a = v.adequacy
-        extra = "" if a is None else (
-            f" \u2014 {_e(a.test)} test, dof {a.dof[0]}/{a.dof[1]}; AIC {fmt(a.aic[0], 5)} (constant) vs "
-            f"{fmt(a.aic[1], 5)}; BIC {fmt(a.bic[0], 5)} vs {fmt(a.bic[1], 5)}")
+        extra = (
+            ""
+            if a is None
+            else (
+                f" \u2014 {_e(a.test)} test, dof {a.dof[0]}/{a.dof[1]}; AIC {fmt(a.aic[0], 5)} (constant) vs "
+                f"{fmt(a.aic[1], 5)}; BIC {fmt(a.bic[0], 5)} vs {fmt(a.bic[1], 5)}"
+            )
+        )
         items.append(f"<li><b>{_e(labels.get(id(v.dependent), v.dependent.model))}</b>: {_e(v.text)}{extra}</li>")
     return f'<ul class="verdict">{"".join(items)}</ul>'
 
@@ -151,13 +174,18 @@ def derived_table(derived: list[tuple[Reduced, Derived]], labels: dict[int, str]
         wfr_std = d.wfr_std if d.wfr_std is not None else [None] * len(d.wfr)
         rows.append(
             f'<tr><td class="l">{_e(labels.get(id(r), r.model))}</td><td>{pm(d.wfr[0], wfr_std[0])}</td>'
-            f"<td>{pm(d.wfr[-1], wfr_std[-1])}</td><td>{zero(d.c_eff_zero_xx)}</td><td>{zero(d.c_eff_zero_yy)}</td></tr>")
+            f"<td>{pm(d.wfr[-1], wfr_std[-1])}</td><td>{zero(d.c_eff_zero_xx)}</td><td>{zero(d.c_eff_zero_yy)}</td></tr>"
+        )
     lo, hi = derived[0][1].orbit[[0, -1]] / (2 * np.pi)
-    head = (f'<tr><th class="l">identification</th><th>WFR at {fmt(lo, 3)} Hz</th><th>WFR at {fmt(hi, 3)} Hz</th>'
-            "<th>C<sub>eff,xx</sub> = Cxx - Kxy/\u03a9 = 0 at</th><th>C<sub>eff,yy</sub> = Cyy + Kyx/\u03a9 = 0 at</th></tr>")
-    return (f"<table>{head}{''.join(rows)}</table>"
-            '<p class="muted">\u00b1 two standard uncertainties (statistical, linearised for WFR and '
-            "the zero crossings).</p>")
+    head = (
+        f'<tr><th class="l">identification</th><th>WFR at {fmt(lo, 3)} Hz</th><th>WFR at {fmt(hi, 3)} Hz</th>'
+        "<th>C<sub>eff,xx</sub> = Cxx - Kxy/\u03a9 = 0 at</th><th>C<sub>eff,yy</sub> = Cyy + Kyx/\u03a9 = 0 at</th></tr>"
+    )
+    return (
+        f"<table>{head}{''.join(rows)}</table>"
+        '<p class="muted">\u00b1 two standard uncertainties (statistical, linearised for WFR and '
+        "the zero crossings).</p>"
+    )
 
 
 def consistency_table(a: Reduced, b: Reduced, ag: LmsAgreement, label: str) -> str:
@@ -172,14 +200,20 @@ def consistency_table(a: Reduced, b: Reduced, ag: LmsAgreement, label: str) -> s
         e = en.get(key)
         cell = "-" if e is None else f"{e:+.2f}"
         cls = ' class="err"' if e is not None and mark is not None and abs(e) > mark else ""
-        rows.append(f'<tr><th class="l">{_e(key)}</th><td class="l">{_e(unit)}</td><td>{fmt(va * scale)}</td>'
-                    f"<td>{fmt(None if vb is None else vb * scale)}</td><td>{rel}</td><td{cls}>{cell}</td></tr>")
-    head = (f'<tr><th class="l">{_e(label)}</th><th class="l">unit</th><th>{_e(a.lms)}</th><th>{_e(b.lms)}</th>'
-            f"<th>({_e(b.lms)} - {_e(a.lms)}) / |{_e(a.lms)}| [%]</th><th>E<sub>n</sub></th></tr>")
-    return (f"<h4>Two load measuring systems: consistency</h4><table>{head}{''.join(rows)}</table>"
-            f'<p class="muted">E<sub>n</sub> = (a - b) / u(a - b), a = {_e(a.lms)}, b = {_e(b.lms)}, with the '
-            "statistical uncertainties of both fits (no calibration budget stored). "
-            f"{_e(_joint_verdict(ag))}</p>")
+        rows.append(
+            f'<tr><th class="l">{_e(key)}</th><td class="l">{_e(unit)}</td><td>{fmt(va * scale)}</td>'
+            f"<td>{fmt(None if vb is None else vb * scale)}</td><td>{rel}</td><td{cls}>{cell}</td></tr>"
+        )
+    head = (
+        f'<tr><th class="l">{_e(label)}</th><th class="l">unit</th><th>{_e(a.lms)}</th><th>{_e(b.lms)}</th>'
+        f"<th>({_e(b.lms)} - {_e(a.lms)}) / |{_e(a.lms)}| [%]</th><th>E<sub>n</sub></th></tr>"
+    )
+    return (
+        f"<h4>Two load measuring systems: consistency</h4><table>{head}{''.join(rows)}</table>"
+        f'<p class="muted">E<sub>n</sub> = (a - b) / u(a - b), a = {_e(a.lms)}, b = {_e(b.lms)}, with the '
+        "statistical uncertainties of both fits (no calibration budget stored). "
+        f"{_e(_joint_verdict(ag))}</p>"
+    )
 
 
 def _joint_verdict(ag: LmsAgreement) -> str:
@@ -187,6 +221,8 @@ def _joint_verdict(ag: LmsAgreement) -> str:
     if ag.chi2 is None or ag.limit is None:
         return "Not compared jointly: no uncertainty."
     verdict = "consistent" if ag.consistent else "NOT consistent"
-    return (f"All coefficients at once: {verdict}, chi2 = {ag.chi2:.3g} on {ag.dof} "
-            f"{'<=' if ag.consistent else '>'} {ag.limit:.3g} (false-flag probability {100 * ag.level:g} %); "
-            f"one coefficient alone is marked beyond |E_n| = {ag.e_n_limit():.2f} (Sidak, same level).")
+    return (
+        f"All coefficients at once: {verdict}, chi2 = {ag.chi2:.3g} on {ag.dof} "
+        f"{'<=' if ag.consistent else '>'} {ag.limit:.3g} (false-flag probability {100 * ag.level:g} %); "
+        f"one coefficient alone is marked beyond |E_n| = {ag.e_n_limit():.2f} (Sidak, same level)."
+    )

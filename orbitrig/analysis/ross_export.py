@@ -37,7 +37,7 @@ CONVENTIONS = {
     "kij, cij, mij": "force in i per displacement (velocity, acceleration) in j; N/m, N s/m, kg",
     "m": "apparent (added) mass: the identified D",
     "frequency": "orbit (whirl) frequency |Omega|, rad/s, the point's tested orbit frequencies; "
-                 "coefficients evaluated for forward whirl",
+    "coefficients evaluated for forward whirl",
 }
 
 
@@ -51,22 +51,39 @@ def point_bearing(point: Point, lms: str, model: str, freq_dep: str, method: str
         return None
     frequency = np.unique(np.abs(point.tables[lms].orbit))
     mats = np.array([ident.matrices(w) for w in frequency])  # (n, 3: K C D, 2, 2)
-    out: dict[str, Any] = {"point": point.index, "label": point.settings.label, "lms": lms, "model": model,
-                           "freq_dep": freq_dep, "method": method, "spin": point.settings.spin,
-                           "frequency": frequency.tolist()}
+    out: dict[str, Any] = {
+        "point": point.index,
+        "label": point.settings.label,
+        "lms": lms,
+        "model": model,
+        "freq_dep": freq_dep,
+        "method": method,
+        "spin": point.settings.spin,
+        "frequency": frequency.tolist(),
+    }
     for m, letter in enumerate("kcm"):
         for e, (i, j) in zip(ENTRIES, ((0, 0), (0, 1), (1, 0), (1, 1))):
             out[f"{letter}{e}"] = mats[:, m, i, j].tolist()
     return out
 
 
-def export_ross(run: Run, out: Path, *, lms: str = "piezo", model: str = "kcd11", freq_dep: str = "none",
-                method: str = "ols") -> Path:
+def export_ross(
+    run: Run, out: Path, *, lms: str = "piezo", model: str = "kcd11", freq_dep: str = "none", method: str = "ols"
+) -> Path:
     """Write ``out``/ross_bearings.json for every complete point; returns the file."""
-    bearings = [b for p in run.complete_points for name in ([lms] if lms else sorted(p.tables))
-                if (b := point_bearing(p, name, model, freq_dep, method)) is not None]
-    doc = {"format": FORMAT, "run": str(run.directory), "created": run.created, "conventions": CONVENTIONS,
-           "bearings": bearings}
+    bearings = [
+        b
+        for p in run.complete_points
+        for name in ([lms] if lms else sorted(p.tables))
+        if (b := point_bearing(p, name, model, freq_dep, method)) is not None
+    ]
+    doc = {
+        "format": FORMAT,
+        "run": str(run.directory),
+        "created": run.created,
+        "conventions": CONVENTIONS,
+        "bearings": bearings,
+    }
     path = Path(out) / FILE
     write_atomic(path, (json.dumps(doc, indent=1) + "\n").encode())
     return path
@@ -82,5 +99,7 @@ def bearing_elements(path: str | Path, nodes: list[int], *, point: int = 0, lms:
     if data is None:
         raise KeyError(f"{path}: no bearing of point {point} and load system {lms!r}")
     coefficients = {k: np.asarray(data[k]) for k in (f"{c}{e}" for c in "kcm" for e in ENTRIES)}
-    return [ross.BearingElement(n=n, frequency=np.asarray(data["frequency"]), tag=f"bearing {n}", **coefficients)
-            for n in nodes]
+    return [
+        ross.BearingElement(n=n, frequency=np.asarray(data["frequency"]), tag=f"bearing {n}", **coefficients)
+        for n in nodes
+    ]

@@ -14,14 +14,26 @@ log = logging.getLogger(__name__)
 
 def fit_warnings(points: list[Point]) -> list[FitWarnings]:
     """The warnings of every fit that gave coefficients."""
-    return [FitWarnings(int(p.name), i.lms, f"{i.model} {i.freq_dep} {i.method}", tuple(i.result.get("warnings") or []))
-            for p in points for i in p.identifications if i.ok]
+    return [
+        FitWarnings(int(p.name), i.lms, f"{i.model} {i.freq_dep} {i.method}", tuple(i.result.get("warnings") or []))
+        for p in points
+        for i in p.identifications
+        if i.ok
+    ]
 
 
 def result_fit_warnings(payload: dict) -> list[FitWarnings]:
     """The warnings of every fit of a published point result (orbitrig.run.point_report)."""
-    return [FitWarnings(int(payload["point"]), r["lms"], f"{r['model']} {r['freq_dep']} {r['method']}",
-                        tuple(r.get("warnings") or [])) for r in payload["identification"] if "error" not in r]
+    return [
+        FitWarnings(
+            int(payload["point"]),
+            r["lms"],
+            f"{r['model']} {r['freq_dep']} {r['method']}",
+            tuple(r.get("warnings") or []),
+        )
+        for r in payload["identification"]
+        if "error" not in r
+    ]
 
 
 def run_warning_lines(directory: Path) -> list[str]:

@@ -96,8 +96,11 @@ def read_block_signals(run: Run, point: Point, frequency: Frequency, revolution:
         except (KeyError, ValueError, TypeError, OSError) as err:
             raise RunDirError(Path(h5.filename), f"block {point.name}/{frequency.name}: {err}") from err
     if mean.shape != slots.shape or raw.shape != mean.shape:
-        raise RunDirError(run.directory, f"block {point.name}/{frequency.name}: mean {mean.shape}, "
-                          f"slots {slots.shape}, raw revolution {raw.shape} differ")
+        raise RunDirError(
+            run.directory,
+            f"block {point.name}/{frequency.name}: mean {mean.shape}, "
+            f"slots {slots.shape}, raw revolution {raw.shape} differ",
+        )
     return BlockSignals(frequency, channels, 2 * np.pi * slots / 360.0, mean, raw, k, n)
 
 
@@ -105,8 +108,9 @@ def default_frequencies(point: Point) -> list[Frequency]:
     """The report's default subset: the lowest and highest orbit frequency of each whirl direction."""
     chosen: list[Frequency] = []
     for direction in (1, -1):
-        blocks = sorted((f for f in point.frequencies if f.direction == direction and f.complete),
-                        key=lambda f: f.orbit_hz)
+        blocks = sorted(
+            (f for f in point.frequencies if f.direction == direction and f.complete), key=lambda f: f.orbit_hz
+        )
         for f in blocks[:1] + blocks[-1:]:
             if f not in chosen:
                 chosen.append(f)

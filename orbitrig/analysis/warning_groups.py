@@ -38,9 +38,14 @@ class WarningGroup:
     see: tuple[str, ...]  # fit families without this warning at any of these points
 
     def text(self, all_systems: tuple[str, ...]) -> str:
-        who = "both systems" if len(all_systems) == 2 and set(self.systems) == set(all_systems) else \
-            ", ".join(self.systems)
-        line = f"{self.fit}, {who}: {self.head} at {len(self.points)} of {self.total} points ({point_ranges(self.points)})"
+        who = (
+            "both systems"
+            if len(all_systems) == 2 and set(self.systems) == set(all_systems)
+            else ", ".join(self.systems)
+        )
+        line = (
+            f"{self.fit}, {who}: {self.head} at {len(self.points)} of {self.total} points ({point_ranges(self.points)})"
+        )
         if self.why:
             line += f" - {self.why}"
         if self.see:
@@ -81,8 +86,17 @@ def group_warnings(fits: Iterable[FitWarnings]) -> list[WarningGroup]:
             if f.fit in clean and f.point in g["points"] and any(_head(w) == _head(g["text"]) for w in f.warnings):
                 clean.discard(f.fit)
         head, why = warning_kind(g["text"])
-        out.append(WarningGroup(fit, tuple(sorted(g["systems"])), head, why, tuple(sorted(g["points"])),
-                                len(family_points[fit]), tuple(sorted(clean))[:SEE_MOST]))
+        out.append(
+            WarningGroup(
+                fit,
+                tuple(sorted(g["systems"])),
+                head,
+                why,
+                tuple(sorted(g["points"])),
+                len(family_points[fit]),
+                tuple(sorted(clean))[:SEE_MOST],
+            )
+        )
     return sorted(out, key=lambda g: (g.fit, -len(g.points), g.head))
 
 

@@ -22,13 +22,41 @@ def _fail(message: str, code: int = 2) -> None:
     raise typer.Exit(code)
 
 
+RunDir = Annotated[Path, typer.Argument(metavar="DIR", help="Run directory written by `orbitrig sweep --out DIR`.")]
+ModelOpt = Annotated[
+    str,
+    typer.Option("--model", help="kc7 (K, symmetric C) | kc8 (K, C) | kcd11 (K, C, symmetric D) | kcd12 (K, C, D)"),
+]
+FreqDepOpt = Annotated[
+    str,
+    typer.Option(
+        "--freq-dep",
+        help="coefficients' dependence on the orbit speed Omega (rad/s): none | power:M (K = K0 + Omega^M KM, likewise C, D) | power:m,n,p (exponents of K, C, D) | power:auto (best M in 1..4) | poly:R (polynomial to Omega^R)",
+    ),
+]
+MethodOpt = Annotated[
+    str,
+    typer.Option(
+        "--method", help="least squares: ols (ordinary) | wls (weighted) | tls (total) | iv (instrumental variables)"
+    ),
+]
+JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the table (as --format json).")]
+FormatOpt = Annotated[
+    OutputFormat,
+    typer.Option(
+        "--format",
+        help="text: a plain table, every number in full, split to the terminal's width; csv: the table as CSV; json: one object with every result",
+    ),
+]
+
+
 def reduce_cmd(
-    directory: Annotated[Path, typer.Argument(metavar="DIR", help="Run directory written by `orbitrig sweep --out DIR`.")],
-    model: Annotated[str, typer.Option("--model", help="kc7 (K, symmetric C) | kc8 (K, C) | kcd11 (K, C, symmetric D) | kcd12 (K, C, D)")],
-    freq_dep: Annotated[str, typer.Option("--freq-dep", help="coefficients' dependence on the orbit speed Omega (rad/s): none | power:M (K = K0 + Omega^M KM, likewise C, D) | power:m,n,p (exponents of K, C, D) | power:auto (best M in 1..4) | poly:R (polynomial to Omega^R)")] = "none",
-    method: Annotated[str, typer.Option("--method", help="least squares: ols (ordinary) | wls (weighted) | tls (total) | iv (instrumental variables)")] = "ols",
-    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of the table (as --format json).")] = False,
-    fmt: Annotated[OutputFormat, typer.Option("--format", help="text: a plain table, every number in full, split to the terminal's width; csv: the table as CSV; json: one object with every result")] = OutputFormat.TEXT,
+    directory: RunDir,
+    model: ModelOpt,
+    freq_dep: FreqDepOpt = "none",
+    method: MethodOpt = "ols",
+    as_json: JsonOpt = False,
+    fmt: FormatOpt = OutputFormat.TEXT,
 ) -> None:
     """Identify again from a run's stored phasors, without the rig.
 
@@ -38,7 +66,7 @@ def reduce_cmd(
     """
     from orbitrig.errors import ReductionError
     from orbitrig import open_run
-    from orbitrig.analysis.reduce import csv_path, reduce_run, table_cells, write_csv
+    from orbitrig.analysis.reduce import csv_path, reduce_run, write_csv
     from orbitrig.store.errors import StorageError
     from orbitrig.store.reader import RunDirError
 
@@ -59,15 +87,23 @@ def reduce_cmd(
         path = write_csv(csv_path(directory, model, freq_dep, method), rows, run.sim)
     except StorageError as err:
         _fail(str(err), 1)
-    if as_json or fmt == OutputFormat.JSON:
-        out = {"run": str(directory), "csv": str(path), "status": run.status,
-               "results": [r.to_dict() for r in rows]}
+    _print_reduce(directory, run, rows, path, OutputFormat.JSON if as_json else fmt, f"{model} {freq_dep} ({method})")
+
+
+def _print_reduce(directory: Path, run, rows, path: Path, fmt: OutputFormat, what: str) -> None:
+    """The rows of `reduce` on standard output in `fmt`; `what` names the fit."""
+    from orbitrig.analysis.reduce import table_cells
+
+    if fmt == OutputFormat.JSON:
+        out = {"run": str(directory), "csv": str(path), "status": run.status, "results": [r.to_dict() for r in rows]}
         typer.echo(json.dumps(out))
     elif fmt == OutputFormat.CSV:
         typer.echo(_plain(table_cells(rows)).csv())
     else:
-        typer.echo(f"{model} {freq_dep} ({method}) from the stored orbit tables of {directory} "
-                   f"(run {run.status}, {len({r.point.index for r in rows})} complete point(s))")
+        typer.echo(
+            f"{what} from the stored orbit tables of {directory} "
+            f"(run {run.status}, {len({r.point.index for r in rows})} complete point(s))"
+        )
         typer.echo(_plain(table_cells(rows)).text())
         typer.echo(f"written: {path}")
 
@@ -82,15 +118,59 @@ def _plain(cells: list[list[str]]) -> PlainTable:
     return table
 
 
+PointOpt = Annotated[
+    Optional[list[int]], typer.Option("--point", metavar="N", help="Only this operating point index (repeatable).")
+]
+AllFrequenciesOpt = Annotated[
+    bool,
+    typer.Option(
+        "--all-frequencies",
+        help="Force-signal figure (paper Fig. 4) for every orbit frequency, not only the lowest and highest of each whirl direction.",
+    ),
+]
+FiguresOpt = Annotated[
+    Optional[str],
+    typer.Option(
+        "--figures",
+        metavar="KINDS",
+        help="Only these figure kinds, comma-separated: forces, coefficients, derived, impedance, coherence, lms, signals, orbits (default: all). The page's tables are always complete.",
+    ),
+]
+WidthOpt = Annotated[
+    str,
+    typer.Option(
+        "--width", help="Figure width: double (a journal's double column, 7.2 in), single (3.5 in) or inches."
+    ),
+]
+FormatsOpt = Annotated[
+    str,
+    typer.Option(
+        "--formats",
+        metavar="LIST",
+        help="Files of each figure, comma-separated: png (300 dpi, for the page), pdf (vector; then report.pdf joins these), svg. Each vector format costs about as much time as the PNG.",
+    ),
+]
+CoverageOpt = Annotated[
+    float,
+    typer.Option(
+        "--coverage",
+        min=0.5,
+        max=5.0,
+        help="Coverage factor k of every band and error bar: +-k u (2: the expanded uncertainty U; 1: one standard uncertainty).",
+    ),
+]
+WorkersOpt = Annotated[int, typer.Option("--workers", min=1, help="Processes drawing the points in parallel.")]
+
+
 def report_cmd(
-    directory: Annotated[Path, typer.Argument(metavar="DIR", help="Run directory written by `orbitrig sweep --out DIR`.")],
-    point: Annotated[Optional[list[int]], typer.Option("--point", metavar="N", help="Only this operating point index (repeatable).")] = None,
-    all_frequencies: Annotated[bool, typer.Option("--all-frequencies", help="Force-signal figure (paper Fig. 4) for every orbit frequency, not only the lowest and highest of each whirl direction.")] = False,
-    figures: Annotated[Optional[str], typer.Option("--figures", metavar="KINDS", help="Only these figure kinds, comma-separated: forces, coefficients, derived, impedance, coherence, lms, signals, orbits (default: all). The page's tables are always complete.")] = None,
-    width: Annotated[str, typer.Option("--width", help="Figure width: double (a journal's double column, 7.2 in), single (3.5 in) or inches.")] = "double",
-    formats: Annotated[str, typer.Option("--formats", metavar="LIST", help="Files of each figure, comma-separated: png (300 dpi, for the page), pdf (vector; then report.pdf joins these), svg. Each vector format costs about as much time as the PNG.")] = "png",
-    coverage: Annotated[float, typer.Option("--coverage", min=0.5, max=5.0, help="Coverage factor k of every band and error bar: +-k u (2: the expanded uncertainty U; 1: one standard uncertainty).")] = 2.0,
-    workers: Annotated[int, typer.Option("--workers", min=1, help="Processes drawing the points in parallel.")] = 2,
+    directory: RunDir,
+    point: PointOpt = None,
+    all_frequencies: AllFrequenciesOpt = False,
+    figures: FiguresOpt = None,
+    width: WidthOpt = "double",
+    formats: FormatsOpt = "png",
+    coverage: CoverageOpt = 2.0,
+    workers: WorkersOpt = 2,
 ) -> None:
     """Plots and an HTML page of a stored run, in DIR/plots.
 
@@ -112,11 +192,13 @@ def report_cmd(
     if unknown:
         _fail(f"--figures: unknown kind(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")
     try:
-        options = ReportOptions(figures=frozenset(kinds), all_frequencies=all_frequencies,
-                                style=_style(width, formats, coverage))
-        total = len(point) if point else len(read_run(directory, blocks=False).complete_points)
+        options = ReportOptions(
+            figures=frozenset(kinds), all_frequencies=all_frequencies, style=_style(width, formats, coverage)
+        )
+        run = read_run(directory)  # once: the progress bar's total and the report's data
+        total = len(point) if point else len(run.complete_points)
         with ReportProgress(total) as progress:
-            report = make_report(directory, points=point, options=options, workers=workers, progress=progress)
+            report = make_report(directory, points=point, options=options, workers=workers, progress=progress, run=run)
     except (RunDirError, ValueError) as err:
         _fail(str(err))
     except StorageError as err:
@@ -129,11 +211,15 @@ def _summary(directory: Path, report) -> None:
     from orbitrig.store.status import RunStatus
 
     run = report.run
-    typer.echo(f"run {run.status}: {len(run.complete_points)} complete point(s), "
-               f"{len(run.points) - len(run.complete_points)} incomplete")
+    typer.echo(
+        f"run {run.status}: {len(run.complete_points)} complete point(s), "
+        f"{len(run.points) - len(run.complete_points)} incomplete"
+    )
     if run.status == RunStatus.RUNNING:  # the store says so until the run ends: also after a crash or kill -9
-        typer.echo(f"(still running, or interrupted: `orbitrig sweep --resume {directory}` continues an "
-                   "interrupted run; add --sim if it was made on the simulator)")
+        typer.echo(
+            f"(still running, or interrupted: `orbitrig sweep --resume {directory}` continues an "
+            "interrupted run; add --sim if it was made on the simulator)"
+        )
     for pr in report.points:
         for m in pr.mismatches:
             typer.echo(f"warning: point {pr.point.name}: {m}", err=True)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from pypdf import PdfReader
 
-from orbitrig.analysis import plots, plots_coefficients
+from orbitrig.analysis import plots, plots_coefficients, plots_forces
 from orbitrig.analysis.reduce import MATRIX_UNITS
 from orbitrig.analysis.report import ReportOptions, analyse_point, fit_label, make_report
 from orbitrig.cli.report_progress import ReportProgress
@@ -32,8 +32,9 @@ def _fitted(pr, lms="piezo", model="kcd11"):
 
 def _coefficients(pt, pr, truth):
     table = pt.tables["piezo"]
-    return plots_coefficients.coefficients_figure(_fitted(pr), spin=table.spin, orbit=table.orbit, truth=truth,
-                                                  title="t")
+    return plots_coefficients.coefficients_figure(
+        _fitted(pr), spin=table.spin, orbit=table.orbit, truth=truth, title="t"
+    )
 
 
 @pytest.mark.parametrize("stored", ["per row", "constant best fit only"])
@@ -98,7 +99,7 @@ def test_residual_panels_show_measured_minus_reproduced(point):
     pt, pr = point
     table = pt.tables["piezo"]
     fitted = _fitted(pr, model="kc7")
-    fig = plots.forces_figure(table, fitted, title="t")
+    fig = plots_forces.forces_figure(table, fitted, title="t")
     ax = next(ax for ax in fig.axes if ax.get_title().startswith("Fy residual"))
     ratio = table.orbit / table.spin
     forward = np.flatnonzero(plots.whirl_direction(table) == 1)
@@ -116,7 +117,7 @@ def _png_width_and_dpi(path):
     data = path.read_bytes()
     width = struct.unpack(">I", data[16:20])[0]
     at = data.index(b"pHYs")
-    ppm = struct.unpack(">I", data[at + 4:at + 8])[0]
+    ppm = struct.unpack(">I", data[at + 4 : at + 8])[0]
     return width, ppm * 0.0254
 
 

@@ -18,7 +18,7 @@ def test_report_of_a_killed_run_says_how_to_continue_it(tmp_path):
 
 def test_forces_plot_keeps_agreeing_models_visible(tmp_path):
     """kc8 and kcd11 reproduce nearly the same forces: the lines differ in width so neither hides the other."""
-    from orbitrig.analysis import plots as plots
+    from orbitrig.analysis import plots, plots_forces
     from orbitrig.analysis.report import analyse_point
     from orbitrig.store.reader import read_run
 
@@ -26,7 +26,7 @@ def test_forces_plot_keeps_agreeing_models_visible(tmp_path):
     pr = analyse_point(read_run(run).points[0])
     fitted = [plots.Fitted(f"{r.model} {r.freq_dep}", r.identification) for r in pr.results["piezo"]]
     assert len(fitted) >= 2
-    amp = plots.forces_figure(pr.point.tables["piezo"], fitted, title="t").axes[0]
+    amp = plots_forces.forces_figure(pr.point.tables["piezo"], fitted, title="t").axes[0]
     model_lines = [ln for ln in amp.get_lines() if ln.get_linestyle() != "None"]
     widths = sorted({ln.get_linewidth() for ln in model_lines}, reverse=True)
     assert len(widths) == len(fitted) and widths[-1] >= 0.7  # pt, at a journal column's width

@@ -33,13 +33,23 @@ def test_report_writes_every_plot(synthetic_run, synthetic_report):
     plots = synthetic_run / "plots"
     # --point 1: nothing of point 0; Figure 4 for the lowest and highest frequency of each direction
     assert {p.name for p in plots.glob("*.png")} == {
-        "forces_0001_piezo.png", "forces_0001_strain.png",
-        "coefficients_0001_piezo_kcd11.png", "coefficients_0001_strain_kcd11.png",
-        "coefficients_0001_piezo_kc7.png", "coefficients_0001_strain_kc7.png",
-        "derived_0001_piezo.png", "derived_0001_strain.png",
-        "impedance_0001_piezo.png", "impedance_0001_strain.png",
-        "coherence_0001.png", "lms_0001.png", "orbits_0001.png",
-        "signals_0001_00_fwd.png", "signals_0001_09_fwd.png", "signals_0001_00_bwd.png", "signals_0001_09_bwd.png",
+        "forces_0001_piezo.png",
+        "forces_0001_strain.png",
+        "coefficients_0001_piezo_kcd11.png",
+        "coefficients_0001_strain_kcd11.png",
+        "coefficients_0001_piezo_kc7.png",
+        "coefficients_0001_strain_kc7.png",
+        "derived_0001_piezo.png",
+        "derived_0001_strain.png",
+        "impedance_0001_piezo.png",
+        "impedance_0001_strain.png",
+        "coherence_0001.png",
+        "lms_0001.png",
+        "orbits_0001.png",
+        "signals_0001_00_fwd.png",
+        "signals_0001_09_fwd.png",
+        "signals_0001_00_bwd.png",
+        "signals_0001_09_bwd.png",
     }
     for path in plots.glob("*.png"):
         w, h = png_size(path)
@@ -50,7 +60,11 @@ def test_report_writes_every_plot(synthetic_run, synthetic_report):
 def test_repeated_identifications_match_the_stored_ones(synthetic_run):
     pr = analyse_point(read_run(synthetic_run).points[0])
     assert pr.mismatches == []
-    assert {(r.model, r.freq_dep) for r in pr.results["piezo"]} == {("kcd11", "none"), ("kc7", "none"), ("kcd11", "power:1")}
+    assert {(r.model, r.freq_dep) for r in pr.results["piezo"]} == {
+        ("kcd11", "none"),
+        ("kc7", "none"),
+        ("kcd11", "power:1"),
+    }
 
 
 def test_repeated_identification_that_differs_is_named(synthetic_run):
@@ -72,7 +86,16 @@ def test_html_references_every_plot_and_shows_coefficients(synthetic_run, synthe
             unit, scale = coefficient_unit(key)
             assert f"{value * scale:.4g}" in html, key
             assert f"{r.identification.std_errors[key] * scale:.2g}" in html, key
-    for text in ("MN/m", "kN s/m", "kg", "stopped", "1 incomplete (0002)", "1000 rpm", "0.4826 MPa", "true (simulator)"):
+    for text in (
+        "MN/m",
+        "kN s/m",
+        "kg",
+        "stopped",
+        "1 incomplete (0002)",
+        "1000 rpm",
+        "0.4826 MPa",
+        "true (simulator)",
+    ):
         assert text in html
     assert "kcd12 poly:8 refused" in html  # the sweep's refusal is shown, with its reason
     assert "\u03b3\u00b2 x, Fx" in html  # the coherence table (paper Table 1)
@@ -84,8 +107,9 @@ def test_coefficient_units():
     assert coefficient_unit("Dxx") == ("kg", 1.0)
 
 
-@pytest.mark.parametrize("point, why", [("2", "point 0002 skipped: never completed"),
-                                        ("7", "point 0007 skipped: no such point in the run")])
+@pytest.mark.parametrize(
+    "point, why", [("2", "point 0002 skipped: never completed"), ("7", "point 0007 skipped: no such point in the run")]
+)
 def test_cli_report_point_not_complete(synthetic_run, point, why):
     result = CliRunner().invoke(app, ["report", str(synthetic_run), "--point", point, "--figures", "coefficients"])
     assert result.exit_code == 1 and f"error: {why}" in result.stderr, result.output

@@ -42,8 +42,13 @@ def test_coherence_is_a_coloured_table_of_the_stored_values(point_report):
     assert table.lms == ["piezo", "strain"] and table.values.shape == (20, 8)
     assert table.rows[0] == "0.200 fwd" and table.rows[-1] == "1.200 bwd"
     piezo = point.tables["piezo"]
-    first_bwd = int(np.flatnonzero((piezo.orbit / piezo.spin > 0.19) & (piezo.orbit / piezo.spin < 0.21)
-                                   & (np.imag(np.conj(piezo.x) * piezo.y) > 0))[0])
+    first_bwd = int(
+        np.flatnonzero(
+            (piezo.orbit / piezo.spin > 0.19)
+            & (piezo.orbit / piezo.spin < 0.21)
+            & (np.imag(np.conj(piezo.x) * piezo.y) > 0)
+        )[0]
+    )
     np.testing.assert_array_equal(table.values[10, :4], piezo.gamma2[first_bwd])
     fig = coherence_figure(table, title="t")
     ax = fig.axes[0]
@@ -68,8 +73,9 @@ def test_truth_markers_stay_inside_the_axes_even_far_from_the_fit(point_report):
     truth = copy.deepcopy(point.truth)
     truth["K"] = (np.asarray(truth["K"]) * 3).tolist()  # far outside what the fit draws
     t = point.tables["piezo"]
-    fig = coefficients_figure([Fitted(fit_label(r), r.identification)], spin=t.spin, orbit=t.orbit, truth=truth,
-                              title="t")
+    fig = coefficients_figure(
+        [Fitted(fit_label(r), r.identification)], spin=t.spin, orbit=t.orbit, truth=truth, title="t"
+    )
     crosses = 0
     for ax in fig.axes:
         for line in ax.get_lines():
@@ -159,9 +165,12 @@ def test_identification_table_shows_interval_budget_warnings(point_report):
     html = identification_table(r, {}, "kcd11", with_budget=False)
     lo, hi = ident.confidence_95["Kxy"]
     assert f"[{lo * 1e-6:.4g}, {hi * 1e-6:.4g}]" in html
-    assert f"{ident.aic:.5g} / {ident.bic:.5g}" in html and f"<td colspan=\"4\" class=\"l\">{ident.dof}</td>" in html
-    r.stored = dict(r.stored or {}, warnings=["Cxy is ill-conditioned"],
-                    uncertainty={"k": 2.0, "systematic": {"Kxy": 12345.0}, "expanded": {"Kxy": 67890.0}})
+    assert f"{ident.aic:.5g} / {ident.bic:.5g}" in html and f'<td colspan="4" class="l">{ident.dof}</td>' in html
+    r.stored = dict(
+        r.stored or {},
+        warnings=["Cxy is ill-conditioned"],
+        uncertainty={"k": 2.0, "systematic": {"Kxy": 12345.0}, "expanded": {"Kxy": 67890.0}},
+    )
     html = identification_table(r, {}, "kcd11", with_budget=True)
     assert "warning: Cxy is ill-conditioned" in html
     assert "expanded U<br>(combined, k = 2)" in html
@@ -216,7 +225,7 @@ def test_figure_5_error_bars_from_the_phasor_uncertainty(point_report):
     frequency; without u_*, neither."""
     from matplotlib.container import ErrorbarContainer
 
-    from orbitrig.analysis import plots
+    from orbitrig.analysis import plots_forces
     from reduction.table import OrbitTable
 
     stored = point_report.point.tables["piezo"]
@@ -224,7 +233,7 @@ def test_figure_5_error_bars_from_the_phasor_uncertainty(point_report):
     u = np.column_stack([np.full(t.orbit.size, 1e-8)] * 2 + [0.01 * np.abs(t.fx), 0.02 * np.abs(t.fy)])
     with_u = OrbitTable(t.spin, t.orbit, t.x, t.y, t.fx, t.fy, gamma2=t.gamma2, n_records=np.full(t.orbit.size, 8), u=u)
     fitted = [Fitted("kc7", point_report.results["piezo"][0].identification)]
-    fig = plots.forces_figure(with_u, fitted, title="t")  # a figure is valid until the next of its shape
+    fig = plots_forces.forces_figure(with_u, fitted, title="t")  # a figure is valid until the next of its shape
     amp_fy, residual_fy = fig.axes[1], fig.axes[3]
     bars = [c for c in amp_fy.containers if isinstance(c, ErrorbarContainer)]
     assert len(bars) == 2  # forward and backward
@@ -233,7 +242,7 @@ def test_figure_5_error_bars_from_the_phasor_uncertainty(point_report):
     assert np.sort(half) == pytest.approx(np.sort(2 * 0.02 * np.abs(t.fy) / np.sqrt(2)))
     shown = np.concatenate([ln.get_ydata() for ln in residual_fy.get_lines() if ln.get_gid() == "measured-uncertainty"])
     assert np.sort(shown) == pytest.approx(np.sort(2 * 0.02 * np.abs(t.fy)))
-    fig = plots.forces_figure(t, fitted, title="t")  # the same figure, emptied: no bar of the last one left
+    fig = plots_forces.forces_figure(t, fitted, title="t")  # the same figure, emptied: no bar of the last one left
     assert not any(isinstance(c, ErrorbarContainer) for ax in fig.axes for c in ax.containers)
     assert not any(ln.get_gid() == "measured-uncertainty" for ax in fig.axes for ln in ax.get_lines())
 

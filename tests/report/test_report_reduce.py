@@ -136,7 +136,10 @@ def test_cli_reduce_partial_refusal_keeps_the_other_points(synthetic_run, tmp_pa
     assert "refused at point 0001 piezo, 0001 strain" in result.stderr
     rows = list(csv.DictReader(csv_path(run, "kcd11", "none", "ols").open()))
     assert [(r["point"], r["lms"], bool(r["error"]), bool(r["Kxx [N/m]"])) for r in rows] == [
-        ("0", "piezo", False, True), ("0", "strain", False, True), ("1", "piezo", True, False), ("1", "strain", True, False),
+        ("0", "piezo", False, True),
+        ("0", "strain", False, True),
+        ("1", "piezo", True, False),
+        ("1", "strain", True, False),
     ]
 
 

@@ -67,9 +67,9 @@ def _idat(data: bytes) -> bytes:
     """The concatenated IDAT chunks of a PNG file."""
     out, at = [], 8
     while at < len(data):
-        length, kind = struct.unpack(">I4s", data[at:at + 8])
+        length, kind = struct.unpack(">I4s", data[at : at + 8])
         if kind == b"IDAT":
-            out.append(data[at + 8:at + 8 + length])
+            out.append(data[at + 8 : at + 8 + length])
         at += 12 + length
     return b"".join(out)
 

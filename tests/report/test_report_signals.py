@@ -70,8 +70,12 @@ def test_figure_4a_difference_recovers_the_injected_1_8_percent_and_0_3_degrees(
     """The strain gauges read 1.018 e^{i 0.3 deg} times the piezo force; the averaged waveforms
     carry 3 % per-sample noise (8 revolutions, 45 samples: about 0.3 % / 0.2 deg per block).
     The mean over 40 block/axis pairs is within 4 standard errors of the injected values."""
-    diffs = [lms_difference(read_block_signals(run, p, f), axis)
-             for p in run.complete_points for f in p.frequencies for axis in ("fx", "fy")]
+    diffs = [
+        lms_difference(read_block_signals(run, p, f), axis)
+        for p in run.complete_points
+        for f in p.frequencies
+        for axis in ("fx", "fy")
+    ]
     amp = np.array([d.amplitude_pct for d in diffs])
     phase = np.array([d.phase_deg for d in diffs])
     assert len(diffs) == 80

@@ -23,8 +23,9 @@ MODELS = (("kcd11", "none"), ("kc8", "none"), ("kcd11", "power:1"))
 
 
 def orbitrig(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "orbitrig", *args], cwd=ROOT, capture_output=True, text=True,
-                          timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "orbitrig", *args], cwd=ROOT, capture_output=True, text=True, timeout=timeout
+    )
 
 
 @pytest.fixture(scope="session")
@@ -91,14 +92,27 @@ def test_report_on_the_sweep(sweep_run):
     assert "warning" not in p.stderr  # every stored identification repeated to the same numbers
     plots = sweep_run / "plots"
     pngs = sorted(f.name for f in plots.glob("*.png"))
-    assert pngs == sorted([
-        "forces_0000_piezo.png", "forces_0000_strain.png", "coherence_0000.png", "lms_0000.png",
-        "coefficients_0000_piezo_kcd11.png", "coefficients_0000_strain_kcd11.png",
-        "coefficients_0000_piezo_kc8.png", "coefficients_0000_strain_kc8.png",
-        "derived_0000_piezo.png", "derived_0000_strain.png", "impedance_0000_piezo.png", "impedance_0000_strain.png",
-        "orbits_0000.png", "signals_0000_00_fwd.png", "signals_0000_04_fwd.png", "signals_0000_00_bwd.png",
-        "signals_0000_04_bwd.png",
-    ])
+    assert pngs == sorted(
+        [
+            "forces_0000_piezo.png",
+            "forces_0000_strain.png",
+            "coherence_0000.png",
+            "lms_0000.png",
+            "coefficients_0000_piezo_kcd11.png",
+            "coefficients_0000_strain_kcd11.png",
+            "coefficients_0000_piezo_kc8.png",
+            "coefficients_0000_strain_kc8.png",
+            "derived_0000_piezo.png",
+            "derived_0000_strain.png",
+            "impedance_0000_piezo.png",
+            "impedance_0000_strain.png",
+            "orbits_0000.png",
+            "signals_0000_00_fwd.png",
+            "signals_0000_04_fwd.png",
+            "signals_0000_00_bwd.png",
+            "signals_0000_04_bwd.png",
+        ]
+    )
     for name in pngs:
         data = (plots / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 30_000

@@ -29,8 +29,12 @@ def test_many_points_print_one_summary_row_each(tmp_path, capsys, monkeypatch):
     stored = read_run(run, blocks=False).complete_points
     for p in stored:
         n = sum(rejected(i.result) for i in p.identifications if i.ok)
-        assert re.search(rf"^\S*\s*{p.name}\s.*\s{n} of {sum(i.ok for i in p.identifications)}\s", out, flags=re.M), p.name
-    families = {f"{i.model} {i.freq_dep} {i.method}" for p in stored for i in p.identifications if i.ok and rejected(i.result)}
+        assert re.search(rf"^\S*\s*{p.name}\s.*\s{n} of {sum(i.ok for i in p.identifications)}\s", out, flags=re.M), (
+            p.name
+        )
+    families = {
+        f"{i.model} {i.freq_dep} {i.method}" for p in stored for i in p.identifications if i.ok and rejected(i.result)
+    }
     every = {f"{i.model} {i.freq_dep} {i.method}" for p in stored for i in p.identifications if i.ok}
     assert families and families != every and "rejected * = fits the chi2 adequacy test rejects" in out
     assert sorted(re.findall(r"^rejected: (.+?), (?:piezo|strain)", out, flags=re.M)) == sorted(families)
@@ -50,8 +54,12 @@ def test_few_points_print_the_full_tables(tmp_path, capsys, monkeypatch):
     print_coefficients(run)
     out = capsys.readouterr().out
     marked = re.findall(r"(piezo|strain) (\S+) (\S+) \*", out)
-    expected = {(i.lms, i.model, i.method) for p in stored for i in p.identifications if i.ok and rejected(i.result)
-                and i.freq_dep == "none"}
+    expected = {
+        (i.lms, i.model, i.method)
+        for p in stored
+        for i in p.identifications
+        if i.ok and rejected(i.result) and i.freq_dep == "none"
+    }
     assert expected and set(marked) >= expected and "* the fit's chi2 adequacy test rejects it" in out
 
 

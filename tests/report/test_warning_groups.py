@@ -25,7 +25,13 @@ def test_166_warnings_become_one_line_per_family_with_count_points_and_a_fit_wit
     fits = _paper_like()
     assert sum(len(f.warnings) for f in fits) == 166  # 83 points x 2 systems, all different numbers
     (g,) = group_warnings(fits)
-    assert (g.fit, g.systems, g.head, len(g.points), g.total) == ("kc7 none ols", ("piezo", "strain"), "bad fit", 83, 108)
+    assert (g.fit, g.systems, g.head, len(g.points), g.total) == (
+        "kc7 none ols",
+        ("piezo", "strain"),
+        "bad fit",
+        83,
+        108,
+    )
     assert g.points == tuple(range(83)) and g.see == ("kcd11 none ols",)
     (line,) = warning_lines(fits)
     assert line.startswith("kc7 none ols, both systems: bad fit at 83 of 108 points (0000-0082) - the residuals exceed")

@@ -1,0 +1,58 @@
+"""Grid lines drawn as one artist per axes.
+
+matplotlib's ``ax.grid`` draws each grid line as its own Line2D artist per tick (about a fifth
+of a report figure's drawing time); :func:`light_grid` adds one artist that draws the grid
+lines of the axes' major ticks as a single LineCollection, in the same colour, width and place
+(between patches and lines).
+"""
+
+from __future__ import annotations
+
+import matplotlib as mpl
+from matplotlib.artist import Artist
+from matplotlib.collections import LineCollection
+
+GRID_GID = "light-grid"
+
+
+class _Grid(Artist):
+    """The grid lines of the major ticks of `which` ('x', 'y' or 'both') of its axes."""
+
+    def __init__(self, which: str, alpha: float):
+        super().__init__()
+        self.which = which
+        self.set_alpha(alpha)
+        self.set_gid(GRID_GID)
+        self.set_zorder(1.5)  # where matplotlib puts grid lines (axes.axisbelow: 'line')
+
+    def draw(self, renderer) -> None:
+        ax = self.axes
+        if ax is None or not self.get_visible():
+            return
+        (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+        segments = []
+        if self.which in ("x", "both"):
+            segments += [[(x, y0), (x, y1)] for x in ax.xaxis.get_majorticklocs() if min(x0, x1) <= x <= max(x0, x1)]
+        if self.which in ("y", "both"):
+            segments += [[(x0, y), (x1, y)] for y in ax.yaxis.get_majorticklocs() if min(y0, y1) <= y <= max(y0, y1)]
+        if not segments:
+            return
+        rc = mpl.rcParams
+        lines = LineCollection(
+            segments,
+            colors=rc["grid.color"],
+            linewidths=rc["grid.linewidth"],
+            linestyles=rc["grid.linestyle"],
+            alpha=self.get_alpha(),
+            transform=ax.transData,
+        )
+        lines.set_figure(ax.get_figure(root=False))
+        lines.set_clip_box(ax.bbox)
+        lines.draw(renderer)
+
+
+def light_grid(ax, which: str = "both", alpha: float = 0.3) -> None:
+    """Grid lines on `ax` at its major ticks, as ``ax.grid(True, axis=which, alpha=alpha)``
+    draws them; once per axes (a reused figure keeps it)."""
+    if not any(a.get_gid() == GRID_GID for a in ax.artists):
+        ax.add_artist(_Grid(which, alpha))

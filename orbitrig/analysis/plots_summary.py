@@ -1,0 +1,79 @@
+"""The summary figure of a run (matplotlib Agg, no pyplot state): one model's constant K and C
+entries at every operating point, beside the simulator's truth."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.ticker import MaxNLocator
+
+from orbitrig.analysis.grid import light_grid
+from orbitrig.analysis.plots import (
+    ENTRIES,
+    TRUTH_LABEL,
+    _colors,
+    _min_span,
+    _save,
+    coverage,
+    keep_inside,
+    panel_figure,
+    style,
+)
+from orbitrig.analysis.reduce import MATRIX_UNITS
+
+
+def summary_plot(
+    path, series: dict[str, list[tuple[int, Any]]], truth: list[tuple[int, dict]], *, model: str, title: str
+) -> Path:
+    """The constant K and C entries of one model at every operating point (x: point
+    index), one marker series per load measuring system, error bars of one standard
+    error, and the simulator's true values (K0, C0) as black crosses."""
+    fig = panel_figure(13, 7.2, bottom=1.5, wspace=0.5)
+    axes = fig.subplots(2, 4, sharex=True)
+    colors = _colors(len(series))
+    offsets = np.linspace(-0.12, 0.12, len(series)) if len(series) > 1 else [0.0]
+    largest = {"K": 0.0, "C": 0.0}
+    for k, (lms, entries) in enumerate(series.items()):
+        idx = np.array([i for i, _ in entries], dtype=float)
+        for row, m in enumerate("KC"):
+            unit, scale = MATRIX_UNITS[m]
+            for col, e in enumerate(ENTRIES):
+                key = m + e
+                vals = [ident.coefficients.get(key, np.nan) * scale for _, ident in entries]
+                largest[m] = max(largest[m], float(np.nanmax(np.abs(vals))))
+                errs = [coverage() * (ident.std_errors.get(key) or 0.0) * scale for _, ident in entries]
+                axes[row, col].errorbar(
+                    idx + offsets[k],
+                    vals,
+                    yerr=errs,
+                    fmt="o",
+                    ms=4,
+                    capsize=2,
+                    color=colors[k],
+                    label=f"{lms}, {model}",
+                )
+    for row, m in enumerate("KC"):
+        unit, scale = MATRIX_UNITS[m]
+        for col, e in enumerate(ENTRIES):
+            ax = axes[row, col]
+            i, j = divmod(col, 2)
+            pts = [(idx, t[f"{m}0"][i][j] * scale) for idx, t in truth if t and f"{m}0" in t]
+            if pts:
+                ax.plot(*zip(*pts), "x", color="black", ms=6, mew=1.5, label=TRUTH_LABEL)
+            ax.set_title(f"{m}{e}")
+            ax.set_ylabel(f"{m}{e}  [{unit}]")
+            light_grid(ax)
+            ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+            _min_span(ax, largest[m])
+            if pts:
+                keep_inside(ax, *zip(*pts))
+            if row == 1:
+                ax.set_xlabel("operating point  [index]")
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(
+        handles, labels, loc="lower center", ncols=len(labels), fontsize="small", title=style().band_label("error bars")
+    )
+    fig.suptitle(title)
+    return _save(fig, path)
