@@ -67,6 +67,7 @@ class FiguresAhead:
         self.directory = Path(directory)
         self.figures = figures  # the report's kinds to draw (None: all, the report's default)
         self._process: subprocess.Popen | None = None
+        self.handed: list[int] = []  # indices handed to the drawing process
         self.dropped: list[int] = []  # indices not handed over (the report draws those points)
 
     def point_complete(self, index: int) -> None:
@@ -90,6 +91,7 @@ class FiguresAhead:
                 os.set_blocking(self._process.stdin.fileno(), False)
             assert self._process.stdin is not None
             os.write(self._process.stdin.fileno(), b"%d\n" % index)
+            self.handed.append(index)
         except OSError:  # cannot start, pipe full (BlockingIOError) or the process gone
             self.dropped.append(index)
 

@@ -35,6 +35,7 @@ def register(app: typer.Typer) -> None:
         speedup: o.SpeedupOpt = None,
         verbose: o.VerboseOpt = False,
         catalog: o.CatalogOpt = None,
+        draw_figures: o.DrawFigures = True,
         log_file: o.LogFileOpt = None,
         log_max_mb: o.LogMbOpt = DEFAULT_MAX_MB,
         log_backups: o.LogBackupsOpt = DEFAULT_BACKUPS,
@@ -74,6 +75,7 @@ def _start(opts: ServeOptions) -> None:
             supervision_timeout=opts.supervision_timeout,
             client_id=opts.client_id,
             catalog_url=opts.catalog,
+            draw_figures=opts.draw_figures,
         )
     except (ConfigError, ServiceError) as err:
         fail(str(err))

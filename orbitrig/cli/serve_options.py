@@ -13,6 +13,7 @@ from typing import Annotated, NoReturn, Optional
 import typer
 
 from orbitrig.cli.service_log import DEFAULT_BACKUPS, DEFAULT_MAX_MB
+from orbitrig.cli.sweep_options import DrawFigures as DrawFigures  # as sweep's: one option, one help
 
 PASSWORD_ENV = "ORBITRIG_MQTT_PASSWORD"
 USERNAME_ENV = "ORBITRIG_MQTT_USERNAME"
@@ -105,6 +106,7 @@ class ServeOptions:
     speedup: float | None = None
     verbose: bool = False
     catalog: str | None = None
+    draw_figures: bool = True
     log_file: Path | None = None
     log_max_mb: float = DEFAULT_MAX_MB
     log_backups: int = DEFAULT_BACKUPS

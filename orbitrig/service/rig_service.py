@@ -43,6 +43,7 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
+from orbitrig.analysis.report_ahead import FiguresAhead
 from orbitrig.analysis.run_warnings import closing_warnings, result_fit_warnings
 from orbitrig.analysis.warning_groups import warning_lines
 from orbitrig.errors import ConfigError
@@ -93,6 +94,7 @@ class RigService(CommandHandling):
         self._run_task: asyncio.Task | None = None
         self._fit_warnings: list = []  # FitWarnings of the run's completed points (grouped in each result)
         self._live: live_feed.LiveFeed | None = None
+        self._ahead: FiguresAhead | None = None  # the run's figures drawn as its points complete
         self._status = proto.status_payload(RunState.IDLE, None, None, "service ready")
         self._state = RunState.IDLE
         self._run_id: str | None = None
@@ -239,19 +241,33 @@ class RigService(CommandHandling):
         try:
             outcome = await engine.run(matrix)
         except asyncio.CancelledError:
+            self._close_figures()  # here, at once: the service is shutting down
             self._set_status(RunState.IDLE, self._run_id, f"run of {name!r} cancelled; drives stopped")
             raise
         except Exception as err:  # reported, the service goes on
+            await asyncio.to_thread(self._close_figures)
             log.exception("run of matrix %r failed", name)
             if self._state != RunState.FAULTED:
                 self._set_status(RunState.FAULTED, self._run_id, f"run of {name!r} failed: {err}")
             return
+        await asyncio.to_thread(self._close_figures)  # the point it was drawing is left to the report
         status = outcome.status
         log.info("run %s of matrix %r ended: %s", self._run_id, name, status)
         summary = await asyncio.to_thread(closing_warnings, outcome.out_dir)
         trim_heap()  # what the run freed goes back to the system before the next run
         if self._state not in (RunState.IDLE, RunState.FAULTED):
             self._set_status(RunState.IDLE, self._run_id, f"run {status}" + "".join(f"; warning: {w}" for w in summary))
+
+    def _close_figures(self) -> None:
+        ahead, self._ahead = self._ahead, None
+        if ahead is not None:
+            ahead.close()
+            log.info(
+                "report figures: %d points handed to the drawing process, %d not (`orbitrig report` draws "
+                "what it did not finish)",
+                len(ahead.handed),
+                len(ahead.dropped),
+            )
 
     def _cmd_start(self, cmd: proto.Command) -> None:
         if self.run_active:
@@ -272,6 +288,9 @@ class RigService(CommandHandling):
         engine = self._engine_factory(cmd.matrix, matrix)
         engine.operator = cmd.by or ""  # recorded in the run with every command's sender
         engine.subscribe(self._on_event)
+        if self.settings.draw_figures:  # at the lowest CPU priority; `orbitrig report` reuses them
+            self._ahead = FiguresAhead(engine.out_dir)
+            engine.subscribe(self._ahead.on_event)
         self._engine = engine
         self._run_id, self._fit_warnings = engine.run_id, []
         assert self._tg is not None

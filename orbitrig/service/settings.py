@@ -112,6 +112,8 @@ class ServiceSettings:
     session_expiry: int = 120
     #: campaign catalog URL each completed point is added to (orbitrig.service.catalog_feed); None: none
     catalog_url: str | None = None
+    #: each completed point's report figures drawn during the run (orbitrig.analysis.report_ahead)
+    draw_figures: bool = True
 
     @property
     def mqtt_client_id(self) -> str:

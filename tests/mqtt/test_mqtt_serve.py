@@ -211,6 +211,8 @@ def test_completed_run_publishes_one_result_per_point(rig, service):
     text = json.dumps(res)
     assert "Kxx" in text and "1000" in text  # identified coefficients and the point's settings
     assert run_status(service.work, run_id) == "completed"
+    # its figures went to a drawing process as the point completed (orbitrig report reuses what it drew)
+    assert "report figures: 1 points handed to the drawing process, 0 not" in service.text()
 
 
 def test_result_carries_intervals_uncertainty_verdicts_and_refusals(rig, service):
