@@ -122,6 +122,7 @@ class DriveModel:
         self._alpha = 0.0  # rpm/s, current ramp acceleration (powered)
         self._faults = FaultLatch()
         self._fault_ramp = False  # 7510 ramp stop in progress
+        self.comm_lost_after: float | None = None  # wall time of the last request before a 7510 trip
         self._fault_ramp_factor = 1.0  # x DECEL rate (EMERGENCY_FACTOR if OFF3 was active)
 
         self._t = float(clock())
@@ -182,11 +183,17 @@ class DriveModel:
         if R.COMM_LOSS_FAULT not in self._faults.latched:
             frac = self._watchdog.expired(self._params[R.COMM_LOSS_TIMEOUT], self._w, w_now)
         if frac is not None:
+            self.comm_lost_after = self._watchdog.last_request
             self._integrate_to(self._t + frac * (t_now - self._t))
             self._trip(R.COMM_LOSS_FAULT)
             self._faults.causes.add(R.COMM_LOSS_FAULT)
         self._integrate_to(t_now)
         self._w = max(w_now, self._w)
+
+    @property
+    def last_request(self) -> float:
+        """Wall time of the last valid request addressed to this drive."""
+        return self._watchdog.last_request
 
     def note_request(self) -> None:
         """A valid request addressed to this drive arrived: feed the watchdog."""
