@@ -24,6 +24,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 from orbitrig.analysis.canvas import ReportCanvas, png_bytes
+from orbitrig.analysis.report_axes import ReportAxes
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
 from reduction.whirl import Whirl
@@ -38,6 +39,8 @@ MAX_TICKS = 5
 TICK_STEPS = (1, 2, 2.5, 5, 10)
 #: journal column widths (in)
 COLUMN_WIDTHS = {"single": 3.5, "double": 7.2}
+#: keyword arguments of every report figure's ``subplots``: axes that measure tick labels once per draw
+AXES = {"axes_class": ReportAxes}
 
 
 class FigureFormat(StrEnum):
@@ -237,7 +240,7 @@ def panels(w: float, h: float, rows: int, cols: int, *, sharex: bool = True, **m
         _empty(fig)
         return fig, axes
     fig = panel_figure(w, h, **margins)
-    axes = np.atleast_2d(fig.subplots(rows, cols, sharex=sharex, squeeze=False))
+    axes = np.atleast_2d(fig.subplots(rows, cols, sharex=sharex, squeeze=False, subplot_kw=AXES))
     for ax in axes.flat:  # a journal panel reads 4 to 6 ticks an axis (matplotlib's 'auto' puts up to 9)
         ax.xaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=TICK_STEPS))
         ax.yaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=TICK_STEPS))

@@ -11,6 +11,7 @@ from matplotlib.ticker import MaxNLocator
 
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import (
+    AXES,
     ENTRIES,
     TRUTH_LABEL,
     _colors,
@@ -31,7 +32,7 @@ def summary_plot(
     index), one marker series per load measuring system, error bars of one standard
     error, and the simulator's true values (K0, C0) as black crosses."""
     fig = panel_figure(13, 7.2, bottom=1.5, wspace=0.5)
-    axes = fig.subplots(2, 4, sharex=True)
+    axes = fig.subplots(2, 4, sharex=True, subplot_kw=AXES)
     colors = _colors(len(series))
     offsets = np.linspace(-0.12, 0.12, len(series)) if len(series) > 1 else [0.0]
     largest = {"K": 0.0, "C": 0.0}

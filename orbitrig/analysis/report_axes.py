@@ -1,0 +1,100 @@
+"""Axes of the report's figures: tick labels measured once per draw.
+
+matplotlib's ``Axis.draw`` finds the ticks and measures every tick label's box, draws them, and
+then places the axis label clear of the tick labels, for which it finds the ticks and measures
+every box a second time, and finds the ticks a third time for the spine's extent (together
+about a sixth of a report figure's drawing time). :class:`ReportAxes` draws with axes whose
+label placement takes the ticks and boxes this draw already found. Boxes are
+measured again, as matplotlib does, outside a draw (a layout engine asking for extents) and when
+labels are aligned across axes (``Figure.align_labels``), whose siblings' boxes are needed.
+
+Every look at an axes' view limits (hundreds per figure: each tick, spine, grid and transform)
+first asks every axes sharing that axis whether it must be autoscaled; :class:`ReportAxes` keeps
+the set of axes that asked to be autoscaled and skips the question while that set is empty.
+"""
+
+from __future__ import annotations
+
+import weakref
+from typing import Any
+
+from matplotlib import axis as maxis
+from matplotlib.axes import Axes
+
+
+class _MeasuredOnce:
+    """Axis mixin: during its draw, the ticks found and the tick-label boxes measured first are
+    the ones the label's placement (and the spine's extent within it) uses."""
+
+    _drawing = False
+    _drawn_ticks: Any = None
+    _drawn_boxes: Any = None
+
+    def draw(self, renderer) -> None:
+        self._drawing, self._drawn_ticks, self._drawn_boxes = True, None, None
+        try:
+            super().draw(renderer)
+        finally:
+            self._drawing, self._drawn_ticks, self._drawn_boxes = False, None, None
+
+    def _update_ticks(self):
+        if self._drawn_ticks is None:
+            ticks = super()._update_ticks()
+            if not self._drawing:
+                return ticks
+            self._drawn_ticks = ticks
+        return self._drawn_ticks
+
+    def _get_ticklabel_bboxes(self, ticks, renderer):
+        boxes = super()._get_ticklabel_bboxes(ticks, renderer)
+        if self._drawing:
+            self._drawn_boxes = boxes
+        return boxes
+
+    def _get_tick_boxes_siblings(self, renderer):
+        if self._drawn_boxes is not None and self._alone():
+            return self._drawn_boxes
+        return super()._get_tick_boxes_siblings(renderer)
+
+    def _alone(self) -> bool:
+        """No other axes aligns its label with this one (``Figure.align_labels``)."""
+        groups = self.axes.get_figure(root=False)._align_label_groups  # type: ignore[attr-defined]
+        grouper = groups.get(self._get_axis_name())  # type: ignore[attr-defined]
+        return grouper is None or len(grouper.get_siblings(self.axes)) <= 1  # type: ignore[attr-defined]
+
+
+class _XAxis(_MeasuredOnce, maxis.XAxis):
+    pass
+
+
+class _YAxis(_MeasuredOnce, maxis.YAxis):
+    pass
+
+
+#: ReportAxes that asked to be autoscaled since they were last found not to need it
+_STALE: weakref.WeakSet = weakref.WeakSet()
+
+
+class ReportAxes(Axes):
+    """Axes drawing their x and y axis with :class:`_MeasuredOnce` and skipping the autoscale
+    question while no ReportAxes is stale (``fig.subplots(..., subplot_kw={"axes_class":
+    ReportAxes})``); otherwise matplotlib's Axes."""
+
+    def _request_autoscale_view(self, axis="all", tight=None) -> None:
+        super()._request_autoscale_view(axis, tight)
+        _STALE.add(self)
+
+    def _unstale_viewLim(self) -> None:
+        if not _STALE:
+            return
+        super()._unstale_viewLim()
+        for ax in [ax for ax in _STALE if not any(ax._stale_viewlims.values())]:
+            _STALE.discard(ax)
+
+    def _init_axis(self) -> None:
+        self.xaxis = _XAxis(self, clear=False)
+        self.spines.bottom.register_axis(self.xaxis)
+        self.spines.top.register_axis(self.xaxis)
+        self.yaxis = _YAxis(self, clear=False)
+        self.spines.left.register_axis(self.yaxis)
+        self.spines.right.register_axis(self.yaxis)

@@ -1,0 +1,96 @@
+"""The report's drawing shortcuts draw what matplotlib draws: axes that measure tick labels once
+per draw and skip the autoscale question (analysis/report_axes.py), and the PNG written with
+ISA-L's deflate (analysis/canvas.py)."""
+
+from __future__ import annotations
+
+import io
+import zlib
+
+import numpy as np
+import pytest
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from PIL import Image
+
+from orbitrig.analysis.canvas import png_bytes
+from orbitrig.analysis.report_axes import ReportAxes
+
+
+def _figure(axes_class, scale: float, *, align: bool = False) -> Figure:
+    """Six panels sharing x, tick labels of widths that differ by panel and by `scale`, axis
+    labels, titles and a legend: what the label placement and the autoscaling have to get right."""
+    fig = Figure(figsize=(7.2, 4.5), dpi=100)
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(2, 3, sharex=True, subplot_kw={"axes_class": axes_class})
+    x = np.linspace(0.1, 2.0, 40)
+    for k, ax in enumerate(axes.flat):
+        ax.plot(x, scale * 10.0 ** (k - 2) * np.sin(3 * x + k), "o-", label=f"panel {k}")
+        ax.set_ylabel(f"y{k}  [unit]")
+        ax.set_title(f"panel {k}")
+    axes[0, 0].plot(x * 1.5, x, "--")  # widens the shared x range after the others were drawn in
+    for ax in axes[-1]:
+        ax.set_xlabel("Omega/omega  [-]")
+    axes[0, 0].legend()
+    if align:
+        fig.align_labels()
+    return fig
+
+
+def _pixels(fig: Figure) -> np.ndarray:
+    fig.canvas.draw()
+    return np.asarray(fig.canvas.buffer_rgba()).copy()
+
+
+@pytest.mark.parametrize("align", [False, True], ids=["own-labels", "aligned-labels"])
+@pytest.mark.parametrize("scale", [1.0, -3.7e4])
+def test_report_axes_draw_the_same_pixels_as_matplotlib(scale, align):
+    expected = _pixels(_figure(Axes, scale, align=align))
+    assert (_pixels(_figure(ReportAxes, scale, align=align)) == expected).all()
+
+
+def test_report_axes_autoscale_after_new_data_and_keep_shared_limits():
+    """A line added after a draw widens every panel sharing x, as with matplotlib's axes."""
+    figures = {cls: _figure(cls, 1.0) for cls in (Axes, ReportAxes)}
+    limits = {}
+    for cls, fig in figures.items():
+        _pixels(fig)
+        fig.axes[4].plot([-5.0, 9.0], [0.0, 1.0])
+        _pixels(fig)
+        limits[cls] = [ax.get_xlim() + ax.get_ylim() for ax in fig.axes]
+    assert limits[ReportAxes] == limits[Axes]
+    assert limits[ReportAxes][0][0] < -5.0 and limits[ReportAxes][0][1] > 9.0  # the shared x grew
+    assert (_pixels(figures[ReportAxes]) == _pixels(figures[Axes])).all()
+
+
+def test_report_axes_label_moves_with_wider_tick_labels():
+    """The y label is placed clear of this draw's tick labels, not of an earlier draw's: where
+    matplotlib's axes put it, left of the wider labels."""
+    placed = {}
+    for cls in (Axes, ReportAxes):
+        fig = _figure(cls, 1.0)
+        ax = fig.axes[2]  # tick labels -1.0 .. 1.0
+        fig.canvas.draw()
+        narrow = ax.yaxis.label.get_window_extent().x0
+        ax.lines[0].set_ydata(ax.lines[0].get_ydata() * 1e5)  # tick labels -100000 .. 100000
+        ax.relim()
+        ax.autoscale_view()
+        fig.canvas.draw()
+        placed[cls] = narrow, ax.yaxis.label.get_window_extent().x0
+    assert placed[ReportAxes] == placed[Axes]
+    assert placed[ReportAxes][1] < placed[ReportAxes][0] - 5  # px: moved left
+
+
+def test_png_is_the_canvas_in_a_standard_zlib_stream():
+    fig = _figure(ReportAxes, 1.0)
+    data = png_bytes(fig, 150)
+    image = Image.open(io.BytesIO(data))
+    assert image.mode == "RGB" and image.size == (1080, 675)
+    assert image.info["dpi"] == pytest.approx((150, 150), abs=0.05)  # pHYs: whole pixels per metre
+    fig.set_dpi(150)
+    fig.canvas.draw()
+    assert (np.asarray(image) == np.asarray(fig.canvas.buffer_rgba())[:, :, :3]).all()
+    idat = data[data.index(b"IDAT") + 4 :]
+    rows = zlib.decompressobj().decompress(idat)  # stops at the end of the stream
+    assert len(rows) == 675 * (1 + 3 * 1080) and rows[0] == 0  # filter None on every row
