@@ -10,34 +10,11 @@ from pathlib import Path
 
 import pytest
 
+from support.identify_keys import keys
+
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples" / "orbit-tables"
 TRUTH = json.loads((EXAMPLES / "truth.json").read_text())
-V3_KEYS = [
-    "model",
-    "freq_dep",
-    "method",
-    "n_coefficients",
-    "min_frequencies",
-    "n_frequencies",
-    "coefficients",
-    "std_errors",
-    "confidence_95",
-    "free",
-    "covariance",
-    "dof",
-    "condition_number",
-    "residual_rms",
-    "chi2",
-    "p_value",
-    "aic",
-    "bic",
-    "interval",
-    "not_determined",
-    "notes",
-    "warnings",
-    "fit",
-]
 
 
 def _identify(name: str, args: str, *extra: str) -> subprocess.CompletedProcess:
@@ -60,7 +37,7 @@ def test_examples_follow_the_v3_contract(name):
         return
     d = json.loads(res.stdout)
     has_u = "n_records" in (EXAMPLES / name).read_text().splitlines()[0]
-    assert list(d) == [k for k in V3_KEYS if has_u or k not in ("chi2", "p_value")]
+    assert list(d) == keys(has_u)
     assert d["interval"] == ("normal" if has_u else "student_t") and d["warnings"] == []
     # the constant models are determined; poly:2's higher D orders are not from this table
     assert (d["not_determined"] == []) == (d["freq_dep"] == "none"), d["not_determined"]

@@ -28,7 +28,7 @@ import pytest
 from orbitrig.service.inbox import AbortCopies, Connection
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
 from orbitrig.service.settings import AbortAccount
-from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, Watcher, write_matrices
+from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, Watcher, sim_service_args
 
 RIG = "flood-rig"
 FLOODER = Path(__file__).with_name("mqtt_flood.py")
@@ -50,23 +50,7 @@ ABORT_ACCOUNT = {"abort account": {}, "account refused": {"ORBITRIG_MQTT_ABORT_P
 @pytest.fixture(params=sorted(ABORT_ACCOUNT))
 def running(bound, tmp_path, request):
     svc = Service(
-        [
-            "--sim",
-            "--broker",
-            bound.service_url,
-            "--rig-id",
-            RIG,
-            "--username",
-            "orbitrig-service",
-            "--matrices",
-            str(write_matrices(tmp_path / "matrices")),
-            "--out",
-            str(tmp_path / "runs"),
-            "--speedup",
-            "5",
-            "--confirm",
-            "auto",
-        ],
+        sim_service_args(bound.service_url, RIG, tmp_path, "--confirm", "auto", speedup=5),
         tmp_path,
         env={**ENV, **ABORT_ACCOUNT[request.param]},
     )

@@ -7,32 +7,14 @@ import time
 
 import pytest
 
-from support.mqtt_helpers import ACCOUNTS, RigClient, Service, write_matrices
+from support.mqtt_helpers import ACCOUNTS, RigClient, Service, sim_service_args
 from orbitrig.catalog.store import Catalog
 
 RIG = "cat-rig"
 
 
 def _serve(broker, work, catalog_url):
-    args = [
-        "--sim",
-        "--broker",
-        broker.url,
-        "--rig-id",
-        RIG,
-        "--username",
-        "orbitrig-service",
-        "--matrices",
-        str(write_matrices(work / "matrices")),
-        "--out",
-        str(work / "runs"),
-        "--speedup",
-        "20",
-        "--confirm",
-        "auto",
-        "--catalog",
-        catalog_url,
-    ]
+    args = sim_service_args(broker.url, RIG, work, "--confirm", "auto", "--catalog", catalog_url)
     return Service(args, work, env={"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]})
 
 

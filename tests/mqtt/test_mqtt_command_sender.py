@@ -7,7 +7,7 @@ from __future__ import annotations
 import h5py
 import pytest
 
-from support.mqtt_helpers import ACCOUNTS, RigClient, Service, write_matrices
+from support.mqtt_helpers import ACCOUNTS, RigClient, Service, sim_service_args
 from orbitrig.service.protocol import CommandError, parse_command
 
 RIG = "sender-rig"
@@ -26,23 +26,7 @@ def test_every_command_that_changed_the_run_is_logged_with_its_sender(broker, tm
     pw = tmp_path / "service.pw"
     pw.write_text(ACCOUNTS["orbitrig-service"] + "\n")
     pw.chmod(0o600)
-    args = [
-        "--sim",
-        "--broker",
-        broker.url,
-        "--rig-id",
-        RIG,
-        "--username",
-        "orbitrig-service",
-        "--password-file",
-        str(pw),
-        "--matrices",
-        str(write_matrices(tmp_path / "matrices")),
-        "--out",
-        str(tmp_path / "runs"),
-        "--speedup",
-        "20",
-    ]
+    args = sim_service_args(broker.url, RIG, tmp_path, "--password-file", str(pw))
     svc = Service(args, tmp_path)
     rig = RigClient(broker, RIG, svc)
     try:

@@ -14,7 +14,16 @@ from pathlib import Path
 
 import pytest
 
-from support.mqtt_helpers import ACCOUNTS, Broker, CutProxy, RigClient, Service, retained, write_matrices
+from support.mqtt_helpers import (
+    ACCOUNTS,
+    Broker,
+    CutProxy,
+    RigClient,
+    Service,
+    retained,
+    sim_service_args,
+    write_matrices,
+)
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings, default_client_id
 
 RIG = "hard-rig"
@@ -30,23 +39,7 @@ def bound(tmp_path_factory):
 
 
 def serve(url: str, work: Path, rig: str = RIG) -> Service:
-    args = [
-        "--sim",
-        "--broker",
-        url,
-        "--rig-id",
-        rig,
-        "--username",
-        "orbitrig-service",
-        "--matrices",
-        str(write_matrices(work / "matrices")),
-        "--out",
-        str(work / "runs"),
-        "--speedup",
-        "20",
-        "--confirm",
-        "auto",
-    ]
+    args = sim_service_args(url, rig, work, "--confirm", "auto")
     return Service(args, work, env=ENV)
 
 

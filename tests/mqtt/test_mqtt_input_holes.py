@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from support.mqtt_helpers import ACCOUNTS, RigClient, Service, write_matrices
+from support.mqtt_helpers import ACCOUNTS, RigClient, Service, sim_service_args
 
 RIG = "holes-rig"
 ENV = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}
@@ -19,23 +19,7 @@ ENV = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}
 def rig(broker, tmp_path_factory):
     work = tmp_path_factory.mktemp("holes")
     svc = Service(
-        [
-            "--sim",
-            "--broker",
-            broker.url,
-            "--rig-id",
-            RIG,
-            "--username",
-            "orbitrig-service",
-            "--matrices",
-            str(write_matrices(work / "matrices")),
-            "--out",
-            str(work / "runs"),
-            "--speedup",
-            "20",
-            "--confirm",
-            "auto",
-        ],
+        sim_service_args(broker.url, RIG, work, "--confirm", "auto"),
         work,
         env=ENV,
     )

@@ -12,30 +12,11 @@ from pathlib import Path
 import h5py
 import pytest
 
-from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, write_matrices
+from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, sim_service_args
 
 RIG = "sim-rig"
 PROGRESS_KEYS = {"run_id", "point", "points", "frequency", "frequencies", "revolutions", "eta_s"}
 STATUS_KEYS = {"state", "run_id", "since", "message"}
-
-
-def serve_args(broker: Broker, workdir: Path, *extra: str) -> list[str]:
-    return [
-        "--sim",
-        "--broker",
-        broker.url,
-        "--rig-id",
-        RIG,
-        "--username",
-        "orbitrig-service",
-        "--matrices",
-        str(write_matrices(workdir / "matrices")),
-        "--out",
-        str(workdir / "runs"),
-        "--speedup",
-        "20",
-        *extra,
-    ]
 
 
 def run_status(workdir: Path, run_id: str) -> str:
@@ -57,7 +38,7 @@ def service(broker, tmp_path_factory):
     pw = work / "service.pw"
     pw.write_text(ACCOUNTS["orbitrig-service"] + "\n")
     pw.chmod(0o600)
-    svc = Service(serve_args(broker, work, "--password-file", str(pw)), work)
+    svc = Service(sim_service_args(broker.url, RIG, work, "--password-file", str(pw)), work)
     svc.work = work
     yield svc
     code = svc.stop()
@@ -258,7 +239,9 @@ class OwnRun:
         self.broker = Broker(tmp_path / "broker")
         self.broker.start()
         env = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}
-        self.svc = Service(serve_args(self.broker, tmp_path, "--confirm", "auto", *args), tmp_path, env=env)
+        self.svc = Service(
+            sim_service_args(self.broker.url, RIG, tmp_path, "--confirm", "auto", *args), tmp_path, env=env
+        )
         self.rc = RigClient(self.broker, RIG, self.svc)
 
     def __enter__(self) -> "OwnRun":

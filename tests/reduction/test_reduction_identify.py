@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from support.identify_keys import keys
 from support.reduction_synthetic import frequencies, keys_of, orbit_table, truth
 from reduction.errors import IdentificationError, ReductionError
 from reduction.identify import identify
@@ -97,29 +98,7 @@ def test_to_dict_is_the_spec_object():
     true = truth("kcd11", {"K": (0,), "C": (0,), "D": (0,)})
     table = orbit_table(true, frequencies(5))
     d = identify(table, "kcd11").to_dict()
-    assert list(d) == [
-        "model",
-        "freq_dep",
-        "method",
-        "n_coefficients",
-        "min_frequencies",
-        "n_frequencies",
-        "coefficients",
-        "std_errors",
-        "confidence_95",
-        "free",
-        "covariance",
-        "dof",
-        "condition_number",
-        "residual_rms",
-        "aic",
-        "bic",
-        "interval",
-        "not_determined",
-        "notes",
-        "warnings",
-        "fit",
-    ]
+    assert list(d) == keys(has_uncertainty=False)
     assert (d["model"], d["freq_dep"], d["method"]) == ("kcd11", "none", "ols")
     assert (d["n_coefficients"], d["min_frequencies"], d["n_frequencies"]) == (11, 3, 10)
     assert list(d["coefficients"]) == [

@@ -560,3 +560,24 @@ class CutProxy:
         self._closed = True
         self.cut()
         self.server.close()
+
+
+def sim_service_args(url: str, rig: str, work: Path, *extra: str, speedup: float = 20) -> list[str]:
+    """`orbitrig serve` arguments of a service on the simulator as the account orbitrig-service:
+    broker `url`, rig id, the test matrices (write_matrices) and the runs under `work`."""
+    return [
+        "--sim",
+        "--broker",
+        url,
+        "--rig-id",
+        rig,
+        "--username",
+        "orbitrig-service",
+        "--matrices",
+        str(write_matrices(work / "matrices")),
+        "--out",
+        str(work / "runs"),
+        "--speedup",
+        f"{speedup:g}",
+        *extra,
+    ]
