@@ -28,6 +28,7 @@ import pytest
 from orbitrig.service.inbox import AbortCopies, Connection
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
 from orbitrig.service.settings import AbortAccount
+from support.rig_configs import patient_rig_config
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, Watcher, sim_service_args
 
 RIG = "flood-rig"
@@ -50,7 +51,16 @@ ABORT_ACCOUNT = {"abort account": {}, "account refused": {"ORBITRIG_MQTT_ABORT_P
 @pytest.fixture(params=sorted(ABORT_ACCOUNT))
 def running(bound, tmp_path, request):
     svc = Service(
-        sim_service_args(bound.service_url, RIG, tmp_path, "--confirm", "auto", speedup=5),
+        sim_service_args(
+            bound.service_url,
+            RIG,
+            tmp_path,
+            "--confirm",
+            "auto",
+            "--config",  # the drive polls may wait behind the flood: what is measured is the abort
+            str(patient_rig_config(tmp_path / "lab")),
+            speedup=5,
+        ),
         tmp_path,
         env={**ENV, **ABORT_ACCOUNT[request.param]},
     )

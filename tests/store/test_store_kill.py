@@ -17,7 +17,8 @@ from typer.testing import CliRunner
 from orbitrig.cli import app
 from orbitrig.store.reader import read_run
 
-from support.store_checks import ROOT, check_whole, orbitrig_cmd, small_matrix, traced_rig_config
+from support.rig_configs import patient_rig_config
+from support.store_checks import ROOT, check_whole, orbitrig_cmd, small_matrix
 
 MATRIX = small_matrix("crash", revolutions=10)
 BLOCKS = 6  # 3 ratios x forward, backward
@@ -48,7 +49,7 @@ def _killed_sweep(tmp_path, calls: str, k: int):
         "-e",
         f"inject={calls}:signal=KILL:when={k}",
         *orbitrig_cmd(
-            "sweep", "--sim", "--config", str(traced_rig_config(tmp_path)), "--matrix", str(matrix), "--out", str(out)
+            "sweep", "--sim", "--config", str(patient_rig_config(tmp_path)), "--matrix", str(matrix), "--out", str(out)
         ),
     ]
     p = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=120)

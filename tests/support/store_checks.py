@@ -38,23 +38,6 @@ model = "kc8"
 """
 
 
-def traced_rig_config(folder: Path) -> Path:
-    """The shipped rig.toml with a 5 s drive watchdog (written to the drives at the run's start)
-    and a patient Modbus link, for sweeps run under strace: every traced system call stops
-    the process (and the simulator's) for a while, which is not what such a test is about."""
-    text = (ROOT / "config" / "rig.toml").read_text()
-    for old, new in (
-        ("timeout_s = 0.15", "timeout_s = 0.5"),
-        ("link_loss_polls = 3", "link_loss_polls = 5"),
-        ("comm_loss_timeout_s = 1.0", "comm_loss_timeout_s = 5.0"),
-    ):
-        assert old in text, old
-        text = text.replace(old, new)
-    path = folder / "rig.toml"
-    path.write_text(text)
-    return path
-
-
 def orbitrig_cmd(*args: str) -> list[str]:
     return [sys.executable, "-m", "orbitrig", *args]
 
