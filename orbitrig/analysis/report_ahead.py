@@ -27,13 +27,14 @@ CLOSE_TIMEOUT_S = 0.5  # for the drawing process to end after SIGTERM, before SI
 
 def lowest_priority() -> None:
     """This process runs only on processors with nothing else to do (SCHED_IDLE; nice 19 too,
-    or alone where SCHED_IDLE is missing)."""
-    os.nice(19 - os.nice(0))
+    or alone where SCHED_IDLE is missing). SCHED_IDLE first: from then on the process waits
+    for idle processors, even for the nice value it sets next."""
     if hasattr(os, "sched_setscheduler") and hasattr(os, "SCHED_IDLE"):
         try:
             os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
         except OSError:  # not permitted here: nice 19 alone
             pass
+    os.nice(19 - os.nice(0))
 
 
 def draw_ahead(directory: Path, index: int, figures: frozenset[str] | None = None) -> bool:

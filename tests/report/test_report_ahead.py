@@ -47,10 +47,13 @@ def test_the_drawing_process_runs_at_the_lowest_priority_and_ends_with_close(run
     ahead.point_complete(0)
     pid = ahead.pid
     deadline = time.monotonic() + 30
-    while os.getpriority(os.PRIO_PROCESS, pid) != 19 and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert os.getpriority(os.PRIO_PROCESS, pid) == 19
-    assert os.sched_getscheduler(pid) == os.SCHED_IDLE
+
+    def lowest() -> tuple[int, int]:
+        return os.getpriority(os.PRIO_PROCESS, pid), os.sched_getscheduler(pid)
+
+    while lowest() != (19, os.SCHED_IDLE) and time.monotonic() < deadline:
+        time.sleep(0.05)  # the process sets both itself: at SCHED_IDLE on a busy machine that may take a while
+    assert lowest() == (19, os.SCHED_IDLE)
     ahead.close()  # at once: the point being drawn keeps no record, the report draws it
     with pytest.raises(ProcessLookupError):
         os.kill(pid, 0)
