@@ -11,6 +11,8 @@ labels are aligned across axes (``Figure.align_labels``), whose siblings' boxes 
 Every look at an axes' view limits (hundreds per figure: each tick, spine, grid and transform)
 first asks every axes sharing that axis whether it must be autoscaled; :class:`ReportAxes` keeps
 the set of axes that asked to be autoscaled and skips the question while that set is empty.
+That holds only where every axes sharing an axis with a ReportAxes is a ReportAxes (as in the
+report's ``subplots``; a twin made by ``twinx`` would not be, and would not be asked).
 """
 
 from __future__ import annotations
