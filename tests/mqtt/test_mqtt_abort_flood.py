@@ -11,7 +11,7 @@ The service reads <prefix>/abort on a connection of its own (the account
 orbitrig-service-abort of config/mosquitto/) besides its main connection; with
 that account refused it takes aborts on the main connection alone. Both ways are
 run with a flood; an abort arriving on both connections is carried out and
-answered once."""
+answered once, whichever copy is read first."""
 
 from __future__ import annotations
 
@@ -141,10 +141,13 @@ def test_abort_gets_through_a_flood_of_commands(bound, running, tmp_path):
     # the main connection, left unread for a moment after the abort, kept its session
     assert "connection to 127.0.0.1" not in log.split("command abort (id 'operator-abort')")[1], log[-3000:]
     assert "Traceback" not in log, log[-3000:]
-    # carried out and answered once, off the abort connection when it has its account
+    # carried out and answered once: off the main connection when the abort account is
+    # refused; with the account, off whichever connection's copy the event loop read first
+    # (the broker writes both at once; under load the main one's may come first)
     assert log.count("command abort (id 'operator-abort')") == 1, log[-3000:]
-    via = "abort" if svc.abort_account == "abort account" else "main"
-    assert f"abort topic: abort read off the {via} connection" in log, log[-3000:]
+    read_off = re.findall(r"abort topic: abort read off the (\w+) connection", log)
+    vias = ["abort", "main"] if svc.abort_account == "abort account" else ["main"]
+    assert len(read_off) == 1 and read_off[0] in vias, (read_off, log[-3000:])
     replies = RigClient(bound, RIG, svc, watch=("reply",))
     try:
         assert replies.command({"cmd": "status"}, timeout=10)["ok"] is True  # ordinary commands work again
