@@ -27,7 +27,7 @@ shipped config sets it up (config/mosquitto/: its account and its abort account)
 ``--no-abort-connection`` runs it without the second connection.
 Exit status 1 when any trial misses 200 ms or does not end aborted.
 
-    python3 bench/bench_abort_flood.py [--trials 3] [--count 5000] [--qos 1 mixed]
+    python3 -m bench.bench_abort_flood [--trials 3] [--count 5000] [--qos 1 mixed]
 """
 
 from __future__ import annotations
@@ -42,12 +42,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from bench.bench_abort_latency import CW_STOPPING, Operator
+from tests.support.mqtt_helpers import ACCOUNTS, MATRIX, Broker
+
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))  # run as a script: the repository root (bench/ is the script's own folder)
-
-from bench_abort_latency import CW_STOPPING, Operator  # noqa: E402
-from tests.support.mqtt_helpers import ACCOUNTS, MATRIX, Broker  # noqa: E402  (the tests' broker set-up)
-
 FLOODER = REPO / "tests" / "mqtt" / "mqtt_flood.py"
 TARGET_MS = 200.0
 

@@ -15,7 +15,7 @@ publishes `abort`. Three instants on one clock (time.monotonic):
 
 Latency = max(t_stop drive 1, t_stop drive 2) - t_pub.
 
-    python3 bench/bench_abort_latency.py [--trials 7] [--speedup 20]
+    python3 -m bench.bench_abort_latency [--trials 7] [--speedup 20]
 """
 
 from __future__ import annotations
@@ -24,16 +24,13 @@ import argparse
 import asyncio
 import logging
 import statistics
-import sys
 import tempfile
 import threading
+import sys
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))  # run as a script: the repository root (bench/ is the script's own folder)
-
-from tests.support.mqtt_helpers import ACCOUNTS, MATRIX, Broker  # noqa: E402  (the tests' broker set-up)
+from tests.support.mqtt_helpers import ACCOUNTS, MATRIX, Broker
 
 CW_STOPPING = 0b1101  # OFF1 (bit 0), OFF3 (bit 2), RUN (bit 3): any of them 0 = a stop command
 
@@ -99,7 +96,8 @@ class Operator:
         self.client.disconnect()
 
 
-async def main(trials: int, speedup: float) -> None:
+async def main(trials: int, speedup: float) -> int:
+    """Run the trials; 0 when every one is under the target, else 1."""
     from orbitrig.cli.serve import build_service
     from orbitrig.config import load_rig
     from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
@@ -179,6 +177,7 @@ async def main(trials: int, speedup: float) -> None:
         f"median {statistics.median(total):.1f} ms, min {min(total):.1f} ms, max {max(total):.1f} ms "
         f"(target < 200 ms: {'met' if max(total) < 200 else 'NOT met'})"
     )
+    return 0 if max(total) < 200 else 1
 
 
 if __name__ == "__main__":
@@ -186,4 +185,4 @@ if __name__ == "__main__":
     ap.add_argument("--trials", type=int, default=7)
     ap.add_argument("--speedup", type=float, default=20.0)
     args = ap.parse_args()
-    asyncio.run(main(args.trials, args.speedup))
+    sys.exit(asyncio.run(main(args.trials, args.speedup)))

@@ -7,7 +7,7 @@ layouts with the paper's fixed rule (50 revolutions), and for the simulator's
 layout with an adaptive rule (per-revolution phasors and running uncertainty
 checked on every revolution), and the loss counts (zero on a clean stream).
 
-    python3 bench/bench_daq_decode.py [--revolutions 4000] [--chunk 65536]
+    python3 -m bench.bench_daq_decode [--revolutions 4000] [--chunk 65536]
 Target: >= 10 million samples/s.
 """
 
@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import struct
+import sys
 import time
 from binascii import crc_hqx
 
@@ -76,7 +77,7 @@ def run(
     )
 
 
-def main() -> None:
+def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--revolutions", type=int, default=4000)
     ap.add_argument("--chunk", type=int, default=1 << 16, help="bytes per feed (one link read)")
@@ -115,7 +116,8 @@ def main() -> None:
         f"the simulator's layout (sequential, 45 slots per frame): {rates[('sequential', 45)] / 1e6:.1f} "
         f"M samples/s (target >= 10); slowest layout: {min(rates.values()) / 1e6:.1f} M samples/s"
     )
+    return 0 if rates[("sequential", 45)] >= 10e6 else 1
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

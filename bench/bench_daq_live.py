@@ -10,8 +10,9 @@ Prints samples/s of good revolutions averaged and the loss counts (revolutions
 dropped, frames bad, bytes skipped, link drops; for the simulator also the
 frames its board lost because the pty backed up).
 
-    python3 bench/bench_daq_live.py [--seconds 4] [--speedup 10] [--speedup-sequential 80] [--orbit-hz 50]
-Target: >= 1 million samples/s with zero loss.
+    python3 -m bench.bench_daq_live [--seconds 4] [--speedup 10] [--speedup-sequential 80] [--orbit-hz 50]
+Target: zero loss from both sources, and the reader's ceiling (the writer source) >= 1 million
+samples/s; exit 1 otherwise.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import multiprocessing as mp
 import os
 import select
 import struct
+import sys
 import time
 import tty
 from binascii import crc_hqx
@@ -165,7 +167,7 @@ def report(name, rate, block, elapsed, src_lost) -> bool:
     return loss == 0
 
 
-def main() -> None:
+def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=4.0)
     ap.add_argument("--speedup", type=float, default=10.0, help="simulator speed-up, simultaneous mode")
@@ -174,15 +176,18 @@ def main() -> None:
     args = ap.parse_args()
     print(f"live over a pty, AdcReader.acquire end to end ({args.seconds:g} s per run)")
     speedup = {"simultaneous": args.speedup, "sequential": args.speedup_sequential}
+    ok: list[bool] = []
     for mode in ("simultaneous", "sequential"):
         result = run_source(
             sim_source, (mode, speedup[mode], args.orbit_hz), mode, args.seconds, args.orbit_hz * speedup[mode]
         )
-        report(f"simulator {mode:12s} x{speedup[mode]:g} at {args.orbit_hz:g} Hz", *result)
+        ok.append(report(f"simulator {mode:12s} x{speedup[mode]:g} at {args.orbit_hz:g} Hz", *result))
     for mode in ("simultaneous", "sequential"):
-        report(f"own writer {mode:12s}", *run_source(writer_source, (mode,), mode, args.seconds, None))
+        result = run_source(writer_source, (mode,), mode, args.seconds, None)
+        ok.append(report(f"own writer {mode:12s}", *result) and result[0] >= 1e6)
     print("target: >= 1 M samples/s with zero loss")
+    return 0 if all(ok) else 1
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

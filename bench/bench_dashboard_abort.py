@@ -18,7 +18,7 @@ chromedriver's round trip for the click, the page's fetch to the dashboard
 server, its MQTT publish as the operator, the broker, the service, the executor
 and the Modbus write.
 
-    python3 bench/bench_dashboard_abort.py [--trials 5] [--speedup 20]
+    python3 -m bench.bench_dashboard_abort [--trials 5] [--speedup 20]
 """
 
 from __future__ import annotations
@@ -27,18 +27,15 @@ import argparse
 import asyncio
 import logging
 import statistics
-import sys
 import tempfile
 import threading
+import sys
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))  # run as a script: the repository root (bench/ is the script's own folder)
-
-from bench_abort_latency import Operator, watch_control_words  # noqa: E402
-from tests.support.dash_helpers import Dashboard, Page, chromium  # noqa: E402  (the tests' browser set-up)
-from tests.support.mqtt_helpers import ACCOUNTS, MATRIX, Broker  # noqa: E402
+from bench.bench_abort_latency import Operator, watch_control_words
+from tests.support.dash_helpers import Dashboard, Page, chromium
+from tests.support.mqtt_helpers import ACCOUNTS, MATRIX, Broker
 
 
 def click_abort(page: Page) -> float:
@@ -77,7 +74,8 @@ async def trials_loop(
     return rows
 
 
-async def main(trials: int, speedup: float) -> None:
+async def main(trials: int, speedup: float) -> int:
+    """Run the trials; 0 when every one is under the target, else 1."""
     from orbitrig.cli.serve import build_service
     from orbitrig.config import load_rig
     from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
@@ -132,6 +130,7 @@ async def main(trials: int, speedup: float) -> None:
         f"median {statistics.median(rows):.1f} ms, min {min(rows):.1f} ms, max {max(rows):.1f} ms "
         f"(target < 200 ms: {'met' if max(rows) < 200 else 'NOT met'})"
     )
+    return 0 if max(rows) < 200 else 1
 
 
 if __name__ == "__main__":
@@ -139,4 +138,4 @@ if __name__ == "__main__":
     ap.add_argument("--trials", type=int, default=5)
     ap.add_argument("--speedup", type=float, default=20.0)
     args = ap.parse_args()
-    asyncio.run(main(args.trials, args.speedup))
+    sys.exit(asyncio.run(main(args.trials, args.speedup)))

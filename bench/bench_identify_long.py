@@ -8,11 +8,12 @@ Target: the 1,000,000-row table in under 20 s and under 1 GB; exits 1 when misse
 judged is the run's CPU time (user + system), which is its wall time on an idle core and
 stays meaningful on a shared machine; the wall time is printed beside it.
 
-Run: PYTHONPATH=. python3 bench/bench_identify_long.py [ROWS ...]
+Run: python3 -m bench.bench_identify_long [ROWS ...]
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
@@ -88,7 +89,9 @@ def run(path: Path) -> tuple[float, float, float, dict]:
 
 
 def main() -> None:
-    sizes = [int(a) for a in sys.argv[1:]] or [100_000, TARGET_ROWS]
+    parser = argparse.ArgumentParser(prog="python3 -m bench.bench_identify_long", description=__doc__.split("\n\n")[0])
+    parser.add_argument("rows", type=int, nargs="*", help=f"table sizes to identify (default 100000 and {TARGET_ROWS})")
+    sizes = parser.parse_args().rows or [100_000, TARGET_ROWS]
     ok = True
     with tempfile.TemporaryDirectory() as tmp:
         for rows in sizes:

@@ -21,7 +21,7 @@ drives stand for machines the host's load does not delay.
 `orbitrig sweep` does by default (orbitrig.analysis.report_ahead), to show that the drawing
 process never delays the loop.
 
-    python3 bench/bench_loop_lag.py [--matrix demo] [--hogs N] [--target-ms 250] [--speedup 40] [--draw-figures]
+    python3 -m bench.bench_loop_lag [--matrix demo] [--hogs N] [--target-ms 250] [--speedup 40] [--draw-figures]
 
 Not part of the test suite (strict timing on a shared machine).
 """
@@ -37,14 +37,11 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-
-from orbitrig import config as cfg  # noqa: E402
-from orbitrig.analysis.report_ahead import FiguresAhead  # noqa: E402
-from orbitrig.cli.simulated_rig import simulated_rig  # noqa: E402
-from orbitrig.run.engine import RunEngine  # noqa: E402
-from orbitrig.run.plan import make_plan  # noqa: E402
+from orbitrig import config as cfg
+from orbitrig.analysis.report_ahead import FiguresAhead
+from orbitrig.cli.simulated_rig import simulated_rig
+from orbitrig.run.engine import RunEngine
+from orbitrig.run.plan import make_plan
 
 TICK = 0.01  # s between heartbeats
 

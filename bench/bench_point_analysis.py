@@ -7,19 +7,16 @@ simulator scenario; both load measuring systems; the rig.toml calibration uncert
 Prints the median wall time of `identify_operating_point` (what the engine runs in its
 worker thread per point) and of the bare identifications alone.
 
-    python3 bench/bench_point_analysis.py
+    python3 -m bench.bench_point_analysis
 """
 
 from __future__ import annotations
 
 import statistics
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from orbitrig import config as cfg
 from orbitrig.config import LMS

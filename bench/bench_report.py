@@ -15,7 +15,7 @@ little: the CPU seconds of the report and its workers, divided by the workers, s
 cores would take. Prints one line per measurement and exits 1 when the cold 108-point default
 report (the smaller projection) takes 2 minutes or more.
 
-Run: python3 bench/bench_report.py [--points 108] [--workers 2] [--run DIR] [--vector]
+Run: python3 -m bench.bench_report [--points 108] [--workers 2] [--run DIR] [--vector]
 """
 
 from __future__ import annotations
@@ -30,11 +30,9 @@ import tempfile
 import time
 from pathlib import Path
 
+from tests.support.report_synthetic import write_synthetic_run
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))  # run as a script: the repository root (bench/ is the script's own folder)
-
-from tests.support.report_synthetic import write_synthetic_run  # noqa: E402 - after the path of the root
-
 PAPER_POINTS = 108
 TARGET_S = 120.0
 

@@ -30,10 +30,10 @@ Achieved standard errors: the spread (and the RMS error against the simulator's 
 D) of the identified coefficients over repeated runs with different noise seeds; each SD
 ratio carries a Monte Carlo uncertainty of about 1/sqrt(runs - 1) (two SDs of `runs` runs).
 
-Run: python3 bench/bench_rig_time.py [runs]   (default 200 runs per protocol and model)
+Run: python3 -m bench.bench_rig_time [runs]   (default 200 runs per protocol and model)
 Through the engine (sweep --sim in process; figures as JSON per protocol, designed and
 sequential; exit 1 when no protocol meets the goal):
-     python3 bench/bench_rig_time.py --engine --runs N --json   (bench/bench_rig_time_engine.py)
+     python3 -m bench.bench_rig_time --engine --runs N --json   (bench/bench_rig_time_engine.py)
 """
 
 from __future__ import annotations
@@ -46,26 +46,24 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.bench_rig_time_engine import TABLE1_POINT
+from daq.averager import AveragingRule, StreamingAverager
+from daq.revolutions import RevolutionBatch
+from orbitrig.config import RPM, load_rig, matrix_from_text
+from orbitrig.run.plan import make_plan, summarize
+from reduction.misfit import list_shift
+from reduction.allocation import adaptive_targets, allocate
+from reduction.frequency_list import DesignProblem, allowed_ratios, predict, smooth_noise
+from reduction.identify import identify
+from reduction.models import model_spec
+from reduction.noise import mean_uncertainty
+from reduction.table import OrbitTable
+from sim.config import scenario
+from sim.fits import constant_fit
+from sim.physics import RigPhysics
+from sim.revolutions import simulate_revolutions
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from bench_rig_time_engine import TABLE1_POINT  # noqa: E402
-from daq.averager import AveragingRule, StreamingAverager  # noqa: E402
-from daq.revolutions import RevolutionBatch  # noqa: E402
-from orbitrig.config import RPM, load_rig, matrix_from_text  # noqa: E402
-from orbitrig.run.plan import make_plan, summarize  # noqa: E402
-from reduction.misfit import list_shift  # noqa: E402
-from reduction.allocation import adaptive_targets, allocate  # noqa: E402
-from reduction.frequency_list import DesignProblem, allowed_ratios, predict, smooth_noise  # noqa: E402
-from reduction.identify import identify  # noqa: E402
-from reduction.models import model_spec  # noqa: E402
-from reduction.noise import mean_uncertainty  # noqa: E402
-from reduction.table import OrbitTable  # noqa: E402
-from sim.config import scenario  # noqa: E402
-from sim.fits import constant_fit  # noqa: E402
-from sim.physics import RigPhysics  # noqa: E402
-from sim.revolutions import simulate_revolutions  # noqa: E402
-
 SPIN = 1000 * RPM
 PAPER = [round(0.2 + k / 9, 6) for k in range(10)]
 MODELS = ("kcd11", "kc8")
@@ -287,7 +285,7 @@ def main() -> int:
     args = ap.parse_args()
     rig = load_rig(ROOT / "config" / "rig.toml")
     if args.engine:
-        from bench_rig_time_engine import engine_figures
+        from bench.bench_rig_time_engine import engine_figures
 
         figures = engine_figures(
             rig, args.runs or 20, pilot_problem, PAPER, args.speedup, tuple(args.protocols.split(",")), args.partial

@@ -7,7 +7,7 @@
 2. live: SimRig streaming to its pty at several speed-ups while a separate
    reader process drains the pty; delivered samples/s = bytes received
    converted with the frame layout (20 bytes overhead per 45-sample frame).
-Run:  python3 bench/bench_sim_adc.py [--seconds 3]
+Run:  python3 -m bench.bench_sim_adc [--seconds 3]
 """
 
 from __future__ import annotations
@@ -15,14 +15,12 @@ from __future__ import annotations
 import argparse
 import asyncio
 import math
-import os
 import subprocess
 import sys
 import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from sim.config import SimConfig, scenario
 from sim.physics import RigPhysics

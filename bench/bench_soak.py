@@ -20,7 +20,7 @@ Prints the figures; exits 1 on a miss: the sweep not completed, growing by more 
 per 100 points after the first ten, or its run.log over its quota; the service growing by
 more than 20 MB from the end of its first run to the end of its last, or over its log quota.
 
-    python3 bench/bench_soak.py [--points 108] [--speedup 80] [--runs 10] [--sim-watchdog S] [--skip-sweep] [--skip-serve]
+    python3 -m bench.bench_soak [--points 108] [--speedup 80] [--runs 10] [--sim-watchdog S] [--skip-sweep] [--skip-serve]
 """
 
 from __future__ import annotations
@@ -38,15 +38,12 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))  # run as a script: the repository root (bench/ is the script's own folder)
+from bench.bench_sweep import _subset
 
-from bench_sweep import _subset  # noqa: E402
-
-from orbitrig import config as cfg  # noqa: E402
-from orbitrig.run.events import ProgressEvent, ResultEvent  # noqa: E402
-from orbitrig.run.plan import make_plan  # noqa: E402
-from orbitrig.store.quota import RUN_LOG_HEAD, RUN_LOG_TAIL  # noqa: E402
+from orbitrig import config as cfg
+from orbitrig.run.events import ProgressEvent, ResultEvent
+from orbitrig.run.plan import make_plan
+from orbitrig.store.quota import RUN_LOG_HEAD, RUN_LOG_TAIL
 
 LIMIT_PER_100_POINTS_MB = 20.0
 LIMIT_SERVE_MB = 20.0

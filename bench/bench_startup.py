@@ -13,13 +13,14 @@ Byte-code caching is on in the child processes (PYTHONDONTWRITEBYTECODE is dropp
 installed orbitrig has its .pyc files, as numpy and scipy do, and the uncounted first run
 of each command writes them for a checkout.
 
-Run: python3 bench/bench_startup.py [runs]   (default 9; exit 1 if a command misses the target)
+Run: python3 -m bench.bench_startup [runs]   (default 9; exit 1 if a command misses the target)
 """
 
 from __future__ import annotations
 
-import statistics
+import argparse
 import os
+import statistics
 import subprocess
 import sys
 import time
@@ -55,7 +56,9 @@ def medians(runs: int) -> dict[str, float]:
 
 
 def main() -> int:
-    runs = int(sys.argv[1]) if len(sys.argv) > 1 else 9
+    parser = argparse.ArgumentParser(prog="python3 -m bench.bench_startup", description=__doc__.split("\n\n")[0])
+    parser.add_argument("runs", type=int, nargs="?", default=9, help="runs of each command (median taken; default 9)")
+    runs = parser.parse_args().runs
     med = medians(runs)
     ref = med[REFERENCE[0]]
     print(f"start-up, median of {runs} fresh processes each (target: at most {RATIO:.2f} x reference)")

@@ -10,7 +10,7 @@ with the sweep's own RunStore and prints
 - what is left for the end of the run (status, logs, writing run.h5), and the file sizes,
 - the byte estimate of orbitrig.store.estimate against what was written.
 
-    python3 bench/bench_store.py [--points 6] [--blocks 20] [--revolutions 50] [--dir DIR]
+    python3 -m bench.bench_store [--points 6] [--blocks 20] [--revolutions 50] [--dir DIR]
 
 --dir puts the run on another file system (the default temporary directory is often tmpfs,
 where fsync costs nothing; the rig writes to a disk).
@@ -20,22 +20,18 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-
-from orbitrig import config as cfg  # noqa: E402
-from orbitrig.run.identification import identify_operating_point  # noqa: E402
-from orbitrig.run.plan import make_plan, operating_points  # noqa: E402
-from orbitrig.store.estimate import plan_bytes  # noqa: E402
-from orbitrig.store.writer import BlockRecord, RunStore  # noqa: E402
-from orbitrig.store.status import RunStatus  # noqa: E402
+from orbitrig import config as cfg
+from orbitrig.run.identification import identify_operating_point
+from orbitrig.run.plan import make_plan, operating_points
+from orbitrig.store.estimate import plan_bytes
+from orbitrig.store.writer import BlockRecord, RunStore
+from orbitrig.store.status import RunStatus
 
 MATRIX = """
 name = "bench-store"

@@ -10,7 +10,7 @@ on an in-process SimRig at a time speed-up and prints
 - the orchestration overhead: wall / ideal - 1, in percent (target < 5 %),
 - where the wall time went (settle waits, acquisitions, identification).
 
-    python3 bench/bench_sweep.py [--speedup 25] [--matrix config/matrices/paper.toml] [--points N]
+    python3 -m bench.bench_sweep [--speedup 25] [--matrix config/matrices/paper.toml] [--points N]
 
 Not part of the test suite: the full paper matrix takes several minutes.
 """
@@ -20,19 +20,16 @@ from __future__ import annotations
 import argparse
 import asyncio
 import logging
-import sys
 import tempfile
+import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-
-from orbitrig import config as cfg  # noqa: E402
-from orbitrig.run.engine import RunEngine  # noqa: E402
-from orbitrig.run.plan import make_plan  # noqa: E402
-from orbitrig.run.steps import Acquire, SetOrbit, SetSpin, Settle, StopDrives  # noqa: E402
-from rigunits import format_duration  # noqa: E402
+from orbitrig import config as cfg
+from orbitrig.run.engine import RunEngine
+from orbitrig.run.plan import make_plan
+from orbitrig.run.steps import Acquire, SetOrbit, SetSpin, Settle, StopDrives
+from rigunits import format_duration
 
 PHYSICAL = (SetSpin, SetOrbit, Settle, Acquire, StopDrives)
 
@@ -56,7 +53,7 @@ def _subset(matrix: cfg.MatrixConfig, points: int | None) -> cfg.MatrixConfig:
     return m
 
 
-async def main() -> None:
+async def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--speedup", type=float, default=25.0)
     ap.add_argument("--matrix", type=Path, default=cfg.default_matrix_path("paper"))
@@ -91,7 +88,8 @@ async def main() -> None:
     print(f"outcome: {outcome.status} ({outcome.message}), {len(outcome.completed_points)} points complete in {out}")
     print(f"wall time                 {wall:9.1f} s")
     print(f"ideal (physical/speed-up) {ideal:9.1f} s")
-    print(f"orchestration overhead    {100 * (wall / ideal - 1):9.1f} %   (target < 5 %)")
+    overhead = wall / ideal - 1
+    print(f"orchestration overhead    {100 * overhead:9.1f} %   (target < 5 %)")
     waits = sum(tm.get(k, 0) for k in ("settle", "acquire", "verify"))
     print(
         f"  waiting on the rig: settle {tm.get('settle', 0):.1f} s, acquisition {tm.get('acquire', 0):.1f} s "
@@ -102,7 +100,8 @@ async def main() -> None:
         f"  in the background, overlapping the waits: identification {tm.get('identify', 0):.1f} s, "
         f"storage {tm.get('store', 0):.1f} s"
     )
+    return 0 if overhead < 0.05 else 1
 
 
 if __name__ == "__main__":
-    asyncio.run(main())
+    sys.exit(asyncio.run(main()))
