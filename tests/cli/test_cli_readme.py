@@ -90,6 +90,8 @@ def test_readme_command_exists_with_its_options(command):
         assert (ROOT / "pyproject.toml").is_file()
         if ".[test]" in words:
             assert "[project.optional-dependencies]\ntest" in (ROOT / "pyproject.toml").read_text()
+    elif words[0] == "python3" and words[1] == "-m" and words[2].startswith("bench."):
+        assert (ROOT / "bench" / f"{words[2].removeprefix('bench.')}.py").is_file(), words[2]  # run from the root
     elif words[0] == "python3" and words[1] == "-m":
         assert words[2] in ("pytest", "venv", "orbitrig")
     elif words[0] == "python3":
