@@ -55,8 +55,8 @@ def stored_blocks(out: Path) -> list[dict]:
     return blocks
 
 
-async def run_sweep(tmp_path: Path, mat, damage: bool = False) -> list[dict]:
-    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
+async def run_sweep(tmp_path: Path, mat, damage: bool = False, speedup: float = SPEEDUP) -> list[dict]:
+    async with SimRig(speedup=speedup, adc_pty=False) as sim:
         eng = RunEngine(cfg.load_rig(), out_dir=tmp_path / "run", access=simulated_access(sim), confirm_mode="auto")
         run = asyncio.create_task(eng.run(mat))
         while damage and not run.done():  # a damaged frame every few revolutions, all run long
@@ -99,8 +99,11 @@ async def test_unreachable_target_stops_at_the_maximum(tmp_path):
 
 
 async def test_damaged_revolutions_are_never_averaged(tmp_path):
+    # at speed-up 10 a block lasts 0.05 to 0.4 s of wall time: injections (every 20 ms
+    # of the test's loop) land in the blocks even when both cores are busy (at 40 a block of
+    # 10 revolutions at ratio 1.2 lasted 15 ms, and once no damage reached any block)
     blocks = await run_sweep(
-        tmp_path, matrix("target_pct = 3\nmin_revolutions = 10\nmax_revolutions = 30\n"), damage=True
+        tmp_path, matrix("target_pct = 3\nmin_revolutions = 10\nmax_revolutions = 30\n"), damage=True, speedup=10.0
     )
     assert sum(b["dropped"] for b in blocks) > 0  # the damage reached the blocks
     for b in blocks:
