@@ -1,4 +1,4 @@
 """Benchmarks: speed, latency and memory targets, each a module run from the repository root
 as ``python3 -m bench.NAME`` (the root is then on the import path, so a bench imports the
 tests' helpers as ``tests.support...`` and another bench as ``bench.NAME``). Each prints its
-figures and exits 1 when it misses its target."""
+figures and, where it has a target, exits 1 on a miss."""

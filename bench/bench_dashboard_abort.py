@@ -27,9 +27,9 @@ import argparse
 import asyncio
 import logging
 import statistics
+import sys
 import tempfile
 import threading
-import sys
 import time
 from pathlib import Path
 

@@ -20,8 +20,8 @@ from __future__ import annotations
 import argparse
 import asyncio
 import logging
-import tempfile
 import sys
+import tempfile
 import time
 from pathlib import Path
 

@@ -6,8 +6,8 @@ The same stored blocks are identified again without the corrections (and with th
 records' ones), so "before" and "after" come from one sweep: the clean scenario's strain-gauge
 system (declared errors +1.8 % gain, 0.3 deg lag) lands ~2 % off without calibration, within
 0.3 % in K after `loads` and `runout` (C still ~1.7 % off), and within 0.1 % in K and 4 of
-each entry's standard errors in K and C once `delay` took the lag out, the two systems' E_n then consistent with their uncertainties;
-on the paper scenario the probes' gains are found and the two systems' forces agree. The run
+each entry's standard errors in K and C once `delay` took the lag out, the two systems' E_n
+then consistent with their uncertainties; on the paper scenario the probes' gains are found and the two systems' forces agree. The run
 records its provenance.
 """
 
@@ -133,19 +133,28 @@ def _errors(res, truth: dict, lms: str) -> dict[str, float]:
     out = {}
     for m in ("K", "C"):
         t = np.asarray(truth[f"{m}0"])
-        ident = np.array([[coef[f"{m}xx"], coef[f"{m}xy"]], [coef[f"{m}yx"], coef[f"{m}yy"]]])
-        out[m] = float(np.max(np.abs(ident - t)) / np.max(np.abs(t)))
+        out[m] = float(np.max(np.abs(_matrix(coef, m) - t)) / np.max(np.abs(t)))
     return out
+
+
+def _matrix(values: dict, m: str) -> np.ndarray:
+    """(2, 2) entries of matrix `m` ('K', 'C') from the identify output's keys (``Kxx``...)."""
+    return np.array([[values[f"{m}xx"], values[f"{m}xy"]], [values[f"{m}yx"], values[f"{m}yy"]]])
 
 
 def _worst_z(res, truth: dict, lms: str) -> tuple[str, float]:
     """The K or C entry furthest from the truth in its fit's standard errors: (name, |error| / u)."""
     ident = res.identifications[(lms, "kcd11__none__ols")]["json"]
-    z = {}
-    for m in ("K", "C"):
-        t = np.asarray(truth[f"{m}0"])
-        for e, (i, j) in zip(("xx", "xy", "yx", "yy"), ((0, 0), (0, 1), (1, 0), (1, 1))):
-            z[f"{m}{e}"] = abs(ident["coefficients"][f"{m}{e}"] - t[i, j]) / ident["std_errors"][f"{m}{e}"]
+    z = {
+        f"{m}{e}": v
+        for m in ("K", "C")
+        for e, v in zip(
+            ("xx", "xy", "yx", "yy"),
+            (
+                np.abs(_matrix(ident["coefficients"], m) - np.asarray(truth[f"{m}0"])) / _matrix(ident["std_errors"], m)
+            ).ravel(),
+        )
+    }
     name = max(z, key=z.get)
     return name, float(z[name])
 
