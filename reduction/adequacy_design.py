@@ -31,6 +31,7 @@ from numpy.typing import ArrayLike
 from reduction.arrays import FloatArray, NoiseAt
 from reduction.errors import ReductionError
 from reduction.models import ModelSpec, model_spec
+from reduction.whirl import Directions
 
 #: a matrix without a frequency-dependent model is still designed for this one (per base model)
 DEFAULT_TEST_FREQ_DEP = "poly:1"
@@ -141,7 +142,7 @@ def _std_errors(
     ratios: ArrayLike,
     revolutions: ArrayLike,
     u: FloatArray,
-    directions: str,
+    directions: Directions,
 ) -> FloatArray:
     from reduction.allocation import revolution_information
 
@@ -161,7 +162,7 @@ def allocate_keeping_test(
     noise_at: NoiseAt,
     reference: tuple[ArrayLike, ArrayLike],
     block_overhead: float = 0.0,
-    directions: str = "both",
+    directions: Directions = Directions.BOTH,
     min_revolutions: int = 10,
     scales: ArrayLike | None = None,
 ) -> TestedAllocation:

@@ -40,6 +40,7 @@ from reduction.impedance import forces, impedance, real_rows, regressors
 from reduction.models import ModelSpec
 from reduction.noise import equation_variances
 from reduction.rig_time import revolution_time
+from reduction.whirl import Directions
 
 MIN_SHARE = 1e-9  # smallest time share the solver may give a ratio (keeps I(w) invertible)
 NEAR = 2  # a constrained exchange moves a ratio at most this many grid steps
@@ -75,14 +76,14 @@ def revolution_information(
     radius: float,
     ratios: ArrayLike,
     u_revolution: ArrayLike,
-    directions: str = "both",
+    directions: Directions = Directions.BOTH,
 ) -> FloatArray:
     """(k, p, p) Fisher information of ONE revolution at each ratio (all its directions),
     circular orbits of ``radius`` (m), per-revolution noise u (k, 4) of x, y (m), fx, fy (N);
     displacement noise is propagated through Z at ``theta``."""
     r = np.atleast_1d(np.asarray(ratios, dtype=float))
     u = np.broadcast_to(np.asarray(u_revolution, dtype=float), (r.size, 4))
-    per = 2 if directions == "both" else 1
+    per = Directions(directions).blocks
     orbit, x, y = design_orbits(r * spin / (2 * np.pi), directions, radius)
     A = real_rows(regressors(spec, orbit, x, y))  # (4 k per, p)
     var = equation_variances(np.repeat(u, per, axis=0), impedance(spec, np.asarray(theta, float), orbit))
@@ -240,7 +241,7 @@ def allocate(
     target: float = 1.0,
     block_overhead: float = 0.0,
     min_revolutions: int = 10,
-    directions: str = "both",
+    directions: Directions = Directions.BOTH,
     admissible: Callable[[FloatArray], bool] | None = None,
     also: Sequence[tuple[ModelSpec, ArrayLike, ArrayLike]] = (),
 ) -> Allocation:
@@ -267,7 +268,7 @@ def allocate(
     s = np.concatenate([np.asarray(sc, dtype=float) for _, _, sc in models]) * target
     F = _block_diagonal([revolution_information(m, th, spin, radius, r, u, directions) for m, th, _ in models])
     tau = revolution_time(r, spin, directions)
-    per_block = block_overhead * (2 if directions == "both" else 1)
+    per_block = block_overhead * Directions(directions).blocks
     ok: Admissible | None = None if admissible is None else (lambda keep: admissible(r[keep]))
     keep, w, T = _support(F, tau, s, per_block, ok)
     n, _ = _counts(F[keep], tau[keep], s, w, T, min_revolutions)
@@ -303,7 +304,7 @@ def adaptive_targets(
     ratios: ArrayLike,
     revolutions: ArrayLike,
     u_revolution: ArrayLike,
-    directions: str = "both",
+    directions: Directions = Directions.BOTH,
 ) -> FloatArray:
     """(k,) relative standard uncertainty (fraction) of the noisiest phasor after ``revolutions``
     (k,) at each ratio: max over x, y (u / radius) and fx, fy (u / |f|, f = -Z d on the
@@ -311,7 +312,7 @@ def adaptive_targets(
     averaging target it makes a block stop near its allocated count at the stated noise."""
     r = np.atleast_1d(np.asarray(ratios, dtype=float))
     u = np.broadcast_to(np.asarray(u_revolution, dtype=float), (r.size, 4))
-    per = 2 if directions == "both" else 1
+    per = Directions(directions).blocks
     orbit, x, y = design_orbits(r * spin / (2 * np.pi), directions, radius)
     fx, fy = forces(impedance(spec, np.asarray(theta, float), orbit), x, y)
     f = np.min(np.minimum(np.abs(fx), np.abs(fy)).reshape(r.size, per), axis=1)

@@ -39,6 +39,7 @@ from reduction.impedance import impedance, real_rows, regressors
 from reduction.models import ModelSpec
 from reduction.noise import equation_variances
 from reduction.table import OrbitTable
+from reduction.whirl import Directions
 
 SHAPE_SPREAD = 0.2  # a direction's shapes farther apart than this (unit-norm distance) are kept apart
 CIRCLE_TOL = 0.05  # a mean shape whose minor whirl component is below 5 % of the major is a circle
@@ -101,10 +102,10 @@ def reference_design(orbit: ArrayLike) -> tuple[FloatArray, ComplexArray, Comple
 
 
 def yardstick_design(
-    orbit: ArrayLike, min_frequencies: int, directions: str = "both"
+    orbit: ArrayLike, min_frequencies: int, directions: Directions = Directions.BOTH
 ) -> tuple[FloatArray, ComplexArray, ComplexArray]:
-    """(orbit, x, y): unit circles in ``directions`` (the whirl directions the table has:
-    "forward" | "backward" | "both") at as many frequencies as the table has distinct ones
+    """(orbit, x, y): unit circles in ``directions`` (the whirl directions the table has) at
+    as many frequencies as the table has distinct ones
     (at least ``min_frequencies``, at most ``YARDSTICK_MAX``), spread evenly from
     1/``YARDSTICK_SPAN`` of the table's highest orbit frequency to it - the paper's
     0.2..1.2 x spin. The absolute yardstick of variance inflation: it does not share the
@@ -116,23 +117,25 @@ def yardstick_design(
 
 
 def design_orbits(
-    orbit_hz: ArrayLike, directions: str | Sequence[str], radius: float
+    orbit_hz: ArrayLike, directions: Directions | Sequence[Directions], radius: float
 ) -> tuple[FloatArray, ComplexArray, ComplexArray]:
     """(orbit rad/s, x, y m) of circular orbits of ``radius`` (m) at ``orbit_hz`` (Hz), one
-    row per (frequency, direction); directions: "forward" | "backward" | "both" per
-    frequency (one value for all, or one per frequency)."""
+    row per (frequency, direction), forward first; ``directions`` one for all frequencies or
+    one per frequency (forward whirl: y = -i x)."""
     hz = np.atleast_1d(np.asarray(orbit_hz, dtype=float))
-    dirs = [directions] * hz.size if isinstance(directions, str) else list(directions)
-    if len(dirs) != hz.size:
+    given = [directions] * hz.size if isinstance(directions, str) else list(directions)
+    if len(given) != hz.size:
         raise ReductionError("design_orbits: one direction per frequency, or one for all")
+    try:
+        dirs = [Directions(d) for d in given]
+    except ValueError as err:
+        raise ReductionError(f"design_orbits: {err}") from err
     w: list[float] = []
     y: list[complex] = []
     for f, d in zip(hz, dirs):
-        if d not in ("forward", "backward", "both"):
-            raise ReductionError(f"design_orbits: unknown direction {d!r}")
-        for sign in (-1j,) if d == "forward" else (1j,) if d == "backward" else (-1j, 1j):
+        for whirl in d.whirls:
             w.append(2 * np.pi * f)
-            y.append(sign * radius)
+            y.append(-1j * whirl.sign * radius)
     return np.array(w), np.full(len(w), complex(radius)), np.array(y)
 
 

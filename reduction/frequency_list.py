@@ -36,6 +36,7 @@ from reduction.design import design_orbits, predicted_covariance
 from reduction.errors import ReductionError
 from reduction.models import ModelSpec
 from reduction.rig_time import list_time as acquisition_time
+from reduction.whirl import Directions
 
 RUNOUT_KEEP_AWAY = 0.1  # ratios within this of Omega/omega = 1 are not proposed
 GRID_STEP = 0.05  # ratio step of the search grid
@@ -54,9 +55,12 @@ class DesignProblem:
     radius: float
     u_revolution: np.ndarray
     revolutions: int = 50
-    directions: str = "both"
+    directions: Directions = Directions.BOTH
     scales: np.ndarray | None = None  # (p,) what "relative" divides by; None: coefficient_scales
     noise_ratios: np.ndarray | None = None  # (m,) ratios where u_revolution (m, 4) was measured
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "directions", Directions(self.directions))
 
     def noise_at(self, ratios: ArrayLike) -> FloatArray:
         """(n, 4) per-revolution noise at ``ratios``: the stated (4,), or the measured
@@ -210,7 +214,7 @@ def time_to_target(
     n = revolutions_for(prediction, problem.revolutions, target)
     if n is None:
         return float("inf")
-    blocks = len(prediction.ratios) * (2 if problem.directions == "both" else 1)
+    blocks = len(prediction.ratios) * Directions(problem.directions).blocks
     return acquisition_time(prediction.ratios, problem.spin, n, problem.directions) + blocks * block_overhead
 
 

@@ -48,7 +48,7 @@ from reduction.impedance import regression_rows
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
 from reduction.rank import RANK_RTOL, Rank, design_rank, numerical_rank
 from reduction.table import OrbitTable
-from reduction.whirl import Whirl
+from reduction.whirl import Directions, Whirl
 
 MAX_LISTED = 12
 ILL_CONDITIONED_RATIO = 100.0  # warn when cond(table) > 100 x cond(same frequencies, ideal design)
@@ -178,9 +178,9 @@ def check_signal(spec: ModelSpec, table: OrbitTable, signal: SignalDesign, rtol:
         raise _refusal(spec, cleaned.with_phasors(x, y, cleaned.fx, cleaned.fy), A, rank, rtol, "signal", cause)
 
 
-def check_plan(model: str, freq_dep: str, orbit_hz: ArrayLike, directions: str | Sequence[str]) -> None:
+def check_plan(model: str, freq_dep: str, orbit_hz: ArrayLike, directions: Directions | Sequence[Directions]) -> None:
     """Before a run: raise IdentifiabilityError when circular orbits at ``orbit_hz`` (Hz) in
-    ``directions`` ("forward" | "backward" | "both", one for all or one per frequency) cannot
+    ``directions`` (one for all or one per frequency) cannot
     identify ``model`` with ``freq_dep`` (power:auto: when no exponent M can)."""
     orbit, x, y = design_orbits(orbit_hz, directions, 1.0)
     zero = np.zeros(orbit.size, dtype=complex)
@@ -217,11 +217,17 @@ def ill_conditioning(spec: ModelSpec, table: OrbitTable, rank: Rank) -> str | No
     w, x, y = reference_design(table.orbit)
     ref = numerical_rank(_stack(spec, w, x, y), 0.0)
     forward = table.forward()
-    directions = "both" if forward.any() and not forward.all() else "forward" if forward.all() else "backward"
+    directions = (
+        Directions.BOTH
+        if forward.any() and not forward.all()
+        else Directions.FORWARD
+        if forward.all()
+        else Directions.BACKWARD
+    )
     yard_design = yardstick_design(table.orbit, spec.min_frequencies, directions)
     yard = numerical_rank(_stack(spec, *yard_design))
     if yard.deficiency:  # the table's one direction cannot identify the model: judge against both
-        directions = "both"
+        directions = Directions.BOTH
         yard_design = yardstick_design(table.orbit, spec.min_frequencies, directions)
         yard = numerical_rank(_stack(spec, *yard_design))
     cond, cond_ref = rank.condition_number, ref.condition_number
@@ -242,7 +248,7 @@ def ill_conditioning(spec: ModelSpec, table: OrbitTable, rank: Rank) -> str | No
         f"ill-conditioned: condition number {cond:.3g}, {cond / cond_ref:.3g} times that of the same "
         f"frequencies with forward and backward circular orbits ({cond_ref:.3g}; orbitrig warns above "
         f"{ILL_CONDITIONED_RATIO:g} times); standard errors up to {np.max(absolute):.3g} times those of "
-        f"{'forward and backward' if directions == 'both' else directions} circles at {n_yard} frequencies spread over 1/{YARDSTICK_SPAN:g} .. 1 of the "
+        f"{'forward and backward' if directions is Directions.BOTH else directions} circles at {n_yard} frequencies spread over 1/{YARDSTICK_SPAN:g} .. 1 of the "
         f"highest (orbitrig warns above {MAX_SE_INFLATION:g} times); poorly determined: {listed}. Forward "
         "and backward whirl of similar size at well separated frequencies would determine them."
     )

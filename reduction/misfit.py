@@ -23,6 +23,7 @@ from reduction.design import design_orbits
 from reduction.impedance import impedance, real_rows, regressors
 from reduction.models import ModelSpec
 from reduction.noise import equation_variances
+from reduction.whirl import Directions
 
 
 #: a frequency list: (ratios, revolutions (one or per ratio), per-revolution noise u (4,) or (k, 4))
@@ -48,11 +49,11 @@ def _projection(
     ratios: ArrayLike,
     revolutions: ArrayLike,
     u_revolution: ArrayLike,
-    directions: str,
+    directions: Directions,
 ) -> np.ndarray:
     """(p_small, p_rich): the small model's WLS estimate per unit of each rich coefficient."""
     r = np.asarray(ratios, dtype=float)
-    per = 2 if directions == "both" else 1
+    per = Directions(directions).blocks
     orbit, x, y = design_orbits(r * spin / (2 * np.pi), directions, radius)
     n = np.repeat(np.broadcast_to(np.asarray(revolutions, dtype=float), r.shape), per)
     u = np.repeat(np.broadcast_to(np.asarray(u_revolution, dtype=float), (r.size, 4)), per, axis=0)
@@ -73,7 +74,7 @@ def list_shift(
     radius: float,
     list_a: DesignList,
     list_b: DesignList,
-    directions: str = "both",
+    directions: Directions = Directions.BOTH,
 ) -> ListShift:
     """Expected shift of ``small``'s estimates from list a to list b; a list is (ratios,
     revolutions (one or per ratio), per-revolution noise u (4,) or (k, 4) of x, y (m), fx,

@@ -3,9 +3,9 @@
 A block at orbit speed Omega averaging n revolutions takes (n + 1) orbit periods 2 pi / |Omega|:
 the extra one finds the trigger before the first whole revolution. A list of orbit ratios
 r = |Omega| / omega at spin omega is run in one or both whirl directions (two blocks per
-ratio for "both"); per block a fixed overhead (settle hold and store) is added, and per point
+ratio for both directions); per block a fixed overhead (settle hold and store) is added, and per point
 the orbit drive's ramps: forward from the highest |Omega| down, backward back up, 2 x the
-highest |Omega| at the ramp rate for "both" (once for one direction). Seconds, physical.
+highest |Omega| at the ramp rate for both directions (once for one). Seconds, physical.
 """
 
 from __future__ import annotations
@@ -15,18 +15,16 @@ from typing import overload
 import numpy as np
 from numpy.typing import ArrayLike
 
+from reduction.whirl import Directions
+
 TRIGGER_REVOLUTIONS = 1  # revolutions spent finding the trigger before a block's first whole one
 
 
-def _per_direction(directions: str) -> int:
-    return 2 if directions == "both" else 1
-
-
-def revolution_time(ratios: ArrayLike, spin: float, directions: str = "both") -> np.ndarray:
+def revolution_time(ratios: ArrayLike, spin: float, directions: Directions = Directions.BOTH) -> np.ndarray:
     """(k,) seconds of one revolution at each ratio, 2 pi / (r omega), summed over its whirl
-    directions (two blocks per ratio for "both")."""
+    directions (two blocks per ratio for both)."""
     r = np.asarray(ratios, dtype=float)
-    t: np.ndarray = _per_direction(directions) * 2 * np.pi / (r * spin)
+    t: np.ndarray = Directions(directions).blocks * 2 * np.pi / (r * spin)
     return t
 
 
@@ -46,25 +44,27 @@ def block_time(orbit: float | np.ndarray, revolutions: ArrayLike) -> float | np.
     return float(t) if np.ndim(t) == 0 else t
 
 
-def list_time(ratios: ArrayLike, spin: float, revolutions: ArrayLike, directions: str = "both") -> float:
+def list_time(
+    ratios: ArrayLike, spin: float, revolutions: ArrayLike, directions: Directions = Directions.BOTH
+) -> float:
     """Seconds averaging the blocks of ``ratios`` (each ratio's ``revolutions``, one count or one
     per ratio, in every direction), trigger revolutions included."""
     r = np.asarray(ratios, dtype=float)
     n = np.broadcast_to(np.asarray(revolutions, dtype=float), r.shape)
-    return float(_per_direction(directions) * np.sum(block_time(r * spin, n)))
+    return float(Directions(directions).blocks * np.sum(block_time(r * spin, n)))
 
 
 def point_time(
     ratios: ArrayLike,
     spin: float,
     revolutions: ArrayLike,
-    directions: str = "both",
+    directions: Directions = Directions.BOTH,
     per_block_s: float = 0.0,
     ramp_rate: float | None = None,
 ) -> float:
     """Seconds of a point's blocks: :func:`list_time` + blocks x ``per_block_s`` (settle hold,
     store) + the orbit ramps at ``ramp_rate`` (rad/s per s; None: left out)."""
     r = np.asarray(ratios, dtype=float)
-    blocks = _per_direction(directions) * r.size
-    ramps = 0.0 if ramp_rate is None else _per_direction(directions) * float(np.max(r)) * spin / ramp_rate
+    blocks = Directions(directions).blocks * r.size
+    ramps = 0.0 if ramp_rate is None else Directions(directions).blocks * float(np.max(r)) * spin / ramp_rate
     return list_time(r, spin, revolutions, directions) + blocks * per_block_s + ramps

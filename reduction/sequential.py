@@ -33,7 +33,8 @@ from reduction.allocation import revolution_information
 from reduction.arrays import FloatArray, NoiseAt
 from reduction.errors import ReductionError
 from reduction.models import ModelSpec
-from reduction.rig_time import TRIGGER_REVOLUTIONS
+from reduction.rig_time import block_time
+from reduction.whirl import Directions
 
 STEP_REVOLUTIONS = (10, 20, 50, 100, 200)  # block sizes tried at each candidate ratio
 
@@ -50,8 +51,7 @@ class Choice(StrEnum):
 class NextBlock:
     """The decision: ``ratio`` and ``revolutions`` of the next block (None, 0 when stopping),
     why, the block's rig seconds, and the predicted relative standard errors (p,) before and
-    after it (after = before when stopping); ``direction`` its whirl option ("forward",
-    "backward" or "both")."""
+    after it (after = before when stopping); ``direction`` its whirl directions."""
 
     ratio: float | None
     revolutions: int
@@ -59,7 +59,7 @@ class NextBlock:
     seconds: float
     before: FloatArray
     after: FloatArray
-    direction: str = "both"
+    direction: Directions = Directions.BOTH
 
 
 def block_information(
@@ -70,7 +70,7 @@ def block_information(
     ratio: float,
     u_revolution: ArrayLike,
     revolutions: int,
-    directions: str = "both",
+    directions: Directions = Directions.BOTH,
 ) -> FloatArray:
     """(p, p) information of one measured block (all its directions): revolutions x the
     per-revolution information at ``ratio`` with the measured noise u (4,)."""
@@ -104,7 +104,7 @@ def reference_errors(
     ratios: ArrayLike,
     u_revolution: ArrayLike,
     revolutions: int,
-    directions: str = "both",
+    directions: Directions = Directions.BOTH,
 ) -> FloatArray:
     """(p,) predicted standard errors (SI) of a reference list: ``ratios`` each averaging
     ``revolutions`` in ``directions``, per-revolution noise u (k, 4) - what "match the paper's
@@ -126,14 +126,14 @@ def next_block(
     spent_s: float,
     cap_s: float,
     per_block_s: float = 0.0,
-    directions: str | Sequence[str] = "both",
+    directions: Directions | Sequence[Directions] = Directions.BOTH,
     orbit_now: float | None = None,
     ramp_rate: float | None = None,
 ) -> NextBlock:
     """The next block of the point (module doc). ``info`` (p, p) so far, ``noise_at(ratios) ->
     (k, 4)`` per-revolution noise, ``scales`` (p,) SI, ``target`` a fraction, ``spent_s`` the
     rig seconds spent on the point, ``cap_s`` its cap, ``per_block_s`` settle + store per block,
-    ``directions`` one whirl option or several to choose from ("forward", "backward", "both");
+    ``directions`` one whirl option or several to choose from;
     ``orbit_now`` (rad/s, signed) and ``ramp_rate`` (rad/s per s) add the ramp to each block."""
     before = relative_errors(info, scales)
     if float(np.max(before)) <= target:
@@ -141,15 +141,12 @@ def next_block(
     r = np.asarray(candidates, dtype=float)
     n = np.asarray(STEP_REVOLUTIONS, dtype=float)
     s = np.asarray(scales, dtype=float)
-    options = (directions,) if isinstance(directions, str) else tuple(directions)
-    best: tuple[float, float, int, float, FloatArray, str] | None = None
+    options = tuple(Directions(d) for d in ((directions,) if isinstance(directions, str) else directions))
+    best: tuple[float, float, int, float, FloatArray, Directions] | None = None
     for d in options:  # every (ratio, revolutions) of a direction at once: (k, m) candidates
         F = revolution_information(spec, theta, spin, radius, r, noise_at(r), d)
-        blocks = 2 if d == "both" else 1
         ramp = np.array([_ramp_s(ratio * spin, d, orbit_now, ramp_rate) for ratio in r])
-        seconds = (
-            blocks * ((n[None] + TRIGGER_REVOLUTIONS) * 2 * np.pi / (r[:, None] * spin) + per_block_s) + ramp[:, None]
-        )
+        seconds = d.blocks * (block_time(r[:, None] * spin, n[None]) + per_block_s) + ramp[:, None]
         after = _batch_relative(info[None, None] + n[None, :, None, None] * F[:, None], s)  # (k, m, p)
         rate = (1.0 / np.max(after, axis=2) ** 2 - 1.0 / float(np.max(before)) ** 2) / seconds
         rate = np.where(spent_s + seconds <= cap_s, rate, -np.inf)
@@ -172,9 +169,8 @@ def _batch_relative(info: FloatArray, scales: FloatArray) -> FloatArray:
     return relative
 
 
-def _ramp_s(orbit: float, direction: str, orbit_now: float | None, ramp_rate: float | None) -> float:
+def _ramp_s(orbit: float, direction: Directions, orbit_now: float | None, ramp_rate: float | None) -> float:
     """Seconds the orbit drive ramps from ``orbit_now`` to the block's first orbit speed."""
     if orbit_now is None or ramp_rate is None:
         return 0.0
-    sign = -1.0 if direction == "backward" else 1.0
-    return abs(sign * orbit - orbit_now) / ramp_rate
+    return abs(direction.whirls[0].sign * orbit - orbit_now) / ramp_rate

@@ -9,10 +9,12 @@ import math
 import random
 import re
 
+import pytest
+
 from daq.backoff import Backoff
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.service.reconnect import reconnecting
-from reduction.whirl import Whirl
+from reduction.whirl import Directions, Whirl
 from rigunits import MPA, RPM, format_duration, now_iso, utc_iso, utc_stamp
 
 STAMP = re.compile(r"^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z$")
@@ -43,6 +45,19 @@ def test_closed_sets_keep_their_words() -> None:
     assert Whirl.of(-3.0) is Whirl.BACKWARD and Whirl.of(0.1) is Whirl.FORWARD
     assert LMS == ("piezo", "strain") and LoadSystem("strain") is LoadSystem.STRAIN
     assert f"fx_{LoadSystem.PIEZO}" == "fx_piezo"
+
+
+def test_directions_of_a_list_name_its_blocks_and_whirls() -> None:
+    assert [str(d) for d in Directions] == ["forward", "backward", "both"]
+    assert Directions.of(["backward", "forward"]) is Directions.BOTH
+    assert Directions.of([Whirl.BACKWARD, Whirl.BACKWARD]) is Directions.BACKWARD
+    assert [d.blocks for d in Directions] == [1, 1, 2]
+    assert Directions.BOTH.whirls == (Whirl.FORWARD, Whirl.BACKWARD)  # forward first
+    assert Directions("backward").whirls == (Whirl.BACKWARD,)
+    with pytest.raises(ValueError):
+        Directions.of([])
+    with pytest.raises(ValueError):
+        Directions.of(["sideways"])
 
 
 def test_reconnecting_backs_off_with_jitter_and_resets_after_traffic() -> None:

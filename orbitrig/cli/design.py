@@ -16,6 +16,7 @@ import typer
 
 from orbitrig.cli import design_options as opt
 from orbitrig.load_systems import LoadSystem
+from reduction.whirl import Directions
 
 
 def _fail(message: str) -> None:
@@ -33,27 +34,33 @@ def _ratio_list(text: str) -> list[float]:
     return values
 
 
-def _candidate(ratios: Optional[str], matrix: Optional[str], rig) -> tuple[list[float], str, float | None, str, list]:
+def _candidate(
+    ratios: Optional[str], matrix: Optional[str], rig
+) -> tuple[list[float], Directions, float | None, str, list]:
     """(ratios, directions, orbit radius m or None, where from, the matrix's (model, freq_dep) pairs)."""
     from orbitrig import config as cfg
 
     if ratios and matrix:
         _fail("give --ratios or --matrix, not both")
     if ratios:
-        return _ratio_list(ratios), "both", None, "--ratios", []
+        return _ratio_list(ratios), Directions.BOTH, None, "--ratios", []
     if matrix:
         mat = cfg.load_matrix(cfg.matrix_file(matrix))
-        dirs = set(mat.orbit.directions)
-        direction = "both" if len(dirs) == 2 else next(iter(dirs))
         radius = min(mat.operating.dynamic_eccentricity) * rig.bearing.clearance
         return (
             list(mat.orbit.ratio_list),
-            direction,
+            Directions.of(mat.orbit.directions),
             radius,
             f"matrix {mat.name}",
             [(m.model, m.freq_dep) for m in mat.models],
         )
-    return [round(0.2 + k / 9, 6) for k in range(10)], "both", None, "the paper's list (0.2 to 1.2, 10 ratios)", []
+    return (
+        [round(0.2 + k / 9, 6) for k in range(10)],
+        Directions.BOTH,
+        None,
+        "the paper's list (0.2 to 1.2, 10 ratios)",
+        [],
+    )
 
 
 def _noise(noise_from: Optional[Path], lms: str, force: Optional[float], probe_nm: Optional[float]):

@@ -21,6 +21,7 @@ from orbitrig.cli.design_inputs import DesignInputError
 from orbitrig.config import RPM, default_rig_path
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
+from reduction.whirl import Directions
 from rigunits import format_duration
 
 DESIGNS_DIR = "designs"  # next to config/matrices: config/designs/NAME.toml
@@ -33,7 +34,7 @@ def _unit(name: str) -> str:
     return base if r == 0 else f"{base}/(rad/s)" + (f"^{r}" if r > 1 else "")
 
 
-def rig_time(rig, ratios, spin: float, revolutions, directions: str) -> float:
+def rig_time(rig, ratios, spin: float, revolutions, directions: Directions) -> float:
     """Physical seconds the blocks of ``ratios`` take at spin (rad/s), ``revolutions`` one
     count or one per ratio (reduction.rig_time.point_time; see the module doc)."""
     from reduction.rig_time import point_time
@@ -41,7 +42,7 @@ def rig_time(rig, ratios, spin: float, revolutions, directions: str) -> float:
     return point_time(ratios, spin, revolutions, directions, rig.settle.hold_s + rig.estimates.store_s, rig.ramp_rate)
 
 
-def _list_object(rig, problem, pred, revolutions: int, directions: str) -> dict:
+def _list_object(rig, problem, pred, revolutions: int, directions: Directions) -> dict:
     names = problem.spec.names
     ok = pred.std_errors is not None
     return {
@@ -92,7 +93,7 @@ def _candidate_warnings(ratios, lo: float, hi: float, keep_away: float) -> list[
     return out
 
 
-def _allocated(rig, problem, grid, scales, directions: str, test=None, reference=None) -> dict:
+def _allocated(rig, problem, grid, scales, directions: Directions, test=None, reference=None) -> dict:
     """The proposal as revolutions per ratio (reduction.allocation): every coefficient's
     standard error at most ``scales`` in the least rig time, with each ratio's adaptive target;
     with a ``test`` (reduction.adequacy_design.ModelTest) the list also keeps the adequacy
@@ -127,7 +128,7 @@ def _allocated(rig, problem, grid, scales, directions: str, test=None, reference
     return out
 
 
-def _allocation(problem, grid, scales, directions: str, overhead: float, test, reference) -> Any:
+def _allocation(problem, grid, scales, directions: Directions, overhead: float, test, reference) -> Any:
     """reduction.allocation.allocate over ``grid``, or with a ``test`` allocate_keeping_test
     (a TestedAllocation); ``overhead``: s per block besides the revolutions."""
     from reduction.adequacy_design import allocate_keeping_test
@@ -196,7 +197,7 @@ class DesignRequest:
     spin_rpm: float
     candidate: list[float]  # orbit ratios |Omega|/omega
     source: str  # where the candidate list came from
-    directions: str  # forward | backward | both
+    directions: Directions
     radius: float | None  # orbit radius, m; None: the noise's, else 0.1 x clearance
     noise: Any  # orbitrig.cli.design_inputs: stated or measured per-revolution noise
     run: Any  # the run the noise and the prior coefficients were measured in, or None
@@ -377,7 +378,7 @@ def save_design(obj: dict, name: str, folder: Path | None = None) -> Path:
         ("revolutions = [" + ", ".join(map(str, n)) + "]")
         if per_ratio
         else f"revolutions = [{', '.join([str(n)] * len(p['ratios']))}]",
-        "directions = " + ('["forward", "backward"]' if p["directions"] == "both" else f'["{p["directions"]}"]'),
+        "directions = [" + ", ".join(f'"{w}"' for w in Directions(p["directions"]).whirls) + "]",
     ]
     if per_ratio and p.get("target_pct"):
         lines.append("target_pct = [" + ", ".join(f"{t:g}" for t in p["target_pct"]) + "]")

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from orbitrig.config import RPM
+from reduction.whirl import Directions
 
 #: a predicted relative standard error above this (a fraction) leaves a coefficient undetermined
 UNDETERMINED = 1.0
@@ -38,11 +39,6 @@ class ModelPrediction:
     #: radius) where it exceeds UNDETERMINED, and at how many of them
     undetermined: dict[str, tuple[float, float, int]] = field(default_factory=dict)
     fits: int = 0  # planned (spin, radius) fits predicted
-
-
-def _directions(mat) -> str:
-    dirs = set(mat.orbit.directions)
-    return "both" if len(dirs) == 2 else next(iter(dirs))
 
 
 def block_revolutions(rig, mat) -> list[int]:
@@ -88,7 +84,7 @@ def predict_model(rig, mat, model: str, freq_dep: str, noise) -> ModelPrediction
     from reduction.models import model_spec
 
     label = f"{model} {freq_dep}"
-    ratios, directions = mat.orbit.ratio_list, _directions(mat)
+    ratios, directions = mat.orbit.ratio_list, Directions.of(mat.orbit.directions)
     spins = sorted(set(mat.operating.spin_rpm))
     try:
         for rpm in spins:

@@ -4,7 +4,7 @@ Writes run in one storage thread, one at a time, in submission order (a FIFO
 lock), so a block is never written after the point that holds it is marked
 complete; the same thread makes every write, so the order of the syscalls on
 disk is the order of submission. A stop or an abort waits for what is in flight (never cut off).
-The first failure is reported at once to `on_failure` (the engine ends the
+No write follows a failed one. The first failure is reported at once to `on_failure` (the engine ends the
 run: drives to a safe stop first) and raised by `check`.
 
 A point's records (its blocks: raw counts, means, phasors) stay in memory until the
@@ -40,14 +40,22 @@ class Background:
         self._pending: set[asyncio.Task[object]] = set()
         self._points: deque[asyncio.Task[object]] = deque()  # each point's completion, oldest first
         self._writes = asyncio.Lock()
+        self._write_error: Exception | None = None  # the first write that failed
         self.error: BaseException | None = None
 
     async def write(self, fn: Callable[..., T], *args: object) -> T:
-        """One storage write, in a thread, after every write submitted before it."""
+        """One storage write, in a thread, after every write submitted before it; none after one
+        that failed (the run ends at the failed write, and a write already queued behind it,
+        e.g. the next block measured meanwhile, raises RunFailed without touching the disk)."""
         async with self._writes:
+            if self._write_error is not None:
+                raise RunFailed("not written: an earlier storage write failed") from self._write_error
             t = time.monotonic()
             try:
                 return await asyncio.get_running_loop().run_in_executor(STORAGE_THREAD, fn, *args)
+            except Exception as err:  # recorded before the lock passes to the next write
+                self._write_error = err
+                raise
             finally:
                 self.timing["store"] = self.timing.get("store", 0.0) + time.monotonic() - t
 

@@ -26,7 +26,7 @@ from typing import Awaitable, Callable, TypeVar
 
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.events import RunFailed
-from orbitrig.run.states import FAULTED, IDLE, RUNNING, STOPPING, WAITING, next_state
+from orbitrig.run.states import FAULTED, IDLE, RUNNING, STOPPING, WAITING, RunState, next_state
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.interlocks import SUSPEND, Trip
 from rigunits import now_iso
@@ -57,7 +57,7 @@ async def _first(*events: asyncio.Event, timeout: float | None = None) -> None:
 
 
 class RunControl:
-    def __init__(self, on_state: Callable[[str, str], None], note: Callable[[str], None]):
+    def __init__(self, on_state: Callable[[RunState, str], None], note: Callable[[str], None]):
         self._on_state = on_state
         self._note = note
         self.state = IDLE

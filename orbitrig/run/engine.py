@@ -60,6 +60,7 @@ from orbitrig.run.states import (
     STOPPING,
     ConfirmMode,
     Outcome,
+    RunState,
 )
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.store.estimate import plan_bytes
@@ -103,7 +104,7 @@ class RunEngine(OperatorRequests):
 
     # ------------------------------------------------------------- public API
     @property
-    def state(self) -> str:
+    def state(self) -> RunState:
         return self._control.state
 
     @property
@@ -331,11 +332,11 @@ class RunEngine(OperatorRequests):
             except Exception:  # a subscriber must not break the run
                 log.exception("event subscriber failed")
 
-    def _state_changed(self, state: str, message: str) -> None:
+    def _state_changed(self, state: RunState, message: str) -> None:
         self._log_event(message, state)
         self._emit(StatusEvent(state, self.run_id, self.since, message))
 
-    def _log_event(self, message: str, state: str | None = None) -> None:
+    def _log_event(self, message: str, state: RunState | None = None) -> None:
         state = state or self.state
         log.info("[%s] %s", state, message)
         if self._store is not None:

@@ -7,12 +7,12 @@ from pathlib import Path
 from typing import Any, Callable
 
 from orbitrig.errors import OrbitrigError
-from orbitrig.run.states import Outcome
+from orbitrig.run.states import Outcome, RunState
 
 
 @dataclass(frozen=True)
 class StatusEvent:
-    state: str
+    state: RunState
     run_id: str | None
     since: str  # ISO-8601
     message: str = ""

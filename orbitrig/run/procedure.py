@@ -130,7 +130,7 @@ class RunParts:
     background: Background
     progress: ProgressMeter
     timing: dict[str, float]
-    confirm_mode: str  # prompt | remote | auto
+    confirm_mode: ConfirmMode
     run_id: str
     emit: Callable[[ResultEvent], None]
     note: Callable[[str], None]
@@ -184,7 +184,7 @@ class PointProcedure:
         return self.estimate_of(step, self.r.confirm_mode)
 
     @staticmethod
-    def estimate_of(step: Step, confirm_mode: str) -> float:
+    def estimate_of(step: Step, confirm_mode: ConfirmMode) -> float:
         """Physical seconds still to come for `step` (no operator time in auto mode)."""
         return 0.0 if isinstance(step, SetManual) and confirm_mode == ConfirmMode.AUTO else step.duration
 

@@ -29,7 +29,7 @@ from reduction.models import ModelSpec, model_spec
 from reduction.rig_time import block_time
 from reduction.sequential import Choice, block_information, next_block, reference_errors
 from reduction.table import OrbitTable
-from reduction.whirl import Whirl
+from reduction.whirl import Directions, Whirl
 
 #: the most blocks a point can name (storage tags are two digits)
 MAX_BLOCK_INDEX = 99
@@ -134,7 +134,7 @@ def _information(
             ratios[k],
             per_rev[k],
             int(n_records[k]),
-            str(Whirl.of(recs[k].block.direction)),
+            Directions.of([Whirl.of(recs[k].block.direction)]),
         )
         for k in range(len(recs))
     ]
@@ -152,21 +152,20 @@ def _scales(
     coefficient's own scale and the rule's target."""
     if rule.target is None:
         match = np.asarray(rule.match_ratios)
-        both = "both" if len(rule.directions) == 2 else rule.directions[0]
-        return reference_errors(spec, theta, spin, radius, match, noise_at(match), rule.match_revolutions, both), 1.0
+        every = Directions.of(rule.directions)
+        return reference_errors(spec, theta, spin, radius, match, noise_at(match), rule.match_revolutions, every), 1.0
     return coefficient_scales(spec, theta, spin), rule.target
 
 
 def chosen_steps(
     step: ChooseBlocks, spin: float, choice: BlockChoice, freq: int, orbit_now: float, store_s: float
 ) -> list[Step]:
-    """The steps of the chosen block(s): per direction (forward first for "both") SetOrbit,
+    """The steps of the chosen block(s): per direction (forward first for both) SetOrbit,
     Settle, Acquire of exactly the chosen revolutions, StoreBlock carrying the choice."""
     if choice.ratio is None:
         raise ValueError(f"a {choice.reason} decision chooses no block")
-    signs = (+1, -1) if choice.direction == "both" else (Whirl(choice.direction).sign,)
     out: list[Step] = []
-    for sign in signs:
+    for sign in (w.sign for w in Directions(choice.direction).whirls):
         b = Block(freq, sign, sign * float(choice.ratio) * spin)
         n = choice.revolutions
         out += [

@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from orbitrig.config import RPM, MatrixConfig, RigConfig, band_candidates
+from reduction.whirl import Directions
 
 
 @dataclass(frozen=True)
@@ -23,7 +24,7 @@ class SequentialRule:
     """One sequential point's bounds: ``model`` (kcd11 ...), ``target`` (a fraction of each
     coefficient's scale; None: ``match_ratios`` at ``match_revolutions`` give the standard
     errors to reach), ``cap_s`` (rig s of the point's blocks), ``candidates`` (ratios,
-    ascending), ``directions`` ("forward", "backward"), ``per_block_s`` (settle hold + store),
+    ascending), ``directions`` (the matrix's whirl directions, each one block), ``per_block_s`` (settle hold + store),
     ``ramp_rate`` (rad/s per s)."""
 
     model: str
@@ -32,7 +33,7 @@ class SequentialRule:
     match_revolutions: int
     cap_s: float
     candidates: tuple[float, ...]
-    directions: tuple[str, ...]
+    directions: tuple[Directions, ...]
     per_block_s: float
     ramp_rate: float
 
@@ -63,7 +64,7 @@ def sequential_rule(matrix: MatrixConfig, rig: RigConfig, spin: float) -> Sequen
         match_revolutions=s.match_revolutions,
         cap_s=s.cap_s,
         candidates=candidates,
-        directions=tuple(str(w) for w in matrix.orbit.directions),
+        directions=tuple(Directions.of([w]) for w in matrix.orbit.directions),
         per_block_s=hold + rig.estimates.store_s,
         ramp_rate=rig.ramp_rate,
     )

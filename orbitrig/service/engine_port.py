@@ -8,11 +8,12 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from orbitrig.run.engine import RunOutcome
+from orbitrig.run.states import RunState
 
 
 class Engine(Protocol):
     out_dir: Path  # the run directory
-    state: str
+    state: RunState
     run_id: str | None
     waiting_step: str | None
 

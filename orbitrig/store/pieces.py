@@ -203,7 +203,7 @@ def write_choice(g: h5py.Group, c: BlockChoice) -> None:
         {
             "reason": c.reason,
             "ratio": math.nan if c.ratio is None else c.ratio,
-            "whirl": c.direction,
+            "whirl": str(c.direction),  # a plain str: h5py stores no str subclass
             "revolutions": c.revolutions,
             "seconds": c.seconds,
             "spent_s": c.spent_s,

@@ -14,6 +14,7 @@ if TYPE_CHECKING:  # the plan's types only annotate: the store does not import t
     from orbitrig.config import ModelSpec
     from orbitrig.run.steps import Block
     from reduction.table import OrbitTable
+    from reduction.whirl import Directions
 
 #: a row of the journal's event, CAN or drive log: time (s since the start) and values or texts
 LogRow = tuple[float | str, ...]
@@ -23,13 +24,13 @@ LogRow = tuple[float | str, ...]
 class BlockChoice:
     """Why a sequential point chose a block (or stopped): ``reason`` "next" (the block lowering the
     largest predicted relative error most per second), "target" or "cap" (the names of
-    reduction.sequential.Choice, lower case), the ratio, direction ("forward", "backward", "both"), revolutions and rig seconds of
+    reduction.sequential.Choice, lower case), the ratio, whirl directions, revolutions and rig seconds of
     the choice, the rig seconds its blocks had spent before it, the model's coefficient names,
     and each one's predicted relative standard error (fraction of its scale) before and after."""
 
     reason: str
     ratio: float | None
-    direction: str
+    direction: Directions
     revolutions: int
     seconds: float
     spent_s: float

@@ -7,12 +7,15 @@ reads is replaced; everything else is the real engine, store and simulator.
 """
 
 import asyncio
+import threading
 
 import pytest
 
 from orbitrig import config as cfg
 from orbitrig.cli.simulated_rig import simulated_access
+from orbitrig.run.background import Background
 from orbitrig.run.engine import RunEngine, StatusEvent
+from orbitrig.run.events import RunFailed
 from orbitrig.run.plan import make_plan
 from orbitrig.store.estimate import plan_bytes, point_bytes
 from orbitrig.store.writer import RunStore, StorageFullError
@@ -24,6 +27,31 @@ pytestmark = pytest.mark.timeout(120)
 
 def _at_rest(sim) -> bool:
     return all(abs(s) < 1.0 for s in sim.speeds)
+
+
+async def test_no_write_follows_a_failed_one():
+    """Writes queued behind a failing one (blocks measured while it ran) never reach the disk:
+    the lock passes on as the failure is raised, before the task's done callback records it."""
+    failures: list[BaseException] = []
+    bg = Background({}, on_failure=failures.append)
+    release, written = threading.Event(), []
+
+    def block(tag: str) -> None:
+        if tag == "02_fwd":
+            release.wait(5)
+            raise StorageFullError("run", "no space left on device (disk full)")
+        written.append(tag)
+
+    for tag in ("03_fwd", "02_fwd", "01_fwd", "00_fwd"):
+        bg.spawn(bg.write(block, tag), f"store {tag}")
+    await asyncio.sleep(0.05)  # 02_fwd in the storage thread, 01_fwd and 00_fwd queued behind it
+    release.set()
+    await bg.settle()
+    assert written == ["03_fwd"]
+    assert len(failures) == 1 and isinstance(failures[0], StorageFullError)
+    assert isinstance(bg.error, StorageFullError)
+    with pytest.raises(RunFailed, match="storage failed: StorageFullError"):
+        bg.check()
 
 
 async def test_storage_failure_stops_the_drives_before_recording(tmp_path, monkeypatch):
