@@ -28,6 +28,12 @@ LIMITS = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM, min_ratio=None, 
 
 
 def rig(sim, limits=LIMITS, **kw) -> RigDrives:
+    """The test rig's drives with room for a loaded machine: 0.3 s per request and a 2 s
+    watchdog (the link and the watchdog are not these tests' subject; the tests of them
+    state their own timings). With 0.1 s and 0.5 s, an event loop held up half a second
+    under load tripped a drive on communication loss."""
+    kw.setdefault("timeout", 0.3)
+    kw.setdefault("comm_loss_timeout", 2.0)
     return open_rig(sim, limits, **kw)
 
 
