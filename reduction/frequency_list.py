@@ -214,7 +214,7 @@ def time_to_target(
     n = revolutions_for(prediction, problem.revolutions, target)
     if n is None:
         return float("inf")
-    blocks = len(prediction.ratios) * Directions(problem.directions).blocks
+    blocks = len(prediction.ratios) * problem.directions.blocks
     return acquisition_time(prediction.ratios, problem.spin, n, problem.directions) + blocks * block_overhead
 
 

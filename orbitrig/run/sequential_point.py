@@ -134,7 +134,7 @@ def _information(
             ratios[k],
             per_rev[k],
             int(n_records[k]),
-            Directions.of([Whirl.of(recs[k].block.direction)]),
+            Directions(Whirl.of(recs[k].block.direction)),
         )
         for k in range(len(recs))
     ]

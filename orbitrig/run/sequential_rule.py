@@ -64,7 +64,7 @@ def sequential_rule(matrix: MatrixConfig, rig: RigConfig, spin: float) -> Sequen
         match_revolutions=s.match_revolutions,
         cap_s=s.cap_s,
         candidates=candidates,
-        directions=tuple(Directions.of([w]) for w in matrix.orbit.directions),
+        directions=tuple(Directions(w) for w in matrix.orbit.directions),
         per_block_s=hold + rig.estimates.store_s,
         ramp_rate=rig.ramp_rate,
     )
