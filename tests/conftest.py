@@ -1,4 +1,14 @@
-"""Marks the tests that start processes (a broker, a browser, a database server, the
+"""The lab configuration every test's commands find, and the `integration` mark.
+
+Lab: the suite runs the simulator 40 times faster than the rig (so the command-line process
+decodes 40 times the rig's A/D data) while tools/cpu-hog keeps both cores busy; there the
+sweep's own process was seen answering a drive poll 0.37 s late. `pytest_configure` points
+ORBITRIG_HOME at a folder holding the shipped rig.toml with a patient drive link
+(support.rig_configs.patient_rig_config), so the commands a test starts without --config do
+not lose the link to load. The shipped timing (0.15 s x 3 polls, 1 s drive watchdog) is
+tested where it is the subject: tests/drives, tests/config, with their own stated timings.
+
+Marks the tests that start processes (a broker, a browser, a database server, the
 command line, GNU Octave, mount ...) as ``integration``: ``-m "not integration"`` runs
 the in-process rest, ``-m integration`` only these.
 
@@ -11,10 +21,15 @@ from __future__ import annotations
 
 import functools
 import inspect
+import os
 import re
+import shutil
+import tempfile
 from pathlib import Path
 
 import pytest
+
+from orbitrig.config.home import HOME_ENV
 
 PROCESS_WORDS = re.compile(
     r"\b(subprocess|Popen|create_subprocess_exec|mosquitto|webdriver|chromium|pg_ctl|"
@@ -66,6 +81,15 @@ def _fixture_starts_processes(func: object) -> bool:
         return True  # a fixture of a helper module that starts processes (the database server)
     words = set(re.findall(r"\w+", source))
     return bool(PROCESS_WORDS.search(source)) or bool(words & _process_names(path))
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    from support.rig_configs import patient_rig_config
+
+    lab = Path(tempfile.mkdtemp(prefix="orbitrig-test-lab-"))
+    patient_rig_config(lab)
+    os.environ[HOME_ENV] = str(lab)
+    config.add_cleanup(functools.partial(shutil.rmtree, lab, ignore_errors=True))
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
