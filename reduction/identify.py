@@ -41,7 +41,6 @@ also at 4n - p = 0), else Student's t with 4n - p degrees of freedom (``interval
 from __future__ import annotations
 
 import math
-from enum import StrEnum
 
 import numpy as np
 
@@ -55,6 +54,7 @@ from reduction.excitation import SignalDesign, displacement_noise, signal_design
 from reduction.identifiability import analyse, check_signal, ill_conditioning
 from reduction.impedance import forces, impedance, impedance_basis, regression, regressors
 from reduction.instruments import circle_instruments, circle_orbits
+from reduction.methods import METHODS, Method
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
 from reduction.noise import coherence_variances, equation_variances
 from reduction.rank import RANK_RTOL, Rank
@@ -62,20 +62,6 @@ from reduction.result import Identification
 from reduction.table import OrbitTable
 
 __all__ = ["METHODS", "Method", "Identification", "identify", "circle_orbits"]
-
-
-class Method(StrEnum):
-    """Least-squares estimator: ordinary, weighted, total, instrumental variables."""
-
-    __repr__ = str.__repr__  # messages show 'ols', as the plain string did
-
-    OLS = "ols"
-    WLS = "wls"
-    TLS = "tls"
-    IV = "iv"
-
-
-METHODS = tuple(Method)
 
 
 def identify(

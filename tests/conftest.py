@@ -3,8 +3,8 @@
 Lab: the suite runs the simulator 40 times faster than the rig (so the command-line process
 decodes 40 times the rig's A/D data) while tools/cpu-hog keeps both cores busy; there the
 sweep's own process was seen answering a drive poll 0.37 s late. `pytest_configure` points
-ORBITRIG_HOME at a folder holding the shipped rig.toml with a patient drive link
-(support.rig_configs.patient_rig_config), so the commands a test starts without --config do
+ORBITRIG_HOME at a lab folder as `orbitrig init` writes it, its rig.toml with a patient
+drive link (support.rig_configs.patient_lab), so the commands a test starts without --config do
 not lose the link to load. The shipped timing (0.15 s x 3 polls, 1 s drive watchdog) is
 tested where it is the subject: tests/drives, tests/config, with their own stated timings.
 
@@ -84,10 +84,9 @@ def _fixture_starts_processes(func: object) -> bool:
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    from support.rig_configs import patient_rig_config
+    from support.rig_configs import patient_lab
 
-    lab = Path(tempfile.mkdtemp(prefix="orbitrig-test-lab-"))
-    patient_rig_config(lab)
+    lab = patient_lab(Path(tempfile.mkdtemp(prefix="orbitrig-test-lab-")))
     os.environ[HOME_ENV] = str(lab)
     config.add_cleanup(functools.partial(shutil.rmtree, lab, ignore_errors=True))
 

@@ -10,6 +10,7 @@ from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_
 
 from orbitrig.config.fields import FREQ_DEP, MODELS, Mpa, Ratio, Rpm, Wait, _Model
 from orbitrig.config.sequential import SequentialDesign
+from reduction.methods import Method
 from reduction.whirl import Whirl
 
 
@@ -122,7 +123,7 @@ class Orbit(_Model):
 class ModelSpec(_Model):
     model: Literal[MODELS]  # type: ignore[valid-type]
     freq_dep: str = "none"
-    method: Literal["ols", "wls", "tls", "iv"] = "ols"
+    method: Method = Method.OLS
 
     @field_validator("freq_dep")
     @classmethod

@@ -271,7 +271,12 @@ def _float(v: Any) -> float:
 def _write_identification(h: h5py.Group, entry: IdentificationEntry) -> None:
     spec = entry["spec"]
     h.attrs.update(
-        {"model": spec.model, "freq_dep": spec.freq_dep, "method": spec.method, "units_of_attributes": IDENT_ATTR_UNITS}
+        {
+            "model": spec.model,
+            "freq_dep": spec.freq_dep,
+            "method": str(spec.method),
+            "units_of_attributes": IDENT_ATTR_UNITS,
+        }
     )
     if "json" not in entry:
         h.attrs["error"] = entry["error"]

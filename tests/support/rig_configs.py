@@ -29,3 +29,13 @@ def patient_rig_config(folder: Path) -> Path:
     path = folder / "rig.toml"
     path.write_text(text)
     return path
+
+
+def patient_lab(folder: Path) -> Path:
+    """A lab configuration in `folder` as `orbitrig init` writes it (matrices, designs,
+    calibration, broker files), its rig.toml that of `patient_rig_config`; returns `folder`."""
+    from orbitrig.config import write_lab
+
+    write_lab(folder)
+    patient_rig_config(folder)
+    return folder
