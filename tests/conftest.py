@@ -6,7 +6,7 @@ sweep's own process was seen answering a drive poll 0.37 s late. `pytest_configu
 ORBITRIG_HOME at a lab folder as `orbitrig init` writes it, its rig.toml with a patient
 drive link (support.rig_configs.patient_lab), so the commands a test starts without --config do
 not lose the link to load. The shipped timing (0.15 s x 3 polls, 1 s drive watchdog) is
-tested where it is the subject: tests/drives, tests/config, with their own stated timings.
+tested where it is the subject: tests/drives, with its own stated timings.
 
 Marks the tests that start processes (a broker, a browser, a database server, the
 command line, GNU Octave, mount ...) as ``integration``: ``-m "not integration"`` runs

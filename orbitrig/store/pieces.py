@@ -274,7 +274,7 @@ def _write_identification(h: h5py.Group, entry: IdentificationEntry) -> None:
         {
             "model": spec.model,
             "freq_dep": spec.freq_dep,
-            "method": str(spec.method),
+            "method": str(spec.method),  # a plain str, as the whirl above
             "units_of_attributes": IDENT_ATTR_UNITS,
         }
     )
