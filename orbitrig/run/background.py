@@ -33,6 +33,22 @@ POINTS_IN_FLIGHT = 1  # earlier points still identified or stored while the next
 STORAGE_THREAD = ThreadPoolExecutor(max_workers=1, thread_name_prefix="orbitrig-storage")  # started on first use
 
 
+async def to_the_end(fn: Callable[..., T], *args: object) -> T:
+    """``fn(*args)`` in the storage thread (after every write submitted before it), off the event
+    loop, waited for to its end even if this wait is cancelled; a cancellation is raised once
+    it has ended."""
+    future = asyncio.get_running_loop().run_in_executor(STORAGE_THREAD, fn, *args)
+    cancelled = False
+    while not future.done():
+        try:
+            await asyncio.wait({future})
+        except asyncio.CancelledError:
+            cancelled = True
+    if cancelled:
+        raise asyncio.CancelledError
+    return future.result()
+
+
 class Background:
     def __init__(self, timing: dict[str, float], on_failure: Callable[[BaseException], None] | None = None):
         self.timing = timing

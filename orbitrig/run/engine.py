@@ -28,7 +28,7 @@ from daq.revolutions import Revolution
 
 from orbitrig.config import MatrixConfig, RigConfig
 from orbitrig.errors import OrbitrigError
-from orbitrig.run.background import Background
+from orbitrig.run.background import Background, to_the_end
 from orbitrig.run.control import RunControl, StopRun
 from orbitrig.run.events import (  # noqa: F401 - the engine's public names
     Event,
@@ -309,7 +309,14 @@ class RunEngine(OperatorRequests):
         if status == FAILED:  # reported once the drives are safe
             self._control.fire("fail", message)
         self.timing["wall"] = time.monotonic() - self._t0
-        ended = record_end(store, self.run_id, status, message, self._cleanup_failed)
+        failures: list[tuple[str, BaseException]] = []  # reported here, on the loop
+        try:  # run.h5's consolidation and fsync, off the loop (the service answers meanwhile)
+            ended = await to_the_end(
+                record_end, store, self.run_id, status, message, lambda what, err: failures.append((what, err))
+            )
+        finally:
+            for what, err in failures:
+                self._cleanup_failed(what, err)
         if ended != (status, message):
             self._control.fire("fail", ended[1])
         elif status != FAILED:

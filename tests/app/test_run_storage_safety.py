@@ -8,12 +8,13 @@ reads is replaced; everything else is the real engine, store and simulator.
 
 import asyncio
 import threading
+import time
 
 import pytest
 
 from orbitrig import config as cfg
 from orbitrig.cli.simulated_rig import simulated_access
-from orbitrig.run.background import Background
+from orbitrig.run.background import Background, to_the_end
 from orbitrig.run.engine import RunEngine, StatusEvent
 from orbitrig.run.events import RunFailed
 from orbitrig.run.plan import make_plan
@@ -54,6 +55,22 @@ async def test_no_write_follows_a_failed_one():
         bg.check()
 
 
+async def test_a_cancelled_wait_for_the_storage_thread_waits_for_its_end():
+    """The run's end record is never cut off: a cancellation is raised once it has ended."""
+    ended = threading.Event()
+
+    def record():
+        time.sleep(0.3)
+        ended.set()
+
+    task = asyncio.create_task(to_the_end(record))
+    await asyncio.sleep(0.05)
+    task.cancel()
+    with pytest.raises(asyncio.CancelledError):
+        await task
+    assert ended.is_set()
+
+
 async def test_storage_failure_stops_the_drives_before_recording(tmp_path, monkeypatch):
     write_block, writes, at_status = RunStore.write_block, [], []
 
@@ -80,6 +97,39 @@ async def test_storage_failure_stops_the_drives_before_recording(tmp_path, monke
     assert at_status == [("failed", True)]  # the drives were at rest before the status was recorded
     assert len(writes) == 3  # the run ended at the failed write: no block after it
     assert RunStore.open_existing(tmp_path / "run").stored_configs()  # the run file is still readable
+
+
+async def test_the_runs_end_is_recorded_off_the_loop(tmp_path, monkeypatch):
+    """run.h5 is consolidated and synced at the run's end (half a second for the paper matrix
+    on an idle disk, longer on a slow one) in the storage thread: the loop, which in the
+    service also answers MQTT, keeps running meanwhile."""
+    set_status, window, beats = RunStore.set_status, [], []
+
+    def slow_set_status(self, status, message=""):
+        start = time.monotonic()
+        time.sleep(0.6)  # a slow disk
+        result = set_status(self, status, message)
+        window.append((start, time.monotonic(), threading.current_thread().name))
+        return result
+
+    async def heartbeat():
+        while True:
+            beats.append(time.monotonic())
+            await asyncio.sleep(0.01)
+
+    monkeypatch.setattr(RunStore, "set_status", slow_set_status)
+    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
+        eng = RunEngine(cfg.load_rig(), out_dir=tmp_path / "run", access=simulated_access(sim), confirm_mode="auto")
+        beat = asyncio.create_task(heartbeat())
+        try:
+            outcome = await eng.run(small_matrix())
+        finally:
+            beat.cancel()
+    assert outcome.status == "completed", outcome.message
+    [(start, end, thread)] = window
+    assert thread.startswith("orbitrig-storage")
+    assert sum(start < t < end for t in beats) >= 5  # a blocked loop: none
+    assert RunStore.open_existing(tmp_path / "run").completed_points() == [0]
 
 
 async def test_no_room_for_the_next_point_pauses_until_resumed(tmp_path, monkeypatch):
