@@ -15,6 +15,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
 from orbitrig.analysis.plots import PAIR_LABELS, panels, whirl_direction
+from orbitrig.load_systems import LoadSystem
 
 #: (lower bound, colour, label) of each gamma^2 band, best first
 BANDS = (
@@ -39,7 +40,7 @@ class CoherenceTable:
     values: np.ndarray
     rows: list[str]  # "0.200 fwd"
     columns: list[str]  # "piezo\nx, Fx"
-    lms: list[str]
+    lms: list[LoadSystem]
 
 
 def coherence_table(tables: dict) -> CoherenceTable | None:

@@ -22,16 +22,19 @@ from orbitrig.analysis.plots import (
     whirl_direction,
 )
 from orbitrig.analysis.reduce import MATRIX_UNITS
+from orbitrig.load_systems import LoadSystem
 
 
-def lms_comparison_plot(path, tables: dict[str, Any], fitted: dict[str, Fitted] | None, *, title: str) -> Path:
+def lms_comparison_plot(
+    path, tables: dict[LoadSystem, Any], fitted: dict[LoadSystem, Fitted] | None, *, title: str
+) -> Path:
     """The two load measuring systems side by side: strain-gauge force relative
     to piezoelectric (amplitude difference in %, phase difference in deg) per
     frequency, and the constant K and C of one identification from each."""
     with_bars = bool(fitted) and len(fitted) == 2
     rows = 2 if with_bars else 1
     fig, axes = panels(12, 7.5 if with_bars else 4.2, rows, 2, sharex=False, top=1.35, bottom=0.8, hspace=0.45)
-    _differences(axes[0], tables["piezo"], tables["strain"])
+    _differences(axes[0], tables[LoadSystem.PIEZO], tables[LoadSystem.STRAIN])
     if with_bars:
         assert fitted is not None
         _coefficient_bars(axes[1], fitted)
@@ -65,7 +68,7 @@ def _differences(axes, a, b) -> None:
         ax.legend(fontsize="x-small")
 
 
-def _coefficient_bars(axes, fitted: dict[str, Fitted]) -> None:
+def _coefficient_bars(axes, fitted: dict[LoadSystem, Fitted]) -> None:
     """The constant K (axes[0]) and C (axes[1]) identified from each system, with error bars."""
     width = 0.38
     colors = _colors(2)

@@ -22,6 +22,7 @@ from matplotlib.figure import Figure
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import _colors, panels
 from orbitrig.analysis.signals import FORCE_CHANNELS, PROBE_PLANES, BlockSignals
+from orbitrig.load_systems import LMS, LoadSystem
 from reduction.fourier import harmonic_fit
 from reduction.whirl import Whirl
 
@@ -44,10 +45,10 @@ def fundamental(theta: np.ndarray, values: np.ndarray):
 def lms_difference(sig: BlockSignals, axis: str) -> LmsDifference:
     """Strain vs piezo of force `axis` ('fx' | 'fy') from the block's averaged waveforms."""
     q = {}
-    for lms in ("piezo", "strain"):
+    for lms in LMS:
         i = sig.channels[f"{axis}_{lms}"]
         q[lms] = complex(fundamental(sig.theta[i], sig.mean[i]).phasor)
-    ratio = q["strain"] / q["piezo"]
+    ratio = q[LoadSystem.STRAIN] / q[LoadSystem.PIEZO]
     return LmsDifference(100.0 * (abs(ratio) - 1.0), math.degrees(np.angle(ratio)))
 
 
@@ -72,7 +73,7 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
     for col, axis in enumerate(("fx", "fy")):
         label = f"F{axis[1]}"
         ax = axes[0, col]
-        for k, lms in enumerate(("piezo", "strain")):
+        for k, lms in enumerate(LMS):
             deg, mean, _ = sig.of(FORCE_CHANNELS[lms][col])
             ax.plot(deg, mean, "-", color=colors[k], lw=2.4 - 1.2 * k, label=f"{lms}")
         d = lms_difference(sig, axis)
@@ -84,7 +85,7 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
         ax.set_ylabel(f"{label} on the journal  [N]")
         ax.legend(fontsize="x-small", loc="upper right", framealpha=0.9)
         ax = axes[1, col]
-        name = FORCE_CHANNELS["piezo"][col]
+        name = FORCE_CHANNELS[LoadSystem.PIEZO][col]
         deg, mean, raw = sig.of(name)
         i = sig.channels[name]
         rms_raw = float(fundamental(sig.theta[i], sig.raw[i]).rms_residual)

@@ -23,10 +23,11 @@ from orbitrig.analysis.plots import (
     style,
 )
 from orbitrig.analysis.reduce import MATRIX_UNITS
+from orbitrig.load_systems import LoadSystem
 
 
 def summary_plot(
-    path, series: dict[str, list[tuple[int, Any]]], truth: list[tuple[int, dict]], *, model: str, title: str
+    path, series: dict[LoadSystem, list[tuple[int, Any]]], truth: list[tuple[int, dict]], *, model: str, title: str
 ) -> Path:
     """The constant K and C entries of one model at every operating point (x: point
     index), one marker series per load measuring system, error bars of one standard

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from orbitrig.analysis.reduce import Reduced, identify_point
+from orbitrig.load_systems import LoadSystem
 from reduction.adequacy import Adequacy, frequency_dependence
 from reduction.derived import Derived, derived_quantities
 from reduction.errors import ReductionError
@@ -73,7 +74,7 @@ def warnings_of(r: Reduced) -> list[str]:
 class Verdict:
     """Model adequacy of one frequency-dependent fit against the constant fit of its model."""
 
-    lms: str
+    lms: LoadSystem
     dependent: Reduced
     adequacy: Adequacy | None
     error: str | None = None
@@ -83,7 +84,7 @@ class Verdict:
         return self.adequacy.verdict if self.adequacy is not None else f"adequacy not tested: {self.error}"
 
 
-def adequacy_verdicts(lms: str, results: list[Reduced]) -> list[Verdict]:
+def adequacy_verdicts(lms: LoadSystem, results: list[Reduced]) -> list[Verdict]:
     """Every frequency-dependent fit of `results` tested against the constant fit of the same
     model and method (repeated here when the run did not ask for it)."""
     out = []

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from orbitrig.errors import IdentificationError, ReductionError
-from orbitrig.config import LMS
+from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.reader import Point, Run, StoredIdentification, freq_dep_key
 from orbitrig.store.csvfile import CSV_HEAD, coef_order, coefficient_column, one_line, render_table, true_entry
 from orbitrig.store.durable import write_atomic
@@ -41,7 +41,7 @@ class Reduced:
     """The result of one (point, lms): an Identification, or the refusal message."""
 
     point: Point
-    lms: str
+    lms: LoadSystem
     model: str
     freq_dep: str
     method: str
@@ -56,7 +56,7 @@ class Reduced:
         return {**head, **self.identification.to_dict()}
 
 
-def identify_point(point: Point, lms: str, model: str, freq_dep: str = "none", method: str = "ols") -> Reduced:
+def identify_point(point: Point, lms: LoadSystem, model: str, freq_dep: str = "none", method: str = "ols") -> Reduced:
     """Identify one point's orbit table of one LMS. A refused model (IdentificationError)
     is returned as ``error``; a bad option (other ReductionError) is raised."""
     from reduction.identify import identify
@@ -81,7 +81,7 @@ def reduce_run(
     model: str,
     freq_dep: str = "none",
     method: str = "ols",
-    lms_names: tuple[str, ...] = LMS,
+    lms_names: tuple[LoadSystem, ...] = LMS,
 ) -> list[Reduced]:
     """Identify every complete point of ``run`` for each LMS that has a table.
 

@@ -45,7 +45,7 @@ from orbitrig.analysis.quality import Verdict, adequacy_verdicts, derived_of, tr
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.errors import ReductionError
 from orbitrig.analysis.reduce import Reduced, reidentify
-from orbitrig.config import LMS
+from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.errors import storage_error
 from orbitrig.store.reader import Point, Run, RunDirError, read_run
 from orbitrig.store.selection import select_points
@@ -74,12 +74,12 @@ class PointReport:
     """What the report shows of one operating point."""
 
     point: Point
-    results: dict[str, list[Reduced]] = field(default_factory=dict)  # lms -> re-identified
+    results: dict[LoadSystem, list[Reduced]] = field(default_factory=dict)  # lms -> re-identified
     plots: list[Path] = field(default_factory=list)
     mismatches: list[str] = field(default_factory=list)  # stored vs repeated identification
     unreadable: list[str] = field(default_factory=list)  # stored blocks the signal figures could not read
-    verdicts: dict[str, list[Verdict]] = field(default_factory=dict)  # lms -> model adequacy
-    derived: dict[str, list[tuple[Reduced, Derived]]] = field(default_factory=dict)  # lms -> derived
+    verdicts: dict[LoadSystem, list[Verdict]] = field(default_factory=dict)  # lms -> model adequacy
+    derived: dict[LoadSystem, list[tuple[Reduced, Derived]]] = field(default_factory=dict)  # lms -> derived
 
     def fit_warnings(self) -> list[str]:
         """'<lms> <model> <freq-dep> warns: <text>' for every warning of a repeated or stored fit,
@@ -204,7 +204,7 @@ def _plot_signals(run: Run, pr: PointReport, out: Path, where: str, opts: Report
     )
 
 
-def _plot_lms(pr: PointReport, lms: str, out: Path, where: str, opts: ReportOptions) -> None:
+def _plot_lms(pr: PointReport, lms: LoadSystem, out: Path, where: str, opts: ReportOptions) -> None:
     """Figure 5 with the adequacy verdicts, coefficients per model, derived quantities and,
     in simulator runs, the impedance against the true one, for one load measuring system."""
     point, table = pr.point, pr.point.tables[lms]
@@ -295,7 +295,7 @@ def _plot_point(run: Run, pr: PointReport, out: Path, opts: ReportOptions) -> No
         )
 
 
-def preferred(pr: PointReport, model: tuple[str, str] | None = None) -> dict[str, Reduced]:
+def preferred(pr: PointReport, model: tuple[str, str] | None = None) -> dict[LoadSystem, Reduced]:
     """The first constant-coefficient model of PREFERRED_MODELS (or `model`) that was
     identified from both load measuring systems, per LMS; {} when there is none."""
     for spec in [model] if model else PREFERRED_MODELS:

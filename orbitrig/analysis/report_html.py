@@ -18,7 +18,7 @@ from orbitrig.analysis.reduce import true_constants
 from orbitrig.analysis.quality import lms_normalised_difference
 from orbitrig.analysis.report import fit_label, preferred
 from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
-from orbitrig.config import LMS
+from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.durable import write_atomic
 from rigunits import utc_iso
 
@@ -97,7 +97,7 @@ def _pick(pr, out_dir: Path, taken: set, *names: str) -> list[str]:
     return out
 
 
-def _lms_section(pr, out_dir: Path, lms: str, truth: dict, taken: set) -> list[str]:
+def _lms_section(pr, out_dir: Path, lms: LoadSystem, truth: dict, taken: set) -> list[str]:
     """One load measuring system: refusals, Figure 5 beside the adequacy verdicts, the
     identification tables, coefficient figures, derived quantities, impedance vs truth."""
     p, results = pr.point, pr.results.get(lms, [])
@@ -148,7 +148,7 @@ def _point_section(run, pr, out_dir: Path) -> str:
     h += _pick(pr, out_dir, taken, f"coherence_{p.name}")
     found = preferred(pr)
     if len(found) == 2:
-        a, b = found["piezo"], found["strain"]
+        a, b = found[LoadSystem.PIEZO], found[LoadSystem.STRAIN]
         agreement = lms_normalised_difference(a, b)
         if agreement is not None:
             h.append(consistency_table(a, b, agreement, fit_label(a)))

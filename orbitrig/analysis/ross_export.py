@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from orbitrig.analysis.reduce import reidentify
+from orbitrig.load_systems import LoadSystem
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.reader import Point, Run
 
@@ -41,7 +42,7 @@ CONVENTIONS = {
 }
 
 
-def point_bearing(point: Point, lms: str, model: str, freq_dep: str, method: str) -> dict[str, Any] | None:
+def point_bearing(point: Point, lms: LoadSystem, model: str, freq_dep: str, method: str) -> dict[str, Any] | None:
     """The ROSS data of one point's fit, or None when it was not stored or was refused."""
     stored = point.identification(lms, model, freq_dep)
     if stored is None or not stored.ok or stored.method != method or lms not in point.tables:
@@ -68,9 +69,16 @@ def point_bearing(point: Point, lms: str, model: str, freq_dep: str, method: str
 
 
 def export_ross(
-    run: Run, out: Path, *, lms: str = "piezo", model: str = "kcd11", freq_dep: str = "none", method: str = "ols"
+    run: Run,
+    out: Path,
+    *,
+    lms: LoadSystem | None = LoadSystem.PIEZO,
+    model: str = "kcd11",
+    freq_dep: str = "none",
+    method: str = "ols",
 ) -> Path:
-    """Write ``out``/ross_bearings.json for every complete point; returns the file."""
+    """Write ``out``/ross_bearings.json for every complete point (``lms`` None: every load
+    measuring system); returns the file."""
     bearings = [
         b
         for p in run.complete_points
@@ -89,7 +97,9 @@ def export_ross(
     return path
 
 
-def bearing_elements(path: str | Path, nodes: list[int], *, point: int = 0, lms: str = "piezo") -> list:
+def bearing_elements(
+    path: str | Path, nodes: list[int], *, point: int = 0, lms: LoadSystem | str = LoadSystem.PIEZO
+) -> list:
     """ROSS BearingElements at ``nodes`` from an exported file, all with the bearing of
     ``point`` / ``lms`` (requires ross-rotordynamics: pip install "orbitrig[ross]")."""
     import ross
@@ -97,7 +107,7 @@ def bearing_elements(path: str | Path, nodes: list[int], *, point: int = 0, lms:
     doc = json.loads(Path(path).read_text())
     data = next((b for b in doc["bearings"] if b["point"] == point and b["lms"] == lms), None)
     if data is None:
-        raise KeyError(f"{path}: no bearing of point {point} and load system {lms!r}")
+        raise KeyError(f"{path}: no bearing of point {point} and load system {str(lms)!r}")
     coefficients = {k: np.asarray(data[k]) for k in (f"{c}{e}" for c in "kcm" for e in ENTRIES)}
     return [
         ross.BearingElement(n=n, frequency=np.asarray(data["frequency"]), tag=f"bearing {n}", **coefficients)

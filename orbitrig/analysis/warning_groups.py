@@ -13,6 +13,8 @@ import re
 from collections.abc import Iterable
 from dataclasses import dataclass
 
+from orbitrig.load_systems import LoadSystem
+
 SEE_MOST = 2  # fit families named after "see"
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 
@@ -22,7 +24,7 @@ class FitWarnings:
     """One fit at one point: `warnings` empty for a fit without any."""
 
     point: int
-    lms: str
+    lms: LoadSystem
     fit: str  # "model freq_dep method"
     warnings: tuple[str, ...]
 
@@ -30,14 +32,14 @@ class FitWarnings:
 @dataclass(frozen=True)
 class WarningGroup:
     fit: str
-    systems: tuple[str, ...]  # the load measuring systems that gave it
+    systems: tuple[LoadSystem, ...]  # the load measuring systems that gave it
     head: str  # "bad fit"
     why: str  # the explanation without its numbers' clause
     points: tuple[int, ...]  # the points concerned, ascending
     total: int  # points with this fit family
     see: tuple[str, ...]  # fit families without this warning at any of these points
 
-    def text(self, all_systems: tuple[str, ...]) -> str:
+    def text(self, all_systems: tuple[LoadSystem, ...]) -> str:
         who = (
             "both systems"
             if len(all_systems) == 2 and set(self.systems) == set(all_systems)

@@ -63,7 +63,7 @@ def _candidate(
     )
 
 
-def _noise(noise_from: Optional[Path], lms: str, force: Optional[float], probe_nm: Optional[float]):
+def _noise(noise_from: Optional[Path], lms: LoadSystem, force: Optional[float], probe_nm: Optional[float]):
     from orbitrig.cli import design_inputs as di
 
     probe = di.DEFAULT_PROBE_NOISE if probe_nm is None else probe_nm * 1e-9

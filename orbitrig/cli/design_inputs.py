@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from orbitrig.load_systems import LoadSystem
 from reduction.frequency_list import predict, smooth_noise
 
 from rigerrors import OrbitrigError
@@ -80,7 +81,7 @@ def _row_noise(table, probe: float) -> np.ndarray | None:
     return np.stack([ud, ud, ufx, ufy], axis=1)
 
 
-def run_noise(run, lms: str, probe: float = DEFAULT_PROBE_NOISE) -> Noise:
+def run_noise(run, lms: LoadSystem, probe: float = DEFAULT_PROBE_NOISE) -> Noise:
     """Median per-revolution noise of the run's ``lms`` orbit tables (complete points)."""
     tables = [p.tables[lms] for p in run.complete_points if lms in p.tables]
     found = [(t, r) for t in tables for r in [_row_noise(t, probe)] if r is not None]
@@ -100,7 +101,9 @@ def run_noise(run, lms: str, probe: float = DEFAULT_PROBE_NOISE) -> Noise:
     )
 
 
-def prior_theta(spec, run=None, spin: float | None = None, lms: str = "piezo") -> tuple[np.ndarray, str]:
+def prior_theta(
+    spec, run=None, spin: float | None = None, lms: LoadSystem = LoadSystem.PIEZO
+) -> tuple[np.ndarray, str]:
     """(theta in the spec's column order, source): the run's identification of this model
     and frequency dependence at the point nearest ``spin`` (rad/s), else ``NOMINAL``."""
     if run is not None and spin is not None:
@@ -119,7 +122,7 @@ def prior_theta(spec, run=None, spin: float | None = None, lms: str = "piezo") -
     return np.array([NOMINAL.get(n, 0.0) for n in spec.names]), "nominal (60 mm hydrostatic bearing)"
 
 
-def model_check(spec, run, spin: float, lms: str, problem, candidate: tuple, proposal: tuple) -> str | None:
+def model_check(spec, run, spin: float, lms: LoadSystem, problem, candidate: tuple, proposal: tuple) -> str | None:
     """A warning when moving from the candidate list to the proposal could move the model's
     estimates by more than the candidate's standard error (reduction.misfit.list_shift):
     the richer model (kcd12 for a model without D; the same model with freq-dep poly:1 for a

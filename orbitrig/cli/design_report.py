@@ -19,6 +19,7 @@ import typer
 
 from orbitrig.cli.design_inputs import DesignInputError
 from orbitrig.config import RPM, default_rig_path
+from orbitrig.load_systems import LoadSystem
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
 from reduction.whirl import Directions
@@ -201,7 +202,7 @@ class DesignRequest:
     radius: float | None  # orbit radius, m; None: the noise's, else 0.1 x clearance
     noise: Any  # orbitrig.cli.design_inputs: stated or measured per-revolution noise
     run: Any  # the run the noise and the prior coefficients were measured in, or None
-    lms: str
+    lms: LoadSystem
     revolutions: int | None  # per block; None: rig.toml [averaging]
     target: float | None  # worst relative standard error to reach, percent
     keep_away: float  # no proposed ratio this close to 1

@@ -85,6 +85,7 @@ def register(app: typer.Typer) -> None:
 def _export_ross(directory: Path, out: Path | None, fit: str) -> Path:
     """`--format ross`: RUN/export/ross_bearings.json (orbitrig.analysis.ross_export)."""
     from orbitrig.analysis.ross_export import export_ross
+    from orbitrig.load_systems import LMS, LoadSystem
     from orbitrig.store.errors import storage_error
     from orbitrig.store.export import EXPORT_DIR
     from orbitrig.store.reader import read_run
@@ -93,7 +94,11 @@ def _export_ross(directory: Path, out: Path | None, fit: str) -> Path:
     if len(parts) < 4 or not parts[1] or not parts[-1]:
         typer.echo(f"error: --fit {fit!r}: LMS:MODEL:FREQ_DEP:METHOD, e.g. piezo:kcd11:none:ols", err=True)
         raise typer.Exit(2)
-    lms, model, freq_dep, method = parts[0], parts[1], ":".join(parts[2:-1]), parts[-1]
+    if parts[0] not in ("", *LMS):
+        typer.echo(f"error: --fit {fit!r}: LMS is one of {', '.join(LMS)} or '' (every load system)", err=True)
+        raise typer.Exit(2)
+    lms = LoadSystem(parts[0]) if parts[0] else None
+    model, freq_dep, method = parts[1], ":".join(parts[2:-1]), parts[-1]
     run = read_run(directory)
     target = out if out is not None else Path(directory) / EXPORT_DIR
     try:

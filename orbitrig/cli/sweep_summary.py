@@ -20,6 +20,7 @@ import numpy as np
 from orbitrig.cli.plain_table import OutputFormat, PlainTable, Transcript
 from orbitrig.analysis.run_warnings import fit_warnings
 from orbitrig.analysis.warning_groups import point_ranges, warning_lines
+from orbitrig.load_systems import LoadSystem
 from orbitrig.run.point_report import judgement_lines
 from orbitrig.store.csvfile import coef_order, fit_truth
 from orbitrig.store.reader import Point, freq_dep_key, read_run
@@ -93,7 +94,7 @@ def _fits(p: Point) -> dict[str, dict]:
     return {f"{i.lms}__{i.model}__{freq_dep_key(i.freq_dep)}__{i.method}": i.result for i in p.identifications if i.ok}
 
 
-def _judged(p: Point) -> list[tuple[str, str, dict | None, str | None]]:
+def _judged(p: Point) -> list[tuple[LoadSystem, str, dict | None, str | None]]:
     return [(i.lms, f"{i.model} {i.freq_dep} {i.method}", i.result, i.error) for i in p.identifications]
 
 
@@ -163,7 +164,7 @@ def _print_summary(console: Transcript, complete: list[Point], out: Path) -> Non
         table.add_column(col, justify="left" if col in ("point", "label") else "right")
     for p in complete:
         fits = _fits(p)
-        first = next((d["coefficients"] for k, d in sorted(fits.items()) if k.startswith("piezo")), None)
+        first = next((d["coefficients"] for k, d in sorted(fits.items()) if k.startswith(LoadSystem.PIEZO)), None)
         row = [p.name, p.settings.label]
         row += [
             f"{first[c] * scale:.4g}" if first and c in first else "-"

@@ -137,7 +137,7 @@ class CalibrationRecord(_Model):
             raise ValueError("must be UTC (+00:00 or Z)")
         return v
 
-    def force_gain(self, lms: str) -> np.ndarray:
+    def force_gain(self, lms: LoadSystem) -> np.ndarray:
         """The gain matrix of load measuring system ``lms`` (identity when not calibrated)."""
         g = self.loads.get(lms)
         return np.eye(2) if g is None else g.matrix

@@ -26,6 +26,7 @@ from daq.errors import DaqError
 from drives.errors import DriveError
 from orbitrig.config import LMS, RPM, RigConfig
 from orbitrig.errors import OrbitrigError
+from orbitrig.load_systems import LoadSystem
 from orbitrig.run.rig_io import RigAccess, RigIO
 from reduction.fourier import phasor
 from reduction.rig_time import block_time
@@ -142,7 +143,9 @@ class CalibrationSession:
         raise AssertionError("unreachable")
 
 
-async def measure_loads(session: CalibrationSession, hands: LoadHands, loads: np.ndarray) -> dict[str, np.ndarray]:
+async def measure_loads(
+    session: CalibrationSession, hands: LoadHands, loads: np.ndarray
+) -> dict[LoadSystem, np.ndarray]:
     """Each load of `loads` (n, 2; N) applied in turn and read by both load measuring systems:
     {lms: (n, 2) static readings (N, through rig.toml's channel gains)}; the load removed after."""
     ch = session.rig.channel_index

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from orbitrig.config import LMS, RigConfig
+from orbitrig.load_systems import LoadSystem
 from orbitrig.store.records import BlockRecord
 from reduction.calibration import correct_forces, correct_lag
 from reduction.runout import remove_runout
@@ -29,7 +30,7 @@ MIN_REVOLUTIONS = 3  # fewer cannot fit a block's spin phase: the block is left 
 
 @dataclass(frozen=True)
 class Corrections:
-    force_gains: dict[str, np.ndarray] = field(default_factory=dict)
+    force_gains: dict[LoadSystem, np.ndarray] = field(default_factory=dict)
     runout: np.ndarray | None = None  # (4, 2) complex, m: PROBES x (1x, 2x spin)
     lags: dict[str, tuple[float, float]] = field(default_factory=dict)  # channel -> (phase rad, delay s)
     probe_gains: dict[str, float] = field(default_factory=dict)  # probe -> gain (1)
@@ -48,7 +49,7 @@ class Corrections:
         return cls({lms: rec.force_gain(lms) for lms in LMS if lms in rec.loads}, runout, lags, gains)
 
     def forces(
-        self, lms: str, fx: np.ndarray, fy: np.ndarray, orbit: np.ndarray | float
+        self, lms: LoadSystem, fx: np.ndarray, fy: np.ndarray, orbit: np.ndarray | float
     ) -> tuple[np.ndarray, np.ndarray]:
         """(fx, fy) of system ``lms`` corrected: each channel's lag at |orbit| (rad/s, broadcast
         against the phasors) taken out, then the gain matrix."""

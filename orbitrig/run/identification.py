@@ -18,6 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from orbitrig.config import LMS, CalibrationUncertainty, ModelSpec, RigConfig
+from orbitrig.load_systems import LoadSystem
 from orbitrig.run.corrections import Corrections
 from orbitrig.run.steps import Block
 from orbitrig.run.point_analysis import analyse_point
@@ -89,9 +90,9 @@ def identify_operating_point(
     recs = sorted(recs, key=lambda r: (r.block.freq, -r.block.direction))
     corr = corrections or Corrections()
     probes = [(corr.probe_phasors(r, ch, spin), corr.probe_records(r, ch, spin)) for r in recs]
-    tables: dict[str, OrbitTable] = {lms: orbit_table(spin, recs, ch, lms, corr, probes) for lms in LMS}
-    idents: dict[tuple[str, str], IdentificationEntry] = {}
-    fits: dict[tuple[str, str], Identification] = {}
+    tables: dict[LoadSystem, OrbitTable] = {lms: orbit_table(spin, recs, ch, lms, corr, probes) for lms in LMS}
+    idents: dict[tuple[LoadSystem, str], IdentificationEntry] = {}
+    fits: dict[tuple[LoadSystem, str], Identification] = {}
     for lms in LMS:
         for spec in models:
             try:
@@ -112,7 +113,7 @@ def orbit_table(
     spin: float,
     recs: list[BlockRecord],
     ch: dict[str, int],
-    lms: str,
+    lms: LoadSystem,
     corrections: Corrections | None = None,
     probes: list[tuple[ComplexArray, ComplexArray]] | None = None,
 ) -> OrbitTable:
@@ -165,7 +166,7 @@ def orbit_table(
 def row_uncertainty(
     record_phasors: ComplexArray,
     ch: dict[str, int],
-    lms: str,
+    lms: LoadSystem,
     spin_turns: float,
     revolutions: npt.NDArray[np.int64] | None = None,
     correct: Callable[[ComplexArray, ComplexArray], tuple[ComplexArray, ComplexArray]] | None = None,
@@ -192,12 +193,12 @@ def lms_comparison(
     out: dict[str, Any] = {"orbit_hz": [r.block.orbit_hz for r in recs], "direction": [r.block.direction for r in recs]}
     ph = np.array([r.phasors for r in recs]) if recs else np.zeros((0, len(ch)), complex)
     corr, orbit = corrections or Corrections(), np.array([abs(r.block.orbit) for r in recs])
-    forces: dict[str, dict[str, ComplexArray]] = {
+    forces: dict[LoadSystem, dict[str, ComplexArray]] = {
         lms: dict(zip(("fx", "fy"), corr.forces(lms, ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]], orbit)))
         for lms in LMS
     }
     for f in ("fx", "fy"):
-        ratio = forces["strain"][f] / forces["piezo"][f]
+        ratio = forces[LoadSystem.STRAIN][f] / forces[LoadSystem.PIEZO][f]
         out[f"{f}_amp_ratio"] = np.abs(ratio).round(6).tolist()
         out[f"{f}_phase_diff_deg"] = np.degrees(np.angle(ratio)).round(4).tolist()
     amp = np.abs(np.array(out["fx_amp_ratio"] + out["fy_amp_ratio"]) - 1) * 100

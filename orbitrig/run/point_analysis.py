@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from orbitrig.config import LMS, CalibrationUncertainty, ModelSpec
+from orbitrig.load_systems import LoadSystem
 from orbitrig.store.records import IdentificationEntry
 from reduction.arrays import FloatArray
 from reduction.adequacy import frequency_dependence
@@ -49,7 +50,7 @@ K_EXPANDED = 2.0
 _FAILURES = (ReductionError, np.linalg.LinAlgError, ValueError, ZeroDivisionError)
 
 
-def lms_calibration(stated: CalibrationUncertainty, lms: str) -> Calibration:
+def lms_calibration(stated: CalibrationUncertainty, lms: LoadSystem) -> Calibration:
     """The calibration uncertainty of one load measuring system's orbit table (SI): x, y are
     the probe-plane means, their uncertainty the mean of the two probes' (taken as fully
     correlated, the conservative choice); fx, fy the system's force channels."""
@@ -73,9 +74,9 @@ def lms_calibration(stated: CalibrationUncertainty, lms: str) -> Calibration:
 
 def analyse_point(
     spin: float,
-    tables: dict[str, OrbitTable],
-    fits: dict[tuple[str, str], Identification],
-    idents: dict[tuple[str, str], IdentificationEntry],
+    tables: dict[LoadSystem, OrbitTable],
+    fits: dict[tuple[LoadSystem, str], Identification],
+    idents: dict[tuple[LoadSystem, str], IdentificationEntry],
     stated: CalibrationUncertainty | None,
     grid: FloatArray,
 ) -> None:
@@ -83,10 +84,10 @@ def analyse_point(
     fit in ``idents`` ((lms, ModelSpec.key) -> {"spec", "json"}); ``fits`` the same fits'
     Identification objects; ``grid`` the point's orbit frequencies for the derived quantities
     (rad/s, > 0: the planned ones, forward and backward blocks of one frequency are one)."""
-    cal: dict[str, Calibration] | None = (
+    cal: dict[LoadSystem, Calibration] | None = (
         {lms: lms_calibration(stated, lms) for lms in LMS} if stated is not None else None
     )
-    budgets: dict[tuple[str, str], Budget] = {}
+    budgets: dict[tuple[LoadSystem, str], Budget] = {}
     for (lms, key), ident in fits.items():
         d = idents[(lms, key)]["json"]
         if cal is not None:
@@ -128,8 +129,8 @@ def _budget(
     ident: Identification,
     table: OrbitTable,
     cal: Calibration,
-    budgets: dict[tuple[str, str], Budget],
-    where: tuple[str, str],
+    budgets: dict[tuple[LoadSystem, str], Budget],
+    where: tuple[LoadSystem, str],
 ) -> dict[str, Any]:
     b = uncertainty_budget(ident, table, cal)
     budgets[where] = b
@@ -156,8 +157,8 @@ def _derived(ident: Identification, grid: FloatArray, spin: float, budget: Budge
 def _adequacy(
     ident: Identification,
     table: OrbitTable,
-    fits: dict[tuple[str, str], Identification],
-    lms: str,
+    fits: dict[tuple[LoadSystem, str], Identification],
+    lms: LoadSystem,
     spec: ModelSpec,
 ) -> dict[str, Any]:
     constant = next(
@@ -176,7 +177,7 @@ def _adequacy(
 
 
 def _consistency(
-    a: Identification, ta: OrbitTable, b: Identification, tb: OrbitTable, cal: dict[str, Calibration] | None
+    a: Identification, ta: OrbitTable, b: Identification, tb: OrbitTable, cal: dict[LoadSystem, Calibration] | None
 ) -> dict[str, Any]:
     none = Calibration()
     ca, cb = (cal[LMS[0]], cal[LMS[1]]) if cal is not None else (none, none)

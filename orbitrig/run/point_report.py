@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from orbitrig.load_systems import LoadSystem
 from orbitrig.run.plan import OperatingPoint
 from orbitrig.store.layout import coefficient_si_unit
 from orbitrig.store.records import IdentificationEntry, PointResults
@@ -41,7 +42,7 @@ def point_log_lines(p: OperatingPoint, res: PointResults) -> list[str]:
 
 
 def judgement_lines(
-    fits: list[tuple[str, str, dict[str, Any] | None, str | None]],
+    fits: list[tuple[LoadSystem, str, dict[str, Any] | None, str | None]],
     *,
     verdicts: bool = True,
     brief: bool = False,
@@ -100,7 +101,7 @@ def consistency_text(c: dict[str, Any]) -> str:
     )
 
 
-def _row(lms: str, e: IdentificationEntry) -> dict[str, Any]:
+def _row(lms: LoadSystem, e: IdentificationEntry) -> dict[str, Any]:
     spec = e["spec"]
     row = {"lms": lms, "model": spec.model, "freq_dep": spec.freq_dep, "method": spec.method}
     if "error" in e:

@@ -62,7 +62,7 @@ def cell(values) -> np.ndarray:
 def _fit_struct(fit, ident) -> dict:
     d = content.fit_arrays(fit)
     s = {
-        "lms": fit.lms,
+        "lms": str(fit.lms),  # a plain str: savemat writes an Enum member as an empty value
         "model": fit.model,
         "freq_dep": fit.freq_dep,
         "method": fit.method,
@@ -117,7 +117,7 @@ def point_struct(p, channels: list[str], channel_units: list[str]) -> dict:
             "fy": "N",
             **{k: u for k, (_, u) in cols.items() if not k.endswith(("_re", "_im"))},
         }
-        s[lms] = t
+        s[str(lms)] = t
     s["identification"] = {field(f.key): _fit_struct(f, i) for f, i in zip(point_fits(p), p.identifications)}
     truth = content.truth_arrays(p.truth)
     if truth:

@@ -91,7 +91,7 @@ def _point_objects(p, channels: list[str], channel_units: list[str]) -> list:
 
     objs = []
     settings = _numeric(content.settings(p)) | {"label": p.settings.label}
-    for lms in [k for k in LMS if k in p.tables] + [k for k in p.tables if k not in LMS]:
+    for lms in [k for k in LMS if k in p.tables]:
         group = f"point {p.name} {lms}"
         objs += [GroupObject(group, settings)] + _channels(group, content.table_columns(p.tables[lms]))
     for fit in point_fits(p):

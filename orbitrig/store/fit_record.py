@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from orbitrig.load_systems import LoadSystem
 from orbitrig.store.layout import coefficient_si_unit
 
 if TYPE_CHECKING:
@@ -60,7 +61,7 @@ class FitRecord:
     """One identification of one point and load measuring system (SI)."""
 
     point: int
-    lms: str
+    lms: LoadSystem | None  # None: a table in memory (orbitrig.identify_table)
     model: str
     freq_dep: str
     method: str
@@ -81,12 +82,12 @@ class FitRecord:
     @property
     def key(self) -> str:
         """``<lms>__<model>__<freq_dep>__<method>`` as in run.h5 (':' and ',' -> '_')."""
-        return f"{self.lms}__{self.model}__{self.freq_dep.replace(':', '_').replace(',', '_')}__{self.method}"
+        return f"{self.lms or ''}__{self.model}__{self.freq_dep.replace(':', '_').replace(',', '_')}__{self.method}"
 
 
 def fit_record(
     point: int,
-    lms: str,
+    lms: LoadSystem | None,
     model: str,
     freq_dep: str,
     method: str,

@@ -68,6 +68,7 @@ def coefficients_frame(fits: list[FitRecord]):
     for f in fits:
         keys += [k for k in f.names if k not in keys]
     data = {k: [getattr(f, k) for f in fits] for k in (*FIT_KEYS, "error")}
+    data["lms"] = ["" if f.lms is None else str(f.lms) for f in fits]  # plain text, as the other key columns
     units = {k: "" for k in data}
     for key in keys:
         for suffix, part in (("", "value"), ("_std", "std"), ("_U", "U")):

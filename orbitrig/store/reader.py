@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.errors import RunDirError as RunDirError  # its readers' error, imported from here too
 from orbitrig.store.h5_values import json_attr, open_h5, stored_values, text
 from orbitrig.store.layout import READABLE_FORMATS, RUN_FILE, RunLayout
@@ -77,7 +78,7 @@ class Frequency:
 class StoredIdentification:
     """One ``identification/<lms>__<model>__<freq_dep>`` entry of the sweep."""
 
-    lms: str
+    lms: LoadSystem
     model: str
     freq_dep: str  # the original spec, e.g. "power:auto"
     result: dict[str, Any] | None  # the `identify --json` object
@@ -98,13 +99,13 @@ class Point:
     complete: bool
     settings: Settings
     frequencies: list[Frequency] = field(default_factory=list)
-    tables: dict[str, OrbitTable] = field(default_factory=dict)  # lms -> orbit table
+    tables: dict[LoadSystem, OrbitTable] = field(default_factory=dict)  # lms -> orbit table
     identifications: list[StoredIdentification] = field(default_factory=list)
     truth: dict[str, Any] | None = None
     lms_comparison: dict[str, Any] | None = None
     problem: str = ""  # why the point is not complete ("" when complete; orbitrig.store.index)
 
-    def identification(self, lms: str, model: str, freq_dep: str) -> StoredIdentification | None:
+    def identification(self, lms: LoadSystem, model: str, freq_dep: str) -> StoredIdentification | None:
         for ident in self.identifications:
             if (ident.lms, ident.model, ident.freq_dep) == (lms, model, freq_dep):
                 return ident
@@ -352,17 +353,25 @@ def _table(tg: h5py.Group, spin: float) -> OrbitTable:
     )
 
 
+def _load_system(name: str, group: h5py.Group) -> LoadSystem:
+    """The load measuring system a results group is named after (ValueError naming the group)."""
+    try:
+        return LoadSystem(name)
+    except ValueError:
+        raise ValueError(f"{group.name}: {name!r} is not a load measuring system ({', '.join(LMS)})") from None
+
+
 def _read_results(g: h5py.File | h5py.Group, point: Point) -> None:
     """The results groups (table, identification, truth, lms_comparison) of `point`."""
-    for lms, tg in sorted(g.get("table", {}).items()):
-        point.tables[lms] = _table(tg, point.settings.spin)
+    for name, tg in sorted(g.get("table", {}).items()):
+        point.tables[_load_system(name, tg)] = _table(tg, point.settings.spin)
     for key, ig in sorted(g.get("identification", {}).items()):
         lms, model, fd_key = key.split("__", 2)
         ia = ig.attrs
         result = json_attr(ia, "json")
         point.identifications.append(
             StoredIdentification(
-                lms=lms,
+                lms=_load_system(lms, ig),
                 model=text(ia.get("model"), model),
                 freq_dep=text(ia.get("freq_dep")) or freq_dep_from_key(fd_key),
                 result=result,

@@ -10,6 +10,8 @@ from typing import TYPE_CHECKING, Any, NotRequired, TypedDict
 import numpy as np
 import numpy.typing as npt
 
+from orbitrig.load_systems import LoadSystem
+
 if TYPE_CHECKING:  # the plan's types only annotate: the store does not import the run wing
     from orbitrig.config import ModelSpec
     from orbitrig.run.steps import Block
@@ -73,8 +75,8 @@ class IdentificationEntry(TypedDict):
 
 @dataclass
 class PointResults:
-    tables: dict[str, OrbitTable]  # lms -> orbit table
-    identifications: dict[tuple[str, str], IdentificationEntry]  # (lms, ModelSpec.key) -> entry
+    tables: dict[LoadSystem, OrbitTable]  # lms -> orbit table
+    identifications: dict[tuple[LoadSystem, str], IdentificationEntry]  # (lms, ModelSpec.key) -> entry
     lms_comparison: dict[str, Any]  # JSON object (orbitrig.run.identification.lms_comparison)
     truth: dict[str, Any] | None = None  # JSON object (orbitrig.run.truth)
     sequential: BlockChoice | None = None  # a sequential point's last decision (target or cap)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import io
 from pathlib import Path
 
+from orbitrig.load_systems import LoadSystem
 from orbitrig.store import frames
 from orbitrig.store.fit_record import FitRecord, fit_record, point_fits
 from orbitrig.store.reader import Point, Run, read_run
@@ -86,12 +87,12 @@ class RunData:
         complete, n_frequencies."""
         return frames.points_frame(self.run.points)
 
-    def table(self, point: int, lms: str = "piezo"):
+    def table(self, point: int, lms: LoadSystem | str = LoadSystem.PIEZO):
         """DataFrame: the point's orbit table for load measuring system ``lms`` (piezo |
         strain), the orbit-table CSV's columns and ``direction``."""
         p = self._point(point)
         if lms not in p.tables:
-            raise KeyError(f"point {point} has no orbit table {lms!r} (tables: {', '.join(p.tables) or 'none'})")
+            raise KeyError(f"point {point} has no orbit table {str(lms)!r} (tables: {', '.join(p.tables) or 'none'})")
         return frames.table_frame(p.tables[lms])
 
     def fits(self, point: int | None = None) -> list[FitRecord]:
@@ -104,7 +105,7 @@ class RunData:
         """DataFrame, one row per (point, lms, model, freq_dep, method): KEY, KEY_std, KEY_U."""
         return frames.coefficients_frame(self.fits())
 
-    def fit(self, point: int, lms: str, model: str, freq_dep: str = "none", method: str = "ols") -> Fit:
+    def fit(self, point: int, lms: LoadSystem | str, model: str, freq_dep: str = "none", method: str = "ols") -> Fit:
         """One stored identification. KeyError naming the ones there are."""
         fits = self.fits(point)
         for f in fits:
@@ -141,4 +142,4 @@ def identify_table(df, model: str = "kcd11", freq_dep: str = "none", method: str
     df.to_csv(buf, index=False)
     table = parse_orbit_table(buf.getvalue().encode("utf-8"), "<DataFrame>")
     result = identify(table, model=model, freq_dep=freq_dep, method=method, solver=solver).to_dict()
-    return Fit(fit_record(-1, "", model, freq_dep, method, result))
+    return Fit(fit_record(-1, None, model, freq_dep, method, result))

@@ -74,3 +74,14 @@ def test_wrong_format_attribute(tmp_path, synthetic_run):
         f.attrs["format"] = "something-else/9"
     with pytest.raises(RunDirError, match="something-else/9"):
         read_run(tmp_path)
+
+
+def test_a_results_group_named_after_no_load_measuring_system(tmp_path, synthetic_run):
+    shutil.copy(synthetic_run / "run.h5", tmp_path / "run.h5")
+    with h5py.File(tmp_path / "run.h5", "r+") as f:
+        fits = f["points/0000/identification"]
+        key = next(k for k in fits if k.startswith("piezo__"))
+        fits.move(key, "Piezo" + key[len("piezo") :])
+    with pytest.raises(RunDirError, match=r"'Piezo' is not a load measuring system \(piezo, strain\)") as err:
+        read_run(tmp_path)
+    assert err.value.file == str(tmp_path / "run.h5") and "/points/0000/identification/Piezo__" in str(err.value)

@@ -35,6 +35,8 @@ def test_export_gives_the_stored_fit_at_the_tested_frequencies(synthetic_run, tm
     assert bearing["lms"] == "strain" and "f = -(K d" in doc["conventions"]["force"]
     bad = CliRunner().invoke(app, ["export", str(synthetic_run), "--format", "ross", "--fit", "piezo:kcd11"])
     assert bad.exit_code == 2 and "LMS:MODEL:FREQ_DEP:METHOD" in bad.output
+    typo = CliRunner().invoke(app, ["export", str(synthetic_run), "--format", "ross", "--fit", "piezzo:kcd11:none:ols"])
+    assert typo.exit_code == 2 and "LMS is one of piezo, strain" in typo.output  # not an empty bearings file
 
 
 def test_measured_bearings_in_a_ross_rotor_give_finite_log_decrements(synthetic_run, tmp_path):
