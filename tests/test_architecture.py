@@ -11,7 +11,8 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from support.paths import ROOT
+
 OURS = ("daq", "drives", "reduction", "sim", "orbitrig", "rigerrors", "rigunits")
 
 # package -> packages of ours it may import (module-level or inside functions);

@@ -11,7 +11,8 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+from support.paths import ROOT
+
 BENCHES = sorted((ROOT / "bench").glob("bench_*.py"))
 
 

@@ -17,7 +17,7 @@ import pytest
 import orbitrig
 from orbitrig.store.fit_record import expanded_uncertainty
 
-from conftest import ROOT
+from support.paths import ROOT
 
 IDENT = "points/0000/identification/piezo__kcd11__none__ols"
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import nbformat
 from nbclient import NotebookClient
 
-from conftest import ROOT
+from support.paths import ROOT
 
 
 def test_example_notebook_runs(sim_run, tmp_path, monkeypatch):

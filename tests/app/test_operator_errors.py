@@ -8,7 +8,8 @@ import pytest
 from orbitrig import config as cfg
 from orbitrig.errors import ConfigError
 
-from support.sweep_helpers import ROOT, orbitrig_cmd
+from support.sweep_helpers import orbitrig_cmd
+from support.paths import ROOT
 
 RIG_TEXT = cfg.default_rig_path().read_text()
 DEMO_TEXT = cfg.default_matrix_path("demo").read_text()

@@ -1,14 +1,13 @@
 """The run engine's state table: complete, reachable, and the one in docs/architecture.md."""
 
 import re
-from pathlib import Path
 
 import pytest
 
 from orbitrig.run import plan, procedure, states, steps
 from orbitrig.run.states import TRANSITIONS, next_state
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
 
 
 def test_every_state_is_reachable_from_idle_and_leads_back():

@@ -10,7 +10,8 @@ import h5py
 
 from orbitrig.cli.sweep_summary import compare_with_truth
 
-from support.sweep_helpers import ROOT, orbitrig_cmd
+from support.sweep_helpers import orbitrig_cmd
+from support.paths import ROOT
 
 
 def test_demo_sweep_identifies_within_5_percent(tmp_path):

@@ -13,7 +13,8 @@ import pytest
 
 from orbitrig.store.reader import read_run
 
-from support.sweep_helpers import ROOT, orbitrig_cmd
+from support.sweep_helpers import orbitrig_cmd
+from support.paths import ROOT
 
 MATRIX = """
 name = "crash"

@@ -9,7 +9,8 @@ import time
 import h5py
 import pytest
 
-from support.sweep_helpers import ROOT, orbitrig_cmd
+from support.sweep_helpers import orbitrig_cmd
+from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(120)
 

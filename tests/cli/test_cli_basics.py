@@ -96,7 +96,7 @@ def test_dry_run_into_a_closed_pipe_is_quiet():
     import subprocess
     import sys
 
-    from support.cli_helpers import ROOT
+    from support.paths import ROOT
 
     cmd = f"{sys.executable} -m orbitrig sweep --sim --dry-run --matrix paper | head -n 2"
     p = subprocess.run(["bash", "-o", "pipefail", "-c", cmd], cwd=ROOT, capture_output=True, text=True, timeout=120)

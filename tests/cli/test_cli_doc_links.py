@@ -7,7 +7,7 @@ import re
 import subprocess
 
 import pytest
-from support.cli_helpers import ROOT
+from support.paths import ROOT
 
 TEXT_SUFFIXES = {".py", ".md", ".toml", ".conf", ".txt", ".cfg", ".example", ""}
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import re
 
-from support.cli_helpers import ROOT, closed_port, orbitrig
+from support.cli_helpers import closed_port, orbitrig
+from support.paths import ROOT
 
 
 def _rig_without_answer(tmp_path):

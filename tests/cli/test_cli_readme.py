@@ -11,7 +11,8 @@ import shlex
 import shutil
 
 import pytest
-from support.cli_helpers import ROOT, orbitrig
+from support.cli_helpers import orbitrig
+from support.paths import ROOT
 
 README = ROOT / "README.md"
 

@@ -10,7 +10,7 @@ import os
 import subprocess
 import sys
 
-from support.cli_helpers import ROOT
+from support.paths import ROOT
 
 SCRIPT = ROOT / "tools" / "run-tests"
 COMMANDS = [

@@ -13,7 +13,7 @@ import time
 
 import can
 import pytest
-from support.cli_helpers import ROOT
+from support.paths import ROOT
 
 from daq.aux import AuxSensors
 from sim.can_tcp import CanTcpHub, split_frames

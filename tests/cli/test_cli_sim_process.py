@@ -9,7 +9,6 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,7 +18,7 @@ from sim.config import scenario
 from sim.fits import constant_fit, power_fit
 from sim.physics import RigPhysics
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
 
 
 def alive(pid: int) -> bool:

@@ -16,7 +16,7 @@ import zipfile
 import h5py
 import pytest
 
-from support.cli_helpers import ROOT
+from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(240)
 

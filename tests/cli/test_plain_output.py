@@ -11,13 +11,13 @@ import os
 import re
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
 from orbitrig.cli.plain_table import OutputFormat, PlainTable
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
+
 TABLE = ROOT / "examples" / "orbit-tables" / "kcd11-constant.csv"
 
 

@@ -6,11 +6,10 @@ from __future__ import annotations
 import logging
 import subprocess
 import sys
-from pathlib import Path
 
 from orbitrig.cli.service_log import setup_service_log
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
 
 
 def test_thousands_of_messages_keep_the_log_files_under_the_stated_size(tmp_path):

@@ -25,7 +25,7 @@ from orbitrig.config import (
 )
 from orbitrig.errors import ConfigError
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
 
 
 def _rig_copy(tmp: Path) -> Path:

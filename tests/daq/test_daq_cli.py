@@ -7,7 +7,6 @@ import json
 import math
 import os
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,7 +14,8 @@ import pytest
 from sim.config import scenario
 from sim.rig import SimRig
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
+
 pytestmark = pytest.mark.timeout(60)
 ORBIT = 2 * math.pi * 12.5
 

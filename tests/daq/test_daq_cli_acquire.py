@@ -10,7 +10,6 @@ import math
 import sys
 import threading
 from contextlib import contextmanager
-from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -20,7 +19,8 @@ from orbitrig.cli import app
 from sim.config import scenario
 from sim.rig import SimRig
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
+
 ORBIT = 2 * math.pi * 12.5  # rad/s
 pytestmark = pytest.mark.timeout(60)
 

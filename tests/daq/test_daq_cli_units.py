@@ -5,13 +5,13 @@ from __future__ import annotations
 import asyncio
 import math
 import sys
-from pathlib import Path
 
 import pytest
 
 from sim.rig import SimRig
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
+
 pytestmark = pytest.mark.timeout(60)
 
 

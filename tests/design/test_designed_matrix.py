@@ -5,14 +5,14 @@ from __future__ import annotations
 import subprocess
 import sys
 import tomllib
-from pathlib import Path
 
 import pytest
 
 from orbitrig import config as cfg
 from orbitrig.errors import ConfigError
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
+
 DEMO = (ROOT / "config" / "matrices" / "demo.toml").read_text()
 
 

@@ -13,7 +13,8 @@ from orbitrig.cli.design_inputs import NOMINAL, stated_noise
 from reduction.frequency_list import DesignProblem, predict
 from reduction.models import model_spec
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
+
 DEMO = (ROOT / "config" / "matrices" / "demo.toml").read_text()
 
 

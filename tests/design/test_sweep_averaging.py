@@ -18,9 +18,10 @@ from orbitrig.run.steps import Acquire
 from orbitrig.run.procedure import averaging_rule
 from reduction.noise import revolution_residuals
 from sim.rig import SimRig
+from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(180)
-ROOT = Path(__file__).resolve().parents[2]
+
 RPM = 2 * np.pi / 60
 SPEEDUP = 40.0
 

@@ -9,9 +9,10 @@ from pathlib import Path
 
 import h5py
 import pytest
+from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(300)
-ROOT = Path(__file__).resolve().parents[2]
+
 DEMO = (ROOT / "config" / "matrices" / "demo.toml").read_text()
 
 

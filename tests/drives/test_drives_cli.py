@@ -8,7 +8,8 @@ import signal
 import sys
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, ROOT, run_cli, subprocess_env
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, run_cli, subprocess_env
+from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(30)  # a hang fails fast, with a traceback
 

@@ -12,7 +12,8 @@ import signal
 import sys
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, ROOT, run_cli, subprocess_env
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, run_cli, subprocess_env
+from support.paths import ROOT
 
 from orbitrig.cli.drives import effective_limits
 from orbitrig.config import Drives

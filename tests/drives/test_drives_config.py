@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import warnings
-from pathlib import Path
 
 import pytest
 
 from orbitrig.config import Drives, load_rig
 from orbitrig.errors import ConfigError
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
 
 
 def test_shipped_rig_declares_a_link_loss_well_before_the_watchdog():

@@ -8,7 +8,8 @@ import signal
 import sys
 
 import pytest
-from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, ROOT, SimDrives, make_models, serve, subprocess_env
+from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, SimDrives, make_models, serve, subprocess_env
+from support.paths import ROOT
 from sim.drive_registers import COMM_LOSS_FAULT as COMM_LOSS
 
 pytestmark = pytest.mark.timeout(60)

@@ -11,7 +11,8 @@ import signal
 import sys
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, ROOT, RPM, open_rig, subprocess_env
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, open_rig, subprocess_env
+from support.paths import ROOT
 
 from drives.errors import DriveFaultError, DriveLinkError
 from drives.limits import DriveLimits

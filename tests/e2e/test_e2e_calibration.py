@@ -25,7 +25,8 @@ import h5py
 import numpy as np
 import pytest
 
-from support.e2e_sweep import MATRIX, ROOT, TABLE1_RATIOS
+from support.e2e_sweep import MATRIX, TABLE1_RATIOS
+from support.paths import ROOT
 from orbitrig.config import LMS, ModelSpec, load_rig, read_record, rig_from_text
 from orbitrig.run.corrections import Corrections
 from orbitrig.run.identification import identify_operating_point

@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,7 +15,8 @@ from support.reduction_synthetic import frequencies, keys_of, orbit_table, truth
 from orbitrig.cli import app
 from orbitrig.store.orbit_table import write_orbit_table
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
+
 TRUE = truth("kcd11", {"K": (0,), "C": (0,), "D": (0,)})
 
 

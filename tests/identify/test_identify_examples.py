@@ -6,13 +6,13 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
 
 from support.identify_keys import keys
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
+
 EXAMPLES = ROOT / "examples" / "orbit-tables"
 TRUTH = json.loads((EXAMPLES / "truth.json").read_text())
 

@@ -16,7 +16,8 @@ from support.reduction_synthetic import frequencies, keys_of, orbit_table, truth
 from orbitrig.cli import app
 from orbitrig.store.orbit_table import write_orbit_table
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
+
 TRUE = truth("kcd11", {"K": (0,), "C": (0,), "D": (0,)})
 
 

@@ -18,7 +18,8 @@ from orbitrig import config as cfg
 from orbitrig.analysis.reduce import csv_path
 from orbitrig.store.reader import read_run
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
+
 MODELS = (("kcd11", "none"), ("kc8", "none"), ("kcd11", "power:1"))
 
 

@@ -10,13 +10,12 @@ import socket
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
 
 from support.sim_reader import parse, revolutions
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
 
 
 def start(*args: str, module: str = "orbitrig") -> subprocess.Popen:

@@ -18,7 +18,8 @@ from orbitrig.cli import app
 from orbitrig.store.reader import read_run
 
 from support.rig_configs import patient_rig_config
-from support.store_checks import ROOT, check_whole, orbitrig_cmd, small_matrix
+from support.store_checks import check_whole, orbitrig_cmd, small_matrix
+from support.paths import ROOT
 
 MATRIX = small_matrix("crash", revolutions=10)
 BLOCKS = 6  # 3 ratios x forward, backward

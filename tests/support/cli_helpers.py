@@ -8,7 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
 
 
 def orbitrig(*args: str, timeout: float = 120, cwd: Path = ROOT, **kw) -> subprocess.CompletedProcess:

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -31,7 +30,8 @@ from sim.fits import constant_fit, power_fit
 from sim.physics import RigPhysics
 from sim.revolutions import revolution_phasors, simulate_revolutions
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
+
 SCENARIOS = {
     "paper": "config/sim.toml",
     "clean": "config/sim/clean.toml",

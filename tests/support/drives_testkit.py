@@ -10,7 +10,6 @@ import os
 import sys
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 from drives.limits import DriveLimits
 from drives.rig import RigDrives
@@ -18,7 +17,8 @@ from sim import drive_registers as sim_registers
 from sim.drive_model import DriveModel
 from sim.modbus_server import ModbusEndpoint, serve_modbus_rtu_pty, serve_modbus_tcp
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
+
 SPEEDUP = 25.0  # simulated s per wall s for ramps (the watchdog stays in wall time)
 RPM = 2.0 * 3.141592653589793 / 60.0
 

@@ -16,8 +16,6 @@ from orbitrig.store.index import scan
 from orbitrig.store.layout import RunLayout
 from orbitrig.store.reader import read_run
 
-ROOT = Path(__file__).resolve().parents[2]
-
 
 def small_matrix(name: str, revolutions: int, spin_rpm: tuple[float, ...] = (1000.0, 2000.0)) -> str:
     """A test matrix of the storage tests: one kc8 model, 3 orbit ratios x both directions

@@ -5,11 +5,9 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import sys
-from pathlib import Path
 
 from orbitrig import config as cfg
 
-ROOT = Path(__file__).resolve().parents[2]
 SPEEDUP = 40.0
 
 

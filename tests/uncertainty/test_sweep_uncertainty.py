@@ -17,7 +17,7 @@ import h5py
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
+from support.paths import ROOT
 
 # compressible scenario: the constant model misses the falling damping (with 40 revolutions per
 # block far beyond the phasor uncertainty: bad chi2 -> a warning, frequency dependence supported);
