@@ -309,14 +309,9 @@ class RunEngine(OperatorRequests):
         if status == FAILED:  # reported once the drives are safe
             self._control.fire("fail", message)
         self.timing["wall"] = time.monotonic() - self._t0
-        failures: list[tuple[str, BaseException]] = []  # reported here, on the loop
-        try:  # run.h5's consolidation and fsync, off the loop (the service answers meanwhile)
-            ended = await to_the_end(
-                record_end, store, self.run_id, status, message, lambda what, err: failures.append((what, err))
-            )
-        finally:
-            for what, err in failures:
-                self._cleanup_failed(what, err)
+        # run.h5's consolidation and fsync, off the loop (the service answers meanwhile); each
+        # failure logged as it happens, before run.log's last line
+        ended = await to_the_end(record_end, store, self.run_id, status, message, self._cleanup_failed)
         if ended != (status, message):
             self._control.fire("fail", ended[1])
         elif status != FAILED:
@@ -328,6 +323,8 @@ class RunEngine(OperatorRequests):
         self._log_event(line)
 
     def _cleanup_failed(self, what: str, err: BaseException) -> None:
+        """Log a failed cleanup step (also called from the storage thread: logging and the
+        store's log rows and run.log are safe there; no event is emitted)."""
         log.error("cleanup: cannot %s: %s: %s", what, type(err).__name__, err)
         self._log_event(f"cleanup: cannot {what}: {err}")
 
