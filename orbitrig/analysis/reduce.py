@@ -191,14 +191,15 @@ def table_cells(rows: list[Reduced]) -> list[list[str]]:
     """The header and the rows (cells as text) of a table of the constant terms (K in MN/m, C in kN s/m, D in kg) and the
     residual (and the exponent M that power:auto chose); a refused (point, lms) shows
     'refused' (the reason goes to standard error).
-    In --sim runs each point is followed by a row of the simulator's true values."""
+    In --sim runs each fit is followed by a row 'true (LMS)' of its own truth (fit_true_values:
+    the true Z projected onto the fit's model, as the CSV's true_* columns)."""
     cols = [k for k in CONSTANT_KEYS if any(r.identification and k in r.identification.coefficients for r in rows)]
     auto = any(r.identification is not None and r.identification.exponent is not None for r in rows)
     lines = [
         ["point", "lms", *(f"{k} [{coefficient_unit(k)[0]}]" for k in cols), "resid [N]", *(["M"] if auto else [])]
     ]
-    for n, r in enumerate(rows):
-        cells = [r.point.name, r.lms]
+    for r in rows:
+        cells = [r.point.name, str(r.lms)]
         if r.identification is None:
             cells.append("refused")
         else:
@@ -208,7 +209,8 @@ def table_cells(rows: list[Reduced]) -> list[list[str]]:
             if auto:  # the exponent power:auto chose
                 cells.append(str(r.identification.exponent))
         lines.append(cells)
-        truth = true_constants(r.point)
-        if truth and (n + 1 == len(rows) or rows[n + 1].point is not r.point):
-            lines.append([r.point.name, "true", *(f"{truth[k] * coefficient_unit(k)[1]:.4g}" for k in cols)])
+        truth = fit_true_values(r)
+        if truth:
+            shown = [f"{truth[k] * coefficient_unit(k)[1]:.4g}" if k in truth else "" for k in cols]
+            lines.append([r.point.name, f"true ({r.lms})", *shown])
     return lines

@@ -125,7 +125,12 @@ def test_reduce_formats(tmp_path):
             io.StringIO(run("reduce", str(run_dir), "--model", "kcd11", "--format", "csv", columns="80").stdout)
         )
     )
-    assert [(r["point"], r["lms"]) for r in rows] == [("0000", "piezo"), ("0000", "strain"), ("0000", "true")]
+    assert [(r["point"], r["lms"]) for r in rows] == [
+        ("0000", "piezo"),
+        ("0000", "true (piezo)"),
+        ("0000", "strain"),
+        ("0000", "true (strain)"),
+    ]
     for r in rows:
         for key in ("Kxx [MN/m]", "Dyy [kg]"):
             assert re.search(rf"\s{re.escape(r[key])}(\s|$)", text.stdout)
