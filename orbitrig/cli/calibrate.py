@@ -9,7 +9,8 @@
 
 A step writes a new record into the records' folder beside the rig configuration
 (docs/calibration.md) and makes it the active one (``--no-activate``: it only writes it).
-Exit status: 0 done, 1 the step failed, 2 bad configuration or usage, 3 stopped (Ctrl-C).
+Exit status: 0 done, 1 the step failed, 2 bad configuration or usage, 3 stopped (Ctrl-C, SIGTERM,
+SIGHUP: both drives are stopped first).
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ from pathlib import Path
 from typing import Optional
 
 import typer
+
+from orbitrig.cli.signals import run_until_signal
 
 DEFAULT_SPEEDUP = 40.0  # as orbitrig.cli.simulated_rig.DEFAULT_SPEEDUP
 _CONFIG = typer.Option(None, "--config", help="rig configuration TOML (default: config/rig.toml of the source tree)")
@@ -180,7 +183,9 @@ def _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_rati
 
 
 def _guarded(fn) -> None:
-    """Run a sub-command: exit 2 on a configuration error, 1 on a failed step, 3 on Ctrl-C."""
+    """Run a sub-command: exit 2 on a configuration error, 1 on a failed step, 3 on Ctrl-C,
+    SIGTERM or SIGHUP (both drives stopped first)."""
+    from orbitrig.cli.signals import Interrupted
     from orbitrig.errors import ConfigError, OrbitrigError
 
     try:
@@ -191,9 +196,19 @@ def _guarded(fn) -> None:
     except OrbitrigError as err:
         typer.echo(f"error: {err}", err=True)
         raise typer.Exit(1) from None
-    except KeyboardInterrupt:
-        typer.echo("calibration stopped: the drives were stopped, no record written", err=True)
+    except (KeyboardInterrupt, Interrupted) as err:
+        what = str(err) if isinstance(err, Interrupted) else "Ctrl-C"
+        typer.echo(f"calibration stopped by {what}: the drives were stopped, no record written", err=True)
         raise typer.Exit(3) from None
+
+
+def _say(message: str) -> None:
+    """A step's progress line on standard error; a terminal gone (closed, a broken pipe) does
+    not end the step (its drives keep their way out)."""
+    try:
+        typer.echo(message, err=True)
+    except OSError:
+        pass
 
 
 def _rig_and_folder(config):
@@ -263,13 +278,11 @@ def _reference(opts, reference_id, reference_u_pct, simulated: str):
 
 
 def _loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> None:
-    import asyncio
-
     from orbitrig.cli.calibrate_steps import loads_record
 
     ref = _reference(opts, reference_id, reference_u_pct, "simulator: loads applied exactly")
     rig, folder = _rig_and_folder(config)
-    record = asyncio.run(loads_record(rig, opts, load_n, ref, lambda m: typer.echo(m, err=True)))
+    record = run_until_signal(lambda: loads_record(rig, opts, load_n, ref, _say))
     for lms, g in record.loads.items():
         typer.echo(
             f"{lms}: gain matrix {g.gain} (u {[[f'{u:.2g}' for u in row] for row in g.gain_u]}), "
@@ -286,12 +299,10 @@ def _loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> Non
 
 
 def _runout(config, opts, activate) -> None:
-    import asyncio
-
     from orbitrig.cli.calibrate_steps import runout_record
 
     rig, folder = _rig_and_folder(config)
-    record = asyncio.run(runout_record(rig, opts, lambda m: typer.echo(m, err=True)))
+    record = run_until_signal(lambda: runout_record(rig, opts, _say))
     for p in ("x_a", "y_a", "x_b", "y_b"):
         h1, h2 = abs(record.runout.phasors(p)) * 1e6
         typer.echo(f"{p}: runout 1x {h1:.3f} um, 2x {h2:.3f} um")
@@ -299,12 +310,10 @@ def _runout(config, opts, activate) -> None:
 
 
 def _delay(config, opts, speeds, amplitudes, activate) -> None:
-    import asyncio
-
     from orbitrig.cli.calibrate_steps import delay_record
 
     rig, folder = _rig_and_folder(config)
-    record = asyncio.run(delay_record(rig, opts, speeds, amplitudes, lambda m: typer.echo(m, err=True)))
+    record = run_until_signal(lambda: delay_record(rig, opts, speeds, amplitudes, _say))
     for name, d in record.delay.items():
         typer.echo(
             f"{name}: lags the probes by {d.phase_deg:.4f} deg (u {d.phase_u_deg:.2g}) "
@@ -321,8 +330,6 @@ def _delay(config, opts, speeds, amplitudes, activate) -> None:
 
 
 def _probes(config, opts, span_um, steps, reference_id, reference_u_pct, activate) -> None:
-    import asyncio
-
     import numpy as np
 
     from orbitrig.cli.calibrate_steps import probes_record
@@ -330,7 +337,7 @@ def _probes(config, opts, span_um, steps, reference_id, reference_u_pct, activat
     ref = _reference(opts, reference_id, reference_u_pct, "simulator: steps applied exactly")
     rig, folder = _rig_and_folder(config)
     grid = np.linspace(-span_um / 2, span_um / 2, steps) * 1e-6
-    record = asyncio.run(probes_record(rig, opts, grid, ref, lambda m: typer.echo(m, err=True)))
+    record = run_until_signal(lambda: probes_record(rig, opts, grid, ref, _say))
     for p, g in record.probes.items():
         typer.echo(f"{p}: gain {g.gain:.5f} (u {g.gain_u:.2g}), linearity {g.linearity_pct:.3g} % of {g.span_um:g} um")
     _write(

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -63,6 +64,29 @@ class StepOptions:
         return SlowRoll(self.spin_rpm * RPM, self.recess_pressure_mpa * MPA, self.pressure_ratio, self.revolutions)
 
 
+async def _confirmed(prompt: str) -> None:
+    """The operator's Enter at the terminal, read on a daemon thread: a cancelled step (Ctrl-C,
+    SIGTERM) goes on to stop the drives and exit while the prompt still waits (asyncio's own
+    worker threads would hold the exit until someone pressed Enter)."""
+    loop = asyncio.get_running_loop()
+    answered: asyncio.Future[None] = loop.create_future()
+
+    def settle(err: BaseException | None) -> None:
+        if not answered.done():
+            answered.set_result(None) if err is None else answered.set_exception(err)
+
+    def ask() -> None:
+        try:
+            typer.prompt(prompt, default="", show_default=False)
+        except BaseException as err:  # noqa: BLE001 - EOF, a closed terminal: the step fails with it
+            loop.call_soon_threadsafe(settle, err)
+        else:
+            loop.call_soon_threadsafe(settle, None)
+
+    threading.Thread(target=ask, name="calibrate-prompt", daemon=True).start()
+    await answered
+
+
 class OperatorLoads:
     """The rig: the operator applies each load (or connects the phase reference) and confirms on
     the terminal (Ctrl-C ends the step)."""
@@ -73,7 +97,7 @@ class OperatorLoads:
             if fx == 0 and fy == 0
             else f"apply the static load fx = {fx:+.1f} N, fy = {fy:+.1f} N on the journal"
         )
-        await asyncio.to_thread(typer.prompt, f"{what}, then press Enter", default="", show_default=False)
+        await _confirmed(f"{what}, then press Enter")
 
     async def apply_displacement(self, dx: float, dy: float) -> None:
         what = (
@@ -81,7 +105,7 @@ class OperatorLoads:
             if dx == 0 and dy == 0
             else f"step the journal by x = {dx * 1e6:+.2f} um, y = {dy * 1e6:+.2f} um (micrometer)"
         )
-        await asyncio.to_thread(typer.prompt, f"{what}, then press Enter", default="", show_default=False)
+        await _confirmed(f"{what}, then press Enter")
 
     async def apply_reference(self, force: float, probe: float) -> None:
         what = (
@@ -92,7 +116,7 @@ class OperatorLoads:
                 f"{force:g} N on the force channels, {probe * 1e6:g} um on the probes"
             )
         )
-        await asyncio.to_thread(typer.prompt, f"{what}, then press Enter", default="", show_default=False)
+        await _confirmed(f"{what}, then press Enter")
 
 
 @contextlib.asynccontextmanager

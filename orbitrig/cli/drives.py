@@ -228,6 +228,7 @@ def _run_async(make_coro, command: str) -> int:
     import signal
 
     from drives.errors import DriveError
+    from orbitrig.cli.signals import SIGNALS
 
     _quiet_logging()
 
@@ -246,7 +247,7 @@ def _run_async(make_coro, command: str) -> int:
             else:
                 task.cancel()  # the exit still stops both drives
 
-        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        for sig in SIGNALS:
             loop.add_signal_handler(sig, on_signal, sig)
         try:
             return await make_coro(interrupt)
@@ -264,7 +265,7 @@ def _run_async(make_coro, command: str) -> int:
             _report(command, err)
             return 2
         finally:
-            for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            for sig in SIGNALS:
                 loop.remove_signal_handler(sig)
 
     return asyncio.run(main())

@@ -13,6 +13,8 @@
 
 from __future__ import annotations
 
+from orbitrig.cli.signals import SIGNALS, signal_name as _name
+
 
 class Operator:
     """Terminal side of the engine: answers confirmations, Ctrl-C pauses and asks, twice aborts."""
@@ -67,19 +69,21 @@ class Operator:
         if self.engine.state in (IDLE, FAULTED):  # not started yet: acted upon at the start
             self.pending = sig
             return
+        # the request first, then the words: a terminal gone (the hang-up that sent SIGHUP)
+        # must not keep the request from the engine
         if self.interrupts >= 2 or self.engine.state == STOPPING:
-            self.console.print(f"{_name(sig)} again: aborting (emergency ramp down)", style="bold red", markup=False)
             self.engine.request_abort()
+            self.console.print(f"{_name(sig)} again: aborting (emergency ramp down)", style="bold red", markup=False)
         elif sig == signal.SIGINT:
             self.engine.request_pause()
             self._ask("paused at the next safe point: [r]esume, [s]top, [a]bort? (Ctrl-C again aborts) ", self._choice)
         else:
+            self.engine.request_stop_now(_name(sig))
             self.console.print(
                 f"{_name(sig)}: stopping now, both drives ramp to zero (a second signal aborts)",
                 style="bold red",
                 markup=False,
             )
-            self.engine.request_stop_now(_name(sig))
 
     def on_event(self, ev) -> None:
         from orbitrig.run.engine import StatusEvent
@@ -155,18 +159,3 @@ class Operator:
                 self.engine.confirm(step)
             except Exception as err:  # noqa: BLE001 - tell the operator, keep going
                 self.console.print(f"not confirmed: {err}", markup=False)
-
-
-def _signals() -> tuple:
-    import signal
-
-    return (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-
-
-SIGNALS = _signals()
-
-
-def _name(sig) -> str:
-    import signal
-
-    return "Ctrl-C" if sig == signal.SIGINT else signal.Signals(sig).name

@@ -10,6 +10,7 @@ from rich.console import Console
 from rich.text import Text
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from orbitrig.cli.terminal import TerminalConsole
 from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
 from rigunits import format_duration
 from orbitrig.run.states import RunState
@@ -17,7 +18,7 @@ from orbitrig.run.states import RunState
 
 class SweepProgress:
     def __init__(self, console: Console | None = None, revolutions: int = 50):
-        self.console = console or Console(stderr=True)
+        self.console = console or TerminalConsole(stderr=True)
         self.progress = Progress(
             TextColumn("{task.description:<12}"),
             BarColumn(),

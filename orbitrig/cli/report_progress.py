@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 import time
 
-from rich.console import Console
+from orbitrig.cli.terminal import TerminalConsole
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
 
@@ -28,7 +28,7 @@ class ReportProgress:
                 TimeElapsedColumn(),
                 TextColumn("ETA"),
                 TimeRemainingColumn(),
-                console=Console(file=self.stream),
+                console=TerminalConsole(file=self.stream),
                 transient=False,
             )
             self.task = self.bar.add_task("report", total=total, figures=0)

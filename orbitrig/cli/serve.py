@@ -133,7 +133,8 @@ def build_service(rig, settings, broker_settings, *, out: Path, sim_rig=None, co
 async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
     import asyncio
     import contextlib
-    import signal
+
+    from orbitrig.cli.signals import SIGNALS
 
     shutdown = asyncio.Event()
     loop = asyncio.get_running_loop()
@@ -149,7 +150,7 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
             services[0].abort_run("a second signal while shutting down")
         shutdown.set()
 
-    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+    for sig in SIGNALS:
         loop.add_signal_handler(sig, on_signal)
 
     async with contextlib.AsyncExitStack() as stack:

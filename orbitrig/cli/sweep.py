@@ -307,15 +307,14 @@ async def _sweep(
         started = start_simulator(speedup, sim[0])
     import contextlib
 
-    from rich.console import Console
-
     from orbitrig.cli.progress import SweepProgress
+    from orbitrig.cli.terminal import TerminalConsole
     from orbitrig.run.heap import tune_heap
     from orbitrig.run.modbus_log import keep_pymodbus_off_the_terminal
 
     keep_pymodbus_off_the_terminal()
     tune_heap()  # bounded memory over months (orbitrig.run.heap)
-    console = Console(stderr=True)
+    console = TerminalConsole(stderr=True)
     async with contextlib.AsyncExitStack() as stack:
         access = None
         if sim is not None:

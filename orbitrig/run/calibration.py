@@ -120,6 +120,7 @@ class CalibrationSession:
             raise CalibrationFailed(
                 f"slow roll at spin {roll.spin / RPM:.0f} rpm, orbit {roll.orbit / RPM:.0f} rpm: {err}"
             ) from err
+        self.note(f"slow roll: spin {roll.spin / RPM:.0f} rpm, orbit spindle {roll.orbit / RPM:.0f} rpm, held")
 
     async def hold(self) -> None:
         """After a change at the input (a load, the reference): `settle.hold_s` physical seconds,

@@ -100,6 +100,23 @@ def test_sigterm_and_sighup_stop_with_a_ramp(sweep, sig):
     assert "drives: ramp stop (OFF1); " + STANDSTILL in log and SAFE in log, log
 
 
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
+def test_a_terminal_gone_does_not_keep_the_stop_from_the_drives(sweep, sig):
+    """stderr's reader gone (a closed terminal or pipe: every write fails) before the signal:
+    the stop still reaches the engine and both drives ramp to zero."""
+    s = sweep()
+    s.wait_log("[running] speeds set: spin 1000 rpm")
+    s.proc.stderr.close()
+    time.sleep(0.3)  # the progress bars meet the broken pipe
+    s.proc.send_signal(sig)
+    s.proc.stdout.read()
+    assert s.proc.wait(timeout=30) == 3
+    assert s.status() == "stopped"
+    log = s.text()
+    assert f"[stopping] {sig.name}: stopping now, both drives ramp to zero" in log
+    assert "drives: ramp stop (OFF1); " + STANDSTILL in log and SAFE in log, log
+
+
 def test_a_signal_during_the_ramp_aborts_with_an_emergency_stop(sweep):
     s = sweep("--speedup", "1")  # real time: the ramp from 1000 rpm takes seconds
     s.wait_log("[running] speeds set: spin 1000 rpm")

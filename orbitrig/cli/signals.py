@@ -1,0 +1,63 @@
+"""Signals that end a command which moves the drives: SIGINT (Ctrl-C), SIGTERM (a service
+manager, a shutdown) and SIGHUP (a closed terminal).
+
+:func:`run_until_signal` runs a coroutine whose way out stops both drives (an ``async with``
+of the rig) and cancels it on the first of these signals, so the drives are stopped on each
+of them as on Ctrl-C; the signal comes back as :class:`Interrupted`. Further signals during
+that stop are only counted: the stop under way is not cut short.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import signal
+from collections.abc import Awaitable, Callable
+from typing import TypeVar
+
+T = TypeVar("T")
+
+SIGNALS: tuple[signal.Signals, ...] = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+class Interrupted(Exception):
+    """The command was cancelled by `sig` (its drives were stopped on the way out)."""
+
+    def __init__(self, sig: signal.Signals):
+        super().__init__(signal_name(sig))
+        self.sig = sig
+
+
+def signal_name(sig: int) -> str:
+    """'Ctrl-C' for SIGINT, else the signal's name ('SIGTERM')."""
+    return "Ctrl-C" if sig == signal.SIGINT else signal.Signals(sig).name
+
+
+def run_until_signal(make: Callable[[], Awaitable[T]]) -> T:
+    """``asyncio.run(make())``, cancelled by the first of SIGNALS (raises Interrupted after the
+    coroutine's own way out has run)."""
+
+    async def main() -> T:
+        task = asyncio.current_task()
+        assert task is not None
+        loop = asyncio.get_running_loop()
+        received: list[signal.Signals] = []
+
+        def on_signal(sig: signal.Signals) -> None:
+            received.append(sig)
+            if len(received) == 1:
+                task.cancel()
+
+        for sig in SIGNALS:
+            loop.add_signal_handler(sig, on_signal, sig)
+        try:
+            return await make()
+        except asyncio.CancelledError:
+            if not received:
+                raise
+            task.uncancel()
+            raise Interrupted(received[0]) from None
+        finally:
+            for sig in SIGNALS:
+                loop.remove_signal_handler(sig)
+
+    return asyncio.run(main())
