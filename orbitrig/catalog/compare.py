@@ -45,6 +45,11 @@ class Variable(StrEnum):
             "spin": "spin \u03c9 [rpm]",
         }[self.value]
 
+    @property
+    def predicted_column(self) -> str:
+        """The column of a predicted-coefficients CSV that gives this variable (spin in rpm)."""
+        return "spin_rpm" if self is Variable.SPIN else self.value
+
     def of(self, row: Row) -> float:
         """The row's value on the x axis (spin in rpm, the others as stored)."""
         return float(row["spin_rpm"] if self is Variable.SPIN else row[self.value])

@@ -1,6 +1,7 @@
 """`orbitrig compare`'s figure: coefficients with U bars against one operating variable,
 one colour per run (repeats side by side), the repeatability chi2 of each coefficient in
-its panel, and predicted values as dashed lines. PNG and PDF through the atomic writer."""
+its panel, and predicted values as open black squares joined by a dashed line (a lone
+value shows as its square). PNG and PDF through the atomic writer."""
 
 from __future__ import annotations
 
@@ -15,7 +16,6 @@ from orbitrig.store.durable import write_atomic
 
 #: plotted unit of each family: (scale from SI, label)
 SCALE = {"K": (1e-6, "MN/m"), "C": (1e-3, "kN s/m"), "D": (1.0, "kg")}
-_PREDICTED_X = {Variable.SPIN: "spin_rpm"}
 
 
 def compare_figure(
@@ -62,11 +62,11 @@ def compare_figure(
 
 
 def _draw_predicted(ax, predicted: list[dict[str, float]], variable: Variable, name: str, scale: float) -> None:
-    column = _PREDICTED_X.get(variable, variable.value)
+    column = variable.predicted_column
     pts = sorted((p[column], p[name]) for p in predicted if column in p and np.isfinite(p.get(name, np.nan)))
-    if pts:
+    if pts:  # a marker on each value: a lone one draws no line
         x, y = np.array(pts).T
-        ax.plot(x, y * scale, "k--", lw=1.2, label="predicted")
+        ax.plot(x, y * scale, "k--", marker="s", ms=4, mfc="none", lw=1.2, label="predicted")
 
 
 def write_figure(fig, out_dir: Path, stem: str = "compare") -> list[Path]:

@@ -14,6 +14,7 @@ import csv
 import math
 from pathlib import Path
 
+from orbitrig.catalog.compare import Variable
 from orbitrig.catalog.errors import CatalogUsageError
 from orbitrig.catalog.rows import COEFFICIENTS, UNITS
 
@@ -37,8 +38,9 @@ def _column(name: str, file: Path) -> str:
     )
 
 
-def read_predicted(path: Path) -> list[dict[str, float]]:
-    """One dict per line: condition and coefficient name -> value (SI coefficients, NaN if empty)."""
+def read_predicted(path: Path, against: Variable | None = None) -> list[dict[str, float]]:
+    """One dict per line: condition and coefficient name -> value (SI coefficients, NaN if empty).
+    ``against``: the compared variable, whose column the file must have."""
     path = Path(path)
     try:
         lines = [line for line in path.read_text(encoding="utf-8").splitlines() if not line.lstrip().startswith("#")]
@@ -48,6 +50,8 @@ def read_predicted(path: Path) -> list[dict[str, float]]:
     header = [_column(name, path) for name in next(reader, [])]
     if not any(name in COEFFICIENTS for name in header):
         raise PredictedError(f"{path}, line 1: no coefficient column (e.g. 'Kxx [N/m]')")
+    if against is not None and against.predicted_column not in header:
+        raise PredictedError(f"{path}, line 1: no column {against.predicted_column!r} (needed for --against {against})")
     out = []
     for number, cells in enumerate(reader, start=2):
         if len(cells) != len(header):

@@ -37,7 +37,8 @@ LIST_COLUMNS = (
 
 
 def header(name: str) -> str:
-    """CSV column name with its unit: 'Kxx [N/m]', 'spin [rad/s]', 'point'."""
+    """CSV column name with its unit: 'Kxx [N/m]', 'spin [rad/s]', 'orbit_hz [Hz]', 'point';
+    'spin_rpm' stays bare (its name says its unit)."""
     unit = COLUMN_UNITS.get(name)
     return f"{name} [{unit}]" if unit and name != "spin_rpm" else name
 

@@ -44,11 +44,13 @@ _FLOAT = (
     "p_value",
 )
 
-#: column -> unit, for the columns that have one (the rest are counts, ratios or text)
+#: column -> unit, for the columns that have one (the rest are counts, ratios or text);
+#: the CSV export's headers carry it ("Kxx [N/m]", "orbit_hz [Hz]": a JSON list of Hz)
 COLUMN_UNITS = {
     "spin": "rad/s",
     "spin_rpm": "rpm",
     "recess_pressure": "Pa",
+    "orbit_hz": "Hz",
     **{c: UNITS[c[0]] for c in COEFFICIENTS},
     **{f"{c}_U": UNITS[c[0]] for c in COEFFICIENTS},
 }

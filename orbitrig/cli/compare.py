@@ -51,6 +51,7 @@ def compare_cmd(
         names = [c.strip() for c in coefficients.split(",") if c.strip()]
         if not names or any(c not in COEFFICIENTS for c in names):
             raise CatalogUsageError(f"--coefficients {coefficients!r}: names among {', '.join(COEFFICIENTS)}")
+        table = read_predicted(predicted, Variable(against)) if predicted else None
         fit = f"lms = {lms} and model = {model} and freq_dep = '{freq_dep}' and method = {method} and ok = true"
         rows = _open(db, runs_dir).rows(f"{fit} and {where}" if where.strip() else fit)
         if not rows:
@@ -63,9 +64,7 @@ def compare_cmd(
             + (f" ({where})" if where.strip() else "")
             + ("\nconstant terms (\u03a9\u2070) of a frequency-dependent fit" if freq_dep != "none" else "")
         )
-        fig = compare_figure(
-            rows, Variable(against), names, title=title, predicted=read_predicted(predicted) if predicted else None
-        )
+        fig = compare_figure(rows, Variable(against), names, title=title, predicted=table)
         for path in write_figure(fig, out):
             typer.echo(str(path))
 

@@ -72,17 +72,40 @@ def test_where_filters_and_binds(catalog, catalog_run):
 @pytest.mark.parametrize(
     "where, says",
     [
-        ("static_eccentricity > 0.1; drop table fits", "takes a float"),
-        ("1 = 1", "is not 'column op value'"),
+        ("static_eccentricity > 0.1; drop table fits", "cannot parse ';' at character 26"),
+        ("static_eccentricity > 0.1x", "column 'static_eccentricity' takes a number, not '0.1x'"),
+        ("1 = 1", "found '1' where a column name was expected"),
         ("nonsense > 1", "unknown column 'nonsense'"),
-        ("point > 1 and", "'and' without a condition"),
-        ("point ~ 1", "is not 'column op value'"),
-        ("ok = maybe", "takes a bool"),
+        ("point > 1 and", "found the end of the filter where a column name was expected"),
+        ("point ~ 1", "cannot parse '~'"),
+        ("point = 1.5", "column 'point' takes an integer, not '1.5'"),
+        ("ok = maybe", "column 'ok' takes true or false, not 'maybe'"),
+        ("lms = piezo or lms = strain", "found 'or' .*only.* after 'lms = piezo'"),
+        ("point = 0 or 1=1", "found 'or' .* after 'point = 0'"),
+        ("point = 0 OR point = 1", "found 'OR' "),
+        ("not point = 0", "found 'not' .* where a column name was expected"),
+        ("(point = 0)", r"found '\(' \(parentheses are not part of the grammar\)"),
+        ("point = 0 and (lms = piezo)", r"found '\(' \(parentheses"),
+        ("point = 0 lms = piezo", "found 'lms' after 'point = 0' where 'and' or the end was expected"),
+        ("label = w1000rpm es0.1", "found 'es0.1' after 'label = w1000rpm'"),
+        ("point =", "found the end of the filter after 'point =' where a value was expected"),
+        ("Kxx >> 1", "found '>' after 'Kxx >' where a value was expected"),
+        ("label = 'w1000rpm", "cannot parse an unclosed quote at character 9"),
     ],
 )
 def test_where_outside_the_grammar_is_refused(catalog, where, says):
     with pytest.raises(CatalogUsageError, match=says):
         catalog.rows(where)
+
+
+def test_where_reads_tokens_not_glued_text(catalog, catalog_run):
+    """Operators need no spaces, quoted text may hold spaces and grammar words, and a
+    quoted number is converted to the column's type."""
+    catalog.add(run_rows(read_run(catalog_run)))
+    assert len(catalog.rows("static_eccentricity>0.1 and lms=piezo")) == N_FITS // 2
+    power = catalog.rows("point = '1' and freq_dep = \"power:1\"")
+    assert {(r["point"], r["lms"], r["model"]) for r in power} == {(1, "piezo", "kcd11"), (1, "strain", "kcd11")}
+    assert catalog.rows("label = 'a or b' and lms = 'and'") == []
 
 
 def test_cli_add_list_export(catalog_run):
@@ -108,11 +131,14 @@ def test_cli_add_list_export(catalog_run):
     exported = runner.invoke(app, ["catalog", "export", "--runs", str(runs)])
     table = list(csv.DictReader(io.StringIO(exported.output)))
     assert len(table) == 2 * N_FITS and "Kxx [N/m]" in table[0] and "recess_pressure [Pa]" in table[0]
+    assert "orbit_hz" not in table[0] and json.loads(table[0]["orbit_hz [Hz]"])  # the unit, like the others
     out = runs / "cat.json"
     res = runner.invoke(app, ["catalog", "export", "--runs", str(runs), "--format", "json", "--out", str(out)])
     assert res.exit_code == 0 and len(json.loads(out.read_text())) == 2 * N_FITS
     bad = runner.invoke(app, ["catalog", "list", "--runs", str(runs), "--where", "Kxx >> 1"])
     assert bad.exit_code == 2 and "Kxx" in bad.output and "Traceback" not in bad.output
+    bad = runner.invoke(app, ["catalog", "list", "--runs", str(runs), "--where", "lms = piezo or lms = strain"])
+    assert bad.exit_code == 2 and "found 'or'" in bad.output and "Traceback" not in bad.output
     bad = runner.invoke(app, ["catalog", "add", str(runs / "nowhere")])
     assert bad.exit_code == 2
 

@@ -8,7 +8,8 @@ from scipy.stats import chi2
 from typer.testing import CliRunner
 
 from support.campaign import ECCENTRICITIES, campaign_rows, law
-from orbitrig.catalog.compare import repeatability
+from orbitrig.catalog.compare import Variable, repeatability
+from orbitrig.catalog.compare_plot import compare_figure
 from orbitrig.catalog.predicted import PredictedError, read_predicted
 from orbitrig.catalog.store import Catalog
 from orbitrig.cli import app
@@ -82,3 +83,29 @@ def test_compare_writes_png_and_pdf(tmp_path):
     ):
         bad = runner.invoke(app, ["compare", "--runs", str(tmp_path), "--out", str(tmp_path / "x"), *args])
         assert bad.exit_code == 2 and says in bad.output
+
+
+def test_predicted_file_without_the_compared_variable_is_refused(tmp_path):
+    Catalog(f"sqlite:///{tmp_path / 'catalog.sqlite'}").add(campaign_rows())
+    predicted = tmp_path / "p.csv"
+    predicted.write_text("Kxx [N/m]\n3e7\n")
+    with pytest.raises(PredictedError, match=r"p.csv, line 1: no column 'spin_rpm' \(needed for --against spin\)"):
+        read_predicted(predicted, Variable.SPIN)
+    for against, column in (("spin", "spin_rpm"), ("static_eccentricity", "static_eccentricity")):
+        res = CliRunner().invoke(
+            app,
+            ["compare", "--runs", str(tmp_path), "--against", against, "--lms", "piezo", "--model", "kcd11"]
+            + ["--predicted", str(predicted), "--out", str(tmp_path / "fig")],
+        )
+        assert res.exit_code == 2 and str(predicted) in res.output and f"no column {column!r}" in res.output
+    assert not (tmp_path / "fig").exists()
+
+
+def test_a_lone_predicted_value_is_drawn_as_a_marker():
+    predicted = [{"static_eccentricity": 0.2, "Kxx": 3.5e7, "Cxx": float("nan")}]
+    fig = compare_figure(campaign_rows(), Variable.STATIC_ECCENTRICITY, ["Kxx", "Cxx"], title="t", predicted=predicted)
+    kxx, cxx = fig.axes[:2]
+    (line,) = [a for a in kxx.get_lines() if a.get_label() == "predicted"]
+    assert line.get_visible() and line.get_marker() not in (None, "", " ", "None") and line.get_markersize() > 0
+    assert list(line.get_xdata()) == [0.2] and list(line.get_ydata()) == [pytest.approx(35.0)]  # MN/m
+    assert not [a for a in cxx.get_lines() if a.get_label() == "predicted"]  # an empty cell is no prediction
