@@ -1,8 +1,9 @@
 """`orbitrig export RUN`: a stored run's orbit tables and results as CSV, MATLAB, TDMS or HDF5.
 
-Exit status 0 on success, 2 when RUN is not a run directory or the option is bad,
-1 when the export cannot be written (disk full, permissions) or a point asked for
-(every committed point, without --point) was skipped: each skipped point is named.
+Exit status 0 on success, 2 when RUN is not a run directory or an option is bad (also a
+ross --fit that no selected point stores: the fits there are are named), 1 when the export
+cannot be written (disk full, permissions) or a point asked for (every committed point,
+without --point) was skipped, for ross also a point without the fit: each one is named.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from typing import Annotated, Optional
 
 import typer
 
+from orbitrig.errors import OrbitrigError
 
 RunDir = Annotated[Path, typer.Argument(metavar="RUN", help="Run directory written by `orbitrig sweep --out DIR`.")]
 Format = Annotated[
@@ -33,9 +35,15 @@ Points = Annotated[
 Fit = Annotated[
     str,
     typer.Option(
-        "--fit", help="ross: the stored fit exported, LMS:MODEL:FREQ_DEP:METHOD (LMS '' = every load system)."
+        "--fit",
+        help="ross: the stored fit exported, LMS:MODEL:FREQ_DEP:METHOD (LMS '' = every load system); "
+        "a fit no point stores exits 2, a point without it is named and the exit status is 1.",
     ),
 ]
+
+
+class ExportOptionError(OrbitrigError):
+    """A bad option of `orbitrig export` (exit status 2)."""
 
 
 def register(app: typer.Typer) -> None:
@@ -50,59 +58,74 @@ def register(app: typer.Typer) -> None:
         """Export every complete operating point's orbit tables and results.
 
         A point asked for (every committed point, without --point) that is damaged or
-        missing is named on standard error and the exit status is 1."""
+        missing, or (ross) lacks the fit, is named on standard error and the exit status is 1;
+        a --fit that no point stores exits 2, naming the fits there are."""
+        from orbitrig.analysis.ross_export import FitNotStoredError
         from orbitrig.store.errors import StorageError
-        from orbitrig.store.export import FORMATS, export_run
         from orbitrig.store.reader import RunDirError
 
-        if fmt not in (*FORMATS, "ross"):
-            typer.echo(f"error: --format {fmt!r}: one of {', '.join(FORMATS)}, ross", err=True)
-            raise typer.Exit(2)
-        if point and fmt == "h5":
-            typer.echo("error: --point does not apply to --format h5 (run.h5 holds the whole run)", err=True)
-            raise typer.Exit(2)
         try:
-            if fmt == "ross":
-                typer.echo(str(_export_ross(directory, out, fit)))
-                return
-            done = export_run(directory, fmt, out, point)
-        except RunDirError as err:
+            files, selection = _export(directory, fmt, out, point, fit)
+        except (RunDirError, ExportOptionError, FitNotStoredError) as err:
             typer.echo(f"error: {err}", err=True)
             raise typer.Exit(2) from None
         except StorageError as err:
             typer.echo(f"error: {err}", err=True)
             raise typer.Exit(1) from None
-        for path in done.files:
+        for path in files:
             typer.echo(str(path))
-        for line in done.selection.notes:
+        for line in selection.notes:
             typer.echo(line, err=True)
-        for line in done.selection.skipped:
+        for line in selection.skipped:
             typer.echo(f"error: {line}", err=True)
-        if done.selection.skipped:
+        if selection.skipped:
             raise typer.Exit(1)
 
 
-def _export_ross(directory: Path, out: Path | None, fit: str) -> Path:
+def _export(directory: Path, fmt: str, out: Path | None, point: list[int] | None, fit: str):
+    """The files written and the selection (orbitrig.store.selection.Selection)."""
+    from orbitrig.store.export import FORMATS, export_run
+
+    if fmt not in (*FORMATS, "ross"):
+        raise ExportOptionError(f"--format {fmt!r}: one of {', '.join(FORMATS)}, ross")
+    if point and fmt == "h5":
+        raise ExportOptionError("--point does not apply to --format h5 (run.h5 holds the whole run)")
+    if fmt == "ross":
+        done = _export_ross(directory, out, point, fit)
+        return [done.path], done.selection
+    exported = export_run(directory, fmt, out, point)
+    return exported.files, exported.selection
+
+
+def _fit_spec(fit: str):
+    """``--fit LMS:MODEL:FREQ_DEP:METHOD`` (FREQ_DEP may hold ':', e.g. power:1)."""
+    from orbitrig.analysis.ross_export import FitSpec
+    from orbitrig.load_systems import LMS, LoadSystem
+    from reduction.methods import METHODS, Method
+
+    parts = fit.split(":")
+    if len(parts) < 4 or not parts[1] or not parts[-1]:
+        raise ExportOptionError(f"--fit {fit!r}: LMS:MODEL:FREQ_DEP:METHOD, e.g. piezo:kcd11:none:ols")
+    if parts[0] not in ("", *LMS):
+        raise ExportOptionError(f"--fit {fit!r}: LMS is one of {', '.join(LMS)} or '' (every load system)")
+    if parts[-1] not in METHODS:
+        raise ExportOptionError(f"--fit {fit!r}: METHOD is one of {', '.join(METHODS)}")
+    lms = LoadSystem(parts[0]) if parts[0] else None
+    return FitSpec(lms, parts[1], ":".join(parts[2:-1]), Method(parts[-1]))
+
+
+def _export_ross(directory: Path, out: Path | None, point: list[int] | None, fit: str):
     """`--format ross`: RUN/export/ross_bearings.json (orbitrig.analysis.ross_export)."""
     from orbitrig.analysis.ross_export import export_ross
-    from orbitrig.load_systems import LMS, LoadSystem
     from orbitrig.store.errors import storage_error
     from orbitrig.store.export import EXPORT_DIR
     from orbitrig.store.reader import read_run
 
-    parts = fit.split(":")
-    if len(parts) < 4 or not parts[1] or not parts[-1]:
-        typer.echo(f"error: --fit {fit!r}: LMS:MODEL:FREQ_DEP:METHOD, e.g. piezo:kcd11:none:ols", err=True)
-        raise typer.Exit(2)
-    if parts[0] not in ("", *LMS):
-        typer.echo(f"error: --fit {fit!r}: LMS is one of {', '.join(LMS)} or '' (every load system)", err=True)
-        raise typer.Exit(2)
-    lms = LoadSystem(parts[0]) if parts[0] else None
-    model, freq_dep, method = parts[1], ":".join(parts[2:-1]), parts[-1]
+    spec = _fit_spec(fit)
     run = read_run(directory)
     target = out if out is not None else Path(directory) / EXPORT_DIR
     try:
         target.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise storage_error(target, "create the export directory", err) from err
-    return export_ross(run, target, lms=lms, model=model, freq_dep=freq_dep, method=method)
+    return export_ross(run, target, spec, point)

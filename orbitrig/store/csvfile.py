@@ -22,7 +22,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from orbitrig.store.fit_record import expanded_uncertainty
-from orbitrig.store.layout import coefficient_si_unit
+from orbitrig.store.layout import PRESSURE_DISPLAY_UNIT, SETTINGS_UNITS, coefficient_si_unit
+from rigunits import MPA
 
 if TYPE_CHECKING:
     from orbitrig.store.reader import Point
@@ -48,6 +49,26 @@ CSV_HEAD = [
     "error",
     "not_determined",
 ]
+#: the head columns holding text (the others hold numbers)
+TEXT_COLUMNS = ("label", "lms", "model", "freq_dep", "method", "error", "not_determined")
+#: the unit of each numeric head column that does not state it in brackets, as pint parses it
+HEAD_UNITS = {
+    "point": "1",
+    "spin_rpm": SETTINGS_UNITS["spin_rpm"],
+    "recess_pressure_mpa": PRESSURE_DISPLAY_UNIT,
+    **{
+        k: SETTINGS_UNITS[k] for k in ("pressure_ratio", "static_eccentricity", "dynamic_eccentricity", "n_frequencies")
+    },
+    "condition_number": "1",
+}
+
+
+def column_unit(column: str) -> str:
+    """The unit of a coefficients.csv column as pint parses it ('Kxx [N/m]' -> 'N/m',
+    'spin_rpm' -> 'rpm', 'pressure_ratio' -> '1'); "" for a text column."""
+    if column.endswith("]") and " [" in column:
+        return column[column.index(" [") + 2 : -1]
+    return HEAD_UNITS.get(column, "")
 
 
 def coefficient_column(key: str, kind: str = "") -> str:
@@ -100,7 +121,7 @@ def point_rows(point: Point, sim: bool) -> list[CsvRow]:
         "point": point.index,
         "label": st.label,
         "spin_rpm": f"{st.spin_rpm:.6g}",
-        "recess_pressure_mpa": f"{st.recess_pressure / 1e6:.6g}",
+        "recess_pressure_mpa": f"{st.recess_pressure / MPA:.6g}",
         "pressure_ratio": f"{st.pressure_ratio:.6g}",
         "static_eccentricity": f"{st.static_eccentricity:.6g}",
         "dynamic_eccentricity": f"{st.dynamic_eccentricity:.6g}",

@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from orbitrig.store.fit_record import BUDGET_PARTS, FitRecord
-from orbitrig.store.frames import SETTINGS_UNITS
+from orbitrig.store.layout import SETTINGS_UNITS
 from orbitrig.store.orbit_table import orbit_table_columns
 
 if TYPE_CHECKING:
@@ -28,6 +28,8 @@ Column = tuple[npt.NDArray[Any], str]
 #: derived quantities: name -> unit (each also with _std)
 DERIVED_UNITS = {"c_eff_xx": "N s/m", "c_eff_yy": "N s/m", "wfr": "1"}
 ADEQUACY_NUMBERS = ("supported", "p_value", "statistic", "dof", "alpha")
+#: the point's numeric settings every export carries: name -> unit
+SETTINGS = {k: u for k, u in SETTINGS_UNITS.items() if u and k != "n_frequencies"}
 
 
 def provenance(run: Run) -> dict[str, str]:
@@ -48,7 +50,7 @@ def provenance(run: Run) -> dict[str, str]:
 def settings(point: Point) -> dict[str, tuple[float, str]]:
     """The point's numeric settings: name -> (value, unit)."""
     st = point.settings
-    return {k: (float(getattr(st, k)), u) for k, u in SETTINGS_UNITS.items() if u and k != "n_frequencies"}
+    return {k: (float(getattr(st, k)), u) for k, u in SETTINGS.items()}
 
 
 def table_columns(table: OrbitTable) -> dict[str, Column]:

@@ -1,6 +1,9 @@
 """``orbitrig export --format mat``: run.mat (MATLAB 5, scipy.io.savemat; GNU Octave loads it).
 
-``run`` (provenance, channels), ``units`` (a legend), and ``points.pPPPP`` per complete
+``run`` (provenance, channels), ``units`` (the unit of every field of one unit, each a unit
+pint parses: the settings, the load systems' fields such as ``gamma2_xfx`` ... ``gamma2_yfy``,
+truth's, ``theta``), ``unit_rules`` (in words: the fields whose unit differs per entry,
+and the conventions), and ``points.pPPPP`` per complete
 point: the settings with ``settings_units``; per load measuring system the orbit table
 (complex ``x``, ``y``, ``fx``, ``fy``, ``direction``, ...) with ``units``;
 ``identification.<lms>__<model>__<freq_dep>__<method>`` per fit (``names``, ``units``,
@@ -23,24 +26,15 @@ from orbitrig.store import export_content as content
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import StorageError
 from orbitrig.store.fit_record import point_fits
+from orbitrig.store.layout import U_COLUMNS, U_UNITS
 
-UNITS = {
-    "spin": "rad/s",
-    "spin_rpm": "rpm",
-    "recess_pressure": "Pa",
-    "orbit_radius": "m",
-    "orbit": "rad/s",
-    "orbit_hz": "Hz",
-    "x": "m",
-    "y": "m",
-    "fx": "N",
-    "fy": "N",
-    "gamma2": "1",
-    "direction": "1",
-    "coefficients": "per coefficient: identification.*.units",
-    "covariance": "units_i x units_j",
-    "mean": "per channel: run.channel_units",
-    "theta": "rad",
+#: ``units`` beside the load systems' fields: the settings, theta and the phasors' orbit speed
+BASE_UNITS = {**content.SETTINGS, "orbit": "rad/s", "theta": "rad"}
+#: ``unit_rules``: the fields whose unit differs per entry, and the conventions
+UNIT_RULES = {
+    "coefficients": "per coefficient: identification.*.units (also std_errors, U, interval_95, the budget, truth)",
+    "covariance": "entry (i, j) in units(i) x units(j), over covariance_names",
+    "mean": "per channel: run.channel_units (also dc, phasors, uncertainty)",
     "convention": "phasors q = Re(q_bar exp(i theta)); forces on the journal, f_bar = -Z d_bar",
 }
 
@@ -109,14 +103,8 @@ def point_struct(p, channels: list[str], channel_units: list[str]) -> dict:
         cols = content.table_columns(table)
         t = {"orbit": np.asarray(table.orbit, dtype=float), **table.phasors}
         t.update({k: v for k, (v, _) in cols.items() if not k.endswith(("_re", "_im"))})
-        t["units"] = {
-            "orbit": "rad/s",
-            "x": "m",
-            "y": "m",
-            "fx": "N",
-            "fy": "N",
-            **{k: u for k, (_, u) in cols.items() if not k.endswith(("_re", "_im"))},
-        }
+        t["units"] = {"orbit": BASE_UNITS["orbit"], **dict(zip(U_COLUMNS, U_UNITS))}
+        t["units"] |= {k: u for k, (_, u) in cols.items() if not k.endswith(("_re", "_im"))}
         s[str(lms)] = t
     s["identification"] = {field(f.key): _fit_struct(f, i) for f, i in zip(point_fits(p), p.identifications)}
     truth = content.truth_arrays(p.truth)
@@ -133,6 +121,8 @@ def point_struct(p, channels: list[str], channel_units: list[str]) -> dict:
 def export_mat(run, points: list, out: Path) -> list[Path]:
     from scipy.io import savemat
 
+    structs = {f"p{p.name}": point_struct(p, run.channels, run.channel_units) for p in points}
+    tables = [t for pt in structs.values() for t in pt.values() if isinstance(t, dict) and "units" in t]
     data = {
         "run": {
             **content.provenance(run),
@@ -141,8 +131,9 @@ def export_mat(run, points: list, out: Path) -> list[Path]:
             "channels": cell(run.channels),
             "channel_units": cell(run.channel_units),
         },
-        "units": UNITS,
-        "points": {f"p{p.name}": point_struct(p, run.channels, run.channel_units) for p in points},
+        "units": BASE_UNITS | {k: u for t in tables for k, u in t["units"].items()},  # the fields' own units
+        "unit_rules": UNIT_RULES,
+        "points": structs,
     }
     buf = io.BytesIO()
     try:

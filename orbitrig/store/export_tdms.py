@@ -1,14 +1,17 @@
 """``orbitrig export --format tdms``: run.tdms (NI TDMS, LabVIEW; written with npTDMS).
 
-Every channel has ``unit_string``; properties are numbers (with a ``<name>.unit_string``
-property beside each) or text. Groups: ``point PPPP <lms>`` (the orbit table and
-``direction``; the settings as properties), ``coefficients`` (the columns of
-coefficients.csv and ``KEY_U``), ``fit PPPP <key>`` (name, unit, value, std, U, budget,
-e_n per coefficient; k and the adequacy as properties), ``covariance PPPP <key>`` (one
-channel per free coefficient, ``name`` the rows), ``derived PPPP <key>``, ``truth PPPP``
+Every channel has ``unit_string``, one unit pint parses for all its values ("1"
+dimensionless, "" text); properties are numbers (with a ``<name>.unit_string`` property
+beside each) or text. Groups: ``point PPPP <lms>`` (the orbit table and ``direction``; the
+settings as properties), ``coefficients`` (the columns of coefficients.csv and ``KEY_U``),
+``fit PPPP <key>`` (one channel per coefficient in its own unit, its rows named by the text
+channel ``quantity``: value, std, U, the budget's parts, truth; e_n and not_determined as
+channel properties; k and the adequacy as group properties), ``covariance PPPP <key>`` (the
+correlation, one channel per free coefficient, ``name`` the rows, each channel's ``std``
+property in its unit: covariance = r_ij std_i std_j), ``derived PPPP <key>``, ``truth PPPP``
 (K0, C0, D0 row-major, Z_re, Z_im, orbit) and ``waveforms PPPP FF_dir`` (each A/D
-channel's averaged revolution and ``<channel>_theta``; dc, phasor and uncertainty as
-channel properties).
+channel's averaged revolution and ``<channel>_theta``; dc, phasor_re, phasor_im and
+uncertainty as channel properties in the channel's unit).
 """
 
 from __future__ import annotations
@@ -27,6 +30,10 @@ from orbitrig.load_systems import LMS
 
 
 _TEXT = {"unit_string": ""}  # a text channel
+COVARIANCE_LAYOUT = (
+    "correlation r (rows: name; one channel per free coefficient); covariance (i, j) = "
+    "r_ij x std_i x std_j in unit(i) x unit(j), std and its unit_string a property of each channel"
+)
 
 
 def _numeric(props: dict[str, tuple[float, str]]) -> dict:
@@ -51,38 +58,47 @@ def _fit_objects(p, fit) -> list:
     d = content.fit_arrays(fit)
     group = f"fit {p.name} {fit.key}"
     props = {"error": fit.error, "adequacy_verdict": d.get("adequacy_verdict", "")}
-    props |= _numeric(
-        {
-            k: (float(np.ravel(v)[0]) if np.size(v) == 1 else str(list(np.ravel(v))), "1")
-            for k, v in d.items()
-            if k == "k" or (k.startswith("adequacy_") and k != "adequacy_verdict")
-        }
-    )
-    objs = [
-        GroupObject(group, props),
-        ChannelObject(group, "name", np.array(fit.names, dtype=str), _TEXT),
-        ChannelObject(group, "unit", np.array(fit.units, dtype=str), _TEXT),
-    ]
-    per_row = {"value": d["value"], "std": d["std"], "U": d["U"]}
-    per_row |= {part: d[part] for part in (*BUDGET_PARTS, "e_n") if part in d}
-    objs += [
-        ChannelObject(group, k, np.asarray(v, dtype=float), {"unit_string": "1" if k == "e_n" else "see unit"})
-        for k, v in per_row.items()
-    ]
+    for k, v in d.items():
+        if k == "k" or (k.startswith("adequacy_") and k != "adequacy_verdict"):
+            props |= _numeric({k: (float(np.ravel(v)[0]), "1")}) if np.size(v) == 1 else {k: str(list(np.ravel(v)))}
+    rows = [q for q in ("value", "std", "U", *BUDGET_PARTS, "truth") if q in d]
+    objs = [GroupObject(group, props), ChannelObject(group, "quantity", np.array(rows, dtype=str), _TEXT)]
+    for c, (name, unit) in enumerate(zip(fit.names, fit.units)):
+        extra = {k: (float(d[k][c]), "1") for k in ("e_n", "not_determined") if k in d}
+        objs.append(
+            ChannelObject(
+                group,
+                name,
+                np.array([d[q][c] for q in rows], dtype=float),
+                {"unit_string": unit} | _numeric(extra),
+            )
+        )
     if "covariance" in d:
-        cg = f"covariance {p.name} {fit.key}"
-        unit = dict(zip(fit.names, fit.units))
-        objs += [
-            GroupObject(cg, {"description": "covariance; entry (row, column) in unit(row) x unit(column)"}),
-            ChannelObject(cg, "name", np.array(d["covariance_names"], dtype=str), _TEXT),
-        ]
-        objs += [
-            ChannelObject(cg, n, d["covariance"][:, j], {"unit_string": f"({unit[n]}) x unit(row)"})
-            for j, n in enumerate(d["covariance_names"])
-        ]
+        objs += _covariance_objects(f"covariance {p.name} {fit.key}", d, dict(zip(fit.names, fit.units)))
     derived = content.derived_columns(fit)
     if derived:
         objs += [GroupObject(f"derived {p.name} {fit.key}", {})] + _channels(f"derived {p.name} {fit.key}", derived)
+    return objs
+
+
+def _covariance_objects(group: str, d: dict, unit: dict[str, str]) -> list:
+    """The covariance as the correlation r (one channel per free coefficient, unit 1) and each
+    coefficient's standard deviation (the channel's ``std`` property, in its unit):
+    covariance (i, j) = r_ij x std_i x std_j, in unit(i) x unit(j)."""
+    from nptdms import ChannelObject, GroupObject
+
+    names, cov = d["covariance_names"], np.asarray(d["covariance"], dtype=float)
+    std = np.sqrt(np.abs(np.diag(cov)))
+    scale = np.outer(std, std)
+    corr = np.divide(cov, scale, out=np.zeros_like(cov), where=scale > 0)
+    objs = [
+        GroupObject(group, {"description": COVARIANCE_LAYOUT}),
+        ChannelObject(group, "name", np.array(names, dtype=str), _TEXT),
+    ]
+    objs += [
+        ChannelObject(group, n, corr[:, j], {"unit_string": "1"} | _numeric({"std": (float(std[j]), unit[n])}))
+        for j, n in enumerate(names)
+    ]
     return objs
 
 
@@ -119,10 +135,13 @@ def _point_objects(p, channels: list[str], channel_units: list[str]) -> list:
             )
         )
         for c, (name, unit) in enumerate(zip(channels, channel_units)):
-            props = {"unit_string": unit}
-            props |= {k: float(b[k][c]) for k in ("dc", "uncertainty") if k in b}
+            numbers = {k: (float(b[k][c]), unit) for k in ("dc", "uncertainty") if k in b}
             if "phasors" in b:
-                props |= {"phasor_re": float(b["phasors"][c].real), "phasor_im": float(b["phasors"][c].imag)}
+                numbers |= {
+                    "phasor_re": (float(b["phasors"][c].real), unit),
+                    "phasor_im": (float(b["phasors"][c].imag), unit),
+                }
+            props = {"unit_string": unit} | _numeric(numbers)
             objs += [
                 ChannelObject(group, name, b["mean"][c], props),
                 ChannelObject(group, f"{name}_theta", b["theta"][c], {"unit_string": "rad"}),
@@ -137,12 +156,13 @@ def _coefficient_objects(run, points) -> list:
     objs = [GroupObject("coefficients", {"description": "the columns of coefficients.csv"})]
     for col in csvfile.columns(rows):
         cells = [str(r.get(col, "")) for r in rows]
-        unit = col[col.index("[") + 1 : -1] if col.endswith("]") else ""
-        if col in ("label", "lms", "model", "freq_dep", "method", "error", "not_determined"):
+        if col in csvfile.TEXT_COLUMNS:
             values = np.array(cells, dtype=str)
         else:
             values = np.array([float(c) if c else np.nan for c in cells], dtype=np.float64)
-        objs.append(ChannelObject("coefficients", col.split(" [")[0], values, {"unit_string": unit}))
+        objs.append(
+            ChannelObject("coefficients", col.split(" [")[0], values, {"unit_string": csvfile.column_unit(col)})
+        )
     return objs
 
 

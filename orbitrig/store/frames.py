@@ -2,7 +2,10 @@
 
 pandas and xarray are imported only here and only when a view is made (the `api` extra).
 Columns are SI unless the name says otherwise (``spin_rpm``, ``orbit_hz``); each frame's
-``attrs["units"]`` maps every column to a unit pint parses ("1": dimensionless).
+``attrs["units"]`` maps every column of one unit to a unit pint parses ("1": dimensionless,
+"" text). A fit's coefficient table holds a unit per row instead: ``attrs["row_units"]``
+(row -> unit) for the columns in ``attrs["row_unit_columns"]``; its covariance's entry
+(i, j) is in ``attrs["entry_units"][i][j]`` = unit(i) x unit(j).
 """
 
 from __future__ import annotations
@@ -12,20 +15,9 @@ import math
 import numpy as np
 
 from orbitrig.store.fit_record import BUDGET_PARTS, FitRecord
+from orbitrig.store.layout import SETTINGS_UNITS, unit_product
 from orbitrig.store.orbit_table import orbit_table_columns
 
-SETTINGS_UNITS = {
-    "label": "",
-    "complete": "",
-    "spin": "rad/s",
-    "spin_rpm": "rpm",
-    "recess_pressure": "Pa",
-    "pressure_ratio": "1",
-    "static_eccentricity": "1",
-    "dynamic_eccentricity": "1",
-    "orbit_radius": "m",
-    "n_frequencies": "1",
-}
 FIT_KEYS = ("point", "lms", "model", "freq_dep", "method")
 
 
@@ -83,19 +75,30 @@ def _entry(fit: FitRecord, key: str, part: str) -> float:
 
 
 def coefficient_table(fit: FitRecord):
-    """One fit's coefficients (index ``name``): value, std, U, unit, and the budget's parts."""
+    """One fit's coefficients (index ``name``): value, std, U, unit, and the budget's parts.
+    Their unit differs per row: ``attrs["row_units"]`` (name -> unit, the ``unit`` column)
+    applies to every column in ``attrs["row_unit_columns"]``."""
     data = {"name": fit.names, "value": fit.value, "std": fit.std, "U": fit.U, "unit": fit.units}
     data.update({part: fit.budget[part] for part in BUDGET_PARTS if part in fit.budget})
-    return _frame(data, {k: "per row: unit" for k in data if k not in ("name", "unit")}, "name")
+    df = _frame(data, {"unit": ""}, "name")
+    df.attrs["row_units"] = dict(zip(fit.names, fit.units))
+    df.attrs["row_unit_columns"] = [k for k in data if k not in ("name", "unit")]
+    return df
 
 
 def covariance_frame(fit: FitRecord):
-    """The covariance (SI) with the free coefficients' names as index and columns."""
+    """The covariance (SI) with the free coefficients' names as index and columns. Entry
+    (i, j) is in unit(i) x unit(j): ``attrs["entry_units"][i][j]`` (pint parses it);
+    ``attrs["row_units"]`` gives each coefficient's own unit (name -> unit)."""
     import pandas as pd
 
-    if fit.covariance is None:
-        return pd.DataFrame()
-    return pd.DataFrame(fit.covariance, index=fit.covariance_names, columns=fit.covariance_names)
+    names = fit.covariance_names if fit.covariance is not None else []
+    df = pd.DataFrame(fit.covariance, index=names, columns=names) if names else pd.DataFrame()
+    unit = dict(zip(fit.names, fit.units))
+    df.attrs["units"] = {}
+    df.attrs["row_units"] = {n: unit[n] for n in names}  # each coefficient's own unit
+    df.attrs["entry_units"] = {i: {j: unit_product(unit[i], unit[j]) for j in names} for i in names}
+    return df
 
 
 def derived_frame(fit: FitRecord):

@@ -44,6 +44,23 @@ U_UNITS = ("m", "m", "N", "N")
 #: SI unit of each matrix of a coefficient key
 MATRIX_SI = {"K": "N/m", "C": "N s/m", "D": "kg"}
 
+#: unit of each operating-point setting, as pint parses it ("1" dimensionless, "" text)
+SETTINGS_UNITS = {
+    "label": "",
+    "complete": "",
+    "spin": "rad/s",
+    "spin_rpm": "rpm",
+    "recess_pressure": "Pa",
+    "pressure_ratio": "1",
+    "static_eccentricity": "1",
+    "dynamic_eccentricity": "1",
+    "orbit_radius": "m",
+    "n_frequencies": "1",
+}
+#: the unit of the recess pressure where a person reads it (coefficients.csv's recess_pressure_mpa;
+#: rigunits.MPA Pa each)
+PRESSURE_DISPLAY_UNIT = "MPa"
+
 #: units of the attributes of each kind of group (HDF5 attributes cannot carry attributes)
 POINT_ATTR_UNITS = (
     "spin: rad/s; spin_rpm: rpm; recess_pressure: Pa; pressure_ratio: 1; "
@@ -59,6 +76,12 @@ def coefficient_si_unit(key: str) -> str:
     unit = MATRIX_SI[key[0]]
     _, _, order = key.partition("_")
     return unit if not order else f"{unit} (rad/s)^-{order}"
+
+
+def unit_product(a: str, b: str) -> str:
+    """The unit of a product of a quantity in ``a`` and one in ``b``, in the form pint parses:
+    ('N/m', 'N s/m') -> '(N/m) * (N s/m)' (a covariance entry of Kxx and Cxx)."""
+    return f"({a}) * ({b})"
 
 
 def point_name(index: int) -> str:

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import orbitrig
-from orbitrig.store.fit_record import expanded_uncertainty
+from orbitrig.store.fit_record import BUDGET_PARTS, expanded_uncertainty
 
 from support.paths import ROOT
 
@@ -113,6 +113,34 @@ def test_fit_covariance_budget_derived(run, h5):
     assert fit.lms_consistency["pair"] == "piezo - strain"
     with pytest.raises(KeyError, match="piezo__kc8__none__ols"):
         run.fit(0, "piezo", "kc7")
+
+
+def test_coefficient_and_covariance_units_apply_in_pint(run, h5):
+    """A fit's tables hold a unit per row: attrs row_units (coefficients) and entry_units
+    (covariance), each a unit pint parses and the one run.h5 states."""
+    import pint
+
+    ureg = pint.UnitRegistry()
+    g = h5[IDENT]
+    fit = run.fit(0, "piezo", "kcd11")
+    table = fit.coefficients
+    stated = {k: g["coefficients"].attrs[f"units_{k}"] for k in table.index}
+    assert table.attrs["row_units"] == stated == dict(zip(table.index, table["unit"]))
+    assert set(table.attrs["row_unit_columns"]) == {"value", "std", "U", *BUDGET_PARTS}
+    assert all(u == "" for u in table.attrs["units"].values())  # only the text column `unit` has one unit
+    cxx = ureg.Quantity(table.loc["Cxx", "U"], table.attrs["row_units"]["Cxx"]).to("kN*s/m")
+    assert cxx.magnitude == pytest.approx(table.loc["Cxx", "U"] * 1e-3)
+    cov = fit.covariance
+    assert cov.attrs["units"] == {} and list(cov.attrs["row_units"]) == list(cov.index)
+    for i in cov.index:
+        for j in cov.columns:
+            unit = ureg.parse_units(cov.attrs["entry_units"][i][j])
+            assert unit == ureg.parse_units(stated[i]) * ureg.parse_units(stated[j]), (i, j)
+    var = ureg.Quantity(cov.loc["Cxx", "Cxx"], cov.attrs["entry_units"]["Cxx"]["Cxx"])
+    assert np.sqrt(var).to("N*s/m").magnitude == pytest.approx(table.loc["Cxx", "std"], rel=1e-9)
+    for frame in (run.points, run.table(0, "piezo"), run.coefficients, fit.derived):
+        for unit in frame.attrs["units"].values():
+            ureg.parse_units(unit)
 
 
 def test_truth(run, h5):

@@ -26,6 +26,7 @@ from orbitrig.store.reader import read_run
 
 UREG = pint.UnitRegistry()
 FIT = "piezo__kcd11__none__ols"
+UNIT = {"K": "N/m", "C": "N s/m", "D": "kg"}
 
 
 @pytest.fixture(scope="module")
@@ -61,8 +62,29 @@ def exported(sim_run, tmp_path_factory):
 
 def _units_parse(units) -> None:
     for u in units:
-        if u not in ("", "1", "see unit") and not u.startswith("("):
-            UREG.parse_units(u)
+        UREG.parse_units(u)  # every unit string, "1" and "" (text) included
+
+
+def _tdms_units(tdms) -> None:
+    """Every numeric channel's unit_string and every numeric property's <name>.unit_string
+    is a unit pint parses; a text channel's is ""."""
+    for where, props in [("root", tdms.properties)] + [(g.name, g.properties) for g in tdms.groups()]:
+        _tdms_property_units(where, props)
+    for g in tdms.groups():
+        for c in g.channels():
+            unit = c.properties["unit_string"]
+            assert unit != "" or c.data.dtype.kind not in "fiuc", f"{g.name}/{c.name}: a number without a unit"
+            assert unit == "" or c.data.dtype.kind in "fiuc", f"{g.name}/{c.name}: text with a unit"
+            UREG.parse_units(unit)
+            _tdms_property_units(f"{g.name}/{c.name}", c.properties)
+
+
+def _tdms_property_units(where: str, props) -> None:
+    for k, v in props.items():
+        if k == "unit_string" or k.endswith(".unit_string") or isinstance(v, (str, bool, np.bool_)):
+            continue
+        assert f"{k}.unit_string" in props, f"{where}: property {k} has no {k}.unit_string"
+        UREG.parse_units(props[f"{k}.unit_string"])
 
 
 def test_mat(exported, stored):
@@ -84,6 +106,11 @@ def test_mat(exported, stored):
     assert m["run"]["software_version"] == stored["version"]
     _units_parse(point["settings_units"].values())
     _units_parse(point["piezo"]["units"].values())
+    _units_parse(m["units"].values())
+    for lms in ("piezo", "strain"):  # the legend names every field of the load system's struct, as it does
+        fields = set(point[lms]) - {"units"}
+        assert fields == set(point[lms]["units"]) and point[lms]["units"].items() <= m["units"].items()
+    assert {"gamma2_xfx", "gamma2_yfy", "u_fx"} <= set(m["units"]) and "gamma2" not in m["units"]
 
 
 def test_tdms(exported, stored):
@@ -93,12 +120,23 @@ def test_tdms(exported, stored):
     assert table["orbit_hz"].properties["unit_string"] == "Hz"
     np.testing.assert_array_equal(table["direction"][:], np.sign(stored["truth_orbit"]))
     fit = tdms[f"fit 0000 {FIT}"]
-    assert list(fit["name"][:]) == stored["names"]
-    np.testing.assert_array_equal(fit["U"][:], stored["U"])
-    np.testing.assert_array_equal(fit["combined"][:], stored["combined"])
+    rows = list(fit["quantity"][:])
+    assert [c.name for c in fit.channels()][1:] == stored["names"] and rows[:3] == ["value", "std", "U"]
+    for k, name in enumerate(stored["names"]):  # one channel per coefficient, in its own unit
+        channel = fit[name]
+        assert channel.properties["unit_string"] == UNIT[name[0]]
+        assert channel[rows.index("U")] == stored["U"][k] and channel[rows.index("value")] == stored["value"][k]
+        assert channel[rows.index("combined")] == stored["combined"][k]
+        assert channel.properties["e_n.unit_string"] == "1"
+    kxx = UREG.Quantity(fit["Kxx"][0], fit["Kxx"].properties["unit_string"]).to("MN/m")
+    assert kxx.magnitude == pytest.approx(stored["value"][0] * 1e-6)
     cov = tdms[f"covariance 0000 {FIT}"]
     assert list(cov["name"][:]) == stored["cov_names"] and len(cov.channels()) == 12  # name + 11 columns
-    np.testing.assert_array_equal(np.stack([cov[n][:] for n in stored["cov_names"]], axis=1), stored["cov"])
+    corr = np.stack([cov[n][:] for n in stored["cov_names"]], axis=1)
+    std = np.array([cov[n].properties["std"] for n in stored["cov_names"]])
+    np.testing.assert_allclose(corr * np.outer(std, std), stored["cov"], rtol=1e-12)  # r_ij std_i std_j
+    assert np.allclose(np.diag(corr), 1.0) and cov["Cxx"].properties["std.unit_string"] == "N s/m"
+    assert {cov[n].properties["unit_string"] for n in stored["cov_names"]} == {"1"}
     np.testing.assert_array_equal(tdms[f"derived 0000 {FIT}"]["c_eff_xx"][:], stored["c_eff_xx"])
     np.testing.assert_array_equal(tdms["truth 0000"]["K0"][:], stored["K0"].ravel())
     wave = tdms["waveforms 0000 03_bwd"]
@@ -112,7 +150,13 @@ def test_tdms(exported, stored):
         np.isclose(coef["Kxy_U"][:], stored["U"][k], rtol=1e-5).any()
         and coef["Kxy_U"].properties["unit_string"] == "N/m"
     )
-    _units_parse(c.properties["unit_string"] for g in tdms.groups() for c in g.channels())
+    units = {c.name: c.properties["unit_string"] for c in coef.channels()}
+    assert (units["spin_rpm"], units["recess_pressure_mpa"], units["residual_rms"]) == ("rpm", "MPa", "N")
+    assert {units[c] for c in ("pressure_ratio", "static_eccentricity", "n_frequencies", "condition_number")} == {"1"}
+    p = wave["fx_piezo"].properties
+    assert [p[f"{k}.unit_string"] for k in ("dc", "uncertainty", "phasor_re", "phasor_im")] == ["N"] * 4
+    assert p["phasor_re"] + 1j * p["phasor_im"] == stored["phasors"][0]
+    _tdms_units(tdms)
 
 
 def test_csv(exported, stored):
@@ -292,3 +336,30 @@ def test_octave_loads_the_mat_export(exported, stored, tmp_path):
     fx = np.array([[float(v) for v in ln.split()[1:]] for ln in lines if ln.startswith("fx ")])
     np.testing.assert_array_equal(fx[:, 0] + 1j * fx[:, 1], stored["fx"])
     assert f"version {stored['version']}" in lines
+
+
+def test_ross_frequency_is_each_tested_orbit_ratio_once(sim_run, tmp_path):
+    """The rig's two whirl directions of a ratio run at slightly different measured speeds;
+    the ROSS file lists the planned |Omega| of each ratio once, where the sweep evaluated the
+    derived quantities, and the fit's K, C, D there."""
+    from typer.testing import CliRunner
+
+    from orbitrig.cli import app
+
+    res = CliRunner().invoke(app, ["export", str(sim_run), "--format", "ross", "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    (bearing,) = json.loads((tmp_path / "ross_bearings.json").read_text())["bearings"]
+    with h5py.File(sim_run / "run.h5", "r") as f:
+        measured = f["points/0000/table/piezo/orbit"][()]
+        planned_hz = f[f"points/0000/identification/{FIT}/derived/orbit_hz"][()]
+        value = dict(
+            zip(
+                f[f"points/0000/identification/{FIT}/names"].asstr()[()],
+                f[f"points/0000/identification/{FIT}/coefficients"][()],
+            )
+        )
+    assert len(np.unique(measured)) == 2 * len(planned_hz) == 10  # forward and backward differ
+    np.testing.assert_allclose(bearing["frequency"], 2 * np.pi * planned_hz, rtol=1e-12)
+    assert bearing["frequency"] == sorted(bearing["frequency"])
+    np.testing.assert_allclose(bearing["kxy"], value["Kxy"], rtol=1e-9)  # constant fit: the same at each
+    np.testing.assert_allclose(bearing["myx"], value["Dyx"], rtol=1e-9)

@@ -24,7 +24,9 @@ def test_export_gives_the_stored_fit_at_the_tested_frequencies(synthetic_run, tm
     assert [b["point"] for b in doc["bearings"]] == [p.index for p in run.complete_points]
     for bearing, point in zip(doc["bearings"], run.complete_points):
         stored = point.identification("piezo", "kcd11", "none").result["coefficients"]
-        np.testing.assert_allclose(bearing["frequency"], np.unique(np.abs(point.tables["piezo"].orbit)))
+        planned = np.unique([abs(f.orbit) for f in point.frequencies])  # each tested ratio once
+        np.testing.assert_allclose(bearing["frequency"], planned, rtol=1e-12)
+        assert len(bearing["frequency"]) == len(point.frequencies) // 2 == len(bearing["kxx"])
         for ross_key, ours in (("kxy", "Kxy"), ("cyx", "Cyx"), ("mxx", "Dxx"), ("kyy", "Kyy")):
             np.testing.assert_allclose(bearing[ross_key], stored[ours], rtol=1e-9)
     doc = _export(synthetic_run, tmp_path / "p", "--fit", "strain:kcd11:power:1:ols")
@@ -37,6 +39,44 @@ def test_export_gives_the_stored_fit_at_the_tested_frequencies(synthetic_run, tm
     assert bad.exit_code == 2 and "LMS:MODEL:FREQ_DEP:METHOD" in bad.output
     typo = CliRunner().invoke(app, ["export", str(synthetic_run), "--format", "ross", "--fit", "piezzo:kcd11:none:ols"])
     assert typo.exit_code == 2 and "LMS is one of piezo, strain" in typo.output  # not an empty bearings file
+
+
+def _invoke(run_dir, out, *args):
+    return CliRunner().invoke(app, ["export", str(run_dir), "--format", "ross", "--out", str(out), *args])
+
+
+def test_a_fit_no_point_stores_exits_2_naming_the_fits_there_are(synthetic_run, tmp_path):
+    for fit in ("piezo:nosuchmodel:none:ols", "piezo:kcd11:none:wls"):  # a model, a method not stored
+        res = _invoke(synthetic_run, tmp_path / "x", "--fit", fit)
+        assert res.exit_code == 2, res.output
+        assert f"--fit {fit}: not stored in {synthetic_run}" in res.stderr
+        assert "piezo:kcd11:none:ols" in res.stderr and "strain:kcd11:power:1:ols" in res.stderr
+        assert not (tmp_path / "x" / "ross_bearings.json").exists()  # no empty bearings file
+    res = _invoke(synthetic_run, tmp_path / "x", "--fit", "piezo:kcd11:none:xyz")
+    assert res.exit_code == 2 and "METHOD is one of ols, wls, tls, iv" in res.stderr, res.output
+    res = _invoke(synthetic_run, tmp_path / "y", "--fit", "strain:kcd12:poly:8:ols")  # refused at every point
+    assert res.exit_code == 2 and "no point gives it" in res.stderr and "refused" in res.stderr, res.output
+
+
+def test_points_without_the_fit_are_skipped_and_named(synthetic_run, tmp_path, monkeypatch):
+    """A point that lacks the fit (here: point 1 stores no piezo kcd11) is named on standard
+    error and the exit status is 1, as export names a skipped point; the others are exported."""
+    import orbitrig.store.reader as reader
+
+    run = read_run(synthetic_run)
+    point = run.points[1]
+    point.identifications = [i for i in point.identifications if (i.lms, i.model) != ("piezo", "kcd11")]
+    monkeypatch.setattr(reader, "read_run", lambda directory: run)
+    res = _invoke(synthetic_run, tmp_path, "--fit", "piezo:kcd11:none:ols")
+    assert res.exit_code == 1, res.output
+    assert "error: point 0001 skipped: fit piezo:kcd11:none:ols not stored" in res.stderr
+    assert "point 0002 not included: never completed" in res.stderr  # the stopped run's last point: a note
+    doc = json.loads((tmp_path / "ross_bearings.json").read_text())
+    assert [b["point"] for b in doc["bearings"]] == [0]
+    res = _invoke(synthetic_run, tmp_path / "one", "--point", "0")  # only the point asked for
+    assert res.exit_code == 0 and "skipped" not in res.stderr, res.output
+    doc = json.loads((tmp_path / "one" / "ross_bearings.json").read_text())
+    assert [b["point"] for b in doc["bearings"]] == [0]
 
 
 def test_measured_bearings_in_a_ross_rotor_give_finite_log_decrements(synthetic_run, tmp_path):

@@ -18,6 +18,8 @@ from orbitrig.store.reader import read_run
 from orbitrig.store.orbit_table import read_orbit_table
 from orbitrig.store.status import RunStatus
 
+from support.paths import ROOT
+
 
 def _s(values) -> list[str]:
     """Strings of an HDF5 string dataset or attribute (bytes or str, as h5py returns them)."""
@@ -96,6 +98,23 @@ def test_points_kept_as_csv_text_render_the_same_file(synthetic):
     assert (
         csvfile.render_points([csvfile.PointCsv.of(p) for p in rows]) == (synthetic / "coefficients.csv").read_bytes()
     )
+
+
+def test_storage_md_states_the_columns_of_coefficients_csv(synthetic):
+    """docs/storage.md's column list is the file's head; it names every kind of coefficient
+    column the file has and says the true_* columns are each fit's own truth."""
+    text = (ROOT / "docs" / "storage.md").read_text(encoding="utf-8")
+    section = " ".join(text.split("## coefficients.csv")[1].split("\n## ")[0].split())
+    listed = re.search(r"Columns: `([^`]*)`", section).group(1).split(", ")
+    with open(synthetic / "coefficients.csv", newline="", encoding="utf-8") as fh:
+        header = next(csv.reader(fh))
+    assert header[: len(listed)] == listed
+    kinds = {"": "`KEY [unit]`", "_std": "`KEY_std [unit]`", "_U": "`KEY_U [unit]`", "true_": "`true_KEY [unit]`"}
+    for column in header[len(listed) :]:
+        m = UNIT_COLUMN.fullmatch(column)
+        assert m, column
+        assert kinds[m.group(1) or m.group(3) or ""] in section, column
+    assert "each fit's own truth" in section and "`not_determined`" in section  # not truth/fits/constant
 
 
 def _export(run, fmt, out):
