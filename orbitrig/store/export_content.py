@@ -33,7 +33,8 @@ SETTINGS = {k: u for k, u in SETTINGS_UNITS.items() if u and k != "n_frequencies
 
 
 def provenance(run: Run) -> dict[str, str]:
-    """Text describing where the data came from."""
+    """Text describing where the data came from: the software, the run's status and
+    configuration, and who ran it where with which calibration record (its SHA-256), when."""
     return {
         "software_version": run.software_version,
         "created": run.created,
@@ -44,6 +45,7 @@ def provenance(run: Run) -> dict[str, str]:
         "rig_config": run.rig_config,
         "matrix_config": run.matrix_config,
         "sim_scenario_name": run.sim_scenario_name,
+        **run.provenance,
     }
 
 
