@@ -82,21 +82,24 @@ def reduce_run(
     freq_dep: str = "none",
     method: str = "ols",
     lms_names: tuple[LoadSystem, ...] = LMS,
+    points: list[Point] | None = None,
 ) -> list[Reduced]:
-    """Identify every complete point of ``run`` for each LMS that has a table.
+    """Identify every complete point of ``run`` (or those of ``points``, e.g. a
+    orbitrig.store.selection.Selection's) for each LMS that has a table.
 
     A model a table cannot identify is kept as that row's ``error``. Raises
     ReductionError for an unknown model / spec / method, and when the run holds
     no complete point.
     """
-    points = [p for p in run.complete_points if any(lms in p.tables for lms in lms_names)]
-    if not points:
+    chosen = run.complete_points if points is None else points
+    with_table = [p for p in chosen if any(lms in p.tables for lms in lms_names)]
+    if not with_table:
         raise ReductionError(
             f"{run.directory}: no complete operating point with an orbit table (run status: {run.status})"
         )
     return [
         identify_point(point, lms, model, freq_dep, method)
-        for point in points
+        for point in with_table
         for lms in lms_names
         if lms in point.tables
     ]

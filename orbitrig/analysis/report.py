@@ -370,19 +370,19 @@ def make_report(
     """Write ``DIR/plots/*.png`` (and .pdf, .svg when asked for), ``report.pdf`` and
     ``index.html``; return what was written.
 
-    ``points`` restricts the plots to those operating point indices (all
-    complete points by default); ``options`` picks the figure kinds, the style and whether
-    Figure 4 is drawn for every orbit frequency or the lowest and highest of each direction.
-    Figures of a kind not drawn are removed from DIR/plots (a page never shows a stale one).
-    The points asked for and not complete are named in `skipped` (orbitrig.store.selection).
-    ``workers`` processes draw the points; ``progress(done, total, figures)`` is called as each
-    point finishes; ``run``: DIR as the caller read it already (``read_run``). Raises RunDirError
-    when DIR is not a run, StorageError when DIR/plots cannot be written."""
+    ``points``: only these point indices (default: every complete one); ``options``: figure
+    kinds, style, Figure 4 at every orbit frequency or the extremes of each direction. Figures
+    of a kind not drawn are removed. Points asked for and not complete are named in `skipped`
+    (orbitrig.store.selection); when none can be drawn nothing is touched (``html`` None).
+    ``workers`` processes draw the points; ``progress(done, total, figures)`` as each finishes;
+    ``run``: DIR as already read. Raises RunDirError (not a run), StorageError (not writable)."""
     from orbitrig.analysis.report_html import write_html
 
     run = read_run(directory) if run is None else run
     selection = select_points(run, points)
     out = Path(directory) / PLOTS_DIR
+    if selection.skipped and not selection.points:  # e.g. a mistyped --point: the page stays as it is
+        return Report(run, out, [], skipped=selection.skipped, notes=selection.notes)
     try:
         out.mkdir(exist_ok=True)
     except OSError as err:

@@ -8,14 +8,29 @@ from __future__ import annotations
 import io
 from pathlib import Path
 
+import matplotlib
 import numpy as np
 
-from orbitrig.analysis.plots import _colors, panel_figure
+from orbitrig.analysis.plots import _colors, _figure, style
 from orbitrig.catalog.compare import Row, Variable, repeatability, runs_of
 from orbitrig.store.durable import write_atomic
 
 #: plotted unit of each family: (scale from SI, label)
 SCALE = {"K": (1e-6, "MN/m"), "C": (1e-3, "kN s/m"), "D": (1.0, "kg")}
+#: height of one row of panels with its titles and labels, and the figure's top and bottom edge (in)
+PANEL_HEIGHT, EDGE = 1.9, 0.06
+
+
+def compare_title(rows: list[Row], lms: str, model: str, freq_dep: str, method: str, where: str = "") -> str:
+    """The figure's title: the fit kind, how many rows from how many runs, the filter, and a
+    second line when the K, C, D shown are the constant terms of a frequency-dependent fit."""
+    n_rows, n_runs = len(rows), len(runs_of(rows))
+    return (
+        f"{lms} {model} freq_dep {freq_dep} {method}: {n_rows} row{'s' * (n_rows != 1)} "
+        f"from {n_runs} run{'s' * (n_runs != 1)}"
+        + (f" ({where})" if where.strip() else "")
+        + ("\nconstant terms (\u03a9\u2070) of a frequency-dependent fit" if freq_dep != "none" else "")
+    )
 
 
 def compare_figure(
@@ -26,13 +41,12 @@ def compare_figure(
     title: str,
     predicted: list[dict[str, float]] | None = None,
 ):
-    """The figure (matplotlib Figure on Agg); rows of one fit kind."""
+    """The figure (matplotlib Figure on Agg); rows of one fit kind. Text in the report style's
+    size (orbitrig.analysis.plots.style) at its width, panels placed by `_lay_out`."""
     ncol = min(4, len(coefficients))
     nrow = -(-len(coefficients) // ncol)
-    extra = 0.2 * title.count("\n")  # in: room for each further title line
-    fig = panel_figure(
-        3.3 * ncol + 0.6, 2.6 * nrow + 2.0 + extra, top=0.75 + extra, bottom=1.0, hspace=0.55, wspace=0.38
-    )
+    font = style().font
+    fig = _figure(style().width, PANEL_HEIGHT * nrow, layout=None)  # legend and title added by _lay_out
     runs = runs_of(rows)
     colors = _colors(len(runs))
     xs = np.array([variable.of(r) for r in rows])
@@ -51,14 +65,58 @@ def compare_figure(
                 x, y, u = np.array(sorted(pts)).T
                 ax.errorbar(x, y, yerr=u, fmt="o-", ms=4, lw=0.8, capsize=3, color=color, label=run_id)
         _draw_predicted(ax, predicted or [], variable, name, scale)
-        ax.set_title(f"{name} [{unit}]\n{repeatability(rows, name).text()}", fontsize=8.5)
-        ax.set_xlabel(variable.label, fontsize=8)
-        ax.tick_params(labelsize=7.5)
+        ax.set_title(f"{name} [{unit}]\n{repeatability(rows, name).text()}", fontsize=font)
+        ax.set_xlabel(variable.label, fontsize=font)
+        ax.tick_params(labelsize=0.85 * font)
         ax.grid(alpha=0.3)
-    fig.suptitle(title, fontsize=10)
-    handles, labels = fig.axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncol=min(4, max(1, len(labels))), fontsize=8, frameon=False)
+    _lay_out(fig, title, font)
     return fig
+
+
+def _lay_out(fig, title: str, font: float) -> None:
+    """The runs' legend at the bottom and `title` at the top, the figure made taller by their
+    heights, and the panels between them placed from their measured text (tight_layout, again
+    with the tick labels of the new size): no panel's title reaches the tick labels or x label
+    of the panel above. tight_layout ignores the titles' width: `_title_overrun` widens the
+    edges and the gaps between columns until every title is clear of the next and inside."""
+    handles, labels = fig.axes[0].get_legend_handles_labels()
+    legend = fig.legend(
+        handles, labels, loc="lower center", ncol=min(4, max(1, len(labels))), fontsize=0.85 * font, frameon=False
+    )
+    head = fig.suptitle(title, fontsize=1.2 * font, va="top", in_layout=False)  # the rect below leaves its room
+    renderer = fig.canvas.get_renderer()
+    extra = legend.get_window_extent(renderer).height + head.get_window_extent(renderer).height
+    fig.set_figheight(fig.get_figheight() + extra / fig.dpi + 2 * EDGE)
+    head.set_y(1 - EDGE / fig.get_figheight())
+    renderer = fig.canvas.get_renderer()  # of the new size
+    low = legend.get_window_extent(renderer).y1 / fig.bbox.height
+    high = head.get_window_extent(renderer).y0 / fig.bbox.height
+    left, right, w_pad = 0.0, 1.0, 0.6
+    fig.tight_layout(rect=(left, low, right, high), pad=0.3, h_pad=0.6, w_pad=w_pad)  # then the new tick labels
+    for _ in range(4):
+        fig.tight_layout(rect=(left, low, right, high), pad=0.3, h_pad=0.6, w_pad=w_pad)
+        left_edge, right_edge, between = _title_overrun(fig, EDGE * fig.dpi)
+        if max(left_edge, right_edge, between) < 0.5:  # display units: points at dpi 72
+            return
+        ncol = fig.axes[0].get_subplotspec().get_gridspec().ncols
+        # 1.25: the panels narrow as the edges come in, and their titles overhang more
+        left, right = left + 1.25 * left_edge / fig.bbox.width, right - 1.25 * right_edge / fig.bbox.width
+        w_pad += 1.25 * ncol * between / fig.dpi * 72 / matplotlib.rcParams["font.size"]  # tight_layout's unit
+
+
+def _title_overrun(fig, pad: float) -> tuple[float, float, float]:
+    """How far (display units) a panel title runs past the figure's left edge, its right edge,
+    and into the next title of its row, each less `pad`; 0 where it does not."""
+    renderer = fig.canvas.get_renderer()
+    spans = {}
+    for ax in fig.axes:
+        spec = ax.get_subplotspec()
+        spans[spec.rowspan.start, spec.colspan.start] = ax.title.get_window_extent(renderer)
+    last = max(col for _, col in spans)
+    left = max(pad - b.x0 for (_, col), b in spans.items() if col == 0)
+    right = max(b.x1 + pad - fig.bbox.width for (_, col), b in spans.items() if col == last)
+    between = [b.x1 + pad - spans[row, col + 1].x0 for (row, col), b in spans.items() if (row, col + 1) in spans]
+    return max(left, 0.0), max(right, 0.0), max([*between, 0.0])
 
 
 def _draw_predicted(ax, predicted: list[dict[str, float]], variable: Variable, name: str, scale: float) -> None:

@@ -40,7 +40,7 @@ def compare_cmd(
 ) -> None:
     """Plot coefficients with U bars across catalog rows against one operating variable."""
     from orbitrig.catalog.compare import Variable
-    from orbitrig.catalog.compare_plot import compare_figure, write_figure
+    from orbitrig.catalog.compare_plot import compare_figure, compare_title, write_figure
     from orbitrig.catalog.errors import CatalogUsageError
     from orbitrig.catalog.predicted import read_predicted
     from orbitrig.catalog.rows import COEFFICIENTS
@@ -58,12 +58,7 @@ def compare_cmd(
             raise CatalogUsageError(
                 f"no catalog rows for {lms} {model} {freq_dep} {method}" + (f" where {where}" if where.strip() else "")
             )
-        n_runs = len({r["run_id"] for r in rows})
-        title = (
-            f"{lms} {model} freq_dep {freq_dep} {method}: {len(rows)} rows from {n_runs} run{'s' * (n_runs > 1)}"
-            + (f" ({where})" if where.strip() else "")
-            + ("\nconstant terms (\u03a9\u2070) of a frequency-dependent fit" if freq_dep != "none" else "")
-        )
+        title = compare_title(rows, lms, model, freq_dep, method, where)
         fig = compare_figure(rows, Variable(against), names, title=title, predicted=table)
         for path in write_figure(fig, out):
             typer.echo(str(path))

@@ -3,7 +3,8 @@
 Exit status 0 on success, 2 for a missing or invalid DIR, a bad option, or a
 model that no stored table can identify (the reason on standard error, as
 `orbitrig identify`); 1 when the files cannot be written (read-only or full disk:
-one line naming the file) or, for `report`, a point asked for was skipped (each named).
+one line naming the file) or a point was skipped (damaged or, for `report --point`, not
+complete: each named on standard error, the others reduced or drawn and written).
 """
 
 from __future__ import annotations
@@ -62,18 +63,26 @@ def reduce_cmd(
 
     Every complete point, both load measuring systems. Writes
     DIR/reduce_<model>_<freq-dep>_<method>.csv (the columns of coefficients.csv);
-    the run's own results are left untouched.
+    the run's own results are left untouched. A damaged point is named on standard
+    error and the exit status is 1, the others reduced and written (as export, report).
     """
     from orbitrig.errors import ReductionError
     from orbitrig import open_run
     from orbitrig.analysis.reduce import csv_path, reduce_run, write_csv
     from orbitrig.store.errors import StorageError
     from orbitrig.store.reader import RunDirError
+    from orbitrig.store.selection import select_points
 
     try:
         run = open_run(directory).run
-        rows = reduce_run(run, model, freq_dep, method)
-    except (RunDirError, ReductionError) as err:
+    except RunDirError as err:
+        _fail(str(err))
+    selection = select_points(run)  # as export and report: a damaged point is named, exit 1
+    try:
+        rows = reduce_run(run, model, freq_dep, method, points=selection.points)
+    except ReductionError as err:  # a bad option (2), or no point to reduce: 1 when one was skipped
+        if not selection.points and _name_skipped(selection):
+            _fail(str(err), 1)
         _fail(str(err))
     refused = [r for r in rows if r.identification is None]
     by_reason: dict[str, list[str]] = {}
@@ -82,12 +91,25 @@ def reduce_cmd(
     for reason, where in by_reason.items():
         typer.echo(f"{model} {freq_dep} refused at point {', '.join(where)}: {reason}", err=True)
     if len(refused) == len(rows):
+        _name_skipped(selection)
         _fail(f"{model} {freq_dep} ({method}) cannot be identified from any stored table of {directory}")
     try:
         path = write_csv(csv_path(directory, model, freq_dep, method), rows, run.sim)
     except StorageError as err:
         _fail(str(err), 1)
     _print_reduce(directory, run, rows, path, OutputFormat.JSON if as_json else fmt, f"{model} {freq_dep} ({method})")
+    if _name_skipped(selection):
+        raise typer.Exit(1)
+
+
+def _name_skipped(selection) -> bool:
+    """The selection's notes and skipped points (orbitrig.store.selection) on standard error,
+    as `export` and `report` name them; True when a point was skipped."""
+    for line in selection.notes:
+        typer.echo(line, err=True)
+    for line in selection.skipped:
+        typer.echo(f"error: {line}", err=True)
+    return bool(selection.skipped)
 
 
 def _print_reduce(directory: Path, run, rows, path: Path, fmt: OutputFormat, what: str) -> None:
@@ -225,10 +247,13 @@ def _summary(directory: Path, report) -> None:
             typer.echo(f"warning: point {pr.point.name}: {m}", err=True)
         for line in pr.fit_warnings():
             typer.echo(f"point {pr.point.name} {line}", err=True)
-    typer.echo(f"{len(report.plots)} plot(s) in {report.directory}")
-    if report.pdf:
-        typer.echo(f"all figures in one file: {report.pdf}")
-    typer.echo(f"open {report.html}")
+    if report.html is None:  # no point asked for could be drawn: an earlier report is left as it was
+        typer.echo(f"nothing drawn: {report.directory} left as it was")
+    else:
+        typer.echo(f"{len(report.plots)} plot(s) in {report.directory}")
+        if report.pdf:
+            typer.echo(f"all figures in one file: {report.pdf}")
+        typer.echo(f"open {report.html}")
     for line in report.notes:
         typer.echo(line, err=True)
     for line in report.skipped:

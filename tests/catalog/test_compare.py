@@ -9,8 +9,9 @@ from typer.testing import CliRunner
 
 from support.campaign import ECCENTRICITIES, campaign_rows, law
 from orbitrig.catalog.compare import Variable, repeatability
-from orbitrig.catalog.compare_plot import compare_figure
+from orbitrig.catalog.compare_plot import compare_figure, compare_title
 from orbitrig.catalog.predicted import PredictedError, read_predicted
+from orbitrig.catalog.rows import COEFFICIENTS
 from orbitrig.catalog.store import Catalog
 from orbitrig.cli import app
 
@@ -109,3 +110,54 @@ def test_a_lone_predicted_value_is_drawn_as_a_marker():
     assert line.get_visible() and line.get_marker() not in (None, "", " ", "None") and line.get_markersize() > 0
     assert list(line.get_xdata()) == [0.2] and list(line.get_ydata()) == [pytest.approx(35.0)]  # MN/m
     assert not [a for a in cxx.get_lines() if a.get_label() == "predicted"]  # an empty cell is no prediction
+
+
+def test_title_counts_rows_and_runs_in_the_singular_and_plural():
+    one = compare_title(campaign_rows(n_runs=1)[:1], "piezo", "kcd11", "none", "ols")
+    assert one == "piezo kcd11 freq_dep none ols: 1 row from 1 run"
+    many = compare_title(campaign_rows(), "piezo", "kcd11", "power:1", "ols", "spin_rpm = 1000")
+    assert many.startswith("piezo kcd11 freq_dep power:1 ols: 15 rows from 3 runs (spin_rpm = 1000)\nconstant terms")
+
+
+def _overlaps(fig) -> list[str]:
+    """Every clash of a panel title with the tick labels or x label of the panel above or beside
+    it, with their titles or the figure title; of the legend with a panel; of a panel with the
+    figure's edge. Measured on the figure's renderer after drawing."""
+    fig.draw_without_rendering()
+    renderer = fig.canvas.get_renderer()
+    place = {(ax.get_subplotspec().rowspan.start, ax.get_subplotspec().colspan.start): ax for ax in fig.axes}
+    head, legend = fig._suptitle.get_window_extent(renderer), fig.legends[0].get_window_extent(renderer)
+    found = []
+    for (row, col), ax in place.items():
+        title, panel = ax.title.get_window_extent(renderer), ax.get_tightbbox(renderer)
+        for where in ((row - 1, col), (row, col - 1), (row, col + 1)):  # above, left, right
+            other = place.get(where)
+            if other is None:
+                continue
+            text = [other.xaxis, other.yaxis, other.title]  # tick labels and axis labels, title
+            if any(title.overlaps(t.get_tightbbox(renderer)) for t in text):
+                found.append(f"title of panel {row},{col} on panel {where}")
+        if title.overlaps(head):
+            found.append(f"title of panel {row},{col} on the figure title")
+        if legend.overlaps(panel):
+            found.append(f"legend on panel {row},{col}")
+        if panel.x0 < 0 or panel.y0 < 0 or panel.x1 > fig.bbox.width or panel.y1 > fig.bbox.height:
+            found.append(f"panel {row},{col} past the figure's edge")
+    return found
+
+
+@pytest.mark.parametrize(
+    "n_runs, scatter, names, title",
+    [
+        (3, 1.0, COEFFICIENTS[:8], "piezo kcd11 freq_dep none ols: 15 rows from 3 runs"),  # the default 2 x 4
+        (9, 1.0, COEFFICIENTS, "piezo kcd11 freq_dep power:1 ols: 45 rows\nconstant terms"),  # 3 x 4, 3 legend rows
+        (3, 60.0, COEFFICIENTS, "t"),  # wide panel titles: 'chi2 = 5.37e+04 / 10, p = 0'
+        (1, 1.0, COEFFICIENTS[:3], "one row of panels"),
+    ],
+)
+def test_panel_titles_clear_the_panels_above_and_beside(n_runs, scatter, names, title):
+    """Measured on the figure's renderer: a title of the second row stood on the x labels of the
+    first, and titles ran into each other and into the figure title."""
+    rows = campaign_rows(n_runs=n_runs, rng=np.random.default_rng(3), scatter=scatter)
+    fig = compare_figure(rows, Variable.STATIC_ECCENTRICITY, list(names), title=title)
+    assert _overlaps(fig) == []

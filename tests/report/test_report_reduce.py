@@ -11,7 +11,7 @@ import h5py
 
 import numpy as np
 import pytest
-from support.report_synthetic import C_TRUE, K_TRUE
+from support.report_synthetic import C_TRUE, K_TRUE, write_synthetic_run
 from typer.testing import CliRunner
 
 from orbitrig.cli import app
@@ -141,6 +141,26 @@ def test_cli_reduce_partial_refusal_keeps_the_other_points(synthetic_run, tmp_pa
         ("1", "piezo", True, False),
         ("1", "strain", True, False),
     ]
+
+
+def test_cli_reduce_names_a_damaged_point_and_reduces_the_others(tmp_path):
+    """As `export` and `report`: a point whose piece is damaged is named, exit 1, the rest written."""
+    run = write_synthetic_run(tmp_path / "run", n_points=3, incomplete=0)
+    piece = run / "points" / "0001" / "02_fwd.h5"
+    with piece.open("r+b") as fh:
+        fh.truncate(100)
+    result = CliRunner().invoke(app, ["reduce", str(run), "--model", "kc8"])
+    assert result.exit_code == 1, result.output
+    assert "error: point 0001 skipped: 02_fwd.h5 is damaged" in result.stderr
+    assert "2 complete point(s)" in result.stdout and "written:" in result.stdout
+    rows = list(csv.DictReader(csv_path(run, "kc8", "none", "ols").open()))
+    assert sorted({r["point"] for r in rows}) == ["0", "2"]
+    bad = CliRunner().invoke(app, ["reduce", str(run), "--model", "kcd99"])
+    assert bad.exit_code == 2 and "kcd99" in bad.stderr  # a bad option stays a usage error
+    ok = write_synthetic_run(tmp_path / "ok", n_points=1)
+    undamaged = CliRunner().invoke(app, ["reduce", str(ok), "--model", "kc8"])
+    assert undamaged.exit_code == 0 and "point 0001 not included: never completed" in undamaged.stderr
+    assert "error:" not in undamaged.stderr
 
 
 def test_cli_reduce_power_auto_shows_the_chosen_exponent(synthetic_run):
