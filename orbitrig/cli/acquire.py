@@ -8,6 +8,8 @@ from typing import Annotated, Optional
 
 import typer
 
+from orbitrig.cli.config_help import RIG_CONFIG_HELP
+
 FIRST_WAIT_S = 10.0  # automatic timeout: wait this long for the orbit's first good revolution
 _HINT_TURNING = (
     "is the orbit turning? start it with `orbitrig drives run --spin RPM --orbit RPM --hold` "
@@ -208,9 +210,7 @@ Rig = Annotated[
     typer.Option(
         "--rig",
         "--config",
-        help="Rig config (default: config/rig.toml "
-        "of the orbitrig source tree): URL, scan and calibration to "
-        "engineering units (SI).",
+        help=f"{RIG_CONFIG_HELP}: URL, scan and calibration to engineering units (SI)",
     ),
 ]
 Counts = Annotated[bool, typer.Option("--counts", help="Raw counts (gain 1, offset 0), not calibrated.")]

@@ -21,10 +21,11 @@ from typing import Optional
 
 import typer
 
+from orbitrig.cli.config_help import RIG_CONFIG_HELP
 from orbitrig.cli.signals import run_until_signal
 
 DEFAULT_SPEEDUP = 40.0  # as orbitrig.cli.simulated_rig.DEFAULT_SPEEDUP
-_CONFIG = typer.Option(None, "--config", help="rig configuration TOML (default: config/rig.toml of the source tree)")
+_CONFIG = typer.Option(None, "--config", help=RIG_CONFIG_HELP)
 _OPERATOR = typer.Option(None, "--operator", help="who calibrates (default: the login name)")
 _RECESS = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0, help="recess pressure during the slow roll (MPa)")
 _RATIO = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99, help="pressure ratio during the slow roll")
@@ -183,14 +184,15 @@ def _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_rati
 
 
 def _guarded(fn) -> None:
-    """Run a sub-command: exit 2 on a configuration error, 1 on a failed step, 3 on Ctrl-C,
-    SIGTERM or SIGHUP (both drives stopped first)."""
+    """Run a sub-command: exit 2 on a configuration error or a speed beyond the drive limits
+    (nothing sent), 1 on a failed step, 3 on Ctrl-C, SIGTERM or SIGHUP (both drives stopped first)."""
+    from orbitrig.cli.calibrate_steps import CalibrationOptionError
     from orbitrig.cli.signals import Interrupted
     from orbitrig.errors import ConfigError, OrbitrigError
 
     try:
         fn()
-    except ConfigError as err:
+    except (ConfigError, CalibrationOptionError) as err:
         typer.echo(f"error: {err}", err=True)
         raise typer.Exit(2) from None
     except OrbitrigError as err:
@@ -278,10 +280,11 @@ def _reference(opts, reference_id, reference_u_pct, simulated: str):
 
 
 def _loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> None:
-    from orbitrig.cli.calibrate_steps import loads_record
+    from orbitrig.cli.calibrate_steps import check_rolls, loads_record
 
     ref = _reference(opts, reference_id, reference_u_pct, "simulator: loads applied exactly")
     rig, folder = _rig_and_folder(config)
+    check_rolls(rig, [opts.roll()], "--spin-rpm")
     record = run_until_signal(lambda: loads_record(rig, opts, load_n, ref, _say))
     for lms, g in record.loads.items():
         typer.echo(
@@ -299,9 +302,10 @@ def _loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> Non
 
 
 def _runout(config, opts, activate) -> None:
-    from orbitrig.cli.calibrate_steps import runout_record
+    from orbitrig.cli.calibrate_steps import check_rolls, runout_record
 
     rig, folder = _rig_and_folder(config)
+    check_rolls(rig, [opts.roll()], "--spin-rpm")
     record = run_until_signal(lambda: runout_record(rig, opts, _say))
     for p in ("x_a", "y_a", "x_b", "y_b"):
         h1, h2 = abs(record.runout.phasors(p)) * 1e6
@@ -310,9 +314,10 @@ def _runout(config, opts, activate) -> None:
 
 
 def _delay(config, opts, speeds, amplitudes, activate) -> None:
-    from orbitrig.cli.calibrate_steps import delay_record
+    from orbitrig.cli.calibrate_steps import check_rolls, delay_record, delay_rolls
 
     rig, folder = _rig_and_folder(config)
+    check_rolls(rig, delay_rolls(opts, speeds), "--speeds-rpm")
     record = run_until_signal(lambda: delay_record(rig, opts, speeds, amplitudes, _say))
     for name, d in record.delay.items():
         typer.echo(
@@ -332,10 +337,11 @@ def _delay(config, opts, speeds, amplitudes, activate) -> None:
 def _probes(config, opts, span_um, steps, reference_id, reference_u_pct, activate) -> None:
     import numpy as np
 
-    from orbitrig.cli.calibrate_steps import probes_record
+    from orbitrig.cli.calibrate_steps import check_rolls, probes_record
 
     ref = _reference(opts, reference_id, reference_u_pct, "simulator: steps applied exactly")
     rig, folder = _rig_and_folder(config)
+    check_rolls(rig, [opts.roll()], "--spin-rpm")
     grid = np.linspace(-span_um / 2, span_um / 2, steps) * 1e-6
     record = run_until_signal(lambda: probes_record(rig, opts, grid, ref, _say))
     for p, g in record.probes.items():

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
+from drives.errors import DriveLimitError
 from orbitrig import __version__
 from orbitrig.config import LMS, MPA, RPM, CalibrationUncertainty, RigConfig
 from orbitrig.config import (
@@ -28,6 +29,7 @@ from orbitrig.config import (
     RecordStep,
     Runout,
 )
+from orbitrig.errors import OrbitrigError
 from orbitrig.run.calibration import (
     PROBES,
     CalibrationSession,
@@ -37,6 +39,7 @@ from orbitrig.run.calibration import (
     measure_probes,
     measure_runout,
 )
+from orbitrig.run.drive_setup import drive_limits
 from orbitrig.run.rig_io import RigAccess
 from rigunits import now_iso
 from reduction.calibration import fit_delay, fit_gain_matrix, fit_probe, static_loads
@@ -62,6 +65,35 @@ class StepOptions:
 
     def roll(self) -> SlowRoll:
         return SlowRoll(self.spin_rpm * RPM, self.recess_pressure_mpa * MPA, self.pressure_ratio, self.revolutions)
+
+
+class CalibrationOptionError(OrbitrigError):
+    """An option of a calibration step the rig refuses before anything is sent (exit status 2)."""
+
+
+def delay_rolls(opts: StepOptions, speeds_rpm: list[float]) -> list[SlowRoll]:
+    """The slow rolls of `calibrate delay`: the orbit spindle at each speed, the spin at 1/DELAY_RATIO times it."""
+    base = opts.roll()
+    return [
+        SlowRoll(rpm * RPM / DELAY_RATIO, base.recess_pressure, base.pressure_ratio, base.revolutions, DELAY_RATIO)
+        for rpm in speeds_rpm
+    ]
+
+
+def check_rolls(rig: RigConfig, rolls: list[SlowRoll], option: str) -> None:
+    """Every slow roll of a step within the rig's drive limits, checked before anything is sent
+    by the drives' own check (as `orbitrig drives run`); CalibrationOptionError naming the
+    option, the speeds and the limit."""
+    d = rig.drives
+    limits = drive_limits(d)
+    for roll in rolls:
+        try:
+            limits.check(roll.spin, roll.orbit, spin_id=d.spin_id, orbit_id=d.orbit_id)
+        except DriveLimitError as err:
+            raise CalibrationOptionError(
+                f"{option}: slow roll at spin {roll.spin / RPM:.0f} rpm, orbit {roll.orbit / RPM:.0f} rpm: "
+                f"{err} (the rig's [drives] in {rig.file}); nothing sent"
+            ) from None
 
 
 async def _confirmed(prompt: str) -> None:
@@ -200,11 +232,7 @@ async def delay_record(
 ) -> CalibrationRecord:
     """`calibrate delay`: the phase reference read at each slow-roll speed; each force channel's lag
     behind the probes fitted as a constant phase plus a time delay."""
-    base = opts.roll()
-    rolls = [
-        SlowRoll(rpm * RPM / DELAY_RATIO, base.recess_pressure, base.pressure_ratio, base.revolutions, DELAY_RATIO)
-        for rpm in speeds_rpm
-    ]
+    rolls = delay_rolls(opts, speeds_rpm)
     async with rig_access(rig, opts) as (access, hands):
         async with CalibrationSession(rig, access, note) as session:
             freqs, lags = await measure_delay(session, hands, rolls, amplitudes)

@@ -7,6 +7,8 @@ from typing import Annotated, Optional
 
 import typer
 
+from orbitrig.cli.config_help import RIG_CONFIG_HELP
+
 from orbitrig.load_systems import LoadSystem
 
 Model = Annotated[str, typer.Option("--model", help="kc7 | kc8 | kcd11 | kcd12")]
@@ -39,7 +41,11 @@ Radius = Annotated[
     typer.Option("--radius", help="Orbit radius, um (default: the matrix's smallest, else 0.1 x clearance)."),
 ]
 Revolutions = Annotated[
-    Optional[int], typer.Option("--revolutions", help="Revolutions averaged per block (default: rig.toml [averaging]).")
+    Optional[int],
+    typer.Option(
+        "--revolutions",
+        help="Revolutions averaged per block (default: averaging.revolutions of the rig configuration).",
+    ),
 ]
 Target = Annotated[
     Optional[float],
@@ -72,5 +78,5 @@ Save = Annotated[
         help='Write the proposal to config/designs/NAME.toml (a matrix uses it with [orbit] design = "NAME").',
     ),
 ]
-RigPath = Annotated[Optional[Path], typer.Option("--config", help="Rig configuration (default config/rig.toml).")]
+RigPath = Annotated[Optional[Path], typer.Option("--config", help=RIG_CONFIG_HELP)]
 AsJson = Annotated[bool, typer.Option("--json", help="Print one JSON object.")]

@@ -7,6 +7,8 @@ from typing import Annotated, Optional
 
 import typer
 
+from orbitrig.cli.config_help import RIG_CONFIG_HELP
+
 Modbus = Annotated[
     Optional[str],
     typer.Option(
@@ -17,7 +19,7 @@ Modbus = Annotated[
 ]
 Config = Annotated[
     Optional[Path],
-    typer.Option("--config", help="Rig configuration TOML (default: config/rig.toml of the orbitrig source tree)."),
+    typer.Option("--config", help=RIG_CONFIG_HELP),
 ]
 SpinId = Annotated[
     Optional[int], typer.Option(help="Device id of the spin drive (default: drives.spin_id of the rig configuration).")

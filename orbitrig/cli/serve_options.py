@@ -12,6 +12,7 @@ from typing import Annotated, NoReturn, Optional
 
 import typer
 
+from orbitrig.cli.config_help import RIG_CONFIG_HELP
 from orbitrig.cli.service_log import DEFAULT_BACKUPS, DEFAULT_MAX_MB
 from orbitrig.cli.sweep_options import DrawFigures as DrawFigures  # as sweep's: one option, one help
 
@@ -28,7 +29,7 @@ _ABORT_PASSWORD_HELP = f"file holding the abort account's password (else ${ABORT
 
 BrokerOpt = Annotated[str, typer.Option("--broker", help="mqtt://host:port or mqtts://host:port")]
 SimOpt = Annotated[bool, typer.Option("--sim", help="run against the built-in simulator")]
-ConfigOpt = Annotated[Optional[Path], typer.Option("--config", help="rig configuration (TOML)")]
+ConfigOpt = Annotated[Optional[Path], typer.Option("--config", help=RIG_CONFIG_HELP)]
 RigIdOpt = Annotated[str, typer.Option("--rig-id", help="topic prefix orbitrig/<rig-id>")]
 PrefixOpt = Annotated[
     Optional[str], typer.Option("--prefix", help="topic prefix instead of orbitrig/<rig-id> (levels without wildcards)")

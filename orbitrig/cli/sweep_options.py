@@ -7,6 +7,8 @@ from typing import Annotated, Optional
 
 import typer
 
+from orbitrig.cli.config_help import RIG_CONFIG_HELP
+
 from orbitrig.cli.plain_table import OutputFormat
 
 RunDir = Annotated[Optional[Path], typer.Argument(help="the run directory, as --out (`--resume DIR`)")]
@@ -16,7 +18,7 @@ Config = Annotated[
     Optional[Path],
     typer.Option(
         "--config",
-        help="rig configuration TOML (default: rig.toml of $ORBITRIG_HOME, of the current directory, or shipped; see `orbitrig init`)",
+        help=RIG_CONFIG_HELP,
     ),
 ]
 Matrix = Annotated[

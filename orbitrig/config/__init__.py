@@ -2,7 +2,8 @@
 
 Files use the units an operator reads (rpm, MPa, mm, um, s, percent); every
 model exposes SI properties (rad/s, Pa, m) for the code inside. Every number
-must be finite and within its range. A bad file raises
+must be a TOML number (a count an integer, a switch true or false: nothing is
+converted from text), finite and within its range. A bad file raises
 :class:`orbitrig.errors.ConfigError` with one message per problem, naming the
 file, the line, the key path and what is allowed; so does a file that is not
 UTF-8 text.
@@ -170,24 +171,44 @@ def load_rig(path: Path | str | None = None) -> RigConfig:
 
 def rig_from_text(text: str, file: str = "<rig config>", record_text: str | None = None) -> RigConfig:
     """The rig configuration with its active calibration record: ``record_text`` (a run's stored
-    copy) or the file named by ``calibration_record`` in the records' folder beside ``file``
-    (the shipped defaults' calibration/ when that folder does not hold it). The record's
+    copy) or the file named by ``calibration_record`` in ``record_folder(file)``. The record's
     ``[uncertainty]`` replaces ``[calibration_uncertainty]``."""
     rig = _build(RigConfig, _parse(text, file), file, text)
     name = rig.calibration_record
     if name is None:
         return rig
     if record_text is None:
-        beside = folder_of(file) if Path(file).is_file() else None
-        folder = (
-            beside if beside is not None and (beside / f"{name}.toml").is_file() else shipped_config() / "calibration"
-        )
-        record, record_text = read_record(folder, name)
+        record, record_text = _active_record(file, text, name)
     else:
         record = record_from_text(record_text, f"{file}: calibration record {name}")
     out = rig.model_copy(update={"calibration_uncertainty": record.uncertainty})
     out._file, out._text, out._record, out._record_text = file, text, record, record_text
     return out
+
+
+def record_folder(file: str) -> Path:
+    """The calibration records' folder of the rig configuration ``file``: calibration/ beside it,
+    or the shipped defaults' when there is no such folder (a rig.toml copied elsewhere alone, or
+    text that is not from a file)."""
+    beside = folder_of(file) if Path(file).is_file() else None
+    return beside if beside is not None and beside.is_dir() else shipped_config() / "calibration"
+
+
+def _active_record(file: str, text: str, name: str) -> tuple[CalibrationRecord, str]:
+    """(record, its text) of the active record ``name``; a missing one is a ConfigError naming the
+    rig configuration, the line of ``calibration_record`` and the records of the folder searched."""
+    folder = record_folder(file)
+    if not (folder / f"{name}.toml").is_file():
+        at = _line_of(text, ("calibration_record",))
+        known = ", ".join(list_names(folder)) or "none"
+        raise ConfigError(
+            file,
+            [
+                f"{f'line {at}: ' if at else ''}key 'calibration_record': no calibration record {name!r} "
+                f"in {folder} (records there: {known})"
+            ],
+        )
+    return read_record(folder, name)
 
 
 def load_matrix(path: Path | str | None = None) -> MatrixConfig:

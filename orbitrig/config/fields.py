@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, Strict
 
 from orbitrig.load_systems import LMS  # noqa: F401 - the configuration's names
 from rigunits import MPA, RPM  # noqa: F401 - the configuration's names
@@ -17,8 +17,14 @@ FREQ_DEP = re.compile(r"^(none|power:auto|power:[1-9]\d*|power:[1-9]\d*,[1-9]\d*
 
 
 class _Model(BaseModel):
-    # every float finite: inf/nan in any file are refused with the file, line and key
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    # every float finite: inf/nan in any file are refused with the file, line and key; strict:
+    # a number, a whole number or a boolean must be one in the file ("0.1", "1", "yes", 50.0 for
+    # a count are refused, not converted; an integer is a number: 1000 for 1000.0)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, strict=True)
+
+
+#: an Enum field of a strict model read from its value, as the file writes it (``Annotated[Whirl, BY_VALUE]``)
+BY_VALUE = Strict(False)
 
 
 Pos = Annotated[float, Field(gt=0)]

@@ -8,7 +8,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
-from orbitrig.config.fields import FREQ_DEP, MODELS, Mpa, Ratio, Rpm, Wait, _Model
+from orbitrig.config.fields import BY_VALUE, FREQ_DEP, MODELS, Mpa, Ratio, Rpm, Wait, _Model
 from orbitrig.config.sequential import SequentialDesign
 from reduction.methods import Method
 from reduction.whirl import Whirl
@@ -32,6 +32,16 @@ class Operating(_Model):
     static_eccentricity: Annotated[list[Annotated[float, Field(ge=0, lt=1)]], Field(min_length=1)]
     dynamic_eccentricity: Annotated[list[Annotated[float, Field(gt=0, lt=1)]], Field(min_length=1)]
 
+    @field_validator("*")
+    @classmethod
+    def _no_repeats(cls, values: list[float], info: ValidationInfo) -> list[float]:
+        """A value twice in a list would run its operating points twice (as [orbit] 'ratios')."""
+        repeated = sorted({v for v in values if values.count(v) > 1})
+        if repeated:
+            twice = ", ".join(f"{v:g}" for v in repeated)
+            raise ValueError(f"'{info.field_name}' has repeated values ({twice}): give each value once")
+        return values
+
 
 #: revolutions averaged per block (a fixed count, or an adaptive rule's bounds)
 Revolutions = Annotated[int, Field(ge=2, le=10_000)]
@@ -53,7 +63,7 @@ class Orbit(_Model):
     ratio_start: Ratio | None = None
     ratio_stop: Ratio | None = None
     count: Annotated[int, Field(ge=MIN_RATIOS, le=100)] | None = None
-    directions: Annotated[list[Whirl], Field(min_length=1)] = [Whirl.FORWARD, Whirl.BACKWARD]
+    directions: Annotated[list[Annotated[Whirl, BY_VALUE]], Field(min_length=1)] = [Whirl.FORWARD, Whirl.BACKWARD]
     revolutions: list[Revolutions] | None = None
     target_pct: list[TargetPct] | None = None
     #: after the list above, blocks chosen one by one within the matrix's [sequential] bounds
@@ -123,7 +133,7 @@ class Orbit(_Model):
 class ModelSpec(_Model):
     model: Literal[MODELS]  # type: ignore[valid-type]
     freq_dep: str = "none"
-    method: Method = Method.OLS
+    method: Annotated[Method, BY_VALUE] = Method.OLS
 
     @field_validator("freq_dep")
     @classmethod
@@ -178,7 +188,7 @@ class MatrixConfig(_Model):
     #: the order of the operating points: "fastest" (the plan orders them to spend the least
     #: changeover time, orbitrig.run.point_order) or "written" (the product of [operating], in
     #: key order, the last varying fastest)
-    order: PointOrder = PointOrder.FASTEST
+    order: Annotated[PointOrder, BY_VALUE] = PointOrder.FASTEST
     #: the bounds of a sequential point (orbitrig.config.sequential); with [orbit] sequential = true
     sequential: SequentialDesign | None = Field(None, validate_default=True)  # checked when absent too
 

@@ -23,7 +23,7 @@ import numpy as np
 from pydantic import Field, field_validator
 
 from orbitrig.config.calibration import CalibrationUncertainty, Percent
-from orbitrig.config.fields import _Model
+from orbitrig.config.fields import BY_VALUE, _Model
 from orbitrig.config.toml_out import render
 from orbitrig.errors import ConfigError
 from orbitrig.load_systems import LoadSystem
@@ -116,11 +116,11 @@ class CalibrationRecord(_Model):
     date: str  # ISO 8601, UTC
     operator: str = Field(min_length=1)
     rig: str = ""
-    step: RecordStep
+    step: Annotated[RecordStep, BY_VALUE]
     previous: str = ""  # the record this one started from
     software: str = ""
     reference: Reference | None = None
-    loads: dict[LoadSystem, LoadGains] = {}
+    loads: dict[Annotated[LoadSystem, BY_VALUE], LoadGains] = {}
     runout: Runout | None = None
     delay: dict[Literal["fx_piezo", "fy_piezo", "fx_strain", "fy_strain"], ChannelDelay] = {}
     probes: dict[Literal["x_a", "y_a", "x_b", "y_b"], ProbeGain] = {}

@@ -97,7 +97,7 @@ def test_sweep_help_keeps_its_defaults_visible():
     p = _run("sweep", "--help")
     assert p.returncode == 0
     flat = " ".join(p.stdout.replace("│", " ").split())
-    assert "rig.toml of $ORBITRIG_HOME" in flat and "matrices/demo.toml" in flat
+    assert "rig.toml in $ORBITRIG_HOME" in flat and "matrices/demo.toml" in flat
 
 
 def test_closed_stdin_at_a_confirmation_stops_the_run_instead_of_hanging(tmp_path):

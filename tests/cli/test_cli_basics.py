@@ -103,3 +103,42 @@ def test_dry_run_into_a_closed_pipe_is_quiet():
     assert p.returncode == 0, p.stderr
     assert p.stdout.startswith("matrix paper: 108 operating points")
     assert p.stderr == ""
+
+
+def _help_words(*command: str) -> str:
+    """The help of ``command`` as one line of words (the table's borders and wrapping removed)."""
+    p = orbitrig(*command, "--help")
+    assert p.returncode == 0, p.stderr
+    return " ".join(p.stdout.replace("│", " ").split())
+
+
+@pytest.mark.parametrize(
+    "command",
+    ["calibrate list", "calibrate show", "calibrate delay", "drives run", "drives stop", "acquire", "sweep", "design"],
+)
+def test_the_rig_configuration_option_says_where_the_default_is_found(command):
+    """One help for every command's --config (acquire's --rig): the lookup of README "Where
+    commands find the configuration", not the source tree."""
+    from orbitrig.cli.config_help import RIG_CONFIG_HELP
+
+    assert "$ORBITRIG_HOME" in RIG_CONFIG_HELP and "current directory" in RIG_CONFIG_HELP
+    words = _help_words(*command.split())
+    assert RIG_CONFIG_HELP in words and "source tree" not in words
+
+
+def test_design_help_names_the_default_revolutions_in_full():
+    words = _help_words("design")
+    assert "(default: averaging.revolutions of the rig configuration)" in words and "rig.toml )" not in words
+
+
+def test_the_paper_matrix_comment_counts_what_kcd11_power_2_fits():
+    """config/matrices/paper.toml says kcd11 power:2 is fitted with 18 coefficients, as the
+    identification does (K_2 carried by D), not that it is refused."""
+    from reduction.models import model_spec
+    from support.paths import ROOT
+
+    comment = " ".join(
+        line.lstrip("# ") for line in (ROOT / "config/matrices/paper.toml").read_text().splitlines() if line[:1] == "#"
+    )
+    assert len(model_spec("kcd11", "power:2").terms) == 18 and "14 and 18 with second order" in comment
+    assert "kcd11 with power:2 is fitted without K_2" in comment and "refused" not in comment

@@ -120,3 +120,35 @@ def test_calibrate_list_and_show_print_the_history(tmp_path):
     assert p.returncode == 0 and f"# sha256 {digest(text)}" in p.stdout and p.stdout.endswith(text)
     p = _orbitrig("calibrate", "show", "2020-01-01T000000Z-none", "--config", str(rig_file))
     assert p.returncode == 2 and "no calibration record" in p.stderr and "Traceback" not in p.stderr
+
+
+def test_a_record_missing_from_a_lab_copy_names_the_lab_file_line_key_and_its_records(tmp_path):
+    """The lab's rig.toml names a record its calibration/ lacks: the refusal (exit 2) names that
+    rig.toml, the line of calibration_record and the lab folder's records, not the shipped ones."""
+    assert _orbitrig("init", str(tmp_path / "lab")).returncode == 0
+    shutil.copytree(tmp_path / "lab", tmp_path / "lab2")
+    rig_file = tmp_path / "lab2" / "rig.toml"
+    own, _ = write_record(tmp_path / "lab2" / "calibration", _loads_record(load_rig(rig_file)))
+    text = rig_file.read_text()
+    rig_file.write_text(text.replace(load_rig(rig_file).calibration_record, "2026-12-01T214254Z-probe"))
+    line = next(n for n, t in enumerate(text.splitlines(), 1) if t.startswith("calibration_record"))
+    for args in (
+        ("sweep", "--sim", "--dry-run", "--out", str(tmp_path / "run")),
+        ("calibrate", "show"),
+        ("calibrate", "list"),
+    ):
+        p = _orbitrig(*args, "--config", str(rig_file))
+        assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+        assert f"{rig_file}: line {line}: key 'calibration_record': no calibration record" in p.stderr
+        assert f"in {tmp_path / 'lab2' / 'calibration'} (records there: " in p.stderr and own in p.stderr
+        assert str(ROOT / "config") not in p.stderr  # not the shipped folder
+
+
+def test_a_rig_configuration_without_a_records_folder_takes_the_shipped_record(tmp_path):
+    shutil.copy(ROOT / "config/rig.toml", tmp_path / "rig.toml")  # alone: the shipped record
+    assert load_rig(tmp_path / "rig.toml").record == load_rig().record
+    (tmp_path / "calibration").mkdir()  # a records' folder of its own: searched alone
+    with pytest.raises(ConfigError) as err:
+        load_rig(tmp_path / "rig.toml")
+    assert err.value.file == str(tmp_path / "rig.toml")
+    assert "key 'calibration_record'" in str(err.value) and "(records there: none)" in str(err.value)
