@@ -75,7 +75,8 @@ Save = Annotated[
     Optional[str],
     typer.Option(
         "--save",
-        help='Write the proposal to config/designs/NAME.toml (a matrix uses it with [orbit] design = "NAME").',
+        help="Write the proposal to designs/NAME.toml beside the rig configuration (a matrix uses it with "
+        '[orbit] design = "NAME").',
     ),
 ]
 RigPath = Annotated[Optional[Path], typer.Option("--config", help=RIG_CONFIG_HELP)]
