@@ -35,9 +35,10 @@ def _ratio_list(text: str) -> list[float]:
 
 
 def _candidate(
-    ratios: Optional[str], matrix: Optional[str], rig
+    ratios: Optional[str], matrix: Optional[str], rig, rig_path: Path | None = None
 ) -> tuple[list[float], Directions, float | None, str, list]:
-    """(ratios, directions, orbit radius m or None, where from, the matrix's (model, freq_dep) pairs)."""
+    """(ratios, directions, orbit radius m or None, where from, the matrix's (model, freq_dep) pairs);
+    a matrix by name from the matrices/ beside ``rig_path`` (as `sweep --config`), else shipped."""
     from orbitrig import config as cfg
 
     if ratios and matrix:
@@ -45,7 +46,7 @@ def _candidate(
     if ratios:
         return _ratio_list(ratios), Directions.BOTH, None, "--ratios", []
     if matrix:
-        mat = cfg.load_matrix(cfg.matrix_file(matrix))
+        mat = cfg.load_matrix(cfg.matrix_file(matrix, rig_path=rig_path))
         radius = min(mat.operating.dynamic_eccentricity) * rig.bearing.clearance
         return (
             list(mat.orbit.ratio_list),
@@ -104,7 +105,7 @@ def register(app: typer.Typer) -> None:
 
         try:
             rig = cfg.load_rig(rig_path)
-            cand, directions, mat_radius, source, mat_models = _candidate(ratios, matrix, rig)
+            cand, directions, mat_radius, source, mat_models = _candidate(ratios, matrix, rig, rig_path)
             tested = [(model, freq_dep)] + mat_models if keep_test else None
             noise, run = _noise(noise_from, lms, force_noise, probe_noise)
             request = DesignRequest(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 import tomllib
@@ -215,3 +216,16 @@ def test_noise_and_prior_from_a_simulated_run(tmp_path):
     assert "kc8 leaves out terms of kcd12" in kc8["warnings"][0] or "terms kc8 leaves out" in kc8["warnings"][0]
     p = design("--model", "kcd11", "--spin", "1000", "--noise-from", str(tmp_path), check=False)
     assert p.returncode == 2 and "Traceback" not in p.stderr
+
+
+def test_a_matrix_by_name_comes_from_the_labs_folder(tmp_path):
+    """`design --config LAB/rig.toml --matrix NAME` reads LAB/matrices/NAME.toml, as the sweep does."""
+    subprocess.run([sys.executable, "-m", "orbitrig", "init", str(tmp_path / "lab")], check=True, capture_output=True)
+    text = (ROOT / "config/matrices/demo.toml").read_text().replace('name = "demo"', 'name = "mine"')
+    text = re.sub(r"ratios = \[[^\]]*\]", "ratios = [0.25, 0.55, 1.35]", text)
+    (tmp_path / "lab/matrices/mine.toml").write_text(text)
+    p = design(
+        "--model", "kc8", "--spin", "1000", "--config", str(tmp_path / "lab/rig.toml"), "--matrix", "mine", "--json"
+    )
+    candidate = json.loads(p.stdout)["candidate"]
+    assert candidate["source"] == "matrix mine" and candidate["ratios"] == [0.25, 0.55, 1.35]
