@@ -48,6 +48,8 @@ PAGE_COMMANDS = {
     "status": (),
 }
 NOT_AUTHORISED = "refused: not authorised"
+#: a run has ended in these states: its progress and live view are forgotten
+ENDED = (proto.RunState.IDLE, proto.RunState.FAULTED)
 TREND_RESEND = 300  # the run's trend view (thinned by the server) goes to the pages again every this many samples
 
 
@@ -107,6 +109,7 @@ class Session:
     def _forget_rig(self) -> None:
         """Drop what the session knows of the rig it watched."""
         self.status = self.progress = self.live = None
+        self.live_at = 0.0  # time.monotonic() when the live payload came
         self.results: collections.deque[dict] = collections.deque(maxlen=500)
         self.trend = TrendHistory(self.settings.trend_period, self.settings.trend_recent_s)
         self.trend_samples = 0
@@ -244,6 +247,7 @@ class Session:
         if rig_id is not None and self.rigs.on_status(rig_id, data):
             self._broadcast({"type": FeedType.RIGS, "data": self.rigs.listing()})
         if topic == t.status:
+            self._forget_run_view(data)
             self.status = data
             self._broadcast({"type": FeedType.STATUS, "data": data})
             if self.alarms.on_status(data):
@@ -256,7 +260,7 @@ class Session:
             self.progress = data
             self._broadcast({"type": FeedType.PROGRESS, "data": data})
         elif topic == t.live:
-            self.live = data
+            self.live, self.live_at = data, time.monotonic()
             self._broadcast({"type": FeedType.LIVE, "data": data})
             self._trend(data)
         elif topic == t.result:
@@ -264,6 +268,12 @@ class Session:
             self._broadcast({"type": FeedType.RESULT, "data": data})
         elif topic == t.reply:
             self._resolve(data)
+
+    def _forget_run_view(self, status: dict) -> None:
+        """The progress and live payloads go when the run ends or another run's status comes."""
+        run_id, old = status.get("run_id"), self.status
+        if status.get("state") in ENDED or (old is not None and old.get("run_id") != run_id):
+            self.progress = self.live = None
 
     def _resolve(self, data: dict) -> None:
         """A reply (or this session's own acknowledgement back from the broker) for a waiting call."""
@@ -300,13 +310,13 @@ class Session:
         out.append({"type": FeedType.TREND_HISTORY, "data": self.trend.history()})
         out.append({"type": FeedType.ALARMS, "data": self.alarms.listing()})
         if self.live is not None:
-            out.append({"type": FeedType.LIVE, "data": self.live})
+            out.append({"type": FeedType.LIVE, "data": self.live, "age_s": time.monotonic() - self.live_at})
         return out
 
     # -- commands ----------------------------------------------------------------
 
     async def command(self, request: dict) -> dict:
-        """Publish one command as this user; the service's reply, or a refusal."""
+        """Publish one command as this user; the service's reply, or a refusal (without the name)."""
         name = request.get("cmd")
         if name not in PAGE_COMMANDS:
             return {"ok": False, "error": f"unknown command {name!r}"}
@@ -314,7 +324,7 @@ class Session:
         for field in PAGE_COMMANDS[name]:
             value = request.get(field)
             if not isinstance(value, str) or not value:
-                return {"ok": False, "error": f"{name}: field {field!r} is missing"}
+                return {"ok": False, "error": f"field {field!r} is missing"}
             body[field] = value
         client = self._client
         if client is None:
@@ -335,7 +345,7 @@ class Session:
         except (TimeoutError, asyncio.TimeoutError):
             return {"ok": False, "error": self._no_reply(name)}
         except Exception as err:  # noqa: BLE001 - aiomqtt errors: the link went away
-            return {"ok": False, "error": f"{name} not sent: {err}"}
+            return {"ok": False, "error": f"not sent: {err}"}
         finally:
             self._pending.pop(cid, None)
         log.info(
@@ -379,10 +389,11 @@ class Session:
         return {"ok": True, "error": None}
 
     def _no_reply(self, name: str) -> str:
+        """Why a command got no reply (the page puts the command's name in front)."""
         if self.status is not None and self.status.get("state") == proto.OFFLINE:
-            return f"{name}: no reply: the rig service is offline"
+            return "no reply: the rig service is offline"
         log.info("%s by %r: no reply within %.1f s (ACL)", name, self.user, self.settings.reply_timeout)
         return (
-            f"{NOT_AUTHORISED}: {name} — user {self.user!r} may not command this rig "
+            f"{NOT_AUTHORISED} — user {self.user!r} may not command this rig "
             "(the broker dropped the command; no reply from the rig service)"
         )

@@ -88,7 +88,15 @@ class RunControl:
             self._note("pause requested (honoured at the next safe point)")
         self.wake.set()
 
+    @property
+    def pause_pending(self) -> bool:
+        """A pause asked for and not yet reached (the run is still running or waiting)."""
+        return self.pause_requested and self.state in (RUNNING, WAITING)
+
     def request_resume(self) -> None:
+        """Resume a paused run, or withdraw a pause not yet reached (the run then goes on)."""
+        if self.pause_pending:
+            self._note("pause withdrawn (it had not been reached)")
         self.pause_requested = False
         self.wake.set()
 

@@ -81,8 +81,10 @@ class OperatingPoint:
         return (self.orbit_radius, self.static_eccentricity, self.recess_pressure, self.pressure_ratio)
 
     def settings(self) -> dict[str, float | str]:
-        """Settings at the edges' units (for CSV, MQTT results, reports)."""
+        """Settings at the edges' units (for CSV, MQTT results, reports). ``index`` is the point's
+        0-based index (the run files' PPPP); ``point`` the same number, kept for older readers."""
         return {
+            "index": self.index,
             "point": self.index,
             "label": self.label,
             "spin_rpm": round(self.spin_rpm, 6),

@@ -35,6 +35,11 @@ class OperatorRequests:
         self._control.request_pause()
         self._command(RunCommand.PAUSE, by)
 
+    @property
+    def pause_pending(self) -> bool:
+        """A pause requested and not yet reached at a safe point (a resume withdraws it)."""
+        return self._control.pause_pending
+
     def request_resume(self, by: str | None = None) -> None:
         self._control.request_resume()
         self._command(RunCommand.RESUME, by)

@@ -129,7 +129,11 @@ class CommandHandling:
         self._control("pause", lambda e: e.request_pause(by=cmd.by), allowed=(RunState.RUNNING, RunState.WAITING))
 
     def _cmd_resume(self, cmd: proto.Command) -> None:
-        self._control("resume", lambda e: e.request_resume(by=cmd.by), allowed=(RunState.PAUSED,))
+        """Resume a paused run, or withdraw a pause requested and not yet reached (while
+        running or waiting): accepted, the state stays, the run does not pause."""
+        pending = self._engine is not None and self._engine.pause_pending
+        allowed = (RunState.PAUSED, RunState.RUNNING, RunState.WAITING) if pending else (RunState.PAUSED,)
+        self._control("resume", lambda e: e.request_resume(by=cmd.by), allowed=allowed)
 
     def _cmd_confirm(self, cmd: proto.Command) -> None:
         self._control("confirm", lambda e: e.confirm(cmd.step, by=cmd.by), allowed=None)

@@ -16,6 +16,7 @@ class Engine(Protocol):
     state: RunState
     run_id: str | None
     waiting_step: str | None
+    pause_pending: bool  # a pause requested, not yet reached at a safe point
 
     async def run(self, matrix: Any, *, resume: bool = False) -> RunOutcome: ...
     def subscribe(self, callback: Callable[[Any], None]) -> None: ...

@@ -138,6 +138,7 @@ def test_results_show_values_u_and_units_as_they_arrive(broker, dashboard, brows
     rows_before = len(page.d.find_elements("css selector", "#results tr"))
     result = {
         "run_id": "r-test",
+        "index": 7,  # 0-based (file point 0007): the page counts it from 1, as the progress
         "point": 7,
         "label": "w1000rpm",
         "identification": [
@@ -162,9 +163,9 @@ def test_results_show_values_u_and_units_as_they_arrive(broker, dashboard, brows
     rows = page.d.execute_script(
         "return [...document.querySelectorAll('#results tr')].slice(-3).map(r => [...r.children].map(c => c.innerText))"
     )
-    assert rows[0] == ["7 w1000rpm", "piezo", "kc8", "Kxx", "1.500e+7", "2.000e+5", "N/m"]
+    assert rows[0] == ["8 w1000rpm", "piezo", "kc8", "Kxx", "1.500e+7", "2.000e+5", "N/m"]
     assert rows[1] == ["", "", "", "Cxx", "2.000e+4", "200.0", "N s/m"]
-    assert rows[2] == ["7 w1000rpm", "strain", "kcd11", "refused: too few orbit frequencies: 2 < 3"]
+    assert rows[2] == ["8 w1000rpm", "strain", "kcd11", "refused: too few orbit frequencies: 2 < 3"]
     events = page.text("events")
-    assert "point 7 piezo kc8: condition number 3.1e6: Kxy poorly determined" in events
-    assert "point 7 strain kcd11: too few orbit frequencies: 2 < 3" in events
+    assert "point 8 piezo kc8: condition number 3.1e6: Kxy poorly determined" in events
+    assert "point 8 strain kcd11: too few orbit frequencies: 2 < 3" in events

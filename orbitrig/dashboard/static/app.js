@@ -65,17 +65,31 @@ function resetView() {
 function clearRigView() {
   ["results", "manual-table"].forEach(id => clear($(id)));
   alarmList.showAlarms([]);
-  showDrives({}); showAux({}, {});  // every row in place before the first live message: no jump
+  clearRunView();
   ["alarm-result", "run-id", "message", "manual-step"].forEach(id => { $(id).textContent = ""; });
-  ["point", "frequency", "revolutions", "eta", "op-spin", "op-orbit", "op-orbit-hz", "op-direction", "state"].forEach(id => { $(id).textContent = "—"; });
-  $("state").className = "state"; $("progress-bar").style.width = "0";
+  $("state").textContent = "—"; $("state").className = "state";
   $("matrix").value = "demo";
-  Object.assign(st, {status: null, liveAt: 0, manual: null});
+  Object.assign(st, {status: null, manual: null});
   show($("manual"), false); show($("manual-none"), true);
   trends.trendClear(); trends.drawTrends();
   document.querySelectorAll("canvas").forEach(c => { c.getContext("2d").clearRect(0, 0, c.width, c.height); c.dataset.updates = "0"; });
   banner(null);
 }
+
+// the view of one run (progress, ETA, live values, waveforms): emptied when the run ends or
+// another run's status comes, so nothing of the previous run is shown as the present one's
+function clearRunView() {
+  showDrives({}); showAux({}, {});  // every row in place before the first live message: no jump
+  ["point", "frequency", "revolutions", "eta", "op-spin", "op-orbit", "op-orbit-hz", "op-direction"].forEach(id => { $(id).textContent = "—"; });
+  $("progress-bar").style.width = "0";
+  st.liveAt = 0;
+  ["plot-forces", "plot-disp", "plot-orbit"].forEach(id => {
+    const c = $(id); c.getContext("2d").clearRect(0, 0, c.width, c.height); c.dataset.samples = "0";
+  });
+}
+
+// a run has ended in these states (offline is not an end: the last values stay, ageing)
+function runEnded(s) { return !!s && (s.state === RunState.IDLE || s.state === RunState.FAULTED); }
 
 async function signOut() { await api("/api/logout", {}); leave("signed out"); }
 
@@ -112,7 +126,7 @@ function handle(msg) {
     case FeedType.LINK: showLink(msg.link); break;
     case FeedType.STATUS: showStatus(msg.data); break;
     case FeedType.PROGRESS: showProgress(msg.data); break;
-    case FeedType.LIVE: showLive(msg.data); break;
+    case FeedType.LIVE: showLive(msg.data, msg.age_s); break;
     case FeedType.RESULT: resultTable.showResult(msg.data); break;
     case FeedType.TREND: trends.trendSample(msg.sample, msg.run_id); break;
     case FeedType.TREND_HISTORY: trends.trendHistory(msg.data); break;
@@ -163,6 +177,7 @@ function showStatus(s) {
   if ($("link").textContent === BrokerLink.ONLINE) banner(s.state === RunState.OFFLINE ? "offline: the rig service is not connected" : null);
   const warn = s.state === RunState.FAULTED || /interlock|not met|failed|lost/i.test(s.message || "");
   if (warn && !(prev && prev.message === s.message)) addEvent("warn", s.state + ": " + s.message);
+  if (runEnded(s) || !prev || prev.run_id !== s.run_id) clearRunView();
   if (s.state === RunState.IDLE && (s.message || "").includes(Outcome.COMPLETED)) $("progress-bar").style.width = "100%";
   showManual(s);
 }
@@ -204,6 +219,7 @@ function showMeasured(measured) {
 }
 
 function showProgress(p) {
+  if (runEnded(st.status)) return;  // late: the run is over
   $("point").textContent = p.point + " / " + p.points;
   $("frequency").textContent = p.frequency + " / " + p.frequencies;
   $("revolutions").textContent = String(p.revolutions);
@@ -219,8 +235,10 @@ function formatDuration(s) {
 }
 
 // ---------------------------------------------------------------- live
-function showLive(d) {
-  st.liveAt = Date.now();
+// `age` (s): how old the payload is when it comes (a page's first feed replays the last one)
+function showLive(d, age) {
+  if (runEnded(st.status)) return;  // late: the run is over
+  st.liveAt = Date.now() - 1000 * Math.max(0, age || 0);
   const orbit = (d.drives || {}).orbit;
   $("op-spin").textContent = fmt(d.spin_rpm, 0) + " rpm";
   $("op-orbit").textContent = (orbit ? fmt(orbit.actual_rpm, 0) : "—") + " rpm";
@@ -297,7 +315,8 @@ async function send(cmd, extra) {
   catch (e) { r = {status: 0, data: {ok: false, error: "dashboard server unreachable"}}; }
   if (r.status === 401) { leave("session ended: sign in again"); return; }
   if (r.data.ok) { out.className = "cmd-result ok"; out.textContent = cmd + ": accepted"; return; }
-  const text = cmd + ": " + (r.data.error || "failed");
+  const error = r.data.error || "failed";  // the server's reasons leave the name to the page: prefixed once
+  const text = error.startsWith(cmd + ":") ? error : cmd + ": " + error;
   out.className = "cmd-result refused"; out.textContent = text;
   addEvent("refused", text);
   const names = /available: ([^)]*)\)/.exec(r.data.error || "");

@@ -11,8 +11,13 @@ function fmtValue(v) {
   return a !== 0 && (a >= 1e4 || a < 1e-2) ? Number(v).toExponential(3) : Number(v).toPrecision(4);
 }
 
+// a result's `index` is 0-based (the run files' PPPP); the page counts points 1-based, as the progress does
+function pointIndex(r) { return Number.isInteger(r.index) ? r.index : Number.isInteger(r.point) ? r.point : null; }
+function pointText(r) { const i = pointIndex(r); return i === null ? "?" : String(i + 1); }
+function pointFile(r) { const i = pointIndex(r); return i === null ? "" : "file point " + String(i).padStart(4, "0"); }
+
 function fitRows(r, row) {
-  const head = [r.point !== undefined ? String(r.point) + (r.label ? " " + r.label : "") : "?", row.lms || "",
+  const head = [{text: pointText(r) + (r.label ? " " + r.label : ""), title: pointFile(r)}, row.lms || "",
     (row.model || "") + (row.freq_dep && row.freq_dep !== "none" ? " " + row.freq_dep : "")];
   if (row.error) return [[...head, {text: "refused: " + row.error, cls: "out", span: 4}]];
   const c = row.coefficients || {}, eu = row.expanded_uncertainty || {}, U = eu.values || {};
@@ -24,11 +29,11 @@ function fitRows(r, row) {
 
 function showResult(r) {
   const body = document.getElementById("results");
-  (r.warnings || []).forEach(w => addEvent("warn", "point " + r.point + ": " + w));
+  (r.warnings || []).forEach(w => addEvent("warn", "point " + pointText(r) + ": " + w));
   (r.identification || []).forEach(row => {
     const what = (row.lms || "") + " " + (row.model || "");
-    if (row.error) addEvent("warn", "point " + r.point + " " + what + ": " + row.error);
-    (row.warnings || []).forEach(w => addEvent("warn", "point " + r.point + " " + what + ": " + w));
+    if (row.error) addEvent("warn", "point " + pointText(r) + " " + what + ": " + row.error);
+    (row.warnings || []).forEach(w => addEvent("warn", "point " + pointText(r) + " " + what + ": " + w));
     fitRows(r, row).forEach((cells, i) => {
       const tr = document.createElement("tr");
       if (i === 0) tr.className = "fit-first";

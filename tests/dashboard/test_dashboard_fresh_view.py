@@ -1,0 +1,164 @@
+"""The page in a real chromium on a real authenticated mosquitto shows the present run only:
+the previous run's progress, ETA, live values and waveforms go when a new run starts or the
+run ends (also in the first feed of a page loaded later); the live age is the payload's true
+age after a reload; a refusal names its command once; a result's point is counted from 1.
+The tests publish what the rig service would (as orbitrig-service)."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import pytest
+from support.dash_helpers import RIG, Dashboard, Page
+from support.mqtt_helpers import ACCOUNTS
+
+
+@pytest.fixture(scope="module")
+def dashboard(broker, tmp_path_factory):
+    """The dashboard alone on the broker (no rig service)."""
+    dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", "1.5")
+    yield dash
+    assert dash.stop() == 0, dash.text()[-3000:]
+
+
+def publish(broker, topic: str, payload: dict, qos: int = 1) -> None:
+    done = broker.pub(f"orbitrig/{RIG}/{topic}", json.dumps(payload), user="orbitrig-service", qos=qos)
+    assert done.returncode == 0, done.stderr
+
+
+def status(broker, state: str, run_id: str, message: str = "") -> None:
+    publish(
+        broker, "status", {"state": state, "run_id": run_id, "since": "2026-01-05T13:00:00.000Z", "message": message}
+    )
+
+
+def progress(run_id: str) -> dict:
+    return {
+        "run_id": run_id,
+        "point": 1,
+        "points": 1,
+        "frequency": 3,
+        "frequencies": 10,
+        "revolutions": 31,
+        "eta_s": 23,
+    }
+
+
+def live(run_id: str) -> dict:
+    wave = [1e-6 * (k % 9) for k in range(45)]
+    orbit = {"reference_rpm": 600.0, "actual_rpm": 600.0, "torque_pct": 5.0, "state": "running"}
+    return {
+        "run_id": run_id,
+        "point": 1,
+        "frequency": 3,
+        "direction": "forward",
+        "revolutions": 31,
+        "orbit_hz": 10.0,
+        "spin_rpm": 1000.0,
+        "drives": {"link_ok": True, "spin": {**orbit, "reference_rpm": 1000.0, "actual_rpm": 1000.0}, "orbit": orbit},
+        "aux": {"p_supply": 2.0e6},
+        "waveforms": {n: wave for n in ("x_a", "y_a", "x_b", "y_b")},
+        "units": {},
+    }
+
+
+def signed_in(browsers, dashboard, user: str = "operator") -> Page:
+    page = Page(browsers(), dashboard.url, dashboard)
+    page.sign_in(user, ACCOUNTS[user])
+    page.signed_in()
+    page.wait_text("link", "online")
+    return page
+
+
+def run_view(page: Page) -> dict:
+    ids = ("point", "frequency", "revolutions", "eta", "op-orbit-hz", "op-spin")
+    out = {i: page.text(i) for i in ids}
+    out["bar"] = page.d.execute_script("return document.getElementById('progress-bar').style.width")
+    out["orbit-samples"] = page.el("plot-orbit").get_attribute("data-samples") or "0"
+    return out
+
+
+CLEARED = {i: "—" for i in ("point", "frequency", "revolutions", "eta", "op-orbit-hz", "op-spin")}
+
+
+def test_a_new_run_and_a_run_end_clear_the_previous_runs_view(broker, dashboard, browsers):
+    page = signed_in(browsers, dashboard)
+    status(broker, "running", "r-old")
+    page.wait_state("running")
+    publish(broker, "progress", progress("r-old"), qos=0)
+    publish(broker, "live", live("r-old"), qos=0)
+    page.wait_text("eta", "23 s", 10)
+    page.wait(lambda: page.el("plot-orbit").get_attribute("data-samples") == "45", 10, "the orbit plot")
+    assert page.text("frequency") == "3 / 10" and page.text("op-orbit-hz") == "10.00 Hz"
+
+    status(broker, "waiting", "r-new")  # another run: nothing of r-old stays
+    page.wait_state("waiting")
+    assert run_view(page) == {**CLEARED, "bar": "0px", "orbit-samples": "0"}, run_view(page)
+    page.d.refresh()  # nor does the server replay r-old's progress and live to a page loaded now
+    page.signed_in()
+    page.wait_state("waiting")
+    time.sleep(1.0)
+    assert run_view(page) == {**CLEARED, "bar": "0px", "orbit-samples": "0"}, run_view(page)
+
+    publish(broker, "progress", progress("r-new"), qos=0)
+    publish(broker, "live", live("r-new"), qos=0)
+    page.wait_text("eta", "23 s", 10)
+    status(broker, "idle", "r-new", "run aborted")  # the run ends: no ETA, no live values
+    page.wait_state("idle")
+    assert run_view(page) == {**CLEARED, "bar": "0px", "orbit-samples": "0"}, run_view(page)
+
+    # a page loaded now gets no progress of the ended run from the server either
+    page.d.refresh()
+    page.signed_in()
+    page.wait_state("idle")
+    time.sleep(1.0)
+    assert run_view(page) == {**CLEARED, "bar": "0px", "orbit-samples": "0"}, run_view(page)
+
+    status(broker, "idle", "r-new", "run completed")  # the bar full when completed ...
+    page.wait(lambda: run_view(page)["bar"] == "100%", 10, "the full bar")
+    status(broker, "waiting", "r-next")  # ... and empty again for the next run
+    page.wait_state("waiting")
+    assert run_view(page)["bar"] == "0px"
+
+
+def test_the_live_age_after_a_reload_is_the_payloads_age(broker, dashboard, browsers):
+    page = signed_in(browsers, dashboard)
+    status(broker, "running", "r-age")
+    page.wait_state("running")
+    publish(broker, "live", live("r-age"), qos=0)
+    page.wait(lambda: page.text("live-age").endswith("s ago"), 10, "the live age")
+    time.sleep(4.0)
+    page.d.refresh()
+    page.signed_in()
+    page.wait(lambda: page.text("live-age").endswith("s ago"), 10, "the live age after the reload")
+    assert float(page.text("live-age").split()[0]) >= 3.5, page.text("live-age")
+    status(broker, "idle", "r-age", "run stopped")
+
+
+def test_a_refusal_names_its_command_once(broker, dashboard, browsers):
+    viewer = signed_in(browsers, dashboard, "viewer")
+    status(broker, "idle", "r-refused", "run stopped")
+    viewer.wait_state("idle")
+    refused = viewer.command("btn-pause", "pause:")
+    assert refused.startswith("pause: refused: not authorised — user 'viewer'"), refused
+    assert refused.count("pause") == 1, refused
+
+    operator = signed_in(browsers, dashboard)
+    publish(broker, "status", {"state": "offline", "run_id": None, "since": "2026-01-05T13:00:00.000Z", "message": ""})
+    operator.wait_state("offline")
+    offline = operator.command("btn-start", "start:")
+    assert offline == "start: no reply: the rig service is offline", offline
+    status(broker, "idle", "r-refused", "run stopped")
+
+
+def test_a_results_point_is_counted_as_the_progress_counts_it(broker, dashboard, browsers):
+    page = signed_in(browsers, dashboard)
+    status(broker, "running", "r-result")
+    row = {"lms": "piezo", "model": "kc7", "freq_dep": "none", "coefficients": {"Kxx": 1e7}, "units": {"Kxx": "N/m"}}
+    result = {"run_id": "r-result", "index": 0, "point": 0, "label": "w1000rpm", "identification": [row]}
+    publish(broker, "result", result)
+    page.wait(lambda: page.d.find_elements("css selector", "#results tr.fit-first"), 10, "the result row")
+    first = page.d.find_element("css selector", "#results tr.fit-first td")
+    assert first.text == "1 w1000rpm" and first.get_attribute("title") == "file point 0000"
+    status(broker, "idle", "r-result", "run completed")

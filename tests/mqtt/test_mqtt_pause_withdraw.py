@@ -1,0 +1,78 @@
+"""The real `orbitrig serve --sim` under a real mosquitto: a pause requested and not yet
+reached is withdrawn by resume (the run never pauses), and a result numbers its point
+0-based as `index` (the run files' PPPP) while progress counts it 1-based."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from support.mqtt_helpers import ACCOUNTS, RigClient, Service, sim_service_args
+
+RIG = "pause-rig"
+
+
+@pytest.fixture(scope="module")
+def service(broker, tmp_path_factory):
+    work = tmp_path_factory.mktemp("serve")
+    pw = work / "service.pw"
+    pw.write_text(ACCOUNTS["orbitrig-service"] + "\n")
+    pw.chmod(0o600)
+    svc = Service(sim_service_args(broker.url, RIG, work, "--password-file", str(pw)), work)
+    yield svc
+    assert svc.stop() == 0, svc.text()[-3000:]
+
+
+@pytest.fixture
+def rig(broker, service):
+    rc = RigClient(broker, RIG, service)
+    assert rc.status(lambda s: True, timeout=30)["state"] in ("idle", "faulted"), service.text()[-3000:]
+    yield rc
+    if service.proc.poll() is None and rc.watch.on("status")[-1].json()["state"] not in ("idle", "faulted"):
+        rc.command({"cmd": "abort"})
+        rc.status("idle", timeout=30)
+    rc.close()
+
+
+def test_resume_withdraws_a_pause_requested_while_waiting(rig):
+    mark = rig.watch.mark()
+    assert rig.command({"cmd": "start", "matrix": "quick"})["ok"] is True
+    rig.status("waiting", start=mark)
+    assert rig.command({"cmd": "pause"})["ok"] is True  # honoured at the next safe point
+    m = rig.watch.mark()
+    assert rig.command({"cmd": "resume"})["ok"] is True  # withdraws it
+    time.sleep(0.3)
+    assert rig.watch.on("status", m) == []  # the state stays: still waiting
+    assert rig.command({"cmd": "confirm", "step": "manual:0000"})["ok"] is True
+    idle = rig.status("idle", start=mark, timeout=60)
+    assert "completed" in idle["message"], idle
+    states = [s.json()["state"] for s in rig.watch.on("status", mark)]
+    assert "paused" not in states, states  # the run never paused
+
+
+def test_result_index_is_0_based_and_progress_counts_from_1(rig, service):
+    mark = rig.watch.mark()
+    assert rig.command({"cmd": "start", "matrix": "quick"})["ok"] is True
+    rig.status("waiting", start=mark)
+    assert rig.command({"cmd": "confirm", "step": "manual:0000"})["ok"] is True
+    assert "completed" in rig.status("idle", start=mark, timeout=60)["message"]
+    # the result: `index` 0-based (the run files' 0000), progress 1-based (point 1 of 1)
+    (result,) = (r.json() for r in rig.watch.on("result", mark))
+    assert result["index"] == 0 and result["point"] == 0
+    progress = [p.json() for p in rig.watch.on("progress", mark)]
+    assert progress and max(p["point"] for p in progress) == 1 and {p["points"] for p in progress} == {1}
+
+
+def test_resume_without_a_pending_pause_is_refused(rig):
+    mark = rig.watch.mark()
+    assert rig.command({"cmd": "start", "matrix": "quick"})["ok"] is True
+    rig.status("waiting", start=mark)
+    refused = rig.command({"cmd": "resume"})
+    assert refused["ok"] is False and "cannot resume while the run is waiting" in refused["error"]
+    # a pause that is not withdrawn is honoured after the confirmation
+    assert rig.command({"cmd": "pause"})["ok"] is True
+    assert rig.command({"cmd": "confirm", "step": "manual:0000"})["ok"] is True
+    rig.status("paused", start=mark)
+    assert rig.command({"cmd": "abort"})["ok"] is True
+    rig.status("idle", start=mark, timeout=30)
