@@ -169,10 +169,11 @@ async def rig_access(rig: RigConfig, opts: StepOptions):
 
 
 def _base(rig: RigConfig, opts: StepOptions, step: RecordStep) -> dict:
-    """The new record's fields from the active record (or rig.toml), its date and operator set."""
+    """The new record's fields from the active record (or rig.toml), its date and operator set;
+    no reference standard (the step sets its own: an earlier step's is in the records before)."""
     old = rig.record
     base = (
-        old.model_dump()
+        old.model_dump(exclude={"reference"})
         if old is not None
         else {"uncertainty": (rig.calibration_uncertainty or CalibrationUncertainty()).model_dump()}
     )

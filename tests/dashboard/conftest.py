@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 from support.dash_helpers import REPO, RIG, Dashboard, chromium
-from support.mqtt_helpers import ACCOUNTS, Broker, Service
+from support.mqtt_helpers import Broker, Service, service_password_file
 
 SPEEDUP = "5"  # the demo matrix runs for ~20 s: time to pause, resume and stop it
 
@@ -15,9 +15,7 @@ class ServiceHolder:
 
     def __init__(self, broker: Broker, work):
         self.broker, self.work = broker, work
-        pw = work / "service.pw"
-        pw.write_text(ACCOUNTS["orbitrig-service"] + "\n")
-        pw.chmod(0o600)
+        pw = service_password_file(work)
         self.args = [
             "--sim",
             "--broker",

@@ -168,6 +168,7 @@ def test_clean_scenario_strain_gauges_within_0_3_percent_after_calibration(tmp_p
     assert np.allclose(loads.loads["piezo"].matrix, np.eye(2), atol=2e-3)
     runout, _ = read_record(folder, names["runout"])
     assert runout.loads == loads.loads and runout.previous == names["loads"]  # a record is complete
+    assert loads.reference is not None and runout.reference is None  # the loads' standard stays in its record
     amps = np.abs([runout.runout.phasors(p) for p in ("x_a", "y_a", "x_b", "y_b")])
     assert np.allclose(amps, [1e-7, 5e-8], rtol=0.1)  # clean.toml: runout 0.1 um, 0.05 um
     delay, delay_text = read_record(folder, names["delay"])

@@ -7,7 +7,7 @@ from __future__ import annotations
 import h5py
 import pytest
 
-from support.mqtt_helpers import ACCOUNTS, RigClient, Service, sim_service_args
+from support.mqtt_helpers import RigClient, sim_service
 from orbitrig.service.protocol import CommandError, parse_command
 
 RIG = "sender-rig"
@@ -23,11 +23,7 @@ def test_by_is_parsed_checked_and_never_blocks_a_stop():
 
 
 def test_every_command_that_changed_the_run_is_logged_with_its_sender(broker, tmp_path):
-    pw = tmp_path / "service.pw"
-    pw.write_text(ACCOUNTS["orbitrig-service"] + "\n")
-    pw.chmod(0o600)
-    args = sim_service_args(broker.url, RIG, tmp_path, "--password-file", str(pw))
-    svc = Service(args, tmp_path)
+    svc = sim_service(broker.url, RIG, tmp_path)
     rig = RigClient(broker, RIG, svc)
     try:
         rig.status(lambda s: True, timeout=30)

@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from support.mqtt_helpers import ACCOUNTS, RigClient, Service, sim_service_args
+from support.mqtt_helpers import RigClient, sim_service
 
 RIG = "pause-rig"
 
@@ -16,10 +16,7 @@ RIG = "pause-rig"
 @pytest.fixture(scope="module")
 def service(broker, tmp_path_factory):
     work = tmp_path_factory.mktemp("serve")
-    pw = work / "service.pw"
-    pw.write_text(ACCOUNTS["orbitrig-service"] + "\n")
-    pw.chmod(0o600)
-    svc = Service(sim_service_args(broker.url, RIG, work, "--password-file", str(pw)), work)
+    svc = sim_service(broker.url, RIG, work)
     yield svc
     assert svc.stop() == 0, svc.text()[-3000:]
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import h5py
 import pytest
 
-from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, sim_service_args
+from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, sim_service, sim_service_args
 
 RIG = "sim-rig"
 PROGRESS_KEYS = {"run_id", "point", "points", "frequency", "frequencies", "revolutions", "eta_s"}
@@ -35,10 +35,7 @@ def _run_id_in_log(run_dir: Path, run_id: str) -> bool:
 @pytest.fixture(scope="module")
 def service(broker, tmp_path_factory):
     work = tmp_path_factory.mktemp("serve")
-    pw = work / "service.pw"
-    pw.write_text(ACCOUNTS["orbitrig-service"] + "\n")
-    pw.chmod(0o600)
-    svc = Service(sim_service_args(broker.url, RIG, work, "--password-file", str(pw)), work)
+    svc = sim_service(broker.url, RIG, work)
     svc.work = work
     yield svc
     code = svc.stop()

@@ -562,6 +562,20 @@ class CutProxy:
         self.server.close()
 
 
+def service_password_file(work: Path) -> Path:
+    """``work``/service.pw: the account orbitrig-service's password, readable by its owner only
+    (the service refuses a password file others can read)."""
+    pw = work / "service.pw"
+    pw.write_text(ACCOUNTS["orbitrig-service"] + "\n")
+    pw.chmod(0o600)
+    return pw
+
+
+def sim_service(url: str, rig: str, work: Path) -> Service:
+    """`orbitrig serve` on the simulator (sim_service_args) with the service's password file."""
+    return Service(sim_service_args(url, rig, work, "--password-file", str(service_password_file(work))), work)
+
+
 def sim_service_args(url: str, rig: str, work: Path, *extra: str, speedup: float = 20) -> list[str]:
     """`orbitrig serve` arguments of a service on the simulator as the account orbitrig-service:
     broker `url`, rig id, the test matrices (write_matrices) and the runs under `work`."""
