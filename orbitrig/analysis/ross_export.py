@@ -38,7 +38,7 @@ from orbitrig.errors import OrbitrigError
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.csvfile import one_line
 from orbitrig.store.durable import write_atomic
-from orbitrig.store.reader import Point, Run, StoredIdentification
+from orbitrig.store.reader import Point, Run
 from orbitrig.store.selection import Selection, select_points
 from reduction.methods import Method
 
@@ -80,12 +80,6 @@ class RossExport:
     selection: Selection
 
 
-def stored_fit(point: Point, lms: LoadSystem, spec: FitSpec) -> StoredIdentification | None:
-    """The point's stored identification of ``spec`` for ``lms`` (refused or not), or None."""
-    key = (lms, spec.model, spec.freq_dep, spec.method)
-    return next((i for i in point.identifications if (i.lms, i.model, i.freq_dep, i.method) == key), None)
-
-
 def tested_frequencies(point: Point) -> np.ndarray:
     """The point's planned orbit frequencies |Omega| (rad/s), each once, ascending: one per
     tested orbit ratio (both whirl directions share it); the orbit tables' measured speeds
@@ -98,7 +92,7 @@ def tested_frequencies(point: Point) -> np.ndarray:
 
 def point_bearing(point: Point, lms: LoadSystem, spec: FitSpec) -> dict[str, Any] | str:
     """The ROSS data of one point's fit, or why the point has none."""
-    stored = stored_fit(point, lms, spec)
+    stored = point.identification(lms, spec.model, spec.freq_dep, spec.method)
     if stored is None:
         return f"fit {spec.text(lms)} not stored"
     if not stored.ok:

@@ -105,9 +105,13 @@ class Point:
     lms_comparison: dict[str, Any] | None = None
     problem: str = ""  # why the point is not complete ("" when complete; orbitrig.store.index)
 
-    def identification(self, lms: LoadSystem, model: str, freq_dep: str) -> StoredIdentification | None:
+    def identification(
+        self, lms: LoadSystem, model: str, freq_dep: str, method: str | None = None
+    ) -> StoredIdentification | None:
+        """The stored identification (refused or not) of ``lms``, ``model``, ``freq_dep`` and,
+        when given, ``method`` (else the first stored of any method); None when there is none."""
         for ident in self.identifications:
-            if (ident.lms, ident.model, ident.freq_dep) == (lms, model, freq_dep):
+            if (ident.lms, ident.model, ident.freq_dep) == (lms, model, freq_dep) and method in (None, ident.method):
                 return ident
         return None
 
