@@ -13,6 +13,7 @@ from typing import Annotated, Optional
 
 import typer
 
+from orbitrig.cli.skipped import tell_skipped
 from orbitrig.errors import OrbitrigError
 
 RunDir = Annotated[Path, typer.Argument(metavar="RUN", help="Run directory written by `orbitrig sweep --out DIR`.")]
@@ -74,11 +75,7 @@ def register(app: typer.Typer) -> None:
             raise typer.Exit(1) from None
         for path in files:
             typer.echo(str(path))
-        for line in selection.notes:
-            typer.echo(line, err=True)
-        for line in selection.skipped:
-            typer.echo(f"error: {line}", err=True)
-        if selection.skipped:
+        if tell_skipped(selection.notes, selection.skipped):
             raise typer.Exit(1)
 
 

@@ -16,6 +16,7 @@ from typing import Annotated, Optional
 import typer
 
 from orbitrig.cli.plain_table import OutputFormat, PlainTable
+from orbitrig.cli.skipped import tell_skipped
 
 
 def _fail(message: str, code: int = 2) -> None:
@@ -81,7 +82,7 @@ def reduce_cmd(
     try:
         rows = reduce_run(run, model, freq_dep, method, points=selection.points)
     except ReductionError as err:  # a bad option (2), or no point to reduce: 1 when one was skipped
-        if not selection.points and _name_skipped(selection):
+        if not selection.points and tell_skipped(selection.notes, selection.skipped):
             _fail(str(err), 1)
         _fail(str(err))
     refused = [r for r in rows if r.identification is None]
@@ -91,25 +92,15 @@ def reduce_cmd(
     for reason, where in by_reason.items():
         typer.echo(f"{model} {freq_dep} refused at point {', '.join(where)}: {reason}", err=True)
     if len(refused) == len(rows):
-        _name_skipped(selection)
+        tell_skipped(selection.notes, selection.skipped)
         _fail(f"{model} {freq_dep} ({method}) cannot be identified from any stored table of {directory}")
     try:
         path = write_csv(csv_path(directory, model, freq_dep, method), rows, run.sim)
     except StorageError as err:
         _fail(str(err), 1)
     _print_reduce(directory, run, rows, path, OutputFormat.JSON if as_json else fmt, f"{model} {freq_dep} ({method})")
-    if _name_skipped(selection):
+    if tell_skipped(selection.notes, selection.skipped):
         raise typer.Exit(1)
-
-
-def _name_skipped(selection) -> bool:
-    """The selection's notes and skipped points (orbitrig.store.selection) on standard error,
-    as `export` and `report` name them; True when a point was skipped."""
-    for line in selection.notes:
-        typer.echo(line, err=True)
-    for line in selection.skipped:
-        typer.echo(f"error: {line}", err=True)
-    return bool(selection.skipped)
 
 
 def _print_reduce(directory: Path, run, rows, path: Path, fmt: OutputFormat, what: str) -> None:
@@ -254,11 +245,7 @@ def _summary(directory: Path, report) -> None:
         if report.pdf:
             typer.echo(f"all figures in one file: {report.pdf}")
         typer.echo(f"open {report.html}")
-    for line in report.notes:
-        typer.echo(line, err=True)
-    for line in report.skipped:
-        typer.echo(f"error: {line}", err=True)
-    if report.skipped:
+    if tell_skipped(report.notes, report.skipped):
         raise typer.Exit(1)
 
 
