@@ -7,6 +7,9 @@ numerical ones; daq's and drives' branches live in ``daq.errors`` and ``drives.e
     +-- DriveError(drive, register, fault_code) -> DriveFaultError, DriveLimitError,
     |       DriveLinkError, DriveTimeoutError (also TimeoutError)
     +-- ConfigError (file, key) / TableError (file, line, column)
+
+IgnoredColumnWarning (a UserWarning, not an error): an orbit-table header column that
+looks like a misspelt known column, ignored as every extra column is.
 """
 
 from __future__ import annotations
@@ -35,3 +38,15 @@ class TableError(OrbitrigError, ValueError):
         if column is not None:
             where += f", column '{column}'"
         super().__init__(f"{where}: {reason}")
+
+
+class IgnoredColumnWarning(UserWarning):
+    """An orbit-table header column that is no known column but looks like one (``suggestion``):
+    ignored like any extra column, named so that the misspelling is not passed over."""
+
+    def __init__(self, file: str, line: int, column: str, suggestion: str):
+        self.file, self.line, self.column, self.suggestion = str(file), line, column, suggestion
+        super().__init__(
+            f"{self.file}, line {line}, column '{column}': not an orbit-table column, ignored "
+            f"(did you mean '{suggestion}'?)"
+        )

@@ -1,7 +1,8 @@
 """`orbitrig identify TABLE.csv --model NAME [--freq-dep SPEC] [--method ...] [--solver ...] [--json]`.
 
 Contract: docs/orbit-table.md. With --json exactly the result object on stdout (exit 0);
-otherwise readable tables on stdout and the result's notes and warnings on stderr.
+otherwise readable tables on stdout and the result's notes and warnings on stderr. The
+table's warnings (a header column that looks like a misspelt known one) lead the result's.
 Unidentifiable model or malformed table: exit 2, nothing on stdout, the reason on stderr.
 """
 
@@ -9,6 +10,7 @@ from __future__ import annotations
 
 import json
 import sys
+import warnings
 from pathlib import Path
 
 import typer
@@ -60,11 +62,10 @@ def register(app: typer.Typer) -> None:
         import numpy as np
 
         from orbitrig.errors import OrbitrigError, TableError
-        from orbitrig.store.orbit_table import read_orbit_table
         from reduction.identify import identify
 
         try:
-            data = read_orbit_table(table)
+            data, table_warnings = _read_table(table)
         except TableError as err:  # a table that cannot be read is not "malformed"
             _fail(str(err) if err.reason.startswith("cannot read") else f"malformed table: {err}")
         try:
@@ -76,6 +77,7 @@ def register(app: typer.Typer) -> None:
                 f"numerical failure of the {method} fit ({type(err).__name__}: {err}); "
                 "check the table's values and units"
             )
+        result.warnings[:0] = table_warnings
         if as_json or fmt == OutputFormat.JSON:
             _write_json(result)
         else:
@@ -84,6 +86,20 @@ def register(app: typer.Typer) -> None:
                 sys.stderr.write(f"note: {note}\n")
             for warning in result.warnings:
                 sys.stderr.write(f"warning: {warning}\n")
+
+
+def _read_table(path: Path):
+    """The orbit table and the messages of its IgnoredColumnWarnings (other warnings pass on as usual)."""
+    from orbitrig.errors import IgnoredColumnWarning
+    from orbitrig.store.orbit_table import read_orbit_table
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", IgnoredColumnWarning)
+        data = read_orbit_table(path)
+    for w in caught:
+        if not isinstance(w.message, IgnoredColumnWarning):
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno, w.file, w.line)
+    return data, [str(w.message) for w in caught if isinstance(w.message, IgnoredColumnWarning)]
 
 
 def _write_json(result, rows: int = 20000) -> None:

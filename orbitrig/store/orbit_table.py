@@ -6,11 +6,13 @@ n_records (whole number >= 1) and u_x, u_y (m), u_fx, u_fy (N) (>= 0, a set of f
 rad/s. Every problem raises TableError naming the file, the line (1-based, the header is
 line 1) and the column. UTF-8 (a BOM is allowed); blank lines are skipped; cells are plain
 decimal numbers; empty fields past the header's last column (a trailing comma) are ignored.
+An extra column that looks like a misspelt known one (``u_fX``) is named in an IgnoredColumnWarning.
 """
 
 from __future__ import annotations
 
 import csv
+import difflib
 import io
 import math
 import re
@@ -20,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from orbitrig.config import RPM
-from orbitrig.errors import TableError
+from orbitrig.errors import IgnoredColumnWarning, TableError
 from reduction.errors import ReductionError
 from reduction.table import GAMMA2_COLUMNS, U_COLUMNS, OrbitTable
 
@@ -28,6 +30,7 @@ REQUIRED = ("spin_rpm", "orbit_hz", "x_re", "x_im", "y_re", "y_im", "fx_re", "fx
 GAMMA2 = tuple(f"gamma2_{c}" for c in GAMMA2_COLUMNS)
 UNCERTAINTY = tuple(f"u_{c}" for c in U_COLUMNS)
 RECORDS = "n_records"
+KNOWN = REQUIRED + GAMMA2 + UNCERTAINTY + (RECORDS,)
 
 
 # a decimal number as a CSV writer prints it (Python's float() also takes '1_000' and spaces)
@@ -86,12 +89,16 @@ def parse_orbit_table(data: bytes, path: str | Path = "<table>") -> OrbitTable:
 
 def _columns(file: str, open_text) -> dict[str, np.ndarray]:
     """The validated columns of the text ``open_text()`` opens: numpy's C reader first, the
-    row-by-row reader when anything is amiss (it names the line and column)."""
+    row-by-row reader when anything is amiss (it names the line and column). A header column
+    that looks like a misspelt known one is warned of (IgnoredColumnWarning) once the table is read."""
     with open_text() as fh:
-        col = _load_columns(file, fh)
-    if col is None:
+        read = _load_columns(file, fh)
+    if read is None:
         with open_text() as fh:
-            col = _read_columns(file, fh)
+            read = _read_columns(file, fh)
+    col, ignored = read
+    for warning in ignored:  # here, outside the numeric readers' warning filters
+        warnings.warn(warning, stacklevel=3)
     return col
 
 
@@ -130,18 +137,18 @@ def _not_utf8(data: bytes, file: str) -> TableError:
     return TableError(file, None, None, "not UTF-8 text; save the table as UTF-8 CSV")
 
 
-def _load_columns(file: str, fh) -> dict[str, np.ndarray] | None:
+def _load_columns(file: str, fh) -> tuple[dict[str, np.ndarray], list[IgnoredColumnWarning]] | None:
     """The wanted columns by numpy's C reader, or None when anything is amiss (a cell that
     is not a finite decimal number, a value out of range, a ragged row): the row-by-row
     reader then names the line and column; so does a table with a column that is not
-    numbers (an ignored extra column). The header is checked here already."""
+    numbers (an ignored extra column). The header is checked (its near misses listed) here."""
     for line_no, text in enumerate(fh, start=1):
         if text.strip():
             header = [_column_name(file, line_no, f.strip()) for f in next(csv.reader([text]))]
             break
     else:
         return None
-    wanted = _wanted_columns(file, header, line_no)
+    wanted, ignored = _wanted_columns(file, header, line_no)
     try:  # every column, so that a row with more fields than the header is not passed over
         data = _parse_numbers(fh)
     except ValueError:
@@ -154,7 +161,7 @@ def _load_columns(file: str, fh) -> dict[str, np.ndarray] | None:
     ):
         return None
     col = {name: data[header.index(name)] for name in wanted}
-    return col if _in_range(col, {name: col[name][0] for name in wanted}) else None
+    return (col, ignored) if _in_range(col, {name: col[name][0] for name in wanted}) else None
 
 
 def _parse_numbers(fh) -> list[np.ndarray] | None:
@@ -176,8 +183,8 @@ def _parse_numbers(fh) -> list[np.ndarray] | None:
     return [frame[c].to_numpy() for c in frame.columns]
 
 
-def _read_columns(file: str, fh) -> dict[str, np.ndarray]:
-    """The wanted columns of a CSV stream, validated, as float arrays."""
+def _read_columns(file: str, fh) -> tuple[dict[str, np.ndarray], list[IgnoredColumnWarning]]:
+    """The wanted columns of a CSV stream, validated, as float arrays; the header's near-miss warnings."""
     reader = _Reader(file, csv.reader(fh))
     header, header_line = None, None
     for fields in reader:
@@ -187,7 +194,7 @@ def _read_columns(file: str, fh) -> dict[str, np.ndarray]:
     if header is None:
         raise TableError(file, 1, None, "empty file: a header row is required")
     header = [_column_name(file, header_line, name) for name in header]
-    wanted = _wanted_columns(file, header, header_line)
+    wanted, ignored = _wanted_columns(file, header, header_line)
     index = {name: header.index(name) for name in wanted}
     blocks, block, lines, first = [], [], [], None
     for fields in reader:
@@ -203,7 +210,7 @@ def _read_columns(file: str, fh) -> dict[str, np.ndarray]:
         blocks.append(_block(file, block, lines, wanted, index, len(header), first))
     if not blocks:
         raise TableError(file, header_line + 1, None, "no data rows after the header")
-    return {name: np.concatenate([b[name] for b in blocks]) for name in wanted}
+    return {name: np.concatenate([b[name] for b in blocks]) for name in wanted}, ignored
 
 
 def _block(file, rows, lines, wanted, index, n_header, first) -> dict[str, np.ndarray]:
@@ -276,25 +283,47 @@ def _column_name(file: str, line: int, field: str) -> str:
     return name
 
 
-def _wanted_columns(file: str, header: list[str], header_line: int) -> tuple[str, ...]:
-    """The columns to read: the required ones and the optional sets present."""
+def _wanted_columns(
+    file: str, header: list[str], header_line: int
+) -> tuple[tuple[str, ...], list[IgnoredColumnWarning]]:
+    """The columns to read: the required ones and the optional sets present; and a warning
+    for each extra column that looks like a misspelt known one (a missing column's error names it)."""
     seen = set()
-    known = REQUIRED + GAMMA2 + UNCERTAINTY + (RECORDS,)
     for name in header:
-        if name in seen and name in known:  # a repeated extra column is ignored like any other
+        if name in seen and name in KNOWN:  # a repeated extra column is ignored like any other
             raise TableError(file, header_line, name, "column appears twice in the header")
         seen.add(name)
+    misses = _near_misses(header)
+    hint = {known: f" (column '{name}' in the header looks like it)" for name, known in reversed(misses.items())}
     for name in REQUIRED:
         if name not in seen:
-            raise TableError(file, header_line, name, "required column missing from the header")
+            raise TableError(file, header_line, name, "required column missing from the header" + hint.get(name, ""))
     wanted = REQUIRED
     for group, what in ((GAMMA2, "coherence"), (UNCERTAINTY, "uncertainty")):
         present = [g for g in group if g in seen]
         if present and len(present) != len(group):
             missing = next(g for g in group if g not in seen)
-            raise TableError(file, header_line, missing, f"{what} columns come as a set of four: {', '.join(group)}")
+            reason = f"{what} columns come as a set of four: {', '.join(group)}{hint.get(missing, '')}"
+            raise TableError(file, header_line, missing, reason)
         wanted += group if present else ()
-    return wanted + ((RECORDS,) if RECORDS in seen else ())
+    ignored = [IgnoredColumnWarning(file, header_line, name, known) for name, known in misses.items()]
+    return wanted + ((RECORDS,) if RECORDS in seen else ()), ignored
+
+
+def _near_misses(header: list[str]) -> dict[str, str]:
+    """Header column -> the absent known column it looks like a misspelling of: equal but for case, '_'
+    and ' ' (``U_fx``, ``nrecords``), or close (``n_record``, ``gamma_xfx``); not ``comment``, ``direction``."""
+    absent = [k for k in KNOWN if k not in header]
+    squashed = {k.replace("_", ""): k for k in KNOWN}
+    misses = {}
+    for name in header:
+        key = name.lower().replace("_", "").replace(" ", "")
+        if name in COLUMN_UNITS or not key:  # a known column, or ``direction``
+            continue
+        like = [squashed[key]] if key in squashed else difflib.get_close_matches(name.lower(), absent, 1, 0.8)
+        if like and like[0] in absent:  # a known column present is not suggested again
+            misses[name] = like[0]
+    return misses
 
 
 def _cell(file: str, line: int, name: str, fields: list[str], j: int, n_header: int) -> float:
