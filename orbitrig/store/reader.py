@@ -145,7 +145,14 @@ class Run:
 
 
 #: who made the run, where and when (docs/storage.md); `ended` is "" while the run is running
-PROVENANCE_KEYS = ("operator", "rig_id", "host", "calibration_record", "calibration_record_sha256", "started", "ended")
+#: the run's provenance as read (text; ``sensor_serials`` a JSON object channel -> serial number)
+_WHO_WHERE = ("operator", "rig_id", "host", "calibration_record", "calibration_record_sha256", "sensor_serials")
+PROVENANCE_KEYS: tuple[str, ...] = (*_WHO_WHERE, "started", "ended")  # "ended" last: a run in progress has none
+
+
+def _provenance_text(value: Any) -> str:
+    """A provenance value of run.json as run.h5 stores it: text, a mapping as JSON."""
+    return json.dumps(value) if isinstance(value, dict) else str(value)
 
 
 def freq_dep_from_key(key: str) -> str:
@@ -251,7 +258,7 @@ def _read_pieces(layout: RunLayout, blocks: bool = True, indexes: list[int] | No
     stored = header.get("provenance")
     prov = stored if isinstance(stored, dict) else {}
     ended = journal.status_at if journal.status.final else ""
-    run.provenance = {k: str(prov.get(k, "")) for k in PROVENANCE_KEYS[:-1]} | {"ended": ended}
+    run.provenance = {k: _provenance_text(prov.get(k, "")) for k in PROVENANCE_KEYS[:-1]} | {"ended": ended}
     for index in layout.point_indexes() if indexes is None else indexes:
         state = point_state(layout, index)
         if not state.complete and not layout.point_file(index).exists():

@@ -190,6 +190,9 @@ def test_csv(exported, stored, sim_run):
         for key in ("operator", "rig_id", "host", "calibration_record", "calibration_record_sha256", "started"):
             assert provenance[key] == f.attrs[key], key
     assert len(provenance["calibration_record_sha256"]) == 64 and provenance["ended"]
+    # each channel's sensor by its serial number (config/rig.toml), as a JSON object
+    serials = json.loads(provenance["sensor_serials"])
+    assert serials["fx_piezo"] == "PZ-2231-X" and serials["y_b"] == "EC-5583-YB" and len(serials) == 8
 
 
 def test_h5_export_is_run_h5_in_the_layout_octave_reads(exported, stored, tmp_path):
