@@ -206,12 +206,12 @@ async def test_hold_notices_the_drives_stopped_by_another_client(tcp_sim, tmp_pa
     try:
         await sim.wait_for(
             lambda: sim.regs(1)["SW"] & SW_AT_SETPOINT and sim.regs(2)["SW"] & SW_AT_SETPOINT,
-            10,
+            30,  # the interpreter's start, the link and the ramps: margin for a host with both cores busy
             "at setpoint",
         )
         code, _, stop_err = await run_cli("drives", "stop", "--config", cfg)  # another client
         assert code == 0, stop_err
-        out, err = await asyncio.wait_for(proc.communicate(), 15)
+        out, err = await asyncio.wait_for(proc.communicate(), 30)
     finally:
         if proc.returncode is None:
             proc.kill()
