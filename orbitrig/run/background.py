@@ -3,7 +3,8 @@
 Writes run in one storage thread, one at a time, in submission order (a FIFO
 lock), so a block is never written after the point that holds it is marked
 complete; the same thread makes every write, so the order of the syscalls on
-disk is the order of submission. A stop or an abort waits for what is in flight (never cut off).
+disk is the order of submission. What is in flight is never cut off: after a stop or an abort
+the engine waits for it once the drives are stopped (`settle`), never before.
 No write follows a failed one. The first failure is reported at once to `on_failure` (the engine ends the
 run: drives to a safe stop first) and raised by `check`.
 

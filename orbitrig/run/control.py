@@ -108,9 +108,19 @@ class RunControl:
         if self.state != STOPPING:
             self.fire("stop", message)
 
+    @property
+    def abort_starts(self) -> bool:
+        """An abort asked now would start one (the run is active and not aborting yet)."""
+        return self.state not in (IDLE, FAULTED) and not self.abort_requested
+
+    @property
+    def stop_now_starts(self) -> bool:
+        """A stop at once asked now would start one (active, not aborting, not stopping at once)."""
+        return self.abort_starts and self.stop_now is None
+
     def request_stop_now(self, why: str) -> bool:
         """Stop at once with a ramp (`why`: e.g. 'SIGTERM'); True if the engine is to cancel the run."""
-        if self.state in (IDLE, FAULTED) or self.abort_requested or self.stop_now is not None:
+        if not self.stop_now_starts:
             return False
         self.stop_now = why
         self.request_stop(f"{why}: stopping now, both drives ramp to zero")
@@ -118,7 +128,7 @@ class RunControl:
 
     def request_abort(self) -> bool:
         """True if this request starts an abort (the engine then cancels the run)."""
-        if self.state in (IDLE, FAULTED) or self.abort_requested:
+        if not self.abort_starts:
             return False
         self.abort_requested = True
         self.aborted.set()

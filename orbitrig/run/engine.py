@@ -9,10 +9,13 @@ the waits are `orbitrig.run.control`'s.
 Every exit path goes through one `finally` (`_make_safe`): both drives stop
 first (an emergency ramp after an abort or a failure), then the links close,
 then the storage in flight finishes and the run file gets its status; each
-cleanup failure is logged and the rest still runs. A storage failure (disk
-full included) therefore stops the drives before anything else. The engine
-does no terminal I/O: it publishes events to subscribers (the terminal UI
-of `orbitrig sweep`, MQTT in `orbitrig serve`).
+cleanup failure is logged and the rest still runs. A stop (operator, policy,
+unanswered wait) therefore never waits for storage, and a storage failure
+(disk full included) stops the drives before anything else. A stop that is not
+delivered or not confirmed at standstill ends the run failed ("drives not
+confirmed stopped"); so does a helper task (interlock watcher, log monitor)
+that raises, at once. The engine does no terminal I/O: it publishes events to
+subscribers (the terminal UI of `orbitrig sweep`, MQTT in `orbitrig serve`).
 """
 
 from __future__ import annotations
@@ -39,8 +42,9 @@ from orbitrig.run.events import (  # noqa: F401 - the engine's public names
     StatusEvent,
     Subscriber,
 )
+from orbitrig.run import interlocks
 from orbitrig.run.interlocks import Trip
-from orbitrig.run.log_rows import can_row, drive_row
+from orbitrig.run.log_rows import monitor
 from orbitrig.run.modbus_log import pymodbus_into
 from orbitrig.run.plan import Plan, make_plan
 from orbitrig.run.procedure import PointProcedure, RunParts
@@ -49,7 +53,8 @@ from orbitrig.run.provenance import RunCommand
 from orbitrig.run.requests import OperatorRequests
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.run_dir import completed_points, no_room, open_store, record_end
-from orbitrig.run.safe_stop import stop_drives
+from orbitrig.run.run_dir import started_order as _started_order
+from orbitrig.run.safe_stop import stop_drives, unconfirmed
 from orbitrig.run.states import (
     ABORTED,
     COMPLETED,
@@ -101,6 +106,7 @@ class RunEngine(OperatorRequests):
         self._t0 = time.monotonic()
         self._progress = ProgressMeter(self._emit, self.access.time_scale)
         self._background = Background(self.timing, self._background_failed)
+        self._held: list[Callable[[], None]] | None = None  # disk writes held while stop words go out
 
     # ------------------------------------------------------------- public API
     @property
@@ -197,12 +203,11 @@ class RunEngine(OperatorRequests):
             if self._control.stop_now is not None and not _cancelling():
                 return STOPPED, f"stopped at once by {self._control.stop_now}"
             raise
-        except (StorageError, OSError) as err:
-            log.error("run failed: storage: %s", err)
-            return FAILED, f"storage failed: {err}"
-        except OrbitrigError as err:
-            log.error("run failed: %s", err)
-            return FAILED, str(err)
+        except (OrbitrigError, OSError) as err:  # a drive's timeout is an OSError too, not a storage failure
+            storage = isinstance(err, StorageError) or not isinstance(err, OrbitrigError)
+            message = f"storage failed: {err}" if storage else str(err)
+            log.error("run failed: %s", message)
+            return FAILED, message
         except Exception as err:  # a bug: the drives still stop and the file is closed
             log.exception("run failed")
             return FAILED, f"{type(err).__name__}: {err}"
@@ -212,8 +217,10 @@ class RunEngine(OperatorRequests):
         supervisor.sample()
         helpers = [
             asyncio.create_task(supervisor.watch(), name="interlocks"),
-            asyncio.create_task(self._monitor(), name="run-monitor"),
+            asyncio.create_task(monitor(self._store, lambda: self._io, self._t0), name="run-monitor"),
         ]
+        for task in helpers:  # one that raises ends the run at once (not only when the body ends)
+            task.add_done_callback(self._helper_ended)
         self._body = asyncio.create_task(body, name="run-body")
         if self._failure is not None or self._control.abort_requested or self._control.stop_now:  # while opening
             self._body.cancel()
@@ -258,6 +265,18 @@ class RunEngine(OperatorRequests):
         if self._body is not None and not self._body.done():
             self._body.cancel()
 
+    def _helper_ended(self, task: asyncio.Task[None]) -> None:
+        """A helper of the run (interlock watcher, log monitor) raised: logged with its traceback,
+        the run fails at once (drives stopping in the cleanup); it never goes on unwatched."""
+        if task.cancelled() or (err := task.exception()) is None:
+            return
+        log.error("run helper %s failed", task.get_name(), exc_info=err)
+        message = f"the {task.get_name()} task failed ({type(err).__name__}: {err}): the run is not watched"
+        if self._failure is not None:
+            self._log_event(message)
+            return
+        self._interlock_failed(Trip(task.get_name(), interlocks.FAIL, message))
+
     def _background_failed(self, err: BaseException) -> None:
         """A storage write (disk full included) or an identification failed: the run ends at once."""
         self._log_event(self._background.failure_message() or str(err))
@@ -277,10 +296,8 @@ class RunEngine(OperatorRequests):
                 first = False
             for step in plan.final_steps:
                 await procedure.run_step(step, None)
-        except StopRun:
-            await self._background.drain()
+        except StopRun:  # the drives stop first; the storage in flight is settled after (_make_safe)
             return STOPPED
-        await self._background.drain()
         return STOPPED if control.stop_requested else COMPLETED
 
     # ------------------------------------------------------- the one finally
@@ -288,21 +305,11 @@ class RunEngine(OperatorRequests):
         """Every exit path: drives to a safe stop first, then the links, then storage; each
         failure logged, the rest still done. A failure is reported (state faulted) once the
         drives are safe. Returns the final (status, message): aborted after an abort while
-        stopping; failed when the run's status and run.h5 could not be recorded."""
+        stopping; failed when the drives are not confirmed stopped, when storage in flight
+        failed, or when the run's status and run.h5 could not be recorded."""
         if self.state != STOPPING:
             self._control.fire("finish", message)
-        emergency = status in (ABORTED, FAILED)
-        timeout = self.access.time_scale.wall(self.rig.drives.stop_timeout_s) + 5.0
-        steps = []
-        if io.drives is not None:
-            steps.append(("stop both drives", lambda: self._stop_drives(io.drives, emergency, timeout)))
-        steps.append(("close the rig links", lambda: io.__aexit__(None, None, None)))
-        steps.append(("finish the storage in flight", self._background.settle))
-        for what, action in steps:
-            try:
-                await action()
-            except BaseException as err:  # noqa: BLE001 - every cleanup step must run
-                self._cleanup_failed(what, err)
+        status, message = await self._cleanup(io, status, message)
         self._io = None
         if self._control.abort_requested and status in (COMPLETED, STOPPED):  # an abort while stopping
             status, message = ABORTED, f"aborted by the operator while stopping ({message})"
@@ -317,6 +324,29 @@ class RunEngine(OperatorRequests):
         elif status != FAILED:
             self._control.fire("done", f"run {self.run_id} {status}: {message}")
         return ended
+
+    async def _cleanup(self, io: RigIO, status: Outcome, message: str) -> tuple[Outcome, str]:
+        """Both drives stopped and confirmed at standstill, then the links closed, then the storage
+        in flight finished: (status, message), failed if the stop or the storage was not done."""
+        if io.drives is not None:
+            timeout = self.access.time_scale.wall(self.rig.drives.stop_timeout_s) + 5.0
+            try:
+                await self._stop_drives(io.drives, status in (ABORTED, FAILED), timeout)
+            except BaseException as err:  # noqa: BLE001 - every cleanup step must run
+                self._cleanup_failed("stop both drives", err)
+                status, message = unconfirmed(status, message, err)
+        for what, action in (
+            ("close the rig links", lambda: io.__aexit__(None, None, None)),
+            ("finish the storage in flight", self._background.settle),
+        ):
+            try:
+                await action()
+            except BaseException as err:  # noqa: BLE001 - every cleanup step must run
+                self._cleanup_failed(what, err)
+        failed = self._background.failure_message()
+        if failed is not None and status in (COMPLETED, STOPPED):  # points completed before it are kept
+            status, message = FAILED, failed
+        return status, message
 
     async def _stop_drives(self, drives, emergency: bool, timeout: float) -> None:
         _, line = await stop_drives(drives, self._control.aborted, emergency=emergency, timeout=timeout)
@@ -345,36 +375,20 @@ class RunEngine(OperatorRequests):
         log.info("[%s] %s", state, message)
         if self._store is not None:
             self._store.logs.add("events", (time.monotonic() - self._t0, state, message))
-            try:
-                self._store.log(f"[{state}] {message}")
-            except OSError:
-                pass
+            self._write_later(functools.partial(self._store.log, f"[{state}] {message}"))
 
     def _on_revolution(self, rev: Revolution) -> None:
         self._progress.revolution()
-        for tap in self.revolution_taps:
-            tap(rev)
-
-    async def _monitor(self) -> None:
-        """CAN and drive logs every 0.5 s (wall), kept until the next write."""
-        while True:
-            t = time.monotonic() - self._t0
+        for tap in list(self.revolution_taps):
             try:
-                self._store.logs.add("can", can_row(t, self._io.aux.latest()))
-                self._store.logs.add("drives", drive_row(t, self._io.drives.state))
-            except Exception:  # logging must not break the run
-                log.debug("monitor sample failed", exc_info=True)
-            await asyncio.sleep(0.5)
+                tap(rev)
+            except Exception as err:  # the live view must never disturb the run: detached
+                log.exception("revolution tap %r failed; detached", tap)
+                self.revolution_taps.remove(tap)
+                self._log_event(f"live feed detached: its revolution hook failed ({type(err).__name__}: {err})")
 
 
 def _cancelling() -> bool:
     """Is the current task itself being cancelled (not only a task it awaited)?"""
     task = asyncio.current_task()
     return task is not None and task.cancelling() > 0
-
-
-def _started_order(plan: Plan, store: RunStore) -> Plan:
-    """A resumed run keeps the order of the operating points it started with (the rig's
-    changeover times may have been edited since); a run that recorded none ran them as written."""
-    order = store.stored_point_order() or list(range(len(plan.points)))
-    return plan if list(plan.order) == order else make_plan(plan.matrix, plan.rig, order)

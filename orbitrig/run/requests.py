@@ -1,9 +1,18 @@
 """The operator's requests to a running engine (pause, resume, stop, abort, stop at once,
-confirm), each logged with who sent it and when (run.log and run.h5's command log)."""
+confirm), each logged with who sent it and when (run.log and run.h5's command log).
+
+An abort or a stop at once sends both drives their stop words first: until those are
+out, the engine's run.log lines and the commands (disk writes, the command journal
+fsync'd) are held and then written in their order (`_write_later`), so that no slow
+disk delays the stop (nor blocks the event loop long enough to trip the drives'
+comm-loss watchdog before it).
+"""
 
 from __future__ import annotations
 
 import asyncio
+import functools
+import logging
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
@@ -18,6 +27,8 @@ from orbitrig.store.writer import RunStore
 if TYPE_CHECKING:
     from orbitrig.run.rig_io import RigIO
 
+log = logging.getLogger(__name__)
+
 
 class OperatorRequests:
     """Mixin of `RunEngine`: what an operator (terminal, MQTT, dashboard) may ask of a run.
@@ -30,6 +41,8 @@ class OperatorRequests:
     _store: RunStore | None
     _io: RigIO | None
     _log_event: Callable[..., None]
+    _held: list[Callable[[], None]] | None  # disk writes held until the stop words are out
+    _holding_for: asyncio.Task[list[DriveError]] | None = None  # the stop whose delivery releases them
 
     def request_pause(self, by: str | None = None) -> None:
         self._control.request_pause()
@@ -51,25 +64,49 @@ class OperatorRequests:
     def request_abort(self, by: str | None = None) -> None:
         """Abort: both drives get the emergency stop at once (their stop words ahead of
         everything waiting for the drives' link, not after the run has unwound), then the
-        run is cancelled; its cleanup repeats the stop and waits for standstill. The
-        command is recorded (a durable write) once the stop words are out."""
-        sending = None
-        if self._control.request_abort():
-            sending = self._stop_drives_now()
-            if self._body is not None and not self._body.done():
-                self._body.cancel()
+        run is cancelled; its cleanup repeats the stop and waits for standstill. Nothing is
+        written to disk before the stop words are out (run.log, the command's durable record)."""
+        t0 = time.monotonic()
+        sending = self._stop_first(emergency=True) if self._control.abort_starts else None
+        if self._control.request_abort() and self._body is not None and not self._body.done():
+            self._body.cancel()
         if sending is None:
             self._command(RunCommand.ABORT, by)
             return
-        t0 = time.monotonic()
         sending.add_done_callback(lambda task: self._stopped_now(task, t0, by))
 
-    def _stop_drives_now(self) -> asyncio.Task[list[DriveError]] | None:
+    def _stop_first(self, emergency: bool) -> asyncio.Task[list[DriveError]] | None:
+        """Send both drives their stop words now and hold the disk writes until they are out."""
+        sending = self._stop_drives_now(emergency)
+        if sending is not None:
+            self._held = [] if self._held is None else self._held
+            self._holding_for = sending  # a stop queued behind another: held until the last is out
+            sending.add_done_callback(self._release_held)
+        return sending
+
+    def _release_held(self, task: asyncio.Task[list[DriveError]]) -> None:
+        if task is not self._holding_for or self._held is None:
+            return
+        held, self._held, self._holding_for = self._held, None, None
+        for write in held:
+            self._write_later(write)
+
+    def _write_later(self, write: Callable[[], None]) -> None:
+        """`write` (a run.log line, a command's record) now, or once the stop words are out."""
+        if self._held is not None:
+            self._held.append(write)
+            return
+        try:
+            write()
+        except Exception:  # best effort, as run.log is: the run goes on
+            log.exception("cannot record %s", write)
+
+    def _stop_drives_now(self, emergency: bool) -> asyncio.Task[list[DriveError]] | None:
         drives = self._io.drives if self._io is not None else None
         if drives is None:
             return None  # the rig is not open: nothing moves
         try:
-            return drives.stop_now(emergency=True)
+            return drives.stop_now(emergency=emergency)
         except DriveError:
             return None  # closed already: the cleanup has stopped them
 
@@ -83,9 +120,13 @@ class OperatorRequests:
 
     def request_stop_now(self, why: str, by: str | None = None) -> None:
         """Stop at once (`why`, e.g. 'SIGTERM'): the block under way is dropped, both drives ramp
-        to zero (OFF1, not an emergency), the run ends stopped and can be resumed."""
-        if self._control.request_stop_now(why) and self._body is not None and not self._body.done():
-            self._body.cancel()
+        to zero (OFF1, not an emergency), the run ends stopped and can be resumed. Their stop
+        words go out first: nothing is written to disk before (run.log, the command's record)."""
+        body = self._body if self._body is not None and not self._body.done() else None
+        if self._control.stop_now_starts and body is not None:
+            self._stop_first(emergency=False)
+        if self._control.request_stop_now(why) and body is not None:
+            body.cancel()
         self._command(RunCommand.STOP, by, why)
 
     @property
@@ -106,4 +147,6 @@ class OperatorRequests:
 
     def _command(self, command: RunCommand, by: str | None, detail: str = "") -> None:
         if self._store is not None:
-            self._store.command(command, by or self.console_user or UNNAMED, detail)
+            self._write_later(
+                functools.partial(self._store.command, command, by or self.console_user or UNNAMED, detail)
+            )

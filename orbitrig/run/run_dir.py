@@ -14,7 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from orbitrig.config import ConfigError, RigConfig
-from orbitrig.run.plan import OperatingPoint, Plan
+from orbitrig.run.plan import OperatingPoint, Plan, make_plan
 from orbitrig.run.provenance import Provenance
 from orbitrig.run.rig_io import RigAccess, Scenario
 from orbitrig.run.states import FAILED, Outcome, stored_status
@@ -100,3 +100,10 @@ def completed_points(store: RunStore) -> list[int]:
     except (StorageError, OSError) as err:
         log.error("cannot read the completed points: %s", err)
         return []
+
+
+def started_order(plan: Plan, store: RunStore) -> Plan:
+    """A resumed run keeps the order of the operating points it started with (the rig's
+    changeover times may have been edited since); a run that recorded none ran them as written."""
+    order = store.stored_point_order() or list(range(len(plan.points)))
+    return plan if list(plan.order) == order else make_plan(plan.matrix, plan.rig, order)

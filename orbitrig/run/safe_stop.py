@@ -5,6 +5,8 @@ stopped runs, OFF1 along the drives' DECEL_TIME) is watched: an abort that
 arrives while it is under way (a second Ctrl-C, a signal, an MQTT abort) sends
 the emergency stop (OFF3) at once, and the run ends aborted. The line this
 returns says what the drives were commanded and how they ended, for run.log.
+A stop that is not delivered, or not confirmed at standstill in time, makes the
+run failed whatever it was (`unconfirmed`): nobody may take the rig for stopped.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import asyncio
 import time
 
 from drives.rig import RigDrives
+from orbitrig.run.states import FAILED, Outcome
 
 
 async def stop_drives(
@@ -44,6 +47,13 @@ async def stop_drives(
         f"drives: {kind}{' after an abort during the ramp' if escalated else ''}; "
         f"standstill after {time.monotonic() - t0:.1f} s: {_speeds(drives)}"
     )
+
+
+def unconfirmed(status: Outcome, message: str, err: BaseException) -> tuple[Outcome, str]:
+    """The run's (status, message) when stopping the drives raised `err` (not delivered, not at
+    standstill in time, cancelled): failed, saying so first and how the run was ending."""
+    reason = f"{type(err).__name__}: {err}" if str(err) else type(err).__name__
+    return FAILED, f"drives not confirmed stopped: {reason} (the run was ending {status}: {message})"
 
 
 def _speeds(drives: RigDrives) -> str:

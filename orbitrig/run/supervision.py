@@ -10,11 +10,16 @@ A lost CAN heartbeat suspends the run only for `can_heartbeat_timeout_s`
 (wall s, counted from the first sample that saw it lost, whatever the engine
 is doing meanwhile: settling, paused, waiting for a confirmation): then it
 becomes a fail trip and the drives stop.
+
+A sample that raises (a bug in a sensor read or a check) is logged with its
+traceback and made a fail trip ("supervision"): the run never goes on with its
+interlocks unwatched (the drive poll treats a failed poll the same way).
 """
 
 from __future__ import annotations
 
 import asyncio
+import logging
 import time
 from typing import Callable
 
@@ -23,6 +28,8 @@ from drives.state import RigDriveState
 from orbitrig.config import Interlocks
 from orbitrig.run import interlocks
 from orbitrig.run.interlocks import Trip
+
+log = logging.getLogger(__name__)
 
 
 class InterlockSupervisor:
@@ -84,6 +91,17 @@ class InterlockSupervisor:
         return trips
 
     async def watch(self) -> None:
+        """Sample every `period` s until a fail trip; a sample that raises is a fail trip."""
         while self.failure is None:
-            self.sample()
+            try:
+                self.sample()
+            except Exception as err:  # a bug must not leave the interlocks unwatched
+                log.exception("interlock supervision failed")
+                self.failure = Trip(
+                    "supervision",
+                    interlocks.FAIL,
+                    f"interlock supervision failed ({type(err).__name__}: {err}): the interlocks are not watched",
+                )
+                self._on_fail(self.failure)
+                return
             await asyncio.sleep(self.period)

@@ -1,0 +1,119 @@
+"""Failures the engine must not let pass, on the real simulator: a helper task of the run (the
+interlock watcher, the log monitor) that raises ends the run at once as a failure with the
+drives stopped; a stop that is not delivered or not confirmed at standstill ends the run
+failed, not stopped; a live-feed hook that raises is detached and the run goes on.
+
+A bug cannot be produced by the real parts: it is injected (a sensor read that raises, a
+monitor that raises, a standstill that is never confirmed, a hook that raises)."""
+
+import asyncio
+import logging
+
+import pytest
+
+from drives.errors import DriveTimeoutError
+from drives.rig import RigDrives
+from orbitrig.run import engine as engine_module
+from orbitrig.run.supervision import InterlockSupervisor
+from orbitrig.store.journal import read_journal
+from orbitrig.store.status import RunStatus
+from support.sweep_helpers import running, small_matrix, wait_for
+
+pytestmark = pytest.mark.timeout(90)
+
+LONG = small_matrix(revolutions=200, spin_rpm=[1000.0, 1500.0, 2000.0])  # far longer than these tests wait
+
+
+def _at_rest(sim) -> bool:
+    return all(abs(s) < 1.0 for s in sim.speeds)
+
+
+def _stored_status(tmp_path) -> RunStatus:
+    return read_journal(tmp_path / "run" / "journal.jsonl").status
+
+
+async def test_a_supervisor_that_raises_fails_the_run_at_once_with_the_drives_stopped(tmp_path, monkeypatch, caplog):
+    real, calls = InterlockSupervisor.trips, [0]
+
+    def buggy(self):
+        calls[0] += 1
+        if calls[0] == 30:
+            raise AttributeError("'NoneType' object has no attribute 'p_recess'")
+        return real(self)
+
+    monkeypatch.setattr(InterlockSupervisor, "trips", buggy)
+    async with running(tmp_path, LONG) as (sim, eng, rec, run):
+        outcome = await asyncio.wait_for(asyncio.shield(run), 20)
+        assert outcome.status == "failed", outcome.message
+        assert "interlock supervision failed (AttributeError" in outcome.message
+        assert eng.state == "faulted" and "interlock supervision failed" in eng.message
+        assert _at_rest(sim), sim.speeds
+    assert any(r.exc_info and "interlock supervision failed" in r.getMessage() for r in caplog.records)
+    assert _stored_status(tmp_path) is RunStatus.FAILED
+
+
+async def test_a_helper_task_that_raises_fails_the_run_at_once(tmp_path, monkeypatch, caplog):
+    async def broken_monitor(store, io, t0):
+        await asyncio.sleep(0.5)
+        raise RuntimeError("monitor bug")
+
+    monkeypatch.setattr(engine_module, "monitor", broken_monitor)
+    caplog.set_level(logging.ERROR)
+    async with running(tmp_path, LONG) as (sim, eng, rec, run):
+        outcome = await asyncio.wait_for(asyncio.shield(run), 20)
+        assert outcome.status == "failed", outcome.message
+        assert "the run-monitor task failed (RuntimeError: monitor bug)" in outcome.message
+        assert _at_rest(sim), sim.speeds
+    assert any(r.exc_info and "run-monitor" in r.getMessage() for r in caplog.records)
+
+
+async def test_a_stop_that_is_not_delivered_fails_the_run(tmp_path):
+    async with running(tmp_path, small_matrix(spin_rpm=[1000.0, 2000.0])) as (sim, eng, rec, run):
+        await wait_for(lambda: rec.blocks_done() >= 2, what="blocks")
+        sim.inject("modbus_timeout", on=True)  # the drives no longer answer
+        eng.request_stop_now("SIGTERM", by="test")
+        outcome = await asyncio.wait_for(asyncio.shield(run), 80)
+        assert outcome.status == "failed", outcome.message
+        assert outcome.message.startswith("drives not confirmed stopped: DriveTimeoutError")
+        assert eng.state == "faulted" and eng.message.startswith("drives not confirmed stopped")
+    assert _stored_status(tmp_path) is RunStatus.FAILED
+    assert "drives not confirmed stopped" in (tmp_path / "run" / "run.log").read_text()
+
+
+@pytest.mark.parametrize("when", ["cleanup", "always"])
+async def test_drives_not_confirmed_at_standstill_fail_a_completed_run(tmp_path, monkeypatch, when):
+    """Never at standstill in time: in the cleanup only (the plan's own stop confirmed), or at
+    every stop (the plan's last step fails first: a drive's timeout, not a storage failure)."""
+    real, engines = RigDrives.stop, []
+
+    async def never_confirmed(self, *, emergency=False, wait=True, timeout=None):
+        if when == "cleanup" and engines[0].state != "stopping":
+            return await real(self, emergency=emergency, wait=wait, timeout=timeout)
+        await real(self, emergency=emergency, wait=False, timeout=timeout)  # the stop goes out
+        raise DriveTimeoutError(f"drives not at zero speed within {timeout or 0:g} s: spin ACT 950 rpm")
+
+    monkeypatch.setattr(RigDrives, "stop", never_confirmed)
+    async with running(tmp_path, small_matrix(spin_rpm=[1000.0])) as (sim, eng, rec, run):
+        engines.append(eng)
+        outcome = await asyncio.wait_for(asyncio.shield(run), 60)
+        assert outcome.status == "failed", outcome.message
+        assert outcome.message.startswith("drives not confirmed stopped: DriveTimeoutError: drives not at zero")
+        assert "storage failed" not in outcome.message
+        assert eng.state == "faulted" and outcome.completed_points == [0]
+    assert _stored_status(tmp_path) is RunStatus.FAILED
+
+
+async def test_a_live_feed_hook_that_raises_is_detached_and_the_run_goes_on(tmp_path, caplog):
+    calls = []
+
+    def broken_tap(rev):
+        calls.append(rev)
+        raise ValueError("live feed bug")
+
+    async with running(tmp_path, small_matrix(spin_rpm=[1000.0])) as (sim, eng, rec, run):
+        eng.revolution_taps.append(broken_tap)
+        outcome = await asyncio.wait_for(asyncio.shield(run), 60)
+        assert outcome.status == "completed", outcome.message
+        assert len(calls) == 1 and broken_tap not in eng.revolution_taps
+    assert "live feed detached" in (tmp_path / "run" / "run.log").read_text()
+    assert any(r.exc_info and "detached" in r.getMessage() for r in caplog.records)

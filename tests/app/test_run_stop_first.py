@@ -1,0 +1,88 @@
+"""The drives stop first, on the real simulator: an operator stop does not wait for the storage
+or identification in flight (the earlier points are still stored), and an abort or a stop at
+once sends its stop words before anything is written to disk (run.log, the command journal).
+
+Slow storage cannot be produced by the real parts: an identification that hangs until released
+and a run.log / journal write that blocks the event loop are injected."""
+
+import asyncio
+import threading
+import time
+
+import pytest
+
+import orbitrig.run.procedure as procedure
+from orbitrig.run.engine import ProgressEvent
+from orbitrig.store.writer import RunStore
+from support.sweep_helpers import running, small_matrix, wait_for
+
+pytestmark = pytest.mark.timeout(90)
+
+# Spec control words, written out here (not imported from drives/) on purpose.
+CW_RAMP_STOP, CW_EMERGENCY = 0x047E, 0x047B
+
+
+def _first_stop(sim, since: float, words=(CW_RAMP_STOP, CW_EMERGENCY)) -> float | None:
+    """s from `since` (monotonic, the simulator's clock too) to the spin drive's first stop word."""
+    return min((t - since for t, cw in sim.drive(1)["control_words"] if t >= since and cw in words), default=None)
+
+
+async def test_a_stop_does_not_wait_for_the_identification_in_flight(tmp_path, monkeypatch):
+    release = threading.Event()
+    real = procedure.identify_operating_point
+
+    def hanging(*args, **kw):  # a loaded machine: point 1 is identified long after it was measured
+        release.wait(30)
+        return real(*args, **kw)
+
+    monkeypatch.setattr(procedure, "identify_operating_point", hanging)
+    async with running(tmp_path, small_matrix(spin_rpm=[1000.0, 2000.0])) as (sim, eng, rec, run):
+
+        def at_point_2() -> bool:
+            return any(isinstance(e, ProgressEvent) and e.point >= 2 and e.frequency >= 1 for e in rec.events)
+
+        await wait_for(at_point_2, 60, what="point 2")
+        t = time.monotonic()
+        eng.request_stop(by="test")
+        try:
+            await wait_for(lambda: _first_stop(sim, t) is not None, 10, what="a stop word")
+            assert _first_stop(sim, t) < 1.0
+        finally:
+            release.set()
+        outcome = await asyncio.wait_for(asyncio.shield(run), 60)
+        assert outcome.status == "stopped", outcome.message
+        assert outcome.completed_points == [0]  # the point identified after the stop is stored complete
+
+
+@pytest.mark.parametrize("request_kind", ["stop_now", "abort"])
+async def test_the_stop_words_go_out_before_any_disk_write(tmp_path, monkeypatch, request_kind):
+    armed, blocked = threading.Event(), []
+
+    def slow(real):
+        def write(self, *args):
+            if armed.is_set() and threading.current_thread() is threading.main_thread():
+                armed.clear()
+                blocked.append(time.monotonic())
+                time.sleep(1.0)  # a busy or network disk, on the event loop
+            return real(self, *args)
+
+        return write
+
+    monkeypatch.setattr(RunStore, "_journal", slow(RunStore._journal))
+    monkeypatch.setattr(RunStore, "_append_log", slow(RunStore._append_log))
+    async with running(tmp_path, small_matrix(spin_rpm=[1000.0, 2000.0])) as (sim, eng, rec, run):
+        await wait_for(lambda: rec.blocks_done() >= 2, 60, what="blocks")
+        t = time.monotonic()
+        armed.set()
+        if request_kind == "abort":
+            eng.request_abort(by="test")
+        else:
+            eng.request_stop_now("SIGTERM", by="test")
+        outcome = await asyncio.wait_for(asyncio.shield(run), 60)
+        word = CW_EMERGENCY if request_kind == "abort" else CW_RAMP_STOP
+        first = _first_stop(sim, t, (word,))
+        assert blocked, "no disk write was slowed"
+        assert first is not None and first < 0.5, first
+        assert outcome.status == ("aborted" if request_kind == "abort" else "stopped"), outcome.message
+    commands = [ln for ln in (tmp_path / "run" / "run.log").read_text().splitlines() if "command" in ln]
+    assert any(("command abort" if request_kind == "abort" else "command stop") in ln for ln in commands)
