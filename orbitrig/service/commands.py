@@ -23,6 +23,9 @@ log = logging.getLogger("orbitrig.service.rig_service")
 
 #: s after a reconnection during which the broker's redeliveries arrive
 REDELIVERY_S = 10.0
+#: the commands that start or move the drives: refused once the service is shutting down
+MOVES_DRIVES = frozenset({"start", "resume", "confirm"})
+SHUTTING_DOWN = "the service is shutting down: {cmd} refused (nothing is started or moved any more)"
 
 
 class CommandHandling:
@@ -40,6 +43,8 @@ class CommandHandling:
     _handled: collections.OrderedDict[tuple[str, bytes], int]
     #: command name -> handler (raises CommandRefused to refuse)
     _handlers: dict[str, Callable[[proto.Command], None]]
+    #: set once the service is shutting down: MOVES_DRIVES are refused from then on
+    closing: bool = False
 
     @property
     def run_active(self) -> bool:
@@ -81,6 +86,8 @@ class CommandHandling:
             log.warning("%s accepted despite: %s", cmd.cmd, "; ".join(cmd.ignored))
         error = None
         try:
+            if self.closing and cmd.cmd in MOVES_DRIVES:
+                raise CommandRefused(SHUTTING_DOWN.format(cmd=cmd.cmd))
             self._handlers[cmd.cmd](cmd)
         except CommandRefused as refusal:
             error = refusal.reason

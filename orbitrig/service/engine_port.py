@@ -7,13 +7,18 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
 
+from orbitrig.config import RigConfig
 from orbitrig.run.engine import RunOutcome
+from orbitrig.run.rig_io import RigAccess
 from orbitrig.run.states import RunState
 
 
 class Engine(Protocol):
     out_dir: Path  # the run directory
+    rig: RigConfig
+    access: RigAccess  # its time_scale turns the rig's physical seconds into wall seconds
     state: RunState
+    since: str  # ISO-8601 time the state was entered
     run_id: str | None
     waiting_step: str | None
     pause_pending: bool  # a pause requested, not yet reached at a safe point
@@ -22,6 +27,9 @@ class Engine(Protocol):
     def subscribe(self, callback: Callable[[Any], None]) -> None: ...
 
     operator: str
+    #: nobody can answer: a pause or a confirmation begun from now on stops the run after
+    #: [interlocks] unanswered_pause_s (read at the start of each such wait)
+    unattended: bool
 
     def request_pause(self, by: str | None = None) -> None: ...
     def request_resume(self, by: str | None = None) -> None: ...

@@ -83,6 +83,8 @@ class BrokerLink:
         self.offline = asyncio.Event()
         self.offline.set()
         self.leaving = False  # set by the owner once "offline" was queued for a clean exit
+        self._reading = True  # ordinary commands are read (stop_commands: no more)
+        self._commands: asyncio.Task | None = None  # the current connection's command loop
         self.connections = 0  # successful connections so far
         self.connected_at = 0.0  # time.monotonic() of the latest connection
 
@@ -160,6 +162,13 @@ class BrokerLink:
                     break
                 message = inbox.get_nowait()
             self.triage.flush_report()
+
+    def stop_commands(self) -> None:
+        """Read no more ordinary commands (the service is shutting down); a stop or an
+        abort is still carried out as it arrives (``_take_now``)."""
+        self._reading = False
+        if self._commands is not None:
+            self._commands.cancel()
 
     def _new_inbox(self, maxsize: int = 0) -> CommandInbox:
         """The MQTT client's incoming queue (made by the client: ``queue_type``)."""
@@ -263,7 +272,8 @@ class BrokerLink:
                 try:
                     async with asyncio.TaskGroup() as session:
                         session.create_task(self._publish_loop(client), name="mqtt-publish")
-                        session.create_task(self._command_loop(client), name="mqtt-commands")
+                        if self._reading:
+                            self._commands = session.create_task(self._command_loop(client), name="mqtt-commands")
                 finally:
                     await self._leave(client)
         except* aiomqtt.MqttError as group:

@@ -22,7 +22,8 @@ The broker may go away: the run goes on, the service reconnects with jittered
 exponential backoff (reset only after a connection carried traffic for a while)
 and republishes the status. A loss of supervision longer
 than ``supervision_timeout`` applies ``supervision_policy`` to a running run
-once: ``keep`` (go on), ``pause`` or ``stop``. ``stop`` and ``abort`` are
+once: ``keep`` (go on), ``pause`` or ``stop``, and makes a wait nobody can answer
+stop the run after ``unanswered_pause_s`` (orbitrig.service.supervision). ``stop`` and ``abort`` are
 always accepted and go straight to the executor as they are read off the
 connection, whatever it is doing and however many commands wait (also on
 ``<prefix>/abort``; orbitrig.service.inbox), and ``<prefix>/abort`` has a broker
@@ -55,7 +56,7 @@ from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # 
 from orbitrig.service.inbox import CommandTriage
 from orbitrig.service.abort_link import AbortLink
 from orbitrig.service.catalog_feed import CatalogFeed
-from orbitrig.service.commands import CommandHandling
+from orbitrig.service.supervision import SupervisionHandling
 from orbitrig.service.flood_read import STOP_HOLD_S
 from orbitrig.service import protocol as proto
 from orbitrig.service.link import BrokerLink
@@ -67,15 +68,20 @@ from orbitrig.service.settings import (  # noqa: F401 - the service's public nam
     ServiceSettings,
     SupervisionPolicy,
     default_client_id,
+    run_end_timeout,
 )
 
 log = logging.getLogger("orbitrig.service.rig_service")
 
+#: said of a run the service cut short: its cleanup's wait for the drives' standstill was cancelled
+NOT_CONFIRMED = "drives' stop not confirmed (see run.log)"
 
-class RigService(CommandHandling):
+
+class RigService(SupervisionHandling):
     """MQTT front end of one rig. ``await service.serve(shutdown)`` runs until
-    ``shutdown`` is set (then an active run is aborted, ``offline`` is
-    published and the connection closed) or a fatal error."""
+    ``shutdown`` is set (then nothing that moves the drives is accepted, an active
+    run is stopped at once, ``offline`` is published and the connection closed) or
+    a fatal error."""
 
     def __init__(
         self,
@@ -92,6 +98,7 @@ class RigService(CommandHandling):
         self._load_matrix = load_matrix
         self._engine: Engine | None = None
         self._run_task: asyncio.Task | None = None
+        self._cut_short = False  # the run was cancelled: its drives' stop not confirmed
         self._fit_warnings: list = []  # FitWarnings of the run's completed points (grouped in each result)
         self._live: live_feed.LiveFeed | None = None
         self._ahead: FiguresAhead | None = None  # the run's figures drawn as its points complete
@@ -161,20 +168,34 @@ class RigService(CommandHandling):
                     "where a flood of commands may hold them back (orbitrig serve --abort-username)"
                 )
             await asyncio.wait({conn, stop}, return_when=asyncio.FIRST_COMPLETED)
-            log.info("shutting down")
-            await self._end_run("service shutting down")
-            self._set_status(proto.OFFLINE, self._run_id, "service stopped")
-            self.link.leaving = True
-            if self.link.online.is_set():
-                try:
-                    await asyncio.wait_for(self.link.drained.wait(), 5.0)
-                except TimeoutError:
-                    log.warning("could not deliver every message before shutdown")
+            await self._shut_down()
             for task in tasks:
                 task.cancel()
         # (a fault inside the group cancels the connection task, whose session
         # publishes offline on its way out: BrokerLink._leave)
         await self.link.discard_session()
+
+    async def _shut_down(self) -> None:
+        """The run stopped (drives first), then ``offline`` delivered. From the start
+        nothing that moves the drives is accepted (``closing``); ordinary commands are
+        no longer read before ``offline`` is sent, and a run left over is ended before
+        the service leaves."""
+        log.info("shutting down")
+        self.closing = True
+        await self._end_run("service shutting down")
+        self.link.stop_commands()  # stop and abort are still carried out as they arrive
+        await self._end_run("a run left over at shutdown")  # none: start is refused once closing
+        self._set_status(proto.OFFLINE, self._run_id, "service stopped")
+        self.link.leaving = True
+        if self.link.online.is_set():
+            try:
+                await asyncio.wait_for(self.link.drained.wait(), 5.0)
+            except TimeoutError:
+                log.warning("could not deliver every message before shutdown")
+        if self.run_active:  # cannot happen (closing, commands unread): never leave drives turning
+            log.error("a run is active after the shutdown's stop: stopping it")
+            await self._end_run("a run left over at shutdown")
+            self._set_status(proto.OFFLINE, self._run_id, "service stopped")
 
     def _let_the_stop_go_first(self) -> None:
         """After a stop or abort: while the abort connection is up to take the next one,
@@ -192,10 +213,12 @@ class RigService(CommandHandling):
             return
         log.warning("stopping run %s at once, both drives ramp to zero: %s", self._run_id, why)
         self._request("stop_now", f"service ({why})")
+        timeout = self._run_end_timeout()
         try:
-            await asyncio.wait_for(asyncio.shield(self._run_task), self.settings.shutdown_timeout)
+            await asyncio.wait_for(asyncio.shield(self._run_task), timeout)
         except TimeoutError:
-            log.error("run did not end within %.0f s; cancelling it", self.settings.shutdown_timeout)
+            log.error("run did not end within %.0f s; cancelling it: the drives' stop is not confirmed", timeout)
+            self._cut_short = True
             self._run_task.cancel()
             await asyncio.gather(self._run_task, return_exceptions=True)
         except asyncio.CancelledError:
@@ -205,36 +228,18 @@ class RigService(CommandHandling):
         except Exception:  # noqa: BLE001 - reported by _run itself
             pass
 
+    def _run_end_timeout(self) -> float:
+        """s the active run may take to end once stopped (ServiceSettings.shutdown_timeout)."""
+        if self.settings.shutdown_timeout is not None or self._engine is None:
+            return self.settings.shutdown_timeout or run_end_timeout(0.0)
+        engine = self._engine
+        return run_end_timeout(engine.access.time_scale.wall(engine.rig.drives.stop_timeout_s))
+
     def abort_run(self, why: str) -> None:
         """Abort the active run (emergency ramp; during its closing ramp stop: an emergency stop)."""
         if self.run_active:
             log.warning("aborting run %s: %s", self._run_id, why)
             self._request("abort")
-
-    # -- supervision --------------------------------------------------------------
-
-    async def _supervision_loop(self) -> None:
-        """Apply the policy once per outage longer than ``supervision_timeout``."""
-        s = self.settings
-        while True:
-            await self.link.offline.wait()
-            try:
-                await asyncio.wait_for(self.link.online.wait(), s.supervision_timeout)
-                continue
-            except TimeoutError:
-                pass
-            if self.run_active:
-                log.warning(
-                    "no broker for %.0f s: supervision lost, policy %r", s.supervision_timeout, s.supervision_policy
-                )
-                if s.supervision_policy is SupervisionPolicy.PAUSE and self._state in (
-                    RunState.RUNNING,
-                    RunState.WAITING,
-                ):
-                    self._request("pause", "service (supervision lost)")
-                elif s.supervision_policy is SupervisionPolicy.STOP:
-                    self._request("stop", "service (supervision lost)")
-            await self.link.online.wait()
 
     async def _run(self, engine: Engine, name: str, matrix: Any) -> None:
         log.info("run of matrix %r starting", name)
@@ -242,7 +247,7 @@ class RigService(CommandHandling):
             outcome = await engine.run(matrix)
         except asyncio.CancelledError:
             self._close_figures()  # here, at once: the service is shutting down
-            self._set_status(RunState.IDLE, self._run_id, f"run of {name!r} cancelled; drives stopped")
+            self._set_status(RunState.IDLE, self._run_id, f"run of {name!r} cancelled; {NOT_CONFIRMED}")
             raise
         except Exception as err:  # reported, the service goes on
             await asyncio.to_thread(self._close_figures)
@@ -250,13 +255,26 @@ class RigService(CommandHandling):
             if self._state != RunState.FAULTED:
                 self._set_status(RunState.FAULTED, self._run_id, f"run of {name!r} failed: {err}")
             return
+        try:
+            await self._closing_status(name, outcome)
+        except Exception as err:  # the run has ended (drives stopped, recorded): the service goes on
+            log.exception("run %s of matrix %r: its closing summary failed", self._run_id, name)
+            if self._state not in (RunState.IDLE, RunState.FAULTED):
+                self._set_status(
+                    RunState.IDLE, self._run_id, f"run {outcome.status}; its closing summary failed: {err}"
+                )
+
+    async def _closing_status(self, name: str, outcome: Any) -> None:
+        """The run's only idle status, with its grouped warnings (read from the stored run)."""
         await asyncio.to_thread(self._close_figures)  # the point it was drawing is left to the report
         status = outcome.status
         log.info("run %s of matrix %r ended: %s", self._run_id, name, status)
         summary = await asyncio.to_thread(closing_warnings, outcome.out_dir)
         trim_heap()  # what the run freed goes back to the system before the next run
+        cut = f"; cancelled after {self._run_end_timeout():.0f} s: {NOT_CONFIRMED}" if self._cut_short else ""
         if self._state not in (RunState.IDLE, RunState.FAULTED):
-            self._set_status(RunState.IDLE, self._run_id, f"run {status}" + "".join(f"; warning: {w}" for w in summary))
+            warnings = "".join(f"; warning: {w}" for w in summary)
+            self._set_status(RunState.IDLE, self._run_id, f"run {status}{cut}{warnings}")
 
     def _close_figures(self) -> None:
         ahead, self._ahead = self._ahead, None
@@ -287,17 +305,18 @@ class RigService(CommandHandling):
             raise CommandRefused(f"matrix {cmd.matrix!r} is invalid: {'; '.join(err.problems)}") from err
         engine = self._engine_factory(cmd.matrix, matrix)
         engine.operator = cmd.by or ""  # recorded in the run with every command's sender
+        # the live feed before the run task: if it cannot be attached, the start fails and nothing moves
+        live = live_feed.attach(engine, matrix, lambda p: self._send(self.topics.live, p, proto.QOS_LIVE))
         engine.subscribe(self._on_event)
         if self.settings.draw_figures:  # at the lowest CPU priority; `orbitrig report` reuses them
             self._ahead = FiguresAhead(engine.out_dir)
             engine.subscribe(self._ahead.on_event)
-        self._engine = engine
+        self._engine, self._live, self._cut_short = engine, live, False
         self._run_id, self._fit_warnings = engine.run_id, []
         assert self._tg is not None
         self._run_task = self._tg.create_task(self._run(engine, cmd.matrix, matrix), name=f"run-{cmd.matrix}")
-        self._live = live_feed.attach(engine, matrix, lambda p: self._send(self.topics.live, p, proto.QOS_LIVE))
-        if self._live is not None:
-            self._tg.create_task(self._live.run(self._run_task), name=f"live-{cmd.matrix}")
+        if live is not None:
+            self._tg.create_task(live.run(self._run_task), name=f"live-{cmd.matrix}")
 
     def _send(self, topic: str, payload: bytes, qos: int, retain: bool = False) -> None:
         self.link.send(topic, payload, qos, retain)

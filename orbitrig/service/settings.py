@@ -39,6 +39,19 @@ class CommandRefused(OrbitrigError):
 
 # -- settings -----------------------------------------------------------------
 
+#: s the engine allows beyond the drives' stop timeout before it gives up waiting for standstill
+STOP_MARGIN_S = 5.0
+#: s for what follows the drives' stop: the links closed, the storage in flight finished and the
+#: run's end recorded (run.h5's consolidation and fsync, coefficients.csv, run.log)
+RECORD_END_S = 120.0
+
+
+def run_end_timeout(stop_timeout_wall_s: float) -> float:
+    """s a run stopped by the service may take to end: the drives' stop timeout (wall s),
+    the engine's margin and the recording of the run's end. Only beyond it is the run
+    cancelled, and its drives' stop is then not confirmed."""
+    return stop_timeout_wall_s + STOP_MARGIN_S + RECORD_END_S
+
 
 @dataclasses.dataclass(frozen=True)
 class AbortAccount:
@@ -104,7 +117,9 @@ class ServiceSettings:
     supervision_timeout: float = 60.0
     reconnect_initial: float = 0.2
     reconnect_max: float = 30.0
-    shutdown_timeout: float = 60.0
+    #: s a run may take to end when the service stops it (shutdown); None: derived from the
+    #: run's rig, the drives' stop timeout as wall time and a margin (``run_end_timeout``)
+    shutdown_timeout: float | None = None
     #: MQTT client id asked for; None: ``default_client_id(rig_id, prefix)``. A broker
     #: configured as config/mosquitto/ replaces it with the account's user name.
     client_id: str | None = None
@@ -135,6 +150,10 @@ class ServiceSettings:
         if not 0 < self.supervision_timeout < math.inf:
             raise ServiceError(
                 f"supervision timeout must be a finite number of seconds > 0, not {self.supervision_timeout!r}"
+            )
+        if self.shutdown_timeout is not None and not 0 < self.shutdown_timeout < math.inf:
+            raise ServiceError(
+                f"shutdown timeout must be a finite number of seconds > 0, not {self.shutdown_timeout!r}"
             )
         if self.client_id is not None and not 0 < len(self.client_id.encode()) <= 128:
             raise ServiceError("client id must have 1 to 128 bytes")

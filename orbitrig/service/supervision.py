@@ -1,0 +1,81 @@
+"""The broker link as the run's supervision (docs/protocols/mqtt.md, "Loss of supervision").
+
+Once the broker has been away longer than ``supervision_timeout`` nobody can answer
+the run: the service marks its engine unattended (``RunEngine.unattended``), so a pause
+or a confirmation begun from then on stops the run after ``[interlocks]
+unanswered_pause_s``, as `orbitrig sweep` does without a terminal; it applies the
+supervision policy once (``keep``, ``pause``, ``stop``); and a pause or confirmation
+already under way (the engine read its limit when it began) is stopped after the same
+time unless the broker is back or the run has moved on. The mark is cleared when the
+broker is back.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+
+from orbitrig.run.states import RunState
+from orbitrig.service.commands import CommandHandling
+from orbitrig.service.engine_port import Engine
+from orbitrig.service.settings import ServiceSettings, SupervisionPolicy
+
+log = logging.getLogger("orbitrig.service.rig_service")
+
+#: the run waits for an answer in these states (an operator's pause, a confirmation)
+ANSWER_WAITS = (RunState.PAUSED, RunState.WAITING)
+LOST = "service (supervision lost)"
+UNANSWERED = "service (nobody can answer: no broker)"
+
+
+class SupervisionHandling(CommandHandling):
+    """The supervision side of :class:`orbitrig.service.rig_service.RigService`."""
+
+    settings: ServiceSettings
+
+    async def _supervision_loop(self) -> None:
+        """Per outage longer than ``supervision_timeout``: the run unattended and the
+        policy applied once; attended again when the broker is back."""
+        while True:
+            await self.link.offline.wait()
+            try:
+                await asyncio.wait_for(self.link.online.wait(), self.settings.supervision_timeout)
+                continue
+            except TimeoutError:
+                pass
+            engine = self._engine if self.run_active else None
+            if engine is None:
+                await self.link.online.wait()
+                continue
+            try:
+                await self._unsupervised(engine)
+            finally:
+                engine.unattended = False  # the broker is back (or the service ends)
+            log.info("broker back: the run is supervised again")
+
+    async def _unsupervised(self, engine: Engine) -> None:
+        """From the loss of supervision until the broker is back."""
+        s = self.settings
+        log.warning(
+            "no broker for %.0f s: supervision lost, policy %r; a pause or confirmation nobody "
+            "can answer stops the run after %g s",
+            s.supervision_timeout,
+            s.supervision_policy,
+            engine.rig.interlocks.unanswered_pause_s,
+        )
+        engine.unattended = True  # before the pause below, which reads it when it begins
+        wait = (engine.state, engine.since)
+        if s.supervision_policy is SupervisionPolicy.PAUSE and engine.state in (RunState.RUNNING, RunState.WAITING):
+            self._request("pause", LOST)
+        elif s.supervision_policy is SupervisionPolicy.STOP:
+            self._request("stop", LOST)
+        if wait[0] in ANSWER_WAITS:  # begun while supervised: its wait has no limit of its own
+            try:
+                await asyncio.wait_for(self.link.online.wait(), engine.rig.interlocks.unanswered_pause_s)
+                return
+            except TimeoutError:
+                pass
+            if self._engine is engine and self.run_active and (engine.state, engine.since) == wait:
+                log.warning("nobody can answer the run (%s, no broker): stopping it", engine.state)
+                self._request("stop", UNANSWERED)
+        await self.link.online.wait()

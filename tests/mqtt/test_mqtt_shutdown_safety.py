@@ -1,0 +1,169 @@
+"""Shutting the service down never leaves the drives turning: a start (or anything
+that moves the drives) during shutdown is refused or not read, a run the service
+has to cut short says its drives' stop is not confirmed, and a start whose live
+feed cannot be attached starts nothing. In process: the service the CLI builds,
+on the simulator, with a real mosquitto."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, retained, write_matrices
+from orbitrig.cli.serve import build_service
+from orbitrig.config import load_rig
+from orbitrig.service import rig_service
+from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
+from orbitrig.service.settings import RECORD_END_S, STOP_MARGIN_S
+
+RIG = "down"
+DECEL_TIME = 103  # the drives' register: 0.1 s for SPEED_SCALE (3000) rpm along the ramp stop
+
+
+async def wait(fn, *args, **kw):
+    return await asyncio.to_thread(fn, *args, **kw)
+
+
+class SlowDrained(asyncio.Event):
+    """The broker's acknowledgements of the service's last messages take 3 s (a loaded
+    broker): the only injected part, it holds the service in its wait for them."""
+
+    async def wait(self):
+        await asyncio.sleep(3.0)
+        return await super().wait()
+
+
+def standstill(sim_rig) -> bool:
+    return all(abs(w) < 1e-3 for w in sim_rig.speeds)
+
+
+@contextlib.asynccontextmanager
+async def serving(tmp_path: Path, *, decel_counts: int | None = None, speedup: float = 20, **settings_kw):
+    """(service, sim_rig, client, shutdown event, serve task) on a fresh broker and simulator;
+    ``decel_counts``: both drives' DECEL_TIME (a slow ramp stop)."""
+    from sim.rig import SimRig
+
+    b = Broker(tmp_path / "broker")
+    b.start()
+    try:
+        async with SimRig(speedup=speedup, adc_pty=False) as sim_rig:
+            if decel_counts is not None:
+                for drive in sim_rig.drives.values():
+                    drive.write(DECEL_TIME, [decel_counts])
+            settings = ServiceSettings(rig_id=RIG, matrices_dir=write_matrices(tmp_path / "matrices"), **settings_kw)
+            creds = BrokerSettings.from_url(b.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"])
+            svc = build_service(load_rig(), settings, creds, out=tmp_path / "runs", sim_rig=sim_rig, confirm="auto")
+            shutdown = asyncio.Event()
+            task = asyncio.create_task(svc.serve(shutdown))
+            rc = RigClient(b, RIG)
+            try:
+                await wait(rc.status, "idle")
+                yield svc, sim_rig, rc, shutdown, task
+            finally:
+                rc.close()
+                shutdown.set()
+                svc.abort_run("test over")  # whatever went wrong, the drives stop before the simulator closes
+                await asyncio.wait_for(asyncio.gather(task, return_exceptions=True), 120)
+    finally:
+        b.stop()
+
+
+async def test_a_start_after_offline_is_not_carried_out_and_serve_returns(tmp_path):
+    async with serving(tmp_path, speedup=4) as (svc, sim_rig, rc, shutdown, task):
+        svc.link.drained = SlowDrained()
+        mark = rc.watch.mark()
+        shutdown.set()  # SIGTERM, the service idle
+        await wait(rc.status, "offline", 10, mark)
+        cid = await wait(rc.send, {"cmd": "start", "matrix": "long"})  # e.g. a dashboard's start
+        await asyncio.wait_for(asyncio.shield(task), 15)  # serve returns
+        replies = [m.json() for m in rc.watch.on("reply", mark) if m.json()["id"] == cid]
+        assert all(r["ok"] is False for r in replies), replies  # not read, or refused: never started
+        assert not svc.run_active
+        for _ in range(10):  # the drives stay at standstill
+            assert standstill(sim_rig), sim_rig.speeds
+            await asyncio.sleep(0.1)
+        assert (await wait(retained, rc.broker, f"orbitrig/{RIG}/status")).json()["state"] == "offline"
+
+
+async def test_start_resume_and_confirm_are_refused_while_shutting_down(tmp_path):
+    # a ramp stop of some 60 s simulated (3 s here): the shutdown waits for it
+    async with serving(tmp_path, decel_counts=1800) as (svc, sim_rig, rc, shutdown, task):
+        assert (await wait(rc.command, {"cmd": "start", "matrix": "long"}))["ok"] is True
+        await wait(rc.status, "running")
+        await asyncio.sleep(0.5)
+        mark = rc.watch.mark()
+        shutdown.set()
+        await wait(rc.status, "stopping", 10, mark)
+        for cmd in ({"cmd": "start", "matrix": "quick"}, {"cmd": "resume"}, {"cmd": "confirm", "step": "manual:0000"}):
+            reply = await wait(rc.command, cmd)
+            assert reply["ok"] is False and "the service is shutting down" in reply["error"], (cmd, reply)
+        await asyncio.wait_for(asyncio.shield(task), 60)
+        assert standstill(sim_rig), sim_rig.speeds
+        states = [m.json()["state"] for m in rc.watch.on("status", mark)]
+        assert states[-1] == "offline" and "running" not in states, states
+
+
+async def test_a_run_cancelled_with_the_service_does_not_claim_its_drives_stopped(tmp_path):
+    async with serving(tmp_path) as (svc, sim_rig, rc, shutdown, task):
+        assert (await wait(rc.command, {"cmd": "start", "matrix": "long"}))["ok"] is True
+        await wait(rc.status, "running")
+        await asyncio.sleep(0.5)
+        task.cancel()  # a fault of the service's own: its TaskGroup cancels the run
+        await asyncio.gather(task, return_exceptions=True)
+        message = json.loads(svc._status)["message"]
+        assert "drives stopped" not in message and "not confirmed" in message, message
+        for _ in range(100):  # the engine's cleanup still stops the drives
+            if standstill(sim_rig):
+                break
+            await asyncio.sleep(0.1)
+        assert standstill(sim_rig), sim_rig.speeds
+
+
+def test_the_shutdown_waits_for_the_drives_stop_timeout_and_the_run_end(tmp_path):
+    rig = load_rig()
+    rig = rig.model_copy(update={"drives": rig.drives.model_copy(update={"stop_timeout_s": 1200.0})})
+    svc = build_service(
+        rig,
+        ServiceSettings(rig_id=RIG, matrices_dir=tmp_path),
+        BrokerSettings("127.0.0.1"),
+        out=tmp_path / "runs",
+    )
+    svc._engine = svc._engine_factory("m", None)  # the run's engine: the real rig, time scale 1
+    assert math.isclose(svc._run_end_timeout(), 1200.0 + STOP_MARGIN_S + RECORD_END_S)
+
+
+async def test_a_live_feed_that_cannot_be_attached_starts_nothing(tmp_path, monkeypatch):
+    def broken(*args, **kw):
+        raise RuntimeError("no live feed")
+
+    monkeypatch.setattr(rig_service.live_feed, "attach", broken)  # a fault the real parts do not produce
+    async with serving(tmp_path) as (svc, sim_rig, rc, shutdown, task):
+        reply = await wait(rc.command, {"cmd": "start", "matrix": "quick"})
+        assert reply["ok"] is False and "no live feed" in reply["error"], reply
+        await asyncio.sleep(1.0)
+        assert not svc.run_active and svc.state == "idle"
+        assert standstill(sim_rig), sim_rig.speeds
+
+
+async def test_a_failing_closing_summary_leaves_the_service_serving(tmp_path, monkeypatch):
+    def broken(out_dir):
+        raise RuntimeError("summary unreadable")
+
+    monkeypatch.setattr(rig_service, "closing_warnings", broken)  # a fault the real parts do not produce
+    async with serving(tmp_path) as (svc, sim_rig, rc, shutdown, task):
+        assert (await wait(rc.command, {"cmd": "start", "matrix": "quick"}))["ok"] is True
+        idle = await wait(rc.status, lambda s: s["state"] == "idle" and s["run_id"] is not None, 90)
+        assert "closing summary failed: summary unreadable" in idle["message"], idle
+        assert not task.done()
+        assert (await wait(rc.command, {"cmd": "status"}))["ok"] is True
+
+
+@pytest.mark.parametrize("value", [0.0, -1.0, math.inf, math.nan])
+def test_a_shutdown_timeout_must_be_finite_and_positive(tmp_path, value):
+    with pytest.raises(rig_service.ServiceError, match="shutdown timeout"):
+        ServiceSettings(rig_id=RIG, matrices_dir=tmp_path, shutdown_timeout=value)
