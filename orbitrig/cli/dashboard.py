@@ -126,7 +126,9 @@ def register(app: typer.Typer) -> None:
         tls_ca: Optional[Path] = typer.Option(None, "--tls-ca", help="CA file: TLS to the broker"),
         idle_timeout: float = typer.Option(1800.0, "--idle-timeout", help="s without activity that end a session"),
         reply_timeout: float = typer.Option(
-            3.0, "--reply-timeout", help="s to wait for the service's reply before a command counts as refused"
+            3.0,
+            "--reply-timeout",
+            help="s to wait for the service's reply; without it a command's outcome is unknown (the page says so)",
         ),
         sessions_per_user: int = typer.Option(
             4, "--sessions-per-user", help="sessions one broker user may hold; a new sign-in ends the oldest"

@@ -11,6 +11,10 @@ An acknowledgement is a message on ``<prefix>/ack`` (this project's extension of
 topic tree): ``{"alarm": "<id>", "by": "<user>", "at": "<ISO-8601 time>", "id": "<nonce>"}``.
 The broker's ACL lets operators publish it; every dashboard on the broker applies it.
 At most ``limit`` alarms are kept: the oldest acknowledged ones go first.
+
+The dashboard server keeps one book per rig (:class:`AlarmShelf`), shared by every session
+watching that rig: a latched alarm outlives the session that saw it raised (sign-out, idle
+expiry, a switch to another rig and back) until the dashboard server stops.
 """
 
 from __future__ import annotations
@@ -60,11 +64,12 @@ def _raised(status: dict[str, Any]) -> Alarm | None:
 
 
 class AlarmBook:
-    """The alarms of one rig as one dashboard session has seen them."""
+    """The alarms of one rig as the dashboard server has seen them; ``version`` counts its changes."""
 
     def __init__(self, limit: int = 200):
         self.limit = limit
         self.alarms: dict[str, Alarm] = {}
+        self.version = 0
 
     def on_status(self, status: dict[str, Any]) -> bool:
         """Raise or clear alarms from a status; True when the list changed."""
@@ -74,6 +79,7 @@ class AlarmBook:
                 return False
             self.alarms[alarm.id] = alarm
             self._bound()
+            self.version += 1
             return True
         if str(status.get("message") or "").startswith(CLEARED) or status.get("state") == RunState.IDLE:
             stale = [
@@ -83,6 +89,7 @@ class AlarmBook:
             ]
             for a in stale:
                 a.cleared = True
+            self.version += bool(stale)
             return bool(stale)
         return False
 
@@ -93,6 +100,7 @@ class AlarmBook:
         if alarm is None or alarm.acked_by is not None or not isinstance(by, str) or not by:
             return False
         alarm.acked_by, alarm.acked_at = by[:64], str(at or "")[:40]
+        self.version += 1
         return True
 
     def _bound(self) -> None:
@@ -104,6 +112,21 @@ class AlarmBook:
         """Every alarm kept, newest first."""
         return [dataclasses.asdict(a) for a in reversed(self.alarms.values())]
 
-    def seed(self, other: AlarmBook) -> None:
-        """Start from another session's alarms of the same rig."""
-        self.alarms = {k: dataclasses.replace(a) for k, a in other.alarms.items()}
+
+class AlarmShelf:
+    """The alarm book of every rig the dashboard's sessions have watched, by topic prefix (at most
+    ``limit`` rigs: beyond, the book that has longest had nothing unacknowledged goes)."""
+
+    def __init__(self, limit: int = 256):
+        self.limit = limit
+        self.books: dict[str, AlarmBook] = {}
+
+    def book(self, prefix: str) -> AlarmBook:
+        """The book of the rig under ``prefix`` (a new one the first time)."""
+        book = self.books.get(prefix)
+        if book is None:
+            if len(self.books) >= self.limit:
+                quiet = [k for k, b in self.books.items() if all(a.acked_by for a in b.alarms.values())]
+                del self.books[(quiet or list(self.books))[0]]
+            book = self.books[prefix] = AlarmBook()
+        return book

@@ -23,6 +23,7 @@ class FeedType(StrEnum):
     TREND = "trend"
     TREND_HISTORY = "trend_history"
     ALARMS = "alarms"
+    OUTCOMES = "outcomes"
     SIGNED_OUT = "signed_out"
 
 

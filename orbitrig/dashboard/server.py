@@ -5,14 +5,15 @@ and a websocket feed per browser.
 - ``POST /api/login`` ``{"user", "password"}``: opens the person's MQTT
   connection; on success an HttpOnly, SameSite=Strict session cookie;
 - ``POST /api/logout``, ``GET /api/session``;
-- ``POST /api/cmd`` ``{"cmd", ...}``: one command as the signed-in user;
-- ``POST /api/ack`` ``{"alarm"}``: acknowledges a latched alarm as the signed-in user
-  (orbitrig.dashboard.alarms);
+- ``POST /api/cmd`` ``{"cmd", "rig", ...}``: one command as the signed-in user to the rig
+  the page shows (``rig``: its topic prefix; refused if the session watches another by now);
+- ``POST /api/ack`` ``{"alarm", "rig"}``: acknowledges a latched alarm as the signed-in user
+  (orbitrig.dashboard.alarms: one book per rig, shared by the sessions);
 - ``POST /api/rig`` ``{"rig"}``: the session watches another rig of the broker
   (orbitrig.dashboard.rigs);
 - ``GET /api/feed``: websocket, server -> page JSON messages ``{"type", ...}``
   (``hello``, ``link``, ``status``, ``progress``, ``live``, ``result``,
-  ``trend``, ``trend_history``, ``alarms``, ``rigs``, ``rig``, ``signed_out``); page -> server ``{"type": "active"}`` on user activity.
+  ``trend``, ``trend_history``, ``alarms``, ``rigs``, ``rig``, ``outcomes``, ``signed_out``); page -> server ``{"type": "active"}`` on user activity.
 
 A session ends on sign-out or after ``idle_timeout`` s without a request or
 user activity; a user's new sign-in beyond ``sessions_per_user`` ends that user's
@@ -34,6 +35,7 @@ from typing import Any
 
 from aiohttp import WSMsgType, web
 
+from orbitrig.dashboard.alarms import AlarmShelf
 from orbitrig.dashboard.guard import RequestDeadline
 from orbitrig.dashboard.feed import Feed, FeedType
 from orbitrig.dashboard.session import DashboardSettings, Session, SignInRefused
@@ -56,6 +58,7 @@ SECURITY_HEADERS = {
 SESSIONS = web.AppKey("sessions", dict)
 SETTINGS = web.AppKey("settings", DashboardSettings)
 THROTTLE = web.AppKey("throttle", SignInThrottle)
+ALARMS = web.AppKey("alarms", AlarmShelf)
 
 
 @web.middleware
@@ -97,7 +100,7 @@ async def login(request: web.Request) -> web.Response:
     sessions: dict[str, Session] = request.app[SESSIONS]
     if len(sessions) - len(_oldest_beyond_cap(request.app, user)) >= MAX_SESSIONS:
         return web.json_response({"error": "too many sessions: sign out elsewhere first"}, status=503)
-    session = Session(request.app[SETTINGS], user, password)
+    session = Session(request.app[SETTINGS], user, password, request.app[ALARMS])
     del password, body
     try:
         await session.open()
@@ -115,7 +118,7 @@ async def login(request: web.Request) -> web.Response:
     session.adopt(sessions.values())  # a sign-in in the middle of a run sees its trends and alarms so far
     sessions[session.token] = session
     log.info("%r signed in (%d sessions)", user, len(sessions))
-    response = web.json_response({"user": user, "prefix": session.topics.prefix})
+    response = web.json_response(_who(session))
     response.set_cookie(COOKIE, session.token, httponly=True, samesite="Strict", path="/", secure=request.secure)
     return response
 
@@ -141,7 +144,12 @@ async def whoami(request: web.Request) -> web.Response:
     if session is None:
         return web.json_response({"error": "not signed in"}, status=401)
     session.touch()
-    return web.json_response({"user": session.user, "prefix": session.topics.prefix})
+    return web.json_response(_who(session))
+
+
+def _who(session: Session) -> dict:
+    """Who is signed in, the rig watched, and the reply timeout (s: the page's deadlines follow it)."""
+    return {"user": session.user, "prefix": session.topics.prefix, "reply_timeout": session.settings.reply_timeout}
 
 
 async def command(request: web.Request) -> web.Response:
@@ -180,31 +188,31 @@ async def feed(request: web.Request) -> web.StreamResponse:
     return ws
 
 
-async def _field(request: web.Request, name: str) -> tuple[Session | None, str | web.Response]:
-    """The signed-in session and the text field ``name`` of the JSON body, or the error response."""
+async def _field(request: web.Request, name: str) -> tuple[Session | None, str | web.Response, dict]:
+    """The signed-in session, the text field ``name`` of the JSON body and the body, or the error response."""
     session = _session(request)
     if session is None:
-        return None, web.json_response({"ok": False, "error": "not signed in"}, status=401)
+        return None, web.json_response({"ok": False, "error": "not signed in"}, status=401), {}
     session.touch()
     try:
         body = await request.json()
     except (ValueError, UnicodeDecodeError):
         body = None
     if not isinstance(body, dict) or not isinstance(body.get(name), str):
-        return None, web.json_response({"ok": False, "error": f"expected JSON {{{name}}}"}, status=400)
-    return session, body[name]
+        return None, web.json_response({"ok": False, "error": f"expected JSON {{{name}}}"}, status=400), {}
+    return session, body[name], body
 
 
 async def acknowledge(request: web.Request) -> web.Response:
-    session, alarm = await _field(request, "alarm")
+    session, alarm, body = await _field(request, "alarm")
     if isinstance(alarm, web.Response):
         return alarm
     assert session is not None
-    return web.json_response(await session.acknowledge(alarm))
+    return web.json_response(await session.acknowledge(alarm, body.get("rig")))
 
 
 async def select_rig(request: web.Request) -> web.Response:
-    session, rig_id = await _field(request, "rig")
+    session, rig_id, _ = await _field(request, "rig")
     if isinstance(rig_id, web.Response):
         return rig_id
     assert session is not None
@@ -261,6 +269,7 @@ def make_app(settings: DashboardSettings) -> web.Application:
     app[SESSIONS] = {}
     app[SETTINGS] = settings
     app[THROTTLE] = SignInThrottle(settings.throttle)
+    app[ALARMS] = AlarmShelf()  # the rigs' latched alarms: they outlive the sessions that saw them
     app.router.add_get("/", index)
     app.router.add_static("/static", STATIC, follow_symlinks=False)
     app.router.add_post("/api/login", login)

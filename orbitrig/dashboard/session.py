@@ -7,11 +7,13 @@ this object (server-side memory) for the reconnections; it is never logged.
 A :class:`Session` watches one rig of the broker at a time (``select_rig``) and keeps
 what the page needs to draw itself at once (the retained status, the latest progress
 and live payloads, the results so far, the trends and the alarms)
-and fans every rig message out to the session's browser feeds. A command is
-published with a correlation id and answered by the service's reply; a publish
-the ACL drops silently (MQTT 3.1.1) gets no reply: after ``reply_timeout`` it is
-reported as refused, not authorised (or "no reply: the rig service is offline"
-when the service's status says so).
+and fans every rig message out to the session's browser feeds. The alarms are the
+rig's book on the dashboard server (orbitrig.dashboard.alarms.AlarmShelf), shared by the
+sessions watching it. The connection is MQTT 5, so that the broker answers a publish its ACL
+refuses with reason code 135 (orbitrig.dashboard.puback). A command is published with a
+correlation id and answered by the service's reply; refused by the broker, it is reported
+as not authorised; without a reply within ``reply_timeout`` its outcome is unknown
+(orbitrig.dashboard.commands).
 """
 
 from __future__ import annotations
@@ -28,8 +30,10 @@ from typing import Any
 
 import orbitrig.service.protocol as proto
 from daq.backoff import Backoff
-from orbitrig.dashboard.alarms import AlarmBook
+from orbitrig.dashboard.alarms import AlarmBook, AlarmShelf
+from orbitrig.dashboard.commands import PAGE_COMMANDS
 from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
+from orbitrig.dashboard.outgoing import Outgoing
 from orbitrig.dashboard.rigs import RigDirectory
 from orbitrig.dashboard.throttle import ThrottlePolicy
 from orbitrig.dashboard.trend import TrendHistory
@@ -37,17 +41,7 @@ from orbitrig.service.reconnect import credentials_refused, reconnecting
 
 log = logging.getLogger("orbitrig.dashboard")
 
-#: Commands the page may send and the fields each takes besides ``cmd``.
-PAGE_COMMANDS = {
-    "start": ("matrix",),
-    "pause": (),
-    "resume": (),
-    "stop": (),
-    "abort": (),
-    "confirm": ("step",),
-    "status": (),
-}
-NOT_AUTHORISED = "refused: not authorised"
+__all__ = ["PAGE_COMMANDS", "DashboardSettings", "Session", "SignInRefused"]
 #: a run has ended in these states: its progress and live view are forgotten
 ENDED = (proto.RunState.IDLE, proto.RunState.FAULTED)
 TREND_RESEND = 300  # the run's trend view (thinned by the server) goes to the pages again every this many samples
@@ -81,11 +75,12 @@ class DashboardSettings:
     trend_recent_s: float = 1800.0  # s of recent trend samples kept (the run's own view is thinned instead)
 
 
-class Session:
-    """One browser session = one broker user's MQTT connection."""
+class Session(Outgoing):
+    """One browser session = one broker user's MQTT connection (its commands: Outgoing)."""
 
-    def __init__(self, settings: DashboardSettings, user: str, password: str):
+    def __init__(self, settings: DashboardSettings, user: str, password: str, shelf: AlarmShelf | None = None):
         self.settings = settings
+        self.shelf = shelf if shelf is not None else AlarmShelf()  # the server's: shared by its sessions
         self.user = user
         self.__password = password
         self.token = secrets.token_urlsafe(32)
@@ -99,6 +94,7 @@ class Session:
         self._forget_rig()
         self.feeds: set[Feed] = set()
         self._pending: dict[str, asyncio.Future] = {}
+        self.outcomes = collections.deque(maxlen=10)
         self._client: Any = None
         self._task: asyncio.Task | None = None
         self.closed = False
@@ -113,16 +109,29 @@ class Session:
         self.results: collections.deque[dict] = collections.deque(maxlen=500)
         self.trend = TrendHistory(self.settings.trend_period, self.settings.trend_recent_s)
         self.trend_samples = 0
-        self.alarms = AlarmBook()
+        self.alarms_seen = -1  # the version of the rig's alarm book the pages have
+
+    @property
+    def alarms(self) -> AlarmBook:
+        """The latched alarms of the rig watched (the dashboard server's book, not the session's)."""
+        return self.shelf.book(self.topics.prefix)
+
+    def _alarms_changed(self) -> None:
+        """Send the pages the rig's alarms when its book changed since they got it (whichever
+        session applied the change: every session watching the rig gets the same messages)."""
+        book = self.alarms
+        if book.version != self.alarms_seen:
+            self.alarms_seen = book.version
+            self._broadcast({"type": FeedType.ALARMS, "data": book.listing()})
 
     def adopt(self, peers: Any) -> None:
-        """Start from the trends and alarms of the first of ``peers`` (sessions) watching the same rig."""
+        """Start from the trends of the first of ``peers`` (sessions) watching the same rig; the alarms
+        are the rig's own book."""
         peer = next((p for p in peers if p is not self and p.topics == self.topics), None)
         if peer is not None:
             self.trend.seed(peer.trend)
-            self.alarms.seed(peer.alarms)
             self._broadcast({"type": FeedType.TREND_HISTORY, "data": self.trend.history()})
-            self._broadcast({"type": FeedType.ALARMS, "data": self.alarms.listing()})
+        self._alarms_changed()
 
     async def select_rig(self, rig_id: str, peers: Any = ()) -> dict:
         """Watch another rig of the broker (``orbitrig/<rig_id>``) from now on (with the trends
@@ -157,15 +166,18 @@ class Session:
     def _make_client(self) -> Any:
         import aiomqtt
 
+        from orbitrig.dashboard.puback import ReasonClient
+
         s = self.settings
         tls = aiomqtt.TLSParameters(ca_certs=str(s.tls_ca) if s.tls_ca else None) if s.tls else None
-        return aiomqtt.Client(
+        return ReasonClient(  # MQTT 5: a publish the ACL refuses is answered with reason code 135
             s.host,
             s.port,
             username=self.user,
             password=self.__password,
             identifier=f"mosq-orbitrig-dashboard-{self.user}-{self.token[:8]}",
-            clean_session=True,
+            protocol=aiomqtt.ProtocolVersion.V5,
+            clean_start=True,  # no session expiry: the broker keeps nothing of it after a disconnection
             keepalive=s.keepalive,
             timeout=10,
             tls_params=tls,
@@ -250,12 +262,12 @@ class Session:
             self._forget_run_view(data)
             self.status = data
             self._broadcast({"type": FeedType.STATUS, "data": data})
-            if self.alarms.on_status(data):
-                self._broadcast({"type": FeedType.ALARMS, "data": self.alarms.listing()})
+            self.alarms.on_status(data)
+            self._alarms_changed()
         elif topic == t.ack:
             self._resolve(data)
-            if self.alarms.on_ack(data):
-                self._broadcast({"type": FeedType.ALARMS, "data": self.alarms.listing()})
+            self.alarms.on_ack(data)
+            self._alarms_changed()
         elif topic == t.progress:
             self.progress = data
             self._broadcast({"type": FeedType.PROGRESS, "data": data})
@@ -297,7 +309,12 @@ class Session:
     def snapshot(self) -> list[dict]:
         """What a newly connected page needs to draw the present at once."""
         out: list[dict] = [
-            {"type": FeedType.HELLO, "user": self.user, "prefix": self.topics.prefix},
+            {
+                "type": FeedType.HELLO,
+                "user": self.user,
+                "prefix": self.topics.prefix,
+                "reply_timeout": self.settings.reply_timeout,
+            },
             {"type": FeedType.LINK, "link": self.link},
             {"type": FeedType.RIGS, "data": self.rigs.listing()},
         ]
@@ -309,91 +326,8 @@ class Session:
         out += [{"type": FeedType.RESULT, "data": r} for r in self.results]
         out.append({"type": FeedType.TREND_HISTORY, "data": self.trend.history()})
         out.append({"type": FeedType.ALARMS, "data": self.alarms.listing()})
+        if self.outcomes:
+            out.append({"type": FeedType.OUTCOMES, "data": list(self.outcomes)})
         if self.live is not None:
             out.append({"type": FeedType.LIVE, "data": self.live, "age_s": time.monotonic() - self.live_at})
         return out
-
-    # -- commands ----------------------------------------------------------------
-
-    async def command(self, request: dict) -> dict:
-        """Publish one command as this user; the service's reply, or a refusal (without the name)."""
-        name = request.get("cmd")
-        if name not in PAGE_COMMANDS:
-            return {"ok": False, "error": f"unknown command {name!r}"}
-        body = {"cmd": name, "by": self.user}  # the signed-in user, recorded in the run
-        for field in PAGE_COMMANDS[name]:
-            value = request.get(field)
-            if not isinstance(value, str) or not value:
-                return {"ok": False, "error": f"field {field!r} is missing"}
-            body[field] = value
-        client = self._client
-        if client is None:
-            return {"ok": False, "error": "no connection to the broker: try again when it is back"}
-        cid = f"dash-{secrets.token_hex(6)}"
-        topics = self.topics  # stop and abort on their own topic: no flood holds them back
-        fut = asyncio.get_running_loop().create_future()
-        self._pending[cid] = fut
-        t0 = time.monotonic()
-        try:
-            await client.publish(
-                topics.abort if name in proto.ALWAYS_ACCEPTED else topics.cmd,
-                json.dumps({**body, "id": cid}),
-                qos=proto.QOS_CMD,
-                timeout=self.settings.reply_timeout,
-            )
-            reply = await asyncio.wait_for(fut, self.settings.reply_timeout)
-        except (TimeoutError, asyncio.TimeoutError):
-            return {"ok": False, "error": self._no_reply(name)}
-        except Exception as err:  # noqa: BLE001 - aiomqtt errors: the link went away
-            return {"ok": False, "error": f"not sent: {err}"}
-        finally:
-            self._pending.pop(cid, None)
-        log.info(
-            "%s by %r: %s (%.0f ms)",
-            name,
-            self.user,
-            "ok" if reply.get("ok") else reply.get("error"),
-            (time.monotonic() - t0) * 1e3,
-        )
-        return {"ok": bool(reply.get("ok")), "error": reply.get("error")}
-
-    async def acknowledge(self, alarm_id: str) -> dict:
-        """Acknowledge a latched alarm as this user: published on ``<prefix>/ack``; done when the
-        broker hands it back (the ACL lets the user publish there), else refused."""
-        alarm = self.alarms.alarms.get(alarm_id)
-        if alarm is None:
-            return {"ok": False, "error": f"acknowledge: no alarm {alarm_id!r}"}
-        if alarm.acked_by is not None:
-            return {"ok": True, "error": None}
-        client = self._client
-        if client is None:
-            return {"ok": False, "error": "no connection to the broker: try again when it is back"}
-        nonce = f"ack-{secrets.token_hex(6)}"
-        fut = asyncio.get_running_loop().create_future()
-        self._pending[nonce] = fut
-        body = {"alarm": alarm_id, "by": self.user, "at": proto.iso8601(), "id": nonce}
-        try:
-            await client.publish(self.topics.ack, json.dumps(body), qos=1, timeout=self.settings.reply_timeout)
-            await asyncio.wait_for(fut, self.settings.reply_timeout)
-        except (TimeoutError, asyncio.TimeoutError):
-            return {
-                "ok": False,
-                "error": f"{NOT_AUTHORISED}: acknowledge — user {self.user!r} may not "
-                "acknowledge alarms of this rig (the broker dropped it)",
-            }
-        except Exception as err:  # noqa: BLE001 - aiomqtt errors: the link went away
-            return {"ok": False, "error": f"acknowledge not sent: {err}"}
-        finally:
-            self._pending.pop(nonce, None)
-        log.info("alarm %s acknowledged by %r", alarm_id, self.user)
-        return {"ok": True, "error": None}
-
-    def _no_reply(self, name: str) -> str:
-        """Why a command got no reply (the page puts the command's name in front)."""
-        if self.status is not None and self.status.get("state") == proto.OFFLINE:
-            return "no reply: the rig service is offline"
-        log.info("%s by %r: no reply within %.1f s (ACL)", name, self.user, self.settings.reply_timeout)
-        return (
-            f"{NOT_AUTHORISED} — user {self.user!r} may not command this rig "
-            "(the broker dropped the command; no reply from the rig service)"
-        )

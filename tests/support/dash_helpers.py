@@ -145,7 +145,7 @@ class Page:
         self.wait(lambda: self.state() in states, timeout, f"state {states}")
 
     def command(self, button: str, expect: str | Callable[[str], bool], timeout: float = 20.0) -> str:
-        """Click a command button; wait for its outcome line."""
+        """Click a command button; wait for its outcome line (not "sending…")."""
         before = self.d.execute_script("return document.getElementById('cmd-result').textContent = ''")
         del before
         self.el(button).click()
@@ -153,7 +153,7 @@ class Page:
             self.wait(lambda: self.el("abort-confirm").is_displayed(), 10, "the abort confirmation")
             self.el("abort-confirm").click()
         check = (lambda t: expect in t) if isinstance(expect, str) else expect
-        return self.wait_text("cmd-result", lambda t: "sent" not in t and t != "" and check(t), timeout)
+        return self.wait_text("cmd-result", lambda t: not t.endswith("…") and t != "" and check(t), timeout)
 
     def rows(self, tbody_id: str, key: str) -> dict[str, str]:
         """Rows of a table body redrawn live, read in one go: {data-<key>: row text}."""

@@ -35,8 +35,8 @@ async function acknowledge(id) {
   const out = document.getElementById("alarm-result");
   out.className = "cmd-result"; out.textContent = "acknowledge: sent…";
   let r;
-  try { r = await api("/api/ack", {alarm: id}); }
-  catch (e) { r = {status: 0, data: {ok: false, error: "dashboard server unreachable"}}; }
+  try { r = await api("/api/ack", {alarm: id, rig: document.getElementById("rig").textContent}, 1000 * (2 * st.replyTimeout + 2)); }
+  catch (e) { r = {status: 0, data: {ok: false, error: "acknowledge: no answer from the dashboard server: look at the list, try again"}}; }
   if (r.status === 401) { leave("session ended: sign in again"); return; }
   if (r.data.ok) { out.className = "cmd-result ok"; out.textContent = "acknowledge: done"; return; }
   out.className = "cmd-result refused"; out.textContent = r.data.error || "acknowledge: failed";

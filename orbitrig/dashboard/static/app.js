@@ -4,16 +4,18 @@
 "use strict";
 
 const $ = id => document.getElementById(id);
-const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0};
+const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0, replyTimeout: 3};
 
 function fmt(v, digits) { return (v === null || v === undefined || !isFinite(v)) ? "—" : Number(v).toFixed(digits); }
 function show(el, on) { el.hidden = !on; }
 function clear(el) { while (el.firstChild) el.removeChild(el.firstChild); }
 function cell(tr, text, cls) { const td = document.createElement("td"); td.textContent = text; if (cls) td.className = cls; tr.appendChild(td); return td; }
 
-async function api(path, body) {
+// `deadline` (ms): the request is given up after it (the promise rejects with an AbortError)
+async function api(path, body, deadline) {
   const opts = body === undefined ? {credentials: "same-origin"} :
     {method: "POST", credentials: "same-origin", headers: {"Content-Type": "application/json"}, body: JSON.stringify(body)};
+  if (deadline) opts.signal = AbortSignal.timeout(deadline);
   const r = await fetch(path, opts);
   let data = {};
   try { data = await r.json(); } catch (e) { /* empty */ }
@@ -38,6 +40,7 @@ async function signIn(ev) {
 }
 
 function enter(who) {
+  if (who.reply_timeout) st.replyTimeout = who.reply_timeout;
   $("who").textContent = who.user;
   $("rig").textContent = who.prefix;
   show($("signin"), false); show($("app"), true);
@@ -46,6 +49,8 @@ function enter(who) {
 
 function leave(reason) {
   if (st.ws) { st.ws.onclose = null; st.ws.close(); st.ws = null; }
+  // an open modal dialog (the abort confirmation) would stay open unseen and block every click
+  document.querySelectorAll("dialog[open]").forEach(d => d.close());
   show($("app"), false); show($("signin"), true);
   resetView();
   $("signin-error").textContent = reason || "";
@@ -120,7 +125,7 @@ function banner(text) { $("offline-banner").textContent = text || ""; show($("of
 
 function handle(msg) {
   switch (msg.type) {
-    case FeedType.HELLO: $("who").textContent = msg.user; $("rig").textContent = msg.prefix; break;
+    case FeedType.HELLO: $("who").textContent = msg.user; $("rig").textContent = msg.prefix; st.replyTimeout = msg.reply_timeout || st.replyTimeout; break;
     case FeedType.RIGS: showRigs(msg.data); break;
     case FeedType.RIG: clearRigView(); $("rig").textContent = msg.prefix; showRigs(st.rigs || {}); break;
     case FeedType.LINK: showLink(msg.link); break;
@@ -131,6 +136,7 @@ function handle(msg) {
     case FeedType.TREND: trends.trendSample(msg.sample, msg.run_id); break;
     case FeedType.TREND_HISTORY: trends.trendHistory(msg.data); break;
     case FeedType.ALARMS: alarmList.showAlarms(msg.data); break;
+    case FeedType.OUTCOMES: msg.data.forEach(o => showOutcome(o.cmd, o, o.at)); break;
     case FeedType.SIGNED_OUT: leave("session ended: " + msg.reason); break;
   }
 }
@@ -296,30 +302,54 @@ function showAux(a, bands) {
 }
 
 // ---------------------------------------------------------------- events
-function addEvent(kind, text, once) {
+// `at`: when it happened (ISO-8601; default now)
+function addEvent(kind, text, once, at) {
   const list = $("events");
   if (once && list.firstChild && list.firstChild.textContent.endsWith(text)) return;
   const li = document.createElement("li"); li.className = kind;
-  li.textContent = new Date().toLocaleTimeString() + " " + text;
+  li.textContent = (at ? new Date(at) : new Date()).toLocaleTimeString() + " " + text;
   list.insertBefore(li, list.firstChild);
   while (list.children.length > 100) list.removeChild(list.lastChild);
 }
 
 // ---------------------------------------------------------------- commands
+// what to do when a command's outcome is unknown
+function advice(cmd) {
+  return cmd === Command.STOP || cmd === Command.ABORT ?
+    "check the rig's state; if it is still running use the rig's emergency stop" : "check the rig's state";
+}
+
+// the command goes with the rig this page shows: the server refuses it if the session watches
+// another by now. The request is given up after the server's own waits (the broker's
+// acknowledgement, the service's reply) and 2 s more: then nobody knows whether it went.
 async function send(cmd, extra) {
   activity();
-  const out = $("cmd-result");
-  out.className = "cmd-result"; out.textContent = cmd + ": sent…";
+  const out = $("cmd-result"), deadline = 2 * st.replyTimeout + 2;
+  out.className = "cmd-result"; out.textContent = cmd + ": sending…";
   let r;
-  try { r = await api("/api/cmd", Object.assign({cmd}, extra || {})); }
-  catch (e) { r = {status: 0, data: {ok: false, error: "dashboard server unreachable"}}; }
-  if (r.status === 401) { leave("session ended: sign in again"); return; }
-  if (r.data.ok) { out.className = "cmd-result ok"; out.textContent = cmd + ": accepted"; return; }
-  const error = r.data.error || "failed";  // the server's reasons leave the name to the page: prefixed once
+  try { r = await api("/api/cmd", Object.assign({cmd, rig: $("rig").textContent}, extra || {}), 1000 * deadline); }
+  catch (e) {
+    const why = e && e.name === "TimeoutError" ? "no answer from the dashboard within " + deadline + " s" : "dashboard server unreachable";
+    r = {status: 0, data: {ok: false, error: why + ": the outcome is unknown (the command may have been sent) — " + advice(cmd)}};
+  }
+  if (r.status === 401) {
+    const urgent = cmd === Command.STOP || cmd === Command.ABORT;
+    leave(urgent ? "session ended: " + cmd.toUpperCase() + " NOT SENT — sign in and send it again, or use the rig's emergency stop" :
+      "session ended: sign in again (" + cmd + " not sent)");
+    return;
+  }
+  showOutcome(cmd, r.data);
+}
+
+// a command's outcome ({ok, error}); `at` (ISO-8601): one the session kept from before this page was loaded
+function showOutcome(cmd, data, at) {
+  const out = $("cmd-result"), earlier = at ? " (at " + new Date(at).toLocaleTimeString() + ", before this page was loaded)" : "";
+  if (data.ok) { out.className = "cmd-result ok"; out.textContent = cmd + ": accepted" + earlier; return; }
+  const error = data.error || "failed";  // the server's reasons leave the name to the page: prefixed once
   const text = error.startsWith(cmd + ":") ? error : cmd + ": " + error;
-  out.className = "cmd-result refused"; out.textContent = text;
-  addEvent("refused", text);
-  const names = /available: ([^)]*)\)/.exec(r.data.error || "");
+  out.className = "cmd-result refused"; out.textContent = text + earlier;
+  addEvent("refused", text, false, at);
+  const names = /available: ([^)]*)\)/.exec(data.error || "");
   if (names) fillMatrices(names[1].split(", "));
 }
 

@@ -1,0 +1,88 @@
+"""The page's commands as the dashboard server takes them, and the words of their outcomes.
+
+A command from the page names the rig the page shows (``rig``: its topic prefix); the server
+refuses it when the session watches another rig by now (another tab of the same browser
+chose one), so a command never goes to a rig the person is not looking at.
+
+What the outcome of a command says is only what is known (docs/dashboard.md):
+
+- "refused: not authorised" only when the broker said so (the PUBACK's reason code 135,
+  MQTT 5: the ACL refused the publish);
+- without the service's reply in time, the outcome is *unknown*: the command may have been
+  carried out (a slow or hung service) or not (a service gone). The text says what the page
+  should do, and the status change seen since the click, if any.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import orbitrig.service.protocol as proto
+
+#: Commands the page may send and the fields each takes besides ``cmd`` and ``rig``.
+PAGE_COMMANDS = {
+    "start": ("matrix",),
+    "pause": (),
+    "resume": (),
+    "stop": (),
+    "abort": (),
+    "confirm": ("step",),
+    "status": (),
+}
+NOT_AUTHORISED = "refused: not authorised"
+EMERGENCY = "if it is still running use the rig's emergency stop"
+
+
+def rig_mismatch(shown: Any, watched: str) -> str | None:
+    """Why a request of a page showing rig ``shown`` must not go to the rig watched now (None: it may)."""
+    if not isinstance(shown, str) or not shown:
+        return "the page did not say which rig it shows: reload the page"
+    if shown != watched:
+        return f"not sent: this page shows rig {shown} but the session now watches {watched}: reload the page"
+    return None
+
+
+def command_body(request: dict, user: str, prefix: str) -> tuple[dict[str, str], str | None]:
+    """The command to publish for a page's request, or the reason it is refused (then ``{}``)."""
+    name = request.get("cmd")
+    if name not in PAGE_COMMANDS:
+        return {}, f"unknown command {name!r}"
+    wrong_rig = rig_mismatch(request.get("rig"), prefix)
+    if wrong_rig is not None:
+        return {}, wrong_rig
+    body = {"cmd": str(name), "by": user}  # the signed-in user, recorded in the run
+    for field in PAGE_COMMANDS[str(name)]:
+        value = request.get(field)
+        if not isinstance(value, str) or not value:
+            return {}, f"field {field!r} is missing"
+        body[field] = value
+    return body, None
+
+
+def refused(user: str, what: str) -> str:
+    """The broker refused the publish (its ACL): ``what`` the user may not do."""
+    return f"{NOT_AUTHORISED} — user {user!r} may not {what} (the broker refused it)"
+
+
+def offline_now(name: str) -> str:
+    """A stop or abort while the rig's service is offline: nothing will carry it out."""
+    article = "an" if name == "abort" else "a"
+    return f"the rig service is offline: the broker does not keep {article} {name} for it; use the rig's emergency stop"
+
+
+def unknown(name: str, why: str, change: str | None) -> str:
+    """No answer: the outcome of ``name`` is unknown (``why``: what did not come)."""
+    advice = f"check the rig's state; {EMERGENCY}" if name in proto.ALWAYS_ACCEPTED else "check the rig's state"
+    seen = f" ({change})" if change else ""
+    return f"{why}: the outcome is unknown{seen} — {advice}"
+
+
+def status_change(before: dict | None, after: dict | None) -> str | None:
+    """The status change seen between the click (``before``) and now, in words (None: none)."""
+    if after is None or after is before:
+        return None
+    state = after.get("state")
+    if before is None or before.get("state") != state:
+        return f"since the click the status went to {state}"
+    message = str(after.get("message") or "")[:120]
+    return f"since the click a new status came: {state}" + (f", {message}" if message else "")

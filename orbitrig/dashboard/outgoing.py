@@ -1,0 +1,149 @@
+"""What a dashboard session publishes: the page's commands and alarm acknowledgements, as the
+signed-in broker user (orbitrig.dashboard.session.Session), and what their outcomes say
+(orbitrig.dashboard.commands).
+
+Both are published at QoS 1 and the broker's PUBACK is awaited: under MQTT 5 a publish the
+ACL refuses is answered with reason code 135, and only then is the outcome "not authorised".
+A command is then answered by the service's reply (matched by its correlation id); without
+one within ``reply_timeout`` its outcome is unknown. An acknowledgement is done when the
+broker hands it back to the session (it subscribes to the rig's whole tree).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import collections
+import json
+import logging
+import secrets
+import time
+from typing import Any
+
+import orbitrig.service.protocol as proto
+from orbitrig.dashboard.alarms import AlarmBook
+from orbitrig.dashboard.commands import command_body, offline_now, refused, rig_mismatch, status_change, unknown
+
+log = logging.getLogger("orbitrig.dashboard")
+
+#: the PUBACK's reason code of a publish the broker's ACL refuses (MQTT 5)
+REFUSED_BY_ACL = 135
+
+
+class Outgoing:
+    """The publishing half of a session (a mixin of orbitrig.dashboard.session.Session)."""
+
+    user: str
+    settings: Any  # DashboardSettings
+    topics: proto.Topics
+    status: dict | None
+    _client: Any
+    _pending: dict[str, asyncio.Future]
+    #: the latest commands' outcomes, oldest first: a page loaded again shows them (snapshot)
+    outcomes: collections.deque[dict]
+
+    @property
+    def alarms(self) -> AlarmBook:
+        raise NotImplementedError
+
+    async def command(self, request: dict) -> dict:
+        """Publish one command as this user (to the rig the page shows, ``request["rig"]``): the
+        service's reply, or why there is none (without the command's name: the page adds it)."""
+        body, error = command_body(request, self.user, self.topics.prefix)
+        if error is not None:
+            return {"ok": False, "error": error}
+        name, t0 = body["cmd"], time.monotonic()
+        outcome = await self._publish_command(body)
+        self.outcomes.append({"cmd": name, "at": proto.iso8601(), **outcome})
+        log.info(
+            "%s by %r: %s (%.0f ms)",
+            name,
+            self.user,
+            "ok" if outcome["ok"] else outcome["error"],
+            (time.monotonic() - t0) * 1e3,
+        )
+        return outcome
+
+    async def _publish_command(self, body: dict[str, str]) -> dict:
+        import aiomqtt
+
+        from orbitrig.dashboard.puback import PublishUnconfirmed
+
+        client, name = self._client, body["cmd"]
+        if client is None:
+            return {"ok": False, "error": "not sent: no connection to the broker: try again when it is back"}
+        cid, topics, before = f"dash-{secrets.token_hex(6)}", self.topics, self.status
+        fut = asyncio.get_running_loop().create_future()
+        self._pending[cid] = fut
+        urgent = name in proto.ALWAYS_ACCEPTED  # stop and abort on their own topic: no flood holds them back
+        wait = self.settings.reply_timeout
+        try:
+            code = await client.publish_qos1(
+                topics.abort if urgent else topics.cmd, json.dumps({**body, "id": cid}), wait
+            )
+            if code == REFUSED_BY_ACL:
+                return {"ok": False, "error": refused(self.user, "command this rig")}
+            if code >= 0x80:  # another refusal of the broker (quota, packet too large, ...): not passed on
+                return {"ok": False, "error": f"not sent: the broker refused the command (reason code {code})"}
+            if urgent and self._offline():
+                return {"ok": False, "error": offline_now(name)}
+            reply = await asyncio.wait_for(fut, wait)
+        except PublishUnconfirmed as err:
+            return {"ok": False, "error": unknown(name, str(err), self._change(topics, before))}
+        except (TimeoutError, asyncio.TimeoutError):
+            return {"ok": False, "error": self._no_reply(name, topics, before)}
+        except aiomqtt.MqttError as err:  # the link went away before the command was handed over
+            return {"ok": False, "error": f"not sent: {err}"}
+        finally:
+            self._pending.pop(cid, None)
+        return {"ok": bool(reply.get("ok")), "error": reply.get("error")}
+
+    def _offline(self) -> bool:
+        return self.status is not None and self.status.get("state") == proto.OFFLINE
+
+    def _change(self, topics: proto.Topics, before: dict | None) -> str | None:
+        """The status change seen since a command was sent to ``topics`` (None: none, or another rig now)."""
+        return status_change(before, self.status) if topics == self.topics else None
+
+    def _no_reply(self, name: str, topics: proto.Topics, before: dict | None) -> str:
+        """Why a command the broker took got no reply in time (the page puts the command's name in front)."""
+        if self._offline() and topics == self.topics:
+            return "no reply: the rig service is offline"
+        log.info("%s by %r: no reply within %.1f s: outcome unknown", name, self.user, self.settings.reply_timeout)
+        why = f"no reply from the rig service within {self.settings.reply_timeout:g} s"
+        return unknown(name, why, self._change(topics, before))
+
+    async def acknowledge(self, alarm_id: str, rig: Any) -> dict:
+        """Acknowledge a latched alarm of the rig the page shows (``rig``) as this user: published on
+        ``<prefix>/ack``; done when the broker hands it back; refused when the broker says so."""
+        import aiomqtt
+
+        from orbitrig.dashboard.puback import PublishUnconfirmed
+
+        wrong_rig = rig_mismatch(rig, self.topics.prefix)
+        if wrong_rig is not None:
+            return {"ok": False, "error": f"acknowledge {wrong_rig}"}
+        alarm = self.alarms.alarms.get(alarm_id)
+        if alarm is None:
+            return {"ok": False, "error": f"acknowledge: no alarm {alarm_id!r}"}
+        if alarm.acked_by is not None:
+            return {"ok": True, "error": None}
+        client = self._client
+        if client is None:
+            return {"ok": False, "error": "acknowledge: no connection to the broker: try again when it is back"}
+        nonce = f"ack-{secrets.token_hex(6)}"
+        fut = asyncio.get_running_loop().create_future()
+        self._pending[nonce] = fut
+        body = {"alarm": alarm_id, "by": self.user, "at": proto.iso8601(), "id": nonce}
+        wait = self.settings.reply_timeout
+        try:
+            if await client.publish_qos1(self.topics.ack, json.dumps(body), wait) == REFUSED_BY_ACL:
+                return {"ok": False, "error": "acknowledge: " + refused(self.user, "acknowledge alarms of this rig")}
+            await asyncio.wait_for(fut, wait)
+        except (PublishUnconfirmed, TimeoutError, asyncio.TimeoutError):
+            return {"ok": False, "error": f"acknowledge: not confirmed by the broker within {wait:g} s: try again"}
+        except aiomqtt.MqttError as err:  # the link went away
+            return {"ok": False, "error": f"acknowledge not sent: {err}"}
+        finally:
+            self._pending.pop(nonce, None)
+        log.info("alarm %s acknowledged by %r", alarm_id, self.user)
+        return {"ok": True, "error": None}

@@ -1,0 +1,52 @@
+"""The dashboard's MQTT 5 client: a QoS 1 publish that tells the broker's answer (the PUBACK's
+reason code), so that a publish the broker's ACL refuses is known as refused.
+
+Under MQTT 3.1.1 a broker acknowledges a refused publish like any other and drops it: the
+sender cannot tell a refusal from a service that did not answer. Under MQTT 5 mosquitto
+answers a refused publish with reason code 135 (not authorised). aiomqtt waits for the PUBACK
+but drops its reason code; :class:`ReasonClient` keeps it (``publish_qos1``).
+"""
+
+from __future__ import annotations
+
+import asyncio
+from typing import Any
+
+import aiomqtt
+import paho.mqtt.client as paho
+
+
+class PublishUnconfirmed(Exception):
+    """No PUBACK came within the time given: the broker may or may not have the message."""
+
+
+class ReasonClient(aiomqtt.Client):
+    """aiomqtt's client (give it ``protocol=aiomqtt.ProtocolVersion.V5``) with :meth:`publish_qos1`."""
+
+    def __init__(self, *args: Any, **kwargs: Any):
+        super().__init__(*args, **kwargs)
+        self._acks: dict[int, asyncio.Future] = {}
+
+    def _on_publish(self, client: Any, userdata: Any, mid: int, reason_code: Any, properties: Any) -> None:
+        fut = self._acks.pop(mid, None)  # called on the event loop (aiomqtt reads the socket there)
+        if fut is not None and not fut.done():
+            fut.set_result(int(getattr(reason_code, "value", reason_code or 0)))
+        super()._on_publish(client, userdata, mid, reason_code, properties)
+
+    async def publish_qos1(self, topic: str, payload: str, timeout: float) -> int:
+        """Publish at QoS 1 and wait for the broker's PUBACK: its reason code (0 accepted, 16 accepted
+        but nobody subscribes, 135 refused by the ACL). Raises ``aiomqtt.MqttError`` when the message
+        could not be handed over (no connection), :class:`PublishUnconfirmed` when no PUBACK came
+        within ``timeout`` s (the message may have reached the broker)."""
+        fut: asyncio.Future = asyncio.get_running_loop().create_future()
+        info = self._client.publish(topic, payload, 1)  # aiomqtt's paho client: no public handle
+        if info.rc != paho.MQTT_ERR_SUCCESS:
+            raise aiomqtt.MqttCodeError(info.rc, "could not publish")
+        # the PUBACK is read on this event loop, after publish() returned: it cannot be missed here
+        self._acks[info.mid] = fut
+        try:
+            return await asyncio.wait_for(fut, timeout)
+        except (TimeoutError, asyncio.TimeoutError):
+            raise PublishUnconfirmed(f"no acknowledgement from the broker within {timeout:g} s") from None
+        finally:
+            self._acks.pop(info.mid, None)
