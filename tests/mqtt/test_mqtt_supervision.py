@@ -10,10 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, retained, write_matrices
-from orbitrig.cli.serve import build_service
-from orbitrig.config import load_rig
-from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
+from support.mqtt_helpers import Broker, RigClient, retained, unsupervised_service
 
 
 async def wait(fn, *args, **kw):
@@ -29,16 +26,7 @@ async def test_supervision_policy(policy, expected, tmp_path: Path):
     rc = None
     try:
         async with SimRig(speedup=20, adc_pty=False) as sim_rig:
-            settings = ServiceSettings(
-                rig_id="sup",
-                matrices_dir=write_matrices(tmp_path / "matrices"),
-                supervision_policy=policy,
-                supervision_timeout=1.0,
-                reconnect_initial=0.2,
-                reconnect_max=1.0,
-            )
-            creds = BrokerSettings.from_url(b.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"])
-            service = build_service(load_rig(), settings, creds, out=tmp_path / "runs", sim_rig=sim_rig, confirm="auto")
+            service = unsupervised_service(b, tmp_path, "sup", policy, sim_rig)
             stop = asyncio.Event()
             serving = asyncio.create_task(service.serve(stop))
             try:

@@ -11,10 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, write_matrices
-from orbitrig.cli.serve import build_service
+from support.mqtt_helpers import Broker, RigClient, unsupervised_service
 from orbitrig.config import load_rig
-from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
 
 UNANSWERED_S = 2.0  # [interlocks] unanswered_pause_s, short here (60 s by default)
 
@@ -44,17 +42,8 @@ async def test_an_unanswered_wait_without_the_broker_stops_the_run(policy, confi
     rc = None
     try:
         async with SimRig(speedup=20, adc_pty=False) as sim_rig:
-            settings = ServiceSettings(
-                rig_id="un",
-                matrices_dir=write_matrices(tmp_path / "matrices"),
-                supervision_policy=policy,
-                supervision_timeout=1.0,
-                reconnect_initial=0.2,
-                reconnect_max=1.0,
-            )
-            creds = BrokerSettings.from_url(b.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"])
             rig = rig_with_short_unanswered_wait()
-            service = build_service(rig, settings, creds, out=tmp_path / "runs", sim_rig=sim_rig, confirm=confirm)
+            service = unsupervised_service(b, tmp_path, "un", policy, sim_rig, rig=rig, confirm=confirm)
             stop = asyncio.Event()
             serving = asyncio.create_task(service.serve(stop))
             try:

@@ -595,3 +595,22 @@ def sim_service_args(url: str, rig: str, work: Path, *extra: str, speedup: float
         f"{speedup:g}",
         *extra,
     ]
+
+
+def unsupervised_service(broker: Broker, work: Path, rig_id: str, policy: str, sim_rig, *, rig=None, confirm="auto"):
+    """The service `orbitrig serve --sim` builds (in process, on `sim_rig`) with supervision
+    `policy` after 1 s without the broker and quick reconnects; `rig` (default: the shipped one)."""
+    from orbitrig.cli.serve import build_service
+    from orbitrig.config import load_rig
+    from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
+
+    settings = ServiceSettings(
+        rig_id=rig_id,
+        matrices_dir=write_matrices(work / "matrices"),
+        supervision_policy=policy,
+        supervision_timeout=1.0,
+        reconnect_initial=0.2,
+        reconnect_max=1.0,
+    )
+    creds = BrokerSettings.from_url(broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"])
+    return build_service(rig or load_rig(), settings, creds, out=work / "runs", sim_rig=sim_rig, confirm=confirm)
