@@ -92,6 +92,10 @@ class CalibrationSession:
         return self
 
     async def __aexit__(self, *exc) -> None:
+        """Both drives stopped and confirmed at standstill, then the links closed; a stop not
+        delivered or not confirmed fails the step (CalibrationFailed: no record is written, and
+        nothing says the drives were stopped), whatever ended it."""
+        unconfirmed = None
         try:
             if self.io.drives is not None:
                 timeout = self.access.time_scale.wall(self.rig.drives.stop_timeout_s) + 5.0
@@ -99,8 +103,11 @@ class CalibrationSession:
                 self.note("both drives stopped")
         except DriveError as err:
             self.note(f"stopping the drives failed: {err}")
+            unconfirmed = err
         finally:
             await self.io.__aexit__(*exc)
+        if unconfirmed is not None:
+            raise CalibrationFailed(f"drives not confirmed stopped: {unconfirmed}") from unconfirmed
 
     async def roll(self, roll: SlowRoll) -> None:
         """Orbit radius and static eccentricity zero, the pressures set, then spin and orbit
