@@ -15,7 +15,8 @@ a confirmation, an interlock clearing).
 - stop now: a signal from the system (SIGTERM, SIGHUP): the engine cancels the
   run at once, the drives ramp to zero (not an emergency), the run ends stopped.
 - nobody to answer (`unanswered_limit`, wall s): a pause or a confirmation
-  that nobody can answer (no terminal, no MQTT) stops the run after that long.
+  that nobody can answer (no terminal, no MQTT) stops the run after that long;
+  a wait already under way when the limit is set counts it from then.
 """
 
 from __future__ import annotations
@@ -66,6 +67,7 @@ class RunControl:
         self.waiting_step: str | None = None
         self.timing: dict[str, float] = {}
         self.unanswered_limit: float | None = None  # None: someone can answer a pause
+        self._unanswered_from = 0.0  # time.monotonic() when the limit was set
         self.reset()
 
     def reset(self) -> None:
@@ -146,6 +148,14 @@ class RunControl:
         self.fire("confirm", f"confirmed {step}")
         self.wake.set()
 
+    def set_unanswered_limit(self, limit: float | None) -> None:
+        """Nobody can answer a pause or a confirmation from now on (`limit` wall s), or someone
+        can (None). A wait under way takes a limit at once, counted from now; one under way when
+        the limit is lifted keeps it until its next wake (a request)."""
+        self.unanswered_limit, self._unanswered_from = limit, time.monotonic()
+        if limit is not None:
+            self.wake.set()
+
     # -------------------------------------------------------------- waits
     def _add_time(self, key: str, t0: float) -> None:
         self.timing[key] = self.timing.get(key, 0.0) + time.monotonic() - t0
@@ -156,16 +166,15 @@ class RunControl:
 
     async def _wait_answer(self, t0: float) -> None:
         """Until the next request; if nobody can answer, a stop once `unanswered_limit` s
-        have passed since `t0`."""
+        have passed since `t0` (the wait's start) or since the limit was set, the later."""
         self.wake.clear()
         limit = self.unanswered_limit
         if limit is None:
             await self.wake.wait()
             return
-        await _first(
-            self.wake, timeout=max(0.0, t0 + limit - time.monotonic())
-        )  # not wait_for: it can swallow a cancel
-        if time.monotonic() - t0 >= limit and not self.stop_requested:
+        deadline = max(t0, self._unanswered_from) + limit
+        await _first(self.wake, timeout=max(0.0, deadline - time.monotonic()))  # not wait_for: it can swallow a cancel
+        if time.monotonic() >= deadline and not self.stop_requested:
             self.request_stop(
                 f"nobody can answer ({self.state} for {limit:g} s, no terminal and no MQTT): "
                 "stopping the run (continue later with --resume)"

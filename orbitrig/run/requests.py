@@ -132,12 +132,13 @@ class OperatorRequests:
     @property
     def unattended(self) -> bool:
         """Nobody can answer a pause or a confirmation (no terminal, no MQTT): such a wait
-        stops the run after [interlocks] unanswered_pause_s."""
+        stops the run after [interlocks] unanswered_pause_s (one under way: after that long
+        from when this was set)."""
         return self._control.unanswered_limit is not None
 
     @unattended.setter
     def unattended(self, value: bool) -> None:
-        self._control.unanswered_limit = self.rig.interlocks.unanswered_pause_s if value else None
+        self._control.set_unanswered_limit(self.rig.interlocks.unanswered_pause_s if value else None)
 
     def confirm(self, step: str, by: str | None = None) -> None:
         """Confirm the manual setting `step` (e.g. 'manual:0003'); raises if not waiting for it.

@@ -18,7 +18,6 @@ class Engine(Protocol):
     rig: RigConfig
     access: RigAccess  # its time_scale turns the rig's physical seconds into wall seconds
     state: RunState
-    since: str  # ISO-8601 time the state was entered
     run_id: str | None
     waiting_step: str | None
     pause_pending: bool  # a pause requested, not yet reached at a safe point
@@ -27,8 +26,8 @@ class Engine(Protocol):
     def subscribe(self, callback: Callable[[Any], None]) -> None: ...
 
     operator: str
-    #: nobody can answer: a pause or a confirmation begun from now on stops the run after
-    #: [interlocks] unanswered_pause_s (read at the start of each such wait)
+    #: nobody can answer: a pause or a confirmation stops the run after [interlocks]
+    #: unanswered_pause_s (one under way: that long after this was set)
     unattended: bool
 
     def request_pause(self, by: str | None = None) -> None: ...

@@ -2,11 +2,9 @@
 
 Once the broker has been away longer than ``supervision_timeout`` nobody can answer
 the run: the service marks its engine unattended (``RunEngine.unattended``), so a pause
-or a confirmation begun from then on stops the run after ``[interlocks]
-unanswered_pause_s``, as `orbitrig sweep` does without a terminal; it applies the
-supervision policy once (``keep``, ``pause``, ``stop``); and a pause or confirmation
-already under way (the engine read its limit when it began) is stopped after the same
-time unless the broker is back or the run has moved on. The mark is cleared when the
+or a confirmation, one under way included, stops the run after ``[interlocks]
+unanswered_pause_s``, as `orbitrig sweep` does without a terminal; and it applies the
+supervision policy once (``keep``, ``pause``, ``stop``). The mark is cleared when the
 broker is back.
 """
 
@@ -22,10 +20,7 @@ from orbitrig.service.settings import ServiceSettings, SupervisionPolicy
 
 log = logging.getLogger("orbitrig.service.rig_service")
 
-#: the run waits for an answer in these states (an operator's pause, a confirmation)
-ANSWER_WAITS = (RunState.PAUSED, RunState.WAITING)
 LOST = "service (supervision lost)"
-UNANSWERED = "service (nobody can answer: no broker)"
 
 
 class SupervisionHandling(CommandHandling):
@@ -63,19 +58,9 @@ class SupervisionHandling(CommandHandling):
             s.supervision_policy,
             engine.rig.interlocks.unanswered_pause_s,
         )
-        engine.unattended = True  # before the pause below, which reads it when it begins
-        wait = (engine.state, engine.since)
+        engine.unattended = True  # before the pause below; a wait under way counts its limit from now
         if s.supervision_policy is SupervisionPolicy.PAUSE and engine.state in (RunState.RUNNING, RunState.WAITING):
             self._request("pause", LOST)
         elif s.supervision_policy is SupervisionPolicy.STOP:
             self._request("stop", LOST)
-        if wait[0] in ANSWER_WAITS:  # begun while supervised: its wait has no limit of its own
-            try:
-                await asyncio.wait_for(self.link.online.wait(), engine.rig.interlocks.unanswered_pause_s)
-                return
-            except TimeoutError:
-                pass
-            if self._engine is engine and self.run_active and (engine.state, engine.since) == wait:
-                log.warning("nobody can answer the run (%s, no broker): stopping it", engine.state)
-                self._request("stop", UNANSWERED)
         await self.link.online.wait()

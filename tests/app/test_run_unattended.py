@@ -81,6 +81,27 @@ async def test_a_pause_nobody_can_answer_stops_the_run(tmp_path):
     assert _faults(sim) == (0, 0) and _standstill(sim)
 
 
+async def test_a_pause_under_way_when_nobody_can_answer_any_more_stops_after_the_limit(tmp_path):
+    """`serve` losing its broker marks the run unattended while a pause is already held: that
+    pause, begun with no limit, stops the run unanswered_pause_s after the mark, not at once."""
+    rig = _rig(unanswered_pause_s=1.0)
+    async with running(tmp_path, small_matrix(revolutions=30), rig) as (sim, eng, rec, run):
+        await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
+        eng.request_pause()
+        await wait_for(lambda: eng.state == "paused", what="the pause")
+        await asyncio.sleep(1.5)  # longer than the limit: counted from the mark, not from the pause
+        assert eng.state == "paused" and not run.done()
+        t0 = time.monotonic()
+        eng.unattended = True
+        outcome = await asyncio.wait_for(run, 20)
+        took = time.monotonic() - t0
+    assert outcome.status == "stopped", outcome.message
+    assert 0.9 < took < 8.0, took
+    assert any("nobody can answer (paused for 1 s" in e.message for e in rec.events if hasattr(e, "state"))
+    assert _commanded(sim) == (CW_RAMP_STOP, CW_RAMP_STOP)
+    assert _faults(sim) == (0, 0) and _standstill(sim)
+
+
 async def test_a_confirmation_nobody_can_answer_stops_the_run(tmp_path):
     rig = _rig(unanswered_pause_s=1.0)
     async with running(tmp_path, small_matrix(), rig, confirm_mode="remote") as (sim, eng, rec, run):
