@@ -356,13 +356,14 @@ class PointProcedure:
             freq += 1
 
     async def identify(self, step: Identify, ps: PointState) -> None:
-        """Identify every model for both load measuring systems (and a simulated rig's truth), in a
-        worker thread: nothing of it holds up the loop that polls the drives."""
+        """Identify every model for both load measuring systems, in a worker thread: nothing of it
+        holds up the loop that polls the drives. A simulated rig's truth is taken first, before the
+        next step: it is the bearing at the present manual settings, which the next point changes."""
         r, p, recs = self.r, ps.point, list(ps.records.values())
+        truth = None if r.access.truth is None else await asyncio.to_thread(point_truth, p, recs, r.access.truth)
 
         async def results() -> PointResults:
             t0 = time.monotonic()
-            truth = None if r.access.truth is None else await asyncio.to_thread(point_truth, p, recs, r.access.truth)
             res = await asyncio.to_thread(
                 identify_operating_point,
                 p.spin,
