@@ -9,6 +9,7 @@ SI inside (N/m, N s/m, kg, rad/s); the page and the figures convert at the edge.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import StrEnum
 
 import numpy as np
 
@@ -17,6 +18,7 @@ from orbitrig.load_systems import LoadSystem
 from reduction.adequacy import Adequacy, frequency_dependence
 from reduction.derived import Derived, derived_quantities
 from reduction.errors import ReductionError
+from reduction.statistics import Interval
 from reduction.systematic import Calibration, LmsAgreement, lms_agreement
 
 #: the budget columns a stored identification may carry under "uncertainty" (SI std per key)
@@ -30,7 +32,7 @@ class CoefficientRow:
     key: str
     value: float
     std: float | None  # statistical standard uncertainty (the fit's standard error)
-    interval: tuple[float, float] | None  # Student-t 95 % interval
+    interval: tuple[float, float] | None  # 95 % interval, of the fit's kind (interval_kind)
     systematic: float | None  # type B standard uncertainty (calibration)
     expanded: float | None  # combined expanded uncertainty U = k u_c
     k: float | None
@@ -56,6 +58,32 @@ def coefficient_rows(r: Reduced) -> list[CoefficientRow]:
             )
         )
     return rows
+
+
+#: each kind of 95 % interval: the table column's name, and the sentence of the page's units note
+INTERVAL_TEXT = {
+    Interval.NORMAL: (
+        "normal, 1.96",
+        "normal quantile 1.96 where the orbit table states the phasor uncertainties u_* (known covariance)",
+    ),
+    Interval.STUDENT_T: (
+        "Student t, 4n - p dof",
+        "Student t with 4n - p degrees of freedom where the covariance is estimated from the residuals",
+    ),
+}
+
+
+def interval_kind(r: Reduced) -> Interval:
+    """Where the 95 % interval of `r`'s identification takes its quantile (its own ``interval``)."""
+    return Interval(str(r.identification.interval))
+
+
+def interval_sentence(results: list[Reduced]) -> str:
+    """The page's statement of the 95 % intervals of `results`: each kind they use, in words."""
+    kinds = dict.fromkeys(interval_kind(r) for r in results if r.identification is not None)
+    if not kinds:
+        return "95 % interval: none identified."
+    return "95 % interval: " + "; ".join(INTERVAL_TEXT[k][1] for k in kinds)
 
 
 def has_budget(results: list[Reduced]) -> bool:
@@ -102,11 +130,48 @@ def adequacy_verdicts(lms: LoadSystem, results: list[Reduced]) -> list[Verdict]:
     return out
 
 
+class Basis(StrEnum):
+    """The uncertainty a comparison of the two load measuring systems uses (stored ``basis``)."""
+
+    COMBINED = "combined"  # statistical and the rig's stated calibration uncertainty
+    STATISTICAL = "statistical"  # the fits' statistical uncertainties only
+
+
+@dataclass(frozen=True)
+class LmsComparison:
+    """The two systems' comparison of one model the page shows: ``agreement`` (E_n in 1, the
+    joint chi2 test), its uncertainty ``basis``, and whether it is the one the sweep stored
+    (``stored``) or was repeated here with the statistical uncertainties (no stored one)."""
+
+    agreement: LmsAgreement
+    basis: Basis
+    stored: bool
+
+
+def lms_comparison(a: Reduced, b: Reduced) -> LmsComparison | None:
+    """The sweep's stored comparison of `a` and `b` (orbit-table ``lms_consistency``: E_n and the
+    chi2 test on the uncertainties the sweep had, combined where the rig stated a calibration
+    uncertainty), else :func:`lms_normalised_difference` repeated here; None when neither exists."""
+    c = (a.stored or {}).get("lms_consistency") or {}
+    if "chi2" in c and "error" not in c:
+        e_n = {k: _finite(v) for k, v in c["e_n"].items()}
+        chi2, limit, p = (_finite(c[k]) for k in ("chi2", "limit", "p_value"))
+        ag = LmsAgreement(e_n, chi2, int(c["dof"]) if chi2 is not None else 0, float(c["level"]), limit, p)
+        return LmsComparison(ag, Basis(c["basis"]), stored=True)
+    ag = lms_normalised_difference(a, b)
+    return None if ag is None else LmsComparison(ag, Basis.STATISTICAL, stored=False)
+
+
+def _finite(v) -> float | None:
+    return None if v is None or not np.isfinite(v) else float(v)
+
+
 def lms_normalised_difference(a: Reduced, b: Reduced) -> LmsAgreement | None:
     """E_n = (a - b) / u(a - b) of each coefficient of one model identified from two load
-    measuring systems and their joint chi2 test at the family-wise 5 % level (statistical
-    uncertainties only: the run states no calibration budget the report could use); None
-    when the two fits are not of one model."""
+    measuring systems and their joint chi2 test at the family-wise 5 % level, repeated from the
+    fits with their statistical uncertainties only (the run's calibration budget is the
+    sweep's: :func:`lms_comparison` uses its stored result); None when the two fits are not of
+    one model."""
     try:
         return lms_agreement(
             a.identification,

@@ -15,7 +15,7 @@ from pathlib import Path
 from orbitrig.analysis.plots import PAIR_LABELS
 from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_table
 from orbitrig.analysis.reduce import true_constants
-from orbitrig.analysis.quality import lms_normalised_difference
+from orbitrig.analysis.quality import interval_sentence, lms_comparison
 from orbitrig.analysis.report import fit_label, preferred
 from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
 from orbitrig.load_systems import LMS, LoadSystem
@@ -149,9 +149,9 @@ def _point_section(run, pr, out_dir: Path) -> str:
     found = preferred(pr)
     if len(found) == 2:
         a, b = found[LoadSystem.PIEZO], found[LoadSystem.STRAIN]
-        agreement = lms_normalised_difference(a, b)
-        if agreement is not None:
-            h.append(consistency_table(a, b, agreement, fit_label(a)))
+        comparison = lms_comparison(a, b)
+        if comparison is not None:
+            h.append(consistency_table(a, b, comparison, fit_label(a)))
     h += _pick(pr, out_dir, taken, f"lms_{p.name}", f"orbits_{p.name}")
     h += [_figure(png, out_dir) for png in pr.plots if Path(png).stem not in taken]  # signals, and any other
     return "\n".join(h)
@@ -210,8 +210,9 @@ def render(report) -> str:
         head.append('<p class="err">No complete operating point to report.</p>')
     head.append(
         '<p class="muted">Units: K in MN/m, C in kN s/m, D in kg (SI at the source). '
-        "Std error: one statistical standard uncertainty of the regression; 95 % interval: Student t "
-        "with 4n - p degrees of freedom; expanded U: k times the combined (statistical and systematic) "
+        "Std error: one statistical standard uncertainty of the regression; "
+        f"{_e(interval_sentence([r for pr in report.points for rs in pr.results.values() for r in rs]))}; "
+        "expanded U: k times the combined (statistical and systematic) "
         "standard uncertainty. Higher-order terms multiply \u03a9^r with \u03a9 in rad/s.</p>"
     )
     files = sorted(run.directory.glob("*.csv"))

@@ -1,7 +1,8 @@
 """HTML tables of one load measuring system's identifications for ``index.html``.
 
 Per identification: every coefficient with its value, statistical standard uncertainty,
-Student-t 95 % interval, systematic (type B) standard uncertainty and combined expanded
+95 % interval (of the fit's own kind, named in its column: normal with the phasor uncertainties
+u_*, else Student t), systematic (type B) standard uncertainty and combined expanded
 uncertainty (k = 2) where the run stored its budget, "n.d." where that U exceeds the value
 (not determined), the simulator's true value (the fit's own truth: the true Z projected onto
 its model, where the run stored it; else the constant best fit); the fit's
@@ -18,7 +19,16 @@ import math
 
 import numpy as np
 
-from orbitrig.analysis.quality import Verdict, coefficient_rows, has_budget, warnings_of
+from orbitrig.analysis.quality import (
+    INTERVAL_TEXT,
+    Basis,
+    LmsComparison,
+    Verdict,
+    coefficient_rows,
+    has_budget,
+    interval_kind,
+    warnings_of,
+)
 from orbitrig.analysis.reduce import Reduced, coefficient_unit, fit_true_values
 from orbitrig.store.csvfile import fit_truth
 from reduction.derived import Derived
@@ -78,7 +88,7 @@ def identification_table(r: Reduced, truth: dict[str, float], label: str, with_b
         '<th class="l">unit</th>',
         "<th>value</th>",
         "<th>std error<br>(statistical)</th>",
-        "<th>95 % interval<br>(Student t)</th>",
+        f"<th>95 % interval<br>({INTERVAL_TEXT[interval_kind(r)][0]})</th>",
     ]
     if with_budget:
         head += ["<th>systematic u<br>(calibration)</th>", f"<th>expanded U<br>(combined, k = {k:g})</th>"]
@@ -188,10 +198,28 @@ def derived_table(derived: list[tuple[Reduced, Derived]], labels: dict[int, str]
     )
 
 
-def consistency_table(a: Reduced, b: Reduced, ag: LmsAgreement, label: str) -> str:
+#: what the E_n of the page were computed with, per basis and whether the run stored them
+BASIS_TEXT = {
+    (Basis.COMBINED, True): (
+        "the combined uncertainties of both fits (statistical and the rig's stated calibration "
+        "uncertainty), as the sweep stored them"
+    ),
+    (Basis.STATISTICAL, True): (
+        "the statistical uncertainties of both fits (the rig stated no calibration uncertainty), "
+        "as the sweep stored them"
+    ),
+    (Basis.STATISTICAL, False): (
+        "the statistical uncertainties of both fits, repeated here (the run stored no comparison)"
+    ),
+}
+
+
+def consistency_table(a: Reduced, b: Reduced, comparison: LmsComparison, label: str) -> str:
     """The two load measuring systems' coefficients of one model side by side with their
-    relative difference and the normalised difference E_n (marked beyond the family-wise
-    per-coefficient limit), and the joint chi2 verdict at its level (5 %)."""
+    relative difference and the normalised difference E_n (1; marked beyond the family-wise
+    per-coefficient limit), and the joint chi2 verdict at its level (5 %), all on the
+    comparison's uncertainty basis (the sweep's stored one where it exists)."""
+    ag = comparison.agreement
     rows, en, mark = [], ag.e_n, ag.e_n_limit()
     for key, va in a.identification.coefficients.items():
         vb = b.identification.coefficients.get(key)
@@ -210,8 +238,8 @@ def consistency_table(a: Reduced, b: Reduced, ag: LmsAgreement, label: str) -> s
     )
     return (
         f"<h4>Two load measuring systems: consistency</h4><table>{head}{''.join(rows)}</table>"
-        f'<p class="muted">E<sub>n</sub> = (a - b) / u(a - b), a = {_e(a.lms)}, b = {_e(b.lms)}, with the '
-        "statistical uncertainties of both fits (no calibration budget stored). "
+        f'<p class="muted">E<sub>n</sub> = (a - b) / u(a - b), a = {_e(a.lms)}, b = {_e(b.lms)}, with '
+        f"{_e(BASIS_TEXT[(comparison.basis, comparison.stored)])}. "
         f"{_e(_joint_verdict(ag))}</p>"
     )
 

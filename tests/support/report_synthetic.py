@@ -103,11 +103,21 @@ def _record(block, radius, rng, noise, ch, gains, wave_rng) -> BlockRecord:
 
 
 def write_synthetic_run(
-    directory: Path, *, noise=1e-3, seed=1, n_points=2, incomplete=1, finished=True, provenance: dict | None = None
+    directory: Path,
+    *,
+    noise=1e-3,
+    seed=1,
+    n_points=2,
+    incomplete=1,
+    finished=True,
+    provenance: dict | None = None,
+    calibration: cfg.CalibrationUncertainty | None = None,
 ) -> Path:
     """n_points complete operating points (static eccentricity 0, 0.15, ...) and
     `incomplete` more whose blocks are stored but which are never marked complete.
-    finished=False leaves the run as a kill -9 does: status 'running', no run.h5."""
+    finished=False leaves the run as a kill -9 does: status 'running', no run.h5.
+    `calibration`: the rig's stated calibration uncertainty the sweep judges the fits with
+    (uncertainty budget, combined LMS consistency); none by default."""
     directory = Path(directory)
     rng = np.random.default_rng(seed)
     wave_rng = np.random.default_rng(seed + 1000)  # waveforms only: the phasors stay as before
@@ -141,7 +151,7 @@ def write_synthetic_run(
             "C0": C_TRUE.tolist(),
             "D0": D_TRUE.tolist(),
         }
-        store.write_results(point.index, identify_operating_point(point.spin, recs, ch, matrix.models, truth))
+        store.write_results(point.index, identify_operating_point(point.spin, recs, ch, matrix.models, truth, calibration))
         store.complete_point(point.index)
     if finished:
         store.set_status(RunStatus.STOPPED if incomplete else RunStatus.COMPLETED, "synthetic run")
