@@ -55,7 +55,7 @@ def register(app: typer.Typer) -> None:
         fmt: OutputFormat = typer.Option(
             OutputFormat.TEXT,
             "--format",
-            help="text: plain tables, every number in full at any width; csv: the coefficient and force tables as CSV; json: the result object",
+            help="text: plain tables, every number in full at any width; csv: the coefficient, force and covariance tables as CSV; json: the result object",
         ),
     ) -> None:
         """Identify rotordynamic coefficients K, C, D from an orbit table."""
@@ -121,7 +121,7 @@ def _fmt(v) -> str:
 
 
 def _print_readable(result, path: Path, fmt: OutputFormat) -> None:
-    """The fit's summary lines (text only) and its two tables, every number in full."""
+    """The fit's summary lines (text only) and its tables (coefficients, forces, covariance), every number in full."""
     if fmt == OutputFormat.TEXT:
         fd = result.freq_dep + (f" (chosen M = {result.exponent})" if result.exponent is not None else "")
         typer.echo(wrap(f"{path}: model {result.model}, freq-dep {fd}, method {result.method}, solver {result.solver}"))
@@ -138,8 +138,12 @@ def _print_readable(result, path: Path, fmt: OutputFormat) -> None:
         typer.echo(wrap(fit))
         for m, reason in sorted(result.skipped.items()):
             typer.echo(wrap(f"power:{m} skipped: {reason.splitlines()[0]}"))
+        if result.covariance is None:
+            typer.echo("no covariance: the fit gives none")
         typer.echo("")
-    typer.echo(render([_coefficient_table(result), _force_table(result)], fmt))
+    covariance = _covariance_table(result)
+    tables = [_coefficient_table(result), _force_table(result)] + ([covariance] if covariance else [])
+    typer.echo(render(tables, fmt))
 
 
 def _coefficient_table(result) -> PlainTable:
@@ -152,6 +156,26 @@ def _coefficient_table(result) -> PlainTable:
         ci = result.confidence_95.get(key)
         interval = "-" if ci is None else f"[{ci[0]:.4g}, {ci[1]:.4g}]"
         t.add_row(key, f"{v:.5g}", _fmt(se), rel, interval, _unit(key))
+    return t
+
+
+def _covariance_table(result) -> PlainTable | None:
+    """The covariance of the free coefficients (SI), rows and columns in ``result.free``'s order;
+    the entry of row a, column b is in unit(a) x unit(b) (each row's unit in the ``unit`` column,
+    the columns' the same by symmetry). None when the fit gives no covariance."""
+    if result.covariance is None:
+        return None
+    t = PlainTable(
+        title="Covariance of the free coefficients (SI; row a, column b in unit(a) x unit(b), "
+        "unit(a) in the unit column; a symmetric pair under its first key)",
+        key_columns=2,
+    )
+    t.add_column("coefficient")
+    t.add_column("unit")
+    for name in result.free:
+        t.add_column(name, justify="right")
+    for name, row in zip(result.free, result.covariance):
+        t.add_row(name, _unit(name), *(_fmt(float(v)) for v in row))
     return t
 
 

@@ -63,8 +63,10 @@ def reduce_cmd(
     """Identify again from a run's stored phasors, without the rig.
 
     Every complete point, both load measuring systems. Writes
-    DIR/reduce_<model>_<freq-dep>_<method>.csv (the columns of coefficients.csv);
-    the run's own results are left untouched. A damaged point is named on standard
+    DIR/reduce_<model>_<freq-dep>_<method>.csv: the columns of coefficients.csv
+    except the expanded uncertainties KEY_U (reduce makes no uncertainty budget;
+    KEY_std is the fit's standard error), not_determined left empty. The run's own
+    results are left untouched. A damaged point is named on standard
     error and the exit status is 1, the others reduced and written (as export, report).
     """
     from orbitrig.errors import ReductionError

@@ -19,6 +19,10 @@ import os
 from orbitrig.errors import OrbitrigError
 
 _FULL = {errno.ENOSPC, errno.EDQUOT}
+#: errno values only a write gives (a full disk, a file too large, a read-only file system)
+WRITE_ERRORS = frozenset(_FULL | {errno.EFBIG, errno.EROFS})
+#: what storage_error advises on a full disk (a sweep's run directory)
+FULL_ADVICE = "free space, then resume the run"
 
 
 class StorageError(OrbitrigError):
@@ -38,6 +42,11 @@ class StorageFullError(StorageError):
         self.needed, self.free = needed, free
         super().__init__(path, reason)
 
+    def advising(self, advice: str) -> StorageFullError:
+        """The same error advising `advice` instead of FULL_ADVICE (an export: export again)."""
+        reason = self.reason.replace(FULL_ADVICE, advice)
+        return StorageFullError(self.path, reason, needed=self.needed, free=self.free)
+
 
 class RunDirError(OrbitrigError):
     """DIR is not a readable orbitrig run directory; ``file`` names the culprit."""
@@ -55,5 +64,5 @@ def storage_error(path: str | os.PathLike[str], doing: str, err: BaseException) 
     code = err.errno if isinstance(err, OSError) else None
     text = os.strerror(code) if isinstance(code, int) else str(err)
     if code in _FULL:
-        return StorageFullError(path, f"cannot {doing}: {text} (the disk is full: free space, then resume the run)")
+        return StorageFullError(path, f"cannot {doing}: {text} (the disk is full: {FULL_ADVICE})")
     return StorageError(path, f"cannot {doing}: {type(err).__name__}: {text}")

@@ -11,7 +11,8 @@ adequacy, the simulator's truth, and (mat, tdms, h5) the averaged waveforms:
 - ``h5``: ``run.h5``, the whole run in one file that GNU Octave reads too, orbitrig.store.export_h5.
 
 Every file is written to a temporary name and renamed into place; every failure
-is a StorageError naming the file. Every point asked for and not exported is named
+is a StorageError naming the file (on a full disk the one being written, with the
+advice to export again). Every point asked for and not exported is named
 (orbitrig.store.selection).
 """
 
@@ -21,13 +22,15 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-from orbitrig.store.errors import storage_error
+from orbitrig.store.errors import StorageFullError, storage_error
 from orbitrig.store.layout import RunLayout
-from orbitrig.store.reader import read_run
+from orbitrig.store.reader import Run, read_run
 from orbitrig.store.selection import Selection, select_points
 
 FORMATS = ("csv", "mat", "tdms", "h5")
 EXPORT_DIR = "export"
+#: the advice of an export that found the disk full (not a sweep's "resume the run")
+EXPORT_FULL_ADVICE = "free space, then export again"
 
 
 @dataclass
@@ -56,13 +59,21 @@ def export_run(
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise storage_error(out, "create the export directory", err) from err
+    try:
+        return Exported(_write(fmt, run, layout, selection, out), selection)
+    except StorageFullError as err:
+        raise err.advising(EXPORT_FULL_ADVICE) from err
+
+
+def _write(fmt: str, run: Run, layout: RunLayout, selection: Selection, out: Path) -> list[Path]:
+    """The files of format `fmt` written into `out`."""
     if fmt == "h5":
         from orbitrig.store.export_h5 import export_h5
 
-        return Exported([export_h5(layout, out)], selection)
+        return [export_h5(layout, out)]
     from orbitrig.store.export_csv import export_csv
     from orbitrig.store.export_mat import export_mat
     from orbitrig.store.export_tdms import export_tdms
 
     write = {"csv": export_csv, "mat": export_mat, "tdms": export_tdms}[fmt]
-    return Exported(write(run, selection.points, out), selection)
+    return write(run, selection.points, out)

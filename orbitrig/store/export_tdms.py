@@ -6,7 +6,8 @@ beside each) or text. Groups: ``point PPPP <lms>`` (the orbit table and ``direct
 settings as properties), ``coefficients`` (the columns of coefficients.csv and ``KEY_U``),
 ``fit PPPP <key>`` (one channel per coefficient in its own unit, its rows named by the text
 channel ``quantity``: value, std, U, the budget's parts, truth; e_n and not_determined as
-channel properties; k and the adequacy as group properties), ``covariance PPPP <key>`` (the
+channel properties; k and the adequacy as group properties, its two degrees of freedom
+``adequacy_dof_numerator``, ``adequacy_dof_denominator``), ``covariance PPPP <key>`` (the
 correlation, one channel per free coefficient, ``name`` the rows, each channel's ``std``
 property in its unit: covariance = r_ij std_i std_j), ``derived PPPP <key>``, ``truth PPPP``
 (K0, C0, D0 row-major, Z_re, Z_im, orbit) and ``waveforms PPPP FF_dir`` (each A/D
@@ -34,6 +35,8 @@ COVARIANCE_LAYOUT = (
     "correlation r (rows: name; one channel per free coefficient); covariance (i, j) = "
     "r_ij x std_i x std_j in unit(i) x unit(j), std and its unit_string a property of each channel"
 )
+#: the names of an array's entries as numeric properties (``<name>_<part>``)
+ARRAY_PARTS = {"adequacy_dof": ("numerator", "denominator")}
 
 
 def _numeric(props: dict[str, tuple[float, str]]) -> dict:
@@ -57,10 +60,7 @@ def _fit_objects(p, fit) -> list:
 
     d = content.fit_arrays(fit)
     group = f"fit {p.name} {fit.key}"
-    props = {"error": fit.error, "adequacy_verdict": d.get("adequacy_verdict", "")}
-    for k, v in d.items():
-        if k == "k" or (k.startswith("adequacy_") and k != "adequacy_verdict"):
-            props |= _numeric({k: (float(np.ravel(v)[0]), "1")}) if np.size(v) == 1 else {k: str(list(np.ravel(v)))}
+    props = {"error": fit.error, "adequacy_verdict": d.get("adequacy_verdict", "")} | _group_numbers(d)
     rows = [q for q in ("value", "std", "U", *BUDGET_PARTS, "truth") if q in d]
     objs = [GroupObject(group, props), ChannelObject(group, "quantity", np.array(rows, dtype=str), _TEXT)]
     for c, (name, unit) in enumerate(zip(fit.names, fit.units)):
@@ -79,6 +79,19 @@ def _fit_objects(p, fit) -> list:
     if derived:
         objs += [GroupObject(f"derived {p.name} {fit.key}", {})] + _channels(f"derived {p.name} {fit.key}", derived)
     return objs
+
+
+def _group_numbers(d: dict) -> dict:
+    """k and the adequacy numbers (all unit 1) as numeric properties; an array as one property
+    per entry, the adequacy test's (numerator, denominator) degrees of freedom as
+    ``adequacy_dof_numerator`` and ``adequacy_dof_denominator`` (0 for the likelihood-ratio test)."""
+    numbers: dict[str, tuple[float, str]] = {}
+    for k, v in d.items():
+        if k == "k" or (k.startswith("adequacy_") and k != "adequacy_verdict"):
+            values = np.ravel(v)
+            names = [k] if values.size == 1 else [f"{k}_{part}" for part in ARRAY_PARTS.get(k, range(values.size))]
+            numbers |= {name: (float(x), "1") for name, x in zip(names, values, strict=True)}
+    return _numeric(numbers)
 
 
 def _covariance_objects(group: str, d: dict, unit: dict[str, str]) -> list:

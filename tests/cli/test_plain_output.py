@@ -12,6 +12,7 @@ import re
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from orbitrig.cli.plain_table import OutputFormat, PlainTable
@@ -79,6 +80,49 @@ def test_identify_formats_csv_and_json():
     assert [r["coefficient"] for r in rows] == list(result["coefficients"])
     assert all(float(r["value"]) == pytest.approx(result["coefficients"][r["coefficient"]], rel=1e-4) for r in rows)
     assert as_json.stdout == run("identify", str(TABLE), "--model", "kc8", "--json", columns="80").stdout
+
+
+def _covariance_shown(text: str) -> dict[tuple[str, str], str]:
+    """The covariance table of identify's text output: (row, column) -> cell, its column blocks joined."""
+    part = text.split("\nCovariance of the free coefficients", 1)[1]
+    cells: dict[tuple[str, str], str] = {}
+    for block in part.split("\n\n"):
+        lines = [ln for ln in block.splitlines() if ln.startswith(("coefficient ", "K", "C", "D"))]
+        header = re.split(r"\s{2,}", lines[0].strip())
+        assert header[:2] == ["coefficient", "unit"], header
+        for line in lines[1:]:
+            row = re.split(r"\s{2,}", line.strip())
+            cells |= {(row[0], col): cell for col, cell in zip(header[2:], row[2:], strict=True)}
+            cells[(row[0], "unit")] = row[1]
+    return cells
+
+
+@pytest.mark.parametrize("columns", ["80", None])
+def test_identify_text_shows_the_whole_covariance_with_units(columns):
+    res = run("identify", str(TABLE), "--model", "kcd11", columns=columns)
+    assert res.returncode == 0, res.stderr
+    assert max(len(line) for line in res.stdout.splitlines()) <= 80
+    shown = _covariance_shown(res.stdout)
+    result = json.loads(run("identify", str(TABLE), "--model", "kcd11", "--json", columns=columns).stdout)
+    free, cov = result["free"], result["covariance"]
+    assert len(free) == 11 and {(a, "unit") for a in free} | {(a, b) for a in free for b in free} == set(shown)
+    for i, a in enumerate(free):
+        assert shown[(a, "unit")] == {"K": "N/m", "C": "N s/m", "D": "kg"}[a[0]]
+        for j, b in enumerate(free):
+            assert shown[(a, b)] == f"{cov[i][j]:.4g}", (a, b)
+
+
+def test_identify_csv_has_the_covariance_matrix():
+    as_csv = run("identify", str(TABLE), "--model", "kcd11", "--format", "csv", columns="80")
+    assert as_csv.returncode == 0, as_csv.stderr
+    blocks = as_csv.stdout.split("\n\n")
+    assert [b.split(" ", 2)[1] for b in blocks] == ["Coefficients", "Reproduced", "Covariance"]
+    rows = list(csv.reader(io.StringIO(blocks[2].split("\n", 1)[1])))
+    result = json.loads(run("identify", str(TABLE), "--model", "kcd11", "--json", columns="80").stdout)
+    assert rows[0] == ["coefficient", "unit", *result["free"]]
+    assert [r[0] for r in rows[1:]] == result["free"] and rows[4][1] == "N/m" and rows[-1][1] == "kg"
+    matrix = [[float(v) for v in r[2:]] for r in rows[1:]]
+    np.testing.assert_allclose(matrix, result["covariance"], rtol=5e-4)
 
 
 def _cells(text: str) -> set[str]:

@@ -80,6 +80,25 @@ def test_cli_reduce_writes_csv_and_leaves_the_run_alone(synthetic_run):
     assert _digest(synthetic_run / "run.h5") == before
 
 
+def test_cli_reduce_help_states_the_csv_columns(synthetic_run, tmp_path):
+    """The help's account of the CSV is true: coefficients.csv's columns but KEY_U, not_determined empty."""
+    words = " ".join(CliRunner().invoke(app, ["reduce", "--help"]).stdout.replace("│", " ").split())
+    assert "the columns of coefficients.csv except the expanded uncertainties KEY_U" in words
+    assert "not_determined left empty" in words
+    run = shutil.copytree(synthetic_run, tmp_path / "run")
+    assert CliRunner().invoke(app, ["reduce", str(run), "--model", "kcd11"]).exit_code == 0
+    with csv_path(run, "kcd11", "none", "ols").open() as fh:
+        reduced = list(csv.DictReader(fh))
+    with (run / "coefficients.csv").open() as fh:
+        stored = next(csv.reader(fh))
+    columns = list(reduced[0])
+    assert not [c for c in columns if c.split(" [")[0].endswith("_U")]
+    assert set(columns) <= set(stored) and "Kxx_U [N/m]" in stored and "Kxx [N/m]" in columns
+    without_u = [c for c in stored if not c.split(" [")[0].endswith("_U")]
+    assert [c for c in without_u if c in columns] == columns  # the same order
+    assert [r["not_determined"] for r in reduced] == [""] * len(reduced)
+
+
 def test_cli_reduce_json(synthetic_run):
     result = CliRunner().invoke(app, ["reduce", str(synthetic_run), "--model", "kc8", "--json"])
     assert result.exit_code == 0, result.output

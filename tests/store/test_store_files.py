@@ -3,6 +3,7 @@ CSV) and coefficients.csv: units and names stated, numbers equal to the stored o
 
 from __future__ import annotations
 
+import ast
 import csv
 import re
 
@@ -163,6 +164,37 @@ def test_export_tdms_reads_in_nptdms(synthetic, tmp_path):
     rows = list(csv.DictReader(open(synthetic / "coefficients.csv", encoding="utf-8")))
     np.testing.assert_allclose(c["Kxx"][:], [float(r["Kxx [N/m]"]) if r["Kxx [N/m]"] else np.nan for r in rows])
     assert list(c["lms"][:2]) == ["piezo", "piezo"]
+
+
+def _python_repr(text: str) -> bool:
+    """Whether `text` is Python's repr of a list, a tuple or a numpy scalar rather than plain text."""
+    if re.search(r"\bnp\.\w+\(|numpy\.\w+\(", text):
+        return True
+    try:
+        return isinstance(ast.literal_eval(text.strip()), (list, tuple))
+    except (ValueError, SyntaxError, MemoryError, RecursionError):
+        return False
+
+
+def test_export_tdms_properties_are_numbers_or_plain_text(synthetic, tmp_path):
+    """Every property of a run with a frequency-dependent model (kcd11 power:1: the adequacy
+    test) is a number with its unit or plain text; the test's two dof are numbers."""
+    (path,) = _export(synthetic, "tdms", tmp_path)
+    f = TdmsFile.read(path)
+    owners = [("root", f.properties)] + [(g.name, g.properties) for g in f.groups()]
+    owners += [(f"{g.name}/{c.name}", c.properties) for g in f.groups() for c in g.channels()]
+    for where, props in owners:
+        for name, value in props.items():
+            assert isinstance(value, (str, int, float, np.number, np.bool_)), (where, name, value)
+            assert not (isinstance(value, str) and _python_repr(value)), (where, name, value)
+    fits = [g for g in f.groups() if g.name.startswith("fit 0000 ") and "adequacy_p_value" in g.properties]
+    assert {g.name for g in fits} == {"fit 0000 piezo__kcd11__power_1__ols", "fit 0000 strain__kcd11__power_1__ols"}
+    with h5py.File(synthetic / "run.h5", "r") as h5:
+        stored = h5["points/0000/identification/piezo__kcd11__power_1__ols/adequacy"].attrs["dof"]
+    props = f["fit 0000 piezo__kcd11__power_1__ols"].properties
+    assert "adequacy_dof" not in props
+    assert (props["adequacy_dof_numerator"], props["adequacy_dof_denominator"]) == tuple(stored)
+    assert props["adequacy_dof_numerator.unit_string"] == props["adequacy_dof_denominator.unit_string"] == "1"
 
 
 def test_export_csv_orbit_tables_read_back(synthetic, tmp_path):
