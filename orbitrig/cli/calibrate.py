@@ -9,8 +9,9 @@
 
 A step writes a new record into the records' folder beside the rig configuration
 (docs/calibration.md) and makes it the active one (``--no-activate``: it only writes it).
-Exit status: 0 done, 1 the step failed, 2 bad configuration or usage, 3 stopped (Ctrl-C, SIGTERM,
-SIGHUP: both drives are stopped first).
+Exit status: 0 done, 1 the step failed (among them: drives not confirmed stopped), 2 bad
+configuration or usage, 3 stopped (Ctrl-C, SIGTERM, SIGHUP, SIGQUIT: both drives are stopped and
+confirmed at standstill first; a signal during the final ramp makes it an emergency stop).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from typing import Optional
 import typer
 
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
-from orbitrig.cli.signals import run_until_signal
+from orbitrig.cli.signals import run_until_signal, say
 
 DEFAULT_SPEEDUP = 40.0  # as orbitrig.cli.simulated_rig.DEFAULT_SPEEDUP
 _CONFIG = typer.Option(None, "--config", help=RIG_CONFIG_HELP)
@@ -185,7 +186,8 @@ def _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_rati
 
 def _guarded(fn) -> None:
     """Run a sub-command: exit 2 on a configuration error or a speed beyond the drive limits
-    (nothing sent), 1 on a failed step, 3 on Ctrl-C, SIGTERM or SIGHUP (both drives stopped first)."""
+    (nothing sent), 1 on a failed step (drives not confirmed stopped among them), 3 on Ctrl-C,
+    SIGTERM, SIGHUP or SIGQUIT (both drives confirmed at standstill first)."""
     from orbitrig.cli.calibrate_steps import CalibrationOptionError
     from orbitrig.cli.signals import Interrupted
     from orbitrig.errors import ConfigError, OrbitrigError
@@ -193,24 +195,21 @@ def _guarded(fn) -> None:
     try:
         fn()
     except (ConfigError, CalibrationOptionError) as err:
-        typer.echo(f"error: {err}", err=True)
+        say(f"error: {err}", err=True)
         raise typer.Exit(2) from None
     except OrbitrigError as err:
-        typer.echo(f"error: {err}", err=True)
+        say(f"error: {err}", err=True)
         raise typer.Exit(1) from None
     except (KeyboardInterrupt, Interrupted) as err:
         what = str(err) if isinstance(err, Interrupted) else "Ctrl-C"
-        typer.echo(f"calibration stopped by {what}: the drives were stopped, no record written", err=True)
+        say(f"calibration stopped by {what}: the drives were stopped, no record written", err=True)
         raise typer.Exit(3) from None
 
 
 def _say(message: str) -> None:
     """A step's progress line on standard error; a terminal gone (closed, a broken pipe) does
     not end the step (its drives keep their way out)."""
-    try:
-        typer.echo(message, err=True)
-    except OSError:
-        pass
+    say(message, err=True)
 
 
 def _rig_and_folder(config):
@@ -228,17 +227,17 @@ def _list(config) -> None:
     rig, folder = _rig_and_folder(config)
     names = list_names(folder)
     if not names:
-        typer.echo(f"no calibration records in {folder}")
+        say(f"no calibration records in {folder}")
         return
     for name in names:
         mark = "*" if name == rig.calibration_record else " "
         try:
             rec, _ = read_record(folder, name)
         except ConfigError as err:
-            typer.echo(f"{mark} {name}  unreadable: {err}")
+            say(f"{mark} {name}  unreadable: {err}")
             continue
         ref = f"{rec.reference.id} (u {rec.reference.uncertainty_pct:g} %)" if rec.reference else "-"
-        typer.echo(f"{mark} {name}  {rec.date}  {rec.step:<8} operator {rec.operator}  reference {ref}")
+        say(f"{mark} {name}  {rec.date}  {rec.step:<8} operator {rec.operator}  reference {ref}")
 
 
 def _show(name, config) -> None:
@@ -251,7 +250,7 @@ def _show(name, config) -> None:
         raise ConfigError(rig.file, ["names no active calibration record (calibration_record): give NAME"])
     _, text = read_record(folder, name)
     active = " (active)" if name == rig.calibration_record else ""
-    typer.echo(f"# {folder / (name + '.toml')}{active}\n# sha256 {digest(text)}\n{text}", nl=False)
+    say(f"# {folder / (name + '.toml')}{active}\n# sha256 {digest(text)}\n{text}", nl=False)
 
 
 def _write(rig, folder, record, activate: bool, what: str) -> None:
@@ -262,10 +261,10 @@ def _write(rig, folder, record, activate: bool, what: str) -> None:
         f"orbitrig calibration record (docs/calibration.md), written by `orbitrig calibrate {record.step}`.\n{what}"
     )
     name, _ = write_record(folder, record, header)
-    typer.echo(f"calibration record {name} written to {folder}")
+    say(f"calibration record {name} written to {folder}")
     if activate:
         make_active(rig.file, name)
-        typer.echo(f'{rig.file}: calibration_record = "{name}" (active)')
+        say(f'{rig.file}: calibration_record = "{name}" (active)')
 
 
 def _reference(opts, reference_id, reference_u_pct, simulated: str):
@@ -287,7 +286,7 @@ def _loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> Non
     check_rolls(rig, [opts.roll()], "--spin-rpm")
     record = run_until_signal(lambda: loads_record(rig, opts, load_n, ref, _say))
     for lms, g in record.loads.items():
-        typer.echo(
+        say(
             f"{lms}: gain matrix {g.gain} (u {[[f'{u:.2g}' for u in row] for row in g.gain_u]}), "
             f"residual {g.residual_n:.3g} N"
         )
@@ -309,7 +308,7 @@ def _runout(config, opts, activate) -> None:
     record = run_until_signal(lambda: runout_record(rig, opts, _say))
     for p in ("x_a", "y_a", "x_b", "y_b"):
         h1, h2 = abs(record.runout.phasors(p)) * 1e6
-        typer.echo(f"{p}: runout 1x {h1:.3f} um, 2x {h2:.3f} um")
+        say(f"{p}: runout 1x {h1:.3f} um, 2x {h2:.3f} um")
     _write(rig, folder, record, activate, "Units: runout h1_um, h2_um micrometres [re, im] at 1x and 2x spin.")
 
 
@@ -320,7 +319,7 @@ def _delay(config, opts, speeds, amplitudes, activate) -> None:
     check_rolls(rig, delay_rolls(opts, speeds), "--speeds-rpm")
     record = run_until_signal(lambda: delay_record(rig, opts, speeds, amplitudes, _say))
     for name, d in record.delay.items():
-        typer.echo(
+        say(
             f"{name}: lags the probes by {d.phase_deg:.4f} deg (u {d.phase_u_deg:.2g}) "
             f"+ {d.delay_us:.2f} us (u {d.delay_u_us:.2g})"
         )
@@ -345,7 +344,7 @@ def _probes(config, opts, span_um, steps, reference_id, reference_u_pct, activat
     grid = np.linspace(-span_um / 2, span_um / 2, steps) * 1e-6
     record = run_until_signal(lambda: probes_record(rig, opts, grid, ref, _say))
     for p, g in record.probes.items():
-        typer.echo(f"{p}: gain {g.gain:.5f} (u {g.gain_u:.2g}), linearity {g.linearity_pct:.3g} % of {g.span_um:g} um")
+        say(f"{p}: gain {g.gain:.5f} (u {g.gain_u:.2g}), linearity {g.linearity_pct:.3g} % of {g.span_um:g} um")
     _write(
         rig,
         folder,

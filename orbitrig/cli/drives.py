@@ -5,8 +5,11 @@ is rad/s. The rig configuration (`--config`, default config/rig.toml) gives
 the Modbus URL (`transports.modbus_url`; an explicit `--modbus` wins), the
 device ids, the request timeout, the poll interval, link_loss_polls and the
 limits (`[drives]`): `--max-spin/--max-orbit/--min-ratio/--max-ratio` may
-only tighten those. Exit status: 0 done, 2 failed (the reason is printed on
-standard error, and `run` has stopped both drives by then).
+only tighten those. Exit status: 0 done, 2 failed or interrupted (the reason is
+printed on standard error; `run` has stopped both drives and confirmed them at
+standstill by then), 4 `run` ended by an emergency stop (a second signal during
+its ramp), 1 `run` could not confirm both drives at standstill ("drives not
+confirmed stopped"). Signals: orbitrig.cli.signals.SIGNALS.
 """
 
 from __future__ import annotations
@@ -21,7 +24,8 @@ from orbitrig.cli.drives_checks import (  # effective_limits is part of this com
     effective_limits,
     open_config,
 )
-from orbitrig.cli.drives_hold import _drive_line, _hold, _state_lines
+from orbitrig.cli.drives_hold import Interrupt, _drive_line, _hold, _state_lines, way_out
+from orbitrig.cli.signals import say
 
 
 def register(app: typer.Typer) -> None:
@@ -77,14 +81,16 @@ def _add_run(drives_app: typer.Typer) -> None:
 
         Limits (the rig configuration's, tightened by the options) are checked
         before anything is sent. On any failure (limit, fault, timeout, link,
-        Ctrl-C, SIGTERM, SIGHUP before the setpoint) both drives are ramped to zero and
-        the command exits 2 with the reason. Without --hold the drives are left
-        at their setpoint; with no client polling them, their comm-loss
+        Ctrl-C, SIGTERM, SIGHUP, SIGQUIT before the setpoint) both drives are ramped
+        to zero and the command exits 2 with the reason once both are at standstill
+        (a second signal during the ramp: emergency stop, exit 4; standstill not
+        confirmed: "drives not confirmed stopped", exit 1). Without --hold the drives
+        are left at their setpoint; with no client polling them, their comm-loss
         watchdog then ramps them down after COMM_LOSS_TIMEOUT. With --hold the
-        command keeps polling until Ctrl-C/SIGTERM/SIGHUP, then ramps both to
-        zero (exit 0; a second signal during the ramp: emergency stop, exit 4);
-        if another client stops a drive or changes its reference meanwhile, it
-        says which, ramps both to zero and exits 2.
+        command keeps polling until Ctrl-C/SIGTERM/SIGHUP/SIGQUIT (a closed standard
+        output does not end it), then ramps both to zero (exit 0; a second signal
+        during the ramp: emergency stop, exit 4); if another client stops a drive or
+        changes its reference meanwhile, it says which, ramps both to zero and exits 2.
         """
         _run_command(
             spin=spin,
@@ -138,7 +144,7 @@ def _run_command(
             file=_config_name(config),
         )
     except ValueError as err:
-        typer.echo(f"orbitrig drives run refused (limit): {err}; nothing sent", err=True)
+        say(f"orbitrig drives run refused (limit): {err}; nothing sent", err=True)
         raise typer.Exit(2) from None
     from orbitrig.config import RPM
 
@@ -206,26 +212,11 @@ def _reason(err: BaseException) -> str:
     return "error"
 
 
-class _Interrupt:
-    """SIGINT/SIGTERM/SIGHUP received by a command. While `holding`, a signal ends the
-    hold (`event`) instead of cancelling the command; another one during the ramp
-    that follows makes it an emergency stop (`abort`)."""
-
-    def __init__(self) -> None:
-        import asyncio
-
-        self.received: list = []
-        self.holding = False
-        self.ramping = False
-        self.event = asyncio.Event()
-        self.abort = asyncio.Event()
-
-
 def _run_async(make_coro, command: str) -> int:
-    """Run `make_coro(interrupt)`; SIGINT/SIGTERM/SIGHUP cancel it (so its drives stop)
-    -> exit 2, except while it holds (`run --hold`), where they end the hold."""
+    """Run `make_coro(interrupt)`; the first of orbitrig.cli.signals.SIGNALS cancels it -> exit 2
+    (`run` stops and confirms both drives itself: drives_hold.way_out), except while it holds
+    (`run --hold`), where it ends the hold (drives_hold.Interrupt)."""
     import asyncio
-    import signal
 
     from drives.errors import DriveError
     from orbitrig.cli.signals import SIGNALS
@@ -234,32 +225,19 @@ def _run_async(make_coro, command: str) -> int:
 
     async def main() -> int:
         task = asyncio.current_task()
+        assert task is not None
         loop = asyncio.get_running_loop()
-        interrupt = _Interrupt()
-
-        def on_signal(sig: signal.Signals) -> None:
-            interrupt.received.append(sig)
-            if interrupt.holding:
-                interrupt.holding = False
-                interrupt.event.set()
-            elif interrupt.ramping:  # a second signal while the hold's ramp stop is under way
-                interrupt.abort.set()
-            else:
-                task.cancel()  # the exit still stops both drives
-
+        interrupt = Interrupt()
         for sig in SIGNALS:
-            loop.add_signal_handler(sig, on_signal, sig)
+            loop.add_signal_handler(sig, interrupt.on_signal, sig, task)
         try:
             return await make_coro(interrupt)
         except asyncio.CancelledError:
             if not interrupt.received:
                 raise
             task.uncancel()
-            after = "" if command == "status" else "; stop sent to both drives"
-            typer.echo(
-                f"orbitrig drives {command}: interrupted by {interrupt.received[-1].name}{after}",
-                err=True,
-            )
+            after = {"status": "", "stop": "; stop sent to both drives"}.get(command, "; nothing commanded")
+            say(f"orbitrig drives {command}: interrupted by {interrupt.received[-1].name}{after}", err=True)
             return 2
         except DriveError as err:
             _report(command, err)
@@ -292,7 +270,7 @@ def _stop_outcome(rig) -> str:
 
 def _report(command: str, err: BaseException, after: str = "") -> None:
     tail = f"; {after}" if after else ""
-    typer.echo(f"orbitrig drives {command} failed ({_reason(err)}): {err}{tail}", err=True)
+    say(f"orbitrig drives {command} failed ({_reason(err)}): {err}{tail}", err=True)
 
 
 async def _status(url: str, json_out: bool, d) -> int:
@@ -318,11 +296,11 @@ async def _status(url: str, json_out: bool, d) -> int:
             }
             out[name] = st
     if json_out:
-        typer.echo(json.dumps(out))
+        say(json.dumps(out))
     else:
         for name in ("spin", "orbit"):
             st = out[name]
-            typer.echo(f"{name:5s} (id {st['device_id']}): {_drive_line(st)}")
+            say(f"{name:5s} (id {st['device_id']}): {_drive_line(st)}")
     return 0
 
 
@@ -334,20 +312,31 @@ async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every,
     except DriveError as err:
         _report("run", err, "nothing sent")  # refused before connecting at all
         return 2
-    rig = None
+    rig = code = None
     try:
         async with _rig_drives(url, d, limits) as rig:
-            await rig.set_speeds(spin, orbit)
-            state = await rig.wait_settled(hold=settle, timeout=timeout)
-            _state_lines(state)
-            if not hold:
-                rig.release()
-                return 0
-            refs = (rig.spin.reference_for(spin), rig.orbit.reference_for(orbit))
-            return await _hold(rig, refs, status_every, interrupt)
+            try:
+                code = await _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, interrupt)
+            except BaseException as err:  # noqa: BLE001 - every way out but the release: both drives stopped first
+                code = await way_out(rig, err, interrupt, _reason)
+            return code
     except DriveError as err:
-        _report("run", err, _stop_outcome(rig))
+        if code is not None:  # the exit's repeated stop word failed after the way out said how the drives ended
+            return code
+        _report("run", err, _stop_outcome(rig))  # the rig could not be opened: nothing commanded
         return 2
+
+
+async def _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, interrupt) -> int:
+    """Both drives to the setpoint; released there (exit 0) or held (`--hold`)."""
+    await rig.set_speeds(spin, orbit)
+    state = await rig.wait_settled(hold=settle, timeout=timeout)
+    _state_lines(state)
+    if not hold:
+        rig.release()
+        return 0
+    refs = (rig.spin.reference_for(spin), rig.orbit.reference_for(orbit))
+    return await _hold(rig, refs, status_every, interrupt)
 
 
 async def _stop(url, d, emergency, timeout) -> int:

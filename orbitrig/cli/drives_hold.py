@@ -1,8 +1,45 @@
-"""`orbitrig drives run --hold` and the drive status lines of `orbitrig drives`."""
+"""`orbitrig drives run`: the hold (`--hold`), the way out of the run, and the drive status lines
+of `orbitrig drives`.
+
+Every way out of `run` but the release at the setpoint ramps both drives to zero and waits
+until both are confirmed at standstill before anything says they stopped (`ramp_down`); a
+signal during that ramp makes it the emergency stop (OFF3). Output goes through
+`orbitrig.cli.signals.say`: a reader gone away (`| head -1`, a closed terminal) never ends the
+command, so a hold goes on until a signal (or another client) ends it.
+"""
 
 from __future__ import annotations
 
-import typer
+import asyncio
+import signal
+import time
+
+from drives.errors import DriveError, DriveLinkError
+from orbitrig.cli.signals import SIGNAL_WORDS, say
+from orbitrig.run.safe_stop import not_confirmed, stop_shielded
+
+
+class Interrupt:
+    """Signals (orbitrig.cli.signals.SIGNALS) received by a command. The first one cancels the
+    command; while `holding` it ends the hold (`event`) instead. Any further one, and any during
+    the ramp stop that follows (`ramping`), makes that stop an emergency stop (`abort`)."""
+
+    def __init__(self) -> None:
+        self.received: list[signal.Signals] = []
+        self.holding = False
+        self.ramping = False
+        self.event = asyncio.Event()
+        self.abort = asyncio.Event()
+
+    def on_signal(self, sig: signal.Signals, task: asyncio.Task) -> None:
+        self.received.append(sig)
+        if self.holding:
+            self.holding = False
+            self.event.set()
+        elif self.ramping or len(self.received) > 1:  # a stop is (about to be) under way
+            self.abort.set()
+        else:
+            task.cancel()  # the way out stops both drives
 
 
 def _drive_line(d: dict) -> str:
@@ -16,7 +53,7 @@ def _drive_line(d: dict) -> str:
 
 def _state_lines(state) -> None:
     for s in (state.spin, state.orbit):
-        typer.echo(f"{s.name:5s} (id {s.device_id}): {_drive_line(s.to_dict())}")
+        say(f"{s.name:5s} (id {s.device_id}): {_drive_line(s.to_dict())}")
 
 
 def _hold_line(state, held: float) -> str:
@@ -48,23 +85,84 @@ def stopped_elsewhere(state, refs: tuple[int, int]) -> str | None:
     return "; ".join(found) or None
 
 
-async def _hold(rig, refs: tuple[int, int], status_every: float, interrupt) -> int:
-    """`run --hold`: poll at the setpoint until SIGINT/SIGTERM/SIGHUP (exit 0) or until
-    another client stops or moves a drive (exit 2); both end with both drives
-    ramped to zero and at standstill. A second signal during that ramp makes it an
-    emergency stop (exit 4)."""
-    import asyncio
-    import time
+async def ramp_down(rig, interrupt: Interrupt) -> tuple[bool, str]:
+    """Both drives ramped to zero (OFF1) and confirmed at standstill, not cut short by a
+    cancellation; a signal meanwhile makes it the emergency stop (OFF3). (escalated, what the
+    drives did); raises what kept the standstill from being confirmed (DriveError)."""
+    interrupt.holding, interrupt.ramping = False, True
+    try:
+        return await stop_shielded(rig, interrupt.abort, emergency=False, timeout=None)
+    finally:
+        interrupt.ramping = False
 
-    from drives.errors import DriveLinkError
-    from orbitrig.run.safe_stop import stop_drives
 
-    typer.echo(
-        "holding at the setpoint; Ctrl-C, SIGTERM or SIGHUP ramps both drives to zero (a second one: emergency stop)",
-        err=True,
-    )
+async def way_out(rig, err: BaseException, interrupt: Interrupt, reason) -> int:
+    """`run` ended by `err` before its release (a signal's cancellation, a drive failure, any
+    other exception): both drives stopped first (`ramp_down`), then the message. Exit 2 (4: a
+    second signal made it an emergency stop), 1 if the standstill is not confirmed; an exception
+    that is neither a signal nor a DriveError is raised again after the stop."""
+    signalled = isinstance(err, asyncio.CancelledError) and bool(interrupt.received)
+    if signalled:
+        task = asyncio.current_task()
+        assert task is not None
+        task.uncancel()
+        head = f"orbitrig drives run: interrupted by {interrupt.received[0].name}"
+    elif isinstance(err, DriveError):
+        head = f"orbitrig drives run failed ({reason(err)}): {err}"
+    else:
+        head = f"orbitrig drives run failed: {type(err).__name__}"
+    try:
+        escalated, line = await ramp_down(rig, interrupt)
+    except Exception as stop_err:  # noqa: BLE001 - whatever it was, the drives are not known stopped
+        say(f"{head}; {not_confirmed(stop_err)}", err=True)
+        code = 1
+    else:
+        again = f"; {interrupt.received[-1].name} during the stop: " if escalated else "; "
+        say(f"{head}; both drives stopped{again}{line}", err=True)
+        code = 4 if escalated else 2
+    if not signalled and not isinstance(err, DriveError):
+        raise err
+    return code
+
+
+async def _hold(rig, refs: tuple[int, int], status_every: float, interrupt: Interrupt) -> int:
+    """`run --hold`: poll at the setpoint until a signal (exit 0) or until another client stops or
+    moves a drive (exit 2); both end with both drives ramped to zero and confirmed at standstill
+    (not confirmed: exit 1). A second signal during that ramp makes it an emergency stop (exit 4).
+    A fault or a lost link found while holding is raised (the way out stops the drives)."""
+    say(f"holding at the setpoint; {SIGNAL_WORDS} ramps both drives to zero (a second one: emergency stop)", err=True)
     interrupt.holding = True
-    t0 = last = time.monotonic()
+    t0 = time.monotonic()
+    elsewhere = await _poll_at_setpoint(rig, refs, status_every, interrupt, t0)
+    held = time.monotonic() - t0
+    if elsewhere is not None:
+        say(
+            f"orbitrig drives run: after {held:.0f} s at the setpoint {elsewhere}: "
+            "stopped or changed by another client; ramping both drives to zero",
+            err=True,
+        )
+    else:
+        say(f"{interrupt.received[-1].name}: ramping both drives to zero", err=True)
+    try:
+        escalated, line = await ramp_down(rig, interrupt)
+    except DriveError as err:
+        say(f"orbitrig drives run: after {held:.0f} s at the setpoint: {not_confirmed(err)}", err=True)
+        return 1
+    _state_lines(rig.state)
+    ramp = time.monotonic() - t0 - held
+    say(
+        f"held the setpoint for {held:.0f} s; both drives stopped (standstill {ramp:.1f} s later)"
+        + ("; the hold was ended by another client" if elsewhere else "")
+    )
+    if escalated:
+        say(f"{interrupt.received[-1].name} again during the ramp: {line}", err=True)
+        return 4
+    return 2 if elsewhere else 0
+
+
+async def _poll_at_setpoint(rig, refs: tuple[int, int], status_every: float, interrupt: Interrupt, t0: float):
+    """Hold until a signal (None) or another client stops or moves a drive (which one, said)."""
+    last = t0
     elsewhere = None
     while not interrupt.event.is_set() and elsewhere is None:
         try:
@@ -73,33 +171,10 @@ async def _hold(rig, refs: tuple[int, int], status_every: float, interrupt) -> i
             pass
         state = rig.check()  # a trip found by the poll (both already stopping)
         if not state.link_ok:
-            raise DriveLinkError(
-                f"link lost while holding ({state.link_error}); the drives' comm-loss watchdog stops them"
-            )
+            raise DriveLinkError(f"link lost while holding ({state.link_error})")
         elsewhere = stopped_elsewhere(state, refs)
         now = time.monotonic()
         if now - last >= status_every and not interrupt.event.is_set() and elsewhere is None:
             last = now
-            typer.echo(_hold_line(state, now - t0))
-    held = time.monotonic() - t0
-    if elsewhere is not None:
-        typer.echo(
-            f"orbitrig drives run: after {held:.0f} s at the setpoint {elsewhere}: "
-            "stopped or changed by another client; ramping both drives to zero",
-            err=True,
-        )
-    else:
-        typer.echo(f"{interrupt.received[-1].name}: ramping both drives to zero", err=True)
-    interrupt.holding, interrupt.ramping = False, True
-    escalated, line = await stop_drives(rig, interrupt.abort, emergency=False, timeout=None)
-    interrupt.ramping = False
-    _state_lines(rig.state)
-    ramp = time.monotonic() - t0 - held
-    typer.echo(
-        f"held the setpoint for {held:.0f} s; both drives stopped (standstill {ramp:.1f} s later)"
-        + ("; the hold was ended by another client" if elsewhere else "")
-    )
-    if escalated:
-        typer.echo(f"{interrupt.received[-1].name} again during the ramp: {line}", err=True)
-        return 4
-    return 2 if elsewhere else 0
+            say(_hold_line(state, now - t0))
+    return elsewhere

@@ -49,8 +49,8 @@ Hold = Annotated[
     typer.Option(
         "--hold",
         help="Stay at the setpoint, polling (the drives' watchdog heartbeat), until "
-        "Ctrl-C, SIGTERM or SIGHUP; then ramp both to zero and exit 0 (a second signal "
-        "during the ramp: emergency stop, exit 4).",
+        "Ctrl-C, SIGTERM, SIGHUP or SIGQUIT; then ramp both to zero and exit 0 (a second signal "
+        "during the ramp: emergency stop, exit 4). A closed standard output does not end the hold.",
     ),
 ]
 StatusEvery = Annotated[float, typer.Option("--status-every", help="With --hold: seconds between status lines.")]

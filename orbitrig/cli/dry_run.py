@@ -4,9 +4,6 @@ step with its start time."""
 
 from __future__ import annotations
 
-import os
-import sys
-
 import typer
 
 
@@ -15,10 +12,10 @@ def print_plan(plan, *, steps: bool = False) -> None:
     estimated physical time, time per step kind), the predicted uncertainty of each model
     (orbitrig.cli.dry_run_predict), one line per operating point, and with `steps` one line
     per step (durations in s)."""
-    try:
+    from orbitrig.cli.signals import printing
+
+    with printing():  # `| head`: the reader has what it wanted
         _print(plan, steps)
-    except BrokenPipeError:  # `| head`: the reader has what it wanted
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
 
 
 def _print(plan, steps: bool) -> None:

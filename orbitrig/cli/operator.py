@@ -1,8 +1,9 @@
 """The operator at the terminal of `orbitrig sweep`: confirmations, Ctrl-C (pause and ask), signals, aborts.
 
 - Ctrl-C (SIGINT): pause at the next safe point and ask resume / stop / abort.
-- SIGTERM, SIGHUP (a service manager, a shutdown, a closed terminal): stop at
-  once, both drives ramp to zero (OFF1), the run ends stopped (exit 3).
+- SIGTERM, SIGHUP, SIGQUIT (a service manager, a shutdown, a closed terminal,
+  Ctrl-\\): stop at once, both drives ramp to zero (OFF1), the run ends stopped
+  (exit 3).
 - A second signal of any kind, or any signal while a stop is under way or a
   manual setting waits for its confirmation after a Ctrl-C: abort (emergency
   ramp, exit 4). Only an explicit "r" at the pause prompt (the run then

@@ -40,7 +40,8 @@ def register(app: typer.Typer) -> None:
         Matrix units: speeds rpm (spin omega; orbit Omega = ratio * omega), pressures MPa, times s.
 
         Ctrl-C pauses at the next safe point and asks resume / stop / abort; a second Ctrl-C aborts.
-        SIGTERM or SIGHUP stops at once with a ramp (exit 3); a second signal aborts (exit 4).
+        SIGTERM, SIGHUP or SIGQUIT stops at once with a ramp (exit 3); a second signal aborts (exit 4).
+        A closed standard output (`| head`) does not change the exit status.
 
         Exit 0 completed, 1 failed, 2 bad configuration or usage, 3 stopped, 4 aborted.
         """
@@ -368,6 +369,8 @@ def _print_outcome(console, outcome, out: Path, fmt) -> None:
         markup=False,
     )
     if outcome.completed_points:
+        from orbitrig.cli.signals import printing
         from orbitrig.cli.sweep_summary import print_coefficients  # the closing table
 
-        print_coefficients(out, fmt or OutputFormat.TEXT)
+        with printing():  # a reader gone (`| head`) ends the table, not the run's exit status
+            print_coefficients(out, fmt or OutputFormat.TEXT)

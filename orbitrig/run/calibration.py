@@ -28,6 +28,7 @@ from orbitrig.config import LMS, RPM, RigConfig
 from orbitrig.errors import OrbitrigError
 from orbitrig.load_systems import LoadSystem
 from orbitrig.run.rig_io import RigAccess, RigIO
+from orbitrig.run.safe_stop import not_confirmed, stop_shielded
 from reduction.fourier import phasor
 from reduction.rig_time import block_time
 
@@ -94,20 +95,31 @@ class CalibrationSession:
     async def __aexit__(self, *exc) -> None:
         """Both drives stopped and confirmed at standstill, then the links closed; a stop not
         delivered or not confirmed fails the step (CalibrationFailed: no record is written, and
-        nothing says the drives were stopped), whatever ended it."""
+        nothing says the drives were stopped), whatever ended it. A cancellation (a signal)
+        during the stop does not cut it short: it makes it the emergency stop, and is raised
+        again once both drives are confirmed at standstill."""
         unconfirmed = None
         try:
             if self.io.drives is not None:
-                timeout = self.access.time_scale.wall(self.rig.drives.stop_timeout_s) + 5.0
-                await self.io.drives.stop(emergency=exc[0] is not None, wait=True, timeout=timeout)
-                self.note("both drives stopped")
+                await self._stop_drives(emergency=exc[0] is not None)
         except DriveError as err:
             self.note(f"stopping the drives failed: {err}")
             unconfirmed = err
         finally:
             await self.io.__aexit__(*exc)
         if unconfirmed is not None:
-            raise CalibrationFailed(f"drives not confirmed stopped: {unconfirmed}") from unconfirmed
+            raise CalibrationFailed(not_confirmed(unconfirmed)) from unconfirmed
+
+    async def _stop_drives(self, *, emergency: bool) -> None:
+        """Ramp (`emergency`: OFF3) both drives to zero and wait for standstill, shielded from a
+        cancellation (orbitrig.run.safe_stop.stop_shielded); says so once confirmed."""
+        timeout = self.access.time_scale.wall(self.rig.drives.stop_timeout_s) + 5.0
+        try:
+            await stop_shielded(self.io.drives, asyncio.Event(), emergency=emergency, timeout=timeout)
+        except asyncio.CancelledError:
+            self.note("both drives stopped (a signal during the stop made it an emergency stop)")
+            raise
+        self.note("both drives stopped")
 
     async def roll(self, roll: SlowRoll) -> None:
         """Orbit radius and static eccentricity zero, the pressures set, then spin and orbit

@@ -7,6 +7,10 @@ the emergency stop (OFF3) at once, and the run ends aborted. The line this
 returns says what the drives were commanded and how they ended, for run.log.
 A stop that is not delivered, or not confirmed at standstill in time, makes the
 run failed whatever it was (`unconfirmed`): nobody may take the rig for stopped.
+
+`stop_shielded` is the same stop for a command whose way out is a cancellation (a signal
+cancels its task): the stop is not cut short by the cancellation, which counts as an abort
+(the emergency stop, still waited for) and is raised again once the stop is confirmed.
 """
 
 from __future__ import annotations
@@ -49,11 +53,41 @@ async def stop_drives(
     )
 
 
+async def stop_shielded(
+    drives: RigDrives, aborted: asyncio.Event, *, emergency: bool, timeout: float | None
+) -> tuple[bool, str]:
+    """`stop_drives`, shielded from the caller's cancellation: a cancellation meanwhile sets
+    `aborted` (the ramp becomes the emergency stop) and is raised again once both drives are
+    confirmed at standstill; what kept the standstill from being confirmed is raised instead."""
+    stopping = asyncio.ensure_future(stop_drives(drives, aborted, emergency=emergency, timeout=timeout))
+    cancelled = False
+    while True:
+        try:
+            result = await asyncio.shield(stopping)
+            break
+        except asyncio.CancelledError:
+            if stopping.cancelled():
+                raise
+            if stopping.done():
+                stopping.result()  # the stop's own failure wins over the cancellation
+            cancelled = True
+            aborted.set()
+    if cancelled:
+        raise asyncio.CancelledError
+    return result
+
+
+def not_confirmed(err: BaseException) -> str:
+    """What to say when stopping the drives raised `err` (not delivered, not at standstill in
+    time, cancelled): nobody may take the rig for stopped."""
+    reason = f"{type(err).__name__}: {err}" if str(err) else type(err).__name__
+    return f"drives not confirmed stopped: {reason}"
+
+
 def unconfirmed(status: Outcome, message: str, err: BaseException) -> tuple[Outcome, str]:
     """The run's (status, message) when stopping the drives raised `err` (not delivered, not at
     standstill in time, cancelled): failed, saying so first and how the run was ending."""
-    reason = f"{type(err).__name__}: {err}" if str(err) else type(err).__name__
-    return FAILED, f"drives not confirmed stopped: {reason} (the run was ending {status}: {message})"
+    return FAILED, f"{not_confirmed(err)} (the run was ending {status}: {message})"
 
 
 def _speeds(drives: RigDrives) -> str:

@@ -86,7 +86,7 @@ def sweep(tmp_path):
         s.close()
 
 
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT], ids=["SIGTERM", "SIGHUP", "SIGQUIT"])
 def test_sigterm_and_sighup_stop_with_a_ramp(sweep, sig):
     s = sweep()
     s.wait_log("[running] speeds set: spin 1000 rpm")

@@ -31,3 +31,15 @@ async def tcp_sim() -> SimDrives:
 def _quiet_pymodbus():
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
     yield
+
+
+@pytest.fixture(params=["tcp", "rtu"])
+async def slow_drives(request) -> SimDrives:
+    """The drives with slow ramps (about 0.8 s wall from 1500 rpm to zero), TCP or RTU: a
+    command that exits before standstill is caught with the drives still turning."""
+    models = make_models(speedup=3.0)
+    endpoint = await serve(request.param, models)
+    try:
+        yield SimDrives(request.param, models, endpoint)
+    finally:
+        await endpoint.aclose()

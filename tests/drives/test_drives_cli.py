@@ -92,17 +92,19 @@ async def test_run_fails_on_a_trip_and_stops_both(tcp_sim):
     code, out, err = await task
     assert code == 2
     assert "failed (fault)" in err and "orbit drive (id 2)" in err and "4210" in err
-    assert "stop sent to both drives" in err
+    assert "both drives stopped" in err  # said once both read zero speed
     assert sim.regs(1)["CW"] == CW_RAMP_STOP and sim.regs(1)["FAULT"] == 0
-    await sim.wait_stopped()
+    assert sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
 
 
-async def test_run_timeout_stops_both(tcp_sim):
+async def test_run_timeout_stops_both(slow_drives):
+    """The timeout's way out waits for both drives at standstill before it exits and says so."""
+    sim = slow_drives
     code, out, err = await run_cli(
         "drives",
         "run",
         "--modbus",
-        tcp_sim.url,
+        sim.url,
         "--spin",
         "2400",
         "--orbit",
@@ -110,15 +112,23 @@ async def test_run_timeout_stops_both(tcp_sim):
         "--settle",
         "1",
         "--timeout",
-        "0.2",
+        "1.0",
     )
-    assert code == 2 and "failed (timeout)" in err, err
-    assert tcp_sim.regs(1)["CW"] == tcp_sim.regs(2)["CW"] == CW_RAMP_STOP
-    await tcp_sim.wait_stopped()
+    at_exit = [sim.regs(dev) for dev in (1, 2)]
+    assert code == 2 and "failed (timeout)" in err and "both drives stopped" in err, err
+    for regs in at_exit:
+        assert regs["CW"] == CW_RAMP_STOP and regs["ACT"] == 0 and regs["FAULT"] == 0, at_exit
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
-async def test_signal_during_run_stops_both(sim, sig):
+@pytest.mark.parametrize(
+    "sig",
+    [signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT],
+    ids=["SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT"],
+)
+async def test_signal_during_run_stops_both(slow_drives, sig):
+    """A signal before the setpoint is held: both drives ramped to zero and confirmed at
+    standstill when the command exits (not later, through the watchdog), then exit 2."""
+    sim = slow_drives
     proc = await asyncio.create_subprocess_exec(
         sys.executable,
         "-m",
@@ -128,7 +138,7 @@ async def test_signal_during_run_stops_both(sim, sig):
         "--modbus",
         sim.url,
         "--spin",
-        "1000",
+        "1500",
         "--orbit",
         "-800",
         "--settle",
@@ -144,15 +154,15 @@ async def test_signal_during_run_stops_both(sim, sig):
         await sim.wait_for(lambda: sim.regs(1)["SW"] & 0x100 and sim.regs(2)["SW"] & 0x100, 10, "at setpoint")
         proc.send_signal(sig)
         out, err = await asyncio.wait_for(proc.communicate(), 10)
+        at_exit = [sim.regs(dev) for dev in (1, 2)]
     finally:
         if proc.returncode is None:
             proc.kill()
             await proc.wait()
-    assert proc.returncode == 2
-    assert f"interrupted by {sig.name}".encode() in err
-    for dev in (1, 2):
-        assert sim.regs(dev)["CW"] == CW_RAMP_STOP and sim.regs(dev)["FAULT"] == 0
-    await sim.wait_stopped()
+    assert proc.returncode == 2, err
+    assert f"interrupted by {sig.name}; both drives stopped".encode() in err
+    for regs in at_exit:
+        assert regs["CW"] == CW_RAMP_STOP and regs["ACT"] == 0 and regs["FAULT"] == 0, at_exit
 
 
 async def test_emergency_stop_cli(tcp_sim):

@@ -1,4 +1,4 @@
-"""`orbitrig drives run --hold` ended by a real signal: SIGTERM and SIGHUP ramp both drives to
+"""`orbitrig drives run --hold` ended by a real signal: SIGTERM, SIGHUP and SIGQUIT ramp both drives to
 zero (exit 0); a second signal during that ramp makes it an emergency stop (exit 4)."""
 
 from __future__ import annotations
@@ -78,7 +78,7 @@ def _not_the_watchdog(sim, dev: int) -> bool:
     return fault == 0 or (fault == COMM_LOSS and model.comm_lost_after == model.last_request)
 
 
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT], ids=["SIGTERM", "SIGHUP", "SIGQUIT"])
 async def test_sigterm_and_sighup_end_the_hold_with_a_ramp(slow_sim, sig):
     sim = slow_sim
     proc = await _hold(sim)

@@ -299,7 +299,7 @@ def test_sigkill_publishes_offline_last_will(tmp_path):
         assert late.retain and late.json()["state"] == "offline"
 
 
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT], ids=["SIGTERM", "SIGHUP", "SIGQUIT"])
 def test_sigterm_mid_run_stops_with_a_ramp_and_says_offline(tmp_path, sig):
     with OwnRun(tmp_path) as own:
         mark = own.rc.watch.mark()

@@ -1,0 +1,52 @@
+"""`orbitrig calibrate` ends on SIGQUIT (Ctrl-\\) as on SIGTERM: no core dump with the drives
+turning; both drives stopped and confirmed at standstill first, no record written, exit 3. A
+real signal to a real subprocess on the simulator (as tests/e2e/test_calibrate_signals.py)."""
+
+from __future__ import annotations
+
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from support.paths import ROOT
+
+pytestmark = pytest.mark.timeout(120)
+
+
+def test_sigquit_stops_the_drives_and_writes_no_record(tmp_path):
+    shutil.copy(ROOT / "config/rig.toml", tmp_path / "rig.toml")
+    shutil.copytree(ROOT / "config/calibration", tmp_path / "calibration")
+    records = sorted(p.name for p in (tmp_path / "calibration").iterdir())
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "orbitrig", "calibrate", "runout", "--sim", "--config", str(tmp_path / "rig.toml")]
+        + ["--revolutions", "5000", "--speedup", "10"],
+        cwd=ROOT,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        lines = []
+        for line in proc.stderr:  # the slow roll is held: the drives turn
+            lines.append(line)
+            if line.startswith("slow roll:"):
+                break
+        assert lines and lines[-1].startswith("slow roll: spin 100 rpm"), "".join(lines)
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGQUIT)
+        rest = proc.stderr.read()
+        code = proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert code == 3, rest
+    assert "both drives stopped" in rest
+    assert "calibration stopped by SIGQUIT: the drives were stopped, no record written" in rest
+    assert "Traceback" not in rest
+    assert sorted(p.name for p in (tmp_path / "calibration").iterdir()) == records

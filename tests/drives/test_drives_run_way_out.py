@@ -1,0 +1,131 @@
+"""Every way out of `orbitrig drives run` but the release at the setpoint: both drives stopped and
+confirmed at standstill before the command exits and says so; a second signal makes the stop an
+emergency stop; a stop not confirmed is said ("drives not confirmed stopped", exit 1); a reader
+gone from standard output (`| head -1`) ends neither the run nor the hold. Real signals to a real
+subprocess, the drives' registers read when it exits."""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import signal
+import sys
+
+import pytest
+from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, SimDrives, subprocess_env
+from support.paths import ROOT
+
+pytestmark = pytest.mark.timeout(60)
+SW_AT_SETPOINT = 0x100
+
+
+async def _run(sim: SimDrives, *extra: str, stdout=asyncio.subprocess.PIPE):
+    return await asyncio.create_subprocess_exec(
+        sys.executable,
+        "-m",
+        "orbitrig",
+        "drives",
+        "run",
+        "--modbus",
+        sim.url,
+        "--spin",
+        "1500",
+        "--orbit",
+        "-750",
+        "--timeout",
+        "30",
+        *extra,
+        cwd=ROOT,
+        env=subprocess_env(),
+        stdout=stdout,
+        stderr=asyncio.subprocess.PIPE,
+    )
+
+
+async def _exit(proc, sim: SimDrives) -> tuple[int, str, list[dict]]:
+    """(exit status, standard error, both drives' registers as the command exited)."""
+    try:
+        _, err = await asyncio.wait_for(proc.communicate(), 40)
+        at_exit = [sim.regs(dev) for dev in (1, 2)]
+    finally:
+        if proc.returncode is None:
+            proc.kill()
+            await proc.wait()
+    return proc.returncode, err.decode(), at_exit
+
+
+def _at_setpoint(sim: SimDrives) -> bool:
+    return bool(sim.regs(1)["SW"] & SW_AT_SETPOINT and sim.regs(2)["SW"] & SW_AT_SETPOINT)
+
+
+def _ramping(sim: SimDrives) -> bool:
+    return sim.regs(1)["CW"] == CW_RAMP_STOP and sim.regs(2)["CW"] == CW_RAMP_STOP
+
+
+async def test_a_second_signal_during_the_ramp_is_an_emergency_stop(slow_drives):
+    sim = slow_drives
+    proc = await _run(sim, "--settle", "30")
+    await sim.wait_for(lambda: _at_setpoint(sim), 20, "at setpoint")
+    proc.send_signal(signal.SIGTERM)
+    await sim.wait_for(lambda: _ramping(sim), 10, "ramp stop")
+    assert sim.rpm(1) > 300  # still ramping down
+    proc.send_signal(signal.SIGQUIT)
+    code, err, at_exit = await _exit(proc, sim)
+    assert code == 4, err
+    assert "interrupted by SIGTERM; both drives stopped; SIGQUIT during the stop: drives: emergency stop (OFF3)" in err
+    for regs in at_exit:
+        assert regs["CW"] == CW_EMERGENCY and regs["ACT"] == 0, at_exit
+
+
+async def test_a_stop_not_confirmed_is_said_and_fails(slow_drives):
+    """The spin drive taken over by its keypad after the stop word: no standstill to confirm."""
+    sim = slow_drives
+    proc = await _run(sim, "--settle", "30")
+    await sim.wait_for(lambda: _at_setpoint(sim), 20, "at setpoint")
+    proc.send_signal(signal.SIGINT)
+    await sim.wait_for(lambda: _ramping(sim), 10, "ramp stop")
+    sim.models[1].local_control(1000.0)
+    code, err, _ = await _exit(proc, sim)
+    assert code == 1, err
+    assert "interrupted by SIGINT; drives not confirmed stopped: DriveTimeoutError" in err
+    assert "both drives stopped" not in err and "Traceback" not in err
+
+
+async def test_the_hold_outlives_a_closed_standard_output(slow_drives):
+    """`drives run --hold | head -1`: the hold goes on once the reader is gone; a signal then
+    ends it with both drives at standstill when the command exits."""
+    sim = slow_drives
+    r, w = os.pipe()
+    try:
+        proc = await _run(sim, "--settle", "0.05", "--hold", "--status-every", "0.1", stdout=w)
+    finally:
+        os.close(w)
+    first = await asyncio.get_running_loop().run_in_executor(None, os.read, r, 4096)
+    assert first.startswith(b"spin  (id 1): running, at setpoint"), first
+    os.close(r)  # `head -1` has its line and exits
+    await asyncio.sleep(1.0)  # several status lines written into the broken pipe meanwhile
+    assert proc.returncode is None, (await proc.stderr.read()).decode()
+    assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RUN and _at_setpoint(sim)
+    proc.send_signal(signal.SIGTERM)
+    code, err, at_exit = await _exit(proc, sim)
+    assert code == 0, err
+    assert "SIGTERM: ramping both drives to zero" in err and "Traceback" not in err
+    for regs in at_exit:
+        assert regs["CW"] == CW_RAMP_STOP and regs["ACT"] == 0, at_exit
+
+
+async def test_run_to_a_closed_standard_output_still_reaches_its_setpoint(slow_drives):
+    """`drives run | head -1` with the reader gone at once: the run is not failed by its own
+    output (exit 0, the drives left at their setpoint as documented)."""
+    sim = slow_drives
+    r, w = os.pipe()
+    os.close(r)
+    try:
+        proc = await _run(sim, "--settle", "0.05", stdout=w)
+    finally:
+        os.close(w)
+    code, err, at_exit = await _exit(proc, sim)
+    assert code == 0, err
+    assert "drives left running at their setpoint" in err and "Traceback" not in err
+    for regs in at_exit:
+        assert regs["CW"] == CW_RUN and regs["SW"] & SW_AT_SETPOINT, at_exit
