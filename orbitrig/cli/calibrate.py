@@ -31,7 +31,11 @@ _OPERATOR = typer.Option(None, "--operator", help="who calibrates (default: the 
 _RECESS = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0, help="recess pressure during the slow roll (MPa)")
 _RATIO = typer.Option(0.25, "--pressure-ratio", min=0.01, max=0.99, help="pressure ratio during the slow roll")
 _ACTIVATE = typer.Option(True, "--activate/--no-activate", help="make the new record the rig's active one")
-_SIM_CONFIG = typer.Option(None, "--sim-config", help="simulator scenario TOML (--sim only)")
+_SIM_CONFIG = typer.Option(
+    None,
+    "--sim-config",
+    help="simulator scenario: a TOML file or a shipped name (paper, clean, compressible); --sim only",
+)
 _SPEEDUP = typer.Option(DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)")
 _REF_U = "its certificate's relative standard uncertainty (%); required on the rig"
 

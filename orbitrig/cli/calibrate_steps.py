@@ -157,11 +157,12 @@ async def rig_access(rig: RigConfig, opts: StepOptions):
     if not opts.sim:
         yield RigAccess.of_rig(rig), OperatorLoads()
         return
-    from orbitrig.cli.simulated_rig import simulated_rig
+    from orbitrig.cli.simulated_rig import scenario_file, simulated_rig
     from sim.config import load_sim_config
 
+    path = scenario_file(opts.sim_config)
     try:
-        config = load_sim_config(opts.sim_config) if opts.sim_config else None
+        config = load_sim_config(path) if path else None
     except ValueError as err:
         raise typer.BadParameter(str(err), param_hint="--sim-config") from None
     async with simulated_rig(opts.speedup, config) as (_, access):

@@ -158,6 +158,20 @@ class SimulatorHands:
         await self.link.acall("apply_reference", force=force, probe=probe)
 
 
+def scenario_file(path: Path | None) -> Path | None:
+    """--sim-config FILE, or the NAME of a shipped scenario (paper, clean, compressible)."""
+    if path is None or path.is_file() or path.suffix or len(path.parts) != 1:
+        return path
+    from sim.config import scenario_path
+
+    try:
+        return scenario_path(str(path))
+    except ValueError as err:
+        import typer
+
+        raise typer.BadParameter(f"{path}: no such file; {err}", param_hint="--sim-config") from None
+
+
 class SimulatorTruth:
     """The simulator's bearing at its present manual settings (SI; spin, orbits rad/s).
     Blocking calls: the engine makes them in a worker thread."""

@@ -141,12 +141,13 @@ def _run_plan(plan, *, out, sim: bool, sim_config, resume: bool, speedup: float,
 def _scenario(path, *, resume: bool, out):
     """(SimConfig, Scenario) of this --sim sweep: --sim-config or the default rig; on --resume
     the scenario the run recorded (a --sim-config given then must have the same text)."""
+    from orbitrig.cli.simulated_rig import scenario_file
     from orbitrig.errors import ConfigError
     from orbitrig.run.rig_io import Scenario
     from orbitrig.store.writer import RunStore
     from sim.config import sim_config_from_text
 
-    path = _scenario_file(path)
+    path = scenario_file(path)
     stored = RunStore.open_existing(out).stored_scenario() if resume else None
     if stored is not None:
         name, text = stored
@@ -171,18 +172,6 @@ def _scenario(path, *, resume: bool, out):
 
 #: the scenario name recorded when no --sim-config is given (sim.config.SimConfig())
 DEFAULT_SCENARIO = "default (the paper's rig, as config/sim.toml)"
-
-
-def _scenario_file(path):
-    """--sim-config FILE, or the NAME of a shipped scenario (paper, clean, compressible)."""
-    if path is None or path.is_file() or path.suffix or len(path.parts) != 1:
-        return path
-    from sim.config import scenario_path
-
-    try:
-        return scenario_path(str(path))
-    except ValueError as err:
-        raise typer.BadParameter(f"{path}: no such file; {err}", param_hint="--sim-config") from None
 
 
 def _read(path) -> str:

@@ -1,0 +1,35 @@
+"""`orbitrig calibrate --sim --sim-config` takes a shipped scenario by name, as `sweep` does
+(one resolver: orbitrig.cli.simulated_rig.scenario_file). Real subprocess runs on the simulator."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+from support.cli_helpers import orbitrig
+from support.paths import ROOT
+
+pytestmark = pytest.mark.timeout(120)
+
+
+def _rig(tmp_path):
+    shutil.copy(ROOT / "config/rig.toml", tmp_path / "rig.toml")
+    shutil.copytree(ROOT / "config/calibration", tmp_path / "calibration")
+    return tmp_path / "rig.toml"
+
+
+def test_a_shipped_scenario_is_taken_by_name(tmp_path):
+    rig = _rig(tmp_path)
+    before = set((tmp_path / "calibration").iterdir())
+    p = orbitrig("calibrate", "runout", "--sim", "--sim-config", "clean", "--config", str(rig), "--revolutions", "4")
+    assert p.returncode == 0, p.stderr
+    assert "both drives stopped" in p.stderr
+    assert len(set((tmp_path / "calibration").iterdir()) - before) == 1  # the new record
+
+
+def test_an_unknown_scenario_name_is_refused_naming_the_shipped_ones(tmp_path):
+    p = orbitrig("calibrate", "runout", "--sim", "--sim-config", "nosuch", "--config", str(_rig(tmp_path)))
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+    assert "nosuch: no such file" in p.stderr and "clean" in p.stderr
+    assert "slow roll:" not in p.stderr
