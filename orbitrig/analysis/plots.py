@@ -23,6 +23,7 @@ from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
+from orbitrig.analysis import plots_narrow as narrow
 from orbitrig.analysis.canvas import ReportCanvas, png_bytes
 from orbitrig.analysis.report_axes import ReportAxes
 from orbitrig.store.durable import write_atomic
@@ -211,7 +212,10 @@ def panel_figure(
 ) -> Figure:
     """A figure of many panels with fixed margins in inches (room for a two-line title on top and
     a legend at the bottom): half the saving time of constrained layout, whose solver measures
-    every tick label. Put the legend with ``loc="lower center"``."""
+    every tick label. Put the legend with :func:`figure_legend`. A narrow figure
+    (plots_narrow) is laid out by constrained layout instead."""
+    if narrow.is_narrow(STYLE.width):
+        return _figure(w, h)
     fig = _figure(w, h, layout=None)
     t = text_scale() * w / STYLE.width  # margins in design inches, for the style's text
     fig.subplots_adjust(
@@ -239,13 +243,30 @@ def panels(w: float, h: float, rows: int, cols: int, *, sharex: bool = True, **m
         fig, axes = cache[key]
         _empty(fig)
         return fig, axes
+    if narrow.is_narrow(STYLE.width):  # fewer columns of panels, a taller figure
+        t = text_scale() * (margins.get("top", 0.95) + margins.get("bottom", 1.15))
+        h = narrow.height(w, h, rows, cols, STYLE.width, t)
     fig = panel_figure(w, h, **margins)
-    axes = np.atleast_2d(fig.subplots(rows, cols, sharex=sharex, squeeze=False, subplot_kw=AXES))
+    axes = narrow.grid_axes(fig, rows, cols, sharex=sharex, subplot_kw=AXES, width=STYLE.width)
     for ax in axes.flat:  # a journal panel reads 4 to 6 ticks an axis (matplotlib's 'auto' puts up to 9)
         ax.xaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=TICK_STEPS))
         ax.yaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=TICK_STEPS))
     cache[key] = fig, axes
     return fig, axes
+
+
+def max_columns(cols: int) -> int:
+    """How many of `cols` columns of panels a figure of the style's width shows side by side."""
+    return narrow.columns(cols, STYLE.width)
+
+
+def figure_legend(fig: Figure, handles: list, labels: list, **kw: Any):
+    """The legend under a figure's panels: ``fig.legend(handles, labels, loc="lower center", ...)``
+    in the margin the figure leaves it; in a narrow figure wrapped to its width, outside the
+    panels (plots_narrow.figure_legend)."""
+    if narrow.is_narrow(STYLE.width):
+        return narrow.figure_legend(fig, handles, labels, **kw)
+    return fig.legend(handles, labels, **{"loc": "lower center", **kw})
 
 
 def _empty(fig: Figure) -> None:
@@ -277,6 +298,8 @@ def _save(fig: Figure, path: Path) -> Path:
     """Each of the style's formats rendered in memory, then written durably (a StorageError
     names the file); returns the PNG's path."""
     path = Path(path).with_suffix(".png")
+    if narrow.is_narrow(STYLE.width):
+        narrow.fit_texts(fig)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as err:

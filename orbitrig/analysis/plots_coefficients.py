@@ -20,6 +20,7 @@ from matplotlib.figure import Figure
 
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import (
+    figure_legend,
     ENTRIES,
     TRUTH_LABEL,
     Fitted,
@@ -146,7 +147,8 @@ def coefficients_figure(
                 ax.set_xlabel("\u03a9/\u03c9  [-]")
     handles, labels = axes[0, 0].get_legend_handles_labels()
     uniq = dict(zip(labels, handles))
-    fig.legend(
+    figure_legend(
+        fig,
         list(uniq.values()),
         list(uniq.keys()),
         loc="lower center",

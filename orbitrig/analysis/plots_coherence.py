@@ -14,7 +14,7 @@ from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from orbitrig.analysis.plots import PAIR_LABELS, panels, whirl_direction
+from orbitrig.analysis.plots import figure_legend, PAIR_LABELS, panels, whirl_direction
 from orbitrig.load_systems import LoadSystem
 
 #: (lower bound, colour, label) of each gamma^2 band, best first
@@ -86,8 +86,10 @@ def coherence_figure(table: CoherenceTable, *, title: str) -> Figure:
     ax.tick_params(length=0)
     low = np.nanmin(table.values) if np.isfinite(table.values).any() else float("nan")
     handles = [Patch(color=colour, label=label) for _, colour, label in BANDS]
-    fig.legend(
-        handles=handles,
+    figure_legend(
+        fig,
+        handles,
+        [h.get_label() for h in handles],
         loc="lower center",
         ncols=4,
         fontsize="x-small",

@@ -21,6 +21,7 @@ from matplotlib.lines import Line2D
 
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import (
+    figure_legend,
     ENTRIES,
     Fitted,
     _colors,
@@ -95,7 +96,8 @@ def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title
     axes[0, 2].set_xlabel("\u03a9/\u03c9  [-]")
     axes[0, 2].xaxis.set_tick_params(labelbottom=True)
     handles = [Line2D([], [], color=c, lw=2) for c in colors]
-    fig.legend(
+    figure_legend(
+        fig,
         handles,
         [label for label, _ in derived],
         loc="lower center",
@@ -137,7 +139,8 @@ def impedance_figure(
             if row == 1:
                 ax.set_xlabel("\u03a9/\u03c9  [-]")
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(
+    figure_legend(
+        fig,
         handles,
         labels,
         loc="lower center",

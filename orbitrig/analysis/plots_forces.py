@@ -12,7 +12,17 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from orbitrig.analysis.grid import light_grid
-from orbitrig.analysis.plots import DIRECTIONS, Fitted, _colors, _save, coverage, panels, style, whirl_direction
+from orbitrig.analysis.plots import (
+    figure_legend,
+    DIRECTIONS,
+    Fitted,
+    _colors,
+    _save,
+    coverage,
+    panels,
+    style,
+    whirl_direction,
+)
 
 
 def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:
@@ -88,7 +98,8 @@ def _legend(fig, axes, *, both_directions: bool) -> None:
         handles += [Line2D([], [], color="gray", ls="-"), Line2D([], [], color="gray", ls="--")]
         labels += ["forward whirl (solid)", "backward whirl (dashed)"]
     ncols = 1 if max(len(label) for label in labels) > 60 else 2  # long labels (verdicts): one column
-    fig.legend(
+    figure_legend(
+        fig,
         handles,
         labels,
         loc="lower center",

@@ -20,7 +20,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from orbitrig.analysis.grid import light_grid
-from orbitrig.analysis.plots import _colors, panels
+from orbitrig.analysis.plots import figure_legend, max_columns, _colors, panels
 from orbitrig.analysis.signals import FORCE_CHANNELS, PROBE_PLANES, BlockSignals
 from orbitrig.load_systems import LMS, LoadSystem
 from reduction.fourier import harmonic_fit
@@ -102,7 +102,7 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
         ax.legend(fontsize="x-small", loc="upper right", framealpha=0.9)
     for ax in axes.flat:
         ax.set_xlim(0, 360)
-        ax.set_xticks(range(0, 361, 45))
+        ax.set_xticks(range(0, 361, 45 if max_columns(4) == 4 else 90))
         light_grid(ax)
     fig.suptitle(title)
     return fig
@@ -113,7 +113,7 @@ def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) 
     equal axes; the commanded orbit radius (m) as a dashed circle about the measured centre, and
     each plane's mean radius (mean distance from its centre) in the panel title."""
     n = len(blocks)
-    cols = min(5, max(1, n))
+    cols = min(max_columns(5), max(1, n))
     rows = max(1, math.ceil(n / cols))
     width, height = 2.7 * cols + 0.8, 2.9 * rows + 1.6
     margins = {"left": 0.7, "right": 0.15, "top": 1.25, "bottom": 1.0, "wspace": 0.35, "hspace": 0.45}
@@ -128,7 +128,7 @@ def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) 
     for ax in axes[::cols]:
         ax.set_ylabel("y  [\u00b5m]", fontsize="small")
     handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncols=len(labels), fontsize="small", frameon=False)
+    figure_legend(fig, handles, labels, loc="lower center", ncols=len(labels), fontsize="small", frameon=False)
     fig.suptitle(title)
     return fig
 

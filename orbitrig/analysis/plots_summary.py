@@ -11,6 +11,9 @@ from matplotlib.ticker import MaxNLocator
 
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import (
+    figure_legend,
+    max_columns,
+    panels,
     AXES,
     ENTRIES,
     TRUTH_LABEL,
@@ -26,14 +29,21 @@ from orbitrig.analysis.reduce import MATRIX_UNITS
 from orbitrig.load_systems import LoadSystem
 
 
+def _summary_panels():
+    """(figure, 2 x 4 axes) of the summary; narrow, in two columns of panels (plots_narrow)."""
+    if max_columns(4) < 4:
+        return panels(13, 7.2, 2, 4, bottom=1.5, wspace=0.5)
+    fig = panel_figure(13, 7.2, bottom=1.5, wspace=0.5)
+    return fig, fig.subplots(2, 4, sharex=True, subplot_kw=AXES)
+
+
 def summary_plot(
     path, series: dict[LoadSystem, list[tuple[int, Any]]], truth: list[tuple[int, dict]], *, model: str, title: str
 ) -> Path:
     """The constant K and C entries of one model at every operating point (x: point
     index), one marker series per load measuring system, error bars of one standard
     error, and the simulator's true values (K0, C0) as black crosses."""
-    fig = panel_figure(13, 7.2, bottom=1.5, wspace=0.5)
-    axes = fig.subplots(2, 4, sharex=True, subplot_kw=AXES)
+    fig, axes = _summary_panels()
     colors = _colors(len(series))
     offsets = np.linspace(-0.12, 0.12, len(series)) if len(series) > 1 else [0.0]
     largest = {"K": 0.0, "C": 0.0}
@@ -74,8 +84,14 @@ def summary_plot(
             if row == 1:
                 ax.set_xlabel("operating point  [index]")
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(
-        handles, labels, loc="lower center", ncols=len(labels), fontsize="small", title=style().band_label("error bars")
+    figure_legend(
+        fig,
+        handles,
+        labels,
+        loc="lower center",
+        ncols=len(labels),
+        fontsize="small",
+        title=style().band_label("error bars"),
     )
     fig.suptitle(title)
     return _save(fig, path)

@@ -151,7 +151,9 @@ def write_synthetic_run(
             "C0": C_TRUE.tolist(),
             "D0": D_TRUE.tolist(),
         }
-        store.write_results(point.index, identify_operating_point(point.spin, recs, ch, matrix.models, truth, calibration))
+        store.write_results(
+            point.index, identify_operating_point(point.spin, recs, ch, matrix.models, truth, calibration)
+        )
         store.complete_point(point.index)
     if finished:
         store.set_status(RunStatus.STOPPED if incomplete else RunStatus.COMPLETED, "synthetic run")

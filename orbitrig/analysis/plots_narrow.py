@@ -1,0 +1,134 @@
+"""Report figures narrower than NARROW_WIDTH (a journal's single column, 3.5 in) at the same text
+size (6.5 pt): fewer columns of panels (each at least PANEL_WIDTH wide; a logical row of four
+entries becomes two rows of two), a taller figure keeping each panel's aspect, constrained
+layout instead of the fixed margins (so titles, labels and the legend under the panels get
+their room), and every title, legend title and legend entry wrapped at word boundaries to
+the width it has. Figures at least NARROW_WIDTH wide are drawn as before, pixel for pixel.
+
+Widths and heights in inches; text measured in points (the figures' 72 dpi).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from matplotlib.figure import Figure
+
+#: below this figure width (in) the figure is laid out for a single journal column
+NARROW_WIDTH = 5.0
+#: the narrowest column of panels a narrow figure gets (in)
+PANEL_WIDTH = 1.6
+#: figure width (in) the designs' panel sizes are tuned for, and the margins it leaves them (in)
+DESIGN_WIDTH, DESIGN_MARGINS = 7.2, 0.7
+#: a narrow figure's panels: this fraction of the design's panel height (a single column is
+#: also a page's height at most), plus room (in) per row for wrapped titles and tick labels
+ROW_SCALE, ROW_ROOM = 0.75, 0.25
+#: the lowest panel of a narrow figure (in): room for its tick labels and axis label
+MIN_ROW = 1.1
+
+
+def is_narrow(width: float) -> bool:
+    """True when a figure `width` (in) wide is laid out as a narrow one."""
+    return width < NARROW_WIDTH
+
+
+def columns(cols: int, width: float) -> int:
+    """The columns of panels a figure `width` (in) wide shows of `cols` logical ones."""
+    if not is_narrow(width):
+        return cols
+    return max(1, min(cols, int(width // PANEL_WIDTH)))
+
+
+def height(w: float, h: float, rows: int, cols: int, width: float, margins: float) -> float:
+    """The design height (in, of a design `w` wide) of a narrow figure `width` wide showing the
+    rows x cols panels of the design w x h (margins: its top and bottom, in real inches) in
+    columns(cols) columns, each ROW_SCALE as high for its width as in the design, plus ROW_ROOM."""
+    pcols = columns(cols, width)
+    prows = math.ceil(rows * cols / pcols)
+    row = (h * DESIGN_WIDTH / w - margins) / rows  # one row's height at the design width (in)
+    aspect = ((width - DESIGN_MARGINS) / pcols) / ((DESIGN_WIDTH - DESIGN_MARGINS) / cols)
+    real = margins + prows * (max(ROW_SCALE * row * aspect, MIN_ROW) + ROW_ROOM)
+    return real * w / width
+
+
+def grid_axes(fig: Figure, rows: int, cols: int, *, sharex: bool, subplot_kw: dict, width: float) -> np.ndarray:
+    """(rows, cols) array of axes in logical order: ``fig.subplots(rows, cols)`` at full width;
+    narrow, the same axes laid out row by row in columns(cols) columns (panels left over after
+    the last are removed)."""
+    pcols = columns(cols, width)
+    if pcols == cols:
+        return np.atleast_2d(fig.subplots(rows, cols, sharex=sharex, squeeze=False, subplot_kw=subplot_kw))
+    prows = math.ceil(rows * cols / pcols)
+    flat = fig.subplots(prows, pcols, sharex=sharex, squeeze=False, subplot_kw=subplot_kw).ravel()
+    for ax in flat[rows * cols :]:
+        fig.delaxes(ax)
+    return flat[: rows * cols].reshape(rows, cols)
+
+
+def wrap(fig: Figure, text: str, prop, width: float) -> str:
+    """`text` with each line broken at spaces so that no line is wider than `width` (points)
+    in font `prop` (a single word wider than that stays whole)."""
+    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # the Agg canvas of every report figure
+
+    def wide(s: str) -> float:
+        return renderer.get_text_width_height_descent(s, prop, ismath=False)[0] * 72.0 / renderer.dpi
+
+    out = []
+    for line in text.split("\n"):
+        words, current = line.split(" "), ""
+        for word in words:
+            trial = f"{current} {word}" if current else word
+            if current and wide(trial) > width:
+                out.append(current)
+                current = word
+            else:
+                current = trial
+        out.append(current)
+    return "\n".join(out)
+
+
+def fit_texts(fig: Figure) -> None:
+    """Wrap the suptitle to the figure's width, each axes title, x label and axes legend's title
+    to its axes' width and its y label to its height (as placed before the constrained solver)."""
+    fig_pt = fig.get_figwidth() * 72.0
+    if fig.get_suptitle():
+        _wrap_artist(fig, fig._suptitle, 0.96 * fig_pt)  # type: ignore[attr-defined]
+    for ax in (a for a in fig.axes if a.get_visible()):
+        box = ax.get_position()
+        _wrap_artist(fig, ax.yaxis.label, 1.1 * box.height * 72.0 * fig.get_figheight())
+        titles = (ax.title, ax._left_title, ax._right_title)  # type: ignore[attr-defined]
+        legend = ax.get_legend()
+        for text in (*titles, ax.xaxis.label, *([legend.get_title()] if legend is not None else [])):
+            _wrap_artist(fig, text, 0.95 * box.width * fig_pt)
+
+
+def _wrap_artist(fig: Figure, text, width: float) -> None:
+    """Wrap the Text artist `text` of `fig` to `width` (points)."""
+    if text.get_text():
+        text.set_text(wrap(fig, text.get_text(), text.get_fontproperties(), width))
+
+
+def figure_legend(
+    fig: Figure, handles: list, labels: list[str], *, ncols: int = 1, title: str | None = None, **kw: Any
+):
+    """A narrow figure's legend under its panels, outside them (constrained layout makes room):
+    title and entries wrapped to the figure's width, as many of `ncols` columns as fit it."""
+    kw.pop("loc", None)
+    fig_pt = fig.get_figwidth() * 72.0
+    probe = fig.legend(handles, labels, loc="outside lower center", ncols=1, title=title, **kw)
+    entry = probe.get_texts()[0].get_fontproperties() if probe.get_texts() else None
+    title_prop = probe.get_title().get_fontproperties()
+    probe.remove()
+    if title:
+        title = wrap(fig, title, title_prop, 0.94 * fig_pt)
+    if entry is not None:
+        labels = [wrap(fig, label, entry, 0.8 * fig_pt) for label in labels]
+    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
+    for n in range(max(1, ncols), 0, -1):
+        legend = fig.legend(handles, labels, loc="outside lower center", ncols=n, title=title, **kw)
+        if n == 1 or legend.get_window_extent(renderer).width <= 0.98 * fig.bbox.width:
+            return legend
+        legend.remove()
+    return legend

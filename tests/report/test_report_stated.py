@@ -1,0 +1,91 @@
+"""The report page says what the stored run says: the two load measuring systems' consistency
+on the sweep's own uncertainty basis (combined when the rig stated a calibration uncertainty),
+and each 95 % interval named by the kind its identification used (normal with u_*, else
+Student t)."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from orbitrig import config as cfg
+from orbitrig.analysis.report import Report, analyse_point, fit_label, preferred
+from orbitrig.analysis.report_html import render
+from orbitrig.analysis.report_tables import identification_table
+from orbitrig.store.reader import read_run
+from reduction.identify import identify
+from reduction.table import OrbitTable
+from support.report_synthetic import write_synthetic_run
+
+#: force channels' gain uncertainty 1 %, phase 0.2 deg: the strain gauges' 1.8 % offset is within it
+STATED = cfg.CalibrationUncertainty(
+    probe_sensitivity_pct=0.5,
+    **{f"f{a}_{lms}": cfg.ChannelUncertainty(gain_pct=1.0, phase_deg=0.2) for a in "xy" for lms in cfg.LMS},
+)
+
+
+def _page(directory) -> tuple[str, object]:
+    """index.html of point 1 of the run in `directory` (no figures), and its PointReport."""
+    run = read_run(directory)
+    pr = analyse_point(run.points[1])
+    return render(Report(run, directory / "plots", [pr])), pr
+
+
+@pytest.fixture(scope="module")
+def calibrated_run(tmp_path_factory):
+    return write_synthetic_run(tmp_path_factory.mktemp("calibrated") / "run", incomplete=0, calibration=STATED)
+
+
+def _consistency_paragraph(page: str) -> str:
+    return re.search(r"consistency</h4>.*?</p>", page, re.S).group(0)
+
+
+@pytest.mark.parametrize("calibrated", [True, False])
+def test_consistency_is_the_stored_one_on_its_basis(calibrated, calibrated_run, synthetic_run):
+    page, pr = _page(calibrated_run if calibrated else synthetic_run)
+    a = preferred(pr)["piezo"]
+    stored = a.stored["lms_consistency"]
+    assert stored["basis"] == ("combined" if calibrated else "statistical")
+    section = _consistency_paragraph(page)
+    assert f"chi2 = {stored['chi2']:.3g} on {stored['dof']} " in section
+    verdict = "All coefficients at once: " + ("consistent" if stored["consistent"] else "NOT consistent") + ", chi2"
+    assert verdict in section
+    assert "no calibration budget stored" not in section
+    if calibrated:  # the budget the sweep used, and the sentence says so
+        assert "combined uncertainties of both fits" in section and "calibration uncertainty" in section
+        assert stored["consistent"]  # 1.8 % within 1 % per force channel: the stored verdict
+    else:
+        assert "statistical uncertainties of both fits" in section and "combined" not in section
+    # every E_n of the table is the stored one
+    for key, e in stored["e_n"].items():
+        row = re.search(rf'<th class="l">{key}</th>.*?</tr>', section, re.S).group(0)
+        assert row.endswith(f">{e:+.2f}</td></tr>"), (key, row)
+
+
+def test_interval_named_by_the_identification_normal_with_u(synthetic_run):
+    """The synthetic orbit tables state u_*: every fit uses the normal quantile 1.96."""
+    page, pr = _page(synthetic_run)
+    results = [r for rs in pr.results.values() for r in rs]
+    assert results and {r.identification.interval for r in results} == {"normal"}
+    r = results[0]
+    std, (lo, hi) = r.identification.std_errors["Kxx"], r.identification.confidence_95["Kxx"]
+    assert (hi - lo) / 2 / std == pytest.approx(1.96, abs=1e-3)
+    assert "Student" not in page
+    assert page.count("95 % interval<br>(normal, 1.96)") == len(results)
+    assert "95 % interval: normal quantile 1.96" in page
+
+
+def test_interval_named_student_t_without_u(synthetic_run):
+    pr = analyse_point(read_run(synthetic_run).points[1])
+    r = pr.results["piezo"][0]
+    t = r.point.tables["piezo"]
+    r.identification = identify(
+        OrbitTable(t.spin, t.orbit, t.x, t.y, t.fx, t.fy, gamma2=t.gamma2), model=r.model, freq_dep=r.freq_dep
+    )
+    assert r.identification.interval == "student_t"
+    html = identification_table(r, {}, fit_label(r), with_budget=False)
+    assert "95 % interval<br>(Student t, 4n - p dof)" in html and "normal" not in html
+    std, (lo, hi) = r.identification.std_errors["Kxx"], r.identification.confidence_95["Kxx"]
+    assert (hi - lo) / 2 / std > 1.97 and np.isfinite(hi)
