@@ -5,7 +5,9 @@ every complete operating point, for both load measuring systems, with one
 model / frequency dependence / method. The run's own results (``run.h5``, the pieces) and
 ``coefficients.csv`` are never touched: `write_csv` writes a separate file
 ``DIR/reduce_<model>_<freq-dep>_<method>.csv`` with the columns of
-``coefficients.csv`` (docs/storage.md), one row per (point, lms).
+``coefficients.csv`` (docs/storage.md) but the expanded uncertainties ``_U`` (reduce makes no
+budget; ``not_determined`` follows the identification's own 95 % interval), one row per
+(point, lms).
 """
 
 from __future__ import annotations
@@ -164,7 +166,7 @@ def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, 
             "freq_dep": r.freq_dep,
             "method": r.method,
             "error": one_line(r.error or ""),
-            "not_determined": " ".join((r.stored or {}).get("not_determined") or []),
+            "not_determined": " ".join(r.identification.not_determined if r.identification is not None else []),
         }
         ident = r.identification
         if ident is not None:

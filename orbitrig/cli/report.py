@@ -65,7 +65,8 @@ def reduce_cmd(
     Every complete point, both load measuring systems. Writes
     DIR/reduce_<model>_<freq-dep>_<method>.csv: the columns of coefficients.csv
     except the expanded uncertainties KEY_U (reduce makes no uncertainty budget;
-    KEY_std is the fit's standard error), not_determined left empty. The run's own
+    KEY_std is the fit's standard error; not_determined names the coefficients whose
+    95 % interval half-width exceeds their magnitude). The run's own
     results are left untouched. A damaged point is named on standard
     error and the exit status is 1, the others reduced and written (as export, report).
     """

@@ -81,10 +81,11 @@ def test_cli_reduce_writes_csv_and_leaves_the_run_alone(synthetic_run):
 
 
 def test_cli_reduce_help_states_the_csv_columns(synthetic_run, tmp_path):
-    """The help's account of the CSV is true: coefficients.csv's columns but KEY_U, not_determined empty."""
+    """The help's account of the CSV is true: coefficients.csv's columns but KEY_U; not_determined by
+    the identification's own 95 % interval (as `reduce --json` gives it)."""
     words = " ".join(CliRunner().invoke(app, ["reduce", "--help"]).stdout.replace("│", " ").split())
     assert "the columns of coefficients.csv except the expanded uncertainties KEY_U" in words
-    assert "not_determined left empty" in words
+    assert "not_determined names the coefficients whose 95 % interval half-width exceeds their magnitude" in words
     run = shutil.copytree(synthetic_run, tmp_path / "run")
     assert CliRunner().invoke(app, ["reduce", str(run), "--model", "kcd11"]).exit_code == 0
     with csv_path(run, "kcd11", "none", "ols").open() as fh:
@@ -96,7 +97,9 @@ def test_cli_reduce_help_states_the_csv_columns(synthetic_run, tmp_path):
     assert set(columns) <= set(stored) and "Kxx_U [N/m]" in stored and "Kxx [N/m]" in columns
     without_u = [c for c in stored if not c.split(" [")[0].endswith("_U")]
     assert [c for c in without_u if c in columns] == columns  # the same order
-    assert [r["not_determined"] for r in reduced] == [""] * len(reduced)
+    own = json.loads(CliRunner().invoke(app, ["reduce", str(run), "--model", "kcd11", "--json"]).stdout)
+    assert [r["not_determined"] for r in reduced] == [" ".join(o["not_determined"]) for o in own["results"]]
+    assert any(r["not_determined"] for r in reduced)  # D of kcd11 on the synthetic run: not determined
 
 
 def test_cli_reduce_json(synthetic_run):
