@@ -155,6 +155,9 @@ class OperatorLoads:
 async def rig_access(rig: RigConfig, opts: StepOptions):
     """(RigAccess, load hands) of the rig, or of a simulator started for the step."""
     if not opts.sim:
+        from orbitrig.cli.preflight import require_rig_answers
+
+        await require_rig_answers(rig, "orbitrig calibrate ... --sim", "no record was written")
         yield RigAccess.of_rig(rig), OperatorLoads()
         return
     from orbitrig.cli.simulated_rig import scenario_file, simulated_rig

@@ -1,8 +1,8 @@
-"""Before a sweep on the rig: does every transport of the rig config answer?
+"""Before a sweep or a calibration step on the rig: does every transport of the rig config answer?
 
 Each link is opened once and closed again; nothing is sent to the drives and no
-run directory exists yet, so a machine without the rig gets one clear message
-instead of a failed run that blocks the next try.
+run directory (or record) exists yet, so a machine without the rig gets one clear message
+naming every transport that does not answer, instead of a failed run that blocks the next try.
 """
 
 from __future__ import annotations
@@ -11,6 +11,7 @@ import asyncio
 import logging
 
 from orbitrig.config import RigConfig
+from orbitrig.errors import OrbitrigError
 
 #: seconds each transport may take to answer
 TIMEOUT_S = 2.0
@@ -62,3 +63,21 @@ async def unreachable_transports(rig: RigConfig) -> list[str]:
         elif isinstance(result, BaseException):
             raise result
     return problems
+
+
+class RigUnreachable(OrbitrigError):
+    """A transport of the rig config does not answer (the command exits 2, nothing sent)."""
+
+
+async def require_rig_answers(rig: RigConfig, command: str, nothing: str) -> None:
+    """Raise RigUnreachable naming every transport of `rig` that does not answer; `command` is
+    the one to run on the simulator instead (e.g. 'orbitrig sweep --sim ...'), `nothing` what
+    was not made (e.g. 'no run directory was made')."""
+    problems = await unreachable_transports(rig)
+    if problems:
+        lines = "\n".join(f"  {p}" for p in problems)
+        raise RigUnreachable(
+            f"the rig does not answer ([transports] in {rig.file}):\n{lines}\n"
+            f"Nothing was started and {nothing}. On a machine without the rig, "
+            f"run on the built-in simulator: {command}"
+        )

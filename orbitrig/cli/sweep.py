@@ -255,18 +255,14 @@ def _check_rig_answers(rig) -> None:
     """On the rig: every transport must answer before the run directory is made (exit 2 if not)."""
     import asyncio
 
-    from orbitrig.cli.preflight import unreachable_transports
+    from orbitrig.cli.preflight import RigUnreachable, require_rig_answers
+    from orbitrig.cli.signals import say
 
-    problems = asyncio.run(unreachable_transports(rig))
-    if problems:
-        lines = "\n".join(f"  {p}" for p in problems)
-        typer.echo(
-            f"error: the rig does not answer ([transports] in {rig.file}):\n{lines}\n"
-            "Nothing was started and no run directory was made. On a machine without the rig, "
-            "run on the built-in simulator: orbitrig sweep --sim ...",
-            err=True,
-        )
-        raise typer.Exit(2)
+    try:
+        asyncio.run(require_rig_answers(rig, "orbitrig sweep --sim ...", "no run directory was made"))
+    except RigUnreachable as err:
+        say(f"error: {err}", err=True)
+        raise typer.Exit(2) from None
 
 
 def _login() -> str:

@@ -1,9 +1,11 @@
-"""`orbitrig sweep` without --sim on a machine without the rig: says so, suggests --sim,
-leaves no run directory, and the next try gets the same answer (not "already exists")."""
+"""`orbitrig sweep` (and `orbitrig calibrate`) without --sim on a machine without the rig: says
+so naming each transport, suggests --sim, leaves no run directory (no record), and the next try
+gets the same answer (not "already exists")."""
 
 from __future__ import annotations
 
 import re
+import shutil
 
 from support.cli_helpers import closed_port, orbitrig
 from support.paths import ROOT
@@ -71,3 +73,16 @@ def test_sweep_with_one_transport_missing_names_only_that_one(tmp_path):
     assert "CAN sensor node" in p.stderr and subs["can_channel"] in p.stderr
     assert "A/D board" not in p.stderr and "drives (modbus_url)" not in p.stderr
     assert not (tmp_path / "run").exists()
+
+
+def test_calibrate_without_the_rig_names_each_transport_and_writes_no_record(tmp_path):
+    rig, subs = _rig_without_answer(tmp_path)
+    shutil.copytree(ROOT / "config" / "calibration", tmp_path / "calibration")
+    before = sorted((tmp_path / "calibration").iterdir())
+    p = orbitrig("calibrate", "runout", "--config", str(rig), timeout=60)
+    assert p.returncode == 2, (p.stdout, p.stderr)
+    assert "the rig does not answer" in p.stderr and "no record was written" in p.stderr
+    for what, url in (("A/D board", "adc_url"), ("drives", "modbus_url"), ("CAN sensor node", "can_channel")):
+        assert what in p.stderr and subs[url] in p.stderr
+    assert "--sim" in p.stderr and "Traceback" not in p.stderr and "slow roll:" not in p.stderr
+    assert sorted((tmp_path / "calibration").iterdir()) == before
