@@ -5,11 +5,9 @@ from __future__ import annotations
 import asyncio
 import json
 import signal
-import sys
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, run_cli, subprocess_env
-from support.paths import ROOT
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, run_cli, start_cli
 
 pytestmark = pytest.mark.timeout(30)  # a hang fails fast, with a traceback
 
@@ -129,26 +127,8 @@ async def test_signal_during_run_stops_both(slow_drives, sig):
     """A signal before the setpoint is held: both drives ramped to zero and confirmed at
     standstill when the command exits (not later, through the watchdog), then exit 2."""
     sim = slow_drives
-    proc = await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-m",
-        "orbitrig",
-        "drives",
-        "run",
-        "--modbus",
-        sim.url,
-        "--spin",
-        "1500",
-        "--orbit",
-        "-800",
-        "--settle",
-        "30",
-        "--timeout",
-        "60",
-        cwd=ROOT,
-        env=subprocess_env(),
-        stdout=asyncio.subprocess.PIPE,
-        stderr=asyncio.subprocess.PIPE,
+    proc = await start_cli(
+        "drives", "run", "--modbus", sim.url, "--spin", "1500", "--orbit", "-800", "--settle", "30", "--timeout", "60"
     )
     try:
         await sim.wait_for(lambda: sim.regs(1)["SW"] & 0x100 and sim.regs(2)["SW"] & 0x100, 10, "at setpoint")

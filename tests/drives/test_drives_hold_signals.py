@@ -5,11 +5,9 @@ from __future__ import annotations
 
 import asyncio
 import signal
-import sys
 
 import pytest
-from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, SimDrives, make_models, serve, subprocess_env
-from support.paths import ROOT
+from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, make_models, serve, SimDrives, start_cli
 from sim.drive_registers import COMM_LOSS_FAULT as COMM_LOSS
 
 pytestmark = pytest.mark.timeout(60)
@@ -28,10 +26,7 @@ async def slow_sim() -> SimDrives:
 
 
 async def _hold(sim: SimDrives):
-    proc = await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-m",
-        "orbitrig",
+    proc = await start_cli(
         "drives",
         "run",
         "--modbus",
@@ -45,10 +40,6 @@ async def _hold(sim: SimDrives):
         "--timeout",
         "30",
         "--hold",
-        cwd=ROOT,
-        env=subprocess_env(),
-        stdout=asyncio.subprocess.PIPE,
-        stderr=asyncio.subprocess.PIPE,
     )
     said = b""
     while b"holding at the setpoint" not in said:  # the command's own word that it holds

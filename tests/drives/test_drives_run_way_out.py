@@ -9,21 +9,16 @@ from __future__ import annotations
 import asyncio
 import os
 import signal
-import sys
 
 import pytest
-from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, SimDrives, subprocess_env
-from support.paths import ROOT
+from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, SimDrives, start_cli
 
 pytestmark = pytest.mark.timeout(60)
 SW_AT_SETPOINT = 0x100
 
 
 async def _run(sim: SimDrives, *extra: str, stdout=asyncio.subprocess.PIPE):
-    return await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-m",
-        "orbitrig",
+    return await start_cli(
         "drives",
         "run",
         "--modbus",
@@ -35,10 +30,7 @@ async def _run(sim: SimDrives, *extra: str, stdout=asyncio.subprocess.PIPE):
         "--timeout",
         "30",
         *extra,
-        cwd=ROOT,
-        env=subprocess_env(),
         stdout=stdout,
-        stderr=asyncio.subprocess.PIPE,
     )
 
 

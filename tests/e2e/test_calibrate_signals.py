@@ -17,7 +17,9 @@ from support.paths import ROOT
 pytestmark = pytest.mark.timeout(120)
 
 
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
+@pytest.mark.parametrize(
+    "sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT], ids=["SIGTERM", "SIGHUP", "SIGQUIT"]
+)  # SIGQUIT (Ctrl-\) as SIGTERM: no core dump with the drives turning
 def test_a_signal_stops_the_drives_and_writes_no_record(tmp_path, sig):
     shutil.copy(ROOT / "config/rig.toml", tmp_path / "rig.toml")
     shutil.copytree(ROOT / "config/calibration", tmp_path / "calibration")

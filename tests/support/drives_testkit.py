@@ -99,18 +99,23 @@ PARAM = {
 }
 
 
-async def run_cli(*args: str, timeout: float = 20.0) -> tuple[int, str, str]:
-    """`python -m orbitrig <args>` in a subprocess while this loop keeps serving."""
-    proc = await asyncio.create_subprocess_exec(
+async def start_cli(*args: str, stdout=asyncio.subprocess.PIPE) -> asyncio.subprocess.Process:
+    """`python -m orbitrig <args>` started in a subprocess (stderr piped) while this loop keeps serving."""
+    return await asyncio.create_subprocess_exec(
         sys.executable,
         "-m",
         "orbitrig",
         *args,
         cwd=ROOT,
         env=subprocess_env(),
-        stdout=asyncio.subprocess.PIPE,
+        stdout=stdout,
         stderr=asyncio.subprocess.PIPE,
     )
+
+
+async def run_cli(*args: str, timeout: float = 20.0) -> tuple[int, str, str]:
+    """`python -m orbitrig <args>` run to its end in a subprocess while this loop keeps serving."""
+    proc = await start_cli(*args)
     try:
         out, err = await asyncio.wait_for(proc.communicate(), timeout)
     except BaseException:
