@@ -11,28 +11,14 @@ import h5py
 import pytest
 
 from support.paths import ROOT
+from support.store_checks import small_matrix
 from support.sweep_helpers import orbitrig_cmd
 
 pytestmark = pytest.mark.timeout(180)
 
-MATRIX = """
-name = "head"
-revolutions = 10
-[operating]
-spin_rpm = [1000.0]
-recess_pressure_mpa = [0.4826]
-pressure_ratio = [0.4]
-static_eccentricity = [0.0]
-dynamic_eccentricity = [0.096]
-[orbit]
-ratios = [0.3, 0.6, 0.9]
-[[models]]
-model = "kc8"
-"""
-
 
 def test_a_completed_sweep_into_a_closed_pipe_exits_0(tmp_path):
-    (tmp_path / "m.toml").write_text(MATRIX)
+    (tmp_path / "m.toml").write_text(small_matrix("head", 10, spin_rpm=(1000.0,)))
     out = tmp_path / "run"
     r, w = os.pipe()
     os.close(r)  # the reader (`head -1`) gone before the table
