@@ -55,7 +55,9 @@ class CommandHandling:
 
         A retained command (``<prefix>/cmd`` is not retained) is stale: the broker
         hands it to every new subscription, so executing it would, e.g., start a run at
-        each reconnection. It is refused (one reply) and changes nothing. A
+        each reconnection. It is refused (one reply) and changes nothing, except a ``stop`` or
+        ``abort``, which the contract has always accepted: it is carried out (stopping is the
+        safe side, even of a stale request) and logged. A
         redelivery of a command already handled (QoS 1 after a reconnection) is
         dropped: it was executed and answered once."""
         try:
@@ -71,7 +73,9 @@ class CommandHandling:
         if self._redelivered(cmd, payload):
             log.warning("dropped redelivered command %s (id %r): handled already", cmd.cmd, cmd.id)
             return
-        if retained:
+        if retained and cmd.cmd in proto.ALWAYS_ACCEPTED:  # the contract: always accepted, carried out
+            log.warning("retained %s (id %r) carried out: clear it with an empty retained message", cmd.cmd, cmd.id)
+        elif retained:
             log.warning("refused retained command %s (id %r)", cmd.cmd, cmd.id)
             self._reply(
                 cmd.id,

@@ -1,6 +1,8 @@
 """A command left retained on <prefix>/cmd (spec: cmd is not retained) is stale: the broker
 replays it on every subscription. The service refuses it with one reply and changes
-nothing; a live command right after is executed as usual. Real mosquitto, real clients."""
+nothing; a live command right after is executed as usual. A retained stop or abort is
+accepted and carried out all the same (spec: stop and abort are always accepted). Real
+mosquitto, real clients."""
 
 from __future__ import annotations
 
@@ -49,3 +51,32 @@ async def test_retained_start_is_refused_and_starts_nothing(broker, tmp_path: Pa
         rc.close()
         stop.set()
         await asyncio.wait_for(task, 10)
+
+
+async def test_retained_stop_and_abort_are_accepted(broker, tmp_path: Path):
+    rig_id = "retained2"
+    topic = f"orbitrig/{rig_id}/cmd"
+    rc = RigClient(broker, rig_id)
+    service = RigService(
+        ServiceSettings(rig_id=rig_id, matrices_dir=write_matrices(tmp_path / "matrices")),
+        BrokerSettings.from_url(broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]),
+        engine_factory=lambda name, matrix: None,  # no run is started here
+        load_matrix=load_matrix,
+    )
+    stop = asyncio.Event()
+    task = None
+    try:
+        for cmd in ("stop", "abort"):
+            await asyncio.to_thread(broker.pub, topic, json.dumps({"cmd": cmd, "id": f"kept-{cmd}"}), retain=True)
+            task = asyncio.create_task(service.serve(stop))
+            reply = await asyncio.to_thread(rc.reply, f"kept-{cmd}", 10.0)
+            assert reply == {"id": f"kept-{cmd}", "ok": True}, reply
+            stop.set()
+            await asyncio.wait_for(task, 10)
+            stop.clear()
+    finally:
+        await asyncio.to_thread(broker.pub, topic, b"", retain=True)
+        rc.close()
+        stop.set()
+        if task is not None and not task.done():
+            await asyncio.wait_for(task, 10)
