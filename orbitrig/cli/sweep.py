@@ -208,11 +208,9 @@ def _configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
                     f"resume it {'with' if was_sim else 'without'} --sim"
                 ],
             )
-        rig = (
-            cfg.load_rig(config)
-            if config
-            else cfg.rig_from_text(rig_text, f"{store.path}:rig_config", store.stored_record())
-        )
+        rig = cfg.rig_from_text(rig_text, f"{store.path}:rig_config", store.stored_record())
+        if config:  # the devices may have moved; nothing the data depend on may change
+            rig = _given_again(cfg.load_rig(config), rig, store.path)
         matrix = cfg.matrix_file(matrix, rig_path=config) if matrix else None
         mat = cfg.load_matrix(matrix) if matrix else cfg.matrix_from_text(matrix_text, f"{store.path}:matrix_config")
         if matrix and mat.text != matrix_text:  # before the simulator or any drive is started
@@ -231,6 +229,26 @@ def _configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
         )
     path = cfg.matrix_file(matrix, rig_path=config) if matrix else cfg.default_matrix_path(rig_path=config)
     return rig, cfg.load_matrix(path)
+
+
+def _given_again(given, stored, run):
+    """`given` (--config on --resume) when it differs from the `stored` rig configuration only
+    where a resume may (orbitrig.config.resume); else a ConfigError naming the differences."""
+    from orbitrig.config.resume import MAY_CHANGE, resume_differences
+    from orbitrig.errors import ConfigError
+
+    differences = resume_differences(stored, given)
+    if differences:
+        may = ", ".join(f"[{k}]" for k in sorted(MAY_CHANGE))
+        raise ConfigError(
+            given.file,
+            [
+                f"differs from the rig configuration of the run being resumed in {run} in "
+                f"{', '.join(differences)}; the remaining points must be measured as the first ones: "
+                f"resume without --config (the stored one is used), or change only {may}"
+            ],
+        )
+    return given
 
 
 def _check_out(out: Path) -> None:
