@@ -24,7 +24,6 @@ from orbitrig.cli.drives_checks import (  # effective_limits is part of this com
     effective_limits,
     open_config,
 )
-from orbitrig.cli.drives_hold import Interrupt, _drive_line, _hold, _state_lines, way_out
 from orbitrig.cli.signals import say
 
 
@@ -219,6 +218,7 @@ def _run_async(make_coro, command: str) -> int:
     import asyncio
 
     from drives.errors import DriveError
+    from orbitrig.cli.drives_hold import Interrupt
     from orbitrig.cli.signals import SIGNALS
 
     _quiet_logging()
@@ -278,6 +278,7 @@ async def _status(url: str, json_out: bool, d) -> int:
 
     from drives.drive import Drive, rad_s_to_rpm
     from drives.link import ModbusLink
+    from orbitrig.cli.drives_hold import _drive_line
 
     out: dict = {"modbus": url}
     names = {d.spin_id: "spin", d.orbit_id: "orbit"}
@@ -306,6 +307,7 @@ async def _status(url: str, json_out: bool, d) -> int:
 
 async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every, interrupt) -> int:
     from drives.errors import DriveError
+    from orbitrig.cli.drives_hold import way_out
 
     try:
         limits.check(spin, orbit, spin_id=d.spin_id, orbit_id=d.orbit_id)
@@ -329,6 +331,8 @@ async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every,
 
 async def _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, interrupt) -> int:
     """Both drives to the setpoint; released there (exit 0) or held (`--hold`)."""
+    from orbitrig.cli.drives_hold import _hold, _state_lines
+
     await rig.set_speeds(spin, orbit)
     state = await rig.wait_settled(hold=settle, timeout=timeout)
     _state_lines(state)
@@ -341,6 +345,7 @@ async def _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, in
 
 async def _stop(url, d, emergency, timeout) -> int:
     from drives.errors import DriveError
+    from orbitrig.cli.drives_hold import _state_lines
 
     try:
         async with _rig_drives(url, d) as rig:

@@ -21,13 +21,14 @@ from orbitrig.run.safe_stop import not_confirmed, stop_shielded
 
 class Interrupt:
     """Signals (orbitrig.cli.signals.SIGNALS) received by a command. The first one cancels the
-    command; while `holding` it ends the hold (`event`) instead. Any further one, and any during
-    the ramp stop that follows (`ramping`), makes that stop an emergency stop (`abort`)."""
+    command; while `holding` it ends the hold (`event`) instead. Any further one, and any once
+    the ramp stop of the way out has begun (`stopping`, never cleared: the stop words repeated on
+    the rig's exit are not cut short either), makes that stop an emergency stop (`abort`)."""
 
     def __init__(self) -> None:
         self.received: list[signal.Signals] = []
         self.holding = False
-        self.ramping = False
+        self.stopping = False
         self.event = asyncio.Event()
         self.abort = asyncio.Event()
 
@@ -36,7 +37,7 @@ class Interrupt:
         if self.holding:
             self.holding = False
             self.event.set()
-        elif self.ramping or len(self.received) > 1:  # a stop is (about to be) under way
+        elif self.stopping or len(self.received) > 1:  # a stop is (about to be) under way
             self.abort.set()
         else:
             task.cancel()  # the way out stops both drives
@@ -89,11 +90,8 @@ async def ramp_down(rig, interrupt: Interrupt) -> tuple[bool, str]:
     """Both drives ramped to zero (OFF1) and confirmed at standstill, not cut short by a
     cancellation; a signal meanwhile makes it the emergency stop (OFF3). (escalated, what the
     drives did); raises what kept the standstill from being confirmed (DriveError)."""
-    interrupt.holding, interrupt.ramping = False, True
-    try:
-        return await stop_shielded(rig, interrupt.abort, emergency=False, timeout=None)
-    finally:
-        interrupt.ramping = False
+    interrupt.holding, interrupt.stopping = False, True
+    return await stop_shielded(rig, interrupt.abort, emergency=False, timeout=None)
 
 
 async def way_out(rig, err: BaseException, interrupt: Interrupt, reason) -> int:

@@ -234,12 +234,12 @@ def _configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
 def _given_again(given, stored, run):
     """`given` (--config on --resume) when it differs from the `stored` rig configuration only
     where a resume may (orbitrig.config.resume); else a ConfigError naming the differences."""
-    from orbitrig.config.resume import MAY_CHANGE, resume_differences
+    from orbitrig.config import MAY_CHANGE, resume_differences
     from orbitrig.errors import ConfigError
 
     differences = resume_differences(stored, given)
     if differences:
-        may = ", ".join(f"[{k}]" for k in sorted(MAY_CHANGE))
+        may = "; ".join(MAY_CHANGE)
         raise ConfigError(
             given.file,
             [

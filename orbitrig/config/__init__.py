@@ -49,6 +49,7 @@ from orbitrig.config.home import (
 )
 from orbitrig.config.lab import write_lab  # noqa: F401
 from orbitrig.config.sequential import SequentialDesign, band_candidates, candidate_problems  # noqa: F401
+from orbitrig.config.resume import MAY_CHANGE, resume_differences  # noqa: F401
 from orbitrig.config.matrix import MatrixAveraging, MatrixConfig, ModelSpec, Operating, Orbit, PointOrder  # noqa: F401
 from orbitrig.config.messages import _line_of, _problems
 from orbitrig.config.records import (  # noqa: F401
