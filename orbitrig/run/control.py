@@ -12,7 +12,7 @@ a confirmation, an interlock clearing).
 - confirm(step): the operator confirms the manual setting the run waits for.
 - suspension: an interlock holds the run (state paused) until it clears.
 - no room: too little free disk space for the next point pauses the run.
-- stop now: a signal from the system (SIGTERM, SIGHUP): the engine cancels the
+- stop now: a signal from the system (SIGTERM, SIGHUP, SIGQUIT): the engine cancels the
   run at once, the drives ramp to zero (not an emergency), the run ends stopped.
 - nobody to answer (`unanswered_limit`, wall s): a pause or a confirmation
   that nobody can answer (no terminal, no MQTT) stops the run after that long;

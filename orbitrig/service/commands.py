@@ -23,6 +23,8 @@ log = logging.getLogger("orbitrig.service.rig_service")
 
 #: s after a reconnection during which the broker's redeliveries arrive
 REDELIVERY_S = 10.0
+#: stops and aborts remembered so that a retained one is carried out once only
+STOPS_KEPT = 4096
 #: the commands that start or move the drives: refused once the service is shutting down
 MOVES_DRIVES = frozenset({"start", "resume", "confirm"})
 SHUTTING_DOWN = "the service is shutting down: {cmd} refused (nothing is started or moved any more)"
@@ -41,6 +43,8 @@ class CommandHandling:
     _status: bytes
     #: (id, bytes) of recent commands -> number of the connection they came on
     _handled: collections.OrderedDict[tuple[str, bytes], int]
+    #: (id, bytes) of the stops and aborts carried out in this service's life (the last STOPS_KEPT)
+    _stops_done: collections.OrderedDict[tuple[str | None, bytes], None]
     #: command name -> handler (raises CommandRefused to refuse)
     _handlers: dict[str, Callable[[proto.Command], None]]
     #: set once the service is shutting down: MOVES_DRIVES are refused from then on
@@ -57,7 +61,8 @@ class CommandHandling:
         hands it to every new subscription, so executing it would, e.g., start a run at
         each reconnection. It is refused (one reply) and changes nothing, except a ``stop`` or
         ``abort``, which the contract has always accepted: it is carried out (stopping is the
-        safe side, even of a stale request) and logged. A
+        safe side, even of a stale request) and logged, once in the service's life (the broker
+        hands it over again at each reconnection: dropped then, as a redelivery). A
         redelivery of a command already handled (QoS 1 after a reconnection) is
         dropped: it was executed and answered once."""
         try:
@@ -74,6 +79,9 @@ class CommandHandling:
             log.warning("dropped redelivered command %s (id %r): handled already", cmd.cmd, cmd.id)
             return
         if retained and cmd.cmd in proto.ALWAYS_ACCEPTED:  # the contract: always accepted, carried out
+            if (cmd.id, bytes(payload)) in self._stops_done:  # at each reconnection: not once more
+                log.warning("dropped retained %s (id %r): carried out once already", cmd.cmd, cmd.id)
+                return
             log.warning("retained %s (id %r) carried out: clear it with an empty retained message", cmd.cmd, cmd.id)
         elif retained:
             log.warning("refused retained command %s (id %r)", cmd.cmd, cmd.id)
@@ -100,6 +108,10 @@ class CommandHandling:
             error = f"{cmd.cmd} failed: {err}"
         if cmd.cmd == "abort":
             log.info("abort requested of the executor %.1f ms after the message arrived", (time.monotonic() - t0) * 1e3)
+        if cmd.cmd in proto.ALWAYS_ACCEPTED:
+            self._stops_done[(cmd.id, bytes(payload))] = None
+            if len(self._stops_done) > STOPS_KEPT:
+                self._stops_done.popitem(last=False)
         self._reply(cmd.id, error, behind=cmd.cmd not in proto.ALWAYS_ACCEPTED)
 
     def _redelivered(self, cmd: proto.Command, payload: bytes) -> bool:

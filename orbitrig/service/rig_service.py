@@ -126,6 +126,7 @@ class RigService(SupervisionHandling):
         self._thread = threading.get_ident()
         #: (id, bytes) of recent commands -> number of the connection they came on
         self._handled: collections.OrderedDict[tuple[str, bytes], int] = collections.OrderedDict()
+        self._stops_done: collections.OrderedDict[tuple[str | None, bytes], None] = collections.OrderedDict()
         #: command name -> handler returning None (ok) or the reason of a refusal
         self._handlers: dict[str, Callable[[proto.Command], None]] = {
             "start": self._cmd_start,
