@@ -20,6 +20,7 @@ kept apart; the expanded uncertainty is k = 2 times the combined one.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import StrEnum
 
 import numpy as np
 from scipy import stats
@@ -73,6 +74,14 @@ class Calibration:
         if not np.all(np.isfinite(sigma)) or np.any(sigma < 0):
             raise ReductionError("calibration uncertainties must be finite and >= 0")
         return labels, sigma
+
+
+class UncertaintyBasis(StrEnum):
+    """The standard uncertainty a stored result rests on (its ``basis``: the expanded uncertainty
+    and the two load measuring systems' comparison; the value is the stored text)."""
+
+    COMBINED = "combined"  # statistical and the rig's stated calibration uncertainty (a Budget's)
+    STATISTICAL = "statistical"  # the fit's statistical uncertainty only (no calibration stated)
 
 
 @dataclass

@@ -1,9 +1,10 @@
 """Report figures narrower than NARROW_WIDTH (a journal's single column, 3.5 in) at the same text
-size (6.5 pt): fewer columns of panels (each at least PANEL_WIDTH wide; a logical row of four
-entries becomes two rows of two), a taller figure keeping each panel's aspect, constrained
-layout instead of the fixed margins (so titles, labels and the legend under the panels get
-their room), and every title, legend title and legend entry wrapped at word boundaries to
-the width it has. Figures at least NARROW_WIDTH wide are drawn as before, pixel for pixel.
+size (6.5 pt): at most NARROW_COLUMNS (two) columns of panels, each at least PANEL_WIDTH wide, so
+one column below 3.2 in (a logical row of four entries becomes two rows of two; below 3.2 in,
+four rows of one), a taller figure keeping each panel's aspect, constrained layout instead of
+the fixed margins (so titles, labels and the legend under the panels get their room), and every
+title, legend title and legend entry wrapped at word boundaries to the width it has. Figures at
+least NARROW_WIDTH wide are drawn as before, pixel for pixel.
 
 Widths and heights in inches; text measured in points (the figures' 72 dpi).
 """
@@ -20,6 +21,8 @@ from matplotlib.figure import Figure
 NARROW_WIDTH = 5.0
 #: the narrowest column of panels a narrow figure gets (in)
 PANEL_WIDTH = 1.6
+#: the most columns of panels a narrow figure shows (one below NARROW_COLUMNS * PANEL_WIDTH)
+NARROW_COLUMNS = 2
 #: figure width (in) the designs' panel sizes are tuned for, and the margins it leaves them (in)
 DESIGN_WIDTH, DESIGN_MARGINS = 7.2, 0.7
 #: a narrow figure's panels: this fraction of the design's panel height (a single column is
@@ -35,10 +38,12 @@ def is_narrow(width: float) -> bool:
 
 
 def columns(cols: int, width: float) -> int:
-    """The columns of panels a figure `width` (in) wide shows of `cols` logical ones."""
+    """The columns of panels a figure `width` (in) wide shows of `cols` logical ones: all of them at
+    NARROW_WIDTH and wider; narrower, as many as fit PANEL_WIDTH wide, at most NARROW_COLUMNS and
+    at least one (two from 3.2 in, one below)."""
     if not is_narrow(width):
         return cols
-    return max(1, min(cols, int(width // PANEL_WIDTH)))
+    return max(1, min(cols, NARROW_COLUMNS, int(width // PANEL_WIDTH)))
 
 
 def height(w: float, h: float, rows: int, cols: int, width: float, margins: float) -> float:

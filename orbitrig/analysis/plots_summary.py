@@ -30,7 +30,7 @@ from orbitrig.load_systems import LoadSystem
 
 
 def _summary_panels():
-    """(figure, 2 x 4 axes) of the summary; narrow, in two columns of panels (plots_narrow)."""
+    """(figure, 2 x 4 axes) of the summary; narrow, in at most two columns of panels (plots_narrow)."""
     if max_columns(4) < 4:
         return panels(13, 7.2, 2, 4, bottom=1.5, wspace=0.5)
     fig = panel_figure(13, 7.2, bottom=1.5, wspace=0.5)

@@ -9,7 +9,6 @@ SI inside (N/m, N s/m, kg, rad/s); the page and the figures convert at the edge.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import StrEnum
 
 import numpy as np
 
@@ -19,7 +18,7 @@ from reduction.adequacy import Adequacy, frequency_dependence
 from reduction.derived import Derived, derived_quantities
 from reduction.errors import ReductionError
 from reduction.statistics import Interval
-from reduction.systematic import Calibration, LmsAgreement, lms_agreement
+from reduction.systematic import Calibration, LmsAgreement, UncertaintyBasis, lms_agreement
 
 #: the budget columns a stored identification may carry under "uncertainty" (SI std per key)
 BUDGET_PARTS = ("statistical", "systematic", "combined", "expanded")
@@ -79,10 +78,11 @@ def interval_kind(r: Reduced) -> Interval:
 
 
 def interval_sentence(results: list[Reduced]) -> str:
-    """The page's statement of the 95 % intervals of `results`: each kind they use, in words."""
+    """The page's statement of the 95 % intervals of `results`: each kind they use, in words (a
+    clause of the page's units note, which goes on after it: no closing period)."""
     kinds = dict.fromkeys(interval_kind(r) for r in results if r.identification is not None)
     if not kinds:
-        return "95 % interval: none identified."
+        return "95 % interval: none identified"
     return "95 % interval: " + "; ".join(INTERVAL_TEXT[k][1] for k in kinds)
 
 
@@ -130,13 +130,6 @@ def adequacy_verdicts(lms: LoadSystem, results: list[Reduced]) -> list[Verdict]:
     return out
 
 
-class Basis(StrEnum):
-    """The uncertainty a comparison of the two load measuring systems uses (stored ``basis``)."""
-
-    COMBINED = "combined"  # statistical and the rig's stated calibration uncertainty
-    STATISTICAL = "statistical"  # the fits' statistical uncertainties only
-
-
 @dataclass(frozen=True)
 class LmsComparison:
     """The two systems' comparison of one model the page shows: ``agreement`` (E_n in 1, the
@@ -144,7 +137,7 @@ class LmsComparison:
     (``stored``) or was repeated here with the statistical uncertainties (no stored one)."""
 
     agreement: LmsAgreement
-    basis: Basis
+    basis: UncertaintyBasis
     stored: bool
 
 
@@ -157,9 +150,9 @@ def lms_comparison(a: Reduced, b: Reduced) -> LmsComparison | None:
         e_n = {k: _finite(v) for k, v in c["e_n"].items()}
         chi2, limit, p = (_finite(c[k]) for k in ("chi2", "limit", "p_value"))
         ag = LmsAgreement(e_n, chi2, int(c["dof"]) if chi2 is not None else 0, float(c["level"]), limit, p)
-        return LmsComparison(ag, Basis(c["basis"]), stored=True)
+        return LmsComparison(ag, UncertaintyBasis(c["basis"]), stored=True)
     ag = lms_normalised_difference(a, b)
-    return None if ag is None else LmsComparison(ag, Basis.STATISTICAL, stored=False)
+    return None if ag is None else LmsComparison(ag, UncertaintyBasis.STATISTICAL, stored=False)
 
 
 def _finite(v) -> float | None:

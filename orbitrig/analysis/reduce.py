@@ -6,8 +6,13 @@ model / frequency dependence / method. The run's own results (``run.h5``, the pi
 ``coefficients.csv`` are never touched: `write_csv` writes a separate file
 ``DIR/reduce_<model>_<freq-dep>_<method>.csv`` with the columns of
 ``coefficients.csv`` (docs/storage.md) but the expanded uncertainties ``_U`` (reduce makes no
-budget; ``not_determined`` follows the identification's own 95 % interval), one row per
-(point, lms).
+budget), one row per (point, lms).
+
+Its ``not_determined`` column has coefficients.csv's name but not its test: it lists the
+coefficients whose own 95 % interval half-width (the identification's ``not_determined``:
+1.96 or Student t times the standard error, statistical only) exceeds their magnitude, where
+coefficients.csv's lists those whose expanded uncertainty U (k = 2, calibration included when
+the rig states it) does. The two can differ for the same fit.
 """
 
 from __future__ import annotations
@@ -141,7 +146,8 @@ def fit_true_values(r: Reduced) -> dict[str, float]:
 def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, Any]]]:
     """Columns and rows in the layout of coefficients.csv (docs/storage.md, orbitrig.store.writer):
     settings, result columns, every coefficient and its `_std`, and in --sim runs `true_K`
-    (fit_true_values: each fit's own truth)."""
+    (fit_true_values: each fit's own truth); no `_U`, and `not_determined` by the fit's own 95 %
+    interval, not by U (see the module's docstring)."""
     keys: list[str] = []
     for r in rows:
         if r.identification is not None:

@@ -21,7 +21,6 @@ import numpy as np
 
 from orbitrig.analysis.quality import (
     INTERVAL_TEXT,
-    Basis,
     LmsComparison,
     Verdict,
     coefficient_rows,
@@ -32,7 +31,7 @@ from orbitrig.analysis.quality import (
 from orbitrig.analysis.reduce import Reduced, coefficient_unit, fit_true_values
 from orbitrig.store.csvfile import fit_truth
 from reduction.derived import Derived
-from reduction.systematic import LmsAgreement
+from reduction.systematic import LmsAgreement, UncertaintyBasis
 
 DERIVED_K = 2.0  # derived quantities are given +- two standard uncertainties
 D_SENTENCE = (
@@ -200,15 +199,15 @@ def derived_table(derived: list[tuple[Reduced, Derived]], labels: dict[int, str]
 
 #: what the E_n of the page were computed with, per basis and whether the run stored them
 BASIS_TEXT = {
-    (Basis.COMBINED, True): (
+    (UncertaintyBasis.COMBINED, True): (
         "the combined uncertainties of both fits (statistical and the rig's stated calibration "
         "uncertainty), as the sweep stored them"
     ),
-    (Basis.STATISTICAL, True): (
+    (UncertaintyBasis.STATISTICAL, True): (
         "the statistical uncertainties of both fits (the rig stated no calibration uncertainty), "
         "as the sweep stored them"
     ),
-    (Basis.STATISTICAL, False): (
+    (UncertaintyBasis.STATISTICAL, False): (
         "the statistical uncertainties of both fits, repeated here (the run stored no comparison)"
     ),
 }

@@ -9,7 +9,8 @@
 
 A step writes a new record into the records' folder beside the rig configuration
 (docs/calibration.md) and makes it the active one (``--no-activate``: it only writes it).
-Exit status: 0 done, 1 the step failed (among them: drives not confirmed stopped), 2 bad
+Exit status: 0 done, 1 the step failed (among them: drives not confirmed stopped) or its output
+could not be written (a full disk; a reader gone away is no failure), 2 bad
 configuration or usage or a rig that does not answer (each transport named), 3 stopped (Ctrl-C, SIGTERM, SIGHUP, SIGQUIT: both drives are stopped and
 confirmed at standstill first; a signal during the final ramp makes it an emergency stop).
 """
@@ -17,13 +18,14 @@ confirmed at standstill first; a signal during the final ramp makes it an emerge
 from __future__ import annotations
 
 import getpass
+from functools import partial
 from pathlib import Path
 from typing import Optional
 
 import typer
 
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
-from orbitrig.cli.signals import run_until_signal, say
+from orbitrig.cli.signals import run_until_signal
 
 DEFAULT_SPEEDUP = 40.0  # as orbitrig.cli.simulated_rig.DEFAULT_SPEEDUP
 _CONFIG = typer.Option(None, "--config", help=RIG_CONFIG_HELP)
@@ -190,11 +192,13 @@ def _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_rati
 
 def _guarded(fn) -> None:
     """Run a sub-command: exit 2 on a configuration error, a speed beyond the drive limits or a
-    rig that does not answer (nothing sent), 1 on a failed step (drives not confirmed stopped among them), 3 on Ctrl-C,
-    SIGTERM, SIGHUP or SIGQUIT (both drives confirmed at standstill first)."""
+    rig that does not answer (nothing sent), 1 on a failed step (drives not confirmed stopped among them) or
+    output that cannot be written (a full disk), 3 on Ctrl-C, SIGTERM, SIGHUP or SIGQUIT (both drives
+    confirmed at standstill first)."""
     from orbitrig.cli.calibrate_steps import CalibrationOptionError
     from orbitrig.cli.preflight import RigUnreachable
     from orbitrig.cli.signals import Interrupted
+    from orbitrig.cli.terminal import OutputError, say
     from orbitrig.errors import ConfigError, OrbitrigError
 
     try:
@@ -202,19 +206,13 @@ def _guarded(fn) -> None:
     except (ConfigError, CalibrationOptionError, RigUnreachable) as err:
         say(f"error: {err}", err=True)
         raise typer.Exit(2) from None
-    except OrbitrigError as err:
+    except (OrbitrigError, OutputError) as err:
         say(f"error: {err}", err=True)
         raise typer.Exit(1) from None
     except (KeyboardInterrupt, Interrupted) as err:
         what = str(err) if isinstance(err, Interrupted) else "Ctrl-C"
         say(f"calibration stopped by {what}: the drives were stopped, no record written", err=True)
         raise typer.Exit(3) from None
-
-
-def _say(message: str) -> None:
-    """A step's progress line on standard error; a terminal gone (closed, a broken pipe) does
-    not end the step (its drives keep their way out)."""
-    say(message, err=True)
 
 
 def _rig_and_folder(config):
@@ -226,6 +224,7 @@ def _rig_and_folder(config):
 
 
 def _list(config) -> None:
+    from orbitrig.cli.terminal import say
     from orbitrig.config import list_names, read_record
     from orbitrig.errors import ConfigError
 
@@ -246,6 +245,7 @@ def _list(config) -> None:
 
 
 def _show(name, config) -> None:
+    from orbitrig.cli.terminal import say
     from orbitrig.config import digest, read_record
     from orbitrig.errors import ConfigError
 
@@ -259,6 +259,7 @@ def _show(name, config) -> None:
 
 
 def _write(rig, folder, record, activate: bool, what: str) -> None:
+    from orbitrig.cli.terminal import say
     from orbitrig.config import activate as make_active
     from orbitrig.config import write_record
 
@@ -285,11 +286,12 @@ def _reference(opts, reference_id, reference_u_pct, simulated: str):
 
 def _loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> None:
     from orbitrig.cli.calibrate_steps import check_rolls, loads_record
+    from orbitrig.cli.terminal import say
 
     ref = _reference(opts, reference_id, reference_u_pct, "simulator: loads applied exactly")
     rig, folder = _rig_and_folder(config)
     check_rolls(rig, [opts.roll()], "--spin-rpm")
-    record = run_until_signal(lambda: loads_record(rig, opts, load_n, ref, _say))
+    record = run_until_signal(lambda: loads_record(rig, opts, load_n, ref, partial(say, err=True)))
     for lms, g in record.loads.items():
         say(
             f"{lms}: gain matrix {g.gain} (u {[[f'{u:.2g}' for u in row] for row in g.gain_u]}), "
@@ -307,10 +309,11 @@ def _loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> Non
 
 def _runout(config, opts, activate) -> None:
     from orbitrig.cli.calibrate_steps import check_rolls, runout_record
+    from orbitrig.cli.terminal import say
 
     rig, folder = _rig_and_folder(config)
     check_rolls(rig, [opts.roll()], "--spin-rpm")
-    record = run_until_signal(lambda: runout_record(rig, opts, _say))
+    record = run_until_signal(lambda: runout_record(rig, opts, partial(say, err=True)))
     for p in ("x_a", "y_a", "x_b", "y_b"):
         h1, h2 = abs(record.runout.phasors(p)) * 1e6
         say(f"{p}: runout 1x {h1:.3f} um, 2x {h2:.3f} um")
@@ -319,10 +322,11 @@ def _runout(config, opts, activate) -> None:
 
 def _delay(config, opts, speeds, amplitudes, activate) -> None:
     from orbitrig.cli.calibrate_steps import check_rolls, delay_record, delay_rolls
+    from orbitrig.cli.terminal import say
 
     rig, folder = _rig_and_folder(config)
     check_rolls(rig, delay_rolls(opts, speeds), "--speeds-rpm")
-    record = run_until_signal(lambda: delay_record(rig, opts, speeds, amplitudes, _say))
+    record = run_until_signal(lambda: delay_record(rig, opts, speeds, amplitudes, partial(say, err=True)))
     for name, d in record.delay.items():
         say(
             f"{name}: lags the probes by {d.phase_deg:.4f} deg (u {d.phase_u_deg:.2g}) "
@@ -342,12 +346,13 @@ def _probes(config, opts, span_um, steps, reference_id, reference_u_pct, activat
     import numpy as np
 
     from orbitrig.cli.calibrate_steps import check_rolls, probes_record
+    from orbitrig.cli.terminal import say
 
     ref = _reference(opts, reference_id, reference_u_pct, "simulator: steps applied exactly")
     rig, folder = _rig_and_folder(config)
     check_rolls(rig, [opts.roll()], "--spin-rpm")
     grid = np.linspace(-span_um / 2, span_um / 2, steps) * 1e-6
-    record = run_until_signal(lambda: probes_record(rig, opts, grid, ref, _say))
+    record = run_until_signal(lambda: probes_record(rig, opts, grid, ref, partial(say, err=True)))
     for p, g in record.probes.items():
         say(f"{p}: gain {g.gain:.5f} (u {g.gain_u:.2g}), linearity {g.linearity_pct:.3g} % of {g.span_um:g} um")
     _write(

@@ -7,7 +7,7 @@ device ids, the request timeout, the poll interval, link_loss_polls and the
 limits (`[drives]`): `--max-spin/--max-orbit/--min-ratio/--max-ratio` may
 only tighten those. Exit status: 0 done, 2 failed or interrupted (the reason is
 printed on standard error; `run` has stopped both drives and confirmed them at
-standstill by then), 4 `run` ended by an emergency stop (a second signal during
+standstill by then; its output that cannot be written, a full disk, is such a failure), 4 `run` ended by an emergency stop (a second signal during
 its ramp), 1 `run` could not confirm both drives at standstill ("drives not
 confirmed stopped"). Signals: orbitrig.cli.signals.SIGNALS.
 """
@@ -24,7 +24,6 @@ from orbitrig.cli.drives_checks import (  # effective_limits is part of this com
     effective_limits,
     open_config,
 )
-from orbitrig.cli.signals import say
 
 
 def register(app: typer.Typer) -> None:
@@ -143,6 +142,8 @@ def _run_command(
             file=_config_name(config),
         )
     except ValueError as err:
+        from orbitrig.cli.terminal import say
+
         say(f"orbitrig drives run refused (limit): {err}; nothing sent", err=True)
         raise typer.Exit(2) from None
     from orbitrig.config import RPM
@@ -198,6 +199,7 @@ def _reason(err: BaseException) -> str:
         DriveLinkError,
         DriveTimeoutError,
     )
+    from orbitrig.cli.terminal import OutputError
 
     for cls, word in (
         (DriveLimitError, "limit"),
@@ -205,6 +207,7 @@ def _reason(err: BaseException) -> str:
         (DriveTimeoutError, "timeout"),
         (DriveLinkError, "link"),
         (DriveExceptionResponse, "refused"),
+        (OutputError, "output"),
     ):
         if isinstance(err, cls):
             return word
@@ -220,6 +223,7 @@ def _run_async(make_coro, command: str) -> int:
     from drives.errors import DriveError
     from orbitrig.cli.drives_hold import Interrupt
     from orbitrig.cli.signals import SIGNALS
+    from orbitrig.cli.terminal import OutputError, say
 
     _quiet_logging()
 
@@ -239,7 +243,7 @@ def _run_async(make_coro, command: str) -> int:
             after = {"status": "", "stop": "; stop sent to both drives"}.get(command, "; nothing commanded")
             say(f"orbitrig drives {command}: interrupted by {interrupt.received[-1].name}{after}", err=True)
             return 2
-        except DriveError as err:
+        except (DriveError, OutputError) as err:
             _report(command, err)
             return 2
         finally:
@@ -269,6 +273,8 @@ def _stop_outcome(rig) -> str:
 
 
 def _report(command: str, err: BaseException, after: str = "") -> None:
+    from orbitrig.cli.terminal import say
+
     tail = f"; {after}" if after else ""
     say(f"orbitrig drives {command} failed ({_reason(err)}): {err}{tail}", err=True)
 
@@ -279,6 +285,7 @@ async def _status(url: str, json_out: bool, d) -> int:
     from drives.drive import Drive, rad_s_to_rpm
     from drives.link import ModbusLink
     from orbitrig.cli.drives_hold import _drive_line
+    from orbitrig.cli.terminal import say
 
     out: dict = {"modbus": url}
     names = {d.spin_id: "spin", d.orbit_id: "orbit"}

@@ -4,8 +4,9 @@ of `orbitrig drives`.
 Every way out of `run` but the release at the setpoint ramps both drives to zero and waits
 until both are confirmed at standstill before anything says they stopped (`ramp_down`); a
 signal during that ramp makes it the emergency stop (OFF3). Output goes through
-`orbitrig.cli.signals.say`: a reader gone away (`| head -1`, a closed terminal) never ends the
-command, so a hold goes on until a signal (or another client) ends it.
+`orbitrig.cli.terminal.say`: a reader gone away (`| head -1`, a closed terminal) never ends the
+command, so a hold goes on until a signal (or another client) ends it; output that cannot be
+written (a full disk) ends it as a failure does.
 """
 
 from __future__ import annotations
@@ -15,7 +16,8 @@ import signal
 import time
 
 from drives.errors import DriveError, DriveLinkError
-from orbitrig.cli.signals import SIGNAL_WORDS, say
+from orbitrig.cli.signals import SIGNAL_WORDS
+from orbitrig.cli.terminal import OutputError, say
 from orbitrig.run.safe_stop import not_confirmed, stop_shielded
 
 
@@ -95,17 +97,18 @@ async def ramp_down(rig, interrupt: Interrupt) -> tuple[bool, str]:
 
 
 async def way_out(rig, err: BaseException, interrupt: Interrupt, reason) -> int:
-    """`run` ended by `err` before its release (a signal's cancellation, a drive failure, any
-    other exception): both drives stopped first (`ramp_down`), then the message. Exit 2 (4: a
-    second signal made it an emergency stop), 1 if the standstill is not confirmed; an exception
-    that is neither a signal nor a DriveError is raised again after the stop."""
+    """`run` ended by `err` before its release (a signal's cancellation, a drive failure, output
+    that cannot be written, any other exception): both drives stopped first (`ramp_down`), then
+    the message. Exit 2 (4: a second signal made it an emergency stop), 1 if the standstill is not
+    confirmed; an exception that is neither a signal, a DriveError nor an OutputError is raised
+    again after the stop."""
     signalled = isinstance(err, asyncio.CancelledError) and bool(interrupt.received)
     if signalled:
         task = asyncio.current_task()
         assert task is not None
         task.uncancel()
         head = f"orbitrig drives run: interrupted by {interrupt.received[0].name}"
-    elif isinstance(err, DriveError):
+    elif isinstance(err, (DriveError, OutputError)):
         head = f"orbitrig drives run failed ({reason(err)}): {err}"
     else:
         head = f"orbitrig drives run failed: {type(err).__name__}"
@@ -118,7 +121,7 @@ async def way_out(rig, err: BaseException, interrupt: Interrupt, reason) -> int:
         again = f"; {interrupt.received[-1].name} during the stop: " if escalated else "; "
         say(f"{head}; both drives stopped{again}{line}", err=True)
         code = 4 if escalated else 2
-    if not signalled and not isinstance(err, DriveError):
+    if not signalled and not isinstance(err, (DriveError, OutputError)):
         raise err
     return code
 

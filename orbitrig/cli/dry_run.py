@@ -12,7 +12,7 @@ def print_plan(plan, *, steps: bool = False) -> None:
     estimated physical time, time per step kind), the predicted uncertainty of each model
     (orbitrig.cli.dry_run_predict), one line per operating point, and with `steps` one line
     per step (durations in s)."""
-    from orbitrig.cli.signals import printing
+    from orbitrig.cli.terminal import printing
 
     with printing():  # `| head`: the reader has what it wanted
         _print(plan, steps)

@@ -274,7 +274,7 @@ def _check_rig_answers(rig) -> None:
     import asyncio
 
     from orbitrig.cli.preflight import RigUnreachable, require_rig_answers
-    from orbitrig.cli.signals import say
+    from orbitrig.cli.terminal import say
 
     try:
         asyncio.run(require_rig_answers(rig, "orbitrig sweep --sim ...", "no run directory was made"))
@@ -372,7 +372,7 @@ def _print_outcome(console, outcome, out: Path, fmt) -> None:
         markup=False,
     )
     if outcome.completed_points:
-        from orbitrig.cli.signals import printing
+        from orbitrig.cli.terminal import printing
         from orbitrig.cli.sweep_summary import print_coefficients  # the closing table
 
         with printing():  # a reader gone (`| head`) ends the table, not the run's exit status

@@ -22,7 +22,8 @@ object of `identify --json`) under its own key:
 - ``derived``: reduction.derived.derived_quantities at the point's planned orbit frequencies,
   with the combined covariance when there is one (``derived["covariance"]`` says which).
 
-A step that cannot be evaluated stores {"error": reason} under its key instead.
+A step that cannot be evaluated stores {"error": reason} under its key instead. Both ``basis``
+values are the text of a reduction.systematic.UncertaintyBasis (plain JSON, as read back).
 """
 
 from __future__ import annotations
@@ -42,7 +43,14 @@ from reduction.errors import ReductionError
 from reduction.identify import identify
 from reduction.result import Identification
 from reduction.statistics import not_determined
-from reduction.systematic import Budget, Calibration, ChannelCalibration, lms_agreement, uncertainty_budget
+from reduction.systematic import (
+    Budget,
+    Calibration,
+    ChannelCalibration,
+    UncertaintyBasis,
+    lms_agreement,
+    uncertainty_budget,
+)
 from reduction.table import OrbitTable
 
 #: coverage factor of the expanded uncertainty U (as the budget's)
@@ -112,10 +120,10 @@ def expanded_uncertainty(d: dict[str, Any]) -> dict[str, Any]:
     uncertainty where there is one, else K_EXPANDED times the statistical standard error."""
     u = d.get("uncertainty") or {}
     if u.get("expanded"):
-        return {"k": float(u["k"]), "basis": "combined", "values": dict(u["expanded"])}
+        return {"k": float(u["k"]), "basis": UncertaintyBasis.COMBINED.value, "values": dict(u["expanded"])}
     std = d.get("std_errors") or {}
     values = {k: (None if std.get(k) is None else K_EXPANDED * std[k]) for k in d["coefficients"]}
-    return {"k": K_EXPANDED, "basis": "statistical", "values": values}
+    return {"k": K_EXPANDED, "basis": UncertaintyBasis.STATISTICAL.value, "values": values}
 
 
 def _guarded(fn: Callable[..., dict[str, Any]], *args: object) -> dict[str, Any]:
@@ -192,6 +200,6 @@ def _consistency(
         "level": ag.level,
         "limit": ag.limit,
         "p_value": ag.p_value,
-        "basis": "combined" if cal is not None else "statistical",
+        "basis": (UncertaintyBasis.COMBINED if cal is not None else UncertaintyBasis.STATISTICAL).value,
         "pair": f"{LMS[0]} - {LMS[1]}",
     }

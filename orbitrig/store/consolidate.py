@@ -22,7 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from orbitrig.store.durable import StreamedH5
-from orbitrig.store.errors import WRITE_ERRORS, StorageError, storage_error
+from orbitrig.store.errors import WRITE_ERRORS, StorageError
 from orbitrig.store.index import PointState, scan
 from orbitrig.store.journal import CAN_DTYPE, CAN_UNITS, DRIVE_DTYPE, DRIVE_UNITS, Journal, read_journal
 from orbitrig.store.layout import FORMAT, POINT_ATTR_UNITS, RunLayout, point_name
@@ -54,7 +54,7 @@ def write_run_file(layout: RunLayout, dest: Path | None = None) -> Path:
     try:
         build_run_file(out.file, layout)
     except Exception as err:
-        raise _written(out, err) from err
+        raise out.failed(err) from err
     return out.commit()
 
 
@@ -98,7 +98,7 @@ class RunImage:
                 return write_run_file(self.layout)  # a copied point is no longer complete: start over
             _build(out.file, self.layout, header, journal, states, done)
         except Exception as err:
-            raise _written(out, err) from err
+            raise out.failed(err) from err
         return out.commit()
 
     def close(self) -> None:
@@ -191,13 +191,6 @@ def _copy_root(path: Path, dest: h5py.Group, name: str | None) -> None:
         if err.errno in WRITE_ERRORS:
             raise
         raise StorageError(path, f"cannot read this piece of the run: {err}") from err
-
-
-def _written(out: StreamedH5, err: Exception) -> Exception:
-    """`err`, raised while building `out`, after dropping its temporary file: an OSError as the
-    StorageError of writing `out`'s file (a full disk's StorageFullError), anything else as it is."""
-    out.discard()
-    return storage_error(out.path, "write", err) if isinstance(err, OSError) else err
 
 
 def _fields(dtype: np.dtype[np.void]) -> tuple[str, ...]:

@@ -233,6 +233,13 @@ class StreamedH5:
         fsync_dir(self.path.parent)
         return self.path
 
+    def failed(self, err: Exception) -> StorageError:
+        """What to raise for `err`, raised while this file was written: the temporary file is
+        discarded first; a StorageError comes back as it is, anything else (h5py reports a failed
+        write in several types) as the StorageError of writing PATH (a full disk: StorageFullError)."""
+        self.discard()
+        return storage_error(self.path, "write", err)
+
     def discard(self) -> None:
         """Close and remove the temporary file (best effort)."""
         for close in (getattr(self, "file", None), self._fh):

@@ -4,7 +4,8 @@ RunDirError.
 
     OrbitrigError
     +-- StorageError(path, reason)              the run directory cannot be written or read
-    |   +-- StorageFullError(path, needed, free)  no space left (ENOSPC, EDQUOT) or too little free
+    |   +-- StorageFullError(path, problem, advice, needed, free)
+    |                                           no space left (ENOSPC, EDQUOT) or too little free
     +-- RunDirError(file, reason)               not a readable orbitrig run directory
 
 No storage function lets an OSError or an HDF5 library error escape: `storage_error`
@@ -21,7 +22,7 @@ from orbitrig.errors import OrbitrigError
 _FULL = {errno.ENOSPC, errno.EDQUOT}
 #: errno values only a write gives (a full disk, a file too large, a read-only file system)
 WRITE_ERRORS = frozenset(_FULL | {errno.EFBIG, errno.EROFS})
-#: what storage_error advises on a full disk (a sweep's run directory)
+#: what a full disk advises unless told otherwise (a sweep's run directory)
 FULL_ADVICE = "free space, then resume the run"
 
 
@@ -34,18 +35,26 @@ class StorageError(OrbitrigError):
 
 
 class StorageFullError(StorageError):
-    """The file system of the run directory is full (or has less free space than a write needs)."""
+    """The file system of the run directory is full (or has less free space than a write needs):
+    ``problem`` says what failed ('cannot write: No space left on device (the disk is full)',
+    'needs 5.0 MB free, 1.0 MB left'), ``advice`` what to do; the reason is 'PROBLEM: ADVICE'."""
 
     def __init__(
-        self, path: str | os.PathLike[str], reason: str, *, needed: int | None = None, free: int | None = None
+        self,
+        path: str | os.PathLike[str],
+        problem: str,
+        *,
+        advice: str = FULL_ADVICE,
+        needed: int | None = None,
+        free: int | None = None,
     ):
+        self.problem, self.advice = problem, advice
         self.needed, self.free = needed, free
-        super().__init__(path, reason)
+        super().__init__(path, f"{problem}: {advice}")
 
     def advising(self, advice: str) -> StorageFullError:
-        """The same error advising `advice` instead of FULL_ADVICE (an export: export again)."""
-        reason = self.reason.replace(FULL_ADVICE, advice)
-        return StorageFullError(self.path, reason, needed=self.needed, free=self.free)
+        """The same error advising `advice` instead (an export: export again)."""
+        return StorageFullError(self.path, self.problem, advice=advice, needed=self.needed, free=self.free)
 
 
 class RunDirError(OrbitrigError):
@@ -64,5 +73,5 @@ def storage_error(path: str | os.PathLike[str], doing: str, err: BaseException) 
     code = err.errno if isinstance(err, OSError) else None
     text = os.strerror(code) if isinstance(code, int) else str(err)
     if code in _FULL:
-        return StorageFullError(path, f"cannot {doing}: {text} (the disk is full: {FULL_ADVICE})")
+        return StorageFullError(path, f"cannot {doing}: {text} (the disk is full)")
     return StorageError(path, f"cannot {doing}: {type(err).__name__}: {text}")

@@ -56,17 +56,17 @@ def export_run(
     for p in [p for p in selection.points if not p.tables]:
         selection.skip(p, "no orbit table stored")
     try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise storage_error(out, "create the export directory", err) from err
-    try:
         return Exported(_write(fmt, run, layout, selection, out), selection)
     except StorageFullError as err:
         raise err.advising(EXPORT_FULL_ADVICE) from err
 
 
 def _write(fmt: str, run: Run, layout: RunLayout, selection: Selection, out: Path) -> list[Path]:
-    """The files of format `fmt` written into `out`."""
+    """The files of format `fmt` written into `out` (made first when missing)."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise storage_error(out, "create the export directory", err) from err
     if fmt == "h5":
         from orbitrig.store.export_h5 import export_h5
 

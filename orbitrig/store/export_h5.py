@@ -28,7 +28,7 @@ from h5py import h5d, h5s, h5t
 
 from orbitrig.store.consolidate import build_run_file
 from orbitrig.store.durable import StreamedH5
-from orbitrig.store.errors import RunDirError, StorageError, storage_error
+from orbitrig.store.errors import RunDirError, storage_error
 from orbitrig.store.layout import RunLayout
 from orbitrig.store.pieces import fixed_text
 from orbitrig.store.h5_values import OCTAVE_COMPLEX, stored_values
@@ -50,10 +50,7 @@ def export_h5(layout: RunLayout, out: Path) -> Path:
             _copy_run_file(layout.run_file, dest.file)
         octave_layout(dest.file)
     except Exception as err:
-        dest.discard()
-        if isinstance(err, StorageError):
-            raise
-        raise storage_error(path, "write", err) from err
+        raise dest.failed(err) from err
     return dest.commit()
 
 

@@ -293,8 +293,8 @@ class RunStore:
         if free < n_bytes:
             raise StorageFullError(
                 self.dir,
-                f"needs {_mb(n_bytes)} free, {_mb(free)} left: free space on this "
-                "disk (or choose another --out), then resume the run",
+                f"needs {_mb(n_bytes)} free, {_mb(free)} left",
+                advice="free space on this disk (or choose another --out), then resume the run",
                 needed=int(n_bytes),
                 free=int(free),
             )

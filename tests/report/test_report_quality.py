@@ -199,9 +199,10 @@ def test_fit_warnings_name_point_model_and_text(synthetic_run):
 def test_lms_consistency_table_shows_the_normalised_difference(point_report):
     """The strain gauges read 1.8 % high (synthetic): the K entries differ by about 1.8 %, and
     E_n = (piezo - strain) / u is negative and large where the statistical uncertainty is small."""
-    from orbitrig.analysis.quality import Basis, LmsComparison, lms_normalised_difference
+    from orbitrig.analysis.quality import LmsComparison, lms_normalised_difference
     from orbitrig.analysis.report import preferred
     from orbitrig.analysis.report_tables import consistency_table
+    from reduction.systematic import UncertaintyBasis
 
     found = preferred(point_report)
     a, b = found["piezo"], found["strain"]
@@ -211,7 +212,7 @@ def test_lms_consistency_table_shows_the_normalised_difference(point_report):
     assert 100 * (kb - ka) / ka == pytest.approx(1.8, abs=0.3)
     u = np.hypot(a.identification.std_errors["Kxx"], b.identification.std_errors["Kxx"])
     assert en["Kxx"] == pytest.approx((ka - kb) / u, rel=1e-6) and en["Kxx"] < -2
-    html = consistency_table(a, b, LmsComparison(ag, Basis.STATISTICAL, stored=False), "kcd11 (11 coef.)")
+    html = consistency_table(a, b, LmsComparison(ag, UncertaintyBasis.STATISTICAL, stored=False), "kcd11 (11 coef.)")
     # 1.8 % on every coefficient: far beyond the joint limit, and Kxx beyond the per-coefficient mark
     assert not ag.consistent and ag.dof == 11 and ag.chi2 > ag.limit and "NOT consistent" in html
     assert abs(en["Kxx"]) > ag.e_n_limit() > 2

@@ -1,6 +1,8 @@
 """Every figure kind at a journal's single-column width (3.5 in, 6.5 pt text) is readable: each
 piece of text lies inside the figure, no title, axis label or tick label overlaps another text
-(renderer extents, as drawn into the PNG)."""
+(renderer extents, as drawn into the PNG). So are, at the other narrow widths (4.9 in, just under
+the full layout's 5 in, and 3.0 in, one column of panels), the kinds of more than two columns of
+panels; and a narrow figure shows at most two columns of panels."""
 
 from __future__ import annotations
 
@@ -10,10 +12,13 @@ import pytest
 from matplotlib.text import Text
 
 from orbitrig.analysis import plots
-from orbitrig.analysis.report import Report, ReportOptions, analyse_point, draw_point, summary_plot_for
+from orbitrig.analysis import plots_narrow as narrow
+from orbitrig.analysis.report import FIGURES, Report, ReportOptions, analyse_point, draw_point, summary_plot_for
 from orbitrig.store.reader import read_run
 
 KINDS = ("forces", "coefficients", "derived", "impedance", "coherence", "lms", "signals", "orbits", "summary")
+#: the kinds of more than two columns of panels (at full width)
+MANY_COLUMNS = ("coefficients", "derived", "impedance", "orbits", "summary")
 
 
 def _texts(fig) -> list[Text]:
@@ -63,10 +68,9 @@ def _same_group(a: Text, b: Text) -> bool:
     return a.axes is not None and a.axes is b.axes and a in a.axes.texts and b in b.axes.texts
 
 
-@pytest.fixture(scope="module")
-def single_width_figures(synthetic_run, tmp_path_factory):
-    """{kind: [problems of each of its figures]} of the synthetic run drawn at 3.5 in."""
-    out = tmp_path_factory.mktemp("single")
+def _figure_problems(run_dir, out, width: float, kinds: tuple[str, ...]) -> dict[str, list[list[str]]]:
+    """{kind: [problems of each of its figures]} of the run in `run_dir` drawn `width` in wide:
+    the figures of `kinds` (the summary when it is among them)."""
     found: dict[str, list[list[str]]] = {}
     pending: list[list[str]] = []
     original_png, original_write = plots.png_bytes, plots.write_atomic
@@ -81,23 +85,57 @@ def single_width_figures(synthetic_run, tmp_path_factory):
             found.setdefault(path.name.split("_")[0].removesuffix(".png"), []).append(pending.pop())
         return original_write(path, data)
 
-    run = read_run(synthetic_run)
-    style = plots.FigureStyle(width=plots.COLUMN_WIDTHS["single"])
+    run = read_run(run_dir)
+    style = plots.FigureStyle(width=width)
     plots.use_style(style)
     mp = pytest.MonkeyPatch()
     try:
         mp.setattr(plots, "png_bytes", checked)
         mp.setattr(plots, "write_atomic", write)
         first, *others = run.complete_points
-        reports = [draw_point(run, first, out, ReportOptions(style=style)), *map(analyse_point, others)]
-        summary_plot_for(Report(run, out, reports))
+        options = ReportOptions(figures=frozenset(kinds) & frozenset(FIGURES), style=style)
+        reports = [draw_point(run, first, out, options), *map(analyse_point, others)]
+        if "summary" in kinds:
+            summary_plot_for(Report(run, out, reports))
     finally:
         mp.undo()
         plots.use_style(plots.FigureStyle())
     return found
 
 
-def test_every_figure_kind_is_readable_at_single_width(single_width_figures):
-    assert set(single_width_figures) == set(KINDS)
-    problems = [f"{kind}: {p}" for kind, figs in single_width_figures.items() for fig in figs for p in fig]
+def _report(found: dict[str, list[list[str]]], kinds: tuple[str, ...]) -> None:
+    assert set(found) == set(kinds)
+    problems = [f"{kind}: {p}" for kind, figs in found.items() for fig in figs for p in fig]
     assert not problems, "\n".join(problems[:20])
+
+
+@pytest.fixture(scope="module")
+def single_width_figures(synthetic_run, tmp_path_factory):
+    """{kind: [problems of each of its figures]} of the synthetic run drawn at 3.5 in."""
+    return _figure_problems(synthetic_run, tmp_path_factory.mktemp("single"), plots.COLUMN_WIDTHS["single"], KINDS)
+
+
+def test_every_figure_kind_is_readable_at_single_width(single_width_figures):
+    _report(single_width_figures, KINDS)
+
+
+@pytest.mark.parametrize("width", [4.9, 3.0])
+def test_kinds_of_many_columns_are_readable_at_other_narrow_widths(width, synthetic_run, tmp_path):
+    """The kinds whose panels go in fewer columns than they have (forces, lms and signals have
+    two, coherence one: laid out at 4.9 in as at 3.5 in), at 4.9 and 3.0 in."""
+    _report(_figure_problems(synthetic_run, tmp_path, width, MANY_COLUMNS), MANY_COLUMNS)
+
+
+@pytest.mark.parametrize("width", [3.2, 3.5, 4.8, 4.9, 4.99])
+def test_a_narrow_figure_has_at_most_two_columns(width):
+    assert narrow.columns(4, width) == narrow.columns(5, width) == 2
+    assert narrow.columns(2, width) == 2 and narrow.columns(1, width) == 1
+
+
+@pytest.mark.parametrize("width", [1.0, 2.5, 3.0, 3.19])
+def test_one_column_below_two_panel_widths(width):
+    assert narrow.columns(4, width) == narrow.columns(2, width) == 1
+
+
+def test_full_width_keeps_every_column():
+    assert narrow.columns(5, narrow.NARROW_WIDTH) == 5 and narrow.columns(4, 7.2) == 4

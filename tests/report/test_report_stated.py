@@ -1,7 +1,7 @@
 """The report page says what the stored run says: the two load measuring systems' consistency
-on the sweep's own uncertainty basis (combined when the rig stated a calibration uncertainty),
-and each 95 % interval named by the kind its identification used (normal with u_*, else
-Student t)."""
+on the sweep's own uncertainty basis (combined when the rig stated a calibration uncertainty;
+written and read as one Enum, stored as its text), and each 95 % interval named by the kind its
+identification used (normal with u_*, else Student t; one sentence when nothing was identified)."""
 
 from __future__ import annotations
 
@@ -11,11 +11,13 @@ import numpy as np
 import pytest
 
 from orbitrig import config as cfg
+from orbitrig.analysis.quality import lms_comparison
 from orbitrig.analysis.report import Report, analyse_point, fit_label, preferred
 from orbitrig.analysis.report_html import render
 from orbitrig.analysis.report_tables import identification_table
 from orbitrig.store.reader import read_run
 from reduction.identify import identify
+from reduction.systematic import UncertaintyBasis
 from reduction.table import OrbitTable
 from support.report_synthetic import write_synthetic_run
 
@@ -62,6 +64,26 @@ def test_consistency_is_the_stored_one_on_its_basis(calibrated, calibrated_run, 
     for key, e in stored["e_n"].items():
         row = re.search(rf'<th class="l">{key}</th>.*?</tr>', section, re.S).group(0)
         assert row.endswith(f">{e:+.2f}</td></tr>"), (key, row)
+
+
+@pytest.mark.parametrize("calibrated", [True, False])
+def test_the_basis_is_written_and_read_as_one_enum(calibrated, calibrated_run, synthetic_run):
+    """The sweep stores both bases as the text of reduction.systematic.UncertaintyBasis (the
+    strings runs stored before it have), and the page reads the comparison's back as that Enum."""
+    _, pr = _page(calibrated_run if calibrated else synthetic_run)
+    a, b = preferred(pr)["piezo"], preferred(pr)["strain"]
+    want = UncertaintyBasis.COMBINED if calibrated else UncertaintyBasis.STATISTICAL
+    assert want.value == ("combined" if calibrated else "statistical")
+    for stored in (a.stored["lms_consistency"]["basis"], a.stored["expanded_uncertainty"]["basis"]):
+        assert type(stored) is str and stored == want.value
+    assert lms_comparison(a, b).basis is want
+
+
+def test_the_units_note_reads_as_one_sentence_without_identifications(synthetic_run):
+    """Nothing identified: the interval clause runs on into the expanded U's (no stray period)."""
+    page = render(Report(read_run(synthetic_run), synthetic_run / "plots", []))
+    note = re.search(r"Units: .*?</p>", page, re.S).group(0)
+    assert "95 % interval: none identified; expanded U: k times" in note and ".;" not in note
 
 
 def test_interval_named_by_the_identification_normal_with_u(synthetic_run):

@@ -48,6 +48,17 @@ def _setup(directory):
     return rig, m, store
 
 
+def test_a_refusal_for_too_little_free_space_takes_another_advice(tmp_path):
+    """An export advises to export again, whatever full-disk error it met (here the free-space check's)."""
+    _, _, store = _setup(tmp_path / "run")
+    with pytest.raises(StorageFullError) as err:
+        store.check_free_space(1 << 60)
+    assert str(err.value).endswith("then resume the run")
+    advised = err.value.advising("free space, then export again")
+    assert str(advised) == f"{tmp_path / 'run'}: {err.value.problem}: free space, then export again"
+    assert "needs" in advised.problem and (advised.needed, advised.free) == (err.value.needed, err.value.free)
+
+
 def test_full_disk_is_a_storage_full_error_and_the_store_recovers(tiny_disk):
     rig, m, store = _setup(tiny_disk / "run")
     p = operating_points(m, rig)[0]
