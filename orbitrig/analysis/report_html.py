@@ -15,7 +15,7 @@ from pathlib import Path
 from orbitrig.analysis.plots import PAIR_LABELS
 from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_table
 from orbitrig.analysis.reduce import true_constants
-from orbitrig.analysis.quality import interval_sentence, lms_comparison
+from orbitrig.analysis.quality import has_budget, interval_sentence, lms_comparison
 from orbitrig.analysis.report import fit_label, preferred
 from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
 from orbitrig.load_systems import LMS, LoadSystem
@@ -208,12 +208,17 @@ def render(report) -> str:
         head.append(_points_table(report))
     else:
         head.append('<p class="err">No complete operating point to report.</p>')
+    results = [r for pr in report.points for rs in pr.results.values() for r in rs]
+    combined = (
+        "; expanded U: k times the combined (statistical and systematic) standard uncertainty"
+        if has_budget(results)
+        else ""
+    )
     head.append(
         '<p class="muted">Units: K in MN/m, C in kN s/m, D in kg (SI at the source). '
         "Std error: one statistical standard uncertainty of the regression; "
-        f"{_e(interval_sentence([r for pr in report.points for rs in pr.results.values() for r in rs]))}; "
-        "expanded U: k times the combined (statistical and systematic) "
-        "standard uncertainty. Higher-order terms multiply \u03a9^r with \u03a9 in rad/s.</p>"
+        f"{_e(interval_sentence(results))}{combined}. "
+        "Higher-order terms multiply \u03a9^r with \u03a9 in rad/s.</p>"
     )
     files = sorted(run.directory.glob("*.csv"))
     if files:

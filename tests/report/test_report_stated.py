@@ -80,10 +80,21 @@ def test_the_basis_is_written_and_read_as_one_enum(calibrated, calibrated_run, s
 
 
 def test_the_units_note_reads_as_one_sentence_without_identifications(synthetic_run):
-    """Nothing identified: the interval clause runs on into the expanded U's (no stray period)."""
+    """Nothing identified: the interval clause ends the sentence (no stray period, no U claimed)."""
     page = render(Report(read_run(synthetic_run), synthetic_run / "plots", []))
     note = re.search(r"Units: .*?</p>", page, re.S).group(0)
-    assert "95 % interval: none identified; expanded U: k times" in note and ".;" not in note
+    assert "95 % interval: none identified. Higher-order" in note and ".;" not in note
+    assert "expanded U" not in note
+
+
+@pytest.mark.parametrize("calibrated", [True, False])
+def test_the_units_note_claims_a_combined_u_only_when_one_is_stored(calibrated, calibrated_run, synthetic_run):
+    page, pr = _page(calibrated_run if calibrated else synthetic_run)
+    note = re.search(r"Units: .*?</p>", page, re.S).group(0)
+    stored = any((r.stored or {}).get("uncertainty") for rs in pr.results.values() for r in rs)
+    assert stored is calibrated
+    assert ("expanded U: k times the combined (statistical and systematic)" in note) is calibrated
+    assert ("expanded U<br>(combined" in page) is calibrated  # the tables' column, likewise
 
 
 def test_interval_named_by_the_identification_normal_with_u(synthetic_run):
