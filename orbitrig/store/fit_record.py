@@ -18,6 +18,7 @@ import numpy.typing as npt
 
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.layout import coefficient_si_unit
+from reduction.systematic import UncertaintyBasis
 
 if TYPE_CHECKING:
     from orbitrig.store.reader import Point
@@ -47,13 +48,15 @@ def expanded_uncertainty(result: dict[str, Any]) -> dict[str, float]:
     return {k: COVERAGE_K * _num(std.get(k)) for k in names}
 
 
-def uncertainty_basis(result: dict[str, Any]) -> str:
-    """What :func:`expanded_uncertainty` of ``result`` rests on: "combined" (calibration
-    included) or "statistical" (2 x the standard error, or a sweep without stated calibration)."""
+def uncertainty_basis(result: dict[str, Any]) -> UncertaintyBasis:
+    """What :func:`expanded_uncertainty` of ``result`` rests on: COMBINED (calibration included)
+    or STATISTICAL (2 x the standard error, or a sweep without stated calibration)."""
     stored = result.get("expanded_uncertainty") or {}
     if stored.get("values"):
-        return str(stored.get("basis", "combined"))
-    return "combined" if (result.get("uncertainty") or {}).get("expanded") else "statistical"
+        return UncertaintyBasis(stored.get("basis", UncertaintyBasis.COMBINED))
+    if (result.get("uncertainty") or {}).get("expanded"):
+        return UncertaintyBasis.COMBINED
+    return UncertaintyBasis.STATISTICAL
 
 
 @dataclass(frozen=True)
