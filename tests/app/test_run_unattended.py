@@ -64,6 +64,16 @@ async def test_a_lost_can_heartbeat_fails_the_run_within_its_timeout(tmp_path, p
     assert _faults(sim) == (0, 0) and _standstill(sim)
 
 
+def _stopped_unanswered(outcome, took: float, rec, sim) -> None:
+    """A pause nobody could answer (limit 1 s) stopped the run `took` s after the limit began:
+    a ramp stop of both drives, to standstill, without a fault."""
+    assert outcome.status == "stopped", outcome.message
+    assert 0.9 < took < 8.0, took
+    assert any("nobody can answer (paused for 1 s" in e.message for e in rec.events if hasattr(e, "state"))
+    assert _commanded(sim) == (CW_RAMP_STOP, CW_RAMP_STOP)
+    assert _faults(sim) == (0, 0) and _standstill(sim)
+
+
 async def test_a_pause_nobody_can_answer_stops_the_run(tmp_path):
     rig = _rig(unanswered_pause_s=1.0)
     async with running(tmp_path, small_matrix(revolutions=30), rig) as (sim, eng, rec, run):
@@ -74,11 +84,7 @@ async def test_a_pause_nobody_can_answer_stops_the_run(tmp_path):
         t0 = time.monotonic()
         outcome = await asyncio.wait_for(run, 20)
         took = time.monotonic() - t0
-    assert outcome.status == "stopped", outcome.message
-    assert 0.9 < took < 8.0, took
-    assert any("nobody can answer (paused for 1 s" in e.message for e in rec.events if hasattr(e, "state"))
-    assert _commanded(sim) == (CW_RAMP_STOP, CW_RAMP_STOP)
-    assert _faults(sim) == (0, 0) and _standstill(sim)
+    _stopped_unanswered(outcome, took, rec, sim)
 
 
 async def test_a_pause_under_way_when_nobody_can_answer_any_more_stops_after_the_limit(tmp_path):
@@ -95,11 +101,7 @@ async def test_a_pause_under_way_when_nobody_can_answer_any_more_stops_after_the
         eng.unattended = True
         outcome = await asyncio.wait_for(run, 20)
         took = time.monotonic() - t0
-    assert outcome.status == "stopped", outcome.message
-    assert 0.9 < took < 8.0, took
-    assert any("nobody can answer (paused for 1 s" in e.message for e in rec.events if hasattr(e, "state"))
-    assert _commanded(sim) == (CW_RAMP_STOP, CW_RAMP_STOP)
-    assert _faults(sim) == (0, 0) and _standstill(sim)
+    _stopped_unanswered(outcome, took, rec, sim)
 
 
 async def test_a_confirmation_nobody_can_answer_stops_the_run(tmp_path):
