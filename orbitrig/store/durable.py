@@ -228,8 +228,7 @@ class StreamedH5:
             self._fh.close()
             os.replace(self.tmp, self.path)
         except Exception as err:
-            self.discard()
-            raise storage_error(self.path, "write", err) from err
+            raise self.failed(err) from err
         fsync_dir(self.path.parent)
         return self.path
 
