@@ -10,9 +10,10 @@
 A step writes a new record into the records' folder beside the rig configuration
 (docs/calibration.md) and makes it the active one (``--no-activate``: it only writes it).
 Exit status: 0 done, 1 the step failed (among them: drives not confirmed stopped) or its output
-could not be written (a full disk; a reader gone away is no failure), 2 bad
-configuration or usage or a rig that does not answer (each transport named), 3 stopped (Ctrl-C, SIGTERM, SIGHUP, SIGQUIT: both drives are stopped and
-confirmed at standstill first; a signal during the final ramp makes it an emergency stop).
+could not be written (a full disk; a reader gone away is no failure), 2 bad configuration or
+usage or a rig that does not answer (each transport named), 3 stopped (Ctrl-C, SIGTERM, SIGHUP,
+SIGQUIT: both drives are stopped and confirmed at standstill first; a signal during the final
+ramp makes it an emergency stop).
 """
 
 from __future__ import annotations
@@ -192,9 +193,9 @@ def _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_rati
 
 def _guarded(fn) -> None:
     """Run a sub-command: exit 2 on a configuration error, a speed beyond the drive limits or a
-    rig that does not answer (nothing sent), 1 on a failed step (drives not confirmed stopped among them) or
-    output that cannot be written (a full disk), 3 on Ctrl-C, SIGTERM, SIGHUP or SIGQUIT (both drives
-    confirmed at standstill first)."""
+    rig that does not answer (nothing sent), 1 on a failed step (drives not confirmed stopped
+    among them) or output that cannot be written (a full disk), 3 on Ctrl-C, SIGTERM, SIGHUP or
+    SIGQUIT (both drives confirmed at standstill first)."""
     from orbitrig.cli.calibrate_steps import CalibrationOptionError
     from orbitrig.cli.preflight import RigUnreachable
     from orbitrig.cli.signals import Interrupted

@@ -7,9 +7,10 @@ device ids, the request timeout, the poll interval, link_loss_polls and the
 limits (`[drives]`): `--max-spin/--max-orbit/--min-ratio/--max-ratio` may
 only tighten those. Exit status: 0 done, 2 failed or interrupted (the reason is
 printed on standard error; `run` has stopped both drives and confirmed them at
-standstill by then; its output that cannot be written, a full disk, is such a failure), 4 `run` ended by an emergency stop (a second signal during
-its ramp), 1 `run` could not confirm both drives at standstill ("drives not
-confirmed stopped"). Signals: orbitrig.cli.signals.SIGNALS.
+standstill by then; output that cannot be written, a full disk, is such a failure),
+4 `run` ended by an emergency stop (a second signal during its ramp), 1 `run` could
+not confirm both drives at standstill ("drives not confirmed stopped"). Signals:
+orbitrig.cli.signals.SIGNALS.
 """
 
 from __future__ import annotations

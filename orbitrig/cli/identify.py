@@ -121,7 +121,8 @@ def _fmt(v) -> str:
 
 
 def _print_readable(result, path: Path, fmt: OutputFormat) -> None:
-    """The fit's summary lines (text only) and its tables (coefficients, forces, covariance), every number in full."""
+    """The fit's summary lines (text only) and its tables (coefficients, forces, covariance),
+    every number in full."""
     if fmt == OutputFormat.TEXT:
         fd = result.freq_dep + (f" (chosen M = {result.exponent})" if result.exponent is not None else "")
         typer.echo(wrap(f"{path}: model {result.model}, freq-dep {fd}, method {result.method}, solver {result.solver}"))
