@@ -49,11 +49,12 @@ class BlockSignals:
 
 def channel_map(run: Run) -> dict[str, int]:
     """Channel name -> row of the stored arrays: the run's channel list, else (older runs) the
-    rig configuration stored in the run."""
+    rig configuration stored in the run with the calibration record stored beside it."""
     if run.channels:
         return {name: i for i, name in enumerate(run.channels)}
+    record = run.calibration_record_text or None
     try:
-        return rig_from_text(run.rig_config, "rig configuration stored in the run").channel_index
+        return rig_from_text(run.rig_config, "rig configuration stored in the run", record).channel_index
     except ConfigError as err:
         raise RunDirError(run.directory, f"cannot name the stored channels: {err}") from err
 

@@ -45,6 +45,7 @@ def open_store(
             provenance=prov.to_dict(),
             record_text=rig.record_text,
             point_order=list(plan.order),
+            channels=[(c.name, c.unit) for c in rig.ordered_channels],
         )
         store.log(prov.summary())
         return store, []

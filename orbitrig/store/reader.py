@@ -138,6 +138,7 @@ class Run:
     sim_scenario_name: str = ""  # --sim runs: the simulator scenario (file name, or the default)
     sim_scenario_config: str = ""  # its TOML text ("" the default rig)
     provenance: dict[str, str] = field(default_factory=dict)  # PROVENANCE_KEYS ("" unknown), times ISO 8601 UTC
+    calibration_record_text: str = ""  # the active calibration record's TOML text ("" none stored)
 
     @property
     def complete_points(self) -> list[Point]:
@@ -210,6 +211,7 @@ def read_run(directory: str | Path, *, blocks: bool = True) -> Run:
                 sim_scenario_name=text(a.get("sim_scenario_name")),
                 sim_scenario_config=text(a.get("sim_scenario_config")),
                 provenance={k: text(a.get(k)) for k in PROVENANCE_KEYS},
+                calibration_record_text=text(a.get("calibration_record_text")),
             )
         except (KeyError, ValueError, TypeError) as err:
             raise RunDirError(path, f"malformed run file: {err}") from err
@@ -251,6 +253,7 @@ def _read_pieces(layout: RunLayout, blocks: bool = True, indexes: list[int] | No
         channels=list(header.get("channels", [])),
         channel_units=list(header.get("channel_units", [])),
         torn=journal.torn,
+        calibration_record_text=str(header.get("calibration_record_text", "")),
     )
     scenario = header.get("sim_scenario")
     if isinstance(scenario, dict):

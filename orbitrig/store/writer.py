@@ -18,6 +18,7 @@ import json
 import logging
 import os
 from pathlib import Path
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 from orbitrig import __version__
@@ -76,11 +77,14 @@ class RunStore:
         provenance: dict[str, str] | None = None,
         record_text: str = "",
         point_order: list[int] | None = None,
+        channels: Sequence[tuple[str, str]] = (),
     ) -> RunStore:
         """A new run directory; `scenario_name` / `scenario_text`: the simulator scenario of a
         --sim run (name and TOML text, recorded so that a resume runs the same one);
         `provenance` (orbitrig.run.provenance) and the active calibration record's text;
-        `point_order`: per point run, its index in the matrix's written order (a resume keeps it)."""
+        `point_order`: per point run, its index in the matrix's written order (a resume keeps it);
+        `channels`: (name, unit) of each A/D channel in board order, as the rig configuration in use
+        names them (its active calibration record included)."""
         self = cls(out_dir)
         lay = self.layout
         for existing in (lay.header, lay.run_file, lay.journal):
@@ -90,15 +94,14 @@ class RunStore:
             lay.points.mkdir(parents=True, exist_ok=True)
         except OSError as err:
             raise storage_error(lay.points, "create the run directory", err) from err
-        channels, units = _channels(rig_text)
         self._header = {
             "format": FORMAT,
             "software_version": _versions(),
             "created": now_iso(),
             "sim": bool(sim),
             "matrix_name": matrix_name,
-            "channels": channels,
-            "channel_units": units,
+            "channels": [str(name) for name, _ in channels],
+            "channel_units": [str(unit) for _, unit in channels],
             "rig_config": rig_text,
             "matrix_config": matrix_text,
         }
@@ -355,18 +358,6 @@ class RunStore:
 
     def write_csv(self) -> None:
         write_atomic(self.csv_path, csvfile.render_points(self.csv_points()))
-
-
-def _channels(rig_text: str) -> tuple[list[str], list[str]]:
-    """Channel names and units in A/D order, from the rig config text."""
-    from orbitrig.config import rig_from_text
-    from orbitrig.errors import ConfigError
-
-    try:
-        rig = rig_from_text(rig_text, "rig config")
-    except ConfigError:
-        return [], []
-    return [c.name for c in rig.ordered_channels], [c.unit for c in rig.ordered_channels]
 
 
 def _size(path: Path) -> int:

@@ -129,7 +129,13 @@ def write_synthetic_run(
     ch = rig.channel_index
     gains = np.asarray(rig.gains, dtype=float)
     store = RunStore.create(
-        directory, rig_text=rig.text, matrix_text=matrix.text, matrix_name=matrix.name, sim=True, provenance=provenance
+        directory,
+        rig_text=rig.text,
+        matrix_text=matrix.text,
+        matrix_name=matrix.name,
+        sim=True,
+        provenance=provenance,
+        channels=[(c.name, c.unit) for c in rig.ordered_channels],
     )
     for point in operating_points(matrix, rig):
         store.begin_point(point)

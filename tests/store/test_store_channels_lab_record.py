@@ -1,0 +1,92 @@
+"""A run made with a lab's own calibration record (one `orbitrig calibrate` wrote, not a shipped
+one) stores its A/D channels' names and units, in run.json while it runs and in run.h5 after,
+so that every reader can name them (the Python API's waveforms, the report's Fig. 4)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import shutil
+import subprocess
+
+import pytest
+
+from orbitrig import config as cfg
+from orbitrig.analysis.signals import channel_map
+from orbitrig.store.reader import read_run
+from orbitrig.store.run_data import open_run
+
+from support.paths import ROOT
+from support.store_checks import small_matrix
+from support.sweep_helpers import orbitrig_cmd
+
+pytestmark = pytest.mark.timeout(240)
+
+LAB_RECORD = """date = "2026-12-01T00:00:00+00:00"
+operator = "test"
+rig = "double-spool rig"
+step = "loads"
+previous = "2026-11-26T214732Z-initial"
+[reference]
+id = "dead-weights"
+uncertainty_pct = 0.1
+[loads.strain]
+gain = [[1.0, 0.0], [0.0, 1.0]]
+gain_u = [[0.001, 0.0], [0.0, 0.001]]
+"""
+
+
+def _lab(tmp_path):
+    """A copy of the tests' lab whose active record is one only this lab has."""
+    started = cfg.default_rig_path()
+    lab = tmp_path / "lab"
+    shutil.copytree(started.parent / "calibration", lab / "calibration")
+    (lab / "calibration" / "2026-12-01T000000Z-loads.toml").write_text(LAB_RECORD)
+    text = started.read_text()
+    old = next(ln for ln in text.splitlines() if ln.startswith("calibration_record"))
+    (lab / "rig.toml").write_text(text.replace(old, 'calibration_record = "2026-12-01T000000Z-loads"'))
+    return lab / "rig.toml"
+
+
+@pytest.fixture(scope="module")
+def lab_run(tmp_path_factory):
+    """(run directory, channel names, units) of a one-point --sim sweep in a lab of its own record."""
+    tmp_path = tmp_path_factory.mktemp("lab_run")
+    rig_path = _lab(tmp_path)
+    rig = cfg.load_rig(rig_path)
+    names = [c.name for c in rig.ordered_channels]
+    units = [c.unit for c in rig.ordered_channels]
+    assert len(names) == 8 and all(units)
+    (tmp_path / "m.toml").write_text(small_matrix("lab", 8, spin_rpm=(1000.0,)))
+    out = tmp_path / "run"
+    cmd = orbitrig_cmd("sweep", "--sim", "--config", str(rig_path), "--matrix", str(tmp_path / "m.toml"))
+    done = subprocess.run(
+        [*cmd, "--out", str(out), "--speedup", "20", "--no-draw-figures"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=200,
+    )
+    assert done.returncode == 0, done.stderr
+    return out, names, units
+
+
+def test_a_run_with_a_lab_record_names_its_channels(lab_run):
+    out, names, units = lab_run
+    header = json.loads((out / "run.json").read_text())
+    assert header["channels"] == names and header["channel_units"] == units
+    run = read_run(out)
+    assert run.channels == names and run.channel_units == units
+    assert "2026-12-01T000000Z-loads" not in run.calibration_record_text  # the record's text, not its name
+    assert 'step = "loads"' in run.calibration_record_text
+    waves = open_run(out).waveforms(0)
+    assert list(waves["channel"].values) == names
+    assert waves["mean"].shape[1] == 8
+
+
+def test_a_run_stored_without_channel_names_is_named_from_its_stored_record(lab_run):
+    """Runs stored before the channels were passed on have none: the report names them from
+    the stored rig configuration and the record stored with it, not the lab's folder."""
+    out, names, _ = lab_run
+    run = dataclasses.replace(read_run(out), channels=[], channel_units=[])
+    assert channel_map(run) == {name: i for i, name in enumerate(names)}
