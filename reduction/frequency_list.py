@@ -38,7 +38,16 @@ from reduction.models import ModelSpec
 from reduction.rig_time import list_time as acquisition_time
 from reduction.whirl import Directions
 
-RUNOUT_KEEP_AWAY = 0.1  # ratios within this of Omega/omega = 1 are not proposed
+RUNOUT_KEEP_AWAY = 0.1  # ratios within this of Omega/omega = 1 are not proposed (a matrix's are warned)
+SYNCHRONOUS_REFUSAL = 0.01
+"""A measured orbit ratio r with ||r| - 1| below this is refused (a matrix's [orbit] list,
+static or a sequential point's initial list). The spindle's 1x runout is locked to the spin:
+at r = 1 it has the orbit's frequency and the same phase in every orbit revolution, so
+averaging a block's revolutions keeps it whole and the runout fit (reduction.runout, which
+finds its phase from how it turns through the revolutions) has nothing to go on; within 0.01
+of 1 it turns by about half a turn or less over 50 revolutions, and what is left biases the
+coefficients (C by 12-18 % at r = 1 on the simulator). Between this and RUNOUT_KEEP_AWAY the
+ratios are kept, with a warning: the paper's own list has 0.978 and 1.089."""
 GRID_STEP = 0.05  # ratio step of the search grid
 MAX_PASSES = 20  # exchange passes (each tries every position against every grid point)
 

@@ -1,6 +1,6 @@
-"""`sweep --dry-run`: the plan's totals, the predicted uncertainty of each model (and every
-planned fit it predicts undetermined), one line per operating point; `--steps` adds every
-step with its start time."""
+"""`sweep --dry-run`: the plan's warnings (standard error, as at a sweep's start), the plan's
+totals, the predicted uncertainty of each model (and every planned fit it predicts
+undetermined), one line per operating point; `--steps` adds every step with its start time."""
 
 from __future__ import annotations
 
@@ -15,7 +15,17 @@ def print_plan(plan, *, steps: bool = False) -> None:
     from orbitrig.cli.terminal import printing
 
     with printing():  # `| head`: the reader has what it wanted
+        print_warnings(plan)
         _print(plan, steps)
+
+
+def print_warnings(plan) -> None:
+    """The plan's warnings on standard error, each once for the matrix ('warning: FILE: line N:
+    key ...': orbitrig.config.plan_warnings); the dry run and the sweep's start print them."""
+    from orbitrig.config import plan_warnings
+
+    for line in plan_warnings(plan.matrix):
+        typer.echo(f"warning: {plan.matrix.file}: {line}", err=True)
 
 
 def _print(plan, steps: bool) -> None:

@@ -121,6 +121,9 @@ def _run_plan(plan, *, out, sim: bool, sim_config, resume: bool, speedup: float,
         _check_rig_answers(plan.rig)
     if not resume:
         _check_out(out)
+    from orbitrig.cli.dry_run import print_warnings
+
+    print_warnings(plan)  # as the dry run, before anything starts
     import asyncio
 
     scenario = _scenario(sim_config, resume=resume, out=out) if sim else None

@@ -9,7 +9,9 @@ file, the line, the key path and what is allowed; so does a file that is not
 UTF-8 text.
 
 The models live in ``rig``, ``calibration``, ``records`` (calibration records) and ``matrix``, the field types in ``fields``, the
-error wording in ``messages``; everything is importable from here.
+error wording in ``messages``, a matrix's checks against the rig in ``plan_checks``; everything is importable from here.
+An active calibration record measured on another rig than rig.toml's is refused when the rig
+configuration is loaded (``_check_record_rig``).
 """
 
 from __future__ import annotations
@@ -52,6 +54,7 @@ from orbitrig.config.sequential import SequentialDesign, band_candidates, candid
 from orbitrig.config.resume import MAY_CHANGE, resume_differences  # noqa: F401
 from orbitrig.config.matrix import MatrixAveraging, MatrixConfig, ModelSpec, Operating, Orbit, PointOrder  # noqa: F401
 from orbitrig.config.messages import _line_of, _problems
+from orbitrig.config.plan_checks import check_matrix_against_rig, plan_warnings  # noqa: F401
 from orbitrig.config.records import (  # noqa: F401
     CalibrationRecord,
     ChannelDelay,
@@ -65,6 +68,7 @@ from orbitrig.config.records import (  # noqa: F401
     digest,
     folder_of,
     list_names,
+    made_elsewhere,
     read_record,
     record_from_text,
     write_record,
@@ -178,8 +182,9 @@ def rig_from_text(text: str, file: str = "<rig config>", record_text: str | None
     name = rig.calibration_record
     if name is None:
         return rig
-    if record_text is None:
+    if record_text is None:  # the folder's active record: it must be this rig's
         record, record_text = _active_record(file, text, name)
+        _check_record_rig(rig, record, record_text, record_folder(file) / f"{name}.toml")
     else:
         record = record_from_text(record_text, f"{file}: calibration record {name}")
     out = rig.model_copy(update={"calibration_uncertainty": record.uncertainty})
@@ -212,6 +217,34 @@ def _active_record(file: str, text: str, name: str) -> tuple[CalibrationRecord, 
     return read_record(folder, name)
 
 
+def _check_record_rig(rig: RigConfig, record: CalibrationRecord, record_text: str, path: Path) -> None:
+    """A ConfigError naming the record file, its rig and rig.toml's when the active record was
+    measured on another rig (orbitrig.config.records.made_elsewhere), with the records of this rig."""
+    if not made_elsewhere(record, rig.name, rig.rig_id):
+        return
+    folder, ours = path.parent, []
+    at, key_at = _line_of(record_text, ("rig",)), _line_of(rig.text, ("calibration_record",))
+    for other in list_names(folder):
+        try:
+            rec, _ = read_record(folder, other)
+        except ConfigError:
+            continue
+        if not made_elsewhere(rec, rig.name, rig.rig_id):
+            ours.append(other)
+    ident = f"name {rig.name!r}" + (f", rig_id {rig.rig_id!r}" if rig.rig_id else "")
+    raise ConfigError(
+        str(path),
+        [
+            f"{f'line {at}: ' if at else ''}key 'rig': this {record.step} record was measured on rig "
+            f"{record.rig!r}, not on the rig of {rig.file} ({ident}), whose calibration_record"
+            f"{f' (line {key_at})' if key_at else ''} makes it the active one: its corrections belong to "
+            f"another rig. Set calibration_record to a record of this rig (in {folder}: "
+            f"{', '.join(ours) or 'none'}), or remove the key and calibrate this rig "
+            "(`orbitrig calibrate loads|runout|delay|probes`)"
+        ],
+    )
+
+
 def load_matrix(path: Path | str | None = None) -> MatrixConfig:
     text, file = _read_default(path, default_matrix_path(), "--matrix")
     return matrix_from_text(text, file)
@@ -224,41 +257,3 @@ def matrix_from_text(text: str, file: str = "<matrix>") -> MatrixConfig:
         at = _line_of(text, ("orbit", "design"))
         raise ConfigError(file, [f"line {at}: {p}" if at else p for p in problems])
     return _build(MatrixConfig, data, file, text)
-
-
-def check_matrix_against_rig(matrix: MatrixConfig, rig: RigConfig) -> None:
-    """Problems a matrix has only on this rig (drive limits), all in one ConfigError."""
-    problems = []
-    d = rig.drives
-    text = matrix.text
-    spin_at = _line_of(text, ("operating", "spin_rpm"))
-    ratio_at = (
-        _line_of(text, ("orbit", "ratios")) or _line_of(text, ("orbit", "ratio_stop")) or _line_of(text, ("orbit",))
-    )
-    at_spin = f"line {spin_at}: " if spin_at else ""
-    at_ratio = f"line {ratio_at}: " if ratio_at else ""
-    for rpm in matrix.operating.spin_rpm:
-        if rpm > d.max_spin_rpm:
-            problems.append(
-                f"{at_spin}key 'operating.spin_rpm': {rpm:g} rpm exceeds the rig's drives.max_spin_rpm = {d.max_spin_rpm:g}"
-            )
-        top = max(matrix.orbit.ratio_list) * rpm
-        if top > d.max_orbit_rpm:
-            problems.append(
-                f"{at_ratio}key 'orbit': ratio {max(matrix.orbit.ratio_list):g} at {rpm:g} rpm gives {top:g} rpm orbit, "
-                f"above the rig's drives.max_orbit_rpm = {d.max_orbit_rpm:g}"
-            )
-    lo, hi = min(matrix.orbit.ratio_list), max(matrix.orbit.ratio_list)
-    if d.min_ratio is not None and lo < d.min_ratio:
-        problems.append(f"{at_ratio}key 'orbit': ratio {lo:g} is below the rig's drives.min_ratio = {d.min_ratio:g}")
-    if d.max_ratio is not None and hi > d.max_ratio:
-        problems.append(f"{at_ratio}key 'orbit': ratio {hi:g} is above the rig's drives.max_ratio = {d.max_ratio:g}")
-    problems += _sequential_problems(matrix, rig)
-    if problems:
-        raise ConfigError(matrix.file, problems)
-
-
-def _sequential_problems(matrix: MatrixConfig, rig: RigConfig) -> list[str]:
-    """A sequential matrix's candidates and reference list against the drive limits (with the line)."""
-    at = _line_of(matrix.text, ("sequential",))
-    return [f"line {at}: {p}" if at else p for p in candidate_problems(matrix, rig)]

@@ -143,6 +143,19 @@ class CalibrationRecord(_Model):
         return np.eye(2) if g is None else g.matrix
 
 
+#: the steps that measure on a rig: their record's ``rig`` must name the rig that uses it
+MEASURED_STEPS = frozenset({RecordStep.LOADS, RecordStep.RUNOUT, RecordStep.DELAY, RecordStep.PROBES})
+
+
+def made_elsewhere(record: CalibrationRecord, name: str, rig_id: str) -> bool:
+    """Whether ``record`` was measured on another rig than the one called ``name`` (rig.toml's
+    ``name``, which `orbitrig calibrate` writes into ``rig``) with id ``rig_id``. Not checked: a
+    record that names no rig (``rig`` is optional), and an initial record (typed in from data
+    sheets, not measured; the shipped one, which `orbitrig init` copies into every lab, names
+    the shipped example rig)."""
+    return record.step in MEASURED_STEPS and bool(record.rig) and record.rig not in {name, rig_id}
+
+
 def folder_of(rig_file: str | Path) -> Path:
     """The calibration records' folder of the rig configuration ``rig_file``."""
     return Path(rig_file).resolve().parent / FOLDER

@@ -62,37 +62,53 @@ def band_candidates(rig: RigConfig, spin_rpm: float) -> tuple[float, ...]:
         return ()
 
 
-def candidate_problems(matrix: MatrixConfig, rig: RigConfig) -> list[str]:
+#: a problem of a sequential matrix: the key path it is about (for its line), the message
+KeyedProblem = tuple[tuple[str, ...], str]
+
+
+def candidate_problems(matrix: MatrixConfig, rig: RigConfig) -> list[KeyedProblem]:
     """What is wrong with a sequential matrix's explicit candidates and reference list on this
-    rig (each message names the key); [] when it is not sequential."""
+    rig: (key path, message naming the key), the key path giving the line of the key itself
+    (orbitrig.config.plan_checks); [] when it is not sequential."""
     s = matrix.sequential
     if s is None:
         return []
     d, problems = rig.drives, []
     for key, ratios in (("candidates", s.candidates), ("match_ratios", s.match_ratios)):
+        loc = ("sequential", key)
         for r in ratios or ():
             top = max(matrix.operating.spin_rpm) * r
             if d.min_ratio is not None and r < d.min_ratio:
                 problems.append(
-                    f"key 'sequential.{key}': ratio {r:g} is below the rig's drives.min_ratio = {d.min_ratio:g}"
+                    (loc, f"key 'sequential.{key}': ratio {r:g} is below the rig's drives.min_ratio = {d.min_ratio:g}")
                 )
             if d.max_ratio is not None and r > d.max_ratio:
                 problems.append(
-                    f"key 'sequential.{key}': ratio {r:g} is above the rig's drives.max_ratio = {d.max_ratio:g}"
+                    (loc, f"key 'sequential.{key}': ratio {r:g} is above the rig's drives.max_ratio = {d.max_ratio:g}")
                 )
             if top > d.max_orbit_rpm:
                 problems.append(
-                    f"key 'sequential.{key}': ratio {r:g} gives {top:g} rpm orbit, above the rig's "
-                    f"drives.max_orbit_rpm = {d.max_orbit_rpm:g}"
+                    (
+                        loc,
+                        f"key 'sequential.{key}': ratio {r:g} gives {top:g} rpm orbit, above the rig's "
+                        f"drives.max_orbit_rpm = {d.max_orbit_rpm:g}",
+                    )
                 )
             if key == "candidates" and abs(r - 1.0) < RUNOUT_KEEP_AWAY - 1e-9:
                 problems.append(
-                    f"key 'sequential.candidates': ratio {r:g} is within {RUNOUT_KEEP_AWAY:g} of "
-                    "Omega/omega = 1 (the orbit cannot be told from the spindle's runout)"
+                    (
+                        loc,
+                        f"key 'sequential.candidates': ratio {r:g} is within {RUNOUT_KEEP_AWAY:g} of "
+                        "Omega/omega = 1 (the orbit cannot be told from the spindle's runout)",
+                    )
                 )
     for rpm in matrix.operating.spin_rpm:
         if s.candidates is None and not band_candidates(rig, rpm):
             problems.append(
-                f"key 'sequential': no candidate ratio in the drives' band at {rpm:g} rpm; give 'sequential.candidates'"
+                (
+                    ("sequential",),
+                    f"key 'sequential': no candidate ratio in the drives' band at {rpm:g} rpm; "
+                    "give 'sequential.candidates'",
+                )
             )
     return problems

@@ -1,0 +1,181 @@
+"""A matrix against the rig it is to run on: the plan's checks, before anything starts.
+
+:func:`check_matrix_against_rig` raises one ConfigError naming every problem, each with the
+matrix file, the line and the key (orbitrig.run.plan.make_plan calls it, so `sweep`, its dry
+run and the service's `start` refuse alike):
+
+- [drives]: every spin and the orbit speed of the highest ratio, the ratio band;
+- [interlocks]: every operating point's supply pressure p_s = p_r / beta (recess pressure
+  over pressure ratio: what the operator sets by hand, SetManual) inside the supply band the
+  interlock watches (orbitrig.run.interlocks suspends the run outside it, with the drives
+  already turning). The only interlock band a matrix sets: the others watch the drives and
+  the CAN node;
+- Omega/omega = 1: an orbit ratio within SYNCHRONOUS_REFUSAL of 1 (reduction.frequency_list,
+  which says why);
+- [sequential]: the candidates and the reference list against the drives
+  (orbitrig.config.sequential), and the initial list ([orbit]) must identify the model the
+  point is designed for (reduction.identifiability.check_plan, as the dry run's prediction).
+
+:func:`plan_warnings` lists what the plan may run with but the operator should be told, once
+per matrix: ratios within RUNOUT_KEEP_AWAY of 1. SI inside; rpm, Hz and MPa in the messages.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from orbitrig.config.fields import MPA
+from orbitrig.config.matrix import MatrixConfig
+from orbitrig.config.messages import _line_of
+from orbitrig.config.rig import RigConfig
+from orbitrig.config.sequential import candidate_problems
+from orbitrig.errors import ConfigError
+from reduction.errors import IdentifiabilityError
+from reduction.frequency_list import RUNOUT_KEEP_AWAY, SYNCHRONOUS_REFUSAL
+from reduction.identifiability import check_plan
+from reduction.whirl import Directions
+
+#: the freq-dep a sequential point identifies its model with (orbitrig.run.sequential_point)
+SEQUENTIAL_FREQ_DEP = "none"
+
+
+def check_matrix_against_rig(matrix: MatrixConfig, rig: RigConfig) -> None:
+    """Problems a matrix has only on this rig (module doc), all in one ConfigError."""
+    problems = _drive_problems(matrix, rig) + _supply_problems(matrix, rig) + _synchronous_problems(matrix)
+    problems += _sequential_problems(matrix, rig)
+    if problems:
+        raise ConfigError(matrix.file, problems)
+
+
+def plan_warnings(matrix: MatrixConfig) -> list[str]:
+    """What the plan of ``matrix`` runs with but should be said, one line each (naming the line
+    and key): the orbit ratios within RUNOUT_KEEP_AWAY of Omega/omega = 1, all in one line."""
+    near = [r for r in matrix.orbit.ratio_list if abs(abs(r) - 1.0) < RUNOUT_KEEP_AWAY - 1e-9]
+    if not near:
+        return []
+    key = _ratio_key(matrix)
+    return [
+        f"{_at(matrix.text, ('orbit', key))}key 'orbit.{key}': orbit ratio{'s' if len(near) > 1 else ''} "
+        f"{_ratios(near)} {'are' if len(near) > 1 else 'is'} within {RUNOUT_KEEP_AWAY:g} of Omega/omega = 1: "
+        "the spindle's runout (1x spin) "
+        "turns only slowly through a block's revolutions there, so averaging and the runout fit take it "
+        "out only in part and the coefficients at these ratios (C most) may be biased; `orbitrig design` "
+        f"keeps {RUNOUT_KEEP_AWAY:g} away"
+    ]
+
+
+def _at(text: str, loc: tuple) -> str:
+    """'line N: ' of the key at ``loc`` (its table's when the key is not written), else ''."""
+    line = _line_of(text, loc)
+    return f"line {line}: " if line else ""
+
+
+def _ratios(values: list[float]) -> str:
+    return ", ".join(f"{r:g}" for r in values)
+
+
+def _ratio_key(matrix: MatrixConfig) -> str:
+    """The [orbit] key the matrix gives its ratios with: 'design', 'ratios' or 'ratio_start'."""
+    o = matrix.orbit
+    return "design" if o.design is not None else "ratios" if o.ratios is not None else "ratio_start"
+
+
+def _drive_problems(matrix: MatrixConfig, rig: RigConfig) -> list[str]:
+    """Spin and orbit speeds and the ratio band against [drives]."""
+    problems = []
+    d, ratios = rig.drives, matrix.orbit.ratio_list
+    at_spin, at_ratio = _at(matrix.text, ("operating", "spin_rpm")), _at(matrix.text, ("orbit", _ratio_key(matrix)))
+    for rpm in matrix.operating.spin_rpm:
+        if rpm > d.max_spin_rpm:
+            problems.append(
+                f"{at_spin}key 'operating.spin_rpm': {rpm:g} rpm exceeds the rig's drives.max_spin_rpm = {d.max_spin_rpm:g}"
+            )
+        top = max(ratios) * rpm
+        if top > d.max_orbit_rpm:
+            problems.append(
+                f"{at_ratio}key 'orbit': ratio {max(ratios):g} at {rpm:g} rpm gives {top:g} rpm orbit, "
+                f"above the rig's drives.max_orbit_rpm = {d.max_orbit_rpm:g}"
+            )
+    lo, hi = min(ratios), max(ratios)
+    if d.min_ratio is not None and lo < d.min_ratio:
+        problems.append(f"{at_ratio}key 'orbit': ratio {lo:g} is below the rig's drives.min_ratio = {d.min_ratio:g}")
+    if d.max_ratio is not None and hi > d.max_ratio:
+        problems.append(f"{at_ratio}key 'orbit': ratio {hi:g} is above the rig's drives.max_ratio = {d.max_ratio:g}")
+    return problems
+
+
+def _supply_problems(matrix: MatrixConfig, rig: RigConfig) -> list[str]:
+    """Every (recess pressure, pressure ratio) whose supply pressure p_r / beta is outside the
+    [interlocks] supply band (none when the interlock does not watch the supply pressure)."""
+    lock = rig.interlocks
+    if not lock.check_supply_pressure:
+        return []
+    lo, hi = lock.supply_pressure_min_mpa * MPA, lock.supply_pressure_max_mpa * MPA
+    at = _at(matrix.text, ("operating", "recess_pressure_mpa"))
+    beta_line = _line_of(matrix.text, ("operating", "pressure_ratio"))
+    beta_at = f" (line {beta_line})" if beta_line else ""
+    problems = []
+    for recess_mpa in matrix.operating.recess_pressure_mpa:
+        for beta in matrix.operating.pressure_ratio:
+            supply = recess_mpa * MPA / beta  # Pa
+            if not lo <= supply <= hi:
+                problems.append(
+                    f"{at}key 'operating.recess_pressure_mpa': {recess_mpa:g} MPa at 'operating.pressure_ratio' "
+                    f"{beta:g}{beta_at} needs a supply pressure of {supply / MPA:.4g} MPa (recess / pressure "
+                    f"ratio), outside the rig's interlocks band supply_pressure_min_mpa..supply_pressure_max_mpa "
+                    f"= {lo / MPA:g}..{hi / MPA:g} MPa: the interlock would suspend the run at that point"
+                )
+    return problems
+
+
+def _synchronous_problems(matrix: MatrixConfig) -> list[str]:
+    """Orbit ratios within SYNCHRONOUS_REFUSAL of Omega/omega = 1 (static and initial lists)."""
+    near = [r for r in matrix.orbit.ratio_list if abs(abs(r) - 1.0) < SYNCHRONOUS_REFUSAL]
+    if not near:
+        return []
+    key = _ratio_key(matrix)
+    return [
+        f"{_at(matrix.text, ('orbit', key))}key 'orbit.{key}': orbit ratio{'s' if len(near) > 1 else ''} "
+        f"{_ratios(near)} {'are' if len(near) > 1 else 'is'} within {SYNCHRONOUS_REFUSAL:g} of Omega/omega = 1, "
+        "where the spindle's runout (1x spin) has the orbit's frequency and the same phase in every revolution: "
+        "averaging cannot separate the two and the coefficients are biased; keep every ratio at least "
+        f"{SYNCHRONOUS_REFUSAL:g} from 1 (`orbitrig design` keeps {RUNOUT_KEEP_AWAY:g})"
+    ]
+
+
+def _sequential_problems(matrix: MatrixConfig, rig: RigConfig) -> list[str]:
+    """A sequential matrix's candidates and reference list against the drive limits, each with
+    its key's own line, and its initial list's identifiability."""
+    keyed = [f"{_at(matrix.text, loc)}{p}" for loc, p in candidate_problems(matrix, rig)]
+    return keyed + _initial_list_problems(matrix)
+
+
+def _initial_list_problems(matrix: MatrixConfig) -> list[str]:
+    """The [orbit] list of a sequential point must identify the point's model at every spin:
+    the engine identifies it on these blocks before it can choose the next one."""
+    model = matrix.sequential_model
+    if model is None:
+        return []
+    o = matrix.orbit
+    directions = Directions.of(o.directions)
+    for rpm in sorted(set(matrix.operating.spin_rpm)):
+        try:
+            check_plan(model, SEQUENTIAL_FREQ_DEP, np.asarray(o.ratio_list) * rpm / 60.0, directions)  # Hz
+        except IdentifiabilityError as err:
+            return [_unidentifiable(matrix, model, rpm, err)]
+    return []
+
+
+def _unidentifiable(matrix: MatrixConfig, model: str, rpm: float, err: IdentifiabilityError) -> str:
+    """The refusal of a sequential initial list that cannot identify ``model`` at ``rpm``."""
+    o, key = matrix.orbit, _ratio_key(matrix)
+    given = matrix.sequential is not None and matrix.sequential.model is not None
+    where = _line_of(matrix.text, ("sequential", "model") if given else ("models", 0, "model"))
+    named = ("'sequential.model'" if given else "the first [[models]]") + (f", line {where}" if where else "")
+    cause = str(err).splitlines()[0].rstrip(".")
+    return (
+        f"{_at(matrix.text, ('orbit', key))}key 'orbit.{key}': the initial list of a sequential point (ratios "
+        f"{_ratios(o.ratio_list)}, directions {', '.join(o.directions)}) cannot identify {model} ({named}) at "
+        f"{rpm:g} rpm, and the engine identifies it on these blocks before it chooses the next one: {cause}; "
+        "give more ratios or both directions in [orbit], or design for another model"
+    )
