@@ -14,6 +14,7 @@ import numpy as np
 from orbitrig.analysis.plots import _colors, _figure, style
 from orbitrig.catalog.compare import Row, Variable, repeatability, runs_of
 from orbitrig.store.durable import write_atomic
+from orbitrig.store.errors import StorageError, storage_error
 
 #: plotted unit of each family: (scale from SI, label)
 SCALE = {"K": (1e-6, "MN/m"), "C": (1e-3, "kN s/m"), "D": (1.0, "kg")}
@@ -128,9 +129,15 @@ def _draw_predicted(ax, predicted: list[dict[str, float]], variable: Variable, n
 
 
 def write_figure(fig, out_dir: Path, stem: str = "compare") -> list[Path]:
-    """``stem``.png and ``stem``.pdf in ``out_dir``, each written atomically."""
+    """``stem``.png and ``stem``.pdf in ``out_dir`` (made when missing), each written atomically.
+    Raises StorageError naming ``out_dir`` when it is not a directory or cannot be made."""
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise StorageError(out_dir, "cannot write the figures there: not a directory (--out names a folder)")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise storage_error(out_dir, "create the folder", err) from err
     paths = []
     for fmt in ("png", "pdf"):
         buf = io.BytesIO()

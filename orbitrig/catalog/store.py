@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from sqlalchemy import create_engine, delete, select, tuple_
-from sqlalchemy.engine import Engine
+from sqlalchemy.engine import Engine, make_url
 from sqlalchemy.exc import ArgumentError, SQLAlchemyError
 
 from orbitrig.catalog.errors import CatalogError, CatalogUsageError
@@ -45,11 +45,15 @@ def _shown(url: str) -> str:
 
 
 class Catalog:
-    """One catalog database. Raises CatalogError (URL named) when it cannot be used."""
+    """One catalog database. Raises CatalogError (URL named) when it cannot be used;
+    ``create`` False: an SQLite file that does not exist is such an error (reading a
+    catalog never creates one)."""
 
-    def __init__(self, url: str):
+    def __init__(self, url: str, create: bool = True):
         self.url = url
         try:
+            if not create:
+                _sqlite_file_exists(url)
             self.engine: Engine = create_engine(_driver_url(url), future=True)
             metadata.create_all(self.engine)
         except ArgumentError as err:
@@ -87,6 +91,15 @@ class Catalog:
                 return [dict(r._mapping) for r in conn.execute(query)]
         except SQLAlchemyError as err:
             raise CatalogError(f"catalog {_shown(self.url)}: cannot read ({_reason(err)})") from None
+
+
+def _sqlite_file_exists(url: str) -> None:
+    """Raise CatalogError naming the file when ``url`` is an SQLite file that does not exist."""
+    parsed = make_url(url)
+    name = parsed.database or ""
+    if parsed.get_backend_name() == "sqlite" and name not in ("", ":memory:") and not name.startswith("file:"):
+        if not Path(name).is_file():
+            raise CatalogError(f"catalog {name}: no such file (`orbitrig catalog add RUN` creates it)")
 
 
 def _reason(err: Exception) -> str:

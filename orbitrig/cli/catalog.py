@@ -2,7 +2,10 @@
 
 Exit status 0 on success, 2 for a bad option (--where outside the grammar, unknown
 column, bad URL) or a RUN that is not a run directory, 1 when the catalog database
-cannot be read or written.
+cannot be read or written (`list`, `export`, `compare`: also when the default SQLite
+file does not exist; they never create it), the --out file cannot be written, or (`add`)
+a point of a RUN was skipped: each damaged point is named on standard error, as
+`orbitrig export` names it, and the others are added.
 """
 
 from __future__ import annotations
@@ -26,10 +29,12 @@ RunsOption = Annotated[Path, typer.Option("--runs", help="Directory holding the 
 WhereOption = Annotated[str, typer.Option("--where", help="Filter: 'column op value [and ...]' (docs/catalog.md).")]
 
 
-def _open(db: str | None, runs_dir: Path):
+def _open(db: str | None, runs_dir: Path, create: bool = False):
+    """The catalog at --db, else catalog.sqlite in `runs_dir`; `create`: make a missing SQLite
+    file (only `add` does: reading one that is not there is a CatalogError naming it)."""
     from orbitrig.catalog.store import Catalog, default_url
 
-    return Catalog(db or default_url(runs_dir))
+    return Catalog(db or default_url(runs_dir), create=create)
 
 
 def _guarded(action) -> None:
@@ -52,16 +57,26 @@ def _guarded(action) -> None:
 def add_cmd(
     runs: Annotated[list[Path], typer.Argument(metavar="RUN...", help="Run directories.")], db: DbOption = None
 ) -> None:
-    """Add (or update) every complete point and fit of each RUN."""
+    """Add (or update) every complete point and fit of each RUN.
+
+    A damaged point (or one whose pieces cannot be read) is named on standard error and the
+    exit status is 1, as `orbitrig export` does; the run's other points are added."""
     from orbitrig.catalog.rows import run_rows
+    from orbitrig.cli.skipped import tell_skipped
     from orbitrig.store.reader import read_run
+    from orbitrig.store.selection import select_points
 
     def action():
-        rows = [(run, run_rows(read_run(run))) for run in runs]
-        catalog = _open(db, runs[0].resolve().parent)
-        for run, run_rows_ in rows:
-            typer.echo(f"{run}: {catalog.add(run_rows_)} rows")
+        read = [(run, read_run(run)) for run in runs]
+        catalog = _open(db, runs[0].resolve().parent, create=True)
+        skipped = False
+        for run, data in read:
+            sel = select_points(data)
+            typer.echo(f"{run}: {catalog.add(run_rows(data, sel.points))} rows")
+            skipped |= tell_skipped([f"{run}: {n}" for n in sel.notes], [f"{run}: {s}" for s in sel.skipped])
         catalog.close()
+        if skipped:
+            raise typer.Exit(1)
 
     _guarded(action)
 
@@ -107,11 +122,24 @@ def export_cmd(
         data = render(_open(db, runs_dir).rows(where), ExportFormat(fmt))
         if out is None:
             typer.echo(data.decode(), nl=False)
-        else:
-            write_atomic(out, data)
-            typer.echo(str(out))
+            return
+        _check_folder(out)
+        write_atomic(out, data)
+        typer.echo(str(out))
 
     _guarded(action)
+
+
+def _check_folder(out: Path) -> None:
+    """A StorageError naming `out` when its folder is missing or a path on the way is a file
+    (the atomic writer would report the cause as a failed removal of its temporary file)."""
+    from orbitrig.store.errors import StorageError
+
+    there = next(folder for folder in (*out.parents, Path("/")) if folder.exists())
+    if not there.is_dir():
+        raise StorageError(out, f"cannot write: {there} is not a directory")
+    if there != out.parent:
+        raise StorageError(out, f"cannot write: no folder {out.parent}")
 
 
 def register(app: typer.Typer) -> None:

@@ -1,9 +1,11 @@
 """`orbitrig export RUN`: a stored run's orbit tables and results as CSV, MATLAB, TDMS or HDF5.
 
-Exit status 0 on success, 2 when RUN is not a run directory or an option is bad (also a
-ross --fit that no selected point stores: the fits there are are named), 1 when the export
-cannot be written (disk full, permissions) or a point asked for (every committed point,
-without --point) was skipped, for ross also a point without the fit: each one is named.
+Exit status 0 on success, 2 when RUN is not a run directory or an option is bad (a negative
+--point; also a ross --fit that no selected point stores: the fits there are are named), 1
+when the export cannot be written (disk full, permissions) or a point asked for (every
+committed point, without --point) was skipped, for ross also a point without the fit: each
+one is named. When no point asked for can be exported (a mistyped --point) nothing is
+written or removed, an earlier export stays as it was, and the exit status is 1.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ Points = Annotated[
     typer.Option(
         "--point",
         metavar="N",
-        help="Only this operating point index (repeatable; not with --format h5, the whole run).",
+        help="Only this operating point index, 0 or more (repeatable; not with --format h5, the whole run).",
     ),
 ]
 Fit = Annotated[
@@ -60,9 +62,11 @@ def register(app: typer.Typer) -> None:
 
         A point asked for (every committed point, without --point) that is damaged or
         missing, or (ross) lacks the fit, is named on standard error and the exit status is 1;
-        a --fit that no point stores exits 2, naming the fits there are."""
+        a --fit that no point stores exits 2, naming the fits there are. When no point asked
+        for can be exported nothing is written: an earlier export stays as it was (exit 1)."""
         from orbitrig.analysis.ross_export import FitNotStoredError
         from orbitrig.store.errors import StorageError
+        from orbitrig.store.export import EXPORT_DIR
         from orbitrig.store.reader import RunDirError
 
         try:
@@ -75,6 +79,8 @@ def register(app: typer.Typer) -> None:
             raise typer.Exit(1) from None
         for path in files:
             typer.echo(str(path))
+        if not files:
+            typer.echo(f"nothing exported: {out if out is not None else directory / EXPORT_DIR} left as it was")
         if tell_skipped(selection.notes, selection.skipped):
             raise typer.Exit(1)
 
@@ -87,9 +93,11 @@ def _export(directory: Path, fmt: str, out: Path | None, point: list[int] | None
         raise ExportOptionError(f"--format {fmt!r}: one of {', '.join(FORMATS)}, ross")
     if point and fmt == "h5":
         raise ExportOptionError("--point does not apply to --format h5 (run.h5 holds the whole run)")
+    negative = [n for n in point or () if n < 0]
+    if negative:
+        raise ExportOptionError(f"--point {negative[0]}: a point index is 0 or more")
     if fmt == "ross":
-        done = _export_ross(directory, out, point, fit)
-        return [done.path], done.selection
+        return _export_ross(directory, out, point, fit)
     exported = export_run(directory, fmt, out, point)
     return exported.files, exported.selection
 
@@ -112,17 +120,23 @@ def _fit_spec(fit: str):
 
 
 def _export_ross(directory: Path, out: Path | None, point: list[int] | None, fit: str):
-    """`--format ross`: RUN/export/ross_bearings.json (orbitrig.analysis.ross_export)."""
+    """`--format ross`: RUN/export/ross_bearings.json (orbitrig.analysis.ross_export); the
+    files written and the selection (none written when no point asked for is complete)."""
     from orbitrig.analysis.ross_export import export_ross
     from orbitrig.store.errors import storage_error
     from orbitrig.store.export import EXPORT_DIR
     from orbitrig.store.reader import read_run
+    from orbitrig.store.selection import select_points
 
     spec = _fit_spec(fit)
     run = read_run(directory)
+    selection = select_points(run, point)
+    if not selection.points:  # an earlier export stays as it was
+        return [], selection
     target = out if out is not None else Path(directory) / EXPORT_DIR
     try:
         target.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise storage_error(target, "create the export directory", err) from err
-    return export_ross(run, target, spec, point)
+    done = export_ross(run, target, spec, point)
+    return [done.path], done.selection

@@ -13,7 +13,9 @@ adequacy, the simulator's truth, and (mat, tdms, h5) the averaged waveforms:
 Every file is written to a temporary name and renamed into place; every failure
 is a StorageError naming the file (on a full disk the one being written, with the
 advice to export again). Every point asked for and not exported is named
-(orbitrig.store.selection).
+(orbitrig.store.selection). When no point asked for can be exported (e.g. a mistyped
+``--point``), nothing is written or removed: an earlier export stays as it was (as
+`orbitrig report` leaves its page).
 """
 
 from __future__ import annotations
@@ -45,7 +47,8 @@ def export_run(
     directory: str | Path, fmt: str, out: str | Path | None = None, points: Iterable[int] | None = None
 ) -> Exported:
     """Write the export of the run in `directory` as `fmt` into `out` (default DIR/export):
-    the complete points among `points` (None: all; h5 always holds the whole run).
+    the complete points among `points` (None: all; h5 always holds the whole run). No files
+    (nothing written, `out` untouched) when no such point has an orbit table.
     Raises RunDirError (not a run) or StorageError."""
     if fmt not in FORMATS:
         raise ValueError(f"unknown format {fmt!r}: one of {', '.join(FORMATS)}")
@@ -55,6 +58,8 @@ def export_run(
     selection = select_points(run, None if fmt == "h5" else points)
     for p in [p for p in selection.points if not p.tables]:
         selection.skip(p, "no orbit table stored")
+    if fmt != "h5" and not selection.points:  # an earlier export stays as it was
+        return Exported([], selection)
     try:
         return Exported(_write(fmt, run, layout, selection, out), selection)
     except StorageFullError as err:

@@ -1,9 +1,11 @@
 """What every export carries, as plain arrays with units (orbitrig.store.export).
 
-The same content goes into each format: provenance, the point's settings, its orbit
-tables (with the whirl direction), every fit's coefficients with std and U, covariance
-with the names of its rows, budget, derived quantities and adequacy, the simulator's
-truth, and the averaged waveforms. Units are SI strings pint parses.
+The same content goes into each format: provenance (with the calibration record's and
+the simulator scenario's TOML text), the point's settings, its orbit tables (with the whirl
+direction), every fit's coefficients with std and U, covariance with the names of its rows,
+budget, derived quantities (with the C_eff zero crossings and the covariance they rest on)
+and adequacy (with its test), the simulator's truth, and the averaged waveforms. Units are
+SI strings pint parses.
 """
 
 from __future__ import annotations
@@ -27,14 +29,25 @@ Column = tuple[npt.NDArray[Any], str]
 
 #: derived quantities: name -> unit (each also with _std)
 DERIVED_UNITS = {"c_eff_xx": "N s/m", "c_eff_yy": "N s/m", "wfr": "1"}
-ADEQUACY_NUMBERS = ("supported", "p_value", "statistic", "dof", "alpha")
+#: the adequacy test's numbers (unit 1; supported: 1 yes, 0 no) and its text
+ADEQUACY_NUMBERS = ("supported", "p_value", "statistic", "dof", "alpha", "aic", "bic")
+ADEQUACY_TEXT = ("verdict", "test", "constant")
+#: the names of an array's entries where a format flattens it (``<name>_<part>``)
+ARRAY_PARTS: dict[str, tuple[str, ...]] = {
+    "adequacy_dof": ("numerator", "denominator"),
+    "adequacy_aic": ("constant", "fit"),
+    "adequacy_bic": ("constant", "fit"),
+    "c_eff_zero_xx": ("omega_0", "std"),
+    "c_eff_zero_yy": ("omega_0", "std"),
+}
 #: the point's numeric settings every export carries: name -> unit
 SETTINGS = {k: u for k, u in SETTINGS_UNITS.items() if u and k != "n_frequencies"}
 
 
 def provenance(run: Run) -> dict[str, str]:
     """Text describing where the data came from: the software, the run's status and
-    configuration, and who ran it where with which calibration record (its SHA-256), when."""
+    configuration, the simulator scenario (name and TOML text), and who ran it where with
+    which calibration record (its SHA-256 and TOML text), when."""
     return {
         "software_version": run.software_version,
         "created": run.created,
@@ -45,7 +58,9 @@ def provenance(run: Run) -> dict[str, str]:
         "rig_config": run.rig_config,
         "matrix_config": run.matrix_config,
         "sim_scenario_name": run.sim_scenario_name,
+        "sim_scenario_config": run.sim_scenario_config,
         **run.provenance,
+        "calibration_record_text": run.calibration_record_text,
     }
 
 
@@ -78,7 +93,7 @@ def fit_arrays(fit: FitRecord) -> dict[str, Any]:
     if "k" in fit.budget:
         d["k"] = float(fit.budget["k"])
     if fit.adequacy:
-        d["adequacy_verdict"] = str(fit.adequacy.get("verdict", ""))
+        d.update({f"adequacy_{k}": str(fit.adequacy.get(k, "")) for k in ADEQUACY_TEXT})
         d.update({f"adequacy_{k}": _number(fit.adequacy.get(k)) for k in ADEQUACY_NUMBERS})
     if fit.lms_consistency and "e_n" in fit.lms_consistency:
         d["e_n"] = np.array([_number(fit.lms_consistency["e_n"].get(k)) for k in fit.names])
@@ -113,6 +128,49 @@ def derived_columns(fit: FitRecord) -> dict[str, Column]:
                 }
             )
     return cols
+
+
+def derived_properties(fit: FitRecord) -> dict[str, tuple[Any, str]]:
+    """What the derived quantities rest on: name -> (value, unit). ``covariance`` (text:
+    combined | statistical, the covariance behind every _std) and, where C_eff changes
+    sign, ``c_eff_zero_xx`` / ``c_eff_zero_yy``: (Omega_0, its std) in rad/s."""
+    d = fit.derived or {}
+    if "orbit_hz" not in d:
+        return {}
+    out: dict[str, tuple[Any, str]] = {"covariance": (str(d.get("covariance", "")), "")}
+    for k in ("xx", "yy"):
+        zero = d.get(f"c_eff_zero_{k}_hz")  # stored in Hz: (Omega_0 / 2 pi, std)
+        if zero is not None:
+            out[f"c_eff_zero_{k}"] = (2 * math.pi * np.asarray(_number(list(zero))), "rad/s")
+    return out
+
+
+def fit_properties(fit: FitRecord) -> dict[str, tuple[float | str, str]]:
+    """The fit's single values: the budget's k and the adequacy test (numbers unit 1,
+    verdict, test and constant text, unit ""), an array one entry per name (ARRAY_PARTS)."""
+    d = fit_arrays(fit)
+    return flat(
+        {k: (v, "" if isinstance(v, str) else "1") for k, v in d.items() if k == "k" or k.startswith("adequacy_")}
+    )
+
+
+def flat(props: dict[str, tuple[Any, str]]) -> dict[str, tuple[float | str, str]]:
+    """`props` with each array as one entry per part: ``adequacy_dof`` -> ``adequacy_dof_numerator``,
+    ``adequacy_dof_denominator`` (ARRAY_PARTS; else ``_0``, ``_1``, ...); numbers as floats."""
+    out: dict[str, tuple[float | str, str]] = {}
+    for name, (value, unit) in props.items():
+        if isinstance(value, str):
+            out[name] = (value, unit)
+            continue
+        values = np.ravel(value)
+        if values.size == 1:
+            out[name] = (float(values[0]), unit)
+            continue
+        parts: tuple[str, ...] = ARRAY_PARTS.get(name, ())
+        if len(parts) != values.size:
+            parts = tuple(str(i) for i in range(values.size))
+        out |= {f"{name}_{part}": (float(x), unit) for part, x in zip(parts, values)}
+    return out
 
 
 def truth_arrays(truth: dict[str, Any] | None) -> dict[str, Column]:

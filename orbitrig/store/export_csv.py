@@ -7,8 +7,13 @@
   budget's parts in the row's ``unit``, ``e_n``, and ``true`` (--sim: the constant best fit);
 - ``covariance_PPPP_<key>.csv``: the covariance, the free coefficients' names as the first
   column and the header (entry in unit(row) x unit(column));
+- ``fit_properties.csv``: one row per point, fit and single value (``name``, ``value``,
+  ``unit``; ``unit`` empty for text): the budget's ``k``, the adequacy test
+  (``adequacy_verdict``, ``adequacy_test``, ``adequacy_dof_numerator`` ...) and what the
+  derived quantities rest on (``derived_covariance``, ``derived_c_eff_zero_xx_omega_0`` ...);
 - ``derived_PPPP_<key>.csv``: the derived quantities at the point's orbit frequencies;
-- ``provenance.csv``: software version, creation time, status, configuration.
+- ``provenance.csv``: software version, creation time, status, configuration, the simulator
+  scenario's and the calibration record's TOML text (a multi-line value is one quoted cell).
 """
 
 from __future__ import annotations
@@ -89,6 +94,21 @@ def _fit_rows(p: Point, sim: bool) -> list[Row]:
     return rows
 
 
+PROPERTY_HEAD = ["point", "lms", "model", "freq_dep", "method", "name", "value", "unit"]
+
+
+def _property_rows(p: Point) -> list[Row]:
+    """The fit_properties.csv rows of point `p`: each fit's k, adequacy and derived properties."""
+    rows: list[Row] = []
+    for fit in point_fits(p):
+        head = [p.index, fit.lms, fit.model, fit.freq_dep, fit.method]
+        derived = content.flat(content.derived_properties(fit))
+        props = content.fit_properties(fit) | {f"derived_{k}": v for k, v in derived.items()}
+        for name, (value, unit) in props.items():
+            rows.append(head + [name, value if isinstance(value, str) else _cell(value), unit])
+    return rows
+
+
 def _table_files(p: Point, out: Path) -> list[Path]:
     files = []
     for fit in point_fits(p):
@@ -122,6 +142,8 @@ def export_csv(run: Run, points: list[Point], out: Path) -> list[Path]:
     files.append(path)
     files.append(out / "fits.csv")
     write_atomic(files[-1], _render([FIT_HEAD] + [r for p in points for r in _fit_rows(p, run.sim)]))
+    files.append(out / "fit_properties.csv")
+    write_atomic(files[-1], _render([PROPERTY_HEAD] + [r for p in points for r in _property_rows(p)]))
     for p in points:
         files += _table_files(p, out)
     files.append(out / "provenance.csv")

@@ -8,8 +8,11 @@ point: the settings with ``settings_units``; per load measuring system the orbit
 (complex ``x``, ``y``, ``fx``, ``fy``, ``direction``, ...) with ``units``;
 ``identification.<lms>__<model>__<freq_dep>__<method>`` per fit (``names``, ``units``,
 ``coefficients``, ``std_errors``, ``U``, ``interval_95``, ``covariance`` with
-``covariance_names``, the budget ``statistical`` ... ``expanded`` and ``k``, ``adequacy_*``,
-``e_n``, ``derived`` with ``derived_units``, ``error``, ``notes``, ``warnings``); ``truth``
+``covariance_names``, the budget ``statistical`` ... ``expanded`` and ``k``, ``adequacy_*``
+(numbers; ``adequacy_verdict``, ``adequacy_test``, ``adequacy_constant`` text), ``e_n``,
+``derived`` with ``derived_units`` (also ``c_eff_zero_xx``, ``c_eff_zero_yy``: Omega_0 and its
+std, rad/s, where C_eff changes sign) and ``derived_covariance`` (combined | statistical),
+``error``, ``notes``, ``warnings``); ``truth``
 (--sim) and ``waveforms.bFF_dir`` (``mean`` and ``theta`` (channel x sample), ``dc``,
 complex ``phasors``, ``uncertainty``, ``orbit_hz``, ``direction``, ``n_records``).
 """
@@ -29,7 +32,13 @@ from orbitrig.store.fit_record import point_fits
 from orbitrig.store.layout import U_COLUMNS, U_UNITS
 
 #: ``units`` beside the load systems' fields: the settings, theta and the phasors' orbit speed
-BASE_UNITS = {**content.SETTINGS, "orbit": "rad/s", "theta": "rad"}
+BASE_UNITS = {
+    **content.SETTINGS,
+    "orbit": "rad/s",
+    "theta": "rad",
+    "k": "1",
+    **{f"adequacy_{k}": "1" for k in content.ADEQUACY_NUMBERS},
+}
 #: ``unit_rules``: the fields whose unit differs per entry, and the conventions
 UNIT_RULES = {
     "coefficients": "per coefficient: identification.*.units (also std_errors, U, interval_95, the budget, truth)",
@@ -90,8 +99,10 @@ def _fit_struct(fit, ident) -> dict:
         s["truth"] = d["truth"]  # the simulator's truth projected onto this model, aligned with names
     derived = content.derived_columns(fit)
     if derived:
-        s["derived"] = {k: v for k, (v, _) in derived.items()}
-        s["derived_units"] = {k: u for k, (_, u) in derived.items()}
+        more = content.derived_properties(fit)
+        s["derived_covariance"] = more.pop("covariance", ("", ""))[0]
+        s["derived"] = {k: v for k, (v, _) in (derived | more).items()}
+        s["derived_units"] = {k: u for k, (_, u) in (derived | more).items()}
     return s
 
 

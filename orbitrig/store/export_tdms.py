@@ -6,10 +6,13 @@ beside each) or text. Groups: ``point PPPP <lms>`` (the orbit table and ``direct
 settings as properties), ``coefficients`` (the columns of coefficients.csv and ``KEY_U``),
 ``fit PPPP <key>`` (one channel per coefficient in its own unit, its rows named by the text
 channel ``quantity``: value, std, U, the budget's parts, truth; e_n and not_determined as
-channel properties; k and the adequacy as group properties, its two degrees of freedom
-``adequacy_dof_numerator``, ``adequacy_dof_denominator``), ``covariance PPPP <key>`` (the
+channel properties; k and the adequacy as group properties (export_content.fit_properties:
+verdict, test, constant as text; its two degrees of freedom ``adequacy_dof_numerator``,
+``adequacy_dof_denominator``, ``adequacy_aic_constant`` ...), ``covariance PPPP <key>`` (the
 correlation, one channel per free coefficient, ``name`` the rows, each channel's ``std``
-property in its unit: covariance = r_ij std_i std_j), ``derived PPPP <key>``, ``truth PPPP``
+property in its unit: covariance = r_ij std_i std_j), ``derived PPPP <key>`` (its properties
+``covariance``, the basis of every _std, and ``c_eff_zero_xx_omega_0``, ``c_eff_zero_xx_std``
+... in rad/s where C_eff changes sign), ``truth PPPP``
 (K0, C0, D0 row-major, Z_re, Z_im, orbit) and ``waveforms PPPP FF_dir`` (each A/D
 channel's averaged revolution and ``<channel>_theta``; dc, phasor_re, phasor_im and
 uncertainty as channel properties in the channel's unit).
@@ -35,8 +38,6 @@ COVARIANCE_LAYOUT = (
     "correlation r (rows: name; one channel per free coefficient); covariance (i, j) = "
     "r_ij x std_i x std_j in unit(i) x unit(j), std and its unit_string a property of each channel"
 )
-#: the names of an array's entries as numeric properties (``<name>_<part>``)
-ARRAY_PARTS = {"adequacy_dof": ("numerator", "denominator")}
 
 
 def _numeric(props: dict[str, tuple[float, str]]) -> dict:
@@ -44,6 +45,14 @@ def _numeric(props: dict[str, tuple[float, str]]) -> dict:
     for name, (value, unit) in props.items():
         out[name], out[f"{name}.unit_string"] = value, unit
     return out
+
+
+def _properties(props: dict[str, tuple[float | str, str]]) -> dict:
+    """Text as it is, each number with its ``<name>.unit_string`` (arrays flattened:
+    export_content.flat)."""
+    flat = content.flat(props)
+    text = {k: v for k, (v, _) in flat.items() if isinstance(v, str)}
+    return text | _numeric({k: (float(v), u) for k, (v, u) in flat.items() if not isinstance(v, str)})
 
 
 def _channels(group: str, columns: dict[str, tuple[np.ndarray, str]]) -> list:
@@ -60,7 +69,7 @@ def _fit_objects(p, fit) -> list:
 
     d = content.fit_arrays(fit)
     group = f"fit {p.name} {fit.key}"
-    props = {"error": fit.error, "adequacy_verdict": d.get("adequacy_verdict", "")} | _group_numbers(d)
+    props = {"error": fit.error, "adequacy_verdict": ""} | _properties(content.fit_properties(fit))
     rows = [q for q in ("value", "std", "U", *BUDGET_PARTS, "truth") if q in d]
     objs = [GroupObject(group, props), ChannelObject(group, "quantity", np.array(rows, dtype=str), _TEXT)]
     for c, (name, unit) in enumerate(zip(fit.names, fit.units)):
@@ -77,21 +86,9 @@ def _fit_objects(p, fit) -> list:
         objs += _covariance_objects(f"covariance {p.name} {fit.key}", d, dict(zip(fit.names, fit.units)))
     derived = content.derived_columns(fit)
     if derived:
-        objs += [GroupObject(f"derived {p.name} {fit.key}", {})] + _channels(f"derived {p.name} {fit.key}", derived)
+        group = f"derived {p.name} {fit.key}"
+        objs += [GroupObject(group, _properties(content.derived_properties(fit)))] + _channels(group, derived)
     return objs
-
-
-def _group_numbers(d: dict) -> dict:
-    """k and the adequacy numbers (all unit 1) as numeric properties; an array as one property
-    per entry, the adequacy test's (numerator, denominator) degrees of freedom as
-    ``adequacy_dof_numerator`` and ``adequacy_dof_denominator`` (0 for the likelihood-ratio test)."""
-    numbers: dict[str, tuple[float, str]] = {}
-    for k, v in d.items():
-        if k == "k" or (k.startswith("adequacy_") and k != "adequacy_verdict"):
-            values = np.ravel(v)
-            names = [k] if values.size == 1 else [f"{k}_{part}" for part in ARRAY_PARTS.get(k, range(values.size))]
-            numbers |= {name: (float(x), "1") for name, x in zip(names, values, strict=True)}
-    return _numeric(numbers)
 
 
 def _covariance_objects(group: str, d: dict, unit: dict[str, str]) -> list:

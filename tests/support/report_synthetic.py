@@ -112,12 +112,16 @@ def write_synthetic_run(
     finished=True,
     provenance: dict | None = None,
     calibration: cfg.CalibrationUncertainty | None = None,
+    record_text: str = "",
+    scenario: tuple[str, str] = ("", ""),
 ) -> Path:
     """n_points complete operating points (static eccentricity 0, 0.15, ...) and
     `incomplete` more whose blocks are stored but which are never marked complete.
     finished=False leaves the run as a kill -9 does: status 'running', no run.h5.
     `calibration`: the rig's stated calibration uncertainty the sweep judges the fits with
-    (uncertainty budget, combined LMS consistency); none by default."""
+    (uncertainty budget, combined LMS consistency); none by default. `record_text`: the
+    calibration record's TOML text the run stores; `scenario`: the simulator scenario's
+    (name, TOML text)."""
     directory = Path(directory)
     rng = np.random.default_rng(seed)
     wave_rng = np.random.default_rng(seed + 1000)  # waveforms only: the phasors stay as before
@@ -135,6 +139,9 @@ def write_synthetic_run(
         matrix_name=matrix.name,
         sim=True,
         provenance=provenance,
+        record_text=record_text,
+        scenario_name=scenario[0],
+        scenario_text=scenario[1],
         channels=[(c.name, c.unit) for c in rig.ordered_channels],
     )
     for point in operating_points(matrix, rig):

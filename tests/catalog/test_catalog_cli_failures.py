@@ -1,0 +1,56 @@
+"""The catalog commands' failures: a damaged point is named and `catalog add` exits 1 (as
+`export`), reading never creates a catalog, and an --out that cannot be written is one line
+naming the path and the cause (exit 1, no traceback)."""
+
+from __future__ import annotations
+
+import shutil
+
+from typer.testing import CliRunner
+
+from orbitrig.catalog.store import Catalog
+from orbitrig.cli import app
+from orbitrig.store.reader import read_run
+
+N_FITS = 8  # per point: four models on each load measuring system
+
+
+def test_add_names_a_damaged_point_and_exits_1_adding_the_others(catalog_run, tmp_path):
+    run = tmp_path / "runs" / "damaged"
+    shutil.copytree(catalog_run, run)
+    results = run / "points" / "0001" / "results.h5"
+    results.write_bytes(results.read_bytes()[:100])
+    res = CliRunner().invoke(app, ["catalog", "add", str(run)])
+    assert res.exit_code == 1, res.output
+    assert f"{run}: {N_FITS} rows" in res.stdout
+    assert f"error: {run}: point 0001 skipped: results.h5 is damaged" in res.stderr
+    rows = Catalog(f"sqlite:///{tmp_path / 'runs' / 'catalog.sqlite'}").rows()
+    assert {r["point"] for r in rows} == {0} and len(rows) == N_FITS
+    good = CliRunner().invoke(app, ["catalog", "add", str(catalog_run), "--db", f"sqlite:///{tmp_path / 'g.sqlite'}"])
+    assert good.exit_code == 0 and good.stderr == "" and f"{2 * N_FITS} rows" in good.stdout
+
+
+def test_reading_a_catalog_that_is_not_there_creates_nothing(tmp_path):
+    for args in (["catalog", "list"], ["catalog", "export"], ["compare"]):
+        res = CliRunner().invoke(app, [*args, "--runs", str(tmp_path)])
+        assert res.exit_code == 1 and isinstance(res.exception, SystemExit), (args, res.output)
+        assert f"{tmp_path / 'catalog.sqlite'}: no such file" in res.stderr and "Traceback" not in res.output
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_out_that_cannot_be_written_is_named_with_its_cause(catalog_run, tmp_path):
+    from orbitrig.catalog.rows import run_rows
+
+    Catalog(f"sqlite:///{tmp_path / 'catalog.sqlite'}").add(run_rows(read_run(catalog_run)))
+    a_file = tmp_path / "run.json"
+    a_file.write_text("{}")
+    runs = ["--runs", str(tmp_path)]
+    res = CliRunner().invoke(app, ["compare", *runs, "--out", str(a_file)])
+    assert res.exit_code == 1 and isinstance(res.exception, SystemExit), repr(res.exception)  # not an OSError
+    assert f"error: {a_file}: " in res.stderr and "not a directory" in res.stderr and "Traceback" not in res.output
+    assert a_file.read_text() == "{}"
+    res = CliRunner().invoke(app, ["catalog", "export", *runs, "--out", str(a_file / "x.csv")])
+    assert res.exit_code == 1
+    assert res.stderr == f"error: {a_file / 'x.csv'}: cannot write: {a_file} is not a directory\n"
+    res = CliRunner().invoke(app, ["catalog", "export", *runs, "--out", str(tmp_path / "no" / "x.csv")])
+    assert res.exit_code == 1 and f"no folder {tmp_path / 'no'}" in res.stderr
