@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from drives.drive import DriveStatus
+from drives.drive import DriveStatus, rad_s_to_rpm
 from drives.limits import fmt_speed
 
 
@@ -43,6 +43,15 @@ class RigDriveState:
         if not self.link_ok:
             parts.append(f"link down: {self.link_error}")
         return "; ".join(parts)
+
+    def motion(self) -> str:
+        """Whether the spindles turn, for an operator about to put hands on the rig: 'both drives
+        at standstill' or the actual speeds."""
+        if self.spin is None or self.orbit is None:
+            return "the drives' speeds not read yet"
+        if self.stopped:
+            return "both drives at standstill"
+        return f"the drives are turning: {', '.join(f'{s.name} {rad_s_to_rpm(s.actual):.0f} rpm' for s in (self.spin, self.orbit))}"
 
     def to_dict(self) -> dict[str, Any]:
         return {

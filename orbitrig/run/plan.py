@@ -10,13 +10,18 @@ Operating points in the order that spends the least changeover time
 (orbitrig.run.point_order; the written order is manual settings outermost,
 spin innermost), unless the matrix says `order = "written"`. Per point::
 
-    SetManual -> VerifyPressures -> SetSpin -> for each block:
+    [StopDrives: the orbit radius changes] -> SetManual -> VerifyPressures -> SetSpin -> for each block:
         [SetOrbit] -> Settle -> Acquire -> [VerifyGeometry, first block] -> StoreBlock
     -> [ChooseBlocks: a sequential point's blocks chosen at run time] -> Identify -> CompletePoint
     ... StopDrives
 
 Blocks run forward whirl from the highest |Omega| down, then backward from
 the lowest up: the orbit drive never ramps through zero but once per point.
+
+The orbit radius is the outer spindle's adjustable offset, set by hand: before a point
+whose radius differs from the previous point's both drives ramp to a confirmed standstill
+(StopDrives). Static eccentricity and pressures are set with the drives turning (the paper
+adjusts the static eccentricity while the apparatus runs).
 """
 
 from __future__ import annotations
@@ -199,6 +204,9 @@ def _steps(matrix: MatrixConfig, rig: RigConfig, points: list[OperatingPoint]) -
     prev = None
     for p in points:
         changed = prev is None or p.manual != prev.manual
+        if prev is not None and p.orbit_radius != prev.orbit_radius:  # hands on the orbit spindle's offset
+            steps.append(StopDrives(p.index, max(spin_now, abs(orbit_now)) / rate))
+            spin_now = orbit_now = 0.0
         steps.append(SetManual(p.index, manual_change_s(rig, prev, p) if changed else 0.0, *p.manual, changed))
         prev = p
         steps.append(VerifyPressures(p.index, est.verify_s))

@@ -205,7 +205,8 @@ class PointProcedure:
             pressure_ratio=step.pressure_ratio,
         )
         if self.r.confirm_mode != ConfirmMode.AUTO and (step.changed or ps.always_confirm):
-            await self.r.control.ask(step.step_id, "set by hand and confirm: " + step.describe())
+            said = f"set by hand and confirm: {step.describe()}; {self.r.io.drives.state.motion()}"
+            await self.r.control.ask(step.step_id, said)
 
     async def _not_met(self, p: OperatingPoint, problems: list[str]) -> None:
         """Manual settings missed: the operator corrects and confirms (auto mode: the run fails)."""
@@ -254,10 +255,11 @@ class PointProcedure:
     async def set_orbit(self, step: SetOrbit, ps: PointState) -> None:
         await self._set_speeds(ps.point.spin, step.block.orbit)
 
-    async def stop_drives(self, step: StopDrives, ps: None) -> None:
+    async def stop_drives(self, step: StopDrives, ps: PointState | None) -> None:
         timeout = self.scale.wall(self.r.rig.drives.stop_timeout_s) + 5.0
         await self.r.io.drives.stop(emergency=False, wait=True, timeout=timeout)
-        self.r.note("both drives ramped to zero")
+        why = "" if ps is None else f"point {ps.point.index:04d}: for the orbit radius, set by hand: "
+        self.r.note(f"{why}both drives ramped to zero")
 
     # -------------------------------------------------- settle and acquire
     async def _settle_once(self, p: OperatingPoint, step: Settle | Acquire) -> None:

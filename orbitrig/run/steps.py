@@ -75,7 +75,7 @@ class SetManual(Step):
         what = "set by hand" if self.changed else "unchanged, confirm"
         return (
             f"manual settings ({what}): orbit radius {self.orbit_radius * 1e6:.2f} um, "
-            f"static eccentricity {self.static_eccentricity:g}, recess pressure "
+            f"static eccentricity ratio {self.static_eccentricity:g} (e/C), recess pressure "
             f"{self.recess_pressure / MPA:.4g} MPa, pressure ratio {self.pressure_ratio:g}"
         )
 
@@ -204,7 +204,8 @@ class CompletePoint(Step):
 
 @dataclass(frozen=True)
 class StopDrives(Step):
-    """The run's last step: both drives ramp to zero."""
+    """Both drives ramp to a confirmed standstill: the run's last step (``point`` None), and
+    before a point whose orbit radius is set by hand (``point`` that point)."""
 
     word = "stop drives"
 
