@@ -21,6 +21,7 @@ import errno
 import os
 import sys
 from collections.abc import Iterator
+from typing import Any
 
 import typer
 from rich.console import Console
@@ -78,7 +79,12 @@ def stream_gone(*, err: bool = False) -> None:
 
 
 class TerminalConsole(Console):
-    """rich Console that stops writing (``quiet``) when its file fails, instead of raising."""
+    """rich Console that stops writing (``quiet``) when its file fails, instead of raising; its
+    log lines carry the time but not the source file and line (an operator's terminal)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("log_path", False)
+        super().__init__(*args, **kwargs)
 
     def _check_buffer(self) -> None:
         try:
