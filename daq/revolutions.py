@@ -4,7 +4,9 @@ A revolution is usable only when all 360 slots arrived with valid CRCs, in order
 under one rev number, from a TRIGGER frame on, with no OVERRUN and no seq gap
 inside it (docs/protocols/adc-frames.md, "What a correct reader guarantees").
 Anything else is dropped once per revolution and counted with its reason (see
-:mod:`daq.stats`).
+:mod:`daq.stats`): the first reason found, also when the revolution breaks into
+fragments (a fragment whose rev number changed mid-revolution, no frame lost,
+belongs to the revolution of the frame before it).
 
 Vectorised over a batch of frames: frame i *continues* frame i-1 when its seq is
 the next one (u16 wrap), the rev number is the same, its first slot is where
@@ -155,10 +157,11 @@ class RevolutionAssembler:
             self._drop(int(c.rev[0]), "link_drop")
             self._carry = FrameBatch.empty()
 
-    def _drop(self, rev: int, reason: str, *, fresh: bool = True) -> None:
+    def _drop(self, rev: int, reason: str, *, fresh: bool = True, alias: int | None = None) -> None:
         """Count one dropped revolution; ``fresh=False``: a fragment of a revolution
-        already counted if its rev number was dropped lately."""
-        if not fresh and rev in self._recent_drops:
+        already counted if its rev number, or ``alias`` (the rev number the same
+        revolution carried before it changed mid-revolution), was dropped lately."""
+        if not fresh and (rev in self._recent_drops or alias in self._recent_drops):
             return
         self._recent_drops.append(rev)
         self.revolutions_dropped += 1
@@ -197,17 +200,10 @@ class RevolutionAssembler:
         p_seq, p_rev, p_end, p_t = self._prev if self._prev is not None else (-2, -1, -1, 0)
         seq_ok = seq == ((np.concatenate(([p_seq], seq[:-1])) + 1) & _U16)
         prev_rev = np.concatenate(([p_rev], rev[:-1]))
+        prev_end = np.concatenate(([p_end], end[:-1]))
         dt_frame = (t - np.concatenate(([p_t], t[:-1]))) & _U32  # board clock step (us)
         clock_ok = (dt_frame > 0) & (dt_frame < 1 << 31)
-        cont = (
-            seq_ok
-            & (rev == prev_rev)
-            & (fs == np.concatenate(([p_end], end[:-1])))
-            & ~trig
-            & ~overrun
-            & mode_ok
-            & clock_ok
-        )
+        cont = seq_ok & (rev == prev_rev) & (fs == prev_end) & ~trig & ~overrun & mode_ok & clock_ok
         # frame 0 starts the carried chain, or continues a fragment that was not carried
         # (dropped, or discarded after start/reset), or starts anew
         tail = bool(cont[0]) and not len(self._carry)
@@ -252,11 +248,13 @@ class RevolutionAssembler:
                 self._drop(r, "overrun" if overrun[a] else "mode_mismatch")
             else:
                 reason = why(a)
+                # no frame lost, mid-revolution: the frame before's revolution, its rev number changed
+                renumbered = reason == "rev_mismatch" and 0 < fs[a] and prev_end[a] < SLOTS_PER_REV
                 if reason in ("slot_gap", "rev_mismatch") or (fs[a] == 0 and reason not in ("corrupt", "seq_gap")):
                     reason = "missing_trigger"  # the chain restarted without a TRIGGER frame
                 # a fragment from slot 0 on is a revolution of its own (a missed trigger
                 # does not advance the rev number); a later one may belong to one counted
-                self._drop(r, reason, fresh=bool(fs[a] == 0))
+                self._drop(r, reason, fresh=bool(fs[a] == 0), alias=int(prev_rev[a]) if renumbered else None)
         for r in rev[good_first[bad_clock]]:
             self._drop(int(r), "bad_clock")
 

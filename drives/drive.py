@@ -217,8 +217,10 @@ class Drive:
     ) -> DriveParameters:
         """Write the given parameters (s, s, s, rad/s); the drive must not be running.
 
-        All given parameters go out in one write-multiple (FC16), all or nothing:
-        a drive that is running, or finds a value out of its range, answers
+        One parameter goes out as a write-single (FC06); several go out in one
+        write-multiple (FC16) over the contiguous range from the lowest to the
+        highest address given, gaps keeping the values just read, all or nothing.
+        A drive that is running, or finds a value out of its range, answers
         exception 03 (DriveExceptionResponse) and changes none of them.
         """
         given: dict[int, int] = {}
@@ -235,8 +237,8 @@ class Drive:
                 raise DriveLimitError(f"{value:g} does not fit the register (unit {unit:g})", **self._kw(address))
             given[address] = word
         if given:
-            # One FC16 over the contiguous range (gaps keep the values just read), so
-            # a refusal (exception 03: running, or a value out of range) changes nothing.
+            # One request over the contiguous range (gaps keep the values just read): FC06
+            # for one word, FC16 for more, so a refusal (exception 03) changes nothing.
             first_p, count_p = R.PARAMETERS
             current = await self.link.read(self.device_id, first_p, count_p)
             first, last = min(given), max(given)
@@ -273,7 +275,8 @@ class Drive:
     def reference_for(self, speed: float) -> int:
         """Raw REF for `speed` rad/s, or DriveLimitError (direction, MAX_SPEED, int16).
 
-        Pure check against the parameters read from the drive; nothing is sent.
+        Pure check against the parameters read from the drive; nothing is sent. The
+        REF is rounded to the nearest count that does not exceed MAX_SPEED.
         """
         scale, max_rpm = self._scales()
         if not math.isfinite(speed):
@@ -290,9 +293,14 @@ class Drive:
                 **self._kw(R.MAX_SPEED),
             )
         try:
-            return R.rpm_to_ref(rpm, scale)
+            raw = R.rpm_to_ref(rpm, scale)
         except ValueError as err:
             raise DriveLimitError(str(err), **self._kw(R.REF)) from err
+        if abs(R.ref_to_rpm(raw, scale)) > max_rpm:
+            # rounded past MAX_SPEED: one count back, so the drive never clamps the REF it is
+            # given (a clamped REF is never reached: AT_SETPOINT compares ACT with REF as written)
+            raw -= 1 if raw > 0 else -1
+        return raw
 
     def speed_of(self, raw: int) -> float:
         """rad/s of a raw REF/ACT value."""

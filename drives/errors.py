@@ -7,8 +7,10 @@
     +-- DriveTimeoutError      no answer in time, or a state not reached in time
     +-- DriveExceptionResponse the drive answered a Modbus exception (exception_code)
 
-The message names the drive (`spin drive (id 1)`), the register (`REF (1)`)
-and the fault code with its meaning, whichever apply.
+The message names the drive (`spin drive (id 1)`), the register (`REF (1)`),
+or the registers of a multi-register request (`registers 105..106
+(AT_SETPOINT_BAND .. ?)`: an exception answer does not say which one failed), and
+the fault code with its meaning, whichever apply.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from typing import TypedDict
 
 from rigerrors import OrbitrigError
 
-from drives.registers import EXCEPTION_NAMES, fault_name, register_name
+from drives.registers import EXCEPTION_NAMES, fault_name, registers_name
 
 
 class ErrorContext(TypedDict, total=False):
@@ -26,6 +28,7 @@ class ErrorContext(TypedDict, total=False):
     drive: int | None
     drive_name: str | None
     register: int | None
+    count: int | None
     fault_code: int | None
 
 
@@ -39,7 +42,10 @@ class DriveError(OrbitrigError):
     drive_name : str | None
         `'spin'` or `'orbit'` when known.
     register : int | None
-        Protocol address of the register concerned.
+        Protocol address of the register concerned (the first of a range).
+    count : int | None
+        Number of registers from `register` a multi-register request covered
+        (None or 1: that register alone).
     fault_code : int | None
         The drive's FAULT code (0 = none) when it is part of the story.
     """
@@ -52,18 +58,20 @@ class DriveError(OrbitrigError):
         register: int | None = None,
         fault_code: int | None = None,
         drive_name: str | None = None,
+        count: int | None = None,
     ):
         self.reason = message
         self.drive = drive
         self.drive_name = drive_name
         self.register = register
+        self.count = count
         self.fault_code = fault_code
         parts = []
         if drive is not None or drive_name is not None:
             who = f"{drive_name} drive" if drive_name else "drive"
             parts.append(f"{who} (id {drive})" if drive is not None else who)
         if register is not None:
-            parts.append(f"register {register_name(register)}")
+            parts.append(registers_name(register, count or 1))
         if fault_code:
             parts.append(f"fault {fault_code} ({fault_name(fault_code)})")
         super().__init__(f"{', '.join(parts)}: {message}" if parts else message)
@@ -101,6 +109,7 @@ class DriveExceptionResponse(DriveError):
         register: int | None = None,
         fault_code: int | None = None,
         drive_name: str | None = None,
+        count: int | None = None,
     ):
         self.exception_code = exception_code
         meaning = EXCEPTION_NAMES.get(exception_code, "unknown exception")
@@ -110,4 +119,5 @@ class DriveExceptionResponse(DriveError):
             register=register,
             fault_code=fault_code,
             drive_name=drive_name,
+            count=count,
         )

@@ -41,7 +41,7 @@ from drives.errors import (
     DriveTimeoutError,
     ErrorContext,
 )
-from drives.registers import register_name
+from drives.registers import register_name, registers_name
 from drives.rtu import RtuLine
 from drives.turns import Turns
 
@@ -53,6 +53,7 @@ if TYPE_CHECKING:
 # responses per function code, so the common shape is not a declared type.
 _Answer = Any
 _Call = Callable[["RtuLine | AsyncModbusTcpClient"], Awaitable[_Answer]]
+_Span = tuple[int, int]  # (first address, count) of the registers a request covers
 
 log = logging.getLogger(__name__)
 
@@ -198,7 +199,7 @@ class ModbusLink:
         """
         rsp = await self._retried(
             device_id,
-            address,
+            (address, count),
             _FC_READ,
             "read",
             retries,
@@ -206,7 +207,7 @@ class ModbusLink:
         )
         words = list(rsp.registers)
         if len(words) != count:
-            self._fail(device_id, address, f"asked for {count} registers, got {len(words)}")
+            self._fail(device_id, (address, count), f"asked for {count} registers, got {len(words)}")
         return words
 
     async def write(
@@ -227,30 +228,31 @@ class ModbusLink:
         waiting for the link (the one under way finishes first).
         """
         values = [int(v) for v in values]
-        for v in values:
+        for i, v in enumerate(values):
             if not 0 <= v <= 0xFFFF:
-                raise ValueError(f"{register_name(address)}: {v} is not a 16-bit word")
+                raise ValueError(f"{register_name(address + i)}: {v} is not a 16-bit word")
         if len(values) == 1:
             fc, call = _FC_WRITE_SINGLE, lambda c: c.write_register(address, values[0], device_id=device_id)
         else:
             fc, call = _FC_WRITE_MULTIPLE, lambda c: c.write_registers(address, values, device_id=device_id)
-        await self._retried(device_id, address, fc, "write", retries, call, urgent)
+        await self._retried(device_id, (address, len(values)), fc, "write", retries, call, urgent)
 
     async def _retried(
         self,
         device_id: int,
-        address: int,
+        span: _Span,
         function_code: int,
         what: str,
         retries: int,
         call: _Call,
         urgent: bool = False,
     ) -> _Answer:
-        """`_request`, tried again up to `retries` times after a timeout (each retry logged)."""
+        """`_request`, tried again up to `retries` times after a timeout (each retry logged);
+        `span`: (first address, count) of the registers the request covers."""
         attempt = 0
         while True:
             try:
-                return await self._request(device_id, address, function_code, call, urgent)
+                return await self._request(device_id, span, function_code, call, urgent)
             except DriveTimeoutError as err:
                 if attempt >= retries:
                     raise
@@ -260,33 +262,37 @@ class ModbusLink:
                     "%s (id %d) %s %s: %s; retry %d of %d",
                     self.names.get(device_id, "drive"),
                     device_id,
-                    register_name(address),
+                    register_name(span[0]) if span[1] == 1 else registers_name(*span),
                     what,
                     err.reason,
                     attempt,
                     retries,
                 )
 
-    def _error_kw(self, device_id: int, address: int) -> ErrorContext:
-        return {"drive": device_id, "drive_name": self.names.get(device_id), "register": address}
+    def _error_kw(self, device_id: int, span: _Span) -> ErrorContext:
+        """The error context of a request on registers `span` = (first address, count): a
+        multi-register request is named as its whole range (an exception answer does not
+        say which register of it was refused)."""
+        address, count = span
+        return {"drive": device_id, "drive_name": self.names.get(device_id), "register": address, "count": count}
 
-    def _fail(self, device_id: int, address: int, what: str) -> NoReturn:
+    def _fail(self, device_id: int, span: _Span, what: str) -> NoReturn:
         self.failures += 1
         self._drop()
-        raise DriveLinkError(f"{what} on {self.url}", **self._error_kw(device_id, address))
+        raise DriveLinkError(f"{what} on {self.url}", **self._error_kw(device_id, span))
 
     async def _request(
-        self, device_id: int, address: int, function_code: int, call: _Call, urgent: bool = False
+        self, device_id: int, span: _Span, function_code: int, call: _Call, urgent: bool = False
     ) -> _Answer:
         from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 
-        kw = self._error_kw(device_id, address)
+        kw = self._error_kw(device_id, span)
         async with self._lock.turn(urgent):
             await self._settle_abandoned()
-            await self._ensure_connected_for(device_id, address)
+            await self._ensure_connected_for(device_id, span)
             client = self._client
             if client is None:
-                self._fail(device_id, address, "not connected")
+                self._fail(device_id, span, "not connected")
             exchange = asyncio.ensure_future(asyncio.wait_for(call(client), self.timeout + 0.5))
             try:
                 rsp = await asyncio.shield(exchange)
@@ -311,7 +317,7 @@ class ModbusLink:
                 self._drop()
                 raise DriveLinkError(f"link failure on {self.url}: {err}", **kw) from err
             if rsp is None:
-                self._fail(device_id, address, "no response object")
+                self._fail(device_id, span, "no response object")
             if rsp.isError():
                 self.requests += 1
                 raise DriveExceptionResponse(
@@ -322,7 +328,7 @@ class ModbusLink:
             if rsp.function_code != function_code or (rsp.dev_id and rsp.dev_id != device_id):
                 self._fail(
                     device_id,
-                    address,
+                    span,
                     f"answer FC{rsp.function_code} from id {rsp.dev_id} does not match request FC{function_code}",
                 )
             self.requests += 1
@@ -338,9 +344,9 @@ class ModbusLink:
         if exchange.cancelled() or isinstance(exchange.exception(), OSError):
             self._drop()
 
-    async def _ensure_connected_for(self, device_id: int, address: int) -> None:
+    async def _ensure_connected_for(self, device_id: int, span: _Span) -> None:
         try:
             await self._ensure_connected()
         except DriveLinkError as err:
             self.failures += 1
-            raise DriveLinkError(err.reason, **self._error_kw(device_id, address)) from err
+            raise DriveLinkError(err.reason, **self._error_kw(device_id, span)) from err

@@ -110,6 +110,15 @@ def register_name(address: int) -> str:
     return f"{REGISTER_NAMES.get(address, 'unknown register')} ({address})"
 
 
+def registers_name(address: int, count: int = 1) -> str:
+    """`'register REF (1)'` for one register; for a range, which the client cannot narrow
+    down to the register at fault, `'registers 105..106 (AT_SETPOINT_BAND .. ?)'`."""
+    if count <= 1:
+        return f"register {register_name(address)}"
+    last = address + count - 1
+    return f"registers {address}..{last} ({REGISTER_NAMES.get(address, '?')} .. {REGISTER_NAMES.get(last, '?')})"
+
+
 def fault_name(code: int) -> str:
     """The spec's meaning of a FAULT code (`'none'` for 0)."""
     if code == 0:

@@ -221,7 +221,10 @@ def _variances(spec: ModelSpec, table: OrbitTable, theta0: FloatArray, b: FloatA
     coherences for wls, else ones."""
     if table.u is not None:
         if not np.any(table.u[:, 2:] > 0) and not np.any(table.u[:, :2] > 0):
-            raise IdentificationError("the table's u_x, u_y, u_fx, u_fy are all zero: no noise to weight by")
+            raise IdentificationError(
+                f"every row (all {table.n}), columns 'u_x', 'u_y', 'u_fx', 'u_fy': all zero, so there is "
+                "no noise to weight by; state the standard uncertainties, or leave the u_* columns out"
+            )
         var = equation_variances(table.u, impedance(spec, theta0, table.orbit))
         floor = 1e-12 * float(np.max(var))
         if not floor > 0:

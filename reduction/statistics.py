@@ -116,9 +116,11 @@ def information_criteria(misfit: float, n_equations: int, p: int, known_noise: b
 
 
 def not_determined(values: dict[str, float], expanded: dict[str, float]) -> list[str]:
-    """Names whose expanded uncertainty (k = 2) exceeds the magnitude of the estimate,
-    in the order of ``values`` (orbit-table contract v3, ``not_determined``). A NaN
-    uncertainty counts as not determined."""
+    """Names whose uncertainty in ``expanded`` exceeds the magnitude of the estimate, in the
+    order of ``values``; the caller chooses the coverage. ``identify`` (orbit-table contract v3,
+    ``not_determined``) passes the half-width of the 95 % interval, the standard error times
+    :func:`quantile`: the normal 1.96 with u_* columns, Student's t with ``dof`` degrees of
+    freedom without (not k = 2). A NaN uncertainty counts as not determined."""
     out = []
     for name, value in values.items():
         u = expanded.get(name)

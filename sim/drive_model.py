@@ -291,14 +291,14 @@ class DriveModel:
         return self._params[address]
 
     def _status_word(self) -> int:
-        ref, limited = self._limited_reference()
+        ref = self._local_rpm if self._local else self._ref * self._params[R.SPEED_SCALE] / R.REF_FULL_SCALE
         return status_word(
             self._state,
             self._cw,
             alarm=self._alarm,
             at_setpoint=abs(self._speed - ref) <= self._params[R.AT_SETPOINT_BAND],
             remote=self._remote,
-            above_limit=limited,
+            above_limit=self._limited_reference()[1],
         )
 
     def _limited_reference(self) -> tuple[float, bool]:

@@ -31,7 +31,10 @@ OPERATION ENABLED / OFF1 ACTIVE; RDY_RUN in READY TO OPERATE / OPERATION
 ENABLED; RDY_REF in OPERATION ENABLED only. OFF_2_STA mirrors the accepted
 OFF2 bit; OFF_3_STA is 0 while OFF3 = 0 or an emergency stop runs. TRIPPED
 with FAULT = first latched fault code. AT_SETPOINT: operation enabled and
-|ACT - REF| <= AT_SETPOINT_BAND, REF taken after limiting (the ramp input).
+|ACT - REF| <= AT_SETPOINT_BAND, REF as written (not the limited ramp input):
+a reference clamped at MAX_SPEED (ABOVE_LIMIT) is never reached, so AT_SETPOINT
+stays 0 unless the band covers the difference; under local control the keypad
+speed stands in for REF.
 ALARM: raised by the drive's `set_alarm` (no built-in warning source).
 """
 

@@ -152,11 +152,45 @@ def test_rev_mismatch_and_early_trigger():
         return f
 
     counts, (dec, asm, revs) = faulty(mutate)
-    # rev 1: broken by a frame with rev 99 (a fragment without trigger, counted once more);
+    # rev 1: broken by a frame with rev 99 (its fragments are rev 1's: counted once);
     # rev 3: cut short by a stray trigger frame, whose one-frame "revolution 4" is dropped too;
     # the real rev 4 that follows is intact
     assert [r.rev for r in revs] == [0, 2, 4, 5, 6, 7]
-    assert asm.drop_reasons == {"rev_mismatch": 2, "incomplete": 1, "missing_trigger": 1}
+    assert asm.drop_reasons == {"rev_mismatch": 2, "incomplete": 1} and asm.revolutions_dropped == 3
+    check_intact(revs, counts)
+
+
+@pytest.mark.parametrize("chunk", [1, 113, 997, 1 << 20])
+@pytest.mark.parametrize(
+    "where,lost,reason",
+    [
+        (12, None, "rev_mismatch"),  # rev 1, slot 180: rev 99 on one frame, rev 1 again after it
+        (9, None, "rev_mismatch"),  # rev 1, slot 45: right after the trigger frame
+        (15, None, "rev_mismatch"),  # rev 1, slot 315: its last frame
+        (12, 8, "seq_gap"),  # rev 1's trigger frame lost too: the first reason is the seq gap
+    ],
+)
+def test_revolution_renumbered_mid_revolution_is_dropped_once(where, lost, reason, chunk):
+    """One revolution whose rev number changes mid-revolution (no frame lost in between) is
+    one dropped revolution, under the first reason found, in whatever pieces the bytes come."""
+    counts = signal(5, 8, "sequential", noise=2)
+    frames, meta = stream(counts, "sequential")
+    m = meta[where]
+    frames[where] = frame(
+        0,
+        m["seq"],
+        99,
+        m["first_slot"],
+        slot_samples(counts[1], "sequential")[m["first_slot"] : m["first_slot"] + 45],
+        80_000 + m["first_slot"] * 80_000 // 360,
+    )
+    if lost is not None:
+        del frames[lost]
+    dec, asm, revs = run(b"".join(frames), chunk=chunk)
+    assert [r.rev for r in revs] == [0, 2, 3, 4]
+    assert asm.drop_reasons == {reason: 1}
+    assert asm.revolutions_dropped == 1 and asm.revolutions_good == 4
+    assert dec.frames_good == len(frames) and dec.frames_bad == 0
     check_intact(revs, counts)
 
 

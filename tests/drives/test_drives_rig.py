@@ -21,6 +21,7 @@ from drives.errors import (
 from drives.limits import DriveLimits
 from drives.link import ModbusLink
 from drives.rig import RigDrives
+from sim import drive_registers as sim_registers
 
 pytestmark = pytest.mark.timeout(30)  # a hang fails fast, with a traceback
 
@@ -198,6 +199,47 @@ async def test_exception_response_is_raised_not_returned(sim):
         with pytest.raises(DriveExceptionResponse):
             await link.write(1, 3, [0])  # SW is read-only
         assert await link.read(1, 100, 1) == [3000]  # the link is still fine
+
+
+async def test_exception_to_a_multi_register_request_names_the_whole_range(sim):
+    """The answer does not say which register of a range was refused: the error names them all."""
+    async with ModbusLink(sim.url, timeout=0.3, names={1: "spin", 2: "orbit"}) as link:
+        with pytest.raises(DriveExceptionResponse) as info:
+            await link.read(2, 105, 2)  # 106 is not in the map
+        err = info.value
+        assert (err.exception_code, err.register, err.count) == (2, 105, 2)
+        assert str(err).startswith("orbit drive (id 2), registers 105..106 (AT_SETPOINT_BAND .. ?): request FC03")
+        with pytest.raises(DriveExceptionResponse) as info:
+            await link.read(2, 6, 2)
+        assert "orbit drive (id 2), registers 6..7 (FAULT .. ?): request FC03 refused" in str(info.value)
+        assert "FAULT (6)" not in str(info.value)
+        with pytest.raises(DriveExceptionResponse) as info:
+            await link.write(1, 104, [10, 10, 0])  # FC16 over 104..106
+        assert info.value.exception_code == 2
+        assert "spin drive (id 1), registers 104..106 (COMM_LOSS_TIMEOUT .. ?): request FC16" in str(info.value)
+        with pytest.raises(DriveExceptionResponse) as info:
+            await link.write(1, 106, [0])  # FC06: one register, named as before
+        assert info.value.exception_code == 2 and info.value.count == 1
+        assert "spin drive (id 1), register unknown register (106): request FC06" in str(info.value)
+        assert await link.read(1, 100, 6) == [3000, 2500, 50, 50, 10, 5]  # nothing written
+
+
+async def test_run_at_max_speed_settles_with_a_zero_band(sim):
+    """2500 rpm = 16666.7 counts: the REF sent is 16666 (2499.9 rpm), never 16667 (2500.05 rpm,
+    clamped by the drive, so never at setpoint with AT_SETPOINT_BAND 0)."""
+    for dev in (1, 2):
+        sim.models[dev].write(sim_registers.AT_SETPOINT_BAND, [0])
+    async with rig(sim, DriveLimits(math.inf, math.inf)) as r:
+        assert r.spin.reference_for(2500 * RPM) == 16666 and r.orbit.reference_for(-2500 * RPM) == -16666
+        assert r.spin.reference_for(1500 * RPM) == 10000 and r.spin.reference_for(2499.96 * RPM) == 16666
+        await r.set_speeds(2500 * RPM, -2500 * RPM)
+        st = await r.wait_settled(hold=0.05, timeout=5)
+        assert st.spin.at_setpoint and st.orbit.at_setpoint
+        for dev, ref in ((1, 16666), (2, -16666)):
+            regs = sim.regs(dev)
+            assert regs["REF"] == ref and regs["ACT"] == ref and not regs["SW"] & 0x400  # no ABOVE_LIMIT
+        await r.stop()
+    assert sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
 
 
 async def test_wait_settled_timeout_names_the_drives(sim):

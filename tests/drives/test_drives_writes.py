@@ -47,7 +47,7 @@ async def test_refused_configure_changes_nothing(sim):
         with pytest.raises(DriveExceptionResponse) as info:
             await r.spin.configure(accel_time=2.0, decel_time=3.0, at_setpoint_band=4000 * RPM)
         assert info.value.exception_code == 3
-        assert "register ACCEL_TIME (102)" in str(info.value)
+        assert "registers 102..105 (ACCEL_TIME .. AT_SETPOINT_BAND)" in str(info.value)
         assert [sim.models[dev].read(100, 6) for dev in (1, 2)] == before
         # a valid one goes through, gaps keeping their values
         params = await r.spin.configure(accel_time=2.0, at_setpoint_band=7 * RPM)
@@ -62,12 +62,12 @@ def _outage_on_first_write(sim, link, address: int, duration: float) -> list[flo
     loop = asyncio.get_running_loop()
     request, started = link._request, []
 
-    async def request_with_outage(device_id, addr, function_code, call, urgent=False):
-        if not started and addr == address and function_code in (6, 16):
+    async def request_with_outage(device_id, span, function_code, call, urgent=False):
+        if not started and span[0] == address and function_code in (6, 16):
             started.append(loop.time())
             sim.endpoint.set_unresponsive(True)
             loop.call_later(duration, sim.endpoint.set_unresponsive, False)
-        return await request(device_id, addr, function_code, call, urgent)
+        return await request(device_id, span, function_code, call, urgent)
 
     link._request = request_with_outage
     return started

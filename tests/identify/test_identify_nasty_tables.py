@@ -131,6 +131,22 @@ def test_values_beyond_the_floating_point_range_exit_2(tmp_path, lines):
         assert "floating-point range" in res.stderr
 
 
+@pytest.mark.parametrize("method", ["ols", "wls", "tls", "iv"])
+def test_u_columns_all_zero_name_the_columns_and_every_row(tmp_path, lines, method):
+    path = tmp_path / "t.csv"
+    rows = [r + ",0,0.0,0e0,0" for r in lines[1:]]
+    path.write_text("\n".join([lines[0] + ",u_x,u_y,u_fx,u_fy", *rows]) + "\n")
+    res = CliRunner().invoke(app, ["identify", str(path), "--model", "kcd11", "--method", method, "--json"])
+    assert res.exit_code == 2 and res.stdout == "", res.output
+    assert res.stderr == (
+        f"orbitrig identify: every row (all {len(rows)}), columns 'u_x', 'u_y', 'u_fx', 'u_fy': all zero, "
+        "so there is no noise to weight by; state the standard uncertainties, or leave the u_* columns out\n"
+    )
+    rows = [r + ",1e-9,1e-9,0.5,0.5" for r in lines[1:]]  # stated: the same table is identified
+    path.write_text("\n".join([lines[0] + ",u_x,u_y,u_fx,u_fy", *rows]) + "\n")
+    assert _ok(_run(path))["interval"] == "normal"
+
+
 def test_real_process_never_prints_a_traceback(tmp_path, lines):
     path = tmp_path / "t.csv"
     path.write_text("note," + lines[0] + "\n" + '"' + "a" * 200_000 + '",' + lines[1] + "\n")

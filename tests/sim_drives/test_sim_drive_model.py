@@ -207,6 +207,20 @@ def test_at_setpoint_band_parameter(clocks):
     assert sw(d) & AT_SETPOINT
 
 
+@pytest.mark.parametrize("band,at_setpoint", [(499, False), (500, True), (600, True)])
+def test_at_setpoint_compares_act_with_ref_as_written_not_the_clamped_one(clocks, band, at_setpoint):
+    """Contract, status word bit 8: running and abs(ACT - REF) <= AT_SETPOINT_BAND. REF 3000 rpm
+    clamped at MAX_SPEED 2500 rpm: |ACT - REF| = 500 rpm, whatever ABOVE_LIMIT says."""
+    d = make(clocks)
+    d.write(AT_SETPOINT_BAND, [band])
+    start(d, 3000)
+    clocks.tick(10.0)
+    assert rpm(d) == 2500.0 and reg(d, ACT) == 16667 and reg(d, REF) == 20000
+    assert sw(d) == (RDY_ON | RDY_RUN | RDY_REF | OFF_2_STA | OFF_3_STA | REMOTE | ABOVE_LIMIT) | (
+        AT_SETPOINT if at_setpoint else 0
+    )
+
+
 def test_accel_decel_parameters_and_speed_scale(clocks):
     d = make(clocks)
     d.write(SPEED_SCALE, [1500, 2000, 10, 20])  # 1500 rpm/20000; accel 1 s, decel 2 s per 1500 rpm
@@ -243,7 +257,7 @@ def test_spin_drive_negative_reference_is_limited_to_zero(clocks):
     start(d, -1000)
     clocks.tick(3.0)
     assert rpm(d) == 0.0
-    assert sw(d) & ABOVE_LIMIT and sw(d) & AT_SETPOINT
+    assert sw(d) & ABOVE_LIMIT and not sw(d) & AT_SETPOINT  # |ACT - REF| = 1000 rpm
     at_speed(clocks, d, 600)
     d.write(REF, [ref_counts(-600)])
     clocks.tick(0.5)
@@ -258,7 +272,7 @@ def test_clamp_at_max_speed_with_above_limit(clocks):
     assert sw(d) & ABOVE_LIMIT
     clocks.tick(10.0)
     assert act_rpm(d) == pytest.approx(2500, abs=0.2)
-    assert sw(d) & AT_SETPOINT and sw(d) & ABOVE_LIMIT
+    assert sw(d) & ABOVE_LIMIT and not sw(d) & AT_SETPOINT  # |ACT - REF| = 500 rpm
     assert reg(d, REF) == 20000
     d.write(REF, [ref_counts(-3000)])
     clocks.tick(10.0)

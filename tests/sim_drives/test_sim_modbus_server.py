@@ -157,16 +157,39 @@ async def test_spin_drive_negative_reference_stays_at_standstill(client):
     assert await act_rpm(client, dev=1) == 0.0
 
 
+async def wait_act(c, rpm, dev=2, *, timeout=3.0):
+    deadline = time.monotonic() + timeout
+    while abs(await act_rpm(c, dev) - rpm) > TOL:
+        assert time.monotonic() < deadline, f"ACT never {rpm} rpm: {await act_rpm(c, dev)}"
+        await asyncio.sleep(0.01)
+
+
 async def test_clamp_at_max_speed_sets_above_limit(client):
     await wr(client, MAX_SPEED, 1000)
     await start(client, 1800)
-    sw = await wait_status(client, AT_SETPOINT)
-    assert sw & ABOVE_LIMIT
-    await asyncio.sleep(0.05)
-    assert await act_rpm(client) == pytest.approx(1000, abs=TOL)
+    await wait_act(client, 1000)
+    sw = (await rd(client, SW))[0]
+    assert sw & ABOVE_LIMIT and sw & RDY_REF and not sw & AT_SETPOINT  # REF 1800 rpm is not reached
     assert (await rd(client, REF))[0] == ref_counts(1800)  # REF reads back as written
     await wr(client, REF, ref_counts(900))
     assert not (await rd(client, SW))[0] & ABOVE_LIMIT
+    assert (await wait_status(client, AT_SETPOINT)) & ABOVE_LIMIT == 0
+
+
+async def test_at_setpoint_is_not_set_while_the_reference_is_clamped(client):
+    """REF = 20000 (3000 rpm) on id 2, MAX_SPEED 2500 rpm: the drive runs at ACT = 16667 with
+    ABOVE_LIMIT, and |ACT - REF| = 500 rpm > AT_SETPOINT_BAND (5 rpm): no AT_SETPOINT."""
+    assert await rd(client, 100, 6) == [3000, 2500, 50, 50, 10, 5]
+    await start(client, 3000)
+    await wait_act(client, 2500)
+    await asyncio.sleep(0.05)
+    regs = await rd(client, CW, 7)
+    assert regs[REF] == 20000 and regs[ACT] == 16667
+    assert regs[SW] == 0x0637  # RDY_ON, RDY_RUN, RDY_REF, OFF_2_STA, OFF_3_STA, REMOTE, ABOVE_LIMIT
+    # REF 2500 rpm is 16667 counts = 2500.05 rpm: still clamped, but within the band of ACT
+    await wr(client, REF, 16667)
+    await asyncio.sleep(0.05)
+    assert (await rd(client, SW))[0] == 0x0637 | AT_SETPOINT
 
 
 async def test_parameter_write_while_running_is_03_and_changes_nothing(client):
