@@ -216,11 +216,14 @@ def _guarded(fn) -> None:
         raise typer.Exit(3) from None
 
 
-def _rig_and_folder(config):
-    from orbitrig.config import default_rig_path, load_rig
-    from orbitrig.config import folder_of
+def _rig_and_folder(config, writing: bool = True):
+    """(rig, its records' folder); ``writing`` (a calibration step): refused in the shipped
+    defaults (orbitrig.config.writable_home), before anything is started."""
+    from orbitrig.config import default_rig_path, folder_of, load_rig, writable_home
 
     rig = load_rig(config)
+    if writing:
+        writable_home(config)
     return rig, folder_of(config or default_rig_path())
 
 
@@ -229,7 +232,7 @@ def _list(config) -> None:
     from orbitrig.config import list_names, read_record
     from orbitrig.errors import ConfigError
 
-    rig, folder = _rig_and_folder(config)
+    rig, folder = _rig_and_folder(config, writing=False)
     names = list_names(folder)
     if not names:
         say(f"no calibration records in {folder}")
@@ -250,7 +253,7 @@ def _show(name, config) -> None:
     from orbitrig.config import digest, read_record
     from orbitrig.errors import ConfigError
 
-    rig, folder = _rig_and_folder(config)
+    rig, folder = _rig_and_folder(config, writing=False)
     name = name or rig.calibration_record
     if name is None:
         raise ConfigError(rig.file, ["names no active calibration record (calibration_record): give NAME"])

@@ -37,14 +37,29 @@ def _open(db: str | None, runs_dir: Path, create: bool = False):
     return Catalog(db or default_url(runs_dir), create=create)
 
 
+#: what the [catalog] extra installs: without one of them, catalog and compare name the extra
+CATALOG_MODULES = frozenset({"sqlalchemy", "psycopg", "psycopg2"})
+
+
 def _guarded(action) -> None:
-    """Run ``action`` with the CLI's one error boundary: messages, no tracebacks."""
+    """Run ``action`` with the CLI's one error boundary: messages, no tracebacks (exit 2 for a
+    bad option, a run that is not one or a missing [catalog] extra; 1 for a catalog or storage
+    failure)."""
     from orbitrig.catalog.errors import CatalogError, CatalogUsageError
     from orbitrig.store.errors import StorageError
     from orbitrig.store.reader import RunDirError
 
     try:
         action()
+    except ModuleNotFoundError as err:
+        if (err.name or "").split(".")[0] not in CATALOG_MODULES:
+            raise
+        typer.echo(
+            f"error: the catalog needs {err.name}, which is not installed: pip install 'orbitrig[catalog]'"
+            " (SQLAlchemy and the PostgreSQL driver)",
+            err=True,
+        )
+        raise typer.Exit(2) from None
     except (CatalogUsageError, RunDirError) as err:
         typer.echo(f"error: {err}", err=True)
         raise typer.Exit(2) from None
@@ -61,12 +76,13 @@ def add_cmd(
 
     A damaged point (or one whose pieces cannot be read) is named on standard error and the
     exit status is 1, as `orbitrig export` does; the run's other points are added."""
-    from orbitrig.catalog.rows import run_rows
     from orbitrig.cli.skipped import tell_skipped
     from orbitrig.store.reader import read_run
     from orbitrig.store.selection import select_points
 
     def action():
+        from orbitrig.catalog.rows import run_rows
+
         read = [(run, read_run(run)) for run in runs]
         catalog = _open(db, runs[0].resolve().parent, create=True)
         skipped = False
@@ -89,11 +105,12 @@ def list_cmd(
     columns: Annotated[str, typer.Option("--columns", help="Comma-separated columns to show.")] = "",
 ) -> None:
     """Show the rows matching --where as a table."""
-    from orbitrig.catalog.errors import CatalogUsageError
-    from orbitrig.catalog.render import LIST_COLUMNS, table
-    from orbitrig.catalog.schema import ROW_COLUMNS
 
     def action():
+        from orbitrig.catalog.errors import CatalogUsageError
+        from orbitrig.catalog.render import LIST_COLUMNS, table
+        from orbitrig.catalog.schema import ROW_COLUMNS
+
         shown = tuple(c.strip() for c in columns.split(",") if c.strip()) or LIST_COLUMNS
         unknown = [c for c in shown if c not in ROW_COLUMNS]
         if unknown:
@@ -112,11 +129,12 @@ def export_cmd(
     runs_dir: RunsOption = Path("runs"),
 ) -> None:
     """Every column of the rows matching --where, as CSV or JSON."""
-    from orbitrig.catalog.errors import CatalogUsageError
-    from orbitrig.catalog.render import ExportFormat, render
     from orbitrig.store.durable import write_atomic
 
     def action():
+        from orbitrig.catalog.errors import CatalogUsageError
+        from orbitrig.catalog.render import ExportFormat, render
+
         if fmt not in tuple(ExportFormat):
             raise CatalogUsageError(f"--format {fmt!r}: one of {', '.join(ExportFormat)}")
         data = render(_open(db, runs_dir).rows(where), ExportFormat(fmt))

@@ -39,13 +39,14 @@ def compare_cmd(
     runs_dir: RunsOption = Path("runs"),
 ) -> None:
     """Plot coefficients with U bars across catalog rows against one operating variable."""
-    from orbitrig.catalog.compare import Variable
-    from orbitrig.catalog.compare_plot import compare_figure, compare_title, write_figure
-    from orbitrig.catalog.errors import CatalogUsageError
-    from orbitrig.catalog.predicted import read_predicted
-    from orbitrig.catalog.rows import COEFFICIENTS
 
     def action():
+        from orbitrig.catalog.compare import Variable
+        from orbitrig.catalog.compare_plot import compare_figure, compare_title, write_figure
+        from orbitrig.catalog.errors import CatalogUsageError
+        from orbitrig.catalog.predicted import read_predicted
+        from orbitrig.catalog.rows import COEFFICIENTS
+
         if against not in tuple(Variable):
             raise CatalogUsageError(f"--against {against!r}: one of {', '.join(Variable)}")
         names = [c.strip() for c in coefficients.split(",") if c.strip()]

@@ -48,6 +48,7 @@ from orbitrig.config.home import (
     named_file,
     search_folders,
     shipped_config,
+    writable_home as writable_home,
 )
 from orbitrig.config.lab import write_lab  # noqa: F401
 from orbitrig.config.sequential import SequentialDesign, band_candidates, candidate_problems  # noqa: F401

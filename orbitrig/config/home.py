@@ -46,6 +46,26 @@ def config_home(rig_path: Path | str | None = None) -> Path:
     return shipped_config()
 
 
+def writable_home(rig_path: Path | str | None = None) -> Path:
+    """The lab folder a command writes into (calibration records, rig.toml's active record,
+    designs): ``config_home``, or a ConfigError when that is only the shipped defaults (no
+    --config, $ORBITRIG_HOME or rig.toml in the current directory), which are never written
+    to: in an installed wheel they are the package's own files, shared by every later
+    `orbitrig init`."""
+    from orbitrig.errors import ConfigError
+
+    home = config_home(rig_path)
+    if rig_path is None and home == shipped_config():
+        raise ConfigError(
+            str(home / RIG_FILE),
+            [
+                "belongs to the defaults shipped with orbitrig, which it never writes to: make a lab folder with "
+                f"`orbitrig init DIR`, then set {HOME_ENV}=DIR, run in DIR, or give --config DIR/{RIG_FILE}"
+            ],
+        )
+    return home
+
+
 def search_folders(kind: str, rig_path: Path | str | None = None) -> list[Path]:
     """The folders a NAME of ``kind`` (matrices, designs) is looked up in, in order."""
     folders = [config_home(rig_path) / kind, shipped_config() / kind]

@@ -1,0 +1,52 @@
+"""Without a lab folder (no --config, $ORBITRIG_HOME or rig.toml in the current directory) the
+commands that write configuration refuse, exit 2, before anything starts: the shipped defaults
+(in a wheel, the package's own files, copied by every later `orbitrig init`) stay as shipped."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import sys
+
+from orbitrig.config import shipped_config
+
+from support.paths import ROOT
+
+
+def _tree(folder) -> dict[str, str]:
+    return {
+        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
+
+
+def _orbitrig(cwd, *args):
+    env = {k: v for k, v in os.environ.items() if k != "ORBITRIG_HOME"}
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
+    return subprocess.run(
+        [sys.executable, "-m", "orbitrig", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=120
+    )
+
+
+def test_calibrate_and_design_save_refuse_to_write_the_shipped_defaults(tmp_path):
+    shipped = shipped_config()
+    before = _tree(shipped)
+    p = _orbitrig(tmp_path, "calibrate", "runout", "--sim", "--speedup", "40")
+    assert p.returncode == 2, p.stderr
+    assert f"{shipped / 'rig.toml'}: belongs to the defaults shipped with orbitrig" in p.stderr
+    assert "orbitrig init DIR" in p.stderr and "ORBITRIG_HOME=DIR" in p.stderr
+    p = _orbitrig(tmp_path, "design", "--model", "kc8", "--spin", "1000", "--save", "leftover")
+    assert p.returncode == 2 and "belongs to the defaults shipped with orbitrig" in p.stderr
+    p = _orbitrig(tmp_path, "calibrate", "list")  # reading them is fine
+    assert p.returncode == 0 and "initial" in p.stdout
+    assert _tree(shipped) == before
+
+
+def test_a_lab_in_the_current_directory_takes_the_design(tmp_path):
+    lab = tmp_path / "lab"
+    assert _orbitrig(tmp_path, "init", str(lab)).returncode == 0
+    p = _orbitrig(lab, "design", "--model", "kc8", "--spin", "1000", "--save", "mine")
+    assert p.returncode == 0, p.stderr
+    assert (lab / "designs" / "mine.toml").is_file()
