@@ -10,11 +10,14 @@
   resumes) makes the next Ctrl-C a first one again.
 - Standard input not a terminal: nobody can answer a pause, which then stops
   the run after [interlocks] unanswered_pause_s (RunEngine.unattended).
+
+Each request is recorded as sent by the terminal's operator, with the signal that asked
+(`command abort by ada (SIGHUP: the terminal was closed)`); the run's end message says the same.
 """
 
 from __future__ import annotations
 
-from orbitrig.cli.signals import SIGNALS, signal_name as _name
+from orbitrig.cli.signals import SIGNALS, signal_cause, signal_name as _name
 
 
 class Operator:
@@ -73,7 +76,7 @@ class Operator:
         # the request first, then the words: a terminal gone (the hang-up that sent SIGHUP)
         # must not keep the request from the engine
         if self.interrupts >= 2 or self.engine.state == STOPPING:
-            self.engine.request_abort()
+            self.engine.request_abort(why=signal_cause(sig))
             self.console.print(f"{_name(sig)} again: aborting (emergency ramp down)", style="bold red", markup=False)
         elif sig == signal.SIGINT:
             self.engine.request_pause()
@@ -132,7 +135,7 @@ class Operator:
             style="bold red",
             markup=False,
         )
-        self.engine.request_stop()
+        self.engine.request_stop(why="standard input closed: nobody can answer")
 
     def _choice(self, ans: str) -> None:
         a = ans.lower()[:1]

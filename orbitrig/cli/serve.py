@@ -134,7 +134,7 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
     import asyncio
     import contextlib
 
-    from orbitrig.cli.signals import SIGNALS
+    from orbitrig.cli.signals import SIGNALS, signal_name
 
     shutdown = asyncio.Event()
     loop = asyncio.get_running_loop()
@@ -145,13 +145,16 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
     tune_heap()  # bounded memory over months (orbitrig.run.heap)
     services = []
 
-    def on_signal() -> None:  # the first: the run stops at once with a ramp; another: it aborts
+    def on_signal(sig: int) -> None:  # the first: the run stops at once with a ramp; another: it aborts
+        name = signal_name(sig)
         if shutdown.is_set() and services:
-            services[0].abort_run("a second signal while shutting down")
+            services[0].abort_run(f"a second signal ({name}) while shutting down")
+        elif services:
+            services[0].shutdown_cause = name
         shutdown.set()
 
     for sig in SIGNALS:
-        loop.add_signal_handler(sig, on_signal)
+        loop.add_signal_handler(sig, on_signal, sig)
 
     async with contextlib.AsyncExitStack() as stack:
         sim_rig = None

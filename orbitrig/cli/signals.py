@@ -36,6 +36,17 @@ def signal_name(sig: int) -> str:
     return "Ctrl-C" if sig == signal.SIGINT else signal.Signals(sig).name
 
 
+#: what a signal tells of its cause, where it tells something
+_CAUSES = {signal.SIGHUP: "the terminal was closed"}
+
+
+def signal_cause(sig: int) -> str:
+    """The signal and what sent it, for the run's records: 'SIGHUP: the terminal was closed',
+    'Ctrl-C', 'SIGTERM'."""
+    cause = _CAUSES.get(signal.Signals(sig))
+    return f"{signal_name(sig)}: {cause}" if cause else signal_name(sig)
+
+
 def run_until_signal(make: Callable[[], Awaitable[T]]) -> T:
     """``asyncio.run(make())``, cancelled by the first of SIGNALS (raises Interrupted after the
     coroutine's own way out has run)."""

@@ -7,7 +7,8 @@ a confirmation, an interlock clearing).
 
 - pause: held at the next safe point (before a manual setting, a speed change
   or the identification); drives keep their speeds.
-- stop: finish the current orbit frequency, store it, end the run as stopped.
+- stop: finish the current orbit frequency, store it, end the run as stopped; a point left
+  incomplete is measured again from its start by `orbitrig sweep --resume` (its blocks kept in aside/).
 - abort: the engine cancels the run at once (emergency ramp), keeps what is complete.
 - confirm(step): the operator confirms the manual setting the run waits for.
 - suspension: an interlock holds the run (state paused) until it clears.
@@ -17,6 +18,10 @@ a confirmation, an interlock clearing).
 - nobody to answer (`unanswered_limit`, wall s): a pause or a confirmation
   that nobody can answer (no terminal, no MQTT) stops the run after that long;
   a wait already under way when the limit is set counts it from then.
+
+Every stop and abort keeps who asked for it (`stop_by`, `abort_by`: the sender as the
+commands log records it, e.g. 'ada', 'service (supervision lost)', 'SIGTERM'): the run's
+end message names it (orbitrig.run.ending).
 """
 
 from __future__ import annotations
@@ -27,12 +32,21 @@ from typing import Awaitable, Callable, TypeVar
 
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.events import RunFailed
+from orbitrig.run.provenance import UNNAMED
 from orbitrig.run.states import FAULTED, IDLE, RUNNING, STOPPING, WAITING, RunState, next_state
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.interlocks import SUSPEND, Trip
 from rigunits import now_iso
 
 T = TypeVar("T")
+
+#: what a stop does, said when it is asked for
+STOP_WORDS = (
+    "finishing the current orbit frequency, then both drives ramp to zero; a point left incomplete "
+    "is measured again from its start by orbitrig sweep --resume (its blocks so far kept in aside/)"
+)
+#: who asks for the stop when a wait nobody can answer times out (the commands log's sender)
+UNANSWERED = "orbitrig"
 
 
 class StopRun(Exception):
@@ -58,9 +72,16 @@ async def _first(*events: asyncio.Event, timeout: float | None = None) -> None:
 
 
 class RunControl:
-    def __init__(self, on_state: Callable[[RunState, str], None], note: Callable[[str], None]):
+    def __init__(
+        self,
+        on_state: Callable[[RunState, str], None],
+        note: Callable[[str], None],
+        own_stop: Callable[[str], None] = lambda by: None,
+    ):
+        """``own_stop(by)``: records a stop this control asks itself (a wait nobody can answer)."""
         self._on_state = on_state
         self._note = note
+        self._own_stop = own_stop
         self.state = IDLE
         self.message = ""
         self.since = now_iso()
@@ -73,6 +94,8 @@ class RunControl:
     def reset(self) -> None:
         self.pause_requested = self.stop_requested = self.abort_requested = False
         self.stop_now: str | None = None  # why the run stops at once (a signal)
+        self.stop_by: str | None = None  # who asked the first stop (as the commands log records it)
+        self.abort_by: str | None = None  # who asked the abort (set by the engine as it asks)
         self.confirmed: str | None = None
         self.wake = asyncio.Event()
         self.aborted = asyncio.Event()  # set by an abort: a ramp stop under way becomes an emergency stop
@@ -102,13 +125,15 @@ class RunControl:
         self.pause_requested = False
         self.wake.set()
 
-    def request_stop(self, message: str = "stop requested: finishing the current orbit frequency") -> None:
+    def request_stop(self, by: str = UNNAMED, message: str = "") -> None:
+        """Stop at the next safe point; `by`: who asks (the first stop's sender is kept)."""
         if self.state in (IDLE, FAULTED):
             return
         self.stop_requested = True
+        self.stop_by = self.stop_by or by
         self.wake.set()
         if self.state != STOPPING:
-            self.fire("stop", message)
+            self.fire("stop", message or f"stop requested by {by}: {STOP_WORDS}")
 
     @property
     def abort_starts(self) -> bool:
@@ -125,17 +150,18 @@ class RunControl:
         if not self.stop_now_starts:
             return False
         self.stop_now = why
-        self.request_stop(f"{why}: stopping now, both drives ramp to zero")
+        self.request_stop(why, f"{why}: stopping now, both drives ramp to zero")
         return True
 
     def request_abort(self) -> bool:
-        """True if this request starts an abort (the engine then cancels the run)."""
+        """True if this request starts an abort (the engine then cancels the run); who asks
+        is `abort_by`, set by the engine before."""
         if not self.abort_starts:
             return False
         self.abort_requested = True
         self.aborted.set()
         self.wake.set()
-        self.fire("abort", "abort requested: emergency ramp down")
+        self.fire("abort", f"abort requested by {self.abort_by or UNNAMED}: emergency ramp down")
         return True
 
     def confirm(self, step: str) -> None:
@@ -175,10 +201,10 @@ class RunControl:
         deadline = max(t0, self._unanswered_from) + limit
         await _first(self.wake, timeout=max(0.0, deadline - time.monotonic()))  # not wait_for: it can swallow a cancel
         if time.monotonic() >= deadline and not self.stop_requested:
-            self.request_stop(
-                f"nobody can answer ({self.state} for {limit:g} s, no terminal and no MQTT): "
-                "stopping the run (continue later with --resume)"
-            )
+            waited = f"{self.state} for {limit:g} s, no terminal and no MQTT"
+            by = f"{UNANSWERED} (nobody can answer: {waited})"
+            self.request_stop(by, f"nobody can answer ({waited}): stopping the run (continue later with --resume)")
+            self._own_stop(by)
 
     async def safe_point(self, allow_stop: bool = True) -> None:
         """Honour a stop (StopRun) or a pause here."""

@@ -33,6 +33,7 @@ from orbitrig.config import MatrixConfig, RigConfig, plan_warnings
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.background import Background, to_the_end
 from orbitrig.run.control import RunControl, StopRun
+from orbitrig.run.ending import aborted, record_the_end, stopped
 from orbitrig.run.events import (  # noqa: F401 - the engine's public names
     Event,
     ProgressEvent,
@@ -52,7 +53,7 @@ from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.provenance import RunCommand
 from orbitrig.run.requests import OperatorRequests
 from orbitrig.run.rig_io import RigAccess, RigIO
-from orbitrig.run.run_dir import completed_points, no_room, open_store, record_end
+from orbitrig.run.run_dir import completed_points, no_room, open_store
 from orbitrig.run.run_dir import started_order as _started_order
 from orbitrig.run.safe_stop import stop_drives, unconfirmed
 from orbitrig.run.states import (
@@ -98,7 +99,7 @@ class RunEngine(OperatorRequests):
         self.timing: dict[str, float] = {}  # wall s per activity (bench)
         self._subs: list[Subscriber] = []
         self.revolution_taps: list[Callable[[Revolution], None]] = []  # every revolution (orbitrig.service.live)
-        self._control = RunControl(self._state_changed, self._log_event)
+        self._control = RunControl(self._state_changed, self._log_event, self._own_stop)
         self._store: RunStore | None = None
         self._io: RigIO | None = None
         self._body: asyncio.Task[Outcome] | None = None
@@ -194,16 +195,16 @@ class RunEngine(OperatorRequests):
             self._io = io
             procedure = self._procedure(io)
             status = await self._watched(self._execute(plan, done, procedure), procedure.r.supervisor)
-            return status, {COMPLETED: "all points completed", STOPPED: "stopped by the operator"}[status]
+            return status, "all points completed" if status == COMPLETED else stopped(self._control)
         except asyncio.CancelledError:
             if self._failure is not None:
                 return FAILED, f"interlock: {self._failure.message}"
             if (failed := self._background.failure_message()) is not None:
                 return FAILED, failed
             if self._control.abort_requested and not _cancelling():
-                return ABORTED, "aborted by the operator"
+                return ABORTED, aborted(self._control)
             if self._control.stop_now is not None and not _cancelling():
-                return STOPPED, f"stopped at once by {self._control.stop_now}"
+                return STOPPED, stopped(self._control)
             raise
         except (OrbitrigError, OSError) as err:  # a drive's timeout is an OSError too, not a storage failure
             storage = isinstance(err, StorageError) or not isinstance(err, OrbitrigError)
@@ -314,17 +315,18 @@ class RunEngine(OperatorRequests):
         status, message = await self._cleanup(io, status, message)
         self._io = None
         if self._control.abort_requested and status in (COMPLETED, STOPPED):  # an abort while stopping
-            status, message = ABORTED, f"aborted by the operator while stopping ({message})"
+            status, message = ABORTED, f"{aborted(self._control)} while stopping ({message})"
         if status == FAILED:  # reported once the drives are safe
             self._control.fire("fail", message)
         self.timing["wall"] = time.monotonic() - self._t0
         # run.h5's consolidation and fsync, off the loop (the service answers meanwhile); each
         # failure logged as it happens, before run.log's last line
-        ended = await to_the_end(record_end, store, self.run_id, status, message, self._cleanup_failed)
-        if ended != (status, message):
+        # (a stopped or aborted run's message names the points it left incomplete: orbitrig.run.ending)
+        ended = await to_the_end(record_the_end, store, self.run_id, status, message, self._cleanup_failed)
+        if ended[0] != status:  # its status or run.h5 could not be recorded
             self._control.fire("fail", ended[1])
         elif status != FAILED:
-            self._control.fire("done", f"run {self.run_id} {status}: {message}")
+            self._control.fire("done", f"run {self.run_id} {status}: {ended[1]}")
         return ended
 
     async def _cleanup(self, io: RigIO, status: Outcome, message: str) -> tuple[Outcome, str]:

@@ -1,5 +1,6 @@
 """The operator's requests to a running engine (pause, resume, stop, abort, stop at once,
-confirm), each logged with who sent it and when (run.log and run.h5's command log).
+confirm), each logged with who sent it and when (run.log and run.h5's command log); a stop's
+and an abort's sender is kept for the run's end message (orbitrig.run.ending).
 
 An abort or a stop at once sends both drives their stop words first: until those are
 out, the engine's run.log lines and the commands (disk writes, the command journal
@@ -30,6 +31,11 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 
+def requester(by: str, why: str = "") -> str:
+    """The sender as the commands log records it: 'ada', 'ada (SIGHUP: the terminal was closed)'."""
+    return f"{by} ({why})" if why else by
+
+
 class OperatorRequests:
     """Mixin of `RunEngine`: what an operator (terminal, MQTT, dashboard) may ask of a run.
     ``by`` names the sender; without it the console user (or UNNAMED)."""
@@ -57,15 +63,22 @@ class OperatorRequests:
         self._control.request_resume()
         self._command(RunCommand.RESUME, by)
 
-    def request_stop(self, by: str | None = None) -> None:
-        self._control.request_stop()
-        self._command(RunCommand.STOP, by)
+    def request_stop(self, by: str | None = None, why: str = "") -> None:
+        """Stop at the next safe point; `by` (and `why`, e.g. the signal that asked) are kept for
+        the commands log and the run's end message (orbitrig.run.ending)."""
+        sender = requester(self._sender(by), why)
+        self._control.request_stop(sender)
+        self._command(RunCommand.STOP, sender)
 
-    def request_abort(self, by: str | None = None) -> None:
+    def request_abort(self, by: str | None = None, why: str = "") -> None:
         """Abort: both drives get the emergency stop at once (their stop words ahead of
         everything waiting for the drives' link, not after the run has unwound), then the
         run is cancelled; its cleanup repeats the stop and waits for standstill. Nothing is
-        written to disk before the stop words are out (run.log, the command's durable record)."""
+        written to disk before the stop words are out (run.log, the command's durable record).
+        The first abort's sender (`by`, `why`) is the one the run ends with."""
+        by = requester(self._sender(by), why)
+        if self._control.abort_starts:
+            self._control.abort_by = by
         t0 = time.monotonic()
         sending = self._stop_first(emergency=True) if self._control.abort_starts else None
         if self._control.request_abort() and self._body is not None and not self._body.done():
@@ -145,6 +158,13 @@ class OperatorRequests:
         `by`: who sent each request (logged with the time in run.log and run.h5)."""
         self._control.confirm(step)
         self._command(RunCommand.CONFIRM, by, step)
+
+    def _own_stop(self, by: str) -> None:
+        """A stop the run asked itself (a wait nobody can answer): in the commands log too."""
+        self._command(RunCommand.STOP, by)
+
+    def _sender(self, by: str | None) -> str:
+        return by or self.console_user or UNNAMED
 
     def _command(self, command: RunCommand, by: str | None, detail: str = "") -> None:
         if self._store is not None:

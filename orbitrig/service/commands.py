@@ -49,6 +49,8 @@ class CommandHandling:
     _handlers: dict[str, Callable[[proto.Command], None]]
     #: set once the service is shutting down: MOVES_DRIVES are refused from then on
     closing: bool = False
+    #: what asked the service to shut down, for the run's end message (the CLI: the signal)
+    shutdown_cause: str = ""
 
     @property
     def run_active(self) -> bool:
@@ -178,6 +180,10 @@ class CommandHandling:
         except (OrbitrigError, ValueError, RuntimeError) as err:
             raise CommandRefused(f"cannot {what}: {err}") from err
 
+    def shutdown_words(self) -> str:
+        """'the service shutting down' (on SIGTERM, ...): why a run stops at once at shutdown."""
+        return "the service shutting down" + (f" on {self.shutdown_cause}" if self.shutdown_cause else "")
+
     def _request(self, what: Literal["pause", "stop", "abort", "stop_now"], by: str | None = None) -> None:
         """Ask the executor to pause/stop/abort; never raises. If the executor
         refuses a stop or abort, the run task is cancelled (its cleanup ramps
@@ -193,7 +199,7 @@ class CommandHandling:
             "pause": engine.request_pause,
             "stop": engine.request_stop,
             "abort": engine.request_abort,
-            "stop_now": lambda by: engine.request_stop_now("the service shutting down", by=by),
+            "stop_now": lambda by: engine.request_stop_now(self.shutdown_words(), by=by),
         }
         try:
             requests[what](by=by)

@@ -50,7 +50,7 @@ from orbitrig.analysis.warning_groups import warning_lines
 from orbitrig.errors import ConfigError
 from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
 from orbitrig.run.heap import trim_heap
-from orbitrig.run.states import RunState
+from orbitrig.run.states import Outcome, RunState
 from orbitrig.service import live as live_feed
 from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # the service's seams
 from orbitrig.service.inbox import CommandTriage
@@ -237,10 +237,11 @@ class RigService(SupervisionHandling):
         return run_end_timeout(engine.access.time_scale.wall(engine.rig.drives.stop_timeout_s))
 
     def abort_run(self, why: str) -> None:
-        """Abort the active run (emergency ramp; during its closing ramp stop: an emergency stop)."""
+        """Abort the active run (emergency ramp; during its closing ramp stop: an emergency stop),
+        recorded as sent by ``service (why)``."""
         if self.run_active:
             log.warning("aborting run %s: %s", self._run_id, why)
-            self._request("abort")
+            self._request("abort", f"service ({why})")
 
     async def _run(self, engine: Engine, name: str, matrix: Any) -> None:
         log.info("run of matrix %r starting", name)
@@ -269,13 +270,14 @@ class RigService(SupervisionHandling):
         """The run's only idle status, with its grouped warnings (read from the stored run)."""
         await asyncio.to_thread(self._close_figures)  # the point it was drawing is left to the report
         status = outcome.status
-        log.info("run %s of matrix %r ended: %s", self._run_id, name, status)
+        log.info("run %s of matrix %r ended: %s: %s", self._run_id, name, status, outcome.message)
         summary = await asyncio.to_thread(closing_warnings, outcome.out_dir)
         trim_heap()  # what the run freed goes back to the system before the next run
         cut = f"; cancelled after {self._run_end_timeout():.0f} s: {NOT_CONFIRMED}" if self._cut_short else ""
         if self._state not in (RunState.IDLE, RunState.FAULTED):
             warnings = "".join(f"; warning: {w}" for w in summary)
-            self._set_status(RunState.IDLE, self._run_id, f"run {status}{cut}{warnings}")
+            why = "" if status == Outcome.COMPLETED else f": {outcome.message}"  # who stopped it, and why
+            self._set_status(RunState.IDLE, self._run_id, f"run {status}{why}{cut}{warnings}")
 
     def _close_figures(self) -> None:
         ahead, self._ahead = self._ahead, None

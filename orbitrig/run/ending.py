@@ -1,0 +1,64 @@
+"""Who asked a run to end, and the words its end is recorded with (run.log, run.h5's and
+run.json's status_message, the closing line of `orbitrig sweep`, the service's closing status).
+
+A stop or an abort carries its sender as the commands log records it: an operator's name
+('ada'), the service's own requests ('service (supervision lost)'), the terminal's user with
+the signal that asked ('ada (SIGHUP: the terminal was closed)'), or orbitrig itself when nobody
+can answer a wait ('orbitrig (nobody can answer: ...)'). The end message names it: 'stopped
+by ada', 'aborted by service (a second signal while shutting down)'; a stop at once keeps its
+wording ('stopped at once by SIGTERM'). A stopped or aborted run that left a point incomplete
+adds that `orbitrig sweep --resume` measures it again from its start (its blocks so far kept in aside/).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from orbitrig.run.control import RunControl
+from orbitrig.run.provenance import UNNAMED
+from orbitrig.run.run_dir import record_end
+from orbitrig.run.states import ABORTED, STOPPED, Outcome
+from orbitrig.store.writer import RunStore
+
+
+def stopped(control: RunControl) -> str:
+    """The end message of a stopped run: who asked (a stop at once: why)."""
+    if control.stop_now is not None:
+        return f"stopped at once by {control.stop_now}"
+    return f"stopped by {control.stop_by or UNNAMED}"
+
+
+def aborted(control: RunControl) -> str:
+    """The end message of an aborted run: who asked."""
+    return f"aborted by {control.abort_by or UNNAMED}"
+
+
+def incomplete_note(store: RunStore) -> str:
+    """'; point 0003 is incomplete (...)': the points begun and not completed ('' if none)."""
+    layout = store.layout
+    try:
+        left = [(i, len(layout.block_tags(i))) for i in layout.point_indexes() if not layout.commit_file(i).is_file()]
+    except OSError:
+        return ""
+    if not left:
+        return ""
+    named = ", ".join(f"{i:04d} ({n} block{'' if n == 1 else 's'} stored)" for i, n in left)
+    if len(left) == 1:
+        return (
+            f"; point {named} is incomplete: orbitrig sweep --resume measures it again from its start "
+            "(its blocks so far kept in aside/)"
+        )
+    return (
+        f"; points {named} are incomplete: orbitrig sweep --resume measures them again from their start "
+        "(their blocks so far kept in aside/)"
+    )
+
+
+def record_the_end(
+    store: RunStore, run_id: str | None, status: Outcome, message: str, failed: Callable[[str, BaseException], None]
+) -> tuple[Outcome, str]:
+    """`record_end` (in the storage thread); a stopped or aborted run's message names the
+    points it left incomplete."""
+    if status in (STOPPED, ABORTED):
+        message += incomplete_note(store)
+    return record_end(store, run_id, status, message, failed)
