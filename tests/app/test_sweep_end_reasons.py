@@ -5,63 +5,30 @@ kept in aside/), and the resume does so. The real signals sent to a real subproc
 
 import signal
 import subprocess
-import time
 from pathlib import Path
 
 import h5py
 import pytest
 
 from orbitrig import config as cfg
-from support.paths import ROOT
-from support.sweep_helpers import orbitrig_cmd
+from support.store_checks import small_matrix
+from support.sweep_process import SweepProcess, sweeps
 
 pytestmark = pytest.mark.timeout(150)
 
-MATRIX = """
-name = "reasons"
-revolutions = 20
-[operating]
-spin_rpm = [1000.0]
-recess_pressure_mpa = [0.4826]
-pressure_ratio = [0.4]
-static_eccentricity = [0.0]
-dynamic_eccentricity = [0.096]
-[orbit]
-ratios = [0.3, 0.6, 0.9]
-[[models]]
-model = "kc8"
-"""
+MATRIX = small_matrix("reasons", 20, spin_rpm=(1000.0,))
 RESUME_NOTE = "orbitrig sweep --resume measures it again from its start (its blocks so far kept in aside/)"
 
 
-class Sweep:
-    """`orbitrig sweep --sim --operator ada` in a subprocess, its standard input a pipe kept open
-    (nobody answers unless the test writes), watched through its run.log."""
+class Sweep(SweepProcess):
+    """`orbitrig sweep --sim --operator ada` of MATRIX in a subprocess (SweepProcess)."""
 
     def __init__(self, work: Path, *extra: str):
         (work / "m.toml").write_text(MATRIX)
-        self.out = work / "run"
-        self.log = self.out / "run.log"
-        self.proc = self.start("--matrix", str(work / "m.toml"), *extra)
+        super().__init__(work / "run", "--matrix", str(work / "m.toml"), *extra)
 
     def start(self, *args: str, speedup: int = 5) -> subprocess.Popen:
-        cmd = orbitrig_cmd(
-            "sweep", "--sim", "--out", str(self.out), "--operator", "ada", "--speedup", str(speedup), *args
-        )
-        return subprocess.Popen(
-            cmd, cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
-        )
-
-    def text(self) -> str:
-        return self.log.read_text() if self.log.exists() else ""
-
-    def wait_log(self, what: str, timeout: float = 60.0) -> None:
-        deadline = time.monotonic() + timeout
-        while what not in self.text():
-            if self.proc.poll() is not None:
-                raise AssertionError(f"sweep exited {self.proc.returncode} before {what!r}:\n{self.proc.stderr.read()}")
-            assert time.monotonic() < deadline, f"no {what!r} in run.log:\n{self.text()}"
-            time.sleep(0.005)
+        return super().start("--operator", "ada", "--speedup", str(speedup), *args)
 
     def answer(self, line: str) -> None:
         self.proc.stdin.write(line + "\n")
@@ -79,23 +46,11 @@ class Sweep:
             rows = [(c["command"].decode(), c["by"].decode(), c["detail"].decode()) for c in f["logs/commands"][()]]
             return str(f.attrs["status"]), str(f.attrs["status_message"]), rows
 
-    def close(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.wait()
-
 
 @pytest.fixture
 def sweep(tmp_path):
-    made = []
-
-    def start(*extra):
-        made.append(Sweep(tmp_path, *extra))
-        return made[-1]
-
-    yield start
-    for s in made:
-        s.close()
+    with sweeps(lambda *extra: Sweep(tmp_path, *extra)) as start:
+        yield start
 
 
 def test_a_closed_terminal_at_the_pause_prompt_is_recorded_as_that_signal(sweep):

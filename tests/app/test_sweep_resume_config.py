@@ -6,35 +6,20 @@ before anything is started, and the run is left as it was for a resume without -
 
 from __future__ import annotations
 
-import shutil
 import signal
 import subprocess
 import time
 
 import pytest
 
-from orbitrig.config import default_rig_path
 from orbitrig.store.reader import read_run
 
 from support.paths import ROOT
 from support.store_checks import small_matrix
+from support.rig_configs import lab_record_config, loads_record
 from support.sweep_helpers import orbitrig_cmd
 
 pytestmark = pytest.mark.timeout(240)
-
-#: a record that corrects the strain gauges (gain 0.98): another calibration than the stored one
-LOADS_RECORD = """date = "2026-12-01T00:00:00+00:00"
-operator = "test"
-rig = "double-spool rig"
-step = "loads"
-previous = "2026-11-26T214732Z-initial"
-[reference]
-id = "dead-weights"
-uncertainty_pct = 0.1
-[loads.strain]
-gain = [[0.98, 0.0], [0.0, 0.98]]
-gain_u = [[0.001, 0.0], [0.0, 0.001]]
-"""
 
 
 def _stopped_run(tmp_path):
@@ -61,19 +46,8 @@ def _config(tmp_path, record: str | None = None, estimates_s: float | None = Non
     """A copy of the rig configuration the run was started with (the tests' lab: ORBITRIG_HOME)
     and its records; `record`: a new active record's text; `estimates_s`: another store_s
     estimate (a planning time)."""
-    started = default_rig_path()
-    folder = tmp_path / "cfg"
-    shutil.copytree(started.parent / "calibration", folder / "calibration")
-    text = started.read_text()
-    if record is not None:
-        (folder / "calibration" / "2026-12-01T000000Z-loads.toml").write_text(record)
-        old = next(ln for ln in text.splitlines() if ln.startswith("calibration_record"))
-        text = text.replace(old, 'calibration_record = "2026-12-01T000000Z-loads"')
-    if estimates_s is not None:
-        old = next(ln for ln in text.splitlines() if ln.startswith("store_s"))
-        text = text.replace(old, f"store_s = {estimates_s}")
-    (folder / "rig.toml").write_text(text)
-    return folder / "rig.toml"
+    edits = {"store_s": f"store_s = {estimates_s}"} if estimates_s is not None else None
+    return lab_record_config(tmp_path / "cfg", record, edits)
 
 
 def _resume(out, *extra):
@@ -89,7 +63,7 @@ def _resume(out, *extra):
 def test_another_calibration_record_on_resume_is_refused_and_the_run_resumes_without_it(tmp_path):
     out = _stopped_run(tmp_path)
     complete = sorted(p.name for p in read_run(out).points if p.complete)
-    p = _resume(out, "--config", str(_config(tmp_path, record=LOADS_RECORD)))
+    p = _resume(out, "--config", str(_config(tmp_path, record=loads_record(0.98))))
     assert p.returncode == 2, p.stderr
     assert "differs from the rig configuration of the run being resumed" in p.stderr
     assert "calibration_record" in p.stderr and "resume without --config" in p.stderr

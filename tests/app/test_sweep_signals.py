@@ -3,87 +3,36 @@ subprocess, then the exit status, the run's status and what the drives were comm
 names the stop sent and both drives' speed and fault code once at standstill)."""
 
 import signal
-import subprocess
 import time
 
-import h5py
 import pytest
 
-from support.sweep_helpers import orbitrig_cmd
-from support.paths import ROOT
+from support.store_checks import small_matrix
+from support.sweep_process import SweepProcess, sweeps
 
 pytestmark = pytest.mark.timeout(120)
 
-MATRIX = """
-name = "signals"
-revolutions = 20
-[operating]
-spin_rpm = [1000.0, 2000.0]
-recess_pressure_mpa = [0.4826]
-pressure_ratio = [0.4]
-static_eccentricity = [0.0]
-dynamic_eccentricity = [0.096]
-[orbit]
-ratios = [0.3, 0.6, 0.9]
-[[models]]
-model = "kc8"
-"""
+MATRIX = small_matrix("signals", 20)
 STANDSTILL = "standstill after"
 SAFE = "spin ACT 0 rpm, fault 0; orbit ACT 0 rpm, fault 0"
 
 
-class Sweep:
-    """`orbitrig sweep --sim` in a subprocess, watched through its run.log."""
+class Sweep(SweepProcess):
+    """`orbitrig sweep --sim` of MATRIX in a subprocess, watched through its run.log."""
 
     def __init__(self, tmp_path, *extra: str):
         (tmp_path / "m.toml").write_text(MATRIX)
-        self.out = tmp_path / "run"
-        self.log = self.out / "run.log"
-        self.proc = subprocess.Popen(
-            orbitrig_cmd("sweep", "--sim", "--matrix", str(tmp_path / "m.toml"), "--out", str(self.out), *extra),
-            cwd=ROOT,
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
-
-    def text(self) -> str:
-        return self.log.read_text() if self.log.exists() else ""
-
-    def wait_log(self, what: str, timeout: float = 60.0) -> None:
-        deadline = time.monotonic() + timeout
-        while what not in self.text():
-            if self.proc.poll() is not None:
-                raise AssertionError(f"sweep exited {self.proc.returncode} before {what!r}:\n{self.proc.stderr.read()}")
-            assert time.monotonic() < deadline, f"no {what!r} in run.log:\n{self.text()}"
-            time.sleep(0.005)
+        super().__init__(tmp_path / "run", "--matrix", str(tmp_path / "m.toml"), *extra)
 
     def finish(self, timeout: float = 30.0) -> tuple[int, str]:
         _, err = self.proc.communicate(timeout=timeout)
         return self.proc.returncode, err
 
-    def status(self) -> str:
-        with h5py.File(self.out / "run.h5", "r") as f:
-            return str(f.attrs["status"])
-
-    def close(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.wait()
-
 
 @pytest.fixture
 def sweep(tmp_path):
-    made = []
-
-    def start(*extra):
-        made.append(Sweep(tmp_path, *extra))
-        return made[-1]
-
-    yield start
-    for s in made:
-        s.close()
+    with sweeps(lambda *extra: Sweep(tmp_path, *extra)) as start:
+        yield start
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT], ids=["SIGTERM", "SIGHUP", "SIGQUIT"])

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import shutil
 import subprocess
 
 import pytest
@@ -17,42 +16,18 @@ from orbitrig.store.reader import read_run
 from orbitrig.store.run_data import open_run
 
 from support.paths import ROOT
+from support.rig_configs import LAB_RECORD, lab_record_config, loads_record
 from support.store_checks import small_matrix
 from support.sweep_helpers import orbitrig_cmd
 
 pytestmark = pytest.mark.timeout(240)
-
-LAB_RECORD = """date = "2026-12-01T00:00:00+00:00"
-operator = "test"
-rig = "double-spool rig"
-step = "loads"
-previous = "2026-11-26T214732Z-initial"
-[reference]
-id = "dead-weights"
-uncertainty_pct = 0.1
-[loads.strain]
-gain = [[1.0, 0.0], [0.0, 1.0]]
-gain_u = [[0.001, 0.0], [0.0, 0.001]]
-"""
-
-
-def _lab(tmp_path):
-    """A copy of the tests' lab whose active record is one only this lab has."""
-    started = cfg.default_rig_path()
-    lab = tmp_path / "lab"
-    shutil.copytree(started.parent / "calibration", lab / "calibration")
-    (lab / "calibration" / "2026-12-01T000000Z-loads.toml").write_text(LAB_RECORD)
-    text = started.read_text()
-    old = next(ln for ln in text.splitlines() if ln.startswith("calibration_record"))
-    (lab / "rig.toml").write_text(text.replace(old, 'calibration_record = "2026-12-01T000000Z-loads"'))
-    return lab / "rig.toml"
 
 
 @pytest.fixture(scope="module")
 def lab_run(tmp_path_factory):
     """(run directory, channel names, units) of a one-point --sim sweep in a lab of its own record."""
     tmp_path = tmp_path_factory.mktemp("lab_run")
-    rig_path = _lab(tmp_path)
+    rig_path = lab_record_config(tmp_path / "lab", loads_record(1.0))
     rig = cfg.load_rig(rig_path)
     names = [c.name for c in rig.ordered_channels]
     units = [c.unit for c in rig.ordered_channels]
@@ -77,7 +52,7 @@ def test_a_run_with_a_lab_record_names_its_channels(lab_run):
     assert header["channels"] == names and header["channel_units"] == units
     run = read_run(out)
     assert run.channels == names and run.channel_units == units
-    assert "2026-12-01T000000Z-loads" not in run.calibration_record_text  # the record's text, not its name
+    assert LAB_RECORD not in run.calibration_record_text  # the record's text, not its name
     assert 'step = "loads"' in run.calibration_record_text
     waves = open_run(out).waveforms(0)
     assert list(waves["channel"].values) == names

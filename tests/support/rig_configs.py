@@ -39,3 +39,46 @@ def patient_lab(folder: Path) -> Path:
     write_lab(folder)
     patient_rig_config(folder)
     return folder
+
+
+#: the name tests give a lab's own calibration record (`lab_record_config`)
+LAB_RECORD = "2026-12-01T000000Z-loads"
+
+
+def loads_record(gain: float) -> str:
+    """A `loads` record of the shipped rig (its strain gauges' gain `gain` on both axes), made
+    after the shipped initial record."""
+    return f"""date = "2026-12-01T00:00:00+00:00"
+operator = "test"
+rig = "double-spool rig"
+step = "loads"
+previous = "2026-11-26T214732Z-initial"
+[reference]
+id = "dead-weights"
+uncertainty_pct = 0.1
+[loads.strain]
+gain = [[{gain}, 0.0], [0.0, {gain}]]
+gain_u = [[0.001, 0.0], [0.0, 0.001]]
+"""
+
+
+def lab_record_config(folder: Path, record: str | None = None, edits: dict[str, str] | None = None) -> Path:
+    """A copy of the tests' lab rig.toml (ORBITRIG_HOME) with its calibration records in
+    `folder`; `record`: the text of a record only this copy has (LAB_RECORD), made the active
+    one; `edits`: a line starting with each key replaced by its value. Returns the rig.toml."""
+    import shutil
+
+    from orbitrig.config import default_rig_path
+
+    started = default_rig_path()
+    shutil.copytree(started.parent / "calibration", folder / "calibration")
+    text = started.read_text()
+    changes = dict(edits or {})
+    if record is not None:
+        (folder / "calibration" / f"{LAB_RECORD}.toml").write_text(record)
+        changes["calibration_record"] = f'calibration_record = "{LAB_RECORD}"'
+    for key, line in changes.items():
+        old = next(ln for ln in text.splitlines() if ln.startswith(key))
+        text = text.replace(old, line)
+    (folder / "rig.toml").write_text(text)
+    return folder / "rig.toml"
