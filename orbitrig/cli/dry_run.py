@@ -22,10 +22,10 @@ def print_plan(plan, *, steps: bool = False) -> None:
 def print_warnings(plan) -> None:
     """The plan's warnings on standard error, each once for the matrix ('warning: FILE: line N:
     key ...': orbitrig.config.plan_warnings); the dry run and the sweep's start print them."""
-    from orbitrig.config import plan_warnings
+    from orbitrig.config import warning_lines
 
-    for line in plan_warnings(plan.matrix):
-        typer.echo(f"warning: {plan.matrix.file}: {line}", err=True)
+    for line in warning_lines(plan.matrix):
+        typer.echo(line, err=True)
 
 
 def _print(plan, steps: bool) -> None:

@@ -55,7 +55,7 @@ from orbitrig.config.sequential import SequentialDesign, band_candidates, candid
 from orbitrig.config.resume import MAY_CHANGE, resume_differences  # noqa: F401
 from orbitrig.config.matrix import MatrixAveraging, MatrixConfig, ModelSpec, Operating, Orbit, PointOrder  # noqa: F401
 from orbitrig.config.messages import _line_of, _problems
-from orbitrig.config.plan_checks import check_matrix_against_rig, plan_warnings  # noqa: F401
+from orbitrig.config.plan_checks import check_matrix_against_rig, plan_warnings, warning_lines  # noqa: F401
 from orbitrig.config.records import (  # noqa: F401
     CalibrationRecord,
     ChannelDelay,

@@ -35,6 +35,8 @@ from reduction.frequency_list import RUNOUT_KEEP_AWAY, SYNCHRONOUS_REFUSAL
 from reduction.identifiability import check_plan
 from reduction.whirl import Directions
 
+#: relative slack of the supply band's edges: a value on an edge (8 MPa from 5.6 / 0.7) is inside
+BAND_SLACK = 1e-9
 #: the freq-dep a sequential point identifies its model with (orbitrig.run.sequential_point)
 SEQUENTIAL_FREQ_DEP = "none"
 
@@ -62,6 +64,11 @@ def plan_warnings(matrix: MatrixConfig) -> list[str]:
         "out only in part and the coefficients at these ratios (C most) may be biased; `orbitrig design` "
         f"keeps {RUNOUT_KEEP_AWAY:g} away"
     ]
+
+
+def warning_lines(matrix: MatrixConfig) -> list[str]:
+    """The plan's warnings as the dry run prints and run.log records them: 'warning: FILE: ...'."""
+    return [f"warning: {matrix.file}: {line}" for line in plan_warnings(matrix)]
 
 
 def _at(text: str, loc: tuple) -> str:
@@ -118,7 +125,7 @@ def _supply_problems(matrix: MatrixConfig, rig: RigConfig) -> list[str]:
     for recess_mpa in matrix.operating.recess_pressure_mpa:
         for beta in matrix.operating.pressure_ratio:
             supply = recess_mpa * MPA / beta  # Pa
-            if not lo <= supply <= hi:
+            if not lo * (1 - BAND_SLACK) <= supply <= hi * (1 + BAND_SLACK):  # p_r / beta rounds
                 problems.append(
                     f"{at}key 'operating.recess_pressure_mpa': {recess_mpa:g} MPa at 'operating.pressure_ratio' "
                     f"{beta:g}{beta_at} needs a supply pressure of {supply / MPA:.4g} MPa (recess / pressure "

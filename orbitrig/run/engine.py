@@ -29,7 +29,7 @@ from typing import Callable
 
 from daq.revolutions import Revolution
 
-from orbitrig.config import MatrixConfig, RigConfig, plan_warnings
+from orbitrig.config import MatrixConfig, RigConfig, warning_lines
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.background import Background, to_the_end
 from orbitrig.run.control import RunControl, StopRun
@@ -176,8 +176,8 @@ class RunEngine(OperatorRequests):
         )
         for line in store.set_aside:  # incomplete or damaged points a resume put aside
             self._log_event(line)
-        for line in plan_warnings(plan.matrix):  # as the dry run printed them
-            self._log_event(f"warning: {plan.matrix.file}: {line}")
+        for line in warning_lines(plan.matrix):  # as the dry run printed them
+            self._log_event(line)
         try:
             store.check_free_space(plan_bytes(self.rig, [s for s in plan.steps if s.point is None or s.point in kept]))
         except StorageFullError as err:

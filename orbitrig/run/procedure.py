@@ -16,10 +16,10 @@ import time
 from dataclasses import dataclass, field
 from typing import Awaitable, Callable
 
-from daq.averager import AveragingRule
 from daq.errors import DaqError
 from drives.errors import DriveError
 from orbitrig.config import RPM, RigConfig
+from orbitrig.run.averaging import averaging_rule
 from orbitrig.run.background import Background
 from orbitrig.run.control import RunControl, StopRun, Suspended
 from orbitrig.run.corrections import Corrections
@@ -49,7 +49,7 @@ from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.sequential_point import MAX_BLOCK_INDEX, choice_line, choose, chosen_steps
 from orbitrig.run.states import ConfirmMode
 from orbitrig.run.supervision import InterlockSupervisor
-from orbitrig.run.verification import geometry_problems, pressure_problems
+from orbitrig.run.verification import geometry_problems, pressure_problems, radius_missed
 from orbitrig.store.records import BlockChoice, BlockRecord, PointResults
 from orbitrig.store.writer import RunStore
 from reduction.errors import ReductionError
@@ -57,26 +57,6 @@ from reduction.rig_time import block_time
 from reduction.sequential import Choice
 
 log = logging.getLogger(__name__)
-
-
-def averaging_rule(step: Acquire, spin: float, speed_tolerance: float = 0.005) -> AveragingRule:
-    """The daq rule of an Acquire step at spin (rad/s): its block's adaptive target (percent ->
-    a fraction, between min and max revolutions), else exactly its `revolutions`; with
-    spin_turns = omega/|Omega|, so the check and the block's uncertainty leave the spin tones'
-    leakage out; revolutions turned more than ``speed_tolerance`` (fraction) off the block's
-    |Omega| are left out (converted before the orbit drive got there)."""
-    a, orbit = step.adaptive, abs(step.block.orbit)
-    turns = spin / orbit
-    if a is None:
-        return AveragingRule(step.revolutions, step.revolutions, None, turns, orbit, speed_tolerance)
-    return AveragingRule.adaptive(
-        a.target_pct / 100.0,
-        a.min_revolutions,
-        a.max_revolutions,
-        spin_turns=turns,
-        orbit_speed=orbit,
-        speed_tolerance=speed_tolerance,
-    )
 
 
 @dataclass(frozen=True)
@@ -213,7 +193,9 @@ class PointProcedure:
         msg = f"point {p.index:04d}: manual settings not met: " + "; ".join(problems)
         if self.r.confirm_mode == ConfirmMode.AUTO:
             raise RunFailed(msg)
-        await self.r.control.ask(f"verify:{p.index:04d}", msg + "; correct and confirm")
+        await self.r.control.ask(
+            f"verify:{p.index:04d}", f"{msg}; correct and confirm; {self.r.io.drives.state.motion()}"
+        )
 
     async def verify_pressures(self, step: VerifyPressures, ps: PointState) -> None:
         r, t0 = self.r, time.monotonic()
@@ -234,8 +216,15 @@ class PointProcedure:
             await asyncio.sleep(0.1)
 
     async def verify_geometry(self, step: VerifyGeometry, ps: PointState) -> None:
+        """A missed orbit radius is corrected at standstill (the outer spindle's offset, by hand),
+        then the block's speeds are set again; the rest with the drives turning."""
         while problems := geometry_problems(ps.last, ps.point, self.r.rig):
+            hands_on_spindle = radius_missed(ps.last, ps.point, self.r.rig)
+            if hands_on_spindle:
+                await self.stop_drives(StopDrives(ps.point.index, 0.0), ps)
             await self._not_met(ps.point, problems)
+            if hands_on_spindle:
+                await self._set_speeds(ps.point.spin, step.acquire.block.orbit)
             await self._measure(step.acquire, ps, settle_first=True)
         self.r.store.log(f"point {ps.point.index:04d}: orbit radius and static eccentricity verified")
 

@@ -34,16 +34,26 @@ def pressure_problems(aux: AuxState, p: OperatingPoint, v: Verify) -> list[str]:
     return problems
 
 
+def measured_radius(rec: BlockRecord, rig: RigConfig) -> float:
+    """A block's orbit radius, m: the mean of the x and y amplitudes of the probe plane."""
+    x, y = probe_plane(rec.phasors, rig.channel_index)
+    return float((abs(x) + abs(y)) / 2)
+
+
+def radius_missed(rec: BlockRecord, p: OperatingPoint, rig: RigConfig) -> bool:
+    """Whether the block's orbit radius is outside the point's band (verify.orbit_radius_tol_pct)."""
+    return abs(measured_radius(rec, rig) - p.orbit_radius) > rig.verify.orbit_radius_tol_pct / 100 * p.orbit_radius
+
+
 def geometry_problems(rec: BlockRecord, p: OperatingPoint, rig: RigConfig) -> list[str]:
     """Orbit radius (m, mean of the x and y amplitudes) and static eccentricity (static
     displacement / clearance) of a block against the point's settings."""
-    ch, v, c = rig.channel_index, rig.verify, rig.bearing.clearance
-    x, y = probe_plane(rec.phasors, ch)
-    x0, y0 = probe_plane(rec.dc, ch)
-    radius = (abs(x) + abs(y)) / 2
+    v, c = rig.verify, rig.bearing.clearance
+    x0, y0 = probe_plane(rec.dc, rig.channel_index)
+    radius = measured_radius(rec, rig)
     ecc = math.hypot(x0, y0) / c
     problems = []
-    if abs(radius - p.orbit_radius) > v.orbit_radius_tol_pct / 100 * p.orbit_radius:
+    if radius_missed(rec, p, rig):
         problems.append(
             f"orbit radius {radius * 1e6:.2f} um, want {p.orbit_radius * 1e6:.2f} um +/- {v.orbit_radius_tol_pct:g} %"
         )

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from orbitrig.store.fit_analysis import c_eff_zero
 from orbitrig.store.fit_record import BUDGET_PARTS, FitRecord
 from orbitrig.store.layout import SETTINGS_UNITS
 from orbitrig.store.orbit_table import orbit_table_columns
@@ -139,9 +140,9 @@ def derived_properties(fit: FitRecord) -> dict[str, tuple[Any, str]]:
         return {}
     out: dict[str, tuple[Any, str]] = {"covariance": (str(d.get("covariance", "")), "")}
     for k in ("xx", "yy"):
-        zero = d.get(f"c_eff_zero_{k}_hz")  # stored in Hz: (Omega_0 / 2 pi, std)
+        zero = c_eff_zero(d, k)
         if zero is not None:
-            out[f"c_eff_zero_{k}"] = (2 * math.pi * np.asarray(_number(list(zero))), "rad/s")
+            out[f"c_eff_zero_{k}"] = (zero, "rad/s")
     return out
 
 

@@ -40,6 +40,13 @@ PER_COEFFICIENT = "SI per coefficient (see dataset units)"
 SOURCE_UNITS = "per source: 1 (gain, sensitivity), rad (phase), s (delay)"
 
 
+def c_eff_zero(derived: dict[str, Any], k: str) -> np.ndarray | None:
+    """(Omega_0, its std) in rad/s where C_eff,k (k: xx, yy) changes sign, from the derived
+    quantities as identified (stored in Hz); None where it does not."""
+    zero = derived.get(f"c_eff_zero_{k}_hz")
+    return None if zero is None else 2 * math.pi * np.array([_num(v) for v in zero])
+
+
 def _num(v: Any) -> float:
     return math.nan if v is None else float(v)
 
@@ -179,12 +186,12 @@ def _derived(g: h5py.Group, d: dict[str, Any], names: list[str]) -> None:
         )
         if d.get(f"c_eff_{k}_std") is not None:
             put(g, f"c_eff_{k}_std", np.asarray(d[f"c_eff_{k}_std"], dtype=np.float64), "N s/m")
-        zero = d.get(f"c_eff_zero_{k}_hz")
+        zero = c_eff_zero(d, k)
         if zero is not None:
             put(
                 g,
                 f"c_eff_zero_{k}",
-                2 * math.pi * np.array([_num(v) for v in zero]),
+                zero,
                 "rad/s",
                 columns=strings(("omega_0", "std")),
                 meaning="zero crossing of C_eff",

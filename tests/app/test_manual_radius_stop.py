@@ -6,6 +6,7 @@ eccentricity while the apparatus runs). The operator's prompt says which."""
 from __future__ import annotations
 
 import math
+import re
 
 import pytest
 
@@ -70,4 +71,56 @@ async def test_a_new_static_eccentricity_is_asked_for_with_the_drives_turning(tm
         eng.confirm("manual:0001")
         outcome = await run
     assert outcome.status == "completed"
-    assert "ramped to zero for the orbit radius" not in (tmp_path / "run" / "run.log").read_text()
+    assert (
+        "for the orbit radius, set by hand: both drives ramped to zero"
+        not in (tmp_path / "run" / "run.log").read_text()
+    )
+
+
+async def _verify_prompt(eng, sim, wrong: dict[str, float]):
+    """Run to the point's verification prompt with the operator's hands setting `wrong` (factors
+    of the asked values) at the manual-setting step; returns the hands' right setting."""
+    hands = eng.access.hands
+    real, asked = hands.set_manual, []
+
+    async def mistaken(**settings):  # the operator's slip: what the real part cannot produce
+        asked.append(settings)
+        return await real(**{k: v * wrong.get(k, 1.0) for k, v in settings.items()})
+
+    hands.set_manual = mistaken
+    await wait_for(lambda: eng.waiting_step == "manual:0000", what="the point's settings")
+    eng.confirm("manual:0000")
+    await wait_for(lambda: eng.waiting_step == "verify:0000", what="the verification prompt", timeout=90)
+    return lambda: real(**asked[0])
+
+
+async def test_a_missed_orbit_radius_is_corrected_at_standstill(tmp_path):
+    async with running(tmp_path, small_matrix(revolutions=6), confirm_mode="remote") as (sim, eng, rec, run):
+        correct = await _verify_prompt(eng, sim, {"orbit_radius": 1.3})
+        assert _stopped(sim)  # hands on the orbit spindle's offset: nothing turns
+        measured = float(re.search(r"orbit radius ([\d.]+) um, want 5.76 um", eng.message).group(1))
+        assert 7.0 < measured < 8.0 and "both drives at standstill" in eng.message  # 1.3 x 5.76 um set
+        await correct()
+        eng.confirm("verify:0000")
+        outcome = await run
+    assert outcome.status == "completed"
+    log = (tmp_path / "run" / "run.log").read_text()
+    assert "point 0000: for the orbit radius, set by hand: both drives ramped to zero" in log
+    assert "point 0000: orbit radius and static eccentricity verified" in log
+
+
+async def test_a_missed_static_eccentricity_is_corrected_with_the_drives_turning(tmp_path):
+    matrix = small_matrix(revolutions=6, static_eccentricity=[0.15])
+    async with running(tmp_path, matrix, confirm_mode="remote") as (sim, eng, rec, run):
+        correct = await _verify_prompt(eng, sim, {"static_eccentricity": 2.0})
+        assert not _stopped(sim)
+        measured = float(re.search(r"static eccentricity ([\d.]+), want 0.15", eng.message).group(1))
+        assert 0.25 < measured < 0.35 and "the drives are turning: spin 1000 rpm" in eng.message  # 2 x 0.15 set
+        await correct()
+        eng.confirm("verify:0000")
+        outcome = await run
+    assert outcome.status == "completed"
+    assert (
+        "for the orbit radius, set by hand: both drives ramped to zero"
+        not in (tmp_path / "run" / "run.log").read_text()
+    )

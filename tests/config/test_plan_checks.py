@@ -83,6 +83,8 @@ def test_a_point_whose_supply_pressure_is_outside_the_interlock_band_is_refused(
         assert "interlocks band supply_pressure_min_mpa..supply_pressure_max_mpa = 0.2..8 MPa" in p
     low = problems(write(tmp_path, "low.toml", recess="[0.05]"))  # 0.05 / 0.4 = 0.125 MPa below 0.2
     assert len(low) == 1 and "needs a supply pressure of 0.125 MPa" in low[0]
+    assert 5.6e6 / 0.7 > 8e6  # the band's edge in floating point (Pa): inside, as the interlock takes it
+    assert problems(write(tmp_path, "edge.toml", recess="[5.6]", beta="[0.7]")) == []
     rig = cfg.load_rig()
     unwatched = rig.model_copy(
         update={"interlocks": rig.interlocks.model_copy(update={"check_supply_pressure": False})}

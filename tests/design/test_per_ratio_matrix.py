@@ -12,7 +12,7 @@ from orbitrig import config as cfg
 from orbitrig.errors import ConfigError
 from orbitrig.run.plan import make_plan
 from orbitrig.run.steps import Acquire
-from orbitrig.run.procedure import averaging_rule
+from orbitrig.run.averaging import averaging_rule
 from orbitrig.store.estimate import block_bytes, point_bytes
 
 from test_designed_matrix import with_orbit

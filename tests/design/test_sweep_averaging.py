@@ -15,7 +15,7 @@ from orbitrig.cli.simulated_rig import simulated_access
 from orbitrig.run.engine import RunEngine
 from orbitrig.run.plan import make_plan
 from orbitrig.run.steps import Acquire
-from orbitrig.run.procedure import averaging_rule
+from orbitrig.run.averaging import averaging_rule
 from reduction.noise import revolution_residuals
 from sim.rig import SimRig
 from support.paths import ROOT
