@@ -33,12 +33,14 @@ def manual_change_s(rig: RigConfig, before: OperatingPoint | None, after: Operat
 
 
 def _costs(rig: RigConfig, points: Sequence[OperatingPoint]) -> np.ndarray:
-    """(n, n) seconds from point i to point j: manual changes + the spin ramp."""
+    """(n, n) seconds from point i to point j: manual changes + the spin ramp (down to standstill
+    and up again where the orbit radius changes: orbitrig.run.plan)."""
     per = np.array(rig.changeover.of() if rig.changeover is not None else (rig.estimates.manual_setting_s,) * 4)
     manual = np.array([p.manual for p in points], dtype=float).reshape(len(points), 4)
     spin = np.array([p.spin for p in points], dtype=float)
     changed = manual[:, None, :] != manual[None, :, :]
-    costs: np.ndarray = changed.astype(float) @ per + np.abs(spin[:, None] - spin[None, :]) / rig.ramp_rate
+    ramp = np.where(changed[:, :, 0], spin[:, None] + spin[None, :], np.abs(spin[:, None] - spin[None, :]))
+    costs: np.ndarray = changed.astype(float) @ per + ramp / rig.ramp_rate
     return costs
 
 

@@ -68,6 +68,19 @@ def test_the_slow_variable_changes_once_and_each_change_costs_its_own_time():
     assert plan.points[1].label == written.points[2].label
 
 
+def test_a_change_of_orbit_radius_costs_the_ramp_to_standstill_and_back():
+    """The drives stop for the orbit radius (orbitrig.run.plan): between two points of the same
+    spin that costs spin / rate down and up again, where another manual change costs no ramp."""
+    text = SMALL.format(order="").replace("[0.0, 0.3]", "[0.0]").replace("[0.096]", "[0.04, 0.096]")
+    rig = rig_with()
+    points = make_plan(cfg.matrix_from_text(text, "radius.toml"), rig, range(4)).points
+    radius = next(k for k in range(1, 4) if points[k].orbit_radius != points[0].orbit_radius)
+    recess = next(k for k in range(1, 4) if points[k].recess_pressure != points[0].recess_pressure)
+    per, ramp = rig.changeover.of(), 2 * points[0].spin / rig.ramp_rate
+    assert changeover_s(rig, points, [0, radius]) == pytest.approx(120 + points[0].spin / rig.ramp_rate + per[0] + ramp)
+    assert changeover_s(rig, points, [0, recess]) == pytest.approx(120 + points[0].spin / rig.ramp_rate + per[2])
+
+
 def test_an_order_that_cannot_be_beaten_stays_as_written():
     """One manual variable and one spin: every order changes it as often; the written one is kept."""
     text = SMALL.format(order="").replace("[0.4826, 1.0342]", "[0.4826]").replace("[0.0, 0.3]", "[0.0, 0.15, 0.3]")
