@@ -40,6 +40,7 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     assert "5.76" in rows["orbit_radius"]  # demo: dynamic eccentricity 0.096 x clearance 60 um
     assert "4.90 … 6.62" in rows["orbit_radius"]  # the verification's band: +/- 15 %
     assert "0.4826" in rows["recess_pressure"]
+    assert page.text("manual-motion") == "Both drives at standstill"  # as the service's prompt says it
     assert "confirm: accepted" in page.command("btn-confirm", "confirm:")
     page.wait_state("running")
     assert not page.el("manual").is_displayed()
@@ -69,6 +70,12 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     assert "stop: accepted" in page.command("btn-stop", "stop:")
     page.wait_state("idle", 60)
     assert "stopped" in page.text("message")
+
+
+def _frequency(page: Page) -> int:
+    """The progress's orbit frequency ordinal (0 before the first)."""
+    text = page.text("frequency").split("/")[0].strip()
+    return int(text) if text.isdigit() else 0
 
 
 def _layout(page: Page) -> dict[str, tuple[int, int]]:
@@ -106,16 +113,9 @@ def test_viewer_sees_everything_and_commands_nothing(dashboard, service, browser
     operator.command("btn-confirm", "confirm: accepted")
     viewer.wait_state("running", 15)
     viewer.wait(lambda: viewer.canvas_updates("plot-orbit") >= 3, 30, "the viewer's orbit plot")
-    # the demo point completes: both load measuring systems x both models, one row per coefficient
-    # with its value, U (k = 2) and SI unit
-    fits = "#results tr.fit-first"
-    viewer.wait(lambda: len(viewer.d.find_elements("css selector", fits)) == 4, 90, "4 fits in the results")
-    viewer.wait_state("idle", 30)
-    operator.wait(lambda: len(operator.d.find_elements("css selector", fits)) == 4, 10, "results")
-    text = operator.text("results")
-    assert "piezo" in text and "strain" in text
-    assert re.search(r"\bKxx\s-?[\d.]+(e[+-]\d+)?\s[\d.]+(e[+-]\d+)?\sN/m\b", text), text
-    assert re.search(r"\bCxx\s-?[\d.]+(e[+-]\d+)?\s[\d.]+(e[+-]\d+)?\sN s/m\b", text), text
+    # the page during the run (the README's picture): live values, drives, sensors, waveforms
+    operator.wait(lambda: operator.canvas_updates("plot-orbit") >= 3, 30, "the operator's orbit plot")
+    operator.wait(lambda: _frequency(operator) >= 6 or operator.state() != "running", 30, "half the run's trends")
     shot = Path(os.environ.get(SCREENSHOT_ENV) or tmp_path / "dashboard.png")
     if not shot.is_absolute():
         shot = REPO / shot
@@ -126,6 +126,16 @@ def test_viewer_sees_everything_and_commands_nothing(dashboard, service, browser
     time.sleep(0.2)
     operator.screenshot(shot)
     assert shot.stat().st_size > 20_000
+    # the demo point completes: both load measuring systems x both models, one row per coefficient
+    # with its value, U (k = 2) and SI unit
+    fits = "#results tr.fit-first"
+    viewer.wait(lambda: len(viewer.d.find_elements("css selector", fits)) == 4, 90, "4 fits in the results")
+    viewer.wait_state("idle", 30)
+    operator.wait(lambda: len(operator.d.find_elements("css selector", fits)) == 4, 10, "results")
+    text = operator.text("results")
+    assert "piezo" in text and "strain" in text
+    assert re.search(r"\bKxx\s-?[\d.]+(e[+-]\d+)?\s[\d.]+(e[+-]\d+)?\sN/m\b", text), text
+    assert re.search(r"\bCxx\s-?[\d.]+(e[+-]\d+)?\s[\d.]+(e[+-]\d+)?\sN s/m\b", text), text
     card_shot(operator, "trends-card", "trends", tmp_path)  # the demo run's trends
 
 

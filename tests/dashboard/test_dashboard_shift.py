@@ -224,7 +224,9 @@ def waiting_status(measured_ratio: float) -> dict:
         "run_id": "r-manual",
         "since": "2026-01-05T13:00:00.000Z",
         "step": "manual:0000",
-        "message": "waiting for the manual settings of point 0",
+        "message": "set by hand and confirm: manual settings (set by hand): orbit radius 5.76 um, static eccentricity"
+        " ratio 0 (e/C), recess pressure 0.4826 MPa, pressure ratio 0.4; both drives at standstill (confirm step"
+        " 'manual:0000')",
         "settings": {
             "orbit_radius": setting(5.76e-6, "m", 5.70e-6, 0.864e-6),
             "static_eccentricity": setting(0.0, "-", 0.01, 0.05),
@@ -257,6 +259,7 @@ def test_manual_panel_highlights_a_measured_value_outside_its_band(broker, dashb
     assert rows["pressure_ratio"] == ("0.250 (outside the band)", "outside")  # asked 0.400 +/- 0.05
     assert rows["recess_pressure"] == ("0.4800", "") and rows["orbit_radius"] == ("5.70", "")
     assert "0.350 … 0.450" in page.rows("manual-table", "setting")["pressure_ratio"]
+    assert page.text("manual-motion") == "Both drives at standstill"  # the prompt's word on the drives
     card_shot(page, "manual-card", "manual", tmp_path)
 
     # the live payload carries the settings as measured now: the panel follows it

@@ -10,6 +10,16 @@ function fmt(v, digits) { return (v === null || v === undefined || !isFinite(v))
 function show(el, on) { el.hidden = !on; }
 function clear(el) { while (el.firstChild) el.removeChild(el.firstChild); }
 function cell(tr, text, cls) { const td = document.createElement("td"); td.textContent = text; if (cls) td.className = cls; tr.appendChild(td); return td; }
+// a cell's text in pieces that each stay on one line (a narrow card wraps it between them only),
+// the last in smaller type when `note`
+function pieces(td, parts, note) {
+  clear(td);
+  parts.forEach((text, i) => {
+    if (i) td.appendChild(document.createTextNode(" "));
+    const span = document.createElement("span"); span.textContent = text;
+    span.className = note && i === parts.length - 1 ? "piece note" : "piece"; td.appendChild(span);
+  });
+}
 
 // `deadline` (ms): the request is given up after it (the promise rejects with an AbortError)
 async function api(path, body, deadline) {
@@ -71,7 +81,7 @@ function clearRigView() {
   ["results", "manual-table"].forEach(id => clear($(id)));
   alarmList.showAlarms([]);
   clearRunView();
-  ["alarm-result", "run-id", "message", "manual-step"].forEach(id => { $(id).textContent = ""; });
+  ["alarm-result", "run-id", "message", "manual-step", "manual-motion"].forEach(id => { $(id).textContent = ""; });
   $("state").textContent = "—"; $("state").className = "state";
   $("matrix").value = "demo";
   Object.assign(st, {status: null, manual: null});
@@ -199,16 +209,30 @@ function showManual(s) {
   st.manual = waiting ? s.settings || {} : null;
   $("manual-step").textContent = waiting ? s.step : "";
   if (!waiting) return;
+  showMotion(s.message || "");
   const body = $("manual-table"); clear(body);
   Object.entries(st.manual).forEach(([name, v]) => {
     const [text, unit, k, d] = SETTING_LABEL[name] || [name, v.unit, 1, 4];
     const tr = document.createElement("tr"); tr.dataset.setting = name;
     cell(tr, text + (unit ? " (" + unit + ")" : ""));
     cell(tr, v.value === null ? "—" : fmt(v.value * k, d));
-    cell(tr, ""); cell(tr, v.band ? fmt(v.band[0] * k, d) + " … " + fmt(v.band[1] * k, d) : "");
+    cell(tr, ""); pieces(cell(tr, ""), v.band ? [fmt(v.band[0] * k, d) + " …", fmt(v.band[1] * k, d)] : []);
     body.appendChild(tr);
   });
   showMeasured(Object.fromEntries(Object.entries(st.manual).map(([n, v]) => [n, v.measured])));
+}
+
+// whether the drives turn, as the service's waiting message says it ("...; the drives are turning:
+// spin 1000 rpm, orbit 500 rpm (confirm step 'manual:0001')"): shown in the panel itself, for the
+// person about to put hands on the rig; nothing shown when the message does not say
+const MOTION = /^(both drives at standstill|the drives are turning\b.*|the drives' speeds not read yet)$/;
+
+function showMotion(message) {
+  const said = message.replace(/\s*\(confirm step '[^']*'\)\s*$/, "").split("; ").pop().trim();
+  const motion = MOTION.test(said) ? said : "";
+  const el = $("manual-motion");
+  el.textContent = motion.charAt(0).toUpperCase() + motion.slice(1);
+  el.className = "motion" + (motion.startsWith("the drives are turning") ? " turning" : motion.startsWith("the drives'") ? " unknown" : "");
 }
 
 function showMeasured(measured) {
@@ -218,7 +242,9 @@ function showMeasured(measured) {
     if (m === undefined) return;
     const [, , k, d] = SETTING_LABEL[name] || [name, "", 1, 4];
     const out = m !== null && v && v.band && (m < v.band[0] || m > v.band[1]);
-    td.textContent = m === null ? "not measured yet" : fmt(m * k, d) + (out ? " (outside the band)" : "");
+    if (m === null) pieces(td, ["not measured yet"], true);
+    else if (out) pieces(td, [fmt(m * k, d), "(outside the band)"], true);
+    else pieces(td, [fmt(m * k, d)]);
     td.className = out ? "out" : "";
     tr.classList.toggle("outside", !!out);
   });

@@ -1,0 +1,264 @@
+"""The page's layout in a real chromium on a real authenticated mosquitto, at a laptop's
+1280 x 800 and in one column at 800 px: the status message is shown whole (the waiting prompt
+says whether the drives turn, an end says why); the manual setting panel fits its card and says
+whether the drives turn; nothing on the page moves when the panel appears or goes or the first
+alarm comes; a page load asks for no missing icon. The tests publish what the rig service would
+(as orbitrig-service), the messages in the service's own words."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import pytest
+from support.dash_helpers import RIG, Dashboard, Page
+from support.mqtt_helpers import ACCOUNTS
+
+SIZES = [(1280, 800), (800, 800)]
+
+#: the service's waiting prompt with the drives turning (orbitrig/run/procedure.py: set_manual)
+TURNING = (
+    "set by hand and confirm: manual settings (set by hand): orbit radius 5.76 um, static eccentricity "
+    "ratio 0.15 (e/C), recess pressure 0.4826 MPa, pressure ratio 0.4; the drives are turning: spin "
+    "1000 rpm, orbit 500 rpm (confirm step 'manual:0001')"
+)
+ENDS = (
+    "run aborted: aborted by operator; point 0000 (2 blocks stored) is incomplete: orbitrig sweep "
+    "--resume measures it again from its start (its blocks so far kept in aside/)",
+    "drives not confirmed stopped: DriveLinkError: spin drive (id 1), register CW (0): cannot connect "
+    "to tcp://127.0.0.1:40489 (the run was ending failed: interlock: Modbus link to the drives lost)",
+)
+
+
+@pytest.fixture(scope="module")
+def dashboard(broker, tmp_path_factory):
+    """The dashboard alone on the broker (no rig service)."""
+    dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", "1.5")
+    yield dash
+    assert dash.stop() == 0, dash.text()[-3000:]
+
+
+@pytest.fixture
+def own_dashboard(broker, tmp_path):
+    """A dashboard of the test's own: its alarm list starts empty (alarms stay latched per dashboard)."""
+    dash = Dashboard(broker.url, RIG, tmp_path, "--reply-timeout", "1.5")
+    yield dash
+    assert dash.stop() == 0, dash.text()[-3000:]
+
+
+def publish(broker, topic: str, payload: dict, qos: int = 1) -> None:
+    done = broker.pub(f"orbitrig/{RIG}/{topic}", json.dumps(payload), user="orbitrig-service", qos=qos)
+    assert done.returncode == 0, done.stderr
+
+
+def status(broker, state: str, message: str, run_id: str | None = "r-layout") -> None:
+    publish(
+        broker, "status", {"state": state, "run_id": run_id, "since": "2026-01-05T13:00:00.000Z", "message": message}
+    )
+
+
+def waiting(message: str = TURNING, outside: bool = True) -> dict:
+    """A waiting status as the service publishes it; `outside`: every measured value outside its band."""
+
+    def setting(value, unit, half, measured):
+        return {"value": value, "unit": unit, "measured": measured, "band": [value - half, value + half]}
+
+    far = 2.0 if outside else 1.0
+    return {
+        "state": "waiting",
+        "run_id": "r-layout",
+        "since": "2026-01-05T13:00:00.000Z",
+        "step": "manual:0001",
+        "message": message,
+        "settings": {
+            "orbit_radius": setting(5.76e-6, "m", 0.864e-6, 5.76e-6 * far),
+            "static_eccentricity": setting(0.15, "-", 0.05, 0.15 * far),
+            "recess_pressure": setting(0.4826e6, "Pa", 0.04826e6, 0.4826e6 * far),
+            "pressure_ratio": setting(0.4, "-", 0.05, 0.4 * far),
+        },
+    }
+
+
+def live(run_id: str = "r-layout") -> dict:
+    """Live values as long as they come (the drives' table, the sensors' bands, the run's numbers)."""
+    drive = {"reference_rpm": 1000.0, "actual_rpm": 1000.0, "torque_pct": 12.5, "state": "ready to switch on"}
+    aux = {f"p_recess_{k}": 0.4830e6 for k in range(1, 5)}
+    aux.update(p_supply=1.206e6, t_supply=313.15, t_recess=314.25, t_groove=313.81, flow=2.1e-5, beta=0.4)
+    return {
+        "run_id": run_id,
+        "point": 12,
+        "frequency": 10,
+        "direction": "backward",
+        "revolutions": 12345,
+        "orbit_hz": 20.0,
+        "spin_rpm": 1000.0,
+        "drives": {"link_ok": True, "spin": drive, "orbit": {**drive, "actual_rpm": 500.0}},
+        "aux": aux,
+        "bands": {"p_supply": [0.2e6, 8.0e6], "p_recess": [0.4343e6, 0.5309e6], "beta": [0.35, 0.45]},
+        "waveforms": {},
+    }
+
+
+def open_page(browsers, dashboard, size: tuple[int, int]) -> Page:
+    d = browsers()
+    d.set_window_size(*size)
+    page = Page(d, dashboard.url, dashboard)
+    page.sign_in("operator", ACCOUNTS["operator"])
+    page.signed_in()
+    page.wait_text("link", "online")
+    assert d.execute_script("return innerWidth") == size[0]
+    return page
+
+
+def message_box(page: Page) -> dict:
+    """The message element's box, its text's box and the top of what follows it (px)."""
+    return page.d.execute_script(
+        "const m = document.getElementById('message'), r = m.getBoundingClientRect(), range = document.createRange();"
+        "range.selectNodeContents(m); const t = range.getBoundingClientRect();"
+        "return {scroll: m.scrollHeight, client: m.clientHeight, bottom: r.bottom, right: r.right,"
+        " text_bottom: t.bottom, text_right: t.right, next_top: m.nextElementSibling.getBoundingClientRect().top,"
+        " text: m.textContent};"
+    )
+
+
+def assert_whole(page: Page, message: str) -> None:
+    box = message_box(page)
+    assert box["text"] == message
+    assert box["scroll"] <= box["client"], f"the message scrolls inside its box: {box}"
+    assert box["text_bottom"] <= box["bottom"] + 0.5 and box["text_right"] <= box["right"] + 0.5, box
+    assert box["bottom"] <= box["next_top"], f"the message runs over the progress bar: {box}"
+
+
+#: every element drawn outside its card: "card: element left..right (card left..right)"
+OUTSIDE_CARDS = r"""
+const out = [];
+document.querySelectorAll('main > section').forEach(card => {
+  const c = card.getBoundingClientRect(), name = card.id || card.querySelector('h2').textContent.trim();
+  card.querySelectorAll('*').forEach(e => {
+    if (!e.getClientRects().length) return;
+    const r = e.getBoundingClientRect();
+    if (r.width && (r.right > c.right + 0.5 || r.left < c.left - 0.5 || r.bottom > c.bottom + 0.5))
+      out.push(name + ': ' + e.tagName.toLowerCase() + (e.id ? '#' + e.id : '') + ' ' + r.left.toFixed(1) + '..'
+        + r.right.toFixed(1) + ' (card ' + c.left.toFixed(1) + '..' + c.right.toFixed(1) + ')');
+  });
+});
+return out;"""
+
+
+def layout(page: Page) -> dict[str, list[float]]:
+    """(left, top) of every card, in page pixels."""
+    return page.d.execute_script(
+        "const out = {}; document.querySelectorAll('main > section').forEach((s, i) => {"
+        " const r = s.getBoundingClientRect(); out[s.id || 'card ' + i] = [r.left, r.top + scrollY]; }); return out;"
+    )
+
+
+def moved(before: dict, after: dict) -> dict:
+    return {
+        k: (before[k], after[k])
+        for k in before
+        if abs(before[k][0] - after[k][0]) + abs(before[k][1] - after[k][1]) > 0.5
+    }
+
+
+@pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}px")
+def test_the_whole_message_is_shown(broker, dashboard, browsers, size):
+    page = open_page(browsers, dashboard, size)
+    status(broker, "idle", "service ready", None)
+    page.wait_text("message", "service ready", 10)
+    publish(broker, "status", waiting())
+    page.wait(lambda: page.el("manual").is_displayed(), 10, "the manual setting panel")
+    # the tail says whether the shaft turns: to the person about to put hands on the rig
+    assert_whole(page, TURNING)
+    for end in ENDS:
+        status(broker, "idle", end)
+        page.wait_text("message", end, 10)
+        assert_whole(page, end)
+
+
+@pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}px")
+def test_manual_panel_fits_its_card_and_says_whether_the_drives_turn(broker, dashboard, browsers, size):
+    page = open_page(browsers, dashboard, size)
+    publish(broker, "status", waiting(outside=True))
+    page.wait(lambda: page.el("manual").is_displayed(), 10, "the manual setting panel")
+    publish(
+        broker,
+        "progress",
+        {
+            "run_id": "r-layout",
+            "point": 12,
+            "points": 120,
+            "frequency": 10,
+            "frequencies": 12,
+            "revolutions": 12345,
+            "eta_s": 4000,
+        },
+        qos=0,
+    )
+    publish(broker, "live", live(), qos=0)
+    page.wait_text("eta", "1 h 6 min 40 s", 10)
+    page.wait(lambda: "0.4830" in page.rows("aux", "aux").get("p_recess_1", ""), 10, "the live sensors")
+    rows = page.rows("manual-table", "setting")
+    assert all("(outside the band)" in text for text in rows.values()), rows
+    assert "0.4343 … 0.5309" in rows["recess_pressure"].replace("\n", " ")
+    table = page.d.execute_script(
+        "const t = document.querySelector('#manual table').getBoundingClientRect(),"
+        " c = document.getElementById('manual-card'), r = c.getBoundingClientRect(), s = getComputedStyle(c);"
+        "return [t.right, r.right - parseFloat(s.borderRightWidth) - parseFloat(s.paddingRight)];"
+    )
+    assert table[0] <= table[1] + 0.5, f"the manual table ends at {table[0]}, its card's content at {table[1]}"
+    assert page.d.execute_script(OUTSIDE_CARDS) == []  # the Run card's table, the Band column included
+
+    # the drives' motion, as the service's prompt says it, in the panel itself
+    motion = page.el("manual-motion")
+    assert motion.text == "The drives are turning: spin 1000 rpm, orbit 500 rpm"
+    assert "turning" in motion.get_attribute("class").split()
+    standstill = TURNING.replace("the drives are turning: spin 1000 rpm, orbit 500 rpm", "both drives at standstill")
+    publish(broker, "status", waiting(standstill, outside=False))
+    page.wait_text("manual-motion", "Both drives at standstill", 10)
+    assert "turning" not in motion.get_attribute("class").split()
+    measured = page.d.execute_script("return document.querySelector('#manual-table tr').children[2].innerText")
+    assert measured == "5.76"  # inside its band: no note
+    publish(
+        broker,
+        "status",
+        waiting("point 0001: manual settings not met: pressure ratio 0.52 (confirm step 'verify:0001')"),
+    )
+    page.wait_text("manual-motion", "", 10)  # a prompt that does not say: nothing guessed
+    status(broker, "idle", "run stopped")
+    page.wait(lambda: not page.el("manual").is_displayed(), 10, "the panel to close")
+
+
+@pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}px")
+def test_nothing_moves_when_the_manual_panel_or_the_first_alarm_appears(broker, own_dashboard, browsers, size):
+    page = open_page(browsers, own_dashboard, size)
+    status(broker, "idle", "service ready", None)
+    page.wait_text("message", "service ready", 10)
+    page.wait_text("alarm-count", "none unacknowledged", 10)
+    before = layout(page)
+
+    publish(broker, "status", waiting(outside=True))  # the tallest panel: every value outside its band
+    page.wait(lambda: page.el("manual").is_displayed(), 10, "the manual setting panel")
+    assert moved(before, layout(page)) == {}
+    status(broker, "running", "confirmed manual:0001")
+    page.wait(lambda: not page.el("manual").is_displayed(), 10, "the panel to go")
+    assert moved(before, layout(page)) == {}
+
+    status(broker, "paused", "suspended by interlock: lubricant supply pump is off")
+    page.wait(lambda: page.d.find_elements("css selector", "#alarms button.ack"), 10, "the first alarm")
+    assert moved(before, layout(page)) == {}
+    assert page.d.execute_script(OUTSIDE_CARDS) == []
+    status(broker, "idle", "run stopped")
+
+
+def test_a_page_load_asks_for_no_missing_icon(dashboard, browsers):
+    """The page names its icon (inline): no request for /favicon.ico, which the server has not."""
+    d = browsers()
+    d.get_log("browser")  # (empties the log)
+    page = Page(d, dashboard.url, dashboard)
+    page.wait(lambda: page.el("signin").is_displayed(), 15, "the sign-in form")
+    time.sleep(1.0)  # the browser asks for the icon after the page's load
+    severe = [e["message"] for e in d.get_log("browser") if e["level"] == "SEVERE"]
+    assert not [m for m in severe if "favicon" in m], severe
+    # the one left: the page's check for a session, refused as documented (401: not signed in)
+    assert all("/api/session" in m and "401" in m for m in severe), severe
