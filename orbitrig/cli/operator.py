@@ -17,23 +17,25 @@ Each request is recorded as sent by the terminal's operator, with the signal tha
 
 from __future__ import annotations
 
+from typing import Any
+
 from orbitrig.cli.signals import SIGNALS, signal_cause, signal_name as _name
 
 
 class Operator:
     """Terminal side of the engine: answers confirmations, Ctrl-C pauses and asks, twice aborts."""
 
-    def __init__(self, engine, console):
+    def __init__(self, engine: Any, console: Any) -> None:
         import asyncio
 
         self.engine, self.console = engine, console
         self.loop = asyncio.get_running_loop()
         self.interrupts = 0
         self.lines: asyncio.Queue[str | None] = asyncio.Queue()
-        self.reader = None
-        self.asking = None
+        self.reader: Any = None
+        self.asking: Any = None
         self.eof = False  # standard input closed: nobody can answer, so the run stops
-        self.pending = None  # a signal received before the run started (re-requested at its start)
+        self.pending: Any = None  # a signal received before the run started (re-requested at its start)
 
     def install(self) -> None:
         import sys
