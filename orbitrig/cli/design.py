@@ -125,11 +125,10 @@ def register(app: typer.Typer) -> None:
                 match=match,
                 test_models=tested,
             )
-            if save:
-                cfg.writable_home(rig_path)  # never into the shipped defaults: refused before the search
+            folder = designs_dir(rig_path) if save else None  # never the shipped defaults: refused before the search
             obj = design_object(rig, request)
-            if save:
-                saved = save_design(obj, save, designs_dir(rig_path))
+            if save and folder is not None:
+                saved = save_design(obj, save, folder)
                 sys.stderr.write(f"orbitrig design: wrote {saved}\n")
         except OrbitrigError as err:
             _fail(str(err))

@@ -18,7 +18,7 @@ import numpy as np
 import typer
 
 from orbitrig.cli.design_inputs import DesignInputError
-from orbitrig.config import RPM, default_rig_path
+from orbitrig.config import RPM, writable_home
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
@@ -351,8 +351,9 @@ def print_design(obj: dict) -> None:
 
 
 def designs_dir(rig_path: Path | None = None) -> Path:
-    """config/designs next to the rig configuration's folder."""
-    return (rig_path or default_rig_path()).parent / DESIGNS_DIR
+    """designs/ of the lab folder (orbitrig.config.writable_home: a ConfigError in the shipped
+    defaults, which are never written to)."""
+    return writable_home(rig_path) / DESIGNS_DIR
 
 
 def save_design(obj: dict, name: str, folder: Path | None = None) -> Path:
