@@ -81,6 +81,23 @@ def _row_noise(table, probe: float) -> np.ndarray | None:
     return np.stack([ud, ud, ufx, ufy], axis=1)
 
 
+#: measured orbit ratios within this fraction of each other are one set ratio (the drives hold
+#: their speeds within [settle] tolerances, so a block's measured ratio scatters about the set one)
+SAME_RATIO = 0.005
+
+
+def _set_ratios(measured: np.ndarray) -> np.ndarray:
+    """Each measured |Omega|/omega as the ratio of its group (neighbours, sorted, within SAME_RATIO
+    of each other): the group's median at 3 decimals."""
+    order = np.argsort(measured, kind="stable")
+    ranked = measured[order]
+    group = np.concatenate([[0], np.cumsum(np.diff(ranked) > SAME_RATIO * ranked[:-1])])
+    out = np.empty_like(measured)
+    for g in np.unique(group):
+        out[order[group == g]] = np.round(np.median(ranked[group == g]), 3)
+    return out
+
+
 def run_noise(run, lms: LoadSystem, probe: float = DEFAULT_PROBE_NOISE) -> Noise:
     """Median per-revolution noise of the run's ``lms`` orbit tables (complete points)."""
     tables = [p.tables[lms] for p in run.complete_points if lms in p.tables]
@@ -91,7 +108,7 @@ def run_noise(run, lms: LoadSystem, probe: float = DEFAULT_PROBE_NOISE) -> Noise
             f"{lms} system carrying uncertainties or coherences"
         )
     rows = np.concatenate([r for _, r in found], axis=0)
-    ratios = np.round(np.concatenate([np.abs(t.orbit) / t.spin for t, _ in found]), 3)
+    ratios = _set_ratios(np.concatenate([np.abs(t.orbit) / t.spin for t, _ in found]))
     at = np.unique(ratios)
     u = smooth_noise(at, np.array([np.median(rows[ratios == r], axis=0) for r in at]))
     radius = float(np.median(np.concatenate([np.sqrt((np.abs(t.x) ** 2 + np.abs(t.y) ** 2) / 2) for t, _ in found])))
