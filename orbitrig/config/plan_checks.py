@@ -52,18 +52,28 @@ def check_matrix_against_rig(matrix: MatrixConfig, rig: RigConfig) -> None:
 def plan_warnings(matrix: MatrixConfig) -> list[str]:
     """What the plan of ``matrix`` runs with but should be said, one line each (naming the line
     and key): the orbit ratios within RUNOUT_KEEP_AWAY of Omega/omega = 1, all in one line."""
-    near = [r for r in matrix.orbit.ratio_list if abs(abs(r) - 1.0) < RUNOUT_KEEP_AWAY - 1e-9]
-    if not near:
+    near = _near_one(matrix, RUNOUT_KEEP_AWAY, RUNOUT_KEEP_AWAY - 1e-9)
+    if near is None:
         return []
-    key = _ratio_key(matrix)
     return [
-        f"{_at(matrix.text, ('orbit', key))}key 'orbit.{key}': orbit ratio{'s' if len(near) > 1 else ''} "
-        f"{_ratios(near)} {'are' if len(near) > 1 else 'is'} within {RUNOUT_KEEP_AWAY:g} of Omega/omega = 1: "
-        "the spindle's runout (1x spin) "
+        f"{near}: the spindle's runout (1x spin) "
         "turns only slowly through a block's revolutions there, so averaging and the runout fit take it "
         "out only in part and the coefficients at these ratios (C most) may be biased; `orbitrig design` "
         f"keeps {RUNOUT_KEEP_AWAY:g} away"
     ]
+
+
+def _near_one(matrix: MatrixConfig, within: float, limit: float) -> str | None:
+    """ "line N: key 'orbit.KEY': orbit ratios A, B are within WITHIN of Omega/omega = 1" for the
+    matrix's ratios closer to 1 than ``limit``; None when there is none."""
+    near = [r for r in matrix.orbit.ratio_list if abs(abs(r) - 1.0) < limit]
+    if not near:
+        return None
+    key, many = _ratio_key(matrix), len(near) > 1
+    return (
+        f"{_at(matrix.text, ('orbit', key))}key 'orbit.{key}': orbit ratio{'s' if many else ''} "
+        f"{_ratios(near)} {'are' if many else 'is'} within {within:g} of Omega/omega = 1"
+    )
 
 
 def warning_lines(matrix: MatrixConfig) -> list[str]:
@@ -137,14 +147,12 @@ def _supply_problems(matrix: MatrixConfig, rig: RigConfig) -> list[str]:
 
 def _synchronous_problems(matrix: MatrixConfig) -> list[str]:
     """Orbit ratios within SYNCHRONOUS_REFUSAL of Omega/omega = 1 (static and initial lists)."""
-    near = [r for r in matrix.orbit.ratio_list if abs(abs(r) - 1.0) < SYNCHRONOUS_REFUSAL]
-    if not near:
+    near = _near_one(matrix, SYNCHRONOUS_REFUSAL, SYNCHRONOUS_REFUSAL)
+    if near is None:
         return []
-    key = _ratio_key(matrix)
     return [
-        f"{_at(matrix.text, ('orbit', key))}key 'orbit.{key}': orbit ratio{'s' if len(near) > 1 else ''} "
-        f"{_ratios(near)} {'are' if len(near) > 1 else 'is'} within {SYNCHRONOUS_REFUSAL:g} of Omega/omega = 1, "
-        "where the spindle's runout (1x spin) has the orbit's frequency and the same phase in every revolution: "
+        f"{near}, where the spindle's runout (1x spin) has the orbit's frequency and the same phase in every "
+        "revolution: "
         "averaging cannot separate the two and the coefficients are biased; keep every ratio at least "
         f"{SYNCHRONOUS_REFUSAL:g} from 1 (`orbitrig design` keeps {RUNOUT_KEEP_AWAY:g})"
     ]
