@@ -43,14 +43,11 @@ def incomplete_note(store: RunStore) -> str:
     if not left:
         return ""
     named = ", ".join(f"{i:04d} ({n} block{'' if n == 1 else 's'} stored)" for i, n in left)
-    if len(left) == 1:
-        return (
-            f"; point {named} is incomplete: orbitrig sweep --resume measures it again from its start "
-            "(its blocks so far kept in aside/)"
-        )
+    one = len(left) == 1
+    point, verb, them, their = ("point", "is", "it", "its") if one else ("points", "are", "them", "their")
     return (
-        f"; points {named} are incomplete: orbitrig sweep --resume measures them again from their start "
-        "(their blocks so far kept in aside/)"
+        f"; {point} {named} {verb} incomplete: orbitrig sweep --resume measures {them} again from {their} start "
+        f"({their} blocks so far kept in aside/)"
     )
 
 

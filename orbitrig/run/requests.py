@@ -77,10 +77,11 @@ class OperatorRequests:
         written to disk before the stop words are out (run.log, the command's durable record).
         The first abort's sender (`by`, `why`) is the one the run ends with."""
         by = requester(self._sender(by), why)
-        if self._control.abort_starts:
+        starts = self._control.abort_starts
+        if starts:
             self._control.abort_by = by
         t0 = time.monotonic()
-        sending = self._stop_first(emergency=True) if self._control.abort_starts else None
+        sending = self._stop_first(emergency=True) if starts else None
         if self._control.request_abort() and self._body is not None and not self._body.done():
             self._body.cancel()
         if sending is None:
