@@ -149,8 +149,8 @@ def export_cmd(
 
 
 def _check_folder(out: Path) -> None:
-    """A StorageError naming `out` when its folder is missing or a path on the way is a file
-    (the atomic writer would report the cause as a failed removal of its temporary file)."""
+    """A StorageError naming `out` when its folder is missing or a path on the way is a file,
+    naming that path (the atomic writer names only the temporary file it could not create)."""
     from orbitrig.store.errors import StorageError
 
     there = next(folder for folder in (*out.parents, Path("/")) if folder.exists())

@@ -101,8 +101,8 @@ def create_new(tmp: Path, readable: bool = False) -> int:
     makes a StorageError, not a write."""
     try:
         os.unlink(tmp)
-    except FileNotFoundError:
-        pass
+    except (FileNotFoundError, NotADirectoryError):
+        pass  # no leftover (nor a folder for one): the open below names what is missing
     except OSError as err:
         raise storage_error(tmp, "remove the leftover temporary file", err) from err
     try:

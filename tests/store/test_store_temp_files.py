@@ -11,6 +11,7 @@ from typer.testing import CliRunner
 
 from orbitrig.cli import app
 from orbitrig.store.durable import write_atomic
+from orbitrig.store.errors import StorageError
 
 VICTIM = b"precious: must not be overwritten\n"
 
@@ -39,6 +40,17 @@ def test_a_dangling_link_at_the_temporary_name_creates_nothing_at_its_target(tmp
     os.symlink(target, tmp_path / "run.h5.tmp")
     write_atomic(tmp_path / "run.h5", b"h5")
     assert not target.exists() and (tmp_path / "run.h5").read_bytes() == b"h5"
+
+
+def test_a_file_on_the_way_is_named_as_the_cause_not_a_leftover(tmp_path):
+    """A path under a file (a mistyped --out): the error is that the temporary file cannot be
+    created there (not a directory), not that a leftover could not be removed."""
+    (tmp_path / "a_file").write_text("x")
+    with pytest.raises(StorageError) as err:
+        write_atomic(tmp_path / "a_file" / "out.csv", b"data")
+    assert (
+        str(err.value) == f"{tmp_path / 'a_file' / 'out.csv.tmp'}: cannot create: NotADirectoryError: Not a directory"
+    )
 
 
 @pytest.mark.parametrize("fmt", ["csv", "mat", "h5"])
