@@ -18,6 +18,8 @@ from support.sweep_helpers import running, small_matrix, wait_for
 pytestmark = pytest.mark.timeout(150)
 
 RPM = 2 * math.pi / 60
+#: run.log's line (after "point NNNN: ") when both drives stop for the orbit radius
+RADIUS_STOP = "for the orbit radius, set by hand: both drives ramped to zero"
 
 
 def _stopped(sim) -> bool:
@@ -57,7 +59,7 @@ async def test_a_new_orbit_radius_is_asked_for_at_standstill(tmp_path):
         outcome = await run
     assert outcome.status == "completed"
     log = (tmp_path / "run" / "run.log").read_text()
-    assert "point 0001: for the orbit radius, set by hand: both drives ramped to zero" in log
+    assert f"point 0001: {RADIUS_STOP}" in log
 
 
 async def test_a_new_static_eccentricity_is_asked_for_with_the_drives_turning(tmp_path):
@@ -71,10 +73,7 @@ async def test_a_new_static_eccentricity_is_asked_for_with_the_drives_turning(tm
         eng.confirm("manual:0001")
         outcome = await run
     assert outcome.status == "completed"
-    assert (
-        "for the orbit radius, set by hand: both drives ramped to zero"
-        not in (tmp_path / "run" / "run.log").read_text()
-    )
+    assert RADIUS_STOP not in (tmp_path / "run" / "run.log").read_text()
 
 
 async def _verify_prompt(eng, sim, wrong: dict[str, float]):
@@ -105,7 +104,7 @@ async def test_a_missed_orbit_radius_is_corrected_at_standstill(tmp_path):
         outcome = await run
     assert outcome.status == "completed"
     log = (tmp_path / "run" / "run.log").read_text()
-    assert "point 0000: for the orbit radius, set by hand: both drives ramped to zero" in log
+    assert f"point 0000: {RADIUS_STOP}" in log
     assert "point 0000: orbit radius and static eccentricity verified" in log
 
 
@@ -120,7 +119,4 @@ async def test_a_missed_static_eccentricity_is_corrected_with_the_drives_turning
         eng.confirm("verify:0000")
         outcome = await run
     assert outcome.status == "completed"
-    assert (
-        "for the orbit radius, set by hand: both drives ramped to zero"
-        not in (tmp_path / "run" / "run.log").read_text()
-    )
+    assert RADIUS_STOP not in (tmp_path / "run" / "run.log").read_text()
