@@ -32,6 +32,10 @@ def manual_change_s(rig: RigConfig, before: OperatingPoint | None, after: Operat
     return float(sum(t for t, a, b in zip(per, before.manual, after.manual) if a != b))
 
 
+#: the orbit radius's place in OperatingPoint.manual (its change stops the drives: orbitrig.run.plan)
+RADIUS = 0
+
+
 def _costs(rig: RigConfig, points: Sequence[OperatingPoint]) -> np.ndarray:
     """(n, n) seconds from point i to point j: manual changes + the spin ramp (down to standstill
     and up again where the orbit radius changes: orbitrig.run.plan)."""
@@ -39,7 +43,7 @@ def _costs(rig: RigConfig, points: Sequence[OperatingPoint]) -> np.ndarray:
     manual = np.array([p.manual for p in points], dtype=float).reshape(len(points), 4)
     spin = np.array([p.spin for p in points], dtype=float)
     changed = manual[:, None, :] != manual[None, :, :]
-    ramp = np.where(changed[:, :, 0], spin[:, None] + spin[None, :], np.abs(spin[:, None] - spin[None, :]))
+    ramp = np.where(changed[:, :, RADIUS], spin[:, None] + spin[None, :], np.abs(spin[:, None] - spin[None, :]))
     costs: np.ndarray = changed.astype(float) @ per + ramp / rig.ramp_rate
     return costs
 
