@@ -179,8 +179,13 @@ class SimRig:
 
     @property
     def speeds(self) -> tuple[float, float]:
-        """(spin, orbit) actual speeds in rad/s (orbit signed) at the last tick."""
-        return self._spin_last, self._orbit_last
+        """(spin, orbit) actual speeds in rad/s (orbit signed) now: the drives integrated to the
+        present, as a Modbus read of ACT would find them (the last tick may be older)."""
+        for d in self.drives.values():
+            d.advance()
+        spin = self.drives[1].actual_rpm * RPM if 1 in self.drives else 0.0
+        orbit = self.drives[2].actual_rpm * RPM if 2 in self.drives else 0.0
+        return spin, orbit
 
     def endpoints(self) -> dict:
         """The endpoints JSON object printed by `orbitrig sim`."""
@@ -257,8 +262,7 @@ class SimRig:
         return {
             "sim_time": self.clock.now(),
             "speedup": self.clock.speedup,
-            "spin": self._spin_last,
-            "orbit": self._orbit_last,
+            **dict(zip(("spin", "orbit"), self.speeds)),
             "manual": {
                 "orbit_radius": m.orbit_radius,
                 "static_eccentricity": m.static_eccentricity,
@@ -329,10 +333,7 @@ class SimRig:
         in between, times the speed ripple). Returns the tick's start state, or
         None when no simulated time has passed."""
         now = self.clock.now()
-        for d in self.drives.values():
-            d.advance()
-        spin = self.drives[1].actual_rpm * RPM if 1 in self.drives else 0.0
-        orbit = self.drives[2].actual_rpm * RPM if 2 in self.drives else 0.0
+        spin, orbit = self.speeds
         dt = now - self._t_last
         if dt <= 0:
             return None

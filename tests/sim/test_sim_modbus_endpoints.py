@@ -4,11 +4,14 @@ by independent clients (mbpoll, and raw frames written from the protocol)."""
 from __future__ import annotations
 
 import asyncio
+import math
 import os
 import re
 import shutil
 import struct
 import tty
+
+import pytest
 
 from sim.config import SimConfig
 from sim.rig import SimRig
@@ -84,3 +87,18 @@ async def test_both_drives_on_tcp_and_rtu():
         assert proc.returncode == 0, err
         # reference numbers are address + 1: SPEED_SCALE (100), MAX_SPEED (101)
         assert dict(re.findall(r"\[(\d+)\]:\s+(-?\d+)", out.decode())) == {"101": "3000", "102": "2500"}
+
+
+async def test_the_reported_speeds_are_the_drives_now_not_the_last_board_tick():
+    """A busy host runs the board's tick late; the speeds the simulator reports (its control API's
+    `state`) must still be what a read of ACT finds now, so a test at a standstill prompt sees one."""
+    async with SimRig(SimConfig(), tick=30.0, adc_pty=False, can_channel=None) as rig:
+        await asyncio.sleep(0.05)  # the board's first tick has run; the next is 30 s away
+        rig.local_control(spin=100.0, orbit=-50.0)
+        await asyncio.sleep(0.3)
+        spin, orbit = rig.speeds
+        drives = rig.drives
+        assert spin == pytest.approx(drives[1].actual_rpm * 2 * math.pi / 60, abs=0.5)
+        assert orbit == pytest.approx(drives[2].actual_rpm * 2 * math.pi / 60, abs=0.5)
+        assert spin > 5.0 and orbit < -5.0  # ramping: not the 0 of the last tick
+        assert rig.state()["spin"] == pytest.approx(spin, abs=0.5)
