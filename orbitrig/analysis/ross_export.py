@@ -26,7 +26,6 @@ elements (ross-rotordynamics, the ``ross`` extra).
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -154,12 +153,12 @@ def _nothing_message(run: Run, selection: Selection, spec: FitSpec, why: list[st
     return f"--fit {spec.text()}: no point gives it ({'; '.join(dict.fromkeys(why))}); {listing}"
 
 
-def export_ross(run: Run, out: Path, spec: FitSpec, points: Iterable[int] | None = None) -> RossExport:
-    """Write ``out``/ross_bearings.json for the complete points among ``points`` (None: all;
-    ``spec.lms`` None: every load measuring system). Raises FitNotStoredError when there are
-    points but none gives the fit; a point without it, or asked for and not complete, is
-    named in the selection's ``skipped``."""
-    selection = select_points(run, points)
+def export_ross(run: Run, out: Path, spec: FitSpec, selection: Selection | None = None) -> RossExport:
+    """Write ``out``/ross_bearings.json for the points of ``selection`` (None: every complete
+    point; ``spec.lms`` None: every load measuring system). Raises FitNotStoredError when there
+    are points but none gives the fit; a point without it is added to the selection's
+    ``skipped``."""
+    selection = selection if selection is not None else select_points(run)
     bearings = _collect(run, selection, spec)
     doc = {
         "format": FORMAT,

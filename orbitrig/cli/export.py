@@ -138,5 +138,5 @@ def _export_ross(directory: Path, out: Path | None, point: list[int] | None, fit
         target.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise storage_error(target, "create the export directory", err) from err
-    done = export_ross(run, target, spec, point)
+    done = export_ross(run, target, spec, selection)
     return [done.path], done.selection
