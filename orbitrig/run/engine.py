@@ -53,7 +53,7 @@ from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.provenance import RunCommand
 from orbitrig.run.requests import OperatorRequests
 from orbitrig.run.rig_io import RigAccess, RigIO
-from orbitrig.run.run_dir import completed_points, no_room, open_store
+from orbitrig.run.run_dir import completed_points, no_room, open_store, resume_events
 from orbitrig.run.run_dir import started_order as _started_order
 from orbitrig.run.safe_stop import stop_drives, unconfirmed
 from orbitrig.run.states import (
@@ -174,7 +174,7 @@ class RunEngine(OperatorRequests):
             f"{'resume' if resume else 'start'} run {self.run_id}: matrix {plan.name}, "
             f"{len(todo)} of {len(plan.points)} points to run, sim={self.access.simulated}"
         )
-        for line in store.set_aside:  # incomplete or damaged points a resume put aside
+        for line in resume_events(store, self.rig, self.operator) if resume else ():
             self._log_event(line)
         for line in warning_lines(plan.matrix):  # as the dry run printed them
             self._log_event(line)

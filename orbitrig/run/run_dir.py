@@ -59,6 +59,22 @@ def open_store(
     return store, store.prepare_resume()
 
 
+def resume_events(store: RunStore, rig: RigConfig, operator: str) -> list[str]:
+    """The run's events of a resume: the points it set aside, who resumes it with what and
+    where, and a warning when the software differs from the one the run started with (its
+    points then come from two)."""
+    now = Provenance.of_run(rig, operator)
+    lines = [*store.set_aside, f"resume {now.summary()}"]
+    before = store.stored_provenance().get("software_version")
+    if before and before != now.software_version:
+        lines.append(
+            f"warning: resumed with {now.software_version}; the run started with {before}: "
+            "the points measured from here on come from another software version"
+        )
+        log.warning("%s", lines[-1])  # on the terminal too
+    return lines
+
+
 def no_room(store: RunStore, rig: RigConfig, plan: Plan, point: OperatingPoint) -> str | None:
     """Why the disk cannot take ``point`` (None: it can)."""
     models = len(plan.matrix.models)

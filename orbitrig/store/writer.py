@@ -159,6 +159,11 @@ class RunStore:
         text = h.get("calibration_record_text")
         return str(text) if text else None
 
+    def stored_provenance(self) -> dict[str, Any]:
+        """The provenance recorded when the run started ({}: a run written before it was)."""
+        prov = (self._header or read_header(self.layout)).get("provenance")
+        return dict(prov) if isinstance(prov, dict) else {}
+
     def command(self, command: str, by: str, detail: str = "") -> None:
         """A command that changed the run, who sent it and when: a journal line (run.h5's
         /logs/commands) and a run.log line. Best effort: a storage failure is logged."""

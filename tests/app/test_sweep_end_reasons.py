@@ -3,6 +3,7 @@ run.h5's status_message and /logs/commands name the operator and the signal or c
 says that `--resume` measures the point it left incomplete again from its start (its blocks
 kept in aside/), and the resume does so. The real signals sent to a real subprocess."""
 
+import json
 import signal
 import subprocess
 from pathlib import Path
@@ -10,6 +11,7 @@ from pathlib import Path
 import h5py
 import pytest
 
+import orbitrig
 from orbitrig import config as cfg
 from support.store_checks import small_matrix
 from support.sweep_process import SweepProcess, sweeps
@@ -94,10 +96,22 @@ def test_a_stop_at_the_prompt_says_resume_measures_the_point_again_and_it_does(s
         "a point left incomplete is measured again from its start by orbitrig sweep --resume (its blocks so far kept in aside/)"
         in log
     )
-    # what the messages said is what --resume does: the point set aside with its blocks, measured again
-    s.proc = s.start("--resume", speedup=20)
+    # what the messages said is what --resume does: the point set aside with its blocks, measured again;
+    # resumed by another operator with another software version (the run as an older release left it)
+    header = json.loads((s.out / "run.json").read_text())
+    assert header["provenance"]["operator"] == "ada"
+    header["provenance"]["software_version"] = "orbitrig 0.0.1"
+    (s.out / "run.json").write_text(json.dumps(header))
+    s.proc = s.start("--resume", "--operator", "bob", speedup=20)
     code, err = s.finish(120)
     assert code == 0, err
+    now = f"orbitrig {orbitrig.__version__}"
+    log = s.text()
+    assert f"resume provenance: operator bob, {now}, rig " in log, log
+    warning = f"warning: resumed with {now}; the run started with orbitrig 0.0.1"
+    assert warning in log and warning in err, err
+    starts = [(by, detail.endswith(", resumed")) for cmd, by, detail in s.stored()[2] if cmd == "start"]
+    assert starts == [("ada", False), ("bob", True)], starts
     aside = s.out / "aside" / "0000.incomplete.1"
     assert sorted(p.name for p in aside.glob("*.h5")) == stored, list(aside.iterdir())
     assert (s.out / "points" / "0000" / "complete.json").is_file()
