@@ -35,6 +35,17 @@ from drives.stop import StopSender
 log = logging.getLogger(__name__)
 
 
+async def wait_tick(tick: asyncio.Event, timeout: float) -> None:
+    """Wait up to `timeout` s for `tick` (a DrivePoll's publish). A cancellation always gets
+    through: `asyncio.wait_for` of Python 3.11 drops one that arrives as the event fires, and an
+    abort that cancels a wait for standstill or for the setpoint must not be lost."""
+    waiter = asyncio.ensure_future(tick.wait())
+    try:
+        await asyncio.wait({waiter}, timeout=max(0.0, timeout))
+    finally:
+        waiter.cancel()
+
+
 class DrivePoll:
     """Polls the spin and orbit drives on one link; owned by `RigDrives`.
 

@@ -36,7 +36,6 @@ Safety rules this class keeps:
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import logging
 import time
 from types import TracebackType
@@ -47,7 +46,7 @@ from drives.errors import DriveError, DriveFaultError, DriveLinkError, DriveTime
 from drives.limits import DriveLimits, fmt_speed
 from drives.link import ModbusLink
 from drives.pair import drive_names, drive_pair
-from drives.poll import DrivePoll
+from drives.poll import DrivePoll, wait_tick
 from drives.state import RigDriveState
 from drives.stop import StopSender
 
@@ -294,8 +293,7 @@ class RigDrives:
                     f"not at setpoint (AT_SETPOINT held {hold:g} s) within {timeout:g} s: " + st.describe(),
                     register=R.SW,
                 )
-            with contextlib.suppress(asyncio.TimeoutError):
-                await asyncio.wait_for(tick.wait(), remaining)
+            await wait_tick(tick, remaining)
 
     async def stop(self, *, emergency: bool = False, wait: bool = True, timeout: float | None = None) -> None:
         """Ramp both drives to zero (OFF1), or emergency-stop them (OFF3).
@@ -328,8 +326,7 @@ class RigDrives:
                     f"drives not at zero speed within {timeout:g} s: " + st.describe(),
                     register=R.ACT,
                 )
-            with contextlib.suppress(asyncio.TimeoutError):
-                await asyncio.wait_for(tick.wait(), remaining)
+            await wait_tick(tick, remaining)
 
     def stop_now(self, *, emergency: bool = True) -> asyncio.Task[list[DriveError]]:
         """Send the stop to both drives now, ahead of every request waiting for the link, without

@@ -7,7 +7,7 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from support.drives_testkit import CW_EMERGENCY, CW_RUN, RPM, open_rig
+from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, RPM, open_rig
 
 from drives.drive import Drive
 from drives.limits import DriveLimits
@@ -74,3 +74,38 @@ async def test_a_stop_asked_during_another_goes_out_after_it_not_interleaved(tcp
     # spin, orbit of the first stop, then spin, orbit of the second: never spin, spin, orbit, orbit
     assert words[1][0][0] < words[2][0][0] < words[1][1][0] < words[2][1][0], words
     assert words[1][0][0] >= t_first - 1.0
+
+
+@pytest.mark.parametrize("wait", ["standstill", "setpoint"])
+async def test_a_cancel_in_the_loop_step_of_a_poll_ends_the_wait_at_once(tcp_sim, wait):
+    """An abort cancels the ramp stop's wait for standstill (or a wait for the setpoint) in the
+    very loop step in which the poll publishes. The cancel must end the wait at once: Python
+    3.11's asyncio.wait_for returned the tick and dropped it, so the emergency stop that follows
+    an abort waited out the whole ramp (about 10 s here). The alignment of the two in one loop
+    step is the one thing the real parts cannot be made to produce on demand."""
+    rig = open_rig(tcp_sim, LIMITS, decel_time=250.0)  # 2400 rpm to zero: 200 simulated s, 8 s wall
+    async with rig:
+        await rig.set_speeds(2400 * RPM, 600 * RPM)
+        await rig.wait_settled(hold=0.1, timeout=20)
+        if wait == "standstill":
+            task = asyncio.create_task(rig.stop(emergency=False, wait=True, timeout=60))
+            await tcp_sim.wait_for(lambda: tcp_sim.regs(1)["CW"] == CW_RAMP_STOP, 5, "the ramp stop delivered")
+        else:
+            await rig.set_speeds(1200 * RPM, 600 * RPM)  # a 4 s wall ramp to settle at
+            task = asyncio.create_task(rig.wait_settled(hold=0.1, timeout=60))
+            await asyncio.sleep(0)
+        poll, publish = rig._poll, rig._poll.publish
+
+        def publish_then_cancel(*args, **kw):  # the tick and the abort's cancel in one loop step
+            publish(*args, **kw)
+            task.cancel()
+
+        poll.publish = publish_then_cancel
+        try:
+            done, _ = await asyncio.wait({task}, timeout=3.0)
+        finally:
+            poll.publish = publish
+            task.cancel()
+            await asyncio.gather(task, return_exceptions=True)
+            await rig.stop(emergency=True, wait=True, timeout=20)
+        assert done and task.cancelled(), "the cancel was dropped: the wait went on"
