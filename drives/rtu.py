@@ -169,10 +169,17 @@ class RtuLine:
         except (serial.SerialException, ValueError) as err:
             raise OSError(f"cannot open {self.path}: {err}") from err
         fd = port.fileno()
-        attrs = termios.tcgetattr(fd)
-        attrs[6][termios.VMIN], attrs[6][termios.VTIME] = 1, 0  # an empty read is a hang-up
-        termios.tcsetattr(fd, termios.TCSANOW, attrs)
-        termios.tcflush(fd, termios.TCIFLUSH)
+        try:
+            attrs = termios.tcgetattr(fd)
+            attrs[6][termios.VMIN], attrs[6][termios.VTIME] = 1, 0  # an empty read is a hang-up
+            termios.tcsetattr(fd, termios.TCSANOW, attrs)
+            termios.tcflush(fd, termios.TCIFLUSH)
+        except termios.error as err:  # not an OSError: a link error like the open's
+            port.close()  # opened exclusive: left open, every later connect would fail
+            raise OSError(f"cannot set up {self.path}: {err}") from err
+        except BaseException:
+            port.close()
+            raise
         self._port, self._fd = port, fd
         self._rx.clear()
         self._last_activity = time.monotonic()

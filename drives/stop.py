@@ -74,8 +74,8 @@ async def _to_each(drives: Sequence[Drive], write: Callable[[Drive, int], Awaita
         except DriveTimeoutError as err:
             timed_out.append(d)
             errors[id(d)] = err
-        except DriveError as err:
-            errors[id(d)] = err
+        except Exception as err:  # noqa: BLE001 - whatever one drive's write raised, the next gets its word
+            errors[id(d)] = _as_drive_error(d, err)
     for d in timed_out:
         if d.write_retries < 1:
             continue
@@ -83,6 +83,15 @@ async def _to_each(drives: Sequence[Drive], write: Callable[[Drive, int], Awaita
         try:
             await write(d, d.write_retries - 1)
             del errors[id(d)]
-        except DriveError as err:
-            errors[id(d)] = err
+        except Exception as err:  # noqa: BLE001
+            errors[id(d)] = _as_drive_error(d, err)
     return [errors[id(d)] for d in drives if id(d) in errors]
+
+
+def _as_drive_error(d: Drive, err: Exception) -> DriveError:
+    """`err` of a write to `d` as the DriveError the stop reports (an unexpected kind named)."""
+    if isinstance(err, DriveError):
+        return err
+    wrapped = DriveError(f"{type(err).__name__}: {err}", drive=d.device_id, drive_name=d.name)
+    wrapped.__cause__ = err
+    return wrapped

@@ -161,3 +161,39 @@ async def test_a_late_answer_is_not_taken_for_the_next_one():
         line.close()
         loop.remove_reader(master)
         close_fds(master, slave)
+
+
+async def test_a_line_that_fails_its_setup_after_opening_is_closed_and_reported_as_a_link_error(monkeypatch):
+    """The port opened (exclusive) and then its terminal setup failed (termios.error, as when a
+    USB adapter goes away between the two): the failure is an OSError, the link error every
+    caller handles, and the port is closed, so the next connect can open it again."""
+    import termios
+
+    from drives import rtu
+    from sim.pty import close_fds, open_raw_pty
+
+    master, slave, path = open_raw_pty()
+    line = RtuLine(path, baud=19200, timeout=0.2)
+    real = termios.tcgetattr
+
+    class _GoneAway:  # the module's termios with a setup that fails: what the real pty cannot do
+        error = termios.error
+
+        def __getattr__(self, name):
+            return getattr(termios, name)
+
+        @staticmethod
+        def tcgetattr(fd):
+            raise termios.error(5, "Input/output error")
+
+    try:
+        monkeypatch.setattr(rtu, "termios", _GoneAway())
+        with pytest.raises(OSError, match=f"cannot set up {path}: .*Input/output error"):
+            await line.connect()
+        assert not line.connected
+        monkeypatch.setattr(rtu, "termios", termios)
+        assert real is termios.tcgetattr and await line.connect()  # the exclusive lock was released
+        assert line.connected
+    finally:
+        line.close()
+        close_fds(master, slave)

@@ -109,3 +109,29 @@ async def test_a_cancel_in_the_loop_step_of_a_poll_ends_the_wait_at_once(tcp_sim
             await asyncio.gather(task, return_exceptions=True)
             await rig.stop(emergency=True, wait=True, timeout=20)
         assert done and task.cancelled(), "the cancel was dropped: the wait went on"
+
+
+async def test_a_drive_whose_write_raises_an_unexpected_error_does_not_keep_the_stop_from_the_other(tcp_sim):
+    """The spin drive's stop word fails with an error that is not a DriveError (termios.error
+    from a line set up again): the orbit drive still gets its emergency stop, and the stop
+    reports the spin drive's failure as a DriveError naming it."""
+    import termios
+
+    rig = open_rig(tcp_sim, LIMITS)
+    async with rig:
+        await rig.set_speeds(1000 * RPM, 500 * RPM)
+        await rig.wait_settled(hold=0.1, timeout=20)
+        real = rig.spin.write_control
+
+        async def broken(word, **kw):  # what no real part produces on demand
+            raise termios.error(5, "Input/output error")
+
+        rig.spin.write_control = broken
+        try:
+            errors = await rig.stop_now(emergency=True)
+            assert tcp_sim.regs(2)["CW"] == CW_EMERGENCY  # the orbit drive got its word
+            assert len(errors) == 1 and errors[0].drive == 1 and "Input/output error" in str(errors[0]), errors
+            assert "spin drive (id 1)" in str(errors[0])
+        finally:
+            rig.spin.write_control = real
+            await rig.stop(emergency=True, wait=True, timeout=20)
