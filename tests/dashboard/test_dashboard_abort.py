@@ -49,7 +49,6 @@ def page(driver, dashboard):
 def aborts(broker):
     """Every stop and abort reaching the broker on any rig's abort topic."""
     w = Watcher(broker, "orbitrig/+/abort")
-    time.sleep(0.3)  # subscribed
     yield w
     w.close()
 

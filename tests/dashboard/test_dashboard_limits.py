@@ -55,7 +55,7 @@ def _wait_asked(body: dict) -> float:
 
 
 def test_signin_delay_grows_per_user_then_a_lockout_the_right_password_waits_out(broker, tmp_path):
-    dash = Dashboard(broker.url, RIG, tmp_path, "--signin-delay", "0.2", "--lockout-after", "4", "--lockout", "3")
+    dash = Dashboard(broker.url, RIG, tmp_path, "--signin-delay", "0.5", "--lockout-after", "4", "--lockout", "3")
     try:
         asked = []
         for n in range(1, 5):
@@ -65,8 +65,8 @@ def test_signin_delay_grows_per_user_then_a_lockout_the_right_password_waits_out
                 assert status == 429
                 asked.append(_wait_asked(body))
                 time.sleep(asked[-1] + 0.05)
-        assert [round(a / 0.2) for a in asked] == [1, 2, 4]  # 0.2 s doubling (margins: the answer's own time)
-        assert all(0.2 * 2**k - 0.15 <= a <= 0.2 * 2**k for k, a in enumerate(asked))
+        # 0.5 s doubling; the margin (0.4 s) is the time between the refusal and the next answer
+        assert all(0.5 * 2**k - 0.4 <= a <= 0.5 * 2**k for k, a in enumerate(asked)), asked
         t_locked = time.monotonic()
         status, body, _ = _login(dash.url, "operator", ACCOUNTS["operator"])
         assert status == 429 and "locked for" in body["error"] and "lockout 3 s" in body["error"], body
@@ -81,16 +81,18 @@ def test_signin_delay_grows_per_user_then_a_lockout_the_right_password_waits_out
 
 
 def test_signin_throttled_per_client_address_across_user_names(broker, tmp_path):
-    """lock-after 1: an address has 1 free refusal, then 0.1 s, 0.2 s..., a lockout at 4."""
-    dash = Dashboard(broker.url, RIG, tmp_path, "--signin-delay", "0.1", "--lockout-after", "1", "--lockout", "2")
+    """lock-after 1: an address has 1 free refusal, then 0.5 s, 1 s..., a lockout at 4."""
+    dash = Dashboard(broker.url, RIG, tmp_path, "--signin-delay", "0.5", "--lockout-after", "1", "--lockout", "2")
     try:
         assert _login(dash.url, "mallory1", "x")[0] == 401
         assert _login(dash.url, "mallory2", "x")[0] == 401  # the address's free refusal
         status, body, _ = _login(dash.url, "mallory3", "x")
-        assert status == 429 and 0 < _wait_asked(body) <= 0.1
-        time.sleep(0.15)
+        assert status == 429 and 0 < _wait_asked(body) <= 0.5  # another user name, the same address
+        time.sleep(_wait_asked(body) + 0.05)
         assert _login(dash.url, "mallory3", "x")[0] == 401
-        time.sleep(0.25)
+        status, body, _ = _login(dash.url, "mallory4", "x")
+        assert status == 429 and 0.5 < _wait_asked(body) <= 1.0  # doubled
+        time.sleep(_wait_asked(body) + 0.05)
         assert _login(dash.url, "mallory4", "x")[0] == 401  # the 4th refusal: the address is locked out
         t_locked = time.monotonic()
         status, body, _ = _login(dash.url, "operator", ACCOUNTS["operator"])

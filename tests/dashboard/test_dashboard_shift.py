@@ -96,10 +96,10 @@ def test_trends_draw_the_live_samples_with_bands_and_nice_ticks(broker, dashboar
     page.sign_in("viewer", ACCOUNTS["viewer"])
     page.signed_in()
     page.wait_text("link", "online")
-    for k in range(4):  # the dashboard takes one trend sample a second
+    for k in range(4):  # the dashboard takes one trend sample a second (one closer than 0.95 s is dropped)
         done = broker.pub(f"orbitrig/{RIG}/live", json.dumps(live_payload(k)), user="orbitrig-service", qos=0)
         assert done.returncode == 0, done.stderr
-        time.sleep(1.05)
+        time.sleep(1.5)  # room for uneven delivery on a busy host
     page.wait(lambda: int(canvas(page, "trend-speed").get("samples", 0)) >= 4 * 4, 10, "4 speed samples")
 
     speed = canvas(page, "trend-speed")

@@ -178,7 +178,6 @@ async def _replies_to(service: RigService, broker: Broker, rig: str, messages: l
             if service.link.online.is_set() and (service.abort_link.up or service.abort_link.refused):
                 break
             await asyncio.sleep(0.05)
-        await asyncio.sleep(0.3)  # the viewer subscribed
         for topic, cmd in messages:
             done = await asyncio.to_thread(broker.pub, f"orbitrig/{rig}/{topic}", json.dumps(cmd))
             assert done.returncode == 0, done.stderr

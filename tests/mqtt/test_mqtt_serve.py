@@ -305,6 +305,7 @@ def test_sigterm_mid_run_stops_with_a_ramp_and_says_offline(tmp_path, sig):
         mark = own.rc.watch.mark()
         own.svc.kill(sig)
         assert own.svc.proc.returncode == 0, own.svc.text()[-3000:]
+        own.rc.status("offline", 10, mark)  # acknowledged by the broker; the watcher may see it later
         statuses = own.rc.watch.on("status", mark)
         states = [m.json()["state"] for m in statuses]
         assert states[-1] == "offline" and "stopping" in states and "idle" in states, states

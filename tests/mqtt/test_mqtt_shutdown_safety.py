@@ -104,6 +104,7 @@ async def test_start_resume_and_confirm_are_refused_while_shutting_down(tmp_path
             assert reply["ok"] is False and "the service is shutting down" in reply["error"], (cmd, reply)
         await asyncio.wait_for(asyncio.shield(task), 60)
         assert standstill(sim_rig), sim_rig.speeds
+        await wait(rc.status, "offline", 10, mark)  # acknowledged by the broker; the watcher may see it later
         states = [m.json()["state"] for m in rc.watch.on("status", mark)]
         assert states[-1] == "offline" and "running" not in states, states
 

@@ -268,7 +268,8 @@ class Msg:
 
 @dataclass
 class Watcher:
-    """mosquitto_sub in the background, collecting every message it prints."""
+    """mosquitto_sub in the background, collecting every message it prints; constructed once the
+    broker has acknowledged its subscription (nothing published after that is missed)."""
 
     broker: Broker
     topic: str | tuple[str, ...]  # one filter or several
@@ -277,11 +278,15 @@ class Watcher:
 
     def __post_init__(self) -> None:
         self._cond = threading.Condition()
+        self._subscribed = False
         filters = [self.topic] if isinstance(self.topic, str) else list(self.topic)
         self.proc = subprocess.Popen(
             [
+                "stdbuf",
+                "-oL",  # its debug lines reach the pipe as they are printed (coreutils)
                 "mosquitto_sub",
                 *self.broker.client_args(self.user),
+                "-d",  # its SUBACK line says when the subscription holds (messages are JSON lines)
                 "-q",
                 "1",
                 *(a for t in filters for a in ("-t", t)),
@@ -293,10 +298,28 @@ class Watcher:
         )
         self._thread = threading.Thread(target=self._read, daemon=True)
         self._thread.start()
+        self._wait_subscribed(10.0)
+
+    def _wait_subscribed(self, timeout: float) -> None:
+        """Return once the broker has acknowledged the subscription (or refused the client: the
+        process ended), so that nothing published after the Watcher exists is missed."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while not self._subscribed and self.proc.poll() is None:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise AssertionError(f"mosquitto_sub on {self.topic} not subscribed within {timeout} s")
+                self._cond.wait(min(left, 0.1))
 
     def _read(self) -> None:
         assert self.proc.stdout is not None
         for line in self.proc.stdout:
+            if not line.startswith(b"{"):  # a debug line of -d
+                if b"received SUBACK" in line:
+                    with self._cond:
+                        self._subscribed = True
+                        self._cond.notify_all()
+                continue
             obj = json.loads(line.decode("utf-8", "surrogateescape"))
             msg = Msg(
                 obj["topic"],
