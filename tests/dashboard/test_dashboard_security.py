@@ -94,6 +94,9 @@ def test_no_anonymous_access_and_idle_timeout(broker, tmp_path):
             raise AssertionError("the session outlived its idle time")
         except urllib.error.HTTPError as err:
             assert err.code == 401
+        deadline = time.monotonic() + 10  # the session ends before its log line is written
+        while "idle for more than 2 s" not in dash.text() and time.monotonic() < deadline:
+            time.sleep(0.05)
         assert "'operator' signed in" in dash.text() and "idle for more than 2 s" in dash.text()
         assert ACCOUNTS["operator"] not in dash.text()
     finally:

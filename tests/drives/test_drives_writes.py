@@ -134,7 +134,7 @@ async def test_a_silent_drive_delays_the_others_stop_by_one_timeout_only(sim):
         await sim.wait_for(lambda: sim.regs(1)["CW"] == CW_RAMP_STOP, 3, "spin stop word")
         took = loop.time() - t0
         errors = await task
-    assert took < 0.45, took  # one timeout (+ line settling), not 3 tries x 0.2 s
+    assert took < 0.55, took  # one timeout (+ line settling), not 3 tries x 0.2 s
     assert [e.drive for e in errors] == [3] and isinstance(errors[0], DriveTimeoutError)
     # the silent drive's CW and zero REF: 1 try each, then 2 more (the second counted by the link)
     assert link.retries == 2
