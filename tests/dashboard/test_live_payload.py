@@ -64,7 +64,8 @@ def test_waiting_status_and_live_topic(broker, service):
         lives = [m for m in rc.watch.on("live", n0 - 1) if m.t <= first.t + 3.0]
         span = lives[-1].t - lives[0].t
         assert len(lives) >= 8, f"only {len(lives)} live messages in {span:.1f} s"
-        assert (len(lives) - 1) / span <= 5.0 * 1.1, f"{len(lives)} live messages in {span:.2f} s"
+        gaps = np.diff([m.t for m in lives])  # as received: one late message shortens one gap, lengthens the next
+        assert np.median(gaps) >= 0.2 * 0.9, f"{len(lives)} live messages in {span:.2f} s: at most 5 a second"
         assert all(m.qos == 0 and not m.retain for m in lives)
 
         live = first.json()
