@@ -70,12 +70,18 @@ class OperatorRequests:
         self._control.request_stop(sender)
         self._command(RunCommand.STOP, sender)
 
-    def request_abort(self, by: str | None = None, why: str = "") -> None:
+    def request_abort(self, by: str | None = None, why: str = "") -> bool:
         """Abort: both drives get the emergency stop at once (their stop words ahead of
         everything waiting for the drives' link, not after the run has unwound), then the
         run is cancelled; its cleanup repeats the stop and waits for standstill. Nothing is
         written to disk before the stop words are out (run.log, the command's durable record).
-        The first abort's sender (`by`, `why`) is the one the run ends with."""
+        The first abort's sender (`by`, `why`) is the one the run ends with.
+
+        Returns whether the run holds the drives: True if the stop words went out now, or an
+        abort under way sent them with the rig still open (its cleanup repeats them); False if
+        nothing reached the drives through the run: its rig is not open (not yet, or closed by
+        its cleanup, also when that could not confirm them stopped). The caller then stops
+        them another way (orbitrig.service.idle_stop), or says it could not."""
         by = requester(self._sender(by), why)
         starts = self._control.abort_starts
         if starts:
@@ -86,8 +92,9 @@ class OperatorRequests:
             self._body.cancel()
         if sending is None:
             self._command(RunCommand.ABORT, by)
-            return
+            return not starts and self._io is not None
         sending.add_done_callback(lambda task: self._stopped_now(task, t0, by))
+        return True
 
     def _stop_first(self, emergency: bool) -> asyncio.Task[list[DriveError]] | None:
         """Send both drives their stop words now and hold the disk writes until they are out."""
@@ -116,13 +123,15 @@ class OperatorRequests:
             log.exception("cannot record %s", write)
 
     def _stop_drives_now(self, emergency: bool) -> asyncio.Task[list[DriveError]] | None:
+        """The stop words' task, or None if the run cannot send them: its rig is not open (not
+        yet, or closed by the cleanup, which may not have confirmed the drives stopped)."""
         drives = self._io.drives if self._io is not None else None
         if drives is None:
-            return None  # the rig is not open: nothing moves
+            return None
         try:
             return drives.stop_now(emergency=emergency)
         except DriveError:
-            return None  # closed already: the cleanup has stopped them
+            return None  # closed already by the cleanup
 
     def _stopped_now(self, task: asyncio.Task[list[DriveError]], t0: float, by: str | None) -> None:
         errors = "cancelled" if task.cancelled() else task.exception() or task.result()

@@ -1,19 +1,24 @@
 """The rig service's commands: each one validated, carried out and answered once
 (docs/protocols/mqtt.md, "Commands"); a handler refuses by raising
 :class:`CommandRefused`, which :meth:`CommandHandling.handle_command` turns into
-the ``ok: false`` reply. ``stop`` and ``abort`` are always accepted."""
+the ``ok: false`` reply. ``stop`` and ``abort`` are always accepted; an abort that no run
+carries out (none holds the drives) sends both drives the emergency stop over a link of the
+service's own and is answered once that is done (orbitrig.service.idle_stop)."""
 
 from __future__ import annotations
 
 import asyncio
 import collections
+import functools
 import logging
 import time
 from collections.abc import Callable
 from typing import Literal
 
 from orbitrig.errors import OrbitrigError
+from orbitrig.config import Drives
 from orbitrig.run.states import RunState
+from orbitrig.service import idle_stop
 from orbitrig.service import protocol as proto
 from orbitrig.service.engine_port import Engine
 from orbitrig.service.link import BrokerLink
@@ -28,6 +33,12 @@ STOPS_KEPT = 4096
 #: the commands that start or move the drives: refused once the service is shutting down
 MOVES_DRIVES = frozenset({"start", "resume", "confirm"})
 SHUTTING_DOWN = "the service is shutting down: {cmd} refused (nothing is started or moved any more)"
+STOPPING_DRIVES = (
+    "{cmd} refused: an abort's emergency stop is being sent to the drives (no run held them); "
+    "try again once it is answered"
+)
+#: a handler's reply that follows once the work it started is done: (error, detail)
+Later = asyncio.Future[idle_stop.Outcome]
 
 
 class CommandHandling:
@@ -45,8 +56,13 @@ class CommandHandling:
     _handled: collections.OrderedDict[tuple[str, bytes], int]
     #: (id, bytes) of the stops and aborts carried out in this service's life (the last STOPS_KEPT)
     _stops_done: collections.OrderedDict[tuple[str | None, bytes], None]
-    #: command name -> handler (raises CommandRefused to refuse)
-    _handlers: dict[str, Callable[[proto.Command], None]]
+    #: command name -> handler (raises CommandRefused to refuse; returns a Later: its reply follows)
+    _handlers: dict[str, Callable[[proto.Command], Later | None]]
+    #: the emergency stop of an abort that no run carried out, while it is being sent
+    _idle_stop: asyncio.Task[idle_stop.Outcome] | None = None
+    _tg: asyncio.TaskGroup | None
+    #: (Modbus URL, [drives]) of the rig, for an abort no run carries out (None: from the last run)
+    drive_link: tuple[str, Drives] | None = None
     #: set once the service is shutting down: MOVES_DRIVES are refused from then on
     closing: bool = False
     #: what asked the service to shut down, for the run's end message (the CLI: the signal)
@@ -64,9 +80,10 @@ class CommandHandling:
         each reconnection. It is refused (one reply) and changes nothing, except a ``stop`` or
         ``abort``, which the contract has always accepted: it is carried out (stopping is the
         safe side, even of a stale request) and logged, once in the service's life (the broker
-        hands it over again at each reconnection: dropped then, as a redelivery). A
-        redelivery of a command already handled (QoS 1 after a reconnection) is
-        dropped: it was executed and answered once."""
+        hands it over again at each reconnection: dropped then). A redelivery of a
+        command already handled (QoS 1 after a reconnection) is dropped: it was executed
+        and answered once; except a ``stop`` or ``abort``, carried out and answered again
+        (repeating one does no harm; dropping a new one that looks the same would)."""
         try:
             cmd = proto.parse_command(payload)
         except proto.CommandError as err:
@@ -77,7 +94,7 @@ class CommandHandling:
             log.exception("refused command %r: the parser failed", payload[:200])
             self._reply(None, f"payload cannot be read: {type(err).__name__}", behind=True)
             return
-        if self._redelivered(cmd, payload):
+        if cmd.cmd not in proto.ALWAYS_ACCEPTED and self._redelivered(cmd, payload):
             log.warning("dropped redelivered command %s (id %r): handled already", cmd.cmd, cmd.id)
             return
         if retained and cmd.cmd in proto.ALWAYS_ACCEPTED:  # the contract: always accepted, carried out
@@ -94,15 +111,21 @@ class CommandHandling:
                 "clear it with an empty retained message",
             )
             return
+        self._carry_out(cmd, payload)
+
+    def _carry_out(self, cmd: proto.Command, payload: bytes) -> None:
+        """Execute a command handle_command has let through and answer it (a Later: once done)."""
         t0 = time.monotonic()
         log.info("command %s (id %r)", cmd.cmd, cmd.id)
         if cmd.ignored:
             log.warning("%s accepted despite: %s", cmd.cmd, "; ".join(cmd.ignored))
-        error = None
+        error, later = None, None
         try:
             if self.closing and cmd.cmd in MOVES_DRIVES:
                 raise CommandRefused(SHUTTING_DOWN.format(cmd=cmd.cmd))
-            self._handlers[cmd.cmd](cmd)
+            if cmd.cmd in MOVES_DRIVES and self._idle_stop is not None and not self._idle_stop.done():
+                raise CommandRefused(STOPPING_DRIVES.format(cmd=cmd.cmd))
+            later = self._handlers[cmd.cmd](cmd)
         except CommandRefused as refusal:
             error = refusal.reason
         except Exception as err:  # a command must never kill the service
@@ -114,13 +137,17 @@ class CommandHandling:
             self._stops_done[(cmd.id, bytes(payload))] = None
             if len(self._stops_done) > STOPS_KEPT:
                 self._stops_done.popitem(last=False)
+        if later is not None and error is None:
+            later.add_done_callback(functools.partial(self._reply_when_done, cmd.id))
+            return
         self._reply(cmd.id, error, behind=cmd.cmd not in proto.ALWAYS_ACCEPTED)
 
     def _redelivered(self, cmd: proto.Command, payload: bytes) -> bool:
         """True for the broker's redelivery of a command handled before the link
         dropped (its acknowledgement was lost): the same id and bytes, handled
         during an earlier connection, arriving within REDELIVERY_S of this one.
-        An operator repeating a command later is not affected."""
+        An operator repeating a command later is not affected. Not asked of a stop or
+        an abort (on either connection): those are carried out each time."""
         if cmd.id is None:
             return False
         key = (cmd.id, bytes(payload))
@@ -142,10 +169,18 @@ class CommandHandling:
             log.exception("command %r could not be handled", payload[:200])
             self._reply(None, f"command could not be handled: {type(err).__name__}")
 
-    def _reply(self, cid: str | None, error: str | None, *, behind: bool = False) -> None:
-        """One reply; ``behind``: to an ordinary command (sent after statuses and results)."""
-        payload = proto.reply_ok(cid) if error is None else proto.reply_error(cid, error)
+    def _reply(self, cid: str | None, error: str | None, *, behind: bool = False, detail: str | None = None) -> None:
+        """One reply; ``behind``: to an ordinary command (sent after statuses and results);
+        ``detail``: what an ok command did, when the reply says it (an abort no run carried out)."""
+        payload = proto.reply_ok(cid, detail) if error is None else proto.reply_error(cid, error)
         self.link.send(self.topics.reply, payload, proto.QOS_REPLY, behind=behind)
+
+    def _reply_when_done(self, cid: str | None, later: Later) -> None:
+        if later.cancelled():
+            error, detail = f"emergency stop not confirmed sent: cancelled; {idle_stop.ESTOP}", None
+        else:
+            error, detail = later.result()  # (the task catches every failure: idle_stop.Outcome)
+        self._reply(cid, error, detail=detail)
 
     def _cmd_status(self, cmd: proto.Command) -> None:
         self.link.send(self.topics.status, self._status, proto.QOS_STATUS, True)
@@ -166,8 +201,43 @@ class CommandHandling:
     def _cmd_stop(self, cmd: proto.Command) -> None:
         self._request("stop", cmd.by)  # always accepted
 
-    def _cmd_abort(self, cmd: proto.Command) -> None:
-        self._request("abort", cmd.by)  # always accepted
+    def _cmd_abort(self, cmd: proto.Command) -> Later | None:
+        """Always accepted. A run that holds the drives carries it out (their stop words go out at
+        once); else both drives get the emergency stop over a link of the service's own and the
+        reply follows, saying what was sent: never ok with nothing sent."""
+        if self._request("abort", cmd.by):
+            return None
+        pending = self._idle_stop
+        if pending is not None and not pending.done():
+            return pending  # one under way since this abort: it is answered with its outcome
+        where = self._drive_link()
+        if where is None:
+            log.warning("abort: %s", idle_stop.NO_DRIVE_LINK)
+            raise CommandRefused(idle_stop.NO_DRIVE_LINK)
+        make = self._tg.create_task if self._tg is not None else asyncio.get_running_loop().create_task
+        self._idle_stop = make(self._emergency_stop(*where), name="drives-emergency-stop")
+        return self._idle_stop
+
+    def _drive_link(self) -> tuple[str, Drives] | None:
+        """(Modbus URL, [drives]) of the rig the service runs on: as it was built with it
+        (`orbitrig serve`), else as its last run's engine knows it."""
+        if self.drive_link is not None:
+            return self.drive_link
+        engine = self._engine
+        if engine is None:
+            return None
+        try:
+            return engine.access.endpoints.modbus_url, engine.rig.drives
+        except AttributeError:  # an engine that does not say (a test's)
+            return None
+
+    @staticmethod
+    async def _emergency_stop(url: str, d: Drives) -> idle_stop.Outcome:
+        try:
+            return await idle_stop.emergency_stop(url, d)
+        except Exception as err:  # answered, never the end of the service
+            log.exception("abort: the emergency stop over a link of its own failed")
+            return f"emergency stop NOT confirmed sent: {type(err).__name__}: {err}; {idle_stop.ESTOP}", None
 
     def _control(self, what: str, call: Callable[[Engine], None], allowed: tuple[str, ...] | None) -> None:
         if not self.run_active or self._engine is None:
@@ -184,17 +254,18 @@ class CommandHandling:
         """'the service shutting down' (on SIGTERM, ...): why a run stops at once at shutdown."""
         return "the service shutting down" + (f" on {self.shutdown_cause}" if self.shutdown_cause else "")
 
-    def _request(self, what: Literal["pause", "stop", "abort", "stop_now"], by: str | None = None) -> None:
+    def _request(self, what: Literal["pause", "stop", "abort", "stop_now"], by: str | None = None) -> bool:
         """Ask the executor to pause/stop/abort; never raises. If the executor
         refuses a stop or abort, the run task is cancelled (its cleanup ramps
-        both drives to zero)."""
+        both drives to zero). False if no run took it: none is active, or (an abort)
+        the run does not hold the drives (orbitrig.run.requests: nothing was sent)."""
         engine, task = self._engine, self._run_task
         if task is None or task.done() or engine is None:
-            return
+            return False
         if what != "pause" and engine.state == RunState.IDLE:
             if engine.run_id is None:
                 task.cancel()  # the run task has not started yet: it never touches the drives
-            return  # (or the run has ended and the task is writing its closing summary)
+            return False  # (or the run has ended and the task is writing its closing summary)
         requests = {
             "pause": engine.request_pause,
             "stop": engine.request_stop,
@@ -202,8 +273,9 @@ class CommandHandling:
             "stop_now": lambda by: engine.request_stop_now(self.shutdown_words(), by=by),
         }
         try:
-            requests[what](by=by)
+            return requests[what](by=by) is not False  # an abort says whether its stop reached the drives
         except Exception:
             log.exception("executor refused %s", what)
             if what != "pause":
                 task.cancel()
+            return False

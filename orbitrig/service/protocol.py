@@ -377,9 +377,10 @@ def result_payload(run_id: str | None, payload: dict[str, Any]) -> bytes:
     return dumps({"run_id": run_id, **payload} if "run_id" not in payload else payload)
 
 
-def reply_ok(cid: str | None) -> bytes:
-    """``{"id", "ok": true}`` for ``<prefix>/reply``."""
-    return dumps({"id": cid, "ok": True})
+def reply_ok(cid: str | None, detail: str | None = None) -> bytes:
+    """``{"id", "ok": true}`` for ``<prefix>/reply``; with ``"detail"``: what the command did,
+    when the reply says it (an abort that no run carried out)."""
+    return dumps({"id": cid, "ok": True} if detail is None else {"id": cid, "ok": True, "detail": detail})
 
 
 def reply_error(cid: str | None, error: str) -> bytes:

@@ -15,7 +15,8 @@ The session is persistent (MQTT 5, clean start off, a session expiry of
 ``session_expiry`` s): QoS 1 commands published while the service reconnects
 are kept by the broker and delivered once it is back; the broker's redelivery
 of a command already handled (its acknowledgement lost with the link) is
-executed and answered once. ``offline`` is published on every way out of :meth:`RigService.serve`
+executed and answered once, except a stop or an abort: carried out each time.
+``offline`` is published on every way out of :meth:`RigService.serve`
 (shutdown, a fault in the service) and is the last will for the others.
 
 The broker may go away: the run goes on, the service reconnects with jittered
@@ -47,6 +48,7 @@ from typing import Any
 from orbitrig.analysis.report_ahead import FiguresAhead
 from orbitrig.analysis.run_warnings import closing_warnings, result_fit_warnings
 from orbitrig.analysis.warning_groups import warning_lines
+from orbitrig.config import Drives
 from orbitrig.errors import ConfigError
 from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
 from orbitrig.run.heap import trim_heap
@@ -56,6 +58,7 @@ from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # 
 from orbitrig.service.inbox import CommandTriage
 from orbitrig.service.abort_link import AbortLink
 from orbitrig.service.catalog_feed import CatalogFeed
+from orbitrig.service.commands import Later
 from orbitrig.service.supervision import SupervisionHandling
 from orbitrig.service.flood_read import STOP_HOLD_S
 from orbitrig.service import protocol as proto
@@ -90,7 +93,11 @@ class RigService(SupervisionHandling):
         *,
         engine_factory: EngineFactory,
         load_matrix: MatrixLoader,
+        drive_link: tuple[str, Drives] | None = None,
     ):
+        """`drive_link`: (Modbus URL, [drives]) of the rig's drives, for an abort that no run
+        carries out (orbitrig.service.idle_stop); None: known only once a run has started."""
+        self.drive_link = drive_link
         self.settings = settings
         self.broker = broker
         self.topics = proto.topics(settings.rig_id, settings.prefix)
@@ -127,8 +134,8 @@ class RigService(SupervisionHandling):
         #: (id, bytes) of recent commands -> number of the connection they came on
         self._handled: collections.OrderedDict[tuple[str, bytes], int] = collections.OrderedDict()
         self._stops_done: collections.OrderedDict[tuple[str | None, bytes], None] = collections.OrderedDict()
-        #: command name -> handler returning None (ok) or the reason of a refusal
-        self._handlers: dict[str, Callable[[proto.Command], None]] = {
+        #: command name -> handler: raises CommandRefused to refuse; a Later it returns: its reply follows
+        self._handlers: dict[str, Callable[[proto.Command], Later | None]] = {
             "start": self._cmd_start,
             "pause": self._cmd_pause,
             "resume": self._cmd_resume,

@@ -1,7 +1,8 @@
 """Command payloads that cannot be read unambiguously, through a real
 mosquitto to `orbitrig serve --sim`: each is answered ok:false and changes
 nothing (no run starts), while stop and abort stay always accepted, also on
-the abort topic."""
+the abort topic (an abort with no run since the service started: both drives
+get the emergency stop over a link of the service's own, and the reply says so)."""
 
 from __future__ import annotations
 
@@ -79,7 +80,8 @@ def test_stop_and_abort_stay_always_accepted(rig):
     prefix = rig.prefix
     mark = rig.watch.mark()
     assert rig.broker.pub(f"{prefix}/abort", '{"cmd":"abort","id":"ab-1"}').returncode == 0
-    assert rig.reply("ab-1", start=mark)["ok"] is True
+    reply = rig.reply("ab-1", start=mark)  # taken, not refused; no run has held the drives yet
+    assert reply["ok"] is True and "emergency stop (OFF3) sent to both drives" in reply["detail"], reply
     assert rig.broker.pub(f"{prefix}/abort", '{"cmd":"start","id":"ab-2","matrix":"quick"}').returncode == 0
     reply = rig.reply("ab-2", start=mark)
     assert reply["ok"] is False and "only stop and abort" in reply["error"], reply

@@ -28,7 +28,8 @@ def test_a_retained_abort_is_carried_out_once_not_at_each_reconnection(broker, t
     rc = RigClient(broker, RIG, svc)
     try:
         rc.status("idle", timeout=30)
-        assert rc.reply("stale-abort", timeout=10) == {"id": "stale-abort", "ok": True}  # idle: nothing to stop
+        reply = rc.reply("stale-abort", timeout=10)  # carried out: no run since the start, the drives stopped
+        assert reply["ok"] is True and "emergency stop (OFF3) sent to both drives" in reply["detail"], reply
         assert rc.command({"cmd": "start", "matrix": "long"})["ok"] is True
         rc.status("running", timeout=30)
         for batch in range(6):  # 300 commands since the abort, each handled

@@ -1,7 +1,8 @@
 """A command left retained on <prefix>/cmd (spec: cmd is not retained) is stale: the broker
 replays it on every subscription. The service refuses it with one reply and changes
 nothing; a live command right after is executed as usual. A retained stop or abort is
-accepted and carried out all the same (spec: stop and abort are always accepted). Real
+accepted and carried out all the same (spec: stop and abort are always accepted; an abort
+with no run since the service started is answered "not sent": it knows no drive link). Real
 mosquitto, real clients."""
 
 from __future__ import annotations
@@ -70,7 +71,10 @@ async def test_retained_stop_and_abort_are_accepted(broker, tmp_path: Path):
             await asyncio.to_thread(broker.pub, topic, json.dumps({"cmd": cmd, "id": f"kept-{cmd}"}), retain=True)
             task = asyncio.create_task(service.serve(stop))
             reply = await asyncio.to_thread(rc.reply, f"kept-{cmd}", 10.0)
-            assert reply == {"id": f"kept-{cmd}", "ok": True}, reply
+            if cmd == "stop":
+                assert reply == {"id": f"kept-{cmd}", "ok": True}, reply
+            else:  # no run has held the drives: nothing could be sent, and the reply says so
+                assert reply["ok"] is False and reply["error"].startswith("not sent: no run holds"), reply
             stop.set()
             await asyncio.wait_for(task, 10)
             stop.clear()

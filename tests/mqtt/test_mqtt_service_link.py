@@ -135,8 +135,9 @@ async def test_commands_without_a_run(broker, tmp_path):
             for cmd, why in cases:
                 reply = await wait(rc.command, cmd)
                 assert reply["ok"] is False and why in reply["error"], (cmd, reply)
-            for cmd in ({"cmd": "stop"}, {"cmd": "abort"}):  # always accepted
-                assert await wait(rc.command, cmd) == {"id": f"t{rc._n}-{cmd['cmd']}", "ok": True}
+            assert await wait(rc.command, {"cmd": "stop"}) == {"id": f"t{rc._n}-stop", "ok": True}  # always accepted
+            reply = await wait(rc.command, {"cmd": "abort"})  # no run since the start: no drive link known
+            assert reply["ok"] is False and reply["error"].startswith("not sent: no run holds the drives"), reply
             mark = rc.watch.mark()
             assert (await wait(rc.command, {"cmd": "status"}))["ok"] is True
             await wait(rc.status, "idle", start=mark)  # published again

@@ -1,0 +1,54 @@
+"""An abort that no run carries out: both drives' emergency stop (OFF3) over a Modbus link of
+the service's own, best effort, sent as `orbitrig drives stop` sends its stop words when it
+cannot open the drives' controller (`drives.stop.send_stop` to the bare pair of
+orbitrig.run.drive_setup: no status read first, each drive tried even if the other is silent).
+
+The rig service sends it when an abort arrives and no run holds the drives: the run has ended
+(its cleanup closed their link, also when it could not confirm them stopped: "drives not
+confirmed stopped") or is not holding them yet. An abort is never answered ok with nothing
+sent (docs/protocols/mqtt.md, "Commands")."""
+
+from __future__ import annotations
+
+import logging
+
+from drives.errors import DriveError
+from drives.stop import send_stop
+from orbitrig.config import Drives
+from orbitrig.run.drive_setup import bare_drives, modbus_link
+
+log = logging.getLogger("orbitrig.service.rig_service")
+
+#: the reply's error when the service knows no drive link (no run since it started)
+NO_DRIVE_LINK = (
+    "not sent: no run holds the drives and the service knows no drive link yet (no run since it "
+    "started); use the rig's emergency stop"
+)
+ESTOP = "use the rig's emergency stop"
+
+#: (error, detail) of an abort's reply: error None is ok: true
+Outcome = tuple[str | None, str | None]
+
+
+async def emergency_stop(url: str, d: Drives) -> Outcome:
+    """OFF3 to both drives of [drives] `d` at `url` over a fresh link, then zero references:
+    (None, what was sent) if both took it, else (why not, None)."""
+    link = modbus_link(url, d)
+    pair = bare_drives(link, d)
+    log.warning("abort: no run holds the drives: emergency stop (OFF3) to both over a link of its own (%s)", url)
+    try:
+        try:
+            await link.connect()
+        except DriveError as err:
+            log.error("abort: emergency stop not sent: %s", err)
+            return f"emergency stop NOT sent (no run holds the drives): cannot open their link: {err}; {ESTOP}", None
+        errors = await send_stop(pair, emergency=True)
+    finally:
+        await link.close()
+    if not errors:
+        log.warning("abort: emergency stop (OFF3) sent to both drives (no run held them)")
+        return None, "emergency stop (OFF3) sent to both drives over a link of the service's own (no run held them)"
+    missed = {err.drive for err in errors}
+    sent = [f"{dr.name} (id {dr.device_id})" for dr in pair if dr.device_id not in missed]
+    why = "; ".join(str(err) for err in errors)
+    return f"emergency stop (OFF3) delivered to {', '.join(sent) or 'no drive'} only: {why}; {ESTOP}", None

@@ -1,0 +1,181 @@
+"""An abort is never dropped and never answered ok with nothing sent:
+
+- the same abort (the same id and bytes) sent again after the service's link to the broker was
+  back is carried out and answered, also on the abort topic read by the abort connection and with
+  a new run active (the service's memory of QoS 1 redeliveries leaves stop and abort alone);
+- an abort that no run carries out, once a run's cleanup could not confirm the drives stopped
+  ("drives not confirmed stopped"), sends both drives the emergency stop (OFF3) over a link of
+  the service's own and says so in its reply;
+- the service `orbitrig serve` builds knows its rig's drives before any run: an abort to it
+  before its first run, with the drives turned from their keypads, stops them the same way;
+- a service that knows no drive link (built without one, no run since it started) answers such an
+  abort ok: false, "not sent".
+
+Real parts: mosquitto with the shipped ACL and accounts, the service `orbitrig serve --sim`
+builds (in process, on the simulator), its broker link cut by a relay."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import time
+from pathlib import Path
+
+from drives import registers as R
+from orbitrig.cli.serve import build_service
+from orbitrig.config import load_rig
+from orbitrig.service import commands
+from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
+from orbitrig.service.settings import AbortAccount
+from support.mqtt_helpers import ACCOUNTS, Broker, CutProxy, RigClient, write_matrices
+
+DECEL_TIME = 103  # the drives' register: 0.1 s for SPEED_SCALE (3000) rpm along the ramp stop
+
+
+async def wait(fn, *args, **kw):
+    return await asyncio.to_thread(fn, *args, **kw)
+
+
+async def until(condition, timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, f"not within {timeout} s: {what}"
+        await asyncio.sleep(0.05)
+
+
+def standstill(sim_rig) -> bool:
+    return all(abs(w) < 1e-3 for w in sim_rig.speeds)
+
+
+@contextlib.asynccontextmanager
+async def serving(
+    broker: Broker, work: Path, rig_id: str, *, url: str | None = None, rig=None, speedup=20.0, decel=None
+):
+    """(service, sim_rig, client): the service `orbitrig serve --sim` builds, with its abort
+    connection, quick reconnects, on a fresh simulator (``decel``: both drives' DECEL_TIME)."""
+    from sim.rig import SimRig
+
+    async with SimRig(speedup=speedup, adc_pty=False) as sim_rig:
+        if decel is not None:
+            for drive in sim_rig.drives.values():
+                drive.write(DECEL_TIME, [decel])
+        settings = ServiceSettings(
+            rig_id=rig_id, matrices_dir=write_matrices(work / "matrices"), reconnect_initial=0.2, reconnect_max=1.0
+        )
+        creds = BrokerSettings.from_url(
+            url or broker.url,
+            username="orbitrig-service",
+            password=ACCOUNTS["orbitrig-service"],
+            abort=AbortAccount("orbitrig-service-abort", ACCOUNTS["orbitrig-service-abort"]),
+        )
+        svc = build_service(rig or load_rig(), settings, creds, out=work / "runs", sim_rig=sim_rig, confirm="auto")
+        shutdown = asyncio.Event()
+        task = asyncio.create_task(svc.serve(shutdown))
+        rc = RigClient(broker, rig_id)
+        try:
+            await wait(rc.status, "idle")
+            await until(lambda: svc.abort_link.up, 30, "the abort connection up")
+            yield svc, sim_rig, rc
+        finally:
+            rc.close()
+            shutdown.set()
+            svc.abort_run("test over")  # whatever went wrong, the drives stop before the simulator closes
+            await asyncio.wait_for(asyncio.gather(task, return_exceptions=True), 120)
+
+
+def publish_abort(rc: RigClient, cid: str) -> int:
+    """The operator's abort on <prefix>/abort (as the dashboard sends it); the watcher's mark before."""
+    mark = rc.watch.mark()
+    done = rc.broker.pub(f"{rc.prefix}/abort", json.dumps({"cmd": "abort", "id": cid}))
+    assert done.returncode == 0, done.stderr
+    return mark
+
+
+async def test_the_same_abort_after_a_reconnection_aborts_the_new_run(broker, tmp_path, monkeypatch, caplog):
+    # the redelivery window made wide, so that a slow machine cannot close it before the abort
+    monkeypatch.setattr(commands, "REDELIVERY_S", 600.0)
+    proxy = CutProxy(broker.port)
+    try:
+        async with serving(broker, tmp_path, "again-rig", url=proxy.url, speedup=4) as (svc, sim_rig, rc):
+            assert (await wait(rc.command, {"cmd": "start", "matrix": "long"}))["ok"] is True
+            await wait(rc.status, "running")
+            mark = await wait(publish_abort, rc, "a1")  # e.g. mosquitto_pub from the shell's history
+            assert await wait(rc.reply, "a1", 10, mark) == {"id": "a1", "ok": True}
+            await wait(rc.status, lambda s: s["state"] == "idle" and "aborted" in s["message"], 60, mark)
+
+            mark = rc.watch.mark()
+            assert (await wait(rc.command, {"cmd": "start", "matrix": "long"}))["ok"] is True
+            running = await wait(rc.status, "running", 30, mark)
+            before = svc.link.connections
+            proxy.cut()
+            await until(lambda: not svc.link.online.is_set(), 30, "the service sees its link drop")
+            proxy.restore()
+            await until(lambda: svc.link.connections > before and svc.abort_link.up, 60, "both links back")
+            assert svc.run_active and svc.state == "running"
+
+            mark = await wait(publish_abort, rc, "a1")  # the same bytes again: a new abort
+            assert await wait(rc.reply, "a1", 10, mark) == {"id": "a1", "ok": True}
+            ended = await wait(rc.status, lambda s: s["state"] == "idle" and s["run_id"] == running["run_id"], 60, mark)
+            assert "aborted" in ended["message"], ended
+            assert "dropped redelivered command abort" not in caplog.text
+    finally:
+        proxy.close()
+
+
+async def test_an_abort_after_an_unconfirmed_stop_sends_the_emergency_stop(broker, tmp_path):
+    rig = load_rig()
+    rig = rig.model_copy(update={"drives": rig.drives.model_copy(update={"stop_timeout_s": 2.0})})
+    # the drives' ramp stop lasts minutes (30 s and more here): the run's cleanup gives up waiting
+    async with serving(broker, tmp_path, "coast-rig", rig=rig, decel=18000) as (svc, sim_rig, rc):
+        assert (await wait(rc.command, {"cmd": "start", "matrix": "quick"}))["ok"] is True
+        await wait(rc.status, "running")
+        await until(lambda: min(abs(w) for w in sim_rig.speeds) > 10.0, 60, "both drives turning")
+        mark = rc.watch.mark()
+        assert (await wait(rc.command, {"cmd": "stop"}))["ok"] is True
+        faulted = await wait(rc.status, "faulted", 90, mark)
+        assert "drives not confirmed stopped" in faulted["message"], faulted
+        await until(lambda: not svc.run_active, 150, "the run's end recorded")
+        assert not standstill(sim_rig), sim_rig.speeds  # still coasting: nothing holds them
+
+        t_abort = time.monotonic()
+        reply = await wait(rc.command, {"cmd": "abort"})
+        assert reply["ok"] is True, reply
+        assert "emergency stop (OFF3) sent to both drives" in reply["detail"], reply
+        for device, drive in sim_rig.drives.items():
+            words = [cw for t, cw in drive.control_words if t >= t_abort]
+            assert R.CW_EMERGENCY_STOP in words, (device, [hex(w) for w in words])
+
+
+async def test_an_abort_before_the_first_run_stops_drives_turned_from_their_keypads(broker, tmp_path):
+    async with serving(broker, tmp_path, "keypad-rig") as (svc, sim_rig, rc):
+        sim_rig.local_control(spin=50.0, orbit=-30.0)  # someone at the drives, no run
+        await until(lambda: min(abs(w) for w in sim_rig.speeds) > 10.0, 30, "both drives turning")
+        t_abort = time.monotonic()
+        mark = await wait(publish_abort, rc, "before-any-run")
+        reply = await wait(rc.reply, "before-any-run", 15, mark)
+        assert reply["ok"] is True and "emergency stop (OFF3) sent to both drives" in reply["detail"], reply
+        for device, drive in sim_rig.drives.items():
+            words = [cw for t, cw in drive.control_words if t >= t_abort]
+            assert R.CW_EMERGENCY_STOP in words, (device, [hex(w) for w in words])
+        await until(lambda: standstill(sim_rig), 30, "both drives at standstill")
+
+
+async def test_an_abort_with_no_drive_link_known_says_it_was_not_sent(broker, tmp_path):
+    settings = ServiceSettings(rig_id="unknown-rig", matrices_dir=write_matrices(tmp_path / "matrices"))
+    creds = BrokerSettings.from_url(broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"])
+    service = RigService(settings, creds, engine_factory=None, load_matrix=None)  # no run since it started
+    stop = asyncio.Event()
+    task = asyncio.create_task(service.serve(stop))
+    rc = RigClient(broker, "unknown-rig")
+    try:
+        await wait(rc.status, "idle")
+        mark = await wait(publish_abort, rc, "ab-1")
+        reply = await wait(rc.reply, "ab-1", 10, mark)
+        assert reply["ok"] is False and reply["error"].startswith("not sent: no run holds the drives"), reply
+        assert "use the rig's emergency stop" in reply["error"], reply
+        assert (await wait(rc.command, {"cmd": "stop"}))["ok"] is True  # a stop: nothing to stop
+    finally:
+        rc.close()
+        stop.set()
+        await asyncio.wait_for(task, 10)
