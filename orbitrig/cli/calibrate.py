@@ -13,7 +13,9 @@ Exit status: 0 done, 1 the step failed (among them: drives not confirmed stopped
 could not be written (a full disk; a reader gone away is no failure), 2 bad configuration or
 usage or a rig that does not answer (each transport named), 3 stopped (Ctrl-C, SIGTERM, SIGHUP,
 SIGQUIT: both drives are stopped and confirmed at standstill first; a signal during the final
-ramp makes it an emergency stop).
+ramp makes it an emergency stop; every further signal cancels again, so nothing is waited for
+but that stop). On the rig the operator is asked to take the loads, the step or the reference
+off only with both drives at standstill; after a step that did not complete only told.
 """
 
 from __future__ import annotations

@@ -8,10 +8,14 @@ returns a new complete `CalibrationRecord`: the active record (or, without one, 
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
 import contextlib
+import sys
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 import typer
@@ -30,8 +34,11 @@ from orbitrig.config import (
     Runout,
 )
 from orbitrig.errors import OrbitrigError
+from orbitrig.cli.terminal import say
 from orbitrig.run.calibration import (
     PROBES,
+    AsksOperator,
+    CalibrationFailed,
     CalibrationSession,
     SlowRoll,
     measure_delay,
@@ -96,32 +103,87 @@ def check_rolls(rig: RigConfig, rolls: list[SlowRoll], option: str) -> None:
             ) from None
 
 
-async def _confirmed(prompt: str) -> None:
-    """The operator's Enter at the terminal, read on a daemon thread: a cancelled step (Ctrl-C,
-    SIGTERM) goes on to stop the drives and exit while the prompt still waits (asyncio's own
-    worker threads would hold the exit until someone pressed Enter)."""
-    loop = asyncio.get_running_loop()
-    answered: asyncio.Future[None] = loop.create_future()
+class StandardInput:
+    """Standard input's lines for the operator's prompts, read on one daemon thread at a time (a
+    pending read never holds the exit; asyncio's own worker threads would, until someone pressed
+    Enter). A prompt cancelled while its read waits (Ctrl-C, SIGTERM) leaves that read to the
+    next prompt, which gets the next line: no second reader races the first for standard input,
+    which would take the first Enter for a prompt nobody waits for any more. A line read while
+    no prompt waits answered a prompt that was cancelled: it is dropped."""
 
-    def settle(err: BaseException | None) -> None:
-        if not answered.done():
-            answered.set_result(None) if err is None else answered.set_exception(err)
+    def __init__(self, stream: Callable[[], TextIO] = lambda: sys.stdin):
+        self.stream = stream
+        self._lock = threading.Lock()
+        self._read: concurrent.futures.Future[str] | None = None
 
-    def ask() -> None:
+    def next_line(self) -> concurrent.futures.Future[str]:
+        """The read under way, or a new one: its result the line, EOFError at the end of the input."""
+        with self._lock:
+            if self._read is None:
+                self._read = concurrent.futures.Future()
+                threading.Thread(target=self._reader, args=(self._read,), name="calibrate-stdin", daemon=True).start()
+            return self._read
+
+    async def line(self) -> str:
+        """The next line (EOFError at the end of the input); a cancellation leaves the read under
+        way to the next call."""
+        loop = asyncio.get_running_loop()
+        answered: asyncio.Future[str] = loop.create_future()
+
+        def settle(read: concurrent.futures.Future[str]) -> None:
+            if answered.done():
+                return
+            err = read.exception()
+            answered.set_result(read.result()) if err is None else answered.set_exception(err)
+
+        def on_read(read: concurrent.futures.Future[str]) -> None:
+            with contextlib.suppress(RuntimeError):  # the loop is closed: nobody waits
+                loop.call_soon_threadsafe(settle, read)
+
+        self.next_line().add_done_callback(on_read)
+        return await answered
+
+    def _reader(self, read: concurrent.futures.Future[str]) -> None:
         try:
-            typer.prompt(prompt, default="", show_default=False)
-        except BaseException as err:  # noqa: BLE001 - EOF, a closed terminal: the step fails with it
-            loop.call_soon_threadsafe(settle, err)
-        else:
-            loop.call_soon_threadsafe(settle, None)
+            text = self.stream().readline()
+            err: BaseException | None = None if text else EOFError("standard input is closed")
+        except BaseException as exc:  # noqa: BLE001 - a closed terminal: the prompt fails with it
+            text, err = "", exc
+        with self._lock:
+            self._read = None
+        read.set_result(text) if err is None else read.set_exception(err)
 
-    threading.Thread(target=ask, name="calibrate-prompt", daemon=True).start()
-    await answered
+
+STDIN = StandardInput()
 
 
-class OperatorLoads:
+async def _confirmed(prompt: str) -> None:
+    """The operator's Enter at the terminal (STDIN); CalibrationFailed if standard input is closed."""
+    say(f"{prompt}: ", nl=False)
+    try:
+        await STDIN.line()
+    except BaseException as err:  # a cancellation among them: what follows starts on a line of its own
+        with contextlib.suppress(OSError):  # an OutputError among them: the step is ending anyway
+            say()
+        if isinstance(err, (EOFError, OSError)):
+            raise CalibrationFailed(f"{err}: nobody can confirm at the terminal") from None
+        raise
+
+
+class OperatorLoads(AsksOperator):
     """The rig: the operator applies each load (or connects the phase reference) and confirms on
-    the terminal (Ctrl-C ends the step)."""
+    the terminal (Ctrl-C ends the step). Each prompt says whether the drives turn (`motion`: the
+    step's session, `watch`); the input is taken off with both drives at standstill
+    (orbitrig.run.calibration), and only told, not asked, after a step that did not complete."""
+
+    def __init__(self) -> None:
+        self.motion: Callable[[], str] = lambda: "the drives' speeds not read yet"
+
+    def watch(self, session: CalibrationSession) -> None:
+        self.motion = session.motion
+
+    async def _ask(self, what: str) -> None:
+        await _confirmed(f"{self.motion()}: {what}, then press Enter")
 
     async def apply_load(self, fx: float, fy: float) -> None:
         what = (
@@ -129,7 +191,7 @@ class OperatorLoads:
             if fx == 0 and fy == 0
             else f"apply the static load fx = {fx:+.1f} N, fy = {fy:+.1f} N on the journal"
         )
-        await _confirmed(f"{what}, then press Enter")
+        await self._ask(what)
 
     async def apply_displacement(self, dx: float, dy: float) -> None:
         what = (
@@ -137,7 +199,7 @@ class OperatorLoads:
             if dx == 0 and dy == 0
             else f"step the journal by x = {dx * 1e6:+.2f} um, y = {dy * 1e6:+.2f} um (micrometer)"
         )
-        await _confirmed(f"{what}, then press Enter")
+        await self._ask(what)
 
     async def apply_reference(self, force: float, probe: float) -> None:
         what = (
@@ -148,7 +210,14 @@ class OperatorLoads:
                 f"{force:g} N on the force channels, {probe * 1e6:g} um on the probes"
             )
         )
-        await _confirmed(f"{what}, then press Enter")
+        await self._ask(what)
+
+
+def _watched(hands, session: CalibrationSession):
+    """`hands`, its prompts saying the drives' state as `session` last read it."""
+    if isinstance(hands, OperatorLoads):
+        hands.watch(session)
+    return hands
 
 
 @contextlib.asynccontextmanager
@@ -200,7 +269,7 @@ async def loads_record(
     async with rig_access(rig, opts) as (access, hands):
         async with CalibrationSession(rig, access, note) as session:
             await session.roll(opts.roll())
-            readings = await measure_loads(session, hands, loads)
+            readings = await measure_loads(session, _watched(hands, session), loads)
     data = _base(rig, opts, RecordStep.LOADS)
     data["reference"] = reference.model_dump()
     data["loads"] = dict(data.get("loads") or {})
@@ -240,7 +309,7 @@ async def delay_record(
     rolls = delay_rolls(opts, speeds_rpm)
     async with rig_access(rig, opts) as (access, hands):
         async with CalibrationSession(rig, access, note) as session:
-            freqs, lags = await measure_delay(session, hands, rolls, amplitudes)
+            freqs, lags = await measure_delay(session, _watched(hands, session), rolls, amplitudes)
     data = _base(rig, opts, RecordStep.DELAY)
     data["delay"] = {}
     for name in FORCE_CHANNELS:
@@ -263,7 +332,7 @@ async def probes_record(
     async with rig_access(rig, opts) as (access, hands):
         async with CalibrationSession(rig, access, note) as session:
             await session.roll(opts.roll())
-            readings = await measure_probes(session, hands, steps)
+            readings = await measure_probes(session, _watched(hands, session), steps)
     data = _base(rig, opts, RecordStep.PROBES)
     data["reference"] = reference.model_dump()
     data["probes"] = {}

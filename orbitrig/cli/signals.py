@@ -5,8 +5,10 @@ orbitrig.cli.terminal, which a reader gone away does not end either.
 
 :func:`run_until_signal` runs a coroutine whose way out stops both drives (an ``async with``
 of the rig) and cancels it on the first of these signals, so the drives are stopped on each
-of them as on Ctrl-C; the signal comes back as :class:`Interrupted`. Further signals during
-that stop are only counted: the stop under way is not cut short.
+of them as on Ctrl-C; the signal comes back as :class:`Interrupted`. Each further signal
+cancels it again: a stop under way that is shielded from cancellation (orbitrig.run.safe_stop)
+is not cut short, it becomes the emergency stop and still waits for standstill; anything else
+the way out waits for (a prompt, a read) ends at once, so a second Ctrl-C is never lost.
 """
 
 from __future__ import annotations
@@ -48,8 +50,8 @@ def signal_cause(sig: int) -> str:
 
 
 def run_until_signal(make: Callable[[], Awaitable[T]]) -> T:
-    """``asyncio.run(make())``, cancelled by the first of SIGNALS (raises Interrupted after the
-    coroutine's own way out has run)."""
+    """``asyncio.run(make())``, cancelled by the first of SIGNALS and again by each further one
+    (raises Interrupted, naming the first, after the coroutine's own way out has run)."""
 
     async def main() -> T:
         task = asyncio.current_task()
@@ -59,8 +61,7 @@ def run_until_signal(make: Callable[[], Awaitable[T]]) -> T:
 
         def on_signal(sig: signal.Signals) -> None:
             received.append(sig)
-            if len(received) == 1:
-                task.cancel()
+            task.cancel()  # again on a further signal: what the way out waits for is cut short
 
         for sig in SIGNALS:
             loop.add_signal_handler(sig, on_signal, sig)
@@ -69,7 +70,8 @@ def run_until_signal(make: Callable[[], Awaitable[T]]) -> T:
         except asyncio.CancelledError:
             if not received:
                 raise
-            task.uncancel()
+            while task.cancelling():
+                task.uncancel()
             raise Interrupted(received[0]) from None
         finally:
             for sig in SIGNALS:

@@ -9,13 +9,18 @@ before the links close.
 
 `measure_loads` applies each known static load through the ``hands`` (the simulator at once;
 on the rig the operator applies it and confirms) and reads the static part (dc) of both load
-measuring systems' force channels. SI throughout.
+measuring systems' force channels. The input a step puts on the rig (loads, a displacement step,
+the phase reference) is taken off only once both drives are confirmed at standstill
+(`CalibrationSession.applied`): the drives are never left turning while the operator is asked
+something. SI throughout.
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
+from collections.abc import AsyncIterator, Awaitable
 from dataclasses import dataclass
 from typing import Callable, Protocol
 
@@ -39,6 +44,12 @@ PROBES = ("x_a", "y_a", "x_b", "y_b")
 
 class CalibrationFailed(OrbitrigError):
     """A calibration step could not be completed (drives, A/D link, operator)."""
+
+
+class AsksOperator:
+    """Hands that ask the operator at the terminal (on the rig) and wait for the answer. After a
+    step that did not complete they are not asked to take the input off: the step ends at once,
+    both drives at standstill, saying what is left on the rig (`CalibrationSession.applied`)."""
 
 
 class LoadHands(Protocol):
@@ -84,6 +95,8 @@ class CalibrationSession:
         self.rig, self.access, self.note = rig, access, note
         self.io = RigIO(rig, access.endpoints)
         self.roll_spec: SlowRoll | None = None
+        self.at_standstill = False  # both drives confirmed at standstill since the last `roll`
+        self.unconfirmed: CalibrationFailed | None = None  # a stop that was not confirmed
 
     async def __aenter__(self) -> "CalibrationSession":
         try:
@@ -93,33 +106,84 @@ class CalibrationSession:
         return self
 
     async def __aexit__(self, *exc) -> None:
-        """Both drives stopped and confirmed at standstill, then the links closed; a stop not
-        delivered or not confirmed fails the step (CalibrationFailed: no record is written, and
-        nothing says the drives were stopped), whatever ended it. A cancellation (a signal)
-        during the stop does not cut it short: it makes it the emergency stop, and is raised
-        again once both drives are confirmed at standstill."""
-        unconfirmed = None
+        """Both drives stopped and confirmed at standstill (`stop`: an emergency stop after an
+        exception or a cancellation), then the links closed; a stop not delivered or not confirmed
+        fails the step (CalibrationFailed: no record is written, and nothing says the drives were
+        stopped), whatever ended it, also a cancellation while the links close."""
+        failed: CalibrationFailed | None = None
         try:
-            if self.io.drives is not None:
-                await self._stop_drives(emergency=exc[0] is not None)
-        except DriveError as err:
-            self.note(f"stopping the drives failed: {err}")
-            unconfirmed = err
+            await self.stop(emergency=exc[0] is not None)
+        except CalibrationFailed as err:
+            failed = err
         finally:
-            await self.io.__aexit__(*exc)
-        if unconfirmed is not None:
-            raise CalibrationFailed(not_confirmed(unconfirmed)) from unconfirmed
+            try:
+                await self.io.__aexit__(*exc)
+            except asyncio.CancelledError:
+                if failed is None:
+                    raise
+        if failed is not None:
+            raise failed
 
-    async def _stop_drives(self, *, emergency: bool) -> None:
+    async def stop(self, *, emergency: bool = False) -> None:
         """Ramp (`emergency`: OFF3) both drives to zero and wait for standstill, shielded from a
-        cancellation (orbitrig.run.safe_stop.stop_shielded); says so once confirmed."""
+        cancellation (orbitrig.run.safe_stop.stop_shielded: a cancellation during the stop does
+        not cut it short, it makes it the emergency stop and is raised again once both drives
+        are confirmed at standstill); says so once confirmed. Nothing to do once confirmed (until
+        the next `roll`); a stop not confirmed raises CalibrationFailed, now and on every call."""
+        if self.io.drives is None or self.at_standstill:
+            return
+        if self.unconfirmed is not None:
+            raise self.unconfirmed
         timeout = self.access.time_scale.wall(self.rig.drives.stop_timeout_s) + 5.0
         try:
             await stop_shielded(self.io.drives, asyncio.Event(), emergency=emergency, timeout=timeout)
         except asyncio.CancelledError:
+            self.at_standstill = True
             self.note("both drives stopped (a signal during the stop made it an emergency stop)")
             raise
+        except DriveError as err:
+            self.note(f"stopping the drives failed: {err}")
+            self.unconfirmed = CalibrationFailed(not_confirmed(err))
+            raise self.unconfirmed from err
+        self.at_standstill = True
         self.note("both drives stopped")
+
+    def motion(self) -> str:
+        """Whether the spindles turn, as the drives last read: 'both drives at standstill' or the
+        actual speeds (for the operator's prompts)."""
+        return self.io.drives.state.motion() if self.io.drives is not None else "the drives' speeds not read yet"
+
+    @contextlib.asynccontextmanager
+    async def applied(self, remove: Callable[[], Awaitable[None]], what: str, hands: object) -> AsyncIterator[None]:
+        """An input (loads, a displacement step, the phase reference) on the rig while the body
+        runs. On every way out both drives are stopped and confirmed at standstill first, only
+        then is the input taken off: ``remove()`` (on the rig the operator's prompt, `what`).
+        After a body that did not complete (an exception, a cancellation: the stop is then the
+        emergency stop) hands that ask the operator (`AsksOperator`) are not asked: the step
+        ends at once, with a line saying the drives' state and `what` is left to do. A stop not
+        confirmed raises CalibrationFailed and nobody is asked anything."""
+        try:
+            yield
+        except BaseException:
+            try:
+                await self.stop(emergency=True)
+            finally:
+                if self.at_standstill:
+                    await self._left_on(remove, what, hands)
+            raise
+        await self.stop()
+        await remove()
+
+    async def _left_on(self, remove: Callable[[], Awaitable[None]], what: str, hands: object) -> None:
+        """The input of a step that did not complete, both drives at standstill: the operator is
+        told (not asked: the step is ending), other hands take it off."""
+        if isinstance(hands, AsksOperator):
+            self.note(f"{self.motion()}: {what} (the step did not complete)")
+            return
+        try:
+            await remove()
+        except Exception as err:  # noqa: BLE001 - the step ends with its own failure
+            self.note(f"{what} failed: {err}")
 
     async def roll(self, roll: SlowRoll) -> None:
         """Orbit radius and static eccentricity zero, the pressures set, then spin and orbit
@@ -132,6 +196,7 @@ class CalibrationSession:
             pressure_ratio=roll.pressure_ratio,
         )
         scale, s = self.access.time_scale, self.rig.settle
+        self.at_standstill = False
         try:
             await self.io.drives.set_speeds(roll.spin, roll.orbit)
             await self.io.drives.wait_settled(hold=scale.wall(s.hold_s), timeout=scale.wall(s.timeout_s) + 5.0)
@@ -167,10 +232,11 @@ async def measure_loads(
     session: CalibrationSession, hands: LoadHands, loads: np.ndarray
 ) -> dict[LoadSystem, np.ndarray]:
     """Each load of `loads` (n, 2; N) applied in turn and read by both load measuring systems:
-    {lms: (n, 2) static readings (N, through rig.toml's channel gains)}; the load removed after."""
+    {lms: (n, 2) static readings (N, through rig.toml's channel gains)}; the load removed after, both
+    drives at standstill."""
     ch = session.rig.channel_index
     out = {lms: [] for lms in LMS}
-    try:
+    async with session.applied(lambda: hands.apply_load(0.0, 0.0), "remove every calibration load", hands):
         for fx, fy in np.asarray(loads, dtype=float):
             await hands.apply_load(float(fx), float(fy))
             await session.hold()
@@ -181,8 +247,6 @@ async def measure_loads(
                 f"load ({fx:+.1f}, {fy:+.1f}) N read: "
                 + ", ".join(f"{lms} ({r[-1][0]:+.2f}, {r[-1][1]:+.2f}) N" for lms, r in out.items())
             )
-    finally:
-        await hands.apply_load(0.0, 0.0)
     return {lms: np.array(v) for lms, v in out.items()}
 
 
@@ -202,10 +266,11 @@ async def measure_runout(session: CalibrationSession) -> tuple[dict[str, np.ndar
 
 async def measure_probes(session: CalibrationSession, hands: ProbeHands, steps: np.ndarray) -> dict[str, np.ndarray]:
     """Each step of `steps` (n,; m) applied along x, then along y, and read by the probes of that
-    axis: {probe: (n,) static readings (m, through rig.toml's channel gains)}; the step removed after."""
+    axis: {probe: (n,) static readings (m, through rig.toml's channel gains)}; the step removed after,
+    both drives at standstill."""
     ch = session.rig.channel_index
     out: dict[str, list] = {p: [] for p in PROBES}
-    try:
+    async with session.applied(lambda: hands.apply_displacement(0.0, 0.0), "remove the displacement step", hands):
         for axis in ("x", "y"):
             for d in np.asarray(steps, dtype=float):
                 await hands.apply_displacement(float(d) if axis == "x" else 0.0, float(d) if axis == "y" else 0.0)
@@ -218,8 +283,6 @@ async def measure_probes(session: CalibrationSession, hands: ProbeHands, steps: 
                     f"step {axis} {d * 1e6:+.2f} um read: "
                     + ", ".join(f"{p} {out[p][-1] * 1e6:+.3f} um" for p in PROBES if p.startswith(axis))
                 )
-    finally:
-        await hands.apply_displacement(0.0, 0.0)
     return {p: np.array(v) for p, v in out.items()}
 
 
@@ -228,10 +291,11 @@ async def measure_delay(
 ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """The reference read at each slow roll of `rolls` (its orbit frequency; a ratio off 1 keeps
     the probes' runout out of the average): (frequencies Hz (n,), {channel: (n,) lag (rad)
-    behind the mean of the four probes}); the reference removed after."""
+    behind the mean of the four probes}); the reference removed after, both drives at standstill."""
     ch = session.rig.channel_index
     freqs, lags = [], {name: [] for name in ch}
-    try:
+    remove = "disconnect the phase reference and reconnect the sensors"
+    async with session.applied(lambda: hands.apply_reference(0.0, 0.0), remove, hands):
         await hands.apply_reference(*amplitudes)
         for roll in rolls:
             await session.roll(roll)
@@ -246,6 +310,4 @@ async def measure_delay(
                 f"reference at {freqs[-1]:.2f} Hz: force channels lag the probes by "
                 + ", ".join(f"{n} {np.degrees(lags[n][-1]):.3f} deg" for n in ch if n.startswith("f"))
             )
-    finally:
-        await hands.apply_reference(0.0, 0.0)
     return np.array(freqs), {name: np.array(v) for name, v in lags.items()}

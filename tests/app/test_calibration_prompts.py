@@ -1,0 +1,92 @@
+"""The operator's prompts of `orbitrig calibrate` on the rig read standard input so that a prompt
+cancelled while it waits (Ctrl-C, SIGTERM) does not take the next answer: the next prompt gets
+the next line, one Enter. Standard input a real pipe; the read's thread is known to wait in
+read(2) on it (Linux /proc) before the prompt is cancelled, as at an operator's terminal."""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+from orbitrig.cli.calibrate_steps import OperatorLoads
+from orbitrig.run.calibration import CalibrationFailed
+
+pytestmark = pytest.mark.timeout(120)
+
+
+def _read_syscall() -> str:
+    """The number /proc/<tid>/syscall gives for read(2) on this machine ('' where not known)."""
+    return {"x86_64": "0", "aarch64": "63"}.get(os.uname().machine, "")
+
+
+def _blocked_reading(fd: int) -> bool:
+    """Whether a thread of this process waits in read(2) on `fd`."""
+    for task in Path("/proc/self/task").iterdir():
+        try:
+            words = (task / "syscall").read_text().split()
+        except OSError:
+            continue
+        if len(words) > 1 and words[0] == _read_syscall() and int(words[1], 16) == fd:
+            return True
+    return False
+
+
+async def _until(condition, timeout: float, what: str) -> None:
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + timeout
+    while not condition():
+        assert loop.time() < deadline, what
+        await asyncio.sleep(0.01)
+
+
+class Pipe:
+    """A pipe that is this process's standard input: its read end `r`, `write`, `close`."""
+
+    def __init__(self) -> None:
+        self.r, self.w = os.pipe()
+        self.stdin = os.fdopen(self.r, "r")
+
+    def write(self, data: bytes) -> None:
+        os.write(self.w, data)
+
+    def close(self) -> None:
+        if self.w >= 0:
+            os.close(self.w)
+            self.w = -1
+
+
+@pytest.fixture
+def stdin_pipe(monkeypatch):
+    if not _read_syscall() or not Path("/proc/self/task").is_dir():
+        pytest.skip("needs Linux /proc/<tid>/syscall on x86_64 or arm64")
+    pipe = Pipe()
+    monkeypatch.setattr(sys, "stdin", pipe.stdin)
+    yield pipe
+    pipe.close()  # a read still waiting (a failed test) ends at EOF
+
+
+async def test_a_cancelled_prompt_leaves_the_next_enter_to_the_next_prompt(stdin_pipe):
+    hands = OperatorLoads()
+    first = asyncio.ensure_future(hands.apply_load(500.0, 0.0))
+    await _until(lambda: _blocked_reading(stdin_pipe.r), 30, "the first prompt never read standard input")
+    first.cancel()  # Ctrl-C: the step is cancelled while the prompt waits
+    with pytest.raises(asyncio.CancelledError):
+        await first
+    second = asyncio.ensure_future(hands.apply_load(0.0, 0.0))
+    for _ in range(2):  # the second prompt runs up to its wait for the line (before the Enter is written)
+        await asyncio.sleep(0)
+    await _until(lambda: _blocked_reading(stdin_pipe.r), 30, "the second prompt never read standard input")
+    stdin_pipe.write(b"\n")  # one Enter
+    await asyncio.wait_for(second, 30)  # the second prompt has it (not a reader nobody waits for)
+
+
+async def test_closed_standard_input_fails_the_step_saying_so(stdin_pipe):
+    prompt = asyncio.ensure_future(OperatorLoads().apply_load(500.0, 0.0))
+    await _until(lambda: _blocked_reading(stdin_pipe.r), 30, "the prompt never read standard input")
+    stdin_pipe.close()
+    with pytest.raises(CalibrationFailed, match="standard input is closed: nobody can confirm at the terminal"):
+        await asyncio.wait_for(prompt, 30)
