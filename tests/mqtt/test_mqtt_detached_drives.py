@@ -194,7 +194,7 @@ def test_sigkill_offline_and_drives_stop_on_their_watchdog(detached_sim, tmp_pat
                 break
             assert time.monotonic() - t_kill < 15, f"drives still turning: {state}"
             time.sleep(0.05)
-        assert time.monotonic() - t_kill > 0.8  # not commanded: the 1 s watchdog stopped them
+        assert time.monotonic() - t_kill > 0.5  # not commanded: the 1 s watchdog (from the last poll) stopped them
 
         host, port = ep["modbus"].removeprefix("tcp://").split(":")
         client = ModbusTcpClient(host, port=int(port), timeout=2)
