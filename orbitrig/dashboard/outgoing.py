@@ -95,7 +95,8 @@ class Outgoing:
             return {"ok": False, "error": f"not sent: {err}"}
         finally:
             self._pending.pop(cid, None)
-        return {"ok": bool(reply.get("ok")), "error": reply.get("error")}
+        detail = reply.get("detail")  # what an ok command did, when the service says it
+        return {"ok": bool(reply.get("ok")), "error": reply.get("error"), **({"detail": str(detail)} if detail else {})}
 
     def _offline(self) -> bool:
         return self.status is not None and self.status.get("state") == proto.OFFLINE

@@ -370,7 +370,11 @@ async function send(cmd, extra) {
 // a command's outcome ({ok, error}); `at` (ISO-8601): one the session kept from before this page was loaded
 function showOutcome(cmd, data, at) {
   const out = $("cmd-result"), earlier = at ? " (at " + new Date(at).toLocaleTimeString() + ", before this page was loaded)" : "";
-  if (data.ok) { out.className = "cmd-result ok"; out.textContent = cmd + ": accepted" + earlier; return; }
+  if (data.ok) {  // with what the service did, when it says (an abort no run carried out)
+    out.className = "cmd-result ok"; out.textContent = cmd + ": accepted" + (data.detail ? ": " + data.detail : "") + earlier;
+    if (data.detail) addEvent("info", cmd + ": " + data.detail, false, at);
+    return;
+  }
   const error = data.error || "failed";  // the server's reasons leave the name to the page: prefixed once
   const text = error.startsWith(cmd + ":") ? error : cmd + ": " + error;
   out.className = "cmd-result refused"; out.textContent = text + earlier;
