@@ -162,23 +162,29 @@ class CalibrationSession:
         emergency stop) hands that ask the operator (`AsksOperator`) are not asked: the step
         ends at once, with a line saying the drives' state and `what` is left to do. A stop not
         confirmed raises CalibrationFailed and nobody is asked anything."""
+        completed = False
         try:
             yield
+            completed = True
+            await self.stop()  # a signal during it: the emergency stop, and the step did not complete
         except BaseException:
             try:
                 await self.stop(emergency=True)
             finally:
                 if self.at_standstill:
-                    await self._left_on(remove, what, hands)
+                    await self._left_on(remove, what, hands, completed)
             raise
-        await self.stop()
         await remove()
 
-    async def _left_on(self, remove: Callable[[], Awaitable[None]], what: str, hands: object) -> None:
-        """The input of a step that did not complete, both drives at standstill: the operator is
-        told (not asked: the step is ending), other hands take it off."""
+    async def _left_on(
+        self, remove: Callable[[], Awaitable[None]], what: str, hands: object, measured: bool = False
+    ) -> None:
+        """The input of a step that did not complete (`measured`: its readings were taken, the
+        closing stop was cut short), both drives at standstill: the operator is told (not asked:
+        the step is ending), other hands take it off."""
         if isinstance(hands, AsksOperator):
-            self.note(f"{self.motion()}: {what} (the step did not complete)")
+            why = "the step ended during the closing stop" if measured else "the step did not complete"
+            self.note(f"{self.motion()}: {what} ({why})")
             return
         try:
             await remove()

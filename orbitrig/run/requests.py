@@ -92,8 +92,18 @@ class OperatorRequests:
             self._body.cancel()
         if sending is None:
             self._command(RunCommand.ABORT, by)
-            return not starts and self._io is not None
+            return not starts and self._repeat_stop()
         sending.add_done_callback(lambda task: self._stopped_now(task, t0, by))
+        return True
+
+    def _repeat_stop(self) -> bool:
+        """A further abort: the emergency stop sent again while the run's drives are open (harmless
+        if the first is under way); False once their link is closed (the cleanup closed it, also
+        when it could not confirm them stopped): the caller stops them another way."""
+        again = self._stop_drives_now(emergency=True)
+        if again is None:
+            return False
+        again.add_done_callback(lambda task: task.cancelled() or task.exception())  # its errors: the first's
         return True
 
     def _stop_first(self, emergency: bool) -> asyncio.Task[list[DriveError]] | None:
