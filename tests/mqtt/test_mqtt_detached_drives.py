@@ -121,6 +121,13 @@ def control(endpoints: dict, **request) -> dict:
 
 def rig_config(endpoints: dict) -> str:
     text = (REPO / "config" / "rig.toml").read_text()
+    for old, new in (  # a link a busy host holds (1 s requests, lost after 5 polls: 5.5 s); the watchdog 6 s
+        ("timeout_s = 0.15", "timeout_s = 1.0"),
+        ("link_loss_polls = 3", "link_loss_polls = 5"),
+        ("comm_loss_timeout_s = 1.0", "comm_loss_timeout_s = 6.0"),
+    ):
+        assert old in text, old
+        text = text.replace(old, new)
     for key, value in (
         ("modbus_url", endpoints["modbus"]),
         ("adc_url", endpoints["adc"]),
@@ -192,9 +199,9 @@ def test_sigkill_offline_and_drives_stop_on_their_watchdog(detached_sim, tmp_pat
             state = control(ep, cmd="state")
             if state["spin"] == 0 and state["orbit"] == 0:
                 break
-            assert time.monotonic() - t_kill < 15, f"drives still turning: {state}"
+            assert time.monotonic() - t_kill < 25, f"drives still turning: {state}"
             time.sleep(0.05)
-        assert time.monotonic() - t_kill > 0.5  # not commanded: the 1 s watchdog (from the last poll) stopped them
+        assert time.monotonic() - t_kill > 4.0  # not commanded: the 6 s watchdog (from the last poll) stopped them
 
         host, port = ep["modbus"].removeprefix("tcp://").split(":")
         client = ModbusTcpClient(host, port=int(port), timeout=2)
