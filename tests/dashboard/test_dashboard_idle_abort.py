@@ -5,17 +5,13 @@ sent, in the command's outcome and in the event list, not a bare "accepted"."""
 
 from __future__ import annotations
 
-from support.dash_helpers import Page
-from support.mqtt_helpers import ACCOUNTS
+from support.dash_helpers import idle_page
 
 SENT = "emergency stop (OFF3) sent to both drives over a link of the service's own (no run held them)"
 
 
 def test_an_abort_with_no_run_says_the_emergency_stop_was_sent(dashboard, service, browsers):
-    page = Page(browsers(), dashboard.url, dashboard)
-    page.sign_in("operator", ACCOUNTS["operator"])
-    page.signed_in()
-    page.wait_state("idle")
+    page = idle_page(browsers, dashboard)
     outcome = page.command("btn-abort", "abort:")
     assert outcome == f"abort: accepted: {SENT}", outcome
     assert f"abort: {SENT}" in page.text("events")

@@ -10,7 +10,7 @@ import re
 import time
 from pathlib import Path
 
-from support.dash_helpers import REPO, RIG, Page, card_shot
+from support.dash_helpers import REPO, RIG, Page, card_shot, idle_page
 from support.mqtt_helpers import ACCOUNTS
 
 #: Set to a path (e.g. docs/dashboard.png) to keep the screenshot the test makes.
@@ -18,10 +18,7 @@ SCREENSHOT_ENV = "ORBITRIG_DASHBOARD_SCREENSHOT"
 
 
 def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
-    page = Page(browsers(), dashboard.url, dashboard)
-    page.sign_in("operator", ACCOUNTS["operator"])
-    page.signed_in()
-    page.wait_state("idle")
+    page = idle_page(browsers, dashboard)
     assert page.text("link") == "online"
     page.el("matrix").clear()
     page.el("matrix").send_keys("demo")

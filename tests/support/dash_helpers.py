@@ -185,3 +185,14 @@ def card_shot(page: Page, element_id: str, name: str, tmp_path: Path) -> Path:
     page.el(element_id).screenshot(str(path))
     assert path.stat().st_size > 5_000
     return path
+
+
+def idle_page(browsers: Callable[[], webdriver.Chrome], dashboard: Dashboard, user: str = "operator") -> Page:
+    """A fresh browser's page signed in as `user` (password of mqtt_helpers.ACCOUNTS), the rig idle."""
+    from .mqtt_helpers import ACCOUNTS
+
+    page = Page(browsers(), dashboard.url, dashboard)
+    page.sign_in(user, ACCOUNTS[user])
+    page.signed_in()
+    page.wait_state("idle")
+    return page
