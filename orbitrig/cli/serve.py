@@ -106,17 +106,16 @@ def build_service(rig, settings, broker_settings, *, out: Path, sim_rig=None, co
     from orbitrig import config as cfg
     from orbitrig.run.engine import RunEngine
     from orbitrig.run.plan import make_plan
+    from orbitrig.run.rig_io import RigAccess
     from orbitrig.service.rig_service import RigService
     from rigunits import utc_stamp
 
-    from orbitrig.run.rig_io import RigAccess
-
-    access = None
     if sim_rig is not None:
         from orbitrig.cli.simulated_rig import simulated_access
 
         access = simulated_access(sim_rig)
-    drives_at = ((access or RigAccess.of_rig(rig)).endpoints.modbus_url, rig.drives)  # an abort with no run
+    else:
+        access = RigAccess.of_rig(rig)
 
     def load_matrix(path: Path):
         # every problem of this matrix on this rig, before anything moves; the plan is run as it is
@@ -130,8 +129,9 @@ def build_service(rig, settings, broker_settings, *, out: Path, sim_rig=None, co
             run_dir = out / f"{stamp}-{name}-{n}"
         return RunEngine(rig, out_dir=run_dir, access=access, confirm_mode=confirm)
 
+    drive_link = (access.endpoints.modbus_url, rig.drives)  # for an abort with no run holding the drives
     return RigService(
-        settings, broker_settings, engine_factory=new_engine, load_matrix=load_matrix, drive_link=drives_at
+        settings, broker_settings, engine_factory=new_engine, load_matrix=load_matrix, drive_link=drive_link
     )
 
 

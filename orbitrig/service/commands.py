@@ -61,7 +61,7 @@ class CommandHandling:
     #: the emergency stop of an abort that no run carried out, while it is being sent
     _idle_stop: asyncio.Task[idle_stop.Outcome] | None = None
     _tg: asyncio.TaskGroup | None
-    #: (Modbus URL, [drives]) of the rig, for an abort no run carries out (None: from the last run)
+    #: (Modbus URL, [drives]) of the rig, for an abort no run carries out (None: not known, not sent)
     drive_link: tuple[str, Drives] | None = None
     #: set once the service is shutting down: MOVES_DRIVES are refused from then on
     closing: bool = False
@@ -210,26 +210,13 @@ class CommandHandling:
         pending = self._idle_stop
         if pending is not None and not pending.done():
             return pending  # one under way since this abort: it is answered with its outcome
-        where = self._drive_link()
+        where = self.drive_link
         if where is None:
             log.warning("abort: %s", idle_stop.NO_DRIVE_LINK)
             raise CommandRefused(idle_stop.NO_DRIVE_LINK)
         make = self._tg.create_task if self._tg is not None else asyncio.get_running_loop().create_task
         self._idle_stop = make(self._emergency_stop(*where), name="drives-emergency-stop")
         return self._idle_stop
-
-    def _drive_link(self) -> tuple[str, Drives] | None:
-        """(Modbus URL, [drives]) of the rig the service runs on: as it was built with it
-        (`orbitrig serve`), else as its last run's engine knows it."""
-        if self.drive_link is not None:
-            return self.drive_link
-        engine = self._engine
-        if engine is None:
-            return None
-        try:
-            return engine.access.endpoints.modbus_url, engine.rig.drives
-        except AttributeError:  # an engine that does not say (a test's)
-            return None
 
     @staticmethod
     async def _emergency_stop(url: str, d: Drives) -> idle_stop.Outcome:

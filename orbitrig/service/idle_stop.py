@@ -19,12 +19,9 @@ from orbitrig.run.drive_setup import bare_drives, modbus_link
 
 log = logging.getLogger("orbitrig.service.rig_service")
 
-#: the reply's error when the service knows no drive link (no run since it started)
-NO_DRIVE_LINK = (
-    "not sent: no run holds the drives and the service knows no drive link yet (no run since it "
-    "started); use the rig's emergency stop"
-)
 ESTOP = "use the rig's emergency stop"
+#: the reply's error when the service was built without a drive link (`orbitrig serve` gives one)
+NO_DRIVE_LINK = f"not sent: no run holds the drives and the service was given no drive link; {ESTOP}"
 
 #: (error, detail) of an abort's reply: error None is ok: true
 Outcome = tuple[str | None, str | None]

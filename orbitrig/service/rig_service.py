@@ -96,7 +96,8 @@ class RigService(SupervisionHandling):
         drive_link: tuple[str, Drives] | None = None,
     ):
         """`drive_link`: (Modbus URL, [drives]) of the rig's drives, for an abort that no run
-        carries out (orbitrig.service.idle_stop); None: known only once a run has started."""
+        carries out (orbitrig.service.idle_stop; `orbitrig serve` gives it); None: such an abort
+        is answered "not sent"."""
         self.drive_link = drive_link
         self.settings = settings
         self.broker = broker

@@ -8,7 +8,7 @@
   the service's own and says so in its reply;
 - the service `orbitrig serve` builds knows its rig's drives before any run: an abort to it
   before its first run, with the drives turned from their keypads, stops them the same way;
-- a service that knows no drive link (built without one, no run since it started) answers such an
+- a service that knows no drive link (built without one) answers such an
   abort ok: false, "not sent".
 
 Real parts: mosquitto with the shipped ACL and accounts, the service `orbitrig serve --sim`
@@ -164,7 +164,7 @@ async def test_an_abort_before_the_first_run_stops_drives_turned_from_their_keyp
 async def test_an_abort_with_no_drive_link_known_says_it_was_not_sent(broker, tmp_path):
     settings = ServiceSettings(rig_id="unknown-rig", matrices_dir=write_matrices(tmp_path / "matrices"))
     creds = BrokerSettings.from_url(broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"])
-    service = RigService(settings, creds, engine_factory=None, load_matrix=None)  # no run since it started
+    service = RigService(settings, creds, engine_factory=None, load_matrix=None)  # no drive link given
     stop = asyncio.Event()
     task = asyncio.create_task(service.serve(stop))
     rc = RigClient(broker, "unknown-rig")

@@ -2,7 +2,7 @@
 replays it on every subscription. The service refuses it with one reply and changes
 nothing; a live command right after is executed as usual. A retained stop or abort is
 accepted and carried out all the same (spec: stop and abort are always accepted; an abort
-with no run since the service started is answered "not sent": it knows no drive link). Real
+to a service built without a drive link is answered "not sent"). Real
 mosquitto, real clients."""
 
 from __future__ import annotations
