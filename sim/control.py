@@ -59,8 +59,7 @@ def _impedances(rig, req: dict) -> dict:
 def _drives(rig, req: dict) -> dict:
     """Per drive (Modbus device id), now: state, actual speed (rpm), faults, the control word it
     holds and the last ones written, time stamped."""
-    for d in rig.drives.values():
-        d.advance()
+    rig.advance_drives()
     return {
         "drives": {
             str(dev): {

@@ -181,11 +181,15 @@ class SimRig:
     def speeds(self) -> tuple[float, float]:
         """(spin, orbit) actual speeds in rad/s (orbit signed) now: the drives integrated to the
         present, as a Modbus read of ACT would find them (the last tick may be older)."""
-        for d in self.drives.values():
-            d.advance()
+        self.advance_drives()
         spin = self.drives[1].actual_rpm * RPM if 1 in self.drives else 0.0
         orbit = self.drives[2].actual_rpm * RPM if 2 in self.drives else 0.0
         return spin, orbit
+
+    def advance_drives(self) -> None:
+        """Integrate every drive's ramps and state to the present."""
+        for d in self.drives.values():
+            d.advance()
 
     def endpoints(self) -> dict:
         """The endpoints JSON object printed by `orbitrig sim`."""
