@@ -17,7 +17,6 @@ import math
 import os
 import re
 import signal
-import socket
 import subprocess
 import threading
 import time
@@ -25,6 +24,7 @@ from pathlib import Path
 
 import pytest
 
+from orbitrig.cli.simulated_rig import SimulatorLink
 from support.paths import ROOT
 from support.rig_configs import lab_record_config
 from support.sweep_helpers import orbitrig_cmd
@@ -56,14 +56,8 @@ class Simulator:
             text=True,
         )
         self.endpoints = json.loads(self.proc.stdout.readline())
-        self.control_port = int(self.endpoints["control"].rsplit(":", 1)[1])
-
-    def call(self, cmd: str, **fields) -> dict:
-        with socket.create_connection(("127.0.0.1", self.control_port), timeout=30) as s:
-            s.sendall(json.dumps({"cmd": cmd, **fields}).encode() + b"\n")
-            reply = json.loads(s.makefile().readline())
-        assert reply["ok"], reply
-        return reply
+        self.link = SimulatorLink(self.endpoints["control"])
+        self.call = self.link.call  # the control API: cmd, fields -> its reply
 
     def rpm(self) -> tuple[float, float]:
         """Both drives' actual speeds now (rpm)."""
@@ -84,6 +78,7 @@ class Simulator:
         )
 
     def close(self) -> None:
+        self.link.close()
         self.proc.send_signal(signal.SIGINT)
         try:
             self.proc.wait(timeout=30)
