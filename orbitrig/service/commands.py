@@ -214,14 +214,16 @@ class CommandHandling:
         if where is None:
             log.warning("abort: %s", idle_stop.NO_DRIVE_LINK)
             raise CommandRefused(idle_stop.NO_DRIVE_LINK)
+        run = self._run_task if self._run_task is not None and not self._run_task.done() else None
         make = self._tg.create_task if self._tg is not None else asyncio.get_running_loop().create_task
-        self._idle_stop = make(self._emergency_stop(*where), name="drives-emergency-stop")
+        self._idle_stop = make(self._emergency_stop(*where, run), name="drives-emergency-stop")
         return self._idle_stop
 
     @staticmethod
-    async def _emergency_stop(url: str, d: Drives) -> idle_stop.Outcome:
+    async def _emergency_stop(url: str, d: Drives, run: asyncio.Future[object] | None) -> idle_stop.Outcome:
+        """`run`: a run the abort cancelled before it held the drives, which may hold their port."""
         try:
-            return await idle_stop.emergency_stop(url, d)
+            return await idle_stop.emergency_stop(url, d, holder=run)
         except Exception as err:  # answered, never the end of the service
             log.exception("abort: the emergency stop over a link of its own failed")
             return f"emergency stop NOT confirmed sent: {type(err).__name__}: {err}; {idle_stop.ESTOP}", None

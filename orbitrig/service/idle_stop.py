@@ -10,9 +10,11 @@ sent (docs/protocols/mqtt.md, "Commands")."""
 
 from __future__ import annotations
 
+import asyncio
 import logging
 
 from drives.errors import DriveError
+from drives.link import ModbusLink
 from drives.stop import send_stop
 from orbitrig.config import Drives
 from orbitrig.run.drive_setup import bare_drives, modbus_link
@@ -26,19 +28,24 @@ NO_DRIVE_LINK = f"not sent: no run holds the drives and the service was given no
 #: (error, detail) of an abort's reply: error None is ok: true
 Outcome = tuple[str | None, str | None]
 
+#: wall s an abort's stop waits for a run it cancelled (one being opened) to let go of the
+#: drives' link, when that link cannot be opened beside it (an RTU port is opened exclusively)
+LET_GO_S = 5.0
 
-async def emergency_stop(url: str, d: Drives) -> Outcome:
+
+async def emergency_stop(url: str, d: Drives, holder: asyncio.Future[object] | None = None) -> Outcome:
     """OFF3 to both drives of [drives] `d` at `url` over a fresh link, then zero references:
-    (None, what was sent) if both took it, else (why not, None)."""
+    (None, what was sent) if both took it, else (why not, None). `holder`: the task of a run
+    the abort cancelled before it held the drives (it may hold their port while being opened):
+    if the link cannot be opened, it is tried again once that run has ended (at most LET_GO_S)."""
     link = modbus_link(url, d)
     pair = bare_drives(link, d)
     log.warning("abort: no run holds the drives: emergency stop (OFF3) to both over a link of its own (%s)", url)
     try:
-        try:
-            await link.connect()
-        except DriveError as err:
-            log.error("abort: emergency stop not sent: %s", err)
-            return f"emergency stop NOT sent (no run holds the drives): cannot open their link: {err}; {ESTOP}", None
+        not_open = await _open(link, holder)
+        if not_open is not None:
+            log.error("abort: emergency stop not sent: %s", not_open)
+            return f"emergency stop NOT sent (no run holds the drives): {not_open}; {ESTOP}", None
         errors = await send_stop(pair, emergency=True)
     finally:
         await link.close()
@@ -49,3 +56,23 @@ async def emergency_stop(url: str, d: Drives) -> Outcome:
     sent = [f"{dr.name} (id {dr.device_id})" for dr in pair if dr.device_id not in missed]
     why = "; ".join(str(err) for err in errors)
     return f"emergency stop (OFF3) delivered to {', '.join(sent) or 'no drive'} only: {why}; {ESTOP}", None
+
+
+async def _open(link: ModbusLink, holder: asyncio.Future[object] | None) -> str | None:
+    """Open `link`, once more after `holder` ends if the first try fails while it runs; None if
+    open, else why not."""
+    try:
+        await link.connect()
+        return None
+    except DriveError as err:
+        if holder is None or holder.done():
+            return f"cannot open their link: {err}"
+        log.warning("abort: the drives' link is busy (%s): waiting up to %.0f s for the run to let go", err, LET_GO_S)
+    await asyncio.wait([holder], timeout=LET_GO_S)
+    if not holder.done():
+        return f"cannot open their link: a run being opened still holds it after {LET_GO_S:g} s"
+    try:
+        await link.connect()
+        return None
+    except DriveError as err:
+        return f"cannot open their link: {err}"
