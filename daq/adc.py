@@ -140,16 +140,15 @@ class AdcReader:
         """Close the link and stop reconnecting (idempotent)."""
         self._closed = True
         task, self._reconnect_task = self._reconnect_task, None
-        if task is not None:
-            task.cancel()
-            try:
-                await task
-            except asyncio.CancelledError:
-                pass
-        if self._link is not None:
-            self._link.close()
-            self._link = None
-        self._fail(DaqLinkError(f"{self.url}: reader closed"))
+        try:
+            if task is not None:
+                task.cancel()
+                await asyncio.wait([task])  # a cancel of the caller goes on to the caller
+        finally:
+            if self._link is not None:
+                self._link.close()
+                self._link = None
+            self._fail(DaqLinkError(f"{self.url}: reader closed"))
 
     @property
     def connected(self) -> bool:

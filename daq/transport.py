@@ -138,8 +138,9 @@ async def _open_socket(
     try:
         sock.setblocking(False)
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, _RCVBUF)
-        await asyncio.wait_for(loop.sock_connect(sock, addr), timeout)
-    except (OSError, asyncio.TimeoutError) as err:
+        async with asyncio.timeout(timeout):  # not wait_for: in 3.11 it drops a cancel arriving as it ends
+            await loop.sock_connect(sock, addr)
+    except (OSError, TimeoutError) as err:
         sock.close()
         raise DaqLinkError(f"{url}: cannot connect ({err or 'timeout'})") from err
     return ByteLink(url, sock.fileno(), sock.recv, sock.close, on_data, on_lost)

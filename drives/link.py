@@ -100,6 +100,20 @@ def parse_modbus_url(url: str) -> LinkAddress:
         raise DriveLinkError(f"bad Modbus URL {url!r}: {err}") from err
 
 
+async def _within(request: Awaitable[_Answer], seconds: float) -> _Answer:
+    """`request`, or TimeoutError after `seconds` (one task: wait_for's inner task of 3.11 ended
+    unwatched when the line closed under a cancelled request, and its failure was reported)."""
+    async with asyncio.timeout(seconds):
+        return await request
+
+
+def _seen(exchange: asyncio.Future[Any]) -> None:
+    """Mark an exchange's failure as seen: one a cancelled caller left behind (RTU: settled
+    before the next request; TCP: dropped) ends unwatched, often failing as the line closes."""
+    if not exchange.cancelled():
+        exchange.exception()
+
+
 class ModbusLink:
     """Async Modbus client for one URL; an async context manager.
 
@@ -168,8 +182,11 @@ class ModbusLink:
         self._drop()
         client = self._new_client()
         try:
-            ok = await asyncio.wait_for(client.connect(), self.timeout + 0.5)
-        except (asyncio.TimeoutError, OSError) as err:
+            # asyncio.timeout, not wait_for: in Python 3.11 wait_for drops a cancel that arrives in
+            # the loop step in which the connect ends (the caller is the poll, a run, a command)
+            async with asyncio.timeout(self.timeout + 0.5):
+                ok = await client.connect()
+        except (TimeoutError, OSError) as err:
             client.close()
             raise DriveLinkError(f"cannot connect to {self.url}: {err!r}") from err
         except BaseException:
@@ -293,7 +310,8 @@ class ModbusLink:
             client = self._client
             if client is None:
                 self._fail(device_id, span, "not connected")
-            exchange = asyncio.ensure_future(asyncio.wait_for(call(client), self.timeout + 0.5))
+            exchange = asyncio.ensure_future(_within(call(client), self.timeout + 0.5))
+            exchange.add_done_callback(_seen)  # its failure is raised to the caller, or nobody waits
             try:
                 rsp = await asyncio.shield(exchange)
             except asyncio.CancelledError:

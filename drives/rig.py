@@ -52,6 +52,9 @@ from drives.stop import StopSender
 
 log = logging.getLogger(__name__)
 
+#: wall s the exit waits for the cancelled poll to end before it stops the drives anyway
+POLL_END_S = 1.0
+
 
 class RigDrives:
     """The spin (omega) and orbit (Omega) drives on one Modbus link.
@@ -139,15 +142,17 @@ class RigDrives:
         self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
     ) -> None:
         cancelled = False
+        task, self._poll_task = self._poll_task, None
         try:
-            task, self._poll_task = self._poll_task, None
             if task is not None:
                 task.cancel()
                 try:
-                    await asyncio.wait([task])
+                    await asyncio.wait([task], timeout=POLL_END_S)
                 except asyncio.CancelledError:  # cancelled again: stop the drives first
                     cancelled = True
-            if self._release and exc_type is None:
+                if not task.done():  # the stop never waits on it (it would feed the watchdogs)
+                    log.error("the drives' poll did not end %g s after its cancel: stopping them beside it", POLL_END_S)
+            if self._release and exc_type is None and not cancelled:
                 log.warning(
                     "drives left running at their setpoint; without a polling client their "
                     "comm-loss watchdog ramps them down"
@@ -162,6 +167,8 @@ class RigDrives:
             if errors and exc_type is None:
                 raise errors[0]
         finally:
+            if task is not None and not task.done():
+                task.cancel()
             await self.link.close()
 
     def _params_to_write(self, drive: Drive) -> dict[str, float]:

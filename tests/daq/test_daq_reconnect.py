@@ -90,3 +90,54 @@ async def test_delays_start_short_again_after_data_flowed():
     gaps = np.sort(np.diff(accepts))
     assert len(accepts) >= 15 and gaps[-2] < 0.2, gaps[-3:]
     assert reader.stats.frames_good >= 8 * len(accepts) - 8
+
+
+async def test_a_reconnect_cancelled_as_its_connect_ends_is_cancelled(monkeypatch):
+    """Closing the reader cancels its reconnect task; a cancel that lands in the loop step in
+    which the task's connect ends must still end it (Python 3.11's asyncio.wait_for returned
+    the connection and dropped the cancel: the task went on and kept a link the reader had
+    closed). The alignment in one loop step is forced; the server and sockets are real."""
+    server, url, accepts = await serve(b"")  # accepts and closes: the reader keeps reconnecting
+    loop = asyncio.get_running_loop()
+    reader = AdcReader(url, channels=8, backoff=Backoff(initial=0.02, maximum=0.05))
+    try:
+        await reader.open()
+        while reader._reconnect_task is None:
+            await asyncio.sleep(0.01)
+        task = reader._reconnect_task
+        connect = loop.sock_connect
+
+        async def connect_then_close(sock, addr):
+            await connect(sock, addr)
+            reader._closed = True  # what aclose does first, in this very step
+            task.cancel()
+
+        monkeypatch.setattr(loop, "sock_connect", connect_then_close)
+        await asyncio.wait([task], timeout=5.0)
+        assert task.done() and task.cancelled(), "the cancel was dropped: the reconnect went on"
+    finally:
+        monkeypatch.undo()
+        await reader.aclose()
+        server.close()
+        await server.wait_closed()
+
+
+async def test_a_cancel_of_close_reaches_its_caller_and_the_link_is_closed():
+    """A run's cleanup cancelled while the reader closes (waiting for its reconnect task to end):
+    the cancel is the caller's and goes on to it, and the reader is closed all the same."""
+    server, url, _ = await serve(b"")
+    reader = AdcReader(url, channels=8, backoff=Backoff(initial=0.5, maximum=0.5))
+    try:
+        await reader.open()
+        while reader._reconnect_task is None:
+            await asyncio.sleep(0.01)
+        closing = asyncio.create_task(reader.aclose())
+        await asyncio.sleep(0)  # aclose has cancelled the reconnect task and waits for it
+        closing.cancel()
+        await asyncio.wait([closing], timeout=5.0)
+        assert closing.cancelled(), "the caller's cancel was swallowed by the close"
+        assert not reader.connected and reader._reconnect_task is None
+    finally:
+        await reader.aclose()
+        server.close()
+        await server.wait_closed()
