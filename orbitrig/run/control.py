@@ -9,7 +9,9 @@ a confirmation, an interlock clearing).
   or the identification); drives keep their speeds.
 - stop: finish the current orbit frequency, store it, end the run as stopped; a point left
   incomplete is measured again from its start by `orbitrig sweep --resume` (its blocks kept in aside/).
-- abort: the engine cancels the run at once (emergency ramp), keeps what is complete.
+- abort: the engine cancels the run at once (emergency ramp), keeps what is complete; a run
+  that goes on all the same (its cancel lost) ends at its next safe point or wait, before it
+  commands the drives again.
 - confirm(step): the operator confirms the manual setting the run waits for.
 - suspension: an interlock holds the run (state paused) until it clears.
 - no room: too little free disk space for the next point pauses the run.
@@ -183,6 +185,11 @@ class RunControl:
             self.wake.set()
 
     # -------------------------------------------------------------- waits
+    def _end_if_aborted(self) -> None:
+        """An aborted run's body ends here (cancelled) if its cancel was lost and it went on."""
+        if self.abort_requested:
+            raise asyncio.CancelledError("the run was aborted")
+
     def _add_time(self, key: str, t0: float) -> None:
         self.timing[key] = self.timing.get(key, 0.0) + time.monotonic() - t0
 
@@ -193,6 +200,7 @@ class RunControl:
     async def _wait_answer(self, t0: float) -> None:
         """Until the next request; if nobody can answer, a stop once `unanswered_limit` s
         have passed since `t0` (the wait's start) or since the limit was set, the later."""
+        self._end_if_aborted()
         self.wake.clear()
         limit = self.unanswered_limit
         if limit is None:
@@ -207,7 +215,8 @@ class RunControl:
             self._own_stop(by)
 
     async def safe_point(self, allow_stop: bool = True) -> None:
-        """Honour a stop (StopRun) or a pause here."""
+        """Honour an abort (cancelled), a stop (StopRun) or a pause here."""
+        self._end_if_aborted()
         if self.stop_requested and allow_stop:
             raise StopRun
         if not self.pause_requested or self.stop_requested:
@@ -267,6 +276,7 @@ class RunControl:
         t0 = time.monotonic()
         self.fire("suspend", f"suspended by interlock: {trip.message}")
         while not sup.clear.is_set():
+            self._end_if_aborted()
             if self.stop_requested:
                 raise StopRun
             left = limit - (time.monotonic() - t0)

@@ -75,7 +75,9 @@ class OperatorRequests:
         everything waiting for the drives' link, not after the run has unwound), then the
         run is cancelled; its cleanup repeats the stop and waits for standstill. Nothing is
         written to disk before the stop words are out (run.log, the command's durable record).
-        The first abort's sender (`by`, `why`) is the one the run ends with.
+        The first abort's sender (`by`, `why`) is the one the run ends with. Every abort while
+        the run is aborting cancels its body again: a cancel can be lost (Python 3.11's
+        asyncio.wait_for swallows one that comes as its awaitable completes).
 
         Returns whether the run holds the drives: True if the stop words went out now, or an
         abort under way sent them with the rig still open (its cleanup repeats them); False if
@@ -88,8 +90,9 @@ class OperatorRequests:
             self._control.abort_by = by
         t0 = time.monotonic()
         sending = self._stop_first(emergency=True) if starts else None
-        if self._control.request_abort() and self._body is not None and not self._body.done():
-            self._body.cancel()
+        self._control.request_abort()
+        if self._control.abort_requested and self._body is not None and not self._body.done():
+            self._body.cancel()  # again on a further abort: the body may have missed the first
         if sending is None:
             self._command(RunCommand.ABORT, by)
             return not starts and self._repeat_stop()
