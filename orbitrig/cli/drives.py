@@ -25,6 +25,7 @@ from orbitrig.cli.drives_checks import (  # effective_limits is part of this com
     effective_limits,
     open_config,
 )
+from orbitrig.cli.drives_stop import reason, report, stop_drives, stop_outcome
 
 
 def register(app: typer.Typer) -> None:
@@ -174,7 +175,7 @@ def _add_stop(drives_app: typer.Typer) -> None:
         if opened is None:
             raise typer.Exit(2)
         url, d = opened
-        raise typer.Exit(_run_async(lambda intr: _stop(url, d, emergency, timeout), "stop"))
+        raise typer.Exit(_run_async(lambda intr: stop_drives(url, d, emergency, timeout, intr), "stop"))
 
 
 def _config_name(config: Path | None) -> str:
@@ -190,29 +191,6 @@ def _rig_drives(url, d, limits=None):
     from orbitrig.run.drive_setup import UNLIMITED, rig_drives
 
     return rig_drives(url, d, UNLIMITED if limits is None else limits)
-
-
-def _reason(err: BaseException) -> str:
-    from drives.errors import (
-        DriveExceptionResponse,
-        DriveFaultError,
-        DriveLimitError,
-        DriveLinkError,
-        DriveTimeoutError,
-    )
-    from orbitrig.cli.terminal import OutputError
-
-    for cls, word in (
-        (DriveLimitError, "limit"),
-        (DriveFaultError, "fault"),
-        (DriveTimeoutError, "timeout"),
-        (DriveLinkError, "link"),
-        (DriveExceptionResponse, "refused"),
-        (OutputError, "output"),
-    ):
-        if isinstance(err, cls):
-            return word
-    return "error"
 
 
 def _run_async(make_coro, command: str) -> int:
@@ -245,7 +223,7 @@ def _run_async(make_coro, command: str) -> int:
             say(f"orbitrig drives {command}: interrupted by {interrupt.received[-1].name}{after}", err=True)
             return 2
         except (DriveError, OutputError) as err:
-            _report(command, err)
+            report(command, err)
             return 2
         finally:
             for sig in SIGNALS:
@@ -262,22 +240,6 @@ def _quiet_logging() -> None:
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
     if not logging.getLogger().handlers:
         logging.basicConfig(level=logging.WARNING, format="orbitrig %(name)s: %(message)s")
-
-
-def _stop_outcome(rig) -> str:
-    """What became of the stop a failed RigDrives session sent on its way out."""
-    if rig is None or rig.link.connects == 0:
-        return "nothing sent"
-    if rig.stop_errors:
-        return f"stop NOT delivered ({rig.stop_errors[0]}); the drives' comm-loss watchdog stops them"
-    return "stop sent to both drives"
-
-
-def _report(command: str, err: BaseException, after: str = "") -> None:
-    from orbitrig.cli.terminal import say
-
-    tail = f"; {after}" if after else ""
-    say(f"orbitrig drives {command} failed ({_reason(err)}): {err}{tail}", err=True)
 
 
 async def _status(url: str, json_out: bool, d) -> int:
@@ -320,7 +282,7 @@ async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every,
     try:
         limits.check(spin, orbit, spin_id=d.spin_id, orbit_id=d.orbit_id)
     except DriveError as err:
-        _report("run", err, "nothing sent")  # refused before connecting at all
+        report("run", err, "nothing sent")  # refused before connecting at all
         return 2
     rig = code = None
     try:
@@ -328,12 +290,12 @@ async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every,
             try:
                 code = await _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, interrupt)
             except BaseException as err:  # noqa: BLE001 - every way out but the release: both drives stopped first
-                code = await way_out(rig, err, interrupt, _reason)
+                code = await way_out(rig, err, interrupt, reason)
             return code
     except DriveError as err:
         if code is not None:  # the exit's repeated stop word failed after the way out said how the drives ended
             return code
-        _report("run", err, _stop_outcome(rig))  # the rig could not be opened: nothing commanded
+        report("run", err, stop_outcome(rig))  # the rig could not be opened: nothing commanded
         return 2
 
 
@@ -349,34 +311,3 @@ async def _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, in
         return 0
     refs = (rig.spin.reference_for(spin), rig.orbit.reference_for(orbit))
     return await _hold(rig, refs, status_every, interrupt)
-
-
-async def _stop(url, d, emergency, timeout) -> int:
-    from drives.errors import DriveError
-    from orbitrig.cli.drives_hold import _state_lines
-
-    try:
-        async with _rig_drives(url, d) as rig:
-            await rig.stop(emergency=emergency, wait=True, timeout=timeout)
-            state = rig.state
-    except DriveError as err:
-        # The controller could not be opened (or the wait failed): still put the
-        # stop word on the line for each drive that answers, without reading first.
-        sent = await _stop_words_best_effort(url, d, emergency)
-        _report("stop", err, f"stop word delivered to: {', '.join(sent) or 'no drive'}")
-        return 2
-    _state_lines(state)
-    return 0
-
-
-async def _stop_words_best_effort(url, d, emergency) -> list[str]:
-    from drives.stop import send_stop
-    from orbitrig.run.drive_setup import bare_drives, modbus_link
-
-    link = modbus_link(url, d)
-    drives = list(bare_drives(link, d))
-    try:
-        missed = {err.drive for err in await send_stop(drives, emergency=emergency)}
-    finally:
-        await link.close()
-    return [f"{dr.name} (id {dr.device_id})" for dr in drives if dr.device_id not in missed]

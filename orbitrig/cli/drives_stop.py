@@ -1,0 +1,101 @@
+"""`orbitrig drives stop`, and what the drive commands say reached the drives: the kind of a
+failure, whether the stop a failed session sent on its way out was delivered, and which drive
+took the stop word that is sent without reading first when the drives cannot be opened."""
+
+from __future__ import annotations
+
+import asyncio
+
+
+def reason(err: BaseException) -> str:
+    from drives.errors import (
+        DriveExceptionResponse,
+        DriveFaultError,
+        DriveLimitError,
+        DriveLinkError,
+        DriveTimeoutError,
+    )
+    from orbitrig.cli.terminal import OutputError
+
+    for cls, word in (
+        (DriveLimitError, "limit"),
+        (DriveFaultError, "fault"),
+        (DriveTimeoutError, "timeout"),
+        (DriveLinkError, "link"),
+        (DriveExceptionResponse, "refused"),
+        (OutputError, "output"),
+    ):
+        if isinstance(err, cls):
+            return word
+    return "error"
+
+
+def stop_outcome(rig) -> str:
+    """What became of the stop a failed RigDrives session sent on its way out."""
+    if rig is None or rig.link.connects == 0:
+        return "nothing sent"
+    if rig.stop_errors:
+        return f"stop NOT delivered ({rig.stop_errors[0]}); the drives' comm-loss watchdog stops them"
+    return "stop sent to both drives"
+
+
+def report(command: str, err: BaseException, after: str = "") -> None:
+    from orbitrig.cli.terminal import say
+
+    tail = f"; {after}" if after else ""
+    say(f"orbitrig drives {command} failed ({reason(err)}): {err}{tail}", err=True)
+
+
+async def stop_drives(url, d, emergency, timeout, interrupt) -> int:
+    """Stop both drives and wait for standstill. If the drives cannot be opened (a DriveError, or a
+    signal while opening them: nothing was sent yet), the stop words still go to each drive that
+    answers, and the message names those that took it."""
+    from drives.errors import DriveError
+    from orbitrig.cli.drives_hold import _state_lines
+    from orbitrig.cli.terminal import say
+    from orbitrig.run.drive_setup import UNLIMITED, rig_drives
+
+    opened = False
+    try:
+        async with rig_drives(url, d, UNLIMITED) as rig:
+            opened = True
+            await rig.stop(emergency=emergency, wait=True, timeout=timeout)
+            state = rig.state
+    except asyncio.CancelledError:
+        if opened or not interrupt.received:
+            raise  # open: the rig's exit has sent the stop (main says so)
+        task = asyncio.current_task()
+        assert task is not None
+        task.uncancel()
+        sent = await _stop_words_best_effort(url, d, emergency, interrupt)
+        sig = interrupt.received[0].name
+        say(f"orbitrig drives stop: interrupted by {sig} while opening the drives; {_delivered(sent)}", err=True)
+        return 2
+    except DriveError as err:
+        # The controller could not be opened (or the wait failed): still put the
+        # stop word on the line for each drive that answers, without reading first.
+        sent = await _stop_words_best_effort(url, d, emergency, interrupt)
+        report("stop", err, _delivered(sent))
+        return 2
+    _state_lines(state)
+    return 0
+
+
+def _delivered(sent: list[str]) -> str:
+    return f"stop word delivered to: {', '.join(sent) or 'no drive'}"
+
+
+async def _stop_words_best_effort(url, d, emergency, interrupt) -> list[str]:
+    """The stop words to each drive that answers (no reads first); the drives that took theirs.
+    A signal meanwhile does not cut them short (`interrupt.stopping`): what they reached is said."""
+    from drives.stop import send_stop
+    from orbitrig.run.drive_setup import bare_drives, modbus_link
+
+    interrupt.stopping = True
+    link = modbus_link(url, d)
+    drives = list(bare_drives(link, d))
+    try:
+        missed = {err.drive for err in await send_stop(drives, emergency=emergency)}
+    finally:
+        await link.close()
+    return [f"{dr.name} (id {dr.device_id})" for dr in drives if dr.device_id not in missed]

@@ -1,0 +1,139 @@
+"""`orbitrig drives stop` interrupted while it opens the drives: the stop words still go out to
+each drive that answers, and the message names those that took theirs (never "both" falsely).
+
+RTU on a pty: a drive id nobody answers (--orbit-id 3) makes the opening wait out its reads, so
+a signal lands there (the request for id 3 is watched at the server). The drives' watchdog is
+switched off, so only a stop word the command delivers can stop them.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import signal
+
+import pytest
+from drives.limits import DriveLimits
+from support.drives_testkit import (
+    CW_RAMP_STOP,
+    CW_RUN,
+    RPM,
+    SPEEDUP,
+    SimDrives,
+    make_models,
+    open_rig,
+    serve,
+    start_cli,
+)
+
+pytestmark = pytest.mark.timeout(60)  # a hang fails fast, with a traceback
+
+SILENT_ID = 3  # no drive answers this id on the RTU line
+
+
+@pytest.fixture
+async def rtu_sim(request) -> SimDrives:
+    """The drives on RTU, ramps sped up `request.param` times (default SPEEDUP; 2: a stop takes about 1 s)."""
+    models = make_models(speedup=getattr(request, "param", SPEEDUP))
+    endpoint = await serve("rtu", models)
+    try:
+        yield SimDrives("rtu", models, endpoint)
+    finally:
+        await endpoint.aclose()
+
+
+async def _leave_running(sim: SimDrives) -> None:
+    """Both drives left turning by a client gone away, their comm-loss watchdog off."""
+    rig = open_rig(sim, DriveLimits(2400 * RPM, 2400 * RPM), comm_loss_timeout=0.0)
+    async with rig:
+        await rig.set_speeds(1200 * RPM, 600 * RPM)
+        await rig.wait_settled(hold=0.1, timeout=20)
+        rig.release()
+    assert sim.regs(1)["CW"] == CW_RUN and sim.regs(1)["ACT"] > 0
+
+
+def _watch_silent_id(sim: SimDrives, monkeypatch) -> list[asyncio.Event]:
+    """Events set at the 1st, 2nd, ... request the server sees for SILENT_ID (it stays unanswered)."""
+    gate = sim.endpoint._gate  # the server's request filter (RTU): no public hook sees each request
+    admit = gate.admit
+    events = [asyncio.Event() for _ in range(8)]
+    seen = 0
+
+    def spy(dev_id: int) -> bool:
+        nonlocal seen
+        if dev_id == SILENT_ID and seen < len(events):
+            events[seen].set()
+            seen += 1
+        return admit(dev_id)
+
+    monkeypatch.setattr(gate, "admit", spy)
+    return events
+
+
+async def _stop_with_signals(sim: SimDrives, signal_at: list[asyncio.Event]) -> tuple[int, str]:
+    """`drives stop --orbit-id 3`, SIGINT at each of `signal_at`; (exit code, stderr)."""
+    proc = await start_cli("drives", "stop", "--modbus", sim.url, "--orbit-id", str(SILENT_ID))
+    try:
+        for event in signal_at:
+            await asyncio.wait_for(event.wait(), 20)
+            proc.send_signal(signal.SIGINT)
+        _, err = await asyncio.wait_for(proc.communicate(), 30)
+    finally:
+        if proc.returncode is None:
+            proc.kill()
+            await proc.wait()
+    assert proc.returncode is not None
+    return proc.returncode, err.decode()
+
+
+async def _assert_spin_stopped_orbit_untouched(sim: SimDrives) -> None:
+    assert sim.regs(1)["CW"] == CW_RAMP_STOP, sim.regs(1)
+    await sim.wait_for(lambda: sim.regs(1)["ACT"] == 0, 5, "spin standstill")
+    assert sim.regs(2)["CW"] == CW_RUN and sim.regs(2)["ACT"] != 0  # id 2 was not addressed
+
+
+async def test_sigint_while_opening_still_stops_the_drive_that_answers(rtu_sim, monkeypatch):
+    sim = rtu_sim
+    await _leave_running(sim)
+    asked = _watch_silent_id(sim, monkeypatch)
+    code, err = await _stop_with_signals(sim, [asked[0]])  # while reading drive 3's parameters
+    assert code == 2, err
+    line = "interrupted by SIGINT while opening the drives; stop word delivered to: spin (id 1)\n"
+    assert f"orbitrig drives stop: {line}" in err, err
+    assert "both" not in err, err
+    # the read to drive 3 left on the line fails as it closes: no traceback for it on the terminal
+    assert "Traceback" not in err and "never retrieved" not in err, err
+    await _assert_spin_stopped_orbit_untouched(sim)
+
+
+async def test_second_sigint_during_the_stop_words_claims_nothing_false(rtu_sim, monkeypatch):
+    sim = rtu_sim
+    await _leave_running(sim)
+    asked = _watch_silent_id(sim, monkeypatch)
+    # 1st: drive 3's parameter read (opening); 2nd: its stop word (the best-effort sending)
+    code, err = await _stop_with_signals(sim, [asked[0], asked[1]])
+    assert code == 2, err
+    assert "while opening the drives; stop word delivered to: spin (id 1)\n" in err, err
+    assert "both" not in err, err
+    await _assert_spin_stopped_orbit_untouched(sim)
+
+
+@pytest.mark.parametrize("rtu_sim", [2.0], ids=["slow"], indirect=True)
+async def test_sigint_once_open_keeps_the_rigs_stop(rtu_sim):
+    """A signal while `stop` waits for standstill (the rig open, its stop words out): the rig's
+    exit stops both drives, as the message says."""
+    sim = rtu_sim
+    await _leave_running(sim)
+    proc = await start_cli("drives", "stop", "--modbus", sim.url)
+    try:
+        await sim.wait_for(lambda: sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP, 20, "stop words")
+        assert sim.regs(1)["ACT"] != 0  # still ramping: the command waits for standstill
+        proc.send_signal(signal.SIGINT)
+        _, err = await asyncio.wait_for(proc.communicate(), 30)
+    finally:
+        if proc.returncode is None:
+            proc.kill()
+            await proc.wait()
+    assert proc.returncode == 2, err
+    assert "orbitrig drives stop: interrupted by SIGINT; stop sent to both drives\n" in err.decode(), err
+    assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP
+    await sim.wait_stopped(timeout=10)
