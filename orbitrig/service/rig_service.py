@@ -198,7 +198,8 @@ class RigService(SupervisionHandling):
         self.link.leaving = True
         if self.link.online.is_set():
             try:
-                await asyncio.wait_for(self.link.drained.wait(), 5.0)
+                async with asyncio.timeout(5.0):  # (3.11 wait_for may drop a cancel)
+                    await self.link.drained.wait()
             except TimeoutError:
                 log.warning("could not deliver every message before shutdown")
         if self.run_active:  # cannot happen (closing, commands unread): never leave drives turning

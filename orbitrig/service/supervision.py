@@ -34,7 +34,8 @@ class SupervisionHandling(CommandHandling):
         while True:
             await self.link.offline.wait()
             try:
-                await asyncio.wait_for(self.link.online.wait(), self.settings.supervision_timeout)
+                async with asyncio.timeout(self.settings.supervision_timeout):  # (3.11 wait_for may drop a cancel)
+                    await self.link.online.wait()
                 continue
             except TimeoutError:
                 pass
