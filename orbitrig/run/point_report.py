@@ -16,6 +16,7 @@ PAYLOAD_KEYS = (
     "coefficients",
     "std_errors",
     "confidence_95",
+    "interval",
     "condition_number",
     "residual_rms",
     "dof",

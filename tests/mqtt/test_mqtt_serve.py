@@ -206,6 +206,7 @@ def test_result_carries_intervals_uncertainty_verdicts_and_refusals(rig, service
     fit = rows[("piezo", "kc7", "none")]
     for key, (lo, hi) in fit["confidence_95"].items():
         assert lo < fit["coefficients"][key] < hi
+    assert fit["interval"] == "normal"  # orbit-table v3: the quantile of confidence_95 (u_* stored)
     assert fit["uncertainty"]["k"] == 2.0 and fit["uncertainty"]["systematic"]["Kxx"] > 0
     assert fit["uncertainty"]["expanded"]["Kxx"] > 2 * fit["std_errors"]["Kxx"]
     assert isinstance(fit["warnings"], list) and isinstance(fit["notes"], list) and fit["chi2"] > 0
