@@ -43,16 +43,29 @@ def header(name: str) -> str:
     return f"{name} [{unit}]" if unit and name != "spin_rpm" else name
 
 
+#: columns the catalog holds as JSON text: values, not strings, in the JSON export
+JSON_COLUMNS = ("orbit_hz", "coefficients_json")
+
+
 def render(rows: list[dict[str, Any]], fmt: ExportFormat) -> bytes:
-    """Every column of ``rows``: CSV (empty cell = NULL) or a JSON list of objects (SI)."""
+    """Every column of ``rows``: CSV (empty cell = NULL) or a JSON list of objects (SI; the
+    JSON_COLUMNS as the lists and objects they hold)."""
     if fmt is ExportFormat.JSON:
-        return (json.dumps(rows, indent=1) + "\n").encode()
+        return (json.dumps([_decoded(r) for r in rows], indent=1) + "\n").encode()
     buf = io.StringIO()
     out = csv.writer(buf, lineterminator="\n")
     out.writerow([header(c) for c in ROW_COLUMNS])
     for row in rows:
         out.writerow(["" if row.get(c) is None else _cell(row[c]) for c in ROW_COLUMNS])
     return buf.getvalue().encode()
+
+
+def _decoded(row: dict[str, Any]) -> dict[str, Any]:
+    out = dict(row)
+    for c in JSON_COLUMNS:
+        if isinstance(out.get(c), str):
+            out[c] = json.loads(out[c])
+    return out
 
 
 def _cell(value: Any) -> str:

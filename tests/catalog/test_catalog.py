@@ -134,7 +134,11 @@ def test_cli_add_list_export(catalog_run):
     assert "orbit_hz" not in table[0] and json.loads(table[0]["orbit_hz [Hz]"])  # the unit, like the others
     out = runs / "cat.json"
     res = runner.invoke(app, ["catalog", "export", "--runs", str(runs), "--format", "json", "--out", str(out)])
-    assert res.exit_code == 0 and len(json.loads(out.read_text())) == 2 * N_FITS
+    objects = json.loads(out.read_text())
+    assert res.exit_code == 0 and len(objects) == 2 * N_FITS
+    hz = [float(v) for v in json.loads(table[0]["orbit_hz [Hz]"])]
+    assert objects[0]["orbit_hz"] == hz and all(isinstance(v, float) for v in objects[0]["orbit_hz"])  # a list
+    assert objects[0]["coefficients_json"]["values"]["Kxx"] == float(table[0]["Kxx [N/m]"])  # an object
     bad = runner.invoke(app, ["catalog", "list", "--runs", str(runs), "--where", "Kxx >> 1"])
     assert bad.exit_code == 2 and "Kxx" in bad.output and "Traceback" not in bad.output
     bad = runner.invoke(app, ["catalog", "list", "--runs", str(runs), "--where", "lms = piezo or lms = strain"])
