@@ -93,9 +93,9 @@ DATASETS = {
     "K0": ("N/m", "constant stiffness term"),
     "C0": ("N s/m", "constant damping term"),
     "D0": ("kg", "constant mass term"),
-    "Km": ("N/m (rad/s)^-1", "stiffness term multiplying |Omega|^m (attribute exponents)"),
-    "Cn": ("N s/m (rad/s)^-1", "damping term multiplying |Omega|^n (attribute exponents)"),
-    "Dp": ("kg (rad/s)^-1", "mass term multiplying |Omega|^p (attribute exponents)"),
+    "Km": ("N/m (rad/s)^-{m}", "stiffness term multiplying |Omega|^m (attribute exponents)"),
+    "Cn": ("N s/m (rad/s)^-{n}", "damping term multiplying |Omega|^n (attribute exponents)"),
+    "Dp": ("kg (rad/s)^-{p}", "mass term multiplying |Omega|^p (attribute exponents)"),
     "channels": ("", "A/D channel names in board order"),
     "channel_units": ("", "unit of each A/D channel"),
     "events": ("<field>", "the run's events: t (s since the run started), state, message"),
@@ -292,7 +292,15 @@ def annotate_dataset(ds: h5py.Dataset) -> None:
         if not per_entry:  # a table of text fields only (the command log): dimensionless as a whole
             ds.attrs["units"] = "1"
     elif ds.dtype.kind not in "OS":  # text has no unit
-        ds.attrs["units"] = units or "1"
+        ds.attrs["units"] = _with_exponents(ds, units) or "1"
+
+
+def _with_exponents(ds: h5py.Dataset, units: str) -> str:
+    """A power-fit term's unit with its exponent ({m}, {n}, {p}) from its group's ``exponents``."""
+    if "{" not in units:
+        return units
+    exps = ds.parent.attrs.get("exponents", (1, 1, 1))
+    return units.format(**dict(zip("mnp", (int(e) for e in exps))))
 
 
 def annotate_attributes(obj: h5py.HLObject) -> None:

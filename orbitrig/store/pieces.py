@@ -19,7 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from orbitrig.load_systems import LMS
-from orbitrig.store.annotate import annotate
+from orbitrig.store.annotate import DATASETS, annotate
 from orbitrig.store.layout import (
     BLOCK_ATTR_UNITS,
     COHERENCE_PAIRS,
@@ -314,17 +314,6 @@ def _write_identification(h: h5py.Group, entry: IdentificationEntry) -> None:
     write_fit_analysis(h, d, names)
 
 
-#: SI unit of each coefficient of the Eq. 15 power fit ({m}: its exponent)
-POWER_FIT_UNITS = {
-    "K0": "N/m",
-    "Km": "N/m (rad/s)^-{m}",
-    "C0": "N s/m",
-    "Cn": "N s/m (rad/s)^-{n}",
-    "D0": "kg",
-    "Dp": "kg (rad/s)^-{p}",
-}
-
-
 def write_truth(h: h5py.Group, truth: dict[str, Any]) -> None:
     """The simulator's truth of a point (orbitrig.run.truth): the JSON in attribute ``json``
     and, when the truth holds the true impedance, numeric datasets with units: ``orbit``,
@@ -353,5 +342,5 @@ def write_truth(h: h5py.Group, truth: dict[str, Any]) -> None:
     exps = dict(zip("mnp", truth["fits"]["power"]["exponents"]))
     power.attrs["exponents"] = np.asarray(list(exps.values()), dtype=np.int64)
     power.attrs["form"] = "K = K0 + |Omega|^m Km, C = C0 + |Omega|^n Cn, D = D0 + |Omega|^p Dp (Eq. 15)"
-    for k, unit in POWER_FIT_UNITS.items():
-        put(power, k, np.asarray(truth["fits"]["power"][k], dtype=np.float64), unit.format(**exps))
+    for k in ("K0", "Km", "C0", "Cn", "D0", "Dp"):  # units: orbitrig.store.annotate ({m}: the exponent)
+        put(power, k, np.asarray(truth["fits"]["power"][k], dtype=np.float64), DATASETS[k][0].format(**exps))
