@@ -55,18 +55,21 @@ async def stop_drives(url, d, emergency, timeout, interrupt) -> int:
     from orbitrig.cli.terminal import say
     from orbitrig.run.drive_setup import UNLIMITED, rig_drives
 
-    opened = False
+    rig, opened = rig_drives(url, d, UNLIMITED), False
     try:
-        async with rig_drives(url, d, UNLIMITED) as rig:
+        async with rig:
             opened = True
             await rig.stop(emergency=emergency, wait=True, timeout=timeout)
             state = rig.state
     except asyncio.CancelledError:
-        if opened or not interrupt.received:
-            raise  # open: the rig's exit has sent the stop (main says so)
+        if not interrupt.received:
+            raise
         task = asyncio.current_task()
         assert task is not None
         task.uncancel()
+        if opened:  # the rig's exit has sent the stop again: whether both took it
+            say(f"orbitrig drives stop: interrupted by {interrupt.received[-1].name}; {stop_outcome(rig)}", err=True)
+            return 2
         sent = await _stop_words_best_effort(url, d, emergency, interrupt)
         sig = interrupt.received[0].name
         say(f"orbitrig drives stop: interrupted by {sig} while opening the drives; {_delivered(sent)}", err=True)

@@ -137,3 +137,29 @@ async def test_sigint_once_open_keeps_the_rigs_stop(rtu_sim):
     assert "orbitrig drives stop: interrupted by SIGINT; stop sent to both drives\n" in err.decode(), err
     assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP
     await sim.wait_stopped(timeout=10)
+
+
+@pytest.mark.parametrize("rtu_sim", [2.0], ids=["slow"], indirect=True)
+async def test_sigint_once_open_says_when_the_exits_stop_missed_a_drive(rtu_sim, monkeypatch):
+    """A signal while `stop` waits for standstill, the orbit drive gone silent after its stop
+    word: the rig's exit sends the stop again and the orbit drive does not take it. The message
+    says so instead of 'stop sent to both drives'."""
+    sim = rtu_sim
+    await _leave_running(sim)
+    gate = sim.endpoint._gate  # the server's request filter: the orbit drive's line cut
+    admit, silent = gate.admit, asyncio.Event()
+    monkeypatch.setattr(gate, "admit", lambda dev_id: not (silent.is_set() and dev_id == 2) and admit(dev_id))
+    proc = await start_cli("drives", "stop", "--modbus", sim.url)
+    try:
+        await sim.wait_for(lambda: sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP, 20, "stop words")
+        silent.set()
+        proc.send_signal(signal.SIGINT)
+        _, err = await asyncio.wait_for(proc.communicate(), 30)
+    finally:
+        if proc.returncode is None:
+            proc.kill()
+            await proc.wait()
+    text = err.decode()
+    assert proc.returncode == 2, text
+    assert "orbitrig drives stop: interrupted by SIGINT; stop NOT delivered (" in text and "orbit" in text, text
+    assert "stop sent to both drives" not in text, text
