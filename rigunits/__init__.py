@@ -47,6 +47,17 @@ def now_iso() -> str:
     return utc_iso()
 
 
+def seconds_since(text: str) -> float | None:
+    """Seconds from the instant of timestamp ``text`` to now (None: not a timestamp)."""
+    try:
+        then = _dt.datetime.fromisoformat(text.replace("Z", "+00:00"))
+    except (AttributeError, ValueError):
+        return None
+    if then.tzinfo is None:
+        return None
+    return (_dt.datetime.now(_dt.timezone.utc) - then).total_seconds()
+
+
 def utc_stamp(when: _dt.datetime | float | None = None) -> str:
     """The compact form (no separators), for run ids and folder names."""
     t = _utc(when)

@@ -53,7 +53,7 @@ from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.provenance import RunCommand
 from orbitrig.run.requests import OperatorRequests
 from orbitrig.run.rig_io import RigAccess, RigIO
-from orbitrig.run.run_dir import completed_points, no_room, open_store, resume_events
+from orbitrig.run.run_dir import completed_points, no_room, open_store, resume_events, run_age
 from orbitrig.run.run_dir import started_order as _started_order
 from orbitrig.run.safe_stop import stop_drives, unconfirmed
 from orbitrig.run.states import (
@@ -104,7 +104,7 @@ class RunEngine(OperatorRequests):
         self._io: RigIO | None = None
         self._body: asyncio.Task[Outcome] | None = None
         self._failure: Trip | None = None
-        self._t0 = time.monotonic()
+        self._t0 = self._log_t0 = time.monotonic()
         self._progress = ProgressMeter(self._emit, self.access.time_scale)
         self._background = Background(self.timing, self._background_failed)
         self._held: list[Callable[[], None]] | None = None  # disk writes held while stop words go out
@@ -160,6 +160,7 @@ class RunEngine(OperatorRequests):
         self._control.reset()
         self.run_id = f"{plan.name}-{utc_stamp()}"  # millisecond resolution: ids stay unique
         self._t0 = time.monotonic()
+        self._log_t0 = self._t0 - (run_age(store) if resume else 0.0)  # the logs' t: s since the run started
         self.timing.clear()
         self.timing.update(wall=0.0, settle=0.0, acquire=0.0, confirm=0.0, suspended=0.0)
         self._control.timing = self.timing
@@ -220,7 +221,7 @@ class RunEngine(OperatorRequests):
         supervisor.sample()
         helpers = [
             asyncio.create_task(supervisor.watch(), name="interlocks"),
-            asyncio.create_task(monitor(self._store, lambda: self._io, self._t0), name="run-monitor"),
+            asyncio.create_task(monitor(self._store, lambda: self._io, self._log_t0), name="run-monitor"),
         ]
         for task in helpers:  # one that raises ends the run at once (not only when the body ends)
             task.add_done_callback(self._helper_ended)
@@ -378,7 +379,7 @@ class RunEngine(OperatorRequests):
         state = state or self.state
         log.info("[%s] %s", state, message)
         if self._store is not None:
-            self._store.logs.add("events", (time.monotonic() - self._t0, state, message))
+            self._store.logs.add("events", (time.monotonic() - self._log_t0, state, message))
             self._write_later(functools.partial(self._store.log, f"[{state}] {message}"))
 
     def _on_revolution(self, rev: Revolution) -> None:

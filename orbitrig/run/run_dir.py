@@ -22,6 +22,7 @@ from orbitrig.run.steps import Acquire, ChooseBlocks
 from orbitrig.store.estimate import point_bytes
 from orbitrig.store.errors import StorageError, StorageFullError
 from orbitrig.store.writer import RunStore
+from rigunits import seconds_since
 
 log = logging.getLogger(__name__)
 
@@ -73,6 +74,13 @@ def resume_events(store: RunStore, rig: RigConfig, operator: str) -> list[str]:
         )
         log.warning("%s", lines[-1])  # on the terminal too
     return lines
+
+
+def run_age(store: RunStore) -> float:
+    """Seconds since the stored run started (its provenance; 0 when it has none): the time axis
+    of a resumed run's logs goes on from the first session's."""
+    age = seconds_since(str(store.stored_provenance().get("started", "")))
+    return max(age, 0.0) if age is not None else 0.0
 
 
 def no_room(store: RunStore, rig: RigConfig, plan: Plan, point: OperatingPoint) -> str | None:

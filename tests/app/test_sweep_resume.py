@@ -93,6 +93,9 @@ def test_kill_9_mid_run_then_resume(tmp_path):
     assert f"{4 - len(done)} of 4 points to run" in text
     with h5py.File(out / "run.h5", "r") as f:
         assert f.attrs["status"] == "completed"
+        for name in ("events", "drives", "can"):  # one time axis: s since the run started, both sessions
+            t = np.asarray(f[f"logs/{name}"]["t"])
+            assert t.size > 2 and np.all(np.diff(t) >= 0), (name, t[np.flatnonzero(np.diff(t) < 0)[:3]])
         assert list(f["points"]) == ["0000", "0001", "0002", "0003"]
         for name, g in f["points"].items():
             assert g.attrs["complete"], name
