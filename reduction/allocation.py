@@ -230,6 +230,24 @@ def _counts(
     return n.astype(int), worst
 
 
+def choose_blocks(
+    F: FloatArray,
+    tau: FloatArray,
+    scales: FloatArray,
+    per_block: float,
+    admissible: Admissible | None = None,
+    min_revolutions: int = 10,
+) -> tuple[IntArray, IntArray, float]:
+    """The candidate blocks worth their overhead and their revolutions: (kept indices, counts,
+    acquisition s). F (k, p, p) information of one revolution of each candidate, tau (k,) its
+    seconds, ``scales`` (p,) the standard errors to reach, ``per_block`` s of overhead per
+    candidate kept, ``admissible(kept indices)``: may these form a list. A candidate is any
+    block: a ratio in both directions (as :func:`allocate` builds them) or one direction."""
+    keep, w, T = _support(F, tau, scales, per_block, admissible)
+    n, _ = _counts(F[keep], tau[keep], scales, w, T, min_revolutions)
+    return keep, n, float(np.sum(n * tau[keep]))
+
+
 def allocate(
     spec: ModelSpec,
     theta: ArrayLike,
@@ -266,12 +284,11 @@ def allocate(
         raise ReductionError(f"allocate: target must be > 0, got {target:g}")
     models = [(spec, theta, scales), *also]
     s = np.concatenate([np.asarray(sc, dtype=float) for _, _, sc in models]) * target
-    F = _block_diagonal([revolution_information(m, th, spin, radius, r, u, directions) for m, th, _ in models])
+    F = block_diagonal([revolution_information(m, th, spin, radius, r, u, directions) for m, th, _ in models])
     tau = revolution_time(r, spin, directions)
     per_block = block_overhead * Directions(directions).blocks
     ok: Admissible | None = None if admissible is None else (lambda keep: admissible(r[keep]))
-    keep, w, T = _support(F, tau, s, per_block, ok)
-    n, _ = _counts(F[keep], tau[keep], s, w, T, min_revolutions)
+    keep, n, _ = choose_blocks(F, tau, s, per_block, ok, min_revolutions)
     p = spec.n_coefficients
     info = np.einsum("k,kij->ij", n, F[keep][:, :p, :p])
     se = np.sqrt(np.diag(np.linalg.inv(info)))
@@ -285,7 +302,7 @@ def allocate(
     )
 
 
-def _block_diagonal(parts: Sequence[FloatArray]) -> FloatArray:
+def block_diagonal(parts: Sequence[FloatArray]) -> FloatArray:
     """(k, P, P) per-ratio information of several models side by side (P the sum of their p)."""
     k, sizes = parts[0].shape[0], [f.shape[1] for f in parts]
     out = np.zeros((k, sum(sizes), sum(sizes)))
