@@ -117,24 +117,33 @@ async def test_second_sigint_during_the_stop_words_claims_nothing_false(rtu_sim,
     await _assert_spin_stopped_orbit_untouched(sim)
 
 
-@pytest.mark.parametrize("rtu_sim", [2.0], ids=["slow"], indirect=True)
-async def test_sigint_once_open_keeps_the_rigs_stop(rtu_sim):
-    """A signal while `stop` waits for standstill (the rig open, its stop words out): the rig's
-    exit stops both drives, as the message says."""
-    sim = rtu_sim
-    await _leave_running(sim)
+async def _stop_interrupted_while_ramping(sim: SimDrives, before_signal=lambda: None) -> tuple[int, str]:
+    """`drives stop`, SIGINT once both stop words are out and the drives still ramp (the rig
+    open); ``before_signal()`` just before it; (exit code, stderr)."""
     proc = await start_cli("drives", "stop", "--modbus", sim.url)
     try:
         await sim.wait_for(lambda: sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP, 20, "stop words")
         assert sim.regs(1)["ACT"] != 0  # still ramping: the command waits for standstill
+        before_signal()
         proc.send_signal(signal.SIGINT)
         _, err = await asyncio.wait_for(proc.communicate(), 30)
     finally:
         if proc.returncode is None:
             proc.kill()
             await proc.wait()
-    assert proc.returncode == 2, err
-    assert "orbitrig drives stop: interrupted by SIGINT; stop sent to both drives\n" in err.decode(), err
+    assert proc.returncode is not None
+    return proc.returncode, err.decode()
+
+
+@pytest.mark.parametrize("rtu_sim", [2.0], ids=["slow"], indirect=True)
+async def test_sigint_once_open_keeps_the_rigs_stop(rtu_sim):
+    """A signal while `stop` waits for standstill (the rig open, its stop words out): the rig's
+    exit stops both drives, as the message says."""
+    sim = rtu_sim
+    await _leave_running(sim)
+    code, err = await _stop_interrupted_while_ramping(sim)
+    assert code == 2, err
+    assert "orbitrig drives stop: interrupted by SIGINT; stop sent to both drives\n" in err, err
     assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP
     await sim.wait_stopped(timeout=10)
 
@@ -149,17 +158,7 @@ async def test_sigint_once_open_says_when_the_exits_stop_missed_a_drive(rtu_sim,
     gate = sim.endpoint._gate  # the server's request filter: the orbit drive's line cut
     admit, silent = gate.admit, asyncio.Event()
     monkeypatch.setattr(gate, "admit", lambda dev_id: not (silent.is_set() and dev_id == 2) and admit(dev_id))
-    proc = await start_cli("drives", "stop", "--modbus", sim.url)
-    try:
-        await sim.wait_for(lambda: sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP, 20, "stop words")
-        silent.set()
-        proc.send_signal(signal.SIGINT)
-        _, err = await asyncio.wait_for(proc.communicate(), 30)
-    finally:
-        if proc.returncode is None:
-            proc.kill()
-            await proc.wait()
-    text = err.decode()
-    assert proc.returncode == 2, text
-    assert "orbitrig drives stop: interrupted by SIGINT; stop NOT delivered (" in text and "orbit" in text, text
-    assert "stop sent to both drives" not in text, text
+    code, err = await _stop_interrupted_while_ramping(sim, silent.set)
+    assert code == 2, err
+    assert "orbitrig drives stop: interrupted by SIGINT; stop NOT delivered (" in err and "orbit" in err, err
+    assert "stop sent to both drives" not in err, err
