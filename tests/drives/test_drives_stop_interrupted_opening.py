@@ -69,12 +69,12 @@ def _watch_silent_id(sim: SimDrives, monkeypatch) -> list[asyncio.Event]:
     return events
 
 
-async def _stop_with_signals(sim: SimDrives, signal_at: list[asyncio.Event]) -> tuple[int, str]:
-    """`drives stop --orbit-id 3`, SIGINT at each of `signal_at`; (exit code, stderr)."""
-    proc = await start_cli("drives", "stop", "--modbus", sim.url, "--orbit-id", str(SILENT_ID))
+async def _stop_cli(sim: SimDrives, args: list[str], moments) -> tuple[int, str]:
+    """`drives stop --modbus URL *args`, SIGINT after each awaited ``moments()``; (exit code, stderr)."""
+    proc = await start_cli("drives", "stop", "--modbus", sim.url, *args)
     try:
-        for event in signal_at:
-            await asyncio.wait_for(event.wait(), 20)
+        for moment in moments:
+            await moment()
             proc.send_signal(signal.SIGINT)
         _, err = await asyncio.wait_for(proc.communicate(), 30)
     finally:
@@ -83,6 +83,13 @@ async def _stop_with_signals(sim: SimDrives, signal_at: list[asyncio.Event]) -> 
             await proc.wait()
     assert proc.returncode is not None
     return proc.returncode, err.decode()
+
+
+async def _stop_with_signals(sim: SimDrives, signal_at: list[asyncio.Event]) -> tuple[int, str]:
+    """`drives stop --orbit-id 3`, SIGINT at each of `signal_at`; (exit code, stderr)."""
+    return await _stop_cli(
+        sim, ["--orbit-id", str(SILENT_ID)], [lambda e=e: asyncio.wait_for(e.wait(), 20) for e in signal_at]
+    )
 
 
 async def _assert_spin_stopped_orbit_untouched(sim: SimDrives) -> None:
@@ -120,19 +127,13 @@ async def test_second_sigint_during_the_stop_words_claims_nothing_false(rtu_sim,
 async def _stop_interrupted_while_ramping(sim: SimDrives, before_signal=lambda: None) -> tuple[int, str]:
     """`drives stop`, SIGINT once both stop words are out and the drives still ramp (the rig
     open); ``before_signal()`` just before it; (exit code, stderr)."""
-    proc = await start_cli("drives", "stop", "--modbus", sim.url)
-    try:
+
+    async def ramping() -> None:
         await sim.wait_for(lambda: sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP, 20, "stop words")
         assert sim.regs(1)["ACT"] != 0  # still ramping: the command waits for standstill
         before_signal()
-        proc.send_signal(signal.SIGINT)
-        _, err = await asyncio.wait_for(proc.communicate(), 30)
-    finally:
-        if proc.returncode is None:
-            proc.kill()
-            await proc.wait()
-    assert proc.returncode is not None
-    return proc.returncode, err.decode()
+
+    return await _stop_cli(sim, [], [ramping])
 
 
 @pytest.mark.parametrize("rtu_sim", [2.0], ids=["slow"], indirect=True)
