@@ -214,8 +214,9 @@ def _configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
         rig = cfg.rig_from_text(rig_text, f"{store.path}:rig_config", store.stored_record())
         if config:  # the devices may have moved; nothing the data depend on may change
             rig = _given_again(cfg.load_rig(config), rig, store.path)
-        matrix = cfg.matrix_file(matrix, rig_path=config) if matrix else None
-        mat = cfg.load_matrix(matrix) if matrix else cfg.matrix_from_text(matrix_text, f"{store.path}:matrix_config")
+        mat = cfg.matrix_from_text(matrix_text, f"{store.path}:matrix_config")  # with the design it stored
+        if matrix:  # given again: with the stored design, the lab's design file is not read
+            mat = _given_matrix(cfg.matrix_file(matrix, rig_path=config), mat)
         if matrix and mat.text != matrix_text:  # before the simulator or any drive is started
             raise ConfigError(
                 mat.file,
@@ -232,6 +233,18 @@ def _configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
         )
     path = cfg.matrix_file(matrix, rig_path=config) if matrix else cfg.default_matrix_path(rig_path=config)
     return rig, cfg.load_matrix(path)
+
+
+def _given_matrix(path, stored):
+    """--matrix FILE of a --resume, with the design of the ``stored`` matrix when the run stored it."""
+    from orbitrig import config as cfg
+    from orbitrig.errors import ConfigError
+
+    try:
+        text = cfg.decode_text(Path(path).read_bytes(), str(path))
+    except OSError as err:
+        raise ConfigError(str(path), [f"cannot read the file: {err.strerror or err}"]) from None
+    return cfg.matrix_from_text(stored.as_stored(text), str(path))
 
 
 def _given_again(given, stored, run):

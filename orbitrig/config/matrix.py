@@ -8,6 +8,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
+from orbitrig.config.designs import resume_note, with_design
 from orbitrig.config.fields import BY_VALUE, FREQ_DEP, MODELS, Mpa, Ratio, Rpm, Wait, _Model
 from orbitrig.config.sequential import SequentialDesign
 from reduction.methods import Method
@@ -176,6 +177,16 @@ class MatrixAveraging(_Model):
         return self
 
 
+class DesignUsed(_Model):
+    """The design file of ``[orbit] design`` as the matrix read it: its name, path, SHA-256 and
+    text (orbitrig.config.designs). A run stores it in the matrix's text (``run_text``)."""
+
+    name: str
+    file: str
+    sha256: str
+    text: str
+
+
 class MatrixConfig(_Model):
     name: str
     description: str = ""
@@ -191,6 +202,9 @@ class MatrixConfig(_Model):
     order: Annotated[PointOrder, BY_VALUE] = PointOrder.FASTEST
     #: the bounds of a sequential point (orbitrig.config.sequential); with [orbit] sequential = true
     sequential: SequentialDesign | None = Field(None, validate_default=True)  # checked when absent too
+    #: the design of [orbit] design as read (set by orbitrig.config.designs.apply_design: from the
+    #: text's own [design_used] table, a run's stored copy, else from the design file)
+    design_used: DesignUsed | None = None
 
     # cross-table checks as field validators, so each error names its key and line
     @field_validator("revolutions")
@@ -258,6 +272,25 @@ class MatrixConfig(_Model):
     @property
     def text(self) -> str:
         return self._text
+
+    @property
+    def run_text(self) -> str:
+        """The text a run stores: ``text`` with the design it used (designs.with_design)."""
+        return with_design(self.text, self.design_used)
+
+    @property
+    def design_stored(self) -> bool:
+        """The design came from the text's own [design_used] table (a run's stored matrix)."""
+        return self.design_used is not None and self.run_text == self.text
+
+    def as_stored(self, text: str) -> str:
+        """``text`` (this stored matrix given again to a resume) as the run stored it: with this
+        matrix's design when the run stored it, so the design file is not read again."""
+        return with_design(text, self.design_used) if self.design_stored else text
+
+    def resume_note(self) -> str | None:
+        """The warning of a resume with this stored matrix (designs.resume_note; None: none)."""
+        return resume_note(self)
 
     def expected_revolutions(self, k: int) -> int | None:
         """Revolutions a block at `orbit.ratio_list[k]` is expected to average: its `[orbit]

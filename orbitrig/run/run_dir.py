@@ -1,9 +1,10 @@
 """The run directory as the engine uses it: opened new or for a resume, room for each
 point, and the records of the run's end.
 
-A new run records its configurations, provenance, simulator scenario and point order; a
-resumed one must be given the matrix it was started with (or none) and sets aside its
-incomplete points (orbitrig.store.writer). The end records are written whatever happened:
+A new run records its configurations (the matrix with the design it uses), provenance,
+simulator scenario and point order; a resumed one must be given the matrix it was started
+with (or none), measures with the design it stored and sets aside its incomplete points
+(orbitrig.store.writer). The end records are written whatever happened:
 a failure to write one is reported through ``failed`` and the others are still written.
 """
 
@@ -38,7 +39,7 @@ def open_store(
         store = RunStore.create(
             out_dir,
             rig_text=rig.text,
-            matrix_text=plan.matrix.text,
+            matrix_text=plan.matrix.run_text,  # with the design it uses: a resume measures with it
             matrix_name=plan.name,
             sim=access.simulated,
             scenario_name=sc.name,
@@ -52,11 +53,15 @@ def open_store(
         return store, []
     store = RunStore.open_existing(out_dir)
     _, matrix_text, _ = store.stored_configs()
-    if plan.matrix.text and plan.matrix.text != matrix_text:
+    if plan.matrix.text and matrix_text not in (plan.matrix.text, plan.matrix.run_text):
         raise ConfigError(
             plan.matrix.file,
             [f"differs from the matrix of the run being resumed in {store.path}; resume with the stored matrix"],
         )
+    note = plan.matrix.resume_note() if plan.matrix.text == matrix_text else None  # else: read now, the same
+    if note:
+        store.log(note)
+        log.warning("%s", note)  # on the terminal too
     return store, store.prepare_resume()
 
 

@@ -1,0 +1,143 @@
+"""`sweep --resume` of a matrix with `[orbit] design = "NAME"`: the design is fixed when the run
+starts and stored with the run's matrix ([design_used]: name, file, sha256, text), and the
+remaining points are measured with that copy. A design file overwritten (`orbitrig design
+--save NAME`) or deleted between the stop and the resume changes nothing but one warning line;
+a run that stored only the design's name (made before) reads the file again, with a warning."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import signal
+import subprocess
+import time
+import tomllib
+
+import h5py
+import pytest
+
+from orbitrig import config as cfg
+from orbitrig.config.home import HOME_ENV
+from orbitrig.store.reader import read_run
+
+from support.paths import ROOT
+from support.rig_configs import patient_lab
+from support.sweep_helpers import orbitrig_cmd
+
+pytestmark = pytest.mark.timeout(300)
+
+MATRIX = """name = "dres"
+[operating]
+spin_rpm = [1000.0, 1500.0]
+recess_pressure_mpa = [0.4826]
+pressure_ratio = [0.4]
+static_eccentricity = [0.0]
+dynamic_eccentricity = [0.096]
+[orbit]
+design = "kcd11-demo"
+[averaging]
+min_revolutions = 4
+max_revolutions = 12
+[[models]]
+model = "kc8"
+"""
+
+
+def _orbitrig(lab, *args, timeout=180):
+    env = {**os.environ, HOME_ENV: str(lab)}
+    return subprocess.run(orbitrig_cmd(*args), cwd=ROOT, env=env, capture_output=True, text=True, timeout=timeout)
+
+
+def _stopped_run(tmp_path):
+    """(lab, design file, its text, run directory): a 2-point --sim run of MATRIX in its own lab,
+    stopped by SIGTERM once point 0 is complete (exit 3)."""
+    lab = patient_lab(tmp_path / "lab")
+    (lab / "matrices" / "dres.toml").write_text(MATRIX)
+    design = lab / "designs" / "kcd11-demo.toml"
+    out = tmp_path / "run"
+    cmd = orbitrig_cmd("sweep", "--sim", "--matrix", "dres", "--out", str(out), "--speedup", "10", "--no-draw-figures")
+    proc = subprocess.Popen(cmd, cwd=ROOT, env={**os.environ, HOME_ENV: str(lab)}, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 120
+        while not list(out.glob("points/*/complete.json")):
+            assert proc.poll() is None and time.monotonic() < deadline, "no point completed"
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(60) == 3
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert [p.complete for p in read_run(out).points] == [True, False]
+    return lab, design, design.read_text(), out
+
+
+def _blocks(out):
+    """Per point: its blocks' (|Omega|/omega rounded, direction)."""
+    run = read_run(out)
+    assert len(run.points) == 2 and all(p.complete for p in run.points)
+    return [sorted((round(abs(f.orbit) / p.settings.spin, 4), f.direction) for f in p.frequencies) for p in run.points]
+
+
+def _assert_measured_with(out, original: str) -> None:
+    """Both points measured the original design's ratios, and the run (run.json and run.h5)
+    records that design: its text, SHA-256 and values in the stored matrix."""
+    design = tomllib.loads(original)
+    expected = sorted((r, d) for r in design["ratios"] for d in (1, -1))
+    assert _blocks(out) == [expected, expected]
+    with h5py.File(out / "run.h5", "r") as f:
+        assert f.attrs["status"] == "completed"
+        stored_h5 = str(f.attrs["matrix_config"])
+    stored = json.loads((out / "run.json").read_text())["matrix_config"]
+    assert stored_h5 == stored
+    record = tomllib.loads(stored)["design_used"]
+    assert record["name"] == "kcd11-demo" and record["text"] == original
+    assert record["sha256"] == hashlib.sha256(original.encode()).hexdigest()
+    mat = cfg.matrix_from_text(stored, "stored")  # the design's ratios, revolutions and targets, as run
+    assert mat.orbit.ratio_list == sorted(design["ratios"])
+    by_ratio = sorted(zip(design["ratios"], design["revolutions"], design["target_pct"]))
+    per_ratio = [(mat.orbit.revolutions_at(k), mat.orbit.target_pct_at(k)) for k in range(len(by_ratio))]
+    assert per_ratio == [(n, t) for _, n, t in by_ratio]
+
+
+def test_a_design_overwritten_between_stop_and_resume_does_not_change_the_remaining_points(tmp_path):
+    lab, design, original, out = _stopped_run(tmp_path)
+    saved = _orbitrig(
+        lab, "design", "--model", "kc8", "--spin", "1000", "--matrix", "demo", "--match", "--save", "kcd11-demo"
+    )
+    assert saved.returncode == 0, saved.stderr
+    now = tomllib.loads(design.read_text())
+    assert now["ratios"] != tomllib.loads(original)["ratios"]  # the audit's seven ratios, other targets
+
+    p = _orbitrig(lab, "sweep", "--sim", "--resume", "--out", str(out), "--no-draw-figures")
+    assert p.returncode == 0, p.stderr
+    _assert_measured_with(out, original)
+    line = f"warning: design file {design.resolve()} has changed since the run started"
+    assert line in p.stderr and line in (out / "run.log").read_text()
+    assert tomllib.loads(design.read_text()) == now  # the lab's file is left as it is
+
+
+def test_a_deleted_design_file_does_not_break_the_resume(tmp_path):
+    lab, design, original, out = _stopped_run(tmp_path)
+    design.unlink()
+    p = _orbitrig(lab, "sweep", "--sim", "--resume", "--out", str(out), "--no-draw-figures")
+    assert p.returncode == 0, p.stderr
+    _assert_measured_with(out, original)
+    line = f"warning: design file {design.resolve()} no longer exists"
+    assert line in p.stderr and line in (out / "run.log").read_text()
+
+
+def test_a_run_that_stored_only_the_design_name_reads_it_again_with_a_warning(tmp_path):
+    lab, design, original, out = _stopped_run(tmp_path)
+    header = json.loads((out / "run.json").read_text())
+    assert "[design_used]" in header["matrix_config"]
+    header["matrix_config"] = MATRIX  # as a run made before designs were stored: the matrix file's text
+    (out / "run.json").write_text(json.dumps(header, indent=1))
+    p = _orbitrig(lab, "sweep", "--sim", "--resume", "--out", str(out), "--no-draw-figures")
+    assert p.returncode == 0, p.stderr
+    expected = sorted((r, d) for r in tomllib.loads(original)["ratios"] for d in (1, -1))
+    assert _blocks(out) == [expected, expected]  # the file is unchanged: as today
+    line = "the run stored only the name of its design 'kcd11-demo'"
+    assert line in p.stderr and line in (out / "run.log").read_text()
+    assert f"read again from {design.resolve()}" in p.stderr
