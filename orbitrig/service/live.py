@@ -21,8 +21,14 @@ times a second while the run lives, publishes
 
 While the run waits for an operator, :meth:`LiveFeed.waiting_fields` gives the
 status fields ``step`` and ``settings`` = ``{name: {"value", "unit", "measured", "band"}}``
-(asked and measured manual settings, SI; ``measured`` null when not measured yet; ``band``
+(asked and measured manual settings, SI; ``measured`` null when not measured now; ``band``
 [low, high] accepted by the run's verification, orbitrig.run.verification.setting_bands).
+
+Nothing old passes for now: ``orbit_hz`` and the measured orbit radius and static
+eccentricity come only from current revolutions (the latest no older than FRESH_PERIODS
+orbit periods or FRESH_WALL_S wall s, the longer, the orbit drive still at the setpoint it
+had then; the geometry only from revolutions that came after the present wait began), else
+null. The bands are the point being set up or run (the latest waited for, else the progress's).
 """
 
 from __future__ import annotations
@@ -30,6 +36,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import math
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -62,6 +69,10 @@ AUX_UNITS = {
 #: The manual settings of an operating point and their SI units.
 SETTING_UNITS = {"orbit_radius": "m", "static_eccentricity": "-", "recess_pressure": "Pa", "pressure_ratio": "-"}
 LIVE_STATES = (RunState.RUNNING, RunState.PAUSED, RunState.WAITING, RunState.STOPPING)
+#: Revolutions are current while the latest is at most this many orbit periods old ...
+FRESH_PERIODS = 3.0
+#: ... or this many wall s, the longer (the ADC link delivers revolutions in batches).
+FRESH_WALL_S = 1.0
 
 
 class RevolutionAverage:
@@ -76,7 +87,7 @@ class RevolutionAverage:
         self.period_s: float | None = None  # orbit period of the latest revolution
 
     def reset(self) -> None:
-        self._sum, self.count = None, 0
+        self._sum, self.count, self.period_s = None, 0, None
 
     def add(self, counts: np.ndarray, slots: np.ndarray, period_s: float | None) -> None:
         c = np.asarray(counts, dtype=float)
@@ -107,6 +118,11 @@ class LiveFeed:
         self._manual = {s.point: s for s in plan.steps if isinstance(s, SetManual)}
         self._block: tuple[int, int] = (0, 0)
         self._point = self._frequency = self._revolutions = 0
+        self._revs = 0  # revolutions seen in all
+        self._rev_at: float | None = None  # time.monotonic() of the latest revolution
+        self._rev_ref: float | None = None  # the orbit drive's setpoint (rad/s) then
+        self._wait: tuple[str, int] | None = None  # the present wait: step id, revolutions seen before it
+        self._waited_point: int | None = None  # the point of the latest wait
         self.sent = 0
         engine.subscribe(self._on_event)
         engine.revolution_taps.append(self._on_revolution)
@@ -120,9 +136,36 @@ class LiveFeed:
                 self._block = block
                 self.average.reset()  # a new block: its own average
             self._point, self._frequency, self._revolutions = event.point, event.frequency, event.revolutions
+        self._note_wait()
 
     def _on_revolution(self, rev: Any) -> None:
         self.average.add(rev.counts, rev.slots, rev.period_s)
+        orbit = self._orbit_drive()
+        self._revs, self._rev_at = self._revs + 1, time.monotonic()
+        self._rev_ref = None if orbit is None else orbit.reference
+
+    def _note_wait(self) -> tuple[str, int] | None:
+        """The present wait (its step id, the revolutions seen before it began), else None."""
+        step = self.engine.waiting_step if self.engine.state == RunState.WAITING else None
+        if step is None:
+            self._wait = None
+        elif self._wait is None or self._wait[0] != step:
+            self._wait = (step, self._revs)
+            self._waited_point = _step_point(step)
+        return self._wait
+
+    def _orbit_drive(self) -> Any:
+        io = self.engine.io
+        return None if io is None or io.drives is None else io.drives.state.orbit
+
+    def _current(self) -> bool:
+        """Are the averaged revolutions current: the latest recent (FRESH_PERIODS, FRESH_WALL_S),
+        the orbit drive turning at the setpoint it had then?"""
+        orbit, at = self._orbit_drive(), self._rev_at
+        if self.average.count == 0 or at is None or orbit is None or orbit.stopped or orbit.reference != self._rev_ref:
+            return False
+        fresh = self.engine.access.time_scale.wall(FRESH_PERIODS * (self.average.period_s or 0.0))
+        return time.monotonic() - at <= max(fresh, FRESH_WALL_S)
 
     # -- publishing ------------------------------------------------------------------
 
@@ -147,22 +190,21 @@ class LiveFeed:
         orbit, spin = drives.orbit, drives.spin
         names = [c.name for c in sorted(self.rig.channels, key=lambda c: c.index)]
         mean = self.average.mean()
-        period = self.average.period_s
-        orbit_hz = (1.0 / period) if period else (abs(orbit.actual) / (2 * math.pi) if orbit else None)
+        period = self.average.period_s if self._current() else None
         return {
             "run_id": self.engine.run_id,
             "point": self._point,
             "frequency": self._frequency,
             "direction": _direction(orbit),
             "revolutions": self._revolutions,
-            "orbit_hz": orbit_hz,
+            "orbit_hz": 1.0 / period if period else None,
             "spin_rpm": None if spin is None else spin.actual / RPM,
             "drives": drives.to_dict(),
             "aux": self._aux(io),
             "waveforms": {} if mean is None else {n: mean[i] for i, n in enumerate(names)},
             "units": {**{c.name: c.unit for c in self.rig.channels}, **AUX_UNITS},
             "bands": self._bands(),
-            **({"settings_measured": self._measured()} if self.engine.state == RunState.WAITING else {}),
+            **({"settings_measured": self._settings_measured()} if self.engine.state == RunState.WAITING else {}),
         }
 
     @staticmethod
@@ -194,15 +236,13 @@ class LiveFeed:
         return bands
 
     def _manual_point(self) -> int | None:
-        """Index of the operating point being run (from the waiting step or the progress)."""
-        step = self.engine.waiting_step
-        if step and ":" in step:
-            try:
-                return int(step.split(":", 1)[1])
-            except ValueError:
-                return None
+        """Index of the operating point being set up or run: the waiting step's, else the later
+        of the latest waited for and the progress's (which moves on at the point's first block)."""
+        if self._note_wait() is not None:
+            return self._waited_point
         points = sorted(self._manual)
-        return points[self._point - 1] if 0 < self._point <= len(points) else None
+        progress = points[self._point - 1] if 0 < self._point <= len(points) else None
+        return max((p for p in (progress, self._waited_point) if p is not None), default=None)
 
     # -- waiting status ----------------------------------------------------------------
 
@@ -229,17 +269,23 @@ class LiveFeed:
             },
         }
 
+    def _settings_measured(self) -> dict[str, float | None]:
+        """Every manual setting as measured now, null when not (the page then clears an old value)."""
+        measured = self._measured()
+        return {k: measured.get(k) for k in SETTING_UNITS}
+
     def _measured(self) -> dict[str, float]:
         """Manual settings as measured now: pressures from CAN, orbit radius and static
-        eccentricity from the latest averaged revolution of the displacement probes."""
+        eccentricity from the averaged revolution of the displacement probes when it is
+        current and came after the present wait began (the run acquires none while waiting)."""
         out: dict[str, float] = {}
         io = self.engine.io
         a = io.aux.latest() if io is not None and io.aux is not None else None
         if a is not None and not a.node_lost:
             out["recess_pressure"] = float(np.mean(a.p_recess))
             out["pressure_ratio"] = float(a.beta)
-        mean, slots = self.average.mean(), self.average.slots
-        if mean is not None and slots is not None and self.average.count >= 1:
+        mean, slots, wait = self.average.mean(), self.average.slots, self._note_wait()
+        if mean is not None and slots is not None and wait is not None and self._revs > wait[1] and self._current():
             out.update(_geometry(mean, slots, self.rig.channel_index, self.rig.bearing.clearance))
         return {k: v for k, v in out.items() if math.isfinite(v)}
 
@@ -259,6 +305,14 @@ def _geometry(mean: np.ndarray, slots: np.ndarray, ch: dict[str, int], clearance
     x0 = (fit.mean[ch["x_a"]] + fit.mean[ch["x_b"]]) / 2
     y0 = (fit.mean[ch["y_a"]] + fit.mean[ch["y_b"]]) / 2
     return {"orbit_radius": float((abs(x) + abs(y)) / 2), "static_eccentricity": float(math.hypot(x0, y0) / clearance)}
+
+
+def _step_point(step: str) -> int | None:
+    """The point index of a waiting step's id ('manual:0001' -> 1), else None."""
+    try:
+        return int(step.split(":", 1)[1])
+    except (IndexError, ValueError):
+        return None
 
 
 def _direction(orbit: Any) -> str | None:
