@@ -77,7 +77,7 @@ def static_loads(magnitude: float) -> np.ndarray:
 @dataclass(frozen=True)
 class DelayFit:
     """A channel's lag behind the reference channels: phase(f) = phase + 2 pi f delay (rad, s),
-    with standard uncertainties from the fit's residuals (at least ``floor``)."""
+    with standard uncertainties from the fit's residuals; ``phase`` in [-pi, pi)."""
 
     phase: float  # rad
     delay: float  # s
@@ -85,21 +85,55 @@ class DelayFit:
     delay_u: float
     residual_rms: float  # rad
 
+    @property
+    def polarity(self) -> int:
+        """-1 if the channel reads the reference inverted (``phase`` nearer +-pi than 0), else +1."""
+        return polarity_and_lag(self.phase)[0]
+
+    @property
+    def lag(self) -> float:
+        """The constant phase apart from the polarity (rad, in [-pi/2, pi/2])."""
+        return polarity_and_lag(self.phase)[1]
+
+
+def wrap_phase(phase: float) -> float:
+    """``phase`` (rad) wrapped into [-pi, pi) (one already there unchanged)."""
+    if -np.pi <= phase < np.pi:
+        return float(phase)
+    wrapped = float((phase + np.pi) % (2 * np.pi) - np.pi)
+    return wrapped if -np.pi <= wrapped < np.pi else -np.pi
+
+
+def polarity_and_lag(phase: float) -> tuple[int, float]:
+    """(polarity, lag) of a channel's constant phase (rad) behind the reference: a phase nearer
+    +-pi than 0 is a reading inverted against the reference (polarity -1: a sign, the gain's,
+    never a lag), the rest the lag (rad, in [-pi/2, pi/2])."""
+    p = wrap_phase(phase)
+    turns = round(p / np.pi)  # -1, 0 or 1
+    return (-1 if turns else 1), p - turns * np.pi
+
 
 def fit_delay(frequencies: np.ndarray, lag: np.ndarray) -> DelayFit:
     """Least-squares line through a channel's measured lag (rad, unwrapped along frequency) behind
-    the reference at `frequencies` (Hz): lag = phase + 2 pi f delay. ReductionError with fewer
-    than 3 distinct frequencies."""
-    f, y = np.asarray(frequencies, dtype=float), np.unwrap(np.asarray(lag, dtype=float))
+    the reference at `frequencies` (Hz): lag = phase + 2 pi f delay, the phase wrapped into
+    [-pi, pi). ReductionError with fewer than 3 distinct frequencies or a lag not finite."""
+    f, y = np.asarray(frequencies, dtype=float), np.asarray(lag, dtype=float)
     if f.shape != y.shape or f.ndim != 1 or len(np.unique(f)) < 3:
         raise ReductionError("a phase and a delay need the lag at 3 or more distinct frequencies")
+    if not (np.all(np.isfinite(f)) and np.all(np.isfinite(y))):
+        raise ReductionError("the frequencies and lags must be finite (a channel that read no reference?)")
+    y = np.unwrap(y)
     A = np.column_stack([np.ones_like(f), 2 * np.pi * f])
     coef, *_ = np.linalg.lstsq(A, y, rcond=None)
     res = y - A @ coef
     s2 = float(np.sum(res**2) / (len(f) - 2))
     cov = s2 * np.linalg.inv(A.T @ A)
     return DelayFit(
-        float(coef[0]), float(coef[1]), float(np.sqrt(cov[0, 0])), float(np.sqrt(cov[1, 1])), float(np.sqrt(s2))
+        wrap_phase(float(coef[0])),
+        float(coef[1]),
+        float(np.sqrt(cov[0, 0])),
+        float(np.sqrt(cov[1, 1])),
+        float(np.sqrt(s2)),
     )
 
 
@@ -113,14 +147,16 @@ def correct_lag(values: np.ndarray, orbit: np.ndarray, phase: float, delay: floa
 @dataclass(frozen=True)
 class ProbeFit:
     """A displacement probe's calibration: step = gain * reading + offset (m), the gain's standard
-    uncertainty (residuals and the reference's), and its linearity: the largest deviation of the
-    readings from the line, relative to the span of the steps (1)."""
+    uncertainty (residuals and the reference's) and the residuals' part of it alone, and its
+    linearity: the largest deviation of the readings from the line, relative to the span of the
+    steps (1)."""
 
     gain: float
     gain_u: float
     offset: float
     linearity: float
     residual_rms: float  # m
+    gain_u_fit: float  # the residuals' part of gain_u (the reference's left out)
 
 
 def fit_probe(steps: np.ndarray, reading: np.ndarray, reference_u: float) -> ProbeFit:
@@ -133,7 +169,13 @@ def fit_probe(steps: np.ndarray, reading: np.ndarray, reference_u: float) -> Pro
     coef, *_ = np.linalg.lstsq(A, d, rcond=None)
     res = d - A @ coef
     s2 = float(np.sum(res**2) / (len(d) - 2))
-    var = s2 * np.linalg.inv(A.T @ A)[0, 0] + (reference_u * coef[0]) ** 2
+    var_fit = s2 * np.linalg.inv(A.T @ A)[0, 0]
+    var = var_fit + (reference_u * coef[0]) ** 2
     return ProbeFit(
-        float(coef[0]), float(np.sqrt(var)), float(coef[1]), float(np.max(np.abs(res)) / np.ptp(d)), float(np.sqrt(s2))
+        float(coef[0]),
+        float(np.sqrt(var)),
+        float(coef[1]),
+        float(np.max(np.abs(res)) / np.ptp(d)),
+        float(np.sqrt(s2)),
+        float(np.sqrt(var_fit)),
     )

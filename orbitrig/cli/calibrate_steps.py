@@ -242,8 +242,11 @@ async def rig_access(rig: RigConfig, opts: StepOptions):
 
 
 def _base(rig: RigConfig, opts: StepOptions, step: RecordStep) -> dict:
-    """The new record's fields from the active record (or rig.toml), its date and operator set;
-    no reference standard (the step sets its own: an earlier step's is in the records before)."""
+    """The new record's fields from the active record (or rig.toml), its date and operator set,
+    the rig's id and channel setup (orbitrig.config.identity); no reference standard (the
+    step sets its own: an earlier step's is in the records before)."""
+    from orbitrig.config import identity
+
     old = rig.record
     base = (
         old.model_dump(exclude={"reference"})
@@ -253,10 +256,10 @@ def _base(rig: RigConfig, opts: StepOptions, step: RecordStep) -> dict:
     base.update(
         date=now_iso(),
         operator=opts.operator,
-        rig=rig.name,
         step=step,
         previous=rig.calibration_record or "",
         software=f"orbitrig {__version__}",
+        **identity(rig),
     )
     return base
 
@@ -301,34 +304,59 @@ async def runout_record(rig: RigConfig, opts: StepOptions, note) -> CalibrationR
     return CalibrationRecord.model_validate(data)
 
 
+def _inverted(rig: RigConfig, name: str, phase: float, lag: float) -> str:
+    """The line saying that force channel `name` reads the reference inverted (fitted `phase`, `lag` rad)."""
+    lms, i, rec = name.split("_")[1], int(name.startswith("fy")), rig.record
+    g = f"{rec.force_gain(lms)[i][i]:+.4f}" if rec is not None and lms in rec.loads else "none yet"
+    return (
+        f"{name} reads the reference inverted ({np.degrees(phase):+.3f} deg): a sign, its gains' (rig.toml's; "
+        f"the loads step's matrix: {g}), not a lag; recorded: the lag apart from it, {np.degrees(lag):+.4f} deg"
+    )
+
+
 async def delay_record(
     rig: RigConfig, opts: StepOptions, speeds_rpm: list[float], amplitudes: tuple[float, float], note
 ) -> CalibrationRecord:
     """`calibrate delay`: the phase reference read at each slow-roll speed; each force channel's lag
-    behind the probes fitted as a constant phase plus a time delay."""
+    behind the probes fitted as a constant phase plus a time delay. A channel reading the reference
+    inverted (about 180 deg) takes its sign from its gains (rig.toml's, the loads step's matrix),
+    never from a lag: the record holds the lag apart from it, and a line says so. Values no record
+    can hold fail the step (CalibrationFailed), no record written."""
+    from pydantic import ValidationError
+
     rolls = delay_rolls(opts, speeds_rpm)
     async with rig_access(rig, opts) as (access, hands):
         async with CalibrationSession(rig, access, note) as session:
             freqs, lags = await measure_delay(session, _watched(hands, session), rolls, amplitudes)
     data = _base(rig, opts, RecordStep.DELAY)
     data["delay"] = {}
-    for name in FORCE_CHANNELS:
-        fit = fit_delay(freqs, lags[name])
-        d = ChannelDelay(
-            phase_deg=float(np.degrees(fit.phase)),
-            delay_us=fit.delay * 1e6,
-            phase_u_deg=float(np.degrees(fit.phase_u)),
-            delay_u_us=fit.delay_u * 1e6,
-        )
-        data["delay"][name] = d.model_dump()
-        data["uncertainty"][name].update(phase_deg=d.phase_u_deg, delay_us=d.delay_u_us)
-    return CalibrationRecord.model_validate(data)
+    try:
+        for name in FORCE_CHANNELS:
+            fit = fit_delay(freqs, lags[name])
+            if fit.polarity < 0:
+                note(_inverted(rig, name, fit.phase, fit.lag))
+            d = ChannelDelay(
+                phase_deg=float(np.degrees(fit.lag)),
+                delay_us=fit.delay * 1e6,
+                phase_u_deg=float(np.degrees(fit.phase_u)),
+                delay_u_us=fit.delay_u * 1e6,
+            )
+            data["delay"][name] = d.model_dump()
+            data["uncertainty"][name].update(phase_deg=d.phase_u_deg, delay_us=d.delay_u_us)
+        return CalibrationRecord.model_validate(data)
+    except ValidationError as err:
+        raise CalibrationFailed(f"the fitted lags cannot be recorded ({err}); no record written") from None
 
 
 async def probes_record(
     rig: RigConfig, opts: StepOptions, steps: np.ndarray, reference: Reference, note
 ) -> CalibrationRecord:
-    """`calibrate probes`: known displacement steps along x, then y; each probe's gain and linearity."""
+    """`calibrate probes`: known displacement steps along x, then y; each probe's gain and linearity.
+    The reference (micrometer) is one error common to every probe: [uncertainty]'s
+    ``probe_sensitivity_pct`` carries it, each probe's ``gain_pct`` the fit's own part only (the
+    budget adds the two, so the reference counts once). Values no record can hold fail the step."""
+    from pydantic import ValidationError
+
     async with rig_access(rig, opts) as (access, hands):
         async with CalibrationSession(rig, access, note) as session:
             await session.roll(opts.roll())
@@ -336,15 +364,18 @@ async def probes_record(
     data = _base(rig, opts, RecordStep.PROBES)
     data["reference"] = reference.model_dump()
     data["probes"] = {}
-    for p in PROBES:
-        fit = fit_probe(steps, readings[p], reference.uncertainty_pct / 100.0)
-        data["probes"][p] = ProbeGain(
-            gain=fit.gain,
-            gain_u=fit.gain_u,
-            linearity_pct=fit.linearity * 100,
-            span_um=float(np.ptp(steps)) * 1e6,
-            steps=len(steps),
-        ).model_dump()
-        data["uncertainty"][p]["gain_pct"] = fit.gain_u / fit.gain * 100.0
-    data["uncertainty"]["probe_sensitivity_pct"] = reference.uncertainty_pct  # common to all: the reference
-    return CalibrationRecord.model_validate(data)
+    try:
+        for p in PROBES:
+            fit = fit_probe(steps, readings[p], reference.uncertainty_pct / 100.0)
+            data["probes"][p] = ProbeGain(
+                gain=fit.gain,
+                gain_u=fit.gain_u,
+                linearity_pct=fit.linearity * 100,
+                span_um=float(np.ptp(steps)) * 1e6,
+                steps=len(steps),
+            ).model_dump()
+            data["uncertainty"][p]["gain_pct"] = fit.gain_u_fit / abs(fit.gain) * 100.0
+        data["uncertainty"]["probe_sensitivity_pct"] = reference.uncertainty_pct
+        return CalibrationRecord.model_validate(data)
+    except ValidationError as err:
+        raise CalibrationFailed(f"the fitted probe gains cannot be recorded ({err}); no record written") from None

@@ -66,8 +66,10 @@ from orbitrig.config.records import (  # noqa: F401
     Reference,
     Runout,
     activate,
+    check_setup,
     digest,
     folder_of,
+    identity,
     list_names,
     made_elsewhere,
     read_record,
@@ -222,6 +224,7 @@ def _check_record_rig(rig: RigConfig, record: CalibrationRecord, record_text: st
     """A ConfigError naming the record file, its rig and rig.toml's when the active record was
     measured on another rig (orbitrig.config.records.made_elsewhere), with the records of this rig."""
     if not made_elsewhere(record, rig.name, rig.rig_id):
+        check_setup(rig, record, record_text, path)  # the channels' serials and gains it was measured with
         return
     folder, ours = path.parent, []
     at, key_at = _line_of(record_text, ("rig",)), _line_of(rig.text, ("calibration_record",))

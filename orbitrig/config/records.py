@@ -7,30 +7,42 @@ what it measured, so the active record alone says how the rig is calibrated. The
 configuration names the active one (``calibration_record = "NAME"``); its ``[uncertainty]``
 feeds the type-B budget, its ``[loads.<system>]`` gain matrices correct the forces, its
 ``[runout]`` phasors are taken from the probes' blocks, its ``[delay]`` phases and delays
-bring the force channels in step with the probes.
+bring the force channels in step with the probes. A measured record carries the rig's id and the
+channel setup (serial, gain) it was measured with; ``check_setup`` refuses it on another setup.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
 import hashlib
+import math
 import re
+import tomllib
+import warnings
 from enum import StrEnum
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import numpy as np
 from pydantic import Field, field_validator
 
 from orbitrig.config.calibration import CalibrationUncertainty, Percent
 from orbitrig.config.fields import BY_VALUE, _Model
+from orbitrig.config.messages import _line_of
 from orbitrig.config.toml_out import render
 from orbitrig.errors import ConfigError
 from orbitrig.load_systems import LoadSystem
 
+if TYPE_CHECKING:
+    from orbitrig.config.rig import RigConfig
+
 FOLDER = "calibration"
 NAME = re.compile(r"^\d{4}-\d\d-\d\dT\d{6}Z-[a-z]+$")
-RECORD_KEY = re.compile(r'^(calibration_record\s*=\s*)"[^"]*"', re.MULTILINE)
+RECORD_KEY = re.compile(r"""^([ \t]*calibration_record[ \t]*=[ \t]*)("[^"\n]*"|'[^'\n]*')""", re.MULTILINE)
+TABLE_HEADER = re.compile(r"^[ \t]*\[")
+TOP_KEY = re.compile(r"^[ \t]*([A-Za-z0-9_-]+)[ \t]*=")
+PROBE_CHANNELS = ("x_a", "y_a", "x_b", "y_b")
+ChannelName = Literal["fx_piezo", "fy_piezo", "fx_strain", "fy_strain", "x_a", "y_a", "x_b", "y_b"]
 
 Matrix2 = Annotated[list[Annotated[list[float], Field(min_length=2, max_length=2)]], Field(min_length=2, max_length=2)]
 Pair = Annotated[list[float], Field(min_length=2, max_length=2)]
@@ -112,13 +124,23 @@ class ChannelDelay(_Model):
     delay_u_us: Annotated[float, Field(ge=0)] = 0.0
 
 
+class ChannelSetup(_Model):
+    """A channel as rig.toml set it up when the record was measured."""
+
+    serial: str = ""
+    gain: float
+
+
 class CalibrationRecord(_Model):
+    """One calibration record (docs/calibration.md)."""
+
     date: str  # ISO 8601, UTC
     operator: str = Field(min_length=1)
-    rig: str = ""
+    rig: str = ""  # the rig's identity: rig.toml's rig_id (its name without one); older records: its name
     step: Annotated[RecordStep, BY_VALUE]
     previous: str = ""  # the record this one started from
     software: str = ""
+    channels: dict[ChannelName, ChannelSetup] = {}  # the setup measured with; {}: an older record
     reference: Reference | None = None
     loads: dict[Annotated[LoadSystem, BY_VALUE], LoadGains] = {}
     runout: Runout | None = None
@@ -148,12 +170,103 @@ MEASURED_STEPS = frozenset({RecordStep.LOADS, RecordStep.RUNOUT, RecordStep.DELA
 
 
 def made_elsewhere(record: CalibrationRecord, name: str, rig_id: str) -> bool:
-    """Whether ``record`` was measured on another rig than the one called ``name`` (rig.toml's
-    ``name``, which `orbitrig calibrate` writes into ``rig``) with id ``rig_id``. Not checked: a
-    record that names no rig (``rig`` is optional), and an initial record (typed in from data
-    sheets, not measured; the shipped one, which `orbitrig init` copies into every lab, names
-    the shipped example rig)."""
-    return record.step in MEASURED_STEPS and bool(record.rig) and record.rig not in {name, rig_id}
+    """Whether ``record`` was measured on another rig than the one called ``name`` with id
+    ``rig_id``: a record with its channel setup (written since records carry it) names the rig's
+    id, ``rig_id or name``; an older one the rig's name or id. Not checked: a record that names
+    no rig (``rig`` is optional), and an initial record (typed in from data sheets, not measured;
+    the shipped one, which `orbitrig init` copies into every lab, names the shipped example rig)."""
+    if record.step not in MEASURED_STEPS or not record.rig:
+        return False
+    return record.rig != (rig_id or name) if record.channels else record.rig not in {name, rig_id}
+
+
+def identity(rig: RigConfig) -> dict:
+    """The ``rig`` and ``channels`` of a record measured now on ``rig``: its rig_id (its name
+    without one) and every channel's serial and gain."""
+    channels = {c.name: {"serial": c.serial, "gain": c.gain} for c in rig.channels}
+    return {"rig": rig.rig_id or rig.name, "channels": channels}
+
+
+def calibrated(record: CalibrationRecord) -> dict[str, list[str]]:
+    """The channels whose calibration ``record`` holds, each with the steps that measured it (a
+    force channel's delay is its lag behind the probes: those count too)."""
+    parts: dict[str, list[str]] = {
+        "loads": [f"{axis}_{lms}" for lms in record.loads for axis in ("fx", "fy")],
+        "runout": list(PROBE_CHANNELS) if record.runout else [],
+        "delay": [*record.delay, *PROBE_CHANNELS] if record.delay else [],
+        "probes": list(record.probes),
+    }
+    out: dict[str, list[str]] = {}
+    for step, names in parts.items():
+        for name in names:
+            out.setdefault(name, []).append(step)
+    return out
+
+
+class UncheckedRecordWarning(UserWarning):
+    """An active measured record from before records carried the rig's id and channel setup."""
+
+
+def check_setup(rig: RigConfig, record: CalibrationRecord, record_text: str, path: Path) -> None:
+    """Whether the active ``record`` (file ``path``) was measured with ``rig``'s channel setup: a
+    ConfigError naming each channel it calibrates whose serial or gain changed, with both values;
+    for a measured record without a setup (an older one) a one-line UncheckedRecordWarning."""
+    if record.step not in MEASURED_STEPS:
+        return
+    if not record.channels:
+        at = _line_of(record_text, ("rig",)) or _line_of(record_text, ("step",)) or 1
+        message = (
+            f"this {record.step} record predates the rig's id and channel setup in records: the rig, sensors "
+            f"and gains it was measured with cannot be checked against {rig.file} (calibrating again records them)"
+        )
+        warnings.warn_explicit(message, UncheckedRecordWarning, str(path), at)
+        return
+    changes, steps = _setup_changes(rig, record, record_text)
+    if changes:
+        redo = " ".join(f"`orbitrig calibrate {s}`" for s in RecordStep if s in steps)
+        changes[-1] += (
+            f". Its corrections belong to the sensors as they were: set the channel back in {rig.file}, make "
+            f"active a record measured with this setup, or remove calibration_record and calibrate again ({redo})"
+        )
+        raise ConfigError(str(path), changes)
+
+
+def _setup_changes(rig: RigConfig, record: CalibrationRecord, record_text: str) -> tuple[list[str], set[str]]:
+    """(one problem per changed channel, the steps that measured them)."""
+    present = {c.name: (i, c) for i, c in enumerate(rig.channels)}
+    problems, steps = [], set()
+    for name, by in calibrated(record).items():
+        was = record.channels.get(name)
+        if was is None or name not in present:
+            continue
+        i, now = present[name]
+        fields = [f for f in ("serial", "gain") if not _same(getattr(was, f), getattr(now, f))]
+        if not fields:
+            continue
+        at, now_at = (
+            _line_of(record_text, ("channels", name, fields[0])),
+            _line_of(rig.text, ("channels", i, fields[0])),
+        )
+        problems.append(
+            f"{f'line {at}: ' if at else ''}key 'channels.{name}': this {record.step} record calibrates {name} "
+            f"({', '.join(by)}) as measured with {_values(was, fields)}; {rig.file}"
+            f"{f' (line {now_at})' if now_at else ''} sets {_values(now, fields)}"
+        )
+        steps.update(by)
+    return problems, steps
+
+
+def _same(was: str | float, now: str | float) -> bool:
+    if isinstance(was, str) or isinstance(now, str):
+        return was == now
+    return math.isclose(was, now, rel_tol=1e-9, abs_tol=0.0)
+
+
+def _values(channel, fields: list[str]) -> str:
+    """'serial 'X' and gain 0.1' of ``channel``'s ``fields``."""
+    return " and ".join(
+        f"{f} {getattr(channel, f)!r}" if f == "serial" else f"{f} {getattr(channel, f):.10g}" for f in fields
+    )
 
 
 def folder_of(rig_file: str | Path) -> Path:
@@ -213,14 +326,45 @@ def write_record(folder: Path, record: CalibrationRecord, header: str = "") -> t
 
 def activate(rig_file: str | Path, name: str) -> None:
     """Make ``name`` the active record of the rig configuration ``rig_file`` (its
-    ``calibration_record`` line; added after ``name = ...`` when missing). Nothing else changes."""
+    ``calibration_record`` line; added among the top-level keys when missing). Nothing else changes."""
     path = Path(rig_file)
-    text = path.read_text(encoding="utf-8")
-    line = f'calibration_record = "{name}"'
+    text = path.read_bytes().decode("utf-8")
     if RECORD_KEY.search(text):
         text = RECORD_KEY.sub(lambda m: f'{m.group(1)}"{name}"', text, count=1)
     else:
-        m = re.search(r"^name\s*=.*$", text, re.MULTILINE)
-        at = m.end() if m else 0
-        text = text[:at] + ("\n" if m else "") + line + ("" if m else "\n") + text[at:]
-    path.write_text(text, encoding="utf-8")
+        placed = _with_record_key(text, name)
+        if placed is None:
+            raise ConfigError(str(path), [f'cannot add calibration_record = "{name}": add it among the top-level keys'])
+        text = placed
+    path.write_bytes(text.encode("utf-8"))
+
+
+def _with_record_key(text: str, name: str) -> str | None:
+    """``text`` with ``calibration_record = "name"`` among its top-level keys: after ``name = ...``,
+    else after the last top-level key, else above the first table (and its comments), else on
+    top; the first place where the text reads back as before plus that key (None: no such place)."""
+    lines = text.splitlines(keepends=True)
+    nl = "\r\n" if "\r\n" in text else "\n"
+    first = next((i for i, ln in enumerate(lines) if TABLE_HEADER.match(ln)), len(lines))
+    keys = [i for i in range(first) if TOP_KEY.match(lines[i])]
+    named = [i for i in keys if lines[i].split("=")[0].strip() == "name"]
+    above = first
+    while above > 0 and lines[above - 1].lstrip().startswith("#"):
+        above -= 1
+    want = _toml(text)
+    if want is not None:
+        want["calibration_record"] = name
+    for at, gap in [(i + 1, "") for i in named[:1] + keys[-1:]] + [(above, nl), (0, "")]:
+        head = "".join(lines[:at])
+        head += nl if head and not head.endswith("\n") else ""
+        out = f'{head}calibration_record = "{name}"{nl}{gap if at < len(lines) else ""}' + "".join(lines[at:])
+        if want is None or _toml(out) == want:
+            return out
+    return None
+
+
+def _toml(text: str) -> dict | None:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError:
+        return None

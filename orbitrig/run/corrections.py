@@ -3,6 +3,9 @@
 - Forces: each force channel's lag behind the probes (``[delay]``: phase and time delay)
   taken out, then each load measuring system's 2 x 2 gain matrix (``[loads.<system>]``;
   identity without one), f_journal = G f_read, per revolution and on the averaged phasors.
+  A channel's sign is its gains' (rig.toml's and G's), never a lag: a recorded phase nearer
+  +-180 deg than 0 (a reversed channel, written so before the delay step told the two apart)
+  turns the channel by its difference from +-180 deg only.
 - Probes: the runout of each probe track at 1x and 2x spin (``[runout]``) taken out of every
   block's per-revolution phasors, the block's spin phase fitted from its own revolutions
   (reduction.runout); only when the rig configuration's ``subtract_runout`` is true (default).
@@ -21,7 +24,7 @@ import numpy as np
 from orbitrig.config import LMS, RigConfig
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.records import BlockRecord
-from reduction.calibration import correct_forces, correct_lag
+from reduction.calibration import correct_forces, correct_lag, polarity_and_lag
 from reduction.runout import remove_runout
 
 PROBES = ("x_a", "y_a", "x_b", "y_b")
@@ -32,7 +35,7 @@ MIN_REVOLUTIONS = 3  # fewer cannot fit a block's spin phase: the block is left 
 class Corrections:
     force_gains: dict[LoadSystem, np.ndarray] = field(default_factory=dict)
     runout: np.ndarray | None = None  # (4, 2) complex, m: PROBES x (1x, 2x spin)
-    lags: dict[str, tuple[float, float]] = field(default_factory=dict)  # channel -> (phase rad, delay s)
+    lags: dict[str, tuple[float, float]] = field(default_factory=dict)  # channel -> (lag rad, delay s), no sign
     probe_gains: dict[str, float] = field(default_factory=dict)  # probe -> gain (1)
 
     @classmethod
@@ -44,7 +47,9 @@ class Corrections:
         runout = None
         if rec.runout is not None and rig.subtract_runout:
             runout = np.array([rec.runout.phasors(p) for p in PROBES])
-        lags = {name: (np.radians(d.phase_deg), d.delay_us * 1e-6) for name, d in rec.delay.items()}
+        lags = {
+            name: (polarity_and_lag(np.radians(d.phase_deg))[1], d.delay_us * 1e-6) for name, d in rec.delay.items()
+        }
         gains = {p: g.gain for p, g in rec.probes.items()}
         return cls({lms: rec.force_gain(lms) for lms in LMS if lms in rec.loads}, runout, lags, gains)
 
