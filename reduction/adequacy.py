@@ -5,9 +5,11 @@ base model (its columns are a subset). With unknown noise the F-test compares th
 sums of squares (in the fit's own metric): F = ((RSS_0 - RSS_1) / (p_1 - p_0)) / (RSS_1 /
 dof_1), F-distributed with (p_1 - p_0, dof_1) degrees of freedom when the constant model is
 true. With known noise (u_* columns: chi2) the likelihood ratio chi2_0 - chi2_1 is
-chi2-distributed with p_1 - p_0 degrees of freedom. Exact for ols and wls with the same
-weights in both fits; approximate for tls, iv and for power:auto (whose exponent was chosen
-on the same data). AIC and BIC of both fits go with the verdict (lower is better).
+chi2-distributed with p_1 - p_0 degrees of freedom. Exact for every method: each fit's chi2
+is taken at its wls solution (:mod:`reduction.statistics`), also for ols and iv (tls: its
+own maximum-likelihood costs, a likelihood ratio too); approximate for power:auto, whose
+exponent is chosen on the same data. AIC and BIC of both fits go with the verdict (lower is
+better).
 """
 
 from __future__ import annotations

@@ -144,8 +144,7 @@ def _identify(
     elif method == Method.WLS:
         est = reg.wls(A_s, b, 1.0 / var, solver, rank.unscaled_covariance())
         if u is not None:  # second pass: effective variances at the wls coefficients
-            var = equation_variances(u, impedance(spec, est.x / c, table.orbit))
-            est = reg.wls(A_s, b, 1.0 / var, solver)
+            est = reg.wls(A_s, b, 1.0 / _effective(spec, u, table, est.x / c), solver)
     elif method == Method.IV:
         Zi = circle_instruments(spec, table, rank_rtol) / c
         est = reg.iv(A_s, Zi, b, solver)
@@ -156,6 +155,7 @@ def _identify(
         est = _tls(spec, table, A_s, b, c, solver, tls_ratio)
     theta = est.x / c
     Z = impedance(spec, theta, table.orbit)  # at the estimate: effective variances and the fit
+    chi2 = None if u is None else _chi2(spec, u, table, A_s, b, c, var, solver, method, est)
     cov_s: FloatArray | None
     if u is not None:
         var = equation_variances(u, Z)
@@ -165,7 +165,7 @@ def _identify(
             cov_s = st.sandwich(P, var) if P is not None else est.unscaled
     else:
         cov_s = est.cov
-    ident = _result(spec, table, method, solver, est, theta, c, cov_s, rank, var if known else None, b - A_s @ est.x, Z)
+    ident = _result(spec, table, method, solver, est, theta, c, cov_s, rank, chi2, Z)
     weak = signal_warning(signal)
     if weak:
         ident.warnings.insert(0, weak)
@@ -225,12 +225,10 @@ def _variances(spec: ModelSpec, table: OrbitTable, theta0: FloatArray, b: FloatA
                 f"every row (all {table.n}), columns 'u_x', 'u_y', 'u_fx', 'u_fy': all zero, so there is "
                 "no noise to weight by; state the standard uncertainties, or leave the u_* columns out"
             )
-        var = equation_variances(table.u, impedance(spec, theta0, table.orbit))
-        floor = 1e-12 * float(np.max(var))
-        if not floor > 0:
+        var = _effective(spec, table.u, table, theta0)
+        if not np.max(var) > 0:
             raise IdentificationError("the table's u_* give no noise on any equation")
-        floored: FloatArray = np.maximum(var, floor)
-        return floored
+        return var
     if method != Method.WLS:
         return np.ones(b.shape)
     if table.gamma2 is None:
@@ -239,6 +237,39 @@ def _variances(spec: ModelSpec, table: OrbitTable, theta0: FloatArray, b: FloatA
             "gamma2_xfy, gamma2_yfy); the table has neither"
         )
     return coherence_variances(table.gamma2, table.fx, table.fy, table.n_records)
+
+
+def _effective(spec: ModelSpec, u: FloatArray, table: OrbitTable, theta: FloatArray) -> FloatArray:
+    """Effective variances of the 4n equations from u_* at ``theta``, floored at 1e-12 of the largest."""
+    var = equation_variances(u, impedance(spec, theta, table.orbit))
+    floored: FloatArray = np.maximum(var, 1e-12 * float(np.max(var)))
+    return floored
+
+
+def _chi2(
+    spec: ModelSpec,
+    u: FloatArray,
+    table: OrbitTable,
+    A_s: FloatArray,
+    b: FloatArray,
+    c: FloatArray,
+    var: FloatArray,
+    solver: str,
+    method: str,
+    est: reg.Estimate,
+) -> float:
+    """chi2 against u_*: tls's own maximum-likelihood cost; for ols, wls and iv the weighted
+    residual sum at the wls solution (the two passes of the wls branch from the first-pass
+    variances ``var``), with the effective variances there. The ols or iv residual weighted by
+    1/var is no chi2(dof): they do not minimise it, and with unequal variances it exceeds dof."""
+    if method == Method.TLS:
+        return float(est.rss)
+    x = est.x
+    for _ in range(0 if method == Method.WLS else 2):  # as reg.wls solves it, without its covariance
+        w = np.sqrt(1.0 / var)
+        x = reg.lstsq(A_s * w[:, None], b * w, solver)
+        var = _effective(spec, u, table, x / c)
+    return float(np.sum((b - A_s @ x) ** 2 / _effective(spec, u, table, x / c)))
 
 
 def _result(
@@ -251,25 +282,23 @@ def _result(
     c: FloatArray,
     cov_s: FloatArray | None,
     rank: Rank,
-    var: FloatArray | None,
-    r: FloatArray,
+    chi2: float | None,
     Z: ComplexArray,
 ) -> Identification:
-    known = var is not None
+    known = chi2 is not None
     p, dof = spec.n_coefficients, 4 * table.n - spec.n_coefficients
     cov = None if cov_s is None else cov_s / np.outer(c, c)
     std = np.full(p, np.nan) if cov is None else np.sqrt(np.clip(np.diag(cov), 0, None))
     interval = st.Interval.NORMAL if known else st.Interval.STUDENT_T
     ci = st.intervals(theta, std, dof, interval=interval)
     notes, warnings = list(spec.notes), []
-    chi2: float | None = None
     p_value: float | None = None
-    if var is not None:
-        chi2 = float(est.rss) if method == Method.TLS else float(np.sum(r**2 / var))
+    if chi2 is not None:
         p_value = st.chi2_p_value(chi2, dof)
         notes.append(
             "covariance, weights and chi2 from the table's u_x, u_y, u_fx, u_fy "
             "(force noise plus displacement noise through Z)"
+            + ("; chi2, aic and bic at the wls solution" if method in (Method.OLS, Method.IV) else "")
         )
         bad = st.chi2_warning(chi2, dof, p_value)
         if bad:

@@ -11,11 +11,19 @@ Two covariance situations:
 
 Intervals (two-sided 95 %, :class:`Interval`): with known noise the covariance is not
 estimated, so the normal quantile (1.96) applies, also at dof = 0; otherwise Student's t
-with dof = 4n - p. Information criteria of a
+with dof = 4n - p.
+
+Goodness of fit with known noise: chi2 = sum r^2 / var, the residual of the weighted least
+squares (wls) solution weighted by the effective variances there (the wls fit's own two
+passes), whatever the method - the fit of the model against the stated uncertainties,
+chi2(dof)-distributed when the model holds (tls: its own maximum-likelihood cost). The ols
+or iv residual weighted the same way is not: those estimators do not minimise it, and with
+unequal variances its expectation tr(W R Sigma R^T) exceeds dof. The method's coefficients,
+covariance and intervals stay its own. Information criteria of a
 Gaussian likelihood over N = 4n real equations and p free coefficients: with known noise
-AIC = chi2 + 2p, BIC = chi2 + p ln N; otherwise AIC = N ln(RSS/N) + 2p, BIC = N ln(RSS/N) +
-p ln N (RSS in the estimator's own metric) - comparable between models of one table fitted
-with one method.
+AIC = chi2 + 2p, BIC = chi2 + p ln N (that chi2); otherwise AIC = N ln(RSS/N) + 2p, BIC =
+N ln(RSS/N) + p ln N (RSS in the estimator's own metric) - comparable between models of one
+table fitted with one method.
 """
 
 from __future__ import annotations
