@@ -6,20 +6,24 @@ at safe points; nothing here polls: every wait ends on an event (a request,
 a confirmation, an interlock clearing).
 
 - pause: held at the next safe point (before a manual setting, a speed change
-  or the identification); drives keep their speeds.
+  or the identification); drives keep their speeds. During an interlock suspension: held
+  once the interlock clears (a resume withdraws it); refused (NotNow) while already held.
 - stop: finish the current orbit frequency, store it, end the run as stopped; a point left
   incomplete is measured again from its start by `orbitrig sweep --resume` (its blocks kept in aside/).
 - abort: the engine cancels the run at once (emergency ramp), keeps what is complete; a run
   that goes on all the same (its cancel lost) ends at its next safe point or wait, before it
   commands the drives again.
 - confirm(step): the operator confirms the manual setting the run waits for.
-- suspension: an interlock holds the run (state paused) until it clears.
+- suspension: an interlock holds the run (state paused) until it clears; a resume with no
+  pause to withdraw is refused (NotNow): the run resumes by itself.
 - no room: too little free disk space for the next point pauses the run.
 - stop now: a signal from the system (SIGTERM, SIGHUP, SIGQUIT): the engine cancels the
   run at once, the drives ramp to zero (not an emergency), the run ends stopped.
 - nobody to answer (`unanswered_limit`, wall s): a pause or a confirmation
   that nobody can answer (no terminal, no MQTT) stops the run after that long;
-  a wait already under way when the limit is set counts it from then.
+  a wait already under way when the limit is set counts it from then. The wait's status
+  says when it stops the run; one under way when the limit is lifted (the service's broker
+  back) keeps its deadline until its next wake, and its stop says that nobody answered.
 
 Every stop and abort keeps who asked for it (`stop_by`, `abort_by`: the sender as the
 commands log records it, e.g. 'ada', 'service (supervision lost)', 'SIGTERM'): the run's
@@ -35,10 +39,10 @@ from typing import Awaitable, Callable, TypeVar
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.events import RunFailed
 from orbitrig.run.provenance import UNNAMED
-from orbitrig.run.states import FAULTED, IDLE, RUNNING, STOPPING, WAITING, RunState, next_state
+from orbitrig.run.states import FAULTED, IDLE, PAUSED, RUNNING, STOPPING, WAITING, RunState, next_state
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.interlocks import SUSPEND, Trip
-from rigunits import now_iso
+from rigunits import now_iso, utc_iso
 
 T = TypeVar("T")
 
@@ -53,6 +57,10 @@ UNANSWERED = "orbitrig"
 
 class StopRun(Exception):
     """A stop request reached a safe point."""
+
+
+class NotNow(OrbitrigError):
+    """A request the run cannot take in its state; the message is the whole refusal."""
 
 
 class Suspended(Exception):
@@ -91,14 +99,20 @@ class RunControl:
         self.timing: dict[str, float] = {}
         self.unanswered_limit: float | None = None  # None: someone can answer a pause
         self._unanswered_from = 0.0  # time.monotonic() when the limit was set
+        self._answerable_since = ""  # when the limit was last lifted (ISO time)
+        self._hold = ("", "")  # the wait under way: (its message without a deadline, what answers it)
+        self._deadline: float | None = None  # the deadline its status states (time.monotonic())
         self.reset()
 
     def reset(self) -> None:
         self.pause_requested = self.stop_requested = self.abort_requested = False
+        self.pause_by: str | None = None  # who asked the pause, when the caller says
         self.stop_now: str | None = None  # why the run stops at once (a signal)
         self.stop_by: str | None = None  # who asked the first stop (as the commands log records it)
         self.abort_by: str | None = None  # who asked the abort (set by the engine as it asks)
         self.confirmed: str | None = None
+        self.suspension: Trip | None = None  # the interlock holding the run now
+        self.held_for_room = False  # paused for too little free disk space
         self.wake = asyncio.Event()
         self.aborted = asyncio.Event()  # set by an abort: a ramp stop under way becomes an emergency stop
 
@@ -109,19 +123,31 @@ class RunControl:
         self._on_state(self.state, message)
 
     # ---------------------------------------------------------- requests
-    def request_pause(self) -> None:
-        if self.state in (RUNNING, WAITING):
-            self.pause_requested = True
-            self._note("pause requested (honoured at the next safe point)")
+    def request_pause(self, by: str | None = None) -> None:
+        """Pause at the next safe point, or once the interlock suspending the run clears;
+        NotNow while an operator's pause holds the run (`by`: who asks, for the pause's status)."""
+        if self.state in (RUNNING, WAITING) or self.suspension is not None:
+            self.pause_requested, self.pause_by = True, by
+            when = "once the interlock clears" if self.suspension is not None else "at the next safe point"
+            self._note(f"pause requested (honoured {when})")
+        elif self.state == PAUSED and not self.held_for_room:
+            raise NotNow("cannot pause while the run is paused (resume to go on)")
         self.wake.set()
 
     @property
     def pause_pending(self) -> bool:
-        """A pause asked for and not yet reached (the run is still running or waiting)."""
-        return self.pause_requested and self.state in (RUNNING, WAITING)
+        """A pause asked for and not yet reached (the run is running, waiting or suspended)."""
+        return self.pause_requested and (self.state in (RUNNING, WAITING) or self.suspension is not None)
 
     def request_resume(self) -> None:
-        """Resume a paused run, or withdraw a pause not yet reached (the run then goes on)."""
+        """Resume a paused run, or withdraw a pause not yet reached (the run then goes on); NotNow
+        during an interlock suspension with no pause to withdraw (the run resumes by itself)."""
+        trip = self.suspension
+        if trip is not None and not self.pause_requested:
+            raise NotNow(
+                f"cannot resume: the run is suspended by interlock ({trip.message}); "
+                "it resumes by itself when that clears"
+            )
         if self.pause_pending:
             self._note("pause withdrawn (it had not been reached)")
         self.pause_requested = False
@@ -183,6 +209,8 @@ class RunControl:
         self.unanswered_limit, self._unanswered_from = limit, time.monotonic()
         if limit is not None:
             self.wake.set()
+        else:
+            self._answerable_since = now_iso()
 
     # -------------------------------------------------------------- waits
     def _end_if_aborted(self) -> None:
@@ -197,22 +225,52 @@ class RunControl:
         while self.pause_requested and not self.stop_requested:
             await self._wait_answer(t0)
 
+    def _deadline_of(self, t0: float) -> float | None:
+        """When a wait begun at `t0` stops the run (time.monotonic()), or None: someone can answer."""
+        limit = self.unanswered_limit
+        return None if limit is None else max(t0, self._unanswered_from) + limit
+
+    def _held(self, message: str, answer: str, t0: float) -> str:
+        """The status message of a wait begun at `t0` (`answer`: what ends it): with the time it
+        stops the run if nobody can answer."""
+        self._hold, self._deadline = (message, answer), self._deadline_of(t0)
+        if self._deadline is None:
+            return message
+        at = utc_iso(time.time() + self._deadline - time.monotonic())
+        return (
+            f"{message}; the run stops at {at} unless {answer} (nobody could answer: limit {self.unanswered_limit:g} s)"
+        )
+
     async def _wait_answer(self, t0: float) -> None:
         """Until the next request; if nobody can answer, a stop once `unanswered_limit` s
-        have passed since `t0` (the wait's start) or since the limit was set, the later."""
+        have passed since `t0` (the wait's start) or since the limit was set, the later.
+        The status is stated again when that deadline changes."""
         self._end_if_aborted()
         self.wake.clear()
         limit = self.unanswered_limit
+        if self._deadline_of(t0) != self._deadline:
+            self.message = self._held(*self._hold, t0)
+            self._on_state(self.state, self.message)  # the same state, its deadline changed
         if limit is None:
             await self.wake.wait()
             return
         deadline = max(t0, self._unanswered_from) + limit
         await _first(self.wake, timeout=max(0.0, deadline - time.monotonic()))  # not wait_for: it can swallow a cancel
         if time.monotonic() >= deadline and not self.stop_requested:
+            self._stop_unanswered(limit)
+
+    def _stop_unanswered(self, limit: float) -> None:
+        """Nobody answered the wait within `limit` s: the run stops. Said as it is: nobody can
+        answer, or the limit was lifted meanwhile (the broker back) and nobody answered."""
+        if self.unanswered_limit is None:
+            answer = "confirmed" if self.state == WAITING else "resumed"
+            why = f"nobody {answer} within {limit:g} s: no terminal; MQTT back since {self._answerable_since}"
+            by, message = f"{UNANSWERED} ({why})", why
+        else:
             waited = f"{self.state} for {limit:g} s, no terminal and no MQTT"
-            by = f"{UNANSWERED} (nobody can answer: {waited})"
-            self.request_stop(by, f"nobody can answer ({waited}): stopping the run (continue later with --resume)")
-            self._own_stop(by)
+            by, message = f"{UNANSWERED} (nobody can answer: {waited})", f"nobody can answer ({waited})"
+        self.request_stop(by, f"{message}: stopping the run (continue later with --resume)")
+        self._own_stop(by)
 
     async def safe_point(self, allow_stop: bool = True) -> None:
         """Honour an abort (cancelled), a stop (StopRun) or a pause here."""
@@ -221,8 +279,10 @@ class RunControl:
             raise StopRun
         if not self.pause_requested or self.stop_requested:
             return
-        self.fire("pause", "paused at a safe point (drives keep their speeds)")
-        await self._until_resumed(time.monotonic())
+        t0 = time.monotonic()
+        asked = f"; asked by {self.pause_by}" if self.pause_by else ""
+        self.fire("pause", self._held(f"paused at a safe point (drives keep their speeds){asked}", "resumed", t0))
+        await self._until_resumed(t0)
         if self.stop_requested:
             if allow_stop:
                 raise StopRun
@@ -236,7 +296,7 @@ class RunControl:
         t0 = time.monotonic()
         self.waiting_step, self.confirmed = step_id, None
         # the operator (terminal or MQTT) confirms by this id: {"cmd": "confirm", "step": ...}
-        self.fire("ask", f"{message} (confirm step {step_id!r})")
+        self.fire("ask", self._held(f"{message} (confirm step {step_id!r})", "confirmed", t0))
         try:
             while self.confirmed != step_id:
                 if self.stop_requested:
@@ -254,20 +314,25 @@ class RunControl:
             return
         if self.stop_requested:
             raise StopRun
-        self.fire("no_room", f"paused: {why}; free disk space, then resume")
         t0 = time.monotonic()
-        while why is not None:
-            self.pause_requested = True
-            await self._until_resumed(t0)
-            if self.stop_requested:
-                raise StopRun
-            why = problem()
-            if why is not None:
-                self._note(f"still paused: {why}")
+        self.fire("no_room", self._held(f"paused: {why}; free disk space, then resume", "resumed", t0))
+        self.held_for_room = True
+        try:
+            while why is not None:
+                self.pause_requested = True
+                await self._until_resumed(t0)
+                if self.stop_requested:
+                    raise StopRun
+                why = problem()
+                if why is not None:
+                    self._note(f"still paused: {why}")
+        finally:
+            self.held_for_room = False
         self.fire("resume", "resumed: there is room for the next point")
 
     async def hold_while_suspended(self, sup: InterlockSupervisor, limit: float) -> None:
-        """Paused while a suspend trip is in force (RunFailed after `limit` wall s)."""
+        """Paused while a suspend trip is in force (RunFailed after `limit` wall s); then held
+        on if a pause was asked meanwhile."""
         trip = sup.trip
         if trip is None:
             return
@@ -275,16 +340,24 @@ class RunControl:
             raise StopRun
         t0 = time.monotonic()
         self.fire("suspend", f"suspended by interlock: {trip.message}")
-        while not sup.clear.is_set():
-            self._end_if_aborted()
-            if self.stop_requested:
-                raise StopRun
-            left = limit - (time.monotonic() - t0)
-            if left <= 0:
-                raise RunFailed(f"interlock: {(sup.trip or trip).message} for more than {limit:g} s")
-            self.wake.clear()
-            await _first(sup.clear, self.wake, timeout=left)
+        self.suspension = trip
+        try:
+            while not sup.clear.is_set():
+                self._end_if_aborted()
+                if self.stop_requested:
+                    raise StopRun
+                left = limit - (time.monotonic() - t0)
+                if left <= 0:
+                    raise RunFailed(f"interlock: {(sup.trip or trip).message} for more than {limit:g} s")
+                self.wake.clear()
+                await _first(sup.clear, self.wake, timeout=left)
+        finally:
+            self.suspension = None
         self._add_time("suspended", t0)
+        if self.pause_requested and not self.stop_requested:
+            self.fire("clear", f"interlock cleared ({trip.kind}); the pause asked for meanwhile holds the run")
+            await self.safe_point()
+            return
         self.fire("clear", f"interlock cleared ({trip.kind}): settling and acquiring the block again")
 
     async def guarded(self, aw: Awaitable[T], sup: InterlockSupervisor) -> T:

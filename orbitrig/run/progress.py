@@ -1,4 +1,9 @@
-"""Progress of a run for its subscribers: point, block, revolutions, ETA (wall s)."""
+"""Progress of a run for its subscribers: point, block, revolutions, ETA (wall s).
+
+Revolutions are throttled (at most one event per `every` s); a block's start, its final
+revolution count (sent at the end of the step that acquired it) and a point's start
+(frequency and revolutions 0 until its first block) are always sent.
+"""
 
 from __future__ import annotations
 
@@ -15,19 +20,22 @@ class ProgressMeter:
     def __init__(self, emit: Callable[[ProgressEvent], None], scale: TimeScale, *, every: float = 0.1):
         self._emit = emit
         self.scale = scale
-        self.every = every  # s between two events, at most one per interval
+        self.every = every  # s between two revolution events, at most one per interval
         self.run_id: str | None = None
         self.point = self.points = self.frequency = self.frequencies = self.revolutions = 0
         self.remaining = 0.0
         self._last = 0.0
+        self._unsent = False  # a revolution counted and not yet sent (throttled)
 
     def start(self, run_id: str, points: int, remaining: float) -> None:
         self.run_id, self.points, self.remaining = run_id, points, remaining
-        self.point = self.frequency = self.frequencies = 0
+        self.point = self.frequency = self.frequencies = self.revolutions = 0
 
     def next_point(self, frequencies: int) -> None:
+        """A point starts: sent at once (no block acquired yet)."""
         self.point += 1
-        self.frequency, self.frequencies = 0, frequencies
+        self.frequency, self.frequencies, self.revolutions = 0, frequencies, 0
+        self.emit(force=True)
 
     def block(self, frequency: int) -> None:
         """A block (1-based in the point) starts acquiring."""
@@ -39,13 +47,17 @@ class ProgressMeter:
         self.emit()
 
     def spent(self, physical_s: float) -> None:
+        """A step is done: the count it left unsent (a block's last revolutions) goes out now."""
         self.remaining -= physical_s
+        if self._unsent:
+            self.emit(force=True)
 
     def emit(self, force: bool = False) -> None:
         now = time.monotonic()
         if not force and now - self._last < self.every:
+            self._unsent = True
             return
-        self._last = now
+        self._last, self._unsent = now, False
         eta = self.scale.wall(max(0.0, self.remaining))
         self._emit(
             ProgressEvent(

@@ -51,7 +51,7 @@ class OperatorRequests:
     _holding_for: asyncio.Task[list[DriveError]] | None = None  # the stop whose delivery releases them
 
     def request_pause(self, by: str | None = None) -> None:
-        self._control.request_pause()
+        self._control.request_pause(self._sender(by))
         self._command(RunCommand.PAUSE, by)
 
     @property

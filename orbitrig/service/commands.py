@@ -17,6 +17,7 @@ from typing import Literal
 
 from orbitrig.errors import OrbitrigError
 from orbitrig.config import Drives
+from orbitrig.run.control import NotNow
 from orbitrig.run.states import RunState
 from orbitrig.service import idle_stop
 from orbitrig.service import protocol as proto
@@ -186,11 +187,15 @@ class CommandHandling:
         self.link.send(self.topics.status, self._status, proto.QOS_STATUS, True)
 
     def _cmd_pause(self, cmd: proto.Command) -> None:
-        self._control("pause", lambda e: e.request_pause(by=cmd.by), allowed=(RunState.RUNNING, RunState.WAITING))
+        """Pause at the next safe point; while paused: only during an interlock suspension (the
+        run stays paused once it clears) or for disk space (it stays paused until resumed)."""
+        allowed = (RunState.RUNNING, RunState.WAITING, RunState.PAUSED)  # the run refuses an operator's pause held
+        self._control("pause", lambda e: e.request_pause(by=cmd.by), allowed=allowed)
 
     def _cmd_resume(self, cmd: proto.Command) -> None:
         """Resume a paused run, or withdraw a pause requested and not yet reached (while
-        running or waiting): accepted, the state stays, the run does not pause."""
+        running, waiting or suspended by an interlock): accepted, the state stays, the run does
+        not pause. During a suspension with no pause to withdraw: refused by the run."""
         pending = self._engine is not None and self._engine.pause_pending
         allowed = (RunState.PAUSED, RunState.RUNNING, RunState.WAITING) if pending else (RunState.PAUSED,)
         self._control("resume", lambda e: e.request_resume(by=cmd.by), allowed=allowed)
@@ -236,6 +241,8 @@ class CommandHandling:
             raise CommandRefused(f"cannot {what} while the run is {state}")
         try:
             call(self._engine)
+        except NotNow as err:  # the run's own words say why
+            raise CommandRefused(str(err)) from err
         except (OrbitrigError, ValueError, RuntimeError) as err:
             raise CommandRefused(f"cannot {what}: {err}") from err
 

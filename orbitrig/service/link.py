@@ -8,7 +8,9 @@ only after a connection carried traffic; keeps an ordered outgoing queue (the
 current status first after every connection; QoS 0 messages and stale
 statuses are not queued while offline); registers ``offline`` as the last
 will and publishes it itself when a session ends for any reason but a lost
-link (a clean disconnect does not trigger the will).
+link (a clean disconnect does not trigger the will). MQTT fixes the will when
+the service connects: its ``run_id`` and ``since`` are of that moment, and its
+``last_will`` field says so (a run started later is not in it).
 
 Commands come in through :class:`orbitrig.service.inbox.CommandInbox` (stop
 and abort carried out as they are read off the socket, the rest queued and
@@ -24,6 +26,7 @@ from __future__ import annotations
 import asyncio
 import collections
 import dataclasses
+import json
 import logging
 import time
 from collections.abc import Callable
@@ -40,6 +43,14 @@ log = logging.getLogger("orbitrig.service.link")
 
 #: messages handed to the MQTT client at once (it keeps its own in-flight limit)
 PUBLISH_WINDOW = 64
+#: the last will's message, and what the will says of itself (its ``last_will`` field)
+WILL_MESSAGE = "connection to the rig service lost"
+WILL_NOTE = (
+    "the broker published this last will, registered when the service connected ({since}): its run_id "
+    "and since are of that moment, not of the loss; a run started later is named by the statuses "
+    "before this one, and its stored status in the service's runs folder still says running "
+    "(orbitrig sweep --resume continues it)"
+)
 
 
 @dataclasses.dataclass
@@ -208,9 +219,7 @@ class BrokerLink:
         from paho.mqtt.properties import Properties
 
         b = self.broker
-        will = aiomqtt.Will(
-            self.topics.status, self._offline("connection to the rig service lost"), qos=proto.QOS_STATUS, retain=True
-        )
+        will = aiomqtt.Will(self.topics.status, self._will(), qos=proto.QOS_STATUS, retain=True)
         tls = aiomqtt.TLSParameters(ca_certs=str(b.tls_ca) if b.tls_ca else None) if b.tls else None
         session = Properties(PacketTypes.CONNECT)
         session.SessionExpiryInterval = 0 if clean_start else self.settings.session_expiry
@@ -237,6 +246,12 @@ class BrokerLink:
         if not clean_start:
             self._paho = paho
         return client
+
+    def _will(self) -> bytes:
+        """``offline`` as of this connection, with ``last_will`` saying so (fixed at CONNECT)."""
+        status = json.loads(self._offline(WILL_MESSAGE))
+        status["last_will"] = WILL_NOTE.format(since=status["since"])
+        return proto.dumps(status)
 
     def hold_reading(self, seconds: float) -> bool:
         """Leave the connection unread for ``seconds`` s (flood_read.hold_reading)."""

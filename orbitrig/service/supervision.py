@@ -21,6 +21,8 @@ from orbitrig.service.settings import ServiceSettings, SupervisionPolicy
 log = logging.getLogger("orbitrig.service.rig_service")
 
 LOST = "service (supervision lost)"
+#: who asks the policy's pause (the commands log's sender)
+PAUSED_BY = "service (supervision lost: no broker for {timeout:g} s, policy pause)"
 
 
 class SupervisionHandling(CommandHandling):
@@ -61,7 +63,7 @@ class SupervisionHandling(CommandHandling):
         )
         engine.unattended = True  # before the pause below; a wait under way counts its limit from now
         if s.supervision_policy is SupervisionPolicy.PAUSE and engine.state in (RunState.RUNNING, RunState.WAITING):
-            self._request("pause", LOST)
+            self._request("pause", PAUSED_BY.format(timeout=s.supervision_timeout))
         elif s.supervision_policy is SupervisionPolicy.STOP:
             self._request("stop", LOST)
         await self.link.online.wait()
