@@ -5,7 +5,17 @@ message says ``suspended by interlock: ...`` raises a *trip*; a ``faulted`` stat
 *trip* when an interlock ended the run, else a *fault*. The alarm's id is
 ``<run_id>@<since>`` of the status that raised it, the same in every dashboard. It stays
 latched (listed, unacknowledged) until someone acknowledges it, also after its condition
-clears (``interlock cleared ...`` marks the run's trips cleared).
+clears.
+
+Its *condition* follows what the statuses show, and says so when they show nothing:
+
+- ``active``: a suspension's status said so, and no later status of that run said otherwise;
+- ``cleared``: the run said ``interlock cleared ...``; or a later run completed (a run that
+  completes has no interlock in force);
+- ``unknown``: the run watching the condition ended (stopped, failed, another run or no run
+  reported instead) or the rig service went offline: nobody tells the condition any more.
+  A failed run's own alarm starts so. A later run suspended by the same condition makes it
+  ``active`` again (watched by that run), and that run's ``interlock cleared`` clears it.
 
 An acknowledgement is a message on ``<prefix>/ack`` (this project's extension of the
 topic tree): ``{"alarm": "<id>", "by": "<user>", "at": "<ISO-8601 time>", "id": "<nonce>"}``.
@@ -14,19 +24,29 @@ At most ``limit`` alarms are kept: the oldest acknowledged ones go first.
 
 The dashboard server keeps one book per rig (:class:`AlarmShelf`), shared by every session
 watching that rig: a latched alarm outlives the session that saw it raised (sign-out, idle
-expiry, a switch to another rig and back) until the dashboard server stops.
+expiry, a switch to another rig and back) until the dashboard server stops. Every session
+hands the book the statuses it receives; the book applies each status once (``on_status``
+with the session's place in the book's log), however many sessions hand it on.
 """
 
 from __future__ import annotations
 
+import collections
 import dataclasses
+import json
+import re
 from enum import StrEnum
+from collections.abc import Callable
 from typing import Any
 
-from orbitrig.service.protocol import RunState
+from orbitrig.service.protocol import OFFLINE, RunState
 
 SUSPENDED = "suspended by interlock:"
 CLEARED = "interlock cleared"
+COMPLETED = "run completed"  # the idle status of a run that completed (docs/protocols/mqtt.md)
+ENDED = (RunState.IDLE, RunState.FAULTED, OFFLINE)
+_FAILED_BY = re.compile(r"\binterlock: (.*?)(?: for more than [\d.]+ s)?$")
+LOG_LENGTH = 256  # statuses the book remembers to apply each once
 
 
 class AlarmKind(StrEnum):
@@ -36,18 +56,37 @@ class AlarmKind(StrEnum):
     FAULT = "fault"
 
 
+class Condition(StrEnum):
+    """Whether what raised an alarm is still there, as far as the statuses tell."""
+
+    ACTIVE = "active"
+    CLEARED = "cleared"
+    UNKNOWN = "unknown"
+
+
 @dataclasses.dataclass
 class Alarm:
-    """One latched alarm; times as the service and the acknowledging page wrote them (ISO-8601)."""
+    """One latched alarm; times as the service and the acknowledging page wrote them (ISO-8601).
+    ``note`` says what the condition rests on (empty: the alarm's own run said it)."""
 
     id: str
     kind: AlarmKind
     text: str
     since: str
     run_id: str | None
-    cleared: bool = False
+    condition: Condition = Condition.ACTIVE
+    note: str = ""
     acked_by: str | None = None
     acked_at: str | None = None
+    cause: str = ""  # the interlock's own words: the same condition in a later run
+    watched_in: str | None = None  # the run whose statuses tell the condition now
+
+
+def _cause(message: str) -> str:
+    if message.startswith(SUSPENDED):
+        return message[len(SUSPENDED) :].strip()
+    found = _FAILED_BY.search(message)
+    return found.group(1) if found else message
 
 
 def _raised(status: dict[str, Any]) -> Alarm | None:
@@ -55,12 +94,15 @@ def _raised(status: dict[str, Any]) -> Alarm | None:
     message, state = str(status.get("message") or ""), status.get("state")
     run_id, since = status.get("run_id"), str(status.get("since") or "")
     if message.startswith(SUSPENDED):
-        kind = AlarmKind.TRIP
+        kind, condition, note = AlarmKind.TRIP, Condition.ACTIVE, ""
     elif state == RunState.FAULTED:
         kind = AlarmKind.TRIP if "interlock" in message else AlarmKind.FAULT
+        condition, note = Condition.UNKNOWN, "not known since the run ended"
     else:
         return None
-    return Alarm(f"{run_id}@{since}", kind, message, since, run_id)
+    return Alarm(
+        f"{run_id}@{since}", kind, message, since, run_id, condition, note, cause=_cause(message), watched_in=run_id
+    )
 
 
 class AlarmBook:
@@ -70,28 +112,68 @@ class AlarmBook:
         self.limit = limit
         self.alarms: dict[str, Alarm] = {}
         self.version = 0
+        self._log: collections.deque[tuple[int, str]] = collections.deque(maxlen=LOG_LENGTH)
+        self._seq = 0
 
-    def on_status(self, status: dict[str, Any]) -> bool:
-        """Raise or clear alarms from a status; True when the list changed."""
+    def on_status(self, status: dict[str, Any], seen: int | None = None) -> tuple[bool, int]:
+        """Raise alarms, or change their condition, from a status handed on by a session: True when the
+        list changed, and the session's new place in the book's log. ``seen``: its place after the last
+        status it handed on (None: its first on this rig). A status another session handed on already
+        (found in the log after ``seen``; the latest one when ``seen`` is None) is not applied again: a
+        session behind the others must not take the list back to an older state."""
+        key = json.dumps(status, sort_keys=True, default=str)
+        for seq, logged in self._log:
+            if logged == key and (seq == self._seq if seen is None else seq > seen):
+                return False, seq
+        self._seq += 1
+        self._log.append((self._seq, key))
+        changed = self._apply(status)
+        self.version += changed
+        return changed, self._seq
+
+    def _apply(self, status: dict[str, Any]) -> bool:
+        message, state, run_id = str(status.get("message") or ""), status.get("state"), status.get("run_id")
+        changed = False
+        if state != OFFLINE:  # another run (or none) reports: the runs watching conditions before have ended
+            changed |= self._untold(lambda a: a.watched_in != run_id, _ended)
         alarm = _raised(status)
         if alarm is not None:
-            if alarm.id in self.alarms:
+            changed |= self._raise(alarm)
+        if message.startswith(CLEARED):
+            for a in self._open(lambda a: a.condition == Condition.ACTIVE and a.watched_in == run_id):
+                a.condition, a.note, changed = Condition.CLEARED, _in_run(a, run_id), True
+        elif state == RunState.IDLE and message.startswith(COMPLETED):
+            for a in self._open(lambda a: a.condition != Condition.CLEARED):
+                a.condition, a.note, changed = Condition.CLEARED, _completed(a, run_id), True
+        elif state == OFFLINE:
+            changed |= self._untold(lambda a: True, lambda a: "the rig service went offline")
+        elif state in ENDED:
+            changed |= self._untold(lambda a: a.watched_in == run_id, _ended)
+        return changed
+
+    def _open(self, pred: Callable[[Alarm], bool]) -> list[Alarm]:
+        return [a for a in self.alarms.values() if pred(a)]
+
+    def _untold(self, which: Callable[[Alarm], bool], note: Callable[[Alarm], str]) -> bool:
+        """The active alarms ``which`` picks become unknown (``note(alarm)``: why)."""
+        gone = self._open(lambda a: a.condition == Condition.ACTIVE and which(a))
+        for a in gone:
+            a.condition, a.note = Condition.UNKNOWN, note(a)
+        return bool(gone)
+
+    def _raise(self, alarm: Alarm) -> bool:
+        old = self.alarms.get(alarm.id)
+        if old is not None:  # the same status again (the service reports it again): its word holds
+            if alarm.condition != Condition.ACTIVE or old.condition == Condition.ACTIVE:
                 return False
-            self.alarms[alarm.id] = alarm
-            self._bound()
-            self.version += 1
+            old.condition, old.note, old.watched_in = Condition.ACTIVE, "", old.run_id
             return True
-        if str(status.get("message") or "").startswith(CLEARED) or status.get("state") == RunState.IDLE:
-            stale = [
-                a
-                for a in self.alarms.values()
-                if a.kind == AlarmKind.TRIP and not a.cleared and a.run_id == status.get("run_id")
-            ]
-            for a in stale:
-                a.cleared = True
-            self.version += bool(stale)
-            return bool(stale)
-        return False
+        if alarm.condition == Condition.ACTIVE:  # the same condition, not known since an earlier run: here again
+            for a in self._open(lambda a: a.condition == Condition.UNKNOWN and a.cause == alarm.cause):
+                a.condition, a.note, a.watched_in = Condition.ACTIVE, f"again in run {alarm.run_id}", alarm.run_id
+        self.alarms[alarm.id] = alarm
+        self._bound()
+        return True
 
     def on_ack(self, ack: dict[str, Any]) -> bool:
         """Apply an acknowledgement from ``<prefix>/ack``; True when the list changed."""
@@ -109,8 +191,24 @@ class AlarmBook:
             del self.alarms[(acked or list(self.alarms))[0]]
 
     def listing(self) -> list[dict[str, Any]]:
-        """Every alarm kept, newest first."""
-        return [dataclasses.asdict(a) for a in reversed(self.alarms.values())]
+        """Every alarm kept, newest first (what the page shows of each)."""
+        hidden = ("cause", "watched_in")
+        return [
+            {k: v for k, v in dataclasses.asdict(a).items() if k not in hidden} for a in reversed(self.alarms.values())
+        ]
+
+
+def _ended(alarm: Alarm) -> str:
+    run = alarm.watched_in
+    return "not known since the run ended" if run == alarm.run_id else f"not known since run {run} ended"
+
+
+def _in_run(alarm: Alarm, run_id: Any) -> str:
+    return "" if run_id == alarm.run_id else f"in run {run_id}"
+
+
+def _completed(alarm: Alarm, run_id: Any) -> str:
+    return "the run completed" if run_id == alarm.run_id else f"run {run_id} completed since"
 
 
 class AlarmShelf:

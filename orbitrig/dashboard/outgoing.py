@@ -47,13 +47,15 @@ class Outgoing:
 
     async def command(self, request: dict) -> dict:
         """Publish one command as this user (to the rig the page shows, ``request["rig"]``): the
-        service's reply, or why there is none (without the command's name: the page adds it)."""
+        service's reply, or why there is none (without the command's name: the page adds it), and
+        when (``at``, as the session keeps it among its outcomes)."""
         body, error = command_body(request, self.user, self.topics.prefix)
         if error is not None:
             return {"ok": False, "error": error}
         name, t0 = body["cmd"], time.monotonic()
         outcome = await self._publish_command(body)
-        self.outcomes.append({"cmd": name, "at": proto.iso8601(), **outcome})
+        outcome["at"] = proto.iso8601()  # the page knows it again among the session's outcomes (snapshot)
+        self.outcomes.append({"cmd": name, **outcome})
         log.info(
             "%s by %r: %s (%.0f ms)",
             name,

@@ -5,6 +5,10 @@ Under MQTT 3.1.1 a broker acknowledges a refused publish like any other and drop
 sender cannot tell a refusal from a service that did not answer. Under MQTT 5 mosquitto
 answers a refused publish with reason code 135 (not authorised). aiomqtt waits for the PUBACK
 but drops its reason code; :class:`ReasonClient` keeps it (``publish_qos1``).
+
+It also tells whether the broker kept the client's session (``session_present`` of the
+CONNACK: the messages queued for it while it was away come next) and can end that session
+with its connection (``end_session``).
 """
 
 from __future__ import annotations
@@ -14,6 +18,8 @@ from typing import Any
 
 import aiomqtt
 import paho.mqtt.client as paho
+from paho.mqtt.packettypes import PacketTypes
+from paho.mqtt.properties import Properties
 
 
 class PublishUnconfirmed(Exception):
@@ -26,6 +32,18 @@ class ReasonClient(aiomqtt.Client):
     def __init__(self, *args: Any, **kwargs: Any):
         super().__init__(*args, **kwargs)
         self._acks: dict[int, asyncio.Future] = {}
+        self.session_present = False  # the broker's CONNACK: it had kept this client id's session
+
+    def _on_connect(self, client: Any, userdata: Any, flags: Any, reason_code: Any, properties: Any = None) -> None:
+        self.session_present = bool(getattr(flags, "session_present", False))
+        super()._on_connect(client, userdata, flags, reason_code, properties)
+
+    def end_session(self) -> None:
+        """Disconnect, telling the broker to forget the session now (MQTT 5: session expiry 0 in the
+        DISCONNECT): nothing is queued for it any more."""
+        props = Properties(PacketTypes.DISCONNECT)
+        props.SessionExpiryInterval = 0
+        self._client.disconnect(properties=props)
 
     def _on_publish(self, client: Any, userdata: Any, mid: int, reason_code: Any, properties: Any) -> None:
         fut = self._acks.pop(mid, None)  # called on the event loop (aiomqtt reads the socket there)

@@ -12,8 +12,10 @@ and a websocket feed per browser.
 - ``POST /api/rig`` ``{"rig"}``: the session watches another rig of the broker
   (orbitrig.dashboard.rigs);
 - ``GET /api/feed``: websocket, server -> page JSON messages ``{"type", ...}``
-  (``hello``, ``link``, ``status``, ``progress``, ``live``, ``result``,
+  (``hello``, ``link``, ``status``, ``progress``, ``live``, ``result``, ``gap``,
   ``trend``, ``trend_history``, ``alarms``, ``rigs``, ``rig``, ``outcomes``, ``signed_out``); page -> server ``{"type": "active"}`` on user activity.
+  A page's feed starts with the session's snapshot (``hello`` first): it replaces what the page
+  showed (a page whose websocket reconnects draws the results again, not twice).
 
 A session ends on sign-out or after ``idle_timeout`` s without a request or
 user activity; a user's new sign-in beyond ``sessions_per_user`` ends that user's

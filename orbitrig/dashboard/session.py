@@ -14,12 +14,17 @@ refuses with reason code 135 (orbitrig.dashboard.puback). A command is published
 correlation id and answered by the service's reply; refused by the broker, it is reported
 as not authorised; without a reply within ``reply_timeout`` its outcome is unknown
 (orbitrig.dashboard.commands).
+
+The broker keeps the session's MQTT session a while after its link drops, so that what was
+published meanwhile comes when it is back; else the pages learn that results may be missing
+(orbitrig.dashboard.catchup). Sign-out ends the broker's session with the connection.
 """
 
 from __future__ import annotations
 
 import asyncio
 import collections
+import contextlib
 import dataclasses
 import json
 import logging
@@ -31,6 +36,7 @@ from typing import Any
 import orbitrig.service.protocol as proto
 from daq.backoff import Backoff
 from orbitrig.dashboard.alarms import AlarmBook, AlarmShelf
+from orbitrig.dashboard.catchup import connect_properties, gap_message, subscriptions, topic_names
 from orbitrig.dashboard.commands import PAGE_COMMANDS
 from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
 from orbitrig.dashboard.outgoing import Outgoing
@@ -73,6 +79,7 @@ class DashboardSettings:
     request_timeout: float = 10.0
     trend_period: float = 1.0  # s between trend samples
     trend_recent_s: float = 1800.0  # s of recent trend samples kept (the run's own view is thinned instead)
+    catch_up_s: int = 600  # s the broker keeps the session's messages while its link is down (session expiry)
 
 
 class Session(Outgoing):
@@ -98,6 +105,9 @@ class Session(Outgoing):
         self._client: Any = None
         self._task: asyncio.Task | None = None
         self.closed = False
+        self._resume = False  # a connection resumes the broker's session (every one after the first)
+        self._subscribed: proto.Topics | None = None  # the rig the broker's session holds subscriptions to
+        self._down_since: str | None = None  # when the broker link was lost (ISO-8601), until it is back
 
     def __repr__(self) -> str:  # never the password
         return f"Session(user={self.user!r}, link={str(self.link)!r})"
@@ -106,7 +116,9 @@ class Session(Outgoing):
         """Drop what the session knows of the rig it watched."""
         self.status = self.progress = self.live = None
         self.live_at = 0.0  # time.monotonic() when the live payload came
+        # the results so far and the gaps where some may be missing, as feed messages (result, gap)
         self.results: collections.deque[dict] = collections.deque(maxlen=500)
+        self.status_seen: int | None = None  # the session's place in the rig's alarm book (AlarmBook.on_status)
         self.trend = TrendHistory(self.settings.trend_period, self.settings.trend_recent_s)
         self.trend_samples = 0
         self.alarms_seen = -1  # the version of the rig's alarm book the pages have
@@ -152,8 +164,9 @@ class Session(Outgoing):
         log.info("session of %r: now watching %s", self.user, new.prefix)
         if client is not None:
             try:
-                await client.unsubscribe(f"{old.prefix}/#")
-                await client.subscribe(f"{new.prefix}/#", qos=1)  # the new rig's retained status comes
+                await client.unsubscribe(topic_names(old))
+                await client.subscribe(subscriptions(new))  # the new rig's retained status comes
+                self._subscribed = new
             except Exception as err:  # noqa: BLE001 - aiomqtt errors: the connection loop subscribes again
                 log.info("session of %r: subscription to %s deferred: %s", self.user, new.prefix, err)
         return {"ok": True, "prefix": new.prefix}
@@ -175,9 +188,10 @@ class Session(Outgoing):
             s.port,
             username=self.user,
             password=self.__password,
-            identifier=f"mosq-orbitrig-dashboard-{self.user}-{self.token[:8]}",
+            identifier=f"mosq-orbitrig-dashboard-{self.user}-{self.token[:8]}",  # the same on every reconnection
             protocol=aiomqtt.ProtocolVersion.V5,
-            clean_start=True,  # no session expiry: the broker keeps nothing of it after a disconnection
+            clean_start=not self._resume,  # a fresh session at sign-in; reconnections resume it
+            properties=connect_properties(s.catch_up_s),  # the broker keeps the session this long
             keepalive=s.keepalive,
             timeout=10,
             tls_params=tls,
@@ -200,18 +214,24 @@ class Session(Outgoing):
         connected = False
         try:
             async with self._make_client() as client:
-                await client.subscribe(f"{self.topics.prefix}/#", qos=1)
-                if self.rigs.pattern is not None:
-                    await client.subscribe(self.rigs.pattern, qos=1)
-                self._client, connected = client, True
+                caught_up = client.session_present and self._subscribed == self.topics
+                await self._subscribe(client)
+                self._client, connected, self._resume = client, True, True
                 if not first.done():
                     first.set_result(None)
                 self._set_link(BrokerLink.ONLINE)
+                self._link_back(caught_up)
+                if self.closed:  # signed out while connecting
+                    self._end_broker_session()
                 async for message in client.messages:
                     self._on_message(str(message.topic), message.payload)
             return True
         except aiomqtt.MqttError as err:
             self._client = None
+            if self.closed:  # signed out: the session's own disconnection
+                return connected
+            if connected:
+                self._down_since = proto.iso8601()
             refused = credentials_refused(err)
             if not first.done():
                 first.set_exception(
@@ -231,6 +251,31 @@ class Session(Outgoing):
                 self._set_link(BrokerLink.UNREACHABLE)
             return connected
 
+    async def _subscribe(self, client: Any) -> None:
+        """Subscribe to the rig watched (and the rigs' statuses); a resumed session's subscriptions to a
+        rig left while the link was down go."""
+        old = self._subscribed
+        if old is not None and old != self.topics and client.session_present:
+            await client.unsubscribe(topic_names(old))
+        await client.subscribe(subscriptions(self.topics))
+        if self.rigs.pattern is not None:
+            await client.subscribe(self.rigs.pattern, qos=1)
+        self._subscribed = self.topics
+
+    def _link_back(self, caught_up: bool) -> None:
+        """The broker link is back after a drop: the pages learn whether the results published meanwhile
+        come now (the broker kept the session's queue) or may be missing (marked in the results)."""
+        if self._down_since is None:
+            return
+        message, self._down_since = gap_message(self._down_since, caught_up), None
+        why = "caught up" if caught_up else "not kept by the broker: results may be missing"
+        log.info(
+            "session of %r: broker link back; what was published since %s: %s", self.user, message["data"]["from"], why
+        )
+        if not caught_up:
+            self.results.append(message)
+        self._broadcast(message)
+
     def _set_link(self, link: BrokerLink) -> None:
         if link != self.link:
             self.link = link
@@ -241,9 +286,21 @@ class Session(Outgoing):
         self.closed = True
         self._broadcast({"type": FeedType.SIGNED_OUT, "reason": reason})
         if self._task is not None:
+            if self._end_broker_session():
+                await asyncio.wait({self._task}, timeout=1.0)  # ends by itself once disconnected
             self._task.cancel()
             await asyncio.gather(self._task, return_exceptions=True)
         self._client = None
+
+    def _end_broker_session(self) -> bool:
+        """Disconnect, the broker forgetting the session (nothing queued for it any more); False without
+        a connection (a session the broker kept expires after ``catch_up_s``)."""
+        client = self._client
+        if client is None:
+            return False
+        with contextlib.suppress(Exception):  # the link went meanwhile
+            client.end_session()
+        return True
 
     # -- incoming ----------------------------------------------------------------
 
@@ -262,7 +319,7 @@ class Session(Outgoing):
             self._forget_run_view(data)
             self.status = data
             self._broadcast({"type": FeedType.STATUS, "data": data})
-            self.alarms.on_status(data)
+            _, self.status_seen = self.alarms.on_status(data, self.status_seen)
             self._alarms_changed()
         elif topic == t.ack:
             self._resolve(data)
@@ -276,8 +333,11 @@ class Session(Outgoing):
             self._broadcast({"type": FeedType.LIVE, "data": data})
             self._trend(data)
         elif topic == t.result:
-            self.results.append(data)
-            self._broadcast({"type": FeedType.RESULT, "data": data})
+            message = {"type": FeedType.RESULT, "data": data}
+            if message in self.results:  # a QoS 1 message the broker handed on again (after a reconnection)
+                return
+            self.results.append(message)
+            self._broadcast(message)
         elif topic == t.reply:
             self._resolve(data)
 
@@ -323,7 +383,7 @@ class Session(Outgoing):
             for k, v in ((FeedType.STATUS, self.status), (FeedType.PROGRESS, self.progress))
             if v is not None
         ]
-        out += [{"type": FeedType.RESULT, "data": r} for r in self.results]
+        out += list(self.results)  # the results so far, and where some may be missing
         out.append({"type": FeedType.TREND_HISTORY, "data": self.trend.history()})
         out.append({"type": FeedType.ALARMS, "data": self.alarms.listing()})
         if self.outcomes:

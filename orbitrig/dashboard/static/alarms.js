@@ -1,5 +1,7 @@
 // The alarm list: latched interlock trips and failed runs (from the dashboard server's "alarms"
-// messages), each with its acknowledgement (who, when) or an Acknowledge button.
+// messages), each with its condition as far as the rig's statuses tell (active, cleared, unknown: with
+// what it rests on when that is not the alarm's own run) and its acknowledgement (who, when) or an
+// Acknowledge button.
 "use strict";
 
 function localTime(iso) {
@@ -15,7 +17,7 @@ function showAlarms(list) {
     tr.className = a.acked_by ? "acked" : "unacked";
     if (!a.acked_by) open++;
     cell(tr, localTime(a.since)); cell(tr, a.kind); cell(tr, a.text);
-    cell(tr, a.cleared ? "cleared" : "active", a.cleared ? "" : "out");
+    cell(tr, a.condition + (a.note ? ": " + a.note : ""), a.condition === "active" ? "out" : a.condition === "unknown" ? "unknown" : "");
     const ack = cell(tr, a.acked_by ? a.acked_by + ", " + localTime(a.acked_at) : "");
     if (!a.acked_by) {
       const b = document.createElement("button"); b.textContent = "Acknowledge"; b.className = "ack";

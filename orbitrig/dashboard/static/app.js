@@ -4,7 +4,8 @@
 "use strict";
 
 const $ = id => document.getElementById(id);
-const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0, replyTimeout: 3};
+// outcomes: the keys of the command outcomes shown (outcomeKey), so that a feed starting again shows none twice
+const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0, replyTimeout: 3, outcomes: new Set()};
 
 function fmt(v, digits) { return (v === null || v === undefined || !isFinite(v)) ? "—" : Number(v).toFixed(digits); }
 function show(el, on) { el.hidden = !on; }
@@ -72,13 +73,13 @@ function resetView() {
   $("user").value = ""; $("password").value = "";
   ["events", "matrix-names", "rig-select"].forEach(id => clear($(id)));
   ["cmd-result", "who", "rig"].forEach(id => { $(id).textContent = ""; });
-  st.rigs = {};
+  st.rigs = {}; st.outcomes = new Set();
   clearRigView();
 }
 
 // the view of one rig, emptied when the person leaves or watches another rig
 function clearRigView() {
-  ["results", "manual-table"].forEach(id => clear($(id)));
+  resultTable.clearResults(); clear($("manual-table"));
   alarmList.showAlarms([]);
   clearRunView();
   ["alarm-result", "run-id", "message", "manual-step", "manual-motion"].forEach(id => { $(id).textContent = ""; });
@@ -133,9 +134,11 @@ function activity() {
 
 function banner(text) { $("offline-banner").textContent = text || ""; show($("offline-banner"), !!text); }
 
+// a feed starts with the session's snapshot (hello first), which replaces what the page showed: the
+// results come again (the table is emptied), events and outcomes already listed are not listed twice
 function handle(msg) {
   switch (msg.type) {
-    case FeedType.HELLO: $("who").textContent = msg.user; $("rig").textContent = msg.prefix; st.replyTimeout = msg.reply_timeout || st.replyTimeout; break;
+    case FeedType.HELLO: $("who").textContent = msg.user; $("rig").textContent = msg.prefix; st.replyTimeout = msg.reply_timeout || st.replyTimeout; resultTable.clearResults(); break;
     case FeedType.RIGS: showRigs(msg.data); break;
     case FeedType.RIG: clearRigView(); $("rig").textContent = msg.prefix; showRigs(st.rigs || {}); break;
     case FeedType.LINK: showLink(msg.link); break;
@@ -143,10 +146,11 @@ function handle(msg) {
     case FeedType.PROGRESS: showProgress(msg.data); break;
     case FeedType.LIVE: showLive(msg.data, msg.age_s); break;
     case FeedType.RESULT: resultTable.showResult(msg.data); break;
+    case FeedType.GAP: showLinkGap(msg.data); break;
     case FeedType.TREND: trends.trendSample(msg.sample, msg.run_id); break;
     case FeedType.TREND_HISTORY: trends.trendHistory(msg.data); break;
     case FeedType.ALARMS: alarmList.showAlarms(msg.data); break;
-    case FeedType.OUTCOMES: msg.data.forEach(o => showOutcome(o.cmd, o, o.at)); break;
+    case FeedType.OUTCOMES: msg.data.filter(o => !st.outcomes.has(outcomeKey(o.cmd, o))).forEach(o => showOutcome(o.cmd, o, o.at)); break;
     case FeedType.SIGNED_OUT: leave("session ended: " + msg.reason); break;
   }
 }
@@ -191,8 +195,11 @@ function showStatus(s) {
   $("run-id").textContent = s.run_id || "";
   $("message").textContent = s.message || "";
   if ($("link").textContent === BrokerLink.ONLINE) banner(s.state === RunState.OFFLINE ? "offline: the rig service is not connected" : null);
-  const warn = s.state === RunState.FAULTED || /interlock|not met|failed|lost/i.test(s.message || "");
-  if (warn && !(prev && prev.message === s.message)) addEvent("warn", s.state + ": " + s.message);
+  // a closing status's grouped fit warnings ("run completed; warning: ...; warning: ...") are events of their own
+  const [said, ...warnings] = (s.message || "").split("; warning: ");
+  const warn = s.state === RunState.FAULTED || /interlock|not met|failed|lost/i.test(said);
+  if (warn && !(prev && prev.message === s.message)) addEvent("warn", s.state + ": " + said, false, undefined, ["status", s.run_id, s.since, said].join("|"));
+  warnings.forEach(w => addEvent("warn", "run " + (s.run_id || "") + ": warning: " + w, false, undefined, ["run warning", s.run_id, w].join("|")));
   if (runEnded(s) || !prev || prev.run_id !== s.run_id) clearRunView();
   if (s.state === RunState.IDLE && (s.message || "").includes(Outcome.COMPLETED)) $("progress-bar").style.width = "100%";
   showManual(s);
@@ -328,14 +335,26 @@ function showAux(a, bands) {
 }
 
 // ---------------------------------------------------------------- events
-// `at`: when it happened (ISO-8601; default now)
-function addEvent(kind, text, once, at) {
+// `at`: when it happened (ISO-8601; default now); `key`: what it is, listed once (a feed starting again
+// hands on the same warnings and outcomes)
+function addEvent(kind, text, once, at, key) {
   const list = $("events");
   if (once && list.firstChild && list.firstChild.textContent.endsWith(text)) return;
+  if (key !== undefined && [...list.children].some(li => li.dataset.key === key)) return;
   const li = document.createElement("li"); li.className = kind;
+  if (key !== undefined) li.dataset.key = key;
   li.textContent = (at ? new Date(at) : new Date()).toLocaleTimeString() + " " + text;
   list.insertBefore(li, list.firstChild);
   while (list.children.length > 100) list.removeChild(list.lastChild);
+}
+
+// the broker link was down from gap.from to gap.to: what was published meanwhile came after (the broker
+// kept the session's messages), or results may be missing (a row of the results table says where)
+function showLinkGap(gap) {
+  const span = new Date(gap.from).toLocaleTimeString() + " to " + new Date(gap.to).toLocaleTimeString();
+  if (!gap.caught_up) resultTable.showGap(gap);
+  addEvent(gap.caught_up ? "info" : "warn", "broker link down from " + span + (gap.caught_up ?
+    ": the broker kept what was published meanwhile (results caught up)" : ": results published meanwhile may be missing"), false, gap.to, "gap|" + gap.from);
 }
 
 // ---------------------------------------------------------------- commands
@@ -367,18 +386,23 @@ async function send(cmd, extra) {
   showOutcome(cmd, r.data);
 }
 
-// a command's outcome ({ok, error}); `at` (ISO-8601): one the session kept from before this page was loaded
+// an outcome the session keeps (its command and time, `at`): the same in the server's answer and its snapshot
+function outcomeKey(cmd, data) { return data.at ? cmd + "|" + data.at : undefined; }
+
+// a command's outcome ({ok, error, at}); `at` (ISO-8601): one the session kept from before this page was loaded
 function showOutcome(cmd, data, at) {
   const out = $("cmd-result"), earlier = at ? " (at " + new Date(at).toLocaleTimeString() + ", before this page was loaded)" : "";
+  const key = outcomeKey(cmd, data);
+  if (key) st.outcomes.add(key);
   if (data.ok) {  // with what the service did, when it says (an abort no run carried out)
     out.className = "cmd-result ok"; out.textContent = cmd + ": accepted" + (data.detail ? ": " + data.detail : "") + earlier;
-    if (data.detail) addEvent("info", cmd + ": " + data.detail, false, at);
+    if (data.detail) addEvent("info", cmd + ": " + data.detail, false, at, key);
     return;
   }
   const error = data.error || "failed";  // the server's reasons leave the name to the page: prefixed once
   const text = error.startsWith(cmd + ":") ? error : cmd + ": " + error;
   out.className = "cmd-result refused"; out.textContent = text + earlier;
-  addEvent("refused", text, false, at);
+  addEvent("refused", text, false, at, key);
   const names = /available: ([^)]*)\)/.exec(data.error || "");
   if (names) fillMatrices(names[1].split(", "));
 }

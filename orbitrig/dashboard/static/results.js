@@ -1,9 +1,15 @@
 // The results table: one row per identified coefficient with its value, its expanded uncertainty
 // U (k = 2, as the service publishes it: expanded_uncertainty) and its SI unit; a refused fit is
 // one row with the reason. At most MAX_RESULT_ROWS rows are kept (the oldest go first).
+// Each point's result is shown once (a feed that starts again replaces the table: clearResults).
+// The run of the rows: in the card's heading while the table holds one run; from a second run on,
+// each run's rows are under a row naming it. A broker link gap whose results may be missing is a
+// row of its own, where it happened.
 "use strict";
 
 const MAX_RESULT_ROWS = 2000;
+// what the table holds: the results shown (resultKey), the run of the latest, whether runs are marked
+const shownResults = {keys: new Set(), lastRun: null, marked: false};
 
 function fmtValue(v) {
   if (v === null || v === undefined || !isFinite(v)) return "—";
@@ -15,6 +21,11 @@ function fmtValue(v) {
 function pointIndex(r) { return Number.isInteger(r.index) ? r.index : Number.isInteger(r.point) ? r.point : null; }
 function pointText(r) { const i = pointIndex(r); return i === null ? "?" : String(i + 1); }
 function pointFile(r) { const i = pointIndex(r); return i === null ? "" : "file point " + String(i).padStart(4, "0"); }
+// one point's result: its run, point and fits (the broker may hand a result on again after a reconnection)
+function resultKey(r) {
+  const fits = (r.identification || []).map(row => [row.lms, row.model, row.freq_dep, row.method].join(" "));
+  return [r.run_id, pointIndex(r), r.label, ...fits].join("|");
+}
 
 function fitRows(r, row) {
   const head = [{text: pointText(r) + (r.label ? " " + r.label : ""), title: pointFile(r)}, row.lms || "",
@@ -27,16 +38,55 @@ function fitRows(r, row) {
     {text: fmtValue(U[k]), title: eu.basis ? "k = " + eu.k + ", " + eu.basis : ""}, {text: units[k] || ""}]);
 }
 
-function showResult(r) {
-  const body = document.getElementById("results");
-  (r.warnings || []).forEach(w => addEvent("warn", "point " + pointText(r) + ": " + w));
+// a row across the table (a run's name, a gap)
+function wideRow(cls, text) {
+  const tr = document.createElement("tr"); tr.className = cls;
+  cell(tr, text).colSpan = 7;
+  return tr;
+}
+
+function runRow(run) { const tr = wideRow("run-row", run ? "run " + run : "run not named"); tr.dataset.run = run; return tr; }
+
+function showRuns() {
+  document.getElementById("results-run").textContent = shownResults.lastRun !== null && !shownResults.marked ? "run " + (shownResults.lastRun || "not named") : "";
+}
+
+// the rows of a run other than the latest's come under a row naming their run (the first run's too)
+function markRun(body, run) {
+  if (shownResults.lastRun !== null && run !== shownResults.lastRun) {
+    if (!shownResults.marked) body.insertBefore(runRow(shownResults.lastRun), body.firstChild);
+    shownResults.marked = true;
+    body.appendChild(runRow(run));
+  }
+  shownResults.lastRun = run;
+  showRuns();
+}
+
+// a fit's warnings once each: the row's own; of the result's `warnings` (every fit's, prefixed by its fit)
+// only those no row says. Each is listed once also when the feed hands the result on again (its key).
+function resultWarnings(r) {
+  const said = [], point = "point " + pointText(r), warn = (text, what) => addEvent("warn", point + what + ": " + text,
+    false, undefined, ["result", r.run_id, pointIndex(r), what, text].join("|"));
   (r.identification || []).forEach(row => {
-    const what = (row.lms || "") + " " + (row.model || "");
-    if (row.error) addEvent("warn", "point " + pointText(r) + " " + what + ": " + row.error);
-    (row.warnings || []).forEach(w => addEvent("warn", "point " + pointText(r) + " " + what + ": " + w));
+    const what = " " + (row.lms || "") + " " + (row.model || "");
+    if (row.error) warn(row.error, what);
+    (row.warnings || []).forEach(w => { said.push(w); warn(w, what); });
+  });
+  (r.warnings || []).filter(w => !said.some(s => w === s || w.endsWith(": " + s))).forEach(w => warn(w, ""));
+}
+
+function showResult(r) {
+  const body = document.getElementById("results"), key = resultKey(r);
+  if (shownResults.keys.has(key)) return;
+  shownResults.keys.add(key);
+  const run = r.run_id || "";
+  markRun(body, run);
+  resultWarnings(r);
+  (r.identification || []).forEach(row => {
     fitRows(r, row).forEach((cells, i) => {
       const tr = document.createElement("tr");
       if (i === 0) tr.className = "fit-first";
+      tr.dataset.run = run;
       cells.forEach(x => {
         const td = cell(tr, typeof x === "string" ? x : x.text, typeof x === "string" ? "" : x.cls);
         if (x.span) td.colSpan = x.span;
@@ -45,7 +95,29 @@ function showResult(r) {
       body.appendChild(tr);
     });
   });
-  while (body.children.length > MAX_RESULT_ROWS) body.removeChild(body.firstChild);
+  trimResults(body);
 }
 
-window.resultTable = {showResult};
+function trimResults(body) {
+  while (body.children.length > MAX_RESULT_ROWS) body.removeChild(body.firstChild);
+  const first = body.firstElementChild;  // the oldest run kept keeps its name
+  if (shownResults.marked && first && first.className !== "run-row" && first.dataset.run !== undefined) body.insertBefore(runRow(first.dataset.run), first);
+}
+
+// the broker link was down from gap.from to gap.to and the broker did not keep the session's messages
+function resultsGap(gap) {
+  const body = document.getElementById("results");
+  const span = new Date(gap.from).toLocaleTimeString() + " and " + new Date(gap.to).toLocaleTimeString();
+  const tr = wideRow("gap-row", "results published between " + span + " may be missing: the dashboard's broker link was down and the broker did not keep them");
+  tr.dataset.gap = gap.from;
+  body.appendChild(tr);
+  trimResults(body);
+}
+
+function clearResults() {
+  clear(document.getElementById("results"));
+  Object.assign(shownResults, {keys: new Set(), lastRun: null, marked: false});
+  showRuns();
+}
+
+window.resultTable = {showResult, showGap: resultsGap, clearResults};

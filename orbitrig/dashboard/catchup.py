@@ -1,0 +1,48 @@
+"""What a dashboard session reads of a rig, and how it catches up after its broker link dropped.
+
+A session's MQTT session outlives a dropped link for ``catch_up_s`` s (MQTT 5 session expiry;
+the same client id; clean start only at sign-in): the broker queues for it what it subscribed
+to at QoS 1 (statuses, results, replies, acknowledgements; mosquitto keeps up to its
+``max_queued_messages`` per client, 10000 in config/mosquitto/mosquitto.conf) and hands them
+over when the link is back. Progress and live payloads (QoS 0) are stale by then: not kept.
+Commands are not read at all, so no flood of them fills the queue.
+
+When the broker had not kept the session (the link was down longer than ``catch_up_s``, or the
+broker restarted without its persistence), the CONNACK says so (``session_present`` false) and
+the pages get a ``gap`` message: results published between ``from`` and ``to`` may be missing.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import orbitrig.service.protocol as proto
+from orbitrig.dashboard.feed import FeedType
+
+
+def subscriptions(topics: proto.Topics) -> list[tuple[str, int]]:
+    """The topics a session reads of a rig with their QoS: 1 for what the broker keeps for the session
+    while its link is down, 0 for what is stale by then."""
+    t = topics
+    return [(t.status, 1), (t.result, 1), (t.reply, 1), (t.ack, 1), (t.progress, 0), (t.live, 0)]
+
+
+def topic_names(topics: proto.Topics) -> list[str]:
+    """The topics of :func:`subscriptions` alone (to unsubscribe)."""
+    return [topic for topic, _ in subscriptions(topics)]
+
+
+def connect_properties(catch_up_s: int) -> Any:
+    """MQTT 5 CONNECT properties: the broker keeps the session ``catch_up_s`` s after the link drops."""
+    from paho.mqtt.packettypes import PacketTypes
+    from paho.mqtt.properties import Properties
+
+    props = Properties(PacketTypes.CONNECT)
+    props.SessionExpiryInterval = int(catch_up_s)
+    return props
+
+
+def gap_message(down_since: str, caught_up: bool) -> dict:
+    """The feed message of a broker link back after a drop since ``down_since`` (ISO-8601): whether the
+    messages published meanwhile came (``caught_up``) or results may be missing between the times."""
+    return {"type": FeedType.GAP, "data": {"from": down_since, "to": proto.iso8601(), "caught_up": caught_up}}

@@ -1,0 +1,126 @@
+"""The event list and the results table in a real chromium on a real authenticated mosquitto:
+each fit warning of a result listed once (not again from the result's `warnings`, which repeats
+every fit's), the closing status's grouped warnings listed, and nothing listed or drawn twice
+when the page's websocket reconnects (the server's snapshot replaces what the page showed).
+The test publishes what the rig service does (as orbitrig-service, docs/protocols/mqtt.md)."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import pytest
+from support.dash_helpers import RIG, Dashboard, Page
+from support.mqtt_helpers import ACCOUNTS
+
+PIEZO = "bad fit: chi2 = 104.2 for 57 degrees of freedom (p = 0.00014): the residuals exceed the stated u_*"
+STRAIN = "condition number 3.1e6: Kxy poorly determined"
+GROUPED = (
+    "kc7 none ols, piezo: bad fit: chi2 above its 95 % quantile at 2 of 3 points (0000, 0002)"
+    " - the residuals exceed the stated u_* uncertainties; see kc8"
+)
+
+
+@pytest.fixture(scope="module")
+def dashboard(broker, tmp_path_factory):
+    """The dashboard alone on the broker: the test publishes what the rig service would."""
+    dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", "1.5")
+    yield dash
+    assert dash.stop() == 0, dash.text()[-3000:]
+
+
+def publish(broker, leaf: str, body: dict, retain: bool = False) -> None:
+    done = broker.pub(f"orbitrig/{RIG}/{leaf}", json.dumps(body), user="orbitrig-service", retain=retain)
+    assert done.returncode == 0, done.stderr
+
+
+def fit(lms: str, warnings: list[str]) -> dict:
+    return {
+        "lms": lms,
+        "model": "kc7",
+        "freq_dep": "none",
+        "method": "ols",
+        "coefficients": {"Kxx": 1.5e7, "Cxx": 2.0e4},
+        "expanded_uncertainty": {"k": 2, "basis": "statistical", "values": {"Kxx": 2e5, "Cxx": 2e2}},
+        "units": {"Kxx": "N/m", "Cxx": "N s/m"},
+        "warnings": warnings,
+    }
+
+
+def result(run_id: str, index: int) -> dict:
+    """A point's result as the service publishes it: the fits' warnings in their rows and, prefixed by
+    their fit, all together in `warnings`."""
+    return {
+        "run_id": run_id,
+        "index": index,
+        "point": index,
+        "label": "w1000rpm",
+        "identification": [fit("piezo", [PIEZO]), fit("strain", [STRAIN])],
+        "warnings": [f"piezo kc7 none ols: {PIEZO}", f"strain kc7 none ols: {STRAIN}"],
+    }
+
+
+def events(page: Page) -> list[str]:
+    return page.d.execute_script("return [...document.querySelectorAll('#events li')].map(li => li.textContent)")
+
+
+def result_rows(page: Page) -> int:
+    return page.d.execute_script("return document.querySelectorAll('#results tr').length")
+
+
+def with_text(items: list[str], text: str) -> int:
+    return sum(text in item for item in items)
+
+
+def viewer_page(broker, browsers, dashboard, run_id: str) -> Page:
+    """A viewer's page, the run `run_id` running and three of its points' results shown."""
+    page = Page(browsers(), dashboard.url, dashboard)
+    page.sign_in("viewer", ACCOUNTS["viewer"])
+    page.signed_in()
+    page.wait_text("link", "online")
+    status = {"state": "running", "run_id": run_id, "since": "2026-01-07T08:00:00.000Z", "message": "started"}
+    publish(broker, "status", status, retain=True)
+    page.wait_state("running", 10)
+    for index in range(3):
+        publish(broker, "result", result(run_id, index))
+    page.wait(lambda: result_rows(page) == 3 * 2 * 2, 10, "3 points x 2 fits x 2 coefficients")
+    return page
+
+
+def test_each_fit_warning_is_listed_once_and_the_closing_ones_too(broker, dashboard, browsers):
+    page = viewer_page(broker, browsers, dashboard, "r-events")
+    listed = events(page)
+    for index in range(3):
+        assert with_text(listed, f"point {index + 1} piezo kc7: {PIEZO}") == 1, listed
+        assert with_text(listed, f"point {index + 1} strain kc7: {STRAIN}") == 1, listed
+    assert with_text(listed, PIEZO) == 3 and with_text(listed, STRAIN) == 3, listed
+
+    # the run completes: its grouped warnings, in the closing status, are listed too
+    closing = {"state": "idle", "run_id": "r-events", "since": "2026-01-07T08:01:00.000Z"}
+    publish(broker, "status", {**closing, "message": f"run completed; warning: {GROUPED}"}, retain=True)
+    page.wait_state("idle", 10)
+    page.wait(lambda: with_text(events(page), f"warning: {GROUPED}") == 1, 10, "the closing status's warning")
+
+
+def test_nothing_is_listed_or_drawn_twice_when_the_feed_reconnects(broker, dashboard, browsers):
+    page = viewer_page(broker, browsers, dashboard, "r-again")
+    closing = {"state": "idle", "run_id": "r-again", "since": "2026-01-07T09:01:00.000Z"}
+    publish(broker, "status", {**closing, "message": f"run completed; warning: {GROUPED}"}, retain=True)
+    page.wait_state("idle", 10)
+    assert "refused: not authorised" in page.command("btn-pause", "pause:")  # one refusal of the session
+    before, rows = events(page), result_rows(page)
+
+    # the page's websocket drops and reconnects: the snapshot replaces what the page showed
+    page.d.execute_script("window.oldFeed = st.ws; st.ws.close()")
+    page.wait(
+        lambda: page.d.execute_script("return !!st.ws && st.ws !== window.oldFeed && st.ws.readyState === 1"),
+        15,
+        "the feed to reconnect",
+    )
+    page.wait(lambda: not page.el("offline-banner").is_displayed(), 10, "the banner to go")
+    page.wait(lambda: result_rows(page) >= rows, 10, "the results drawn again")
+    time.sleep(1.0)  # the rest of the snapshot (alarms, outcomes) drawn
+    assert result_rows(page) == rows
+    assert events(page) == before
+    assert page.text("cmd-result").startswith("pause: refused: not authorised")
+    assert "before this page was loaded" not in page.text("cmd-result")  # the same page: its own outcome
