@@ -155,7 +155,7 @@ def _identify(
         est = _tls(spec, table, A_s, b, c, solver, tls_ratio)
     theta = est.x / c
     Z = impedance(spec, theta, table.orbit)  # at the estimate: effective variances and the fit
-    chi2 = None if u is None else _chi2(spec, u, table, A_s, b, c, var, solver, method, est)
+    chi2 = None if u is None else _chi2(spec, u, table, A_s, b, c, var, method, est)
     cov_s: FloatArray | None
     if u is not None:
         var = equation_variances(u, Z)
@@ -240,9 +240,15 @@ def _variances(spec: ModelSpec, table: OrbitTable, theta0: FloatArray, b: FloatA
 
 
 def _effective(spec: ModelSpec, u: FloatArray, table: OrbitTable, theta: FloatArray) -> FloatArray:
-    """Effective variances of the 4n equations from u_* at ``theta``, floored at 1e-12 of the largest."""
-    var = equation_variances(u, impedance(spec, theta, table.orbit))
-    floored: FloatArray = np.maximum(var, 1e-12 * float(np.max(var)))
+    """Effective variances of the 4n equations from u_* at ``theta``, floored at 1e-12 of the
+    largest (computed over blocks of rows: a long table's temporaries stay small)."""
+    rows = reg.CHUNK_ROWS // 4
+    var = np.empty(4 * table.n)
+    for s in range(0, table.n, rows):
+        var[4 * s : 4 * (s + rows)] = equation_variances(
+            u[s : s + rows], impedance(spec, theta, table.orbit[s : s + rows])
+        )
+    floored: FloatArray = np.maximum(var, 1e-12 * float(np.max(var)), out=var)
     return floored
 
 
@@ -254,7 +260,6 @@ def _chi2(
     b: FloatArray,
     c: FloatArray,
     var: FloatArray,
-    solver: str,
     method: str,
     est: reg.Estimate,
 ) -> float:
@@ -266,10 +271,13 @@ def _chi2(
         return float(est.rss)
     x = est.x
     for _ in range(0 if method == Method.WLS else 2):  # as reg.wls solves it, without its covariance
-        w = np.sqrt(1.0 / var)
-        x = reg.lstsq(A_s * w[:, None], b * w, solver)
+        x = reg.weighted_lstsq(A_s, b, np.sqrt(1.0 / var))  # blocked: no weighted copy of a long table
         var = _effective(spec, u, table, x / c)
-    return float(np.sum((b - A_s @ x) ** 2 / _effective(spec, u, table, x / c)))
+    r = A_s @ x  # the weighted residual sum, in place (one vector of the table's length)
+    np.subtract(b, r, out=r)
+    r *= r
+    r /= _effective(spec, u, table, x / c)
+    return float(np.sum(r))
 
 
 def _result(

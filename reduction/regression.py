@@ -121,6 +121,23 @@ def triangular(A: np.ndarray, b: np.ndarray | None = None) -> tuple[np.ndarray, 
     return R[:top, :p], z
 
 
+def weighted_lstsq(A: FloatArray, b: FloatArray, w: FloatArray) -> FloatArray:
+    """Least-squares solution of (w A) x = w b, row weights w (m,), by the blocked QR of
+    :func:`triangular_blocks`: the weighted matrix is never whole in memory (one block of
+    ``CHUNK_ROWS`` rows at a time)."""
+    m, p = A.shape
+
+    def blocks() -> Iterator[FloatArray]:
+        for s in range(0, m, CHUNK_ROWS):
+            ws = w[s : s + CHUNK_ROWS, None]
+            yield np.column_stack([A[s : s + CHUNK_ROWS] * ws, b[s : s + CHUNK_ROWS, None] * ws])
+
+    R = triangular_blocks(blocks, m, p + 1)
+    top = min(R.shape[0], p)
+    x: FloatArray = sla.solve_triangular(R[:top, :p], R[:top, p])
+    return x
+
+
 def lstsq(A: np.ndarray, b: np.ndarray, solver: str = "qr") -> np.ndarray:
     """Least-squares solution of A x = b (A full column rank) by ``qr``, ``svd`` or ``lu``.
 
