@@ -9,9 +9,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import signal
 import subprocess
-import time
 import tomllib
 
 import h5py
@@ -23,7 +21,7 @@ from orbitrig.store.reader import read_run
 
 from support.paths import ROOT
 from support.rig_configs import patient_lab
-from support.sweep_helpers import orbitrig_cmd
+from support.sweep_helpers import orbitrig_cmd, stop_after_first_point
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -57,18 +55,7 @@ def _stopped_run(tmp_path):
     design = lab / "designs" / "kcd11-demo.toml"
     out = tmp_path / "run"
     cmd = orbitrig_cmd("sweep", "--sim", "--matrix", "dres", "--out", str(out), "--speedup", "10", "--no-draw-figures")
-    proc = subprocess.Popen(cmd, cwd=ROOT, env={**os.environ, HOME_ENV: str(lab)}, stderr=subprocess.PIPE)
-    try:
-        deadline = time.monotonic() + 120
-        while not list(out.glob("points/*/complete.json")):
-            assert proc.poll() is None and time.monotonic() < deadline, "no point completed"
-            time.sleep(0.05)
-        proc.send_signal(signal.SIGTERM)
-        assert proc.wait(60) == 3
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+    stop_after_first_point(cmd, out, env={**os.environ, HOME_ENV: str(lab)})
     assert [p.complete for p in read_run(out).points] == [True, False]
     return lab, design, design.read_text(), out
 

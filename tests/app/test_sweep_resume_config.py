@@ -6,9 +6,7 @@ before anything is started, and the run is left as it was for a resume without -
 
 from __future__ import annotations
 
-import signal
 import subprocess
-import time
 
 import pytest
 
@@ -17,7 +15,7 @@ from orbitrig.store.reader import read_run
 from support.paths import ROOT
 from support.store_checks import small_matrix
 from support.rig_configs import lab_record_config, loads_record
-from support.sweep_helpers import orbitrig_cmd
+from support.sweep_helpers import orbitrig_cmd, stop_after_first_point
 
 pytestmark = pytest.mark.timeout(240)
 
@@ -27,18 +25,7 @@ def _stopped_run(tmp_path):
     (tmp_path / "m.toml").write_text(small_matrix("resume", 8, spin_rpm=(1000.0, 2000.0)))
     out = tmp_path / "run"
     cmd = orbitrig_cmd("sweep", "--sim", "--matrix", str(tmp_path / "m.toml"), "--out", str(out))
-    proc = subprocess.Popen([*cmd, "--speedup", "10", "--no-draw-figures"], cwd=ROOT, stderr=subprocess.PIPE)
-    try:
-        deadline = time.monotonic() + 120
-        while not list(out.glob("points/*/complete.json")):
-            assert proc.poll() is None and time.monotonic() < deadline, "no point completed"
-            time.sleep(0.05)
-        proc.send_signal(signal.SIGTERM)
-        assert proc.wait(60) == 3
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+    stop_after_first_point([*cmd, "--speedup", "10", "--no-draw-figures"], out)
     return out
 
 

@@ -10,7 +10,6 @@ import json
 import re
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -21,21 +20,11 @@ from orbitrig.errors import ConfigError
 from support.paths import ROOT
 from support.rig_configs import patient_lab
 from support.store_checks import small_matrix
+from support.cli_helpers import orbitrig
 
 pytestmark = pytest.mark.timeout(240)
 
 SPEEDUP = "20"  # as tests/e2e: the drives' watchdog holds with both cores busy
-
-
-def orbitrig(*args: str, timeout: float = 90) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "orbitrig", *args],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        stdin=subprocess.DEVNULL,
-    )
 
 
 def calibrate(step: str, rig: Path) -> None:

@@ -16,8 +16,6 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -34,20 +32,10 @@ from orbitrig.run.steps import Block
 from orbitrig.store.reader import read_run
 from orbitrig.store.writer import RunStore
 from sim.config import SimConfig
+from support.cli_helpers import orbitrig
 
 STEP_S = 90
 SPEEDUP = 20.0  # half the sweep's default: the drives' watchdog holds with both cores busy
-
-
-def orbitrig(*args: str, timeout: float) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "orbitrig", *args],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        stdin=subprocess.DEVNULL,
-    )
 
 
 def _calibrated_config(tmp: Path, scenario: str | None, steps: tuple[str, ...]) -> tuple[Path, dict[str, str]]:

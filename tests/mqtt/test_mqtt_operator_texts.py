@@ -15,7 +15,7 @@ import pytest
 
 from orbitrig.config import load_rig
 from orbitrig.store.journal import read_journal
-from support.mqtt_helpers import Broker, RigClient, retained, sim_service, unsupervised_service
+from support.mqtt_helpers import Broker, RigClient, retained, serving_unsupervised, sim_service
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -34,14 +34,9 @@ def run_log(work: Path) -> str:
 
 
 async def test_resume_during_a_suspension_is_refused_and_a_pause_holds_after_it(broker, tmp_path: Path):
-    from sim.rig import SimRig
-
     rc = None
-    async with SimRig(speedup=20, adc_pty=False) as sim_rig:
-        rig = rig_with(can_heartbeat_timeout_s=60.0)  # the suspension lasts as long as the test needs
-        service = unsupervised_service(broker, tmp_path, "susp", "keep", sim_rig, rig=rig)
-        stop = asyncio.Event()
-        serving = asyncio.create_task(service.serve(stop))
+    rig = rig_with(can_heartbeat_timeout_s=60.0)  # the suspension lasts as long as the test needs
+    async with serving_unsupervised(broker, tmp_path, "susp", "keep", rig=rig) as (service, sim_rig):
         try:
             rc = RigClient(broker, "susp")
             await wait(rc.status, "idle")
@@ -75,55 +70,44 @@ async def test_resume_during_a_suspension_is_refused_and_a_pause_holds_after_it(
             assert log.count("command resume by bob") == 1, log[-3000:]  # the refused one is not recorded
             assert "command pause by bob" in log
         finally:
-            stop.set()
-            service.abort_run("test over")
-            await asyncio.wait_for(asyncio.gather(serving, return_exceptions=True), 60)
             if rc is not None:
                 rc.close()
 
 
 async def test_a_supervision_pause_says_its_deadline_and_the_stop_what_was_true(tmp_path: Path):
-    from sim.rig import SimRig
-
     b = Broker(tmp_path / "broker")
     b.start()
     rc = None
     try:
-        async with SimRig(speedup=20, adc_pty=False) as sim_rig:
-            rig = rig_with(unanswered_pause_s=6.0)
-            service = unsupervised_service(b, tmp_path, "sup", "pause", sim_rig, rig=rig)
-            stop = asyncio.Event()
-            serving = asyncio.create_task(service.serve(stop))
-            try:
-                rc = RigClient(b, "sup")
-                await wait(rc.status, "idle")
-                assert (await wait(rc.command, {"cmd": "start", "matrix": "long"}))["ok"] is True
-                run_id = (await wait(rc.status, "running"))["run_id"]
-                rc.close()
-                rc = None
-                b.stop()
-                for _ in range(100):  # the policy pauses the run after 1 s without the broker
-                    await asyncio.sleep(0.1)
-                    if service.state == "paused":
-                        break
-                paused = json.loads(service._status)["message"]
-                assert service.state == "paused", paused
-                assert "the run stops at " in paused and "unless resumed" in paused and "6 s" in paused, paused
+        async with serving_unsupervised(b, tmp_path, "sup", "pause", rig=rig_with(unanswered_pause_s=6.0)) as (
+            service,
+            _,
+        ):
+            rc = RigClient(b, "sup")
+            await wait(rc.status, "idle")
+            assert (await wait(rc.command, {"cmd": "start", "matrix": "long"}))["ok"] is True
+            run_id = (await wait(rc.status, "running"))["run_id"]
+            rc.close()
+            rc = None
+            b.stop()
+            for _ in range(100):  # the policy pauses the run after 1 s without the broker
+                await asyncio.sleep(0.1)
+                if service.state == "paused":
+                    break
+            paused = json.loads(service._status)["message"]
+            assert service.state == "paused", paused
+            assert "the run stops at " in paused and "unless resumed" in paused and "6 s" in paused, paused
 
-                b.start()
-                rc = RigClient(b, "sup")
-                again = await wait(rc.status, lambda s: s["run_id"] == run_id, 20)  # republished
-                assert again["state"] == "paused" and "the run stops at " in again["message"], again
-                idle = await wait(rc.status, "idle", 60)  # nobody resumes: the deadline stops the run
-                why = idle["message"]
-                assert "nobody resumed within 6 s" in why and "MQTT back since " in why, why
-                assert "no MQTT" not in why, why
-                log = run_log(tmp_path)
-                assert "command pause by service (supervision lost: no broker for 1 s, policy pause)" in log
-            finally:
-                stop.set()
-                service.abort_run("test over")
-                await asyncio.wait_for(asyncio.gather(serving, return_exceptions=True), 60)
+            b.start()
+            rc = RigClient(b, "sup")
+            again = await wait(rc.status, lambda s: s["run_id"] == run_id, 20)  # republished
+            assert again["state"] == "paused" and "the run stops at " in again["message"], again
+            idle = await wait(rc.status, "idle", 60)  # nobody resumes: the deadline stops the run
+            why = idle["message"]
+            assert "nobody resumed within 6 s" in why and "MQTT back since " in why, why
+            assert "no MQTT" not in why, why
+            log = run_log(tmp_path)
+            assert "command pause by service (supervision lost: no broker for 1 s, policy pause)" in log
     finally:
         if rc is not None:
             rc.close()

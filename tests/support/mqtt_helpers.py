@@ -4,6 +4,8 @@ and the `orbitrig serve` process."""
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import json
 import os
 import shutil
@@ -618,6 +620,25 @@ def sim_service_args(url: str, rig: str, work: Path, *extra: str, speedup: float
         f"{speedup:g}",
         *extra,
     ]
+
+
+@contextlib.asynccontextmanager
+async def serving_unsupervised(broker: Broker, work: Path, rig_id: str, policy: str, **kw):
+    """(service, sim_rig): `unsupervised_service` (``kw``: rig, confirm) on a fresh simulator
+    (speed-up 20), serving; on the way out it stops, any run aborted first (the drives stop
+    before the simulator closes)."""
+    from sim.rig import SimRig
+
+    async with SimRig(speedup=20, adc_pty=False) as sim_rig:
+        service = unsupervised_service(broker, work, rig_id, policy, sim_rig, **kw)
+        stop = asyncio.Event()
+        serving = asyncio.create_task(service.serve(stop))
+        try:
+            yield service, sim_rig
+        finally:
+            stop.set()
+            service.abort_run("test over")
+            await asyncio.wait_for(asyncio.gather(serving, return_exceptions=True), 60)
 
 
 def unsupervised_service(broker: Broker, work: Path, rig_id: str, policy: str, sim_rig, *, rig=None, confirm="auto"):

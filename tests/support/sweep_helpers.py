@@ -4,9 +4,14 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import signal
+import subprocess
 import sys
+import time
+from pathlib import Path
 
 from orbitrig import config as cfg
+from support.paths import ROOT
 
 SPEEDUP = 40.0
 
@@ -23,6 +28,23 @@ def small_matrix(revolutions: int = 10, **operating) -> cfg.MatrixConfig:
 
 def orbitrig_cmd(*args: str) -> list[str]:
     return [sys.executable, "-m", "orbitrig", *args]
+
+
+def stop_after_first_point(cmd: list[str], out: Path, env: dict[str, str] | None = None) -> None:
+    """Run the sweep ``cmd`` (writing to ``out``) and stop it by SIGTERM once a point is
+    complete: it must end stopped (exit 3)."""
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 120
+        while not list(out.glob("points/*/complete.json")):
+            assert proc.poll() is None and time.monotonic() < deadline, "no point completed"
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(60) == 3
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
 
 
 async def wait_for(predicate, timeout: float = 30.0, what: str = "condition") -> None:
