@@ -27,16 +27,24 @@ def register(app: typer.Typer) -> None:
             ),
         ] = None,
         force: Annotated[bool, typer.Option("--force", help="Overwrite an existing configuration in DIR.")] = False,
+        rig_id: Annotated[
+            Optional[str],
+            typer.Option(
+                "--rig-id",
+                help="This rig's identifier, written into rig.toml: recorded in every run and calibration "
+                "record, which are checked against it (default: the shipped example's).",
+            ),
+        ] = None,
     ) -> None:
         """Write rig.toml, matrices/, designs/, calibration/ and mosquitto/ into DIR.
 
         Later commands use DIR when run in it, with ORBITRIG_HOME=DIR, or with --config DIR/rig.toml.
         """
-        from orbitrig.config import HOME_ENV, write_lab
+        from orbitrig.config import HOME_ENV, SHIPPED_RIG_ID, write_lab
         from orbitrig.errors import ConfigError
 
         try:
-            files = write_lab(directory, broker_dir, force)
+            files = write_lab(directory, broker_dir, force, rig_id)
         except ConfigError as err:
             typer.echo(f"error: {err}", err=True)
             raise typer.Exit(2) from None
@@ -46,3 +54,9 @@ def register(app: typer.Typer) -> None:
             f"lab configuration in {directory}: edit rig.toml; commands run in this folder, with "
             f"{HOME_ENV}={directory.resolve()}, or with --config {directory / 'rig.toml'} use it"
         )
+        if rig_id is None:
+            typer.echo(
+                f"note: rig_id in rig.toml is the shipped example's ({SHIPPED_RIG_ID}): set this rig's own "
+                "(or give --rig-id); runs record it and calibration records of another rig are refused by it",
+                err=True,
+            )

@@ -50,7 +50,7 @@ from orbitrig.config.home import (
     shipped_config,
     writable_home as writable_home,
 )
-from orbitrig.config.lab import write_lab  # noqa: F401
+from orbitrig.config.lab import SHIPPED_RIG_ID, write_lab  # noqa: F401
 from orbitrig.config.sequential import SequentialDesign, band_candidates, candidate_problems  # noqa: F401
 from orbitrig.config.resume import MAY_CHANGE, resume_differences  # noqa: F401
 from orbitrig.config.matrix import MatrixAveraging, MatrixConfig, ModelSpec, Operating, Orbit, PointOrder  # noqa: F401

@@ -16,6 +16,11 @@ from pathlib import Path
 from orbitrig.config.home import DESIGNS, MATRICES, RIG_FILE, shipped_config
 from orbitrig.errors import ConfigError
 
+#: the rig_id of the shipped rig.toml: a lab that keeps it cannot be told from another by it
+SHIPPED_RIG_ID = "SAC-DS-1"
+#: what a rig_id given to init may hold
+RIG_ID_PATTERN = r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}"
+
 MOSQUITTO = "mosquitto"
 CALIBRATION = "calibration"
 _BROKER_FILES = ("acl", "passwd.example", "README.md")
@@ -39,17 +44,26 @@ coefficient's uncertainty budget. Keep the reference certificates beside them.
 """
 
 
-def write_lab(folder: Path, broker_dir: Path | None = None, force: bool = False) -> list[Path]:
-    """Write the lab configuration into ``folder``; the files written, in order.
+def write_lab(
+    folder: Path, broker_dir: Path | None = None, force: bool = False, rig_id: str | None = None
+) -> list[Path]:
+    """Write the lab configuration into ``folder``; the files written, in order. ``rig_id``: this
+    rig's identifier in its rig.toml (None: the shipped example's, SHIPPED_RIG_ID).
 
-    Raises ConfigError if ``folder`` already holds a rig.toml and ``force`` is false."""
+    Raises ConfigError if ``folder`` already holds a rig.toml and ``force`` is false, or
+    ``rig_id`` is not a RIG_ID_PATTERN word."""
     folder = Path(folder)
     if (folder / RIG_FILE).exists() and not force:
         raise ConfigError(
             str(folder / RIG_FILE), ["already there: a lab configuration exists in this folder (--force overwrites it)"]
         )
+    if rig_id is not None and not re.fullmatch(RIG_ID_PATTERN, rig_id):
+        raise ConfigError("--rig-id", [f"{rig_id!r}: give letters, digits and . _ - only (e.g. SAC-DS-2)"])
     shipped = shipped_config()
-    written = [_copy(shipped / RIG_FILE, folder / RIG_FILE)]
+    rig_text = (shipped / RIG_FILE).read_text(encoding="utf-8")
+    if rig_id is not None:
+        rig_text = re.sub(r'(?m)^rig_id = "[^"]*"', f'rig_id = "{rig_id}"', rig_text, count=1)
+    written = [_write(folder / RIG_FILE, rig_text)]
     for kind in (MATRICES, DESIGNS):
         written += [_copy(f, folder / kind / f.name) for f in sorted((shipped / kind).glob("*.toml"))]
     written += [_copy(shipped / MOSQUITTO / name, folder / MOSQUITTO / name) for name in _BROKER_FILES]

@@ -120,3 +120,24 @@ def test_init_broker_configuration_runs_mosquitto(lab):
     finally:
         proc.terminate()
         proc.wait(5)
+
+
+def test_init_writes_the_rig_id_given_and_reminds_when_none_is(tmp_path):
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+
+    def init(*args):
+        return subprocess.run(
+            [sys.executable, "-m", "orbitrig", "init", *args], capture_output=True, text=True, env=env, timeout=60
+        )
+
+    own = init(str(tmp_path / "b"), "--rig-id", "SAC-DS-2")
+    assert own.returncode == 0, own.stderr
+    assert cfg.load_rig(tmp_path / "b" / "rig.toml").rig_id == "SAC-DS-2"
+    assert "note: rig_id" not in own.stderr
+    shipped = init(str(tmp_path / "a"))
+    assert shipped.returncode == 0, shipped.stderr
+    assert cfg.load_rig(tmp_path / "a" / "rig.toml").rig_id == "SAC-DS-1"
+    assert "note: rig_id in rig.toml is the shipped example's (SAC-DS-1)" in shipped.stderr
+    bad = init(str(tmp_path / "c"), "--rig-id", "two words")
+    assert bad.returncode == 2 and "--rig-id: 'two words'" in bad.stderr and "Traceback" not in bad.stderr
+    assert not (tmp_path / "c" / "rig.toml").exists()
