@@ -247,14 +247,13 @@ class RunControl:
         The status is stated again when that deadline changes."""
         self._end_if_aborted()
         self.wake.clear()
-        limit = self.unanswered_limit
-        if self._deadline_of(t0) != self._deadline:
+        limit, deadline = self.unanswered_limit, self._deadline_of(t0)
+        if deadline != self._deadline:
             self.message = self._held(*self._hold, t0)
             self._on_state(self.state, self.message)  # the same state, its deadline changed
-        if limit is None:
+        if limit is None or deadline is None:
             await self.wake.wait()
             return
-        deadline = max(t0, self._unanswered_from) + limit
         await _first(self.wake, timeout=max(0.0, deadline - time.monotonic()))  # not wait_for: it can swallow a cancel
         if time.monotonic() >= deadline and not self.stop_requested:
             self._stop_unanswered(limit)
