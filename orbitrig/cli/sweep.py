@@ -238,13 +238,9 @@ def _configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
 def _given_matrix(path, stored):
     """--matrix FILE of a --resume, with the design of the ``stored`` matrix when the run stored it."""
     from orbitrig import config as cfg
-    from orbitrig.errors import ConfigError
 
-    try:
-        text = cfg.decode_text(Path(path).read_bytes(), str(path))
-    except OSError as err:
-        raise ConfigError(str(path), [f"cannot read the file: {err.strerror or err}"]) from None
-    return cfg.matrix_from_text(stored.as_stored(text), str(path))
+    text, file = cfg.read_text(path)
+    return cfg.matrix_from_text(stored.as_stored(text), file)
 
 
 def _given_again(given, stored, run):

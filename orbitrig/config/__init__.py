@@ -140,7 +140,8 @@ def _build(cls, data: dict, file: str, text: str):
     return obj
 
 
-def _read(path: Path | str) -> tuple[str, str]:
+def read_text(path: Path | str) -> tuple[str, str]:
+    """(UTF-8 text, path) of a configuration file, or ConfigError naming it."""
     path = Path(path)
     try:
         data = path.read_bytes()
@@ -162,7 +163,7 @@ def decode_text(data: bytes, file: str) -> str:
 
 def _read_default(path: Path | str | None, default: Path, option: str) -> tuple[str, str]:
     if path is not None or default.is_file():
-        return _read(path or default)
+        return read_text(path or default)
     raise ConfigError(
         str(default),
         [

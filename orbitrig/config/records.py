@@ -184,7 +184,7 @@ def identity(rig: RigConfig) -> dict:
     """The ``rig`` and ``channels`` of a record measured now on ``rig``: its rig_id (its name
     without one) and every channel's serial and gain."""
     channels = {c.name: {"serial": c.serial, "gain": c.gain} for c in rig.channels}
-    return {"rig": rig.rig_id or rig.name, "channels": channels}
+    return {"rig": rig.identity, "channels": channels}
 
 
 def calibrated(record: CalibrationRecord) -> dict[str, list[str]]:
@@ -293,13 +293,13 @@ def record_from_text(text: str, file: str) -> CalibrationRecord:
 
 def read_record(folder: Path, name: str) -> tuple[CalibrationRecord, str]:
     """(record, its text) of record ``name`` in ``folder``; ConfigError naming the file."""
-    from orbitrig.config import _read
+    from orbitrig.config import read_text
 
     path = Path(folder) / f"{name}.toml"
     if not path.is_file():
         known = ", ".join(list_names(folder)) or "none"
         raise ConfigError(str(path), [f"no calibration record {name!r} (records in {folder}: {known})"])
-    text, file = _read(path)
+    text, file = read_text(path)
     return record_from_text(text, file), text
 
 
