@@ -267,6 +267,11 @@ class RigConfig(_Model):
         return self._text
 
     @property
+    def identity(self) -> str:
+        """The rig's identifier as runs and calibration records carry it: rig_id, else name."""
+        return self.rig_id or self.name
+
+    @property
     def record(self):
         """The active CalibrationRecord, or None."""
         return self._record

@@ -53,7 +53,7 @@ class Provenance:
         return cls(
             operator=operator or UNNAMED,
             software_version=f"orbitrig {__version__}",
-            rig_id=rig.rig_id or rig.name,
+            rig_id=rig.identity,
             sensor_serials=serials,
             calibration_record=rig.calibration_record or "",
             calibration_record_sha256=digest(rig.record_text) if rig.record_text else "",
