@@ -63,6 +63,13 @@ async def send_stop(drives: Sequence[Drive], *, emergency: bool = False) -> list
     return errors
 
 
+def took_it(drives: Sequence[Drive], errors: Sequence[DriveError]) -> list[str]:
+    """'spin (id 1)', ... of the `drives` whose stop word went out: those no error of `send_stop`
+    names."""
+    missed = {err.drive for err in errors}
+    return [f"{d.name} (id {d.device_id})" for d in drives if d.device_id not in missed]
+
+
 async def _to_each(drives: Sequence[Drive], write: Callable[[Drive, int], Awaitable[None]]) -> list[DriveError]:
     """`write(drive, retries)` to every drive: one try each, then the retries of
     those that timed out. Returns the errors of the drives that missed it."""

@@ -91,14 +91,13 @@ def _delivered(sent: list[str]) -> str:
 async def _stop_words_best_effort(url, d, emergency, interrupt) -> list[str]:
     """The stop words to each drive that answers (no reads first); the drives that took theirs.
     A signal meanwhile does not cut them short (`interrupt.stopping`): what they reached is said."""
-    from drives.stop import send_stop
+    from drives.stop import send_stop, took_it
     from orbitrig.run.drive_setup import bare_drives, modbus_link
 
     interrupt.stopping = True
     link = modbus_link(url, d)
     drives = list(bare_drives(link, d))
     try:
-        missed = {err.drive for err in await send_stop(drives, emergency=emergency)}
+        return took_it(drives, await send_stop(drives, emergency=emergency))
     finally:
         await link.close()
-    return [f"{dr.name} (id {dr.device_id})" for dr in drives if dr.device_id not in missed]

@@ -15,7 +15,7 @@ import logging
 
 from drives.errors import DriveError
 from drives.link import ModbusLink
-from drives.stop import send_stop
+from drives.stop import send_stop, took_it
 from orbitrig.config import Drives
 from orbitrig.run.drive_setup import bare_drives, modbus_link
 
@@ -52,8 +52,7 @@ async def emergency_stop(url: str, d: Drives, holder: asyncio.Future[object] | N
     if not errors:
         log.warning("abort: emergency stop (OFF3) sent to both drives (no run held them)")
         return None, "emergency stop (OFF3) sent to both drives over a link of the service's own (no run held them)"
-    missed = {err.drive for err in errors}
-    sent = [f"{dr.name} (id {dr.device_id})" for dr in pair if dr.device_id not in missed]
+    sent = took_it(pair, errors)
     why = "; ".join(str(err) for err in errors)
     return f"emergency stop (OFF3) delivered to {', '.join(sent) or 'no drive'} only: {why}; {ESTOP}", None
 
