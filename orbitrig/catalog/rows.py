@@ -31,12 +31,6 @@ def _number(value: Any) -> float:
         return math.nan
 
 
-def run_id(run: Run) -> str:
-    """The run's catalog identity: rig id and creation time (ISO 8601 UTC), which
-    stay the same when the directory is moved or copied."""
-    return f"{run.provenance.get('rig_id') or 'rig'}@{run.created}"
-
-
 def run_rows(run: Run, points: list[Point] | None = None) -> list[dict[str, Any]]:
     """The catalog rows of ``points`` (default: the run's complete points)."""
     points = run.complete_points if points is None else points
@@ -47,7 +41,7 @@ def run_rows(run: Run, points: list[Point] | None = None) -> list[dict[str, Any]
 def _run_columns(run: Run) -> dict[str, Any]:
     prov = run.provenance
     return {
-        "run_id": run_id(run),
+        "run_id": run.run_id,
         "run_path": str(Path(run.directory).resolve()),
         "run_status": str(run.status),
         "created": run.created,

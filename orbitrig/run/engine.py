@@ -72,7 +72,6 @@ from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.store.estimate import plan_bytes
 from orbitrig.store.errors import StorageError, StorageFullError
 from orbitrig.store.writer import RunStore
-from rigunits import utc_stamp
 
 log = logging.getLogger(__name__)
 
@@ -158,7 +157,7 @@ class RunEngine(OperatorRequests):
     def _start(self, plan: Plan, store: RunStore, done: list[int], resume: bool) -> None:
         self._store, self._failure = store, None
         self._control.reset()
-        self.run_id = f"{plan.name}-{utc_stamp()}"  # millisecond resolution: ids stay unique
+        self.run_id = store.run_id  # the stored run's id: the catalog's, and a resume's too
         self._t0 = time.monotonic()
         self._log_t0 = self._t0 - (run_age(store) if resume else 0.0)  # the logs' t: s since the run started
         self.timing.clear()

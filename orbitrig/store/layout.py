@@ -163,3 +163,14 @@ class RunLayout:
         while (self.aside / f"{point_name(index)}.{reason}.{n}").exists():
             n += 1
         return self.aside / f"{point_name(index)}.{reason}.{n}"
+
+
+def freq_dep_from_key(key: str) -> str:
+    """Undo storage's key mangling: 'power_auto' -> 'power:auto', 'power_1_2_3' -> 'power:1,2,3'."""
+    head, sep, rest = key.partition("_")
+    return head if not sep else f"{head}:{rest.replace('_', ',')}"
+
+
+def freq_dep_key(freq_dep: str) -> str:
+    """Storage's key form of a frequency-dependence spec (':' and ',' -> '_')."""
+    return freq_dep.replace(":", "_").replace(",", "_")

@@ -26,7 +26,9 @@ import numpy.typing as npt
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.errors import RunDirError as RunDirError  # its readers' error, imported from here too
 from orbitrig.store.h5_values import json_attr, open_h5, stored_values, text
+from orbitrig.store.identity import run_identity
 from orbitrig.store.layout import READABLE_FORMATS, RUN_FILE, RunLayout
+from orbitrig.store.layout import freq_dep_from_key, freq_dep_key as freq_dep_key  # storage's key form, read here
 from orbitrig.store.index import NEVER_COMPLETED
 from orbitrig.store.status import RunStatus
 
@@ -144,6 +146,11 @@ class Run:
     def complete_points(self) -> list[Point]:
         return [p for p in self.points if p.complete]
 
+    @property
+    def run_id(self) -> str:
+        """The run's id (orbitrig.store.identity): as its sweep, the service and the catalog name it."""
+        return run_identity(self.provenance.get("rig_id", ""), self.created)
+
 
 #: who made the run, where and when (docs/storage.md); `ended` is "" while the run is running
 #: the run's provenance as read (text; ``sensor_serials`` a JSON object channel -> serial number)
@@ -154,17 +161,6 @@ PROVENANCE_KEYS: tuple[str, ...] = (*_WHO_WHERE, "started", "ended")  # "ended" 
 def _provenance_text(value: Any) -> str:
     """A provenance value of run.json as run.h5 stores it: text, a mapping as JSON."""
     return json.dumps(value) if isinstance(value, dict) else str(value)
-
-
-def freq_dep_from_key(key: str) -> str:
-    """Undo storage's key mangling: 'power_auto' -> 'power:auto', 'power_1_2_3' -> 'power:1,2,3'."""
-    head, sep, rest = key.partition("_")
-    return head if not sep else f"{head}:{rest.replace('_', ',')}"
-
-
-def freq_dep_key(freq_dep: str) -> str:
-    """Storage's key form of a frequency-dependence spec (':' and ',' -> '_')."""
-    return freq_dep.replace(":", "_").replace(",", "_")
 
 
 def read_run(directory: str | Path, *, blocks: bool = True) -> Run:

@@ -26,6 +26,7 @@ from orbitrig.store import csvfile, journal, pieces
 from orbitrig.store.consolidate import RunImage, read_header
 from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F401  (the CSV's public names)
 from orbitrig.store.durable import APPEND_FLAGS, TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
+from orbitrig.store.identity import header_identity
 from orbitrig.store.errors import RunDirError, StorageError, StorageFullError, storage_error
 from orbitrig.store.index import NEVER_COMPLETED, commit_record, point_state, scan
 from orbitrig.store.layout import FORMAT, RunLayout, point_name
@@ -133,6 +134,11 @@ class RunStore:
             raise StorageError(lay.header, "does not exist: nothing to resume")
         self._header = read_header(lay)
         return self
+
+    @property
+    def run_id(self) -> str:
+        """The run's id (orbitrig.store.identity): the same in every session of a resumed run."""
+        return header_identity(self._header or read_header(self.layout))
 
     def stored_configs(self) -> tuple[str, str, bool]:
         """(rig TOML text, matrix TOML text, sim) of the stored run."""

@@ -1,0 +1,19 @@
+"""A run's identity: one id for the run, wherever it is read (MQTT, logs, catalog, exports)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+
+def run_identity(rig_id: str, created: str) -> str:
+    """``<rig id>@<creation time>`` (ISO 8601 UTC, run.json's ``created``; rig id ``rig`` when
+    none was recorded): the same after the directory is moved or copied and after a resume."""
+    return f"{rig_id or 'rig'}@{created}"
+
+
+def header_identity(header: Mapping[str, Any]) -> str:
+    """:func:`run_identity` of a run.json header (its provenance's rig_id and ``created``)."""
+    prov = header.get("provenance")
+    rig_id = str(prov.get("rig_id", "")) if isinstance(prov, Mapping) else ""
+    return run_identity(rig_id, str(header.get("created", "")))
