@@ -81,6 +81,19 @@ def quantile(interval: Interval, dof: int, level: float = 0.95) -> float:
     return t_quantile(dof, level)
 
 
+#: coverage probability of an expanded uncertainty U = k u: the normal distribution's at k = 2
+U_COVERAGE = 0.9545
+
+
+def coverage_factor(interval: Interval | str, dof: int) -> float:
+    """k of the expanded uncertainty U = k u at :data:`U_COVERAGE`: 2 for a known covariance
+    (normal), Student's t with ``dof`` for one estimated from the residual (2.87 at dof 4,
+    about 2 from dof 100 on; NaN at dof 0)."""
+    if Interval(interval) == Interval.NORMAL:
+        return 2.0
+    return t_quantile(dof, U_COVERAGE)
+
+
 def intervals(
     theta: np.ndarray, std: np.ndarray, dof: int, level: float = 0.95, interval: Interval = Interval.STUDENT_T
 ) -> np.ndarray:

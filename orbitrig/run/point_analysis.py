@@ -14,7 +14,8 @@ object of `identify --json`) under its own key:
   of the same model per coefficient, and ``consistent`` judged for all coefficients at once
   (chi2 <= limit, the chi2(dof) quantile at the family-wise false-flag level, 5 %;
   reduction.systematic.lms_agreement);
-- ``expanded_uncertainty``: {"k": 2, "basis": "combined" | "statistical", "values": {key: U}},
+- ``expanded_uncertainty``: {"k", "basis": "combined" | "statistical", "values": {key: U}}
+  (k: reduction.statistics.coverage_factor, 2 with the stated u_*),
   the expanded uncertainty of every coefficient: k times the combined standard uncertainty
   (statistical and calibration), or k times the statistical one when the rig states no
   calibration uncertainty or the budget failed; ``not_determined``: the coefficients whose U
@@ -37,12 +38,13 @@ from orbitrig.config import LMS, CalibrationUncertainty, ModelSpec
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.records import IdentificationEntry
 from reduction.arrays import FloatArray
+from orbitrig.store.fit_record import coverage_of
 from reduction.adequacy import frequency_dependence
 from reduction.derived import derived_quantities
 from reduction.errors import ReductionError
 from reduction.identify import identify
 from reduction.result import Identification
-from reduction.statistics import not_determined
+from reduction.statistics import coverage_factor, not_determined
 from reduction.systematic import (
     Budget,
     Calibration,
@@ -53,8 +55,6 @@ from reduction.systematic import (
 )
 from reduction.table import OrbitTable
 
-#: coverage factor of the expanded uncertainty U (as the budget's)
-K_EXPANDED = 2.0
 _FAILURES = (ReductionError, np.linalg.LinAlgError, ValueError, ZeroDivisionError)
 
 
@@ -117,13 +117,14 @@ def analyse_point(
 
 def expanded_uncertainty(d: dict[str, Any]) -> dict[str, Any]:
     """{"k", "basis", "values"} of a fit's stored JSON ``d``: its budget's expanded (combined)
-    uncertainty where there is one, else K_EXPANDED times the statistical standard error."""
+    uncertainty where there is one, else k times the statistical standard error (k of the fit's
+    interval and dof, orbitrig.store.fit_record.coverage_of: 2 with the stated u_*)."""
     u = d.get("uncertainty") or {}
     if u.get("expanded"):
         return {"k": float(u["k"]), "basis": UncertaintyBasis.COMBINED.value, "values": dict(u["expanded"])}
-    std = d.get("std_errors") or {}
-    values = {k: (None if std.get(k) is None else K_EXPANDED * std[k]) for k in d["coefficients"]}
-    return {"k": K_EXPANDED, "basis": UncertaintyBasis.STATISTICAL.value, "values": values}
+    std, k_cov = d.get("std_errors") or {}, coverage_of(d)
+    values = {k: (None if std.get(k) is None else k_cov * std[k]) for k in d["coefficients"]}
+    return {"k": k_cov, "basis": UncertaintyBasis.STATISTICAL.value, "values": values}
 
 
 def _guarded(fn: Callable[..., dict[str, Any]], *args: object) -> dict[str, Any]:
@@ -140,7 +141,7 @@ def _budget(
     budgets: dict[tuple[LoadSystem, str], Budget],
     where: tuple[LoadSystem, str],
 ) -> dict[str, Any]:
-    b = uncertainty_budget(ident, table, cal)
+    b = uncertainty_budget(ident, table, cal, k=coverage_factor(ident.interval, ident.dof))  # t(dof) bounds k
     budgets[where] = b
     _, sigma = cal.parameters()
     return {

@@ -18,6 +18,7 @@ import numpy.typing as npt
 
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.layout import coefficient_si_unit
+from reduction.statistics import coverage_factor
 from reduction.systematic import UncertaintyBasis
 
 if TYPE_CHECKING:
@@ -26,26 +27,33 @@ if TYPE_CHECKING:
 Floats = npt.NDArray[np.float64]
 
 BUDGET_PARTS = ("statistical", "systematic", "combined", "expanded")
-COVERAGE_K = 2.0  # U = 2 x std when the run stored no budget
+COVERAGE_K = 2.0  # k of U for a known covariance (reduction.statistics.coverage_factor)
 
 
 def _num(v: Any) -> float:
     return math.nan if v is None else float(v)
 
 
+def coverage_of(result: dict[str, Any]) -> float:
+    """k of an `identify --json` object's statistical U (reduction.statistics.coverage_factor of
+    its ``interval`` and ``dof``; 2 for a result stored before ``interval`` was)."""
+    interval = result.get("interval")
+    return coverage_factor(interval, int(result.get("dof") or 0)) if interval else COVERAGE_K
+
+
 def expanded_uncertainty(result: dict[str, Any]) -> dict[str, float]:
     """U of each coefficient of an `identify --json` object as stored (SI): the sweep's
-    ``expanded_uncertainty`` (orbitrig.run.point_analysis: k = 2, calibration included when
-    stated), else the stored budget's expanded uncertainty, else 2 x the standard error
-    (statistical only). NaN where none is known."""
+    ``expanded_uncertainty`` (orbitrig.run.point_analysis, calibration included when
+    stated), else the stored budget's expanded uncertainty, else k x the standard error
+    (statistical only; k of :func:`coverage_of`). NaN where none is known."""
     names = list(result.get("coefficients") or {})
     budget = (result.get("expanded_uncertainty") or {}).get("values") or (result.get("uncertainty") or {}).get(
         "expanded"
     )
     if budget:
         return {k: _num(budget.get(k)) for k in names}
-    std = result.get("std_errors") or {}
-    return {k: COVERAGE_K * _num(std.get(k)) for k in names}
+    std, k_cov = result.get("std_errors") or {}, coverage_of(result)
+    return {k: k_cov * _num(std.get(k)) for k in names}
 
 
 def uncertainty_basis(result: dict[str, Any]) -> UncertaintyBasis:

@@ -167,3 +167,19 @@ def test_waveforms(run, h5, sim_run):
     assert wave["mean"].attrs["units_fx_piezo"] == "N" and wave["mean"].attrs["units_x_a"] == "m"
     assert wave["orbit_hz"].attrs["units"] == "Hz" and wave.sizes["block"] == 10
     assert int(wave["direction"].sel(block="02_fwd")) == 1 and int(wave["n_records"][0]) == 10
+
+
+def test_a_table_without_stated_uncertainties_gets_students_coverage_factor(run):
+    """Without u_* the covariance comes from the residual (interval student_t): U is t at
+    95.45 % with the fit's dof times the standard error, not 2 x (which covers 89 % at dof 4)."""
+    from scipy import stats
+
+    table = run.table(0, "strain")
+    bare = table.drop(columns=[c for c in table.columns if c.startswith("u_")]).iloc[:3]
+    fit = orbitrig.identify_table(bare, model="kc8")
+    assert fit.result["interval"] == "student_t" and fit.result["dof"] == 4
+    k = (fit.coefficients["U"] / fit.coefficients["std"]).to_numpy()
+    assert np.allclose(k, stats.t.ppf(0.5 + 0.9545 / 2, 4), rtol=1e-9) and 2.86 < k[0] < 2.88
+    stated = orbitrig.identify_table(table, model="kc8")
+    assert stated.result["interval"] == "normal"
+    np.testing.assert_allclose(stated.coefficients["U"], 2 * stated.coefficients["std"], rtol=1e-12)
