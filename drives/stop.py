@@ -1,4 +1,20 @@
-"""The stop command to a set of drives: stop words first, to every drive, then zero references."""
+"""The stop command to a set of drives: stop words first, to every drive, then zero references.
+
+Conventions:
+
+- A stop writes its control word (OFF1 ramp stop, OFF3 emergency stop) to every drive,
+  one try each, then the retries, then REF = 0 to every drive the same way.
+- A write is tried again (`Drive.write_retries` more tries) after a timeout or a Modbus
+  exception that says "not now" (`PASSING_EXCEPTIONS`: 06 busy, 0A / 0B gateway): writing
+  a control word or a reference again is harmless. Any other error is not retried.
+- `StopSender` sends the stops of one set of drives one after another; their words never
+  interleave on the link (`ModbusLink.reserved`, held from the moment a stop task runs).
+- An emergency stop asked while a stop is under way takes it over: every control word that
+  stop has still to write is OFF3, and the drives that took its OFF1 get OFF3 next, after the
+  request on the link but before any retry not yet begun (the link's own retries of one call,
+  `Drive.write_retries` - 1 at most, keep their word). A stop leaves its zero references to
+  the stop asked after it, so the words of every stop asked go out before any zero reference.
+"""
 
 from __future__ import annotations
 
@@ -9,33 +25,52 @@ from collections.abc import Awaitable, Callable, Sequence
 from typing import TYPE_CHECKING
 
 from drives import registers as R
-from drives.errors import DriveError, DriveTimeoutError
+from drives.errors import DriveError, DriveExceptionResponse, DriveTimeoutError
 
 if TYPE_CHECKING:
     from drives.drive import Drive
 
 log = logging.getLogger(__name__)
 
+#: Modbus exception codes retried like a timeout: 06 server device busy, 0A gateway path
+#: unavailable, 0B gateway target device failed to respond.
+PASSING_EXCEPTIONS = frozenset({0x06, 0x0A, 0x0B})
+
+#: `write(drive, value, retries)`: one write of `value`, the link retrying its timeouts `retries` times.
+_Write = Callable[["Drive", int, int], Awaitable[None]]
+
 
 class StopSender:
     """The stops of one set of drives, each in a task of its own (delivered even if whoever
     asked is cancelled), one after another: a stop asked while one is under way goes out
-    once that one has (their words never interleave on the link)."""
+    once that one has (their words never interleave on the link). Stops are numbered in the
+    order asked; an emergency stop turns every earlier stop still under way into one."""
 
     def __init__(self, drives: Sequence[Drive]):
         self.drives = drives
         self._last: asyncio.Task[list[DriveError]] | None = None
+        self._asked = 0  # number of the last stop asked
+        self._emergency = 0  # number of the last emergency stop asked (0: none)
 
     def send(self, *, emergency: bool = False) -> asyncio.Task[list[DriveError]]:
         """Start a stop now; the task's result: the delivery errors (`send_stop`)."""
         before = self._last
-        self._last = asyncio.get_running_loop().create_task(self._after(before, emergency), name="drives-stop")
-        return self._last
+        self._asked += 1
+        if emergency:
+            self._emergency = self._asked
+        task = asyncio.get_running_loop().create_task(self._after(before, self._asked), name="drives-stop")
+        self._last = task
+        return task
 
-    async def _after(self, before: asyncio.Task[list[DriveError]] | None, emergency: bool) -> list[DriveError]:
-        if before is not None and not before.done():
-            await asyncio.wait([before])
-        return await send_stop(self.drives, emergency=emergency)
+    def _word(self, n: int) -> int:
+        """The control word of stop `n` now: OFF3 if it or any stop asked after it is an emergency stop."""
+        return R.CW_EMERGENCY_STOP if self._emergency >= n else R.CW_RAMP_STOP
+
+    async def _after(self, before: asyncio.Task[list[DriveError]] | None, n: int) -> list[DriveError]:
+        with _reserved(self.drives):  # no other request between the stop under way and this one
+            if before is not None and not before.done():
+                await asyncio.wait([before])
+            return await _stop(self.drives, lambda: self._word(n), superseded=lambda: self._asked > n)
 
 
 async def send_stop(drives: Sequence[Drive], *, emergency: bool = False) -> list[DriveError]:
@@ -46,19 +81,26 @@ async def send_stop(drives: Sequence[Drive], *, emergency: bool = False) -> list
     every request waiting for the link, the poll's and the run's, and none of
     theirs between the stop's own); a drive
     that does not take it does not keep the others from getting theirs: each
-    gets one try first, and only then are the timed-out ones retried
-    (`Drive.write_retries`), so one silent drive delays the other's stop word by
-    one request timeout, not by all its retries.
+    gets one try first, and only then are the failed ones retried (after a
+    timeout or a passing exception answer, `Drive.write_retries`), so one silent
+    drive delays the other's stop word by one request timeout, not by all its retries.
     Returns the delivery errors (logged), one per drive that missed its stop word.
     """
     word = R.CW_EMERGENCY_STOP if emergency else R.CW_RAMP_STOP
-    with contextlib.ExitStack() as links:
-        for link in {id(d.link): d.link for d in drives}.values():
-            links.enter_context(link.reserved())  # the stop's words back to back
-        errors = await _to_each(drives, lambda d, retries: d.write_control(word, retries=retries, urgent=True))
+    return await _stop(drives, lambda: word, superseded=lambda: False)
+
+
+async def _stop(drives: Sequence[Drive], word: Callable[[], int], superseded: Callable[[], bool]) -> list[DriveError]:
+    """`send_stop` with the control word `word()` read before each write; the zero references
+    end (left to the later stop) once `superseded()`."""
+    with _reserved(drives):  # the stop's words back to back
+        errors = await _to_each(drives, lambda d, cw, retries: d.write_control(cw, retries=retries, urgent=True), word)
         for err in errors:
             log.error("stop command not delivered: %s", err)
-        for err in await _to_each(drives, lambda d, retries: d.write_reference(0, retries=retries, urgent=True)):
+        zero = _to_each(
+            drives, lambda d, ref, retries: d.write_reference(ref, retries=retries, urgent=True), lambda: 0, superseded
+        )
+        for err in await zero:
             log.warning("zero reference not delivered: %s", err)
     return errors
 
@@ -70,29 +112,101 @@ def took_it(drives: Sequence[Drive], errors: Sequence[DriveError]) -> list[str]:
     return [f"{d.name} (id {d.device_id})" for d in drives if d.device_id not in missed]
 
 
-async def _to_each(drives: Sequence[Drive], write: Callable[[Drive, int], Awaitable[None]]) -> list[DriveError]:
-    """`write(drive, retries)` to every drive: one try each, then the retries of
-    those that timed out. Returns the errors of the drives that missed it."""
-    errors: dict[int, DriveError] = {}
-    timed_out = []
+def _reserved(drives: Sequence[Drive]) -> contextlib.ExitStack:
+    """A context: the links of `drives` reserved for urgent requests (a stop's) while open."""
+    links = contextlib.ExitStack()
+    for link in {id(d.link): d.link for d in drives}.values():
+        links.enter_context(link.reserved())
+    return links
+
+
+async def _to_each(
+    drives: Sequence[Drive], write: _Write, wanted: Callable[[], int], superseded: Callable[[], bool] = lambda: False
+) -> list[DriveError]:
+    """The value `wanted()` (read before each write) to every drive: one try each; then the
+    drives that took an older value than the one wanted now (OFF1 once OFF3 is asked) get it,
+    ahead of the retries of the drives whose try failed for a passing reason (`_passing`),
+    one drive's retries at a time. Ends early once `superseded()`.
+    Returns the errors of the drives that took no value."""
+    w = _Writes(write, wanted)
+    again: list[Drive] = []  # to be retried, in order
     for d in drives:
+        if superseded():
+            break
+        if not await w.once(d) and _passing(w.errors[id(d)]):
+            again.append(d)
+    while not superseded():
+        stale = w.stale(drives)
+        if stale:  # before anyone's retries
+            for d in stale:
+                if not await w.once(d) and _passing(w.errors[id(d)]) and d not in again:
+                    again.append(d)
+        elif again:
+            await w.retried(again.pop(0))
+        else:
+            break
+    for d in w.stale(drives, tried=True):
+        log.error(
+            "%s drive (id %d) took %#06x, not %#06x: %s",
+            d.name,
+            d.device_id,
+            w.took[id(d)],
+            wanted(),
+            w.errors.get(id(d)),
+        )
+    return [w.errors[id(d)] for d in drives if id(d) not in w.took and id(d) in w.errors]
+
+
+class _Writes:
+    """One value to each of a set of drives (`_to_each`): the value each took, the value last
+    tried, and the error of each drive's last failed try."""
+
+    def __init__(self, write: _Write, wanted: Callable[[], int]):
+        self.write, self.wanted = write, wanted
+        self.took: dict[int, int] = {}  # id(drive) -> the value it took last
+        self.tried: dict[int, int] = {}  # id(drive) -> the value tried last
+        self.errors: dict[int, DriveError] = {}  # id(drive) -> the error of its last try, if it failed
+
+    async def once(self, d: Drive, retries: int = 0) -> bool:
+        """Write the value wanted now to `d` (the link retrying `retries` timeouts); whether it took it."""
+        value = self.tried[id(d)] = self.wanted()
         try:
-            await write(d, 0)
-        except DriveTimeoutError as err:
-            timed_out.append(d)
-            errors[id(d)] = err
+            await self.write(d, value, retries)
         except Exception as err:  # noqa: BLE001 - whatever one drive's write raised, the next gets its word
-            errors[id(d)] = _as_drive_error(d, err)
-    for d in timed_out:
-        if d.write_retries < 1:
-            continue
-        log.warning("%s drive (id %d): write timed out; retrying", d.name, d.device_id)
-        try:
-            await write(d, d.write_retries - 1)
-            del errors[id(d)]
-        except Exception as err:  # noqa: BLE001
-            errors[id(d)] = _as_drive_error(d, err)
-    return [errors[id(d)] for d in drives if id(d) in errors]
+            self.errors[id(d)] = _as_drive_error(d, err)
+            return False
+        self.took[id(d)] = value
+        self.errors.pop(id(d), None)
+        return True
+
+    async def retried(self, d: Drive) -> None:
+        """Up to `d.write_retries` tries more, while they fail for a passing reason."""
+        left = d.write_retries
+        while left > 0:
+            log.warning("%s drive (id %d): %s; trying again", d.name, d.device_id, self.errors[id(d)].reason)
+            before = d.link.retries
+            if await self.once(d, retries=left - 1):
+                return
+            left -= 1 + d.link.retries - before  # the link's own retries (after timeouts) count
+            if not _passing(self.errors[id(d)]):
+                return
+
+    def stale(self, drives: Sequence[Drive], *, tried: bool = False) -> list[Drive]:
+        """The drives that took a value other than the one wanted now, and have not been tried with
+        it yet (`tried`: also those that have)."""
+        value = self.wanted()
+        return [
+            d
+            for d in drives
+            if id(d) in self.took and self.took[id(d)] != value and (tried or self.tried[id(d)] != value)
+        ]
+
+
+def _passing(err: DriveError) -> bool:
+    """Whether `err` may pass on a second try: a timeout, or a busy / gateway exception answer."""
+    if isinstance(err, DriveExceptionResponse):
+        return err.exception_code in PASSING_EXCEPTIONS
+    return isinstance(err, DriveTimeoutError)
 
 
 def _as_drive_error(d: Drive, err: Exception) -> DriveError:
