@@ -26,7 +26,15 @@ import numpy as np
 from orbitrig.errors import IdentificationError, ReductionError
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.reader import Point, Run, StoredIdentification, freq_dep_key
-from orbitrig.store.csvfile import CSV_HEAD, coef_order, coefficient_column, one_line, render_table, true_entry
+from orbitrig.store.csvfile import (
+    CSV_HEAD,
+    coef_order,
+    coefficient_column,
+    one_line,
+    render_table,
+    true_entry,
+    warnings_cell,
+)
 from orbitrig.store.durable import write_atomic
 
 #: constant-term keys in the spec's order
@@ -147,7 +155,7 @@ def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, 
     """Columns and rows in the layout of coefficients.csv (docs/storage.md, orbitrig.store.writer):
     settings, result columns, every coefficient and its `_std`, and in --sim runs `true_K`
     (fit_true_values: each fit's own truth); no `_U`, and `not_determined` by the fit's own 95 %
-    interval, not by U (see the module's docstring)."""
+    interval, not by U (see the module's docstring); ``warnings`` joined as coefficients.csv's."""
     keys: list[str] = []
     for r in rows:
         if r.identification is not None:
@@ -173,6 +181,7 @@ def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, 
             "method": r.method,
             "error": one_line(r.error or ""),
             "not_determined": " ".join(r.identification.not_determined if r.identification is not None else []),
+            "warnings": warnings_cell(r.identification.warnings if r.identification is not None else ()),
         }
         ident = r.identification
         if ident is not None:

@@ -1,7 +1,8 @@
 """`orbitrig identify TABLE.csv --model NAME [--freq-dep SPEC] [--method ...] [--solver ...] [--json]`.
 
 Contract: docs/orbit-table.md. With --json exactly the result object on stdout (exit 0);
-otherwise readable tables on stdout and the result's notes and warnings on stderr. The
+otherwise tables on stdout (text: numbers rounded for reading; csv: every number in full, the
+shortest decimal that reads back as the same double) and the result's notes and warnings on stderr. The
 table's warnings (a header column that looks like a misspelt known one) lead the result's.
 Unidentifiable model or malformed table: exit 2, nothing on stdout, the reason on stderr.
 """
@@ -55,7 +56,7 @@ def register(app: typer.Typer) -> None:
         fmt: OutputFormat = typer.Option(
             OutputFormat.TEXT,
             "--format",
-            help="text: plain tables, every number in full at any width; csv: the coefficient, force and covariance tables as CSV; json: the result object",
+            help="text: plain tables for reading, numbers rounded (values to 5, the rest to 4 significant digits), never cut at any width; csv: the coefficient, force and covariance tables as CSV, every number in full (the shortest decimal that reads back as the same double); json: the result object",
         ),
     ) -> None:
         """Identify rotordynamic coefficients K, C, D from an orbit table."""
@@ -114,15 +115,21 @@ def _write_json(result, rows: int = 20000) -> None:
     out.flush()
 
 
-def _fmt(v) -> str:
+def _fmt(v, full: bool = False, digits: int = 4) -> str:
+    """A number as a table shows it: rounded to `digits` significant digits for reading, or
+    `full` (CSV) the shortest decimal that reads back as the same double (repr); a missing or
+    non-finite number is '-' (CSV: an empty cell)."""
     import math
 
-    return "-" if v is None or not math.isfinite(v) else f"{v:.4g}"
+    if v is None or not math.isfinite(v):
+        return "" if full else "-"
+    return repr(float(v)) if full else f"{v:.{digits}g}"
 
 
 def _print_readable(result, path: Path, fmt: OutputFormat) -> None:
-    """The fit's summary lines (text only) and its tables (coefficients, forces, covariance),
-    every number in full."""
+    """The fit's summary lines (text only) and its tables (coefficients, forces, covariance):
+    text rounds the numbers for reading, CSV has every number in full."""
+    full = fmt == OutputFormat.CSV
     if fmt == OutputFormat.TEXT:
         fd = result.freq_dep + (f" (chosen M = {result.exponent})" if result.exponent is not None else "")
         typer.echo(wrap(f"{path}: model {result.model}, freq-dep {fd}, method {result.method}, solver {result.solver}"))
@@ -142,25 +149,25 @@ def _print_readable(result, path: Path, fmt: OutputFormat) -> None:
         if result.covariance is None:
             typer.echo("no covariance: the fit gives none")
         typer.echo("")
-    covariance = _covariance_table(result)
-    tables = [_coefficient_table(result), _force_table(result)] + ([covariance] if covariance else [])
+    covariance = _covariance_table(result, full)
+    tables = [_coefficient_table(result, full), _force_table(result, full)] + ([covariance] if covariance else [])
     typer.echo(render(tables, fmt))
 
 
-def _coefficient_table(result) -> PlainTable:
+def _coefficient_table(result, full: bool = False) -> PlainTable:
     t = PlainTable(title="Coefficients (SI, Omega in rad/s)")
     for col in ("coefficient", "value", "std error", "rel. std error", "95 % interval", "unit"):
         t.add_column(col, justify="left" if col in ("coefficient", "unit") else "right")
     for key, v in result.coefficients.items():
         se = result.std_errors.get(key)
-        rel = "-" if se is None or v == 0 else f"{100 * se / abs(v):.2g} %"
+        rel = "-" if se is None or v == 0 else f"{_fmt(100 * se / abs(v), full, 2)} %"
         ci = result.confidence_95.get(key)
-        interval = "-" if ci is None else f"[{ci[0]:.4g}, {ci[1]:.4g}]"
-        t.add_row(key, f"{v:.5g}", _fmt(se), rel, interval, _unit(key))
+        interval = "-" if ci is None else f"[{_fmt(ci[0], full)}, {_fmt(ci[1], full)}]"
+        t.add_row(key, _fmt(v, full, 5), _fmt(se, full), rel, interval, _unit(key))
     return t
 
 
-def _covariance_table(result) -> PlainTable | None:
+def _covariance_table(result, full: bool = False) -> PlainTable | None:
     """The covariance of the free coefficients (SI), rows and columns in ``result.free``'s order;
     the entry of row a, column b is in unit(a) x unit(b) (each row's unit in the ``unit`` column,
     the columns' the same by symmetry). None when the fit gives no covariance."""
@@ -176,20 +183,20 @@ def _covariance_table(result) -> PlainTable | None:
     for name in result.free:
         t.add_column(name, justify="right")
     for name, row in zip(result.free, result.covariance):
-        t.add_row(name, _unit(name), *(_fmt(float(v)) for v in row))
+        t.add_row(name, _unit(name), *(_fmt(float(v), full) for v in row))
     return t
 
 
-def _force_table(result) -> PlainTable:
+def _force_table(result, full: bool = False) -> PlainTable:
     f = PlainTable(title="Reproduced vs measured force (reproduced minus measured)")
     for col in ("orbit Hz", "Fx amp %", "Fx phase deg", "Fy amp %", "Fy phase deg"):
         f.add_column(col, justify="right")
     for row in result.fit:
         f.add_row(
-            f"{row['orbit_hz']:.4g}",
-            _fmt(row["fx_amp_err_pct"]),
-            _fmt(row["fx_phase_err_deg"]),
-            _fmt(row["fy_amp_err_pct"]),
-            _fmt(row["fy_phase_err_deg"]),
+            _fmt(row["orbit_hz"], full),
+            _fmt(row["fx_amp_err_pct"], full),
+            _fmt(row["fx_phase_err_deg"], full),
+            _fmt(row["fy_amp_err_pct"], full),
+            _fmt(row["fy_phase_err_deg"], full),
         )
     return f

@@ -47,7 +47,7 @@ FormatOpt = Annotated[
     OutputFormat,
     typer.Option(
         "--format",
-        help="text: a plain table, every number in full, split to the terminal's width; csv: the table as CSV; json: one object with every result",
+        help="text: a plain table of the constant terms in MN/m, kN s/m, kg to 4 significant digits, never cut, split to the terminal's width; csv: that table as CSV (every number in full, SI: DIR/reduce_*.csv); json: one object with every result",
     ),
 ]
 
@@ -66,7 +66,10 @@ def reduce_cmd(
     DIR/reduce_<model>_<freq-dep>_<method>.csv: the columns of coefficients.csv
     except the expanded uncertainties KEY_U (reduce makes no uncertainty budget;
     KEY_std is the fit's standard error; not_determined names the coefficients whose
-    95 % interval half-width exceeds their magnitude). The run's own
+    95 % interval half-width exceeds their magnitude; warnings holds each fit's
+    warnings joined with ' | '). Without --json each fit's warnings (reasons to
+    distrust it: ill-conditioning, a bad chi2, weak excitation, bias) also go to
+    standard error, one 'warning: point P LMS: ...' line each. The run's own
     results are left untouched. A damaged point is named on standard
     error and the exit status is 1, the others reduced and written (as export, report).
     """
@@ -101,7 +104,12 @@ def reduce_cmd(
         path = write_csv(csv_path(directory, model, freq_dep, method), rows, run.sim)
     except StorageError as err:
         _fail(str(err), 1)
-    _print_reduce(directory, run, rows, path, OutputFormat.JSON if as_json else fmt, f"{model} {freq_dep} ({method})")
+    fmt = OutputFormat.JSON if as_json else fmt
+    _print_reduce(directory, run, rows, path, fmt, f"{model} {freq_dep} ({method})")
+    if fmt != OutputFormat.JSON:  # as identify: with --json the warnings are in the object
+        for r in rows:
+            for warning in r.identification.warnings if r.identification is not None else ():
+                typer.echo(f"warning: point {r.point.name} {r.lms}: {warning}", err=True)
     if tell_skipped(selection.notes, selection.skipped):
         raise typer.Exit(1)
 

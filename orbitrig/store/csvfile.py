@@ -2,7 +2,8 @@
 
 Every column name states its unit (``spin_rpm``, ``recess_pressure_mpa``, ``Kxx [N/m]``,
 ``Cxy_1 [N s/m (rad/s)^-1]``, ``residual_rms [N]``); every row is one physical line
-(a refusal message that spans lines is joined with ' | '). Numbers are SI except the
+(a refusal message that spans lines is joined with ' | ', and so are a fit's ``warnings``,
+its reasons to distrust it: ill-conditioning, a bad chi2, weak excitation, bias). Numbers are SI except the
 settings columns, whose names give their unit. Empty cell: no value (refused model,
 or a number the identification could not give). ``{name}_U`` is the expanded uncertainty
 (k = 2, statistical and calibration combined; statistical only when the rig states no
@@ -17,7 +18,7 @@ from __future__ import annotations
 import csv
 import io
 import sys
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -48,9 +49,10 @@ CSV_HEAD = [
     "residual_rms [N]",
     "error",
     "not_determined",
+    "warnings",
 ]
 #: the head columns holding text (the others hold numbers)
-TEXT_COLUMNS = ("label", "lms", "model", "freq_dep", "method", "error", "not_determined")
+TEXT_COLUMNS = ("label", "lms", "model", "freq_dep", "method", "error", "not_determined", "warnings")
 #: the unit of each numeric head column that does not state it in brackets, as pint parses it
 HEAD_UNITS = {
     "point": "1",
@@ -89,6 +91,12 @@ def coef_order(key: str) -> tuple[int, int, str, str]:
 def one_line(text: str) -> str:
     """A message as one CSV line: line breaks become ' | '."""
     return " | ".join(part.strip() for part in str(text).splitlines() if part.strip())
+
+
+def warnings_cell(warnings: Iterable[str] | None) -> str:
+    """A fit's ``warnings`` (reasons to distrust it) as one CSV cell: each as one line
+    (`one_line`), joined with ' | '; "" for none."""
+    return " | ".join(filter(None, (one_line(w) for w in warnings or ())))
 
 
 def true_entry(truth: dict[str, Any], key: str) -> float:
@@ -149,6 +157,7 @@ def point_rows(point: Point, sim: bool) -> list[CsvRow]:
                 row[coefficient_column(k, "U")] = _num(expanded.get(k), ".6g")
             row["_keys"] = list(d["coefficients"])
             row["not_determined"] = " ".join(d.get("not_determined") or [])
+            row["warnings"] = warnings_cell(d.get("warnings"))
         else:
             row.update(freq_dep=ident.freq_dep, method=ident.method, error=one_line(ident.error or ""))
         if truth is not None:
@@ -208,6 +217,14 @@ def render_points(points: list[PointCsv]) -> bytes:
         where = [at.get(c) for c in cols]
         for cells in csv.reader(io.StringIO(p.body, newline="")):
             w.writerow(["" if i is None else cells[i] for i in where])
+    return buf.getvalue().encode("utf-8")
+
+
+def render_rows(rows: Iterable[Sequence[object]]) -> bytes:
+    """A CSV's bytes from its rows as lists of cells (header included), one line per row: the
+    writer of the exports' other CSV files (orbitrig.store.export_csv)."""
+    buf = io.StringIO(newline="")
+    csv.writer(buf, lineterminator="\n").writerows(rows)
     return buf.getvalue().encode("utf-8")
 
 

@@ -2,9 +2,10 @@
 
 The same content goes into each format: provenance (with the calibration record's and
 the simulator scenario's TOML text), the point's settings, its orbit tables (with the whirl
-direction), every fit's coefficients with std and U, covariance with the names of its rows,
-budget, derived quantities (with the C_eff zero crossings and the covariance they rest on)
-and adequacy (with its test), the simulator's truth, and the averaged waveforms. Units are
+direction), every fit's coefficients with std, U and 95 % interval, covariance with the names
+of its rows, budget, goodness of fit (dof, chi2, p_value, aic, bic), interval (where its
+quantile comes from) and the coverage factor k of U, notes and warnings, derived quantities
+(with the C_eff zero crossings and the covariance they rest on) and adequacy (with its test), the simulator's truth, and the averaged waveforms. Units are
 SI strings pint parses.
 """
 
@@ -17,7 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from orbitrig.store.fit_analysis import c_eff_zero
-from orbitrig.store.fit_record import BUDGET_PARTS, FitRecord
+from orbitrig.store.fit_record import BUDGET_PARTS, FitRecord, expanded_k
 from orbitrig.store.layout import SETTINGS_UNITS
 from orbitrig.store.orbit_table import orbit_table_columns
 
@@ -33,6 +34,18 @@ DERIVED_UNITS = {"c_eff_xx": "N s/m", "c_eff_yy": "N s/m", "wfr": "1"}
 #: the adequacy test's numbers (unit 1; supported: 1 yes, 0 no) and its text
 ADEQUACY_NUMBERS = ("supported", "p_value", "statistic", "dof", "alpha", "aic", "bic")
 ADEQUACY_TEXT = ("verdict", "test", "constant")
+#: a fit's single values beside the adequacy test (docs/orbit-table.md): name -> (unit, meaning), unit "" for text
+FIT_QUALITY = {
+    "dof": ("1", "degrees of freedom: 4 x rows - free coefficients"),
+    "chi2": ("1", "chi-square of the residual against the stated u_* (only with u_*)"),
+    "p_value": ("1", "upper-tail probability of chi2 with dof degrees of freedom"),
+    "aic": ("1", "Akaike information criterion of the fit"),
+    "bic": ("1", "Bayesian information criterion of the fit"),
+    "interval": ("", "quantile of interval_95: normal (covariance from the stated u_*) or student_t (dof)"),
+    "confidence_level": ("1", "two-sided coverage of interval_95"),
+    "k": ("1", "coverage factor of the expanded uncertainty U"),
+}
+CONFIDENCE_LEVEL = 0.95  # of the identification's confidence_95
 #: the names of an array's entries where a format flattens it (``<name>_<part>``)
 ARRAY_PARTS: dict[str, tuple[str, ...]] = {
     "adequacy_dof": ("numerator", "denominator"),
@@ -77,9 +90,12 @@ def table_columns(table: OrbitTable) -> dict[str, Column]:
 
 
 def fit_arrays(fit: FitRecord) -> dict[str, Any]:
-    """One fit as arrays: names, units, value, std, U, covariance (+ covariance_names), the
-    budget's parts and k, the adequacy numbers and verdict, E_n, ``not_determined`` (1 where U
-    exceeds the magnitude) and the fit's own ``truth`` (--sim) aligned with names."""
+    """One fit as arrays: names, units, value, std, U, ``interval_95`` (p, 2: low, high),
+    covariance (+ covariance_names), the budget's parts, the FIT_QUALITY values (dof, chi2,
+    p_value, aic, bic where the fit gives them; interval, confidence_level; k of U), the
+    adequacy numbers and verdict, E_n, ``not_determined`` (1 where U exceeds the magnitude),
+    the fit's own ``truth`` (--sim) aligned with names, and its ``notes`` and ``warnings``."""
+    result = fit.result or {}
     d: dict[str, Any] = {
         "names": fit.names,
         "units": fit.units,
@@ -88,22 +104,39 @@ def fit_arrays(fit: FitRecord) -> dict[str, Any]:
         "U": fit.U,
         "error": fit.error,
     }
+    if "confidence_95" in result:
+        ci = result["confidence_95"] or {}
+        d["interval_95"] = np.array([_number(ci.get(k) or [None, None]) for k in fit.names]).reshape(-1, 2)
     if fit.covariance is not None:
         d["covariance"], d["covariance_names"] = fit.covariance, fit.covariance_names
     d.update({part: fit.budget[part] for part in BUDGET_PARTS if part in fit.budget})
-    if "k" in fit.budget:
-        d["k"] = float(fit.budget["k"])
+    if fit.result is not None:
+        d.update(fit_quality(fit))
     if fit.adequacy:
         d.update({f"adequacy_{k}": str(fit.adequacy.get(k, "")) for k in ADEQUACY_TEXT})
         d.update({f"adequacy_{k}": _number(fit.adequacy.get(k)) for k in ADEQUACY_NUMBERS})
     if fit.lms_consistency and "e_n" in fit.lms_consistency:
         d["e_n"] = np.array([_number(fit.lms_consistency["e_n"].get(k)) for k in fit.names])
-    result = fit.result or {}
     if "not_determined" in result:
         d["not_determined"] = np.array([k in result["not_determined"] for k in fit.names], dtype=np.uint8)
     own = (result.get("truth") or {}).get("coefficients")
     if own is not None:  # the simulator's truth projected onto this fit's model
         d["truth"] = np.array([_number(own.get(k)) for k in fit.names])
+    d["notes"], d["warnings"] = list(result.get("notes") or []), list(result.get("warnings") or [])
+    return d
+
+
+def fit_quality(fit: FitRecord) -> dict[str, float | str]:
+    """The FIT_QUALITY values of a fit: dof, chi2, p_value, aic, bic as its result gives them
+    (null: NaN), its ``interval`` and the ``confidence_level`` of its interval_95, and
+    ``k``, the coverage factor of its U (orbitrig.store.fit_record.expanded_k)."""
+    result = fit.result or {}
+    d: dict[str, float | str] = {k: _scalar(result[k]) for k in ("dof", "chi2", "p_value", "aic", "bic") if k in result}
+    if "interval" in result:
+        d["interval"] = str(result["interval"] or "")
+    if "confidence_95" in result:
+        d["confidence_level"] = CONFIDENCE_LEVEL
+    d["k"] = expanded_k(result)
     return d
 
 
@@ -147,11 +180,16 @@ def derived_properties(fit: FitRecord) -> dict[str, tuple[Any, str]]:
 
 
 def fit_properties(fit: FitRecord) -> dict[str, tuple[float | str, str]]:
-    """The fit's single values: the budget's k and the adequacy test (numbers unit 1,
-    verdict, test and constant text, unit ""), an array one entry per name (ARRAY_PARTS)."""
+    """The fit's single values: FIT_QUALITY (dof, chi2, p_value, aic, bic, interval,
+    confidence_level, k of U) and the adequacy test (numbers unit 1, verdict, test and
+    constant text, unit ""), an array one entry per name (ARRAY_PARTS)."""
     d = fit_arrays(fit)
     return flat(
-        {k: (v, "" if isinstance(v, str) else "1") for k, v in d.items() if k == "k" or k.startswith("adequacy_")}
+        {
+            k: (v, "" if isinstance(v, str) else "1")
+            for k, v in d.items()
+            if k in FIT_QUALITY or k.startswith("adequacy_")
+        }
     )
 
 
@@ -209,6 +247,11 @@ def waveform_arrays(point: Point, channels: list[str]) -> list[dict[str, Any]]:
         b["channels"] = channels
         blocks.append(b)
     return blocks
+
+
+def _scalar(v: Any) -> float:
+    """A stored single number (None: NaN)."""
+    return math.nan if v is None else float(v)
 
 
 def _number(v: Any) -> float | npt.NDArray[np.float64]:

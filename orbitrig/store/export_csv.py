@@ -3,12 +3,16 @@
 - ``point_PPPP_<lms>.csv``: the orbit table (docs/orbit-table.md; ``orbit_hz [Hz]`` ...,
   ``direction [1]``), which `orbitrig identify` reads;
 - ``coefficients.csv``: as the run's (one row per point, load measuring system and fit);
-- ``fits.csv``: one row per point, fit and coefficient: ``value``, ``std``, ``U`` and the
-  budget's parts in the row's ``unit``, ``e_n``, and ``true`` (--sim: the constant best fit);
+- ``fits.csv``: one row per point, fit and coefficient: ``value``, ``std``, ``U``, the 95 %
+  interval ``interval_95_low``, ``interval_95_high`` and the budget's parts in the row's
+  ``unit``, ``e_n``, ``true`` (--sim: the fit's own truth), ``error`` and the fit's
+  ``warnings`` (joined with ' | ', on each of its rows);
 - ``covariance_PPPP_<key>.csv``: the covariance, the free coefficients' names as the first
   column and the header (entry in unit(row) x unit(column));
 - ``fit_properties.csv``: one row per point, fit and single value (``name``, ``value``,
-  ``unit``; ``unit`` empty for text): the budget's ``k``, the adequacy test
+  ``unit``; ``unit`` empty for text): ``dof``, ``chi2``, ``p_value``, ``aic``, ``bic`` (where
+  the fit gives them), ``interval`` (normal | student_t), ``confidence_level``, ``k`` (the
+  coverage factor of U), the adequacy test
   (``adequacy_verdict``, ``adequacy_test``, ``adequacy_dof_numerator`` ...) and what the
   derived quantities rest on (``derived_covariance``, ``derived_c_eff_zero_xx_omega_0`` ...);
 - ``derived_PPPP_<key>.csv``: the derived quantities at the point's orbit frequencies;
@@ -18,8 +22,6 @@
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -48,17 +50,14 @@ FIT_HEAD = [
     "value",
     "std",
     "U",
+    "interval_95_low",
+    "interval_95_high",
     *BUDGET_PARTS,
     "e_n [1]",
     "true",
     "error",
+    "warnings",
 ]
-
-
-def _render(rows: Sequence[Row]) -> bytes:
-    buf = io.StringIO(newline="")
-    csv.writer(buf, lineterminator="\n").writerows(rows)
-    return buf.getvalue().encode("utf-8")
 
 
 def _cell(v: float | None) -> str:
@@ -70,27 +69,17 @@ def _fit_rows(p: Point, sim: bool) -> list[Row]:
     for fit in point_fits(p):
         d = content.fit_arrays(fit)
         head = [p.index, fit.lms, fit.model, fit.freq_dep, fit.method]
+        warns = csvfile.warnings_cell(d["warnings"])
         if fit.error:
-            rows.append(head + [""] * (len(FIT_HEAD) - 6) + [csvfile.one_line(fit.error)])
+            rows.append(head + [""] * (len(FIT_HEAD) - 7) + [csvfile.one_line(fit.error), warns])
             continue
         for j, name in enumerate(fit.names):
+            interval = [_cell(v) for v in d["interval_95"][j]] if "interval_95" in d else ["", ""]
             parts = [_cell(d[part][j]) if part in d else "" for part in BUDGET_PARTS]
             true = csvfile.fit_truth(fit.result, p.truth if sim else None).get(name)
             e_n = _cell(d["e_n"][j]) if "e_n" in d else ""
-            rows.append(
-                head
-                + [
-                    name,
-                    fit.units[j],
-                    _cell(d["value"][j]),
-                    _cell(d["std"][j]),
-                    _cell(d["U"][j]),
-                    *parts,
-                    e_n,
-                    _cell(true),
-                    "",
-                ]
-            )
+            values = [_cell(d["value"][j]), _cell(d["std"][j]), _cell(d["U"][j]), *interval, *parts]
+            rows.append(head + [name, fit.units[j], *values, e_n, _cell(true), "", warns])
     return rows
 
 
@@ -98,7 +87,8 @@ PROPERTY_HEAD = ["point", "lms", "model", "freq_dep", "method", "name", "value",
 
 
 def _property_rows(p: Point) -> list[Row]:
-    """The fit_properties.csv rows of point `p`: each fit's k, adequacy and derived properties."""
+    """The fit_properties.csv rows of point `p`: each fit's FIT_QUALITY (dof, chi2, ..., k),
+    adequacy and derived properties."""
     rows: list[Row] = []
     for fit in point_fits(p):
         head = [p.index, fit.lms, fit.model, fit.freq_dep, fit.method]
@@ -119,14 +109,14 @@ def _table_files(p: Point, out: Path) -> list[Path]:
                 [n] + [_cell(v) for v in row] for n, row in zip(names, d["covariance"])
             ]
             files.append(out / f"covariance_{p.name}_{fit.key}.csv")
-            write_atomic(files[-1], _render(rows))
+            write_atomic(files[-1], csvfile.render_rows(rows))
         derived = content.derived_columns(fit)
         if derived:
             cols = list(derived.items())
             rows = [[f"{k} [{u}]" for k, (_, u) in cols]]
             rows += [[_cell(v[i]) for _, (v, _) in cols] for i in range(len(cols[0][1][0]))]
             files.append(out / f"derived_{p.name}_{fit.key}.csv")
-            write_atomic(files[-1], _render(rows))
+            write_atomic(files[-1], csvfile.render_rows(rows))
     return files
 
 
@@ -141,11 +131,13 @@ def export_csv(run: Run, points: list[Point], out: Path) -> list[Path]:
     write_atomic(path, csvfile.render([row for p in points for row in csvfile.point_rows(p, run.sim)]))
     files.append(path)
     files.append(out / "fits.csv")
-    write_atomic(files[-1], _render([FIT_HEAD] + [r for p in points for r in _fit_rows(p, run.sim)]))
+    write_atomic(files[-1], csvfile.render_rows([FIT_HEAD] + [r for p in points for r in _fit_rows(p, run.sim)]))
     files.append(out / "fit_properties.csv")
-    write_atomic(files[-1], _render([PROPERTY_HEAD] + [r for p in points for r in _property_rows(p)]))
+    write_atomic(files[-1], csvfile.render_rows([PROPERTY_HEAD] + [r for p in points for r in _property_rows(p)]))
     for p in points:
         files += _table_files(p, out)
     files.append(out / "provenance.csv")
-    write_atomic(files[-1], _render([["key", "value"]] + [[k, v] for k, v in content.provenance(run).items()]))
+    write_atomic(
+        files[-1], csvfile.render_rows([["key", "value"]] + [[k, v] for k, v in content.provenance(run).items()])
+    )
     return files

@@ -15,7 +15,11 @@ export is the same tree with
   group is written as ``<name>_attribute``.
 
 The attributes themselves stay, so h5py and MATLAB users read the metadata where run.h5 has
-it. orbitrig's readers (orbitrig.store.reader) read both layouts.
+it. Each identification group also gets the fit's single values that run.h5 keeps only in its
+``json`` (export_content.FIT_QUALITY: ``interval``, ``confidence_level``, ``k`` of U; dof,
+chi2, p_value, aic, bic are there already), each with ``__description`` (and ``__units``), so
+every export carries the same fit properties. orbitrig's readers (orbitrig.store.reader) read
+both layouts.
 """
 
 from __future__ import annotations
@@ -26,9 +30,12 @@ import h5py
 import numpy as np
 from h5py import h5d, h5s, h5t
 
+from orbitrig.store import export_content as content
 from orbitrig.store.consolidate import build_run_file
 from orbitrig.store.durable import StreamedH5
 from orbitrig.store.errors import RunDirError, storage_error
+from orbitrig.store.fit_record import fit_record
+from orbitrig.store.h5_values import json_attr
 from orbitrig.store.layout import RunLayout
 from orbitrig.store.pieces import fixed_text
 from orbitrig.store.h5_values import OCTAVE_COMPLEX, stored_values
@@ -48,6 +55,7 @@ def export_h5(layout: RunLayout, out: Path) -> Path:
             build_run_file(dest.file, layout)
         else:
             _copy_run_file(layout.run_file, dest.file)
+        fit_quality_attributes(dest.file)
         octave_layout(dest.file)
     except Exception as err:
         raise dest.failed(err) from err
@@ -63,6 +71,24 @@ def _copy_run_file(src_path: Path, f: h5py.File) -> None:
         f.attrs.update(src.attrs)
         for name in src:
             src.copy(src[name], f, name=name)
+
+
+def fit_quality_attributes(f: h5py.File) -> None:
+    """Each identification group of the run file `f` with the FIT_QUALITY values of its fit
+    (export_content.fit_quality of its ``json``) that it lacks as attributes."""
+    for point in f.get("points", {}).values():
+        for g in point.get("identification", {}).values():
+            result = json_attr(g.attrs, "json")
+            if not isinstance(result, dict):
+                continue  # a refused model: no fit
+            fit = fit_record(0, None, str(g.attrs.get("model", "")), "", "", result)
+            for name, value in content.fit_quality(fit).items():
+                if name in g.attrs:
+                    continue
+                unit, meaning = content.FIT_QUALITY[name]
+                g.attrs[name], g.attrs[f"{name}__description"] = value, meaning
+                if unit:
+                    g.attrs[f"{name}__units"] = unit
 
 
 def octave_layout(f: h5py.File) -> None:

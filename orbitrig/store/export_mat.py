@@ -8,7 +8,10 @@ point: the settings with ``settings_units``; per load measuring system the orbit
 (complex ``x``, ``y``, ``fx``, ``fy``, ``direction``, ...) with ``units``;
 ``identification.<lms>__<model>__<freq_dep>__<method>`` per fit (``names``, ``units``,
 ``coefficients``, ``std_errors``, ``U``, ``interval_95``, ``covariance`` with
-``covariance_names``, the budget ``statistical`` ... ``expanded`` and ``k``, ``adequacy_*``
+``covariance_names``, the budget ``statistical`` ... ``expanded``, ``n_frequencies``,
+``condition_number``, ``residual_rms``, the goodness of fit ``dof``, ``chi2``, ``p_value``, ``aic``,
+``bic`` (where the fit gives them), ``interval`` (normal | student_t, text),
+``confidence_level`` and ``k`` (the coverage factor of U), ``adequacy_*``
 (numbers; ``adequacy_verdict``, ``adequacy_test``, ``adequacy_constant`` text), ``e_n``,
 ``derived`` with ``derived_units`` (also ``c_eff_zero_xx``, ``c_eff_zero_yy``: Omega_0 and its
 std, rad/s, where C_eff changes sign) and ``derived_covariance`` (combined | statistical),
@@ -36,7 +39,7 @@ BASE_UNITS = {
     **content.SETTINGS,
     "orbit": "rad/s",
     "theta": "rad",
-    "k": "1",
+    **{k: u for k, (u, _) in content.FIT_QUALITY.items() if u},  # dof, chi2, ..., k (of U); interval: text
     **{f"adequacy_{k}": "1" for k in content.ADEQUACY_NUMBERS},
 }
 #: ``unit_rules``: the fields whose unit differs per entry, and the conventions
@@ -62,7 +65,7 @@ def cell(values) -> np.ndarray:
     return arr
 
 
-def _fit_struct(fit, ident) -> dict:
+def _fit_struct(fit) -> dict:
     d = content.fit_arrays(fit)
     s = {
         "lms": str(fit.lms),  # a plain str: savemat writes an Enum member as an empty value
@@ -75,25 +78,23 @@ def _fit_struct(fit, ident) -> dict:
         "coefficients": d["value"],
         "std_errors": d["std"],
         "U": d["U"],
+        "interval_95": d.get("interval_95", np.full((len(fit.names), 2), np.nan)),
     }
-    result = ident.result or {}
-    ci = result.get("confidence_95") or {}
-    s["interval_95"] = np.array(
-        [[np.nan if v is None else float(v) for v in (ci.get(k) or (None, None))] for k in fit.names]
-    ).reshape(-1, 2)
     if "covariance" in d:
         s["covariance"], s["covariance_names"] = d["covariance"], cell(d["covariance_names"])
     s.update(
         {
             k: v
             for k, v in d.items()
-            if k.startswith(("adequacy_", "statistical", "systematic", "combined", "expanded", "e_n")) or k == "k"
+            if k.startswith(("adequacy_", "statistical", "systematic", "combined", "expanded", "e_n"))
+            or k in content.FIT_QUALITY
         }
     )
-    for k in ("n_frequencies", "condition_number", "residual_rms", "dof", "chi2", "p_value", "aic", "bic"):
+    result = fit.result or {}
+    for k in ("n_frequencies", "condition_number", "residual_rms"):
         if k in result:
             s[k] = np.nan if result[k] is None else float(result[k])
-    s["notes"], s["warnings"] = cell(result.get("notes") or []), cell(result.get("warnings") or [])
+    s["notes"], s["warnings"] = cell(d["notes"]), cell(d["warnings"])
     s["not_determined"] = cell(result.get("not_determined") or [])  # names whose U exceeds their magnitude
     if "truth" in d:
         s["truth"] = d["truth"]  # the simulator's truth projected onto this model, aligned with names
@@ -117,7 +118,7 @@ def point_struct(p, channels: list[str], channel_units: list[str]) -> dict:
         t["units"] = {"orbit": BASE_UNITS["orbit"], **dict(zip(U_COLUMNS, U_UNITS))}
         t["units"] |= {k: u for k, (_, u) in cols.items() if not k.endswith(("_re", "_im"))}
         s[str(lms)] = t
-    s["identification"] = {field(f.key): _fit_struct(f, i) for f, i in zip(point_fits(p), p.identifications)}
+    s["identification"] = {field(f.key): _fit_struct(f) for f in point_fits(p)}
     truth = content.truth_arrays(p.truth)
     if truth:
         s["truth"] = {k: v for k, (v, _) in truth.items()} | {"units": {k: u for k, (_, u) in truth.items()}}

@@ -3,12 +3,15 @@
 Every channel has ``unit_string``, one unit pint parses for all its values ("1"
 dimensionless, "" text); properties are numbers (with a ``<name>.unit_string`` property
 beside each) or text. Groups: ``point PPPP <lms>`` (the orbit table and ``direction``; the
-settings as properties), ``coefficients`` (the columns of coefficients.csv and ``KEY_U``),
+settings as properties), ``coefficients`` (the columns of coefficients.csv, ``warnings`` included,
+and ``KEY_U``),
 ``fit PPPP <key>`` (one channel per coefficient in its own unit, its rows named by the text
-channel ``quantity``: value, std, U, the budget's parts, truth; e_n and not_determined as
-channel properties; k and the adequacy as group properties (export_content.fit_properties:
-verdict, test, constant as text; its two degrees of freedom ``adequacy_dof_numerator``,
-``adequacy_dof_denominator``, ``adequacy_aic_constant`` ...), ``covariance PPPP <key>`` (the
+channel ``quantity``: value, std, U, interval_95_low, interval_95_high, the budget's parts,
+truth; e_n and not_determined as channel properties; group properties: ``error`` and
+``warnings`` (joined with ' | ') as text, export_content.fit_properties: dof, chi2, p_value,
+aic, bic, interval (text), confidence_level, k (of U) and the adequacy (verdict, test,
+constant as text; its two degrees of freedom ``adequacy_dof_numerator``,
+``adequacy_dof_denominator``, ``adequacy_aic_constant`` ...)), ``covariance PPPP <key>`` (the
 correlation, one channel per free coefficient, ``name`` the rows, each channel's ``std``
 property in its unit: covariance = r_ij std_i std_j), ``derived PPPP <key>`` (its properties
 ``covariance``, the basis of every _std, and ``c_eff_zero_xx_omega_0``, ``c_eff_zero_xx_std``
@@ -69,8 +72,13 @@ def _fit_objects(p, fit) -> list:
 
     d = content.fit_arrays(fit)
     group = f"fit {p.name} {fit.key}"
-    props = {"error": fit.error, "adequacy_verdict": ""} | _properties(content.fit_properties(fit))
-    rows = [q for q in ("value", "std", "U", *BUDGET_PARTS, "truth") if q in d]
+    text = {"error": fit.error, "warnings": csvfile.warnings_cell(d["warnings"]), "adequacy_verdict": ""}
+    props = text | _properties(content.fit_properties(fit))
+    quantities = {q: d[q] for q in ("value", "std", "U") if q in d}
+    if "interval_95" in d:
+        quantities |= {"interval_95_low": d["interval_95"][:, 0], "interval_95_high": d["interval_95"][:, 1]}
+    quantities |= {q: d[q] for q in (*BUDGET_PARTS, "truth") if q in d}
+    rows = list(quantities)
     objs = [GroupObject(group, props), ChannelObject(group, "quantity", np.array(rows, dtype=str), _TEXT)]
     for c, (name, unit) in enumerate(zip(fit.names, fit.units)):
         extra = {k: (float(d[k][c]), "1") for k in ("e_n", "not_determined") if k in d}
@@ -78,7 +86,7 @@ def _fit_objects(p, fit) -> list:
             ChannelObject(
                 group,
                 name,
-                np.array([d[q][c] for q in rows], dtype=float),
+                np.array([quantities[q][c] for q in rows], dtype=float),
                 {"unit_string": unit} | _numeric(extra),
             )
         )

@@ -56,6 +56,17 @@ def expanded_uncertainty(result: dict[str, Any]) -> dict[str, float]:
     return {k: k_cov * _num(std.get(k)) for k in names}
 
 
+def expanded_k(result: dict[str, Any]) -> float:
+    """k of the U that :func:`expanded_uncertainty` gives ``result`` (the same order of sources)."""
+    stored = result.get("expanded_uncertainty") or {}
+    if stored.get("values"):
+        return _num(stored.get("k", COVERAGE_K))
+    unc = result.get("uncertainty") or {}
+    if unc.get("expanded"):
+        return _num(unc.get("k", COVERAGE_K))
+    return coverage_of(result)
+
+
 def uncertainty_basis(result: dict[str, Any]) -> UncertaintyBasis:
     """What :func:`expanded_uncertainty` of ``result`` rests on: COMBINED (calibration included)
     or STATISTICAL (2 x the standard error, or a sweep without stated calibration)."""

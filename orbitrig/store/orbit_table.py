@@ -6,7 +6,9 @@ n_records (whole number >= 1) and u_x, u_y (m), u_fx, u_fy (N) (>= 0, a set of f
 rad/s. Every problem raises TableError naming the file, the line (1-based, the header is
 line 1) and the column. UTF-8 (a BOM is allowed); blank lines are skipped; cells are plain
 decimal numbers; empty fields past the header's last column (a trailing comma) are ignored.
-An extra column that looks like a misspelt known one (``u_fX``) is named in an IgnoredColumnWarning.
+A header field may state its unit ("orbit_hz [Hz]"; "[1]" or "[-]" dimensionless). An extra
+column that looks like a misspelt known one (``u_fX``) is named in an IgnoredColumnWarning; the
+error of a required column or set of four it leaves missing names it as the likely cause.
 """
 
 from __future__ import annotations
@@ -270,31 +272,37 @@ COLUMN_UNITS = {
     **dict(zip(UNCERTAINTY, ("m", "m", "N", "N"))),
 }
 _WITH_UNIT = re.compile(r"^(?P<name>\S+)\s*\[(?P<unit>[^\]]*)\]$")
+DIMENSIONLESS = ("1", "-")  # how a dimensionless column may state its unit (the shared contract writes "-")
 
 
 def _column_name(file: str, line: int, field: str) -> str:
-    """A header field's column name; a stated unit ("orbit_hz [Hz]") must be the column's."""
+    """A header field's column name; a stated unit ("orbit_hz [Hz]") must be the column's
+    ("gamma2_xfx [1]" or "gamma2_xfx [-]" for a dimensionless one)."""
     match = _WITH_UNIT.match(field)
     if not match:
         return field
     name, unit = match["name"], match["unit"].strip()
-    if name in COLUMN_UNITS and unit != COLUMN_UNITS[name]:
-        raise TableError(file, line, field, f"the unit of {name} is {COLUMN_UNITS[name]}, not {unit!r}")
+    known = DIMENSIONLESS if COLUMN_UNITS.get(name) == "1" else (COLUMN_UNITS.get(name, unit),)
+    if unit not in known:
+        raise TableError(file, line, field, f"the unit of {name} is {' or '.join(map(repr, known))}, not {unit!r}")
     return name
 
 
 def _wanted_columns(
     file: str, header: list[str], header_line: int
 ) -> tuple[tuple[str, ...], list[IgnoredColumnWarning]]:
-    """The columns to read: the required ones and the optional sets present; and a warning
-    for each extra column that looks like a misspelt known one (a missing column's error names it)."""
+    """The columns to read: the required ones and the optional sets present; and a warning for each
+    extra column that looks like a misspelt known one (not read: a missing column's error names it)."""
     seen = set()
     for name in header:
         if name in seen and name in KNOWN:  # a repeated extra column is ignored like any other
             raise TableError(file, header_line, name, "column appears twice in the header")
         seen.add(name)
     misses = _near_misses(header)
-    hint = {known: f" (column '{name}' in the header looks like it)" for name, known in reversed(misses.items())}
+    hint = {
+        k: f" (column '{n}' in the header looks like it): likely misspelt, so not read; rename it {k}"
+        for n, k in reversed(misses.items())
+    }
     for name in REQUIRED:
         if name not in seen:
             raise TableError(file, header_line, name, "required column missing from the header" + hint.get(name, ""))
@@ -344,13 +352,8 @@ def _check_row(file: str, line: int, row: dict, first: dict | None) -> None:
     if row["spin_rpm"] < 0:
         raise TableError(file, line, "spin_rpm", f"spin speed must be >= 0 rpm, got {row['spin_rpm']:g}")
     if first is not None and row["spin_rpm"] != first["spin_rpm"]:
-        raise TableError(
-            file,
-            line,
-            "spin_rpm",
-            f"spin speed {row['spin_rpm']:g} rpm differs from the first row's "
-            f"{first['spin_rpm']:g} rpm (one operating point per table)",
-        )
+        why = f"spin speed {row['spin_rpm']:g} rpm differs from the first row's {first['spin_rpm']:g} rpm"
+        raise TableError(file, line, "spin_rpm", f"{why} (one operating point per table)")
     for g in GAMMA2:
         if g in row and not 0.0 <= row[g] <= 1.0:
             raise TableError(file, line, g, f"coherence must lie in [0, 1], got {row[g]:g}")
