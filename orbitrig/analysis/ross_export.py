@@ -1,55 +1,67 @@
 """A run's identified bearings as ROSS ``BearingElement`` data (``orbitrig export --format ross``).
 
-For every complete point and load measuring system, the chosen stored fit (default kcd11,
-constant, ols) is repeated from the stored orbit table (orbitrig.analysis.reduce.reidentify)
-and its K(Omega), C(Omega), D(Omega) are evaluated at the point's tested orbit frequencies:
-the planned |Omega| of each tested orbit ratio, once (ascending, rad/s, forward whirl), the
-frequencies the sweep's derived quantities are evaluated at (the fit itself regresses each
-row at its measured speed, which differs slightly between the two whirl directions). One
-JSON file, ``ross_bearings.json``:
+ROSS evaluates a bearing's coefficients at the rotor speed (``Rotor.A``: frequency = speed), so
+the axis is the journal spin omega of the operating points (rad/s), not the whirl frequency
+Omega the rig varies within a point. Each complete point and load measuring system gives, from
+the chosen stored fit (default kcd11, constant, ols), the coefficients at the synchronous whirl
+Omega = omega when the fit is frequency dependent and omega lies in the point's tested whirl
+range, else those of the constant fit of the same model and method (stored, else fitted here
+from the orbit table). The points of one test condition (CONDITION) form one bearing over speed.
+Each coefficient at each speed carries U: the fit's U (orbitrig.store.fit_record) for a constant
+fit; for a sum over orders the statistical covariance propagated plus the calibration parts taken
+as fully correlated (an upper bound: the run stores no calibration covariance). U > |value| is
+listed in ``not_determined`` and warned about. ``bearing_elements`` holds the end values outside
+the speeds (ROSS's own spline or interp1d would extrapolate). Fields: docs/catalog.md.
 
-    {"format": "orbitrig-ross/1", "run": ..., "conventions": {...},
-     "bearings": [{"point", "label", "lms", "model", "freq_dep", "method", "spin",
-                   "frequency": [rad/s], "kxx": [N/m], "kxy", "kyx", "kyy",
-                   "cxx": [N s/m], ..., "mxx": [kg], ...}]}
-
-A fit no selected point stores is a FitNotStoredError naming the fits there are; a point
-without it (not stored, refused, no orbit table) is skipped and named.
-
-Conventions (docs/catalog.md): the bearing force on the journal is f = -(K d + C d' + M d'')
-for a journal displacement d = (x, y), which is the rig's f = -Z d with
-Z = K + i Omega C - Omega^2 D; so ROSS kij = Kij, cij = Cij, mij = Dij (the apparent mass),
-with i the force and j the displacement direction. ``bearing_elements`` builds the ROSS
-elements (ross-rotordynamics, the ``ross`` extra).
+Conventions: the bearing force on the journal is f = -(K d + C d' + M d'') for a journal
+displacement d = (x, y), the rig's f = -Z d with Z = K + i Omega C - Omega^2 D; so ROSS
+kij = Kij, cij = Cij, mij = Dij (the apparent mass), i the force and j the displacement direction.
 """
 
 from __future__ import annotations
 
 import json
+import math
+import warnings
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from orbitrig.analysis.reduce import reidentify
+from orbitrig.analysis.reduce import identify_point
 from orbitrig.errors import OrbitrigError
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.csvfile import one_line
 from orbitrig.store.durable import write_atomic
+from orbitrig.store.fit_record import coverage_of, expanded_uncertainty, uncertainty_basis
 from orbitrig.store.reader import Point, Run
 from orbitrig.store.selection import Selection, select_points
 from reduction.methods import Method
+from reduction.statistics import not_determined
+from reduction.systematic import UncertaintyBasis
 
 FILE = "ross_bearings.json"
-FORMAT = "orbitrig-ross/1"
+FORMAT = "orbitrig-ross/2"
 ENTRIES = ("xx", "xy", "yx", "yy")
+KEYS = tuple(f"{c}{e}" for c in "kcm" for e in ENTRIES)  # ROSS's names
+UNITS = {"k": "N/m", "c": "N s/m", "m": "kg"}
+HOLD_SPEED = 1.0e5  # rad/s: bearing_elements repeats the end values here (and at 0)
+_ROSS = {"K": "k", "C": "c", "D": "m"}
+CONDITION = ("recess_pressure", "pressure_ratio", "static_eccentricity", "dynamic_eccentricity")  # a bearing's, SI
 CONVENTIONS = {
     "force": "f = -(K d + C d' + M d'') on the journal, d = (x, y) journal displacement, SI",
     "kij, cij, mij": "force in i per displacement (velocity, acceleration) in j; N/m, N s/m, kg",
-    "m": "apparent (added) mass: the identified D",
-    "frequency": "orbit (whirl) frequency |Omega|, rad/s: the point's planned orbit frequencies, "
-    "one per tested orbit ratio, ascending; coefficients evaluated for forward whirl",
+    "m": "apparent (added) mass: the identified D (0 for a model without D, its U null)",
+    "frequency": "rotor speed: the journal spin omega of each operating point, rad/s, ascending "
+    "(ROSS evaluates a bearing at the rotor speed)",
+    "coefficients": "at each speed the fit at the synchronous whirl Omega = omega when it is frequency "
+    "dependent and omega lies in the point's tested whirl range, else the constant fit; 'speeds' says which",
+    "outside": "the end values hold below the lowest and above the highest speed (bearing_elements); "
+    "ROSS's own interpolation of these arrays would extrapolate",
+    "U": "expanded uncertainty of each coefficient at each speed (k of the fit, 2 with a known covariance)",
+    "not_determined": "coefficients with U > |value| or U unknown: exported as identified, flagged",
 }
 
 
@@ -66,9 +78,9 @@ class FitSpec:
     freq_dep: str = "none"
     method: Method = Method.OLS
 
-    def text(self, lms: LoadSystem | None = None) -> str:
+    def text(self, lms: LoadSystem | None = None, freq_dep: str | None = None) -> str:
         """``LMS:MODEL:FREQ_DEP:METHOD`` (the form of ``--fit``)."""
-        return f"{lms or self.lms or ''}:{self.model}:{self.freq_dep}:{self.method}"
+        return f"{lms or self.lms or ''}:{self.model}:{freq_dep or self.freq_dep}:{self.method}"
 
 
 @dataclass
@@ -86,36 +98,144 @@ def tested_frequencies(point: Point) -> np.ndarray:
     planned = [abs(f.orbit) for f in point.frequencies if f.complete]
     if planned:
         return np.unique(planned)
-    return np.unique(np.concatenate([np.abs(t.orbit) for t in point.tables.values()]))
+    measured = [np.abs(t.orbit) for t in point.tables.values()]
+    return np.unique(np.concatenate(measured)) if measured else np.zeros(0)
 
 
-def point_bearing(point: Point, lms: LoadSystem, spec: FitSpec) -> dict[str, Any] | str:
-    """The ROSS data of one point's fit, or why the point has none."""
+def _ross_key(name: str) -> tuple[str, int]:
+    """(ROSS key, order) of a coefficient name: ``Kxy_1`` -> ("kxy", 1)."""
+    return _ROSS[name[0]] + name[1:3], int(name.partition("_")[2] or 0)
+
+
+def _num(v: Any) -> float:
+    return math.nan if v is None else float(v)
+
+
+def coefficients_at(result: dict[str, Any], omega: float) -> dict[str, float]:
+    """K, C, D entries (ROSS keys) of a stored fit at whirl ``omega`` (rad/s): each entry's
+    fitted orders summed, K(Omega) = sum_r Omega^r K_r; 0 for a matrix the model has not."""
+    out = dict.fromkeys(KEYS, 0.0)
+    for name, v in result["coefficients"].items():
+        key, order = _ross_key(name)
+        out[key] += _num(v) * omega**order
+    return out
+
+
+def uncertainties_at(result: dict[str, Any], omega: float) -> dict[str, float | None]:
+    """U of each entry of :func:`coefficients_at` (None: not in the model). One coefficient of
+    order 0: its stored U; a sum over orders: k sqrt(g' S g + (sum_r |g_r| u_sys,r)^2), S the
+    statistical covariance, u_sys the calibration part of each order (fully correlated: an
+    upper bound); NaN without a covariance."""
+    U = expanded_uncertainty(result)
+    terms: dict[str, list[tuple[str, int]]] = {}
+    for name in result["coefficients"]:
+        key, order = _ross_key(name)
+        terms.setdefault(key, []).append((name, order))
+    free, cov = list(result.get("free") or []), result.get("covariance")
+    combined = uncertainty_basis(result) == UncertaintyBasis.COMBINED
+    systematic = (result.get("uncertainty") or {}).get("systematic") or {} if combined else {}
+    stored_k = (result.get("expanded_uncertainty") or {}).get("k") or (result.get("uncertainty") or {}).get("k")
+    k = float(stored_k) if stored_k else coverage_of(result)
+    out: dict[str, float | None] = dict.fromkeys(KEYS)
+    for key, names in terms.items():
+        if len(names) == 1 and names[0][1] == 0:
+            out[key] = U[names[0][0]]
+            continue
+        if cov is None:
+            out[key] = math.nan
+            continue
+        g = np.zeros(len(free))
+        for name, order in names:
+            g[free.index(name if name in free else name[0] + name[2] + name[1] + name[3:])] += omega**order
+        var = float(g @ np.array([[_num(v) for v in row] for row in cov]) @ g)
+        sys = sum(abs(omega**order) * _num(systematic.get(name, 0.0)) for name, order in names)
+        out[key] = k * math.sqrt(max(var, 0.0) + sys**2)
+    return out
+
+
+def _constant_fit(point: Point, lms: LoadSystem, spec: FitSpec) -> tuple[dict[str, Any], str] | str:
+    """The constant fit of ``spec``'s model and method (stored, else fitted from the orbit
+    table) and its ``--fit`` text, or why there is none."""
+    text = spec.text(lms, "none")
+    stored = point.identification(lms, spec.model, "none", spec.method)
+    if stored is not None and stored.result is not None:
+        return stored.result, text
+    if stored is not None:
+        return f"the constant fit {text} was refused: {one_line(stored.error or '')}"
+    if lms not in point.tables:
+        return f"the constant fit {text} is not stored and there is no orbit table {lms}"
+    row = identify_point(point, lms, spec.model, "none", spec.method)
+    if row.identification is None:
+        return f"the constant fit {text} is refused: {one_line(row.error or '')}"
+    return row.identification.to_dict(fit=False), f"{text} (not stored: fitted here from the orbit table)"
+
+
+def point_speed(point: Point, lms: LoadSystem, spec: FitSpec) -> dict[str, Any] | str:
+    """One point's coefficients for ROSS at its spin (rad/s), with U and which fit, or why none."""
     stored = point.identification(lms, spec.model, spec.freq_dep, spec.method)
     if stored is None:
         return f"fit {spec.text(lms)} not stored"
-    if not stored.ok:
+    if stored.result is None:
         return f"fit {spec.text(lms)} was refused: {one_line(stored.error or '')}"
-    if lms not in point.tables:
-        return f"no orbit table {lms}"
-    row = reidentify(point, stored)
-    if row.identification is None:
-        return f"fit {spec.text(lms)} cannot be repeated from the stored orbit table: {one_line(row.error or '')}"
-    frequency = tested_frequencies(point)
-    mats = np.array([row.identification.matrices(w) for w in frequency])  # (n, 3: K C D, 2, 2)
-    out: dict[str, Any] = {
+    omega, whirl = point.settings.spin, tested_frequencies(point)
+    lo, hi = (float(whirl[0]), float(whirl[-1])) if whirl.size else (math.nan, math.nan)
+    tested = f"the tested whirl range {lo:.6g}..{hi:.6g} rad/s"
+    result, fit, at = stored.result, spec.text(lms), None
+    if spec.freq_dep == "none":
+        why = "a constant fit"
+    elif lo * (1 - 1e-9) <= omega <= hi * (1 + 1e-9):
+        at, why = omega, f"synchronous whirl Omega = omega, within {tested}"
+    else:
+        got = _constant_fit(point, lms, spec)
+        if isinstance(got, str):
+            return f"spin {omega:.6g} rad/s outside {tested} of {spec.text(lms)}, and {got}"
+        (result, fit), why = got, f"omega outside {tested}: the constant fit"
+    values, U = coefficients_at(result, at or 0.0), uncertainties_at(result, at or 0.0)
+    basis = uncertainty_basis(result)
+    bounded = at is not None and basis == UncertaintyBasis.COMBINED
+    return {
         "point": point.index,
         "label": point.settings.label,
+        "condition": [float(f"{getattr(point.settings, c):.9g}") for c in CONDITION],
+        "spin": omega,
+        "whirl_range": [lo, hi],
+        "used": "constant" if at is None else "synchronous",
+        "fit": fit,
+        "whirl": at,
+        "why": why,
+        "basis": basis.value + (", calibration part bounded" if bounded else ""),
+        "fit_not_determined": list(result.get("not_determined") or []),
+        "values": values,
+        "U": U,
+    }
+
+
+def _bearing(lms: LoadSystem, spec: FitSpec, speeds: list[dict[str, Any]]) -> dict[str, Any]:
+    """One bearing over speed from its points' :func:`point_speed` (ascending spin)."""
+    out: dict[str, Any] = {
         "lms": lms,
         "model": spec.model,
         "freq_dep": spec.freq_dep,
         "method": spec.method,
-        "spin": point.settings.spin,
-        "frequency": frequency.tolist(),
+        "condition": dict(zip(CONDITION, speeds[0]["condition"])),
+        "points": [s["point"] for s in speeds],
+        "frequency": [s["spin"] for s in speeds],
     }
-    for m, letter in enumerate("kcm"):
-        for e, (i, j) in zip(ENTRIES, ((0, 0), (0, 1), (1, 0), (1, 1))):
-            out[f"{letter}{e}"] = mats[:, m, i, j].tolist()
+    for key in KEYS:
+        out[key] = [s["values"][key] for s in speeds]
+    out["U"] = {key: [s["U"][key] for s in speeds] for key in KEYS}
+    lo, hi = out["frequency"][0], out["frequency"][-1]
+    out["outside"] = (
+        f"one speed ({lo:.6g} rad/s): constant coefficients at every rotor speed"
+        if len(speeds) == 1
+        else f"end values held below {lo:.6g} and above {hi:.6g} rad/s"
+    )
+    out["not_determined"] = [
+        {"point": s["point"], "spin": s["spin"], "fit": s["fit"], "coefficient": k, "value": s["values"][k], "U": u}
+        for s in speeds
+        for k, u in ((k, s["U"][k]) for k in not_determined(s["values"], s["U"]))
+    ]
+    out["speeds"] = [{k: v for k, v in s.items() if k not in ("values", "U", "condition")} for s in speeds]
     return out
 
 
@@ -125,24 +245,38 @@ def _fits_there(points: list[Point]) -> list[str]:
 
 
 def _collect(run: Run, selection: Selection, spec: FitSpec) -> list[dict[str, Any]]:
-    """The bearings of the selected points; each point without the fit is named in the
-    selection's ``skipped`` (FitNotStoredError when no point has it)."""
-    bearings: list[dict[str, Any]] = []
+    """The bearings of the selected points; each point without the fit (or at a speed its
+    condition already has) is named in the selection's ``skipped`` (FitNotStoredError when no
+    point has the fit)."""
+    groups: dict[tuple[Any, ...], list[dict[str, Any]]] = {}
     missing: list[tuple[Point, str]] = []
     for p in selection.points:
         systems = [spec.lms] if spec.lms else sorted(p.tables)
         if not systems:
             missing.append((p, "no orbit table stored"))
         for lms in systems:
-            got = point_bearing(p, lms, spec)
+            got = point_speed(p, lms, spec)
             if isinstance(got, str):
                 missing.append((p, got if spec.lms else f"{lms}: {got}"))
             else:
-                bearings.append(got)
-    if selection.points and not bearings:
+                groups.setdefault((lms, *got["condition"]), []).append(got)
+    if selection.points and not groups:
         raise FitNotStoredError(_nothing_message(run, selection, spec, [why for _, why in missing]))
+    bearings = [_bearing(key[0], spec, _one_per_speed(speeds, selection, missing)) for key, speeds in groups.items()]
     selection.skipped += [f"point {p.name} skipped: {why}" for p, why in missing]
     return bearings
+
+
+def _one_per_speed(speeds: list[dict[str, Any]], selection: Selection, missing: list) -> list[dict[str, Any]]:
+    """``speeds`` by ascending spin; a further point at a spin already taken goes to ``missing``."""
+    kept: list[dict[str, Any]] = []
+    for s in sorted(speeds, key=lambda s: (s["spin"], s["point"])):
+        if not kept or not math.isclose(s["spin"], kept[-1]["spin"], rel_tol=1e-9):
+            kept.append(s)
+            continue
+        why = f"spin {s['spin']:.6g} rad/s and condition as point {kept[-1]['point']:04d}: one value per speed"
+        missing.append((next(q for q in selection.points if q.index == s["point"]), f"{why} (choose with --point)"))
+    return kept
 
 
 def _nothing_message(run: Run, selection: Selection, spec: FitSpec, why: list[str]) -> str:
@@ -153,11 +287,26 @@ def _nothing_message(run: Run, selection: Selection, spec: FitSpec, why: list[st
     return f"--fit {spec.text()}: no point gives it ({'; '.join(dict.fromkeys(why))}); {listing}"
 
 
+def _notes(bearing: dict[str, Any]) -> list[str]:
+    """What the export tells on standard error about one bearing: its speeds, which fit gave
+    each, and every coefficient not determined."""
+    used = ", ".join(f"{s['spin']:.6g} {s['used']} ({s['fit']})" for s in bearing["speeds"])
+    lines = [f"ross: {bearing['lms']} bearing of points {bearing['points']}: rad/s {used}; {bearing['outside']}"]
+    for n in bearing["not_determined"]:
+        unit = UNITS[n["coefficient"][0]]
+        lines.append(
+            f"warning: point {n['point']:04d} at {n['spin']:.6g} rad/s, fit {n['fit']}: {n['coefficient']} = "
+            f"{n['value']:.4g} {unit} with U = {n['U']:.4g} {unit} is not determined (U > |value|); "
+            "exported as identified and listed in not_determined"
+        )
+    return lines
+
+
 def export_ross(run: Run, out: Path, spec: FitSpec, selection: Selection | None = None) -> RossExport:
     """Write ``out``/ross_bearings.json for the points of ``selection`` (None: every complete
     point; ``spec.lms`` None: every load measuring system). Raises FitNotStoredError when there
     are points but none gives the fit; a point without it is added to the selection's
-    ``skipped``."""
+    ``skipped``, each bearing's speeds and its coefficients not determined to its ``notes``."""
     selection = selection if selection is not None else select_points(run)
     bearings = _collect(run, selection, spec)
     doc = {
@@ -169,22 +318,69 @@ def export_ross(run: Run, out: Path, spec: FitSpec, selection: Selection | None 
     }
     path = Path(out) / FILE
     write_atomic(path, (json.dumps(doc, indent=1) + "\n").encode())
+    selection.notes += [line for b in bearings for line in _notes(b)]
     return RossExport(path, selection)
 
 
+def held_arrays(frequency: Any, values: dict[str, Any]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The speed axis with 0 and HOLD_SPEED (rad/s) added outside it, and each array with its
+    end values repeated there: what bearing_elements gives ROSS."""
+    axis = np.asarray(frequency, dtype=float)
+    before, after = int(axis[0] > 0), int(axis[-1] < HOLD_SPEED)
+
+    def pad(a: Any, first: Any, last: Any) -> np.ndarray:
+        a = np.asarray(a, dtype=float)
+        return np.concatenate([np.full(before, first), a, np.full(after, last)])
+
+    return pad(axis, 0.0, HOLD_SPEED), {k: pad(v, v[0], v[-1]) for k, v in values.items()}
+
+
+def _chosen(doc: dict[str, Any], path: str | Path, point: int | None, lms: str) -> dict[str, Any]:
+    found = [b for b in doc["bearings"] if b["lms"] == lms and (point is None or point in b["points"])]
+    if not found:
+        raise KeyError(
+            f"{path}: no bearing of load system {lms!r}" + (f" with point {point}" if point is not None else "")
+        )
+    if len(found) > 1:
+        raise KeyError(
+            f"{path}: {len(found)} {lms} bearings (points {[b['points'] for b in found]}): choose one with point="
+        )
+    return found[0]
+
+
 def bearing_elements(
-    path: str | Path, nodes: list[int], *, point: int = 0, lms: LoadSystem | str = LoadSystem.PIEZO
+    path: str | Path,
+    nodes: list[int],
+    *,
+    point: int | None = None,
+    lms: LoadSystem | str = LoadSystem.PIEZO,
+    strict: bool = False,
 ) -> list:
-    """ROSS BearingElements at ``nodes`` from an exported file, all with the bearing of
-    ``point`` / ``lms`` (requires ross-rotordynamics: pip install "orbitrig[ross]")."""
+    """ROSS BearingElements at ``nodes`` from an exported file, all with the bearing of ``lms``
+    whose points include ``point`` (None: the only one): coefficients over rotor speed,
+    piecewise linear between the exported speeds and the end values held outside (one speed:
+    constant). A coefficient not determined is warned about (UserWarning), with ``strict``
+    refused (ValueError). Requires ross-rotordynamics: pip install "orbitrig[ross]"."""
     import ross
 
-    doc = json.loads(Path(path).read_text())
-    data = next((b for b in doc["bearings"] if b["point"] == point and b["lms"] == lms), None)
-    if data is None:
-        raise KeyError(f"{path}: no bearing of point {point} and load system {str(lms)!r}")
-    coefficients = {k: np.asarray(data[k]) for k in (f"{c}{e}" for c in "kcm" for e in ENTRIES)}
-    return [
-        ross.BearingElement(n=n, frequency=np.asarray(data["frequency"]), tag=f"bearing {n}", **coefficients)
-        for n in nodes
+    data = _chosen(json.loads(Path(path).read_text()), path, point, str(lms))
+    flagged = [
+        f"point {n['point']} ({n['spin']:.6g} rad/s), fit {n['fit']}: {n['coefficient']} = {n['value']:.4g} with U = {n['U']:.4g}"
+        for n in data["not_determined"]
     ]
+    if flagged:
+        message = f"{path}: coefficients not determined (U > |value|): " + "; ".join(flagged)
+        if strict:
+            raise ValueError(message)
+        warnings.warn(message, UserWarning, stacklevel=2)
+    if len(data["frequency"]) == 1:
+        constant = {k: float(data[k][0]) for k in KEYS}
+        return [ross.BearingElement(n=n, tag=f"bearing {n}", **constant) for n in nodes]
+    axis, held = held_arrays(data["frequency"], {k: data[k] for k in KEYS})
+    elements = []
+    for n in nodes:
+        element = ross.BearingElement(n=n, frequency=axis, tag=f"bearing {n}", **held)
+        for k, v in held.items():  # ROSS's spline would extrapolate (and smooth)
+            setattr(element, f"{k}_interpolated", partial(np.interp, xp=axis, fp=v))
+        elements.append(element)
+    return elements

@@ -3,8 +3,8 @@
 Exit status 0 on success, 2 when RUN is not a run directory or an option is bad (a negative
 --point; also a ross --fit that no selected point stores: the fits there are are named), 1
 when the export cannot be written (disk full, permissions) or a point asked for (every
-committed point, without --point) was skipped, for ross also a point without the fit: each
-one is named. When no point asked for can be exported (a mistyped --point) nothing is
+committed point, without --point) was skipped, for ross also a point without the fit or at a
+speed its test condition already has: each one is named. When no point asked for can be exported (a mistyped --point) nothing is
 written or removed, an earlier export stays as it was, and the exit status is 1.
 """
 
@@ -23,7 +23,7 @@ Format = Annotated[
     str,
     typer.Option(
         "--format",
-        help="csv (one orbit table per point and load system, coefficients.csv) | mat (MATLAB run.mat) | tdms (LabVIEW run.tdms) | h5 (the whole run in one run.h5 that GNU Octave loads too) | ross (ROSS BearingElement data, ross_bearings.json)",
+        help="csv (one orbit table per point and load system, coefficients.csv) | mat (MATLAB run.mat) | tdms (LabVIEW run.tdms) | h5 (the whole run in one run.h5 that GNU Octave loads too) | ross (ROSS BearingElement data over rotor speed, ross_bearings.json)",
     ),
 ]
 Out = Annotated[Optional[Path], typer.Option("--out", help="Directory for the files (default RUN/export).")]
@@ -39,8 +39,9 @@ Fit = Annotated[
     str,
     typer.Option(
         "--fit",
-        help="ross: the stored fit exported, LMS:MODEL:FREQ_DEP:METHOD (LMS '' = every load system); "
-        "a fit no point stores exits 2, a point without it is named and the exit status is 1.",
+        help="ross: the stored fit exported, LMS:MODEL:FREQ_DEP:METHOD (LMS '' = every load system), at each "
+        "point's spin (synchronous whirl; else the constant fit); a fit no point stores exits 2, a point without "
+        "it is named and the exit status is 1.",
     ),
 ]
 

@@ -346,10 +346,9 @@ def test_octave_loads_the_mat_export(exported, stored, tmp_path):
     assert f"version {stored['version']}" in lines
 
 
-def test_ross_frequency_is_each_tested_orbit_ratio_once(sim_run, tmp_path):
-    """The rig's two whirl directions of a ratio run at slightly different measured speeds;
-    the ROSS file lists the planned |Omega| of each ratio once, where the sweep evaluated the
-    derived quantities, and the fit's K, C, D there."""
+def test_ross_frequency_is_the_rotor_speed(sim_run, tmp_path):
+    """ROSS evaluates a bearing at the rotor speed: the file's axis is the point's spin, here one
+    speed (constant coefficients at every rotor speed), the constant fit's K, C, D as stored."""
     from typer.testing import CliRunner
 
     from orbitrig.cli import app
@@ -358,17 +357,13 @@ def test_ross_frequency_is_each_tested_orbit_ratio_once(sim_run, tmp_path):
     assert res.exit_code == 0, res.output
     (bearing,) = json.loads((tmp_path / "ross_bearings.json").read_text())["bearings"]
     with h5py.File(sim_run / "run.h5", "r") as f:
-        measured = f["points/0000/table/piezo/orbit"][()]
-        planned_hz = f[f"points/0000/identification/{FIT}/derived/orbit_hz"][()]
         value = dict(
             zip(
                 f[f"points/0000/identification/{FIT}/names"].asstr()[()],
                 f[f"points/0000/identification/{FIT}/coefficients"][()],
             )
         )
-    assert len(planned_hz) == 5 and len(np.unique(measured)) > 5  # the directions' measured speeds differ
-    assert len(bearing["frequency"]) == 5
-    np.testing.assert_allclose(bearing["frequency"], 2 * np.pi * planned_hz, rtol=1e-12)
-    assert bearing["frequency"] == sorted(bearing["frequency"])
-    np.testing.assert_allclose(bearing["kxy"], value["Kxy"], rtol=1e-9)  # constant fit: the same at each
-    np.testing.assert_allclose(bearing["myx"], value["Dyx"], rtol=1e-9)
+    assert bearing["frequency"] == [read_run(sim_run).points[0].settings.spin]
+    np.testing.assert_allclose(bearing["kxy"], [value["Kxy"]], rtol=1e-12)
+    np.testing.assert_allclose(bearing["myx"], [value["Dyx"]], rtol=1e-12)
+    assert bearing["speeds"][0]["used"] == "constant" and bearing["outside"].startswith("one speed")
