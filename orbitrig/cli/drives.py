@@ -10,7 +10,8 @@ printed on standard error; `run` has stopped both drives and confirmed them at
 standstill by then; output that cannot be written, a full disk, is such a failure),
 4 `run` ended by an emergency stop (a second signal during its ramp), 1 `run` could
 not confirm both drives at standstill ("drives not confirmed stopped"). Signals:
-orbitrig.cli.signals.SIGNALS.
+orbitrig.cli.signals.SIGNALS. `run` gives both drives [drives] comm_loss_timeout_s and leaves
+them running only if both read it back armed (nonzero).
 """
 
 from __future__ import annotations
@@ -84,9 +85,13 @@ def _add_run(drives_app: typer.Typer) -> None:
         Ctrl-C, SIGTERM, SIGHUP, SIGQUIT before the setpoint) both drives are ramped
         to zero and the command exits 2 with the reason once both are at standstill
         (a second signal during the ramp: emergency stop, exit 4; standstill not
-        confirmed: "drives not confirmed stopped", exit 1). Without --hold the drives
-        are left at their setpoint; with no client polling them, their comm-loss
-        watchdog then ramps them down after COMM_LOSS_TIMEOUT. With --hold the
+        confirmed: "drives not confirmed stopped", exit 1). Both drives are given
+        [drives] comm_loss_timeout_s as their comm-loss watchdog (COMM_LOSS_TIMEOUT)
+        on entry; a drive that reads it back as 0 (disabled) is not left running:
+        both ramped to zero, exit 2, naming the drive and the register. Without --hold
+        the drives are left at their setpoint once both read an armed watchdog;
+        with no client polling them, it ramps them down that many seconds after the
+        command (said on standard error). With --hold the
         command keeps polling until Ctrl-C/SIGTERM/SIGHUP/SIGQUIT (a closed standard
         output does not end it), then ramps both to zero (exit 0; a second signal
         during the ramp: emergency stop, exit 4); if another client stops a drive or
@@ -186,11 +191,12 @@ def _config_name(config: Path | None) -> str:
     return str(default_rig_path())
 
 
-def _rig_drives(url, d, limits=None):
-    """RigDrives with the configuration's ids, timeout, poll interval and link_loss_polls."""
+def _rig_drives(url, d, limits=None, *, watchdog: bool = False):
+    """RigDrives with the configuration's ids, timeout, poll interval and link_loss_polls;
+    ``watchdog``: both drives given [drives] comm_loss_timeout_s on entry (`run`)."""
     from orbitrig.run.drive_setup import UNLIMITED, rig_drives
 
-    return rig_drives(url, d, UNLIMITED if limits is None else limits)
+    return rig_drives(url, d, UNLIMITED if limits is None else limits, watchdog=watchdog)
 
 
 def _run_async(make_coro, command: str) -> int:
@@ -277,7 +283,7 @@ async def _status(url: str, json_out: bool, d) -> int:
 
 async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every, interrupt) -> int:
     from drives.errors import DriveError
-    from orbitrig.cli.drives_hold import way_out
+    from orbitrig.cli.drives_hold import armed_watchdog, way_out
 
     try:
         limits.check(spin, orbit, spin_id=d.spin_id, orbit_id=d.orbit_id)
@@ -286,28 +292,60 @@ async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every,
         return 2
     rig = code = None
     try:
-        async with _rig_drives(url, d, limits) as rig:
+        async with _rig_drives(url, d, limits, watchdog=True) as rig:
             try:
+                armed_watchdog(rig, d.comm_loss_timeout_s)  # before anything is commanded
                 code = await _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, interrupt)
+                if not hold:  # at the setpoint
+                    await _release(rig, d.comm_loss_timeout_s)
             except BaseException as err:  # noqa: BLE001 - every way out but the release: both drives stopped first
                 code = await way_out(rig, err, interrupt, reason)
             return code
     except DriveError as err:
         if code is not None:  # the exit's repeated stop word failed after the way out said how the drives ended
             return code
-        report("run", err, stop_outcome(rig))  # the rig could not be opened: nothing commanded
+        report("run", err, stop_outcome(rig) + _refused_watchdog(err))  # the rig could not be opened: nothing commanded
         return 2
 
 
+def _refused_watchdog(err) -> str:
+    """A hint when a drive refused [drives] comm_loss_timeout_s on entry (exception 03)."""
+    from drives.errors import DriveExceptionResponse
+    from drives.registers import COMM_LOSS_TIMEOUT
+
+    if not isinstance(err, DriveExceptionResponse) or err.register != COMM_LOSS_TIMEOUT:
+        return ""
+    return (
+        "; the drive did not take [drives] comm_loss_timeout_s as its COMM_LOSS_TIMEOUT (a drive takes one only "
+        "at standstill and within its range): if it is turning, stop it first (orbitrig drives stop)"
+    )
+
+
 async def _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, interrupt) -> int:
-    """Both drives to the setpoint; released there (exit 0) or held (`--hold`)."""
+    """Both drives to the setpoint (exit 0: `_release` follows) and held there (`--hold`)."""
     from orbitrig.cli.drives_hold import _hold, _state_lines
 
     await rig.set_speeds(spin, orbit)
     state = await rig.wait_settled(hold=settle, timeout=timeout)
     _state_lines(state)
     if not hold:
-        rig.release()
         return 0
     refs = (rig.spin.reference_for(spin), rig.orbit.reference_for(orbit))
     return await _hold(rig, refs, status_every, interrupt)
+
+
+async def _release(rig, wanted: float) -> None:
+    """Leave both drives at the setpoint, only if each one's comm-loss watchdog, read back now, is
+    armed (else WatchdogOff: the way out stops both); says after how long it ramps them down."""
+    from orbitrig.cli.drives_hold import armed_watchdog, watchdog_seconds
+    from orbitrig.cli.terminal import say
+
+    for drive in (rig.spin, rig.orbit):
+        await drive.read_parameters()  # what each holds now, not what it held on entry
+    armed = armed_watchdog(rig, wanted)
+    say(
+        "both drives left running at the setpoint: with no client polling them, their comm-loss watchdog "
+        f"(COMM_LOSS_TIMEOUT) ramps them down {watchdog_seconds(armed)} after this command",
+        err=True,
+    )
+    rig.release()

@@ -45,6 +45,39 @@ class Interrupt:
             task.cancel()  # the way out stops both drives
 
 
+class WatchdogOff(DriveError):
+    """A drive's COMM_LOSS_TIMEOUT reads 0 (its comm-loss watchdog disabled): nothing would stop it once
+    no client polls it, so `run` does not leave it running."""
+
+
+def armed_watchdog(rig, wanted: float) -> dict[str, float]:
+    """Each drive's comm-loss timeout (s) as its parameters read back (`rig.spin.params`,
+    `rig.orbit.params`: read on entry, after the configured `wanted` s was written, or read again);
+    raises WatchdogOff naming the first drive and the register if one reads 0 (or was not read)."""
+    from drives.registers import COMM_LOSS_TIMEOUT, TIME_UNIT
+
+    armed = {}
+    for drive in (rig.spin, rig.orbit):
+        held = drive.params.comm_loss_timeout if drive.params is not None else 0.0
+        if not held > 0:
+            raise WatchdogOff(
+                f"reads 0, its comm-loss watchdog disabled ([drives] comm_loss_timeout_s = {wanted:g} s asked, "
+                f"in units of {TIME_UNIT:g} s): nothing would stop this drive once no client polls it",
+                drive=drive.device_id,
+                drive_name=drive.name,
+                register=COMM_LOSS_TIMEOUT,
+            )
+        armed[drive.name] = held
+    return armed
+
+
+def watchdog_seconds(armed: dict[str, float]) -> str:
+    """'1 s', or 'spin 1 s, orbit 2 s' when the drives' timeouts differ."""
+    if len(set(armed.values())) == 1:
+        return f"{next(iter(armed.values())):g} s"
+    return ", ".join(f"{name} {s:g} s" for name, s in armed.items())
+
+
 def _drive_line(d: dict) -> str:
     flags = ", at setpoint" if d["at_setpoint"] else ""
     return (

@@ -15,9 +15,11 @@ def reason(err: BaseException) -> str:
         DriveLinkError,
         DriveTimeoutError,
     )
+    from orbitrig.cli.drives_hold import WatchdogOff
     from orbitrig.cli.terminal import OutputError
 
     for cls, word in (
+        (WatchdogOff, "watchdog"),
         (DriveLimitError, "limit"),
         (DriveFaultError, "fault"),
         (DriveTimeoutError, "timeout"),
@@ -35,8 +37,22 @@ def stop_outcome(rig) -> str:
     if rig is None or rig.link.connects == 0:
         return "nothing sent"
     if rig.stop_errors:
-        return f"stop NOT delivered ({rig.stop_errors[0]}); the drives' comm-loss watchdog stops them"
+        return f"stop NOT delivered ({rig.stop_errors[0]}); {watchdog_words(rig)}"
     return "stop sent to both drives"
+
+
+def watchdog_words(rig) -> str:
+    """What stops the drives once nobody polls them, as their parameters read (on entry): their
+    comm-loss watchdog, in seconds, only where it is armed."""
+    times = [(d, d.params.comm_loss_timeout if d.params is not None else None) for d in (rig.spin, rig.orbit)]
+    armed = [t for _, t in times if t]
+    if len(armed) == len(times):
+        return f"the drives' comm-loss watchdog ramps them down {max(armed):g} s after the last request"
+    off = [f"{d.name} (id {d.device_id})" for d, t in times if t == 0]
+    if off:
+        where = ", ".join(off)
+        return f"COMM_LOSS_TIMEOUT reads 0 (no watchdog) on {where}: nothing stops it; use the rig's emergency stop"
+    return "their comm-loss watchdog is not known (parameters not read); use the rig's emergency stop"
 
 
 def report(command: str, err: BaseException, after: str = "") -> None:

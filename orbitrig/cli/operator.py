@@ -13,6 +13,12 @@
 
 Each request is recorded as sent by the terminal's operator, with the signal that asked
 (`command abort by ada (SIGHUP: the terminal was closed)`); the run's end message says the same.
+
+Once the run has closed the drives (its cleanup done, also when it could not confirm them
+stopped: state faulted or stopping while it records its end), any signal aborts; an abort the
+run no longer carries out (it does not hold the drives) sends both the emergency stop over a link
+of the command's own, as `orbitrig serve` does (orbitrig.service.idle_stop), and prints which
+drives took it.
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ class Operator:
 
     def __init__(self, engine: Any, console: Any) -> None:
         import asyncio
+        import threading
 
         self.engine, self.console = engine, console
         self.loop = asyncio.get_running_loop()
@@ -36,6 +43,8 @@ class Operator:
         self.asking: Any = None
         self.eof = False  # standard input closed: nobody can answer, so the run stops
         self.pending: Any = None  # a signal received before the run started (re-requested at its start)
+        self.stopper: Any = None  # the thread sending the emergency stop the run could not send
+        self.released = threading.Event()  # the run has ended (uninstall): it holds no drive port
 
     def install(self) -> None:
         import sys
@@ -46,6 +55,7 @@ class Operator:
             self.engine.unattended = True
 
     def uninstall(self) -> None:
+        self.released.set()
         for sig in SIGNALS:
             self.loop.remove_signal_handler(sig)
         if self.asking is not None:
@@ -72,14 +82,17 @@ class Operator:
         from orbitrig.run.states import IDLE, FAULTED, STOPPING
 
         self.interrupts += 1
-        if self.engine.state in (IDLE, FAULTED):  # not started yet: acted upon at the start
+        state = self.engine.state
+        if state in (IDLE, FAULTED) and self.engine.run_id is None:  # not started yet: acted upon at the start
             self.pending = sig
             return
         # the request first, then the words: a terminal gone (the hang-up that sent SIGHUP)
-        # must not keep the request from the engine
-        if self.interrupts >= 2 or self.engine.state == STOPPING:
-            self.engine.request_abort(why=signal_cause(sig))
-            self.console.print(f"{_name(sig)} again: aborting (emergency ramp down)", style="bold red", markup=False)
+        # must not keep the request from the engine. Faulted (or idle) once started: the run has
+        # closed the drives and records its end; a signal then aborts, as while stopping.
+        if self.interrupts >= 2 or state == STOPPING:
+            self._abort(signal_cause(sig), f"{_name(sig)} again")
+        elif state in (IDLE, FAULTED):
+            self._abort(signal_cause(sig), _name(sig))
         elif sig == signal.SIGINT:
             self.engine.request_pause()
             self._ask("paused at the next safe point: [r]esume, [s]top, [a]bort? (Ctrl-C again aborts) ", self._choice)
@@ -144,7 +157,7 @@ class Operator:
         if a == "s":
             self.engine.request_stop()
         elif a == "a":
-            self.engine.request_abort()
+            self._abort()
         elif a == "r":
             self.engine.request_resume()
             if self.engine.waiting_step is None:
@@ -157,7 +170,7 @@ class Operator:
     def _confirm(self, step: str, ans: str) -> None:
         a = ans.lower()
         if a.startswith("abort"):
-            self.engine.request_abort()
+            self._abort()
         elif a.startswith("stop"):
             self.engine.request_stop()
         else:
@@ -165,3 +178,54 @@ class Operator:
                 self.engine.confirm(step)
             except Exception as err:  # noqa: BLE001 - tell the operator, keep going
                 self.console.print(f"not confirmed: {err}", markup=False)
+
+    def _abort(self, why: str = "", head: str | None = None) -> None:
+        """Abort the run (`head`: the words that say so, e.g. 'Ctrl-C again'). If the run no longer
+        holds the drives (closed by its cleanup, also when it could not confirm them stopped, or not
+        open yet), both get the emergency stop over a link of this command's own, and the outcome
+        (which drives took it) is printed."""
+        if self.engine.request_abort(why=why):
+            if head is not None:
+                self.console.print(f"{head}: aborting (emergency ramp down)", style="bold red", markup=False)
+            return
+        self.console.print(
+            f"{head or 'abort'}: the run no longer holds the drives: emergency stop (OFF3) to both over a link "
+            "of this command's own",
+            style="bold red",
+            markup=False,
+        )
+        if self.stopper is not None and self.stopper.is_alive():
+            return  # one under way: its outcome is printed
+        import threading
+
+        url, drives = self.engine.access.endpoints.modbus_url, self.engine.rig.drives
+        # a thread that is no daemon: the command does not exit before the stop is sent
+        self.stopper = threading.Thread(target=self._send_stop, args=(url, drives), name="operator-emergency-stop")
+        self.stopper.start()
+
+    def _send_stop(self, url: str, drives: Any) -> None:
+        """The emergency stop (orbitrig.service.idle_stop) in this thread's own event loop; its outcome printed."""
+        import asyncio
+
+        from orbitrig.service.idle_stop import emergency_stop
+
+        async def send():
+            holder = asyncio.ensure_future(_until(self.released))  # a run being opened may hold the port
+            try:
+                return await emergency_stop(url, drives, holder, own="this command's")
+            finally:
+                holder.cancel()
+
+        try:
+            error, detail = asyncio.run(send())
+        except Exception as err:  # noqa: BLE001 - said, never a traceback from this thread
+            error, detail = f"emergency stop NOT confirmed sent: {type(err).__name__}: {err}", None
+        self.console.print(detail if error is None else error, style="bold red", markup=False)
+
+
+async def _until(event: Any) -> None:
+    """Returns once the threading.Event `event` is set."""
+    import asyncio
+
+    while not event.is_set():
+        await asyncio.sleep(0.05)

@@ -6,7 +6,9 @@ orbitrig.run.drive_setup: no status read first, each drive tried even if the oth
 The rig service sends it when an abort arrives and no run holds the drives: the run has ended
 (its cleanup closed their link, also when it could not confirm them stopped: "drives not
 confirmed stopped") or is not holding them yet. An abort is never answered ok with nothing
-sent (docs/protocols/mqtt.md, "Commands")."""
+sent (docs/protocols/mqtt.md, "Commands"). A second signal to `orbitrig serve` that no run takes
+(RigService.abort_run), and a signal or an abort at the terminal of `orbitrig sweep` that its run
+no longer carries out (orbitrig.cli.operator), send the same, from here."""
 
 from __future__ import annotations
 
@@ -33,11 +35,14 @@ Outcome = tuple[str | None, str | None]
 LET_GO_S = 5.0
 
 
-async def emergency_stop(url: str, d: Drives, holder: asyncio.Future[object] | None = None) -> Outcome:
-    """OFF3 to both drives of [drives] `d` at `url` over a fresh link, then zero references:
-    (None, what was sent) if both took it, else (why not, None). `holder`: the task of a run
-    the abort cancelled before it held the drives (it may hold their port while being opened):
-    if the link cannot be opened, it is tried again once that run has ended (at most LET_GO_S)."""
+async def emergency_stop(
+    url: str, d: Drives, holder: asyncio.Future[object] | None = None, *, own: str = "the service's"
+) -> Outcome:
+    """OFF3 to both drives of [drives] `d` at `url` over a fresh link (`own`: whose), then zero
+    references: (None, what was sent) if both took it, else (why not, naming the drives that took
+    it, None); never raises but a cancellation. `holder`: the task of a run the abort cancelled
+    before it held the drives (it may hold their port while being opened): if the link cannot be
+    opened, it is tried again once that run has ended (at most LET_GO_S)."""
     link = modbus_link(url, d)
     pair = bare_drives(link, d)
     log.warning("abort: no run holds the drives: emergency stop (OFF3) to both over a link of its own (%s)", url)
@@ -47,11 +52,14 @@ async def emergency_stop(url: str, d: Drives, holder: asyncio.Future[object] | N
             log.error("abort: emergency stop not sent: %s", not_open)
             return f"emergency stop NOT sent (no run holds the drives): {not_open}; {ESTOP}", None
         errors = await send_stop(pair, emergency=True)
+    except Exception as err:  # an outcome, never the end of its caller
+        log.exception("abort: the emergency stop over a link of its own failed")
+        return f"emergency stop NOT confirmed sent: {type(err).__name__}: {err}; {ESTOP}", None
     finally:
         await link.close()
     if not errors:
         log.warning("abort: emergency stop (OFF3) sent to both drives (no run held them)")
-        return None, "emergency stop (OFF3) sent to both drives over a link of the service's own (no run held them)"
+        return None, f"emergency stop (OFF3) sent to both drives over a link of {own} own (no run held them)"
     sent = took_it(pair, errors)
     why = "; ".join(str(err) for err in errors)
     return f"emergency stop (OFF3) delivered to {', '.join(sent) or 'no drive'} only: {why}; {ESTOP}", None
@@ -75,3 +83,35 @@ async def _open(link: ModbusLink, holder: asyncio.Future[object] | None) -> str 
         return None
     except DriveError as err:
         return f"cannot open their link: {err}"
+
+
+def start(
+    group: asyncio.TaskGroup | None, drive_link: tuple[str, Drives] | None, holder, why: str
+) -> asyncio.Task[Outcome] | None:
+    """`emergency_stop` to `drive_link` in a task of `group` (the service's: it is waited for; None:
+    of the running loop), its outcome logged as that of the abort `why`; None (logged) if it cannot
+    be sent: no drive link known, or nothing to run it any more (the service has ended)."""
+    if drive_link is None:
+        log.error("abort (%s): %s", why, NO_DRIVE_LINK)
+        return None
+    stop = emergency_stop(*drive_link, holder)
+    try:
+        make = group.create_task if group is not None else asyncio.get_running_loop().create_task
+        task = make(stop, name="drives-emergency-stop")
+    except RuntimeError as err:  # the service's TaskGroup has finished, or no loop runs
+        stop.close()
+        log.error("abort (%s): emergency stop NOT sent: %s; %s", why, err, ESTOP)
+        return None
+    task.add_done_callback(lambda done: _log_outcome(done, why))
+    return task
+
+
+def _log_outcome(task: asyncio.Task[Outcome], why: str) -> None:
+    if task.cancelled():
+        log.error("abort (%s): emergency stop not confirmed sent: cancelled; %s", why, ESTOP)
+        return
+    error, detail = task.result()
+    if error is None:
+        log.warning("abort (%s): %s", why, detail)
+    else:
+        log.error("abort (%s): %s", why, error)

@@ -53,7 +53,7 @@ from orbitrig.errors import ConfigError
 from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
 from orbitrig.run.heap import trim_heap
 from orbitrig.run.states import Outcome, RunState
-from orbitrig.service import live as live_feed
+from orbitrig.service import idle_stop, live as live_feed
 from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # the service's seams
 from orbitrig.service.inbox import CommandTriage
 from orbitrig.service.abort_link import AbortLink
@@ -247,10 +247,16 @@ class RigService(SupervisionHandling):
 
     def abort_run(self, why: str) -> None:
         """Abort the active run (emergency ramp; during its closing ramp stop: an emergency stop),
-        recorded as sent by ``service (why)``."""
+        recorded as sent by ``service (why)``. An abort no run takes (none is active, or the run no
+        longer holds the drives: closed by its cleanup, also unconfirmed) sends both the emergency
+        stop over the service's own link, as an MQTT abort (idle_stop); its outcome is logged."""
         if self.run_active:
             log.warning("aborting run %s: %s", self._run_id, why)
-            self._request("abort", f"service ({why})")
+            if self._request("abort", f"service ({why})"):
+                return
+        if self._idle_stop is None or self._idle_stop.done():  # else one under way: its outcome is logged
+            run = self._run_task if self.run_active else None
+            self._idle_stop = idle_stop.start(self._tg, self.drive_link, run, why) or self._idle_stop
 
     async def _run(self, engine: Engine, name: str, matrix: Any) -> None:
         log.info("run of matrix %r starting", name)
