@@ -13,12 +13,20 @@ source of `state`, and the interlock:
 - While the link is down the poll keeps reconnecting; once it is back, both
   drives are verified against `command` before anything goes on: drives found
   tripped or off their reference are stopped and the loss is recorded.
+- Every stop goes through `send_stop`; one that some drive did not take is owed
+  (`owed`) until a later stop reaches both drives or a new speed is commanded.
+  A poll (after a reconnect or not) that finds a drive running, or with a nonzero
+  REF, while no speed is commanded and a stop is owed sends the owed stop again
+  (the emergency stop if an emergency stop is owed) and records the failure.
+- `wait_stopped` and `StopTripError`: the owner's wait for standstill after a
+  stop, and a drive that tripped meanwhile (`RigDrives.stop`).
 """
 
 from __future__ import annotations
 
 import asyncio
 import dataclasses
+import functools
 import logging
 import math
 import time
@@ -26,7 +34,7 @@ from collections.abc import Sequence
 
 from drives import registers as R
 from drives.drive import Drive, DriveStatus
-from drives.errors import DriveError, DriveFaultError, DriveLinkError
+from drives.errors import DriveError, DriveFaultError, DriveLinkError, DriveTimeoutError
 from drives.limits import fmt_speed
 from drives.link import ModbusLink
 from drives.state import RigDriveState
@@ -46,6 +54,26 @@ async def wait_tick(tick: asyncio.Event, timeout: float) -> None:
         waiter.cancel()
 
 
+class StopTripError(DriveFaultError):
+    """A drive tripped while both were being stopped: a fault first read after the stop command
+    on a drive not known tripped before it. `fault_code`, `drive`: the first drive that tripped;
+    `tripped`: the statuses of all that did; `standstill`: both drives read zero speed after it."""
+
+    def __init__(self, tripped: Sequence[DriveStatus], *, stop: str, standstill: bool, end: str):
+        first = tripped[0]
+        too = "".join(f"; {s.name} drive (id {s.device_id}) tripped too (fault {s.fault_code})" for s in tripped[1:])
+        end = "both drives at standstill" if standstill else end
+        super().__init__(
+            f"tripped during the {stop}{too}; {end}",
+            drive=first.device_id,
+            drive_name=first.name,
+            register=R.FAULT,
+            fault_code=first.fault_code,
+        )
+        self.tripped = list(tripped)
+        self.standstill = standstill
+
+
 class DrivePoll:
     """Polls the spin and orbit drives on one link; owned by `RigDrives`.
 
@@ -55,10 +83,12 @@ class DrivePoll:
         in `fit_heartbeat` a warning rather than an info.
     Shared with the owner:
     state : the latest RigDriveState; `tick` is set (and replaced) on every publish.
-    command : raw REFs (spin, orbit) while running, else None; the owner sets
-        it, the poll clears it when it stops the drives.
+    command : raw REFs (spin, orbit) while running, else None; the owner sets it
+        (`commanded`) and clears it with its stops (`send_stop`); the poll clears it
+        once its own stop is sent, as it records the failure.
+    owed : a stop some drive did not take (True: an emergency stop), None if none.
     failure : what the poll found (trip, failed verification after a link loss,
-        a poll that raised), kept until `acknowledge()`.
+        a drive running while a stop is owed, a poll that raised), kept until `acknowledge()`.
     """
 
     def __init__(
@@ -84,12 +114,74 @@ class DrivePoll:
         self._trip_handled = False
         self._ack_time = 0.0  # polls read before this are stale for trip handling
         self._link_lost_at: float | None = None
+        self.owed: bool | None = None
+        self._owed_at = 0.0  # monotonic s the owed stop ended: statuses read before it show nothing
+        self._sending = 0  # stops under way: what they reached is not known yet
+        self._epoch = 0  # speed commands so far: a stop asked before the last one owes nothing
 
     def acknowledge(self) -> None:
         """Forget the recorded failure; trips read before now are not handled again."""
         self.failure = None
         self._trip_handled = False
         self._ack_time = time.monotonic()
+
+    def commanded(self, refs: tuple[int, int]) -> None:
+        """Both drives are being run at raw REFs `refs` (spin, orbit): no stop is owed any more."""
+        self._epoch += 1
+        self.owed = None
+        self.command = refs
+
+    def send_stop(self, *, emergency: bool = False) -> asyncio.Task[list[DriveError]]:
+        """Clear `command` (the owner's stop) and `_send` the stop."""
+        self.command = None
+        return self._send(emergency)
+
+    def _send(self, emergency: bool) -> asyncio.Task[list[DriveError]]:
+        """Send the stop (OFF1, `emergency`: OFF3) to both drives through the owner's StopSender;
+        its task's result: the delivery errors. Owed until a stop is delivered to both."""
+        self._sending += 1
+        task = self._stops.send(emergency=emergency)
+        task.add_done_callback(functools.partial(self._stop_ended, emergency, self._epoch))
+        return task
+
+    def _stop_ended(self, emergency: bool, epoch: int, task: asyncio.Task[list[DriveError]]) -> None:
+        """A stop's outcome: taken by both drives, nothing is owed; else the stop is owed (an
+        emergency stop owed stays owed as such) unless a speed was commanded since it was asked."""
+        self._sending -= 1
+        if epoch != self._epoch:
+            return
+        if not task.cancelled() and task.exception() is None and not task.result():
+            self.owed = None
+            return
+        self.owed = bool(self.owed) or emergency
+        self._owed_at = time.monotonic()
+
+    def known_trips(self) -> frozenset[int]:
+        """Device ids of the drives known tripped now: the latest poll's, and the recorded fault's."""
+        st, err = self.state, self.failure
+        known = {s.device_id for s in (st.spin, st.orbit) if s is not None and s.tripped}
+        if isinstance(err, DriveFaultError) and err.fault_code and err.drive is not None:
+            known.add(err.drive)
+        return frozenset(known)
+
+    async def wait_stopped(self, known: frozenset[int], since: float, timeout: float, *, stop: str) -> None:
+        """Wait up to `timeout` s past `since` (monotonic s, the stop command) for a poll after it
+        with the link up and both drives at zero speed. Then, or once the wait ends: StopTripError
+        if a drive not in `known` (`known_trips` before the command) reads tripped in a poll after
+        `since` (`stop`: which stop, for the message), else DriveTimeoutError if not at standstill."""
+        deadline = since + timeout
+        while True:
+            tick, st = self.tick, self.state
+            standstill = st.link_ok and st.time > since and st.stopped
+            if standstill or time.monotonic() >= deadline:
+                break
+            await wait_tick(tick, deadline - time.monotonic())
+        late = f"not at zero speed within {timeout:g} s: " + st.describe()
+        tripped = [s for s in (st.spin, st.orbit) if s and s.tripped and s.time > since and s.device_id not in known]
+        if tripped:
+            raise StopTripError(tripped, stop=stop, standstill=standstill, end=late)
+        if not standstill:
+            raise DriveTimeoutError("drives " + late, register=R.ACT)
 
     def fail(self, err: DriveError) -> None:
         """Record `err` unless an earlier failure is still unacknowledged."""
@@ -173,6 +265,7 @@ class DrivePoll:
             return
         self.publish(statuses, link_ok=True)
         await self._check_trips(statuses)
+        await self._check_owed(statuses)
 
     def _poll_failed(self, err: DriveError) -> None:
         """A poll without valid answers: counted; the link is declared lost after
@@ -208,43 +301,76 @@ class DrivePoll:
         self.publish(None, link_ok=False, link_error=str(err))
 
     async def _verify_after_reconnect(self) -> list[DriveStatus]:
-        """Link is back: re-read parameters and check both drives against the command."""
+        """Link is back: re-read parameters and check both drives against the command, or, with
+        none, against the stop owed: drives found tripped, off their reference, or running while
+        a stop is owed are stopped (again) and the failure is recorded."""
         down = time.monotonic() - (self._link_lost_at or time.monotonic())
         for d in self.drives:
             await d.read_parameters()  # volatile: a power-cycled drive has defaults again
         statuses = [await d.read_status(retries=0) for d in self.drives]
-        command = self.command
-        problem: DriveError | None = None
+        problem = self._off_command(statuses, down) or self._owed_problem(statuses, f"link was down {down:.1f} s; ")
+        if problem is None:
+            log.warning("drive link restored after %.1f s; both drives verified", down)
+            return statuses
+        log.error("drive link restored after %.1f s; %s; stopping both", down, problem)
+        self._trip_handled = True
+        await asyncio.shield(self._send(bool(self.owed)))
+        self.command = None  # with the failure, no await between: wait_settled sees both
+        self.fail(problem)
+        return statuses
+
+    def _off_command(self, statuses: Sequence[DriveStatus], down: float) -> DriveError | None:
+        """The first drive found tripped, or (a speed commanded) not running at its reference,
+        after the link was down `down` s."""
         for i, (st, d) in enumerate(zip(statuses, self.drives)):
             if st.tripped:
-                problem = DriveFaultError(
+                return DriveFaultError(
                     f"tripped while the link was down ({down:.1f} s)",
                     drive=st.device_id,
                     drive_name=st.name,
                     register=R.FAULT,
                     fault_code=st.fault_code,
                 )
-                break
-            if command is not None:
-                want = command[i]
-                if not st.running or st.reference_raw != want:
-                    problem = DriveLinkError(
-                        f"link was down {down:.1f} s; found {st.state} with REF "
-                        f"{fmt_speed(st.reference)} instead of running at {fmt_speed(d.speed_of(want))}",
-                        drive=st.device_id,
-                        drive_name=st.name,
-                        register=R.REF,
-                    )
-                    break
+            if self.command is not None and (not st.running or st.reference_raw != self.command[i]):
+                return DriveLinkError(
+                    f"link was down {down:.1f} s; found {st.state} with REF {fmt_speed(st.reference)} "
+                    f"instead of running at {fmt_speed(d.speed_of(self.command[i]))}",
+                    drive=st.device_id,
+                    drive_name=st.name,
+                    register=R.REF,
+                )
+        return None
+
+    def _owed_problem(self, statuses: Sequence[DriveStatus], why: str = "") -> DriveError | None:
+        """With no speed commanded and a stop owed: the first drive found running, or with a
+        nonzero REF, in `statuses` (all read after the owed stop ended), as the failure to record.
+        None if there is none; drives found neither running nor with a REF owe nothing more."""
+        if self.owed is None or self.command is not None or self._sending:
+            return None
+        if any(st.time <= self._owed_at for st in statuses):
+            return None
+        moving = [st for st in statuses if st.running or st.reference_raw != 0]
+        if not moving:
+            log.info("the stop owed is not needed any more: both drives found stopping or stopped")
+            self.owed = None
+            return None
+        st, kind = moving[0], "emergency stop (OFF3)" if self.owed else "ramp stop (OFF1)"
+        return DriveLinkError(
+            f"{why}found {st.state} with REF {fmt_speed(st.reference)} while no speed is commanded: "
+            f"the {kind} it missed (not delivered) is sent again",
+            drive=st.device_id,
+            drive_name=st.name,
+            register=R.CW,
+        )
+
+    async def _check_owed(self, statuses: Sequence[DriveStatus]) -> None:
+        """A drive found running while a stop is owed (`_owed_problem`): the stop again, and the failure."""
+        problem = self._owed_problem(statuses)
         if problem is None:
-            log.warning("drive link restored after %.1f s; both drives verified", down)
-            return statuses
-        log.error("drive link restored after %.1f s; %s; stopping both", down, problem)
-        self._trip_handled = True
-        await asyncio.shield(self._stops.send())
-        self.command = None
+            return
+        log.error("%s", problem)
+        await asyncio.shield(self._send(bool(self.owed)))
         self.fail(problem)
-        return statuses
 
     async def _check_trips(self, statuses: list[DriveStatus]) -> None:
         tripped = [st for st in statuses if st.tripped and st.time > self._ack_time]
@@ -264,6 +390,6 @@ class DrivePoll:
             fault_code=st.fault_code,
         )
         log.error("%s; ramping both drives to zero", err)
-        await asyncio.shield(self._stops.send())  # delivered before anyone hears of the fault
+        await asyncio.shield(self._send(bool(self.owed)))  # delivered before anyone hears of the fault
         self.command = None
         self.fail(err)

@@ -24,7 +24,10 @@ Safety rules this class keeps:
 - On a declared link loss the poll reports it (log, `state.link_ok`), keeps
   reconnecting and, once the link is back, verifies both drives against what was commanded
   before anything goes on; drives found tripped or off their reference are
-  stopped and the loss is raised.
+  stopped and the loss is raised. A stop a drive missed is owed: a drive found
+  running while it is owed gets it again, and that is raised (drives/poll.py).
+- `stop` (waiting) raises StopTripError for a drive that tripped during the stop,
+  once both are at standstill (the message says so) or the wait ends.
 - Any exception inside `set_speeds`, and every exit of the context, ramps both
   drives to zero (an emergency stop is repeated as such); the stop is sent
   even while the task is being cancelled. Only `release()` followed by a clean
@@ -46,11 +49,13 @@ from drives.errors import DriveError, DriveFaultError, DriveLinkError, DriveTime
 from drives.limits import DriveLimits, fmt_speed
 from drives.link import ModbusLink
 from drives.pair import drive_names, drive_pair
-from drives.poll import DrivePoll, wait_tick
+from drives.poll import DrivePoll, StopTripError, wait_tick
 from drives.state import RigDriveState
 from drives.stop import StopSender
 
 log = logging.getLogger(__name__)
+
+__all__ = ["RigDrives", "StopTripError"]
 
 #: wall s the exit waits for the cancelled poll to end before it stops the drives anyway
 POLL_END_S = 1.0
@@ -260,12 +265,13 @@ class RigDrives:
                     )
             self._poll.acknowledge()
             self._emergency = False
-            self._poll.command = refs
+            self._poll.commanded(refs)
             for d, raw in zip(self._drives, refs):
                 await d.start(raw)
             log.info("drives commanded: spin %s, orbit %s", fmt_speed(spin), fmt_speed(orbit))
-        except BaseException:
-            self._poll.command = None
+        except BaseException as err:
+            if isinstance(err, DriveFaultError) and err.fault_code:
+                self._poll.fail(err)  # a trip known: the stop after it does not report it again
             await self._safe_stop(emergency=self._emergency)  # an abort's stop_now stays an emergency
             raise
 
@@ -306,43 +312,29 @@ class RigDrives:
         """Ramp both drives to zero (OFF1), or emergency-stop them (OFF3).
 
         Sends the stop to both drives even if one fails (then raises the first
-        error). With `wait`, returns once both read an actual speed of zero;
-        `timeout` defaults to the drives' own ramp time from the present speed
-        plus a margin.
+        error; the stop is owed, drives/poll.py). With `wait`, returns once both read
+        an actual speed of zero; `timeout` (s) defaults to the drives' own ramp time
+        from the present speed plus a margin. A drive that trips meanwhile (not known
+        tripped at the command) raises StopTripError at standstill or once the wait ends.
         """
         self._require_open()
-        self._poll.command = None
         self._emergency = emergency
-        t_cmd = time.monotonic()
+        t_cmd, known = time.monotonic(), self._poll.known_trips()
         errors = await self._safe_stop(emergency=emergency)
         if errors:
             raise errors[0]
-        if not wait:
-            return
-        if timeout is None:
-            timeout = self._stop_time(emergency)
-        deadline = t_cmd + timeout
-        while True:
-            tick = self._poll.tick
-            st = self._poll.state
-            if st.link_ok and st.time > t_cmd and st.stopped:
-                return
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                raise DriveTimeoutError(
-                    f"drives not at zero speed within {timeout:g} s: " + st.describe(),
-                    register=R.ACT,
-                )
-            await wait_tick(tick, remaining)
+        if wait:
+            timeout = self._stop_time(emergency) if timeout is None else timeout
+            kind = "emergency stop (OFF3)" if emergency else "ramp stop (OFF1)"
+            await self._poll.wait_stopped(known, t_cmd, timeout, stop=kind)
 
     def stop_now(self, *, emergency: bool = True) -> asyncio.Task[list[DriveError]]:
         """Send the stop to both drives now, ahead of every request waiting for the link, without
         waiting for the caller to unwind (an abort's first act); the task's result: the delivery
         errors. `stop()` afterwards repeats it and waits for standstill."""
         self._require_open()
-        self._poll.command = None
         self._emergency = self._emergency or emergency
-        return self._stops.send(emergency=emergency)
+        return self._poll.send_stop(emergency=emergency)
 
     async def reset_faults(self) -> None:
         """Reset both drives' faults (RESET edge); DriveFaultError if a cause is still active."""
@@ -381,7 +373,7 @@ class RigDrives:
         Returns the delivery errors (logged); a cancellation that arrived
         during the stop is re-raised once the stop has been sent.
         """
-        task = self._stops.send(emergency=emergency)  # after a stop under way, never interleaved
+        task = self._poll.send_stop(emergency=emergency)  # after a stop under way, never interleaved
         cancelled = False
         while not task.done():
             try:

@@ -13,9 +13,11 @@ cleanup failure is logged and the rest still runs. A stop (operator, policy,
 unanswered wait) therefore never waits for storage, and a storage failure
 (disk full included) stops the drives before anything else. A stop that is not
 delivered or not confirmed at standstill ends the run failed ("drives not
-confirmed stopped"); so does a helper task (interlock watcher, log monitor)
-that raises, at once. The engine does no terminal I/O: it publishes events to
-subscribers (the terminal UI of `orbitrig sweep`, MQTT in `orbitrig serve`).
+confirmed stopped"); so does a drive that trips during it ("drive tripped during
+the closing stop", orbitrig.run.safe_stop; an abort stays an abort), and a helper
+task (interlock watcher, log monitor) that raises, at once. The engine does no
+terminal I/O: it publishes events to subscribers (the terminal UI of `orbitrig
+sweep`, MQTT in `orbitrig serve`).
 """
 
 from __future__ import annotations
@@ -55,7 +57,7 @@ from orbitrig.run.requests import OperatorRequests
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.run_dir import completed_points, no_room, open_store, resume_events, run_age
 from orbitrig.run.run_dir import started_order as _started_order
-from orbitrig.run.safe_stop import stop_drives, unconfirmed
+from orbitrig.run.safe_stop import closing_stop
 from orbitrig.run.states import (
     ABORTED,
     COMPLETED,
@@ -331,14 +333,13 @@ class RunEngine(OperatorRequests):
 
     async def _cleanup(self, io: RigIO, status: Outcome, message: str) -> tuple[Outcome, str]:
         """Both drives stopped and confirmed at standstill, then the links closed, then the storage
-        in flight finished: (status, message), failed if the stop or the storage was not done."""
+        in flight finished: (status, message), failed if the stop or the storage was not done, or
+        if a drive tripped during the stop (orbitrig.run.safe_stop.closing_stop)."""
         if io.drives is not None:
             timeout = self.access.time_scale.wall(self.rig.drives.stop_timeout_s) + 5.0
-            try:
-                await self._stop_drives(io.drives, status in (ABORTED, FAILED), timeout)
-            except BaseException as err:  # noqa: BLE001 - every cleanup step must run
-                self._cleanup_failed("stop both drives", err)
-                status, message = unconfirmed(status, message, err)
+            status, message = await closing_stop(
+                io.drives, self._control.aborted, (status, message), timeout, self._log_event, self._cleanup_failed
+            )
         for what, action in (
             ("close the rig links", lambda: io.__aexit__(None, None, None)),
             ("finish the storage in flight", self._background.settle),
@@ -351,10 +352,6 @@ class RunEngine(OperatorRequests):
         if failed is not None and status in (COMPLETED, STOPPED):  # points completed before it are kept
             status, message = FAILED, failed
         return status, message
-
-    async def _stop_drives(self, drives, emergency: bool, timeout: float) -> None:
-        _, line = await stop_drives(drives, self._control.aborted, emergency=emergency, timeout=timeout)
-        self._log_event(line)
 
     def _cleanup_failed(self, what: str, err: BaseException) -> None:
         """Log a failed cleanup step (also called from the storage thread: logging and the

@@ -7,6 +7,11 @@ the emergency stop (OFF3) at once, and the run ends aborted. The line this
 returns says what the drives were commanded and how they ended, for run.log.
 A stop that is not delivered, or not confirmed at standstill in time, makes the
 run failed whatever it was (`unconfirmed`): nobody may take the rig for stopped.
+A drive that trips during the run's closing stop (`closing_stop`; RigDrives.stop raises
+StopTripError, a trip known before the stop is not reported again) makes a completed or
+stopped run failed once both drives are at standstill ('drive tripped during the closing
+stop (fault 2310, standstill confirmed)'); an aborted or failed run keeps its status,
+the trip added to its message.
 
 `stop_shielded` is the same stop for a command whose way out is a cancellation (a signal
 cancels its task): the stop is not cut short by the cancellation, which counts as an abort
@@ -17,9 +22,10 @@ from __future__ import annotations
 
 import asyncio
 import time
+from collections.abc import Callable
 
-from drives.rig import RigDrives
-from orbitrig.run.states import FAILED, Outcome
+from drives.rig import RigDrives, StopTripError
+from orbitrig.run.states import ABORTED, FAILED, Outcome
 
 
 async def stop_drives(
@@ -77,9 +83,57 @@ async def stop_shielded(
     return result
 
 
+async def closing_stop(
+    drives: RigDrives,
+    aborted: asyncio.Event,
+    ending: tuple[Outcome, str],
+    timeout: float | None,
+    note: Callable[[str], None],
+    failed: Callable[[str, BaseException], None],
+) -> tuple[Outcome, str]:
+    """The run's last stop (RunEngine's cleanup): `stop_drives`, the emergency stop if the run is
+    `ending` (status, message) aborted or failed; `note` gets the log line, `failed` a stop that
+    raised. Returns the run's (status, message): failed if the stop was not confirmed
+    (`unconfirmed`) or a drive tripped during it (`tripped_in_closing_stop`)."""
+    status, message = ending
+    try:
+        _, line = await stop_drives(drives, aborted, emergency=status in (ABORTED, FAILED), timeout=timeout)
+    except StopTripError as err:
+        if not err.standstill:
+            failed("stop both drives", err)
+            return unconfirmed(status, message, err)
+        note(f"drives: {err}; {_speeds(drives)}")
+        return tripped_in_closing_stop(status, message, err, aborted.is_set())
+    except BaseException as err:  # noqa: BLE001 - every cleanup step must run
+        failed("stop both drives", err)
+        return unconfirmed(status, message, err)
+    note(line)
+    return status, message
+
+
+def tripped_in_closing_stop(status: Outcome, message: str, err: StopTripError, aborting: bool) -> tuple[Outcome, str]:
+    """The run's (status, message) when a drive tripped during its closing stop, both drives at
+    standstill: a completed or stopped run failed, saying so first and how it was ending; an
+    aborted run (`aborting`: an abort arrived) or a failed one keeps its status, the trip added."""
+    trip = tripped_words(err, "closing stop")
+    if aborting or status in (ABORTED, FAILED):
+        return status, f"{message}; {trip}"
+    return FAILED, f"{trip} (the run was ending {status}: {message})"
+
+
+def tripped_words(err: StopTripError, stop: str) -> str:
+    """'drive tripped during the closing stop (fault 2310, standstill confirmed): <err>'."""
+    codes = ", ".join(str(s.fault_code) for s in err.tripped)
+    confirmed = "standstill confirmed" if err.standstill else "standstill not confirmed"
+    return f"drive tripped during the {stop} (fault{'s' if len(err.tripped) > 1 else ''} {codes}, {confirmed}): {err}"
+
+
 def not_confirmed(err: BaseException) -> str:
     """What to say when stopping the drives raised `err` (not delivered, not at standstill in
-    time, cancelled): nobody may take the rig for stopped."""
+    time, cancelled): nobody may take the rig for stopped. A drive that tripped during the stop
+    with both at standstill (StopTripError) is said as such."""
+    if isinstance(err, StopTripError) and err.standstill:
+        return tripped_words(err, "stop")
     reason = f"{type(err).__name__}: {err}" if str(err) else type(err).__name__
     return f"drives not confirmed stopped: {reason}"
 
