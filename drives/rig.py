@@ -158,10 +158,7 @@ class RigDrives:
                 if not task.done():  # the stop never waits on it (it would feed the watchdogs)
                     log.error("the drives' poll did not end %g s after its cancel: stopping them beside it", POLL_END_S)
             if self._release and exc_type is None and not cancelled:
-                log.warning(
-                    "drives left running at their setpoint; without a polling client their "
-                    "comm-loss watchdog ramps them down"
-                )
+                log.warning("drives left running at their setpoint; %s", self._watchdog_words())
                 return
             try:
                 errors = await self._safe_stop(emergency=self._emergency)
@@ -212,7 +209,9 @@ class RigDrives:
 
         For the CLI's `run`, which returns at setpoint. Any exception or
         cancellation still stops both drives; once no client polls them, the
-        drives' own comm-loss watchdog ramps them down.
+        drives' own comm-loss watchdog ramps them down if it is armed
+        (COMM_LOSS_TIMEOUT > 0: give `comm_loss_timeout` on entry); the exit's
+        log says whether it was, as last read.
         """
         self._release = True
 
@@ -350,6 +349,13 @@ class RigDrives:
         self._poll.acknowledge()
 
     # -- internals --------------------------------------------------------------
+    def _watchdog_words(self) -> str:
+        """What stops drives nobody polls: their comm-loss watchdog as last read (COMM_LOSS_TIMEOUT)."""
+        times = [d.params.comm_loss_timeout if d.params else 0.0 for d in self._drives]
+        if all(t > 0 for t in times):
+            return f"without a polling client their comm-loss watchdog ramps them down after {max(times):g} s"
+        return "their comm-loss watchdog is not known to be armed (COMM_LOSS_TIMEOUT 0 or unread): nothing stops them"
+
     def _require_open(self) -> None:
         if self._poll_task is None:
             raise DriveError("RigDrives is not open: use `async with RigDrives(...)`")
