@@ -13,24 +13,34 @@ The main connection keeps its own subscription to ``<prefix>/abort``: an abort
 reaches the service on both, and the second copy is dropped (``AbortCopies``).
 Without this connection (not configured, its account refused by the broker, or
 denied ``<prefix>/abort`` by the ACL) the service still takes every abort, on
-the main connection, and says so with a warning when it starts.
+the main connection, and says so with a warning when it starts. A broker may
+grant the subscription and still deliver nothing (mosquitto, when the ACL denies
+the account reading ``<prefix>/abort``); nothing the connection may do shows it
+at once (it may publish nothing), so the copies are watched (:class:`WatchedCopies`):
+an abort the main connection read while this one was up and that does not come
+on this one within ``MISSING_S`` is an error naming the ACL line, and the link is
+no longer ``up`` (``delivery.problem`` says why) until a copy comes on it again.
 """
 
 from __future__ import annotations
 
+import asyncio
 import dataclasses
 import functools
 import logging
 import time
-from typing import Any
+from typing import Any, cast
 
 from daq.backoff import Backoff
 from orbitrig.service import protocol as proto
-from orbitrig.service.inbox import CommandInbox, CommandTriage, Connection
-from orbitrig.service.reconnect import TRAFFIC_S, credentials_refused, reconnecting
+from orbitrig.service.inbox import AbortCopies, CommandInbox, CommandTriage, Connection
+from orbitrig.service.reconnect import TRAFFIC_S, Delivery, credentials_refused, reconnecting
 from orbitrig.service.settings import AbortAccount, BrokerSettings, ServiceError, ServiceSettings
 
 log = logging.getLogger("orbitrig.service.abort_link")
+
+#: s within which a message on <prefix>/abort the main connection read must come on the abort connection
+MISSING_S = 5.0
 
 
 class AbortConnectionRefused(ServiceError):
@@ -41,7 +51,8 @@ class AbortConnectionRefused(ServiceError):
 @dataclasses.dataclass
 class AbortLink:
     """The abort connection of one rig service: ``await run()`` until cancelled.
-    ``up`` is True while it is subscribed; ``refused`` says why it gave up."""
+    ``up`` is True while it is subscribed and not known to be denied its messages
+    (``delivery.problem`` then says why); ``refused`` says why it gave up."""
 
     broker: BrokerSettings
     account: AbortAccount
@@ -51,6 +62,30 @@ class AbortLink:
     up: bool = False
     connections: int = 0
     refused: str | None = None
+    subscribed: bool = False
+
+    def __post_init__(self) -> None:
+        self.delivery = Delivery(log, self.where, self.account.username, self.topics)
+        self.triage.copies = cast(AbortCopies, WatchedCopies(self, self.triage.copies))  # (duck-typed)
+
+    def delivered(self) -> None:
+        """A message on ``<prefix>/abort`` came on this connection: it delivers."""
+        self.delivery.verified = True
+        if self.delivery.problems.pop(self.topics.abort, None) is not None:
+            log.warning("abort connection: the broker delivers %s to it again", self.topics.abort)
+        self.up = self.subscribed
+
+    def missed(self) -> None:
+        """A message on ``<prefix>/abort`` the main connection read did not come on this one (MISSING_S)."""
+        topic = self.topics.abort
+        why = (
+            f"a message on {topic} the main connection read did not come on the abort connection within "
+            f"{MISSING_S:g} s: the broker granted its subscription and delivers nothing (its ACL); stop and "
+            "abort are taken on the main connection only, where a flood of commands can hold them back"
+        )
+        self.delivery.verified = False
+        self.delivery.refused(topic, why, f"`topic read {topic}` (the shipped ACL: `topic read orbitrig/+/abort`)")
+        self.up = False
 
     @property
     def where(self) -> str:
@@ -109,7 +144,8 @@ class AbortLink:
             async with self._client() as client:
                 granted = await client.subscribe(self.topics.abort, qos=proto.QOS_ABORT_SUBSCRIPTION)
                 self._check_granted(granted)
-                t_up, self.up = time.monotonic(), True
+                t_up, self.subscribed = time.monotonic(), True
+                self.up = self.delivery.problem is None  # (known to be denied its messages: not up)
                 self.connections += 1
                 log.info(
                     "abort connection to %s as %r (client id %r): stop and abort on %s",
@@ -125,9 +161,9 @@ class AbortLink:
                 raise AbortConnectionRefused(
                     f"broker {self.where} refused the abort connection's account {self.account.username!r}: {err}"
                 ) from None
-            log.warning("abort connection to %s %s: %s", self.where, "lost" if self.up else "failed", err)
+            log.warning("abort connection to %s %s: %s", self.where, "lost" if self.subscribed else "failed", err)
         finally:
-            self.up = False
+            self.up = self.subscribed = False
         return t_up is not None and time.monotonic() - t_up > TRAFFIC_S
 
     def _check_granted(self, granted: Any) -> None:
@@ -138,3 +174,38 @@ class AbortLink:
                 f"broker {self.where} refused the abort connection's account {self.account.username!r} "
                 f"the subscription to {self.topics.abort} (reason code {codes[0]}: its ACL)"
             )
+
+
+class WatchedCopies:
+    """The triage's own :class:`AbortCopies` (``copies``: they pair the copies; everything but
+    ``first`` goes to them), watched for ``link``, the abort connection: a message on
+    ``<prefix>/abort`` the main connection reads first while ``link`` is subscribed must be
+    followed by a copy on ``link`` within MISSING_S (``missed`` else, on the event loop); every
+    copy that comes on ``link`` says it delivers (``delivered``)."""
+
+    def __init__(self, link: AbortLink, copies: AbortCopies):
+        self._link, self._copies = link, copies
+        self._awaited: list[bytes] = []  # read off the main connection, not yet off the abort one
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._copies, name)
+
+    def first(self, via: Connection, payload: bytes, *args: Any, **kwargs: Any) -> bool:
+        first = self._copies.first(via, payload, *args, **kwargs)
+        if via is Connection.ABORT:  # it delivers: not denied (a copy it missed is no ACL's doing)
+            self._awaited.clear()
+            self._link.delivered()
+        elif first and self._link.subscribed:
+            try:
+                loop = asyncio.get_running_loop()
+            except RuntimeError:  # (not on the event loop: not watched)
+                return first
+            self._awaited.append(bytes(payload))
+            loop.call_later(MISSING_S, self._check, bytes(payload), self._link.connections)
+        return first
+
+    def _check(self, payload: bytes, connection: int) -> None:
+        if payload in self._awaited:
+            self._awaited.remove(payload)
+            if self._link.subscribed and self._link.connections == connection:
+                self._link.missed()

@@ -27,7 +27,7 @@ from orbitrig.service.settings import CommandRefused
 
 log = logging.getLogger("orbitrig.service.rig_service")
 
-#: s after a reconnection during which the broker's redeliveries arrive
+#: s after a reconnection within which a command like one handled before it is logged as sent again
 REDELIVERY_S = 10.0
 #: stops and aborts remembered so that a retained one is carried out once only
 STOPS_KEPT = 4096
@@ -81,10 +81,12 @@ class CommandHandling:
         each reconnection. It is refused (one reply) and changes nothing, except a ``stop`` or
         ``abort``, which the contract has always accepted: it is carried out (stopping is the
         safe side, even of a stale request) and logged, once in the service's life (the broker
-        hands it over again at each reconnection: dropped then). A redelivery of a
-        command already handled (QoS 1 after a reconnection) is dropped: it was executed
-        and answered once; except a ``stop`` or ``abort``, carried out and answered again
-        (repeating one does no harm; dropping a new one that looks the same would)."""
+        hands it over again at each reconnection: dropped then). The broker's redelivery of an
+        ordinary command taken in before the link dropped (QoS 1, its acknowledgement lost) never
+        gets here: the link recognises it (DUP, packet id) and drops it, so it is executed and
+        answered once; a ``stop`` or ``abort`` is carried out and answered again (repeating one does
+        no harm). The same id and bytes sent again by a client are a new command: carried out and
+        answered like any other, also right after a reconnection (``_note_repeat``)."""
         try:
             cmd = proto.parse_command(payload)
         except proto.CommandError as err:
@@ -95,9 +97,8 @@ class CommandHandling:
             log.exception("refused command %r: the parser failed", payload[:200])
             self._reply(None, f"payload cannot be read: {type(err).__name__}", behind=True)
             return
-        if cmd.cmd not in proto.ALWAYS_ACCEPTED and self._redelivered(cmd, payload):
-            log.warning("dropped redelivered command %s (id %r): handled already", cmd.cmd, cmd.id)
-            return
+        if cmd.cmd not in proto.ALWAYS_ACCEPTED:
+            self._note_repeat(cmd, payload)
         if retained and cmd.cmd in proto.ALWAYS_ACCEPTED:  # the contract: always accepted, carried out
             if (cmd.id, bytes(payload)) in self._stops_done:  # at each reconnection: not once more
                 log.warning("dropped retained %s (id %r): carried out once already", cmd.cmd, cmd.id)
@@ -143,24 +144,26 @@ class CommandHandling:
             return
         self._reply(cmd.id, error, behind=cmd.cmd not in proto.ALWAYS_ACCEPTED)
 
-    def _redelivered(self, cmd: proto.Command, payload: bytes) -> bool:
-        """True for the broker's redelivery of a command handled before the link
-        dropped (its acknowledgement was lost): the same id and bytes, handled
-        during an earlier connection, arriving within REDELIVERY_S of this one.
-        An operator repeating a command later is not affected. Not asked of a stop or
-        an abort (on either connection): those are carried out each time."""
+    def _note_repeat(self, cmd: proto.Command, payload: bytes) -> None:
+        """Log a command with the id and bytes of one handled during an earlier connection,
+        arriving within REDELIVERY_S of this one: a client sent it again (the broker's redelivery
+        is dropped by the link before it gets here); it is carried out and answered as any
+        other. Not asked of a stop or an abort (carried out each time anyway)."""
         if cmd.id is None:
-            return False
+            return
         key = (cmd.id, bytes(payload))
         earlier = self._handled.get(key)
         now, link = time.monotonic(), self.link
         if earlier is not None and earlier < link.connections and now - link.connected_at < REDELIVERY_S:
-            return True
+            log.info(
+                "command %s (id %r) is the same as one handled before the reconnection: sent again, carried out again",
+                cmd.cmd,
+                cmd.id,
+            )
         self._handled[key] = link.connections
         self._handled.move_to_end(key)
         if len(self._handled) > 256:
             self._handled.popitem(last=False)
-        return False
 
     def _on_message(self, payload: bytes, retained: bool) -> None:
         """Every message on ``<prefix>/cmd``; nothing a message does may end the service."""

@@ -14,11 +14,25 @@ the service connects: its ``run_id`` and ``since`` are of that moment, and its
 
 Commands come in through :class:`orbitrig.service.inbox.CommandInbox` (stop
 and abort carried out as they are read off the socket, the rest queued and
-bounded). Going out, replies to ordinary commands wait in a lane of their own,
-handed over only when no status or result waits, and published beside them:
-a status or a result never waits for the acknowledgements of a flood of
-replies (nor they for its). Each lane sends ``PUBLISH_WINDOW`` messages at a
-time, without waiting for each acknowledgement in turn.
+bounded). The client acknowledges a QoS 1 command as it reads it, so the broker
+never sends it again: what a lost connection took in and did not hand over is
+carried out on the next one, first. The broker's redelivery of a command whose
+acknowledgement was lost with the link (DUP set, the packet id and bytes of one
+taken in before) is dropped: each command is carried out and answered once.
+
+Going out, replies to ordinary commands wait in a lane of their own, handed
+over only when no status or result waits, and published beside them: a status
+or a result never waits for the acknowledgements of a flood of replies (nor
+they for its). Each lane sends ``PUBLISH_WINDOW`` messages at a time. What the
+broker acknowledged is never sent again; what it had not when the link dropped
+is sent again on the next connection (QoS 1 is at least once: a reply may come
+twice, with its id).
+
+Every connection checks that the broker delivers to it (mosquitto grants a
+subscription its ACL denies, then delivers nothing): its own status, published
+first, must come back on ``<prefix>/status`` within ``ECHO_S``; a PUBACK refusing
+a message (reason code >= 0x80, e.g. 135: the ACL) is an error. ``delivery``
+(``verified``, ``problem``) says how that went (reconnect.Delivery).
 """
 
 from __future__ import annotations
@@ -26,6 +40,7 @@ from __future__ import annotations
 import asyncio
 import collections
 import dataclasses
+import functools
 import json
 import logging
 import time
@@ -36,13 +51,16 @@ from orbitrig.service import protocol as proto
 from daq.backoff import Backoff
 from orbitrig.service.flood_read import hold_reading, read_in_bursts, shed_before_decoding
 from orbitrig.service.inbox import CommandInbox, CommandTriage
-from orbitrig.service.reconnect import TRAFFIC_S, credentials_refused, reconnecting
+from orbitrig.service.reconnect import TRAFFIC_S, Delivery, Redeliveries, credentials_refused, first_error
+from orbitrig.service.reconnect import next_message, reconnecting, watch_publish_refusals
 from orbitrig.service.settings import BrokerSettings, ServiceError, ServiceSettings
 
 log = logging.getLogger("orbitrig.service.link")
 
 #: messages handed to the MQTT client at once (it keeps its own in-flight limit)
 PUBLISH_WINDOW = 64
+#: s within which the service's own status must come back to it on every connection
+ECHO_S = 10.0
 #: the last will's message, and what the will says of itself (its ``last_will`` field)
 WILL_MESSAGE = "connection to the rig service lost"
 WILL_NOTE = (
@@ -51,6 +69,10 @@ WILL_NOTE = (
     "before this one, and its stored status in the service's runs folder still says running "
     "(orbitrig sweep --resume continues it)"
 )
+
+
+def _drop(message: Any) -> bool:
+    return True  # (the connection that only ends the session subscribes to nothing)
 
 
 @dataclasses.dataclass
@@ -87,6 +109,11 @@ class BrokerLink:
         #: per lane (behind: replies), handed to the client, not yet acknowledged
         self._sending: dict[bool, list[Outgoing]] = {False: [], True: []}
         self._inbox: CommandInbox | None = None  # the current connection's
+        #: commands taken out of an inbox (or left in that of a lost connection), not yet handed over
+        self._pending: collections.deque[Any] = collections.deque()
+        self._redeliveries = Redeliveries()
+        #: the current connection's end-to-end check (ECHO_S) and what the broker refused it
+        self.delivery = Delivery(log, self.where, broker.username, topics)
         self._paho: Any = None  # the current connection's paho client
         self._wakes = {False: asyncio.Event(), True: asyncio.Event()}  # per lane (behind: replies)
         self.drained = asyncio.Event()
@@ -128,12 +155,14 @@ class BrokerLink:
         return batch
 
     async def _publish_loop(self, client: Any) -> None:
-        """Deliver the outgoing lanes, the current status first; what was handed
-        over but not acknowledged when a link dropped goes again."""
+        """Deliver the outgoing lanes, the current status first; what was handed over and
+        not acknowledged when a link dropped goes again (what was acknowledged never)."""
         unsent = [m for lane in self._sending.values() for m in lane if m.topic != self.topics.status]
         pending = [m for m in self._out if m.topic != self.topics.status]
         self._out.clear()
-        self._out.append(Outgoing(self.topics.status, self._status(), proto.QOS_STATUS, True))
+        first = Outgoing(self.topics.status, self._status(), proto.QOS_STATUS, True)
+        self.delivery.probe = first.payload  # the end-to-end check: it must come back (Delivery.verify)
+        self._out.append(first)
         self._out.extend(m for m in unsent if not m.behind)
         self._out.extend(pending)
         self._replies.extendleft(reversed([m for m in unsent if m.behind]))
@@ -149,30 +178,35 @@ class BrokerLink:
         queue, wake = (self._replies, self._wakes[True]) if behind else (self._out, self._wakes[False])
         while True:
             while self._sending[behind] or (queue and not (behind and self._out)):
-                self._sending[behind] = self._sending[behind] or self._next_batch(queue)
+                batch = self._sending[behind] = self._sending[behind] or self._next_batch(queue)
                 if not behind and not self._out:
                     self._wakes[True].set()  # handed over in order: the replies' turn
-                await asyncio.gather(
-                    *(client.publish(m.topic, m.payload, qos=m.qos, retain=m.retain) for m in self._sending[behind])
-                )
+                await asyncio.gather(*(self._publish(client, m, batch) for m in list(batch)))
                 self._sending[behind] = []
             if not (self._out or self._replies or self._sending[False] or self._sending[True]):
                 self.drained.set()
             wake.clear()
             await wake.wait()
 
+    @staticmethod
+    async def _publish(client: Any, m: Outgoing, batch: list[Outgoing]) -> None:
+        await client.publish(m.topic, m.payload, qos=m.qos, retain=m.retain)
+        batch.remove(m)  # acknowledged (QoS 1; QoS 0: written): never sent again
+
     async def _command_loop(self, client: Any) -> None:
-        """Ordinary commands in turn, as fast as the triage allows (stop and abort
-        never get here: ``_take_now``)."""
-        inbox = self._inbox
-        async for message in client.messages:
-            while True:
-                await self.triage.turn()
-                self._on_command(self._payload(message), bool(message.retain))
-                if inbox is None or inbox.empty():
-                    break
-                message = inbox.get_nowait()
-            self.triage.flush_report()
+        """Ordinary commands in turn, as fast as the triage allows (stop and abort never get
+        here: ``_take_now``), first those a lost connection took in (acknowledged: not resent)."""
+        inbox, pending = self._inbox, self._pending
+        while True:
+            if not pending:
+                if inbox is not None and not inbox.empty():
+                    pending.append(inbox.get_nowait())
+                else:
+                    self.triage.flush_report()
+                    pending.append(await next_message(client, keep=pending.appendleft))
+            await self.triage.turn()
+            message = pending.popleft()  # (nothing is awaited from here on: handed over, or still pending)
+            self._on_command(self._payload(message), bool(message.retain))
 
     def stop_commands(self) -> None:
         """Read no more ordinary commands (the service is shutting down); a stop or an
@@ -182,7 +216,14 @@ class BrokerLink:
             self._commands.cancel()
 
     def _new_inbox(self, maxsize: int = 0) -> CommandInbox:
-        """The MQTT client's incoming queue (made by the client: ``queue_type``)."""
+        """A new connection's incoming queue (made by the client: ``queue_type``); what the last one
+        took in and did not hand over waits for this one (``_pending``)."""
+        old = self._inbox
+        while old is not None and not old.empty():
+            self._pending.append(old.get_nowait())
+        if self._pending:
+            log.info("%d commands the lost connection took in are carried out on the next one", len(self._pending))
+        self.delivery.reset()
         self._inbox = CommandInbox(maxsize, take_now=self._take_now, overflow=self._overflow)
         return self._inbox
 
@@ -198,9 +239,21 @@ class BrokerLink:
         if topic == self.topics.abort:
             self.triage.urgent(self._payload(message), bool(message.retain))
             return True
+        if topic == self.topics.status:  # the end-to-end check (Delivery.verify)
+            self.delivery.echo(self._payload(message))
+            return True
         if topic != self.topics.cmd:
             return True
-        return self.triage.at_once(self._payload(message), bool(message.retain))
+        payload = self._payload(message)
+        return self.triage.at_once(payload, bool(message.retain)) or self._redelivered(message, payload)
+
+    def _redelivered(self, message: Any, payload: bytes) -> bool:
+        """The broker's redelivery of a command taken in before the link dropped: dropped."""
+        if redelivered := self._redeliveries.redelivered(message, payload):
+            log.info(
+                "dropped the broker's redelivery of command %r (packet %s): taken in once", payload[:80], message.mid
+            )
+        return redelivered
 
     def _shed(self, payload: bytes, retained: bool) -> bool:
         """A message on ``<prefix>/cmd`` before it is decoded: True if answered busy or
@@ -237,7 +290,9 @@ class BrokerLink:
             timeout=b.timeout,
             tls_params=tls,
             max_queued_incoming_messages=self.triage.limit,
-            queue_type=self._new_inbox,
+            queue_type=functools.partial(CommandInbox, take_now=_drop, overflow=_drop)
+            if clean_start
+            else self._new_inbox,
         )
         client.pending_calls_threshold = PUBLISH_WINDOW + 8  # a full window is expected, not a warning
         paho = client._client  # aiomqtt's paho client: no public handle
@@ -245,6 +300,8 @@ class BrokerLink:
         shed_before_decoding(paho, self.topics.cmd, self._shed)
         if not clean_start:
             self._paho = paho
+            self._redeliveries.watch(paho)  # the DUP flag of each message read (_redelivered)
+            watch_publish_refusals(paho, lambda topic, why: self.delivery.refused_on(topic, f"({why}) a message on"))
         return client
 
     def _will(self) -> bytes:
@@ -269,8 +326,8 @@ class BrokerLink:
         t_connected = None
         try:
             async with self._client() as client:
-                await client.subscribe(
-                    [(self.topics.cmd, proto.QOS_CMD), (self.topics.abort, proto.QOS_ABORT_SUBSCRIPTION)]
+                await self.delivery.subscribe(
+                    client, [(self.topics.cmd, proto.QOS_CMD), (self.topics.abort, proto.QOS_ABORT_SUBSCRIPTION)]
                 )
                 t_connected = self.connected_at = time.monotonic()
                 self.connections += 1
@@ -286,19 +343,20 @@ class BrokerLink:
                 self.online.set()
                 try:
                     async with asyncio.TaskGroup() as session:
+                        session.create_task(self.delivery.verify(client, ECHO_S), name="mqtt-verify")
                         session.create_task(self._publish_loop(client), name="mqtt-publish")
                         if self._reading:
                             self._commands = session.create_task(self._command_loop(client), name="mqtt-commands")
                 finally:
                     await self._leave(client)
         except* aiomqtt.MqttError as group:
-            self._connection_failed(group.exceptions[0], connected=t_connected is not None)
+            self._connection_failed(first_error(group), connected=t_connected is not None)
         finally:
             self.online.clear()
             self.offline.set()
         return t_connected is not None and time.monotonic() - t_connected > TRAFFIC_S
 
-    def _connection_failed(self, err: Exception, *, connected: bool) -> None:
+    def _connection_failed(self, err: BaseException, *, connected: bool) -> None:
         if self.connections == 0 and credentials_refused(err):
             raise ServiceError(
                 f"broker {self.where} refused the credentials of {self.broker.username!r}: {err}"

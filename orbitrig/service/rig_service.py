@@ -9,13 +9,14 @@ events become MQTT messages:
   the last will (registered at every connection) is ``offline``, retained, QoS 1;
 - ``<prefix>/progress``: QoS 0, dropped while disconnected;
 - ``<prefix>/result``: QoS 1, kept and delivered after a reconnection;
-- ``<prefix>/reply``: QoS 1, exactly one per command.
+- ``<prefix>/reply``: QoS 1, one per command, delivered at least once (one handed over as
+  the link dropped is sent again: match replies by id).
 
 The session is persistent (MQTT 5, clean start off, a session expiry of
 ``session_expiry`` s): QoS 1 commands published while the service reconnects
-are kept by the broker and delivered once it is back; the broker's redelivery
-of a command already handled (its acknowledgement lost with the link) is
-executed and answered once, except a stop or an abort: carried out each time.
+are kept by the broker and delivered once it is back; commands read before a
+lost link are carried out after it; the broker's redelivery (DUP, the same
+packet id) is dropped, except a stop or an abort: carried out each time.
 ``offline`` is published on every way out of :meth:`RigService.serve`
 (shutdown, a fault in the service) and is the last will for the others.
 
