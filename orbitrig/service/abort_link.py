@@ -164,6 +164,7 @@ class AbortLink:
             log.warning("abort connection to %s %s: %s", self.where, "lost" if self.subscribed else "failed", err)
         finally:
             self.up = self.subscribed = False
+            self.triage.copies.closed(Connection.ABORT)  # it delivers nothing more: its copies are not awaited
         return t_up is not None and time.monotonic() - t_up > TRAFFIC_S
 
     def _check_granted(self, granted: Any) -> None:

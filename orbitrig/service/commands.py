@@ -140,9 +140,10 @@ class CommandHandling:
             if len(self._stops_done) > STOPS_KEPT:
                 self._stops_done.popitem(last=False)
         if later is not None and error is None:
-            later.add_done_callback(functools.partial(self._reply_when_done, cmd.id))
+            later.add_done_callback(functools.partial(self._reply_when_done, cmd.id, cmd.id_note))
             return
-        self._reply(cmd.id, error, behind=cmd.cmd not in proto.ALWAYS_ACCEPTED)
+        error, detail = _noted(cmd.id_note, error, None)
+        self._reply(cmd.id, error, detail=detail, behind=cmd.cmd not in proto.ALWAYS_ACCEPTED)
 
     def _note_repeat(self, cmd: proto.Command, payload: bytes) -> None:
         """Log a command with the id and bytes of one handled during an earlier connection,
@@ -179,11 +180,12 @@ class CommandHandling:
         payload = proto.reply_ok(cid, detail) if error is None else proto.reply_error(cid, error)
         self.link.send(self.topics.reply, payload, proto.QOS_REPLY, behind=behind)
 
-    def _reply_when_done(self, cid: str | None, later: Later) -> None:
+    def _reply_when_done(self, cid: str | None, note: str | None, later: Later) -> None:
         if later.cancelled():
             error, detail = f"emergency stop not confirmed sent: cancelled; {idle_stop.ESTOP}", None
         else:
             error, detail = later.result()  # (the task catches every failure: idle_stop.Outcome)
+        error, detail = _noted(note, error, detail)
         self._reply(cid, error, detail=detail)
 
     def _cmd_status(self, cmd: proto.Command) -> None:
@@ -278,3 +280,12 @@ class CommandHandling:
             if what != "pause":
                 task.cancel()
             return False
+
+
+def _noted(note: str | None, error: str | None, detail: str | None) -> tuple[str | None, str | None]:
+    """(error, detail) of a reply with ``note`` (why the id sent is not echoed) added to what it says."""
+    if note is None:
+        return error, detail
+    if error is not None:
+        return f"{error}; {note}", detail
+    return None, note if detail is None else f"{detail}; {note}"

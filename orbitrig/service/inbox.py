@@ -19,14 +19,25 @@ the event loop, before anything else happens to it), so
   carried out (at most ``BUSY_RATE`` a second, and while fewer than
   ``REPLY_BACKLOG`` replies wait to be sent), else dropped unanswered; both
   are counted and logged at most once a second. A flood so costs the service
-  little more than reading it.
+  little more than reading it;
+- an empty message (an operator clearing a retained one) is never answered.
+
+Each message on ``<prefix>/abort`` is read twice, once off each connection that
+reads it (the main one and the abort connection, orbitrig.service.abort_link):
+:class:`AbortCopies` pairs the two copies so that it is carried out and
+answered once.
 """
 
 from __future__ import annotations
 
 import asyncio
 import collections
+import contextvars
+import dataclasses
 import enum
+import functools
+import hashlib
+import itertools
 import logging
 import time
 from collections.abc import Callable
@@ -47,8 +58,10 @@ BUSY_RATE = 50.0
 REPLY_BACKLOG = 256
 #: commands carried out as they arrive (docs/protocols/mqtt.md: always accepted)
 AT_ONCE = proto.ALWAYS_ACCEPTED
-#: s within which the same bytes on <prefix>/abort from the other connection are a second copy
-COPY_WINDOW_S = 30.0
+#: copies of abort-topic messages kept per connection for pairing, at most: far beyond what one
+#: connection can lag behind the other (the broker queues 10000 messages for a client,
+#: config/mosquitto/mosquitto.conf), so an entry is given up only when its copy cannot come
+COPIES_KEPT = 65536
 BUSY = "busy: {n} commands are waiting; this one was not carried out (send it again later)"
 
 
@@ -89,32 +102,129 @@ class Connection(enum.StrEnum):
     ABORT = "abort"  # its own account, <prefix>/abort alone (orbitrig.service.abort_link)
 
 
+_OTHER = {Connection.MAIN: Connection.ABORT, Connection.ABORT: Connection.MAIN}
+#: the order in which connections began and messages were read (the pairing's clock)
+_CLOCK = itertools.count()
+#: the CommandInbox (so: the connection) whose message is being taken in, if any
+_reading: contextvars.ContextVar[Any] = contextvars.ContextVar("reading", default=None)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Copy:
+    at: int  # _CLOCK when it was read
+    key: bytes  # the message's bytes (a digest of them)
+
+
+def _key(payload: bytes) -> bytes:
+    return hashlib.blake2b(payload, digest_size=16).digest()
+
+
 class AbortCopies:
-    """Each message on ``<prefix>/abort`` reaches the service twice, once on each
-    connection that reads it, in either order. The first copy counts; the second,
-    the same bytes from the other connection within ``window_s``, is dropped. Copies
-    are matched one to one, so an operator repeating the same abort is carried out
-    again; a copy one connection never got (it was down) leaves an entry that expires."""
+    """Each message on ``<prefix>/abort`` reaches the service twice, once on each connection
+    that reads it, in either order: the first copy is carried out, the second dropped.
 
-    def __init__(self, window_s: float = COPY_WINDOW_S, keep: int = 256):
-        self.window_s = window_s
-        self._unmatched: dict[Connection, collections.deque[tuple[float, bytes]]] = {
-            c: collections.deque(maxlen=keep) for c in Connection
-        }
+    The broker passes every message of the topic to both connections in the same order
+    (QoS 0, at once), and each connection delivers what it gets in that order; a connection
+    misses what was published before it subscribed (or while it was away: QoS 0 is not
+    kept) and what its broker queue drops. So copies are matched in order, by their bytes,
+    one to one (the same abort published twice is two aborts), and
 
-    def first(self, via: Connection, payload: bytes) -> bool:
+    - a copy's match is the oldest copy of the other connection still waiting with the same
+      bytes. The other's copies waiting before it, the reading connection has passed (its
+      queue at the broker dropped them): they are given up; so are its own copies still
+      waiting, which the other connection has passed;
+    - a (re)connection (:meth:`seen`: a message off a new ``CommandInbox``) begins a new
+      stream: the other's copies read before it began can never have their copy on it and
+      are given up (it was not subscribed when they were published); its own copies still
+      waiting become doubtful (the other connection may or may not deliver them);
+    - where the order cannot tell (a copy with no match while the other connection's copies
+      wait: one of the two missed messages, which one is not known), the copies concerned
+      become doubtful (``_spent``): a doubtful copy, if it comes, is carried out again rather
+      than dropped, and is not left waiting;
+    - while the abort connection is down (``up``), a main connection's copy is carried out
+      even when it matches: the abort connection may have missed it;
+    - nothing expires with time; only a connection ``COPIES_KEPT`` messages behind the
+      other (the broker would have dropped them) loses entries.
+
+    Every rule that cannot be sure errs towards carrying a copy out (a second emergency
+    stop, and a second reply) rather than dropping one that may be the only copy of an abort.
+    """
+
+    def __init__(self, kept: int = COPIES_KEPT):
+        #: per connection: its copies carried out whose other copy has not been read (oldest first)
+        self._waiting = {c: collections.deque[_Copy](maxlen=kept) for c in Connection}
+        #: per connection: copies the other read that it may still deliver, the pairing unsure
+        self._spent = {c: collections.deque[_Copy](maxlen=kept) for c in Connection}
+        self._since = {c: -1 for c in Connection}  # _CLOCK when its current connection began
+        self._current: dict[Connection, Any] = {}  # its current connection (CommandInbox)
+        #: subscribed: the main connection unless said otherwise; the abort one once it delivers
+        self.up = {Connection.MAIN: True, Connection.ABORT: False}
+
+    def seen(self, via: Connection, connection: Any = None) -> None:
+        """A message read off ``connection`` of ``via`` (the CommandInbox of the MQTT client: one
+        per connection); a new one: ``via`` has (re)connected (:meth:`opened`)."""
+        if connection is None:
+            self.up[via] = True  # (called without a connection: the one delivering is up)
+        elif connection is not self._current.get(via):
+            self._current[via] = connection
+            self.opened(via, since=getattr(connection, "opened_at", None))
+            if via is Connection.ABORT and hasattr(connection, "on_end"):  # (its reader ends with it)
+                connection.on_end = functools.partial(self.closed, via, connection)
+
+    def opened(self, via: Connection, since: int | None = None) -> None:
+        """``via`` (re)connected at ``since`` (the pairing's clock; default: now): it cannot deliver
+        what the other connection read before; its own copies still waiting become doubtful."""
+        since = next(_CLOCK) if since is None else since
+        self._since[via] = since = max(self._since[via], since)
+        self.up[via] = True
+        other = _OTHER[via]
+        theirs, spent = self._waiting[other], self._spent[via]
+        for keep in (theirs, spent):
+            kept = [c for c in keep if c.at > since]
+            keep.clear()
+            keep.extend(kept)
+        self._spent[other].extend(self._waiting[via])
+        self._waiting[via].clear()
+
+    def closed(self, via: Connection, connection: Any = None) -> None:
+        """``via``'s connection (``connection``, or whichever) ended: it delivers nothing more."""
+        if connection is None or connection is self._current.get(via):
+            self.up[via] = False
+
+    def first(self, via: Connection, payload: bytes, connection: Any = None) -> bool:
         """True for the first copy of a message (carry it out), False for its second."""
-        now = time.monotonic()
-        for entries in self._unmatched.values():
-            while entries and now - entries[0][0] > self.window_s:
-                entries.popleft()
-        other = self._unmatched[Connection.ABORT if via is Connection.MAIN else Connection.MAIN]
-        for entry in other:
-            if entry[1] == payload:
-                other.remove(entry)
-                return False
-        self._unmatched[via].append((now, bytes(payload)))
+        self.seen(via, connection)
+        key, other = _key(payload), _OTHER[via]
+        theirs, mine, spent = self._waiting[other], self._waiting[via], self._spent[via]
+        doubtful = next((c for c in spent if c.key == key), None)
+        if doubtful is not None:  # may be the copy of one carried out already: carried out again
+            spent.remove(doubtful)
+            if via is Connection.ABORT:  # or a new one: its main copy, if it comes, is not left waiting
+                self._spent[other].append(_Copy(next(_CLOCK), key))
+            return True
+        match = next((i for i, c in enumerate(theirs) if c.key == key), None)
+        if match is not None:
+            for _ in range(match + 1):  # its copy, and those before it: `via` passed them
+                theirs.popleft()
+            mine.clear()  # the other connection passed these: it read this message after them
+            return not (via is Connection.ABORT or self.up[Connection.ABORT])
+        now = _Copy(next(_CLOCK), key)
+        if theirs:  # one connection missed messages, which one cannot be told
+            spent.extend(theirs)
+            theirs.clear()
+            self._spent[other].append(now)
+        else:
+            mine.append(now)
         return True
+
+
+def _not_taken(look: command_json.Glance) -> str:
+    """Why a message on the abort topic is refused there."""
+    if look.name is None:
+        return f"{look.problem}; the abort topic takes stop and abort, as JSON objects as on the command topic"
+    return (
+        f"only stop and abort are taken on the abort topic, not {look.name!r}: send other commands on the command topic"
+    )
 
 
 class CommandTriage:
@@ -143,12 +253,15 @@ class CommandTriage:
         self.after_at_once: Callable[[], None] = lambda: None
 
     def at_once(self, payload: bytes, retained: bool) -> bool:
-        """Carry out a stop or abort now (True); False: the command is to wait its turn."""
+        """Carry out a stop or abort now (True); False: the command is to wait its turn.
+        An empty message (clearing a retained one) is dealt with: never answered."""
         self.counts["received"] += 1
+        if not payload:
+            log.debug("command topic: empty message (a retained message cleared): not answered")
+            return True
         if not _may_name_at_once(payload):
             return False  # the cheap test first: a flood must cost as little as possible
-        name, _ = command_json.peek(payload)
-        if name not in AT_ONCE:
+        if command_json.glance(payload).name not in AT_ONCE:
             return False
         self.counts["at once"] += 1
         self._handle(payload, retained=retained)
@@ -157,27 +270,34 @@ class CommandTriage:
 
     def urgent(self, payload: bytes, retained: bool, *, via: Connection = Connection.MAIN) -> None:
         """A message on ``<prefix>/abort`` read off connection ``via``: a stop or abort
-        is carried out now; anything else is refused there (it belongs on
-        ``<prefix>/cmd``). The copy of a message the other connection delivered
-        already is dropped (:class:`AbortCopies`): carried out and answered once."""
-        if not self.copies.first(via, payload):
+        is carried out now; anything else is refused there, with the reason (other
+        commands belong on ``<prefix>/cmd``); an empty one (clearing a retained
+        message) is not answered. The copy of a message the other connection delivered
+        already is dropped (:class:`AbortCopies`): carried out and answered once. A
+        retained one, handed over as a connection subscribes, is no copy: a retained stop
+        or abort goes to ``handle`` (which carries it out once in the service's life),
+        anything else is answered on the main connection only."""
+        connection = _reading.get()
+        if not payload or retained:
+            self.copies.seen(via, connection)
+            if not payload:
+                log.info("abort topic: empty message (a retained message cleared) read off the %s connection", via)
+                return
+        elif not self.copies.first(via, payload, connection):
             self.counts["second copy"] += 1
             log.info(
                 "abort topic: dropped the %s connection's copy of %r (carried out once already)", via, payload[:80]
             )
             return
         self.counts["received"] += 1
-        name, cid = command_json.peek(payload)
-        if name in AT_ONCE:
+        look = command_json.glance(payload)
+        if look.name in AT_ONCE:
             self.counts["at once"] += 1
             self._handle(payload, retained=retained)
             self.after_at_once()
-            log.info("abort topic: %s read off the %s connection", name, via)  # after: the stop first
-            return
-        self._reply(
-            cid[: proto.MAX_ID_CHARS] if cid else None,
-            f"only stop and abort are taken on the abort topic, not {name!r}: send other commands on the command topic",
-        )
+            log.info("abort topic: %s read off the %s connection", look.name, via)  # after: the stop first
+        elif not retained or via is Connection.MAIN:
+            self._reply(look.id, _not_taken(look))
 
     async def turn(self) -> None:
         """Wait until the next ordinary command may be carried out (``COMMAND_RATE``);
@@ -192,15 +312,15 @@ class CommandTriage:
         if _may_name_at_once(payload):
             return False
         self.counts["received"] += 1
-        self.overflow(payload, retained)
+        if payload:  # (an empty one clears a retained message: never answered)
+            self.overflow(payload, retained)
         return True
 
     def overflow(self, payload: bytes, retained: bool) -> None:
         """A command beyond ``limit`` waiting: answered busy, or dropped."""
         if self._backlog() < REPLY_BACKLOG and self._busy.take():
-            _, cid = command_json.peek(payload)
             self.counts["busy"] += 1
-            self._reply(cid[: proto.MAX_ID_CHARS] if cid else None, BUSY.format(n=self.limit))
+            self._reply(command_json.glance(payload).id, BUSY.format(n=self.limit))
         else:
             self.counts["dropped"] += 1
         self._report()
@@ -232,13 +352,21 @@ class CommandInbox(asyncio.Queue):
     ``put_nowait`` runs for each message as it is read off the socket.
     ``take_now(message)`` True: dealt with already; else the message waits in
     the queue, or ``overflow(message)`` when ``maxsize`` wait already. Never
-    raises (an exception here would end the connection)."""
+    raises (an exception here would end the connection).
+
+    The client makes one for each connection, before it connects: ``opened_at`` (the
+    pairing's clock, :class:`AbortCopies`) is when that connection began, and messages
+    taken in are known to come off it. ``on_end`` is called when its reader is cancelled:
+    aiomqtt does that when the connection ends (or the reading task is cancelled)."""
 
     def __init__(self, maxsize: int = 0, *, take_now: Callable[[Any], bool], overflow: Callable[[Any], None]):
         super().__init__(maxsize)
         self._take_now, self._overflow = take_now, overflow
+        self.opened_at = next(_CLOCK)
+        self.on_end: Callable[[], None] | None = None
 
     def put_nowait(self, message: Any) -> None:
+        reading = _reading.set(self)
         try:
             if self._take_now(message):
                 return
@@ -248,3 +376,13 @@ class CommandInbox(asyncio.Queue):
             super().put_nowait(message)
         except Exception:  # one message must not end the link
             log.exception("a command could not be taken in")
+        finally:
+            _reading.reset(reading)
+
+    async def get(self) -> Any:
+        try:
+            return await super().get()
+        except asyncio.CancelledError:
+            if self.on_end is not None:
+                self.on_end()
+            raise

@@ -28,7 +28,11 @@ from pydantic import BaseModel, ConfigDict, Field, StringConstraints, TypeAdapte
 from orbitrig.run.states import RunState
 from orbitrig.service.command_json import (  # noqa: F401 - part of this contract's names
     MAX_COMMAND_BYTES,
+    MAX_ID_CHARS,
+    MAX_STOP_BYTES,
     CommandError,
+    echoable_id,
+    id_problems,
     read_object,
     type_name as _type_name,
 )
@@ -49,7 +53,6 @@ QOS_LIVE = 0  # <prefix>/live, built by orbitrig.service.live
 #: the service (docs/protocols/mqtt.md, "Stop and abort under load").
 QOS_ABORT_SUBSCRIPTION = 0
 
-MAX_ID_CHARS = 128
 _MATRIX_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 _STEP_ID = re.compile(r"[^\x00-\x1f]{1,128}")
 _TOPIC_LEVEL_FORBIDDEN = set("/+#\x00")
@@ -137,6 +140,7 @@ class Command:
     step: str | None = None
     ignored: tuple[str, ...] = ()  # stop/abort: the problems that were overlooked
     by: str | None = None  # who sent it, as the command says (None: not said)
+    id_note: str | None = None  # stop/abort: why the id sent is not echoed (for the reply)
 
 
 def is_matrix_name(name: str) -> bool:
@@ -152,13 +156,6 @@ CorrelationId = Annotated[str, StringConstraints(min_length=1, max_length=MAX_ID
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True, frozen=True)
-
-
-class _Correlation(BaseModel):
-    """Only the correlation id (read first, so every reply can carry it)."""
-
-    model_config = ConfigDict(extra="ignore", strict=True)
-    id: CorrelationId
 
 
 class _Sent(_Strict):
@@ -235,37 +232,23 @@ def _field_problem(err: dict[str, Any], name: str) -> str | None:
     return err["msg"].removeprefix("Value error, ")
 
 
-def _id_problems(obj: dict[str, Any]) -> list[str]:
-    try:
-        _Correlation.model_validate(obj)
-    except ValidationError as err:
-        kind = err.errors(include_url=False)[0]["type"]
-        if kind == "missing":
-            return ["missing field 'id' (a correlation id string)"]
-        if kind == "string_type":
-            return [f"field 'id' must be a string, got {_type_name(obj['id'])}"]
-        return [f"field 'id' must have 1 to {MAX_ID_CHARS} characters"]
-    return []
-
-
 def parse_command(payload: bytes | bytearray | str) -> Command:
     """Parse and validate one ``<prefix>/cmd`` payload with the command models.
 
     Raises :class:`CommandError` with a precise reason (and the correlation
-    id when it could be read) for a payload that is not UTF-8 JSON, not an
+    id when it can be echoed) for a payload that is not UTF-8 JSON, not an
     object, lacks ``cmd`` or ``id``, names an unknown command, or has a
-    missing, extra or wrongly typed field, a key given twice or text that
-    cannot be encoded as UTF-8 (such an ``id`` is not echoed: the reply's id is
-    null). Exception: ``stop`` and ``abort`` are always accepted once ``cmd``
-    names them unambiguously; their overlooked problems are listed in
-    ``Command.ignored``.
+    missing, extra or wrongly typed field, a key given twice with different
+    values or text that cannot be encoded as UTF-8 (such an ``id``, or one over
+    ``MAX_ID_CHARS``, is not echoed: the reply's id is null), or is over the size
+    or nesting limits. Exception: ``stop`` and ``abort`` are always accepted once
+    ``cmd`` names them unambiguously (command_json.read_object reads them beyond
+    the limits); their overlooked problems are listed in ``Command.ignored``.
     """
     found = read_object(payload)
     obj = found.fields
-    raw_id = obj.get("id")
-    readable = isinstance(raw_id, str) and "id" not in found.unencodable and "id" not in found.duplicates
-    cid = (raw_id[:MAX_ID_CHARS] or None) if readable else None
-    problems = found.problems() + ([] if "id" in found.unencodable else _id_problems(obj))
+    cid = echoable_id(found)
+    problems = found.problems() + ([] if "id" in found.unencodable else id_problems(obj))
     if "cmd" in found.duplicates:
         raise CommandError("; ".join(problems), cid)  # which command was meant cannot be told
     name = obj.get("cmd")
@@ -285,7 +268,8 @@ def parse_command(payload: bytes | bytearray | str) -> Command:
         # "stop and abort are always accepted": a stray field or a bad id must
         # never keep spinning machinery from stopping. The problems are logged.
         by = obj.get("by") if isinstance(obj.get("by"), str) else None
-        return Command(cmd=name, id=cid, ignored=tuple(problems), by=by[:64] if by else None)
+        note = f"the id sent is not echoed: {_id_trouble(found)}" if "id" in obj and cid is None else None
+        return Command(cmd=name, id=cid, ignored=tuple(problems), by=by[:64] if by else None, id_note=note)
     if problems:
         raise CommandError("; ".join(problems), cid)
     return Command(
@@ -295,6 +279,18 @@ def parse_command(payload: bytes | bytearray | str) -> Command:
         step=model.step if isinstance(model, ConfirmCommand) else None,
         by=model.by,
     )
+
+
+def _id_trouble(found: Any) -> str:
+    """Why an ``id`` that was sent cannot be echoed."""
+    cid = found.fields["id"]
+    if "id" in found.duplicates:
+        return "key 'id' given more than once with different values"
+    if "id" in found.unencodable:
+        return "it cannot be encoded as UTF-8"
+    if isinstance(cid, str) and len(cid) > MAX_ID_CHARS:
+        return f"it has {len(cid)} characters (at most {MAX_ID_CHARS})"
+    return id_problems(found.fields)[0]
 
 
 # -- payloads -----------------------------------------------------------------

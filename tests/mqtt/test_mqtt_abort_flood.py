@@ -25,7 +25,6 @@ from pathlib import Path
 
 import pytest
 
-from orbitrig.service.inbox import AbortCopies, Connection
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
 from orbitrig.service.settings import AbortAccount
 from support.rig_configs import patient_rig_config
@@ -216,16 +215,3 @@ async def test_an_abort_on_both_connections_is_answered_once(bound, tmp_path, ca
         assert service.abort_link.connections == 0 and "refused" in service.abort_link.refused
         assert service.triage.counts["second copy"] == 0
         assert "still taken on orbitrig/twice-rig/abort through the main connection" in caplog.text
-
-
-def test_abort_copies_are_matched_one_to_one():
-    copies = AbortCopies(window_s=30.0)
-    a, b = b'{"cmd":"abort","id":"x"}', b'{"cmd":"abort","id":"y"}'
-    assert copies.first(Connection.ABORT, a) and copies.first(Connection.ABORT, a)  # two publishes
-    assert copies.first(Connection.MAIN, b)
-    assert not copies.first(Connection.MAIN, a) and not copies.first(Connection.MAIN, a)  # their copies
-    assert not copies.first(Connection.ABORT, b)
-    assert copies.first(Connection.MAIN, a)  # a third publish: no copy of it seen yet
-    copies.window_s = 0.0
-    time.sleep(0.01)
-    assert copies.first(Connection.ABORT, a)  # too late to be a copy: expired

@@ -135,8 +135,8 @@ def test_several_problems_are_all_named():
 
 
 def test_oversized_payload_refused():
-    with pytest.raises(CommandError, match="too large"):
-        parse_command(b'{"cmd":"stop","id":"' + b"x" * 5000 + b'"}')
+    with pytest.raises(CommandError, match="too large"):  # (a stop or abort is read whole: test_abort_payloads_*)
+        parse_command(b'{"cmd":"status","id":"a","x":"' + b"x" * 5000 + b'"}')
 
 
 def test_status_payload():
@@ -217,10 +217,10 @@ def test_a_payload_that_cannot_be_read_as_abort_is_still_refused():
     "payload",
     [
         b"[" * 1500 + b"]" * 1500,
-        b'{"cmd":"stop","id":"d","x":' + b"[" * 1300 + b"]" * 1300 + b"}",
+        b'{"cmd":"status","id":"d","x":' + b"[" * 1300 + b"]" * 1300 + b"}",
         "[" * 1400 + "]" * 1400,
     ],
-    ids=["array", "inside-a-stop", "text"],
+    ids=["array", "inside-a-status", "text"],
 )
 @pytest.mark.parametrize("recursion_limit", [None, 100_000])
 def test_deep_nesting_is_refused_not_raised(payload, recursion_limit):
