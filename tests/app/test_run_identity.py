@@ -40,7 +40,9 @@ def test_a_resumed_run_keeps_the_id_the_catalog_gives_it(tmp_path):
     (lab / "matrices" / "ident.toml").write_text(MATRIX)
     env = {**os.environ, HOME_ENV: str(lab)}
     out = tmp_path / "run"
-    sweep = orbitrig_cmd("sweep", "--sim", "--matrix", "ident", "--out", str(out), "--speedup", "10", "--no-draw-figures")
+    sweep = orbitrig_cmd(
+        "sweep", "--sim", "--matrix", "ident", "--out", str(out), "--speedup", "10", "--no-draw-figures"
+    )
     stop_after_first_point(sweep, out, env=env)
     resumed = subprocess.run(
         orbitrig_cmd("sweep", "--sim", "--resume", str(out), "--speedup", "10", "--no-draw-figures"),
