@@ -18,10 +18,9 @@ import asyncio
 import logging
 import re
 import signal
-import sys
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, SimDrives, make_models, run_cli, serve, subprocess_env
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, SimDrives, make_models, run_cli, serve, start_cli
 from support.paths import ROOT
 
 from orbitrig.config import Drives
@@ -91,10 +90,7 @@ async def test_run_arms_the_watchdog_that_ramps_the_released_drives_down(drives_
 
 async def test_run_hold_arms_the_watchdog_for_a_command_that_dies(drives_off, tmp_path):
     sim = drives_off
-    proc = await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-m",
-        "orbitrig",
+    proc = await start_cli(
         "drives",
         "run",
         "--config",
@@ -106,8 +102,6 @@ async def test_run_hold_arms_the_watchdog_for_a_command_that_dies(drives_off, tm
         "--settle",
         "0.05",
         "--hold",
-        cwd=ROOT,
-        env=subprocess_env(),
         stdout=asyncio.subprocess.DEVNULL,
         stderr=asyncio.subprocess.DEVNULL,
     )

@@ -9,10 +9,9 @@ import asyncio
 import json
 import re
 import signal
-import sys
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, run_cli, subprocess_env
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, run_cli, start_cli
 from support.paths import ROOT
 
 from orbitrig.cli.drives import effective_limits
@@ -103,10 +102,7 @@ async def test_url_from_the_config_run_status_stop(tcp_sim, tmp_path):
 
 async def test_hold_keeps_the_drives_at_speed_and_stops_them_on_sigint(sim, tmp_path):
     cfg = rig_config(tmp_path, sim.url)
-    proc = await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-m",
-        "orbitrig",
+    proc = await start_cli(
         "drives",
         "run",
         "--config",
@@ -120,10 +116,6 @@ async def test_hold_keeps_the_drives_at_speed_and_stops_them_on_sigint(sim, tmp_
         "--hold",
         "--status-every",
         "0.5",
-        cwd=ROOT,
-        env=subprocess_env(),
-        stdout=asyncio.subprocess.PIPE,
-        stderr=asyncio.subprocess.PIPE,
     )
     try:
         await sim.wait_for(
@@ -181,10 +173,7 @@ async def test_stop_refuses_a_timeout_that_is_not_finite(tcp_sim, tmp_path):
 async def test_hold_notices_the_drives_stopped_by_another_client(tcp_sim, tmp_path):
     sim = tcp_sim
     cfg = rig_config(tmp_path, sim.url)
-    proc = await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-m",
-        "orbitrig",
+    proc = await start_cli(
         "drives",
         "run",
         "--config",
@@ -198,10 +187,6 @@ async def test_hold_notices_the_drives_stopped_by_another_client(tcp_sim, tmp_pa
         "--hold",
         "--status-every",
         "0.5",
-        cwd=ROOT,
-        env=subprocess_env(),
-        stdout=asyncio.subprocess.PIPE,
-        stderr=asyncio.subprocess.PIPE,
     )
     try:
         await sim.wait_for(

@@ -11,7 +11,7 @@ import signal
 import sys
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, open_rig, subprocess_env
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, open_rig, subprocess_env, wait_until
 from support.paths import ROOT
 
 from drives.errors import DriveFaultError, DriveLinkError
@@ -26,14 +26,6 @@ LIMITS = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM)
 
 def rig(sim, **kw) -> RigDrives:
     return open_rig(sim, LIMITS, **kw)
-
-
-async def wait_until(cond, timeout: float, what: str) -> None:
-    loop = asyncio.get_running_loop()
-    t_end = loop.time() + timeout
-    while not cond():
-        assert loop.time() < t_end, f"{what} not within {timeout} s"
-        await asyncio.sleep(0.01)
 
 
 async def test_poll_keeps_the_watchdog_fed_while_the_caller_waits(sim):

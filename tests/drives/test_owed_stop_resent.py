@@ -10,7 +10,7 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, RPM, open_rig
+from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, RPM, open_rig, wait_until
 
 from drives.errors import DriveError, DriveLinkError
 from drives.limits import DriveLimits
@@ -19,14 +19,6 @@ pytestmark = pytest.mark.timeout(60)
 
 LIMITS = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM)
 WATCHDOG_S = 5.0
-
-
-async def wait_until(cond, timeout: float, what: str) -> None:
-    loop = asyncio.get_running_loop()
-    t_end = loop.time() + timeout
-    while not cond():
-        assert loop.time() < t_end, f"{what} not within {timeout} s"
-        await asyncio.sleep(0.01)
 
 
 async def raised_by_check(r, timeout: float) -> DriveError:

@@ -20,42 +20,26 @@ from pathlib import Path
 
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
 from orbitrig.service.settings import AbortAccount
-from support.mqtt_helpers import ACCOUNTS, Broker, Watcher
+from support.mqtt_helpers import ACCOUNTS, Broker, CutProxy, Watcher, until
 
 RIG = "pairing-rig"
 ABORT = json.dumps({"cmd": "abort", "id": "estop"})  # a button bridge's fixed id: the same bytes each time
 
 
-class HoldingRelay:
+class HoldingRelay(CutProxy):
     """A TCP relay to the broker: ``hold`` stops passing what the broker sends (kept, in
     order, until ``release``); ``cut`` closes every relayed connection and refuses new
     ones until ``restore``."""
 
     def __init__(self, target: int):
-        self.target, self.held, self.open = target, False, True
-        self._pairs: list[tuple[socket.socket, socket.socket]] = []
-        self.server = socket.socket()
-        self.server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        self.server.bind(("127.0.0.1", 0))
-        self.server.listen(8)
-        self.port = self.server.getsockname()[1]
-        threading.Thread(target=self._accept, daemon=True).start()
+        self.held = False
+        super().__init__(target)
 
-    def _accept(self) -> None:
-        while True:
-            try:
-                conn, _ = self.server.accept()
-            except OSError:
-                return
-            if not self.open:
-                conn.close()
-                continue
-            up = socket.create_connection(("127.0.0.1", self.target))
-            self._pairs.append((conn, up))
-            threading.Thread(target=self._pump, args=(conn, up, False), daemon=True).start()
-            threading.Thread(target=self._pump, args=(up, conn, True), daemon=True).start()
+    def _relay(self, client: socket.socket, broker: socket.socket) -> None:
+        threading.Thread(target=self._pass, args=(client, broker, False), daemon=True).start()
+        threading.Thread(target=self._pass, args=(broker, client, True), daemon=True).start()
 
-    def _pump(self, src: socket.socket, dst: socket.socket, from_broker: bool) -> None:
+    def _pass(self, src: socket.socket, dst: socket.socket, from_broker: bool) -> None:
         try:
             while data := src.recv(65536):
                 while from_broker and self.held and self.open:
@@ -70,31 +54,8 @@ class HoldingRelay:
     def release(self) -> None:
         self.held = False
 
-    def cut(self) -> None:
-        self.open = False
-        pairs, self._pairs = self._pairs, []
-        for pair in pairs:
-            for s in pair:
-                try:
-                    s.shutdown(socket.SHUT_RDWR)
-                except OSError:
-                    pass
-                s.close()
-
     def restore(self) -> None:
         self.open, self.held = True, False
-
-    def close(self) -> None:
-        self.cut()
-        self.server.close()
-
-
-async def until(check, timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not check():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"not within {timeout} s: {what}")
-        await asyncio.sleep(0.05)
 
 
 async def test_the_same_abort_sent_again_after_one_the_abort_connection_missed(broker: Broker, tmp_path: Path):

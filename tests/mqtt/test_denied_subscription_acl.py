@@ -14,11 +14,8 @@ against a real mosquitto with the shipped accounts:
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import json
 import logging
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -27,7 +24,7 @@ import support.mqtt_helpers as mh
 from orbitrig.service import abort_link, link
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
 from orbitrig.service.settings import AbortAccount
-from support.mqtt_helpers import ACCOUNTS, Broker, Watcher
+from support.mqtt_helpers import ACCOUNTS, Broker, Watcher, serving, until
 
 ABORT_LINE = "user orbitrig-service-abort\ntopic read orbitrig/+/abort\n"
 
@@ -61,26 +58,6 @@ def _service(broker: Broker, tmp_path: Path, rig: str, *, prefix: str | None = N
         broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"], abort=account
     )
     return RigService(settings, creds, engine_factory=None, load_matrix=None)
-
-
-async def until(condition: Callable[[], bool], timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"not within {timeout} s: {what}")
-        await asyncio.sleep(0.05)
-
-
-@contextlib.asynccontextmanager
-async def serving(service: RigService):
-    stop = asyncio.Event()
-    task = asyncio.create_task(service.serve(stop))
-    try:
-        await until(lambda: service.link.online.is_set(), 30, "the service connected")
-        yield task
-    finally:
-        stop.set()
-        await asyncio.wait_for(task, 30)
 
 
 def _errors(caplog, logger: str) -> list[str]:

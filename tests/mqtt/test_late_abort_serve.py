@@ -27,23 +27,12 @@ from orbitrig.config import load_rig
 from orbitrig.run.engine import StatusEvent
 from orbitrig.run.states import RunState
 from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
-from support.mqtt_helpers import ACCOUNTS, RigClient, write_matrices
+from support.mqtt_helpers import ACCOUNTS, RigClient, until, wait, write_matrices
 
 pytestmark = pytest.mark.timeout(240)
 
 DECEL_TIME = 103  # the drives' register: 0.1 s for SPEED_SCALE (3000) rpm along the ramp stop
 SECOND = "a second signal (SIGTERM) while shutting down"  # as orbitrig.cli.serve words it
-
-
-async def wait(fn, *args, **kw):
-    return await asyncio.to_thread(fn, *args, **kw)
-
-
-async def until(condition, timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, f"not within {timeout} s: {what}"
-        await asyncio.sleep(0.05)
 
 
 class SlowDrained(asyncio.Event):

@@ -28,20 +28,9 @@ from orbitrig.config import load_rig
 from orbitrig.service import commands
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
 from orbitrig.service.settings import AbortAccount
-from support.mqtt_helpers import ACCOUNTS, Broker, CutProxy, RigClient, write_matrices
+from support.mqtt_helpers import ACCOUNTS, Broker, CutProxy, RigClient, until, wait, write_matrices
 
 DECEL_TIME = 103  # the drives' register: 0.1 s for SPEED_SCALE (3000) rpm along the ramp stop
-
-
-async def wait(fn, *args, **kw):
-    return await asyncio.to_thread(fn, *args, **kw)
-
-
-async def until(condition, timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, f"not within {timeout} s: {what}"
-        await asyncio.sleep(0.05)
 
 
 def standstill(sim_rig) -> bool:

@@ -14,13 +14,11 @@ from __future__ import annotations
 
 import asyncio
 import collections
-import contextlib
 import json
 import logging
 import re
 import socket
 import threading
-import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -28,7 +26,7 @@ import pytest
 
 from orbitrig.service import inbox
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
-from support.mqtt_helpers import ACCOUNTS, Watcher
+from support.mqtt_helpers import ACCOUNTS, CutProxy, Watcher, serving, until
 
 #: replies the broker acknowledges to the service before the link drops (of 50, sent in two batches)
 ACKED = 20
@@ -38,7 +36,7 @@ def _every(packet: bytes) -> bool:
     return True
 
 
-class PacketRelay:
+class PacketRelay(CutProxy):
     """127.0.0.1:port -> the broker, one MQTT packet at a time each way (``up``: service ->
     broker). ``held_if[up](packet)`` True: that packet is held (the others go on) until
     ``held_if[up]`` is None again, then the held ones go first; ``watch[up](packet)`` sees each
@@ -47,39 +45,15 @@ class PacketRelay:
     until ``restore()``."""
 
     def __init__(self, target: int):
-        self.target = target
         self.held_if: dict[bool, Callable[[bytes], bool] | None] = {True: None, False: None}
         self.watch: dict[bool, Callable[[bytes], bool]] = {True: lambda p: False, False: lambda p: False}
-        self.open = True
-        self._pairs: list[tuple[socket.socket, socket.socket]] = []
-        self._lock = threading.Lock()
-        self.server = socket.socket()
-        self.server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        self.server.bind(("127.0.0.1", 0))
-        self.server.listen(8)
-        self.port = self.server.getsockname()[1]
-        threading.Thread(target=self._accept, daemon=True).start()
+        super().__init__(target)
 
-    @property
-    def url(self) -> str:
-        return f"mqtt://127.0.0.1:{self.port}"
+    def _relay(self, client: socket.socket, broker: socket.socket) -> None:
+        threading.Thread(target=self._pump_packets, args=(client, broker, True), daemon=True).start()
+        threading.Thread(target=self._pump_packets, args=(broker, client, False), daemon=True).start()
 
-    def _accept(self) -> None:
-        while True:
-            try:
-                conn, _ = self.server.accept()
-            except OSError:
-                return
-            if not self.open:
-                conn.close()
-                continue
-            up = socket.create_connection(("127.0.0.1", self.target))
-            with self._lock:
-                self._pairs.append((conn, up))
-            threading.Thread(target=self._pump, args=(conn, up, True), daemon=True).start()
-            threading.Thread(target=self._pump, args=(up, conn, False), daemon=True).start()
-
-    def _pump(self, src: socket.socket, dst: socket.socket, up: bool) -> None:
+    def _pump_packets(self, src: socket.socket, dst: socket.socket, up: bool) -> None:
         buf, held = b"", []
         src.settimeout(0.02)
         try:
@@ -111,23 +85,9 @@ class PacketRelay:
             return
 
     def cut(self) -> None:
-        self.open = False
-        with self._lock:
-            pairs, self._pairs = self._pairs, []
-        for pair in pairs:
-            for s in pair:
-                with contextlib.suppress(OSError):
-                    s.shutdown(socket.SHUT_RDWR)
-                s.close()
+        super().cut()
         self.held_if = {True: None, False: None}
         self.watch = {True: lambda p: False, False: lambda p: False}
-
-    def restore(self) -> None:
-        self.open = True
-
-    def close(self) -> None:
-        self.cut()
-        self.server.close()
 
 
 def _varint(data: bytes, at: int) -> tuple[int, int] | None:
@@ -197,26 +157,6 @@ def executed():
     yield handler.counts
     logger.removeHandler(handler)
     logger.setLevel(level)
-
-
-async def until(condition: Callable[[], bool], timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"not within {timeout} s: {what}")
-        await asyncio.sleep(0.05)
-
-
-@contextlib.asynccontextmanager
-async def serving(service: RigService):
-    stop = asyncio.Event()
-    task = asyncio.create_task(service.serve(stop))
-    try:
-        await until(lambda: service.link.online.is_set(), 30, "the service connected")
-        yield task
-    finally:
-        stop.set()
-        await asyncio.wait_for(task, 30)
 
 
 async def _reconnect(service: RigService, relay: PacketRelay) -> None:

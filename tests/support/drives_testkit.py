@@ -61,6 +61,15 @@ class SimDrives:
         return await self.wait_for(lambda: self.regs(1)["ACT"] == 0 and self.regs(2)["ACT"] == 0, timeout, "standstill")
 
 
+async def wait_until(cond, timeout: float, what: str) -> None:
+    """Poll `cond()` every 10 ms on the running loop's clock; fail naming `what` after `timeout` s."""
+    loop = asyncio.get_running_loop()
+    t_end = loop.time() + timeout
+    while not cond():
+        assert loop.time() < t_end, f"{what} not within {timeout} s"
+        await asyncio.sleep(0.01)
+
+
 def open_rig(sim: SimDrives, limits: DriveLimits, **kw) -> RigDrives:
     """RigDrives on the simulator with test timings (poll 50 ms, request timeout 0.1 s, watchdog 0.5 s)."""
     kw.setdefault("poll_interval", 0.05)
@@ -99,8 +108,10 @@ PARAM = {
 }
 
 
-async def start_cli(*args: str, stdout=asyncio.subprocess.PIPE) -> asyncio.subprocess.Process:
-    """`python -m orbitrig <args>` started in a subprocess (stderr piped) while this loop keeps serving."""
+async def start_cli(
+    *args: str, stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE
+) -> asyncio.subprocess.Process:
+    """`python -m orbitrig <args>` started in a subprocess (output piped unless told) while this loop keeps serving."""
     return await asyncio.create_subprocess_exec(
         sys.executable,
         "-m",
@@ -109,7 +120,7 @@ async def start_cli(*args: str, stdout=asyncio.subprocess.PIPE) -> asyncio.subpr
         cwd=ROOT,
         env=subprocess_env(),
         stdout=stdout,
-        stderr=asyncio.subprocess.PIPE,
+        stderr=stderr,
     )
 
 

@@ -17,7 +17,10 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
+
+if TYPE_CHECKING:
+    from orbitrig.service.rig_service import RigService
 
 REPO = Path(__file__).resolve().parents[2]
 EXAMPLE_ACL = REPO / "config" / "mosquitto" / "acl"
@@ -462,6 +465,33 @@ def interrupt(proc: subprocess.Popen) -> int:
     return proc.returncode
 
 
+async def wait(fn, *args, **kw):
+    """``fn(*args, **kw)`` (a blocking client call) in a thread, the loop serving meanwhile."""
+    return await asyncio.to_thread(fn, *args, **kw)
+
+
+async def until(condition: Callable[[], bool], timeout: float, what: str) -> None:
+    """Poll ``condition()`` every 50 ms; fail naming ``what`` after ``timeout`` s."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"not within {timeout} s: {what}")
+        await asyncio.sleep(0.05)
+
+
+@contextlib.asynccontextmanager
+async def serving(service: RigService):
+    """An in-process RigService serving (its task) once its main connection is up; stopped on the way out."""
+    stop = asyncio.Event()
+    task = asyncio.create_task(service.serve(stop))
+    try:
+        await until(lambda: service.link.online.is_set(), 30, "the service connected")
+        yield task
+    finally:
+        stop.set()
+        await asyncio.wait_for(task, 30)
+
+
 # -- test matrices (small and fast on the simulator) ----------------------------
 
 MATRIX = """\
@@ -544,10 +574,15 @@ class CutProxy:
             up = socket.create_connection(("127.0.0.1", self.target))
             with self._lock:
                 self._pairs.append((conn, up))
-            for a, b in ((conn, up), (up, conn)):
-                threading.Thread(target=self._pump, args=(a, b), daemon=True).start()
+            self._relay(conn, up)
             if self.lifetime is not None:
                 threading.Timer(self.lifetime, self._drop, args=((conn, up),)).start()
+
+    def _relay(self, client: socket.socket, broker: socket.socket) -> None:
+        """Pass the bytes each way between an accepted connection and its own to the target
+        (a subclass that reads or holds them overrides this)."""
+        for a, b in ((client, broker), (broker, client)):
+            threading.Thread(target=self._pump, args=(a, b), daemon=True).start()
 
     @staticmethod
     def _pump(src: socket.socket, dst: socket.socket) -> None:
