@@ -34,7 +34,7 @@ from typing import Any, cast
 from daq.backoff import Backoff
 from orbitrig.service import protocol as proto
 from orbitrig.service.inbox import AbortCopies, CommandInbox, CommandTriage, Connection
-from orbitrig.service.reconnect import TRAFFIC_S, Delivery, credentials_refused, reconnecting
+from orbitrig.service.reconnect import TRAFFIC_S, Delivery, credentials_refused, reconnecting, refusals
 from orbitrig.service.settings import AbortAccount, BrokerSettings, ServiceError, ServiceSettings
 
 log = logging.getLogger("orbitrig.service.abort_link")
@@ -169,11 +169,11 @@ class AbortLink:
 
     def _check_granted(self, granted: Any) -> None:
         """A subscription the broker refused (MQTT 5 reason code >= 0x80: the ACL) ends the link."""
-        codes = [getattr(code, "value", code) for code in (granted or ())]
-        if any(isinstance(code, int) and code >= 0x80 for code in codes):
+        refused = [code for code in refusals(granted) if code is not None]
+        if refused:
             raise AbortConnectionRefused(
                 f"broker {self.where} refused the abort connection's account {self.account.username!r} "
-                f"the subscription to {self.topics.abort} (reason code {codes[0]}: its ACL)"
+                f"the subscription to {self.topics.abort} (reason code {refused[0]}: its ACL)"
             )
 
 

@@ -77,11 +77,15 @@ async def reconnecting(
 REFUSAL = 0x80
 
 
+def refusal(code: Any) -> int | None:
+    """An MQTT 5 reason code (paho's ReasonCode or an int) if it is a refusal (>= 0x80), else None."""
+    value = getattr(code, "value", code)
+    return value if isinstance(value, int) and value >= REFUSAL else None
+
+
 def refusals(codes: Any) -> list[int | None]:
-    """Per entry of a SUBACK (aiomqtt's ``subscribe()`` result): its reason code if it is a
-    refusal (>= 0x80), else None."""
-    values = [getattr(code, "value", code) for code in (codes or ())]
-    return [v if isinstance(v, int) and v >= REFUSAL else None for v in values]
+    """Per entry of a SUBACK (aiomqtt's ``subscribe()`` result): :func:`refusal` of its reason code."""
+    return [refusal(code) for code in (codes or ())]
 
 
 def watch_publish_refusals(paho_client: Any, refused: Callable[[str, str], None]) -> None:
@@ -91,8 +95,8 @@ def watch_publish_refusals(paho_client: Any, refused: Callable[[str, str], None]
     acknowledged = paho_client.on_publish
 
     def on_publish(client: Any, userdata: Any, mid: int, reason_code: Any, properties: Any) -> None:
-        code = getattr(reason_code, "value", reason_code)
-        if isinstance(code, int) and code >= REFUSAL:
+        code = refusal(reason_code)
+        if code is not None:
             message = client._out_messages.get(mid)  # (paho forgets it after this callback)
             topic = message.topic if message is not None else "?"
             refused(topic, f"reason code {code}: {reason_code}")
