@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 from enum import StrEnum
 from typing import Any
 
 from orbitrig.catalog.schema import COLUMN_UNITS, ROW_COLUMNS
+from orbitrig.store.csvfile import render_rows
 
 
 class ExportFormat(StrEnum):
@@ -52,12 +51,8 @@ def render(rows: list[dict[str, Any]], fmt: ExportFormat) -> bytes:
     JSON_COLUMNS as the lists and objects they hold)."""
     if fmt is ExportFormat.JSON:
         return (json.dumps([_decoded(r) for r in rows], indent=1) + "\n").encode()
-    buf = io.StringIO()
-    out = csv.writer(buf, lineterminator="\n")
-    out.writerow([header(c) for c in ROW_COLUMNS])
-    for row in rows:
-        out.writerow(["" if row.get(c) is None else _cell(row[c]) for c in ROW_COLUMNS])
-    return buf.getvalue().encode()
+    head = [header(c) for c in ROW_COLUMNS]
+    return render_rows([head, *(["" if row.get(c) is None else _cell(row[c]) for c in ROW_COLUMNS] for row in rows)])
 
 
 def _decoded(row: dict[str, Any]) -> dict[str, Any]:

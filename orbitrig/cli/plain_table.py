@@ -9,8 +9,6 @@ whole. The width is the terminal's, or ``COLUMNS``, or 80 when the output is not
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import shutil
 import textwrap
@@ -89,11 +87,9 @@ class PlainTable:
         return "\n".join(out)
 
     def csv(self) -> str:
-        buf = io.StringIO()
-        writer = csv.writer(buf, lineterminator="\n")
-        writer.writerow(self.columns)
-        writer.writerows(self.rows)
-        return buf.getvalue().rstrip("\n")
+        from orbitrig.store.csvfile import render_rows
+
+        return render_rows([self.columns, *self.rows]).decode("utf-8").rstrip("\n")
 
     def records(self) -> list[dict[str, str]]:
         return [dict(zip(self.columns, r)) for r in self.rows]
