@@ -226,17 +226,9 @@ class CommandHandling:
             raise CommandRefused(idle_stop.NO_DRIVE_LINK)
         run = self._run_task if self._run_task is not None and not self._run_task.done() else None
         make = self._tg.create_task if self._tg is not None else asyncio.get_running_loop().create_task
-        self._idle_stop = make(self._emergency_stop(*where, run), name="drives-emergency-stop")
+        # (run: one the abort cancelled before it held the drives, which may hold their port)
+        self._idle_stop = make(idle_stop.emergency_stop(*where, holder=run), name="drives-emergency-stop")
         return self._idle_stop
-
-    @staticmethod
-    async def _emergency_stop(url: str, d: Drives, run: asyncio.Future[object] | None) -> idle_stop.Outcome:
-        """`run`: a run the abort cancelled before it held the drives, which may hold their port."""
-        try:
-            return await idle_stop.emergency_stop(url, d, holder=run)
-        except Exception as err:  # answered, never the end of the service
-            log.exception("abort: the emergency stop over a link of its own failed")
-            return f"emergency stop NOT confirmed sent: {type(err).__name__}: {err}; {idle_stop.ESTOP}", None
 
     def _control(self, what: str, call: Callable[[Engine], None], allowed: tuple[str, ...] | None) -> None:
         if not self.run_active or self._engine is None:

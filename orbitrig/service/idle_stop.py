@@ -43,10 +43,11 @@ async def emergency_stop(
     it, None); never raises but a cancellation. `holder`: the task of a run the abort cancelled
     before it held the drives (it may hold their port while being opened): if the link cannot be
     opened, it is tried again once that run has ended (at most LET_GO_S)."""
-    link = modbus_link(url, d)
-    pair = bare_drives(link, d)
     log.warning("abort: no run holds the drives: emergency stop (OFF3) to both over a link of its own (%s)", url)
+    link: ModbusLink | None = None
     try:
+        link = modbus_link(url, d)
+        pair = bare_drives(link, d)
         not_open = await _open(link, holder)
         if not_open is not None:
             log.error("abort: emergency stop not sent: %s", not_open)
@@ -56,7 +57,8 @@ async def emergency_stop(
         log.exception("abort: the emergency stop over a link of its own failed")
         return f"emergency stop NOT confirmed sent: {type(err).__name__}: {err}; {ESTOP}", None
     finally:
-        await link.close()
+        if link is not None:
+            await link.close()
     if not errors:
         log.warning("abort: emergency stop (OFF3) sent to both drives (no run held them)")
         return None, f"emergency stop (OFF3) sent to both drives over a link of {own} own (no run held them)"
