@@ -174,7 +174,8 @@ class Interlocks(_Model):
     check_supply_pressure: bool = True
     check_can_heartbeat: bool = True
     suspend_timeout_s: Seconds = 300.0
-    can_heartbeat_timeout_s: Seconds = 10.0  # wall s without the CAN node before the run fails
+    can_heartbeat_timeout_s: Seconds = 10.0  # wall s without the CAN node (or its data) before the run fails
+    supply_lost_timeout_s: Seconds = 10.0  # wall s with the pump off or the supply too low before the run fails
     unanswered_pause_s: Seconds = 60.0  # wall s a pause nobody can answer lasts before the run stops
 
     @model_validator(mode="after")

@@ -3,15 +3,27 @@
 Like bluesky's suspenders: `check()` looks at the latest CAN sensor state and
 drive state and returns the trips in force. A trip with action ``suspend``
 holds the run until the condition clears (then the current block is settled
-and acquired again); ``fail`` ends the run (both drives stopping).
+and acquired again); ``fail`` ends the run (both drives stopping). The
+supervisor makes a suspension of a `TripKind` a fail once it has lasted its
+limit (supervision.py).
 
-| kind            | source                                 | action  |
-|-----------------|----------------------------------------|---------|
-| drive_trip      | a drive reports a fault (TRIPPED/FAULT)| fail    |
-| drive_link      | the Modbus link to the drives is down  | fail    |
-| can_heartbeat   | no CAN heartbeat for 1.5 s (node lost) | suspend |
-| supply_pressure | p_supply outside the configured band   | suspend |
-| supply_pump     | the node reports the supply pump off   | suspend |
+| kind            | source                                            | action                   |
+|-----------------|---------------------------------------------------|--------------------------|
+| drive_trip      | a drive reports a fault (TRIPPED/FAULT)           | fail                     |
+| drive_link      | the Modbus link to the drives is down             | fail                     |
+| can_heartbeat   | no CAN heartbeat for 1.5 s (node lost)            | suspend, fail after      |
+|                 |                                                   | can_heartbeat_timeout_s  |
+| can_node        | node not operational, its pressure (0x281) or     | suspend, fail after      |
+|                 | status (0x381) frame 1.5 s old, a sensor fault    | can_heartbeat_timeout_s  |
+| supply_pump     | the node reports the supply pump off              | suspend, fail after      |
+|                 |                                                   | supply_lost_timeout_s    |
+| supply_low      | p_supply below supply_pressure_min_mpa            | suspend, fail after      |
+|                 |                                                   | supply_lost_timeout_s    |
+| supply_pressure | p_supply above supply_pressure_max_mpa            | suspend                  |
+
+The supply (can_node, supply_pump, supply_low) is watched whenever a drive
+turns or the point's pressures are verified (`pressure_armed`); the band's
+upper edge only once armed, as the operator may be adjusting the pressures.
 
 A lost orbit trigger shows as an acquisition that gets no revolutions; the
 engine retries it and then fails the run (it is not polled here).
@@ -19,10 +31,11 @@ engine retries it and then fails the run (it is not polled here).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import StrEnum
 
-from daq.aux import AuxState
+from daq.aux import HEARTBEAT_OPERATIONAL, LOST_AFTER, AuxState
 from drives.state import RigDriveState
 from orbitrig.config import MPA, Interlocks
 
@@ -46,13 +59,35 @@ class Trip:
     message: str
 
 
+class TripKind(StrEnum):
+    """The suspensions that become a fail once they last longer than their limit."""
+
+    __repr__ = str.__repr__
+
+    CAN_HEARTBEAT = "can_heartbeat"
+    CAN_NODE = "can_node"
+    SUPPLY_PUMP = "supply_pump"
+    SUPPLY_LOW = "supply_low"
+
+
+#: the CAN node gone or mute, and the supply itself lost: each group escalates on one clock
+NODE_KINDS = frozenset({TripKind.CAN_HEARTBEAT, TripKind.CAN_NODE})
+SUPPLY_KINDS = frozenset({TripKind.SUPPLY_PUMP, TripKind.SUPPLY_LOW})
+
+
 def check(aux: AuxState | None, drives: RigDriveState | None, cfg: Interlocks, *, pressure_armed: bool) -> list[Trip]:
     """Trips in force given the latest CAN sensor state `aux` and drive state `drives` (either may be None).
-    The supply pressure is watched only once `pressure_armed` (the point's pressures were verified)."""
+    The supply is watched while a drive turns or once `pressure_armed` (the point's pressures were
+    verified); the band's upper edge only once armed."""
     trips = _drive_trips(drives) if drives is not None else []
     if aux is not None:
-        trips += _supply_trips(aux, cfg, pressure_armed)
+        trips += _supply_trips(aux, cfg, pressure_armed, _turning(drives))
     return trips
+
+
+def _turning(drives: RigDriveState | None) -> bool:
+    """A drive reads a speed other than zero (unknown speeds count as turning once read at all)."""
+    return drives is not None and (drives.spin is not None or drives.orbit is not None) and not drives.stopped
 
 
 def _drive_trips(drives: RigDriveState) -> list[Trip]:
@@ -65,18 +100,39 @@ def _drive_trips(drives: RigDriveState) -> list[Trip]:
     return trips
 
 
-def _supply_trips(aux: AuxState, cfg: Interlocks, pressure_armed: bool) -> list[Trip]:
+def _node_missing(aux: AuxState, cfg: Interlocks) -> str | None:
+    """What the CAN node does not give that the supply watch needs, or None."""
+    if cfg.check_can_heartbeat and aux.heartbeat_state not in (None, HEARTBEAT_OPERATIONAL):
+        return f"CAN sensor node not operational (heartbeat 0x701 state {aux.heartbeat_state:#04x})"
+    if not cfg.check_supply_pressure:
+        return None
+    for name, frame in (("p_supply", "pressure frame 0x281"), ("pump_off", "status frame 0x381")):
+        age = aux.ages.get(name, math.inf)
+        if not age <= LOST_AFTER:  # as long as a heartbeat may be missed: a busy host's hiccup is no trip
+            return f"CAN sensor node sends no {frame} (last {age:.1f} s ago)"
+    if aux.sensor_fault:
+        return "CAN sensor node reports a faulty sensor (status 0x381 bit 0)"
+    return None
+
+
+def _supply_trips(aux: AuxState, cfg: Interlocks, pressure_armed: bool, turning: bool) -> list[Trip]:
     if cfg.check_can_heartbeat and aux.node_lost:
-        return [Trip("can_heartbeat", SUSPEND, "CAN sensor node lost (no heartbeat for 1.5 s)")]
-    if not (pressure_armed and cfg.check_supply_pressure):
+        return [Trip(TripKind.CAN_HEARTBEAT, SUSPEND, "CAN sensor node lost (no heartbeat for 1.5 s)")]
+    if not (pressure_armed or turning):
+        return []
+    missing = _node_missing(aux, cfg)
+    if missing is not None:
+        return [Trip(TripKind.CAN_NODE, SUSPEND, f"supply pressure and pump not watched: {missing}")]
+    if not cfg.check_supply_pressure:
         return []
     trips = []
     if aux.pump_off:
-        trips.append(Trip("supply_pump", SUSPEND, "lubricant supply pump is off"))
+        trips.append(Trip(TripKind.SUPPLY_PUMP, SUSPEND, "lubricant supply pump is off"))
     p = aux.p_supply
     lo, hi = cfg.supply_pressure_min_mpa, cfg.supply_pressure_max_mpa
-    if not aux.stale("p_supply") and not lo * MPA <= p <= hi * MPA:
-        trips.append(
-            Trip("supply_pressure", SUSPEND, f"supply pressure {p / MPA:.3f} MPa outside the band {lo:g}..{hi:g} MPa")
-        )
+    band = f"supply pressure {p / MPA:.3f} MPa outside the band {lo:g}..{hi:g} MPa"
+    if not p >= lo * MPA:
+        trips.append(Trip(TripKind.SUPPLY_LOW, SUSPEND, band))
+    elif pressure_armed and p > hi * MPA:
+        trips.append(Trip("supply_pressure", SUSPEND, band))
     return trips

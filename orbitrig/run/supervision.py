@@ -6,10 +6,12 @@ them into events: a *fail* trip calls `on_fail` once (the engine ends the
 run); a *suspend* trip sets `tripped` until it clears (then `clear` is set).
 The engine never polls: it waits on these events.
 
-A lost CAN heartbeat suspends the run only for `can_heartbeat_timeout_s`
-(wall s, counted from the first sample that saw it lost, whatever the engine
-is doing meanwhile: settling, paused, waiting for a confirmation): then it
-becomes a fail trip and the drives stop.
+A CAN node lost or mute (no heartbeat, not operational, no pressure or status
+frames, a sensor fault) suspends the run only for `can_heartbeat_timeout_s`; the
+supply pump off or the supply below its minimum only for `supply_lost_timeout_s`
+(wall s, counted from the first sample that saw it, whatever the engine is doing
+meanwhile: settling, paused, waiting for a confirmation): then it becomes a fail
+trip and the drives stop.
 
 A sample that raises (a bug in a sensor read or a check) is logged with its
 traceback and made a fail trip ("supervision"): the run never goes on with its
@@ -27,7 +29,7 @@ from daq.aux import AuxState
 from drives.state import RigDriveState
 from orbitrig.config import Interlocks
 from orbitrig.run import interlocks
-from orbitrig.run.interlocks import Trip
+from orbitrig.run.interlocks import NODE_KINDS, SUPPLY_KINDS, Trip
 
 log = logging.getLogger(__name__)
 
@@ -45,13 +47,13 @@ class InterlockSupervisor:
         self.cfg = cfg
         self._on_fail = on_fail
         self.period = period
-        self.pressure_armed = False  # supply pressure watched once the point's pressures are verified
+        self.pressure_armed = False  # the point's pressures verified: supply watched at standstill too
         self.trip: Trip | None = None  # the suspension in force
         self.failure: Trip | None = None
         self.tripped = asyncio.Event()
         self.clear = asyncio.Event()
         self.clear.set()
-        self._lost_since: float | None = None  # first sample without the CAN node
+        self._since: dict[frozenset[str], float] = {}  # escalating group -> its first sample in force
 
     def trips(self) -> list[Trip]:
         aux, drives = self._read()
@@ -74,21 +76,17 @@ class InterlockSupervisor:
             self.clear.set()
 
     def _escalated(self, trips: list[Trip]) -> list[Trip]:
-        """`trips`, a CAN heartbeat lost for longer than its timeout made a fail trip."""
-        lost = any(t.kind == "can_heartbeat" for t in trips)
-        now = time.monotonic()
-        since = self._lost_since = (self._lost_since or now) if lost else None
-        limit = self.cfg.can_heartbeat_timeout_s
-        if since is not None and now - since >= limit:
-            return [
-                Trip(
-                    "can_heartbeat",
-                    interlocks.FAIL,
-                    f"CAN sensor node lost for more than {limit:g} s "
-                    "(no heartbeat): supply pressure and pump are not watched",
-                )
-            ] + trips
-        return trips
+        """`trips`, with a fail trip ahead for each escalating group in force longer than its limit."""
+        cfg, now, fails = self.cfg, time.monotonic(), []
+        for kinds, limit in ((NODE_KINDS, cfg.can_heartbeat_timeout_s), (SUPPLY_KINDS, cfg.supply_lost_timeout_s)):
+            first = next((t for t in trips if t.kind in kinds), None)
+            if first is None:
+                self._since.pop(kinds, None)
+                continue
+            since = self._since.setdefault(kinds, now)
+            if now - since >= limit:
+                fails.append(Trip(first.kind, interlocks.FAIL, _lasting(first, limit)))
+        return fails + trips
 
     async def watch(self) -> None:
         """Sample every `period` s until a fail trip; a sample that raises is a fail trip."""
@@ -105,3 +103,12 @@ class InterlockSupervisor:
                 self._on_fail(self.failure)
                 return
             await asyncio.sleep(self.period)
+
+
+def _lasting(trip: Trip, limit: float) -> str:
+    """`trip`'s condition said as lasting more than `limit` s."""
+    if trip.kind == interlocks.TripKind.CAN_HEARTBEAT:
+        return (
+            f"CAN sensor node lost for more than {limit:g} s (no heartbeat): supply pressure and pump are not watched"
+        )
+    return f"{trip.message} for more than {limit:g} s"
