@@ -14,8 +14,11 @@ could not be written (a full disk; a reader gone away is no failure), 2 bad conf
 usage or a rig that does not answer (each transport named), 3 stopped (Ctrl-C, SIGTERM, SIGHUP,
 SIGQUIT: both drives are stopped and confirmed at standstill first; a signal during the final
 ramp makes it an emergency stop; every further signal cancels again, so nothing is waited for
-but that stop). On the rig the operator is asked to take the loads, the step or the reference
-off only with both drives at standstill; after a step that did not complete only told.
+but that stop). On the rig the operator is first asked for the slow roll's manual settings
+(orbit radius and static eccentricity zero, the pressures), both drives at standstill, and the
+spindles start only after the Enter; the loads, the step or the reference are asked off only
+with both drives at standstill; after a step that did not complete only told. A rig.toml that
+cannot be written keeps its active record (exit 2, the new record written but not activated).
 """
 
 from __future__ import annotations
@@ -268,6 +271,7 @@ def _write(rig, folder, record, activate: bool, what: str) -> None:
     from orbitrig.cli.terminal import say
     from orbitrig.config import activate as make_active
     from orbitrig.config import write_record
+    from orbitrig.errors import ConfigError
 
     header = (
         f"orbitrig calibration record (docs/calibration.md), written by `orbitrig calibrate {record.step}`.\n{what}"
@@ -275,7 +279,10 @@ def _write(rig, folder, record, activate: bool, what: str) -> None:
     name, _ = write_record(folder, record, header)
     say(f"calibration record {name} written to {folder}")
     if activate:
-        make_active(rig.file, name)
+        try:
+            make_active(rig.file, name)
+        except ConfigError as err:  # rig.toml not writable (read-only, a full disk): it stays as it was
+            raise ConfigError(err.file, [*err.problems, f"record {name} written, not activated"]) from None
         say(f'{rig.file}: calibration_record = "{name}" (active)')
 
 

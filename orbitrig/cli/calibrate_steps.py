@@ -13,7 +13,7 @@ import contextlib
 import sys
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TextIO
 
@@ -22,17 +22,8 @@ import typer
 
 from drives.errors import DriveLimitError
 from orbitrig import __version__
-from orbitrig.config import LMS, MPA, RPM, CalibrationUncertainty, RigConfig
-from orbitrig.config import (
-    CalibrationRecord,
-    ChannelDelay,
-    LoadGains,
-    ProbeGain,
-    ProbeRunout,
-    Reference,
-    RecordStep,
-    Runout,
-)
+from orbitrig.config import LMS, MPA, RPM, CalibrationRecord, CalibrationUncertainty, ChannelDelay, LoadGains
+from orbitrig.config import ProbeGain, ProbeRunout, RecordStep, Reference, RigConfig, Runout
 from orbitrig.errors import OrbitrigError
 from orbitrig.cli.terminal import say
 from orbitrig.run.calibration import (
@@ -171,13 +162,33 @@ async def _confirmed(prompt: str) -> None:
 
 
 class OperatorLoads(AsksOperator):
-    """The rig: the operator applies each load (or connects the phase reference) and confirms on
-    the terminal (Ctrl-C ends the step). Each prompt says whether the drives turn (`motion`: the
-    step's session, `watch`); the input is taken off with both drives at standstill
-    (orbitrig.run.calibration), and only told, not asked, after a step that did not complete."""
+    """The rig: the operator makes the slow roll's manual settings, applies each load (or connects the
+    phase reference) and confirms on the terminal (Ctrl-C ends the step). Each prompt says whether the
+    drives turn (`motion`: the step's session, `watch`); the input is taken off with both drives at
+    standstill (orbitrig.run.calibration), and only told, not asked, after a step that did not complete."""
 
     def __init__(self) -> None:
         self.motion: Callable[[], str] = lambda: "the drives' speeds not read yet"
+        self.manual: tuple[float, float, float, float] | None = None  # the settings last confirmed (SI)
+
+    async def set_manual(
+        self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float, pressure_ratio: float
+    ) -> None:
+        """Asked before the slow roll starts the spindles (once for the same settings, as the delay step's
+        speeds); no confirmation fails the step, slow roll not started. Orbit radius m, pressure Pa."""
+        settings = (orbit_radius, static_eccentricity, recess_pressure, pressure_ratio)
+        if settings == self.manual:
+            return
+        what = (
+            f"set orbit radius {orbit_radius * 1e6:g} um, static eccentricity {static_eccentricity:g}, "
+            f"recess pressure {recess_pressure / MPA:g} MPa, pressure ratio {pressure_ratio:g} "
+            "for the slow roll (it starts both spindles)"
+        )
+        try:
+            await self._ask(what)
+        except CalibrationFailed as err:
+            raise CalibrationFailed(f"{err}: the manual settings not confirmed, slow roll not started") from None
+        self.manual = settings
 
     def watch(self, session: CalibrationSession) -> None:
         self.motion = session.motion
@@ -227,7 +238,8 @@ async def rig_access(rig: RigConfig, opts: StepOptions):
         from orbitrig.cli.preflight import require_rig_answers
 
         await require_rig_answers(rig, "orbitrig calibrate ... --sim", "no record was written")
-        yield RigAccess.of_rig(rig), OperatorLoads()
+        hands = OperatorLoads()  # the operator's hands also make the slow roll's manual settings
+        yield replace(RigAccess.of_rig(rig), hands=hands), hands
         return
     from orbitrig.cli.simulated_rig import scenario_file, simulated_rig
     from sim.config import load_sim_config
@@ -271,8 +283,9 @@ async def loads_record(
     loads = static_loads(load_n)
     async with rig_access(rig, opts) as (access, hands):
         async with CalibrationSession(rig, access, note) as session:
+            _watched(hands, session)  # its prompts, the manual settings' first, say the drives' state
             await session.roll(opts.roll())
-            readings = await measure_loads(session, _watched(hands, session), loads)
+            readings = await measure_loads(session, hands, loads)
     data = _base(rig, opts, RecordStep.LOADS)
     data["reference"] = reference.model_dump()
     data["loads"] = dict(data.get("loads") or {})
@@ -293,8 +306,9 @@ async def loads_record(
 
 async def runout_record(rig: RigConfig, opts: StepOptions, note) -> CalibrationRecord:
     """`calibrate runout`: every probe track's runout at 1x and 2x spin from a slow roll."""
-    async with rig_access(rig, opts) as (access, _):
+    async with rig_access(rig, opts) as (access, hands):
         async with CalibrationSession(rig, access, note) as session:
+            _watched(hands, session)  # its prompts, the manual settings' first, say the drives' state
             await session.roll(opts.roll())
             phasors, n = await measure_runout(session)
     data = _base(rig, opts, RecordStep.RUNOUT)
@@ -359,8 +373,9 @@ async def probes_record(
 
     async with rig_access(rig, opts) as (access, hands):
         async with CalibrationSession(rig, access, note) as session:
+            _watched(hands, session)  # its prompts, the manual settings' first, say the drives' state
             await session.roll(opts.roll())
-            readings = await measure_probes(session, _watched(hands, session), steps)
+            readings = await measure_probes(session, hands, steps)
     data = _base(rig, opts, RecordStep.PROBES)
     data["reference"] = reference.model_dump()
     data["probes"] = {}

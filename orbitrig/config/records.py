@@ -16,7 +16,9 @@ from __future__ import annotations
 import datetime as _dt
 import hashlib
 import math
+import os
 import re
+import stat
 import tomllib
 import warnings
 from enum import StrEnum
@@ -326,9 +328,15 @@ def write_record(folder: Path, record: CalibrationRecord, header: str = "") -> t
 
 def activate(rig_file: str | Path, name: str) -> None:
     """Make ``name`` the active record of the rig configuration ``rig_file`` (its
-    ``calibration_record`` line; added among the top-level keys when missing). Nothing else changes."""
-    path = Path(rig_file)
-    text = path.read_bytes().decode("utf-8")
+    ``calibration_record`` line; added among the top-level keys when missing). Nothing else changes:
+    the file is replaced as one durable step (orbitrig.store.durable, its mode kept; a symbolic link
+    followed), so a full disk or a kill leaves it as it was. A file that cannot be written (no write
+    permission bit, immutable, a full disk) raises ConfigError naming it, the file unchanged."""
+    path = Path(rig_file).resolve()
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except OSError as err:
+        raise ConfigError(str(rig_file), [f"cannot read it: {err.strerror or err}"]) from err
     if RECORD_KEY.search(text):
         text = RECORD_KEY.sub(lambda m: f'{m.group(1)}"{name}"', text, count=1)
     else:
@@ -336,7 +344,27 @@ def activate(rig_file: str | Path, name: str) -> None:
         if placed is None:
             raise ConfigError(str(path), [f'cannot add calibration_record = "{name}": add it among the top-level keys'])
         text = placed
-    path.write_bytes(text.encode("utf-8"))
+    _replace(path, text.encode("utf-8"), str(rig_file))
+
+
+def _replace(path: Path, data: bytes, shown: str) -> None:
+    """``data`` as the new content of the existing file ``path`` (temp name, fsync, rename), its
+    permission bits kept; refused (ConfigError naming ``shown``) when it has no write bit or the
+    write fails, the file unchanged."""
+    from orbitrig.store.durable import atomic_file
+    from orbitrig.store.errors import StorageError, StorageFullError
+
+    mode = stat.S_IMODE(path.stat().st_mode)
+    if not mode & 0o222 or not os.access(path, os.W_OK):
+        why = f"it is read-only (mode {mode:o})" if not mode & 0o222 else "write access refused (immutable?)"
+        raise ConfigError(shown, [f"cannot write it: {why}; left unchanged"])
+    try:
+        with atomic_file(path) as f:
+            os.fchmod(f.fileno(), mode)
+            f.write(data)
+    except StorageError as err:
+        why = err.problem if isinstance(err, StorageFullError) else err.reason
+        raise ConfigError(shown, [f"{why}; left unchanged"]) from None
 
 
 def _with_record_key(text: str, name: str) -> str | None:

@@ -192,8 +192,9 @@ class CalibrationSession:
             self.note(f"{what} failed: {err}")
 
     async def roll(self, roll: SlowRoll) -> None:
-        """Orbit radius and static eccentricity zero, the pressures set, then spin and orbit
-        spindle at their speeds until both hold them."""
+        """Orbit radius and static eccentricity zero, the pressures set (by the access's hands: on
+        the rig the operator is asked and confirms, or the step fails here, no drive started), then
+        spin and orbit spindle at their speeds until both hold them."""
         self.roll_spec = roll
         await self.access.hands.set_manual(
             orbit_radius=0.0,

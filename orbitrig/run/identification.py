@@ -133,22 +133,17 @@ def orbit_table(
             for r in recs
         ]
     )
-    i = LMS.index(lms)
     x, y = probe_plane(ph, ch)
     n_records = np.array([len(r.record_phasors) for r in recs])
+    correct = [functools.partial(corr.forces, lms, orbit=abs(r.block.orbit)) for r in recs]
     u = np.array(
         [
-            row_uncertainty(
-                rp,
-                ch,
-                lms,
-                spin / abs(r.block.orbit),
-                r.revolutions,
-                functools.partial(corr.forces, lms, orbit=abs(r.block.orbit)),
-            )
-            for r, (_, rp) in zip(recs, probes)
+            row_uncertainty(rp, ch, lms, spin / abs(r.block.orbit), r.revolutions, c)
+            for r, (_, rp), c in zip(recs, probes, correct)
         ]
     )
+    # the coherences of what the table holds: the corrected revolutions (runout out, forces corrected)
+    gamma2 = np.array([orbit_coherences(*per_revolution(rp, ch, lms, c)) for (_, rp), c in zip(probes, correct)])
     fx, fy = corr.forces(lms, ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]], orbit)
     return OrbitTable(
         spin=spin,
@@ -157,7 +152,7 @@ def orbit_table(
         y=y,
         fx=fx,
         fy=fy,
-        gamma2=np.array([r.coherence[i] for r in recs]),
+        gamma2=gamma2.reshape(len(recs), 4),
         n_records=n_records,
         u=u if np.all(np.isfinite(u)) else None,
     )
@@ -176,13 +171,24 @@ def row_uncertainty(
     out, plus what those tones leave in the mean); ``spin_turns`` = omega / |Omega|,
     ``revolutions`` the board's revolution number of each record (gaps where one was dropped),
     ``correct(fx, fy) -> (fx, fy)`` the system's force corrections (applied per revolution)."""
+    per_rev = np.stack(per_revolution(record_phasors, ch, lms, correct), axis=1)
+    return mean_uncertainty(per_rev, spin_turns, revolutions)
+
+
+def per_revolution(
+    record_phasors: ComplexArray,
+    ch: dict[str, int],
+    lms: LoadSystem,
+    correct: Callable[[ComplexArray, ComplexArray], tuple[ComplexArray, ComplexArray]] | None = None,
+) -> tuple[ComplexArray, ComplexArray, ComplexArray, ComplexArray]:
+    """(x, y, fx, fy) of each revolution (m, m, N, N): the probe-plane means and system ``lms``'s
+    forces, through ``correct(fx, fy) -> (fx, fy)`` when given."""
     rp = np.asarray(record_phasors)
     x, y = probe_plane(rp, ch)
     fx, fy = rp[:, ch[f"fx_{lms}"]], rp[:, ch[f"fy_{lms}"]]
     if correct is not None:
         fx, fy = correct(fx, fy)
-    per_rev = np.stack([x, y, fx, fy], axis=1)
-    return mean_uncertainty(per_rev, spin_turns, revolutions)
+    return x, y, fx, fy
 
 
 def lms_comparison(

@@ -1,7 +1,8 @@
 """Who made a run, with what, on which rig: the provenance every run records.
 
 `Provenance.of_run` gathers it when a run starts: the operator (``--operator`` of `orbitrig
-sweep`, or the MQTT / dashboard user who sent ``start``), the software version, the rig id and
+sweep`, or the MQTT / dashboard user who sent ``start``), the software version with its source
+revision (`software_version`: the version number alone names no code), the rig id and
 the sensors' serial numbers (rig.toml), the active calibration record (name and SHA-256 of its
 text), the host and the start time. Times are ISO 8601 UTC (rigunits.now_iso).
 It goes into run.json (``provenance``) and run.h5's root attributes; the end time is the last
@@ -12,9 +13,14 @@ resume, stop, abort) is logged with who sent it and when (`command_line`, `RunSt
 from __future__ import annotations
 
 from typing import Any
+import functools
+import hashlib
+import importlib.util
 import socket
+import subprocess
 from dataclasses import asdict, dataclass, field
 from enum import StrEnum
+from pathlib import Path
 
 from orbitrig import __version__
 from orbitrig.config import RigConfig, digest
@@ -22,6 +28,9 @@ from rigunits import now_iso
 
 #: who sent a command when nobody said (an MQTT client that gave no "by")
 UNNAMED = "unnamed"
+#: the distribution's packages (pyproject.toml): the code whose sources the revision digests
+PACKAGES = ("orbitrig", "reduction", "daq", "drives", "sim", "rigerrors", "rigunits")
+GIT_TIMEOUT_S = 5.0
 
 
 class RunCommand(StrEnum):
@@ -52,7 +61,7 @@ class Provenance:
         serials = {c.name: c.serial for c in rig.ordered_channels}
         return cls(
             operator=operator or UNNAMED,
-            software_version=f"orbitrig {__version__}",
+            software_version=software_version(),
             rig_id=rig.identity,
             sensor_serials=serials,
             calibration_record=rig.calibration_record or "",
@@ -80,3 +89,44 @@ class Provenance:
 def command_line(command: RunCommand, by: str | None, detail: str = "") -> str:
     """The run.log text of a command: 'command pause by alice' (+ detail)."""
     return f"command {command} by {by or UNNAMED}" + (f" ({detail})" if detail else "")
+
+
+def software_version() -> str:
+    """'orbitrig VERSION (source DIGEST[, git DESCRIBE])': `source_digest` and `git_describe`."""
+    git = git_describe()
+    return f"orbitrig {__version__} (source {source_digest()}" + (f", git {git})" if git else ")")
+
+
+@functools.cache
+def source_digest() -> str:
+    """First 12 hex digits of the SHA-256 of the distribution's Python sources (PACKAGES: each
+    ``.py`` file's path inside its package and its bytes, in path order): the same for the same
+    code, in a git checkout or an installed wheel. Computed once per process."""
+    h = hashlib.sha256()
+    for name in PACKAGES:
+        spec = importlib.util.find_spec(name)
+        for folder in (spec.submodule_search_locations or []) if spec else []:
+            root = Path(folder)
+            for path in sorted(root.rglob("*.py")):
+                h.update(f"{name}/{path.relative_to(root).as_posix()}\0".encode())
+                h.update(path.read_bytes())
+    return h.hexdigest()[:12]
+
+
+@functools.cache
+def git_describe() -> str:
+    """``git describe --always --dirty`` of the checkout the package runs from ('' when it runs
+    from no checkout, git is missing or does not answer within GIT_TIMEOUT_S)."""
+    root = Path(__file__).resolve().parents[2]
+    if not (root / ".git").exists():
+        return ""
+    try:
+        out = subprocess.run(
+            ["git", "-C", str(root), "describe", "--always", "--dirty"],
+            capture_output=True,
+            text=True,
+            timeout=GIT_TIMEOUT_S,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    return out.stdout.strip() if out.returncode == 0 else ""

@@ -66,7 +66,9 @@ class Hands(Protocol):
 
 
 class OperatorHands:
-    """The real rig: the operator sets the values by hand; the engine asks for a confirmation."""
+    """The real rig, hands that ask nothing: whoever holds them asks the operator and waits for the
+    confirmation (a sweep's control prompt after `set_manual`). A calibration step asks in its own
+    hands' `set_manual` (orbitrig.cli.calibrate_steps.OperatorLoads), before any spindle turns."""
 
     async def set_manual(
         self, *, orbit_radius: float, static_eccentricity: float, recess_pressure: float, pressure_ratio: float

@@ -11,8 +11,8 @@ from pathlib import Path
 import h5py
 import pytest
 
-import orbitrig
 from orbitrig import config as cfg
+from orbitrig.run.provenance import software_version
 from support.store_checks import small_matrix
 from support.sweep_process import SweepProcess, sweeps
 
@@ -105,7 +105,7 @@ def test_a_stop_at_the_prompt_says_resume_measures_the_point_again_and_it_does(s
     s.proc = s.start("--resume", "--operator", "bob", speedup=20)
     code, err = s.finish(120)
     assert code == 0, err
-    now = f"orbitrig {orbitrig.__version__}"
+    now = software_version()  # the version number and the source revision
     log = s.text()
     assert f"resume provenance: operator bob, {now}, rig " in log, log
     warning = f"warning: resumed with {now}; the run started with orbitrig 0.0.1"

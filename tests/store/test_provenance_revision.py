@@ -1,0 +1,66 @@
+"""A run's provenance names the code that made it (orbitrig.run.provenance.software_version): the
+version number plus a digest of the distribution's Python sources, and `git describe` when the
+package runs from a git checkout. Two trees that differ by one line of a source file stamp different
+versions (so a resume with other code warns, orbitrig.run.run_dir.resume_events); the same tree the
+same one, also outside a checkout (an installed wheel: no git part)."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from orbitrig import __version__
+from orbitrig.run.provenance import PACKAGES, Provenance, source_digest, software_version
+from support.paths import ROOT
+
+PRINT = "from orbitrig.run.provenance import software_version; print(software_version())"
+
+
+def _version_in(tree: Path) -> str:
+    out = subprocess.run(
+        [sys.executable, "-I", "-c", f"import sys; sys.path.insert(0, {str(tree)!r}); {PRINT}"],
+        cwd=tree,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    )
+    return out.stdout.strip()
+
+
+def _copy(dst: Path) -> Path:
+    for name in PACKAGES:
+        shutil.copytree(ROOT / name, dst / name, ignore=shutil.ignore_patterns("__pycache__"))
+    return dst
+
+
+def test_the_version_names_the_source_and_the_checkout():
+    v = software_version()
+    assert re.fullmatch(rf"orbitrig {re.escape(__version__)} \(source [0-9a-f]{{12}}(, git [0-9a-z.-]+)?\)", v), v
+    assert f"source {source_digest()}" in v
+    if (ROOT / ".git").exists() and shutil.which("git"):
+        assert ", git " in v, v
+    t0 = time.perf_counter()
+    assert software_version() == v  # computed once per process
+    assert time.perf_counter() - t0 < 0.05
+
+
+def test_other_sources_stamp_another_version_the_same_sources_the_same(tmp_path):
+    a, b = _copy(tmp_path / "a"), _copy(tmp_path / "b")
+    va = _version_in(a)
+    assert _version_in(b) == va  # the same sources, another place, no checkout: the same version
+    assert ", git" not in va and va.startswith(f"orbitrig {__version__} (source ")
+    with (b / "reduction" / "fourier.py").open("a") as f:
+        f.write("# one more line\n")
+    vb = _version_in(b)
+    assert vb != va and vb.split(" (")[0] == va.split(" (")[0]  # the version number alone would not tell
+
+
+def test_the_provenance_of_a_run_carries_it():
+    from orbitrig.config import load_rig
+
+    assert Provenance.of_run(load_rig(), "ada").software_version == software_version()
