@@ -31,6 +31,9 @@ PAGE_COMMANDS = {
 }
 NOT_AUTHORISED = "refused: not authorised"
 EMERGENCY = "if it is still running use the rig's emergency stop"
+#: a command other than stop and abort while the rig's service is offline: the broker would keep it
+#: for the service, which would carry it out when it is back (drives moving with nobody expecting it)
+NOT_SENT_OFFLINE = "not sent: the rig service is offline"
 
 
 def rig_mismatch(shown: Any, watched: str) -> str | None:
@@ -68,6 +71,24 @@ def offline_now(name: str) -> str:
     """A stop or abort while the rig's service is offline: nothing will carry it out."""
     article = "an" if name == "abort" else "a"
     return f"the rig service is offline: the broker does not keep {article} {name} for it; use the rig's emergency stop"
+
+
+def urgent_no_broker(name: str) -> str:
+    """A stop or abort while the dashboard itself has no broker connection: nothing went."""
+    return f"{name.upper()} NOT SENT: the dashboard has no connection to the broker; use the rig's emergency stop"
+
+
+def late_reply(name: str, reply: dict, after_s: float) -> dict:
+    """The outcome of a stop or abort whose reply came ``after_s`` s after the click, past the reply
+    timeout (its earlier outcome said unknown): kept and shown as an outcome of its own."""
+    late = f"late reply, {after_s:.0f} s after the click"
+    error, detail = reply.get("error"), reply.get("detail")
+    outcome: dict[str, Any] = {"cmd": name, "ok": bool(reply.get("ok")), "late": True, "at": proto.iso8601()}
+    if outcome["ok"]:
+        outcome.update(error=None, detail=f"{late}" + (f": {detail}" if detail else ""))
+    else:
+        outcome["error"] = f"{late}: {error or 'failed'}"
+    return outcome
 
 
 def unknown(name: str, why: str, change: str | None) -> str:

@@ -25,6 +25,8 @@ class FeedType(StrEnum):
     TREND_HISTORY = "trend_history"
     ALARMS = "alarms"
     OUTCOMES = "outcomes"
+    OUTCOME = "outcome"  # one outcome that came later than its command's answer (a late reply to stop/abort)
+    TICK = "tick"  # nothing else to send for a while: the page knows its feed is alive (server.TICK_S)
     SIGNED_OUT = "signed_out"
 
 

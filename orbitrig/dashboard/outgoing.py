@@ -7,6 +7,14 @@ ACL refuses is answered with reason code 135, and only then is the outcome "not 
 A command is then answered by the service's reply (matched by its correlation id); without
 one within ``reply_timeout`` its outcome is unknown. An acknowledgement is done when the
 broker hands it back to the session (it subscribes to the rig's whole tree).
+
+A command that could be carried out late must not be: while the rig's service is known offline
+(its last will) no command other than stop and abort is published, and every other command
+carries an MQTT 5 message expiry of ``ceil(reply_timeout)`` s, so the broker drops it instead
+of handing it to a service that comes back after the page was told there is no answer. Stop and
+abort carry none (the service subscribes to them at QoS 0: the broker keeps none for a service
+that is away, and a late one only stops motion). A stop's or abort's reply that comes after the
+reply timeout (within ``LATE_REPLY_S``) is still shown: as an outcome of its own, ``late``.
 """
 
 from __future__ import annotations
@@ -15,18 +23,33 @@ import asyncio
 import collections
 import json
 import logging
+import math
 import secrets
 import time
 from typing import Any
 
 import orbitrig.service.protocol as proto
 from orbitrig.dashboard.alarms import AlarmBook
-from orbitrig.dashboard.commands import command_body, offline_now, refused, rig_mismatch, status_change, unknown
+from orbitrig.dashboard.commands import (
+    NOT_SENT_OFFLINE,
+    command_body,
+    late_reply,
+    offline_now,
+    refused,
+    rig_mismatch,
+    status_change,
+    unknown,
+    urgent_no_broker,
+)
+from orbitrig.dashboard.feed import FeedType
 
 log = logging.getLogger("orbitrig.dashboard")
 
 #: the PUBACK's reason code of a publish the broker's ACL refuses (MQTT 5)
 REFUSED_BY_ACL = 135
+#: s after its reply timeout that a stop's or abort's late reply is still shown
+LATE_REPLY_S = 60.0
+_REREADS: set[asyncio.Task] = set()  # the status reads under way (a task needs a reference until it ends)
 
 
 class Outgoing:
@@ -38,11 +61,16 @@ class Outgoing:
     status: dict | None
     _client: Any
     _pending: dict[str, asyncio.Future]
+    #: stops and aborts without a reply in time: correlation id -> (command, time.monotonic() sent)
+    _late: dict[str, tuple[str, float]]
     #: the latest commands' outcomes, oldest first: a page loaded again shows them (snapshot)
     outcomes: collections.deque[dict]
 
     @property
     def alarms(self) -> AlarmBook:
+        raise NotImplementedError
+
+    def _broadcast(self, message: dict) -> None:
         raise NotImplementedError
 
     async def command(self, request: dict) -> dict:
@@ -71,16 +99,22 @@ class Outgoing:
         from orbitrig.dashboard.puback import PublishUnconfirmed
 
         client, name = self._client, body["cmd"]
+        urgent = name in proto.ALWAYS_ACCEPTED  # stop and abort on their own topic: no flood holds them back
         if client is None:
-            return {"ok": False, "error": "not sent: no connection to the broker: try again when it is back"}
+            again = "not sent: no connection to the broker: try again when it is back"
+            return {"ok": False, "error": urgent_no_broker(name) if urgent else again}
+        if not urgent and self._offline():  # the broker would keep it for the service: carried out when it is back
+            return {"ok": False, "error": NOT_SENT_OFFLINE}
         cid, topics, before = f"dash-{secrets.token_hex(6)}", self.topics, self.status
         fut = asyncio.get_running_loop().create_future()
         self._pending[cid] = fut
-        urgent = name in proto.ALWAYS_ACCEPTED  # stop and abort on their own topic: no flood holds them back
         wait = self.settings.reply_timeout
         try:
             code = await client.publish_qos1(
-                topics.abort if urgent else topics.cmd, json.dumps({**body, "id": cid}), wait
+                topics.abort if urgent else topics.cmd,
+                json.dumps({**body, "id": cid}),
+                wait,
+                expiry=None if urgent else math.ceil(wait),
             )
             if code == REFUSED_BY_ACL:
                 return {"ok": False, "error": refused(self.user, "command this rig")}
@@ -90,8 +124,10 @@ class Outgoing:
                 return {"ok": False, "error": offline_now(name)}
             reply = await asyncio.wait_for(fut, wait)
         except PublishUnconfirmed as err:
+            self._await_late(cid, name, topics)
             return {"ok": False, "error": unknown(name, str(err), self._change(topics, before))}
         except (TimeoutError, asyncio.TimeoutError):
+            self._await_late(cid, name, topics)
             return {"ok": False, "error": self._no_reply(name, topics, before)}
         except aiomqtt.MqttError as err:  # the link went away before the command was handed over
             return {"ok": False, "error": f"not sent: {err}"}
@@ -99,6 +135,39 @@ class Outgoing:
             self._pending.pop(cid, None)
         detail = reply.get("detail")  # what an ok command did, when the service says it
         return {"ok": bool(reply.get("ok")), "error": reply.get("error"), **({"detail": str(detail)} if detail else {})}
+
+    def _await_late(self, cid: str, name: str, topics: proto.Topics) -> None:
+        """A command whose outcome is unknown: a stop's or abort's reply is still awaited a while (late_reply);
+        the retained status is read again (the broker may have dropped messages of this session)."""
+        now = time.monotonic()
+        self._late = {k: v for k, v in self._late.items() if now - v[1] < self.settings.reply_timeout + LATE_REPLY_S}
+        if name in proto.ALWAYS_ACCEPTED:
+            self._late[cid] = (name, now)
+        if topics == self.topics and self._client is not None:
+            task = asyncio.get_running_loop().create_task(self._reread_status(self._client, topics))
+            _REREADS.add(task)
+            task.add_done_callback(_REREADS.discard)
+
+    async def _reread_status(self, client: Any, topics: proto.Topics) -> None:
+        """Subscribe to the rig's status again: the broker hands the retained one over (the present state)."""
+        try:
+            await client.unsubscribe(topics.status)
+            await client.subscribe(topics.status, qos=1)
+        except Exception as err:  # noqa: BLE001 - aiomqtt errors: the link went; it subscribes again when back
+            log.info("session of %r: status not read again: %s", self.user, err)
+
+    def late_reply(self, data: dict) -> bool:
+        """A reply to a stop or abort that came after its reply timeout: an outcome of its own (``late``),
+        kept among the session's outcomes and sent to the pages. False: not one of them."""
+        entry = self._late.pop(str(data.get("id")), None)
+        if entry is None:
+            return False
+        name, sent = entry
+        outcome = late_reply(name, data, time.monotonic() - sent)
+        self.outcomes.append(outcome)
+        self._broadcast({"type": FeedType.OUTCOME, "data": outcome})
+        log.warning("%s by %r: late reply: %s", name, self.user, outcome.get("error") or outcome.get("detail"))
+        return True
 
     def _offline(self) -> bool:
         return self.status is not None and self.status.get("state") == proto.OFFLINE

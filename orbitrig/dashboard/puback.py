@@ -51,13 +51,18 @@ class ReasonClient(aiomqtt.Client):
             fut.set_result(int(getattr(reason_code, "value", reason_code or 0)))
         super()._on_publish(client, userdata, mid, reason_code, properties)
 
-    async def publish_qos1(self, topic: str, payload: str, timeout: float) -> int:
+    async def publish_qos1(self, topic: str, payload: str, timeout: float, *, expiry: int | None = None) -> int:
         """Publish at QoS 1 and wait for the broker's PUBACK: its reason code (0 accepted, 16 accepted
-        but nobody subscribes, 135 refused by the ACL). Raises ``aiomqtt.MqttError`` when the message
+        but nobody subscribes, 135 refused by the ACL). ``expiry`` (s, MQTT 5 message expiry interval):
+        the broker drops the message instead of handing it on later (None: it never expires). Raises ``aiomqtt.MqttError`` when the message
         could not be handed over (no connection), :class:`PublishUnconfirmed` when no PUBACK came
         within ``timeout`` s (the message may have reached the broker)."""
         fut: asyncio.Future = asyncio.get_running_loop().create_future()
-        info = self._client.publish(topic, payload, 1)  # aiomqtt's paho client: no public handle
+        props = None
+        if expiry is not None:
+            props = Properties(PacketTypes.PUBLISH)
+            props.MessageExpiryInterval = max(1, int(expiry))
+        info = self._client.publish(topic, payload, 1, properties=props)  # aiomqtt's paho client: no public handle
         if info.rc != paho.MQTT_ERR_SUCCESS:
             raise aiomqtt.MqttCodeError(info.rc, "could not publish")
         # the PUBACK is read on this event loop, after publish() returned: it cannot be missed here

@@ -13,7 +13,10 @@ and a websocket feed per browser.
   (orbitrig.dashboard.rigs);
 - ``GET /api/feed``: websocket, server -> page JSON messages ``{"type", ...}``
   (``hello``, ``link``, ``status``, ``progress``, ``live``, ``result``, ``gap``,
-  ``trend``, ``trend_history``, ``alarms``, ``rigs``, ``rig``, ``outcomes``, ``signed_out``); page -> server ``{"type": "active"}`` on user activity.
+  ``trend``, ``trend_history``, ``alarms``, ``rigs``, ``rig``, ``outcomes``, ``outcome``, ``tick``, ``signed_out``);
+  page -> server ``{"type": "active"}`` on user activity. A ``tick`` goes when nothing else went for
+  ``TICK_S`` s: a page that hears nothing for longer knows its view is stale (a connection that died
+  without closing), says so and connects again.
   A page's feed starts with the session's snapshot (``hello`` first): it replaces what the page
   showed (a page whose websocket reconnects draws the results again, not twice).
 
@@ -49,6 +52,7 @@ STATIC = Path(__file__).resolve().parent / "static"
 COOKIE = "orbitrig_session"
 MAX_SESSIONS = 64
 KEEPALIVE_S = 15.0  # an idle keep-alive connection is closed after this (s)
+TICK_S = 3.0  # s without a message to a page after which a tick goes (the page calls its view stale after ~7 s)
 SECURITY_HEADERS = {
     "Cache-Control": "no-store",
     "Content-Security-Policy": "default-src 'self'; img-src 'self' data:; frame-ancestors 'none'",
@@ -224,7 +228,11 @@ async def select_rig(request: web.Request) -> web.Response:
 async def _send_loop(ws: web.WebSocketResponse, queue: Feed) -> None:
     with contextlib.suppress(ConnectionError, RuntimeError):
         while not ws.closed:
-            for message in await queue.take():
+            try:
+                messages = await asyncio.wait_for(queue.take(), TICK_S)
+            except (TimeoutError, asyncio.TimeoutError):
+                messages = [{"type": FeedType.TICK}]
+            for message in messages:
                 await ws.send_str(json.dumps(message, allow_nan=False, default=str))
                 if message.get("type") == FeedType.SIGNED_OUT:
                     await ws.close()

@@ -101,6 +101,7 @@ class Session(Outgoing):
         self._forget_rig()
         self.feeds: set[Feed] = set()
         self._pending: dict[str, asyncio.Future] = {}
+        self._late: dict[str, tuple[str, float]] = {}
         self.outcomes = collections.deque(maxlen=10)
         self._client: Any = None
         self._task: asyncio.Task | None = None
@@ -350,7 +351,9 @@ class Session(Outgoing):
     def _resolve(self, data: dict) -> None:
         """A reply (or this session's own acknowledgement back from the broker) for a waiting call."""
         fut = self._pending.pop(str(data.get("id")), None)
-        if fut is not None and not fut.done():
+        if fut is None:
+            self.late_reply(data)
+        elif not fut.done():
             fut.set_result(data)
 
     def _trend(self, live: dict) -> None:

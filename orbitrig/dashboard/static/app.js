@@ -5,7 +5,12 @@
 
 const $ = id => document.getElementById(id);
 // outcomes: the keys of the command outcomes shown (outcomeKey), so that a feed starting again shows none twice
-const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0, replyTimeout: 3, outcomes: new Set()};
+// lastMsg, feedAt: Date.now() of the feed's latest message and of its connection; stale: the view is not the present
+const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0, replyTimeout: 3, outcomes: new Set(),
+  lastMsg: 0, feedAt: 0, stale: false, bannerText: null};
+// the server sends something at least every 3 s (a tick): silent this long, the view is stale (s); this
+// long, the feed is given up and connected again (a connection that died without closing)
+const STALE_S = 7, FEED_DEAD_S = 12;
 
 function fmt(v, digits) { return (v === null || v === undefined || !isFinite(v)) ? "—" : Number(v).toFixed(digits); }
 function show(el, on) { el.hidden = !on; }
@@ -60,6 +65,7 @@ function enter(who) {
 
 function leave(reason) {
   if (st.ws) { st.ws.onclose = null; st.ws.close(); st.ws = null; }
+  st.lastMsg = 0; markStale(false);
   // an open modal dialog (the abort confirmation) would stay open unseen and block every click
   document.querySelectorAll("dialog[open]").forEach(d => d.close());
   show($("app"), false); show($("signin"), true);
@@ -112,15 +118,15 @@ async function signOut() { await api("/api/logout", {}); leave("signed out"); }
 // ---------------------------------------------------------------- feed
 function connect() {
   const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/api/feed");
-  st.ws = ws;
+  st.ws = ws; st.feedAt = Date.now();
   ws.onopen = () => { st.retry = 0; banner(null); };
-  ws.onmessage = ev => handle(JSON.parse(ev.data));
+  ws.onmessage = ev => { st.lastMsg = Date.now(); markStale(false); handle(JSON.parse(ev.data)); };
   ws.onclose = () => { st.ws = null; banner("offline: dashboard server unreachable — reconnecting"); setTimeout(reconnect, Math.min(5000, 500 * 2 ** st.retry++)); };
 }
 
 async function reconnect() {
   try {
-    const r = await api("/api/session");
+    const r = await api("/api/session", undefined, 4000);
     if (r.status === 401) { leave("session ended: sign in again"); return; }
     if (r.status === 200) { connect(); return; }
   } catch (e) { /* server still away */ }
@@ -132,7 +138,38 @@ function activity() {
   if (st.ws && st.ws.readyState === 1 && now - st.lastActive > 10000) { st.lastActive = now; st.ws.send('{"type": "active"}'); }
 }
 
-function banner(text) { $("offline-banner").textContent = text || ""; show($("offline-banner"), !!text); }
+function banner(text) { st.bannerText = text || null; drawBanner(); }
+
+// the stale warning goes before any other: nothing the page shows is known to be the present
+function drawBanner() {
+  let text = st.bannerText;
+  if (st.stale) {
+    const live = st.ws && st.ws.readyState === 1 ? "" : " — reconnecting";
+    text = "STALE: no data from the dashboard server for " + Math.round((Date.now() - st.lastMsg) / 1000) + " s" + live +
+      " — what this page shows may not be the present";
+  }
+  $("offline-banner").textContent = text || ""; show($("offline-banner"), !!text);
+}
+
+function markStale(on) {
+  if (on === st.stale) return;
+  st.stale = on; $("app").classList.toggle("stale", on); drawBanner();
+}
+
+// every 0.5 s: a feed silent for STALE_S greys the view; silent for FEED_DEAD_S (since its latest message or
+// its connection) it is closed and connected again, as a closed one is
+function watchFeed() {
+  if (!st.lastMsg) return;
+  const now = Date.now();
+  markStale(now - st.lastMsg > 1000 * STALE_S);
+  if (st.stale) drawBanner();
+  if (st.ws && now - Math.max(st.lastMsg, st.feedAt) > 1000 * FEED_DEAD_S) {
+    const ws = st.ws; st.ws = null;
+    ws.onclose = ws.onmessage = null;
+    try { ws.close(); } catch (e) { /* already gone */ }
+    reconnect();
+  }
+}
 
 // a feed starts with the session's snapshot (hello first), which replaces what the page showed: the
 // results come again (the table is emptied), events and outcomes already listed are not listed twice
@@ -151,6 +188,8 @@ function handle(msg) {
     case FeedType.TREND_HISTORY: trends.trendHistory(msg.data); break;
     case FeedType.ALARMS: alarmList.showAlarms(msg.data); break;
     case FeedType.OUTCOMES: msg.data.filter(o => !st.outcomes.has(outcomeKey(o.cmd, o))).forEach(o => showOutcome(o.cmd, o, o.at)); break;
+    case FeedType.OUTCOME: showOutcome(msg.data.cmd, msg.data); break;  // a late reply to a stop or abort
+    case FeedType.TICK: break;  // the feed is alive (each message counts: watchFeed)
     case FeedType.SIGNED_OUT: leave("session ended: " + msg.reason); break;
   }
 }
@@ -426,6 +465,7 @@ function wire() {
   $("rig-select").addEventListener("change", selectRig);
   $("btn-confirm").addEventListener("click", () => send(Command.CONFIRM, {step: $("manual-step").textContent}));
   ["keydown", "pointerdown", "pointermove", "wheel"].forEach(t => document.addEventListener(t, activity, {passive: true}));
+  setInterval(watchFeed, 500);
   setInterval(() => { $("live-age").textContent = st.liveAt ? ((Date.now() - st.liveAt) / 1000).toFixed(1) + " s ago" : "—"; }, 500);
 }
 

@@ -1,6 +1,7 @@
 // The results table: one row per identified coefficient with its value, its expanded uncertainty
 // U (k = 2, as the service publishes it: expanded_uncertainty) and its SI unit; a refused fit is
-// one row with the reason. At most MAX_RESULT_ROWS rows are kept (the oldest go first).
+// one row with the reason. At most MAX_RESULT_ROWS rows are kept: the oldest points go first, each
+// whole, and a row at the top says which points are no longer shown.
 // Each point's result is shown once (a feed that starts again replaces the table: clearResults).
 // The run of the rows: in the card's heading while the table holds one run; from a second run on,
 // each run's rows are under a row naming it. A broker link gap whose results may be missing is a
@@ -9,7 +10,8 @@
 
 const MAX_RESULT_ROWS = 2000;
 // what the table holds: the results shown (resultKey), the run of the latest, whether runs are marked
-const shownResults = {keys: new Set(), lastRun: null, marked: false};
+// and the points trimmed off the table (run -> {from, to, n}, point numbers as shown)
+const shownResults = {keys: new Set(), lastRun: null, marked: false, trimmed: new Map()};
 
 function fmtValue(v) {
   if (v === null || v === undefined || !isFinite(v)) return "—";
@@ -86,7 +88,7 @@ function showResult(r) {
     fitRows(r, row).forEach((cells, i) => {
       const tr = document.createElement("tr");
       if (i === 0) tr.className = "fit-first";
-      tr.dataset.run = run;
+      tr.dataset.run = run; tr.dataset.point = key; tr.dataset.num = pointText(r);
       cells.forEach(x => {
         const td = cell(tr, typeof x === "string" ? x : x.text, typeof x === "string" ? "" : x.cls);
         if (x.span) td.colSpan = x.span;
@@ -98,10 +100,31 @@ function showResult(r) {
   trimResults(body);
 }
 
+// the oldest points go, each with all its rows (two rows are kept for the trim row and the oldest run's name)
 function trimResults(body) {
-  while (body.children.length > MAX_RESULT_ROWS) body.removeChild(body.firstChild);
+  const said = body.querySelector("tr.trim-row");
+  if (said) body.removeChild(said);
+  while (body.children.length > MAX_RESULT_ROWS - 2) {
+    const first = body.firstElementChild, point = first.dataset.point;
+    if (point !== undefined) trimmedPoint(first);
+    do body.removeChild(body.firstElementChild);
+    while (point !== undefined && body.firstElementChild && body.firstElementChild.dataset.point === point);
+  }
   const first = body.firstElementChild;  // the oldest run kept keeps its name
   if (shownResults.marked && first && first.className !== "run-row" && first.dataset.run !== undefined) body.insertBefore(runRow(first.dataset.run), first);
+  if (shownResults.trimmed.size) body.insertBefore(trimRow(), body.firstChild);
+}
+
+function trimmedPoint(tr) {
+  const run = tr.dataset.run || "", num = Number(tr.dataset.num) || 0, t = shownResults.trimmed.get(run);
+  if (!t) shownResults.trimmed.set(run, {from: num, to: num, n: 1});
+  else Object.assign(t, {from: Math.min(t.from, num), to: Math.max(t.to, num), n: t.n + 1});
+}
+
+function trimRow() {
+  const parts = [...shownResults.trimmed].map(([run, t]) => (run ? "run " + run + ": " : "") +
+    (t.n === 1 ? "point " + t.from : "points " + t.from + " to " + t.to + " (" + t.n + " points)"));
+  return wideRow("trim-row", "not shown (the table keeps the latest " + MAX_RESULT_ROWS + " rows): " + parts.join("; "));
 }
 
 // the broker link was down from gap.from to gap.to and the broker did not keep the session's messages
@@ -116,7 +139,7 @@ function resultsGap(gap) {
 
 function clearResults() {
   clear(document.getElementById("results"));
-  Object.assign(shownResults, {keys: new Set(), lastRun: null, marked: false});
+  Object.assign(shownResults, {keys: new Set(), lastRun: null, marked: false, trimmed: new Map()});
   showRuns();
 }
 
