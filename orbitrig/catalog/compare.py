@@ -3,15 +3,19 @@ repeated runs at one operating point, and their consistency.
 
 Repeatability of one coefficient: rows of one fit kind whose five conditions (spin,
 recess pressure, pressure ratio, static and dynamic eccentricity) agree form a group
-when they come from at least two runs. With u_i = U_i / 2 (the standard uncertainty
-behind each run's expanded one, k = 2) and x_w the u-weighted mean of the group,
-chi2 = sum over groups and runs of ((x_i - x_w) / u_i)^2 on sum(n_g - 1) degrees of
-freedom; p is its upper tail probability. p well below 0.05: the runs scatter more than
-their U says.
+when they come from at least two runs. Each row's standard uncertainty u_i is what differs
+from run to run: in a group whose rows share one calibration record
+(calibration_record_sha256) the calibration part of U is common to them all and cancels
+in their differences, so u_i is the fit's statistical standard error (coefficients_json
+"std"); in another group (or where a row stores no standard error) u_i = U_i / 2 (k = 2).
+With x_w the 1/u²-weighted mean of the group, chi2 = sum over groups and runs of
+((x_i - x_w) / u_i)^2 on sum(n_g - 1) degrees of freedom; p is its upper tail
+probability. p well below 0.05: the runs scatter more than their u says.
 """
 
 from __future__ import annotations
 
+import json
 import math
 from collections import defaultdict
 from dataclasses import dataclass
@@ -55,6 +59,14 @@ class Variable(StrEnum):
         return float(row["spin_rpm"] if self is Variable.SPIN else row[self.value])
 
 
+class UBasis(StrEnum):
+    """The standard uncertainty a repeatability chi2 rests on (module docstring)."""
+
+    STATISTICAL = "u = std. error"  # every group's runs share one calibration record
+    EXPANDED = "u = U/2"  # no group does
+    MIXED = "u = std. error or U/2"  # some groups do
+
+
 @dataclass(frozen=True)
 class Repeatability:
     coefficient: str
@@ -62,16 +74,22 @@ class Repeatability:
     dof: int
     p_value: float  # NaN without repeats
     groups: int  # operating points measured in two runs or more
+    basis: UBasis = UBasis.EXPANDED
 
     def text(self) -> str:
         if not self.dof:
             return "no repeats"
-        return f"repeats: \u03c7\u00b2 = {self.chi2:.3g} / {self.dof}, p = {self.p_value:.2g}"
+        return f"repeats: \u03c7\u00b2 = {self.chi2:.3g} / {self.dof}, p = {self.p_value:.2g}\n{self.basis}"
+
+
+def condition_value(value: Any) -> float:
+    """A condition rounded to 9 significant digits: stored and written floats compare equal."""
+    return float(f"{float(value):.9g}")
 
 
 def operating_point(row: Row) -> tuple:
-    """The row's conditions, rounded to 9 significant digits (stored floats compare equal)."""
-    return tuple(float(f"{float(row[c]):.9g}") for c in CONDITIONS)
+    """The row's conditions, rounded (condition_value)."""
+    return tuple(condition_value(row[c]) for c in CONDITIONS)
 
 
 def repeat_groups(rows: list[Row]) -> list[list[Row]]:
@@ -86,21 +104,40 @@ def repeatability(rows: list[Row], coefficient: str) -> Repeatability:
     """chi2 of the repeated runs of ``coefficient`` against their U (module docstring)."""
     from scipy.stats import chi2 as chi2_dist
 
-    total, dof, n_groups = 0.0, 0, 0
+    total, dof, n_groups, bases = 0.0, 0, 0, set()
     for group in repeat_groups(rows):
-        pairs = [
-            (r[coefficient], r[f"{coefficient}_U"] / COVERAGE)
-            for r in group
-            if r.get(coefficient) is not None and r.get(f"{coefficient}_U")
-        ]
+        pairs, statistical = _values_and_u(group, coefficient)
         if len(pairs) < 2:
             continue
         x, u = np.array(pairs).T
         w = 1.0 / u**2
         total += float(np.sum(((x - np.sum(w * x) / np.sum(w)) / u) ** 2))
         dof, n_groups = dof + len(pairs) - 1, n_groups + 1
+        bases.add(UBasis.STATISTICAL if statistical else UBasis.EXPANDED)
     p = float(chi2_dist.sf(total, dof)) if dof else math.nan
-    return Repeatability(coefficient, total, dof, p, n_groups)
+    basis = bases.pop() if len(bases) == 1 else (UBasis.MIXED if bases else UBasis.EXPANDED)
+    return Repeatability(coefficient, total, dof, p, n_groups, basis)
+
+
+def _values_and_u(group: list[Row], coefficient: str) -> tuple[list[tuple[float, float]], bool]:
+    """(value, u) of the group's rows giving the coefficient, and whether u is the statistical
+    standard error (one calibration record shared by the rows, each storing it) or U / 2."""
+    given = [r for r in group if r.get(coefficient) is not None]
+    records = {r.get("calibration_record_sha256") or "" for r in given}
+    std = [_std_error(r, coefficient) for r in given]
+    if len(records) == 1 and "" not in records and all(math.isfinite(s) and s > 0 for s in std):
+        return [(r[coefficient], s) for r, s in zip(given, std)], True
+    return [(r[coefficient], r[f"{coefficient}_U"] / COVERAGE) for r in given if r.get(f"{coefficient}_U")], False
+
+
+def _std_error(row: Row, coefficient: str) -> float:
+    """The fit's statistical standard error of ``coefficient`` (SI), NaN when not stored."""
+    stored = row.get("coefficients_json") or "{}"
+    try:
+        data = json.loads(stored) if isinstance(stored, str) else stored
+        return float(data.get("std", {}).get(coefficient, math.nan))
+    except (ValueError, TypeError, AttributeError):
+        return math.nan
 
 
 def runs_of(rows: list[Row]) -> dict[str, list[Row]]:

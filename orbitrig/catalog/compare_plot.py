@@ -1,7 +1,8 @@
 """`orbitrig compare`'s figure: coefficients with U bars against one operating variable,
 one colour per run (repeats side by side), the repeatability chi2 of each coefficient in
-its panel, and predicted values as open black squares joined by a dashed line (a lone
-value shows as its square). PNG and PDF through the atomic writer."""
+its panel, and predicted values as open black markers joined by a dashed line (a lone
+value shows as its marker): only the lines of the plotted rows' conditions, one dashed line
+per set of conditions (orbitrig.catalog.predicted). PNG and PDF through the atomic writer."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import numpy as np
 
 from orbitrig.analysis.plots import _colors, _figure, style
 from orbitrig.catalog.compare import Row, Variable, repeatability, runs_of
+from orbitrig.catalog.predicted import PredictedLines, predicted_lines
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import StorageError, storage_error
 
@@ -49,6 +51,7 @@ def compare_figure(
     font = style().font
     fig = _figure(style().width, PANEL_HEIGHT * nrow, layout=None)  # legend and title added by _lay_out
     runs = runs_of(rows)
+    lines = predicted_lines(predicted or [], rows, variable)  # those of the plotted rows' conditions
     colors = _colors(len(runs))
     xs = np.array([variable.of(r) for r in rows])
     step = np.min(np.diff(np.unique(xs))) if len(np.unique(xs)) > 1 else 1.0
@@ -65,7 +68,7 @@ def compare_figure(
             if pts:
                 x, y, u = np.array(sorted(pts)).T
                 ax.errorbar(x, y, yerr=u, fmt="o-", ms=4, lw=0.8, capsize=3, color=color, label=run_id)
-        _draw_predicted(ax, predicted or [], variable, name, scale)
+        _draw_predicted(ax, lines, variable, name, scale)
         ax.set_title(f"{name} [{unit}]\n{repeatability(rows, name).text()}", fontsize=font)
         ax.set_xlabel(variable.label, fontsize=font)
         ax.tick_params(labelsize=0.85 * font)
@@ -120,12 +123,18 @@ def _title_overrun(fig, pad: float) -> tuple[float, float, float]:
     return max(left, 0.0), max(right, 0.0), max([*between, 0.0])
 
 
-def _draw_predicted(ax, predicted: list[dict[str, float]], variable: Variable, name: str, scale: float) -> None:
+def _draw_predicted(ax, lines: PredictedLines, variable: Variable, name: str, scale: float) -> None:
+    """One dashed line per set of conditions (predicted_lines); when several, each labelled
+    with the conditions that tell it from the others and given its own marker."""
     column = variable.predicted_column
-    pts = sorted((p[column], p[name]) for p in predicted if column in p and np.isfinite(p.get(name, np.nan)))
-    if pts:  # a marker on each value: a lone one draws no line
-        x, y = np.array(pts).T
-        ax.plot(x, y * scale, "k--", marker="s", ms=4, mfc="none", lw=1.2, label="predicted")
+    values = [pair for given, _ in lines for pair in given]
+    differing = {c for c, _ in values if len({v for c2, v in values if c2 == c}) > 1}
+    for (given, table), marker in zip(lines, "s^Dvo<>"):
+        pts = sorted((p[column], p[name]) for p in table if column in p and np.isfinite(p.get(name, np.nan)))
+        if pts:  # a marker on each value: a lone one draws no line
+            x, y = np.array(pts).T
+            label = " ".join(["predicted", *(f"{c} {v:g}" for c, v in given if c in differing)])
+            ax.plot(x, y * scale, "k--", marker=marker, ms=4, mfc="none", lw=1.2, label=label)
 
 
 def write_figure(fig, out_dir: Path, stem: str = "compare") -> list[Path]:

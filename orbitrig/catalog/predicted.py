@@ -5,7 +5,9 @@ Columns (header row; order free; docs/catalog.md):
   ``static_eccentricity``, ``dynamic_eccentricity`` (the compared variable is required);
 - coefficients, any of ``Kxx [N/m]`` ... ``Kyy [N/m]``, ``Cxx [N s/m]`` ... ``Dyy [kg]``
   (the unit in brackets must be the SI one shown); an empty cell is no prediction.
-Lines starting with ``#`` are comments.
+Lines starting with ``#`` are comments. Only the lines whose given conditions (all but the
+compared variable; an empty or absent one agrees with any) are those of a plotted row are
+drawn, one dashed line per set of conditions (`predicted_lines`).
 """
 
 from __future__ import annotations
@@ -14,18 +16,22 @@ import csv
 import math
 from pathlib import Path
 
-from orbitrig.catalog.compare import Variable
+from orbitrig.catalog.compare import Row, Variable, condition_value
 from orbitrig.catalog.errors import CatalogUsageError
 from orbitrig.catalog.rows import COEFFICIENTS, UNITS
 
 CONDITION_COLUMNS = ("spin_rpm", "recess_pressure_mpa", "pressure_ratio", "static_eccentricity", "dynamic_eccentricity")
+#: condition column -> (catalog column, factor to the catalog's unit: MPa -> Pa)
+CATALOG_CONDITION = {c: (c, 1.0) for c in CONDITION_COLUMNS} | {"recess_pressure_mpa": ("recess_pressure", 1e6)}
+#: prediction lines by their given conditions: ((catalog column, value), ...), lines
+PredictedLines = list[tuple[tuple[tuple[str, float], ...], list[dict[str, float]]]]
 
 
 class PredictedError(CatalogUsageError):
     """A malformed predicted-coefficients CSV; the message names file, line and column."""
 
 
-def _column(name: str, file: Path) -> str:
+def _column(name: str, file: Path, line: int) -> str:
     name = name.strip()
     if name in CONDITION_COLUMNS:
         return name
@@ -33,27 +39,40 @@ def _column(name: str, file: Path) -> str:
     if key in COEFFICIENTS and unit == f"{UNITS[key[0]]}]":
         return key
     raise PredictedError(
-        f"{file}, line 1, column {name!r}: not one of {', '.join(CONDITION_COLUMNS)} "
+        f"{file}, line {line}, column {name!r}: not one of {', '.join(CONDITION_COLUMNS)} "
         f"or 'KEY [unit]' (e.g. 'Kxx [N/m]', 'Cxy [N s/m]', 'Dxx [kg]')"
     )
+
+
+def _lines(path: Path) -> list[tuple[int, list[str]]]:
+    """(line number in the file, cells) of each line but the comments; a UTF-8 byte order
+    mark (Excel's "CSV UTF-8") is dropped."""
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as err:
+        raise PredictedError(f"{path}: cannot read ({err})") from None
+    return [
+        (number, next(csv.reader([line]), []))
+        for number, line in enumerate(text.splitlines(), start=1)
+        if not line.lstrip().startswith("#")
+    ]
 
 
 def read_predicted(path: Path, against: Variable | None = None) -> list[dict[str, float]]:
     """One dict per line: condition and coefficient name -> value (SI coefficients, NaN if empty).
     ``against``: the compared variable, whose column the file must have."""
     path = Path(path)
-    try:
-        lines = [line for line in path.read_text(encoding="utf-8").splitlines() if not line.lstrip().startswith("#")]
-    except (OSError, UnicodeDecodeError) as err:
-        raise PredictedError(f"{path}: cannot read ({err})") from None
-    reader = csv.reader(lines)
-    header = [_column(name, path) for name in next(reader, [])]
+    lines = _lines(path)
+    at, cells = lines[0] if lines else (1, [])
+    header = [_column(name, path, at) for name in cells]
     if not any(name in COEFFICIENTS for name in header):
-        raise PredictedError(f"{path}, line 1: no coefficient column (e.g. 'Kxx [N/m]')")
+        raise PredictedError(f"{path}, line {at}: no coefficient column (e.g. 'Kxx [N/m]')")
     if against is not None and against.predicted_column not in header:
-        raise PredictedError(f"{path}, line 1: no column {against.predicted_column!r} (needed for --against {against})")
+        raise PredictedError(
+            f"{path}, line {at}: no column {against.predicted_column!r} (needed for --against {against})"
+        )
     out = []
-    for number, cells in enumerate(reader, start=2):
+    for number, cells in lines[1:]:
         if len(cells) != len(header):
             raise PredictedError(f"{path}, line {number}: {len(cells)} cells for {len(header)} columns")
         out.append({name: _value(cell, path, number, name) for name, cell in zip(header, cells)})
@@ -67,3 +86,25 @@ def _value(cell: str, path: Path, line: int, column: str) -> float:
         return float(cell)
     except ValueError:
         raise PredictedError(f"{path}, line {line}, column {column!r}: {cell!r} is not a number") from None
+
+
+def _conditions(line: dict[str, float], variable: Variable) -> tuple[tuple[str, float], ...]:
+    """The line's given conditions but the compared variable: (catalog column, value in its unit)."""
+    return tuple(
+        (column, condition_value(line[name] * factor))
+        for name, (column, factor) in CATALOG_CONDITION.items()
+        if name != variable.predicted_column and math.isfinite(line.get(name, math.nan))
+    )
+
+
+def predicted_lines(predicted: list[dict[str, float]], rows: list[Row], variable: Variable) -> PredictedLines:
+    """The prediction lines agreeing with a plotted row (module docstring), grouped by their
+    conditions: (conditions, lines) in the order of the file."""
+    columns = {column for column, _ in CATALOG_CONDITION.values()}
+    plotted = [{c: condition_value(v) for c, v in row.items() if c in columns and v is not None} for row in rows]
+    out: dict[tuple[tuple[str, float], ...], list[dict[str, float]]] = {}
+    for line in predicted:
+        given = _conditions(line, variable)
+        if any(all(row.get(c) == v for c, v in given) for row in plotted):
+            out.setdefault(given, []).append(line)
+    return list(out.items())

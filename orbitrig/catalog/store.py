@@ -3,7 +3,8 @@
 The default URL is an SQLite file ``catalog.sqlite`` next to the runs; a lab points
 every rig service and user at one server (``postgresql+psycopg://user@host/db``; a bare
 ``postgresql://`` URL is given the psycopg 3 driver). Adding a row whose key
-(orbitrig.catalog.schema.KEY) is already there replaces it, in one transaction per call.
+(orbitrig.catalog.schema.KEY) is already there replaces it (an upsert: two writers adding
+the same rows at once both succeed), in one transaction per call.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Iterable
 
-from sqlalchemy import create_engine, delete, select, tuple_
+from sqlalchemy import create_engine, select
 from sqlalchemy.engine import Engine, make_url
 from sqlalchemy.exc import ArgumentError, SQLAlchemyError
 
@@ -66,15 +67,15 @@ class Catalog:
 
     def add(self, rows: Iterable[dict[str, Any]]) -> int:
         """Insert ``rows``, replacing those with the same key; the number of rows written."""
-        rows = [{c: row.get(c) for c in ROW_COLUMNS} for row in rows]
+        by_key = {tuple(row.get(k) for k in KEY): {c: row.get(c) for c in ROW_COLUMNS} for row in rows}
+        rows = [by_key[key] for key in sorted(by_key)]  # one order for every writer: no deadlock between two
         if not rows:
             return 0
-        keys = [tuple(r[k] for k in KEY) for r in rows]
-        key_columns = tuple_(*(fits.c[k] for k in KEY))
         try:
+            upsert = _upsert(self.engine.dialect.name)
             with self.engine.begin() as conn:
-                conn.execute(delete(fits).where(key_columns.in_(keys)))
-                conn.execute(fits.insert(), rows)
+                for start in range(0, len(rows), _BATCH):
+                    conn.execute(upsert, rows[start : start + _BATCH])
         except SQLAlchemyError as err:
             raise CatalogError(f"catalog {_shown(self.url)}: cannot add rows ({_reason(err)})") from None
         return len(rows)
@@ -91,6 +92,25 @@ class Catalog:
                 return [dict(r._mapping) for r in conn.execute(query)]
         except SQLAlchemyError as err:
             raise CatalogError(f"catalog {_shown(self.url)}: cannot read ({_reason(err)})") from None
+
+
+#: rows per statement batch (each row binds len(ROW_COLUMNS) parameters; PostgreSQL takes 65535)
+_BATCH = 500
+
+
+def _upsert(dialect: str) -> Any:
+    """INSERT ... ON CONFLICT (KEY) DO UPDATE of every other column, for ``dialect``."""
+    if dialect == "postgresql":
+        from sqlalchemy.dialects.postgresql import insert
+    elif dialect == "sqlite":
+        from sqlalchemy.dialects.sqlite import insert
+    else:
+        raise CatalogError(f"catalog: database {dialect!r} is not supported (SQLite or PostgreSQL)")
+    stmt = insert(fits)
+    return stmt.on_conflict_do_update(
+        index_elements=[fits.c[k] for k in KEY],
+        set_={c: stmt.excluded[c] for c in ROW_COLUMNS if c not in KEY},
+    )
 
 
 def _sqlite_file_exists(url: str) -> None:

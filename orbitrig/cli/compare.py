@@ -44,7 +44,7 @@ def compare_cmd(
         from orbitrig.catalog.compare import Variable
         from orbitrig.catalog.compare_plot import compare_figure, compare_title, write_figure
         from orbitrig.catalog.errors import CatalogUsageError
-        from orbitrig.catalog.predicted import read_predicted
+        from orbitrig.catalog.predicted import predicted_lines, read_predicted
         from orbitrig.catalog.rows import COEFFICIENTS
 
         if against not in tuple(Variable):
@@ -58,6 +58,10 @@ def compare_cmd(
         if not rows:
             raise CatalogUsageError(
                 f"no catalog rows for {lms} {model} {freq_dep} {method}" + (f" where {where}" if where.strip() else "")
+            )
+        if table and not predicted_lines(table, rows, Variable(against)):
+            typer.echo(
+                f"--predicted {predicted}: no line's conditions are those of the plotted rows: none drawn", err=True
             )
         title = compare_title(rows, lms, model, freq_dep, method, where)
         fig = compare_figure(rows, Variable(against), names, title=title, predicted=table)

@@ -1,4 +1,5 @@
-"""`orbitrig serve`: the rig service under MQTT control (docs/protocols/mqtt.md).
+"""`orbitrig serve`: the rig service under MQTT control (docs/protocols/mqtt.md). The rig
+configuration and its active calibration record are loaded again at each start of a run.
 Its options and the broker accounts made of them: orbitrig.cli.serve_options."""
 
 from __future__ import annotations
@@ -99,9 +100,13 @@ def _check_run_options(opts: ServeOptions, folder: Path) -> None:
         fail(f"matrix folder: no such folder: {folder} (--matrices)")
 
 
-def build_service(rig, settings, broker_settings, *, out: Path, sim_rig=None, confirm: str = "remote"):
+def build_service(
+    rig, settings, broker_settings, *, out: Path, sim_rig=None, confirm: str = "remote", reload: Path | None = None
+):
     """The RigService of `orbitrig serve`: each run gets a fresh RunEngine (the engine of
-    `orbitrig sweep`; on the simulator `sim_rig` when given) writing to OUT/<date>-<matrix>/."""
+    `orbitrig sweep`; on the simulator `sim_rig` when given) writing to OUT/<date>-<matrix>/.
+    ``reload``: the rig configuration file, loaded again (with its active calibration record)
+    at each start, a start refused when it no longer loads; None: ``rig`` for every run."""
 
     from orbitrig import config as cfg
     from orbitrig.run.engine import RunEngine
@@ -116,10 +121,13 @@ def build_service(rig, settings, broker_settings, *, out: Path, sim_rig=None, co
         access = simulated_access(sim_rig)
     else:
         access = RigAccess.of_rig(rig)
+    current = [rig]  # the rig configuration of the latest start
 
     def load_matrix(path: Path):
+        if reload is not None:
+            current[0] = _reloaded(reload, current[0])
         # every problem of this matrix on this rig, before anything moves; the plan is run as it is
-        return make_plan(cfg.load_matrix(path), rig)
+        return make_plan(cfg.load_matrix(path), current[0])
 
     def new_engine(name: str, matrix):
         stamp = utc_stamp()
@@ -127,12 +135,36 @@ def build_service(rig, settings, broker_settings, *, out: Path, sim_rig=None, co
         while run_dir.exists():
             n += 1
             run_dir = out / f"{stamp}-{name}-{n}"
-        return RunEngine(rig, out_dir=run_dir, access=access, confirm_mode=confirm)
+        run_access = access if sim_rig is not None else RigAccess.of_rig(current[0])
+        return RunEngine(current[0], out_dir=run_dir, access=run_access, confirm_mode=confirm)
 
     drive_link = (access.endpoints.modbus_url, rig.drives)  # for an abort with no run holding the drives
     return RigService(
         settings, broker_settings, engine_factory=new_engine, load_matrix=load_matrix, drive_link=drive_link
     )
+
+
+def _reloaded(file: Path, previous):
+    """The rig configuration in ``file`` as it is now (its change since ``previous`` logged);
+    CommandRefused with the configuration's error when it does not load."""
+    import logging
+
+    from orbitrig import config as cfg
+    from orbitrig.errors import ConfigError
+    from orbitrig.service.rig_service import CommandRefused
+
+    try:
+        rig = cfg.load_rig(file)
+    except ConfigError as err:
+        raise CommandRefused(f"the rig configuration does not load: {err}") from None
+    if (rig.text, rig.record_text) != (previous.text, previous.record_text):
+        logging.getLogger("orbitrig.cli.serve").warning(
+            "rig configuration %s changed since the last start: calibration record %s (was %s)",
+            file,
+            rig.calibration_record,
+            previous.calibration_record,
+        )
+    return rig
 
 
 async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
@@ -167,6 +199,8 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
             from orbitrig.cli.simulated_rig import DEFAULT_SPEEDUP, simulated_rig
 
             sim_rig, _ = await stack.enter_async_context(simulated_rig(opts.speedup or DEFAULT_SPEEDUP))
-        service = build_service(rig, settings, broker_settings, out=opts.out, sim_rig=sim_rig, confirm=opts.confirm)
+        service = build_service(
+            rig, settings, broker_settings, out=opts.out, sim_rig=sim_rig, confirm=opts.confirm, reload=Path(rig.file)
+        )
         services.append(service)
         await service.serve(shutdown)

@@ -334,6 +334,8 @@ class RigService(SupervisionHandling):
         self._run_id, self._fit_warnings = engine.run_id, []
         assert self._tg is not None
         self._run_task = self._tg.create_task(self._run(engine, cmd.matrix, matrix), name=f"run-{cmd.matrix}")
+        if (catalog := self._catalog) is not None:  # the run's final status and end, whatever its outcome
+            self._run_task.add_done_callback(lambda _: catalog.run_ended(engine.out_dir))
         if live is not None:
             self._tg.create_task(live.run(self._run_task), name=f"live-{cmd.matrix}")
 

@@ -7,6 +7,7 @@ import csv
 import io
 import json
 import logging
+import threading
 
 import pytest
 from typer.testing import CliRunner
@@ -166,3 +167,39 @@ def test_service_feed_adds_points_and_survives_a_broken_catalog(catalog_run, tmp
     with caplog.at_level(logging.WARNING, logger="orbitrig.service.catalog"):
         asyncio.run(feed(broken))
     assert broken.added == 0 and broken.failed == 3 and "not added" in caplog.text
+
+
+def test_the_same_rows_added_at_once_by_two_writers(catalog, catalog_run):
+    """The service's feed and `catalog add` of one run overlap: both succeed, one set of rows."""
+    rows = run_rows(read_run(catalog_run))
+    failures: list[str] = []
+    for _ in range(5):
+        barrier = threading.Barrier(2)
+
+        def add(barrier: threading.Barrier) -> None:
+            writer = Catalog(catalog.url)
+            barrier.wait()
+            try:
+                writer.add(rows)
+            except Exception as err:  # noqa: BLE001 - collected and asserted
+                failures.append(str(err))
+            finally:
+                writer.close()
+
+        threads = [threading.Thread(target=add, args=(barrier,)) for _ in range(2)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+    assert failures == [] and len(catalog.rows()) == 2 * N_FITS
+
+
+def test_an_add_larger_than_one_statement_can_bind(catalog, catalog_run):
+    """12 000 rows bind more than PostgreSQL's 65 535 parameters in one statement: written in batches."""
+    base = run_rows(read_run(catalog_run))
+    many = [{**row, "point": 1000 * n + row["point"]} for n in range(12_000 // len(base)) for row in base]
+    assert catalog.add(many) == len(many) == 12_000
+    many[-1]["operator"] = "carol"
+    assert catalog.add(many[-600:]) == 600
+    stored = catalog.rows("operator = carol")
+    assert len(catalog.rows()) == 12_000 and [r["point"] for r in stored] == [many[-1]["point"]]

@@ -47,7 +47,7 @@ def _predicted_csv(path, header_unit="N/m"):
 def test_predicted_csv_columns_and_errors(tmp_path):
     table = read_predicted(_predicted_csv(tmp_path / "p.csv"))
     assert len(table) == 9 and table[4]["Kxx"] == pytest.approx(law("Kxx", 0.2))
-    with pytest.raises(PredictedError, match=r"p2.csv, line 1, column 'Kxx \[MN/m\]'"):
+    with pytest.raises(PredictedError, match=r"p2.csv, line 2, column 'Kxx \[MN/m\]'"):
         read_predicted(_predicted_csv(tmp_path / "p2.csv", "MN/m"))
     (tmp_path / "p3.csv").write_text("static_eccentricity,Kxx [N/m]\n0.1,abc\n")
     with pytest.raises(PredictedError, match=r"p3.csv, line 2, column 'Kxx': 'abc'"):
@@ -161,3 +161,101 @@ def test_panel_titles_clear_the_panels_above_and_beside(n_runs, scatter, names, 
     rows = campaign_rows(n_runs=n_runs, rng=np.random.default_rng(3), scatter=scatter)
     fig = compare_figure(rows, Variable.STATIC_ECCENTRICITY, list(names), title=title)
     assert _overlaps(fig) == []
+
+
+def _predicted_lines(ax) -> list[tuple[str, list[tuple[float, float]]]]:
+    return [
+        (str(a.get_label()), [(x, pytest.approx(y)) for x, y in zip(a.get_xdata(), a.get_ydata())])
+        for a in ax.get_lines()
+        if str(a.get_label()).startswith("predicted")
+    ]
+
+
+def test_only_predictions_of_the_plotted_conditions_are_drawn(tmp_path):
+    """The rows are at 1000 rpm, 0.4826 MPa, pressure ratio 0.25 (and 0.4 for a fourth run):
+    a prediction line for another spin or pressure ratio is left out, a missing condition
+    agrees with any, one dashed line per remaining set of conditions."""
+    csv_file = tmp_path / "pred.csv"
+    csv_file.write_text(
+        "spin_rpm,recess_pressure_mpa,pressure_ratio,static_eccentricity,Kxx [N/m]\n"
+        "1000,0.4826,0.25,0.0,2.0e7\n1000,0.4826,0.25,0.2,1.9e7\n"
+        "1000,0.4826,0.4,0.0,3.3e7\n1000,0.4826,0.4,0.2,3.2e7\n"
+        "2000,0.4826,0.25,0.0,5.0e7\n1000,0.6,0.25,0.0,6.0e7\n"
+        ",,,0.1,1.5e7\n"
+    )
+    table = read_predicted(csv_file, Variable.STATIC_ECCENTRICITY)
+    rows = campaign_rows()
+    fig = compare_figure(rows, Variable.STATIC_ECCENTRICITY, ["Kxx"], title="t", predicted=table)
+    assert _predicted_lines(fig.axes[0]) == [
+        ("predicted", [(0.0, 20.0), (0.2, 19.0)]),  # MN/m
+        ("predicted", [(0.1, 15.0)]),
+    ]
+    other = campaign_rows(n_runs=1)
+    for row in other:
+        row.update(run_id="rigA@2026-11-30T10:00:00+00:00", pressure_ratio=0.4)
+    fig = compare_figure(rows + other, Variable.STATIC_ECCENTRICITY, ["Kxx"], title="t", predicted=table)
+    assert _predicted_lines(fig.axes[0]) == [
+        ("predicted pressure_ratio 0.25", [(0.0, 20.0), (0.2, 19.0)]),
+        ("predicted pressure_ratio 0.4", [(0.0, 33.0), (0.2, 32.0)]),
+        ("predicted", [(0.1, 15.0)]),
+    ]
+
+
+def test_predicted_csv_errors_name_the_line_of_the_file(tmp_path):
+    """Comments count as lines; a header below comments is named by its own line; Excel's
+    "CSV UTF-8" (a byte order mark first) is read."""
+    bad_header = tmp_path / "h.csv"
+    bad_header.write_text("# code A\n# 1000 rpm\nstatic_eccentricity,Kxx [MN/m]\n0.1,3e7\n")
+    with pytest.raises(PredictedError, match=r"h.csv, line 3, column 'Kxx \[MN/m\]'"):
+        read_predicted(bad_header)
+    bad_cell = tmp_path / "c.csv"
+    bad_cell.write_text("# code A\nstatic_eccentricity,Kxx [N/m]\n# from here at 1000 rpm\n0.1,3e7\n0.2,abc\n")
+    with pytest.raises(PredictedError, match=r"c.csv, line 5, column 'Kxx': 'abc'"):
+        read_predicted(bad_cell)
+    bad_count = tmp_path / "n.csv"
+    bad_count.write_text("# code A\nstatic_eccentricity,Kxx [N/m]\n0.1,3e7,9\n")
+    with pytest.raises(PredictedError, match=r"n.csv, line 3: 3 cells for 2 columns"):
+        read_predicted(bad_count)
+    no_variable = tmp_path / "v.csv"
+    no_variable.write_text("# code A\nKxx [N/m]\n3e7\n")
+    with pytest.raises(PredictedError, match=r"v.csv, line 2: no column 'spin_rpm'"):
+        read_predicted(no_variable, Variable.SPIN)
+    excel = tmp_path / "excel.csv"
+    excel.write_bytes("static_eccentricity,Kxx [N/m]\r\n0.1,3e7\r\n".encode("utf-8-sig"))
+    assert read_predicted(excel, Variable.STATIC_ECCENTRICITY) == [{"static_eccentricity": 0.1, "Kxx": 3e7}]
+
+
+def test_runs_of_one_calibration_record_are_compared_by_their_statistical_error():
+    """The calibration part of U is common to runs of one record: u is the fit's standard
+    error there (chi2 2 on 1 dof here, not 0.02 with u = U/2 = 10); runs of two records keep
+    u = U/2. The panel title says which."""
+    import json
+
+    from orbitrig.catalog.compare import UBasis
+
+    rows = campaign_rows(n_runs=2)[:1] + campaign_rows(n_runs=2)[len(ECCENTRICITIES) :][:1]
+    for row, value in zip(rows, (1.0, 3.0)):
+        row.update(Kxx=value, Kxx_U=20.0, calibration_record_sha256="ab" * 32)
+        row["coefficients_json"] = json.dumps({"values": {"Kxx": value}, "std": {"Kxx": 1.0}})
+    rep = repeatability(rows, "Kxx")
+    assert (rep.chi2, rep.dof, rep.basis) == (pytest.approx(2.0), 1, UBasis.STATISTICAL)
+    assert rep.p_value == pytest.approx(chi2.sf(2.0, 1))
+    assert rep.text() == f"repeats: \u03c7\u00b2 = 2 / 1, p = {chi2.sf(2.0, 1):.2g}\nu = std. error"
+    rows[1]["calibration_record_sha256"] = "cd" * 32  # another record: its calibration error differs
+    rep = repeatability(rows, "Kxx")
+    assert (rep.chi2, rep.basis) == (pytest.approx(0.02), UBasis.EXPANDED)
+    assert rep.text().endswith("\nu = U/2")
+    fig = compare_figure(rows, Variable.STATIC_ECCENTRICITY, ["Kxx"], title="t")
+    assert fig.axes[0].get_title().endswith("\nu = U/2")
+
+
+def test_compare_says_when_no_prediction_is_of_the_plotted_conditions(tmp_path):
+    Catalog(f"sqlite:///{tmp_path / 'catalog.sqlite'}").add(campaign_rows())
+    other = tmp_path / "p.csv"
+    other.write_text("spin_rpm,static_eccentricity,Kxx [N/m]\n2000,0.1,5e7\n")
+    res = CliRunner().invoke(
+        app, ["compare", "--runs", str(tmp_path), "--predicted", str(other), "--out", str(tmp_path / "fig")]
+    )
+    assert (
+        res.exit_code == 0 and f"--predicted {other}: no line's conditions are those of the plotted rows" in res.output
+    )

@@ -9,6 +9,7 @@ import pytest
 
 from support.mqtt_helpers import ACCOUNTS, RigClient, Service, sim_service_args
 from orbitrig.catalog.store import Catalog
+from orbitrig.store.reader import read_run
 
 RIG = "cat-rig"
 
@@ -37,8 +38,8 @@ def test_completed_points_land_in_the_catalog(broker, tmp_path, writable):
     try:
         _run_quick(broker, svc)
         deadline = time.monotonic() + 30
-        while writable and time.monotonic() < deadline and "added" not in svc.text():
-            time.sleep(0.2)
+        while writable and time.monotonic() < deadline and "added (run completed)" not in svc.text():
+            time.sleep(0.2)  # the run's end, added when its task has finished
     finally:
         assert svc.stop() == 0, svc.text()[-3000:]
     if not writable:
@@ -48,3 +49,5 @@ def test_completed_points_land_in_the_catalog(broker, tmp_path, writable):
     run_dir = next((tmp_path / "runs").iterdir())
     assert {(r["point"], r["lms"], r["model"]) for r in rows} == {(0, "piezo", "kc7"), (0, "strain", "kc7")}
     assert all(r["run_path"] == str(run_dir.resolve()) and r["Kxx_U"] > 0 for r in rows)
+    ended = read_run(run_dir).provenance["ended"]
+    assert ended and {(r["run_status"], r["ended"]) for r in rows} == {("completed", ended)}  # not left 'running'
