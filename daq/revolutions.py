@@ -6,7 +6,9 @@ inside it (docs/protocols/adc-frames.md, "What a correct reader guarantees").
 Anything else is dropped once per revolution and counted with its reason (see
 :mod:`daq.stats`): the first reason found, also when the revolution breaks into
 fragments (a fragment whose rev number changed mid-revolution, no frame lost,
-belongs to the revolution of the frame before it).
+belongs to the revolution of the frame before it). Revolutions of which every frame
+was lost are counted when the next frame arrives, from the gap in the rev numbers,
+with the reason of the lost frames (corrupt or seq_gap).
 
 Vectorised over a batch of frames: frame i *continues* frame i-1 when its seq is
 the next one (u16 wrap), the rev number is the same, its first slot is where
@@ -40,6 +42,7 @@ from daq.stats import count
 
 _U16 = 0xFFFF
 _U32 = 0xFFFFFFFF
+MAX_UNSEEN = 1 << 16  # a rev-number jump this large is a renumbering (board restart), not lost revolutions
 
 
 @dataclass(frozen=True)
@@ -167,6 +170,20 @@ class RevolutionAssembler:
         self.revolutions_dropped += 1
         count(self.drop_reasons, reason)
 
+    def _count_unseen(
+        self, rev: np.ndarray, prev_rev: np.ndarray, seq_ok: np.ndarray, why: "_BreakReasons", known_first: bool
+    ) -> None:
+        """Count the revolutions of which no frame arrived: after lost frames (a seq gap), the
+        rev numbers strictly between the frame before and this one (u32 wrap; a jump of
+        MAX_UNSEEN or more, or back, is a renumbering such as a board restart, not counted)."""
+        gap = (rev - prev_rev) & _U32
+        lost = ~seq_ok & (gap > 1) & (gap < MAX_UNSEEN)
+        lost[0] &= known_first  # frame 0's predecessor is known only after the first batch
+        for i in np.flatnonzero(lost):
+            n = int(gap[i]) - 1
+            self.revolutions_dropped += n
+            count(self.drop_reasons, why(int(i)), n)
+
     def count_dropped(self, revs: np.ndarray | Sequence[int], reason: str = "off_speed") -> None:
         """Count revolutions (their rev numbers) that a reader left out after assembly."""
         for r in np.asarray(revs).ravel():
@@ -257,6 +274,7 @@ class RevolutionAssembler:
                 self._drop(r, reason, fresh=bool(fs[a] == 0), alias=int(prev_rev[a]) if renumbered else None)
         for r in rev[good_first[bad_clock]]:
             self._drop(int(r), "bad_clock")
+        self._count_unseen(rev, prev_rev, seq_ok, why, known_first=self._prev is not None)
 
         self._carry = b.select(carry_from) if carry_from is not None else FrameBatch.empty()
         self._discarding = discard_first and len(starts) == 1 and not clean_start[0]

@@ -205,23 +205,23 @@ def _configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
         rig_text, matrix_text, was_sim = store.stored_configs()
         if was_sim != sim:
             raise ConfigError(
-                str(store.path),
+                str(store.layout.header),
                 [
                     f"this run was made {'on the simulator' if was_sim else 'on the rig'}: "
                     f"resume it {'with' if was_sim else 'without'} --sim"
                 ],
             )
-        rig = cfg.rig_from_text(rig_text, f"{store.path}:rig_config", store.stored_record())
+        rig = cfg.rig_from_text(rig_text, f"{store.layout.header}:rig_config", store.stored_record())
         if config:  # the devices may have moved; nothing the data depend on may change
-            rig = _given_again(cfg.load_rig(config), rig, store.path)
-        mat = cfg.matrix_from_text(matrix_text, f"{store.path}:matrix_config")  # with the design it stored
+            rig = _given_again(cfg.load_rig(config), rig, store.dir)
+        mat = cfg.matrix_from_text(matrix_text, f"{store.layout.header}:matrix_config")  # with the design it stored
         if matrix:  # given again: with the stored design, the lab's design file is not read
             mat = _given_matrix(cfg.matrix_file(matrix, rig_path=config), mat)
         if matrix and mat.text != matrix_text:  # before the simulator or any drive is started
             raise ConfigError(
                 mat.file,
                 [
-                    f"differs from the matrix of the run being resumed in {store.path}; "
+                    f"differs from the matrix of the run being resumed in {store.dir}; "
                     "resume without --matrix (the stored one is used)"
                 ],
             )

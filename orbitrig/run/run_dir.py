@@ -20,7 +20,7 @@ from orbitrig.run.provenance import Provenance
 from orbitrig.run.rig_io import RigAccess, Scenario
 from orbitrig.run.states import FAILED, Outcome, stored_status
 from orbitrig.run.steps import Acquire, ChooseBlocks
-from orbitrig.store.estimate import point_bytes
+from orbitrig.store.estimate import point_room
 from orbitrig.store.errors import StorageError, StorageFullError
 from orbitrig.store.writer import RunStore
 from rigunits import seconds_since
@@ -56,7 +56,7 @@ def open_store(
     if plan.matrix.text and matrix_text not in (plan.matrix.text, plan.matrix.run_text):
         raise ConfigError(
             plan.matrix.file,
-            [f"differs from the matrix of the run being resumed in {store.path}; resume with the stored matrix"],
+            [f"differs from the matrix of the run being resumed in {store.dir}; resume with the stored matrix"],
         )
     note = plan.matrix.resume_note() if plan.matrix.text == matrix_text else None  # else: read now, the same
     if note:
@@ -89,24 +89,38 @@ def run_age(store: RunStore) -> float:
 
 
 def no_room(store: RunStore, rig: RigConfig, plan: Plan, point: OperatingPoint) -> str | None:
-    """Why the disk cannot take ``point`` (None: it can)."""
-    models = len(plan.matrix.models)
-    steps = plan.point_steps(point.index)
-    counts = [s.revolutions for s in steps if isinstance(s, (Acquire, ChooseBlocks))]  # most per block
+    """Why the disk cannot take ``point`` (None: it can): its pieces and their copy into run.h5,
+    and what the points still in flight (identified, stored, copied in the background) add yet."""
+    points = {p.index: p for p in plan.points}
+    need = _room(rig, plan, point)
+    for i, written in store.unfinished_bytes().items():
+        if i != point.index and i in points:
+            need += max(0, _room(rig, plan, points[i]) - written)
     try:
-        store.check_free_space(point_bytes(rig, point, counts, models))
+        store.check_free_space(need)
     except StorageFullError as err:
         return f"not enough free disk space: {err}"
     return None
+
+
+def _room(rig: RigConfig, plan: Plan, point: OperatingPoint) -> int:
+    """Bytes `point` writes: its pieces and their copy into run.h5 (orbitrig.store.estimate)."""
+    steps = plan.point_steps(point.index)
+    counts = [s.revolutions for s in steps if isinstance(s, (Acquire, ChooseBlocks))]  # most per block
+    return point_room(rig, point, counts, len(plan.matrix.models))
 
 
 def record_end(
     store: RunStore, run_id: str | None, status: Outcome, message: str, failed: Callable[[str, BaseException], None]
 ) -> tuple[Outcome, str]:
     """The run's status, run.h5, coefficients.csv and run.log's last line. A run whose
-    status or run.h5 cannot be written ends failed, whatever it was (the reason said)."""
+    status or run.h5 cannot be written ends failed, whatever it was (the reason said); a
+    stopped run whose run.h5 does not fit stays stopped: its pieces hold every complete point,
+    and its resume consolidates run.h5."""
     try:
-        store.set_status(stored_status(status), message)
+        if note := store.set_status(stored_status(status), message):  # stopped, no room for run.h5
+            message = f"{message}; {note}"
+            log.warning("%s", message)
     except Exception as err:  # noqa: BLE001 - the other records are still written
         failed("write the run status and run.h5", err)
         if status != FAILED:  # a failed run keeps its first cause

@@ -101,6 +101,10 @@ class RunImage:
             raise out.failed(err) from err
         return out.commit()
 
+    def copied(self) -> frozenset[int]:
+        """The points copied into run.h5.tmp so far."""
+        return frozenset(self._done)
+
     def close(self) -> None:
         if self._out is not None:
             self._out.discard()

@@ -19,6 +19,7 @@ Every OSError becomes a StorageError naming the file (orbitrig.store.errors).
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import itertools
 import json
@@ -104,6 +105,8 @@ def create_new(tmp: Path, readable: bool = False) -> int:
     except (FileNotFoundError, NotADirectoryError):
         pass  # no leftover (nor a folder for one): the open below names what is missing
     except OSError as err:
+        if err.errno in (errno.EROFS, errno.EACCES, errno.EPERM) and not os.path.lexists(tmp):
+            raise storage_error(tmp, "create", err) from err  # no leftover: the folder takes no new file
         raise storage_error(tmp, "remove the leftover temporary file", err) from err
     try:
         access = os.O_RDWR if readable else os.O_WRONLY

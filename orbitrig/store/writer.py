@@ -25,6 +25,7 @@ from orbitrig import __version__
 from orbitrig.store import csvfile, journal, pieces
 from orbitrig.store.consolidate import RunImage, read_header
 from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F401  (the CSV's public names)
+from orbitrig.store.estimate import final_bytes
 from orbitrig.store.durable import APPEND_FLAGS, TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
 from orbitrig.store.identity import header_identity
 from orbitrig.store.errors import RunDirError, StorageError, StorageFullError, storage_error
@@ -57,6 +58,7 @@ class RunStore:
         self._header: dict[str, Any] = {}  # run.json
         self._csv_points: dict[int, csvfile.PointCsv] = {}  # complete point -> its rows, kept compact
         self._written: dict[int, dict[str, dict[str, Any]]] = {}  # point -> file name -> size, digest
+        self._unfinished: dict[int, int] = {}  # point begun, not yet copied into run.h5 -> bytes written
         self._image = RunImage(self.layout)  # run.h5.tmp on disk, filled as points commit
         self._log_failed = False
         # between two completed points the logs grow by a bounded number of lines (orbitrig.store.quota)
@@ -155,14 +157,12 @@ class RunStore:
     def stored_scenario(self) -> tuple[str, str] | None:
         """(name, TOML text) of the stored run's simulator scenario; None when the run did not
         record one (a rig run, or a run written before scenarios were recorded)."""
-        h = self._header or read_header(self.layout)
-        sc = h.get("sim_scenario")
+        sc = (self._header or read_header(self.layout)).get("sim_scenario")
         return (str(sc.get("name", "")), str(sc.get("text", ""))) if isinstance(sc, dict) else None
 
     def stored_record(self) -> str | None:
         """The TOML text of the calibration record the stored run was made with (None: none)."""
-        h = self._header or read_header(self.layout)
-        text = h.get("calibration_record_text")
+        text = (self._header or read_header(self.layout)).get("calibration_record_text")
         return str(text) if text else None
 
     def stored_provenance(self) -> dict[str, Any]:
@@ -241,12 +241,14 @@ class RunStore:
         data = h5_image(lambda f: pieces.write_block(f, rec, channels, units))
         path = self.layout.block_file(point, rec.block.tag)
         self._written.setdefault(point, {})[path.name] = write_atomic(path, data)
+        self._unfinished[point] = self._unfinished.get(point, 0) + len(data)
         self._journal([journal.line("block", point=point, tag=rec.block.tag, bytes=len(data))])
 
     def write_results(self, point: int, res: PointResults) -> None:
         data = h5_image(lambda f: pieces.write_results(f, res))
         path = self.layout.results_file(point)
         self._written.setdefault(point, {})[path.name] = write_atomic(path, data)
+        self._unfinished[point] = self._unfinished.get(point, 0) + len(data)
         self._journal([])
 
     def complete_point(self, point: int) -> None:
@@ -257,31 +259,43 @@ class RunStore:
             [*self._close_quotas(f"point {point_name(point)}"), journal.line("point", point=point, action="complete")]
         )
         self._image.add_point(point)
+        self._unfinished.pop(point, None)  # its copy is made: nothing of it is still to write
         self.write_csv()
 
-    def set_status(self, status: RunStatus, message: str = "") -> None:
-        """Record the run's status; a final status (not running) also consolidates run.h5.
-        When run.h5 cannot be written the journal records the run as failed (best effort:
-        the disk may be full) and the StorageError is raised."""
+    def set_status(self, status: RunStatus, message: str = "") -> str:
+        """Record the run's status; a final status also consolidates run.h5. If that fails the journal says
+        failed and StorageError is raised; a stopped run with no room for it stays stopped (the pieces keep
+        its points): returned, what it adds to `message` (else "")."""
         status = RunStatus(status)  # also an Outcome of orbitrig.run.states: the same words
         if not status.final:
             self._journal([journal.status_line(status, message)])
-            return
+            return ""
         self._journal([*self._close_quotas("the run's end"), journal.status_line(status, message)])
         try:
             self.finalize()
         except StorageError as err:
+            if status == RunStatus.STOPPED and isinstance(err, StorageFullError):  # a resume consolidates it
+                note = f"run.h5 not written ({err.path}: {err.problem}); the points are kept: resume the run once there is room"
+                with contextlib.suppress(StorageError):
+                    self._journal([journal.status_line(status, f"{message}; {note}")])
+                return note
             with contextlib.suppress(StorageError):
                 self._journal([journal.status_line(RunStatus.FAILED, f"run.h5 could not be written: {err}")])
             raise
+        return ""
 
     def flush_logs(self) -> None:
         self._journal([])
 
     def finalize(self) -> Path:
         """Consolidate DIR/run.h5 from the pieces (temporary name, fsync, rename)."""
-        self.check_free_space(_size(self.layout.journal) + (1 << 20))  # the logs still to add
+        copied = self._image.copied()  # the others are copied now, with the logs and the header
+        self.check_free_space(final_bytes(self.layout, [i for i in self.completed_points() if i not in copied]))
         return self._image.write()
+
+    def unfinished_bytes(self) -> dict[int, int]:
+        """Each point being written, not yet copied into run.h5 -> bytes of its pieces so far (any thread)."""
+        return dict(self._unfinished)
 
     def _journal(self, lines: list[str]) -> None:
         """Append `lines` and the gathered log rows to the journal in one durable write."""
@@ -369,13 +383,6 @@ class RunStore:
 
     def write_csv(self) -> None:
         write_atomic(self.csv_path, csvfile.render_points(self.csv_points()))
-
-
-def _size(path: Path) -> int:
-    try:
-        return path.stat().st_size
-    except OSError:
-        return 0
 
 
 def _mb(n: int) -> str:

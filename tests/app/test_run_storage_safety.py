@@ -18,7 +18,7 @@ from orbitrig.run.background import Background, to_the_end
 from orbitrig.run.engine import RunEngine, StatusEvent
 from orbitrig.run.events import RunFailed
 from orbitrig.run.plan import make_plan
-from orbitrig.store.estimate import plan_bytes, point_bytes
+from orbitrig.store.estimate import plan_bytes, point_room
 from orbitrig.store.writer import RunStore, StorageFullError
 from sim.rig import SimRig
 from support.sweep_helpers import SPEEDUP, small_matrix, wait_for
@@ -165,4 +165,4 @@ async def test_no_room_for_the_next_point_pauses_until_resumed(tmp_path, monkeyp
     plan = make_plan(matrix, rig)
     # asked for the whole plan before the run, then for the point (again after each resume)
     assert asked[0] == plan_bytes(rig, list(plan.steps))
-    assert asked[1:4] == [point_bytes(rig, plan.points[0], 10, len(matrix.models))] * 3
+    assert asked[1:4] == [point_room(rig, plan.points[0], 10, len(matrix.models))] * 3  # pieces and run.h5 copy

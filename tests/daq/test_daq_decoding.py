@@ -124,6 +124,26 @@ def test_corrupt_frame_counted_and_dropped():
     check_intact(revs, counts)
 
 
+@pytest.mark.parametrize("how", ["corrupt", "seq_gap"])
+def test_revolutions_whose_every_frame_was_lost_are_counted(how):
+    """20 frames of 45 slots lost from rev 2's slot 180 on: rev 2 broken, revs 3 and 4 never
+    seen at all (their count comes from the rev numbers' gap when rev 5 arrives)."""
+
+    def lose(f, m):
+        f = list(f)
+        if how == "seq_gap":
+            return f[:20] + f[40:]
+        for i in range(20, 40):
+            f[i] = f[i][:30] + bytes([f[i][30] ^ 0x10]) + f[i][31:]
+        return f
+
+    counts, (dec, asm, revs) = faulty(lose, n=10)
+    assert [r.rev for r in revs] == [0, 1, 5, 6, 7, 8, 9]
+    assert asm.revolutions_dropped == 3 and asm.drop_reasons == {how: 3}
+    assert asm.revolutions_good + asm.revolutions_dropped == 10
+    check_intact(revs, counts)
+
+
 def test_overrun_flag_drops_its_revolution():
     counts = signal(6, 8, "sequential")
     frames, _ = stream(counts, "sequential", flags_extra=lambda r, fs: OVERRUN if (r, fs) in ((1, 90), (3, 0)) else 0)

@@ -1,6 +1,6 @@
-"""What a run and the commands over it say when the disk says no: a run whose run.h5
-does not fit ends failed (exit 1), never completed; `report` and `reduce` on a full or
-read-only disk give one line and exit 1; `export` and `report` name every point they
+"""What the commands over a run say when the disk says no: `report` and `reduce` on a full
+or read-only disk give one line and exit 1 (a run whose run.h5 does not fit:
+test_room_before_point); `export` and `report` name every point they
 skip (a damaged block) and exit 1 when one was asked for."""
 
 from __future__ import annotations
@@ -22,10 +22,10 @@ pytestmark = pytest.mark.timeout(240)
 
 @pytest.fixture
 def small_disk(tmp_path):
-    """A 480 kB tmpfs: one small point's pieces fit (about 330 kB), run.h5 beside them does not."""
+    """A 2 MB tmpfs: room for one small point (its pieces, about 330 kB, and their run.h5 copy)."""
     mnt = tmp_path / "disk"
     mnt.mkdir()
-    subprocess.run(["mount", "-t", "tmpfs", "-o", "size=480k", "tmpfs", str(mnt)], check=True)
+    subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(mnt)], check=True)
     try:
         yield mnt
     finally:
@@ -39,7 +39,7 @@ def _one_line_error(r: subprocess.CompletedProcess, says: str) -> None:
     assert len(errors) == 1 and says in errors[0], r.stderr
 
 
-def test_no_room_for_run_h5_fails_the_run_and_full_or_read_only_disks_fail_in_one_line(small_disk, tmp_path):
+def test_full_or_read_only_disks_fail_in_one_line(small_disk, tmp_path):
     matrix = tmp_path / "one.toml"
     matrix.write_text(small_matrix("one", revolutions=20, spin_rpm=(1000.0,)))
     out = small_disk / "run"
@@ -52,12 +52,8 @@ def test_no_room_for_run_h5_fails_the_run_and_full_or_read_only_disks_fail_in_on
         stdin=subprocess.DEVNULL,
     )
     text = " ".join((r.stdout + r.stderr).split())  # the summary is wrapped to the terminal
-    assert r.returncode == 1, text
-    assert "run failed" in text and "run.h5 could not be written" in text and "run completed" not in text, text
-    assert not (out / "run.h5").exists()
-    run = read_run(out)
-    assert run.status == "failed" and "run.h5 could not be written" in run.status_message
-    assert [p.complete for p in run.points] == [True]  # the measured point is kept
+    assert r.returncode == 0, text
+    assert [p.complete for p in read_run(out).points] == [True]
 
     fill(small_disk)  # now nothing fits
     for args, says in (

@@ -1,0 +1,39 @@
+"""A resume refused before anything starts names what exists of a killed run (its directory,
+its run.json), never the run.h5 such a run does not have yet."""
+
+from __future__ import annotations
+
+import subprocess
+
+import pytest
+
+from orbitrig import config as cfg
+from orbitrig.store.writer import RunStore
+
+from support.paths import ROOT
+from support.store_checks import orbitrig_cmd, small_matrix
+
+pytestmark = pytest.mark.timeout(120)
+
+
+def _sweep(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(orbitrig_cmd("sweep", *args), cwd=ROOT, capture_output=True, text=True, timeout=60)
+
+
+def test_resume_refusals_of_a_killed_run_name_its_directory(tmp_path):
+    rig = cfg.load_rig()
+    mat = cfg.matrix_from_text(small_matrix("killed", 8), "killed.toml")
+    out = tmp_path / "run"
+    RunStore.create(out, rig_text=rig.text, matrix_text=mat.run_text, matrix_name=mat.name, sim=True)
+    assert not (out / "run.h5").exists()  # as a killed run leaves it
+    p = _sweep("--resume", "--out", str(out))  # made on the simulator, resumed without --sim
+    assert p.returncode == 2, p.stdout + p.stderr
+    text = " ".join(p.stderr.split())
+    assert f"{out}/run.json: this run was made on the simulator: resume it with --sim" in text, text
+    other = tmp_path / "other.toml"
+    other.write_text(small_matrix("other", 9))
+    p = _sweep("--sim", "--resume", "--out", str(out), "--matrix", str(other))
+    assert p.returncode == 2, p.stdout + p.stderr
+    text = " ".join(p.stderr.split())
+    assert f"differs from the matrix of the run being resumed in {out}; resume without --matrix" in text, text
+    assert "run.h5" not in text
