@@ -8,7 +8,7 @@ run and the service's `start` refuse alike):
 - [interlocks]: every operating point's supply pressure p_s = p_r / beta (recess pressure
   over pressure ratio: what the operator sets by hand, SetManual) inside the supply band the
   interlock watches (orbitrig.run.interlocks suspends the run outside it, with the drives
-  already turning). The only interlock band a matrix sets: the others watch the drives and
+  already turning, and fails it below the minimum after supply_lost_timeout_s). The only interlock band a matrix sets: the others watch the drives and
   the CAN node;
 - Omega/omega = 1: an orbit ratio within SYNCHRONOUS_REFUSAL of 1 (reduction.frequency_list,
   which says why);
