@@ -15,7 +15,6 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
 from orbitrig.config import LMS, CalibrationUncertainty, ModelSpec, RigConfig
 from orbitrig.load_systems import LoadSystem
@@ -26,7 +25,7 @@ from daq.averager import AveragedBlock
 from orbitrig.run.model_truth import model_truth
 from orbitrig.run.truth import true_impedance
 from orbitrig.store.records import BlockRecord, IdentificationEntry, PointResults
-from reduction.arrays import ComplexArray, FloatArray
+from reduction.arrays import ComplexArray
 from reduction.coherence import orbit_coherences
 from reduction.errors import ReductionError
 from reduction.noise import mean_uncertainty
@@ -119,9 +118,10 @@ def orbit_table(
 ) -> OrbitTable:
     """Orbit table of one point for one load measuring system (Omega > 0, direction in the phasors),
     with each row's revolution count and the standard uncertainty of its phasors
-    (:func:`row_uncertainty`; x, y the per-revolution probe-plane means); the forces through the
-    ``corrections`` (lags and gain matrix; None: as read); ``probes`` per block
-    (averaged phasors, per-revolution phasors) with the runout taken out (None: as read)."""
+    (reduction.noise.mean_uncertainty of the per-revolution x, y, fx, fy: the scatter with the
+    spin tones' rotating leakage taken out); the forces through the ``corrections`` (lags and gain
+    matrix; None: as read); ``probes`` per block (averaged phasors, per-revolution phasors) with
+    the runout taken out (None: as read)."""
     probes = probes or [(r.phasors, r.record_phasors) for r in recs]
     corr = corrections or Corrections()
     ph = np.array([p for p, _ in probes])
@@ -135,15 +135,16 @@ def orbit_table(
     )
     x, y = probe_plane(ph, ch)
     n_records = np.array([len(r.record_phasors) for r in recs])
-    correct = [functools.partial(corr.forces, lms, orbit=abs(r.block.orbit)) for r in recs]
+    # each block's revolutions as the table holds them (runout out, forces corrected): their
+    # uncertainty and their coherences
+    revs = [
+        per_revolution(rp, ch, lms, functools.partial(corr.forces, lms, orbit=abs(r.block.orbit)))
+        for r, (_, rp) in zip(recs, probes)
+    ]
     u = np.array(
-        [
-            row_uncertainty(rp, ch, lms, spin / abs(r.block.orbit), r.revolutions, c)
-            for r, (_, rp), c in zip(recs, probes, correct)
-        ]
+        [mean_uncertainty(np.stack(v, axis=1), spin / abs(r.block.orbit), r.revolutions) for r, v in zip(recs, revs)]
     )
-    # the coherences of what the table holds: the corrected revolutions (runout out, forces corrected)
-    gamma2 = np.array([orbit_coherences(*per_revolution(rp, ch, lms, c)) for (_, rp), c in zip(probes, correct)])
+    gamma2 = np.array([orbit_coherences(*v) for v in revs])
     fx, fy = corr.forces(lms, ph[:, ch[f"fx_{lms}"]], ph[:, ch[f"fy_{lms}"]], orbit)
     return OrbitTable(
         spin=spin,
@@ -156,23 +157,6 @@ def orbit_table(
         n_records=n_records,
         u=u if np.all(np.isfinite(u)) else None,
     )
-
-
-def row_uncertainty(
-    record_phasors: ComplexArray,
-    ch: dict[str, int],
-    lms: LoadSystem,
-    spin_turns: float,
-    revolutions: npt.NDArray[np.int64] | None = None,
-    correct: Callable[[ComplexArray, ComplexArray], tuple[ComplexArray, ComplexArray]] | None = None,
-) -> FloatArray:
-    """(u_x, u_y, u_fx, u_fy) of one block (m, m, N, N): the standard uncertainty of each mean
-    (reduction.noise.mean_uncertainty: the scatter with the spin tones' rotating leakage taken
-    out, plus what those tones leave in the mean); ``spin_turns`` = omega / |Omega|,
-    ``revolutions`` the board's revolution number of each record (gaps where one was dropped),
-    ``correct(fx, fy) -> (fx, fy)`` the system's force corrections (applied per revolution)."""
-    per_rev = np.stack(per_revolution(record_phasors, ch, lms, correct), axis=1)
-    return mean_uncertainty(per_rev, spin_turns, revolutions)
 
 
 def per_revolution(
