@@ -9,12 +9,13 @@
 
 A step writes a new record into the records' folder beside the rig configuration
 (docs/calibration.md) and makes it the active one (``--no-activate``: it only writes it).
-Exit status: 0 done, 1 the step failed (among them: drives not confirmed stopped) or its output
-could not be written (a full disk; a reader gone away is no failure), 2 bad configuration or
-usage or a rig that does not answer (each transport named), 3 stopped (Ctrl-C, SIGTERM, SIGHUP,
-SIGQUIT: both drives are stopped and confirmed at standstill first; a signal during the final
-ramp makes it an emergency stop; every further signal cancels again, so nothing is waited for
-but that stop). On the rig the operator is first asked for the slow roll's manual settings
+Exit status: 0 done, 1 the step failed (among them: a drive tripped or the link to the drives
+was lost during the step, the error naming the drive and its fault or the lost link; drives not
+confirmed stopped) or its output could not be written (a full disk; a reader gone away is no
+failure), 2 bad configuration or usage or a rig that does not answer before the step (each
+transport named), 3 stopped (Ctrl-C, SIGTERM, SIGHUP, SIGQUIT: both drives are stopped and
+confirmed at standstill first; a signal during the final ramp makes it an emergency stop;
+every further signal cancels again, so nothing is waited for but that stop). On the rig the operator is first asked for the slow roll's manual settings
 (orbit radius and static eccentricity zero, the pressures), both drives at standstill, and the
 spindles start only after the Enter; the loads, the step or the reference are asked off only
 with both drives at standstill; after a step that did not complete only told. A rig.toml that
@@ -198,15 +199,18 @@ def _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_rati
 
 def _guarded(fn) -> None:
     """Run a sub-command: exit 2 on a configuration error, a speed beyond the drive limits or a
-    rig that does not answer (nothing sent), 1 on a failed step (drives not confirmed stopped
-    among them) or output that cannot be written (a full disk), 3 on Ctrl-C, SIGTERM, SIGHUP or
-    SIGQUIT (both drives confirmed at standstill first)."""
+    rig that does not answer (nothing sent), 1 on a failed step (a drive tripped or the link to
+    the drives lost during it, drives not confirmed stopped among them) or output that cannot be
+    written (a full disk), 3 on Ctrl-C, SIGTERM, SIGHUP or SIGQUIT (both drives confirmed at
+    standstill first). pymodbus' own log records never reach the terminal (debug logging only)."""
     from orbitrig.cli.calibrate_steps import CalibrationOptionError
     from orbitrig.cli.preflight import RigUnreachable
     from orbitrig.cli.signals import Interrupted
     from orbitrig.cli.terminal import OutputError, say
     from orbitrig.errors import ConfigError, OrbitrigError
+    from orbitrig.run.modbus_log import keep_pymodbus_off_the_terminal
 
+    keep_pymodbus_off_the_terminal()
     try:
         fn()
     except (ConfigError, CalibrationOptionError, RigUnreachable) as err:

@@ -109,6 +109,7 @@ def build_service(
     at each start, a start refused when it no longer loads; None: ``rig`` for every run."""
 
     from orbitrig import config as cfg
+    from orbitrig.config import Drives
     from orbitrig.run.engine import RunEngine
     from orbitrig.run.plan import make_plan
     from orbitrig.run.rig_io import RigAccess
@@ -138,7 +139,12 @@ def build_service(
         run_access = access if sim_rig is not None else RigAccess.of_rig(current[0])
         return RunEngine(current[0], out_dir=run_dir, access=run_access, confirm_mode=confirm)
 
-    drive_link = (access.endpoints.modbus_url, rig.drives)  # for an abort with no run holding the drives
+    def drive_link() -> tuple[str, Drives]:
+        """The drives of the latest start's rig configuration (the simulator's: at its own address),
+        for a stop or abort with no run holding them, asked at the time it is sent."""
+        url = access.endpoints.modbus_url if sim_rig is not None else current[0].transports.modbus_url
+        return url, current[0].drives
+
     return RigService(
         settings, broker_settings, engine_factory=new_engine, load_matrix=load_matrix, drive_link=drive_link
     )
@@ -182,12 +188,15 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
     tune_heap()  # bounded memory over months (orbitrig.run.heap)
     services = []
 
-    def on_signal(sig: int) -> None:  # the first: the run stops at once with a ramp; another: it aborts
+    def on_signal(sig: int) -> None:
+        """The first: the run stops at once with a ramp (no run: both drives' emergency stop, as an
+        MQTT abort no run carries out); another: it aborts (no run: the emergency stop again)."""
         name = signal_name(sig)
         if shutdown.is_set() and services:
             services[0].abort_run(f"a second signal ({name}) while shutting down")
         elif services:
             services[0].shutdown_cause = name
+            services[0].stop_drives_on_signal(name)
         shutdown.set()
 
     for sig in SIGNALS:
@@ -204,3 +213,7 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
         )
         services.append(service)
         await service.serve(shutdown)
+    if service.signal_stop_failed is not None:  # the drives may turn on: exit 1, not 0
+        from orbitrig.service.rig_service import ServiceError
+
+        raise ServiceError(f"{service.shutdown_cause} with no run active: {service.signal_stop_failed}")

@@ -12,7 +12,11 @@ on the rig the operator applies it and confirms) and reads the static part (dc) 
 measuring systems' force channels. The input a step puts on the rig (loads, a displacement step,
 the phase reference) is taken off only once both drives are confirmed at standstill
 (`CalibrationSession.applied`): the drives are never left turning while the operator is asked
-something. SI throughout.
+something. While the drives turn, every hold, acquisition and prompt for a load or a step is
+raced against the drives' poll (`CalibrationSession.watched`: `RigDrives.check` and the link, as
+`orbitrig drives run --hold` watches them): a drive that trips (both already commanded to stop
+by the poll) or a lost link to the drives ends the step within a poll interval, naming the
+drive and its fault or the lost link. SI throughout.
 """
 
 from __future__ import annotations
@@ -22,7 +26,8 @@ import contextlib
 import logging
 from collections.abc import AsyncIterator, Awaitable
 from dataclasses import dataclass
-from typing import Callable, Protocol
+from functools import partial
+from typing import Callable, Protocol, TypeVar
 
 import numpy as np
 
@@ -40,6 +45,7 @@ from reduction.rig_time import block_time
 log = logging.getLogger(__name__)
 HOLD_REVOLUTIONS = 3  # read and dropped after a change at the input
 PROBES = ("x_a", "y_a", "x_b", "y_b")
+T = TypeVar("T")
 
 
 class CalibrationFailed(OrbitrigError):
@@ -109,18 +115,24 @@ class CalibrationSession:
         """Both drives stopped and confirmed at standstill (`stop`: an emergency stop after an
         exception or a cancellation), then the links closed; a stop not delivered or not confirmed
         fails the step (CalibrationFailed: no record is written, and nothing says the drives were
-        stopped), whatever ended it, also a cancellation while the links close."""
+        stopped), whatever ended it, also a cancellation while the links close; the step's own
+        failure (a trip, a lost link) is said first. A failure closing the links after either
+        (the drives' own exit stop not delivered) is noted, never said instead of them."""
         failed: CalibrationFailed | None = None
         try:
             await self.stop(emergency=exc[0] is not None)
         except CalibrationFailed as err:
-            failed = err
+            failed = _joined(err, exc[1])
         finally:
             try:
                 await self.io.__aexit__(*exc)
             except asyncio.CancelledError:
                 if failed is None:
                     raise
+            except (DriveError, DaqError, OSError) as err:  # the drives' own exit stop not delivered
+                if failed is None and exc[0] is None:
+                    raise
+                self.note(f"closing the rig: {err}")  # what ended the step is said, not this
         if failed is not None:
             raise failed
 
@@ -167,9 +179,11 @@ class CalibrationSession:
             yield
             completed = True
             await self.stop()  # a signal during it: the emergency stop, and the step did not complete
-        except BaseException:
+        except BaseException as err:
             try:
                 await self.stop(emergency=True)
+            except CalibrationFailed as failed:
+                raise _joined(failed, err) from failed
             finally:
                 if self.at_standstill:
                     await self._left_on(remove, what, hands, completed)
@@ -213,21 +227,64 @@ class CalibrationSession:
             ) from err
         self.note(f"slow roll: spin {roll.spin / RPM:.0f} rpm, orbit spindle {roll.orbit / RPM:.0f} rpm, held")
 
+    def check_drives(self) -> None:
+        """CalibrationFailed if the drives' poll found a drive tripped (recorded once the poll has
+        commanded both to stop, drives/poll.py) or failed otherwise (`RigDrives.check`), or declared
+        the Modbus link to them lost (`link_ok`, as the sweep's drive interlock): the message names
+        the drive and its fault code, or the lost link and the request that went unanswered."""
+        drives = self.io.drives
+        if drives is None:
+            return
+        try:
+            state = drives.check()
+        except DriveError as err:
+            raise CalibrationFailed(f"{err}{self._during()}") from err
+        if not state.link_ok:
+            raise CalibrationFailed(f"Modbus link to the drives lost ({state.link_error}){self._during()}")
+
+    def _during(self) -> str:
+        roll = self.roll_spec
+        if roll is None or self.at_standstill:
+            return ""
+        return f" during the slow roll at spin {roll.spin / RPM:.0f} rpm, orbit {roll.orbit / RPM:.0f} rpm"
+
+    async def watched(self, work: Callable[[], Awaitable[T]]) -> T:
+        """``await work()`` (a hold, an acquisition, a prompt) raced against the drives' poll: the
+        drives checked (`check_drives`) before it starts, every poll interval (wall s) while it
+        runs and once it is done; a trip or a lost link cancels it and raises CalibrationFailed
+        (the session's way out then stops both drives)."""
+        self.check_drives()
+        period = self.io.drives.poll_interval if self.io.drives is not None else 0.1
+        task = asyncio.ensure_future(work())
+        try:
+            while not task.done():
+                await asyncio.wait({task}, timeout=period)
+                self.check_drives()
+            return task.result()
+        finally:
+            if not task.done():
+                task.cancel()
+                await asyncio.wait({task})
+            if not task.cancelled():
+                task.exception()  # retrieved: a failure of the work cut short is not logged as unhandled
+
     async def hold(self) -> None:
         """After a change at the input (a load, the reference): `settle.hold_s` physical seconds,
-        then a few revolutions read and dropped, so that no average holds what came before."""
-        await asyncio.sleep(self.access.time_scale.wall(self.rig.settle.hold_s))
+        then a few revolutions read and dropped, so that no average holds what came before; both
+        watched (`watched`)."""
+        await self.watched(lambda: asyncio.sleep(self.access.time_scale.wall(self.rig.settle.hold_s)))
         await self.average(HOLD_REVOLUTIONS)
 
     async def average(self, revolutions: int | None = None) -> AveragedBlock:
-        """One block of `revolutions` (default `roll.revolutions`) at the slow roll (retried once)."""
+        """One block of `revolutions` (default `roll.revolutions`) at the slow roll (retried once),
+        each attempt watched (`watched`): a drive trip or a lost link ends it at once."""
         roll, av = self.roll_spec, self.rig.averaging
         n = revolutions or roll.revolutions
         timeout = self.access.time_scale.wall(av.timeout_factor * block_time(roll.orbit, n) + av.timeout_margin_s) + 2.0
         rule = AveragingRule(n, n, None, 1.0 / roll.ratio, abs(roll.orbit), av.speed_tolerance)
         for attempt in range(av.retries + 1):
             try:
-                return await self.io.acquire(rule, timeout=timeout)
+                return await self.watched(lambda: self.io.acquire(rule, timeout=timeout))
             except (DaqError, TimeoutError) as err:
                 self.note(f"acquisition failed ({type(err).__name__}: {err})")
                 if attempt == av.retries:
@@ -245,7 +302,7 @@ async def measure_loads(
     out = {lms: [] for lms in LMS}
     async with session.applied(lambda: hands.apply_load(0.0, 0.0), "remove every calibration load", hands):
         for fx, fy in np.asarray(loads, dtype=float):
-            await hands.apply_load(float(fx), float(fy))
+            await session.watched(partial(hands.apply_load, float(fx), float(fy)))
             await session.hold()
             blk = await session.average()
             for lms in LMS:
@@ -255,6 +312,14 @@ async def measure_loads(
                 + ", ".join(f"{lms} ({r[-1][0]:+.2f}, {r[-1][1]:+.2f}) N" for lms, r in out.items())
             )
     return {lms: np.array(v) for lms, v in out.items()}
+
+
+def _joined(failed: CalibrationFailed, cause: BaseException | None) -> CalibrationFailed:
+    """`failed` (the drives not confirmed stopped) after the step's own failure `cause` (a trip,
+    a lost link: CalibrationFailed) that made it stop them: both said, the cause first."""
+    if isinstance(cause, CalibrationFailed) and str(failed) not in str(cause):
+        return CalibrationFailed(f"{cause}; {failed}")
+    return failed
 
 
 def harmonic(blk: AveragedBlock, channel: int, h: int) -> complex:
@@ -280,7 +345,8 @@ async def measure_probes(session: CalibrationSession, hands: ProbeHands, steps: 
     async with session.applied(lambda: hands.apply_displacement(0.0, 0.0), "remove the displacement step", hands):
         for axis in ("x", "y"):
             for d in np.asarray(steps, dtype=float):
-                await hands.apply_displacement(float(d) if axis == "x" else 0.0, float(d) if axis == "y" else 0.0)
+                dx, dy = (float(d), 0.0) if axis == "x" else (0.0, float(d))
+                await session.watched(partial(hands.apply_displacement, dx, dy))
                 await session.hold()
                 blk = await session.average()
                 for p in PROBES:

@@ -2,8 +2,9 @@
 (docs/protocols/mqtt.md, "Commands"); a handler refuses by raising
 :class:`CommandRefused`, which :meth:`CommandHandling.handle_command` turns into
 the ``ok: false`` reply. ``stop`` and ``abort`` are always accepted; an abort that no run
-carries out (none holds the drives) sends both drives the emergency stop over a link of the
-service's own and is answered once that is done (orbitrig.service.idle_stop)."""
+carries out (none holds the drives) sends both drives the emergency stop (a stop: the ramp stop)
+over a link of the service's own, to the drives of the rig configuration loaded last, and is
+answered once that is done (orbitrig.service.idle_stop)."""
 
 from __future__ import annotations
 
@@ -16,7 +17,6 @@ from collections.abc import Callable
 from typing import Literal
 
 from orbitrig.errors import OrbitrigError
-from orbitrig.config import Drives
 from orbitrig.run.control import NotNow
 from orbitrig.run.states import RunState
 from orbitrig.service import idle_stop
@@ -59,11 +59,18 @@ class CommandHandling:
     _stops_done: collections.OrderedDict[tuple[str | None, bytes], None]
     #: command name -> handler (raises CommandRefused to refuse; returns a Later: its reply follows)
     _handlers: dict[str, Callable[[proto.Command], Later | None]]
-    #: the emergency stop of an abort that no run carried out, while it is being sent
+    #: the stop of an abort (or stop) that no run carried out, while it is being sent
     _idle_stop: asyncio.Task[idle_stop.Outcome] | None = None
+    #: whether that stop is the emergency stop (OFF3), not a stop's ramp stop (OFF1)
+    _idle_emergency: bool = False
+    #: the emergency stop the first shutdown signal sent with no run active, or why not sent
+    _signal_stop: asyncio.Task[idle_stop.Outcome] | str | None = None
+    #: why that emergency stop did not reach both drives (None: it did, or none was sent)
+    signal_stop_failed: str | None = None
     _tg: asyncio.TaskGroup | None
-    #: (Modbus URL, [drives]) of the rig, for an abort no run carries out (None: not known, not sent)
-    drive_link: tuple[str, Drives] | None = None
+    #: the (Modbus URL, [drives]) of the rig configuration loaded last, asked at each stop no run
+    #: carries out (None: not known, not sent)
+    drive_link: idle_stop.DriveLinkSource | None = None
     #: set once the service is shutting down: MOVES_DRIVES are refused from then on
     closing: bool = False
     #: what asked the service to shut down, for the run's end message (the CLI: the signal)
@@ -208,27 +215,59 @@ class CommandHandling:
     def _cmd_confirm(self, cmd: proto.Command) -> None:
         self._control("confirm", lambda e: e.confirm(cmd.step, by=cmd.by), allowed=None)
 
-    def _cmd_stop(self, cmd: proto.Command) -> None:
-        self._request("stop", cmd.by)  # always accepted
+    def _cmd_stop(self, cmd: proto.Command) -> Later | None:
+        """Always accepted. A run carries it out; else (no run holds the drives) both drives get the
+        ramp stop (OFF1) over a link of the service's own and the reply follows, as an abort's."""
+        return None if self._request("stop", cmd.by) else self._stopped_idle(emergency=False)
 
     def _cmd_abort(self, cmd: proto.Command) -> Later | None:
         """Always accepted. A run that holds the drives carries it out (their stop words go out at
         once); else both drives get the emergency stop over a link of the service's own and the
         reply follows, saying what was sent: never ok with nothing sent."""
-        if self._request("abort", cmd.by):
-            return None
+        return None if self._request("abort", cmd.by) else self._stopped_idle(emergency=True)
+
+    def _stopped_idle(self, *, emergency: bool) -> Later:
+        """The stop of a command no run carried out (`stop_idle_drives`); CommandRefused if not sent."""
+        sent = self.stop_idle_drives(emergency=emergency)
+        if isinstance(sent, str):
+            raise CommandRefused(sent)
+        return sent
+
+    def stop_idle_drives(self, *, emergency: bool, why: str | None = None) -> asyncio.Task[idle_stop.Outcome] | str:
+        """Both drives' stop (``emergency``: OFF3, else OFF1) over a link of the service's own to the
+        drive link asked now, for a stop or abort no run carries out (``why``: the service's own request,
+        its outcome logged); the task sending it, or why it is not sent. One under way is its answer,
+        unless it is a ramp stop and this an emergency stop: that goes out beside it."""
         pending = self._idle_stop
-        if pending is not None and not pending.done():
-            return pending  # one under way since this abort: it is answered with its outcome
-        where = self.drive_link
-        if where is None:
-            log.warning("abort: %s", idle_stop.NO_DRIVE_LINK)
-            raise CommandRefused(idle_stop.NO_DRIVE_LINK)
-        run = self._run_task if self._run_task is not None and not self._run_task.done() else None
-        make = self._tg.create_task if self._tg is not None else asyncio.get_running_loop().create_task
-        # (run: one the abort cancelled before it held the drives, which may hold their port)
-        self._idle_stop = make(idle_stop.emergency_stop(*where, holder=run), name="drives-emergency-stop")
-        return self._idle_stop
+        busy = pending is not None and not pending.done()
+        if pending is not None and busy and (self._idle_emergency or not emergency):
+            return pending
+        # (holder: a run the abort cancelled before it held the drives, or the ramp stop under way,
+        # which may hold their port)
+        holder = pending if busy else (self._run_task if self.run_active else None)
+        sent = idle_stop.start(self._tg, self._drive_link_now(), holder, why, emergency=emergency)
+        if not isinstance(sent, str):
+            self._idle_stop, self._idle_emergency = sent, emergency
+        return sent
+
+    def _drive_link_now(self) -> idle_stop.DriveLink | None:
+        """The drive link of the rig configuration loaded last (None: none known)."""
+        return self.drive_link() if self.drive_link is not None else None
+
+    def stop_drives_on_signal(self, name: str) -> None:
+        """The first shutdown signal (``name``) with no run active: an abort no run carries out (both
+        drives' emergency stop, its outcome logged); `settle_signal_stop` waits for it."""
+        if not self.run_active:
+            self._signal_stop = self.stop_idle_drives(emergency=True, why=f"{name} with no run active")
+
+    async def settle_signal_stop(self) -> None:
+        """Wait (at most idle_stop.SIGNAL_STOP_S, wall s) for the emergency stop of
+        `stop_drives_on_signal`; `signal_stop_failed` then says why it did not reach both drives."""
+        sent = self._signal_stop
+        if isinstance(sent, str):
+            self.signal_stop_failed = sent
+        elif sent is not None:
+            self.signal_stop_failed, _ = await idle_stop.outcome_within(sent, idle_stop.SIGNAL_STOP_S)
 
     def _control(self, what: str, call: Callable[[Engine], None], allowed: tuple[str, ...] | None) -> None:
         if not self.run_active or self._engine is None:

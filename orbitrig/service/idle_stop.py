@@ -8,12 +8,15 @@ The rig service sends it when an abort arrives and no run holds the drives: the 
 confirmed stopped") or is not holding them yet. An abort is never answered ok with nothing
 sent (docs/protocols/mqtt.md, "Commands"). A second signal to `orbitrig serve` that no run takes
 (RigService.abort_run), and a signal or an abort at the terminal of `orbitrig sweep` that its run
-no longer carries out (orbitrig.cli.operator), send the same, from here."""
+no longer carries out (orbitrig.cli.operator), send the same, from here; so does the first signal
+to `orbitrig serve` with no run active (its outcome decides serve's exit status). A `stop` that no
+run carries out sends the ramp stop (OFF1) the same way."""
 
 from __future__ import annotations
 
 import asyncio
 import logging
+from collections.abc import Callable
 
 from drives.errors import DriveError
 from drives.link import ModbusLink
@@ -29,6 +32,12 @@ NO_DRIVE_LINK = f"not sent: no run holds the drives and the service was given no
 
 #: (error, detail) of an abort's reply: error None is ok: true
 Outcome = tuple[str | None, str | None]
+#: (Modbus URL, [drives]) of the rig's drives
+DriveLink = tuple[str, Drives]
+#: the drive link of the rig configuration loaded last, asked at the time of each stop
+DriveLinkSource = Callable[[], DriveLink]
+#: wall s a shutdown waits for the emergency stop its signal sent with no run active
+SIGNAL_STOP_S = 30.0
 
 #: wall s an abort's stop waits for a run it cancelled (one being opened) to let go of the
 #: drives' link, when that link cannot be opened beside it (an RTU port is opened exclusively)
@@ -36,35 +45,43 @@ LET_GO_S = 5.0
 
 
 async def emergency_stop(
-    url: str, d: Drives, holder: asyncio.Future[object] | None = None, *, own: str = "the service's"
+    url: str,
+    d: Drives,
+    holder: asyncio.Future[object] | None = None,
+    *,
+    own: str = "the service's",
+    emergency: bool = True,
 ) -> Outcome:
-    """OFF3 to both drives of [drives] `d` at `url` over a fresh link (`own`: whose), then zero
-    references: (None, what was sent) if both took it, else (why not, naming the drives that took
-    it, None); never raises but a cancellation. `holder`: the task of a run the abort cancelled
-    before it held the drives (it may hold their port while being opened): if the link cannot be
-    opened, it is tried again once that run has ended (at most LET_GO_S)."""
-    log.warning("abort: no run holds the drives: emergency stop (OFF3) to both over a link of its own (%s)", url)
+    """OFF3 (``emergency``; else OFF1, a `stop`'s ramp stop) to both drives of [drives] `d` at `url`
+    over a fresh link (`own`: whose), then zero references: (None, what was sent) if both took it,
+    else (why not, naming the drives that took it, None); never raises but a cancellation. `holder`:
+    the task of a run the abort cancelled before it held the drives (it may hold their port while
+    being opened): if the link cannot be opened, it is tried again once that run has ended (at most
+    LET_GO_S)."""
+    name, word, cmd = ("emergency stop", "OFF3", "abort") if emergency else ("ramp stop", "OFF1", "stop")
+    what = f"{name} ({word})"
+    log.warning("%s: no run holds the drives: %s to both over a link of its own (%s)", cmd, what, url)
     link: ModbusLink | None = None
     try:
         link = modbus_link(url, d)
         pair = bare_drives(link, d)
         not_open = await _open(link, holder)
         if not_open is not None:
-            log.error("abort: emergency stop not sent: %s", not_open)
-            return f"emergency stop NOT sent (no run holds the drives): {not_open}; {ESTOP}", None
-        errors = await send_stop(pair, emergency=True)
+            log.error("%s: %s not sent: %s", cmd, what, not_open)
+            return f"{name} NOT sent (no run holds the drives): {not_open}; {ESTOP}", None
+        errors = await send_stop(pair, emergency=emergency)
     except Exception as err:  # an outcome, never the end of its caller
-        log.exception("abort: the emergency stop over a link of its own failed")
-        return f"emergency stop NOT confirmed sent: {type(err).__name__}: {err}; {ESTOP}", None
+        log.exception("%s: the %s over a link of its own failed", cmd, what)
+        return f"{name} NOT confirmed sent: {type(err).__name__}: {err}; {ESTOP}", None
     finally:
         if link is not None:
             await link.close()
     if not errors:
-        log.warning("abort: emergency stop (OFF3) sent to both drives (no run held them)")
-        return None, f"emergency stop (OFF3) sent to both drives over a link of {own} own (no run held them)"
+        log.warning("%s: %s sent to both drives (no run held them)", cmd, what)
+        return None, f"{what} sent to both drives over a link of {own} own (no run held them)"
     sent = took_it(pair, errors)
     why = "; ".join(str(err) for err in errors)
-    return f"emergency stop (OFF3) delivered to {', '.join(sent) or 'no drive'} only: {why}; {ESTOP}", None
+    return f"{what} delivered to {', '.join(sent) or 'no drive'} only: {why}; {ESTOP}", None
 
 
 async def _open(link: ModbusLink, holder: asyncio.Future[object] | None) -> str | None:
@@ -88,32 +105,54 @@ async def _open(link: ModbusLink, holder: asyncio.Future[object] | None) -> str 
 
 
 def start(
-    group: asyncio.TaskGroup | None, drive_link: tuple[str, Drives] | None, holder, why: str
-) -> asyncio.Task[Outcome] | None:
-    """`emergency_stop` to `drive_link` in a task of `group` (the service's: it is waited for; None:
-    of the running loop), its outcome logged as that of the abort `why`; None (logged) if it cannot
-    be sent: no drive link known, or nothing to run it any more (the service has ended)."""
+    group: asyncio.TaskGroup | None,
+    drive_link: DriveLink | None,
+    holder,
+    why: str | None = None,
+    *,
+    emergency: bool = True,
+) -> asyncio.Task[Outcome] | str:
+    """`emergency_stop` (``emergency``: OFF3, else OFF1) to `drive_link` in a task of `group` (the
+    service's: it is waited for; None: of the running loop); ``why``: the request of the service's own
+    it carries out (a signal), its outcome then logged. Else (logged) why it cannot be sent: no drive
+    link known, or nothing to run it any more (the service has ended)."""
+    cmd = "abort" if emergency else "stop"
+    who = f"{cmd} ({why})" if why else cmd
     if drive_link is None:
-        log.error("abort (%s): %s", why, NO_DRIVE_LINK)
-        return None
-    stop = emergency_stop(*drive_link, holder)
+        log.error("%s: %s", who, NO_DRIVE_LINK)
+        return NO_DRIVE_LINK
+    stop = emergency_stop(*drive_link, holder, emergency=emergency)
     try:
         make = group.create_task if group is not None else asyncio.get_running_loop().create_task
-        task = make(stop, name="drives-emergency-stop")
+        task = make(stop, name="drives-emergency-stop" if emergency else "drives-ramp-stop")
     except RuntimeError as err:  # the service's TaskGroup has finished, or no loop runs
         stop.close()
-        log.error("abort (%s): emergency stop NOT sent: %s; %s", why, err, ESTOP)
-        return None
-    task.add_done_callback(lambda done: _log_outcome(done, why))
+        log.error("%s: %s NOT sent: %s; %s", who, "emergency stop" if emergency else "ramp stop", err, ESTOP)
+        return f"not sent: {err}; {ESTOP}"
+    if why:
+        task.add_done_callback(lambda done: _log_outcome(done, who))
     return task
 
 
-def _log_outcome(task: asyncio.Task[Outcome], why: str) -> None:
+def _log_outcome(task: asyncio.Task[Outcome], who: str) -> None:
     if task.cancelled():
-        log.error("abort (%s): emergency stop not confirmed sent: cancelled; %s", why, ESTOP)
+        log.error("%s: stop not confirmed sent: cancelled; %s", who, ESTOP)
         return
     error, detail = task.result()
     if error is None:
-        log.warning("abort (%s): %s", why, detail)
+        log.warning("%s: %s", who, detail)
     else:
-        log.error("abort (%s): %s", why, error)
+        log.error("%s: %s", who, error)
+
+
+async def outcome_within(task: asyncio.Task[Outcome], seconds: float) -> Outcome:
+    """The outcome of `task` (an `emergency_stop`), waited for at most `seconds` (wall): beyond
+    that the task is cancelled and the outcome says the stop is not confirmed sent."""
+    done, _ = await asyncio.wait([task], timeout=seconds)
+    if not done:
+        task.cancel()
+        await asyncio.gather(task, return_exceptions=True)
+        return f"emergency stop not confirmed sent within {seconds:g} s; {ESTOP}", None
+    if task.cancelled():
+        return f"emergency stop not confirmed sent: cancelled; {ESTOP}", None
+    return task.result()

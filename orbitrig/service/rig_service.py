@@ -49,7 +49,6 @@ from typing import Any
 from orbitrig.analysis.report_ahead import FiguresAhead
 from orbitrig.analysis.run_warnings import closing_warnings, result_fit_warnings
 from orbitrig.analysis.warning_groups import warning_lines
-from orbitrig.config import Drives
 from orbitrig.errors import ConfigError
 from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
 from orbitrig.run.heap import trim_heap
@@ -94,11 +93,11 @@ class RigService(SupervisionHandling):
         *,
         engine_factory: EngineFactory,
         load_matrix: MatrixLoader,
-        drive_link: tuple[str, Drives] | None = None,
+        drive_link: idle_stop.DriveLinkSource | None = None,
     ):
-        """`drive_link`: (Modbus URL, [drives]) of the rig's drives, for an abort that no run
-        carries out (orbitrig.service.idle_stop; `orbitrig serve` gives it); None: such an abort
-        is answered "not sent"."""
+        """`drive_link`: returns (Modbus URL, [drives]) of the rig's drives as configured now, asked
+        at each stop or abort that no run carries out (orbitrig.service.idle_stop; `orbitrig serve`
+        gives it); None: such a stop or abort is answered "not sent"."""
         self.drive_link = drive_link
         self.settings = settings
         self.broker = broker
@@ -193,6 +192,7 @@ class RigService(SupervisionHandling):
         log.info("shutting down")
         self.closing = True
         await self._end_run("service shutting down")
+        await self.settle_signal_stop()  # the signal's emergency stop when no run was active
         self.link.stop_commands()  # stop and abort are still carried out as they arrive
         await self._end_run("a run left over at shutdown")  # none: start is refused once closing
         self._set_status(proto.OFFLINE, self._run_id, "service stopped")
@@ -255,9 +255,7 @@ class RigService(SupervisionHandling):
             log.warning("aborting run %s: %s", self._run_id, why)
             if self._request("abort", f"service ({why})"):
                 return
-        if self._idle_stop is None or self._idle_stop.done():  # else one under way: its outcome is logged
-            run = self._run_task if self.run_active else None
-            self._idle_stop = idle_stop.start(self._tg, self.drive_link, run, why) or self._idle_stop
+        self.stop_idle_drives(emergency=True, why=why)  # (one under way: its outcome is logged)
 
     async def _run(self, engine: Engine, name: str, matrix: Any) -> None:
         log.info("run of matrix %r starting", name)

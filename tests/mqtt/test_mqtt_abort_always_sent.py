@@ -150,6 +150,21 @@ async def test_an_abort_before_the_first_run_stops_drives_turned_from_their_keyp
         await until(lambda: standstill(sim_rig), 30, "both drives at standstill")
 
 
+async def test_a_stop_with_no_run_ramps_the_drives_down(broker, tmp_path):
+    """The contract accepts a stop always: with no run holding the drives, turning from their
+    keypads, it is not answered ok with nothing sent: both get the ramp stop (OFF1)."""
+    async with serving(broker, tmp_path, "idle-stop-rig") as (svc, sim_rig, rc):
+        sim_rig.local_control(spin=50.0, orbit=-30.0)  # someone at the drives, no run
+        await until(lambda: min(abs(w) for w in sim_rig.speeds) > 10.0, 30, "both drives turning")
+        t_stop = time.monotonic()
+        reply = await wait(rc.command, {"cmd": "stop", "id": "s-idle"})
+        assert reply["ok"] is True and "ramp stop (OFF1) sent to both drives" in reply["detail"], reply
+        for device, drive in sim_rig.drives.items():
+            words = [cw for t, cw in drive.control_words if t >= t_stop]
+            assert R.CW_RAMP_STOP in words and R.CW_EMERGENCY_STOP not in words, (device, [hex(w) for w in words])
+        await until(lambda: standstill(sim_rig), 60, "both drives at standstill")
+
+
 async def test_an_abort_with_no_drive_link_known_says_it_was_not_sent(broker, tmp_path):
     settings = ServiceSettings(rig_id="unknown-rig", matrices_dir=write_matrices(tmp_path / "matrices"))
     creds = BrokerSettings.from_url(broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"])
@@ -163,7 +178,8 @@ async def test_an_abort_with_no_drive_link_known_says_it_was_not_sent(broker, tm
         reply = await wait(rc.reply, "ab-1", 10, mark)
         assert reply["ok"] is False and reply["error"].startswith("not sent: no run holds the drives"), reply
         assert "use the rig's emergency stop" in reply["error"], reply
-        assert (await wait(rc.command, {"cmd": "stop"}))["ok"] is True  # a stop: nothing to stop
+        halt = await wait(rc.command, {"cmd": "stop"})  # nor is a stop answered ok with nothing sent
+        assert halt["ok"] is False and halt["error"].startswith("not sent: no run holds the drives"), halt
     finally:
         rc.close()
         stop.set()

@@ -204,8 +204,7 @@ async def test_an_abort_on_both_connections_is_answered_once(bound, tmp_path, ca
     )
     ids = [r["id"] for r in replies]
     assert sorted(ids) == ["a1", "a1", "q1", "s1"], replies
-    assert next(r for r in replies if r["id"] == "s1")["ok"] is True
-    for reply in (r for r in replies if r["id"] == "a1"):  # no run, no drive link known: not sent, said so
+    for reply in (r for r in replies if r["id"] in ("a1", "s1")):  # no run, no drive link known: not sent, said so
         assert reply["ok"] is False and reply["error"].startswith("not sent: no run holds the drives"), reply
     assert "only stop and abort are taken on the abort topic" in next(r for r in replies if r["id"] == "q1")["error"]
     if abort_password == ACCOUNTS["orbitrig-service-abort"]:

@@ -135,7 +135,8 @@ async def test_commands_without_a_run(broker, tmp_path):
             for cmd, why in cases:
                 reply = await wait(rc.command, cmd)
                 assert reply["ok"] is False and why in reply["error"], (cmd, reply)
-            assert await wait(rc.command, {"cmd": "stop"}) == {"id": f"t{rc._n}-stop", "ok": True}  # always accepted
+            reply = await wait(rc.command, {"cmd": "stop"})  # always accepted: no run, no drive link: said so
+            assert reply["ok"] is False and reply["error"].startswith("not sent: no run holds the drives"), reply
             reply = await wait(rc.command, {"cmd": "abort"})  # no run since the start: no drive link known
             assert reply["ok"] is False and reply["error"].startswith("not sent: no run holds the drives"), reply
             mark = rc.watch.mark()
@@ -323,7 +324,8 @@ async def test_a_flood_is_answered_busy_or_counted_and_a_stop_amid_it_is_carried
             assert (await asyncio.wait_for(flood.stdout.readline(), 60)).strip() == b"half"
             asyncio.get_running_loop().call_soon(time.sleep, 2.0)  # the stall; the stop goes out in it,
             # once the flood has had 0.5 s to fill the broker's queue for the service (1000 did not hold it)
-            assert (await wait(lambda: time.sleep(0.5) or rc.command({"cmd": "stop"}, 20)))["ok"] is True
+            stopped = await wait(lambda: time.sleep(0.5) or rc.command({"cmd": "stop"}, 20))
+            assert stopped["error"].startswith("not sent: no run holds the drives"), stopped  # (no drive link known)
             summary = json.loads((await asyncio.wait_for(flood.stdout.read(), 120)).decode().splitlines()[-1])
             await flood.wait()
         finally:
