@@ -35,7 +35,8 @@ see :mod:`reduction.statistics`), otherwise s^2 (A^T A)^-1 with s^2 = residual s
 / (4n - p) (estimator-specific forms for wls, tls, iv); None when 4n == p and the noise is
 unknown. ``confidence_95``: with u_* the normal quantile 1.96 (the covariance is known, so
 also at 4n - p = 0), else Student's t with 4n - p degrees of freedom (``interval``).
-``not_determined``: the coefficients whose interval half-width exceeds their magnitude.
+``not_determined``: the coefficients whose statistical expanded uncertainty U = k x std error
+exceeds their magnitude (k of reduction.statistics.coverage_factor: 2 with u_*; the sweep's rule).
 """
 
 from __future__ import annotations
@@ -352,8 +353,9 @@ def _result(
         known_noise=known,
         interval=interval,
     )
-    half = st.quantile(interval, dof) * np.asarray(list(spec.expand(std).values()))
-    ident.not_determined = st.not_determined(ident.coefficients, dict(zip(ident.coefficients, half)))
+    ident.not_determined = st.not_determined(
+        ident.coefficients, st.statistical_expanded(spec.expand(std), interval, dof)
+    )
     fx_rep, fy_rep = forces(Z, table.x, table.y)  # ident.reproduce(table), Z computed once
     ident.residual_rms = residual_rms(table.fx, table.fy, fx_rep, fy_rep)
     ident.fit = fit_errors(table.orbit, table.fx, table.fy, fx_rep, fy_rep)

@@ -26,7 +26,8 @@ class Identification:
     ``dof`` = 4 n - p. ``chi2`` / ``p_value`` only when the table has u_* columns.
     ``exponent`` is the M chosen by power:auto. ``interval``: where the quantile of
     ``confidence_95`` comes from (normal with u_*, else student_t); ``not_determined``: the
-    keys whose 95 % interval half-width exceeds their magnitude.
+    keys whose statistical expanded uncertainty k x std (k: statistics.coverage_factor, 2 with
+    u_*) exceeds their magnitude.
     """
 
     model: str

@@ -32,7 +32,7 @@ import math
 from enum import StrEnum
 
 import numpy as np
-from scipy import stats
+from reduction import distributions as dist
 
 CHI2_ALPHA = 1e-3  # warn when the chi2 test rejects the stated uncertainties at this level (either tail)
 
@@ -71,13 +71,13 @@ class Interval(StrEnum):
 
 def t_quantile(dof: int, level: float = 0.95) -> float:
     """Two-sided Student-t quantile (NaN without degrees of freedom)."""
-    return float(stats.t.ppf(0.5 + level / 2, dof)) if dof > 0 else float("nan")
+    return float(dist.t_ppf(0.5 + level / 2, dof)) if dof > 0 else float("nan")
 
 
 def quantile(interval: Interval, dof: int, level: float = 0.95) -> float:
     """Two-sided quantile of ``interval``: 1.96 for normal at 95 %, t(dof) for student_t."""
     if interval == Interval.NORMAL:
-        return float(stats.norm.ppf(0.5 + level / 2))
+        return float(dist.norm_ppf(0.5 + level / 2))
     return t_quantile(dof, level)
 
 
@@ -105,7 +105,7 @@ def intervals(
 
 def chi2_p_value(chi2: float, dof: int) -> float:
     """Upper-tail probability of chi2 with dof degrees of freedom (NaN when dof = 0)."""
-    return float(stats.chi2.sf(chi2, dof)) if dof > 0 else float("nan")
+    return float(dist.chi2_sf(chi2, dof)) if dof > 0 else float("nan")
 
 
 def chi2_warning(chi2: float, dof: int, p: float) -> str | None:
@@ -136,12 +136,21 @@ def information_criteria(misfit: float, n_equations: int, p: int, known_noise: b
     return base + 2 * p, base + p * math.log(n_equations)
 
 
+def statistical_expanded(std: dict[str, float | None], interval: Interval | str, dof: int) -> dict[str, float]:
+    """U = k x the standard error of each name, k of :func:`coverage_factor` (2 with a known
+    covariance); NaN where the standard error is None or NaN: the statistical-only expanded
+    uncertainty ``identify`` judges :func:`not_determined` on."""
+    k = coverage_factor(interval, dof)
+    return {name: (math.nan if s is None else k * float(s)) for name, s in std.items()}
+
+
 def not_determined(values: dict[str, float], expanded: dict[str, float]) -> list[str]:
-    """Names whose uncertainty in ``expanded`` exceeds the magnitude of the estimate, in the
-    order of ``values``; the caller chooses the coverage. ``identify`` (orbit-table contract v3,
-    ``not_determined``) passes the half-width of the 95 % interval, the standard error times
-    :func:`quantile`: the normal 1.96 with u_* columns, Student's t with ``dof`` degrees of
-    freedom without (not k = 2). A NaN uncertainty counts as not determined."""
+    """Names whose expanded uncertainty U in ``expanded`` exceeds the magnitude of the estimate,
+    in the order of ``values`` (orbit-table contract v3, ``not_determined``; the contract does
+    not state k, orbitrig's is :func:`coverage_factor`: 2 with a known covariance). ``identify``
+    passes the statistical U (:func:`statistical_expanded`), the sweep the combined one where
+    the rig states a calibration uncertainty (orbitrig.run.point_analysis), both with that k.
+    A NaN uncertainty counts as not determined."""
     out = []
     for name, value in values.items():
         u = expanded.get(name)

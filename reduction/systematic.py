@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 
 import numpy as np
-from scipy import stats
+from reduction import distributions as dist
 
 from reduction.errors import ReductionError
 from reduction.identify import Method
@@ -154,6 +154,21 @@ def uncertainty_budget(ident: Identification, table: OrbitTable, calibration: Ca
     return Budget(dict(ident.std_errors), systematic, combined, expanded, k, cov_sys, cov_comb, labels, J)
 
 
+def combined_covariance(
+    ident: Identification, table: OrbitTable, labels: list[str], sigma: np.ndarray
+) -> np.ndarray | None:
+    """The combined covariance of :func:`uncertainty_budget` (``Budget.covariance_combined``,
+    SI) from a stored budget's calibration parameters ``labels`` and their stated standard
+    uncertainties ``sigma``: the fit's covariance plus J diag(sigma^2) J^T; None without one."""
+    names, J = systematic_jacobian(ident, table)
+    if names != list(labels):
+        raise ReductionError("calibration parameters do not match the Jacobian's")
+    if ident.covariance is None:
+        return None
+    cov: np.ndarray = ident.covariance + (J * np.asarray(sigma, dtype=float) ** 2) @ J.T
+    return cov
+
+
 def lms_difference(
     a: Identification,
     table_a: OrbitTable,
@@ -241,7 +256,7 @@ class LmsAgreement:
         (Sidak: two-sided normal quantile at 1 - (1 - level)^(1/dof)); for marking tables."""
         if self.dof == 0:
             return None
-        return float(stats.norm.isf((1 - (1 - self.level) ** (1 / self.dof)) / 2))
+        return float(dist.norm_isf((1 - (1 - self.level) ** (1 / self.dof)) / 2))
 
 
 LMS_LEVEL = 0.05  # family-wise probability that two consistent systems are flagged
@@ -268,7 +283,7 @@ def lms_agreement(
     chi2, dof = joint_chi2(diff, cov)
     if dof == 0 or not np.isfinite(chi2):
         return LmsAgreement(en, None, 0, level, None, None)
-    return LmsAgreement(en, float(chi2), dof, level, float(stats.chi2.isf(level, dof)), float(stats.chi2.sf(chi2, dof)))
+    return LmsAgreement(en, float(chi2), dof, level, dist.chi2_isf(level, dof), dist.chi2_sf(float(chi2), dof))
 
 
 def joint_chi2(diff: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, int]:

@@ -42,6 +42,8 @@ TICK_STEPS = (1, 2, 2.5, 5, 10)
 COLUMN_WIDTHS = {"single": 3.5, "double": 7.2}
 #: keyword arguments of every report figure's ``subplots``: axes that measure tick labels once per draw
 AXES = {"axes_class": ReportAxes}
+#: the room (pt) a figure's legend keeps below the lowest tick labels and axis labels of its panels
+LEGEND_GAP = 4.0
 
 
 class FigureFormat(StrEnum):
@@ -240,8 +242,11 @@ def panels(w: float, h: float, rows: int, cols: int, *, sharex: bool = True, **m
     key = (w, h, rows, cols, sharex, tuple(sorted(margins.items())), STYLE)
     cache = _PANELS.__dict__.setdefault("figures", {})
     if key in cache:
-        fig, axes = cache[key]
+        fig, axes, size, margins_now = cache[key]
         _empty(fig)
+        if tuple(fig.get_size_inches()) != size:  # grown for a long legend (_room_below)
+            fig.set_size_inches(*size)
+            fig.subplots_adjust(bottom=margins_now[0], top=margins_now[1])
         return fig, axes
     if narrow.is_narrow(STYLE.width):  # fewer columns of panels, a taller figure
         t = text_scale() * (margins.get("top", 0.95) + margins.get("bottom", 1.15))
@@ -251,7 +256,7 @@ def panels(w: float, h: float, rows: int, cols: int, *, sharex: bool = True, **m
     for ax in axes.flat:  # a journal panel reads 4 to 6 ticks an axis (matplotlib's 'auto' puts up to 9)
         ax.xaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=TICK_STEPS))
         ax.yaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=TICK_STEPS))
-    cache[key] = fig, axes
+    cache[key] = fig, axes, tuple(fig.get_size_inches()), (fig.subplotpars.bottom, fig.subplotpars.top)
     return fig, axes
 
 
@@ -266,7 +271,28 @@ def figure_legend(fig: Figure, handles: list, labels: list, **kw: Any):
     panels (plots_narrow.figure_legend)."""
     if narrow.is_narrow(STYLE.width):
         return narrow.figure_legend(fig, handles, labels, **kw)
-    return fig.legend(handles, labels, **{"loc": "lower center", **kw})
+    legend = fig.legend(handles, labels, **{"loc": "lower center", **kw})
+    _room_below(fig, legend)
+    return legend
+
+
+def _room_below(fig: Figure, legend) -> None:
+    """Grow `fig` at the bottom until `legend` (on its lower edge) clears every panel, tick label
+    and axis label by LEGEND_GAP (pt): the panels keep their size and their place from the top,
+    however many entries the legend has. (:func:`panels` gives a reused figure its size back.)"""
+    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # the Agg canvas of every report figure
+    boxes = [ax.get_tightbbox(renderer) for ax in fig.axes if ax.get_visible()]
+    lowest = min((b.y0 for b in boxes if b is not None), default=None)
+    if lowest is None:
+        return
+    overlap = legend.get_window_extent(renderer).y1 + LEGEND_GAP * fig.dpi / 72.0 - lowest  # pixels
+    if overlap <= 0:
+        return
+    w, h = fig.get_size_inches()
+    grow = overlap / fig.dpi  # in
+    bottom, top = fig.subplotpars.bottom, fig.subplotpars.top
+    fig.set_size_inches(w, h + grow)
+    fig.subplots_adjust(bottom=(bottom * h + grow) / (h + grow), top=(top * h + grow) / (h + grow))
 
 
 def _empty(fig: Figure) -> None:

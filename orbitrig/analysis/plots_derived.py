@@ -3,7 +3,8 @@
 - :func:`derived_figure`: effective damping C_eff,xx = Cxx - Kxy/Omega and C_eff,yy =
   Cyy + Kyx/Omega with their zero crossings, the whirl frequency ratio, and the forward /
   backward direct dynamic stiffness Re and Im H(Omega), each with a band of the expanded
-  uncertainty U = k u (statistical; k of the style, 2 by default), one colour per identification;
+  uncertainty U = k u (u on quality.derived_basis: combined where the run stored a budget, else
+  statistical; k of the style, 2 by default), one colour per identification;
 - :func:`impedance_figure`: Re and Im of each entry of the identified Z(Omega) = K + i Omega C
   - Omega^2 D against the simulator's true Z at the tested frequencies (black crosses; the Z of
   its reference K, C, D when the run did not store the true Z).

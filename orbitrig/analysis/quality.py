@@ -18,7 +18,7 @@ from reduction.adequacy import Adequacy, frequency_dependence
 from reduction.derived import Derived, derived_quantities
 from reduction.errors import ReductionError
 from reduction.statistics import Interval
-from reduction.systematic import Calibration, LmsAgreement, UncertaintyBasis, lms_agreement
+from reduction.systematic import Calibration, LmsAgreement, UncertaintyBasis, combined_covariance, lms_agreement
 
 #: the budget columns a stored identification may carry under "uncertainty" (SI std per key)
 BUDGET_PARTS = ("statistical", "systematic", "combined", "expanded")
@@ -78,12 +78,14 @@ def interval_kind(r: Reduced) -> Interval:
 
 
 def interval_sentence(results: list[Reduced]) -> str:
-    """The page's statement of the 95 % intervals of `results`: each kind they use, in words (a
-    clause of the page's units note, which goes on after it: no closing period)."""
+    """The page's statement of the 95 % intervals of `results` (statistical only): each kind they
+    use, in words (a clause of the page's units note, which goes on after it: no closing period)."""
     kinds = dict.fromkeys(interval_kind(r) for r in results if r.identification is not None)
     if not kinds:
         return "95 % interval: none identified"
-    return "95 % interval: " + "; ".join(INTERVAL_TEXT[k][1] for k in kinds)
+    return "95 % interval, statistical only (standard errors, no calibration uncertainty): " + "; ".join(
+        INTERVAL_TEXT[k][1] for k in kinds
+    )
 
 
 def has_budget(results: list[Reduced]) -> bool:
@@ -185,14 +187,27 @@ def orbit_grid(orbit: np.ndarray, n: int = 120) -> np.ndarray:
     return np.linspace(w.min(), w.max(), n) if w.size else np.array([])
 
 
+def derived_basis(r: Reduced) -> UncertaintyBasis:
+    """The covariance the derived quantities of `r` rest on, as the exports': COMBINED where the
+    run stored its budget (with the calibration parameters' stated std), else STATISTICAL."""
+    u = (r.stored or {}).get("uncertainty") or {}
+    return UncertaintyBasis.COMBINED if u.get("sources") and u.get("source_std") else UncertaintyBasis.STATISTICAL
+
+
 def derived_of(r: Reduced, orbit: np.ndarray) -> Derived | None:
-    """C_eff, H forward/backward and WFR of one identification over the tested Omega range
-    (statistical covariance); None when it cannot be formed (e.g. no orbit)."""
+    """C_eff, H forward/backward and WFR of one identification over the tested Omega range, on
+    the covariance of :func:`derived_basis` (the sweep's combined one, repeated from the stored
+    budget's calibration parameters; else the fit's); None when it cannot be formed (e.g. no orbit)."""
     grid = orbit_grid(orbit)
     if grid.size == 0:
         return None
     try:
-        return derived_quantities(r.identification, grid, r.point.settings.spin)
+        cov = None
+        if derived_basis(r) == UncertaintyBasis.COMBINED:
+            u = r.stored["uncertainty"]
+            table = r.point.tables[r.lms]
+            cov = combined_covariance(r.identification, table, u["sources"], np.asarray(u["source_std"]))
+        return derived_quantities(r.identification, grid, r.point.settings.spin, cov=cov)
     except ReductionError:
         return None
 

@@ -9,10 +9,10 @@ model / frequency dependence / method. The run's own results (``run.h5``, the pi
 budget), one row per (point, lms).
 
 Its ``not_determined`` column has coefficients.csv's name but not its test: it lists the
-coefficients whose own 95 % interval half-width (the identification's ``not_determined``:
-1.96 or Student t times the standard error, statistical only) exceeds their magnitude, where
-coefficients.csv's lists those whose expanded uncertainty U (k = 2, calibration included when
-the rig states it) does. The two can differ for the same fit.
+coefficients whose statistical expanded uncertainty (the identification's ``not_determined``:
+k times the standard error, k of reduction.statistics.coverage_factor, 2 with u_*) exceeds
+their magnitude, where coefficients.csv's lists those whose expanded uncertainty U (the same
+k, calibration included when the rig states it) does. The two can differ for the same fit.
 """
 
 from __future__ import annotations
@@ -154,8 +154,8 @@ def fit_true_values(r: Reduced) -> dict[str, float]:
 def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, Any]]]:
     """Columns and rows in the layout of coefficients.csv (docs/storage.md, orbitrig.store.writer):
     settings, result columns, every coefficient and its `_std`, and in --sim runs `true_K`
-    (fit_true_values: each fit's own truth); no `_U`, and `not_determined` by the fit's own 95 %
-    interval, not by U (see the module's docstring); ``warnings`` joined as coefficients.csv's."""
+    (fit_true_values: each fit's own truth); no `_U`, and `not_determined` by the fit's own
+    statistical U, not the combined one (see the module's docstring); ``warnings`` joined as coefficients.csv's."""
     keys: list[str] = []
     for r in rows:
         if r.identification is not None:
@@ -207,30 +207,34 @@ def write_csv(path: str | Path, rows: list[Reduced], sim: bool) -> Path:
     return path
 
 
-def table_cells(rows: list[Reduced]) -> list[list[str]]:
-    """The header and the rows (cells as text) of a table of the constant terms (K in MN/m, C in kN s/m, D in kg) and the
-    residual (and the exponent M that power:auto chose); a refused (point, lms) shows
-    'refused' (the reason goes to standard error).
+def table_cells(rows: list[Reduced], full: bool = False) -> list[list[str]]:
+    """The header and the rows (cells as text) of a table of the constant terms (K in MN/m, C in
+    kN s/m, D in kg, to 4 significant digits; `full`: in SI, N/m, N s/m, kg, every number the
+    shortest decimal that reads back as the same double) and the residual (N; and the exponent M
+    that power:auto chose); a refused (point, lms) shows 'refused' (the reason goes to standard error).
     In --sim runs each fit is followed by a row 'true (LMS)' of its own truth (fit_true_values:
     the true Z projected onto the fit's model, as the CSV's true_* columns)."""
     cols = [k for k in CONSTANT_KEYS if any(r.identification and k in r.identification.coefficients for r in rows)]
     auto = any(r.identification is not None and r.identification.exponent is not None for r in rows)
-    lines = [
-        ["point", "lms", *(f"{k} [{coefficient_unit(k)[0]}]" for k in cols), "resid [N]", *(["M"] if auto else [])]
-    ]
+    units = {k: coefficient_column(k) if full else f"{k} [{coefficient_unit(k)[0]}]" for k in cols}
+    lines = [["point", "lms", *(units[k] for k in cols), "resid [N]", *(["M"] if auto else [])]]
+
+    def number(key: str, value: float) -> str:
+        return repr(float(value)) if full else f"{value * coefficient_unit(key)[1]:.4g}"
+
     for r in rows:
         cells = [r.point.name, str(r.lms)]
         if r.identification is None:
             cells.append("refused")
         else:
             c = r.identification.coefficients
-            cells += [f"{c[k] * coefficient_unit(k)[1]:.4g}" for k in cols]
-            cells.append(f"{r.identification.residual_rms:.3g}")
+            cells += [number(k, c[k]) for k in cols]
+            resid = r.identification.residual_rms
+            cells.append(repr(float(resid)) if full else f"{resid:.3g}")
             if auto:  # the exponent power:auto chose
                 cells.append(str(r.identification.exponent))
         lines.append(cells)
         truth = fit_true_values(r)
         if truth:
-            shown = [f"{truth[k] * coefficient_unit(k)[1]:.4g}" if k in truth else "" for k in cols]
-            lines.append([r.point.name, f"true ({r.lms})", *shown])
+            lines.append([r.point.name, f"true ({r.lms})", *(number(k, truth[k]) if k in truth else "" for k in cols)])
     return lines

@@ -1,14 +1,15 @@
 """HTML tables of one load measuring system's identifications for ``index.html``.
 
 Per identification: every coefficient with its value, statistical standard uncertainty,
-95 % interval (of the fit's own kind, named in its column: normal with the phasor uncertainties
-u_*, else Student t), systematic (type B) standard uncertainty and combined expanded
+95 % interval, statistical only (of the fit's own kind, named in its column: normal with the
+phasor uncertainties u_*, else Student t; the exports' interval_95 is value -+ U), systematic (type B) standard uncertainty and combined expanded
 uncertainty (k = 2) where the run stored its budget, "n.d." where that U exceeds the value
 (not determined), the simulator's true value (the fit's own truth: the true Z projected onto
 its model, where the run stored it; else the constant best fit); the fit's
 quality (frequencies, degrees of freedom, condition number, residual, chi2 and p, AIC, BIC,
 force errors); its warnings and notes. Then the model-adequacy verdicts and the derived
-quantities (whirl frequency ratio, zero crossings of the effective damping).
+quantities (whirl frequency ratio, zero crossings of the effective damping) +- k standard
+uncertainties on the basis the exports give them (combined where the run stored a budget).
 Display units: MN/m, kN s/m, kg (coefficient_unit); frequencies in Hz and Omega/omega.
 """
 
@@ -24,16 +25,17 @@ from orbitrig.analysis.quality import (
     LmsComparison,
     Verdict,
     coefficient_rows,
+    derived_basis,
     has_budget,
     interval_kind,
     warnings_of,
 )
 from orbitrig.analysis.reduce import Reduced, coefficient_unit, fit_true_values
 from orbitrig.store.csvfile import fit_truth
+from orbitrig.store.fit_record import expanded_k
 from reduction.derived import Derived
 from reduction.systematic import LmsAgreement, UncertaintyBasis
 
-DERIVED_K = 2.0  # derived quantities are given +- two standard uncertainties
 D_SENTENCE = (
     "D is an apparent inertia (added mass): it absorbs everything that grows with \u03a9\u00b2, "
     "here mostly the recesses' compressibility and the measuring chain's delay, not only the "
@@ -87,7 +89,7 @@ def identification_table(r: Reduced, truth: dict[str, float], label: str, with_b
         '<th class="l">unit</th>',
         "<th>value</th>",
         "<th>std error<br>(statistical)</th>",
-        f"<th>95 % interval<br>({INTERVAL_TEXT[interval_kind(r)][0]})</th>",
+        f"<th>95 % interval, statistical only<br>({INTERVAL_TEXT[interval_kind(r)][0]})</th>",
     ]
     if with_budget:
         head += ["<th>systematic u<br>(calibration)</th>", f"<th>expanded U<br>(combined, k = {k:g})</th>"]
@@ -164,26 +166,30 @@ def verdict_list(verdicts: list[Verdict], labels: dict[int, str]) -> str:
 
 
 def derived_table(derived: list[tuple[Reduced, Derived]], labels: dict[int, str], spin: float) -> str:
-    """WFR at the lowest and highest tested Omega and the zero crossings of C_eff, +- 2 std."""
+    """WFR at the lowest and highest tested Omega and the zero crossings of C_eff, +- k std (k of
+    each fit's U, orbitrig.store.fit_record.expanded_k; std on the covariance the exports use:
+    combined where the run stored a budget, quality.derived_basis)."""
     if not derived:
         return ""
+    ks = {id(r): _k(r) for r, _ in derived}
 
-    def pm(value, std, scale=1.0, digits=4) -> str:
-        s = "" if std is None or not np.isfinite(std) else f" \u00b1 {fmt(DERIVED_K * std * scale, 2)}"
+    def pm(value, std, k, scale=1.0, digits=4) -> str:
+        s = "" if std is None or not np.isfinite(std) else f" \u00b1 {fmt(k * std * scale, 2)}"
         return f"{fmt(value * scale, digits)}{s}"
 
-    def zero(z) -> str:
+    def zero(z, k) -> str:
         if z is None:
             return "none in the tested range"
         hz = 1 / (2 * np.pi)
-        return f"{pm(z[0], z[1], hz)} Hz (\u03a9/\u03c9 = {fmt(z[0] / spin, 3)})"
+        return f"{pm(z[0], z[1], k, hz)} Hz (\u03a9/\u03c9 = {fmt(z[0] / spin, 3)})"
 
     rows = []
     for r, d in derived:
-        wfr_std = d.wfr_std if d.wfr_std is not None else [None] * len(d.wfr)
+        wfr_std, k = d.wfr_std if d.wfr_std is not None else [None] * len(d.wfr), ks[id(r)]
         rows.append(
-            f'<tr><td class="l">{_e(labels.get(id(r), r.model))}</td><td>{pm(d.wfr[0], wfr_std[0])}</td>'
-            f"<td>{pm(d.wfr[-1], wfr_std[-1])}</td><td>{zero(d.c_eff_zero_xx)}</td><td>{zero(d.c_eff_zero_yy)}</td></tr>"
+            f'<tr><td class="l">{_e(labels.get(id(r), r.model))}</td><td>{pm(d.wfr[0], wfr_std[0], k)}</td>'
+            f"<td>{pm(d.wfr[-1], wfr_std[-1], k)}</td><td>{zero(d.c_eff_zero_xx, k)}</td>"
+            f"<td>{zero(d.c_eff_zero_yy, k)}</td></tr>"
         )
     lo, hi = derived[0][1].orbit[[0, -1]] / (2 * np.pi)
     head = (
@@ -192,9 +198,26 @@ def derived_table(derived: list[tuple[Reduced, Derived]], labels: dict[int, str]
     )
     return (
         f"<table>{head}{''.join(rows)}</table>"
-        '<p class="muted">\u00b1 two standard uncertainties (statistical, linearised for WFR and '
-        "the zero crossings).</p>"
+        f'<p class="muted">\u00b1 {_e(_derived_note(derived, ks))}, linearised for WFR and '
+        "the zero crossings; the basis of the exports' derived _std.</p>"
     )
+
+
+def _k(r: Reduced) -> float:
+    """k of the fit's expanded uncertainty U (orbitrig.store.fit_record.expanded_k of the stored
+    result; of its own interval and dof when the run stored none)."""
+    ident = r.identification
+    return expanded_k(r.stored or {"interval": str(ident.interval), "dof": ident.dof})
+
+
+def _derived_note(derived: list[tuple[Reduced, Derived]], ks: dict[int, float]) -> str:
+    """'k = 2 standard uncertainties (combined: statistical and calibration)' for the fits shown."""
+    words = {
+        UncertaintyBasis.COMBINED: "combined: statistical and the stated calibration uncertainty",
+        UncertaintyBasis.STATISTICAL: "statistical only",
+    }
+    parts = dict.fromkeys(f"k = {ks[id(r)]:.3g} standard uncertainties ({words[derived_basis(r)]})" for r, _ in derived)
+    return "; ".join(parts)
 
 
 #: what the E_n of the page were computed with, per basis and whether the run stored them

@@ -10,8 +10,9 @@ from the orbit table). The points of one test condition (CONDITION) form one bea
 Each coefficient at each speed carries U: the fit's U (orbitrig.store.fit_record) for a constant
 fit; for a sum over orders the statistical covariance propagated plus the calibration parts taken
 as fully correlated (an upper bound: the run stores no calibration covariance). U > |value| is
-listed in ``not_determined`` and warned about. ``bearing_elements`` holds the end values outside
-the speeds (ROSS's own spline or interp1d would extrapolate). Fields: docs/catalog.md.
+listed in ``not_determined`` and warned about, and so is each speed's fit's own warnings
+(``fit_warnings``, orbitrig.analysis.ross_warnings). ``bearing_elements`` holds the end values
+outside the speeds (ROSS's own spline or interp1d would extrapolate). Fields: docs/catalog.md.
 
 Conventions: the bearing force on the journal is f = -(K d + C d' + M d'') for a journal
 displacement d = (x, y), the rig's f = -Z d with Z = K + i Omega C - Omega^2 D; so ROSS
@@ -22,7 +23,6 @@ from __future__ import annotations
 
 import json
 import math
-import warnings
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from orbitrig.analysis.reduce import identify_point
+from orbitrig.analysis.ross_warnings import bearing_warnings, notes, speed_warnings, warn_or_refuse
 from orbitrig.errors import OrbitrigError
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.csvfile import one_line
@@ -46,7 +47,6 @@ FILE = "ross_bearings.json"
 FORMAT = "orbitrig-ross/2"
 ENTRIES = ("xx", "xy", "yx", "yy")
 KEYS = tuple(f"{c}{e}" for c in "kcm" for e in ENTRIES)  # ROSS's names
-UNITS = {"k": "N/m", "c": "N s/m", "m": "kg"}
 HOLD_SPEED = 1.0e5  # rad/s: bearing_elements repeats the end values here (and at 0)
 _ROSS = {"K": "k", "C": "c", "D": "m"}
 CONDITION = ("recess_pressure", "pressure_ratio", "static_eccentricity", "dynamic_eccentricity")  # a bearing's, SI
@@ -62,6 +62,8 @@ CONVENTIONS = {
     "ROSS's own interpolation of these arrays would extrapolate",
     "U": "expanded uncertainty of each coefficient at each speed (k of the fit, 2 with a known covariance)",
     "not_determined": "coefficients with U > |value| or U unknown: exported as identified, flagged",
+    "fit_warnings": "the warnings of the fit that gave each speed, as stored (chi2, conditioning, ...), and an "
+    "adequacy test that does not support the frequency dependence exported: exported as identified, flagged",
 }
 
 
@@ -205,6 +207,7 @@ def point_speed(point: Point, lms: LoadSystem, spec: FitSpec) -> dict[str, Any] 
         "why": why,
         "basis": basis.value + (", calibration part bounded" if bounded else ""),
         "fit_not_determined": list(result.get("not_determined") or []),
+        "fit_warnings": speed_warnings(result),
         "values": values,
         "U": U,
     }
@@ -235,6 +238,7 @@ def _bearing(lms: LoadSystem, spec: FitSpec, speeds: list[dict[str, Any]]) -> di
         for s in speeds
         for k, u in ((k, s["U"][k]) for k in not_determined(s["values"], s["U"]))
     ]
+    out["fit_warnings"] = bearing_warnings(speeds)
     out["speeds"] = [{k: v for k, v in s.items() if k not in ("values", "U", "condition")} for s in speeds]
     return out
 
@@ -287,26 +291,12 @@ def _nothing_message(run: Run, selection: Selection, spec: FitSpec, why: list[st
     return f"--fit {spec.text()}: no point gives it ({'; '.join(dict.fromkeys(why))}); {listing}"
 
 
-def _notes(bearing: dict[str, Any]) -> list[str]:
-    """What the export tells on standard error about one bearing: its speeds, which fit gave
-    each, and every coefficient not determined."""
-    used = ", ".join(f"{s['spin']:.6g} {s['used']} ({s['fit']})" for s in bearing["speeds"])
-    lines = [f"ross: {bearing['lms']} bearing of points {bearing['points']}: rad/s {used}; {bearing['outside']}"]
-    for n in bearing["not_determined"]:
-        unit = UNITS[n["coefficient"][0]]
-        lines.append(
-            f"warning: point {n['point']:04d} at {n['spin']:.6g} rad/s, fit {n['fit']}: {n['coefficient']} = "
-            f"{n['value']:.4g} {unit} with U = {n['U']:.4g} {unit} is not determined (U > |value|); "
-            "exported as identified and listed in not_determined"
-        )
-    return lines
-
-
 def export_ross(run: Run, out: Path, spec: FitSpec, selection: Selection | None = None) -> RossExport:
     """Write ``out``/ross_bearings.json for the points of ``selection`` (None: every complete
     point; ``spec.lms`` None: every load measuring system). Raises FitNotStoredError when there
     are points but none gives the fit; a point without it is added to the selection's
-    ``skipped``, each bearing's speeds and its coefficients not determined to its ``notes``."""
+    ``skipped``, each bearing's speeds, its coefficients not determined and its fit warnings to
+    its ``notes``."""
     selection = selection if selection is not None else select_points(run)
     bearings = _collect(run, selection, spec)
     doc = {
@@ -318,7 +308,7 @@ def export_ross(run: Run, out: Path, spec: FitSpec, selection: Selection | None 
     }
     path = Path(out) / FILE
     write_atomic(path, (json.dumps(doc, indent=1) + "\n").encode())
-    selection.notes += [line for b in bearings for line in _notes(b)]
+    selection.notes += [line for b in bearings for line in notes(b)]
     return RossExport(path, selection)
 
 
@@ -359,20 +349,12 @@ def bearing_elements(
     """ROSS BearingElements at ``nodes`` from an exported file, all with the bearing of ``lms``
     whose points include ``point`` (None: the only one): coefficients over rotor speed,
     piecewise linear between the exported speeds and the end values held outside (one speed:
-    constant). A coefficient not determined is warned about (UserWarning), with ``strict``
-    refused (ValueError). Requires ross-rotordynamics: pip install "orbitrig[ross]"."""
+    constant). A coefficient not determined and a fit warning are warned about (UserWarning),
+    with ``strict`` refused (ValueError). Requires ross-rotordynamics: pip install "orbitrig[ross]"."""
     import ross
 
     data = _chosen(json.loads(Path(path).read_text()), path, point, str(lms))
-    flagged = [
-        f"point {n['point']} ({n['spin']:.6g} rad/s), fit {n['fit']}: {n['coefficient']} = {n['value']:.4g} with U = {n['U']:.4g}"
-        for n in data["not_determined"]
-    ]
-    if flagged:
-        message = f"{path}: coefficients not determined (U > |value|): " + "; ".join(flagged)
-        if strict:
-            raise ValueError(message)
-        warnings.warn(message, UserWarning, stacklevel=2)
+    warn_or_refuse(data, path, strict)
     if len(data["frequency"]) == 1:
         constant = {k: float(data[k][0]) for k in KEYS}
         return [ross.BearingElement(n=n, tag=f"bearing {n}", **constant) for n in nodes]

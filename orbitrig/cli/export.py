@@ -4,8 +4,9 @@ Exit status 0 on success, 2 when RUN is not a run directory or an option is bad 
 --point; also a ross --fit that no selected point stores: the fits there are are named), 1
 when the export cannot be written (disk full, permissions) or a point asked for (every
 committed point, without --point) was skipped, for ross also a point without the fit or at a
-speed its test condition already has: each one is named. When no point asked for can be exported (a mistyped --point) nothing is
-written or removed, an earlier export stays as it was, and the exit status is 1.
+speed its test condition already has: each one is named. When no point asked for can be exported
+(a mistyped --point, or a run without a complete operating point) nothing is written or removed,
+an earlier export stays as it was, the reason is an error line and the exit status is 1.
 """
 
 from __future__ import annotations
@@ -64,7 +65,8 @@ def register(app: typer.Typer) -> None:
         A point asked for (every committed point, without --point) that is damaged or
         missing, or (ross) lacks the fit, is named on standard error and the exit status is 1;
         a --fit that no point stores exits 2, naming the fits there are. When no point asked
-        for can be exported nothing is written: an earlier export stays as it was (exit 1)."""
+        for can be exported (also a run without a complete point) nothing is written: an
+        earlier export stays as it was (exit 1)."""
         from orbitrig.analysis.ross_export import FitNotStoredError
         from orbitrig.store.errors import StorageError
         from orbitrig.store.export import EXPORT_DIR
@@ -82,8 +84,19 @@ def register(app: typer.Typer) -> None:
             typer.echo(str(path))
         if not files:
             typer.echo(f"nothing exported: {out if out is not None else directory / EXPORT_DIR} left as it was")
-        if tell_skipped(selection.notes, selection.skipped):
+        if tell_skipped(selection.notes, selection.skipped) or not files:
+            if not files:
+                typer.echo(f"error: nothing exported: {_why_nothing(selection, point)}", err=True)
             raise typer.Exit(1)
+
+
+def _why_nothing(selection, point: list[int] | None) -> str:
+    """Why no point was exported (each point is named above with its reason)."""
+    if point:
+        return "no operating point asked for with --point is complete (named above)"
+    if selection.notes or selection.skipped:
+        return "the run has no complete operating point (each is named above with why)"
+    return "the run stores no operating point"
 
 
 def _export(directory: Path, fmt: str, out: Path | None, point: list[int] | None, fit: str):

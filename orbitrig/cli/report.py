@@ -47,7 +47,7 @@ FormatOpt = Annotated[
     OutputFormat,
     typer.Option(
         "--format",
-        help="text: a plain table of the constant terms in MN/m, kN s/m, kg to 4 significant digits, never cut, split to the terminal's width; csv: that table as CSV (every number in full, SI: DIR/reduce_*.csv); json: one object with every result",
+        help="text: a plain table of the constant terms in MN/m, kN s/m, kg to 4 significant digits, never cut, split to the terminal's width; csv: the same table in SI (N/m, N s/m, kg), every number in full (the shortest decimal that reads back as the same double); json: one object with every result. Every format also writes DIR/reduce_*.csv",
     ),
 ]
 
@@ -66,7 +66,7 @@ def reduce_cmd(
     DIR/reduce_<model>_<freq-dep>_<method>.csv: the columns of coefficients.csv
     except the expanded uncertainties KEY_U (reduce makes no uncertainty budget;
     KEY_std is the fit's standard error; not_determined names the coefficients whose
-    95 % interval half-width exceeds their magnitude; warnings holds each fit's
+    statistical expanded uncertainty k x KEY_std (k = 2 with u_*) exceeds their magnitude; warnings holds each fit's
     warnings joined with ' | '). Without --json each fit's warnings (reasons to
     distrust it: ill-conditioning, a bad chi2, weak excitation, bias) also go to
     standard error, one 'warning: point P LMS: ...' line each. The run's own
@@ -122,7 +122,7 @@ def _print_reduce(directory: Path, run, rows, path: Path, fmt: OutputFormat, wha
         out = {"run": str(directory), "csv": str(path), "status": run.status, "results": [r.to_dict() for r in rows]}
         typer.echo(json.dumps(out))
     elif fmt == OutputFormat.CSV:
-        typer.echo(_plain(table_cells(rows)).csv())
+        typer.echo(_plain(table_cells(rows, full=True)).csv())
     else:
         typer.echo(
             f"{what} from the stored orbit tables of {directory} "

@@ -45,7 +45,7 @@ Format = Annotated[
     OutputFormat,
     typer.Option(
         "--format",
-        help="the closing table of coefficients: text (plain, every number in full, split to the terminal's width), csv or json",
+        help="the closing table of coefficients: text (plain, numbers to 4 significant digits, never cut, split to the terminal's width), csv (the same tables) or json; every number in full, SI: DIR/coefficients.csv",
     ),
 ]
 Speedup = Annotated[float, typer.Option("--speedup", min=0.01, help="simulator time / wall time (--sim only)")]

@@ -2,14 +2,15 @@
 
 The folder holds what a lab edits: ``rig.toml``, ``matrices/``, ``designs/``, a
 ``calibration/`` folder for the channels' calibration records, and ``mosquitto/`` (the
-broker's configuration, ACL and example password file) whose paths point into the folder
-or into the broker folder given (``--broker-dir``, e.g. /etc/mosquitto/orbitrig when the
+broker's configuration, ACL, example password file and README) whose paths (the README's
+commands too) point into the folder or into the broker folder given (``--broker-dir``, e.g. /etc/mosquitto/orbitrig when the
 files are installed there). Later commands find the folder as orbitrig.config.home says.
 """
 
 from __future__ import annotations
 
 import re
+import shlex
 import shutil
 from pathlib import Path
 
@@ -23,7 +24,9 @@ RIG_ID_PATTERN = r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}"
 
 MOSQUITTO = "mosquitto"
 CALIBRATION = "calibration"
-_BROKER_FILES = ("acl", "passwd.example", "README.md")
+_BROKER_FILES = ("acl", "passwd.example")
+#: the broker folder the shipped mosquitto.conf and README.md name (rewritten by init)
+SHIPPED_BROKER_DIR = "/etc/mosquitto/orbitrig"
 # mosquitto.conf keys that name a file (or folder) of the broker, and the file they name
 _BROKER_PATHS = {
     "password_file": "passwd",
@@ -69,6 +72,8 @@ def write_lab(
     written += [_copy(shipped / MOSQUITTO / name, folder / MOSQUITTO / name) for name in _BROKER_FILES]
     broker = (broker_dir or folder / MOSQUITTO).resolve()
     conf = broker_conf((shipped / MOSQUITTO / "mosquitto.conf").read_text(encoding="utf-8"), broker)
+    readme = broker_readme((shipped / MOSQUITTO / "README.md").read_text(encoding="utf-8"), broker)
+    written.append(_write(folder / MOSQUITTO / "README.md", readme))
     written.append(_write(folder / MOSQUITTO / "mosquitto.conf", conf))
     (folder / MOSQUITTO / "data").mkdir(exist_ok=True)
     written += [_copy(f, folder / CALIBRATION / f.name) for f in sorted((shipped / CALIBRATION).glob("*.toml"))]
@@ -86,6 +91,15 @@ def broker_conf(text: str, broker: Path) -> str:
 
     keys = "|".join(_BROKER_PATHS)
     return re.sub(rf"^(?P<hash>#?)(?P<key>{keys}) \S+$", repoint, text, flags=re.MULTILINE)
+
+
+def broker_readme(text: str, broker: Path) -> str:
+    """The shipped broker README with every file of SHIPPED_BROKER_DIR it names (the password
+    file its commands create) in the folder ``broker``, as broker_conf puts them: quoted for
+    the shell where the path needs it."""
+    return re.sub(
+        rf"{re.escape(SHIPPED_BROKER_DIR)}/(?P<name>[\w.-]+)", lambda m: shlex.quote(str(broker / m["name"])), text
+    )
 
 
 def _copy(src: Path, dst: Path) -> Path:

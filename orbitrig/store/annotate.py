@@ -58,7 +58,11 @@ DATASETS = {
     "warnings": ("", "warnings of the identification"),
     "coefficients": (PER_COEFFICIENT, "identified coefficients, aligned with names"),
     "std_errors": (PER_COEFFICIENT, "standard error of each coefficient (one standard deviation)"),
-    "interval_95": (PER_COEFFICIENT, "two-sided 95 % confidence interval: columns low, high"),
+    "interval_95": (
+        PER_COEFFICIENT,
+        "value -+ U (expanded uncertainty, k x the standard uncertainty named by interval_95_basis): columns low, high",
+    ),
+    "interval_95_statistical": (PER_COEFFICIENT, "two-sided 95 % interval, statistical only: columns low, high"),
     "covariance": (
         PER_COEFFICIENT,
         "covariance of the free coefficients (attribute names); entry (i, j) in units_<name_i> x units_<name_j>",
@@ -176,6 +180,10 @@ ATTRIBUTES = {
     "bic": ("1", "Bayesian information criterion"),
     "exponent": ("1", "exponent chosen by power:auto"),
     "k": ("1", "coverage factor of the expanded uncertainty"),
+    "interval_95_basis": (
+        "",
+        "what U of interval_95 rests on: combined (statistical and calibration) or statistical only",
+    ),
     "covariance": ("", "covariance behind the standard uncertainties: combined or statistical"),
     "max_abs": ("1", "largest |E_n|"),
     "consistent": ("1", "true when chi2 <= limit: the two systems agree on all coefficients at the family-wise level"),

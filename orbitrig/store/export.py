@@ -5,7 +5,8 @@ complete point's settings and orbit tables (with the whirl direction), every fit
 coefficients with std and U, covariance with its names, budget, derived quantities,
 adequacy, the simulator's truth, and (mat, tdms, h5) the averaged waveforms:
 
-- ``csv``: orbitrig.store.export_csv;
+- ``csv``: orbitrig.store.export_csv; ``csv_manifest.txt`` lists the files written, and the
+  earlier csv export's files not written again are removed (orbitrig.store.export_manifest);
 - ``mat``: ``run.mat`` (MATLAB, GNU Octave), orbitrig.store.export_mat;
 - ``tdms``: ``run.tdms`` (NI LabVIEW), orbitrig.store.export_tdms;
 - ``h5``: ``run.h5``, the whole run in one file that GNU Octave reads too, orbitrig.store.export_h5.
@@ -77,8 +78,12 @@ def _write(fmt: str, run: Run, layout: RunLayout, selection: Selection, out: Pat
 
         return [export_h5(layout, out)]
     from orbitrig.store.export_csv import export_csv
+    from orbitrig.store.export_manifest import replace_earlier
     from orbitrig.store.export_mat import export_mat
     from orbitrig.store.export_tdms import export_tdms
 
     write = {"csv": export_csv, "mat": export_mat, "tdms": export_tdms}[fmt]
-    return write(run, selection.points, out)
+    files = write(run, selection.points, out)
+    if fmt == "csv":  # per-point files: the earlier csv export's not written again go
+        selection.notes += replace_earlier(out, files)
+    return files

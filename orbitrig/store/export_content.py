@@ -2,9 +2,11 @@
 
 The same content goes into each format: provenance (with the calibration record's and
 the simulator scenario's TOML text), the point's settings, its orbit tables (with the whirl
-direction), every fit's coefficients with std, U and 95 % interval, covariance with the names
-of its rows, budget, goodness of fit (dof, chi2, p_value, aic, bic), interval (where its
-quantile comes from) and the coverage factor k of U, notes and warnings, derived quantities
+direction), every fit's coefficients with std, U and ``interval_95`` = value -+ U (its
+``interval_95_basis``: combined, or statistical only without a stated calibration uncertainty)
+beside the fit's statistical-only 95 % interval ``interval_95_statistical``, covariance with
+the names of its rows, budget, goodness of fit (dof, chi2, p_value, aic, bic), interval (where
+the statistical interval's quantile comes from) and the coverage factor k of U, notes and warnings, derived quantities
 (with the C_eff zero crossings and the covariance they rest on) and adequacy (with its test), the simulator's truth, and the averaged waveforms. Units are
 SI strings pint parses.
 """
@@ -18,7 +20,14 @@ import numpy as np
 import numpy.typing as npt
 
 from orbitrig.store.fit_analysis import c_eff_zero
-from orbitrig.store.fit_record import BUDGET_PARTS, FitRecord, expanded_k
+from orbitrig.store.fit_record import (
+    BUDGET_PARTS,
+    INTERVAL_BASIS,
+    FitRecord,
+    coverage_interval,
+    expanded_k,
+    uncertainty_basis,
+)
 from orbitrig.store.layout import SETTINGS_UNITS
 from orbitrig.store.orbit_table import orbit_table_columns
 
@@ -41,11 +50,15 @@ FIT_QUALITY = {
     "p_value": ("1", "upper-tail probability of chi2 with dof degrees of freedom"),
     "aic": ("1", "Akaike information criterion of the fit"),
     "bic": ("1", "Bayesian information criterion of the fit"),
-    "interval": ("", "quantile of interval_95: normal (covariance from the stated u_*) or student_t (dof)"),
-    "confidence_level": ("1", "two-sided coverage of interval_95"),
-    "k": ("1", "coverage factor of the expanded uncertainty U"),
+    "interval": ("", "quantile of interval_95_statistical: normal (covariance from the stated u_*) or student_t (dof)"),
+    "confidence_level": ("1", "two-sided level of interval_95_statistical (statistical only)"),
+    "k": ("1", "coverage factor of the expanded uncertainty U; interval_95 = value -+ U (about 95 %)"),
+    "interval_95_basis": (
+        "",
+        "what U of interval_95 rests on: combined (statistical and calibration) or statistical only",
+    ),
 }
-CONFIDENCE_LEVEL = 0.95  # of the identification's confidence_95
+CONFIDENCE_LEVEL = 0.95  # of the identification's confidence_95 (interval_95_statistical)
 #: the names of an array's entries where a format flattens it (``<name>_<part>``)
 ARRAY_PARTS: dict[str, tuple[str, ...]] = {
     "adequacy_dof": ("numerator", "denominator"),
@@ -90,8 +103,9 @@ def table_columns(table: OrbitTable) -> dict[str, Column]:
 
 
 def fit_arrays(fit: FitRecord) -> dict[str, Any]:
-    """One fit as arrays: names, units, value, std, U, ``interval_95`` (p, 2: low, high),
-    covariance (+ covariance_names), the budget's parts, the FIT_QUALITY values (dof, chi2,
+    """One fit as arrays: names, units, value, std, U, ``interval_95`` (p, 2: low, high; value
+    -+ U, basis in ``interval_95_basis``), ``interval_95_statistical`` (p, 2: the fit's own
+    confidence_95, statistical only), covariance (+ covariance_names), the budget's parts, the FIT_QUALITY values (dof, chi2,
     p_value, aic, bic where the fit gives them; interval, confidence_level; k of U), the
     adequacy numbers and verdict, E_n, ``not_determined`` (1 where U exceeds the magnitude),
     the fit's own ``truth`` (--sim) aligned with names, and its ``notes`` and ``warnings``."""
@@ -104,9 +118,13 @@ def fit_arrays(fit: FitRecord) -> dict[str, Any]:
         "U": fit.U,
         "error": fit.error,
     }
+    if fit.result is not None:
+        lo_hi, _ = coverage_interval(fit.result)
+        d["interval_95"] = np.array([lo_hi[k] for k in fit.names], dtype=float).reshape(-1, 2)
     if "confidence_95" in result:
         ci = result["confidence_95"] or {}
-        d["interval_95"] = np.array([_number(ci.get(k) or [None, None]) for k in fit.names]).reshape(-1, 2)
+        stat = np.array([_number(ci.get(k) or [None, None]) for k in fit.names]).reshape(-1, 2)
+        d["interval_95_statistical"] = stat
     if fit.covariance is not None:
         d["covariance"], d["covariance_names"] = fit.covariance, fit.covariance_names
     d.update({part: fit.budget[part] for part in BUDGET_PARTS if part in fit.budget})
@@ -128,8 +146,9 @@ def fit_arrays(fit: FitRecord) -> dict[str, Any]:
 
 def fit_quality(fit: FitRecord) -> dict[str, float | str]:
     """The FIT_QUALITY values of a fit: dof, chi2, p_value, aic, bic as its result gives them
-    (null: NaN), its ``interval`` and the ``confidence_level`` of its interval_95, and
-    ``k``, the coverage factor of its U (orbitrig.store.fit_record.expanded_k)."""
+    (null: NaN), its ``interval`` and the ``confidence_level`` of its interval_95_statistical,
+    ``k``, the coverage factor of its U (orbitrig.store.fit_record.expanded_k), and
+    ``interval_95_basis`` (INTERVAL_BASIS of orbitrig.store.fit_record.uncertainty_basis)."""
     result = fit.result or {}
     d: dict[str, float | str] = {k: _scalar(result[k]) for k in ("dof", "chi2", "p_value", "aic", "bic") if k in result}
     if "interval" in result:
@@ -137,6 +156,7 @@ def fit_quality(fit: FitRecord) -> dict[str, float | str]:
     if "confidence_95" in result:
         d["confidence_level"] = CONFIDENCE_LEVEL
     d["k"] = expanded_k(result)
+    d["interval_95_basis"] = INTERVAL_BASIS[uncertainty_basis(result)]
     return d
 
 

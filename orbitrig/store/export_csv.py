@@ -3,16 +3,18 @@
 - ``point_PPPP_<lms>.csv``: the orbit table (docs/orbit-table.md; ``orbit_hz [Hz]`` ...,
   ``direction [1]``), which `orbitrig identify` reads;
 - ``coefficients.csv``: as the run's (one row per point, load measuring system and fit);
-- ``fits.csv``: one row per point, fit and coefficient: ``value``, ``std``, ``U``, the 95 %
-  interval ``interval_95_low``, ``interval_95_high`` and the budget's parts in the row's
+- ``fits.csv``: one row per point, fit and coefficient: ``value``, ``std``, ``U``, the
+  interval value -+ U ``interval_95_low``, ``interval_95_high`` with its ``interval_95_basis``
+  (combined | statistical only), the fit's statistical-only 95 % interval
+  ``interval_95_statistical_low``, ``interval_95_statistical_high``, the budget's parts in the row's
   ``unit``, ``e_n``, ``true`` (--sim: the fit's own truth), ``error`` and the fit's
   ``warnings`` (joined with ' | ', on each of its rows);
 - ``covariance_PPPP_<key>.csv``: the covariance, the free coefficients' names as the first
   column and the header (entry in unit(row) x unit(column));
 - ``fit_properties.csv``: one row per point, fit and single value (``name``, ``value``,
   ``unit``; ``unit`` empty for text): ``dof``, ``chi2``, ``p_value``, ``aic``, ``bic`` (where
-  the fit gives them), ``interval`` (normal | student_t), ``confidence_level``, ``k`` (the
-  coverage factor of U), the adequacy test
+  the fit gives them), ``interval`` (normal | student_t), ``confidence_level`` (of the
+  statistical interval), ``k`` (the coverage factor of U), ``interval_95_basis``, the adequacy test
   (``adequacy_verdict``, ``adequacy_test``, ``adequacy_dof_numerator`` ...) and what the
   derived quantities rest on (``derived_covariance``, ``derived_c_eff_zero_xx_omega_0`` ...);
 - ``derived_PPPP_<key>.csv``: the derived quantities at the point's orbit frequencies;
@@ -52,6 +54,9 @@ FIT_HEAD = [
     "U",
     "interval_95_low",
     "interval_95_high",
+    "interval_95_basis",
+    "interval_95_statistical_low",
+    "interval_95_statistical_high",
     *BUDGET_PARTS,
     "e_n [1]",
     "true",
@@ -75,6 +80,9 @@ def _fit_rows(p: Point, sim: bool) -> list[Row]:
             continue
         for j, name in enumerate(fit.names):
             interval = [_cell(v) for v in d["interval_95"][j]] if "interval_95" in d else ["", ""]
+            interval.append(str(d.get("interval_95_basis", "")))
+            stat = d.get("interval_95_statistical")
+            interval += [_cell(v) for v in stat[j]] if stat is not None else ["", ""]
             parts = [_cell(d[part][j]) if part in d else "" for part in BUDGET_PARTS]
             true = csvfile.fit_truth(fit.result, p.truth if sim else None).get(name)
             e_n = _cell(d["e_n"][j]) if "e_n" in d else ""

@@ -16,7 +16,8 @@ export is the same tree with
 
 The attributes themselves stay, so h5py and MATLAB users read the metadata where run.h5 has
 it. Each identification group also gets the fit's single values that run.h5 keeps only in its
-``json`` (export_content.FIT_QUALITY: ``interval``, ``confidence_level``, ``k`` of U; dof,
+``json`` (export_content.FIT_QUALITY: ``interval``, ``confidence_level``, ``k`` of U,
+``interval_95_basis``; dof,
 chi2, p_value, aic, bic are there already), each with ``__description`` (and ``__units``), so
 every export carries the same fit properties. orbitrig's readers (orbitrig.store.reader) read
 both layouts.

@@ -7,17 +7,24 @@ and the conventions), and ``points.pPPPP`` per complete
 point: the settings with ``settings_units``; per load measuring system the orbit table
 (complex ``x``, ``y``, ``fx``, ``fy``, ``direction``, ...) with ``units``;
 ``identification.<lms>__<model>__<freq_dep>__<method>`` per fit (``names``, ``units``,
-``coefficients``, ``std_errors``, ``U``, ``interval_95``, ``covariance`` with
+``coefficients``, ``std_errors``, ``U``, ``interval_95`` (value -+ U, its basis in
+``interval_95_basis``: combined | statistical only), ``interval_95_statistical`` (the fit's
+statistical-only 95 % interval), ``covariance`` with
 ``covariance_names``, the budget ``statistical`` ... ``expanded``, ``n_frequencies``,
 ``condition_number``, ``residual_rms``, the goodness of fit ``dof``, ``chi2``, ``p_value``, ``aic``,
 ``bic`` (where the fit gives them), ``interval`` (normal | student_t, text),
-``confidence_level`` and ``k`` (the coverage factor of U), ``adequacy_*``
+``confidence_level`` (of interval_95_statistical) and ``k`` (the coverage factor of U), ``adequacy_*``
 (numbers; ``adequacy_verdict``, ``adequacy_test``, ``adequacy_constant`` text), ``e_n``,
 ``derived`` with ``derived_units`` (also ``c_eff_zero_xx``, ``c_eff_zero_yy``: Omega_0 and its
 std, rad/s, where C_eff changes sign) and ``derived_covariance`` (combined | statistical),
 ``error``, ``notes``, ``warnings``); ``truth``
 (--sim) and ``waveforms.bFF_dir`` (``mean`` and ``theta`` (channel x sample), ``dc``,
 complex ``phasors``, ``uncertainty``, ``orbit_hz``, ``direction``, ``n_records``).
+
+Text is a char array (UTF-8 in the file: MATLAB and scipy.io.loadmat read it exactly). GNU
+Octave reads such a field by bytes and cuts a text with characters outside ASCII, so each such
+text (and each cell array of texts holding one) also has ``<name>_utf8``: its UTF-8 bytes as a
+uint8 row (a cell of them); in Octave ``char(m.run.operator_utf8)`` is the exact text.
 """
 
 from __future__ import annotations
@@ -44,11 +51,15 @@ BASE_UNITS = {
 }
 #: ``unit_rules``: the fields whose unit differs per entry, and the conventions
 UNIT_RULES = {
-    "coefficients": "per coefficient: identification.*.units (also std_errors, U, interval_95, the budget, truth)",
+    "coefficients": "per coefficient: identification.*.units (also std_errors, U, interval_95*, the budget, truth)",
     "covariance": "entry (i, j) in units(i) x units(j), over covariance_names",
     "mean": "per channel: run.channel_units (also dc, phasors, uncertainty)",
     "convention": "phasors q = Re(q_bar exp(i theta)); forces on the journal, f_bar = -Z d_bar",
+    "text": "a text (or cell of texts) with characters outside ASCII also as <name>_utf8, its UTF-8 bytes "
+    "(uint8 row; a cell of them): GNU Octave cuts such a char field, char(<name>_utf8) is the exact text",
 }
+#: the suffix of a text's UTF-8 bytes field
+UTF8 = "_utf8"
 
 
 def field(name: str) -> str:
@@ -65,6 +76,30 @@ def cell(values) -> np.ndarray:
     return arr
 
 
+def _utf8(text: str) -> np.ndarray:
+    """The UTF-8 bytes of ``text`` as a uint8 row."""
+    return np.frombuffer(text.encode("utf-8"), dtype=np.uint8).reshape(1, -1)
+
+
+def add_utf8(struct: dict) -> dict:
+    """``struct`` (nested) with ``<name>_utf8`` beside every text, or cell array of texts, that
+    holds a character outside ASCII (module docstring)."""
+    for key, value in list(struct.items()):
+        if isinstance(value, dict):
+            add_utf8(value)
+            continue
+        name = f"{key[: 63 - len(UTF8)]}{UTF8}"
+        if isinstance(value, str) and not value.isascii() and name not in struct:
+            struct[name] = _utf8(value)
+        elif isinstance(value, np.ndarray) and value.dtype == object and name not in struct:
+            if any(isinstance(v, str) and not v.isascii() for v in value.flat):
+                cells = np.empty(value.size, dtype=object)
+                for i, v in enumerate(value.flat):  # one by one: rows of one length would broadcast
+                    cells[i] = _utf8(str(v))
+                struct[name] = cells.reshape(value.shape)
+    return struct
+
+
 def _fit_struct(fit) -> dict:
     d = content.fit_arrays(fit)
     s = {
@@ -79,6 +114,7 @@ def _fit_struct(fit) -> dict:
         "std_errors": d["std"],
         "U": d["U"],
         "interval_95": d.get("interval_95", np.full((len(fit.names), 2), np.nan)),
+        "interval_95_statistical": d.get("interval_95_statistical", np.full((len(fit.names), 2), np.nan)),
     }
     if "covariance" in d:
         s["covariance"], s["covariance_names"] = d["covariance"], cell(d["covariance_names"])
@@ -149,7 +185,7 @@ def export_mat(run, points: list, out: Path) -> list[Path]:
     }
     buf = io.BytesIO()
     try:
-        savemat(buf, data, long_field_names=True, do_compression=True, oned_as="column")
+        savemat(buf, add_utf8(data), long_field_names=True, do_compression=True, oned_as="column")
     except (ValueError, TypeError) as err:
         raise StorageError(out / "run.mat", f"cannot build the MATLAB file: {err}") from err
     path = out / "run.mat"

@@ -6,10 +6,12 @@ beside each) or text. Groups: ``point PPPP <lms>`` (the orbit table and ``direct
 settings as properties), ``coefficients`` (the columns of coefficients.csv, ``warnings`` included,
 and ``KEY_U``),
 ``fit PPPP <key>`` (one channel per coefficient in its own unit, its rows named by the text
-channel ``quantity``: value, std, U, interval_95_low, interval_95_high, the budget's parts,
-truth; e_n and not_determined as channel properties; group properties: ``error`` and
+channel ``quantity``: value, std, U, interval_95_low, interval_95_high (value -+ U),
+interval_95_statistical_low, interval_95_statistical_high (the fit's statistical-only 95 %
+interval), the budget's parts, truth; e_n and not_determined as channel properties; group properties: ``error`` and
 ``warnings`` (joined with ' | ') as text, export_content.fit_properties: dof, chi2, p_value,
-aic, bic, interval (text), confidence_level, k (of U) and the adequacy (verdict, test,
+aic, bic, interval (text), confidence_level, k (of U), interval_95_basis (text: combined |
+statistical only) and the adequacy (verdict, test,
 constant as text; its two degrees of freedom ``adequacy_dof_numerator``,
 ``adequacy_dof_denominator``, ``adequacy_aic_constant`` ...)), ``covariance PPPP <key>`` (the
 correlation, one channel per free coefficient, ``name`` the rows, each channel's ``std``
@@ -77,6 +79,9 @@ def _fit_objects(p, fit) -> list:
     quantities = {q: d[q] for q in ("value", "std", "U") if q in d}
     if "interval_95" in d:
         quantities |= {"interval_95_low": d["interval_95"][:, 0], "interval_95_high": d["interval_95"][:, 1]}
+    if "interval_95_statistical" in d:
+        stat = d["interval_95_statistical"]
+        quantities |= {"interval_95_statistical_low": stat[:, 0], "interval_95_statistical_high": stat[:, 1]}
     quantities |= {q: d[q] for q in (*BUDGET_PARTS, "truth") if q in d}
     rows = list(quantities)
     objs = [GroupObject(group, props), ChannelObject(group, "quantity", np.array(rows, dtype=str), _TEXT)]

@@ -78,6 +78,21 @@ def uncertainty_basis(result: dict[str, Any]) -> UncertaintyBasis:
     return UncertaintyBasis.STATISTICAL
 
 
+#: ``interval_95_basis``, the text of what interval_95 = value -+ U rests on, per UncertaintyBasis
+INTERVAL_BASIS = {UncertaintyBasis.COMBINED: "combined", UncertaintyBasis.STATISTICAL: "statistical only"}
+
+
+def coverage_interval(result: dict[str, Any]) -> tuple[dict[str, tuple[float, float]], str]:
+    """``interval_95`` of an `identify --json` object as stored: value -+ U of each coefficient
+    (SI; U of :func:`expanded_uncertainty`, k of :func:`expanded_k`: about 95 % coverage, 95.45 %
+    at k = 2) and its basis text (INTERVAL_BASIS: combined | statistical only). NaN where the
+    value or U is unknown. The fit's own ``confidence_95`` is the statistical-only interval."""
+    U = expanded_uncertainty(result)
+    values = result.get("coefficients") or {}
+    out = {k: (_num(values.get(k)) - U[k], _num(values.get(k)) + U[k]) for k in U}
+    return out, INTERVAL_BASIS[uncertainty_basis(result)]
+
+
 @dataclass(frozen=True)
 class FitRecord:
     """One identification of one point and load measuring system (SI)."""

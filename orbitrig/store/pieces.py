@@ -293,16 +293,7 @@ def _write_identification(h: h5py.Group, entry: IdentificationEntry) -> None:
     put(h, "coefficients", np.array([_float(d["coefficients"][k]) for k in names]), unit)
     std = d.get("std_errors") or {}
     put(h, "std_errors", np.array([_float(std.get(k)) for k in names]), unit, meaning="one standard deviation")
-    ci = d.get("confidence_95")
-    if ci:
-        put(
-            h,
-            "interval_95",
-            np.array([[_float(v) for v in (ci.get(k) or (None, None))] for k in names]).reshape(-1, 2),
-            unit,
-            columns=strings(("low", "high")),
-            meaning="two-sided 95 % confidence interval",
-        )
+    _write_intervals(h, d, names, unit)
     if d.get("free") and d.get("covariance") is not None:
         free = list(d["free"])
         cov = np.array([[_float(v) for v in row] for row in d["covariance"]], dtype=np.float64).reshape(len(free), -1)
@@ -312,6 +303,22 @@ def _write_identification(h: h5py.Group, entry: IdentificationEntry) -> None:
     from orbitrig.store.fit_analysis import write_fit_analysis  # it uses put/strings of this module
 
     write_fit_analysis(h, d, names)
+
+
+def _write_intervals(h: h5py.Group, d: dict[str, Any], names: list[str], unit: str) -> None:
+    """``interval_95``: value -+ U (orbitrig.store.fit_record.coverage_interval), its basis in the
+    group's attribute ``interval_95_basis``; ``interval_95_statistical``: the fit's confidence_95."""
+    from orbitrig.store.fit_record import coverage_interval  # it imports this module's layout
+
+    lo_hi, basis = coverage_interval(d)
+    h.attrs["interval_95_basis"] = basis
+    columns = strings(("low", "high"))
+    data = np.array([lo_hi[k] for k in names], dtype=np.float64).reshape(-1, 2)
+    put(h, "interval_95", data, unit, columns=columns, meaning=f"value -+ U, U = k x {basis} standard uncertainty")
+    ci = d.get("confidence_95")
+    if ci:
+        stat = np.array([[_float(v) for v in (ci.get(k) or (None, None))] for k in names]).reshape(-1, 2)
+        put(h, "interval_95_statistical", stat, unit, columns=columns, meaning="two-sided 95 %, statistical only")
 
 
 def write_truth(h: h5py.Group, truth: dict[str, Any]) -> None:

@@ -1,6 +1,6 @@
 """Every export carries each fit's goodness of fit and interval (orbit-table v3): dof, chi2,
-p_value, aic, bic, `interval` (normal | student_t) with its confidence level and the 95 %
-bounds, and the coverage factor k of U, from the one place all writers read
+p_value, aic, bic, `interval` (normal | student_t) with its confidence level and the
+statistical 95 % bounds, the coverage factor k of U and interval_95 = value -+ U with its basis, from the one place all writers read
 (export_content.fit_arrays). Read back with csv, npTDMS, scipy.io.loadmat and h5py against
 the identification JSON in run.h5; every unit is one pint parses."""
 
@@ -78,8 +78,12 @@ def test_fits_csv_interval_bounds(exported, stored):
     assert [r["name"] for r in rows] == list(ci)
     for r in rows:
         low, high = ci[r["name"]]
-        assert (float(r["interval_95_low"]), float(r["interval_95_high"])) == (low, high)
+        assert (float(r["interval_95_statistical_low"]), float(r["interval_95_statistical_high"])) == (low, high)
         assert low < float(r["value"]) < high
+        U = float(r["U"])  # interval_95 is value -+ U (no budget here: statistical only)
+        assert float(r["interval_95_low"]) == pytest.approx(float(r["value"]) - U, rel=1e-12)
+        assert float(r["interval_95_high"]) == pytest.approx(float(r["value"]) + U, rel=1e-12)
+        assert r["interval_95_basis"] == "statistical only"
 
 
 def test_tdms_group_properties_and_interval_rows(exported, stored):
@@ -91,9 +95,18 @@ def test_tdms_group_properties_and_interval_rows(exported, stored):
     assert p["interval"] == "normal" and "interval.unit_string" not in p
     assert p["confidence_level"] == 0.95 and p["k"] == 2.0 and p["k.unit_string"] == "1"
     rows = list(g["quantity"][:])
-    assert rows[:5] == ["value", "std", "U", "interval_95_low", "interval_95_high"]
+    assert rows[:7] == [
+        "value",
+        "std",
+        "U",
+        "interval_95_low",
+        "interval_95_high",
+        "interval_95_statistical_low",
+        "interval_95_statistical_high",
+    ]
     for name, (low, high) in d["confidence_95"].items():
-        assert (g[name][3], g[name][4]) == (low, high)
+        assert (g[name][5], g[name][6]) == (low, high)
+        assert g[name][3] == pytest.approx(g[name][0] - g[name][2], rel=1e-12)
         assert g[name][2] == pytest.approx(p["k"] * g[name][1], rel=1e-12)  # U = k x std (no budget)
 
 
@@ -104,7 +117,7 @@ def test_mat_fields_and_units(exported, stored):
         assert fit[name] == d[name] and m["units"][name] == "1", name
     assert fit["interval"] == "normal" and fit["confidence_level"] == 0.95 and fit["k"] == 2.0
     assert m["units"]["k"] == m["units"]["confidence_level"] == "1" and "interval" not in m["units"]
-    np.testing.assert_array_equal(fit["interval_95"], [d["confidence_95"][k] for k in fit["names"]])
+    np.testing.assert_array_equal(fit["interval_95_statistical"], [d["confidence_95"][k] for k in fit["names"]])
 
 
 def test_h5_export_attributes_and_their_mirror(exported, stored):
@@ -140,4 +153,7 @@ def test_k_of_a_fit_without_stated_uncertainty_is_students():
     props = content.fit_properties(fit)
     assert props["interval"] == ("student_t", "") and props["dof"] == (4.0, "1") and props["aic"] == (12.5, "1")
     assert math.isnan(props["bic"][0]) and "chi2" not in props  # null: NaN; absent without u_*
-    np.testing.assert_array_equal(d["interval_95"], [[2.97e7, 3.03e7], [4.9e4, 5.1e4]])
+    np.testing.assert_array_equal(d["interval_95_statistical"], [[2.97e7, 3.03e7], [4.9e4, 5.1e4]])
+    U = d["k"] * np.array([1.0e5, 300.0])  # interval_95: value -+ U, statistical only
+    np.testing.assert_allclose(d["interval_95"], np.stack([fit.value - U, fit.value + U], axis=1), rtol=1e-15)
+    assert d["interval_95_basis"] == "statistical only"

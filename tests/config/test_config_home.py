@@ -141,3 +141,31 @@ def test_init_writes_the_rig_id_given_and_reminds_when_none_is(tmp_path):
     bad = init(str(tmp_path / "c"), "--rig-id", "two words")
     assert bad.returncode == 2 and "--rig-id: 'two words'" in bad.stderr and "Traceback" not in bad.stderr
     assert not (tmp_path / "c" / "rig.toml").exists()
+
+
+@pytest.mark.parametrize("broker_dir", [None, "/etc/mosquitto/orbitrig"])
+def test_init_broker_readme_names_the_files_mosquitto_conf_uses(tmp_path, broker_dir):
+    """The lab's mosquitto/README.md tells to make the very password file its mosquitto.conf reads:
+    in the lab folder (a path with a space, quoted for the shell), or in --broker-dir."""
+    import shlex
+
+    lab = tmp_path / "my lab"
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    args = [sys.executable, "-m", "orbitrig", "init", str(lab), *(["--broker-dir", broker_dir] if broker_dir else [])]
+    done = subprocess.run(args, capture_output=True, text=True, env=env, timeout=60)
+    assert done.returncode == 0, done.stderr
+    conf = (lab / "mosquitto" / "mosquitto.conf").read_text()
+    passwd = next(line.split(" ", 1)[1] for line in conf.splitlines() if line.startswith("password_file "))
+    assert passwd == str(Path(broker_dir or lab / "mosquitto").resolve() / "passwd")
+    readme = (lab / "mosquitto" / "README.md").read_text()
+    commands = [shlex.split(line) for line in readme.splitlines() if line.strip().startswith("mosquitto_passwd ")]
+    assert len(commands) == 4
+    assert [c[-2] for c in commands] == [passwd] * 4  # mosquitto_passwd [-c] FILE USER
+    (chown,) = [shlex.split(line) for line in readme.splitlines() if line.strip().startswith("chown ")]
+    assert [w for w in chown if "passwd" in w] == [passwd, passwd]
+    if broker_dir is None:
+        assert "/etc/mosquitto" not in readme
+    assert (
+        readme.replace(shlex.quote(passwd), "/etc/mosquitto/orbitrig/passwd")
+        == (REPO / "config" / "mosquitto" / "README.md").read_text()
+    )  # the shipped text otherwise

@@ -71,10 +71,8 @@ async def test_retained_stop_and_abort_are_accepted(broker, tmp_path: Path):
             await asyncio.to_thread(broker.pub, topic, json.dumps({"cmd": cmd, "id": f"kept-{cmd}"}), retain=True)
             task = asyncio.create_task(service.serve(stop))
             reply = await asyncio.to_thread(rc.reply, f"kept-{cmd}", 10.0)
-            if cmd == "stop":
-                assert reply == {"id": f"kept-{cmd}", "ok": True}, reply
-            else:  # no run has held the drives: nothing could be sent, and the reply says so
-                assert reply["ok"] is False and reply["error"].startswith("not sent: no run holds"), reply
+            # carried out: no run holds the drives and no drive link is known: nothing sent, said so
+            assert reply["ok"] is False and reply["error"].startswith("not sent: no run holds"), reply
             stop.set()
             await asyncio.wait_for(task, 10)
             stop.clear()
@@ -84,3 +82,51 @@ async def test_retained_stop_and_abort_are_accepted(broker, tmp_path: Path):
         stop.set()
         if task is not None and not task.done():
             await asyncio.wait_for(task, 10)
+
+
+async def test_a_command_published_retained_to_a_listening_service_is_carried_out(broker, tmp_path: Path):
+    """Only the copy the broker replays as the service subscribes carries the retain flag: a
+    command published with it while the service listens comes as a live one and is carried out;
+    the same message handed over at the service's next start is refused."""
+    rig_id = "retained3"
+    topic = f"orbitrig/{rig_id}/cmd"
+    started: list[str] = []
+
+    def factory(name, matrix):
+        started.append(name)
+        raise RuntimeError("engine not available in this test")
+
+    rc = RigClient(broker, rig_id)
+    matrices = write_matrices(tmp_path / "matrices")
+
+    def service() -> RigService:
+        return RigService(
+            ServiceSettings(rig_id=rig_id, matrices_dir=matrices),
+            BrokerSettings.from_url(broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]),
+            engine_factory=factory,
+            load_matrix=load_matrix,
+        )
+
+    stop = asyncio.Event()
+    task = asyncio.create_task(service().serve(stop))
+    try:
+        await asyncio.to_thread(rc.status, "idle")
+        assert "ok" in await asyncio.to_thread(rc.command, {"cmd": "confirm"})  # answered: the service listens
+        mark = rc.watch.mark()
+        message = json.dumps({"cmd": "start", "id": "kept", "matrix": "quick"})
+        assert (await asyncio.to_thread(broker.pub, topic, message, retain=True)).returncode == 0
+        live = await asyncio.to_thread(rc.reply, "kept", 10.0, mark)
+        assert live["ok"] is False and "engine not available" in live["error"] and started == ["quick"]
+        stop.set()
+        await asyncio.wait_for(task, 10)
+        stop.clear()
+        mark = rc.watch.mark()
+        task = asyncio.create_task(service().serve(stop))  # subscribes again: the broker replays the message
+        replayed = await asyncio.to_thread(rc.reply, "kept", 10.0, mark)
+        assert replayed["ok"] is False and "retained command 'start' refused" in replayed["error"]
+        assert started == ["quick"]
+    finally:
+        await asyncio.to_thread(broker.pub, topic, b"", retain=True)
+        rc.close()
+        stop.set()
+        await asyncio.wait_for(task, 10)

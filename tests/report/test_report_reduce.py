@@ -82,10 +82,13 @@ def test_cli_reduce_writes_csv_and_leaves_the_run_alone(synthetic_run):
 
 def test_cli_reduce_help_states_the_csv_columns(synthetic_run, tmp_path):
     """The help's account of the CSV is true: coefficients.csv's columns but KEY_U; not_determined by
-    the identification's own 95 % interval (as `reduce --json` gives it)."""
+    the identification's own statistical U = k x std (as `reduce --json` gives it)."""
     words = " ".join(CliRunner().invoke(app, ["reduce", "--help"]).stdout.replace("│", " ").split())
     assert "the columns of coefficients.csv except the expanded uncertainties KEY_U" in words
-    assert "not_determined names the coefficients whose 95 % interval half-width exceeds their magnitude" in words
+    assert (
+        "not_determined names the coefficients whose statistical expanded uncertainty k x KEY_std (k = 2 with u_*) "
+        "exceeds their magnitude" in words
+    )
     run = shutil.copytree(synthetic_run, tmp_path / "run")
     assert CliRunner().invoke(app, ["reduce", str(run), "--model", "kcd11"]).exit_code == 0
     with csv_path(run, "kcd11", "none", "ols").open() as fh:
@@ -193,3 +196,37 @@ def test_cli_reduce_power_auto_shows_the_chosen_exponent(synthetic_run):
     assert header.split()[-1] == "M"
     data = [r.split() for r in rows if r.split()[1] in ("piezo", "strain")]
     assert len(data) == 4 and all(r[-1] in {"1", "2", "3", "4"} for r in data)
+
+
+SI_UNITS = {"K": "N/m", "C": "N s/m", "D": "kg"}
+
+
+def test_cli_reduce_csv_has_every_number_in_full_si(synthetic_run, tmp_path):
+    """`--format csv` prints the table in SI with every number in full: each cell reads back as the
+    very double of `--json` (coefficients, residual) and of the written file's true_* columns;
+    the text table rounds (MN/m, kN s/m, kg to 4 significant digits) and the help says which is which."""
+    run = shutil.copytree(synthetic_run, tmp_path / "run")
+    result = CliRunner().invoke(app, ["reduce", str(run), "--model", "kcd11", "--format", "csv"])
+    assert result.exit_code == 0, result.output
+    rows = list(csv.DictReader(result.stdout.splitlines()))
+    own = json.loads(CliRunner().invoke(app, ["reduce", str(run), "--model", "kcd11", "--json"]).stdout)["results"]
+    with csv_path(run, "kcd11", "none", "ols").open(newline="") as fh:
+        written = list(csv.DictReader(fh))
+    assert list(rows[0])[:3] == ["point", "lms", "Kxx [N/m]"] and "Dyy [kg]" in rows[0] and "resid [N]" in rows[0]
+    assert [r["lms"] for r in rows] == [lms for o in own for lms in (o["lms"], f"true ({o['lms']})")]
+    for fit, true, o, w in zip(rows[::2], rows[1::2], own, written):
+        assert fit["point"] == true["point"] == f"{o['point']:04d}"
+        for key, value in o["coefficients"].items():
+            if "_" not in key:  # the constant terms
+                assert float(fit[f"{key} [{SI_UNITS[key[0]]}]"]) == value, key
+        assert float(fit["resid [N]"]) == o["residual_rms"]
+        for column, cell in true.items():
+            if column not in ("point", "lms") and cell:
+                assert float(cell) == float(w[f"true_{column}"]), column
+    kxx = own[0]["coefficients"]["Kxx"]
+    assert rows[0]["Kxx [N/m]"] == repr(kxx) and f"{kxx:.4g}" != repr(kxx)
+    text = CliRunner().invoke(app, ["reduce", str(run), "--model", "kcd11"], env={"COLUMNS": "300"}).stdout
+    assert "Kxx [MN/m]" in text and f"{kxx * 1e-6:.4g}" in text and repr(kxx) not in text
+    words = " ".join(CliRunner().invoke(app, ["reduce", "--help"], env={"COLUMNS": "300"}).stdout.split())
+    words = words.replace("│ ", "").replace(" │", "")
+    assert "csv: the same table in SI (N/m, N s/m, kg), every number in full" in words

@@ -106,8 +106,8 @@ def test_interval_named_by_the_identification_normal_with_u(synthetic_run):
     std, (lo, hi) = r.identification.std_errors["Kxx"], r.identification.confidence_95["Kxx"]
     assert (hi - lo) / 2 / std == pytest.approx(1.96, abs=1e-3)
     assert "Student" not in page
-    assert page.count("95 % interval<br>(normal, 1.96)") == len(results)
-    assert "95 % interval: normal quantile 1.96" in page
+    assert page.count("95 % interval, statistical only<br>(normal, 1.96)") == len(results)
+    assert "95 % interval, statistical only (standard errors, no calibration uncertainty): normal quantile 1.96" in page
 
 
 def test_interval_named_student_t_without_u(synthetic_run):
@@ -119,6 +119,6 @@ def test_interval_named_student_t_without_u(synthetic_run):
     )
     assert r.identification.interval == "student_t"
     html = identification_table(r, {}, fit_label(r), with_budget=False)
-    assert "95 % interval<br>(Student t, 4n - p dof)" in html and "normal" not in html
+    assert "95 % interval, statistical only<br>(Student t, 4n - p dof)" in html and "normal" not in html
     std, (lo, hi) = r.identification.std_errors["Kxx"], r.identification.confidence_95["Kxx"]
     assert (hi - lo) / 2 / std > 1.97 and np.isfinite(hi)

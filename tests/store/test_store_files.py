@@ -238,8 +238,9 @@ def test_v2_results_and_uncertainties_are_numeric_datasets(synthetic, tmp_path):
         stored = read_run(synthetic).points[0].identification("piezo", "kcd11", "none").result
         names = _s(ident["names"][()])
         lo_hi = np.array([stored["confidence_95"][k] for k in names])
-        np.testing.assert_array_equal(ident["interval_95"][()], lo_hi)
+        np.testing.assert_array_equal(ident["interval_95_statistical"][()], lo_hi)
         assert (ident["interval_95"][:, 0] < ident["coefficients"][()]).all()
+        assert ident.attrs["interval_95_basis"] == "statistical only"  # value -+ U, no budget stated
         assert _s(ident["covariance"].attrs["names"]) == stored["free"]
         np.testing.assert_array_equal(ident["covariance"][()], np.array(stored["covariance"]))
         assert _s(ident["notes"][()]) == stored["notes"] and _s(ident["warnings"][()]) == stored["warnings"]

@@ -1,0 +1,75 @@
+"""What the ROSS export (orbitrig.analysis.ross_export) warns about: per speed the warnings of
+the fit that gave it, as the run stores them (a chi2 that does not fit the stated u_*,
+ill-conditioning, ...) and a frequency dependence its adequacy test does not support; per
+bearing every coefficient not determined (U > |value|). The export prints them on standard
+error; ``bearing_elements`` warns (UserWarning) or, strict, refuses (ValueError)."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+from typing import Any
+
+UNITS = {"k": "N/m", "c": "N s/m", "m": "kg"}
+
+
+def speed_warnings(result: dict[str, Any]) -> list[str]:
+    """The stored fit ``result``'s warnings and, when its adequacy test does not support its
+    frequency dependence, that verdict."""
+    out = [str(w) for w in result.get("warnings") or []]
+    adequacy = result.get("adequacy") or {}
+    if adequacy.get("supported") is False:
+        out.append(
+            f"adequacy ({adequacy.get('test', '')}): {adequacy.get('verdict', '')}; "
+            "the frequency dependence exported is not supported"
+        )
+    return out
+
+
+def bearing_warnings(speeds: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Every speed's ``fit_warnings``, each with its point, spin (rad/s) and fit."""
+    return [
+        {"point": s["point"], "spin": s["spin"], "fit": s["fit"], "warning": w}
+        for s in speeds
+        for w in s["fit_warnings"]
+    ]
+
+
+def notes(bearing: dict[str, Any]) -> list[str]:
+    """What the export tells on standard error about one bearing: its speeds, which fit gave
+    each, every coefficient not determined and every fit warning."""
+    used = ", ".join(f"{s['spin']:.6g} {s['used']} ({s['fit']})" for s in bearing["speeds"])
+    lines = [f"ross: {bearing['lms']} bearing of points {bearing['points']}: rad/s {used}; {bearing['outside']}"]
+    for n in bearing["not_determined"]:
+        unit = UNITS[n["coefficient"][0]]
+        lines.append(
+            f"warning: point {n['point']:04d} at {n['spin']:.6g} rad/s, fit {n['fit']}: {n['coefficient']} = "
+            f"{n['value']:.4g} {unit} with U = {n['U']:.4g} {unit} is not determined (U > |value|); "
+            "exported as identified and listed in not_determined"
+        )
+    lines += [
+        f"warning: point {w['point']:04d} at {w['spin']:.6g} rad/s, fit {w['fit']}: {w['warning']}"
+        for w in bearing.get("fit_warnings") or []
+    ]
+    return lines
+
+
+def warn_or_refuse(data: dict[str, Any], path: str | Path, strict: bool) -> None:
+    """Warn (UserWarning, one per kind) about a bearing's coefficients not determined and its
+    fit warnings; with ``strict`` refuse them (ValueError naming each). A file written before
+    fit warnings were exported has none."""
+    flagged = [
+        f"point {n['point']} ({n['spin']:.6g} rad/s), fit {n['fit']}: {n['coefficient']} = {n['value']:.4g} "
+        f"with U = {n['U']:.4g}"
+        for n in data["not_determined"]
+    ]
+    fits = [
+        f"point {w['point']} ({w['spin']:.6g} rad/s), fit {w['fit']}: {w['warning']}"
+        for w in data.get("fit_warnings") or []
+    ]
+    messages = [f"{path}: coefficients not determined (U > |value|): " + "; ".join(flagged)] if flagged else []
+    messages += [f"{path}: fit warnings: " + "; ".join(fits)] if fits else []
+    if strict and messages:
+        raise ValueError("\n".join(messages))
+    for message in messages:
+        warnings.warn(message, UserWarning, stacklevel=3)

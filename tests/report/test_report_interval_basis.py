@@ -1,0 +1,61 @@
+"""The report labels its 95 % interval "statistical only" (the exports' interval_95 is value -+ U,
+calibration included where stated), and gives the derived quantities on the basis the exports
+give them: the combined covariance where the run stored a budget (the sweep's stored derived
+_std repeated from the stored calibration parameters), k of the fit's U, said in words."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from orbitrig import config as cfg
+from orbitrig.analysis.quality import derived_basis
+from orbitrig.analysis.report import Report, analyse_point
+from orbitrig.analysis.report_html import render
+from orbitrig.store.reader import read_run
+from reduction.derived import derived_quantities
+from reduction.systematic import UncertaintyBasis, combined_covariance
+from support.report_synthetic import write_synthetic_run
+
+STATED = cfg.CalibrationUncertainty(
+    probe_sensitivity_pct=0.5,
+    **{f"f{a}_{lms}": cfg.ChannelUncertainty(gain_pct=1.0, phase_deg=0.2) for a in "xy" for lms in cfg.LMS},
+)
+
+
+@pytest.fixture(scope="module")
+def calibrated(tmp_path_factory):
+    directory = write_synthetic_run(tmp_path_factory.mktemp("basis") / "run", incomplete=0, calibration=STATED)
+    run = read_run(directory)
+    pr = analyse_point(run.points[1])
+    return pr, render(Report(run, directory / "plots", [pr]))
+
+
+def test_interval_column_and_note_say_statistical_only(calibrated):
+    pr, page = calibrated
+    n = sum(len(rs) for rs in pr.results.values())
+    assert n and page.count("95 % interval, statistical only<br>(normal, 1.96)") == n
+    assert re.search(r"<th>95 % interval<br>", page) is None
+    assert "95 % interval, statistical only (standard errors, no calibration uncertainty)" in page
+
+
+def test_derived_quantities_on_the_exports_combined_basis(calibrated):
+    pr, page = calibrated
+    r = pr.results["piezo"][0]
+    stored = r.stored["derived"]
+    assert stored["covariance"] == "combined" and derived_basis(r) is UncertaintyBasis.COMBINED
+    u = r.stored["uncertainty"]
+    cov = combined_covariance(r.identification, r.point.tables["piezo"], u["sources"], np.array(u["source_std"]))
+    grid = 2 * np.pi * np.asarray(stored["orbit_hz"])
+    d = derived_quantities(r.identification, grid, r.point.settings.spin, cov=cov)
+    np.testing.assert_allclose(d.c_eff_xx_std, stored["c_eff_xx_std"], rtol=1e-6)
+    np.testing.assert_allclose(d.wfr_std, stored["wfr_std"], rtol=1e-6)
+    statistical = derived_quantities(r.identification, grid, r.point.settings.spin)
+    assert np.all(d.c_eff_xx_std > statistical.c_eff_xx_std)  # the calibration part adds
+    table_d = next(dd for rr, dd in pr.derived["piezo"] if rr is r)
+    ref = derived_quantities(r.identification, table_d.orbit, r.point.settings.spin, cov=cov)
+    np.testing.assert_allclose(table_d.wfr_std, ref.wfr_std, rtol=1e-12)
+    note = re.search(r"\u00b1 k = 2 standard uncertainties \(combined: [^<]*</p>", page)
+    assert note is not None and "statistical only" not in note.group(0), page[-3000:]

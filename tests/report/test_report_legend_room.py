@@ -1,0 +1,81 @@
+"""The legend under the derived-quantity and impedance figures never covers a panel, its tick
+labels or its axis labels, however many identifications it lists: the figure grows at the
+bottom (the panels keep their size), and a figure reused for the next point starts at its own
+size again. Checked on the renderer's extents, as drawn into the PNG."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from orbitrig.analysis.plots import Fitted
+from orbitrig.analysis.plots_derived import derived_figure, impedance_figure
+from orbitrig.analysis.quality import derived_of, true_impedance
+from orbitrig.analysis.report import analyse_point
+from orbitrig.store.reader import read_run
+
+#: fit labels as the report writes them, 4 models x 5 frequency dependences: 20 identifications
+LABELS = [
+    f"{model}{fd} ({n} coef.), wls"
+    for (model, n), fd in itertools.product(
+        (("kc7", 7), ("kc8", 8), ("kcd11", 11), ("kcd12", 12)), ("", " power:1", " power:auto", " poly:2", " poly:3")
+    )
+]
+
+
+@pytest.fixture(scope="module")
+def point_report(synthetic_run):
+    return analyse_point(read_run(synthetic_run).points[1])
+
+
+def _covered(fig) -> list[str]:
+    """The panels (by y label) whose extent (axes, tick labels, axis labels, title) the figure's
+    legend touches, as drawn."""
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    (legend,) = fig.legends
+    box = legend.get_window_extent(renderer)
+    assert box.y0 >= fig.bbox.y0 - 0.5 and box.x0 >= -0.5 and box.x1 <= fig.bbox.x1 + 0.5  # inside the figure
+    return [ax.get_ylabel() for ax in fig.axes if ax.get_visible() and box.overlaps(ax.get_tightbbox(renderer))]
+
+
+def _panel_inches(fig) -> np.ndarray:
+    return np.array(
+        [
+            [ax.get_position().width * fig.get_figwidth(), ax.get_position().height * fig.get_figheight()]
+            for ax in fig.axes
+        ]
+    )
+
+
+def _derived(point_report, n: int):
+    t = point_report.point.tables["piezo"]
+    d = derived_of(point_report.results["piezo"][0], t.orbit)
+    return derived_figure([(label, d) for label in LABELS[:n]], spin=t.spin, title="t\nsecond line")
+
+
+def _impedance(point_report, n: int):
+    t = point_report.point.tables["piezo"]
+    ident = point_report.results["piezo"][0].identification
+    fitted = [Fitted(label, ident) for label in LABELS[:n]]
+    truth = true_impedance(point_report.point.truth)
+    return impedance_figure(fitted, truth, spin=t.spin, orbit=t.orbit, title="t\nsecond line")
+
+
+@pytest.mark.parametrize("draw", [_derived, _impedance], ids=["derived", "impedance"])
+def test_legend_of_many_fits_covers_no_panel(point_report, draw):
+    small = draw(point_report, 1)
+    assert _covered(small) == []
+    size, panels = small.get_size_inches().copy(), _panel_inches(small)
+    for n in (3, 4, 8, len(LABELS)):
+        fig = draw(point_report, n)
+        assert _covered(fig) == [], n
+        np.testing.assert_allclose(_panel_inches(fig), panels, rtol=1e-9)  # the panels keep their size
+        assert fig.get_figwidth() == size[0] and fig.get_figheight() >= size[1]
+    assert draw(point_report, len(LABELS)).get_figheight() > size[1]  # room made for 7 rows of entries
+    again = draw(point_report, 1)  # the same (cached) figure, for a point of one fit: its own size
+    np.testing.assert_allclose(again.get_size_inches(), size)
+    np.testing.assert_allclose(_panel_inches(again), panels, rtol=1e-9)
+    assert _covered(again) == []
