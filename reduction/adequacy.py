@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from scipy import stats
+from reduction import distributions as dist
 
 from reduction.errors import ReductionError
 from reduction.result import Identification
@@ -75,14 +75,14 @@ def frequency_dependence(constant: Identification, dependent: Identification, al
         if constant.chi2 is None or dependent.chi2 is None:
             raise ReductionError("frequency_dependence: a fit with stated noise has no chi2")
         stat = max(constant.chi2 - dependent.chi2, 0.0)
-        p = float(stats.chi2.sf(stat, q))
+        p = float(dist.chi2_sf(stat, q))
         test, dof = "likelihood ratio", (q, 0)
     else:
         if dependent.dof <= 0:
             raise ReductionError("frequency_dependence: the frequency-dependent fit has no degrees of freedom")
         rss0, rss1 = constant.cost, dependent.cost
         stat = max(rss0 - rss1, 0.0) / q / (rss1 / dependent.dof) if rss1 > 0 else float("inf")
-        p = float(stats.f.sf(stat, q, dependent.dof))
+        p = float(dist.f_sf(stat, q, dependent.dof))
         test, dof = "F", (q, dependent.dof)
     return Adequacy(
         p < alpha, p, float(stat), test, dof, alpha, (constant.aic, dependent.aic), (constant.bic, dependent.bic)

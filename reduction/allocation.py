@@ -31,7 +31,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.optimize import minimize
 
 from reduction.arrays import FloatArray, IntArray
 from reduction.design import design_orbits
@@ -141,6 +140,8 @@ def time_shares(F: ArrayLike, tau: ArrayLike, scales: ArrayLike) -> tuple[FloatA
         },
         {"type": "eq", "fun": lambda v: np.sum(v[:-1]) - 1.0, "jac": lambda v: np.append(np.ones(k), 0.0)[None]},
     ]
+    from scipy.optimize import minimize  # here: its import costs every command that plans a run 0.3 s
+
     res = minimize(
         lambda v: v[-1],
         np.append(w0, 1.0),

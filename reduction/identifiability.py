@@ -44,6 +44,7 @@ from reduction.arrays import FloatArray
 from reduction.design import YARDSTICK_SPAN, design_orbits, idealised_design, reference_design, yardstick_design
 from reduction.errors import IdentifiabilityError
 from reduction.excitation import SignalDesign
+from reduction.memo import DESIGN_MEMO_ROWS, DesignMemo
 from reduction.impedance import regression_rows
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
 from reduction.rank import RANK_RTOL, Rank, design_rank, numerical_rank
@@ -54,6 +55,7 @@ MAX_LISTED = 12
 ILL_CONDITIONED_RATIO = 100.0  # warn when cond(table) > 100 x cond(same frequencies, ideal design)
 MAX_SE_INFLATION = 10.0  # warn when a standard error is > 10 x that of the yardstick design (variance 100 x)
 WEAK_LISTED = 8
+_YARDSTICKS: DesignMemo[tuple[Rank, Rank, Directions, int]] = DesignMemo(32)  # ill_conditioning's
 
 
 def combinations(rank: Rank, names: list[str]) -> list[str]:
@@ -214,8 +216,6 @@ def ill_conditioning(spec: ModelSpec, table: OrbitTable, rank: Rank) -> str | No
     above ``MAX_SE_INFLATION``. The coefficients inflated most (at least a tenth of the
     worst and above the ratio's square root) are named.
     """
-    w, x, y = reference_design(table.orbit)
-    ref = numerical_rank(_stack(spec, w, x, y), 0.0)
     forward = table.forward()
     directions = (
         Directions.BOTH
@@ -224,12 +224,7 @@ def ill_conditioning(spec: ModelSpec, table: OrbitTable, rank: Rank) -> str | No
         if forward.all()
         else Directions.BACKWARD
     )
-    yard_design = yardstick_design(table.orbit, spec.min_frequencies, directions)
-    yard = numerical_rank(_stack(spec, *yard_design))
-    if yard.deficiency:  # the table's one direction cannot identify the model: judge against both
-        directions = Directions.BOTH
-        yard_design = yardstick_design(table.orbit, spec.min_frequencies, directions)
-        yard = numerical_rank(_stack(spec, *yard_design))
+    ref, yard, directions, n_yard = _yardsticks(spec, np.asarray(table.orbit, dtype=float), directions)
     cond, cond_ref = rank.condition_number, ref.condition_number
     relative = bool(np.isfinite(cond_ref) and cond > ILL_CONDITIONED_RATIO * cond_ref)
     factors = _variance_factors(rank)
@@ -243,7 +238,6 @@ def ill_conditioning(spec: ModelSpec, table: OrbitTable, rank: Rank) -> str | No
     ]
     weak = weak or [spec.names[order[0]]]
     listed = ", ".join(weak[:WEAK_LISTED]) + (f" and {len(weak) - WEAK_LISTED} more" if len(weak) > WEAK_LISTED else "")
-    n_yard = len(np.unique(yard_design[0]))
     return (
         f"ill-conditioned: condition number {cond:.3g}, {cond / cond_ref:.3g} times that of the same "
         f"frequencies with forward and backward circular orbits ({cond_ref:.3g}; orbitrig warns above "
@@ -252,6 +246,25 @@ def ill_conditioning(spec: ModelSpec, table: OrbitTable, rank: Rank) -> str | No
         f"highest (orbitrig warns above {MAX_SE_INFLATION:g} times); poorly determined: {listed}. Forward "
         "and backward whirl of similar size at well separated frequencies would determine them."
     )
+
+
+def _yardsticks(spec: ModelSpec, orbit: FloatArray, directions: Directions) -> tuple[Rank, Rank, Directions, int]:
+    """(reference, yardstick Rank, its directions, its frequency count) of :func:`ill_conditioning`:
+    functions of the orbit frequencies and whirl directions, memoised up to ``DESIGN_MEMO_ROWS`` rows."""
+
+    def compute() -> tuple[Rank, Rank, Directions, int]:
+        ref = design_rank(spec, *reference_design(orbit), 0.0)
+        yard_design = yardstick_design(orbit, spec.min_frequencies, directions)
+        yard, used = design_rank(spec, *yard_design), directions
+        if yard.deficiency:  # the table's one direction cannot identify the model: judge against both
+            used = Directions.BOTH
+            yard_design = yardstick_design(orbit, spec.min_frequencies, used)
+            yard = design_rank(spec, *yard_design)
+        return ref, yard, used, len(np.unique(yard_design[0]))
+
+    if orbit.size > DESIGN_MEMO_ROWS:
+        return compute()
+    return _YARDSTICKS.get((spec.terms, orbit.tobytes(), directions), compute)
 
 
 def _variance_factors(rank: Rank) -> np.ndarray:

@@ -14,7 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from reduction.arrays import FloatArray
 from reduction.impedance import regression_rows
+from reduction.memo import DESIGN_MEMO_ROWS, DesignMemo
 from reduction.models import ModelSpec
 from reduction.regression import CHUNK_ROWS, LONG_TABLE, triangular, triangular_blocks
 
@@ -48,6 +50,9 @@ class Rank:
         return float(s[0] / s[-1]) if s.size and s[-1] > 0 else float("inf")
 
 
+_DESIGN_RANKS: DesignMemo[Rank] = DesignMemo(32)  # design_rank's
+
+
 def numerical_rank(A: np.ndarray, rtol: float = RANK_RTOL) -> Rank:
     """Rank of A after column scaling: singular values > rtol * sigma_max count. The
     singular values and right vectors come from the R factor of the blocked QR (those of A
@@ -56,11 +61,31 @@ def numerical_rank(A: np.ndarray, rtol: float = RANK_RTOL) -> Rank:
     return _rank_of(triangular(A)[0], A.shape[0], rtol)
 
 
-def design_rank(spec: ModelSpec, orbit: ArrayLike, x: np.ndarray, y: np.ndarray, rtol: float = RANK_RTOL) -> Rank:
+def design_rank(spec: ModelSpec, orbit: ArrayLike, x: ArrayLike, y: ArrayLike, rtol: float = RANK_RTOL) -> Rank:
     """:func:`numerical_rank` of the regression of orbits (orbit rad/s, x, y m), its rows
-    built block by block: a long table's design is never whole in memory."""
+    built block by block: a long table's design is never whole in memory. The Rank of a
+    design of up to ``DESIGN_MEMO_ROWS`` orbits is memoised (read-only arrays): every table
+    of a sweep or Monte Carlo on one design has the same idealised, reference and yardstick
+    designs (:mod:`reduction.identifiability`)."""
     orbit = np.asarray(orbit, dtype=float)
+    if orbit.size > DESIGN_MEMO_ROWS:
+        return _design_rank(spec, orbit, x, y, rtol)
+    xc, yc = np.asarray(x, dtype=complex), np.asarray(y, dtype=complex)
+    key = (spec.terms, float(rtol), orbit.tobytes(), xc.tobytes(), yc.tobytes())
+    return _DESIGN_RANKS.get(key, lambda: _read_only(_design_rank(spec, orbit, x, y, rtol)))
+
+
+def _read_only(rank: Rank) -> Rank:
+    """``rank`` with its arrays made read-only (it is shared from the memo)."""
+    for array in (rank.singular_values, rank.null, rank.scale, rank.vt):
+        array.flags.writeable = False
+    return rank
+
+
+def _design_rank(spec: ModelSpec, orbit: FloatArray, x: ArrayLike, y: ArrayLike, rtol: float) -> Rank:
+    """:func:`design_rank` computed (no cache)."""
     n = orbit.size
+    x, y = np.asarray(x), np.asarray(y)
     if 4 * n <= LONG_TABLE:
         return numerical_rank(regression_rows(spec, orbit, x, y), rtol)
     step = CHUNK_ROWS // 4

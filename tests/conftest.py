@@ -61,6 +61,7 @@ def _process_names(module: Path) -> frozenset[str]:
     return frozenset(names)
 
 
+@functools.cache
 def starts_processes(module: Path) -> bool:
     """True if the test module's own text, or a helper of its folder it imports, starts processes,
     or it names what its folder's conftest imports from such a helper (a fixture asked by name)."""
@@ -70,6 +71,7 @@ def starts_processes(module: Path) -> bool:
     return _names_a_process(module) or bool(_process_names(module)) or bool(named & words)
 
 
+@functools.cache
 def _fixture_starts_processes(func: object) -> bool:
     try:
         source, path = inspect.getsource(func), Path(inspect.getfile(func))  # type: ignore[arg-type]

@@ -102,7 +102,7 @@ def repeat_groups(rows: list[Row]) -> list[list[Row]]:
 
 def repeatability(rows: list[Row], coefficient: str) -> Repeatability:
     """chi2 of the repeated runs of ``coefficient`` against their U (module docstring)."""
-    from scipy.stats import chi2 as chi2_dist
+    from reduction.distributions import chi2_sf
 
     total, dof, n_groups, bases = 0.0, 0, 0, set()
     for group in repeat_groups(rows):
@@ -114,7 +114,7 @@ def repeatability(rows: list[Row], coefficient: str) -> Repeatability:
         total += float(np.sum(((x - np.sum(w * x) / np.sum(w)) / u) ** 2))
         dof, n_groups = dof + len(pairs) - 1, n_groups + 1
         bases.add(UBasis.STATISTICAL if statistical else UBasis.EXPANDED)
-    p = float(chi2_dist.sf(total, dof)) if dof else math.nan
+    p = float(chi2_sf(total, dof)) if dof else math.nan
     basis = bases.pop() if len(bases) == 1 else (UBasis.MIXED if bases else UBasis.EXPANDED)
     return Repeatability(coefficient, total, dof, p, n_groups, basis)
 

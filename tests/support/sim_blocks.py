@@ -48,11 +48,13 @@ def averaged_block(
     rng,
     period: float = 0.1,
     damaged: tuple[int, ...] = (),
+    averager: StreamingAverager | None = None,
 ) -> AveragedBlock:
     """Average revolutions of the true channel phasors ``truth`` (8,) with white noise of
     ``sample_rms`` (8,) per sample; revolutions listed in ``damaged`` carry a wild value
     (1e4 counts) in channel 0 and must never be averaged (they are left out of the batch,
-    as the assembler drops them)."""
+    as the assembler drops them). ``averager``: one between blocks (as the sweep keeps one
+    over a point's blocks: its phasor weights are computed once), else a new one."""
     n = rule.max_revolutions + len(damaged)
     theta = SLOTS * 2 * np.pi / 360
     clean = np.real(truth[:, None] * np.exp(1j * theta))
@@ -64,7 +66,9 @@ def averaged_block(
     batch = RevolutionBatch(
         revs, (revs * period * 1e6).astype(np.int64), np.full(revs.size, period), counts[keep], SLOTS
     )
-    used, block = StreamingAverager(rule, GAINS, np.zeros(8)).take(batch)
+    averager = StreamingAverager(rule, GAINS, np.zeros(8)) if averager is None else averager
+    assert averager.rule == rule and averager.count == 0, "the averager must be between blocks"
+    used, block = averager.take(batch)
     assert block is not None, f"{used} revolutions did not complete a block"
     return block
 
@@ -85,8 +89,10 @@ def simulated_table(
     fx, fy = forces(impedance(spec, theta, orbit), x, y)
     rms = np.array([force_rms] * 4 + [probe_rms] * 4)
     rows, us, blocks = [], [], []
+    averager = StreamingAverager(rule, GAINS, np.zeros(8))  # one over the run's blocks, as the sweep's
     for k in range(orbit.size):
-        block = averaged_block(channel_phasors(x[k], y[k], fx[k], fy[k]), rms, rule, rng, period=2 * np.pi / orbit[k])
+        truth = channel_phasors(x[k], y[k], fx[k], fy[k])
+        block = averaged_block(truth, rms, rule, rng, period=2 * np.pi / orbit[k], averager=averager)
         row, u = block_row(block)
         rows.append(row)
         us.append(u)
