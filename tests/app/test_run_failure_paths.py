@@ -16,7 +16,9 @@ from drives.rig import RigDrives
 from orbitrig.run import engine as engine_module
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.store.journal import read_journal
+from orbitrig.config import load_rig
 from orbitrig.store.status import RunStatus
+from support.paths import ROOT
 from support.sweep_helpers import running, small_matrix, wait_for
 
 pytestmark = pytest.mark.timeout(90)
@@ -68,7 +70,11 @@ async def test_a_helper_task_that_raises_fails_the_run_at_once(tmp_path, monkeyp
 
 
 async def test_a_stop_that_is_not_delivered_fails_the_run(tmp_path):
-    async with running(tmp_path, small_matrix(spin_rpm=[1000.0, 2000.0])) as (sim, eng, rec, run):
+    # the shipped drive link (0.15 s a request, lost after 3 polls): the drives that stop answering
+    # are this test's subject; the test lab's patient link (1 s a request, lost after 5) only made
+    # it wait out each unanswered request of the stop and of the link's closing, about 25 s
+    shipped = load_rig(ROOT / "config" / "rig.toml")
+    async with running(tmp_path, small_matrix(spin_rpm=[1000.0, 2000.0]), shipped) as (sim, eng, rec, run):
         await wait_for(lambda: rec.blocks_done() >= 2, what="blocks")
         sim.inject("modbus_timeout", on=True)  # the drives no longer answer
         eng.request_stop_now("SIGTERM", by="test")

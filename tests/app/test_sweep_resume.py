@@ -16,11 +16,12 @@ from orbitrig.store.reader import read_run
 from support.sweep_helpers import orbitrig_cmd
 from support.paths import ROOT
 
+# four points; the spin speeds close together, so that the ramps between points are short
 MATRIX = """
 name = "crash"
 revolutions = 10
 [operating]
-spin_rpm = [1000.0, 2000.0]
+spin_rpm = [1000.0, 1200.0]
 recess_pressure_mpa = [0.4826]
 pressure_ratio = [0.4]
 static_eccentricity = [0.0, 0.15]

@@ -3,6 +3,11 @@ call of a write syscall), then `--resume`: every point stored exactly once, ever
 whole, and report / reduce / export read the run before and after the resume.
 
 ORBITRIG_KILL_POINTS=all runs the long list of write points (about 30 runs).
+
+Each kill point runs the matrix it needs: one point where the kill comes in point 0000 or
+before (the resume measures that point again all the same), two where it comes once point
+0001 has begun while point 0000 awaits its results. The report draws one figure kind of the
+results and one of the blocks' signals (what it reads of a run does not depend on the kinds).
 """
 
 from __future__ import annotations
@@ -21,23 +26,32 @@ from support.rig_configs import patient_rig_config
 from support.store_checks import check_whole, orbitrig_cmd, small_matrix
 from support.paths import ROOT
 
-MATRIX = small_matrix("crash", revolutions=10)
+ONE = (1000.0,)  # spin speeds, rpm: one point
+TWO = (1000.0, 1200.0)  # two points, a short ramp between them
 BLOCKS = 6  # 3 ratios x forward, backward
 STORAGE_CALLS = "write,pwrite64,fsync,rename,renameat,renameat2"
-# (syscalls counted, K): the run is killed at the K-th call of one of them by one thread;
-# fsync and rename happen only in the storage's durable steps, write also in logs and output
-DEFAULT = [("fsync", 1), ("rename", 3), ("fsync", 7), ("fsync", 16), ("write", 30), ("rename", 9)]
+# (syscalls counted, K, spin speeds): the run is killed at the K-th call of one of them by one
+# thread (the main thread writes the run's header and run.log, the storage thread the points'
+# files); fsync and rename happen only in the storage's durable steps, write also in logs and output
+DEFAULT = [
+    ("fsync", 1, ONE),  # the run folder, before run.json: no header, nothing to resume
+    ("fsync", 7, ONE),  # the journal's start record: a header, no point begun
+    ("rename", 3, ONE),  # point 0000's second block into place: its .tmp left
+    ("fsync", 16, ONE),  # the journal after point 0000's fourth block
+    ("write", 30, TWO),  # a run.log line: point 0001 begun, point 0000 awaiting its results
+    ("rename", 9, TWO),  # point 0001's first block (or point 0000's results.h5) into place
+]
 LONG = (
-    [("fsync", k) for k in range(1, 36, 2)]
-    + [("rename", k) for k in range(1, 14, 2)]
-    + [("write", k) for k in (5, 15, 25, 35, 45)]
+    [("fsync", k, TWO) for k in range(1, 36, 2)]
+    + [("rename", k, TWO) for k in range(1, 14, 2)]
+    + [("write", k, TWO) for k in (5, 15, 25, 35, 45)]
 )
 CASES = LONG if os.environ.get("ORBITRIG_KILL_POINTS") == "all" else DEFAULT
 
 
-def _killed_sweep(tmp_path, calls: str, k: int):
+def _killed_sweep(tmp_path, calls: str, k: int, spin_rpm: tuple[float, ...]):
     matrix = tmp_path / "crash.toml"
-    matrix.write_text(MATRIX)
+    matrix.write_text(small_matrix("crash", revolutions=10, spin_rpm=spin_rpm))
     out = tmp_path / "run"
     cmd = [
         "strace",
@@ -59,9 +73,9 @@ def _killed_sweep(tmp_path, calls: str, k: int):
 
 
 @pytest.mark.timeout(240)
-@pytest.mark.parametrize("calls, k", CASES)
-def test_kill_at_a_write_then_resume_stores_every_point_once(tmp_path, calls, k):
-    out = _killed_sweep(tmp_path, calls, k)
+@pytest.mark.parametrize("calls, k, spin_rpm", CASES, ids=[f"{c}-{k}" for c, k, _ in CASES])
+def test_kill_at_a_write_then_resume_stores_every_point_once(tmp_path, calls, k, spin_rpm):
+    out = _killed_sweep(tmp_path, calls, k, spin_rpm)
     runner = CliRunner()
     if (out / "run.json").exists():
         cut = read_run(out)  # whatever resume can read, the readers read
@@ -90,9 +104,9 @@ def test_kill_at_a_write_then_resume_stores_every_point_once(tmp_path, calls, k)
             timeout=120,
         )
         assert p.returncode == 0, p.stdout + p.stderr
-    check_whole(out, [0, 1], BLOCKS)
+    check_whole(out, list(range(len(spin_rpm))), BLOCKS)
     assert read_run(out).status == "completed"
     r = runner.invoke(app, ["reduce", str(out), "--model", "kc8"])
     assert r.exit_code == 0, r.output
-    r = runner.invoke(app, ["report", str(out), "--point", "0"])
+    r = runner.invoke(app, ["report", str(out), "--point", "0", "--figures", "coefficients,signals"])
     assert r.exit_code == 0, r.output
