@@ -15,7 +15,9 @@ turns one into the matching StorageError, naming the file.
 from __future__ import annotations
 
 import errno
+import functools
 import os
+from typing import Any
 
 from orbitrig.errors import OrbitrigError
 
@@ -32,6 +34,11 @@ class StorageError(OrbitrigError):
     def __init__(self, path: str | os.PathLike[str], reason: str):
         self.path, self.reason = str(path), reason
         super().__init__(f"{self.path}: {reason}")
+
+    def __reduce__(
+        self,
+    ) -> tuple[Any, tuple[Any, ...]]:  # rebuilt from its fields where it crosses processes (report's workers)
+        return type(self), (self.path, self.reason)
 
 
 class StorageFullError(StorageError):
@@ -52,6 +59,10 @@ class StorageFullError(StorageError):
         self.needed, self.free = needed, free
         super().__init__(path, f"{problem}: {advice}")
 
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        rebuild = functools.partial(type(self), advice=self.advice, needed=self.needed, free=self.free)
+        return rebuild, (self.path, self.problem)
+
     def advising(self, advice: str) -> StorageFullError:
         """The same error advising `advice` instead (an export: export again)."""
         return StorageFullError(self.path, self.problem, advice=advice, needed=self.needed, free=self.free)
@@ -64,6 +75,9 @@ class RunDirError(OrbitrigError):
         self.file = str(file)
         self.reason = reason
         super().__init__(f"{self.file}: {reason}")
+
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        return type(self), (self.file, self.reason)
 
 
 def storage_error(path: str | os.PathLike[str], doing: str, err: BaseException) -> StorageError:
