@@ -15,7 +15,6 @@ import pty
 import re
 import select
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -26,6 +25,7 @@ import pytest
 from pymodbus.client import ModbusTcpClient
 
 from support.mqtt_helpers import ACCOUNTS, REPO, Broker, RigClient, Service, write_matrices
+from support.sim_drive_helpers import sim_control as control
 from orbitrig.config import rig_from_text
 
 FAULT_COMM_LOSS = 7510
@@ -108,15 +108,6 @@ def detached_sim(tmp_path):
             sim.terminate()
             sim.wait(10)
         cable.close()
-
-
-def control(endpoints: dict, **request) -> dict:
-    host, port = endpoints["control"].removeprefix("tcp://").split(":")
-    with socket.create_connection((host, int(port)), timeout=5) as s:
-        s.sendall((json.dumps(request) + "\n").encode())
-        reply = json.loads(s.makefile().readline())
-    assert reply["ok"], reply
-    return reply
 
 
 def rig_config(endpoints: dict) -> str:

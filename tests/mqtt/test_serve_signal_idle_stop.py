@@ -21,6 +21,7 @@ import pytest
 from drives import registers as R
 from support.mqtt_helpers import ACCOUNTS, REPO, RigClient, Service, write_matrices
 from support.rig_configs import lab_record_config
+from support.sim_drive_helpers import sim_control as control
 
 pytestmark = pytest.mark.timeout(240)
 
@@ -45,15 +46,6 @@ def sim_process(tmp_path):
         if sim.poll() is None:
             sim.terminate()
             sim.wait(10)
-
-
-def control(endpoints: dict, **request) -> dict:
-    host, port = endpoints["control"].removeprefix("tcp://").split(":")
-    with socket.create_connection((host, int(port)), timeout=5) as s:
-        s.sendall((json.dumps(request) + "\n").encode())
-        reply = json.loads(s.makefile().readline())
-    assert reply["ok"], reply
-    return reply
 
 
 def serve(broker, tmp_path, rig_id: str, modbus_url: str) -> Service:

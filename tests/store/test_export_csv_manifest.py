@@ -7,16 +7,13 @@ complete operating point exports nothing and exits 1 (real `orbitrig` subprocess
 from __future__ import annotations
 
 import csv
-import os
-import subprocess
-import sys
 
 import pytest
 
 from orbitrig.store.export import export_run
 from orbitrig.store.export_manifest import MANIFEST, listed
 
-from support.paths import ROOT
+from support.cli_helpers import orbitrig
 
 
 @pytest.fixture(scope="module")
@@ -28,16 +25,7 @@ def three(tmp_path_factory):
 
 
 def _orbitrig(*args):
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    return subprocess.run(
-        [sys.executable, "-m", "orbitrig", *map(str, args)],
-        cwd=ROOT,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=120,
-        stdin=subprocess.DEVNULL,
-    )
+    return orbitrig(*map(str, args))
 
 
 def _points_in(folder):

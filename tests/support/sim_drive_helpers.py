@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+import socket
 import time
 
 # Control words of docs/protocols/drive-modbus.md.
@@ -74,3 +76,14 @@ class SpeedupClock:
 
     def __call__(self) -> float:
         return (time.monotonic() - self.t0) * self.speedup
+
+
+def sim_control(endpoints: dict, **request) -> dict:
+    """One request to the simulator's control API (docs/protocols/sim-control.md) at
+    ``endpoints["control"]`` (tcp://HOST:PORT): its reply, which must be ok."""
+    host, port = endpoints["control"].removeprefix("tcp://").split(":")
+    with socket.create_connection((host, int(port)), timeout=5) as s:
+        s.sendall((json.dumps(request) + "\n").encode())
+        reply = json.loads(s.makefile().readline())
+    assert reply["ok"], reply
+    return reply
