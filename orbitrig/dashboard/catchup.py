@@ -14,10 +14,13 @@ the pages get a ``gap`` message: results published between ``from`` and ``to`` m
 
 from __future__ import annotations
 
+import logging
 from typing import Any
 
 import orbitrig.service.protocol as proto
 from orbitrig.dashboard.feed import FeedType
+
+log = logging.getLogger(__name__)
 
 
 def subscriptions(topics: proto.Topics) -> list[tuple[str, int]]:
@@ -30,6 +33,24 @@ def subscriptions(topics: proto.Topics) -> list[tuple[str, int]]:
 def topic_names(topics: proto.Topics) -> list[str]:
     """The topics of :func:`subscriptions` alone (to unsubscribe)."""
     return [topic for topic, _ in subscriptions(topics)]
+
+
+async def move_subscriptions(client: Any, old: proto.Topics, new: proto.Topics, user: str) -> bool:
+    """Subscribe ``client`` to rig ``new`` (its retained status comes), then unsubscribe from ``old``;
+    True when the new subscriptions were confirmed. In this order a late acknowledgement of either
+    (aiomqtt raises although the broker carries it out) never leaves the session reading nothing;
+    the old rig's messages that still come are ignored (the session reads the rig it watches)."""
+    subscribed = True
+    try:
+        await client.subscribe(subscriptions(new))
+    except Exception as err:  # noqa: BLE001 - aiomqtt errors: the connection loop subscribes again
+        log.info("session of %r: subscription to %s deferred: %s", user, new.prefix, err)
+        subscribed = False
+    try:
+        await client.unsubscribe(topic_names(old))
+    except Exception as err:  # noqa: BLE001 - as above; the broker's session may keep old until it ends
+        log.info("session of %r: unsubscribe from %s not confirmed: %s", user, old.prefix, err)
+    return subscribed
 
 
 def connect_properties(catch_up_s: int) -> Any:

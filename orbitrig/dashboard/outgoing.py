@@ -149,9 +149,10 @@ class Outgoing:
             task.add_done_callback(_REREADS.discard)
 
     async def _reread_status(self, client: Any, topics: proto.Topics) -> None:
-        """Subscribe to the rig's status again: the broker hands the retained one over (the present state)."""
+        """Subscribe to the rig's status again: the broker replaces the subscription and hands the retained
+        status over (the present state). No unsubscribe first: one whose acknowledgement came late would
+        raise with the subscription gone, and the session would read nothing of the rig."""
         try:
-            await client.unsubscribe(topics.status)
             await client.subscribe(topics.status, qos=1)
         except Exception as err:  # noqa: BLE001 - aiomqtt errors: the link went; it subscribes again when back
             log.info("session of %r: status not read again: %s", self.user, err)

@@ -36,7 +36,7 @@ from typing import Any
 import orbitrig.service.protocol as proto
 from daq.backoff import Backoff
 from orbitrig.dashboard.alarms import AlarmBook, AlarmShelf
-from orbitrig.dashboard.catchup import connect_properties, gap_message, subscriptions, topic_names
+from orbitrig.dashboard.catchup import connect_properties, gap_message, move_subscriptions, subscriptions, topic_names
 from orbitrig.dashboard.commands import PAGE_COMMANDS
 from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
 from orbitrig.dashboard.outgoing import Outgoing
@@ -164,12 +164,8 @@ class Session(Outgoing):
         self.adopt(peers)
         log.info("session of %r: now watching %s", self.user, new.prefix)
         if client is not None:
-            try:
-                await client.unsubscribe(topic_names(old))
-                await client.subscribe(subscriptions(new))  # the new rig's retained status comes
+            if await move_subscriptions(client, old, new, self.user):
                 self._subscribed = new
-            except Exception as err:  # noqa: BLE001 - aiomqtt errors: the connection loop subscribes again
-                log.info("session of %r: subscription to %s deferred: %s", self.user, new.prefix, err)
         return {"ok": True, "prefix": new.prefix}
 
     def touch(self) -> None:
@@ -256,12 +252,12 @@ class Session(Outgoing):
         """Subscribe to the rig watched (and the rigs' statuses); a resumed session's subscriptions to a
         rig left while the link was down go."""
         old = self._subscribed
-        if old is not None and old != self.topics and client.session_present:
-            await client.unsubscribe(topic_names(old))
         await client.subscribe(subscriptions(self.topics))
         if self.rigs.pattern is not None:
             await client.subscribe(self.rigs.pattern, qos=1)
         self._subscribed = self.topics
+        if old is not None and old != self.topics and client.session_present:
+            await client.unsubscribe(topic_names(old))
 
     def _link_back(self, caught_up: bool) -> None:
         """The broker link is back after a drop: the pages learn whether the results published meanwhile

@@ -89,6 +89,8 @@ async def test_the_same_abort_after_a_reconnection_aborts_the_new_run(broker, tm
         async with serving(broker, tmp_path, "again-rig", url=proxy.url, speedup=4) as (svc, sim_rig, rc):
             assert (await wait(rc.command, {"cmd": "start", "matrix": "long"}))["ok"] is True
             await wait(rc.status, "running")
+            # the run holds the drives (before, its abort is the service's own emergency stop, said in the reply)
+            await until(lambda: min(abs(w) for w in sim_rig.speeds) > 1.0, 60, "both drives turning")
             mark = await wait(publish_abort, rc, "a1")  # e.g. mosquitto_pub from the shell's history
             assert await wait(rc.reply, "a1", 10, mark) == {"id": "a1", "ok": True}
             await wait(rc.status, lambda s: s["state"] == "idle" and "aborted" in s["message"], 60, mark)
@@ -96,6 +98,7 @@ async def test_the_same_abort_after_a_reconnection_aborts_the_new_run(broker, tm
             mark = rc.watch.mark()
             assert (await wait(rc.command, {"cmd": "start", "matrix": "long"}))["ok"] is True
             running = await wait(rc.status, "running", 30, mark)
+            await until(lambda: min(abs(w) for w in sim_rig.speeds) > 1.0, 60, "both drives turning again")
             before = svc.link.connections
             proxy.cut()
             await until(lambda: not svc.link.online.is_set(), 30, "the service sees its link drop")
