@@ -8,7 +8,6 @@ import signal
 
 import pytest
 from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, make_models, serve, SimDrives, start_cli
-from sim.drive_registers import COMM_LOSS_FAULT as COMM_LOSS
 
 pytestmark = pytest.mark.timeout(60)
 SW_AT_SETPOINT = 0x100
@@ -60,15 +59,6 @@ async def _finish(proc) -> tuple[int, str]:
     return proc.returncode, err.decode()
 
 
-def _not_the_watchdog(sim, dev: int) -> bool:
-    """No comm-loss trip while the command still talked to the drive. The watchdog stays armed
-    after the command leaves (at standstill), so on a starved machine it may latch 7510 before
-    this read: then no request came after the silence that tripped it."""
-    model = sim.models[dev]
-    fault = sim.regs(dev)["FAULT"]
-    return fault == 0 or (fault == COMM_LOSS and model.comm_lost_after == model.last_request)
-
-
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT], ids=["SIGTERM", "SIGHUP", "SIGQUIT"])
 async def test_sigterm_and_sighup_end_the_hold_with_a_ramp(slow_sim, sig):
     sim = slow_sim
@@ -78,7 +68,7 @@ async def test_sigterm_and_sighup_end_the_hold_with_a_ramp(slow_sim, sig):
     assert code == 0, err
     assert f"{sig.name}: ramping both drives to zero" in err and "Traceback" not in err
     for dev in (1, 2):
-        assert sim.regs(dev)["CW"] == CW_RAMP_STOP and _not_the_watchdog(sim, dev)
+        assert sim.regs(dev)["CW"] == CW_RAMP_STOP and sim.not_the_watchdog(dev)
     await sim.wait_stopped()
 
 
@@ -93,5 +83,5 @@ async def test_a_second_signal_during_the_ramp_is_an_emergency_stop(slow_sim):
     assert code == 4, err
     assert "SIGINT again during the ramp: drives: emergency stop (OFF3)" in err
     for dev in (1, 2):
-        assert sim.regs(dev)["CW"] == CW_EMERGENCY and _not_the_watchdog(sim, dev)
+        assert sim.regs(dev)["CW"] == CW_EMERGENCY and sim.not_the_watchdog(dev)
     await sim.wait_stopped()

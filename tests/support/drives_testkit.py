@@ -57,6 +57,14 @@ class SimDrives:
             await asyncio.sleep(0.01)
         return time.monotonic() - t0
 
+    def not_the_watchdog(self, dev: int) -> bool:
+        """No comm-loss trip (fault 7510) while a client still talked to drive ``dev``. The
+        watchdog stays armed after the last client leaves (at standstill), so on a starved
+        machine it may latch 7510 before this read: then no request came after the silence
+        that tripped it."""
+        model, fault = self.models[dev], self.regs(dev)["FAULT"]
+        return fault == 0 or (fault == sim_registers.COMM_LOSS_FAULT and model.comm_lost_after == model.last_request)
+
     async def wait_stopped(self, timeout: float = 3.0) -> float:
         return await self.wait_for(lambda: self.regs(1)["ACT"] == 0 and self.regs(2)["ACT"] == 0, timeout, "standstill")
 
