@@ -17,6 +17,7 @@ configuration is loaded (``_check_record_rig``).
 from __future__ import annotations
 
 import tomllib
+import warnings
 from pathlib import Path
 
 from pydantic import ValidationError
@@ -54,7 +55,7 @@ from orbitrig.config.lab import SHIPPED_RIG_ID, write_lab  # noqa: F401
 from orbitrig.config.sequential import SequentialDesign, band_candidates, candidate_problems  # noqa: F401
 from orbitrig.config.resume import MAY_CHANGE, resume_differences  # noqa: F401
 from orbitrig.config.matrix import MatrixAveraging, MatrixConfig, ModelSpec, Operating, Orbit, PointOrder  # noqa: F401
-from orbitrig.config.messages import _line_of, _problems
+from orbitrig.config.messages import ConfigWarning, _line_of, _problems, reissue  # noqa: F401
 from orbitrig.config.plan_checks import check_matrix_against_rig, plan_warnings, warning_lines  # noqa: F401
 from orbitrig.config.records import (  # noqa: F401
     CalibrationRecord,
@@ -132,9 +133,12 @@ def _parse(text: str, file: str) -> dict:
 
 def _build(cls, data: dict, file: str, text: str):
     try:
-        obj = cls.model_validate(data)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            obj = cls.model_validate(data)
     except ValidationError as err:
         raise ConfigError(file, _problems(err, cls, text)) from err
+    reissue(caught, file, text)  # at the line of the file they concern
     obj._file = file
     obj._text = text
     return obj

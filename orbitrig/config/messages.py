@@ -1,10 +1,13 @@
 """Validation errors as the operator reads them: one line per problem, with
 the file's line number and the key path (``drives.max_spin_rpm``,
-``channels[3].gain``)."""
+``channels[3].gain``); warnings of a validator (:class:`ConfigWarning`) shown at the
+line of the file they concern."""
 
 from __future__ import annotations
 
 import re
+import warnings
+from collections.abc import Iterable
 
 from pydantic import BaseModel, ValidationError
 
@@ -110,3 +113,23 @@ def _problems(err: ValidationError, model: type[BaseModel], text: str = "") -> l
             msg = e["msg"].removeprefix("Value error, ")
             out.append(f"{where}key '{key}': {msg}{_got(e.get('input'))}")
     return out
+
+
+class ConfigWarning(UserWarning):
+    """A setting allowed but unwise; ``loc``: its key path (``("drives", "link_loss_polls")``).
+    Raised by a validator; shown at the file and line of that key (:func:`reissue`)."""
+
+    def __init__(self, message: str, loc: tuple):
+        super().__init__(message)
+        self.loc = loc
+
+
+def reissue(caught: Iterable[warnings.WarningMessage], file: str, text: str) -> None:
+    """Warn again what validating ``file`` (its ``text``) warned: a ConfigWarning at the line of its
+    key (else of its table, else line 1), any other warning where it came from."""
+    for w in caught:
+        if isinstance(w.message, ConfigWarning):
+            line = _line_of(text, w.message.loc) or 1
+            warnings.warn_explicit(w.message, w.category, file, line)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)

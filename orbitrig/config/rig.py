@@ -21,6 +21,7 @@ from orbitrig.config.fields import (
     Wait,
     _Model,
 )
+from orbitrig.config.messages import ConfigWarning
 
 
 class Transports(_Model):
@@ -135,11 +136,8 @@ class Drives(_Model):
                 "stop on their own watchdog before the link loss is declared"
             )
         if t > LINK_LOSS_MARGIN * wd:
-            warnings.warn(
-                f"[drives] {what} is close to comm_loss_timeout_s = {wd:g} s (keep it under {LINK_LOSS_MARGIN:g} x)",
-                UserWarning,
-                stacklevel=2,
-            )
+            close = f"[drives] {what} is close to comm_loss_timeout_s = {wd:g} s (keep it under {LINK_LOSS_MARGIN:g} x)"
+            warnings.warn(ConfigWarning(close, ("drives", "link_loss_polls")), stacklevel=2)
         return self
 
 

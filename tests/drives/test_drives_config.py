@@ -9,6 +9,7 @@ import pytest
 from orbitrig.config import Drives, load_rig
 from orbitrig.errors import ConfigError
 
+from support.cli_helpers import orbitrig
 from support.paths import ROOT
 
 
@@ -46,3 +47,26 @@ def test_close_margin_warns():
 def test_link_loss_polls_positive(n):
     with pytest.raises(ValueError, match="link_loss_polls"):
         Drives(link_loss_polls=n)
+
+
+def test_close_margin_warning_names_the_file_and_line_of_the_setting(tmp_path):
+    text = (ROOT / "config" / "rig.toml").read_text()
+    close = text.replace("timeout_s = 0.15", "timeout_s = 0.2", 1)
+    path = tmp_path / "rig.toml"
+    path.write_text(close)
+    line = next(n for n, s in enumerate(close.splitlines(), 1) if s.startswith("link_loss_polls"))
+    with pytest.warns(UserWarning, match=r"link_loss_polls 3 x .* = 0.90 s is close to") as caught:
+        load_rig(path)
+    (w,) = [w for w in caught if "comm_loss_timeout_s" in str(w.message)]
+    assert (w.filename, w.lineno) == (str(path), line)  # the operator's file, not pydantic's
+
+
+def test_a_close_margin_is_shown_at_the_rig_toml_line_on_the_terminal(tmp_path):
+    text = (ROOT / "config" / "rig.toml").read_text()
+    path = tmp_path / "rig.toml"
+    path.write_text(text.replace("timeout_s = 0.15", "timeout_s = 0.2", 1))
+    done = orbitrig("sweep", "--sim", "--dry-run", "--config", str(path))
+    assert done.returncode == 0, done.stderr
+    first = done.stderr.splitlines()[0]
+    assert first.startswith(f"{path}:") and "close to comm_loss_timeout_s" in first, done.stderr
+    assert "pydantic" not in done.stderr
