@@ -53,6 +53,8 @@ STOP_WORDS = (
 )
 #: who asks for the stop when a wait nobody can answer times out (the commands log's sender)
 UNANSWERED = "orbitrig"
+#: wall s between looks at the cause of a suspension in force (a new cause is noted in the run's events)
+RECHECK_S = 0.5
 
 
 class StopRun(Exception):
@@ -339,7 +341,7 @@ class RunControl:
             raise StopRun
         t0 = time.monotonic()
         self.fire("suspend", f"suspended by interlock: {trip.message}")
-        self.suspension = trip
+        self.suspension, kind = trip, trip.kind
         try:
             while not sup.clear.is_set():
                 self._end_if_aborted()
@@ -349,7 +351,11 @@ class RunControl:
                 if left <= 0:
                     raise RunFailed(f"interlock: {(sup.trip or trip).message} for more than {limit:g} s")
                 self.wake.clear()
-                await _first(sup.clear, self.wake, timeout=left)
+                await _first(sup.clear, self.wake, timeout=min(left, RECHECK_S))
+                now = sup.trip
+                if now is not None and now.kind != kind:  # another cause came first to the check
+                    kind = now.kind
+                    self._note(f"still suspended by interlock: {now.message}")
         finally:
             self.suspension = None
         self._add_time("suspended", t0)

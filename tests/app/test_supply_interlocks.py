@@ -180,6 +180,8 @@ async def test_the_pump_stopping_during_a_block_fails_the_run_after_its_limit(tm
         took = time.monotonic() - t0
     _failed_and_stopped(outcome, sim, "lubricant supply pump is off for more than 1 s")
     assert 1.0 < took < 8.0, took
+    (log,) = (tmp_path / "run").rglob("run.log")  # the pump is named whichever frame tripped first
+    assert "suspended by interlock: lubricant supply pump is off" in log.read_text()
 
 
 # ------------------------------------------------------------------ check() alone (pure)
