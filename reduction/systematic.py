@@ -134,11 +134,7 @@ def systematic_jacobian(ident: Identification, table: OrbitTable) -> tuple[list[
 def uncertainty_budget(ident: Identification, table: OrbitTable, calibration: Calibration, k: float = 2.0) -> Budget:
     """Statistical (the fit's covariance), systematic (calibration, linearised) and combined
     standard uncertainties of every coefficient, and the expanded uncertainty k * combined."""
-    labels, J = systematic_jacobian(ident, table)
-    names, sigma = calibration.parameters()
-    if names != labels:
-        raise ReductionError("calibration parameters do not match the Jacobian's")
-    cov_sys = (J * sigma**2) @ J.T
+    labels, J, cov_sys = _systematic_covariance(ident, table, *calibration.parameters())
     cov_stat = ident.covariance
     cov_comb = None if cov_stat is None else cov_stat + cov_sys
     spec = ident.spec
@@ -160,13 +156,19 @@ def combined_covariance(
     """The combined covariance of :func:`uncertainty_budget` (``Budget.covariance_combined``,
     SI) from a stored budget's calibration parameters ``labels`` and their stated standard
     uncertainties ``sigma``: the fit's covariance plus J diag(sigma^2) J^T; None without one."""
-    names, J = systematic_jacobian(ident, table)
-    if names != list(labels):
+    _, _, cov_sys = _systematic_covariance(ident, table, labels, sigma)
+    return None if ident.covariance is None else ident.covariance + cov_sys
+
+
+def _systematic_covariance(
+    ident: Identification, table: OrbitTable, names: list[str], sigma: np.ndarray
+) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """(labels, J, J diag(sigma^2) J^T) of the calibration parameters ``names`` with standard
+    uncertainties ``sigma``; ReductionError when they are not the Jacobian's."""
+    labels, J = systematic_jacobian(ident, table)
+    if list(names) != labels:
         raise ReductionError("calibration parameters do not match the Jacobian's")
-    if ident.covariance is None:
-        return None
-    cov: np.ndarray = ident.covariance + (J * np.asarray(sigma, dtype=float) ** 2) @ J.T
-    return cov
+    return labels, J, (J * np.asarray(sigma, dtype=float) ** 2) @ J.T
 
 
 def lms_difference(

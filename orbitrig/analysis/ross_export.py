@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from orbitrig.analysis.reduce import identify_point
-from orbitrig.analysis.ross_warnings import bearing_warnings, notes, speed_warnings, warn_or_refuse
+from orbitrig.analysis.ross_warnings import ROSS_LETTERS, bearing_warnings, notes, speed_warnings, warn_or_refuse
 from orbitrig.errors import OrbitrigError
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.csvfile import one_line
@@ -48,7 +48,6 @@ FORMAT = "orbitrig-ross/2"
 ENTRIES = ("xx", "xy", "yx", "yy")
 KEYS = tuple(f"{c}{e}" for c in "kcm" for e in ENTRIES)  # ROSS's names
 HOLD_SPEED = 1.0e5  # rad/s: bearing_elements repeats the end values here (and at 0)
-_ROSS = {"K": "k", "C": "c", "D": "m"}
 CONDITION = ("recess_pressure", "pressure_ratio", "static_eccentricity", "dynamic_eccentricity")  # a bearing's, SI
 CONVENTIONS = {
     "force": "f = -(K d + C d' + M d'') on the journal, d = (x, y) journal displacement, SI",
@@ -106,7 +105,7 @@ def tested_frequencies(point: Point) -> np.ndarray:
 
 def _ross_key(name: str) -> tuple[str, int]:
     """(ROSS key, order) of a coefficient name: ``Kxy_1`` -> ("kxy", 1)."""
-    return _ROSS[name[0]] + name[1:3], int(name.partition("_")[2] or 0)
+    return ROSS_LETTERS[name[0]] + name[1:3], int(name.partition("_")[2] or 0)
 
 
 def _num(v: Any) -> float:

@@ -58,7 +58,7 @@ async def emergency_stop(
     the task of a run the abort cancelled before it held the drives (it may hold their port while
     being opened): if the link cannot be opened, it is tried again once that run has ended (at most
     LET_GO_S)."""
-    name, word, cmd = ("emergency stop", "OFF3", "abort") if emergency else ("ramp stop", "OFF1", "stop")
+    name, word, cmd = _words(emergency)
     what = f"{name} ({word})"
     log.warning("%s: no run holds the drives: %s to both over a link of its own (%s)", cmd, what, url)
     link: ModbusLink | None = None
@@ -82,6 +82,11 @@ async def emergency_stop(
     sent = took_it(pair, errors)
     why = "; ".join(str(err) for err in errors)
     return f"{what} delivered to {', '.join(sent) or 'no drive'} only: {why}; {ESTOP}", None
+
+
+def _words(emergency: bool) -> tuple[str, str, str]:
+    """(the stop's name, its control word, the command it answers) of an emergency or a ramp stop."""
+    return ("emergency stop", "OFF3", "abort") if emergency else ("ramp stop", "OFF1", "stop")
 
 
 async def _open(link: ModbusLink, holder: asyncio.Future[object] | None) -> str | None:
@@ -116,7 +121,7 @@ def start(
     service's: it is waited for; None: of the running loop); ``why``: the request of the service's own
     it carries out (a signal), its outcome then logged. Else (logged) why it cannot be sent: no drive
     link known, or nothing to run it any more (the service has ended)."""
-    cmd = "abort" if emergency else "stop"
+    name, _, cmd = _words(emergency)
     who = f"{cmd} ({why})" if why else cmd
     if drive_link is None:
         log.error("%s: %s", who, NO_DRIVE_LINK)
@@ -124,10 +129,10 @@ def start(
     stop = emergency_stop(*drive_link, holder, emergency=emergency)
     try:
         make = group.create_task if group is not None else asyncio.get_running_loop().create_task
-        task = make(stop, name="drives-emergency-stop" if emergency else "drives-ramp-stop")
+        task = make(stop, name=f"drives-{name.replace(' ', '-')}")
     except RuntimeError as err:  # the service's TaskGroup has finished, or no loop runs
         stop.close()
-        log.error("%s: %s NOT sent: %s; %s", who, "emergency stop" if emergency else "ramp stop", err, ESTOP)
+        log.error("%s: %s NOT sent: %s; %s", who, name, err, ESTOP)
         return f"not sent: {err}; {ESTOP}"
     if why:
         task.add_done_callback(lambda done: _log_outcome(done, who))

@@ -20,7 +20,7 @@ from __future__ import annotations
 import h5py
 import numpy as np
 
-from orbitrig.store.layout import U_COLUMNS, U_UNITS, coefficient_si_unit
+from orbitrig.store.layout import INTERVAL_BASIS_MEANING, U_COLUMNS, U_UNITS, coefficient_si_unit
 
 PER_CHANNEL, PER_COEFFICIENT, PER_SOURCE = "<channel>", "<coefficient>", "<source>"
 #: the description of a name missing from the catalog (the tests find none; a run never fails on it)
@@ -180,10 +180,7 @@ ATTRIBUTES = {
     "bic": ("1", "Bayesian information criterion"),
     "exponent": ("1", "exponent chosen by power:auto"),
     "k": ("1", "coverage factor of the expanded uncertainty"),
-    "interval_95_basis": (
-        "",
-        "what U of interval_95 rests on: combined (statistical and calibration) or statistical only",
-    ),
+    "interval_95_basis": ("", INTERVAL_BASIS_MEANING),
     "covariance": ("", "covariance behind the standard uncertainties: combined or statistical"),
     "max_abs": ("1", "largest |E_n|"),
     "consistent": ("1", "true when chi2 <= limit: the two systems agree on all coefficients at the family-wise level"),

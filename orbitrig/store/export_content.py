@@ -28,7 +28,7 @@ from orbitrig.store.fit_record import (
     expanded_k,
     uncertainty_basis,
 )
-from orbitrig.store.layout import SETTINGS_UNITS
+from orbitrig.store.layout import INTERVAL_BASIS_MEANING, SETTINGS_UNITS
 from orbitrig.store.orbit_table import orbit_table_columns
 
 if TYPE_CHECKING:
@@ -53,10 +53,7 @@ FIT_QUALITY = {
     "interval": ("", "quantile of interval_95_statistical: normal (covariance from the stated u_*) or student_t (dof)"),
     "confidence_level": ("1", "two-sided level of interval_95_statistical (statistical only)"),
     "k": ("1", "coverage factor of the expanded uncertainty U; interval_95 = value -+ U (about 95 %)"),
-    "interval_95_basis": (
-        "",
-        "what U of interval_95 rests on: combined (statistical and calibration) or statistical only",
-    ),
+    "interval_95_basis": ("", INTERVAL_BASIS_MEANING),
 }
 CONFIDENCE_LEVEL = 0.95  # of the identification's confidence_95 (interval_95_statistical)
 #: the names of an array's entries where a format flattens it (``<name>_<part>``)

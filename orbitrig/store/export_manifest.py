@@ -20,8 +20,8 @@ from orbitrig.store.errors import storage_error
 
 MANIFEST = "csv_manifest.txt"
 #: the names a csv export gives its files
-PATTERN = re.compile(r"(point|covariance|derived)_\d+_[\w.-]+\.csv|(coefficients|fits|fit_properties|provenance)\.csv")
 _PER_POINT = re.compile(r"(point|covariance|derived)_\d+_[\w.-]+\.csv")
+PATTERN = re.compile(rf"{_PER_POINT.pattern}|(coefficients|fits|fit_properties|provenance)\.csv")
 HEADER = "# the files the last `orbitrig export --format csv` wrote into this folder, one per line"
 
 

@@ -43,6 +43,8 @@ U_COLUMNS = ("x", "y", "fx", "fy")
 U_UNITS = ("m", "m", "N", "N")
 #: SI unit of each matrix of a coefficient key
 MATRIX_SI = {"K": "N/m", "C": "N s/m", "D": "kg"}
+#: the meaning of ``interval_95_basis`` wherever it is stored or exported
+INTERVAL_BASIS_MEANING = "what U of interval_95 rests on: combined (statistical and calibration) or statistical only"
 
 #: unit of each operating-point setting, as pint parses it ("1" dimensionless, "" text)
 SETTINGS_UNITS = {
