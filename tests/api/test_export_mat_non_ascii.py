@@ -5,14 +5,13 @@ octave-cli turns back into the exact text with ``char(...)``."""
 
 from __future__ import annotations
 
-import subprocess
-
 import numpy as np
 import pytest
 from scipy.io import loadmat
 
 from orbitrig.store.export import export_run
 from orbitrig.store.export_mat import add_utf8, cell
+from support.octave import octave_eval
 
 OPERATOR = "Lager ø50 – Prüfstand"
 CHANNELS = ["Weg ø1", "Weg ø2", "ascii"]  # a cell of texts, two of one length
@@ -53,12 +52,7 @@ def test_a_cell_of_texts_gets_a_cell_of_utf8_rows(tmp_path):
     m = loadmat(tmp_path / "c.mat", simplify_cells=True)
     assert list(m["s"]["channels"]) == CHANNELS
     assert [bytes(b).decode("utf-8") for b in m["s"]["channels_utf8"]] == CHANNELS
-    done = subprocess.run(
-        ["octave-cli", "--no-gui", "--norc", "--eval", "m = load('c.mat'); disp(char(m.s.channels_utf8{2}))"],
-        capture_output=True,
-        timeout=120,
-        cwd=tmp_path,
-    )
+    done = octave_eval("m = load('c.mat'); disp(char(m.s.channels_utf8{2}))", tmp_path, text=False)
     assert done.stdout.decode("utf-8").splitlines()[0] == CHANNELS[1], done.stderr.decode()[-2000:]
 
 
@@ -72,12 +66,7 @@ def test_octave_reads_the_exact_text(mat, tmp_path):
         "end\n"
         "printf('rule=%s\\n', m.unit_rules.text);\n"
     )
-    done = subprocess.run(
-        ["octave-cli", "--no-gui", "--norc", "--eval", script],
-        capture_output=True,
-        timeout=120,
-        cwd=tmp_path,
-    )
+    done = octave_eval(script, tmp_path, text=False)
     out = done.stdout.decode("utf-8")
     rows = dict(line.split("=", 1) for line in out.splitlines() if "=" in line)
     assert set(rows) >= {"operator", "rig_id", "calibration_record_text"}, out + done.stderr.decode()[-2000:]

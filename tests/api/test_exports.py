@@ -9,7 +9,6 @@ from __future__ import annotations
 import csv
 import json
 import shutil
-import subprocess
 
 import h5py
 import numpy as np
@@ -23,6 +22,7 @@ from orbitrig.store.export import export_run
 from orbitrig.store.export_h5 import octave_layout
 from orbitrig.store.orbit_table import read_orbit_table
 from orbitrig.store.reader import read_run
+from support.octave import octave_eval
 
 UREG = pint.UnitRegistry()
 FIT = "piezo__kcd11__none__ols"
@@ -292,13 +292,7 @@ def test_octave_loads_the_h5_export(exported, stored, tmp_path):
         "printf('version %s\\n', x.attributes.software_version);\n"
         "printf('unit %s\\n', x.attributes.points._0000.table.piezo.fx.units);\n"
     )
-    done = subprocess.run(
-        ["octave-cli", "--no-gui", "--norc", "--eval", script],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        cwd=tmp_path,
-    )
+    done = octave_eval(script, tmp_path)
     assert done.returncode == 0 and "warning" not in done.stderr, done.stdout[-2000:] + done.stderr[-2000:]
     rows = {}
     for line in done.stdout.splitlines():
@@ -331,13 +325,7 @@ def test_octave_loads_the_mat_export(exported, stored, tmp_path):
         "printf('fx %.17g %.17g\\n', [real(fx) imag(fx)]');\n"
         "printf('version %s\\n', m.run.software_version);\n"
     )
-    done = subprocess.run(
-        ["octave-cli", "--no-gui", "--norc", "--eval", script],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        cwd=tmp_path,
-    )
+    done = octave_eval(script, tmp_path)
     lines = done.stdout.splitlines()
     assert "cov 11 11 11" in lines, done.stdout + done.stderr[-2000:]
     np.testing.assert_array_equal([float(ln.split()[1]) for ln in lines if ln.startswith("U ")], stored["U"])

@@ -5,12 +5,11 @@ text datasets are fixed-length (GNU Octave reads them), and octave-cli loads the
 
 from __future__ import annotations
 
-import subprocess
-
 import h5py
 import numpy as np
 import pint
 import pytest
+from support.octave import octave_eval
 
 UREG = pint.UnitRegistry()
 _ANNOTATIONS = {
@@ -116,13 +115,7 @@ def test_octave_loads_run_h5(sim_run, tmp_path):
         "printf('orbit_hz %.17g\\n', x.points.('_0000').table.piezo.orbit_hz);\n"
         "printf('channels %s\\n', strjoin(cellstr(x.channels)', ','));\n"
     )
-    done = subprocess.run(
-        ["octave-cli", "--no-gui", "--norc", "--eval", script],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        cwd=tmp_path,
-    )
+    done = octave_eval(script, tmp_path)
     lines = done.stdout.splitlines()
     assert "names Kxx,Kxy,Kyx,Kyy,Cxx,Cxy,Cyx,Cyy,Dxx,Dxy,Dyx,Dyy" in lines, done.stdout + done.stderr[-2000:]
     assert "channels fx_piezo,fy_piezo,fx_strain,fy_strain,x_a,y_a,x_b,y_b" in lines

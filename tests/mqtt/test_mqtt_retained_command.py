@@ -16,26 +16,39 @@ from orbitrig.config import load_matrix
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
 
 
+class StartRecorder:
+    """An engine factory that records the matrix of each start it is asked for and starts no run."""
+
+    def __init__(self) -> None:
+        self.started: list[str] = []
+
+    def __call__(self, name, matrix):
+        self.started.append(name)
+        raise RuntimeError("engine not available in this test")
+
+
+def _service(broker, rig_id: str, matrices: Path, factory) -> RigService:
+    """The service of ``rig_id`` on the broker as the shipped service account, on ``matrices``."""
+    return RigService(
+        ServiceSettings(rig_id=rig_id, matrices_dir=matrices),
+        BrokerSettings.from_url(broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]),
+        engine_factory=factory,
+        load_matrix=load_matrix,
+    )
+
+
 async def test_retained_start_is_refused_and_starts_nothing(broker, tmp_path: Path):
     rig_id = "retained1"
     topic = f"orbitrig/{rig_id}/cmd"
-    started: list[str] = []
-
-    def factory(name, matrix):
-        started.append(name)
-        raise RuntimeError("engine not available in this test")
+    factory = StartRecorder()
+    started = factory.started
 
     done = await asyncio.to_thread(
         broker.pub, topic, json.dumps({"cmd": "start", "id": "stale", "matrix": "quick"}), retain=True
     )
     assert done.returncode == 0, done.stderr
     rc = RigClient(broker, rig_id)
-    service = RigService(
-        ServiceSettings(rig_id=rig_id, matrices_dir=write_matrices(tmp_path / "matrices")),
-        BrokerSettings.from_url(broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]),
-        engine_factory=factory,
-        load_matrix=load_matrix,
-    )
+    service = _service(broker, rig_id, write_matrices(tmp_path / "matrices"), factory)
     stop = asyncio.Event()
     task = asyncio.create_task(service.serve(stop))
     try:
@@ -58,12 +71,7 @@ async def test_retained_stop_and_abort_are_accepted(broker, tmp_path: Path):
     rig_id = "retained2"
     topic = f"orbitrig/{rig_id}/cmd"
     rc = RigClient(broker, rig_id)
-    service = RigService(
-        ServiceSettings(rig_id=rig_id, matrices_dir=write_matrices(tmp_path / "matrices")),
-        BrokerSettings.from_url(broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]),
-        engine_factory=lambda name, matrix: None,  # no run is started here
-        load_matrix=load_matrix,
-    )
+    service = _service(broker, rig_id, write_matrices(tmp_path / "matrices"), lambda name, matrix: None)  # no run
     stop = asyncio.Event()
     task = None
     try:
@@ -90,22 +98,14 @@ async def test_a_command_published_retained_to_a_listening_service_is_carried_ou
     the same message handed over at the service's next start is refused."""
     rig_id = "retained3"
     topic = f"orbitrig/{rig_id}/cmd"
-    started: list[str] = []
-
-    def factory(name, matrix):
-        started.append(name)
-        raise RuntimeError("engine not available in this test")
+    factory = StartRecorder()
+    started = factory.started
 
     rc = RigClient(broker, rig_id)
     matrices = write_matrices(tmp_path / "matrices")
 
     def service() -> RigService:
-        return RigService(
-            ServiceSettings(rig_id=rig_id, matrices_dir=matrices),
-            BrokerSettings.from_url(broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]),
-            engine_factory=factory,
-            load_matrix=load_matrix,
-        )
+        return _service(broker, rig_id, matrices, factory)
 
     stop = asyncio.Event()
     task = asyncio.create_task(service().serve(stop))
