@@ -11,11 +11,13 @@ from __future__ import annotations
 import importlib
 
 import typer
-import typer.core
+import typer.main
 
-app = typer.Typer(
+from orbitrig.cli.help_text import command_group
+
+app = command_group(
+    "Fluid-film bearing test rig: acquisition, drives, sweep, identification.",
     name="orbitrig",
-    help="Fluid-film bearing test rig: acquisition, drives, sweep, identification.",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
@@ -65,22 +67,8 @@ def version() -> None:
     _print_version(True)
 
 
-def _flags_without_type(command) -> None:
-    """Typer's rich help (0.29, on its own copy of click) shows every option's type,
-    flags included ("<bool>", also for --help), although a flag takes no value; an
-    empty metavar leaves the type column blank. Walks ``command`` and its sub-commands."""
-    for param in command.get_params(typer.Context(command)):  # includes the cached --help option
-        if isinstance(param, typer.core.TyperOption) and param.is_flag:
-            param.metavar = ""
-    if isinstance(command, typer.core.TyperGroup):
-        for sub in command.commands.values():
-            _flags_without_type(sub)
-
-
 def main() -> None:
-    command = typer.main.get_command(app)
-    _flags_without_type(command)
-    command()
+    typer.main.get_command(app)()
 
 
 if __name__ == "__main__":

@@ -31,6 +31,7 @@ from typing import Optional
 
 import typer
 
+from orbitrig.cli.help_text import command_group
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
 from orbitrig.cli.signals import run_until_signal
 
@@ -50,8 +51,8 @@ _REF_U = "its certificate's relative standard uncertainty (%); required on the r
 
 
 def register(app: typer.Typer) -> None:
-    cal = typer.Typer(
-        help="Calibrate the load measuring systems and probes; the calibration records.", no_args_is_help=True
+    cal = command_group(
+        "Calibrate the load measuring systems and probes; the calibration records.", no_args_is_help=True
     )
     app.add_typer(cal, name="calibrate")
     for name, command in (

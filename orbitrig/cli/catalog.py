@@ -15,8 +15,10 @@ from typing import Annotated, Optional
 
 import typer
 
-catalog_app = typer.Typer(
-    help="The campaign catalog: one row per operating point and fit, across runs.", no_args_is_help=True
+from orbitrig.cli.help_text import command_group
+
+catalog_app = command_group(
+    "The campaign catalog: one row per operating point and fit, across runs.", no_args_is_help=True
 )
 
 CATALOG_ENV = "ORBITRIG_CATALOG"

@@ -27,13 +27,13 @@ from orbitrig.cli.drives_checks import (  # effective_limits is part of this com
     open_config,
 )
 from orbitrig.cli.drives_stop import reason, report, stop_drives, stop_outcome
+from orbitrig.cli.help_text import command_group
 
 
 def register(app: typer.Typer) -> None:
     """Add the `drives` sub-app to the `orbitrig` command."""
-    drives_app = typer.Typer(
-        help="Spindle drives over Modbus: status, run to a setpoint (and hold), stop.",
-        no_args_is_help=True,
+    drives_app = command_group(
+        "Spindle drives over Modbus: status, run to a setpoint (and hold), stop.", no_args_is_help=True
     )
     for add in (_add_status, _add_run, _add_stop):
         add(drives_app)

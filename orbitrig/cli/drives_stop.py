@@ -4,8 +4,6 @@ took the stop word that is sent without reading first when the drives cannot be 
 
 from __future__ import annotations
 
-import asyncio
-
 
 def reason(err: BaseException) -> str:
     from drives.errors import (
@@ -66,6 +64,8 @@ async def stop_drives(url, d, emergency, timeout, interrupt) -> int:
     """Stop both drives and wait for standstill. If the drives cannot be opened (a DriveError, or a
     signal while opening them: nothing was sent yet), the stop words still go to each drive that
     answers, and the message names those that took it."""
+    import asyncio  # here, not at the top: `orbitrig --help` loads this module
+
     from drives.errors import DriveError
     from orbitrig.cli.drives_hold import _state_lines
     from orbitrig.cli.terminal import say

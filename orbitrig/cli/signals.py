@@ -13,7 +13,6 @@ the way out waits for (a prompt, a read) ends at once, so a second Ctrl-C is nev
 
 from __future__ import annotations
 
-import asyncio
 import signal
 from collections.abc import Awaitable, Callable
 from typing import TypeVar
@@ -52,6 +51,7 @@ def signal_cause(sig: int) -> str:
 def run_until_signal(make: Callable[[], Awaitable[T]]) -> T:
     """``asyncio.run(make())``, cancelled by the first of SIGNALS and again by each further one
     (raises Interrupted, naming the first, after the coroutine's own way out has run)."""
+    import asyncio  # here, not at the top: `orbitrig --help` loads this module
 
     async def main() -> T:
         task = asyncio.current_task()

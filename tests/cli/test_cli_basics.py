@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import os
 import re
+import subprocess
+import sys
 
 import pytest
 from support.cli_helpers import orbitrig
+from support.paths import ROOT
 
 import orbitrig as package
 
@@ -38,6 +42,40 @@ def test_root_help_lists_every_command_and_no_type_on_flags():
     for name in ("identify", "sim", "acquire", "sweep", "reduce", "report", "serve", "drives", "--version"):
         assert name in p.stdout
     assert "<bool>" not in p.stdout
+
+
+HELP_PROBE = """
+import sys
+import typer.main
+import orbitrig.cli
+try:
+    typer.main.get_command(orbitrig.cli.app)(["--help"], prog_name="orbitrig")
+except SystemExit:
+    pass
+print(sorted(n for n in sys.modules if n.split(".")[0] in ("rich", "asyncio", "numpy")))
+"""
+
+
+def test_root_help_shows_each_commands_whole_first_sentence_in_plain_text():
+    """Plain text at any width: no box drawing, no description cut short with "..." where the
+    names leave less room (click's default), and `--help` loads neither rich nor asyncio."""
+    env = {**os.environ, "COLUMNS": "60"}
+    p = subprocess.run(
+        [sys.executable, "-c", HELP_PROBE], cwd=ROOT, env=env, capture_output=True, text=True, timeout=60
+    )
+    assert p.returncode == 0, p.stderr
+    *help_lines, loaded = p.stdout.splitlines()
+    assert loaded == "[]"
+    text = "\n".join(help_lines)
+    assert "\u2500" not in text and "\u2502" not in text
+    commands = help_lines[help_lines.index("Commands:") :]
+    assert not [line for line in commands if line.endswith("...")]
+    assert max(len(line) for line in help_lines) <= 60
+    flat = " ".join(text.split())
+    assert (
+        "design Predict the coefficients' standard errors for a list of orbit frequencies and propose a better list."
+        in flat
+    )
 
 
 @pytest.mark.parametrize("command", COMMANDS)
