@@ -125,28 +125,6 @@ class DriveStatus:
         }
 
 
-class SettleDetector:
-    """True once a condition has held continuously for `hold` seconds (pure)."""
-
-    def __init__(self, hold: float):
-        if hold < 0:
-            raise ValueError(f"hold {hold} s is negative")
-        self.hold = float(hold)
-        self._since: float | None = None
-
-    def update(self, ok: bool, t: float) -> bool:
-        """Feed one observation at time `t` (s); returns whether it has settled."""
-        if not ok:
-            self._since = None
-            return False
-        if self._since is None:
-            self._since = t
-        return t - self._since >= self.hold
-
-    def reset(self) -> None:
-        self._since = None
-
-
 class Drive:
     """One drive: parameters, status, start/stop through CW/SW, references in rad/s.
 

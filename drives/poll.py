@@ -37,21 +37,11 @@ from drives.drive import Drive, DriveStatus
 from drives.errors import DriveError, DriveFaultError, DriveLinkError, DriveTimeoutError
 from drives.limits import fmt_speed
 from drives.link import ModbusLink
+from drives.poll_pace import PollPace, wait_tick
 from drives.state import RigDriveState
 from drives.stop import StopSender
 
 log = logging.getLogger(__name__)
-
-
-async def wait_tick(tick: asyncio.Event, timeout: float) -> None:
-    """Wait up to `timeout` s for `tick` (a DrivePoll's publish). A cancellation always gets
-    through: `asyncio.wait_for` of Python 3.11 drops one that arrives as the event fires, and an
-    abort that cancels a wait for standstill or for the setpoint must not be lost."""
-    waiter = asyncio.ensure_future(tick.wait())
-    try:
-        await asyncio.wait({waiter}, timeout=max(0.0, timeout))
-    finally:
-        waiter.cancel()
 
 
 class StopTripError(DriveFaultError):
@@ -105,6 +95,7 @@ class DrivePoll:
         self.drives = drives
         self._stops = stops or StopSender(drives)  # the owner's: its stops and these never interleave
         self.poll_interval = poll_interval
+        self.pace = PollPace(poll_interval)
         self.link_loss_polls = link_loss_polls
         self._loss_polls_given = loss_polls_given
         self.state = RigDriveState(None, None, link_ok=False)
@@ -238,9 +229,10 @@ class DrivePoll:
         tick.set()
 
     async def run(self) -> None:
-        """Poll until cancelled, every `poll_interval` s; a late poll is not made up."""
-        next_t = time.monotonic()
+        """Poll until cancelled, every `poll_interval` s (a late poll is not made up), and
+        when `pace.ask`ed."""
         while True:
+            await self.pace.next_poll()
             try:
                 await self._poll_once()
             except asyncio.CancelledError:
@@ -248,11 +240,6 @@ class DrivePoll:
             except Exception as err:  # a bug must not end the heartbeat
                 log.exception("drive poll failed")
                 self.fail(DriveError(f"poll failed: {err!r}"))
-            next_t += self.poll_interval
-            now = time.monotonic()
-            if next_t < now:  # late (slow link): poll again now, do not bunch up
-                next_t = now
-            await asyncio.sleep(next_t - now)
 
     async def _poll_once(self) -> None:
         try:

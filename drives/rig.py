@@ -44,12 +44,13 @@ import time
 from types import TracebackType
 
 from drives import registers as R
-from drives.drive import Drive, DriveStatus, SettleDetector
+from drives.drive import Drive, DriveStatus
 from drives.errors import DriveError, DriveFaultError, DriveLinkError, DriveTimeoutError
 from drives.limits import DriveLimits, fmt_speed
 from drives.link import ModbusLink
 from drives.pair import drive_names, drive_pair
-from drives.poll import DrivePoll, StopTripError, wait_tick
+from drives.poll import DrivePoll, StopTripError
+from drives.poll_pace import SettleDetector, wait_tick
 from drives.state import RigDriveState
 from drives.stop import StopSender
 
@@ -275,7 +276,9 @@ class RigDrives:
             raise
 
     async def wait_settled(self, *, hold: float, timeout: float) -> RigDriveState:
-        """Return once both drives have held AT_SETPOINT for `hold` s (polled state).
+        """Return once both drives have held AT_SETPOINT of the commanded references for `hold` s
+        (polled state; a poll that read the references from before the command, AT_SETPOINT of
+        the old speeds, does not start the hold).
 
         Raises the fault (DriveFaultError with its code) or link loss
         (DriveLinkError) the poll found, or DriveTimeoutError after `timeout` s.
@@ -286,19 +289,23 @@ class RigDrives:
         detector = SettleDetector(hold)
         deadline = time.monotonic() + timeout
         last_poll = -1
+        self._poll.pace.ask(time.monotonic())  # the first status with the new references: now
         while True:
             tick = self._poll.tick
             if self._poll.failure is not None:
                 raise self._poll.failure
             if self._poll.command is None:
                 raise DriveError("no speeds commanded: call set_speeds() first")
-            st = self._poll.state
+            st, refs = self._poll.state, self._poll.command
             if st.polls != last_poll:
                 last_poll = st.polls
                 if not st.link_ok:
                     detector.reset()
-                elif detector.update(st.at_setpoint, st.time):
+                elif detector.update(st.at_reference(refs), st.time):
                     return st
+                else:  # judged when the hold would end; not there yet: read again in a quarter interval
+                    settles_at = detector.settles_at
+                    self._poll.pace.ask(st.time + self.poll_interval / 4 if settles_at is None else settles_at)
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 raise DriveTimeoutError(

@@ -27,6 +27,14 @@ class RigDriveState:
     def at_setpoint(self) -> bool:
         return bool(self.spin and self.orbit and self.spin.at_setpoint and self.orbit.at_setpoint)
 
+    def at_reference(self, refs: tuple[int, int]) -> bool:
+        """Both drives AT_SETPOINT with REF reading the raw references `refs` (spin, orbit): a
+        poll that read the drives before those were written (AT_SETPOINT of the old ones) does
+        not count."""
+        if self.spin is None or self.orbit is None or not self.at_setpoint:
+            return False
+        return (self.spin.reference_raw, self.orbit.reference_raw) == tuple(refs)
+
     @property
     def stopped(self) -> bool:
         """Both drives read an actual speed of exactly zero."""

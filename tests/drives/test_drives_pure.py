@@ -7,7 +7,7 @@ import math
 import pytest
 
 from drives import registers as R
-from drives.drive import SettleDetector
+from drives.poll_pace import SettleDetector
 from drives.errors import (
     DriveError,
     DriveExceptionResponse,
@@ -105,9 +105,13 @@ def test_limits():
 
 def test_settle_detector_needs_an_unbroken_hold():
     s = SettleDetector(0.5)
+    assert s.settles_at is None
     assert not s.update(True, 0.0)
+    assert s.settles_at == 0.5
     assert not s.update(True, 0.4)
     assert not s.update(False, 0.45)
+    assert s.settles_at is None
     assert not s.update(True, 0.5)
+    assert s.settles_at == 1.0
     assert not s.update(True, 0.9)
     assert s.update(True, 1.0)

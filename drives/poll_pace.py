@@ -1,0 +1,84 @@
+"""When the drive poll reads the drives: at a steady pace, and sooner when asked; when a
+condition read by the polls has held long enough (`SettleDetector`).
+
+The poll is the drives' heartbeat, so it keeps its pace (every `interval` s; a late poll is
+not made up). The wait for the setpoint asks for extra polls (`PollPace.ask`): one right
+after a speed command and one when the hold would end, so the hold is judged on statuses
+read then, not up to an interval later.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+
+
+async def wait_tick(tick: asyncio.Event, timeout: float) -> None:
+    """Wait up to `timeout` s for `tick` (a DrivePoll's publish). A cancellation always gets
+    through: `asyncio.wait_for` of Python 3.11 drops one that arrives as the event fires, and an
+    abort that cancels a wait for standstill or for the setpoint must not be lost."""
+    waiter = asyncio.ensure_future(tick.wait())
+    try:
+        await asyncio.wait({waiter}, timeout=max(0.0, timeout))
+    finally:
+        waiter.cancel()
+
+
+class PollPace:
+    """The times of the polls: every `interval` s (monotonic), and any asked for in between."""
+
+    def __init__(self, interval: float):
+        self.interval = interval
+        self._due: float | None = None  # the next poll at the pace (None: the first, now)
+        self._asked: float | None = None  # the earliest extra poll asked for
+        self._wake = asyncio.Event()
+
+    def ask(self, at: float) -> None:
+        """A poll no later than `at` (monotonic s), besides those at the pace."""
+        if self._asked is None or at < self._asked:
+            self._asked = at
+            self._wake.set()
+
+    async def next_poll(self) -> None:
+        """Return when the next poll is due: at the pace (the one after is set `interval`
+        later, or now if this one is late), or an extra one asked for (the pace unchanged)."""
+        while True:
+            now = time.monotonic()
+            regular = self._due is None or self._due <= now
+            if regular or (self._asked is not None and self._asked <= now):
+                if self._asked is not None and self._asked <= now:
+                    self._asked = None
+                if regular:
+                    self._due = now + self.interval if self._due is None else max(self._due + self.interval, now)
+                return
+            assert self._due is not None
+            due = self._due if self._asked is None else min(self._due, self._asked)
+            self._wake.clear()
+            await wait_tick(self._wake, due - now)
+
+
+class SettleDetector:
+    """True once a condition has held continuously for `hold` seconds (pure)."""
+
+    def __init__(self, hold: float):
+        if hold < 0:
+            raise ValueError(f"hold {hold} s is negative")
+        self.hold = float(hold)
+        self._since: float | None = None
+
+    def update(self, ok: bool, t: float) -> bool:
+        """Feed one observation at time `t` (s); returns whether it has settled."""
+        if not ok:
+            self._since = None
+            return False
+        if self._since is None:
+            self._since = t
+        return t - self._since >= self.hold
+
+    @property
+    def settles_at(self) -> float | None:
+        """When the condition, holding on, will have held `hold` s (None: not holding now)."""
+        return None if self._since is None else self._since + self.hold
+
+    def reset(self) -> None:
+        self._since = None
