@@ -327,17 +327,21 @@ class Drive:
                 )
             await asyncio.sleep(0.02)
 
-    async def start(self, raw_ref: int) -> DriveStatus:
-        """Run at raw reference `raw_ref`: REF, then CW ready -> RDY_ON, CW run -> RDY_REF.
+    async def start(self, raw_ref: int, status: DriveStatus | None = None) -> DriveStatus:
+        """Run at raw reference `raw_ref`: REF, then CW ready -> RDY_ON, CW run -> RDY_REF; a
+        drive running already takes the REF alone, none if it reads `raw_ref` back.
 
-        A tripped drive is refused with DriveFaultError (reset it first).
+        `status`: a status just read (else it is read here). A tripped drive is refused with
+        DriveFaultError (reset it first).
         """
-        st = await self.read_status()
+        st = status if status is not None else await self.read_status()
         if st.tripped:
             raise DriveFaultError("tripped; reset the fault before starting", **self._kw(R.FAULT, st.fault_code))
-        await self.write_reference(raw_ref)
         if st.running and st.control_word == R.CW_RUN:
+            if st.reference_raw != raw_ref:
+                await self.write_reference(raw_ref)
             return st
+        await self.write_reference(raw_ref)
         await self.write_control(R.CW_READY)
         st = await self.wait_status(
             lambda s: bool(s.status_word & R.SWBit.RDY_ON) and not s.tripped, "ready to switch on"

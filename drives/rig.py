@@ -266,8 +266,9 @@ class RigDrives:
             self._poll.acknowledge()
             self._emergency = False
             self._poll.commanded(refs)
-            for d, raw in zip(self._drives, refs):
-                await d.start(raw)
+            running = all(st.running and st.control_word == R.CW_RUN for st in statuses)  # a new REF at most
+            for d, raw, st in zip(self._drives, refs, statuses):
+                await d.start(raw, st if running else None)  # else each read again as it is started
             log.info("drives commanded: spin %s, orbit %s", fmt_speed(spin), fmt_speed(orbit))
         except BaseException as err:
             if isinstance(err, DriveFaultError) and err.fault_code:
@@ -288,7 +289,7 @@ class RigDrives:
         self._require_open()
         detector = SettleDetector(hold)
         deadline = time.monotonic() + timeout
-        last_poll = -1
+        last_poll, soon = -1, min(self.poll_interval / 4, hold / 10)  # s between reads until both are there
         self._poll.pace.ask(time.monotonic())  # the first status with the new references: now
         while True:
             tick = self._poll.tick
@@ -303,9 +304,8 @@ class RigDrives:
                     detector.reset()
                 elif detector.update(st.at_reference(refs), st.time):
                     return st
-                else:  # judged when the hold would end; not there yet: read again in a quarter interval
-                    settles_at = detector.settles_at
-                    self._poll.pace.ask(st.time + self.poll_interval / 4 if settles_at is None else settles_at)
+                else:  # judged when the hold would end; not there yet: read again soon
+                    self._poll.pace.ask(st.time + soon if detector.settles_at is None else detector.settles_at)
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 raise DriveTimeoutError(

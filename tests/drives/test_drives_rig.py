@@ -274,3 +274,30 @@ async def test_entry_writes_only_parameters_the_drives_do_not_hold(sim):
         assert r._params_to_write(r.spin) == {"comm_loss_timeout": 0.9}
         with pytest.raises(DriveExceptionResponse):  # what that write meets while running
             await r.spin.configure(comm_loss_timeout=0.9)
+
+
+async def test_a_new_orbit_speed_on_running_drives_writes_the_orbit_ref_alone(sim):
+    """Block to block only the orbit speed changes: set_speeds reads both statuses (the trip
+    check) and writes the orbit drive's REF, nothing else; the same speeds again write nothing."""
+    writes: list[tuple[int, int, list[int]]] = []
+    for dev, model in sim.models.items():
+        real = model.write
+
+        def spy(address, values, _dev=dev, _real=real):
+            writes.append((_dev, address, list(values)))
+            return _real(address, values)
+
+        model.write = spy
+    async with rig(sim) as r:
+        await r.set_speeds(1000 * RPM, 600 * RPM)
+        await r.wait_settled(hold=0.05, timeout=5)
+        writes.clear()
+        await r.set_speeds(1000 * RPM, -450 * RPM)
+        assert writes == [(2, sim_registers.REF, [(-3000) & 0xFFFF])]
+        await r.wait_settled(hold=0.05, timeout=5)
+        assert sim.rpm(2) == pytest.approx(-450, abs=5) and sim.rpm(1) == pytest.approx(1000, abs=5)
+        writes.clear()
+        await r.set_speeds(1000 * RPM, -450 * RPM)
+        assert writes == []
+        await r.stop()
+    assert sim.regs(1)["ACT"] == sim.regs(2)["ACT"] == 0
