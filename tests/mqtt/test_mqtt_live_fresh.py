@@ -26,8 +26,12 @@ from support.sweep_helpers import running, small_matrix, wait_for
 
 RIG = "fresh-rig"
 #: two points differing in the orbit radius only (dynamic eccentricity 0.04, then 0.096):
-#: both drives ramp to a confirmed standstill before the second (orbitrig.run.plan)
-RADIUS = MATRIX.format(name="radius2", revs=10, ratios="[0.5, 0.8]", directions='["forward"]').replace(
+#: both drives ramp to a confirmed standstill before the second (orbitrig.run.plan). 40
+#: revolutions a block: about 0.2 s of wall time each at the service's speed-up, so the live
+#: feed (every 0.2 s) sends during each block; the orbit frequency is current only then
+#: (10 revolutions, 50 ms a block, sent during none of the four once the poll read each new
+#: REF at once)
+RADIUS = MATRIX.format(name="radius2", revs=40, ratios="[0.5, 0.8]", directions='["forward"]').replace(
     "dynamic_eccentricity = [0.096]", "dynamic_eccentricity = [0.04, 0.096]"
 )
 #: two points differing in the recess pressure only (0.4826 and 0.6895 MPa): the drives keep turning
