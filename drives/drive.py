@@ -81,6 +81,11 @@ class DriveStatus:
         return self._bit(R.SWBit.RDY_REF)
 
     @property
+    def following(self) -> bool:
+        """Running under the run control word: a new REF is all it takes to change speed."""
+        return self.running and self.control_word == R.CW_RUN
+
+    @property
     def tripped(self) -> bool:
         return self._bit(R.SWBit.TRIPPED)
 
@@ -337,7 +342,7 @@ class Drive:
         st = status if status is not None else await self.read_status()
         if st.tripped:
             raise DriveFaultError("tripped; reset the fault before starting", **self._kw(R.FAULT, st.fault_code))
-        if st.running and st.control_word == R.CW_RUN:
+        if st.following:
             if st.reference_raw != raw_ref:
                 await self.write_reference(raw_ref)
             return st

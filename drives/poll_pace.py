@@ -4,8 +4,8 @@ condition read by the polls has held long enough (`SettleDetector`).
 The poll is the drives' heartbeat, so it keeps its pace (every `interval` s; a late poll is
 not made up). The wait for the setpoint asks for extra polls (`PollPace.ask`): one right
 after a speed command, one every quarter interval (a tenth of a shorter hold) until both
-drives are at their setpoints, and one when the hold would end, so the hold is judged on statuses read then, not up to an
-interval later.
+drives are at their setpoints, and one when the hold would end, so the hold is judged on
+statuses read then, not up to an interval later.
 """
 
 from __future__ import annotations
@@ -45,14 +45,14 @@ class PollPace:
         later, or now if this one is late), or an extra one asked for (the pace unchanged)."""
         while True:
             now = time.monotonic()
-            regular = self._due is None or self._due <= now
-            if regular or (self._asked is not None and self._asked <= now):
-                if self._asked is not None and self._asked <= now:
-                    self._asked = None
-                if regular:
-                    self._due = now + self.interval if self._due is None else max(self._due + self.interval, now)
+            asked = self._asked is not None and self._asked <= now
+            if asked:
+                self._asked = None
+            if self._due is None or self._due <= now:  # at the pace
+                self._due = now + self.interval if self._due is None else max(self._due + self.interval, now)
                 return
-            assert self._due is not None
+            if asked:
+                return
             due = self._due if self._asked is None else min(self._due, self._asked)
             self._wake.clear()
             await wait_tick(self._wake, due - now)

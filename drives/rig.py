@@ -266,9 +266,9 @@ class RigDrives:
             self._poll.acknowledge()
             self._emergency = False
             self._poll.commanded(refs)
-            running = all(st.running and st.control_word == R.CW_RUN for st in statuses)  # a new REF at most
+            following = all(st.following for st in statuses)  # a new REF at most
             for d, raw, st in zip(self._drives, refs, statuses):
-                await d.start(raw, st if running else None)  # else each read again as it is started
+                await d.start(raw, st if following else None)  # else each read again as it is started
             log.info("drives commanded: spin %s, orbit %s", fmt_speed(spin), fmt_speed(orbit))
         except BaseException as err:
             if isinstance(err, DriveFaultError) and err.fault_code:
