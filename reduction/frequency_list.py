@@ -168,13 +168,20 @@ def smooth_noise(ratios: ArrayLike, u_revolution: ArrayLike) -> FloatArray:
     return line
 
 
+def near_one(ratios: ArrayLike, distance: float) -> np.ndarray:
+    """True (per ratio) where |ratio| is closer than ``distance`` to Omega/omega = 1; a ratio at
+    ``distance`` (to rounding: 0.9 and 1.1 at 0.1) is not."""
+    close: np.ndarray = np.abs(np.abs(np.asarray(ratios, dtype=float)) - 1.0) < distance - 1e-9
+    return close
+
+
 def allowed_ratios(lo: float, hi: float, step: float = GRID_STEP, keep_away: float = RUNOUT_KEEP_AWAY) -> np.ndarray:
     """Grid of ratios in [lo, hi] (multiples of ``step``) at least ``keep_away`` from 1."""
     if not 0 < lo < hi:
         raise ReductionError(f"allowed_ratios: need 0 < lo < hi, got {lo:g}, {hi:g}")
     k = np.arange(np.ceil(lo / step - 1e-9), np.floor(hi / step + 1e-9) + 1)
     grid = np.round(k * step, 10)
-    grid = grid[np.abs(grid - 1.0) >= keep_away - 1e-9]
+    grid = np.asarray(grid[~near_one(grid, keep_away)], dtype=float)
     if grid.size == 0:
         raise ReductionError(f"no orbit ratio in [{lo:g}, {hi:g}] stays {keep_away:g} away from 1")
     return grid

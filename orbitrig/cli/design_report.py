@@ -84,11 +84,13 @@ def _band(rig, spin_rpm: float, keep_away: float):
 
 
 def _candidate_warnings(ratios, lo: float, hi: float, keep_away: float) -> list[str]:
+    from reduction.frequency_list import near_one
+
     out = [
         f"ratio {r:g} is within {keep_away:g} of Omega/omega = 1: the orbit is hard to tell from the "
         "spindle's runout there"
-        for r in ratios
-        if abs(r - 1) < keep_away
+        for r, close in zip(ratios, near_one(ratios, keep_away))
+        if close
     ]
     out += [f"ratio {r:g} is outside the drives' band {lo:g} .. {hi:.3g}" for r in ratios if not lo <= r <= hi]
     return out
@@ -231,7 +233,7 @@ def design_object(rig, req: DesignRequest) -> dict:
     goal = req.target / 100 if req.target is not None else None
     if goal is not None and req.match:
         raise DesignInputError("give --target or --match, not both")
-    out = {
+    out: dict[str, Any] = {
         "model": req.model,
         "freq_dep": spec.freq_dep.text,
         "coefficients": spec.names,

@@ -31,7 +31,7 @@ from orbitrig.config.rig import RigConfig
 from orbitrig.config.sequential import candidate_problems
 from orbitrig.errors import ConfigError
 from reduction.errors import IdentifiabilityError
-from reduction.frequency_list import RUNOUT_KEEP_AWAY, SYNCHRONOUS_REFUSAL
+from reduction.frequency_list import RUNOUT_KEEP_AWAY, SYNCHRONOUS_REFUSAL, near_one
 from reduction.identifiability import check_plan
 from reduction.whirl import Directions
 
@@ -52,7 +52,7 @@ def check_matrix_against_rig(matrix: MatrixConfig, rig: RigConfig) -> None:
 def plan_warnings(matrix: MatrixConfig) -> list[str]:
     """What the plan of ``matrix`` runs with but should be said, one line each (naming the line
     and key): the orbit ratios within RUNOUT_KEEP_AWAY of Omega/omega = 1, all in one line."""
-    near = _near_one(matrix, RUNOUT_KEEP_AWAY, RUNOUT_KEEP_AWAY - 1e-9)
+    near = _near_one(matrix, RUNOUT_KEEP_AWAY)
     if near is None:
         return []
     return [
@@ -63,10 +63,11 @@ def plan_warnings(matrix: MatrixConfig) -> list[str]:
     ]
 
 
-def _near_one(matrix: MatrixConfig, within: float, limit: float) -> str | None:
+def _near_one(matrix: MatrixConfig, within: float) -> str | None:
     """ "line N: key 'orbit.KEY': orbit ratios A, B are within WITHIN of Omega/omega = 1" for the
-    matrix's ratios closer to 1 than ``limit``; None when there is none."""
-    near = [r for r in matrix.orbit.ratio_list if abs(abs(r) - 1.0) < limit]
+    matrix's ratios closer to 1 than ``within`` (reduction.frequency_list.near_one); None when there is none."""
+    ratios = matrix.orbit.ratio_list
+    near = [r for r, close in zip(ratios, near_one(ratios, within)) if close]
     if not near:
         return None
     key, many = _ratio_key(matrix), len(near) > 1
@@ -147,7 +148,7 @@ def _supply_problems(matrix: MatrixConfig, rig: RigConfig) -> list[str]:
 
 def _synchronous_problems(matrix: MatrixConfig) -> list[str]:
     """Orbit ratios within SYNCHRONOUS_REFUSAL of Omega/omega = 1 (static and initial lists)."""
-    near = _near_one(matrix, SYNCHRONOUS_REFUSAL, SYNCHRONOUS_REFUSAL)
+    near = _near_one(matrix, SYNCHRONOUS_REFUSAL)
     if near is None:
         return []
     return [

@@ -20,7 +20,7 @@ from pydantic import Field, model_validator
 
 from orbitrig.config.fields import MODELS, Ratio, Seconds, _Model
 from reduction.errors import ReductionError
-from reduction.frequency_list import GRID_STEP, RUNOUT_KEEP_AWAY, allowed_ratios
+from reduction.frequency_list import GRID_STEP, RUNOUT_KEEP_AWAY, allowed_ratios, near_one
 
 if TYPE_CHECKING:
     from orbitrig.config.matrix import MatrixConfig
@@ -73,7 +73,8 @@ def candidate_problems(matrix: MatrixConfig, rig: RigConfig) -> list[KeyedProble
     s = matrix.sequential
     if s is None:
         return []
-    d, problems = rig.drives, []
+    d = rig.drives
+    problems: list[KeyedProblem] = []
     for key, ratios in (("candidates", s.candidates), ("match_ratios", s.match_ratios)):
         loc = ("sequential", key)
         for r in ratios or ():
@@ -94,7 +95,7 @@ def candidate_problems(matrix: MatrixConfig, rig: RigConfig) -> list[KeyedProble
                         f"drives.max_orbit_rpm = {d.max_orbit_rpm:g}",
                     )
                 )
-            if key == "candidates" and abs(r - 1.0) < RUNOUT_KEEP_AWAY - 1e-9:
+            if key == "candidates" and near_one(r, RUNOUT_KEEP_AWAY):
                 problems.append(
                     (
                         loc,

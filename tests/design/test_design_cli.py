@@ -11,6 +11,7 @@ import tomllib
 import numpy as np
 import pytest
 
+from reduction.frequency_list import near_one
 from support.paths import ROOT
 
 KEYS = {
@@ -71,6 +72,15 @@ def test_json_keys_and_numbers():
     assert all(0.1 <= r <= 1.5 and abs(r - 1) >= 0.1 - 1e-9 for r in p["ratios"])
     assert any("0.977778" in w for w in c["warnings"])  # the paper's list has a ratio next to 1
     assert obj["noise"]["u_revolution"] == {"x": 1e-7, "y": 1e-7, "fx": 20.0, "fy": 20.0}
+
+
+def test_a_ratio_at_the_keep_away_distance_is_not_warned_as_within_it():
+    """0.9 and 1.1 are 0.1 from 1 (1 - 0.9 < 0.1 in floating point): the candidate is not warned
+    for them, as the proposal may use them and a matrix's plan is not warned; 0.95 is within."""
+    obj = json.loads(design("--model", "kc8", "--spin", "1000", "--ratios", "0.5,0.9,0.95,1.1", "--json").stdout)
+    within = [w for w in obj["candidate"]["warnings"] if "of Omega/omega = 1" in w]
+    assert len(within) == 1 and within[0].startswith("ratio 0.95 is within 0.1 of Omega/omega = 1")
+    assert near_one([0.9, 1.1, -0.9, 0.95, -1.05, 0.5, 0.99], 0.1).tolist() == [0, 0, 0, 1, 1, 0, 1]
 
 
 def test_target_is_reached_in_less_rig_time():
