@@ -42,6 +42,7 @@ from orbitrig.analysis.report_ahead import FiguresAhead
 from orbitrig.cli.simulated_rig import simulated_rig
 from orbitrig.run.engine import RunEngine
 from orbitrig.run.plan import make_plan
+from orbitrig.run.states import ConfirmMode
 
 TICK = 0.01  # s between heartbeats
 
@@ -121,7 +122,7 @@ async def sweep(
     gaps: list[float] = []
     with tempfile.TemporaryDirectory() as tmp:
         async with simulated_rig(speedup) as (_, access):
-            engine = RunEngine(rig, out_dir=Path(tmp) / "run", access=access, confirm_mode="auto")
+            engine = RunEngine(rig, out_dir=Path(tmp) / "run", access=access, confirm_mode=ConfirmMode.AUTO)
             ahead = FiguresAhead(Path(tmp) / "run")  # as `sweep --draw-figures`
             if draw_figures:
                 engine.subscribe(ahead.on_event)

@@ -28,6 +28,7 @@ from pathlib import Path
 from orbitrig import config as cfg
 from orbitrig.run.engine import RunEngine
 from orbitrig.run.plan import make_plan
+from orbitrig.run.states import ConfirmMode
 from orbitrig.run.steps import Acquire, SetOrbit, SetSpin, Settle, StopDrives
 from rigunits import format_duration
 
@@ -80,7 +81,7 @@ async def main() -> int:
     )
     out = args.out or Path(tempfile.mkdtemp(prefix="bench-sweep-")) / "run"
     async with simulated_rig(args.speedup) as (_, access):
-        engine = RunEngine(rig, out_dir=out, access=access, confirm_mode="auto")
+        engine = RunEngine(rig, out_dir=out, access=access, confirm_mode=ConfirmMode.AUTO)
         t0 = time.monotonic()
         outcome = await engine.run(plan)
         wall = time.monotonic() - t0

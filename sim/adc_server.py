@@ -85,20 +85,21 @@ class PtySink:
                 self._queue.popleft()
             else:
                 self._queue[0] = head[n:]
-        want = bool(self._queue) and self.master is not None
-        if want and not self._writer:
-            self._loop.add_writer(self.master, self._flush)
+        master = self.master
+        want = bool(self._queue) and master is not None
+        if want and master is not None and not self._writer:
+            self._loop.add_writer(master, self._flush)
             self._writer = True
         elif not want and self._writer:
-            if self.master is not None:
-                self._loop.remove_writer(self.master)
+            if master is not None:
+                self._loop.remove_writer(master)
             self._writer = False
 
     def _forget_if_stale(self) -> None:
         """Nobody has read the line for a while: forget what waits in it (the
         tty input queue and the backlog), so a reader that opens the port
         later gets fresh frames, as on a real serial line."""
-        if self._queued < self._limit // 2 or time.monotonic() - self._progress <= STALE_AFTER:
+        if self._slave is None or self._queued < self._limit // 2 or time.monotonic() - self._progress <= STALE_AFTER:
             return
         with contextlib.suppress(OSError):
             termios.tcflush(self._slave, termios.TCIFLUSH)
@@ -108,10 +109,9 @@ class PtySink:
 
     def _drain_input(self) -> None:
         """Discard what a reader writes to the board (it has no commands)."""
-        try:
-            os.read(self.master, 65536)
-        except OSError:
-            pass
+        if self.master is not None:  # the reader is removed on hang-up, before master is cleared
+            with contextlib.suppress(OSError):
+                os.read(self.master, 65536)
 
     def hangup(self) -> None:
         """Close the line: the reader's port gets a hang-up (EIO / POLLHUP)."""

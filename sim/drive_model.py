@@ -43,9 +43,9 @@ current ramp acceleration (rpm/s, signed).
 
 from __future__ import annotations
 
-import collections
 import math
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
 
 from . import drive_registers as R
@@ -108,7 +108,7 @@ class DriveModel:
         self._params = dict(R.PARAMETER_DEFAULTS)
         self._cw_reg = 0  # last written CW (reads back)
         self._cw = 0  # last accepted CW (REMOTE = 1)
-        self.control_words = collections.deque(maxlen=64)  # (wall s, CW) of the last CW writes
+        self.control_words: deque[tuple[float, int]] = deque(maxlen=64)  # (wall s, CW) of the last CW writes
         self._ref_reg = 0  # last written REF, int16
         self._ref = 0  # last accepted REF, int16
         self._ref2 = 0

@@ -207,7 +207,8 @@ async def serve_modbus_tcp(drives: Mapping[int, DriveModel], host: str = "127.0.
         _sim_devices(drives, catch_all=True),
         framer=FramerType.SOCKET,
         address=(host, port),
-        trace_pdu=gate.trace_pdu,
+        # pymodbus types trace_pdu as returning a PDU, yet drops the request on None (its transaction.py)
+        trace_pdu=gate.trace_pdu,  # type: ignore[arg-type]
     )
     await server.serve_forever(background=True)
     bound = cast(asyncio.Server, server.transport).sockets[0].getsockname()[1]
@@ -230,17 +231,21 @@ class _RtuPtyServer:
         self._loop = asyncio.get_running_loop()
         self._drives = dict(drives)
         self._gate = gate
-        self.master, self._slave, self.path = open_raw_pty()
+        master, slave, self.path = open_raw_pty()
+        self.master: int | None = master  # None once shut down
+        self._slave: int | None = slave
         self._rx = bytearray()
         self._tx = bytearray()
         self._writing = False
         self.requests = 0  # well-formed requests received
         self.answered = 0
         self.noise_bytes = 0  # bytes dropped while hunting for a frame
-        self._loop.add_reader(self.master, self._on_readable)
+        self._loop.add_reader(master, self._on_readable)
 
     # -- bytes ----------------------------------------------------------------
     def _on_readable(self) -> None:
+        if self.master is None:  # shut down (the reader is removed before the master is cleared)
+            return
         try:
             data = os.read(self.master, 4096)
         except (BlockingIOError, InterruptedError):
@@ -270,8 +275,11 @@ class _RtuPtyServer:
             self._flush()
 
     def _flush(self) -> None:
+        master = self.master
+        if master is None:  # shut down: nothing more goes out
+            return
         try:
-            n = os.write(self.master, self._tx)
+            n = os.write(master, self._tx)
         except (BlockingIOError, InterruptedError):
             n = 0
         except OSError:
@@ -280,10 +288,10 @@ class _RtuPtyServer:
         del self._tx[:n]
         if self._tx and not self._writing:
             self._writing = True
-            self._loop.add_writer(self.master, self._on_writable)
+            self._loop.add_writer(master, self._on_writable)
         elif not self._tx and self._writing:
             self._writing = False
-            self._loop.remove_writer(self.master)
+            self._loop.remove_writer(master)
 
     def _on_writable(self) -> None:
         self._flush()

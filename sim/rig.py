@@ -69,7 +69,7 @@ class SimRig:
             offsets=adc.offsets,
             rng=self.physics.rng,
         )
-        self._ports = dict(modbus=modbus_port, adc=adc_port, control=control_port)
+        self._modbus_port, self._adc_port, self._control_port = modbus_port, adc_port, control_port
         self._adc_pty, self._modbus_rtu_pty = adc_pty, modbus_rtu_pty
         self._can_interface = can_interface
         self._tick_period = tick
@@ -116,19 +116,19 @@ class SimRig:
             1: DriveModel(1, clock=self.clock.now, bidirectional=False, wall_clock=self.awake),
             2: DriveModel(2, clock=self.clock.now, bidirectional=True, wall_clock=self.awake),
         }
-        tcp = await serve_modbus_tcp(self.drives, host="127.0.0.1", port=self._ports["modbus"])
+        tcp = await serve_modbus_tcp(self.drives, host="127.0.0.1", port=self._modbus_port)
         self.modbus_servers.append(tcp)
         self.modbus_url = tcp.url
         if self._modbus_rtu_pty:
             rtu = await serve_modbus_rtu_pty(self.drives)
             self.modbus_servers.append(rtu)
             self.modbus_rtu_path = rtu.path
-        await self.adc_server.start(port=self._ports["adc"], pty=self._adc_pty)
+        await self.adc_server.start(port=self._adc_port, pty=self._adc_pty)
         self.adc_url = self.adc_server.url
-        if self._ports["control"] is not None:
+        if self._control_port is not None:
             from sim.control import serve_control
 
-            self._control = await serve_control(self, port=self._ports["control"])
+            self._control = await serve_control(self, port=self._control_port)
             self.control_url = f"tcp://127.0.0.1:{self._control.sockets[0].getsockname()[1]}"
         self._t_last = self.clock.now()
         self._spawn(self._tick_awake(), "sim-awake-clock")
@@ -327,9 +327,10 @@ class SimRig:
                 self._pending_t = np.concatenate([self._pending_t, t])
         self._g_next = g_end
         if b > self._pending_g0:
-            n = b - self._pending_g0
-            self.adc_server.send(board.encode(self._pending_g0, self._pending_counts[:n], self._pending_t[:n]))
-            self._pending_counts, self._pending_t = self._pending_counts[n:], self._pending_t[n:]
+            n, pending, pending_t = b - self._pending_g0, self._pending_counts, self._pending_t
+            assert pending is not None and pending_t is not None  # b > pending_g0 implies g_end > lo: set above
+            self.adc_server.send(board.encode(self._pending_g0, pending[:n], pending_t[:n]))
+            self._pending_counts, self._pending_t = pending[n:], pending_t[n:]
             self._pending_g0 = b
 
     def _advance_spindles(self):
@@ -362,7 +363,7 @@ class SimRig:
         if upto <= self._pending_g0:
             return
         self.board.lose(self._pending_g0, upto)
-        if self._pending_counts is not None:
+        if self._pending_counts is not None and self._pending_t is not None:  # set together
             n = upto - self._pending_g0
             self._pending_counts, self._pending_t = self._pending_counts[n:], self._pending_t[n:]
         self._pending_g0 = upto
@@ -373,7 +374,7 @@ class SimRig:
         C = board.channels
         theta = (g % SLOTS) * SLOT_ANGLE
         if board.simultaneous:
-            vals = np.empty((len(g), C))
+            vals: np.ndarray = np.empty((len(g), C))
             for k in range(C):
                 vals[:, k] = ph.channel_values(k, theta, t, spin_angle, orbit_inst, spin, orbit)
             return board.quantize(vals)

@@ -118,16 +118,17 @@ class CachedTextRenderer(RendererAgg):
 
 def _font_heights(prop, dpi: float):
     font = get_font(fontManager._find_fonts_by_props(prop))
-    for table_name, gap, ascent, descent in (
-        ("OS/2", "sTypoLineGap", "sTypoAscender", "sTypoDescender"),
-        ("hhea", "lineGap", "ascent", "descent"),
-    ):
-        table = font.get_sfnt_table(table_name)
-        if table is None:
-            continue
-        scale = prop.get_size_in_points() * dpi / 72 / font.get_sfnt_table("head")["unitsPerEm"]
-        return table[ascent] * scale, -table[descent] * scale, table[gap] * scale
-    return None, None, None
+    if (os2 := font.get_sfnt_table("OS/2")) is not None:
+        gap, ascent, descent = os2["sTypoLineGap"], os2["sTypoAscender"], os2["sTypoDescender"]
+    elif (hhea := font.get_sfnt_table("hhea")) is not None:
+        gap, ascent, descent = hhea["lineGap"], hhea["ascent"], hhea["descent"]
+    else:
+        return None, None, None
+    head = font.get_sfnt_table("head")
+    if head is None:  # no units per em (a TrueType font always has one): matplotlib's own layout
+        return None, None, None
+    scale = prop.get_size_in_points() * dpi / 72 / head["unitsPerEm"]
+    return ascent * scale, -descent * scale, gap * scale
 
 
 class ReportCanvas(FigureCanvasAgg):

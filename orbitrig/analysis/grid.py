@@ -27,7 +27,8 @@ class _Grid(Artist):
 
     def draw(self, renderer) -> None:
         ax = self.axes
-        if ax is None or not self.get_visible():
+        fig = ax.get_figure(root=False) if ax is not None else None
+        if ax is None or fig is None or not self.get_visible():
             return
         (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
         segments = []
@@ -46,7 +47,7 @@ class _Grid(Artist):
             alpha=self.get_alpha(),
             transform=ax.transData,
         )
-        lines.set_figure(ax.get_figure(root=False))
+        lines.set_figure(fig)
         lines.set_clip_box(ax.bbox)
         lines.draw(renderer)
 

@@ -16,7 +16,7 @@ import threading
 from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from matplotlib.collections import PolyCollection
@@ -186,7 +186,7 @@ def whirl_direction(table) -> np.ndarray:
     return np.where(np.imag(np.conj(table.x) * table.y) <= 0, 1, -1)
 
 
-def _figure(w: float, h: float, layout: str | None = "constrained") -> Figure:
+def _figure(w: float, h: float, layout: Literal["constrained", "compressed", "tight"] | None = "constrained") -> Figure:
     """A figure on an Agg canvas of the design size w x h (in) scaled to the style's width;
     `layout=None` for many small panels (constrained layout's solver costs seconds there),
     placed by the caller with ``subplots_adjust``."""
@@ -304,8 +304,8 @@ def _empty(fig: Figure) -> None:
         for artist in [*ax.lines, *ax.collections, *ax.patches, *ax.texts, *ax.images]:
             artist.remove()
         ax.containers.clear()
-        if ax.get_legend() is not None:
-            ax.get_legend().remove()
+        if (ax_legend := ax.get_legend()) is not None:
+            ax_legend.remove()
         ax.set_prop_cycle(None)
         ax.set_title("")
         ax.set_xlabel("")
@@ -332,7 +332,7 @@ def _save(fig: Figure, path: Path) -> Path:
         raise storage_error(path.parent, "create the folder", err) from err
     for fmt in (FigureFormat.PNG, *(f for f in STYLE.formats if f != FigureFormat.PNG)):
         if fmt == FigureFormat.PNG:
-            data = png_bytes(fig, STYLE.dpi)
+            data: bytes | memoryview = png_bytes(fig, STYLE.dpi)
         else:
             buf = io.BytesIO()
             fig.savefig(buf, format=str(fmt), dpi=72, metadata={"Creator": "orbitrig report"})

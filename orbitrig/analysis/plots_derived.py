@@ -61,7 +61,7 @@ def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title
     """C_eff (xx, yy), WFR, Re H and Im H (forward solid, backward dashed) against Omega/omega."""
     fig, axes = panels(14, 9.0, 2, 3, top=1.6, bottom=1.3, hspace=0.75, wspace=0.3)
     colors = _colors(len(derived))
-    zeros = {"xx": [], "yy": []}
+    zeros: dict[str, list[str]] = {"xx": [], "yy": []}
     for k, (label, d) in enumerate(derived):
         x = d.orbit / spin
         for col, e in enumerate(("xx", "yy")):
@@ -86,9 +86,9 @@ def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title
         ax.set_ylabel(f"C_eff,{e}  [kN s/m]")
     axes[0, 2].set_title("whirl frequency ratio (Kxy - Kyx) / (\u03c9 (Cxx + Cyy))", fontsize="small")
     axes[0, 2].set_ylabel("WFR  [-]")
-    for col, part in enumerate(("Re", "Im")):
-        axes[1, col].set_title(f"{part} H, direct dynamic stiffness\nforward solid, backward dashed", fontsize="small")
-        axes[1, col].set_ylabel(f"{part} H  [MN/m]")
+    for col, re_im in enumerate(("Re", "Im")):
+        axes[1, col].set_title(f"{re_im} H, direct dynamic stiffness\nforward solid, backward dashed", fontsize="small")
+        axes[1, col].set_ylabel(f"{re_im} H  [MN/m]")
     axes[1, 2].set_visible(False)
     for ax in axes.flat:
         light_grid(ax)
@@ -125,8 +125,8 @@ def impedance_figure(
         z = fit.identification.impedance(grid)
         for col in range(4):
             i, j = divmod(col, 2)
-            for row, part in enumerate((np.real, np.imag)):
-                plot_fit(axes[row, col], grid / spin, part(z[:, i, j]) * MN, lo, hi, color=colors[k], label=fit.label)
+            for row, take in enumerate((np.real, np.imag)):
+                plot_fit(axes[row, col], grid / spin, take(z[:, i, j]) * MN, lo, hi, color=colors[k], label=fit.label)
     for col, e in enumerate(ENTRIES):
         i, j = divmod(col, 2)
         for row, (name, part) in enumerate((("Re", np.real), ("Im", np.imag))):

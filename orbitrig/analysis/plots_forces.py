@@ -78,7 +78,7 @@ def _draw_direction(amp_ax, res_ax, table, fitted, reproduced, col: int, sel, lo
         face = colors[n] if forward else "white"
         res_ax.plot(x, np.abs(measured - f), ls, marker=marker, color=colors[n], lw=widths[n], ms=3, mfc=face)
     face = "black" if forward else "white"
-    label = f"measured, {dname} whirl"
+    label: str | None = f"measured, {dname} whirl"
     amp_ax.plot(x, np.abs(measured), marker, mfc=face, mec="black", ls="none", ms=4, label=label, zorder=5)
     if table.u is None:
         return

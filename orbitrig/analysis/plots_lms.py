@@ -31,7 +31,7 @@ def lms_comparison_plot(
     """The two load measuring systems side by side: strain-gauge force relative
     to piezoelectric (amplitude difference in %, phase difference in deg) per
     frequency, and the constant K and C of one identification from each."""
-    with_bars = bool(fitted) and len(fitted) == 2
+    with_bars = fitted is not None and len(fitted) == 2
     rows = 2 if with_bars else 1
     fig, axes = panels(12, 7.5 if with_bars else 4.2, rows, 2, sharex=False, top=1.35, bottom=0.8, hspace=0.45)
     _differences(axes[0], tables[LoadSystem.PIEZO], tables[LoadSystem.STRAIN])

@@ -80,7 +80,8 @@ def summary_plot(
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
             _min_span(ax, largest[m])
             if pts:
-                keep_inside(ax, *zip(*pts))
+                xs, ys = zip(*pts)
+                keep_inside(ax, xs, ys)
             if row == 1:
                 ax.set_xlabel("operating point  [index]")
     handles, labels = axes[0, 0].get_legend_handles_labels()

@@ -153,8 +153,8 @@ def lms_comparison(a: Reduced, b: Reduced) -> LmsComparison | None:
         chi2, limit, p = (_finite(c[k]) for k in ("chi2", "limit", "p_value"))
         ag = LmsAgreement(e_n, chi2, int(c["dof"]) if chi2 is not None else 0, float(c["level"]), limit, p)
         return LmsComparison(ag, UncertaintyBasis(c["basis"]), stored=True)
-    ag = lms_normalised_difference(a, b)
-    return None if ag is None else LmsComparison(ag, UncertaintyBasis.STATISTICAL, stored=False)
+    repeated = lms_normalised_difference(a, b)
+    return None if repeated is None else LmsComparison(repeated, UncertaintyBasis.STATISTICAL, stored=False)
 
 
 def _finite(v) -> float | None:
@@ -204,7 +204,7 @@ def derived_of(r: Reduced, orbit: np.ndarray) -> Derived | None:
     try:
         cov = None
         if derived_basis(r) == UncertaintyBasis.COMBINED:
-            u = r.stored["uncertainty"]
+            u = (r.stored or {})["uncertainty"]  # COMBINED: stored with its budget
             table = r.point.tables[r.lms]
             cov = combined_covariance(r.identification, table, u["sources"], np.asarray(u["source_std"]))
         return derived_quantities(r.identification, grid, r.point.settings.spin, cov=cov)

@@ -145,7 +145,7 @@ def analyse_point(point: Point) -> PointReport:
     fit against the constant one and form the derived quantities of every fit."""
     pr = PointReport(point)
     for stored in point.identifications:
-        if stored.lms not in point.tables or not stored.ok:
+        if stored.lms not in point.tables or stored.result is None:  # refused: nothing to repeat
             continue
         try:
             r = reidentify(point, stored)

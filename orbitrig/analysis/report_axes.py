@@ -35,7 +35,7 @@ class _MeasuredOnce:
     def draw(self, renderer) -> None:
         self._drawing, self._drawn_ticks, self._drawn_boxes = True, None, None
         try:
-            super().draw(renderer)
+            super().draw(renderer)  # type: ignore[misc]  # a mixin of maxis.Axis: mypy sees object
         finally:
             self._drawing, self._drawn_ticks, self._drawn_boxes = False, None, None
 
@@ -83,13 +83,13 @@ class ReportAxes(Axes):
     ReportAxes})``); otherwise matplotlib's Axes."""
 
     def _request_autoscale_view(self, axis="all", tight=None) -> None:
-        super()._request_autoscale_view(axis, tight)
+        super()._request_autoscale_view(axis, tight)  # type: ignore[misc]  # private: not in the stubs
         _STALE.add(self)
 
     def _unstale_viewLim(self) -> None:
         if not _STALE:
             return
-        super()._unstale_viewLim()
+        super()._unstale_viewLim()  # type: ignore[misc]  # private: not in the stubs
         for ax in [ax for ax in _STALE if not any(ax._stale_viewlims.values())]:
             _STALE.discard(ax)
 

@@ -32,7 +32,7 @@ def _code_digest() -> str:
 
     h = hashlib.sha256(matplotlib.__version__.encode())
     for package in (orbitrig.analysis, reduction):
-        for source in sorted(Path(package.__file__).parent.glob("*.py")):
+        for source in sorted(Path(package.__path__[0]).glob("*.py")):  # the folder of its __init__.py
             h.update(source.name.encode() + source.read_bytes())
     return h.hexdigest()
 

@@ -81,8 +81,8 @@ def _converted(path: Path, dpi: float) -> tuple[int, int, float, bytes]:
     """A PNG of another colour type as RGB rows, each with filter byte 0 (none), deflated."""
     from PIL import Image
 
-    with Image.open(path) as img:
-        img = img.convert("RGB")
+    with Image.open(path) as src:
+        img = src.convert("RGB")
         w, h, raw = img.width, img.height, img.tobytes()
     rows = b"".join(b"\x00" + raw[r * 3 * w : (r + 1) * 3 * w] for r in range(h))
     return w, h, dpi, zlib.compress(rows, 6)

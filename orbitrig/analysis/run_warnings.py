@@ -18,7 +18,7 @@ def fit_warnings(points: list[Point]) -> list[FitWarnings]:
         FitWarnings(int(p.name), i.lms, f"{i.model} {i.freq_dep} {i.method}", tuple(i.result.get("warnings") or []))
         for p in points
         for i in p.identifications
-        if i.ok
+        if i.result is not None  # i.ok, narrowing i.result
     ]
 
 

@@ -3,6 +3,8 @@ frequency dependence, method), its columns and their units (docs/catalog.md)."""
 
 from __future__ import annotations
 
+from typing import Any
+
 from sqlalchemy import Boolean, Column, Float, Integer, MetaData, String, Table, Text, UniqueConstraint
 
 from orbitrig.catalog.rows import COEFFICIENTS, UNITS
@@ -56,8 +58,8 @@ COLUMN_UNITS = {
 }
 
 
-def _columns() -> list[Column]:
-    cols = [
+def _columns() -> list[Column[Any]]:
+    cols: list[Column[Any]] = [
         Column("id", Integer, primary_key=True, autoincrement=True),
         Column("run_id", String(200), nullable=False),
         Column("point", Integer, nullable=False),

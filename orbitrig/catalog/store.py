@@ -100,13 +100,17 @@ _BATCH = 500
 
 def _upsert(dialect: str) -> Any:
     """INSERT ... ON CONFLICT (KEY) DO UPDATE of every other column, for ``dialect``."""
+    stmt: Any  # the dialect's own Insert; both have on_conflict_do_update and excluded
     if dialect == "postgresql":
-        from sqlalchemy.dialects.postgresql import insert
+        from sqlalchemy.dialects.postgresql import insert as postgresql_insert
+
+        stmt = postgresql_insert(fits)
     elif dialect == "sqlite":
-        from sqlalchemy.dialects.sqlite import insert
+        from sqlalchemy.dialects.sqlite import insert as sqlite_insert
+
+        stmt = sqlite_insert(fits)
     else:
         raise CatalogError(f"catalog: database {dialect!r} is not supported (SQLite or PostgreSQL)")
-    stmt = insert(fits)
     return stmt.on_conflict_do_update(
         index_elements=[fits.c[k] for k in KEY],
         set_={c: stmt.excluded[c] for c in ROW_COLUMNS if c not in KEY},

@@ -332,8 +332,10 @@ def _runout(config, opts, activate) -> None:
     rig, folder = _rig_and_folder(config)
     check_rolls(rig, [opts.roll()], "--spin-rpm")
     record = run_until_signal(lambda: runout_record(rig, opts, partial(say, err=True)))
+    runout = record.runout
+    assert runout is not None  # runout_record measured it
     for p in ("x_a", "y_a", "x_b", "y_b"):
-        h1, h2 = abs(record.runout.phasors(p)) * 1e6
+        h1, h2 = abs(runout.phasors(p)) * 1e6
         say(f"{p}: runout 1x {h1:.3f} um, 2x {h2:.3f} um")
     _write(rig, folder, record, activate, "Units: runout h1_um, h2_um micrometres [re, im] at 1x and 2x spin.")
 

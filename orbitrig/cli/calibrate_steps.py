@@ -314,7 +314,7 @@ async def runout_record(rig: RigConfig, opts: StepOptions, note) -> CalibrationR
     data = _base(rig, opts, RecordStep.RUNOUT)
     um = {p: [np.array([v.real, v.imag]) * 1e6 for v in phasors[p]] for p in PROBES}
     probes = {p: ProbeRunout(h1_um=um[p][0].tolist(), h2_um=um[p][1].tolist()).model_dump() for p in PROBES}
-    data["runout"] = Runout(spin_rpm=opts.spin_rpm, revolutions=n, **probes).model_dump()
+    data["runout"] = Runout.model_validate({"spin_rpm": opts.spin_rpm, "revolutions": n, **probes}).model_dump()
     return CalibrationRecord.model_validate(data)
 
 

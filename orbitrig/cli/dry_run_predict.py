@@ -96,11 +96,15 @@ def predict_model(rig, mat, model: str, freq_dep: str, noise) -> ModelPrediction
     spec = model_spec(model, freq_dep)
     theta, _ = prior_theta(spec)
     n = block_revolutions(rig, mat)
-    rows, over = [], {}
+    rows: list[tuple[float, str, float, float]] = []
+    over: dict[str, tuple[float, float, int]] = {}
     for rpm in spins:
         for eps in sorted(set(mat.operating.dynamic_eccentricity)):
             radius = eps * rig.bearing.clearance
             p = predict(DesignProblem(spec, theta, rpm * RPM, radius, noise.u_revolution, n[0], directions), ratios, n)
+            if p.relative is None:  # singular information: nothing identifiable at this point
+                rows.append((np.inf, "every coefficient", rpm, radius))
+                continue
             j = int(np.argmax(p.relative))
             rows.append((p.worst, spec.names[j], rpm, radius))
             for name, rel in zip(spec.names, p.relative):
@@ -134,6 +138,7 @@ def prediction_lines(rig, mat) -> list[str]:
         elif p.worst is None:
             out.append(f"  {p.label}: identifiable (the exponent is chosen at identification; not predicted)")
         else:
+            assert p.best is not None and p.radius is not None  # predicted with the worst
             out.append(
                 f"  {p.label}: worst relative standard error {p.worst * 100:.3g} % ({p.coefficient} at "
                 f"{p.spin_rpm:g} rpm, orbit radius {p.radius * 1e6:.3g} um); best point {p.best * 100:.3g} %"

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import shutil
 import textwrap
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 
@@ -58,16 +59,17 @@ class PlainTable:
         self.columns.append(name)
         self.left.append(justify == "left")
 
-    def add_row(self, *cells: str) -> None:
-        cells = [str(c) for c in cells]
-        self.rows.append(cells + [""] * (len(self.columns) - len(cells)))
+    def add_row(self, *cells: object) -> None:
+        row = [str(c) for c in cells]
+        self.rows.append(row + [""] * (len(self.columns) - len(row)))
 
     def text(self, width: int | None = None) -> str:
         """Aligned text, split into column blocks no wider than `width` (default: the terminal's)."""
         width = terminal_width() if width is None else width
         widths = [max([len(c)] + [len(r[i]) for r in self.rows]) for i, c in enumerate(self.columns)]
         keys = list(range(min(self.key_columns, len(self.columns))))
-        blocks, current = [], []
+        blocks: list[list[int]] = []
+        current: list[int] = []
         used = sum(widths[i] + len(GAP) for i in keys)
         for i in range(len(keys), len(self.columns)):
             if current and used + widths[i] > width:
@@ -98,7 +100,7 @@ class PlainTable:
         return {"title": self.title, "columns": self.columns, "rows": self.records()}
 
 
-def render(tables: list[PlainTable], fmt: OutputFormat, notes: list[str] = ()) -> str:
+def render(tables: list[PlainTable], fmt: OutputFormat, notes: Sequence[str] = ()) -> str:
     """`tables` (and `notes`, text lines) as `fmt`: text and CSV put a blank line between
     tables (CSV: each table preceded by its title as a '# ' line); JSON is one object
     {"tables": [...], "notes": [...]}."""

@@ -32,6 +32,7 @@ class SweepProgress:
         self.points = self.progress.add_task("points", total=1, extra="")
         self.freqs = self.progress.add_task("frequencies", total=1, extra="")
         self.revs = self.progress.add_task("revolutions", total=revolutions, extra="")
+        self.revolutions = revolutions  # per block: the revolutions bar's end
         self.done = 0
 
     def __enter__(self) -> "SweepProgress":
@@ -46,7 +47,7 @@ class SweepProgress:
             eta = "" if ev.eta_s is None else f"ETA {format_duration(ev.eta_s)}"
             self.progress.update(self.points, total=max(ev.points, 1), completed=self.done, extra=eta)
             self.progress.update(self.freqs, total=max(ev.frequencies, 1), completed=max(ev.frequency - 1, 0))
-            self.progress.update(self.revs, completed=min(ev.revolutions, self.progress.tasks[2].total))
+            self.progress.update(self.revs, completed=min(ev.revolutions, self.revolutions))
         elif isinstance(ev, StatusEvent):
             style = {RunState.FAULTED: "bold red", RunState.WAITING: "bold yellow", RunState.PAUSED: "yellow"}.get(
                 ev.state, ""

@@ -5,12 +5,17 @@ Its options and the broker accounts made of them: orbitrig.cli.serve_options."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 
 from orbitrig.cli import serve_options as o
 from orbitrig.cli.serve_options import ServeOptions, fail
 from orbitrig.cli.service_log import DEFAULT_BACKUPS, DEFAULT_MAX_MB, setup_service_log
+from orbitrig.run.states import ConfirmMode
+
+if TYPE_CHECKING:  # imported where used: `orbitrig serve --help` stays light
+    from orbitrig.service.rig_service import RigService
 
 
 def register(app: typer.Typer) -> None:
@@ -51,6 +56,7 @@ def _start(opts: ServeOptions) -> None:
     from orbitrig import config as cfg
     from orbitrig.errors import ConfigError
     from orbitrig.service.rig_service import BrokerSettings, ServiceError, ServiceSettings
+    from orbitrig.service.settings import supervision_policy
 
     if not (opts.log_max_mb > 0 and opts.log_backups >= 0):
         fail(f"--log-max-mb {opts.log_max_mb:g} / --log-backups {opts.log_backups}: a size > 0 and a count >= 0")
@@ -72,7 +78,7 @@ def _start(opts: ServeOptions) -> None:
             rig_id=opts.rig_id,
             matrices_dir=folder,
             prefix=opts.prefix,
-            supervision_policy=opts.supervision_policy,
+            supervision_policy=supervision_policy(opts.supervision_policy),
             supervision_timeout=opts.supervision_timeout,
             client_id=opts.client_id,
             catalog_url=opts.catalog,
@@ -88,8 +94,6 @@ def _start(opts: ServeOptions) -> None:
 
 
 def _check_run_options(opts: ServeOptions, folder: Path) -> None:
-    from orbitrig.run.states import ConfirmMode
-
     if opts.speedup is not None and not 0 < opts.speedup <= 1e4:
         fail(f"--speedup {opts.speedup:g}: a finite factor > 0 and at most 10000")
     if opts.confirm not in (ConfirmMode.REMOTE, ConfirmMode.AUTO):
@@ -101,7 +105,7 @@ def _check_run_options(opts: ServeOptions, folder: Path) -> None:
 
 
 def build_service(
-    rig, settings, broker_settings, *, out: Path, sim_rig=None, confirm: str = "remote", reload: Path | None = None
+    rig, settings, broker_settings, *, out: Path, sim_rig=None, confirm=ConfirmMode.REMOTE, reload: Path | None = None
 ):
     """The RigService of `orbitrig serve`: each run gets a fresh RunEngine (the engine of
     `orbitrig sweep`; on the simulator `sim_rig` when given) writing to OUT/<date>-<matrix>/.
@@ -186,7 +190,7 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
 
     keep_pymodbus_off_the_terminal()
     tune_heap()  # bounded memory over months (orbitrig.run.heap)
-    services = []
+    services: list[RigService] = []
 
     def on_signal(sig: int) -> None:
         """The first: the run stops at once with a ramp (no run: both drives' emergency stop, as an
@@ -209,7 +213,13 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
 
             sim_rig, _ = await stack.enter_async_context(simulated_rig(opts.speedup or DEFAULT_SPEEDUP))
         service = build_service(
-            rig, settings, broker_settings, out=opts.out, sim_rig=sim_rig, confirm=opts.confirm, reload=Path(rig.file)
+            rig,
+            settings,
+            broker_settings,
+            out=opts.out,
+            sim_rig=sim_rig,
+            confirm=ConfirmMode(opts.confirm),
+            reload=Path(rig.file),
         )
         services.append(service)
         await service.serve(shutdown)

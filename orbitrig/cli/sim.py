@@ -36,9 +36,10 @@ def register(app: typer.Typer) -> None:
 
         cfg = _sim_config(config, speedup)
         ports = dict(modbus_port=modbus_port, adc_port=adc_port, control_port=control_port, modbus_rtu_pty=modbus_rtu)
-        can = dict(can_port=can_port, can_channel=can_channel, can_interface=can_interface)
         try:
-            asyncio.run(_serve(cfg, speedup, ports, **can))
+            asyncio.run(
+                _serve(cfg, speedup, ports, can_port=can_port, can_channel=can_channel, can_interface=can_interface)
+            )
         except (OSError, RuntimeError) as err:  # a port in use (pymodbus says RuntimeError "Could not start listen")
             typer.echo(
                 f"orbitrig sim: {err} (ports: Modbus {modbus_port}, A/D {adc_port}, CAN {can_port}, "
@@ -49,9 +50,12 @@ def register(app: typer.Typer) -> None:
 
 
 def _sim_config(path, speedup):
-    """The simulator configuration of --config (default: the paper's rig); exit 2 if it or --speedup is bad."""
+    """The simulator configuration of --config (a file or a shipped scenario's name; default: the paper's
+    rig); exit 2 if it or --speedup is bad."""
+    from orbitrig.cli.simulated_rig import scenario_file
     from sim.config import SimConfig, load_sim_config
 
+    path = scenario_file(path, "--config")
     try:
         cfg = load_sim_config(path) if path is not None else SimConfig()
     except ValueError as err:

@@ -7,7 +7,15 @@ from typing import Annotated, Optional
 
 import typer
 
-Config = Annotated[Optional[Path], typer.Option("--config", help="Simulator TOML (see config/sim.toml).")]
+Config = Annotated[
+    Optional[Path],
+    typer.Option(
+        "--config",
+        metavar="NAME|FILE",
+        help="simulator scenario TOML (default the paper's rig, config/sim.toml); a shipped one by NAME: "
+        "paper, clean, compressible (config/sim/)",
+    ),
+]
 ModbusPort = Annotated[
     int, typer.Option("--modbus-port", min=0, max=65535, help="Modbus TCP port of both drives (0 = any free).")
 ]

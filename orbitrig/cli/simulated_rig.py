@@ -158,8 +158,8 @@ class SimulatorHands:
         await self.link.acall("apply_reference", force=force, probe=probe)
 
 
-def scenario_file(path: Path | None) -> Path | None:
-    """--sim-config FILE, or the NAME of a shipped scenario (paper, clean, compressible)."""
+def scenario_file(path: Path | None, option: str = "--sim-config") -> Path | None:
+    """A simulator scenario `option` (FILE, or the NAME of a shipped one: paper, clean, compressible)."""
     if path is None or path.is_file() or path.suffix or len(path.parts) != 1:
         return path
     from sim.config import scenario_path
@@ -169,7 +169,7 @@ def scenario_file(path: Path | None) -> Path | None:
     except ValueError as err:
         import typer
 
-        raise typer.BadParameter(f"{path}: no such file; {err}", param_hint="--sim-config") from None
+        raise typer.BadParameter(f"{path}: no such file; {err}", param_hint=option) from None
 
 
 class SimulatorTruth:
@@ -215,6 +215,7 @@ def simulated_access(sim, scenario: Scenario | None = None) -> RigAccess:
     this process (tests that reach into it); `scenario`: what it runs, recorded in the run."""
     from orbitrig.run.rig_io import Endpoints, RigAccess, TimeScale
 
+    link: SimulatorLink | InProcessLink
     if isinstance(sim, SimulatorProcess):
         link, endpoints = sim.link, sim.access_endpoints
     else:
@@ -275,11 +276,14 @@ class SimulatorStart:
         except OSError as err:
             self.log.close()
             raise SimulatorError(f"the simulator process could not start: {err}") from None
+        stdin, stdout = self.proc.stdin, self.proc.stdout
+        assert stdin is not None and stdout is not None  # both piped above
+        self._stdin, self._stdout = stdin, stdout
 
     async def ready(self) -> dict:
         """Its endpoints, once it announces them; SimulatorError with its last word if it does not."""
         try:
-            line = await asyncio.wait_for(asyncio.to_thread(self.proc.stdout.readline), START_TIMEOUT)
+            line = await asyncio.wait_for(asyncio.to_thread(self._stdout.readline), START_TIMEOUT)
             endpoints = json.loads(line) if line.startswith(b"{") else None
         except (asyncio.TimeoutError, ValueError):
             endpoints = None
@@ -302,7 +306,7 @@ class SimulatorStart:
             self.log.close()
 
     async def _ended(self) -> None:
-        self.proc.stdin.close()
+        self._stdin.close()
         try:
             await asyncio.to_thread(self.proc.wait, STOP_TIMEOUT)
         except subprocess.TimeoutExpired:
@@ -312,7 +316,7 @@ class SimulatorStart:
             self._kill()
             raise
         finally:
-            self.proc.stdout.close()
+            self._stdout.close()
 
     def _kill(self) -> None:
         with contextlib.suppress(ProcessLookupError):
@@ -349,6 +353,9 @@ def _command(speedup: float, config) -> list[str]:
 
 def _environment() -> dict:
     """This environment, with the `sim` package this process would import first on the path."""
-    root = str(Path(importlib.util.find_spec("sim").origin).resolve().parents[1])
+    spec = importlib.util.find_spec("sim")
+    if spec is None or spec.origin is None:
+        raise SimulatorError("the simulator package `sim` cannot be imported (installed with orbitrig)")
+    root = str(Path(spec.origin).resolve().parents[1])
     path = os.environ.get("PYTHONPATH", "")
     return dict(os.environ, PYTHONPATH=root + (os.pathsep + path if path else ""))

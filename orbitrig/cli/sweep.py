@@ -336,7 +336,7 @@ async def _sweep(
         if sim is not None:
             from orbitrig.cli.simulated_rig import simulated_rig
 
-            _, access = await stack.enter_async_context(simulated_rig(speedup, *sim, started=started))
+            _, access = await stack.enter_async_context(simulated_rig(speedup, sim[0], sim[1], started=started))
         engine, console_operator = _engine(plan, out=out, access=access, operator=operator, console=console)
         for callback in subscribers:
             engine.subscribe(callback)

@@ -91,7 +91,11 @@ def best_impedance_error(fits, truth: dict | None) -> str:
 
 def _fits(p: Point) -> dict[str, dict]:
     """Stored JSON of every fit that gave coefficients, by storage key (lms__model__fd__method)."""
-    return {f"{i.lms}__{i.model}__{freq_dep_key(i.freq_dep)}__{i.method}": i.result for i in p.identifications if i.ok}
+    return {
+        f"{i.lms}__{i.model}__{freq_dep_key(i.freq_dep)}__{i.method}": i.result
+        for i in p.identifications
+        if i.result is not None
+    }
 
 
 def _judged(p: Point) -> list[tuple[LoadSystem, str, dict | None, str | None]]:
@@ -128,7 +132,7 @@ def rejected_lines(complete: list[Point]) -> list[str]:
     families: dict[str, dict] = {}
     for p in complete:
         for i in p.identifications:
-            if i.ok:
+            if i.result is not None:
                 f = families.setdefault(f"{i.model} {i.freq_dep} {i.method}", {"all": set(), "at": set(), "lms": set()})
                 f["all"].add(int(p.name))
                 if rejected(i.result):

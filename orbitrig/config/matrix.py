@@ -115,12 +115,18 @@ class Orbit(_Model):
         """Orbit ratios |Omega|/omega, ascending."""
         if self.ratios is not None:
             return sorted(self.ratios)
-        step = (self.ratio_stop - self.ratio_start) / (self.count - 1)
-        return [round(self.ratio_start + k * step, 12) for k in range(self.count)]
+        start, stop, count = self.ratio_start, self.ratio_stop, self.count
+        if start is None or stop is None or count is None:  # refused by _one_spec
+            raise ValueError("give 'ratios' (a list) or all of 'ratio_start', 'ratio_stop', 'count'")
+        step = (stop - start) / (count - 1)
+        return [round(start + k * step, 12) for k in range(count)]
 
     def _written(self, k: int) -> int:
         """Index in `ratios` (as written) of `ratio_list[k]` (ascending)."""
-        return sorted(range(len(self.ratios)), key=self.ratios.__getitem__)[k]
+        ratios = self.ratios
+        if ratios is None:  # refused by _one_per_ratio: revolutions / target_pct need 'ratios'
+            raise ValueError("'revolutions' and 'target_pct' need 'ratios'")
+        return sorted(range(len(ratios)), key=ratios.__getitem__)[k]
 
     def revolutions_at(self, k: int) -> int | None:
         """The fixed revolutions of `ratio_list[k]` (None: `revolutions` not given)."""

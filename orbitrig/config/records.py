@@ -23,7 +23,7 @@ import tomllib
 import warnings
 from enum import StrEnum
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal, cast
 
 import numpy as np
 from pydantic import Field, field_validator
@@ -238,7 +238,7 @@ def _setup_changes(rig: RigConfig, record: CalibrationRecord, record_text: str) 
     present = {c.name: (i, c) for i, c in enumerate(rig.channels)}
     problems, steps = [], set()
     for name, by in calibrated(record).items():
-        was = record.channels.get(name)
+        was = record.channels.get(cast(ChannelName, name))  # calibrated() yields channel names
         if was is None or name not in present:
             continue
         i, now = present[name]

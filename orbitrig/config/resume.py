@@ -16,7 +16,7 @@ from orbitrig.config.rig import RigConfig
 #: the settings a resume may change: no stored number depends on them
 ADDRESSES = frozenset({"adc_url", "modbus_url", "can_channel", "can_interface", "can_bitrate", "can_node_id"})
 MAY_CHANGE = ("[transports] " + ", ".join(sorted(ADDRESSES)), "[estimates]", "[changeover]")
-_EXCLUDED = {"transports": set(ADDRESSES), "estimates": True, "changeover": True}
+_EXCLUDED: dict[str, set[str] | bool] = {"transports": set(ADDRESSES), "estimates": True, "changeover": True}
 
 
 def resume_differences(stored: RigConfig, given: RigConfig) -> list[str]:

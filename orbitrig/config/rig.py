@@ -76,7 +76,7 @@ class Channel(_Model):
     @field_validator("offset")
     @classmethod
     def _physical_offset(cls, offset: float, info: ValidationInfo) -> float:
-        bound = CHANNEL_BOUNDS.get(info.data.get("unit"), (0, 0, float("inf"), True))[2]
+        bound = CHANNEL_BOUNDS.get(info.data.get("unit", ""), (0, 0, float("inf"), True))[2]
         if abs(offset) > bound:
             raise ValueError(f"offset {offset:g} is not physical: |offset| at most {bound:g} {info.data['unit']}")
         return offset

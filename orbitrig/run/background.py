@@ -76,7 +76,7 @@ class Background:
             finally:
                 self.timing["store"] = self.timing.get("store", 0.0) + time.monotonic() - t
 
-    def spawn(self, coro: Coroutine[object, object, object], name: str) -> asyncio.Task[object]:
+    def spawn(self, coro: Coroutine[object, object, T], name: str) -> asyncio.Task[T]:
         task = asyncio.ensure_future(coro)
         task.set_name(name)
         self._pending.add(task)

@@ -219,8 +219,8 @@ class CalibrationSession:
         scale, s = self.access.time_scale, self.rig.settle
         self.at_standstill = False
         try:
-            await self.io.drives.set_speeds(roll.spin, roll.orbit)
-            await self.io.drives.wait_settled(hold=scale.wall(s.hold_s), timeout=scale.wall(s.timeout_s) + 5.0)
+            await self.io.open_drives.set_speeds(roll.spin, roll.orbit)
+            await self.io.open_drives.wait_settled(hold=scale.wall(s.hold_s), timeout=scale.wall(s.timeout_s) + 5.0)
         except DriveError as err:
             raise CalibrationFailed(
                 f"slow roll at spin {roll.spin / RPM:.0f} rpm, orbit {roll.orbit / RPM:.0f} rpm: {err}"
@@ -279,6 +279,8 @@ class CalibrationSession:
         """One block of `revolutions` (default `roll.revolutions`) at the slow roll (retried once),
         each attempt watched (`watched`): a drive trip or a lost link ends it at once."""
         roll, av = self.roll_spec, self.rig.averaging
+        if roll is None:
+            raise CalibrationFailed("no slow roll set before the averaging: a step out of order")
         n = revolutions or roll.revolutions
         timeout = self.access.time_scale.wall(av.timeout_factor * block_time(roll.orbit, n) + av.timeout_margin_s) + 2.0
         rule = AveragingRule(n, n, None, 1.0 / roll.ratio, abs(roll.orbit), av.speed_tolerance)
@@ -299,7 +301,7 @@ async def measure_loads(
     {lms: (n, 2) static readings (N, through rig.toml's channel gains)}; the load removed after, both
     drives at standstill."""
     ch = session.rig.channel_index
-    out = {lms: [] for lms in LMS}
+    out: dict[LoadSystem, list[list[float]]] = {lms: [] for lms in LMS}
     async with session.applied(lambda: hands.apply_load(0.0, 0.0), "remove every calibration load", hands):
         for fx, fy in np.asarray(loads, dtype=float):
             await session.watched(partial(hands.apply_load, float(fx), float(fy)))
@@ -366,7 +368,8 @@ async def measure_delay(
     the probes' runout out of the average): (frequencies Hz (n,), {channel: (n,) lag (rad)
     behind the mean of the four probes}); the reference removed after, both drives at standstill."""
     ch = session.rig.channel_index
-    freqs, lags = [], {name: [] for name in ch}
+    freqs: list[float] = []
+    lags: dict[str, list[float]] = {name: [] for name in ch}
     remove = "disconnect the phase reference and reconnect the sensors"
     async with session.applied(lambda: hands.apply_reference(0.0, 0.0), remove, hands):
         await hands.apply_reference(*amplitudes)

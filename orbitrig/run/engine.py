@@ -93,7 +93,7 @@ class RunEngine(OperatorRequests):
         self.rig = rig
         self.out_dir = Path(out_dir)
         self.access = access or RigAccess.of_rig(rig)
-        self.confirm_mode = confirm_mode
+        self.confirm_mode = ConfirmMode(confirm_mode)
         self.run_id: str | None = None
         self.operator = operator  # who starts the next run (orbitrig.run.provenance)
         self.console_user: str | None = None  # who sends a request that names nobody (a terminal's user)
@@ -148,13 +148,13 @@ class RunEngine(OperatorRequests):
         status, message = FAILED, "run cancelled"
         with pymodbus_into(store):
             try:
-                status, message = await self._operate(io, plan, set(done))
+                status, message = await self._operate(io, store, plan, set(done))
             except asyncio.CancelledError:
                 status, message = ABORTED, "run cancelled"
                 raise
             finally:
                 status, message = await self._make_safe(io, store, status, message)
-        return RunOutcome(status, message, self.run_id, self.out_dir, completed_points(store), len(plan.points))
+        return RunOutcome(status, message, store.run_id, self.out_dir, completed_points(store), len(plan.points))
 
     def _start(self, plan: Plan, store: RunStore, done: list[int], resume: bool) -> None:
         self._store, self._failure = store, None
@@ -187,7 +187,7 @@ class RunEngine(OperatorRequests):
         self._control.fire("start", f"run {self.run_id} started" + (" (resumed)" if resume else ""))
         self._command(RunCommand.START, self.operator, f"run {self.run_id}" + (", resumed" if resume else ""))
 
-    async def _operate(self, io: RigIO, plan: Plan, done: set[int]) -> tuple[Outcome, str]:
+    async def _operate(self, io: RigIO, store: RunStore, plan: Plan, done: set[int]) -> tuple[Outcome, str]:
         """Open the rig and execute the plan: (status, message)."""
         try:
             try:
@@ -195,8 +195,8 @@ class RunEngine(OperatorRequests):
             except Exception as err:
                 raise RunFailed(f"cannot open the rig: {type(err).__name__}: {err}") from err
             self._io = io
-            procedure = self._procedure(io)
-            status = await self._watched(self._execute(plan, done, procedure), procedure.r.supervisor)
+            procedure = self._procedure(io, store)
+            status = await self._watched(self._execute(plan, done, procedure), procedure.r)
             return status, "all points completed" if status == COMPLETED else stopped(self._control)
         except asyncio.CancelledError:
             if self._failure is not None:
@@ -217,12 +217,13 @@ class RunEngine(OperatorRequests):
             log.exception("run failed")
             return FAILED, f"{type(err).__name__}: {err}"
 
-    async def _watched(self, body, supervisor: InterlockSupervisor) -> Outcome:
+    async def _watched(self, body, parts: RunParts) -> Outcome:
         """Run `body` beside the interlock supervisor and the log monitor."""
+        supervisor = parts.supervisor
         supervisor.sample()
         helpers = [
             asyncio.create_task(supervisor.watch(), name="interlocks"),
-            asyncio.create_task(monitor(self._store, lambda: self._io, self._log_t0), name="run-monitor"),
+            asyncio.create_task(monitor(parts.store, lambda: self._io, self._log_t0), name="run-monitor"),
         ]
         for task in helpers:  # one that raises ends the run at once (not only when the body ends)
             task.add_done_callback(self._helper_ended)
@@ -237,23 +238,23 @@ class RunEngine(OperatorRequests):
                 task.cancel()
             await asyncio.gather(*helpers, return_exceptions=True)
 
-    def _procedure(self, io: RigIO) -> PointProcedure:
+    def _procedure(self, io: RigIO, store: RunStore) -> PointProcedure:
         supervisor = InterlockSupervisor(
-            lambda: (io.aux.latest(), io.drives.state), self.rig.interlocks, self._interlock_failed
+            lambda: (io.open_aux.latest(), io.open_drives.state), self.rig.interlocks, self._interlock_failed
         )
         return PointProcedure(
             RunParts(
                 self.rig,
                 self.access,
                 io,
-                self._store,
+                store,
                 self._control,
                 supervisor,
                 self._background,
                 self._progress,
                 self.timing,
                 self.confirm_mode,
-                self.run_id,
+                store.run_id,
                 self._emit,
                 self._log_event,
             )
@@ -295,7 +296,7 @@ class RunEngine(OperatorRequests):
                 if p.index in done:
                     continue
                 await control.safe_point()
-                await control.hold_for_room(functools.partial(no_room, self._store, self.rig, plan, p))
+                await control.hold_for_room(functools.partial(no_room, procedure.r.store, self.rig, plan, p))
                 self._progress.next_point(len(p.blocks))
                 await procedure.run_point(p, plan.point_steps(p.index), first)
                 first = False

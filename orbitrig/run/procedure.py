@@ -93,8 +93,14 @@ class PointState:
     always_confirm: bool  # the run's first point: its manual settings are confirmed even if unchanged
     last: BlockRecord | None = None
     records: dict[str, BlockRecord] = field(default_factory=dict)
-    results: asyncio.Future | None = None  # PointResults, computed in the background
+    results: asyncio.Task[PointResults] | None = None  # computed in the background
     sequential: BlockChoice | None = None  # a sequential point's last decision (why it stopped)
+
+    def measured(self) -> BlockRecord:
+        """The block acquired last (a RuntimeError before the point's first Acquire: a plan out of order)."""
+        if self.last is None:
+            raise RuntimeError(f"point {self.point.index:04d}: no block acquired yet")
+        return self.last
 
 
 @dataclass
@@ -120,7 +126,7 @@ class PointProcedure:
     def __init__(self, parts: RunParts):
         self.r = parts
         self.scale = parts.access.time_scale
-        self.handlers: dict[type[Step], Callable[[Step, PointState | None], Awaitable[None]]] = {
+        self.handlers: dict[type[Step], Callable[..., Awaitable[None]]] = {  # (its step kind, PointState | None)
             SetManual: self.set_manual,
             VerifyPressures: self.verify_pressures,
             SetSpin: self.set_spin,
@@ -185,7 +191,7 @@ class PointProcedure:
             pressure_ratio=step.pressure_ratio,
         )
         if self.r.confirm_mode != ConfirmMode.AUTO and (step.changed or ps.always_confirm):
-            said = f"set by hand and confirm: {step.describe()}; {self.r.io.drives.state.motion()}"
+            said = f"set by hand and confirm: {step.describe()}; {self.r.io.open_drives.state.motion()}"
             await self.r.control.ask(step.step_id, said)
 
     async def _not_met(self, p: OperatingPoint, problems: list[str]) -> None:
@@ -194,7 +200,7 @@ class PointProcedure:
         if self.r.confirm_mode == ConfirmMode.AUTO:
             raise RunFailed(msg)
         await self.r.control.ask(
-            f"verify:{p.index:04d}", f"{msg}; correct and confirm; {self.r.io.drives.state.motion()}"
+            f"verify:{p.index:04d}", f"{msg}; correct and confirm; {self.r.io.open_drives.state.motion()}"
         )
 
     async def verify_pressures(self, step: VerifyPressures, ps: PointState) -> None:
@@ -210,7 +216,7 @@ class PointProcedure:
         deadline = time.monotonic() + max(3.0, self.scale.wall(20.0))
         while True:
             await self._hold_while_suspended()
-            problems = pressure_problems(self.r.io.aux.latest(), p, self.r.rig.verify)
+            problems = pressure_problems(self.r.io.open_aux.latest(), p, self.r.rig.verify)
             if not problems or time.monotonic() > deadline:
                 return problems
             await asyncio.sleep(0.1)
@@ -218,8 +224,8 @@ class PointProcedure:
     async def verify_geometry(self, step: VerifyGeometry, ps: PointState) -> None:
         """A missed orbit radius is corrected at standstill (the outer spindle's offset, by hand),
         then the block's speeds are set again; the rest with the drives turning."""
-        while problems := geometry_problems(ps.last, ps.point, self.r.rig):
-            hands_on_spindle = radius_missed(ps.last, ps.point, self.r.rig)
+        while problems := geometry_problems(ps.measured(), ps.point, self.r.rig):
+            hands_on_spindle = radius_missed(ps.measured(), ps.point, self.r.rig)
             if hands_on_spindle:
                 await self.stop_drives(StopDrives(ps.point.index, 0.0), ps)
             await self._not_met(ps.point, problems)
@@ -231,7 +237,7 @@ class PointProcedure:
     # -------------------------------------------------------------- speeds
     async def _set_speeds(self, spin: float, orbit: float) -> None:
         try:
-            await self.r.io.drives.set_speeds(spin, orbit)
+            await self.r.io.open_drives.set_speeds(spin, orbit)
         except DriveError as err:
             raise RunFailed(
                 f"cannot set speeds spin {spin / RPM:.0f} rpm, orbit {orbit / RPM:+.0f} rpm: {err}"
@@ -246,7 +252,7 @@ class PointProcedure:
 
     async def stop_drives(self, step: StopDrives, ps: PointState | None) -> None:
         timeout = self.scale.wall(self.r.rig.drives.stop_timeout_s) + 5.0
-        await self.r.io.drives.stop(emergency=False, wait=True, timeout=timeout)
+        await self.r.io.open_drives.stop(emergency=False, wait=True, timeout=timeout)
         why = "" if ps is None else f"point {ps.point.index:04d}: for the orbit radius, set by hand: "
         self.r.note(f"{why}both drives ramped to zero")
 
@@ -257,7 +263,7 @@ class PointProcedure:
         timeout = self.scale.wall(r.rig.settle.timeout_s) + 5.0
         try:
             await r.control.guarded(
-                r.io.drives.wait_settled(hold=self.scale.wall(step.hold), timeout=timeout), r.supervisor
+                r.io.open_drives.wait_settled(hold=self.scale.wall(step.hold), timeout=timeout), r.supervisor
             )
         except DriveError as err:
             raise RunFailed(f"point {p.index:04d} [{step.block.tag}]: drives did not settle: {err}") from err
@@ -307,7 +313,7 @@ class PointProcedure:
     # --------------------------------------------------------------- record
     async def store_block(self, step: StoreBlock, ps: PointState) -> None:
         r = self.r
-        rec = ps.last if step.choice is None else dataclasses.replace(ps.last, choice=step.choice)
+        rec = ps.measured() if step.choice is None else dataclasses.replace(ps.measured(), choice=step.choice)
         ps.records[step.block.tag] = rec
         r.background.spawn(self._write_block(ps.point, rec), f"store {ps.point.index:04d}/{step.block.tag}")
         if r.control.stop_requested and len(ps.records) < len(ps.point.blocks):
@@ -372,12 +378,13 @@ class PointProcedure:
             await r.background.write(r.store.write_results, p.index, res)
             return res
 
-        ps.results = asyncio.ensure_future(results())
-        r.background.spawn(ps.results, f"identify point {p.index:04d}")
+        ps.results = r.background.spawn(results(), f"identify point {p.index:04d}")
 
     async def complete_point(self, step: CompletePoint, ps: PointState) -> None:
         """Once the results are stored: mark the point complete and publish its results."""
         r, p, results = self.r, ps.point, ps.results
+        if results is None:
+            raise RuntimeError(f"point {p.index:04d}: CompletePoint before its Identify step")
 
         async def complete() -> None:
             res = await results

@@ -155,6 +155,20 @@ class RigIO:
     async def __aexit__(self, *exc: object) -> None:
         await self._stack.aclose()
 
+    @property
+    def open_drives(self) -> RigDrives:
+        """The drives' link, entered (a RuntimeError before: code that runs outside `async with`)."""
+        if self.drives is None:
+            raise RuntimeError("the drives are not open: use them inside `async with RigIO(...)`")
+        return self.drives
+
+    @property
+    def open_aux(self) -> AuxSensors:
+        """The CAN node's link, entered (a RuntimeError before, as `open_drives`)."""
+        if self.aux is None:
+            raise RuntimeError("the CAN node is not open: use it inside `async with RigIO(...)`")
+        return self.aux
+
     def _revolution(self, rev: Revolution) -> None:
         if self._on_revolution is not None:
             self._on_revolution(rev)

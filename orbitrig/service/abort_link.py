@@ -124,7 +124,10 @@ class AbortLink:
             keepalive=b.keepalive,
             timeout=b.timeout,
             tls_params=tls,
-            queue_type=functools.partial(CommandInbox, take_now=self._take, overflow=lambda message: None),
+            # aiomqtt calls queue_type(maxsize): a factory serves as well as a class
+            queue_type=functools.partial(  # type: ignore[arg-type]
+                CommandInbox, take_now=self._take, overflow=lambda message: None
+            ),
         )
 
     def _take(self, message: Any) -> bool:

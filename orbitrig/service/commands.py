@@ -189,10 +189,10 @@ class CommandHandling:
 
     def _reply_when_done(self, cid: str | None, note: str | None, later: Later) -> None:
         if later.cancelled():
-            error, detail = f"emergency stop not confirmed sent: cancelled; {idle_stop.ESTOP}", None
+            outcome: idle_stop.Outcome = (f"emergency stop not confirmed sent: cancelled; {idle_stop.ESTOP}", None)
         else:
-            error, detail = later.result()  # (the task catches every failure: idle_stop.Outcome)
-        error, detail = _noted(note, error, detail)
+            outcome = later.result()  # (the task catches every failure: idle_stop.Outcome)
+        error, detail = _noted(note, *outcome)
         self._reply(cid, error, detail=detail)
 
     def _cmd_status(self, cmd: proto.Command) -> None:
@@ -213,7 +213,10 @@ class CommandHandling:
         self._control("resume", lambda e: e.request_resume(by=cmd.by), allowed=allowed)
 
     def _cmd_confirm(self, cmd: proto.Command) -> None:
-        self._control("confirm", lambda e: e.confirm(cmd.step, by=cmd.by), allowed=None)
+        step = cmd.step
+        if step is None:  # (the protocol's model requires it: a command built elsewhere)
+            raise CommandRefused("confirm needs the field 'step'")
+        self._control("confirm", lambda e: e.confirm(step, by=cmd.by), allowed=None)
 
     def _cmd_stop(self, cmd: proto.Command) -> Later | None:
         """Always accepted. A run carries it out; else (no run holds the drives) both drives get the
@@ -298,7 +301,7 @@ class CommandHandling:
             if engine.run_id is None:
                 task.cancel()  # the run task has not started yet: it never touches the drives
             return False  # (or the run has ended and the task is writing its closing summary)
-        requests = {
+        requests: dict[str, Callable[..., object]] = {
             "pause": engine.request_pause,
             "stop": engine.request_stop,
             "abort": engine.request_abort,

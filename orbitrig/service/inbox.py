@@ -246,7 +246,7 @@ class CommandTriage:
         self.counts: collections.Counter[str] = collections.Counter()
         self._commands = Allowance(COMMAND_RATE, burst=16)
         self._busy = Allowance(BUSY_RATE, burst=BUSY_RATE)
-        self._logged = collections.Counter()
+        self._logged: collections.Counter[str] = collections.Counter()
         self._logged_at = 0.0
         self.copies = AbortCopies()
         #: called after each stop or abort carried out at once (the drives' stop under way)
@@ -359,7 +359,7 @@ class CommandInbox(asyncio.Queue):
     taken in are known to come off it. ``on_end`` is called when its reader is cancelled:
     aiomqtt does that when the connection ends (or the reading task is cancelled)."""
 
-    def __init__(self, maxsize: int = 0, *, take_now: Callable[[Any], bool], overflow: Callable[[Any], None]):
+    def __init__(self, maxsize: int = 0, *, take_now: Callable[[Any], bool], overflow: Callable[[Any], object]):
         super().__init__(maxsize)
         self._take_now, self._overflow = take_now, overflow
         self.opened_at = next(_CLOCK)

@@ -290,7 +290,8 @@ class BrokerLink:
             timeout=b.timeout,
             tls_params=tls,
             max_queued_incoming_messages=self.triage.limit,
-            queue_type=functools.partial(CommandInbox, take_now=_drop, overflow=_drop)
+            # aiomqtt calls queue_type(maxsize): a factory serves as well as a class
+            queue_type=functools.partial(CommandInbox, take_now=_drop, overflow=_drop)  # type: ignore[arg-type]
             if clean_start
             else self._new_inbox,
         )

@@ -115,7 +115,7 @@ class LiveFeed:
         self._send = send
         self.interval = 1.0 / rate_hz
         self.average = RevolutionAverage(self.rig.gains, self.rig.offsets)
-        self._manual = {s.point: s for s in plan.steps if isinstance(s, SetManual)}
+        self._manual = {s.point: s for s in plan.steps if isinstance(s, SetManual) and s.point is not None}
         self._block: tuple[int, int] = (0, 0)
         self._point = self._frequency = self._revolutions = 0
         self._revs = 0  # revolutions seen in all
@@ -229,11 +229,15 @@ class LiveFeed:
         bands: dict[str, list[float]] = {}
         if lim.check_supply_pressure:
             bands["p_supply"] = [lim.supply_pressure_min_mpa * MPA, lim.supply_pressure_max_mpa * MPA]
-        step = self._manual.get(self._manual_point())
+        step = self._manual_step()
         if step is not None:
             accepted = setting_bands(step, self.rig.verify)
             bands["p_recess"], bands["beta"] = accepted["recess_pressure"], accepted["pressure_ratio"]
         return bands
+
+    def _manual_step(self) -> SetManual | None:
+        point = self._manual_point()
+        return None if point is None else self._manual.get(point)
 
     def _manual_point(self) -> int | None:
         """Index of the operating point being set up or run: the waiting step's, else the later
@@ -251,7 +255,7 @@ class LiveFeed:
         step_id = self.engine.waiting_step
         if state != RunState.WAITING or not step_id:
             return None
-        step = self._manual.get(self._manual_point())
+        step = self._manual_step()
         if step is None:
             return {"step": step_id, "settings": {}}
         measured, bands = self._measured(), setting_bands(step, self.rig.verify)

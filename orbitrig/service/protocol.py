@@ -21,8 +21,9 @@ import json
 import math
 import re
 from dataclasses import dataclass
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal, Union, get_args
 
+from pydantic_core import ErrorDetails
 from pydantic import BaseModel, ConfigDict, Field, StringConstraints, TypeAdapter, ValidationError, field_validator
 
 from orbitrig.run.states import RunState
@@ -212,11 +213,11 @@ _COMMANDS: TypeAdapter = TypeAdapter(CommandModel)
 COMMAND_FIELDS: dict[str, tuple[str, ...]] = {
     name: tuple(f for f in model.model_fields if f not in ("cmd", "id", "by"))
     for model in (StartCommand, ConfirmCommand, BareCommand)
-    for name in model.model_fields["cmd"].annotation.__args__
+    for name in get_args(model.model_fields["cmd"].annotation)
 }
 
 
-def _field_problem(err: dict[str, Any], name: str) -> str | None:
+def _field_problem(err: ErrorDetails, name: str) -> str | None:
     """One pydantic error of a command's fields as the reply's words (None: an
     id problem, reported once by the correlation check)."""
     field = str(err["loc"][-1]) if err["loc"] else "?"

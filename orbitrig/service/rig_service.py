@@ -220,21 +220,22 @@ class RigService(SupervisionHandling):
 
     async def _end_run(self, why: str) -> None:
         """Abort an active run and wait (bounded) until the executor has finished."""
-        if not self.run_active:
+        task = self._run_task
+        if not self.run_active or task is None:
             return
         log.warning("stopping run %s at once, both drives ramp to zero: %s", self._run_id, why)
         self._request("stop_now", f"service ({why})")
         timeout = self._run_end_timeout()
         try:
-            await asyncio.wait_for(asyncio.shield(self._run_task), timeout)
+            await asyncio.wait_for(asyncio.shield(task), timeout)
         except TimeoutError:
             log.error("run did not end within %.0f s; cancelling it: the drives' stop is not confirmed", timeout)
             self._cut_short = True
-            self._run_task.cancel()
-            await asyncio.gather(self._run_task, return_exceptions=True)
+            task.cancel()
+            await asyncio.gather(task, return_exceptions=True)
         except asyncio.CancelledError:
             current = asyncio.current_task()
-            if not self._run_task.cancelled() or (current is not None and current.cancelling()):
+            if not task.cancelled() or (current is not None and current.cancelling()):
                 raise  # this task is being cancelled, not only the run it waited for
         except Exception:  # noqa: BLE001 - reported by _run itself
             pass
@@ -309,18 +310,20 @@ class RigService(SupervisionHandling):
             raise CommandRefused(
                 f"a run is active (run {self._run_id}, state {self._state}): stop or abort it before starting another"
             )
-        folder = self.settings.matrices_dir
-        path = folder / f"{cmd.matrix}.toml"
+        matrix_name, folder = cmd.matrix, self.settings.matrices_dir
+        if matrix_name is None:  # (the protocol's model requires it: a command built elsewhere)
+            raise CommandRefused("start needs the field 'matrix'")
+        path = folder / f"{matrix_name}.toml"
         if not path.is_file():
             names = sorted(p.stem for p in folder.glob("*.toml")) if folder.is_dir() else []
             raise CommandRefused(
-                f"no matrix {cmd.matrix!r} in the matrix folder (available: {', '.join(names) or 'none'})"
+                f"no matrix {matrix_name!r} in the matrix folder (available: {', '.join(names) or 'none'})"
             )
         try:
             matrix = self._load_matrix(path)
         except ConfigError as err:
-            raise CommandRefused(f"matrix {cmd.matrix!r} is invalid: {'; '.join(err.problems)}") from err
-        engine = self._engine_factory(cmd.matrix, matrix)
+            raise CommandRefused(f"matrix {matrix_name!r} is invalid: {'; '.join(err.problems)}") from err
+        engine = self._engine_factory(matrix_name, matrix)
         engine.operator = cmd.by or ""  # recorded in the run with every command's sender
         # the live feed before the run task: if it cannot be attached, the start fails and nothing moves
         live = live_feed.attach(engine, matrix, lambda p: self._send(self.topics.live, p, proto.QOS_LIVE))
@@ -331,11 +334,11 @@ class RigService(SupervisionHandling):
         self._engine, self._live, self._cut_short = engine, live, False
         self._run_id, self._fit_warnings = engine.run_id, []
         assert self._tg is not None
-        self._run_task = self._tg.create_task(self._run(engine, cmd.matrix, matrix), name=f"run-{cmd.matrix}")
+        self._run_task = self._tg.create_task(self._run(engine, matrix_name, matrix), name=f"run-{matrix_name}")
         if (catalog := self._catalog) is not None:  # the run's final status and end, whatever its outcome
             self._run_task.add_done_callback(lambda _: catalog.run_ended(engine.out_dir))
         if live is not None:
-            self._tg.create_task(live.run(self._run_task), name=f"live-{cmd.matrix}")
+            self._tg.create_task(live.run(self._run_task), name=f"live-{matrix_name}")
 
     def _send(self, topic: str, payload: bytes, qos: int, retain: bool = False) -> None:
         self.link.send(topic, payload, qos, retain)

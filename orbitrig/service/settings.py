@@ -37,6 +37,13 @@ class CommandRefused(OrbitrigError):
         super().__init__(reason)
 
 
+def supervision_policy(name: str) -> SupervisionPolicy:
+    """The policy called `name` (keep, pause, stop); ServiceError naming the choices otherwise."""
+    if name not in SUPERVISION_POLICIES:
+        raise ServiceError(f"supervision policy {name!r}: one of {', '.join(SUPERVISION_POLICIES)}")
+    return SupervisionPolicy(name)
+
+
 # -- settings -----------------------------------------------------------------
 
 #: s the engine allows beyond the drives' stop timeout before it gives up waiting for standstill
@@ -142,11 +149,7 @@ class ServiceSettings:
         return self.mqtt_client_id.encode()[: 128 - len(suffix)].decode(errors="ignore") + suffix
 
     def __post_init__(self) -> None:
-        if self.supervision_policy not in SUPERVISION_POLICIES:
-            raise ServiceError(
-                f"supervision policy {self.supervision_policy!r}: one of {', '.join(SUPERVISION_POLICIES)}"
-            )
-        object.__setattr__(self, "supervision_policy", SupervisionPolicy(self.supervision_policy))
+        object.__setattr__(self, "supervision_policy", supervision_policy(self.supervision_policy))
         if not 0 < self.supervision_timeout < math.inf:
             raise ServiceError(
                 f"supervision timeout must be a finite number of seconds > 0, not {self.supervision_timeout!r}"

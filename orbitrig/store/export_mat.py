@@ -32,6 +32,7 @@ from __future__ import annotations
 import io
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -145,7 +146,7 @@ def _fit_struct(fit) -> dict:
 
 def point_struct(p, channels: list[str], channel_units: list[str]) -> dict:
     settings = content.settings(p)
-    s = {k: v for k, (v, _) in settings.items()}
+    s: dict[str, Any] = {k: v for k, (v, _) in settings.items()}
     s.update(index=p.index, label=p.settings.label, settings_units={k: u for k, (_, u) in settings.items()})
     for lms, table in p.tables.items():
         cols = content.table_columns(table)

@@ -46,7 +46,7 @@ COVARIANCE_LAYOUT = (
 
 
 def _numeric(props: dict[str, tuple[float, str]]) -> dict:
-    out = {}
+    out: dict[str, float | str] = {}
     for name, (value, unit) in props.items():
         out[name], out[f"{name}.unit_string"] = value, unit
     return out
@@ -76,7 +76,7 @@ def _fit_objects(p, fit) -> list:
     group = f"fit {p.name} {fit.key}"
     text = {"error": fit.error, "warnings": csvfile.warnings_cell(d["warnings"]), "adequacy_verdict": ""}
     props = text | _properties(content.fit_properties(fit))
-    quantities = {q: d[q] for q in ("value", "std", "U") if q in d}
+    quantities: dict[str, np.ndarray] = {q: d[q] for q in ("value", "std", "U") if q in d}
     if "interval_95" in d:
         quantities |= {"interval_95_low": d["interval_95"][:, 0], "interval_95_high": d["interval_95"][:, 1]}
     if "interval_95_statistical" in d:
@@ -86,7 +86,7 @@ def _fit_objects(p, fit) -> list:
     rows = list(quantities)
     objs = [GroupObject(group, props), ChannelObject(group, "quantity", np.array(rows, dtype=str), _TEXT)]
     for c, (name, unit) in enumerate(zip(fit.names, fit.units)):
-        extra = {k: (float(d[k][c]), "1") for k in ("e_n", "not_determined") if k in d}
+        extra: dict[str, tuple[float, str]] = {k: (float(d[k][c]), "1") for k in ("e_n", "not_determined") if k in d}
         objs.append(
             ChannelObject(
                 group,
@@ -158,7 +158,7 @@ def _point_objects(p, channels: list[str], channel_units: list[str]) -> list:
             )
         )
         for c, (name, unit) in enumerate(zip(channels, channel_units)):
-            numbers = {k: (float(b[k][c]), unit) for k in ("dc", "uncertainty") if k in b}
+            numbers: dict[str, tuple[float, str]] = {k: (float(b[k][c]), unit) for k in ("dc", "uncertainty") if k in b}
             if "phasors" in b:
                 numbers |= {
                     "phasor_re": (float(b["phasors"][c].real), unit),

@@ -138,7 +138,7 @@ def waveforms_dataset(point, channels: list[str], channel_units: list[str]):
         return xr.Dataset()
     stack = lambda key: np.stack([b.waveform[key] for b in blocks])  # noqa: E731
     per_channel = {f"units_{c}": u for c, u in zip(channels, channel_units)}
-    dims = ("block", "channel", "angle")
+    dims: tuple[str, ...] = ("block", "channel", "angle")
     data = {"mean": (dims, stack("mean"), {"description": "synchronous average over the revolutions", **per_channel})}
     for key, name, what in (
         ("dc", "dc", "mean value"),

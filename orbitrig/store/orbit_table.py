@@ -188,12 +188,11 @@ def _parse_numbers(fh) -> list[np.ndarray] | None:
 def _read_columns(file: str, fh) -> tuple[dict[str, np.ndarray], list[IgnoredColumnWarning]]:
     """The wanted columns of a CSV stream, validated, as float arrays; the header's near-miss warnings."""
     reader = _Reader(file, csv.reader(fh))
-    header, header_line = None, None
     for fields in reader:
         if any(f.strip() for f in fields):
             header, header_line = [f.strip() for f in fields], reader.line_num
             break
-    if header is None:
+    else:
         raise TableError(file, 1, None, "empty file: a header row is required")
     header = [_column_name(file, header_line, name) for name in header]
     wanted, ignored = _wanted_columns(file, header, header_line)
@@ -231,7 +230,7 @@ def _block(file, rows, lines, wanted, index, n_header, first) -> dict[str, np.nd
             break
     if fast and _in_range(col, first or {name: col[name][0] for name in wanted}):
         return col
-    out = []
+    out: list[dict[str, float]] = []
     for line, fields in zip(lines, rows):
         if len(fields) > n_header and any(f.strip() for f in fields[n_header:]):
             raise TableError(
@@ -306,7 +305,7 @@ def _wanted_columns(
     for name in REQUIRED:
         if name not in seen:
             raise TableError(file, header_line, name, "required column missing from the header" + hint.get(name, ""))
-    wanted = REQUIRED
+    wanted: tuple[str, ...] = REQUIRED
     for group, what in ((GAMMA2, "coherence"), (UNCERTAINTY, "uncertainty")):
         present = [g for g in group if g in seen]
         if present and len(present) != len(group):

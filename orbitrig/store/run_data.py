@@ -93,7 +93,7 @@ class RunData:
         p = self._point(point)
         if lms not in p.tables:
             raise KeyError(f"point {point} has no orbit table {str(lms)!r} (tables: {', '.join(p.tables) or 'none'})")
-        return frames.table_frame(p.tables[lms])
+        return frames.table_frame(p.tables[LoadSystem(lms)])  # lms may come as its str value
 
     def fits(self, point: int | None = None) -> list[FitRecord]:
         """Every stored identification (of one point, or of every complete point) as arrays."""

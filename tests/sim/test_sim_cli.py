@@ -73,3 +73,23 @@ def test_sim_command_rejects_a_bad_config(tmp_path):
     out, err = proc.communicate(timeout=30)
     assert proc.returncode == 2 and out == ""
     assert "bad.toml" in err and "noise.white" in err
+
+
+def test_sim_config_takes_a_shipped_scenario_by_name_from_any_folder(tmp_path):
+    """`--config clean` from a folder without config/: the shipped scenario (as sweep's --sim-config);
+    an unknown name exits 2 naming the known ones."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    base = [sys.executable, "-m", "orbitrig", "sim", "--modbus-port", "0", "--adc-port", "0", "--can-port", "0"]
+    bad = subprocess.run([*base, "--config", "nosuch"], cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert bad.returncode == 2
+    assert "nosuch: no such file; unknown simulator scenario 'nosuch'; known: paper, clean, compressible" in bad.stderr
+    proc = subprocess.Popen(
+        [*base, "--config", "clean"], cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        assert json.loads(proc.stdout.readline())["modbus"].startswith("tcp://127.0.0.1:")
+    finally:
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=30) == 0
+        proc.stdout.close()
+        proc.stderr.close()
