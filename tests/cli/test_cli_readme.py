@@ -97,6 +97,12 @@ def test_readme_command_exists_with_its_options(command):
         assert words[2] in ("pytest", "venv", "orbitrig")
     elif words[0] == "python3":
         assert (ROOT / words[1]).is_file(), words[1]
+    elif words[0] == ".":  # the shell's source: a virtual environment the README makes first
+        venv = words[1].removesuffix("/bin/activate")
+        assert f"python3 -m venv {venv}" in readme_commands(), words[1]
+    elif words[0] == "export":  # an environment variable orbitrig reads
+        name = words[1].split("=", 1)[0]
+        assert any(name in f.read_text() for f in (ROOT / "orbitrig" / "config").glob("*.py")), name
     elif "/" in words[0]:
         assert (ROOT / words[0]).is_file(), words[0]
     else:

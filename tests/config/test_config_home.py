@@ -165,7 +165,8 @@ def test_init_broker_readme_names_the_files_mosquitto_conf_uses(tmp_path, broker
     assert [w for w in chown if "passwd" in w] == [passwd, passwd]
     if broker_dir is None:
         assert "/etc/mosquitto" not in readme
-    assert (
-        readme.replace(shlex.quote(passwd), "/etc/mosquitto/orbitrig/passwd")
-        == (REPO / "config" / "mosquitto" / "README.md").read_text()
-    )  # the shipped text otherwise
+    acl = next(line.split(" ", 1)[1] for line in conf.splitlines() if line.startswith("acl_file "))
+    assert f"copy `acl` to {shlex.quote(acl)}" in readme  # where the conf reads it
+    back = readme.replace(shlex.quote(passwd), "/etc/mosquitto/orbitrig/passwd")
+    back = back.replace(shlex.quote(acl), "/etc/mosquitto/orbitrig/acl")
+    assert back == (REPO / "config" / "mosquitto" / "README.md").read_text()  # the shipped text otherwise
