@@ -85,7 +85,8 @@ async def test_clean(rig, link):
     tap = WireTap(rig)
     block, used = await acquire_with_fault(rig, url_of(rig, link))
     s = block.stats
-    assert (s.revolutions_used, s.revolutions_dropped, s.frames_bad, s.link_drops) == (N, 0, 0, 0)
+    counts = (s.revolutions_used, s.revolutions_dropped, s.frames_bad, s.link_drops)
+    assert counts == (N, 0, 0, 0), (s.drop_reasons, s.frame_errors)
     assert s.drop_reasons == {} and s.frame_errors == {}
     assert [r.rev for r in used] == list(range(used[0].rev, used[0].rev + N))
     check_block(rig, block, used, tap)

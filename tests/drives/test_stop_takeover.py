@@ -115,5 +115,7 @@ async def test_stop_emergency_asked_during_a_ramp_stops_zero_references_goes_bef
     assert off3 is not None, show(seq)
     assert off3 - t_asked < 0.5, f"the spin drive got OFF3 {off3 - t_asked:.3f} s after it was asked: {show(seq)}"
     ignored = sum(t_ref < t < off3 for t in orbit_tries)
-    assert ignored == 1, f"{ignored} requests to the silent drive between the spin drive's REF 0 and its OFF3"
+    # 1: the orbit drive's REF 0 already on the link waits out its timeout; 0: the emergency was taken
+    # before the ramp put it there (a loaded machine); never its retries as well
+    assert ignored <= 1, f"{ignored} requests to the silent drive between the spin drive's REF 0 and its OFF3"
     assert seq == [(CW, CW_RAMP_STOP), (REF, 0), (CW, CW_EMERGENCY), (REF, 0)], show(seq)
