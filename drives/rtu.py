@@ -221,7 +221,8 @@ class RtuLine:
             self._dirty = True  # cleared by an accepted answer
             try:
                 self._write(adu)
-                return await asyncio.wait_for(fut, self.timeout)
+                async with asyncio.timeout(self.timeout):  # (3.11's wait_for can lose a cancellation)
+                    return await fut
             finally:
                 self._pending = None
                 if self._dirty:  # failed: the settle time runs from now

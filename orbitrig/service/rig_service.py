@@ -227,7 +227,8 @@ class RigService(SupervisionHandling):
         self._request("stop_now", f"service ({why})")
         timeout = self._run_end_timeout()
         try:
-            await asyncio.wait_for(asyncio.shield(task), timeout)
+            async with asyncio.timeout(timeout):  # (3.11's wait_for can lose a cancellation)
+                await asyncio.shield(task)
         except TimeoutError:
             log.error("run did not end within %.0f s; cancelling it: the drives' stop is not confirmed", timeout)
             self._cut_short = True
