@@ -216,7 +216,7 @@ class RtuLine:
             await self._wait_silence()
             self._drop_input("before a request")
             adu = frame(device_id, bytes([fc]) + request)
-            fut = asyncio.get_running_loop().create_future()
+            fut: asyncio.Future[RtuAnswer] = asyncio.get_running_loop().create_future()
             self._pending = _Pending(device_id, fc, request, fut)
             self._dirty = True  # cleared by an accepted answer
             try:
