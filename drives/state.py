@@ -6,7 +6,11 @@ from dataclasses import dataclass
 from typing import Any
 
 from drives.drive import DriveStatus, rad_s_to_rpm
+from drives.errors import DriveLinkError
 from drives.limits import fmt_speed
+
+#: what a lost Modbus link is called wherever it ends something (the run's interlock, a step, a hold)
+LINK_LOST = "Modbus link to the drives lost"
 
 
 @dataclass(frozen=True)
@@ -34,6 +38,13 @@ class RigDriveState:
         if self.spin is None or self.orbit is None or not self.at_setpoint:
             return False
         return (self.spin.reference_raw, self.orbit.reference_raw) == tuple(refs)
+
+    def require_link(self) -> RigDriveState:
+        """This state, or DriveLinkError if the poll declared the link lost (LINK_LOST, with the
+        request that went unanswered)."""
+        if not self.link_ok:
+            raise DriveLinkError(f"{LINK_LOST} ({self.link_error})")
+        return self
 
     @property
     def stopped(self) -> bool:

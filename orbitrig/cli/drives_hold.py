@@ -15,7 +15,7 @@ import asyncio
 import signal
 import time
 
-from drives.errors import DriveError, DriveLinkError
+from drives.errors import DriveError
 from orbitrig.cli.signals import SIGNAL_WORDS
 from orbitrig.cli.terminal import OutputError, say
 from orbitrig.run.safe_stop import not_confirmed, stop_shielded
@@ -203,9 +203,7 @@ async def _poll_at_setpoint(rig, refs: tuple[int, int], status_every: float, int
             await asyncio.wait_for(interrupt.event.wait(), rig.poll_interval)
         except asyncio.TimeoutError:
             pass
-        state = rig.check()  # a trip found by the poll (both already stopping)
-        if not state.link_ok:
-            raise DriveLinkError(f"link lost while holding ({state.link_error})")
+        state = rig.check().require_link()  # a trip found by the poll (both already stopping), a lost link
         elsewhere = stopped_elsewhere(state, refs)
         now = time.monotonic()
         if now - last >= status_every and not interrupt.event.is_set() and elsewhere is None:

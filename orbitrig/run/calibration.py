@@ -236,11 +236,9 @@ class CalibrationSession:
         if drives is None:
             return
         try:
-            state = drives.check()
+            drives.check().require_link()
         except DriveError as err:
             raise CalibrationFailed(f"{err}{self._during()}") from err
-        if not state.link_ok:
-            raise CalibrationFailed(f"Modbus link to the drives lost ({state.link_error}){self._during()}")
 
     def _during(self) -> str:
         roll = self.roll_spec

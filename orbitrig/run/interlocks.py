@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 from daq.aux import HEARTBEAT_OPERATIONAL, LOST_AFTER, AuxState
-from drives.state import RigDriveState
+from drives.state import LINK_LOST, RigDriveState
 from orbitrig.config import MPA, Interlocks
 
 
@@ -93,7 +93,7 @@ def _turning(drives: RigDriveState | None) -> bool:
 def _drive_trips(drives: RigDriveState) -> list[Trip]:
     trips = []
     if not drives.link_ok:
-        trips.append(Trip("drive_link", FAIL, "Modbus link to the drives lost"))
+        trips.append(Trip("drive_link", FAIL, LINK_LOST))
     for which, st in (("spin", drives.spin), ("orbit", drives.orbit)):
         if st is not None and (st.fault_code or st.tripped):
             trips.append(Trip("drive_trip", FAIL, f"{which} drive tripped: fault {st.fault_code} {st.fault}".rstrip()))

@@ -115,3 +115,14 @@ def test_settle_detector_needs_an_unbroken_hold():
     assert s.settles_at == 1.0
     assert not s.update(True, 0.9)
     assert s.update(True, 1.0)
+
+
+def test_require_link_passes_a_good_poll_and_names_a_lost_link():
+    """One wording of a lost link for the run's interlock, a calibration step and `drives run --hold`."""
+    from drives.state import RigDriveState
+
+    ok = RigDriveState(None, None, link_ok=True)
+    assert ok.require_link() is ok
+    lost = RigDriveState(None, None, link_ok=False, link_error="no answer within 0.25 s on tcp://127.0.0.1:5020")
+    with pytest.raises(DriveLinkError, match=r"^Modbus link to the drives lost \(no answer within 0\.25 s on tcp"):
+        lost.require_link()
