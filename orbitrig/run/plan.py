@@ -55,7 +55,7 @@ from orbitrig.run.steps import (
     VerifyPressures,
 )
 from reduction.rig_time import block_time
-from reduction.sequential import STEP_REVOLUTIONS
+from reduction.sequential import MAX_REVOLUTIONS
 from reduction.whirl import Whirl
 
 
@@ -172,7 +172,7 @@ def make_plan(matrix: MatrixConfig, rig: RigConfig, order: Sequence[int] | None 
     points = [dataclasses.replace(written[w], index=i) for i, w in enumerate(order)]
     steps = _steps(matrix, rig, points)
     n_rev = max(
-        s.revolutions if isinstance(s, Acquire) else max(STEP_REVOLUTIONS)
+        s.revolutions if isinstance(s, Acquire) else MAX_REVOLUTIONS
         for s in steps
         if isinstance(s, (Acquire, ChooseBlocks))
     )

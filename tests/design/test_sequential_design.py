@@ -15,7 +15,16 @@ from reduction.errors import ReductionError
 from reduction.frequency_list import allowed_ratios, coefficient_scales
 from reduction.models import model_spec
 from reduction.rig_time import list_time
-from reduction.sequential import Choice, block_information, next_block, relative_errors
+from reduction.sequential import (
+    MAX_REVOLUTIONS,
+    MIN_REVOLUTIONS,
+    Choice,
+    block_information,
+    next_block,
+    reference_errors,
+    relative_errors,
+)
+from reduction.whirl import Directions
 
 SPIN = 1000 * 2 * math.pi / 60
 U = np.array([20e-9, 20e-9, 15.0, 15.0])
@@ -53,10 +62,47 @@ def test_sequential_point_reaches_the_target_near_the_static_optimum():
     nb, chosen, spent, _ = run_point(target, cap=3600.0)
     assert nb.reason == Choice.TARGET and np.max(nb.before) <= target and chosen
     static = allocate(SPEC, THETA, SPIN, RADIUS, GRID, noise_at(GRID), SCALES * target, block_overhead=OVERHEAD)
-    # the greedy sequence (with its initial list) costs at most 1.6 x the static allocation's
-    # rig time (which knew the truth in advance; both count trigger revolutions differently by
-    # one period per block, well inside the margin)
-    assert spent < 1.6 * static.rig_time_s, (spent, static.rig_time_s)
+    # the planned sequence (with its initial list, and blocks of at most MAX_REVOLUTIONS each
+    # paying the overhead) costs at most 1.15 x the static allocation's rig time, which knew
+    # the truth in advance (1.04 on this machine; both count trigger revolutions differently
+    # by one period per block, well inside the margin)
+    assert spent < 1.15 * static.rig_time_s, (spent, static.rig_time_s)
+    assert all(MIN_REVOLUTIONS <= n <= MAX_REVOLUTIONS for _, n in chosen)
+
+
+PAPER = [0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.1, 1.2]
+SPREAD = [0.2, 0.4, 0.65, 0.8, 1.2]  # one ratio in each fifth of the paper's span: the model test's spread
+RAMP = 600 * 2 * math.pi / 60  # rig.toml's ramp, rad/s per s
+
+
+def _ramps(orbits) -> float:
+    return float(np.sum(np.abs(np.diff(orbits)))) / RAMP
+
+
+def test_matching_the_paper_list_takes_two_thirds_of_its_rig_time_keeping_the_spread():
+    """Every kcd11 coefficient as precise as the paper's ten ratios at 50 revolutions, from a
+    five-ratio spread at 10 (the model test's), each direction a block, ramps counted: the
+    paper protocol's rig time x 0.647 (the greedy block-by-block choice took 0.80; the least
+    any static list keeping the spread needs is about 0.65, bench/bench_design_bounds.py)."""
+    dirs = (Directions.FORWARD, Directions.BACKWARD)
+    scales = reference_errors(SPEC, THETA, SPIN, RADIUS, np.array(PAPER), noise_at(PAPER), 50)
+    paper_orbits = [s * r * SPIN for r in PAPER for s in (1, -1)]
+    paper = list_time(PAPER, SPIN, 50) + 2 * len(PAPER) * OVERHEAD + _ramps(paper_orbits)
+    info = sum(block_information(SPEC, THETA, SPIN, RADIUS, r, U, 10) for r in SPREAD)
+    orbits = [s * r * SPIN for r in SPREAD for s in (1, -1)]
+    spent = list_time(SPREAD, SPIN, 10) + 2 * len(SPREAD) * OVERHEAD + _ramps(orbits)
+    for _ in range(20):
+        nb = next_block(
+            SPEC, THETA, SPIN, RADIUS, info, GRID, noise_at, scales, 1.0, spent, 600.0, OVERHEAD, dirs, orbits[-1], RAMP
+        )
+        if nb.ratio is None:
+            break
+        info = info + block_information(SPEC, THETA, SPIN, RADIUS, nb.ratio, U, nb.revolutions, nb.direction)
+        spent += nb.seconds
+        orbits.append(nb.direction.whirls[0].sign * nb.ratio * SPIN)
+    assert nb.reason == Choice.TARGET and np.max(relative_errors(info, scales)) <= 1.0
+    assert 0.55 < spent / paper < 0.70, spent / paper
+    assert len(orbits) - 2 * len(SPREAD) <= 6  # a few long blocks, not many short ones
 
 
 def test_time_cap_stops_the_point_and_is_never_passed():
