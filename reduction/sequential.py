@@ -150,7 +150,7 @@ def next_block(
     tau = np.concatenate([revolution_time(r, spin, d) for d in options])
     overhead = np.concatenate([np.full(r.size, d.blocks * per_block_s) for d in options])
     goal = target * np.asarray(scales, dtype=float)
-    t = completion(np.asarray(info, dtype=float), F, tau, goal, overhead)
+    t = _planned(np.asarray(info, dtype=float), F, tau, goal, overhead, r.size)
     ramps = [_ramp_s(ratio * spin, d, orbit_now, ramp_rate) for ratio, d in blocks]
     for b in sorted(np.flatnonzero(t > 0), key=lambda b: ramps[b]):  # the nearest orbit first
         ratio, d = blocks[b]
@@ -164,6 +164,26 @@ def next_block(
                 return NextBlock(ratio, n, Choice.NEXT, float(seconds), before, after, d)
             n = min(n - 1, int(n * (cap_s - spent_s - ramps[b]) / seconds))
     return NextBlock(None, 0, Choice.CAP, 0.0, before, before)
+
+
+def _planned(
+    info: FloatArray, F: FloatArray, tau: FloatArray, goal: FloatArray, overhead: FloatArray, k: int
+) -> FloatArray:
+    """The completion (reduction.completion) over candidate blocks laid out direction by
+    direction, ``k`` ratios ascending each: solved first on every second ratio, then on the
+    ratios next to those it kept (a tenth of the solver's time on the 0.05 grid; the fine grid
+    alone moves the optimum little)."""
+    n = tau.size
+    ratio = np.arange(n) % k
+    coarse = np.flatnonzero((ratio % 2 == 0) | (ratio == k - 1))
+    t = np.zeros(n)
+    t[coarse] = completion(info, F[coarse], tau[coarse], goal, overhead[coarse])
+    kept = np.flatnonzero(t > 0)
+    near = {int(b + d) for b in kept for d in (-1, 0, 1) if 0 <= ratio[b] + d < k}
+    fine = np.array(sorted(near))
+    out = np.zeros(n)
+    out[fine] = completion(info, F[fine], tau[fine], goal, overhead[fine])
+    return out
 
 
 def _ramp_s(orbit: float, direction: Directions, orbit_now: float | None, ramp_rate: float | None) -> float:

@@ -29,6 +29,10 @@ from pathlib import Path
 
 import pytest
 
+from orbitrig.cli.threads import one_blas_thread
+
+one_blas_thread()  # the suite's processes compute as the orbitrig command's do
+
 from orbitrig.config.home import HOME_ENV
 
 PROCESS_WORDS = re.compile(

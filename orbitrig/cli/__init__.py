@@ -14,6 +14,9 @@ import typer
 import typer.main
 
 from orbitrig.cli.help_text import command_group
+from orbitrig.cli.threads import one_blas_thread
+
+one_blas_thread()  # before any command imports numpy (orbitrig/cli/threads.py)
 
 app = command_group(
     "Fluid-film bearing test rig: acquisition, drives, sweep, identification.",

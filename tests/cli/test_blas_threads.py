@@ -1,0 +1,30 @@
+"""The orbitrig command computes with one BLAS thread (orbitrig/cli/threads.py) unless its
+environment says how many: numpy's and scipy's OpenBLAS as threadpoolctl reads them in a
+fresh process that imported the command."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+from orbitrig.cli.threads import BLAS_THREAD_VARIABLES
+
+PROBE = (
+    "import json, orbitrig.cli, numpy, scipy.linalg, threadpoolctl; "
+    "print(json.dumps([i['num_threads'] for i in threadpoolctl.threadpool_info() if i['user_api'] == 'blas']))"
+)
+
+
+def _blas_threads(env: dict[str, str]) -> list[int]:
+    out = subprocess.run([sys.executable, "-c", PROBE], env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout)
+
+
+def test_one_blas_thread_unless_the_environment_says_how_many():
+    bare = {k: v for k, v in os.environ.items() if k not in BLAS_THREAD_VARIABLES}
+    threads = _blas_threads(bare)
+    assert threads and set(threads) == {1}, threads  # numpy's and scipy's libraries alike
+    assert set(_blas_threads({**bare, "OPENBLAS_NUM_THREADS": "2"})) == {2}
