@@ -24,8 +24,8 @@ LogRow = tuple[float | str, ...]
 
 @dataclass(frozen=True)
 class BlockChoice:
-    """Why a sequential point chose a block (or stopped): ``reason`` "next" (the block lowering the
-    largest predicted relative error most per second), "target" or "cap" (the names of
+    """Why a sequential point chose a block (or stopped): ``reason`` "next" (the next block of the
+    least-time plan to the target), "target" or "cap" (the names of
     reduction.sequential.Choice, lower case), the ratio, whirl directions, revolutions and rig seconds of
     the choice, the rig seconds its blocks had spent before it, the model's coefficient names,
     and each one's predicted relative standard error (fraction of its scale) before and after."""
