@@ -7,14 +7,18 @@ board's revolution harmonics and the probe tracks' runout at 1x and 2x spin is t
 first and second harmonic. Both drives are stopped on every way out (`CalibrationSession`),
 before the links close. What each step measures: orbitrig.run.calibration_measure.
 
-The input a step puts on the rig (loads, a displacement step,
-the phase reference) is taken off only once both drives are confirmed at standstill
-(`CalibrationSession.applied`): the drives are never left turning while the operator is asked
-something. While the drives turn, every hold, acquisition and prompt for a load or a step is
-raced against the drives' poll (`CalibrationSession.watched`: `RigDrives.check` and the link, as
-`orbitrig drives run --hold` watches them): a drive that trips (both already commanded to stop
-by the poll) or a lost link to the drives ends the step within a poll interval, naming the
-drive and its fault or the lost link. SI throughout.
+The input a step puts on the rig (loads, a displacement step, the phase reference) is taken off
+only once both drives are confirmed at standstill (`CalibrationSession.applied`): the drives are
+never left turning while the operator is asked something. While the drives turn, every hold,
+acquisition and prompt for a load or a step is raced against the drives' poll
+(`CalibrationSession.watched`: `RigDrives.check` and the link, as `orbitrig drives run --hold`
+watches them) and the run's interlocks (orbitrig.run.supervision, sampled in a task of its own
+for the whole session, as during a sweep): a drive that trips (both already commanded to stop by
+the poll), a lost link to the drives, the lubricant supply lost (pump off, supply below its
+minimum) for [interlocks] supply_lost_timeout_s or the CAN sensor node lost for
+can_heartbeat_timeout_s ends the step within a poll interval, naming the drive and its fault,
+the lost link or the interlock; the session's way out then stops both drives (the emergency
+stop). A slow roll is not started once such an interlock has failed. SI throughout.
 """
 
 from __future__ import annotations
@@ -24,15 +28,20 @@ import contextlib
 import logging
 from collections.abc import AsyncIterator, Awaitable
 from dataclasses import dataclass
+from functools import partial
 from typing import Callable, TypeVar
 
 from daq.averager import AveragedBlock, AveragingRule
+from daq.aux import AuxState
 from daq.errors import DaqError
 from drives.errors import DriveError
+from drives.state import RigDriveState
 from orbitrig.config import RPM, RigConfig
 from orbitrig.errors import OrbitrigError
+from orbitrig.run.interlocks import Trip
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.safe_stop import not_confirmed, stop_shielded
+from orbitrig.run.supervision import InterlockSupervisor
 from reduction.rig_time import block_time
 
 log = logging.getLogger(__name__)
@@ -76,13 +85,21 @@ class CalibrationSession:
         self.roll_spec: SlowRoll | None = None
         self.at_standstill = False  # both drives confirmed at standstill since the last `roll`
         self.unconfirmed: CalibrationFailed | None = None  # a stop that was not confirmed
+        #: the run's interlocks (CAN node, lubricant supply, drives), sampled while the rig is open
+        self.interlocks = InterlockSupervisor(self._sensors, rig.interlocks, _interlock_failed)
+        self._watching: asyncio.Task[None] | None = None
 
     async def __aenter__(self) -> "CalibrationSession":
         try:
             await self.io.__aenter__()
         except (DriveError, DaqError, OSError) as err:
             raise CalibrationFailed(f"cannot open the rig: {err}") from err
+        self._watching = asyncio.create_task(self.interlocks.watch(), name="calibration-interlocks")
         return self
+
+    def _sensors(self) -> tuple[AuxState, RigDriveState]:
+        """What the interlocks read: the CAN node's latest values, the drives' latest poll."""
+        return self.io.open_aux.latest(), self.io.open_drives.state
 
     async def __aexit__(self, *exc) -> None:
         """Both drives stopped and confirmed at standstill (`stop`: an emergency stop after an
@@ -92,6 +109,8 @@ class CalibrationSession:
         failure (a trip, a lost link) is said first. A failure closing the links after either
         (the drives' own exit stop not delivered) is noted, never said instead of them."""
         failed: CalibrationFailed | None = None
+        if self._watching is not None:  # (what trips during the stop ends nothing more)
+            self._watching.cancel()
         try:
             await self.stop(emergency=exc[0] is not None)
         except CalibrationFailed as err:
@@ -189,11 +208,13 @@ class CalibrationSession:
             recess_pressure=roll.recess_pressure,
             pressure_ratio=roll.pressure_ratio,
         )
-        scale, s = self.access.time_scale, self.rig.settle
+        scale, s, drives = self.access.time_scale, self.rig.settle, self.io.open_drives
+        self.check_interlocks()  # no spindle started once an interlock has failed
         self.at_standstill = False
         try:
-            await self.io.open_drives.set_speeds(roll.spin, roll.orbit)
-            await self.io.open_drives.wait_settled(hold=scale.wall(s.hold_s), timeout=scale.wall(s.timeout_s) + 5.0)
+            await drives.set_speeds(roll.spin, roll.orbit)
+            settled = partial(drives.wait_settled, hold=scale.wall(s.hold_s), timeout=scale.wall(s.timeout_s) + 5.0)
+            await self.watched(settled, self.check_interlocks)
         except DriveError as err:
             raise CalibrationFailed(
                 f"slow roll at spin {roll.spin / RPM:.0f} rpm, orbit {roll.orbit / RPM:.0f} rpm: {err}"
@@ -204,7 +225,8 @@ class CalibrationSession:
         """CalibrationFailed if the drives' poll found a drive tripped (recorded once the poll has
         commanded both to stop, drives/poll.py) or failed otherwise (`RigDrives.check`), or declared
         the Modbus link to them lost (`link_ok`, as the sweep's drive interlock): the message names
-        the drive and its fault code, or the lost link and the request that went unanswered."""
+        the drive and its fault code, or the lost link and the request that went unanswered; then
+        the interlocks (`check_interlocks`)."""
         drives = self.io.drives
         if drives is None:
             return
@@ -212,6 +234,15 @@ class CalibrationSession:
             drives.check().require_link()
         except DriveError as err:
             raise CalibrationFailed(f"{err}{self._during()}") from err
+        self.check_interlocks()
+
+    def check_interlocks(self) -> None:
+        """CalibrationFailed naming the interlock if one has failed (orbitrig.run.supervision: the
+        lubricant supply lost for [interlocks] supply_lost_timeout_s, the CAN sensor node for
+        can_heartbeat_timeout_s, a drive tripped or its link lost), as it fails a sweep."""
+        trip = self.interlocks.failure
+        if trip is not None:
+            raise CalibrationFailed(f"interlock: {trip.message}{self._during()}")
 
     def _during(self) -> str:
         roll = self.roll_spec
@@ -219,18 +250,19 @@ class CalibrationSession:
             return ""
         return f" during the slow roll at spin {roll.spin / RPM:.0f} rpm, orbit {roll.orbit / RPM:.0f} rpm"
 
-    async def watched(self, work: Callable[[], Awaitable[T]]) -> T:
-        """``await work()`` (a hold, an acquisition, a prompt) raced against the drives' poll: the
-        drives checked (`check_drives`) before it starts, every poll interval (wall s) while it
-        runs and once it is done; a trip or a lost link cancels it and raises CalibrationFailed
-        (the session's way out then stops both drives)."""
-        self.check_drives()
+    async def watched(self, work: Callable[[], Awaitable[T]], check: Callable[[], None] | None = None) -> T:
+        """``await work()`` (a hold, an acquisition, a prompt) raced against the drives' poll and
+        the interlocks: `check` (default `check_drives`) before it starts, every poll interval
+        (wall s) while it runs and once it is done; a trip, a lost link or a failed interlock
+        cancels it and raises CalibrationFailed (the session's way out then stops both drives)."""
+        check = check or self.check_drives
+        check()
         period = self.io.drives.poll_interval if self.io.drives is not None else 0.1
         task = asyncio.ensure_future(work())
         try:
             while not task.done():
                 await asyncio.wait({task}, timeout=period)
-                self.check_drives()
+                check()
             return task.result()
         finally:
             if not task.done():
@@ -263,6 +295,11 @@ class CalibrationSession:
                 if attempt == av.retries:
                     raise CalibrationFailed(f"no block at the slow roll: {err}") from err
         raise AssertionError("unreachable")
+
+
+def _interlock_failed(trip: Trip) -> None:
+    """A fail trip during a calibration step: the step's next check raises it (`check_interlocks`)."""
+    log.error("interlock: %s", trip.message)
 
 
 def _joined(failed: CalibrationFailed, cause: BaseException | None) -> CalibrationFailed:
