@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 from drives import registers as R
 from drives.errors import DriveError, DriveFaultError, DriveLimitError, DriveTimeoutError, ErrorContext
-from drives.link import ModbusLink
+from drives.link import Guard, ModbusLink
 from rigunits import RPM
 
 
@@ -295,18 +295,22 @@ class Drive:
             raise DriveError("parameters not read yet", **self._kw(R.SPEED_SCALE))
         return self._scale_rpm, self._max_rpm
 
-    async def write_reference(self, raw: int, *, retries: int | None = None, urgent: bool = False) -> None:
+    async def write_reference(
+        self, raw: int, *, retries: int | None = None, urgent: bool = False, guard: Guard = None
+    ) -> None:
         """Write REF (idempotent: retried on a timeout, `write_retries` times by default);
-        `urgent`: before every request waiting for the link (a stop)."""
+        `urgent`: before every request waiting for the link (a stop); `guard`: ModbusLink.write's."""
         retries = self.write_retries if retries is None else retries
-        await self.link.write(self.device_id, R.REF, [R.to_word(raw)], retries=retries, urgent=urgent)
+        await self.link.write(self.device_id, R.REF, [R.to_word(raw)], retries=retries, urgent=urgent, guard=guard)
 
     # -- state machine ----------------------------------------------------------
-    async def write_control(self, word: int, *, retries: int | None = None, urgent: bool = False) -> None:
+    async def write_control(
+        self, word: int, *, retries: int | None = None, urgent: bool = False, guard: Guard = None
+    ) -> None:
         """Write CW (idempotent: retried on a timeout, `write_retries` times by default);
-        `urgent`: before every request waiting for the link (a stop)."""
+        `urgent`: before every request waiting for the link (a stop); `guard`: ModbusLink.write's."""
         retries = self.write_retries if retries is None else retries
-        await self.link.write(self.device_id, R.CW, [word], retries=retries, urgent=urgent)
+        await self.link.write(self.device_id, R.CW, [word], retries=retries, urgent=urgent, guard=guard)
 
     async def wait_status(
         self,
@@ -332,22 +336,23 @@ class Drive:
                 )
             await asyncio.sleep(0.02)
 
-    async def start(self, raw_ref: int, status: DriveStatus | None = None) -> DriveStatus:
+    async def start(self, raw_ref: int, status: DriveStatus | None = None, *, guard: Guard = None) -> DriveStatus:
         """Run at raw reference `raw_ref`: REF, then CW ready -> RDY_ON, CW run -> RDY_REF; a
         drive running already takes the REF alone, none if it reads `raw_ref` back.
 
         `status`: a status just read (else it is read here). A tripped drive is refused with
-        DriveFaultError (reset it first).
+        DriveFaultError (reset it first). `guard`: each word's (ModbusLink.write): none goes out
+        once it says no (DriveSuperseded: a stop was asked after the start).
         """
         st = status if status is not None else await self.read_status()
         if st.tripped:
             raise DriveFaultError("tripped; reset the fault before starting", **self._kw(R.FAULT, st.fault_code))
         if st.following:
             if st.reference_raw != raw_ref:
-                await self.write_reference(raw_ref)
+                await self.write_reference(raw_ref, guard=guard)
             return st
-        await self.write_reference(raw_ref)
-        await self.write_control(R.CW_READY)
+        await self.write_reference(raw_ref, guard=guard)
+        await self.write_control(R.CW_READY, guard=guard)
         st = await self.wait_status(
             lambda s: bool(s.status_word & R.SWBit.RDY_ON) and not s.tripped, "ready to switch on"
         )
@@ -356,7 +361,7 @@ class Drive:
                 "does not accept network control (status word REMOTE = 0; local control?)",
                 **self._kw(R.SW),
             )
-        await self.write_control(R.CW_RUN)
+        await self.write_control(R.CW_RUN, guard=guard)
         return await self.wait_status(lambda s: s.running, "operation enabled (RDY_REF)")
 
     async def reset_fault(self) -> DriveStatus:

@@ -6,6 +6,7 @@
     +-- DriveLinkError         the Modbus link is down or answers garbage
     +-- DriveTimeoutError      no answer in time, or a state not reached in time
     +-- DriveExceptionResponse the drive answered a Modbus exception (exception_code)
+    +-- DriveSuperseded        a request of a command not sent: a stop was asked after the command
 
 The message names the drive (`spin drive (id 1)`), the register (`REF (1)`),
 or the registers of a multi-register request (`registers 105..106
@@ -91,6 +92,11 @@ class DriveLinkError(DriveError):
 
 class DriveTimeoutError(DriveError, TimeoutError):
     """No answer in time, or the drives did not reach a state in time."""
+
+
+class DriveSuperseded(DriveError):
+    """A request of a command (a start's words) not sent: a stop was asked after the command was
+    given, and nothing of the command may go out after the stop."""
 
 
 class DriveExceptionResponse(DriveError):

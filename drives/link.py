@@ -38,6 +38,7 @@ from urllib.parse import parse_qs, urlsplit
 from drives.errors import (
     DriveExceptionResponse,
     DriveLinkError,
+    DriveSuperseded,
     DriveTimeoutError,
     ErrorContext,
 )
@@ -54,6 +55,8 @@ if TYPE_CHECKING:
 _Answer = Any
 _Call = Callable[["RtuLine | AsyncModbusTcpClient"], Awaitable[_Answer]]
 _Span = tuple[int, int]  # (first address, count) of the registers a request covers
+#: asked once a request has the link (`ModbusLink.write`): False, the request is not sent
+Guard = Callable[[], bool] | None
 
 log = logging.getLogger(__name__)
 
@@ -235,6 +238,7 @@ class ModbusLink:
         *,
         retries: int = 0,
         urgent: bool = False,
+        guard: Guard = None,
     ) -> None:
         """Write unsigned 16-bit words from `address`: FC06 for one, FC16 for several.
 
@@ -242,7 +246,9 @@ class ModbusLink:
         for idempotent writes only (a register set to a value: sending it twice
         is harmless). Each retry is logged; an exception response or a link
         error is never retried. `urgent` (a stop): goes before every request
-        waiting for the link (the one under way finishes first).
+        waiting for the link (the one under way finishes first). `guard` (a start's words): asked
+        once the request has the link, each try; False: not sent (DriveSuperseded), as after a
+        stop asked since the command (a stop's words go before it and it must not undo them).
         """
         values = [int(v) for v in values]
         for i, v in enumerate(values):
@@ -252,7 +258,7 @@ class ModbusLink:
             fc, call = _FC_WRITE_SINGLE, lambda c: c.write_register(address, values[0], device_id=device_id)
         else:
             fc, call = _FC_WRITE_MULTIPLE, lambda c: c.write_registers(address, values, device_id=device_id)
-        await self._retried(device_id, (address, len(values)), fc, "write", retries, call, urgent)
+        await self._retried(device_id, (address, len(values)), fc, "write", retries, call, urgent, guard)
 
     async def _retried(
         self,
@@ -263,13 +269,14 @@ class ModbusLink:
         retries: int,
         call: _Call,
         urgent: bool = False,
+        guard: Guard = None,
     ) -> _Answer:
         """`_request`, tried again up to `retries` times after a timeout (each retry logged);
         `span`: (first address, count) of the registers the request covers."""
         attempt = 0
         while True:
             try:
-                return await self._request(device_id, span, function_code, call, urgent)
+                return await self._request(device_id, span, function_code, call, urgent, guard)
             except DriveTimeoutError as err:
                 if attempt >= retries:
                     raise
@@ -299,12 +306,20 @@ class ModbusLink:
         raise DriveLinkError(f"{what} on {self.url}", **self._error_kw(device_id, span))
 
     async def _request(
-        self, device_id: int, span: _Span, function_code: int, call: _Call, urgent: bool = False
+        self,
+        device_id: int,
+        span: _Span,
+        function_code: int,
+        call: _Call,
+        urgent: bool = False,
+        guard: Guard = None,
     ) -> _Answer:
         from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 
         kw = self._error_kw(device_id, span)
         async with self._lock.turn(urgent):
+            if guard is not None and not guard():
+                raise DriveSuperseded("not sent: a stop was asked after the command", **kw)
             await self._settle_abandoned()
             await self._ensure_connected_for(device_id, span)
             client = self._client

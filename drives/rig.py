@@ -15,12 +15,10 @@ Safety rules this class keeps:
   `poll_interval` s: the heartbeat the drives' comm-loss watchdog needs, the
   source of `state`, and the interlock: if either drive trips, both are ramped
   to zero and the fault is raised from `wait_settled`.
-- A failed poll is counted (`state.poll_failures`, logged) but the link is
-  declared lost only after `link_loss_polls` consecutive failed polls. The
-  count is lowered on entry, if needed, so that link_loss_polls x
-  (poll_interval + timeout) stays below the drives' COMM_LOSS_TIMEOUT: the loss
-  is declared before the drives' own watchdog stops them (a warning if the
-  count was given explicitly).
+- A failed poll is counted (`state.poll_failures`, logged) but the link is declared lost only
+  after `link_loss_polls` consecutive failed polls. The count is lowered on entry, if needed, so
+  that link_loss_polls x (poll_interval + timeout) stays below the drives' COMM_LOSS_TIMEOUT: the
+  loss is declared before the drives' own watchdog stops them (a warning if the count was given).
 - On a declared link loss the poll reports it (log, `state.link_ok`), keeps
   reconnecting and, once the link is back, verifies both drives against what was commanded
   before anything goes on; drives found tripped or off their reference are
@@ -28,10 +26,10 @@ Safety rules this class keeps:
   running while it is owed gets it again, and that is raised (drives/poll.py).
 - `stop` (waiting) raises StopTripError for a drive that tripped during the stop,
   once both are at standstill (the message says so) or the wait ends.
-- Any exception inside `set_speeds`, and every exit of the context, ramps both
-  drives to zero (an emergency stop is repeated as such); the stop is sent
-  even while the task is being cancelled. Only `release()` followed by a clean
-  exit leaves them running (the CLI's `run`).
+- Any exception inside `set_speeds`, and every exit of the context, ramps both drives to zero
+  (an emergency stop is repeated as such); the stop is sent even while the task is being
+  cancelled. Only `release()` followed by a clean exit leaves them running (the CLI's `run`).
+  No start word of `set_speeds` goes out after a stop asked since its command (the poll's on a trip).
 - On entry, a drive at standstill showing fault 7510 (a previous client went
   away) is reset; any other fault waits for `reset_faults()`.
 """
@@ -45,7 +43,7 @@ from types import TracebackType
 
 from drives import registers as R
 from drives.drive import Drive, DriveStatus
-from drives.errors import DriveError, DriveFaultError, DriveLinkError, DriveTimeoutError
+from drives.errors import DriveError, DriveFaultError, DriveLinkError, DriveSuperseded, DriveTimeoutError
 from drives.limits import DriveLimits, fmt_speed
 from drives.link import ModbusLink
 from drives.pair import drive_names, drive_pair
@@ -245,7 +243,8 @@ class RigDrives:
         anything is written (DriveLimitError, nothing sent); a tripped drive
         is refused (DriveFaultError; `reset_faults` first). Returns once both
         drives report operation enabled; use `wait_settled` for the speed.
-        Any failure after the check ramps both drives to zero.
+        Any failure after the check ramps both drives to zero; a stop asked meanwhile (the poll's
+        on a trip) ends the start, none of its words after the stop (the trip raised).
         """
         self._require_open()
         self.limits.check(spin, orbit, spin_id=self.spin.device_id, orbit_id=self.orbit.device_id)
@@ -266,14 +265,16 @@ class RigDrives:
             self._poll.acknowledge()
             self._emergency = False
             self._poll.commanded(refs)
-            following = all(st.following for st in statuses)  # a new REF at most
-            for d, raw, st in zip(self._drives, refs, statuses):
-                await d.start(raw, st if following else None)  # else each read again as it is started
+            following, asked = all(st.following for st in statuses), self._stops.asked  # a new REF at most
+            for d, raw, st in zip(self._drives, refs, statuses):  # no word after a stop asked since
+                await d.start(raw, st if following else None, guard=lambda: self._stops.asked == asked)
             log.info("drives commanded: spin %s, orbit %s", fmt_speed(spin), fmt_speed(orbit))
         except BaseException as err:
             if isinstance(err, DriveFaultError) and err.fault_code:
                 self._poll.fail(err)  # a trip known: the stop after it does not report it again
             await self._safe_stop(emergency=self._emergency)  # an abort's stop_now stays an emergency
+            if isinstance(err, DriveSuperseded) and self._poll.failure is not None:
+                raise self._poll.failure from err  # the poll's stop (a trip): said as what it is
             raise
 
     async def wait_settled(self, *, hold: float, timeout: float) -> RigDriveState:

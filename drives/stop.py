@@ -52,6 +52,11 @@ class StopSender:
         self._asked = 0  # number of the last stop asked
         self._emergency = 0  # number of the last emergency stop asked (0: none)
 
+    @property
+    def asked(self) -> int:
+        """Stops asked so far: a command given at one count is withdrawn once it changes."""
+        return self._asked
+
     def send(self, *, emergency: bool = False) -> asyncio.Task[list[DriveError]]:
         """Start a stop now; the task's result: the delivery errors (`send_stop`)."""
         before = self._last

@@ -9,8 +9,9 @@
 
 A step writes a new record into the records' folder beside the rig configuration
 (docs/calibration.md) and makes it the active one (``--no-activate``: it only writes it).
-Exit status: 0 done, 1 the step failed (among them: a drive tripped or the link to the drives
-was lost during the step, the error naming the drive and its fault or the lost link; drives not
+Exit status: 0 done, 1 the step failed (among them: a drive tripped, the link to the drives was
+lost or an interlock failed (the lubricant supply, the CAN sensor node: [interlocks], as a sweep's)
+during the step, the error naming the drive and its fault, the lost link or the interlock; drives not
 confirmed stopped) or its output could not be written (a full disk; a reader gone away is no
 failure), 2 bad configuration or usage or a rig that does not answer before the step (each
 transport named), 3 stopped (Ctrl-C, SIGTERM, SIGHUP, SIGQUIT: both drives are stopped and
@@ -200,8 +201,8 @@ def _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_rati
 
 def _guarded(fn) -> None:
     """Run a sub-command: exit 2 on a configuration error, a speed beyond the drive limits or a
-    rig that does not answer (nothing sent), 1 on a failed step (a drive tripped or the link to
-    the drives lost during it, drives not confirmed stopped among them) or output that cannot be
+    rig that does not answer (nothing sent), 1 on a failed step (a drive tripped, the link to
+    the drives lost or an interlock failed during it, drives not confirmed stopped among them) or output that cannot be
     written (a full disk), 3 on Ctrl-C, SIGTERM, SIGHUP or SIGQUIT (both drives confirmed at
     standstill first). pymodbus' own log records never reach the terminal (debug logging only)."""
     from orbitrig.cli.calibrate_steps import CalibrationOptionError

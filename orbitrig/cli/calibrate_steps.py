@@ -26,17 +26,8 @@ from orbitrig.config import LMS, MPA, RPM, CalibrationRecord, CalibrationUncerta
 from orbitrig.config import ProbeGain, ProbeRunout, RecordStep, Reference, RigConfig, Runout
 from orbitrig.errors import OrbitrigError
 from orbitrig.cli.terminal import say
-from orbitrig.run.calibration import (
-    PROBES,
-    AsksOperator,
-    CalibrationFailed,
-    CalibrationSession,
-    SlowRoll,
-    measure_delay,
-    measure_loads,
-    measure_probes,
-    measure_runout,
-)
+from orbitrig.run.calibration import AsksOperator, CalibrationFailed, CalibrationSession, SlowRoll
+from orbitrig.run.calibration_measure import PROBES, measure_delay, measure_loads, measure_probes, measure_runout
 from orbitrig.run.drive_setup import drive_limits
 from orbitrig.run.rig_io import RigAccess
 from rigunits import now_iso

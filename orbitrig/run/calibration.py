@@ -1,22 +1,24 @@
-"""Calibration steps on the rig: a slow roll without orbit, static loads, runout.
+"""Calibration steps on the rig: the session of a slow roll without orbit.
 
 The A/D board converts on the orbit spindle's timing disk, so the orbit spindle turns during
 every step; "without orbit" means the orbit radius (a manual setting) is zero. The slow roll
 runs spin and orbit spindle at the same speed (ratio 1): then the spin's harmonics are the
 board's revolution harmonics and the probe tracks' runout at 1x and 2x spin is the average's
 first and second harmonic. Both drives are stopped on every way out (`CalibrationSession`),
-before the links close.
+before the links close. What each step measures: orbitrig.run.calibration_measure.
 
-`measure_loads` applies each known static load through the ``hands`` (the simulator at once;
-on the rig the operator applies it and confirms) and reads the static part (dc) of both load
-measuring systems' force channels. The input a step puts on the rig (loads, a displacement step,
-the phase reference) is taken off only once both drives are confirmed at standstill
-(`CalibrationSession.applied`): the drives are never left turning while the operator is asked
-something. While the drives turn, every hold, acquisition and prompt for a load or a step is
-raced against the drives' poll (`CalibrationSession.watched`: `RigDrives.check` and the link, as
-`orbitrig drives run --hold` watches them): a drive that trips (both already commanded to stop
-by the poll) or a lost link to the drives ends the step within a poll interval, naming the
-drive and its fault or the lost link. SI throughout.
+The input a step puts on the rig (loads, a displacement step, the phase reference) is taken off
+only once both drives are confirmed at standstill (`CalibrationSession.applied`): the drives are
+never left turning while the operator is asked something. While the drives turn, every hold,
+acquisition and prompt for a load or a step is raced against the drives' poll
+(`CalibrationSession.watched`: `RigDrives.check` and the link, as `orbitrig drives run --hold`
+watches them) and the run's interlocks (orbitrig.run.supervision, sampled in a task of its own
+for the whole session, as during a sweep): a drive that trips (both already commanded to stop by
+the poll), a lost link to the drives, the lubricant supply lost (pump off, supply below its
+minimum) for [interlocks] supply_lost_timeout_s or the CAN sensor node lost for
+can_heartbeat_timeout_s ends the step within a poll interval, naming the drive and its fault,
+the lost link or the interlock; the session's way out then stops both drives (the emergency
+stop). A slow roll is not started once such an interlock has failed. SI throughout.
 """
 
 from __future__ import annotations
@@ -27,24 +29,23 @@ import logging
 from collections.abc import AsyncIterator, Awaitable
 from dataclasses import dataclass
 from functools import partial
-from typing import Callable, Protocol, TypeVar
-
-import numpy as np
+from typing import Callable, TypeVar
 
 from daq.averager import AveragedBlock, AveragingRule
+from daq.aux import AuxState
 from daq.errors import DaqError
 from drives.errors import DriveError
-from orbitrig.config import LMS, RPM, RigConfig
+from drives.state import RigDriveState
+from orbitrig.config import RPM, RigConfig
 from orbitrig.errors import OrbitrigError
-from orbitrig.load_systems import LoadSystem
+from orbitrig.run.interlocks import Trip
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.safe_stop import not_confirmed, stop_shielded
-from reduction.fourier import phasor
+from orbitrig.run.supervision import InterlockSupervisor
 from reduction.rig_time import block_time
 
 log = logging.getLogger(__name__)
 HOLD_REVOLUTIONS = 3  # read and dropped after a change at the input
-PROBES = ("x_a", "y_a", "x_b", "y_b")
 T = TypeVar("T")
 
 
@@ -56,25 +57,6 @@ class AsksOperator:
     """Hands that ask the operator at the terminal (on the rig) and wait for the answer. After a
     step that did not complete they are not asked to take the input off: the step ends at once,
     both drives at standstill, saying what is left on the rig (`CalibrationSession.applied`)."""
-
-
-class LoadHands(Protocol):
-    """Whoever applies a known static load (N) on the journal: the simulator, or the operator."""
-
-    async def apply_load(self, fx: float, fy: float) -> None: ...
-
-
-class ProbeHands(Protocol):
-    """Whoever steps the journal by a known static displacement (m) under the probes (a micrometer)."""
-
-    async def apply_displacement(self, dx: float, dy: float) -> None: ...
-
-
-class ReferenceHands(Protocol):
-    """Whoever connects the phase reference (a calibrator locked to the orbit spindle, amplitude
-    ``force`` N on the force channels, ``probe`` m on the probes; 0, 0: disconnected)."""
-
-    async def apply_reference(self, force: float, probe: float) -> None: ...
 
 
 @dataclass(frozen=True)
@@ -103,13 +85,21 @@ class CalibrationSession:
         self.roll_spec: SlowRoll | None = None
         self.at_standstill = False  # both drives confirmed at standstill since the last `roll`
         self.unconfirmed: CalibrationFailed | None = None  # a stop that was not confirmed
+        #: the run's interlocks (CAN node, lubricant supply, drives), sampled while the rig is open
+        self.interlocks = InterlockSupervisor(self._sensors, rig.interlocks, _interlock_failed)
+        self._watching: asyncio.Task[None] | None = None
 
     async def __aenter__(self) -> "CalibrationSession":
         try:
             await self.io.__aenter__()
         except (DriveError, DaqError, OSError) as err:
             raise CalibrationFailed(f"cannot open the rig: {err}") from err
+        self._watching = asyncio.create_task(self.interlocks.watch(), name="calibration-interlocks")
         return self
+
+    def _sensors(self) -> tuple[AuxState, RigDriveState]:
+        """What the interlocks read: the CAN node's latest values, the drives' latest poll."""
+        return self.io.open_aux.latest(), self.io.open_drives.state
 
     async def __aexit__(self, *exc) -> None:
         """Both drives stopped and confirmed at standstill (`stop`: an emergency stop after an
@@ -119,6 +109,8 @@ class CalibrationSession:
         failure (a trip, a lost link) is said first. A failure closing the links after either
         (the drives' own exit stop not delivered) is noted, never said instead of them."""
         failed: CalibrationFailed | None = None
+        if self._watching is not None:  # (what trips during the stop ends nothing more)
+            self._watching.cancel()
         try:
             await self.stop(emergency=exc[0] is not None)
         except CalibrationFailed as err:
@@ -216,11 +208,13 @@ class CalibrationSession:
             recess_pressure=roll.recess_pressure,
             pressure_ratio=roll.pressure_ratio,
         )
-        scale, s = self.access.time_scale, self.rig.settle
+        scale, s, drives = self.access.time_scale, self.rig.settle, self.io.open_drives
+        self.check_interlocks()  # no spindle started once an interlock has failed
         self.at_standstill = False
         try:
-            await self.io.open_drives.set_speeds(roll.spin, roll.orbit)
-            await self.io.open_drives.wait_settled(hold=scale.wall(s.hold_s), timeout=scale.wall(s.timeout_s) + 5.0)
+            await drives.set_speeds(roll.spin, roll.orbit)
+            settled = partial(drives.wait_settled, hold=scale.wall(s.hold_s), timeout=scale.wall(s.timeout_s) + 5.0)
+            await self.watched(settled, self.check_interlocks)
         except DriveError as err:
             raise CalibrationFailed(
                 f"slow roll at spin {roll.spin / RPM:.0f} rpm, orbit {roll.orbit / RPM:.0f} rpm: {err}"
@@ -231,7 +225,8 @@ class CalibrationSession:
         """CalibrationFailed if the drives' poll found a drive tripped (recorded once the poll has
         commanded both to stop, drives/poll.py) or failed otherwise (`RigDrives.check`), or declared
         the Modbus link to them lost (`link_ok`, as the sweep's drive interlock): the message names
-        the drive and its fault code, or the lost link and the request that went unanswered."""
+        the drive and its fault code, or the lost link and the request that went unanswered; then
+        the interlocks (`check_interlocks`)."""
         drives = self.io.drives
         if drives is None:
             return
@@ -239,6 +234,15 @@ class CalibrationSession:
             drives.check().require_link()
         except DriveError as err:
             raise CalibrationFailed(f"{err}{self._during()}") from err
+        self.check_interlocks()
+
+    def check_interlocks(self) -> None:
+        """CalibrationFailed naming the interlock if one has failed (orbitrig.run.supervision: the
+        lubricant supply lost for [interlocks] supply_lost_timeout_s, the CAN sensor node for
+        can_heartbeat_timeout_s, a drive tripped or its link lost), as it fails a sweep."""
+        trip = self.interlocks.failure
+        if trip is not None:
+            raise CalibrationFailed(f"interlock: {trip.message}{self._during()}")
 
     def _during(self) -> str:
         roll = self.roll_spec
@@ -246,18 +250,19 @@ class CalibrationSession:
             return ""
         return f" during the slow roll at spin {roll.spin / RPM:.0f} rpm, orbit {roll.orbit / RPM:.0f} rpm"
 
-    async def watched(self, work: Callable[[], Awaitable[T]]) -> T:
-        """``await work()`` (a hold, an acquisition, a prompt) raced against the drives' poll: the
-        drives checked (`check_drives`) before it starts, every poll interval (wall s) while it
-        runs and once it is done; a trip or a lost link cancels it and raises CalibrationFailed
-        (the session's way out then stops both drives)."""
-        self.check_drives()
+    async def watched(self, work: Callable[[], Awaitable[T]], check: Callable[[], None] | None = None) -> T:
+        """``await work()`` (a hold, an acquisition, a prompt) raced against the drives' poll and
+        the interlocks: `check` (default `check_drives`) before it starts, every poll interval
+        (wall s) while it runs and once it is done; a trip, a lost link or a failed interlock
+        cancels it and raises CalibrationFailed (the session's way out then stops both drives)."""
+        check = check or self.check_drives
+        check()
         period = self.io.drives.poll_interval if self.io.drives is not None else 0.1
         task = asyncio.ensure_future(work())
         try:
             while not task.done():
                 await asyncio.wait({task}, timeout=period)
-                self.check_drives()
+                check()
             return task.result()
         finally:
             if not task.done():
@@ -292,26 +297,9 @@ class CalibrationSession:
         raise AssertionError("unreachable")
 
 
-async def measure_loads(
-    session: CalibrationSession, hands: LoadHands, loads: np.ndarray
-) -> dict[LoadSystem, np.ndarray]:
-    """Each load of `loads` (n, 2; N) applied in turn and read by both load measuring systems:
-    {lms: (n, 2) static readings (N, through rig.toml's channel gains)}; the load removed after, both
-    drives at standstill."""
-    ch = session.rig.channel_index
-    out: dict[LoadSystem, list[list[float]]] = {lms: [] for lms in LMS}
-    async with session.applied(lambda: hands.apply_load(0.0, 0.0), "remove every calibration load", hands):
-        for fx, fy in np.asarray(loads, dtype=float):
-            await session.watched(partial(hands.apply_load, float(fx), float(fy)))
-            await session.hold()
-            blk = await session.average()
-            for lms in LMS:
-                out[lms].append([blk.dc[ch[f"fx_{lms}"]], blk.dc[ch[f"fy_{lms}"]]])
-            session.note(
-                f"load ({fx:+.1f}, {fy:+.1f}) N read: "
-                + ", ".join(f"{lms} ({r[-1][0]:+.2f}, {r[-1][1]:+.2f}) N" for lms, r in out.items())
-            )
-    return {lms: np.array(v) for lms, v in out.items()}
+def _interlock_failed(trip: Trip) -> None:
+    """A fail trip during a calibration step: the step's next check raises it (`check_interlocks`)."""
+    log.error("interlock: %s", trip.message)
 
 
 def _joined(failed: CalibrationFailed, cause: BaseException | None) -> CalibrationFailed:
@@ -320,68 +308,3 @@ def _joined(failed: CalibrationFailed, cause: BaseException | None) -> Calibrati
     if isinstance(cause, CalibrationFailed) and str(failed) not in str(cause):
         return CalibrationFailed(f"{cause}; {failed}")
     return failed
-
-
-def harmonic(blk: AveragedBlock, channel: int, h: int) -> complex:
-    """Phasor (engineering units) of the `h`-th revolution harmonic of one channel's average:
-    q = Re(q_h e^{i h theta}), theta its sampling angles (least squares, reduction.fourier)."""
-    return complex(phasor(np.asarray(blk.mean)[channel], np.asarray(blk.theta)[channel], harmonic=h))
-
-
-async def measure_runout(session: CalibrationSession) -> tuple[dict[str, np.ndarray], int]:
-    """Runout of every probe track at 1x and 2x spin (m, complex; phase to the slow roll's
-    trigger) from one block of the slow roll: ({probe: (2,)}, revolutions averaged)."""
-    blk = await session.average()
-    ch = session.rig.channel_index
-    return {p: np.array([harmonic(blk, ch[p], 1), harmonic(blk, ch[p], 2)]) for p in PROBES}, blk.n_revolutions
-
-
-async def measure_probes(session: CalibrationSession, hands: ProbeHands, steps: np.ndarray) -> dict[str, np.ndarray]:
-    """Each step of `steps` (n,; m) applied along x, then along y, and read by the probes of that
-    axis: {probe: (n,) static readings (m, through rig.toml's channel gains)}; the step removed after,
-    both drives at standstill."""
-    ch = session.rig.channel_index
-    out: dict[str, list] = {p: [] for p in PROBES}
-    async with session.applied(lambda: hands.apply_displacement(0.0, 0.0), "remove the displacement step", hands):
-        for axis in ("x", "y"):
-            for d in np.asarray(steps, dtype=float):
-                dx, dy = (float(d), 0.0) if axis == "x" else (0.0, float(d))
-                await session.watched(partial(hands.apply_displacement, dx, dy))
-                await session.hold()
-                blk = await session.average()
-                for p in PROBES:
-                    if p.startswith(axis):
-                        out[p].append(blk.dc[ch[p]])
-                session.note(
-                    f"step {axis} {d * 1e6:+.2f} um read: "
-                    + ", ".join(f"{p} {out[p][-1] * 1e6:+.3f} um" for p in PROBES if p.startswith(axis))
-                )
-    return {p: np.array(v) for p, v in out.items()}
-
-
-async def measure_delay(
-    session: CalibrationSession, hands: ReferenceHands, rolls: list[SlowRoll], amplitudes: tuple[float, float]
-) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """The reference read at each slow roll of `rolls` (its orbit frequency; a ratio off 1 keeps
-    the probes' runout out of the average): (frequencies Hz (n,), {channel: (n,) lag (rad)
-    behind the mean of the four probes}); the reference removed after, both drives at standstill."""
-    ch = session.rig.channel_index
-    freqs: list[float] = []
-    lags: dict[str, list[float]] = {name: [] for name in ch}
-    remove = "disconnect the phase reference and reconnect the sensors"
-    async with session.applied(lambda: hands.apply_reference(0.0, 0.0), remove, hands):
-        await hands.apply_reference(*amplitudes)
-        for roll in rolls:
-            await session.roll(roll)
-            await session.hold()
-            blk = await session.average()
-            ph = np.asarray(blk.phasors)
-            ref = np.mean([ph[ch[p]] / abs(ph[ch[p]]) for p in PROBES])
-            freqs.append(roll.orbit / (2 * np.pi))
-            for name, i in ch.items():
-                lags[name].append(-np.angle(ph[i] / ref))
-            session.note(
-                f"reference at {freqs[-1]:.2f} Hz: force channels lag the probes by "
-                + ", ".join(f"{n} {np.degrees(lags[n][-1]):.3f} deg" for n in ch if n.startswith("f"))
-            )
-    return np.array(freqs), {name: np.array(v) for name, v in lags.items()}

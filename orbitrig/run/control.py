@@ -333,7 +333,8 @@ class RunControl:
 
     async def hold_while_suspended(self, sup: InterlockSupervisor, limit: float) -> None:
         """Paused while a suspend trip is in force (RunFailed after `limit` wall s); then held
-        on if a pause was asked meanwhile."""
+        on if a pause was asked meanwhile. A stop or an abort asked meanwhile ends it (StopRun,
+        cancelled), also one asked in the loop turn in which the interlock cleared."""
         trip = sup.trip
         if trip is None:
             return
@@ -356,6 +357,9 @@ class RunControl:
                 if now is not None and now.kind != kind:  # another cause came first to the check
                     kind = now.kind
                     self._note(f"still suspended by interlock: {now.message}")
+            self._end_if_aborted()  # an abort or a stop asked as the interlock cleared: honoured here
+            if self.stop_requested:
+                raise StopRun
         finally:
             self.suspension = None
         self._add_time("suspended", t0)

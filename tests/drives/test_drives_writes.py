@@ -62,12 +62,12 @@ def _outage_on_first_write(sim, link, address: int, duration: float) -> list[flo
     loop = asyncio.get_running_loop()
     request, started = link._request, []
 
-    async def request_with_outage(device_id, span, function_code, call, urgent=False):
+    async def request_with_outage(device_id, span, function_code, call, *more):
         if not started and span[0] == address and function_code in (6, 16):
             started.append(loop.time())
             sim.endpoint.set_unresponsive(True)
             loop.call_later(duration, sim.endpoint.set_unresponsive, False)
-        return await request(device_id, span, function_code, call, urgent)
+        return await request(device_id, span, function_code, call, *more)
 
     link._request = request_with_outage
     return started

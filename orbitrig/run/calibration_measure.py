@@ -1,0 +1,130 @@
+"""What the calibration steps measure at the slow roll of a `CalibrationSession`
+(orbitrig.run.calibration): static loads, runout, the phase reference, displacement steps.
+
+`measure_loads` applies each known static load through the ``hands`` (the simulator at once;
+on the rig the operator applies it and confirms) and reads the static part (dc) of both load
+measuring systems' force channels. The input a step puts on the rig (loads, a displacement step,
+the phase reference) is on the rig inside `CalibrationSession.applied`: taken off only once both
+drives are confirmed at standstill. SI throughout.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import Protocol
+
+import numpy as np
+
+from daq.averager import AveragedBlock
+from orbitrig.config import LMS
+from orbitrig.load_systems import LoadSystem
+from orbitrig.run.calibration import CalibrationSession, SlowRoll
+from reduction.fourier import phasor
+
+PROBES = ("x_a", "y_a", "x_b", "y_b")
+
+
+class LoadHands(Protocol):
+    """Whoever applies a known static load (N) on the journal: the simulator, or the operator."""
+
+    async def apply_load(self, fx: float, fy: float) -> None: ...
+
+
+class ProbeHands(Protocol):
+    """Whoever steps the journal by a known static displacement (m) under the probes (a micrometer)."""
+
+    async def apply_displacement(self, dx: float, dy: float) -> None: ...
+
+
+class ReferenceHands(Protocol):
+    """Whoever connects the phase reference (a calibrator locked to the orbit spindle, amplitude
+    ``force`` N on the force channels, ``probe`` m on the probes; 0, 0: disconnected)."""
+
+    async def apply_reference(self, force: float, probe: float) -> None: ...
+
+
+async def measure_loads(
+    session: CalibrationSession, hands: LoadHands, loads: np.ndarray
+) -> dict[LoadSystem, np.ndarray]:
+    """Each load of `loads` (n, 2; N) applied in turn and read by both load measuring systems:
+    {lms: (n, 2) static readings (N, through rig.toml's channel gains)}; the load removed after, both
+    drives at standstill."""
+    ch = session.rig.channel_index
+    out: dict[LoadSystem, list[list[float]]] = {lms: [] for lms in LMS}
+    async with session.applied(lambda: hands.apply_load(0.0, 0.0), "remove every calibration load", hands):
+        for fx, fy in np.asarray(loads, dtype=float):
+            await session.watched(partial(hands.apply_load, float(fx), float(fy)))
+            await session.hold()
+            blk = await session.average()
+            for lms in LMS:
+                out[lms].append([blk.dc[ch[f"fx_{lms}"]], blk.dc[ch[f"fy_{lms}"]]])
+            session.note(
+                f"load ({fx:+.1f}, {fy:+.1f}) N read: "
+                + ", ".join(f"{lms} ({r[-1][0]:+.2f}, {r[-1][1]:+.2f}) N" for lms, r in out.items())
+            )
+    return {lms: np.array(v) for lms, v in out.items()}
+
+
+def harmonic(blk: AveragedBlock, channel: int, h: int) -> complex:
+    """Phasor (engineering units) of the `h`-th revolution harmonic of one channel's average:
+    q = Re(q_h e^{i h theta}), theta its sampling angles (least squares, reduction.fourier)."""
+    return complex(phasor(np.asarray(blk.mean)[channel], np.asarray(blk.theta)[channel], harmonic=h))
+
+
+async def measure_runout(session: CalibrationSession) -> tuple[dict[str, np.ndarray], int]:
+    """Runout of every probe track at 1x and 2x spin (m, complex; phase to the slow roll's
+    trigger) from one block of the slow roll: ({probe: (2,)}, revolutions averaged)."""
+    blk = await session.average()
+    ch = session.rig.channel_index
+    return {p: np.array([harmonic(blk, ch[p], 1), harmonic(blk, ch[p], 2)]) for p in PROBES}, blk.n_revolutions
+
+
+async def measure_probes(session: CalibrationSession, hands: ProbeHands, steps: np.ndarray) -> dict[str, np.ndarray]:
+    """Each step of `steps` (n,; m) applied along x, then along y, and read by the probes of that
+    axis: {probe: (n,) static readings (m, through rig.toml's channel gains)}; the step removed after,
+    both drives at standstill."""
+    ch = session.rig.channel_index
+    out: dict[str, list] = {p: [] for p in PROBES}
+    async with session.applied(lambda: hands.apply_displacement(0.0, 0.0), "remove the displacement step", hands):
+        for axis in ("x", "y"):
+            for d in np.asarray(steps, dtype=float):
+                dx, dy = (float(d), 0.0) if axis == "x" else (0.0, float(d))
+                await session.watched(partial(hands.apply_displacement, dx, dy))
+                await session.hold()
+                blk = await session.average()
+                for p in PROBES:
+                    if p.startswith(axis):
+                        out[p].append(blk.dc[ch[p]])
+                session.note(
+                    f"step {axis} {d * 1e6:+.2f} um read: "
+                    + ", ".join(f"{p} {out[p][-1] * 1e6:+.3f} um" for p in PROBES if p.startswith(axis))
+                )
+    return {p: np.array(v) for p, v in out.items()}
+
+
+async def measure_delay(
+    session: CalibrationSession, hands: ReferenceHands, rolls: list[SlowRoll], amplitudes: tuple[float, float]
+) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The reference read at each slow roll of `rolls` (its orbit frequency; a ratio off 1 keeps
+    the probes' runout out of the average): (frequencies Hz (n,), {channel: (n,) lag (rad)
+    behind the mean of the four probes}); the reference removed after, both drives at standstill."""
+    ch = session.rig.channel_index
+    freqs: list[float] = []
+    lags: dict[str, list[float]] = {name: [] for name in ch}
+    remove = "disconnect the phase reference and reconnect the sensors"
+    async with session.applied(lambda: hands.apply_reference(0.0, 0.0), remove, hands):
+        await hands.apply_reference(*amplitudes)
+        for roll in rolls:
+            await session.roll(roll)
+            await session.hold()
+            blk = await session.average()
+            ph = np.asarray(blk.phasors)
+            ref = np.mean([ph[ch[p]] / abs(ph[ch[p]]) for p in PROBES])
+            freqs.append(roll.orbit / (2 * np.pi))
+            for name, i in ch.items():
+                lags[name].append(-np.angle(ph[i] / ref))
+            session.note(
+                f"reference at {freqs[-1]:.2f} Hz: force channels lag the probes by "
+                + ", ".join(f"{n} {np.degrees(lags[n][-1]):.3f} deg" for n in ch if n.startswith("f"))
+            )
+    return np.array(freqs), {name: np.array(v) for name, v in lags.items()}

@@ -1,0 +1,123 @@
+"""A calibration step's interlocks, as the sweep's: the lubricant supply lost (the pump off, the
+supply below its minimum) while the spindles turn fails the step after [interlocks]
+supply_lost_timeout_s, a lost CAN sensor node after can_heartbeat_timeout_s; both drives get the
+emergency stop and are confirmed at standstill, the error names the interlock. With the node lost
+before the slow roll, no spindle is started. A step may wait minutes at the slow roll (an operator's
+prompt for the next load, an acquisition): nothing else stops the spindles turning without oil.
+
+Real parts: the simulator in this process behind its real Modbus server and CAN node (python-can
+`virtual` bus); the pump is switched off by the simulator's hands (recess pressure 0), the node's
+heartbeat silenced through its fault injection."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+
+import pytest
+
+from orbitrig.cli.simulated_rig import simulated_access
+from orbitrig.config import MPA, RPM, load_rig
+from orbitrig.run.calibration import CalibrationFailed, CalibrationSession, SlowRoll
+
+pytestmark = pytest.mark.timeout(120)
+
+ROLL = SlowRoll(spin=600 * RPM, recess_pressure=0.4826 * MPA, pressure_ratio=0.25, revolutions=5)
+LIMIT_S = 1.0  # [interlocks] supply_lost_timeout_s and can_heartbeat_timeout_s of these tests (wall s)
+#: wall s from the cause to the step's end: the limit, the node's 1.5 s of silence before it counts as
+#: lost, the emergency stop from 600 rpm (0.1 s wall at speed-up 20) and a loaded machine's margin
+ENDS_WITHIN_S = LIMIT_S + 1.5 + 4.0
+CW_EMERGENCY, CW_RUN = 0x047B, 0x047F  # spec control words (OFF3, run), written out on purpose
+PROMPT_S = 60.0  # an operator's prompt nobody answers (wall s)
+
+
+def _rig():
+    rig = load_rig()
+    quick = {"supply_lost_timeout_s": LIMIT_S, "can_heartbeat_timeout_s": LIMIT_S}
+    return rig.model_copy(update={"interlocks": rig.interlocks.model_copy(update=quick)})
+
+
+def _control_words(sim_rig) -> tuple[int, int]:
+    return sim_rig.drives[1].read(0, 1)[0], sim_rig.drives[2].read(0, 1)[0]
+
+
+async def _rolling_then_waiting(sim_rig, notes: list[str]) -> asyncio.Task[None]:
+    """The step at the slow roll, waiting (watched, as every prompt and acquisition) for an answer
+    that does not come; returned once both spindles turn."""
+    session = CalibrationSession(_rig(), simulated_access(sim_rig), notes.append)
+
+    async def step() -> None:
+        async with session:
+            await session.roll(ROLL)
+            await session.watched(lambda: asyncio.sleep(PROMPT_S))
+
+    task = asyncio.create_task(step())
+    deadline = time.monotonic() + 30.0
+    while not any(n.startswith("slow roll:") for n in notes):
+        assert not task.done() and time.monotonic() < deadline, (notes, task)
+        await asyncio.sleep(0.02)
+    assert all(abs(w) > 0.9 * ROLL.spin for w in sim_rig.speeds), sim_rig.speeds
+    return task
+
+
+async def _ends_stopped(task: asyncio.Task[None], sim_rig, t0: float, words: str) -> float:
+    """The step's failure (naming `words`) and both drives emergency-stopped at standstill; the
+    wall s from `t0` to the step's end."""
+    await asyncio.wait({task}, timeout=ENDS_WITHIN_S + 10.0)
+    took = time.monotonic() - t0
+    if not task.done():
+        turning = sim_rig.speeds
+        task.cancel()  # (its way out stops the drives)
+        await asyncio.gather(task, return_exceptions=True)
+        pytest.fail(f"the step went on {took:.1f} s after the cause, the spindles at {turning} rad/s")
+    with pytest.raises(CalibrationFailed, match=words):
+        task.result()
+    assert all(abs(w) < 1e-3 for w in sim_rig.speeds), sim_rig.speeds
+    assert _control_words(sim_rig) == (CW_EMERGENCY, CW_EMERGENCY)
+    return took
+
+
+async def test_the_supply_pump_off_at_the_slow_roll_fails_the_step_and_stops_both_drives():
+    from sim.rig import SimRig
+
+    notes: list[str] = []
+    async with SimRig(speedup=20, adc_pty=False) as sim_rig:
+        task = await _rolling_then_waiting(sim_rig, notes)
+        t0 = time.monotonic()
+        sim_rig.set_manual(recess_pressure=0.0)  # the pump off (the simulator's supply)
+        took = await _ends_stopped(
+            task, sim_rig, t0, f"interlock: lubricant supply pump is off for more than {LIMIT_S:g} s"
+        )
+        assert LIMIT_S <= took < ENDS_WITHIN_S, took
+    assert "both drives stopped" in notes, notes
+
+
+async def test_a_lost_can_node_at_the_slow_roll_fails_the_step_and_stops_both_drives():
+    from sim.rig import SimRig
+
+    notes: list[str] = []
+    async with SimRig(speedup=20, adc_pty=False) as sim_rig:
+        task = await _rolling_then_waiting(sim_rig, notes)
+        t0 = time.monotonic()
+        sim_rig.inject("can_heartbeat_loss", on=True)
+        took = await _ends_stopped(task, sim_rig, t0, f"CAN sensor node lost for more than {LIMIT_S:g} s")
+        assert LIMIT_S <= took < ENDS_WITHIN_S, took
+    assert "both drives stopped" in notes, notes
+
+
+async def test_no_spindle_starts_with_the_can_node_lost():
+    from sim.rig import SimRig
+
+    notes: list[str] = []
+    async with SimRig(speedup=20, adc_pty=False) as sim_rig:
+        sim_rig.inject("can_heartbeat_loss", on=True)
+        session = CalibrationSession(_rig(), simulated_access(sim_rig), notes.append)
+        with pytest.raises(CalibrationFailed, match="CAN sensor node lost for more than"):
+            async with session:
+                await asyncio.sleep(1.5 + LIMIT_S + 1.0)  # the operator sets the pressures meanwhile
+                await session.roll(ROLL)
+        assert max(abs(w) for w in sim_rig.speeds) == 0.0, sim_rig.speeds
+        for drive in (1, 2):  # never commanded to run
+            assert CW_RUN not in [cw for _, cw in sim_rig.drives[drive].control_words], sim_rig.drives[
+                drive
+            ].control_words
