@@ -16,6 +16,7 @@ import threading
 from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
+from collections.abc import Iterable
 from typing import Any, Literal
 
 import numpy as np
@@ -28,6 +29,7 @@ from orbitrig.analysis.canvas import ReportCanvas, png_bytes
 from orbitrig.analysis.report_axes import ReportAxes
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
+from reduction.systematic import UncertaintyBasis
 from reduction.whirl import Whirl
 
 ENTRIES = ("xx", "xy", "yx", "yy")
@@ -65,11 +67,23 @@ class FigureStyle:
     font: float = 6.5
     coverage: float = 2.0
 
-    def band_label(self, what: str = "bands and error bars") -> str:
+    def band_label(
+        self, what: str = "bands and error bars", bases: Iterable[UncertaintyBasis] = (UncertaintyBasis.STATISTICAL,)
+    ) -> str:
         """The legend's statement of the uncertainty shown, e.g. 'bands and error bars: expanded
-        uncertainty U (k = 2) of the fit (statistical)'."""
+        uncertainty U (k = 2), statistical'; `bases`: what the u of the fits shown rests on (the
+        derived quantities' is combined where the run stored a calibration budget)."""
         kind = "expanded uncertainty U" if self.coverage != 1 else "standard uncertainty u"
-        return f"{what}: \u00b1{kind} (k = {self.coverage:g}), statistical"
+        shown = set(bases)
+        words = " or ".join(BAND_BASIS[b] for b in UncertaintyBasis if b in shown)
+        return f"{what}: \u00b1{kind} (k = {self.coverage:g}), {words}"
+
+
+#: the legend's words for what a band's standard uncertainty rests on
+BAND_BASIS = {
+    UncertaintyBasis.COMBINED: "combined (statistical and calibration)",
+    UncertaintyBasis.STATISTICAL: "statistical",
+}
 
 
 STYLE = FigureStyle()

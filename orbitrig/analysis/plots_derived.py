@@ -4,7 +4,7 @@
   Cyy + Kyx/Omega with their zero crossings, the whirl frequency ratio, and the forward /
   backward direct dynamic stiffness Re and Im H(Omega), each with a band of the expanded
   uncertainty U = k u (u on quality.derived_basis: combined where the run stored a budget, else
-  statistical; k of the style, 2 by default), one colour per identification;
+  statistical, as the legend says; k of the style, 2 by default), one colour per identification;
 - :func:`impedance_figure`: Re and Im of each entry of the identified Z(Omega) = K + i Omega C
   - Omega^2 D against the simulator's true Z at the tested frequencies (black crosses; the Z of
   its reference K, C, D when the run did not store the true Z).
@@ -36,6 +36,7 @@ from orbitrig.analysis.plots import (
 )
 from orbitrig.analysis.quality import TrueImpedance, orbit_grid
 from reduction.derived import Derived
+from reduction.systematic import UncertaintyBasis
 
 MN, KNS = 1e-6, 1e-3  # N/m -> MN/m, N s/m -> kN s/m
 
@@ -57,12 +58,13 @@ def _zero_text(zero, spin: float) -> str:
     return f"zero {w0 / (2 * np.pi):.3g}{pm} Hz, \u03a9/\u03c9 {w0 / spin:.3f}"
 
 
-def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title: str) -> Figure:
-    """C_eff (xx, yy), WFR, Re H and Im H (forward solid, backward dashed) against Omega/omega."""
+def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, spin: float, title: str) -> Figure:
+    """C_eff (xx, yy), WFR, Re H and Im H (forward solid, backward dashed) against Omega/omega;
+    each entry (label, Derived, the basis of its standard uncertainties: the legend names it)."""
     fig, axes = panels(14, 9.0, 2, 3, top=1.6, bottom=1.3, hspace=0.75, wspace=0.3)
     colors = _colors(len(derived))
     zeros: dict[str, list[str]] = {"xx": [], "yy": []}
-    for k, (label, d) in enumerate(derived):
+    for k, (label, d, _) in enumerate(derived):
         x = d.orbit / spin
         for col, e in enumerate(("xx", "yy")):
             val, std = (d.c_eff_xx, d.c_eff_xx_std) if e == "xx" else (d.c_eff_yy, d.c_eff_yy_std)
@@ -100,11 +102,11 @@ def derived_figure(derived: Sequence[tuple[str, Derived]], *, spin: float, title
     figure_legend(
         fig,
         handles,
-        [label for label, _ in derived],
+        [label for label, *_ in derived],
         loc="lower center",
         ncols=min(3, len(derived)),
         fontsize="small",
-        title=style().band_label("bands and zero crossings"),
+        title=style().band_label("bands and zero crossings", (basis for *_, basis in derived)),
     )
     fig.suptitle(title)
     return fig

@@ -41,7 +41,7 @@ from orbitrig.analysis.report_pdf import COMBINED_PDF, combine_pdf
 from orbitrig.analysis.report_pool import Progress, draw_points
 from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_forces, plots_lms, plots_signals
 from orbitrig.analysis import plots_summary, report_cache
-from orbitrig.analysis.quality import Verdict, adequacy_verdicts, derived_of, true_impedance, warnings_of
+from orbitrig.analysis.quality import Verdict, adequacy_verdicts, derived_basis, derived_of, true_impedance, warnings_of
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.errors import ReductionError
 from orbitrig.analysis.reduce import Reduced, reidentify
@@ -240,7 +240,7 @@ def _plot_lms(pr: PointReport, lms: LoadSystem, out: Path, where: str, opts: Rep
         pr.plots.append(
             plots.save_figure(
                 plots_derived.derived_figure(
-                    [(fit_label(r), d) for r, d in pr.derived[lms]],
+                    [(fit_label(r), d, derived_basis(r)) for r, d in pr.derived[lms]],
                     spin=table.spin,
                     title=f"Derived quantities, {lms} load cells\n{where}",
                 ),

@@ -6,7 +6,7 @@ Omega the rig varies within a point. Each complete point and load measuring syst
 the chosen stored fit (default kcd11, constant, ols), the coefficients at the synchronous whirl
 Omega = omega when the fit is frequency dependent and omega lies in the point's tested whirl
 range, else those of the constant fit of the same model and method (stored, else fitted here
-from the orbit table). The points of one test condition (CONDITION) form one bearing over speed.
+from the orbit table, its U on the calibration of the chosen fit's stored budget). The points of one test condition (CONDITION) form one bearing over speed.
 Each coefficient at each speed carries U: the fit's U (orbitrig.store.fit_record) for a constant
 fit; for a sum over orders the statistical covariance propagated plus the calibration parts taken
 as fully correlated (an upper bound: the run stores no calibration covariance). U > |value| is
@@ -41,7 +41,9 @@ from orbitrig.store.reader import Point, Run
 from orbitrig.store.selection import Selection, select_points
 from reduction.methods import Method
 from reduction.statistics import not_determined
-from reduction.systematic import UncertaintyBasis
+from reduction.result import Identification
+from reduction.systematic import UncertaintyBasis, combined_covariance
+from reduction.table import OrbitTable
 
 FILE = "ross_bearings.json"
 FORMAT = "orbitrig-ross/2"
@@ -154,9 +156,12 @@ def uncertainties_at(result: dict[str, Any], omega: float) -> dict[str, float | 
     return out
 
 
-def _constant_fit(point: Point, lms: LoadSystem, spec: FitSpec) -> tuple[dict[str, Any], str] | str:
+def _constant_fit(
+    point: Point, lms: LoadSystem, spec: FitSpec, chosen: dict[str, Any]
+) -> tuple[dict[str, Any], str] | str:
     """The constant fit of ``spec``'s model and method (stored, else fitted from the orbit
-    table) and its ``--fit`` text, or why there is none."""
+    table, its U on the calibration uncertainty of the ``chosen`` fit's budget when it has one)
+    and its ``--fit`` text, or why there is none."""
     text = spec.text(lms, "none")
     stored = point.identification(lms, spec.model, "none", spec.method)
     if stored is not None and stored.result is not None:
@@ -168,7 +173,29 @@ def _constant_fit(point: Point, lms: LoadSystem, spec: FitSpec) -> tuple[dict[st
     row = identify_point(point, lms, spec.model, "none", spec.method)
     if row.identification is None:
         return f"the constant fit {text} is refused: {one_line(row.error or '')}"
-    return row.identification.to_dict(fit=False), f"{text} (not stored: fitted here from the orbit table)"
+    result = row.identification.to_dict(fit=False)
+    combined = _combined_u(row.identification, point.tables[lms], chosen.get("uncertainty") or {}, result)
+    if combined is not None:
+        result["expanded_uncertainty"] = combined
+        values = {k: v for k, v in result["coefficients"].items() if v is not None}
+        result["not_determined"] = not_determined(values, combined["values"])
+    return result, f"{text} (not stored: fitted here from the orbit table)"
+
+
+def _combined_u(
+    ident: Identification, table: OrbitTable, budget: dict[str, Any], result: dict[str, Any]
+) -> dict[str, Any] | None:
+    """``expanded_uncertainty`` of a fit made here, as the sweep stores it: k (the fit's) times
+    the combined standard uncertainty, its covariance plus the calibration part of a stored
+    budget's parameters (``sources``, their stated ``source_std``); None without them."""
+    if not (budget.get("sources") and budget.get("source_std")):
+        return None
+    cov = combined_covariance(ident, table, list(budget["sources"]), np.asarray(budget["source_std"], dtype=float))
+    if cov is None:
+        return None
+    k = coverage_of(result)
+    std = ident.spec.expand(np.sqrt(np.clip(np.diag(cov), 0, None)))
+    return {"k": k, "basis": UncertaintyBasis.COMBINED.value, "values": {n: k * float(v) for n, v in std.items()}}
 
 
 def point_speed(point: Point, lms: LoadSystem, spec: FitSpec) -> dict[str, Any] | str:
@@ -187,7 +214,7 @@ def point_speed(point: Point, lms: LoadSystem, spec: FitSpec) -> dict[str, Any] 
     elif lo * (1 - 1e-9) <= omega <= hi * (1 + 1e-9):
         at, why = omega, f"synchronous whirl Omega = omega, within {tested}"
     else:
-        got = _constant_fit(point, lms, spec)
+        got = _constant_fit(point, lms, spec, stored.result)
         if isinstance(got, str):
             return f"spin {omega:.6g} rad/s outside {tested} of {spec.text(lms)}, and {got}"
         (result, fit), why = got, f"omega outside {tested}: the constant fit"

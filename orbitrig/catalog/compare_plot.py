@@ -83,10 +83,7 @@ def _lay_out(fig, title: str, font: float) -> None:
     with the tick labels of the new size): no panel's title reaches the tick labels or x label
     of the panel above. tight_layout ignores the titles' width: `_title_overrun` widens the
     edges and the gaps between columns until every title is clear of the next and inside."""
-    handles, labels = fig.axes[0].get_legend_handles_labels()
-    legend = fig.legend(
-        handles, labels, loc="lower center", ncol=min(4, max(1, len(labels))), fontsize=0.85 * font, frameon=False
-    )
+    legend = _legend(fig, font)
     head = fig.suptitle(title, fontsize=1.2 * font, va="top", in_layout=False)  # the rect below leaves its room
     renderer = fig.canvas.get_renderer()
     extra = legend.get_window_extent(renderer).height + head.get_window_extent(renderer).height
@@ -106,6 +103,20 @@ def _lay_out(fig, title: str, font: float) -> None:
         # 1.25: the panels narrow as the edges come in, and their titles overhang more
         left, right = left + 1.25 * left_edge / fig.bbox.width, right - 1.25 * right_edge / fig.bbox.width
         w_pad += 1.25 * ncol * between / fig.dpi * 72 / matplotlib.rcParams["font.size"]  # tight_layout's unit
+
+
+def _legend(fig, font: float):
+    """The runs' legend at the bottom in as many columns (at most 4) as fit in the figure's width:
+    run ids are long (`SAC-DS-1@2026-12-03T17:46:24.468Z`), and a legend wider than the figure is
+    cut at both edges when written."""
+    handles, labels = fig.axes[0].get_legend_handles_labels()
+    room, ncol = fig.bbox.width - 2 * EDGE * fig.dpi, min(4, max(1, len(labels)))
+    legend = fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=0.85 * font, frameon=False)
+    while ncol > 1 and legend.get_window_extent(fig.canvas.get_renderer()).width > room:
+        legend.remove()
+        ncol -= 1
+        legend = fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=0.85 * font, frameon=False)
+    return legend
 
 
 def _title_overrun(fig, pad: float) -> tuple[float, float, float]:

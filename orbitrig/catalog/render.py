@@ -7,7 +7,7 @@ from enum import StrEnum
 from typing import Any
 
 from orbitrig.catalog.schema import COLUMN_UNITS, ROW_COLUMNS
-from orbitrig.store.csvfile import render_rows
+from orbitrig.store.csvfile import one_line, render_rows
 
 
 class ExportFormat(StrEnum):
@@ -68,7 +68,8 @@ def _cell(value: Any) -> str:
 
 
 def table(rows: list[dict[str, Any]], columns: tuple[str, ...]) -> str:
-    """Rows as aligned text columns (numbers with 4 significant digits)."""
+    """Rows as aligned text columns, one line per row (numbers with 4 significant digits; a text
+    that spans lines, such as a refusal message, joined with ' | ' as coefficients.csv has it)."""
     cells = [list(columns)] + [[_short(r.get(c)) for c in columns] for r in rows]
     widths = [max(len(line[i]) for line in cells) for i in range(len(columns))]
     return "\n".join("  ".join(v.ljust(w) for v, w in zip(line, widths)).rstrip() for line in cells)
@@ -79,4 +80,4 @@ def _short(value: Any) -> str:
         return "-"
     if isinstance(value, float):
         return f"{value:.4g}"
-    return str(value)
+    return one_line(value) if isinstance(value, str) else str(value)

@@ -118,21 +118,26 @@ def fit_truth(d: dict[str, Any] | None, truth: dict[str, Any] | None) -> dict[st
 
 
 def _num(v: float | None, fmt: str) -> str:
-    """A CSV cell: the number in `fmt`, empty for null (the identify JSON's non-finite values)."""
+    """A CSV cell: the number in `fmt`, empty for null (the identify JSON's non-finite values);
+    fmt "" gives the shortest text that reads back as the same double."""
     return "" if v is None else format(float(v), fmt)
 
 
-def point_rows(point: Point, sim: bool) -> list[CsvRow]:
-    """The rows of one complete point (an orbitrig.store.reader.Point)."""
+def point_rows(point: Point, sim: bool, exact: bool = False) -> list[CsvRow]:
+    """The rows of one complete point (an orbitrig.store.reader.Point), numbers rounded for
+    reading at a glance (coefficients and true values 8 significant digits, the rest 6), or
+    with `exact` every number to the last bit (the TDMS export's ``coefficients`` group, which
+    holds them as doubles beside the fits' own channels)."""
     st = point.settings
+    six, eight = ("", "") if exact else (".6g", ".8g")
     base = {
         "point": point.index,
         "label": st.label,
-        "spin_rpm": f"{st.spin_rpm:.6g}",
-        "recess_pressure_mpa": f"{st.recess_pressure / MPA:.6g}",
-        "pressure_ratio": f"{st.pressure_ratio:.6g}",
-        "static_eccentricity": f"{st.static_eccentricity:.6g}",
-        "dynamic_eccentricity": f"{st.dynamic_eccentricity:.6g}",
+        "spin_rpm": _num(st.spin_rpm, six),
+        "recess_pressure_mpa": _num(st.recess_pressure / MPA, six),
+        "pressure_ratio": _num(st.pressure_ratio, six),
+        "static_eccentricity": _num(st.static_eccentricity, six),
+        "dynamic_eccentricity": _num(st.dynamic_eccentricity, six),
     }
     truth = point.truth if sim else None
     rows = []
@@ -145,16 +150,16 @@ def point_rows(point: Point, sim: bool) -> list[CsvRow]:
                     "freq_dep": d["freq_dep"],
                     "method": d["method"],
                     "n_frequencies": d["n_frequencies"],
-                    "condition_number": _num(d["condition_number"], ".6g"),
-                    "residual_rms [N]": _num(d["residual_rms"], ".6g"),
+                    "condition_number": _num(d["condition_number"], six),
+                    "residual_rms [N]": _num(d["residual_rms"], six),
                     "error": "",
                 }
             )
             expanded = expanded_uncertainty(d)
             for k, v in d["coefficients"].items():
-                row[coefficient_column(k)] = _num(v, ".8g")
-                row[coefficient_column(k, "std")] = _num((d.get("std_errors") or {}).get(k), ".6g")
-                row[coefficient_column(k, "U")] = _num(expanded.get(k), ".6g")
+                row[coefficient_column(k)] = _num(v, eight)
+                row[coefficient_column(k, "std")] = _num((d.get("std_errors") or {}).get(k), six)
+                row[coefficient_column(k, "U")] = _num(expanded.get(k), six)
             row["_keys"] = list(d["coefficients"])
             row["not_determined"] = " ".join(d.get("not_determined") or [])
             row["warnings"] = warnings_cell(d.get("warnings"))
@@ -162,7 +167,7 @@ def point_rows(point: Point, sim: bool) -> list[CsvRow]:
             row.update(freq_dep=ident.freq_dep, method=ident.method, error=one_line(ident.error or ""))
         if truth is not None:
             for k, v in fit_truth(d, truth).items():
-                row[coefficient_column(k, "true")] = f"{v:.8g}"
+                row[coefficient_column(k, "true")] = _num(v, eight)
         rows.append(row)
     return rows
 

@@ -4,7 +4,7 @@ Every channel has ``unit_string``, one unit pint parses for all its values ("1"
 dimensionless, "" text); properties are numbers (with a ``<name>.unit_string`` property
 beside each) or text. Groups: ``point PPPP <lms>`` (the orbit table and ``direction``; the
 settings as properties), ``coefficients`` (the columns of coefficients.csv, ``warnings`` included,
-and ``KEY_U``),
+and ``KEY_U``; every number to the last bit, not rounded as the CSV prints it),
 ``fit PPPP <key>`` (one channel per coefficient in its own unit, its rows named by the text
 channel ``quantity``: value, std, U, interval_95_low, interval_95_high (value -+ U),
 interval_95_statistical_low, interval_95_statistical_high (the fit's statistical-only 95 %
@@ -175,7 +175,7 @@ def _point_objects(p, channels: list[str], channel_units: list[str]) -> list:
 def _coefficient_objects(run, points) -> list:
     from nptdms import ChannelObject, GroupObject
 
-    rows = [row for p in points for row in csvfile.point_rows(p, run.sim)]
+    rows = [row for p in points for row in csvfile.point_rows(p, run.sim, exact=True)]
     objs = [GroupObject("coefficients", {"description": "the columns of coefficients.csv"})]
     for col in csvfile.columns(rows):
         cells = [str(r.get(col, "")) for r in rows]

@@ -61,7 +61,7 @@ def coefficients_frame(fits: list[FitRecord]):
         keys += [k for k in f.names if k not in keys]
     data = {k: [getattr(f, k) for f in fits] for k in (*FIT_KEYS, "error")}
     data["lms"] = ["" if f.lms is None else str(f.lms) for f in fits]  # plain text, as the other key columns
-    units = {k: "" for k in data}
+    units = {k: "" for k in data} | {"point": "1"}  # text, and the point's index (a number)
     for key in keys:
         for suffix, part in (("", "value"), ("_std", "std"), ("_U", "U")):
             data[key + suffix] = [_entry(f, key, part) for f in fits]

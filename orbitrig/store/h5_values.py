@@ -4,6 +4,8 @@ bytes), JSON attributes, complex datasets in either layout, and a file opened fo
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -29,9 +31,23 @@ def text(value: Any, default: str = "") -> str:
 
 
 def json_attr(attrs: h5py.AttributeManager, name: str) -> Any:
-    """The JSON attribute ``name`` decoded (None when absent)."""
+    """The JSON attribute ``name`` decoded (None when absent; ValueError naming the attribute
+    when it is not JSON)."""
     raw = attrs.get(name)
-    return None if raw is None else json.loads(text(raw))
+    try:
+        return None if raw is None else json.loads(text(raw))
+    except ValueError as err:
+        raise ValueError(f"attribute {name!r} is not JSON ({err})") from err
+
+
+@contextmanager
+def naming(obj: h5py.Group | h5py.Dataset) -> Iterator[None]:
+    """Errors reading `obj` (a member missing, a value or JSON attribute malformed) as a
+    ValueError that names its HDF5 path: '/points/0001/table/strain: ... 'fx' ...'."""
+    try:
+        yield
+    except (KeyError, ValueError, TypeError) as err:
+        raise ValueError(f"{obj.name}: {err}") from err
 
 
 def stored_values(ds: h5py.Dataset) -> npt.NDArray[Any]:

@@ -63,8 +63,9 @@ def strings(values: Iterable[str]) -> npt.NDArray[np.object_]:
 
 
 def fixed_text(values: Iterable[object]) -> npt.NDArray[np.bytes_]:
-    """Text for a dataset: fixed-length UTF-8 bytes (GNU Octave's load cannot read
-    variable-length strings; h5py's ``.asstr()`` and MATLAB's h5read read both)."""
+    """Text for a dataset: fixed-length UTF-8 bytes in HDF5's ASCII string type (GNU Octave's
+    load reads neither variable-length strings nor the UTF-8 string type); h5py reads it with
+    ``.asstr("utf-8")`` (a bare ``.asstr()`` refuses bytes outside ASCII)."""
     encoded = [str(v).encode("utf-8") for v in values]
     return np.array(encoded, dtype=f"S{max([1, *map(len, encoded)])}")
 

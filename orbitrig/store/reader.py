@@ -25,7 +25,7 @@ import numpy.typing as npt
 
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.errors import RunDirError as RunDirError  # its readers' error, imported from here too
-from orbitrig.store.h5_values import json_attr, open_h5, stored_values, text
+from orbitrig.store.h5_values import json_attr, naming, open_h5, stored_values, text
 from orbitrig.store.identity import run_identity
 from orbitrig.store.layout import READABLE_FORMATS, RUN_FILE, RunLayout
 from orbitrig.store.layout import freq_dep_from_key, freq_dep_key as freq_dep_key  # storage's key form, read here
@@ -187,7 +187,8 @@ def read_run(directory: str | Path, *, blocks: bool = True) -> Run:
             for _, g in sorted(h5.get("points", {}).items()):
                 point = _new_point(g.attrs, g.name.rsplit("/", 1)[-1])
                 for fname, fg in sorted(g.get("frequencies", {}).items()) if blocks else ():
-                    point.frequencies.append(_frequency(fname, fg))
+                    with naming(fg):
+                        point.frequencies.append(_frequency(fname, fg))
                 _read_results(g, point)
                 points.append(point)
             a = h5.attrs
@@ -374,11 +375,13 @@ def _load_system(name: str, group: h5py.Group) -> LoadSystem:
 def _read_results(g: h5py.File | h5py.Group, point: Point) -> None:
     """The results groups (table, identification, truth, lms_comparison) of `point`."""
     for name, tg in sorted(g.get("table", {}).items()):
-        point.tables[_load_system(name, tg)] = _table(tg, point.settings.spin)
+        with naming(tg):
+            point.tables[_load_system(name, tg)] = _table(tg, point.settings.spin)
     for key, ig in sorted(g.get("identification", {}).items()):
         lms, model, fd_key = key.split("__", 2)
         ia = ig.attrs
-        result = json_attr(ia, "json")
+        with naming(ig):
+            result = json_attr(ia, "json")
         point.identifications.append(
             StoredIdentification(
                 lms=_load_system(lms, ig),
@@ -389,7 +392,7 @@ def _read_results(g: h5py.File | h5py.Group, point: Point) -> None:
                 method=text(ia.get("method")) or str((result or {}).get("method", "ols")),
             )
         )
-    if "truth" in g:
-        point.truth = json_attr(g["truth"].attrs, "json")
-    if "lms_comparison" in g:
-        point.lms_comparison = json_attr(g["lms_comparison"].attrs, "json")
+    for name in ("truth", "lms_comparison"):
+        if name in g:
+            with naming(g[name]):
+                setattr(point, name, json_attr(g[name].attrs, "json"))

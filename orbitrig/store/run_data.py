@@ -12,6 +12,9 @@ from __future__ import annotations
 import io
 from pathlib import Path
 
+import numpy as np
+
+from orbitrig.errors import TableError
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store import frames
 from orbitrig.store.fit_record import FitRecord, fit_record, point_fits
@@ -130,16 +133,44 @@ def open_run(path: str | Path) -> RunData:
     return RunData(read_run(path))
 
 
+#: the "file" a table in memory is in errors
+DATAFRAME = "<DataFrame>"
+
+
+def _in_frame(err: TableError, df) -> TableError:
+    """A table error of the CSV `identify_table` made from `df`, told in the DataFrame's terms:
+    the row by position and index label (CSV line 2 is row 0), a header line as the columns,
+    an empty cell as NaN."""
+    where = DATAFRAME
+    if err.line is not None and 2 <= err.line < len(df) + 2:
+        where += f", row {err.line - 2} (index {df.index[err.line - 2]!r})"
+    reason = err.reason.replace("not a number: ''", "not a number: NaN").replace("from the header", "from the columns")
+    return TableError(where, None, err.column, reason)
+
+
 def identify_table(df, model: str = "kcd11", freq_dep: str = "none", method: str = "ols", solver: str = "qr") -> Fit:
     """Identify ``model`` from an orbit table in memory: a DataFrame with the orbit-table
     CSV's columns (spin_rpm, orbit_hz, x_re, ..., fy_im; gamma2_*, n_records, u_* optional),
-    as RunData.table gives. Raises TableError for a bad table, ReductionError for a model
-    the table cannot identify."""
+    as RunData.table gives. The Fit has the derived quantities at the table's orbit frequencies
+    (on the fit's statistical covariance) and, for a frequency-dependent fit, the adequacy test
+    against the constant fit of the same model and method, fitted here (as the sweep does).
+    Raises TableError for a bad table, ReductionError for a model the table cannot identify."""
     from orbitrig.store.orbit_table import parse_orbit_table
+    from reduction.adequacy import frequency_dependence
+    from reduction.derived import derived_quantities
     from reduction.identify import identify
 
     buf = io.StringIO()
     df.to_csv(buf, index=False)
-    table = parse_orbit_table(buf.getvalue().encode("utf-8"), "<DataFrame>")
-    result = identify(table, model=model, freq_dep=freq_dep, method=method, solver=solver).to_dict()
+    try:
+        table = parse_orbit_table(buf.getvalue().encode("utf-8"), DATAFRAME)
+    except TableError as err:
+        raise _in_frame(err, df) from None
+    ident = identify(table, model=model, freq_dep=freq_dep, method=method, solver=solver)
+    result = ident.to_dict()
+    result["derived"] = derived_quantities(ident, np.unique(table.orbit), table.spin).to_dict()
+    result["derived"]["covariance"] = "statistical" if ident.covariance is not None else "none"
+    if ident.freq_dep != "none":
+        constant = identify(table, model=model, freq_dep="none", method=method, solver=solver)
+        result["adequacy"] = frequency_dependence(constant, ident).to_dict() | {"constant": f"{model} none {method}"}
     return Fit(fit_record(-1, None, model, freq_dep, method, result))

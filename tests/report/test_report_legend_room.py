@@ -15,6 +15,7 @@ from orbitrig.analysis.plots_derived import derived_figure, impedance_figure
 from orbitrig.analysis.quality import derived_of, true_impedance
 from orbitrig.analysis.report import analyse_point
 from orbitrig.store.reader import read_run
+from reduction.systematic import UncertaintyBasis
 
 #: fit labels as the report writes them, 4 models x 5 frequency dependences: 20 identifications
 LABELS = [
@@ -53,7 +54,9 @@ def _panel_inches(fig) -> np.ndarray:
 def _derived(point_report, n: int):
     t = point_report.point.tables["piezo"]
     d = derived_of(point_report.results["piezo"][0], t.orbit)
-    return derived_figure([(label, d) for label in LABELS[:n]], spin=t.spin, title="t\nsecond line")
+    return derived_figure(
+        [(label, d, UncertaintyBasis.STATISTICAL) for label in LABELS[:n]], spin=t.spin, title="t\nsecond line"
+    )
 
 
 def _impedance(point_report, n: int):

@@ -20,6 +20,7 @@ from orbitrig.analysis.quality import adequacy_verdicts, derived_of, true_impeda
 from orbitrig.analysis.report import analyse_point, fit_label
 from orbitrig.analysis.report_tables import identification_table, verdict_list
 from orbitrig.store.reader import read_run
+from reduction.systematic import UncertaintyBasis
 from support.report_synthetic import C_TRUE, D_TRUE, K_TRUE
 
 
@@ -109,7 +110,7 @@ def test_derived_quantities_drawn_and_near_the_hand_values(point_report):
     w0_xx, w0_yy = K_TRUE[0, 1] / C_TRUE[0, 0], -K_TRUE[1, 0] / C_TRUE[1, 1]
     assert d.c_eff_zero_xx[0] == pytest.approx(w0_xx, rel=0.02)
     assert d.c_eff_zero_yy[0] == pytest.approx(w0_yy, rel=0.02)
-    fig = derived_figure([(fit_label(r), d)], spin=t.spin, title="t")
+    fig = derived_figure([(fit_label(r), d, UncertaintyBasis.STATISTICAL)], spin=t.spin, title="t")
     ceff_xx, _, wfr = fig.axes[:3]
     np.testing.assert_allclose(ceff_xx.get_lines()[0].get_ydata(), d.c_eff_xx * 1e-3)
     np.testing.assert_allclose(ceff_xx.get_lines()[0].get_xdata(), d.orbit / t.spin)
@@ -202,7 +203,6 @@ def test_lms_consistency_table_shows_the_normalised_difference(point_report):
     from orbitrig.analysis.quality import LmsComparison, lms_normalised_difference
     from orbitrig.analysis.report import preferred
     from orbitrig.analysis.report_tables import consistency_table
-    from reduction.systematic import UncertaintyBasis
 
     found = preferred(point_report)
     a, b = found["piezo"], found["strain"]

@@ -1,0 +1,40 @@
+"""`orbitrig.identify_table(df)` refuses a bad table naming the DataFrame's row (its position
+and index label) and column: it named a line of a CSV the user never saw (`<DataFrame>, line 5`
+for the row at position 3, whatever its index label) and called a NaN `''`."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import orbitrig
+from orbitrig.errors import TableError
+
+
+@pytest.fixture(scope="module")
+def table(sim_run):
+    return orbitrig.open_run(sim_run).table(0, "piezo")
+
+
+def test_a_bad_cell_names_row_position_index_label_and_column(table):
+    df = table.copy()
+    df.index = range(10, 10 + len(df))  # a filtered or re-indexed table: labels are not positions
+    df.loc[13, "orbit_hz"] = -1.0
+    with pytest.raises(TableError) as caught:
+        orbitrig.identify_table(df)
+    err = caught.value
+    assert str(err) == "<DataFrame>, row 3 (index 13), column 'orbit_hz': orbit frequency must be > 0 Hz, got -1"
+    assert (err.line, err.column) == (None, "orbit_hz")
+
+
+def test_nan_is_named_nan(table):
+    df = table.copy()
+    df.loc[2, "fx_re"] = np.nan
+    with pytest.raises(TableError, match=r"^<DataFrame>, row 2 \(index 2\), column 'fx_re': not a number: NaN$"):
+        orbitrig.identify_table(df)
+
+
+def test_a_missing_column_names_the_column_not_a_header_line(table):
+    with pytest.raises(TableError) as caught:
+        orbitrig.identify_table(table.drop(columns=["fy_im"]))
+    assert str(caught.value) == "<DataFrame>, column 'fy_im': required column missing from the columns"

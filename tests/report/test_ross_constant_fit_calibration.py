@@ -1,0 +1,48 @@
+"""orbitrig export --format ross, a point whose spin lies outside its tested whirl range and whose
+constant fit the run did not store: the constant fit is made from the orbit table, and its U
+rests on the calibration uncertainty the run stated (the stored fits' budget parameters), as the
+sweep's own constant fit would have. It was statistical only: about a hundredth of the stored
+fits' U for K, within one bearing whose other speeds carried the combined U."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from typer.testing import CliRunner
+
+from orbitrig.cli import app
+from orbitrig.store.fit_record import point_fits
+from orbitrig.store.reader import read_run
+from test_ross_speed_axis import KEYS, OURS, speed_run
+
+__all__ = ["speed_run"]
+
+
+def test_a_constant_fit_made_here_has_the_runs_calibration_in_U(speed_run, tmp_path, monkeypatch):
+    import orbitrig.store.reader as reader
+
+    run = read_run(speed_run)
+    point = run.points[2]
+    stored = next(f for f in point_fits(point) if (f.lms, f.model, f.freq_dep) == ("piezo", "kcd11", "none"))
+    assert stored.result["expanded_uncertainty"]["basis"] == "combined"
+    point.frequencies = [f for f in point.frequencies if abs(f.orbit) < point.settings.spin]  # tested below omega
+    point.identifications = [
+        i for i in point.identifications if (i.lms, i.model, i.freq_dep) != ("piezo", "kcd11", "none")
+    ]  # the constant fit not stored: made here from the same orbit table
+    monkeypatch.setattr(reader, "read_run", lambda directory: run)
+    res = CliRunner().invoke(
+        app, ["export", str(speed_run), "--format", "ross", "--out", str(tmp_path), "--fit", "piezo:kcd11:power:1:ols"]
+    )
+    assert res.exit_code == 0, res.output
+    (bearing,) = json.loads((tmp_path / "ross_bearings.json").read_text())["bearings"]
+    speed = bearing["speeds"][2]
+    assert speed["fit"] == "piezo:kcd11:none:ols (not stored: fitted here from the orbit table)"
+    assert speed["basis"] == "combined"
+    for key in KEYS:
+        name = OURS[key[0]] + key[1:]
+        name = "Dxy" if name == "Dyx" else name  # kcd11: Dyx is Dxy
+        want = stored.U[stored.names.index(name)]
+        assert bearing["U"][key][2] == pytest.approx(want, rel=1e-9), key
+        assert bearing[key][2] == pytest.approx(stored.value[stored.names.index(name)], rel=1e-9)
+    assert speed["fit_not_determined"] == list(stored.result["not_determined"])
