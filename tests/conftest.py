@@ -30,10 +30,9 @@ from pathlib import Path
 import pytest
 
 from orbitrig.cli.threads import one_blas_thread
-
-one_blas_thread()  # the suite's processes compute as the orbitrig command's do
-
 from orbitrig.config.home import HOME_ENV
+
+one_blas_thread()  # as the orbitrig command computes (set already by importing orbitrig.cli, before numpy loads)
 
 PROCESS_WORDS = re.compile(
     r"\b(subprocess|Popen|create_subprocess_exec|mosquitto|webdriver|chromium|pg_ctl|"
