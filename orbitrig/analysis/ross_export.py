@@ -6,7 +6,8 @@ Omega the rig varies within a point. Each complete point and load measuring syst
 the chosen stored fit (default kcd11, constant, ols), the coefficients at the synchronous whirl
 Omega = omega when the fit is frequency dependent and omega lies in the point's tested whirl
 range, else those of the constant fit of the same model and method (stored, else fitted here
-from the orbit table, its U on the calibration of the chosen fit's stored budget). The points of one test condition (CONDITION) form one bearing over speed.
+from the orbit table, its U on the calibration of the chosen fit's stored budget). The points of
+one test condition (CONDITION) form one bearing over speed.
 Each coefficient at each speed carries U: the fit's U (orbitrig.store.fit_record) for a constant
 fit; for a sum over orders the statistical covariance propagated plus the calibration parts taken
 as fully correlated (an upper bound: the run stores no calibration covariance). U > |value| is
