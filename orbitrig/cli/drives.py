@@ -8,8 +8,9 @@ limits (`[drives]`): `--max-spin/--max-orbit/--min-ratio/--max-ratio` may
 only tighten those. Exit status: 0 done, 2 failed or interrupted (the reason is
 printed on standard error; `run` has stopped both drives and confirmed them at
 standstill by then; output that cannot be written, a full disk, is such a failure),
-4 `run` ended by an emergency stop (a second signal during its ramp), 1 `run` could
-not confirm both drives at standstill ("drives not confirmed stopped"). Signals:
+4 ended by an emergency stop (`run`: a second signal during its ramp; `stop`: a signal
+during its ramp), 1 `run` could not confirm both drives at standstill ("drives not confirmed
+stopped"). Signals:
 orbitrig.cli.signals.SIGNALS. `run` gives both drives [drives] comm_loss_timeout_s and leaves
 them running only if both read it back armed (nonzero).
 """
@@ -173,7 +174,10 @@ def _add_stop(drives_app: typer.Typer) -> None:
         spin_id: opt.SpinId = None,
         orbit_id: opt.OrbitId = None,
     ) -> None:
-        """Stop both drives; returns once both read zero speed."""
+        """Stop both drives; returns once both read zero speed.
+
+        Once the drives are open, Ctrl-C, SIGTERM, SIGHUP or SIGQUIT during the ramp makes it the
+        emergency stop (OFF3), still waited for; exit 4 once both are at standstill."""
         if not check_seconds("stop", timeout=(timeout, False)):
             raise typer.Exit(2)
         opened = open_config("stop", config, modbus, spin_id, orbit_id, required=False)
