@@ -92,7 +92,8 @@ def _add_run(drives_app: typer.Typer) -> None:
         both ramped to zero, exit 2, naming the drive and the register. Without --hold
         the drives are left at their setpoint once both read an armed watchdog;
         with no client polling them, it ramps them down that many seconds after the
-        command (said on standard error). With --hold the
+        command (said on standard error); a signal as the command leaves them there ramps both
+        to zero after all, confirmed at standstill (exit 2). With --hold the
         command keeps polling until Ctrl-C/SIGTERM/SIGHUP/SIGQUIT (a closed standard
         output does not end it), then ramps both to zero (exit 0; a second signal
         during the ramp: emergency stop, exit 4); if another client stops a drive or
@@ -286,8 +287,10 @@ async def _status(url: str, json_out: bool, d) -> int:
 
 
 async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every, interrupt) -> int:
+    import asyncio
+
     from drives.errors import DriveError
-    from orbitrig.cli.drives_hold import armed_watchdog, way_out
+    from orbitrig.cli.drives_hold import armed_watchdog, stop_after_release, way_out
 
     try:
         limits.check(spin, orbit, spin_id=d.spin_id, orbit_id=d.orbit_id)
@@ -295,6 +298,7 @@ async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every,
         report("run", err, "nothing sent")  # refused before connecting at all
         return 2
     rig = code = None
+    released = False
     try:
         async with _rig_drives(url, d, limits, watchdog=True) as rig:
             try:
@@ -302,9 +306,14 @@ async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every,
                 code = await _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, interrupt)
                 if not hold:  # at the setpoint
                     await _release(rig, d.comm_loss_timeout_s)
+                    released = True
             except BaseException as err:  # noqa: BLE001 - every way out but the release: both drives stopped first
                 code = await way_out(rig, err, interrupt, reason)
             return code
+    except asyncio.CancelledError:
+        if not (released and interrupt.received):
+            raise
+        return await stop_after_release(url, d, interrupt)  # a signal during the rig's exit
     except DriveError as err:
         if code is not None:  # the exit's repeated stop word failed after the way out said how the drives ended
             return code
