@@ -206,8 +206,9 @@ def _rig_drives(url, d, limits=None, *, watchdog: bool = False):
 
 def _run_async(make_coro, command: str) -> int:
     """Run `make_coro(interrupt)`; the first of orbitrig.cli.signals.SIGNALS cancels it -> exit 2
-    (`run` stops and confirms both drives itself: drives_hold.way_out), except while it holds
-    (`run --hold`), where it ends the hold (drives_hold.Interrupt)."""
+    (`run` stops and confirms both drives itself: drives_hold.way_out, stop_after_release), except
+    while it holds (`run --hold`), where it ends the hold, and once a stop is under way (`stop` with
+    the drives open, a way out's ramp), where it makes it the emergency stop (drives_hold.Interrupt)."""
     import asyncio
 
     from drives.errors import DriveError
