@@ -8,8 +8,9 @@ limits (`[drives]`): `--max-spin/--max-orbit/--min-ratio/--max-ratio` may
 only tighten those. Exit status: 0 done, 2 failed or interrupted (the reason is
 printed on standard error; `run` has stopped both drives and confirmed them at
 standstill by then; output that cannot be written, a full disk, is such a failure),
-4 `run` ended by an emergency stop (a second signal during its ramp), 1 `run` could
-not confirm both drives at standstill ("drives not confirmed stopped"). Signals:
+4 ended by an emergency stop (`run`: a second signal during its ramp; `stop`: a signal
+during its ramp), 1 `run` could not confirm both drives at standstill ("drives not confirmed
+stopped"). Signals:
 orbitrig.cli.signals.SIGNALS. `run` gives both drives [drives] comm_loss_timeout_s and leaves
 them running only if both read it back armed (nonzero).
 """
@@ -91,7 +92,8 @@ def _add_run(drives_app: typer.Typer) -> None:
         both ramped to zero, exit 2, naming the drive and the register. Without --hold
         the drives are left at their setpoint once both read an armed watchdog;
         with no client polling them, it ramps them down that many seconds after the
-        command (said on standard error). With --hold the
+        command (said on standard error); a signal as the command leaves them there ramps both
+        to zero after all, confirmed at standstill (exit 2). With --hold the
         command keeps polling until Ctrl-C/SIGTERM/SIGHUP/SIGQUIT (a closed standard
         output does not end it), then ramps both to zero (exit 0; a second signal
         during the ramp: emergency stop, exit 4); if another client stops a drive or
@@ -173,7 +175,10 @@ def _add_stop(drives_app: typer.Typer) -> None:
         spin_id: opt.SpinId = None,
         orbit_id: opt.OrbitId = None,
     ) -> None:
-        """Stop both drives; returns once both read zero speed."""
+        """Stop both drives; returns once both read zero speed.
+
+        Once the drives are open, Ctrl-C, SIGTERM, SIGHUP or SIGQUIT during the ramp makes it the
+        emergency stop (OFF3), still waited for; exit 4 once both are at standstill."""
         if not check_seconds("stop", timeout=(timeout, False)):
             raise typer.Exit(2)
         opened = open_config("stop", config, modbus, spin_id, orbit_id, required=False)
@@ -201,8 +206,9 @@ def _rig_drives(url, d, limits=None, *, watchdog: bool = False):
 
 def _run_async(make_coro, command: str) -> int:
     """Run `make_coro(interrupt)`; the first of orbitrig.cli.signals.SIGNALS cancels it -> exit 2
-    (`run` stops and confirms both drives itself: drives_hold.way_out), except while it holds
-    (`run --hold`), where it ends the hold (drives_hold.Interrupt)."""
+    (`run` stops and confirms both drives itself: drives_hold.way_out, stop_after_release), except
+    while it holds (`run --hold`), where it ends the hold, and once a stop is under way (`stop` with
+    the drives open, a way out's ramp), where it makes it the emergency stop (drives_hold.Interrupt)."""
     import asyncio
 
     from drives.errors import DriveError
@@ -282,8 +288,10 @@ async def _status(url: str, json_out: bool, d) -> int:
 
 
 async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every, interrupt) -> int:
+    import asyncio
+
     from drives.errors import DriveError
-    from orbitrig.cli.drives_hold import armed_watchdog, way_out
+    from orbitrig.cli.drives_hold import armed_watchdog, stop_after_release, way_out
 
     try:
         limits.check(spin, orbit, spin_id=d.spin_id, orbit_id=d.orbit_id)
@@ -291,6 +299,7 @@ async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every,
         report("run", err, "nothing sent")  # refused before connecting at all
         return 2
     rig = code = None
+    released = False
     try:
         async with _rig_drives(url, d, limits, watchdog=True) as rig:
             try:
@@ -298,9 +307,14 @@ async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every,
                 code = await _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, interrupt)
                 if not hold:  # at the setpoint
                     await _release(rig, d.comm_loss_timeout_s)
+                    released = True
             except BaseException as err:  # noqa: BLE001 - every way out but the release: both drives stopped first
                 code = await way_out(rig, err, interrupt, reason)
             return code
+    except asyncio.CancelledError:
+        if not (released and interrupt.received):
+            raise
+        return await stop_after_release(url, d, interrupt)  # a signal during the rig's exit
     except DriveError as err:
         if code is not None:  # the exit's repeated stop word failed after the way out said how the drives ended
             return code

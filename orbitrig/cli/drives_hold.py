@@ -159,6 +159,29 @@ async def way_out(rig, err: BaseException, interrupt: Interrupt, reason) -> int:
     return code
 
 
+async def stop_after_release(url, d, interrupt: Interrupt) -> int:
+    """`run` cancelled by a signal as its rig's exit left both drives at the setpoint (after the
+    release): whatever that exit sent, both drives are opened again, ramped to zero and confirmed
+    at standstill (`ramp_down`; a further signal: the emergency stop, exit 4), exit 2; exit 1 if
+    the standstill is not confirmed."""
+    from orbitrig.run.drive_setup import UNLIMITED, rig_drives
+
+    task = asyncio.current_task()
+    assert task is not None
+    task.uncancel()
+    interrupt.stopping = True  # a further signal (also while opening): the emergency stop
+    head = f"orbitrig drives run: interrupted by {interrupt.received[0].name} as it left both drives at the setpoint"
+    try:
+        async with rig_drives(url, d, UNLIMITED) as rig:
+            escalated, line = await ramp_down(rig, interrupt)
+    except DriveError as err:
+        say(f"{head}; {not_confirmed(err)}", err=True)
+        return 1
+    again = f"; {interrupt.received[-1].name} during the stop: " if escalated else "; "
+    say(f"{head}; both drives stopped{again}{line}", err=True)
+    return 4 if escalated else 2
+
+
 async def _hold(rig, refs: tuple[int, int], status_every: float, interrupt: Interrupt) -> int:
     """`run --hold`: poll at the setpoint until a signal (exit 0) or until another client stops or
     moves a drive (exit 2); both end with both drives ramped to zero and confirmed at standstill

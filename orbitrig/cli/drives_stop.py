@@ -61,21 +61,26 @@ def report(command: str, err: BaseException, after: str = "") -> None:
 
 
 async def stop_drives(url, d, emergency, timeout, interrupt) -> int:
-    """Stop both drives and wait for standstill. If the drives cannot be opened (a DriveError, or a
-    signal while opening them: nothing was sent yet), the stop words still go to each drive that
-    answers, and the message names those that took it."""
+    """Stop both drives and wait for standstill. Once the drives are open a signal no longer ends the
+    command: during a ramp stop it makes it the emergency stop (OFF3), still waited for (`timeout`,
+    default the drives' own ramp time with a margin), exit 4; during an emergency stop it is said,
+    exit 2. If the drives cannot be opened (a DriveError, or a signal while opening them: nothing
+    was sent yet), the stop words still go to each drive that answers, and the message names those
+    that took it."""
     import asyncio  # here, not at the top: `orbitrig --help` loads this module
 
     from drives.errors import DriveError
     from orbitrig.cli.drives_hold import _state_lines
     from orbitrig.cli.terminal import say
     from orbitrig.run.drive_setup import UNLIMITED, rig_drives
+    from orbitrig.run.safe_stop import stop_shielded
 
     rig, opened = rig_drives(url, d, UNLIMITED), False
     try:
         async with rig:
             opened = True
-            await rig.stop(emergency=emergency, wait=True, timeout=timeout)
+            interrupt.stopping = True  # from here a signal makes the stop an emergency stop, never cancels it
+            escalated, line = await stop_shielded(rig, interrupt.abort, emergency=emergency, timeout=timeout)
             state = rig.state
     except asyncio.CancelledError:
         if not interrupt.received:
@@ -93,11 +98,24 @@ async def stop_drives(url, d, emergency, timeout, interrupt) -> int:
     except DriveError as err:
         # The controller could not be opened (or the wait failed): still put the
         # stop word on the line for each drive that answers, without reading first.
-        sent = await _stop_words_best_effort(url, d, emergency, interrupt)
-        report("stop", err, _delivered(sent))
+        off3 = emergency or interrupt.abort.is_set()
+        sent = await _stop_words_best_effort(url, d, off3, interrupt)
+        report("stop", err, (_signalled(interrupt, escalated=not emergency) if opened else "") + _delivered(sent))
         return 2
     _state_lines(state)
-    return 0
+    if not interrupt.received:
+        return 0
+    say(f"orbitrig drives stop: {_signalled(interrupt, escalated)}both drives stopped; {line}", err=True)
+    return 4 if escalated else 2
+
+
+def _signalled(interrupt, escalated: bool) -> str:
+    """What the signals received once the drives were open did: 'Ctrl-C during the ramp stop:
+    emergency stop (OFF3) sent; ', 'SIGTERM during the emergency stop; ', or '' (none)."""
+    if not interrupt.received:
+        return ""
+    names = ", ".join(dict.fromkeys(s.name for s in interrupt.received))
+    return f"{names} during the " + ("ramp stop: emergency stop (OFF3) sent; " if escalated else "emergency stop; ")
 
 
 def _delivered(sent: list[str]) -> str:

@@ -18,7 +18,9 @@ the poll), a lost link to the drives, the lubricant supply lost (pump off, suppl
 minimum) for [interlocks] supply_lost_timeout_s or the CAN sensor node lost for
 can_heartbeat_timeout_s ends the step within a poll interval, naming the drive and its fault,
 the lost link or the interlock; the session's way out then stops both drives (the emergency
-stop). A slow roll is not started once such an interlock has failed. SI throughout.
+stop). A slow roll is not started once such an interlock has failed, nor before the recess
+pressure and the pressure ratio (supply) read from CAN meet the step's, as a sweep checks them
+before it spins (orbitrig.run.verification.pressures_settled). SI throughout.
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ from orbitrig.run.interlocks import Trip
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.safe_stop import not_confirmed, stop_shielded
 from orbitrig.run.supervision import InterlockSupervisor
+from orbitrig.run.verification import pressures_settled
 from reduction.rig_time import block_time
 
 log = logging.getLogger(__name__)
@@ -210,6 +213,7 @@ class CalibrationSession:
         )
         scale, s, drives = self.access.time_scale, self.rig.settle, self.io.open_drives
         self.check_interlocks()  # no spindle started once an interlock has failed
+        await self._pressures_met(roll)
         self.at_standstill = False
         try:
             await drives.set_speeds(roll.spin, roll.orbit)
@@ -220,6 +224,17 @@ class CalibrationSession:
                 f"slow roll at spin {roll.spin / RPM:.0f} rpm, orbit {roll.orbit / RPM:.0f} rpm: {err}"
             ) from err
         self.note(f"slow roll: spin {roll.spin / RPM:.0f} rpm, orbit spindle {roll.orbit / RPM:.0f} rpm, held")
+
+    async def _pressures_met(self, roll: SlowRoll) -> None:
+        """The supply and recess pressures checked against the step's, as a sweep checks them before
+        it spins (`pressures_settled`); CalibrationFailed naming what is off, no spindle started."""
+        aux = self.io.open_aux
+        problems = await pressures_settled(aux.latest, roll, self.rig.verify, self.access.time_scale)
+        if problems:
+            raise CalibrationFailed(
+                "pressures not met before the slow roll: " + "; ".join(problems) + "; slow roll not started"
+            )
+        self.note("pressures verified before the slow roll")
 
     def check_drives(self) -> None:
         """CalibrationFailed if the drives' poll found a drive tripped (recorded once the poll has

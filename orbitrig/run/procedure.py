@@ -49,7 +49,7 @@ from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.sequential_point import MAX_BLOCK_INDEX, choice_line, choose, chosen_steps
 from orbitrig.run.states import ConfirmMode
 from orbitrig.run.supervision import InterlockSupervisor
-from orbitrig.run.verification import geometry_problems, pressure_problems, radius_missed
+from orbitrig.run.verification import geometry_problems, pressures_settled, radius_missed
 from orbitrig.store.records import BlockChoice, BlockRecord, PointResults
 from orbitrig.store.writer import RunStore
 from reduction.errors import ReductionError
@@ -212,14 +212,9 @@ class PointProcedure:
         self._add_time("verify", t0)
 
     async def _pressures_settled(self, p: OperatingPoint) -> list[str]:
-        """The pressure problems left after waiting up to 20 physical s (at least 3 wall s)."""
-        deadline = time.monotonic() + max(3.0, self.scale.wall(20.0))
-        while True:
-            await self._hold_while_suspended()
-            problems = pressure_problems(self.r.io.open_aux.latest(), p, self.r.rig.verify)
-            if not problems or time.monotonic() > deadline:
-                return problems
-            await asyncio.sleep(0.1)
+        """The pressure problems left after waiting for them to settle (`pressures_settled`)."""
+        aux = self.r.io.open_aux
+        return await pressures_settled(aux.latest, p, self.r.rig.verify, self.scale, self._hold_while_suspended)
 
     async def verify_geometry(self, step: VerifyGeometry, ps: PointState) -> None:
         """A missed orbit radius is corrected at standstill (the outer spindle's offset, by hand),

@@ -5,18 +5,36 @@ Each function returns the problems found (empty: verified), worded for the opera
 
 from __future__ import annotations
 
+import asyncio
 import math
+import time
+from collections.abc import Awaitable, Callable
+from typing import Protocol
 
 from daq.aux import AuxState
 from orbitrig.config import MPA, RigConfig, Verify
 from orbitrig.run.identification import probe_plane
 from orbitrig.run.plan import OperatingPoint
+from orbitrig.run.rig_io import TimeScale
 from orbitrig.run.steps import SetManual
 from orbitrig.store.records import BlockRecord
 
+#: physical s the pressures are given to reach their settings before the spindles start (at least 3 wall s)
+PRESSURE_SETTLE_S = 20.0
 
-def pressure_problems(aux: AuxState, p: OperatingPoint, v: Verify) -> list[str]:
-    """Recess pressure (mean of the four recesses) and pressure ratio against the point's settings."""
+
+class PressureSettings(Protocol):
+    """The pressures asked for (an operating point, a calibration step's slow roll): Pa, -."""
+
+    @property
+    def recess_pressure(self) -> float: ...
+
+    @property
+    def pressure_ratio(self) -> float: ...
+
+
+def pressure_problems(aux: AuxState, p: PressureSettings, v: Verify) -> list[str]:
+    """Recess pressure (mean of the four recesses) and pressure ratio against the settings `p`."""
     if aux.node_lost:
         return ["no CAN sensor readings (node lost)"]
     if aux.stale("p_recess") or aux.stale("p_supply"):
@@ -32,6 +50,31 @@ def pressure_problems(aux: AuxState, p: OperatingPoint, v: Verify) -> list[str]:
     if abs(beta - p.pressure_ratio) > v.pressure_ratio_tol:
         problems.append(f"pressure ratio {beta:.3f}, want {p.pressure_ratio:g} +/- {v.pressure_ratio_tol:g}")
     return problems
+
+
+async def pressures_settled(
+    latest: Callable[[], AuxState],
+    p: PressureSettings,
+    v: Verify,
+    scale: TimeScale,
+    before_each: Callable[[], Awaitable[None]] | None = None,
+) -> list[str]:
+    """The pressure problems (`pressure_problems` of the CAN node's `latest()` readings) left after
+    waiting up to PRESSURE_SETTLE_S physical s (at least 3 wall s) for them to clear; empty: the
+    pressures are met by readings received after this check began (after the settings were made,
+    not the frame before them). The check before the spindles start (a sweep's VerifyPressures, a
+    calibration step's slow roll); `before_each()` is awaited before each reading."""
+    t0 = time.monotonic()
+    deadline = t0 + max(3.0, scale.wall(PRESSURE_SETTLE_S))
+    while True:
+        if before_each is not None:
+            await before_each()
+        aux = latest()
+        problems = pressure_problems(aux, p, v)
+        fresh = aux.ages.get("beta", math.inf) < time.monotonic() - t0  # p_recess and p_supply alike
+        if (fresh and not problems) or time.monotonic() > deadline:  # by then an old reading is stale
+            return problems
+        await asyncio.sleep(0.1)
 
 
 def measured_radius(rec: BlockRecord, rig: RigConfig) -> float:

@@ -10,10 +10,12 @@ from __future__ import annotations
 
 import asyncio
 import signal
+import time
 
 import pytest
 from drives.limits import DriveLimits
 from support.drives_testkit import (
+    CW_EMERGENCY,
     CW_RAMP_STOP,
     CW_RUN,
     RPM,
@@ -124,42 +126,52 @@ async def test_second_sigint_during_the_stop_words_claims_nothing_false(rtu_sim,
     await _assert_spin_stopped_orbit_untouched(sim)
 
 
-async def _stop_interrupted_while_ramping(sim: SimDrives, before_signal=lambda: None) -> tuple[int, str]:
+async def _stop_interrupted_while_ramping(sim: SimDrives, before_signal=lambda: None) -> tuple[int, str, float]:
     """`drives stop`, SIGINT once both stop words are out and the drives still ramp (the rig
-    open); ``before_signal()`` just before it; (exit code, stderr)."""
+    open); ``before_signal()`` just before it; (exit code, stderr, wall s from the signal to the exit)."""
+    t_signal = 0.0
 
     async def ramping() -> None:
+        nonlocal t_signal
         await sim.wait_for(lambda: sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP, 20, "stop words")
-        assert sim.regs(1)["ACT"] != 0  # still ramping: the command waits for standstill
+        assert sim.regs(1)["ACT"] != 0 and sim.regs(2)["ACT"] != 0  # still ramping: the command waits for standstill
         before_signal()
+        t_signal = time.monotonic()
 
-    return await _stop_cli(sim, [], [ramping])
+    code, err = await _stop_cli(sim, [], [ramping])
+    return code, err, time.monotonic() - t_signal
 
 
 @pytest.mark.parametrize("rtu_sim", [2.0], ids=["slow"], indirect=True)
-async def test_sigint_once_open_keeps_the_rigs_stop(rtu_sim):
-    """A signal while `stop` waits for standstill (the rig open, its stop words out): the rig's
-    exit stops both drives, as the message says."""
+async def test_sigint_during_the_ramp_stop_makes_it_an_emergency_stop_waited_for(rtu_sim):
+    """A signal while `stop` waits for the ramp to standstill (the rig open, its stop words out):
+    both drives get the emergency stop (OFF3), the command waits for standstill, says so, exit 4.
+    (It used to exit 2 at once, the drives still ramping, and a second Ctrl-C found no command.)"""
     sim = rtu_sim
     await _leave_running(sim)
-    code, err = await _stop_interrupted_while_ramping(sim)
-    assert code == 2, err
-    assert "orbitrig drives stop: interrupted by SIGINT; stop sent to both drives\n" in err, err
-    assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP
-    await sim.wait_stopped(timeout=10)
+    code, err, took = await _stop_interrupted_while_ramping(sim)
+    at_exit = [sim.regs(dev) for dev in (1, 2)]
+    assert code == 4, (err, at_exit, took)
+    for regs in at_exit:  # read as the command exited: stopped by the emergency stop
+        assert regs["CW"] == CW_EMERGENCY and regs["ACT"] == 0, at_exit
+    line = "orbitrig drives stop: SIGINT during the ramp stop: emergency stop (OFF3) sent; both drives stopped; "
+    assert line + "drives: emergency stop (OFF3) after an abort during the ramp; standstill after " in err, err
+    assert "Traceback" not in err, err
+    assert took < 8.0, took  # the emergency ramp (about 0.1 s here) and the exit, with a busy machine's margin
 
 
 @pytest.mark.parametrize("rtu_sim", [2.0], ids=["slow"], indirect=True)
-async def test_sigint_once_open_says_when_the_exits_stop_missed_a_drive(rtu_sim, monkeypatch):
-    """A signal while `stop` waits for standstill, the orbit drive gone silent after its stop
-    word: the rig's exit sends the stop again and the orbit drive does not take it. The message
-    says so instead of 'stop sent to both drives'."""
+async def test_sigint_during_the_ramp_stop_says_which_drive_missed_the_emergency_stop(rtu_sim, monkeypatch):
+    """A signal while `stop` waits for standstill, the orbit drive gone silent after its ramp stop
+    word: the emergency stop reaches the spin drive only; the message says so (never "both"), exit 2."""
     sim = rtu_sim
     await _leave_running(sim)
     gate = sim.endpoint._gate  # the server's request filter: the orbit drive's line cut
     admit, silent = gate.admit, asyncio.Event()
     monkeypatch.setattr(gate, "admit", lambda dev_id: not (silent.is_set() and dev_id == 2) and admit(dev_id))
-    code, err = await _stop_interrupted_while_ramping(sim, silent.set)
+    code, err, _ = await _stop_interrupted_while_ramping(sim, silent.set)
     assert code == 2, err
-    assert "orbitrig drives stop: interrupted by SIGINT; stop NOT delivered (" in err and "orbit" in err, err
-    assert "stop sent to both drives" not in err, err
+    assert "orbitrig drives stop failed (" in err and "orbit" in err, err
+    assert "SIGINT during the ramp stop: emergency stop (OFF3) sent; stop word delivered to: spin (id 1)\n" in err, err
+    assert "both drives stopped" not in err and "Traceback" not in err, err
+    assert sim.regs(1)["CW"] == CW_EMERGENCY and sim.regs(2)["CW"] == CW_RAMP_STOP
