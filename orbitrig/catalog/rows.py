@@ -15,11 +15,12 @@ from typing import Any
 
 from orbitrig.store.fit_record import COVERAGE_K, expanded_uncertainty, uncertainty_basis
 from orbitrig.store.reader import Point, Run, StoredIdentification
+from rigunits import COEFFICIENT_UNITS
 
 #: the constant coefficients every model reports (absent ones are NULL)
 COEFFICIENTS = tuple(f"{m}{ij}" for m in "KCD" for ij in ("xx", "xy", "yx", "yy"))
 #: SI unit of each coefficient family
-UNITS = {"K": "N/m", "C": "N s/m", "D": "kg"}
+UNITS = COEFFICIENT_UNITS
 #: k of the expanded uncertainty taken as 2 x std when a fit stores none
 COVERAGE = COVERAGE_K
 

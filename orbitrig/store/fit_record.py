@@ -17,9 +17,9 @@ import numpy as np
 import numpy.typing as npt
 
 from orbitrig.load_systems import LoadSystem
-from orbitrig.store.layout import coefficient_si_unit
 from reduction.statistics import coverage_factor
 from reduction.systematic import UncertaintyBasis
+from rigunits import coefficient_unit
 
 if TYPE_CHECKING:
     from orbitrig.store.reader import Point
@@ -153,7 +153,7 @@ def fit_record(
         method,
         error or "",
         names,
-        [coefficient_si_unit(k) for k in names],
+        [coefficient_unit(k) for k in names],
         vector(result.get("coefficients")),
         vector(result.get("std_errors")),
         np.array([U[k] for k in names]),
