@@ -13,7 +13,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from orbitrig.store.fit_record import COVERAGE_K, expanded_uncertainty, uncertainty_basis
+from orbitrig.store.fit_record import COVERAGE_K, expanded_k, expanded_uncertainty, uncertainty_basis
 from orbitrig.store.reader import Point, Run, StoredIdentification
 from rigunits import COEFFICIENT_UNITS
 
@@ -21,7 +21,7 @@ from rigunits import COEFFICIENT_UNITS
 COEFFICIENTS = tuple(f"{m}{ij}" for m in "KCD" for ij in ("xx", "xy", "yx", "yy"))
 #: SI unit of each coefficient family
 UNITS = COEFFICIENT_UNITS
-#: k of the expanded uncertainty taken as 2 x std when a fit stores none
+#: k of U for a row catalogued before coefficients_json stored the fit's own k
 COVERAGE = COVERAGE_K
 
 
@@ -98,7 +98,12 @@ def _fit_columns(ident: StoredIdentification) -> dict[str, Any]:
         adequacy_supported=adequacy.get("supported") if "supported" in adequacy else None,
         not_determined=" ".join(not_determined(values, u)),
         coefficients_json=json.dumps(
-            {"values": values, "U": u, "std": {k: _number(v) for k, v in result.get("std_errors", {}).items()}}
+            {
+                "values": values,
+                "U": u,
+                "std": {k: _number(v) for k, v in result.get("std_errors", {}).items()},
+                "k": expanded_k(result) if ident.ok else None,  # U = k x the standard uncertainty
+            }
         ),
     )
     for name in COEFFICIENTS:

@@ -110,7 +110,7 @@ DATASETS = {
     "commands": ("<field>", "every command that changed the run: at (ISO 8601 UTC), command, by (who sent it), detail"),
     "expanded_uncertainty": (
         PER_COEFFICIENT,
-        "expanded uncertainty U (k = 2; attribute basis: combined or statistical), aligned with names",
+        "expanded uncertainty U (attribute k, the coverage factor; attribute basis: combined or statistical), aligned with names",
     ),
     "coefficient_names": ("", "the coefficients a sequential decision judged, aligned with before and after"),
     "before": (

@@ -69,7 +69,7 @@ def expanded_k(result: dict[str, Any]) -> float:
 
 def uncertainty_basis(result: dict[str, Any]) -> UncertaintyBasis:
     """What :func:`expanded_uncertainty` of ``result`` rests on: COMBINED (calibration included)
-    or STATISTICAL (2 x the standard error, or a sweep without stated calibration)."""
+    or STATISTICAL (k x the standard error, k of :func:`expanded_k`: no calibration stated)."""
     stored = result.get("expanded_uncertainty") or {}
     if stored.get("values"):
         return UncertaintyBasis(stored.get("basis", UncertaintyBasis.COMBINED))
