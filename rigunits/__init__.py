@@ -5,6 +5,11 @@ meets the code. Every package but ``sim`` (which re-derives its scales so that a
 shared mistake cannot cancel out in the tests) may import this module; it imports
 only the standard library.
 
+Unit strings: every unit stored or exported (HDF5 ``units``, ``field_units``, CSV headers,
+DataFrame ``attrs``, MAT / TDMS properties) is a string pint parses, written one way:
+``"1"`` for a dimensionless number (also a flag, a status word, a fault code, a fraction),
+``""`` for text, ``"N s/m"`` (not ``"N*s/m"``) for damping.
+
 Timestamps: ISO 8601 in UTC with milliseconds and a ``Z``, e.g.
 ``2026-11-27T01:30:05.123Z`` (files, logs, MQTT payloads); the compact form of
 the same instant, ``20261127T013005.123Z``, names runs and folders.
@@ -19,6 +24,21 @@ RPM = 2.0 * math.pi / 60.0  # rad/s per rpm
 MPA = 1.0e6  # Pa per MPa
 MINUTE = 60.0  # s
 HOUR = 3600.0  # s
+
+#: the unit of a dimensionless number (a ratio, a count of things, a flag, a status word, a code)
+ONE = "1"
+#: the unit of text (none)
+TEXT = ""
+STIFFNESS, DAMPING, MASS = "N/m", "N s/m", "kg"
+#: SI unit of each matrix of a coefficient key (K, C, D)
+COEFFICIENT_UNITS = {"K": STIFFNESS, "C": DAMPING, "D": MASS}
+
+
+def coefficient_unit(key: str) -> str:
+    """SI unit of coefficient `key`: 'Kxx' -> 'N/m'; 'Cxy_2' (multiplies Omega^2) -> 'N s/m (rad/s)^-2'."""
+    unit = COEFFICIENT_UNITS[key[0]]
+    _, _, order = key.partition("_")
+    return unit if not order else f"{unit} (rad/s)^-{order}"
 
 
 def format_duration(seconds: float) -> str:

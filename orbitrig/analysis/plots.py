@@ -189,10 +189,12 @@ def _add_limits(ax, xy: np.ndarray) -> None:
 
 @dataclass
 class Fitted:
-    """One identification to draw: a legend label and the Identification object."""
+    """One identification to draw: a legend label, the Identification object and, in simulator
+    runs, its own truth (coefficient -> true value: the true Z projected onto its model)."""
 
     label: str
     identification: Any  # reduction.identify.Identification
+    truth: dict[str, float] | None = None
 
 
 def whirl_direction(table) -> np.ndarray:

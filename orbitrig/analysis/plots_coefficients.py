@@ -5,9 +5,11 @@ expanded uncertainty U = k u (k of the style, 2 by default) and error bars at th
 frequencies; a constant one is a horizontal line with its band. Curves are solid over the
 tested orbit range and dotted outside it (extrapolation). u is sqrt(g^T Sigma g) with g the
 entry's gradient in the free coefficients and Sigma the fit's covariance (exact for
-correlated order terms). In simulator runs the truth is drawn as black crosses at the tested
-frequencies, always inside the axes: its per-row K, C, D where stored, else the constant best
-fit of the true impedance (K0, C0, D0).
+correlated order terms). In simulator runs the truth is drawn as crosses at the tested
+frequencies, always inside the axes: each fit's own truth (the true Z projected onto its
+model, as the report's table beside the figure gives it; ``Fitted.truth``) in the fit's
+colour; where no fit carries one, black crosses of the point's truth, its per-row K, C, D
+where stored, else the constant best fit of the true impedance (K0, C0, D0), labelled so.
 """
 
 from __future__ import annotations
@@ -39,6 +41,10 @@ from orbitrig.analysis.plots import (
 from orbitrig.analysis.reduce import MATRIX_UNITS
 from reduction.derived import entry_gradient
 
+#: the legend entry of the crosses of each fit's own truth (drawn in the fit's colour)
+OWN_TRUTH_LABEL = "true (simulator) for the fit of this colour: true Z projected onto its model"
+#: the legend entry of the point's truth when no fit carries its own
+POINT_TRUTH_LABEL = TRUTH_LABEL + ": the constant K0, C0, D0 best fitting the true Z, or its per-row K, C, D"
 #: points of each fitted curve over 0..1.05 max |Omega| (a panel is about 1.5 in wide: 60 points an inch)
 CURVE_POINTS = 100
 
@@ -83,6 +89,37 @@ def _draw_fit(axes, mats, fit: Fitted, color, grid, tested, spin, largest) -> No
                 )
 
 
+def own_truth_matrices(fit: Fitted, orbit: np.ndarray) -> np.ndarray | None:
+    """(n, 3, 2, 2) K, C, D of the fit's own truth (``fit.truth``, keyed as its coefficients)
+    at each |Omega| (rad/s) in `orbit`, SI; NaN where the truth lacks a term; None without one."""
+    if not fit.truth:
+        return None
+    out = np.zeros((len(orbit), 3, 2, 2))
+    for term in fit.identification.spec.terms:
+        value = fit.truth.get(term.name)
+        for i, j in term.entries:
+            out[:, "KCD".index(term.matrix), i, j] += (np.nan if value is None else value) * orbit**term.order
+    return out
+
+
+def _draw_own_truth(axes, mats, fit: Fitted, color, tested, spin, largest) -> None:
+    mat = own_truth_matrices(fit, tested)
+    if mat is None:
+        return
+    for row, m in enumerate(mats):
+        if not _has(fit.identification, m):
+            continue
+        _, scale = MATRIX_UNITS[m]
+        values = mat[:, "KCD".index(m)] * scale
+        if np.isfinite(values).any():
+            largest[m] = max(largest[m], float(np.nanmax(np.abs(values))))
+        for col in range(4):
+            i, j = divmod(col, 2)
+            axes[row, col].plot(
+                tested / spin, values[:, i, j], "x", color=color, ms=5, mew=1.2, label=OWN_TRUTH_LABEL, zorder=6
+            )
+
+
 def truth_matrix(truth: dict, matrix: str) -> tuple[np.ndarray, np.ndarray] | None:
     """(|Omega| (n,) rad/s, true entries (n, 2, 2) SI) of `matrix` ('K', 'C', 'D') at the truth's
     rows: its per-row values when stored, else its constant best fit (``K0``...) at every row;
@@ -113,7 +150,14 @@ def _draw_truth(axes, mats, truth: dict, spin: float, largest) -> None:
         for col in range(4):
             i, j = divmod(col, 2)
             axes[row, col].plot(
-                t_orbit / spin, mat[:, i, j] * scale, "x", color="black", ms=4, mew=1.0, label=TRUTH_LABEL, zorder=6
+                t_orbit / spin,
+                mat[:, i, j] * scale,
+                "x",
+                color="black",
+                ms=4,
+                mew=1.0,
+                label=POINT_TRUTH_LABEL,
+                zorder=6,
             )
 
 
@@ -129,7 +173,8 @@ def coefficients_figure(
     largest = dict.fromkeys(mats, 0.0)  # largest |entry| drawn per matrix, display units
     for fit, color in zip(fitted, _colors(len(fitted))):
         _draw_fit(axes, mats, fit, color, grid, tested, spin, largest)
-    if truth:
+        _draw_own_truth(axes, mats, fit, color, tested, spin, largest)
+    if truth and not any(f.truth for f in fitted):  # else each fit's own truth, as the table gives it
         _draw_truth(axes, mats, truth, spin, largest)
     axes[0, 0].set_xlim(0, top / spin)  # shared by every panel
     for row, m in enumerate(mats):
@@ -141,7 +186,7 @@ def coefficients_figure(
             light_grid(ax)
             _min_span(ax, largest[m])
             for line in ax.get_lines():  # the truth crosses, whatever limits were chosen
-                if line.get_label() == TRUTH_LABEL:
+                if line.get_label() in (OWN_TRUTH_LABEL, POINT_TRUTH_LABEL):
                     keep_inside(ax, line.get_xdata(), line.get_ydata())
             if row == len(mats) - 1:
                 ax.set_xlabel("\u03a9/\u03c9  [-]")

@@ -30,6 +30,7 @@ from orbitrig.store.csvfile import (
     CSV_HEAD,
     coef_order,
     coefficient_column,
+    fit_truth,
     one_line,
     render_table,
     true_entry,
@@ -149,6 +150,14 @@ def fit_true_values(r: Reduced) -> dict[str, float]:
             pass
     constant = true_constants(r.point)
     return {k: constant[k] for k in r.identification.coefficients if k in constant}
+
+
+def own_truth(r: Reduced) -> dict[str, float]:
+    """The truth the report sets beside fit `r` (its table and its coefficient figure): the
+    sweep's stored own truth of the fit when there is one, else :func:`fit_true_values`."""
+    if ((r.stored or {}).get("truth") or {}).get("coefficients"):
+        return fit_truth(r.stored, r.point.truth)
+    return fit_true_values(r) if "Z_re" in (r.point.truth or {}) else {}
 
 
 def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, Any]]]:

@@ -44,7 +44,7 @@ from orbitrig.analysis import plots_summary, report_cache
 from orbitrig.analysis.quality import Verdict, adequacy_verdicts, derived_basis, derived_of, true_impedance, warnings_of
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.errors import ReductionError
-from orbitrig.analysis.reduce import Reduced, reidentify
+from orbitrig.analysis.reduce import Reduced, own_truth, reidentify
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.errors import storage_error
 from orbitrig.store.reader import Point, Run, RunDirError, read_run
@@ -210,9 +210,9 @@ def _plot_lms(pr: PointReport, lms: LoadSystem, out: Path, where: str, opts: Rep
     point, table = pr.point, pr.point.tables[lms]
     results = pr.results.get(lms, [])
     verdict = {id(v.dependent): v.text for v in pr.verdicts.get(lms, [])}
-    fitted = [plots.Fitted(fit_label(r), r.identification) for r in results]
+    fitted = [plots.Fitted(fit_label(r), r.identification, own_truth(r)) for r in results]
     with_verdicts = [
-        plots.Fitted(f.label + (f" \u2014 {verdict[id(r)]}" if id(r) in verdict else ""), f.identification)
+        plots.Fitted(f.label + (f" \u2014 {verdict[id(r)]}" if id(r) in verdict else ""), f.identification, f.truth)
         for f, r in zip(fitted, results)
     ]
     if "forces" in opts.figures:

@@ -30,8 +30,7 @@ from orbitrig.analysis.quality import (
     interval_kind,
     warnings_of,
 )
-from orbitrig.analysis.reduce import Reduced, coefficient_unit, fit_true_values
-from orbitrig.store.csvfile import fit_truth
+from orbitrig.analysis.reduce import Reduced, coefficient_unit, own_truth
 from orbitrig.store.fit_record import expanded_k
 from reduction.derived import Derived
 from reduction.systematic import LmsAgreement, UncertaintyBasis
@@ -77,10 +76,7 @@ def _quality(ident) -> list[tuple[str, str]]:
 def identification_table(r: Reduced, truth: dict[str, float], label: str, with_budget: bool) -> str:
     """One identification: coefficients with their uncertainties, quality rows, warnings, notes."""
     rows = coefficient_rows(r)
-    stored = ((r.stored or {}).get("truth") or {}).get("coefficients")
-    own = (
-        fit_truth(r.stored, r.point.truth) if stored else fit_true_values(r) if "Z_re" in (r.point.truth or {}) else {}
-    )
+    own = own_truth(r)
     truth = own or truth
     nd = set((r.stored or {}).get("not_determined") or [])
     k = next((row.k for row in rows if row.k is not None), 2.0)

@@ -10,12 +10,13 @@ import warnings
 from pathlib import Path
 from typing import Any
 
-from orbitrig.store.layout import MATRIX_SI
+from rigunits import COEFFICIENT_UNITS
+
 
 #: ROSS's letter of each coefficient matrix (K stiffness, C damping, D inertia: ROSS's m)
 ROSS_LETTERS = {"K": "k", "C": "c", "D": "m"}
 #: SI unit of each ROSS coefficient by its letter
-UNITS = {ross: MATRIX_SI[matrix] for matrix, ross in ROSS_LETTERS.items()}
+UNITS = {ross: COEFFICIENT_UNITS[matrix] for matrix, ross in ROSS_LETTERS.items()}
 
 
 def speed_warnings(result: dict[str, Any]) -> list[str]:

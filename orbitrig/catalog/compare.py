@@ -7,7 +7,9 @@ when they come from at least two runs. Each row's standard uncertainty u_i is wh
 from run to run: in a group whose rows share one calibration record
 (calibration_record_sha256) the calibration part of U is common to them all and cancels
 in their differences, so u_i is the fit's statistical standard error (coefficients_json
-"std"); in another group (or where a row stores no standard error) u_i = U_i / 2 (k = 2).
+"std"); in another group (or where a row stores no standard error) u_i = U_i / k_i, k_i the
+row's own coverage factor (coefficients_json "k": 2, or Student's t when the fit's covariance
+came from its residual; 2 for a row catalogued before k was stored).
 With x_w the 1/u²-weighted mean of the group, chi2 = sum over groups and runs of
 ((x_i - x_w) / u_i)^2 on sum(n_g - 1) degrees of freedom; p is its upper tail
 probability. p well below 0.05: the runs scatter more than their u says.
@@ -63,8 +65,8 @@ class UBasis(StrEnum):
     """The standard uncertainty a repeatability chi2 rests on (module docstring)."""
 
     STATISTICAL = "u = std. error"  # every group's runs share one calibration record
-    EXPANDED = "u = U/2"  # no group does
-    MIXED = "u = std. error or U/2"  # some groups do
+    EXPANDED = "u = U/k"  # no group does
+    MIXED = "u = std. error or U/k"  # some groups do
 
 
 @dataclass(frozen=True)
@@ -121,23 +123,40 @@ def repeatability(rows: list[Row], coefficient: str) -> Repeatability:
 
 def _values_and_u(group: list[Row], coefficient: str) -> tuple[list[tuple[float, float]], bool]:
     """(value, u) of the group's rows giving the coefficient, and whether u is the statistical
-    standard error (one calibration record shared by the rows, each storing it) or U / 2."""
+    standard error (one calibration record shared by the rows, each storing it) or U / k."""
     given = [r for r in group if r.get(coefficient) is not None]
     records = {r.get("calibration_record_sha256") or "" for r in given}
     std = [_std_error(r, coefficient) for r in given]
     if len(records) == 1 and "" not in records and all(math.isfinite(s) and s > 0 for s in std):
         return [(r[coefficient], s) for r, s in zip(given, std)], True
-    return [(r[coefficient], r[f"{coefficient}_U"] / COVERAGE) for r in given if r.get(f"{coefficient}_U")], False
+    return [(r[coefficient], r[f"{coefficient}_U"] / coverage(r)) for r in given if r.get(f"{coefficient}_U")], False
+
+
+def _stored(row: Row) -> dict[str, Any]:
+    """The row's coefficients_json as an object ({} when unreadable)."""
+    stored = row.get("coefficients_json") or "{}"
+    try:
+        data = json.loads(stored) if isinstance(stored, str) else stored
+    except ValueError:
+        return {}
+    return data if isinstance(data, dict) else {}
 
 
 def _std_error(row: Row, coefficient: str) -> float:
     """The fit's statistical standard error of ``coefficient`` (SI), NaN when not stored."""
-    stored = row.get("coefficients_json") or "{}"
     try:
-        data = json.loads(stored) if isinstance(stored, str) else stored
-        return float(data.get("std", {}).get(coefficient, math.nan))
-    except (ValueError, TypeError, AttributeError):
+        return float((_stored(row).get("std") or {}).get(coefficient, math.nan))
+    except (TypeError, ValueError):
         return math.nan
+
+
+def coverage(row: Row) -> float:
+    """k of the row's U (coefficients_json "k"), COVERAGE (2) when the row stores none."""
+    try:
+        k = float(_stored(row).get("k") or COVERAGE)
+    except (TypeError, ValueError):
+        return COVERAGE
+    return k if math.isfinite(k) and k > 0 else COVERAGE
 
 
 def runs_of(rows: list[Row]) -> dict[str, list[Row]]:

@@ -13,14 +13,15 @@ import math
 from pathlib import Path
 from typing import Any
 
-from orbitrig.store.fit_record import COVERAGE_K, expanded_uncertainty, uncertainty_basis
+from orbitrig.store.fit_record import COVERAGE_K, expanded_k, expanded_uncertainty, uncertainty_basis
 from orbitrig.store.reader import Point, Run, StoredIdentification
+from rigunits import COEFFICIENT_UNITS
 
 #: the constant coefficients every model reports (absent ones are NULL)
 COEFFICIENTS = tuple(f"{m}{ij}" for m in "KCD" for ij in ("xx", "xy", "yx", "yy"))
 #: SI unit of each coefficient family
-UNITS = {"K": "N/m", "C": "N s/m", "D": "kg"}
-#: k of the expanded uncertainty taken as 2 x std when a fit stores none
+UNITS = COEFFICIENT_UNITS
+#: k of U for a row catalogued before coefficients_json stored the fit's own k
 COVERAGE = COVERAGE_K
 
 
@@ -97,7 +98,12 @@ def _fit_columns(ident: StoredIdentification) -> dict[str, Any]:
         adequacy_supported=adequacy.get("supported") if "supported" in adequacy else None,
         not_determined=" ".join(not_determined(values, u)),
         coefficients_json=json.dumps(
-            {"values": values, "U": u, "std": {k: _number(v) for k, v in result.get("std_errors", {}).items()}}
+            {
+                "values": values,
+                "U": u,
+                "std": {k: _number(v) for k, v in result.get("std_errors", {}).items()},
+                "k": expanded_k(result) if ident.ok else None,  # U = k x the standard uncertainty
+            }
         ),
     )
     for name in COEFFICIENTS:

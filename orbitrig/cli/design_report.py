@@ -23,16 +23,9 @@ from orbitrig.load_systems import LoadSystem
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
 from reduction.whirl import Directions
-from rigunits import format_duration
+from rigunits import coefficient_unit, format_duration
 
 DESIGNS_DIR = "designs"  # next to config/matrices: config/designs/NAME.toml
-_UNITS = {"K": "N/m", "C": "N s/m", "D": "kg"}
-
-
-def _unit(name: str) -> str:
-    base = _UNITS[name[0]]
-    r = int(name.split("_")[1]) if "_" in name else 0
-    return base if r == 0 else f"{base}/(rad/s)" + (f"^{r}" if r > 1 else "")
 
 
 def rig_time(rig, ratios, spin: float, revolutions, directions: Directions) -> float:
@@ -237,7 +230,7 @@ def design_object(rig, req: DesignRequest) -> dict:
         "model": req.model,
         "freq_dep": spec.freq_dep.text,
         "coefficients": spec.names,
-        "units": {name: _unit(name) for name in spec.names},
+        "units": {name: coefficient_unit(name) for name in spec.names},
         "spin_rpm": req.spin_rpm,
         "orbit_radius_m": radius,
         "directions": req.directions,

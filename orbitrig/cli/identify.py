@@ -17,16 +17,7 @@ from pathlib import Path
 import typer
 
 from orbitrig.cli.plain_table import OutputFormat, PlainTable, render, wrap
-
-UNITS = {"K": "N/m", "C": "N s/m", "D": "kg"}
-
-
-def _unit(key: str) -> str:
-    base = UNITS[key[0]]
-    if "_" not in key:
-        return base
-    r = int(key.split("_")[1])
-    return f"{base} / (rad/s)^{r}" if r > 1 else f"{base} / (rad/s)"
+from rigunits import coefficient_unit
 
 
 def _fail(message: str) -> None:
@@ -163,7 +154,7 @@ def _coefficient_table(result, full: bool = False) -> PlainTable:
         rel = "-" if se is None or v == 0 else f"{_fmt(100 * se / abs(v), full, 2)} %"
         ci = result.confidence_95.get(key)
         interval = "-" if ci is None else f"[{_fmt(ci[0], full)}, {_fmt(ci[1], full)}]"
-        t.add_row(key, _fmt(v, full, 5), _fmt(se, full), rel, interval, _unit(key))
+        t.add_row(key, _fmt(v, full, 5), _fmt(se, full), rel, interval, coefficient_unit(key))
     return t
 
 
@@ -183,7 +174,7 @@ def _covariance_table(result, full: bool = False) -> PlainTable | None:
     for name in result.free:
         t.add_column(name, justify="right")
     for name, row in zip(result.free, result.covariance):
-        t.add_row(name, _unit(name), *(_fmt(float(v), full) for v in row))
+        t.add_row(name, coefficient_unit(name), *(_fmt(float(v), full) for v in row))
     return t
 
 

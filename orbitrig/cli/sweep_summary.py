@@ -25,10 +25,11 @@ from orbitrig.run.point_report import judgement_lines
 from orbitrig.store.csvfile import coef_order, fit_truth
 from orbitrig.store.reader import Point, freq_dep_key, read_run
 from reduction.statistics import CHI2_ALPHA
+from rigunits import COEFFICIENT_UNITS
 
 #: above this many complete points the final table is one summary row per point
 DETAIL_POINTS = 4
-_COEF_UNIT = {"K": "N/m", "C": "N s/m", "D": "kg"}
+_COEF_UNIT = COEFFICIENT_UNITS
 TRUE_NOTE = (
     "true = the simulator's true Z(Omega) projected onto each fit's model (its constraints, "
     "frequency dependence, frequencies and weights); (%) = |identified - true| / largest true entry "

@@ -8,8 +8,8 @@ from typing import Any
 
 from orbitrig.load_systems import LoadSystem
 from orbitrig.run.plan import OperatingPoint
-from orbitrig.store.layout import coefficient_si_unit
 from orbitrig.store.records import IdentificationEntry, PointResults
+from rigunits import coefficient_unit
 
 #: keys of a fit's stored JSON that the result payload carries
 PAYLOAD_KEYS = (
@@ -110,7 +110,7 @@ def _row(lms: LoadSystem, e: IdentificationEntry) -> dict[str, Any]:
         return row
     d = e["json"]
     row.update({k: d[k] for k in PAYLOAD_KEYS if k in d})
-    row["units"] = {k: coefficient_si_unit(k) for k in d.get("coefficients") or {}}
+    row["units"] = {k: coefficient_unit(k) for k in d.get("coefficients") or {}}
     u = d.get("uncertainty")
     if u:
         row["uncertainty"] = u if "error" in u else {k: u[k] for k in ("k", "systematic", "combined", "expanded")}

@@ -21,7 +21,8 @@ import h5py
 import numpy as np
 from h5py import h5a, h5s, h5t
 
-from orbitrig.store.layout import INTERVAL_BASIS_MEANING, U_COLUMNS, U_UNITS, coefficient_si_unit
+from orbitrig.store.layout import INTERVAL_BASIS_MEANING, U_COLUMNS, U_UNITS
+from rigunits import DAMPING, MASS, ONE, STIFFNESS, TEXT, coefficient_unit
 
 PER_CHANNEL, PER_COEFFICIENT, PER_SOURCE = "<channel>", "<coefficient>", "<source>"
 #: the description of a name missing from the catalog (the tests find none; a run never fails on it)
@@ -42,16 +43,16 @@ DATASETS = {
     ),
     "phasors": (PER_CHANNEL, "fundamental phasor of the average, q = Re(q_bar exp(i theta))"),
     "uncertainty": (PER_CHANNEL, "standard uncertainty of each averaged phasor, the spin tones fitted out"),
-    "revolutions": ("1", "the A/D board's revolution number of each averaged revolution"),
-    "coherence": ("1", "gamma^2 between displacement and force: rows piezo, strain; columns xfx, yfx, xfy, yfy"),
+    "revolutions": (ONE, "the A/D board's revolution number of each averaged revolution"),
+    "coherence": (ONE, "gamma^2 between displacement and force: rows piezo, strain; columns xfx, yfx, xfy, yfy"),
     "orbit": ("rad/s", "orbit speed Omega"),
     "orbit_hz": ("Hz", "orbit frequency"),
     "x": ("m", "x displacement phasor of the journal (mean of the probe planes)"),
     "y": ("m", "y displacement phasor of the journal (mean of the probe planes)"),
     "fx": ("N", "x force phasor on the journal"),
     "fy": ("N", "y force phasor on the journal"),
-    "gamma2": ("1", "coherences of each row: columns xfx, yfx, xfy, yfy"),
-    "n_records": ("1", "revolutions averaged behind each row"),
+    "gamma2": (ONE, "coherences of each row: columns xfx, yfx, xfy, yfy"),
+    "n_records": (ONE, "revolutions averaged behind each row"),
     "u": ("<column>", "standard uncertainty of each averaged phasor: columns x, y, fx, fy"),
     "names": ("", "coefficient keys"),
     "units": ("", "SI unit of each coefficient"),
@@ -74,30 +75,30 @@ DATASETS = {
     "expanded": (PER_COEFFICIENT, "expanded uncertainty U = k x combined"),
     "sources": ("", "calibration error parameters propagated"),
     "source_std": (PER_SOURCE, "stated standard uncertainty of each calibration error parameter"),
-    "e_n": ("1", "normalised difference piezo - strain against its uncertainty"),
-    "c_eff_xx": ("N s/m", "effective damping C_xx - K_xy/Omega"),
-    "c_eff_yy": ("N s/m", "effective damping C_yy + K_yx/Omega"),
-    "c_eff_xx_std": ("N s/m", "standard uncertainty of c_eff_xx"),
-    "c_eff_yy_std": ("N s/m", "standard uncertainty of c_eff_yy"),
+    "e_n": (ONE, "normalised difference piezo - strain against its uncertainty"),
+    "c_eff_xx": (DAMPING, "effective damping C_xx - K_xy/Omega"),
+    "c_eff_yy": (DAMPING, "effective damping C_yy + K_yx/Omega"),
+    "c_eff_xx_std": (DAMPING, "standard uncertainty of c_eff_xx"),
+    "c_eff_yy_std": (DAMPING, "standard uncertainty of c_eff_yy"),
     "c_eff_zero_xx": ("rad/s", "orbit speed where c_eff_xx crosses zero, and its standard uncertainty"),
     "c_eff_zero_yy": ("rad/s", "orbit speed where c_eff_yy crosses zero, and its standard uncertainty"),
-    "h_forward": ("N/m", "forward-whirl direct dynamic stiffness H"),
-    "h_backward": ("N/m", "backward-whirl direct dynamic stiffness H"),
-    "h_forward_std": ("N/m", "standard uncertainty of h_forward: columns re, im"),
-    "h_backward_std": ("N/m", "standard uncertainty of h_backward: columns re, im"),
-    "wfr": ("1", "whirl frequency ratio"),
-    "wfr_std": ("1", "standard uncertainty of wfr"),
+    "h_forward": (STIFFNESS, "forward-whirl direct dynamic stiffness H"),
+    "h_backward": (STIFFNESS, "backward-whirl direct dynamic stiffness H"),
+    "h_forward_std": (STIFFNESS, "standard uncertainty of h_forward: columns re, im"),
+    "h_backward_std": (STIFFNESS, "standard uncertainty of h_backward: columns re, im"),
+    "wfr": (ONE, "whirl frequency ratio"),
+    "wfr_std": (ONE, "standard uncertainty of wfr"),
     "Z": (
         "N/m",
         "the simulator's true impedance at each row's orbit speed, f_bar = -Z d_bar (row, force, displacement)",
     ),
     "band": ("rad/s", "the |Omega| the best fits use"),
-    "K": ("N/m", "stiffness"),
-    "C": ("N s/m", "damping"),
-    "D": ("kg", "apparent inertia (added mass)"),
-    "K0": ("N/m", "constant stiffness term"),
-    "C0": ("N s/m", "constant damping term"),
-    "D0": ("kg", "constant mass term"),
+    "K": (STIFFNESS, "stiffness"),
+    "C": (DAMPING, "damping"),
+    "D": (MASS, "apparent inertia (added mass)"),
+    "K0": (STIFFNESS, "constant stiffness term"),
+    "C0": (DAMPING, "constant damping term"),
+    "D0": (MASS, "constant mass term"),
     "Km": ("N/m (rad/s)^-{m}", "stiffness term multiplying |Omega|^m (attribute exponents)"),
     "Cn": ("N s/m (rad/s)^-{n}", "damping term multiplying |Omega|^n (attribute exponents)"),
     "Dp": ("kg (rad/s)^-{p}", "mass term multiplying |Omega|^p (attribute exponents)"),
@@ -109,15 +110,15 @@ DATASETS = {
     "commands": ("<field>", "every command that changed the run: at (ISO 8601 UTC), command, by (who sent it), detail"),
     "expanded_uncertainty": (
         PER_COEFFICIENT,
-        "expanded uncertainty U (k = 2; attribute basis: combined or statistical), aligned with names",
+        "expanded uncertainty U (attribute k, the coverage factor; attribute basis: combined or statistical), aligned with names",
     ),
     "coefficient_names": ("", "the coefficients a sequential decision judged, aligned with before and after"),
     "before": (
         "1",
         "each coefficient's predicted relative standard error (standard error / scale) before the decision",
     ),
-    "after": ("1", "each coefficient's predicted relative standard error after the chosen block"),
-    "not_determined": ("1", "1 where the coefficient's expanded uncertainty exceeds its magnitude (not determined)"),
+    "after": (ONE, "each coefficient's predicted relative standard error after the chosen block"),
+    "not_determined": (ONE, "1 where the coefficient's expanded uncertainty exceeds its magnitude (not determined)"),
     "truth": (
         PER_COEFFICIENT,
         "the simulator's true impedance projected onto this fit's model (same table, weights, "
@@ -132,36 +133,36 @@ ATTRIBUTES = {
     "created": ("", "creation time, ISO 8601 UTC"),
     "status": ("", "run status"),
     "status_message": ("", "why the run ended"),
-    "sim": ("1", "true for a run on the simulator"),
+    "sim": (ONE, "true for a run on the simulator"),
     "rig_config": ("", "rig configuration (TOML text)"),
     "matrix_config": ("", "test matrix (TOML text)"),
     "matrix_name": ("", "test matrix name"),
     "sim_scenario_name": ("", "simulator scenario"),
     "sim_scenario_config": ("", "simulator scenario (TOML text)"),
-    "index": ("1", "operating point index in plan order"),
-    "complete": ("1", "true when complete"),
+    "index": (ONE, "operating point index in plan order"),
+    "complete": (ONE, "true when complete"),
     "spin": ("rad/s", "journal spin speed omega"),
     "spin_rpm": ("rpm", "journal spin speed"),
     "recess_pressure": ("Pa", "recess pressure"),
-    "pressure_ratio": ("1", "recess / supply pressure"),
-    "static_eccentricity": ("1", "static eccentricity / clearance"),
-    "dynamic_eccentricity": ("1", "orbit radius / clearance"),
+    "pressure_ratio": (ONE, "recess / supply pressure"),
+    "static_eccentricity": (ONE, "static eccentricity / clearance"),
+    "dynamic_eccentricity": (ONE, "orbit radius / clearance"),
     "orbit_radius": ("m", "commanded orbit radius"),
     "label": ("", "operating point label"),
     "orbit": ("rad/s", "orbit speed Omega, signed: < 0 backward whirl"),
     "orbit_hz": ("Hz", "orbit frequency, > 0"),
-    "direction": ("1", "+1 forward, -1 backward whirl"),
+    "direction": (ONE, "+1 forward, -1 backward whirl"),
     "measured_orbit_speed": ("rad/s", "orbit speed from the trigger times"),
-    "n_records": ("1", "revolutions averaged"),
+    "n_records": (ONE, "revolutions averaged"),
     "stop_reason": ("", "why averaging stopped: count, target or max"),
     "channels": ("", "A/D channel names"),
     "channel_units": ("", "unit of each A/D channel"),
-    "frames_good": ("1", "A/D frames decoded"),
-    "frames_bad": ("1", "damaged A/D frames"),
+    "frames_good": (ONE, "A/D frames decoded"),
+    "frames_bad": (ONE, "damaged A/D frames"),
     "bytes_skipped": ("byte", "bytes skipped while resynchronising"),
-    "link_drops": ("1", "A/D link drops"),
-    "revolutions_used": ("1", "revolutions averaged"),
-    "revolutions_dropped": ("1", "revolutions dropped"),
+    "link_drops": (ONE, "A/D link drops"),
+    "revolutions_used": (ONE, "revolutions averaged"),
+    "revolutions_dropped": (ONE, "revolutions dropped"),
     "drop_reasons": ("", "dropped revolutions by reason (JSON)"),
     "frame_errors": ("", "frame errors by kind (JSON)"),
     "model": ("", "impedance model"),
@@ -169,37 +170,37 @@ ATTRIBUTES = {
     "method": ("", "estimation method"),
     "error": ("", "why this could not be evaluated"),
     "json": ("", "the whole result as JSON"),
-    "n_coefficients": ("1", "coefficients identified"),
-    "min_frequencies": ("1", "orbit frequencies the model needs"),
-    "n_frequencies": ("1", "orbit frequencies used"),
-    "condition_number": ("1", "condition number of the regression"),
+    "n_coefficients": (ONE, "coefficients identified"),
+    "min_frequencies": (ONE, "orbit frequencies the model needs"),
+    "n_frequencies": (ONE, "orbit frequencies used"),
+    "condition_number": (ONE, "condition number of the regression"),
     "residual_rms": ("N", "RMS force residual"),
-    "dof": ("1", "degrees of freedom"),
-    "chi2": ("1", "chi-square of the fit, or of the two load measuring systems' joint difference"),
-    "p_value": ("1", "p-value"),
-    "aic": ("1", "Akaike information criterion"),
-    "bic": ("1", "Bayesian information criterion"),
-    "exponent": ("1", "exponent chosen by power:auto"),
-    "k": ("1", "coverage factor of the expanded uncertainty"),
+    "dof": (ONE, "degrees of freedom"),
+    "chi2": (ONE, "chi-square of the fit, or of the two load measuring systems' joint difference"),
+    "p_value": (ONE, "p-value"),
+    "aic": (ONE, "Akaike information criterion"),
+    "bic": (ONE, "Bayesian information criterion"),
+    "exponent": (ONE, "exponent chosen by power:auto"),
+    "k": (ONE, "coverage factor of the expanded uncertainty"),
     "interval_95_basis": ("", INTERVAL_BASIS_MEANING),
     "covariance": ("", "covariance behind the standard uncertainties: combined or statistical"),
-    "max_abs": ("1", "largest |E_n|"),
-    "consistent": ("1", "true when chi2 <= limit: the two systems agree on all coefficients at the family-wise level"),
+    "max_abs": (ONE, "largest |E_n|"),
+    "consistent": (ONE, "true when chi2 <= limit: the two systems agree on all coefficients at the family-wise level"),
     "limit": (
         "1",
         "chi2(dof) quantile at 1 - level (a run stored before the joint test: the largest consistent |E_n|)",
     ),
-    "level": ("1", "family-wise probability that two consistent systems are flagged (0.05)"),
+    "level": (ONE, "family-wise probability that two consistent systems are flagged (0.05)"),
     "basis": ("", "uncertainty the comparison uses"),
     "pair": ("", "the systems compared"),
     "verdict": ("", "frequency dependence supported or not"),
-    "supported": ("1", "true when the test supports it"),
-    "statistic": ("1", "test statistic"),
+    "supported": (ONE, "true when the test supports it"),
+    "statistic": (ONE, "test statistic"),
     "test": ("", "F, likelihood ratio, or chi2 (the two systems' joint test)"),
-    "alpha": ("1", "significance level"),
+    "alpha": (ONE, "significance level"),
     "constant": ("", "the constant fit compared with"),
     "aic_bic_order": ("", "the fits the aic and bic pairs belong to"),
-    "exponents": ("1", "exponents m, n, p"),
+    "exponents": (ONE, "exponents m, n, p"),
     "form": ("", "the fitted form"),
     "operator": ("", "who ran the run"),
     "rig_id": ("", "the rig's id (rig.toml)"),
@@ -212,9 +213,9 @@ ATTRIBUTES = {
     "ended": ("", "run end, ISO 8601 UTC"),
     "definition": ("", "how the truth was obtained"),
     "reason": ("", "why the sequential design chose this block (next) or stopped (target, cap)"),
-    "ratio": ("1", "orbit ratio |Omega|/omega chosen (nan: stopped)"),
+    "ratio": (ONE, "orbit ratio |Omega|/omega chosen (nan: stopped)"),
     "whirl": ("", "forward, backward or both"),
-    "revolutions": ("1", "revolutions chosen"),
+    "revolutions": (ONE, "revolutions chosen"),
     "seconds": ("s", "rig seconds the chosen block takes"),
     "spent_s": ("s", "rig seconds of the point's blocks before the decision"),
 }
@@ -270,14 +271,14 @@ def _per_entry_rule(ds: h5py.Dataset, rule: str, names_at: dict[str, np.ndarray]
         return {_s(n): _s(u) + suffix for n, u in zip(names, units)}
     if rule == PER_COEFFICIENT:
         names = ds.attrs["names"] if "names" in ds.attrs else _names_near(g, names_at)
-        return {_s(n): coefficient_si_unit(_s(n)) for n in names}
+        return {_s(n): coefficient_unit(_s(n)) for n in names}
     if rule == PER_SOURCE:
         return {_s(n): _source_unit(_s(n)) for n in g["sources"][()]}
     if rule == "<column>":
         return dict(zip(U_COLUMNS, U_UNITS))
     fields = list(ds.dtype.names or ())
-    units = [_s(u) for u in ds.attrs.get("field_units", ["s"] + [""] * (len(fields) - 1))]
-    return {f: _parseable(u) for f, u in zip(fields, units) if ds.dtype[f].kind in "fiub"}
+    units = [_s(u) for u in ds.attrs.get("field_units", ["s"] + [TEXT] * (len(fields) - 1))]
+    return {f: u if ds.dtype[f].kind in "fiub" else TEXT for f, u in zip(fields, units)}
 
 
 def _names_near(g: h5py.Group, names_at: dict[str, np.ndarray]) -> np.ndarray:
@@ -290,11 +291,6 @@ def _names_near(g: h5py.Group, names_at: dict[str, np.ndarray]) -> np.ndarray:
 def _source_unit(name: str) -> str:
     kind = name.rsplit(".", 1)[-1]
     return {"phase": "rad", "delay": "s"}.get(kind, "1")
-
-
-def _parseable(unit: str) -> str:
-    """A log's field unit as pint reads it: flags, status words, fault codes and fractions are numbers."""
-    return unit if unit and not any(w in unit for w in ("flag", "word", "code", "fraction")) else "1"
 
 
 def _s(v: object) -> str:
@@ -314,17 +310,15 @@ def annotate_dataset(ds: h5py.Dataset, names_at: dict[str, np.ndarray] | None = 
     """``description`` and units (``units`` or ``units_<entry>``) of one dataset, and its attributes'
     (`names_at`: coefficient names already read, by group, shared over one file's datasets)."""
     name = ds.name.rsplit("/", 1)[-1]
-    units, description = DATASETS.get(name, ("1" if ds.dtype.kind in "biufc" else "", UNDOCUMENTED))
+    units, description = DATASETS.get(name, (ONE if ds.dtype.kind in "biufc" else "", UNDOCUMENTED))
     annotate_attributes(ds)
     _put_text(ds, "description", description)
     if units.startswith("<"):  # entries with different units: one attribute per entry
         if "units" in ds.attrs:
             del ds.attrs["units"]
         per_entry = _per_entry_rule(ds, units, {} if names_at is None else names_at)
-        for entry, unit in per_entry.items():
+        for entry, unit in per_entry.items():  # "" for a text field of a log
             _put_text(ds, f"units_{entry}", unit)
-        if not per_entry:  # a table of text fields only (the command log): dimensionless as a whole
-            _put_text(ds, "units", "1")
     elif ds.dtype.kind not in "OS":  # text has no unit
         _put_text(ds, "units", _with_exponents(ds, units) or "1")
 

@@ -24,10 +24,11 @@ import numpy.typing as npt
 from orbitrig.store.durable import StreamedH5
 from orbitrig.store.errors import WRITE_ERRORS, StorageError
 from orbitrig.store.index import PointState, scan
-from orbitrig.store.journal import CAN_DTYPE, CAN_UNITS, DRIVE_DTYPE, DRIVE_UNITS, Journal, read_journal
+from orbitrig.store.journal import CAN_DTYPE, CAN_UNITS, DRIVE_DTYPE, DRIVE_UNITS, FIELD_MEANING, Journal, read_journal
 from orbitrig.store.layout import FORMAT, POINT_ATTR_UNITS, RunLayout, point_name
 from orbitrig.store.annotate import annotate, annotate_attributes, annotate_dataset
 from orbitrig.store.pieces import STR, fixed_text, put, strings
+from rigunits import TEXT
 
 log = logging.getLogger(__name__)
 # text fields fixed-length when stored
@@ -221,6 +222,7 @@ def _write_logs(lg: h5py.Group, journal: Journal) -> None:
         _fixed_rows(journal.events, EVENT_DTYPE),
         "t: s since the run started",
         fields=strings(_fields(EVENT_DTYPE)),
+        field_units=strings(("s", TEXT, TEXT)),
     )
     put(
         lg,
@@ -228,7 +230,7 @@ def _write_logs(lg: h5py.Group, journal: Journal) -> None:
         _fixed_rows(journal.commands, COMMAND_DTYPE),
         "at: ISO 8601 UTC; by: who sent the command",
         fields=strings(_fields(COMMAND_DTYPE)),
-        field_units=strings([""] * len(_fields(COMMAND_DTYPE))),
+        field_units=strings([TEXT] * len(_fields(COMMAND_DTYPE))),
     )
     for name, rows, dt, units in (
         ("can", journal.can, CAN_DTYPE, CAN_UNITS),
@@ -239,7 +241,11 @@ def _write_logs(lg: h5py.Group, journal: Journal) -> None:
             lg,
             name,
             data,
-            "; ".join(f"{n}: {u}" for n, u in zip(_fields(dt), units)),
+            TEXT,  # one unit per field (field_units; units_<field> once annotated)
             fields=strings(_fields(dt)),
+            meaning="; ".join(
+                f"{n}: {u}" + (f" ({FIELD_MEANING[n]})" if n in FIELD_MEANING else "")
+                for n, u in zip(_fields(dt), units)
+            ),
             field_units=strings(units),
         )

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from orbitrig.store.fit_record import expanded_uncertainty
-from orbitrig.store.layout import PRESSURE_DISPLAY_UNIT, SETTINGS_UNITS, coefficient_si_unit
-from rigunits import MPA
+from orbitrig.store.layout import PRESSURE_DISPLAY_UNIT, SETTINGS_UNITS
+from rigunits import MPA, coefficient_unit
 
 if TYPE_CHECKING:
     from orbitrig.store.reader import Point
@@ -76,7 +76,7 @@ def column_unit(column: str) -> str:
 def coefficient_column(key: str, kind: str = "") -> str:
     """Column name of coefficient `key`: kind '' -> 'Kxx [N/m]', 'std' -> 'Kxx_std [N/m]',
     'U' -> 'Kxx_U [N/m]', 'true' -> 'true_Kxx [N/m]'."""
-    unit = coefficient_si_unit(key)
+    unit = coefficient_unit(key)
     if kind in ("std", "U"):
         return f"{key}_{kind} [{unit}]"
     return f"{'true_' if kind == 'true' else ''}{key} [{unit}]"

@@ -28,8 +28,9 @@ from orbitrig.store.fit_record import (
     expanded_k,
     uncertainty_basis,
 )
-from orbitrig.store.layout import INTERVAL_BASIS_MEANING, SETTINGS_UNITS
+from orbitrig.store.layout import DERIVED_UNITS, INTERVAL_BASIS_MEANING, SETTINGS_UNITS
 from orbitrig.store.orbit_table import orbit_table_columns
+from rigunits import COEFFICIENT_UNITS
 
 if TYPE_CHECKING:
     from orbitrig.store.reader import Point, Run
@@ -39,7 +40,6 @@ if TYPE_CHECKING:
 Column = tuple[npt.NDArray[Any], str]
 
 #: derived quantities: name -> unit (each also with _std)
-DERIVED_UNITS = {"c_eff_xx": "N s/m", "c_eff_yy": "N s/m", "wfr": "1"}
 #: the adequacy test's numbers (unit 1; supported: 1 yes, 0 no) and its text
 ADEQUACY_NUMBERS = ("supported", "p_value", "statistic", "dof", "alpha", "aic", "bic")
 ADEQUACY_TEXT = ("verdict", "test", "constant")
@@ -235,7 +235,7 @@ def truth_arrays(truth: dict[str, Any] | None) -> dict[str, Column]:
         return {}
     out: dict[str, Column] = {
         k: (np.asarray(truth[k], dtype=float), u)
-        for k, u in (("K0", "N/m"), ("C0", "N s/m"), ("D0", "kg"))
+        for k, u in ((f"{m}0", unit) for m, unit in COEFFICIENT_UNITS.items())
         if k in truth
     }
     if "Z_re" in truth:

@@ -33,6 +33,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from orbitrig.store.layout import DERIVED_UNITS
 from orbitrig.store.pieces import fixed_text, put, strings
 from reduction.whirl import Whirl
 
@@ -181,11 +182,11 @@ def _derived(g: h5py.Group, d: dict[str, Any], names: list[str]) -> None:
             g,
             f"c_eff_{k}",
             np.asarray(d[f"c_eff_{k}"], dtype=np.float64),
-            "N s/m",
+            DERIVED_UNITS[f"c_eff_{k}"],
             meaning=f"effective damping C_eff,{k}",
         )
         if d.get(f"c_eff_{k}_std") is not None:
-            put(g, f"c_eff_{k}_std", np.asarray(d[f"c_eff_{k}_std"], dtype=np.float64), "N s/m")
+            put(g, f"c_eff_{k}_std", np.asarray(d[f"c_eff_{k}_std"], dtype=np.float64), DERIVED_UNITS[f"c_eff_{k}"])
         zero = c_eff_zero(d, k)
         if zero is not None:
             put(
@@ -203,6 +204,6 @@ def _derived(g: h5py.Group, d: dict[str, Any], names: list[str]) -> None:
             std = np.array([[_num(v) for v in row] for row in d[f"h_{k}_std"]], dtype=np.float64).T
             put(g, f"h_{k}_std", std, "N/m", columns=strings(("re", "im")))
     wfr = np.array([_num(v) for v in d["wfr"]], dtype=np.float64)
-    put(g, "wfr", wfr, "1", meaning="whirl frequency ratio")
+    put(g, "wfr", wfr, DERIVED_UNITS["wfr"], meaning="whirl frequency ratio")
     if d.get("wfr_std") is not None:
         put(g, "wfr_std", np.array([_num(v) for v in d["wfr_std"]], dtype=np.float64), "1")

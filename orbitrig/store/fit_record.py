@@ -17,9 +17,9 @@ import numpy as np
 import numpy.typing as npt
 
 from orbitrig.load_systems import LoadSystem
-from orbitrig.store.layout import coefficient_si_unit
 from reduction.statistics import coverage_factor
 from reduction.systematic import UncertaintyBasis
+from rigunits import coefficient_unit
 
 if TYPE_CHECKING:
     from orbitrig.store.reader import Point
@@ -69,7 +69,7 @@ def expanded_k(result: dict[str, Any]) -> float:
 
 def uncertainty_basis(result: dict[str, Any]) -> UncertaintyBasis:
     """What :func:`expanded_uncertainty` of ``result`` rests on: COMBINED (calibration included)
-    or STATISTICAL (2 x the standard error, or a sweep without stated calibration)."""
+    or STATISTICAL (k x the standard error, k of :func:`expanded_k`: no calibration stated)."""
     stored = result.get("expanded_uncertainty") or {}
     if stored.get("values"):
         return UncertaintyBasis(stored.get("basis", UncertaintyBasis.COMBINED))
@@ -153,7 +153,7 @@ def fit_record(
         method,
         error or "",
         names,
-        [coefficient_si_unit(k) for k in names],
+        [coefficient_unit(k) for k in names],
         vector(result.get("coefficients")),
         vector(result.get("std_errors")),
         np.array([U[k] for k in names]),

@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from orbitrig.store.fit_record import BUDGET_PARTS, FitRecord
-from orbitrig.store.layout import SETTINGS_UNITS, unit_product
+from orbitrig.store.layout import DERIVED_UNITS, SETTINGS_UNITS, unit_product
 from orbitrig.store.orbit_table import orbit_table_columns
 
 FIT_KEYS = ("point", "lms", "model", "freq_dep", "method")
@@ -110,7 +110,7 @@ def derived_frame(fit: FitRecord):
         return _frame({"orbit_hz": []}, {"orbit_hz": "Hz"}, "orbit_hz")
     data = {"orbit_hz": d["orbit_hz"]}
     units = {"orbit_hz": "Hz"}
-    for name, unit in (("c_eff_xx", "N*s/m"), ("c_eff_yy", "N*s/m"), ("wfr", "1")):
+    for name, unit in DERIVED_UNITS.items():
         if name in d:
             data[name], data[f"{name}_std"] = d[name], d.get(f"{name}_std")
             units[name] = units[f"{name}_std"] = unit

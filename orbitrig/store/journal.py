@@ -21,7 +21,7 @@ import numpy as np
 
 from orbitrig.store.durable import read_lines
 from orbitrig.store.status import RunStatus
-from rigunits import now_iso
+from rigunits import ONE, now_iso
 
 CAN_FIELDS = (
     "t_recess",
@@ -38,7 +38,8 @@ CAN_FIELDS = (
     "pump_off",
     "node_lost",
 )
-CAN_UNITS = ("s", "K", "K", "K", "m^3/s", "Pa", "Pa", "Pa", "Pa", "Pa", "1", "1 (flag)", "1 (flag)", "1 (flag)")
+#: unit of each field of /logs/can, t first (pint parses each; a flag is a number, 0 or 1)
+CAN_UNITS = ("s", "K", "K", "K", "m^3/s", "Pa", "Pa", "Pa", "Pa", "Pa", ONE, ONE, ONE, ONE)
 DRIVE_FIELDS = (
     "spin_ref",
     "spin_act",
@@ -51,19 +52,22 @@ DRIVE_FIELDS = (
     "spin_torque",
     "orbit_torque",
 )
-DRIVE_UNITS = (
-    "s",
-    "rad/s",
-    "rad/s",
-    "rad/s",
-    "rad/s",
-    "status word",
-    "status word",
-    "fault code",
-    "fault code",
-    "fraction of nominal",
-    "fraction of nominal",
-)
+#: unit of each field of /logs/drives, t first (status words and fault codes are numbers; torques
+#: a fraction of the nominal torque)
+DRIVE_UNITS = ("s", "rad/s", "rad/s", "rad/s", "rad/s", ONE, ONE, ONE, ONE, ONE, ONE)
+#: what a dimensionless log field is, for the log's description
+FIELD_MEANING = {
+    "beta": "recess-to-supply pressure ratio",
+    "sensor_fault": "flag",
+    "pump_off": "flag",
+    "node_lost": "flag",
+    "spin_status": "status word",
+    "orbit_status": "status word",
+    "spin_fault": "fault code",
+    "orbit_fault": "fault code",
+    "spin_torque": "fraction of nominal",
+    "orbit_torque": "fraction of nominal",
+}
 #: a state change of the run: (t s since the start, state, message)
 EventRow = tuple[float, str, str]
 CAN_DTYPE = np.dtype([("t", "f8")] + [(f, "f8") for f in CAN_FIELDS])

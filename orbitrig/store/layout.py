@@ -23,6 +23,8 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from rigunits import DAMPING, ONE
+
 FORMAT = "orbitrig-run/2"
 #: formats of run.h5 this version reads (1: written in place by earlier versions)
 READABLE_FORMATS = ("orbitrig-run/1", FORMAT)
@@ -41,8 +43,8 @@ COHERENCE_PAIRS = ("xfx", "yfx", "xfy", "yfy")
 #: columns of an orbit table's `u` (standard uncertainty of each phasor)
 U_COLUMNS = ("x", "y", "fx", "fy")
 U_UNITS = ("m", "m", "N", "N")
-#: SI unit of each matrix of a coefficient key
-MATRIX_SI = {"K": "N/m", "C": "N s/m", "D": "kg"}
+#: unit of each real derived quantity at the orbit frequencies (H: N/m per part, complex)
+DERIVED_UNITS = {"c_eff_xx": DAMPING, "c_eff_yy": DAMPING, "wfr": ONE}
 #: the meaning of ``interval_95_basis`` wherever it is stored or exported
 INTERVAL_BASIS_MEANING = "what U of interval_95 rests on: combined (statistical and calibration) or statistical only"
 
@@ -71,13 +73,6 @@ POINT_ATTR_UNITS = (
 BLOCK_ATTR_UNITS = "orbit: rad/s (signed, < 0 backward); orbit_hz: Hz; measured_orbit_speed: rad/s; n_records: 1"
 TABLE_ATTR_UNITS = "spin: rad/s"
 IDENT_ATTR_UNITS = "condition_number: 1; residual_rms: N; dof: 1; chi2: 1; p_value: 1"
-
-
-def coefficient_si_unit(key: str) -> str:
-    """SI unit of coefficient `key`: 'Kxx' -> 'N/m'; 'Cxy_2' (multiplies Omega^2) -> 'N s/m (rad/s)^-2'."""
-    unit = MATRIX_SI[key[0]]
-    _, _, order = key.partition("_")
-    return unit if not order else f"{unit} (rad/s)^-{order}"
 
 
 def unit_product(a: str, b: str) -> str:

@@ -24,12 +24,11 @@ from orbitrig.store.layout import (
     BLOCK_ATTR_UNITS,
     COHERENCE_PAIRS,
     IDENT_ATTR_UNITS,
-    MATRIX_SI,
     TABLE_ATTR_UNITS,
     U_COLUMNS,
     U_UNITS,
-    coefficient_si_unit,
 )
+from rigunits import COEFFICIENT_UNITS, coefficient_unit
 from orbitrig.store.records import BlockChoice, BlockRecord, IdentificationEntry, PointResults
 
 if TYPE_CHECKING:  # annotation only: the store does not import the run wing
@@ -289,7 +288,7 @@ def _write_identification(h: h5py.Group, entry: IdentificationEntry) -> None:
             h.attrs[k] = _float(d[k])
     names = list(d["coefficients"])
     h.create_dataset("names", data=fixed_text(names))
-    h.create_dataset("units", data=fixed_text(coefficient_si_unit(k) for k in names))
+    h.create_dataset("units", data=fixed_text(coefficient_unit(k) for k in names))
     unit = "SI per coefficient (see dataset units)"
     put(h, "coefficients", np.array([_float(d["coefficients"][k]) for k in names]), unit)
     std = d.get("std_errors") or {}
@@ -345,7 +344,7 @@ def write_truth(h: h5py.Group, truth: dict[str, Any]) -> None:
     put(fits, "band", np.asarray(truth["band"], dtype=np.float64), "rad/s", meaning="|Omega| the fits use")
     const = fits.create_group("constant")
     for m in "KCD":
-        put(const, m, np.asarray(truth["fits"]["constant"][m], dtype=np.float64), MATRIX_SI[m])
+        put(const, m, np.asarray(truth["fits"]["constant"][m], dtype=np.float64), COEFFICIENT_UNITS[m])
     power = fits.create_group("power")
     exps = dict(zip("mnp", truth["fits"]["power"]["exponents"]))
     power.attrs["exponents"] = np.asarray(list(exps.values()), dtype=np.int64)

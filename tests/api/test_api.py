@@ -107,7 +107,7 @@ def test_fit_covariance_budget_derived(run, h5):
     derived = fit.derived
     np.testing.assert_array_equal(derived["c_eff_xx"], g["derived/c_eff_xx"][()])
     np.testing.assert_array_equal(derived.index, g["derived/orbit_hz"][()])
-    assert derived.attrs["units"]["c_eff_xx"] == "N*s/m"
+    assert derived.attrs["units"]["c_eff_xx"] == "N s/m"
     adequacy = run.fit(0, "piezo", "kc8").adequacy
     assert adequacy is None  # constant fits have no frequency-dependence test
     assert fit.lms_consistency["pair"] == "piezo - strain"

@@ -228,7 +228,7 @@ def test_predicted_csv_errors_name_the_line_of_the_file(tmp_path):
 def test_runs_of_one_calibration_record_are_compared_by_their_statistical_error():
     """The calibration part of U is common to runs of one record: u is the fit's standard
     error there (chi2 2 on 1 dof here, not 0.02 with u = U/2 = 10); runs of two records keep
-    u = U/2. The panel title says which."""
+    u = U/k (k = 2: these rows store none). The panel title says which."""
     import json
 
     from orbitrig.catalog.compare import UBasis
@@ -244,9 +244,9 @@ def test_runs_of_one_calibration_record_are_compared_by_their_statistical_error(
     rows[1]["calibration_record_sha256"] = "cd" * 32  # another record: its calibration error differs
     rep = repeatability(rows, "Kxx")
     assert (rep.chi2, rep.basis) == (pytest.approx(0.02), UBasis.EXPANDED)
-    assert rep.text().endswith("\nu = U/2")
+    assert rep.text().endswith("\nu = U/k")
     fig = compare_figure(rows, Variable.STATIC_ECCENTRICITY, ["Kxx"], title="t")
-    assert fig.axes[0].get_title().endswith("\nu = U/2")
+    assert fig.axes[0].get_title().endswith("\nu = U/k")
 
 
 def test_compare_says_when_no_prediction_is_of_the_plotted_conditions(tmp_path):

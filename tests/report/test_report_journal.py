@@ -51,7 +51,7 @@ def test_truth_crosses_on_every_coefficient_panel(point, stored):
     tested = np.unique(np.round(np.abs(pt.tables["piezo"].orbit) / pt.tables["piezo"].spin, 9))
     for ax in axes:
         m, (i, j) = ax.get_title()[0], ("xy".index(ax.get_title()[1]), "xy".index(ax.get_title()[2]))
-        crosses = [ln for ln in ax.get_lines() if ln.get_label() == plots.TRUTH_LABEL]
+        crosses = [ln for ln in ax.get_lines() if ln.get_label() == plots_coefficients.POINT_TRUTH_LABEL]
         assert len(crosses) == 1, ax.get_title()
         x, y = crosses[0].get_data()
         assert np.allclose(np.unique(np.round(x, 9)), tested)

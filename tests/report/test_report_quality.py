@@ -13,7 +13,7 @@ import pytest
 from matplotlib.colors import to_rgb
 
 from orbitrig.analysis.plots import Fitted, keep_inside
-from orbitrig.analysis.plots_coefficients import coefficients_figure
+from orbitrig.analysis.plots_coefficients import POINT_TRUTH_LABEL, coefficients_figure
 from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_figure, coherence_table
 from orbitrig.analysis.plots_derived import derived_figure, impedance_figure
 from orbitrig.analysis.quality import adequacy_verdicts, derived_of, true_impedance
@@ -80,7 +80,7 @@ def test_truth_markers_stay_inside_the_axes_even_far_from_the_fit(point_report):
     crosses = 0
     for ax in fig.axes:
         for line in ax.get_lines():
-            if line.get_label() != "true (simulator)":
+            if line.get_label() != POINT_TRUTH_LABEL:  # no fit carries its own truth here
                 continue
             (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
             x, y = np.asarray(line.get_xdata()), np.asarray(line.get_ydata())
