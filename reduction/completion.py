@@ -95,19 +95,24 @@ def completion(I0: FloatArray, F: FloatArray, tau: FloatArray, goal: FloatArray,
     except np.linalg.LinAlgError as exc:
         raise ReductionError("completion: these candidate blocks cannot reach the goal") from exc
 
+    def kept(t: FloatArray) -> FloatArray:
+        """``t`` with the blocks below ACTIVE of the total set to 0 (not measured)."""
+        return np.where(t > ACTIVE * np.sum(t), t, 0.0)
+
     def cost(t: FloatArray) -> float:
-        return float(np.sum(t) + np.sum(overhead[t > ACTIVE * np.sum(t)]))
+        return float(np.sum(t) + np.sum(overhead[kept(t) > 0]))
 
     while True:
-        active = np.flatnonzero(t > ACTIVE * np.sum(t))
+        t = kept(t)
+        active = np.flatnonzero(t)
         if active.size <= 1:
-            return np.where(t > ACTIVE * np.sum(t), t, 0.0)
+            return t
         smallest = active[np.argmin(t[active])]
         rest = active[active != smallest]
         try:
             trial = _solve(at, k, rest, t[rest] * (1 + t[smallest] / np.sum(t[rest])))
         except (ReductionError, np.linalg.LinAlgError):
-            return np.where(t > ACTIVE * np.sum(t), t, 0.0)
+            return t
         if cost(trial) >= cost(t):
-            return np.where(t > ACTIVE * np.sum(t), t, 0.0)
+            return t
         t = trial

@@ -158,9 +158,7 @@ def next_block(
         while n >= MIN_REVOLUTIONS:
             seconds = d.blocks * (block_time(ratio * spin, n) + per_block_s) + ramps[b]
             if spent_s + seconds <= cap_s:
-                after = relative_errors(
-                    info + block_information(spec, theta, spin, radius, ratio, noise_at(ratio)[0], n, d), scales
-                )
+                after = relative_errors(info + n * F[b], scales)  # F[b]: block_information's per revolution
                 return NextBlock(ratio, n, Choice.NEXT, float(seconds), before, after, d)
             n = min(n - 1, int(n * (cap_s - spent_s - ramps[b]) / seconds))
     return NextBlock(None, 0, Choice.CAP, 0.0, before, before)
