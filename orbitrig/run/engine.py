@@ -330,6 +330,7 @@ class RunEngine(OperatorRequests):
             self._control.fire("fail", ended[1])
         elif status != FAILED:
             self._control.fire("done", f"run {self.run_id} {status}: {ended[1]}")
+        await to_the_end(store.run_log.flush)  # run.log holds every line of the run when it returns
         return ended
 
     async def _cleanup(self, io: RigIO, status: Outcome, message: str) -> tuple[Outcome, str]:

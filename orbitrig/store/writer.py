@@ -26,16 +26,16 @@ from orbitrig.store import csvfile, journal, pieces
 from orbitrig.store.consolidate import RunImage, read_header
 from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F401  (the CSV's public names)
 from orbitrig.store.estimate import final_bytes
-from orbitrig.store.durable import APPEND_FLAGS, TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
+from orbitrig.store.durable import TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
 from orbitrig.store.identity import header_identity
 from orbitrig.store.errors import RunDirError, StorageError, StorageFullError, storage_error
 from orbitrig.store.index import NEVER_COMPLETED, commit_record, point_state, scan
 from orbitrig.store.layout import FORMAT, RunLayout, point_name
-from orbitrig.store.quota import COMMANDS_HEAD, COMMANDS_TAIL, RUN_LOG_HEAD, RUN_LOG_TAIL, LineQuota
 from orbitrig.store.reader import read_point
 from orbitrig.store.records import BlockRecord, LogBuffer, PointResults
+from orbitrig.store.run_log import RunLog
 from orbitrig.store.status import RunStatus
-from rigunits import now_iso, utc_iso
+from rigunits import now_iso
 
 if TYPE_CHECKING:  # annotation only: the store does not import the run wing
     from orbitrig.run.plan import OperatingPoint
@@ -60,10 +60,7 @@ class RunStore:
         self._written: dict[int, dict[str, dict[str, Any]]] = {}  # point -> file name -> size, digest
         self._unfinished: dict[int, int] = {}  # point begun, not yet copied into run.h5 -> bytes written
         self._image = RunImage(self.layout)  # run.h5.tmp on disk, filled as points commit
-        self._log_failed = False
-        # between two completed points the logs grow by a bounded number of lines (orbitrig.store.quota)
-        self._log_quota = LineQuota(RUN_LOG_HEAD, RUN_LOG_TAIL)
-        self._command_quota = LineQuota(COMMANDS_HEAD, COMMANDS_TAIL)
+        self.run_log = RunLog(self.log_path, self.layout.journal)  # written off the caller's thread
 
     # ---------------------------------------------------------- life cycle
     @classmethod
@@ -172,15 +169,8 @@ class RunStore:
 
     def command(self, command: str, by: str, detail: str = "") -> None:
         """A command that changed the run, who sent it and when: a journal line (run.h5's
-        /logs/commands) and a run.log line. Best effort: a storage failure is logged."""
-        at = now_iso()
-        self.log(f"command {command} by {by}" + (f" ({detail})" if detail else ""))
-        entry = journal.line("command", command=command, by=by, at=at, detail=detail)
-        try:
-            if self._command_quota.offer(entry):
-                self._journal([entry])
-        except StorageError as err:
-            log.error("cannot journal the command %s by %s: %s", command, by, err)
+        /logs/commands) and a run.log line, written in the background (orbitrig.store.run_log)."""
+        self.run_log.command(command, by, detail)
 
     def prepare_resume(self) -> list[int]:
         """Set aside every incomplete or damaged point (DIR/aside/PPPP.<reason>.N) and
@@ -256,7 +246,10 @@ class RunStore:
         rec = commit_record(self.layout, point, self._written.pop(point, None))
         write_atomic(self.layout.commit_file(point), json.dumps(rec, indent=1).encode())
         self._journal(
-            [*self._close_quotas(f"point {point_name(point)}"), journal.line("point", point=point, action="complete")]
+            [
+                *self.run_log.close_interval(f"point {point_name(point)}"),
+                journal.line("point", point=point, action="complete"),
+            ]
         )
         self._image.add_point(point)
         self._unfinished.pop(point, None)  # its copy is made: nothing of it is still to write
@@ -270,7 +263,7 @@ class RunStore:
         if not status.final:
             self._journal([journal.status_line(status, message)])
             return ""
-        self._journal([*self._close_quotas("the run's end"), journal.status_line(status, message)])
+        self._journal([*self.run_log.close_interval("the run's end"), journal.status_line(status, message)])
         try:
             self.finalize()
         except StorageError as err:
@@ -285,6 +278,8 @@ class RunStore:
         return ""
 
     def flush_logs(self) -> None:
+        """Write what is said and gathered so far: run.log's lines, the commands, the log rows."""
+        self.run_log.flush()
         self._journal([])
 
     def finalize(self) -> Path:
@@ -329,39 +324,9 @@ class RunStore:
 
     # -------------------------------------------------------------- run.log
     def log(self, message: str) -> None:
-        """A line of the human-readable run.log (best effort: a full disk must not stop the run).
-        Between two completed points the first RUN_LOG_HEAD lines are written at once, the
-        newest RUN_LOG_TAIL held until the interval closes, the rest counted."""
-        stamp = utc_iso()
-        line = f"{stamp} {message}\n"
-        if self._log_quota.offer(line):
-            self._append_log(line)
-
-    def _append_log(self, text: str) -> None:
-        try:
-            with open(os.open(self.log_path, APPEND_FLAGS, 0o644), "a", encoding="utf-8") as fh:
-                fh.write(text)
-        except OSError as err:
-            if not self._log_failed:
-                log.error("cannot write %s: %s (further run.log lines are lost)", self.log_path, err)
-            self._log_failed = True
-
-    def _close_quotas(self, until: str) -> list[str]:
-        """Close the logs' interval at `until`: run.log gets what was left out of it (a count,
-        then the newest lines held); returned: the journal lines to append (the same for commands)."""
-        text, commands = self._log_quota.close(), self._command_quota.close()
-        if text.tail:
-            note = f"{text.count + len(text.tail)} lines since the last completed point were not written at once"
-            stamp = utc_iso()
-            self._append_log(
-                f"{stamp} run.log: {note} (until {until}): {text.count} left out, the newest "
-                f"{len(text.tail)} follow\n" + "".join(text.tail)
-            )
-        if not commands.tail:
-            return []
-        note = f"{commands.count} commands left out (the journal keeps {COMMANDS_HEAD} per point and the newest)"
-        left = [journal.line("command", command="(left out)", by="", at=now_iso(), detail=note)]
-        return (left if commands.count else []) + commands.tail
+        """A line of the human-readable run.log, stamped now and written in the background
+        (orbitrig.store.run_log: best effort, bounded between two completed points)."""
+        self.run_log.line(message)
 
     # --------------------------------------------------------------- reading
     def completed_points(self) -> list[int]:
