@@ -309,8 +309,9 @@ class RunControl:
         await self.safe_point()
 
     async def hold_for_room(self, problem: Callable[[], str | None]) -> None:
-        """Paused while `problem()` says the disk has no room for the next point; resume re-checks."""
-        why = problem()
+        """Paused while `problem()` says the disk has no room for the next point; resume re-checks.
+        `problem` reads the disk (a network share can hang it): it runs in a thread, off the loop."""
+        why = await asyncio.to_thread(problem)
         if why is None:
             return
         if self.stop_requested:
@@ -324,7 +325,7 @@ class RunControl:
                 await self._until_resumed(t0)
                 if self.stop_requested:
                     raise StopRun
-                why = problem()
+                why = await asyncio.to_thread(problem)
                 if why is not None:
                     self._note(f"still paused: {why}")
         finally:

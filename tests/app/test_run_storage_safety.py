@@ -166,3 +166,35 @@ async def test_no_room_for_the_next_point_pauses_until_resumed(tmp_path, monkeyp
     # asked for the whole plan before the run, then for the point (again after each resume)
     assert asked[0] == plan_bytes(rig, list(plan.steps))
     assert asked[1:4] == [point_room(rig, plan.points[0], 10, len(matrix.models))] * 3  # pieces and run.h5 copy
+
+
+async def test_the_free_space_check_before_a_point_is_off_the_loop(tmp_path, monkeypatch):
+    """The check before each point reads the disk (statvfs), which a hung network share holds
+    (injected: a real file system does not hang here); the loop, polling the drives that turn
+    from the point before, keeps running meanwhile."""
+    free_bytes, window, beats = RunStore.free_bytes, [], []
+
+    def slow_free_bytes(self):
+        start = time.monotonic()
+        if not threading.current_thread().name.startswith("orbitrig-storage"):  # not run.h5's at the end
+            time.sleep(1.0)
+            window.append((start, time.monotonic()))
+        return free_bytes(self)
+
+    async def heartbeat():
+        while True:
+            beats.append(time.monotonic())
+            await asyncio.sleep(0.01)
+
+    monkeypatch.setattr(RunStore, "free_bytes", slow_free_bytes)
+    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
+        eng = RunEngine(cfg.load_rig(), out_dir=tmp_path / "run", access=simulated_access(sim), confirm_mode="auto")
+        beat = asyncio.create_task(heartbeat())
+        try:
+            outcome = await eng.run(small_matrix(spin_rpm=[1000.0, 2000.0]))
+        finally:
+            beat.cancel()
+    assert outcome.status == "completed", outcome.message
+    assert len(window) == 3  # the whole plan's before the drives move, then before each point
+    for start, end in window[1:]:
+        assert sum(start < t < end for t in beats) >= 20  # a blocked loop: none
