@@ -230,15 +230,16 @@ class Drive:
         return await self.read_parameters()
 
     # -- status -----------------------------------------------------------------
-    async def read_status(self, *, retries: int | None = None) -> DriveStatus:
+    async def read_status(self, *, retries: int | None = None, gives_way: bool = False) -> DriveStatus:
         """Read CW..FAULT in one request (also the watchdog heartbeat for this drive);
-        retried after a timeout `read_retries` times by default."""
+        retried after a timeout `read_retries` times by default; `gives_way` (the poll's
+        reads): given up for a stop that needs the link (`ModbusLink.read`)."""
         if self._scale_rpm is None:
             await self.read_parameters()
         scale, _ = self._scales()
         first, count = R.PROCESS_DATA
         retries = self.read_retries if retries is None else retries
-        w = await self.link.read(self.device_id, first, count, retries=retries)
+        w = await self.link.read(self.device_id, first, count, retries=retries, gives_way=gives_way)
         ref, act = R.from_word(w[R.REF]), R.from_word(w[R.ACT])
         return DriveStatus(
             name=self.name,

@@ -7,6 +7,7 @@
     +-- DriveTimeoutError      no answer in time, or a state not reached in time
     +-- DriveExceptionResponse the drive answered a Modbus exception (exception_code)
     +-- DriveSuperseded        a request of a command not sent: a stop was asked after the command
+    +-- DriveGaveWay           a poll's read given up unanswered: a stop needed the link (TCP)
 
 The message names the drive (`spin drive (id 1)`), the register (`REF (1)`),
 or the registers of a multi-register request (`registers 105..106
@@ -97,6 +98,11 @@ class DriveTimeoutError(DriveError, TimeoutError):
 class DriveSuperseded(DriveError):
     """A request of a command (a start's words) not sent: a stop was asked after the command was
     given, and nothing of the command may go out after the stop."""
+
+
+class DriveGaveWay(DriveError):
+    """A read of the poll given up before its answer because a stop needed the link (TCP: its
+    connection dropped, the stop's words go out on a new one). Tells nothing of the drive or the link."""
 
 
 class DriveExceptionResponse(DriveError):

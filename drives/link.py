@@ -21,6 +21,13 @@ CRC-valid answer from the addressed device with the request's function code
 and shape, discarding any other frame on the line. An exchange whose caller
 was cancelled is allowed to finish (<= timeout) before the next one starts.
 
+A stop does not wait for a poll's read (`read(..., gives_way=True)`) on TCP: the read is given up
+(DriveGaveWay), its connection dropped and the stop's words go out on a new one (a read changes
+nothing in a drive, so no order between it and the stop matters). A write in flight is always
+answered (or timed out) first: on another connection the stop could overtake it. On RTU the line
+carries one exchange at a time: the stop waits for the one in flight (<= timeout, then the settle
+time after a missed answer).
+
 pymodbus' own reconnect task and retries are switched off: reconnecting is
 this class' job, at the pace its callers (the poll) set.
 """
@@ -31,17 +38,17 @@ import asyncio
 import logging
 from collections.abc import Awaitable, Callable, Mapping, Sequence
 from contextlib import AbstractContextManager
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NoReturn
-from urllib.parse import parse_qs, urlsplit
 
 from drives.errors import (
     DriveExceptionResponse,
+    DriveGaveWay,
     DriveLinkError,
     DriveSuperseded,
     DriveTimeoutError,
     ErrorContext,
 )
+from drives.link_url import LinkAddress, parse_modbus_url
 from drives.registers import register_name, registers_name
 from drives.rtu import RtuLine
 from drives.turns import Turns
@@ -60,47 +67,9 @@ Guard = Callable[[], bool] | None
 
 log = logging.getLogger(__name__)
 
+__all__ = ["Guard", "LinkAddress", "ModbusLink", "parse_modbus_url"]
+
 _FC_READ, _FC_WRITE_SINGLE, _FC_WRITE_MULTIPLE = 3, 6, 16
-
-
-@dataclass(frozen=True)
-class LinkAddress:
-    """A parsed Modbus URL."""
-
-    kind: str  # "tcp" | "rtu"
-    host: str = ""  # tcp
-    port: int = 0  # tcp
-    path: str = ""  # rtu: serial device
-    baud: int = 19200  # rtu
-
-
-def parse_modbus_url(url: str) -> LinkAddress:
-    """Parse `tcp://host:port` (port 502 if omitted) or `rtu:///dev/ttyS0?baud=19200`.
-
-    Raises DriveLinkError naming what is wrong with the URL.
-    """
-    try:
-        parts = urlsplit(url)
-        query = parse_qs(parts.query, strict_parsing=bool(parts.query))
-        if parts.scheme == "tcp":
-            if query:
-                raise ValueError(f"unexpected query {parts.query!r}")
-            if not parts.hostname:
-                raise ValueError("no host")
-            return LinkAddress("tcp", host=parts.hostname, port=parts.port or 502)
-        if parts.scheme == "rtu":
-            if not parts.path or parts.netloc:
-                raise ValueError("expected rtu:///dev/<serial device>")
-            unknown = set(query) - {"baud"}
-            if unknown:
-                raise ValueError(f"unknown option(s) {', '.join(sorted(unknown))}; only baud")
-            baud = int(query.get("baud", ["19200"])[-1])
-            if baud <= 0:
-                raise ValueError(f"baud {baud} is not positive")
-            return LinkAddress("rtu", path=parts.path, baud=baud)
-        raise ValueError(f"unknown scheme {parts.scheme!r}; use tcp:// or rtu://")
-    except ValueError as err:
-        raise DriveLinkError(f"bad Modbus URL {url!r}: {err}") from err
 
 
 async def _within(request: Awaitable[_Answer], seconds: float) -> _Answer:
@@ -137,6 +106,7 @@ class ModbusLink:
         self._client: RtuLine | AsyncModbusTcpClient | None = None
         self._lock = Turns()  # a stop's requests go before the others waiting (`urgent`)
         self._abandoned: asyncio.Future[_Answer] | None = None  # RTU exchange of a cancelled caller
+        self._give_way: asyncio.Future[None] | None = None  # set by a stop: the read in flight gives way
         self.requests = 0  # answered requests (including exception responses)
         self.failures = 0  # requests without a valid answer
         self.connects = 0  # successful (re)connections
@@ -211,11 +181,15 @@ class ModbusLink:
             self._client = None
 
     # -- requests ---------------------------------------------------------------
-    async def read(self, device_id: int, address: int, count: int, *, retries: int = 0) -> list[int]:
+    async def read(
+        self, device_id: int, address: int, count: int, *, retries: int = 0, gives_way: bool = False
+    ) -> list[int]:
         """Read `count` holding registers (FC03) from `address`: unsigned 16-bit words.
 
         `retries` : further tries after a request timeout (a late answer); reading
         is harmless to repeat. A link error or an exception response is not retried.
+        `gives_way` (the poll's reads): on TCP, given up unanswered (DriveGaveWay) once a stop
+        needs the link, its connection dropped; not retried.
         """
         rsp = await self._retried(
             device_id,
@@ -224,6 +198,7 @@ class ModbusLink:
             "read",
             retries,
             lambda c: c.read_holding_registers(address, count=count, device_id=device_id),
+            gives_way=gives_way,
         )
         words = list(rsp.registers)
         if len(words) != count:
@@ -270,13 +245,15 @@ class ModbusLink:
         call: _Call,
         urgent: bool = False,
         guard: Guard = None,
+        *,
+        gives_way: bool = False,
     ) -> _Answer:
         """`_request`, tried again up to `retries` times after a timeout (each retry logged);
         `span`: (first address, count) of the registers the request covers."""
         attempt = 0
         while True:
             try:
-                return await self._request(device_id, span, function_code, call, urgent, guard)
+                return await self._request(device_id, span, function_code, call, urgent, guard, gives_way)
             except DriveTimeoutError as err:
                 if attempt >= retries:
                     raise
@@ -313,10 +290,13 @@ class ModbusLink:
         call: _Call,
         urgent: bool = False,
         guard: Guard = None,
+        gives_way: bool = False,
     ) -> _Answer:
         from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 
         kw = self._error_kw(device_id, span)
+        if urgent and self._give_way is not None and not self._give_way.done():
+            self._give_way.set_result(None)  # the poll's read in flight gives the link to the stop
         async with self._lock.turn(urgent):
             if guard is not None and not guard():
                 raise DriveSuperseded("not sent: a stop was asked after the command", **kw)
@@ -328,7 +308,7 @@ class ModbusLink:
             exchange = asyncio.ensure_future(_within(call(client), self.timeout + 0.5))
             exchange.add_done_callback(_seen)  # its failure is raised to the caller, or nobody waits
             try:
-                rsp = await asyncio.shield(exchange)
+                rsp = await self._answer(exchange, gives_way and self.address.kind == "tcp", kw)
             except asyncio.CancelledError:
                 if self.address.kind == "tcp" or exchange.done():
                     exchange.cancel()
@@ -366,6 +346,27 @@ class ModbusLink:
                 )
             self.requests += 1
             return rsp
+
+    async def _answer(self, exchange: asyncio.Future[_Answer], gives_way: bool, kw: ErrorContext) -> _Answer:
+        """The answer of `exchange` (its error raised); `gives_way` (a poll's read, TCP): given up
+        once an urgent request asks for the link before the answer (DriveGaveWay), the connection
+        dropped so that the late answer cannot come on the next (pymodbus serves one request at a
+        time per connection, and would hold the stop behind it)."""
+        if not gives_way:
+            return await asyncio.shield(exchange)
+        self._give_way = give_way = asyncio.get_running_loop().create_future()
+        if self._lock.waiting(True):  # a stop came while this read was connecting: at once
+            give_way.set_result(None)
+        try:
+            await asyncio.wait([exchange, give_way], return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            self._give_way = None
+            give_way.cancel()
+        if not exchange.done():
+            exchange.cancel()
+            self._drop()
+            raise DriveGaveWay("read given up unanswered: a stop needed the link", **kw)
+        return exchange.result()
 
     async def _settle_abandoned(self) -> None:
         """Wait for the exchange a cancelled caller left on an RTU line (bounded)."""

@@ -5,6 +5,7 @@ steady pace. It is the heartbeat the drives' comm-loss watchdog needs, the
 source of `state`, and the interlock:
 - A drive that trips has both drives ramped to zero before the fault is
   recorded in `failure` (the owner raises it).
+- A poll's read gives way to a stop on TCP (drives/link.py): that poll is skipped, not failed.
 - A failed poll is counted (`state.poll_failures`, logged); the link is
   declared lost only after `link_loss_polls` consecutive failures (an isolated
   lost frame on a noisy RS-485 line is tolerated). `fit_heartbeat` lowers the
@@ -34,7 +35,7 @@ from collections.abc import Sequence
 
 from drives import registers as R
 from drives.drive import Drive, DriveStatus
-from drives.errors import DriveError, DriveFaultError, DriveLinkError, DriveTimeoutError
+from drives.errors import DriveError, DriveFaultError, DriveGaveWay, DriveLinkError, DriveTimeoutError
 from drives.limits import fmt_speed
 from drives.link import ModbusLink
 from drives.poll_pace import PollPace, wait_tick
@@ -244,9 +245,12 @@ class DrivePoll:
     async def _poll_once(self) -> None:
         try:
             if self.state.link_ok:  # no retry: failed polls in a row bound the time to a declared loss
-                statuses = [await d.read_status(retries=0) for d in self.drives]
+                statuses = [await d.read_status(retries=0, gives_way=True) for d in self.drives]
             else:
                 statuses = await self._verify_after_reconnect()
+        except DriveGaveWay:  # a stop took the link: no poll this time, and no failure
+            log.debug("drive poll given up for a stop")
+            return
         except DriveError as err:
             self._poll_failed(err)
             return

@@ -96,6 +96,20 @@ def pytest_configure(config: pytest.Config) -> None:
     config.add_cleanup(functools.partial(shutil.rmtree, lab, ignore_errors=True))
 
 
+@pytest.fixture(autouse=True)
+def _signal_dispositions():
+    """The test process's signal handlers back as they were: a command run in process leaves its
+    signals recorded, not acted on (orbitrig.cli.signals.hand_over), as for the rest of its process."""
+    import signal
+
+    from orbitrig.cli.signals import SIGNALS
+
+    before = {sig: signal.getsignal(sig) for sig in SIGNALS}
+    yield
+    for sig, handler in before.items():
+        signal.signal(sig, handler)
+
+
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         path = Path(str(item.fspath))

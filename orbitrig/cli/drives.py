@@ -155,14 +155,20 @@ def _run_command(
 
         say(f"orbitrig drives run refused (limit): {err}; nothing sent", err=True)
         raise typer.Exit(2) from None
+    from orbitrig.cli.drives_hold import Interrupt, stop_after_release
+    from orbitrig.cli.signals import take_late_signals
     from orbitrig.config import RPM
 
-    raise typer.Exit(
-        _run_async(
-            lambda intr: _run(url, d, limits, spin * RPM, orbit * RPM, settle, timeout, hold, status_every, intr),
-            "run",
-        )
+    interrupt = Interrupt()
+    code = _run_async(
+        lambda intr: _run(url, d, limits, spin * RPM, orbit * RPM, settle, timeout, hold, status_every, intr),
+        "run",
+        interrupt,
     )
+    late = take_late_signals()
+    if interrupt.released and late:  # a signal once the drives were left at the setpoint and the loop had ended
+        code = _run_async(lambda intr: stop_after_release(url, d, intr), "run", Interrupt(late[:1]))
+    raise typer.Exit(code)
 
 
 def _add_stop(drives_app: typer.Typer) -> None:
@@ -204,25 +210,27 @@ def _rig_drives(url, d, limits=None, *, watchdog: bool = False):
     return rig_drives(url, d, UNLIMITED if limits is None else limits, watchdog=watchdog)
 
 
-def _run_async(make_coro, command: str) -> int:
+def _run_async(make_coro, command: str, interrupt=None) -> int:
     """Run `make_coro(interrupt)`; the first of orbitrig.cli.signals.SIGNALS cancels it -> exit 2
     (`run` stops and confirms both drives itself: drives_hold.way_out, stop_after_release), except
     while it holds (`run --hold`), where it ends the hold, and once a stop is under way (`stop` with
-    the drives open, a way out's ramp), where it makes it the emergency stop (drives_hold.Interrupt)."""
+    the drives open, a way out's ramp), where it makes it the emergency stop (drives_hold.Interrupt,
+    a new one unless given). Signals after it are recorded only (orbitrig.cli.signals.hand_over)."""
     import asyncio
 
     from drives.errors import DriveError
     from orbitrig.cli.drives_hold import Interrupt
-    from orbitrig.cli.signals import SIGNALS
+    from orbitrig.cli.signals import SIGNALS, hand_over, take_late_signals
     from orbitrig.cli.terminal import OutputError, say
 
     _quiet_logging()
+    interrupt = Interrupt() if interrupt is None else interrupt
+    take_late_signals()  # those of an earlier command in this process (its own were acted on)
 
     async def main() -> int:
         task = asyncio.current_task()
         assert task is not None
         loop = asyncio.get_running_loop()
-        interrupt = Interrupt()
         for sig in SIGNALS:
             loop.add_signal_handler(sig, interrupt.on_signal, sig, task)
         try:
@@ -238,8 +246,7 @@ def _run_async(make_coro, command: str) -> int:
             report(command, err)
             return 2
         finally:
-            for sig in SIGNALS:
-                loop.remove_signal_handler(sig)
+            hand_over(loop)
 
     return asyncio.run(main())
 
@@ -307,7 +314,7 @@ async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every,
                 code = await _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, interrupt)
                 if not hold:  # at the setpoint
                     await _release(rig, d.comm_loss_timeout_s)
-                    released = True
+                    released = interrupt.released = True
             except BaseException as err:  # noqa: BLE001 - every way out but the release: both drives stopped first
                 code = await way_out(rig, err, interrupt, reason)
             return code

@@ -22,13 +22,16 @@ from orbitrig.run.safe_stop import not_confirmed, stop_shielded
 
 
 class Interrupt:
-    """Signals (orbitrig.cli.signals.SIGNALS) received by a command. The first one cancels the
+    """Signals (orbitrig.cli.signals.SIGNALS) received by a command (`received`: those before it,
+    e.g. a late one that a new stop follows). The first one cancels the
     command; while `holding` it ends the hold (`event`) instead. Any further one, and any once
     the ramp stop of the way out has begun (`stopping`, never cleared: the stop words repeated on
-    the rig's exit are not cut short either), makes that stop an emergency stop (`abort`)."""
+    the rig's exit are not cut short either), makes that stop an emergency stop (`abort`).
+    `released`: `run` left both drives running at the setpoint."""
 
-    def __init__(self) -> None:
-        self.received: list[signal.Signals] = []
+    def __init__(self, received: list[signal.Signals] | None = None) -> None:
+        self.received: list[signal.Signals] = list(received or [])
+        self.released = False
         self.holding = False
         self.stopping = False
         self.event = asyncio.Event()
@@ -161,9 +164,12 @@ async def way_out(rig, err: BaseException, interrupt: Interrupt, reason) -> int:
 
 async def stop_after_release(url, d, interrupt: Interrupt) -> int:
     """`run` cancelled by a signal as its rig's exit left both drives at the setpoint (after the
-    release): whatever that exit sent, both drives are opened again, ramped to zero and confirmed
+    release), or signalled once its event loop had ended (orbitrig.cli.signals.take_late_signals):
+    whatever that exit sent, both drives are opened again, ramped to zero and confirmed
     at standstill (`ramp_down`; a further signal: the emergency stop, exit 4), exit 2; exit 1 if
-    the standstill is not confirmed."""
+    the standstill is not confirmed; if the drives cannot be opened, the stop words still go to
+    each drive that answers, and the message names those that took them."""
+    from orbitrig.cli.drives_stop import delivered, stop_words_best_effort
     from orbitrig.run.drive_setup import UNLIMITED, rig_drives
 
     task = asyncio.current_task()
@@ -171,11 +177,14 @@ async def stop_after_release(url, d, interrupt: Interrupt) -> int:
     task.uncancel()
     interrupt.stopping = True  # a further signal (also while opening): the emergency stop
     head = f"orbitrig drives run: interrupted by {interrupt.received[0].name} as it left both drives at the setpoint"
+    opened = False
     try:
         async with rig_drives(url, d, UNLIMITED) as rig:
+            opened = True
             escalated, line = await ramp_down(rig, interrupt)
     except DriveError as err:
-        say(f"{head}; {not_confirmed(err)}", err=True)
+        sent = "" if opened else "; " + delivered(await stop_words_best_effort(url, d, interrupt.abort.is_set()))
+        say(f"{head}; {not_confirmed(err)}{sent}", err=True)
         return 1
     again = f"; {interrupt.received[-1].name} during the stop: " if escalated else "; "
     say(f"{head}; both drives stopped{again}{line}", err=True)

@@ -91,16 +91,16 @@ async def stop_drives(url, d, emergency, timeout, interrupt) -> int:
         if opened:  # the rig's exit has sent the stop again: whether both took it
             say(f"orbitrig drives stop: interrupted by {interrupt.received[-1].name}; {stop_outcome(rig)}", err=True)
             return 2
-        sent = await _stop_words_best_effort(url, d, emergency, interrupt)
+        sent = await stop_words_best_effort(url, d, emergency, interrupt)
         sig = interrupt.received[0].name
-        say(f"orbitrig drives stop: interrupted by {sig} while opening the drives; {_delivered(sent)}", err=True)
+        say(f"orbitrig drives stop: interrupted by {sig} while opening the drives; {delivered(sent)}", err=True)
         return 2
     except DriveError as err:
         # The controller could not be opened (or the wait failed): still put the
         # stop word on the line for each drive that answers, without reading first.
         off3 = emergency or interrupt.abort.is_set()
-        sent = await _stop_words_best_effort(url, d, off3, interrupt)
-        report("stop", err, (_signalled(interrupt, escalated=not emergency) if opened else "") + _delivered(sent))
+        sent = await stop_words_best_effort(url, d, off3, interrupt)
+        report("stop", err, (_signalled(interrupt, escalated=not emergency) if opened else "") + delivered(sent))
         return 2
     _state_lines(state)
     if not interrupt.received:
@@ -118,17 +118,20 @@ def _signalled(interrupt, escalated: bool) -> str:
     return f"{names} during the " + ("ramp stop: emergency stop (OFF3) sent; " if escalated else "emergency stop; ")
 
 
-def _delivered(sent: list[str]) -> str:
+def delivered(sent: list[str]) -> str:
+    """'stop word delivered to: spin (id 1), orbit (id 2)' (or 'no drive')."""
     return f"stop word delivered to: {', '.join(sent) or 'no drive'}"
 
 
-async def _stop_words_best_effort(url, d, emergency, interrupt) -> list[str]:
+async def stop_words_best_effort(url, d, emergency, interrupt=None) -> list[str]:
     """The stop words to each drive that answers (no reads first); the drives that took theirs.
-    A signal meanwhile does not cut them short (`interrupt.stopping`): what they reached is said."""
+    A signal meanwhile does not cut them short (`interrupt.stopping`, set here if given): what
+    they reached is said."""
     from drives.stop import send_stop, took_it
     from orbitrig.run.drive_setup import bare_drives, modbus_link
 
-    interrupt.stopping = True
+    if interrupt is not None:
+        interrupt.stopping = True
     link = modbus_link(url, d)
     drives = list(bare_drives(link, d))
     try:

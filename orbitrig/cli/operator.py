@@ -25,7 +25,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from orbitrig.cli.signals import SIGNALS, signal_cause, signal_name as _name
+from orbitrig.cli.signals import SIGNALS, hand_over, signal_cause, signal_name as _name
 
 
 class Operator:
@@ -55,9 +55,10 @@ class Operator:
             self.engine.unattended = True
 
     def uninstall(self) -> None:
+        """The run has ended: signals from here on are recorded only (orbitrig.cli.signals.hand_over);
+        the run's way out has closed the drives."""
         self.released.set()
-        for sig in SIGNALS:
-            self.loop.remove_signal_handler(sig)
+        hand_over(self.loop)
         if self.asking is not None:
             self.asking.cancel()
 

@@ -179,9 +179,8 @@ def _reloaded(file: Path, previous):
 
 async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
     import asyncio
-    import contextlib
 
-    from orbitrig.cli.signals import SIGNALS, signal_name
+    from orbitrig.cli.signals import SIGNALS, hand_over, signal_name
 
     shutdown = asyncio.Event()
     loop = asyncio.get_running_loop()
@@ -205,6 +204,15 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
 
     for sig in SIGNALS:
         loop.add_signal_handler(sig, on_signal, sig)
+    try:
+        await _serve_until_shutdown(rig, settings, broker_settings, opts, shutdown, services)
+    finally:
+        hand_over(loop)  # later signals recorded only: the service's way out has stopped the drives
+
+
+async def _serve_until_shutdown(rig, settings, broker_settings, opts: ServeOptions, shutdown, services) -> None:
+    """The service (on the simulator with --sim) until `shutdown`; `services` gets it once built."""
+    import contextlib
 
     async with contextlib.AsyncExitStack() as stack:
         sim_rig = None

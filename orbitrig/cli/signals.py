@@ -9,6 +9,13 @@ of them as on Ctrl-C; the signal comes back as :class:`Interrupted`. Each furthe
 cancels it again: a stop under way that is shielded from cancellation (orbitrig.run.safe_stop)
 is not cut short, it becomes the emergency stop and still waits for standstill; anything else
 the way out waits for (a prompt, a read) ends at once, so a second Ctrl-C is never lost.
+
+Once a command's event loop is done with them (:func:`hand_over`), a signal no longer falls to
+Python's default (a KeyboardInterrupt traceback, or death by SIGTERM, in the middle of the way
+out): it is recorded until the process exits (:func:`take_late_signals`). The command then acts on it
+where the drives are not left stopped (`drives run`, which leaves them at the setpoint: both are
+opened again and ramped to zero); elsewhere its way out has already stopped the drives, and it
+exits with its own status.
 """
 
 from __future__ import annotations
@@ -22,6 +29,35 @@ T = TypeVar("T")
 SIGNALS: tuple[signal.Signals, ...] = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT)
 #: the signals in words, for help texts
 SIGNAL_WORDS = "Ctrl-C, SIGTERM, SIGHUP or SIGQUIT"
+
+
+#: signals received once a command's event loop no longer handled them (`hand_over`), in order
+_late: list[signal.Signals] = []
+
+
+def hand_over(loop) -> None:
+    """Remove `loop`'s handlers of SIGNALS; from here to the process's exit each signal is recorded
+    (`take_late_signals`) instead of falling to Python's default. None is lost meanwhile: they are
+    blocked during the change and delivered after it."""
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS)
+    try:
+        for sig in SIGNALS:
+            loop.remove_signal_handler(sig)
+            signal.signal(sig, _record)
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+
+
+def _record(sig: int, _frame: object) -> None:
+    _late.append(signal.Signals(sig))
+
+
+def take_late_signals() -> list[signal.Signals]:
+    """The signals recorded since a command's loop handed them over (`hand_over`), in order;
+    forgotten here (a command about to run takes them to start afresh)."""
+    taken = list(_late)
+    del _late[: len(taken)]
+    return taken
 
 
 class Interrupted(Exception):
@@ -74,7 +110,6 @@ def run_until_signal(make: Callable[[], Awaitable[T]]) -> T:
                 task.uncancel()
             raise Interrupted(received[0]) from None
         finally:
-            for sig in SIGNALS:
-                loop.remove_signal_handler(sig)
+            hand_over(loop)
 
     return asyncio.run(main())
