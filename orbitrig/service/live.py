@@ -50,6 +50,7 @@ from orbitrig.run.steps import SetManual
 from orbitrig.run.states import RunState
 from orbitrig.run.verification import setting_bands
 from reduction.whirl import Whirl
+from rigunits import ONE
 
 log = logging.getLogger(__name__)
 
@@ -64,10 +65,10 @@ AUX_UNITS = {
     "p_recess_2": "Pa",
     "p_recess_3": "Pa",
     "p_recess_4": "Pa",
-    "beta": "-",
+    "beta": ONE,
 }
 #: The manual settings of an operating point and their SI units.
-SETTING_UNITS = {"orbit_radius": "m", "static_eccentricity": "-", "recess_pressure": "Pa", "pressure_ratio": "-"}
+SETTING_UNITS = {"orbit_radius": "m", "static_eccentricity": ONE, "recess_pressure": "Pa", "pressure_ratio": ONE}
 LIVE_STATES = (RunState.RUNNING, RunState.PAUSED, RunState.WAITING, RunState.STOPPING)
 #: Revolutions are current while the latest is at most this many orbit periods old ...
 FRESH_PERIODS = 3.0

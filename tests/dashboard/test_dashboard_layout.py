@@ -72,9 +72,9 @@ def waiting(message: str = TURNING, outside: bool = True) -> dict:
         "message": message,
         "settings": {
             "orbit_radius": setting(5.76e-6, "m", 0.864e-6, 5.76e-6 * far),
-            "static_eccentricity": setting(0.15, "-", 0.05, 0.15 * far),
+            "static_eccentricity": setting(0.15, "1", 0.05, 0.15 * far),
             "recess_pressure": setting(0.4826e6, "Pa", 0.04826e6, 0.4826e6 * far),
-            "pressure_ratio": setting(0.4, "-", 0.05, 0.4 * far),
+            "pressure_ratio": setting(0.4, "1", 0.05, 0.4 * far),
         },
     }
 

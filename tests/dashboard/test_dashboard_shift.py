@@ -229,9 +229,9 @@ def waiting_status(measured_ratio: float) -> dict:
         " 'manual:0000')",
         "settings": {
             "orbit_radius": setting(5.76e-6, "m", 5.70e-6, 0.864e-6),
-            "static_eccentricity": setting(0.0, "-", 0.01, 0.05),
+            "static_eccentricity": setting(0.0, "1", 0.01, 0.05),
             "recess_pressure": setting(0.4826e6, "Pa", 0.48e6, 0.04826e6),
-            "pressure_ratio": setting(0.4, "-", measured_ratio, 0.05),
+            "pressure_ratio": setting(0.4, "1", measured_ratio, 0.05),
         },
     }
 

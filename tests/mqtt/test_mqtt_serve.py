@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import h5py
+import pint
 import pytest
 
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, sim_service, sim_service_args
@@ -17,6 +18,7 @@ from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained,
 RIG = "sim-rig"
 PROGRESS_KEYS = {"run_id", "point", "points", "frequency", "frequencies", "revolutions", "eta_s"}
 STATUS_KEYS = {"state", "run_id", "since", "message"}
+UREG = pint.UnitRegistry()
 
 
 def run_status(workdir: Path, run_id: str) -> str:
@@ -196,13 +198,21 @@ def test_completed_run_publishes_one_result_per_point(rig, service):
 def test_result_carries_intervals_uncertainty_verdicts_and_refusals(rig, service):
     mark = rig.watch.mark()
     assert rig.command({"cmd": "start", "matrix": "judged"})["ok"] is True
-    rig.status("waiting", start=mark)
+    settings = rig.status("waiting", start=mark)["settings"]
     assert rig.command({"cmd": "confirm", "step": "manual:0000"})["ok"] is True
     idle = rig.status("idle", start=mark, timeout=60)
     assert "completed" in idle["message"]
     (msg,) = rig.watch.on("result", mark)
     res = msg.json()
     rows = {(r["lms"], r["model"], r["freq_dep"]): r for r in res["identification"]}
+    # every unit a subscriber gets is machine-readable: the manual settings' and each fit's (SI)
+    assert {UREG.parse_units(s["unit"]).dimensionality for s in settings.values()} >= {UREG.m.dimensionality}
+    lives = [m.json() for m in rig.watch.on("live", mark)]
+    assert lives and all(UREG.parse_units(u) is not None for live in lives for u in live["units"].values())
+    for row in res["identification"]:
+        for key, unit in row.get("units", {}).items():  # SI: the value is its base-unit magnitude
+            value = row["coefficients"][key]
+            assert UREG.Quantity(value, unit).to_base_units().magnitude == pytest.approx(value, rel=1e-12), (key, unit)
     fit = rows[("piezo", "kc7", "none")]
     for key, (lo, hi) in fit["confidence_95"].items():
         assert lo < fit["coefficients"][key] < hi
