@@ -12,6 +12,7 @@ import time
 
 import pytest
 
+from support.loop_beats import LoopBeats
 from support.sweep_helpers import running, small_matrix, wait_for
 
 pytestmark = pytest.mark.timeout(120)
@@ -77,16 +78,12 @@ async def test_a_stalled_run_log_holds_neither_the_loop_nor_an_abort(tmp_path):
     run_dir = tmp_path / "run"
     run_dir.mkdir()
     os.mkfifo(run_dir / "run.log")  # nobody reads it: every line's write blocks
-    disk, beats = _Disk(run_dir / "run.log"), []
-
-    async def heartbeat():
-        while True:
-            beats.append(time.monotonic())
-            await asyncio.sleep(0.01)
-
-    beat = asyncio.create_task(heartbeat())
+    disk = _Disk(run_dir / "run.log")
     try:
-        async with running(tmp_path, small_matrix(spin_rpm=[1000.0, 2000.0])) as (sim, eng, rec, run):
+        async with (
+            LoopBeats() as beats,
+            running(tmp_path, small_matrix(spin_rpm=[1000.0, 2000.0])) as (sim, eng, rec, run),
+        ):
             try:
                 await wait_for(lambda: rec.blocks_done() >= 2, 60, what="blocks measured while run.log is stalled")
                 t = time.monotonic()
@@ -96,13 +93,11 @@ async def test_a_stalled_run_log_holds_neither_the_loop_nor_an_abort(tmp_path):
                 await wait_for(lambda: max(abs(s) for s in sim.speeds) < 1.0, 30, what="the drives at rest")
                 await asyncio.sleep(0.5)
                 assert not run.done()  # the run's end waits for its log lines: none is lost
-                gaps = [b - a for a, b in zip(beats, beats[1:])]
-                assert max(gaps) < 0.5, max(gaps)  # the loop never waited for the disk
+                assert beats.longest_gap() < 0.5, beats.longest_gap()  # the loop never waited for the disk
             finally:
                 disk.back()  # the disk comes back
             outcome = await asyncio.wait_for(asyncio.shield(run), 60)
     finally:
-        beat.cancel()
         text = disk.text()
     assert outcome.status == "aborted", outcome.message
     lines = text.splitlines()

@@ -21,6 +21,7 @@ from orbitrig.run.plan import make_plan
 from orbitrig.store.estimate import plan_bytes, point_room
 from orbitrig.store.writer import RunStore, StorageFullError
 from sim.rig import SimRig
+from support.loop_beats import LoopBeats
 from support.sweep_helpers import SPEEDUP, small_matrix, wait_for
 
 pytestmark = pytest.mark.timeout(120)
@@ -103,7 +104,7 @@ async def test_the_runs_end_is_recorded_off_the_loop(tmp_path, monkeypatch):
     """run.h5 is consolidated and synced at the run's end (half a second for the paper matrix
     on an idle disk, longer on a slow one) in the storage thread: the loop, which in the
     service also answers MQTT, keeps running meanwhile."""
-    set_status, window, beats = RunStore.set_status, [], []
+    set_status, window = RunStore.set_status, []
 
     def slow_set_status(self, status, message=""):
         start = time.monotonic()
@@ -112,23 +113,14 @@ async def test_the_runs_end_is_recorded_off_the_loop(tmp_path, monkeypatch):
         window.append((start, time.monotonic(), threading.current_thread().name))
         return result
 
-    async def heartbeat():
-        while True:
-            beats.append(time.monotonic())
-            await asyncio.sleep(0.01)
-
     monkeypatch.setattr(RunStore, "set_status", slow_set_status)
-    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
+    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim, LoopBeats() as beats:
         eng = RunEngine(cfg.load_rig(), out_dir=tmp_path / "run", access=simulated_access(sim), confirm_mode="auto")
-        beat = asyncio.create_task(heartbeat())
-        try:
-            outcome = await eng.run(small_matrix())
-        finally:
-            beat.cancel()
+        outcome = await eng.run(small_matrix())
     assert outcome.status == "completed", outcome.message
     [(start, end, thread)] = window
     assert thread.startswith("orbitrig-storage")
-    assert sum(start < t < end for t in beats) >= 5  # a blocked loop: none
+    assert beats.within(start, end) >= 5  # a blocked loop: none
     assert RunStore.open_existing(tmp_path / "run").completed_points() == [0]
 
 
@@ -172,7 +164,7 @@ async def test_the_free_space_check_before_a_point_is_off_the_loop(tmp_path, mon
     """The check before each point reads the disk (statvfs), which a hung network share holds
     (injected: a real file system does not hang here); the loop, polling the drives that turn
     from the point before, keeps running meanwhile."""
-    free_bytes, window, beats = RunStore.free_bytes, [], []
+    free_bytes, window = RunStore.free_bytes, []
 
     def slow_free_bytes(self):
         start = time.monotonic()
@@ -181,20 +173,11 @@ async def test_the_free_space_check_before_a_point_is_off_the_loop(tmp_path, mon
             window.append((start, time.monotonic()))
         return free_bytes(self)
 
-    async def heartbeat():
-        while True:
-            beats.append(time.monotonic())
-            await asyncio.sleep(0.01)
-
     monkeypatch.setattr(RunStore, "free_bytes", slow_free_bytes)
-    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim:
+    async with SimRig(speedup=SPEEDUP, adc_pty=False) as sim, LoopBeats() as beats:
         eng = RunEngine(cfg.load_rig(), out_dir=tmp_path / "run", access=simulated_access(sim), confirm_mode="auto")
-        beat = asyncio.create_task(heartbeat())
-        try:
-            outcome = await eng.run(small_matrix(spin_rpm=[1000.0, 2000.0]))
-        finally:
-            beat.cancel()
+        outcome = await eng.run(small_matrix(spin_rpm=[1000.0, 2000.0]))
     assert outcome.status == "completed", outcome.message
     assert len(window) == 3  # the whole plan's before the drives move, then before each point
     for start, end in window[1:]:
-        assert sum(start < t < end for t in beats) >= 20  # a blocked loop: none
+        assert beats.within(start, end) >= 20  # a blocked loop: none

@@ -18,7 +18,7 @@ import signal
 import sys
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, SimDrives, subprocess_env
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, SimDrives, exit_with_registers, subprocess_env
 from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(60)
@@ -55,14 +55,7 @@ async def _late_signal(sim: SimDrives, sig: signal.Signals, *command: str) -> tu
         stdout=asyncio.subprocess.PIPE,
         stderr=asyncio.subprocess.PIPE,
     )
-    try:
-        _, err = await asyncio.wait_for(proc.communicate(), 40)
-        at_exit = [sim.regs(dev) for dev in (1, 2)]
-    finally:
-        if proc.returncode is None:
-            proc.kill()
-            await proc.wait()
-    return proc.returncode, err.decode(), at_exit
+    return await exit_with_registers(proc, sim)
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])

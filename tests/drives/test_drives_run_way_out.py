@@ -11,7 +11,7 @@ import os
 import signal
 
 import pytest
-from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, SimDrives, start_cli
+from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, SimDrives, exit_with_registers, start_cli
 
 pytestmark = pytest.mark.timeout(60)
 SW_AT_SETPOINT = 0x100
@@ -34,18 +34,6 @@ async def _run(sim: SimDrives, *extra: str, stdout=asyncio.subprocess.PIPE):
     )
 
 
-async def _exit(proc, sim: SimDrives) -> tuple[int, str, list[dict]]:
-    """(exit status, standard error, both drives' registers as the command exited)."""
-    try:
-        _, err = await asyncio.wait_for(proc.communicate(), 40)
-        at_exit = [sim.regs(dev) for dev in (1, 2)]
-    finally:
-        if proc.returncode is None:
-            proc.kill()
-            await proc.wait()
-    return proc.returncode, err.decode(), at_exit
-
-
 def _at_setpoint(sim: SimDrives) -> bool:
     return bool(sim.regs(1)["SW"] & SW_AT_SETPOINT and sim.regs(2)["SW"] & SW_AT_SETPOINT)
 
@@ -62,7 +50,7 @@ async def test_a_second_signal_during_the_ramp_is_an_emergency_stop(slow_drives)
     await sim.wait_for(lambda: _ramping(sim), 10, "ramp stop")
     assert sim.rpm(1) > 300  # still ramping down
     proc.send_signal(signal.SIGQUIT)
-    code, err, at_exit = await _exit(proc, sim)
+    code, err, at_exit = await exit_with_registers(proc, sim)
     assert code == 4, err
     assert "interrupted by SIGTERM; both drives stopped; SIGQUIT during the stop: drives: emergency stop (OFF3)" in err
     for regs in at_exit:
@@ -77,7 +65,7 @@ async def test_a_stop_not_confirmed_is_said_and_fails(slow_drives):
     proc.send_signal(signal.SIGINT)
     await sim.wait_for(lambda: _ramping(sim), 10, "ramp stop")
     sim.models[1].local_control(1000.0)
-    code, err, _ = await _exit(proc, sim)
+    code, err, _ = await exit_with_registers(proc, sim)
     assert code == 1, err
     assert "interrupted by SIGINT; drives not confirmed stopped: DriveTimeoutError" in err
     assert "both drives stopped" not in err and "Traceback" not in err
@@ -99,7 +87,7 @@ async def test_the_hold_outlives_a_closed_standard_output(slow_drives):
     assert proc.returncode is None, (await proc.stderr.read()).decode()
     assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RUN and _at_setpoint(sim)
     proc.send_signal(signal.SIGTERM)
-    code, err, at_exit = await _exit(proc, sim)
+    code, err, at_exit = await exit_with_registers(proc, sim)
     assert code == 0, err
     assert "SIGTERM: ramping both drives to zero" in err and "Traceback" not in err
     for regs in at_exit:
@@ -116,7 +104,7 @@ async def test_run_to_a_closed_standard_output_still_reaches_its_setpoint(slow_d
         proc = await _run(sim, "--settle", "0.05", stdout=w)
     finally:
         os.close(w)
-    code, err, at_exit = await _exit(proc, sim)
+    code, err, at_exit = await exit_with_registers(proc, sim)
     assert code == 0, err
     assert "drives left running at their setpoint" in err and "Traceback" not in err
     for regs in at_exit:

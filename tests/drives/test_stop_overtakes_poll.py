@@ -46,18 +46,27 @@ async def _both_stopped_after(sim, t0: float) -> float:
     return loop.time() - t0
 
 
+async def _turning(rig) -> None:
+    await rig.set_speeds(600 * RPM, 300 * RPM)
+    await rig.wait_settled(hold=0.05, timeout=10)
+
+
+async def _emergency_stop(rig, sim) -> float:
+    """The emergency stop sent now: seconds until both drives hold its word (it reports no failure)."""
+    t0 = asyncio.get_running_loop().time()
+    stop = rig.stop_now(emergency=True)
+    took = await _both_stopped_after(sim, t0)
+    assert await stop == []
+    return took
+
+
 async def test_on_tcp_the_stop_does_not_wait_for_an_unanswered_poll_read(tcp_sim):
     sim = tcp_sim
     async with open_rig(sim, LIMITS, timeout=TIMEOUT, poll_interval=0.1, comm_loss_timeout=2.0) as rig:
-        await rig.set_speeds(600 * RPM, 300 * RPM)
-        await rig.wait_settled(hold=0.05, timeout=10)
+        await _turning(rig)
         failures, connects = rig.state.poll_failures, rig.link.connects
         await _unanswered(sim)
-        loop = asyncio.get_running_loop()
-        t0 = loop.time()
-        stop = rig.stop_now(emergency=True)
-        took = await _both_stopped_after(sim, t0)
-        assert await stop == []
+        took = await _emergency_stop(rig, sim)
         await asyncio.sleep(0.3)  # polls go on after the one given up
         state = rig.state
     assert took < TIMEOUT / 2, f"the stop waited {took:.3f} s for the read in flight"
@@ -69,15 +78,10 @@ async def test_on_tcp_a_write_in_flight_is_answered_before_the_stop(tcp_sim):
     """A write is never given up: on another connection the stop could overtake it."""
     sim = tcp_sim
     async with open_rig(sim, LIMITS, timeout=TIMEOUT, poll_interval=0.1, comm_loss_timeout=2.0) as rig:
-        await rig.set_speeds(600 * RPM, 300 * RPM)
-        await rig.wait_settled(hold=0.05, timeout=10)
+        await _turning(rig)
         write = asyncio.create_task(rig.link.write(1, R.REF2, [0]))  # REF2: unused, reads back what was written
         await _unanswered(sim)
-        loop = asyncio.get_running_loop()
-        t0 = loop.time()
-        stop = rig.stop_now(emergency=True)
-        took = await _both_stopped_after(sim, t0)
-        assert await stop == []
+        took = await _emergency_stop(rig, sim)
         with pytest.raises(DriveTimeoutError):
             await write
     assert TIMEOUT / 2 < took < TIMEOUT + 1.0, took  # waited for it (the read that gives way: < TIMEOUT / 2)
@@ -86,14 +90,9 @@ async def test_on_tcp_a_write_in_flight_is_answered_before_the_stop(tcp_sim):
 @pytest.mark.parametrize("sim", ["rtu"], indirect=True)
 async def test_on_rtu_the_stop_waits_for_the_read_then_the_settle_time(sim):
     async with open_rig(sim, LIMITS, timeout=TIMEOUT, poll_interval=0.1, comm_loss_timeout=2.0) as rig:
-        await rig.set_speeds(600 * RPM, 300 * RPM)
-        await rig.wait_settled(hold=0.05, timeout=10)
+        await _turning(rig)
         await _unanswered(sim)
-        loop = asyncio.get_running_loop()
-        t0 = loop.time()
-        stop = rig.stop_now(emergency=True)
-        took = await _both_stopped_after(sim, t0)
-        assert await stop == []
+        took = await _emergency_stop(rig, sim)
     settle = min(TIMEOUT, 0.05)  # drives.rtu.RtuLine's default
     assert TIMEOUT / 2 < took < TIMEOUT + settle + 1.0, took
 

@@ -132,6 +132,18 @@ async def start_cli(
     )
 
 
+async def exit_with_registers(proc: asyncio.subprocess.Process, sim: SimDrives) -> tuple[int, str, list[dict]]:
+    """(exit status, standard error, both drives' registers as the command exited) of `proc`."""
+    try:
+        _, err = await asyncio.wait_for(proc.communicate(), 40)
+        at_exit = [sim.regs(dev) for dev in (1, 2)]
+    finally:
+        if proc.returncode is None:
+            proc.kill()
+            await proc.wait()
+    return proc.returncode, err.decode(), at_exit
+
+
 async def run_cli(*args: str, timeout: float = 20.0) -> tuple[int, str, str]:
     """`python -m orbitrig <args>` run to its end in a subprocess while this loop keeps serving."""
     proc = await start_cli(*args)
