@@ -294,13 +294,22 @@ def main() -> int:
         help="protocols against the paper's (--engine): designed, sequential",
     )
     ap.add_argument("--partial", type=Path, help="append each run's figures to this file as it ends (--engine)")
+    ap.add_argument(
+        "--scenarios",
+        default="paper,compressible",
+        help="simulator scenarios (--engine): paper (spread and time) and compressible (adequacy)",
+    )
     args = ap.parse_args()
     rig = load_rig(ROOT / "config" / "rig.toml")
     if args.engine:
-        from bench.bench_rig_time_engine import engine_figures
+        from bench.bench_rig_time_engine import SCENARIOS, engine_figures
 
+        scenarios = tuple(args.scenarios.split(","))
+        if "paper" not in scenarios or not set(scenarios) <= set(SCENARIOS):
+            ap.error(f"--scenarios: paper and any of {', '.join(SCENARIOS[1:])}")
+        protocols = tuple(args.protocols.split(","))
         figures = engine_figures(
-            rig, args.runs or 20, pilot_problem, PAPER, args.speedup, tuple(args.protocols.split(",")), args.partial
+            rig, args.runs or 20, pilot_problem, PAPER, args.speedup, protocols, args.partial, scenarios
         )
         print(json.dumps(figures, indent=None if args.json else 1))
         return 0 if figures["goal_met"] else 1
