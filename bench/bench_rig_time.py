@@ -76,30 +76,42 @@ def new_physics(seed: int) -> RigPhysics:
     return RigPhysics(dataclasses.replace(scenario("paper"), seed=seed))
 
 
+def simulated_block(physics, rig, orbit: float, rule, t0: float):
+    """One block at ``orbit`` (rad/s, signed) and SPIN from t0 (simulated s): the A/D board's
+    revolutions quantised with the rig's gains and averaged by daq's StreamingAverager under
+    ``rule``; the AveragedBlock."""
+    gains = np.asarray(rig.gains)
+    period = 2 * math.pi / abs(orbit)
+    slots, values = simulate_revolutions(physics, SPIN, orbit, rule.max_revolutions, t0=t0)
+    counts = np.clip(np.round(values / gains[:, None]), -32768, 32767).astype(np.int16)
+    n = counts.shape[0]
+    revs = np.arange(n, dtype=np.int64)
+    batch = RevolutionBatch(revs, (revs * period * 1e6).astype(np.int64), np.full(n, period), counts, slots)
+    return StreamingAverager(rule, gains, np.zeros(gains.size)).take(batch)[1]
+
+
+def blocks_in_order(ratios) -> list[tuple[int, float]]:
+    """(direction, ratio) of a list's blocks in the order they run: forward from the highest
+    ratio down, then backward from the lowest up (the shortest orbit ramps)."""
+    return [(+1, r) for r in sorted(ratios, reverse=True)] + [(-1, r) for r in sorted(ratios)]
+
+
 def run_point(physics, rig, ratios, rules):
     """One operating point: blocks at +-ratio x spin, ``rules`` one AveragingRule per ratio;
     (table, revolutions used per block, rig seconds)."""
-    gains = np.asarray(rig.gains)
     rule_of = dict(zip(ratios, rules))
     rows, us, ns, orbits, t = [], [], [], [], 0.0
-    for direction in (+1, -1):
-        for r in sorted(ratios, reverse=True) if direction > 0 else sorted(ratios):
-            rule = rule_of[r]
-            orbit = direction * r * SPIN
-            period = 2 * math.pi / abs(orbit)
-            slots, values = simulate_revolutions(physics, SPIN, orbit, rule.max_revolutions, t0=t)
-            counts = np.clip(np.round(values / gains[:, None]), -32768, 32767).astype(np.int16)
-            n = counts.shape[0]
-            revs = np.arange(n, dtype=np.int64)
-            batch = RevolutionBatch(revs, (revs * period * 1e6).astype(np.int64), np.full(n, period), counts, slots)
-            _, block = StreamingAverager(rule, gains, np.zeros(gains.size)).take(batch)
-            t += (block.n_records + 1) * period + rig.settle.hold_s + rig.estimates.store_s
-            q = block.record_phasors
-            recs = np.stack([(q[:, 4] + q[:, 6]) / 2, (q[:, 5] + q[:, 7]) / 2, q[:, 0], q[:, 1]], axis=1)
-            rows.append(recs.mean(axis=0))
-            us.append(mean_uncertainty(recs, 1 / r))
-            ns.append(block.n_records)
-            orbits.append(abs(orbit))
+    for direction, r in blocks_in_order(ratios):
+        orbit = direction * r * SPIN
+        period = 2 * math.pi / abs(orbit)
+        block = simulated_block(physics, rig, orbit, rule_of[r], t)
+        t += (block.n_records + 1) * period + rig.settle.hold_s + rig.estimates.store_s
+        q = block.record_phasors
+        recs = np.stack([(q[:, 4] + q[:, 6]) / 2, (q[:, 5] + q[:, 7]) / 2, q[:, 0], q[:, 1]], axis=1)
+        rows.append(recs.mean(axis=0))
+        us.append(mean_uncertainty(recs, 1 / r))
+        ns.append(block.n_records)
+        orbits.append(abs(orbit))
     t += 2 * max(ratios) * SPIN / rig.ramp_rate
     rows = np.array(rows)
     table = OrbitTable(
@@ -282,13 +294,22 @@ def main() -> int:
         help="protocols against the paper's (--engine): designed, sequential",
     )
     ap.add_argument("--partial", type=Path, help="append each run's figures to this file as it ends (--engine)")
+    ap.add_argument(
+        "--scenarios",
+        default="paper,compressible",
+        help="simulator scenarios (--engine): paper (spread and time) and compressible (adequacy)",
+    )
     args = ap.parse_args()
     rig = load_rig(ROOT / "config" / "rig.toml")
     if args.engine:
-        from bench.bench_rig_time_engine import engine_figures
+        from bench.bench_rig_time_engine import SCENARIOS, engine_figures
 
+        scenarios = tuple(args.scenarios.split(","))
+        if "paper" not in scenarios or not set(scenarios) <= set(SCENARIOS):
+            ap.error(f"--scenarios: paper and any of {', '.join(SCENARIOS[1:])}")
+        protocols = tuple(args.protocols.split(","))
         figures = engine_figures(
-            rig, args.runs or 20, pilot_problem, PAPER, args.speedup, tuple(args.protocols.split(",")), args.partial
+            rig, args.runs or 20, pilot_problem, PAPER, args.speedup, protocols, args.partial, scenarios
         )
         print(json.dumps(figures, indent=None if args.json else 1))
         return 0 if figures["goal_met"] else 1

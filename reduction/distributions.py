@@ -35,3 +35,8 @@ def chi2_isf(q: float, dof: float) -> float:
 def f_sf(x: float, dfn: float, dfd: float) -> float:
     """P(X > ``x``) of an F variable with (``dfn``, ``dfd``) degrees of freedom (1 for x <= 0)."""
     return float(special.fdtrc(dfn, dfd, max(float(x), 0.0)))
+
+
+def f_isf(q: float, dfn: float, dfd: float) -> float:
+    """The F value with upper tail ``q`` at (``dfn``, ``dfd``) degrees of freedom."""
+    return float(special.fdtri(dfn, dfd, 1.0 - q))

@@ -18,12 +18,14 @@ def test_each_function_matches_scipy_stats_over_its_range():
         assert d.chi2_sf(x, dof) == pytest.approx(stats.chi2.sf(x, dof), rel=1e-12, abs=1e-300)
         assert d.chi2_isf(p, dof) == pytest.approx(stats.chi2.isf(p, dof), rel=1e-12)
         assert d.f_sf(x / dof, dof, d2) == pytest.approx(stats.f.sf(x / dof, dof, d2), rel=1e-12, abs=1e-300)
+        assert d.f_isf(p, dof, d2) == pytest.approx(stats.f.isf(p, dof, d2), rel=1e-9)
 
 
 def test_hand_checked_values_and_edges():
     assert d.norm_ppf(0.975) == pytest.approx(1.959964, abs=1e-6)
     assert d.t_ppf(0.975, 10) == pytest.approx(2.228139, abs=1e-6)
     assert d.chi2_isf(0.05, 1) == pytest.approx(3.841459, abs=1e-6)
+    assert d.f_isf(0.05, 19, 19) == pytest.approx(2.168, abs=1e-3)
     assert d.chi2_sf(3.841459, 1) == pytest.approx(0.05, abs=1e-7)
     assert d.chi2_sf(-1.0, 3) == 1.0 and d.f_sf(-1.0, 2, 3) == 1.0  # no mass below zero
     assert np.isnan(d.chi2_sf(float("nan"), 3))
