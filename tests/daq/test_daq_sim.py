@@ -166,7 +166,9 @@ async def test_close_link_reconnects(rig, link, tmp_path):
 
     block, used = await acquire_with_fault(rig, url, fault)
     s = block.stats
-    assert s.link_drops == 1
+    # a pty reader that reopens the by-id link before it is re-pointed (a loaded machine) opens
+    # the hung-up pty once more and loses it again: a second drop
+    assert s.link_drops == 1 if link == "tcp" else 1 <= s.link_drops <= 2, s
     # what the board converted while nobody read it is lost: its next frame says OVERRUN (seen
     # when the reconnect is slow, on a loaded machine)
     assert set(s.drop_reasons) <= {"link_drop", "seq_gap", "corrupt", "overrun"}
