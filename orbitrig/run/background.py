@@ -31,6 +31,7 @@ from orbitrig.store.errors import StorageError
 log = logging.getLogger(__name__)
 T = TypeVar("T")
 POINTS_IN_FLIGHT = 1  # earlier points still identified or stored while the next one is measured
+BACKLOG_NOTE_S = 30.0  # wall s of waiting for them between two notes of it
 STORAGE_THREAD = ThreadPoolExecutor(max_workers=1, thread_name_prefix="orbitrig-storage")  # started on first use
 
 
@@ -87,15 +88,21 @@ class Background:
         """A point's completion (identified, stored, committed): counted by `wait_for_points`."""
         self._points.append(self.spawn(coro, name))
 
-    async def wait_for_points(self, limit: int = POINTS_IN_FLIGHT) -> None:
+    async def wait_for_points(self, limit: int = POINTS_IN_FLIGHT, note: Callable[[str], None] | None = None) -> None:
         """Wait until at most `limit` points are still on their way to completion (none is
-        cancelled, even if this wait is); the seconds waited count as timing["backlog"]."""
+        cancelled, even if this wait is); the seconds waited count as timing["backlog"]. Every
+        BACKLOG_NOTE_S wall s of waiting `note` is told how long (a stalled disk says so)."""
         t = time.monotonic()
         while self._points:
             if self._points[0].done():
                 self._points.popleft()
             elif len(self._points) > limit:
-                await asyncio.wait({self._points[0]})
+                done, _ = await asyncio.wait({self._points[0]}, timeout=BACKLOG_NOTE_S)
+                if not done and note is not None:
+                    note(
+                        f"waiting for {self._points[0].get_name()} (identified and stored in the background) "
+                        f"for {time.monotonic() - t:.0f} s: a slow or stalled disk, or a loaded computer"
+                    )
             else:
                 break
         self.timing["backlog"] = self.timing.get("backlog", 0.0) + time.monotonic() - t

@@ -144,7 +144,7 @@ class PointProcedure:
     # ------------------------------------------------------------- driving
     async def run_point(self, p: OperatingPoint, steps: list[Step], first: bool) -> None:
         r = self.r
-        await r.background.wait_for_points()  # bounded memory: no pile of points awaiting identification
+        await r.background.wait_for_points(note=r.note)  # bounded memory: no pile of points waiting
         r.background.spawn(r.background.write(r.store.begin_point, p), f"begin point {p.index:04d}")
         r.store.log(f"point {p.index:04d} {p.label}: begin")
         r.supervisor.pressure_armed = False

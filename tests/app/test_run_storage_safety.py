@@ -14,6 +14,7 @@ import pytest
 
 from orbitrig import config as cfg
 from orbitrig.cli.simulated_rig import simulated_access
+from orbitrig.run import background
 from orbitrig.run.background import Background, to_the_end
 from orbitrig.run.engine import RunEngine, StatusEvent
 from orbitrig.run.events import RunFailed
@@ -181,3 +182,20 @@ async def test_the_free_space_check_before_a_point_is_off_the_loop(tmp_path, mon
     assert len(window) == 3  # the whole plan's before the drives move, then before each point
     for start, end in window[1:]:
         assert beats.within(start, end) >= 20  # a blocked loop: none
+
+
+async def test_a_long_wait_for_the_points_before_is_said(monkeypatch):
+    """The next point waits for the points still identified and stored (bounded memory); a disk
+    that stalls them makes the wait long, and the run's events say so every BACKLOG_NOTE_S."""
+    monkeypatch.setattr(background, "BACKLOG_NOTE_S", 0.1)
+    bg, notes, release = Background({}), [], asyncio.Event()
+    bg.spawn_point(release.wait(), "complete point 0000")
+    bg.spawn_point(release.wait(), "complete point 0001")
+    waiting = asyncio.create_task(bg.wait_for_points(note=notes.append))
+    await asyncio.sleep(0.35)
+    assert not waiting.done()
+    assert 2 <= len(notes) <= 3 and all(n.startswith("waiting for complete point 0000 ") for n in notes), notes
+    assert notes[-1].split(" for ")[2].startswith("0 s")  # how long, in s
+    release.set()
+    await waiting
+    assert bg.timing["backlog"] >= 0.35
