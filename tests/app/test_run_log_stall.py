@@ -93,7 +93,7 @@ async def test_a_stalled_run_log_holds_neither_the_loop_nor_an_abort(tmp_path):
                 await wait_for(lambda: max(abs(s) for s in sim.speeds) < 1.0, 30, what="the drives at rest")
                 await asyncio.sleep(0.5)
                 assert not run.done()  # the run's end waits for its log lines: none is lost
-                assert beats.longest_gap() < 0.5, beats.longest_gap()  # the loop never waited for the disk
+                assert beats.longest_gap() < 2.0, beats.longest_gap()  # the loop never waited for the disk (20 s)
             finally:
                 disk.back()  # the disk comes back
             outcome = await asyncio.wait_for(asyncio.shield(run), 60)
