@@ -32,7 +32,6 @@ sharing (orbitrig.analysis.report_pdf). Points are drawn by a pool of worker pro
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -41,23 +40,19 @@ from orbitrig.analysis.report_pdf import COMBINED_PDF, combine_pdf
 from orbitrig.analysis.report_pool import Progress, draw_points
 from orbitrig.analysis import plots_coefficients, plots_coherence, plots_derived, plots_forces, plots_lms, plots_signals
 from orbitrig.analysis import plots_summary, report_cache
-from orbitrig.analysis.quality import Verdict, adequacy_verdicts, derived_basis, derived_of, true_impedance, warnings_of
+from orbitrig.analysis.quality import derived_basis, true_impedance
+from orbitrig.analysis.report_analysis import PREFERRED_MODELS, PointReport, analyse_point, fit_label, preferred
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
-from orbitrig.errors import ReductionError
-from orbitrig.analysis.reduce import Reduced, own_truth, reidentify
+from orbitrig.analysis.reduce import own_truth
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.errors import storage_error
 from orbitrig.store.reader import Point, Run, RunDirError, read_run
 from orbitrig.store.selection import select_points
-from reduction.derived import Derived
-from reduction.identify import Method
 from reduction.whirl import Whirl
 
 PLOTS_DIR = "plots"
 #: figure kinds of a point (file name prefixes); `orbitrig report --figures` picks some
 FIGURES = ("forces", "coefficients", "derived", "impedance", "coherence", "lms", "signals", "orbits")
-#: compared across the two load measuring systems, first one present wins
-PREFERRED_MODELS = (("kcd11", "none"), ("kc8", "none"), ("kc7", "none"), ("kcd12", "none"))
 
 
 @dataclass(frozen=True)
@@ -67,35 +62,6 @@ class ReportOptions:
     figures: frozenset[str] = frozenset(FIGURES)
     all_frequencies: bool = False
     style: plots.FigureStyle = plots.FigureStyle()
-
-
-@dataclass
-class PointReport:
-    """What the report shows of one operating point."""
-
-    point: Point
-    results: dict[LoadSystem, list[Reduced]] = field(default_factory=dict)  # lms -> re-identified
-    plots: list[Path] = field(default_factory=list)
-    mismatches: list[str] = field(default_factory=list)  # stored vs repeated identification
-    unreadable: list[str] = field(default_factory=list)  # stored blocks the signal figures could not read
-    verdicts: dict[LoadSystem, list[Verdict]] = field(default_factory=dict)  # lms -> model adequacy
-    derived: dict[LoadSystem, list[tuple[Reduced, Derived]]] = field(default_factory=dict)  # lms -> derived
-
-    def fit_warnings(self) -> list[str]:
-        """'<lms> <model> <freq-dep> warns: <text>' for every warning of a repeated or stored fit,
-        and '<lms> <model> <freq-dep> refused: <reason>' for every stored refusal."""
-        out = [
-            f"{r.lms} {r.model} {r.freq_dep} warns: {w}"
-            for rs in self.results.values()
-            for r in rs
-            for w in warnings_of(r)
-        ]
-        out += [
-            f"{i.lms} {i.model} {i.freq_dep} refused: {(i.error or '').splitlines()[0]}"
-            for i in self.point.identifications
-            if not i.ok
-        ]
-        return out + self.unreadable
 
 
 @dataclass
@@ -112,54 +78,6 @@ class Report:
     @property
     def plots(self) -> list[Path]:
         return [p for pr in self.points for p in pr.plots] + ([self.summary] if self.summary else [])
-
-
-def fit_label(r: Reduced) -> str:
-    """'kcd11 (11 coef.)', 'kcd11 power:1 (22 coef.)' - the paper's wording."""
-    ident = r.identification
-    fd = "" if r.freq_dep == "none" else f" {r.freq_dep}"
-    if ident is not None and ident.exponent and r.freq_dep == "power:auto":
-        fd = f" power:{ident.exponent} (auto)"
-    n = f" ({ident.n_coefficients} coef.)" if ident is not None else ""
-    method = "" if r.method == Method.OLS else f", {r.method}"
-    return f"{r.model}{fd}{n}{method}"
-
-
-def _compare(r: Reduced, stored: dict) -> list[str]:
-    """Name coefficients where the repeated identification differs from the stored one."""
-    if r.identification is None:
-        return [f"{r.lms} {r.model} {r.freq_dep}: stored result, but repeating it was refused: {r.error}"]
-    out = []
-    coefs = stored.get("coefficients", {})
-    new = r.identification.coefficients
-    scale = {m: max((abs(v) for k, v in coefs.items() if k[0] == m), default=0.0) for m in "KCD"}
-    for k, v in coefs.items():
-        w = new.get(k)
-        if w is None or not math.isclose(v, w, rel_tol=1e-6, abs_tol=1e-9 * scale.get(k[0], 0.0)):
-            out.append(f"{r.lms} {r.model} {r.freq_dep}: {k} stored {v:.6g}, repeated {w}")
-    return out
-
-
-def analyse_point(point: Point) -> PointReport:
-    """Repeat the sweep's identifications of one point (both LMS); test each frequency-dependent
-    fit against the constant one and form the derived quantities of every fit."""
-    pr = PointReport(point)
-    for stored in point.identifications:
-        if stored.lms not in point.tables or stored.result is None:  # refused: nothing to repeat
-            continue
-        try:
-            r = reidentify(point, stored)
-        except ReductionError as err:  # a stored spec this version of reduction rejects
-            pr.mismatches.append(f"{stored.lms} {stored.model} {stored.freq_dep}: cannot be repeated: {err}")
-            continue
-        pr.mismatches += _compare(r, stored.result)
-        if r.identification is not None:
-            pr.results.setdefault(stored.lms, []).append(r)
-    for lms, table in point.tables.items():
-        results = pr.results.get(lms, [])
-        pr.verdicts[lms] = adequacy_verdicts(lms, results)
-        pr.derived[lms] = [(r, d) for r in results if (d := derived_of(r, table.orbit)) is not None]
-    return pr
 
 
 def _plot_signals(run: Run, pr: PointReport, out: Path, where: str, opts: ReportOptions) -> None:
@@ -293,16 +211,6 @@ def _plot_point(run: Run, pr: PointReport, out: Path, opts: ReportOptions) -> No
                 title=f"Two load measuring systems: strain gauge vs piezoelectric\n{where}",
             )
         )
-
-
-def preferred(pr: PointReport, model: tuple[str, str] | None = None) -> dict[LoadSystem, Reduced]:
-    """The first constant-coefficient model of PREFERRED_MODELS (or `model`) that was
-    identified from both load measuring systems, per LMS; {} when there is none."""
-    for spec in [model] if model else PREFERRED_MODELS:
-        found = {lms: r for lms in LMS for r in pr.results.get(lms, []) if (r.model, r.freq_dep) == spec}
-        if len(found) == len(LMS):
-            return found
-    return {}
 
 
 def summary_plot_for(report: Report) -> Path | None:

@@ -16,7 +16,7 @@ from orbitrig.analysis.plots import PAIR_LABELS
 from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_table
 from orbitrig.analysis.reduce import true_constants
 from orbitrig.analysis.quality import has_budget, interval_sentence, lms_comparison
-from orbitrig.analysis.report import fit_label, preferred
+from orbitrig.analysis.report_analysis import fit_label, preferred
 from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.durable import write_atomic

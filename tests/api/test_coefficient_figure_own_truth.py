@@ -6,14 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from orbitrig.analysis import plots_coefficients, report
+from orbitrig.analysis import plots_coefficients, report, report_analysis
 from orbitrig.analysis.reduce import MATRIX_UNITS, own_truth
 from orbitrig.store.reader import read_run
 
 
 def test_truth_crosses_are_each_fits_own_truth(sim_run, tmp_path, monkeypatch):
     point = read_run(sim_run).points[0]
-    pr = report.analyse_point(point)
+    pr = report_analysis.analyse_point(point)
     drawn = {}
 
     def keep(path, fitted, **kw):

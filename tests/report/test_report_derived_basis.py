@@ -10,7 +10,8 @@ import pytest
 
 from orbitrig.analysis import plots, report
 from orbitrig.analysis.quality import derived_basis
-from orbitrig.analysis.report import ReportOptions, analyse_point
+from orbitrig.analysis.report import ReportOptions
+from orbitrig.analysis.report_analysis import analyse_point
 from orbitrig.store.reader import read_run
 from reduction.derived import derived_quantities
 from reduction.systematic import UncertaintyBasis

@@ -12,7 +12,8 @@ import pytest
 
 from orbitrig import config as cfg
 from orbitrig.analysis.quality import derived_basis
-from orbitrig.analysis.report import Report, analyse_point
+from orbitrig.analysis.report import Report
+from orbitrig.analysis.report_analysis import analyse_point
 from orbitrig.analysis.report_html import render
 from orbitrig.store.reader import read_run
 from reduction.derived import derived_quantities

@@ -13,7 +13,8 @@ from pypdf import PdfReader
 
 from orbitrig.analysis import plots, plots_coefficients, plots_forces
 from orbitrig.analysis.reduce import MATRIX_UNITS
-from orbitrig.analysis.report import ReportOptions, analyse_point, fit_label, make_report
+from orbitrig.analysis.report import ReportOptions, make_report
+from orbitrig.analysis.report_analysis import analyse_point, fit_label
 from orbitrig.cli.report_progress import ReportProgress
 from orbitrig.store.reader import read_run
 

@@ -13,7 +13,7 @@ import pytest
 from orbitrig.analysis.plots import Fitted
 from orbitrig.analysis.plots_derived import derived_figure, impedance_figure
 from orbitrig.analysis.quality import derived_of, true_impedance
-from orbitrig.analysis.report import analyse_point
+from orbitrig.analysis.report_analysis import analyse_point
 from orbitrig.store.reader import read_run
 from reduction.systematic import UncertaintyBasis
 

@@ -19,7 +19,7 @@ def test_report_of_a_killed_run_says_how_to_continue_it(tmp_path):
 def test_forces_plot_keeps_agreeing_models_visible(tmp_path):
     """kc8 and kcd11 reproduce nearly the same forces: the lines differ in width so neither hides the other."""
     from orbitrig.analysis import plots, plots_forces
-    from orbitrig.analysis.report import analyse_point
+    from orbitrig.analysis.report_analysis import analyse_point
     from orbitrig.store.reader import read_run
 
     run = write_synthetic_run(tmp_path / "run", n_points=1, incomplete=0)

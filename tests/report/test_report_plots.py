@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 
 from orbitrig.cli import app
 from orbitrig.analysis.reduce import coefficient_unit
-from orbitrig.analysis.report import analyse_point
+from orbitrig.analysis.report_analysis import analyse_point
 from orbitrig.store.reader import read_run
 from support.report_synthetic import write_synthetic_run
 

@@ -17,7 +17,7 @@ from orbitrig.analysis.plots_coefficients import POINT_TRUTH_LABEL, coefficients
 from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_figure, coherence_table
 from orbitrig.analysis.plots_derived import derived_figure, impedance_figure
 from orbitrig.analysis.quality import adequacy_verdicts, derived_of, true_impedance
-from orbitrig.analysis.report import analyse_point, fit_label
+from orbitrig.analysis.report_analysis import analyse_point, fit_label
 from orbitrig.analysis.report_tables import identification_table, verdict_list
 from orbitrig.store.reader import read_run
 from reduction.systematic import UncertaintyBasis
@@ -201,7 +201,7 @@ def test_lms_consistency_table_shows_the_normalised_difference(point_report):
     """The strain gauges read 1.8 % high (synthetic): the K entries differ by about 1.8 %, and
     E_n = (piezo - strain) / u is negative and large where the statistical uncertainty is small."""
     from orbitrig.analysis.quality import LmsComparison, lms_normalised_difference
-    from orbitrig.analysis.report import preferred
+    from orbitrig.analysis.report_analysis import preferred
     from orbitrig.analysis.report_tables import consistency_table
 
     found = preferred(point_report)

@@ -138,7 +138,9 @@ def test_an_unreadable_block_leaves_the_other_figures(synthetic_run, tmp_path):
     point's other signal figures and its orbits are still drawn."""
     from dataclasses import replace
 
-    from orbitrig.analysis.report import ReportOptions, _plot_signals, analyse_point
+    from orbitrig.analysis.report import ReportOptions, _plot_signals
+
+    from orbitrig.analysis.report_analysis import analyse_point
 
     point = read_run(synthetic_run).points[0]
     ghost = replace(next(f for f in point.frequencies if f.name == "00_fwd"), name="00_fwd_missing", orbit_hz=0.1)

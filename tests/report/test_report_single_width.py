@@ -13,7 +13,8 @@ from matplotlib.text import Text
 
 from orbitrig.analysis import plots
 from orbitrig.analysis import plots_narrow as narrow
-from orbitrig.analysis.report import FIGURES, Report, ReportOptions, analyse_point, draw_point, summary_plot_for
+from orbitrig.analysis.report import FIGURES, Report, ReportOptions, draw_point, summary_plot_for
+from orbitrig.analysis.report_analysis import analyse_point
 from orbitrig.store.reader import read_run
 
 KINDS = ("forces", "coefficients", "derived", "impedance", "coherence", "lms", "signals", "orbits", "summary")

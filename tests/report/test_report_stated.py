@@ -12,7 +12,8 @@ import pytest
 
 from orbitrig import config as cfg
 from orbitrig.analysis.quality import lms_comparison
-from orbitrig.analysis.report import Report, analyse_point, fit_label, preferred
+from orbitrig.analysis.report import Report
+from orbitrig.analysis.report_analysis import analyse_point, fit_label, preferred
 from orbitrig.analysis.report_html import render
 from orbitrig.analysis.report_tables import identification_table
 from orbitrig.store.reader import read_run
