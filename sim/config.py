@@ -23,7 +23,7 @@ from pathlib import Path
 Matrix = tuple[tuple[float, float], tuple[float, float]]
 
 CHANNEL_NAMES = ("fx_piezo", "fy_piezo", "fx_strain", "fy_strain", "x_a", "y_a", "x_b", "y_b")
-CHANNEL_GAINS = (0.1, 0.1, 0.1, 0.1, 5e-9, 5e-9, 5e-9, 5e-9)  # unit/count, docs/architecture.md
+CHANNEL_GAINS = (0.1, 0.1, 0.1, 0.1, 5e-9, 5e-9, 5e-9, 5e-9)  # unit/count, docs/interfaces.md (channel map)
 
 
 def _zeros() -> Matrix:

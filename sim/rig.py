@@ -39,7 +39,7 @@ SLOT_ANGLE = 2.0 * math.pi / SLOTS
 
 
 class SimRig:
-    """The simulated rig (async context manager); see docs/architecture.md."""
+    """The simulated rig (async context manager); see docs/interfaces.md (sim/) and docs/simulator.md."""
 
     def __init__(
         self,

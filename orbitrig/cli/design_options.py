@@ -65,7 +65,7 @@ KeepTest = Annotated[
     bool,
     typer.Option(
         "--model-test/--no-model-test",
-        help="With --match or --target: keep the adequacy test of the richest frequency-dependent model (the matrix's, else this model's poly:1; --freq-dep if not none): enough ratios spread over the band, its errors at most the candidate's.",
+        help="With --match or --target: keep the adequacy test of the richest frequency-dependent model among --model with --freq-dep and the matrix's models (without one: poly:1 of the richest of them): enough ratios spread over the band, its errors at most the candidate's.",
     ),
 ]
 KeepAway = Annotated[

@@ -23,6 +23,7 @@ import numpy.typing as npt
 
 from orbitrig.store.durable import StreamedH5
 from orbitrig.store.errors import WRITE_ERRORS, StorageError
+from orbitrig.store.identity import header_software
 from orbitrig.store.index import PointState, scan
 from orbitrig.store.journal import CAN_DTYPE, CAN_UNITS, DRIVE_DTYPE, DRIVE_UNITS, FIELD_MEANING, Journal, read_journal
 from orbitrig.store.layout import FORMAT, POINT_ATTR_UNITS, RunLayout, point_name
@@ -122,7 +123,8 @@ def _build(
 ) -> None:
     a = f.attrs
     a["format"] = FORMAT
-    for k in ("software_version", "created", "rig_config", "matrix_config", "matrix_name"):
+    a["software_version"] = header_software(header)  # orbitrig's entry naming the code (provenance)
+    for k in ("created", "rig_config", "matrix_config", "matrix_name"):
         a[k] = str(header.get(k, ""))
     a["sim"] = bool(header.get("sim", False))
     scenario = header.get("sim_scenario")

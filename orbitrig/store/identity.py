@@ -17,3 +17,19 @@ def header_identity(header: Mapping[str, Any]) -> str:
     prov = header.get("provenance")
     rig_id = str(prov.get("rig_id", "")) if isinstance(prov, Mapping) else ""
     return run_identity(rig_id, str(header.get("created", "")))
+
+
+def header_software(header: Mapping[str, Any]) -> str:
+    """The software that wrote a run, from its run.json header: ``software_version`` (orbitrig's
+    version, then its libraries') with orbitrig's entry replaced by the provenance's, which names
+    the code (``orbitrig 0.1.0 (source <digest>, git <describe>)``, orbitrig.run.provenance), so
+    that run.h5 and every export carry it, not only run.json. A run without provenance: as stored."""
+    versions = str(header.get("software_version", ""))
+    prov = header.get("provenance")
+    code = str(prov.get("software_version", "")) if isinstance(prov, Mapping) else ""
+    if not code:
+        return versions
+    first, sep, libraries = versions.partition(", ")
+    if first.startswith("orbitrig "):
+        return f"{code}{sep}{libraries}"
+    return f"{code}, {versions}" if versions else code

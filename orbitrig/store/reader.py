@@ -26,7 +26,7 @@ import numpy.typing as npt
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.errors import RunDirError as RunDirError  # its readers' error, imported from here too
 from orbitrig.store.h5_values import json_attr, naming, open_h5, stored_values, text
-from orbitrig.store.identity import run_identity
+from orbitrig.store.identity import header_software, run_identity
 from orbitrig.store.layout import READABLE_FORMATS, RUN_FILE, RunLayout
 from orbitrig.store.layout import freq_dep_from_key, freq_dep_key as freq_dep_key  # storage's key form, read here
 from orbitrig.store.index import NEVER_COMPLETED
@@ -241,7 +241,7 @@ def _read_pieces(layout: RunLayout, blocks: bool = True, indexes: list[int] | No
         status=journal.status,
         status_message=journal.status_message,
         sim=bool(header.get("sim", False)),
-        software_version=str(header.get("software_version", "")),
+        software_version=header_software(header),
         created=str(header.get("created", "")),
         matrix_name=str(header.get("matrix_name", "")),
         rig_config=str(header.get("rig_config", "")),

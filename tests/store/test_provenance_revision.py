@@ -64,3 +64,22 @@ def test_the_provenance_of_a_run_carries_it():
     from orbitrig.config import load_rig
 
     assert Provenance.of_run(load_rig(), "ada").software_version == software_version()
+
+
+def test_the_run_files_name_the_code(tmp_path):
+    """run.h5, the reader (pieces or run.h5) and so every export, the report and the catalog give
+    orbitrig's version as the provenance names it (source digest, git), then the libraries'."""
+    import h5py
+
+    from orbitrig.config import load_rig
+    from orbitrig.store.reader import read_run
+    from support.report_synthetic import write_synthetic_run
+
+    prov = Provenance.of_run(load_rig(), "ada").to_dict()
+    run_dir = write_synthetic_run(tmp_path / "run", n_points=1, incomplete=0, provenance=prov)
+    with h5py.File(run_dir / "run.h5", "r") as f:
+        stored = str(f.attrs["software_version"])
+    assert stored.startswith(software_version() + ", numpy ")
+    assert read_run(run_dir).software_version == stored
+    (run_dir / "run.h5").unlink()  # the pieces alone: the same text
+    assert read_run(run_dir).software_version == stored
