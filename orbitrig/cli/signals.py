@@ -12,7 +12,8 @@ the way out waits for (a prompt, a read) ends at once, so a second Ctrl-C is nev
 
 Once a command's event loop is done with them (:func:`hand_over`), a signal no longer falls to
 Python's default (a KeyboardInterrupt traceback, or death by SIGTERM, in the middle of the way
-out): it is recorded until the process exits (:func:`take_late_signals`). The command then acts on it
+out): it is recorded until the process exits (:func:`take_late_signals`; the third in a row falls
+to Python's default, so that a process held at its exit can be interrupted). The command then acts on it
 where the drives are not left stopped (`drives run`, which leaves them at the setpoint: both are
 opened again and ramped to zero); elsewhere its way out has already stopped the drives, and it
 exits with its own status.
@@ -48,7 +49,16 @@ def hand_over(loop) -> None:
         signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
 
 
+#: late signals recorded in a row before the next one ends the process as Python's default would
+#: (a process held at its exit, e.g. by a stalled disk, can still be interrupted)
+LATE_SIGNALS_KEPT = 2
+
+
 def _record(sig: int, _frame: object) -> None:
+    if len(_late) >= LATE_SIGNALS_KEPT:
+        signal.signal(sig, signal.default_int_handler if sig == signal.SIGINT else signal.SIG_DFL)
+        signal.raise_signal(sig)
+        return
     _late.append(signal.Signals(sig))
 
 
