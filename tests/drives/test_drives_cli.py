@@ -7,7 +7,7 @@ import json
 import signal
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, run_cli, start_cli
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, exit_with_registers, run_cli, start_cli
 
 pytestmark = pytest.mark.timeout(30)  # a hang fails fast, with a traceback
 
@@ -132,15 +132,14 @@ async def test_signal_during_run_stops_both(slow_drives, sig):
     )
     try:
         await sim.wait_for(lambda: sim.regs(1)["SW"] & 0x100 and sim.regs(2)["SW"] & 0x100, 10, "at setpoint")
-        proc.send_signal(sig)
-        out, err = await asyncio.wait_for(proc.communicate(), 10)
-        at_exit = [sim.regs(dev) for dev in (1, 2)]
-    finally:
-        if proc.returncode is None:
-            proc.kill()
-            await proc.wait()
-    assert proc.returncode == 2, err
-    assert f"interrupted by {sig.name}; both drives stopped".encode() in err
+    except BaseException:
+        proc.kill()
+        await proc.wait()
+        raise
+    proc.send_signal(sig)
+    code, err, at_exit = await exit_with_registers(proc, sim)
+    assert code == 2, err
+    assert f"interrupted by {sig.name}; both drives stopped" in err
     for dev, regs in zip((1, 2), at_exit):
         assert regs["CW"] == CW_RAMP_STOP and regs["ACT"] == 0 and sim.not_the_watchdog(dev), at_exit
 
