@@ -24,6 +24,7 @@ import inspect
 import os
 import re
 import shutil
+import sys
 import tempfile
 from pathlib import Path
 
@@ -108,6 +109,17 @@ def _signal_dispositions():
     yield
     for sig, handler in before.items():
         signal.signal(sig, handler)
+
+
+@pytest.fixture(autouse=True)
+def _default_figure_style():
+    """The figure style back to the default: a command run in process (`report --coverage 1`, say)
+    sets the style of every later figure of its process (orbitrig.analysis.plots.use_style), as the
+    orbitrig command does for its own process; a later test drawing figures must not inherit it."""
+    yield
+    plots = sys.modules.get("orbitrig.analysis.plots")
+    if plots is not None and plots.STYLE != plots.FigureStyle():
+        plots.use_style(plots.FigureStyle())
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:

@@ -5,9 +5,10 @@ import pytest
 from support.report_synthetic import write_synthetic_run
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def synthetic(tmp_path_factory):
-    """Two complete points (four models each, kcd12 poly:8 refused) and one incomplete, run ended."""
+    """Two complete points (four models each, kcd12 poly:8 refused) and one incomplete, run ended:
+    one run per worker, which the tests read (a test that changes a run changes its own copy)."""
     return write_synthetic_run(tmp_path_factory.mktemp("store") / "run")
 
 
