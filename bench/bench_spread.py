@@ -25,6 +25,8 @@ redrawn `--draws` times from these runs (without replacement): its median and 5-
 and how often it reads at most 1.1.
 
 Run: python3 -m bench.bench_spread [--runs 200] [--short 20] [--json]
+Exit 1 when a coefficient's spread over its predicted standard error is off 1 by more than
+TOLERANCE plus three Monte Carlo sigmas (the prediction the designs rely on is then not honest).
 """
 
 from __future__ import annotations
@@ -56,6 +58,9 @@ from sim.physics import RigPhysics
 
 MODEL = "kcd11"
 SEED_STRIDE = 100_000  # each protocol's runs take their own seeds
+#: target: every coefficient's spread within this fraction of its predicted standard error, beyond
+#: the Monte Carlo scatter of a standard deviation (3 / sqrt(2 (runs - 1)))
+TOLERANCE = 0.15
 
 
 class Point:
@@ -186,15 +191,25 @@ def main() -> int:
         "protocols": figures(measure(rig, args.runs), args.short, args.draws),
     }
     out["wall_s"] = round(time.perf_counter() - t0, 1)
+    out["prediction_tolerance"] = round(TOLERANCE + 3 / np.sqrt(2 * (args.runs - 1)), 3)
+    off = {
+        f"{name} {c}": v
+        for name, f in out["protocols"].items()
+        for c, v in f["sd_over_predicted"].items()
+        if abs(v - 1) > out["prediction_tolerance"]
+    }
+    out["prediction_met"] = not off
     print(json.dumps(out) if args.json else "\n".join(report(out, args.short)))
-    return 0
+    return 0 if not off else 1
 
 
 def report(out: dict, short: int) -> list[str]:
     """The figures as lines: per protocol, per coefficient."""
     lines = [
         f"bench_spread: {out['runs']} runs per protocol at 1000 rpm, scenario paper, reduction on simulated "
-        f"revolutions (Monte Carlo sigma of one SD ratio {out['sd_ratio_mc_sigma']}); {out['wall_s']} s wall"
+        f"revolutions (Monte Carlo sigma of one SD ratio {out['sd_ratio_mc_sigma']}); {out['wall_s']} s wall",
+        f"target: every SD / predicted within 1 +- {out['prediction_tolerance']}: "
+        + ("met" if out["prediction_met"] else "NOT met"),
     ]
     for name, f in out["protocols"].items():
         lines.append(f"{name}: rig time of the blocks {f['time_ratio']:.3f} of the paper's")

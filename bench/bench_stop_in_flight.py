@@ -8,6 +8,8 @@ drives behind its real Modbus servers drop the request (`drop_next`); the stop w
 the drive models' registers, polled every 0.5 ms.
 
     python3 -m bench.bench_stop_in_flight [--trials 7] [--timeout 0.15]
+
+Exit 1 when a case's slowest stop misses its target (`target_ms`).
 """
 
 from __future__ import annotations
@@ -72,16 +74,29 @@ async def _in_flight(rig, endpoint, case: str) -> asyncio.Task | None:
     return writing
 
 
+def target_ms(kind: str, case: str, timeout: float) -> float:
+    """The slowest stop allowed (ms): on TCP a poll's read gives way at once (under half the
+    timeout); anything else waits at most for the request's timeout, then on RTU the settle time
+    after a missed answer (min(timeout, 0.05 s)), with 0.1 s for a loaded machine."""
+    if kind == "tcp" and case == "poll read unanswered":
+        return 1e3 * timeout / 2
+    return 1e3 * (timeout + min(timeout, 0.05) + 0.1)
+
+
 async def main(trials: int, timeout: float) -> int:
     logging.basicConfig(level=logging.CRITICAL)
+    missed = 0
     for kind in ("tcp", "rtu"):
         for case in CASES:
             ms = [1e3 * await trial(kind, case, timeout) for _ in range(trials)]
+            limit = target_ms(kind, case, timeout)
+            missed += max(ms) > limit
             print(
                 f"{kind} {case:21s} (timeout {timeout:g} s): {min(ms):6.1f}-{max(ms):6.1f} ms, "
-                f"median {statistics.median(ms):6.1f} ms over {trials}"
+                f"median {statistics.median(ms):6.1f} ms over {trials} (target < {limit:.0f} ms: "
+                f"{'NOT met' if max(ms) > limit else 'met'})"
             )
-    return 0
+    return 1 if missed else 0
 
 
 if __name__ == "__main__":
