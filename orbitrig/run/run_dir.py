@@ -128,19 +128,13 @@ def record_end(
     last_line = f"run {run_id} ended: {status}: {message}"
     for what, action in (
         ("write coefficients.csv", store.write_csv),
-        ("close the run log", lambda: _last_line(store, last_line)),
+        ("close the run log", lambda: store.log(last_line)),
     ):
         try:
             action()
         except Exception as err:  # noqa: BLE001
             failed(what, err)
     return status, message
-
-
-def _last_line(store: RunStore, line: str) -> None:
-    """run.log's last line, and everything said before it written when this returns."""
-    store.log(line)
-    store.run_log.flush()
 
 
 def completed_points(store: RunStore) -> list[int]:
