@@ -13,17 +13,10 @@ import time
 import pytest
 
 from support.loop_beats import LoopBeats
-from support.sweep_helpers import running, small_matrix, wait_for
+from support.sweep_helpers import first_stop, running, small_matrix, wait_for
 
 pytestmark = pytest.mark.timeout(120)
 CW_EMERGENCY = 0x047B  # the spec's control word, written out here on purpose
-
-
-def _first_stop(sim, since: float) -> float | None:
-    """s from `since` (monotonic, the simulator's clock too) to the spin drive's first emergency stop."""
-    return min(
-        (t - since for t, cw in sim.drive(1)["control_words"] if t >= since and cw == CW_EMERGENCY), default=None
-    )
 
 
 class _PipeReader(threading.Thread):
@@ -88,8 +81,8 @@ async def test_a_stalled_run_log_holds_neither_the_loop_nor_an_abort(tmp_path):
                 await wait_for(lambda: rec.blocks_done() >= 2, 60, what="blocks measured while run.log is stalled")
                 t = time.monotonic()
                 assert eng.request_abort(by="test") is True
-                await wait_for(lambda: _first_stop(sim, t) is not None, 10, what="the emergency stop")
-                assert _first_stop(sim, t) < 0.5
+                await wait_for(lambda: first_stop(sim, t, (CW_EMERGENCY,)) is not None, 10, what="the emergency stop")
+                assert first_stop(sim, t, (CW_EMERGENCY,)) < 0.5
                 await wait_for(lambda: max(abs(s) for s in sim.speeds) < 1.0, 30, what="the drives at rest")
                 await asyncio.sleep(0.5)
                 assert not run.done()  # the run's end waits for its log lines: none is lost

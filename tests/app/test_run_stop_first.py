@@ -16,7 +16,7 @@ import orbitrig.run.procedure as procedure
 from orbitrig.run.engine import ProgressEvent
 from orbitrig.store.run_log import RunLog
 from orbitrig.store.writer import RunStore
-from support.sweep_helpers import running, small_matrix, wait_for
+from support.sweep_helpers import first_stop, running, small_matrix, wait_for
 
 pytestmark = pytest.mark.timeout(90)
 
@@ -24,9 +24,7 @@ pytestmark = pytest.mark.timeout(90)
 CW_RAMP_STOP, CW_EMERGENCY = 0x047E, 0x047B
 
 
-def _first_stop(sim, since: float, words=(CW_RAMP_STOP, CW_EMERGENCY)) -> float | None:
-    """s from `since` (monotonic, the simulator's clock too) to the spin drive's first stop word."""
-    return min((t - since for t, cw in sim.drive(1)["control_words"] if t >= since and cw in words), default=None)
+STOP_WORDS = (CW_RAMP_STOP, CW_EMERGENCY)
 
 
 async def test_a_stop_does_not_wait_for_the_identification_in_flight(tmp_path, monkeypatch):
@@ -47,8 +45,8 @@ async def test_a_stop_does_not_wait_for_the_identification_in_flight(tmp_path, m
         t = time.monotonic()
         eng.request_stop(by="test")
         try:
-            await wait_for(lambda: _first_stop(sim, t) is not None, 10, what="a stop word")
-            assert _first_stop(sim, t) < 1.0
+            await wait_for(lambda: first_stop(sim, t, STOP_WORDS) is not None, 10, what="a stop word")
+            assert first_stop(sim, t, STOP_WORDS) < 1.0
         finally:
             release.set()
         outcome = await asyncio.wait_for(asyncio.shield(run), 60)
@@ -82,7 +80,7 @@ async def test_the_stop_words_go_out_before_any_disk_write(tmp_path, monkeypatch
             eng.request_stop_now("SIGTERM", by="test")
         outcome = await asyncio.wait_for(asyncio.shield(run), 60)
         word = CW_EMERGENCY if request_kind == "abort" else CW_RAMP_STOP
-        first = _first_stop(sim, t, (word,))
+        first = first_stop(sim, t, (word,))
         assert blocked, "no disk write was slowed"
         assert first is not None and first < 0.5, first
         assert outcome.status == ("aborted" if request_kind == "abort" else "stopped"), outcome.message

@@ -47,6 +47,12 @@ def stop_after_first_point(cmd: list[str], out: Path, env: dict[str, str] | None
             proc.wait()
 
 
+def first_stop(sim, since: float, words: tuple[int, ...]) -> float | None:
+    """s from `since` (monotonic, the simulator's clock too) to the spin drive's first control word
+    of `words` (the tests spell the spec's words out themselves), None before one."""
+    return min((t - since for t, cw in sim.drive(1)["control_words"] if t >= since and cw in words), default=None)
+
+
 async def wait_for(predicate, timeout: float = 30.0, what: str = "condition") -> None:
     loop = asyncio.get_running_loop()
     end = loop.time() + timeout
