@@ -52,7 +52,8 @@ from reduction.attenuation import attenuation_bias, attenuation_warning
 from reduction.diagnostics import fit_errors, residual_rms
 from reduction.errors import IdentificationError, IdentifiabilityError, ReductionError
 from reduction.excitation import SignalDesign, displacement_noise, signal_design, signal_warning
-from reduction.identifiability import analyse, check_signal, ill_conditioning
+from reduction.conditioning import ill_conditioning
+from reduction.identifiability import analyse, check_signal
 from reduction.impedance import forces, impedance, impedance_basis, regression, regressors
 from reduction.instruments import circle_instruments, circle_orbits
 from reduction.methods import METHODS, Method

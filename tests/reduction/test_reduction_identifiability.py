@@ -7,7 +7,7 @@ import pytest
 
 from support.reduction_synthetic import frequencies, orbit_table, truth
 from reduction.errors import IdentifiabilityError
-from reduction.identifiability import numerical_rank
+from reduction.rank import numerical_rank
 from reduction.identify import identify
 from reduction.impedance import regression
 from reduction.models import model_spec, parse_freq_dep

@@ -21,7 +21,8 @@ from orbitrig.store.orbit_table import write_orbit_table
 from reduction.design import design_orbits
 from reduction.errors import IdentifiabilityError
 from reduction.excitation import CLEAR_REFUSE, CLEAR_WARN, displacement_noise, excitation_ratios, signal_design
-from reduction.identifiability import analyse, check_signal, ill_conditioning
+from reduction.conditioning import ill_conditioning
+from reduction.identifiability import analyse, check_signal
 from reduction.identify import identify
 from reduction.models import model_spec
 from reduction.table import OrbitTable
