@@ -47,19 +47,19 @@ import numpy as np
 
 from reduction import regression as reg
 from reduction import statistics as st
-from reduction.arrays import ComplexArray, FloatArray
+from reduction.arrays import FloatArray
 from reduction.attenuation import attenuation_bias, attenuation_warning
-from reduction.diagnostics import fit_errors, residual_rms
-from reduction.errors import IdentificationError, IdentifiabilityError, ReductionError
+from reduction.equation_noise import effective_variances, fit_chi2, variances
+from reduction.errors import IdentifiabilityError, IdentificationError, ReductionError
 from reduction.excitation import SignalDesign, displacement_noise, signal_design, signal_warning
-from reduction.conditioning import ill_conditioning
 from reduction.identifiability import analyse, check_signal
-from reduction.impedance import forces, impedance, impedance_basis, regression, regressors
+from reduction.identify_result import identification_of
+from reduction.impedance import impedance, impedance_basis, regression, regressors
 from reduction.instruments import circle_instruments, circle_orbits
 from reduction.methods import METHODS, Method
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
-from reduction.noise import coherence_variances, equation_variances
-from reduction.rank import RANK_RTOL, Rank
+from reduction.noise import equation_variances
+from reduction.rank import RANK_RTOL
 from reduction.result import Identification
 from reduction.table import OrbitTable
 
@@ -135,7 +135,7 @@ def _identify(
     A_s /= c  # in place (a long table has room for one regression matrix): the column-scaled A
     x0 = reg.lstsq(A_s, b, solver)  # the ols solution (scaled), the first pass of every method
     signal = _signal(spec, table, A_s, b, c, x0, rank_rtol)  # raises when not identifiable on signal
-    var = _variances(spec, table, x0 / c, b, method)
+    var = variances(spec, table, x0 / c, b, method)
     if method == Method.WLS:  # the weighted regression's own scaling and conditioning
         rank = analyse(spec, table, A_s * (c / np.sqrt(var)[:, None]), rank_rtol)
         A_s *= c / rank.scale
@@ -146,7 +146,7 @@ def _identify(
     elif method == Method.WLS:
         est = reg.wls(A_s, b, 1.0 / var, solver, rank.unscaled_covariance())
         if u is not None:  # second pass: effective variances at the wls coefficients
-            est = reg.wls(A_s, b, 1.0 / _effective(spec, u, table, est.x / c), solver)
+            est = reg.wls(A_s, b, 1.0 / effective_variances(spec, u, table, est.x / c), solver)
     elif method == Method.IV:
         Zi = circle_instruments(spec, table, rank_rtol) / c
         est = reg.iv(A_s, Zi, b, solver)
@@ -157,7 +157,7 @@ def _identify(
         est = _tls(spec, table, A_s, b, c, solver, tls_ratio)
     theta = est.x / c
     Z = impedance(spec, theta, table.orbit)  # at the estimate: effective variances and the fit
-    chi2 = None if u is None else _chi2(spec, u, table, A_s, b, c, var, method, est)
+    chi2 = None if u is None else fit_chi2(spec, u, table, A_s, b, c, var, method, est)
     cov_s: FloatArray | None
     if u is not None:
         var = equation_variances(u, Z)
@@ -167,7 +167,7 @@ def _identify(
             cov_s = st.sandwich(P, var) if P is not None else est.unscaled
     else:
         cov_s = est.cov
-    ident = _result(spec, table, method, solver, est, theta, c, cov_s, rank, chi2, Z)
+    ident = identification_of(spec, table, method, solver, est, theta, c, cov_s, rank, chi2, Z)
     weak = signal_warning(signal)
     if weak:
         ident.warnings.insert(0, weak)
@@ -216,151 +216,6 @@ def _regression(spec: ModelSpec, table: OrbitTable) -> tuple[FloatArray, FloatAr
             "units (orbit_hz in Hz, phasors in m and N)"
         )
     return A, b
-
-
-def _variances(spec: ModelSpec, table: OrbitTable, theta0: FloatArray, b: FloatArray, method: str) -> FloatArray:
-    """Variances of the 4n equations: from u_* (effective, at a first ols fit), else from the
-    coherences for wls, else ones."""
-    if table.u is not None:
-        if not np.any(table.u[:, 2:] > 0) and not np.any(table.u[:, :2] > 0):
-            raise IdentificationError(
-                f"every row (all {table.n}), columns 'u_x', 'u_y', 'u_fx', 'u_fy': all zero, so there is "
-                "no noise to weight by; state the standard uncertainties, or leave the u_* columns out"
-            )
-        var = _effective(spec, table.u, table, theta0)
-        if not np.max(var) > 0:
-            raise IdentificationError("the table's u_* give no noise on any equation")
-        return var
-    if method != Method.WLS:
-        return np.ones(b.shape)
-    if table.gamma2 is None:
-        raise IdentificationError(
-            "--method wls needs u_x, u_y, u_fx, u_fy columns or coherence values (gamma2_xfx, gamma2_yfx, "
-            "gamma2_xfy, gamma2_yfy); the table has neither"
-        )
-    return coherence_variances(table.gamma2, table.fx, table.fy, table.n_records)
-
-
-def _effective(spec: ModelSpec, u: FloatArray, table: OrbitTable, theta: FloatArray) -> FloatArray:
-    """Effective variances of the 4n equations from u_* at ``theta``, floored at 1e-12 of the
-    largest (computed over blocks of rows: a long table's temporaries stay small)."""
-    rows = reg.CHUNK_ROWS // 4
-    var = np.empty(4 * table.n)
-    for s in range(0, table.n, rows):
-        var[4 * s : 4 * (s + rows)] = equation_variances(
-            u[s : s + rows], impedance(spec, theta, table.orbit[s : s + rows])
-        )
-    floored: FloatArray = np.maximum(var, 1e-12 * float(np.max(var)), out=var)
-    return floored
-
-
-def _chi2(
-    spec: ModelSpec,
-    u: FloatArray,
-    table: OrbitTable,
-    A_s: FloatArray,
-    b: FloatArray,
-    c: FloatArray,
-    var: FloatArray,
-    method: str,
-    est: reg.Estimate,
-) -> float:
-    """chi2 against u_*: tls's own maximum-likelihood cost; for ols, wls and iv the weighted
-    residual sum at the wls solution (the two passes of the wls branch from the first-pass
-    variances ``var``), with the effective variances there. The ols or iv residual weighted by
-    1/var is no chi2(dof): they do not minimise it, and with unequal variances it exceeds dof."""
-    if method == Method.TLS:
-        return float(est.rss)
-    x = est.x
-    for _ in range(0 if method == Method.WLS else 2):  # as reg.wls solves it, without its covariance
-        x = reg.weighted_lstsq(A_s, b, np.sqrt(1.0 / var))  # blocked: no weighted copy of a long table
-        var = _effective(spec, u, table, x / c)
-    r = A_s @ x  # the weighted residual sum, in place (one vector of the table's length)
-    np.subtract(b, r, out=r)
-    r *= r
-    r /= _effective(spec, u, table, x / c)
-    return float(np.sum(r))
-
-
-def _result(
-    spec: ModelSpec,
-    table: OrbitTable,
-    method: str,
-    solver: str,
-    est: reg.Estimate,
-    theta: FloatArray,
-    c: FloatArray,
-    cov_s: FloatArray | None,
-    rank: Rank,
-    chi2: float | None,
-    Z: ComplexArray,
-) -> Identification:
-    known = chi2 is not None
-    p, dof = spec.n_coefficients, 4 * table.n - spec.n_coefficients
-    cov = None if cov_s is None else cov_s / np.outer(c, c)
-    std = np.full(p, np.nan) if cov is None else np.sqrt(np.clip(np.diag(cov), 0, None))
-    interval = st.Interval.NORMAL if known else st.Interval.STUDENT_T
-    ci = st.intervals(theta, std, dof, interval=interval)
-    notes, warnings = list(spec.notes), []
-    p_value: float | None = None
-    if chi2 is not None:
-        p_value = st.chi2_p_value(chi2, dof)
-        notes.append(
-            "covariance, weights and chi2 from the table's u_x, u_y, u_fx, u_fy "
-            "(force noise plus displacement noise through Z)"
-            + ("; chi2, aic and bic at the wls solution" if method in (Method.OLS, Method.IV) else "")
-        )
-        bad = st.chi2_warning(chi2, dof, p_value)
-        if bad:
-            warnings.append(bad)
-    elif method == Method.WLS:
-        notes.append(
-            "wls weights from the coherences (no u_* columns): per-record noise ratio "
-            "(1 - gamma^2)/gamma^2 floored at 1/n_records"
-        )
-    aic, bic = st.information_criteria(chi2 if chi2 is not None else est.rss, 4 * table.n, p, known)
-    ill = ill_conditioning(spec, table, rank)
-    if ill:
-        warnings.append(ill)
-    ident = Identification(
-        model=spec.model,
-        freq_dep=spec.freq_dep.text,
-        method=str(method),
-        n_coefficients=p,
-        min_frequencies=spec.min_frequencies,
-        n_frequencies=table.n,
-        coefficients={k: float(v) for k, v in spec.expand(theta).items()},
-        std_errors={k: (None if not np.isfinite(v) else float(v)) for k, v in spec.expand(std).items()},
-        condition_number=rank.condition_number,
-        residual_rms=0.0,
-        fit=[],
-        solver=solver,
-        spec=spec,
-        theta=theta,
-        cost=est.rss,
-        free=spec.names,
-        covariance=cov,
-        dof=dof,
-        confidence_95={
-            k: (None if not np.all(np.isfinite(v)) else (float(v[0]), float(v[1])))
-            for k, v in spec.expand(list(ci)).items()
-        },
-        chi2=chi2,
-        p_value=p_value,
-        aic=aic,
-        bic=bic,
-        notes=notes,
-        warnings=warnings,
-        known_noise=known,
-        interval=interval,
-    )
-    ident.not_determined = st.not_determined(
-        ident.coefficients, st.statistical_expanded(spec.expand(std), interval, dof)
-    )
-    fx_rep, fy_rep = forces(Z, table.x, table.y)  # ident.reproduce(table), Z computed once
-    ident.residual_rms = residual_rms(table.fx, table.fy, fx_rep, fy_rep)
-    ident.fit = fit_errors(table.orbit, table.fx, table.fy, fx_rep, fy_rep)
-    return ident
 
 
 def _tls(
