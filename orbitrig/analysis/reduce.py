@@ -25,7 +25,8 @@ import numpy as np
 
 from orbitrig.errors import IdentificationError, ReductionError
 from orbitrig.load_systems import LMS, LoadSystem
-from orbitrig.store.reader import Point, Run, StoredIdentification, freq_dep_key
+from orbitrig.store.reader import freq_dep_key
+from orbitrig.store.stored_run import Point, Run, StoredIdentification
 from orbitrig.store.csvfile import (
     CSV_HEAD,
     coef_order,

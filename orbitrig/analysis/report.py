@@ -46,7 +46,8 @@ from orbitrig.analysis.signals import default_frequencies, read_block_signals
 from orbitrig.analysis.reduce import own_truth
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.errors import storage_error
-from orbitrig.store.reader import Point, Run, RunDirError, read_run
+from orbitrig.store.reader import RunDirError, read_run
+from orbitrig.store.stored_run import Point, Run
 from orbitrig.store.selection import select_points
 from reduction.whirl import Whirl
 

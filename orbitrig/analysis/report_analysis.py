@@ -13,7 +13,7 @@ from orbitrig.analysis.quality import Verdict, adequacy_verdicts, derived_of, wa
 from orbitrig.analysis.reduce import Reduced, reidentify
 from orbitrig.errors import ReductionError
 from orbitrig.load_systems import LMS, LoadSystem
-from orbitrig.store.reader import Point
+from orbitrig.store.stored_run import Point
 from reduction.derived import Derived
 from reduction.identify import Method
 

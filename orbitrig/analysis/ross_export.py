@@ -38,7 +38,7 @@ from orbitrig.load_systems import LoadSystem
 from orbitrig.store.csvfile import one_line
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.fit_record import coverage_of, expanded_uncertainty, uncertainty_basis
-from orbitrig.store.reader import Point, Run
+from orbitrig.store.stored_run import Point, Run
 from orbitrig.store.selection import Selection, select_points
 from reduction.methods import Method
 from reduction.statistics import not_determined

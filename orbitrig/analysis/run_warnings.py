@@ -7,7 +7,8 @@ import logging
 from pathlib import Path
 
 from orbitrig.analysis.warning_groups import FitWarnings, warning_lines
-from orbitrig.store.reader import Point, RunDirError, read_run
+from orbitrig.store.reader import RunDirError, read_run
+from orbitrig.store.stored_run import Point
 
 log = logging.getLogger(__name__)
 

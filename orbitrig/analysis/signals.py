@@ -21,7 +21,8 @@ import numpy as np
 from orbitrig.config import LMS, rig_from_text
 from orbitrig.errors import ConfigError
 from orbitrig.store.layout import RunLayout
-from orbitrig.store.reader import Frequency, Point, Run, RunDirError
+from orbitrig.store.reader import RunDirError
+from orbitrig.store.stored_run import Frequency, Point, Run
 
 #: force channels per load measuring system and probe channels per plane
 FORCE_CHANNELS = {lms: (f"fx_{lms}", f"fy_{lms}") for lms in LMS}

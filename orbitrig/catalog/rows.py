@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from orbitrig.store.fit_record import COVERAGE_K, expanded_k, expanded_uncertainty, uncertainty_basis
-from orbitrig.store.reader import Point, Run, StoredIdentification
+from orbitrig.store.stored_run import Point, Run, StoredIdentification
 from rigunits import COEFFICIENT_UNITS
 
 #: the constant coefficients every model reports (absent ones are NULL)

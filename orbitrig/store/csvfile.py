@@ -27,7 +27,7 @@ from orbitrig.store.layout import PRESSURE_DISPLAY_UNIT, SETTINGS_UNITS
 from rigunits import MPA, coefficient_unit
 
 if TYPE_CHECKING:
-    from orbitrig.store.reader import Point
+    from orbitrig.store.stored_run import Point
 
 #: one row of coefficients.csv: column name -> cell
 CsvRow = dict[str, Any]
@@ -124,7 +124,7 @@ def _num(v: float | None, fmt: str) -> str:
 
 
 def point_rows(point: Point, sim: bool, exact: bool = False) -> list[CsvRow]:
-    """The rows of one complete point (an orbitrig.store.reader.Point), numbers rounded for
+    """The rows of one complete point (an orbitrig.store.stored_run.Point), numbers rounded for
     reading at a glance (coefficients and true values 8 significant digits, the rest 6), or
     with `exact` every number to the last bit (the TDMS export's ``coefficients`` group, which
     holds them as doubles beside the fits' own channels)."""

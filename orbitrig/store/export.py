@@ -27,7 +27,8 @@ from pathlib import Path
 
 from orbitrig.store.errors import StorageFullError, storage_error
 from orbitrig.store.layout import RunLayout
-from orbitrig.store.reader import Run, read_run
+from orbitrig.store.reader import read_run
+from orbitrig.store.stored_run import Run
 from orbitrig.store.selection import Selection, select_points
 
 FORMATS = ("csv", "mat", "tdms", "h5")

@@ -33,7 +33,7 @@ from orbitrig.store.orbit_table import orbit_table_columns
 from rigunits import COEFFICIENT_UNITS
 
 if TYPE_CHECKING:
-    from orbitrig.store.reader import Point, Run
+    from orbitrig.store.stored_run import Point, Run
     from reduction.table import OrbitTable
 
 #: a column: values and their unit

@@ -36,7 +36,7 @@ from orbitrig.store.fit_record import BUDGET_PARTS, point_fits
 from orbitrig.store.orbit_table import write_orbit_table
 
 if TYPE_CHECKING:
-    from orbitrig.store.reader import Point, Run
+    from orbitrig.store.stored_run import Point, Run
 
 #: a CSV row: numbers and text
 Row = Sequence[object]

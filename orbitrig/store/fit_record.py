@@ -22,7 +22,7 @@ from reduction.systematic import UncertaintyBasis
 from rigunits import coefficient_unit
 
 if TYPE_CHECKING:
-    from orbitrig.store.reader import Point
+    from orbitrig.store.stored_run import Point
 
 Floats = npt.NDArray[np.float64]
 
@@ -168,7 +168,7 @@ def fit_record(
 
 
 def point_fits(point: Point) -> list[FitRecord]:
-    """Every stored identification of an orbitrig.store.reader.Point, in stored order."""
+    """Every stored identification of an orbitrig.store.stored_run.Point, in stored order."""
     return [
         fit_record(point.index, i.lms, i.model, i.freq_dep, i.method, i.result, i.error) for i in point.identifications
     ]

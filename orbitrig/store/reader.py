@@ -16,146 +16,27 @@ left to the report.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import numpy.typing as npt
 
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.errors import RunDirError as RunDirError  # its readers' error, imported from here too
 from orbitrig.store.h5_values import json_attr, naming, open_h5, stored_values, text
-from orbitrig.store.identity import header_software, run_identity
+from orbitrig.store.identity import header_software
 from orbitrig.store.layout import READABLE_FORMATS, RUN_FILE, RunLayout
 from orbitrig.store.layout import freq_dep_from_key, freq_dep_key as freq_dep_key  # storage's key form, read here
 from orbitrig.store.index import NEVER_COMPLETED
 from orbitrig.store.status import RunStatus
+from orbitrig.store.stored_run import PROVENANCE_KEYS, Frequency, Settings, StoredIdentification
+from orbitrig.store.stored_run import Point as Point  # orbitrig/cli/sweep_summary.py imports it from here
+from orbitrig.store.stored_run import Run as Run  # docs/api.md: orbitrig.store.reader.Run
 
 if TYPE_CHECKING:
     import h5py
 
     from reduction.table import OrbitTable
-
-
-@dataclass(frozen=True)
-class Settings:
-    """Operating point settings (SI, as stored in the point's attributes)."""
-
-    spin: float  # rad/s
-    spin_rpm: float
-    recess_pressure: float  # Pa
-    pressure_ratio: float  # -
-    static_eccentricity: float  # -
-    dynamic_eccentricity: float  # -
-    orbit_radius: float  # m, commanded
-    label: str
-
-    def title(self) -> str:
-        """The operating point in the paper's words, for plot titles."""
-        return (
-            f"\u03c9 = {self.spin_rpm:.0f} rpm, \u03b5d = {self.dynamic_eccentricity:g}, "
-            f"\u03b5s = {self.static_eccentricity:g}, pr = {self.recess_pressure / 1e6:.4g} MPa, "
-            f"\u03b2 = {self.pressure_ratio:g}"
-        )
-
-
-@dataclass(frozen=True)
-class Frequency:
-    """One orbit frequency of a point (group ``frequencies/FF_dir``)."""
-
-    name: str  # "FF_dir"
-    orbit: float  # rad/s, signed (< 0 backward)
-    orbit_hz: float  # > 0
-    direction: int  # +1 forward, -1 backward
-    complete: bool
-    coherence: npt.NDArray[np.float64] | None  # (2, 4): rows piezo|strain, cols xfx, yfx, xfy, yfy
-    n_records: int = 0  # revolutions averaged
-    #: the averaged block, SI per channel (N or m): mean (C, S), slots (C, S), dc (C,),
-    #: phasors (C,) complex, uncertainty (C,) when measured
-    waveform: dict[str, npt.NDArray[Any]] = field(default_factory=dict, repr=False)
-
-
-@dataclass(frozen=True)
-class StoredIdentification:
-    """One ``identification/<lms>__<model>__<freq_dep>`` entry of the sweep."""
-
-    lms: LoadSystem
-    model: str
-    freq_dep: str  # the original spec, e.g. "power:auto"
-    result: dict[str, Any] | None  # the `identify --json` object
-    error: str | None  # the refusal message when the model was refused
-    method: str = "ols"
-
-    @property
-    def ok(self) -> bool:
-        return self.result is not None
-
-
-@dataclass
-class Point:
-    """One operating point (group ``/points/PPPP``)."""
-
-    index: int
-    name: str  # "PPPP"
-    complete: bool
-    settings: Settings
-    frequencies: list[Frequency] = field(default_factory=list)
-    tables: dict[LoadSystem, OrbitTable] = field(default_factory=dict)  # lms -> orbit table
-    identifications: list[StoredIdentification] = field(default_factory=list)
-    truth: dict[str, Any] | None = None
-    lms_comparison: dict[str, Any] | None = None
-    problem: str = ""  # why the point is not complete ("" when complete; orbitrig.store.index)
-
-    def identification(
-        self, lms: LoadSystem, model: str, freq_dep: str, method: str | None = None
-    ) -> StoredIdentification | None:
-        """The stored identification (refused or not) of ``lms``, ``model``, ``freq_dep`` and,
-        when given, ``method`` (else the first stored of any method); None when there is none."""
-        for ident in self.identifications:
-            if (ident.lms, ident.model, ident.freq_dep) == (lms, model, freq_dep) and method in (None, ident.method):
-                return ident
-        return None
-
-
-@dataclass
-class Run:
-    """A run directory as read from disk (`torn`: journal lines ignored, `unreadable`: pieces skipped)."""
-
-    directory: Path
-    status: RunStatus
-    status_message: str
-    sim: bool
-    software_version: str
-    created: str
-    matrix_name: str
-    rig_config: str
-    matrix_config: str
-    points: list[Point]
-    channels: list[str] = field(default_factory=list)
-    channel_units: list[str] = field(default_factory=list)
-    torn: int = 0
-    unreadable: list[str] = field(default_factory=list)
-    unbegun: list[int] = field(default_factory=list)  # point folders without a settings record (cut at its start)
-    sim_scenario_name: str = ""  # --sim runs: the simulator scenario (file name, or the default)
-    sim_scenario_config: str = ""  # its TOML text ("" the default rig)
-    provenance: dict[str, str] = field(default_factory=dict)  # PROVENANCE_KEYS ("" unknown), times ISO 8601 UTC
-    calibration_record_text: str = ""  # the active calibration record's TOML text ("" none stored)
-
-    @property
-    def complete_points(self) -> list[Point]:
-        return [p for p in self.points if p.complete]
-
-    @property
-    def run_id(self) -> str:
-        """The run's id (orbitrig.store.identity): as its sweep, the service and the catalog name it."""
-        return run_identity(self.provenance.get("rig_id", ""), self.created)
-
-
-#: who made the run, where and when (docs/storage.md); `ended` is "" while the run is running
-#: the run's provenance as read (text; ``sensor_serials`` a JSON object channel -> serial number)
-_WHO_WHERE = ("operator", "rig_id", "host", "calibration_record", "calibration_record_sha256", "sensor_serials")
-PROVENANCE_KEYS: tuple[str, ...] = (*_WHO_WHERE, "started", "ended")  # "ended" last: a run in progress has none
 
 
 def _provenance_text(value: Any) -> str:

@@ -18,7 +18,8 @@ from orbitrig.errors import TableError
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store import frames
 from orbitrig.store.fit_record import FitRecord, fit_record, point_fits
-from orbitrig.store.reader import Point, Run, read_run
+from orbitrig.store.reader import read_run
+from orbitrig.store.stored_run import Point, Run
 
 
 class Fit:

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 from orbitrig.store.index import NEVER_BEGUN, NEVER_COMPLETED
 from orbitrig.store.layout import point_name
-from orbitrig.store.reader import Point, Run
+from orbitrig.store.stored_run import Point, Run
 
 
 @dataclass

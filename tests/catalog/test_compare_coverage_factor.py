@@ -16,7 +16,7 @@ from orbitrig.catalog.rows import _fit_columns
 from orbitrig.catalog.store import Catalog
 from orbitrig.cli import app
 from orbitrig.load_systems import LoadSystem
-from orbitrig.store.reader import StoredIdentification
+from orbitrig.store.stored_run import StoredIdentification
 from support.campaign import campaign_rows
 from support.paths import ROOT
 

@@ -8,7 +8,8 @@ import json
 
 import h5py
 
-from orbitrig.store.reader import PROVENANCE_KEYS, read_run
+from orbitrig.store.reader import read_run
+from orbitrig.store.stored_run import PROVENANCE_KEYS
 from support.report_synthetic import write_synthetic_run
 
 SERIALS = {"fx_piezo": "PZ-2231-X", "y_b": "EC-5583-YB"}

@@ -13,7 +13,8 @@ import numpy as np
 
 from orbitrig.config import rig_from_text
 from orbitrig.run.point_analysis import lms_calibration
-from orbitrig.store.reader import Point, read_run
+from orbitrig.store.reader import read_run
+from orbitrig.store.stored_run import Point
 from reduction.identify import identify
 from reduction.impedance import impedance_basis
 from reduction.systematic import Calibration, uncertainty_budget
