@@ -84,7 +84,7 @@ def test_points_without_the_fit_are_skipped_and_named(synthetic_run, tmp_path, m
 def test_measured_bearings_in_a_ross_rotor_give_finite_log_decrements(synthetic_run, tmp_path):
     import ross  # the ross extra (tools/run-tests installs .[test,ross])
 
-    from orbitrig.analysis.ross_export import bearing_elements
+    from orbitrig.analysis.ross_elements import bearing_elements
 
     _export(synthetic_run, tmp_path)
     steel = ross.materials.steel

@@ -60,7 +60,7 @@ def test_a_failed_adequacy_test_is_a_fit_warning(synthetic_run, tmp_path):
 def test_bearing_elements_warns_about_fit_warnings_and_strict_refuses(synthetic_run, tmp_path):
     import ross  # the ross extra (tools/run-tests installs .[test,ross])
 
-    from orbitrig.analysis.ross_export import bearing_elements
+    from orbitrig.analysis.ross_elements import bearing_elements
 
     _export(synthetic_run, tmp_path)
     path = tmp_path / "ross_bearings.json"
@@ -77,7 +77,7 @@ def test_bearing_elements_warns_about_fit_warnings_and_strict_refuses(synthetic_
 def test_strict_refuses_a_bearing_with_only_fit_warnings(synthetic_run, tmp_path):
     """All coefficients determined (not_determined emptied), the fit's chi2 warning alone: strict
     refuses, the default warns and gives ROSS's elements."""
-    from orbitrig.analysis.ross_export import bearing_elements
+    from orbitrig.analysis.ross_elements import bearing_elements
 
     _export(synthetic_run, tmp_path)
     path = tmp_path / "ross_bearings.json"

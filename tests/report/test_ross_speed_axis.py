@@ -170,7 +170,7 @@ def test_every_coefficient_carries_its_U_at_every_speed(speed_run, tmp_path):
 
 def test_coefficients_not_determined_are_listed_and_warned(synthetic_run, tmp_path):
     """The synthetic run's point 1, kcd11: the apparent mass is not determined (U > |D|)."""
-    from orbitrig.analysis.ross_export import bearing_elements
+    from orbitrig.analysis.ross_elements import bearing_elements
 
     record = _record(read_run(synthetic_run).points[1], "piezo", "kcd11", "none")
     expect = [
@@ -209,7 +209,7 @@ def _constant_bearings(ross, bearing, i):
 def test_ross_evaluates_the_bearing_at_the_rotor_speed_and_holds_the_end_values(speed_run, tmp_path):
     import ross
 
-    from orbitrig.analysis.ross_export import bearing_elements
+    from orbitrig.analysis.ross_elements import bearing_elements
 
     assert _invoke(speed_run, tmp_path, "--fit", "piezo:kcd11:power:1:ols").exit_code == 0
     bearing = _doc(tmp_path)["bearings"][0]
@@ -235,7 +235,7 @@ def test_ross_evaluates_the_bearing_at_the_rotor_speed_and_holds_the_end_values(
 
 def test_one_speed_gives_ross_constant_coefficients(synthetic_run, tmp_path):
     """Every point of the synthetic run is at 1000 rpm (two test conditions): one speed per bearing."""
-    from orbitrig.analysis.ross_export import bearing_elements
+    from orbitrig.analysis.ross_elements import bearing_elements
 
     assert _invoke(synthetic_run, tmp_path).exit_code == 0
     bearing = _doc(tmp_path)["bearings"][0]  # point 0's
@@ -254,7 +254,7 @@ def test_ross_alone_would_extrapolate_these_arrays(tmp_path):
     """Why bearing_elements replaces ROSS's interpolation: its spline leaves the end values."""
     import ross
 
-    from orbitrig.analysis.ross_export import bearing_elements
+    from orbitrig.analysis.ross_elements import bearing_elements
 
     speeds, kxx = [50.0, 100.0, 150.0, 200.0], [3.0e7, 3.3e7, 3.1e7, 3.4e7]
     data = {k: [0.0] * 4 for k in KEYS} | {"kxx": kxx, "kyy": kxx, "cxx": [1e5] * 4, "cyy": [1e5] * 4}
@@ -275,7 +275,7 @@ def test_ross_alone_would_extrapolate_these_arrays(tmp_path):
 def test_values_and_U_at_a_whirl_agree_with_the_identification(speed_run, model, freq_dep):
     """The stored coefficients summed over their orders are Identification.matrices (absorbed K
     orders in D, symmetric pairs, no D); without a calibration budget U is k sqrt(g' S g)."""
-    from orbitrig.analysis.ross_export import coefficients_at, uncertainties_at
+    from orbitrig.analysis.ross_speed import coefficients_at, uncertainties_at
     from orbitrig.store.fit_record import coverage_of
     from reduction.derived import entry_gradient
 

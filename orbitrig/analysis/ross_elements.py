@@ -1,0 +1,76 @@
+"""ROSS ``BearingElement``s from an exported ross_bearings.json (orbitrig.analysis.ross_export):
+coefficients over rotor speed omega (rad/s), piecewise linear between the exported speeds and the
+end values held outside them (0 and ``HOLD_SPEED``); one speed: constant coefficients.
+Requires ross-rotordynamics: pip install "orbitrig[ross]".
+"""
+
+from __future__ import annotations
+
+import json
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from orbitrig.analysis.ross_warnings import warn_or_refuse
+from orbitrig.load_systems import LoadSystem
+from orbitrig.analysis.ross_speed import KEYS
+
+HOLD_SPEED = 1.0e5  # rad/s: bearing_elements repeats the end values here (and at 0)
+
+
+def held_arrays(frequency: Any, values: dict[str, Any]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The speed axis with 0 and HOLD_SPEED (rad/s) added outside it, and each array with its
+    end values repeated there: what bearing_elements gives ROSS."""
+    axis = np.asarray(frequency, dtype=float)
+    before, after = int(axis[0] > 0), int(axis[-1] < HOLD_SPEED)
+
+    def pad(a: Any, first: Any, last: Any) -> np.ndarray:
+        a = np.asarray(a, dtype=float)
+        return np.concatenate([np.full(before, first), a, np.full(after, last)])
+
+    return pad(axis, 0.0, HOLD_SPEED), {k: pad(v, v[0], v[-1]) for k, v in values.items()}
+
+
+def _chosen(doc: dict[str, Any], path: str | Path, point: int | None, lms: str) -> dict[str, Any]:
+    found = [b for b in doc["bearings"] if b["lms"] == lms and (point is None or point in b["points"])]
+    if not found:
+        raise KeyError(
+            f"{path}: no bearing of load system {lms!r}" + (f" with point {point}" if point is not None else "")
+        )
+    if len(found) > 1:
+        raise KeyError(
+            f"{path}: {len(found)} {lms} bearings (points {[b['points'] for b in found]}): choose one with point="
+        )
+    return found[0]
+
+
+def bearing_elements(
+    path: str | Path,
+    nodes: list[int],
+    *,
+    point: int | None = None,
+    lms: LoadSystem | str = LoadSystem.PIEZO,
+    strict: bool = False,
+) -> list:
+    """ROSS BearingElements at ``nodes`` from an exported file, all with the bearing of ``lms``
+    whose points include ``point`` (None: the only one): coefficients over rotor speed,
+    piecewise linear between the exported speeds and the end values held outside (one speed:
+    constant). A coefficient not determined and a fit warning are warned about (UserWarning),
+    with ``strict`` refused (ValueError). Requires ross-rotordynamics: pip install "orbitrig[ross]"."""
+    import ross
+
+    data = _chosen(json.loads(Path(path).read_text()), path, point, str(lms))
+    warn_or_refuse(data, path, strict)
+    if len(data["frequency"]) == 1:
+        constant = {k: float(data[k][0]) for k in KEYS}
+        return [ross.BearingElement(n=n, tag=f"bearing {n}", **constant) for n in nodes]
+    axis, held = held_arrays(data["frequency"], {k: data[k] for k in KEYS})
+    elements = []
+    for n in nodes:
+        element = ross.BearingElement(n=n, frequency=axis, tag=f"bearing {n}", **held)
+        for k, v in held.items():  # ROSS's spline would extrapolate (and smooth)
+            setattr(element, f"{k}_interpolated", partial(np.interp, xp=axis, fp=v))
+        elements.append(element)
+    return elements
