@@ -21,23 +21,9 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from orbitrig.analysis.grid import light_grid
-from orbitrig.analysis.plots import (
-    figure_legend,
-    ENTRIES,
-    TRUTH_LABEL,
-    Fitted,
-    _colors,
-    _min_span,
-    _save,
-    band,
-    coverage,
-    error_bars,
-    keep_inside,
-    panels,
-    plot_fit,
-    split_tested,
-    style,
-)
+from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _save, coverage, style
+from orbitrig.analysis.plot_panels import figure_legend, panels
+from orbitrig.analysis.plot_marks import _colors, _min_span, band, error_bars, keep_inside, plot_fit, split_tested
 from orbitrig.analysis.reduce import MATRIX_UNITS
 from reduction.derived import entry_gradient
 

@@ -14,7 +14,9 @@ from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from orbitrig.analysis.plots import figure_legend, PAIR_LABELS, panels, whirl_direction
+from orbitrig.analysis.plots import PAIR_LABELS
+from orbitrig.analysis.plot_panels import figure_legend, panels
+from orbitrig.analysis.plot_marks import whirl_direction
 from orbitrig.load_systems import LoadSystem
 
 #: (lower bound, colour, label) of each gamma^2 band, best first

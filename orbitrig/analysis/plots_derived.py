@@ -21,19 +21,9 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from orbitrig.analysis.grid import light_grid
-from orbitrig.analysis.plots import (
-    figure_legend,
-    ENTRIES,
-    Fitted,
-    _colors,
-    _min_span,
-    band,
-    coverage,
-    keep_inside,
-    panels,
-    plot_fit,
-    style,
-)
+from orbitrig.analysis.plots import ENTRIES, Fitted, coverage, style
+from orbitrig.analysis.plot_panels import figure_legend, panels
+from orbitrig.analysis.plot_marks import _colors, _min_span, band, keep_inside, plot_fit
 from orbitrig.analysis.quality import TrueImpedance, orbit_grid
 from reduction.derived import Derived
 from reduction.systematic import UncertaintyBasis

@@ -12,17 +12,9 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from orbitrig.analysis.grid import light_grid
-from orbitrig.analysis.plots import (
-    figure_legend,
-    DIRECTIONS,
-    Fitted,
-    _colors,
-    _save,
-    coverage,
-    panels,
-    style,
-    whirl_direction,
-)
+from orbitrig.analysis.plots import DIRECTIONS, Fitted, _save, coverage, style
+from orbitrig.analysis.plot_panels import figure_legend, panels
+from orbitrig.analysis.plot_marks import _colors, whirl_direction
 
 
 def forces_plot(path, table, fitted: Sequence[Fitted], *, title: str) -> Path:

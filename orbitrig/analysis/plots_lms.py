@@ -9,18 +9,9 @@ from typing import Any
 import numpy as np
 
 from orbitrig.analysis.grid import light_grid
-from orbitrig.analysis.plots import (
-    DIRECTIONS,
-    ENTRIES,
-    MATRIX_NAMES,
-    Fitted,
-    _colors,
-    panels,
-    _save,
-    coverage,
-    style,
-    whirl_direction,
-)
+from orbitrig.analysis.plots import DIRECTIONS, ENTRIES, MATRIX_NAMES, Fitted, _save, coverage, style
+from orbitrig.analysis.plot_panels import panels
+from orbitrig.analysis.plot_marks import _colors, whirl_direction
 from orbitrig.analysis.reduce import MATRIX_UNITS
 from orbitrig.load_systems import LoadSystem
 

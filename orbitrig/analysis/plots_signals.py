@@ -20,7 +20,8 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from orbitrig.analysis.grid import light_grid
-from orbitrig.analysis.plots import figure_legend, max_columns, _colors, panels
+from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels
+from orbitrig.analysis.plot_marks import _colors
 from orbitrig.analysis.signals import FORCE_CHANNELS, PROBE_PLANES, BlockSignals
 from orbitrig.load_systems import LMS, LoadSystem
 from reduction.fourier import harmonic_fit

@@ -10,21 +10,9 @@ import numpy as np
 from matplotlib.ticker import MaxNLocator
 
 from orbitrig.analysis.grid import light_grid
-from orbitrig.analysis.plots import (
-    figure_legend,
-    max_columns,
-    panels,
-    AXES,
-    ENTRIES,
-    TRUTH_LABEL,
-    _colors,
-    _min_span,
-    _save,
-    coverage,
-    keep_inside,
-    panel_figure,
-    style,
-)
+from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, _save, coverage, style
+from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels, AXES, panel_figure
+from orbitrig.analysis.plot_marks import _colors, _min_span, keep_inside
 from orbitrig.analysis.reduce import MATRIX_UNITS
 from orbitrig.load_systems import LoadSystem
 

@@ -12,7 +12,8 @@ from pathlib import Path
 import matplotlib
 import numpy as np
 
-from orbitrig.analysis.plots import _colors, _figure, style
+from orbitrig.analysis.plots import _figure, style
+from orbitrig.analysis.plot_marks import _colors
 from orbitrig.catalog.compare import Row, Variable, repeatability, runs_of
 from orbitrig.catalog.predicted import PredictedLines, predicted_lines
 from orbitrig.store.durable import write_atomic

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from pypdf import PdfReader
 
-from orbitrig.analysis import plots, plots_coefficients, plots_forces
+from orbitrig.analysis import plot_marks, plots, plots_coefficients, plots_forces
 from orbitrig.analysis.reduce import MATRIX_UNITS
 from orbitrig.analysis.report import ReportOptions, make_report
 from orbitrig.analysis.report_analysis import analyse_point, fit_label
@@ -103,7 +103,7 @@ def test_residual_panels_show_measured_minus_reproduced(point):
     fig = plots_forces.forces_figure(table, fitted, title="t")
     ax = next(ax for ax in fig.axes if ax.get_title().startswith("Fy residual"))
     ratio = table.orbit / table.spin
-    forward = np.flatnonzero(plots.whirl_direction(table) == 1)
+    forward = np.flatnonzero(plot_marks.whirl_direction(table) == 1)
     forward = forward[np.argsort(ratio[forward])]
     rep = fitted[0].identification.reproduce(table)[1]
     lines = [ln for ln in ax.get_lines() if ln.get_linestyle() == "-" and ln.get_gid() != "measured-uncertainty"]

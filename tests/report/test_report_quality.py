@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 from matplotlib.colors import to_rgb
 
-from orbitrig.analysis.plots import Fitted, keep_inside
+from orbitrig.analysis.plots import Fitted
+from orbitrig.analysis.plot_marks import keep_inside
 from orbitrig.analysis.plots_coefficients import POINT_TRUTH_LABEL, coefficients_figure
 from orbitrig.analysis.plots_coherence import BANDS, band_colour, coherence_figure, coherence_table
 from orbitrig.analysis.plots_derived import derived_figure, impedance_figure

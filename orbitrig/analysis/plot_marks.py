@@ -1,0 +1,105 @@
+"""What is drawn on a panel of a report figure, whatever its style: fitted curves solid over the
+tested whirl range and dotted outside it, uncertainty bands and error bars (added to the data
+limits without autoscaling each time), the whirl direction of each row (+1 forward, -1
+backward), curve colours, and axis limits that keep every truth marker inside.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.collections import PolyCollection
+
+
+def tested_range(orbit) -> tuple[float, float]:
+    """(lowest, highest) tested |Omega| (rad/s): fits are drawn solid only between them."""
+    w = np.abs(np.asarray(orbit, dtype=float))
+    return float(w.min()), float(w.max())
+
+
+def split_tested(grid: np.ndarray, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Boolean masks of `grid` below, inside and above the tested range (the edges in both
+    neighbours, so the solid and dashed parts join)."""
+    eps = 1e-9 * max(hi, 1.0)
+    return grid <= lo + eps, (grid >= lo - eps) & (grid <= hi + eps), grid >= hi - eps
+
+
+def plot_fit(
+    ax,
+    x: np.ndarray,
+    y: np.ndarray,
+    lo: float,
+    hi: float,
+    *,
+    color,
+    lw: float = 1.2,
+    label: str | None = None,
+    ls: str = "-",
+) -> None:
+    """A fitted curve y(x), x = Omega/omega: `ls` over the tested range [lo, hi] (same units as
+    x), thin dotted outside it (an extrapolation, not a result)."""
+    below, inside, above = split_tested(x, lo, hi)
+    ax.plot(x[inside], y[inside], ls, color=color, lw=lw, label=label)
+    for part in (below, above):
+        if part.sum() > 1:
+            ax.plot(x[part], y[part], ":", color=color, lw=0.7 * lw)
+
+
+def band(ax, x: np.ndarray, lo: np.ndarray, hi: np.ndarray, *, color, alpha: float = 0.15) -> None:
+    """Shade lo..hi over x, as ``fill_between`` does, without its cost: fill_between finds the
+    band's data limits through the axes' transform, which autoscales every axes sharing x
+    after each band; here the limits are added as data and the axes scale once when drawn."""
+    verts = np.column_stack([np.r_[x, x[::-1]], np.r_[lo, hi[::-1]]])
+    ax.add_collection(PolyCollection([verts], facecolors=[color], alpha=alpha, linewidths=0), autolim=False)
+    _add_limits(ax, verts)
+
+
+def error_bars(
+    ax, x: np.ndarray, y: np.ndarray, err: np.ndarray, *, color, ms: float, capsize: float, lw: float
+) -> None:
+    """Markers at (x, y) with vertical bars y +- err and caps (capsize: half-width, pt), as
+    ``errorbar(fmt="o")`` draws them, the bars a LineCollection (see :func:`band`)."""
+    ax.vlines(x, y - err, y + err, colors=[color], linewidths=lw)
+    ax.plot(x, y, "o", ms=ms, color=color)
+    ax.plot(np.r_[x, x], np.r_[y - err, y + err], "_", ms=2 * capsize, mew=lw, color=color)
+
+
+def _add_limits(ax, xy: np.ndarray) -> None:
+    ok = np.all(np.isfinite(xy), axis=1)
+    if ok.any():
+        ax.update_datalim(xy[ok])
+        ax._request_autoscale_view()
+
+
+def whirl_direction(table) -> np.ndarray:
+    """+1 forward / -1 backward per row, from the phasors (forward: y = -i x)."""
+    return np.where(np.imag(np.conj(table.x) * table.y) <= 0, 1, -1)
+
+
+def _colors(n: int) -> list:
+    import matplotlib
+
+    cmap = matplotlib.colormaps["tab10"]
+    return [cmap(i % 10) for i in range(n)]
+
+
+def _min_span(ax, largest: float, fraction: float = 0.05) -> None:
+    """Make the y axis span at least `fraction` of the matrix's largest entry, so
+    that differences far inside the 5 % criterion do not fill a coefficient panel."""
+    lo, hi = ax.get_ylim()
+    if hi - lo < fraction * largest:
+        mid = (lo + hi) / 2
+        ax.set_ylim(mid - fraction / 2 * largest, mid + fraction / 2 * largest)
+
+
+def keep_inside(ax, xs, ys, margin: float = 0.05) -> None:
+    """Widen the axes limits so that every point (xs, ys) lies inside, with `margin` of the
+    span to spare: truth markers must never fall outside the panel."""
+    xs, ys = np.asarray(xs, dtype=float).ravel(), np.asarray(ys, dtype=float).ravel()
+    ok = np.isfinite(xs) & np.isfinite(ys)
+    if not ok.any():
+        return
+    for lim, get, put in ((xs[ok], ax.get_xlim, ax.set_xlim), (ys[ok], ax.get_ylim, ax.set_ylim)):
+        lo, hi = get()
+        span = max(hi - lo, float(np.ptp(lim)), 1e-12)
+        if lim.min() <= lo or lim.max() >= hi:
+            put(min(lo, lim.min() - margin * span), max(hi, lim.max() + margin * span))

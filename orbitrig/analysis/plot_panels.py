@@ -1,0 +1,143 @@
+"""Report figures of many panels: fixed margins in inches for the style's text size (constrained
+layout only for a narrow figure, plots_narrow), the figure of a shape reused per thread, at most
+MAX_TICKS ticks per axis, and the legend under the panels with the figure grown until it clears
+them by LEGEND_GAP (pt).
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Any
+
+from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
+
+from orbitrig.analysis import plots_narrow as narrow
+from orbitrig.analysis.report_axes import ReportAxes
+from orbitrig.analysis.plots import _figure, style
+
+#: ticks of each panel axis: at most MAX_TICKS intervals, at 1, 2, 2.5 or 5 times a power of 10
+MAX_TICKS = 5
+TICK_STEPS = (1, 2, 2.5, 5, 10)
+#: keyword arguments of every report figure's ``subplots``: axes that measure tick labels once per draw
+AXES = {"axes_class": ReportAxes}
+#: the room (pt) a figure's legend keeps below the lowest tick labels and axis labels of its panels
+LEGEND_GAP = 4.0
+
+
+def text_scale() -> float:
+    """Margins drawn for 10-pt text, scaled to the style's text size."""
+    return style().font / 10.0
+
+
+def panel_figure(
+    w: float,
+    h: float,
+    *,
+    left: float = 0.85,
+    right: float = 0.2,
+    top: float = 0.95,
+    bottom: float = 1.15,
+    wspace: float = 0.42,
+    hspace: float = 0.42,
+) -> Figure:
+    """A figure of many panels with fixed margins in inches (room for a two-line title on top and
+    a legend at the bottom): half the saving time of constrained layout, whose solver measures
+    every tick label. Put the legend with :func:`figure_legend`. A narrow figure
+    (plots_narrow) is laid out by constrained layout instead."""
+    if narrow.is_narrow(style().width):
+        return _figure(w, h)
+    fig = _figure(w, h, layout=None)
+    t = text_scale() * w / style().width  # margins in design inches, for the style's text
+    fig.subplots_adjust(
+        left=left * t / w,
+        right=1 - right * t / w,
+        top=1 - top * t / h,
+        bottom=bottom * t / h,
+        wspace=wspace,
+        hspace=hspace,
+    )
+    return fig
+
+
+_PANELS = threading.local()  # this thread's figures of panels, by shape (reused: see panels)
+
+
+def panels(w: float, h: float, rows: int, cols: int, *, sharex: bool = True, **margins: float) -> tuple[Figure, Any]:
+    """(figure, 2-d array of axes) of :func:`panel_figure` with rows x cols panels: the figure
+    this thread drew last of the same shape and style, emptied, or a new one. Reusing the axes
+    (their axis objects, tick marks and labels) halves the cost of drawing a figure; the caller
+    sets every title and label again. Valid until the next call of the same shape."""
+    key = (w, h, rows, cols, sharex, tuple(sorted(margins.items())), style())
+    cache = _PANELS.__dict__.setdefault("figures", {})
+    if key in cache:
+        fig, axes, size, margins_now = cache[key]
+        _empty(fig)
+        if tuple(fig.get_size_inches()) != size:  # grown for a long legend (_room_below)
+            fig.set_size_inches(*size)
+            fig.subplots_adjust(bottom=margins_now[0], top=margins_now[1])
+        return fig, axes
+    if narrow.is_narrow(style().width):  # fewer columns of panels, a taller figure
+        t = text_scale() * (margins.get("top", 0.95) + margins.get("bottom", 1.15))
+        h = narrow.height(w, h, rows, cols, style().width, t)
+    fig = panel_figure(w, h, **margins)
+    axes = narrow.grid_axes(fig, rows, cols, sharex=sharex, subplot_kw=AXES, width=style().width)
+    for ax in axes.flat:  # a journal panel reads 4 to 6 ticks an axis (matplotlib's 'auto' puts up to 9)
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=TICK_STEPS))
+        ax.yaxis.set_major_locator(MaxNLocator(nbins=MAX_TICKS, steps=TICK_STEPS))
+    cache[key] = fig, axes, tuple(fig.get_size_inches()), (fig.subplotpars.bottom, fig.subplotpars.top)
+    return fig, axes
+
+
+def max_columns(cols: int) -> int:
+    """How many of `cols` columns of panels a figure of the style's width shows side by side."""
+    return narrow.columns(cols, style().width)
+
+
+def figure_legend(fig: Figure, handles: list, labels: list, **kw: Any):
+    """The legend under a figure's panels: ``fig.legend(handles, labels, loc="lower center", ...)``
+    in the margin the figure leaves it; in a narrow figure wrapped to its width, outside the
+    panels (plots_narrow.figure_legend)."""
+    if narrow.is_narrow(style().width):
+        return narrow.figure_legend(fig, handles, labels, **kw)
+    legend = fig.legend(handles, labels, **{"loc": "lower center", **kw})
+    _room_below(fig, legend)
+    return legend
+
+
+def _room_below(fig: Figure, legend) -> None:
+    """Grow `fig` at the bottom until `legend` (on its lower edge) clears every panel, tick label
+    and axis label by LEGEND_GAP (pt): the panels keep their size and their place from the top,
+    however many entries the legend has. (:func:`panels` gives a reused figure its size back.)"""
+    renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]  # the Agg canvas of every report figure
+    boxes = [ax.get_tightbbox(renderer) for ax in fig.axes if ax.get_visible()]
+    lowest = min((b.y0 for b in boxes if b is not None), default=None)
+    if lowest is None:
+        return
+    overlap = legend.get_window_extent(renderer).y1 + LEGEND_GAP * fig.dpi / 72.0 - lowest  # pixels
+    if overlap <= 0:
+        return
+    w, h = fig.get_size_inches()
+    grow = overlap / fig.dpi  # in
+    bottom, top = fig.subplotpars.bottom, fig.subplotpars.top
+    fig.set_size_inches(w, h + grow)
+    fig.subplots_adjust(bottom=(bottom * h + grow) / (h + grow), top=(top * h + grow) / (h + grow))
+
+
+def _empty(fig: Figure) -> None:
+    """Remove what was drawn on `fig` (data, legends, titles), the axes kept, as newly made:
+    limits found from the data again, colour cycle restarted."""
+    for legend in list(fig.legends):
+        legend.remove()
+    for ax in fig.axes:
+        for artist in [*ax.lines, *ax.collections, *ax.patches, *ax.texts, *ax.images]:
+            artist.remove()
+        ax.containers.clear()
+        if (ax_legend := ax.get_legend()) is not None:
+            ax_legend.remove()
+        ax.set_prop_cycle(None)
+        ax.set_title("")
+        ax.set_xlabel("")
+        ax.set_ylabel("")
+        ax.relim()
+        ax.set_autoscale_on(True)
