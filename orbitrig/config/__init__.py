@@ -66,17 +66,17 @@ from orbitrig.config.records import (  # noqa: F401
     RecordStep,
     Reference,
     Runout,
+)
+from orbitrig.config.record_files import (  # noqa: F401
     activate,
-    check_setup,
     digest,
     folder_of,
-    identity,
     list_names,
-    made_elsewhere,
     read_record,
     record_from_text,
     write_record,
 )
+from orbitrig.config.record_setup import check_setup, identity, made_elsewhere  # noqa: F401
 from orbitrig.config.rig import (  # noqa: F401
     LINK_LOSS_MARGIN,
     Averaging,
@@ -227,7 +227,7 @@ def _active_record(file: str, text: str, name: str) -> tuple[CalibrationRecord, 
 
 def _check_record_rig(rig: RigConfig, record: CalibrationRecord, record_text: str, path: Path) -> None:
     """A ConfigError naming the record file, its rig and rig.toml's when the active record was
-    measured on another rig (orbitrig.config.records.made_elsewhere), with the records of this rig."""
+    measured on another rig (orbitrig.config.record_setup.made_elsewhere), with the records of this rig."""
     if not made_elsewhere(record, rig.name, rig.rig_id):
         check_setup(rig, record, record_text, path)  # the channels' serials and gains it was measured with
         return

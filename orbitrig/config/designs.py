@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from orbitrig.config.home import DESIGNS, known_names, named_file
-from orbitrig.config.records import digest
+from orbitrig.config.record_files import digest
 from orbitrig.config.toml_out import render
 
 if TYPE_CHECKING:

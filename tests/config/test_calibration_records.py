@@ -1,5 +1,5 @@
-"""Calibration records (orbitrig.config.records, docs/calibration.md): the shipped record, writing
-and reading back, the active record in the rig configuration, refusals that name the file, and
+"""Calibration records (orbitrig.config.records, record_files, record_setup; docs/calibration.md):
+the shipped record, writing and reading back, the active record in the rig configuration, refusals that name the file, and
 `orbitrig calibrate list|show`."""
 
 from __future__ import annotations

@@ -1,0 +1,152 @@
+"""The calibration records' folder beside the rig configuration (docs/calibration.md): dated
+record names (``2026-11-26T214458Z-loads``, UTC), reading, writing (never over an existing
+record), the SHA-256 a run records, and making a record active: the rig file's
+``calibration_record`` line set or added, the file replaced as one durable step.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+import os
+import re
+import stat
+import tomllib
+from pathlib import Path
+
+from orbitrig.config.records import CalibrationRecord
+from orbitrig.config.toml_out import render
+from orbitrig.errors import ConfigError
+
+FOLDER = "calibration"
+NAME = re.compile(r"^\d{4}-\d\d-\d\dT\d{6}Z-[a-z]+$")
+RECORD_KEY = re.compile(r"""^([ \t]*calibration_record[ \t]*=[ \t]*)("[^"\n]*"|'[^'\n]*')""", re.MULTILINE)
+TABLE_HEADER = re.compile(r"^[ \t]*\[")
+TOP_KEY = re.compile(r"^[ \t]*([A-Za-z0-9_-]+)[ \t]*=")
+
+
+def folder_of(rig_file: str | Path) -> Path:
+    """The calibration records' folder of the rig configuration ``rig_file``."""
+    return Path(rig_file).resolve().parent / FOLDER
+
+
+def record_name(date: str, step: str) -> str:
+    """The file stem of a record made at ``date`` (ISO 8601 UTC) by ``step``."""
+    t = _dt.datetime.fromisoformat(date).astimezone(_dt.timezone.utc)
+    return f"{t:%Y-%m-%dT%H%M%S}Z-{step}"
+
+
+def digest(text: str) -> str:
+    """SHA-256 (hex) of a record's text, as the run records it."""
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def record_from_text(text: str, file: str) -> CalibrationRecord:
+    from orbitrig.config import _build, _parse
+
+    return _build(CalibrationRecord, _parse(text, file), file, text)
+
+
+def read_record(folder: Path, name: str) -> tuple[CalibrationRecord, str]:
+    """(record, its text) of record ``name`` in ``folder``; ConfigError naming the file."""
+    from orbitrig.config import read_text
+
+    path = Path(folder) / f"{name}.toml"
+    if not path.is_file():
+        known = ", ".join(list_names(folder)) or "none"
+        raise ConfigError(str(path), [f"no calibration record {name!r} (records in {folder}: {known})"])
+    text, file = read_text(path)
+    return record_from_text(text, file), text
+
+
+def list_names(folder: Path) -> list[str]:
+    """The record names in ``folder``, oldest first."""
+    return sorted(p.stem for p in Path(folder).glob("*.toml")) if Path(folder).is_dir() else []
+
+
+def write_record(folder: Path, record: CalibrationRecord, header: str = "") -> tuple[str, str]:
+    """Write ``record`` under its dated name (never over an existing one); (name, text)."""
+    name = record_name(record.date, record.step)
+    path = Path(folder) / f"{name}.toml"
+    if path.exists():
+        raise ConfigError(str(path), ["a record of that name exists already (one step per second)"])
+    text = render(record.model_dump(mode="json", exclude_none=True), header)
+    record_from_text(text, str(path))  # what is written reads back
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text, encoding="utf-8")
+    except OSError as err:
+        raise ConfigError(str(path), [f"cannot write the record: {err.strerror or err}"]) from err
+    return name, text
+
+
+def activate(rig_file: str | Path, name: str) -> None:
+    """Make ``name`` the active record of the rig configuration ``rig_file`` (its
+    ``calibration_record`` line; added among the top-level keys when missing). Nothing else changes:
+    the file is replaced as one durable step (orbitrig.store.durable, its mode kept; a symbolic link
+    followed), so a full disk or a kill leaves it as it was. A file that cannot be written (no write
+    permission bit, immutable, a full disk) raises ConfigError naming it, the file unchanged."""
+    path = Path(rig_file).resolve()
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except OSError as err:
+        raise ConfigError(str(rig_file), [f"cannot read it: {err.strerror or err}"]) from err
+    if RECORD_KEY.search(text):
+        text = RECORD_KEY.sub(lambda m: f'{m.group(1)}"{name}"', text, count=1)
+    else:
+        placed = _with_record_key(text, name)
+        if placed is None:
+            raise ConfigError(str(path), [f'cannot add calibration_record = "{name}": add it among the top-level keys'])
+        text = placed
+    _replace(path, text.encode("utf-8"), str(rig_file))
+
+
+def _replace(path: Path, data: bytes, shown: str) -> None:
+    """``data`` as the new content of the existing file ``path`` (temp name, fsync, rename), its
+    permission bits kept; refused (ConfigError naming ``shown``) when it has no write bit or the
+    write fails, the file unchanged."""
+    from orbitrig.store.durable import atomic_file
+    from orbitrig.store.errors import StorageError, StorageFullError
+
+    mode = stat.S_IMODE(path.stat().st_mode)
+    if not mode & 0o222 or not os.access(path, os.W_OK):
+        why = f"it is read-only (mode {mode:o})" if not mode & 0o222 else "write access refused (immutable?)"
+        raise ConfigError(shown, [f"cannot write it: {why}; left unchanged"])
+    try:
+        with atomic_file(path) as f:
+            os.fchmod(f.fileno(), mode)
+            f.write(data)
+    except StorageError as err:
+        why = err.problem if isinstance(err, StorageFullError) else err.reason
+        raise ConfigError(shown, [f"{why}; left unchanged"]) from None
+
+
+def _with_record_key(text: str, name: str) -> str | None:
+    """``text`` with ``calibration_record = "name"`` among its top-level keys: after ``name = ...``,
+    else after the last top-level key, else above the first table (and its comments), else on
+    top; the first place where the text reads back as before plus that key (None: no such place)."""
+    lines = text.splitlines(keepends=True)
+    nl = "\r\n" if "\r\n" in text else "\n"
+    first = next((i for i, ln in enumerate(lines) if TABLE_HEADER.match(ln)), len(lines))
+    keys = [i for i in range(first) if TOP_KEY.match(lines[i])]
+    named = [i for i in keys if lines[i].split("=")[0].strip() == "name"]
+    above = first
+    while above > 0 and lines[above - 1].lstrip().startswith("#"):
+        above -= 1
+    want = _toml(text)
+    if want is not None:
+        want["calibration_record"] = name
+    for at, gap in [(i + 1, "") for i in named[:1] + keys[-1:]] + [(above, nl), (0, "")]:
+        head = "".join(lines[:at])
+        head += nl if head and not head.endswith("\n") else ""
+        out = f'{head}calibration_record = "{name}"{nl}{gap if at < len(lines) else ""}' + "".join(lines[at:])
+        if want is None or _toml(out) == want:
+            return out
+    return None
+
+
+def _toml(text: str) -> dict | None:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError:
+        return None
