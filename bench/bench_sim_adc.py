@@ -59,7 +59,7 @@ def offline(revs: int = 100, rounds: int = 20, cfg: SimConfig | None = None) -> 
     orbit = np.full(n, 2 * math.pi * 40)
     t0 = time.process_time()  # CPU time of this process: the machine may be shared
     for _ in range(rounds):
-        counts = rig._convert(g, t, spin_angle, orbit, 200.0, 2 * math.pi * 40)
+        counts = rig.stream.convert(g, t, spin_angle, orbit, 200.0, 2 * math.pi * 40)
         rig.board.encode(int(g[0]), counts, t)
     return rounds * n / (time.process_time() - t0)
 

@@ -1,0 +1,142 @@
+"""The A/D board's stream of slot edges: the orbit spindle's angle integrated from the orbit
+drive's actual speed (rad/s, linear between ticks, times the speed ripple), every slot edge it
+passes converted (sequential: channel s mod C; simultaneous: all channels) and quantised, and
+whole frames sent to the device server; slots the board's FIFO cannot hold, or that nobody
+reads, are lost as whole frames. Simulated time (the rig's SimClock, s).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from sim.adc_board import SLOTS, AdcBoard
+from sim.adc_server import AdcServer
+from sim.clock import SimClock
+from sim.physics import RigPhysics
+
+SLOT_ANGLE = 2.0 * math.pi / SLOTS
+
+
+class SlotStream:
+    """The slot clock and the conversions of one rig's board; ``speeds()`` gives the drives'
+    (spin, orbit) actual speeds now (rad/s, orbit signed)."""
+
+    def __init__(
+        self,
+        clock: SimClock,
+        physics: RigPhysics,
+        board: AdcBoard,
+        adc_server: AdcServer,
+        speeds: Callable[[], tuple[float, float]],
+        max_slots: int,
+    ):
+        self.clock, self.physics, self.board, self.adc_server = clock, physics, board, adc_server
+        self._speeds = speeds
+        self._max_slots = max_slots
+        self._g_pos = float(self.physics.rng.uniform(0.0, SLOTS))  # slots passed since start
+        self._g_next = math.ceil(self._g_pos)  # next slot edge to convert
+        self._pending_g0 = self._g_next
+        self._pending_counts: np.ndarray | None = None
+        self._pending_t: np.ndarray | None = None
+        self._t_last = 0.0
+        self._spin_last = 0.0
+        self._orbit_last = 0.0
+        self._spin_angle = 0.0
+
+    def start(self) -> None:
+        """Count simulated time from now (the rig's start)."""
+        self._t_last = self.clock.now()
+
+    @property
+    def last_speeds(self) -> tuple[float, float]:
+        """(spin, orbit) in rad/s at the last tick."""
+        return self._spin_last, self._orbit_last
+
+    async def step(self) -> None:
+        """Advance the drives and spindles to now; stream the completed frames (numerics in a thread)."""
+        tick = self._advance_spindles()
+        if tick is None:
+            return
+        g_end = math.floor(self._g_pos) + 1  # slot edges g_next .. g_end - 1 have passed
+        if g_end <= self._g_next:
+            return
+        board = self.board
+        if g_end - self._g_next > self._max_slots:  # the board's FIFO overflowed
+            self._lose_pending(board.boundary_before(g_end - self._max_slots))
+            self._g_next = max(self._g_next, self._pending_g0)
+        b = board.boundary_before(g_end)  # frames before b are complete
+        if b > self._pending_g0 and not self.adc_server.wants_data():
+            self._lose_pending(b)  # nobody can take them: skip the numerics
+        lo = max(self._g_next, self._pending_g0)
+        if g_end > lo:
+            g = np.arange(lo, g_end)
+            t, spin_angle, orbit_inst, spin, orbit = self._interpolate(g, tick)
+            counts = await asyncio.to_thread(self.convert, g, t, spin_angle, orbit_inst, spin, orbit)
+            if self._pending_counts is None or not len(self._pending_counts):
+                self._pending_counts, self._pending_t = counts, t
+            else:
+                self._pending_counts = np.concatenate([self._pending_counts, counts])
+                self._pending_t = np.concatenate([self._pending_t, t])
+        self._g_next = g_end
+        if b > self._pending_g0:
+            n, pending, pending_t = b - self._pending_g0, self._pending_counts, self._pending_t
+            assert pending is not None and pending_t is not None  # b > pending_g0 implies g_end > lo: set above
+            self.adc_server.send(board.encode(self._pending_g0, pending[:n], pending_t[:n]))
+            self._pending_counts, self._pending_t = pending[n:], pending_t[n:]
+            self._pending_g0 = b
+
+    def _advance_spindles(self):
+        """Integrate both spindles from the last tick to now (drive speeds linear
+        in between, times the speed ripple). Returns the tick's start state, or
+        None when no simulated time has passed."""
+        now = self.clock.now()
+        spin, orbit = self._speeds()
+        dt = now - self._t_last
+        if dt <= 0:
+            return None
+        ripple = float(self.physics.ripple(np.array(self._t_last + 0.5 * dt)))
+        tick = (self._t_last, dt, self._spin_last, spin, self._orbit_last, orbit, self._spin_angle, self._g_pos, ripple)
+        self._g_pos += 0.5 * (abs(self._orbit_last) + abs(orbit)) * ripple * dt / SLOT_ANGLE
+        self._spin_angle += 0.5 * (self._spin_last + spin) * ripple * dt  # unwrapped: ball-pass orders
+        self._t_last, self._spin_last, self._orbit_last = now, spin, orbit
+        return tick
+
+    def _interpolate(self, g: np.ndarray, tick):
+        """Time, spin angle and orbit speed at the slot edges g inside a tick."""
+        t0, dt, spin0, spin, orbit0, orbit, phi0, g_pos, ripple = tick
+        frac = (g - g_pos) / (self._g_pos - g_pos)
+        tau = frac * dt
+        spin_angle = phi0 + (spin0 * tau + (spin - spin0) * tau * tau / (2 * dt)) * ripple
+        orbit_inst = orbit0 + (orbit - orbit0) * frac
+        return t0 + tau, spin_angle, orbit_inst, spin, (orbit if orbit != 0 else orbit0)
+
+    def _lose_pending(self, upto: int) -> None:
+        """The board lost the slots from the pending ones up to ``upto`` (a frame boundary)."""
+        if upto <= self._pending_g0:
+            return
+        self.board.lose(self._pending_g0, upto)
+        if self._pending_counts is not None and self._pending_t is not None:  # set together
+            n = upto - self._pending_g0
+            self._pending_counts, self._pending_t = self._pending_counts[n:], self._pending_t[n:]
+        self._pending_g0 = upto
+
+    def convert(self, g, t, spin_angle, orbit_inst, spin, orbit) -> np.ndarray:
+        """Counts of the conversions at global slots g (sequential (n,), simultaneous (n, C))."""
+        ph, board = self.physics, self.board
+        C = board.channels
+        theta = (g % SLOTS) * SLOT_ANGLE
+        if board.simultaneous:
+            vals: np.ndarray = np.empty((len(g), C))
+            for k in range(C):
+                vals[:, k] = ph.channel_values(k, theta, t, spin_angle, orbit_inst, spin, orbit)
+            return board.quantize(vals)
+        vals = np.empty(len(g))
+        g0 = int(g[0])
+        for k in range(C):
+            sl = slice((k - g0) % C, None, C)
+            vals[sl] = ph.channel_values(k, theta[sl], t[sl], spin_angle[sl], orbit_inst[sl], spin, orbit)
+        return board.quantize(vals, board.channel_of_slot(g))
