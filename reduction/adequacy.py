@@ -7,8 +7,10 @@ dof_1), F-distributed with (p_1 - p_0, dof_1) degrees of freedom when the consta
 true. With known noise (u_* columns: chi2) the likelihood ratio chi2_0 - chi2_1 is
 chi2-distributed with p_1 - p_0 degrees of freedom. Exact for every method: each fit's chi2
 is taken at its wls solution (:mod:`reduction.statistics`), also for ols and iv (tls: its
-own maximum-likelihood costs, a likelihood ratio too); approximate for power:auto, whose
-exponent is chosen on the same data. AIC and BIC of both fits go with the verdict (lower is
+own maximum-likelihood costs, a likelihood ratio too). For power:auto, whose exponent is
+chosen on the same data, the p-value is adjusted for the choice (:mod:`reduction.selection`:
+the chance that the best of the candidates looks as good when Z is constant); the chosen
+exponent's own p-value goes with it. AIC and BIC of both fits go with the verdict (lower is
 better).
 """
 
@@ -38,10 +40,18 @@ class Adequacy:
     alpha: float
     aic: tuple[float, float]  # (constant, frequency-dependent)
     bic: tuple[float, float]
+    p_chosen: float | None = None  # power:auto: the chosen exponent's own p (p_value is adjusted)
+    candidates: tuple[int, ...] = ()  # power:auto: the exponents it chose from
 
     @property
     def verdict(self) -> str:
-        return f"frequency dependence supported: {'yes' if self.supported else 'no'} (p = {self.p_value:.3g})"
+        chose = (
+            f", adjusted for the choice of M among {', '.join(map(str, self.candidates))}; "
+            f"p of that M alone {self.p_chosen:.3g}"
+            if self.p_chosen is not None
+            else ""
+        )
+        return f"frequency dependence supported: {'yes' if self.supported else 'no'} (p = {self.p_value:.3g}{chose})"
 
     def to_dict(self) -> dict[str, object]:
         return {
@@ -54,7 +64,7 @@ class Adequacy:
             "aic": list(self.aic),
             "bic": list(self.bic),
             "verdict": self.verdict,
-        }
+        } | ({"p_chosen": self.p_chosen, "candidates": list(self.candidates)} if self.p_chosen is not None else {})
 
 
 def frequency_dependence(constant: Identification, dependent: Identification, alpha: float = ALPHA) -> Adequacy:
@@ -84,6 +94,20 @@ def frequency_dependence(constant: Identification, dependent: Identification, al
         stat = max(rss0 - rss1, 0.0) / q / (rss1 / dependent.dof) if rss1 > 0 else float("inf")
         p = float(dist.f_sf(stat, q, dependent.dof))
         test, dof = "F", (q, dependent.dof)
+    chosen: float | None = None
+    candidates: tuple[int, ...] = ()
+    if dependent.selection is not None:
+        chosen, candidates = p, dependent.selection.exponents
+        p = dependent.selection.p_value(p, constant.known_noise)
     return Adequacy(
-        p < alpha, p, float(stat), test, dof, alpha, (constant.aic, dependent.aic), (constant.bic, dependent.bic)
+        p < alpha,
+        p,
+        float(stat),
+        test,
+        dof,
+        alpha,
+        (constant.aic, dependent.aic),
+        (constant.bic, dependent.bic),
+        chosen,
+        candidates,
     )

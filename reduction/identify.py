@@ -61,6 +61,7 @@ from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_d
 from reduction.noise import equation_variances
 from reduction.rank import RANK_RTOL
 from reduction.result import Identification
+from reduction.selection import Selection, selection
 from reduction.table import OrbitTable
 
 __all__ = ["METHODS", "Method", "Identification", "identify", "circle_orbits"]
@@ -114,6 +115,8 @@ def identify(
     best.exponent = best_m
     best.freq_dep = "power:auto"
     best.skipped = {m: str(err) for m, err in refused.items()}
+    if len(results) > 1:
+        best.selection = _selection(table, model, method, best, tuple(results))
     best.notes.append(
         f"power:auto chose the exponent M = {best_m} (least residual of M in "
         + ", ".join(str(m) for m in results)
@@ -121,6 +124,17 @@ def identify(
         + (f"; not identifiable: M = {', '.join(str(m) for m in refused)}" if refused else "")
     )
     return best
+
+
+def _selection(
+    table: OrbitTable, model: str, method: str, chosen: Identification, exponents: tuple[int, ...]
+) -> Selection:
+    """power:auto's choice among ``exponents`` as a reduction.selection.Selection: the
+    candidates' regressions weighted as the chosen fit weighs its equations."""
+    A0, b = _regression(model_spec(model), table)
+    var = variances(chosen.spec, table, chosen.theta, b, method)
+    candidates = {m: _regression(power_spec(model, m), table)[0] for m in exponents}
+    return selection(A0, candidates, 1.0 / np.sqrt(var))
 
 
 def _identify(

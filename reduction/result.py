@@ -13,6 +13,7 @@ from numpy.typing import ArrayLike
 from reduction.arrays import ComplexArray, FloatArray
 from reduction.impedance import forces, impedance
 from reduction.models import ModelSpec
+from reduction.selection import Selection
 from reduction.table import OrbitTable
 
 
@@ -47,6 +48,7 @@ class Identification:
     solver: str = "qr"
     cost: float = field(default=float("nan"), repr=False)  # the estimator's minimised objective (RSS)
     skipped: dict[int, str] = field(default_factory=dict, repr=False)  # power:auto: M -> reason
+    selection: Selection | None = field(default=None, repr=False)  # power:auto: the choice, for the adequacy test
     free: list[str] = field(default_factory=list)
     covariance: FloatArray | None = field(default=None, repr=False)  # (p, p) SI, or None
     dof: int = 0
