@@ -4,8 +4,9 @@
         s = aux.latest()
         s.p_supply, s.beta, s.ages["p_supply"], s.stale("t_recess"), s.node_lost
 
-python-can's ``Notifier`` receives on its own thread and hands every message to
-the event loop (``loop=``), where it is decoded; nothing blocks the loop. Values
+Frames are read on the event loop as they arrive (daq.can_reader; a bus without a file
+descriptor, python-can's ``virtual``, by a thread that hands them over) and decoded there;
+nothing blocks the loop, and a bus that fails is opened again until it opens. Values
 are kept in SI (K, Pa, m^3/s) with their arrival time; a value is stale when
 its frame is older than 0.5 s, the node is lost when no heartbeat arrived for
 1.5 s (counted from opening while none has come). A frame whose length is not
@@ -23,6 +24,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 from dataclasses import dataclass, field
 
+from daq.can_reader import CanReader
 from daq.errors import DaqError
 
 if TYPE_CHECKING:
@@ -95,8 +97,7 @@ class AuxSensors:
     ) -> None:
         self.channel, self.interface, self.bitrate, self.node_id = channel, interface, bitrate, node_id
         self._clock = clock
-        self._bus: Any = None  # can.BusABC once open (python-can imported when opened)
-        self._notifier: Any = None
+        self._reader: CanReader | None = None  # once open (python-can imported when opened)
         self._values: dict[str, float] = {}
         self._times: dict[int, float] = {}  # CAN id offset -> arrival time
         self._p_recess = [math.nan] * 4
@@ -110,36 +111,44 @@ class AuxSensors:
         return self
 
     async def __aexit__(self, *exc: object) -> None:
-        if self._notifier is not None:
-            self._notifier.stop()
-            self._notifier = None
-        bus, self._bus = self._bus, None
+        bus = self._close_reader()
         if bus is not None:  # off the loop: closing a serial-over-TCP bus (pyserial socket://) waits 0.3 s
             await asyncio.to_thread(bus.shutdown)
 
     def open(self) -> None:
-        """Open the bus (in a running loop); raises DaqError naming the channel if it cannot."""
+        """Open the bus (in a running loop); raises DaqError naming the channel if it cannot.
+        A bus that fails later is opened again until it opens (daq.can_reader)."""
+        bus = self._open_bus()
+        self._opened_at = self._clock()
+        self._reader = CanReader(bus, self._open_bus, self._on_message, f"{self.interface}:{self.channel}")
+
+    def _open_bus(self) -> can.BusABC:
         import can  # only the CAN reader needs python-can
 
         kwargs: dict[str, Any] = {} if self.interface == "virtual" else {"bitrate": self.bitrate}
         try:
-            self._bus = can.Bus(interface=self.interface, channel=self.channel, **kwargs)
+            bus = can.Bus(interface=self.interface, channel=self.channel, **kwargs)
         except (can.CanError, OSError, ValueError, ImportError) as err:
             raise DaqError(f"CAN {self.interface}:{self.channel}: cannot open bus ({err})") from err
         base = self.node_id
         ids = [0x180 + base, 0x280 + base, 0x380 + base, 0x700 + base]
-        self._bus.set_filters([{"can_id": i, "can_mask": 0x7FF, "extended": False} for i in ids])
-        self._opened_at = self._clock()
-        self._notifier = can.Notifier(self._bus, [self._on_message], timeout=0.1, loop=asyncio.get_running_loop())
+        bus.set_filters([{"can_id": i, "can_mask": 0x7FF, "extended": False} for i in ids])
+        return bus
+
+    @property
+    def link_drops(self) -> int:
+        """How often the bus failed and was opened again (or is being)."""
+        return 0 if self._reader is None else self._reader.link_drops
+
+    def _close_reader(self) -> Any:
+        reader, self._reader = self._reader, None
+        return None if reader is None else reader.close()
 
     def close(self) -> None:
         """Idempotent."""
-        if self._notifier is not None:
-            self._notifier.stop()
-            self._notifier = None
-        if self._bus is not None:
-            self._bus.shutdown()
-            self._bus = None
+        bus = self._close_reader()
+        if bus is not None:
+            bus.shutdown()
 
     def _on_message(self, msg: can.Message) -> None:
         if msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
