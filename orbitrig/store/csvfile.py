@@ -225,11 +225,12 @@ def render_points(points: list[PointCsv]) -> bytes:
     return buf.getvalue().encode("utf-8")
 
 
-def render_rows(rows: Iterable[Sequence[object]]) -> bytes:
+def render_rows(rows: Iterable[Sequence[object]], line_end: str = "\n") -> bytes:
     """A CSV's bytes from its rows as lists of cells (header included), one line per row: the
-    writer of the exports' other CSV files (orbitrig.store.export_csv)."""
+    writer of the exports' other CSV files (orbitrig.store.export_csv) and of orbit tables
+    (orbitrig.store.orbit_table, ``line_end`` CR LF as they always had)."""
     buf = io.StringIO(newline="")
-    csv.writer(buf, lineterminator="\n").writerows(rows)
+    csv.writer(buf, lineterminator=line_end).writerows(rows)
     return buf.getvalue().encode("utf-8")
 
 

@@ -171,14 +171,13 @@ def write_orbit_table(path: str | Path, table: OrbitTable, units: bool = False) 
     when present), durably (orbitrig.store.durable.write_atomic; a StorageError names the file).
     ``units``: each header field states its unit (``orbit_hz [Hz]``) and a ``direction``
     column follows (+1 forward, -1 backward whirl; readers ignore it)."""
+    from orbitrig.store.csvfile import render_rows
     from orbitrig.store.durable import write_atomic
 
     cols = orbit_table_columns(table, direction=units)
-    fh = io.StringIO(newline="")
-    w = csv.writer(fh, lineterminator="\r\n")
-    w.writerow([f"{name} [{unit}]" if units else name for name, (_, unit) in cols.items()])
-    for k in range(table.n):
-        w.writerow(
-            [str(int(v[k])) if name in (RECORDS, "direction") else repr(float(v[k])) for name, (v, _) in cols.items()]
-        )
-    write_atomic(Path(path), fh.getvalue().encode("utf-8"))
+    header = [f"{name} [{unit}]" if units else name for name, (_, unit) in cols.items()]
+    rows = (
+        [str(int(v[k])) if name in (RECORDS, "direction") else repr(float(v[k])) for name, (v, _) in cols.items()]
+        for k in range(table.n)
+    )
+    write_atomic(Path(path), render_rows([header, *rows], line_end="\r\n"))
