@@ -224,6 +224,7 @@ def test_noise_and_prior_from_a_simulated_run(tmp_path):
     )
     assert kc8["proposal"]["ratios"] == [1.5] and len(kc8["warnings"]) == 1
     assert "kc8 leaves out terms of kcd12" in kc8["warnings"][0] or "terms kc8 leaves out" in kc8["warnings"][0]
+    assert " N/m " in kc8["warnings"][0]  # how far K could move, with its unit
     p = design("--model", "kcd11", "--spin", "1000", "--noise-from", str(tmp_path), check=False)
     assert p.returncode == 2 and "Traceback" not in p.stderr
 
