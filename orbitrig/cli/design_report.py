@@ -361,6 +361,7 @@ def save_design(obj: dict, name: str, folder: Path | None = None) -> Path:
     p = obj["proposal"]
     goal = "" if obj["target_pct"] is None else f" --target {obj['target_pct']:g}"
     goal += " --match" if obj.get("match_candidate") else ""
+    goal += " --no-model-test" if goal and obj.get("model_test") is None else ""  # a goal's list without the test
     n = p["revolutions"]
     per_ratio = isinstance(n, list)
     lines = [

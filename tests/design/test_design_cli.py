@@ -165,6 +165,11 @@ def test_text_output_and_saved_design(tmp_path):
     assert "proposal :" in p.stdout and "target 0.2 %: reached" in p.stdout
     saved = tomllib.loads((tmp_path / "config" / "designs" / "kc8fast.toml").read_text())
     assert saved["model"] == "kc8" and len(saved["ratios"]) == len(saved["revolutions"]) == len(saved["target_pct"])
+    header = (tmp_path / "config" / "designs" / "kc8fast.toml").read_text().splitlines()[0]
+    assert header == "# orbitrig design --model kc8 --freq-dep none --spin 1000 --target 0.2"
+    design("--model", "kc8", "--spin", "1000", "--match", "--no-model-test", "--save", "kc8one", "--config", str(rig))
+    header = (tmp_path / "config" / "designs" / "kc8one.toml").read_text().splitlines()[0]
+    assert header == "# orbitrig design --model kc8 --freq-dep none --spin 1000 --match --no-model-test"  # as made
 
 
 @pytest.mark.parametrize(
