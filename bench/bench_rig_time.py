@@ -49,8 +49,7 @@ import numpy as np
 from bench.bench_rig_time_engine import TABLE1_POINT
 from daq.averager import AveragingRule, StreamingAverager
 from daq.revolutions import RevolutionBatch
-from orbitrig.config import RPM, load_rig, matrix_from_text
-from orbitrig.config.matrix import MIN_RATIOS
+from orbitrig.config import MIN_RATIOS, RPM, load_rig, matrix_from_text
 from orbitrig.run.plan import make_plan, summarize
 from reduction.misfit import list_shift
 from reduction.allocation import adaptive_targets, allocate
