@@ -49,7 +49,7 @@ import numpy as np
 from bench.bench_rig_time_engine import TABLE1_POINT
 from daq.averager import AveragingRule, StreamingAverager
 from daq.revolutions import RevolutionBatch
-from orbitrig.config import RPM, load_rig, matrix_from_text
+from orbitrig.config import MIN_RATIOS, RPM, load_rig, matrix_from_text
 from orbitrig.run.plan import make_plan, summarize
 from reduction.misfit import list_shift
 from reduction.allocation import adaptive_targets, allocate
@@ -184,6 +184,28 @@ def plan_seconds(rig, model: str, ratios, counts) -> tuple[float, float]:
     return plan.duration, plan.duration - plan.by_kind.get("manual settings", 0.0)
 
 
+def plan_line(rig, model: str, ratios, counts, adaptive_extra_s: float) -> tuple[str, str]:
+    """The sweep's plan of the point for the paper's list and the designed one (fixed counts, and
+    adaptive: `adaptive_extra_s` more acquisition), and the summary's two plan ratios. A designed
+    list of one ratio has no plan: a matrix needs MIN_RATIOS orbit frequencies (orbitrig.config.matrix)."""
+    whole_p, acq_p = plan_seconds(rig, model, PAPER, [50] * len(PAPER))
+    if len(ratios) < MIN_RATIOS:
+        return (
+            f"  the sweep's plan of the point: paper {acq_p:.1f} s; designed: none, the sweep refuses a matrix of "
+            f"{len(ratios)} ratio (at least {MIN_RATIOS} orbit frequencies)",
+            "none",
+        )
+    whole_d, acq_d = plan_seconds(rig, model, ratios, counts)
+    acq_a = acq_d + adaptive_extra_s  # the adaptive blocks' revolutions instead of the fixed counts
+    line = (
+        f"  the sweep's plan of the point (spin and orbit ramps, verification, identification; no manual "
+        f"settings): paper {acq_p:.1f} s, designed fixed {acq_d:.1f} s (ratio {acq_d / acq_p:.3f}), designed "
+        f"adaptive {acq_a:.1f} s (ratio {acq_a / acq_p:.3f}); with the 120 s of manual settings {whole_p:.0f} s "
+        f"vs {whole_d:.0f} s (ratio {whole_d / whole_p:.3f})"
+    )
+    return line, f"{acq_d / acq_p:.3f}, {acq_a / acq_p:.3f}"
+
+
 def misfit_line(rig, spec, ratios, counts) -> str:
     """kc7/kc8 leave D out: the shift of their estimates from the paper's list to the
     designed one that the pilot's kcd12 fit predicts (reduction.misfit, what `orbitrig
@@ -252,15 +274,8 @@ def compare(rig, model: str, runs: int) -> None:
             f"{alloc.std_errors[k] / paper_pred.std_errors[k]:9.3f} {sd_a[k] / sd_p[k]:9.3f} "
             f"{rms_p[k]:10.4g} {rms_f[k] / rms_p[k]:10.3f} {rms_a[k] / rms_p[k]:10.3f}"
         )
-    whole_p, acq_p = plan_seconds(rig, model, PAPER, [50] * len(PAPER))
-    whole_d, acq_d = plan_seconds(rig, model, ratios, counts)
-    acq_a = acq_d + (t_a - t_f)  # the adaptive blocks' revolutions instead of the fixed counts
-    print(
-        f"  the sweep's plan of the point (spin and orbit ramps, verification, identification; no manual "
-        f"settings): paper {acq_p:.1f} s, designed fixed {acq_d:.1f} s (ratio {acq_d / acq_p:.3f}), designed "
-        f"adaptive {acq_a:.1f} s (ratio {acq_a / acq_p:.3f}); with the 120 s of manual settings {whole_p:.0f} s "
-        f"vs {whole_d:.0f} s (ratio {whole_d / whole_p:.3f})"
-    )
+    line, plan_ratios = plan_line(rig, model, ratios, counts, t_a - t_f)
+    print(line)
     line = misfit_line(rig, spec, ratios, counts)
     if line:
         print(line)
@@ -269,7 +284,7 @@ def compare(rig, model: str, runs: int) -> None:
         f"  worst SD ratio: fixed {np.max(sd_f / sd_p):.3f}, adaptive {np.max(sd_a / sd_p):.3f} (Monte Carlo "
         f"1 sigma of one ratio ~{mc:.3f}); worst RMS ratio: fixed {np.max(rms_f / rms_p):.3f}, adaptive "
         f"{np.max(rms_a / rms_p):.3f}; RIG TIME RATIO fixed {t_f / t_p:.3f}, adaptive {t_a / t_p:.3f} (sweep plan "
-        f"{acq_d / acq_p:.3f}, {acq_a / acq_p:.3f})  "
+        f"{plan_ratios})  "
         f"({time.perf_counter() - t0:.1f} s wall)"
     )
 

@@ -70,3 +70,14 @@ def test_a_bench_runs_as_a_module_from_the_root(name: str) -> None:
     )
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.startswith("usage: "), done.stdout[:500]
+
+
+def test_rig_time_bench_runs_through_a_designed_list_of_one_ratio() -> None:
+    """README's `python3 -m bench.bench_rig_time`: kc8's designed list is one ratio (1.5), which no
+    matrix may hold (two orbit frequencies at least), so the bench says the sweep has no plan for it
+    instead of ending in the plan's ConfigError (a few runs per protocol: seconds)."""
+    done = subprocess.run(
+        [sys.executable, "-m", "bench.bench_rig_time", "3"], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "designed ratios 1.5 x both" in done.stdout and "(sweep plan none)" in done.stdout

@@ -259,6 +259,7 @@ def draw_point(run: Run, point: Point, out: Path, options: ReportOptions) -> Poi
     pr = analyse_point(point)
     key = report_cache.point_key(point, options)
     if report_cache.reuse(pr, out, key, options.style.formats):
+        pr.reused = True
         return pr
     report_cache.forget(out, point.name)
     _clear_point(out, point.name)

@@ -28,6 +28,7 @@ class PointReport:
     point: Point
     results: dict[LoadSystem, list[Reduced]] = field(default_factory=dict)  # lms -> re-identified
     plots: list[Path] = field(default_factory=list)
+    reused: bool = False  # the plots are an earlier report's, unchanged (orbitrig.analysis.report_cache)
     mismatches: list[str] = field(default_factory=list)  # stored vs repeated identification
     unreadable: list[str] = field(default_factory=list)  # stored blocks the signal figures could not read
     verdicts: dict[LoadSystem, list[Verdict]] = field(default_factory=dict)  # lms -> model adequacy

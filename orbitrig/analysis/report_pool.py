@@ -12,7 +12,7 @@ from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any
 
-#: (points done, points in all, figures written so far) after each point
+#: (points done, points in all, figures drawn so far: not those kept from an earlier report) after each point
 Progress = Callable[[int, int, int], None]
 
 _JOB: dict[str, Any] = {}  # what a forked worker draws: {"points": [...], "draw": callable}
@@ -20,6 +20,11 @@ _JOB: dict[str, Any] = {}  # what a forked worker draws: {"points": [...], "draw
 
 def _draw(k: int):
     return _JOB["draw"](_JOB["points"][k])
+
+
+def _drawn(pr) -> int:
+    """The figures a point's report drew (none when it kept an earlier report's)."""
+    return 0 if pr.reused else len(pr.plots)
 
 
 def draw_points(points: list, draw: Callable, *, workers: int = 1, progress: Progress | None = None) -> list:
@@ -31,7 +36,7 @@ def draw_points(points: list, draw: Callable, *, workers: int = 1, progress: Pro
     if serial:
         for k, point in enumerate(points):
             results[k] = draw(point)
-            done, figures = done + 1, figures + len(results[k].plots)
+            done, figures = done + 1, figures + _drawn(results[k])
             if progress:
                 progress(done, len(points), figures)
         return results
@@ -42,7 +47,7 @@ def draw_points(points: list, draw: Callable, *, workers: int = 1, progress: Pro
             for future in as_completed(futures):
                 k = futures[future]
                 results[k] = future.result()
-                done, figures = done + 1, figures + len(results[k].plots)
+                done, figures = done + 1, figures + _drawn(results[k])
                 if progress:
                     progress(done, len(points), figures)
     finally:

@@ -18,7 +18,7 @@ import numpy as np
 import typer
 
 from orbitrig.cli.design_inputs import DesignInputError
-from orbitrig.config import RPM, writable_home
+from orbitrig.config import MIN_RATIOS, RPM, writable_home
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
@@ -256,6 +256,8 @@ def design_object(rig, req: DesignRequest) -> dict:
         rig, problem, cand, grid, candidate=req.candidate, n=n, match=req.match, goal=goal, test_models=req.test_models
     )
     prop, ratios = out["proposal"], list(cand.ratios)
+    few = len(prop["ratios"]) < MIN_RATIOS  # the sweep refuses a matrix of fewer orbit frequencies
+    prop["warnings"] = [f"one ratio: a matrix needs {MIN_RATIOS} at least, so no sweep runs this list"] if few else []
     warning = model_check(spec, req.run, spin, req.lms, problem, (ratios, n), (prop["ratios"], prop["revolutions"]))
     out["warnings"] = [warning] if warning else []
     return out
@@ -323,6 +325,8 @@ def print_design(obj: dict) -> None:
         )
     for w in c["warnings"]:
         echo(f"warning (candidate): {w}")
+    for w in p.get("warnings", []):
+        echo(f"warning (proposal): {w}")
     for w in obj.get("warnings", []):
         echo(f"warning (model): {w}")
     mt = obj.get("model_test")
@@ -361,6 +365,7 @@ def save_design(obj: dict, name: str, folder: Path | None = None) -> Path:
     p = obj["proposal"]
     goal = "" if obj["target_pct"] is None else f" --target {obj['target_pct']:g}"
     goal += " --match" if obj.get("match_candidate") else ""
+    goal += " --no-model-test" if goal and obj.get("model_test") is None else ""  # a goal's list without the test
     n = p["revolutions"]
     per_ratio = isinstance(n, list)
     lines = [

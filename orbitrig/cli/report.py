@@ -15,7 +15,7 @@ from typing import Annotated, Optional
 
 import typer
 
-from orbitrig.cli.plain_table import OutputFormat, PlainTable
+from orbitrig.cli.plain_table import OutputFormat, PlainTable, wrap
 from orbitrig.cli.skipped import tell_skipped
 
 
@@ -125,8 +125,10 @@ def _print_reduce(directory: Path, run, rows, path: Path, fmt: OutputFormat, wha
         typer.echo(_plain(table_cells(rows, full=True)).csv())
     else:
         typer.echo(
-            f"{what} from the stored orbit tables of {directory} "
-            f"(run {run.status}, {len({r.point.index for r in rows})} complete point(s))"
+            wrap(
+                f"{what} from the stored orbit tables of {directory} "
+                f"(run {run.status}, {len({r.point.index for r in rows})} complete point(s))"
+            )
         )
         typer.echo(_plain(table_cells(rows)).text())
         typer.echo(f"written: {path}")

@@ -54,7 +54,15 @@ from orbitrig.config.home import (
 from orbitrig.config.lab import SHIPPED_RIG_ID, write_lab  # noqa: F401
 from orbitrig.config.sequential import SequentialDesign, band_candidates, candidate_problems  # noqa: F401
 from orbitrig.config.resume import MAY_CHANGE, resume_differences  # noqa: F401
-from orbitrig.config.matrix import MatrixAveraging, MatrixConfig, ModelSpec, Operating, Orbit, PointOrder  # noqa: F401
+from orbitrig.config.matrix import (  # noqa: F401
+    MIN_RATIOS,
+    MatrixAveraging,
+    MatrixConfig,
+    ModelSpec,
+    Operating,
+    Orbit,
+    PointOrder,
+)
 from orbitrig.config.messages import ConfigWarning, _line_of, _problems, reissue  # noqa: F401
 from orbitrig.config.plan_checks import check_matrix_against_rig, plan_warnings, warning_lines  # noqa: F401
 from orbitrig.config.records import (  # noqa: F401

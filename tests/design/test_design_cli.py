@@ -58,7 +58,7 @@ def test_json_keys_and_numbers():
     obj = json.loads(design("--model", "kcd11", "--spin", "1000", "--json").stdout)
     assert set(obj) == KEYS
     assert set(obj["candidate"]) == LIST_KEYS | {"source", "warnings"}
-    assert set(obj["proposal"]) == LIST_KEYS
+    assert set(obj["proposal"]) == LIST_KEYS | {"warnings"}
     names = obj["coefficients"]
     assert len(names) == 11 and names[-1] == "Dyy"
     for lst in (obj["candidate"], obj["proposal"]):
@@ -165,6 +165,14 @@ def test_text_output_and_saved_design(tmp_path):
     assert "proposal :" in p.stdout and "target 0.2 %: reached" in p.stdout
     saved = tomllib.loads((tmp_path / "config" / "designs" / "kc8fast.toml").read_text())
     assert saved["model"] == "kc8" and len(saved["ratios"]) == len(saved["revolutions"]) == len(saved["target_pct"])
+    header = (tmp_path / "config" / "designs" / "kc8fast.toml").read_text().splitlines()[0]
+    assert header == "# orbitrig design --model kc8 --freq-dep none --spin 1000 --target 0.2"
+    one = design(
+        "--model", "kc8", "--spin", "1000", "--match", "--no-model-test", "--save", "kc8one", "--config", str(rig)
+    )
+    assert "warning (proposal): one ratio: a matrix needs 2 at least, so no sweep runs this list" in one.stdout
+    header = (tmp_path / "config" / "designs" / "kc8one.toml").read_text().splitlines()[0]
+    assert header == "# orbitrig design --model kc8 --freq-dep none --spin 1000 --match --no-model-test"  # as made
 
 
 @pytest.mark.parametrize(
@@ -224,6 +232,7 @@ def test_noise_and_prior_from_a_simulated_run(tmp_path):
     )
     assert kc8["proposal"]["ratios"] == [1.5] and len(kc8["warnings"]) == 1
     assert "kc8 leaves out terms of kcd12" in kc8["warnings"][0] or "terms kc8 leaves out" in kc8["warnings"][0]
+    assert " N/m " in kc8["warnings"][0]  # how far K could move, with its unit
     p = design("--model", "kcd11", "--spin", "1000", "--noise-from", str(tmp_path), check=False)
     assert p.returncode == 2 and "Traceback" not in p.stderr
 

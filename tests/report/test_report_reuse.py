@@ -90,7 +90,9 @@ def test_a_png_of_another_colour_type_is_converted(tmp_path):
 
 def test_an_unchanged_point_reuses_its_figures_until_something_changes(first, tmp_path):
     run = shutil.copytree(first.run.directory, tmp_path / "run")  # with the first report's plots
-    again = make_report(run, options=QUICK)
+    calls = []
+    again = make_report(run, options=QUICK, progress=lambda *a: calls.append(a))
+    assert calls[-1] == (2, 2, 0)  # the closing line says no figure was drawn
     assert [p.name for p in again.plots] == [p.name for p in first.plots]
     stamps = _stamps(again)
     for name, (_, mtime) in stamps.items():  # copied, not drawn again (the summary depends on every point)
