@@ -27,6 +27,8 @@ CALIBRATION = "calibration"
 _BROKER_FILES = ("acl", "passwd.example")
 #: the broker folder the shipped mosquitto.conf and README.md name (rewritten by init)
 SHIPPED_BROKER_DIR = "/etc/mosquitto/orbitrig"
+#: the persistence folder the shipped mosquitto.conf and README.md name (Debian's; init: the broker folder's data/)
+SHIPPED_PERSISTENCE = "/var/lib/mosquitto/"
 # mosquitto.conf keys that name a file (or folder) of the broker, and the file they name
 _BROKER_PATHS = {
     "password_file": "passwd",
@@ -95,8 +97,9 @@ def broker_conf(text: str, broker: Path) -> str:
 
 def broker_readme(text: str, broker: Path) -> str:
     """The shipped broker README with every file of SHIPPED_BROKER_DIR it names (the password
-    file its commands create) in the folder ``broker``, as broker_conf puts them: quoted for
-    the shell where the path needs it."""
+    file its commands create) and the persistence folder in the folder ``broker``, as
+    broker_conf puts them: quoted for the shell where the path needs it."""
+    text = text.replace(SHIPPED_PERSISTENCE, shlex.quote(str(broker / _BROKER_PATHS["persistence_location"]) + "/"))
     return re.sub(
         rf"{re.escape(SHIPPED_BROKER_DIR)}/(?P<name>[\w.-]+)", lambda m: shlex.quote(str(broker / m["name"])), text
     )

@@ -161,12 +161,18 @@ def test_init_broker_readme_names_the_files_mosquitto_conf_uses(tmp_path, broker
     commands = [shlex.split(line) for line in readme.splitlines() if line.strip().startswith("mosquitto_passwd ")]
     assert len(commands) == 4
     assert [c[-2] for c in commands] == [passwd] * 4  # mosquitto_passwd [-c] FILE USER
-    (chown,) = [shlex.split(line) for line in readme.splitlines() if line.strip().startswith("chown ")]
+    chown, chown_data = [shlex.split(line) for line in readme.splitlines() if line.strip().startswith("chown ")]
     assert [w for w in chown if "passwd" in w] == [passwd, passwd]
+    data = next(line.split(" ", 1)[1] for line in conf.splitlines() if line.startswith("persistence_location "))
+    assert (
+        chown_data == ["chown", "mosquitto:", data]
+        and data == str(Path(broker_dir or lab / "mosquitto").resolve() / "data") + "/"
+    )
     if broker_dir is None:
         assert "/etc/mosquitto" not in readme
     acl = next(line.split(" ", 1)[1] for line in conf.splitlines() if line.startswith("acl_file "))
     assert f"copy `acl` to {shlex.quote(acl)}" in readme  # where the conf reads it
     back = readme.replace(shlex.quote(passwd), "/etc/mosquitto/orbitrig/passwd")
     back = back.replace(shlex.quote(acl), "/etc/mosquitto/orbitrig/acl")
+    back = back.replace(shlex.quote(data), "/var/lib/mosquitto/")
     assert back == (REPO / "config" / "mosquitto" / "README.md").read_text()  # the shipped text otherwise
