@@ -1,0 +1,111 @@
+"""The broker README of a lab folder, done as written: mosquitto started as root with the
+lab's mosquitto.conf (no `user root`: it drops to the `mosquitto` user, as on a rig) keeps a
+retained status across a restart once the README's commands have run, and loses it when the
+persistence folder's `chown` is left out (what the README said before it named the folder).
+
+Real parts: `orbitrig init`'s files, mosquitto_passwd, chown, mosquitto 2, mosquitto_pub/sub.
+Only the listener ports are changed (free ones, beside the other tests' brokers).
+"""
+
+from __future__ import annotations
+
+import os
+import pwd
+import re
+import shlex
+import shutil
+import signal
+import subprocess
+import tempfile
+from pathlib import Path
+
+import pytest
+
+from support.mqtt_helpers import ACCOUNTS, MOSQUITTO, free_port, wait_port
+
+from orbitrig.config.lab import write_lab
+
+pytestmark = [
+    pytest.mark.timeout(60),
+    pytest.mark.skipif(os.geteuid() != 0, reason="mosquitto drops to its own user only when started as root"),
+]
+
+
+@pytest.fixture
+def lab():
+    """A lab folder the `mosquitto` user can reach (pytest's tmp_path is root's alone)."""
+    base = Path(tempfile.mkdtemp(prefix="orbitrig-broker-"))
+    base.chmod(0o755)
+    write_lab(base / "lab")
+    yield base / "lab"
+    shutil.rmtree(base, ignore_errors=True)
+
+
+def _setup(lab: Path, *, chown_data: bool) -> tuple[Path, int, int]:
+    """The README's commands (passwords given with -b instead of typed), the conf on free
+    ports; (conf, service port, people's port)."""
+    readme = (lab / "mosquitto" / "README.md").read_text()
+    lines = [ln.strip() for ln in readme.splitlines()]
+    for line in (ln for ln in lines if ln.startswith("mosquitto_passwd ")):
+        args = shlex.split(line)
+        subprocess.run([*args[:-2], "-b", *args[-2:], ACCOUNTS[args[-1]]], check=True, capture_output=True)
+    chowns = [ln for ln in lines if ln.startswith("chown ")]
+    assert len(chowns) == 2 and "data/" in chowns[1]
+    for line in chowns[: 2 if chown_data else 1]:
+        subprocess.run(line, shell=True, check=True)
+    svc, people = free_port(), free_port()
+    conf = lab / "mosquitto" / "mosquitto.conf"
+    text = re.sub(r"(?m)^listener 1883 ", f"listener {svc} ", conf.read_text())
+    conf.write_text(re.sub(r"(?m)^listener 1884 ", f"listener {people} ", text))
+    return conf, svc, people
+
+
+def _broker(conf: Path, port: int) -> subprocess.Popen:
+    p = subprocess.Popen([MOSQUITTO, "-c", str(conf)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    wait_port(port)
+    return p
+
+
+def _stop(p: subprocess.Popen) -> str:
+    p.send_signal(signal.SIGTERM)
+    out, _ = p.communicate(timeout=10)
+    return out
+
+
+def _retained_status_survives_a_restart(conf: Path, svc: int, people: int) -> tuple[str | None, str]:
+    broker = _broker(conf, svc)
+    pub = ["mosquitto_pub", "-p", str(svc), "-u", "orbitrig-service", "-P", ACCOUNTS["orbitrig-service"]]
+    subprocess.run([*pub, "-q", "1", "-r", "-t", "orbitrig/rig1/status", "-m", "idle"], check=True, timeout=10)
+    log = _stop(broker)
+    broker = _broker(conf, svc)
+    try:
+        sub = [
+            "mosquitto_sub",
+            "-p",
+            str(people),
+            "-u",
+            "viewer",
+            "-P",
+            ACCOUNTS["viewer"],
+            "-t",
+            "orbitrig/rig1/status",
+        ]
+        got = subprocess.run([*sub, "-C", "1", "-W", "3"], capture_output=True, text=True, timeout=10)
+    finally:
+        log += _stop(broker)
+    return (got.stdout.strip() or None), log
+
+
+def test_the_readme_as_written_keeps_the_retained_status_across_a_restart(lab):
+    conf, svc, people = _setup(lab, chown_data=True)
+    data = lab / "mosquitto" / "data"
+    got, log = _retained_status_survives_a_restart(conf, svc, people)
+    assert got == "idle", log
+    assert (data / "mosquitto.db").stat().st_uid == pwd.getpwnam("mosquitto").pw_uid
+
+
+def test_without_the_data_folders_chown_the_broker_loses_it(lab):
+    conf, svc, people = _setup(lab, chown_data=False)
+    got, log = _retained_status_survives_a_restart(conf, svc, people)
+    assert got is None
+    assert "Permission denied" in log or "Error saving" in log, log
