@@ -239,24 +239,29 @@ def _rig_and_folder(config, writing: bool = True):
 
 
 def _list(config) -> None:
+    import datetime as _dt
+
     from orbitrig.cli.terminal import say
     from orbitrig.config import list_names, read_record
     from orbitrig.errors import ConfigError
+    from rigunits import utc_iso
 
     rig, folder = _rig_and_folder(config, writing=False)
     names = list_names(folder)
     if not names:
         say(f"no calibration records in {folder}")
         return
+    width = max(len(n) for n in names)
     for name in names:
         mark = "*" if name == rig.calibration_record else " "
         try:
             rec, _ = read_record(folder, name)
         except ConfigError as err:
-            say(f"{mark} {name}  unreadable: {err}")
+            say(f"{mark} {name:<{width}}  unreadable: {err}")
             continue
         ref = f"{rec.reference.id} (u {rec.reference.uncertainty_pct:g} %)" if rec.reference else "-"
-        say(f"{mark} {name}  {rec.date}  {rec.step:<8} operator {rec.operator}  reference {ref}")
+        when = utc_iso(_dt.datetime.fromisoformat(rec.date))  # the house format, whatever the file's spelling
+        say(f"{mark} {name:<{width}}  {when}  {rec.step:<8} operator {rec.operator}  reference {ref}")
 
 
 def _show(name, config) -> None:

@@ -138,7 +138,7 @@ class CalibrationRecord(_Model):
         try:
             t = _dt.datetime.fromisoformat(v)
         except ValueError:
-            raise ValueError("an ISO 8601 date and time, e.g. 2026-11-26T21:44:58+00:00") from None
+            raise ValueError("an ISO 8601 date and time, e.g. 2026-11-26T21:44:58.000Z") from None
         if t.utcoffset() != _dt.timedelta(0):
             raise ValueError("must be UTC (+00:00 or Z)")
         return v

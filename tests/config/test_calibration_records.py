@@ -5,6 +5,7 @@ the shipped record, writing and reading back, the active record in the rig confi
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -116,6 +117,9 @@ def test_calibrate_list_and_show_print_the_history(tmp_path):
     assert (
         lines[1].startswith(f"  {name}") and "operator ada" in lines[1] and "DW-7 dead weights (u 0.02 %)" in lines[1]
     )
+    # the dates in one column and one format (rigunits' timestamp), whatever each file spells
+    dates = [re.search(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z", line) for line in lines[:2]]
+    assert all(dates) and dates[0].start() == dates[1].start(), lines
     p = _orbitrig("calibrate", "show", name, "--config", str(rig_file))
     assert p.returncode == 0 and f"# sha256 {digest(text)}" in p.stdout and p.stdout.endswith(text)
     p = _orbitrig("calibrate", "show", "2020-01-01T000000Z-none", "--config", str(rig_file))
