@@ -119,12 +119,15 @@ use_style(STYLE)
 
 @dataclass
 class Fitted:
-    """One identification to draw: a legend label, the Identification object and, in simulator
-    runs, its own truth (coefficient -> true value: the true Z projected onto its model)."""
+    """One identification to draw: a legend label, the Identification object, in simulator
+    runs its own truth (coefficient -> true value: the true Z projected onto its model), and
+    the covariance its bands and error bars show (combined where the run stored a budget)."""
 
     label: str
     identification: Any  # reduction.identify.Identification
     truth: dict[str, float] | None = None
+    covariance: Any = None  # the bands' (free coefficients, SI); None: the fit's own
+    basis: UncertaintyBasis = UncertaintyBasis.STATISTICAL  # what ``covariance`` rests on
 
 
 def _figure(w: float, h: float, layout: Literal["constrained", "compressed", "tight"] | None = "constrained") -> Figure:

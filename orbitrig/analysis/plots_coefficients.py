@@ -5,7 +5,8 @@ expanded uncertainty U = k u (k of the style, 2 by default) and error bars at th
 frequencies; a constant one is a horizontal line with its band. Curves are solid over the
 tested orbit range and dotted outside it (extrapolation). u is sqrt(g^T Sigma g) with g the
 entry's gradient in the free coefficients and Sigma the fit's covariance (exact for
-correlated order terms). In simulator runs the truth is drawn as crosses at the tested
+correlated order terms): combined (statistical and calibration, as the tables' U) where the
+run stored a budget (``Fitted.covariance``), else statistical; the legend says which. In simulator runs the truth is drawn as crosses at the tested
 frequencies, always inside the axes: each fit's own truth (the true Z projected onto its
 model, as the report's table beside the figure gives it; ``Fitted.truth``) in the fit's
 colour; where no fit carries one, black crosses of the point's truth, its per-row K, C, D
@@ -35,13 +36,14 @@ POINT_TRUTH_LABEL = TRUTH_LABEL + ": the constant K0, C0, D0 best fitting the tr
 CURVE_POINTS = 100
 
 
-def entry_std(ident, matrix: str, entry: str, orbit: np.ndarray) -> np.ndarray:
-    """One standard uncertainty of matrix entry (e.g. "K", "xy") at each Omega (rad/s), SI;
-    zeros when the fit has no covariance."""
-    if ident.covariance is None:
+def entry_std(ident, matrix: str, entry: str, orbit: np.ndarray, covariance: np.ndarray | None = None) -> np.ndarray:
+    """One standard uncertainty of matrix entry (e.g. "K", "xy") at each Omega (rad/s), SI, on
+    ``covariance`` (the fit's own when None); zeros when there is none."""
+    cov = ident.covariance if covariance is None else covariance
+    if cov is None:
         return np.zeros(np.shape(orbit))
     g = entry_gradient(ident, matrix, entry, orbit)
-    return np.sqrt(np.clip(np.einsum("kp,pq,kq->k", g, ident.covariance, g), 0, None))
+    return np.sqrt(np.clip(np.einsum("kp,pq,kq->k", g, cov, g), 0, None))
 
 
 def _has(ident, matrix: str) -> bool:
@@ -65,11 +67,11 @@ def _draw_fit(axes, mats, fit: Fitted, color, grid, tested, spin, largest) -> No
             i, j = divmod(col, 2)
             val = on_grid[:, mi, i, j] * scale
             largest[m] = max(largest[m], float(np.max(np.abs(val))))
-            bands = k * entry_std(ident, m, e, grid[inside]) * scale
+            bands = k * entry_std(ident, m, e, grid[inside], fit.covariance) * scale
             plot_fit(ax, grid / spin, val, tested.min() / spin, tested.max() / spin, color=color, label=fit.label)
             band(ax, grid[inside] / spin, val[inside] - bands, val[inside] + bands, color=color)
             if not constant:
-                err = k * entry_std(ident, m, e, tested) * scale
+                err = k * entry_std(ident, m, e, tested, fit.covariance) * scale
                 error_bars(
                     ax, tested / spin, at_tested[:, mi, i, j] * scale, err, color=color, ms=2.5, capsize=1.5, lw=0.8
                 )
@@ -185,7 +187,7 @@ def coefficients_figure(
         loc="lower center",
         ncols=min(3, len(uniq)),
         fontsize="small",
-        title=style().band_label() + "; solid over the tested range, dotted beyond",
+        title=style().band_label(bases=[f.basis for f in fitted]) + "; solid over the tested range, dotted beyond",
     )
     fig.suptitle(title)
     return fig

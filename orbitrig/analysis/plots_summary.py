@@ -4,13 +4,13 @@ entries at every operating point, beside the simulator's truth."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from matplotlib.ticker import MaxNLocator
 
 from orbitrig.analysis.grid import light_grid
-from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, _save, coverage, style
+from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _save, coverage, style
+from orbitrig.analysis.plots_coefficients import entry_std
 from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels, AXES, panel_figure
 from orbitrig.analysis.plot_marks import _colors, _min_span, keep_inside
 from orbitrig.analysis.reduce import MATRIX_UNITS
@@ -25,12 +25,20 @@ def _summary_panels():
     return fig, fig.subplots(2, 4, sharex=True, subplot_kw=AXES)
 
 
+def _std(fit: Fitted, matrix: str, entry: str) -> float:
+    """The standard uncertainty of a constant fit's matrix entry on its band covariance (SI)."""
+    if f"{matrix}{entry}" not in fit.identification.coefficients:
+        return 0.0
+    return float(entry_std(fit.identification, matrix, entry, np.zeros(1), fit.covariance)[0])
+
+
 def summary_plot(
-    path, series: dict[LoadSystem, list[tuple[int, Any]]], truth: list[tuple[int, dict]], *, model: str, title: str
+    path, series: dict[LoadSystem, list[tuple[int, Fitted]]], truth: list[tuple[int, dict]], *, model: str, title: str
 ) -> Path:
     """The constant K and C entries of one model at every operating point (x: point
-    index), one marker series per load measuring system, error bars of one standard
-    error, and the simulator's true values (K0, C0) as black crosses."""
+    index), one marker series per load measuring system, error bars of U = k u (u on each
+    fit's band covariance: combined where the run stored a budget), and the simulator's true
+    values (K0, C0) as black crosses."""
     fig, axes = _summary_panels()
     colors = _colors(len(series))
     offsets = np.linspace(-0.12, 0.12, len(series)) if len(series) > 1 else [0.0]
@@ -41,9 +49,9 @@ def summary_plot(
             unit, scale = MATRIX_UNITS[m]
             for col, e in enumerate(ENTRIES):
                 key = m + e
-                vals = [ident.coefficients.get(key, np.nan) * scale for _, ident in entries]
+                vals = [f.identification.coefficients.get(key, np.nan) * scale for _, f in entries]
                 largest[m] = max(largest[m], float(np.nanmax(np.abs(vals))))
-                errs = [coverage() * (ident.std_errors.get(key) or 0.0) * scale for _, ident in entries]
+                errs = [coverage() * _std(f, m, e) * scale for _, f in entries]
                 axes[row, col].errorbar(
                     idx + offsets[k],
                     vals,
@@ -80,7 +88,7 @@ def summary_plot(
         loc="lower center",
         ncols=len(labels),
         fontsize="small",
-        title=style().band_label("error bars"),
+        title=style().band_label("error bars", [f.basis for entries in series.values() for _, f in entries]),
     )
     fig.suptitle(title)
     return _save(fig, path)

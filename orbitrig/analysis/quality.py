@@ -194,19 +194,44 @@ def derived_basis(r: Reduced) -> UncertaintyBasis:
     return UncertaintyBasis.COMBINED if u.get("sources") and u.get("source_std") else UncertaintyBasis.STATISTICAL
 
 
-def derived_of(r: Reduced, orbit: np.ndarray) -> Derived | None:
+@dataclass(frozen=True)
+class Band:
+    """The covariance (free coefficients, SI) a figure draws one identification's uncertainty
+    from, and what it rests on."""
+
+    covariance: np.ndarray | None
+    basis: UncertaintyBasis
+
+
+def band_of(r: Reduced) -> Band:
+    """The combined covariance (statistical and calibration, repeated from the stored budget's
+    calibration parameters, as the tables' U) where the run stored a budget that fits, else the
+    fit's statistical one."""
+    if derived_basis(r) == UncertaintyBasis.COMBINED:
+        u = (r.stored or {})["uncertainty"]  # COMBINED: stored with its budget
+        try:
+            cov = combined_covariance(
+                r.identification, r.point.tables[r.lms], u["sources"], np.asarray(u["source_std"])
+            )
+        except ReductionError:
+            cov = None
+        if cov is not None:
+            return Band(cov, UncertaintyBasis.COMBINED)
+    return Band(r.identification.covariance, UncertaintyBasis.STATISTICAL)
+
+
+def derived_of(r: Reduced, orbit: np.ndarray, band: Band | None = None) -> Derived | None:
     """C_eff, H forward/backward and WFR of one identification over the tested Omega range, on
-    the covariance of :func:`derived_basis` (the sweep's combined one, repeated from the stored
-    budget's calibration parameters; else the fit's); None when it cannot be formed (e.g. no orbit)."""
+    the covariance of :func:`derived_basis` (``band``, :func:`band_of` when not given); None
+    when it cannot be formed (e.g. no orbit, or a stored budget that does not fit the fit)."""
     grid = orbit_grid(orbit)
     if grid.size == 0:
         return None
+    band = band_of(r) if band is None else band
+    if band.basis != derived_basis(r):  # the stored budget does not fit: no figure on another basis
+        return None
+    cov = band.covariance if band.basis == UncertaintyBasis.COMBINED else None
     try:
-        cov = None
-        if derived_basis(r) == UncertaintyBasis.COMBINED:
-            u = (r.stored or {})["uncertainty"]  # COMBINED: stored with its budget
-            table = r.point.tables[r.lms]
-            cov = combined_covariance(r.identification, table, u["sources"], np.asarray(u["source_std"]))
         return derived_quantities(r.identification, grid, r.point.settings.spin, cov=cov)
     except ReductionError:
         return None

@@ -43,7 +43,7 @@ from orbitrig.analysis import plots_summary, report_cache
 from orbitrig.analysis.quality import derived_basis, true_impedance
 from orbitrig.analysis.report_analysis import PREFERRED_MODELS, PointReport, analyse_point, fit_label, preferred
 from orbitrig.analysis.signals import default_frequencies, read_block_signals
-from orbitrig.analysis.reduce import own_truth
+from orbitrig.analysis.reduce import Reduced, own_truth
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.errors import storage_error
 from orbitrig.store.reader import RunDirError, read_run
@@ -129,7 +129,7 @@ def _plot_lms(pr: PointReport, lms: LoadSystem, out: Path, where: str, opts: Rep
     point, table = pr.point, pr.point.tables[lms]
     results = pr.results.get(lms, [])
     verdict = {id(v.dependent): v.text for v in pr.verdicts.get(lms, [])}
-    fitted = [plots.Fitted(fit_label(r), r.identification, own_truth(r)) for r in results]
+    fitted = [_fitted(pr, r) for r in results]
     with_verdicts = [
         plots.Fitted(f.label + (f" \u2014 {verdict[id(r)]}" if id(r) in verdict else ""), f.identification, f.truth)
         for f, r in zip(fitted, results)
@@ -214,6 +214,14 @@ def _plot_point(run: Run, pr: PointReport, out: Path, opts: ReportOptions) -> No
         )
 
 
+def _fitted(pr: PointReport, r: Reduced) -> plots.Fitted:
+    """`r` to draw, with the covariance of its bands (PointReport.bands; the fit's own if none)."""
+    b = pr.bands.get(id(r))
+    if b is None:
+        return plots.Fitted(fit_label(r), r.identification, own_truth(r))
+    return plots.Fitted(fit_label(r), r.identification, own_truth(r), b.covariance, b.basis)
+
+
 def summary_plot_for(report: Report) -> Path | None:
     """summary.png: one model's K and C at every point, when there is more than one."""
     if len(report.points) < 2:
@@ -225,7 +233,7 @@ def summary_plot_for(report: Report) -> Path | None:
             break
     else:
         return None
-    series = {lms: [(pr.point.index, found[lms].identification) for pr, found in chosen] for lms in LMS}
+    series = {lms: [(pr.point.index, _fitted(pr, found[lms])) for pr, found in chosen] for lms in LMS}
     truth = [(pr.point.index, pr.point.truth) for pr, _ in chosen if pr.point.truth]
     return plots_summary.summary_plot(
         report.directory / "summary.png",

@@ -9,7 +9,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from orbitrig.analysis.quality import Verdict, adequacy_verdicts, derived_of, warnings_of
+from orbitrig.analysis.quality import Band, Verdict, adequacy_verdicts, band_of, derived_of, warnings_of
 from orbitrig.analysis.reduce import Reduced, reidentify
 from orbitrig.errors import ReductionError
 from orbitrig.load_systems import LMS, LoadSystem
@@ -33,6 +33,7 @@ class PointReport:
     unreadable: list[str] = field(default_factory=list)  # stored blocks the signal figures could not read
     verdicts: dict[LoadSystem, list[Verdict]] = field(default_factory=dict)  # lms -> model adequacy
     derived: dict[LoadSystem, list[tuple[Reduced, Derived]]] = field(default_factory=dict)  # lms -> derived
+    bands: dict[int, Band] = field(default_factory=dict)  # id(result) -> the covariance its figures draw
 
     def fit_warnings(self) -> list[str]:
         """'<lms> <model> <freq-dep> warns: <text>' for every warning of a repeated or stored fit,
@@ -95,7 +96,8 @@ def analyse_point(point: Point) -> PointReport:
     for lms, table in point.tables.items():
         results = pr.results.get(lms, [])
         pr.verdicts[lms] = adequacy_verdicts(lms, results)
-        pr.derived[lms] = [(r, d) for r in results if (d := derived_of(r, table.orbit)) is not None]
+        pr.bands.update({id(r): band_of(r) for r in results})
+        pr.derived[lms] = [(r, d) for r in results if (d := derived_of(r, table.orbit, pr.bands[id(r)])) is not None]
     return pr
 
 

@@ -60,3 +60,28 @@ def test_derived_quantities_on_the_exports_combined_basis(calibrated):
     np.testing.assert_allclose(table_d.wfr_std, ref.wfr_std, rtol=1e-12)
     note = re.search(r"\u00b1 k = 2 standard uncertainties \(combined: [^<]*</p>", page)
     assert note is not None and "statistical only" not in note.group(0), page[-3000:]
+
+
+def test_coefficient_bands_rest_on_the_combined_covariance_as_the_tables_u(calibrated):
+    """The paper's Figs. 6/7 and the summary draw U on the same basis as the tables and exports:
+    k times the combined standard uncertainty where the run stored a budget; the legend says so."""
+    from orbitrig.analysis import plots_coefficients, plots_summary
+    from orbitrig.analysis.report import _fitted
+
+    pr, _ = calibrated
+    r = next(r for r in pr.results["piezo"] if r.freq_dep == "none")
+    fit = _fitted(pr, r)
+    u = r.stored["uncertainty"]
+    cov = combined_covariance(r.identification, r.point.tables["piezo"], u["sources"], np.array(u["source_std"]))
+    assert fit.basis is UncertaintyBasis.COMBINED and np.allclose(fit.covariance, cov, rtol=1e-12)
+    table = r.point.tables["piezo"]
+    fig = plots_coefficients.coefficients_figure([fit], spin=table.spin, orbit=table.orbit, truth=None, title="t")
+    assert "combined (statistical and calibration)" in fig.legends[0].get_title().get_text()
+    kxx = next(ax for ax in fig.axes if ax.get_title() == "Kxx")
+    (band,) = kxx.collections
+    y = band.get_paths()[0].vertices[:, 1]
+    half = (y.max() - y.min()) / 2 / 1e-6  # N/m, the band of a constant fit
+    stored_u = r.stored["expanded_uncertainty"]["values"]["Kxx"]
+    assert half == pytest.approx(stored_u, rel=1e-6)  # the tables' and exports' U of Kxx
+    assert half > 2 * r.identification.std_errors["Kxx"] * 1.01  # more than the statistical part
+    assert plots_summary._std(fit, "K", "xx") == pytest.approx(stored_u / 2, rel=1e-6)
