@@ -292,8 +292,8 @@ class CommandHandling:
     def _request(self, what: Literal["pause", "stop", "abort", "stop_now"], by: str | None = None) -> bool:
         """Ask the executor to pause/stop/abort; never raises. If the executor
         refuses a stop or abort, the run task is cancelled (its cleanup ramps
-        both drives to zero). False if no run took it: none is active, or (an abort)
-        the run does not hold the drives (orbitrig.run.requests: nothing was sent)."""
+        both drives to zero). False if no run took it: none is active, or (a stop or an
+        abort) the run does not hold the drives (orbitrig.run.requests: nothing was sent)."""
         engine, task = self._engine, self._run_task
         if task is None or task.done() or engine is None:
             return False
@@ -308,7 +308,7 @@ class CommandHandling:
             "stop_now": lambda by: engine.request_stop_now(self.shutdown_words(), by=by),
         }
         try:
-            return requests[what](by=by) is not False  # an abort says whether its stop reached the drives
+            return requests[what](by=by) is not False  # a stop or an abort says whether the run holds the drives
         except Exception:
             log.exception("executor refused %s", what)
             if what != "pause":
