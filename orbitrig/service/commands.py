@@ -63,10 +63,12 @@ class CommandHandling:
     _idle_stop: asyncio.Task[idle_stop.Outcome] | None = None
     #: whether that stop is the emergency stop (OFF3), not a stop's ramp stop (OFF1)
     _idle_emergency: bool = False
-    #: the emergency stop the first shutdown signal sent with no run active, or why not sent
+    #: the emergency stop the first shutdown signal sent with no run holding the drives, or why not sent
     _signal_stop: asyncio.Task[idle_stop.Outcome] | str | None = None
     #: why that emergency stop did not reach both drives (None: it did, or none was sent)
     signal_stop_failed: str | None = None
+    #: the signal and why no run carried it to the drives ('SIGTERM with no run active')
+    signal_stop_why: str = ""
     _tg: asyncio.TaskGroup | None
     #: the (Modbus URL, [drives]) of the rig configuration loaded last, asked at each stop no run
     #: carries out (None: not known, not sent)
@@ -258,10 +260,17 @@ class CommandHandling:
         return self.drive_link() if self.drive_link is not None else None
 
     def stop_drives_on_signal(self, name: str) -> None:
-        """The first shutdown signal (``name``) with no run active: an abort no run carries out (both
-        drives' emergency stop, its outcome logged); `settle_signal_stop` waits for it."""
+        """The first shutdown signal (``name``) with no run holding the drives (none active, or the
+        run's rig not open yet, or its cleanup past the closing stop, also one that could not confirm
+        them stopped, while it records its end): an abort no run carries out (both drives' emergency
+        stop, its outcome logged); `settle_signal_stop` waits for it."""
         if not self.run_active:
-            self._signal_stop = self.stop_idle_drives(emergency=True, why=f"{name} with no run active")
+            self.signal_stop_why = f"{name} with no run active"
+        elif self._engine is None or not self._engine.holds_drives:
+            self.signal_stop_why = f"{name} with the run not holding the drives"
+        else:
+            return
+        self._signal_stop = self.stop_idle_drives(emergency=True, why=self.signal_stop_why)
 
     async def settle_signal_stop(self) -> None:
         """Wait (at most idle_stop.SIGNAL_STOP_S, wall s) for the emergency stop of

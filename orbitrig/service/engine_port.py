@@ -21,6 +21,7 @@ class Engine(Protocol):
     run_id: str | None
     waiting_step: str | None
     pause_pending: bool  # a pause requested, not yet reached at a safe point
+    holds_drives: bool  # its rig open and its closing stop not over: a stop or an abort reaches the drives
 
     async def run(self, matrix: Any, *, resume: bool = False) -> RunOutcome: ...
     def subscribe(self, callback: Callable[[Any], None]) -> None: ...

@@ -26,6 +26,8 @@ import threading
 import time
 from pathlib import Path
 
+import pytest
+
 from drives import registers as R
 from orbitrig.cli.serve import build_service
 from orbitrig.config import load_rig
@@ -228,10 +230,13 @@ class _StalledRunLog:
         os.close(self.fd)
 
 
-async def test_a_stop_once_the_run_has_let_go_of_the_drives_ramps_them_down(broker, tmp_path):
+@pytest.mark.parametrize("how", ["mqtt stop", "SIGTERM"])
+async def test_a_stop_once_the_run_has_let_go_of_the_drives_reaches_them(broker, tmp_path, how):
     """A run whose cleanup could not confirm the drives stopped has closed their link and records
-    its end (held here by a stalled run.log): a stop then is no run's to carry out. It is not
-    answered ok with nothing sent: both drives get the ramp stop (OFF1) over the service's own link."""
+    its end (held here by a stalled run.log): a stop then is no run's to carry out. A `stop` is not
+    answered ok with nothing sent: both drives get the ramp stop (OFF1) over the service's own link;
+    the first shutdown signal (what `orbitrig serve`'s handler asks of the service) sends them the
+    emergency stop (OFF3), as with no run active."""
     rig = load_rig()
     rig = rig.model_copy(update={"drives": rig.drives.model_copy(update={"stop_timeout_s": 2.0})})
     # the drives' ramp stop lasts minutes (30 s and more here): the run's cleanup gives up waiting
@@ -250,11 +255,18 @@ async def test_a_stop_once_the_run_has_let_go_of_the_drives_ramps_them_down(brok
             assert not standstill(sim_rig), sim_rig.speeds  # still coasting: nothing holds them
 
             t_stop = time.monotonic()
-            reply = await wait(rc.command, {"cmd": "stop", "id": "s-let-go"})
-            assert reply["ok"] is True and "ramp stop (OFF1) sent to both drives" in reply.get("detail", ""), reply
+            if how == "mqtt stop":
+                reply = await wait(rc.command, {"cmd": "stop", "id": "s-let-go"})
+                assert reply["ok"] is True and "ramp stop (OFF1) sent to both drives" in reply.get("detail", ""), reply
+                word = R.CW_RAMP_STOP
+            else:
+                svc.stop_drives_on_signal("SIGTERM")
+                await svc.settle_signal_stop()
+                assert svc.signal_stop_failed is None
+                word = R.CW_EMERGENCY_STOP
             for device, drive in sim_rig.drives.items():
                 words = [cw for t, cw in drive.control_words if t >= t_stop]
-                assert R.CW_RAMP_STOP in words, (device, [hex(w) for w in words])
+                assert word in words, (device, [hex(w) for w in words])
             assert svc.run_active  # the stop went out while the run was still recording its end
             stall.back()
             await until(lambda: not svc.run_active, 60, "the run's end recorded")
