@@ -4,8 +4,12 @@
         s = aux.latest()
         s.p_supply, s.beta, s.ages["p_supply"], s.stale("t_recess"), s.node_lost
 
-python-can's ``Notifier`` receives on its own thread and hands every message to
-the event loop (``loop=``), where it is decoded; nothing blocks the loop. Values
+A bus with a file descriptor (socketcan, serial) is read on the event loop when it is
+readable, one frame at a time; any other bus by python-can's ``Notifier`` thread, which
+hands every message to the loop. Either way the frames are decoded on the loop and
+nothing blocks it. A read that fails (the adapter pulled, the interface down, the
+serial-over-TCP link closed) ends the reading: said once (``link_error``), and the
+node counts as lost from then on, not called again on every turn of the loop. Values
 are kept in SI (K, Pa, m^3/s) with their arrival time; a value is stale when
 its frame is older than 0.5 s, the node is lost when no heartbeat arrived for
 1.5 s (counted from opening while none has come). A frame whose length is not
@@ -16,6 +20,7 @@ the spec's (0x181, 0x281: 8 bytes; 0x381: 4; 0x701: 1) is counted in
 from __future__ import annotations
 
 import asyncio
+import logging
 import math
 import struct
 import time
@@ -27,6 +32,8 @@ from daq.errors import DaqError
 
 if TYPE_CHECKING:
     import can
+
+log = logging.getLogger(__name__)
 
 STALE_AFTER = 0.5  # s
 LOST_AFTER = 1.5  # s
@@ -71,6 +78,7 @@ class AuxState:
     heartbeat_age: float = math.inf
     node_lost: bool = True
     ages: dict[str, float] = field(default_factory=dict)
+    link_error: str | None = None  # why the bus is read no more (its link failed): the node is lost
 
     def stale(self, name: str) -> bool:
         """True if value ``name`` is older than 0.5 s or never arrived."""
@@ -96,7 +104,10 @@ class AuxSensors:
         self.channel, self.interface, self.bitrate, self.node_id = channel, interface, bitrate, node_id
         self._clock = clock
         self._bus: Any = None  # can.BusABC once open (python-can imported when opened)
-        self._notifier: Any = None
+        self._notifier: Any = None  # python-can's reader thread, for a bus without a file descriptor
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._reader_fd: int | None = None  # the bus's descriptor, read on the loop
+        self.link_error: str | None = None  # why the bus is read no more (its link failed)
         self._values: dict[str, float] = {}
         self._times: dict[int, float] = {}  # CAN id offset -> arrival time
         self._p_recess = [math.nan] * 4
@@ -110,6 +121,7 @@ class AuxSensors:
         return self
 
     async def __aexit__(self, *exc: object) -> None:
+        self._stop_reading()
         if self._notifier is not None:
             self._notifier.stop()
             self._notifier = None
@@ -130,10 +142,36 @@ class AuxSensors:
         ids = [0x180 + base, 0x280 + base, 0x380 + base, 0x700 + base]
         self._bus.set_filters([{"can_id": i, "can_mask": 0x7FF, "extended": False} for i in ids])
         self._opened_at = self._clock()
-        self._notifier = can.Notifier(self._bus, [self._on_message], timeout=0.1, loop=asyncio.get_running_loop())
+        self._loop, self.link_error = asyncio.get_running_loop(), None
+        try:
+            fd = self._bus.fileno()
+        except NotImplementedError:  # (the virtual bus): python-can's thread, which a failed read ends
+            self._notifier = can.Notifier(self._bus, [self._on_message], timeout=0.1, loop=self._loop)
+            return
+        self._loop.add_reader(fd, self._readable)
+        self._reader_fd = fd
+
+    def _readable(self) -> None:
+        """The bus's descriptor is readable: one frame read and decoded. A read that fails ends
+        the reading (`link_error`, said once; the node is lost from then on)."""
+        try:
+            msg = self._bus.recv(0)
+        except Exception as err:  # noqa: BLE001 - can.CanError, OSError: whatever it says, the link is gone
+            self._stop_reading()
+            self.link_error = f"CAN {self.interface}:{self.channel}: {err}"
+            log.error("CAN link failed, the bus is read no more: %s", self.link_error)
+            return
+        if msg is not None:
+            self._on_message(msg)
+
+    def _stop_reading(self) -> None:
+        if self._reader_fd is not None and self._loop is not None and not self._loop.is_closed():
+            self._loop.remove_reader(self._reader_fd)
+        self._reader_fd = None
 
     def close(self) -> None:
         """Idempotent."""
+        self._stop_reading()
         if self._notifier is not None:
             self._notifier.stop()
             self._notifier = None
@@ -203,6 +241,7 @@ class AuxSensors:
             pump_off=bool(v.get("pump_off", False)),
             heartbeat_state=self._heartbeat,
             heartbeat_age=hb_age,
-            node_lost=now - self._times.get(0x700, self._opened_at) > LOST_AFTER,
+            node_lost=self.link_error is not None or now - self._times.get(0x700, self._opened_at) > LOST_AFTER,
             ages=ages,
+            link_error=self.link_error,
         )
