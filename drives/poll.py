@@ -4,7 +4,9 @@ One task (`DrivePoll.run`) reads both drives every `poll_interval` s at a
 steady pace. It is the heartbeat the drives' comm-loss watchdog needs, the
 source of `state`, and the interlock:
 - A drive that trips has both drives ramped to zero before the fault is
-  recorded in `failure` (the owner raises it).
+  recorded in `failure` (the owner raises it); so does a poll that fails on a bug
+  (no longer watched, commanded drives are not left turning: the poll's reads
+  would keep their watchdog fed).
 - A poll's read gives way to a stop on TCP (drives/link.py): that poll is skipped, not failed.
 - A failed poll is counted (`state.poll_failures`, logged); the link is
   declared lost only after `link_loss_polls` consecutive failures (an isolated
@@ -238,8 +240,11 @@ class DrivePoll:
                 await self._poll_once()
             except asyncio.CancelledError:
                 raise
-            except Exception as err:  # a bug must not end the heartbeat
-                log.exception("drive poll failed")
+            except Exception as err:  # a bug must not end the heartbeat, nor leave the drives turning unwatched
+                log.exception("drive poll failed" + ("; ramping both drives to zero" if self.command else ""))
+                if self.command is not None:  # what it can no longer judge is stopped, as after a trip
+                    await asyncio.shield(self._send(bool(self.owed)))
+                    self.command = None
                 self.fail(DriveError(f"poll failed: {err!r}"))
 
     async def _poll_once(self) -> None:
