@@ -240,7 +240,7 @@ class RunEngine(OperatorRequests):
 
     def _procedure(self, io: RigIO, store: RunStore) -> PointProcedure:
         supervisor = InterlockSupervisor(
-            lambda: (io.open_aux.latest(), io.open_drives.state), self.rig.interlocks, self._interlock_failed
+            lambda: (io.open_aux.latest(), io.drives_judged()), self.rig.interlocks, self._interlock_failed
         )
         return PointProcedure(
             RunParts(
