@@ -67,18 +67,18 @@ class OperatorRequests:
     def request_stop(self, by: str | None = None, why: str = "") -> bool:
         """Stop at the next safe point; `by` (and `why`, e.g. the signal that asked) are kept for
         the commands log and the run's end message (orbitrig.run.ending). Returns whether the run
-        holds the drives (`holds_drives`): False if it does not carry the stop to them (its rig not
-        open yet, or its cleanup past the closing stop, also one that could not confirm them
-        stopped); the caller then stops them another way (orbitrig.service.idle_stop), as for an abort."""
+        carries the stop to the drives: False once it has let go of them (`let_go`); the caller
+        then stops them another way (orbitrig.service.idle_stop), as for an abort."""
         sender = requester(self._sender(by), why)
         self._control.request_stop(sender)
         self._command(RunCommand.STOP, sender)
-        return self.holds_drives
+        return not self._let_go
 
     @property
-    def holds_drives(self) -> bool:
-        """The run has the drives' link open: entered, and its cleanup's closing stop not over yet."""
-        return self._io is not None and self._io.drives is not None and not self._let_go
+    def let_go(self) -> bool:
+        """The run's cleanup is past its closing stop (the drives' link closing or closed, their
+        standstill confirmed or not): no stop asked of it reaches the drives any more."""
+        return self._let_go
 
     def request_abort(self, by: str | None = None, why: str = "") -> bool:
         """Abort: both drives get the emergency stop at once (their stop words ahead of
