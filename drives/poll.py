@@ -233,15 +233,20 @@ class DrivePoll:
 
     async def run(self) -> None:
         """Poll until cancelled, every `poll_interval` s (a late poll is not made up), and
-        when `pace.ask`ed."""
+        when `pace.ask`ed. A poll that fails on a bug is logged with its traceback once, not
+        at every poll while it keeps failing."""
+        failing = False
         while True:
             await self.pace.next_poll()
             try:
                 await self._poll_once()
+                failing = False
             except asyncio.CancelledError:
                 raise
             except Exception as err:  # a bug must not end the heartbeat, nor leave the drives turning unwatched
-                log.exception("drive poll failed" + ("; ramping both drives to zero" if self.command else ""))
+                if not failing or self.command is not None:
+                    log.exception("drive poll failed" + ("; ramping both drives to zero" if self.command else ""))
+                failing = True
                 if self.command is not None:  # what it can no longer judge is stopped, as after a trip
                     await asyncio.shield(self._send(bool(self.owed)))
                     self.command = None

@@ -8,6 +8,8 @@ produces one)."""
 
 from __future__ import annotations
 
+import asyncio
+
 import pytest
 from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, open_rig
 
@@ -35,8 +37,13 @@ async def test_a_poll_that_fails_on_a_bug_ramps_both_commanded_drives_to_zero(tc
             lambda: sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP, 2.0, "both drives' stop words"
         )
         assert took < 1.0, took  # poll interval 50 ms: the first failed poll sends them
+        heard = sim.models[1].last_request
+        await asyncio.sleep(0.5)  # about ten more polls fail, logged no more
+        assert sim.models[1].last_request > heard  # the poll's reads go on (the heartbeat)
         with pytest.raises(DriveError, match=r"poll failed: ValueError\('status word decoding bug'\)"):
             rig.check()
         monkeypatch.undo()  # the poll reads the drives again: their ramp is watched to standstill
         await sim.wait_stopped(10.0)
-    assert "drive poll failed; ramping both drives to zero" in caplog.text
+    failed = [r for r in caplog.records if r.getMessage().startswith("drive poll failed")]
+    assert [r.getMessage() for r in failed] == ["drive poll failed; ramping both drives to zero"], len(failed)
+    assert failed[0].exc_info is not None  # its traceback
