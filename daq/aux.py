@@ -6,7 +6,9 @@
 
 Frames are read on the event loop as they arrive (daq.can_reader; a bus without a file
 descriptor, python-can's ``virtual``, by a thread that hands them over) and decoded there;
-nothing blocks the loop, and a bus that fails is opened again until it opens. Values
+nothing blocks the loop. A bus whose link fails (an adapter pulled, the interface down, a
+serial-over-TCP link closed) is said once, counts as the node lost at once (``link_error``)
+and is opened again until it opens. Values
 are kept in SI (K, Pa, m^3/s) with their arrival time; a value is stale when
 its frame is older than 0.5 s, the node is lost when no heartbeat arrived for
 1.5 s (counted from opening while none has come). A frame whose length is not
@@ -73,6 +75,7 @@ class AuxState:
     heartbeat_age: float = math.inf
     node_lost: bool = True
     ages: dict[str, float] = field(default_factory=dict)
+    link_error: str | None = None  # why the bus is down (its link failed; being opened again): the node is lost
 
     def stale(self, name: str) -> bool:
         """True if value ``name`` is older than 0.5 s or never arrived."""
@@ -134,6 +137,11 @@ class AuxSensors:
         ids = [0x180 + base, 0x280 + base, 0x380 + base, 0x700 + base]
         bus.set_filters([{"can_id": i, "can_mask": 0x7FF, "extended": False} for i in ids])
         return bus
+
+    @property
+    def link_error(self) -> str | None:
+        """Why the bus is down while it is (its link failed and is being opened again), else None."""
+        return None if self._reader is None else self._reader.error
 
     @property
     def link_drops(self) -> int:
@@ -212,6 +220,7 @@ class AuxSensors:
             pump_off=bool(v.get("pump_off", False)),
             heartbeat_state=self._heartbeat,
             heartbeat_age=hb_age,
-            node_lost=now - self._times.get(0x700, self._opened_at) > LOST_AFTER,
+            node_lost=self.link_error is not None or now - self._times.get(0x700, self._opened_at) > LOST_AFTER,
             ages=ages,
+            link_error=self.link_error,
         )

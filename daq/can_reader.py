@@ -34,7 +34,7 @@ THREAD_POLL_S = 0.1  # s a reader thread waits for a frame before it looks wheth
 class CanReader:
     """Reads ``bus`` (already open; ``name`` in messages) into ``on_message`` on the running
     loop; ``reopen()`` opens the bus again after a failure (raising when it cannot).
-    ``link_drops`` counts the failures, ``error`` says the last while the bus is down."""
+    ``link_drops`` counts the failures, ``error`` says why the bus is down while it is."""
 
     def __init__(self, bus: can.BusABC, reopen: Callable[[], can.BusABC], on_message: Callable[[Any], None], name: str):
         import can  # the caller opened a bus: python-can is there
@@ -105,9 +105,7 @@ class CanReader:
         bus = self._stop_reading()
         self.link_drops += 1
         self.error = f"{type(err).__name__}: {err}"
-        log.warning(
-            "CAN %s: link lost (%s); opening it again every %g-%g s", self.name, self.error, RETRY_S, RETRY_MAX_S
-        )
+        log.error("CAN link %s lost (%s); opening it again every %g-%g s", self.name, self.error, RETRY_S, RETRY_MAX_S)
         self._retry = self._loop.create_task(self._open_again(bus), name=f"CAN {self.name} reopen")
 
     async def _open_again(self, failed: Any) -> None:
@@ -118,8 +116,7 @@ class CanReader:
             await asyncio.sleep(delay)
             try:
                 bus = await asyncio.to_thread(self._reopen)
-            except errors as err:
-                self.error = f"{type(err).__name__}: {err}"
+            except errors:  # still down: ``error`` keeps why the link was lost
                 delay = min(2 * delay, RETRY_MAX_S)
                 continue
             if self._closed:
@@ -127,7 +124,7 @@ class CanReader:
                 return
             self._bus, self.error = bus, None
             self._start()
-            log.info("CAN %s: link open again", self.name)
+            log.info("CAN link %s open again", self.name)
             return
 
     def close(self) -> Any:

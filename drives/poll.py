@@ -4,7 +4,9 @@ One task (`DrivePoll.run`) reads both drives every `poll_interval` s at a
 steady pace. It is the heartbeat the drives' comm-loss watchdog needs, the
 source of `state`, and the interlock:
 - A drive that trips has both drives ramped to zero before the fault is
-  recorded in `failure` (the owner raises it).
+  recorded in `failure` (the owner raises it); so does a poll that fails on a bug
+  (no longer watched, commanded drives are not left turning: the poll's reads
+  would keep their watchdog fed).
 - A poll's read gives way to a stop on TCP (drives/link.py): that poll is skipped, not failed.
 - A failed poll is counted (`state.poll_failures`, logged); the link is
   declared lost only after `link_loss_polls` consecutive failures (an isolated
@@ -231,15 +233,23 @@ class DrivePoll:
 
     async def run(self) -> None:
         """Poll until cancelled, every `poll_interval` s (a late poll is not made up), and
-        when `pace.ask`ed."""
+        when `pace.ask`ed. A poll that fails on a bug is logged with its traceback once, not
+        at every poll while it keeps failing."""
+        failing = False
         while True:
             await self.pace.next_poll()
             try:
                 await self._poll_once()
+                failing = False
             except asyncio.CancelledError:
                 raise
-            except Exception as err:  # a bug must not end the heartbeat
-                log.exception("drive poll failed")
+            except Exception as err:  # a bug must not end the heartbeat, nor leave the drives turning unwatched
+                if not failing or self.command is not None:
+                    log.exception("drive poll failed" + ("; ramping both drives to zero" if self.command else ""))
+                failing = True
+                if self.command is not None:  # what it can no longer judge is stopped, as after a trip
+                    await asyncio.shield(self._send(bool(self.owed)))
+                    self.command = None
                 self.fail(DriveError(f"poll failed: {err!r}"))
 
     async def _poll_once(self) -> None:

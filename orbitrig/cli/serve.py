@@ -234,4 +234,4 @@ async def _serve_until_shutdown(rig, settings, broker_settings, opts: ServeOptio
     if service.signal_stop_failed is not None:  # the drives may turn on: exit 1, not 0
         from orbitrig.service.rig_service import ServiceError
 
-        raise ServiceError(f"{service.shutdown_cause} with no run active: {service.signal_stop_failed}")
+        raise ServiceError(f"{service.signal_stop_why}: {service.signal_stop_failed}")

@@ -157,7 +157,7 @@ class RunEngine(OperatorRequests):
         return RunOutcome(status, message, store.run_id, self.out_dir, completed_points(store), len(plan.points))
 
     def _start(self, plan: Plan, store: RunStore, done: list[int], resume: bool) -> None:
-        self._store, self._failure = store, None
+        self._store, self._failure, self._let_go = store, None, False
         self._control.reset()
         self.run_id = store.run_id  # the stored run's id: the catalog's, and a resume's too
         self._t0 = time.monotonic()
@@ -240,7 +240,7 @@ class RunEngine(OperatorRequests):
 
     def _procedure(self, io: RigIO, store: RunStore) -> PointProcedure:
         supervisor = InterlockSupervisor(
-            lambda: (io.open_aux.latest(), io.open_drives.state), self.rig.interlocks, self._interlock_failed
+            lambda: (io.open_aux.latest(), io.drives_judged()), self.rig.interlocks, self._interlock_failed
         )
         return PointProcedure(
             RunParts(
@@ -342,6 +342,7 @@ class RunEngine(OperatorRequests):
             status, message = await closing_stop(
                 io.drives, self._control.aborted, (status, message), timeout, self._log_event, self._cleanup_failed
             )
+        self._let_go = True  # a stop asked from here on is not the run's to carry to the drives
         for what, action in (
             ("close the rig links", lambda: io.__aexit__(None, None, None)),
             ("finish the storage in flight", self._background.settle),

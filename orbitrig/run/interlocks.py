@@ -117,7 +117,8 @@ def _node_missing(aux: AuxState, cfg: Interlocks) -> str | None:
 
 def _supply_trips(aux: AuxState, cfg: Interlocks, pressure_armed: bool, turning: bool) -> list[Trip]:
     if cfg.check_can_heartbeat and aux.node_lost:
-        return [Trip(TripKind.CAN_HEARTBEAT, SUSPEND, "CAN sensor node lost (no heartbeat for 1.5 s)")]
+        why = f"its bus link failed: {aux.link_error}" if aux.link_error else "no heartbeat for 1.5 s"
+        return [Trip(TripKind.CAN_HEARTBEAT, SUSPEND, f"CAN sensor node lost ({why})")]
     if not (pressure_armed or turning):
         return []
     missing = _node_missing(aux, cfg)

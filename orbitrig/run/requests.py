@@ -49,6 +49,7 @@ class OperatorRequests:
     _log_event: Callable[..., None]
     _held: list[Callable[[], None]] | None  # disk writes held until the stop words are out
     _holding_for: asyncio.Task[list[DriveError]] | None = None  # the stop whose delivery releases them
+    _let_go = False  # the run's closing stop is over (confirmed or not): its cleanup closes the drives' link
 
     def request_pause(self, by: str | None = None) -> None:
         self._control.request_pause(self._sender(by))
@@ -63,12 +64,21 @@ class OperatorRequests:
         self._control.request_resume()
         self._command(RunCommand.RESUME, by)
 
-    def request_stop(self, by: str | None = None, why: str = "") -> None:
+    def request_stop(self, by: str | None = None, why: str = "") -> bool:
         """Stop at the next safe point; `by` (and `why`, e.g. the signal that asked) are kept for
-        the commands log and the run's end message (orbitrig.run.ending)."""
+        the commands log and the run's end message (orbitrig.run.ending). Returns whether the run
+        carries the stop to the drives: False once it has let go of them (`let_go`); the caller
+        then stops them another way (orbitrig.service.idle_stop), as for an abort."""
         sender = requester(self._sender(by), why)
         self._control.request_stop(sender)
         self._command(RunCommand.STOP, sender)
+        return not self._let_go
+
+    @property
+    def let_go(self) -> bool:
+        """The run's cleanup is past its closing stop (the drives' link closing or closed, their
+        standstill confirmed or not): no stop asked of it reaches the drives any more."""
+        return self._let_go
 
     def request_abort(self, by: str | None = None, why: str = "") -> bool:
         """Abort: both drives get the emergency stop at once (their stop words ahead of

@@ -26,7 +26,9 @@ from daq.averager import AveragedBlock, AveragingRule
 from daq.aux import AuxSensors
 from daq.errors import DaqError
 from daq.revolutions import Revolution
+from drives.errors import DriveFaultError
 from drives.rig import RigDrives
+from drives.state import RigDriveState
 from orbitrig.config import RigConfig
 from orbitrig.run.drive_setup import rig_drives
 
@@ -161,6 +163,15 @@ class RigIO:
         if self.drives is None:
             raise RuntimeError("the drives are not open: use them inside `async with RigIO(...)`")
         return self.drives
+
+    def drives_judged(self) -> RigDriveState:
+        """The drives' latest poll for the interlocks, or what keeps the poll from judging them
+        raised (`RigDrives.check`: a poll that failed on a bug, a failed verification after a
+        link loss); a trip is not raised: the state shows it (orbitrig.run.interlocks)."""
+        try:
+            return self.open_drives.check()
+        except DriveFaultError:
+            return self.open_drives.state
 
     @property
     def open_aux(self) -> AuxSensors:

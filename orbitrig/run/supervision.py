@@ -15,7 +15,8 @@ trip and the drives stop.
 
 A sample that raises (a bug in a sensor read or a check) is logged with its
 traceback and made a fail trip ("supervision"): the run never goes on with its
-interlocks unwatched (the drive poll treats a failed poll the same way).
+interlocks unwatched; so is a drive poll that failed on a bug (`RigIO.drives_judged` raises it;
+the poll has ramped both drives to zero, drives/poll.py).
 """
 
 from __future__ import annotations

@@ -63,10 +63,12 @@ class CommandHandling:
     _idle_stop: asyncio.Task[idle_stop.Outcome] | None = None
     #: whether that stop is the emergency stop (OFF3), not a stop's ramp stop (OFF1)
     _idle_emergency: bool = False
-    #: the emergency stop the first shutdown signal sent with no run active, or why not sent
+    #: the emergency stop the first shutdown signal sent with no run to stop the drives, or why not sent
     _signal_stop: asyncio.Task[idle_stop.Outcome] | str | None = None
     #: why that emergency stop did not reach both drives (None: it did, or none was sent)
     signal_stop_failed: str | None = None
+    #: the signal and why no run carried it to the drives ('SIGTERM with no run active')
+    signal_stop_why: str = ""
     _tg: asyncio.TaskGroup | None
     #: the (Modbus URL, [drives]) of the rig configuration loaded last, asked at each stop no run
     #: carries out (None: not known, not sent)
@@ -258,10 +260,15 @@ class CommandHandling:
         return self.drive_link() if self.drive_link is not None else None
 
     def stop_drives_on_signal(self, name: str) -> None:
-        """The first shutdown signal (``name``) with no run active: an abort no run carries out (both
-        drives' emergency stop, its outcome logged); `settle_signal_stop` waits for it."""
-        if not self.run_active:
-            self._signal_stop = self.stop_idle_drives(emergency=True, why=f"{name} with no run active")
+        """The first shutdown signal (``name``) with no run active, or with the run past its closing
+        stop (also one that could not confirm the drives stopped, while it records its end): an
+        abort no run carries out (both drives' emergency stop, its outcome logged);
+        `settle_signal_stop` waits for it. An active run stops them itself (`_end_run`)."""
+        engine = self._engine if self.run_active else None
+        if engine is not None and not engine.let_go:
+            return
+        self.signal_stop_why = f"{name} with no run active" if engine is None else f"{name} with the run past its stop"
+        self._signal_stop = self.stop_idle_drives(emergency=True, why=self.signal_stop_why)
 
     async def settle_signal_stop(self) -> None:
         """Wait (at most idle_stop.SIGNAL_STOP_S, wall s) for the emergency stop of
@@ -292,8 +299,8 @@ class CommandHandling:
     def _request(self, what: Literal["pause", "stop", "abort", "stop_now"], by: str | None = None) -> bool:
         """Ask the executor to pause/stop/abort; never raises. If the executor
         refuses a stop or abort, the run task is cancelled (its cleanup ramps
-        both drives to zero). False if no run took it: none is active, or (an abort)
-        the run does not hold the drives (orbitrig.run.requests: nothing was sent)."""
+        both drives to zero). False if no run took it: none is active, or the run does not
+        carry it to the drives (orbitrig.run.requests: nothing was sent)."""
         engine, task = self._engine, self._run_task
         if task is None or task.done() or engine is None:
             return False
@@ -308,7 +315,7 @@ class CommandHandling:
             "stop_now": lambda by: engine.request_stop_now(self.shutdown_words(), by=by),
         }
         try:
-            return requests[what](by=by) is not False  # an abort says whether its stop reached the drives
+            return requests[what](by=by) is not False  # a stop or an abort says whether it reaches the drives
         except Exception:
             log.exception("executor refused %s", what)
             if what != "pause":

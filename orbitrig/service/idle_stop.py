@@ -9,8 +9,8 @@ confirmed stopped") or is not holding them yet. An abort is never answered ok wi
 sent (docs/protocols/mqtt.md, "Commands"). A second signal to `orbitrig serve` that no run takes
 (RigService.abort_run), and a signal or an abort at the terminal of `orbitrig sweep` that its run
 no longer carries out (orbitrig.cli.operator), send the same, from here; so does the first signal
-to `orbitrig serve` with no run active (its outcome decides serve's exit status). A `stop` that no
-run carries out sends the ramp stop (OFF1) the same way."""
+to `orbitrig serve` with no run to stop the drives (its outcome decides serve's exit status). A
+`stop` that no run carries out sends the ramp stop (OFF1) the same way."""
 
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ Outcome = tuple[str | None, str | None]
 DriveLink = tuple[str, Drives]
 #: the drive link of the rig configuration loaded last, asked at the time of each stop
 DriveLinkSource = Callable[[], DriveLink]
-#: wall s a shutdown waits for the emergency stop its signal sent with no run active
+#: wall s a shutdown waits for the emergency stop its signal sent with no run to stop the drives
 SIGNAL_STOP_S = 30.0
 
 #: wall s an abort's stop waits for a run it cancelled (one being opened) to let go of the

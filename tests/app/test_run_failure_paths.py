@@ -1,17 +1,21 @@
 """Failures the engine must not let pass, on the real simulator: a helper task of the run (the
 interlock watcher, the log monitor) that raises ends the run at once as a failure with the
-drives stopped; a stop that is not delivered or not confirmed at standstill ends the run
-failed, not stopped; a live-feed hook that raises is detached and the run goes on.
+drives stopped, and so does a drive poll that fails on a bug; a stop that is not delivered or
+not confirmed at standstill ends the run failed, not stopped; a live-feed hook that raises is
+detached and the run goes on.
 
 A bug cannot be produced by the real parts: it is injected (a sensor read that raises, a
-monitor that raises, a standstill that is never confirmed, a hook that raises)."""
+monitor that raises, a drive poll that raises, a standstill that is never confirmed, a hook
+that raises)."""
 
 import asyncio
 import logging
+import time
 
 import pytest
 
 from drives.errors import DriveTimeoutError
+from drives.poll import DrivePoll
 from drives.rig import RigDrives
 from orbitrig.run import engine as engine_module
 from orbitrig.run.supervision import InterlockSupervisor
@@ -28,6 +32,10 @@ LONG = small_matrix(revolutions=200, spin_rpm=[1000.0, 1500.0, 2000.0])  # far l
 
 def _at_rest(sim) -> bool:
     return all(abs(s) < 1.0 for s in sim.speeds)
+
+
+def _at_speed(sim) -> bool:
+    return all(abs(s) > 10.0 for s in sim.speeds)
 
 
 def _stored_status(tmp_path) -> RunStatus:
@@ -123,3 +131,29 @@ async def test_a_live_feed_hook_that_raises_is_detached_and_the_run_goes_on(tmp_
         assert len(calls) == 1 and broken_tap not in eng.revolution_taps
     assert "live feed detached" in (tmp_path / "run" / "run.log").read_text()
     assert any(r.exc_info and "detached" in r.getMessage() for r in caplog.records)
+
+
+async def test_a_drive_poll_that_fails_on_a_bug_fails_the_run_at_once(tmp_path, monkeypatch):
+    """The drive poll fails on a bug during an acquisition (which waits on the A/D board, not on
+    the drives): the poll ramps both drives to zero, and the run's interlock supervisor fails the
+    run at once naming it, not only the next wait for the drives after the acquisition gave up."""
+    real, broken = DrivePoll.publish, [False]
+
+    def publish(self, statuses, *, link_ok, link_error=None):
+        if broken[0]:
+            raise ValueError("status word decoding bug")
+        return real(self, statuses, link_ok=link_ok, link_error=link_error)
+
+    monkeypatch.setattr(DrivePoll, "publish", publish)
+    async with running(tmp_path, small_matrix(revolutions=3000, spin_rpm=[1000.0])) as (sim, eng, rec, run):
+        await wait_for(lambda: rec.blocks_done() >= 1, 60, what="a block")  # each block: several seconds
+        await wait_for(lambda: _at_speed(sim), what="the next block's speeds")
+        broken[0] = True
+        t0 = time.monotonic()
+        await wait_for(lambda: eng.state != "running", 30, what="the run ending")
+        ended = time.monotonic() - t0
+        outcome = await asyncio.wait_for(asyncio.shield(run), 60)
+        assert outcome.status == "failed", outcome.message
+        assert "poll failed: ValueError('status word decoding bug')" in outcome.message, outcome.message
+        assert ended < 3.0, ended  # supervisor samples every 50 ms: not the acquisition's timeout
+        assert _at_rest(sim), sim.speeds

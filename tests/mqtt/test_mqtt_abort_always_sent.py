@@ -5,22 +5,28 @@
   a new run active (the service's memory of QoS 1 redeliveries leaves stop and abort alone);
 - an abort that no run carries out, once a run's cleanup could not confirm the drives stopped
   ("drives not confirmed stopped"), sends both drives the emergency stop (OFF3) over a link of
-  the service's own and says so in its reply;
+  the service's own and says so in its reply; a stop in the same state, while the run still
+  records its end, sends them the ramp stop (OFF1) the same way;
 - the service `orbitrig serve` builds knows its rig's drives before any run: an abort to it
   before its first run, with the drives turned from their keypads, stops them the same way;
 - a service that knows no drive link (built without one) answers such an
   abort ok: false, "not sent".
 
 Real parts: mosquitto with the shipped ACL and accounts, the service `orbitrig serve --sim`
-builds (in process, on the simulator), its broker link cut by a relay."""
+builds (in process, on the simulator), its broker link cut by a relay, a run's run.log a named
+pipe nobody reads (a disk that hangs)."""
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
 import json
+import os
+import threading
 import time
 from pathlib import Path
+
+import pytest
 
 from drives import registers as R
 from orbitrig.cli.serve import build_service
@@ -187,3 +193,82 @@ async def test_an_abort_with_no_drive_link_known_says_it_was_not_sent(broker, tm
         rc.close()
         stop.set()
         await asyncio.wait_for(task, 10)
+
+
+class _StalledRunLog:
+    """run.log made a named pipe nobody reads (a disk that hangs): the run's end, which waits for
+    every run.log line, is held while the drives are no longer the run's. `back()` reads it
+    (kept open until `close`, which gives run.log back as a file first), so the lines go through."""
+
+    def __init__(self, run_dir: Path, spare: Path):
+        os.mkfifo(spare)
+        os.link(spare, run_dir / "run.log.stalled")  # same file system: the pipe takes run.log's name at once
+        os.replace(run_dir / "run.log.stalled", run_dir / "run.log")
+        self.run_log, self.spare, self.fd = run_dir / "run.log", spare, None
+        self._done = threading.Event()
+        self._reader = threading.Thread(target=self._drain, daemon=True)
+
+    def back(self) -> None:
+        if self.fd is None:
+            self.fd = os.open(self.spare, os.O_RDONLY | os.O_NONBLOCK)
+            self._reader.start()
+
+    def _drain(self) -> None:
+        while not self._done.is_set():
+            with contextlib.suppress(BlockingIOError):
+                while os.read(self.fd, 65536):
+                    pass
+            time.sleep(0.01)
+
+    def close(self) -> None:
+        self.back()  # whatever happened, nothing is left waiting for the pipe
+        self.run_log.with_name("run.log.back").write_text("")
+        os.replace(self.run_log.with_name("run.log.back"), self.run_log)  # later lines: a file again
+        time.sleep(0.5)  # a line already opening the pipe is read
+        self._done.set()
+        self._reader.join(5)
+        os.close(self.fd)
+
+
+@pytest.mark.parametrize("how", ["mqtt stop", "SIGTERM"])
+async def test_a_stop_once_the_run_has_let_go_of_the_drives_reaches_them(broker, tmp_path, how):
+    """A run whose cleanup could not confirm the drives stopped has closed their link and records
+    its end (held here by a stalled run.log): a stop then is no run's to carry out. A `stop` is not
+    answered ok with nothing sent: both drives get the ramp stop (OFF1) over the service's own link;
+    the first shutdown signal (what `orbitrig serve`'s handler asks of the service) sends them the
+    emergency stop (OFF3), as with no run active."""
+    rig = load_rig()
+    rig = rig.model_copy(update={"drives": rig.drives.model_copy(update={"stop_timeout_s": 2.0})})
+    # the drives' ramp stop lasts minutes (30 s and more here): the run's cleanup gives up waiting
+    async with serving(broker, tmp_path, "let-go-rig", rig=rig, decel=18000) as (svc, sim_rig, rc):
+        assert (await wait(rc.command, {"cmd": "start", "matrix": "quick"}))["ok"] is True
+        await wait(rc.status, "running")
+        await until(lambda: min(abs(w) for w in sim_rig.speeds) > 10.0, 60, "both drives turning")
+        (run_dir,) = (tmp_path / "runs").iterdir()
+        stall = _StalledRunLog(run_dir, tmp_path / "stall")
+        try:
+            mark = rc.watch.mark()
+            assert (await wait(rc.command, {"cmd": "stop"}))["ok"] is True  # the run holds them: its stop
+            faulted = await wait(rc.status, "faulted", 90, mark)
+            assert "drives not confirmed stopped" in faulted["message"], faulted
+            assert svc.run_active  # its end not recorded yet: run.log does not take a line
+            assert not standstill(sim_rig), sim_rig.speeds  # still coasting: nothing holds them
+
+            t_stop = time.monotonic()
+            if how == "mqtt stop":
+                reply = await wait(rc.command, {"cmd": "stop", "id": "s-let-go"})
+                assert reply["ok"] is True and "ramp stop (OFF1) sent to both drives" in reply.get("detail", ""), reply
+                word = R.CW_RAMP_STOP
+            else:
+                svc.stop_drives_on_signal("SIGTERM")
+                await svc.settle_signal_stop()
+                assert svc.signal_stop_failed is None
+                word = R.CW_EMERGENCY_STOP
+            for device, drive in sim_rig.drives.items():
+                words = [cw for t, cw in drive.control_words if t >= t_stop]
+                assert word in words, (device, [hex(w) for w in words])
+            assert svc.run_active  # the stop went out while the run was still recording its end
+            stall.back()
+            await until(lambda: not svc.run_active, 60, "the run's end recorded")
+        finally:
+            stall.close()
