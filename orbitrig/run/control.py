@@ -41,7 +41,7 @@ from orbitrig.run.events import RunFailed
 from orbitrig.run.provenance import UNNAMED
 from orbitrig.run.states import FAULTED, IDLE, PAUSED, RUNNING, STOPPING, WAITING, RunState, next_state
 from orbitrig.run.supervision import InterlockSupervisor
-from orbitrig.run.interlocks import SUSPEND, Trip
+from orbitrig.run.interlocks import SUSPEND, Trip, TripKind
 from rigunits import now_iso, utc_iso
 
 T = TypeVar("T")
@@ -378,7 +378,7 @@ class RunControl:
             await asyncio.wait({task, trip}, return_when=asyncio.FIRST_COMPLETED)
             if task.done():
                 return task.result()
-            raise Suspended(sup.trip or Trip("interlock", SUSPEND, "interlock"))
+            raise Suspended(sup.trip or Trip(TripKind.INTERLOCK, SUSPEND, "interlock"))
         finally:
             for t in (task, trip):
                 if not t.done():

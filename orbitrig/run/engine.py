@@ -281,7 +281,7 @@ class RunEngine(OperatorRequests):
         if self._failure is not None:
             self._log_event(message)
             return
-        self._interlock_failed(Trip(task.get_name(), interlocks.FAIL, message))
+        self._interlock_failed(Trip(interlocks.TripKind.RUN_HELPER, interlocks.FAIL, message))
 
     def _background_failed(self, err: BaseException) -> None:
         """A storage write (disk full included) or an identification failed: the run ends at once."""

@@ -52,22 +52,29 @@ class TripAction(StrEnum):
 SUSPEND, FAIL = TripAction
 
 
-@dataclass(frozen=True)
-class Trip:
-    kind: str
-    action: TripAction
-    message: str
-
-
 class TripKind(StrEnum):
-    """The suspensions that become a fail once they last longer than their limit."""
+    """What tripped. The CAN node's and the supply's suspensions become a fail once they last
+    longer than their limit (NODE_KINDS, SUPPLY_KINDS)."""
 
     __repr__ = str.__repr__
 
+    DRIVE_LINK = "drive_link"
+    DRIVE_TRIP = "drive_trip"
     CAN_HEARTBEAT = "can_heartbeat"
     CAN_NODE = "can_node"
     SUPPLY_PUMP = "supply_pump"
     SUPPLY_LOW = "supply_low"
+    SUPPLY_HIGH = "supply_pressure"  # above the band once the point's pressures are verified
+    SUPERVISION = "supervision"  # the supervisor itself failed: the interlocks are not watched
+    RUN_HELPER = "run_helper"  # a helper task of the run failed (the message names it)
+    INTERLOCK = "interlock"  # a suspension whose cause is no longer known
+
+
+@dataclass(frozen=True)
+class Trip:
+    kind: TripKind
+    action: TripAction
+    message: str
 
 
 #: the CAN node gone or mute, and the supply itself lost: each group escalates on one clock
@@ -93,10 +100,12 @@ def _turning(drives: RigDriveState | None) -> bool:
 def _drive_trips(drives: RigDriveState) -> list[Trip]:
     trips = []
     if not drives.link_ok:
-        trips.append(Trip("drive_link", FAIL, LINK_LOST))
+        trips.append(Trip(TripKind.DRIVE_LINK, FAIL, LINK_LOST))
     for which, st in (("spin", drives.spin), ("orbit", drives.orbit)):
         if st is not None and (st.fault_code or st.tripped):
-            trips.append(Trip("drive_trip", FAIL, f"{which} drive tripped: fault {st.fault_code} {st.fault}".rstrip()))
+            trips.append(
+                Trip(TripKind.DRIVE_TRIP, FAIL, f"{which} drive tripped: fault {st.fault_code} {st.fault}".rstrip())
+            )
     return trips
 
 
@@ -135,5 +144,5 @@ def _supply_trips(aux: AuxState, cfg: Interlocks, pressure_armed: bool, turning:
     if not p >= lo * MPA:
         trips.append(Trip(TripKind.SUPPLY_LOW, SUSPEND, band))
     elif pressure_armed and p > hi * MPA:
-        trips.append(Trip("supply_pressure", SUSPEND, band))
+        trips.append(Trip(TripKind.SUPPLY_HIGH, SUSPEND, band))
     return trips

@@ -97,7 +97,7 @@ class InterlockSupervisor:
             except Exception as err:  # a bug must not leave the interlocks unwatched
                 log.exception("interlock supervision failed")
                 self.failure = Trip(
-                    "supervision",
+                    interlocks.TripKind.SUPERVISION,
                     interlocks.FAIL,
                     f"interlock supervision failed ({type(err).__name__}: {err}): the interlocks are not watched",
                 )
