@@ -84,6 +84,7 @@ def _settings(
     idle_timeout: float,
     reply_timeout: float,
     limits: dict,
+    tick: float,
 ):
     from orbitrig.dashboard.session import DashboardSettings
     from orbitrig.service.protocol import topics, validate_rig_id
@@ -98,6 +99,8 @@ def _settings(
         _fail(f"--tls-ca: no such file: {tls_ca}")
     if idle_timeout <= 0 or reply_timeout <= 0:
         _fail("--idle-timeout and --reply-timeout must be > 0 s")
+    if not 0 < tick <= 60:
+        _fail("--tick must be > 0 and at most 60 s")
     try:
         where = BrokerSettings.from_url(broker, tls_ca=tls_ca)
     except ServiceError as err:
@@ -110,8 +113,17 @@ def _settings(
         tls_ca=tls_ca,
         idle_timeout=idle_timeout,
         reply_timeout=reply_timeout,
+        tick=tick,
         **limits,
     )
+
+
+_TICK = typer.Option(
+    3.0,
+    "--tick",
+    help="s without a message to a page after which the server sends one; the page calls its view stale "
+    "after 7/3 of it (7 s) and reconnects a feed silent for 4 of it (12 s)",
+)
 
 
 def register(app: typer.Typer) -> None:
@@ -143,6 +155,7 @@ def register(app: typer.Typer) -> None:
         request_timeout: float = typer.Option(
             10.0, "--request-timeout", help="s a request's head and body must arrive within (slow clients cut)"
         ),
+        tick: float = _TICK,
         verbose: bool = typer.Option(False, "--verbose", "-v", help="log at debug level"),
     ) -> None:
         """Serve the live view of a rig: sign in with your broker user name and password."""
@@ -155,7 +168,7 @@ def register(app: typer.Typer) -> None:
         )
         logging.getLogger("mqtt").setLevel(logging.WARNING)
         limits = _limits(sessions_per_user, signin_delay, lockout_after, lockout, request_timeout)
-        settings = _settings(broker, rig_id, prefix, tls_ca, idle_timeout, reply_timeout, limits)
+        settings = _settings(broker, rig_id, prefix, tls_ca, idle_timeout, reply_timeout, limits, tick)
         host, port = _http_address(http)
         ssl_context = _https_context(https_cert, https_key, host)
 

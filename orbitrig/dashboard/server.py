@@ -15,7 +15,7 @@ and a websocket feed per browser.
   (``hello``, ``link``, ``status``, ``progress``, ``live``, ``result``, ``gap``,
   ``trend``, ``trend_history``, ``alarms``, ``rigs``, ``rig``, ``outcomes``, ``outcome``, ``tick``, ``signed_out``);
   page -> server ``{"type": "active"}`` on user activity. A ``tick`` goes when nothing else went for
-  ``TICK_S`` s: a page that hears nothing for longer knows its view is stale (a connection that died
+  ``TICK_S`` s (``--tick``): a page that hears nothing for longer knows its view is stale (a connection that died
   without closing), says so and connects again.
   A page's feed starts with the session's snapshot (``hello`` first): it replaces what the page
   showed (a page whose websocket reconnects draws the results again, not twice).
@@ -52,7 +52,8 @@ STATIC = Path(__file__).resolve().parent / "static"
 COOKIE = "orbitrig_session"
 MAX_SESSIONS = 64
 KEEPALIVE_S = 15.0  # an idle keep-alive connection is closed after this (s)
-TICK_S = 3.0  # s without a message to a page after which a tick goes (the page calls its view stale after ~7 s)
+TICK_S = 3.0  # s without a message to a page after which a tick goes, by default (--tick; the page calls its
+# view stale after 7/3 of it, ~7 s, and gives its feed up after 4 of it, 12 s)
 SECURITY_HEADERS = {
     "Cache-Control": "no-store",
     "Content-Security-Policy": "default-src 'self'; img-src 'self' data:; frame-ancestors 'none'",
@@ -154,8 +155,10 @@ async def whoami(request: web.Request) -> web.Response:
 
 
 def _who(session: Session) -> dict:
-    """Who is signed in, the rig watched, and the reply timeout (s: the page's deadlines follow it)."""
-    return {"user": session.user, "prefix": session.topics.prefix, "reply_timeout": session.settings.reply_timeout}
+    """Who is signed in, the rig watched, the reply timeout (s: the page's deadlines follow it) and the tick (s:
+    its stale and dead feed limits follow it)."""
+    s = session.settings
+    return {"user": session.user, "prefix": session.topics.prefix, "reply_timeout": s.reply_timeout, "tick": s.tick}
 
 
 async def command(request: web.Request) -> web.Response:
@@ -182,7 +185,7 @@ async def feed(request: web.Request) -> web.StreamResponse:
     for message in session.snapshot():
         queue.put(message)
     session.feeds.add(queue)
-    sender = asyncio.create_task(_send_loop(ws, queue), name=f"feed-{session.user}")
+    sender = asyncio.create_task(_send_loop(ws, queue, session.settings.tick), name=f"feed-{session.user}")
     try:
         async for msg in ws:
             if msg.type == WSMsgType.TEXT and '"active"' in msg.data:
@@ -225,11 +228,11 @@ async def select_rig(request: web.Request) -> web.Response:
     return web.json_response(await session.select_rig(rig_id, list(request.app[SESSIONS].values())))
 
 
-async def _send_loop(ws: web.WebSocketResponse, queue: Feed) -> None:
+async def _send_loop(ws: web.WebSocketResponse, queue: Feed, tick: float) -> None:
     with contextlib.suppress(ConnectionError, RuntimeError):
         while not ws.closed:
             try:
-                messages = await asyncio.wait_for(queue.take(), TICK_S)
+                messages = await asyncio.wait_for(queue.take(), tick)
             except (TimeoutError, asyncio.TimeoutError):
                 messages = [{"type": FeedType.TICK}]
             for message in messages:

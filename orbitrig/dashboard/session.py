@@ -73,6 +73,7 @@ class DashboardSettings:
     tls_ca: Path | None = None
     idle_timeout: float = 1800.0
     reply_timeout: float = 3.0
+    tick: float = 3.0  # s without a message to a page after which a tick goes (server.TICK_S: the page's limits)
     keepalive: int = 10
     sessions_per_user: int = 4
     throttle: ThrottlePolicy = ThrottlePolicy()
@@ -373,6 +374,7 @@ class Session(Outgoing):
                 "user": self.user,
                 "prefix": self.topics.prefix,
                 "reply_timeout": self.settings.reply_timeout,
+                "tick": self.settings.tick,
             },
             {"type": FeedType.LINK, "link": self.link},
             {"type": FeedType.RIGS, "data": self.rigs.listing()},

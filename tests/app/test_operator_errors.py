@@ -1,5 +1,6 @@
 """Operator mistakes: each gives one clear message (file, line, key), no traceback, a non-zero exit."""
 
+import shutil
 import subprocess
 from pathlib import Path
 
@@ -159,16 +160,25 @@ def test_dry_run_has_a_column_header_and_names_steps_in_the_rigs_words():
     assert "manual settings 2:00" in by_step and "stop drives" in by_step and "SetManual" not in by_step
 
 
-def test_sweep_coefficient_table_states_units(tmp_path):
-    p = _run("sweep", "--sim", "--out", str(tmp_path / "run"))
+@pytest.fixture(scope="module")
+def demo_sweep(tmp_path_factory) -> tuple[subprocess.CompletedProcess, Path]:
+    """(the process, its run directory) of `sweep --sim` of the demo matrix, made once: the tests
+    read its output or resume a copy of its run; nobody writes to this one."""
+    out = tmp_path_factory.mktemp("demo") / "run"
+    return _run("sweep", "--sim", "--out", str(out)), out
+
+
+def test_sweep_coefficient_table_states_units(demo_sweep):
+    p, _ = demo_sweep
     assert p.returncode == 0, p.stderr
     assert "units: K N/m, C N s/m, D kg" in p.stdout
     assert "piezo kcd11" in p.stdout  # the table still fits 80 columns without wrapping its headers
 
 
-def test_resume_with_another_matrix_is_refused_before_anything_starts(tmp_path):
-    out = tmp_path / "run"
-    assert _run("sweep", "--sim", "--out", str(out)).returncode == 0
+def test_resume_with_another_matrix_is_refused_before_anything_starts(demo_sweep, tmp_path):
+    done, run = demo_sweep
+    assert done.returncode == 0, done.stderr
+    out = shutil.copytree(run, tmp_path / "run")  # a run directory holds no path of its own
     other = tmp_path / "other.toml"
     other.write_text(DEMO_TEXT.replace("dynamic_eccentricity = [0.096]", "dynamic_eccentricity = [0.1]"))
     p = _run("sweep", "--sim", "--resume", str(out), "--matrix", str(other))

@@ -6,6 +6,7 @@ before anything is started, and the run is left as it was for a resume without -
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 
 import pytest
@@ -20,13 +21,21 @@ from support.sweep_helpers import orbitrig_cmd, stop_after_first_point
 pytestmark = pytest.mark.timeout(240)
 
 
-def _stopped_run(tmp_path):
-    """A 2-point --sim run stopped by SIGTERM once its first point is complete (exit 3)."""
-    (tmp_path / "m.toml").write_text(small_matrix("resume", 8, spin_rpm=(1000.0, 2000.0)))
-    out = tmp_path / "run"
-    cmd = orbitrig_cmd("sweep", "--sim", "--matrix", str(tmp_path / "m.toml"), "--out", str(out))
+@pytest.fixture(scope="module")
+def stopped(tmp_path_factory):
+    """A 2-point --sim run stopped by SIGTERM once its first point is complete (exit 3), made once:
+    each test resumes a copy of it (`_stopped_run`); nobody writes to this one."""
+    folder = tmp_path_factory.mktemp("stopped")
+    (folder / "m.toml").write_text(small_matrix("resume", 8, spin_rpm=(1000.0, 2000.0)))
+    out = folder / "run"
+    cmd = orbitrig_cmd("sweep", "--sim", "--matrix", str(folder / "m.toml"), "--out", str(out))
     stop_after_first_point([*cmd, "--speedup", "10", "--no-draw-figures"], out)
     return out
+
+
+def _stopped_run(stopped, tmp_path):
+    """The test's own copy of the `stopped` run (a run directory holds no path of its own)."""
+    return shutil.copytree(stopped, tmp_path / "run")
 
 
 def _config(tmp_path, record: str | None = None, estimates_s: float | None = None):
@@ -47,8 +56,8 @@ def _resume(out, *extra):
     )
 
 
-def test_another_calibration_record_on_resume_is_refused_and_the_run_resumes_without_it(tmp_path):
-    out = _stopped_run(tmp_path)
+def test_another_calibration_record_on_resume_is_refused_and_the_run_resumes_without_it(stopped, tmp_path):
+    out = _stopped_run(stopped, tmp_path)
     complete = sorted(p.name for p in read_run(out).points if p.complete)
     p = _resume(out, "--config", str(_config(tmp_path, record=loads_record(0.98))))
     assert p.returncode == 2, p.stderr
@@ -61,8 +70,8 @@ def test_another_calibration_record_on_resume_is_refused_and_the_run_resumes_wit
     assert all(q.complete for q in run.points) and len(run.points) == 2
 
 
-def test_a_planning_time_may_change_on_resume(tmp_path):
-    out = _stopped_run(tmp_path)
+def test_a_planning_time_may_change_on_resume(stopped, tmp_path):
+    out = _stopped_run(stopped, tmp_path)
     p = _resume(out, "--config", str(_config(tmp_path, estimates_s=0.5)))
     assert p.returncode == 0, p.stderr
     assert all(q.complete for q in read_run(out).points)

@@ -150,17 +150,36 @@ def test_an_abort_without_the_broker_link_says_it_was_not_sent(broker, dashboard
     page.wait_text("link", "online", 30)
 
 
-def test_a_silent_feed_is_shown_stale_and_connected_again(broker, dashboard, driver):
+#: --tick of the silent feed's dashboard (s; default 3): the page calls its view stale after 7/3 ticks (3.5 s)
+#: and gives the feed up after 4 (6 s); the test's times are the default's halved, each margin kept relative
+TICK = 1.5
+SCALE = TICK / 3.0
+
+
+@pytest.fixture
+def ticking(broker, tmp_path):
+    """A dashboard of the test's own, on the module's broker, ticking every TICK s."""
+    dash = Dashboard(broker.url, RIG, tmp_path, "--reply-timeout", str(REPLY_TIMEOUT), "--tick", str(TICK))
+    try:
+        yield dash
+    finally:
+        assert dash.stop() == 0, dash.text()[-3000:]
+
+
+def test_a_silent_feed_is_shown_stale_and_connected_again(broker, ticking, driver):
+    dashboard = ticking
     status(broker, "idle")
     hole = Blackhole(dashboard.port)
     try:
         page = signed_in(driver, f"http://127.0.0.1:{hole.port}/", dashboard, "idle")
-        time.sleep(9)  # nothing happens on the rig: the server's ticks keep the page live
+        time.sleep(9 * SCALE)  # nothing happens on the rig: the server's ticks keep the page live past its stale limit
         assert not page.el("offline-banner").is_displayed(), page.text("offline-banner")
         hole.dead = True
-        text = page.wait_text("offline-banner", lambda t: t.startswith("STALE: no data from the dashboard server"), 12)
+        text = page.wait_text(
+            "offline-banner", lambda t: t.startswith("STALE: no data from the dashboard server"), 12 * SCALE
+        )
         assert "app stale" in "app " + page.el("app").get_attribute("class"), text
-        page.wait_text("offline-banner", lambda t: "reconnecting" in t, 15)  # the dead feed given up
+        page.wait_text("offline-banner", lambda t: "reconnecting" in t, 15 * SCALE)  # the dead feed given up
         hole.dead = False
         page.wait(lambda: not page.el("offline-banner").is_displayed(), 30, "the feed back")
         assert "stale" not in (page.el("app").get_attribute("class") or "")

@@ -10,10 +10,13 @@ from __future__ import annotations
 
 import asyncio
 import signal
+import tempfile
 import time
+from pathlib import Path
 
 import pytest
 from drives.limits import DriveLimits
+from orbitrig.config import default_rig_path
 from support.drives_testkit import (
     CW_EMERGENCY,
     CW_RAMP_STOP,
@@ -71,8 +74,30 @@ def _watch_silent_id(sim: SimDrives, monkeypatch) -> list[asyncio.Event]:
     return events
 
 
+#: each request the silent drive leaves unanswered is waited out, retried once, for each word of the
+#: stop (a dozen requests): the lab's patient 1 s per request made that some 20 s; 0.3 s is still
+#: twice the shipped rig's 0.15 s (config/rig.toml), the margin of a loaded machine
+REQUEST_TIMEOUT_S = 0.3
+
+
+def _quicker_config(folder: Path) -> Path:
+    """The tests' lab rig.toml (the patient link) with a Modbus request timeout of REQUEST_TIMEOUT_S."""
+    text = default_rig_path().read_text()
+    assert "timeout_s = 1.0" in text
+    path = folder / "rig.toml"
+    path.write_text(text.replace("timeout_s = 1.0", f"timeout_s = {REQUEST_TIMEOUT_S}", 1))
+    return path
+
+
 async def _stop_cli(sim: SimDrives, args: list[str], moments) -> tuple[int, str]:
-    """`drives stop --modbus URL *args`, SIGINT after each awaited ``moments()``; (exit code, stderr)."""
+    """`drives stop --modbus URL --config RIG *args` (RIG: `_quicker_config`), SIGINT after each awaited
+    ``moments()``; (exit code, stderr)."""
+    with tempfile.TemporaryDirectory() as folder:
+        config = _quicker_config(Path(folder))
+        return await _stop_cli_with(sim, ["--config", str(config), *args], moments)
+
+
+async def _stop_cli_with(sim: SimDrives, args: list[str], moments) -> tuple[int, str]:
     proc = await start_cli("drives", "stop", "--modbus", sim.url, *args)
     try:
         for moment in moments:

@@ -20,6 +20,7 @@ from support.rig_configs import lab_record_config
 from support.sweep_helpers import orbitrig_cmd
 
 PROMPT_END = "then press Enter: "
+SPEEDUP = 10  # the simulator's time / wall time
 
 
 def wait(condition, timeout: float, what) -> None:
@@ -35,7 +36,7 @@ class Simulator:
 
     def __init__(self) -> None:
         self.proc = subprocess.Popen(
-            orbitrig_cmd("sim", "--modbus-port", "0", "--adc-port", "0", "--can-port", "0", "--speedup", "10"),
+            orbitrig_cmd("sim", "--modbus-port", "0", "--adc-port", "0", "--can-port", "0", "--speedup", str(SPEEDUP)),
             cwd=ROOT,
             stdin=subprocess.DEVNULL,
             stdout=subprocess.PIPE,
@@ -52,7 +53,13 @@ class Simulator:
         return st["spin"] * 60 / (2 * math.pi), st["orbit"] * 60 / (2 * math.pi)
 
     def rig_config(self, folder: Path) -> Path:
-        """A copy of the lab's rig.toml (and its records) whose transports are this simulator's."""
+        """A copy of the lab's rig.toml (and its records) whose transports are this simulator's.
+
+        The command sees a rig (time scale 1) while the simulator runs SPEEDUP times faster: the
+        lab's physical waits given in wall seconds (the hold after a load or a speed change, the
+        acquisition timeout's margin) are divided by SPEEDUP, so that they are the lab's seconds of
+        the simulator's time (hold 2 s -> 0.2 s wall: 2 s of the simulated rig). The acquisition
+        timeout keeps its factor (3 blocks) and the command's own 2 s wall allowance."""
         ep = self.endpoints
         return lab_record_config(
             folder,
@@ -61,6 +68,8 @@ class Simulator:
                 "modbus_url": f"modbus_url = {json.dumps(ep['modbus'])}",
                 "can_channel": f"can_channel = {json.dumps(ep['can'])}",
                 "can_interface": 'can_interface = "serial"',
+                "hold_s": f"hold_s = {2.0 / SPEEDUP:g}",
+                "timeout_margin_s": f"timeout_margin_s = {2.0 / SPEEDUP:g}",
             },
         )
 

@@ -6,11 +6,12 @@
 const $ = id => document.getElementById(id);
 // outcomes: the keys of the command outcomes shown (outcomeKey), so that a feed starting again shows none twice
 // lastMsg, feedAt: Date.now() of the feed's latest message and of its connection; stale: the view is not the present
-const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0, replyTimeout: 3, outcomes: new Set(),
+const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0, replyTimeout: 3, tick: 3, outcomes: new Set(),
   lastMsg: 0, feedAt: 0, stale: false, bannerText: null};
-// the server sends something at least every 3 s (a tick): silent this long, the view is stale (s); this
-// long, the feed is given up and connected again (a connection that died without closing)
-const STALE_S = 7, FEED_DEAD_S = 12;
+// the server sends something at least every st.tick s (a tick, 3 by default): silent STALE_TICKS ticks (7 s),
+// the view is stale; FEED_DEAD_TICKS (12 s), the feed is given up and connected again (a connection that died
+// without closing)
+const STALE_TICKS = 7 / 3, FEED_DEAD_TICKS = 4;
 
 function fmt(v, digits) { return (v === null || v === undefined || !isFinite(v)) ? "—" : Number(v).toFixed(digits); }
 function show(el, on) { el.hidden = !on; }
@@ -57,6 +58,7 @@ async function signIn(ev) {
 
 function enter(who) {
   if (who.reply_timeout) st.replyTimeout = who.reply_timeout;
+  if (who.tick) st.tick = who.tick;
   $("who").textContent = who.user;
   $("rig").textContent = who.prefix;
   show($("signin"), false); show($("app"), true);
@@ -156,14 +158,14 @@ function markStale(on) {
   st.stale = on; $("app").classList.toggle("stale", on); drawBanner();
 }
 
-// every 0.5 s: a feed silent for STALE_S greys the view; silent for FEED_DEAD_S (since its latest message or
+// every 0.5 s: a feed silent for STALE_TICKS ticks greys the view; silent for FEED_DEAD_TICKS (since its latest message or
 // its connection) it is closed and connected again, as a closed one is
 function watchFeed() {
   if (!st.lastMsg) return;
   const now = Date.now();
-  markStale(now - st.lastMsg > 1000 * STALE_S);
+  markStale(now - st.lastMsg > 1000 * STALE_TICKS * st.tick);
   if (st.stale) drawBanner();
-  if (st.ws && now - Math.max(st.lastMsg, st.feedAt) > 1000 * FEED_DEAD_S) {
+  if (st.ws && now - Math.max(st.lastMsg, st.feedAt) > 1000 * FEED_DEAD_TICKS * st.tick) {
     const ws = st.ws; st.ws = null;
     ws.onclose = ws.onmessage = null;
     try { ws.close(); } catch (e) { /* already gone */ }
@@ -175,7 +177,7 @@ function watchFeed() {
 // results come again (the table is emptied), events and outcomes already listed are not listed twice
 function handle(msg) {
   switch (msg.type) {
-    case FeedType.HELLO: $("who").textContent = msg.user; $("rig").textContent = msg.prefix; st.replyTimeout = msg.reply_timeout || st.replyTimeout; resultTable.clearResults(); break;
+    case FeedType.HELLO: $("who").textContent = msg.user; $("rig").textContent = msg.prefix; st.replyTimeout = msg.reply_timeout || st.replyTimeout; st.tick = msg.tick || st.tick; resultTable.clearResults(); break;
     case FeedType.RIGS: showRigs(msg.data); break;
     case FeedType.RIG: clearRigView(); $("rig").textContent = msg.prefix; showRigs(st.rigs || {}); break;
     case FeedType.LINK: showLink(msg.link); break;
