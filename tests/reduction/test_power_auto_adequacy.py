@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from support.reduction_synthetic import frequencies, orbit_table, truth
+from support.reduction_synthetic import cnoise, frequencies, orbit_table, truth, with_force_noise
 from reduction.adequacy import frequency_dependence
 from reduction.identify import identify
 from reduction.selection import MIN_HITS, Selection, selection
@@ -24,10 +24,6 @@ from reduction.table import OrbitTable
 N_TABLES = 500
 RATE_TOL = 0.03
 CHOICE_GAP = 5
-
-
-def _cnoise(rng: np.random.Generator, std: float | np.ndarray, n: int) -> np.ndarray:
-    return std / np.sqrt(2) * (rng.standard_normal(n) + 1j * rng.standard_normal(n))
 
 
 def _null_tables(model: str, known: bool, seed: int):
@@ -41,8 +37,8 @@ def _null_tables(model: str, known: bool, seed: int):
     u = np.tile([s_d, s_d, s_f, s_f], (clean.n, 1)) if known else None
     n = clean.n
     for _ in range(N_TABLES):
-        x, y = clean.x + _cnoise(rng, s_d, n), clean.y + _cnoise(rng, s_d, n)
-        fx, fy = clean.fx + _cnoise(rng, s_f, n), clean.fy + _cnoise(rng, s_f, n)
+        x, y = clean.x + cnoise(rng, s_d, n), clean.y + cnoise(rng, s_d, n)
+        fx, fy = clean.fx + cnoise(rng, s_f, n), clean.fy + cnoise(rng, s_f, n)
         yield OrbitTable(clean.spin, clean.orbit, x, y, fx, fy, None, np.full(n, 50), u)
 
 
@@ -70,14 +66,7 @@ def test_power_auto_still_sees_a_real_frequency_dependence():
     s = 0.05 * float(np.sqrt(np.mean(np.abs(clean.fx) ** 2)))
     auto = named = 0
     for _ in range(60):
-        t = OrbitTable(
-            clean.spin,
-            clean.orbit,
-            clean.x,
-            clean.y,
-            clean.fx + _cnoise(rng, s, clean.n),
-            clean.fy + _cnoise(rng, s, clean.n),
-        )
+        t = with_force_noise(clean, rng, s)
         const = identify(t, "kc8")
         auto += frequency_dependence(const, identify(t, "kc8", "power:auto")).supported
         named += frequency_dependence(const, identify(t, "kc8", "power:2")).supported

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from support.reduction_synthetic import SPIN, frequencies, impedance, keys_of, orbit_table, truth
+from support.reduction_synthetic import SPIN, frequencies, impedance, keys_of, orbit_table, truth, with_force_noise
 from reduction.adequacy import frequency_dependence
 from reduction.design import design_orbits, predicted_covariance
 from reduction.identify import identify
@@ -170,14 +170,7 @@ def test_frequency_dependence_test_has_its_nominal_false_positive_rate():
     s = 0.01 * np.sqrt(np.mean(np.abs(clean.fx) ** 2))
     hits, p_values = 0, []
     for _ in range(N_TABLES):
-        t = OrbitTable(
-            clean.spin,
-            clean.orbit,
-            clean.x,
-            clean.y,
-            clean.fx + _cnoise(rng, s, clean.n),
-            clean.fy + _cnoise(rng, s, clean.n),
-        )
+        t = with_force_noise(clean, rng, s)
         a = frequency_dependence(identify(t, "kc8", "none"), identify(t, "kc8", "power:1"))
         hits += a.supported
         p_values.append(a.p_value)

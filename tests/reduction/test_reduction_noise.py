@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from support.reduction_synthetic import frequencies, keys_of, orbit_table, truth
+from support.reduction_synthetic import frequencies, keys_of, orbit_table, truth, with_force_noise
 from reduction.identify import identify
 from reduction.table import OrbitTable
 
@@ -33,17 +33,7 @@ def test_reported_std_errors_match_the_spread_over_trials():
     rng = np.random.default_rng(11)
     clean = orbit_table(TRUE, frequencies(6))
     s = 0.01 * np.sqrt(np.mean(np.abs(clean.fx) ** 2))
-    trials = [
-        OrbitTable(
-            clean.spin,
-            clean.orbit,
-            clean.x,
-            clean.y,
-            clean.fx + _cnoise(rng, s, clean.n),
-            clean.fy + _cnoise(rng, s, clean.n),
-        )
-        for _ in range(400)
-    ]
+    trials = [with_force_noise(clean, rng, s) for _ in range(400)]
     est, se = _run(trials, "ols")
     ratio = est.std(axis=0, ddof=1) / se.mean(axis=0)
     # 400 trials: the sample std is good to ~3.5 % (1 sigma); allow 4 sigma

@@ -78,3 +78,16 @@ def orbit_table(
 def frequencies(n: int, lo: float = 0.2, hi: float = 1.2) -> np.ndarray:
     """n orbit frequencies (Hz) from lo to hi times the spin speed (the paper's range)."""
     return np.linspace(lo, hi, n) * SPIN / (2 * np.pi)
+
+
+def cnoise(rng: np.random.Generator, std, shape) -> np.ndarray:
+    """Complex circular noise with E|n|^2 = std^2 (std broadcast to shape)."""
+    return np.asarray(std) / np.sqrt(2) * (rng.standard_normal(shape) + 1j * rng.standard_normal(shape))
+
+
+def with_force_noise(clean: OrbitTable, rng: np.random.Generator, std: float) -> OrbitTable:
+    """``clean`` with complex noise of standard deviation ``std`` (N) on fx and fy, nothing else."""
+    n = clean.n
+    return OrbitTable(
+        clean.spin, clean.orbit, clean.x, clean.y, clean.fx + cnoise(rng, std, n), clean.fy + cnoise(rng, std, n)
+    )
