@@ -43,6 +43,15 @@ MAX_ID_CHARS = 128
 #: Commands read even beyond the limits (docs/protocols/mqtt.md: always accepted)
 STOP_OR_ABORT = frozenset({"stop", "abort"})
 
+
+def stop_word(name: object) -> str | None:
+    """ "stop" or "abort" when ``name`` (a command's ``cmd``) names one in any letter case and
+    with blanks around ("ABORT", " Stop "), else None: such a stop is never refused for its
+    spelling. Every other command is taken only as the contract spells it."""
+    word = name.strip().lower() if isinstance(name, str) else None
+    return word if word in STOP_OR_ABORT else None
+
+
 _STRING = re.compile(r'"(?:[^"\\]|\\.)*"')
 _NOT_BRACKET = re.compile(r"[^\[\]{}]+")
 _DEPTH_STEP = {"[": 1, "{": 1, "]": -1, "}": -1}
@@ -155,6 +164,7 @@ def read_object(payload: bytes | bytearray | str) -> CommandObject:
             raise CommandError(f"payload is not UTF-8: {err.reason} at byte {err.start}") from None
     else:
         text = payload
+    text = text.removeprefix("\ufeff")  # a byte order mark some tools write: ignored, as RFC 8259 allows
     if not text.strip():
         raise CommandError("payload is empty: expected a JSON object with 'cmd' and 'id'")
     depth = nesting(text)
@@ -184,7 +194,7 @@ def _stop_beyond_limits(text: str, depth: int, beyond: list[str]) -> Callable[[]
 
         return refuse
 
-    if not any(name in text for name in STOP_OR_ABORT) and "\\" not in text:
+    if not any(name in text.lower() for name in STOP_OR_ABORT) and "\\" not in text:
         return refused(beyond[0])  # (it cannot name stop or abort: not read at all)
     if depth > PARSER_NESTING and len(text) > MAX_DEEP_STOP_CHARS:
         return refused(f"{beyond[-1]}; a stop or an abort nested that deeply at most {MAX_DEEP_STOP_CHARS} characters")
@@ -192,7 +202,7 @@ def _stop_beyond_limits(text: str, depth: int, beyond: list[str]) -> Callable[[]
         found = _read(text) if depth <= PARSER_NESTING else _read_deep(text)
     except CommandError:
         return refused(beyond[0])
-    if "cmd" in found.duplicates or found.fields.get("cmd") not in STOP_OR_ABORT:
+    if "cmd" in found.duplicates or stop_word(found.fields.get("cmd")) is None:
         return refused(beyond[0])
     accepted = dataclasses.replace(found, beyond=tuple(beyond))
     return lambda: accepted
@@ -325,7 +335,7 @@ def glance(payload: bytes) -> Glance:
         return Glance(None, cid, "missing field 'cmd'")
     if not isinstance(name, str):
         return Glance(None, cid, f"field 'cmd' must be a string, got {type_name(name)}")
-    return Glance(name, cid)
+    return Glance(stop_word(name) or name, cid)
 
 
 def peek(payload: bytes) -> tuple[str | None, str | None]:

@@ -35,6 +35,7 @@ from orbitrig.service.command_json import (  # noqa: F401 - part of this contrac
     echoable_id,
     id_problems,
     read_object,
+    stop_word,
     type_name as _type_name,
 )
 from rigunits import utc_iso
@@ -243,8 +244,9 @@ def parse_command(payload: bytes | bytearray | str) -> Command:
     values or text that cannot be encoded as UTF-8 (such an ``id``, or one over
     ``MAX_ID_CHARS``, is not echoed: the reply's id is null), or is over the size
     or nesting limits. Exception: ``stop`` and ``abort`` are always accepted once
-    ``cmd`` names them unambiguously (command_json.read_object reads them beyond
-    the limits); their overlooked problems are listed in ``Command.ignored``.
+    ``cmd`` names them unambiguously, in any letter case and with blanks around
+    (command_json.read_object reads them beyond the limits); their overlooked
+    problems are listed in ``Command.ignored``.
     """
     found = read_object(payload)
     obj = found.fields
@@ -257,6 +259,10 @@ def parse_command(payload: bytes | bytearray | str) -> Command:
         raise CommandError("; ".join(["missing field 'cmd'", *problems]), cid)
     if not isinstance(name, str):
         raise CommandError("; ".join([f"field 'cmd' must be a string, got {_type_name(name)}", *problems]), cid)
+    word = stop_word(name)
+    if word is not None and word != name:  # "STOP", " abort": still the stop asked for
+        problems.append(f"field 'cmd' {name!r} read as {word!r}")
+        name, obj = word, {**obj, "cmd": word}
     if name not in COMMAND_FIELDS:
         known = ", ".join(sorted(COMMAND_FIELDS))
         raise CommandError("; ".join([f"unknown command {name!r} (known: {known})", *problems]), cid)

@@ -8,7 +8,8 @@ not refused for its payload).
 - an abort whose id is longer than 128 characters is carried out and answered with id
   null, never with the id cut short; another command with such an id is refused, id null;
 - on the abort topic, plain text and truncated JSON are answered with the reason they
-  cannot be read; an empty (retained-clearing) message gets no reply, there nor on cmd."""
+  cannot be read; an empty (retained-clearing) message gets no reply, there nor on cmd;
+- "ABORT", " Stop " and a payload behind a UTF-8 byte order mark are carried out."""
 
 from __future__ import annotations
 
@@ -116,3 +117,22 @@ async def test_the_abort_topic_says_why_and_an_empty_message_is_not_answered(bro
     assert errors[0].startswith("payload is not JSON: Expecting value at line 1 column 1"), errors
     assert errors[1].startswith("payload is not JSON: Expecting ',' delimiter"), errors
     assert service.triage.counts["at once"] == 0
+
+
+async def test_a_stop_or_abort_spelled_otherwise_or_with_a_bom_is_carried_out(broker, service, caplog):
+    """ "ABORT", " Stop " and a UTF-8 byte order mark (some tools write one) on either topic:
+    carried out at once, the spelling said in the service's log; "START" is still refused."""
+    sends = [
+        ("abort", b'{"cmd":"ABORT","id":"upper-abort"}', False),
+        ("cmd", b'{"cmd":" Stop ","id":"blank-stop"}', False),
+        ("abort", b'\xef\xbb\xbf{"cmd":"abort","id":"bom-abort"}', False),
+        ("cmd", b'{"cmd":"START","id":"upper-start","matrix":"demo"}', False),
+    ]
+    replies = {r["id"]: r for r in await replies_to(broker, sends)}
+    for cid in ("upper-abort", "blank-stop", "bom-abort"):
+        assert replies[cid]["error"].startswith(NOT_SENT), replies  # carried out (no run: nothing to stop)
+    said = [r.getMessage() for r in caplog.records if "accepted despite" in r.getMessage()]
+    assert any("'ABORT' read as 'abort'" in m for m in said), said
+    assert any("' Stop ' read as 'stop'" in m for m in said), said
+    assert replies["upper-start"]["error"].startswith("unknown command 'START'"), replies
+    assert service.triage.counts["at once"] == 3, service.triage.counts
