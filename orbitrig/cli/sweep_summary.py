@@ -23,7 +23,8 @@ from orbitrig.analysis.warning_groups import point_ranges, warning_lines
 from orbitrig.load_systems import LoadSystem
 from orbitrig.run.point_report import judgement_lines
 from orbitrig.store.csvfile import coef_order, fit_truth
-from orbitrig.store.reader import Point, freq_dep_key, read_run
+from orbitrig.store.reader import freq_dep_key, read_run
+from orbitrig.store.stored_run import Point
 from reduction.statistics import CHI2_ALPHA
 from rigunits import COEFFICIENT_UNITS
 

@@ -30,7 +30,7 @@ from orbitrig.store.layout import freq_dep_from_key, freq_dep_key as freq_dep_ke
 from orbitrig.store.index import NEVER_COMPLETED
 from orbitrig.store.status import RunStatus
 from orbitrig.store.stored_run import PROVENANCE_KEYS, Frequency, Settings, StoredIdentification
-from orbitrig.store.stored_run import Point as Point  # orbitrig/cli/sweep_summary.py imports it from here
+from orbitrig.store.stored_run import Point
 from orbitrig.store.stored_run import Run as Run  # docs/api.md: orbitrig.store.reader.Run
 
 if TYPE_CHECKING:
