@@ -190,8 +190,8 @@ class Operator:
                 self.console.print(f"{head}: aborting (emergency ramp down)", style="bold red", markup=False)
             return
         self.console.print(
-            f"{head or 'abort'}: the run no longer holds the drives: emergency stop (OFF3) to both over a link "
-            "of this command's own",
+            f"{head or 'abort'}: the run does not hold the drives (not opened yet, or let go): emergency stop "
+            "(OFF3) to both over a link of this command's own",
             style="bold red",
             markup=False,
         )

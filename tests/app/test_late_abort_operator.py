@@ -92,4 +92,4 @@ async def test_a_signal_after_the_run_closed_the_drives_sends_the_emergency_stop
         await wait_for(lambda: "emergency stop (OFF3) sent to both drives" in out.getvalue(), 30, "the outcome said")
         view.freeze()
     text = out.getvalue()
-    assert "the run no longer holds the drives: emergency stop (OFF3) to both" in text, text
+    assert "the run does not hold the drives (not opened yet, or let go): emergency stop (OFF3) to both" in text, text
