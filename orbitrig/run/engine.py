@@ -208,9 +208,11 @@ class RunEngine(OperatorRequests):
             if self._control.stop_now is not None and not _cancelling():
                 return STOPPED, stopped(self._control)
             raise
-        except (OrbitrigError, OSError) as err:  # a drive's timeout is an OSError too, not a storage failure
-            storage = isinstance(err, StorageError) or not isinstance(err, OrbitrigError)
-            message = f"storage failed: {err}" if storage else str(err)
+        except (OrbitrigError, OSError) as err:  # an OSError from elsewhere (a device, a socket) is no storage failure
+            if isinstance(err, StorageError):
+                message = f"storage failed: {err}"
+            else:
+                message = str(err) if isinstance(err, OrbitrigError) else f"{type(err).__name__}: {err}"
             log.error("run failed: %s", message)
             return FAILED, message
         except Exception as err:  # a bug: the drives still stop and the file is closed

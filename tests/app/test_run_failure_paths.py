@@ -157,3 +157,21 @@ async def test_a_drive_poll_that_fails_on_a_bug_fails_the_run_at_once(tmp_path, 
         assert "poll failed: ValueError('status word decoding bug')" in outcome.message, outcome.message
         assert ended < 3.0, ended  # supervisor samples every 50 ms: not the acquisition's timeout
         assert _at_rest(sim), sim.speeds
+
+
+async def test_an_os_error_of_a_device_is_no_storage_failure(tmp_path, monkeypatch):
+    """An OSError from the A/D board's link (not a storage write) fails the run with its own words
+    and errno, the drives stopped; it was called "storage failed". Injected: the real link gives
+    its own DaqError."""
+    from orbitrig.run.rig_io import RigIO
+
+    async def broken(self, rule, *, timeout):
+        raise OSError(5, "Input/output error", "/dev/ttyUSB0")
+
+    monkeypatch.setattr(RigIO, "acquire", broken)
+    async with running(tmp_path, small_matrix(spin_rpm=[1000.0])) as (sim, eng, rec, run):
+        outcome = await asyncio.wait_for(asyncio.shield(run), 60)
+        assert outcome.status == "failed", outcome.message
+        assert "storage failed" not in outcome.message, outcome.message
+        assert outcome.message.startswith("OSError: [Errno 5] Input/output error: '/dev/ttyUSB0'"), outcome.message
+        await wait_for(lambda: _at_rest(sim), 30)
