@@ -18,6 +18,8 @@ import pytest
 from support.reduction_synthetic import cnoise, frequencies, orbit_table, truth, with_force_noise
 from reduction.adequacy import frequency_dependence
 from reduction.identify import identify
+from reduction.impedance import regression
+from reduction.models import model_spec, power_spec
 from reduction.selection import MIN_HITS, Selection, selection
 from reduction.table import OrbitTable
 
@@ -98,3 +100,23 @@ def test_one_candidate_is_no_choice_and_a_tiny_p_takes_the_bonferroni_bound():
     assert two.p_value(0.05, known_noise=True) == pytest.approx(1 - 0.95**2, abs=0.005)
     same = Selection((1, 2), (two.extra[0], two.extra[0]), two.dof, two.rest_dof)
     assert same.p_value(0.05, known_noise=True) == pytest.approx(0.05, abs=0.005)  # the same test twice
+
+
+def test_the_span_of_the_candidates_never_exceeds_what_the_constant_model_leaves():
+    """Ten rows of kcd11 (40 equations, 11 constant coefficients), equation weights spread over two
+    decades (as coherences give them): the candidates' added columns (11, 7, 11, 11) span at most
+    the 29 directions left; rounding must not count as more (it counted 31: rest_dof -2)."""
+    true = truth("kcd11", {"K": (0,), "C": (0,), "D": (0,)})
+    t = orbit_table(true, frequencies(5))
+
+    def columns(spec):
+        return regression(spec, t.orbit, t.x, t.y, t.fx, t.fy)[0]
+
+    weights = 10 ** np.random.default_rng(1).uniform(-1, 1, 4 * t.n)
+    candidates = {m: columns(power_spec("kcd11", m)) for m in (1, 2, 3, 4)}
+    sel = selection(columns(model_spec("kcd11")), candidates, weights)
+    assert [C.shape[1] for C in sel.extra] == [11, 7, 11, 11]
+    d = sel.extra[0].shape[0]
+    assert d <= 4 * t.n - 11 and sel.rest_dof == 4 * t.n - 11 - d >= 0
+    for C in sel.extra:  # each candidate's basis is whole in the span kept
+        assert np.allclose(C.T @ C, np.eye(C.shape[1]), atol=1e-6)
