@@ -34,16 +34,21 @@ class SweepProgress:
         self.revs = self.progress.add_task("revolutions", total=revolutions, extra="")
         self.revolutions = revolutions  # per block: the revolutions bar's end
         self.done = 0
+        self.measured = False  # a point was started (a resumed run with every point done starts none)
 
     def __enter__(self) -> "SweepProgress":
         self.progress.start()
         return self
 
     def __exit__(self, *exc) -> None:
+        if not self.measured:  # nothing was measured: no bars standing at 0 of 1
+            for task in (self.points, self.freqs, self.revs):
+                self.progress.remove_task(task)
         self.progress.stop()
 
     def __call__(self, ev) -> None:
         if isinstance(ev, ProgressEvent):
+            self.measured = True
             eta = "" if ev.eta_s is None else f"ETA {format_duration(ev.eta_s)}"
             self.progress.update(self.points, total=max(ev.points, 1), completed=self.done, extra=eta)
             self.progress.update(self.freqs, total=max(ev.frequencies, 1), completed=max(ev.frequency - 1, 0))

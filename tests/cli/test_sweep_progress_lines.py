@@ -23,3 +23,19 @@ def test_status_lines_carry_no_source_location():
     lines = [ln for ln in out.getvalue().splitlines() if "paused:" in ln]
     assert len(lines) == 1 and "paused: paused at a safe point (drives keep their speeds)" in lines[0]
     assert ".py" not in lines[0]
+
+
+def test_bars_only_when_something_was_measured():
+    """A resumed run whose every point was done measures nothing: no bars left at 0 of 1."""
+    from orbitrig.run.engine import ProgressEvent
+
+    def shown(events) -> str:
+        out = io.StringIO()
+        with SweepProgress(TerminalConsole(file=out, width=140, force_terminal=False)) as progress:
+            for ev in events:
+                progress(ev)
+        return out.getvalue()
+
+    assert "points" not in shown([StatusEvent(RunState.IDLE, "r1", "2026-12-02T00:00:00Z", "completed")])
+    measured = shown([ProgressEvent("r1", 1, 2, 1, 10, 5, 30.0)])
+    assert "points" in measured and "frequencies" in measured and "ETA" in measured
