@@ -56,7 +56,8 @@ class ElsewhereReplies:
             log.info("reply topic %s not unsubscribed: %s", topic, err)
 
     def resubscribe(self, client: Any) -> None:
-        """A new broker connection: read again the reply topics still awaited."""
+        """A new broker connection, or a rig left (its topics unsubscribed): read again the reply topics
+        still awaited."""
         for topic in set(self._topics.values()):
             try:
                 client.subscribe_nowait(topic, 1)

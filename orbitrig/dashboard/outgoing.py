@@ -126,7 +126,8 @@ class Outgoing:
         fut = asyncio.get_running_loop().create_future()
         self._pending[cid] = fut
         wait = self.settings.reply_timeout
-        readable = topics == self.topics or self._elsewhere.watch(client, topics, cid)  # before the command goes
+        rig = "" if topics == self.topics else topics.prefix  # another rig than the one watched: named in its outcome
+        readable = not rig or self._elsewhere.watch(client, topics, cid)  # before the command goes
         try:
             code = await client.publish_qos1(
                 topics.abort if urgent else topics.cmd,
@@ -144,10 +145,10 @@ class Outgoing:
                 return {"ok": False, "error": f"sent to rig {topics.prefix}, but {UNWATCHED}; {EMERGENCY}"}
             reply = await asyncio.wait_for(fut, wait)
         except PublishUnconfirmed as err:
-            self._await_late(cid, name, topics)
+            self._await_late(cid, name, topics, rig)
             return {"ok": False, "error": unknown(name, str(err), self._change(topics, before))}
         except (TimeoutError, asyncio.TimeoutError):
-            self._await_late(cid, name, topics)
+            self._await_late(cid, name, topics, rig)
             return {"ok": False, "error": self._no_reply(name, topics, before)}
         except aiomqtt.MqttError as err:  # the link went away before the command was handed over
             return {"ok": False, "error": f"not sent: {err}"}
@@ -157,13 +158,13 @@ class Outgoing:
         detail = reply.get("detail")  # what an ok command did, when the service says it
         return {"ok": bool(reply.get("ok")), "error": reply.get("error"), **({"detail": str(detail)} if detail else {})}
 
-    def _await_late(self, cid: str, name: str, topics: proto.Topics) -> None:
+    def _await_late(self, cid: str, name: str, topics: proto.Topics, rig: str) -> None:
         """A command whose outcome is unknown: a stop's or abort's reply is still awaited a while (late_reply);
         the retained status is read again (the broker may have dropped messages of this session)."""
         now = time.monotonic()
         self._late = {k: v for k, v in self._late.items() if now - v[1] < self.settings.reply_timeout + LATE_REPLY_S}
         if name in proto.ALWAYS_ACCEPTED:
-            self._late[cid] = (name, now, "" if topics == self.topics else topics.prefix)
+            self._late[cid] = (name, now, rig)
         if topics == self.topics and self._client is not None:
             task = asyncio.get_running_loop().create_task(self._reread_status(self._client, topics))
             _REREADS.add(task)

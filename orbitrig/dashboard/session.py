@@ -169,6 +169,7 @@ class Session(Outgoing):
         if client is not None:
             if await move_subscriptions(client, old, new, self.user):
                 self._subscribed = new
+            self._elsewhere.resubscribe(client)  # a reply awaited on the rig left: read on
         return {"ok": True, "prefix": new.prefix}
 
     def touch(self) -> None:

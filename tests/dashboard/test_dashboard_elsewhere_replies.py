@@ -9,6 +9,7 @@ from __future__ import annotations
 import asyncio
 import json
 
+from orbitrig.dashboard.catchup import subscriptions
 from orbitrig.dashboard.session import DashboardSettings, Session
 from orbitrig.service import protocol as proto
 
@@ -71,6 +72,18 @@ async def test_a_reply_topic_the_session_reads_for_its_own_rig_stays():
     session._on_message(A.reply, json.dumps({"id": next(iter(session._late)), "ok": True}).encode())
     assert session.outcomes[-1]["late"] and session.outcomes[-1]["rig"] == A.prefix
     assert ("unsubscribe_nowait", A.reply) not in client.calls  # rig-a's own subscription is not dropped
+
+
+async def test_a_late_reply_awaited_on_another_rig_is_read_on_after_the_session_went_there_and_left():
+    session, client = await _session_on_b(answer=False)
+    await session.command({"cmd": "abort", "rig": A.prefix})
+    assert (await session.select_rig("rig-a"))["ok"]
+    assert (await session.select_rig("rig-b"))["ok"]  # leaving rig-a unsubscribes its topics, its reply too
+    left = client.calls.index(("unsubscribe", [t for t, _ in subscriptions(A)]))
+    assert ("subscribe_nowait", A.reply) in client.calls[left:]  # the awaited reply is read again
+    session._on_message(A.reply, json.dumps({"id": next(iter(session._late)), "ok": True}).encode())
+    assert session.outcomes[-1]["late"] and session.outcomes[-1]["rig"] == A.prefix
+    assert client.calls[-1] == ("unsubscribe_nowait", A.reply)  # then no longer
 
 
 async def test_a_start_of_a_page_of_another_rig_is_refused_and_goes_nowhere():
