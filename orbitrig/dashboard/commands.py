@@ -2,7 +2,9 @@
 
 A command from the page names the rig the page shows (``rig``: its topic prefix); the server
 refuses it when the session watches another rig by now (another tab of the same browser
-chose one), so a command never goes to a rig the person is not looking at.
+chose one), so a command never goes to a rig the person is not looking at. Stop and abort are
+the exception (an abort always gets through): they go to the rig the page shows, when it is
+one the dashboard knows (:func:`rig_for`); their outcome names that rig.
 
 What the outcome of a command says is only what is known (docs/dashboard.md):
 
@@ -15,6 +17,7 @@ What the outcome of a command says is only what is known (docs/dashboard.md):
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import orbitrig.service.protocol as proto
@@ -34,6 +37,8 @@ EMERGENCY = "if it is still running use the rig's emergency stop"
 #: a command other than stop and abort while the rig's service is offline: the broker would keep it
 #: for the service, which would carry it out when it is back (drives moving with nobody expecting it)
 NOT_SENT_OFFLINE = "not sent: the rig service is offline"
+#: a stop or abort of a page showing a rig the dashboard does not know (no rig of its listing)
+UNKNOWN_RIG = f"reload the page; {EMERGENCY}"
 
 
 def rig_mismatch(shown: Any, watched: str) -> str | None:
@@ -45,21 +50,37 @@ def rig_mismatch(shown: Any, watched: str) -> str | None:
     return None
 
 
-def command_body(request: dict, user: str, prefix: str) -> tuple[dict[str, str], str | None]:
-    """The command to publish for a page's request, or the reason it is refused (then ``{}``)."""
+def rig_for(name: str, shown: Any, watched: str, known: Callable[[str], bool]) -> tuple[str, str | None]:
+    """The rig (topic prefix) command ``name`` of a page showing ``shown`` goes to, or why it is not sent:
+    the rig watched; for a stop or abort also the rig the page shows, when ``known`` (the dashboard's)."""
+    wrong_rig = rig_mismatch(shown, watched)
+    if wrong_rig is None:
+        return watched, None
+    if name not in proto.ALWAYS_ACCEPTED or not isinstance(shown, str) or not shown:
+        return "", wrong_rig
+    if not known(shown):
+        return "", f"not sent: this page shows rig {shown}, which this dashboard does not know: {UNKNOWN_RIG}"
+    return shown, None
+
+
+def command_body(
+    request: dict, user: str, watched: str, known: Callable[[str], bool]
+) -> tuple[dict[str, str], str, str | None]:
+    """The command to publish for a page's request and the rig (topic prefix) it goes to (rig_for), or the
+    reason it is refused (then ``{}``)."""
     name = request.get("cmd")
     if name not in PAGE_COMMANDS:
-        return {}, f"unknown command {name!r}"
-    wrong_rig = rig_mismatch(request.get("rig"), prefix)
+        return {}, "", f"unknown command {name!r}"
+    prefix, wrong_rig = rig_for(str(name), request.get("rig"), watched, known)
     if wrong_rig is not None:
-        return {}, wrong_rig
+        return {}, "", wrong_rig
     body = {"cmd": str(name), "by": user}  # the signed-in user, recorded in the run
     for field in PAGE_COMMANDS[str(name)]:
         value = request.get(field)
         if not isinstance(value, str) or not value:
-            return {}, f"field {field!r} is missing"
+            return {}, "", f"field {field!r} is missing"
         body[field] = value
-    return body, None
+    return body, prefix, None
 
 
 def refused(user: str, what: str) -> str:
@@ -78,12 +99,15 @@ def urgent_no_broker(name: str) -> str:
     return f"{name.upper()} NOT SENT: the dashboard has no connection to the broker; use the rig's emergency stop"
 
 
-def late_reply(name: str, reply: dict, after_s: float) -> dict:
+def late_reply(name: str, reply: dict, after_s: float, rig: str | None = None) -> dict:
     """The outcome of a stop or abort whose reply came ``after_s`` s after the click, past the reply
-    timeout (its earlier outcome said unknown): kept and shown as an outcome of its own."""
+    timeout (its earlier outcome said unknown): kept and shown as an outcome of its own (``rig``: the
+    rig it went to, when the session watched another)."""
     late = f"late reply, {after_s:.0f} s after the click"
     error, detail = reply.get("error"), reply.get("detail")
     outcome: dict[str, Any] = {"cmd": name, "ok": bool(reply.get("ok")), "late": True, "at": proto.iso8601()}
+    if rig:
+        outcome["rig"] = rig
     if outcome["ok"]:
         outcome.update(error=None, detail=f"{late}" + (f": {detail}" if detail else ""))
     else:

@@ -15,6 +15,10 @@ of handing it to a service that comes back after the page was told there is no a
 abort carry none (the service subscribes to them at QoS 0: the broker keeps none for a service
 that is away, and a late one only stops motion). A stop's or abort's reply that comes after the
 reply timeout (within ``LATE_REPLY_S``) is still shown: as an outcome of its own, ``late``.
+
+A stop or abort from a page showing a rig the session no longer watches goes to that rig (when the
+dashboard knows it: commands.rig_for); its reply is read on that rig's reply topic for the while
+it is awaited (orbitrig.dashboard.elsewhere), and its outcome names the rig (``rig``).
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from typing import Any
 import orbitrig.service.protocol as proto
 from orbitrig.dashboard.alarms import AlarmBook
 from orbitrig.dashboard.commands import (
+    EMERGENCY,
     NOT_SENT_OFFLINE,
     command_body,
     late_reply,
@@ -41,7 +46,9 @@ from orbitrig.dashboard.commands import (
     unknown,
     urgent_no_broker,
 )
+from orbitrig.dashboard.elsewhere import UNWATCHED, ElsewhereReplies
 from orbitrig.dashboard.feed import FeedType
+from orbitrig.dashboard.rigs import RigDirectory
 
 log = logging.getLogger("orbitrig.dashboard")
 
@@ -59,10 +66,13 @@ class Outgoing:
     settings: Any  # DashboardSettings
     topics: proto.Topics
     status: dict | None
+    rigs: RigDirectory
     _client: Any
     _pending: dict[str, asyncio.Future]
-    #: stops and aborts without a reply in time: correlation id -> (command, time.monotonic() sent)
-    _late: dict[str, tuple[str, float]]
+    #: stops and aborts without a reply in time: correlation id -> (command, time.monotonic() sent, rig
+    #: it went to when the session watched another, else "")
+    _late: dict[str, tuple[str, float, str]]
+    _elsewhere: ElsewhereReplies
     #: the latest commands' outcomes, oldest first: a page loaded again shows them (snapshot)
     outcomes: collections.deque[dict]
 
@@ -76,12 +86,15 @@ class Outgoing:
     async def command(self, request: dict) -> dict:
         """Publish one command as this user (to the rig the page shows, ``request["rig"]``): the
         service's reply, or why there is none (without the command's name: the page adds it), and
-        when (``at``, as the session keeps it among its outcomes)."""
-        body, error = command_body(request, self.user, self.topics.prefix)
+        when (``at``, as the session keeps it among its outcomes); ``rig``: the rig a stop or abort
+        went to when the session watches another."""
+        body, prefix, error = command_body(request, self.user, self.topics.prefix, self._knows)
         if error is not None:
             return {"ok": False, "error": error}
-        name, t0 = body["cmd"], time.monotonic()
-        outcome = await self._publish_command(body)
+        name, t0, elsewhere = body["cmd"], time.monotonic(), prefix != self.topics.prefix
+        outcome = await self._publish_command(body, proto.Topics(prefix))
+        if elsewhere:
+            outcome["rig"] = prefix
         outcome["at"] = proto.iso8601()  # the page knows it again among the session's outcomes (snapshot)
         self.outcomes.append({"cmd": name, **outcome})
         log.info(
@@ -93,7 +106,11 @@ class Outgoing:
         )
         return outcome
 
-    async def _publish_command(self, body: dict[str, str]) -> dict:
+    def _knows(self, prefix: str) -> bool:
+        """A rig of the dashboard: its own, or one of the rigs listed on the broker."""
+        return prefix == self.settings.topics.prefix or self.rigs.state_of(prefix) is not None
+
+    async def _publish_command(self, body: dict[str, str], topics: proto.Topics) -> dict:
         import aiomqtt
 
         from orbitrig.dashboard.puback import PublishUnconfirmed
@@ -103,12 +120,14 @@ class Outgoing:
         if client is None:
             again = "not sent: no connection to the broker: try again when it is back"
             return {"ok": False, "error": urgent_no_broker(name) if urgent else again}
-        if not urgent and self._offline():  # the broker would keep it for the service: carried out when it is back
+        if not urgent and self._offline(topics):  # the broker would keep it for the service: carried out when back
             return {"ok": False, "error": NOT_SENT_OFFLINE}
-        cid, topics, before = f"dash-{secrets.token_hex(6)}", self.topics, self.status
+        cid, before = f"dash-{secrets.token_hex(6)}", self.status
         fut = asyncio.get_running_loop().create_future()
         self._pending[cid] = fut
         wait = self.settings.reply_timeout
+        rig = "" if topics == self.topics else topics.prefix  # another rig than the one watched: named in its outcome
+        readable = not rig or self._elsewhere.watch(client, topics, cid)  # before the command goes
         try:
             code = await client.publish_qos1(
                 topics.abort if urgent else topics.cmd,
@@ -120,29 +139,32 @@ class Outgoing:
                 return {"ok": False, "error": refused(self.user, "command this rig")}
             if code >= 0x80:  # another refusal of the broker (quota, packet too large, ...): not passed on
                 return {"ok": False, "error": f"not sent: the broker refused the command (reason code {code})"}
-            if urgent and self._offline():
+            if urgent and self._offline(topics):
                 return {"ok": False, "error": offline_now(name)}
+            if not readable:
+                return {"ok": False, "error": f"sent to rig {topics.prefix}, but {UNWATCHED}; {EMERGENCY}"}
             reply = await asyncio.wait_for(fut, wait)
         except PublishUnconfirmed as err:
-            self._await_late(cid, name, topics)
+            self._await_late(cid, name, topics, rig)
             return {"ok": False, "error": unknown(name, str(err), self._change(topics, before))}
         except (TimeoutError, asyncio.TimeoutError):
-            self._await_late(cid, name, topics)
+            self._await_late(cid, name, topics, rig)
             return {"ok": False, "error": self._no_reply(name, topics, before)}
         except aiomqtt.MqttError as err:  # the link went away before the command was handed over
             return {"ok": False, "error": f"not sent: {err}"}
         finally:
             self._pending.pop(cid, None)
+            self._release_later(cid)
         detail = reply.get("detail")  # what an ok command did, when the service says it
         return {"ok": bool(reply.get("ok")), "error": reply.get("error"), **({"detail": str(detail)} if detail else {})}
 
-    def _await_late(self, cid: str, name: str, topics: proto.Topics) -> None:
+    def _await_late(self, cid: str, name: str, topics: proto.Topics, rig: str) -> None:
         """A command whose outcome is unknown: a stop's or abort's reply is still awaited a while (late_reply);
         the retained status is read again (the broker may have dropped messages of this session)."""
         now = time.monotonic()
         self._late = {k: v for k, v in self._late.items() if now - v[1] < self.settings.reply_timeout + LATE_REPLY_S}
         if name in proto.ALWAYS_ACCEPTED:
-            self._late[cid] = (name, now)
+            self._late[cid] = (name, now, rig)
         if topics == self.topics and self._client is not None:
             task = asyncio.get_running_loop().create_task(self._reread_status(self._client, topics))
             _REREADS.add(task)
@@ -160,17 +182,32 @@ class Outgoing:
     def late_reply(self, data: dict) -> bool:
         """A reply to a stop or abort that came after its reply timeout: an outcome of its own (``late``),
         kept among the session's outcomes and sent to the pages. False: not one of them."""
-        entry = self._late.pop(str(data.get("id")), None)
+        cid = str(data.get("id"))
+        entry = self._late.pop(cid, None)
         if entry is None:
             return False
-        name, sent = entry
-        outcome = late_reply(name, data, time.monotonic() - sent)
+        name, sent, rig = entry
+        self._release(cid)
+        outcome = late_reply(name, data, time.monotonic() - sent, rig)
         self.outcomes.append(outcome)
         self._broadcast({"type": FeedType.OUTCOME, "data": outcome})
         log.warning("%s by %r: late reply: %s", name, self.user, outcome.get("error") or outcome.get("detail"))
         return True
 
-    def _offline(self) -> bool:
+    def _release_later(self, cid: str) -> None:
+        """The reply topic of another rig read for ``cid`` goes now, or after the late-reply window."""
+        if cid in self._late:
+            asyncio.get_running_loop().call_later(self.settings.reply_timeout + LATE_REPLY_S, self._release, cid)
+        else:
+            self._release(cid)
+
+    def _release(self, cid: str) -> None:
+        self._elsewhere.release(self._client, cid, self.topics)  # the rig watched then keeps its own reply topic
+
+    def _offline(self, topics: proto.Topics | None = None) -> bool:
+        """The service of the rig watched (or of ``topics``, a rig of the listing) is known offline."""
+        if topics is not None and topics != self.topics:
+            return self.rigs.state_of(topics.prefix) == proto.OFFLINE
         return self.status is not None and self.status.get("state") == proto.OFFLINE
 
     def _change(self, topics: proto.Topics, before: dict | None) -> str | None:
@@ -179,7 +216,7 @@ class Outgoing:
 
     def _no_reply(self, name: str, topics: proto.Topics, before: dict | None) -> str:
         """Why a command the broker took got no reply in time (the page puts the command's name in front)."""
-        if self._offline() and topics == self.topics:
+        if self._offline(topics):
             return "no reply: the rig service is offline"
         log.info("%s by %r: no reply within %.1f s: outcome unknown", name, self.user, self.settings.reply_timeout)
         why = f"no reply from the rig service within {self.settings.reply_timeout:g} s"

@@ -45,6 +45,15 @@ class ReasonClient(aiomqtt.Client):
         props.SessionExpiryInterval = 0
         self._client.disconnect(properties=props)
 
+    def subscribe_nowait(self, topic: str, qos: int) -> bool:
+        """Ask the broker for a subscription without waiting for its SUBACK (False: it could not be asked).
+        The broker reads a connection's packets in order: a publish sent next comes after it."""
+        return self._client.subscribe(topic, qos)[0] == paho.MQTT_ERR_SUCCESS
+
+    def unsubscribe_nowait(self, topic: str) -> None:
+        """End a subscription without waiting for the broker's UNSUBACK."""
+        self._client.unsubscribe(topic)
+
     def _on_publish(self, client: Any, userdata: Any, mid: int, reason_code: Any, properties: Any) -> None:
         fut = self._acks.pop(mid, None)  # called on the event loop (aiomqtt reads the socket there)
         if fut is not None and not fut.done():

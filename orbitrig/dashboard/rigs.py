@@ -46,3 +46,8 @@ class RigDirectory:
 
     def listing(self) -> dict[str, str]:
         return dict(sorted(self.states.items()))
+
+    def state_of(self, prefix: str) -> str | None:
+        """The state of the listed rig whose topic prefix is ``prefix`` (None: not a rig of the listing)."""
+        root, _, rig_id = prefix.rpartition("/")
+        return self.states.get(rig_id) if self.root is not None and root == self.root else None

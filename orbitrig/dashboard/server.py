@@ -6,7 +6,8 @@ and a websocket feed per browser.
   connection; on success an HttpOnly, SameSite=Strict session cookie;
 - ``POST /api/logout``, ``GET /api/session``;
 - ``POST /api/cmd`` ``{"cmd", "rig", ...}``: one command as the signed-in user to the rig
-  the page shows (``rig``: its topic prefix; refused if the session watches another by now);
+  the page shows (``rig``: its topic prefix; refused if the session watches another by now,
+  but a stop or abort, which goes to that rig when the dashboard knows it);
 - ``POST /api/ack`` ``{"alarm", "rig"}``: acknowledges a latched alarm as the signed-in user
   (orbitrig.dashboard.alarms: one book per rig, shared by the sessions);
 - ``POST /api/rig`` ``{"rig"}``: the session watches another rig of the broker

@@ -38,6 +38,7 @@ from daq.backoff import Backoff
 from orbitrig.dashboard.alarms import AlarmBook, AlarmShelf
 from orbitrig.dashboard.catchup import connect_properties, gap_message, move_subscriptions, subscriptions, topic_names
 from orbitrig.dashboard.commands import PAGE_COMMANDS
+from orbitrig.dashboard.elsewhere import ElsewhereReplies
 from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
 from orbitrig.dashboard.outgoing import Outgoing
 from orbitrig.dashboard.rigs import RigDirectory
@@ -102,7 +103,8 @@ class Session(Outgoing):
         self._forget_rig()
         self.feeds: set[Feed] = set()
         self._pending: dict[str, asyncio.Future] = {}
-        self._late: dict[str, tuple[str, float]] = {}
+        self._late: dict[str, tuple[str, float, str]] = {}
+        self._elsewhere = ElsewhereReplies()  # reply topics of rigs not watched, read while a reply is awaited
         self.outcomes = collections.deque(maxlen=10)
         self._client: Any = None
         self._task: asyncio.Task | None = None
@@ -167,6 +169,7 @@ class Session(Outgoing):
         if client is not None:
             if await move_subscriptions(client, old, new, self.user):
                 self._subscribed = new
+            self._elsewhere.resubscribe(client)  # a reply awaited on the rig left: read on
         return {"ok": True, "prefix": new.prefix}
 
     def touch(self) -> None:
@@ -256,6 +259,7 @@ class Session(Outgoing):
         await client.subscribe(subscriptions(self.topics))
         if self.rigs.pattern is not None:
             await client.subscribe(self.rigs.pattern, qos=1)
+        self._elsewhere.resubscribe(client)
         self._subscribed = self.topics
         if old is not None and old != self.topics and client.session_present:
             await client.unsubscribe(topic_names(old))
@@ -336,7 +340,7 @@ class Session(Outgoing):
                 return
             self.results.append(message)
             self._broadcast(message)
-        elif topic == t.reply:
+        elif topic == t.reply or self._elsewhere.is_reply(topic):  # also another rig's: a stop or abort sent there
             self._resolve(data)
 
     def _forget_run_view(self, status: dict) -> None:

@@ -406,7 +406,7 @@ function advice(cmd) {
 }
 
 // the command goes with the rig this page shows: the server refuses it if the session watches
-// another by now. The request is given up after the server's own waits (the broker's
+// another by now, but for a stop or abort, which goes to the rig this page shows. The request is given up after the server's own waits (the broker's
 // acknowledgement, the service's reply) and 2 s more: then nobody knows whether it went.
 async function send(cmd, extra) {
   activity();
@@ -430,18 +430,19 @@ async function send(cmd, extra) {
 // an outcome the session keeps (its command and time, `at`): the same in the server's answer and its snapshot
 function outcomeKey(cmd, data) { return data.at ? cmd + "|" + data.at : undefined; }
 
-// a command's outcome ({ok, error, at}); `at` (ISO-8601): one the session kept from before this page was loaded
+// a command's outcome ({ok, error, at, rig}); `at` (ISO-8601): one the session kept from before this page was
+// loaded; `rig`: the rig a stop or abort went to while the session watched another (named in the outcome)
 function showOutcome(cmd, data, at) {
   const out = $("cmd-result"), earlier = at ? " (at " + new Date(at).toLocaleTimeString() + ", before this page was loaded)" : "";
-  const key = outcomeKey(cmd, data);
+  const key = outcomeKey(cmd, data), label = data.rig ? cmd + " to rig " + data.rig : cmd;
   if (key) st.outcomes.add(key);
   if (data.ok) {  // with what the service did, when it says (an abort no run carried out)
-    out.className = "cmd-result ok"; out.textContent = cmd + ": accepted" + (data.detail ? ": " + data.detail : "") + earlier;
-    if (data.detail) addEvent("info", cmd + ": " + data.detail, false, at, key);
+    out.className = "cmd-result ok"; out.textContent = label + ": accepted" + (data.detail ? ": " + data.detail : "") + earlier;
+    if (data.detail) addEvent("info", label + ": " + data.detail, false, at, key);
     return;
   }
   const error = data.error || "failed";  // the server's reasons leave the name to the page: prefixed once
-  const text = error.startsWith(cmd + ":") ? error : cmd + ": " + error;
+  const text = error.startsWith(cmd + ":") ? error : label + ": " + error;
   out.className = "cmd-result refused"; out.textContent = text + earlier;
   addEvent("refused", text, false, at, key);
   const names = /available: ([^)]*)\)/.exec(data.error || "");
