@@ -95,12 +95,16 @@ def _unit_columns(M: FloatArray) -> FloatArray:
     return M / np.where(norms > 0, norms, 1.0)
 
 
-def selection(constant: FloatArray, candidates: dict[int, FloatArray], weights: FloatArray) -> Selection:
+def selection(
+    constant: FloatArray, candidates: dict[int, FloatArray], weights: FloatArray, equations: int | None = None
+) -> Selection:
     """The :class:`Selection` of regression matrices: ``constant`` (4n x p_0) and, per exponent,
     the candidate's (4n x p_M, nested: its columns span the constant's), rows weighted by
-    ``weights`` (1 / standard deviation of each equation)."""
+    ``weights`` (1 / standard deviation of each equation). ``equations``: 4n where the rows given
+    are a triangular factor of the weighted matrices side by side (the same geometry, fewer rows)."""
     w = weights[:, None]
-    n, p0 = constant.shape
+    p0 = constant.shape[1]
+    n = constant.shape[0] if equations is None else equations
     Q0 = _orthonormal(_unit_columns(constant * w), p0)
     bases, dof = [], []
     for A in candidates.values():
