@@ -135,7 +135,11 @@ class AuxSensors:
             raise DaqError(f"CAN {self.interface}:{self.channel}: cannot open bus ({err})") from err
         base = self.node_id
         ids = [0x180 + base, 0x280 + base, 0x380 + base, 0x700 + base]
-        bus.set_filters([{"can_id": i, "can_mask": 0x7FF, "extended": False} for i in ids])
+        try:
+            bus.set_filters([{"can_id": i, "can_mask": 0x7FF, "extended": False} for i in ids])
+        except (can.CanError, OSError, ValueError) as err:  # not left open: it is opened again and again
+            bus.shutdown()
+            raise DaqError(f"CAN {self.interface}:{self.channel}: cannot set the node's filters ({err})") from err
         return bus
 
     @property

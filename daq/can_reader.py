@@ -52,6 +52,8 @@ class CanReader:
         self._thread: threading.Thread | None = None
         self._retry: asyncio.Task[None] | None = None
         self._closed = False
+        self._lock = threading.Lock()  # _closed and _opened, between close() and a thread's open
+        self._opened: Any = None  # a bus opened again, not yet taken up by the loop
         self._start()
 
     def _start(self) -> None:
@@ -115,25 +117,40 @@ class CanReader:
         while True:
             await asyncio.sleep(delay)
             try:
-                bus = await asyncio.to_thread(self._reopen)
+                await asyncio.to_thread(self._open)
             except errors:  # still down: ``error`` keeps why the link was lost
                 delay = min(2 * delay, RETRY_MAX_S)
                 continue
-            if self._closed:
-                await asyncio.to_thread(_shutdown, bus)
+            with self._lock:
+                bus, self._opened = self._opened, None
+            if bus is None:  # closed meanwhile: _open shut it down
                 return
             self._bus, self.error = bus, None
             self._start()
             log.info("CAN link %s open again", self.name)
             return
 
+    def _open(self) -> None:
+        """Thread: open the bus again into ``_opened``; one that opens after ``close()`` is shut
+        down here (close() cancels the waiting task, not the open: the bus would stay open)."""
+        bus = self._reopen()
+        with self._lock:
+            if not self._closed:
+                self._opened = bus
+                return
+        _shutdown(bus)
+
     def close(self) -> Any:
-        """Stop reading and retrying (idempotent); the bus to shut down, or None."""
-        self._closed = True
+        """Stop reading and retrying (idempotent); the bus to shut down (the one read, or one just
+        opened again), or None."""
+        with self._lock:
+            self._closed = True
+            opened, self._opened = self._opened, None
         if self._retry is not None:
             self._retry.cancel()
             self._retry = None
-        return self._stop_reading()
+        bus = self._stop_reading()
+        return opened if bus is None else bus
 
 
 def _shutdown(bus: Any) -> None:

@@ -9,7 +9,7 @@ chi2-distributed with p_1 - p_0 degrees of freedom. Exact for every method: each
 is taken at its wls solution (:mod:`reduction.statistics`), also for ols and iv (tls: its
 own maximum-likelihood costs, a likelihood ratio too). For power:auto, whose exponent is
 chosen on the same data, the p-value is adjusted for the choice (:mod:`reduction.selection`:
-the chance that the best of the candidates looks as good when Z is constant); the chosen
+the chance that the candidate of the least residual looks as good when Z is constant); the chosen
 exponent's own p-value goes with it. AIC and BIC of both fits go with the verdict (lower is
 better).
 """

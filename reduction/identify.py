@@ -42,6 +42,7 @@ exceeds their magnitude (k of reduction.statistics.coverage_factor: 2 with u_*; 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -54,7 +55,7 @@ from reduction.errors import IdentifiabilityError, IdentificationError, Reductio
 from reduction.excitation import SignalDesign, displacement_noise, signal_design, signal_warning
 from reduction.identifiability import analyse, check_signal
 from reduction.identify_result import identification_of
-from reduction.impedance import impedance, impedance_basis, regression, regressors
+from reduction.impedance import impedance, impedance_basis, regression, regression_rows, regressors
 from reduction.instruments import circle_instruments, circle_orbits
 from reduction.methods import METHODS, Method
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
@@ -130,11 +131,23 @@ def _selection(
     table: OrbitTable, model: str, method: str, chosen: Identification, exponents: tuple[int, ...]
 ) -> Selection:
     """power:auto's choice among ``exponents`` as a reduction.selection.Selection: the
-    candidates' regressions weighted as the chosen fit weighs its equations."""
-    A0, b = _regression(model_spec(model), table)
-    var = variances(chosen.spec, table, chosen.theta, b, method)
-    candidates = {m: _regression(power_spec(model, m), table)[0] for m in exponents}
-    return selection(A0, candidates, 1.0 / np.sqrt(var))
+    candidates' regressions weighted as the chosen fit weighs its equations, side by side, taken
+    over blocks of rows as their triangular factor (a long table's are never whole in memory)."""
+    specs = [model_spec(model), *(power_spec(model, m) for m in exponents)]
+    w = 1.0 / np.sqrt(variances(chosen.spec, table, chosen.theta, np.zeros(4 * table.n), method))
+    rows = reg.CHUNK_ROWS // 4
+
+    def blocks() -> Iterator[FloatArray]:
+        for s in range(0, table.n, rows):
+            at = slice(s, s + rows)
+            columns = [regression_rows(spec, table.orbit[at], table.x[at], table.y[at]) for spec in specs]
+            yield np.hstack(columns) * w[4 * s : 4 * (s + rows), None]
+
+    widths = [spec.n_coefficients for spec in specs]
+    # Householder (0 equations: no Cholesky QR): the candidates repeat the constant's columns
+    R = reg.triangular_blocks(blocks, 0, sum(widths))
+    parts = np.split(R, np.cumsum(widths)[:-1], axis=1)
+    return selection(parts[0], dict(zip(exponents, parts[1:])), np.ones(R.shape[0]), 4 * table.n)
 
 
 def _identify(

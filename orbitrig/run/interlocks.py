@@ -60,6 +60,7 @@ class TripKind(StrEnum):
 
     DRIVE_LINK = "drive_link"
     DRIVE_TRIP = "drive_trip"
+    DRIVE_POLL = "drive_poll"  # a failure the drive poll recorded (a poll failed on a bug; a failed verification)
     CAN_HEARTBEAT = "can_heartbeat"
     CAN_NODE = "can_node"
     SUPPLY_PUMP = "supply_pump"

@@ -15,8 +15,9 @@ trip and the drives stop.
 
 A sample that raises (a bug in a sensor read or a check) is logged with its
 traceback and made a fail trip ("supervision"): the run never goes on with its
-interlocks unwatched; so is a drive poll that failed on a bug (`RigIO.drives_judged` raises it;
-the poll has ramped both drives to zero, drives/poll.py).
+interlocks unwatched. A failure the drive poll recorded (one that failed on a bug, a failed
+verification after a link loss: `RigIO.drives_judged` raises it; the poll has ramped both drives
+to zero, drives/poll.py) is a fail trip in the poll's words ("drive poll").
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ import time
 from typing import Callable
 
 from daq.aux import AuxState
+from drives.errors import DriveError
 from drives.state import RigDriveState
 from orbitrig.config import Interlocks
 from orbitrig.run import interlocks
@@ -94,6 +96,10 @@ class InterlockSupervisor:
         while self.failure is None:
             try:
                 self.sample()
+            except DriveError as err:  # what the drive poll recorded (RigIO.drives_judged): no bug of ours
+                self.failure = Trip(interlocks.TripKind.DRIVE_POLL, interlocks.FAIL, f"drive poll: {err}")
+                self._on_fail(self.failure)
+                return
             except Exception as err:  # a bug must not leave the interlocks unwatched
                 log.exception("interlock supervision failed")
                 self.failure = Trip(

@@ -136,7 +136,8 @@ async def test_a_live_feed_hook_that_raises_is_detached_and_the_run_goes_on(tmp_
 async def test_a_drive_poll_that_fails_on_a_bug_fails_the_run_at_once(tmp_path, monkeypatch):
     """The drive poll fails on a bug during an acquisition (which waits on the A/D board, not on
     the drives): the poll ramps both drives to zero, and the run's interlock supervisor fails the
-    run at once naming it, not only the next wait for the drives after the acquisition gave up."""
+    run at once naming it, not only the next wait for the drives after the acquisition gave up.
+    In the poll's words: the supervisor did not fail (it is no "interlock supervision failed")."""
     real, broken = DrivePoll.publish, [False]
 
     def publish(self, statuses, *, link_ok, link_error=None):
@@ -155,6 +156,7 @@ async def test_a_drive_poll_that_fails_on_a_bug_fails_the_run_at_once(tmp_path, 
         outcome = await asyncio.wait_for(asyncio.shield(run), 60)
         assert outcome.status == "failed", outcome.message
         assert "poll failed: ValueError('status word decoding bug')" in outcome.message, outcome.message
+        assert "supervision failed" not in outcome.message, outcome.message  # the supervisor works on
         assert ended < 3.0, ended  # supervisor samples every 50 ms: not the acquisition's timeout
         assert _at_rest(sim), sim.speeds
 
