@@ -78,6 +78,8 @@ class Trip:
     message: str
 
 
+#: the words of the CAN node lost (its trip's message: NODE_LOST (why))
+NODE_LOST = "CAN sensor node lost"
 #: the CAN node gone or mute, and the supply itself lost: each group escalates on one clock
 NODE_KINDS = frozenset({TripKind.CAN_HEARTBEAT, TripKind.CAN_NODE})
 SUPPLY_KINDS = frozenset({TripKind.SUPPLY_PUMP, TripKind.SUPPLY_LOW})
@@ -128,7 +130,7 @@ def _node_missing(aux: AuxState, cfg: Interlocks) -> str | None:
 def _supply_trips(aux: AuxState, cfg: Interlocks, pressure_armed: bool, turning: bool) -> list[Trip]:
     if cfg.check_can_heartbeat and aux.node_lost:
         why = f"its bus link failed: {aux.link_error}" if aux.link_error else "no heartbeat for 1.5 s"
-        return [Trip(TripKind.CAN_HEARTBEAT, SUSPEND, f"CAN sensor node lost ({why})")]
+        return [Trip(TripKind.CAN_HEARTBEAT, SUSPEND, f"{NODE_LOST} ({why})")]
     if not (pressure_armed or turning):
         return []
     missing = _node_missing(aux, cfg)

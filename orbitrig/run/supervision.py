@@ -114,8 +114,7 @@ class InterlockSupervisor:
 
 def _lasting(trip: Trip, limit: float) -> str:
     """`trip`'s condition said as lasting more than `limit` s."""
-    if trip.kind == interlocks.TripKind.CAN_HEARTBEAT:
-        return (
-            f"CAN sensor node lost for more than {limit:g} s (no heartbeat): supply pressure and pump are not watched"
-        )
+    if trip.kind == interlocks.TripKind.CAN_HEARTBEAT:  # the trip says why: no heartbeat, or its bus link failed
+        why = trip.message.removeprefix(f"{interlocks.NODE_LOST} (").removesuffix(")")
+        return f"{interlocks.NODE_LOST} for more than {limit:g} s ({why}): supply pressure and pump are not watched"
     return f"{trip.message} for more than {limit:g} s"

@@ -220,3 +220,14 @@ def test_the_supply_is_watched_while_a_drive_turns_the_band_top_once_armed():
         trip.message
         == "supply pressure and pump not watched: CAN sensor node sends no pressure frame 0x281 (last 3.0 s ago)"
     )
+
+
+def test_a_node_lost_past_its_limit_says_why_it_was_lost():
+    """The fail after the limit keeps the trip's reason: no heartbeat, or the bus link failed."""
+    from orbitrig.run.supervision import _lasting
+
+    for why in ("no heartbeat for 1.5 s", "its bus link failed: DaqError: cannot open bus (refused)"):
+        trip = interlocks.Trip(interlocks.TripKind.CAN_HEARTBEAT, interlocks.SUSPEND, f"CAN sensor node lost ({why})")
+        assert _lasting(trip, 10.0) == (
+            f"CAN sensor node lost for more than 10 s ({why}): supply pressure and pump are not watched"
+        )
