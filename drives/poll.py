@@ -248,7 +248,10 @@ class DrivePoll:
                     log.exception("drive poll failed" + ("; ramping both drives to zero" if self.command else ""))
                 failing = True
                 if self.command is not None:  # what it can no longer judge is stopped, as after a trip
-                    await asyncio.shield(self._send(bool(self.owed)))
+                    try:
+                        await asyncio.shield(self._send(bool(self.owed)))
+                    except Exception:  # the stop's own failure must not end the heartbeat either
+                        log.exception("drive poll: the stop after its failure failed")
                     self.command = None
                 self.fail(DriveError(f"poll failed: {err!r}"))
 
