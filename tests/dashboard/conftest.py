@@ -64,6 +64,14 @@ def dashboard(broker, service, tmp_path_factory):
     assert dash.stop() == 0, dash.text()[-3000:]
 
 
+@pytest.fixture(scope="module")
+def driver(tmp_path_factory):
+    """One headless chromium for the whole module."""
+    d = chromium(tmp_path_factory.mktemp("chromium"))
+    yield d
+    d.quit()
+
+
 @pytest.fixture
 def browsers(tmp_path):
     """Factory of fresh headless chromium instances, all quit at the end of the test."""

@@ -11,7 +11,7 @@ import signal
 import time
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page, chromium
+from support.dash_helpers import RIG, Dashboard, Page
 from support.mqtt_helpers import ACCOUNTS, Watcher
 
 REPLY_TIMEOUT = 8.0  # s: --reply-timeout of the module's dashboard (the bounds below leave a busy host 7 s)
@@ -24,13 +24,6 @@ def dashboard(broker, tmp_path_factory):
     dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", str(REPLY_TIMEOUT))
     yield dash
     assert dash.stop() == 0, dash.text()[-3000:]
-
-
-@pytest.fixture(scope="module")
-def driver(tmp_path_factory):
-    d = chromium(tmp_path_factory.mktemp("chromium"))
-    yield d
-    d.quit()
 
 
 @pytest.fixture

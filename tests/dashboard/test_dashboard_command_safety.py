@@ -15,7 +15,7 @@ import threading
 import time
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page, chromium
+from support.dash_helpers import RIG, Dashboard, Page
 from support.mqtt_helpers import ACCOUNTS, Broker, CutProxy, Watcher
 
 REPLY_TIMEOUT = 1.5  # s: --reply-timeout of the module's dashboard (its commands expire after 2 s)
@@ -57,13 +57,6 @@ def dashboard(relay, tmp_path_factory):
     dash = Dashboard(relay.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", str(REPLY_TIMEOUT))
     yield dash
     assert dash.stop() == 0, dash.text()[-3000:]
-
-
-@pytest.fixture(scope="module")
-def driver(tmp_path_factory):
-    d = chromium(tmp_path_factory.mktemp("chromium"))
-    yield d
-    d.quit()
 
 
 def status(broker, state: str, message: str = "") -> None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import time
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page, chromium
+from support.dash_helpers import RIG, Dashboard, Page
 from support.mqtt_helpers import ACCOUNTS, Broker, Watcher, sim_service
 
 OTHER = "rig-b"
@@ -41,13 +41,6 @@ def dashboard(broker, services, tmp_path_factory):
     dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", str(REPLY_TIMEOUT))
     yield dash
     assert dash.stop() == 0, dash.text()[-3000:]
-
-
-@pytest.fixture(scope="module")
-def driver(tmp_path_factory):
-    d = chromium(tmp_path_factory.mktemp("chromium"))
-    yield d
-    d.quit()
 
 
 @pytest.fixture
