@@ -10,35 +10,8 @@ ramps are `sim/drive_states.py`; latched faults and the communication-loss
 watchdog are `sim/drive_faults.py`. This module holds one drive's state and
 runs it in time.
 
-Time
-----
-Speeds, ramps and coasting run in SIMULATED time, read from the `clock`
-callable (seconds; the rig's speed-up clock). The communication-loss watchdog
-runs in WALL time (`wall_clock`, default `time.monotonic`), as on a real
-network. State is integrated lazily: `read`, `write`, `note_request`,
-`inject_fault` and `local_control` first call `advance()`, so a value read over
-Modbus is always current; the properties report the state as of the last
-`advance()`. When the watchdog expired between two calls, the simulated time
-of the expiry is interpolated between them, so the ramp stop starts where it
-should even if nobody called `advance()` in the meantime.
-
-Network control
----------------
-REMOTE (bit 10) = 0: the control word is stored (reads back) but not acted
-on; the drive keeps its last accepted command and reference and SW.REMOTE = 0,
-but the watchdog stays armed: a drive running on a network command must still
-stop when the network falls silent. A control word with REMOTE = 1 takes
-network control (also out of `local_control`); only `local_control` (the
-keypad) disarms the watchdog.
-
-A parameter write answers exception 03 and changes nothing while the drive is
-producing torque (operation enabled, OFF1/OFF3 ramp stop, fault ramp stop).
-A multi-register write is applied as one: REF2, REF, then CW.
-
-Coasting (torque off): the speed decays linearly at `coast_decel` rpm/s
-(simulated). Torque (powered): TORQUE = 10000 * (alpha / a_nom
-+ friction * speed / rated_rpm), a_nom = rated_rpm / starting_time, alpha the
-current ramp acceleration (rpm/s, signed).
+Timing (simulated ramps, a wall-clock watchdog), network control, parameter writes, coasting
+and torque: docs/simulator.md, "Drives".
 """
 
 from __future__ import annotations
