@@ -35,11 +35,14 @@ def topic_names(topics: proto.Topics) -> list[str]:
     return [topic for topic, _ in subscriptions(topics)]
 
 
-async def move_subscriptions(client: Any, old: proto.Topics, new: proto.Topics, user: str) -> bool:
-    """Subscribe ``client`` to rig ``new`` (its retained status comes), then unsubscribe from ``old``;
-    True when the new subscriptions were confirmed. In this order a late acknowledgement of either
-    (aiomqtt raises although the broker carries it out) never leaves the session reading nothing;
-    the old rig's messages that still come are ignored (the session reads the rig it watches)."""
+async def move_subscriptions(
+    client: Any, old: proto.Topics, new: proto.Topics, user: str, keep: frozenset[str] = frozenset()
+) -> bool:
+    """Subscribe ``client`` to rig ``new`` (its retained status comes), then unsubscribe from ``old``
+    but ``keep`` (a reply topic whose stop's or abort's reply is awaited); True when the new
+    subscriptions were confirmed. In this order a late acknowledgement of either (aiomqtt raises
+    although the broker carries it out) never leaves the session reading nothing; the old rig's
+    messages that still come are ignored (the session reads the rig it watches)."""
     subscribed = True
     try:
         await client.subscribe(subscriptions(new))
@@ -47,7 +50,7 @@ async def move_subscriptions(client: Any, old: proto.Topics, new: proto.Topics, 
         log.info("session of %r: subscription to %s deferred: %s", user, new.prefix, err)
         subscribed = False
     try:
-        await client.unsubscribe(topic_names(old))
+        await client.unsubscribe([topic for topic in topic_names(old) if topic not in keep])
     except Exception as err:  # noqa: BLE001 - as above; the broker's session may keep old until it ends
         log.info("session of %r: unsubscribe from %s not confirmed: %s", user, old.prefix, err)
     return subscribed

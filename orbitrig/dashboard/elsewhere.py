@@ -7,7 +7,8 @@ topic it does not subscribe to. :class:`ElsewhereReplies` subscribes to that rig
 just before the command is published (without waiting for the broker's SUBACK: the broker reads
 a connection's packets in order, so the reply cannot come before the subscription), and ends the
 subscription once the reply came or the late-reply window is over; never one the session reads
-for the rig it watches.
+for the rig it watches. A stop's or abort's reply awaited on the rig watched is kept the same way
+should the session leave that rig before the reply comes (another tab chose another rig).
 """
 
 from __future__ import annotations
@@ -44,6 +45,15 @@ class ElsewhereReplies:
         if asked:
             self._topics[cid] = topic
         return asked
+
+    def keep(self, topics: proto.Topics, cid: str) -> None:
+        """The watched rig's reply topic (read already) stays read for ``cid``'s stop or abort should
+        the session leave that rig before the reply comes."""
+        self._topics[cid] = topics.reply
+
+    def awaited(self) -> frozenset[str]:
+        """The reply topics a reply is awaited on (a rig left keeps these subscribed)."""
+        return frozenset(self._topics.values())
 
     def release(self, client: Any, cid: str, watched: proto.Topics) -> None:
         """The reply of ``cid`` came or is no longer awaited: its topic is read no more (unless still needed)."""

@@ -128,6 +128,8 @@ class Outgoing:
         wait = self.settings.reply_timeout
         rig = "" if topics == self.topics else topics.prefix  # another rig than the one watched: named in its outcome
         readable = not rig or self._elsewhere.watch(client, topics, cid)  # before the command goes
+        if urgent and not rig:
+            self._elsewhere.keep(topics, cid)  # its reply read on should the session leave the rig meanwhile
         try:
             code = await client.publish_qos1(
                 topics.abort if urgent else topics.cmd,

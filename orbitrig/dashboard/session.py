@@ -167,7 +167,7 @@ class Session(Outgoing):
         self.adopt(peers)
         log.info("session of %r: now watching %s", self.user, new.prefix)
         if client is not None:
-            if await move_subscriptions(client, old, new, self.user):
+            if await move_subscriptions(client, old, new, self.user, self._elsewhere.awaited()):
                 self._subscribed = new
             self._elsewhere.resubscribe(client)  # a reply awaited on the rig left: read on
         return {"ok": True, "prefix": new.prefix}

@@ -78,9 +78,9 @@ async def test_a_late_reply_awaited_on_another_rig_is_read_on_after_the_session_
     session, client = await _session_on_b(answer=False)
     await session.command({"cmd": "abort", "rig": A.prefix})
     assert (await session.select_rig("rig-a"))["ok"]
-    assert (await session.select_rig("rig-b"))["ok"]  # leaving rig-a unsubscribes its topics, its reply too
-    left = client.calls.index(("unsubscribe", [t for t, _ in subscriptions(A)]))
-    assert ("subscribe_nowait", A.reply) in client.calls[left:]  # the awaited reply is read again
+    assert (await session.select_rig("rig-b"))["ok"]  # leaving rig-a unsubscribes its topics but the reply
+    left = [t for t, _ in subscriptions(A) if t != A.reply]
+    assert ("unsubscribe", left) in client.calls  # the awaited reply is read on, with no gap
     session._on_message(A.reply, json.dumps({"id": next(iter(session._late)), "ok": True}).encode())
     assert session.outcomes[-1]["late"] and session.outcomes[-1]["rig"] == A.prefix
     assert client.calls[-1] == ("unsubscribe_nowait", A.reply)  # then no longer
@@ -94,3 +94,18 @@ async def test_a_start_of_a_page_of_another_rig_is_refused_and_goes_nowhere():
         "error": f"not sent: this page shows rig {A.prefix} but the session now watches {B.prefix}: reload the page",
     }
     assert client.calls == []
+
+
+async def test_the_reply_awaited_on_the_watched_rig_is_read_on_after_the_session_leaves_it():
+    """An abort to the rig watched (rig-b) whose reply is late; another tab chooses rig-a: rig-b's
+    reply topic is kept (not unsubscribed with the rest of rig-b's), the late reply still becomes
+    its outcome, and only then is the topic read no more. It read "unknown" for good before."""
+    session, client = await _session_on_b(answer=False)
+    outcome = await session.command({"cmd": "abort", "rig": B.prefix})
+    assert "the outcome is unknown" in outcome["error"] and "rig" not in outcome, outcome
+    assert (await session.select_rig("rig-a"))["ok"]
+    (left,) = [topics for call, topics in client.calls if call == "unsubscribe"]
+    assert B.reply not in left and B.status in left  # the rest of rig-b goes
+    session._on_message(B.reply, json.dumps({"id": next(iter(session._late)), "ok": True}).encode())
+    assert session.outcomes[-1]["late"] and session.outcomes[-1]["ok"], session.outcomes[-1]
+    assert client.calls[-1] == ("unsubscribe_nowait", B.reply)  # then no longer
