@@ -49,7 +49,6 @@ class CanReader:
         self._loop = asyncio.get_running_loop()
         self._fd: int | None = None
         self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
         self._retry: asyncio.Task[None] | None = None
         self._closed = False
         self._lock = threading.Lock()  # _closed and _opened, between close() and a thread's open
@@ -66,9 +65,8 @@ class CanReader:
             self._loop.add_reader(fd, self._readable)
         else:
             self._stop = threading.Event()
-            self._thread = threading.Thread(target=self._receive, args=(self._bus, self._stop), daemon=True)
-            self._thread.name = f"orbitrig-can {self.name}"
-            self._thread.start()
+            name = f"orbitrig-can {self.name}"
+            threading.Thread(target=self._receive, args=(self._bus, self._stop), name=name, daemon=True).start()
 
     def _readable(self) -> None:
         """The descriptor is readable: one frame (or a failure)."""
