@@ -29,6 +29,7 @@ from functools import lru_cache
 import numpy as np
 from reduction import distributions as dist
 from reduction.arrays import FloatArray
+from reduction.regression import column_scale
 
 DRAWS = 20_000  # Monte Carlo draws: standard error 0.15 % at p = 0.05
 SEED = 20_260_529  # fixed: the same table gives the same adjusted p-value
@@ -62,12 +63,12 @@ class Selection:
         s = np.stack([np.sum((C.T @ z) ** 2, axis=0) for C in self.extra])  # k x draws
         chosen = np.argmax(s, axis=0)  # the least residual: RSS_M (chi2_M) = RSS_0 (chi2_0) - s_M
         s = s[chosen, np.arange(draws)]
-        q = np.array([C.shape[1] for C in self.extra])[chosen]
+        qs = [C.shape[1] for C in self.extra]
         if known_noise:
-            reached = s >= np.array([dist.chi2_isf(p_chosen, C.shape[1]) for C in self.extra])[chosen]
+            reached = s >= np.array([dist.chi2_isf(p_chosen, q) for q in qs])[chosen]
         else:  # F = (s / q) / ((rss0 - s) / dof) at least its quantile
-            f = np.array([dist.f_isf(p_chosen, C.shape[1], dof) for C, dof in zip(self.extra, self.dof)])
-            reached = s * np.array(self.dof)[chosen] >= f[chosen] * q * (rss0 - s)
+            f = np.array([dist.f_isf(p_chosen, q, dof) for q, dof in zip(qs, self.dof)])
+            reached = s * np.array(self.dof)[chosen] >= f[chosen] * np.array(qs)[chosen] * (rss0 - s)
         hits = int(np.count_nonzero(reached))
         if hits < MIN_HITS:
             return bound
@@ -91,11 +92,6 @@ def _orthonormal(M: FloatArray, rank: int) -> FloatArray:
     return U[:, :rank]
 
 
-def _unit_columns(M: FloatArray) -> FloatArray:
-    norms = np.linalg.norm(M, axis=0)
-    return M / np.where(norms > 0, norms, 1.0)
-
-
 def selection(
     constant: FloatArray, candidates: dict[int, FloatArray], weights: FloatArray, equations: int | None = None
 ) -> Selection:
@@ -106,10 +102,10 @@ def selection(
     w = weights[:, None]
     p0 = constant.shape[1]
     n = constant.shape[0] if equations is None else equations
-    Q0 = _orthonormal(_unit_columns(constant * w), p0)
+    Q0 = _orthonormal(column_scale(constant * w)[0], p0)
     bases, dof = [], []
     for A in candidates.values():
-        Aw = _unit_columns(A * w)  # scaled before the constant's span is taken out: what is left
+        Aw = column_scale(A * w)[0]  # scaled before the constant's span is taken out: what is left
         Aw -= Q0 @ (Q0.T @ Aw)  # of the constant's own columns is rounding, not a direction
         bases.append(_orthonormal(Aw, A.shape[1] - p0))
         dof.append(n - A.shape[1])
