@@ -194,7 +194,8 @@ def _stop_beyond_limits(text: str, depth: int, beyond: list[str]) -> Callable[[]
 
         return refuse
 
-    if not any(name in text.lower() for name in STOP_OR_ABORT) and "\\" not in text:
+    lower = text.lower()  # (a large payload: once)
+    if not any(name in lower for name in STOP_OR_ABORT) and "\\" not in text:
         return refused(beyond[0])  # (it cannot name stop or abort: not read at all)
     if depth > PARSER_NESTING and len(text) > MAX_DEEP_STOP_CHARS:
         return refused(f"{beyond[-1]}; a stop or an abort nested that deeply at most {MAX_DEEP_STOP_CHARS} characters")

@@ -67,7 +67,8 @@ BUSY = "busy: {n} commands are waiting; this one was not carried out (send it ag
 
 def _may_name_at_once(payload: bytes) -> bool:
     """False only if ``payload`` cannot name stop or abort (neither word, no escape)."""
-    return any(word in payload.lower() for word in _AT_ONCE_BYTES) or b"\\" in payload
+    lower = payload.lower()
+    return any(word in lower for word in _AT_ONCE_BYTES) or b"\\" in payload
 
 
 _AT_ONCE_BYTES = tuple(name.encode() for name in AT_ONCE)

@@ -31,6 +31,7 @@ from orbitrig.service.command_json import (  # noqa: F401 - part of this contrac
     MAX_COMMAND_BYTES,
     MAX_ID_CHARS,
     MAX_STOP_BYTES,
+    STOP_OR_ABORT,
     CommandError,
     echoable_id,
     id_problems,
@@ -151,7 +152,7 @@ def is_matrix_name(name: str) -> bool:
 
 
 #: commands carried out even when their payload has wrong fields (docs/protocols/mqtt.md)
-ALWAYS_ACCEPTED = frozenset({"stop", "abort"})
+ALWAYS_ACCEPTED = STOP_OR_ABORT
 
 CorrelationId = Annotated[str, StringConstraints(min_length=1, max_length=MAX_ID_CHARS)]
 
