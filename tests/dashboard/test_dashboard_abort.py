@@ -11,7 +11,7 @@ import signal
 import time
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page
+from support.dash_helpers import RIG, Dashboard, Page, fresh_page
 from support.mqtt_helpers import ACCOUNTS, Watcher
 
 REPLY_TIMEOUT = 8.0  # s: --reply-timeout of the module's dashboard (the bounds below leave a busy host 7 s)
@@ -29,13 +29,7 @@ def dashboard(broker, tmp_path_factory):
 @pytest.fixture
 def page(driver, dashboard):
     """The module's browser on the dashboard, signed out, one tab."""
-    for handle in driver.window_handles[1:]:
-        driver.switch_to.window(handle)
-        driver.close()
-    driver.switch_to.window(driver.window_handles[0])
-    driver.get(dashboard.url)
-    driver.delete_all_cookies()
-    return Page(driver, dashboard.url, dashboard)
+    return fresh_page(driver, dashboard)
 
 
 @pytest.fixture

@@ -9,7 +9,7 @@ from __future__ import annotations
 import time
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page
+from support.dash_helpers import RIG, Dashboard, Page, fresh_page
 from support.mqtt_helpers import ACCOUNTS, Broker, Watcher, sim_service
 
 OTHER = "rig-b"
@@ -54,13 +54,7 @@ def commands(broker):
 def page_of_a_with_session_on_b(driver, dashboard, user: str = "operator") -> Page:
     """Tab A showing RIG, whose feed lags behind; tab B of the same browser (the same session of
     ``user``) then chose OTHER. Returned on tab A."""
-    for handle in driver.window_handles[1:]:
-        driver.switch_to.window(handle)
-        driver.close()
-    driver.switch_to.window(driver.window_handles[0])
-    driver.get(dashboard.url)
-    driver.delete_all_cookies()
-    page = Page(driver, dashboard.url, dashboard)
+    page = fresh_page(driver, dashboard)
     page.sign_in(user, ACCOUNTS[user])
     page.signed_in()
     page.wait_text("link", "online", 20)

@@ -187,6 +187,17 @@ def card_shot(page: Page, element_id: str, name: str, tmp_path: Path) -> Path:
     return path
 
 
+def fresh_page(driver: webdriver.Chrome, dashboard: Dashboard) -> Page:
+    """``driver`` on ``dashboard`` in one tab (the others closed), signed out."""
+    for handle in driver.window_handles[1:]:
+        driver.switch_to.window(handle)
+        driver.close()
+    driver.switch_to.window(driver.window_handles[0])
+    driver.get(dashboard.url)
+    driver.delete_all_cookies()
+    return Page(driver, dashboard.url, dashboard)
+
+
 def idle_page(browsers: Callable[[], webdriver.Chrome], dashboard: Dashboard, user: str = "operator") -> Page:
     """A fresh browser's page signed in as `user` (password of mqtt_helpers.ACCOUNTS), the rig idle."""
     from .mqtt_helpers import ACCOUNTS
