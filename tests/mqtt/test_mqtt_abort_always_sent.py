@@ -79,6 +79,20 @@ async def serving(
             await asyncio.wait_for(asyncio.gather(task, return_exceptions=True), 120)
 
 
+@contextlib.asynccontextmanager
+async def coasting_run(broker: Broker, work: Path, rig_id: str):
+    """(service, sim_rig, client) of :func:`serving` with a `quick` run under way and both drives
+    turning; the drives' ramp stop lasts minutes (30 s and more here) while the run's cleanup waits
+    2 s for standstill, so it gives up waiting."""
+    rig = load_rig()
+    rig = rig.model_copy(update={"drives": rig.drives.model_copy(update={"stop_timeout_s": 2.0})})
+    async with serving(broker, work, rig_id, rig=rig, decel=18000) as (svc, sim_rig, rc):
+        assert (await wait(rc.command, {"cmd": "start", "matrix": "quick"}))["ok"] is True
+        await wait(rc.status, "running")
+        await until(lambda: min(abs(w) for w in sim_rig.speeds) > 10.0, 60, "both drives turning")
+        yield svc, sim_rig, rc
+
+
 def publish_abort(rc: RigClient, cid: str) -> int:
     """The operator's abort on <prefix>/abort (as the dashboard sends it); the watcher's mark before."""
     mark = rc.watch.mark()
@@ -122,13 +136,7 @@ async def test_the_same_abort_after_a_reconnection_aborts_the_new_run(broker, tm
 
 
 async def test_an_abort_after_an_unconfirmed_stop_sends_the_emergency_stop(broker, tmp_path):
-    rig = load_rig()
-    rig = rig.model_copy(update={"drives": rig.drives.model_copy(update={"stop_timeout_s": 2.0})})
-    # the drives' ramp stop lasts minutes (30 s and more here): the run's cleanup gives up waiting
-    async with serving(broker, tmp_path, "coast-rig", rig=rig, decel=18000) as (svc, sim_rig, rc):
-        assert (await wait(rc.command, {"cmd": "start", "matrix": "quick"}))["ok"] is True
-        await wait(rc.status, "running")
-        await until(lambda: min(abs(w) for w in sim_rig.speeds) > 10.0, 60, "both drives turning")
+    async with coasting_run(broker, tmp_path, "coast-rig") as (svc, sim_rig, rc):
         mark = rc.watch.mark()
         assert (await wait(rc.command, {"cmd": "stop"}))["ok"] is True
         faulted = await wait(rc.status, "faulted", 90, mark)
@@ -237,13 +245,7 @@ async def test_a_stop_once_the_run_has_let_go_of_the_drives_reaches_them(broker,
     answered ok with nothing sent: both drives get the ramp stop (OFF1) over the service's own link;
     the first shutdown signal (what `orbitrig serve`'s handler asks of the service) sends them the
     emergency stop (OFF3), as with no run active."""
-    rig = load_rig()
-    rig = rig.model_copy(update={"drives": rig.drives.model_copy(update={"stop_timeout_s": 2.0})})
-    # the drives' ramp stop lasts minutes (30 s and more here): the run's cleanup gives up waiting
-    async with serving(broker, tmp_path, "let-go-rig", rig=rig, decel=18000) as (svc, sim_rig, rc):
-        assert (await wait(rc.command, {"cmd": "start", "matrix": "quick"}))["ok"] is True
-        await wait(rc.status, "running")
-        await until(lambda: min(abs(w) for w in sim_rig.speeds) > 10.0, 60, "both drives turning")
+    async with coasting_run(broker, tmp_path, "let-go-rig") as (svc, sim_rig, rc):
         (run_dir,) = (tmp_path / "runs").iterdir()
         stall = _StalledRunLog(run_dir, tmp_path / "stall")
         try:
