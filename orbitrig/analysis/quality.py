@@ -9,6 +9,7 @@ SI inside (N/m, N s/m, kg, rad/s); the page and the figures convert at the edge.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -18,6 +19,7 @@ from reduction.adequacy import Adequacy, frequency_dependence
 from reduction.derived import Derived, derived_quantities
 from reduction.errors import ReductionError
 from reduction.statistics import Interval
+from reduction.table import OrbitTable
 from reduction.systematic import Calibration, LmsAgreement, UncertaintyBasis, combined_covariance, lms_agreement
 
 #: the budget columns a stored identification may carry under "uncertainty" (SI std per key)
@@ -191,7 +193,21 @@ def derived_basis(r: Reduced) -> UncertaintyBasis:
     """The covariance the derived quantities of `r` rest on, as the exports': COMBINED where the
     run stored its budget (with the calibration parameters' stated std), else STATISTICAL."""
     u = (r.stored or {}).get("uncertainty") or {}
-    return UncertaintyBasis.COMBINED if u.get("sources") and u.get("source_std") else UncertaintyBasis.STATISTICAL
+    return UncertaintyBasis.COMBINED if _has_sources(u) else UncertaintyBasis.STATISTICAL
+
+
+def _has_sources(budget: dict[str, Any]) -> bool:
+    return bool(budget.get("sources") and budget.get("source_std"))
+
+
+def budget_covariance(ident: Any, table: OrbitTable, budget: dict[str, Any]) -> np.ndarray | None:
+    """The combined covariance (SI) of ``ident`` fitted to ``table``: its own plus the calibration
+    part of a stored budget's parameters (``sources``, their stated ``source_std``); None without
+    them or without the fit's covariance. ReductionError when they are not this fit's."""
+    if not _has_sources(budget):
+        return None
+    sigma = np.asarray(budget["source_std"], dtype=float)
+    return combined_covariance(ident, table, list(budget["sources"]), sigma)
 
 
 @dataclass(frozen=True)
@@ -207,16 +223,12 @@ def band_of(r: Reduced) -> Band:
     """The combined covariance (statistical and calibration, repeated from the stored budget's
     calibration parameters, as the tables' U) where the run stored a budget that fits, else the
     fit's statistical one."""
-    if derived_basis(r) == UncertaintyBasis.COMBINED:
-        u = (r.stored or {})["uncertainty"]  # COMBINED: stored with its budget
-        try:
-            cov = combined_covariance(
-                r.identification, r.point.tables[r.lms], u["sources"], np.asarray(u["source_std"])
-            )
-        except ReductionError:
-            cov = None
-        if cov is not None:
-            return Band(cov, UncertaintyBasis.COMBINED)
+    try:
+        cov = budget_covariance(r.identification, r.point.tables[r.lms], (r.stored or {}).get("uncertainty") or {})
+    except ReductionError:
+        cov = None
+    if cov is not None:
+        return Band(cov, UncertaintyBasis.COMBINED)
     return Band(r.identification.covariance, UncertaintyBasis.STATISTICAL)
 
 

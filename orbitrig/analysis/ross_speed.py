@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from orbitrig.analysis.quality import budget_covariance
 from orbitrig.analysis.reduce import identify_point
 from orbitrig.analysis.ross_warnings import ROSS_LETTERS, speed_warnings
 from orbitrig.load_systems import LoadSystem
@@ -23,7 +24,7 @@ from orbitrig.store.stored_run import Point
 from reduction.methods import Method
 from reduction.statistics import not_determined
 from reduction.result import Identification
-from reduction.systematic import UncertaintyBasis, combined_covariance
+from reduction.systematic import UncertaintyBasis
 from reduction.table import OrbitTable
 
 ENTRIES = ("xx", "xy", "yx", "yy")
@@ -139,9 +140,7 @@ def _combined_u(
     """``expanded_uncertainty`` of a fit made here, as the sweep stores it: k (the fit's) times
     the combined standard uncertainty, its covariance plus the calibration part of a stored
     budget's parameters (``sources``, their stated ``source_std``); None without them."""
-    if not (budget.get("sources") and budget.get("source_std")):
-        return None
-    cov = combined_covariance(ident, table, list(budget["sources"]), np.asarray(budget["source_std"], dtype=float))
+    cov = budget_covariance(ident, table, budget)
     if cov is None:
         return None
     k = coverage_of(result)
