@@ -26,7 +26,7 @@ Matrix = Annotated[
     typer.Option(
         "--matrix",
         metavar="NAME|FILE",
-        help="test matrix: a TOML file, or a name from the configuration's matrices/ (demo, paper); "
+        help="test matrix: a TOML file, or a name from the configuration's matrices/ (demo, paper, designed, eccentricity); "
         "required on the rig, --sim defaults to matrices/demo.toml",
     ),
 ]
