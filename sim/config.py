@@ -9,7 +9,8 @@ an edge unit as a suffix, converted on load: ``_deg`` (degrees -> rad),
 Defaults: the paper's rig at its Table 1 operating point: a four-recess,
 orifice-compensated hydrostatic journal bearing with large recesses and
 narrow lands, D = L = 38.1 mm, c = 60 um, SAE 30 oil; K ~ 4e7 N/m,
-C ~ 1e5 N s/m, M ~ 4 kg.
+C ~ 1.2e5 N s/m, the film's inertia ~ 4 kg (the recesses' compressibility makes the apparent D
+of a constant fit about -38 kg). orbitrig's shipped config/rig.toml [bearing] is this bearing.
 """
 
 from __future__ import annotations

@@ -11,7 +11,9 @@ Noise (standard uncertainty sqrt(E|err|^2) of ONE revolution's complex phasor; S
 
 Prior coefficients (where the relative standard errors are measured, and where displacement
 noise is propagated through Z): the run's identification of the model at the point whose
-spin is nearest, else ``NOMINAL`` (the order of magnitude of a 60 mm hydrostatic bearing).
+spin is nearest, else ``NOMINAL``: the order of magnitude of the paper's hydrostatic bearing (D = L = 38.1 mm,
+c = 60 um; config/rig.toml [bearing], the simulator's default) at its Table 1 point; D is the film's
+inertia alone (the default simulator's recess compressibility makes its apparent D negative).
 """
 
 from __future__ import annotations
@@ -137,7 +139,7 @@ def prior_theta(
                     np.array([float(coeffs[n]) for n in spec.names]),
                     f"identified: run {run.directory}, point {index:04d} ({lms})",
                 )
-    return np.array([NOMINAL.get(n, 0.0) for n in spec.names]), "nominal (60 mm hydrostatic bearing)"
+    return np.array([NOMINAL.get(n, 0.0) for n in spec.names]), "nominal (38.1 mm hydrostatic bearing)"
 
 
 def model_check(spec, run, spin: float, lms: LoadSystem, problem, candidate: tuple, proposal: tuple) -> str | None:

@@ -83,7 +83,7 @@ class Channel(_Model):
 
 
 class Bearing(_Model):
-    radius_mm: Annotated[float, Field(gt=0, le=10_000)] = 30.0
+    radius_mm: Annotated[float, Field(gt=0, le=10_000)] = 19.05  # the paper's bearing, D = 38.1 mm: recorded only
     clearance_um: Annotated[float, Field(gt=0, le=100_000)] = 60.0
 
     @property
