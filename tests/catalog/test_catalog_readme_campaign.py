@@ -1,7 +1,7 @@
-"""The README's catalog-and-compare block and docs/catalog.md's compare example run as written
-on real sweep output: two `sweep --sim --matrix eccentricity` runs, `catalog add`, `list`,
-`export` and `compare` with the shipped predictions (examples/predicted/sim-bearing.csv),
-which are the simulator's own bearing at each static eccentricity."""
+"""The README's catalog-and-compare block and docs/catalog.md's compare and ROSS examples run as
+written on real sweep output: two `sweep --sim --matrix eccentricity` runs, `catalog add`,
+`list`, `export` and `compare` with the shipped predictions (examples/predicted/sim-bearing.csv),
+which are the simulator's own bearing at each static eccentricity; then the ROSS hand-off."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import re
 import shlex
 import subprocess
 import sys
+import tomllib
 
 import pytest
 
@@ -45,7 +46,10 @@ def _predicted() -> dict[float, dict[str, float]]:
         return {float(r["static_eccentricity"]): {k.split()[0]: float(v) for k, v in r.items()} for r in rows}
 
 
-def test_readme_campaign_runs_as_written(tmp_path):
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory):
+    """(folder, {"catalog add": process, ...}): the README's block run there, in order."""
+    tmp_path = tmp_path_factory.mktemp("campaign")
     (tmp_path / "examples").symlink_to(ROOT / "examples")
     readme = _block_after(ROOT / "README.md", "### catalog and compare")
     assert readme[0].startswith("pip install") and len(readme) == 7
@@ -54,6 +58,11 @@ def test_readme_campaign_runs_as_written(tmp_path):
         p = _run(command, tmp_path)
         assert p.returncode == 0, f"{command}: {p.stdout[-2000:]}\n{p.stderr[-2000:]}"
         out[command.split()[1] + " " + command.split()[2]] = p
+    return tmp_path, out
+
+
+def test_readme_campaign_runs_as_written(campaign):
+    tmp_path, out = campaign
     assert out["catalog add"].stdout.split("\n")[:2] == ["runs/ecc-1: 12 rows", "runs/ecc-2: 12 rows"]
     listed = out["catalog list"].stdout.splitlines()
     header = listed[0].split()
@@ -92,3 +101,27 @@ def test_readme_campaign_runs_as_written(tmp_path):
             measured = fit[(point, "piezo", "kcd11")]
             for name in ("Kxx", "Kyy", "Cxx", "Cyy"):
                 assert abs(getattr(measured, name) - pred[name]) < 2 * getattr(measured, f"{name}_U"), (point, name)
+
+
+def test_ross_example_runs_as_written_on_a_campaign_run(campaign, monkeypatch):
+    """docs/catalog.md's ROSS snippet, on a run of the campaign in the place it names."""
+    tmp_path, _ = campaign
+    (tmp_path / "runs" / "demo").symlink_to(tmp_path / "runs" / "ecc-1")
+    p = _run("orbitrig export runs/demo --format ross", tmp_path)
+    assert p.returncode == 0, p.stderr
+    snippets = re.findall(r"```python\n(.*?)```", (ROOT / "docs" / "catalog.md").read_text(), re.S)
+    assert len(snippets) == 1
+    monkeypatch.chdir(tmp_path)
+    names: dict[str, object] = {}
+    with pytest.warns(UserWarning, match="not determined"):  # the apparent masses' U exceed them (stderr says so)
+        exec(compile(snippets[0].replace("print(", "_ = ("), "docs/catalog.md, python snippet", "exec"), names)
+    rotor = names["rotor"]
+    bearing = rotor.bearing_elements[0]
+    run = orbitrig.open_run(tmp_path / "runs" / "ecc-1")
+    assert bearing.kxx_interpolated(100.0) == pytest.approx(
+        run.fit(0, "piezo", "kcd11").coefficients.loc["Kxx", "value"]
+    )
+    recorded = tomllib.loads(run.run.rig_config)["bearing"]  # the journal the run records
+    assert names["d"] == pytest.approx(2e-3 * recorded["radius_mm"], rel=1e-12)
+    log_dec = names["_"][:6]
+    assert all(abs(x) < 1e3 for x in log_dec) and max(log_dec) > 0
