@@ -34,6 +34,18 @@ STIFFNESS, DAMPING, MASS = "N/m", "N s/m", "kg"
 COEFFICIENT_UNITS = {"K": STIFFNESS, "C": DAMPING, "D": MASS}
 
 
+#: the unit a person reads each matrix in (tables, figures) and its scale: SI value * scale
+DISPLAY_UNITS = {"K": ("MN/m", 1e-6), "C": ("kN s/m", 1e-3), "D": ("kg", 1.0)}
+
+
+def display_unit(key: str) -> tuple[str, float]:
+    """Display unit and scale of coefficient `key`: 'Kxx' -> ('MN/m', 1e-6); the term of order r
+    ('Kxx_r') multiplies Omega^r, so its unit carries (rad/s)^-r: ('MN/m (rad/s)^-r', 1e-6)."""
+    unit, scale = DISPLAY_UNITS[key[0]]
+    _, _, order = key.partition("_")
+    return (unit if not order else f"{unit} (rad/s)^-{order}"), scale
+
+
 def coefficient_unit(key: str) -> str:
     """SI unit of coefficient `key`: 'Kxx' -> 'N/m'; 'Cxy_2' (multiplies Omega^2) -> 'N s/m (rad/s)^-2'."""
     unit = COEFFICIENT_UNITS[key[0]]

@@ -25,7 +25,7 @@ from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _save, coverage, style
 from orbitrig.analysis.plot_panels import figure_legend, panels
 from orbitrig.analysis.plot_marks import _colors, _min_span, band, error_bars, keep_inside, plot_fit, split_tested
-from orbitrig.analysis.reduce import MATRIX_UNITS
+from rigunits import DISPLAY_UNITS
 from reduction.derived import entry_gradient
 
 #: the legend entry of the crosses of each fit's own truth (drawn in the fit's colour)
@@ -60,7 +60,7 @@ def _draw_fit(axes, mats, fit: Fitted, color, grid, tested, spin, largest) -> No
     for row, m in enumerate(mats):
         if not _has(ident, m):
             continue
-        _, scale = MATRIX_UNITS[m]
+        _, scale = DISPLAY_UNITS[m]
         mi = "KCD".index(m)
         for col, e in enumerate(ENTRIES):
             ax = axes[row, col]
@@ -97,7 +97,7 @@ def _draw_own_truth(axes, mats, fit: Fitted, color, tested, spin, largest) -> No
     for row, m in enumerate(mats):
         if not _has(fit.identification, m):
             continue
-        _, scale = MATRIX_UNITS[m]
+        _, scale = DISPLAY_UNITS[m]
         values = mat[:, "KCD".index(m)] * scale
         if np.isfinite(values).any():
             largest[m] = max(largest[m], float(np.nanmax(np.abs(values))))
@@ -133,7 +133,7 @@ def _draw_truth(axes, mats, truth: dict, spin: float, largest) -> None:
         if found is None:
             continue
         t_orbit, mat = found
-        _, scale = MATRIX_UNITS[m]
+        _, scale = DISPLAY_UNITS[m]
         largest[m] = max(largest[m], float(np.max(np.abs(mat))) * scale)
         for col in range(4):
             i, j = divmod(col, 2)
@@ -166,7 +166,7 @@ def coefficients_figure(
         _draw_truth(axes, mats, truth, spin, largest)
     axes[0, 0].set_xlim(0, top / spin)  # shared by every panel
     for row, m in enumerate(mats):
-        unit, _ = MATRIX_UNITS[m]
+        unit, _ = DISPLAY_UNITS[m]
         for col, e in enumerate(ENTRIES):
             ax = axes[row, col]
             ax.set_title(f"{m}{e}")

@@ -27,8 +27,9 @@ from orbitrig.analysis.plot_marks import _colors, _min_span, band, keep_inside, 
 from orbitrig.analysis.quality import TrueImpedance, orbit_grid
 from reduction.derived import Derived
 from reduction.systematic import UncertaintyBasis
+from rigunits import DISPLAY_UNITS
 
-MN, KNS = 1e-6, 1e-3  # N/m -> MN/m, N s/m -> kN s/m
+MN, KNS = DISPLAY_UNITS["K"][1], DISPLAY_UNITS["C"][1]  # N/m -> MN/m, N s/m -> kN s/m
 
 
 def _band(ax, x, y, std, color, scale, **kw) -> None:

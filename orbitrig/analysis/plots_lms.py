@@ -12,7 +12,7 @@ from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import DIRECTIONS, ENTRIES, MATRIX_NAMES, Fitted, _save, coverage, style
 from orbitrig.analysis.plot_panels import panels
 from orbitrig.analysis.plot_marks import _colors, whirl_direction
-from orbitrig.analysis.reduce import MATRIX_UNITS
+from rigunits import DISPLAY_UNITS
 from orbitrig.load_systems import LoadSystem
 
 
@@ -65,7 +65,7 @@ def _coefficient_bars(axes, fitted: dict[LoadSystem, Fitted]) -> None:
     colors = _colors(2)
     for col, m in enumerate("KC"):
         ax = axes[col]
-        unit, scale = MATRIX_UNITS[m]
+        unit, scale = DISPLAY_UNITS[m]
         keys = [m + e for e in ENTRIES]
         for k, (lms, fit) in enumerate(fitted.items()):
             ident = fit.identification

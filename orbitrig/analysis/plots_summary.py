@@ -13,7 +13,7 @@ from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _save, coverag
 from orbitrig.analysis.plots_coefficients import entry_std
 from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels, AXES, panel_figure
 from orbitrig.analysis.plot_marks import _colors, _min_span, keep_inside
-from orbitrig.analysis.reduce import MATRIX_UNITS
+from rigunits import DISPLAY_UNITS
 from orbitrig.load_systems import LoadSystem
 
 
@@ -46,7 +46,7 @@ def summary_plot(
     for k, (lms, entries) in enumerate(series.items()):
         idx = np.array([i for i, _ in entries], dtype=float)
         for row, m in enumerate("KC"):
-            unit, scale = MATRIX_UNITS[m]
+            unit, scale = DISPLAY_UNITS[m]
             for col, e in enumerate(ENTRIES):
                 key = m + e
                 vals = [f.identification.coefficients.get(key, np.nan) * scale for _, f in entries]
@@ -63,7 +63,7 @@ def summary_plot(
                     label=f"{lms}, {model}",
                 )
     for row, m in enumerate("KC"):
-        unit, scale = MATRIX_UNITS[m]
+        unit, scale = DISPLAY_UNITS[m]
         for col, e in enumerate(ENTRIES):
             ax = axes[row, col]
             i, j = divmod(col, 2)

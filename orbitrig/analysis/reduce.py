@@ -38,19 +38,10 @@ from orbitrig.store.csvfile import (
     warnings_cell,
 )
 from orbitrig.store.durable import write_atomic
+from rigunits import MPA, display_unit
 
 #: constant-term keys in the spec's order
 CONSTANT_KEYS = tuple(f"{m}{e}" for m in "KCD" for e in ("xx", "xy", "yx", "yy"))
-#: display unit and scale (SI value * scale) of each matrix at the edges
-MATRIX_UNITS = {"K": ("MN/m", 1e-6), "C": ("kN s/m", 1e-3), "D": ("kg", 1.0)}
-
-
-def coefficient_unit(key: str) -> tuple[str, float]:
-    """Display unit and scale of a coefficient key: constant terms in MN/m, kN s/m, kg;
-    the term of order r (``Kxx_r``) multiplies Omega^r, so its unit carries (rad/s)^-r."""
-    unit, scale = MATRIX_UNITS[key[0]]
-    _, _, order = key.partition("_")
-    return (unit if not order else f"{unit} (rad/s)^-{order}"), scale
 
 
 @dataclass
@@ -181,7 +172,7 @@ def csv_rows(rows: list[Reduced], sim: bool) -> tuple[list[str], list[dict[str, 
             "point": r.point.index,
             "label": s.label,
             "spin_rpm": s.spin_rpm,
-            "recess_pressure_mpa": s.recess_pressure / 1e6,
+            "recess_pressure_mpa": s.recess_pressure / MPA,
             "pressure_ratio": s.pressure_ratio,
             "static_eccentricity": s.static_eccentricity,
             "dynamic_eccentricity": s.dynamic_eccentricity,
@@ -226,11 +217,11 @@ def table_cells(rows: list[Reduced], full: bool = False) -> list[list[str]]:
     the true Z projected onto the fit's model, as the CSV's true_* columns)."""
     cols = [k for k in CONSTANT_KEYS if any(r.identification and k in r.identification.coefficients for r in rows)]
     auto = any(r.identification is not None and r.identification.exponent is not None for r in rows)
-    units = {k: coefficient_column(k) if full else f"{k} [{coefficient_unit(k)[0]}]" for k in cols}
+    units = {k: coefficient_column(k) if full else f"{k} [{display_unit(k)[0]}]" for k in cols}
     lines = [["point", "lms", *(units[k] for k in cols), "resid [N]", *(["M"] if auto else [])]]
 
     def number(key: str, value: float) -> str:
-        return repr(float(value)) if full else f"{value * coefficient_unit(key)[1]:.4g}"
+        return repr(float(value)) if full else f"{value * display_unit(key)[1]:.4g}"
 
     for r in rows:
         cells = [r.point.name, str(r.lms)]

@@ -20,7 +20,7 @@ from orbitrig.analysis.report_analysis import fit_label, preferred
 from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.durable import write_atomic
-from rigunits import utc_iso
+from rigunits import MPA, utc_iso
 
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:1.5em auto;max-width:1400px;
@@ -48,7 +48,7 @@ def _e(text) -> str:
 def _settings_table(s) -> str:
     rows = [
         ("spin speed \u03c9", f"{s.spin_rpm:.0f} rpm ({s.spin:.2f} rad/s)"),
-        ("recess pressure p<sub>r</sub>", f"{s.recess_pressure / 1e6:.4g} MPa"),
+        ("recess pressure p<sub>r</sub>", f"{s.recess_pressure / MPA:.4g} MPa"),
         ("pressure ratio \u03b2", fmt(s.pressure_ratio)),
         ("static eccentricity \u03b5<sub>s</sub>", fmt(s.static_eccentricity)),
         ("dynamic eccentricity \u03b5<sub>d</sub>", fmt(s.dynamic_eccentricity)),
@@ -178,7 +178,7 @@ def _points_table(report) -> str:
         n = sum(len(v) for v in pr.results.values())
         rows.append(
             f'<tr><td><a href="#p{pr.point.name}">{pr.point.name}</a></td><td class="l">{_e(s.label)}</td>'
-            f"<td>{s.spin_rpm:.0f}</td><td>{s.recess_pressure / 1e6:.4g}</td><td>{fmt(s.pressure_ratio)}</td>"
+            f"<td>{s.spin_rpm:.0f}</td><td>{s.recess_pressure / MPA:.4g}</td><td>{fmt(s.pressure_ratio)}</td>"
             f"<td>{fmt(s.static_eccentricity)}</td><td>{fmt(s.dynamic_eccentricity)}</td>"
             f"<td>{n} of {len(pr.point.identifications)}</td></tr>"
         )

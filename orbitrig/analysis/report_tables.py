@@ -10,7 +10,7 @@ quality (frequencies, degrees of freedom, condition number, residual, chi2 and p
 force errors); its warnings and notes. Then the model-adequacy verdicts and the derived
 quantities (whirl frequency ratio, zero crossings of the effective damping) +- k standard
 uncertainties on the basis the exports give them (combined where the run stored a budget).
-Display units: MN/m, kN s/m, kg (coefficient_unit); frequencies in Hz and Omega/omega.
+Display units: MN/m, kN s/m, kg (rigunits.display_unit); frequencies in Hz and Omega/omega.
 """
 
 from __future__ import annotations
@@ -30,10 +30,11 @@ from orbitrig.analysis.quality import (
     interval_kind,
     warnings_of,
 )
-from orbitrig.analysis.reduce import Reduced, coefficient_unit, own_truth
+from orbitrig.analysis.reduce import Reduced, own_truth
 from orbitrig.store.fit_record import expanded_k
 from reduction.derived import Derived
 from reduction.systematic import LmsAgreement, UncertaintyBasis
+from rigunits import display_unit
 
 D_SENTENCE = (
     "D is an apparent inertia (added mass): it absorbs everything that grows with \u03a9\u00b2, "
@@ -93,7 +94,7 @@ def identification_table(r: Reduced, truth: dict[str, float], label: str, with_b
         head.append("<th>true (simulator, this model)</th>" if own else "<th>true (simulator)</th>")
     body = []
     for row in rows:
-        unit, scale = coefficient_unit(row.key)
+        unit, scale = display_unit(row.key)
         ci = "-" if row.interval is None else f"[{fmt(row.interval[0] * scale)}, {fmt(row.interval[1] * scale)}]"
         value = fmt(row.value * scale) + (" <b>n.d.</b>" if row.key in nd else "")
         cells = [value, fmt(None if row.std is None else row.std * scale, 2), ci]
@@ -241,7 +242,7 @@ def consistency_table(a: Reduced, b: Reduced, comparison: LmsComparison, label: 
     rows, en, mark = [], ag.e_n, ag.e_n_limit()
     for key, va in a.identification.coefficients.items():
         vb = b.identification.coefficients.get(key)
-        unit, scale = coefficient_unit(key)
+        unit, scale = display_unit(key)
         rel = "-" if vb is None or va == 0 else f"{100 * (vb - va) / abs(va):+.2f}"
         e = en.get(key)
         cell = "-" if e is None else f"{e:+.2f}"

@@ -18,9 +18,8 @@ from orbitrig.catalog.compare import Row, Variable, repeatability, runs_of
 from orbitrig.catalog.predicted import PredictedLines, predicted_lines
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import StorageError, storage_error
+from rigunits import display_unit
 
-#: plotted unit of each family: (scale from SI, label)
-SCALE = {"K": (1e-6, "MN/m"), "C": (1e-3, "kN s/m"), "D": (1.0, "kg")}
 #: height of one row of panels with its titles and labels, and the figure's top and bottom edge (in)
 PANEL_HEIGHT, EDGE = 1.9, 0.06
 
@@ -59,7 +58,7 @@ def compare_figure(
     offsets = (np.arange(len(runs)) - (len(runs) - 1) / 2) * 0.06 * step  # repeats side by side
     for k, name in enumerate(coefficients):
         ax = fig.add_subplot(nrow, ncol, k + 1)
-        scale, unit = SCALE[name[0]]
+        unit, scale = display_unit(name)
         for (run_id, run_rows), color, dx in zip(runs.items(), colors, offsets):
             pts = [
                 (variable.of(r) + dx, r[name] * scale, (r[f"{name}_U"] or 0.0) * scale)

@@ -7,7 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from orbitrig.analysis import plots_coefficients, report, report_analysis
-from orbitrig.analysis.reduce import MATRIX_UNITS, own_truth
+from orbitrig.analysis.reduce import own_truth
+from rigunits import DISPLAY_UNITS
 from orbitrig.store.reader import read_run
 
 
@@ -40,7 +41,7 @@ def test_truth_crosses_are_each_fits_own_truth(sim_run, tmp_path, monkeypatch):
             value = truth.get(name)
             if value is None:  # an entry of a constrained pair (kcd11's Dyx = Dxy)
                 continue
-            np.testing.assert_allclose(y, value * MATRIX_UNITS[name[0]][1], rtol=1e-12)
+            np.testing.assert_allclose(y, value * DISPLAY_UNITS[name[0]][1], rtol=1e-12)
     kxx = next(ax for ax in drawn[f"coefficients_{point.name}_piezo_kc8.png"].axes if ax.get_title() == "Kxx")
     y = next(ln for ln in kxx.get_lines() if ln.get_label() == plots_coefficients.OWN_TRUTH_LABEL).get_ydata()
-    assert not np.allclose(y, k0[0, 0] * MATRIX_UNITS["K"][1], rtol=1e-6)
+    assert not np.allclose(y, k0[0, 0] * DISPLAY_UNITS["K"][1], rtol=1e-6)

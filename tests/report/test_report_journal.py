@@ -12,7 +12,7 @@ import pytest
 from pypdf import PdfReader
 
 from orbitrig.analysis import plot_marks, plots, plots_coefficients, plots_forces
-from orbitrig.analysis.reduce import MATRIX_UNITS
+from rigunits import DISPLAY_UNITS
 from orbitrig.analysis.report import ReportOptions, make_report
 from orbitrig.analysis.report_analysis import analyse_point, fit_label
 from orbitrig.cli.report_progress import ReportProgress
@@ -56,7 +56,7 @@ def test_truth_crosses_on_every_coefficient_panel(point, stored):
         assert len(crosses) == 1, ax.get_title()
         x, y = crosses[0].get_data()
         assert np.allclose(np.unique(np.round(x, 9)), tested)
-        assert np.allclose(y, truth[f"{m}0"][i][j] * MATRIX_UNITS[m][1])
+        assert np.allclose(y, truth[f"{m}0"][i][j] * DISPLAY_UNITS[m][1])
         lo, hi = ax.get_ylim()
         assert lo < y.min() and y.max() < hi
 

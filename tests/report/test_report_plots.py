@@ -9,7 +9,7 @@ import pytest
 from typer.testing import CliRunner
 
 from orbitrig.cli import app
-from orbitrig.analysis.reduce import coefficient_unit
+from rigunits import display_unit
 from orbitrig.analysis.report_analysis import analyse_point
 from orbitrig.store.reader import read_run
 from support.report_synthetic import write_synthetic_run
@@ -84,7 +84,7 @@ def test_html_references_every_plot_and_shows_coefficients(synthetic_run, synthe
     pr = analyse_point(read_run(synthetic_run).points[1])
     for r in pr.results["strain"]:
         for key, value in r.identification.coefficients.items():
-            unit, scale = coefficient_unit(key)
+            unit, scale = display_unit(key)
             assert f"{value * scale:.4g}" in html, key
             assert f"{r.identification.std_errors[key] * scale:.2g}" in html, key
     for text in (
@@ -102,10 +102,10 @@ def test_html_references_every_plot_and_shows_coefficients(synthetic_run, synthe
     assert "\u03b3\u00b2 x, Fx" in html  # the coherence table (paper Table 1)
 
 
-def test_coefficient_units():
-    assert coefficient_unit("Kxy") == ("MN/m", 1e-6)
-    assert coefficient_unit("Cyy_2") == ("kN s/m (rad/s)^-2", 1e-3)
-    assert coefficient_unit("Dxx") == ("kg", 1.0)
+def test_display_units():
+    assert display_unit("Kxy") == ("MN/m", 1e-6)
+    assert display_unit("Cyy_2") == ("kN s/m (rad/s)^-2", 1e-3)
+    assert display_unit("Dxx") == ("kg", 1.0)
 
 
 @pytest.mark.parametrize(
