@@ -43,6 +43,17 @@ class Operating(_Model):
             raise ValueError(f"'{info.field_name}' has repeated values ({twice}): give each value once")
         return values
 
+    @model_validator(mode="after")
+    def _inside_the_clearance(self) -> Operating:
+        """The orbit (radius eps_d c) about the static offset (eps_s c) stays inside the clearance c."""
+        eps_s, eps_d = max(self.static_eccentricity), max(self.dynamic_eccentricity)
+        if eps_s + eps_d >= 1:
+            raise ValueError(
+                f"static_eccentricity {eps_s:g} + dynamic_eccentricity {eps_d:g} = {eps_s + eps_d:g}: "
+                "the journal would touch the bearing; their sum must stay below 1"
+            )
+        return self
+
 
 #: revolutions averaged per block (a fixed count, or an adaptive rule's bounds)
 Revolutions = Annotated[int, Field(ge=2, le=10_000)]

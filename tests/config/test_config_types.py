@@ -80,6 +80,18 @@ def test_integers_for_numbers_and_names_for_choices_still_load():
     cfg.matrix_from_text(PAPER_TEXT, "paper.toml")
 
 
+def test_a_static_offset_and_orbit_that_touch_the_bearing_are_refused():
+    """eps_s c + eps_d c must stay inside the clearance c (the simulator refused it mid-run)."""
+    ecc = (cfg.shipped_config() / "matrices" / "eccentricity.toml").read_text()
+    cfg.matrix_from_text(ecc.replace("[0.0, 0.15, 0.3]", "[0.0, 0.15, 0.9]"), "ok.toml")  # 0.9 + 0.096 < 1
+    text = ecc.replace("[0.0, 0.15, 0.3]", "[0.0, 0.15, 0.95]")
+    problem = _one_problem(cfg.matrix_from_text, text)
+    assert problem == (
+        f"line {_line_no(text, '[operating]')}: key 'operating': static_eccentricity 0.95 + dynamic_eccentricity "
+        "0.096 = 1.046: the journal would touch the bearing; their sum must stay below 1"
+    )
+
+
 @pytest.mark.parametrize(
     "key, values",
     [
