@@ -63,7 +63,7 @@ def test_matrix_names_from_the_lab_first(lab, monkeypatch):
     assert cfg.load_matrix(cfg.matrix_file("paper", rig_path=lab / "rig.toml")).file.startswith(str(REPO))
     monkeypatch.setenv(cfg.HOME_ENV, str(lab))
     assert cfg.load_matrix(cfg.default_matrix_path()).name == "lab demo"
-    with pytest.raises(ConfigError, match=r"available: demo, designed, mine, paper"):
+    with pytest.raises(ConfigError, match=r"available: demo, designed, eccentricity, mine, paper"):
         cfg.matrix_file("nothing")
 
 
