@@ -1,7 +1,7 @@
 """ROSS ``BearingElement``s from an exported ross_bearings.json (orbitrig.analysis.ross_export):
 coefficients over rotor speed omega (rad/s), piecewise linear between the exported speeds and the
 end values held outside them (0 and ``HOLD_SPEED``); one speed: constant coefficients.
-Requires ross-rotordynamics: pip install "orbitrig[ross]".
+Requires ross-rotordynamics: pip install -e ".[ross]" in orbitrig's source tree.
 """
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ def bearing_elements(
     whose points include ``point`` (None: the only one): coefficients over rotor speed,
     piecewise linear between the exported speeds and the end values held outside (one speed:
     constant). A coefficient not determined and a fit warning are warned about (UserWarning),
-    with ``strict`` refused (ValueError). Requires ross-rotordynamics: pip install "orbitrig[ross]"."""
+    with ``strict`` refused (ValueError). Requires ross-rotordynamics: pip install -e ".[ross]" (source tree)."""
     import ross
 
     data = _chosen(json.loads(Path(path).read_text()), path, point, str(lms))

@@ -57,8 +57,8 @@ def _guarded(action) -> None:
         if (err.name or "").split(".")[0] not in CATALOG_MODULES:
             raise
         typer.echo(
-            f"error: the catalog needs {err.name}, which is not installed: pip install 'orbitrig[catalog]'"
-            " (SQLAlchemy and the PostgreSQL driver)",
+            f"error: the catalog needs {err.name}, which is not installed: pip install -e '.[catalog]'"
+            " in orbitrig's source tree (SQLAlchemy and the PostgreSQL driver)",
             err=True,
         )
         raise typer.Exit(2) from None

@@ -26,8 +26,8 @@ Matrix = Annotated[
     typer.Option(
         "--matrix",
         metavar="NAME|FILE",
-        help="test matrix: a TOML file, or a name from the configuration's matrices/ (demo, paper, designed, eccentricity); "
-        "required on the rig, --sim defaults to matrices/demo.toml",
+        help="test matrix: a TOML file, or a name from the configuration's matrices/ (demo, paper, designed, "
+        "eccentricity); required on the rig, --sim defaults to matrices/demo.toml",
     ),
 ]
 Resume = Annotated[bool, typer.Option("--resume", help="continue the run in --out from its first incomplete point")]
