@@ -15,6 +15,7 @@ from reduction.impedance import forces, impedance
 from reduction.models import ModelSpec
 from reduction.selection import Selection
 from reduction.table import OrbitTable
+from rigunits import coefficient_unit
 
 
 @dataclass
@@ -75,6 +76,7 @@ class Identification:
             "min_frequencies": self.min_frequencies,
             "n_frequencies": self.n_frequencies,
             "coefficients": {k: _num(v) for k, v in self.coefficients.items()},
+            "units": {k: coefficient_unit(k) for k in self.coefficients},
             "std_errors": {k: _num(v) for k, v in self.std_errors.items()},
             "confidence_95": {
                 k: (None if v is None else [_num(v[0]), _num(v[1])]) for k, v in self.confidence_95.items()

@@ -7,6 +7,7 @@ import json
 import subprocess
 import sys
 
+import pint
 import pytest
 
 from support.identify_keys import keys
@@ -15,6 +16,7 @@ from support.paths import ROOT
 
 EXAMPLES = ROOT / "examples" / "orbit-tables"
 TRUTH = json.loads((EXAMPLES / "truth.json").read_text())
+UREG = pint.UnitRegistry()
 
 
 def _identify(name: str, args: str, *extra: str) -> subprocess.CompletedProcess:
@@ -42,6 +44,11 @@ def test_examples_follow_the_v3_contract(name):
     # the constant models are determined; poly:2's higher D orders are not from this table
     assert (d["not_determined"] == []) == (d["freq_dep"] == "none"), d["not_determined"]
     assert set(d["coefficients"]) == set(truth["coefficients"]) == set(d["std_errors"]) == set(d["confidence_95"])
+    assert list(d["units"]) == list(d["coefficients"])
+    for key, unit in d["units"].items():  # SI, machine-readable: Kxx_r in N/m (rad/s)^-r
+        order = int(key.partition("_")[2] or 0)
+        si = {"K": "N/m", "C": "N*s/m", "D": "kg"}[key[0]] + f" * (rad/s)**{-order}"
+        assert UREG.parse_units(unit) == UREG.parse_units(si), (key, unit)
     p = len(d["free"])
     assert d["n_coefficients"] == p and len(d["covariance"]) == p and all(len(r) == p for r in d["covariance"])
     assert d["dof"] == 4 * d["n_frequencies"] - p

@@ -11,6 +11,7 @@ KEYS_WITH_UNCERTAINTY = (
     "min_frequencies",
     "n_frequencies",
     "coefficients",
+    "units",
     "std_errors",
     "confidence_95",
     "free",
