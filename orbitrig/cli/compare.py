@@ -7,6 +7,7 @@ the catalog cannot be read or the figure cannot be written.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated, Optional
 
@@ -54,11 +55,10 @@ def compare_cmd(
             raise CatalogUsageError(f"--coefficients {coefficients!r}: names among {', '.join(COEFFICIENTS)}")
         table = read_predicted(predicted, Variable(against)) if predicted else None
         fit = f"lms = {lms} and model = {model} and freq_dep = '{freq_dep}' and method = {method} and ok = true"
-        rows = _open(db, runs_dir).rows(f"{fit} and {where}" if where.strip() else fit)
+        catalog = _open(db, runs_dir)
+        rows = catalog.rows(f"{fit} and {where}" if where.strip() else fit)
         if not rows:
-            raise CatalogUsageError(
-                f"no catalog rows for {lms} {model} {freq_dep} {method}" + (f" where {where}" if where.strip() else "")
-            )
+            raise CatalogUsageError(no_rows(catalog, fit, f"{lms} {model} {freq_dep} {method}", where))
         if table and not predicted_lines(table, rows, Variable(against)):
             typer.echo(
                 f"--predicted {predicted}: no line's conditions are those of the plotted rows: none drawn", err=True
@@ -69,6 +69,33 @@ def compare_cmd(
             typer.echo(str(path))
 
     _guarded(action)
+
+
+#: at most this many distinct values of a column are listed when nothing matches
+SHOWN_VALUES = 8
+
+
+def no_rows(catalog, fit: str, kind: str, where: str) -> str:
+    """Why compare has nothing to draw, with what the catalog holds instead: the values of the
+    columns ``where`` names among the rows of the fit kind, else the fit kinds there are."""
+    from orbitrig.catalog.schema import ROW_COLUMNS
+
+    text = f"no catalog rows for {kind}" + (f" where {where}" if where.strip() else "")
+    of_kind = catalog.rows(fit) if where.strip() else []
+    if not of_kind:
+        kinds = sorted({f"{r['lms']} {r['model']} {r['freq_dep']} {r['method']}" for r in catalog.rows("ok = true")})
+        return f"{text}; the catalog's fits: {', '.join(kinds) or 'none'}"
+    named = [c for c in ROW_COLUMNS if re.search(rf"(?<![\w.]){c}(?![\w.])", where)]
+    held = []
+    for column in named:
+        values = sorted({_shown(r[column]) for r in of_kind})
+        more = f", ... ({len(values)} values)" if len(values) > SHOWN_VALUES else ""
+        held.append(f"{column} {', '.join(values[:SHOWN_VALUES])}{more}")
+    return f"{text}; the catalog's {len(of_kind)} rows of that fit kind have {'; '.join(held)}"
+
+
+def _shown(value) -> str:
+    return f"{value:.6g}" if isinstance(value, float) else str(value)
 
 
 def register(app: typer.Typer) -> None:

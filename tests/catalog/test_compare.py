@@ -259,3 +259,24 @@ def test_compare_says_when_no_prediction_is_of_the_plotted_conditions(tmp_path):
     assert (
         res.exit_code == 0 and f"--predicted {other}: no line's conditions are those of the plotted rows" in res.output
     )
+
+
+def test_no_rows_says_what_the_catalog_holds(tmp_path):
+    """A filter that matches nothing names the values its columns have among the fit kind's rows
+    (the documented example once asked for pressure ratio 0.25 of runs at 0.4); a fit kind that
+    is not there names the fit kinds that are."""
+    Catalog(f"sqlite:///{tmp_path / 'catalog.sqlite'}").add(campaign_rows(n_runs=2))
+    runner = CliRunner()
+    base = ["compare", "--runs", str(tmp_path), "--out", str(tmp_path / "x")]
+    res = runner.invoke(app, [*base, "--where", "pressure_ratio = 0.4 and static_eccentricity>=0.1"])
+    assert res.exit_code == 2 and not (tmp_path / "x").exists()
+    assert res.output.strip() == (
+        "error: no catalog rows for piezo kcd11 none ols where pressure_ratio = 0.4 and static_eccentricity>=0.1; "
+        "the catalog's 10 rows of that fit kind have pressure_ratio 0.25; static_eccentricity 0, 0.1, 0.2, 0.3, 0.4"
+    )
+    res = runner.invoke(app, [*base, "--model", "kc8", "--where", "pressure_ratio = 0.25"])
+    assert res.exit_code == 2
+    assert res.output.strip() == (
+        "error: no catalog rows for piezo kc8 none ols where pressure_ratio = 0.25; "
+        "the catalog's fits: piezo kcd11 none ols"
+    )
