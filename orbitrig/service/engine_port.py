@@ -24,6 +24,7 @@ class Engine(Protocol):
     let_go: bool  # its cleanup past its closing stop: no stop asked of it reaches the drives any more
 
     async def run(self, matrix: Any, *, resume: bool = False) -> RunOutcome: ...
+    def unwritten(self) -> list[str]: ...  # what the run has not written yet (orbitrig.run.closing)
     def subscribe(self, callback: Callable[[Any], None]) -> None: ...
 
     operator: str
