@@ -189,8 +189,9 @@ class RunEngine(OperatorRequests, RunClosing):
     async def _operate(self, io: RigIO, store: RunStore, plan: Plan, done: set[int]) -> tuple[Outcome, str]:
         """Open the rig and execute the plan: (status, message)."""
         try:
+            self._opening = opening = asyncio.ensure_future(io.__aenter__())  # an abort lets go of it at once
             try:
-                await io.__aenter__()
+                await opening
             except Exception as err:
                 raise RunFailed(f"cannot open the rig: {type(err).__name__}: {err}") from err
             self._io = io
