@@ -196,12 +196,13 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
     def on_signal(sig: int) -> None:
         """The first: the run stops at once with a ramp (no run: both drives' emergency stop, as an
         MQTT abort no run carries out); another: it aborts (no run: the emergency stop again). A run
-        whose disk does not return is left once its drives are stopped: 2 s after another signal,
-        or after the service's whole wait for it (orbitrig.service.leaving)."""
+        whose disk does not return is left once its drives are stopped: 2 s after another signal
+        while it says so, or after the service's whole wait for it (orbitrig.service.leaving)."""
         name = signal_name(sig)
         if shutdown.is_set() and services:
             services[0].abort_run(f"a second signal ({name}) while shutting down")
-            _leave_later(leaving, services[0], f"a second signal ({name})", LEAVE_GRACE_S)
+            if services[0].run_waits_for_disk:  # not a run that is still stopping or storing in time
+                _leave_later(leaving, services[0], f"a second signal ({name})", LEAVE_GRACE_S)
         elif services:
             services[0].shutdown_cause = name
             services[0].stop_drives_on_signal(name)

@@ -52,6 +52,13 @@ class RunClosing:
     _let_go: bool
     _log_event: Callable[..., None]
     _end_written = True  # False from a run's start until its end is recorded
+    _disk_wait = False  # its storage in flight not finished STORAGE_GRACE_S after the drives' stop
+
+    @property
+    def waiting_for_disk(self) -> bool:
+        """The run is past its drives' closing stop, its storage in flight did not finish within
+        STORAGE_GRACE_S (its status said so), and its end is not recorded yet."""
+        return self._disk_wait and not self._end_written
 
     def unwritten(self) -> list[str]:
         """What the run has not written yet, oldest first: its storage and identification in
@@ -64,6 +71,7 @@ class RunClosing:
         drives are safe. Returns the final (status, message): aborted after an abort while
         stopping; failed when the drives are not confirmed stopped, when storage in flight
         failed, or when the run's status and run.h5 could not be recorded."""
+        self._disk_wait = False
         if self._control.state != STOPPING:
             self._control.fire("finish", message)
         status, message = await self._cleanup(io, status, message)
@@ -121,13 +129,13 @@ class RunClosing:
         (how their stop ended) and what the run waits for, for how long."""
         t0, wait = time.monotonic(), STORAGE_GRACE_S
         while not await self._background.settle(wait):
-            waited = time.monotonic() - t0
+            self._disk_wait, wait = True, STORAGE_NOTE_S
             names = ", ".join(self._background.in_flight())
             if self._control.state == STOPPING:
+                waited = time.monotonic() - t0
                 self._control.fire(
                     "finish", f"{drives}; waiting for the storage in flight: {names} (for {waited:.0f} s)"
                 )
-            wait = STORAGE_NOTE_S
 
     def _cleanup_failed(self, what: str, err: BaseException) -> None:
         """Log a failed cleanup step (also called from the storage thread: logging and the

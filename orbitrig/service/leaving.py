@@ -50,6 +50,12 @@ class LeavingWithoutDisk:
     _set_status: Callable[..., None]
 
     @property
+    def run_waits_for_disk(self) -> bool:
+        """The active run is past its drives' closing stop and waits for its disk (RunEngine.waiting_for_disk)."""
+        task, engine = self._run_task, self._engine
+        return task is not None and not task.done() and engine is not None and engine.waiting_for_disk
+
+    @property
     def run_holds_drives(self) -> bool:
         """A run is active and not yet past its closing stop: a stop asked of it reaches the drives."""
         task, engine = self._run_task, self._engine

@@ -44,7 +44,7 @@ async def test_a_stopping_run_whose_disk_never_returns_says_its_drives_stopped_a
             eng.request_stop_now("SIGTERM", by="test")
             await wait_for(lambda: _waiting(rec), 30, what="the stopping status naming the wait")
             first = _waiting(rec)[0]
-            assert eng.state == STOPPING and not run.done()
+            assert eng.state == STOPPING and not run.done() and eng.waiting_for_disk
             assert all(abs(w) < 1e-3 for w in sim.speeds), sim.speeds  # said once both are at standstill
             assert first.startswith("drives: ramp stop (OFF1); standstill after"), first
             assert "waiting for the storage in flight: store 0000/" in first, first
@@ -54,5 +54,6 @@ async def test_a_stopping_run_whose_disk_never_returns_says_its_drives_stopped_a
             release.set()
         outcome = await asyncio.wait_for(asyncio.shield(run), 60)
     assert outcome.status == "stopped", outcome.message
+    assert not eng.waiting_for_disk and eng.unwritten() == []
     log = (tmp_path / "run" / "run.log").read_text()
     assert "waiting for the storage in flight: store 0000/" in log

@@ -18,47 +18,17 @@ from pathlib import Path
 import h5py
 import pytest
 
-from support.mqtt_helpers import ACCOUNTS, REPO, Broker, RigClient, Service, retained, sim_service_args
+from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, sim_service_args
+from support.stalled_disk import stalling_env
 
 pytestmark = pytest.mark.timeout(240)
 
 RIG = "stall"
-STALL = """
-import os
-
-if os.environ.get("ORBITRIG_TEST_STALL"):
-    for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(name, "1")
-    import pathlib
-    import threading
-
-    import orbitrig.service.settings as settings
-    from orbitrig.store.writer import RunStore
-
-    flag = pathlib.Path(os.environ.pop("ORBITRIG_TEST_STALL"))  # not in the simulator's process
-    settings.RECORD_END_S = float(os.environ.pop("ORBITRIG_TEST_RECORD_END_S", settings.RECORD_END_S))
-    real = RunStore.write_block
-
-    def write_block(self, point, rec):
-        if flag.exists():
-            threading.Event().wait()  # a disk that never returns
-        return real(self, point, rec)
-
-    RunStore.write_block = write_block
-"""
 
 
 def _serve_stalling(tmp_path: Path, broker: Broker, **env: str) -> tuple[Service, RigClient, Path]:
-    inject = tmp_path / "inject"
-    inject.mkdir()
-    (inject / "sitecustomize.py").write_text(STALL)
-    flag = tmp_path / "stall"
-    env = {
-        "ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"],
-        "PYTHONPATH": f"{inject}:{REPO}",
-        "ORBITRIG_TEST_STALL": str(flag),
-        **env,
-    }
+    stalling, flag = stalling_env(tmp_path, **env)
+    env = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"], **stalling}
     svc = Service(sim_service_args(broker.url, RIG, tmp_path, "--confirm", "auto"), tmp_path, env=env)
     return svc, RigClient(broker, RIG, svc), flag
 
