@@ -18,8 +18,9 @@ Once the run has closed the drives (its cleanup done, also when it could not con
 stopped: state faulted or stopping while it records its end), any signal aborts; an abort the
 run no longer carries out (it does not hold the drives) sends both the emergency stop over a link
 of the command's own, as `orbitrig serve` does (orbitrig.service.idle_stop), and prints which
-drives took it. A signal while the run waits for its disk, its drives stopped (its status says
-so), leaves the run if it still waits 2 s later, as `orbitrig serve` leaves one
+drives took it. A signal while the run waits for a disk that stalls, its drives stopped
+(RunEngine.waiting_for_disk: its status says so, one write has not returned for 5 s), leaves the
+run if it still waits 2 s later, as `orbitrig serve` leaves one
 (orbitrig.service.leaving): the command prints what was not written and exits 1; every file
 written before is kept (`--resume` continues it).
 """

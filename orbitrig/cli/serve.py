@@ -197,7 +197,8 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
         """The first: the run stops at once with a ramp (no run: both drives' emergency stop, as an
         MQTT abort no run carries out); another: it aborts (no run: the emergency stop again). A run
         whose disk does not return is left once its drives are stopped: 2 s after another signal
-        while it says so, or after the service's whole wait for it (orbitrig.service.leaving)."""
+        while it waits for a disk that stalls, or after the service's whole wait for it
+        (orbitrig.service.leaving)."""
         name = signal_name(sig)
         if shutdown.is_set() and services:
             services[0].abort_run(f"a second signal ({name}) while shutting down")

@@ -59,6 +59,7 @@ class Background:
         self._points: deque[asyncio.Task[object]] = deque()  # each point's completion, oldest first
         self._writes = asyncio.Lock()
         self._write_error: Exception | None = None  # the first write that failed
+        self._writing_since: float | None = None  # time.monotonic() the write in the storage thread began
         self.error: BaseException | None = None
 
     async def write(self, fn: Callable[..., T], *args: object) -> T:
@@ -68,14 +69,20 @@ class Background:
         async with self._writes:
             if self._write_error is not None:
                 raise RunFailed("not written: an earlier storage write failed") from self._write_error
-            t = time.monotonic()
+            t = self._writing_since = time.monotonic()
             try:
                 return await asyncio.get_running_loop().run_in_executor(STORAGE_THREAD, fn, *args)
             except Exception as err:  # recorded before the lock passes to the next write
                 self._write_error = err
                 raise
             finally:
+                self._writing_since = None
                 self.timing["store"] = self.timing.get("store", 0.0) + time.monotonic() - t
+
+    def write_stalled_s(self) -> float:
+        """Wall s the write in the storage thread has been going on (0 with none)."""
+        since = self._writing_since
+        return 0.0 if since is None else time.monotonic() - since
 
     def spawn(self, coro: Coroutine[object, object, T], name: str) -> asyncio.Task[T]:
         task = asyncio.ensure_future(coro)

@@ -34,6 +34,8 @@ log = logging.getLogger("orbitrig.run.engine")
 STORAGE_GRACE_S = 1.0
 #: wall s between two stopping statuses while the run waits for the storage in flight
 STORAGE_NOTE_S = 30.0
+#: wall s one storage write may take before the run is said to wait for a disk that stalls
+DISK_STALL_S = 5.0
 #: the last of what a run leaves unwritten until its end is recorded
 END_RECORD = "the run's end (its status, run.h5)"
 
@@ -56,9 +58,11 @@ class RunClosing:
 
     @property
     def waiting_for_disk(self) -> bool:
-        """The run is past its drives' closing stop, its storage in flight did not finish within
-        STORAGE_GRACE_S (its status said so), and its end is not recorded yet."""
-        return self._disk_wait and not self._end_written
+        """The run is past its drives' closing stop, waits for its storage in flight (its status
+        says so) and one write of it has not returned for DISK_STALL_S: a disk that stalls, not an
+        identification or a slow write (its end not recorded yet)."""
+        stalled = self._background.write_stalled_s() >= DISK_STALL_S
+        return self._disk_wait and stalled and not self._end_written
 
     def unwritten(self) -> list[str]:
         """What the run has not written yet, oldest first: its storage and identification in

@@ -1,6 +1,7 @@
 """The service's way out when a run's disk does not return (mixin of
 :class:`orbitrig.service.rig_service.RigService`; `orbitrig serve` calls it on a second shutdown
-signal, and on the first once the run has had its whole bounded wait).
+signal while the run waits for a disk that stalls (RunEngine.waiting_for_disk), and on the first
+once the run has had its whole bounded wait).
 
 The drives come first: nothing happens while the run still holds them (its closing stop is
 bounded by the drives' stop timeout), nor while an emergency stop the service sends over its

@@ -1,6 +1,6 @@
 """`orbitrig sweep` whose disk never returns: SIGTERM stops the run at once, both drives ramp to
-zero and the run says it waits for its storage; a signal then (the abort, the drives stopped
-already) leaves the run 2 s later: the command names what was not written and exits 1, every
+zero and the run says it waits for its storage; a signal once a write has not returned for
+DISK_STALL_S (the abort, the drives stopped already) leaves the run 2 s later: the command names what was not written and exits 1, every
 block written before is kept and `--resume` continues the run.
 
 Real parts: `orbitrig sweep --sim` as a process (the simulator in its own), real signals.
@@ -14,6 +14,7 @@ import time
 
 import pytest
 
+from orbitrig.run.closing import DISK_STALL_S
 from support.paths import ROOT
 from support.stalled_disk import stalling_env
 from support.sweep_helpers import orbitrig_cmd
@@ -61,6 +62,8 @@ def test_a_signal_while_the_run_waits_for_its_disk_leaves_it_once_its_drives_are
         proc.send_signal(signal.SIGTERM)
         _wait_log(log, "waiting for the storage in flight: store 0000/", proc)
         assert "drives: ramp stop (OFF1); standstill after" in log.read_text()
+        time.sleep(DISK_STALL_S)  # a write stalled that long: the run waits for a disk that stalls
+        assert proc.poll() is None
         t = time.monotonic()
         proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=30)

@@ -1,5 +1,6 @@
 """`orbitrig serve` whose run's disk never returns: a shutdown signal stops both drives first, the
-run then says (status, over MQTT) that it waits for its storage; a second signal, or the end of
+run then says (status, over MQTT) that it waits for its storage; a second signal once a write has
+not returned for DISK_STALL_S, or the end of
 the service's whole wait for the run, ends the process (exit 1) with what was not written, in its
 log and its offline status; every file written before is kept.
 
@@ -18,6 +19,7 @@ from pathlib import Path
 import h5py
 import pytest
 
+from orbitrig.run.closing import DISK_STALL_S
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, retained, sim_service_args
 from support.stalled_disk import stalling_env
 
@@ -81,8 +83,8 @@ def test_a_second_signal_leaves_a_run_whose_disk_never_returns_once_its_drives_a
         mark = rc.watch.mark()
         svc.proc.send_signal(signal.SIGTERM)
         _waiting_for_storage(rc, mark)
-        time.sleep(1.0)  # still waiting: the first signal's wait is the service's whole one
-        assert svc.proc.poll() is None
+        time.sleep(DISK_STALL_S)  # a write stalled that long: the run waits for a disk that stalls
+        assert svc.proc.poll() is None  # still waiting: the first signal's wait is the service's whole one
         t = time.monotonic()
         svc.proc.send_signal(signal.SIGTERM)
         assert svc.proc.wait(30) == 1, svc.text()[-3000:]
