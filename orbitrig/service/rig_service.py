@@ -231,8 +231,10 @@ class RigService(SupervisionHandling, LeavingWithoutDisk):
             async with asyncio.timeout(timeout):  # (3.11's wait_for can lose a cancellation)
                 await asyncio.shield(task)
         except TimeoutError:
-            log.error("run did not end within %.0f s; cancelling it: the drives' stop is not confirmed", timeout)
-            self._cut_short = True
+            held = self._engine is None or not self._engine.let_go  # its closing stop not over: unconfirmed
+            done = "the drives' stop is not confirmed" if held else "its drives' closing stop was done (run.log)"
+            log.error("run did not end within %.0f s; cancelling it: %s", timeout, done)
+            self._cut_short = held
             task.cancel()
             await asyncio.gather(task, return_exceptions=True)
         except asyncio.CancelledError:
