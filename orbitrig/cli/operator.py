@@ -18,7 +18,11 @@ Once the run has closed the drives (its cleanup done, also when it could not con
 stopped: state faulted or stopping while it records its end), any signal aborts; an abort the
 run no longer carries out (it does not hold the drives) sends both the emergency stop over a link
 of the command's own, as `orbitrig serve` does (orbitrig.service.idle_stop), and prints which
-drives took it.
+drives took it. A signal while the run waits for a disk that stalls, its drives stopped
+(RunEngine.waiting_for_disk: its status says so, one write has not returned for 5 s), leaves the
+run if it still waits 2 s later, as `orbitrig serve` leaves one
+(orbitrig.service.leaving): the command prints what was not written and exits 1; every file
+written before is kept (`--resume` continues it).
 """
 
 from __future__ import annotations
@@ -45,6 +49,7 @@ class Operator:
         self.pending: Any = None  # a signal received before the run started (re-requested at its start)
         self.stopper: Any = None  # the thread sending the emergency stop the run could not send
         self.released = threading.Event()  # the run has ended (uninstall): it holds no drive port
+        self.leaving: Any = None  # the task that leaves a run still waiting for its disk (_leave)
 
     def install(self) -> None:
         import sys
@@ -92,8 +97,10 @@ class Operator:
         # closed the drives and records its end; a signal then aborts, as while stopping.
         if self.interrupts >= 2 or state == STOPPING:
             self._abort(signal_cause(sig), f"{_name(sig)} again")
+            self._leave_if_stuck(f"{_name(sig)} again")
         elif state in (IDLE, FAULTED):
             self._abort(signal_cause(sig), _name(sig))
+            self._leave_if_stuck(_name(sig))
         elif sig == signal.SIGINT:
             self.engine.request_pause()
             self._ask("paused at the next safe point: [r]esume, [s]top, [a]bort? (Ctrl-C again aborts) ", self._choice)
@@ -203,6 +210,40 @@ class Operator:
         # a thread that is no daemon: the command does not exit before the stop is sent
         self.stopper = threading.Thread(target=self._send_stop, args=(url, drives), name="operator-emergency-stop")
         self.stopper.start()
+
+    def _leave_if_stuck(self, why: str) -> None:
+        """After a signal that aborts while the run waits for its disk, its drives stopped (its status
+        says so): the command leaves it if it is still waiting LEAVE_GRACE_S later (`_leave`)."""
+        import asyncio
+
+        if self.leaving is None and self.engine.waiting_for_disk:
+            self.leaving = asyncio.ensure_future(self._leave(why))
+
+    async def _leave(self, why: str) -> None:
+        """Once the run is past its drives' closing stop, LEAVE_GRACE_S for it to end; if it has not
+        (a disk that does not return), the emergency stop this command sends finished (at most
+        SIGNAL_STOP_S), what the run did not write printed, and the process ended (exit 1) without
+        joining the thread the disk holds."""
+        import asyncio
+        import contextlib
+        import os
+
+        from orbitrig.service.idle_stop import SIGNAL_STOP_S
+        from orbitrig.service.leaving import HOLD_POLL_S, LEAVE_GRACE_S, left_unwritten
+
+        while not self.engine.let_go and not self.released.is_set():
+            await asyncio.sleep(HOLD_POLL_S)
+        await asyncio.sleep(LEAVE_GRACE_S)
+        if self.released.is_set():
+            return
+        if self.stopper is not None:
+            await asyncio.to_thread(self.stopper.join, SIGNAL_STOP_S)
+        try:
+            with contextlib.suppress(OSError):
+                words = left_unwritten(why, self.engine.run_id, self.engine)
+                self.console.print(f"error: {words}", style="bold red", markup=False)
+        finally:
+            os._exit(1)
 
     def _send_stop(self, url: str, drives: Any) -> None:
         """The emergency stop (orbitrig.service.idle_stop) in this thread's own event loop; its outcome printed."""

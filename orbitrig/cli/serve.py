@@ -181,6 +181,7 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
     import asyncio
 
     from orbitrig.cli.signals import SIGNALS, hand_over, signal_name
+    from orbitrig.service.leaving import LEAVE_GRACE_S
 
     shutdown = asyncio.Event()
     loop = asyncio.get_running_loop()
@@ -190,16 +191,23 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
     keep_pymodbus_off_the_terminal()
     tune_heap()  # bounded memory over months (orbitrig.run.heap)
     services: list[RigService] = []
+    leaving: set[asyncio.Task[None]] = set()
 
     def on_signal(sig: int) -> None:
         """The first: the run stops at once with a ramp (no run: both drives' emergency stop, as an
-        MQTT abort no run carries out); another: it aborts (no run: the emergency stop again)."""
+        MQTT abort no run carries out); another: it aborts (no run: the emergency stop again). A run
+        whose disk does not return is left once its drives are stopped: 2 s after another signal
+        while it waits for a disk that stalls, or after the service's whole wait for it
+        (orbitrig.service.leaving)."""
         name = signal_name(sig)
         if shutdown.is_set() and services:
             services[0].abort_run(f"a second signal ({name}) while shutting down")
+            if services[0].run_waits_for_disk:  # not a run that is still stopping or storing in time
+                _leave_later(leaving, services[0], f"a second signal ({name})", LEAVE_GRACE_S)
         elif services:
             services[0].shutdown_cause = name
             services[0].stop_drives_on_signal(name)
+            _leave_later(leaving, services[0], f"{name}: the run did not end within its wait", None)
         shutdown.set()
 
     for sig in SIGNALS:
@@ -208,6 +216,32 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
         await _serve_until_shutdown(rig, settings, broker_settings, opts, shutdown, services)
     finally:
         hand_over(loop)  # later signals recorded only: the service's way out has stopped the drives
+
+
+def _leave_later(tasks: set, service: RigService, why: str, grace: float | None) -> None:
+    """A task that ends the process (exit 1) if the service's run is still waiting for its disk
+    once its drives are stopped and `grace` s (None: the service's own wait) have passed."""
+    import asyncio
+
+    task = asyncio.get_running_loop().create_task(_leave(service, why, grace), name="leave-without-disk")
+    tasks.add(task)
+    task.add_done_callback(tasks.discard)
+
+
+async def _leave(service: RigService, why: str, grace: float | None) -> None:
+    import contextlib
+    import os
+
+    from orbitrig.cli.terminal import say
+
+    words = await service.leave_without_disk(why, grace)  # logged there (each record flushed as written)
+    if words is None:
+        return
+    try:
+        with contextlib.suppress(OSError):
+            say(f"error: orbitrig serve: {words}", err=True)
+    finally:  # without joining the thread the stalled disk holds (an interpreter's exit would wait for it)
+        os._exit(1)
 
 
 async def _serve_until_shutdown(rig, settings, broker_settings, opts: ServeOptions, shutdown, services) -> None:

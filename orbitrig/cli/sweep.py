@@ -104,13 +104,20 @@ def _sweep_command(
             fmt=fmt,
             draw_figures=draw_figures,
         )
-    except OrbitrigError as err:  # a configuration error among them
+    except OrbitrigError as err:  # configuration or usage (2); the run directory cannot be written (1)
         typer.echo(f"error: {err}", err=True)
-        raise typer.Exit(2) from None
+        raise typer.Exit(1 if _storage_failed(err) else 2) from None
     except OSError as err:  # a file the run needs cannot be written (disk full, permissions)
         typer.echo(f"error: {err.filename or out}: {err.strerror or err}", err=True)
         raise typer.Exit(1) from None
     raise typer.Exit(EXIT[outcome.status])
+
+
+def _storage_failed(err: Exception) -> bool:
+    """A failure to write or read the run directory (exit 1, as an OSError), not a usage error."""
+    from orbitrig.store.errors import StorageError, UnusableRunDir
+
+    return isinstance(err, StorageError) and not isinstance(err, UnusableRunDir)
 
 
 def _run_plan(plan, *, out, sim: bool, sim_config, resume: bool, speedup: float, operator: str, fmt, draw_figures):

@@ -55,10 +55,11 @@ class Background:
     def __init__(self, timing: dict[str, float], on_failure: Callable[[BaseException], None] | None = None):
         self.timing = timing
         self._on_failure = on_failure
-        self._pending: set[asyncio.Task[object]] = set()
+        self._pending: dict[asyncio.Task[object], None] = {}  # in the order spawned
         self._points: deque[asyncio.Task[object]] = deque()  # each point's completion, oldest first
         self._writes = asyncio.Lock()
         self._write_error: Exception | None = None  # the first write that failed
+        self._writing_since: float | None = None  # time.monotonic() the write in the storage thread began
         self.error: BaseException | None = None
 
     async def write(self, fn: Callable[..., T], *args: object) -> T:
@@ -68,19 +69,25 @@ class Background:
         async with self._writes:
             if self._write_error is not None:
                 raise RunFailed("not written: an earlier storage write failed") from self._write_error
-            t = time.monotonic()
+            t = self._writing_since = time.monotonic()
             try:
                 return await asyncio.get_running_loop().run_in_executor(STORAGE_THREAD, fn, *args)
             except Exception as err:  # recorded before the lock passes to the next write
                 self._write_error = err
                 raise
             finally:
+                self._writing_since = None
                 self.timing["store"] = self.timing.get("store", 0.0) + time.monotonic() - t
+
+    def write_stalled_s(self) -> float:
+        """Wall s the write in the storage thread has been going on (0 with none)."""
+        since = self._writing_since
+        return 0.0 if since is None else time.monotonic() - since
 
     def spawn(self, coro: Coroutine[object, object, T], name: str) -> asyncio.Task[T]:
         task = asyncio.ensure_future(coro)
         task.set_name(name)
-        self._pending.add(task)
+        self._pending[task] = None
         task.add_done_callback(self._done)
         return task
 
@@ -108,7 +115,7 @@ class Background:
         self.timing["backlog"] = self.timing.get("backlog", 0.0) + time.monotonic() - t
 
     def _done(self, task: asyncio.Task[object]) -> None:
-        self._pending.discard(task)
+        self._pending.pop(task, None)
         error = None if task.cancelled() else task.exception()
         if error is not None and self.error is None:
             self.error = error
@@ -129,10 +136,21 @@ class Background:
         if (message := self.failure_message()) is not None:
             raise RunFailed(message) from self.error
 
-    async def settle(self) -> None:
-        """Wait for everything in flight (not cancelling it, even if this wait is cancelled)."""
+    def in_flight(self) -> list[str]:
+        """The names of the writes and identifications not finished yet, oldest first
+        ('store 0002/f03', 'identify point 0002', 'complete point 0002')."""
+        return [task.get_name() for task in self._pending]
+
+    async def settle(self, timeout: float | None = None) -> bool:
+        """Wait for everything in flight, at most `timeout` s (None: to its end), not cancelling
+        it, even if this wait is cancelled; whether nothing is left in flight."""
+        end = None if timeout is None else time.monotonic() + timeout
         while self._pending:
-            await asyncio.wait(set(self._pending))
+            left = None if end is None else end - time.monotonic()
+            if left is not None and left <= 0:
+                return False
+            await asyncio.wait(set(self._pending), timeout=left)
+        return True
 
     async def drain(self) -> None:
         """Wait for everything in flight, then raise its first failure."""

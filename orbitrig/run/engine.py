@@ -33,9 +33,10 @@ from daq.revolutions import Revolution
 
 from orbitrig.config import MatrixConfig, RigConfig, warning_lines
 from orbitrig.errors import OrbitrigError
-from orbitrig.run.background import Background, to_the_end
+from orbitrig.run.background import Background
+from orbitrig.run.closing import RunClosing
 from orbitrig.run.control import RunControl, StopRun
-from orbitrig.run.ending import aborted, record_the_end, stopped
+from orbitrig.run.ending import aborted, stopped
 from orbitrig.run.events import (  # noqa: F401 - the engine's public names
     Event,
     ProgressEvent,
@@ -57,7 +58,6 @@ from orbitrig.run.requests import OperatorRequests
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.run_dir import completed_points, no_room, open_store, resume_events, run_age
 from orbitrig.run.run_dir import started_order as _started_order
-from orbitrig.run.safe_stop import closing_stop
 from orbitrig.run.states import (
     ABORTED,
     COMPLETED,
@@ -65,7 +65,6 @@ from orbitrig.run.states import (
     FAULTED,
     IDLE,
     STOPPED,
-    STOPPING,
     ConfirmMode,
     Outcome,
     RunState,
@@ -78,7 +77,7 @@ from orbitrig.store.writer import RunStore
 log = logging.getLogger(__name__)
 
 
-class RunEngine(OperatorRequests):
+class RunEngine(OperatorRequests, RunClosing):
     def __init__(
         self,
         rig: RigConfig,
@@ -157,7 +156,7 @@ class RunEngine(OperatorRequests):
         return RunOutcome(status, message, store.run_id, self.out_dir, completed_points(store), len(plan.points))
 
     def _start(self, plan: Plan, store: RunStore, done: list[int], resume: bool) -> None:
-        self._store, self._failure, self._let_go = store, None, False
+        self._store, self._failure, self._let_go, self._end_written = store, None, False, False
         self._control.reset()
         self.run_id = store.run_id  # the stored run's id: the catalog's, and a resume's too
         self._t0 = time.monotonic()
@@ -190,8 +189,9 @@ class RunEngine(OperatorRequests):
     async def _operate(self, io: RigIO, store: RunStore, plan: Plan, done: set[int]) -> tuple[Outcome, str]:
         """Open the rig and execute the plan: (status, message)."""
         try:
+            self._opening = opening = asyncio.ensure_future(io.__aenter__())  # an abort lets go of it at once
             try:
-                await io.__aenter__()
+                await opening
             except Exception as err:
                 raise RunFailed(f"cannot open the rig: {type(err).__name__}: {err}") from err
             self._io = io
@@ -307,62 +307,6 @@ class RunEngine(OperatorRequests):
         except StopRun:  # the drives stop first; the storage in flight is settled after (_make_safe)
             return STOPPED
         return STOPPED if control.stop_requested else COMPLETED
-
-    # ------------------------------------------------------- the one finally
-    async def _make_safe(self, io: RigIO, store: RunStore, status: Outcome, message: str) -> tuple[Outcome, str]:
-        """Every exit path: drives to a safe stop first, then the links, then storage; each
-        failure logged, the rest still done. A failure is reported (state faulted) once the
-        drives are safe. Returns the final (status, message): aborted after an abort while
-        stopping; failed when the drives are not confirmed stopped, when storage in flight
-        failed, or when the run's status and run.h5 could not be recorded."""
-        if self.state != STOPPING:
-            self._control.fire("finish", message)
-        status, message = await self._cleanup(io, status, message)
-        self._io = None
-        if self._control.abort_requested and status in (COMPLETED, STOPPED):  # an abort while stopping
-            status, message = ABORTED, f"{aborted(self._control)} while stopping ({message})"
-        if status == FAILED:  # reported once the drives are safe
-            self._control.fire("fail", message)
-        self.timing["wall"] = time.monotonic() - self._t0
-        # run.h5's consolidation and fsync, off the loop (the service answers meanwhile); each
-        # failure logged as it happens, before run.log's last line
-        # (a stopped or aborted run's message names the points it left incomplete: orbitrig.run.ending)
-        ended = await to_the_end(record_the_end, store, self.run_id, status, message, self._cleanup_failed)
-        if ended[0] != status:  # its status or run.h5 could not be recorded
-            self._control.fire("fail", ended[1])
-        elif status != FAILED:
-            self._control.fire("done", f"run {self.run_id} {status}: {ended[1]}")
-        await to_the_end(store.run_log.flush)  # run.log holds every line of the run when it returns
-        return ended
-
-    async def _cleanup(self, io: RigIO, status: Outcome, message: str) -> tuple[Outcome, str]:
-        """Both drives stopped and confirmed at standstill, then the links closed, then the storage
-        in flight finished: (status, message), failed if the stop or the storage was not done, or
-        if a drive tripped during the stop (orbitrig.run.safe_stop.closing_stop)."""
-        if io.drives is not None:
-            timeout = self.access.time_scale.wall(self.rig.drives.stop_timeout_s) + 5.0
-            status, message = await closing_stop(
-                io.drives, self._control.aborted, (status, message), timeout, self._log_event, self._cleanup_failed
-            )
-        self._let_go = True  # a stop asked from here on is not the run's to carry to the drives
-        for what, action in (
-            ("close the rig links", lambda: io.__aexit__(None, None, None)),
-            ("finish the storage in flight", self._background.settle),
-        ):
-            try:
-                await action()
-            except BaseException as err:  # noqa: BLE001 - every cleanup step must run
-                self._cleanup_failed(what, err)
-        failed = self._background.failure_message()
-        if failed is not None and status in (COMPLETED, STOPPED):  # points completed before it are kept
-            status, message = FAILED, failed
-        return status, message
-
-    def _cleanup_failed(self, what: str, err: BaseException) -> None:
-        """Log a failed cleanup step (also called from the storage thread: logging and the
-        store's log rows and run.log are safe there; no event is emitted)."""
-        log.error("cleanup: cannot %s: %s: %s", what, type(err).__name__, err)
-        self._log_event(f"cleanup: cannot {what}: {err}")
 
     # --------------------------------------------------------- events, logs
     def _emit(self, ev: Event) -> None:

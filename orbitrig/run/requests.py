@@ -50,6 +50,7 @@ class OperatorRequests:
     _held: list[Callable[[], None]] | None  # disk writes held until the stop words are out
     _holding_for: asyncio.Task[list[DriveError]] | None = None  # the stop whose delivery releases them
     _let_go = False  # the run's closing stop is over (confirmed or not): its cleanup closes the drives' link
+    _opening: asyncio.Task[RigIO] | None = None  # the rig's links being opened (RigIO entered)
 
     def request_pause(self, by: str | None = None) -> None:
         self._control.request_pause(self._sender(by))
@@ -91,9 +92,10 @@ class OperatorRequests:
 
         Returns whether the run holds the drives: True if the stop words went out now, or an
         abort under way sent them with the rig still open (its cleanup repeats them); False if
-        nothing reached the drives through the run: its rig is not open (not yet, or closed by
-        its cleanup, also when that could not confirm them stopped). The caller then stops
-        them another way (orbitrig.service.idle_stop), or says it could not."""
+        nothing reached the drives through the run: its rig is not open (not yet: its opening is
+        then cancelled, so that the drives' link is free at once; or closed by its cleanup, also
+        when that could not confirm them stopped). The caller then stops them another way
+        (orbitrig.service.idle_stop), or says it could not."""
         by = requester(self._sender(by), why)
         starts = self._control.abort_starts
         if starts:
@@ -103,6 +105,8 @@ class OperatorRequests:
         self._control.request_abort()
         if self._control.abort_requested and self._body is not None and not self._body.done():
             self._body.cancel()  # again on a further abort: the body may have missed the first
+        if self._opening is not None and not self._opening.done():  # the drives' port let go at once
+            self._opening.cancel()  # (an RTU line held while a slow drive answers); they are not the run's
         if sending is None:
             self._command(RunCommand.ABORT, by)
             return not starts and self._repeat_stop()

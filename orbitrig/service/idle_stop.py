@@ -42,6 +42,8 @@ SIGNAL_STOP_S = 30.0
 #: wall s an abort's stop waits for a run it cancelled (one being opened) to let go of the
 #: drives' link, when that link cannot be opened beside it (an RTU port is opened exclusively)
 LET_GO_S = 5.0
+#: wall s between two tries to open that link meanwhile
+RETRY_S = 0.05
 
 
 async def emergency_stop(
@@ -90,8 +92,9 @@ def _words(emergency: bool) -> tuple[str, str, str]:
 
 
 async def _open(link: ModbusLink, holder: asyncio.Future[object] | None) -> str | None:
-    """Open `link`, once more after `holder` ends if the first try fails while it runs; None if
-    open, else why not."""
+    """Open `link`; if that fails while `holder` runs, again every RETRY_S until it opens, for at
+    most LET_GO_S (the port is taken the moment the run lets go of it, not when the run has ended),
+    and once more after `holder` ended; None if open, else why not."""
     try:
         await link.connect()
         return None
@@ -99,9 +102,17 @@ async def _open(link: ModbusLink, holder: asyncio.Future[object] | None) -> str 
         if holder is None or holder.done():
             return f"cannot open their link: {err}"
         log.warning("abort: the drives' link is busy (%s): waiting up to %.0f s for the run to let go", err, LET_GO_S)
-    await asyncio.wait([holder], timeout=LET_GO_S)
+        busy = err
+    end = asyncio.get_running_loop().time() + LET_GO_S
+    while not holder.done() and (left := end - asyncio.get_running_loop().time()) > 0:
+        await asyncio.wait([holder], timeout=min(RETRY_S, left))
+        try:
+            await link.connect()
+            return None
+        except DriveError as err:
+            busy = err
     if not holder.done():
-        return f"cannot open their link: a run being opened still holds it after {LET_GO_S:g} s"
+        return f"cannot open their link: a run being opened still holds it after {LET_GO_S:g} s ({busy})"
     try:
         await link.connect()
         return None

@@ -56,6 +56,7 @@ from orbitrig.run.states import Outcome, RunState
 from orbitrig.service import idle_stop, live as live_feed
 from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # the service's seams
 from orbitrig.service.inbox import CommandTriage
+from orbitrig.service.leaving import LeavingWithoutDisk
 from orbitrig.service.abort_link import AbortLink
 from orbitrig.service.catalog_feed import CatalogFeed
 from orbitrig.service.commands import Later
@@ -80,7 +81,7 @@ log = logging.getLogger("orbitrig.service.rig_service")
 NOT_CONFIRMED = "drives' stop not confirmed (see run.log)"
 
 
-class RigService(SupervisionHandling):
+class RigService(SupervisionHandling, LeavingWithoutDisk):
     """MQTT front end of one rig. ``await service.serve(shutdown)`` runs until
     ``shutdown`` is set (then nothing that moves the drives is accepted, an active
     run is stopped at once, ``offline`` is published and the connection closed) or
@@ -165,7 +166,7 @@ class RigService(SupervisionHandling):
         self._thread = threading.get_ident()
         async with asyncio.TaskGroup() as tg:
             self._tg = tg
-            conn = tg.create_task(self.link.run(), name="mqtt-connection")
+            conn = self._connection = tg.create_task(self.link.run(), name="mqtt-connection")
             sup = tg.create_task(self._supervision_loop(), name="supervision-watchdog")
             stop = tg.create_task(shutdown.wait(), name="shutdown-signal")
             tasks = [conn, sup, stop]
@@ -230,8 +231,10 @@ class RigService(SupervisionHandling):
             async with asyncio.timeout(timeout):  # (3.11's wait_for can lose a cancellation)
                 await asyncio.shield(task)
         except TimeoutError:
-            log.error("run did not end within %.0f s; cancelling it: the drives' stop is not confirmed", timeout)
-            self._cut_short = True
+            held = self._engine is None or not self._engine.let_go  # its closing stop not over: unconfirmed
+            done = "the drives' stop is not confirmed" if held else "its drives' closing stop was done (run.log)"
+            log.error("run did not end within %.0f s; cancelling it: %s", timeout, done)
+            self._cut_short = held
             task.cancel()
             await asyncio.gather(task, return_exceptions=True)
         except asyncio.CancelledError:

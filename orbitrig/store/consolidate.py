@@ -22,7 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from orbitrig.store.durable import StreamedH5
-from orbitrig.store.errors import WRITE_ERRORS, StorageError
+from orbitrig.store.errors import WRITE_ERRORS, StorageError, UnusableRunDir
 from orbitrig.store.identity import header_software
 from orbitrig.store.index import PointState, scan
 from orbitrig.store.journal import CAN_DTYPE, CAN_UNITS, DRIVE_DTYPE, DRIVE_UNITS, FIELD_MEANING, Journal, read_journal
@@ -38,14 +38,17 @@ COMMAND_DTYPE = np.dtype([("at", STR), ("command", STR), ("by", STR), ("detail",
 
 
 def read_header(layout: RunLayout) -> dict[str, Any]:
-    """run.json as a dict; StorageError when it is missing or unreadable."""
+    """run.json as a dict; UnusableRunDir when it is missing or not a run's header, StorageError
+    when it cannot be read (an I/O error)."""
     try:
         header = json.loads(layout.header.read_bytes())
         if not isinstance(header, dict) or not str(header.get("format", "")).startswith("orbitrig-run/"):
             raise ValueError(f"format {header.get('format') if isinstance(header, dict) else None!r}")
     except FileNotFoundError:
-        raise StorageError(layout.header, "missing: not a run directory of this version") from None
-    except (OSError, ValueError, RecursionError) as err:
+        raise UnusableRunDir(layout.header, "missing: not a run directory of this version") from None
+    except (ValueError, RecursionError) as err:
+        raise UnusableRunDir(layout.header, f"not a readable run header ({type(err).__name__}: {err})") from err
+    except OSError as err:
         raise StorageError(layout.header, f"not a readable run header ({type(err).__name__}: {err})") from err
     return header
 

@@ -5,7 +5,9 @@ RunDirError.
     OrbitrigError
     +-- StorageError(path, reason)              the run directory cannot be written or read
     |   +-- StorageFullError(path, problem, advice, needed, free)
-    |                                           no space left (ENOSPC, EDQUOT) or too little free
+    |   |                                       no space left (ENOSPC, EDQUOT) or too little free
+    |   +-- UnusableRunDir(path, reason)        not usable as asked: holds a run already, no run
+    |                                           to resume, a header that is not a run's
     +-- RunDirError(file, reason)               not a readable orbitrig run directory
 
 No storage function lets an OSError or an HDF5 library error escape: `storage_error`
@@ -26,6 +28,8 @@ _FULL = {errno.ENOSPC, errno.EDQUOT}
 WRITE_ERRORS = frozenset(_FULL | {errno.EFBIG, errno.EROFS})
 #: what a full disk advises unless told otherwise (a sweep's run directory)
 FULL_ADVICE = "free space, then resume the run"
+#: what a full disk advises before the run exists (its run.json not written)
+FULL_AT_CREATE_ADVICE = "free space, then start the run again"
 
 
 class StorageError(OrbitrigError):
@@ -66,6 +70,12 @@ class StorageFullError(StorageError):
     def advising(self, advice: str) -> StorageFullError:
         """The same error advising `advice` instead (an export: export again)."""
         return StorageFullError(self.path, self.problem, advice=advice, needed=self.needed, free=self.free)
+
+
+class UnusableRunDir(StorageError):
+    """The directory cannot be used as asked: it holds a run already (a new run), holds no run
+    to resume, or its run.json is not a run's header. The caller's mistake, not a failure to
+    write or read (`orbitrig sweep` exits 2 on it, 1 on any other StorageError)."""
 
 
 class RunDirError(OrbitrigError):

@@ -28,7 +28,8 @@ from orbitrig.store.csvfile import CSV_HEAD, coef_order, true_entry  # noqa: F40
 from orbitrig.store.estimate import final_bytes
 from orbitrig.store.durable import TMP_SUFFIX, append_lines, fsync_dir, h5_image, write_atomic
 from orbitrig.store.identity import header_identity
-from orbitrig.store.errors import RunDirError, StorageError, StorageFullError, storage_error
+from orbitrig.store.errors import FULL_AT_CREATE_ADVICE, RunDirError, StorageError, StorageFullError, UnusableRunDir
+from orbitrig.store.errors import storage_error
 from orbitrig.store.index import NEVER_COMPLETED, commit_record, point_state, scan
 from orbitrig.store.layout import FORMAT, RunLayout, point_name
 from orbitrig.store.reader import read_point
@@ -89,7 +90,7 @@ class RunStore:
         lay = self.layout
         for existing in (lay.header, lay.run_file, lay.journal):
             if existing.exists():
-                raise StorageError(existing, "already exists: use --resume to continue that run, or another --out")
+                raise UnusableRunDir(existing, "already exists: use --resume to continue that run, or another --out")
         try:
             lay.points.mkdir(parents=True, exist_ok=True)
         except OSError as err:
@@ -113,8 +114,11 @@ class RunStore:
             self._header["calibration_record_text"] = record_text
         if point_order is not None:
             self._header["point_order"] = [int(i) for i in point_order]
-        fsync_dir(lay.dir)
-        write_atomic(lay.header, json.dumps(self._header, indent=1).encode("utf-8"))
+        try:
+            fsync_dir(lay.dir)
+            write_atomic(lay.header, json.dumps(self._header, indent=1).encode("utf-8"))
+        except StorageFullError as err:  # no run yet: nothing to resume
+            raise err.advising(FULL_AT_CREATE_ADVICE) from err
         self._journal([journal.status_line(RunStatus.RUNNING, "")])
         self.write_csv()
         return self
@@ -125,12 +129,12 @@ class RunStore:
         lay = self.layout
         if not lay.has_pieces():
             if lay.run_file.exists():
-                raise StorageError(
+                raise UnusableRunDir(
                     lay.run_file,
                     "holds a finished copy of a run but not its pieces "
                     f"({lay.header.name}, {lay.points.name}/): it cannot be resumed",
                 )
-            raise StorageError(lay.header, "does not exist: nothing to resume")
+            raise UnusableRunDir(lay.header, "does not exist: nothing to resume")
         self._header = read_header(lay)
         return self
 

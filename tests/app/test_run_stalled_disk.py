@@ -1,0 +1,60 @@
+"""A run whose disk never returns, on the real simulator: the stop ends with both drives at
+standstill, and the run, still stopping, says so and names what it waits for (its status, again
+every STORAGE_NOTE_S while it waits); once the disk is back it ends stopped with every block kept.
+
+A disk that never returns cannot be produced by the real parts: the block writes hang until the
+test releases them (tests/app/test_run_log_stall.py stalls run.log for real)."""
+
+import asyncio
+import threading
+
+import pytest
+
+import orbitrig.run.closing as closing
+from orbitrig.run.engine import StatusEvent
+from orbitrig.run.states import STOPPING
+from orbitrig.store.writer import RunStore
+from support.sweep_helpers import running, small_matrix, wait_for
+
+pytestmark = pytest.mark.timeout(120)
+
+
+def _waiting(rec) -> list[str]:
+    return [e.message for e in rec.events if isinstance(e, StatusEvent) and "waiting for the storage" in e.message]
+
+
+async def test_a_stopping_run_whose_disk_never_returns_says_its_drives_stopped_and_what_it_waits_for(
+    tmp_path, monkeypatch
+):
+    stall, release = threading.Event(), threading.Event()
+    real = RunStore.write_block
+
+    def hanging(self, point, rec):
+        if stall.is_set():
+            release.wait(90)  # the disk never returns, until the test lets it
+        return real(self, point, rec)
+
+    monkeypatch.setattr(RunStore, "write_block", hanging)
+    monkeypatch.setattr(closing, "STORAGE_NOTE_S", 1.0)
+    monkeypatch.setattr(closing, "DISK_STALL_S", 1.0)
+    async with running(tmp_path, small_matrix(spin_rpm=[1000.0, 2000.0])) as (sim, eng, rec, run):
+        try:
+            await wait_for(lambda: rec.blocks_done() >= 2, 60, what="two blocks")
+            stall.set()
+            await wait_for(lambda: rec.blocks_done() >= 3, 60, what="a block behind the stalled write")
+            eng.request_stop_now("SIGTERM", by="test")
+            await wait_for(lambda: _waiting(rec), 30, what="the stopping status naming the wait")
+            first = _waiting(rec)[0]
+            assert eng.state == STOPPING and not run.done()
+            assert all(abs(w) < 1e-3 for w in sim.speeds), sim.speeds  # said once both are at standstill
+            assert first.startswith("drives: ramp stop (OFF1); standstill after"), first
+            assert "waiting for the storage in flight: store 0000/" in first, first
+            await wait_for(lambda: any("(for 2 s)" in m for m in _waiting(rec)), 10, what="the wait's note")
+            assert eng.state == STOPPING and not run.done() and eng.waiting_for_disk  # one write stalled 1 s+
+        finally:
+            release.set()
+        outcome = await asyncio.wait_for(asyncio.shield(run), 60)
+    assert outcome.status == "stopped", outcome.message
+    assert not eng.waiting_for_disk and eng.unwritten() == []
+    log = (tmp_path / "run" / "run.log").read_text()
+    assert "waiting for the storage in flight: store 0000/" in log
