@@ -44,9 +44,8 @@ def no_abort_acl(tmp_path):
     acl.write_text(shipped.replace(ABORT_LINE, "user orbitrig-service-abort\n"))
     b = Broker(tmp_path / "broker")
     b.conf.write_text(b.conf.read_text().replace(str(mh.EXAMPLE_ACL), str(acl)))
-    b.start()
-    yield b
-    b.stop()
+    with b:
+        yield b
 
 
 def _service(broker: Broker, tmp_path: Path, rig: str, *, prefix: str | None = None, abort: bool = False):

@@ -48,9 +48,7 @@ async def serving(tmp_path: Path, *, decel_counts: int | None = None, speedup: f
     ``decel_counts``: both drives' DECEL_TIME (a slow ramp stop)."""
     from sim.rig import SimRig
 
-    b = Broker(tmp_path / "broker")
-    b.start()
-    try:
+    with Broker(tmp_path / "broker") as b:
         async with SimRig(speedup=speedup, adc_pty=False) as sim_rig:
             if decel_counts is not None:
                 for drive in sim_rig.drives.values():
@@ -69,8 +67,6 @@ async def serving(tmp_path: Path, *, decel_counts: int | None = None, speedup: f
                 shutdown.set()
                 svc.abort_run("test over")  # whatever went wrong, the drives stop before the simulator closes
                 await asyncio.wait_for(asyncio.gather(task, return_exceptions=True), 120)
-    finally:
-        b.stop()
 
 
 async def test_a_start_after_offline_is_not_carried_out_and_serve_returns(tmp_path):

@@ -233,6 +233,13 @@ class Broker:
             end_process(self.proc)
         self.proc = None
 
+    def __enter__(self) -> "Broker":
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
     def client_args(self, user: str | None, port: int | None = None) -> list[str]:
         args = ["-h", "127.0.0.1", "-p", str(port or self.port)]
         if self.tls:
@@ -259,6 +266,20 @@ class Broker:
             args.append("-r")
         data = payload.encode() if isinstance(payload, str) else payload
         return subprocess.run(args, input=data, capture_output=True, timeout=10)
+
+
+def broker_fixture(*, bind_ids: bool = False, name: str | None = None):
+    """A module's broker as a pytest fixture (``broker = broker_fixture()`` in a conftest or a test
+    module): started once for the module, stopped after its last test. ``bind_ids``: with the
+    shipped config's client-id binding (the rig service on ``service_url``)."""
+    import pytest  # here: the benches use this module without pytest
+
+    @pytest.fixture(scope="module", name=name)
+    def module_broker(tmp_path_factory):
+        with Broker(tmp_path_factory.mktemp("broker"), bind_ids=bind_ids) as b:
+            yield b
+
+    return module_broker
 
 
 def retained(broker: "Broker", topic: str, user: str = "viewer", wait: float = 2.0) -> "Msg | None":
