@@ -24,7 +24,7 @@ from orbitrig.store.status import RunStatus
 from orbitrig.store.writer import RunStore
 
 from support.paths import ROOT
-from support.store_checks import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd
 
 pytestmark = pytest.mark.timeout(240)
 

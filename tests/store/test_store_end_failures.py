@@ -14,7 +14,8 @@ from typer.testing import CliRunner
 from orbitrig.cli import app
 from orbitrig.store.reader import read_run
 
-from support.store_checks import fill, orbitrig_cmd, small_matrix
+from support.cli_helpers import orbitrig_cmd
+from support.store_checks import fill, small_matrix
 from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(240)

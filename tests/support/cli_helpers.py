@@ -11,11 +11,16 @@ from pathlib import Path
 from support.paths import ROOT
 
 
+def orbitrig_cmd(*args: str) -> list[str]:
+    """The command line of `orbitrig ARGS...` of this source tree (`python -m orbitrig`)."""
+    return [sys.executable, "-m", "orbitrig", *args]
+
+
 def orbitrig(*args: str, timeout: float = 120, cwd: Path = ROOT, **kw) -> subprocess.CompletedProcess:
     """`orbitrig ARGS...` (as `python -m orbitrig`), output captured as text, wide terminal."""
     env = {**os.environ, "COLUMNS": "200", "NO_COLOR": "1"}
     return subprocess.run(
-        [sys.executable, "-m", "orbitrig", *args],
+        orbitrig_cmd(*args),
         cwd=cwd,
         env=env,
         capture_output=True,
