@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import os
 import socket
 import subprocess
@@ -29,6 +30,18 @@ def orbitrig(*args: str, timeout: float = 120, cwd: Path = ROOT, **kw) -> subpro
         stdin=subprocess.DEVNULL,
         **kw,
     )
+
+
+async def orbitrig_async(*args: str) -> tuple[int, str, str]:
+    """`orbitrig ARGS...` (as `python -m orbitrig`) run from the event loop, which goes on meanwhile
+    (a simulator in the test's own loop keeps serving): (exit status, standard output, standard error)."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = await asyncio.create_subprocess_exec(
+        *orbitrig_cmd(*args), stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE, cwd=ROOT, env=env
+    )
+    out, err = await proc.communicate()
+    assert proc.returncode is not None
+    return proc.returncode, out.decode(), err.decode()
 
 
 def closed_port() -> int:
