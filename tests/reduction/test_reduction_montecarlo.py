@@ -10,7 +10,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from support.reduction_synthetic import SPIN, frequencies, impedance, keys_of, orbit_table, truth, with_force_noise
+from support.reduction_synthetic import (
+    SPIN,
+    cnoise,
+    frequencies,
+    impedance,
+    keys_of,
+    orbit_table,
+    truth,
+    with_force_noise,
+)
 from reduction.adequacy import frequency_dependence
 from reduction.design import design_orbits, predicted_covariance
 from reduction.identify import identify
@@ -23,11 +32,6 @@ TRUE = truth("kc8", {"K": (0,), "C": (0,)})
 KEYS = list(keys_of(TRUE))
 EXPECTED = np.array([keys_of(TRUE)[k] for k in KEYS])
 N_TABLES = 1000
-
-
-def _cnoise(rng, std, shape):
-    """Complex noise with E|n|^2 = std^2 (std broadcast to shape)."""
-    return np.asarray(std) / np.sqrt(2) * (rng.standard_normal(shape) + 1j * rng.standard_normal(shape))
 
 
 def _fits(tables, method, model="kc8", freq_dep="none"):
@@ -61,8 +65,8 @@ def _heteroscedastic(rng, count, gamma_one_row=None):
             clean.orbit,
             clean.x,
             clean.y,
-            clean.fx + _cnoise(rng, avg * np.abs(clean.fx), clean.n),
-            clean.fy + _cnoise(rng, avg * np.abs(clean.fy), clean.n),
+            clean.fx + cnoise(rng, avg * np.abs(clean.fx), clean.n),
+            clean.fy + cnoise(rng, avg * np.abs(clean.fy), clean.n),
             g,
             np.full(clean.n, n_rec),
         )
@@ -80,8 +84,8 @@ def test_95_percent_intervals_cover_the_truth_95_percent_of_the_time_ols():
             clean.orbit,
             clean.x,
             clean.y,
-            clean.fx + _cnoise(rng, s, clean.n),
-            clean.fy + _cnoise(rng, s, clean.n),
+            clean.fx + cnoise(rng, s, clean.n),
+            clean.fy + cnoise(rng, s, clean.n),
         )
         for _ in range(N_TABLES)
     ]
@@ -125,7 +129,7 @@ def test_tls_and_iv_remove_the_attenuation_bias_of_ols():
     pairs = 50
     tables = []
     for _ in range(pairs):
-        noise = [_cnoise(rng, s, n) for s in (sd, sd, sf, sf)]
+        noise = [cnoise(rng, s, n) for s in (sd, sd, sf, sf)]
         for sign in (1, -1):
             x, y, fx, fy = (v + sign * e for v, e in zip((clean.x, clean.y, clean.fx, clean.fy), noise))
             tables.append(OrbitTable(clean.spin, clean.orbit, x, y, fx, fy, u=u))
@@ -157,7 +161,7 @@ def test_ols_standard_errors_match_the_cramer_rao_bound_of_the_design():
     s = 0.01 * np.sqrt(np.mean(np.abs(fx) ** 2))
     crb = np.sqrt(np.diag(predicted_covariance(spec, orbit, x, y, [0.0, 0.0, s, s])))
     n = orbit.size
-    tables = [OrbitTable(SPIN, orbit, x, y, fx + _cnoise(rng, s, n), fy + _cnoise(rng, s, n)) for _ in range(N_TABLES)]
+    tables = [OrbitTable(SPIN, orbit, x, y, fx + cnoise(rng, s, n), fy + cnoise(rng, s, n)) for _ in range(N_TABLES)]
     est, se, _, _ = _fits(tables, "ols")
     crb_keys = np.array([dict(zip(spec.keys(), spec.expand(crb).values()))[k] for k in KEYS])
     assert np.all(np.abs(se.mean(axis=0) / crb_keys - 1) < 0.10), dict(zip(KEYS, (se.mean(0) / crb_keys).round(3)))
