@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 from support.dash_helpers import REPO, RIG, Dashboard, chromium
-from support.mqtt_helpers import Broker, Service, broker_fixture, service_password_file
+from support.mqtt_helpers import Broker, CutProxy, Service, broker_fixture, service_password_file
 
 SPEEDUP = "5"  # the demo matrix runs for ~20 s: time to pause, resume and stop it
 
@@ -43,6 +43,14 @@ class ServiceHolder:
 
 
 broker = broker_fixture(bind_ids=True)  # the shipped client-id binding
+
+
+@pytest.fixture(scope="module")
+def relay(broker):
+    """The way to the broker of a module's own dashboard, which its tests cut (CutProxy)."""
+    proxy = CutProxy(broker.port)
+    yield proxy
+    proxy.close()
 
 
 @pytest.fixture(scope="module")

@@ -45,14 +45,6 @@ class Blackhole(CutProxy):
 
 
 @pytest.fixture(scope="module")
-def relay(broker):
-    """The dashboard's way to the broker, which a test cuts."""
-    proxy = CutProxy(broker.port)
-    yield proxy
-    proxy.close()
-
-
-@pytest.fixture(scope="module")
 def dashboard(relay, tmp_path_factory):
     dash = Dashboard(relay.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", str(REPLY_TIMEOUT))
     yield dash
