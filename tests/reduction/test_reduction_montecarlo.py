@@ -13,6 +13,7 @@ import pytest
 from support.reduction_synthetic import (
     SPIN,
     cnoise,
+    coherent_noise_tables,
     frequencies,
     impedance,
     keys_of,
@@ -49,31 +50,6 @@ def _coverage(lo, hi):
     return np.mean((lo <= EXPECTED) & (EXPECTED <= hi), axis=0)
 
 
-def _heteroscedastic(rng, count, gamma_one_row=None):
-    """Tables whose force noise follows their coherences (50 records per row, per-record
-    relative noise 0.15 .. 1.5); optionally one row reads gamma^2 = 1.000."""
-    clean = orbit_table(TRUE, frequencies(6))
-    n_rec = 50
-    rel = np.geomspace(0.15, 1.5, clean.n)
-    g = np.repeat((1 / (1 + rel**2))[:, None], 4, axis=1)
-    if gamma_one_row is not None:
-        g[gamma_one_row] = 1.0
-    avg = rel / np.sqrt(n_rec)
-    return [
-        OrbitTable(
-            clean.spin,
-            clean.orbit,
-            clean.x,
-            clean.y,
-            clean.fx + cnoise(rng, avg * np.abs(clean.fx), clean.n),
-            clean.fy + cnoise(rng, avg * np.abs(clean.fy), clean.n),
-            g,
-            np.full(clean.n, n_rec),
-        )
-        for _ in range(count)
-    ]
-
-
 def test_95_percent_intervals_cover_the_truth_95_percent_of_the_time_ols():
     rng = np.random.default_rng(21)
     clean = orbit_table(TRUE, frequencies(6))
@@ -98,7 +74,7 @@ def test_95_percent_intervals_cover_the_truth_95_percent_of_the_time_ols():
 
 def test_95_percent_intervals_cover_the_truth_95_percent_of_the_time_wls():
     rng = np.random.default_rng(22)
-    _, _, lo, hi = _fits(_heteroscedastic(rng, N_TABLES), "wls")
+    _, _, lo, hi = _fits(coherent_noise_tables(TRUE, rng, N_TABLES), "wls")
     cov = _coverage(lo, hi)
     assert np.all((cov >= 0.93) & (cov <= 0.97)), dict(zip(KEYS, cov))
 
@@ -107,7 +83,7 @@ def test_wls_standard_errors_stay_honest_with_one_coherence_at_one():
     rng = np.random.default_rng(23)
     # the cleanest row (per-record noise 0.15, gamma^2 = 0.978) reads 1.000; the weight floor
     # (noise ratio >= 1/n_records) keeps it from dominating the fit
-    est, se, lo, hi = _fits(_heteroscedastic(rng, N_TABLES, gamma_one_row=0), "wls")
+    est, se, lo, hi = _fits(coherent_noise_tables(TRUE, rng, N_TABLES, gamma_one_row=0), "wls")
     ratio = se.mean(axis=0) / est.std(axis=0, ddof=1)
     # the sample std of 1000 estimates is good to 2.2 % (1 sigma)
     assert np.all(np.abs(ratio - 1) < 0.10), dict(zip(KEYS, ratio.round(3)))

@@ -6,7 +6,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from support.reduction_synthetic import cnoise, frequencies, keys_of, orbit_table, truth, with_force_noise
+from support.reduction_synthetic import (
+    cnoise,
+    coherent_noise_tables,
+    frequencies,
+    keys_of,
+    orbit_table,
+    truth,
+    with_force_noise,
+)
 from reduction.identify import identify
 from reduction.table import OrbitTable
 
@@ -38,26 +46,7 @@ def test_reported_std_errors_match_the_spread_over_trials():
 
 
 def test_coherence_weights_reduce_the_spread_and_keep_std_errors_honest():
-    rng = np.random.default_rng(12)
-    clean = orbit_table(TRUE, frequencies(6))
-    n_rec = 50
-    rel = np.geomspace(0.15, 1.5, clean.n)  # relative force noise of one record, per row
-    gamma2 = 1 / (1 + rel**2)  # coherent power over total power
-    g = np.repeat(gamma2[:, None], 4, axis=1)
-    avg = rel / np.sqrt(n_rec)  # relative noise of the average of n_rec records
-    trials = [
-        OrbitTable(
-            clean.spin,
-            clean.orbit,
-            clean.x,
-            clean.y,
-            clean.fx + cnoise(rng, avg * np.abs(clean.fx), clean.n),
-            clean.fy + cnoise(rng, avg * np.abs(clean.fy), clean.n),
-            g,
-            np.full(clean.n, n_rec),
-        )
-        for _ in range(300)
-    ]
+    trials = coherent_noise_tables(TRUE, np.random.default_rng(12), 300)
     wls, wse = _run(trials, "wls")
     ols, _ = _run(trials, "ols")
     ratio = wls.std(axis=0, ddof=1) / wse.mean(axis=0)
