@@ -24,7 +24,8 @@ import support.mqtt_helpers as mh
 from orbitrig.service import abort_link, link
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
 from orbitrig.service.settings import AbortAccount
-from support.mqtt_helpers import ACCOUNTS, Broker, Watcher, serving, until
+from support.mqtt_helpers import ACCOUNTS, Broker, Watcher, serving
+from support.polling import until
 
 ABORT_LINE = "user orbitrig-service-abort\ntopic read orbitrig/+/abort\n"
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Watcher, retained
+from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Watcher, retained, wait
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceError, ServiceSettings
 
 
@@ -48,10 +48,6 @@ async def running(service: RigService):
     finally:
         stop.set()
         await asyncio.wait_for(task, 10)
-
-
-async def wait(fn, *args, **kw):
-    return await asyncio.to_thread(fn, *args, **kw)
 
 
 @pytest.mark.parametrize(

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, retained, write_matrices
+from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, retained, wait, write_matrices
 from orbitrig.cli.serve import build_service
 from orbitrig.config import load_rig
 from orbitrig.service import rig_service
@@ -23,10 +23,6 @@ from orbitrig.service.settings import RECORD_END_S, STOP_MARGIN_S
 
 RIG = "down"
 DECEL_TIME = 103  # the drives' register: 0.1 s for SPEED_SCALE (3000) rpm along the ramp stop
-
-
-async def wait(fn, *args, **kw):
-    return await asyncio.to_thread(fn, *args, **kw)
 
 
 class SlowDrained(asyncio.Event):

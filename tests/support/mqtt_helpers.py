@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
+from .polling import until
+
 if TYPE_CHECKING:
     from orbitrig.service.rig_service import RigService
 
@@ -525,15 +527,6 @@ def interrupt(proc: subprocess.Popen) -> int:
 async def wait(fn, *args, **kw):
     """``fn(*args, **kw)`` (a blocking client call) in a thread, the loop serving meanwhile."""
     return await asyncio.to_thread(fn, *args, **kw)
-
-
-async def until(condition: Callable[[], bool], timeout: float, what: str) -> None:
-    """Poll ``condition()`` every 50 ms; fail naming ``what`` after ``timeout`` s."""
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"not within {timeout} s: {what}")
-        await asyncio.sleep(0.05)
 
 
 @contextlib.asynccontextmanager
