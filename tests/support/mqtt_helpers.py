@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
 from .polling import until
+from .ports import free_port, wait_port
 
 if TYPE_CHECKING:
     from orbitrig.service.rig_service import RigService
@@ -38,24 +39,6 @@ ACCOUNTS = {
     "operator": "op-secret",
     "viewer": "view-secret",
 }
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def wait_port(port: int, timeout: float = 5.0) -> None:
-    deadline = time.monotonic() + timeout
-    while True:
-        try:
-            with socket.create_connection(("127.0.0.1", port), timeout=0.2):
-                return
-        except OSError:
-            if time.monotonic() > deadline:
-                raise TimeoutError(f"nothing listens on 127.0.0.1:{port} after {timeout} s") from None
-            time.sleep(0.02)
 
 
 #: The first line of a test broker's configuration: mosquitto started as root keeps root's
