@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rigunits import RPM
+
 ROOT = Path(__file__).resolve().parents[1]
 TARGET_ROWS, TARGET_S, TARGET_MB = 1_000_000, 20.0, 1000.0
 SPIN_RPM = 3000.0
@@ -35,7 +37,7 @@ D = np.array([[12.0, 1.5], [1.5, 10.0]])
 def write_table(path: Path, rows: int, seed: int = 0) -> None:
     """A kcd11 orbit table of ``rows`` rows (f = -Z d, Z = K + i Omega C - Omega^2 D)."""
     rng = np.random.default_rng(seed)
-    spin = SPIN_RPM * 2 * np.pi / 60
+    spin = SPIN_RPM * RPM
     w = rng.uniform(0.2, 1.2, rows) * spin
     radius = 5e-6
     x = np.full(rows, radius, dtype=complex)

@@ -17,7 +17,6 @@ anyway; the first decision also imports scipy.optimize once per process, timed a
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 
@@ -29,15 +28,16 @@ from reduction.models import model_spec
 from reduction.rig_time import list_time
 from reduction.sequential import block_information, next_block, reference_errors
 from reduction.whirl import Directions
+from rigunits import RPM
 
 TARGET_S = 0.5
-SPIN = 1000 * 2 * math.pi / 60
+SPIN = 1000 * RPM
 U = np.array([20e-9, 20e-9, 15.0, 15.0])  # per-revolution noise: x, y (m), fx, fy (N)
 RADIUS = 2.4e-6
 PAPER = [0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.1, 1.2]
 SPREAD = [0.2, 0.4, 0.65, 0.8, 1.2]
 OVERHEAD = 2.05  # settle hold + store, s
-RAMP = 600 * 2 * math.pi / 60  # rad/s per s
+RAMP = 600 * RPM  # rad/s per s
 DIRECTIONS = (Directions.FORWARD, Directions.BACKWARD)
 
 

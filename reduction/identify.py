@@ -72,7 +72,7 @@ def identify(
     table: OrbitTable,
     model: str = "kcd11",
     freq_dep: str = "none",
-    method: str = "ols",
+    method: Method | str = Method.OLS,
     solver: str = "qr",
     *,
     rank_rtol: float = RANK_RTOL,
@@ -88,6 +88,7 @@ def identify(
     """
     if method not in METHODS:
         raise ReductionError(f"unknown method {method!r}: use one of {', '.join(METHODS)}")
+    method = Method(method)
     if solver not in reg.SOLVERS:
         raise ReductionError(f"unknown solver {solver!r}: use one of {', '.join(reg.SOLVERS)}")
     if not isinstance(table, OrbitTable):
@@ -151,7 +152,7 @@ def _selection(
 
 
 def _identify(
-    table: OrbitTable, spec: ModelSpec, method: str, solver: str, rank_rtol: float, tls_ratio: float | None
+    table: OrbitTable, spec: ModelSpec, method: Method, solver: str, rank_rtol: float, tls_ratio: float | None
 ) -> Identification:
     A, b = _regression(spec, table)
     u = table.u

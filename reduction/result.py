@@ -14,6 +14,7 @@ from reduction.arrays import ComplexArray, FloatArray
 from reduction.impedance import forces, impedance
 from reduction.models import ModelSpec
 from reduction.selection import Selection
+from reduction.statistics import Interval
 from reduction.table import OrbitTable
 from rigunits import coefficient_unit
 
@@ -61,7 +62,7 @@ class Identification:
     notes: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     known_noise: bool = False  # covariance from the table's u_* columns (else from the residual)
-    interval: str = "student_t"  # reduction.statistics.Interval
+    interval: Interval = Interval.STUDENT_T  # where the 95 % intervals' quantile comes from
     not_determined: list[str] = field(default_factory=list)
 
     def to_dict(self, fit: bool = True) -> dict[str, Any]:

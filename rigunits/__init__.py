@@ -12,7 +12,8 @@ DataFrame ``attrs``, MAT / TDMS properties) is a string pint parses, written one
 
 Timestamps: ISO 8601 in UTC with milliseconds and a ``Z``, e.g.
 ``2026-11-27T01:30:05.123Z`` (files, logs, MQTT payloads); the compact form of
-the same instant, ``20261127T013005.123Z``, names runs and folders.
+the same instant, ``20261127T013005.123Z``, names runs and folders; a calibration
+record's name starts with it to the second, ``2026-11-27T013005Z``.
 """
 
 from __future__ import annotations
@@ -94,3 +95,9 @@ def utc_stamp(when: _dt.datetime | float | None = None) -> str:
     """The compact form (no separators), for run ids and folder names."""
     t = _utc(when)
     return f"{t:%Y%m%dT%H%M%S}.{t.microsecond // 1000:03d}Z"
+
+
+def record_stamp(when: _dt.datetime | float | None = None) -> str:
+    """The form that starts a calibration record's name: to the second, the date readable
+    (``2026-11-27T013005Z``); the names sort as the records were made."""
+    return f"{_utc(when):%Y-%m-%dT%H%M%S}Z"

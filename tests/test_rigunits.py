@@ -15,7 +15,7 @@ from daq.backoff import Backoff
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.service.reconnect import reconnecting
 from reduction.whirl import Directions, Whirl
-from rigunits import MPA, RPM, format_duration, now_iso, utc_iso, utc_stamp
+from rigunits import MPA, RPM, format_duration, now_iso, record_stamp, utc_iso, utc_stamp
 
 STAMP = re.compile(r"^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z$")
 
@@ -26,6 +26,7 @@ def test_one_utc_timestamp_format() -> None:
     plus_two = dt.datetime(2026, 11, 27, 3, 30, 5, 123456, tzinfo=dt.timezone(dt.timedelta(hours=2)))
     assert utc_iso(plus_two) == "2026-11-27T01:30:05.123Z"  # any zone comes out in UTC
     assert utc_stamp(plus_two) == "20261127T013005.123Z"
+    assert record_stamp(plus_two) == "2026-11-27T013005Z"  # a calibration record's name, to the second
     assert STAMP.match(now_iso())
     assert dt.datetime.fromisoformat(now_iso()).tzinfo == dt.timezone.utc  # Python reads it back as UTC
     before, t = dt.datetime.now(dt.timezone.utc), dt.datetime.fromisoformat(now_iso())

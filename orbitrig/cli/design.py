@@ -100,7 +100,7 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Predict the coefficients' standard errors for a list of orbit frequencies and propose a better list."""
         from orbitrig import config as cfg
-        from orbitrig.cli.design_report import DesignRequest, design_object, designs_dir, print_design, save_design
+        from orbitrig.cli import design_output as output, design_report as report
         from orbitrig.errors import OrbitrigError
 
         try:
@@ -108,7 +108,7 @@ def register(app: typer.Typer) -> None:
             cand, directions, mat_radius, source, mat_models = _candidate(ratios, matrix, rig, rig_path)
             tested = [(model, freq_dep)] + mat_models if keep_test else None
             noise, run = _noise(noise_from, lms, force_noise, probe_noise)
-            request = DesignRequest(
+            request = report.DesignRequest(
                 model=model,
                 freq_dep=freq_dep,
                 spin_rpm=spin,
@@ -125,14 +125,14 @@ def register(app: typer.Typer) -> None:
                 match=match,
                 test_models=tested,
             )
-            folder = designs_dir(rig_path) if save else None  # never the shipped defaults: refused before the search
-            obj = design_object(rig, request)
+            folder = output.designs_dir(rig_path) if save else None  # shipped defaults: refused before the search
+            obj = report.design_object(rig, request)
             if save and folder is not None:
-                saved = save_design(obj, save, folder)
+                saved = output.save_design(obj, save, folder)
                 sys.stderr.write(f"orbitrig design: wrote {saved}\n")
         except OrbitrigError as err:
             _fail(str(err))
         if as_json:
             typer.echo(json.dumps(obj, indent=1))
         else:
-            print_design(obj)
+            output.print_design(obj)

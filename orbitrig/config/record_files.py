@@ -17,6 +17,7 @@ from pathlib import Path
 from orbitrig.config.records import CalibrationRecord
 from orbitrig.config.toml_out import render
 from orbitrig.errors import ConfigError
+from rigunits import record_stamp
 
 FOLDER = "calibration"
 NAME = re.compile(r"^\d{4}-\d\d-\d\dT\d{6}Z-[a-z]+$")
@@ -32,8 +33,7 @@ def folder_of(rig_file: str | Path) -> Path:
 
 def record_name(date: str, step: str) -> str:
     """The file stem of a record made at ``date`` (ISO 8601 UTC) by ``step``."""
-    t = _dt.datetime.fromisoformat(date).astimezone(_dt.timezone.utc)
-    return f"{t:%Y-%m-%dT%H%M%S}Z-{step}"
+    return f"{record_stamp(_dt.datetime.fromisoformat(date))}-{step}"
 
 
 def digest(text: str) -> str:

@@ -5,12 +5,9 @@ may do: the dashboard adds no rights of its own. The password lives only in
 this object (server-side memory) for the reconnections; it is never logged.
 
 A :class:`Session` watches one rig of the broker at a time (``select_rig``) and keeps
-what the page needs to draw itself at once (the retained status, the latest progress
-and live payloads, the results so far, the trends and the alarms)
-and fans every rig message out to the session's browser feeds. The alarms are the
-rig's book on the dashboard server (orbitrig.dashboard.alarms.AlarmShelf), shared by the
-sessions watching it. The connection is MQTT 5, so that the broker answers a publish its ACL
-refuses with reason code 135 (orbitrig.dashboard.puback). A command is published with a
+what the page needs to draw itself at once, fanning every rig message out to the session's
+browser feeds (orbitrig.dashboard.incoming). The connection is MQTT 5, so that the broker
+answers a publish its ACL refuses with reason code 135 (orbitrig.dashboard.puback). A command is published with a
 correlation id and answered by the service's reply; refused by the broker, it is reported
 as not authorised; without a reply within ``reply_timeout`` its outcome is unknown
 (orbitrig.dashboard.commands).
@@ -26,7 +23,6 @@ import asyncio
 import collections
 import contextlib
 import dataclasses
-import json
 import logging
 import secrets
 import time
@@ -35,23 +31,20 @@ from typing import Any
 
 import orbitrig.service.protocol as proto
 from daq.backoff import Backoff
-from orbitrig.dashboard.alarms import AlarmBook, AlarmShelf
+from orbitrig.dashboard.alarms import AlarmShelf
 from orbitrig.dashboard.catchup import connect_properties, gap_message, move_subscriptions, subscriptions, topic_names
 from orbitrig.dashboard.commands import PAGE_COMMANDS
 from orbitrig.dashboard.elsewhere import ElsewhereReplies
 from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
+from orbitrig.dashboard.incoming import Incoming
 from orbitrig.dashboard.outgoing import Outgoing
 from orbitrig.dashboard.rigs import RigDirectory
 from orbitrig.dashboard.throttle import ThrottlePolicy
-from orbitrig.dashboard.trend import TrendHistory
 from orbitrig.service.reconnect import credentials_refused, reconnecting
 
 log = logging.getLogger("orbitrig.dashboard")
 
 __all__ = ["PAGE_COMMANDS", "DashboardSettings", "Session", "SignInRefused"]
-#: a run has ended in these states: its progress and live view are forgotten
-ENDED = (proto.RunState.IDLE, proto.RunState.FAULTED)
-TREND_RESEND = 300  # the run's trend view (thinned by the server) goes to the pages again every this many samples
 
 
 class SignInRefused(Exception):
@@ -84,8 +77,9 @@ class DashboardSettings:
     catch_up_s: int = 600  # s the broker keeps the session's messages while its link is down (session expiry)
 
 
-class Session(Outgoing):
-    """One browser session = one broker user's MQTT connection (its commands: Outgoing)."""
+class Session(Incoming, Outgoing):
+    """One browser session = one broker user's MQTT connection (what it reads: Incoming; its commands:
+    Outgoing; Incoming first, as its `alarms` and `_broadcast` are the ones Outgoing uses)."""
 
     def __init__(self, settings: DashboardSettings, user: str, password: str, shelf: AlarmShelf | None = None):
         self.settings = settings
@@ -95,9 +89,6 @@ class Session(Outgoing):
         self.token = secrets.token_urlsafe(32)
         self.last_active = time.monotonic()
         self.link = BrokerLink.CONNECTING
-        self.status: dict | None
-        self.progress: dict | None
-        self.live: dict | None
         self.topics = settings.topics  # the rig watched now (select_rig changes it)
         self.rigs = RigDirectory(settings.topics.prefix)
         self._forget_rig()
@@ -115,39 +106,6 @@ class Session(Outgoing):
 
     def __repr__(self) -> str:  # never the password
         return f"Session(user={self.user!r}, link={str(self.link)!r})"
-
-    def _forget_rig(self) -> None:
-        """Drop what the session knows of the rig it watched."""
-        self.status = self.progress = self.live = None
-        self.live_at = 0.0  # time.monotonic() when the live payload came
-        # the results so far and the gaps where some may be missing, as feed messages (result, gap)
-        self.results: collections.deque[dict] = collections.deque(maxlen=500)
-        self.status_seen: int | None = None  # the session's place in the rig's alarm book (AlarmBook.on_status)
-        self.trend = TrendHistory(self.settings.trend_period, self.settings.trend_recent_s)
-        self.trend_samples = 0
-        self.alarms_seen = -1  # the version of the rig's alarm book the pages have
-
-    @property
-    def alarms(self) -> AlarmBook:
-        """The latched alarms of the rig watched (the dashboard server's book, not the session's)."""
-        return self.shelf.book(self.topics.prefix)
-
-    def _alarms_changed(self) -> None:
-        """Send the pages the rig's alarms when its book changed since they got it (whichever
-        session applied the change: every session watching the rig gets the same messages)."""
-        book = self.alarms
-        if book.version != self.alarms_seen:
-            self.alarms_seen = book.version
-            self._broadcast({"type": FeedType.ALARMS, "data": book.listing()})
-
-    def adopt(self, peers: Any) -> None:
-        """Start from the trends of the first of ``peers`` (sessions) watching the same rig; the alarms
-        are the rig's own book."""
-        peer = next((p for p in peers if p is not self and p.topics == self.topics), None)
-        if peer is not None:
-            self.trend.seed(peer.trend)
-            self._broadcast({"type": FeedType.TREND_HISTORY, "data": self.trend.history()})
-        self._alarms_changed()
 
     async def select_rig(self, rig_id: str, peers: Any = ()) -> dict:
         """Watch another rig of the broker (``orbitrig/<rig_id>``) from now on (with the trends
@@ -303,96 +261,3 @@ class Session(Outgoing):
         with contextlib.suppress(Exception):  # the link went meanwhile
             client.end_session()
         return True
-
-    # -- incoming ----------------------------------------------------------------
-
-    def _on_message(self, topic: str, raw: Any) -> None:
-        t = self.topics
-        try:
-            data = json.loads(raw if isinstance(raw, (bytes, bytearray, str)) else b"")
-        except (ValueError, RecursionError):
-            return
-        if not isinstance(data, dict):
-            return
-        rig_id = self.rigs.rig_of(topic)
-        if rig_id is not None and self.rigs.on_status(rig_id, data):
-            self._broadcast({"type": FeedType.RIGS, "data": self.rigs.listing()})
-        if topic == t.status:
-            self._forget_run_view(data)
-            self.status = data
-            self._broadcast({"type": FeedType.STATUS, "data": data})
-            _, self.status_seen = self.alarms.on_status(data, self.status_seen)
-            self._alarms_changed()
-        elif topic == t.ack:
-            self._resolve(data)
-            self.alarms.on_ack(data)
-            self._alarms_changed()
-        elif topic == t.progress:
-            self.progress = data
-            self._broadcast({"type": FeedType.PROGRESS, "data": data})
-        elif topic == t.live:
-            self.live, self.live_at = data, time.monotonic()
-            self._broadcast({"type": FeedType.LIVE, "data": data})
-            self._trend(data)
-        elif topic == t.result:
-            message = {"type": FeedType.RESULT, "data": data}
-            if message in self.results:  # a QoS 1 message the broker handed on again (after a reconnection)
-                return
-            self.results.append(message)
-            self._broadcast(message)
-        elif topic == t.reply or self._elsewhere.is_reply(topic):  # also another rig's: a stop or abort sent there
-            self._resolve(data)
-
-    def _forget_run_view(self, status: dict) -> None:
-        """The progress and live payloads go when the run ends or another run's status comes."""
-        run_id, old = status.get("run_id"), self.status
-        if status.get("state") in ENDED or (old is not None and old.get("run_id") != run_id):
-            self.progress = self.live = None
-
-    def _resolve(self, data: dict) -> None:
-        """A reply (or this session's own acknowledgement back from the broker) for a waiting call."""
-        fut = self._pending.pop(str(data.get("id")), None)
-        if fut is None:
-            self.late_reply(data)
-        elif not fut.done():
-            fut.set_result(data)
-
-    def _trend(self, live: dict) -> None:
-        sample = self.trend.add(live, time.time())
-        if sample is None:
-            return
-        self.trend_samples += 1
-        self._broadcast({"type": FeedType.TREND, "sample": sample, "run_id": self.trend.run_id})
-        if self.trend_samples % TREND_RESEND == 0:
-            self._broadcast({"type": FeedType.TREND_HISTORY, "data": {**self.trend.history(), "recent": None}})
-
-    def _broadcast(self, message: dict) -> None:
-        for feed in list(self.feeds):
-            feed.put(message)
-
-    def snapshot(self) -> list[dict]:
-        """What a newly connected page needs to draw the present at once."""
-        out: list[dict] = [
-            {
-                "type": FeedType.HELLO,
-                "user": self.user,
-                "prefix": self.topics.prefix,
-                "reply_timeout": self.settings.reply_timeout,
-                "tick": self.settings.tick,
-            },
-            {"type": FeedType.LINK, "link": self.link},
-            {"type": FeedType.RIGS, "data": self.rigs.listing()},
-        ]
-        out += [
-            {"type": k, "data": v}
-            for k, v in ((FeedType.STATUS, self.status), (FeedType.PROGRESS, self.progress))
-            if v is not None
-        ]
-        out += list(self.results)  # the results so far, and where some may be missing
-        out.append({"type": FeedType.TREND_HISTORY, "data": self.trend.history()})
-        out.append({"type": FeedType.ALARMS, "data": self.alarms.listing()})
-        if self.outcomes:
-            out.append({"type": FeedType.OUTCOMES, "data": list(self.outcomes)})
-        if self.live is not None:
-            out.append({"type": FeedType.LIVE, "data": self.live, "age_s": time.monotonic() - self.live_at})
-        return out

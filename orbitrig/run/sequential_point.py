@@ -25,6 +25,7 @@ from orbitrig.store.records import BlockChoice, BlockRecord
 from reduction.arrays import FloatArray, NoiseAt
 from reduction.frequency_list import coefficient_scales, smooth_noise
 from reduction.identify import identify
+from reduction.methods import Method
 from reduction.models import ModelSpec, model_spec
 from reduction.rig_time import block_time
 from reduction.sequential import Choice, block_information, next_block, reference_errors
@@ -73,7 +74,7 @@ def choose(
     spec = model_spec(rule.model)
     probes = [(corr.probe_phasors(r, ch, spin), corr.probe_records(r, ch, spin)) for r in recs]
     table = orbit_table(spin, recs, ch, LMS[0], corr, probes)
-    theta = identify(table, rule.model, method="wls").theta
+    theta = identify(table, rule.model, method=Method.WLS).theta
     ratios = np.array([abs(r.block.orbit) / spin for r in recs])
     per_rev, noise_at = _noise(table, ratios)
     radius = float(np.mean(np.sqrt((np.abs(table.x) ** 2 + np.abs(table.y) ** 2) / 2)))

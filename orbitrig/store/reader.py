@@ -32,6 +32,7 @@ from orbitrig.store.status import RunStatus
 from orbitrig.store.stored_run import PROVENANCE_KEYS, Frequency, Settings, StoredIdentification
 from orbitrig.store.stored_run import Point
 from orbitrig.store.stored_run import Run as Run  # docs/api.md: orbitrig.store.reader.Run
+from rigunits import RPM
 
 if TYPE_CHECKING:
     import h5py
@@ -188,7 +189,7 @@ def read_point(
 def _new_point(a: h5py.AttributeManager | dict[str, Any], name: str) -> Point:
     settings = Settings(
         spin=float(a["spin"]),
-        spin_rpm=float(a.get("spin_rpm", float(a["spin"]) * 30.0 / np.pi)),
+        spin_rpm=float(a.get("spin_rpm", float(a["spin"]) / RPM)),
         recess_pressure=float(a.get("recess_pressure", np.nan)),
         pressure_ratio=float(a.get("pressure_ratio", np.nan)),
         static_eccentricity=float(a.get("static_eccentricity", np.nan)),

@@ -14,6 +14,7 @@ import pytest
 
 from orbitrig.cli.calibrate_steps import OperatorLoads
 from orbitrig.run.calibration import CalibrationFailed
+from support.polling import until
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -33,14 +34,6 @@ def _blocked_reading(fd: int) -> bool:
         if len(words) > 1 and words[0] == _read_syscall() and int(words[1], 16) == fd:
             return True
     return False
-
-
-async def _until(condition, timeout: float, what: str) -> None:
-    loop = asyncio.get_running_loop()
-    deadline = loop.time() + timeout
-    while not condition():
-        assert loop.time() < deadline, what
-        await asyncio.sleep(0.01)
 
 
 class Pipe:
@@ -72,21 +65,21 @@ def stdin_pipe(monkeypatch):
 async def test_a_cancelled_prompt_leaves_the_next_enter_to_the_next_prompt(stdin_pipe):
     hands = OperatorLoads()
     first = asyncio.ensure_future(hands.apply_load(500.0, 0.0))
-    await _until(lambda: _blocked_reading(stdin_pipe.r), 30, "the first prompt never read standard input")
+    await until(lambda: _blocked_reading(stdin_pipe.r), 30, "the first prompt reading standard input", every=0.01)
     first.cancel()  # Ctrl-C: the step is cancelled while the prompt waits
     with pytest.raises(asyncio.CancelledError):
         await first
     second = asyncio.ensure_future(hands.apply_load(0.0, 0.0))
     for _ in range(2):  # the second prompt runs up to its wait for the line (before the Enter is written)
         await asyncio.sleep(0)
-    await _until(lambda: _blocked_reading(stdin_pipe.r), 30, "the second prompt never read standard input")
+    await until(lambda: _blocked_reading(stdin_pipe.r), 30, "the second prompt reading standard input", every=0.01)
     stdin_pipe.write(b"\n")  # one Enter
     await asyncio.wait_for(second, 30)  # the second prompt has it (not a reader nobody waits for)
 
 
 async def test_closed_standard_input_fails_the_step_saying_so(stdin_pipe):
     prompt = asyncio.ensure_future(OperatorLoads().apply_load(500.0, 0.0))
-    await _until(lambda: _blocked_reading(stdin_pipe.r), 30, "the prompt never read standard input")
+    await until(lambda: _blocked_reading(stdin_pipe.r), 30, "the prompt reading standard input", every=0.01)
     stdin_pipe.close()
     with pytest.raises(CalibrationFailed, match="standard input is closed: nobody can confirm at the terminal"):
         await asyncio.wait_for(prompt, 30)

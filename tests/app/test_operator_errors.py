@@ -9,7 +9,7 @@ import pytest
 from orbitrig import config as cfg
 from orbitrig.errors import ConfigError
 
-from support.sweep_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd
 from support.paths import ROOT
 
 RIG_TEXT = cfg.default_rig_path().read_text()

@@ -21,7 +21,8 @@ from orbitrig.store.reader import read_run
 
 from support.paths import ROOT
 from support.rig_configs import patient_lab
-from support.sweep_helpers import orbitrig_cmd, stop_after_first_point
+from support.cli_helpers import orbitrig_cmd
+from support.sweep_helpers import stop_after_first_point
 
 pytestmark = pytest.mark.timeout(300)
 

@@ -11,7 +11,8 @@ from orbitrig import config as cfg
 from orbitrig.store.writer import RunStore
 
 from support.paths import ROOT
-from support.store_checks import orbitrig_cmd, small_matrix
+from support.cli_helpers import orbitrig_cmd
+from support.store_checks import small_matrix
 
 pytestmark = pytest.mark.timeout(120)
 

@@ -12,7 +12,7 @@ import pytest
 
 from support.paths import ROOT
 from support.store_checks import small_matrix
-from support.sweep_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd
 
 pytestmark = pytest.mark.timeout(180)
 

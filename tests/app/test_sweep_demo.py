@@ -10,7 +10,7 @@ import h5py
 
 from orbitrig.cli.sweep_summary import compare_with_truth
 
-from support.sweep_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd
 from support.paths import ROOT
 
 

@@ -13,7 +13,7 @@ import pytest
 
 from orbitrig.store.reader import read_run
 
-from support.sweep_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd
 from support.paths import ROOT
 
 # four points; the spin speeds close together, so that the ramps between points are short

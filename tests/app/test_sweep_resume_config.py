@@ -16,7 +16,8 @@ from orbitrig.store.reader import read_run
 from support.paths import ROOT
 from support.store_checks import small_matrix
 from support.rig_configs import lab_record_config, loads_record
-from support.sweep_helpers import orbitrig_cmd, stop_after_first_point
+from support.cli_helpers import orbitrig_cmd
+from support.sweep_helpers import stop_after_first_point
 
 pytestmark = pytest.mark.timeout(240)
 

@@ -20,7 +20,7 @@ from sim.config import load_sim_config
 from sim.physics import RigPhysics
 
 from support.paths import ROOT
-from support.sweep_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd
 
 SCENARIO = "config/sim/clean.toml"
 MATRIX = """

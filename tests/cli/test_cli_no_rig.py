@@ -7,13 +7,14 @@ from __future__ import annotations
 import re
 import shutil
 
-from support.cli_helpers import closed_port, orbitrig
+from support.cli_helpers import orbitrig
+from support.ports import free_port
 from support.paths import ROOT
 
 
 def _rig_without_answer(tmp_path):
     """config/rig.toml with every transport pointed at a port nothing listens on."""
-    adc, modbus, can = closed_port(), closed_port(), closed_port()
+    adc, modbus, can = free_port(), free_port(), free_port()  # nothing listens there
     text = (ROOT / "config" / "rig.toml").read_text()
     subs = {
         "adc_url": f"socket://127.0.0.1:{adc}",

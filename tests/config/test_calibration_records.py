@@ -4,11 +4,8 @@ the shipped record, writing and reading back, the active record in the rig confi
 
 from __future__ import annotations
 
-import os
 import re
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +23,7 @@ from orbitrig.config import (
 )
 from orbitrig.errors import ConfigError
 
+from support.cli_helpers import orbitrig
 from support.paths import ROOT
 
 
@@ -95,22 +93,11 @@ def test_a_missing_or_bad_record_is_refused_naming_the_file(tmp_path):
     assert err.value.file == str(bad) and "line 1" in str(err.value) and "UTC" in str(err.value)
 
 
-def _orbitrig(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "orbitrig", *args],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=60,
-        env={**os.environ, "COLUMNS": "200", "PYTHONPATH": str(ROOT)},
-    )
-
-
 def test_calibrate_list_and_show_print_the_history(tmp_path):
     rig_file = _rig_copy(tmp_path)
     rig = load_rig(rig_file)
     name, text = write_record(tmp_path / "calibration", _loads_record(rig))
-    p = _orbitrig("calibrate", "list", "--config", str(rig_file))
+    p = orbitrig("calibrate", "list", "--config", str(rig_file))
     assert p.returncode == 0, p.stderr
     lines = p.stdout.splitlines()
     assert lines[0].startswith(f"* {rig.calibration_record}") and "initial" in lines[0]  # oldest first
@@ -120,16 +107,16 @@ def test_calibrate_list_and_show_print_the_history(tmp_path):
     # the dates in one column and one format (rigunits' timestamp), whatever each file spells
     dates = [re.search(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z", line) for line in lines[:2]]
     assert all(dates) and dates[0].start() == dates[1].start(), lines
-    p = _orbitrig("calibrate", "show", name, "--config", str(rig_file))
+    p = orbitrig("calibrate", "show", name, "--config", str(rig_file))
     assert p.returncode == 0 and f"# sha256 {digest(text)}" in p.stdout and p.stdout.endswith(text)
-    p = _orbitrig("calibrate", "show", "2020-01-01T000000Z-none", "--config", str(rig_file))
+    p = orbitrig("calibrate", "show", "2020-01-01T000000Z-none", "--config", str(rig_file))
     assert p.returncode == 2 and "no calibration record" in p.stderr and "Traceback" not in p.stderr
 
 
 def test_a_record_missing_from_a_lab_copy_names_the_lab_file_line_key_and_its_records(tmp_path):
     """The lab's rig.toml names a record its calibration/ lacks: the refusal (exit 2) names that
     rig.toml, the line of calibration_record and the lab folder's records, not the shipped ones."""
-    assert _orbitrig("init", str(tmp_path / "lab")).returncode == 0
+    assert orbitrig("init", str(tmp_path / "lab")).returncode == 0
     shutil.copytree(tmp_path / "lab", tmp_path / "lab2")
     rig_file = tmp_path / "lab2" / "rig.toml"
     own, _ = write_record(tmp_path / "lab2" / "calibration", _loads_record(load_rig(rig_file)))
@@ -141,7 +128,7 @@ def test_a_record_missing_from_a_lab_copy_names_the_lab_file_line_key_and_its_re
         ("calibrate", "show"),
         ("calibrate", "list"),
     ):
-        p = _orbitrig(*args, "--config", str(rig_file))
+        p = orbitrig(*args, "--config", str(rig_file))
         assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
         assert f"{rig_file}: line {line}: key 'calibration_record': no calibration record" in p.stderr
         assert f"in {tmp_path / 'lab2' / 'calibration'} (records there: " in p.stderr and own in p.stderr

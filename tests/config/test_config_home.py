@@ -6,7 +6,6 @@ init writes runs a real mosquitto."""
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -16,7 +15,7 @@ import pytest
 from orbitrig import config as cfg
 from orbitrig.config.lab import write_lab
 from orbitrig.errors import ConfigError
-from support.mqtt_helpers import ACCOUNTS, MOSQUITTO, free_port, wait_port
+from support.mqtt_helpers import AS_ROOT, ACCOUNTS, end_process, launch_mosquitto, on_free_ports, private_copy
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -101,16 +100,11 @@ def test_init_broker_configuration_runs_mosquitto(lab):
     """The written mosquitto.conf, its listeners moved to free ports: the broker starts with
     the lab's password file and ACL, a viewer may read and may not command."""
     broker = lab / "mosquitto"
-    shutil.copyfile(broker / "passwd.example", broker / "passwd")
-    (broker / "passwd").chmod(0o600)
-    service, people = free_port(), free_port()
-    conf = (broker / "mosquitto.conf").read_text()
-    conf = conf.replace("listener 1883 127.0.0.1", f"listener {service} 127.0.0.1")
-    conf = conf.replace("listener 1884 127.0.0.1", f"listener {people} 127.0.0.1")
-    (broker / "test.conf").write_text("user root\n" + conf)
-    proc = subprocess.Popen([MOSQUITTO, "-c", str(broker / "test.conf")], stderr=subprocess.PIPE)
+    private_copy(broker / "passwd.example", broker / "passwd")
+    conf, _, people = on_free_ports((broker / "mosquitto.conf").read_text())
+    (broker / "test.conf").write_text(AS_ROOT + conf)
+    proc = launch_mosquitto(broker / "test.conf", broker / "mosquitto.log", people)
     try:
-        wait_port(people)
         pub = ["mosquitto_pub", "-h", "127.0.0.1", "-p", str(people), "-t", "orbitrig/lab/cmd", "-m", "{}", "-q", "1"]
         ok = subprocess.run(pub + ["-u", "operator", "-P", ACCOUNTS["operator"]], capture_output=True, timeout=10)
         bad = subprocess.run(pub + ["-u", "operator", "-P", "wrong"], capture_output=True, timeout=10)
@@ -118,8 +112,7 @@ def test_init_broker_configuration_runs_mosquitto(lab):
         assert bad.returncode != 0
         assert (broker / "data").is_dir()
     finally:
-        proc.terminate()
-        proc.wait(5)
+        end_process(proc)
 
 
 def test_init_writes_the_rig_id_given_and_reminds_when_none_is(tmp_path):

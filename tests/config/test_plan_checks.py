@@ -216,7 +216,7 @@ def test_a_real_sweep_stores_the_warning_in_its_run_log(tmp_path):
     import subprocess
 
     from support.paths import ROOT
-    from support.sweep_helpers import orbitrig_cmd
+    from support.cli_helpers import orbitrig_cmd
 
     path = write(tmp_path, ratios="ratios = [0.3, 0.6, 0.95]\nrevolutions = [8, 8, 8]", directions='["forward"]')
     out = tmp_path / "run"

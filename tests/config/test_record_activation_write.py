@@ -20,7 +20,7 @@ from orbitrig.errors import ConfigError
 
 from support.paths import ROOT
 from support.rig_configs import lab_record_config
-from support.sweep_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd
 
 NAME = "2026-12-01T083000Z-loads"
 LIMIT = 4096  # bytes, below rig.toml's size (about 6 kB)

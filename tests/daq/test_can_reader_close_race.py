@@ -8,24 +8,16 @@ cue)."""
 
 from __future__ import annotations
 
-import asyncio
 import threading
-import time
 
 import can
 import pytest
 
 from daq import can_reader
 from daq.can_reader import CanReader
+from support.polling import until
 
 pytestmark = pytest.mark.timeout(30)
-
-
-async def _until(pred, timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not pred():
-        assert time.monotonic() < deadline, f"not within {timeout} s: {what}"
-        await asyncio.sleep(0.01)
 
 
 async def test_a_bus_opened_again_while_the_reader_closes_is_shut_down(monkeypatch):
@@ -42,11 +34,13 @@ async def test_a_bus_opened_again_while_the_reader_closes_is_shut_down(monkeypat
     first = can.Bus(interface="virtual", channel="close-race")
     reader = CanReader(first, reopen, lambda msg: None, "virtual:close-race")
     first.shutdown()  # the link fails under the reader's thread
-    await _until(lambda: reader.error is not None and opening.is_set(), 5.0, "the reader opening the bus again")
+    await until(
+        lambda: reader.error is not None and opening.is_set(), 5.0, "the reader opening the bus again", every=0.01
+    )
     assert reader.close() is None  # nothing open to hand back: the failed bus is shut down already
     release.set()
-    await _until(lambda: bool(reopened), 5.0, "the open returning")
-    await _until(lambda: reopened[0]._is_shutdown, 5.0, "the bus opened after close shut down")
+    await until(lambda: bool(reopened), 5.0, "the open returning", every=0.01)
+    await until(lambda: reopened[0]._is_shutdown, 5.0, "the bus opened after close shut down", every=0.01)
 
 
 async def test_a_bus_whose_filters_cannot_be_set_is_shut_down(monkeypatch):

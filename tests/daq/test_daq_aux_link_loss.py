@@ -16,16 +16,10 @@ import pytest
 
 from daq.aux import AuxSensors
 from sim.can_tcp import CanTcpHub
+from support.polling import until
 
 pytestmark = pytest.mark.timeout(30)
 HEARTBEAT = can.Message(arbitration_id=0x701, data=b"\x05", is_extended_id=False)
-
-
-async def until(pred, timeout: float, what: str) -> None:
-    deadline = time.monotonic() + timeout
-    while not pred():
-        assert time.monotonic() < deadline, f"not within {timeout} s: {what}"
-        await asyncio.sleep(0.01)
 
 
 async def test_a_can_link_that_fails_is_read_no_more_and_the_node_counts_as_lost(caplog):
@@ -39,10 +33,10 @@ async def test_a_can_link_that_fails_is_read_no_more_and_the_node_counts_as_lost
                 async with AuxSensors(hub.url, interface="serial") as aux:
                     await asyncio.sleep(0.2)  # the hub accepts both connections
                     node.send(HEARTBEAT)
-                    await until(lambda: not aux.latest().node_lost, 5, "the node's heartbeat read")
+                    await until(lambda: not aux.latest().node_lost, 5, "the node's heartbeat read", every=0.01)
                     await hub.aclose()  # the bus link fails under the reader
                     t_lost = time.monotonic()
-                    await until(lambda: aux.latest().node_lost, 3.0, "the node lost with its link")
+                    await until(lambda: aux.latest().node_lost, 3.0, "the node lost with its link", every=0.01)
                     lost_after = time.monotonic() - t_lost
                     await asyncio.sleep(0.5)  # the loop turns on with the failed link
                     assert unhandled == [], f"{len(unhandled)} callbacks raised, e.g. {unhandled[0]['message']}"

@@ -5,8 +5,6 @@ from __future__ import annotations
 import asyncio
 import json
 import math
-import os
-import sys
 
 import numpy as np
 import pytest
@@ -14,27 +12,11 @@ import pytest
 from sim.config import scenario
 from sim.rig import SimRig
 
+from support.cli_helpers import orbitrig_async
 from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(60)
 ORBIT = 2 * math.pi * 12.5
-
-
-async def orbitrig(*args: str) -> tuple[int, str, str]:
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    p = await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-m",
-        "orbitrig",
-        "acquire",
-        *args,
-        stdout=asyncio.subprocess.PIPE,
-        stderr=asyncio.subprocess.PIPE,
-        cwd=ROOT,
-        env=env,
-    )
-    out, err = await p.communicate()
-    return p.returncode, out.decode(), err.decode()
 
 
 @pytest.fixture
@@ -46,7 +28,7 @@ async def rig():
 
 
 async def test_json_over_tcp_in_counts(rig):
-    code, out, err = await orbitrig("--adc", rig.adc_url, "--json", "--revolutions", "40", "--counts")
+    code, out, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--json", "--revolutions", "40", "--counts")
     assert code == 0, err
     d = json.loads(out)
     assert list(d) == [
@@ -75,8 +57,8 @@ async def test_json_over_tcp_in_counts(rig):
 
 
 async def test_table_over_pty_with_rig_config(rig):
-    code, out, err = await orbitrig(
-        "--adc", rig.adc_pty_path, "--rig", str(ROOT / "config" / "rig.toml"), "--revolutions", "20"
+    code, out, err = await orbitrig_async(
+        "acquire", "--adc", rig.adc_pty_path, "--rig", str(ROOT / "config" / "rig.toml"), "--revolutions", "20"
     )
     assert code == 0, err
     assert out.startswith("20 revolutions averaged, 0 dropped")
@@ -88,13 +70,13 @@ async def test_table_over_pty_with_rig_config(rig):
 
 
 async def test_exit_2_with_a_clear_message(rig):
-    code, out, err = await orbitrig("--adc", "socket://127.0.0.1:1")
+    code, out, err = await orbitrig_async("acquire", "--adc", "socket://127.0.0.1:1")
     assert code == 2 and out == "" and "orbitrig acquire: socket://127.0.0.1:1: cannot connect" in err
-    code, _, err = await orbitrig("--adc", "/dev/no-such-port")
+    code, _, err = await orbitrig_async("acquire", "--adc", "/dev/no-such-port")
     assert code == 2 and "/dev/no-such-port: cannot open serial port" in err
-    code, _, err = await orbitrig("--adc", rig.adc_url, "--mode", "simultaneous", "--timeout", "0.5")
+    code, _, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--mode", "simultaneous", "--timeout", "0.5")
     assert code == 2 and "no good revolution within 0.5 s" in err and "mode_mismatch" in err
-    code, _, err = await orbitrig("--adc", rig.adc_url, "--channels", "7")
+    code, _, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--channels", "7")
     assert code == 2 and "--channels 7 but the rig config calibrates 8 channels" in err
-    code, _, err = await orbitrig("--adc", rig.adc_url, "--channels", "7", "--counts")
+    code, _, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--channels", "7", "--counts")
     assert code == 2 and "channels=7" in err

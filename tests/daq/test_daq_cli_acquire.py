@@ -7,7 +7,6 @@ from __future__ import annotations
 import asyncio
 import json
 import math
-import sys
 import threading
 from contextlib import contextmanager
 
@@ -19,25 +18,10 @@ from orbitrig.cli import app
 from sim.config import scenario
 from sim.rig import SimRig
 
-from support.paths import ROOT
+from support.cli_helpers import orbitrig_async
 
 ORBIT = 2 * math.pi * 12.5  # rad/s
 pytestmark = pytest.mark.timeout(60)
-
-
-async def acquire(*args: str) -> tuple[int, str, str]:
-    p = await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-m",
-        "orbitrig",
-        "acquire",
-        *args,
-        cwd=ROOT,
-        stdout=asyncio.subprocess.PIPE,
-        stderr=asyncio.subprocess.PIPE,
-    )
-    out, err = await p.communicate()
-    return p.returncode, out.decode(), err.decode()
 
 
 @pytest.fixture
@@ -49,7 +33,7 @@ async def rig():
 
 
 async def test_calibrated_by_the_rig_config_by_default(rig):
-    code, out, err = await acquire("--adc", rig.adc_url, "--revolutions", "10", "--json")
+    code, out, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--revolutions", "10", "--json")
     assert code == 0, err
     truth = list(rig.true_phasors(150.0, ORBIT).values())  # N, m
     for c, q in zip(json.loads(out)["channels"], truth):
@@ -57,15 +41,15 @@ async def test_calibrated_by_the_rig_config_by_default(rig):
 
 
 async def test_adaptive_averaging_from_the_command_line(rig):
-    code, out, err = await acquire(
-        "--adc", rig.adc_url, "--target", "0.5", "--min-revolutions", "5", "--revolutions", "300", "--json"
+    code, out, err = await orbitrig_async(
+        "acquire", "--adc", rig.adc_url, "--target", "0.5", "--min-revolutions", "5", "--revolutions", "300", "--json"
     )
     assert code == 0, err
     d = json.loads(out)
     assert d["stop_reason"] == "target" and 5 <= d["revolutions_used"] < 300
     assert all(c["uncertainty"] <= 0.005 * c["amplitude"] for c in d["channels"])
-    code, out, err = await acquire(
-        "--adc", rig.adc_url, "--target", "1e-6", "--min-revolutions", "5", "--revolutions", "20"
+    code, out, err = await orbitrig_async(
+        "acquire", "--adc", rig.adc_url, "--target", "1e-6", "--min-revolutions", "5", "--revolutions", "20"
     )
     assert code == 0, err
     assert out.startswith("20 revolutions averaged (stopped: max), 0 dropped")
@@ -75,16 +59,16 @@ async def test_adaptive_averaging_from_the_command_line(rig):
 async def test_errors_hint_at_the_cause(rig):
     rig.local_control(spin=150.0, orbit=0.0)  # the board is clocked by the orbit: no frames
     await asyncio.sleep(0.05)
-    code, out, err = await acquire("--adc", rig.adc_url, "--timeout", "0.5")
+    code, out, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--timeout", "0.5")
     assert code == 2 and out == ""
     assert "no good revolution within 0.5 s" in err and "is the orbit turning?" in err
     assert "orbitrig drives run" in err and "--hold" in err and "raise --timeout" in err
-    code, _, err = await acquire("--adc", "socket://127.0.0.1:1")
+    code, _, err = await orbitrig_async("acquire", "--adc", "socket://127.0.0.1:1")
     assert code == 2 and "cannot connect" in err and "is the A/D board (or `orbitrig sim`) serving there?" in err
     for bad in ("nan", "-1", "inf", "0"):
-        code, _, err = await acquire("--adc", rig.adc_url, "--timeout", bad)
+        code, _, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--timeout", bad)
         assert code == 2 and "Traceback" not in err and "--timeout" in err, (bad, err)
-    code, _, err = await acquire("--adc", rig.adc_url, "--target", "1", "--revolutions", "1")
+    code, _, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--target", "1", "--revolutions", "1")
     assert code == 2 and "min_revolutions >= 2" in err and "Traceback" not in err
 
 

@@ -4,38 +4,23 @@ from __future__ import annotations
 
 import asyncio
 import math
-import sys
 
 import pytest
 
 from sim.rig import SimRig
 
+from support.cli_helpers import orbitrig_async
 from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(60)
-
-
-async def _acquire(*args: str) -> tuple[int, str, str]:
-    p = await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-m",
-        "orbitrig",
-        "acquire",
-        *args,
-        cwd=ROOT,
-        stdout=asyncio.subprocess.PIPE,
-        stderr=asyncio.subprocess.PIPE,
-    )
-    out, err = await p.communicate()
-    return p.returncode, out.decode(), err.decode()
 
 
 async def test_rows_name_channel_and_unit():
     async with SimRig(speedup=20.0, can_channel=None) as rig:
         rig.local_control(spin=150.0, orbit=2 * math.pi * 12.5)
         await asyncio.sleep(0.05)
-        code, out, err = await _acquire(
-            "--adc", rig.adc_url, "--rig", str(ROOT / "config" / "rig.toml"), "--revolutions", "10"
+        code, out, err = await orbitrig_async(
+            "acquire", "--adc", rig.adc_url, "--rig", str(ROOT / "config" / "rig.toml"), "--revolutions", "10"
         )
         assert code == 0, err
         lines = out.splitlines()
@@ -51,6 +36,6 @@ async def test_rows_name_channel_and_unit():
             ["m", "x_b"],
             ["m", "y_b"],
         ]
-        code, out, err = await _acquire("--adc", rig.adc_url, "--revolutions", "5", "--counts")
+        code, out, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--revolutions", "5", "--counts")
         assert code == 0, err
         assert all(row.split()[-1] == "counts" for row in out.splitlines()[2:])

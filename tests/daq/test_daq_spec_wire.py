@@ -19,20 +19,10 @@ from daq.frames import FrameDecoder
 from daq.revolutions import RevolutionAssembler
 from daq.transport import open_link
 from sim.config import NoiseConfig, SimConfig
+from support.spec_crc import crc16_ccitt_false
 from sim.rig import SimRig
 
 pytestmark = pytest.mark.timeout(30)
-
-
-def crc16_ccitt_false(data: bytes) -> int:
-    """Bitwise CRC-16/CCITT-FALSE: poly 0x1021, init 0xFFFF, no reflection, no final xor."""
-    crc = 0xFFFF
-    for byte in data:
-        crc ^= byte << 8
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x1021) if crc & 0x8000 else crc << 1
-            crc &= 0xFFFF
-    return crc
 
 
 def body(

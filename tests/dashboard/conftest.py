@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 from support.dash_helpers import REPO, RIG, Dashboard, chromium
-from support.mqtt_helpers import Broker, Service, service_password_file
+from support.mqtt_helpers import Broker, CutProxy, Service, broker_fixture, service_password_file
 
 SPEEDUP = "5"  # the demo matrix runs for ~20 s: time to pause, resume and stop it
 
@@ -42,12 +42,15 @@ class ServiceHolder:
         return self.proc.text()
 
 
+broker = broker_fixture(bind_ids=True)  # the shipped client-id binding
+
+
 @pytest.fixture(scope="module")
-def broker(tmp_path_factory):
-    b = Broker(tmp_path_factory.mktemp("broker"), bind_ids=True)  # the shipped client-id binding
-    b.start()
-    yield b
-    b.stop()
+def relay(broker):
+    """The way to the broker of a module's own dashboard, which its tests cut (CutProxy)."""
+    proxy = CutProxy(broker.port)
+    yield proxy
+    proxy.close()
 
 
 @pytest.fixture(scope="module")

@@ -45,14 +45,6 @@ class Blackhole(CutProxy):
 
 
 @pytest.fixture(scope="module")
-def relay(broker):
-    """The dashboard's way to the broker, which a test cuts."""
-    proxy = CutProxy(broker.port)
-    yield proxy
-    proxy.close()
-
-
-@pytest.fixture(scope="module")
 def dashboard(relay, tmp_path_factory):
     dash = Dashboard(relay.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", str(REPLY_TIMEOUT))
     yield dash
@@ -224,15 +216,13 @@ def lone(tmp_path):
     'operator', each with its own queue at the broker: the flood was 4 x 10000 messages for the
     one stopped process to take, and the status read again queued behind them, over 10 s late
     when both cores were busy.)"""
-    b = Broker(tmp_path / "broker", bind_ids=True)
-    b.start()
-    dash = Dashboard(b.url, RIG, tmp_path, "--reply-timeout", str(REPLY_TIMEOUT))
-    try:
-        yield b, dash
-    finally:
-        code = dash.stop()
-        b.stop()
-        assert code == 0, dash.text()[-3000:]
+    with Broker(tmp_path / "broker", bind_ids=True) as b:
+        dash = Dashboard(b.url, RIG, tmp_path, "--reply-timeout", str(REPLY_TIMEOUT))
+        try:
+            yield b, dash
+        finally:
+            code = dash.stop()
+    assert code == 0, dash.text()[-3000:]
 
 
 def test_an_unknown_outcome_reads_the_status_again(lone, driver):

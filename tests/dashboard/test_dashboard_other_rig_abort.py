@@ -10,7 +10,7 @@ import time
 
 import pytest
 from support.dash_helpers import RIG, Dashboard, Page, fresh_page
-from support.mqtt_helpers import ACCOUNTS, Broker, Watcher, sim_service
+from support.mqtt_helpers import ACCOUNTS, Watcher, broker_fixture, sim_service
 
 OTHER = "rig-b"
 REPLY_TIMEOUT = 8.0  # s: the dashboard's --reply-timeout (a busy host's replies come well within it)
@@ -18,13 +18,8 @@ SENT = "emergency stop (OFF3) sent to both drives over a link of the service's o
 WATCHES_B = f"this page shows rig orbitrig/{RIG} but the session now watches orbitrig/{OTHER}: reload the page"
 
 
-@pytest.fixture(scope="module")
-def broker(tmp_path_factory):
-    """A broker of the module's own, without the client-id binding: two rig services of one account."""
-    b = Broker(tmp_path_factory.mktemp("broker"))
-    b.start()
-    yield b
-    b.stop()
+#: a broker of the module's own, without the client-id binding: two rig services of one account
+broker = broker_fixture()
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,7 @@ import time
 
 import pytest
 from support.dash_helpers import RIG, Dashboard, Page, idle_page
-from support.mqtt_helpers import CutProxy, Service, Watcher, service_password_file
+from support.mqtt_helpers import Service, Watcher, service_password_file
 
 #: three operating points (spin speeds: no manual setting between them), short blocks
 MATRIX = """\
@@ -48,14 +48,6 @@ def service(broker, tmp_path_factory):
     svc = Service(args, work)
     yield svc
     svc.stop()
-
-
-@pytest.fixture(scope="module")
-def relay(broker):
-    """The dashboard's way to the broker, which the tests cut."""
-    proxy = CutProxy(broker.port)
-    yield proxy
-    proxy.close()
 
 
 @pytest.fixture(scope="module")

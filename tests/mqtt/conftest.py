@@ -2,13 +2,6 @@
 
 from __future__ import annotations
 
-import pytest
-from support.mqtt_helpers import Broker
+from support.mqtt_helpers import broker_fixture
 
-
-@pytest.fixture(scope="module")
-def broker(tmp_path_factory):
-    b = Broker(tmp_path_factory.mktemp("broker"))
-    b.start()
-    yield b
-    b.stop()
+broker = broker_fixture()

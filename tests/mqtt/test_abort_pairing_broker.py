@@ -20,7 +20,8 @@ from pathlib import Path
 
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
 from orbitrig.service.settings import AbortAccount
-from support.mqtt_helpers import ACCOUNTS, Broker, CutProxy, Watcher, until
+from support.mqtt_helpers import ACCOUNTS, Broker, CutProxy, Watcher
+from support.polling import until
 
 RIG = "pairing-rig"
 ABORT = json.dumps({"cmd": "abort", "id": "estop"})  # a button bridge's fixed id: the same bytes each time

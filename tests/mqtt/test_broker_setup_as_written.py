@@ -11,17 +11,15 @@ from __future__ import annotations
 
 import os
 import pwd
-import re
 import shlex
 import shutil
-import signal
 import subprocess
 import tempfile
 from pathlib import Path
 
 import pytest
 
-from support.mqtt_helpers import ACCOUNTS, MOSQUITTO, free_port, wait_port
+from support.mqtt_helpers import ACCOUNTS, end_process, launch_mosquitto, on_free_ports
 
 from orbitrig.config.lab import write_lab
 
@@ -53,31 +51,20 @@ def _setup(lab: Path, *, chown_data: bool) -> tuple[Path, int, int]:
     assert len(chowns) == 2 and "data/" in chowns[1]
     for line in chowns[: 2 if chown_data else 1]:
         subprocess.run(line, shell=True, check=True)
-    svc, people = free_port(), free_port()
     conf = lab / "mosquitto" / "mosquitto.conf"
-    text = re.sub(r"(?m)^listener 1883 ", f"listener {svc} ", conf.read_text())
-    conf.write_text(re.sub(r"(?m)^listener 1884 ", f"listener {people} ", text))
+    text, svc, people = on_free_ports(conf.read_text())
+    conf.write_text(text)
     return conf, svc, people
 
 
-def _broker(conf: Path, port: int) -> subprocess.Popen:
-    p = subprocess.Popen([MOSQUITTO, "-c", str(conf)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    wait_port(port)
-    return p
-
-
-def _stop(p: subprocess.Popen) -> str:
-    p.send_signal(signal.SIGTERM)
-    out, _ = p.communicate(timeout=10)
-    return out
-
-
 def _retained_status_survives_a_restart(conf: Path, svc: int, people: int) -> tuple[str | None, str]:
-    broker = _broker(conf, svc)
+    """(the retained status read after a restart, or None; the broker's output of both starts)."""
+    log = conf.with_name("broker.log")
+    broker = launch_mosquitto(conf, log, svc)
     pub = ["mosquitto_pub", "-p", str(svc), "-u", "orbitrig-service", "-P", ACCOUNTS["orbitrig-service"]]
     subprocess.run([*pub, "-q", "1", "-r", "-t", "orbitrig/rig1/status", "-m", "idle"], check=True, timeout=10)
-    log = _stop(broker)
-    broker = _broker(conf, svc)
+    end_process(broker)
+    broker = launch_mosquitto(conf, log, svc)
     try:
         sub = [
             "mosquitto_sub",
@@ -92,8 +79,8 @@ def _retained_status_survives_a_restart(conf: Path, svc: int, people: int) -> tu
         ]
         got = subprocess.run([*sub, "-C", "1", "-W", "3"], capture_output=True, text=True, timeout=10)
     finally:
-        log += _stop(broker)
-    return (got.stdout.strip() or None), log
+        end_process(broker)
+    return (got.stdout.strip() or None), log.read_text(errors="replace")
 
 
 def test_the_readme_as_written_keeps_the_retained_status_across_a_restart(lab):

@@ -24,7 +24,8 @@ import support.mqtt_helpers as mh
 from orbitrig.service import abort_link, link
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
 from orbitrig.service.settings import AbortAccount
-from support.mqtt_helpers import ACCOUNTS, Broker, Watcher, serving, until
+from support.mqtt_helpers import ACCOUNTS, Broker, Watcher, serving
+from support.polling import until
 
 ABORT_LINE = "user orbitrig-service-abort\ntopic read orbitrig/+/abort\n"
 
@@ -44,9 +45,8 @@ def no_abort_acl(tmp_path):
     acl.write_text(shipped.replace(ABORT_LINE, "user orbitrig-service-abort\n"))
     b = Broker(tmp_path / "broker")
     b.conf.write_text(b.conf.read_text().replace(str(mh.EXAMPLE_ACL), str(acl)))
-    b.start()
-    yield b
-    b.stop()
+    with b:
+        yield b
 
 
 def _service(broker: Broker, tmp_path: Path, rig: str, *, prefix: str | None = None, abort: bool = False):

@@ -27,7 +27,8 @@ from orbitrig.config import load_rig
 from orbitrig.run.engine import StatusEvent
 from orbitrig.run.states import RunState
 from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
-from support.mqtt_helpers import ACCOUNTS, RigClient, until, wait, write_matrices
+from support.mqtt_helpers import ACCOUNTS, RigClient, wait, write_matrices
+from support.polling import until
 
 pytestmark = pytest.mark.timeout(240)
 

@@ -34,7 +34,8 @@ from orbitrig.config import load_rig
 from orbitrig.service import commands
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
 from orbitrig.service.settings import AbortAccount
-from support.mqtt_helpers import ACCOUNTS, Broker, CutProxy, RigClient, until, wait, write_matrices
+from support.mqtt_helpers import ACCOUNTS, Broker, CutProxy, RigClient, wait, write_matrices
+from support.polling import until
 
 DECEL_TIME = 103  # the drives' register: 0.1 s for SPEED_SCALE (3000) rpm along the ramp stop
 

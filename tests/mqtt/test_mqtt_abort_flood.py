@@ -28,19 +28,14 @@ import pytest
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
 from orbitrig.service.settings import AbortAccount
 from support.rig_configs import patient_rig_config
-from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, Watcher, sim_service_args
+from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Service, Watcher, broker_fixture, sim_service_args
 
 RIG = "flood-rig"
 FLOODER = Path(__file__).with_name("mqtt_flood.py")
 ENV = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}
 
 
-@pytest.fixture(scope="module")
-def bound(tmp_path_factory):
-    b = Broker(tmp_path_factory.mktemp("flood-broker"), bind_ids=True)
-    b.start()
-    yield b
-    b.stop()
+bound = broker_fixture(bind_ids=True)
 
 
 #: how the service's abort connection fares: its account (the shipped setup), or refused

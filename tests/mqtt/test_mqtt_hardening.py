@@ -20,6 +20,7 @@ from support.mqtt_helpers import (
     CutProxy,
     RigClient,
     Service,
+    broker_fixture,
     retained,
     sim_service_args,
     write_matrices,
@@ -30,12 +31,7 @@ RIG = "hard-rig"
 ENV = {"ORBITRIG_MQTT_PASSWORD": ACCOUNTS["orbitrig-service"]}
 
 
-@pytest.fixture(scope="module")
-def bound(tmp_path_factory):
-    b = Broker(tmp_path_factory.mktemp("bound-broker"), bind_ids=True)
-    b.start()
-    yield b
-    b.stop()
+bound = broker_fixture(bind_ids=True)
 
 
 def serve(url: str, work: Path, rig: str = RIG) -> Service:

@@ -20,7 +20,8 @@ from drives import registers as R
 from orbitrig.cli.serve import build_service
 from orbitrig.config import load_rig
 from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
-from support.mqtt_helpers import ACCOUNTS, RigClient, until, wait, write_matrices
+from support.mqtt_helpers import ACCOUNTS, RigClient, wait, write_matrices
+from support.polling import until
 from support.rig_configs import lab_record_config
 
 pytestmark = pytest.mark.timeout(240)

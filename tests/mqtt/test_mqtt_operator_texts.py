@@ -15,13 +15,9 @@ import pytest
 
 from orbitrig.config import load_rig
 from orbitrig.store.journal import read_journal
-from support.mqtt_helpers import Broker, RigClient, retained, serving_unsupervised, sim_service
+from support.mqtt_helpers import Broker, RigClient, retained, serving_unsupervised, sim_service, wait
 
 pytestmark = pytest.mark.timeout(180)
-
-
-async def wait(fn, *args, **kw):
-    return await asyncio.to_thread(fn, *args, **kw)
 
 
 def rig_with(**interlocks):

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Watcher, retained
+from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Watcher, retained, wait
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceError, ServiceSettings
 
 
@@ -48,10 +48,6 @@ async def running(service: RigService):
     finally:
         stop.set()
         await asyncio.wait_for(task, 10)
-
-
-async def wait(fn, *args, **kw):
-    return await asyncio.to_thread(fn, *args, **kw)
 
 
 @pytest.mark.parametrize(
@@ -148,9 +144,7 @@ async def test_commands_without_a_run(broker, tmp_path):
 
 
 async def test_tls_with_ca_file(tmp_path):
-    b = Broker(tmp_path / "tls-broker", tls=True)
-    b.start()
-    try:
+    with Broker(tmp_path / "tls-broker", tls=True) as b:
         service = _service(b, tmp_path, "tls1")
         assert service.broker.tls and service.broker.tls_ca == b.ca
         async with running(service):
@@ -160,14 +154,10 @@ async def test_tls_with_ca_file(tmp_path):
             finally:
                 w.close()
             assert msg.json()["state"] == "idle"
-    finally:
-        b.stop()
 
 
 async def test_reconnects_and_republishes_status(tmp_path):
-    b = Broker(tmp_path / "flaky-broker")
-    b.start()
-    try:
+    with Broker(tmp_path / "flaky-broker") as b:
         service = _service(b, tmp_path, "re1", supervision_timeout=30)
         async with running(service):
             w = Watcher(b, "orbitrig/re1/status")
@@ -187,8 +177,6 @@ async def test_reconnects_and_republishes_status(tmp_path):
             assert msg.json()["state"] == "idle"
             assert service.connections == 2
             assert (await wait(retained, b, "orbitrig/re1/status")).payload == msg.payload
-    finally:
-        b.stop()
 
 
 def _serve_cli(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:

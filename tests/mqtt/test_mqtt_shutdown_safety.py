@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, retained, write_matrices
+from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, retained, wait, write_matrices
 from orbitrig.cli.serve import build_service
 from orbitrig.config import load_rig
 from orbitrig.service import rig_service
@@ -23,10 +23,6 @@ from orbitrig.service.settings import RECORD_END_S, STOP_MARGIN_S
 
 RIG = "down"
 DECEL_TIME = 103  # the drives' register: 0.1 s for SPEED_SCALE (3000) rpm along the ramp stop
-
-
-async def wait(fn, *args, **kw):
-    return await asyncio.to_thread(fn, *args, **kw)
 
 
 class SlowDrained(asyncio.Event):
@@ -48,9 +44,7 @@ async def serving(tmp_path: Path, *, decel_counts: int | None = None, speedup: f
     ``decel_counts``: both drives' DECEL_TIME (a slow ramp stop)."""
     from sim.rig import SimRig
 
-    b = Broker(tmp_path / "broker")
-    b.start()
-    try:
+    with Broker(tmp_path / "broker") as b:
         async with SimRig(speedup=speedup, adc_pty=False) as sim_rig:
             if decel_counts is not None:
                 for drive in sim_rig.drives.values():
@@ -69,8 +63,6 @@ async def serving(tmp_path: Path, *, decel_counts: int | None = None, speedup: f
                 shutdown.set()
                 svc.abort_run("test over")  # whatever went wrong, the drives stop before the simulator closes
                 await asyncio.wait_for(asyncio.gather(task, return_exceptions=True), 120)
-    finally:
-        b.stop()
 
 
 async def test_a_start_after_offline_is_not_carried_out_and_serve_returns(tmp_path):

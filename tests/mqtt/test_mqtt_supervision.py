@@ -10,11 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from support.mqtt_helpers import Broker, RigClient, retained, unsupervised_service
-
-
-async def wait(fn, *args, **kw):
-    return await asyncio.to_thread(fn, *args, **kw)
+from support.mqtt_helpers import Broker, RigClient, retained, unsupervised_service, wait
 
 
 @pytest.mark.parametrize("policy, expected", [("pause", "paused"), ("stop", "idle")])

@@ -11,14 +11,10 @@ from pathlib import Path
 
 import pytest
 
-from support.mqtt_helpers import Broker, RigClient, unsupervised_service
+from support.mqtt_helpers import Broker, RigClient, unsupervised_service, wait
 from orbitrig.config import load_rig
 
 UNANSWERED_S = 2.0  # [interlocks] unanswered_pause_s, short here (60 s by default)
-
-
-async def wait(fn, *args, **kw):
-    return await asyncio.to_thread(fn, *args, **kw)
 
 
 def rig_with_short_unanswered_wait():

@@ -26,7 +26,8 @@ import pytest
 
 from orbitrig.service import inbox
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceSettings
-from support.mqtt_helpers import ACCOUNTS, CutProxy, Watcher, serving, until
+from support.mqtt_helpers import ACCOUNTS, CutProxy, Watcher, serving
+from support.polling import until
 
 #: replies the broker acknowledges to the service before the link drops (of 50, sent in two batches)
 ACKED = 20

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from support.reduction_synthetic import frequencies, impedance, orbit_table, truth
+from support.reduction_synthetic import cnoise, frequencies, impedance, orbit_table, truth
 from reduction.adequacy import frequency_dependence
 from reduction.identify import identify
 from reduction.impedance import impedance as model_impedance
@@ -52,14 +52,10 @@ RATE_TOL = 0.035  # binomial sd of a 5 % rate over 400: 1.09 % (3.2 sigma)
 MAX_BELOW_1E3 = 3  # p < 0.001: 0.4 expected in 400 (<= 0.4 %); P(Poisson(0.4) >= 4) = 0.08 %
 
 
-def _cnoise(rng: np.random.Generator, std: np.ndarray) -> np.ndarray:
-    return std / np.sqrt(2) * (rng.standard_normal(std.shape) + 1j * rng.standard_normal(std.shape))
-
-
 def _table(rng: np.random.Generator, u: np.ndarray | None = U) -> OrbitTable:
     """CLEAN with the stated noise U on every phasor (u: the u_* columns the table states)."""
-    x, y = CLEAN.x + _cnoise(rng, U_D), CLEAN.y + _cnoise(rng, U_D)
-    fx, fy = CLEAN.fx + _cnoise(rng, U_F), CLEAN.fy + _cnoise(rng, U_F)
+    x, y = CLEAN.x + cnoise(rng, U_D, U_D.shape), CLEAN.y + cnoise(rng, U_D, U_D.shape)
+    fx, fy = CLEAN.fx + cnoise(rng, U_F, U_F.shape), CLEAN.fy + cnoise(rng, U_F, U_F.shape)
     return OrbitTable(CLEAN.spin, CLEAN.orbit, x, y, fx, fy, None, np.full(ROWS, 50), u)
 
 

@@ -10,7 +10,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from support.reduction_synthetic import SPIN, frequencies, impedance, keys_of, orbit_table, truth, with_force_noise
+from support.reduction_synthetic import (
+    SPIN,
+    cnoise,
+    coherent_noise_tables,
+    frequencies,
+    impedance,
+    keys_of,
+    orbit_table,
+    truth,
+    with_force_noise,
+)
 from reduction.adequacy import frequency_dependence
 from reduction.design import design_orbits, predicted_covariance
 from reduction.identify import identify
@@ -23,11 +33,6 @@ TRUE = truth("kc8", {"K": (0,), "C": (0,)})
 KEYS = list(keys_of(TRUE))
 EXPECTED = np.array([keys_of(TRUE)[k] for k in KEYS])
 N_TABLES = 1000
-
-
-def _cnoise(rng, std, shape):
-    """Complex noise with E|n|^2 = std^2 (std broadcast to shape)."""
-    return np.asarray(std) / np.sqrt(2) * (rng.standard_normal(shape) + 1j * rng.standard_normal(shape))
 
 
 def _fits(tables, method, model="kc8", freq_dep="none"):
@@ -45,31 +50,6 @@ def _coverage(lo, hi):
     return np.mean((lo <= EXPECTED) & (EXPECTED <= hi), axis=0)
 
 
-def _heteroscedastic(rng, count, gamma_one_row=None):
-    """Tables whose force noise follows their coherences (50 records per row, per-record
-    relative noise 0.15 .. 1.5); optionally one row reads gamma^2 = 1.000."""
-    clean = orbit_table(TRUE, frequencies(6))
-    n_rec = 50
-    rel = np.geomspace(0.15, 1.5, clean.n)
-    g = np.repeat((1 / (1 + rel**2))[:, None], 4, axis=1)
-    if gamma_one_row is not None:
-        g[gamma_one_row] = 1.0
-    avg = rel / np.sqrt(n_rec)
-    return [
-        OrbitTable(
-            clean.spin,
-            clean.orbit,
-            clean.x,
-            clean.y,
-            clean.fx + _cnoise(rng, avg * np.abs(clean.fx), clean.n),
-            clean.fy + _cnoise(rng, avg * np.abs(clean.fy), clean.n),
-            g,
-            np.full(clean.n, n_rec),
-        )
-        for _ in range(count)
-    ]
-
-
 def test_95_percent_intervals_cover_the_truth_95_percent_of_the_time_ols():
     rng = np.random.default_rng(21)
     clean = orbit_table(TRUE, frequencies(6))
@@ -80,8 +60,8 @@ def test_95_percent_intervals_cover_the_truth_95_percent_of_the_time_ols():
             clean.orbit,
             clean.x,
             clean.y,
-            clean.fx + _cnoise(rng, s, clean.n),
-            clean.fy + _cnoise(rng, s, clean.n),
+            clean.fx + cnoise(rng, s, clean.n),
+            clean.fy + cnoise(rng, s, clean.n),
         )
         for _ in range(N_TABLES)
     ]
@@ -94,7 +74,7 @@ def test_95_percent_intervals_cover_the_truth_95_percent_of_the_time_ols():
 
 def test_95_percent_intervals_cover_the_truth_95_percent_of_the_time_wls():
     rng = np.random.default_rng(22)
-    _, _, lo, hi = _fits(_heteroscedastic(rng, N_TABLES), "wls")
+    _, _, lo, hi = _fits(coherent_noise_tables(TRUE, rng, N_TABLES), "wls")
     cov = _coverage(lo, hi)
     assert np.all((cov >= 0.93) & (cov <= 0.97)), dict(zip(KEYS, cov))
 
@@ -103,7 +83,7 @@ def test_wls_standard_errors_stay_honest_with_one_coherence_at_one():
     rng = np.random.default_rng(23)
     # the cleanest row (per-record noise 0.15, gamma^2 = 0.978) reads 1.000; the weight floor
     # (noise ratio >= 1/n_records) keeps it from dominating the fit
-    est, se, lo, hi = _fits(_heteroscedastic(rng, N_TABLES, gamma_one_row=0), "wls")
+    est, se, lo, hi = _fits(coherent_noise_tables(TRUE, rng, N_TABLES, gamma_one_row=0), "wls")
     ratio = se.mean(axis=0) / est.std(axis=0, ddof=1)
     # the sample std of 1000 estimates is good to 2.2 % (1 sigma)
     assert np.all(np.abs(ratio - 1) < 0.10), dict(zip(KEYS, ratio.round(3)))
@@ -125,7 +105,7 @@ def test_tls_and_iv_remove_the_attenuation_bias_of_ols():
     pairs = 50
     tables = []
     for _ in range(pairs):
-        noise = [_cnoise(rng, s, n) for s in (sd, sd, sf, sf)]
+        noise = [cnoise(rng, s, n) for s in (sd, sd, sf, sf)]
         for sign in (1, -1):
             x, y, fx, fy = (v + sign * e for v, e in zip((clean.x, clean.y, clean.fx, clean.fy), noise))
             tables.append(OrbitTable(clean.spin, clean.orbit, x, y, fx, fy, u=u))
@@ -157,7 +137,7 @@ def test_ols_standard_errors_match_the_cramer_rao_bound_of_the_design():
     s = 0.01 * np.sqrt(np.mean(np.abs(fx) ** 2))
     crb = np.sqrt(np.diag(predicted_covariance(spec, orbit, x, y, [0.0, 0.0, s, s])))
     n = orbit.size
-    tables = [OrbitTable(SPIN, orbit, x, y, fx + _cnoise(rng, s, n), fy + _cnoise(rng, s, n)) for _ in range(N_TABLES)]
+    tables = [OrbitTable(SPIN, orbit, x, y, fx + cnoise(rng, s, n), fy + cnoise(rng, s, n)) for _ in range(N_TABLES)]
     est, se, _, _ = _fits(tables, "ols")
     crb_keys = np.array([dict(zip(spec.keys(), spec.expand(crb).values()))[k] for k in KEYS])
     assert np.all(np.abs(se.mean(axis=0) / crb_keys - 1) < 0.10), dict(zip(KEYS, (se.mean(0) / crb_keys).round(3)))

@@ -6,18 +6,21 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from support.reduction_synthetic import frequencies, keys_of, orbit_table, truth, with_force_noise
+from support.reduction_synthetic import (
+    cnoise,
+    coherent_noise_tables,
+    frequencies,
+    keys_of,
+    orbit_table,
+    truth,
+    with_force_noise,
+)
 from reduction.identify import identify
 from reduction.table import OrbitTable
 
 TRUE = truth("kc8", {"K": (0,), "C": (0,)})
 KEYS = list(keys_of(TRUE))
 EXPECTED = np.array([keys_of(TRUE)[k] for k in KEYS])
-
-
-def _cnoise(rng, std, n):
-    """Complex noise with E|n|^2 = std^2."""
-    return std / np.sqrt(2) * (rng.standard_normal(n) + 1j * rng.standard_normal(n))
 
 
 def _run(tables, method, **kw):
@@ -43,26 +46,7 @@ def test_reported_std_errors_match_the_spread_over_trials():
 
 
 def test_coherence_weights_reduce_the_spread_and_keep_std_errors_honest():
-    rng = np.random.default_rng(12)
-    clean = orbit_table(TRUE, frequencies(6))
-    n_rec = 50
-    rel = np.geomspace(0.15, 1.5, clean.n)  # relative force noise of one record, per row
-    gamma2 = 1 / (1 + rel**2)  # coherent power over total power
-    g = np.repeat(gamma2[:, None], 4, axis=1)
-    avg = rel / np.sqrt(n_rec)  # relative noise of the average of n_rec records
-    trials = [
-        OrbitTable(
-            clean.spin,
-            clean.orbit,
-            clean.x,
-            clean.y,
-            clean.fx + _cnoise(rng, avg * np.abs(clean.fx), clean.n),
-            clean.fy + _cnoise(rng, avg * np.abs(clean.fy), clean.n),
-            g,
-            np.full(clean.n, n_rec),
-        )
-        for _ in range(300)
-    ]
+    trials = coherent_noise_tables(TRUE, np.random.default_rng(12), 300)
     wls, wse = _run(trials, "wls")
     ols, _ = _run(trials, "ols")
     ratio = wls.std(axis=0, ddof=1) / wse.mean(axis=0)
@@ -80,10 +64,10 @@ def test_tls_and_iv_remove_the_bias_of_least_squares_with_noisy_displacements():
         OrbitTable(
             clean.spin,
             clean.orbit,
-            clean.x + _cnoise(rng, sd, n),
-            clean.y + _cnoise(rng, sd, n),
-            clean.fx + _cnoise(rng, sf, n),
-            clean.fy + _cnoise(rng, sf, n),
+            clean.x + cnoise(rng, sd, n),
+            clean.y + cnoise(rng, sd, n),
+            clean.fx + cnoise(rng, sf, n),
+            clean.fy + cnoise(rng, sf, n),
         )
         for _ in range(300)
     ]

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from support.reduction_synthetic import SPIN, impedance, keys_of, truth
+from support.reduction_synthetic import SPIN, cnoise, impedance, keys_of, truth
 from orbitrig.cli import app
 from orbitrig.store.orbit_table import write_orbit_table
 from reduction.design import design_orbits
@@ -34,10 +34,6 @@ RATIOS = np.array([0.25, 0.36, 0.47, 0.57, 0.68, 0.77, 0.87, 1.04, 1.14, 1.25]) 
 TRUE = truth("kcd11", {"K": (0,), "C": (0,), "D": (0,)})
 
 
-def _cnoise(rng, std, shape):
-    return np.asarray(std) / np.sqrt(2) * (rng.standard_normal(shape) + 1j * rng.standard_normal(shape))
-
-
 def _table(rng, orbit, x, y, force_rel=0.01, probe=PROBE, with_u=True, true=TRUE) -> OrbitTable:
     """Forces of ``true`` on the true orbits, then probe noise on x, y and force noise."""
     n = orbit.size
@@ -48,10 +44,10 @@ def _table(rng, orbit, x, y, force_rel=0.01, probe=PROBE, with_u=True, true=TRUE
     return OrbitTable(
         SPIN,
         orbit,
-        x + _cnoise(rng, probe, n),
-        y + _cnoise(rng, probe, n),
-        fx + _cnoise(rng, sf, n),
-        fy + _cnoise(rng, sf, n),
+        x + cnoise(rng, probe, n),
+        y + cnoise(rng, probe, n),
+        fx + cnoise(rng, sf, n),
+        fy + cnoise(rng, sf, n),
         u=u,
     )
 

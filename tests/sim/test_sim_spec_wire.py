@@ -10,21 +10,7 @@ import pytest
 from sim.adc_board import AdcBoard
 from sim.can_node import encode_aux
 from sim.config import CHANNEL_GAINS, CHANNEL_NAMES, AdcConfig, SimConfig
-
-
-def crc16_ccitt_false(data: bytes) -> int:
-    """Bitwise CRC-16/CCITT-FALSE: poly 0x1021, init 0xFFFF, no reflection, no final xor."""
-    crc = 0xFFFF
-    for byte in data:
-        crc ^= byte << 8
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x1021) if crc & 0x8000 else crc << 1
-            crc &= 0xFFFF
-    return crc
-
-
-def test_crc_reference_is_the_catalogue_check_value():
-    assert crc16_ccitt_false(b"123456789") == 0x29B1
+from support.spec_crc import crc16_ccitt_false
 
 
 def golden(

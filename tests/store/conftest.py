@@ -1,8 +1,7 @@
-import subprocess
-
 import pytest
 
 from support.report_synthetic import write_synthetic_run
+from support.small_disk import mounted_tmpfs
 
 
 @pytest.fixture(scope="session")
@@ -15,10 +14,5 @@ def synthetic(tmp_path_factory):
 @pytest.fixture
 def tiny_disk(tmp_path):
     """A 6 MB tmpfs (enough for the run, until `fill` eats the rest); unmounted afterwards."""
-    mnt = tmp_path / "disk"
-    mnt.mkdir()
-    subprocess.run(["mount", "-t", "tmpfs", "-o", "size=6m", "tmpfs", str(mnt)], check=True)
-    try:
+    with mounted_tmpfs(tmp_path / "disk", "6m") as mnt:
         yield mnt
-    finally:
-        subprocess.run(["umount", "-l", str(mnt)], check=False)

@@ -24,7 +24,8 @@ from orbitrig.store.status import RunStatus
 from orbitrig.store.writer import RunStore
 
 from support.paths import ROOT
-from support.store_checks import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd
+from support.small_disk import mounted_tmpfs
 
 pytestmark = pytest.mark.timeout(240)
 
@@ -49,13 +50,8 @@ model = "kc8"
 @pytest.fixture
 def disk(tmp_path):
     """A 4 MB tmpfs; unmounted afterwards."""
-    mnt = tmp_path / "disk"
-    mnt.mkdir()
-    subprocess.run(["mount", "-t", "tmpfs", "-o", "size=4m", "tmpfs", str(mnt)], check=True)
-    try:
+    with mounted_tmpfs(tmp_path / "disk", "4m") as mnt:
         yield mnt
-    finally:
-        subprocess.run(["umount", "-l", str(mnt)], check=False)
 
 
 def _leave_free(mnt, n_bytes: int) -> int:

@@ -18,7 +18,7 @@ from orbitrig.store.run_data import open_run
 from support.paths import ROOT
 from support.rig_configs import LAB_RECORD, lab_record_config, loads_record
 from support.store_checks import small_matrix
-from support.sweep_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd
 
 pytestmark = pytest.mark.timeout(240)
 

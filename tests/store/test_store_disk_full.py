@@ -17,7 +17,8 @@ from orbitrig.run.engine import RunEngine, StatusEvent
 from orbitrig.store.reader import read_run
 from sim.rig import SimRig
 
-from support.store_checks import check_whole, fill, orbitrig_cmd, small_matrix
+from support.cli_helpers import orbitrig_cmd
+from support.store_checks import check_whole, fill, small_matrix
 from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(180)

@@ -14,7 +14,9 @@ from typer.testing import CliRunner
 from orbitrig.cli import app
 from orbitrig.store.reader import read_run
 
-from support.store_checks import fill, orbitrig_cmd, small_matrix
+from support.cli_helpers import orbitrig_cmd
+from support.small_disk import mounted_tmpfs
+from support.store_checks import fill, small_matrix
 from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(240)
@@ -23,13 +25,8 @@ pytestmark = pytest.mark.timeout(240)
 @pytest.fixture
 def small_disk(tmp_path):
     """A 2 MB tmpfs: room for one small point (its pieces, about 330 kB, and their run.h5 copy)."""
-    mnt = tmp_path / "disk"
-    mnt.mkdir()
-    subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(mnt)], check=True)
-    try:
+    with mounted_tmpfs(tmp_path / "disk", "2m") as mnt:
         yield mnt
-    finally:
-        subprocess.run(["umount", "-l", str(mnt)], check=False)
 
 
 def _one_line_error(r: subprocess.CompletedProcess, says: str) -> None:

@@ -23,7 +23,8 @@ from orbitrig.cli import app
 from orbitrig.store.reader import read_run
 
 from support.rig_configs import patient_rig_config
-from support.store_checks import check_whole, orbitrig_cmd, small_matrix
+from support.cli_helpers import orbitrig_cmd
+from support.store_checks import check_whole, small_matrix
 from support.paths import ROOT
 
 ONE = (1000.0,)  # spin speeds, rpm: one point

@@ -17,7 +17,7 @@ from pathlib import Path
 from orbitrig.cli.simulated_rig import SimulatorLink
 from support.paths import ROOT
 from support.rig_configs import lab_record_config
-from support.sweep_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd
 
 PROMPT_END = "then press Enter: "
 SPEEDUP = 10  # the simulator's time / wall time

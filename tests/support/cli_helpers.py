@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+import asyncio
 import os
-import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -11,11 +11,16 @@ from pathlib import Path
 from support.paths import ROOT
 
 
+def orbitrig_cmd(*args: str) -> list[str]:
+    """The command line of `orbitrig ARGS...` of this source tree (`python -m orbitrig`)."""
+    return [sys.executable, "-m", "orbitrig", *args]
+
+
 def orbitrig(*args: str, timeout: float = 120, cwd: Path = ROOT, **kw) -> subprocess.CompletedProcess:
     """`orbitrig ARGS...` (as `python -m orbitrig`), output captured as text, wide terminal."""
     env = {**os.environ, "COLUMNS": "200", "NO_COLOR": "1"}
     return subprocess.run(
-        [sys.executable, "-m", "orbitrig", *args],
+        orbitrig_cmd(*args),
         cwd=cwd,
         env=env,
         capture_output=True,
@@ -26,8 +31,13 @@ def orbitrig(*args: str, timeout: float = 120, cwd: Path = ROOT, **kw) -> subpro
     )
 
 
-def closed_port() -> int:
-    """A TCP port on 127.0.0.1 that nothing listens on (bound once, then released)."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+async def orbitrig_async(*args: str) -> tuple[int, str, str]:
+    """`orbitrig ARGS...` (as `python -m orbitrig`) run from the event loop, which goes on meanwhile
+    (a simulator in the test's own loop keeps serving): (exit status, standard output, standard error)."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = await asyncio.create_subprocess_exec(
+        *orbitrig_cmd(*args), stdout=asyncio.subprocess.PIPE, stderr=asyncio.subprocess.PIPE, cwd=ROOT, env=env
+    )
+    out, err = await proc.communicate()
+    assert proc.returncode is not None
+    return proc.returncode, out.decode(), err.decode()

@@ -17,7 +17,8 @@ from selenium.webdriver.support.ui import WebDriverWait
 
 REPO = Path(__file__).resolve().parents[2]
 
-from .mqtt_helpers import free_port, interrupt, wait_port  # noqa: E402
+from .mqtt_helpers import interrupt  # noqa: E402
+from .ports import free_port, wait_port  # noqa: E402
 
 RIG = "dash-rig"  # rig id of the service the tests start
 CHROMIUM = "/usr/bin/chromium"

@@ -8,6 +8,7 @@ import asyncio
 import contextlib
 import json
 import os
+import re
 import shutil
 import signal
 import socket
@@ -18,6 +19,9 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
+
+from .polling import until
+from .ports import free_port, wait_port
 
 if TYPE_CHECKING:
     from orbitrig.service.rig_service import RigService
@@ -37,22 +41,52 @@ ACCOUNTS = {
 }
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+#: The first line of a test broker's configuration: mosquitto started as root keeps root's
+#: rights (it would drop to the `mosquitto` user and lose the test's files, root's alone).
+AS_ROOT = "user root\n"
 
 
-def wait_port(port: int, timeout: float = 5.0) -> None:
-    deadline = time.monotonic() + timeout
-    while True:
+def private_copy(source: Path, target: Path) -> Path:
+    """``source`` copied to ``target``, readable by its owner only (mosquitto 2 warns about a
+    password file others can read); returns ``target``."""
+    shutil.copyfile(source, target)
+    target.chmod(0o600)
+    return target
+
+
+def on_free_ports(conf: str) -> tuple[str, int, int]:
+    """A lab's mosquitto.conf (`orbitrig init`) with its two listeners (the service's, 1883, and
+    the people's, 1884) moved to free ports: (text, service port, people's port)."""
+    service, people = free_port(), free_port()
+    text = re.sub(r"(?m)^listener 1883 ", f"listener {service} ", conf)
+    text = re.sub(r"(?m)^listener 1884 ", f"listener {people} ", text)
+    assert text.count(f"listener {service} ") == 1 and text.count(f"listener {people} ") == 1, conf
+    return text, service, people
+
+
+def launch_mosquitto(conf: Path, log: Path, *ports: int) -> subprocess.Popen:
+    """mosquitto on ``conf``, its output appended to ``log``, once it listens on every one of
+    ``ports``; if it does not, it is ended and the error carries its log."""
+    with open(log, "ab") as out:
+        proc = subprocess.Popen([MOSQUITTO, "-c", str(conf)], stdout=out, stderr=out)
+    try:
+        for port in ports:
+            wait_port(port)
+    except TimeoutError:
+        end_process(proc)
+        raise RuntimeError(f"mosquitto did not start:\n{log.read_text(errors='replace')}") from None
+    return proc
+
+
+def end_process(proc: subprocess.Popen) -> None:
+    """SIGTERM, and SIGKILL if it has not ended within 5 s."""
+    if proc.poll() is None:
+        proc.terminate()
         try:
-            with socket.create_connection(("127.0.0.1", port), timeout=0.2):
-                return
-        except OSError:
-            if time.monotonic() > deadline:
-                raise TimeoutError(f"nothing listens on 127.0.0.1:{port} after {timeout} s") from None
-            time.sleep(0.02)
+            proc.wait(5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
 
 
 def make_test_ca(folder: Path) -> Path:
@@ -138,9 +172,8 @@ class Broker:
         self.dir.mkdir(parents=True, exist_ok=True)
         self.port = port or free_port()
         self.service_port = free_port() if bind_ids else self.port
-        self.passwd = self.dir / "passwd"  # the shipped example: ACCOUNTS are its passwords
-        shutil.copyfile(EXAMPLE_PASSWD, self.passwd)
-        self.passwd.chmod(0o600)
+        # the shipped example password file: ACCOUNTS are its passwords
+        self.passwd = private_copy(EXAMPLE_PASSWD, self.dir / "passwd")
         tls_lines = ""
         if tls:
             self.ca = make_test_ca(self.dir)
@@ -151,8 +184,7 @@ class Broker:
         persistence = f"persistence true\npersistence_location {self.dir}/\n" if persist else "persistence false\n"
         self.conf = self.dir / "mosquitto.conf"
         self.conf.write_text(
-            "user root\n"  # root-run mosquitto would drop privileges and lose the files
-            "per_listener_settings false\n"
+            AS_ROOT + "per_listener_settings false\n"
             "allow_anonymous false\n"
             f"password_file {self.passwd}\n"
             f"acl_file {EXAMPLE_ACL}\n"
@@ -178,24 +210,20 @@ class Broker:
         return f"{'mqtts' if self.tls else 'mqtt'}://127.0.0.1:{self.service_port}"
 
     def start(self) -> None:
-        with open(self.log, "ab") as log:
-            self.proc = subprocess.Popen([MOSQUITTO, "-c", str(self.conf)], stdout=log, stderr=log)
-        try:
-            wait_port(self.port)
-            wait_port(self.service_port)
-        except TimeoutError:
-            self.stop()
-            raise RuntimeError(f"mosquitto did not start:\n{self.log.read_text()}") from None
+        self.proc = launch_mosquitto(self.conf, self.log, self.port, self.service_port)
 
     def stop(self) -> None:
-        if self.proc and self.proc.poll() is None:
-            self.proc.terminate()
-            try:
-                self.proc.wait(5)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
+        """Ends the broker (a test may stop it before its end, to take it away from a client)."""
+        if self.proc is not None:
+            end_process(self.proc)
         self.proc = None
+
+    def __enter__(self) -> "Broker":
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
 
     def client_args(self, user: str | None, port: int | None = None) -> list[str]:
         args = ["-h", "127.0.0.1", "-p", str(port or self.port)]
@@ -223,6 +251,20 @@ class Broker:
             args.append("-r")
         data = payload.encode() if isinstance(payload, str) else payload
         return subprocess.run(args, input=data, capture_output=True, timeout=10)
+
+
+def broker_fixture(*, bind_ids: bool = False, name: str | None = None):
+    """A module's broker as a pytest fixture (``broker = broker_fixture()`` in a conftest or a test
+    module): started once for the module, stopped after its last test. ``bind_ids``: with the
+    shipped config's client-id binding (the rig service on ``service_url``)."""
+    import pytest  # here: the benches use this module without pytest
+
+    @pytest.fixture(scope="module", name=name)
+    def module_broker(tmp_path_factory):
+        with Broker(tmp_path_factory.mktemp("broker"), bind_ids=bind_ids) as b:
+            yield b
+
+    return module_broker
 
 
 def retained(broker: "Broker", topic: str, user: str = "viewer", wait: float = 2.0) -> "Msg | None":
@@ -468,15 +510,6 @@ def interrupt(proc: subprocess.Popen) -> int:
 async def wait(fn, *args, **kw):
     """``fn(*args, **kw)`` (a blocking client call) in a thread, the loop serving meanwhile."""
     return await asyncio.to_thread(fn, *args, **kw)
-
-
-async def until(condition: Callable[[], bool], timeout: float, what: str) -> None:
-    """Poll ``condition()`` every 50 ms; fail naming ``what`` after ``timeout`` s."""
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"not within {timeout} s: {what}")
-        await asyncio.sleep(0.05)
 
 
 @contextlib.asynccontextmanager

@@ -6,12 +6,13 @@ from __future__ import annotations
 import glob
 import os
 import shutil
-import socket
 import subprocess
 import tempfile
 from pathlib import Path
 
 import pytest
+
+from .ports import free_port
 
 PG_USER = "orbitrig-pg"
 
@@ -21,12 +22,6 @@ def _pg_bin(name: str) -> str:
     if not found[-1]:
         raise RuntimeError(f"{name} not found: install Debian's postgresql (tools/run-tests does)")
     return found[-1]
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _as_user(*args: str) -> list[str]:
@@ -45,7 +40,7 @@ def postgres_server():
     if os.geteuid() == 0:
         shutil.chown(base, PG_USER)
         shutil.chown(sock, PG_USER)
-    port = _free_port()
+    port = free_port()
     subprocess.run(
         _as_user(_pg_bin("initdb"), "-D", str(data), "-A", "trust", "-U", "postgres"), check=True, capture_output=True
     )

@@ -91,3 +91,31 @@ def with_force_noise(clean: OrbitTable, rng: np.random.Generator, std: float) ->
     return OrbitTable(
         clean.spin, clean.orbit, clean.x, clean.y, clean.fx + cnoise(rng, std, n), clean.fy + cnoise(rng, std, n)
     )
+
+
+def coherent_noise_tables(
+    true: dict, rng: np.random.Generator, count: int, gamma_one_row: int | None = None
+) -> list[OrbitTable]:
+    """``count`` tables of ``true`` at 6 frequencies whose force noise follows their coherences
+    (50 records per row, per-record relative noise 0.15 .. 1.5, gamma^2 = 1 / (1 + rel^2));
+    optionally one row reads gamma^2 = 1.000."""
+    clean = orbit_table(true, frequencies(6))
+    n_rec = 50
+    rel = np.geomspace(0.15, 1.5, clean.n)  # relative force noise of one record, per row
+    g = np.repeat((1 / (1 + rel**2))[:, None], 4, axis=1)  # coherent power over total power
+    if gamma_one_row is not None:
+        g[gamma_one_row] = 1.0
+    avg = rel / np.sqrt(n_rec)  # relative noise of the average of n_rec records
+    return [
+        OrbitTable(
+            clean.spin,
+            clean.orbit,
+            clean.x,
+            clean.y,
+            clean.fx + cnoise(rng, avg * np.abs(clean.fx), clean.n),
+            clean.fy + cnoise(rng, avg * np.abs(clean.fy), clean.n),
+            g,
+            np.full(clean.n, n_rec),
+        )
+        for _ in range(count)
+    ]

@@ -6,7 +6,6 @@ import contextlib
 import csv
 import errno
 import json
-import sys
 import time
 from pathlib import Path
 
@@ -34,10 +33,6 @@ ratios = [0.3, 0.6, 0.9]
 [[models]]
 model = "kc8"
 """
-
-
-def orbitrig_cmd(*args: str) -> list[str]:
-    return [sys.executable, "-m", "orbitrig", *args]
 
 
 def read_all(path: Path) -> int:

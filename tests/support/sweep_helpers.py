@@ -6,7 +6,6 @@ import asyncio
 import contextlib
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -24,10 +23,6 @@ def small_matrix(revolutions: int = 10, **operating) -> cfg.MatrixConfig:
         lines = [ln for ln in text.splitlines() if ln.startswith(f"{key} =")]
         text = text.replace(lines[0], f"{key} = {values!r}")
     return cfg.matrix_from_text(text, "small.toml")
-
-
-def orbitrig_cmd(*args: str) -> list[str]:
-    return [sys.executable, "-m", "orbitrig", *args]
 
 
 def stop_after_first_point(cmd: list[str], out: Path, env: dict[str, str] | None = None) -> None:

@@ -13,7 +13,7 @@ from pathlib import Path
 import h5py
 
 from support.paths import ROOT
-from support.sweep_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd
 
 
 class SweepProcess:

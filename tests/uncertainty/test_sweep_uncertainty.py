@@ -7,9 +7,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import subprocess
-import sys
 import tomllib
 from pathlib import Path
 
@@ -17,6 +14,7 @@ import h5py
 import numpy as np
 import pytest
 
+from support.cli_helpers import orbitrig
 from support.paths import ROOT
 
 # compressible scenario: the constant model misses the falling damping (with 40 revolutions per
@@ -45,13 +43,6 @@ freq_dep = "poly:4"
 """
 
 
-def orbitrig(*args: str, cwd: Path = ROOT, timeout: float = 240) -> subprocess.CompletedProcess:
-    env = {**os.environ, "COLUMNS": "200"}
-    return subprocess.run(
-        [sys.executable, "-m", "orbitrig", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout
-    )
-
-
 @pytest.fixture(scope="module")
 def sweep(tmp_path_factory):
     work = tmp_path_factory.mktemp("judged")
@@ -66,6 +57,7 @@ def sweep(tmp_path_factory):
         str(work / "judged.toml"),
         "--out",
         str(out),
+        timeout=240,
     )
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     return out, res.stdout + res.stderr

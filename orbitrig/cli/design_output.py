@@ -1,0 +1,118 @@
+"""`orbitrig design`'s result as it leaves the command: the object of orbitrig.cli.design_report
+printed for a person, and its proposal saved as a design file a matrix names
+(``[orbit] design = "NAME"``, config/designs/NAME.toml)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from orbitrig.cli.design_inputs import DesignInputError
+from orbitrig.config import writable_home
+from orbitrig.store.durable import write_atomic
+from orbitrig.store.errors import storage_error
+from reduction.whirl import Directions
+from rigunits import format_duration
+
+DESIGNS_DIR = "designs"  # next to config/matrices: config/designs/NAME.toml
+
+
+def _revolutions_text(lst: dict) -> str:
+    n = lst["revolutions"]
+    if not isinstance(n, list):
+        return f"{n} revolutions"
+    text = "revolutions " + ", ".join(map(str, n))
+    return text + (
+        " (adaptive targets " + ", ".join(f"{t:.3g}" for t in lst["target_pct"]) + " %)"
+        if lst.get("target_pct")
+        else ""
+    )
+
+
+def print_design(obj: dict) -> None:
+    """Readable form: settings, the two lists, one line per coefficient."""
+    c, p = obj["candidate"], obj["proposal"]
+    echo = typer.echo
+    echo(
+        f"model {obj['model']} ({obj['freq_dep']}), spin {obj['spin_rpm']:g} rpm, orbit radius "
+        f"{obj['orbit_radius_m'] * 1e6:.3g} um, directions {obj['directions']}"
+    )
+    echo(f"noise {obj['noise']['source']}")
+    echo(f"prior coefficients: {obj['prior']['source']}")
+    a = obj["allowed"]
+    echo(f"allowed ratios {a['ratio_min']:g} .. {a['ratio_max']:.3g}, none within {a['keep_away_from_1']:g} of 1")
+    for label, lst in (("candidate", c), ("proposal ", p)):
+        worst = "not identifiable" if lst["worst_relative_pct"] is None else f"worst {lst['worst_relative_pct']:.3g} %"
+        echo(
+            f"{label}: {len(lst['ratios'])} ratios x {lst['directions']}, {_revolutions_text(lst)}, "
+            f"rig time {format_duration(lst['rig_time_s'])}, {worst}: {', '.join(f'{r:g}' for r in lst['ratios'])}"
+        )
+    for w in c["warnings"]:
+        echo(f"warning (candidate): {w}")
+    for w in p.get("warnings", []):
+        echo(f"warning (proposal): {w}")
+    for w in obj.get("warnings", []):
+        echo(f"warning (model): {w}")
+    mt = obj.get("model_test")
+    if mt:
+        echo(f"model test kept: {'yes' if mt['kept'] else 'NO'}: {mt['reason']}")
+    if obj["target_pct"] is not None:
+        ok = p.get("reaches_target")
+        echo(f"target {obj['target_pct']:g} %: " + ("reached" if ok else "not reachable on this grid"))
+    echo("")
+    echo(
+        f"{'coefficient':12} {'unit':16} {'prior':>11} {'candidate SE':>13} {'rel %':>8} {'proposal SE':>13} {'rel %':>8}"
+    )
+    for name in obj["coefficients"]:
+        cells = []
+        for lst in (c, p):
+            if lst["std_errors"] is None:
+                cells += [f"{'-':>13}", f"{'-':>8}"]
+            else:
+                cells += [f"{lst['std_errors'][name]:13.4g}", f"{lst['relative_pct'][name]:8.3g}"]
+        echo(f"{name:12} {obj['units'][name]:16} {obj['prior']['coefficients'][name]:11.4g} " + " ".join(cells))
+
+
+def designs_dir(rig_path: Path | None = None) -> Path:
+    """designs/ of the lab folder (orbitrig.config.writable_home: a ConfigError in the shipped
+    defaults, which are never written to)."""
+    return writable_home(rig_path) / DESIGNS_DIR
+
+
+def save_design(obj: dict, name: str, folder: Path | None = None) -> Path:
+    """Write config/designs/NAME.toml: the proposal's ratios, revolutions per ratio, adaptive
+    targets per ratio (percent; with --target or --match) and directions (what a matrix reads
+    with [orbit] design = "NAME") and, as comments, what it was designed for."""
+    if not name.replace("-", "").replace("_", "").isalnum():
+        raise DesignInputError(f"--save {name!r}: use letters, digits, - and _ only")
+    folder = folder or designs_dir()
+    p = obj["proposal"]
+    goal = "" if obj["target_pct"] is None else f" --target {obj['target_pct']:g}"
+    goal += " --match" if obj.get("match_candidate") else ""
+    goal += " --no-model-test" if goal and obj.get("model_test") is None else ""  # a goal's list without the test
+    n = p["revolutions"]
+    per_ratio = isinstance(n, list)
+    lines = [
+        f"# orbitrig design --model {obj['model']} --freq-dep {obj['freq_dep']} --spin {obj['spin_rpm']:g}{goal}",
+        f"# candidate: {obj['candidate']['source']}; orbit radius {obj['orbit_radius_m'] * 1e6:.3g} um",
+        f"# predicted worst relative standard error {p['worst_relative_pct']:.3g} %, rig time "
+        f"{p['rig_time_s']:.0f} s per operating point; noise {obj['noise']['source']}",
+        f'model = "{obj["model"]}"',
+        f'freq_dep = "{obj["freq_dep"]}"',
+        f"spin_rpm = {obj['spin_rpm']:g}",
+        "ratios = [" + ", ".join(f"{r:g}" for r in p["ratios"]) + "]",
+        ("revolutions = [" + ", ".join(map(str, n)) + "]")
+        if per_ratio
+        else f"revolutions = [{', '.join([str(n)] * len(p['ratios']))}]",
+        "directions = [" + ", ".join(f'"{w}"' for w in Directions(p["directions"]).whirls) + "]",
+    ]
+    if per_ratio and p.get("target_pct"):
+        lines.append("target_pct = [" + ", ".join(f"{t:g}" for t in p["target_pct"]) + "]")
+    path = folder / f"{name}.toml"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise storage_error(folder, "create the folder", err) from err
+    write_atomic(path, ("\n".join(lines) + "\n").encode("utf-8"))
+    return path

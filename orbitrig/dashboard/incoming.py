@@ -1,0 +1,173 @@
+"""What a dashboard session reads (a mixin of orbitrig.dashboard.session.Session): the messages
+of the rig watched, kept as what a page needs to draw the present at once (the retained status,
+the latest progress and live payloads, the results so far, the trends and the alarms), and fanned
+out to the session's browser feeds; the replies and acknowledgements that answer its commands
+(orbitrig.dashboard.outgoing).
+
+The alarms are the rig's book on the dashboard server (orbitrig.dashboard.alarms.AlarmShelf),
+shared by the sessions watching it: whichever session applies a change, every one watching the
+rig sends its pages the same messages.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import collections
+import json
+import time
+from typing import Any, Callable
+
+import orbitrig.service.protocol as proto
+from orbitrig.dashboard.alarms import AlarmBook, AlarmShelf
+from orbitrig.dashboard.elsewhere import ElsewhereReplies
+from orbitrig.dashboard.feed import BrokerLink, Feed, FeedType
+from orbitrig.dashboard.rigs import RigDirectory
+from orbitrig.dashboard.trend import TrendHistory
+
+#: a run has ended in these states: its progress and live view are forgotten
+ENDED = (proto.RunState.IDLE, proto.RunState.FAULTED)
+TREND_RESEND = 300  # the run's trend view (thinned by the server) goes to the pages again every this many samples
+
+
+class Incoming:
+    """The reading half of a session: the rig watched as its pages see it."""
+
+    user: str
+    settings: Any  # DashboardSettings
+    shelf: AlarmShelf
+    topics: proto.Topics
+    rigs: RigDirectory
+    link: BrokerLink
+    feeds: set[Feed]
+    _pending: dict[str, asyncio.Future]
+    _elsewhere: ElsewhereReplies
+    outcomes: collections.deque[dict]
+    status: dict | None
+    progress: dict | None
+    live: dict | None
+    #: a reply no call waits for any more (orbitrig.dashboard.outgoing.Outgoing.late_reply)
+    late_reply: Callable[[dict], bool]
+
+    def _forget_rig(self) -> None:
+        """Drop what the session knows of the rig it watched."""
+        self.status = self.progress = self.live = None
+        self.live_at = 0.0  # time.monotonic() when the live payload came
+        # the results so far and the gaps where some may be missing, as feed messages (result, gap)
+        self.results: collections.deque[dict] = collections.deque(maxlen=500)
+        self.status_seen: int | None = None  # the session's place in the rig's alarm book (AlarmBook.on_status)
+        self.trend = TrendHistory(self.settings.trend_period, self.settings.trend_recent_s)
+        self.trend_samples = 0
+        self.alarms_seen = -1  # the version of the rig's alarm book the pages have
+
+    @property
+    def alarms(self) -> AlarmBook:
+        """The latched alarms of the rig watched (the dashboard server's book, not the session's)."""
+        return self.shelf.book(self.topics.prefix)
+
+    def _alarms_changed(self) -> None:
+        """Send the pages the rig's alarms when its book changed since they got it (whichever
+        session applied the change: every session watching the rig gets the same messages)."""
+        book = self.alarms
+        if book.version != self.alarms_seen:
+            self.alarms_seen = book.version
+            self._broadcast({"type": FeedType.ALARMS, "data": book.listing()})
+
+    def adopt(self, peers: Any) -> None:
+        """Start from the trends of the first of ``peers`` (sessions) watching the same rig; the alarms
+        are the rig's own book."""
+        peer = next((p for p in peers if p is not self and p.topics == self.topics), None)
+        if peer is not None:
+            self.trend.seed(peer.trend)
+            self._broadcast({"type": FeedType.TREND_HISTORY, "data": self.trend.history()})
+        self._alarms_changed()
+
+    def _on_message(self, topic: str, raw: Any) -> None:
+        t = self.topics
+        try:
+            data = json.loads(raw if isinstance(raw, (bytes, bytearray, str)) else b"")
+        except (ValueError, RecursionError):
+            return
+        if not isinstance(data, dict):
+            return
+        rig_id = self.rigs.rig_of(topic)
+        if rig_id is not None and self.rigs.on_status(rig_id, data):
+            self._broadcast({"type": FeedType.RIGS, "data": self.rigs.listing()})
+        if topic == t.status:
+            self._forget_run_view(data)
+            self.status = data
+            self._broadcast({"type": FeedType.STATUS, "data": data})
+            _, self.status_seen = self.alarms.on_status(data, self.status_seen)
+            self._alarms_changed()
+        elif topic == t.ack:
+            self._resolve(data)
+            self.alarms.on_ack(data)
+            self._alarms_changed()
+        elif topic == t.progress:
+            self.progress = data
+            self._broadcast({"type": FeedType.PROGRESS, "data": data})
+        elif topic == t.live:
+            self.live, self.live_at = data, time.monotonic()
+            self._broadcast({"type": FeedType.LIVE, "data": data})
+            self._trend(data)
+        elif topic == t.result:
+            message = {"type": FeedType.RESULT, "data": data}
+            if message in self.results:  # a QoS 1 message the broker handed on again (after a reconnection)
+                return
+            self.results.append(message)
+            self._broadcast(message)
+        elif topic == t.reply or self._elsewhere.is_reply(topic):  # also another rig's: a stop or abort sent there
+            self._resolve(data)
+
+    def _forget_run_view(self, status: dict) -> None:
+        """The progress and live payloads go when the run ends or another run's status comes."""
+        run_id, old = status.get("run_id"), self.status
+        if status.get("state") in ENDED or (old is not None and old.get("run_id") != run_id):
+            self.progress = self.live = None
+
+    def _resolve(self, data: dict) -> None:
+        """A reply (or this session's own acknowledgement back from the broker) for a waiting call."""
+        fut = self._pending.pop(str(data.get("id")), None)
+        if fut is None:
+            self.late_reply(data)
+        elif not fut.done():
+            fut.set_result(data)
+
+    def _trend(self, live: dict) -> None:
+        sample = self.trend.add(live, time.time())
+        if sample is None:
+            return
+        self.trend_samples += 1
+        self._broadcast({"type": FeedType.TREND, "sample": sample, "run_id": self.trend.run_id})
+        if self.trend_samples % TREND_RESEND == 0:
+            self._broadcast({"type": FeedType.TREND_HISTORY, "data": {**self.trend.history(), "recent": None}})
+
+    def _broadcast(self, message: dict) -> None:
+        for feed in list(self.feeds):
+            feed.put(message)
+
+    def snapshot(self) -> list[dict]:
+        """What a newly connected page needs to draw the present at once."""
+        out: list[dict] = [
+            {
+                "type": FeedType.HELLO,
+                "user": self.user,
+                "prefix": self.topics.prefix,
+                "reply_timeout": self.settings.reply_timeout,
+                "tick": self.settings.tick,
+            },
+            {"type": FeedType.LINK, "link": self.link},
+            {"type": FeedType.RIGS, "data": self.rigs.listing()},
+        ]
+        out += [
+            {"type": k, "data": v}
+            for k, v in ((FeedType.STATUS, self.status), (FeedType.PROGRESS, self.progress))
+            if v is not None
+        ]
+        out += list(self.results)  # the results so far, and where some may be missing
+        out.append({"type": FeedType.TREND_HISTORY, "data": self.trend.history()})
+        out.append({"type": FeedType.ALARMS, "data": self.alarms.listing()})
+        if self.outcomes:
+            out.append({"type": FeedType.OUTCOMES, "data": list(self.outcomes)})
+        if self.live is not None:
+            out.append({"type": FeedType.LIVE, "data": self.live, "age_s": time.monotonic() - self.live_at})
+        return out
