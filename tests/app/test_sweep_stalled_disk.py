@@ -17,7 +17,7 @@ import pytest
 from orbitrig.run.closing import DISK_STALL_S
 from support.paths import ROOT
 from support.stalled_disk import stalling_env
-from support.sweep_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd
 
 pytestmark = pytest.mark.timeout(180)
 

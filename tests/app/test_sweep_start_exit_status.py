@@ -8,7 +8,7 @@ import subprocess
 import pytest
 
 from support.paths import ROOT
-from support.sweep_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig_cmd
 
 pytestmark = pytest.mark.timeout(120)
 
