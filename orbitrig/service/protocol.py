@@ -311,7 +311,8 @@ def iso8601(when: _dt.datetime | float | str | None = None) -> str:
 
 def _jsonable(value: Any) -> Any:
     """Plain JSON values: numpy scalars and arrays to numbers and lists,
-    non-finite floats to null, complex to ``[re, im]``, paths to text."""
+    non-finite floats to null, complex to ``[re, im]``, datetimes to the timestamp text of
+    ``rigunits.utc_iso`` (as ``since``), paths to text."""
     if isinstance(value, dict):
         return {str(k): _jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
@@ -325,7 +326,9 @@ def _jsonable(value: Any) -> Any:
     tolist = getattr(value, "tolist", None)  # numpy scalar or array
     if callable(tolist):
         return _jsonable(tolist())
-    if isinstance(value, (_dt.datetime, _dt.date)):
+    if isinstance(value, _dt.datetime):
+        return utc_iso(value)  # the house timestamp (a naive datetime is local time)
+    if isinstance(value, _dt.date):
         return value.isoformat()
     return str(value)
 

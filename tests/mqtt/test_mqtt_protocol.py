@@ -188,6 +188,14 @@ def test_result_payload_is_plain_json():
     assert json.loads(result_payload("r9", {"run_id": "own"}))["run_id"] == "own"
 
 
+def test_result_payload_times_are_the_house_timestamps():
+    local = dt.timezone(dt.timedelta(hours=2))
+    when = dt.datetime(2026, 11, 27, 3, 30, 5, 123456, tzinfo=local)
+    obj = json.loads(result_payload("r9", {"at": when, "day": dt.date(2026, 11, 27)}))
+    assert obj["at"] == "2026-11-27T01:30:05.123Z"
+    assert obj["day"] == "2026-11-27"
+
+
 def test_replies():
     assert json.loads(reply_ok("a")) == {"id": "a", "ok": True}
     assert json.loads(reply_error(None, "no")) == {"id": None, "ok": False, "error": "no"}
