@@ -21,11 +21,13 @@ import json
 import math
 import re
 from dataclasses import dataclass
+from enum import StrEnum
 from typing import Annotated, Any, Literal, Union, get_args
 
 from pydantic_core import ErrorDetails
 from pydantic import BaseModel, ConfigDict, Field, StringConstraints, TypeAdapter, ValidationError, field_validator
 
+from orbitrig.run.provenance import RunCommand
 from orbitrig.run.states import RunState
 from orbitrig.service.command_json import (  # noqa: F401 - part of this contract's names
     MAX_COMMAND_BYTES,
@@ -133,11 +135,22 @@ def topics(rig_id: str, prefix: str | None = None) -> Topics:
 # -- commands -----------------------------------------------------------------
 
 
+class Query(StrEnum):
+    """The command that changes nothing: the service answers it (the status again)."""
+
+    STATUS = "status"
+
+
+#: A command's name: one that changes a run (orbitrig.run.provenance.RunCommand) or the query;
+#: on the wire the lowercase word of its value.
+CommandName = RunCommand | Query
+
+
 @dataclass(frozen=True)
 class Command:
     """A validated command. ``matrix`` is set for ``start``, ``step`` for ``confirm``."""
 
-    cmd: str
+    cmd: CommandName
     id: str | None  # None only for a stop/abort whose id could not be read
     matrix: str | None = None
     step: str | None = None
@@ -171,7 +184,7 @@ class _Sent(_Strict):
 class StartCommand(_Sent):
     """``start``: run the named matrix of the service's matrix folder."""
 
-    cmd: Literal["start"]
+    cmd: Literal[RunCommand.START]
     id: CorrelationId
     matrix: str
 
@@ -189,7 +202,7 @@ class StartCommand(_Sent):
 class ConfirmCommand(_Sent):
     """``confirm``: the operator confirms the manual setting ``step``."""
 
-    cmd: Literal["confirm"]
+    cmd: Literal[RunCommand.CONFIRM]
     id: CorrelationId
     step: str
 
@@ -204,7 +217,7 @@ class ConfirmCommand(_Sent):
 class BareCommand(_Sent):
     """Commands without arguments."""
 
-    cmd: Literal["pause", "resume", "stop", "abort", "status"]
+    cmd: Literal[RunCommand.PAUSE, RunCommand.RESUME, RunCommand.STOP, RunCommand.ABORT, Query.STATUS]
     id: CorrelationId
 
 
@@ -212,11 +225,13 @@ CommandModel = Annotated[Union[StartCommand, ConfirmCommand, BareCommand], Field
 _COMMANDS: TypeAdapter = TypeAdapter(CommandModel)
 
 #: Commands and the fields each takes besides ``cmd`` and ``id`` (from the models).
-COMMAND_FIELDS: dict[str, tuple[str, ...]] = {
+COMMAND_FIELDS: dict[CommandName, tuple[str, ...]] = {
     name: tuple(f for f in model.model_fields if f not in ("cmd", "id", "by"))
     for model in (StartCommand, ConfirmCommand, BareCommand)
     for name in get_args(model.model_fields["cmd"].annotation)
 }
+#: Each command by its word on the wire ("start" -> RunCommand.START).
+COMMAND_WORDS: dict[str, CommandName] = {name.value: name for name in COMMAND_FIELDS}
 
 
 def _field_problem(err: ErrorDetails, name: str) -> str | None:
@@ -262,8 +277,8 @@ def parse_command(payload: bytes | bytearray | str) -> Command:
         raise CommandError("; ".join([f"field 'cmd' must be a string, got {_type_name(name)}", *problems]), cid)
     word = stop_word(name)
     if word is not None and word != name:  # "STOP", " abort": still the stop asked for
-        problems.append(f"field 'cmd' {name!r} read as {word!r}")
-        name, obj = word, {**obj, "cmd": word}
+        problems.append(f"field 'cmd' {name!r} read as {word.value!r}")
+        name, obj = word.value, {**obj, "cmd": word.value}
     if name not in COMMAND_FIELDS:
         known = ", ".join(sorted(COMMAND_FIELDS))
         raise CommandError("; ".join([f"unknown command {name!r} (known: {known})", *problems]), cid)
@@ -272,12 +287,12 @@ def parse_command(payload: bytes | bytearray | str) -> Command:
     except ValidationError as err:
         field_problems = (_field_problem(e, name) for e in err.errors(include_url=False))
         problems += [p for p in field_problems if p is not None]
-    if problems and name in ALWAYS_ACCEPTED:
+    if problems and word is not None:  # (so: a stop or an abort, ALWAYS_ACCEPTED)
         # "stop and abort are always accepted": a stray field or a bad id must
         # never keep spinning machinery from stopping. The problems are logged.
         by = obj.get("by") if isinstance(obj.get("by"), str) else None
         note = f"the id sent is not echoed: {_id_trouble(found)}" if "id" in obj and cid is None else None
-        return Command(cmd=name, id=cid, ignored=tuple(problems), by=by[:64] if by else None, id_note=note)
+        return Command(cmd=word, id=cid, ignored=tuple(problems), by=by[:64] if by else None, id_note=note)
     if problems:
         raise CommandError("; ".join(problems), cid)
     return Command(

@@ -52,6 +52,7 @@ from orbitrig.analysis.warning_groups import warning_lines
 from orbitrig.errors import ConfigError
 from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
 from orbitrig.run.heap import trim_heap
+from orbitrig.run.provenance import RunCommand
 from orbitrig.run.states import Outcome, RunState
 from orbitrig.service import idle_stop, live as live_feed
 from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # the service's seams
@@ -59,7 +60,7 @@ from orbitrig.service.inbox import CommandTriage
 from orbitrig.service.leaving import LeavingWithoutDisk
 from orbitrig.service.abort_link import AbortLink
 from orbitrig.service.catalog_feed import CatalogFeed
-from orbitrig.service.commands import Later
+from orbitrig.service.commands import Later, Request
 from orbitrig.service.supervision import SupervisionHandling
 from orbitrig.service.flood_read import STOP_HOLD_S
 from orbitrig.service import protocol as proto
@@ -137,14 +138,14 @@ class RigService(SupervisionHandling, LeavingWithoutDisk):
         self._handled: collections.OrderedDict[tuple[str, bytes], int] = collections.OrderedDict()
         self._stops_done: collections.OrderedDict[tuple[str | None, bytes], None] = collections.OrderedDict()
         #: command name -> handler: raises CommandRefused to refuse; a Later it returns: its reply follows
-        self._handlers: dict[str, Callable[[proto.Command], Later | None]] = {
-            "start": self._cmd_start,
-            "pause": self._cmd_pause,
-            "resume": self._cmd_resume,
-            "stop": self._cmd_stop,
-            "abort": self._cmd_abort,
-            "confirm": self._cmd_confirm,
-            "status": self._cmd_status,
+        self._handlers: dict[proto.CommandName, Callable[[proto.Command], Later | None]] = {
+            RunCommand.START: self._cmd_start,
+            RunCommand.PAUSE: self._cmd_pause,
+            RunCommand.RESUME: self._cmd_resume,
+            RunCommand.STOP: self._cmd_stop,
+            RunCommand.ABORT: self._cmd_abort,
+            RunCommand.CONFIRM: self._cmd_confirm,
+            proto.Query.STATUS: self._cmd_status,
         }
 
     # -- public state -----------------------------------------------------------
@@ -225,7 +226,7 @@ class RigService(SupervisionHandling, LeavingWithoutDisk):
         if not self.run_active or task is None:
             return
         log.warning("stopping run %s at once, both drives ramp to zero: %s", self._run_id, why)
-        self._request("stop_now", f"service ({why})")
+        self._request(Request.STOP_NOW, f"service ({why})")
         timeout = self._run_end_timeout()
         try:
             async with asyncio.timeout(timeout):  # (3.11's wait_for can lose a cancellation)
@@ -258,7 +259,7 @@ class RigService(SupervisionHandling, LeavingWithoutDisk):
         stop over the service's own link, as an MQTT abort (idle_stop); its outcome is logged."""
         if self.run_active:
             log.warning("aborting run %s: %s", self._run_id, why)
-            if self._request("abort", f"service ({why})"):
+            if self._request(Request.ABORT, f"service ({why})"):
                 return
         self.stop_idle_drives(emergency=True, why=why)  # (one under way: its outcome is logged)
 

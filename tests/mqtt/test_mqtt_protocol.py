@@ -294,3 +294,16 @@ def test_abort_with_several_problems_is_accepted_and_lists_them():
     cmd = parse_command(b'{"cmd":"abort","id":"","why":1,"how":2}')
     assert cmd.cmd == "abort" and cmd.id is None
     assert len(cmd.ignored) == 3 and "unexpected field 'how' for command 'abort'" in cmd.ignored
+
+
+def test_commands_are_read_as_the_closed_set_of_names():
+    from orbitrig.run.provenance import RunCommand
+    from orbitrig.service.protocol import COMMAND_WORDS, Query
+
+    assert parse_command(json.dumps({"cmd": "pause", "id": "a"})).cmd is RunCommand.PAUSE
+    assert parse_command(json.dumps({"cmd": "status", "id": "a"})).cmd is Query.STATUS
+    assert parse_command(json.dumps({"cmd": "start", "id": "a", "matrix": "m"})).cmd is RunCommand.START
+    loose = parse_command(json.dumps({"cmd": " STOP ", "id": "a"}))
+    assert loose.cmd is RunCommand.STOP and loose.ignored == ("field 'cmd' ' STOP ' read as 'stop'",)
+    assert parse_command(json.dumps({"cmd": "abort", "id": "a", "x": 1})).cmd is RunCommand.ABORT
+    assert set(COMMAND_WORDS) == {*RunCommand, *Query}
