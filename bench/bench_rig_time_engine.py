@@ -51,6 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from reduction.spread import spread_ratio_interval, spread_verdict
+from rigunits import RPM
 
 SPEEDUP = 20.0
 RETRIES = 2  # a run that fails (e.g. the Modbus link lost on a loaded machine) is run again this often
@@ -270,7 +271,7 @@ def _truth(rig, scenario: str) -> np.ndarray:
         recess_pressure=0.4826e6,
         pressure_ratio=0.25,
     )
-    spin = 1000 * 2 * math.pi / 60
+    spin = 1000 * RPM
     w = np.asarray(physics.cfg.bearing.reference_ratios) * spin
     mats = constant_fit(w, physics.impedances(spin, w))
     return np.array([mats[t.matrix][t.entries[0]] for t in model_spec("kcd11").terms])

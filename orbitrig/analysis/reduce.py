@@ -38,6 +38,7 @@ from orbitrig.store.csvfile import (
     warnings_cell,
 )
 from orbitrig.store.durable import write_atomic
+from reduction.methods import Method
 from rigunits import MPA, display_unit
 
 #: constant-term keys in the spec's order
@@ -52,7 +53,7 @@ class Reduced:
     lms: LoadSystem
     model: str
     freq_dep: str
-    method: str
+    method: Method | str  # (a stored fit's: as the run's files name it)
     identification: Any = None  # reduction.identify.Identification
     error: str | None = None
     stored: dict[str, Any] | None = None  # the sweep's stored JSON of this identification, if repeated
@@ -64,9 +65,12 @@ class Reduced:
         return {**head, **self.identification.to_dict()}
 
 
-def identify_point(point: Point, lms: LoadSystem, model: str, freq_dep: str = "none", method: str = "ols") -> Reduced:
-    """Identify one point's orbit table of one LMS. A refused model (IdentificationError)
-    is returned as ``error``; a bad option (other ReductionError) is raised."""
+def identify_point(
+    point: Point, lms: LoadSystem, model: str, freq_dep: str = "none", method: Method | str = Method.OLS
+) -> Reduced:
+    """Identify one point's orbit table of one LMS (``method``: a Method or its name, checked by
+    reduction.identify). A refused model (IdentificationError) is returned as ``error``; a bad
+    option (other ReductionError) is raised."""
     from reduction.identify import identify
 
     row = Reduced(point, lms, model, freq_dep, method)
@@ -88,7 +92,7 @@ def reduce_run(
     run: Run,
     model: str,
     freq_dep: str = "none",
-    method: str = "ols",
+    method: Method | str = Method.OLS,
     lms_names: tuple[LoadSystem, ...] = LMS,
     points: list[Point] | None = None,
 ) -> list[Reduced]:
@@ -113,7 +117,7 @@ def reduce_run(
     ]
 
 
-def csv_path(directory: str | Path, model: str, freq_dep: str, method: str) -> Path:
+def csv_path(directory: str | Path, model: str, freq_dep: str, method: Method | str) -> Path:
     """``DIR/reduce_<model>_<freq-dep>_<method>.csv`` (':' and ',' of the spec -> '_')."""
     return Path(directory) / f"reduce_{model}_{freq_dep_key(freq_dep)}_{method}.csv"
 

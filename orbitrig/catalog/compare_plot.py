@@ -12,7 +12,7 @@ from pathlib import Path
 import matplotlib
 import numpy as np
 
-from orbitrig.analysis.plots import _figure, style
+from orbitrig.analysis.plots import FigureFormat, _figure, style
 from orbitrig.analysis.plot_marks import _colors
 from orbitrig.catalog.compare import Row, Variable, repeatability, runs_of
 from orbitrig.catalog.predicted import PredictedLines, predicted_lines
@@ -159,7 +159,7 @@ def write_figure(fig, out_dir: Path, stem: str = "compare") -> list[Path]:
     except OSError as err:
         raise storage_error(out_dir, "create the folder", err) from err
     paths = []
-    for fmt in ("png", "pdf"):
+    for fmt in (FigureFormat.PNG, FigureFormat.PDF):
         buf = io.BytesIO()
         fig.savefig(buf, format=fmt, dpi=120)
         path = out_dir / f"{stem}.{fmt}"

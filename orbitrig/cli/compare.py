@@ -15,6 +15,7 @@ import typer
 
 from orbitrig.cli.catalog import DbOption, RunsOption, WhereOption, _guarded, _open
 from orbitrig.load_systems import LoadSystem
+from reduction.methods import Method
 
 DEFAULT_COEFFICIENTS = "Kxx,Kxy,Kyx,Kyy,Cxx,Cxy,Cyx,Cyy"
 
@@ -30,7 +31,7 @@ def compare_cmd(
     lms: Annotated[LoadSystem, typer.Option("--lms", help="Load measuring system.")] = LoadSystem.PIEZO,
     model: Annotated[str, typer.Option("--model", help="Model of the compared fits.")] = "kcd11",
     freq_dep: Annotated[str, typer.Option("--freq-dep", help="Frequency dependence of the compared fits.")] = "none",
-    method: Annotated[str, typer.Option("--method", help="Estimation method of the compared fits.")] = "ols",
+    method: Annotated[Method, typer.Option("--method", help="Estimation method of the compared fits.")] = Method.OLS,
     predicted: Annotated[
         Optional[Path], typer.Option("--predicted", help="CSV of predicted coefficients (docs/catalog.md).")
     ] = None,

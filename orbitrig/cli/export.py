@@ -99,18 +99,19 @@ def _why_nothing(selection, point: list[int] | None) -> str:
     return "the run stores no operating point"
 
 
-def _export(directory: Path, fmt: str, out: Path | None, point: list[int] | None, fit: str):
+def _export(directory: Path, word: str, out: Path | None, point: list[int] | None, fit: str):
     """The files written and the selection (orbitrig.store.selection.Selection)."""
-    from orbitrig.store.export import FORMATS, export_run
+    from orbitrig.store.export import ExportFormat, export_run
 
-    if fmt not in (*FORMATS, "ross"):
-        raise ExportOptionError(f"--format {fmt!r}: one of {', '.join(FORMATS)}, ross")
-    if point and fmt == "h5":
+    if word not in set(ExportFormat):
+        raise ExportOptionError(f"--format {word!r}: one of {', '.join(ExportFormat)}")
+    fmt = ExportFormat(word)
+    if point and fmt is ExportFormat.H5:
         raise ExportOptionError("--point does not apply to --format h5 (run.h5 holds the whole run)")
     negative = [n for n in point or () if n < 0]
     if negative:
         raise ExportOptionError(f"--point {negative[0]}: a point index is 0 or more")
-    if fmt == "ross":
+    if fmt is ExportFormat.ROSS:
         return _export_ross(directory, out, point, fit)
     exported = export_run(directory, fmt, out, point)
     return exported.files, exported.selection

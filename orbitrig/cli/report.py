@@ -17,6 +17,7 @@ import typer
 
 from orbitrig.cli.plain_table import OutputFormat, PlainTable, wrap
 from orbitrig.cli.skipped import tell_skipped
+from reduction.methods import Method
 
 
 def _fail(message: str, code: int = 2) -> None:
@@ -37,7 +38,7 @@ FreqDepOpt = Annotated[
     ),
 ]
 MethodOpt = Annotated[
-    str,
+    Method,
     typer.Option(
         "--method", help="least squares: ols (ordinary) | wls (weighted) | tls (total) | iv (instrumental variables)"
     ),
@@ -56,7 +57,7 @@ def reduce_cmd(
     directory: RunDir,
     model: ModelOpt,
     freq_dep: FreqDepOpt = "none",
-    method: MethodOpt = "ols",
+    method: MethodOpt = Method.OLS,
     as_json: JsonOpt = False,
     fmt: FormatOpt = OutputFormat.TEXT,
 ) -> None:

@@ -22,16 +22,9 @@ from typing import Any
 
 import orbitrig.service.protocol as proto
 
-#: Commands the page may send and the fields each takes besides ``cmd`` and ``rig``.
-PAGE_COMMANDS = {
-    "start": ("matrix",),
-    "pause": (),
-    "resume": (),
-    "stop": (),
-    "abort": (),
-    "confirm": ("step",),
-    "status": (),
-}
+#: Commands the page may send (every command of the contract) and the fields each takes besides
+#: ``cmd`` and ``rig``.
+PAGE_COMMANDS = proto.COMMAND_FIELDS
 NOT_AUTHORISED = "refused: not authorised"
 EMERGENCY = "if it is still running use the rig's emergency stop"
 #: a command other than stop and abort while the rig's service is offline: the broker would keep it
@@ -69,13 +62,14 @@ def command_body(
     """The command to publish for a page's request and the rig (topic prefix) it goes to (rig_for), or the
     reason it is refused (then ``{}``)."""
     name = request.get("cmd")
-    if name not in PAGE_COMMANDS:
+    cmd = proto.COMMAND_WORDS.get(name) if isinstance(name, str) else None
+    if cmd is None:
         return {}, "", f"unknown command {name!r}"
-    prefix, wrong_rig = rig_for(str(name), request.get("rig"), watched, known)
+    prefix, wrong_rig = rig_for(cmd, request.get("rig"), watched, known)
     if wrong_rig is not None:
         return {}, "", wrong_rig
-    body = {"cmd": str(name), "by": user}  # the signed-in user, recorded in the run
-    for field in PAGE_COMMANDS[str(name)]:
+    body: dict[str, str] = {"cmd": cmd, "by": user}  # the signed-in user, recorded in the run
+    for field in PAGE_COMMANDS[cmd]:
         value = request.get(field)
         if not isinstance(value, str) or not value:
             return {}, "", f"field {field!r} is missing"
@@ -90,7 +84,7 @@ def refused(user: str, what: str) -> str:
 
 def offline_now(name: str) -> str:
     """A stop or abort while the rig's service is offline: nothing will carry it out."""
-    article = "an" if name == "abort" else "a"
+    article = "an" if name == proto.RunCommand.ABORT else "a"
     return f"the rig service is offline: the broker does not keep {article} {name} for it; use the rig's emergency stop"
 
 

@@ -26,6 +26,8 @@ from dataclasses import dataclass
 from collections.abc import Callable
 from typing import Any
 
+from orbitrig.run.provenance import RunCommand
+
 #: Largest command payload accepted (bytes); a command is a few dozen bytes.
 MAX_COMMAND_BYTES = 4096
 #: Deepest nesting of arrays and objects accepted; a command is one level deep.
@@ -41,15 +43,15 @@ MAX_DEEP_STOP_CHARS = 16384
 #: Longest correlation id echoed in a reply (a longer one is not echoed: the reply's id is null)
 MAX_ID_CHARS = 128
 #: Commands read even beyond the limits (docs/protocols/mqtt.md: always accepted)
-STOP_OR_ABORT = frozenset({"stop", "abort"})
+STOP_OR_ABORT = frozenset({RunCommand.STOP, RunCommand.ABORT})
 
 
-def stop_word(name: object) -> str | None:
-    """ "stop" or "abort" when ``name`` (a command's ``cmd``) names one in any letter case and
+def stop_word(name: object) -> RunCommand | None:
+    """``RunCommand.STOP`` or ``ABORT`` when ``name`` (a command's ``cmd``) names one in any letter case and
     with blanks around ("ABORT", " Stop "), else None: such a stop is never refused for its
     spelling. Every other command is taken only as the contract spells it."""
     word = name.strip().lower() if isinstance(name, str) else None
-    return word if word in STOP_OR_ABORT else None
+    return RunCommand(word) if word in STOP_OR_ABORT else None
 
 
 _STRING = re.compile(r'"(?:[^"\\]|\\.)*"')

@@ -14,10 +14,11 @@ import functools
 import logging
 import time
 from collections.abc import Callable
-from typing import Literal
+from enum import StrEnum
 
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.control import NotNow
+from orbitrig.run.provenance import RunCommand
 from orbitrig.run.states import RunState
 from orbitrig.service import idle_stop
 from orbitrig.service import protocol as proto
@@ -32,7 +33,7 @@ REDELIVERY_S = 10.0
 #: stops and aborts remembered so that a retained one is carried out once only
 STOPS_KEPT = 4096
 #: the commands that start or move the drives: refused once the service is shutting down
-MOVES_DRIVES = frozenset({"start", "resume", "confirm"})
+MOVES_DRIVES = frozenset({RunCommand.START, RunCommand.RESUME, RunCommand.CONFIRM})
 SHUTTING_DOWN = "the service is shutting down: {cmd} refused (nothing is started or moved any more)"
 STOPPING_DRIVES = (
     "{cmd} refused: an abort's emergency stop is being sent to the drives (no run held them); "
@@ -40,6 +41,16 @@ STOPPING_DRIVES = (
 )
 #: a handler's reply that follows once the work it started is done: (error, detail)
 Later = asyncio.Future[idle_stop.Outcome]
+
+
+class Request(StrEnum):
+    """What the service asks of its run (:meth:`CommandHandling._request`): a command's pause, stop
+    or abort (their words), or the stop at once of the service's own shutdown."""
+
+    PAUSE = RunCommand.PAUSE.value
+    STOP = RunCommand.STOP.value
+    ABORT = RunCommand.ABORT.value
+    STOP_NOW = "stop_now"
 
 
 class CommandHandling:
@@ -58,7 +69,7 @@ class CommandHandling:
     #: (id, bytes) of the stops and aborts carried out in this service's life (the last STOPS_KEPT)
     _stops_done: collections.OrderedDict[tuple[str | None, bytes], None]
     #: command name -> handler (raises CommandRefused to refuse; returns a Later: its reply follows)
-    _handlers: dict[str, Callable[[proto.Command], Later | None]]
+    _handlers: dict[proto.CommandName, Callable[[proto.Command], Later | None]]
     #: the stop of an abort (or stop) that no run carried out, while it is being sent
     _idle_stop: asyncio.Task[idle_stop.Outcome] | None = None
     #: whether that stop is the emergency stop (OFF3), not a stop's ramp stop (OFF1)
@@ -117,7 +128,7 @@ class CommandHandling:
             log.warning("refused retained command %s (id %r)", cmd.cmd, cmd.id)
             self._reply(
                 cmd.id,
-                f"retained command {cmd.cmd!r} refused: publish commands without the "
+                f"retained command {cmd.cmd.value!r} refused: publish commands without the "
                 "retain flag (a retained command is replayed on every reconnection); "
                 "clear it with an empty retained message",
             )
@@ -142,7 +153,7 @@ class CommandHandling:
         except Exception as err:  # a command must never kill the service
             log.exception("command %s failed", cmd.cmd)
             error = f"{cmd.cmd} failed: {err}"
-        if cmd.cmd == "abort":
+        if cmd.cmd is RunCommand.ABORT:
             log.info("abort requested of the executor %.1f ms after the message arrived", (time.monotonic() - t0) * 1e3)
         if cmd.cmd in proto.ALWAYS_ACCEPTED:
             self._stops_done[(cmd.id, bytes(payload))] = None
@@ -204,7 +215,7 @@ class CommandHandling:
         """Pause at the next safe point; while paused: only during an interlock suspension (the
         run stays paused once it clears) or for disk space (it stays paused until resumed)."""
         allowed = (RunState.RUNNING, RunState.WAITING, RunState.PAUSED)  # the run refuses an operator's pause held
-        self._control("pause", lambda e: e.request_pause(by=cmd.by), allowed=allowed)
+        self._control(RunCommand.PAUSE, lambda e: e.request_pause(by=cmd.by), allowed=allowed)
 
     def _cmd_resume(self, cmd: proto.Command) -> None:
         """Resume a paused run, or withdraw a pause requested and not yet reached (while
@@ -212,24 +223,24 @@ class CommandHandling:
         not pause. During a suspension with no pause to withdraw: refused by the run."""
         pending = self._engine is not None and self._engine.pause_pending
         allowed = (RunState.PAUSED, RunState.RUNNING, RunState.WAITING) if pending else (RunState.PAUSED,)
-        self._control("resume", lambda e: e.request_resume(by=cmd.by), allowed=allowed)
+        self._control(RunCommand.RESUME, lambda e: e.request_resume(by=cmd.by), allowed=allowed)
 
     def _cmd_confirm(self, cmd: proto.Command) -> None:
         step = cmd.step
         if step is None:  # (the protocol's model requires it: a command built elsewhere)
             raise CommandRefused("confirm needs the field 'step'")
-        self._control("confirm", lambda e: e.confirm(step, by=cmd.by), allowed=None)
+        self._control(RunCommand.CONFIRM, lambda e: e.confirm(step, by=cmd.by), allowed=None)
 
     def _cmd_stop(self, cmd: proto.Command) -> Later | None:
         """Always accepted. A run carries it out; else (no run holds the drives) both drives get the
         ramp stop (OFF1) over a link of the service's own and the reply follows, as an abort's."""
-        return None if self._request("stop", cmd.by) else self._stopped_idle(emergency=False)
+        return None if self._request(Request.STOP, cmd.by) else self._stopped_idle(emergency=False)
 
     def _cmd_abort(self, cmd: proto.Command) -> Later | None:
         """Always accepted. A run that holds the drives carries it out (their stop words go out at
         once); else both drives get the emergency stop over a link of the service's own and the
         reply follows, saying what was sent: never ok with nothing sent."""
-        return None if self._request("abort", cmd.by) else self._stopped_idle(emergency=True)
+        return None if self._request(Request.ABORT, cmd.by) else self._stopped_idle(emergency=True)
 
     def _stopped_idle(self, *, emergency: bool) -> Later:
         """The stop of a command no run carried out (`stop_idle_drives`); CommandRefused if not sent."""
@@ -279,7 +290,7 @@ class CommandHandling:
         elif sent is not None:
             self.signal_stop_failed, _ = await idle_stop.outcome_within(sent, idle_stop.SIGNAL_STOP_S)
 
-    def _control(self, what: str, call: Callable[[Engine], None], allowed: tuple[str, ...] | None) -> None:
+    def _control(self, what: RunCommand, call: Callable[[Engine], None], allowed: tuple[str, ...] | None) -> None:
         if not self.run_active or self._engine is None:
             raise CommandRefused(f"no run is active: nothing to {what}")
         state = self._engine.state
@@ -296,7 +307,7 @@ class CommandHandling:
         """'the service shutting down' (on SIGTERM, ...): why a run stops at once at shutdown."""
         return "the service shutting down" + (f" on {self.shutdown_cause}" if self.shutdown_cause else "")
 
-    def _request(self, what: Literal["pause", "stop", "abort", "stop_now"], by: str | None = None) -> bool:
+    def _request(self, what: Request, by: str | None = None) -> bool:
         """Ask the executor to pause/stop/abort; never raises. If the executor
         refuses a stop or abort, the run task is cancelled (its cleanup ramps
         both drives to zero). False if no run took it: none is active, or the run does not
@@ -304,21 +315,21 @@ class CommandHandling:
         engine, task = self._engine, self._run_task
         if task is None or task.done() or engine is None:
             return False
-        if what != "pause" and engine.state == RunState.IDLE:
+        if what is not Request.PAUSE and engine.state == RunState.IDLE:
             if engine.run_id is None:
                 task.cancel()  # the run task has not started yet: it never touches the drives
             return False  # (or the run has ended and the task is writing its closing summary)
-        requests: dict[str, Callable[..., object]] = {
-            "pause": engine.request_pause,
-            "stop": engine.request_stop,
-            "abort": engine.request_abort,
-            "stop_now": lambda by: engine.request_stop_now(self.shutdown_words(), by=by),
+        requests: dict[Request, Callable[..., object]] = {
+            Request.PAUSE: engine.request_pause,
+            Request.STOP: engine.request_stop,
+            Request.ABORT: engine.request_abort,
+            Request.STOP_NOW: lambda by: engine.request_stop_now(self.shutdown_words(), by=by),
         }
         try:
             return requests[what](by=by) is not False  # a stop or an abort says whether it reaches the drives
         except Exception:
             log.exception("executor refused %s", what)
-            if what != "pause":
+            if what is not Request.PAUSE:
                 task.cancel()
             return False
 

@@ -1,15 +1,15 @@
 """The MQTT contract of docs/protocols/mqtt.md as pure code (no I/O).
 
-Topic names under the prefix ``orbitrig/<rig_id>``, command parsing by
-pydantic models with precise reasons, and the payload builders for status,
-progress, result and reply. Payloads are UTF-8 JSON objects.
+Topic names under the prefix ``orbitrig/<rig_id>``, the commands (parsed by
+pydantic models with precise reasons in orbitrig.service.command_models, named here too),
+and the payload builders for status, progress, result and reply. Payloads are UTF-8 JSON objects.
 
 | topic               | QoS | retained | builder            |
 |---------------------|-----|----------|--------------------|
 | ``<prefix>/status`` | 1   | yes      | :func:`status_payload` (also the last will, state ``offline``) |
 | ``<prefix>/progress`` | 0 | no       | :func:`progress_payload` |
 | ``<prefix>/result`` | 1   | no       | :func:`result_payload` |
-| ``<prefix>/cmd``    | 1   | no       | parsed by :func:`parse_command` |
+| ``<prefix>/cmd``    | 1   | no       | parsed by :func:`parse_command` (orbitrig.service.command_models) |
 | ``<prefix>/abort``  | 1 (subscribed at 0) | no | stop and abort only, parsed alike |
 | ``<prefix>/reply``  | 1   | no       | :func:`reply_ok`, :func:`reply_error` |
 """
@@ -19,12 +19,8 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import math
-import re
 from dataclasses import dataclass
-from typing import Annotated, Any, Literal, Union, get_args
-
-from pydantic_core import ErrorDetails
-from pydantic import BaseModel, ConfigDict, Field, StringConstraints, TypeAdapter, ValidationError, field_validator
+from typing import Any
 
 from orbitrig.run.states import RunState
 from orbitrig.service.command_json import (  # noqa: F401 - part of this contract's names
@@ -37,7 +33,20 @@ from orbitrig.service.command_json import (  # noqa: F401 - part of this contrac
     id_problems,
     read_object,
     stop_word,
-    type_name as _type_name,
+)
+from orbitrig.service.command_models import (  # noqa: F401 - part of this contract's names
+    ALWAYS_ACCEPTED,
+    COMMAND_FIELDS,
+    COMMAND_WORDS,
+    BareCommand,
+    Command,
+    CommandName,
+    ConfirmCommand,
+    Query,
+    RunCommand,
+    StartCommand,
+    is_matrix_name,
+    parse_command,
 )
 from rigunits import utc_iso
 
@@ -56,8 +65,6 @@ QOS_LIVE = 0  # <prefix>/live, built by orbitrig.service.live
 #: the service (docs/protocols/mqtt.md, "Stop and abort under load").
 QOS_ABORT_SUBSCRIPTION = 0
 
-_MATRIX_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
-_STEP_ID = re.compile(r"[^\x00-\x1f]{1,128}")
 _TOPIC_LEVEL_FORBIDDEN = set("/+#\x00")
 
 
@@ -130,177 +137,6 @@ def topics(rig_id: str, prefix: str | None = None) -> Topics:
     return Topics(prefix)
 
 
-# -- commands -----------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Command:
-    """A validated command. ``matrix`` is set for ``start``, ``step`` for ``confirm``."""
-
-    cmd: str
-    id: str | None  # None only for a stop/abort whose id could not be read
-    matrix: str | None = None
-    step: str | None = None
-    ignored: tuple[str, ...] = ()  # stop/abort: the problems that were overlooked
-    by: str | None = None  # who sent it, as the command says (None: not said)
-    id_note: str | None = None  # stop/abort: why the id sent is not echoed (for the reply)
-
-
-def is_matrix_name(name: str) -> bool:
-    """True if ``name`` is a bare matrix name (no path, no ``..``, no leading dot)."""
-    return bool(_MATRIX_NAME.fullmatch(name)) and ".." not in name
-
-
-#: commands carried out even when their payload has wrong fields (docs/protocols/mqtt.md)
-ALWAYS_ACCEPTED = STOP_OR_ABORT
-
-CorrelationId = Annotated[str, StringConstraints(min_length=1, max_length=MAX_ID_CHARS)]
-
-
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", strict=True, frozen=True)
-
-
-class _Sent(_Strict):
-    """What every command may carry: ``by``, who sent it (the dashboard: its signed-in user),
-    recorded with the command in the run (orbitrig.run.provenance)."""
-
-    by: Annotated[str, Field(min_length=1, max_length=64)] | None = None
-
-
-class StartCommand(_Sent):
-    """``start``: run the named matrix of the service's matrix folder."""
-
-    cmd: Literal["start"]
-    id: CorrelationId
-    matrix: str
-
-    @field_validator("matrix")
-    @classmethod
-    def _bare_name(cls, v: str) -> str:
-        if not is_matrix_name(v):
-            raise ValueError(
-                f"field 'matrix' must be a matrix name from the matrix folder, not a path: {v!r} "
-                "(letters, digits, '_', '-', '.'; no '/', no '..', no leading '.')"
-            )
-        return v
-
-
-class ConfirmCommand(_Sent):
-    """``confirm``: the operator confirms the manual setting ``step``."""
-
-    cmd: Literal["confirm"]
-    id: CorrelationId
-    step: str
-
-    @field_validator("step")
-    @classmethod
-    def _printable(cls, v: str) -> str:
-        if not _STEP_ID.fullmatch(v):
-            raise ValueError("field 'step' must be 1 to 128 printable characters")
-        return v
-
-
-class BareCommand(_Sent):
-    """Commands without arguments."""
-
-    cmd: Literal["pause", "resume", "stop", "abort", "status"]
-    id: CorrelationId
-
-
-CommandModel = Annotated[Union[StartCommand, ConfirmCommand, BareCommand], Field(discriminator="cmd")]
-_COMMANDS: TypeAdapter = TypeAdapter(CommandModel)
-
-#: Commands and the fields each takes besides ``cmd`` and ``id`` (from the models).
-COMMAND_FIELDS: dict[str, tuple[str, ...]] = {
-    name: tuple(f for f in model.model_fields if f not in ("cmd", "id", "by"))
-    for model in (StartCommand, ConfirmCommand, BareCommand)
-    for name in get_args(model.model_fields["cmd"].annotation)
-}
-
-
-def _field_problem(err: ErrorDetails, name: str) -> str | None:
-    """One pydantic error of a command's fields as the reply's words (None: an
-    id problem, reported once by the correlation check)."""
-    field = str(err["loc"][-1]) if err["loc"] else "?"
-    kind = err["type"]
-    if field == "id" and kind != "extra_forbidden":
-        return None
-    if kind == "missing":
-        return f"missing field {field!r} for command {name!r}"
-    if kind == "extra_forbidden":
-        return f"unexpected field {field!r} for command {name!r}"
-    if kind == "string_type":
-        return f"field {field!r} must be a string, got {_type_name(err.get('input'))}"
-    return err["msg"].removeprefix("Value error, ")
-
-
-def parse_command(payload: bytes | bytearray | str) -> Command:
-    """Parse and validate one ``<prefix>/cmd`` payload with the command models.
-
-    Raises :class:`CommandError` with a precise reason (and the correlation
-    id when it can be echoed) for a payload that is not UTF-8 JSON, not an
-    object, lacks ``cmd`` or ``id``, names an unknown command, or has a
-    missing, extra or wrongly typed field, a key given twice with different
-    values or text that cannot be encoded as UTF-8 (such an ``id``, or one over
-    ``MAX_ID_CHARS``, is not echoed: the reply's id is null), or is over the size
-    or nesting limits. Exception: ``stop`` and ``abort`` are always accepted once
-    ``cmd`` names them unambiguously, in any letter case and with blanks around
-    (command_json.read_object reads them beyond the limits); their overlooked
-    problems are listed in ``Command.ignored``.
-    """
-    found = read_object(payload)
-    obj = found.fields
-    cid = echoable_id(found)
-    problems = found.problems() + ([] if "id" in found.unencodable else id_problems(obj))
-    if "cmd" in found.duplicates:
-        raise CommandError("; ".join(problems), cid)  # which command was meant cannot be told
-    name = obj.get("cmd")
-    if "cmd" not in obj:
-        raise CommandError("; ".join(["missing field 'cmd'", *problems]), cid)
-    if not isinstance(name, str):
-        raise CommandError("; ".join([f"field 'cmd' must be a string, got {_type_name(name)}", *problems]), cid)
-    word = stop_word(name)
-    if word is not None and word != name:  # "STOP", " abort": still the stop asked for
-        problems.append(f"field 'cmd' {name!r} read as {word!r}")
-        name, obj = word, {**obj, "cmd": word}
-    if name not in COMMAND_FIELDS:
-        known = ", ".join(sorted(COMMAND_FIELDS))
-        raise CommandError("; ".join([f"unknown command {name!r} (known: {known})", *problems]), cid)
-    try:
-        model = _COMMANDS.validate_python(obj)
-    except ValidationError as err:
-        field_problems = (_field_problem(e, name) for e in err.errors(include_url=False))
-        problems += [p for p in field_problems if p is not None]
-    if problems and name in ALWAYS_ACCEPTED:
-        # "stop and abort are always accepted": a stray field or a bad id must
-        # never keep spinning machinery from stopping. The problems are logged.
-        by = obj.get("by") if isinstance(obj.get("by"), str) else None
-        note = f"the id sent is not echoed: {_id_trouble(found)}" if "id" in obj and cid is None else None
-        return Command(cmd=name, id=cid, ignored=tuple(problems), by=by[:64] if by else None, id_note=note)
-    if problems:
-        raise CommandError("; ".join(problems), cid)
-    return Command(
-        cmd=model.cmd,
-        id=model.id,
-        matrix=model.matrix if isinstance(model, StartCommand) else None,
-        step=model.step if isinstance(model, ConfirmCommand) else None,
-        by=model.by,
-    )
-
-
-def _id_trouble(found: Any) -> str:
-    """Why an ``id`` that was sent cannot be echoed."""
-    cid = found.fields["id"]
-    if "id" in found.duplicates:
-        return "key 'id' given more than once with different values"
-    if "id" in found.unencodable:
-        return "it cannot be encoded as UTF-8"
-    if isinstance(cid, str) and len(cid) > MAX_ID_CHARS:
-        return f"it has {len(cid)} characters (at most {MAX_ID_CHARS})"
-    return id_problems(found.fields)[0]
-
-
 # -- payloads -----------------------------------------------------------------
 
 
@@ -311,7 +147,8 @@ def iso8601(when: _dt.datetime | float | str | None = None) -> str:
 
 def _jsonable(value: Any) -> Any:
     """Plain JSON values: numpy scalars and arrays to numbers and lists,
-    non-finite floats to null, complex to ``[re, im]``, paths to text."""
+    non-finite floats to null, complex to ``[re, im]``, datetimes to the timestamp text of
+    ``rigunits.utc_iso`` (as ``since``), paths to text."""
     if isinstance(value, dict):
         return {str(k): _jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
@@ -325,7 +162,9 @@ def _jsonable(value: Any) -> Any:
     tolist = getattr(value, "tolist", None)  # numpy scalar or array
     if callable(tolist):
         return _jsonable(tolist())
-    if isinstance(value, (_dt.datetime, _dt.date)):
+    if isinstance(value, _dt.datetime):
+        return utc_iso(value)  # the house timestamp (a naive datetime is local time)
+    if isinstance(value, _dt.date):
         return value.isoformat()
     return str(value)
 

@@ -2,8 +2,8 @@
 
 One :class:`RigService` owns the broker connection and at most one run. The
 run is executed by the same executor as ``orbitrig sweep``
-(:class:`orbitrig.run.engine.RunEngine`, made by an ``engine_factory``); its
-events become MQTT messages:
+(:class:`orbitrig.run.engine.RunEngine`, made by an ``engine_factory``; started, followed
+and summarised by orbitrig.service.run_handling); its events become MQTT messages:
 
 - ``<prefix>/status``: retained, QoS 1; republished on every (re)connection;
   the last will (registered at every connection) is ``offline``, retained, QoS 1;
@@ -44,22 +44,18 @@ import functools
 import logging
 import threading
 from collections.abc import Callable
-from typing import Any
 
 from orbitrig.analysis.report_ahead import FiguresAhead
-from orbitrig.analysis.run_warnings import closing_warnings, result_fit_warnings
-from orbitrig.analysis.warning_groups import warning_lines
-from orbitrig.errors import ConfigError
-from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
-from orbitrig.run.heap import trim_heap
-from orbitrig.run.states import Outcome, RunState
+from orbitrig.run.provenance import RunCommand
+from orbitrig.run.states import RunState
 from orbitrig.service import idle_stop, live as live_feed
 from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # the service's seams
 from orbitrig.service.inbox import CommandTriage
 from orbitrig.service.leaving import LeavingWithoutDisk
 from orbitrig.service.abort_link import AbortLink
 from orbitrig.service.catalog_feed import CatalogFeed
-from orbitrig.service.commands import Later
+from orbitrig.service.commands import Later, Request
+from orbitrig.service.run_handling import RunHandling
 from orbitrig.service.supervision import SupervisionHandling
 from orbitrig.service.flood_read import STOP_HOLD_S
 from orbitrig.service import protocol as proto
@@ -77,11 +73,8 @@ from orbitrig.service.settings import (  # noqa: F401 - the service's public nam
 
 log = logging.getLogger("orbitrig.service.rig_service")
 
-#: said of a run the service cut short: its cleanup's wait for the drives' standstill was cancelled
-NOT_CONFIRMED = "drives' stop not confirmed (see run.log)"
 
-
-class RigService(SupervisionHandling, LeavingWithoutDisk):
+class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
     """MQTT front end of one rig. ``await service.serve(shutdown)`` runs until
     ``shutdown`` is set (then nothing that moves the drives is accepted, an active
     run is stopped at once, ``offline`` is published and the connection closed) or
@@ -137,14 +130,14 @@ class RigService(SupervisionHandling, LeavingWithoutDisk):
         self._handled: collections.OrderedDict[tuple[str, bytes], int] = collections.OrderedDict()
         self._stops_done: collections.OrderedDict[tuple[str | None, bytes], None] = collections.OrderedDict()
         #: command name -> handler: raises CommandRefused to refuse; a Later it returns: its reply follows
-        self._handlers: dict[str, Callable[[proto.Command], Later | None]] = {
-            "start": self._cmd_start,
-            "pause": self._cmd_pause,
-            "resume": self._cmd_resume,
-            "stop": self._cmd_stop,
-            "abort": self._cmd_abort,
-            "confirm": self._cmd_confirm,
-            "status": self._cmd_status,
+        self._handlers: dict[proto.CommandName, Callable[[proto.Command], Later | None]] = {
+            RunCommand.START: self._cmd_start,
+            RunCommand.PAUSE: self._cmd_pause,
+            RunCommand.RESUME: self._cmd_resume,
+            RunCommand.STOP: self._cmd_stop,
+            RunCommand.ABORT: self._cmd_abort,
+            RunCommand.CONFIRM: self._cmd_confirm,
+            proto.Query.STATUS: self._cmd_status,
         }
 
     # -- public state -----------------------------------------------------------
@@ -225,7 +218,7 @@ class RigService(SupervisionHandling, LeavingWithoutDisk):
         if not self.run_active or task is None:
             return
         log.warning("stopping run %s at once, both drives ramp to zero: %s", self._run_id, why)
-        self._request("stop_now", f"service ({why})")
+        self._request(Request.STOP_NOW, f"service ({why})")
         timeout = self._run_end_timeout()
         try:
             async with asyncio.timeout(timeout):  # (3.11's wait_for can lose a cancellation)
@@ -258,138 +251,9 @@ class RigService(SupervisionHandling, LeavingWithoutDisk):
         stop over the service's own link, as an MQTT abort (idle_stop); its outcome is logged."""
         if self.run_active:
             log.warning("aborting run %s: %s", self._run_id, why)
-            if self._request("abort", f"service ({why})"):
+            if self._request(Request.ABORT, f"service ({why})"):
                 return
         self.stop_idle_drives(emergency=True, why=why)  # (one under way: its outcome is logged)
 
-    async def _run(self, engine: Engine, name: str, matrix: Any) -> None:
-        log.info("run of matrix %r starting", name)
-        try:
-            outcome = await engine.run(matrix)
-        except asyncio.CancelledError:
-            self._close_figures()  # here, at once: the service is shutting down
-            self._set_status(RunState.IDLE, self._run_id, f"run of {name!r} cancelled; {NOT_CONFIRMED}")
-            raise
-        except Exception as err:  # reported, the service goes on
-            await asyncio.to_thread(self._close_figures)
-            log.exception("run of matrix %r failed", name)
-            if self._state != RunState.FAULTED:
-                self._set_status(RunState.FAULTED, self._run_id, f"run of {name!r} failed: {err}")
-            return
-        try:
-            await self._closing_status(name, outcome)
-        except Exception as err:  # the run has ended (drives stopped, recorded): the service goes on
-            log.exception("run %s of matrix %r: its closing summary failed", self._run_id, name)
-            if self._state not in (RunState.IDLE, RunState.FAULTED):
-                self._set_status(
-                    RunState.IDLE, self._run_id, f"run {outcome.status}; its closing summary failed: {err}"
-                )
-
-    async def _closing_status(self, name: str, outcome: Any) -> None:
-        """The run's only idle status, with its grouped warnings (read from the stored run)."""
-        await asyncio.to_thread(self._close_figures)  # the point it was drawing is left to the report
-        status = outcome.status
-        log.info("run %s of matrix %r ended: %s: %s", self._run_id, name, status, outcome.message)
-        summary = await asyncio.to_thread(closing_warnings, outcome.out_dir)
-        trim_heap()  # what the run freed goes back to the system before the next run
-        cut = f"; cancelled after {self._run_end_timeout():.0f} s: {NOT_CONFIRMED}" if self._cut_short else ""
-        if self._state not in (RunState.IDLE, RunState.FAULTED):
-            warnings = "".join(f"; warning: {w}" for w in summary)
-            why = "" if status == Outcome.COMPLETED else f": {outcome.message}"  # who stopped it, and why
-            self._set_status(RunState.IDLE, self._run_id, f"run {status}{why}{cut}{warnings}")
-
-    def _close_figures(self) -> None:
-        ahead, self._ahead = self._ahead, None
-        if ahead is not None:
-            ahead.close()
-            log.info(
-                "report figures: %d points handed to the drawing process, %d not (`orbitrig report` draws "
-                "what it did not finish)",
-                len(ahead.handed),
-                len(ahead.dropped),
-            )
-
-    def _cmd_start(self, cmd: proto.Command) -> None:
-        if self.run_active:
-            raise CommandRefused(
-                f"a run is active (run {self._run_id}, state {self._state}): stop or abort it before starting another"
-            )
-        matrix_name, folder = cmd.matrix, self.settings.matrices_dir
-        if matrix_name is None:  # (the protocol's model requires it: a command built elsewhere)
-            raise CommandRefused("start needs the field 'matrix'")
-        path = folder / f"{matrix_name}.toml"
-        if not path.is_file():
-            names = sorted(p.stem for p in folder.glob("*.toml")) if folder.is_dir() else []
-            raise CommandRefused(
-                f"no matrix {matrix_name!r} in the matrix folder (available: {', '.join(names) or 'none'})"
-            )
-        try:
-            matrix = self._load_matrix(path)
-        except ConfigError as err:
-            raise CommandRefused(f"matrix {matrix_name!r} is invalid: {'; '.join(err.problems)}") from err
-        engine = self._engine_factory(matrix_name, matrix)
-        engine.operator = cmd.by or ""  # recorded in the run with every command's sender
-        # the live feed before the run task: if it cannot be attached, the start fails and nothing moves
-        live = live_feed.attach(engine, matrix, lambda p: self._send(self.topics.live, p, proto.QOS_LIVE))
-        engine.subscribe(self._on_event)
-        if self.settings.draw_figures:  # at the lowest CPU priority; `orbitrig report` reuses them
-            self._ahead = FiguresAhead(engine.out_dir)
-            engine.subscribe(self._ahead.on_event)
-        self._engine, self._live, self._cut_short = engine, live, False
-        self._run_id, self._fit_warnings = engine.run_id, []
-        assert self._tg is not None
-        self._run_task = self._tg.create_task(self._run(engine, matrix_name, matrix), name=f"run-{matrix_name}")
-        if (catalog := self._catalog) is not None:  # the run's final status and end, whatever its outcome
-            self._run_task.add_done_callback(lambda _: catalog.run_ended(engine.out_dir))
-        if live is not None:
-            self._tg.create_task(live.run(self._run_task), name=f"live-{matrix_name}")
-
     def _send(self, topic: str, payload: bytes, qos: int, retain: bool = False) -> None:
         self.link.send(topic, payload, qos, retain)
-
-    # -- executor events --------------------------------------------------------
-
-    def _on_event(self, event: StatusEvent | ResultEvent | ProgressEvent) -> None:
-        """Executor event -> MQTT message (thread-safe)."""
-        if threading.get_ident() != self._thread and self._loop is not None:
-            self._loop.call_soon_threadsafe(self._on_event, event)
-            return
-        if isinstance(event, StatusEvent):
-            if event.state == RunState.IDLE and self.run_active:
-                return  # the run's closing idle status (with its grouped warnings) follows from _run
-            extra = self._live.waiting_fields(event.state) if self._live is not None else None
-            self._set_status(event.state, event.run_id, event.message or "", event.since, extra)
-        elif isinstance(event, ResultEvent):
-            self._fit_warnings += result_fit_warnings(event.payload)  # the run's warnings so far, grouped
-            payload = {**event.payload, "warning_groups": warning_lines(self._fit_warnings)}
-            self._send(self.topics.result, proto.result_payload(event.run_id, payload), proto.QOS_RESULT)
-            if self._catalog is not None and self._engine is not None:
-                self._catalog.point_completed(self._engine.out_dir, event.payload["point"])
-        elif isinstance(event, ProgressEvent):
-            self._send(
-                self.topics.progress,
-                proto.progress_payload(
-                    event.run_id,
-                    event.point,
-                    event.points,
-                    event.frequency,
-                    event.frequencies,
-                    event.revolutions,
-                    event.eta_s,
-                ),
-                proto.QOS_PROGRESS,
-            )
-        else:
-            log.debug("ignored event %r", event)
-
-    def _set_status(
-        self,
-        state: str,
-        run_id: str | None,
-        message: str | None,
-        since: Any = None,
-        extra: dict[str, Any] | None = None,
-    ) -> None:
-        self._state, self._run_id = state, run_id
-        self._status = proto.status_payload(state, run_id, since, message, extra)
-        self._send(self.topics.status, self._status, proto.QOS_STATUS, True)

@@ -14,7 +14,7 @@ import asyncio
 import logging
 
 from orbitrig.run.states import RunState
-from orbitrig.service.commands import CommandHandling
+from orbitrig.service.commands import CommandHandling, Request
 from orbitrig.service.engine_port import Engine
 from orbitrig.service.settings import ServiceSettings, SupervisionPolicy
 
@@ -63,7 +63,7 @@ class SupervisionHandling(CommandHandling):
         )
         engine.unattended = True  # before the pause below; a wait under way counts its limit from now
         if s.supervision_policy is SupervisionPolicy.PAUSE and engine.state in (RunState.RUNNING, RunState.WAITING):
-            self._request("pause", PAUSED_BY.format(timeout=s.supervision_timeout))
+            self._request(Request.PAUSE, PAUSED_BY.format(timeout=s.supervision_timeout))
         elif s.supervision_policy is SupervisionPolicy.STOP:
-            self._request("stop", LOST)
+            self._request(Request.STOP, LOST)
         await self.link.online.wait()

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
+from enum import StrEnum
 from pathlib import Path
 
 from orbitrig.store.errors import StorageFullError, storage_error
@@ -31,7 +32,20 @@ from orbitrig.store.reader import read_run
 from orbitrig.store.stored_run import Run
 from orbitrig.store.selection import Selection, select_points
 
-FORMATS = ("csv", "mat", "tdms", "h5")
+
+class ExportFormat(StrEnum):
+    """The formats of `orbitrig export` (their ``--format`` words). ``ross`` is the fits over rotor
+    speed for ROSS, written by orbitrig.analysis.ross_export; the others by :func:`export_run`."""
+
+    CSV = "csv"
+    MAT = "mat"
+    TDMS = "tdms"
+    H5 = "h5"
+    ROSS = "ross"
+
+
+#: the formats :func:`export_run` writes (a run's tables and results)
+FORMATS = (ExportFormat.CSV, ExportFormat.MAT, ExportFormat.TDMS, ExportFormat.H5)
 EXPORT_DIR = "export"
 #: the advice of an export that found the disk full (not a sweep's "resume the run")
 EXPORT_FULL_ADVICE = "free space, then export again"
@@ -46,21 +60,22 @@ class Exported:
 
 
 def export_run(
-    directory: str | Path, fmt: str, out: str | Path | None = None, points: Iterable[int] | None = None
+    directory: str | Path, fmt: ExportFormat | str, out: str | Path | None = None, points: Iterable[int] | None = None
 ) -> Exported:
     """Write the export of the run in `directory` as `fmt` into `out` (default DIR/export):
     the complete points among `points` (None: all; h5 always holds the whole run). No files
     (nothing written, `out` untouched) when no such point has an orbit table.
     Raises RunDirError (not a run) or StorageError."""
     if fmt not in FORMATS:
-        raise ValueError(f"unknown format {fmt!r}: one of {', '.join(FORMATS)}")
+        raise ValueError(f"unknown format {str(fmt)!r}: one of {', '.join(FORMATS)}")
+    fmt = ExportFormat(fmt)
     layout = RunLayout(Path(directory))
     out = Path(out) if out is not None else layout.dir / EXPORT_DIR
     run = read_run(layout.dir)  # a RunDirError for what is not a run
-    selection = select_points(run, None if fmt == "h5" else points)
+    selection = select_points(run, None if fmt is ExportFormat.H5 else points)
     for p in [p for p in selection.points if not p.tables]:
         selection.skip(p, "no orbit table stored")
-    if fmt != "h5" and not selection.points:  # an earlier export stays as it was
+    if fmt is not ExportFormat.H5 and not selection.points:  # an earlier export stays as it was
         return Exported([], selection)
     try:
         return Exported(_write(fmt, run, layout, selection, out), selection)
@@ -68,13 +83,13 @@ def export_run(
         raise err.advising(EXPORT_FULL_ADVICE) from err
 
 
-def _write(fmt: str, run: Run, layout: RunLayout, selection: Selection, out: Path) -> list[Path]:
+def _write(fmt: ExportFormat, run: Run, layout: RunLayout, selection: Selection, out: Path) -> list[Path]:
     """The files of format `fmt` written into `out` (made first when missing)."""
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise storage_error(out, "create the export directory", err) from err
-    if fmt == "h5":
+    if fmt is ExportFormat.H5:
         from orbitrig.store.export_h5 import export_h5
 
         return [export_h5(layout, out)]
@@ -83,8 +98,8 @@ def _write(fmt: str, run: Run, layout: RunLayout, selection: Selection, out: Pat
     from orbitrig.store.export_mat import export_mat
     from orbitrig.store.export_tdms import export_tdms
 
-    write = {"csv": export_csv, "mat": export_mat, "tdms": export_tdms}[fmt]
+    write = {ExportFormat.CSV: export_csv, ExportFormat.MAT: export_mat, ExportFormat.TDMS: export_tdms}[fmt]
     files = write(run, selection.points, out)
-    if fmt == "csv":  # per-point files: the earlier csv export's not written again go
+    if fmt is ExportFormat.CSV:  # per-point files: the earlier csv export's not written again go
         selection.notes += replace_earlier(out, files)
     return files

@@ -20,6 +20,7 @@ from orbitrig.store import frames
 from orbitrig.store.fit_record import FitRecord, fit_record, point_fits
 from orbitrig.store.reader import read_run
 from orbitrig.store.stored_run import Point, Run
+from reduction.methods import Method
 
 
 class Fit:
@@ -109,7 +110,9 @@ class RunData:
         """DataFrame, one row per (point, lms, model, freq_dep, method): KEY, KEY_std, KEY_U."""
         return frames.coefficients_frame(self.fits())
 
-    def fit(self, point: int, lms: LoadSystem | str, model: str, freq_dep: str = "none", method: str = "ols") -> Fit:
+    def fit(
+        self, point: int, lms: LoadSystem | str, model: str, freq_dep: str = "none", method: Method | str = Method.OLS
+    ) -> Fit:
         """One stored identification. KeyError naming the ones there are."""
         fits = self.fits(point)
         for f in fits:
@@ -149,7 +152,9 @@ def _in_frame(err: TableError, df) -> TableError:
     return TableError(where, None, err.column, reason)
 
 
-def identify_table(df, model: str = "kcd11", freq_dep: str = "none", method: str = "ols", solver: str = "qr") -> Fit:
+def identify_table(
+    df, model: str = "kcd11", freq_dep: str = "none", method: Method | str = Method.OLS, solver: str = "qr"
+) -> Fit:
     """Identify ``model`` from an orbit table in memory: a DataFrame with the orbit-table
     CSV's columns (spin_rpm, orbit_hz, x_re, ..., fy_im; gamma2_*, n_records, u_* optional),
     as RunData.table gives. The Fit has the derived quantities at the table's orbit frequencies

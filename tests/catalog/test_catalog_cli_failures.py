@@ -54,3 +54,10 @@ def test_an_out_that_cannot_be_written_is_named_with_its_cause(catalog_run, tmp_
     assert res.stderr == f"error: {a_file / 'x.csv'}: cannot write: {a_file} is not a directory\n"
     res = CliRunner().invoke(app, ["catalog", "export", *runs, "--out", str(tmp_path / "no" / "x.csv")])
     assert res.exit_code == 1 and f"no folder {tmp_path / 'no'}" in res.stderr
+
+
+def test_compare_takes_a_method_by_name_only(tmp_path):
+    """--method is one of the estimators: nothing else reaches the catalog's query."""
+    res = CliRunner().invoke(app, ["compare", "--runs", str(tmp_path), "--method", "ols or 1 = 1"])
+    assert res.exit_code == 2 and "'ols or 1 = 1' is not one of 'ols', 'wls', 'tls', 'iv'" in res.stderr
+    assert list(tmp_path.iterdir()) == []

@@ -188,6 +188,14 @@ def test_result_payload_is_plain_json():
     assert json.loads(result_payload("r9", {"run_id": "own"}))["run_id"] == "own"
 
 
+def test_result_payload_times_are_the_house_timestamps():
+    local = dt.timezone(dt.timedelta(hours=2))
+    when = dt.datetime(2026, 11, 27, 3, 30, 5, 123456, tzinfo=local)
+    obj = json.loads(result_payload("r9", {"at": when, "day": dt.date(2026, 11, 27)}))
+    assert obj["at"] == "2026-11-27T01:30:05.123Z"
+    assert obj["day"] == "2026-11-27"
+
+
 def test_replies():
     assert json.loads(reply_ok("a")) == {"id": "a", "ok": True}
     assert json.loads(reply_error(None, "no")) == {"id": None, "ok": False, "error": "no"}
@@ -286,3 +294,16 @@ def test_abort_with_several_problems_is_accepted_and_lists_them():
     cmd = parse_command(b'{"cmd":"abort","id":"","why":1,"how":2}')
     assert cmd.cmd == "abort" and cmd.id is None
     assert len(cmd.ignored) == 3 and "unexpected field 'how' for command 'abort'" in cmd.ignored
+
+
+def test_commands_are_read_as_the_closed_set_of_names():
+    from orbitrig.run.provenance import RunCommand
+    from orbitrig.service.protocol import COMMAND_WORDS, Query
+
+    assert parse_command(json.dumps({"cmd": "pause", "id": "a"})).cmd is RunCommand.PAUSE
+    assert parse_command(json.dumps({"cmd": "status", "id": "a"})).cmd is Query.STATUS
+    assert parse_command(json.dumps({"cmd": "start", "id": "a", "matrix": "m"})).cmd is RunCommand.START
+    loose = parse_command(json.dumps({"cmd": " STOP ", "id": "a"}))
+    assert loose.cmd is RunCommand.STOP and loose.ignored == ("field 'cmd' ' STOP ' read as 'stop'",)
+    assert parse_command(json.dumps({"cmd": "abort", "id": "a", "x": 1})).cmd is RunCommand.ABORT
+    assert set(COMMAND_WORDS) == {*RunCommand, *Query}

@@ -17,7 +17,7 @@ import pytest
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, retained, wait, write_matrices
 from orbitrig.cli.serve import build_service
 from orbitrig.config import load_rig
-from orbitrig.service import rig_service
+from orbitrig.service import rig_service, run_handling
 from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
 from orbitrig.service.settings import RECORD_END_S, STOP_MARGIN_S
 
@@ -134,7 +134,7 @@ async def test_a_live_feed_that_cannot_be_attached_starts_nothing(tmp_path, monk
     def broken(*args, **kw):
         raise RuntimeError("no live feed")
 
-    monkeypatch.setattr(rig_service.live_feed, "attach", broken)  # a fault the real parts do not produce
+    monkeypatch.setattr(run_handling.live_feed, "attach", broken)  # a fault the real parts do not produce
     async with serving(tmp_path) as (svc, sim_rig, rc, shutdown, task):
         reply = await wait(rc.command, {"cmd": "start", "matrix": "quick"})
         assert reply["ok"] is False and "no live feed" in reply["error"], reply
@@ -147,7 +147,7 @@ async def test_a_failing_closing_summary_leaves_the_service_serving(tmp_path, mo
     def broken(out_dir):
         raise RuntimeError("summary unreadable")
 
-    monkeypatch.setattr(rig_service, "closing_warnings", broken)  # a fault the real parts do not produce
+    monkeypatch.setattr(run_handling, "closing_warnings", broken)  # a fault the real parts do not produce
     async with serving(tmp_path) as (svc, sim_rig, rc, shutdown, task):
         assert (await wait(rc.command, {"cmd": "start", "matrix": "quick"}))["ok"] is True
         idle = await wait(rc.status, lambda s: s["state"] == "idle" and s["run_id"] is not None, 90)

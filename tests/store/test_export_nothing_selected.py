@@ -65,3 +65,13 @@ def test_export_run_writes_nothing_and_makes_no_folder_for_no_point(synthetic, t
     done = export_run(synthetic, "csv", tmp_path / "new", points=[1, 7])  # one of two: exported, one named
     assert [p.index for p in done.selection.points] == [1] and len(done.selection.skipped) == 1
     assert (tmp_path / "new" / "point_0001_piezo.csv").is_file()
+
+
+def test_a_format_is_one_of_the_export_formats(synthetic, tmp_path):
+    from orbitrig.store.export import ExportFormat
+
+    bad = _export(synthetic, tmp_path / "bad", "--format", "xlsx")
+    assert bad.exit_code == 2 and "--format 'xlsx': one of csv, mat, tdms, h5, ross" in bad.output
+    with pytest.raises(ValueError, match="unknown format 'ross': one of csv, mat, tdms, h5"):
+        export_run(synthetic, ExportFormat.ROSS, tmp_path / "ross")
+    assert not (tmp_path / "bad").exists() and not (tmp_path / "ross").exists()

@@ -1,0 +1,88 @@
+"""The configuration `orbitrig sweep` runs with: the rig configuration and the matrix read from
+their files, or on --resume the run's own (stored in run.h5), with what is given again checked
+against them (a matrix must be the same; a rig configuration may differ only where a resume
+may: orbitrig.config.resume); and the plan made of them, before anything starts."""
+
+from __future__ import annotations
+
+import typer
+
+
+def load_plan(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
+    """The plan of this sweep: matrix checked against the rig and expanded, before anything starts."""
+    from orbitrig.run.plan import make_plan
+
+    rig, mat = configs(config, matrix, sim=sim, resume=resume, out=out, dry_run=dry_run)
+    return make_plan(mat, rig)
+
+
+def configs(config, matrix, *, sim: bool, resume: bool, out, dry_run: bool):
+    """(rig configuration, matrix) of this sweep: from --config and --matrix, or the run's own on --resume."""
+    from orbitrig import config as cfg
+    from orbitrig.errors import ConfigError
+
+    if resume:
+        if out is None:
+            raise typer.BadParameter("--resume needs --out DIR (the run to continue)", param_hint="--out")
+        from orbitrig.store.writer import RunStore
+
+        store = RunStore.open_existing(out)
+        rig_text, matrix_text, was_sim = store.stored_configs()
+        if was_sim != sim:
+            raise ConfigError(
+                str(store.layout.header),
+                [
+                    f"this run was made {'on the simulator' if was_sim else 'on the rig'}: "
+                    f"resume it {'with' if was_sim else 'without'} --sim"
+                ],
+            )
+        rig = cfg.rig_from_text(rig_text, f"{store.layout.header}:rig_config", store.stored_record())
+        if config:  # the devices may have moved; nothing the data depend on may change
+            rig = given_again(cfg.load_rig(config), rig, store.dir)
+        mat = cfg.matrix_from_text(matrix_text, f"{store.layout.header}:matrix_config")  # with the design it stored
+        if matrix:  # given again: with the stored design, the lab's design file is not read
+            mat = given_matrix(cfg.matrix_file(matrix, rig_path=config), mat)
+        if matrix and mat.text != matrix_text:  # before the simulator or any drive is started
+            raise ConfigError(
+                mat.file,
+                [
+                    f"differs from the matrix of the run being resumed in {store.dir}; "
+                    "resume without --matrix (the stored one is used)"
+                ],
+            )
+        return rig, mat
+    rig = cfg.load_rig(config)
+    if matrix is None and not sim and not dry_run:
+        raise typer.BadParameter(
+            "--matrix NAME|FILE is required on the rig (--sim defaults to the demo)", param_hint="--matrix"
+        )
+    path = cfg.matrix_file(matrix, rig_path=config) if matrix else cfg.default_matrix_path(rig_path=config)
+    return rig, cfg.load_matrix(path)
+
+
+def given_matrix(path, stored):
+    """--matrix FILE of a --resume, with the design of the ``stored`` matrix when the run stored it."""
+    from orbitrig import config as cfg
+
+    text, file = cfg.read_text(path)
+    return cfg.matrix_from_text(stored.as_stored(text), file)
+
+
+def given_again(given, stored, run):
+    """`given` (--config on --resume) when it differs from the `stored` rig configuration only
+    where a resume may (orbitrig.config.resume); else a ConfigError naming the differences."""
+    from orbitrig.config import MAY_CHANGE, resume_differences
+    from orbitrig.errors import ConfigError
+
+    differences = resume_differences(stored, given)
+    if differences:
+        may = "; ".join(MAY_CHANGE)
+        raise ConfigError(
+            given.file,
+            [
+                f"differs from the rig configuration of the run being resumed in {run} in "
+                f"{', '.join(differences)}; the remaining points must be measured as the first ones: "
+                f"resume without --config (the stored one is used), or change only {may}"
+            ],
+        )
+    return given
