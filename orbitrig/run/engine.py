@@ -53,7 +53,7 @@ from orbitrig.run.modbus_log import pymodbus_into
 from orbitrig.run.plan import Plan, make_plan
 from orbitrig.run.procedure import PointProcedure, RunParts
 from orbitrig.run.progress import ProgressMeter
-from orbitrig.run.provenance import RunCommand
+from orbitrig.run.states import RunCommand
 from orbitrig.run.requests import OperatorRequests
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.run_dir import completed_points, no_room, open_store, resume_events, run_age

@@ -19,11 +19,11 @@ import importlib.util
 import socket
 import subprocess
 from dataclasses import asdict, dataclass, field
-from enum import StrEnum
 from pathlib import Path
 
 from orbitrig import __version__
 from orbitrig.config import RigConfig, digest
+from orbitrig.run.states import RunCommand
 from rigunits import now_iso
 
 #: who sent a command when nobody said (an MQTT client that gave no "by")
@@ -31,17 +31,6 @@ UNNAMED = "unnamed"
 #: the distribution's packages (pyproject.toml): the code whose sources the revision digests
 PACKAGES = ("orbitrig", "reduction", "daq", "drives", "sim", "rigerrors", "rigunits")
 GIT_TIMEOUT_S = 5.0
-
-
-class RunCommand(StrEnum):
-    """The commands that change a run."""
-
-    START = "start"
-    CONFIRM = "confirm"
-    PAUSE = "pause"
-    RESUME = "resume"
-    STOP = "stop"
-    ABORT = "abort"
 
 
 @dataclass(frozen=True)

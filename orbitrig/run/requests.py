@@ -21,7 +21,8 @@ from typing import TYPE_CHECKING
 from drives.errors import DriveError
 from orbitrig.config import RigConfig
 from orbitrig.run.control import RunControl
-from orbitrig.run.provenance import UNNAMED, RunCommand
+from orbitrig.run.provenance import UNNAMED
+from orbitrig.run.states import RunCommand
 from orbitrig.run.states import Outcome
 from orbitrig.store.writer import RunStore
 

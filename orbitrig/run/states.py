@@ -64,6 +64,17 @@ class ConfirmMode(_Word):
     AUTO = "auto"
 
 
+class RunCommand(_Word):
+    """The commands that change a run (the MQTT `cmd` words, the journal's command lines)."""
+
+    START = "start"
+    CONFIRM = "confirm"
+    PAUSE = "pause"
+    RESUME = "resume"
+    STOP = "stop"
+    ABORT = "abort"
+
+
 IDLE, RUNNING, PAUSED, WAITING, STOPPING, FAULTED = RunState
 STATES = tuple(RunState)
 COMPLETED, STOPPED, ABORTED, FAILED = Outcome

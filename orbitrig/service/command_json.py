@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from collections.abc import Callable
 from typing import Any
 
-from orbitrig.run.provenance import RunCommand
+from orbitrig.run.states import RunCommand
 
 #: Largest command payload accepted (bytes); a command is a few dozen bytes.
 MAX_COMMAND_BYTES = 4096

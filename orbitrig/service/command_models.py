@@ -14,7 +14,7 @@ from typing import Annotated, Any, Literal, Union, get_args
 from pydantic_core import ErrorDetails
 from pydantic import BaseModel, ConfigDict, Field, StringConstraints, TypeAdapter, ValidationError, field_validator
 
-from orbitrig.run.provenance import RunCommand
+from orbitrig.run.states import RunCommand
 from orbitrig.service.command_json import (
     MAX_ID_CHARS,
     STOP_OR_ABORT,

@@ -18,7 +18,7 @@ from enum import StrEnum
 
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.control import NotNow
-from orbitrig.run.provenance import RunCommand
+from orbitrig.run.states import RunCommand
 from orbitrig.run.states import RunState
 from orbitrig.service import idle_stop
 from orbitrig.service import protocol as proto

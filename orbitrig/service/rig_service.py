@@ -46,7 +46,7 @@ import threading
 from collections.abc import Callable
 
 from orbitrig.analysis.report_ahead import FiguresAhead
-from orbitrig.run.provenance import RunCommand
+from orbitrig.run.states import RunCommand
 from orbitrig.run.states import RunState
 from orbitrig.service import idle_stop, live as live_feed
 from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader  # the service's seams

@@ -11,7 +11,7 @@ import pytest
 import orbitrig.dashboard
 from orbitrig.dashboard.feed import BrokerLink, FeedType
 from orbitrig.dashboard.session import PAGE_COMMANDS
-from orbitrig.run.provenance import RunCommand
+from orbitrig.run.states import RunCommand
 from orbitrig.run.states import Outcome, RunState
 from orbitrig.service import protocol
 

@@ -297,7 +297,7 @@ def test_abort_with_several_problems_is_accepted_and_lists_them():
 
 
 def test_commands_are_read_as_the_closed_set_of_names():
-    from orbitrig.run.provenance import RunCommand
+    from orbitrig.run.states import RunCommand
     from orbitrig.service.protocol import COMMAND_WORDS, Query
 
     assert parse_command(json.dumps({"cmd": "pause", "id": "a"})).cmd is RunCommand.PAUSE
