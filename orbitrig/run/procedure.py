@@ -238,6 +238,8 @@ class PointProcedure:
             raise RunFailed(
                 f"cannot set speeds spin {spin / RPM:.0f} rpm, orbit {orbit / RPM:+.0f} rpm: {err}"
             ) from err
+        finally:  # the block stored before it was written only once the command was out (store_block)
+            self.r.background.resume_writes()
         self._add_time("command", t0)
         self.r.note(f"speeds set: spin {spin / RPM:.0f} rpm, orbit {orbit / RPM:+.1f} rpm")
 
@@ -313,6 +315,7 @@ class PointProcedure:
         r = self.r
         rec = ps.measured() if step.choice is None else dataclasses.replace(ps.measured(), choice=step.choice)
         ps.records[step.block.tag] = rec
+        r.background.defer_writes()  # until the next speed command is out (orbitrig.run.background)
         r.background.spawn(self._write_block(ps.point, rec), f"store {ps.point.index:04d}/{step.block.tag}")
         if r.control.stop_requested and len(ps.records) < len(ps.point.blocks):
             raise StopRun
