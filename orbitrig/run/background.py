@@ -11,7 +11,7 @@ run: drives to a safe stop first) and raised by `check`.
 A block's write waits until the next speed command is out (`defer_writes` as the block is stored,
 `resume_writes` once the command is sent or failed; at most DEFER_S): the storage thread builds the
 block's file holding the interpreter lock for milliseconds at a time, and the reads and the write of
-the command, which start the next ramp, waited for it (a speed command took about 12 ms instead of 4).
+the command, which start the next ramp, waited for it (a speed command took 9 to 19 ms instead of 4).
 The writes behind it wait too: the order on disk never changes, and nothing waits longer than DEFER_S.
 
 A point's records (its blocks: raw counts, means, phasors) stay in memory until the
