@@ -2,6 +2,7 @@
 
     DriveError(message, *, drive, register, fault_code)
     +-- DriveFaultError        a drive tripped (fault_code set) or refused to start
+    |   +-- StopTripError      a drive tripped while both were being stopped
     +-- DriveLimitError        a command outside the configured limits (nothing sent)
     +-- DriveLinkError         the Modbus link is down or answers garbage
     +-- DriveTimeoutError      no answer in time, or a state not reached in time
@@ -17,11 +18,15 @@ the fault code with its meaning, whichever apply.
 
 from __future__ import annotations
 
-from typing import TypedDict
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, TypedDict
 
 from rigerrors import OrbitrigError
 
-from drives.registers import EXCEPTION_NAMES, fault_name, registers_name
+from drives.registers import EXCEPTION_NAMES, FAULT, fault_name, registers_name
+
+if TYPE_CHECKING:
+    from drives.drive import DriveStatus
 
 
 class ErrorContext(TypedDict, total=False):
@@ -81,6 +86,26 @@ class DriveError(OrbitrigError):
 
 class DriveFaultError(DriveError):
     """A drive is tripped (see `fault_code`) or did not reach the commanded state."""
+
+
+class StopTripError(DriveFaultError):
+    """A drive tripped while both were being stopped: a fault first read after the stop command
+    on a drive not known tripped before it. `fault_code`, `drive`: the first drive that tripped;
+    `tripped`: the statuses of all that did; `standstill`: both drives read zero speed after it."""
+
+    def __init__(self, tripped: Sequence[DriveStatus], *, stop: str, standstill: bool, end: str):
+        first = tripped[0]
+        too = "".join(f"; {s.name} drive (id {s.device_id}) tripped too (fault {s.fault_code})" for s in tripped[1:])
+        end = "both drives at standstill" if standstill else end
+        super().__init__(
+            f"tripped during the {stop}{too}; {end}",
+            drive=first.device_id,
+            drive_name=first.name,
+            register=FAULT,
+            fault_code=first.fault_code,
+        )
+        self.tripped = list(tripped)
+        self.standstill = standstill
 
 
 class DriveLimitError(DriveError, ValueError):

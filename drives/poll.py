@@ -21,8 +21,8 @@ source of `state`, and the interlock:
   A poll (after a reconnect or not) that finds a drive running, or with a nonzero
   REF, while no speed is commanded and a stop is owed sends the owed stop again
   (the emergency stop if an emergency stop is owed) and records the failure.
-- `wait_stopped` and `StopTripError`: the owner's wait for standstill after a
-  stop, and a drive that tripped meanwhile (`RigDrives.stop`).
+- `wait_stopped`: the owner's wait for standstill after a stop, and a drive that tripped
+  meanwhile (StopTripError, `RigDrives.stop`); it asks for polls as the wait for the setpoint does.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ from collections.abc import Sequence
 
 from drives import registers as R
 from drives.drive import Drive, DriveStatus
-from drives.errors import DriveError, DriveFaultError, DriveGaveWay, DriveLinkError, DriveTimeoutError
+from drives.errors import DriveError, DriveFaultError, DriveGaveWay, DriveLinkError, DriveTimeoutError, StopTripError
 from drives.limits import fmt_speed
 from drives.link import ModbusLink
 from drives.poll_pace import PollPace, wait_tick
@@ -45,26 +45,6 @@ from drives.state import RigDriveState
 from drives.stop import StopSender
 
 log = logging.getLogger(__name__)
-
-
-class StopTripError(DriveFaultError):
-    """A drive tripped while both were being stopped: a fault first read after the stop command
-    on a drive not known tripped before it. `fault_code`, `drive`: the first drive that tripped;
-    `tripped`: the statuses of all that did; `standstill`: both drives read zero speed after it."""
-
-    def __init__(self, tripped: Sequence[DriveStatus], *, stop: str, standstill: bool, end: str):
-        first = tripped[0]
-        too = "".join(f"; {s.name} drive (id {s.device_id}) tripped too (fault {s.fault_code})" for s in tripped[1:])
-        end = "both drives at standstill" if standstill else end
-        super().__init__(
-            f"tripped during the {stop}{too}; {end}",
-            drive=first.device_id,
-            drive_name=first.name,
-            register=R.FAULT,
-            fault_code=first.fault_code,
-        )
-        self.tripped = list(tripped)
-        self.standstill = standstill
 
 
 class DrivePoll:
@@ -162,13 +142,18 @@ class DrivePoll:
         """Wait up to `timeout` s past `since` (monotonic s, the stop command) for a poll after it
         with the link up and both drives at zero speed. Then, or once the wait ends: StopTripError
         if a drive not in `known` (`known_trips` before the command) reads tripped in a poll after
-        `since` (`stop`: which stop, for the message), else DriveTimeoutError if not at standstill."""
+        `since` (`stop`: which stop, for the message), else DriveTimeoutError if not at standstill.
+        A poll is asked for right after the command (drives at standstill already), then every
+        quarter interval until standstill, as `RigDrives.wait_settled` asks until the setpoint."""
         deadline = since + timeout
+        self.pace.ask(since)
         while True:
             tick, st = self.tick, self.state
             standstill = st.link_ok and st.time > since and st.stopped
             if standstill or time.monotonic() >= deadline:
                 break
+            if st.link_ok and st.time > since:  # not there yet: read again soon
+                self.pace.ask(st.time + self.poll_interval / 4)
             await wait_tick(tick, deadline - time.monotonic())
         late = f"not at zero speed within {timeout:g} s: " + st.describe()
         tripped = [s for s in (st.spin, st.orbit) if s and s.tripped and s.time > since and s.device_id not in known]

@@ -43,11 +43,11 @@ from types import TracebackType
 
 from drives import registers as R
 from drives.drive import Drive, DriveStatus
-from drives.errors import DriveError, DriveFaultError, DriveLinkError, DriveSuperseded, DriveTimeoutError
+from drives.errors import DriveError, DriveFaultError, DriveLinkError, DriveSuperseded, DriveTimeoutError, StopTripError
 from drives.limits import DriveLimits, fmt_speed
 from drives.link import ModbusLink
 from drives.pair import drive_names, drive_pair
-from drives.poll import DrivePoll, StopTripError
+from drives.poll import DrivePoll
 from drives.poll_pace import SettleDetector, wait_tick
 from drives.state import RigDriveState
 from drives.stop import StopSender

@@ -60,6 +60,10 @@ def encode_aux(state: dict, *, node_id: int = 1, sensor_fault: bool = False) -> 
     ]
 
 
+#: wall s between two rounds of the node's frames (at any speed-up: the CAN periods stay in wall time)
+FRAME_PERIOD_S = 0.1
+
+
 class CanNode:
     """Transmits the node's frames on ``channel`` until cancelled.
 
@@ -75,7 +79,7 @@ class CanNode:
         *,
         interface: str = "virtual",
         node_id: int = 1,
-        period: float = 0.1,
+        period: float = FRAME_PERIOD_S,
         heartbeat_period: float = 0.5,
     ):
         self.channel = channel

@@ -8,6 +8,12 @@ the engine waits for it once the drives are stopped (`settle`), never before.
 No write follows a failed one. The first failure is reported at once to `on_failure` (the engine ends the
 run: drives to a safe stop first) and raised by `check`.
 
+A block's write waits until the next speed command is out (`defer_writes` as the block is stored,
+`resume_writes` once the command is sent or failed; at most DEFER_S): the storage thread builds the
+block's file holding the interpreter lock for milliseconds at a time, and the reads and the write of
+the command, which start the next ramp, waited for it (a speed command took 9 to 19 ms instead of 4).
+The writes behind it wait too: the order on disk never changes, and nothing waits longer than DEFER_S.
+
 A point's records (its blocks: raw counts, means, phasors) stay in memory until the
 point is identified, stored and complete. At most POINTS_IN_FLIGHT earlier points may
 still be on their way when the next one begins (`wait_for_points`): a machine that
@@ -25,12 +31,14 @@ from concurrent.futures import ThreadPoolExecutor
 from collections.abc import Callable, Coroutine
 from typing import TypeVar
 
+from drives.poll_pace import wait_tick
 from orbitrig.run.events import RunFailed
 from orbitrig.store.errors import StorageError
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
 POINTS_IN_FLIGHT = 1  # earlier points still identified or stored while the next one is measured
+DEFER_S = 0.1  # wall s at most that a deferred write waits for `resume_writes`
 BACKLOG_NOTE_S = 30.0  # wall s of waiting for them between two notes of it
 STORAGE_THREAD = ThreadPoolExecutor(max_workers=1, thread_name_prefix="orbitrig-storage")  # started on first use
 
@@ -60,6 +68,8 @@ class Background:
         self._writes = asyncio.Lock()
         self._write_error: Exception | None = None  # the first write that failed
         self._writing_since: float | None = None  # time.monotonic() the write in the storage thread began
+        self._resumed = asyncio.Event()  # set: writes start at once (`defer_writes`)
+        self._resumed.set()
         self.error: BaseException | None = None
 
     async def write(self, fn: Callable[..., T], *args: object) -> T:
@@ -67,6 +77,8 @@ class Background:
         that failed (the run ends at the failed write, and a write already queued behind it,
         e.g. the next block measured meanwhile, raises RunFailed without touching the disk)."""
         async with self._writes:
+            if not self._resumed.is_set():
+                await wait_tick(self._resumed, DEFER_S)
             if self._write_error is not None:
                 raise RunFailed("not written: an earlier storage write failed") from self._write_error
             t = self._writing_since = time.monotonic()
@@ -83,6 +95,15 @@ class Background:
         """Wall s the write in the storage thread has been going on (0 with none)."""
         since = self._writing_since
         return 0.0 if since is None else time.monotonic() - since
+
+    def defer_writes(self) -> None:
+        """Writes from now on wait for `resume_writes`, at most DEFER_S wall s each (a speed command
+        about to go out)."""
+        self._resumed.clear()
+
+    def resume_writes(self) -> None:
+        """Writes start at once again."""
+        self._resumed.set()
 
     def spawn(self, coro: Coroutine[object, object, T], name: str) -> asyncio.Task[T]:
         task = asyncio.ensure_future(coro)

@@ -231,12 +231,16 @@ class PointProcedure:
 
     # -------------------------------------------------------------- speeds
     async def _set_speeds(self, spin: float, orbit: float) -> None:
+        t0 = time.monotonic()
         try:
             await self.r.io.open_drives.set_speeds(spin, orbit)
         except DriveError as err:
             raise RunFailed(
                 f"cannot set speeds spin {spin / RPM:.0f} rpm, orbit {orbit / RPM:+.0f} rpm: {err}"
             ) from err
+        finally:  # the block stored before it was written only once the command was out (store_block)
+            self.r.background.resume_writes()
+        self._add_time("command", t0)
         self.r.note(f"speeds set: spin {spin / RPM:.0f} rpm, orbit {orbit / RPM:+.1f} rpm")
 
     async def set_spin(self, step: SetSpin, ps: PointState) -> None:
@@ -246,8 +250,9 @@ class PointProcedure:
         await self._set_speeds(ps.point.spin, step.block.orbit)
 
     async def stop_drives(self, step: StopDrives, ps: PointState | None) -> None:
-        timeout = self.scale.wall(self.r.rig.drives.stop_timeout_s) + 5.0
+        t0, timeout = time.monotonic(), self.scale.wall(self.r.rig.drives.stop_timeout_s) + 5.0
         await self.r.io.open_drives.stop(emergency=False, wait=True, timeout=timeout)
+        self._add_time("stop", t0)
         why = "" if ps is None else f"point {ps.point.index:04d}: for the orbit radius, set by hand: "
         self.r.note(f"{why}both drives ramped to zero")
 
@@ -310,6 +315,7 @@ class PointProcedure:
         r = self.r
         rec = ps.measured() if step.choice is None else dataclasses.replace(ps.measured(), choice=step.choice)
         ps.records[step.block.tag] = rec
+        r.background.defer_writes()  # until the next speed command is out (orbitrig.run.background)
         r.background.spawn(self._write_block(ps.point, rec), f"store {ps.point.index:04d}/{step.block.tag}")
         if r.control.stop_requested and len(ps.records) < len(ps.point.blocks):
             raise StopRun

@@ -21,6 +21,8 @@ from orbitrig.store.records import BlockRecord
 
 #: physical s the pressures are given to reach their settings before the spindles start (at least 3 wall s)
 PRESSURE_SETTLE_S = 20.0
+#: wall s between two looks at the CAN readings: a frame is judged within this of its arrival (the node sends every 0.1 s)
+LOOK_S = 0.01
 
 
 class PressureSettings(Protocol):
@@ -74,7 +76,7 @@ async def pressures_settled(
         fresh = aux.ages.get("beta", math.inf) < time.monotonic() - t0  # p_recess and p_supply alike
         if (fresh and not problems) or time.monotonic() > deadline:  # by then an old reading is stale
             return problems
-        await asyncio.sleep(0.1)
+        await asyncio.sleep(LOOK_S)
 
 
 def measured_radius(rec: BlockRecord, rig: RigConfig) -> float:

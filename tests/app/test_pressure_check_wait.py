@@ -1,0 +1,48 @@
+"""The pressure check before the spindles start waits for a CAN reading received after it began,
+and takes it within `LOOK_S` of its arrival: it used to look every 0.1 s, so a frame arriving
+just after a look waited up to 0.1 s more (at every point of a sweep)."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+
+import pytest
+
+from daq.aux import AuxState
+from orbitrig.config import MPA, Verify
+from orbitrig.run.rig_io import TimeScale
+from orbitrig.run.steps import SetManual
+from orbitrig.run.verification import LOOK_S, pressures_settled
+
+pytestmark = pytest.mark.timeout(30)
+
+SETTINGS = SetManual(0, 0.0, 0.0, 0.0, 0.4826 * MPA, 0.25, changed=True)
+FRAME_AFTER = 0.03  # wall s after the check began that the first new frame arrives
+
+
+def _node(t0: float):
+    """The CAN node's readings: the settings met, the last frame received at t0 - 0.05 s, then at
+    t0 + FRAME_AFTER."""
+
+    def latest() -> AuxState:
+        now = time.monotonic()
+        arrived = t0 + FRAME_AFTER if now >= t0 + FRAME_AFTER else t0 - 0.05
+        age = now - arrived
+        p = SETTINGS.recess_pressure
+        ages = {"p_recess": age, "p_supply": age, "beta": age}
+        return AuxState(p_supply=p / 0.25, p_recess=(p,) * 4, beta=0.25, node_lost=False, ages=ages, heartbeat_age=age)
+
+    return latest
+
+
+async def test_the_first_frame_after_the_check_began_is_taken_at_once():
+    took = []
+    for _ in range(5):
+        t0 = time.monotonic()
+        problems = await pressures_settled(_node(t0), SETTINGS, Verify(), TimeScale(25.0))
+        took.append(time.monotonic() - t0)
+        assert problems == []
+        await asyncio.sleep(0.01)
+    assert min(took) >= FRAME_AFTER  # not the frame from before the check
+    assert sorted(took)[2] < FRAME_AFTER + LOOK_S + 0.03, took  # not the 0.1 s look it had
