@@ -64,7 +64,7 @@ def richest(models: list[tuple[str, str]]) -> ModelSpec:
     for model, fd in models:
         text = "power:4" if fd.strip().lower() == "power:auto" else fd
         specs.append(model_spec(model, text))
-    dependent = [s for s in specs if s.freq_dep.kind != "none"]
+    dependent = [s for s in specs if not s.freq_dep.constant]
     if not dependent:
         if not specs:
             raise ReductionError("richest: no model given")

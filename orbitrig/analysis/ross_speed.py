@@ -22,6 +22,7 @@ from orbitrig.store.csvfile import one_line
 from orbitrig.store.fit_record import coverage_of, expanded_uncertainty, uncertainty_basis
 from orbitrig.store.stored_run import Point
 from reduction.methods import Method
+from reduction.models import is_constant
 from reduction.statistics import not_determined
 from reduction.result import Identification
 from reduction.systematic import UncertaintyBasis
@@ -159,7 +160,7 @@ def point_speed(point: Point, lms: LoadSystem, spec: FitSpec) -> dict[str, Any] 
     lo, hi = (float(whirl[0]), float(whirl[-1])) if whirl.size else (math.nan, math.nan)
     tested = f"the tested whirl range {lo:.6g}..{hi:.6g} rad/s"
     result, fit, at = stored.result, spec.text(lms), None
-    if spec.freq_dep == "none":
+    if is_constant(spec.freq_dep):
         why = "a constant fit"
     elif lo * (1 - 1e-9) <= omega <= hi * (1 + 1e-9):
         at, why = omega, f"synchronous whirl Omega = omega, within {tested}"

@@ -104,7 +104,7 @@ def analyse_point(
         values = {k: v for k, v in d["coefficients"].items() if v is not None}
         d["not_determined"] = not_determined(values, d["expanded_uncertainty"]["values"])
         d["derived"] = _guarded(_derived, ident, grid, spin, budgets.get((lms, key)))
-        if ident.freq_dep != "none":
+        if not ident.constant:
             d["adequacy"] = _guarded(_adequacy, ident, tables[lms], fits, lms, idents[(lms, key)]["spec"])
     for key in {k for _, k in fits}:
         a, b = fits.get((LMS[0], key)), fits.get((LMS[1], key))
@@ -174,7 +174,7 @@ def _adequacy(
         (
             f
             for (ls, _), f in fits.items()
-            if ls == lms and f.model == ident.model and f.freq_dep == "none" and f.method == ident.method
+            if ls == lms and f.model == ident.model and f.constant and f.method == ident.method
         ),
         None,
     )
