@@ -146,10 +146,12 @@ def _acquire(scan: _Scan, rule, timeout: float | None):
 
 
 def _print_table(block, labels: dict[int, tuple[str, str]]) -> None:
+    from daq.averager import StopReason
+
     out = block_summary(block)
     s = block.stats
     reasons = f" {dict(s.drop_reasons)}" if s.drop_reasons else ""
-    stop = "" if block.stop_reason == "count" else f" (stopped: {block.stop_reason})"
+    stop = "" if block.stop_reason is StopReason.COUNT else f" (stopped: {block.stop_reason})"
     typer.echo(
         f"{out['revolutions_used']} revolutions averaged{stop}, {out['revolutions_dropped']} dropped"
         f"{reasons}, frames bad {out['frames_bad']}, "
