@@ -123,6 +123,11 @@ def is_constant(freq_dep: str) -> bool:
     return parse_freq_dep(freq_dep).constant
 
 
+def resolved_freq_dep(freq_dep: str, exponent: int | None) -> str:
+    """``freq_dep`` with power:auto replaced by ``power:exponent`` (the M it chose); another spec as given."""
+    return f"power:{exponent}" if parse_freq_dep(freq_dep).auto else freq_dep
+
+
 @dataclass(frozen=True)
 class Term:
     """One free coefficient: matrix K|C|D, order r (multiplies Omega^r), the matrix entries
