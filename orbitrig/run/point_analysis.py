@@ -43,6 +43,7 @@ from reduction.adequacy import frequency_dependence
 from reduction.derived import derived_quantities
 from reduction.errors import ReductionError
 from reduction.identify import identify
+from reduction.models import CONSTANT
 from reduction.result import Identification
 from reduction.statistics import coverage_factor, not_determined
 from reduction.systematic import (
@@ -179,9 +180,9 @@ def _adequacy(
         None,
     )
     if constant is None:  # not configured: fitted here for the test only
-        constant = identify(table, model=spec.model, freq_dep="none", method=spec.method)
+        constant = identify(table, model=spec.model, freq_dep=CONSTANT.text, method=spec.method)
     out = frequency_dependence(constant, ident).to_dict()
-    out["constant"] = f"{constant.model} none {constant.method}"
+    out["constant"] = f"{constant.model} {CONSTANT.text} {constant.method}"
     return out
 
 
