@@ -28,6 +28,7 @@ from dataclasses import replace
 import numpy as np
 
 from daq.averager import AveragedBlock, AveragingRule, StreamingAverager
+from daq.adc_mode import AdcMode
 from daq.backoff import Backoff
 from daq.errors import DaqError, DaqLinkError, DaqTimeoutError
 from daq.frames import FrameDecoder
@@ -82,7 +83,7 @@ class AdcReader:
     """Async context manager reading the clocked A/D board at ``url``.
 
     url: ``socket://host:port``, a serial device or pty path (see daq.transport).
-    channels, mode: the board's scan list size and ``sequential``/``simultaneous``.
+    channels, mode: the board's scan list size and its AdcMode (or the mode's word).
     gains, offsets: per channel, engineering value = gain * counts + offset
     (default raw counts). on_revolution: called with every revolution that goes
     into an average (the block carries their raw counts too). max_backoff: the
@@ -95,7 +96,7 @@ class AdcReader:
         url: str,
         *,
         channels: int = 8,
-        mode: str = "sequential",
+        mode: AdcMode | str = AdcMode.SEQUENTIAL,
         gains: Sequence[float] | None = None,
         offsets: Sequence[float] | None = None,
         on_revolution: Callable[[Revolution], None] | None = None,
@@ -105,7 +106,7 @@ class AdcReader:
         backoff: Backoff | None = None,
     ) -> None:
         self.url = url
-        self.channels, self.mode = channels, mode
+        self.channels = channels
         self.gains, self.offsets = gains, offsets
         self.on_revolution = on_revolution
         self.reconnect = reconnect
@@ -113,6 +114,7 @@ class AdcReader:
         self.backoff = backoff or Backoff(maximum=max_backoff)
         self._decoder = FrameDecoder()
         self._assembler = RevolutionAssembler(channels, mode)  # raises ValueError on a bad scan
+        self.mode = self._assembler.mode
         self._link: ByteLink | None = None
         self._collection: _Collection | None = None
         self._reconnect_task: asyncio.Task[None] | None = None

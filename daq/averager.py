@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from enum import StrEnum
 
 import numpy as np
 
@@ -30,9 +31,13 @@ from daq.stats import AcquisitionStats
 from reduction.fourier import harmonic_fit, phasor
 from reduction.noise import mean_uncertainty, phasor_uncertainty, prefix_mean_uncertainty
 
-STOP_COUNT = "count"  # a fixed rule reached its number of revolutions
-STOP_TARGET = "target"  # every channel's relative uncertainty reached the target
-STOP_MAX = "max"  # the target was not reached within the maximum
+
+class StopReason(StrEnum):
+    """Why a block stopped averaging; the value is the word stored with the block and printed."""
+
+    COUNT = "count"  # a fixed rule reached its number of revolutions
+    TARGET = "target"  # every channel's relative uncertainty reached the target
+    MAX = "max"  # the target was not reached within the maximum
 
 
 @dataclass(frozen=True)
@@ -111,8 +116,8 @@ class AveragedBlock:
     from the scatter of record_phasors (inf for N = 1). record_phasors: (N, C).
     rms_residual: (C,) RMS of the average minus (dc + fundamental). dc: (C,).
     raw_counts: (N, C, S) int16. revs, t_us: (N,) board revolution numbers and
-    trigger times (us); periods: (N,) s (NaN where unknown). stop_reason: "count",
-    "target" or "max". stats: this block's counters (drops per reason).
+    trigger times (us); periods: (N,) s (NaN where unknown). stop_reason: why it
+    stopped (StopReason). stats: this block's counters (drops per reason).
     """
 
     orbit_speed: float
@@ -130,7 +135,7 @@ class AveragedBlock:
     revs: np.ndarray
     t_us: np.ndarray
     periods: np.ndarray
-    stop_reason: str
+    stop_reason: StopReason
     rule: AveragingRule
     stats: AcquisitionStats = field(default_factory=AcquisitionStats)
 
@@ -237,7 +242,7 @@ class StreamingAverager:
         self._revs[n0:n1], self._t_us[n0:n1] = seg.rev[:used], seg.t_us[:used]
         self._periods[n0:n1] = seg.period_s[:used]
         self._n = n1
-        return used, (self._finish(reason) if reason else None)
+        return used, (self._finish(reason) if reason is not None else None)
 
     def _prepare(self, shape: tuple[int, int], slots: np.ndarray) -> None:
         """Buffers and phasor weights for this scan layout (a new layout starts a new block)."""
@@ -258,7 +263,7 @@ class StreamingAverager:
         self._running.reset()
         self._n = 0
 
-    def _stop(self, records: np.ndarray, revs: np.ndarray) -> tuple[int, str | None]:
+    def _stop(self, records: np.ndarray, revs: np.ndarray) -> tuple[int, StopReason | None]:
         """How many of these new per-revolution phasors (R, C) the block takes, and
         why it stops (None: not yet)."""
         rule, r = self.rule, len(records)
@@ -270,10 +275,10 @@ class StreamingAverager:
                 used = self._running.first_met(records, rule.target, rule.min_revolutions)
             if used:
                 self._running.add(records[:used])
-                return used, STOP_TARGET
+                return used, StopReason.TARGET
             self._running.add(records[:room])
         if r >= room:
-            return room, STOP_COUNT if rule.target is None else STOP_MAX
+            return room, StopReason.COUNT if rule.target is None else StopReason.MAX
         return r, None
 
     def _first_met_tones(self, records: np.ndarray, revs_new: np.ndarray, target: float, spin_turns: float) -> int:
@@ -288,7 +293,7 @@ class StreamingAverager:
         hit = np.flatnonzero(ok)
         return int(hit[0]) + 1 if len(hit) else 0
 
-    def _finish(self, reason: str) -> AveragedBlock:
+    def _finish(self, reason: StopReason) -> AveragedBlock:
         n = self._n
         gains, offsets = self._cal
         theta = self._slots * (2 * np.pi / 360)

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from daq.adc_mode import AdcMode
 from daq.frames import FLAG_OVERRUN, FLAG_SIMULTANEOUS, FLAG_TRIGGER, SLOTS_PER_REV, Frame, FrameBatch
 from daq.stats import count
 
@@ -109,9 +110,9 @@ class RevolutionBatch:
         )
 
 
-def channel_slots(channels: int, mode: str) -> np.ndarray:
-    """Slot numbers (C, S) of each channel's samples."""
-    if mode == "sequential":
+def channel_slots(channels: int, mode: AdcMode | str) -> np.ndarray:
+    """Slot numbers (C, S) of each channel's samples (``mode``: an AdcMode or its word)."""
+    if AdcMode(mode) is AdcMode.SEQUENTIAL:
         return np.arange(SLOTS_PER_REV).reshape(SLOTS_PER_REV // channels, channels).T.copy()
     return np.broadcast_to(np.arange(SLOTS_PER_REV), (channels, SLOTS_PER_REV)).copy()
 
@@ -124,18 +125,20 @@ class RevolutionAssembler:
     revolutions seen right after start/reset, before the first trigger: not faults).
     """
 
-    def __init__(self, channels: int = 8, mode: str = "sequential") -> None:
-        if mode not in ("sequential", "simultaneous"):
-            raise ValueError(f"mode must be 'sequential' or 'simultaneous', not {mode!r}")
+    def __init__(self, channels: int = 8, mode: AdcMode | str = AdcMode.SEQUENTIAL) -> None:
+        try:
+            mode = AdcMode(mode)
+        except ValueError:
+            raise ValueError(f"mode must be {' or '.join(repr(m.value) for m in AdcMode)}, not {mode!r}") from None
         # sequential: one sample per slot, C any divisor of 360; simultaneous: n_ch = C is a u8
-        if mode == "sequential" and not (1 <= channels <= SLOTS_PER_REV and SLOTS_PER_REV % channels == 0):
+        if mode is AdcMode.SEQUENTIAL and not (1 <= channels <= SLOTS_PER_REV and SLOTS_PER_REV % channels == 0):
             raise ValueError(f"channels={channels}: must divide 360 in sequential mode")
-        if mode == "simultaneous" and not 1 <= channels <= 255:
+        if mode is AdcMode.SIMULTANEOUS and not 1 <= channels <= 255:
             raise ValueError(f"channels={channels}: must be 1..255 in simultaneous mode (n_ch is a u8)")
         self.channels = channels
         self.mode = mode
-        self.n_ch = channels if mode == "simultaneous" else 1  # samples per slot in a frame
-        self._sim_flag = FLAG_SIMULTANEOUS if mode == "simultaneous" else 0
+        self.n_ch = channels if mode is AdcMode.SIMULTANEOUS else 1  # samples per slot in a frame
+        self._sim_flag = FLAG_SIMULTANEOUS if mode is AdcMode.SIMULTANEOUS else 0
         self.slots = channel_slots(channels, mode)
         self.revolutions_good = 0
         self.revolutions_dropped = 0
@@ -286,7 +289,7 @@ class RevolutionAssembler:
             return RevolutionBatch.concat([], self.slots)
         idx = b.start[good_first][:, None] + np.arange(SLOTS_PER_REV * self.n_ch)
         flat = b.samples[idx]  # (R, 360 * n_ch), slot-major
-        if self.mode == "sequential":
+        if self.mode is AdcMode.SEQUENTIAL:
             counts = flat.reshape(r_count, SLOTS_PER_REV // self.channels, self.channels)
         else:
             counts = flat.reshape(r_count, SLOTS_PER_REV, self.channels)

@@ -30,7 +30,7 @@ from numpy.typing import ArrayLike
 
 from reduction.arrays import FloatArray, NoiseAt
 from reduction.errors import ReductionError
-from reduction.models import ModelSpec, model_spec
+from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, resolved_freq_dep
 from reduction.whirl import Directions
 
 #: a matrix without a frequency-dependent model is still designed for this one (per base model)
@@ -62,9 +62,8 @@ def richest(models: list[tuple[str, str]]) -> ModelSpec:
     Without one, ``DEFAULT_TEST_FREQ_DEP`` of the richest base model."""
     specs = []
     for model, fd in models:
-        text = "power:4" if fd.strip().lower() == "power:auto" else fd
-        specs.append(model_spec(model, text))
-    dependent = [s for s in specs if s.freq_dep.kind != "none"]
+        specs.append(model_spec(model, resolved_freq_dep(fd, AUTO_EXPONENTS[-1])))
+    dependent = [s for s in specs if not s.freq_dep.constant]
     if not dependent:
         if not specs:
             raise ReductionError("richest: no model given")

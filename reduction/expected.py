@@ -15,6 +15,7 @@ import numpy as np
 
 from reduction.identify import identify
 from reduction.impedance import forces
+from reduction.models import resolved_freq_dep
 from reduction.result import Identification
 from reduction.table import OrbitTable
 
@@ -28,7 +29,7 @@ def noise_free_fit(ident: Identification, table: OrbitTable, z: np.ndarray) -> d
     if z.shape != (len(table.orbit), 2, 2):
         raise ValueError(f"the impedance has shape {z.shape}, the table {len(table.orbit)} rows")
     fx, fy = forces(z, table.x, table.y)
-    freq_dep = f"power:{ident.exponent}" if ident.freq_dep == "power:auto" else ident.freq_dep
+    freq_dep = resolved_freq_dep(ident.freq_dep, ident.exponent)
     exact = identify(
         dataclasses.replace(table, fx=fx, fy=fy), model=ident.model, freq_dep=freq_dep, method=ident.method
     )

@@ -24,6 +24,7 @@ import math
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass
+from enum import Enum
 from functools import cached_property
 from typing import TypeVar
 
@@ -45,17 +46,31 @@ AUTO_EXPONENTS = (1, 2, 3, 4)
 MAX_ORDER = 8
 
 
+class FreqDepKind(Enum):
+    """The kind of a frequency dependence; the value is the word its spec starts with."""
+
+    NONE = "none"
+    POWER = "power"
+    POLY = "poly"
+
+
 @dataclass(frozen=True)
 class FreqDep:
-    """Parsed ``--freq-dep``: orders per matrix ({"K": (0, m), ...}); ``auto`` for power:auto."""
+    """Parsed ``--freq-dep``: orders per matrix ({"K": (0, m), ...}); ``auto`` for power:auto.
+    ``text`` is the canonical spec, the form stored and shown."""
 
     text: str
     orders: dict[str, tuple[int, ...]] | None  # None for power:auto
-    kind: str  # none | power | poly
+    kind: FreqDepKind
 
     @property
     def auto(self) -> bool:
         return self.orders is None
+
+    @property
+    def constant(self) -> bool:
+        """No frequency dependence: every matrix has order 0 only (``none``)."""
+        return self.kind is FreqDepKind.NONE
 
     def fixed_orders(self) -> dict[str, tuple[int, ...]]:
         """The orders per matrix; ReductionError for power:auto (no fixed coefficient list)."""
@@ -70,24 +85,29 @@ def _int(text: str, spec: str) -> int:
     return int(text)
 
 
+#: the constant model's frequency dependence; ``CONSTANT.text`` ("none") names it in stored fits
+CONSTANT = FreqDep(FreqDepKind.NONE.value, {"K": (0,), "C": (0,), "D": (0,)}, FreqDepKind.NONE)
+
+
 def parse_freq_dep(spec: str) -> FreqDep:
     """Parse a frequency-dependence spec: none | power:M | power:m,n,p | power:auto | poly:R."""
     s = str(spec).strip().lower()
-    if s in ("none", ""):
-        return FreqDep("none", {"K": (0,), "C": (0,), "D": (0,)}, "none")
-    kind, sep, arg = s.partition(":")
-    if not sep or kind not in ("power", "poly"):
+    if s in (CONSTANT.text, ""):
+        return CONSTANT
+    word, sep, arg = s.partition(":")
+    kind = {k.value: k for k in (FreqDepKind.POWER, FreqDepKind.POLY)}.get(word)
+    if not sep or kind is None:
         raise ReductionError(f"unknown freq-dep {spec!r}: use none, power:M, power:m,n,p, power:auto or poly:R")
-    if kind == "power" and arg.strip() == "auto":
-        return FreqDep("power:auto", None, "power")
+    if kind is FreqDepKind.POWER and arg.strip() == "auto":
+        return FreqDep("power:auto", None, kind)
     parts = [_int(p, spec) for p in arg.split(",")]
     if any(not 1 <= p <= MAX_ORDER for p in parts):
         raise ReductionError(f"freq-dep {spec!r}: exponents and orders must lie in 1..{MAX_ORDER}")
-    if kind == "poly":
+    if kind is FreqDepKind.POLY:
         if len(parts) != 1:
             raise ReductionError(f"freq-dep {spec!r}: poly takes one order R, e.g. poly:2")
         orders = tuple(range(parts[0] + 1))
-        return FreqDep(f"poly:{parts[0]}", {"K": orders, "C": orders, "D": orders}, "poly")
+        return FreqDep(f"poly:{parts[0]}", {"K": orders, "C": orders, "D": orders}, kind)
     if len(parts) == 1:
         m = n = p = parts[0]
     elif len(parts) == 3:
@@ -95,7 +115,17 @@ def parse_freq_dep(spec: str) -> FreqDep:
     else:
         raise ReductionError(f"freq-dep {spec!r}: power takes M or m,n,p")
     text = f"power:{parts[0]}" if len(parts) == 1 else f"power:{m},{n},{p}"
-    return FreqDep(text, {"K": (0, m), "C": (0, n), "D": (0, p)}, "power")
+    return FreqDep(text, {"K": (0, m), "C": (0, n), "D": (0, p)}, kind)
+
+
+def is_constant(freq_dep: str) -> bool:
+    """Whether a stored or given frequency-dependence spec is the constant model's (``none``)."""
+    return parse_freq_dep(freq_dep).constant
+
+
+def resolved_freq_dep(freq_dep: str, exponent: int | None) -> str:
+    """``freq_dep`` with power:auto replaced by ``power:exponent`` (the M it chose); another spec as given."""
+    return f"power:{exponent}" if parse_freq_dep(freq_dep).auto else freq_dep
 
 
 @dataclass(frozen=True)

@@ -65,6 +65,11 @@ class Identification:
     interval: Interval = Interval.STUDENT_T  # where the 95 % intervals' quantile comes from
     not_determined: list[str] = field(default_factory=list)
 
+    @property
+    def constant(self) -> bool:
+        """A constant fit: no frequency dependence (``freq_dep`` none)."""
+        return self.spec.freq_dep.constant
+
     def to_dict(self, fit: bool = True) -> dict[str, Any]:
         """The contract's JSON object (``exponent`` added for power:auto); NaN/inf -> None.
         ``fit=False`` leaves the per-row ``fit`` out (a long table's writer streams it)."""

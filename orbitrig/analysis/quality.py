@@ -18,6 +18,7 @@ from orbitrig.load_systems import LoadSystem
 from reduction.adequacy import Adequacy, frequency_dependence
 from reduction.derived import Derived, derived_quantities
 from reduction.errors import ReductionError
+from reduction.models import CONSTANT, is_constant
 from reduction.statistics import Interval
 from reduction.table import OrbitTable
 from reduction.systematic import Calibration, LmsAgreement, UncertaintyBasis, combined_covariance, lms_agreement
@@ -120,10 +121,12 @@ def adequacy_verdicts(lms: LoadSystem, results: list[Reduced]) -> list[Verdict]:
     """Every frequency-dependent fit of `results` tested against the constant fit of the same
     model and method (repeated here when the run did not ask for it)."""
     out = []
-    for dep in (r for r in results if r.freq_dep != "none"):
-        const = next((r for r in results if (r.model, r.method, r.freq_dep) == (dep.model, dep.method, "none")), None)
+    for dep in (r for r in results if not is_constant(r.freq_dep)):
+        const = next(
+            (r for r in results if (r.model, r.method) == (dep.model, dep.method) and is_constant(r.freq_dep)), None
+        )
         if const is None:
-            const = identify_point(dep.point, lms, dep.model, "none", dep.method)
+            const = identify_point(dep.point, lms, dep.model, CONSTANT.text, dep.method)
         if const.identification is None:
             out.append(Verdict(lms, dep, None, f"the constant {dep.model} was refused: {const.error}"))
             continue

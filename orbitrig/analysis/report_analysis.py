@@ -16,6 +16,7 @@ from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.stored_run import Point
 from reduction.derived import Derived
 from reduction.identify import Method
+from reduction.models import is_constant, parse_freq_dep
 
 #: compared across the two load measuring systems, first one present wins
 PREFERRED_MODELS = (("kcd11", "none"), ("kc8", "none"), ("kc7", "none"), ("kcd12", "none"))
@@ -55,8 +56,8 @@ class PointReport:
 def fit_label(r: Reduced) -> str:
     """'kcd11 (11 coef.)', 'kcd11 power:1 (22 coef.)' - the paper's wording."""
     ident = r.identification
-    fd = "" if r.freq_dep == "none" else f" {r.freq_dep}"
-    if ident is not None and ident.exponent and r.freq_dep == "power:auto":
+    fd = "" if is_constant(r.freq_dep) else f" {r.freq_dep}"
+    if ident is not None and ident.exponent and parse_freq_dep(r.freq_dep).auto:
         fd = f" power:{ident.exponent} (auto)"
     n = f" ({ident.n_coefficients} coef.)" if ident is not None else ""
     method = "" if r.method == Method.OLS else f", {r.method}"

@@ -22,6 +22,7 @@ from orbitrig.store.csvfile import one_line
 from orbitrig.store.fit_record import coverage_of, expanded_uncertainty, uncertainty_basis
 from orbitrig.store.stored_run import Point
 from reduction.methods import Method
+from reduction.models import CONSTANT, is_constant
 from reduction.statistics import not_determined
 from reduction.result import Identification
 from reduction.systematic import UncertaintyBasis
@@ -114,15 +115,15 @@ def _constant_fit(
     """The constant fit of ``spec``'s model and method (stored, else fitted from the orbit
     table, its U on the calibration uncertainty of the ``chosen`` fit's budget when it has one)
     and its ``--fit`` text, or why there is none."""
-    text = spec.text(lms, "none")
-    stored = point.identification(lms, spec.model, "none", spec.method)
+    text = spec.text(lms, CONSTANT.text)
+    stored = point.identification(lms, spec.model, CONSTANT.text, spec.method)
     if stored is not None and stored.result is not None:
         return stored.result, text
     if stored is not None:
         return f"the constant fit {text} was refused: {one_line(stored.error or '')}"
     if lms not in point.tables:
         return f"the constant fit {text} is not stored and there is no orbit table {lms}"
-    row = identify_point(point, lms, spec.model, "none", spec.method)
+    row = identify_point(point, lms, spec.model, CONSTANT.text, spec.method)
     if row.identification is None:
         return f"the constant fit {text} is refused: {one_line(row.error or '')}"
     result = row.identification.to_dict(fit=False)
@@ -159,7 +160,7 @@ def point_speed(point: Point, lms: LoadSystem, spec: FitSpec) -> dict[str, Any] 
     lo, hi = (float(whirl[0]), float(whirl[-1])) if whirl.size else (math.nan, math.nan)
     tested = f"the tested whirl range {lo:.6g}..{hi:.6g} rad/s"
     result, fit, at = stored.result, spec.text(lms), None
-    if spec.freq_dep == "none":
+    if is_constant(spec.freq_dep):
         why = "a constant fit"
     elif lo * (1 - 1e-9) <= omega <= hi * (1 + 1e-9):
         at, why = omega, f"synchronous whirl Omega = omega, within {tested}"

@@ -18,6 +18,7 @@ from orbitrig.catalog.compare import Row, Variable, repeatability, runs_of
 from orbitrig.catalog.predicted import PredictedLines, predicted_lines
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import StorageError, storage_error
+from reduction.models import is_constant
 from rigunits import display_unit
 
 #: height of one row of panels with its titles and labels, and the figure's top and bottom edge (in)
@@ -32,7 +33,7 @@ def compare_title(rows: list[Row], lms: str, model: str, freq_dep: str, method: 
         f"{lms} {model} freq_dep {freq_dep} {method}: {n_rows} row{'s' * (n_rows != 1)} "
         f"from {n_runs} run{'s' * (n_runs != 1)}"
         + (f" ({where})" if where.strip() else "")
-        + ("\nconstant terms (\u03a9\u2070) of a frequency-dependent fit" if freq_dep != "none" else "")
+        + ("\nconstant terms (\u03a9\u2070) of a frequency-dependent fit" if not is_constant(freq_dep) else "")
     )
 
 

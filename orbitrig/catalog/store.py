@@ -9,6 +9,7 @@ the same rows at once both succeed), in one transaction per call.
 
 from __future__ import annotations
 
+from enum import StrEnum
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -22,6 +23,24 @@ from orbitrig.catalog.where import parse_where
 
 #: the default catalog file, in the directory holding the runs
 DEFAULT_FILE = "catalog.sqlite"
+
+
+class Dialect(StrEnum):
+    """The databases the catalog supports, by SQLAlchemy's dialect (backend) name."""
+
+    SQLITE = "sqlite"
+    POSTGRESQL = "postgresql"
+
+
+def _dialect(url: str) -> Dialect:
+    """The dialect of ``url``; CatalogUsageError naming the URL and its database when the
+    catalog does not support it (ArgumentError when ``url`` is no database URL)."""
+    name = make_url(_driver_url(url)).get_backend_name()
+    try:
+        return Dialect(name)
+    except ValueError:
+        supported = " or ".join(d.value for d in Dialect)
+        raise CatalogUsageError(f"--db {_shown(url)}: database {name!r} is not supported (use {supported})") from None
 
 
 def default_url(runs_dir: Path) -> str:
@@ -53,8 +72,9 @@ class Catalog:
     def __init__(self, url: str, create: bool = True):
         self.url = url
         try:
+            self.dialect = _dialect(url)
             if not create:
-                _sqlite_file_exists(url)
+                _sqlite_file_exists(url, self.dialect)
             self.engine: Engine = create_engine(_driver_url(url), future=True)
             metadata.create_all(self.engine)
         except ArgumentError as err:
@@ -72,7 +92,7 @@ class Catalog:
         if not rows:
             return 0
         try:
-            upsert = _upsert(self.engine.dialect.name)
+            upsert = _upsert(self.dialect)
             with self.engine.begin() as conn:
                 for start in range(0, len(rows), _BATCH):
                     conn.execute(upsert, rows[start : start + _BATCH])
@@ -98,30 +118,27 @@ class Catalog:
 _BATCH = 500
 
 
-def _upsert(dialect: str) -> Any:
+def _upsert(dialect: Dialect) -> Any:
     """INSERT ... ON CONFLICT (KEY) DO UPDATE of every other column, for ``dialect``."""
     stmt: Any  # the dialect's own Insert; both have on_conflict_do_update and excluded
-    if dialect == "postgresql":
+    if dialect is Dialect.POSTGRESQL:
         from sqlalchemy.dialects.postgresql import insert as postgresql_insert
 
         stmt = postgresql_insert(fits)
-    elif dialect == "sqlite":
+    else:
         from sqlalchemy.dialects.sqlite import insert as sqlite_insert
 
         stmt = sqlite_insert(fits)
-    else:
-        raise CatalogError(f"catalog: database {dialect!r} is not supported (SQLite or PostgreSQL)")
     return stmt.on_conflict_do_update(
         index_elements=[fits.c[k] for k in KEY],
         set_={c: stmt.excluded[c] for c in ROW_COLUMNS if c not in KEY},
     )
 
 
-def _sqlite_file_exists(url: str) -> None:
+def _sqlite_file_exists(url: str, dialect: Dialect) -> None:
     """Raise CatalogError naming the file when ``url`` is an SQLite file that does not exist."""
-    parsed = make_url(url)
-    name = parsed.database or ""
-    if parsed.get_backend_name() == "sqlite" and name not in ("", ":memory:") and not name.startswith("file:"):
+    name = make_url(url).database or ""
+    if dialect is Dialect.SQLITE and name not in ("", ":memory:") and not name.startswith("file:"):
         if not Path(name).is_file():
             raise CatalogError(f"catalog {name}: no such file (`orbitrig catalog add RUN` creates it)")
 

@@ -8,6 +8,7 @@ from typing import Annotated, Optional
 
 import typer
 
+from daq.adc_mode import AdcMode
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
 
 FIRST_WAIT_S = 10.0  # automatic timeout: wait this long for the orbit's first good revolution
@@ -58,7 +59,7 @@ class _Scan:
 
     adc: str
     channels: int
-    mode: str
+    mode: AdcMode | str | None
     gains: list[float] | None
     offsets: list[float] | None
     labels: dict[int, tuple[str, str]]
@@ -90,11 +91,12 @@ def _scan(adc, channels, mode, rig: Path | None, counts: bool) -> _Scan:
             scan.labels = {c.index: (c.name, c.unit) for c in cfg.ordered_channels}
         scan.channels = channels or len(cfg.gains)
     scan.channels = scan.channels or 8
-    scan.mode = scan.mode or "sequential"
     if scan.adc is None:
         _fail("--adc URL is required (or a rig config with an adc_url)")
-    if scan.mode not in ("sequential", "simultaneous"):
-        _fail(f"--mode must be sequential or simultaneous, not {scan.mode!r}")
+    try:
+        scan.mode = AdcMode(scan.mode or AdcMode.SEQUENTIAL)
+    except ValueError:
+        _fail(f"--mode must be {' or '.join(AdcMode)}, not {scan.mode!r}")
     if scan.gains is not None and len(scan.gains) != scan.channels:
         _fail(f"--channels {scan.channels} but the rig config calibrates {len(scan.gains)} channels")
     return scan
@@ -146,10 +148,12 @@ def _acquire(scan: _Scan, rule, timeout: float | None):
 
 
 def _print_table(block, labels: dict[int, tuple[str, str]]) -> None:
+    from daq.averager import StopReason
+
     out = block_summary(block)
     s = block.stats
     reasons = f" {dict(s.drop_reasons)}" if s.drop_reasons else ""
-    stop = "" if block.stop_reason == "count" else f" (stopped: {block.stop_reason})"
+    stop = "" if block.stop_reason is StopReason.COUNT else f" (stopped: {block.stop_reason})"
     typer.echo(
         f"{out['revolutions_used']} revolutions averaged{stop}, {out['revolutions_dropped']} dropped"
         f"{reasons}, frames bad {out['frames_bad']}, "
@@ -181,7 +185,7 @@ Channels = Annotated[
 ]
 Mode = Annotated[
     Optional[str],
-    typer.Option("--mode", help="sequential | simultaneous (default: the rig config's, else sequential)."),
+    typer.Option("--mode", help=f"{' | '.join(AdcMode)} (default: the rig config's, else {AdcMode.SEQUENTIAL})."),
 ]
 Revolutions = Annotated[
     int, typer.Option("--revolutions", min=1, help="Good revolutions to average (with --target: the most).")

@@ -152,11 +152,11 @@ def model_check(spec, run, spin: float, lms: LoadSystem, problem, candidate: tup
     from reduction.errors import ReductionError
     from reduction.identify import Method, identify
     from reduction.misfit import list_shift
-    from reduction.models import model_spec
+    from reduction.models import CONSTANT, model_spec
 
-    if run is None or spec.freq_dep.text != "none":
+    if run is None or not spec.freq_dep.constant:
         return None
-    richer = ("kcd12", "none") if "d" not in spec.model else (spec.model, "poly:1")
+    richer = ("kcd12", CONSTANT.text) if "d" not in spec.model else (spec.model, "poly:1")
     points = [p for p in run.complete_points if lms in p.tables]
     if not points:
         return None

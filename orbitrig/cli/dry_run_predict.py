@@ -81,7 +81,7 @@ def predict_model(rig, mat, model: str, freq_dep: str, noise) -> ModelPrediction
     from reduction.errors import IdentifiabilityError
     from reduction.frequency_list import DesignProblem, predict
     from reduction.identifiability import check_plan
-    from reduction.models import model_spec
+    from reduction.models import model_spec, parse_freq_dep
 
     label = f"{model} {freq_dep}"
     ratios, directions = mat.orbit.ratio_list, Directions.of(mat.orbit.directions)
@@ -91,7 +91,7 @@ def predict_model(rig, mat, model: str, freq_dep: str, noise) -> ModelPrediction
             check_plan(model, freq_dep, np.asarray(ratios) * rpm / 60.0, directions)
     except IdentifiabilityError as err:
         return ModelPrediction(label, None, None, None, None, None, str(err).splitlines()[0])
-    if freq_dep.strip().lower() == "power:auto":
+    if parse_freq_dep(freq_dep).auto:
         return ModelPrediction(label, None, None, None, None, None)
     spec = model_spec(model, freq_dep)
     theta, _ = prior_theta(spec)

@@ -33,12 +33,13 @@ from orbitrig.errors import ConfigError
 from reduction.errors import IdentifiabilityError
 from reduction.frequency_list import RUNOUT_KEEP_AWAY, SYNCHRONOUS_REFUSAL, near_one
 from reduction.identifiability import check_plan
+from reduction.models import CONSTANT
 from reduction.whirl import Directions
 
 #: relative slack of the supply band's edges: a value on an edge (8 MPa from 5.6 / 0.7) is inside
 BAND_SLACK = 1e-9
 #: the freq-dep a sequential point identifies its model with (orbitrig.run.sequential_point)
-SEQUENTIAL_FREQ_DEP = "none"
+SEQUENTIAL_FREQ_DEP = CONSTANT.text
 
 
 def check_matrix_against_rig(matrix: MatrixConfig, rig: RigConfig) -> None:

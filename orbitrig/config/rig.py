@@ -9,8 +9,10 @@ from typing import Annotated, Literal
 
 from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
+from daq.adc_mode import AdcMode
 from orbitrig.config.calibration import CalibrationUncertainty
 from orbitrig.config.fields import (
+    BY_VALUE,
     CHANNEL_NAMES,
     RPM,
     DeviceId,
@@ -26,7 +28,7 @@ from orbitrig.config.messages import ConfigWarning
 
 class Transports(_Model):
     adc_url: str = "socket://127.0.0.1:5000"
-    adc_mode: Literal["sequential", "simultaneous"] = "sequential"
+    adc_mode: Annotated[AdcMode, BY_VALUE] = AdcMode.SEQUENTIAL
     modbus_url: str = "tcp://127.0.0.1:5020"
     can_channel: str = "can0"
     # python-can interface names: socketcan on a Linux rig, serial/slcan for USB
@@ -245,7 +247,7 @@ class RigConfig(_Model):
         idx = sorted(c.index for c in self.channels)
         if idx != list(range(len(idx))):
             problems.append(f"channel indices must be 0..{len(idx) - 1} each once, got {idx}")
-        elif self.transports.adc_mode == "sequential" and 360 % len(idx):
+        elif self.transports.adc_mode is AdcMode.SEQUENTIAL and 360 % len(idx):
             # docs/protocols/adc-frames.md: in sequential mode slot s converts channel s mod C
             problems.append(f"in sequential mode the number of channels ({len(idx)}) must divide 360")
         for c in self.channels:

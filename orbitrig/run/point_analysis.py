@@ -43,6 +43,7 @@ from reduction.adequacy import frequency_dependence
 from reduction.derived import derived_quantities
 from reduction.errors import ReductionError
 from reduction.identify import identify
+from reduction.models import CONSTANT
 from reduction.result import Identification
 from reduction.statistics import coverage_factor, not_determined
 from reduction.systematic import (
@@ -104,7 +105,7 @@ def analyse_point(
         values = {k: v for k, v in d["coefficients"].items() if v is not None}
         d["not_determined"] = not_determined(values, d["expanded_uncertainty"]["values"])
         d["derived"] = _guarded(_derived, ident, grid, spin, budgets.get((lms, key)))
-        if ident.freq_dep != "none":
+        if not ident.constant:
             d["adequacy"] = _guarded(_adequacy, ident, tables[lms], fits, lms, idents[(lms, key)]["spec"])
     for key in {k for _, k in fits}:
         a, b = fits.get((LMS[0], key)), fits.get((LMS[1], key))
@@ -174,14 +175,14 @@ def _adequacy(
         (
             f
             for (ls, _), f in fits.items()
-            if ls == lms and f.model == ident.model and f.freq_dep == "none" and f.method == ident.method
+            if ls == lms and f.model == ident.model and f.constant and f.method == ident.method
         ),
         None,
     )
     if constant is None:  # not configured: fitted here for the test only
-        constant = identify(table, model=spec.model, freq_dep="none", method=spec.method)
+        constant = identify(table, model=spec.model, freq_dep=CONSTANT.text, method=spec.method)
     out = frequency_dependence(constant, ident).to_dict()
-    out["constant"] = f"{constant.model} none {constant.method}"
+    out["constant"] = f"{constant.model} {CONSTANT.text} {constant.method}"
     return out
 
 

@@ -25,7 +25,7 @@ from orbitrig.run.plan import OperatingPoint
 from orbitrig.run.rig_io import TruthSource
 from orbitrig.store.records import BlockRecord
 from reduction.impedance import impedance
-from reduction.models import model_spec
+from reduction.models import model_spec, resolved_freq_dep
 
 #: the truth's definition, stored with it
 DEFINITION = (
@@ -76,10 +76,7 @@ def true_impedance(truth: dict[str, Any]) -> np.ndarray:
 
 def stored_impedance(result: dict[str, Any], orbits: ArrayLike) -> np.ndarray:
     """Z(Omega) (n, 2, 2) of a stored identification (its JSON object) at `orbits` rad/s."""
-    fd = result["freq_dep"]
-    if fd == "power:auto":
-        fd = f"power:{result['exponent']}"
-    spec = model_spec(result["model"], fd)
+    spec = model_spec(result["model"], resolved_freq_dep(result["freq_dep"], result.get("exponent")))
     values = [result["coefficients"].get(k) for k in spec.names]
     theta = np.array([math.nan if v is None else float(v) for v in values])
     return impedance(spec, theta, np.abs(np.asarray(orbits, dtype=float)))

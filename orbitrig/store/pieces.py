@@ -107,7 +107,7 @@ def write_block(g: h5py.Group, rec: BlockRecord, channels: list[str], units: lis
             "orbit_hz": b.orbit_hz,
             "direction": b.direction,
             "measured_orbit_speed": rec.measured_orbit_speed,
-            "stop_reason": rec.stop_reason,
+            "stop_reason": str(rec.stop_reason),  # the plain word: h5py stores no str subclass (daq StopReason)
             "n_records": int(rec.n_records if rec.n_records is not None else len(rec.raw_counts)),
             "complete": True,
             "units_of_attributes": BLOCK_ATTR_UNITS,

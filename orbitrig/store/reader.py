@@ -32,6 +32,7 @@ from orbitrig.store.status import RunStatus
 from orbitrig.store.stored_run import PROVENANCE_KEYS, Frequency, Settings, StoredIdentification
 from orbitrig.store.stored_run import Point
 from orbitrig.store.stored_run import Run as Run  # docs/api.md: orbitrig.store.reader.Run
+from reduction.methods import Method
 from rigunits import RPM
 
 if TYPE_CHECKING:
@@ -271,7 +272,7 @@ def _read_results(g: h5py.File | h5py.Group, point: Point) -> None:
                 freq_dep=text(ia.get("freq_dep")) or freq_dep_from_key(fd_key),
                 result=result,
                 error=text(ia.get("error")) or None,
-                method=text(ia.get("method")) or str((result or {}).get("method", "ols")),
+                method=text(ia.get("method")) or str((result or {}).get("method", Method.OLS.value)),
             )
         )
     for name in ("truth", "lms_comparison"):

@@ -60,7 +60,7 @@ class BlockRecord:
     stats: dict[str, Any] = field(default_factory=dict)  # the averager's counters (JSON values)
     uncertainty: npt.NDArray[np.float64] | None = None  # (C,) standard uncertainty of `phasors` (N, m)
     n_records: int | None = None  # revolutions averaged (None: the rows of raw_counts)
-    stop_reason: str = ""  # why averaging stopped: "count" | "target" | "max" ("" unknown)
+    stop_reason: str = ""  # why averaging stopped: a daq.averager.StopReason word ("" unknown)
     revolutions: npt.NDArray[np.int64] | None = None  # (N,) the A/D board's revolution number of each record
     choice: BlockChoice | None = None  # a sequential point's reason for this block
 

@@ -165,6 +165,7 @@ def identify_table(
     from reduction.adequacy import frequency_dependence
     from reduction.derived import derived_quantities
     from reduction.identify import identify
+    from reduction.models import CONSTANT
 
     buf = io.StringIO()
     df.to_csv(buf, index=False)
@@ -176,7 +177,9 @@ def identify_table(
     result = ident.to_dict()
     result["derived"] = derived_quantities(ident, np.unique(table.orbit), table.spin).to_dict()
     result["derived"]["covariance"] = "statistical" if ident.covariance is not None else "none"
-    if ident.freq_dep != "none":
-        constant = identify(table, model=model, freq_dep="none", method=method, solver=solver)
-        result["adequacy"] = frequency_dependence(constant, ident).to_dict() | {"constant": f"{model} none {method}"}
+    if not ident.constant:
+        constant = identify(table, model=model, freq_dep=CONSTANT.text, method=method, solver=solver)
+        result["adequacy"] = frequency_dependence(constant, ident).to_dict() | {
+            "constant": f"{model} {CONSTANT.text} {method}"
+        }
     return Fit(fit_record(-1, None, model, freq_dep, method, result))

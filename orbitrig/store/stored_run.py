@@ -18,6 +18,7 @@ import numpy.typing as npt
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.identity import run_identity
 from orbitrig.store.status import RunStatus
+from reduction.methods import Method
 
 if TYPE_CHECKING:
     from reduction.table import OrbitTable
@@ -70,7 +71,7 @@ class StoredIdentification:
     freq_dep: str  # the original spec, e.g. "power:auto"
     result: dict[str, Any] | None  # the `identify --json` object
     error: str | None  # the refusal message when the model was refused
-    method: str = "ols"
+    method: str = Method.OLS.value  # the word stored (ols when the file names none)
 
     @property
     def ok(self) -> bool:

@@ -1,6 +1,7 @@
 """The catalog commands' failures: a damaged point is named and `catalog add` exits 1 (as
 `export`), reading never creates a catalog, and an --out that cannot be written is one line
-naming the path and the cause (exit 1, no traceback)."""
+naming the path and the cause (exit 1, no traceback); a database URL the catalog does not
+support is named with the ones it does."""
 
 from __future__ import annotations
 
@@ -61,3 +62,10 @@ def test_compare_takes_a_method_by_name_only(tmp_path):
     res = CliRunner().invoke(app, ["compare", "--runs", str(tmp_path), "--method", "ols or 1 = 1"])
     assert res.exit_code == 2 and "'ols or 1 = 1' is not one of 'ols', 'wls', 'tls', 'iv'" in res.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_database_the_catalog_does_not_support_is_named_with_the_supported_ones(catalog_run, tmp_path):
+    res = CliRunner().invoke(app, ["catalog", "add", str(catalog_run), "--db", "mysql://alice:secret@db.lab/fits"])
+    assert res.exit_code != 0 and "Traceback" not in res.output, res.output
+    assert "--db mysql://alice@db.lab/fits: database 'mysql' is not supported (use sqlite or postgresql)" in res.stderr
+    assert "secret" not in res.output and list(tmp_path.iterdir()) == []

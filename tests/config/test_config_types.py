@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import pytest
 
+from daq.adc_mode import AdcMode
 from orbitrig import config as cfg
 from orbitrig.errors import ConfigError
 
@@ -43,6 +44,12 @@ def _one_problem(load, text: str) -> str:
         ),
         ("check_supply_pressure = true", "check_supply_pressure = 1", "interlocks.check_supply_pressure", "boolean"),
         ("hold_s = 2.0", "hold_s = true", "settle.hold_s", "valid number (got True)"),
+        (
+            'adc_mode = "sequential"',
+            'adc_mode = "parallel"',
+            "transports.adc_mode",
+            "Input should be 'sequential' or 'simultaneous' (got 'parallel')",
+        ),
     ],
 )
 def test_a_rig_value_of_the_wrong_type_is_refused_naming_line_and_key(old, new, key, message):
@@ -78,6 +85,14 @@ def test_integers_for_numbers_and_names_for_choices_still_load():
     assert matrix.operating.spin_rpm == [1000.0] and matrix.order == cfg.PointOrder.WRITTEN
     assert [str(d) for d in matrix.orbit.directions] == ["forward", "backward"] and matrix.models[-1].method == "wls"
     cfg.matrix_from_text(PAPER_TEXT, "paper.toml")
+
+
+def test_the_adc_mode_is_read_from_its_word():
+    text = RIG_TEXT.replace('adc_mode = "sequential"', 'adc_mode = "simultaneous"', 1)
+    assert text != RIG_TEXT
+    rig = cfg.rig_from_text(text, "rig.toml")
+    assert rig.transports.adc_mode is AdcMode.SIMULTANEOUS
+    assert rig.model_dump(mode="json")["transports"]["adc_mode"] == "simultaneous"
 
 
 def test_a_static_offset_and_orbit_that_touch_the_bearing_are_refused():

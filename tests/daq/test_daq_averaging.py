@@ -9,7 +9,7 @@ from support.daq_encoder import signal, stream
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from daq.averager import AveragingRule, StreamingAverager
+from daq.averager import AveragingRule, StopReason, StreamingAverager
 from reduction.noise import phasor_uncertainty
 from daq.frames import FrameDecoder
 from daq.revolutions import RevolutionAssembler, RevolutionBatch, channel_slots
@@ -43,7 +43,7 @@ def test_raw_counts_reproduce_the_mean_exactly():
     np.testing.assert_array_equal(b.t_us, 80_000 * np.arange(30))
     np.testing.assert_array_equal(b.periods, np.full(30, 0.08))
     np.testing.assert_array_equal(b.slots, channel_slots(8, "sequential"))
-    assert b.n_records == b.n_revolutions == 30 and b.stop_reason == "count"
+    assert b.n_records == b.n_revolutions == 30 and b.stop_reason is StopReason.COUNT
     assert b.orbit_speed == pytest.approx(2 * np.pi / 0.08)
     # the records are the least-squares fundamentals of each revolution; the block's phasor is their mean
     np.testing.assert_allclose(b.record_phasors, phasor(counts[:30], b.theta) * GAINS, rtol=1e-10)
@@ -64,18 +64,18 @@ def test_simultaneous_layout_and_single_revolution():
 def test_stop_reasons():
     quiet = signal(200, 8, "sequential", noise=5, seed=2)  # relative u ~ 1e-3 after a few revolutions
     b = StreamingAverager(AveragingRule.adaptive(0.01, 12, 100)).push_batch(batch(quiet))[0]
-    assert (b.stop_reason, b.n_records) == ("target", 12)  # met at once: stops at the minimum
+    assert (b.stop_reason, b.n_records) == (StopReason.TARGET, 12)  # met at once: stops at the minimum
     assert np.all(b.relative_uncertainty <= 0.01)
 
     noisy = signal(200, 8, "sequential", noise=3000, seed=2)
     b = StreamingAverager(AveragingRule.adaptive(0.001, 5, 40)).push_batch(batch(noisy))[0]
-    assert (b.stop_reason, b.n_records) == ("max", 40)
+    assert (b.stop_reason, b.n_records) == (StopReason.MAX, 40)
     assert np.any(b.relative_uncertainty > 0.001)
 
     # in between: stops at the first revolution where every channel meets the target
     mid = signal(200, 8, "sequential", noise=400, seed=4)
     b = StreamingAverager(AveragingRule.adaptive(0.02, 5, 200)).push_batch(batch(mid))[0]
-    assert b.stop_reason == "target" and 5 < b.n_records < 200
+    assert b.stop_reason is StopReason.TARGET and 5 < b.n_records < 200
     assert np.all(b.relative_uncertainty <= 0.02)
     shorter = StreamingAverager(AveragingRule.fixed(b.n_records - 1)).push_batch(batch(mid))[0]
     assert np.any(shorter.relative_uncertainty > 0.02)
@@ -83,7 +83,7 @@ def test_stop_reasons():
     # a dead channel (no fundamental) never meets a relative target
     dead = signal(60, 2, "sequential", phasors=[1000, 0], noise=1, seed=5)
     b = StreamingAverager(AveragingRule.adaptive(0.05, 3, 50)).push_batch(batch(dead))[0]
-    assert (b.stop_reason, b.n_records) == ("max", 50)
+    assert b.stop_reason is StopReason.MAX and b.n_records == 50
 
 
 def tone_block(n: int, spin_turns: float, tone: float, noise: float, seed: int) -> np.ndarray:

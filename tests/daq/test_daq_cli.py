@@ -76,6 +76,8 @@ async def test_exit_2_with_a_clear_message(rig):
     assert code == 2 and "/dev/no-such-port: cannot open serial port" in err
     code, _, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--mode", "simultaneous", "--timeout", "0.5")
     assert code == 2 and "no good revolution within 0.5 s" in err and "mode_mismatch" in err
+    code, _, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--mode", "parallel")
+    assert code == 2 and "orbitrig acquire: --mode must be sequential or simultaneous, not 'parallel'" in err
     code, _, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--channels", "7")
     assert code == 2 and "--channels 7 but the rig config calibrates 8 channels" in err
     code, _, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--channels", "7", "--counts")

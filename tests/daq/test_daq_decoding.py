@@ -8,6 +8,7 @@ from support.daq_encoder import OVERRUN, SIMULTANEOUS, TRIGGER, frame, signal, s
 
 from daq.averager import StreamingAverager
 from daq.frames import FrameDecoder
+from daq.adc_mode import AdcMode
 from daq.revolutions import RevolutionAssembler
 from reduction.fourier import phasor
 
@@ -228,6 +229,13 @@ def test_mode_mismatch():
     counts = signal(4, 8, "simultaneous")
     dec, asm, revs = run(b"".join(stream(counts, "simultaneous")[0]), 8, "sequential")
     assert revs == [] and asm.drop_reasons == {"mode_mismatch": 4}
+
+
+def test_the_scan_mode_is_an_adc_mode_given_as_member_or_word():
+    assert RevolutionAssembler(8, "simultaneous").mode is AdcMode.SIMULTANEOUS
+    assert RevolutionAssembler(8, AdcMode.SEQUENTIAL).mode is AdcMode.SEQUENTIAL
+    with pytest.raises(ValueError, match="mode must be 'sequential' or 'simultaneous', not 'parallel'"):
+        RevolutionAssembler(8, "parallel")
 
 
 @pytest.mark.parametrize("chunk", [50, 997, 100_000])

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from reduction.errors import ReductionError
-from reduction.models import model_spec, parse_freq_dep
+from reduction.models import FreqDepKind, is_constant, model_spec, parse_freq_dep, resolved_freq_dep
 
 
 @pytest.mark.parametrize(
@@ -80,3 +80,28 @@ def test_power_auto_parses_but_has_no_fixed_list():
     assert parse_freq_dep("power:auto").auto
     with pytest.raises(ReductionError):
         model_spec("kc7", "power:auto")
+
+
+@pytest.mark.parametrize(
+    ("spec", "kind", "text"),
+    [
+        ("none", FreqDepKind.NONE, "none"),
+        (" None ", FreqDepKind.NONE, "none"),
+        ("", FreqDepKind.NONE, "none"),
+        ("power:2", FreqDepKind.POWER, "power:2"),
+        ("POWER:1, 2 ,3", FreqDepKind.POWER, "power:1,2,3"),
+        ("power:auto", FreqDepKind.POWER, "power:auto"),
+        ("poly:2", FreqDepKind.POLY, "poly:2"),
+    ],
+)
+def test_freq_dep_kind_and_canonical_text(spec, kind, text):
+    fd = parse_freq_dep(spec)
+    assert (fd.kind, fd.text) == (kind, text)
+    assert fd.constant is (kind is FreqDepKind.NONE) is is_constant(spec)
+
+
+def test_power_auto_resolves_to_the_chosen_exponent_and_nothing_else_changes():
+    assert resolved_freq_dep("power:auto", 3) == "power:3"
+    assert resolved_freq_dep(" Power:Auto", 2) == "power:2"
+    assert resolved_freq_dep("power:1,2,3", 4) == "power:1,2,3"
+    assert resolved_freq_dep("none", None) == "none"
