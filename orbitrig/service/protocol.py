@@ -23,17 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from orbitrig.run.states import RunState
-from orbitrig.service.command_json import (  # noqa: F401 - part of this contract's names
-    MAX_COMMAND_BYTES,
-    MAX_ID_CHARS,
-    MAX_STOP_BYTES,
-    STOP_OR_ABORT,
-    CommandError,
-    echoable_id,
-    id_problems,
-    read_object,
-    stop_word,
-)
+from orbitrig.service.command_json import MAX_COMMAND_BYTES, CommandError  # noqa: F401 - part of this contract's names
 from orbitrig.service.command_models import (  # noqa: F401 - part of this contract's names
     ALWAYS_ACCEPTED,
     COMMAND_FIELDS,
