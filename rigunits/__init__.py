@@ -43,13 +43,16 @@ def display_unit(key: str) -> tuple[str, float]:
     """Display unit and scale of coefficient `key`: 'Kxx' -> ('MN/m', 1e-6); the term of order r
     ('Kxx_r') multiplies Omega^r, so its unit carries (rad/s)^-r: ('MN/m (rad/s)^-r', 1e-6)."""
     unit, scale = DISPLAY_UNITS[key[0]]
-    _, _, order = key.partition("_")
-    return (unit if not order else f"{unit} (rad/s)^-{order}"), scale
+    return _per_order(unit, key), scale
 
 
 def coefficient_unit(key: str) -> str:
     """SI unit of coefficient `key`: 'Kxx' -> 'N/m'; 'Cxy_2' (multiplies Omega^2) -> 'N s/m (rad/s)^-2'."""
-    unit = COEFFICIENT_UNITS[key[0]]
+    return _per_order(COEFFICIENT_UNITS[key[0]], key)
+
+
+def _per_order(unit: str, key: str) -> str:
+    """`unit` of the constant term; with (rad/s)^-r for coefficient `key`'s term of order r ('Kxx_r')."""
     _, _, order = key.partition("_")
     return unit if not order else f"{unit} (rad/s)^-{order}"
 
