@@ -57,7 +57,7 @@ from reduction.identifiability import analyse, check_signal
 from reduction.identify_result import identification_of
 from reduction.impedance import impedance, impedance_basis, regression, regression_rows, regressors
 from reduction.instruments import circle_instruments, circle_orbits
-from reduction.methods import METHODS, Method
+from reduction.methods import METHODS, Method, Solver
 from reduction.models import AUTO_EXPONENTS, ModelSpec, model_spec, parse_freq_dep, power_spec
 from reduction.noise import equation_variances
 from reduction.rank import RANK_RTOL
@@ -73,7 +73,7 @@ def identify(
     model: str = "kcd11",
     freq_dep: str = "none",
     method: Method | str = Method.OLS,
-    solver: str = "qr",
+    solver: Solver | str = Solver.QR,
     *,
     rank_rtol: float = RANK_RTOL,
     tls_ratio: float | None = None,
@@ -89,8 +89,7 @@ def identify(
     if method not in METHODS:
         raise ReductionError(f"unknown method {method!r}: use one of {', '.join(METHODS)}")
     method = Method(method)
-    if solver not in reg.SOLVERS:
-        raise ReductionError(f"unknown solver {solver!r}: use one of {', '.join(reg.SOLVERS)}")
+    solver = reg.solver_of(solver)
     if not isinstance(table, OrbitTable):
         raise ReductionError("identify needs an OrbitTable")
     fd = parse_freq_dep(freq_dep)
@@ -152,7 +151,7 @@ def _selection(
 
 
 def _identify(
-    table: OrbitTable, spec: ModelSpec, method: Method, solver: str, rank_rtol: float, tls_ratio: float | None
+    table: OrbitTable, spec: ModelSpec, method: Method, solver: Solver, rank_rtol: float, tls_ratio: float | None
 ) -> Identification:
     A, b = _regression(spec, table)
     u = table.u
@@ -252,7 +251,7 @@ def _tls(
     A_s: FloatArray,
     b: FloatArray,
     c: FloatArray,
-    solver: str,
+    solver: Solver,
     ratio: float | None,
 ) -> reg.Estimate:
     d = np.stack([table.x, table.y], axis=1)

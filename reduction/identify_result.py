@@ -73,7 +73,7 @@ def identification_of(
         condition_number=rank.condition_number,
         residual_rms=0.0,
         fit=[],
-        solver=solver,
+        solver=str(solver),
         spec=spec,
         theta=theta,
         cost=est.rss,

@@ -1,4 +1,5 @@
-"""The least-squares estimators of the identification: their names in matrices, files and payloads.
+"""The least-squares estimators and solvers of the identification: their names in matrices, files
+and payloads.
 
 Its own module, free of numerics, so that the matrix configuration can type its ``method``
 field with it without importing the identification."""
@@ -20,3 +21,17 @@ class Method(StrEnum):
 
 
 METHODS = tuple(Method)
+
+
+class Solver(StrEnum):
+    """Linear least-squares solver of each step: Householder QR, SVD, or LU of the normal
+    equations with iterative refinement (the paper's cross-check; they agree to rounding)."""
+
+    __repr__ = str.__repr__
+
+    QR = "qr"
+    SVD = "svd"
+    LU = "lu"
+
+
+SOLVERS = tuple(Solver)

@@ -25,11 +25,11 @@ import scipy.linalg as sla
 
 from reduction.arrays import FloatArray
 from reduction.errors import IdentificationError, ReductionError
+from reduction.methods import SOLVERS, Solver
 
 #: a regression's rows, block by block (a callable: each call yields them again from the top)
 Blocks = Callable[[], Iterator[FloatArray]]
 
-SOLVERS = ("qr", "svd", "lu")
 CHUNK_ROWS = 32768  # real equations per block of the blocked QR (memory: one block, not the table)
 LONG_TABLE = 8 * CHUNK_ROWS  # above this many equations the QR is taken by Cholesky QR twice
 _EPS = np.finfo(float).eps
@@ -138,22 +138,29 @@ def weighted_lstsq(A: FloatArray, b: FloatArray, w: FloatArray) -> FloatArray:
     return x
 
 
-def lstsq(A: np.ndarray, b: np.ndarray, solver: str = "qr") -> np.ndarray:
+def lstsq(A: np.ndarray, b: np.ndarray, solver: Solver | str = Solver.QR) -> np.ndarray:
     """Least-squares solution of A x = b (A full column rank) by ``qr``, ``svd`` or ``lu``.
 
     b may be (m,) or (m, k) for k right-hand sides.
     """
-    if solver == "qr":
+    solver = solver_of(solver)
+    if solver is Solver.QR:
         R, z = triangular(A, b)
         x: FloatArray = sla.solve_triangular(R, z)
         return x
-    if solver == "svd":
+    if solver is Solver.SVD:
         U, s, Vt = np.linalg.svd(A, full_matrices=False)
         x = Vt.T @ ((U.T @ b) / (s if np.ndim(b) == 1 else s[:, None]))
         return x
-    if solver == "lu":
-        return _lu_refined(A, b)
-    raise ReductionError(f"unknown solver {solver!r}: use one of {', '.join(SOLVERS)}")
+    return _lu_refined(A, b)
+
+
+def solver_of(name: Solver | str) -> Solver:
+    """The solver named ``name`` (qr | svd | lu); ReductionError naming the choices otherwise."""
+    try:
+        return Solver(name)
+    except ValueError:
+        raise ReductionError(f"unknown solver {name!r}: use one of {', '.join(SOLVERS)}") from None
 
 
 def _lu_refined(A: np.ndarray, b: np.ndarray, max_iter: int = 30) -> np.ndarray:
@@ -196,7 +203,11 @@ def _finish(A_eff: np.ndarray, x: np.ndarray, r: np.ndarray, cov_matrix: np.ndar
 
 
 def ols(
-    A: np.ndarray, b: np.ndarray, solver: str = "qr", unscaled: np.ndarray | None = None, x: np.ndarray | None = None
+    A: np.ndarray,
+    b: np.ndarray,
+    solver: Solver | str = Solver.QR,
+    unscaled: np.ndarray | None = None,
+    x: np.ndarray | None = None,
 ) -> Estimate:
     """Ordinary least squares; cov = s^2 (A^T A)^-1 with s^2 = rss / (m - p); ``unscaled``
     is (A^T A)^-1 when the caller has it already (else computed by SVD), ``x`` the solution
@@ -206,7 +217,11 @@ def ols(
 
 
 def wls(
-    A: np.ndarray, b: np.ndarray, weights: np.ndarray, solver: str = "qr", unscaled: np.ndarray | None = None
+    A: np.ndarray,
+    b: np.ndarray,
+    weights: np.ndarray,
+    solver: Solver | str = Solver.QR,
+    unscaled: np.ndarray | None = None,
 ) -> Estimate:
     """Weighted least squares, weights = inverse variances of b (any common scale):
     minimises sum w r^2; cov = s^2 (A^T W A)^-1, s^2 = weighted rss / (m - p); ``unscaled``
@@ -219,7 +234,7 @@ def wls(
     return _finish(Aw, x, bw - Aw @ x, unscaled)
 
 
-def iv(A: np.ndarray, Z: np.ndarray, b: np.ndarray, solver: str = "qr") -> Estimate:
+def iv(A: np.ndarray, Z: np.ndarray, b: np.ndarray, solver: Solver | str = Solver.QR) -> Estimate:
     """Instrumental variables by two stages: A_hat = P_Z A (projection onto span Z), then
     least squares of b on A_hat. Z (m, q >= p) must be correlated with A but not with the
     noise in A. cov = s^2 (A_hat^T A_hat)^-1 with s^2 from the structural residual b - A x."""

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -9,6 +11,7 @@ from support.identify_keys import keys
 from support.reduction_synthetic import frequencies, keys_of, orbit_table, truth
 from reduction.errors import IdentificationError, ReductionError
 from reduction.identify import identify
+from reduction.methods import Solver
 from reduction.models import parse_freq_dep
 
 ELLIPSES = (("forward",), (5e-6, 2e-6, 0.4), (3e-6, -4e-6, 1.1))  # b < 0: backward-whirling ellipse
@@ -73,9 +76,10 @@ def test_solvers_agree_to_rounding_on_noisy_data():
         table.fx * (1 + 0.01 * rng.standard_normal(table.n)),
         table.fy + 5 * rng.standard_normal(table.n),
     )
-    results = {s: identify(noisy, "kcd11", "power:1", solver=s) for s in ("qr", "svd", "lu")}
+    results = {s: identify(noisy, "kcd11", "power:1", solver=s) for s in Solver}
+    assert [r.solver for r in results.values()] == ["qr", "svd", "lu"]  # stored as the plain word
     ref = results["qr"].coefficients
-    for s in ("svd", "lu"):
+    for s in (Solver.SVD, Solver.LU):
         for k, v in results[s].coefficients.items():
             assert v == pytest.approx(ref[k], rel=1e-10, abs=1e-10 * results["qr"].std_errors[k])
         assert results[s].std_errors == pytest.approx(results["qr"].std_errors, rel=1e-8)
@@ -156,11 +160,19 @@ def test_wls_without_coherence_is_a_clear_error():
         identify(orbit_table(true, frequencies(4)), "kc8", method="wls")
 
 
-@pytest.mark.parametrize("kw", [{"method": "mle"}, {"solver": "chol"}, {"model": "kd4"}, {"freq_dep": "poly"}])
-def test_unknown_options_are_refused(kw):
+@pytest.mark.parametrize(
+    ("kw", "says"),
+    [
+        ({"method": "mle"}, "unknown method 'mle': use one of ols, wls, tls, iv"),
+        ({"solver": "chol"}, "unknown solver 'chol': use one of qr, svd, lu"),
+        ({"model": "kd4"}, "kd4"),
+        ({"freq_dep": "poly"}, "poly"),
+    ],
+)
+def test_unknown_options_are_refused(kw, says):
     true = truth("kc8", {"K": (0,), "C": (0,)})
     args = {"model": "kc8", **kw}
-    with pytest.raises(ReductionError):
+    with pytest.raises(ReductionError, match=re.escape(says)):
         identify(orbit_table(true, frequencies(4)), **args)
 
 
