@@ -3,7 +3,7 @@
 Each row holds the point's conditions (SI), the fit's key (load measuring system, model,
 frequency dependence, method), the twelve constant coefficients K, C, D (N/m, N s/m, kg)
 and their expanded uncertainties U (k = 2), every coefficient of the fit as JSON, the
-adequacy verdict, the run's provenance and its directory (docs/catalog.md).
+adequacy verdict, the run's provenance (the bearing tested among it) and its directory (docs/catalog.md).
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from orbitrig.catalog.bearing import bearing_columns
 from orbitrig.store.fit_record import COVERAGE_K, expanded_k, expanded_uncertainty, uncertainty_basis
 from orbitrig.store.stored_run import Point, Run, StoredIdentification
 from rigunits import COEFFICIENT_UNITS
@@ -56,6 +57,7 @@ def _run_columns(run: Run) -> dict[str, Any]:
         "calibration_record_sha256": prov.get("calibration_record_sha256", ""),
         "started": prov.get("started", ""),
         "ended": prov.get("ended", ""),
+        **bearing_columns(run),
     }
 
 
