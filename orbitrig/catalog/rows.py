@@ -72,7 +72,8 @@ def _point_columns(p: Point) -> dict[str, Any]:
         "pressure_ratio": s.pressure_ratio,
         "static_eccentricity": s.static_eccentricity,
         "dynamic_eccentricity": s.dynamic_eccentricity,
-        "orbit_hz": json.dumps(sorted({f.orbit_hz for f in p.frequencies})),
+        # the planned frequencies (ratio x spin): 12 significant digits, 5.0 for 4.999999999999999
+        "orbit_hz": json.dumps(sorted({float(f"{f.orbit_hz:.12g}") for f in p.frequencies})),
     }
 
 

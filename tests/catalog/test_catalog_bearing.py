@@ -7,6 +7,7 @@ gains the columns with its rows kept."""
 from __future__ import annotations
 
 import hashlib
+import json
 import subprocess
 import sys
 
@@ -63,6 +64,8 @@ def test_rows_name_the_scenario_and_the_bearing(runs):
     assert paper["sim_seed"] == compressible["sim_seed"] == 1
     for row in (paper, compressible):  # config/rig.toml [bearing]: radius 19.05 mm, clearance 60 um
         assert (row["bearing_radius"], row["bearing_clearance"]) == (0.01905, 6e-05)
+        # the demo's ratios 0.3 ... 1.2 of 1000 rpm, as written (not 4.999999999999999 Hz)
+        assert json.loads(row["orbit_hz"]) == [5.0, 8.33333333333, 11.6666666667, 15.0, 20.0]
 
 
 def test_runs_of_another_scenario_are_no_repeats(catalog, runs):
