@@ -1,19 +1,22 @@
-"""An existing catalog brought up to the table ``fits`` of this version: each column it lacks
+"""An existing catalog brought up to the tables of this version: each column ``fits`` lacks
 is added (``ALTER TABLE fits ADD COLUMN``, NULL in the rows already there; no row is
-touched otherwise). `catalog add RUN` again fills the new columns of that run's rows.
+touched otherwise; `catalog add RUN` again fills the new columns of that run's rows), and
+``fits_units`` is made to list every column's unit.
 """
 
 from __future__ import annotations
 
-from sqlalchemy import inspect
+from typing import Any
+
+from sqlalchemy import inspect, select
 from sqlalchemy.engine import Engine
 from sqlalchemy.exc import OperationalError, ProgrammingError
 
-from orbitrig.catalog.schema import fits
+from orbitrig.catalog.schema import UNIT_OF, fits, fits_units
 
 
 def missing_columns(engine: Engine) -> list[str]:
-    """The columns of ``fits`` the database's table does not have (all when it has no table)."""
+    """The columns of ``fits`` the database's table does not have (none without the table)."""
     inspector = inspect(engine)
     if not inspector.has_table(fits.name):
         return []
@@ -38,3 +41,24 @@ def add_missing_columns(engine: Engine) -> list[str]:
                 continue  # another writer added it meanwhile
             raise
     return missing
+
+
+def write_units(engine: Engine) -> None:
+    """Make ``fits_units`` hold UNIT_OF (written only when it differs: reading a catalog of
+    this version writes nothing)."""
+    with engine.connect() as conn:
+        stored = dict(conn.execute(select(fits_units.c.column_name, fits_units.c.unit)).all())
+    if stored == UNIT_OF:
+        return
+    stmt: Any  # the dialect's own Insert; both have on_conflict_do_update and excluded
+    if engine.dialect.name == "postgresql":
+        from sqlalchemy.dialects.postgresql import insert as postgresql_insert
+
+        stmt = postgresql_insert(fits_units)
+    else:
+        from sqlalchemy.dialects.sqlite import insert as sqlite_insert
+
+        stmt = sqlite_insert(fits_units)
+    upsert = stmt.on_conflict_do_update(index_elements=[fits_units.c.column_name], set_={"unit": stmt.excluded.unit})
+    with engine.begin() as conn:  # an upsert: two processes opening the catalog at once both succeed
+        conn.execute(upsert, [{"column_name": c, "unit": u} for c, u in UNIT_OF.items()])

@@ -16,7 +16,7 @@ from typing import Any
 from orbitrig.catalog.bearing import bearing_columns
 from orbitrig.store.fit_record import COVERAGE_K, expanded_k, expanded_uncertainty, uncertainty_basis
 from orbitrig.store.stored_run import Point, Run, StoredIdentification
-from rigunits import COEFFICIENT_UNITS
+from rigunits import COEFFICIENT_UNITS, coefficient_unit
 
 #: the constant coefficients every model reports (absent ones are NULL)
 COEFFICIENTS = tuple(f"{m}{ij}" for m in "KCD" for ij in ("xx", "xy", "yx", "yy"))
@@ -106,6 +106,7 @@ def _fit_columns(ident: StoredIdentification) -> dict[str, Any]:
                 "U": u,
                 "std": {k: _number(v) for k, v in result.get("std_errors", {}).items()},
                 "k": expanded_k(result) if ident.ok else None,  # U = k x the standard uncertainty
+                "units": {k: coefficient_unit(k) for k in values},  # SI, as pint parses them
             }
         ),
     )

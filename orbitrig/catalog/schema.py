@@ -90,3 +90,19 @@ fits = Table("fits", metadata, *_columns(), UniqueConstraint(*KEY, name="fits_ke
 
 #: the columns a row carries (all but the surrogate id)
 ROW_COLUMNS = tuple(c.name for c in fits.columns if c.name != "id")
+
+#: the unit of every column of ``fits`` in a form pint parses: COLUMN_UNITS, "1" for the other
+#: numbers and flags (ratios, counts, chi2), "" for text
+UNIT_OF = {
+    c.name: COLUMN_UNITS.get(c.name, "" if isinstance(c.type, (String, Text)) else "1")
+    for c in fits.columns
+    if c.name != "id"
+}
+
+#: table ``fits_units``: each column of ``fits`` and its unit (UNIT_OF), for readers of the database
+fits_units = Table(
+    "fits_units",
+    metadata,
+    Column("column_name", String(80), primary_key=True),
+    Column("unit", String(80), nullable=False),
+)
