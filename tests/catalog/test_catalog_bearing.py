@@ -118,3 +118,25 @@ def test_an_earlier_catalog_gains_the_columns_and_keeps_its_rows(catalog, runs):
             conn.exec_driver_sql("DROP TABLE fits")
         reopened.close()
         Catalog(url).close()
+
+
+def test_the_compare_legend_names_the_bearings_when_they_differ(runs):
+    """`compare` of the three runs: each legend entry says which bearing; of the two repeats alone,
+    the run ids only; and the legend stays inside the figure."""
+    from orbitrig.catalog.compare import Variable
+    from orbitrig.catalog.compare_plot import compare_figure
+
+    rows = [r for run in runs.values() for r in run_rows(read_run(run)) if (r["lms"], r["model"]) == ("piezo", "kcd11")]
+
+    def labels(rows):
+        fig = compare_figure(rows, Variable.STATIC_ECCENTRICITY, ["Kxx", "Cxx"], title="t")
+        fig.draw_without_rendering()
+        box = fig.legends[0].get_window_extent(fig.canvas.get_renderer())
+        assert box.x0 >= 0 and box.x1 <= fig.bbox.width
+        return sorted(t.get_text() for t in fig.legends[0].get_texts())
+
+    both = labels(rows)
+    assert sorted(t.rsplit(" (", 1)[1] for t in both) == ["sim compressible)", "sim default)", "sim default)"]
+    assert all(t.startswith("SAC-DS-1@") for t in both)
+    repeats = labels([r for r in rows if r["sim_scenario"].startswith("default")])
+    assert len(repeats) == 2 and all(" (" not in t for t in repeats)
