@@ -1,6 +1,7 @@
 """docs/orbit-table.md's Examples run as written, from the source tree: each command's exit
-status is the one its comment gives (0 without one), the JSON one prints the contract's object,
-(the example tables state their u_*), and the refused one says which coefficients the table cannot separate."""
+status is the one its comment gives (0 without one), the JSON one prints the contract's object
+(the example tables state their u_*), and the refused one says which coefficients the table
+cannot separate."""
 
 from __future__ import annotations
 
