@@ -47,10 +47,15 @@ def bearing_columns(run: Run) -> dict[str, Any]:
     return columns
 
 
+#: the columns that tell one bearing from another, beside rig_id: the scenario by its text's
+#: SHA-256, not by its name (a path, which another machine spells otherwise); the seed is in the text
+KEY_COLUMNS = ("bearing_radius", "bearing_clearance", "sim_scenario_sha256")
+
+
 def bearing_key(row: dict[str, Any]) -> tuple:
     """What tells the row's bearing from another's: rig, journal, clearance and scenario
     (a row catalogued before these columns were: None/"" alike, its rig id alone)."""
-    return (row.get("rig_id") or "", *(_same(row.get(c)) for c in BEARING_COLUMNS if c != "sim_seed"))
+    return (row.get("rig_id") or "", *(_same(row.get(c)) for c in KEY_COLUMNS))
 
 
 def bearing_label(row: dict[str, Any]) -> str:

@@ -84,6 +84,10 @@ def test_runs_of_another_scenario_are_no_repeats(catalog, runs):
     mixed = repeatability([{**r, "sim_scenario": "", "sim_scenario_sha256": ""} for r in rows], "Cxx")
     assert (mixed.groups, mixed.dof) == (1, 2) and mixed.p_value < 1e-6
     assert len(catalog.rows(f"{ONE_FIT} and sim_scenario_sha256 = {hashlib.sha256(b'').hexdigest()}")) == 2
+    # the same scenario file at another path (another machine's checkout) is the same bearing
+    comp = next(r for r in rows if not r["sim_scenario"].startswith("default"))
+    moved = {**comp, "run_id": "SAC-DS-1@elsewhere", "sim_scenario": "/home/ada/orbitrig/config/sim/compressible.toml"}
+    assert sorted(len(g) for g in repeat_groups([*rows, moved])) == [2, 2]
 
 
 def _earlier_table(metadata: MetaData) -> Table:
