@@ -140,7 +140,8 @@ def impedance_figure(
         loc="lower center",
         ncols=min(3, len(labels)),
         fontsize="small",
-        title="identified: solid over the tested range, dotted beyond",
+        title="identified: solid over the tested range, dotted beyond; "
+        "f = \u2212Z d, Z = K + i|\u03a9|C \u2212 \u03a9\u00b2D (both whirl directions)",
     )
     fig.suptitle(title)
     return fig

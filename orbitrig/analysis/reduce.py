@@ -243,3 +243,22 @@ def table_cells(rows: list[Reduced], full: bool = False) -> list[list[str]]:
         if truth:
             lines.append([r.point.name, f"true ({r.lms})", *(number(k, truth[k]) if k in truth else "" for k in cols)])
     return lines
+
+
+def table_legend(rows: list[Reduced]) -> list[str]:
+    """What the text table's columns and rows are: the residual, the constant terms of a
+    frequency-dependent fit, power:auto's exponent M, the simulator's truth."""
+    from reduction.models import is_constant
+
+    lines = ["resid = RMS of measured minus reproduced force over the table's equations (N)"]
+    freq_dep = rows[0].freq_dep if rows else "none"
+    if not is_constant(freq_dep):
+        lines.append(
+            f"{freq_dep}: K, C, D shown are the constant terms (Omega^0); every term is in the CSV written, "
+            "its unit in the header (Kxx_1 [N/m (rad/s)^-1])"
+        )
+    if any(r.identification is not None and r.identification.exponent is not None for r in rows):
+        lines.append("M = the exponent power:auto chose: K = K0 + Omega^M KM, likewise C and D (Omega in rad/s)")
+    if any(fit_true_values(r) for r in rows):
+        lines.append("true (LMS) = the simulator's true Z projected onto the fit's model (the CSV's true_* columns)")
+    return lines

@@ -185,6 +185,30 @@ def _points_table(report) -> str:
     return f"<h2>Operating points</h2><table>{head}{''.join(rows)}</table>"
 
 
+def _run_table(run, points: str) -> str:
+    """The run's header: matrix, rig or simulator scenario, who and which calibration, when,
+    the software; what a reader of the page needs to know which bearing and set-up it shows."""
+    prov = run.provenance
+    mode = f"simulator (--sim), scenario {run.sim_scenario_name}" if run.sim else "rig"
+    record = prov.get("calibration_record", "")
+    sha = prov.get("calibration_record_sha256", "")
+    rows = [
+        ("matrix", run.matrix_name),
+        ("mode", mode),
+        ("rig", prov.get("rig_id", "")),
+        ("operator", prov.get("operator", "")),
+        ("calibration record", f"{record} (SHA-256 {sha})" if record and sha else record),
+        ("created", run.created),
+        ("software version", run.software_version),
+        ("operating points", points),
+        ("report written", utc_iso()),
+    ]
+    cells = "".join(
+        f'<tr><th class="l">{name}</th><td class="l">{_e(value)}</td></tr>' for name, value in rows if value
+    )
+    return f"<table>{cells}</table>"
+
+
 def render(report) -> str:
     run = report.run
     incomplete = [p.name for p in run.points if not p.complete]
@@ -195,14 +219,7 @@ def render(report) -> str:
         f"<title>orbitrig run {_e(run.directory.name)}</title><style>{CSS}</style></head><body>",
         f"<h1>orbitrig run <code>{_e(run.directory.name)}</code></h1>",
         f'<p>Status: <span class="status {run.status}">{_e(run.status)}</span> {_e(run.status_message)}</p>',
-        "<table>",
-        f'<tr><th class="l">matrix</th><td class="l">{_e(run.matrix_name)}</td></tr>',
-        f'<tr><th class="l">mode</th><td class="l">{"simulator (--sim)" if run.sim else "rig"}</td></tr>',
-        f'<tr><th class="l">created</th><td class="l">{_e(run.created)}</td></tr>',
-        f'<tr><th class="l">software version</th><td class="l">{_e(run.software_version)}</td></tr>',
-        f'<tr><th class="l">operating points</th><td class="l">{len(run.complete_points)} complete{more}</td></tr>',
-        f'<tr><th class="l">report written</th><td class="l">{utc_iso()}</td></tr>',
-        "</table>",
+        _run_table(run, f"{len(run.complete_points)} complete{more}"),
     ]
     if report.points:
         head.append(_points_table(report))
@@ -225,7 +242,12 @@ def render(report) -> str:
         head.append(
             "<p>Tables: " + " \u00b7 ".join(f'<a href="../{_e(f.name)}">{_e(f.name)}</a>' for f in files) + "</p>"
         )
-    for name, text in (("rig configuration", run.rig_config), ("matrix configuration", run.matrix_config)):
+    for name, text in (
+        ("rig configuration", run.rig_config),
+        ("matrix configuration", run.matrix_config),
+        ("simulator scenario", run.sim_scenario_config),
+        ("calibration record", run.calibration_record_text),
+    ):
         if text:
             head.append(f"<details><summary>{name}</summary><pre>{_e(text)}</pre></details>")
     if report.pdf:

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from orbitrig.analysis.ross_warnings import bearing_warnings, notes
+from orbitrig.analysis.ross_warnings import UNITS, bearing_warnings, notes
 from orbitrig.errors import OrbitrigError
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.durable import write_atomic
@@ -54,6 +54,17 @@ CONVENTIONS = {
     "not_determined": "coefficients with U > |value| or U unknown: exported as identified, flagged",
     "fit_warnings": "the warnings of the fit that gave each speed, as stored (chi2, conditioning, ...), and an "
     "adequacy test that does not support the frequency dependence exported: exported as identified, flagged",
+}
+
+#: each numeric field's unit, as pint parses it (U, not_determined's value and U: the coefficient's)
+FIELD_UNITS = {
+    "frequency": "rad/s",
+    **{key: UNITS[key[0]] for key in KEYS},
+    "recess_pressure": "Pa",
+    **{c: "1" for c in CONDITION if c != "recess_pressure"},
+    "spin": "rad/s",
+    "whirl": "rad/s",
+    "whirl_range": "rad/s",
 }
 
 
@@ -160,6 +171,7 @@ def export_ross(run: Run, out: Path, spec: FitSpec, selection: Selection | None 
         "run": str(run.directory),
         "created": run.created,
         "conventions": CONVENTIONS,
+        "units": FIELD_UNITS,
         "bearings": bearings,
     }
     path = Path(out) / FILE

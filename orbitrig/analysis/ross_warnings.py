@@ -47,7 +47,7 @@ def notes(bearing: dict[str, Any]) -> list[str]:
     used = ", ".join(f"{s['spin']:.6g} {s['used']} ({s['fit']})" for s in bearing["speeds"])
     lines = [f"ross: {bearing['lms']} bearing of points {bearing['points']}: rad/s {used}; {bearing['outside']}"]
     for n in bearing["not_determined"]:
-        unit = UNITS[n["coefficient"][0]]
+        unit = _unit(n)
         lines.append(
             f"warning: point {n['point']:04d} at {n['spin']:.6g} rad/s, fit {n['fit']}: {n['coefficient']} = "
             f"{n['value']:.4g} {unit} with U = {n['U']:.4g} {unit} is not determined (U > |value|); "
@@ -60,13 +60,18 @@ def notes(bearing: dict[str, Any]) -> list[str]:
     return lines
 
 
+def _unit(flagged: dict[str, Any]) -> str:
+    """The SI unit of a coefficient not determined (ROSS's name: kxy, cxx, myy)."""
+    return UNITS[flagged["coefficient"][0]]
+
+
 def warn_or_refuse(data: dict[str, Any], path: str | Path, strict: bool) -> None:
     """Warn (UserWarning, one per kind) about a bearing's coefficients not determined and its
     fit warnings; with ``strict`` refuse them (ValueError naming each). A file written before
     fit warnings were exported has none."""
     flagged = [
         f"point {n['point']} ({n['spin']:.6g} rad/s), fit {n['fit']}: {n['coefficient']} = {n['value']:.4g} "
-        f"with U = {n['U']:.4g}"
+        f"{_unit(n)} with U = {n['U']:.4g} {_unit(n)}"
         for n in data["not_determined"]
     ]
     fits = [

@@ -2,8 +2,9 @@
 repeated runs at one operating point, and their consistency.
 
 Repeatability of one coefficient: rows of one fit kind whose five conditions (spin,
-recess pressure, pressure ratio, static and dynamic eccentricity) agree form a group
-when they come from at least two runs. Each row's standard uncertainty u_i is what differs
+recess pressure, pressure ratio, static and dynamic eccentricity) and bearing (rig, journal,
+clearance, simulator scenario: orbitrig.catalog.bearing) agree form a group when they come
+from at least two runs. Each row's standard uncertainty u_i is what differs
 from run to run: in a group whose rows share one calibration record
 (calibration_record_sha256) the calibration part of U is common to them all and cancels
 in their differences, so u_i is the fit's statistical standard error (coefficients_json
@@ -26,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from orbitrig.catalog.bearing import bearing_key
 from orbitrig.catalog.rows import COVERAGE
 
 Row = dict[str, Any]
@@ -95,10 +97,11 @@ def operating_point(row: Row) -> tuple:
 
 
 def repeat_groups(rows: list[Row]) -> list[list[Row]]:
-    """Rows of the same operating point from at least two runs (one fit kind assumed)."""
+    """Rows of the same operating point of the same bearing from at least two runs (one fit
+    kind assumed)."""
     groups: dict[tuple, list[Row]] = defaultdict(list)
     for row in rows:
-        groups[operating_point(row)].append(row)
+        groups[(operating_point(row), bearing_key(row))].append(row)
     return [g for g in groups.values() if len({r["run_id"] for r in g}) >= 2]
 
 

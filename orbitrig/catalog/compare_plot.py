@@ -14,6 +14,7 @@ import numpy as np
 
 from orbitrig.analysis.plots import FigureFormat, _figure, style
 from orbitrig.analysis.plot_marks import _colors
+from orbitrig.catalog.bearing import bearing_key, bearing_label
 from orbitrig.catalog.compare import Row, Variable, repeatability, runs_of
 from orbitrig.catalog.predicted import PredictedLines, predicted_lines
 from orbitrig.store.durable import write_atomic
@@ -53,6 +54,7 @@ def compare_figure(
     fig = _figure(style().width, PANEL_HEIGHT * nrow, layout=None)  # legend and title added by _lay_out
     runs = runs_of(rows)
     lines = predicted_lines(predicted or [], rows, variable)  # those of the plotted rows' conditions
+    labels = _run_labels(runs)
     colors = _colors(len(runs))
     xs = np.array([variable.of(r) for r in rows])
     step = np.min(np.diff(np.unique(xs))) if len(np.unique(xs)) > 1 else 1.0
@@ -68,7 +70,7 @@ def compare_figure(
             ]
             if pts:
                 x, y, u = np.array(sorted(pts)).T
-                ax.errorbar(x, y, yerr=u, fmt="o-", ms=4, lw=0.8, capsize=3, color=color, label=run_id)
+                ax.errorbar(x, y, yerr=u, fmt="o-", ms=4, lw=0.8, capsize=3, color=color, label=labels[run_id])
         _draw_predicted(ax, lines, variable, name, scale)
         ax.set_title(f"{name} [{unit}]\n{repeatability(rows, name).text()}", fontsize=font)
         ax.set_xlabel(variable.label, fontsize=font)
@@ -76,6 +78,15 @@ def compare_figure(
         ax.grid(alpha=0.3)
     _lay_out(fig, title, font)
     return fig
+
+
+def _run_labels(runs: dict[str, list[Row]]) -> dict[str, str]:
+    """Each run's legend entry: its id, and the bearing it tested when the runs tested more
+    than one (`SAC-DS-1@... (sim compressible)`): their points are no repeats of each other."""
+    first = {run_id: rows[0] for run_id, rows in runs.items()}
+    if len({bearing_key(r) for r in first.values()}) < 2:
+        return {run_id: run_id for run_id in runs}
+    return {run_id: f"{run_id} ({bearing_label(r)})" for run_id, r in first.items()}
 
 
 def _lay_out(fig, title: str, font: float) -> None:

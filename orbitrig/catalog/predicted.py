@@ -38,6 +38,11 @@ def _column(name: str, file: Path, line: int) -> str:
     key, _, unit = name.partition(" [")
     if key in COEFFICIENTS and unit == f"{UNITS[key[0]]}]":
         return key
+    if key in COEFFICIENTS:
+        raise PredictedError(
+            f"{file}, line {line}, column {name!r}: the unit of {key} is {UNITS[key[0]]!r} (SI): "
+            f"write '{key} [{UNITS[key[0]]}]' and the values in {UNITS[key[0]]}"
+        )
     raise PredictedError(
         f"{file}, line {line}, column {name!r}: not one of {', '.join(CONDITION_COLUMNS)} "
         f"or 'KEY [unit]' (e.g. 'Kxx [N/m]', 'Cxy [N s/m]', 'Dxx [kg]')"

@@ -3,7 +3,7 @@
 Each row holds the point's conditions (SI), the fit's key (load measuring system, model,
 frequency dependence, method), the twelve constant coefficients K, C, D (N/m, N s/m, kg)
 and their expanded uncertainties U (k = 2), every coefficient of the fit as JSON, the
-adequacy verdict, the run's provenance and its directory (docs/catalog.md).
+adequacy verdict, the run's provenance (the bearing tested among it) and its directory (docs/catalog.md).
 """
 
 from __future__ import annotations
@@ -13,9 +13,10 @@ import math
 from pathlib import Path
 from typing import Any
 
+from orbitrig.catalog.bearing import bearing_columns
 from orbitrig.store.fit_record import COVERAGE_K, expanded_k, expanded_uncertainty, uncertainty_basis
 from orbitrig.store.stored_run import Point, Run, StoredIdentification
-from rigunits import COEFFICIENT_UNITS
+from rigunits import COEFFICIENT_UNITS, coefficient_unit
 
 #: the constant coefficients every model reports (absent ones are NULL)
 COEFFICIENTS = tuple(f"{m}{ij}" for m in "KCD" for ij in ("xx", "xy", "yx", "yy"))
@@ -56,6 +57,7 @@ def _run_columns(run: Run) -> dict[str, Any]:
         "calibration_record_sha256": prov.get("calibration_record_sha256", ""),
         "started": prov.get("started", ""),
         "ended": prov.get("ended", ""),
+        **bearing_columns(run),
     }
 
 
@@ -70,7 +72,8 @@ def _point_columns(p: Point) -> dict[str, Any]:
         "pressure_ratio": s.pressure_ratio,
         "static_eccentricity": s.static_eccentricity,
         "dynamic_eccentricity": s.dynamic_eccentricity,
-        "orbit_hz": json.dumps(sorted({f.orbit_hz for f in p.frequencies})),
+        # the planned frequencies (ratio x spin): 12 significant digits, 5.0 for 4.999999999999999
+        "orbit_hz": json.dumps(sorted({float(f"{f.orbit_hz:.12g}") for f in p.frequencies})),
     }
 
 
@@ -103,6 +106,7 @@ def _fit_columns(ident: StoredIdentification) -> dict[str, Any]:
                 "U": u,
                 "std": {k: _number(v) for k, v in result.get("std_errors", {}).items()},
                 "k": expanded_k(result) if ident.ok else None,  # U = k x the standard uncertainty
+                "units": {k: coefficient_unit(k) for k in values},  # SI, as pint parses them
             }
         ),
     )

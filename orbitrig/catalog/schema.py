@@ -27,6 +27,8 @@ _TEXT = (
     "calibration_record_sha256",
     "started",
     "ended",
+    "sim_scenario",
+    "sim_scenario_sha256",
     "label",
     "orbit_hz",
     "error",
@@ -36,6 +38,8 @@ _TEXT = (
     "coefficients_json",
 )
 _FLOAT = (
+    "bearing_radius",
+    "bearing_clearance",
     "spin",
     "spin_rpm",
     "recess_pressure",
@@ -53,6 +57,8 @@ COLUMN_UNITS = {
     "spin_rpm": "rpm",
     "recess_pressure": "Pa",
     "orbit_hz": "Hz",
+    "bearing_radius": "m",
+    "bearing_clearance": "m",
     **{c: UNITS[c[0]] for c in COEFFICIENTS},
     **{f"{c}_U": UNITS[c[0]] for c in COEFFICIENTS},
 }
@@ -69,6 +75,7 @@ def _columns() -> list[Column[Any]]:
         Column("method", String(40), nullable=False),
         Column("ok", Boolean, nullable=False),
         Column("sim", Boolean),
+        Column("sim_seed", Integer),
         Column("n_frequencies", Integer),
         Column("adequacy_supported", Boolean),
     ]
@@ -83,3 +90,19 @@ fits = Table("fits", metadata, *_columns(), UniqueConstraint(*KEY, name="fits_ke
 
 #: the columns a row carries (all but the surrogate id)
 ROW_COLUMNS = tuple(c.name for c in fits.columns if c.name != "id")
+
+#: the unit of every column of ``fits`` in a form pint parses: COLUMN_UNITS, "1" for the other
+#: numbers and flags (ratios, counts, chi2), "" for text
+UNIT_OF = {
+    c.name: COLUMN_UNITS.get(c.name, "" if isinstance(c.type, (String, Text)) else "1")
+    for c in fits.columns
+    if c.name != "id"
+}
+
+#: table ``fits_units``: each column of ``fits`` and its unit (UNIT_OF), for readers of the database
+fits_units = Table(
+    "fits_units",
+    metadata,
+    Column("column_name", String(80), primary_key=True),
+    Column("unit", String(80), nullable=False),
+)

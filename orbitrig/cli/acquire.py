@@ -21,10 +21,15 @@ _HINT_LINK = (
 )
 
 
-def block_summary(block) -> dict:
-    """The JSON object of `orbitrig acquire --json` (units: counts, or engineering
-    units with a rig config; phase in degrees, q(theta) = Re(q_bar e^{i theta});
-    uncertainty: standard uncertainty of the averaged phasor, same unit)."""
+#: the unit of a raw A/D reading (--counts, or no rig config), as pint parses it
+RAW_UNIT = "count"
+
+
+def block_summary(block, labels: dict[int, tuple[str, str]] | None = None) -> dict:
+    """The JSON object of `orbitrig acquire --json`: per channel its `name` and `unit` (the rig
+    config's: N, m; "count" for raw counts, name "" without a rig config); phase in degrees,
+    q(theta) = Re(q_bar e^{i theta}); uncertainty: standard uncertainty of the averaged phasor,
+    in the channel's unit."""
     import math
 
     import numpy as np
@@ -41,6 +46,8 @@ def block_summary(block) -> dict:
         "channels": [
             {
                 "index": k,
+                "name": (labels or {}).get(k, ("", RAW_UNIT))[0],
+                "unit": (labels or {}).get(k, ("", RAW_UNIT))[1],
                 "re": float(q.real),
                 "im": float(q.imag),
                 "amplitude": float(abs(q)),
@@ -150,7 +157,7 @@ def _acquire(scan: _Scan, rule, timeout: float | None):
 def _print_table(block, labels: dict[int, tuple[str, str]]) -> None:
     from daq.averager import StopReason
 
-    out = block_summary(block)
+    out = block_summary(block, labels)
     s = block.stats
     reasons = f" {dict(s.drop_reasons)}" if s.drop_reasons else ""
     stop = "" if block.stop_reason is StopReason.COUNT else f" (stopped: {block.stop_reason})"
@@ -163,7 +170,7 @@ def _print_table(block, labels: dict[int, tuple[str, str]]) -> None:
         f"{'ch':>3} {'re':>12} {'im':>12} {'amplitude':>12} {'phase deg':>10} {'rms resid':>12} {'u %':>8}  unit   name"
     )
     for c in out["channels"]:
-        name, unit = labels.get(c["index"], ("", "counts"))
+        name, unit = c["name"], c["unit"]
         rel = (
             float("nan") if c["uncertainty"] is None or not c["amplitude"] else 100 * c["uncertainty"] / c["amplitude"]
         )
@@ -250,6 +257,6 @@ def register(app: typer.Typer) -> None:
         scan = _scan(adc, channels, mode, rig, counts)
         block = _acquire(scan, _rule(revolutions, target, min_revolutions), timeout)
         if as_json:
-            typer.echo(json.dumps(block_summary(block)))
+            typer.echo(json.dumps(block_summary(block, scan.labels)))
         else:
             _print_table(block, scan.labels)

@@ -117,7 +117,7 @@ def reduce_cmd(
 
 def _print_reduce(directory: Path, run, rows, path: Path, fmt: OutputFormat, what: str) -> None:
     """The rows of `reduce` on standard output in `fmt`; `what` names the fit."""
-    from orbitrig.analysis.reduce import table_cells
+    from orbitrig.analysis.reduce import table_cells, table_legend
 
     if fmt == OutputFormat.JSON:
         out = {"run": str(directory), "csv": str(path), "status": run.status, "results": [r.to_dict() for r in rows]}
@@ -132,6 +132,7 @@ def _print_reduce(directory: Path, run, rows, path: Path, fmt: OutputFormat, wha
             )
         )
         typer.echo(_plain(table_cells(rows)).text())
+        typer.echo("\n" + "\n".join(wrap(line) for line in table_legend(rows)))
         typer.echo(f"written: {path}")
 
 

@@ -10,7 +10,8 @@
   ``unit``, ``e_n``, ``true`` (--sim: the fit's own truth), ``error`` and the fit's
   ``warnings`` (joined with ' | ', on each of its rows);
 - ``covariance_PPPP_<key>.csv``: the covariance, the free coefficients' names as the first
-  column and the header (entry in unit(row) x unit(column));
+  column and the header, each row's coefficient unit in the second column ``unit`` (entry in
+  unit(row) x unit(column), as `identify --format csv` gives it);
 - ``fit_properties.csv``: one row per point, fit and single value (``name``, ``value``,
   ``unit``; ``unit`` empty for text): ``dof``, ``chi2``, ``p_value``, ``aic``, ``bic`` (where
   the fit gives them), ``interval`` (normal | student_t), ``confidence_level`` (of the
@@ -113,8 +114,9 @@ def _table_files(p: Point, out: Path) -> list[Path]:
         d = content.fit_arrays(fit)
         if "covariance" in d:
             names = d["covariance_names"]
-            rows: list[Row] = [["name", *names]] + [
-                [n] + [_cell(v) for v in row] for n, row in zip(names, d["covariance"])
+            unit = dict(zip(d["names"], d["units"]))
+            rows: list[Row] = [["name", "unit", *names]] + [
+                [n, unit[n]] + [_cell(v) for v in row] for n, row in zip(names, d["covariance"])
             ]
             files.append(out / f"covariance_{p.name}_{fit.key}.csv")
             write_atomic(files[-1], csvfile.render_rows(rows))

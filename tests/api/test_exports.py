@@ -36,6 +36,7 @@ def stored(sim_run):
         g = f[f"points/0000/identification/{FIT}"]
         return {
             "names": list(g["names"].asstr()[()]),
+            "units": list(g["units"].asstr()[()]),
             "value": g["coefficients"][()],
             "std": g["std_errors"][()],
             "U": g["uncertainty/expanded"][()],
@@ -175,8 +176,11 @@ def test_csv(exported, stored, sim_run):
     _units_parse(r["unit"] for r in rows)
     with open(out / f"covariance_0000_{FIT}.csv", newline="") as fh:
         cov = list(csv.reader(fh))
-    assert cov[0] == ["name"] + stored["cov_names"] and [r[0] for r in cov[1:]] == stored["cov_names"]
-    np.testing.assert_array_equal([[float(v) for v in r[1:]] for r in cov[1:]], stored["cov"])
+    assert cov[0] == ["name", "unit"] + stored["cov_names"] and [r[0] for r in cov[1:]] == stored["cov_names"]
+    unit = dict(zip(stored["names"], stored["units"]))
+    assert [r[1] for r in cov[1:]] == [unit[n] for n in stored["cov_names"]]  # entry (a, b): unit(a) x unit(b)
+    _units_parse(r[1] for r in cov[1:])
+    np.testing.assert_array_equal([[float(v) for v in r[2:]] for r in cov[1:]], stored["cov"])
     with open(out / f"derived_0000_{FIT}.csv", newline="") as fh:
         derived = list(csv.DictReader(fh))
     np.testing.assert_array_equal([float(r["c_eff_xx [N s/m]"]) for r in derived], stored["c_eff_xx"])

@@ -5,6 +5,7 @@ from pathlib import Path
 import pytest
 
 from support.pg_server import postgres_server  # noqa: F401 - fixture
+from orbitrig.catalog.store import Catalog
 from support.report_synthetic import write_synthetic_run
 
 PROVENANCE = {
@@ -24,3 +25,17 @@ def catalog_run(tmp_path_factory) -> Path:
     return write_synthetic_run(
         tmp_path_factory.mktemp("catalog") / "runs" / "run1", incomplete=0, provenance=PROVENANCE
     )
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def catalog(request, tmp_path):
+    """An empty catalog in an SQLite file, then on a real PostgreSQL server."""
+    if request.param == "sqlite":
+        url = f"sqlite:///{tmp_path / 'c.sqlite'}"
+    else:
+        url = request.getfixturevalue("postgres_server")
+    cat = Catalog(url)
+    with cat.engine.begin() as conn:  # the server lives for the session: start each test empty
+        conn.exec_driver_sql("DELETE FROM fits")
+    yield cat
+    cat.close()

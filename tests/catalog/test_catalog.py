@@ -22,19 +22,6 @@ from orbitrig.store.reader import read_run
 N_FITS = 8  # 2 load systems x 4 models per point
 
 
-@pytest.fixture(params=["sqlite", "postgresql"])
-def catalog(request, tmp_path):
-    if request.param == "sqlite":
-        url = f"sqlite:///{tmp_path / 'c.sqlite'}"
-    else:
-        url = request.getfixturevalue("postgres_server")
-    cat = Catalog(url)
-    with cat.engine.begin() as conn:  # the server lives for the session: start each test empty
-        conn.exec_driver_sql("DELETE FROM fits")
-    yield cat
-    cat.close()
-
-
 def test_add_twice_updates_never_duplicates(catalog, catalog_run):
     run = read_run(catalog_run)
     rows = run_rows(run)

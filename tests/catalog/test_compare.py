@@ -47,8 +47,11 @@ def _predicted_csv(path, header_unit="N/m"):
 def test_predicted_csv_columns_and_errors(tmp_path):
     table = read_predicted(_predicted_csv(tmp_path / "p.csv"))
     assert len(table) == 9 and table[4]["Kxx"] == pytest.approx(law("Kxx", 0.2))
-    with pytest.raises(PredictedError, match=r"p2.csv, line 2, column 'Kxx \[MN/m\]'"):
+    with pytest.raises(PredictedError, match=r"p2.csv, line 2, column 'Kxx \[MN/m\]': the unit of Kxx is 'N/m' \(SI\)"):
         read_predicted(_predicted_csv(tmp_path / "p2.csv", "MN/m"))
+    (tmp_path / "p4.csv").write_text("static_eccentricity,Kzz [N/m]\n0.1,3e7\n")
+    with pytest.raises(PredictedError, match=r"p4.csv, line 1, column 'Kzz \[N/m\]': not one of spin_rpm"):
+        read_predicted(tmp_path / "p4.csv")
     (tmp_path / "p3.csv").write_text("static_eccentricity,Kxx [N/m]\n0.1,abc\n")
     with pytest.raises(PredictedError, match=r"p3.csv, line 2, column 'Kxx': 'abc'"):
         read_predicted(tmp_path / "p3.csv")

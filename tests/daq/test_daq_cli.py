@@ -47,7 +47,8 @@ async def test_json_over_tcp_in_counts(rig):
     gains = np.array(rig.config.adc.gains)
     truth = np.array(list(rig.true_phasors(150.0, ORBIT).values())) / gains  # counts
     for c, q in zip(d["channels"], truth):
-        assert set(c) == {"index", "re", "im", "amplitude", "phase_deg", "rms_residual", "uncertainty"}
+        assert set(c) == {"index", "name", "unit", "re", "im", "amplitude", "phase_deg", "rms_residual", "uncertainty"}
+        assert (c["name"], c["unit"]) == ("", "count")  # raw counts: pint parses "count"
         assert 0 < c["uncertainty"] < 0.01 * c["amplitude"]
         got = complex(c["re"], c["im"])
         assert abs(got - q) < 0.01 * abs(q)
@@ -67,6 +68,32 @@ async def test_table_over_pty_with_rig_config(rig):
     assert len(rows) == 8
     for row, q in zip(rows, truth):
         assert abs(float(row[3]) - abs(q)) < 0.01 * abs(q)
+
+
+async def test_json_with_rig_config_names_each_channel_and_its_unit(rig):
+    """What a program reads: every channel's name and unit (pint parses it), as the table shows them."""
+    import pint
+
+    code, out, err = await orbitrig_async(
+        "acquire", "--adc", rig.adc_url, "--rig", str(ROOT / "config" / "rig.toml"), "--revolutions", "20", "--json"
+    )
+    assert code == 0, err
+    channels = json.loads(out)["channels"]
+    assert [(c["name"], c["unit"]) for c in channels] == [
+        ("fx_piezo", "N"),
+        ("fy_piezo", "N"),
+        ("fx_strain", "N"),
+        ("fy_strain", "N"),
+        ("x_a", "m"),
+        ("y_a", "m"),
+        ("x_b", "m"),
+        ("y_b", "m"),
+    ]
+    ureg = pint.UnitRegistry()
+    truth = list(rig.true_phasors(150.0, ORBIT).values())  # N, m
+    for c, q in zip(channels, truth):
+        amplitude = ureg.Quantity(c["amplitude"], c["unit"])
+        assert abs(amplitude.to_base_units().magnitude - abs(q)) < 0.01 * abs(q)
 
 
 async def test_exit_2_with_a_clear_message(rig):

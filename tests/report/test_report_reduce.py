@@ -192,7 +192,10 @@ def test_cli_reduce_power_auto_shows_the_chosen_exponent(synthetic_run):
     result = CliRunner().invoke(app, ["reduce", str(synthetic_run), "--model", "kc7", "--freq-dep", "power:auto"])
     assert result.exit_code == 0, result.output
     blocks = "\n".join(result.stdout.splitlines()[1:-1]).split("\n\n")  # a wide table: column blocks
-    header, *rows = blocks[-1].splitlines()  # the last block ends with M, after the key columns
+    legend = " ".join(blocks[-1].split())  # then what the columns are
+    assert "M = the exponent power:auto chose" in legend and "constant terms (Omega^0)" in legend
+    assert legend.startswith("resid = RMS of measured minus reproduced force")
+    header, *rows = blocks[-2].splitlines()  # the table's last block ends with M, after the key columns
     assert header.split()[-1] == "M"
     data = [r.split() for r in rows if r.split()[1] in ("piezo", "strain")]
     assert len(data) == 4 and all(r[-1] in {"1", "2", "3", "4"} for r in data)

@@ -135,6 +135,13 @@ def test_report_on_the_sweep(sweep_run):
     html = (plots / "index.html").read_text(encoding="utf-8")
     assert set(re.findall(r'<img src="([^"]+)"', html)) == set(pngs)
     assert "completed" in html and "report-small" in html
+    # which bearing, rig and calibration the page shows: the scenario, the rig id, the record with its SHA-256
+    run = read_run(sweep_run)
+    header = re.sub(r"<[^>]+>", " ", html[: html.index("Operating points")])
+    assert f"simulator (--sim), scenario {run.sim_scenario_name}" in header and "clean.toml" in header
+    record, sha = run.provenance["calibration_record"], run.provenance["calibration_record_sha256"]
+    assert f"{record} (SHA-256 {sha})" in header and f"rig  {run.provenance['rig_id']}" in " ".join(header.split("\n"))
+    assert "<summary>simulator scenario</summary>" in html and "<summary>calibration record</summary>" in html
     stored = read_run(sweep_run).points[0].identification("piezo", "kcd11", "none").result
     for key in ("Kxx", "Kyx", "Cxx", "Cyy"):
         scale = 1e-6 if key[0] == "K" else 1e-3

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pint
 import pytest
 from typer.testing import CliRunner
 
@@ -37,6 +38,17 @@ def test_export_gives_the_stored_fit_at_the_rotor_speed(synthetic_run, tmp_path)
     np.testing.assert_allclose(bearing["kxx"], [stored["Kxx"] + stored["Kxx_1"] * w], rtol=1e-12)
     assert bearing["speeds"][0]["used"] == "synchronous" and bearing["speeds"][0]["whirl"] == w
     assert bearing["lms"] == "strain" and "f = -(K d" in doc["conventions"]["force"]
+    # every number's unit, for a program (pint parses each): the coefficients', the speeds', the condition's
+    units = doc["units"]
+    assert (units["frequency"], units["kxy"], units["cyx"], units["mxx"]) == ("rad/s", "N/m", "N s/m", "kg")
+    assert (units["recess_pressure"], units["static_eccentricity"], units["whirl"]) == ("Pa", "1", "rad/s")
+    numeric = {k for k, v in bearing.items() if isinstance(v, list) and v and isinstance(v[0], float)}
+    numeric |= {k for k, v in bearing["condition"].items()} | {"spin", "whirl", "whirl_range"}
+    assert numeric <= set(units), numeric - set(units)
+    ureg = pint.UnitRegistry()
+    assert ureg.Quantity(bearing["kxx"][0], units["kxx"]).to("MN/m").magnitude == pytest.approx(
+        bearing["kxx"][0] * 1e-6
+    )
     bad = CliRunner().invoke(app, ["export", str(synthetic_run), "--format", "ross", "--fit", "piezo:kcd11"])
     assert bad.exit_code == 2 and "LMS:MODEL:FREQ_DEP:METHOD" in bad.output
     typo = CliRunner().invoke(app, ["export", str(synthetic_run), "--format", "ross", "--fit", "piezzo:kcd11:none:ols"])
