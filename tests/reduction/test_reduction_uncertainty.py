@@ -118,6 +118,26 @@ def test_derived_quantities_match_hand_formulas():
     assert np.allclose(d.wfr, (K[0, 1] - K[1, 0]) / (table.spin * (C[0, 0] + C[1, 1])), rtol=1e-9)
 
 
+def test_effective_damping_with_inertia_is_what_its_docstring_says():
+    """kcd11 (D symmetric, D_xy != 0): C_eff leaves D out, so the damping a forward circle
+    feels in x, -Im(f_x) / (Omega R) of the paper's Eq. 7, is C_eff,xx + Omega D_xy (in y,
+    Re(f_y) / (-Omega R) is C_eff,yy - Omega D_yx); the mean of the two is Im H_f / Omega."""
+    true = truth("kcd11", {"K": (0,), "C": (0,), "D": (0,)})
+    table = orbit_table(true, frequencies(10))
+    ident = identify(table, "kcd11")
+    D = true[("D", 0)]
+    assert D[0, 1] == D[1, 0] != 0
+    w = np.linspace(20.0, 400.0, 50)
+    d = derived_quantities(ident, w, table.spin)
+    Z = ident.impedance(w)
+    R = 1e-5
+    fx = -(Z[:, 0, 0] * R + Z[:, 0, 1] * (-1j * R))
+    fy = -(Z[:, 1, 0] * R + Z[:, 1, 1] * (-1j * R))
+    np.testing.assert_allclose(-fx.imag / (w * R), d.c_eff_xx + w * D[0, 1], rtol=1e-9)
+    np.testing.assert_allclose(-fy.real / (w * R), d.c_eff_yy - w * D[1, 0], rtol=1e-9)
+    np.testing.assert_allclose((d.c_eff_xx + d.c_eff_yy) / 2, d.h_forward.imag / w, rtol=1e-9)
+
+
 def test_derived_uncertainty_is_the_covariance_propagation():
     true = truth("kc8", {"K": (0,), "C": (0,)})
     table = orbit_table(true, frequencies(10))
