@@ -118,7 +118,8 @@ def revolution_noise(
     revolution, so it inflates the scatter, but its share of the mean shrinks like 1/n, not
     1/sqrt(n). Those exponentials (h in ``harmonics``, both signs) are fitted with the mean and
     removed; one whose advance per revolution is within 2 pi / n of a whole turn cannot be told
-    from the mean over n revolutions and stays in. The residual scatter (degrees of freedom
+    from the mean over n revolutions and stays in (its leak into the mean is then in no
+    uncertainty: docs/orbit-table.md gives the sizes near Omega/omega = 1). The residual scatter (degrees of freedom
     n - fitted columns) is the white part that averaging reduces as 1/sqrt(n).
     """
     return _tone_fit(record_phasors, spin_turns, harmonics, revolutions)[1]
