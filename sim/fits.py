@@ -47,9 +47,9 @@ def power_fit(orbits, Z: np.ndarray, exponents=(1, 1, 1)) -> dict:
     Km is not fitted (zero, ``absorbed`` True) and D carries that term. ``determined`` is
     False when the distinct orbit speeds are fewer than the real equations' columns (K0, D0,
     Dp and Km unless absorbed): the fit is then the minimum-norm one, not the truth."""
-    m, n, p = exponents
-    if not all(isinstance(e, (int, np.integer)) and e >= 1 for e in (m, n, p)):
-        raise ValueError(f"power_fit: exponents must be positive integers, got {tuple(exponents)!r}")
+    if not all(float(e) == int(e) and e >= 1 for e in exponents) or len(exponents) != 3:
+        raise ValueError(f"power_fit: exponents must be three positive integers, got {tuple(exponents)!r}")
+    m, n, p = (int(e) for e in exponents)
     w = np.abs(np.asarray(orbits, dtype=float))
     absorbed = m == 2 or m == p + 2
     real_cols = [np.ones_like(w), -w * w, -(w ** (2 + p))] + ([] if absorbed else [w**m])
