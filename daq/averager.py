@@ -189,6 +189,9 @@ class StreamingAverager:
         self.rule = rule
         self._gains = None if gains is None else np.asarray(gains, np.float64)
         self._offsets = None if offsets is None else np.asarray(offsets, np.float64)
+        for name, v in (("gains", self._gains), ("offsets", self._offsets)):
+            if v is not None and not np.all(np.isfinite(v)):
+                raise ValueError(f"{name} must be finite, got {v.tolist()}")
         hi = rule.max_revolutions
         self._counts = np.zeros((0, 0, 0), np.int16)  # (max, C, S) int16: the block's revolutions (none: no layout yet)
         self._records = np.zeros((hi, 0), complex)  # (max, C) per-revolution phasors

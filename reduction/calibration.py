@@ -114,15 +114,16 @@ def polarity_and_lag(phase: float) -> tuple[int, float]:
 
 
 def fit_delay(frequencies: np.ndarray, lag: np.ndarray) -> DelayFit:
-    """Least-squares line through a channel's measured lag (rad, unwrapped along frequency) behind
-    the reference at `frequencies` (Hz): lag = phase + 2 pi f delay, the phase wrapped into
+    """Least-squares line through a channel's measured lag (rad, unwrapped along ascending
+    frequency, in any order given) behind the reference at `frequencies` (Hz): lag = phase + 2 pi f delay, the phase wrapped into
     [-pi, pi). ReductionError with fewer than 3 distinct frequencies or a lag not finite."""
     f, y = np.asarray(frequencies, dtype=float), np.asarray(lag, dtype=float)
     if f.shape != y.shape or f.ndim != 1 or len(np.unique(f)) < 3:
         raise ReductionError("a phase and a delay need the lag at 3 or more distinct frequencies")
     if not (np.all(np.isfinite(f)) and np.all(np.isfinite(y))):
         raise ReductionError("the frequencies and lags must be finite (a channel that read no reference?)")
-    y = np.unwrap(y)
+    order = np.argsort(f, kind="stable")  # unwrapped along frequency, whatever order the speeds were run in
+    f, y = f[order], np.unwrap(y[order])
     A = np.column_stack([np.ones_like(f), 2 * np.pi * f])
     coef, *_ = np.linalg.lstsq(A, y, rcond=None)
     res = y - A @ coef

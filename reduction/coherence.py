@@ -15,7 +15,8 @@ from reduction.errors import ReductionError
 
 def coherence(x_records: ArrayLike, f_records: ArrayLike, axis: int = 0) -> np.ndarray:
     """gamma^2 of input phasors ``x_records`` and output phasors ``f_records`` (complex,
-    broadcast together) over the records along ``axis``. NaN where either power is zero."""
+    broadcast together) over the records along ``axis``. NaN where either power is zero;
+    ReductionError for a non-finite record."""
     X = np.asarray(x_records, dtype=complex)
     F = np.asarray(f_records, dtype=complex)
     try:
@@ -24,6 +25,8 @@ def coherence(x_records: ArrayLike, f_records: ArrayLike, axis: int = 0) -> np.n
         raise ReductionError(f"coherence: record shapes {X.shape} and {F.shape} do not broadcast") from err
     if X.ndim == 0 or X.shape[axis] < 1:
         raise ReductionError("coherence needs at least one record along axis")
+    if not (np.all(np.isfinite(X)) and np.all(np.isfinite(F))):
+        raise ReductionError("coherence: a record phasor is not finite (NaN or inf)")
     gxf = np.mean(np.conj(X) * F, axis=axis)
     gxx = np.mean(np.abs(X) ** 2, axis=axis)
     gff = np.mean(np.abs(F) ** 2, axis=axis)

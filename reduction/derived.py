@@ -3,9 +3,12 @@
 At orbit frequencies Omega (rad/s), from K(Omega), C(Omega), D(Omega) (the fitted orders
 summed; an absorbed K order lives in D):
 
-- effective damping C_eff,xx = C_xx - K_xy / Omega and C_eff,yy = C_yy + K_yx / Omega (N s/m):
-  the damping a forward circular whirl feels in each direction (for an isotropic bearing,
-  Im H_forward / Omega); its zero crossing Omega_0 is the onset of instability;
+- effective damping C_eff,xx = C_xx - K_xy / Omega and C_eff,yy = C_yy + K_yx / Omega (N s/m),
+  the usual per-direction form from K and C; its zero crossing Omega_0 is the onset of
+  instability. Their mean is Im H_forward / Omega whenever D is symmetric (kc7, kc8, kcd11).
+  They leave D out: the damping a forward circular whirl feels in x is
+  (Im Z_xx - Re Z_xy) / Omega = C_eff,xx + Omega D_xy (in y: C_eff,yy - Omega D_yx), so with
+  D_xy != 0, a skew D (kcd12) or an absorbed K order (it lives in D) the two differ;
 - forward and backward direct dynamic stiffness H (N/m): the response of a circular whirl,
   H_f = (Z_xx + Z_yy)/2 + i (Z_yx - Z_xy)/2, H_b = (Z_xx + Z_yy)/2 + i (Z_xy - Z_yx)/2;
 - whirl frequency ratio WFR = (K_xy - K_yx) / (omega (C_xx + C_yy)) with omega the journal

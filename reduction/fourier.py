@@ -44,6 +44,12 @@ def _aligned(samples: ArrayLike, theta: ArrayLike, axis: int) -> tuple[np.ndarra
     if th.ndim > q.ndim or (th.ndim == q.ndim and th.shape[axis] != q.shape[axis]):
         raise ReductionError("theta must give one angle per sample along axis")
     th = th.reshape((1,) * (q.ndim - th.ndim) + th.shape)
+    if q.shape[axis] == 0:
+        raise ReductionError(f"no samples along axis {axis}")
+    if not np.all(np.isfinite(th)):
+        raise ReductionError("theta contains a non-finite angle (NaN or inf)")
+    if not np.all(np.isfinite(q)):
+        raise ReductionError("samples contain a non-finite value (NaN or inf)")
     return np.moveaxis(q, axis, -1), np.moveaxis(th, axis, -1)
 
 
@@ -53,7 +59,7 @@ def harmonic_fit(samples: ArrayLike, theta: ArrayLike, harmonic: int = 1, axis: 
     ``theta`` broadcasts against ``samples`` (e.g. one angle row per channel, shared by
     every record) or is 1-D along ``axis``. Vectorised over all other axes. Raises
     ReductionError when the angles cannot separate the harmonic (fewer than 3 distinct
-    phases of h theta).
+    phases of h theta), when there are no samples, or when a sample or angle is NaN or inf.
     """
     if int(harmonic) != harmonic or harmonic < 1:
         raise ReductionError(f"harmonic must be a positive integer, got {harmonic!r}")

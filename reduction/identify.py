@@ -198,10 +198,11 @@ def _identify(
     weak = signal_warning(signal)
     if weak:
         ident.warnings.insert(0, weak)
-    if known and method in (Method.OLS, Method.WLS):
+    if u is not None and method in (Method.OLS, Method.WLS):
         unscaled = rank.unscaled_covariance() if method == Method.OLS else est.unscaled
         if unscaled is not None and ident.covariance is not None:  # both are, with u_* and ols or wls
-            bias = attenuation_bias(spec, table, theta, c, unscaled, None if method == Method.OLS else 1.0 / var)
+            weights = None if method == Method.OLS else 1.0 / effective_variances(spec, u, table, theta)
+            bias = attenuation_bias(spec, table, theta, c, unscaled, weights)  # wls: the weights it fitted with
             std = np.sqrt(np.clip(np.diag(ident.covariance), 0, None))
             eiv = attenuation_warning(spec, method, bias, std)
             if eiv:

@@ -15,6 +15,7 @@ Without u_*, ``wls`` falls back on the coherences, :func:`coherence_variances`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 
 import numpy as np
@@ -36,6 +37,8 @@ def phasor_uncertainty(record_phasors: ArrayLike, axis: int = 0) -> FloatArray:
     q = np.asarray(record_phasors, dtype=complex)
     if q.ndim == 0 or q.shape[axis] < 1:
         raise ReductionError("phasor_uncertainty needs at least one record along axis")
+    if not np.all(np.isfinite(q)):
+        raise ReductionError("phasor_uncertainty: a record phasor is not finite (NaN or inf)")
     n = q.shape[axis]
     if n == 1:
         return np.full(np.delete(q.shape, axis % q.ndim), np.inf)
@@ -58,6 +61,19 @@ def _advances(n: int, spin_turns: float, harmonics: Iterable[int]) -> tuple[floa
     return tuple(advances)
 
 
+def _records(record_phasors: ArrayLike, spin_turns: float) -> ComplexArray:
+    """The (n, ...) per-revolution phasors as complex, checked with ``spin_turns`` (omega/|Omega|):
+    ReductionError for none, a non-finite phasor, or a spin_turns that is not finite and >= 0."""
+    q = np.asarray(record_phasors, dtype=complex)
+    if q.ndim == 0 or q.shape[0] < 1:
+        raise ReductionError("per-revolution phasors: need at least one record")
+    if not np.all(np.isfinite(q)):
+        raise ReductionError("per-revolution phasors: a record phasor is not finite (NaN or inf)")
+    if not (math.isfinite(spin_turns) and spin_turns >= 0):
+        raise ReductionError(f"spin_turns (omega/|Omega|) must be finite and >= 0, got {spin_turns!r}")
+    return q
+
+
 def _positions(n: int, revolutions: ArrayLike | None) -> FloatArray:
     """(n,) revolution k of each record, counted from the first: the board's revolution
     numbers when given (a dropped revolution leaves a gap the tones still turn through)."""
@@ -75,7 +91,7 @@ def _tone_fit(
 ) -> tuple[ComplexArray, FloatArray]:
     """(residuals (n, C), white (C,)) of the least-squares fit of the mean and the resolvable
     spin tones."""
-    q = np.asarray(record_phasors, dtype=complex)
+    q = _records(record_phasors, spin_turns)
     n = q.shape[0]
     X = np.exp(2j * np.pi * np.outer(_positions(n, revolutions), _advances(n, spin_turns, harmonics)))
     if n <= X.shape[1]:
@@ -102,7 +118,8 @@ def revolution_noise(
     revolution, so it inflates the scatter, but its share of the mean shrinks like 1/n, not
     1/sqrt(n). Those exponentials (h in ``harmonics``, both signs) are fitted with the mean and
     removed; one whose advance per revolution is within 2 pi / n of a whole turn cannot be told
-    from the mean over n revolutions and stays in. The residual scatter (degrees of freedom
+    from the mean over n revolutions and stays in (its leak into the mean is then in no
+    uncertainty: docs/orbit-table.md gives the sizes near Omega/omega = 1). The residual scatter (degrees of freedom
     n - fitted columns) is the white part that averaging reduces as 1/sqrt(n).
     """
     return _tone_fit(record_phasors, spin_turns, harmonics, revolutions)[1]
@@ -130,9 +147,7 @@ def mean_uncertainty(
     tone a e^{i phi k} leaves in the mean, |a|^2 |mean_k e^{i phi k}|^2 (the last row of
     :func:`prefix_mean_uncertainty`, so a block stores exactly what its stop rule checked).
     With too few revolutions to fit the tones, the scatter's :func:`phasor_uncertainty`."""
-    q = np.asarray(record_phasors, dtype=complex)
-    if q.shape[0] < 1:
-        raise ReductionError("mean_uncertainty needs at least one record")
+    q = _records(record_phasors, spin_turns)
     u = prefix_mean_uncertainty(q, spin_turns, start=q.shape[0] - 1, revolutions=revolutions, harmonics=harmonics)[0]
     return u if np.all(np.isfinite(u)) else phasor_uncertainty(q, axis=0)
 
@@ -147,7 +162,7 @@ def prefix_mean_uncertainty(
     """(n - start, C): :func:`mean_uncertainty` of the first m records for every
     m = start+1..n at once (each m with the tones m revolutions resolve; inf where m is too
     small to fit them). Cumulative sums and batched small solves, one batch per tone set."""
-    q = np.asarray(record_phasors, dtype=complex)
+    q = _records(record_phasors, spin_turns)
     n = q.shape[0]
     out = np.full((n - start,) + q.shape[1:], np.inf)
     counts = np.arange(start + 1, n + 1)

@@ -169,7 +169,9 @@ def refusal(
 
 def _hints(spec: ModelSpec, table: OrbitTable, A: FloatArray, rank: Rank, rtol: float) -> list[str]:
     rng = np.random.default_rng(0)
-    scale = float(np.sqrt(np.mean(np.abs(table.x) ** 2 + np.abs(table.y) ** 2)) or 1.0)
+    scale = float(np.sqrt(np.mean(np.abs(table.x) ** 2 + np.abs(table.y) ** 2)))
+    if scale == 0:  # no orbit at all: no other orbit shape or frequency list would help
+        return ["an orbit: every row's displacement is zero (x = y = 0), so no force depends on a coefficient."]
     n_gen = 3 * spec.min_frequencies + 3
     w_gen = _extra_frequencies(table, n_gen)
     xg, yg = (rng.standard_normal((2, n_gen)) + 1j * rng.standard_normal((2, n_gen))) * scale

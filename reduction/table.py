@@ -24,9 +24,18 @@ def _complex_1d(name: str, value: ArrayLike, n: int | None) -> np.ndarray:
         raise ReductionError(f"OrbitTable.{name} must be one-dimensional, got shape {arr.shape}")
     if n is not None and arr.shape[0] != n:
         raise ReductionError(f"OrbitTable.{name} has {arr.shape[0]} rows, orbit has {n}")
-    if not np.all(np.isfinite(arr)):
-        raise ReductionError(f"OrbitTable.{name} contains a non-finite value")
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        raise ReductionError(f"OrbitTable.{name} is not finite at row index {bad[0]}: {complex(arr[bad[0]])}")
     return arr
+
+
+def _first_bad(name: str, arr: np.ndarray, ok: np.ndarray, columns: tuple[str, ...], rule: str) -> None:
+    """ReductionError naming the first (row, column) of ``arr`` (n, 4) where ``ok`` is False."""
+    bad = np.argwhere(~ok)
+    if bad.size:
+        i, j = bad[0]
+        raise ReductionError(f"OrbitTable.{name} at row index {i}, column {columns[j]}: {float(arr[i, j])} {rule}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,8 +80,8 @@ class OrbitTable:
             g = np.asarray(self.gamma2, dtype=float)
             if g.shape != (n, 4):
                 raise ReductionError(f"OrbitTable.gamma2 must have shape ({n}, 4), got {g.shape}")
-            if not np.all(np.isfinite(g)) or np.any(g < 0) or np.any(g > 1):
-                raise ReductionError("OrbitTable.gamma2 values must lie in [0, 1]")
+            with np.errstate(invalid="ignore"):
+                _first_bad("gamma2", g, (g >= 0) & (g <= 1), GAMMA2_COLUMNS, "is not in [0, 1]")
             object.__setattr__(self, "gamma2", g)
         if self.n_records is not None:
             r = np.asarray(self.n_records, dtype=float)
@@ -83,8 +92,8 @@ class OrbitTable:
             u = np.asarray(self.u, dtype=float)
             if u.shape != (n, 4):
                 raise ReductionError(f"OrbitTable.u must have shape ({n}, 4), got {u.shape}")
-            if not np.all(np.isfinite(u)) or np.any(u < 0):
-                raise ReductionError("OrbitTable.u values must be finite and >= 0")
+            with np.errstate(invalid="ignore"):
+                _first_bad("u", u, np.isfinite(u) & (u >= 0), U_COLUMNS, "is not finite and >= 0")
             object.__setattr__(self, "u", u)
         for arr in (self.orbit, self.x, self.y, self.fx, self.fy, self.gamma2, self.n_records, self.u):
             if arr is not None:

@@ -232,7 +232,8 @@ class SimRig:
 
     def reference_fits(self, spin: float, orbits=None, exponents=(1, 1, 1)) -> dict:
         """Best fits of the true Z over ``orbits`` (rad/s; default the reference band):
-        {"constant": {"K","C","D"}, "power": {"K0","Km","C0","Cn","D0","Dp","exponents"}}."""
+        {"constant": {"K","C","D"}, "power": {"K0","Km","C0","Cn","D0","Dp","exponents","absorbed","determined"}}
+        (sim.fits.power_fit)."""
         w = self.reference_orbits(spin) if orbits is None else np.abs(np.asarray(orbits, dtype=float))
         Z = self.true_impedances(spin, w)
         return {"constant": constant_fit(w, Z), "power": power_fit(w, Z, exponents)}

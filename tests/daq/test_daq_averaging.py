@@ -130,6 +130,15 @@ def test_rules_refuse_nonsense():
     assert AveragingRule() == AveragingRule.fixed(50)
 
 
+@pytest.mark.parametrize("kind", ["gains", "offsets"])
+def test_a_calibration_that_is_not_finite_is_refused_when_the_averager_is_made(kind):
+    """A NaN gain made every phasor of its channel NaN, found only when a block finished."""
+    cal = {"gains": GAINS.copy(), "offsets": OFFSETS.copy()}
+    cal[kind][5] = np.nan
+    with pytest.raises(ValueError, match=f"{kind} must be finite"):
+        StreamingAverager(5, **cal)
+
+
 def test_uncertainty_matches_the_scatter_of_repeated_blocks():
     """Monte Carlo: 1000 blocks of 20 noisy revolutions per channel (noise 30 to 240
     counts). The RMS of the stated uncertainty equals the RMS deviation of the block

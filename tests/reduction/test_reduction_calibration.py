@@ -70,6 +70,16 @@ def test_phase_and_delay_fit_and_correction():
         fit_delay(f[:2], f[:2])
 
 
+def test_a_delay_that_wraps_is_fitted_whatever_order_the_speeds_were_run_in():
+    """20 ms lags 7.5 rad at 60 Hz: the wrapped lags unwrap only along ascending frequency.
+    Run in the order 40, 5, 25, 60, 10 Hz they read phase 1.40 rad and delay -1.7 ms."""
+    f = np.array([40.0, 5.0, 25.0, 60.0, 10.0])
+    phase, delay = 0.1, 0.02
+    fit = fit_delay(f, np.angle(np.exp(1j * (phase + 2 * np.pi * f * delay))))
+    assert fit.phase == pytest.approx(phase, abs=1e-9) and fit.delay == pytest.approx(delay, rel=1e-9)
+    assert fit.residual_rms < 1e-9
+
+
 def _probe_revolutions(rho: float, runout: np.ndarray, phi0: float, noise: float, rng):
     """Per-revolution probe phasors (N, 4) of an orbit d plus runout locked to the spin angle,
     sampled as the board does (sequential mode, 8 channels, probes on channels 4..7)."""

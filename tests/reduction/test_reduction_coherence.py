@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from reduction.coherence import coherence, orbit_coherences
+from reduction.errors import ReductionError
 
 
 def test_noise_free_records_are_fully_coherent():
@@ -41,3 +42,11 @@ def test_vectorised_over_frequencies_and_the_table_order():
 
 def test_zero_power_gives_nan():
     assert np.isnan(coherence(np.zeros(3), np.ones(3)))
+
+
+def test_a_non_finite_record_is_refused():
+    """A NaN record gave a NaN coherence that only the orbit table caught, later and elsewhere."""
+    with pytest.raises(ReductionError, match="not finite"):
+        coherence(np.array([1.0, np.nan, 1.0]), np.ones(3))
+    with pytest.raises(ReductionError, match="not finite"):
+        orbit_coherences(np.ones(3), np.ones(3), np.array([1.0, 1.0, np.inf]), np.ones(3))

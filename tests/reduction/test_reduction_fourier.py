@@ -64,6 +64,23 @@ def test_angles_that_cannot_resolve_the_harmonic_are_refused():
         phasor(np.ones(10), np.zeros(9))
 
 
+@pytest.mark.parametrize(
+    "samples, theta, says",
+    [
+        (np.where(np.arange(45) == 3, np.nan, 1.0), 1.0, "samples contain a non-finite"),
+        (np.where(np.arange(45) == 3, np.inf, 1.0), 1.0, "samples contain a non-finite"),
+        (np.ones(45), np.where(np.arange(45) == 3, np.nan, 1.0), "theta contains a non-finite"),
+        (np.zeros(0), np.zeros(45), "no samples"),
+    ],
+)
+def test_non_finite_or_missing_samples_are_refused_not_fitted_to_nan(samples, theta, says):
+    """A NaN or inf sample (or angle) made every phasor of the fit NaN, silently; no samples
+    at all was numpy's LinAlgError. Both are ReductionErrors that say what is wrong."""
+    angles = 2 * np.pi * np.arange(45) / 45 * theta
+    with pytest.raises(ReductionError, match=says):
+        harmonic_fit(samples, angles[: samples.size])
+
+
 from hypothesis import given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 

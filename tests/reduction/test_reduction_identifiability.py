@@ -27,6 +27,18 @@ def test_too_few_frequencies():
     assert "more distinct orbit frequencies" in msg
 
 
+def test_a_table_without_any_orbit_is_refused_naming_that_not_the_orbit_shape():
+    """All displacements zero: rank 0. The hint read 'non-circular (elliptical) orbits separate
+    11 of these directions', which no ellipse of zero size would."""
+    t = _table("kcd11", "none", 4)
+    zero = np.zeros(t.n, dtype=complex)
+    with pytest.raises(IdentifiabilityError) as info:
+        identify(t.with_phasors(zero, zero, t.fx, t.fy), "kcd11")
+    msg = str(info.value)
+    assert "numerical rank 0 of 11" in msg and "every row's displacement is zero" in msg
+    assert "elliptical" not in msg
+
+
 def test_forward_whirl_only_cannot_separate_omega_k1_from_c():
     table = _table("kc8", "power:1", 8, ("forward",))
     with pytest.raises(IdentifiabilityError) as info:

@@ -13,6 +13,7 @@ from reduction.errors import IdentificationError, ReductionError
 from reduction.identify import identify
 from reduction.methods import Solver
 from reduction.models import parse_freq_dep
+from reduction.table import OrbitTable
 
 ELLIPSES = (("forward",), (5e-6, 2e-6, 0.4), (3e-6, -4e-6, 1.1))  # b < 0: backward-whirling ellipse
 
@@ -210,3 +211,19 @@ def test_an_absorbed_stiffness_term_is_carried_by_the_inertia():
     assert result.coefficients["Dxy"] == pytest.approx(d0[0, 1], rel=1e-8)
     assert result.coefficients["Kxx"] == pytest.approx(true[("K", 0)][0, 0], rel=1e-9)
     assert result.residual_rms < 1e-9 * np.sqrt(np.mean(np.abs(orbit_table(true, frequencies(10)).fx) ** 2))
+
+
+@pytest.mark.parametrize(
+    "field, value, says",
+    [
+        ("gamma2", np.array([[1.0, 1.0, 1.0, 1.0], [0.9, np.nan, 1.0, 1.0]]), "gamma2 at row index 1, column yfx: nan"),
+        ("u", np.array([[1.0, 1.0, 1.0, 1.0], [0.9, 1.0, np.inf, 1.0]]), "u at row index 1, column fx: inf"),
+        ("fy", np.array([1.0, np.nan]), "fy is not finite at row index 1"),
+    ],
+)
+def test_a_bad_table_value_is_named_by_row_and_column(field, value, says):
+    """A coherence of a dead channel (NaN: zero power) read 'gamma2 values must lie in [0, 1]'
+    with no row or column."""
+    columns = dict(spin=1.0, orbit=[1.0, 2.0], x=[1, 1], y=[-1j, 1j], fx=[1, 1], fy=[1, 1])
+    with pytest.raises(ReductionError, match=re.escape(says)):
+        OrbitTable(**(columns | {field: value}))

@@ -170,3 +170,18 @@ def test_known_noise_intervals_use_the_normal_quantile_also_without_degrees_of_f
     assert np.allclose(half, 1.959964, rtol=1e-6)
     coverage = np.mean(inside, axis=0)  # 1000 tables: 0.7 % standard error
     assert np.all((coverage >= 0.93) & (coverage <= 0.97)), dict(zip(keys, coverage))
+
+
+def test_a_row_stated_exact_leaves_the_wls_bias_check_on():
+    """u_* = 0 on one row (allowed: u >= 0) gives that row the floored weight the wls fit uses;
+    the errors-in-variables check must weigh it the same, not with 1/0 (inf x 0 = NaN hid the
+    bias of every coefficient, so a table that is warned read as clean)."""
+    rng = np.random.default_rng(37)
+    orbit, x, y = _paper_design()
+    t = _table(rng, orbit, x, y, force_rel=0.002, probe=0.2 * R)
+    assert any(s.startswith("displacement noise") for s in identify(t, "kc8", method="wls").warnings)
+    u = t.u.copy()
+    u[0] = 0.0
+    exact = OrbitTable(t.spin, t.orbit, t.x, t.y, t.fx, t.fy, u=u)
+    warnings = identify(exact, "kc8", method="wls").warnings
+    assert any(s.startswith("displacement noise") for s in warnings), warnings

@@ -9,7 +9,8 @@ import pytest
 from support.reduction_synthetic import frequencies, keys_of, orbit_table, truth
 from reduction.derived import derived_quantities
 from reduction.identify import identify
-from reduction.noise import phasor_uncertainty
+from reduction.errors import ReductionError
+from reduction.noise import mean_uncertainty, phasor_uncertainty, revolution_noise
 from reduction.systematic import Calibration, ChannelCalibration, lms_consistency, uncertainty_budget
 from reduction.table import OrbitTable
 
@@ -117,6 +118,26 @@ def test_derived_quantities_match_hand_formulas():
     assert np.allclose(d.wfr, (K[0, 1] - K[1, 0]) / (table.spin * (C[0, 0] + C[1, 1])), rtol=1e-9)
 
 
+def test_effective_damping_with_inertia_is_what_its_docstring_says():
+    """kcd11 (D symmetric, D_xy != 0): C_eff leaves D out, so the damping a forward circle
+    feels in x, -Im(f_x) / (Omega R) of the paper's Eq. 7, is C_eff,xx + Omega D_xy (in y,
+    Re(f_y) / (-Omega R) is C_eff,yy - Omega D_yx); the mean of the two is Im H_f / Omega."""
+    true = truth("kcd11", {"K": (0,), "C": (0,), "D": (0,)})
+    table = orbit_table(true, frequencies(10))
+    ident = identify(table, "kcd11")
+    D = true[("D", 0)]
+    assert D[0, 1] == D[1, 0] != 0
+    w = np.linspace(20.0, 400.0, 50)
+    d = derived_quantities(ident, w, table.spin)
+    Z = ident.impedance(w)
+    R = 1e-5
+    fx = -(Z[:, 0, 0] * R + Z[:, 0, 1] * (-1j * R))
+    fy = -(Z[:, 1, 0] * R + Z[:, 1, 1] * (-1j * R))
+    np.testing.assert_allclose(-fx.imag / (w * R), d.c_eff_xx + w * D[0, 1], rtol=1e-9)
+    np.testing.assert_allclose(-fy.real / (w * R), d.c_eff_yy - w * D[1, 0], rtol=1e-9)
+    np.testing.assert_allclose((d.c_eff_xx + d.c_eff_yy) / 2, d.h_forward.imag / w, rtol=1e-9)
+
+
 def test_derived_uncertainty_is_the_covariance_propagation():
     true = truth("kc8", {"K": (0,), "C": (0,)})
     table = orbit_table(true, frequencies(10))
@@ -145,6 +166,25 @@ def test_phasor_uncertainty_is_scatter_over_root_n():
     # it is the actual error of the averages: E|mean - 5|^2 = u^2
     assert np.sqrt(np.mean(np.abs(rec.mean(axis=1) - 5) ** 2)) == pytest.approx(0.1 / np.sqrt(50), rel=0.1)
     assert np.isinf(phasor_uncertainty(np.array([1 + 0j])))
+
+
+@pytest.mark.parametrize("spin_turns", [np.nan, np.inf, -2.5])
+def test_a_spin_ratio_that_is_no_ratio_is_refused(spin_turns):
+    """omega/|Omega| NaN or inf fitted no spin tone at all (every comparison with it false) and
+    returned the plain scatter as if the ratio were known; negative is no ratio either."""
+    q = 1 + 0.1 * np.exp(2j * np.pi * 2.5 * np.arange(20))[:, None]
+    assert np.isfinite(mean_uncertainty(q, 2.5)).all()
+    for f in (mean_uncertainty, revolution_noise):
+        with pytest.raises(ReductionError, match="spin_turns"):
+            f(q, spin_turns)
+
+
+def test_a_non_finite_revolution_phasor_is_refused():
+    q = np.ones((20, 2), dtype=complex)
+    q[4, 1] = np.nan
+    for f in (phasor_uncertainty, lambda r: mean_uncertainty(r, 2.5), lambda r: revolution_noise(r, 2.5)):
+        with pytest.raises(ReductionError, match="not finite"):
+            f(q)
 
 
 def _calibration_error(rng, ch: ChannelCalibration, orbit, sensitivity: float = 0.0):

@@ -71,6 +71,37 @@ def test_reference_fits_recover_known_coefficients():
         np.testing.assert_allclose(pf[k], v, rtol=1e-6, atol=1e-6 * np.abs(v).max())
 
 
+@pytest.mark.parametrize("exponents", [(2, 2, 2), (3, 1, 1), (2, 1, 1)])
+def test_a_stiffness_order_that_inertia_collides_with_is_carried_by_d(exponents):
+    """Omega^2 Km is -Omega^2 D0 (m = 2) and Omega^(p+2) Km is -Omega^(p+2) Dp (m = p + 2) at
+    every orbit: the fit keeps Km at zero and D whole (the orbit-table contract's rule), not a
+    minimum-norm split that halves D (D0 read 3.5 kg for a true 7 kg at (2, 2, 2))."""
+    w = np.linspace(20.0, 130.0, 10)
+    K = np.array([[3e7, 4e6], [-4e6, 3.2e7]])
+    C = np.array([[1.3e5, 2e3], [2e3, 1.4e5]])
+    D = np.array([[7.0, 0.5], [0.5, 8.0]])
+    W = w[:, None, None]
+    fit = power_fit(w, K + 1j * W * C - W**2 * D, exponents)
+    np.testing.assert_allclose(fit["D0"], D, rtol=1e-7)
+    assert np.array_equal(fit["Km"], np.zeros((2, 2)))
+    assert fit["absorbed"] is True
+    np.testing.assert_allclose(fit["Dp"], 0.0, atol=1e-7 * 8.0 / w.max() ** exponents[2])
+    np.testing.assert_allclose(fit["K0"], K, rtol=1e-9)
+    assert power_fit(w, K + 1j * W * C - W**2 * D)["absorbed"] is False
+
+
+def test_a_power_fit_the_orbits_cannot_determine_says_so_and_p_zero_is_refused():
+    """Three speeds for four real columns (K0, Km, D0, Dp): the minimum-norm fit is marked not
+    determined; p = 0 (Dp would be D0) is no Eq. 15 exponent."""
+    w = np.array([20.0, 50.0, 90.0, 120.0])
+    Z = np.broadcast_to(np.array([[3e7, 0.0], [0.0, 3e7]], dtype=complex), (w.size, 2, 2))
+    assert power_fit(w[:3], Z[:3])["determined"] is False
+    assert power_fit(w, Z)["determined"] is True
+    assert power_fit(w[:3], Z[:3], (2, 1, 1))["determined"] is True  # Km absorbed: three columns
+    with pytest.raises(ValueError, match="positive integers"):
+        power_fit(w, Z, (1, 1, 0))
+
+
 async def test_rig_truth_api():
     """true_impedance per frequency; truth() the constant best fit over the Table 1 band,
     exact for the clean scenario (Z of constant form there), approximate for the default."""
