@@ -175,6 +175,16 @@ def near_one(ratios: ArrayLike, distance: float) -> np.ndarray:
     return close
 
 
+def runout_stays(ratios: ArrayLike, revolutions: ArrayLike) -> np.ndarray:
+    """True (per ratio) where the spin's 1x tone (runout, unbalance) turns less than one whole
+    turn against the orbit over a block of ``revolutions``: revolutions x |1/|ratio| - 1| < 1.
+    Such a tone stays in the block's mean phasor and in neither its scatter nor its stated
+    uncertainty u (docs/orbit-table.md: u near Omega/omega = 1), so u understates the error."""
+    r = np.abs(np.asarray(ratios, dtype=float))
+    stays: np.ndarray = np.asarray(revolutions, dtype=float) * np.abs(1.0 / r - 1.0) < 1.0
+    return stays
+
+
 def allowed_ratios(lo: float, hi: float, step: float = GRID_STEP, keep_away: float = RUNOUT_KEEP_AWAY) -> np.ndarray:
     """Grid of ratios in [lo, hi] (multiples of ``step``) at least ``keep_away`` from 1."""
     if not 0 < lo < hi:

@@ -24,7 +24,7 @@ def print_warnings(plan) -> None:
     key ...': orbitrig.config.plan_warnings); the dry run and the sweep's start print them."""
     from orbitrig.config import warning_lines
 
-    for line in warning_lines(plan.matrix):
+    for line in warning_lines(plan.matrix, plan.rig.averaging.revolutions):
         typer.echo(line, err=True)
 
 

@@ -126,20 +126,48 @@ def test_a_ratio_at_omega_over_omega_one_is_refused_and_one_near_it_warned(tmp_p
     # 0.01 away is allowed, with the one warning of the matrix naming every ratio within 0.1
     near = write(tmp_path, "near.toml", ratios="ratios = [0.5, 0.99, 1.01, 1.1]")
     assert problems(near) == []
-    (warning,) = cfg.plan_warnings(cfg.load_matrix(near))
+    (warning,) = cfg.plan_warnings(cfg.load_matrix(near), 50)
     assert warning.startswith("line 9: key 'orbit.ratios': orbit ratios 0.99, 1.01 are within 0.1 of Omega/omega = 1")
+    assert warning.endswith(
+        "keeps 0.1 away; at 0.99 (50 revolutions), 1.01 (50 revolutions) it turns less than once against the "
+        "orbit over the block, so it stays in the averaged phasors and the stated uncertainties u understate "
+        "their error (on the simulator 2.6 times at 0.99 with 50 revolutions): more revolutions there, or ratios "
+        "farther from 1"
+    )
+
+
+def test_the_runout_left_in_the_average_is_said_per_ratio_with_its_fewest_revolutions(tmp_path):
+    """n |1/r - 1| < 1: the spin's tone turns less than once over the block (0.98 at 50: 1.02 turns)."""
+    fixed = write(tmp_path, "fixed.toml", ratios="ratios = [0.5, 0.98, 0.985, 1.05]\nrevolutions = [50, 50, 50, 10]")
+    (warning,) = cfg.plan_warnings(cfg.load_matrix(fixed), 200)
+    assert warning.endswith("away; at 0.985 (50 revolutions), 1.05 (10 revolutions) it turns less than once" + TAIL)
+    assert cfg.plan_warnings(cfg.load_matrix(write(tmp_path, "many.toml", ratios="ratios = [0.5, 0.99]")), 102)[
+        0
+    ].endswith("keeps 0.1 away")  # 102 x 0.0101 = 1.03 turns
+    adaptive = write(
+        tmp_path, "adaptive.toml", ratios="ratios = [0.5, 0.93]", extra="[averaging]\ntarget_pct = 1.0\n"
+    )  # a block may stop at min_revolutions (10): 10 x 0.075 = 0.75 turns
+    (warning,) = cfg.plan_warnings(cfg.load_matrix(adaptive), 50)
+    assert warning.endswith("away; at 0.93 (10 revolutions) it turns less than once" + TAIL)
+
+
+TAIL = (
+    " against the orbit over the block, so it stays in the averaged phasors and the stated uncertainties u "
+    "understate their error (on the simulator 2.6 times at 0.99 with 50 revolutions): more revolutions there, "
+    "or ratios farther from 1"
+)
 
 
 def test_the_paper_matrix_runs_with_one_warning_and_the_demo_with_none():
     paper = cfg.load_matrix(cfg.default_matrix_path("paper"))
     cfg.check_matrix_against_rig(paper, cfg.load_rig())  # 0.978 and 1.089 are kept
-    assert cfg.plan_warnings(paper) == [
+    assert cfg.plan_warnings(paper, 50) == [
         "line 15: key 'orbit.ratio_start': orbit ratios 0.977778, 1.08889 are within 0.1 of Omega/omega = 1: "
         "the spindle's runout (1x spin) turns only slowly through a block's revolutions there, so averaging "
         "and the runout fit take it out only in part and the coefficients at these ratios (C most) may be "
         "biased; `orbitrig design` keeps 0.1 away"
     ]
-    assert cfg.plan_warnings(cfg.load_matrix(cfg.default_matrix_path("demo"))) == []  # 0.9 and 1.2: clear
+    assert cfg.plan_warnings(cfg.load_matrix(cfg.default_matrix_path("demo")), 50) == []  # 0.9 and 1.2: clear
 
 
 def test_dry_run_and_sweep_start_warn_once_per_matrix(tmp_path, monkeypatch):
