@@ -155,7 +155,7 @@ class DrivePoll:
             if st.link_ok and st.time > since:  # not there yet: read again soon
                 self.pace.ask(st.time + self.poll_interval / 4)
             await wait_tick(tick, deadline - time.monotonic())
-        late = f"not at zero speed within {timeout:g} s: " + st.describe()
+        late = f"not at zero speed within {timeout:g} s: " + st.describe(since, "the stop")
         tripped = [s for s in (st.spin, st.orbit) if s and s.tripped and s.time > since and s.device_id not in known]
         if tripped:
             raise StopTripError(tripped, stop=stop, standstill=standstill, end=late)

@@ -51,11 +51,18 @@ class RigDriveState:
         """Both drives read an actual speed of exactly zero."""
         return bool(self.spin and self.orbit and self.spin.stopped and self.orbit.stopped)
 
-    def describe(self) -> str:
-        """Each drive's state, reference, actual speed and fault, and a link that is down: for messages."""
+    def describe(self, since: float | None = None, what: str = "the command") -> str:
+        """Each drive's state, reference, actual speed and fault, and a link that is down: for messages.
+        With `since` (time.monotonic() of `what`, e.g. "the stop"), a drive not read after it is
+        said to be as last read, so a reading from before the stop is never taken for the present."""
         parts = [
             f"{s.name} (id {s.device_id}) {s.state}, REF {fmt_speed(s.reference)}, "
             f"ACT {fmt_speed(s.actual)}, fault {s.fault_code}"
+            + (
+                ""
+                if since is None or s.time > since
+                else f" (not read since {what}: as read {since - s.time:.2f} s before it)"
+            )
             for s in (self.spin, self.orbit)
             if s is not None
         ]
