@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from drives.drive import DriveStatus, rad_s_to_rpm
-from drives.errors import DriveLinkError
+from drives.drive import Drive, DriveStatus, rad_s_to_rpm
+from drives.errors import DriveLinkError, DriveOffCommand
+from drives import registers as R
 from drives.limits import fmt_speed
 
 #: what a lost Modbus link is called wherever it ends something (the run's interlock, a step, a hold)
@@ -88,3 +90,25 @@ class RigDriveState:
             "spin": self.spin.to_dict() if self.spin else None,
             "orbit": self.orbit.to_dict() if self.orbit else None,
         }
+
+
+def off_command(
+    statuses: Sequence[DriveStatus], drives: tuple[Drive, Drive], command: tuple[int, int]
+) -> DriveOffCommand | None:
+    """The first drive of `statuses` not running at its raw REF of `command` (spin, orbit): no
+    longer running, or given another reference. None while both run at the command."""
+    for st, d, raw in zip(statuses, drives, command):
+        if not st.running:
+            what, register = f"is no longer running ({st.state}, ACT {fmt_speed(st.actual)})", R.SW
+        elif st.reference_raw != raw:
+            what, register = f"was given another reference (REF {fmt_speed(st.reference)})", R.REF
+        else:
+            continue
+        return DriveOffCommand(
+            f"{what} while commanded to run at {fmt_speed(d.speed_of(raw))}: "
+            "stopped or changed by another client, or at the drive",
+            drive=st.device_id,
+            drive_name=st.name,
+            register=register,
+        )
+    return None

@@ -162,3 +162,29 @@ async def test_a_drive_trip_while_waiting_for_the_operator_fails_the_run_at_once
     assert outcome.status == "failed" and outcome.message.startswith("interlock: spin drive tripped: fault 2310")
     assert eng.state == "faulted" and eng.waiting_step is None
     assert rec.states()[-2:] == ["stopping", "faulted"]  # reported once the drives are safe
+
+
+async def test_a_drive_stopped_by_another_client_fails_the_run_at_once(tmp_path):
+    """Another Modbus client (a second terminal's `orbitrig drives stop`, a supervisory system)
+    stops the orbit drive mid-run: the run's drive poll finds it no longer running under the run's
+    command, stops both drives and fails the run at once naming the drive. It went on with the
+    spin drive at 1000 rpm for about 10 s (the acquisition's timeout, then the settle wait) and
+    failed "drives did not settle", naming neither the drive nor the cause."""
+    from drives.link import ModbusLink
+
+    async with running(tmp_path, small_matrix(revolutions=30)) as (sim, eng, rec, run):
+        await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
+        async with ModbusLink(sim.link.call("state")["endpoints"]["modbus"], timeout=1.0) as other:
+            t0 = time.monotonic()
+            await other.write(2, 0, [0x047E])  # OFF1 (spec control word, written out on purpose)
+        await wait_for(run.done, timeout=30, what="the run's end")
+        ended = time.monotonic() - t0
+        outcome = run.result()
+        await wait_for(lambda: _spindles_stopped(sim), timeout=10, what="spindles at rest")
+        spin_stop = min(t for t, cw in sim.drive(1)["control_words"] if t >= t0 and cw in (0x047E, 0x047B)) - t0
+    assert outcome.status == "failed"
+    assert outcome.message.startswith(
+        "interlock: drive poll: orbit drive (id 2), register SW (3): is no longer running"
+    )
+    assert "stopped or changed by another client, or at the drive" in outcome.message
+    assert ended < 3.0 and spin_stop < 2.0, (ended, spin_stop)
