@@ -117,8 +117,8 @@ class DriveLinkError(DriveError):
 
 
 class DriveOffCommand(DriveError):
-    """A drive running at the commanded speed found no longer running, or given another reference:
-    stopped or moved by another Modbus client, or at the drive itself."""
+    """A drive running at the commanded speed found no longer running, taken to local control, or
+    given another reference: stopped or moved by another Modbus client, or at the drive itself."""
 
 
 class DriveTimeoutError(DriveError, TimeoutError):

@@ -3,8 +3,8 @@
 One task (`DrivePoll.run`) reads both drives every `poll_interval` s at a
 steady pace. It is the heartbeat the drives' comm-loss watchdog needs, the
 source of `state`, and the interlock:
-- A drive that trips, or (once a poll found both at `command`) one found no longer running or
-  at another reference (another client or the drive's panel: DriveOffCommand), has both drives
+- A drive that trips, or (once a poll found both at `command`) one found no longer running, in
+  local control or at another reference (another client, the drive's keypad: DriveOffCommand), has both drives
   ramped to zero before it is recorded in `failure` (the owner raises it); so does a poll that
   fails on a bug (not left turning unwatched: the poll's reads keep their watchdog fed).
 - A poll's read gives way to a stop on TCP (drives/link.py): that poll is skipped, not failed.

@@ -95,11 +95,14 @@ class RigDriveState:
 def off_command(
     statuses: Sequence[DriveStatus], drives: tuple[Drive, Drive], command: tuple[int, int]
 ) -> DriveOffCommand | None:
-    """The first drive of `statuses` not running at its raw REF of `command` (spin, orbit): no
-    longer running, or given another reference. None while both run at the command."""
+    """The first drive of `statuses` not running at its raw REF of `command` (spin, orbit) under
+    network control: no longer running, taken to local control (its keypad: SW REMOTE = 0), or
+    given another reference. None while both run at the command."""
     for st, d, raw in zip(statuses, drives, command):
         if not st.running:
             what, register = f"is no longer running ({st.state}, ACT {fmt_speed(st.actual)})", R.SW
+        elif not st.remote:
+            what, register = f"was taken to local control (SW REMOTE = 0, ACT {fmt_speed(st.actual)})", R.SW
         elif st.reference_raw != raw:
             what, register = f"was given another reference (REF {fmt_speed(st.reference)})", R.REF
         else:
