@@ -202,3 +202,21 @@ async def test_a_bug_in_one_points_identification_names_the_point(tmp_path, monk
     assert len(blocks) == 10, blocks  # 5 ratios x 2 directions, measured before the failure
     assert _stored_status(tmp_path) is RunStatus.FAILED
     assert any(r.exc_info and "identify point 0000" in r.getMessage() for r in caplog.records)
+
+
+async def test_a_drive_link_lost_for_a_moment_fails_the_run_naming_the_request(tmp_path):
+    """The drives do not answer for 1 s (three polls of the shipped link: lost), then answer again
+    in time for the run's stop: the run fails on the lost link, and its message says which drive
+    and request went unanswered, as the stop's own failures do. It said only "interlock: Modbus
+    link to the drives lost"."""
+    shipped = load_rig(ROOT / "config" / "rig.toml")
+    async with running(tmp_path, small_matrix(revolutions=3000, spin_rpm=[1000.0]), shipped) as (sim, eng, rec, run):
+        await wait_for(lambda: rec.blocks_done() >= 1, 60, what="a block")  # each block: several seconds
+        sim.inject("modbus_timeout", on=True)
+        await wait_for(lambda: eng.state != "running", 10, what="the run ending")
+        sim.inject("modbus_timeout", on=False)
+        outcome = await asyncio.wait_for(asyncio.shield(run), 60)
+        assert outcome.status == "failed", outcome.message
+        lost = "interlock: Modbus link to the drives lost (spin drive (id 1), registers 0..6 (CW .. FAULT): "
+        assert lost in outcome.message, outcome.message  # (after "drives not confirmed stopped: ..." if so)
+        await wait_for(lambda: _at_rest(sim), 30, what="both drives at rest")
