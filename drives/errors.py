@@ -116,6 +116,11 @@ class DriveLinkError(DriveError):
     """The Modbus link to the drives is down or broken."""
 
 
+class DriveOffCommand(DriveError):
+    """A drive running at the commanded speed found no longer running, taken to local control, or
+    given another reference: stopped or moved by another Modbus client, or at the drive itself."""
+
+
 class DriveTimeoutError(DriveError, TimeoutError):
     """No answer in time, or the drives did not reach a state in time."""
 

@@ -3,10 +3,10 @@
 One task (`DrivePoll.run`) reads both drives every `poll_interval` s at a
 steady pace. It is the heartbeat the drives' comm-loss watchdog needs, the
 source of `state`, and the interlock:
-- A drive that trips has both drives ramped to zero before the fault is
-  recorded in `failure` (the owner raises it); so does a poll that fails on a bug
-  (no longer watched, commanded drives are not left turning: the poll's reads
-  would keep their watchdog fed).
+- A drive that trips, or (once a poll found both at `command`) one found no longer running, in
+  local control or at another reference (another client, the drive's keypad: DriveOffCommand), has both drives
+  ramped to zero before it is recorded in `failure` (the owner raises it); so does a poll that
+  fails on a bug (not left turning unwatched: the poll's reads keep their watchdog fed).
 - A poll's read gives way to a stop on TCP (drives/link.py): that poll is skipped, not failed.
 - A failed poll is counted (`state.poll_failures`, logged); the link is
   declared lost only after `link_loss_polls` consecutive failures (an isolated
@@ -41,7 +41,7 @@ from drives.errors import DriveError, DriveFaultError, DriveGaveWay, DriveLinkEr
 from drives.limits import fmt_speed
 from drives.link import ModbusLink
 from drives.poll_pace import PollPace, wait_tick
-from drives.state import RigDriveState
+from drives.state import RigDriveState, off_command
 from drives.stop import StopSender
 
 log = logging.getLogger(__name__)
@@ -84,6 +84,7 @@ class DrivePoll:
         self.state = RigDriveState(None, None, link_ok=False)
         self.tick = asyncio.Event()
         self.command: tuple[int, int] | None = None
+        self.following = False  # a poll found both drives running at `command` since it was given
         self.failure: DriveError | None = None
         self._trip_handled = False
         self._ack_time = 0.0  # polls read before this are stale for trip handling
@@ -102,7 +103,7 @@ class DrivePoll:
     def commanded(self, refs: tuple[int, int]) -> None:
         """Both drives are being run at raw REFs `refs` (spin, orbit): no stop is owed any more."""
         self._epoch += 1
-        self.owed = None
+        self.owed, self.following = None, False
         self.command = refs
 
     def send_stop(self, *, emergency: bool = False) -> asyncio.Task[list[DriveError]]:
@@ -155,7 +156,7 @@ class DrivePoll:
             if st.link_ok and st.time > since:  # not there yet: read again soon
                 self.pace.ask(st.time + self.poll_interval / 4)
             await wait_tick(tick, deadline - time.monotonic())
-        late = f"not at zero speed within {timeout:g} s: " + st.describe()
+        late = f"not at zero speed within {timeout:g} s: " + st.describe(since, "the stop")
         tripped = [s for s in (st.spin, st.orbit) if s and s.tripped and s.time > since and s.device_id not in known]
         if tripped:
             raise StopTripError(tripped, stop=stop, standstill=standstill, end=late)
@@ -254,6 +255,7 @@ class DrivePoll:
             return
         self.publish(statuses, link_ok=True)
         await self._check_trips(statuses)
+        await self._check_following(statuses)
         await self._check_owed(statuses)
 
     def _poll_failed(self, err: DriveError) -> None:
@@ -378,6 +380,19 @@ class DrivePoll:
             register=R.FAULT,
             fault_code=st.fault_code,
         )
+        await self._stop_and_fail(err)
+
+    async def _check_following(self, statuses: Sequence[DriveStatus]) -> None:
+        """Once a poll found both drives running at `command`, a drive found no longer running or at
+        another reference (stopped or moved by another client, or at the drive) is handled as a trip."""
+        problem = None if self.command is None else off_command(statuses, self.drives, self.command)
+        if self.command is not None and problem is None:
+            self.following = True
+        elif problem is not None and self.following:
+            self.following = False
+            await self._stop_and_fail(problem)
+
+    async def _stop_and_fail(self, err: DriveError) -> None:
         log.error("%s; ramping both drives to zero", err)
         await asyncio.shield(self._send(bool(self.owed)))  # delivered before anyone hears of the fault
         self.command = None

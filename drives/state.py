@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from drives.drive import DriveStatus, rad_s_to_rpm
-from drives.errors import DriveLinkError
+from drives.drive import Drive, DriveStatus, rad_s_to_rpm
+from drives.errors import DriveLinkError, DriveOffCommand
+from drives import registers as R
 from drives.limits import fmt_speed
 
 #: what a lost Modbus link is called wherever it ends something (the run's interlock, a step, a hold)
@@ -51,11 +53,18 @@ class RigDriveState:
         """Both drives read an actual speed of exactly zero."""
         return bool(self.spin and self.orbit and self.spin.stopped and self.orbit.stopped)
 
-    def describe(self) -> str:
-        """Each drive's state, reference, actual speed and fault, and a link that is down: for messages."""
+    def describe(self, since: float | None = None, what: str = "the command") -> str:
+        """Each drive's state, reference, actual speed and fault, and a link that is down: for messages.
+        With `since` (time.monotonic() of `what`, e.g. "the stop"), a drive not read after it is
+        said to be as last read, so a reading from before the stop is never taken for the present."""
         parts = [
             f"{s.name} (id {s.device_id}) {s.state}, REF {fmt_speed(s.reference)}, "
             f"ACT {fmt_speed(s.actual)}, fault {s.fault_code}"
+            + (
+                ""
+                if since is None or s.time > since
+                else f" (not read since {what}: as read {since - s.time:.2f} s before it)"
+            )
             for s in (self.spin, self.orbit)
             if s is not None
         ]
@@ -81,3 +90,28 @@ class RigDriveState:
             "spin": self.spin.to_dict() if self.spin else None,
             "orbit": self.orbit.to_dict() if self.orbit else None,
         }
+
+
+def off_command(
+    statuses: Sequence[DriveStatus], drives: tuple[Drive, Drive], command: tuple[int, int]
+) -> DriveOffCommand | None:
+    """The first drive of `statuses` not running at its raw REF of `command` (spin, orbit) under
+    network control: no longer running, taken to local control (its keypad: SW REMOTE = 0), or
+    given another reference. None while both run at the command."""
+    for st, d, raw in zip(statuses, drives, command):
+        if not st.running:
+            what, register = f"is no longer running ({st.state}, ACT {fmt_speed(st.actual)})", R.SW
+        elif not st.remote:
+            what, register = f"was taken to local control (SW REMOTE = 0, ACT {fmt_speed(st.actual)})", R.SW
+        elif st.reference_raw != raw:
+            what, register = f"was given another reference (REF {fmt_speed(st.reference)})", R.REF
+        else:
+            continue
+        return DriveOffCommand(
+            f"{what} while commanded to run at {fmt_speed(d.speed_of(raw))}: "
+            "stopped or changed by another client, or at the drive",
+            drive=st.device_id,
+            drive_name=st.name,
+            register=register,
+        )
+    return None

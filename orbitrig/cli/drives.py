@@ -351,8 +351,7 @@ async def _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, in
     _state_lines(state)
     if not hold:
         return 0
-    refs = (rig.spin.reference_for(spin), rig.orbit.reference_for(orbit))
-    return await _hold(rig, refs, status_every, interrupt)
+    return await _hold(rig, status_every, interrupt)
 
 
 async def _release(rig, wanted: float) -> None:

@@ -15,7 +15,7 @@ import asyncio
 import signal
 import time
 
-from drives.errors import DriveError
+from drives.errors import DriveError, DriveOffCommand
 from orbitrig.cli.signals import SIGNAL_WORDS
 from orbitrig.cli.terminal import OutputError, say
 from orbitrig.run.safe_stop import not_confirmed, stop_shielded
@@ -106,24 +106,6 @@ def _hold_line(state, held: float) -> str:
     return f"holding {held:.0f} s: {', '.join(parts)}; {link}, polls {state.polls}, poll failures {state.poll_failures}"
 
 
-def stopped_elsewhere(state, refs: tuple[int, int]) -> str | None:
-    """Which drive no longer follows what `run` commanded (raw REFs `refs`):
-    not running any more, or given another reference (another client stopped
-    or moved it). None while both follow."""
-    found = []
-    for s, ref in zip((state.spin, state.orbit), refs):
-        if s is None:
-            continue
-        if not s.running:
-            found.append(f"the {s.name} drive (id {s.device_id}) is no longer running ({s.state})")
-        elif s.reference_raw != ref:
-            found.append(
-                f"the {s.name} drive (id {s.device_id}) was given another reference "
-                f"({s.to_dict()['reference_rpm']:.1f} rpm)"
-            )
-    return "; ".join(found) or None
-
-
 async def ramp_down(rig, interrupt: Interrupt) -> tuple[bool, str]:
     """Both drives ramped to zero (OFF1) and confirmed at standstill, not cut short by a
     cancellation; a signal meanwhile makes it the emergency stop (OFF3). (escalated, what the
@@ -191,7 +173,7 @@ async def stop_after_release(url, d, interrupt: Interrupt) -> int:
     return 4 if escalated else 2
 
 
-async def _hold(rig, refs: tuple[int, int], status_every: float, interrupt: Interrupt) -> int:
+async def _hold(rig, status_every: float, interrupt: Interrupt) -> int:
     """`run --hold`: poll at the setpoint until a signal (exit 0) or until another client stops or
     moves a drive (exit 2); both end with both drives ramped to zero and confirmed at standstill
     (not confirmed: exit 1). A second signal during that ramp makes it an emergency stop (exit 4).
@@ -199,12 +181,11 @@ async def _hold(rig, refs: tuple[int, int], status_every: float, interrupt: Inte
     say(f"holding at the setpoint; {SIGNAL_WORDS} ramps both drives to zero (a second one: emergency stop)", err=True)
     interrupt.holding = True
     t0 = time.monotonic()
-    elsewhere = await _poll_at_setpoint(rig, refs, status_every, interrupt, t0)
+    elsewhere = await _poll_at_setpoint(rig, status_every, interrupt, t0)
     held = time.monotonic() - t0
     if elsewhere is not None:
         say(
-            f"orbitrig drives run: after {held:.0f} s at the setpoint {elsewhere}: "
-            "stopped or changed by another client; ramping both drives to zero",
+            f"orbitrig drives run: after {held:.0f} s at the setpoint: {elsewhere}; ramping both drives to zero",
             err=True,
         )
     else:
@@ -226,19 +207,21 @@ async def _hold(rig, refs: tuple[int, int], status_every: float, interrupt: Inte
     return 2 if elsewhere else 0
 
 
-async def _poll_at_setpoint(rig, refs: tuple[int, int], status_every: float, interrupt: Interrupt, t0: float):
-    """Hold until a signal (None) or another client stops or moves a drive (which one, said)."""
+async def _poll_at_setpoint(rig, status_every: float, interrupt: Interrupt, t0: float) -> str | None:
+    """Hold until a signal (None) or another client stops or moves a drive (which one, said: the
+    poll found it and is stopping both, drives/poll.py)."""
     last = t0
-    elsewhere = None
-    while not interrupt.event.is_set() and elsewhere is None:
+    while not interrupt.event.is_set():
         try:
             await asyncio.wait_for(interrupt.event.wait(), rig.poll_interval)
         except asyncio.TimeoutError:
             pass
-        state = rig.check().require_link()  # a trip found by the poll (both already stopping), a lost link
-        elsewhere = stopped_elsewhere(state, refs)
+        try:
+            state = rig.check().require_link()  # a trip found by the poll (both already stopping), a lost link
+        except DriveOffCommand as err:
+            return str(err)
         now = time.monotonic()
-        if now - last >= status_every and not interrupt.event.is_set() and elsewhere is None:
+        if now - last >= status_every and not interrupt.event.is_set():
             last = now
             say(_hold_line(state, now - t0))
-    return elsewhere
+    return None

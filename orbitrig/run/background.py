@@ -71,6 +71,7 @@ class Background:
         self._resumed = asyncio.Event()  # set: writes start at once (`defer_writes`)
         self._resumed.set()
         self.error: BaseException | None = None
+        self._failed: str = ""  # the name of the task that failed first ('identify point 0002')
 
     async def write(self, fn: Callable[..., T], *args: object) -> T:
         """One storage write, in a thread, after every write submitted before it; none after one
@@ -139,8 +140,9 @@ class Background:
         self._pending.pop(task, None)
         error = None if task.cancelled() else task.exception()
         if error is not None and self.error is None:
-            self.error = error
-            log.error("%s failed: %s", task.get_name(), error)
+            self.error, self._failed = error, task.get_name()
+            bug = not isinstance(error, (StorageError, OSError, RunFailed))  # a bug: its traceback is kept
+            log.error("%s failed: %s", self._failed, error, exc_info=error if bug else None)
             if self._on_failure is not None:
                 self._on_failure(error)
 
@@ -149,8 +151,9 @@ class Background:
         err = self.error
         if err is None:
             return None
-        what = "storage failed" if isinstance(err, (StorageError, OSError)) else "identification failed"
-        return f"{what}: {type(err).__name__}: {err}"
+        if isinstance(err, (StorageError, OSError)):  # the error names the file
+            return f"storage failed: {type(err).__name__}: {err}"
+        return f"{self._failed} failed: {type(err).__name__}: {err}"  # 'identify point 0002 failed: ...'
 
     def check(self) -> None:
         """Raise RunFailed if a background task failed."""

@@ -103,7 +103,8 @@ def _turning(drives: RigDriveState | None) -> bool:
 def _drive_trips(drives: RigDriveState) -> list[Trip]:
     trips = []
     if not drives.link_ok:
-        trips.append(Trip(TripKind.DRIVE_LINK, FAIL, LINK_LOST))
+        why = f" ({drives.link_error})" if drives.link_error else ""  # the drive and request that went unanswered
+        trips.append(Trip(TripKind.DRIVE_LINK, FAIL, LINK_LOST + why))
     for which, st in (("spin", drives.spin), ("orbit", drives.orbit)):
         if st is not None and (st.fault_code or st.tripped):
             trips.append(

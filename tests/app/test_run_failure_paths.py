@@ -177,3 +177,46 @@ async def test_an_os_error_of_a_device_is_no_storage_failure(tmp_path, monkeypat
         assert "storage failed" not in outcome.message, outcome.message
         assert outcome.message.startswith("OSError: [Errno 5] Input/output error: '/dev/ttyUSB0'"), outcome.message
         await wait_for(lambda: _at_rest(sim), 30)
+
+
+async def test_a_bug_in_one_points_identification_names_the_point(tmp_path, monkeypatch, caplog):
+    """The identification of point 0000 raises on a bug (not a ReductionError, which refuses one
+    model): the run fails at once naming the point, with the traceback logged, the drives stopped
+    and every block of the point kept on disk. It said only "identification failed: ..."."""
+    from orbitrig.run import procedure
+
+    real = procedure.identify_operating_point
+
+    def buggy(spin, *args):
+        if spin < 150.0:  # rad/s: point 0000's 1000 rpm, not point 0001's 2000
+            raise ZeroDivisionError("float division by zero")
+        return real(spin, *args)
+
+    monkeypatch.setattr(procedure, "identify_operating_point", buggy)
+    async with running(tmp_path, small_matrix(spin_rpm=[1000.0, 2000.0])) as (sim, eng, rec, run):
+        outcome = await asyncio.wait_for(asyncio.shield(run), 60)
+        assert outcome.status == "failed", outcome.message
+        assert outcome.message == "identify point 0000 failed: ZeroDivisionError: float division by zero"
+        await wait_for(lambda: _at_rest(sim), 30, what="both drives at rest")
+    blocks = sorted(p.name for p in (tmp_path / "run" / "points" / "0000").glob("*_*.h5"))
+    assert len(blocks) == 10, blocks  # 5 ratios x 2 directions, measured before the failure
+    assert _stored_status(tmp_path) is RunStatus.FAILED
+    assert any(r.exc_info and "identify point 0000" in r.getMessage() for r in caplog.records)
+
+
+async def test_a_drive_link_lost_for_a_moment_fails_the_run_naming_the_request(tmp_path):
+    """The drives do not answer for 1 s (three polls of the shipped link: lost), then answer again
+    in time for the run's stop: the run fails on the lost link, and its message says which drive
+    and request went unanswered, as the stop's own failures do. It said only "interlock: Modbus
+    link to the drives lost"."""
+    shipped = load_rig(ROOT / "config" / "rig.toml")
+    async with running(tmp_path, small_matrix(revolutions=3000, spin_rpm=[1000.0]), shipped) as (sim, eng, rec, run):
+        await wait_for(lambda: rec.blocks_done() >= 1, 60, what="a block")  # each block: several seconds
+        sim.inject("modbus_timeout", on=True)
+        await wait_for(lambda: eng.state != "running", 10, what="the run ending")
+        sim.inject("modbus_timeout", on=False)
+        outcome = await asyncio.wait_for(asyncio.shield(run), 60)
+        assert outcome.status == "failed", outcome.message
+        lost = "interlock: Modbus link to the drives lost (spin drive (id 1), registers 0..6 (CW .. FAULT): "
+        assert lost in outcome.message, outcome.message  # (after "drives not confirmed stopped: ..." if so)
+        await wait_for(lambda: _at_rest(sim), 30, what="both drives at rest")

@@ -162,3 +162,43 @@ async def test_a_drive_trip_while_waiting_for_the_operator_fails_the_run_at_once
     assert outcome.status == "failed" and outcome.message.startswith("interlock: spin drive tripped: fault 2310")
     assert eng.state == "faulted" and eng.waiting_step is None
     assert rec.states()[-2:] == ["stopping", "faulted"]  # reported once the drives are safe
+
+
+async def _other_client_stops_the_orbit_drive(sim) -> None:
+    from drives.link import ModbusLink
+
+    async with ModbusLink(sim.link.call("state")["endpoints"]["modbus"], timeout=1.0) as other:
+        await other.write(2, 0, [0x047E])  # OFF1 (spec control word, written out on purpose)
+
+
+async def _keypads_take_both_drives(sim) -> None:
+    await asyncio.to_thread(sim.link.call, "local_control", spin=50.0, orbit=30.0)
+
+
+@pytest.mark.parametrize(
+    "act, first",
+    [
+        (_other_client_stops_the_orbit_drive, "orbit drive (id 2), register SW (3): is no longer running"),
+        (_keypads_take_both_drives, "spin drive (id 1), register SW (3): was taken to local control"),
+    ],
+    ids=["another client", "keypads"],
+)
+async def test_a_drive_stopped_or_taken_elsewhere_fails_the_run_at_once(tmp_path, act, first):
+    """Another Modbus client (a second terminal's `orbitrig drives stop`) stops the orbit drive, or
+    the drives are taken to their keypads, mid-run: the run's drive poll finds a drive no longer
+    under the run's command, stops both and fails the run at once naming the drive. The run went
+    on with the spindles turning for about 10 s (another client: the acquisition's timeout, then
+    the settle wait, "drives did not settle"), or 5 s at the keypads' speeds ("acquisition
+    failed ... orbit trigger lost or A/D link down?"), naming neither the drive nor the cause."""
+    async with running(tmp_path, small_matrix(revolutions=30)) as (sim, eng, rec, run):
+        await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
+        t0 = time.monotonic()
+        await act(sim)
+        await wait_for(run.done, timeout=30, what="the run's end")
+        ended = time.monotonic() - t0
+        outcome = run.result()
+        await wait_for(lambda: _spindles_stopped(sim), timeout=10, what="spindles at rest")
+    assert outcome.status == "failed"
+    assert outcome.message.startswith(f"interlock: drive poll: {first}"), outcome.message
+    assert "stopped or changed by another client, or at the drive" in outcome.message
+    assert ended < 3.0, ended

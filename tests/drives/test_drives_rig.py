@@ -17,6 +17,7 @@ from drives.errors import (
     DriveExceptionResponse,
     DriveFaultError,
     DriveLimitError,
+    DriveOffCommand,
 )
 from drives.limits import DriveLimits
 from drives.link import ModbusLink
@@ -126,6 +127,28 @@ async def test_trip_stops_both_and_reset(sim):
         await r.set_speeds(500 * RPM, 100 * RPM)
         await r.wait_settled(hold=0.05, timeout=5)
         assert sim.rpm(1) == pytest.approx(500, abs=5)
+
+
+async def test_a_drive_moved_by_another_client_stops_both_as_a_trip_does(tcp_sim):
+    """Another Modbus master writes the spin drive's REF while both run at the command: the poll
+    finds it at another reference, ramps both drives to zero and records it (DriveOffCommand,
+    naming the drive and REF); before, the drives ran on at the other client's speed. A new
+    command afterwards runs them again."""
+    async with rig(tcp_sim) as r:
+        await r.set_speeds(1000 * RPM, 600 * RPM)
+        await r.wait_settled(hold=0.05, timeout=5)
+        async with ModbusLink(tcp_sim.url, timeout=0.3) as other:
+            await other.write(1, sim_registers.REF, [10000])  # 1500 rpm (20000 = SPEED_SCALE, 3000 rpm)
+        with pytest.raises(DriveOffCommand) as info:
+            await r.wait_settled(hold=5.0, timeout=5)
+        err = info.value
+        assert (err.drive, err.register) == (1, sim_registers.REF)
+        assert "spin drive (id 1), register REF (1): was given another reference" in str(err), str(err)
+        assert tcp_sim.regs(2)["CW"] == CW_RAMP_STOP and tcp_sim.regs(1)["CW"] == CW_RAMP_STOP
+        await tcp_sim.wait_stopped(timeout=3)
+        await r.set_speeds(500 * RPM, 100 * RPM)
+        await r.wait_settled(hold=0.05, timeout=5)
+        assert tcp_sim.rpm(1) == pytest.approx(500, abs=5)
 
 
 async def test_cancelled_task_leaves_both_drives_stopping(sim):

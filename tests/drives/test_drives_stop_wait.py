@@ -39,3 +39,33 @@ async def test_a_ramp_stop_is_confirmed_soon_after_standstill(tcp_sim):
         assert r.state.stopped and tcp_sim.regs(1)["ACT"] == tcp_sim.regs(2)["ACT"] == 0
     # the drives' ramp from 600 rpm: 1 s at 600 rpm/s, 0.04 s wall at the testkit's speed-up of 25
     assert took < 0.04 + POLL / 4 + 0.1, took
+
+
+async def test_a_stop_not_confirmed_never_gives_a_reading_from_before_it_for_the_present(tcp_sim, monkeypatch):
+    """The orbit drive takes the stop word but answers every status read with Modbus exception 04
+    (made on the simulator's side: its drives never fail so). The standstill cannot be confirmed;
+    the error gives each drive as last read, before the stop, and says so: it gave the spin drive
+    "running, ACT 600 rpm" as if read after the stop, while both drives were at rest."""
+    from drives.errors import DriveTimeoutError
+    from sim.drive_registers import DriveModbusException
+
+    orbit, real = tcp_sim.models[2], tcp_sim.models[2].read
+    failing = [False]
+
+    def read(address, count):
+        if failing[0] and count > 1:  # the status block (CW .. FAULT), not a write's echo of one word
+            raise DriveModbusException(0x04, "device failure (made by the test)")
+        return real(address, count)
+
+    monkeypatch.setattr(orbit, "read", read)
+    with pytest.raises(DriveTimeoutError) as caught:
+        async with open_rig(tcp_sim, LIMITS) as r:
+            await r.set_speeds(600 * RPM, 300 * RPM)
+            await r.wait_settled(hold=0.05, timeout=5)
+            failing[0] = True
+            await r.stop(timeout=0.5)
+    message, failing[0] = str(caught.value), False
+    await tcp_sim.wait_stopped()  # both took the stop word: at rest
+    assert "spin (id 1) running, REF 62.832 rad/s (600.0 rpm)" in message, message
+    assert message.count("(not read since the stop: as read ") == 2, message
+    assert "link down: orbit drive (id 2)" in message and "Modbus exception 04" in message, message
