@@ -283,8 +283,8 @@ class DrivePoll:
             self._link_lost_at = time.monotonic()
             watchdogs = [d.params.comm_loss_timeout for d in self.drives if d.params]
             log.error(
-                "drive link lost (%d failed polls in a row): %s; the drives' comm-loss watchdog "
-                "stops them after %s s; reconnecting",
+                "drive link lost (%d failed polls in a row): %s; a drive no request reaches stops on its "
+                "comm-loss watchdog after %s s (one still answering, with exceptions, does not); reconnecting",
                 self.state.failed_in_row + 1,
                 err,
                 max(watchdogs) if watchdogs else "?",
