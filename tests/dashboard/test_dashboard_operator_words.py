@@ -7,6 +7,7 @@ the browser's locale. The test publishes what the rig service would (as orbitrig
 from __future__ import annotations
 
 import json
+import math
 import re
 
 import pytest
@@ -102,3 +103,23 @@ def test_how_a_run_ended_stays_listed_when_the_service_goes_offline_at_once(brok
     page.wait_state("offline", 10)
     page.wait_text("events", lambda t: f"run {RUN} stopped: stopped at once by the service shutting down" in t, 10)
     assert "point 0002 (14 blocks stored)" in page.text("events")
+
+
+def test_a_circular_orbit_is_drawn_round(broker, page):
+    n, r = 45, 5e-6  # a 5 um circle, over one revolution
+    xs = [r * math.cos(2 * math.pi * k / n) for k in range(n)]
+    ys = [r * math.sin(2 * math.pi * k / n) for k in range(n)]
+    payload = dict(live(1), waveforms={"x_a": xs, "x_b": xs, "y_a": ys, "y_b": ys})
+    publish(broker, "live", payload, qos=0)
+    page.wait(lambda: page.el("plot-orbit").get_attribute("data-samples") == "45", 10, "the orbit plot")
+    # the trace's extent in canvas pixels (its colour, #1976d2), across and up
+    box = page.d.execute_script(
+        "const c = document.getElementById('plot-orbit'), d = c.getContext('2d').getImageData(0, 0, c.width, c.height);"
+        "let x0 = 1e9, x1 = -1, y0 = 1e9, y1 = -1;"
+        "for (let y = 0; y < c.height; y++) for (let x = 0; x < c.width; x++) { const i = 4 * (y * c.width + x);"
+        "  if (Math.abs(d.data[i] - 25) < 30 && Math.abs(d.data[i + 1] - 118) < 30 && Math.abs(d.data[i + 2] - 210) < 30"
+        "      && d.data[i + 3] > 200) { x0 = Math.min(x0, x); x1 = Math.max(x1, x); y0 = Math.min(y0, y); y1 = Math.max(y1, y); } }"
+        "return [x1 - x0, y1 - y0];"
+    )
+    across, up = box
+    assert across > 40 and abs(across - up) <= 2, box  # equal scales: as wide as tall, to 2 pixels

@@ -29,8 +29,8 @@ function fmtTick(v, step) {
 
 const MARGIN = {l: 52, r: 14, t: 22, b: 20};
 
-function frame(ctx, w, h, y, xticks) {
-  const m = MARGIN;
+function frame(ctx, w, h, y, xticks, m) {
+  m = m || MARGIN;
   ctx.clearRect(0, 0, w, h);
   ctx.strokeStyle = "#cfd8dc"; ctx.fillStyle = "#546e7a"; ctx.font = "10px sans-serif"; ctx.lineWidth = 1;
   ctx.strokeRect(m.l, m.t, w - m.l - m.r, h - m.t - m.b);
@@ -44,7 +44,7 @@ function frame(ctx, w, h, y, xticks) {
   xticks.forEach(([frac, text], i) => {
     // the first label starts at its tick, the last ends at it: none is clipped by the canvas edge
     ctx.textAlign = frac <= 0 ? "left" : frac >= 1 ? "right" : "center";
-    ctx.fillText(text, m.l + (w - m.l - m.r) * frac, h - 5);
+    ctx.fillText(text, m.l + (w - m.l - m.r) * frac, h - m.b + 15);
   });
   ctx.textAlign = "left";
 }
@@ -87,13 +87,20 @@ function drawTraces(canvas, series, scale) {
   mark(canvas, series.reduce((a, s) => a + s.values.length, 0), y);
 }
 
-// x, y: displacements over one revolution (m); drawn in um, equal axes, closed curve
+// margins that leave a square plot area in a w x h canvas (the wider side's margins grow alike)
+function squareMargin(w, h) {
+  const pw = w - MARGIN.l - MARGIN.r, ph = h - MARGIN.t - MARGIN.b, dx = Math.max(0, pw - ph) / 2, dy = Math.max(0, ph - pw) / 2;
+  return {l: MARGIN.l + dx, r: MARGIN.r + dx, t: MARGIN.t + dy, b: MARGIN.b + dy};
+}
+
+// x, y: displacements over one revolution (m); drawn in um, equal axes (a circular orbit is drawn
+// round: the same pixels per um across and up), closed curve
 function drawOrbit(canvas, x, y) {
-  const ctx = canvas.getContext("2d"), w = canvas.width, h = canvas.height, m = MARGIN;
+  const ctx = canvas.getContext("2d"), w = canvas.width, h = canvas.height, m = squareMargin(w, h);
   const xs = x.map(v => v * 1e6), ys = y.map(v => v * 1e6);
   const r = Math.max(1e-3, ...xs.map(Math.abs), ...ys.map(Math.abs));
   const ax = niceTicks(-r, r, 4);
-  frame(ctx, w, h, ax, ax.ticks.map(v => [(v - ax.lo) / (ax.hi - ax.lo), fmtTick(v, ax.step)]));
+  frame(ctx, w, h, ax, ax.ticks.map(v => [(v - ax.lo) / (ax.hi - ax.lo), fmtTick(v, ax.step)]), m);
   const px = v => m.l + (w - m.l - m.r) * (v - ax.lo) / (ax.hi - ax.lo), py = v => h - m.b - (h - m.t - m.b) * (v - ax.lo) / (ax.hi - ax.lo);
   ctx.strokeStyle = "#1976d2"; ctx.lineWidth = 1.8; ctx.beginPath();
   xs.forEach((v, i) => (i ? ctx.lineTo(px(v), py(ys[i])) : ctx.moveTo(px(v), py(ys[i]))));
