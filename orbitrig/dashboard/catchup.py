@@ -1,7 +1,8 @@
 """What a dashboard session reads of a rig, and how it catches up after its broker link dropped.
 
 A session's MQTT session outlives a dropped link for ``catch_up_s`` s (MQTT 5 session expiry;
-the same client id; clean start only at sign-in): the broker queues for it what it subscribed
+the same client id on every reconnection, a new one at each sign-in; never a clean start, which mosquitto 2.0 would
+not save to its persistence): the broker queues for it what it subscribed
 to at QoS 1 (statuses, results, replies, acknowledgements; mosquitto keeps up to its
 ``max_queued_messages`` per client, 10000 in config/mosquitto/mosquitto.conf) and hands them
 over when the link is back. Progress and live payloads (QoS 0) are stale by then: not kept.

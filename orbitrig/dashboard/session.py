@@ -100,7 +100,6 @@ class Session(Incoming, Outgoing):
         self._client: Any = None
         self._task: asyncio.Task | None = None
         self.closed = False
-        self._resume = False  # a connection resumes the broker's session (every one after the first)
         self._subscribed: proto.Topics | None = None  # the rig the broker's session holds subscriptions to
         self._down_since: str | None = None  # when the broker link was lost (ISO-8601), until it is back
 
@@ -149,7 +148,10 @@ class Session(Incoming, Outgoing):
             password=self.__password,
             identifier=f"mosq-orbitrig-dashboard-{self.user}-{self.token[:8]}",  # the same on every reconnection
             protocol=aiomqtt.ProtocolVersion.V5,
-            clean_start=not self._resume,  # a fresh session at sign-in; reconnections resume it
+            # never a clean start: the id is new at each sign-in (its token), so the first connection
+            # gets a fresh session all the same, and mosquitto 2.0 saves to its persistence only the
+            # sessions not begun with a clean start (with one, a broker restart lost the session)
+            clean_start=False,
             properties=connect_properties(s.catch_up_s),  # the broker keeps the session this long
             keepalive=s.keepalive,
             timeout=10,
@@ -175,7 +177,7 @@ class Session(Incoming, Outgoing):
             async with self._make_client() as client:
                 caught_up = client.session_present and self._subscribed == self.topics
                 await self._subscribe(client)
-                self._client, connected, self._resume = client, True, True
+                self._client, connected = client, True
                 if not first.done():
                     first.set_result(None)
                 self._set_link(BrokerLink.ONLINE)

@@ -60,7 +60,9 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     assert "0.2000 … 8.0000" in aux["p_supply"]  # the supply pressure interlock band, MPa
 
     # pause (at the next safe point), resume, stop
-    assert "pause: accepted" in page.command("btn-pause", "pause:")
+    # accepted is not paused: the outcome says the run goes on to its next safe point
+    paused = page.command("btn-pause", "pause:")
+    assert paused == "pause: accepted — the run pauses at its next safe point (the state then says paused)", paused
     page.wait_state("paused", 30)
     assert "resume: accepted" in page.command("btn-resume", "resume:")
     page.wait_state("running", 15)

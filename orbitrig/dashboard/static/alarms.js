@@ -4,10 +4,7 @@
 // Acknowledge button.
 "use strict";
 
-function localTime(iso) {
-  const d = new Date(iso);
-  return isNaN(d) ? (iso || "—") : d.toLocaleString();
-}
+function localTime(iso) { return orbitPlots.dateTimeOf(iso) || iso || "—"; }
 
 function showAlarms(list) {
   const body = document.getElementById("alarms"); clear(body);

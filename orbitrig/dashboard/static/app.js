@@ -14,6 +14,8 @@ const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0, replyTim
 const STALE_TICKS = 7 / 3, FEED_DEAD_TICKS = 4;
 
 function fmt(v, digits) { return (v === null || v === undefined || !isFinite(v)) ? "—" : Number(v).toFixed(digits); }
+// a value with its unit, or "—" alone when there is none (not "— Hz")
+function withUnit(v, digits, unit) { const t = fmt(v, digits); return t === "—" ? t : t + " " + unit; }
 function show(el, on) { el.hidden = !on; }
 function clear(el) { while (el.firstChild) el.removeChild(el.firstChild); }
 function cell(tr, text, cls) { const td = document.createElement("td"); td.textContent = text; if (cls) td.className = cls; tr.appendChild(td); return td; }
@@ -239,7 +241,11 @@ function showStatus(s) {
   // a closing status's grouped fit warnings ("run completed; warning: ...; warning: ...") are events of their own
   const [said, ...warnings] = (s.message || "").split("; warning: ");
   const warn = s.state === RunState.FAULTED || /interlock|not met|failed|lost/i.test(said);
-  if (warn && !(prev && prev.message === s.message)) addEvent("warn", s.state + ": " + said, false, undefined, ["status", s.run_id, s.since, said].join("|"));
+  const key = ["status", s.run_id, s.since, said].join("|");
+  // how a run ended stays listed: the next status (the service going offline, the next run) replaces the message
+  if (s.state === RunState.IDLE && s.run_id && said.startsWith("run ")) {
+    addEvent(said.startsWith("run " + Outcome.COMPLETED) ? "info" : "warn", "run " + s.run_id + " " + said.slice(4), false, s.since, key);
+  } else if (warn && !(prev && prev.message === s.message)) addEvent("warn", s.state + ": " + said, false, undefined, key);
   warnings.forEach(w => addEvent("warn", "run " + (s.run_id || "") + ": warning: " + w, false, undefined, ["run warning", s.run_id, w].join("|")));
   if (runEnded(s) || !prev || prev.run_id !== s.run_id) clearRunView();
   if (s.state === RunState.IDLE && (s.message || "").includes(Outcome.COMPLETED)) $("progress-bar").style.width = "100%";
@@ -320,9 +326,9 @@ function showLive(d, age) {
   if (runEnded(st.status)) return;  // late: the run is over
   st.liveAt = Date.now() - 1000 * Math.max(0, age || 0);
   const orbit = (d.drives || {}).orbit;
-  $("op-spin").textContent = fmt(d.spin_rpm, 0) + " rpm";
-  $("op-orbit").textContent = (orbit ? fmt(orbit.actual_rpm, 0) : "—") + " rpm";
-  $("op-orbit-hz").textContent = fmt(d.orbit_hz, 2) + " Hz";
+  $("op-spin").textContent = withUnit(d.spin_rpm, 0, "rpm");
+  $("op-orbit").textContent = withUnit(orbit ? orbit.actual_rpm : null, 0, "rpm");
+  $("op-orbit-hz").textContent = withUnit(d.orbit_hz, 2, "Hz");
   $("op-direction").textContent = d.direction || "—";
   showDrives(d.drives || {});
   showAux(d.aux || {}, d.bands || {});
@@ -372,6 +378,11 @@ function showAux(a, bands) {
     cell(tr, band ? fmt(auxShown(band[0], unit), digits) + " … " + fmt(auxShown(band[1], unit), digits) : "");
     body.appendChild(tr);
   });
+  // what the CAN node's flags say of these values: shown in the card, the values greyed when not current
+  const said = [a.node_lost && "CAN sensor node lost: the values are the last it sent, not the present",
+    a.sensor_fault && "the CAN node reports a faulty sensor", a.pump_off && "the supply pump is off"].filter(Boolean);
+  $("aux-state").textContent = said.join("; ");
+  body.classList.toggle("stale", !!a.node_lost);
   if (a.node_lost) addEvent("warn", "CAN sensor node lost", true);
 }
 
@@ -384,7 +395,7 @@ function addEvent(kind, text, once, at, key) {
   if (key !== undefined && [...list.children].some(li => li.dataset.key === key)) return;
   const li = document.createElement("li"); li.className = kind;
   if (key !== undefined) li.dataset.key = key;
-  li.textContent = (at ? new Date(at) : new Date()).toLocaleTimeString() + " " + text;
+  li.textContent = orbitPlots.clockOf(at ? new Date(at) : new Date()) + " " + text;
   list.insertBefore(li, list.firstChild);
   while (list.children.length > 100) list.removeChild(list.lastChild);
 }
@@ -392,7 +403,7 @@ function addEvent(kind, text, once, at, key) {
 // the broker link was down from gap.from to gap.to: what was published meanwhile came after (the broker
 // kept the session's messages), or results may be missing (a row of the results table says where)
 function showLinkGap(gap) {
-  const span = new Date(gap.from).toLocaleTimeString() + " to " + new Date(gap.to).toLocaleTimeString();
+  const span = orbitPlots.clockOf(gap.from) + " to " + orbitPlots.clockOf(gap.to);
   if (!gap.caught_up) resultTable.showGap(gap);
   addEvent(gap.caught_up ? "info" : "warn", "broker link down from " + span + (gap.caught_up ?
     ": the broker kept what was published meanwhile (results caught up)" : ": results published meanwhile may be missing"), false, gap.to, "gap|" + gap.from);
@@ -427,17 +438,24 @@ async function send(cmd, extra) {
   showOutcome(cmd, r.data);
 }
 
+// an accepted pause is not a paused run: the run goes on to its next safe point (seconds), until its status says paused
+function pending(cmd, at) {
+  const state = st.status && st.status.state;
+  return cmd === Command.PAUSE && !at && (state === RunState.RUNNING || state === RunState.WAITING) ?
+    " — the run pauses at its next safe point (the state then says paused)" : "";
+}
+
 // an outcome the session keeps (its command and time, `at`): the same in the server's answer and its snapshot
 function outcomeKey(cmd, data) { return data.at ? cmd + "|" + data.at : undefined; }
 
 // a command's outcome ({ok, error, at, rig}); `at` (ISO-8601): one the session kept from before this page was
 // loaded; `rig`: the rig a stop or abort went to while the session watched another (named in the outcome)
 function showOutcome(cmd, data, at) {
-  const out = $("cmd-result"), earlier = at ? " (at " + new Date(at).toLocaleTimeString() + ", before this page was loaded)" : "";
+  const out = $("cmd-result"), earlier = at ? " (at " + orbitPlots.clockOf(at) + ", before this page was loaded)" : "";
   const key = outcomeKey(cmd, data), label = data.rig ? cmd + " to rig " + data.rig : cmd;
   if (key) st.outcomes.add(key);
   if (data.ok) {  // with what the service did, when it says (an abort no run carried out)
-    out.className = "cmd-result ok"; out.textContent = label + ": accepted" + (data.detail ? ": " + data.detail : "") + earlier;
+    out.className = "cmd-result ok"; out.textContent = label + ": accepted" + (data.detail ? ": " + data.detail : "") + pending(cmd, at) + earlier;
     if (data.detail) addEvent("info", label + ": " + data.detail, false, at, key);
     return;
   }

@@ -29,8 +29,8 @@ function fmtTick(v, step) {
 
 const MARGIN = {l: 52, r: 14, t: 22, b: 20};
 
-function frame(ctx, w, h, y, xticks) {
-  const m = MARGIN;
+function frame(ctx, w, h, y, xticks, m) {
+  m = m || MARGIN;
   ctx.clearRect(0, 0, w, h);
   ctx.strokeStyle = "#cfd8dc"; ctx.fillStyle = "#546e7a"; ctx.font = "10px sans-serif"; ctx.lineWidth = 1;
   ctx.strokeRect(m.l, m.t, w - m.l - m.r, h - m.t - m.b);
@@ -44,7 +44,7 @@ function frame(ctx, w, h, y, xticks) {
   xticks.forEach(([frac, text], i) => {
     // the first label starts at its tick, the last ends at it: none is clipped by the canvas edge
     ctx.textAlign = frac <= 0 ? "left" : frac >= 1 ? "right" : "center";
-    ctx.fillText(text, m.l + (w - m.l - m.r) * frac, h - 5);
+    ctx.fillText(text, m.l + (w - m.l - m.r) * frac, h - m.b + 15);
   });
   ctx.textAlign = "left";
 }
@@ -87,13 +87,20 @@ function drawTraces(canvas, series, scale) {
   mark(canvas, series.reduce((a, s) => a + s.values.length, 0), y);
 }
 
-// x, y: displacements over one revolution (m); drawn in um, equal axes, closed curve
+// margins that leave a square plot area in a w x h canvas (the wider side's margins grow alike)
+function squareMargin(w, h) {
+  const pw = w - MARGIN.l - MARGIN.r, ph = h - MARGIN.t - MARGIN.b, dx = Math.max(0, pw - ph) / 2, dy = Math.max(0, ph - pw) / 2;
+  return {l: MARGIN.l + dx, r: MARGIN.r + dx, t: MARGIN.t + dy, b: MARGIN.b + dy};
+}
+
+// x, y: displacements over one revolution (m); drawn in um, equal axes (a circular orbit is drawn
+// round: the same pixels per um across and up), closed curve
 function drawOrbit(canvas, x, y) {
-  const ctx = canvas.getContext("2d"), w = canvas.width, h = canvas.height, m = MARGIN;
+  const ctx = canvas.getContext("2d"), w = canvas.width, h = canvas.height, m = squareMargin(w, h);
   const xs = x.map(v => v * 1e6), ys = y.map(v => v * 1e6);
   const r = Math.max(1e-3, ...xs.map(Math.abs), ...ys.map(Math.abs));
   const ax = niceTicks(-r, r, 4);
-  frame(ctx, w, h, ax, ax.ticks.map(v => [(v - ax.lo) / (ax.hi - ax.lo), fmtTick(v, ax.step)]));
+  frame(ctx, w, h, ax, ax.ticks.map(v => [(v - ax.lo) / (ax.hi - ax.lo), fmtTick(v, ax.step)]), m);
   const px = v => m.l + (w - m.l - m.r) * (v - ax.lo) / (ax.hi - ax.lo), py = v => h - m.b - (h - m.t - m.b) * (v - ax.lo) / (ax.hi - ax.lo);
   ctx.strokeStyle = "#1976d2"; ctx.lineWidth = 1.8; ctx.beginPath();
   xs.forEach((v, i) => (i ? ctx.lineTo(px(v), py(ys[i])) : ctx.moveTo(px(v), py(ys[i]))));
@@ -104,6 +111,14 @@ function drawOrbit(canvas, x, y) {
 
 function clockText(t, seconds) { const d = new Date(t * 1000); return d.toTimeString().slice(0, seconds ? 8 : 5); }
 
+// the page's clock, the same everywhere (axes, alarms, events): local time, 24 h, the date as
+// 2026-12-05 (no browser locale's order: 12/5 is not read alike by everyone)
+function clockOf(when) { return new Date(when).toTimeString().slice(0, 8); }
+function dateTimeOf(when) {
+  const d = new Date(when), two = n => String(n).padStart(2, "0");
+  return isNaN(d) ? null : d.getFullYear() + "-" + two(d.getMonth() + 1) + "-" + two(d.getDate()) + " " + clockOf(d);
+}
+
 // local clock ticks every 10, 15, 30 s, 1, 2, 5, 10, 15, 30 min or 1, 2, 6, 12, 24 h over [t0, t1]
 // (s since the epoch), at most 6
 function timeTicks(t0, t1) {
@@ -112,6 +127,15 @@ function timeTicks(t0, t1) {
   const out = [];
   for (let t = Math.ceil(t0 / step) * step; t <= t1; t += step) out.push([(t - t0) / (t1 - t0), clockText(t, step < 60)]);
   return out;
+}
+
+// s: the longest time between two samples drawn joined: 3 times the usual step (the median; 1 s, or
+// the run view's step), at least 5 s. A longer silence (no run, the broker link down) is left blank.
+function gapAfter(series) {
+  const steps = [];
+  series.forEach(s => s.points.forEach(([t], i) => { if (i) steps.push(t - s.points[i - 1][0]); }));
+  steps.sort((a, b) => a - b);
+  return Math.max(5, 3 * (steps.length ? steps[steps.length >> 1] : 1));
 }
 
 // series: [{name, points: [[t, v], ...], dashed}], band [lo, hi] or null (shaded), window [t0, t1] (s)
@@ -129,22 +153,26 @@ function drawTrend(canvas, series, band, win) {
     ctx.strokeStyle = "rgba(46,125,50,0.6)"; ctx.setLineDash([3, 3]);
     [band[0], band[1]].forEach(v => { ctx.beginPath(); ctx.moveTo(m.l, py(v)); ctx.lineTo(w - m.r, py(v)); ctx.stroke(); });
   }
+  const gap = gapAfter(series), pieces = [];
   series.forEach((s, k) => {
     ctx.strokeStyle = COLOURS[k % COLOURS.length]; ctx.lineWidth = 1.5; ctx.setLineDash(s.dashed ? [5, 3] : []);
     ctx.beginPath();
-    let pen = false;
-    let last = null;
+    let pen = false, last = null, drawn = 0;
     s.points.forEach(([t, v]) => {
       if (v === null || t < t0) { pen = false; return; }
+      if (pen && t - last[0] > gap) pen = false;  // no samples in between (no run, no link): no line across
+      if (!pen) drawn++;
       pen ? ctx.lineTo(px(t), py(v)) : ctx.moveTo(px(t), py(v)); pen = true; last = [t, v];
     });
     ctx.stroke();
+    pieces.push(drawn);
     if (last) { ctx.fillStyle = COLOURS[k % COLOURS.length]; ctx.beginPath(); ctx.arc(px(last[0]), py(last[1]), 2.5, 0, 2 * Math.PI); ctx.fill(); }
   });
   ctx.setLineDash([]);
   legend(ctx, series.map(s => s.name), series.map((s, k) => COLOURS[k % COLOURS.length]));
   mark(canvas, n, y);
+  canvas.dataset.pieces = pieces.join(",");
   canvas.dataset.band = band ? band.join(",") : "";
 }
 
-window.orbitPlots = {drawTraces, drawOrbit, drawTrend, niceTicks, fmtTick};
+window.orbitPlots = {drawTraces, drawOrbit, drawTrend, niceTicks, fmtTick, clockOf, dateTimeOf};

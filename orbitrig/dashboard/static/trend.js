@@ -57,7 +57,8 @@ function trendWindow() {
 }
 
 function drawTrends() {
-  const [data, win] = trendWindow();
+  const [all, win] = trendWindow();
+  const data = all.filter(s => s.t >= win[0]);  // the axes and legends of what the window shows, not of older samples
   Object.entries(TREND_CHARTS).forEach(([id, [keys, , shown, bandKey]]) => {
     const series = keys.map(([key, label, dashed]) => ({name: label, dashed,
       points: data.map(s => [s.t, s[key] === null || s[key] === undefined ? null : shown(s[key])])}))

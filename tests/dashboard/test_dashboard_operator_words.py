@@ -1,0 +1,125 @@
+"""What the page says, as an operator reads it, in a real chromium on a real authenticated mosquitto:
+the sensors of a lost CAN node are greyed and the card says they are the last it sent (the node's
+faulty-sensor and pump-off flags said there too, in a place of their own: nothing moves); a value
+not known is "—" without a unit; alarm and event times are a 24 h clock with an ISO date, whatever
+the browser's locale. The test publishes what the rig service would (as orbitrig-service)."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+
+import pytest
+from support.dash_helpers import RIG, Dashboard, Page
+from support.mqtt_helpers import ACCOUNTS
+
+RUN = "r-words"
+
+
+@pytest.fixture(scope="module")
+def dashboard(broker, tmp_path_factory):
+    dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", "1.5")
+    yield dash
+    assert dash.stop() == 0, dash.text()[-3000:]
+
+
+def publish(broker, leaf: str, body: dict, retain: bool = False, qos: int = 1) -> None:
+    done = broker.pub(f"orbitrig/{RIG}/{leaf}", json.dumps(body), user="orbitrig-service", retain=retain, qos=qos)
+    assert done.returncode == 0, done.stderr
+
+
+def status(state: str, message: str, since: str) -> dict:
+    return {"state": state, "run_id": RUN, "since": since, "message": message}
+
+
+def live(k: int, **flags: bool) -> dict:
+    aux = {"p_supply": 1.9e6, "t_supply": 313.15, "flow": 2.1e-5, "node_lost": False, "sensor_fault": False}
+    aux.update({"pump_off": False, **flags})
+    drive = {"reference_rpm": 1000.0, "actual_rpm": 1000.0, "torque_pct": 2.0, "state": "running"}
+    return {
+        "run_id": RUN,
+        "point": 1,
+        "revolutions": k,
+        "spin_rpm": 1000.0,
+        "orbit_hz": None,
+        "aux": aux,
+        "drives": {"spin": drive, "orbit": dict(drive, actual_rpm=None)},
+    }
+
+
+def sensors_height(page: Page) -> float:
+    return page.d.execute_script(
+        "return document.getElementById('aux').closest('section').getBoundingClientRect().height"
+    )
+
+
+@pytest.fixture
+def page(broker, dashboard, browsers) -> Page:
+    publish(broker, "status", status("running", "run started", "2026-12-05T01:00:00.000Z"), retain=True)
+    p = Page(browsers(), dashboard.url, dashboard)
+    p.sign_in("viewer", ACCOUNTS["viewer"])
+    p.signed_in()
+    p.wait_state("running", 15)
+    return p
+
+
+def test_a_lost_can_node_greys_the_sensors_and_says_so(broker, page):
+    publish(broker, "live", live(1), qos=0)
+    page.wait(lambda: "1.9000" in page.text("aux"), 10, "a value")
+    assert page.text("aux-state") == ""
+    height = sensors_height(page)
+    publish(broker, "live", live(2, node_lost=True), qos=0)
+    page.wait_text("aux-state", "CAN sensor node lost: the values are the last it sent, not the present", 10)
+    assert "stale" in page.el("aux").get_attribute("class")
+    assert sensors_height(page) == height  # the note has its own place
+    publish(broker, "live", live(3, sensor_fault=True, pump_off=True), qos=0)
+    page.wait_text("aux-state", "the CAN node reports a faulty sensor; the supply pump is off", 10)
+    assert "stale" not in (page.el("aux").get_attribute("class") or "")
+    assert sensors_height(page) == height
+
+
+def test_a_value_not_known_is_a_dash_without_a_unit(broker, page):
+    publish(broker, "live", live(1), qos=0)
+    page.wait_text("op-spin", "1000 rpm", 10)
+    assert page.text("op-orbit-hz") == "—"  # orbit_hz null: no revolutions coming in now
+    assert page.text("op-orbit") == "—"
+
+
+def test_times_are_a_24_hour_clock_with_an_iso_date(broker, page):
+    since = "2026-12-05T13:14:27.511Z"  # afternoon in UTC: a 12 h clock would say PM
+    publish(broker, "status", status("paused", "suspended by interlock: CAN sensor node lost", since), retain=True)
+    page.wait(lambda: page.rows("alarms", "alarm"), 10, "the alarm")
+    first = page.d.execute_script("return document.querySelector('#alarms tr td').textContent")
+    assert re.fullmatch(r"2026-12-0[56] \d\d:14:27", first), first
+    events = page.d.execute_script("return [...document.querySelectorAll('#events li')].map(li => li.textContent)")
+    assert events and all(re.match(r"\d\d:\d\d:\d\d [^AP]", e) for e in events), events
+
+
+def test_how_a_run_ended_stays_listed_when_the_service_goes_offline_at_once(broker, page):
+    ended = "run stopped: stopped at once by the service shutting down on SIGTERM; point 0002 (14 blocks stored)"
+    publish(broker, "status", status("idle", ended, "2026-12-05T01:25:26.144Z"))
+    publish(broker, "status", status("offline", "service stopped", "2026-12-05T01:25:26.145Z"), retain=True)
+    page.wait_state("offline", 10)
+    page.wait_text("events", lambda t: f"run {RUN} stopped: stopped at once by the service shutting down" in t, 10)
+    assert "point 0002 (14 blocks stored)" in page.text("events")
+
+
+def test_a_circular_orbit_is_drawn_round(broker, page):
+    n, r = 45, 5e-6  # a 5 um circle, over one revolution
+    xs = [r * math.cos(2 * math.pi * k / n) for k in range(n)]
+    ys = [r * math.sin(2 * math.pi * k / n) for k in range(n)]
+    payload = dict(live(1), waveforms={"x_a": xs, "x_b": xs, "y_a": ys, "y_b": ys})
+    publish(broker, "live", payload, qos=0)
+    page.wait(lambda: page.el("plot-orbit").get_attribute("data-samples") == "45", 10, "the orbit plot")
+    # the trace's extent in canvas pixels (its colour, #1976d2), across and up
+    box = page.d.execute_script(
+        "const c = document.getElementById('plot-orbit'), d = c.getContext('2d').getImageData(0, 0, c.width, c.height);"
+        "let x0 = 1e9, x1 = -1, y0 = 1e9, y1 = -1;"
+        "for (let y = 0; y < c.height; y++) for (let x = 0; x < c.width; x++) { const i = 4 * (y * c.width + x);"
+        "  if (Math.abs(d.data[i] - 25) < 30 && Math.abs(d.data[i + 1] - 118) < 30 && Math.abs(d.data[i + 2] - 210) < 30"
+        "      && d.data[i + 3] > 200) { x0 = Math.min(x0, x); x1 = Math.max(x1, x); y0 = Math.min(y0, y); y1 = Math.max(y1, y); } }"
+        "return [x1 - x0, y1 - y0];"
+    )
+    across, up = box
+    assert across > 40 and abs(across - up) <= 2, box  # equal scales: as wide as tall, to 2 pixels
