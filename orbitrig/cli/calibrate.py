@@ -318,8 +318,7 @@ def _loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> Non
     record = run_until_signal(lambda: loads_record(rig, opts, load_n, ref, partial(say, err=True)))
     for lms, g in record.loads.items():
         say(
-            f"{lms}: gain matrix {g.gain} (u {[[f'{u:.2g}' for u in row] for row in g.gain_u]}), "
-            f"residual {g.residual_n:.3g} N"
+            f"{lms}: gain matrix {_matrix(g.gain, '.5f')} (u {_matrix(g.gain_u, '.2g')}), residual {g.residual_n:.3g} N"
         )
     _write(
         rig,
@@ -329,6 +328,11 @@ def _loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> Non
         "Units: gain 1 (f_journal = gain @ f_read + offset_n), offset_n and "
         "residual_n N; [uncertainty] gain_pct percent, phase_deg degrees, delay_us microseconds (k = 1).",
     )
+
+
+def _matrix(rows, spec: str) -> str:
+    """A matrix as its rows of numbers, each in format ``spec``: [[0.99778, 0.00131], [...]]."""
+    return "[" + ", ".join("[" + ", ".join(format(v, spec) for v in row) + "]" for row in rows) + "]"
 
 
 def _runout(config, opts, activate) -> None:
@@ -356,7 +360,7 @@ def _delay(config, opts, speeds, amplitudes, activate) -> None:
     for name, d in record.delay.items():
         say(
             f"{name}: lags the probes by {d.phase_deg:.4f} deg (u {d.phase_u_deg:.2g}) "
-            f"+ {d.delay_us:.2f} us (u {d.delay_u_us:.2g})"
+            f"{'-' if d.delay_us < 0 else '+'} {abs(d.delay_us):.2f} us (u {d.delay_u_us:.2g})"
         )
     _write(
         rig,
