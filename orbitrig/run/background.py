@@ -8,11 +8,13 @@ the engine waits for it once the drives are stopped (`settle`), never before.
 No write follows a failed one. The first failure is reported at once to `on_failure` (the engine ends the
 run: drives to a safe stop first) and raised by `check`.
 
-A block's write waits until the next speed command is out (`defer_writes` as the block is stored,
-`resume_writes` once the command is sent or failed; at most DEFER_S): the storage thread builds the
-block's file holding the interpreter lock for milliseconds at a time, and the reads and the write of
-the command, which start the next ramp, waited for it (a speed command took 9 to 19 ms instead of 4).
-The writes behind it wait too: the order on disk never changes, and nothing waits longer than DEFER_S.
+A block's write waits until the next speeds' first status is read (`defer_writes` as the block is
+stored, `resume_writes(at=...)` by the settle: the ramps' expected end and a margin; at most DEFER_S):
+the storage thread builds the block's file holding the interpreter lock for milliseconds at a time,
+and the command's reads and write, then the poll that starts the settle hold, waited for it (a speed
+command took 9 to 19 ms instead of 4; that poll began up to 7 ms late). The writes behind it wait
+too: the order on disk never changes, and nothing waits longer than DEFER_S. While it or the
+identification runs Python the interpreter hands its lock to the loop within SWITCH_INTERVAL_S.
 
 A point's records (its blocks: raw counts, means, phasors) stay in memory until the
 point is identified, stored and complete. At most POINTS_IN_FLIGHT earlier points may
