@@ -16,7 +16,9 @@ its own, orbitrig.cli.simulated_rig) at a time speed-up and prints
   node sends every 0.1 s of wall time, as the real one does),
 - the orchestration overhead: wall / ideal - 1, in percent (target < 5 %; exit 1 on a miss,
   and when the run does not complete),
-- where the wall time went, each activity against its part of `ideal`.
+- where the wall time went, each activity against its part of `ideal`,
+- the host's load average (1 min) at the start and the end: other work on the cores moves the
+  figure by several percent (compare runs taken at like loads, or in turn).
 
     python3 -m bench.bench_sweep [--speedup 25] [--matrix config/matrices/paper.toml] [--points N]
 
@@ -28,6 +30,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import logging
+import os
 import sys
 import tempfile
 import time
@@ -102,6 +105,7 @@ async def main() -> int:
         f"{format_duration((ideal - parts['verify']) * args.speedup)} physical; speed-up {args.speedup:g}"
     )
     out = args.out or Path(tempfile.mkdtemp(prefix="bench-sweep-")) / "run"
+    load0 = os.getloadavg()[0]
     async with simulated_rig(args.speedup) as (_, access):
         engine = RunEngine(rig, out_dir=out, access=access, confirm_mode=ConfirmMode.AUTO)
         t0 = time.monotonic()
@@ -109,6 +113,7 @@ async def main() -> int:
         wall = time.monotonic() - t0
     tm = engine.timing
     print(f"outcome: {outcome.status} ({outcome.message}), {len(outcome.completed_points)} points complete in {out}")
+    print(f"host load average (1 min): {load0:.1f} at the start, {os.getloadavg()[0]:.1f} at the end")
     if outcome.status != COMPLETED:  # a run cut short has no overhead to speak of
         print(f"wall time                 {wall:9.1f} s: no overhead (the run did not complete)")
         return 1

@@ -3,6 +3,7 @@
     async with AuxSensors("orbitrig-sim", interface="virtual") as aux:
         s = aux.latest()
         s.p_supply, s.beta, s.ages["p_supply"], s.stale("t_recess"), s.node_lost
+        arrived = aux.arrival   # set by the next frame read: `await arrived.wait()`, then latest()
 
 Frames are read on the event loop as they arrive (daq.can_reader; a bus without a file
 descriptor, python-can's ``virtual``, by a thread that hands them over) and decoded there;
@@ -106,6 +107,7 @@ class AuxSensors:
         self._p_recess = [math.nan] * 4
         self._heartbeat: int | None = None
         self._opened_at = clock()
+        self._arrival = asyncio.Event()  # set (and replaced) by each frame read
         self.frames_received = 0
         self.frames_malformed = 0
 
@@ -152,6 +154,12 @@ class AuxSensors:
         """How often the bus failed and was opened again (or is being)."""
         return 0 if self._reader is None else self._reader.link_drops
 
+    @property
+    def arrival(self) -> asyncio.Event:
+        """Set when the next frame is read (its values in `latest()` by then); each frame sets the
+        event taken before it and puts a new one in its place: take it before looking at `latest()`."""
+        return self._arrival
+
     def _close_reader(self) -> Any:
         reader, self._reader = self._reader, None
         return None if reader is None else reader.close()
@@ -197,6 +205,8 @@ class AuxSensors:
             return
         self._times[kind] = now
         self.frames_received += 1
+        arrival, self._arrival = self._arrival, asyncio.Event()
+        arrival.set()
 
     def latest(self) -> AuxState:
         """Snapshot of the latest values, their ages and the node's liveness."""

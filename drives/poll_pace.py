@@ -3,9 +3,9 @@ condition read by the polls has held long enough (`SettleDetector`).
 
 The poll is the drives' heartbeat, so it keeps its pace (every `interval` s; a late poll is
 not made up). The wait for the setpoint asks for extra polls (`PollPace.ask`): one right
-after a speed command, one every quarter interval (a tenth of a shorter hold) until both
-drives are at their setpoints, and one when the hold would end, so the hold is judged on
-statuses read then, not up to an interval later.
+after a speed command (or when its caller expects the ramps over), one every quarter interval
+(a tenth of a shorter hold) until both drives are at their setpoints, and one when the hold
+would end, so the hold is judged on statuses read then, not up to an interval later.
 """
 
 from __future__ import annotations

@@ -277,10 +277,10 @@ class RigDrives:
                 raise self._poll.failure from err  # the poll's stop (a trip): said as what it is
             raise
 
-    async def wait_settled(self, *, hold: float, timeout: float) -> RigDriveState:
+    async def wait_settled(self, *, hold: float, timeout: float, expect: float | None = None) -> RigDriveState:
         """Return once both drives have held AT_SETPOINT of the commanded references for `hold` s
         (polled state; a poll that read the references from before the command, AT_SETPOINT of
-        the old speeds, does not start the hold).
+        the old speeds, does not start the hold). First status: at once, or at `expect` (monotonic s, the ramps' end).
 
         Raises the fault (DriveFaultError with its code) or link loss
         (DriveLinkError) the poll found, or DriveTimeoutError after `timeout` s.
@@ -291,7 +291,7 @@ class RigDrives:
         detector = SettleDetector(hold)
         deadline = time.monotonic() + timeout
         last_poll, soon = -1, min(self.poll_interval / 4, hold / 10)  # s between reads until both are there
-        self._poll.pace.ask(time.monotonic())  # the first status with the new references: now
+        self._poll.pace.ask(first := time.monotonic() if expect is None else expect)  # the first status
         while True:
             tick = self._poll.tick
             if self._poll.failure is not None:
@@ -306,7 +306,7 @@ class RigDrives:
                 elif detector.update(st.at_reference(refs), st.time):
                     return st
                 else:  # judged when the hold would end; not there yet: read again soon
-                    self._poll.pace.ask(st.time + soon if detector.settles_at is None else detector.settles_at)
+                    self._poll.pace.ask(detector.settles_at or max(st.time + soon, first))  # not before `first`
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 raise DriveTimeoutError(

@@ -8,11 +8,13 @@ the engine waits for it once the drives are stopped (`settle`), never before.
 No write follows a failed one. The first failure is reported at once to `on_failure` (the engine ends the
 run: drives to a safe stop first) and raised by `check`.
 
-A block's write waits until the next speed command is out (`defer_writes` as the block is stored,
-`resume_writes` once the command is sent or failed; at most DEFER_S): the storage thread builds the
-block's file holding the interpreter lock for milliseconds at a time, and the reads and the write of
-the command, which start the next ramp, waited for it (a speed command took 9 to 19 ms instead of 4).
-The writes behind it wait too: the order on disk never changes, and nothing waits longer than DEFER_S.
+A block's write waits until the next speeds' first status is read (`defer_writes` as the block is
+stored, `resume_writes(at=...)` by the settle: the ramps' expected end and a margin; at most DEFER_S):
+the storage thread builds the block's file holding the interpreter lock for milliseconds at a time,
+and the command's reads and write, then the poll that starts the settle hold, waited for it (a speed
+command took 9 to 19 ms instead of 4; that poll began up to 7 ms late). The writes behind it wait
+too: the order on disk never changes, and nothing waits longer than DEFER_S. While it or the
+identification runs Python the interpreter hands its lock to the loop within SWITCH_INTERVAL_S.
 
 A point's records (its blocks: raw counts, means, phasors) stay in memory until the
 point is identified, stored and complete. At most POINTS_IN_FLIGHT earlier points may
@@ -25,6 +27,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import sys
 import time
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
@@ -40,6 +43,10 @@ T = TypeVar("T")
 POINTS_IN_FLIGHT = 1  # earlier points still identified or stored while the next one is measured
 DEFER_S = 0.1  # wall s at most that a deferred write waits for `resume_writes`
 BACKLOG_NOTE_S = 30.0  # wall s of waiting for them between two notes of it
+#: s the interpreter lets a thread run before another waiting for the lock takes it: the storage
+#: thread and the identification build files and fits in Python for tens to hundreds of ms, and
+#: the loop that polls the drives waited up to Python's default 5 ms at each wake-up meanwhile
+SWITCH_INTERVAL_S = 0.001
 STORAGE_THREAD = ThreadPoolExecutor(max_workers=1, thread_name_prefix="orbitrig-storage")  # started on first use
 
 
@@ -63,6 +70,7 @@ class Background:
     def __init__(self, timing: dict[str, float], on_failure: Callable[[BaseException], None] | None = None):
         self.timing = timing
         self._on_failure = on_failure
+        sys.setswitchinterval(min(sys.getswitchinterval(), SWITCH_INTERVAL_S))
         self._pending: dict[asyncio.Task[object], None] = {}  # in the order spawned
         self._points: deque[asyncio.Task[object]] = deque()  # each point's completion, oldest first
         self._writes = asyncio.Lock()
@@ -70,6 +78,7 @@ class Background:
         self._writing_since: float | None = None  # time.monotonic() the write in the storage thread began
         self._resumed = asyncio.Event()  # set: writes start at once (`defer_writes`)
         self._resumed.set()
+        self._resume_timer: asyncio.TimerHandle | None = None  # `resume_writes(at=...)` waiting
         self.error: BaseException | None = None
         self._failed: str = ""  # the name of the task that failed first ('identify point 0002')
 
@@ -100,11 +109,23 @@ class Background:
     def defer_writes(self) -> None:
         """Writes from now on wait for `resume_writes`, at most DEFER_S wall s each (a speed command
         about to go out)."""
+        self._cancel_timer()
         self._resumed.clear()
 
-    def resume_writes(self) -> None:
-        """Writes start at once again."""
-        self._resumed.set()
+    def resume_writes(self, at: float | None = None) -> None:
+        """Writes start again at once, or at `at` (monotonic s: the drives' ramps expected over and
+        their first status read; a write asked DEFER_S before that starts then all the same)."""
+        self._cancel_timer()
+        delay = 0.0 if at is None else at - time.monotonic()
+        if delay > 0:
+            self._resume_timer = asyncio.get_running_loop().call_later(delay, self._resumed.set)
+        else:
+            self._resumed.set()
+
+    def _cancel_timer(self) -> None:
+        if self._resume_timer is not None:
+            self._resume_timer.cancel()
+            self._resume_timer = None
 
     def spawn(self, coro: Coroutine[object, object, T], name: str) -> asyncio.Task[T]:
         task = asyncio.ensure_future(coro)

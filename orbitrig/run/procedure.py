@@ -57,6 +57,9 @@ from reduction.rig_time import block_time
 from reduction.sequential import Choice
 
 log = logging.getLogger(__name__)
+#: wall s after the ramps' expected end by which their first status is read; the block stored
+#: before waits for it: its file is built holding the interpreter lock, which that read needs
+FIRST_READ_S = 0.015
 
 
 @dataclass(frozen=True)
@@ -126,6 +129,7 @@ class PointProcedure:
     def __init__(self, parts: RunParts):
         self.r = parts
         self.scale = parts.access.time_scale
+        self._ramps_end: float | None = None  # monotonic s the last speed command's ramps should end
         self.handlers: dict[type[Step], Callable[..., Awaitable[None]]] = {  # (its step kind, PointState | None)
             SetManual: self.set_manual,
             VerifyPressures: self.verify_pressures,
@@ -164,10 +168,7 @@ class PointProcedure:
             await self._hold_while_suspended()
         await self.handlers[type(step)](step, ps)
         if counted:
-            r.progress.spent(self.estimate(step))
-
-    def estimate(self, step: Step) -> float:
-        return self.estimate_of(step, self.r.confirm_mode)
+            r.progress.spent(self.estimate_of(step, r.confirm_mode))
 
     @staticmethod
     def estimate_of(step: Step, confirm_mode: ConfirmMode) -> float:
@@ -214,7 +215,8 @@ class PointProcedure:
     async def _pressures_settled(self, p: OperatingPoint) -> list[str]:
         """The pressure problems left after waiting for them to settle (`pressures_settled`)."""
         aux = self.r.io.open_aux
-        return await pressures_settled(aux.latest, p, self.r.rig.verify, self.scale, self._hold_while_suspended)
+        hold = self._hold_while_suspended
+        return await pressures_settled(aux.latest, p, self.r.rig.verify, self.scale, hold, lambda: aux.arrival)
 
     async def verify_geometry(self, step: VerifyGeometry, ps: PointState) -> None:
         """A missed orbit radius is corrected at standstill (the outer spindle's offset, by hand),
@@ -230,7 +232,8 @@ class PointProcedure:
         self.r.store.log(f"point {ps.point.index:04d}: orbit radius and static eccentricity verified")
 
     # -------------------------------------------------------------- speeds
-    async def _set_speeds(self, spin: float, orbit: float) -> None:
+    async def _set_speeds(self, spin: float, orbit: float, ramp: float | None = None) -> None:
+        """Command both speeds; `ramp`: the plan's physical s for the drives to get there (None: not known)."""
         t0 = time.monotonic()
         try:
             await self.r.io.open_drives.set_speeds(spin, orbit)
@@ -238,16 +241,15 @@ class PointProcedure:
             raise RunFailed(
                 f"cannot set speeds spin {spin / RPM:.0f} rpm, orbit {orbit / RPM:+.0f} rpm: {err}"
             ) from err
-        finally:  # the block stored before it was written only once the command was out (store_block)
-            self.r.background.resume_writes()
-        self._add_time("command", t0)
+        now = self._add_time("command", t0)
+        self._ramps_end = None if ramp is None else now + self.scale.wall(ramp)
         self.r.note(f"speeds set: spin {spin / RPM:.0f} rpm, orbit {orbit / RPM:+.1f} rpm")
 
     async def set_spin(self, step: SetSpin, ps: PointState) -> None:
-        await self._set_speeds(step.spin, step.orbit)
+        await self._set_speeds(step.spin, step.orbit, step.duration)
 
     async def set_orbit(self, step: SetOrbit, ps: PointState) -> None:
-        await self._set_speeds(ps.point.spin, step.block.orbit)
+        await self._set_speeds(ps.point.spin, step.block.orbit, step.duration)
 
     async def stop_drives(self, step: StopDrives, ps: PointState | None) -> None:
         t0, timeout = time.monotonic(), self.scale.wall(self.r.rig.drives.stop_timeout_s) + 5.0
@@ -259,12 +261,12 @@ class PointProcedure:
     # -------------------------------------------------- settle and acquire
     async def _settle_once(self, p: OperatingPoint, step: Settle | Acquire) -> None:
         """Wait until both drives hold their setpoints for `step.hold` physical s (Suspended on an interlock)."""
-        r, t0 = self.r, time.monotonic()
+        r, t0, expect, self._ramps_end = self.r, time.monotonic(), self._ramps_end, None
+        r.background.resume_writes(None if expect is None else expect + FIRST_READ_S)  # the block stored before
         timeout = self.scale.wall(r.rig.settle.timeout_s) + 5.0
         try:
-            await r.control.guarded(
-                r.io.open_drives.wait_settled(hold=self.scale.wall(step.hold), timeout=timeout), r.supervisor
-            )
+            settled = r.io.open_drives.wait_settled(hold=self.scale.wall(step.hold), timeout=timeout, expect=expect)
+            await r.control.guarded(settled, r.supervisor)
         except DriveError as err:
             raise RunFailed(f"point {p.index:04d} [{step.block.tag}]: drives did not settle: {err}") from err
         self._add_time("settle", t0)
@@ -315,7 +317,7 @@ class PointProcedure:
         r = self.r
         rec = ps.measured() if step.choice is None else dataclasses.replace(ps.measured(), choice=step.choice)
         ps.records[step.block.tag] = rec
-        r.background.defer_writes()  # until the next speed command is out (orbitrig.run.background)
+        r.background.defer_writes()  # until the next speeds are reached (_settle_once, orbitrig.run.background)
         r.background.spawn(self._write_block(ps.point, rec), f"store {ps.point.index:04d}/{step.block.tag}")
         if r.control.stop_requested and len(ps.records) < len(ps.point.blocks):
             raise StopRun

@@ -12,6 +12,7 @@ from collections.abc import Awaitable, Callable
 from typing import Protocol
 
 from daq.aux import AuxState
+from drives.poll_pace import wait_tick
 from orbitrig.config import MPA, RigConfig, Verify
 from orbitrig.run.identification import probe_plane
 from orbitrig.run.plan import OperatingPoint
@@ -21,8 +22,11 @@ from orbitrig.store.records import BlockRecord
 
 #: physical s the pressures are given to reach their settings before the spindles start (at least 3 wall s)
 PRESSURE_SETTLE_S = 20.0
-#: wall s between two looks at the CAN readings: a frame is judged within this of its arrival (the node sends every 0.1 s)
+#: wall s between two looks at the CAN readings without `arrival`: a frame is judged within this of its
+#: arrival (the node sends every 0.1 s); with it each frame is judged as it arrives
 LOOK_S = 0.01
+#: wall s at most between two looks with `arrival` (no frame meanwhile: the deadline, a suspension)
+FRAME_WAIT_S = 0.1
 
 
 class PressureSettings(Protocol):
@@ -60,23 +64,30 @@ async def pressures_settled(
     v: Verify,
     scale: TimeScale,
     before_each: Callable[[], Awaitable[None]] | None = None,
+    arrival: Callable[[], asyncio.Event] | None = None,
 ) -> list[str]:
     """The pressure problems (`pressure_problems` of the CAN node's `latest()` readings) left after
     waiting up to PRESSURE_SETTLE_S physical s (at least 3 wall s) for them to clear; empty: the
     pressures are met by readings received after this check began (after the settings were made,
     not the frame before them). The check before the spindles start (a sweep's VerifyPressures, a
-    calibration step's slow roll); `before_each()` is awaited before each reading."""
+    calibration step's slow roll); `before_each()` is awaited before each reading. `arrival()`:
+    the event the node's next frame sets (AuxSensors.arrival): the readings are looked at as each
+    frame arrives, else every LOOK_S."""
     t0 = time.monotonic()
     deadline = t0 + max(3.0, scale.wall(PRESSURE_SETTLE_S))
     while True:
         if before_each is not None:
             await before_each()
+        arrived = None if arrival is None else arrival()  # taken before the look: no frame missed
         aux = latest()
         problems = pressure_problems(aux, p, v)
         fresh = aux.ages.get("beta", math.inf) < time.monotonic() - t0  # p_recess and p_supply alike
         if (fresh and not problems) or time.monotonic() > deadline:  # by then an old reading is stale
             return problems
-        await asyncio.sleep(LOOK_S)
+        if arrived is None:
+            await asyncio.sleep(LOOK_S)
+        else:
+            await wait_tick(arrived, min(FRAME_WAIT_S, deadline - time.monotonic()))
 
 
 def measured_radius(rec: BlockRecord, rig: RigConfig) -> float:

@@ -1,6 +1,7 @@
 """The pressure check before the spindles start waits for a CAN reading received after it began,
-and takes it within `LOOK_S` of its arrival: it used to look every 0.1 s, so a frame arriving
-just after a look waited up to 0.1 s more (at every point of a sweep)."""
+and takes it within `LOOK_S` of its arrival, or as it arrives when it is given the node's
+`arrival` event (a sweep's check): it used to look every 0.1 s, so a frame arriving just after a
+look waited up to 0.1 s more (at every point of a sweep)."""
 
 from __future__ import annotations
 
@@ -23,7 +24,7 @@ FRAME_AFTER = 0.03  # wall s after the check began that the first new frame arri
 
 def _node(t0: float):
     """The CAN node's readings: the settings met, the last frame received at t0 - 0.05 s, then at
-    t0 + FRAME_AFTER."""
+    t0 + FRAME_AFTER (`latest` is the seam calibration's check uses too)."""
 
     def latest() -> AuxState:
         now = time.monotonic()
@@ -46,3 +47,24 @@ async def test_the_first_frame_after_the_check_began_is_taken_at_once():
         await asyncio.sleep(0.01)
     assert min(took) >= FRAME_AFTER  # not the frame from before the check
     assert sorted(took)[2] < FRAME_AFTER + LOOK_S + 0.03, took  # not the 0.1 s look it had
+
+
+async def test_with_the_arrival_event_the_frame_is_taken_as_it_arrives():
+    """The frame at FRAME_AFTER sets the event the check waits on (AuxSensors.arrival): taken
+    then, not up to LOOK_S later, and without looking every LOOK_S meanwhile."""
+    took, looks = [], []
+    for _ in range(5):
+        t0 = time.monotonic()
+        latest, event = _node(t0), asyncio.Event()
+        asyncio.get_running_loop().call_later(FRAME_AFTER, event.set)
+
+        def counted(latest=latest) -> AuxState:
+            looks.append(1)
+            return latest()
+
+        problems = await pressures_settled(counted, SETTINGS, Verify(), TimeScale(25.0), arrival=lambda e=event: e)
+        took.append(time.monotonic() - t0)
+        assert problems == []
+    assert min(took) >= FRAME_AFTER
+    assert sorted(took)[2] < FRAME_AFTER + 0.02, took
+    assert len(looks) <= 2 * 5  # one look as the check begins, one as the frame arrives

@@ -116,6 +116,32 @@ async def test_staleness_and_heartbeat_boundaries():
         tx.shutdown()
 
 
+async def test_each_frame_read_sets_the_arrival_taken_before_it():
+    """`arrival`: set by the next frame read (its values already in `latest()`), then a new one:
+    the pressure check wakes as a frame arrives instead of looking every few ms. A frame that is
+    not read (malformed, another node's) sets nothing."""
+    channel = f"daq-aux-arrival-{next(_names)}"
+    tx = can.Bus(interface="virtual", channel=channel)
+    try:
+        async with AuxSensors(channel, interface="virtual") as aux:
+
+            def send(can_id, data):
+                tx.send(can.Message(arbitration_id=can_id, data=data, is_extended_id=False))
+
+            arrived = aux.arrival
+            send(0x182, bytes(8))  # another node's
+            send(0x281, bytes(2))  # malformed
+            await wait_for(lambda: aux.frames_malformed == 1)
+            await asyncio.sleep(0.05)
+            assert not arrived.is_set() and aux.arrival is arrived
+            send(0x281, struct.pack("<HHHH", 2000, 900, 1000, 1100))
+            await asyncio.wait_for(arrived.wait(), 2.0)
+            assert aux.latest().p_supply == 2.0e6  # read before the event was set
+            assert aux.arrival is not arrived and not aux.arrival.is_set()
+    finally:
+        tx.shutdown()
+
+
 async def test_unknown_interface_is_a_daq_error():
     with pytest.raises(DaqError, match="CAN nosuchbus:x: cannot open bus"):
         async with AuxSensors("x", interface="nosuchbus"):

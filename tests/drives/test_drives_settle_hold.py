@@ -65,6 +65,25 @@ async def test_a_poll_from_before_the_speed_change_does_not_start_the_hold(tcp_s
     assert sorted(took)[1] < HOLD + 0.1, took
 
 
+async def test_the_first_status_is_read_when_the_ramps_are_expected_over(tcp_sim):
+    """`expect` (the caller's estimate of the ramps' end, the sweep's plan): the wait asks its first
+    status then, not at once. The orbit drive's ramp of 50 rpm takes about 3 ms here: read at once,
+    the hold would have ended about HOLD/6 after the command; it ends HOLD/6 after `expect`."""
+    hold, later = HOLD / 6, HOLD / 3
+    async with open_rig(tcp_sim, LIMITS, poll_interval=POLL, timeout=0.3, comm_loss_timeout=2.0) as r:
+        await r.set_speeds(1000 * RPM, 600 * RPM)
+        await r.wait_settled(hold=0.05, timeout=5)
+        before = r.state
+        while r.state.polls == before.polls:  # right after a poll: the next at the pace POLL later
+            await asyncio.sleep(0.005)
+        t_change = time.monotonic()
+        await r.set_speeds(1000 * RPM, 650 * RPM)
+        st = await r.wait_settled(hold=hold, timeout=5, expect=t_change + later)
+        assert later + hold <= st.time - t_change < POLL + hold, st.time - t_change
+        assert st.orbit.actual == pytest.approx(650 * RPM, abs=5 * RPM)
+        await r.stop()
+
+
 async def test_poll_pace_keeps_its_pace_and_polls_sooner_when_asked():
     pace = PollPace(0.4)
     t0 = time.monotonic()
