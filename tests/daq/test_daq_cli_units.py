@@ -38,4 +38,4 @@ async def test_rows_name_channel_and_unit():
         ]
         code, out, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--revolutions", "5", "--counts")
         assert code == 0, err
-        assert all(row.split()[-1] == "counts" for row in out.splitlines()[2:])
+        assert all(row.split()[-1] == "count" for row in out.splitlines()[2:])  # the unit as pint spells it
