@@ -46,13 +46,12 @@ from orbitrig.run.steps import (
 )
 from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.rig_io import RigAccess, RigIO
-from orbitrig.run.sequential_point import MAX_BLOCK_INDEX, choice_line, choose, chosen_steps
+from orbitrig.run.sequential_point import MAX_BLOCK_INDEX, choice_line, chosen_steps, decide
 from orbitrig.run.states import ConfirmMode
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.verification import geometry_problems, pressures_settled, radius_missed
 from orbitrig.store.records import BlockChoice, BlockRecord, PointResults
 from orbitrig.store.writer import RunStore
-from reduction.errors import ReductionError
 from reduction.rig_time import block_time
 from reduction.sequential import Choice
 
@@ -335,12 +334,9 @@ class PointProcedure:
             if r.control.stop_requested:
                 raise StopRun
             recs = list(ps.records.values())
-            try:
-                c = await asyncio.to_thread(
-                    choose, step.rule, p.spin, recs, r.rig.channel_index, Corrections.of_rig(r.rig)
-                )
-            except (ReductionError, ValueError, FloatingPointError) as err:
-                raise RunFailed(f"point {p.index:04d}: sequential design: {err}") from err
+            c = await asyncio.to_thread(
+                decide, p.index, step.rule, p.spin, recs, r.rig.channel_index, Corrections.of_rig(r.rig)
+            )
             if c.ratio is not None and freq > MAX_BLOCK_INDEX:  # no block name left: as at the cap
                 c = dataclasses.replace(
                     c, reason=Choice.CAP.name.lower(), ratio=None, revolutions=0, seconds=0.0, after=c.before

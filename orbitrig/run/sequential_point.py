@@ -13,16 +13,20 @@ own step kinds (SetOrbit, Settle, Acquire of the chosen count, StoreBlock with t
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 from numpy.typing import ArrayLike
 
 from orbitrig.config import LMS
 from orbitrig.run.corrections import Corrections
+from orbitrig.run.events import RunFailed
 from orbitrig.run.identification import orbit_table
 from orbitrig.run.sequential_rule import SequentialRule
 from orbitrig.run.steps import Acquire, Block, ChooseBlocks, SetOrbit, Settle, Step, StoreBlock
 from orbitrig.store.records import BlockChoice, BlockRecord
 from reduction.arrays import FloatArray, NoiseAt
+from reduction.errors import ReductionError
 from reduction.frequency_list import coefficient_scales, smooth_noise
 from reduction.identify import identify
 from reduction.methods import Method
@@ -31,6 +35,8 @@ from reduction.rig_time import block_time
 from reduction.sequential import Choice, block_information, next_block, reference_errors
 from reduction.table import OrbitTable
 from reduction.whirl import Directions, Whirl
+
+log = logging.getLogger(__name__)
 
 #: the most blocks a point can name (storage tags are two digits)
 MAX_BLOCK_INDEX = 99
@@ -109,6 +115,25 @@ def choose(
         tuple(float(v) for v in nb.before),
         tuple(float(v) for v in nb.after),
     )
+
+
+def decide(
+    point: int,
+    rule: SequentialRule,
+    spin: float,
+    recs: list[BlockRecord],
+    ch: dict[str, int],
+    corrections: Corrections | None = None,
+) -> BlockChoice:
+    """`choose` at operating point ``point``; its failure a RunFailed naming the point: a refusal
+    of the numerics in its own words, a bug with its type (and its traceback in the log)."""
+    try:
+        return choose(rule, spin, recs, ch, corrections)
+    except (ReductionError, ValueError, FloatingPointError) as err:
+        raise RunFailed(f"point {point:04d}: sequential design: {err}") from err
+    except Exception as err:
+        log.error("point %04d: sequential design failed", point, exc_info=err)
+        raise RunFailed(f"point {point:04d}: sequential design failed: {type(err).__name__}: {err}") from err
 
 
 def _information(

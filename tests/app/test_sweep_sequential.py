@@ -146,3 +146,23 @@ async def test_stopped_sequential_point_restarts_on_resume_and_stops_at_its_cap(
     chosen, last, final, _ = _decisions(tmp_path / "run")
     assert chosen and last["reason"] == "cap" and np.max(final) > 1.0
     assert last["spent_s"] <= 70.0 and all(a["spent_s"] + a["seconds"] <= 70.0 + 1e-9 for _, _, a, _, _ in chosen)
+
+
+async def test_a_bug_in_the_sequential_design_names_the_point(tmp_path, monkeypatch, caplog):
+    """The sequential design of point 0000 raises on a bug (a mock: no real part makes one): the run
+    fails naming the point and the error's type, the traceback logged, the drives at rest and the
+    initial list's blocks kept. It said only "KeyError: 'x'"."""
+    from orbitrig.run import sequential_point
+
+    def buggy(*args, **kwargs):
+        raise KeyError("x")
+
+    monkeypatch.setattr(sequential_point, "choose", buggy)
+    async with running(tmp_path, matrix()) as (sim, _, _, run):
+        outcome = await asyncio.wait_for(asyncio.shield(run), 60)
+        assert str(outcome.status) == "failed", outcome.message
+        assert outcome.message == "point 0000: sequential design failed: KeyError: 'x'"
+        await wait_for(lambda: all(abs(s) < 1.0 for s in sim.speeds), 30, what="both drives at rest")
+    blocks = sorted(p.name for p in (tmp_path / "run" / "points" / "0000").glob("*_*.h5"))
+    assert len(blocks) == INITIAL, blocks
+    assert any(r.exc_info and "point 0000: sequential design" in r.getMessage() for r in caplog.records)
