@@ -6,10 +6,9 @@ the sessions not begun with a clean start. The test publishes what the rig servi
 
 from __future__ import annotations
 
-import json
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, idle_page
+from support.dash_helpers import RIG, Dashboard, idle_page, publish_as_service
 from support.mqtt_helpers import Broker
 
 RUN = "r-restart"
@@ -27,11 +26,6 @@ def dashboard(relay, tmp_path_factory):
     dash = Dashboard(relay.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", "1.5")
     yield dash
     assert dash.stop() == 0, dash.text()[-3000:]
-
-
-def publish(broker, leaf: str, body: dict, retain: bool = False) -> None:
-    done = broker.pub(f"orbitrig/{RIG}/{leaf}", json.dumps(body), user="orbitrig-service", retain=retain)
-    assert done.returncode == 0, done.stderr
 
 
 def a_result(index: int) -> dict:
@@ -54,17 +48,17 @@ def result_rows(page) -> list[dict]:
 
 def test_the_session_outlives_a_broker_restart_with_persistence(broker, relay, dashboard, browsers):
     status = {"state": "idle", "run_id": None, "since": "2026-12-05T01:00:00.000Z", "message": "service ready"}
-    publish(broker, "status", status, retain=True)
+    publish_as_service(broker, "status", status, retain=True)
     page = idle_page(browsers, dashboard)
     running = {"state": "running", "run_id": RUN, "since": "2026-12-05T01:00:01.000Z", "message": "run started"}
-    publish(broker, "status", running, retain=True)
+    publish_as_service(broker, "status", running, retain=True)
     page.wait_state("running", 15)
 
     relay.cut()  # the dashboard's link is down across the restart and after it
     page.wait_text("link", "broker unreachable", 15)
     broker.stop()
     broker.start()
-    publish(broker, "result", a_result(0))  # kept for the dashboard's session, if the broker kept it
+    publish_as_service(broker, "result", a_result(0))  # kept for the dashboard's session, if the broker kept it
     relay.restore()
     page.wait_text("link", "online", 30)
     page.wait(lambda: "Kxx" in " ".join(r["text"] for r in result_rows(page)), 15, "the result published meanwhile")

@@ -6,11 +6,10 @@ The test publishes what the rig service does (as orbitrig-service, docs/protocol
 
 from __future__ import annotations
 
-import json
 import time
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page
+from support.dash_helpers import RIG, Dashboard, Page, publish_as_service
 from support.mqtt_helpers import ACCOUNTS
 
 PIEZO = "bad fit: chi2 = 104.2 for 57 degrees of freedom (p = 0.00014): the residuals exceed the stated u_*"
@@ -27,11 +26,6 @@ def dashboard(broker, tmp_path_factory):
     dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", "1.5")
     yield dash
     assert dash.stop() == 0, dash.text()[-3000:]
-
-
-def publish(broker, leaf: str, body: dict, retain: bool = False) -> None:
-    done = broker.pub(f"orbitrig/{RIG}/{leaf}", json.dumps(body), user="orbitrig-service", retain=retain)
-    assert done.returncode == 0, done.stderr
 
 
 def fit(lms: str, warnings: list[str]) -> dict:
@@ -79,10 +73,10 @@ def viewer_page(broker, browsers, dashboard, run_id: str) -> Page:
     page.signed_in()
     page.wait_text("link", "online")
     status = {"state": "running", "run_id": run_id, "since": "2026-01-07T08:00:00.000Z", "message": "started"}
-    publish(broker, "status", status, retain=True)
+    publish_as_service(broker, "status", status, retain=True)
     page.wait_state("running", 10)
     for index in range(3):
-        publish(broker, "result", result(run_id, index))
+        publish_as_service(broker, "result", result(run_id, index))
     page.wait(lambda: result_rows(page) == 3 * 2 * 2, 10, "3 points x 2 fits x 2 coefficients")
     return page
 
@@ -97,7 +91,7 @@ def test_each_fit_warning_is_listed_once_and_the_closing_ones_too(broker, dashbo
 
     # the run completes: its grouped warnings, in the closing status, are listed too
     closing = {"state": "idle", "run_id": "r-events", "since": "2026-01-07T08:01:00.000Z"}
-    publish(broker, "status", {**closing, "message": f"run completed; warning: {GROUPED}"}, retain=True)
+    publish_as_service(broker, "status", {**closing, "message": f"run completed; warning: {GROUPED}"}, retain=True)
     page.wait_state("idle", 10)
     page.wait(lambda: with_text(events(page), f"warning: {GROUPED}") == 1, 10, "the closing status's warning")
 
@@ -105,7 +99,7 @@ def test_each_fit_warning_is_listed_once_and_the_closing_ones_too(broker, dashbo
 def test_nothing_is_listed_or_drawn_twice_when_the_feed_reconnects(broker, dashboard, browsers):
     page = viewer_page(broker, browsers, dashboard, "r-again")
     closing = {"state": "idle", "run_id": "r-again", "since": "2026-01-07T09:01:00.000Z"}
-    publish(broker, "status", {**closing, "message": f"run completed; warning: {GROUPED}"}, retain=True)
+    publish_as_service(broker, "status", {**closing, "message": f"run completed; warning: {GROUPED}"}, retain=True)
     page.wait_state("idle", 10)
     assert "refused: not authorised" in page.command("btn-pause", "pause:")  # one refusal of the session
     before, rows = events(page), result_rows(page)

@@ -6,11 +6,10 @@ The tests publish what the rig service would (as orbitrig-service)."""
 
 from __future__ import annotations
 
-import json
 import time
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page
+from support.dash_helpers import RIG, Dashboard, Page, publish_as_service
 from support.mqtt_helpers import ACCOUNTS
 
 
@@ -22,13 +21,8 @@ def dashboard(broker, tmp_path_factory):
     assert dash.stop() == 0, dash.text()[-3000:]
 
 
-def publish(broker, topic: str, payload: dict, qos: int = 1) -> None:
-    done = broker.pub(f"orbitrig/{RIG}/{topic}", json.dumps(payload), user="orbitrig-service", qos=qos)
-    assert done.returncode == 0, done.stderr
-
-
 def status(broker, state: str, run_id: str, message: str = "") -> None:
-    publish(
+    publish_as_service(
         broker, "status", {"state": state, "run_id": run_id, "since": "2026-01-05T13:00:00.000Z", "message": message}
     )
 
@@ -86,8 +80,8 @@ def test_a_new_run_and_a_run_end_clear_the_previous_runs_view(broker, dashboard,
     page = signed_in(browsers, dashboard)
     status(broker, "running", "r-old")
     page.wait_state("running")
-    publish(broker, "progress", progress("r-old"), qos=0)
-    publish(broker, "live", live("r-old"), qos=0)
+    publish_as_service(broker, "progress", progress("r-old"), qos=0)
+    publish_as_service(broker, "live", live("r-old"), qos=0)
     page.wait_text("eta", "23 s", 10)
     page.wait(lambda: page.el("plot-orbit").get_attribute("data-samples") == "45", 10, "the orbit plot")
     assert page.text("frequency") == "3 / 10" and page.text("op-orbit-hz") == "10.00 Hz"
@@ -101,8 +95,8 @@ def test_a_new_run_and_a_run_end_clear_the_previous_runs_view(broker, dashboard,
     time.sleep(1.0)
     assert run_view(page) == {**CLEARED, "bar": "0px", "orbit-samples": "0"}, run_view(page)
 
-    publish(broker, "progress", progress("r-new"), qos=0)
-    publish(broker, "live", live("r-new"), qos=0)
+    publish_as_service(broker, "progress", progress("r-new"), qos=0)
+    publish_as_service(broker, "live", live("r-new"), qos=0)
     page.wait_text("eta", "23 s", 10)
     status(broker, "idle", "r-new", "run aborted")  # the run ends: no ETA, no live values
     page.wait_state("idle")
@@ -126,7 +120,7 @@ def test_the_live_age_after_a_reload_is_the_payloads_age(broker, dashboard, brow
     page = signed_in(browsers, dashboard)
     status(broker, "running", "r-age")
     page.wait_state("running")
-    publish(broker, "live", live("r-age"), qos=0)
+    publish_as_service(broker, "live", live("r-age"), qos=0)
     page.wait(lambda: page.text("live-age").endswith("s ago"), 10, "the live age")
     time.sleep(4.0)
     page.d.refresh()
@@ -145,7 +139,9 @@ def test_a_refusal_names_its_command_once(broker, dashboard, browsers):
     assert refused.count("pause") == 1, refused
 
     operator = signed_in(browsers, dashboard)
-    publish(broker, "status", {"state": "offline", "run_id": None, "since": "2026-01-05T13:00:00.000Z", "message": ""})
+    publish_as_service(
+        broker, "status", {"state": "offline", "run_id": None, "since": "2026-01-05T13:00:00.000Z", "message": ""}
+    )
     operator.wait_state("offline")
     offline = operator.command("btn-start", "start:")
     assert offline == "start: not sent: the rig service is offline", offline  # else carried out when it is back
@@ -157,7 +153,7 @@ def test_a_results_point_is_counted_as_the_progress_counts_it(broker, dashboard,
     status(broker, "running", "r-result")
     row = {"lms": "piezo", "model": "kc7", "freq_dep": "none", "coefficients": {"Kxx": 1e7}, "units": {"Kxx": "N/m"}}
     result = {"run_id": "r-result", "index": 0, "point": 0, "label": "w1000rpm", "identification": [row]}
-    publish(broker, "result", result)
+    publish_as_service(broker, "result", result)
     page.wait(lambda: page.d.find_elements("css selector", "#results tr.fit-first"), 10, "the result row")
     first = page.d.find_element("css selector", "#results tr.fit-first td")
     assert first.text == "1 w1000rpm" and first.get_attribute("title") == "file point 0000"

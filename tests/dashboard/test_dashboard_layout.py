@@ -7,11 +7,10 @@ alarm comes; a page load asks for no missing icon. The tests publish what the ri
 
 from __future__ import annotations
 
-import json
 import time
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page
+from support.dash_helpers import RIG, Dashboard, Page, publish_as_service
 from support.mqtt_helpers import ACCOUNTS
 
 SIZES = [(1280, 800), (800, 800)]
@@ -46,13 +45,8 @@ def own_dashboard(broker, tmp_path):
     assert dash.stop() == 0, dash.text()[-3000:]
 
 
-def publish(broker, topic: str, payload: dict, qos: int = 1) -> None:
-    done = broker.pub(f"orbitrig/{RIG}/{topic}", json.dumps(payload), user="orbitrig-service", qos=qos)
-    assert done.returncode == 0, done.stderr
-
-
 def status(broker, state: str, message: str, run_id: str | None = "r-layout") -> None:
-    publish(
+    publish_as_service(
         broker, "status", {"state": state, "run_id": run_id, "since": "2026-01-05T13:00:00.000Z", "message": message}
     )
 
@@ -166,7 +160,7 @@ def test_the_whole_message_is_shown(broker, dashboard, browsers, size):
     page = open_page(browsers, dashboard, size)
     status(broker, "idle", "service ready", None)
     page.wait_text("message", "service ready", 10)
-    publish(broker, "status", waiting())
+    publish_as_service(broker, "status", waiting())
     page.wait(lambda: page.el("manual").is_displayed(), 10, "the manual setting panel")
     # the tail says whether the shaft turns: to the person about to put hands on the rig
     assert_whole(page, TURNING)
@@ -179,9 +173,9 @@ def test_the_whole_message_is_shown(broker, dashboard, browsers, size):
 @pytest.mark.parametrize("size", SIZES, ids=lambda s: f"{s[0]}px")
 def test_manual_panel_fits_its_card_and_says_whether_the_drives_turn(broker, dashboard, browsers, size):
     page = open_page(browsers, dashboard, size)
-    publish(broker, "status", waiting(outside=True))
+    publish_as_service(broker, "status", waiting(outside=True))
     page.wait(lambda: page.el("manual").is_displayed(), 10, "the manual setting panel")
-    publish(
+    publish_as_service(
         broker,
         "progress",
         {
@@ -195,7 +189,7 @@ def test_manual_panel_fits_its_card_and_says_whether_the_drives_turn(broker, das
         },
         qos=0,
     )
-    publish(broker, "live", live(), qos=0)
+    publish_as_service(broker, "live", live(), qos=0)
     page.wait_text("eta", "1 h 6 min 40 s", 10)
     page.wait(lambda: "0.4830" in page.rows("aux", "aux").get("p_recess_1", ""), 10, "the live sensors")
     rows = page.rows("manual-table", "setting")
@@ -214,12 +208,12 @@ def test_manual_panel_fits_its_card_and_says_whether_the_drives_turn(broker, das
     assert motion.text == "The drives are turning: spin 1000 rpm, orbit 500 rpm"
     assert "turning" in motion.get_attribute("class").split()
     standstill = TURNING.replace("the drives are turning: spin 1000 rpm, orbit 500 rpm", "both drives at standstill")
-    publish(broker, "status", waiting(standstill, outside=False))
+    publish_as_service(broker, "status", waiting(standstill, outside=False))
     page.wait_text("manual-motion", "Both drives at standstill", 10)
     assert "turning" not in motion.get_attribute("class").split()
     measured = page.d.execute_script("return document.querySelector('#manual-table tr').children[2].innerText")
     assert measured == "5.76"  # inside its band: no note
-    publish(
+    publish_as_service(
         broker,
         "status",
         waiting("point 0001: manual settings not met: pressure ratio 0.52 (confirm step 'verify:0001')"),
@@ -237,7 +231,7 @@ def test_nothing_moves_when_the_manual_panel_or_the_first_alarm_appears(broker, 
     page.wait_text("alarm-count", "none unacknowledged", 10)
     before = layout(page)
 
-    publish(broker, "status", waiting(outside=True))  # the tallest panel: every value outside its band
+    publish_as_service(broker, "status", waiting(outside=True))  # the tallest panel: every value outside its band
     page.wait(lambda: page.el("manual").is_displayed(), 10, "the manual setting panel")
     assert moved(before, layout(page)) == {}
     status(broker, "running", "confirmed manual:0001")

@@ -6,12 +6,11 @@ the browser's locale. The test publishes what the rig service would (as orbitrig
 
 from __future__ import annotations
 
-import json
 import math
 import re
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page
+from support.dash_helpers import RIG, Dashboard, Page, publish_as_service
 from support.mqtt_helpers import ACCOUNTS
 
 RUN = "r-words"
@@ -22,11 +21,6 @@ def dashboard(broker, tmp_path_factory):
     dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", "1.5")
     yield dash
     assert dash.stop() == 0, dash.text()[-3000:]
-
-
-def publish(broker, leaf: str, body: dict, retain: bool = False, qos: int = 1) -> None:
-    done = broker.pub(f"orbitrig/{RIG}/{leaf}", json.dumps(body), user="orbitrig-service", retain=retain, qos=qos)
-    assert done.returncode == 0, done.stderr
 
 
 def status(state: str, message: str, since: str) -> dict:
@@ -56,7 +50,7 @@ def sensors_height(page: Page) -> float:
 
 @pytest.fixture
 def page(broker, dashboard, browsers) -> Page:
-    publish(broker, "status", status("running", "run started", "2026-12-05T01:00:00.000Z"), retain=True)
+    publish_as_service(broker, "status", status("running", "run started", "2026-12-05T01:00:00.000Z"), retain=True)
     p = Page(browsers(), dashboard.url, dashboard)
     p.sign_in("viewer", ACCOUNTS["viewer"])
     p.signed_in()
@@ -65,22 +59,22 @@ def page(broker, dashboard, browsers) -> Page:
 
 
 def test_a_lost_can_node_greys_the_sensors_and_says_so(broker, page):
-    publish(broker, "live", live(1), qos=0)
+    publish_as_service(broker, "live", live(1), qos=0)
     page.wait(lambda: "1.9000" in page.text("aux"), 10, "a value")
     assert page.text("aux-state") == ""
     height = sensors_height(page)
-    publish(broker, "live", live(2, node_lost=True), qos=0)
+    publish_as_service(broker, "live", live(2, node_lost=True), qos=0)
     page.wait_text("aux-state", "CAN sensor node lost: the values are the last it sent, not the present", 10)
     assert "stale" in page.el("aux").get_attribute("class")
     assert sensors_height(page) == height  # the note has its own place
-    publish(broker, "live", live(3, sensor_fault=True, pump_off=True), qos=0)
+    publish_as_service(broker, "live", live(3, sensor_fault=True, pump_off=True), qos=0)
     page.wait_text("aux-state", "the CAN node reports a faulty sensor; the supply pump is off", 10)
     assert "stale" not in (page.el("aux").get_attribute("class") or "")
     assert sensors_height(page) == height
 
 
 def test_a_value_not_known_is_a_dash_without_a_unit(broker, page):
-    publish(broker, "live", live(1), qos=0)
+    publish_as_service(broker, "live", live(1), qos=0)
     page.wait_text("op-spin", "1000 rpm", 10)
     assert page.text("op-orbit-hz") == "—"  # orbit_hz null: no revolutions coming in now
     assert page.text("op-orbit") == "—"
@@ -88,7 +82,9 @@ def test_a_value_not_known_is_a_dash_without_a_unit(broker, page):
 
 def test_times_are_a_24_hour_clock_with_an_iso_date(broker, page):
     since = "2026-12-05T13:14:27.511Z"  # afternoon in UTC: a 12 h clock would say PM
-    publish(broker, "status", status("paused", "suspended by interlock: CAN sensor node lost", since), retain=True)
+    publish_as_service(
+        broker, "status", status("paused", "suspended by interlock: CAN sensor node lost", since), retain=True
+    )
     page.wait(lambda: page.rows("alarms", "alarm"), 10, "the alarm")
     first = page.d.execute_script("return document.querySelector('#alarms tr td').textContent")
     assert re.fullmatch(r"2026-12-0[56] \d\d:14:27", first), first
@@ -98,8 +94,8 @@ def test_times_are_a_24_hour_clock_with_an_iso_date(broker, page):
 
 def test_how_a_run_ended_stays_listed_when_the_service_goes_offline_at_once(broker, page):
     ended = "run stopped: stopped at once by the service shutting down on SIGTERM; point 0002 (14 blocks stored)"
-    publish(broker, "status", status("idle", ended, "2026-12-05T01:25:26.144Z"))
-    publish(broker, "status", status("offline", "service stopped", "2026-12-05T01:25:26.145Z"), retain=True)
+    publish_as_service(broker, "status", status("idle", ended, "2026-12-05T01:25:26.144Z"))
+    publish_as_service(broker, "status", status("offline", "service stopped", "2026-12-05T01:25:26.145Z"), retain=True)
     page.wait_state("offline", 10)
     page.wait_text("events", lambda t: f"run {RUN} stopped: stopped at once by the service shutting down" in t, 10)
     assert "point 0002 (14 blocks stored)" in page.text("events")
@@ -110,7 +106,7 @@ def test_a_circular_orbit_is_drawn_round(broker, page):
     xs = [r * math.cos(2 * math.pi * k / n) for k in range(n)]
     ys = [r * math.sin(2 * math.pi * k / n) for k in range(n)]
     payload = dict(live(1), waveforms={"x_a": xs, "x_b": xs, "y_a": ys, "y_b": ys})
-    publish(broker, "live", payload, qos=0)
+    publish_as_service(broker, "live", payload, qos=0)
     page.wait(lambda: page.el("plot-orbit").get_attribute("data-samples") == "45", 10, "the orbit plot")
     # the trace's extent in canvas pixels (its colour, #1976d2), across and up
     box = page.d.execute_script(

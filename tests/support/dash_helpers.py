@@ -3,6 +3,8 @@ headless Debian chromium driven by chromedriver (selenium)."""
 
 from __future__ import annotations
 
+import json
+
 import os
 import subprocess
 import sys
@@ -208,3 +210,9 @@ def idle_page(browsers: Callable[[], webdriver.Chrome], dashboard: Dashboard, us
     page.signed_in()
     page.wait_state("idle")
     return page
+
+
+def publish_as_service(broker, leaf: str, body: dict, *, retain: bool = False, qos: int = 1) -> None:
+    """What the rig service would publish on ``orbitrig/<RIG>/<leaf>``, as its broker account."""
+    done = broker.pub(f"orbitrig/{RIG}/{leaf}", json.dumps(body), user="orbitrig-service", retain=retain, qos=qos)
+    assert done.returncode == 0, done.stderr
