@@ -35,8 +35,9 @@ def _serve_stalling(tmp_path: Path, broker: Broker, **env: str) -> tuple[Service
     return svc, RigClient(broker, RIG, svc), flag
 
 
-def _stall_mid_run(rc: RigClient, flag: Path) -> str:
-    """The 'long' run started; the disk stalls after its first blocks, one more block is measured."""
+def _stall_mid_run(rc: RigClient, flag: Path, runs: Path) -> str:
+    """The 'long' run started; the disk stalls once its first two blocks are written (a block's
+    write waits for the next ramp), one more block is measured."""
     rc.status("idle", timeout=30)
     assert rc.command({"cmd": "start", "matrix": "long"})["ok"] is True
     run_id = rc.status("running")["run_id"]
@@ -45,6 +46,10 @@ def _stall_mid_run(rc: RigClient, flag: Path) -> str:
         return lambda m: m.topic.endswith("/progress") and m.json()["frequency"] >= frequency
 
     rc.watch.wait_for(at(3), 60)
+    deadline = time.monotonic() + 60
+    while len(list(runs.glob("*/points/0000/*.h5"))) < 2:
+        assert time.monotonic() < deadline, "two blocks not written in 60 s"
+        time.sleep(0.01)
     flag.touch()
     rc.watch.wait_for(at(5), 60)  # its block's write hangs
     return run_id
@@ -79,7 +84,7 @@ def test_a_second_signal_leaves_a_run_whose_disk_never_returns_once_its_drives_a
     broker.start()
     svc, rc, flag = _serve_stalling(tmp_path, broker)
     try:
-        _stall_mid_run(rc, flag)
+        _stall_mid_run(rc, flag, tmp_path / "runs")
         mark = rc.watch.mark()
         svc.proc.send_signal(signal.SIGTERM)
         _waiting_for_storage(rc, mark)
@@ -101,7 +106,7 @@ def test_one_signal_leaves_a_run_whose_disk_never_returns_after_the_services_who
     broker.start()
     svc, rc, flag = _serve_stalling(tmp_path, broker, ORBITRIG_TEST_RECORD_END_S="2")
     try:
-        _stall_mid_run(rc, flag)
+        _stall_mid_run(rc, flag, tmp_path / "runs")
         mark = rc.watch.mark()
         svc.proc.send_signal(signal.SIGTERM)
         _waiting_for_storage(rc, mark)
