@@ -15,7 +15,7 @@ source of `state`, and the interlock:
   drives' COMM_LOSS_TIMEOUT.
 - While the link is down the poll keeps reconnecting; once it is back, both
   drives are verified against `command` before anything goes on: drives found
-  tripped or off their reference are stopped and the loss is recorded.
+  tripped, off their reference or in local control are stopped and the loss is recorded.
 - Every stop goes through `send_stop`; one that some drive did not take is owed
   (`owed`) until a later stop reaches both drives or a new speed is commanded.
   A poll (after a reconnect or not) that finds a drive running, or with a nonzero
@@ -311,9 +311,9 @@ class DrivePoll:
         return statuses
 
     def _off_command(self, statuses: Sequence[DriveStatus], down: float) -> DriveError | None:
-        """The first drive found tripped, or (a speed commanded) not running at its reference,
-        after the link was down `down` s."""
-        for i, (st, d) in enumerate(zip(statuses, self.drives)):
+        """The first drive found tripped, or (a speed commanded) the first not running at its
+        reference under network control (`off_command`), after the link was down `down` s."""
+        for st in statuses:
             if st.tripped:
                 return DriveFaultError(
                     f"tripped while the link was down ({down:.1f} s)",
@@ -322,15 +322,15 @@ class DrivePoll:
                     register=R.FAULT,
                     fault_code=st.fault_code,
                 )
-            if self.command is not None and (not st.running or st.reference_raw != self.command[i]):
-                return DriveLinkError(
-                    f"link was down {down:.1f} s; found {st.state} with REF {fmt_speed(st.reference)} "
-                    f"instead of running at {fmt_speed(d.speed_of(self.command[i]))}",
-                    drive=st.device_id,
-                    drive_name=st.name,
-                    register=R.REF,
-                )
-        return None
+        off = None if self.command is None else off_command(statuses, self.drives, self.command)
+        if off is None:
+            return None
+        return DriveLinkError(
+            f"link was down {down:.1f} s; found it {off.reason}",
+            drive=off.drive,
+            drive_name=off.drive_name,
+            register=off.register,
+        )
 
     def _owed_problem(self, statuses: Sequence[DriveStatus], why: str = "") -> DriveError | None:
         """With no speed commanded and a stop owed: the first drive found running, or with a

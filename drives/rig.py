@@ -280,7 +280,7 @@ class RigDrives:
     async def wait_settled(self, *, hold: float, timeout: float, expect: float | None = None) -> RigDriveState:
         """Return once both drives have held AT_SETPOINT of the commanded references for `hold` s
         (polled state; a poll that read the references from before the command, AT_SETPOINT of
-        the old speeds, does not start the hold). First status: at once, or at `expect` (monotonic s, the ramps' end).
+        the old speeds, or a drive in local control does not start the hold). First status: at once, or at `expect` (monotonic s, the ramps' end).
 
         Raises the fault (DriveFaultError with its code) or link loss
         (DriveLinkError) the poll found, or DriveTimeoutError after `timeout` s.

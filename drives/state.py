@@ -34,10 +34,12 @@ class RigDriveState:
         return bool(self.spin and self.orbit and self.spin.at_setpoint and self.orbit.at_setpoint)
 
     def at_reference(self, refs: tuple[int, int]) -> bool:
-        """Both drives AT_SETPOINT with REF reading the raw references `refs` (spin, orbit): a
-        poll that read the drives before those were written (AT_SETPOINT of the old ones) does
-        not count."""
+        """Both drives AT_SETPOINT under network control (SW REMOTE) with REF reading the raw
+        references `refs` (spin, orbit): a poll that read the drives before those were written
+        (AT_SETPOINT of the old ones) does not count, nor a drive at its keypad's speed."""
         if self.spin is None or self.orbit is None or not self.at_setpoint:
+            return False
+        if not (self.spin.remote and self.orbit.remote):
             return False
         return (self.spin.reference_raw, self.orbit.reference_raw) == tuple(refs)
 

@@ -17,6 +17,7 @@ from support.paths import ROOT
 from drives.errors import DriveFaultError, DriveLinkError
 from drives.limits import DriveLimits
 from drives.rig import RigDrives
+from sim import drive_registers as sim_registers
 from sim.modbus_server import serve_modbus_tcp
 
 pytestmark = pytest.mark.timeout(30)  # a hang fails fast, with a traceback
@@ -99,6 +100,31 @@ async def test_short_link_loss_is_reported_and_the_run_goes_on(sim):
         assert r.link.connects >= (2 if sim.kind == "tcp" else 1)
         for dev, rpm in ((1, 1000), (2, 500)):
             assert sim.regs(dev)["FAULT"] == 0 and sim.rpm(dev) == pytest.approx(rpm, abs=5)
+
+
+async def test_a_drive_taken_to_local_control_while_the_link_was_down_fails_the_verification(tcp_sim, caplog):
+    """The spin drive taken to its keypad while the link is down, at the commanded speed (REF and
+    RDY_REF as before, SW REMOTE = 0): the reconnect's verification finds it, stops both and says
+    so as the link loss's; before, it logged "both drives verified" and left it to the next check."""
+    sim = tcp_sim
+    async with rig(sim, comm_loss_timeout=2.0) as r:
+        await r.set_speeds(1000 * RPM, 500 * RPM)
+        await r.wait_settled(hold=0.05, timeout=5)
+        sim.endpoint.set_unresponsive(True)
+        await wait_until(lambda: not r.state.link_ok, 2, "link loss reported")
+        ref = sim.regs(1)["REF"]
+        sim.models[1].local_control(1000.0)  # someone at the drive, same speed
+        assert sim.regs(1)["REF"] == ref and sim.rpm(1) == pytest.approx(1000, abs=5)  # REF as commanded
+        sim.endpoint.set_unresponsive(False)
+        with caplog.at_level(logging.WARNING, logger="drives.poll"):
+            with pytest.raises(DriveLinkError) as info:
+                await r.wait_settled(hold=0.05, timeout=5)
+        err = info.value
+        assert (err.drive, err.register) == (1, sim_registers.SW), str(err)
+        assert "link was down" in str(err) and "local control (SW REMOTE = 0" in str(err), str(err)
+        assert "both drives verified" not in caplog.text
+        assert sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP
+        await sim.wait_stopped(timeout=3)
 
 
 async def test_link_loss_longer_than_the_watchdog(sim):

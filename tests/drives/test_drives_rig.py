@@ -18,6 +18,7 @@ from drives.errors import (
     DriveFaultError,
     DriveLimitError,
     DriveOffCommand,
+    DriveTimeoutError,
 )
 from drives.limits import DriveLimits
 from drives.link import ModbusLink
@@ -149,6 +150,20 @@ async def test_a_drive_moved_by_another_client_stops_both_as_a_trip_does(tcp_sim
         await r.set_speeds(500 * RPM, 100 * RPM)
         await r.wait_settled(hold=0.05, timeout=5)
         assert tcp_sim.rpm(1) == pytest.approx(500, abs=5)
+
+
+async def test_a_drive_taken_to_local_control_during_the_ramp_never_settles(tcp_sim):
+    """The spin drive taken to its keypad (800 rpm) as the start returns, before a poll found both
+    at the command: its REF register still holds the command and it reads AT_SETPOINT of the
+    keypad's speed, but it is not under the command, so the drives do not settle; before, the
+    wait returned with the spin at 800 rpm instead of 1000."""
+    async with rig(tcp_sim) as r:
+        await r.set_speeds(1000 * RPM, 600 * RPM)
+        tcp_sim.models[1].local_control(800.0)  # no await since the start: no poll in between
+        with pytest.raises((DriveTimeoutError, DriveOffCommand)):
+            st = await r.wait_settled(hold=0.05, timeout=1.0)
+            raise AssertionError(f"settled with the spin drive in local control: {st.describe()}")
+        assert tcp_sim.rpm(1) == pytest.approx(800, abs=5)
 
 
 async def test_cancelled_task_leaves_both_drives_stopping(sim):

@@ -25,8 +25,8 @@ POLL = 0.2  # s between polls: the gap a stale poll could have been credited
 HOLD = 0.3  # s
 
 
-def _status(name: str, ref_raw: int, at_setpoint: bool) -> DriveStatus:
-    word = SWBit.RDY_REF | (SWBit.AT_SETPOINT if at_setpoint else 0)
+def _status(name: str, ref_raw: int, at_setpoint: bool, remote: bool = True) -> DriveStatus:
+    word = SWBit.RDY_REF | (SWBit.AT_SETPOINT if at_setpoint else 0) | (SWBit.REMOTE if remote else 0)
     return DriveStatus(name, 1, CW_RUN, 0.0, int(word), 0.0, 0.0, 0, 1.0, reference_raw=ref_raw)
 
 
@@ -37,6 +37,12 @@ def _status(name: str, ref_raw: int, at_setpoint: bool) -> DriveStatus:
 def test_at_reference_needs_the_commanded_refs_read_back(refs_read, at_setpoint, counts):
     st = RigDriveState(_status("spin", refs_read[0], at_setpoint), _status("orbit", refs_read[1], True), link_ok=True)
     assert st.at_reference((100, 200)) is counts
+
+
+def test_at_reference_needs_both_drives_under_network_control():
+    """A drive at its keypad's speed (SW REMOTE = 0) reads AT_SETPOINT of that speed, not of the command."""
+    st = RigDriveState(_status("spin", 100, True, remote=False), _status("orbit", 200, True), link_ok=True)
+    assert st.at_reference((100, 200)) is False
 
 
 async def test_a_poll_from_before_the_speed_change_does_not_start_the_hold(tcp_sim):
