@@ -14,9 +14,10 @@ import typer
 import typer.main
 
 from orbitrig.cli.help_text import command_group
-from orbitrig.cli.threads import one_blas_thread
+from orbitrig.cli.threads import one_blas_thread, prompt_lock_handover
 
 one_blas_thread()  # before any command imports numpy (orbitrig/cli/threads.py)
+prompt_lock_handover()  # the loop that polls the drives waits at most 1 ms for the interpreter
 
 app = command_group(
     "Fluid-film bearing test rig: acquisition, drives, sweep, identification.",

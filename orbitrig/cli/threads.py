@@ -1,4 +1,4 @@
-"""One BLAS thread per orbitrig process.
+"""One BLAS thread per orbitrig process, and prompt hand-overs of the interpreter lock.
 
 numpy and scipy's OpenBLAS starts one thread per core for every matrix product and
 factorisation, however small. orbitrig's matrices are small (a few dozen coefficients, a few
@@ -9,11 +9,17 @@ instead of computing. The five decisions of a sequential point (reduction.comple
 idles while each is made. So every command runs with one BLAS thread, unless the environment already says how
 many (the variables are read once, when numpy is first imported: ``one_blas_thread`` must run
 before that, which is why orbitrig/cli imports numpy only inside its commands).
+
+The storage thread and the identification build files and fits in Python for tens to hundreds
+of ms at a time; the loop that polls the drives, woken meanwhile, waited up to Python's default
+5 ms for the interpreter lock at each wake-up. ``prompt_lock_handover`` makes it at most
+SWITCH_INTERVAL_S (the sweep's speed commands and settle polls began up to 7 ms late).
 """
 
 from __future__ import annotations
 
 import os
+import sys
 
 #: the thread-count variables of OpenBLAS, OpenMP builds and MKL
 BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
@@ -23,3 +29,12 @@ def one_blas_thread() -> None:
     """Set each of BLAS_THREAD_VARIABLES to 1 where the environment does not set it."""
     for name in BLAS_THREAD_VARIABLES:
         os.environ.setdefault(name, "1")
+
+
+#: s a thread holds the interpreter lock before one waiting for it takes it (Python's default: 5 ms)
+SWITCH_INTERVAL_S = 0.001
+
+
+def prompt_lock_handover() -> None:
+    """Lower the interpreter's switch interval to SWITCH_INTERVAL_S (never raise it)."""
+    sys.setswitchinterval(min(sys.getswitchinterval(), SWITCH_INTERVAL_S))

@@ -14,7 +14,8 @@ the storage thread builds the block's file holding the interpreter lock for mill
 and the command's reads and write, then the poll that starts the settle hold, waited for it (a speed
 command took 9 to 19 ms instead of 4; that poll began up to 7 ms late). The writes behind it wait
 too: the order on disk never changes, and nothing waits longer than DEFER_S. While it or the
-identification runs Python the interpreter hands its lock to the loop within SWITCH_INTERVAL_S.
+identification runs Python, every orbitrig command's interpreter hands its lock to the loop within
+1 ms (orbitrig/cli/threads.py).
 
 A point's records (its blocks: raw counts, means, phasors) stay in memory until the
 point is identified, stored and complete. At most POINTS_IN_FLIGHT earlier points may
@@ -27,7 +28,6 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import sys
 import time
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
@@ -43,10 +43,6 @@ T = TypeVar("T")
 POINTS_IN_FLIGHT = 1  # earlier points still identified or stored while the next one is measured
 DEFER_S = 0.1  # wall s at most that a deferred write waits for `resume_writes`
 BACKLOG_NOTE_S = 30.0  # wall s of waiting for them between two notes of it
-#: s the interpreter lets a thread run before another waiting for the lock takes it: the storage
-#: thread and the identification build files and fits in Python for tens to hundreds of ms, and
-#: the loop that polls the drives waited up to Python's default 5 ms at each wake-up meanwhile
-SWITCH_INTERVAL_S = 0.001
 STORAGE_THREAD = ThreadPoolExecutor(max_workers=1, thread_name_prefix="orbitrig-storage")  # started on first use
 
 
@@ -70,7 +66,6 @@ class Background:
     def __init__(self, timing: dict[str, float], on_failure: Callable[[BaseException], None] | None = None):
         self.timing = timing
         self._on_failure = on_failure
-        sys.setswitchinterval(min(sys.getswitchinterval(), SWITCH_INTERVAL_S))
         self._pending: dict[asyncio.Task[object], None] = {}  # in the order spawned
         self._points: deque[asyncio.Task[object]] = deque()  # each point's completion, oldest first
         self._writes = asyncio.Lock()

@@ -28,3 +28,13 @@ def test_one_blas_thread_unless_the_environment_says_how_many():
     threads = _blas_threads(bare)
     assert threads and set(threads) == {1}, threads  # numpy's and scipy's libraries alike
     assert set(_blas_threads({**bare, "OPENBLAS_NUM_THREADS": "2"})) == {2}
+
+
+def test_the_command_hands_the_interpreter_lock_over_within_a_millisecond():
+    """Importing the command lowers Python's 5 ms switch interval to 1 ms (the loop that polls the
+    drives waits no longer for a storage thread holding the lock), and never raises a lower one."""
+    probe = "import sys; sys.setswitchinterval({}); import orbitrig.cli; print(sys.getswitchinterval())"
+    for before, after in ((0.005, 0.001), (0.0005, 0.0005)):
+        out = subprocess.run([sys.executable, "-c", probe.format(before)], capture_output=True, text=True, timeout=120)
+        assert out.returncode == 0, out.stderr
+        assert float(out.stdout) == after
