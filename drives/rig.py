@@ -239,13 +239,12 @@ class RigDrives:
     async def set_speeds(self, spin: float, orbit: float) -> None:
         """Run the spin drive at `spin` rad/s (>= 0) and the orbit drive at `orbit` rad/s.
 
-        `orbit` > 0 is forward whirl, < 0 backward. Limits are checked before
-        anything is written (DriveLimitError, nothing sent); a tripped drive
-        is refused (DriveFaultError; `reset_faults` first). Returns once both
-        drives report operation enabled; use `wait_settled` for the speed.
-        Any failure after the check ramps both drives to zero; a stop asked meanwhile (the poll's
-        on a trip) ends the start, none of its words after the stop (the trip raised).
-        """
+        `orbit` > 0 is forward whirl, < 0 backward. Limits are checked before anything is written
+        (DriveLimitError, nothing sent); a tripped drive, or a failure the poll found (latched:
+        raised again), is refused until `reset_faults`. Returns once both drives report operation
+        enabled; use `wait_settled` for the speed. Any failure after the check ramps both drives to
+        zero; a stop asked meanwhile (the poll's on a trip) ends the start, none of its words after
+        the stop (the trip raised)."""
         self._require_open()
         self.limits.check(spin, orbit, spin_id=self.spin.device_id, orbit_id=self.orbit.device_id)
         refs = (self.spin.reference_for(spin), self.orbit.reference_for(orbit))
@@ -262,7 +261,8 @@ class RigDrives:
                         register=R.FAULT,
                         fault_code=st.fault_code,
                     )
-            self._poll.acknowledge()
+            if self._poll.failure is not None:  # found since (the poll stopped both): a start does not undo it
+                raise self._poll.failure
             self._emergency = False
             self._poll.commanded(refs)
             following, asked = all(st.following for st in statuses), self._stops.asked  # a new REF at most

@@ -133,8 +133,9 @@ async def test_trip_stops_both_and_reset(sim):
 async def test_a_drive_moved_by_another_client_stops_both_as_a_trip_does(tcp_sim):
     """Another Modbus master writes the spin drive's REF while both run at the command: the poll
     finds it at another reference, ramps both drives to zero and records it (DriveOffCommand,
-    naming the drive and REF); before, the drives ran on at the other client's speed. A new
-    command afterwards runs them again."""
+    naming the drive and REF); before, the drives ran on at the other client's speed. The finding
+    is latched as a trip is: a new command is refused until `reset_faults` (a start must not undo
+    a stop the poll made before anyone heard of it); then the drives run again."""
     async with rig(tcp_sim) as r:
         await r.set_speeds(1000 * RPM, 600 * RPM)
         await r.wait_settled(hold=0.05, timeout=5)
@@ -147,6 +148,11 @@ async def test_a_drive_moved_by_another_client_stops_both_as_a_trip_does(tcp_sim
         assert "spin drive (id 1), register REF (1): was given another reference" in str(err), str(err)
         assert tcp_sim.regs(2)["CW"] == CW_RAMP_STOP and tcp_sim.regs(1)["CW"] == CW_RAMP_STOP
         await tcp_sim.wait_stopped(timeout=3)
+        with pytest.raises(DriveOffCommand):
+            await r.set_speeds(500 * RPM, 100 * RPM)
+        await asyncio.sleep(0.3)
+        assert tcp_sim.rpm(1) == pytest.approx(0, abs=1) and tcp_sim.rpm(2) == pytest.approx(0, abs=1)
+        await r.reset_faults()
         await r.set_speeds(500 * RPM, 100 * RPM)
         await r.wait_settled(hold=0.05, timeout=5)
         assert tcp_sim.rpm(1) == pytest.approx(500, abs=5)
