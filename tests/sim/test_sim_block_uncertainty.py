@@ -10,10 +10,10 @@ import math
 
 import numpy as np
 import pytest
+from support.coverage_points import table1_physics
 
 from reduction.noise import mean_uncertainty
 from sim.config import SimConfig
-from sim.physics import RigPhysics
 from sim.revolutions import revolution_phasors, simulate_revolutions
 
 SPIN = 1000 * 2 * math.pi / 60
@@ -29,13 +29,7 @@ def test_the_stated_uncertainty_of_a_block_is_its_error(ratio, n):
     ratios = []
     for seed in range(BLOCKS):
         cfg = SimConfig(seed=seed)
-        ph = RigPhysics(cfg)
-        ph.set_manual(
-            orbit_radius=0.04 * cfg.geometry.clearance,
-            static_eccentricity=0.0,
-            recess_pressure=0.4826e6,
-            pressure_ratio=0.25,
-        )
+        ph = table1_physics(cfg)
         orbit = ratio * SPIN
         q = revolution_phasors(*simulate_revolutions(ph, SPIN, orbit, n, t0=0.37 * seed))
         true = ph.true_phasors(SPIN, orbit)

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from support.coverage_points import table1_physics
 
 from sim.chain import calibration_errors
 from sim.config import TABLE1_RATIOS, SimConfig, load_sim_config
@@ -28,13 +29,7 @@ def test_table1_operating_point_coherence_lies_in_the_papers_range(seed):
     """omega = 1000 rpm, eps_d = 0.04, eps_s = 0, p_r = 0.4826 MPa, beta = 0.25, the ten
     Omega/omega of Table 1, 50 revolutions each: all four piezo coherences in 0.91-0.996."""
     cfg = SimConfig(seed=seed)
-    ph = RigPhysics(cfg)
-    ph.set_manual(
-        orbit_radius=0.04 * cfg.geometry.clearance,
-        static_eccentricity=0.0,
-        recess_pressure=0.4826e6,
-        pressure_ratio=0.25,
-    )
+    ph = table1_physics(cfg)
     gammas, t0 = [], 0.0
     for ratio in TABLE1_RATIOS:
         orbit = ratio * SPIN

@@ -42,6 +42,16 @@ SPIN = 1000.0 * 2 * math.pi / 60
 TABLE1 = dict(recess_pressure=0.4826e6, pressure_ratio=0.25, static_eccentricity=0.0)
 ECCENTRICITY = 0.04  # eps_d: orbit radius / clearance
 REVOLUTIONS = 50
+
+
+def table1_physics(cfg) -> RigPhysics:
+    """The simulated rig (a sim.config.SimConfig) set to the paper's Table 1 point: eps_d 0.04,
+    eps_s 0, p_r 0.4826 MPa, beta 0.25."""
+    physics = RigPhysics(cfg)
+    physics.set_manual(orbit_radius=ECCENTRICITY * cfg.geometry.clearance, **TABLE1)
+    return physics
+
+
 MODELS = [ModelSpec(model="kc8"), ModelSpec(model="kcd11")]
 
 
@@ -130,8 +140,7 @@ def measured_point(scenario: str, seed: int, ratios):
     rig = load_rig(ROOT / "config/rig.toml")
     cfg = load_sim_config(ROOT / SCENARIOS[scenario])
     cfg = calibrated(replace(cfg, seed=seed), rig.calibration_uncertainty, np.random.default_rng([seed, 7]))
-    physics = RigPhysics(cfg)
-    physics.set_manual(orbit_radius=ECCENTRICITY * cfg.geometry.clearance, **TABLE1)
+    physics = table1_physics(cfg)
     recs, t0 = [], 0.0
     for i, ratio in enumerate(ratios):
         for direction in (1, -1):
