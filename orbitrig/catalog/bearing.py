@@ -3,7 +3,8 @@ radius and radial clearance of the run's rig configuration) and, for a --sim run
 simulator scenario (its name, the SHA-256 of its TOML text, its seed).
 
 Rows of different bearings never repeat one another, however equal their operating
-conditions: ``bearing_key`` is what `compare` groups repeats by besides the conditions.
+conditions: KEY_COLUMNS are what `compare` groups repeats by besides the conditions
+(orbitrig.catalog.compare.bearing_key).
 """
 
 from __future__ import annotations
@@ -52,12 +53,6 @@ def bearing_columns(run: Run) -> dict[str, Any]:
 KEY_COLUMNS = ("bearing_radius", "bearing_clearance", "sim_scenario_sha256")
 
 
-def bearing_key(row: dict[str, Any]) -> tuple:
-    """What tells the row's bearing from another's: rig, journal, clearance and scenario
-    (a row catalogued before these columns were: None/"" alike, its rig id alone)."""
-    return (row.get("rig_id") or "", *(_same(row.get(c)) for c in KEY_COLUMNS))
-
-
 def bearing_label(row: dict[str, Any]) -> str:
     """A short name of the row's bearing: `sim NAME` (the scenario file's stem, or the
     default's name) or the rig id with the clearance (`SAC-DS-1 c = 60 um`)."""
@@ -72,12 +67,6 @@ def _si(value: float) -> float:
     """A length converted from mm or um to m, to 12 significant digits (60 um: 6e-05 m, not
     5.9999999999999995e-05)."""
     return float(f"{value:.12g}")
-
-
-def _same(value: Any) -> Any:
-    if value is None or value == "":
-        return ""
-    return float(f"{value:.9g}") if isinstance(value, float) else value
 
 
 def _rig_bearing(text: str) -> Bearing | None:

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from orbitrig.catalog.bearing import bearing_key
+from orbitrig.catalog.bearing import KEY_COLUMNS
 from orbitrig.catalog.rows import COVERAGE
 
 Row = dict[str, Any]
@@ -94,6 +94,17 @@ def condition_value(value: Any) -> float:
 def operating_point(row: Row) -> tuple:
     """The row's conditions, rounded (condition_value)."""
     return tuple(condition_value(row[c]) for c in CONDITIONS)
+
+
+def bearing_key(row: Row) -> tuple:
+    """What tells the row's bearing from another's: rig, journal, clearance and scenario (its
+    numbers rounded as the conditions are; a row catalogued before these columns were: None and
+    "" alike, its rig id alone)."""
+    values = (row.get(c) for c in KEY_COLUMNS)
+    return (
+        row.get("rig_id") or "",
+        *("" if v in (None, "") else condition_value(v) if isinstance(v, float) else v for v in values),
+    )
 
 
 def repeat_groups(rows: list[Row]) -> list[list[Row]]:

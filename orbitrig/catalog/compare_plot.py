@@ -14,8 +14,8 @@ import numpy as np
 
 from orbitrig.analysis.plots import FigureFormat, _figure, style
 from orbitrig.analysis.plot_marks import _colors
-from orbitrig.catalog.bearing import bearing_key, bearing_label
-from orbitrig.catalog.compare import Row, Variable, repeatability, runs_of
+from orbitrig.catalog.bearing import bearing_label
+from orbitrig.catalog.compare import Row, Variable, bearing_key, repeatability, runs_of
 from orbitrig.catalog.predicted import PredictedLines, predicted_lines
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import StorageError, storage_error

@@ -50,7 +50,7 @@ def block_revolutions(rig, mat) -> list[int]:
         return [mat.expected_revolutions(i) for i in k]
     if mat.averaging is not None:
         return [mat.averaging.min_revolutions for _ in k]
-    return [mat.revolutions or rig.averaging.revolutions for _ in k]
+    return [mat.fixed_revolutions(i, rig.averaging.revolutions) for i in k]
 
 
 def adaptive_line(rig, mat) -> str | None:

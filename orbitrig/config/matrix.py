@@ -309,6 +309,11 @@ class MatrixConfig(_Model):
         """The warning of a resume with this stored matrix (designs.resume_note; None: none)."""
         return resume_note(self)
 
+    def fixed_revolutions(self, k: int, default: int) -> int:
+        """The count a block at `orbit.ratio_list[k]` averages without [averaging]: its ratio's
+        [orbit] revolutions, else the matrix's `revolutions`, else `default` (rig.toml's)."""
+        return self.orbit.revolutions_at(k) or self.revolutions or default
+
     def expected_revolutions(self, k: int) -> int | None:
         """Revolutions a block at `orbit.ratio_list[k]` is expected to average: its `[orbit]
         revolutions` count, held within `[averaging]` min..max when averaging is adaptive

@@ -86,7 +86,7 @@ def _fewest_revolutions(matrix: MatrixConfig, k: int, default_revolutions: int) 
     point's minimum, else the ratio's, the matrix's or the rig's fixed count."""
     if matrix.averaging is not None:
         return matrix.averaging.min_revolutions
-    return matrix.orbit.revolutions_at(k) or matrix.revolutions or default_revolutions
+    return matrix.fixed_revolutions(k, default_revolutions)
 
 
 def _near_one(matrix: MatrixConfig, within: float) -> str | None:

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 from daq.aux import HEARTBEAT_OPERATIONAL, LOST_AFTER, AuxState
+from drives.errors import DriveFaultError
 from drives.registers import FAULT
 from drives.state import LINK_LOST, RigDriveState
 from orbitrig.config import MPA, Interlocks
@@ -108,10 +109,10 @@ def _drive_trips(drives: RigDriveState) -> list[Trip]:
         trips.append(Trip(TripKind.DRIVE_LINK, FAIL, LINK_LOST + why))
     for which, st in (("spin", drives.spin), ("orbit", drives.orbit)):
         if st is not None and (st.fault_code or st.tripped):
-            where = f"{which} drive (id {st.device_id}), register FAULT ({FAULT})"
-            trips.append(
-                Trip(TripKind.DRIVE_TRIP, FAIL, f"{where}: tripped, fault {st.fault_code} {st.fault}".rstrip())
+            fault = DriveFaultError(
+                "tripped", drive=st.device_id, drive_name=which, register=FAULT, fault_code=st.fault_code
             )
+            trips.append(Trip(TripKind.DRIVE_TRIP, FAIL, str(fault)))  # named as every drive error is
     return trips
 
 

@@ -184,7 +184,7 @@ def block_acquire(matrix: MatrixConfig, rig: RigConfig, point: int, b: Block, ho
     or with [averaging] its ratio's target; duration at the expected count (clamped), else the maximum."""
     a, expected = matrix.averaging, matrix.expected_revolutions(b.freq)
     if a is None:
-        n = expected or matrix.revolutions or rig.averaging.revolutions
+        n = matrix.fixed_revolutions(b.freq, rig.averaging.revolutions)
         return Acquire(point, acquisition_time(b.orbit, n), b, n, hold)
     target = matrix.orbit.target_pct_at(b.freq)
     pct = a.target_pct if target is None else target

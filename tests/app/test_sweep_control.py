@@ -160,7 +160,7 @@ async def test_a_drive_trip_while_waiting_for_the_operator_fails_the_run_at_once
         sim.inject("drive_trip", drive=1, code=2310)
         outcome = await asyncio.wait_for(run, 10)
     assert outcome.status == "failed" and outcome.message.startswith(
-        "interlock: spin drive (id 1), register FAULT (6): tripped, fault 2310"
+        "interlock: spin drive (id 1), register FAULT (6), fault 2310 (overcurrent): tripped"
     )
     assert eng.state == "faulted" and eng.waiting_step is None
     assert rec.states()[-2:] == ["stopping", "faulted"]  # reported once the drives are safe
