@@ -31,14 +31,14 @@ import asyncio
 import dataclasses
 import functools
 import logging
-import math
 import time
 from collections.abc import Sequence
 
 from drives import registers as R
 from drives.drive import Drive, DriveStatus
-from drives.errors import DriveError, DriveFaultError, DriveGaveWay, DriveLinkError, DriveTimeoutError, StopTripError
-from drives.limits import fmt_speed
+from drives.errors import DriveError, DriveFaultError, DriveGaveWay, DriveTimeoutError, StopTripError
+from drives.findings import reconnect_problem, running_while_owed, trip_fault
+from drives.heartbeat import fit_loss_polls
 from drives.link import ModbusLink
 from drives.poll_pace import PollPace, wait_tick
 from drives.state import RigDriveState, off_command
@@ -170,34 +170,15 @@ class DrivePoll:
 
     def fit_heartbeat(self) -> None:
         """Lower `link_loss_polls` (and warn) when the drives' watchdog would trip
-        before a link loss is declared."""
+        before a link loss is declared (drives/heartbeat.py)."""
         watchdogs = [d.params.comm_loss_timeout for d in self.drives if d.params and d.params.comm_loss_timeout]
-        if not watchdogs:
-            return
-        gap = self.link.timeout + self.poll_interval  # longest silence after a lost request
-        if gap >= min(watchdogs):
-            log.warning(
-                "request timeout %.2f s + poll interval %.2f s is not below the drives' "
-                "COMM_LOSS_TIMEOUT of %.1f s: a single lost request trips them",
-                self.link.timeout,
-                self.poll_interval,
-                min(watchdogs),
-            )
-            self.link_loss_polls = 1
-        elif self.link_loss_polls * gap >= min(watchdogs):
-            fit = max(1, math.ceil(min(watchdogs) / gap) - 1)  # fit x gap < watchdog
-            (log.warning if self._loss_polls_given else log.info)(
-                "link_loss_polls %d x (request timeout %.2f s + poll interval %.2f s) = %.2f s "
-                "is not below the drives' COMM_LOSS_TIMEOUT of %.1f s: the link is declared "
-                "lost after %d failed poll(s) instead",
-                self.link_loss_polls,
-                self.link.timeout,
-                self.poll_interval,
-                self.link_loss_polls * gap,
-                min(watchdogs),
-                fit,
-            )
-            self.link_loss_polls = fit
+        self.link_loss_polls = fit_loss_polls(
+            self.link_loss_polls,
+            given=self._loss_polls_given,
+            request_timeout=self.link.timeout,
+            poll_interval=self.poll_interval,
+            watchdogs=watchdogs,
+        )
 
     def publish(self, statuses: Sequence[DriveStatus] | None, *, link_ok: bool, link_error: str | None = None) -> None:
         """A new `state` from `statuses` (None: keep the last drive statuses); wakes `tick`."""
@@ -299,7 +280,9 @@ class DrivePoll:
         for d in self.drives:
             await d.read_parameters()  # volatile: a power-cycled drive has defaults again
         statuses = [await d.read_status(retries=0) for d in self.drives]
-        problem = self._off_command(statuses, down) or self._owed_problem(statuses, f"link was down {down:.1f} s; ")
+        problem = reconnect_problem(statuses, self.drives, self.command, down) or self._owed_problem(
+            statuses, f"link was down {down:.1f} s; "
+        )
         if problem is None:
             log.warning("drive link restored after %.1f s; both drives verified", down)
             return statuses
@@ -310,28 +293,6 @@ class DrivePoll:
         self.fail(problem)
         return statuses
 
-    def _off_command(self, statuses: Sequence[DriveStatus], down: float) -> DriveError | None:
-        """The first drive found tripped, or (a speed commanded) the first not running at its
-        reference under network control (`off_command`), after the link was down `down` s."""
-        for st in statuses:
-            if st.tripped:
-                return DriveFaultError(
-                    f"tripped while the link was down ({down:.1f} s)",
-                    drive=st.device_id,
-                    drive_name=st.name,
-                    register=R.FAULT,
-                    fault_code=st.fault_code,
-                )
-        off = None if self.command is None else off_command(statuses, self.drives, self.command)
-        if off is None:
-            return None
-        return DriveLinkError(
-            f"link was down {down:.1f} s; found it {off.reason}",
-            drive=off.drive,
-            drive_name=off.drive_name,
-            register=off.register,
-        )
-
     def _owed_problem(self, statuses: Sequence[DriveStatus], why: str = "") -> DriveError | None:
         """With no speed commanded and a stop owed: the first drive found running, or with a
         nonzero REF, in `statuses` (all read after the owed stop ended), as the failure to record.
@@ -340,19 +301,11 @@ class DrivePoll:
             return None
         if any(st.time <= self._owed_at for st in statuses):
             return None
-        moving = [st for st in statuses if st.running or st.reference_raw != 0]
-        if not moving:
+        problem = running_while_owed(statuses, emergency=self.owed, why=why)
+        if problem is None:
             log.info("the stop owed is not needed any more: both drives found stopping or stopped")
             self.owed = None
-            return None
-        st, kind = moving[0], "emergency stop (OFF3)" if self.owed else "ramp stop (OFF1)"
-        return DriveLinkError(
-            f"{why}found {st.state} with REF {fmt_speed(st.reference)} while no speed is commanded: "
-            f"the {kind} it missed (not delivered) is sent again",
-            drive=st.device_id,
-            drive_name=st.name,
-            register=R.CW,
-        )
+        return problem
 
     async def _check_owed(self, statuses: Sequence[DriveStatus]) -> None:
         """A drive found running while a stop is owed (`_owed_problem`): the stop again, and the failure."""
@@ -372,15 +325,7 @@ class DrivePoll:
         if self._trip_handled:
             return
         self._trip_handled = True
-        st = tripped[0]
-        err = DriveFaultError(
-            "tripped",
-            drive=st.device_id,
-            drive_name=st.name,
-            register=R.FAULT,
-            fault_code=st.fault_code,
-        )
-        await self._stop_and_fail(err)
+        await self._stop_and_fail(trip_fault(tripped[0]))
 
     async def _check_following(self, statuses: Sequence[DriveStatus]) -> None:
         """Once a poll found both drives running at `command`, a drive found no longer running or at

@@ -42,15 +42,16 @@ import time
 from types import TracebackType
 
 from drives import registers as R
-from drives.drive import Drive, DriveStatus
 from drives.errors import DriveError, DriveFaultError, DriveLinkError, DriveSuperseded, DriveTimeoutError, StopTripError
 from drives.limits import DriveLimits, fmt_speed
+from drives.findings import trip_fault
 from drives.link import ModbusLink
+from drives.opening import clear_stale_comm_loss, params_to_write, watchdog_words
 from drives.pair import drive_names, drive_pair
 from drives.poll import DrivePoll
 from drives.poll_pace import SettleDetector, wait_tick
 from drives.state import RigDriveState
-from drives.stop import StopSender
+from drives.stop import StopSender, standstill_wait
 
 log = logging.getLogger(__name__)
 
@@ -130,11 +131,11 @@ class RigDrives:
             for d in self._drives:
                 await d.read_parameters()
             for d in self._drives:
-                changed = self._params_to_write(d)
+                changed = params_to_write(d.params, self._params)
                 if changed:
                     await d.configure(**changed)
             self._poll.fit_heartbeat()
-            statuses = [await self._clear_stale_comm_loss(d) for d in self._drives]
+            statuses = [await clear_stale_comm_loss(d) for d in self._drives]
             self._poll.publish(statuses, link_ok=True)
             self._poll_task = asyncio.create_task(self._poll.run(), name=f"drives-poll {self.url}")
         except BaseException:
@@ -157,7 +158,7 @@ class RigDrives:
                 if not task.done():  # the stop never waits on it (it would feed the watchdogs)
                     log.error("the drives' poll did not end %g s after its cancel: stopping them beside it", POLL_END_S)
             if self._release and exc_type is None and not cancelled:
-                log.warning("drives left running at their setpoint; %s", self._watchdog_words())
+                log.warning("drives left running at their setpoint; %s", watchdog_words(self._drives))
                 return
             try:
                 errors = await self._safe_stop(emergency=self._emergency)
@@ -171,37 +172,6 @@ class RigDrives:
             if task is not None and not task.done():
                 task.cancel()
             await self.link.close()
-
-    def _params_to_write(self, drive: Drive) -> dict[str, float]:
-        """The given parameters that differ from what `drive` holds (s; one register unit
-        apart at most counts as equal): a drive that already holds them, running or not,
-        is left alone."""
-        held = drive.params
-        out = {}
-        for name, value in self._params.items():
-            if value is None:
-                continue
-            if held is None or abs(getattr(held, name) - value) >= R.TIME_UNIT / 2:
-                out[name] = value
-        return out
-
-    async def _clear_stale_comm_loss(self, drive: Drive) -> DriveStatus:
-        """A drive at standstill showing fault 7510 (the previous client went away)
-        is reset: talking to it removed the cause. Other faults stay for
-        `reset_faults`; a reset the drive refuses leaves it tripped."""
-        st = await drive.read_status()
-        if st.tripped and st.fault_code == R.FAULT_COMM_LOSS and st.stopped:
-            log.warning(
-                "%s drive (id %d): resetting fault 7510 left by a previous client (at standstill)",
-                drive.name,
-                drive.device_id,
-            )
-            try:
-                st = await drive.reset_fault()
-            except DriveFaultError as err:
-                log.warning("%s", err)
-                st = await drive.read_status()
-        return st
 
     def release(self) -> None:
         """Leave the drives running if the context exits without an exception.
@@ -254,13 +224,7 @@ class RigDrives:
             statuses = [await d.read_status() for d in self._drives]
             for st in statuses:
                 if st.tripped:
-                    raise DriveFaultError(
-                        "tripped; call reset_faults() before commanding speeds",
-                        drive=st.device_id,
-                        drive_name=st.name,
-                        register=R.FAULT,
-                        fault_code=st.fault_code,
-                    )
+                    raise trip_fault(st, "tripped; call reset_faults() before commanding speeds")
             if self._poll.failure is not None:  # found since (the poll stopped both): a start does not undo it
                 raise self._poll.failure
             self._emergency = False
@@ -331,7 +295,9 @@ class RigDrives:
         if errors:
             raise errors[0]
         if wait:
-            timeout = self._stop_time(emergency) if timeout is None else timeout
+            if timeout is None:
+                now = ((self.spin, self._poll.state.spin), (self.orbit, self._poll.state.orbit))
+                timeout = standstill_wait(now, emergency=emergency, poll_interval=self.poll_interval)
             kind = "emergency stop (OFF3)" if emergency else "ramp stop (OFF1)"
             await self._poll.wait_stopped(known, t_cmd, timeout, stop=kind)
 
@@ -357,29 +323,9 @@ class RigDrives:
         self._poll.acknowledge()
 
     # -- internals --------------------------------------------------------------
-    def _watchdog_words(self) -> str:
-        """What stops drives nobody polls: their comm-loss watchdog as last read (COMM_LOSS_TIMEOUT)."""
-        times = [d.params.comm_loss_timeout if d.params else 0.0 for d in self._drives]
-        if all(t > 0 for t in times):
-            return f"without a polling client their comm-loss watchdog ramps them down after {max(times):g} s"
-        return "their comm-loss watchdog is not known to be armed (COMM_LOSS_TIMEOUT 0 or unread): nothing stops them"
-
     def _require_open(self) -> None:
         if self._poll_task is None:
             raise DriveError("RigDrives is not open: use `async with RigDrives(...)`")
-
-    def _stop_time(self, emergency: bool) -> float:
-        """Default wait for standstill (s): the drives' own ramp from the present
-        speed, with margin; a tripped drive coasts at a rate nobody knows, so it
-        gets a minute more."""
-        worst = 0.0
-        for d, st in ((self.spin, self._poll.state.spin), (self.orbit, self._poll.state.orbit)):
-            if d.params is None or st is None:
-                continue
-            t = d.params.decel_time * abs(st.actual) / d.params.speed_scale
-            t = t / 10 if emergency else t
-            worst = max(worst, t + (60.0 if st.tripped else 0.0))
-        return 1.5 * worst + 2.0 + 4 * self.poll_interval
 
     async def _safe_stop(self, *, emergency: bool = False) -> list[DriveError]:
         """Deliver the stop to both drives even if the calling task is cancelled meanwhile.

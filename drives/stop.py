@@ -28,7 +28,7 @@ from drives import registers as R
 from drives.errors import DriveError, DriveExceptionResponse, DriveTimeoutError
 
 if TYPE_CHECKING:
-    from drives.drive import Drive
+    from drives.drive import Drive, DriveStatus
 
 log = logging.getLogger(__name__)
 
@@ -221,3 +221,19 @@ def _as_drive_error(d: Drive, err: Exception) -> DriveError:
     wrapped = DriveError(f"{type(err).__name__}: {err}", drive=d.device_id, drive_name=d.name)
     wrapped.__cause__ = err
     return wrapped
+
+
+def standstill_wait(
+    drives: Sequence[tuple[Drive, DriveStatus | None]], *, emergency: bool, poll_interval: float
+) -> float:
+    """Default wait (s) for standstill after a stop of `drives` (each with its latest status, None
+    if unread): the drives' own ramp from the present speed (DECEL_TIME, a tenth of it for the
+    emergency stop), with margin; a tripped drive coasts at a rate nobody knows: a minute more."""
+    worst = 0.0
+    for d, st in drives:
+        if d.params is None or st is None:
+            continue
+        t = d.params.decel_time * abs(st.actual) / d.params.speed_scale
+        t = t / 10 if emergency else t
+        worst = max(worst, t + (60.0 if st.tripped else 0.0))
+    return 1.5 * worst + 2.0 + 4 * poll_interval

@@ -22,6 +22,7 @@ from drives.errors import (
 )
 from drives.limits import DriveLimits
 from drives.link import ModbusLink
+from drives.opening import params_to_write
 from drives.rig import RigDrives
 from sim import drive_registers as sim_registers
 
@@ -313,9 +314,11 @@ async def test_entry_writes_only_parameters_the_drives_do_not_hold(sim):
         assert sim.models[2].parameter(PARAM["COMM_LOSS_TIMEOUT"]) == 7
         await r.set_speeds(300 * RPM, 0.0)
         await r.wait_settled(hold=0.1, timeout=5)
-        assert r._params_to_write(r.spin) == r._params_to_write(r.orbit) == {}  # held: nothing to write
+        assert (
+            params_to_write(r.spin.params, r._params) == params_to_write(r.orbit.params, r._params) == {}
+        )  # held: nothing to write
         r._params["comm_loss_timeout"] = 0.9
-        assert r._params_to_write(r.spin) == {"comm_loss_timeout": 0.9}
+        assert params_to_write(r.spin.params, r._params) == {"comm_loss_timeout": 0.9}
         with pytest.raises(DriveExceptionResponse):  # what that write meets while running
             await r.spin.configure(comm_loss_timeout=0.9)
 

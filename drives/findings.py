@@ -1,0 +1,59 @@
+"""What a poll of both drives can find wrong, worded as the failure to record (pure: no I/O).
+
+- `trip_fault`: a drive reading TRIPPED, as DriveFaultError naming drive, register FAULT and code.
+- `reconnect_problem`: after a link loss, a drive found tripped, or (a speed commanded) not
+  running at its reference under network control (`drives.state.off_command`).
+- `running_while_owed`: with no speed commanded and a stop owed, a drive found running or
+  with a nonzero REF: the stop it missed is sent again.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from drives import registers as R
+from drives.drive import Drive, DriveStatus
+from drives.errors import DriveError, DriveFaultError, DriveLinkError
+from drives.limits import fmt_speed
+from drives.state import off_command
+
+
+def trip_fault(st: DriveStatus, what: str = "tripped") -> DriveFaultError:
+    """DriveFaultError for the tripped drive of `st`: `what`, its id, name, register FAULT, its code."""
+    return DriveFaultError(what, drive=st.device_id, drive_name=st.name, register=R.FAULT, fault_code=st.fault_code)
+
+
+def reconnect_problem(
+    statuses: Sequence[DriveStatus], drives: tuple[Drive, Drive], command: tuple[int, int] | None, down: float
+) -> DriveError | None:
+    """The first drive of `statuses` found tripped, or (`command`: raw REFs spin, orbit) not running
+    at its reference under network control, after the link was down `down` s; None if none."""
+    for st in statuses:
+        if st.tripped:
+            return trip_fault(st, f"tripped while the link was down ({down:.1f} s)")
+    off = None if command is None else off_command(statuses, drives, command)
+    if off is None:
+        return None
+    return DriveLinkError(
+        f"link was down {down:.1f} s; found it {off.reason}",
+        drive=off.drive,
+        drive_name=off.drive_name,
+        register=off.register,
+    )
+
+
+def running_while_owed(statuses: Sequence[DriveStatus], *, emergency: bool, why: str = "") -> DriveLinkError | None:
+    """The first drive of `statuses` running or with a nonzero REF while no speed is commanded and
+    a stop is owed (`emergency`: the owed stop is OFF3), as the failure; `why` leads the message.
+    None if neither drive moves (the stop owed is not needed any more)."""
+    moving = [st for st in statuses if st.running or st.reference_raw != 0]
+    if not moving:
+        return None
+    st, kind = moving[0], "emergency stop (OFF3)" if emergency else "ramp stop (OFF1)"
+    return DriveLinkError(
+        f"{why}found {st.state} with REF {fmt_speed(st.reference)} while no speed is commanded: "
+        f"the {kind} it missed (not delivered) is sent again",
+        drive=st.device_id,
+        drive_name=st.name,
+        register=R.CW,
+    )
