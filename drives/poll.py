@@ -3,9 +3,9 @@
 One task (`DrivePoll.run`) reads both drives every `poll_interval` s at a
 steady pace. It is the heartbeat the drives' comm-loss watchdog needs, the
 source of `state`, and the interlock:
-- A drive that trips, or (once a poll found both at `command`) one found no longer running, in
-  local control or at another reference (another client, the drive's keypad: DriveOffCommand), has both drives
-  ramped to zero before it is recorded in `failure` (the owner raises it); so does a poll that
+- A drive that trips, or (once a poll found both at `command`, or read them after the start
+  confirmed both: `started`) one found no longer running, in local control or at another
+  reference (another client, the drive's keypad: DriveOffCommand), has both drives ramped to zero before it is recorded in `failure` (the owner raises it); so does a poll that
   fails on a bug (not left turning unwatched: the poll's reads keep their watchdog fed).
 - A poll's read gives way to a stop on TCP (drives/link.py): that poll is skipped, not failed.
 - A failed poll is counted (`state.poll_failures`, logged); the link is
@@ -85,6 +85,7 @@ class DrivePoll:
         self.tick = asyncio.Event()
         self.command: tuple[int, int] | None = None
         self.following = False  # a poll found both drives running at `command` since it was given
+        self._started_at: float | None = None  # monotonic s the start confirmed both running at `command`
         self.failure: DriveError | None = None
         self._trip_handled = False
         self._ack_time = 0.0  # polls read before this are stale for trip handling
@@ -103,8 +104,13 @@ class DrivePoll:
     def commanded(self, refs: tuple[int, int]) -> None:
         """Both drives are being run at raw REFs `refs` (spin, orbit): no stop is owed any more."""
         self._epoch += 1
-        self.owed, self.following = None, False
+        self.owed, self.following, self._started_at = None, False, None
         self.command = refs
+
+    def started(self) -> None:
+        """The start has read both drives running at `command` (REF written, REMOTE accepted): a
+        poll that reads them after now finds them off it only if someone else moved them."""
+        self._started_at = time.monotonic()
 
     def send_stop(self, *, emergency: bool = False) -> asyncio.Task[list[DriveError]]:
         """Clear `command` (the owner's stop) and `_send` the stop."""
@@ -328,13 +334,19 @@ class DrivePoll:
         await self._stop_and_fail(trip_fault(tripped[0]))
 
     async def _check_following(self, statuses: Sequence[DriveStatus]) -> None:
-        """Once a poll found both drives running at `command`, a drive found no longer running or at
-        another reference (stopped or moved by another client, or at the drive) is handled as a trip."""
-        problem = None if self.command is None else off_command(statuses, self.drives, self.command)
-        if self.command is not None and problem is None:
+        """Once a poll found both drives running at `command`, or the start confirmed both
+        (`started`) before these statuses were read, a drive found no longer running, in local
+        control or at another reference (stopped or moved by another client, or at the drive) is
+        handled as a trip. Before that, a drive may still read as before the command."""
+        if self.command is None:
+            return
+        problem = off_command(statuses, self.drives, self.command)
+        if problem is None:
             self.following = True
-        elif problem is not None and self.following:
-            self.following = False
+            return
+        started = self._started_at is not None and all(st.time > self._started_at for st in statuses)
+        if self.following or started:
+            self.following, self._started_at = False, None
             await self._stop_and_fail(problem)
 
     async def _stop_and_fail(self, err: DriveError) -> None:

@@ -232,6 +232,7 @@ class RigDrives:
             following, asked = all(st.following for st in statuses), self._stops.asked  # a new REF at most
             for d, raw, st in zip(self._drives, refs, statuses):  # no word after a stop asked since
                 await d.start(raw, st if following else None, guard=lambda: self._stops.asked == asked)
+            self._poll.started()
             log.info("drives commanded: spin %s, orbit %s", fmt_speed(spin), fmt_speed(orbit))
         except BaseException as err:
             if isinstance(err, DriveFaultError) and err.fault_code:
