@@ -97,6 +97,21 @@ def pytest_configure(config: pytest.Config) -> None:
     config.add_cleanup(functools.partial(shutil.rmtree, lab, ignore_errors=True))
 
 
+def _signals_not_ignored() -> None:
+    """SIGINT, SIGQUIT and SIGHUP back to their defaults where this process was started with them
+    ignored (a harness running the suite as a background job of a shell without job control, or
+    under nohup): the commands the tests start inherit an ignored signal and leave it ignored, as
+    orbitrig does (orbitrig.cli.signals.IGNORED_AT_START), and the tests send those signals."""
+    import signal
+
+    for sig in (signal.SIGINT, signal.SIGQUIT, signal.SIGHUP):
+        if signal.getsignal(sig) is signal.SIG_IGN:
+            signal.signal(sig, signal.default_int_handler if sig == signal.SIGINT else signal.SIG_DFL)
+
+
+_signals_not_ignored()
+
+
 @pytest.fixture(autouse=True)
 def _signal_dispositions():
     """The test process's signal handlers back as they were: a command run in process leaves its

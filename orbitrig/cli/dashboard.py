@@ -163,6 +163,8 @@ def register(app: typer.Typer) -> None:
         import logging
         import signal
 
+        from orbitrig.cli.signals import watched
+
         logging.basicConfig(
             level=logging.DEBUG if verbose else logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s"
         )
@@ -177,7 +179,7 @@ def register(app: typer.Typer) -> None:
 
             shutdown = asyncio.Event()
             loop = asyncio.get_running_loop()
-            for sig in (signal.SIGINT, signal.SIGTERM):
+            for sig in watched((signal.SIGINT, signal.SIGTERM)):
                 loop.add_signal_handler(sig, shutdown.set)
             await serve(settings, host, port, shutdown, ssl_context=ssl_context)
 

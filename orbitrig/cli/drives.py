@@ -220,7 +220,7 @@ def _run_async(make_coro, command: str, interrupt=None) -> int:
 
     from drives.errors import DriveError
     from orbitrig.cli.drives_hold import Interrupt
-    from orbitrig.cli.signals import SIGNALS, hand_over, take_late_signals
+    from orbitrig.cli.signals import hand_over, take_late_signals, watched
     from orbitrig.cli.terminal import OutputError, say
 
     _quiet_logging()
@@ -231,7 +231,7 @@ def _run_async(make_coro, command: str, interrupt=None) -> int:
         task = asyncio.current_task()
         assert task is not None
         loop = asyncio.get_running_loop()
-        for sig in SIGNALS:
+        for sig in watched():
             loop.add_signal_handler(sig, interrupt.on_signal, sig, task)
         try:
             return await make_coro(interrupt)

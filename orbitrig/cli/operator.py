@@ -29,7 +29,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from orbitrig.cli.signals import SIGNALS, hand_over, signal_cause, signal_name as _name
+from orbitrig.cli.signals import hand_over, ignored_words, signal_cause, signal_name as _name, watched
 
 
 class Operator:
@@ -54,8 +54,10 @@ class Operator:
     def install(self) -> None:
         import sys
 
-        for sig in SIGNALS:
+        for sig in watched():
             self.loop.add_signal_handler(sig, self._signal, sig)
+        if (ignored := ignored_words()) is not None:
+            self.console.print(f"note: {ignored}", markup=False)
         if not sys.stdin.isatty():
             self.engine.unattended = True
 

@@ -179,8 +179,9 @@ def _reloaded(file: Path, previous):
 
 async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
     import asyncio
+    import logging
 
-    from orbitrig.cli.signals import SIGNALS, hand_over, signal_name
+    from orbitrig.cli.signals import hand_over, ignored_words, signal_name, watched
     from orbitrig.service.leaving import LEAVE_GRACE_S
 
     shutdown = asyncio.Event()
@@ -210,8 +211,10 @@ async def _serve(rig, settings, broker_settings, opts: ServeOptions) -> None:
             _leave_later(leaving, services[0], f"{name}: the run did not end within its wait", None)
         shutdown.set()
 
-    for sig in SIGNALS:
+    for sig in watched():
         loop.add_signal_handler(sig, on_signal, sig)
+    if (ignored := ignored_words()) is not None:
+        logging.getLogger("orbitrig.cli.serve").warning("%s", ignored)
     try:
         await _serve_until_shutdown(rig, settings, broker_settings, opts, shutdown, services)
     finally:

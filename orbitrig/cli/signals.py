@@ -10,6 +10,12 @@ cancels it again: a stop under way that is shielded from cancellation (orbitrig.
 is not cut short, it becomes the emergency stop and still waits for standstill; anything else
 the way out waits for (a prompt, a read) ends at once, so a second Ctrl-C is never lost.
 
+A signal the process was started with ignored (inherited SIG_IGN: ``nohup`` ignores SIGHUP; a
+background job of a shell without job control, ``orbitrig sweep ... &`` in a script, SIGINT and
+SIGQUIT) stays ignored, as Unix programs leave it (:func:`watched`): a sweep started under
+``nohup`` goes on when its terminal closes; SIGTERM, the service's stop and the dashboard still
+stop it.
+
 Once a command's event loop is done with them (:func:`hand_over`), a signal no longer falls to
 Python's default (a KeyboardInterrupt traceback, or death by SIGTERM, in the middle of the way
 out): it is recorded until the process exits (:func:`take_late_signals`; the third in a row falls
@@ -32,6 +38,27 @@ SIGNALS: tuple[signal.Signals, ...] = (signal.SIGINT, signal.SIGTERM, signal.SIG
 SIGNAL_WORDS = "Ctrl-C, SIGTERM, SIGHUP or SIGQUIT"
 
 
+#: SIGNALS ignored when this process started (read when this module is first imported, before
+#: any command handles a signal): they are left ignored
+IGNORED_AT_START: frozenset[signal.Signals] = frozenset(s for s in SIGNALS if signal.getsignal(s) is signal.SIG_IGN)
+
+
+def watched(signals: tuple[signal.Signals, ...] = SIGNALS) -> tuple[signal.Signals, ...]:
+    """`signals` less those ignored when the process started (IGNORED_AT_START): the ones a
+    command handles."""
+    return tuple(sig for sig in signals if sig not in IGNORED_AT_START)
+
+
+def ignored_words() -> str | None:
+    """What the process ignores since its start, for the run's log and the operator ('SIGHUP
+    (closing the terminal does not stop it)'), or None."""
+    if not IGNORED_AT_START:
+        return None
+    names = ", ".join(sig.name for sig in SIGNALS if sig in IGNORED_AT_START)
+    hup = " (closing the terminal does not stop it)" if signal.SIGHUP in IGNORED_AT_START else ""
+    return f"started with {names} ignored (nohup, or a background job): left ignored{hup}"
+
+
 #: signals received once a command's event loop no longer handled them (`hand_over`), in order
 _late: list[signal.Signals] = []
 
@@ -42,7 +69,7 @@ def hand_over(loop) -> None:
     blocked during the change and delivered after it."""
     blocked = signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS)
     try:
-        for sig in SIGNALS:
+        for sig in watched():
             loop.remove_signal_handler(sig)
             signal.signal(sig, _record)
     finally:
@@ -109,7 +136,7 @@ def run_until_signal(make: Callable[[], Awaitable[T]]) -> T:
             received.append(sig)
             task.cancel()  # again on a further signal: what the way out waits for is cut short
 
-        for sig in SIGNALS:
+        for sig in watched():
             loop.add_signal_handler(sig, on_signal, sig)
         try:
             return await make()

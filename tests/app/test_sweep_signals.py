@@ -49,6 +49,42 @@ def test_sigterm_and_sighup_stop_with_a_ramp(sweep, sig):
     assert "drives: ramp stop (OFF1); " + STANDSTILL in log and SAFE in log, log
 
 
+class NohupSweep(Sweep):
+    """The sweep started by `nohup`, which ignores SIGHUP (standard output a pipe: nothing redirected)."""
+
+    launcher = ("nohup",)
+
+
+def _dir(path):
+    path.mkdir()
+    return path
+
+
+def test_a_sweep_started_under_nohup_goes_on_when_its_terminal_closes(tmp_path):
+    """`nohup orbitrig sweep ...`: the hang-up stays ignored, as the operator asked (before, the
+    sweep installed its own handler and stopped when the terminal closed): the run completes, and
+    says at its start that SIGHUP is ignored. SIGTERM still stops both drives with a ramp."""
+    with sweeps(lambda *extra: NohupSweep(_dir(tmp_path / "hup"), *extra)) as start:
+        s = start()
+        s.wait_log("[running] speeds set: spin 1000 rpm")
+        s.proc.send_signal(signal.SIGHUP)
+        code, err = s.finish()
+        assert code == 0, err
+        words = " ".join(err.split())  # as wrapped on the terminal's width
+        note = "note: started with SIGHUP ignored (nohup, or a background job): left ignored (closing the terminal"
+        assert note + " does not stop it)" in words, err
+        assert s.status() == "completed" and "SIGHUP" not in s.text()
+    with sweeps(lambda *extra: NohupSweep(_dir(tmp_path / "term"), *extra)) as start:
+        s = start()
+        s.wait_log("[running] speeds set: spin 1000 rpm")
+        s.proc.send_signal(signal.SIGTERM)
+        code, err = s.finish()
+    assert code == 3, err
+    assert "run stopped: stopped at once by SIGTERM" in err and "Traceback" not in err
+    log = s.text()
+    assert "drives: ramp stop (OFF1); " + STANDSTILL in log and SAFE in log, log
+
+
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
 def test_a_terminal_gone_does_not_keep_the_stop_from_the_drives(sweep, sig):
     """stderr's reader gone (a closed terminal or pipe: every write fails) before the signal:

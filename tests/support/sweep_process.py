@@ -17,7 +17,9 @@ from support.cli_helpers import orbitrig_cmd
 
 
 class SweepProcess:
-    """`orbitrig sweep --sim --out OUT ARGS` started at once."""
+    """`orbitrig sweep --sim --out OUT ARGS` started at once (behind `launcher`, e.g. ("nohup",))."""
+
+    launcher: tuple[str, ...] = ()
 
     def __init__(self, out: Path, *args: str):
         self.out = out
@@ -27,7 +29,7 @@ class SweepProcess:
     def start(self, *args: str) -> subprocess.Popen:
         """Another `sweep --sim --out OUT ARGS` (a resume, say) on the same run directory."""
         return subprocess.Popen(
-            orbitrig_cmd("sweep", "--sim", "--out", str(self.out), *args),
+            [*self.launcher, *orbitrig_cmd("sweep", "--sim", "--out", str(self.out), *args)],
             cwd=ROOT,
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
