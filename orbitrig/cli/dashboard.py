@@ -8,6 +8,8 @@ from typing import Optional
 
 import typer
 
+from orbitrig.cli.signals import watched
+
 
 def _fail(message: str, code: int = 2) -> None:
     typer.echo(f"orbitrig dashboard: {message}", err=True)
@@ -162,8 +164,6 @@ def register(app: typer.Typer) -> None:
         import asyncio
         import logging
         import signal
-
-        from orbitrig.cli.signals import watched
 
         logging.basicConfig(
             level=logging.DEBUG if verbose else logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s"
