@@ -1,0 +1,45 @@
+"""A Ctrl-C while `orbitrig` imports its command line (about a second, before any command runs)
+ends it with a line saying so and exit 130, not a KeyboardInterrupt traceback.
+
+The interrupt is made to land inside that import (a meta-path hook raising KeyboardInterrupt when
+`orbitrig.cli` is imported, as Python's SIGINT handler does at that moment): a real SIGINT lands
+there only if it is sent within a window that moves with the host's load."""
+
+import subprocess
+import sys
+
+from support.paths import ROOT
+
+INTERRUPTED_IMPORT = """
+import sys
+
+class CtrlC:
+    def find_spec(self, name, path=None, target=None):
+        if name == "orbitrig.cli":
+            raise KeyboardInterrupt
+        return None
+
+sys.meta_path.insert(0, CtrlC())
+sys.argv = ["orbitrig", "sweep", "--sim", "--dry-run"]
+from orbitrig.__main__ import main
+main()
+"""
+
+
+def test_ctrl_c_while_the_command_line_loads_says_so_and_exits_130():
+    done = subprocess.run(
+        [sys.executable, "-c", INTERRUPTED_IMPORT], cwd=ROOT, capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 130, done.stderr
+    assert done.stderr == "orbitrig: interrupted (Ctrl-C) while starting; no command was run\n"
+
+
+def test_the_installed_command_and_python_m_start_the_same_way():
+    """`orbitrig` (the console script, pyproject.toml) and `python -m orbitrig` both enter through
+    orbitrig.__main__.main."""
+    text = (ROOT / "pyproject.toml").read_text()
+    assert 'orbitrig = "orbitrig.__main__:main"' in text
+    done = subprocess.run(
+        [sys.executable, "-m", "orbitrig", "--version"], cwd=ROOT, capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 0 and done.stdout.startswith("orbitrig "), done.stderr
