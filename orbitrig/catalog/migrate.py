@@ -8,6 +8,10 @@ A catalog already up to date is only read. Otherwise the change is one transacti
 the database's write lock (PostgreSQL: a transaction-level advisory lock; SQLite: ``BEGIN
 IMMEDIATE``) that looks again before it writes: processes opening one catalog at once
 all succeed, the first one changing it.
+
+A catalog a newer version has written (``fits_units`` names a column this version does not
+know) keeps that version's units: this version only adds the units of its own columns
+missing there, and never deletes a unit (docs/catalog.md).
 """
 
 from __future__ import annotations
@@ -47,9 +51,11 @@ def missing_columns(conn: Connection) -> list[str]:
 
 
 def units_to_write(stored: dict[str, str]) -> dict[str, str]:
-    """The units to write to ``fits_units``, ``stored`` being what it holds: all of UNIT_OF
-    when it differs, none when it is UNIT_OF."""
-    return {} if stored == UNIT_OF else dict(UNIT_OF)
+    """The units ``fits_units`` lacks, ``stored`` being what it holds: every unit of UNIT_OF
+    that is missing or differs; only the missing ones when ``stored`` names a column this
+    version does not know (a newer version wrote it: its units stand)."""
+    newer = not set(stored) <= set(UNIT_OF)
+    return {c: u for c, u in UNIT_OF.items() if c not in stored or (not newer and stored[c] != u)}
 
 
 def _needed(conn: Connection) -> bool:
