@@ -8,13 +8,14 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import subprocess
 import sys
 
 import pytest
 from sqlalchemy import func, select
 
-from orbitrig.catalog.bearing import SIM_DEFAULT_SEED
+from orbitrig.catalog.bearing import SIM_DEFAULT_SEED, as_written
 from orbitrig.catalog.compare import repeat_groups, repeatability
 from orbitrig.catalog.rows import run_rows
 from orbitrig.catalog.schema import fits
@@ -48,6 +49,17 @@ def runs(tmp_path_factory):
     _sweep(out["paper-2"])
     _sweep(out["compressible"], "--sim-config", "compressible")
     return out
+
+
+def test_computed_numbers_are_kept_as_written():
+    """12 significant digits: the float noise of a unit conversion or a product goes, any digit
+    a number was written with stays."""
+    assert (as_written(60 * 1e-6), as_written(19.05 * 1e-3)) == (6e-05, 0.01905)
+    spin = 1000 * 2 * math.pi / 60  # rad/s
+    orbit_hz = [ratio * spin / (2 * math.pi) for ratio in (0.3, 0.5, 1.2)]
+    assert (60 * 1e-6, orbit_hz) == (5.9999999999999995e-05, [4.999999999999999, 8.333333333333332, 19.999999999999996])
+    assert [as_written(f) for f in orbit_hz] == [5.0, 8.33333333333, 20.0]
+    assert as_written(1.23456789012e-7) == 1.23456789012e-7
 
 
 def test_the_default_seed_is_the_simulators():
