@@ -21,7 +21,7 @@ from support.catalog_earlier import write_earlier_catalog
 
 #: processes opening the catalog at once, and how many times each race is run
 OPENERS = 3
-ROUNDS = 20
+ROUNDS = 12
 
 
 def _open(url: str, barrier, errors) -> None:
