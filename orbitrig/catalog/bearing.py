@@ -5,6 +5,9 @@ simulator scenario (its name, the SHA-256 of its TOML text, its seed).
 Rows of different bearings never repeat one another, however equal their operating
 conditions: KEY_COLUMNS are what `compare` groups repeats by besides the conditions
 (orbitrig.catalog.compare.bearing_key).
+
+as_written: how the catalog keeps a number it computes from written ones (the bearing's
+lengths in m, the planned orbit frequencies).
 """
 
 from __future__ import annotations
@@ -32,8 +35,8 @@ def bearing_columns(run: Run) -> dict[str, Any]:
     None for a run on the rig)."""
     bearing = _rig_bearing(run.rig_config)
     columns: dict[str, Any] = {
-        "bearing_radius": _si(bearing.radius_mm * 1e-3) if bearing else None,
-        "bearing_clearance": _si(bearing.clearance) if bearing else None,
+        "bearing_radius": as_written(bearing.radius_mm * 1e-3) if bearing else None,
+        "bearing_clearance": as_written(bearing.clearance) if bearing else None,
         "sim_scenario": "",
         "sim_scenario_sha256": "",
         "sim_seed": None,
@@ -63,9 +66,10 @@ def bearing_label(row: dict[str, Any]) -> str:
     return (row.get("rig_id") or "rig") + (f" c = {clearance * 1e6:.4g} um" if clearance else "")
 
 
-def _si(value: float) -> float:
-    """A length converted from mm or um to m, to 12 significant digits (60 um: 6e-05 m, not
-    5.9999999999999995e-05)."""
+def as_written(value: float) -> float:
+    """A catalog number computed from written ones, to 12 significant digits so it reads as
+    written: a length converted from mm or um to m (60 um: 6e-05 m, not 5.9999999999999995e-05),
+    a planned orbit frequency, ratio x spin (5.0 Hz, not 4.999999999999999)."""
     return float(f"{value:.12g}")
 
 

@@ -1,7 +1,17 @@
-"""An existing catalog brought up to the tables of this version: each column ``fits`` lacks
-is added (``ALTER TABLE fits ADD COLUMN``, NULL in the rows already there; no row is
-touched otherwise; `catalog add RUN` again fills the new columns of that run's rows), and
-``fits_units`` is made to list every column's unit.
+"""A catalog brought up to the tables of this version when it is opened: the tables made
+when missing, each column ``fits`` lacks added (``ALTER TABLE fits ADD COLUMN``, NULL in the
+rows already there; no row is touched otherwise; `catalog add RUN` again fills the new
+columns of that run's rows), and ``fits_units`` made to list the unit of every column of
+this version.
+
+A catalog already up to date is only read. Otherwise the change is one transaction under
+the database's write lock (PostgreSQL: a transaction-level advisory lock; SQLite: ``BEGIN
+IMMEDIATE``) that looks again before it writes: processes opening one catalog at once
+all succeed, the first one changing it.
+
+A catalog a newer version has written (``fits_units`` names a column this version does not
+know) keeps that version's units: this version only adds the units of its own columns
+missing there, and never deletes a unit (docs/catalog.md).
 """
 
 from __future__ import annotations
@@ -9,49 +19,77 @@ from __future__ import annotations
 from typing import Any
 
 from sqlalchemy import inspect, select
-from sqlalchemy.engine import Engine
-from sqlalchemy.exc import OperationalError, ProgrammingError
+from sqlalchemy.engine import Connection, Engine
 
-from orbitrig.catalog.schema import UNIT_OF, fits, fits_units
+from orbitrig.catalog.schema import UNIT_OF, fits, fits_units, metadata
+
+#: the PostgreSQL advisory lock key held while a catalog is changed (any 64-bit number; "orbitcat")
+_LOCK_KEY = 0x6F72626974636174
 
 
-def missing_columns(engine: Engine) -> list[str]:
+def upgrade(engine: Engine) -> None:
+    """Bring the catalog at ``engine`` up to this version (module docstring); writes nothing
+    when it is up to date."""
+    with engine.connect() as conn:
+        if not _needed(conn):
+            return
+    with engine.begin() as conn:
+        _lock(conn)
+        if _needed(conn):  # another process may have changed it while this one waited
+            metadata.create_all(conn)
+            _add_columns(conn)
+            _write_units(conn)
+
+
+def missing_columns(conn: Connection) -> list[str]:
     """The columns of ``fits`` the database's table does not have (none without the table)."""
-    inspector = inspect(engine)
+    inspector = inspect(conn)
     if not inspector.has_table(fits.name):
         return []
     have = {c["name"] for c in inspector.get_columns(fits.name)}
     return [c.name for c in fits.columns if c.name not in have]
 
 
-def add_missing_columns(engine: Engine) -> list[str]:
-    """Add the columns the table lacks; the names added. Two processes doing it at once
-    both succeed (the second finds the column there)."""
-    missing = missing_columns(engine)
-    preparer = engine.dialect.identifier_preparer
-    for name in missing:
-        column = fits.c[name]
-        sql_type = column.type.compile(dialect=engine.dialect)
-        statement = f"ALTER TABLE {preparer.quote(fits.name)} ADD COLUMN {preparer.quote(name)} {sql_type}"
-        try:
-            with engine.begin() as conn:
-                conn.exec_driver_sql(statement)
-        except (OperationalError, ProgrammingError):
-            if name not in missing_columns(engine):
-                continue  # another writer added it meanwhile
-            raise
-    return missing
+def units_to_write(stored: dict[str, str]) -> dict[str, str]:
+    """The units ``fits_units`` lacks, ``stored`` being what it holds: every unit of UNIT_OF
+    that is missing or differs; only the missing ones when ``stored`` names a column this
+    version does not know (a newer version wrote it: its units stand)."""
+    newer = not set(stored) <= set(UNIT_OF)
+    return {c: u for c, u in UNIT_OF.items() if c not in stored or (not newer and stored[c] != u)}
 
 
-def write_units(engine: Engine) -> None:
-    """Make ``fits_units`` hold UNIT_OF (written only when it differs: reading a catalog of
-    this version writes nothing)."""
-    with engine.connect() as conn:
-        stored = dict(conn.execute(select(fits_units.c.column_name, fits_units.c.unit)).all())
-    if stored == UNIT_OF:
+def _needed(conn: Connection) -> bool:
+    inspector = inspect(conn)
+    if not all(inspector.has_table(t.name) for t in metadata.sorted_tables):
+        return True
+    return bool(missing_columns(conn) or units_to_write(_stored_units(conn)))
+
+
+def _lock(conn: Connection) -> None:
+    """Hold the catalog's write lock until ``conn``'s transaction ends."""
+    if conn.dialect.name == "postgresql":
+        conn.exec_driver_sql(f"SELECT pg_advisory_xact_lock({_LOCK_KEY})")
+    else:  # SQLite: the database's write lock now (waiting up to the driver's busy timeout, 5 s)
+        conn.exec_driver_sql("BEGIN IMMEDIATE")
+
+
+def _add_columns(conn: Connection) -> None:
+    preparer = conn.dialect.identifier_preparer
+    for name in missing_columns(conn):
+        sql_type = fits.c[name].type.compile(dialect=conn.dialect)
+        conn.exec_driver_sql(f"ALTER TABLE {preparer.quote(fits.name)} ADD COLUMN {preparer.quote(name)} {sql_type}")
+
+
+def _stored_units(conn: Connection) -> dict[str, str]:
+    return dict(conn.execute(select(fits_units.c.column_name, fits_units.c.unit)).all())
+
+
+def _write_units(conn: Connection) -> None:
+    units = units_to_write(_stored_units(conn))
+    if not units:
         return
     stmt: Any  # the dialect's own Insert; both have on_conflict_do_update and excluded
-    if engine.dialect.name == "postgresql":
+    if conn.dialect.name == "postgresql":
         from sqlalchemy.dialects.postgresql import insert as postgresql_insert
 
         stmt = postgresql_insert(fits_units)
@@ -60,5 +98,4 @@ def write_units(engine: Engine) -> None:
 
         stmt = sqlite_insert(fits_units)
     upsert = stmt.on_conflict_do_update(index_elements=[fits_units.c.column_name], set_={"unit": stmt.excluded.unit})
-    with engine.begin() as conn:  # an upsert: two processes opening the catalog at once both succeed
-        conn.execute(upsert, [{"column_name": c, "unit": u} for c, u in UNIT_OF.items()])
+    conn.execute(upsert, [{"column_name": c, "unit": u} for c, u in units.items()])

@@ -13,7 +13,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from orbitrig.catalog.bearing import bearing_columns
+from orbitrig.catalog.bearing import as_written, bearing_columns
 from orbitrig.store.fit_record import COVERAGE_K, expanded_k, expanded_uncertainty, uncertainty_basis
 from orbitrig.store.stored_run import Point, Run, StoredIdentification
 from rigunits import COEFFICIENT_UNITS, coefficient_unit
@@ -72,8 +72,7 @@ def _point_columns(p: Point) -> dict[str, Any]:
         "pressure_ratio": s.pressure_ratio,
         "static_eccentricity": s.static_eccentricity,
         "dynamic_eccentricity": s.dynamic_eccentricity,
-        # the planned frequencies (ratio x spin): 12 significant digits, 5.0 for 4.999999999999999
-        "orbit_hz": json.dumps(sorted({float(f"{f.orbit_hz:.12g}") for f in p.frequencies})),
+        "orbit_hz": json.dumps(sorted({as_written(f.orbit_hz) for f in p.frequencies})),  # as planned
     }
 
 

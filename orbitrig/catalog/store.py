@@ -18,8 +18,8 @@ from sqlalchemy.engine import Engine, make_url
 from sqlalchemy.exc import ArgumentError, SQLAlchemyError
 
 from orbitrig.catalog.errors import CatalogError, CatalogUsageError
-from orbitrig.catalog.migrate import add_missing_columns, write_units
-from orbitrig.catalog.schema import KEY, ROW_COLUMNS, fits, metadata
+from orbitrig.catalog.migrate import upgrade
+from orbitrig.catalog.schema import KEY, ROW_COLUMNS, fits
 from orbitrig.catalog.where import parse_where
 
 #: the default catalog file, in the directory holding the runs
@@ -77,9 +77,7 @@ class Catalog:
             if not create:
                 _sqlite_file_exists(url, self.dialect)
             self.engine: Engine = create_engine(_driver_url(url), future=True)
-            metadata.create_all(self.engine)
-            add_missing_columns(self.engine)  # a catalog of an earlier version: its rows kept
-            write_units(self.engine)
+            upgrade(self.engine)  # a new catalog made, one of an earlier version brought up: its rows kept
         except ArgumentError as err:
             raise CatalogUsageError(f"--db {_shown(url)}: not a database URL ({err})") from None
         except (SQLAlchemyError, ImportError) as err:

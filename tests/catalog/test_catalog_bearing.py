@@ -8,22 +8,23 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import subprocess
 import sys
 
 import pytest
-from sqlalchemy import Column, MetaData, Table, UniqueConstraint, func, select
+from sqlalchemy import func, select
 
-from orbitrig.catalog.bearing import SIM_DEFAULT_SEED
+from orbitrig.catalog.bearing import SIM_DEFAULT_SEED, as_written
 from orbitrig.catalog.compare import repeat_groups, repeatability
 from orbitrig.catalog.rows import run_rows
-from orbitrig.catalog.schema import KEY, fits
+from orbitrig.catalog.schema import fits
 from orbitrig.catalog.store import Catalog
 from orbitrig.store.reader import read_run
 from sim.config import SimConfig
+from support.catalog_earlier import NEW, write_earlier_catalog
 from support.paths import ROOT
 
-NEW = ("bearing_radius", "bearing_clearance", "sim_scenario", "sim_scenario_sha256", "sim_seed")
 ONE_FIT = "lms = piezo and model = kcd11 and freq_dep = none"
 
 
@@ -48,6 +49,17 @@ def runs(tmp_path_factory):
     _sweep(out["paper-2"])
     _sweep(out["compressible"], "--sim-config", "compressible")
     return out
+
+
+def test_computed_numbers_are_kept_as_written():
+    """12 significant digits: the float noise of a unit conversion or a product goes, any digit
+    a number was written with stays."""
+    assert (as_written(60 * 1e-6), as_written(19.05 * 1e-3)) == (6e-05, 0.01905)
+    spin = 1000 * 2 * math.pi / 60  # rad/s
+    orbit_hz = [ratio * spin / (2 * math.pi) for ratio in (0.3, 0.5, 1.2)]
+    assert (60 * 1e-6, orbit_hz) == (5.9999999999999995e-05, [4.999999999999999, 8.333333333333332, 19.999999999999996])
+    assert [as_written(f) for f in orbit_hz] == [5.0, 8.33333333333, 20.0]
+    assert as_written(1.23456789012e-7) == 1.23456789012e-7
 
 
 def test_the_default_seed_is_the_simulators():
@@ -90,22 +102,11 @@ def test_runs_of_another_scenario_are_no_repeats(catalog, runs):
     assert sorted(len(g) for g in repeat_groups([*rows, moved])) == [2, 2]
 
 
-def _earlier_table(metadata: MetaData) -> Table:
-    """`fits` as the catalog had it before the bearing columns."""
-    columns = [Column(c.name, c.type, primary_key=c.primary_key) for c in fits.columns if c.name not in NEW]
-    return Table("fits", metadata, *columns, UniqueConstraint(*KEY, name="fits_key"))
-
-
 def test_an_earlier_catalog_gains_the_columns_and_keeps_its_rows(catalog, runs):
     url = catalog.url
-    with catalog.engine.begin() as conn:
-        conn.exec_driver_sql("DROP TABLE fits")
-    earlier = _earlier_table(MetaData())
-    earlier.create(catalog.engine)
-    old_rows = [{k: v for k, v in r.items() if k not in NEW} for r in run_rows(read_run(runs["paper-1"]))]
-    with catalog.engine.begin() as conn:
-        conn.execute(earlier.insert(), old_rows)
     catalog.close()
+    old_rows = [{k: v for k, v in r.items() if k not in NEW} for r in run_rows(read_run(runs["paper-1"]))]
+    write_earlier_catalog(url, old_rows)
 
     reopened = Catalog(url, create=False)
     try:

@@ -17,7 +17,7 @@ from orbitrig.catalog.errors import CatalogError
 from orbitrig.catalog.render import ExportFormat, render
 from orbitrig.catalog.rows import run_rows
 from orbitrig.catalog.schema import ROW_COLUMNS, fits_units
-from orbitrig.catalog.store import Catalog
+from orbitrig.catalog.store import Catalog, Dialect
 from orbitrig.store.reader import read_run
 
 UREG = pint.UnitRegistry()
@@ -75,3 +75,44 @@ def test_a_catalog_of_this_version_opens_read_only(catalog_run, tmp_path):
         assert _units(read_only)["Kxx"] == "N/m" and len(read_only.rows()) == 2 * 8
     finally:
         read_only.close()
+
+
+def _unit_rows(catalog) -> dict[str, tuple[str, str]]:
+    """column -> (unit, the version of its row): PostgreSQL's xmin, which any write of the
+    row changes (an upsert of the same unit too); SQLite's rowid."""
+    version = "xmin::text" if catalog.dialect is Dialect.POSTGRESQL else "CAST(rowid AS TEXT)"
+    with catalog.engine.connect() as conn:
+        found = conn.exec_driver_sql(f"SELECT column_name, unit, {version} FROM fits_units").all()
+    return {name: (unit, v) for name, unit, v in found}
+
+
+def test_a_newer_versions_units_stand(catalog, catalog_run, tmp_path):
+    """A catalog a newer version wrote (a column this version does not know, a unit spelt
+    otherwise, a unit it left out): opening it here adds the missing unit of a column of
+    this version and changes nothing else, then writes nothing at all on the next open."""
+    catalog.add(run_rows(read_run(catalog_run)))
+    url = catalog.url
+    with catalog.engine.begin() as conn:  # as the newer version left it
+        conn.exec_driver_sql("ALTER TABLE fits ADD COLUMN journal_length FLOAT")
+        conn.execute(fits_units.insert(), [{"column_name": "journal_length", "unit": "m"}])
+        conn.execute(fits_units.update().where(fits_units.c.column_name == "Cxx").values(unit="N*s/m"))
+        conn.execute(fits_units.delete().where(fits_units.c.column_name == "label"))
+    newer = _unit_rows(catalog)
+    catalog.close()
+    try:
+        older = Catalog(url, create=False)
+        units = _unit_rows(older)
+        assert units["label"][0] == "" and {c: units[c] for c in newer} == newer  # nothing rewritten
+        assert (units["journal_length"], units["Cxx"]) == (newer["journal_length"], ("N*s/m", newer["Cxx"][1]))
+        assert len(older.rows()) == 2 * 8
+        older.close()
+        again = Catalog(url, create=False)
+        assert _unit_rows(again) == units
+        again.close()
+        if catalog.dialect is Dialect.SQLITE:  # the proof that nothing is written: a read-only file opens
+            Catalog(f"sqlite:///file:{url.removeprefix('sqlite:///')}?mode=ro&uri=true", create=False).close()
+    finally:
+        with catalog.engine.begin() as conn:  # leave the session's server with this version's tables
+            conn.exec_driver_sql("DROP TABLE fits_units")
+            conn.exec_driver_sql("DROP TABLE fits")
+        Catalog(url).close()
