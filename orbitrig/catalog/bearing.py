@@ -57,11 +57,13 @@ KEY_COLUMNS = ("bearing_radius", "bearing_clearance", "sim_scenario_sha256")
 
 
 def bearing_label(row: dict[str, Any]) -> str:
-    """A short name of the row's bearing: `sim NAME` (the scenario file's stem, or the
-    default's name) or the rig id with the clearance (`SAC-DS-1 c = 60 um`)."""
+    """A short name of the row's bearing: `sim NAME` (the scenario file's stem; `paper` for the
+    shipped sim.toml, the default scenario; an older run's default by its name's first word) or
+    the rig id with the clearance (`SAC-DS-1 c = 60 um`)."""
     scenario = row.get("sim_scenario") or ""
     if scenario:
-        return "sim " + (Path(scenario).stem if scenario.endswith(".toml") else scenario.split(" (")[0])
+        stem = Path(scenario).stem if scenario.endswith(".toml") else scenario.split(" (")[0]
+        return "sim " + ("paper" if stem == "sim" else stem)
     clearance = row.get("bearing_clearance")
     return (row.get("rig_id") or "rig") + (f" c = {clearance * 1e6:.4g} um" if clearance else "")
 

@@ -158,6 +158,21 @@ class SimulatorHands:
         await self.link.acall("apply_reference", force=force, probe=probe)
 
 
+#: the scenario a simulated rig runs when none is given: the paper's rig (config/sim.toml, equal
+#: to sim.config.SimConfig())
+DEFAULT_SCENARIO = "paper"
+
+
+def default_scenario() -> Scenario:
+    """The default scenario as a run records it: its file and TOML text, as `--sim-config paper`
+    gives them (one bearing in the catalog; the run names its rig whatever later defaults become)."""
+    from orbitrig.run.rig_io import Scenario
+
+    path = scenario_file(Path(DEFAULT_SCENARIO))
+    assert path is not None
+    return Scenario(str(path), path.read_text())
+
+
 def scenario_file(path: Path | None, option: str = "--sim-config") -> Path | None:
     """A simulator scenario `option` (FILE, or the NAME of a shipped one: paper, clean, compressible)."""
     if path is None or path.is_file() or path.suffix or len(path.parts) != 1:
@@ -238,8 +253,11 @@ async def simulated_rig(
     started: SimulatorStart | None = None,
 ) -> AsyncIterator[tuple[SimulatorProcess, RigAccess]]:
     """A simulator process of scenario `config` (a sim.config.SimConfig; default: the paper's
-    rig) and its access; `scenario` names it in the run (the config's file and text).
+    rig) and its access; `scenario` names it in the run (the config's file and text; given neither,
+    `default_scenario`).
     `started`: the process `start_simulator` started earlier with the same arguments."""
+    if scenario is None and config is None:
+        scenario = default_scenario()
     started = started or start_simulator(speedup, config)
     try:
         sim = SimulatorProcess(speedup, await started.ready(), started.proc)

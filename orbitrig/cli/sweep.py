@@ -152,7 +152,7 @@ def _run_plan(plan, *, out, sim: bool, sim_config, resume: bool, speedup: float,
 def _scenario(path, *, resume: bool, out):
     """(SimConfig, Scenario) of this --sim sweep: --sim-config or the default rig; on --resume
     the scenario the run recorded (a --sim-config given then must have the same text)."""
-    from orbitrig.cli.simulated_rig import scenario_file
+    from orbitrig.cli.simulated_rig import default_scenario, scenario_file
     from orbitrig.errors import ConfigError
     from orbitrig.run.rig_io import Scenario
     from orbitrig.store.writer import RunStore
@@ -173,16 +173,14 @@ def _scenario(path, *, resume: bool, out):
         where = f"{out}/run.json: sim_scenario ({name})"
         typer.echo(f"simulator scenario of the run: {name}", err=True)
     else:
-        name, text = (DEFAULT_SCENARIO, "") if path is None else (str(path), _read(path))
+        if path is None:
+            return None, default_scenario()  # the simulator's own default (sim.config.SimConfig())
+        name, text = str(path), _read(path)
         where = str(path)
     try:
         return sim_config_from_text(text, where), Scenario(name, text)
     except ValueError as err:
         raise typer.BadParameter(str(err), param_hint="--sim-config") from None
-
-
-#: the scenario name recorded when no --sim-config is given (sim.config.SimConfig())
-DEFAULT_SCENARIO = "default (the paper's rig, as config/sim.toml)"
 
 
 def _read(path) -> str:

@@ -95,7 +95,7 @@ class TruthSource(Protocol):
 @dataclass(frozen=True)
 class Scenario:
     """A simulated rig's scenario as recorded in the run: its name (the file given, or the
-    default) and its configuration text (TOML; empty: the default rig)."""
+    default: config/sim.toml) and its configuration text (TOML)."""
 
     name: str
     text: str = ""

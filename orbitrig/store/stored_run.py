@@ -124,7 +124,7 @@ class Run:
     unreadable: list[str] = field(default_factory=list)
     unbegun: list[int] = field(default_factory=list)  # point folders without a settings record (cut at its start)
     sim_scenario_name: str = ""  # --sim runs: the simulator scenario (file name, or the default)
-    sim_scenario_config: str = ""  # its TOML text ("" the default rig)
+    sim_scenario_config: str = ""  # its TOML text ("" in runs of earlier versions: their default rig)
     provenance: dict[str, str] = field(default_factory=dict)  # PROVENANCE_KEYS ("" unknown), times ISO 8601 UTC
     calibration_record_text: str = ""  # the active calibration record's TOML text ("" none stored)
 

@@ -1,5 +1,6 @@
-"""Which bearing a run tested, on real sweeps: two `sweep --sim` runs of the default scenario
-and one of `--sim-config compressible` at the same operating point. The catalog records the
+"""Which bearing a run tested, on real sweeps: a `sweep --sim` run of the default scenario, one
+of `--sim-config paper` (the same rig: both record config/sim.toml, its name and text) and one of
+`--sim-config compressible` at the same operating point. The catalog records the
 scenario (name, SHA-256 of its text, seed) and the rig's journal and clearance; the compressible
 run is no repeat of the other two, in SQLite and in PostgreSQL; a catalog of the earlier table
 gains the columns with its rows kept."""
@@ -26,6 +27,7 @@ from support.catalog_earlier import NEW, write_earlier_catalog
 from support.paths import ROOT
 
 ONE_FIT = "lms = piezo and model = kcd11 and freq_dep = none"
+PAPER = ROOT / "config" / "sim.toml"  # the default scenario (sim.config.SimConfig())
 
 
 def _sweep(out, *extra: str) -> None:
@@ -42,11 +44,11 @@ def _sweep(out, *extra: str) -> None:
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory):
-    """{name: run directory}: paper-1, paper-2 (the default scenario), compressible."""
+    """{name: run directory}: paper-1 (the default scenario), paper-2 (`--sim-config paper`), compressible."""
     base = tmp_path_factory.mktemp("bearings")
     out = {name: base / name for name in ("paper-1", "paper-2", "compressible")}
     _sweep(out["paper-1"])
-    _sweep(out["paper-2"])
+    _sweep(out["paper-2"], "--sim-config", "paper")
     _sweep(out["compressible"], "--sim-config", "compressible")
     return out
 
@@ -68,10 +70,13 @@ def test_the_default_seed_is_the_simulators():
 
 def test_rows_name_the_scenario_and_the_bearing(runs):
     scenario_file = ROOT / "config" / "sim" / "compressible.toml"
-    paper = run_rows(read_run(runs["paper-1"]))[0]
+    paper, named = (run_rows(read_run(runs[name]))[0] for name in ("paper-1", "paper-2"))
     compressible = run_rows(read_run(runs["compressible"]))[0]
-    assert paper["sim_scenario"].startswith("default") and compressible["sim_scenario"] == str(scenario_file)
-    assert paper["sim_scenario_sha256"] == hashlib.sha256(b"").hexdigest()
+    assert paper["sim_scenario"] == named["sim_scenario"] == str(PAPER)  # the default is the paper's rig, by name
+    assert (
+        paper["sim_scenario_sha256"] == named["sim_scenario_sha256"] == hashlib.sha256(PAPER.read_bytes()).hexdigest()
+    )
+    assert compressible["sim_scenario"] == str(scenario_file)
     assert compressible["sim_scenario_sha256"] == hashlib.sha256(scenario_file.read_bytes()).hexdigest()
     assert paper["sim_seed"] == compressible["sim_seed"] == 1
     for row in (paper, compressible):  # config/rig.toml [bearing]: radius 19.05 mm, clearance 60 um
@@ -87,17 +92,19 @@ def test_runs_of_another_scenario_are_no_repeats(catalog, runs):
     assert len(rows) == 3 and {r["sim_seed"] for r in rows} == {1}
     groups = repeat_groups(rows)
     assert [len(g) for g in groups] == [2]
-    assert {r["sim_scenario"] for r in groups[0]} == {rows[0]["sim_scenario"]} and "default" in rows[0]["sim_scenario"]
+    assert {r["sim_scenario"] for r in groups[0]} == {str(PAPER)}  # the default scenario and `paper`: one bearing
     rep = repeatability(rows, "Cxx")
     assert (rep.groups, rep.dof) == (1, 1)
     # the compressible bearing's damping is about half the paper's: as one group it fails any test
-    cxx = {r["sim_scenario"].startswith("default"): r["Cxx"] for r in rows}
+    cxx = {r["sim_scenario"] == str(PAPER): r["Cxx"] for r in rows}
     assert cxx[False] < 0.7 * cxx[True]
     mixed = repeatability([{**r, "sim_scenario": "", "sim_scenario_sha256": ""} for r in rows], "Cxx")
     assert (mixed.groups, mixed.dof) == (1, 2) and mixed.p_value < 1e-6
-    assert len(catalog.rows(f"{ONE_FIT} and sim_scenario_sha256 = {hashlib.sha256(b'').hexdigest()}")) == 2
+    assert (
+        len(catalog.rows(f"{ONE_FIT} and sim_scenario_sha256 = {hashlib.sha256(PAPER.read_bytes()).hexdigest()}")) == 2
+    )
     # the same scenario file at another path (another machine's checkout) is the same bearing
-    comp = next(r for r in rows if not r["sim_scenario"].startswith("default"))
+    comp = next(r for r in rows if r["sim_scenario"] != str(PAPER))
     moved = {**comp, "run_id": "SAC-DS-1@elsewhere", "sim_scenario": "/home/ada/orbitrig/config/sim/compressible.toml"}
     assert sorted(len(g) for g in repeat_groups([*rows, moved])) == [2, 2]
 
@@ -141,7 +148,7 @@ def test_the_compare_legend_names_the_bearings_when_they_differ(runs):
         return sorted(t.get_text() for t in fig.legends[0].get_texts())
 
     both = labels(rows)
-    assert sorted(t.rsplit(" (", 1)[1] for t in both) == ["sim compressible)", "sim default)", "sim default)"]
+    assert sorted(t.rsplit(" (", 1)[1] for t in both) == ["sim compressible)", "sim paper)", "sim paper)"]
     assert all(t.startswith("SAC-DS-1@") for t in both)
-    repeats = labels([r for r in rows if r["sim_scenario"].startswith("default")])
+    repeats = labels([r for r in rows if r["sim_scenario"] == str(PAPER)])
     assert len(repeats) == 2 and all(" (" not in t for t in repeats)
