@@ -36,8 +36,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 from daq.aux import HEARTBEAT_OPERATIONAL, LOST_AFTER, AuxState
-from drives.errors import DriveFaultError
-from drives.registers import FAULT
+from drives.findings import trip_fault
 from drives.state import LINK_LOST, RigDriveState
 from orbitrig.config import MPA, Interlocks
 
@@ -107,12 +106,9 @@ def _drive_trips(drives: RigDriveState) -> list[Trip]:
     if not drives.link_ok:
         why = f" ({drives.link_error})" if drives.link_error else ""  # the drive and request that went unanswered
         trips.append(Trip(TripKind.DRIVE_LINK, FAIL, LINK_LOST + why))
-    for which, st in (("spin", drives.spin), ("orbit", drives.orbit)):
+    for st in (drives.spin, drives.orbit):
         if st is not None and (st.fault_code or st.tripped):
-            fault = DriveFaultError(
-                "tripped", drive=st.device_id, drive_name=which, register=FAULT, fault_code=st.fault_code
-            )
-            trips.append(Trip(TripKind.DRIVE_TRIP, FAIL, str(fault)))  # named as every drive error is
+            trips.append(Trip(TripKind.DRIVE_TRIP, FAIL, str(trip_fault(st))))  # named as every drive error is
     return trips
 
 
