@@ -5,8 +5,9 @@ steady pace. It is the heartbeat the drives' comm-loss watchdog needs, the
 source of `state`, and the interlock:
 - A drive that trips, or (once a poll found both at `command`, or read them after the start
   confirmed both: `started`) one found no longer running, in local control or at another
-  reference (another client, the drive's keypad: DriveOffCommand), has both drives ramped to zero before it is recorded in `failure` (the owner raises it); so does a poll that
-  fails on a bug (not left turning unwatched: the poll's reads keep their watchdog fed).
+  reference (another client, the drive's keypad: DriveOffCommand), has both drives ramped to
+  zero before it is recorded in `failure` (the owner raises it); so does a poll that fails on
+  a bug (not left turning unwatched: the poll's reads keep their watchdog fed).
 - A poll's read gives way to a stop on TCP (drives/link.py): that poll is skipped, not failed.
 - A failed poll is counted (`state.poll_failures`, logged); the link is
   declared lost only after `link_loss_polls` consecutive failures (an isolated
