@@ -26,15 +26,14 @@ cannot be written keeps its active record (exit 2, the new record written but no
 from __future__ import annotations
 
 import getpass
-from functools import partial
 from pathlib import Path
 from typing import Optional
 
 import typer
 
+from orbitrig.cli import calibrate_records as records
 from orbitrig.cli.help_text import command_group
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
-from orbitrig.cli.signals import run_until_signal
 
 DEFAULT_SPEEDUP = 40.0  # as orbitrig.cli.simulated_rig.DEFAULT_SPEEDUP
 _CONFIG = typer.Option(None, "--config", help=RIG_CONFIG_HELP)
@@ -48,7 +47,23 @@ _SIM_CONFIG = typer.Option(
     help="simulator scenario: a TOML file or a shipped name (paper, clean, compressible); --sim only",
 )
 _SPEEDUP = typer.Option(DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)")
-_REF_U = "its certificate's relative standard uncertainty (%); required on the rig"
+_REFERENCE_U = typer.Option(
+    None,
+    "--reference-u-pct",
+    min=0.0,
+    max=50.0,
+    help="its certificate's relative standard uncertainty (%); required on the rig",
+)
+
+
+def _spin(rpm: float):
+    """--spin-rpm: the slow roll speed (rpm), default ``rpm``."""
+    return typer.Option(rpm, "--spin-rpm", min=1.0, help="slow roll speed (rpm)")
+
+
+def _revolutions(count: int, per: str):
+    """--revolutions: the revolutions averaged (``per``: what for, e.g. " per step"), default ``count``."""
+    return typer.Option(count, "--revolutions", min=2, max=10_000, help=f"revolutions averaged{per}")
 
 
 def register(app: typer.Typer) -> None:
@@ -69,7 +84,7 @@ def register(app: typer.Typer) -> None:
 
 def list_(config: Optional[Path] = _CONFIG) -> None:
     """Every calibration record, oldest first (* the active one): date, step, operator, reference."""
-    _guarded(lambda: _list(config))
+    _guarded(lambda: records.list_records(config))
 
 
 def show(
@@ -77,7 +92,7 @@ def show(
     config: Optional[Path] = _CONFIG,
 ) -> None:
     """Print one calibration record (its TOML text) and its SHA-256."""
-    _guarded(lambda: _show(name, config))
+    _guarded(lambda: records.show_record(name, config))
 
 
 def loads(
@@ -86,11 +101,11 @@ def loads(
     reference_id: Optional[str] = typer.Option(
         None, "--reference-id", help="the reference's id (dead-weight set, load cell); required on the rig"
     ),
-    reference_u_pct: Optional[float] = typer.Option(None, "--reference-u-pct", min=0.0, max=50.0, help=_REF_U),
+    reference_u_pct: Optional[float] = _REFERENCE_U,
     config: Optional[Path] = _CONFIG,
     operator: Optional[str] = _OPERATOR,
-    spin_rpm: float = typer.Option(300.0, "--spin-rpm", min=1.0, help="slow roll speed (rpm)"),
-    revolutions: int = typer.Option(50, "--revolutions", min=2, max=10_000, help="revolutions averaged per reading"),
+    spin_rpm: float = _spin(300.0),
+    revolutions: int = _revolutions(50, " per reading"),
     recess_pressure_mpa: float = _RECESS,
     pressure_ratio: float = _RATIO,
     activate: bool = _ACTIVATE,
@@ -104,15 +119,15 @@ def loads(
     included) and its uncertainty (residuals and the reference's). The sweep applies them to the forces.
     On the rig the operator applies each load and confirms it."""
     opts = _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
-    _guarded(lambda: _loads(config, opts, load_n, reference_id, reference_u_pct, activate))
+    _guarded(lambda: records.loads(config, opts, load_n, reference_id, reference_u_pct, activate))
 
 
 def runout(
     sim: bool = typer.Option(False, "--sim", help="on the built-in simulator"),
     config: Optional[Path] = _CONFIG,
     operator: Optional[str] = _OPERATOR,
-    spin_rpm: float = typer.Option(100.0, "--spin-rpm", min=1.0, help="slow roll speed (rpm)"),
-    revolutions: int = typer.Option(100, "--revolutions", min=2, max=10_000, help="revolutions averaged"),
+    spin_rpm: float = _spin(100.0),
+    revolutions: int = _revolutions(100, ""),
     recess_pressure_mpa: float = _RECESS,
     pressure_ratio: float = _RATIO,
     activate: bool = _ACTIVATE,
@@ -124,7 +139,7 @@ def runout(
     Slow roll at low spin without orbit (orbit radius zero, the orbit spindle at the spin speed):
     each probe's runout phasors at 1x and 2x spin, stored in a new record."""
     opts = _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
-    _guarded(lambda: _runout(config, opts, activate))
+    _guarded(lambda: records.runout(config, opts, activate))
 
 
 def delay(
@@ -138,7 +153,7 @@ def delay(
     reference_um: float = typer.Option(20.0, "--reference-um", min=0.001, help="reference on the probes (um)"),
     config: Optional[Path] = _CONFIG,
     operator: Optional[str] = _OPERATOR,
-    revolutions: int = typer.Option(100, "--revolutions", min=2, max=10_000, help="revolutions averaged per speed"),
+    revolutions: int = _revolutions(100, " per speed"),
     recess_pressure_mpa: float = _RECESS,
     pressure_ratio: float = _RATIO,
     activate: bool = _ACTIVATE,
@@ -152,7 +167,7 @@ def delay(
     delay (a 0.3 degree lag moves D by kilograms). The sweep takes the lags out of the forces."""
     speeds = _speeds(speeds_rpm)
     opts = _options(operator, speeds[0], revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
-    _guarded(lambda: _delay(config, opts, speeds, (reference_n, reference_um * 1e-6), activate))
+    _guarded(lambda: records.delay(config, opts, speeds, (reference_n, reference_um * 1e-6), activate))
 
 
 def probes(
@@ -160,11 +175,11 @@ def probes(
     span_um: float = typer.Option(40.0, "--span-um", min=0.1, help="span of the steps, centred on zero (um)"),
     steps: int = typer.Option(5, "--steps", min=3, max=101, help="number of steps over the span"),
     reference_id: Optional[str] = typer.Option(None, "--reference-id", help="the micrometer's id; required on the rig"),
-    reference_u_pct: Optional[float] = typer.Option(None, "--reference-u-pct", min=0.0, max=50.0, help=_REF_U),
+    reference_u_pct: Optional[float] = _REFERENCE_U,
     config: Optional[Path] = _CONFIG,
     operator: Optional[str] = _OPERATOR,
-    spin_rpm: float = typer.Option(300.0, "--spin-rpm", min=1.0, help="slow roll speed (rpm)"),
-    revolutions: int = typer.Option(50, "--revolutions", min=2, max=10_000, help="revolutions averaged per step"),
+    spin_rpm: float = _spin(300.0),
+    revolutions: int = _revolutions(50, " per step"),
     recess_pressure_mpa: float = _RECESS,
     pressure_ratio: float = _RATIO,
     activate: bool = _ACTIVATE,
@@ -177,7 +192,7 @@ def probes(
     of that axis: a line per probe gives its gain (the sweep applies it) with its uncertainty, and
     its linearity (largest deviation from the line, percent of the span)."""
     opts = _options(operator, spin_rpm, revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
-    _guarded(lambda: _probes(config, opts, span_um, steps, reference_id, reference_u_pct, activate))
+    _guarded(lambda: records.probes(config, opts, span_um, steps, reference_id, reference_u_pct, activate))
 
 
 def _speeds(text: str) -> list[float]:
@@ -225,170 +240,3 @@ def _guarded(fn) -> None:
         what = str(err) if isinstance(err, Interrupted) else "Ctrl-C"
         say(f"calibration stopped by {what}: the drives were stopped, no record written", err=True)
         raise typer.Exit(3) from None
-
-
-def _rig_and_folder(config, writing: bool = True):
-    """(rig, its records' folder); ``writing`` (a calibration step): refused in the shipped
-    defaults (orbitrig.config.writable_home), before anything is started."""
-    from orbitrig.config import default_rig_path, folder_of, load_rig, writable_home
-
-    rig = load_rig(config)
-    if writing:
-        writable_home(config)
-    return rig, folder_of(config or default_rig_path())
-
-
-def _list(config) -> None:
-    import datetime as _dt
-
-    from orbitrig.cli.terminal import say
-    from orbitrig.config import list_names, read_record
-    from orbitrig.errors import ConfigError
-    from rigunits import utc_iso
-
-    rig, folder = _rig_and_folder(config, writing=False)
-    names = list_names(folder)
-    if not names:
-        say(f"no calibration records in {folder}")
-        return
-    width = max(len(n) for n in names)
-    for name in names:
-        mark = "*" if name == rig.calibration_record else " "
-        try:
-            rec, _ = read_record(folder, name)
-        except ConfigError as err:
-            say(f"{mark} {name:<{width}}  unreadable: {err}")
-            continue
-        ref = f"{rec.reference.id} (u {rec.reference.uncertainty_pct:g} %)" if rec.reference else "-"
-        when = utc_iso(_dt.datetime.fromisoformat(rec.date))  # the house format, whatever the file's spelling
-        say(f"{mark} {name:<{width}}  {when}  {rec.step:<8} operator {rec.operator}  reference {ref}")
-
-
-def _show(name, config) -> None:
-    from orbitrig.cli.terminal import say
-    from orbitrig.config import digest, read_record
-    from orbitrig.errors import ConfigError
-
-    rig, folder = _rig_and_folder(config, writing=False)
-    name = name or rig.calibration_record
-    if name is None:
-        raise ConfigError(rig.file, ["names no active calibration record (calibration_record): give NAME"])
-    _, text = read_record(folder, name)
-    active = " (active)" if name == rig.calibration_record else ""
-    say(f"# {folder / (name + '.toml')}{active}\n# sha256 {digest(text)}\n{text}", nl=False)
-
-
-def _write(rig, folder, record, activate: bool, what: str) -> None:
-    from orbitrig.cli.terminal import say
-    from orbitrig.config import activate as make_active
-    from orbitrig.config import write_record
-    from orbitrig.errors import ConfigError
-
-    header = (
-        f"orbitrig calibration record (docs/calibration.md), written by `orbitrig calibrate {record.step}`.\n{what}"
-    )
-    name, _ = write_record(folder, record, header)
-    say(f"calibration record {name} written to {folder}")
-    if activate:
-        try:
-            make_active(rig.file, name)
-        except ConfigError as err:  # rig.toml not writable (read-only, a full disk): it stays as it was
-            raise ConfigError(err.file, [*err.problems, f"record {name} written, not activated"]) from None
-        say(f'{rig.file}: calibration_record = "{name}" (active)')
-
-
-def _reference(opts, reference_id, reference_u_pct, simulated: str):
-    """The reference of a step: required on the rig; on the simulator exact unless given."""
-    from orbitrig.config import Reference
-
-    if not opts.sim and (reference_id is None or reference_u_pct is None):
-        raise typer.BadParameter(
-            "on the rig give the reference: --reference-id ID --reference-u-pct U", param_hint="--reference-id"
-        )
-    return Reference(id=reference_id or simulated, uncertainty_pct=reference_u_pct or 0.0)
-
-
-def _loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> None:
-    from orbitrig.cli.calibrate_steps import check_rolls, loads_record
-    from orbitrig.cli.terminal import say
-
-    ref = _reference(opts, reference_id, reference_u_pct, "simulator: loads applied exactly")
-    rig, folder = _rig_and_folder(config)
-    check_rolls(rig, [opts.roll()], "--spin-rpm")
-    record = run_until_signal(lambda: loads_record(rig, opts, load_n, ref, partial(say, err=True)))
-    for lms, g in record.loads.items():
-        say(
-            f"{lms}: gain matrix {_matrix(g.gain, '.5f')} (u {_matrix(g.gain_u, '.2g')}), residual {g.residual_n:.3g} N"
-        )
-    _write(
-        rig,
-        folder,
-        record,
-        activate,
-        "Units: gain 1 (f_journal = gain @ f_read + offset_n), offset_n and "
-        "residual_n N; [uncertainty] gain_pct percent, phase_deg degrees, delay_us microseconds (k = 1).",
-    )
-
-
-def _matrix(rows, spec: str) -> str:
-    """A matrix as its rows of numbers, each in format ``spec``: [[0.99778, 0.00131], [...]]."""
-    return "[" + ", ".join("[" + ", ".join(format(v, spec) for v in row) + "]" for row in rows) + "]"
-
-
-def _runout(config, opts, activate) -> None:
-    from orbitrig.cli.calibrate_steps import check_rolls, runout_record
-    from orbitrig.cli.terminal import say
-
-    rig, folder = _rig_and_folder(config)
-    check_rolls(rig, [opts.roll()], "--spin-rpm")
-    record = run_until_signal(lambda: runout_record(rig, opts, partial(say, err=True)))
-    runout = record.runout
-    assert runout is not None  # runout_record measured it
-    for p in ("x_a", "y_a", "x_b", "y_b"):
-        h1, h2 = abs(runout.phasors(p)) * 1e6
-        say(f"{p}: runout 1x {h1:.3f} um, 2x {h2:.3f} um")
-    _write(rig, folder, record, activate, "Units: runout h1_um, h2_um micrometres [re, im] at 1x and 2x spin.")
-
-
-def _delay(config, opts, speeds, amplitudes, activate) -> None:
-    from orbitrig.cli.calibrate_steps import check_rolls, delay_record, delay_rolls
-    from orbitrig.cli.terminal import say
-
-    rig, folder = _rig_and_folder(config)
-    check_rolls(rig, delay_rolls(opts, speeds), "--speeds-rpm")
-    record = run_until_signal(lambda: delay_record(rig, opts, speeds, amplitudes, partial(say, err=True)))
-    for name, d in record.delay.items():
-        say(
-            f"{name}: lags the probes by {d.phase_deg:.4f} deg (u {d.phase_u_deg:.2g}) "
-            f"{'-' if d.delay_us < 0 else '+'} {abs(d.delay_us):.2f} us (u {d.delay_u_us:.2g})"
-        )
-    _write(
-        rig,
-        folder,
-        record,
-        activate,
-        "Units: [delay] phase_deg degrees, delay_us microseconds: the force "
-        "channel lags the probes by phase_deg + 360 f delay_us 1e-6 degrees at f Hz.",
-    )
-
-
-def _probes(config, opts, span_um, steps, reference_id, reference_u_pct, activate) -> None:
-    import numpy as np
-
-    from orbitrig.cli.calibrate_steps import check_rolls, probes_record
-    from orbitrig.cli.terminal import say
-
-    ref = _reference(opts, reference_id, reference_u_pct, "simulator: steps applied exactly")
-    rig, folder = _rig_and_folder(config)
-    check_rolls(rig, [opts.roll()], "--spin-rpm")
-    grid = np.linspace(-span_um / 2, span_um / 2, steps) * 1e-6
-    record = run_until_signal(lambda: probes_record(rig, opts, grid, ref, partial(say, err=True)))
-    for p, g in record.probes.items():
-        say(f"{p}: gain {g.gain:.5f} (u {g.gain_u:.2g}), linearity {g.linearity_pct:.3g} % of {g.span_um:g} um")
-    _write(
-        rig,
-        folder,
-        record,
-        activate,
-        "Units: [probes] gain 1 (x_journal = gain x_read), linearity_pct percent of span_um micrometres.",
-    )

@@ -1,11 +1,11 @@
-"""Units, names and the field types shared by the configuration models."""
+"""Units, names, the field types and the bases shared by the configuration models."""
 
 from __future__ import annotations
 
 import re
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field, Strict
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, Strict
 
 from orbitrig.load_systems import LMS  # noqa: F401 - the configuration's names
 from rigunits import MPA, RPM  # noqa: F401 - the configuration's names
@@ -21,6 +21,22 @@ class _Model(BaseModel):
     # a number, a whole number or a boolean must be one in the file ("0.1", "1", "yes", 50.0 for
     # a count are refused, not converted; an integer is a number: 1000 for 1000.0)
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, strict=True)
+
+
+class _FromFile(_Model):
+    """A configuration read from a file (orbitrig.config builds it): the file's name and its
+    text as read. A model built otherwise names a placeholder: its own ``_file`` default."""
+
+    _file: str = PrivateAttr("<config>")
+    _text: str = PrivateAttr("")
+
+    @property
+    def file(self) -> str:
+        return self._file
+
+    @property
+    def text(self) -> str:
+        return self._text
 
 
 #: an Enum field of a strict model read from its value, as the file writes it (``Annotated[Whirl, BY_VALUE]``)

@@ -9,7 +9,7 @@ from typing import Annotated, Literal
 from pydantic import Field, PrivateAttr, ValidationInfo, field_validator, model_validator
 
 from orbitrig.config.designs import resume_note, with_design
-from orbitrig.config.fields import BY_VALUE, FREQ_DEP, MODELS, Mpa, Ratio, Rpm, Wait, _Model
+from orbitrig.config.fields import BY_VALUE, FREQ_DEP, MODELS, Mpa, Ratio, Rpm, Wait, _FromFile, _Model
 from orbitrig.config.sequential import SequentialDesign
 from reduction.methods import Method
 from reduction.whirl import Whirl
@@ -204,7 +204,7 @@ class DesignUsed(_Model):
     text: str
 
 
-class MatrixConfig(_Model):
+class MatrixConfig(_FromFile):
     name: str
     description: str = ""
     operating: Operating
@@ -280,15 +280,6 @@ class MatrixConfig(_Model):
         return None if s is None else s.model or self.models[0].model
 
     _file: str = PrivateAttr("<matrix>")
-    _text: str = PrivateAttr("")
-
-    @property
-    def file(self) -> str:
-        return self._file
-
-    @property
-    def text(self) -> str:
-        return self._text
 
     @property
     def run_text(self) -> str:

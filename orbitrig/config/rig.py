@@ -21,6 +21,7 @@ from orbitrig.config.fields import (
     Rpm,
     Seconds,
     Wait,
+    _FromFile,
     _Model,
 )
 from orbitrig.config.messages import ConfigWarning
@@ -208,7 +209,7 @@ class Changeover(_Model):
         return (self.orbit_radius_s, self.static_eccentricity_s, self.recess_pressure_s, self.pressure_ratio_s)
 
 
-class RigConfig(_Model):
+class RigConfig(_FromFile):
     name: str = "rig"
     rig_id: str = ""  # the rig's identifier recorded in every run (default: name)
     # the active calibration record (config/calibration/NAME.toml beside this file); None: none
@@ -230,7 +231,6 @@ class RigConfig(_Model):
     calibration_uncertainty: CalibrationUncertainty | None = None
 
     _file: str = PrivateAttr("<rig config>")
-    _text: str = PrivateAttr("")
     _record: object = PrivateAttr(None)  # the active CalibrationRecord (orbitrig.config.records)
     _record_text: str = PrivateAttr("")
 
@@ -259,14 +259,6 @@ class RigConfig(_Model):
         return self
 
     # -- derived, SI
-    @property
-    def file(self) -> str:
-        return self._file
-
-    @property
-    def text(self) -> str:
-        return self._text
-
     @property
     def identity(self) -> str:
         """The rig's identifier as runs and calibration records carry it: rig_id, else name."""

@@ -7,20 +7,20 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
+from support.cli_helpers import orbitrig_cmd
 from support.paths import ROOT
+from support.sweep_helpers import demo_text
 
 
 @pytest.fixture(scope="session")
 def sim_run(tmp_path_factory) -> Path:
     tmp = tmp_path_factory.mktemp("api")
     matrix = tmp / "small.toml"
-    text = (ROOT / "config" / "matrices" / "demo.toml").read_text()
-    matrix.write_text(text.replace('name = "demo"', 'name = "small"\nrevolutions = 10'))
+    matrix.write_text(demo_text("small", 10))
     rig = tmp / "rig.toml"
     text = (ROOT / "config" / "rig.toml").read_text()
     rig.write_text(
@@ -29,10 +29,7 @@ def sim_run(tmp_path_factory) -> Path:
     env = {**os.environ, "PYTHONPATH": str(ROOT), "COLUMNS": "200"}
     for attempt in ("run", "run2"):  # a drive answer lost under heavy load: one retry, as a person would
         done = subprocess.run(
-            [
-                sys.executable,
-                "-m",
-                "orbitrig",
+            orbitrig_cmd(
                 "sweep",
                 "--sim",
                 "--sim-config",
@@ -45,7 +42,7 @@ def sim_run(tmp_path_factory) -> Path:
                 str(matrix),
                 "--out",
                 str(tmp / attempt),
-            ],
+            ),
             cwd=ROOT,
             env=env,
             capture_output=True,

@@ -7,10 +7,10 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 
 import pytest
 
+from support.cli_helpers import orbitrig_cmd
 from support.paths import ROOT
 
 FULL = "cannot write standard output: No space left on device"
@@ -19,7 +19,7 @@ FULL = "cannot write standard output: No space left on device"
 def _into_full_disk(*args: str) -> subprocess.CompletedProcess:
     with open("/dev/full", "w") as full:
         return subprocess.run(
-            [sys.executable, "-m", "orbitrig", *args],
+            orbitrig_cmd(*args),
             cwd=ROOT,
             env={**os.environ, "NO_COLOR": "1"},
             stdin=subprocess.DEVNULL,

@@ -8,11 +8,11 @@ import json
 import os
 import signal
 import subprocess
-import sys
 import time
 
 import can
 import pytest
+from support.cli_helpers import orbitrig_cmd
 from support.paths import ROOT
 
 from daq.aux import AuxSensors
@@ -71,20 +71,7 @@ async def test_hub_delivers_every_frame_to_the_other_nodes_only():
 @pytest.fixture
 def sim_process():
     p = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "orbitrig",
-            "sim",
-            "--modbus-port",
-            "0",
-            "--adc-port",
-            "0",
-            "--can-port",
-            "0",
-            "--speedup",
-            "10",
-        ],
+        orbitrig_cmd("sim", "--modbus-port", "0", "--adc-port", "0", "--can-port", "0", "--speedup", "10"),
         cwd=ROOT,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,

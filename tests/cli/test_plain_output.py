@@ -10,13 +10,13 @@ import json
 import os
 import re
 import subprocess
-import sys
 
 import numpy as np
 import pytest
 
 from orbitrig.cli.plain_table import OutputFormat, PlainTable
 
+from support.cli_helpers import orbitrig_cmd
 from support.paths import ROOT
 
 TABLE = ROOT / "examples" / "orbit-tables" / "kcd11-constant.csv"
@@ -28,7 +28,7 @@ def run(*args: str, columns: str | None) -> subprocess.CompletedProcess:
     if columns is not None:
         env["COLUMNS"] = columns
     return subprocess.run(
-        [sys.executable, "-m", "orbitrig", *args],
+        orbitrig_cmd(*args),
         cwd=ROOT,
         env=env,
         capture_output=True,

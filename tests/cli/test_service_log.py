@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import logging
 import subprocess
-import sys
 
 from orbitrig.cli.service_log import setup_service_log
 
+from support.cli_helpers import orbitrig_cmd
 from support.paths import ROOT
 
 
@@ -44,16 +44,13 @@ def test_thousands_of_messages_keep_the_log_files_under_the_stated_size(tmp_path
 
 def test_bad_log_options_are_a_usage_error(tmp_path):
     p = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "orbitrig",
+        orbitrig_cmd(
             "serve",
             "--broker",
             "mqtt://127.0.0.1:1",
             "--log-file",
             str(tmp_path / "no" / "such" / "dir.log"),
-        ],
+        ),
         cwd=ROOT,
         capture_output=True,
         text=True,
@@ -61,7 +58,7 @@ def test_bad_log_options_are_a_usage_error(tmp_path):
     )
     assert p.returncode == 2 and "--log-file: cannot open" in p.stderr and "Traceback" not in p.stderr, p.stderr
     p = subprocess.run(
-        [sys.executable, "-m", "orbitrig", "serve", "--broker", "mqtt://127.0.0.1:1", "--log-max-mb", "0"],
+        orbitrig_cmd("serve", "--broker", "mqtt://127.0.0.1:1", "--log-max-mb", "0"),
         cwd=ROOT,
         capture_output=True,
         text=True,

@@ -8,7 +8,6 @@ from __future__ import annotations
 import math
 import re
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -19,6 +18,8 @@ from orbitrig.config import load_matrix, load_rig
 from orbitrig.errors import ConfigError
 from orbitrig.run.plan import make_plan, summarize
 from rigunits import format_duration
+
+from support.cli_helpers import orbitrig_cmd
 
 REPO = Path(__file__).resolve().parents[2]
 RIG_TEXT = (REPO / "config" / "rig.toml").read_bytes()
@@ -197,17 +198,14 @@ def test_cli_dry_run_exits_0_or_2_with_a_message(tmp_path, rig, matrix, code, sa
     (tmp_path / "rig.toml").write_bytes(rig)
     (tmp_path / "m.toml").write_bytes(matrix)
     done = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "orbitrig",
+        orbitrig_cmd(
             "sweep",
             "--dry-run",
             "--config",
             str(tmp_path / "rig.toml"),
             "--matrix",
             str(tmp_path / "m.toml"),
-        ],
+        ),
         cwd=REPO,
         capture_output=True,
         text=True,

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -15,6 +14,7 @@ import pytest
 from orbitrig import config as cfg
 from orbitrig.config.lab import write_lab
 from orbitrig.errors import ConfigError
+from support.cli_helpers import orbitrig_cmd
 from support.mqtt_helpers import AS_ROOT, ACCOUNTS, end_process, launch_mosquitto, on_free_ports, private_copy
 
 REPO = Path(__file__).resolve().parents[2]
@@ -77,9 +77,7 @@ def test_a_design_beside_the_matrix_folder_wins(lab):
 
 def test_init_refuses_an_existing_configuration(lab):
     env = {**os.environ, "PYTHONPATH": str(REPO)}
-    done = subprocess.run(
-        [sys.executable, "-m", "orbitrig", "init", str(lab)], capture_output=True, text=True, env=env, timeout=60
-    )
+    done = subprocess.run(orbitrig_cmd("init", str(lab)), capture_output=True, text=True, env=env, timeout=60)
     assert done.returncode == 2, done.stderr
     assert f"{lab / 'rig.toml'}: already there" in done.stderr
     assert "Traceback" not in done.stderr
@@ -119,9 +117,7 @@ def test_init_writes_the_rig_id_given_and_reminds_when_none_is(tmp_path):
     env = {**os.environ, "PYTHONPATH": str(REPO)}
 
     def init(*args):
-        return subprocess.run(
-            [sys.executable, "-m", "orbitrig", "init", *args], capture_output=True, text=True, env=env, timeout=60
-        )
+        return subprocess.run(orbitrig_cmd("init", *args), capture_output=True, text=True, env=env, timeout=60)
 
     own = init(str(tmp_path / "b"), "--rig-id", "SAC-DS-2")
     assert own.returncode == 0, own.stderr
@@ -144,7 +140,7 @@ def test_init_broker_readme_names_the_files_mosquitto_conf_uses(tmp_path, broker
 
     lab = tmp_path / "my lab"
     env = {**os.environ, "PYTHONPATH": str(REPO)}
-    args = [sys.executable, "-m", "orbitrig", "init", str(lab), *(["--broker-dir", broker_dir] if broker_dir else [])]
+    args = orbitrig_cmd("init", str(lab), *(["--broker-dir", broker_dir] if broker_dir else []))
     done = subprocess.run(args, capture_output=True, text=True, env=env, timeout=60)
     assert done.returncode == 0, done.stderr
     conf = (lab / "mosquitto" / "mosquitto.conf").read_text()

@@ -7,10 +7,10 @@ from __future__ import annotations
 import hashlib
 import os
 import subprocess
-import sys
 
 from orbitrig.config import shipped_config
 
+from support.cli_helpers import orbitrig_cmd
 from support.paths import ROOT
 
 
@@ -25,9 +25,7 @@ def _tree(folder) -> dict[str, str]:
 def _orbitrig(cwd, *args):
     env = {k: v for k, v in os.environ.items() if k != "ORBITRIG_HOME"}
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
-    return subprocess.run(
-        [sys.executable, "-m", "orbitrig", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=120
-    )
+    return subprocess.run(orbitrig_cmd(*args), cwd=cwd, env=env, capture_output=True, text=True, timeout=120)
 
 
 def test_calibrate_and_design_save_refuse_to_write_the_shipped_defaults(tmp_path):

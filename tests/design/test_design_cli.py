@@ -5,14 +5,15 @@ from __future__ import annotations
 import json
 import re
 import subprocess
-import sys
 import tomllib
 
 import numpy as np
 import pytest
 
 from reduction.frequency_list import near_one
+from support.cli_helpers import orbitrig_cmd
 from support.paths import ROOT
+from support.sweep_helpers import demo_text
 
 KEYS = {
     "model",
@@ -46,9 +47,7 @@ LIST_KEYS = {
 
 
 def design(*args: str, check: bool = True) -> subprocess.CompletedProcess:
-    p = subprocess.run(
-        [sys.executable, "-m", "orbitrig", "design", *args], cwd=ROOT, capture_output=True, text=True, timeout=120
-    )
+    p = subprocess.run(orbitrig_cmd("design", *args), cwd=ROOT, capture_output=True, text=True, timeout=120)
     if check:
         assert p.returncode == 0, p.stderr
     return p
@@ -191,26 +190,10 @@ def test_operator_mistakes_exit_2(args, message):
 
 def test_noise_and_prior_from_a_simulated_run(tmp_path):
     matrix = tmp_path / "small.toml"
-    matrix.write_text(
-        (ROOT / "config" / "matrices" / "demo.toml")
-        .read_text()
-        .replace('name = "demo"', 'name = "small"\nrevolutions = 10')
-    )
+    matrix.write_text(demo_text("small", 10))
     run = tmp_path / "run"
     p = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "orbitrig",
-            "sweep",
-            "--sim",
-            "--matrix",
-            str(matrix),
-            "--out",
-            str(run),
-            "--speedup",
-            "40",
-        ],
+        orbitrig_cmd("sweep", "--sim", "--matrix", str(matrix), "--out", str(run), "--speedup", "40"),
         cwd=ROOT,
         capture_output=True,
         text=True,
@@ -239,8 +222,8 @@ def test_noise_and_prior_from_a_simulated_run(tmp_path):
 
 def test_a_matrix_by_name_comes_from_the_labs_folder(tmp_path):
     """`design --config LAB/rig.toml --matrix NAME` reads LAB/matrices/NAME.toml, as the sweep does."""
-    subprocess.run([sys.executable, "-m", "orbitrig", "init", str(tmp_path / "lab")], check=True, capture_output=True)
-    text = (ROOT / "config/matrices/demo.toml").read_text().replace('name = "demo"', 'name = "mine"')
+    subprocess.run(orbitrig_cmd("init", str(tmp_path / "lab")), check=True, capture_output=True)
+    text = demo_text("mine")
     text = re.sub(r"ratios = \[[^\]]*\]", "ratios = [0.25, 0.55, 1.35]", text)
     (tmp_path / "lab/matrices/mine.toml").write_text(text)
     p = design(

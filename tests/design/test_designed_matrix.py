@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import subprocess
-import sys
 import tomllib
 
 import pytest
@@ -11,6 +10,7 @@ import pytest
 from orbitrig import config as cfg
 from orbitrig.errors import ConfigError
 
+from support.cli_helpers import orbitrig_cmd
 from support.paths import ROOT
 
 DEMO = (ROOT / "config" / "matrices" / "demo.toml").read_text()
@@ -80,7 +80,7 @@ def test_unknown_design_lists_the_known_ones_and_names_the_line(tmp_path):
 
 def test_dry_run_of_the_designed_matrix():
     p = subprocess.run(
-        [sys.executable, "-m", "orbitrig", "sweep", "--dry-run", "--steps", "--matrix", "designed"],
+        orbitrig_cmd("sweep", "--dry-run", "--steps", "--matrix", "designed"),
         cwd=ROOT,
         capture_output=True,
         text=True,

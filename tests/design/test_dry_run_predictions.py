@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import re
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,14 +12,14 @@ from orbitrig.cli.design_inputs import NOMINAL, stated_noise
 from reduction.frequency_list import DesignProblem, predict
 from reduction.models import model_spec
 
+from support.cli_helpers import orbitrig_cmd
 from support.paths import ROOT
-
-DEMO = (ROOT / "config" / "matrices" / "demo.toml").read_text()
+from support.sweep_helpers import demo_text
 
 
 def dry_run(matrix: Path) -> str:
     p = subprocess.run(
-        [sys.executable, "-m", "orbitrig", "sweep", "--dry-run", "--matrix", str(matrix)],
+        orbitrig_cmd("sweep", "--dry-run", "--matrix", str(matrix)),
         cwd=ROOT,
         capture_output=True,
         text=True,
@@ -51,7 +50,7 @@ def test_demo_predictions_match_the_design(tmp_path):
         assert f"({coef}" in line and "1000 rpm" in line and "orbit radius 5.76 um" in line
     # more revolutions per block: the prediction falls as 1/sqrt(n), the plan takes longer
     more = tmp_path / "more.toml"
-    more.write_text(DEMO.replace('name = "demo"', 'name = "more"\nrevolutions = 200'))
+    more.write_text(demo_text("more", 200))
     out4 = dry_run(more)
     line = next(ln for ln in out4.splitlines() if ln.startswith("  kc8 none:"))
     shown = float(re.search(r"error ([0-9.e+]+) %", line).group(1))
@@ -63,7 +62,7 @@ def test_demo_predictions_match_the_design(tmp_path):
 def test_models_the_planned_orbits_cannot_identify(tmp_path):
     one_way = tmp_path / "forward.toml"
     one_way.write_text(
-        DEMO.replace('name = "demo"', 'name = "forward"')
+        demo_text("forward")
         .replace('directions = ["forward", "backward"]', 'directions = ["forward"]')
         .replace("ratios = [0.3, 0.5, 0.7, 0.9, 1.2]", "ratios = [0.3, 0.5]")
     )

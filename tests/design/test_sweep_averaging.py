@@ -18,7 +18,7 @@ from orbitrig.run.steps import Acquire
 from orbitrig.run.averaging import averaging_rule
 from reduction.noise import revolution_residuals
 from sim.rig import SimRig
-from support.paths import ROOT
+from support.sweep_helpers import demo_text
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -27,10 +27,7 @@ SPEEDUP = 40.0
 
 
 def matrix(averaging: str, ratios: str = "[0.5, 1.2]") -> cfg.MatrixConfig:
-    text = (ROOT / "config" / "matrices" / "demo.toml").read_text()
-    text = text.replace('name = "demo"', 'name = "adaptive"').replace(
-        "ratios = [0.3, 0.5, 0.7, 0.9, 1.2]", f"ratios = {ratios}"
-    )
+    text = demo_text("adaptive").replace("ratios = [0.3, 0.5, 0.7, 0.9, 1.2]", f"ratios = {ratios}")
     return cfg.matrix_from_text(text + "\n[averaging]\n" + averaging, "adaptive.toml")
 
 

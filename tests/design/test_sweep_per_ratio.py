@@ -3,33 +3,26 @@ every stored block averaged its own ratio's count, or stopped by its own ratio's
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import h5py
 import pytest
-from support.paths import ROOT
+from support.cli_helpers import orbitrig
+from support.sweep_helpers import demo_text
 
 pytestmark = pytest.mark.timeout(300)
-
-DEMO = (ROOT / "config" / "matrices" / "demo.toml").read_text()
 
 
 def sweep(tmp_path: Path, orbit_keys: str, extra: str = "") -> dict[str, tuple[int, str, int]]:
     """Run the demo point at ratios 1.2, 0.5, 0.8 (in that order) with these [orbit] keys;
     per stored block: (n_records, stop_reason, rows of raw_counts)."""
-    text = DEMO.replace("ratios = [0.3, 0.5, 0.7, 0.9, 1.2]", "ratios = [1.2, 0.5, 0.8]\n" + orbit_keys)
-    path = tmp_path / "perratio.toml"
-    path.write_text(text.replace('name = "demo"', 'name = "perratio"') + extra)
-    out = tmp_path / "run"
-    p = subprocess.run(
-        [sys.executable, "-m", "orbitrig", "sweep", "--sim", "--matrix", str(path), "--out", str(out)],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=240,
+    text = demo_text("perratio").replace(
+        "ratios = [0.3, 0.5, 0.7, 0.9, 1.2]", "ratios = [1.2, 0.5, 0.8]\n" + orbit_keys
     )
+    path = tmp_path / "perratio.toml"
+    path.write_text(text + extra)
+    out = tmp_path / "run"
+    p = orbitrig("sweep", "--sim", "--matrix", str(path), "--out", str(out), timeout=240)
     assert p.returncode == 0, p.stdout + p.stderr
     with h5py.File(out / "run.h5", "r") as f:
         assert f.attrs["status"] == "completed"

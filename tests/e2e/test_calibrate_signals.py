@@ -7,11 +7,11 @@ from __future__ import annotations
 import shutil
 import signal
 import subprocess
-import sys
 import time
 
 import pytest
 
+from support.cli_helpers import orbitrig_cmd
 from support.paths import ROOT
 
 pytestmark = pytest.mark.timeout(120)
@@ -25,7 +25,7 @@ def test_a_signal_stops_the_drives_and_writes_no_record(tmp_path, sig):
     shutil.copytree(ROOT / "config/calibration", tmp_path / "calibration")
     records = sorted(p.name for p in (tmp_path / "calibration").iterdir())
     proc = subprocess.Popen(
-        [sys.executable, "-m", "orbitrig", "calibrate", "runout", "--sim", "--config", str(tmp_path / "rig.toml")]
+        orbitrig_cmd("calibrate", "runout", "--sim", "--config", str(tmp_path / "rig.toml"))
         + ["--revolutions", "5000", "--speedup", "10"],
         cwd=ROOT,
         stdin=subprocess.DEVNULL,

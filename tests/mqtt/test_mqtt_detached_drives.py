@@ -16,7 +16,6 @@ import re
 import select
 import signal
 import subprocess
-import sys
 import threading
 import time
 import tty
@@ -24,6 +23,7 @@ import tty
 import pytest
 from pymodbus.client import ModbusTcpClient
 
+from support.cli_helpers import orbitrig_cmd
 from support.mqtt_helpers import ACCOUNTS, REPO, Broker, RigClient, Service, write_matrices
 from support.sim_drive_helpers import sim_control as control
 from orbitrig.config import rig_from_text
@@ -78,10 +78,7 @@ def detached_sim(tmp_path):
     sim = None
     try:
         sim = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "orbitrig",
+            orbitrig_cmd(
                 "sim",
                 "--modbus-port",
                 "0",
@@ -93,7 +90,7 @@ def detached_sim(tmp_path):
                 cable.paths[0],
                 "--speedup",
                 "20",
-            ],
+            ),
             stdout=subprocess.PIPE,
             stderr=open(tmp_path / "sim.log", "wb"),
             env={**os.environ, "PYTHONPATH": str(REPO)},

@@ -5,8 +5,8 @@ ACL grants orbitrig/+/..., so the test prefix has two levels)."""
 from __future__ import annotations
 
 import subprocess
-import sys
 
+from support.cli_helpers import orbitrig_cmd
 from support.mqtt_helpers import ACCOUNTS, REPO, RigClient, Service, retained, write_matrices
 
 
@@ -40,7 +40,7 @@ def test_serve_uses_the_configured_prefix(broker, tmp_path):
 
 def test_bad_prefix_is_a_usage_error(tmp_path):
     p = subprocess.run(
-        [sys.executable, "-m", "orbitrig", "serve", "--broker", "mqtt://127.0.0.1:1", "--prefix", "orbitrig/+/x"],
+        orbitrig_cmd("serve", "--broker", "mqtt://127.0.0.1:1", "--prefix", "orbitrig/+/x"),
         capture_output=True,
         text=True,
         cwd=REPO,

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from support.cli_helpers import orbitrig_cmd
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Watcher, retained, wait
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceError, ServiceSettings
 
@@ -181,15 +182,12 @@ async def test_reconnects_and_republishes_status(tmp_path):
 
 def _serve_cli(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
     import os
-    import sys
 
     from support.mqtt_helpers import REPO
 
     full = {**os.environ, "PYTHONPATH": str(REPO), **(env or {})}
     full.pop("ORBITRIG_MQTT_PASSWORD", None) if env is None else None
-    return subprocess.run(
-        [sys.executable, "-m", "orbitrig", "serve", *args], capture_output=True, text=True, env=full, timeout=60
-    )
+    return subprocess.run(orbitrig_cmd("serve", *args), capture_output=True, text=True, env=full, timeout=60)
 
 
 def test_cli_needs_a_password_from_file_or_environment(broker):

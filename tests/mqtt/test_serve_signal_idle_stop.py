@@ -13,12 +13,12 @@ import json
 import signal
 import socket
 import subprocess
-import sys
 import time
 
 import pytest
 
 from drives import registers as R
+from support.cli_helpers import orbitrig_cmd
 from support.mqtt_helpers import ACCOUNTS, REPO, RigClient, Service, write_matrices
 from support.rig_configs import lab_record_config
 from support.sim_drive_helpers import sim_control as control
@@ -33,7 +33,7 @@ def sim_process(tmp_path):
 
     with open(tmp_path / "sim.log", "wb") as log:
         sim = subprocess.Popen(
-            [sys.executable, "-m", "orbitrig", "sim", "--modbus-port", "0", "--adc-port", "0", "--speedup", "20"],
+            orbitrig_cmd("sim", "--modbus-port", "0", "--adc-port", "0", "--speedup", "20"),
             stdout=subprocess.PIPE,
             stderr=log,
             env={**os.environ, "PYTHONPATH": str(REPO)},

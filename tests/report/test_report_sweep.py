@@ -7,33 +7,24 @@ from __future__ import annotations
 import csv
 import json
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from orbitrig import config as cfg
 from orbitrig.analysis.reduce import csv_path
 from orbitrig.store.reader import read_run
 
-from support.paths import ROOT
+from support.cli_helpers import orbitrig
+from support.sweep_helpers import demo_text
 
 MODELS = (("kcd11", "none"), ("kc8", "none"), ("kcd11", "power:1"))
-
-
-def orbitrig(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "orbitrig", *args], cwd=ROOT, capture_output=True, text=True, timeout=timeout
-    )
 
 
 @pytest.fixture(scope="session")
 def sweep_run(tmp_path_factory) -> Path:
     base = tmp_path_factory.mktemp("sweep")
-    text = cfg.default_matrix_path("demo").read_text()
-    text = text.replace('name = "demo"', 'name = "report-small"\nrevolutions = 10')
+    text = demo_text("report-small", 10)
     text += '\n[[models]]\nmodel = "kcd11"\nfreq_dep = "power:1"\n'
     matrix = base / "small.toml"
     matrix.write_text(text)

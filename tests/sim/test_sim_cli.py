@@ -13,6 +13,7 @@ import time
 
 import pytest
 
+from support.cli_helpers import orbitrig_cmd
 from support.sim_reader import parse, revolutions
 
 from support.paths import ROOT
@@ -79,7 +80,7 @@ def test_sim_config_takes_a_shipped_scenario_by_name_from_any_folder(tmp_path):
     """`--config clean` from a folder without config/: the shipped scenario (as sweep's --sim-config);
     an unknown name exits 2 naming the known ones."""
     env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    base = [sys.executable, "-m", "orbitrig", "sim", "--modbus-port", "0", "--adc-port", "0", "--can-port", "0"]
+    base = orbitrig_cmd("sim", "--modbus-port", "0", "--adc-port", "0", "--can-port", "0")
     bad = subprocess.run([*base, "--config", "nosuch"], cwd=tmp_path, env=env, capture_output=True, text=True)
     assert bad.returncode == 2
     assert "nosuch: no such file; unknown simulator scenario 'nosuch'; known: paper, clean, compressible" in bad.stderr

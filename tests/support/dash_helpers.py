@@ -7,7 +7,6 @@ import json
 
 import os
 import subprocess
-import sys
 import tempfile
 from pathlib import Path
 from typing import Callable
@@ -19,8 +18,10 @@ from selenium.webdriver.support.ui import WebDriverWait
 
 REPO = Path(__file__).resolve().parents[2]
 
+from .cli_helpers import orbitrig_cmd  # noqa: E402
 from .mqtt_helpers import interrupt  # noqa: E402
 from .ports import free_port, wait_port  # noqa: E402
+
 
 RIG = "dash-rig"  # rig id of the service the tests start
 CHROMIUM = "/usr/bin/chromium"
@@ -53,10 +54,7 @@ class Dashboard:
         }
         with open(self.log, "ab") as log:
             self.proc = subprocess.Popen(
-                [
-                    sys.executable,
-                    "-m",
-                    "orbitrig",
+                orbitrig_cmd(
                     "dashboard",
                     "--broker",
                     broker_url,
@@ -65,7 +63,7 @@ class Dashboard:
                     "--http",
                     f"127.0.0.1:{self.port}",
                     *extra,
-                ],
+                ),
                 stdout=log,
                 stderr=log,
                 env=env,

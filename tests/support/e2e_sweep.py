@@ -6,7 +6,6 @@ budget of the rig's stated calibration uncertainty, as the sweep stores them).""
 from __future__ import annotations
 
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +18,7 @@ from reduction.identify import identify
 from reduction.impedance import impedance_basis
 from reduction.systematic import Calibration, uncertainty_budget
 
+from support.cli_helpers import orbitrig_cmd
 from support.paths import ROOT
 
 #: the ten Omega/omega of the paper's Table 1
@@ -57,10 +57,7 @@ def sweep(tmp: Path, scenario: str | None) -> tuple[Path, str]:
     matrix = tmp / "table1.toml"
     matrix.write_text(MATRIX.format(ratios=TABLE1_RATIOS))
     out = tmp / "run"
-    cmd = [
-        sys.executable,
-        "-m",
-        "orbitrig",
+    cmd = orbitrig_cmd(
         "sweep",
         "--sim",
         "--matrix",
@@ -69,7 +66,7 @@ def sweep(tmp: Path, scenario: str | None) -> tuple[Path, str]:
         str(out),
         "--speedup",
         str(SPEEDUP),
-    ]
+    )
     if scenario is not None:
         cmd += ["--sim-config", scenario]
     p = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=170)

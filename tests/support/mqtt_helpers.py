@@ -13,15 +13,16 @@ import shutil
 import signal
 import socket
 import subprocess
-import sys
 import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
+from .cli_helpers import orbitrig_cmd
 from .polling import until
 from .ports import free_port, wait_port
+
 
 if TYPE_CHECKING:
     from orbitrig.service.rig_service import RigService
@@ -480,7 +481,7 @@ class Service:
         full_env = {**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONPATH": path, **(env or {})}
         with open(self.log, "ab") as log:
             self.proc = subprocess.Popen(
-                [sys.executable, "-m", "orbitrig", "serve", *args], stdout=log, stderr=log, env=full_env, cwd=workdir
+                orbitrig_cmd("serve", *args), stdout=log, stderr=log, env=full_env, cwd=workdir
             )
 
     def text(self) -> str:

@@ -15,10 +15,16 @@ from support.paths import ROOT
 SPEEDUP = 40.0
 
 
+def demo_text(name: str, revolutions: int | None = None) -> str:
+    """The shipped demo matrix's text named ``name``, with ``revolutions`` per block (None: its own)."""
+    text = (ROOT / "config" / "matrices" / "demo.toml").read_text()
+    top = f'name = "{name}"' + ("" if revolutions is None else f"\nrevolutions = {revolutions}")
+    return text.replace('name = "demo"', top)
+
+
 def small_matrix(revolutions: int = 10, **operating) -> cfg.MatrixConfig:
     """The demo matrix with fewer revolutions per block (and other operating values)."""
-    text = cfg.default_matrix_path("demo").read_text()
-    text = text.replace('name = "demo"', f'name = "small"\nrevolutions = {revolutions}')
+    text = demo_text("small", revolutions)
     for key, values in operating.items():
         lines = [ln for ln in text.splitlines() if ln.startswith(f"{key} =")]
         text = text.replace(lines[0], f"{key} = {values!r}")

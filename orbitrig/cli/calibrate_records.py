@@ -1,0 +1,195 @@
+"""`orbitrig calibrate`'s work behind its options: the records' history (list, show), and each
+step run to its record: measured on the rig or the simulator, its numbers printed, the record
+written into the records' folder beside the rig configuration and made the active one."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from functools import partial
+
+import typer
+
+from orbitrig.cli.signals import run_until_signal
+
+
+def rig_and_folder(config, writing: bool = True):
+    """(rig, its records' folder); ``writing`` (a calibration step): refused in the shipped
+    defaults (orbitrig.config.writable_home), before anything is started."""
+    from orbitrig.config import default_rig_path, folder_of, load_rig, writable_home
+
+    rig = load_rig(config)
+    if writing:
+        writable_home(config)
+    return rig, folder_of(config or default_rig_path())
+
+
+def list_records(config) -> None:
+    """`calibrate list`: one line per record, oldest first, * the active one."""
+    import datetime as _dt
+
+    from orbitrig.cli.terminal import say
+    from orbitrig.config import list_names, read_record
+    from orbitrig.errors import ConfigError
+    from rigunits import utc_iso
+
+    rig, folder = rig_and_folder(config, writing=False)
+    names = list_names(folder)
+    if not names:
+        say(f"no calibration records in {folder}")
+        return
+    width = max(len(n) for n in names)
+    for name in names:
+        mark = "*" if name == rig.calibration_record else " "
+        try:
+            rec, _ = read_record(folder, name)
+        except ConfigError as err:
+            say(f"{mark} {name:<{width}}  unreadable: {err}")
+            continue
+        ref = f"{rec.reference.id} (u {rec.reference.uncertainty_pct:g} %)" if rec.reference else "-"
+        when = utc_iso(_dt.datetime.fromisoformat(rec.date))  # the house format, whatever the file's spelling
+        say(f"{mark} {name:<{width}}  {when}  {rec.step:<8} operator {rec.operator}  reference {ref}")
+
+
+def show_record(name, config) -> None:
+    """`calibrate show`: the record ``name`` (None: the active one), its path, SHA-256 and text."""
+    from orbitrig.cli.terminal import say
+    from orbitrig.config import digest, read_record
+    from orbitrig.errors import ConfigError
+
+    rig, folder = rig_and_folder(config, writing=False)
+    name = name or rig.calibration_record
+    if name is None:
+        raise ConfigError(rig.file, ["names no active calibration record (calibration_record): give NAME"])
+    _, text = read_record(folder, name)
+    active = " (active)" if name == rig.calibration_record else ""
+    say(f"# {folder / (name + '.toml')}{active}\n# sha256 {digest(text)}\n{text}", nl=False)
+
+
+def reference(opts, reference_id, reference_u_pct, simulated: str):
+    """The reference of a step: required on the rig; on the simulator exact unless given."""
+    from orbitrig.config import Reference
+
+    if not opts.sim and (reference_id is None or reference_u_pct is None):
+        raise typer.BadParameter(
+            "on the rig give the reference: --reference-id ID --reference-u-pct U", param_hint="--reference-id"
+        )
+    return Reference(id=reference_id or simulated, uncertainty_pct=reference_u_pct or 0.0)
+
+
+def loads(config, opts, load_n, reference_id, reference_u_pct, activate) -> None:
+    """`calibrate loads`: static loads of ``load_n`` N -> each system's gain matrix."""
+    from orbitrig.cli.calibrate_steps import loads_record
+
+    ref = reference(opts, reference_id, reference_u_pct, "simulator: loads applied exactly")
+    _step(
+        config,
+        activate,
+        ([opts.roll()], "--spin-rpm"),
+        lambda rig, note: loads_record(rig, opts, load_n, ref, note),
+        lambda record: (
+            f"{lms}: gain matrix {_matrix(g.gain, '.5f')} (u {_matrix(g.gain_u, '.2g')}), residual {g.residual_n:.3g} N"
+            for lms, g in record.loads.items()
+        ),
+        "Units: gain 1 (f_journal = gain @ f_read + offset_n), offset_n and "
+        "residual_n N; [uncertainty] gain_pct percent, phase_deg degrees, delay_us microseconds (k = 1).",
+    )
+
+
+def _matrix(rows, spec: str) -> str:
+    """A matrix as its rows of numbers, each in format ``spec``: [[0.99778, 0.00131], [...]]."""
+    return "[" + ", ".join("[" + ", ".join(format(v, spec) for v in row) + "]" for row in rows) + "]"
+
+
+def runout(config, opts, activate) -> None:
+    """`calibrate runout`: a slow roll without orbit -> each probe's runout at 1x and 2x spin."""
+    from orbitrig.cli.calibrate_steps import runout_record
+
+    def lines(record) -> Iterable[str]:
+        runout = record.runout
+        assert runout is not None  # runout_record measured it
+        for p in ("x_a", "y_a", "x_b", "y_b"):
+            h1, h2 = abs(runout.phasors(p)) * 1e6
+            yield f"{p}: runout 1x {h1:.3f} um, 2x {h2:.3f} um"
+
+    _step(
+        config,
+        activate,
+        ([opts.roll()], "--spin-rpm"),
+        lambda rig, note: runout_record(rig, opts, note),
+        lines,
+        "Units: runout h1_um, h2_um micrometres [re, im] at 1x and 2x spin.",
+    )
+
+
+def delay(config, opts, speeds, amplitudes, activate) -> None:
+    """`calibrate delay`: the phase reference at each of ``speeds`` (rpm) -> each force channel's lag."""
+    from orbitrig.cli.calibrate_steps import delay_record, delay_rolls
+
+    _step(
+        config,
+        activate,
+        (delay_rolls(opts, speeds), "--speeds-rpm"),
+        lambda rig, note: delay_record(rig, opts, speeds, amplitudes, note),
+        lambda record: (
+            f"{name}: lags the probes by {d.phase_deg:.4f} deg (u {d.phase_u_deg:.2g}) "
+            f"{'-' if d.delay_us < 0 else '+'} {abs(d.delay_us):.2f} us (u {d.delay_u_us:.2g})"
+            for name, d in record.delay.items()
+        ),
+        "Units: [delay] phase_deg degrees, delay_us microseconds: the force "
+        "channel lags the probes by phase_deg + 360 f delay_us 1e-6 degrees at f Hz.",
+    )
+
+
+def probes(config, opts, span_um, steps, reference_id, reference_u_pct, activate) -> None:
+    """`calibrate probes`: ``steps`` displacement steps over ``span_um`` um -> each probe's gain and linearity."""
+    import numpy as np
+
+    from orbitrig.cli.calibrate_steps import probes_record
+
+    ref = reference(opts, reference_id, reference_u_pct, "simulator: steps applied exactly")
+    grid = np.linspace(-span_um / 2, span_um / 2, steps) * 1e-6
+    _step(
+        config,
+        activate,
+        ([opts.roll()], "--spin-rpm"),
+        lambda rig, note: probes_record(rig, opts, grid, ref, note),
+        lambda record: (
+            f"{p}: gain {g.gain:.5f} (u {g.gain_u:.2g}), linearity {g.linearity_pct:.3g} % of {g.span_um:g} um"
+            for p, g in record.probes.items()
+        ),
+        "Units: [probes] gain 1 (x_journal = gain x_read), linearity_pct percent of span_um micrometres.",
+    )
+
+
+def _step(config, activate: bool, rolls, measure: Callable, lines: Callable, units: str) -> None:
+    """One step: the rig and its records' folder (refused in the shipped defaults), ``rolls``
+    (the step's slow rolls, the option that sets them) within the drive limits, ``measure(rig,
+    note)`` run until a signal, ``lines(record)`` printed, the record written with ``units``."""
+    from orbitrig.cli.calibrate_steps import check_rolls
+    from orbitrig.cli.terminal import say
+
+    rig, folder = rig_and_folder(config)
+    check_rolls(rig, *rolls)
+    record = run_until_signal(lambda: measure(rig, partial(say, err=True)))
+    for line in lines(record):
+        say(line)
+    _write(rig, folder, record, activate, units)
+
+
+def _write(rig, folder, record, activate: bool, what: str) -> None:
+    from orbitrig.cli.terminal import say
+    from orbitrig.config import activate as make_active
+    from orbitrig.config import write_record
+    from orbitrig.errors import ConfigError
+
+    header = (
+        f"orbitrig calibration record (docs/calibration.md), written by `orbitrig calibrate {record.step}`.\n{what}"
+    )
+    name, _ = write_record(folder, record, header)
+    say(f"calibration record {name} written to {folder}")
+    if activate:
+        try:
+            make_active(rig.file, name)
+        except ConfigError as err:  # rig.toml not writable (read-only, a full disk): it stays as it was
+            raise ConfigError(err.file, [*err.problems, f"record {name} written, not activated"]) from None
+        say(f'{rig.file}: calibration_record = "{name}" (active)')
