@@ -10,8 +10,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import subprocess
-import sys
 
 import pytest
 from sqlalchemy import func, select
@@ -24,6 +22,7 @@ from orbitrig.catalog.store import Catalog
 from orbitrig.store.reader import read_run
 from sim.config import SimConfig
 from support.catalog_earlier import NEW, write_earlier_catalog
+from support.cli_helpers import orbitrig
 from support.paths import ROOT
 
 ONE_FIT = "lms = piezo and model = kcd11 and freq_dep = none"
@@ -31,14 +30,7 @@ PAPER = ROOT / "config" / "sim.toml"  # the default scenario (sim.config.SimConf
 
 
 def _sweep(out, *extra: str) -> None:
-    p = subprocess.run(
-        [sys.executable, "-m", "orbitrig", "sweep", "--sim", "--out", str(out), *extra],
-        cwd=out.parent,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        stdin=subprocess.DEVNULL,
-    )
+    p = orbitrig("sweep", "--sim", "--out", str(out), *extra, cwd=out.parent, timeout=300)
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
 
 

@@ -8,6 +8,7 @@ there only if it is sent within a window that moves with the host's load."""
 import subprocess
 import sys
 
+from support.cli_helpers import orbitrig
 from support.paths import ROOT
 
 INTERRUPTED_IMPORT = """
@@ -39,7 +40,5 @@ def test_the_installed_command_and_python_m_start_the_same_way():
     orbitrig.__main__.main."""
     text = (ROOT / "pyproject.toml").read_text()
     assert 'orbitrig = "orbitrig.__main__:main"' in text
-    done = subprocess.run(
-        [sys.executable, "-m", "orbitrig", "--version"], cwd=ROOT, capture_output=True, text=True, timeout=60
-    )
+    done = orbitrig("--version", timeout=60)
     assert done.returncode == 0 and done.stdout.startswith("orbitrig "), done.stderr
