@@ -10,6 +10,7 @@ import typer
 
 from daq.adc_mode import AdcMode
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
+from rigunits import in_hz
 
 FIRST_WAIT_S = 10.0  # automatic timeout: wait this long for the orbit's first good revolution
 _HINT_TURNING = (
@@ -35,7 +36,7 @@ def block_summary(block, labels: dict[int, tuple[str, str]] | None = None) -> di
     import numpy as np
 
     s = block.stats
-    orbit_hz = block.orbit_speed / (2 * math.pi)
+    orbit_hz = in_hz(float(block.orbit_speed))
     return {
         "revolutions_used": s.revolutions_used,
         "revolutions_dropped": s.revolutions_dropped,

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from orbitrig.config import MPA, RPM, ModelSpec
 from orbitrig.run.sequential_rule import SequentialRule
 from orbitrig.store.records import BlockChoice
+from rigunits import in_hz
 
 TWO_PI = 2.0 * math.pi
 DIR_TAG = {+1: "fwd", -1: "bwd"}
@@ -32,7 +33,8 @@ class Block:
 
     @property
     def orbit_hz(self) -> float:
-        return abs(self.orbit) / TWO_PI
+        """The planned orbit frequency |Omega| / 2 pi, Hz (rigunits.in_hz: 5.0, not 4.999999999999999)."""
+        return in_hz(abs(self.orbit))
 
     @property
     def period(self) -> float:
