@@ -34,6 +34,10 @@ NOISE_ULPS = 4
 #: the most significant digits of a value the noise is taken off (a matrix's ratios keep 12 decimals)
 NOISE_DIGITS = 12
 MPA = 1.0e6  # Pa per MPa
+UM = 1.0e-6  # m per micrometre
+#: the micrometre as a person reads it (the operator's prompts, the dashboard, the figures): the
+#: micro sign U+00B5, which pint parses too, never an ASCII "um"
+MICROMETRE = "\u00b5m"
 MINUTE = 60.0  # s
 HOUR = 3600.0  # s
 
@@ -120,6 +124,11 @@ def in_rpm(omega: float) -> float:
     """Angular speed `omega` (rad/s) in rpm without float noise (``without_noise``): a matrix's
     20.5 rpm reads 20.5, not the 20.499999999999996 of 20.5 x 2 pi / 60 rad/s divided back."""
     return without_noise(omega / RPM)
+
+
+def micrometres(length: float, spec: str = ".2f") -> str:
+    """A length (m: an orbit radius, a displacement) as a person reads it: '60.00 µm'."""
+    return f"{length / UM:{spec}} {MICROMETRE}"
 
 
 def format_duration(seconds: float) -> str:

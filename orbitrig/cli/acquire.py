@@ -37,18 +37,14 @@ def block_summary(block, labels: dict[int, tuple[str, str]] | None = None) -> di
 
     s = block.stats
     orbit_hz = in_hz(float(block.orbit_speed))
-    return {
-        "revolutions_used": s.revolutions_used,
-        "revolutions_dropped": s.revolutions_dropped,
-        "frames_bad": s.frames_bad,
-        "bytes_skipped": s.bytes_skipped,
-        "orbit_hz": None if math.isnan(orbit_hz) else orbit_hz,
-        "stop_reason": block.stop_reason,
-        "channels": [
+    channels = []
+    for k, (q, r, u) in enumerate(zip(block.phasors, block.rms_residual, block.uncertainty)):
+        name, unit = (labels or {}).get(k, ("", RAW_UNIT))
+        channels.append(
             {
                 "index": k,
-                "name": (labels or {}).get(k, ("", RAW_UNIT))[0],
-                "unit": (labels or {}).get(k, ("", RAW_UNIT))[1],
+                "name": name,
+                "unit": unit,
                 "re": float(q.real),
                 "im": float(q.imag),
                 "amplitude": float(abs(q)),
@@ -56,8 +52,15 @@ def block_summary(block, labels: dict[int, tuple[str, str]] | None = None) -> di
                 "rms_residual": float(r),
                 "uncertainty": float(u) if math.isfinite(u) else None,
             }
-            for k, (q, r, u) in enumerate(zip(block.phasors, block.rms_residual, block.uncertainty))
-        ],
+        )
+    return {
+        "revolutions_used": s.revolutions_used,
+        "revolutions_dropped": s.revolutions_dropped,
+        "frames_bad": s.frames_bad,
+        "bytes_skipped": s.bytes_skipped,
+        "orbit_hz": None if math.isnan(orbit_hz) else orbit_hz,
+        "stop_reason": block.stop_reason,
+        "channels": channels,
     }
 
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from orbitrig.config import MPA, RPM, ModelSpec
 from orbitrig.run.sequential_rule import SequentialRule
 from orbitrig.store.records import BlockChoice
-from rigunits import in_hz
+from rigunits import in_hz, micrometres
 
 TWO_PI = 2.0 * math.pi
 DIR_TAG = {+1: "fwd", -1: "bwd"}
@@ -76,7 +76,7 @@ class SetManual(Step):
     def describe(self) -> str:
         what = "set by hand" if self.changed else "unchanged, confirm"
         return (
-            f"manual settings ({what}): orbit radius {self.orbit_radius * 1e6:.2f} um, "
+            f"manual settings ({what}): orbit radius {micrometres(self.orbit_radius)}, "
             f"static eccentricity ratio {self.static_eccentricity:g} (e/C), recess pressure "
             f"{self.recess_pressure / MPA:.4g} MPa, pressure ratio {self.pressure_ratio:g}"
         )
