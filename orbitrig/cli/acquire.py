@@ -180,7 +180,7 @@ def _print_table(block, labels: dict[int, tuple[str, str]]) -> None:
         )
         typer.echo(
             f"{c['index']:>3} {c['re']:>12.5g} {c['im']:>12.5g} {c['amplitude']:>12.5g} "
-            f"{c['phase_deg']:>10.3f} {c['rms_residual']:>12.5g} {rel:>8.3f}  {unit:<6} {name}".rstrip()
+            f"{c['phase_deg']:>10.3f} {c['rms_residual']:>12.5g} {rel:>8.2g}  {unit:<6} {name}".rstrip()
         )
 
 
@@ -250,7 +250,8 @@ def register(app: typer.Typer) -> None:
 
         Phasors in engineering units of the rig config (N, m), or raw counts with --counts;
         q(theta) = Re(q_bar e^{i theta}), theta the orbit angle after the trigger; "u %" is the
-        standard uncertainty of the averaged phasor relative to its amplitude. Exit 2 if the
+        standard uncertainty of the averaged phasor relative to its amplitude, to 2 significant
+        digits (an uncertainty from n revolutions is itself uncertain by about 1 / sqrt(2 (n - 1))). Exit 2 if the
         link cannot be opened or the revolutions do not arrive in time.
         """
         import json
