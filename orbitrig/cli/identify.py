@@ -121,15 +121,18 @@ def _fmt(v, full: bool = False, digits: int = 4) -> str:
 def _print_readable(result, path: Path, fmt: OutputFormat) -> None:
     """The fit's summary lines (text only) and its tables (coefficients, forces, covariance):
     text rounds the numbers for reading, CSV has every number in full."""
+    import numpy as np
+
     full = fmt == OutputFormat.CSV
     if fmt == OutputFormat.TEXT:
         fd = result.freq_dep + (f" (chosen M = {result.exponent})" if result.exponent is not None else "")
         typer.echo(wrap(f"{path}: model {result.model}, freq-dep {fd}, method {result.method}, solver {result.solver}"))
+        distinct = len(np.unique(result.fit.columns["orbit_hz"]))  # a frequency run in both directions is 2 rows
         typer.echo(
             wrap(
-                f"{result.n_coefficients} coefficients from {result.n_frequencies} orbit frequencies "
-                f"(minimum {result.min_frequencies}); condition number {result.condition_number:.4g}; "
-                f"residual RMS {result.residual_rms:.4g} N; {result.dof} degrees of freedom"
+                f"{result.n_coefficients} coefficients from {result.n_frequencies} rows ({distinct} distinct orbit "
+                f"frequencies; minimum {result.min_frequencies} rows); condition number "
+                f"{result.condition_number:.4g}; residual RMS {result.residual_rms:.4g} N; {result.dof} degrees of freedom"
             )
         )
         fit = f"AIC {_fmt(result.aic)}, BIC {_fmt(result.bic)}"
