@@ -31,6 +31,7 @@ from reduction.arrays import ComplexArray, FloatArray
 from reduction.errors import ReductionError
 from reduction.impedance import impedance_basis
 from reduction.result import Identification
+from rigunits import in_hz
 
 #: a zero crossing of C_eff: (Omega_0 rad/s, its std or None)
 Zero = tuple[float, float | None]
@@ -66,7 +67,7 @@ class Derived:
             return None if p is None else [arr(p[0]), arr(p[1])]
 
         return {
-            "orbit_hz": arr(self.orbit / (2 * np.pi)),
+            "orbit_hz": arr(in_hz(np.asarray(self.orbit, dtype=float))),
             "c_eff_xx": arr(self.c_eff_xx),
             "c_eff_xx_std": arr(self.c_eff_xx_std),
             "c_eff_yy": arr(self.c_eff_yy),
@@ -87,7 +88,7 @@ class Derived:
 def _zero_hz(z: Zero | None) -> list[float | None] | None:
     if z is None:
         return None
-    return [z[0] / (2 * np.pi), None if z[1] is None else z[1] / (2 * np.pi)]
+    return [in_hz(z[0]), None if z[1] is None else in_hz(z[1])]
 
 
 def entry_gradient(ident: Identification, matrix: str, entry: str, orbit: ArrayLike) -> FloatArray:

@@ -8,6 +8,8 @@ from typing import overload
 import numpy as np
 from numpy.typing import ArrayLike
 
+from rigunits import in_hz
+
 
 FIT_KEYS = ("orbit_hz", "fx_amp_err_pct", "fx_phase_err_deg", "fy_amp_err_pct", "fy_phase_err_deg")
 
@@ -61,7 +63,7 @@ def fit_errors(orbit: ArrayLike, fx: ArrayLike, fy: ArrayLike, fx_rep: ArrayLike
     in degrees in (-180, 180] (both signed: reproduced minus measured); None where the
     measured force is zero. orbit in rad/s, reported as orbit_hz.
     """
-    cols = {"orbit_hz": np.asarray(orbit, dtype=float) / (2 * np.pi)}
+    cols = {"orbit_hz": in_hz(np.asarray(orbit, dtype=float))}
     for name, meas, rep in (("fx", fx, fx_rep), ("fy", fy, fy_rep)):
         meas, rep = np.asarray(meas, dtype=complex), np.asarray(rep, dtype=complex)
         ok = np.abs(meas) > 0

@@ -27,6 +27,12 @@ def chi2_sf(x: float, dof: float) -> float:
     return float(special.chdtrc(dof, max(float(x), 0.0)))
 
 
+def chi2_cdf(x: float, dof: float) -> float:
+    """P(X <= ``x``) of a chi-square variable with ``dof`` > 0 degrees of freedom, in full where
+    it is tiny (1 - chi2_sf would be 0 there)."""
+    return float(special.chdtr(dof, max(float(x), 0.0)))
+
+
 def chi2_isf(q: float, dof: float) -> float:
     """The chi-square value with upper tail ``q`` at ``dof`` > 0 degrees of freedom."""
     return float(special.chdtri(dof, q))

@@ -117,10 +117,10 @@ def chi2_warning(chi2: float, dof: int, p: float) -> str | None:
             f"bad fit: chi2 = {chi2:.4g} for {dof} degrees of freedom (p = {p:.2g}): the residuals "
             "exceed the stated u_* uncertainties; the model misses something or u_* are understated"
         )
-    if p > 1 - CHI2_ALPHA:
+    if p > 1 - CHI2_ALPHA:  # p itself rounds to 1: the lower tail says how unlikely so small a chi2 is
         return (
-            f"chi2 = {chi2:.4g} for {dof} degrees of freedom (p = {p:.4g}): the residuals are far "
-            "smaller than the stated u_* uncertainties, which look overstated"
+            f"chi2 = {chi2:.4g} for {dof} degrees of freedom (lower-tail p = {dist.chi2_cdf(chi2, dof):.2g}): "
+            "the residuals are far smaller than the stated u_* uncertainties, which look overstated"
         )
     return None
 

@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from reduction.errors import ReductionError
+from rigunits import in_hz
 
 GAMMA2_COLUMNS = ("xfx", "yfx", "xfy", "yfy")  # order of OrbitTable.gamma2's last axis
 U_COLUMNS = ("x", "y", "fx", "fy")  # order of OrbitTable.u's last axis
@@ -111,8 +112,8 @@ class OrbitTable:
 
     @property
     def orbit_hz(self) -> np.ndarray:
-        """Orbit frequencies Omega / (2 pi), Hz."""
-        return self.orbit / (2 * np.pi)
+        """Orbit frequencies Omega / (2 pi), Hz (rigunits.in_hz: to 1 nHz, no float noise)."""
+        return in_hz(self.orbit)
 
     def whirl_components(self) -> tuple[np.ndarray, np.ndarray]:
         """Forward and backward circular components (a_f, a_b), m, of each orbit.

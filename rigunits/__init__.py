@@ -1,9 +1,9 @@
 """The rig's units at the edges and its one timestamp format, in a module of its own.
 
-SI inside (rad/s, Pa, s); rpm, MPa and clock text only where a person or a file
+SI inside (rad/s, Pa, s); rpm, Hz, MPa and clock text only where a person or a file
 meets the code. Every package but ``sim`` (which re-derives its scales so that a
 shared mistake cannot cancel out in the tests) may import this module; it imports
-only the standard library.
+only the standard library (and numpy inside ``without_noise``, for arrays).
 
 Unit strings: every unit stored or exported (HDF5 ``units``, ``field_units``, CSV headers,
 DataFrame ``attrs``, MAT / TDMS properties) is a string pint parses, written one way:
@@ -20,9 +20,25 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
+from typing import TYPE_CHECKING, overload
+
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
 
 RPM = 2.0 * math.pi / 60.0  # rad/s per rpm
+HZ = 2.0 * math.pi  # rad/s per Hz
+#: the float noise a speed at the edges drops, in units in the last place: ratio x (rpm x 2 pi / 60)
+#: over 2 pi rounds a few times; 4 ulps reach the decimal meant for every ratio 0.01 .. 3 (step
+#: 0.01) at 100 .. 6000 rpm (step 50)
+NOISE_ULPS = 4
+#: the most significant digits of a value the noise is taken off (a matrix's ratios keep 12 decimals)
+NOISE_DIGITS = 12
 MPA = 1.0e6  # Pa per MPa
+UM = 1.0e-6  # m per micrometre
+#: the micrometre as a person reads it (the operator's prompts, the dashboard, the figures): the
+#: micro sign U+00B5, which pint parses too, never an ASCII "um"
+MICROMETRE = "\u00b5m"
 MINUTE = 60.0  # s
 HOUR = 3600.0  # s
 
@@ -55,6 +71,65 @@ def _per_order(unit: str, key: str) -> str:
     """`unit` of the constant term; with (rad/s)^-r for coefficient `key`'s term of order r ('Kxx_r')."""
     _, _, order = key.partition("_")
     return unit if not order else f"{unit} (rad/s)^-{order}"
+
+
+@overload
+def without_noise(value: float) -> float: ...
+@overload
+def without_noise(value: NDArray[np.float64]) -> NDArray[np.float64]: ...
+def without_noise(value: float | NDArray[np.float64]) -> float | NDArray[np.float64]:
+    """`value` (a number or an array) as the shortest decimal of at most ``NOISE_DIGITS``
+    significant digits within ``NOISE_ULPS`` of it (4.999999999999999 -> 5.0,
+    19.999999999999996 -> 20.0); a value with no such decimal (10/3, a measured speed) is kept.
+    A value moves by at most ``NOISE_ULPS`` ulps, so a file written with it reads back to 1e-15."""
+    import numpy as np
+
+    v = np.atleast_1d(np.asarray(value, dtype=np.float64)).ravel()
+    out = v.copy()
+    at = np.flatnonzero(np.isfinite(v) & (v != 0))
+    tol = NOISE_ULPS * np.spacing(np.abs(v[at]))
+    tens = np.floor(np.log10(np.abs(v[at]))).astype(np.int64)  # v = m 10^tens, 1 <= |m| < 10
+    # the nearest decimal of d digits is no farther than that of d - 1: from the most digits
+    # down, each value takes the shortest that stays within tol
+    for digits in range(NOISE_DIGITS, 0, -1):
+        c = _significant(v[at], digits - 1 - tens)
+        near = np.abs(c - v[at]) <= tol
+        out[at[near]] = c[near]
+        at, tol, tens = at[near], tol[near], tens[near]
+    return float(out[0]) if np.ndim(value) == 0 else out.reshape(np.shape(value))
+
+
+def _significant(v: NDArray[np.float64], decimals: NDArray[np.int64]) -> NDArray[np.float64]:
+    """`v` rounded to `decimals` places (per value; < 0: to tens, hundreds ...): an integer over
+    (or times) a power of ten, exact up to 1e22, so each is the double nearest its decimal."""
+    import numpy as np
+
+    scale = np.power(10.0, np.minimum(np.abs(decimals), 308))
+    with np.errstate(over="ignore", invalid="ignore"):
+        rounded: NDArray[np.float64] = np.where(decimals >= 0, np.rint(v * scale) / scale, np.rint(v / scale) * scale)
+    return rounded
+
+
+@overload
+def in_hz(omega: float) -> float: ...
+@overload
+def in_hz(omega: NDArray[np.float64]) -> NDArray[np.float64]: ...
+def in_hz(omega: float | NDArray[np.float64]) -> float | NDArray[np.float64]:
+    """The frequency (Hz) of angular speed `omega` (rad/s; a number or an array) without float
+    noise (``without_noise``): a planned orbit of ratio 0.3 at 1000 rpm is 0.3 x 1000 x 2 pi / 60
+    rad/s, and its frequency reads 5.0 Hz, not the 4.999999999999999 of that product over 2 pi."""
+    return without_noise(omega / HZ)
+
+
+def in_rpm(omega: float) -> float:
+    """Angular speed `omega` (rad/s) in rpm without float noise (``without_noise``): a matrix's
+    20.5 rpm reads 20.5, not the 20.499999999999996 of 20.5 x 2 pi / 60 rad/s divided back."""
+    return without_noise(omega / RPM)
+
+
+def micrometres(length: float, spec: str = ".2f") -> str:
+    """A length (m: an orbit radius, a displacement) as a person reads it: '60.00 µm'."""
+    return f"{length / UM:{spec}} {MICROMETRE}"
 
 
 def format_duration(seconds: float) -> str:

@@ -83,3 +83,27 @@ def test_reconnecting_backs_off_with_jitter_and_resets_after_traffic() -> None:
     ceilings = [0.01, 0.02, 0.04, 0.01]  # doubling to the maximum; back to the start after traffic
     assert all(c / 2 <= s <= c for s, c in zip(sleeps, ceilings)), sleeps
     assert len(set(sleeps)) == len(sleeps)  # jittered
+
+
+def test_planned_frequencies_read_as_the_decimals_meant() -> None:
+    """Every ratio 0.01 .. 3 at 100 .. 6000 rpm whose ratio x rpm / 60 is a short decimal reads as
+    that decimal in Hz, computed as the plan does (ratio x (rpm x RPM) rad/s); the plain quotient
+    misses 8501 of the 19900 (4.999999999999999)."""
+    from fractions import Fraction
+
+    import numpy as np
+
+    from rigunits import in_hz
+
+    ratios = [round(0.01 * k, 12) for k in range(1, 301)]
+    checked = plain_missed = 0
+    for rpm in range(100, 6001, 50):
+        omega = np.array([r * (rpm * RPM) for r in ratios])
+        for r, hz, plain in zip(ratios, in_hz(omega), omega / (2 * math.pi)):
+            meant = Fraction(str(r)) * rpm / 60
+            if Fraction(f"{float(meant):.12g}") != meant:
+                continue  # 10/3 Hz: no short decimal to read as
+            checked += 1
+            assert hz == float(meant), (r, rpm, hz)
+            plain_missed += plain != float(meant)
+    assert checked > 19000 and plain_missed > checked / 3, (checked, plain_missed)

@@ -26,8 +26,7 @@ from orbitrig.analysis.signals import FORCE_CHANNELS, PROBE_PLANES, BlockSignals
 from orbitrig.load_systems import LMS, LoadSystem
 from reduction.fourier import harmonic_fit
 from reduction.whirl import Whirl
-
-UM = 1e6  # m -> um at the edge
+from rigunits import MICROMETRE, UM
 
 
 @dataclass(frozen=True)
@@ -125,9 +124,9 @@ def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) 
     for ax in axes[n:]:
         ax.set_visible(False)
     for ax in axes[(rows - 1) * cols : (rows - 1) * cols + cols]:
-        ax.set_xlabel("x  [\u00b5m]", fontsize="small")
+        ax.set_xlabel(f"x  [{MICROMETRE}]", fontsize="small")
     for ax in axes[::cols]:
-        ax.set_ylabel("y  [\u00b5m]", fontsize="small")
+        ax.set_ylabel(f"y  [{MICROMETRE}]", fontsize="small")
     handles, labels = axes[0].get_legend_handles_labels()
     figure_legend(fig, handles, labels, loc="lower center", ncols=len(labels), fontsize="small", frameon=False)
     fig.suptitle(title)
@@ -142,21 +141,21 @@ def _orbit_panel(ax, sig: BlockSignals, radius: float) -> None:
     centre, radii = [], []
     for k, (plane, (xn, yn)) in enumerate(PROBE_PLANES.items()):
         x, y = plane_orbit(sig, xn, yn)
-        ax.plot(np.append(x, x[0]) * UM, np.append(y, y[0]) * UM, "-", color=colors[k], lw=1.4, label=f"plane {plane}")
+        ax.plot(np.append(x, x[0]) / UM, np.append(y, y[0]) / UM, "-", color=colors[k], lw=1.4, label=f"plane {plane}")
         if k == 0:  # the trigger (0 deg) and the sense of the motion
-            ax.plot(x[0] * UM, y[0] * UM, "o", color="black", ms=4, label="trigger (0 deg)")
+            ax.plot(x[0] / UM, y[0] / UM, "o", color="black", ms=4, label="trigger (0 deg)")
             j = max(1, len(x) // 12)
             arrow = {"arrowstyle": "->", "color": "black", "lw": 1.2}
-            ax.annotate("", xy=(x[j] * UM, y[j] * UM), xytext=(x[0] * UM, y[0] * UM), arrowprops=arrow)
+            ax.annotate("", xy=(x[j] / UM, y[j] / UM), xytext=(x[0] / UM, y[0] / UM), arrowprops=arrow)
         centre.append((x.mean(), y.mean()))
         radii.append(float(np.mean(np.hypot(x - x.mean(), y - y.mean()))))
     cx, cy = np.mean(centre, axis=0)
     if math.isfinite(radius) and radius > 0:
-        xs, ys = (cx + radius * np.cos(circle)) * UM, (cy + radius * np.sin(circle)) * UM
+        xs, ys = (cx + radius * np.cos(circle)) / UM, (cy + radius * np.sin(circle)) / UM
         ax.plot(xs, ys, "--", color="0.4", lw=0.8, label="commanded radius")
     f = sig.frequency
     ax.set_title(
-        f"{f.orbit_hz:.3g} Hz {_direction(sig)}\nmean radius A {radii[0] * UM:.3g}, B {radii[1] * UM:.3g} \u00b5m",
+        f"{f.orbit_hz:.3g} Hz {_direction(sig)}\nmean radius A {radii[0] / UM:.3g}, B {radii[1] / UM:.3g} {MICROMETRE}",
         fontsize="small",
     )
     ax.set_aspect("equal", adjustable="datalim")

@@ -216,13 +216,15 @@ def table_cells(rows: list[Reduced], full: bool = False) -> list[list[str]]:
     """The header and the rows (cells as text) of a table of the constant terms (K in MN/m, C in
     kN s/m, D in kg, to 4 significant digits; `full`: in SI, N/m, N s/m, kg, every number the
     shortest decimal that reads back as the same double) and the residual (N; and the exponent M
-    that power:auto chose); a refused (point, lms) shows 'refused' (the reason goes to standard error).
+    that power:auto chose; `full`: named residual_rms and exponent, as in the CSV written and the JSON); a refused (point, lms) shows 'refused' (the reason goes to standard error).
     In --sim runs each fit is followed by a row 'true (LMS)' of its own truth (fit_true_values:
     the true Z projected onto the fit's model, as the CSV's true_* columns)."""
     cols = [k for k in CONSTANT_KEYS if any(r.identification and k in r.identification.coefficients for r in rows)]
     auto = any(r.identification is not None and r.identification.exponent is not None for r in rows)
     units = {k: coefficient_column(k) if full else f"{k} [{display_unit(k)[0]}]" for k in cols}
-    lines = [["point", "lms", *(units[k] for k in cols), "resid [N]", *(["M"] if auto else [])]]
+    # CSV: the written file's and the JSON's names (residual_rms, exponent); text: short ones
+    tail = ["residual_rms [N]", "exponent [1]"] if full else ["resid [N]", "M"]
+    lines = [["point", "lms", *(units[k] for k in cols), tail[0], *(tail[1:] if auto else [])]]
 
     def number(key: str, value: float) -> str:
         return repr(float(value)) if full else f"{value * display_unit(key)[1]:.4g}"

@@ -20,7 +20,7 @@ from orbitrig.analysis.report_analysis import fit_label, preferred
 from orbitrig.analysis.report_tables import consistency_table, derived_table, fmt, lms_tables, verdict_list
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.durable import write_atomic
-from rigunits import MPA, utc_iso
+from rigunits import MPA, micrometres, utc_iso
 
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:1.5em auto;max-width:1400px;
@@ -52,7 +52,7 @@ def _settings_table(s) -> str:
         ("pressure ratio \u03b2", fmt(s.pressure_ratio)),
         ("static eccentricity \u03b5<sub>s</sub>", fmt(s.static_eccentricity)),
         ("dynamic eccentricity \u03b5<sub>d</sub>", fmt(s.dynamic_eccentricity)),
-        ("orbit radius (commanded)", f"{s.orbit_radius * 1e6:.3g} \u00b5m"),
+        ("orbit radius (commanded)", micrometres(s.orbit_radius, ".3g")),
     ]
     return "<table>" + "".join(f'<tr><th class="l">{k}</th><td>{v}</td></tr>' for k, v in rows) + "</table>"
 

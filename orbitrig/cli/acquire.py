@@ -10,6 +10,7 @@ import typer
 
 from daq.adc_mode import AdcMode
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
+from rigunits import in_hz
 
 FIRST_WAIT_S = 10.0  # automatic timeout: wait this long for the orbit's first good revolution
 _HINT_TURNING = (
@@ -35,19 +36,15 @@ def block_summary(block, labels: dict[int, tuple[str, str]] | None = None) -> di
     import numpy as np
 
     s = block.stats
-    orbit_hz = block.orbit_speed / (2 * math.pi)
-    return {
-        "revolutions_used": s.revolutions_used,
-        "revolutions_dropped": s.revolutions_dropped,
-        "frames_bad": s.frames_bad,
-        "bytes_skipped": s.bytes_skipped,
-        "orbit_hz": None if math.isnan(orbit_hz) else orbit_hz,
-        "stop_reason": block.stop_reason,
-        "channels": [
+    orbit_hz = in_hz(float(block.orbit_speed))
+    channels = []
+    for k, (q, r, u) in enumerate(zip(block.phasors, block.rms_residual, block.uncertainty)):
+        name, unit = (labels or {}).get(k, ("", RAW_UNIT))
+        channels.append(
             {
                 "index": k,
-                "name": (labels or {}).get(k, ("", RAW_UNIT))[0],
-                "unit": (labels or {}).get(k, ("", RAW_UNIT))[1],
+                "name": name,
+                "unit": unit,
                 "re": float(q.real),
                 "im": float(q.imag),
                 "amplitude": float(abs(q)),
@@ -55,8 +52,15 @@ def block_summary(block, labels: dict[int, tuple[str, str]] | None = None) -> di
                 "rms_residual": float(r),
                 "uncertainty": float(u) if math.isfinite(u) else None,
             }
-            for k, (q, r, u) in enumerate(zip(block.phasors, block.rms_residual, block.uncertainty))
-        ],
+        )
+    return {
+        "revolutions_used": s.revolutions_used,
+        "revolutions_dropped": s.revolutions_dropped,
+        "frames_bad": s.frames_bad,
+        "bytes_skipped": s.bytes_skipped,
+        "orbit_hz": None if math.isnan(orbit_hz) else orbit_hz,
+        "stop_reason": block.stop_reason,
+        "channels": channels,
     }
 
 
@@ -176,7 +180,7 @@ def _print_table(block, labels: dict[int, tuple[str, str]]) -> None:
         )
         typer.echo(
             f"{c['index']:>3} {c['re']:>12.5g} {c['im']:>12.5g} {c['amplitude']:>12.5g} "
-            f"{c['phase_deg']:>10.3f} {c['rms_residual']:>12.5g} {rel:>8.3f}  {unit:<6} {name}".rstrip()
+            f"{c['phase_deg']:>10.3f} {c['rms_residual']:>12.5g} {rel:>8.2g}  {unit:<6} {name}".rstrip()
         )
 
 
@@ -246,7 +250,8 @@ def register(app: typer.Typer) -> None:
 
         Phasors in engineering units of the rig config (N, m), or raw counts with --counts;
         q(theta) = Re(q_bar e^{i theta}), theta the orbit angle after the trigger; "u %" is the
-        standard uncertainty of the averaged phasor relative to its amplitude. Exit 2 if the
+        standard uncertainty of the averaged phasor relative to its amplitude, to 2 significant
+        digits (an uncertainty from n revolutions is itself uncertain by about 1 / sqrt(2 (n - 1))). Exit 2 if the
         link cannot be opened or the revolutions do not arrive in time.
         """
         import json

@@ -17,6 +17,7 @@ from pathlib import Path
 import typer
 
 from orbitrig.cli.plain_table import OutputFormat, PlainTable, render, wrap
+from reduction.diagnostics import FIT_KEYS
 from rigunits import coefficient_unit
 
 
@@ -120,15 +121,18 @@ def _fmt(v, full: bool = False, digits: int = 4) -> str:
 def _print_readable(result, path: Path, fmt: OutputFormat) -> None:
     """The fit's summary lines (text only) and its tables (coefficients, forces, covariance):
     text rounds the numbers for reading, CSV has every number in full."""
+    import numpy as np
+
     full = fmt == OutputFormat.CSV
     if fmt == OutputFormat.TEXT:
         fd = result.freq_dep + (f" (chosen M = {result.exponent})" if result.exponent is not None else "")
         typer.echo(wrap(f"{path}: model {result.model}, freq-dep {fd}, method {result.method}, solver {result.solver}"))
+        distinct = len(np.unique(result.fit.columns["orbit_hz"]))  # a frequency run in both directions is 2 rows
         typer.echo(
             wrap(
-                f"{result.n_coefficients} coefficients from {result.n_frequencies} orbit frequencies "
-                f"(minimum {result.min_frequencies}); condition number {result.condition_number:.4g}; "
-                f"residual RMS {result.residual_rms:.4g} N; {result.dof} degrees of freedom"
+                f"{result.n_coefficients} coefficients from {result.n_frequencies} rows ({distinct} distinct orbit "
+                f"frequencies; minimum {result.min_frequencies} rows); condition number "
+                f"{result.condition_number:.4g}; residual RMS {result.residual_rms:.4g} N; {result.dof} degrees of freedom"
             )
         )
         fit = f"AIC {_fmt(result.aic)}, BIC {_fmt(result.bic)}"
@@ -145,15 +149,20 @@ def _print_readable(result, path: Path, fmt: OutputFormat) -> None:
     typer.echo(render(tables, fmt))
 
 
+#: the force table's columns: the contract's ``fit`` keys, each with its unit (pint parses them)
+FIT_COLUMNS = tuple(zip(FIT_KEYS, ("Hz", "%", "deg", "%", "deg")))
+
+
 def _coefficient_table(result, full: bool = False) -> PlainTable:
+    """A row per coefficient: value, std error and interval in the row's ``unit`` (SI)."""
     t = PlainTable(title="Coefficients (SI, Omega in rad/s)")
-    for col in ("coefficient", "value", "std error", "rel. std error", "95 % interval", "unit"):
+    for col in ("coefficient", "value", "std error", "rel. std error [%]", "95 % interval", "unit"):
         t.add_column(col, justify="left" if col in ("coefficient", "unit") else "right")
     for key, v in result.coefficients.items():
         se = result.std_errors.get(key)
-        rel = "-" if se is None or v == 0 else f"{_fmt(100 * se / abs(v), full, 2)} %"
+        rel = _fmt(None if se is None or v == 0 else 100 * se / abs(v), full, 2)
         ci = result.confidence_95.get(key)
-        interval = "-" if ci is None else f"[{_fmt(ci[0], full)}, {_fmt(ci[1], full)}]"
+        interval = _fmt(None, full) if ci is None else f"[{_fmt(ci[0], full)}, {_fmt(ci[1], full)}]"
         t.add_row(key, _fmt(v, full, 5), _fmt(se, full), rel, interval, coefficient_unit(key))
     return t
 
@@ -180,14 +189,8 @@ def _covariance_table(result, full: bool = False) -> PlainTable | None:
 
 def _force_table(result, full: bool = False) -> PlainTable:
     f = PlainTable(title="Reproduced vs measured force (reproduced minus measured)")
-    for col in ("orbit Hz", "Fx amp %", "Fx phase deg", "Fy amp %", "Fy phase deg"):
-        f.add_column(col, justify="right")
+    for key, unit in FIT_COLUMNS:
+        f.add_column(f"{key} [{unit}]", justify="right")
     for row in result.fit:
-        f.add_row(
-            _fmt(row["orbit_hz"], full),
-            _fmt(row["fx_amp_err_pct"], full),
-            _fmt(row["fx_phase_err_deg"], full),
-            _fmt(row["fy_amp_err_pct"], full),
-            _fmt(row["fy_phase_err_deg"], full),
-        )
+        f.add_row(*(_fmt(row[key], full) for key, _ in FIT_COLUMNS))
     return f

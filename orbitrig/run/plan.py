@@ -57,6 +57,7 @@ from orbitrig.run.steps import (
 from reduction.rig_time import block_time
 from reduction.sequential import MAX_REVOLUTIONS
 from reduction.whirl import Whirl
+from rigunits import in_rpm
 
 
 @dataclass(frozen=True)
@@ -72,7 +73,8 @@ class OperatingPoint:
 
     @property
     def spin_rpm(self) -> float:
-        return self.spin / RPM
+        """The spin speed as the matrix gave it, rpm (rigunits.in_rpm)."""
+        return in_rpm(self.spin)
 
     @property
     def label(self) -> str:
@@ -92,7 +94,7 @@ class OperatingPoint:
             "index": self.index,
             "point": self.index,
             "label": self.label,
-            "spin_rpm": round(self.spin_rpm, 6),
+            "spin_rpm": self.spin_rpm,
             "recess_pressure_mpa": round(self.recess_pressure / MPA, 9),
             "pressure_ratio": self.pressure_ratio,
             "static_eccentricity": self.static_eccentricity,

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from orbitrig.config import MPA, RPM, ModelSpec
 from orbitrig.run.sequential_rule import SequentialRule
 from orbitrig.store.records import BlockChoice
+from rigunits import in_hz, micrometres
 
 TWO_PI = 2.0 * math.pi
 DIR_TAG = {+1: "fwd", -1: "bwd"}
@@ -32,7 +33,8 @@ class Block:
 
     @property
     def orbit_hz(self) -> float:
-        return abs(self.orbit) / TWO_PI
+        """The planned orbit frequency |Omega| / 2 pi, Hz (rigunits.in_hz: 5.0, not 4.999999999999999)."""
+        return in_hz(abs(self.orbit))
 
     @property
     def period(self) -> float:
@@ -74,7 +76,7 @@ class SetManual(Step):
     def describe(self) -> str:
         what = "set by hand" if self.changed else "unchanged, confirm"
         return (
-            f"manual settings ({what}): orbit radius {self.orbit_radius * 1e6:.2f} um, "
+            f"manual settings ({what}): orbit radius {micrometres(self.orbit_radius)}, "
             f"static eccentricity ratio {self.static_eccentricity:g} (e/C), recess pressure "
             f"{self.recess_pressure / MPA:.4g} MPa, pressure ratio {self.pressure_ratio:g}"
         )

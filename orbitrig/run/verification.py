@@ -19,6 +19,7 @@ from orbitrig.run.plan import OperatingPoint
 from orbitrig.run.rig_io import TimeScale
 from orbitrig.run.steps import SetManual
 from orbitrig.store.records import BlockRecord
+from rigunits import micrometres
 
 #: physical s the pressures are given to reach their settings before the spindles start (at least 3 wall s)
 PRESSURE_SETTLE_S = 20.0
@@ -111,7 +112,7 @@ def geometry_problems(rec: BlockRecord, p: OperatingPoint, rig: RigConfig) -> li
     problems = []
     if radius_missed(rec, p, rig):
         problems.append(
-            f"orbit radius {radius * 1e6:.2f} um, want {p.orbit_radius * 1e6:.2f} um +/- {v.orbit_radius_tol_pct:g} %"
+            f"orbit radius {micrometres(radius)}, want {micrometres(p.orbit_radius)} +/- {v.orbit_radius_tol_pct:g} %"
         )
     if abs(ecc - p.static_eccentricity) > v.static_eccentricity_tol:
         problems.append(

@@ -27,6 +27,7 @@ from orbitrig.store.orbit_table_header import GAMMA2, RECORDS, UNCERTAINTY, colu
 from orbitrig.store.orbit_table_rows import in_range, read_columns
 from reduction.errors import ReductionError
 from reduction.table import OrbitTable
+from rigunits import in_rpm
 
 
 def read_orbit_table(path: str | Path) -> OrbitTable:
@@ -152,7 +153,7 @@ def orbit_table_columns(table: OrbitTable, direction: bool = False) -> dict[str,
     """The orbit-table columns of ``table`` in order: name -> (values, unit), the optional
     ones (gamma2_*, n_records, u_*) only when the table has them, then with ``direction``
     that column (+1 forward, -1 backward whirl, from the phasors). Units as in the CSV."""
-    cols = {"spin_rpm": (np.full(table.n, table.spin / RPM), "rpm"), "orbit_hz": (table.orbit / (2 * math.pi), "Hz")}
+    cols = {"spin_rpm": (np.full(table.n, in_rpm(table.spin)), "rpm"), "orbit_hz": (table.orbit_hz, "Hz")}
     for (name, z), unit in zip(table.phasors.items(), ("m", "m", "N", "N")):
         cols[f"{name}_re"], cols[f"{name}_im"] = (z.real, unit), (z.imag, unit)
     if table.gamma2 is not None:

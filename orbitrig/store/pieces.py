@@ -240,7 +240,7 @@ def _write_table(h: h5py.Group, t: OrbitTable) -> None:
     h.attrs["spin"] = t.spin
     h.attrs["units_of_attributes"] = TABLE_ATTR_UNITS
     put(h, "orbit", np.asarray(t.orbit, dtype=np.float64), "rad/s")
-    put(h, "orbit_hz", np.asarray(t.orbit, dtype=np.float64) / (2 * math.pi), "Hz")
+    put(h, "orbit_hz", np.asarray(t.orbit_hz, dtype=np.float64), "Hz")
     meanings = (
         ("m", "x displacement"),
         ("m", "y displacement"),

@@ -97,7 +97,7 @@ async def test_a_missed_orbit_radius_is_corrected_at_standstill(tmp_path):
     async with running(tmp_path, small_matrix(revolutions=6), confirm_mode="remote") as (sim, eng, rec, run):
         correct = await _verify_prompt(eng, sim, {"orbit_radius": 1.3})
         assert _stopped(sim)  # hands on the orbit spindle's offset: nothing turns
-        measured = float(re.search(r"orbit radius ([\d.]+) um, want 5.76 um", eng.message).group(1))
+        measured = float(re.search(r"orbit radius ([\d.]+) µm, want 5.76 µm", eng.message).group(1))
         assert 7.0 < measured < 8.0 and "both drives at standstill" in eng.message  # 1.3 x 5.76 um set
         await correct()
         eng.confirm("verify:0000")

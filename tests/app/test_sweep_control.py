@@ -34,7 +34,7 @@ async def test_confirm_pause_resume_then_stop(tmp_path):
     async with running(tmp_path, small_matrix(), confirm_mode="remote") as (sim, eng, rec, run):
         await wait_for(lambda: eng.state == "waiting", what="waiting for the manual settings")
         assert eng.waiting_step == "manual:0000"
-        assert "orbit radius 5.76 um" in eng.message
+        assert "orbit radius 5.76 µm" in eng.message
         with pytest.raises(OrbitrigError, match="waiting for 'manual:0000'"):
             eng.confirm("manual:0001")
         assert _spindles_stopped(sim)  # nothing turns before the operator confirms

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import json
 import math
 
 import pytest
@@ -26,7 +27,9 @@ async def test_rows_name_channel_and_unit():
         lines = out.splitlines()
         assert lines[0].startswith("10 revolutions averaged, 0 dropped, frames bad 0")
         assert lines[1].split()[-2:] == ["unit", "name"]
-        assert [row.split()[-2:] for row in lines[2:]] == [
+        rows = [row.split() for row in lines[2:]]
+        assert all(len(r[7].replace(".", "").lstrip("0")) <= 2 for r in rows), lines  # u %: 2 digits, not 3 decimals
+        assert [row[-2:] for row in rows] == [
             ["N", "fx_piezo"],
             ["N", "fy_piezo"],
             ["N", "fx_strain"],
@@ -36,6 +39,11 @@ async def test_rows_name_channel_and_unit():
             ["m", "x_b"],
             ["m", "y_b"],
         ]
+        code, out, err = await orbitrig_async(
+            "acquire", "--adc", rig.adc_url, "--rig", str(ROOT / "config" / "rig.toml"), "--revolutions", "5", "--json"
+        )
+        assert code == 0, err
+        assert [[c["unit"], c["name"]] for c in json.loads(out)["channels"]] == [r[-2:] for r in rows]
         code, out, err = await orbitrig_async("acquire", "--adc", rig.adc_url, "--revolutions", "5", "--counts")
         assert code == 0, err
         assert all(row.split()[-1] == "count" for row in out.splitlines()[2:])  # the unit as pint spells it

@@ -59,3 +59,20 @@ def test_no_script_spells_out_a_word_of_the_tables(script):
     text = (STATIC / script).read_text(encoding="utf-8")
     spelled = re.findall(r'(?:[!=]==|case|send\()\s*"([^"]*)"', text)
     assert sorted(w for w in spelled if w in words) == []
+
+
+def test_the_operator_reads_micrometres_as_the_page_writes_them():
+    """The service's prompt for the manual settings (SetManual, the radius check) and the page's
+    panel of those settings spell the micrometre alike: rigunits.MICROMETRE, the micro sign."""
+    import pint
+
+    from orbitrig.run.steps import SetManual
+    from rigunits import MICROMETRE, UM, micrometres
+
+    app = (STATIC / "app.js").read_text(encoding="utf-8")
+    label = re.search(r'orbit_radius: \["orbit radius", "([^"]*)", ([\de.]+), \d\]', app)
+    assert label and (label[1], float(label[2])) == (MICROMETRE, 1 / UM) == ("\u00b5m", 1e6)
+    prompt = SetManual(3, 0.0, 5.76e-6, 0.1, 0.4826e6, 0.25, True).describe()
+    assert "orbit radius 5.76 \u00b5m," in prompt and " um" not in prompt
+    assert micrometres(60e-6, ".3g") == "60 \u00b5m"
+    assert pint.UnitRegistry().Quantity(5.76, MICROMETRE).to("m").magnitude == 5.76e-6

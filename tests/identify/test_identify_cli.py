@@ -74,7 +74,10 @@ def test_readable_table_without_json(runner, table_csv):
     res = runner.invoke(app, ["identify", str(table_csv), "--model", "kc8"])
     assert res.exit_code == 0, res.stderr
     assert "Kxx" in res.stdout and "N s/m" in res.stdout and "condition number" in res.stdout
-    assert "Fx amp %" in res.stdout
+    assert "fx_amp_err_pct [%]" in res.stdout and "orbit_hz [Hz]" in res.stdout
+    # 5 frequencies, each in both whirl directions: 10 rows, not "10 orbit frequencies"
+    words = " ".join(res.stdout.split())
+    assert "8 coefficients from 10 rows (5 distinct orbit frequencies; minimum 2 rows)" in words
 
 
 def test_rank_deficient_model_exit_2_nothing_on_stdout(runner, tmp_path):

@@ -31,3 +31,12 @@ def test_forces_plot_keeps_agreeing_models_visible(tmp_path):
     widths = sorted({ln.get_linewidth() for ln in model_lines}, reverse=True)
     assert len(widths) == len(fitted) and widths[-1] >= 0.7  # pt, at a journal column's width
     assert all(a - b >= 0.6 - 1e-9 for a, b in zip(widths, widths[1:]))
+
+
+def test_the_page_says_micrometres_as_the_prompts_do(synthetic_report):
+    """The report's settings table spells the orbit radius in rigunits' micrometre, as the
+    service's prompt and the dashboard do: 0.04 of the 60 µm clearance."""
+    from rigunits import MICROMETRE
+
+    assert f"orbit radius (commanded)</th><td>2.4 {MICROMETRE}<" in synthetic_report.page
+    assert MICROMETRE == "\u00b5m" and " um<" not in synthetic_report.page

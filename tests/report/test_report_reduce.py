@@ -215,14 +215,17 @@ def test_cli_reduce_csv_has_every_number_in_full_si(synthetic_run, tmp_path):
     own = json.loads(CliRunner().invoke(app, ["reduce", str(run), "--model", "kcd11", "--json"]).stdout)["results"]
     with csv_path(run, "kcd11", "none", "ols").open(newline="") as fh:
         written = list(csv.DictReader(fh))
-    assert list(rows[0])[:3] == ["point", "lms", "Kxx [N/m]"] and "Dyy [kg]" in rows[0] and "resid [N]" in rows[0]
+    assert (
+        list(rows[0])[:3] == ["point", "lms", "Kxx [N/m]"] and "Dyy [kg]" in rows[0] and "residual_rms [N]" in rows[0]
+    )
     assert [r["lms"] for r in rows] == [lms for o in own for lms in (o["lms"], f"true ({o['lms']})")]
     for fit, true, o, w in zip(rows[::2], rows[1::2], own, written):
         assert fit["point"] == true["point"] == f"{o['point']:04d}"
         for key, value in o["coefficients"].items():
             if "_" not in key:  # the constant terms
                 assert float(fit[f"{key} [{SI_UNITS[key[0]]}]"]) == value, key
-        assert float(fit["resid [N]"]) == o["residual_rms"]
+        assert float(fit["residual_rms [N]"]) == o["residual_rms"]  # the name of the file written and the JSON
+        assert "residual_rms [N]" in w
         for column, cell in true.items():
             if column not in ("point", "lms") and cell:
                 assert float(cell) == float(w[f"true_{column}"]), column
