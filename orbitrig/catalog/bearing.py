@@ -6,8 +6,9 @@ Rows of different bearings never repeat one another, however equal their operati
 conditions: KEY_COLUMNS are what `compare` groups repeats by besides the conditions
 (orbitrig.catalog.compare.bearing_key).
 
-as_written: how the catalog keeps a number it computes from written ones (the bearing's
-lengths in m, the planned orbit frequencies).
+A number the catalog computes from written ones (the bearing's lengths in m, the planned orbit
+frequencies) is kept without float noise (rigunits.without_noise: 6e-05 m, not
+5.9999999999999995e-05; 5.0 Hz, not 4.999999999999999), as every file orbitrig writes keeps it.
 """
 
 from __future__ import annotations
@@ -18,6 +19,8 @@ from pathlib import Path
 from typing import Any
 
 from pydantic import ValidationError
+
+from rigunits import without_noise
 
 from orbitrig.config import Bearing
 from orbitrig.store.stored_run import Run
@@ -35,8 +38,8 @@ def bearing_columns(run: Run) -> dict[str, Any]:
     None for a run on the rig)."""
     bearing = _rig_bearing(run.rig_config)
     columns: dict[str, Any] = {
-        "bearing_radius": as_written(bearing.radius_mm * 1e-3) if bearing else None,
-        "bearing_clearance": as_written(bearing.clearance) if bearing else None,
+        "bearing_radius": without_noise(bearing.radius_mm * 1e-3) if bearing else None,
+        "bearing_clearance": without_noise(bearing.clearance) if bearing else None,
         "sim_scenario": "",
         "sim_scenario_sha256": "",
         "sim_seed": None,
@@ -66,13 +69,6 @@ def bearing_label(row: dict[str, Any]) -> str:
         return "sim " + ("paper" if stem == "sim" else stem)
     clearance = row.get("bearing_clearance")
     return (row.get("rig_id") or "rig") + (f" c = {clearance * 1e6:.4g} um" if clearance else "")
-
-
-def as_written(value: float) -> float:
-    """A catalog number computed from written ones, to 12 significant digits so it reads as
-    written: a length converted from mm or um to m (60 um: 6e-05 m, not 5.9999999999999995e-05),
-    a planned orbit frequency, ratio x spin (5.0 Hz, not 4.999999999999999)."""
-    return float(f"{value:.12g}")
 
 
 def _rig_bearing(text: str) -> Bearing | None:

@@ -13,10 +13,10 @@ import math
 from pathlib import Path
 from typing import Any
 
-from orbitrig.catalog.bearing import as_written, bearing_columns
+from orbitrig.catalog.bearing import bearing_columns
 from orbitrig.store.fit_record import COVERAGE_K, expanded_k, expanded_uncertainty, uncertainty_basis
 from orbitrig.store.stored_run import Point, Run, StoredIdentification
-from rigunits import COEFFICIENT_UNITS, coefficient_unit
+from rigunits import COEFFICIENT_UNITS, coefficient_unit, without_noise
 
 #: the constant coefficients every model reports (absent ones are NULL)
 COEFFICIENTS = tuple(f"{m}{ij}" for m in "KCD" for ij in ("xx", "xy", "yx", "yy"))
@@ -72,7 +72,7 @@ def _point_columns(p: Point) -> dict[str, Any]:
         "pressure_ratio": s.pressure_ratio,
         "static_eccentricity": s.static_eccentricity,
         "dynamic_eccentricity": s.dynamic_eccentricity,
-        "orbit_hz": json.dumps(sorted({as_written(f.orbit_hz) for f in p.frequencies})),  # as planned
+        "orbit_hz": json.dumps(sorted({without_noise(f.orbit_hz) for f in p.frequencies})),  # as planned
     }
 
 

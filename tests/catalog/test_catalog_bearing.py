@@ -14,12 +14,13 @@ import math
 import pytest
 from sqlalchemy import func, select
 
-from orbitrig.catalog.bearing import SIM_DEFAULT_SEED, as_written
+from orbitrig.catalog.bearing import SIM_DEFAULT_SEED
 from orbitrig.catalog.compare import repeat_groups, repeatability
 from orbitrig.catalog.rows import run_rows
 from orbitrig.catalog.schema import fits
 from orbitrig.catalog.store import Catalog
 from orbitrig.store.reader import read_run
+from rigunits import without_noise
 from sim.config import SimConfig
 from support.catalog_earlier import NEW, write_earlier_catalog
 from support.cli_helpers import orbitrig
@@ -45,15 +46,14 @@ def runs(tmp_path_factory):
     return out
 
 
-def test_computed_numbers_are_kept_as_written():
-    """12 significant digits: the float noise of a unit conversion or a product goes, any digit
-    a number was written with stays."""
-    assert (as_written(60 * 1e-6), as_written(19.05 * 1e-3)) == (6e-05, 0.01905)
+def test_computed_numbers_are_kept_without_float_noise():
+    """The catalog's lengths and planned frequencies as every file keeps them (rigunits.without_noise):
+    the float noise of a unit conversion or a product goes, a value with no short decimal stays."""
+    assert (without_noise(60 * 1e-6), without_noise(19.05 * 1e-3)) == (6e-05, 0.01905)
     spin = 1000 * 2 * math.pi / 60  # rad/s
     orbit_hz = [ratio * spin / (2 * math.pi) for ratio in (0.3, 0.5, 1.2)]
     assert (60 * 1e-6, orbit_hz) == (5.9999999999999995e-05, [4.999999999999999, 8.333333333333332, 19.999999999999996])
-    assert [as_written(f) for f in orbit_hz] == [5.0, 8.33333333333, 20.0]
-    assert as_written(1.23456789012e-7) == 1.23456789012e-7
+    assert [without_noise(f) for f in orbit_hz] == [5.0, 8.333333333333332, 20.0]
 
 
 def test_the_default_seed_is_the_simulators():
@@ -74,7 +74,9 @@ def test_rows_name_the_scenario_and_the_bearing(runs):
     for row in (paper, compressible):  # config/rig.toml [bearing]: radius 19.05 mm, clearance 60 um
         assert (row["bearing_radius"], row["bearing_clearance"]) == (0.01905, 6e-05)
         # the demo's ratios 0.3 ... 1.2 of 1000 rpm, as written (not 4.999999999999999 Hz)
-        assert json.loads(row["orbit_hz"]) == [5.0, 8.33333333333, 11.6666666667, 15.0, 20.0]
+        planned = json.loads(row["orbit_hz"])
+        assert planned == pytest.approx([5.0, 25 / 3, 35 / 3, 15.0, 20.0], rel=1e-15)
+        assert [planned[i] for i in (0, 3, 4)] == [5.0, 15.0, 20.0]
 
 
 def test_runs_of_another_scenario_are_no_repeats(catalog, runs):
