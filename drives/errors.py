@@ -116,6 +116,10 @@ class DriveLinkError(DriveError):
     """The Modbus link to the drives is down or broken."""
 
 
+class DriveConnectError(DriveLinkError):
+    """The Modbus link to the drives could not be opened: nothing answered at its address."""
+
+
 class DriveOffCommand(DriveError):
     """A drive running at the commanded speed found no longer running, taken to local control, or
     given another reference: stopped or moved by another Modbus client, or at the drive itself."""

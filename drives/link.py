@@ -41,6 +41,7 @@ from contextlib import AbstractContextManager
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from drives.errors import (
+    DriveConnectError,
     DriveExceptionResponse,
     DriveGaveWay,
     DriveLinkError,
@@ -161,13 +162,13 @@ class ModbusLink:
                 ok = await client.connect()
         except (TimeoutError, OSError) as err:
             client.close()
-            raise DriveLinkError(f"cannot connect to {self.url}: {err!r}") from err
+            raise DriveConnectError(f"cannot connect to {self.url}: {err!r}") from err
         except BaseException:
             client.close()
             raise
         if not ok or not client.connected:
             client.close()
-            raise DriveLinkError(f"cannot connect to {self.url}")
+            raise DriveConnectError(f"cannot connect to {self.url}")
         self._client = client
         self.connects += 1
         log.debug("connected to %s", self.url)
@@ -383,4 +384,4 @@ class ModbusLink:
             await self._ensure_connected()
         except DriveLinkError as err:
             self.failures += 1
-            raise DriveLinkError(err.reason, **self._error_kw(device_id, span)) from err
+            raise type(err)(err.reason, **self._error_kw(device_id, span)) from err  # DriveConnectError stays one

@@ -53,11 +53,20 @@ def watchdog_words(rig) -> str:
     return "their comm-loss watchdog is not known (parameters not read); use the rig's emergency stop"
 
 
+#: what to check when the drives' link could not be opened
+HINT_CONNECT = (
+    "is the drives' Modbus server (or `orbitrig sim`) serving there? set [transports] modbus_url in the rig config "
+    "or pass --modbus"
+)
+
+
 def report(command: str, err: BaseException, after: str = "") -> None:
+    from drives.errors import DriveConnectError
     from orbitrig.cli.terminal import say
 
     tail = f"; {after}" if after else ""
-    say(f"orbitrig drives {command} failed ({reason(err)}): {err}{tail}", err=True)
+    hint = f"\n  {HINT_CONNECT}" if isinstance(err, DriveConnectError) else ""
+    say(f"orbitrig drives {command} failed ({reason(err)}): {err}{tail}{hint}", err=True)
 
 
 async def stop_drives(url, d, emergency, timeout, interrupt) -> int:

@@ -61,6 +61,8 @@ log = logging.getLogger("orbitrig.service.link")
 PUBLISH_WINDOW = 64
 #: s within which the service's own status must come back to it on every connection
 ECHO_S = 10.0
+#: where the broker's set-up is told, named while the service has never reached its broker
+BROKER_SETUP = "start it as config/mosquitto/README.md says; retrying"
 #: the last will's message, and what the will says of itself (its ``last_will`` field)
 WILL_MESSAGE = "connection to the rig service lost"
 WILL_NOTE = (
@@ -364,8 +366,9 @@ class BrokerLink:
             ) from None
         if connected:
             log.warning("connection to %s lost: %s", self.where, err)
-        else:
-            log.warning("cannot connect to %s: %s", self.where, err)
+        else:  # never connected yet: most often no broker runs there
+            hint = "" if self.connections else f" (is a broker running there? {BROKER_SETUP})"
+            log.warning("cannot connect to %s: %s%s", self.where, err, hint)
 
     async def _leave(self, client: Any) -> None:
         """Publish ``offline`` (retained) before the session ends for any reason

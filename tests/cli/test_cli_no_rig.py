@@ -1,6 +1,7 @@
 """`orbitrig sweep` (and `orbitrig calibrate`) without --sim on a machine without the rig: says
 so naming each transport, suggests --sim, leaves no run directory (no record), and the next try
-gets the same answer (not "already exists")."""
+gets the same answer (not "already exists"); `orbitrig drives` with no drive at its address says
+what to check, as `orbitrig acquire` does for the A/D board."""
 
 from __future__ import annotations
 
@@ -87,3 +88,20 @@ def test_calibrate_without_the_rig_names_each_transport_and_writes_no_record(tmp
         assert what in p.stderr and subs[url] in p.stderr
     assert "--sim" in p.stderr and "Traceback" not in p.stderr and "slow roll:" not in p.stderr
     assert sorted((tmp_path / "calibration").iterdir()) == before
+
+
+def test_drives_commands_with_no_drive_there_say_what_to_check(tmp_path):
+    url = f"tcp://127.0.0.1:{free_port()}"  # nothing listens there
+    for command, args, outcome in (
+        ("status", (), ""),
+        ("run", ("--spin", "1000", "--orbit", "-500"), "; nothing sent"),
+        ("stop", (), "; stop word delivered to: no drive"),
+    ):
+        p = orbitrig("drives", command, *args, "--modbus", url, timeout=60)
+        assert p.returncode == 2, (command, p.stderr)
+        said = p.stderr.splitlines()
+        i = said.index(f"orbitrig drives {command} failed (link): cannot connect to {url}{outcome}")
+        assert said[i + 1] == (
+            "  is the drives' Modbus server (or `orbitrig sim`) serving there? "
+            "set [transports] modbus_url in the rig config or pass --modbus"
+        ), (command, p.stderr)

@@ -103,3 +103,35 @@ def test_ci_calls_the_same_command():
     text = (ROOT / ".ci" / "run").read_text()
     assert 'exec tools/run-tests "$@"' in text  # the README's command, as written
     assert os.access(SCRIPT, os.X_OK) and os.access(ROOT / ".ci" / "run", os.X_OK)
+
+
+def _installing_bin(tmp_path, present):
+    """`_bin` with ``present`` commands, an `id` that says root, an apt-get that installs every
+    missing command (logging its arguments) and a `service` that logs what it is asked."""
+    path = _bin(tmp_path, present)
+    (path / "id").unlink()
+    log = tmp_path / "system.log"
+    stand_ins = {
+        "id": "echo 0",
+        "apt-get": f'echo "apt-get $*" >> {log}\nfor c in {" ".join(COMMANDS)}; do\n'
+        f'  [ "$1" = install ] && [ ! -e {path}/$c ] && printf "#!/bin/sh\\nexit 0\\n" > {path}/$c && chmod 755 {path}/$c\n'
+        "done; true",
+        "service": f'echo "service $*" >> {log}',
+    }
+    for name, body in stand_ins.items():
+        (path / name).write_text(f"#!/bin/bash\n{body}\n")
+        (path / name).chmod(0o755)
+    return path, log
+
+
+def test_a_running_broker_is_left_alone_when_other_packages_are_installed(tmp_path):
+    """Run as root, the script installs what is missing; it stops the broker a fresh mosquitto
+    package starts, never one that was there before (on a rig's computer: the rig's broker)."""
+    python, _ = _fake_python(tmp_path, 0)
+    path, log = _installing_bin(tmp_path, {"mosquitto", "mosquitto_pub", "socat"})
+    p = _run(tmp_path, path, python, "-q")
+    assert p.returncode == 0, p.stderr
+    calls = log.read_text().splitlines()
+    install = next(c for c in calls if c.startswith("apt-get install"))
+    assert "mbpoll" in install.split() and "mosquitto" not in install.split()
+    assert not [c for c in calls if c.startswith("service")], calls

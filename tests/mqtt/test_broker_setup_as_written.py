@@ -1,7 +1,8 @@
 """The broker README of a lab folder, done as written: mosquitto started as root with the
 lab's mosquitto.conf (no `user root`: it drops to the `mosquitto` user, as on a rig) keeps a
 retained status across a restart once the README's commands have run, and loses it when the
-persistence folder's `chown` is left out (what the README said before it named the folder).
+persistence folder's `chown` is left out (what the README said before it named the folder); its
+"Trying it out" command (passwd.example's accounts) does the same.
 
 Real parts: `orbitrig init`'s files, mosquitto_passwd, chown, mosquitto 2, mosquitto_pub/sub.
 Only the listener ports are changed (free ones, beside the other tests' brokers).
@@ -96,3 +97,14 @@ def test_without_the_data_folders_chown_the_broker_loses_it(lab):
     got, log = _retained_status_survives_a_restart(conf, svc, people)
     assert got is None
     assert "Permission denied" in log or "Error saving" in log, log
+
+
+def test_trying_it_out_as_written_gives_the_example_accounts_a_broker(lab):
+    readme = (lab / "mosquitto" / "README.md").read_text()
+    [line] = [ln.strip() for ln in readme.splitlines() if ln.strip().startswith("cp passwd.example ")]
+    subprocess.run(line, shell=True, check=True, cwd=lab / "mosquitto")
+    conf = lab / "mosquitto" / "mosquitto.conf"
+    text, svc, people = on_free_ports(conf.read_text())
+    conf.write_text(text)
+    got, log = _retained_status_survives_a_restart(conf, svc, people)  # the service's and viewer's accounts
+    assert got == "idle", log

@@ -2,7 +2,8 @@
 suspension is refused (the run resumes by itself) and a pause then holds the run once the
 interlock clears; a pause of the supervision policy says when the run stops unless resumed, and
 that stop says what was true (the broker was back, nobody resumed); the last will says that its
-run_id and since are of the connection. Real mosquitto, the service on the simulator."""
+run_id and since are of the connection; a service that has never reached its broker says where
+the broker's set-up is told. Real mosquitto, the service on the simulator."""
 
 from __future__ import annotations
 
@@ -16,6 +17,8 @@ import pytest
 from orbitrig.config import load_rig
 from orbitrig.store.journal import read_journal
 from support.mqtt_helpers import Broker, RigClient, retained, serving_unsupervised, sim_service, wait
+from support.polling import until
+from support.ports import free_port
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -133,3 +136,15 @@ def test_the_last_will_says_its_run_id_and_since_are_of_the_connection(broker, t
     finally:
         rc.close()
         svc.kill()
+
+
+async def test_a_service_that_never_reached_its_broker_says_where_its_set_up_is_told(tmp_path: Path):
+    port = free_port()  # no broker listens there
+    service = sim_service(f"mqtt://127.0.0.1:{port}", "nobroker", tmp_path)
+    try:
+        await until(lambda: "cannot connect to" in service.text(), 60, "the service tried its broker")
+    finally:
+        service.stop()
+    line = next(line for line in service.text().splitlines() if "cannot connect to" in line)
+    assert f"cannot connect to 127.0.0.1:{port}: " in line and "Connection refused" in line, line
+    assert "is a broker running there? start it as config/mosquitto/README.md says; retrying" in line, line
