@@ -27,6 +27,7 @@ import asyncio
 import contextlib
 import importlib.util
 import json
+import logging
 import os
 import socket
 import subprocess
@@ -264,11 +265,15 @@ async def simulated_rig(
     except BaseException:
         await started.end()
         raise
+    watch = asyncio.create_task(started.watch(), name="simulator-watch")
     try:
         yield sim, simulated_access(sim, scenario)
     finally:
         sim.link.close()
-        await started.end()
+        try:
+            await started.end()
+        finally:
+            watch.cancel()  # done already if the process ended unasked; else it has ended now
 
 
 def start_simulator(speedup: float = DEFAULT_SPEEDUP, config=None) -> SimulatorStart:
@@ -281,7 +286,8 @@ class SimulatorStart:
     """A `python -m sim` child from its start to its end: the ready line, the stop."""
 
     def __init__(self, command: list[str]):
-        self.log = tempfile.TemporaryFile()  # its stderr: shown only when it fails to start
+        self.log = tempfile.TemporaryFile()  # its stderr: shown when it fails to start or ends unasked
+        self.ending = False  # its end was asked (`end`): it is expected to exit
         try:
             self.proc = subprocess.Popen(
                 command,
@@ -316,6 +322,21 @@ class SimulatorStart:
             )
         return endpoints
 
+    async def watch(self) -> None:
+        """Wait for the process to exit; if its end was not asked, log its exit status and the last
+        lines it wrote (a run then fails on its lost links: this says why)."""
+        code = await asyncio.to_thread(self.proc.wait)
+        if self.ending:
+            return
+        self.log.seek(0)
+        said = self.log.read().decode(errors="replace").strip().splitlines()[-5:]
+        logging.getLogger(__name__).error(
+            "the simulator process (python -m sim, pid %d) ended unasked, exit status %s%s",
+            self.proc.pid,
+            code,
+            "".join(f"\n  {line}" for line in said) if said else " (it wrote nothing)",
+        )
+
     async def end(self) -> None:
         """Close its standard input (it ends itself cleanly); SIGKILL after STOP_TIMEOUT."""
         try:
@@ -324,6 +345,7 @@ class SimulatorStart:
             self.log.close()
 
     async def _ended(self) -> None:
+        self.ending = True
         self._stdin.close()
         try:
             await asyncio.to_thread(self.proc.wait, STOP_TIMEOUT)

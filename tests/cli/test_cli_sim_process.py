@@ -112,3 +112,22 @@ def test_no_orphan_when_the_application_is_killed():
         if app.poll() is None:
             app.kill()
             app.wait()
+
+
+async def test_a_simulator_that_ends_unasked_is_logged_with_its_exit_status(caplog):
+    """The simulator process killed under a running service or sweep: its end is logged at once
+    with its exit status (the run then fails on its lost links, and the log says why); an end
+    that was asked is not logged."""
+    async with simulated_rig(40.0) as (sim, _):
+        with caplog.at_level("ERROR", logger="orbitrig.cli.simulated_rig"):
+            os.kill(sim.proc.pid, signal.SIGKILL)
+            t0 = time.monotonic()
+            while "ended unasked" not in caplog.text and time.monotonic() - t0 < 5.0:
+                await asyncio.sleep(0.01)
+            assert time.monotonic() - t0 < 2.0, caplog.text
+        assert f"the simulator process (python -m sim, pid {sim.proc.pid}) ended unasked, exit status -9" in caplog.text
+    caplog.clear()
+    async with simulated_rig(40.0):
+        pass
+    await asyncio.sleep(0.1)
+    assert "ended unasked" not in caplog.text
