@@ -25,14 +25,9 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import importlib.util
 import json
-import logging
-import os
 import socket
 import subprocess
-import sys
-import tempfile
 import threading
 from collections.abc import AsyncIterator
 from pathlib import Path
@@ -40,29 +35,19 @@ from typing import TYPE_CHECKING, BinaryIO
 
 import numpy as np
 
-from orbitrig.errors import OrbitrigError
+from orbitrig.cli.simulator_process import SimulatorError, SimulatorStart, start_simulator
+
+__all__ = ["SimulatorError", "simulated_access", "simulated_rig", "start_simulator"]
 
 if TYPE_CHECKING:  # imported where used: the simulator starts before the engine's links are imported
     from orbitrig.run.rig_io import Endpoints, RigAccess, Scenario
 
 #: simulator time / wall time of `orbitrig sweep --sim` and `orbitrig serve --sim`
 DEFAULT_SPEEDUP = 40.0
-#: wall seconds the simulator process may take to announce its endpoints (a loaded machine)
-START_TIMEOUT = 120.0
-#: the simulator's nice value relative to the application's: its drives, A/D board and CAN
-#: node stand for machines with processors of their own, which the host's load never delays
-#: (applied where permitted: root or CAP_SYS_NICE; otherwise it runs at the application's)
-SIMULATOR_NICE = -10
-#: wall seconds it may take to end after its standard input closed, before SIGKILL
-STOP_TIMEOUT = 10.0
 
 
 #: wall seconds one control request may take (the truth of a long point list on a loaded machine)
 CALL_TIMEOUT = 60.0
-
-
-class SimulatorError(OrbitrigError):
-    """The simulator process did not start, or its control API failed or refused a request."""
 
 
 class SimulatorLink:
@@ -274,128 +259,3 @@ async def simulated_rig(
             await started.end()
         finally:
             watch.cancel()  # done already if the process ended unasked; else it has ended now
-
-
-def start_simulator(speedup: float = DEFAULT_SPEEDUP, config=None) -> SimulatorStart:
-    """Start the simulator process now (it takes a second or more to import and listen);
-    `simulated_rig(..., started=)` waits for it. Whoever starts it passes it on at once."""
-    return SimulatorStart(_command(speedup, config))
-
-
-class SimulatorStart:
-    """A `python -m sim` child from its start to its end: the ready line, the stop."""
-
-    def __init__(self, command: list[str]):
-        self.log = tempfile.TemporaryFile()  # its stderr: shown when it fails to start or ends unasked
-        self.ending = False  # its end was asked (`end`): it is expected to exit
-        try:
-            self.proc = subprocess.Popen(
-                command,
-                stdin=subprocess.PIPE,
-                stdout=subprocess.PIPE,
-                stderr=self.log,
-                env=_environment(),
-                start_new_session=True,
-            )
-        except OSError as err:
-            self.log.close()
-            raise SimulatorError(f"the simulator process could not start: {err}") from None
-        stdin, stdout = self.proc.stdin, self.proc.stdout
-        assert stdin is not None and stdout is not None  # both piped above
-        self._stdin, self._stdout = stdin, stdout
-
-    async def ready(self) -> dict:
-        """Its endpoints, once it announces them; SimulatorError with its last word if it does not."""
-        try:
-            line = await asyncio.wait_for(asyncio.to_thread(self._stdout.readline), START_TIMEOUT)
-            endpoints = json.loads(line) if line.startswith(b"{") else None
-        except (asyncio.TimeoutError, ValueError):
-            endpoints = None
-        if endpoints is None:
-            await self._ended()
-            self.log.seek(0)
-            said = self.log.read().decode(errors="replace").strip().splitlines()
-            self.log.close()
-            raise SimulatorError(
-                "the simulator process did not start (python -m sim, exit status "
-                f"{self.proc.returncode}){': ' + said[-1] if said else ''}"
-            )
-        return endpoints
-
-    async def watch(self) -> None:
-        """Wait for the process to exit; if its end was not asked, log its exit status and the last
-        lines it wrote (a run then fails on its lost links: this says why)."""
-        code = await asyncio.to_thread(self.proc.wait)
-        if self.ending:
-            return
-        self.log.seek(0)
-        said = self.log.read().decode(errors="replace").strip().splitlines()[-5:]
-        logging.getLogger(__name__).error(
-            "the simulator process (python -m sim, pid %d) ended unasked, exit status %s%s",
-            self.proc.pid,
-            code,
-            "".join(f"\n  {line}" for line in said) if said else " (it wrote nothing)",
-        )
-
-    async def end(self) -> None:
-        """Close its standard input (it ends itself cleanly); SIGKILL after STOP_TIMEOUT."""
-        try:
-            await self._ended()
-        finally:
-            self.log.close()
-
-    async def _ended(self) -> None:
-        self.ending = True
-        self._stdin.close()
-        try:
-            await asyncio.to_thread(self.proc.wait, STOP_TIMEOUT)
-        except subprocess.TimeoutExpired:
-            self._kill()
-            await asyncio.to_thread(self.proc.wait)
-        except asyncio.CancelledError:
-            self._kill()
-            raise
-        finally:
-            self._stdout.close()
-
-    def _kill(self) -> None:
-        with contextlib.suppress(ProcessLookupError):
-            self.proc.kill()
-
-
-def _command(speedup: float, config) -> list[str]:
-    args = [
-        sys.executable,
-        "-m",
-        "sim",
-        "--modbus-port",
-        "0",
-        "--adc-port",
-        "0",
-        "--no-adc-pty",
-        "--control-port",
-        "0",
-        "--can-hub",
-        "0",
-        "--speedup",
-        repr(float(speedup)),
-        "--nice",
-        str(SIMULATOR_NICE),
-        "--parent-pid",
-        str(os.getpid()),
-    ]
-    if config is not None:
-        from sim.config import sim_config_to_data
-
-        args += ["--config-json", json.dumps(sim_config_to_data(config))]
-    return args
-
-
-def _environment() -> dict:
-    """This environment, with the `sim` package this process would import first on the path."""
-    spec = importlib.util.find_spec("sim")
-    if spec is None or spec.origin is None:
-        raise SimulatorError("the simulator package `sim` cannot be imported (installed with orbitrig)")
-    root = str(Path(spec.origin).resolve().parents[1])
-    path = os.environ.get("PYTHONPATH", "")
-    return dict(os.environ, PYTHONPATH=root + (os.pathsep + path if path else ""))

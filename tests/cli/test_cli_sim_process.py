@@ -119,7 +119,7 @@ async def test_a_simulator_that_ends_unasked_is_logged_with_its_exit_status(capl
     with its exit status (the run then fails on its lost links, and the log says why); an end
     that was asked is not logged."""
     async with simulated_rig(40.0) as (sim, _):
-        with caplog.at_level("ERROR", logger="orbitrig.cli.simulated_rig"):
+        with caplog.at_level("ERROR", logger="orbitrig.cli.simulator_process"):
             os.kill(sim.proc.pid, signal.SIGKILL)
             t0 = time.monotonic()
             while "ended unasked" not in caplog.text and time.monotonic() - t0 < 5.0:
