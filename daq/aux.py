@@ -11,8 +11,12 @@ nothing blocks the loop. A bus whose link fails (an adapter pulled, the interfac
 serial-over-TCP link closed) is said once, counts as the node lost at once (``link_error``)
 and is opened again until it opens. Values
 are kept in SI (K, Pa, m^3/s) with their arrival time; a value is stale when
-its frame is older than 0.5 s, the node is lost when no heartbeat arrived for
-1.5 s (counted from opening while none has come). A frame whose length is not
+its frame is older than 0.5 s (``ages``). ``bus_ages`` count from when the frame was on the bus: the
+interface's receive timestamp (``can.Message.timestamp``, epoch s; python-can's ``virtual`` bus
+stamps the send) where it lies within MAX_TRANSIT_S before the frame was read, else its arrival
+(an interface whose timestamps count from elsewhere): a frame read after a moment but on the bus
+before it (held by a busy loop, or by the thread that hands it over) is not taken for newer.
+The node is lost when no heartbeat arrived for 1.5 s (counted from opening while none has come). A frame whose length is not
 the spec's (0x181, 0x281: 8 bytes; 0x381: 4; 0x701: 1) is counted in
 ``frames_malformed`` and not read.
 """
@@ -34,6 +38,9 @@ if TYPE_CHECKING:
     import can
 
 STALE_AFTER = 0.5  # s
+#: s a frame may plausibly have waited between the interface's timestamp and its reading; a
+#: timestamp older (or in the future) counts from elsewhere, and the arrival stands for it
+MAX_TRANSIT_S = 1.0
 LOST_AFTER = 1.5  # s
 HEARTBEAT_OPERATIONAL = 0x05
 HEARTBEAT_PREOPERATIONAL = 0x7F
@@ -76,6 +83,7 @@ class AuxState:
     heartbeat_age: float = math.inf
     node_lost: bool = True
     ages: dict[str, float] = field(default_factory=dict)
+    bus_ages: dict[str, float] = field(default_factory=dict)  # s since each value's frame was on the bus
     link_error: str | None = None  # why the bus is down (its link failed; being opened again): the node is lost
 
     def stale(self, name: str) -> bool:
@@ -104,6 +112,7 @@ class AuxSensors:
         self._reader: CanReader | None = None  # once open (python-can imported when opened)
         self._values: dict[str, float] = {}
         self._times: dict[int, float] = {}  # CAN id offset -> arrival time
+        self._on_bus: dict[int, float] = {}  # CAN id offset -> when that frame was on the bus (clock's time)
         self._p_recess = [math.nan] * 4
         self._heartbeat: int | None = None
         self._opened_at = clock()
@@ -204,6 +213,7 @@ class AuxSensors:
             self.frames_malformed += 1
             return
         self._times[kind] = now
+        self._on_bus[kind] = now - _transit(msg)
         self.frames_received += 1
         arrival, self._arrival = self._arrival, asyncio.Event()
         arrival.set()
@@ -211,17 +221,13 @@ class AuxSensors:
     def latest(self) -> AuxState:
         """Snapshot of the latest values, their ages and the node's liveness."""
         now = self._clock()
-        age = {k: now - t for k, t in self._times.items()}
-        ages = {name: age.get(src, math.inf) for name, src in _SOURCE.items()}
-        # p_recess 4 comes in 0x380: the vector is as old as its older half
-        ages["p_recess"] = max(age.get(0x280, math.inf), age.get(0x380, math.inf))
+        ages, bus_ages = _ages(now, self._times), _ages(now, self._on_bus)
         v = self._values
         p_supply = float(v.get("p_supply", math.nan))
         p = self._p_recess
         p_recess = (p[0], p[1], p[2], p[3])
         beta = sum(p_recess) / 4 / p_supply if p_supply > 0 else math.nan
-        ages["beta"] = max(ages["p_recess"], ages["p_supply"])
-        hb_age = age.get(0x700, math.inf)
+        hb_age = now - self._times.get(0x700, -math.inf)
         return AuxState(
             t_recess=float(v.get("t_recess", math.nan)),
             t_groove=float(v.get("t_groove", math.nan)),
@@ -236,5 +242,24 @@ class AuxSensors:
             heartbeat_age=hb_age,
             node_lost=self.link_error is not None or now - self._times.get(0x700, self._opened_at) > LOST_AFTER,
             ages=ages,
+            bus_ages=bus_ages,
             link_error=self.link_error,
         )
+
+
+def _ages(now: float, times: dict[int, float]) -> dict[str, float]:
+    """Each value's age (s; inf never received) from its frame's time in `times` (CAN id offset ->
+    the clock's s): p_recess as old as the older of its two frames, beta as the older of p_recess
+    and p_supply."""
+    age = {k: now - t for k, t in times.items()}
+    ages = {name: age.get(src, math.inf) for name, src in _SOURCE.items()}
+    ages["p_recess"] = max(age.get(0x280, math.inf), age.get(0x380, math.inf))  # p_recess 4 in 0x380
+    ages["beta"] = max(ages["p_recess"], ages["p_supply"])
+    return ages
+
+
+def _transit(msg: can.Message) -> float:
+    """s between the interface's timestamp of `msg` and now, where plausible (0 to MAX_TRANSIT_S),
+    else 0 (the arrival stands for it)."""
+    transit = time.time() - msg.timestamp
+    return transit if 0.0 <= transit <= MAX_TRANSIT_S else 0.0

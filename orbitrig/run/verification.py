@@ -69,8 +69,8 @@ async def pressures_settled(
 ) -> list[str]:
     """The pressure problems (`pressure_problems` of the CAN node's `latest()` readings) left after
     waiting up to PRESSURE_SETTLE_S physical s (at least 3 wall s) for them to clear; empty: the
-    pressures are met by readings received after this check began (after the settings were made,
-    not the frame before them). The check before the spindles start (a sweep's VerifyPressures, a
+    pressures are met by readings on the bus after this check began (after the settings were made,
+    not a frame sent before them and read since: AuxState.bus_ages). The check before the spindles start (a sweep's VerifyPressures, a
     calibration step's slow roll); `before_each()` is awaited before each reading. `arrival()`:
     the event the node's next frame sets (AuxSensors.arrival): the readings are looked at as each
     frame arrives, else every LOOK_S."""
@@ -82,7 +82,9 @@ async def pressures_settled(
         arrived = None if arrival is None else arrival()  # taken before the look: no frame missed
         aux = latest()
         problems = pressure_problems(aux, p, v)
-        fresh = aux.ages.get("beta", math.inf) < time.monotonic() - t0  # p_recess and p_supply alike
+        # p_recess and p_supply alike on the bus after the check began: a frame read since but sent
+        # before (the settings not yet made) is not taken for the new pressures
+        fresh = aux.bus_ages.get("beta", math.inf) < time.monotonic() - t0
         if (fresh and not problems) or time.monotonic() > deadline:  # by then an old reading is stale
             return problems
         if arrived is None:

@@ -6,6 +6,7 @@ look waited up to 0.1 s more (at every point of a sweep)."""
 from __future__ import annotations
 
 import asyncio
+import struct
 import time
 
 import pytest
@@ -32,7 +33,15 @@ def _node(t0: float):
         age = now - arrived
         p = SETTINGS.recess_pressure
         ages = {"p_recess": age, "p_supply": age, "beta": age}
-        return AuxState(p_supply=p / 0.25, p_recess=(p,) * 4, beta=0.25, node_lost=False, ages=ages, heartbeat_age=age)
+        return AuxState(
+            p_supply=p / 0.25,
+            p_recess=(p,) * 4,
+            beta=0.25,
+            node_lost=False,
+            ages=ages,
+            bus_ages=ages,
+            heartbeat_age=age,
+        )
 
     return latest
 
@@ -68,3 +77,83 @@ async def test_with_the_arrival_event_the_frame_is_taken_as_it_arrives():
     assert min(took) >= FRAME_AFTER
     assert sorted(took)[2] < FRAME_AFTER + 0.02, took
     assert len(looks) <= 2 * 5  # one look as the check begins, one as the frame arrives
+
+
+def _pressure_frames(tx, recess: float, ratio: float, *, stamp: float | None = None) -> None:
+    """The node's two pressure frames (0x281, 0x381, docs/protocols/can-node.md) and a heartbeat:
+    recess pressure `recess` Pa in all four recesses, supply recess / ratio; `stamp` the bus's
+    timestamp (epoch s; None: now)."""
+    import can
+
+    kpa = round(recess / 1e3)
+    frames = [
+        (0x701, bytes([0x05])),
+        (0x281, struct.pack("<HHHH", round(recess / ratio / 1e3), kpa, kpa, kpa)),
+        (0x381, struct.pack("<HH", kpa, 0)),
+    ]
+    for can_id, data in frames:
+        msg = can.Message(arbitration_id=can_id, data=data, is_extended_id=False)
+        if stamp is not None:
+            msg.timestamp = stamp
+        tx.send(msg)
+
+
+async def test_a_frame_sent_before_the_check_and_read_after_it_is_not_taken():
+    """The settings were just made (the supply left at a wrong 0.30 MPa recess pressure) while a
+    frame sent before them, with the old right pressures, was still on its way (a busy loop, the
+    thread that hands python-can's virtual bus over): read after the check began, it is not taken
+    for the new pressures (its bus timestamp is older); the frames sent after say what is wrong.
+    Before, that frame passed the check and the spindles started on the wrong pressure (seen once
+    in the suite under load, calibration's slow roll)."""
+    import can
+
+    from daq.aux import AuxSensors
+
+    channel = f"pressure-check-{time.monotonic_ns()}"
+    tx = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+    try:
+        async with AuxSensors(channel, interface="virtual") as aux:
+            t0 = time.monotonic()
+            _pressure_frames(tx, SETTINGS.recess_pressure, 0.25, stamp=time.time() - 0.05)  # before t0
+
+            async def node_now_wrong():
+                while True:
+                    await asyncio.sleep(0.1)
+                    _pressure_frames(tx, 0.30 * MPA, 0.25)
+
+            sending = asyncio.create_task(node_now_wrong())
+            try:
+                problems = await pressures_settled(
+                    aux.latest, SETTINGS, Verify(), TimeScale(25.0), arrival=lambda: aux.arrival
+                )
+            finally:
+                sending.cancel()
+            took = time.monotonic() - t0
+            assert aux.latest().bus_ages["beta"] < 0.2  # the wrong frames were read and judged
+    finally:
+        tx.shutdown()
+    assert problems and problems[0].startswith("recess pressure 0.3000 MPa, want 0.4826 MPa"), problems
+    assert took >= 3.0  # the whole wait: no frame passed it
+
+
+async def test_bus_ages_count_from_the_interfaces_timestamp_where_it_is_plausible():
+    """A frame stamped 0.2 s before it is read is 0.2 s old on the bus, 0 s since its arrival; a
+    timestamp that counts from elsewhere (python-can's serial interface: the sender's milliseconds
+    mod 2^32) leaves the arrival to stand for it."""
+    import can
+
+    from daq.aux import AuxSensors
+
+    channel = f"pressure-stamp-{time.monotonic_ns()}"
+    tx = can.Bus(interface="virtual", channel=channel, preserve_timestamps=True)
+    try:
+        async with AuxSensors(channel, interface="virtual") as aux:
+            for stamp, on_bus in ((time.time() - 0.2, 0.2), (12345.678, 0.0)):
+                n = aux.frames_received
+                _pressure_frames(tx, SETTINGS.recess_pressure, 0.25, stamp=stamp)
+                while aux.frames_received < n + 3:
+                    await asyncio.sleep(0.005)
+                s = aux.latest()
+                assert s.bus_ages["beta"] == pytest.approx(on_bus + s.ages["beta"], abs=0.05), (s.bus_ages, s.ages)
+    finally:
+        tx.shutdown()
