@@ -17,7 +17,6 @@ from pathlib import Path
 import typer
 
 from orbitrig.cli.plain_table import OutputFormat, PlainTable, render, wrap
-from reduction.diagnostics import FIT_KEYS
 from rigunits import coefficient_unit
 
 
@@ -149,10 +148,6 @@ def _print_readable(result, path: Path, fmt: OutputFormat) -> None:
     typer.echo(render(tables, fmt))
 
 
-#: the force table's columns: the contract's ``fit`` keys, each with its unit (pint parses them)
-FIT_COLUMNS = tuple(zip(FIT_KEYS, ("Hz", "%", "deg", "%", "deg")))
-
-
 def _coefficient_table(result, full: bool = False) -> PlainTable:
     """A row per coefficient: value, std error and interval in the row's ``unit`` (SI)."""
     t = PlainTable(title="Coefficients (SI, Omega in rad/s)")
@@ -187,10 +182,19 @@ def _covariance_table(result, full: bool = False) -> PlainTable | None:
     return t
 
 
+def _fit_columns() -> tuple[tuple[str, str], ...]:
+    """The force table's columns: the contract's ``fit`` keys, each with its unit (pint parses
+    them); imported here, not at the top: `orbitrig --help` does not load numpy."""
+    from reduction.diagnostics import FIT_KEYS
+
+    return tuple(zip(FIT_KEYS, ("Hz", "%", "deg", "%", "deg")))
+
+
 def _force_table(result, full: bool = False) -> PlainTable:
     f = PlainTable(title="Reproduced vs measured force (reproduced minus measured)")
-    for key, unit in FIT_COLUMNS:
+    columns = _fit_columns()
+    for key, unit in columns:
         f.add_column(f"{key} [{unit}]", justify="right")
     for row in result.fit:
-        f.add_row(*(_fmt(row[key], full) for key, _ in FIT_COLUMNS))
+        f.add_row(*(_fmt(row[key], full) for key, _ in columns))
     return f

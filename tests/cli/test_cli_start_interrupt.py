@@ -42,3 +42,13 @@ def test_the_installed_command_and_python_m_start_the_same_way():
     assert 'orbitrig = "orbitrig.__main__:main"' in text
     done = orbitrig("--version", timeout=60)
     assert done.returncode == 0 and done.stdout.startswith("orbitrig "), done.stderr
+
+
+def test_the_command_line_loads_without_numpy():
+    """`orbitrig --help` and `--version` stay fast (bench/bench_startup.py: at most 0.6 x numpy +
+    scipy.linalg): loading every command's module imports none of the heavy libraries (the
+    reduction's Enums, plain Python, are read at registration); each command imports them when it runs."""
+    probe = "import sys, orbitrig.cli; print(sorted(m for m in sys.modules if m.split('.')[0] in ('numpy', 'scipy', 'pandas', 'h5py', 'matplotlib', 'sqlalchemy')))"
+    done = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"
