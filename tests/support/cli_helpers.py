@@ -8,7 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from support.paths import ROOT
+from .paths import ROOT
 
 
 def orbitrig_cmd(*args: str) -> list[str]:
