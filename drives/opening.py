@@ -50,8 +50,15 @@ async def clear_stale_comm_loss(drive: Drive) -> DriveStatus:
 
 
 def watchdog_words(drives: Sequence[Drive]) -> str:
-    """What stops drives nobody polls: their comm-loss watchdog as last read (COMM_LOSS_TIMEOUT)."""
-    times = [d.params.comm_loss_timeout if d.params else 0.0 for d in drives]
-    if all(t > 0 for t in times):
-        return f"without a polling client their comm-loss watchdog ramps them down after {max(times):g} s"
-    return "their comm-loss watchdog is not known to be armed (COMM_LOSS_TIMEOUT 0 or unread): nothing stops them"
+    """What stops drives once nobody polls them, as their parameters last read: their comm-loss
+    watchdog (COMM_LOSS_TIMEOUT) in seconds where every one is armed; else the drives whose
+    watchdog reads 0, or that it is not known (parameters unread), and the rig's emergency stop."""
+    times = [(d, d.params.comm_loss_timeout if d.params is not None else None) for d in drives]
+    armed = [t for _, t in times if t]
+    if len(armed) == len(times):
+        return f"the drives' comm-loss watchdog ramps them down {max(armed):g} s after the last request"
+    off = [f"{d.name} (id {d.device_id})" for d, t in times if t == 0]
+    if off:
+        where = ", ".join(off)
+        return f"COMM_LOSS_TIMEOUT reads 0 (no watchdog) on {where}: nothing stops it; use the rig's emergency stop"
+    return "their comm-loss watchdog is not known (parameters not read); use the rig's emergency stop"

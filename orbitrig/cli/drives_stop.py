@@ -32,25 +32,13 @@ def reason(err: BaseException) -> str:
 
 def stop_outcome(rig) -> str:
     """What became of the stop a failed RigDrives session sent on its way out."""
+    from drives.opening import watchdog_words
+
     if rig is None or rig.link.connects == 0:
         return "nothing sent"
     if rig.stop_errors:
-        return f"stop NOT delivered ({rig.stop_errors[0]}); {watchdog_words(rig)}"
+        return f"stop NOT delivered ({rig.stop_errors[0]}); {watchdog_words((rig.spin, rig.orbit))}"
     return "stop sent to both drives"
-
-
-def watchdog_words(rig) -> str:
-    """What stops the drives once nobody polls them, as their parameters read (on entry): their
-    comm-loss watchdog, in seconds, only where it is armed."""
-    times = [(d, d.params.comm_loss_timeout if d.params is not None else None) for d in (rig.spin, rig.orbit)]
-    armed = [t for _, t in times if t]
-    if len(armed) == len(times):
-        return f"the drives' comm-loss watchdog ramps them down {max(armed):g} s after the last request"
-    off = [f"{d.name} (id {d.device_id})" for d, t in times if t == 0]
-    if off:
-        where = ", ".join(off)
-        return f"COMM_LOSS_TIMEOUT reads 0 (no watchdog) on {where}: nothing stops it; use the rig's emergency stop"
-    return "their comm-loss watchdog is not known (parameters not read); use the rig's emergency stop"
 
 
 #: what to check when the drives' link could not be opened
