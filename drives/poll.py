@@ -7,7 +7,8 @@ source of `state`, and the interlock:
   confirmed both: `started`) one found no longer running, in local control or at another
   reference (another client, the drive's keypad: DriveOffCommand), has both drives ramped to
   zero before it is recorded in `failure` (the owner raises it); so does a poll that fails on
-  a bug (not left turning unwatched: the poll's reads keep their watchdog fed).
+  a bug (not left turning unwatched: the poll's reads keep their watchdog fed); such a poll
+  also sends a stop that is owed again (it cannot find the drives running to do so).
 - A poll's read gives way to a stop on TCP (drives/link.py): that poll is skipped, not failed.
 - A failed poll is counted (`state.poll_failures`, logged); the link is
   declared lost only after `link_loss_polls` consecutive failures (an isolated
@@ -218,10 +219,11 @@ class DrivePoll:
             except asyncio.CancelledError:
                 raise
             except Exception as err:  # a bug must not end the heartbeat, nor leave the drives turning unwatched
-                if not failing or self.command is not None:
-                    log.exception("drive poll failed" + ("; ramping both drives to zero" if self.command else ""))
+                stop = self.command is not None or (self.owed is not None and not self._sending)
+                if not failing or stop:
+                    log.exception("drive poll failed" + ("; ramping both drives to zero" if stop else ""))
                 failing = True
-                if self.command is not None:  # what it can no longer judge is stopped, as after a trip
+                if stop:  # what it can no longer judge is stopped, as after a trip; a stop owed is sent again
                     try:
                         await asyncio.shield(self._send(bool(self.owed)))
                     except Exception:  # the stop's own failure must not end the heartbeat either
