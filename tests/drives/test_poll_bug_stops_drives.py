@@ -11,7 +11,7 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, open_rig
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, open_rig, wait_until
 
 from drives.errors import DriveError
 from drives.limits import DriveLimits
@@ -71,6 +71,6 @@ async def test_a_poll_that_fails_on_a_bug_while_a_stop_is_owed_sends_it_again(tc
             lambda: sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP, 3.0, "the owed stop at both drives"
         )
         assert took < 1.0, took  # poll interval 50 ms: the first poll that reaches them sends it
-        assert rig._poll.owed is None  # delivered to both now
+        await wait_until(lambda: rig._poll.owed is None, 2.0, "the owed stop delivered to both")
         monkeypatch.undo()
         await sim.wait_stopped(10.0)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import time
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, RPM, SimDrives, open_rig
+from support.drives_testkit import CW_RAMP_STOP, RPM, SimDrives, open_rig, wait_until
 
 from drives.drive import Drive
 from drives.errors import DriveError
@@ -48,6 +48,7 @@ async def test_a_drive_run_again_after_the_stop_is_stopped_again(tcp_sim, how):
         took = await sim.wait_for(again, 2.0, "the stop sent again")
         assert took < 0.5, took  # poll interval 50 ms
         await sim.wait_stopped(timeout=5.0)
+        await wait_until(lambda: rig._poll.failure is not None, 2.0, "the finding recorded")  # once the stop is out
         with pytest.raises(DriveError, match=r"spin drive \(id 1\).*after the stop") as info:
             rig.check()
         assert "the ramp stop (OFF1) is sent again" in str(info.value), info.value
