@@ -9,6 +9,7 @@ client (drives.drive.Drive on a link of its own), the keypad the drive model's o
 
 from __future__ import annotations
 
+import asyncio
 import time
 
 import pytest
@@ -57,3 +58,27 @@ async def test_a_drive_run_again_after_the_stop_is_stopped_again(tcp_sim, how):
         await rig.reset_faults()
         await rig.set_speeds(500 * RPM, 100 * RPM)  # a new command: the drives run again
         await rig.wait_settled(hold=0.05, timeout=10.0)
+
+
+@pytest.mark.parametrize("slow_drives", ["tcp"], indirect=True)
+async def test_a_drive_run_again_during_the_wait_for_standstill_is_stopped_again(slow_drives):
+    """`stop` (`orbitrig drives stop`) waits for standstill along slow ramps; another master runs the
+    spin drive again meanwhile: it gets the stop again at the next poll and the wait ends at
+    standstill (before: it ran on at 1500 rpm and the wait ended in a timeout)."""
+    sim = slow_drives
+    async with open_rig(sim, LIMITS, comm_loss_timeout=5.0) as rig:
+        await rig.set_speeds(1500 * RPM, -500 * RPM)
+        await rig.wait_settled(hold=0.05, timeout=10.0)
+        stopping = asyncio.ensure_future(rig.stop(wait=True))
+        await sim.wait_for(lambda: sim.regs(1)["CW"] == CW_RAMP_STOP, 2.0, "the stop word")
+        await asyncio.sleep(0.1)  # a poll read the drives stopping: the stop both took
+        words, t0 = sim.models[1].control_words, time.monotonic()
+        await _run_again(sim, "other")
+        again = lambda: any(w == CW_RAMP_STOP and t > t0 for t, w in list(words))  # noqa: E731
+        took = await sim.wait_for(again, 2.0, "the stop sent again")
+        assert took < 0.5, took
+        await asyncio.wait_for(stopping, 10.0)  # at standstill, no timeout
+        assert sim.regs(1)["ACT"] == 0 and sim.regs(2)["ACT"] == 0
+        await wait_until(lambda: rig._poll.failure is not None, 2.0, "the finding recorded")
+        with pytest.raises(DriveError, match="started again by another client"):
+            rig.check()
