@@ -5,6 +5,9 @@
   running at its reference under network control (`drives.state.off_command`).
 - `running_while_owed`: with no speed commanded and a stop owed, a drive found running or
   with a nonzero REF: the stop it missed is sent again.
+- `running_after_stop`: with no speed commanded since a stop both drives took, a drive found
+  running (operation enabled) again: started by another client or at the drive; the stop is
+  sent again.
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ from collections.abc import Sequence
 
 from drives import registers as R
 from drives.drive import Drive, DriveStatus
-from drives.errors import DriveError, DriveFaultError, DriveLinkError
+from drives.errors import DriveError, DriveFaultError, DriveLinkError, DriveOffCommand
 from drives.limits import fmt_speed
 from drives.state import off_command
 
@@ -56,4 +59,23 @@ def running_while_owed(statuses: Sequence[DriveStatus], *, emergency: bool, why:
         drive=st.device_id,
         drive_name=st.name,
         register=R.CW,
+    )
+
+
+def running_after_stop(statuses: Sequence[DriveStatus], *, emergency: bool, why: str = "") -> DriveOffCommand | None:
+    """The first drive of `statuses` running (operation enabled) although it took the stop since
+    which no speed was commanded (`emergency`: that stop was OFF3), as the failure; `why` leads
+    the message. None if neither runs."""
+    running = [st for st in statuses if st.running]
+    if not running:
+        return None
+    st, kind = running[0], "emergency stop (OFF3)" if emergency else "ramp stop (OFF1)"
+    local = "" if st.remote else ", in local control (SW REMOTE = 0)"
+    return DriveOffCommand(
+        f"{why}found {st.state}{local}, REF {fmt_speed(st.reference)}, ACT {fmt_speed(st.actual)}, after the "
+        f"stop it took, no speed commanded since: started again by another client or at the drive; "
+        f"the {kind} is sent again",
+        drive=st.device_id,
+        drive_name=st.name,
+        register=R.SW,
     )

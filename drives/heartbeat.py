@@ -37,7 +37,9 @@ def fit_loss_polls(
         return 1
     if count * gap < shortest:
         return count
-    fit = max(1, math.ceil(shortest / gap) - 1)  # fit x gap < watchdog
+    fit = max(1, math.ceil(shortest / gap) - 1)  # fit x gap < watchdog, but for rounding:
+    while fit > 1 and fit * gap >= shortest:  # 0.3 s / 0.1 s is 3.0000000000000004 in floats
+        fit -= 1
     (log.warning if given else log.info)(
         "link_loss_polls %d x (request timeout %.2f s + poll interval %.2f s) = %.2f s "
         "is not below the drives' COMM_LOSS_TIMEOUT of %.1f s: the link is declared "

@@ -7,7 +7,8 @@ source of `state`, and the interlock:
   confirmed both: `started`) one found no longer running, in local control or at another
   reference (another client, the drive's keypad: DriveOffCommand), has both drives ramped to
   zero before it is recorded in `failure` (the owner raises it); so does a poll that fails on
-  a bug (not left turning unwatched: the poll's reads keep their watchdog fed).
+  a bug (not left turning unwatched: the poll's reads keep their watchdog fed); such a poll
+  also sends a stop that is owed again (it cannot find the drives running to do so).
 - A poll's read gives way to a stop on TCP (drives/link.py): that poll is skipped, not failed.
 - A failed poll is counted (`state.poll_failures`, logged); the link is
   declared lost only after `link_loss_polls` consecutive failures (an isolated
@@ -21,7 +22,9 @@ source of `state`, and the interlock:
   (`owed`) until a later stop reaches both drives or a new speed is commanded.
   A poll (after a reconnect or not) that finds a drive running, or with a nonzero
   REF, while no speed is commanded and a stop is owed sends the owed stop again
-  (the emergency stop if an emergency stop is owed) and records the failure.
+  (the emergency stop if an emergency stop is owed) and records the failure. A stop both
+  drives took holds until a new speed is commanded: a drive found running again after it
+  (another client, its keypad) gets it again, and the failure is recorded.
 - `wait_stopped`: the owner's wait for standstill after a stop, and a drive that tripped
   meanwhile (StopTripError, `RigDrives.stop`); it asks for polls as the wait for the setpoint does.
 """
@@ -38,7 +41,7 @@ from collections.abc import Sequence
 from drives import registers as R
 from drives.drive import Drive, DriveStatus
 from drives.errors import DriveError, DriveFaultError, DriveGaveWay, DriveTimeoutError, StopTripError
-from drives.findings import reconnect_problem, running_while_owed, trip_fault
+from drives.findings import reconnect_problem, running_after_stop, running_while_owed, trip_fault
 from drives.heartbeat import fit_loss_polls
 from drives.link import ModbusLink
 from drives.poll_pace import PollPace, wait_tick
@@ -95,6 +98,7 @@ class DrivePoll:
         self._owed_at = 0.0  # monotonic s the owed stop ended: statuses read before it show nothing
         self._sending = 0  # stops under way: what they reached is not known yet
         self._epoch = 0  # speed commands so far: a stop asked before the last one owes nothing
+        self._held: tuple[float, bool] | None = None  # (monotonic s, emergency) of a stop both took, none since
 
     def acknowledge(self) -> None:
         """Forget the recorded failure; trips read before now are not handled again."""
@@ -105,7 +109,7 @@ class DrivePoll:
     def commanded(self, refs: tuple[int, int]) -> None:
         """Both drives are being run at raw REFs `refs` (spin, orbit): no stop is owed any more."""
         self._epoch += 1
-        self.owed, self.following, self._started_at = None, False, None
+        self.owed, self.following, self._started_at, self._held = None, False, None, None
         self.command = refs
 
     def started(self) -> None:
@@ -133,7 +137,7 @@ class DrivePoll:
         if epoch != self._epoch:
             return
         if not task.cancelled() and task.exception() is None and not task.result():
-            self.owed = None
+            self.owed, self._held = None, (time.monotonic(), emergency or bool(self._held and self._held[1]))
             return
         self.owed = bool(self.owed) or emergency
         self._owed_at = time.monotonic()
@@ -218,10 +222,11 @@ class DrivePoll:
             except asyncio.CancelledError:
                 raise
             except Exception as err:  # a bug must not end the heartbeat, nor leave the drives turning unwatched
-                if not failing or self.command is not None:
-                    log.exception("drive poll failed" + ("; ramping both drives to zero" if self.command else ""))
+                stop = self.command is not None or (self.owed is not None and not self._sending)
+                if not failing or stop:
+                    log.exception("drive poll failed" + ("; ramping both drives to zero" if stop else ""))
                 failing = True
-                if self.command is not None:  # what it can no longer judge is stopped, as after a trip
+                if stop:  # what it can no longer judge is stopped, as after a trip; a stop owed is sent again
                     try:
                         await asyncio.shield(self._send(bool(self.owed)))
                     except Exception:  # the stop's own failure must not end the heartbeat either
@@ -295,7 +300,7 @@ class DrivePoll:
             return statuses
         log.error("drive link restored after %.1f s; %s; stopping both", down, problem)
         self._trip_handled = True
-        await asyncio.shield(self._send(bool(self.owed)))
+        await asyncio.shield(self._send(self._again()))
         self.command = None  # with the failure, no await between: wait_settled sees both
         self.fail(problem)
         return statuses
@@ -304,8 +309,15 @@ class DrivePoll:
         """With no speed commanded and a stop owed: the first drive found running, or with a
         nonzero REF, in `statuses` (all read after the owed stop ended), as the failure to record.
         None if there is none; drives found neither running nor with a REF owe nothing more."""
-        if self.owed is None or self.command is not None or self._sending:
+        if self.command is not None or self._sending:
             return None
+        if self.owed is None:  # a stop both took: a drive running again was started by someone else
+            held = self._held
+            return (
+                None
+                if held is None or any(st.time <= held[0] for st in statuses)
+                else (running_after_stop(statuses, emergency=held[1], why=why))
+            )
         if any(st.time <= self._owed_at for st in statuses):
             return None
         problem = running_while_owed(statuses, emergency=self.owed, why=why)
@@ -314,13 +326,17 @@ class DrivePoll:
             self.owed = None
         return problem
 
+    def _again(self) -> bool:
+        """Whether the stop sent again is the emergency stop: one owed, or (none owed) the one held."""
+        return bool(self.owed) if self.owed is not None else bool(self._held and self._held[1])
+
     async def _check_owed(self, statuses: Sequence[DriveStatus]) -> None:
         """A drive found running while a stop is owed (`_owed_problem`): the stop again, and the failure."""
         problem = self._owed_problem(statuses)
         if problem is None:
             return
         log.error("%s", problem)
-        await asyncio.shield(self._send(bool(self.owed)))
+        await asyncio.shield(self._send(self._again()))
         self.fail(problem)
 
     async def _check_trips(self, statuses: list[DriveStatus]) -> None:

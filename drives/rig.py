@@ -23,7 +23,8 @@ Safety rules this class keeps:
   reconnecting and, once the link is back, verifies both drives against what was commanded
   before anything goes on; drives found tripped or off their reference are
   stopped and the loss is raised. A stop a drive missed is owed: a drive found
-  running while it is owed gets it again, and that is raised (drives/poll.py).
+  running while it is owed gets it again, and that is raised (drives/poll.py); so does a drive
+  found running again after a stop both took, no speed commanded since (another client, its keypad).
 - `stop` (waiting) raises StopTripError for a drive that tripped during the stop,
   once both are at standstill (the message says so) or the wait ends.
 - Any exception inside `set_speeds`, and every exit of the context, ramps both drives to zero

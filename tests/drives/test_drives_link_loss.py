@@ -261,3 +261,12 @@ async def test_link_loss_polls_lowered_to_fit_the_watchdog(tcp_sim, caplog):
     async with rig(tcp_sim, timeout=0.2, comm_loss_timeout=1.0, link_loss_polls=3) as r:
         assert r.link_loss_polls == 3  # 3 x 0.25 s = 0.75 s fits
     assert "failed poll(s) instead" not in caplog.text
+
+
+async def test_link_loss_polls_fitted_strictly_below_the_watchdog_in_float_too(tcp_sim):
+    # 0.3 s watchdog (3 x 0.1 s units read back: 0.30000000000000004) and a gap of
+    # 0.05 + 0.05 s: three polls are exactly the watchdog, not below it -> 2
+    async with rig(tcp_sim, timeout=0.05, poll_interval=0.05, comm_loss_timeout=0.3, link_loss_polls=5) as r:
+        watchdog = r.spin.params.comm_loss_timeout
+        assert r.link_loss_polls * (0.05 + 0.05) < watchdog, (r.link_loss_polls, watchdog)
+        assert r.link_loss_polls == 2

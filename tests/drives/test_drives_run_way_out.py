@@ -58,14 +58,26 @@ async def test_a_second_signal_during_the_ramp_is_an_emergency_stop(slow_drives)
 
 
 async def test_a_stop_not_confirmed_is_said_and_fails(slow_drives):
-    """The spin drive taken over by its keypad after the stop word: no standstill to confirm."""
+    """The spin drive taken over by its keypad after the stop word and held there (a drive in local
+    control that ignores network words; the simulator's takes one with REMOTE = 1 back, so the
+    keypad is pressed again every 10 ms): the stop sent again does not stop it, no standstill to
+    confirm."""
     sim = slow_drives
     proc = await _run(sim, "--settle", "30")
     await sim.wait_for(lambda: _at_setpoint(sim), 20, "at setpoint")
     proc.send_signal(signal.SIGINT)
     await sim.wait_for(lambda: _ramping(sim), 10, "ramp stop")
-    sim.models[1].local_control(1000.0)
-    code, err, _ = await exit_with_registers(proc, sim)
+
+    async def keypad() -> None:
+        while True:
+            sim.models[1].local_control(1000.0)
+            await asyncio.sleep(0.01)
+
+    held = asyncio.ensure_future(keypad())
+    try:
+        code, err, _ = await exit_with_registers(proc, sim)
+    finally:
+        held.cancel()
     assert code == 1, err
     assert "interrupted by SIGINT; drives not confirmed stopped: DriveTimeoutError" in err
     assert "both drives stopped" not in err and "Traceback" not in err

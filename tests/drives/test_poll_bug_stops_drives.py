@@ -11,7 +11,7 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, open_rig
+from support.drives_testkit import CW_RAMP_STOP, CW_RUN, RPM, open_rig, wait_until
 
 from drives.errors import DriveError
 from drives.limits import DriveLimits
@@ -47,3 +47,30 @@ async def test_a_poll_that_fails_on_a_bug_ramps_both_commanded_drives_to_zero(tc
     failed = [r for r in caplog.records if r.getMessage().startswith("drive poll failed")]
     assert [r.getMessage() for r in failed] == ["drive poll failed; ramping both drives to zero"], len(failed)
     assert failed[0].exc_info is not None  # its traceback
+
+
+async def test_a_poll_that_fails_on_a_bug_while_a_stop_is_owed_sends_it_again(tcp_sim, monkeypatch):
+    """A stop no drive took is owed; the polls after it fail on a bug, so none of them can find
+    the drives still running: the owed stop goes out again at the first failed poll that
+    reaches the drives, as a poll that read them would send it."""
+    sim = tcp_sim
+    async with open_rig(sim, LIMITS, comm_loss_timeout=5.0) as rig:  # the watchdog stops nothing here
+        await rig.set_speeds(1000 * RPM, -500 * RPM)
+        await rig.wait_settled(hold=0.1, timeout=10.0)
+        sim.endpoint.set_unresponsive(True)
+        with pytest.raises(DriveError, match="no answer"):
+            await rig.stop(wait=False)
+        assert rig._poll.owed is False and sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RUN
+
+        def broken(self, statuses, *, link_ok, link_error=None):
+            raise ValueError("status word decoding bug")
+
+        monkeypatch.setattr(DrivePoll, "publish", broken)  # every poll from now on fails
+        sim.endpoint.set_unresponsive(False)
+        took = await sim.wait_for(
+            lambda: sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP, 3.0, "the owed stop at both drives"
+        )
+        assert took < 1.0, took  # poll interval 50 ms: the first poll that reaches them sends it
+        await wait_until(lambda: rig._poll.owed is None, 2.0, "the owed stop delivered to both")
+        monkeypatch.undo()
+        await sim.wait_stopped(10.0)

@@ -7,10 +7,11 @@ exception answers are made by the test (the simulator's drives are never busy)."
 from __future__ import annotations
 
 import pytest
-from support.drives_testkit import CW_EMERGENCY, CW_RUN, SimDrives
+from support.drives_testkit import CW_EMERGENCY, CW_RUN, RPM, SimDrives, open_rig
 
 from drives.drive import Drive
-from drives.errors import DriveExceptionResponse
+from drives.errors import DriveError, DriveExceptionResponse
+from drives.limits import DriveLimits
 from drives.link import ModbusLink
 from drives.pair import drive_names
 from drives.stop import send_stop
@@ -72,3 +73,23 @@ async def test_stop_word_a_drive_keeps_refusing_as_busy_is_tried_write_retries_t
     assert len(spin) == 3, f"the busy spin drive got {len(spin)} tries of its stop word, not 1 + 2 retries"
     assert len(orbit) == 1, f"the orbit drive's device failure (04) was retried: {len(orbit)} tries"
     assert [(e.drive, e.exception_code) for e in errors if isinstance(e, DriveExceptionResponse)] == [(1, 6), (2, 4)]
+
+
+async def test_a_drive_refusing_every_stop_word_with_03_still_takes_its_zero_reference_and_is_owed(sim, monkeypatch):
+    """The spin drive answers every control word with 03 (illegal value; not retried) while
+    running under RigDrives: the stop raises naming it, its zero reference still brings it to
+    standstill (REF 0 is taken), the orbit drive stops on its word, and the poll keeps sending
+    the owed stop while the spin drive reads operation enabled, raised by `check`."""
+    async with open_rig(sim, DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM), comm_loss_timeout=5.0) as rig:
+        await rig.set_speeds(1000 * RPM, -500 * RPM)
+        await rig.wait_settled(hold=0.05, timeout=10.0)
+        received = refuse_control_words(sim, 1, 0x03, 10**6, monkeypatch)
+        with pytest.raises(DriveExceptionResponse, match=r"spin drive \(id 1\), register CW"):
+            await rig.stop(wait=False)
+        assert received == [0x047E]  # one try: 03 is not retried
+        assert sim.regs(1)["REF"] == 0 and sim.regs(2)["CW"] == 0x047E
+        await sim.wait_stopped(timeout=5.0)  # the spin drive along its ramp to REF 0
+        await sim.wait_for(lambda: len(received) >= 3, 2.0, "the owed stop sent again")
+        with pytest.raises(DriveError, match="while no speed is commanded: the ramp stop"):
+            rig.check()
+        monkeypatch.undo()  # the spin drive takes control words again: the exit's stop reaches it

@@ -10,13 +10,15 @@ import asyncio
 import time
 
 import pytest
-from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, SimDrives
+from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, CW_RUN, RPM, SimDrives, open_rig
 
 from drives.drive import Drive
-from drives.errors import DriveTimeoutError
+from drives.errors import DriveError, DriveTimeoutError
+from drives.limits import DriveLimits
 from drives.link import ModbusLink
 from drives.pair import drive_names
 from drives.stop import StopSender
+from orbitrig.run.safe_stop import stop_drives
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -119,3 +121,29 @@ async def test_stop_emergency_asked_during_a_ramp_stops_zero_references_goes_bef
     # before the ramp put it there (a loaded machine); never its retries as well
     assert ignored <= 1, f"{ignored} requests to the silent drive between the spin drive's REF 0 and its OFF3"
     assert seq == [(CW, CW_RAMP_STOP), (REF, 0), (CW, CW_EMERGENCY), (REF, 0)], show(seq)
+
+
+async def test_an_abort_while_the_ramp_stops_words_go_out_takes_them_over(sim, monkeypatch):
+    """`orbitrig.run.safe_stop.stop_drives` (a second signal on `drives stop`, `run --hold`,
+    calibrate): an abort while the ramp stop's words are still going out (the silent orbit
+    drive's tries) has the emergency stop take the ramp stop over, as `stop_now` does. Request
+    timeout 0.25 s: before the fix the spin drive got OFF3 only once the ramp stop was done
+    (the orbit drive's retries and both zero references), about 1.3 s after the abort."""
+    limits = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM)
+    async with open_rig(sim, limits, timeout=0.25, comm_loss_timeout=5.0) as rig:  # no watchdog trip here
+        await rig.set_speeds(1000 * RPM, -500 * RPM)
+        await rig.wait_settled(hold=0.05, timeout=10.0)
+        spin_writes = record_writes(sim, 1, monkeypatch)
+        silence(sim, 2, monkeypatch)
+        aborted = asyncio.Event()
+        stopping = asyncio.ensure_future(stop_drives(rig, aborted, emergency=False, timeout=5.0))
+        await sim.wait_for(lambda: sim.regs(1)["CW"] == CW_RAMP_STOP, 3, "OFF1 at the spin drive")
+        t_asked = time.monotonic()
+        aborted.set()
+        with pytest.raises(DriveError, match="orbit"):  # the silent drive took no stop
+            await stopping
+        monkeypatch.undo()  # the orbit drive answers again: the exit's stop reaches it
+    seq = [(a, v) for _, a, v in spin_writes]
+    off3 = next((t for t, a, v in spin_writes if (a, v) == (CW, CW_EMERGENCY)), None)
+    assert off3 is not None, show(seq)
+    assert off3 - t_asked < 0.6, f"the spin drive got OFF3 {off3 - t_asked:.3f} s after the abort: {show(seq)}"
