@@ -60,25 +60,27 @@ def _dir(path):
     return path
 
 
+def _nohup_sweep_sent(out, sig) -> tuple[NohupSweep, int, str]:
+    """A sweep under nohup in `out`, sent `sig` once its speeds are set: (it, exit status, stderr)."""
+    with sweeps(lambda *extra: NohupSweep(_dir(out), *extra)) as start:
+        s = start()
+        s.wait_log("[running] speeds set: spin 1000 rpm")
+        s.proc.send_signal(sig)
+        code, err = s.finish()
+    return s, code, err
+
+
 def test_a_sweep_started_under_nohup_goes_on_when_its_terminal_closes(tmp_path):
     """`nohup orbitrig sweep ...`: the hang-up stays ignored, as the operator asked (before, the
     sweep installed its own handler and stopped when the terminal closed): the run completes, and
     says at its start that SIGHUP is ignored. SIGTERM still stops both drives with a ramp."""
-    with sweeps(lambda *extra: NohupSweep(_dir(tmp_path / "hup"), *extra)) as start:
-        s = start()
-        s.wait_log("[running] speeds set: spin 1000 rpm")
-        s.proc.send_signal(signal.SIGHUP)
-        code, err = s.finish()
-        assert code == 0, err
-        words = " ".join(err.split())  # as wrapped on the terminal's width
-        note = "note: started with SIGHUP ignored (nohup, or a background job): left ignored (closing the terminal"
-        assert note + " does not stop it)" in words, err
-        assert s.status() == "completed" and "SIGHUP" not in s.text()
-    with sweeps(lambda *extra: NohupSweep(_dir(tmp_path / "term"), *extra)) as start:
-        s = start()
-        s.wait_log("[running] speeds set: spin 1000 rpm")
-        s.proc.send_signal(signal.SIGTERM)
-        code, err = s.finish()
+    s, code, err = _nohup_sweep_sent(tmp_path / "hup", signal.SIGHUP)
+    assert code == 0, err
+    words = " ".join(err.split())  # as wrapped on the terminal's width
+    note = "note: started with SIGHUP ignored (nohup, or a background job): left ignored (closing the terminal"
+    assert note + " does not stop it)" in words, err
+    assert s.status() == "completed" and "SIGHUP" not in s.text()
+    s, code, err = _nohup_sweep_sent(tmp_path / "term", signal.SIGTERM)
     assert code == 3, err
     assert "run stopped: stopped at once by SIGTERM" in err and "Traceback" not in err
     log = s.text()
