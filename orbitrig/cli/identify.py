@@ -110,7 +110,11 @@ def _write_json(result, rows: int = 20000) -> None:
 def _print_readable(result, path: Path, fmt: OutputFormat) -> None:
     """The fit's summary lines (text only) and its tables (coefficients, forces, covariance):
     text rounds the numbers for reading, CSV has every number in full."""
+    import math
+
     import numpy as np
+
+    from reduction.statistics import chi2_tail
 
     full = fmt == OutputFormat.CSV
     if fmt == OutputFormat.TEXT:
@@ -126,7 +130,8 @@ def _print_readable(result, path: Path, fmt: OutputFormat) -> None:
         )
         fit = f"AIC {number(result.aic)}, BIC {number(result.bic)}"
         if result.chi2 is not None:
-            fit = f"chi2 {result.chi2:.4g} (p = {number(result.p_value)}), " + fit
+            tail = chi2_tail(result.chi2, result.dof, math.nan if result.p_value is None else result.p_value)
+            fit = f"chi2 {result.chi2:.4g} ({tail}), " + fit
         typer.echo(wrap(fit))
         for m, reason in sorted(result.skipped.items()):
             typer.echo(wrap(f"power:{m} skipped: {reason.splitlines()[0]}"))
