@@ -108,20 +108,29 @@ def chi2_p_value(chi2: float, dof: int) -> float:
     return float(dist.chi2_sf(chi2, dof)) if dof > 0 else float("nan")
 
 
+def chi2_tail(chi2: float, dof: int, p: float) -> str:
+    """How a chi2 of `dof` degrees of freedom is told with its upper-tail `p`: 'p = 0.43'; when p
+    rounds to 1 (p > 1 - CHI2_ALPHA) its lower tail P(chi2 <= value), which says how unlikely so
+    small a chi2 is, 'lower-tail p = 9.2e-39'; 'p = -' when p is not finite (dof 0)."""
+    if not math.isfinite(p):
+        return "p = -"
+    if p > 1 - CHI2_ALPHA:
+        return f"lower-tail p = {dist.chi2_cdf(chi2, dof):.2g}"
+    return f"p = {p:.2g}"
+
+
 def chi2_warning(chi2: float, dof: int, p: float) -> str | None:
     """A warning when the residuals disagree with the stated uncertainties (either tail)."""
     if not math.isfinite(p):
         return None
+    said = f"chi2 = {chi2:.4g} for {dof} degrees of freedom ({chi2_tail(chi2, dof, p)})"
     if p < CHI2_ALPHA:
         return (
-            f"bad fit: chi2 = {chi2:.4g} for {dof} degrees of freedom (p = {p:.2g}): the residuals "
-            "exceed the stated u_* uncertainties; the model misses something or u_* are understated"
+            f"bad fit: {said}: the residuals exceed the stated u_* uncertainties; the model misses "
+            "something or u_* are understated"
         )
-    if p > 1 - CHI2_ALPHA:  # p itself rounds to 1: the lower tail says how unlikely so small a chi2 is
-        return (
-            f"chi2 = {chi2:.4g} for {dof} degrees of freedom (lower-tail p = {dist.chi2_cdf(chi2, dof):.2g}): "
-            "the residuals are far smaller than the stated u_* uncertainties, which look overstated"
-        )
+    if p > 1 - CHI2_ALPHA:
+        return f"{said}: the residuals are far smaller than the stated u_* uncertainties, which look overstated"
     return None
 
 

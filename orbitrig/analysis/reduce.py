@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from orbitrig.analysis.rounding import at_decimals, number, uncertainty_decimals, with_uncertainty
 from orbitrig.errors import IdentificationError, ReductionError
 from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.reader import freq_dep_key
@@ -213,38 +214,60 @@ def write_csv(path: str | Path, rows: list[Reduced], sim: bool) -> Path:
 
 
 def table_cells(rows: list[Reduced], full: bool = False) -> list[list[str]]:
-    """The header and the rows (cells as text) of a table of the constant terms (K in MN/m, C in
-    kN s/m, D in kg, to 4 significant digits; `full`: in SI, N/m, N s/m, kg, every number the
-    shortest decimal that reads back as the same double) and the residual (N; and the exponent M
-    that power:auto chose; `full`: named residual_rms and exponent, as in the CSV written and the JSON); a refused (point, lms) shows 'refused' (the reason goes to standard error).
-    In --sim runs each fit is followed by a row 'true (LMS)' of its own truth (fit_true_values:
-    the true Z projected onto the fit's model, as the CSV's true_* columns)."""
+    """The header and the rows (cells as text) of a table of the constant terms and the residual
+    (N; and the exponent M that power:auto chose). Text: each term '12.35 ± 0.12' in MN/m,
+    kN s/m or kg, its standard error to 2 significant digits and the value to the same decimal
+    (rounding.with_uncertainty); `full`: in SI (N/m, N s/m, kg), each term followed by its
+    ``_std`` column, every number the shortest decimal that reads back as the same double, the
+    tail named residual_rms and exponent (as in the CSV written and the JSON). A refused
+    (point, lms) shows 'refused' (the reason goes to standard error). In --sim runs each fit is
+    followed by a row 'true (LMS)' of its own truth (fit_true_values: the true Z projected onto
+    the fit's model, as the CSV's true_* columns), in text to the fit's decimals."""
     cols = [k for k in CONSTANT_KEYS if any(r.identification and k in r.identification.coefficients for r in rows)]
     auto = any(r.identification is not None and r.identification.exponent is not None for r in rows)
-    units = {k: coefficient_column(k) if full else f"{k} [{display_unit(k)[0]}]" for k in cols}
-    # CSV: the written file's and the JSON's names (residual_rms, exponent); text: short ones
-    tail = ["residual_rms [N]", "exponent [1]"] if full else ["resid [N]", "M"]
-    lines = [["point", "lms", *(units[k] for k in cols), tail[0], *(tail[1:] if auto else [])]]
-
-    def number(key: str, value: float) -> str:
-        return repr(float(value)) if full else f"{value * display_unit(key)[1]:.4g}"
-
+    if full:
+        head = [coefficient_column(k, kind) for k in cols for kind in ("", "std")]
+        tail = ["residual_rms [N]", "exponent [1]"]
+    else:
+        head = [f"{k} [{display_unit(k)[0]}]" for k in cols]
+        tail = ["resid [N]", "M"]
+    lines = [["point", "lms", *head, tail[0], *(tail[1:] if auto else [])]]
     for r in rows:
-        cells = [r.point.name, str(r.lms)]
-        if r.identification is None:
-            cells.append("refused")
-        else:
-            c = r.identification.coefficients
-            cells += [number(k, c[k]) for k in cols]
-            resid = r.identification.residual_rms
-            cells.append(repr(float(resid)) if full else f"{resid:.3g}")
-            if auto:  # the exponent power:auto chose
-                cells.append(str(r.identification.exponent))
-        lines.append(cells)
+        ident = r.identification
+        lines.append(
+            [r.point.name, str(r.lms), *(["refused"] if ident is None else _fit_cells(ident, cols, full, auto))]
+        )
         truth = fit_true_values(r)
         if truth:
-            lines.append([r.point.name, f"true ({r.lms})", *(number(k, truth[k]) if k in truth else "" for k in cols)])
+            lines.append([r.point.name, f"true ({r.lms})", *_true_cells(truth, ident, cols, full)])
     return lines
+
+
+def _fit_cells(ident: Any, cols: list[str], full: bool, auto: bool) -> list[str]:
+    """A fit's cells of :func:`table_cells`: each term (and its std, `full`), the residual, M."""
+    cells = []
+    for k in cols:
+        value, std = ident.coefficients[k], ident.std_errors.get(k)
+        if full:
+            cells += [number(value, full=True), number(std, full=True)]
+        else:
+            scale = display_unit(k)[1]
+            cells.append(with_uncertainty(value * scale, None if std is None else std * scale))
+    cells.append(number(ident.residual_rms, full=True) if full else f"{ident.residual_rms:.3g}")
+    return cells + ([str(ident.exponent)] if auto else [])
+
+
+def _true_cells(truth: dict[str, float], ident: Any, cols: list[str], full: bool) -> list[str]:
+    """The cells of a fit's true row: SI in full (its std cells empty), or to the fit's decimals."""
+    if full:
+        return [cell for k in cols for cell in ((number(truth[k], full=True) if k in truth else ""), "")]
+    cells = []
+    for k in cols:
+        scale = display_unit(k)[1]
+        std = ident.std_errors.get(k)
+        decimals = uncertainty_decimals(None if std is None else std * scale)
+        cells.append(at_decimals(truth[k] * scale, decimals) if k in truth else "")
+    return cells
 
 
 def table_legend(rows: list[Reduced]) -> list[str]:
@@ -252,7 +275,11 @@ def table_legend(rows: list[Reduced]) -> list[str]:
     frequency-dependent fit, power:auto's exponent M, the simulator's truth."""
     from reduction.models import is_constant
 
-    lines = ["resid = RMS of measured minus reproduced force over the table's equations (N)"]
+    lines = [
+        "K, C, D: value \u00b1 its standard error (k = 1, statistical: the fit's, no calibration; the CSV's "
+        "_std), to 2 significant digits of the error and the value to the same decimal; units in the header",
+        "resid = RMS of measured minus reproduced force over the table's equations (N)",
+    ]
     freq_dep = rows[0].freq_dep if rows else "none"
     if not is_constant(freq_dep):
         lines.append(
@@ -262,5 +289,8 @@ def table_legend(rows: list[Reduced]) -> list[str]:
     if any(r.identification is not None and r.identification.exponent is not None for r in rows):
         lines.append("M = the exponent power:auto chose: K = K0 + Omega^M KM, likewise C and D (Omega in rad/s)")
     if any(fit_true_values(r) for r in rows):
-        lines.append("true (LMS) = the simulator's true Z projected onto the fit's model (the CSV's true_* columns)")
+        lines.append(
+            "true (LMS) = the simulator's true Z projected onto the fit's model (the CSV's true_* columns), "
+            "to the decimals of the fit above"
+        )
     return lines

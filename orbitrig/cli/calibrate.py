@@ -34,6 +34,7 @@ import typer
 from orbitrig.cli import calibrate_records as records
 from orbitrig.cli.help_text import command_group
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
+from rigunits import MICROMETRE
 
 DEFAULT_SPEEDUP = 40.0  # as orbitrig.cli.simulated_rig.DEFAULT_SPEEDUP
 _CONFIG = typer.Option(None, "--config", help=RIG_CONFIG_HELP)
@@ -150,7 +151,9 @@ def delay(
         help="orbit spindle speeds (rpm, the spin at 1/0.7 times), comma separated",
     ),
     reference_n: float = typer.Option(1000.0, "--reference-n", min=0.001, help="reference on the force channels (N)"),
-    reference_um: float = typer.Option(20.0, "--reference-um", min=0.001, help="reference on the probes (um)"),
+    reference_um: float = typer.Option(
+        20.0, "--reference-um", min=0.001, help=f"reference on the probes ({MICROMETRE})"
+    ),
     config: Optional[Path] = _CONFIG,
     operator: Optional[str] = _OPERATOR,
     revolutions: int = _revolutions(100, " per speed"),
@@ -172,7 +175,9 @@ def delay(
 
 def probes(
     sim: bool = typer.Option(False, "--sim", help="on the built-in simulator (it steps the journal)"),
-    span_um: float = typer.Option(40.0, "--span-um", min=0.1, help="span of the steps, centred on zero (um)"),
+    span_um: float = typer.Option(
+        40.0, "--span-um", min=0.1, help=f"span of the steps, centred on zero ({MICROMETRE})"
+    ),
     steps: int = typer.Option(5, "--steps", min=3, max=101, help="number of steps over the span"),
     reference_id: Optional[str] = typer.Option(None, "--reference-id", help="the micrometer's id; required on the rig"),
     reference_u_pct: Optional[float] = _REFERENCE_U,

@@ -10,6 +10,7 @@ from functools import partial
 import typer
 
 from orbitrig.cli.signals import run_until_signal
+from rigunits import MICROMETRE, micrometres
 
 
 def rig_and_folder(config, writing: bool = True):
@@ -108,8 +109,8 @@ def runout(config, opts, activate) -> None:
         runout = record.runout
         assert runout is not None  # runout_record measured it
         for p in ("x_a", "y_a", "x_b", "y_b"):
-            h1, h2 = abs(runout.phasors(p)) * 1e6
-            yield f"{p}: runout 1x {h1:.3f} um, 2x {h2:.3f} um"
+            h1, h2 = abs(runout.phasors(p))
+            yield f"{p}: runout 1x {micrometres(h1, '.3f')}, 2x {micrometres(h2, '.3f')}"
 
     _step(
         config,
@@ -154,7 +155,7 @@ def probes(config, opts, span_um, steps, reference_id, reference_u_pct, activate
         ([opts.roll()], "--spin-rpm"),
         lambda rig, note: probes_record(rig, opts, grid, ref, note),
         lambda record: (
-            f"{p}: gain {g.gain:.5f} (u {g.gain_u:.2g}), linearity {g.linearity_pct:.3g} % of {g.span_um:g} um"
+            f"{p}: gain {g.gain:.5f} (u {g.gain_u:.2g}), linearity {g.linearity_pct:.3g} % of {g.span_um:g} {MICROMETRE}"
             for p, g in record.probes.items()
         ),
         "Units: [probes] gain 1 (x_journal = gain x_read), linearity_pct percent of span_um micrometres.",

@@ -30,7 +30,7 @@ from orbitrig.run.calibration import AsksOperator, CalibrationFailed, Calibratio
 from orbitrig.run.calibration_measure import PROBES, measure_delay, measure_loads, measure_probes, measure_runout
 from orbitrig.run.drive_setup import drive_limits
 from orbitrig.run.rig_io import RigAccess
-from rigunits import now_iso
+from rigunits import micrometres, now_iso
 from reduction.calibration import fit_delay, fit_gain_matrix, fit_probe, static_loads
 
 FORCE_CHANNELS = ("fx_piezo", "fy_piezo", "fx_strain", "fy_strain")
@@ -171,7 +171,7 @@ class OperatorLoads(AsksOperator):
         if settings == self.manual:
             return
         what = (
-            f"set orbit radius {orbit_radius * 1e6:g} um, static eccentricity {static_eccentricity:g}, "
+            f"set orbit radius {micrometres(orbit_radius, 'g')}, static eccentricity {static_eccentricity:g}, "
             f"recess pressure {recess_pressure / MPA:g} MPa, pressure ratio {pressure_ratio:g} "
             "for the slow roll (it starts both spindles)"
         )
@@ -199,7 +199,7 @@ class OperatorLoads(AsksOperator):
         what = (
             "remove the displacement step"
             if dx == 0 and dy == 0
-            else f"step the journal by x = {dx * 1e6:+.2f} um, y = {dy * 1e6:+.2f} um (micrometer)"
+            else f"step the journal by x = {micrometres(dx, '+.2f')}, y = {micrometres(dy, '+.2f')} (micrometer)"
         )
         await self._ask(what)
 
@@ -209,7 +209,7 @@ class OperatorLoads(AsksOperator):
             if force == 0 and probe == 0
             else (
                 f"connect the phase reference (locked to the orbit spindle) to every channel's input: "
-                f"{force:g} N on the force channels, {probe * 1e6:g} um on the probes"
+                f"{force:g} N on the force channels, {micrometres(probe, 'g')} on the probes"
             )
         )
         await self._ask(what)

@@ -1,4 +1,4 @@
-"""The options of `orbitrig design` (typer Annotated aliases): speeds rpm, noise N and nm, radius um."""
+"""The options of `orbitrig design` (typer Annotated aliases): speeds rpm, noise N and nm, radius micrometres."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import typer
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
 
 from orbitrig.load_systems import LoadSystem
+from rigunits import MICROMETRE
 
 Model = Annotated[str, typer.Option("--model", help="kc7 | kc8 | kcd11 | kcd12")]
 FreqDep = Annotated[str, typer.Option("--freq-dep", help="none | power:M | power:m,n,p | poly:R (as identify)")]
@@ -38,7 +39,9 @@ ProbeNoise = Annotated[
 ]
 Radius = Annotated[
     Optional[float],
-    typer.Option("--radius", help="Orbit radius, um (default: the matrix's smallest, else 0.1 x clearance)."),
+    typer.Option(
+        "--radius", help=f"Orbit radius, {MICROMETRE} (default: the matrix's smallest, else 0.1 x clearance)."
+    ),
 ]
 Revolutions = Annotated[
     Optional[int],

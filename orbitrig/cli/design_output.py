@@ -13,7 +13,7 @@ from orbitrig.config import writable_home
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import storage_error
 from reduction.whirl import Directions
-from rigunits import format_duration
+from rigunits import format_duration, micrometres
 
 DESIGNS_DIR = "designs"  # next to config/matrices: config/designs/NAME.toml
 
@@ -36,7 +36,7 @@ def print_design(obj: dict) -> None:
     echo = typer.echo
     echo(
         f"model {obj['model']} ({obj['freq_dep']}), spin {obj['spin_rpm']:g} rpm, orbit radius "
-        f"{obj['orbit_radius_m'] * 1e6:.3g} um, directions {obj['directions']}"
+        f"{micrometres(obj['orbit_radius_m'], '.3g')}, directions {obj['directions']}"
     )
     echo(f"noise {obj['noise']['source']}")
     echo(f"prior coefficients: {obj['prior']['source']}")
@@ -95,7 +95,7 @@ def save_design(obj: dict, name: str, folder: Path | None = None) -> Path:
     per_ratio = isinstance(n, list)
     lines = [
         f"# orbitrig design --model {obj['model']} --freq-dep {obj['freq_dep']} --spin {obj['spin_rpm']:g}{goal}",
-        f"# candidate: {obj['candidate']['source']}; orbit radius {obj['orbit_radius_m'] * 1e6:.3g} um",
+        f"# candidate: {obj['candidate']['source']}; orbit radius {micrometres(obj['orbit_radius_m'], '.3g')}",
         f"# predicted worst relative standard error {p['worst_relative_pct']:.3g} %, rig time "
         f"{p['rig_time_s']:.0f} s per operating point; noise {obj['noise']['source']}",
         f'model = "{obj["model"]}"',

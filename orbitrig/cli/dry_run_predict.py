@@ -18,6 +18,7 @@ import numpy as np
 
 from orbitrig.config import RPM
 from reduction.whirl import Directions
+from rigunits import micrometres
 
 #: a predicted relative standard error above this (a fraction) leaves a coefficient undetermined
 UNDETERMINED = 1.0
@@ -141,7 +142,7 @@ def prediction_lines(rig, mat) -> list[str]:
             assert p.best is not None and p.radius is not None  # predicted with the worst
             out.append(
                 f"  {p.label}: worst relative standard error {p.worst * 100:.3g} % ({p.coefficient} at "
-                f"{p.spin_rpm:g} rpm, orbit radius {p.radius * 1e6:.3g} um); best point {p.best * 100:.3g} %"
+                f"{p.spin_rpm:g} rpm, orbit radius {micrometres(p.radius, '.3g')}); best point {p.best * 100:.3g} %"
             )
             out += undetermined_lines(p)
     return out

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import typer
 
+from orbitrig.analysis.rounding import number
 from orbitrig.cli.plain_table import OutputFormat, PlainTable, render, wrap
 from rigunits import coefficient_unit
 
@@ -106,21 +107,14 @@ def _write_json(result, rows: int = 20000) -> None:
     out.flush()
 
 
-def _fmt(v, full: bool = False, digits: int = 4) -> str:
-    """A number as a table shows it: rounded to `digits` significant digits for reading, or
-    `full` (CSV) the shortest decimal that reads back as the same double (repr); a missing or
-    non-finite number is '-' (CSV: an empty cell)."""
-    import math
-
-    if v is None or not math.isfinite(v):
-        return "" if full else "-"
-    return repr(float(v)) if full else f"{v:.{digits}g}"
-
-
 def _print_readable(result, path: Path, fmt: OutputFormat) -> None:
     """The fit's summary lines (text only) and its tables (coefficients, forces, covariance):
     text rounds the numbers for reading, CSV has every number in full."""
+    import math
+
     import numpy as np
+
+    from reduction.statistics import chi2_tail
 
     full = fmt == OutputFormat.CSV
     if fmt == OutputFormat.TEXT:
@@ -134,9 +128,10 @@ def _print_readable(result, path: Path, fmt: OutputFormat) -> None:
                 f"{result.condition_number:.4g}; residual RMS {result.residual_rms:.4g} N; {result.dof} degrees of freedom"
             )
         )
-        fit = f"AIC {_fmt(result.aic)}, BIC {_fmt(result.bic)}"
+        fit = f"AIC {number(result.aic)}, BIC {number(result.bic)}"
         if result.chi2 is not None:
-            fit = f"chi2 {result.chi2:.4g} (p = {_fmt(result.p_value)}), " + fit
+            tail = chi2_tail(result.chi2, result.dof, math.nan if result.p_value is None else result.p_value)
+            fit = f"chi2 {result.chi2:.4g} ({tail}), " + fit
         typer.echo(wrap(fit))
         for m, reason in sorted(result.skipped.items()):
             typer.echo(wrap(f"power:{m} skipped: {reason.splitlines()[0]}"))
@@ -155,10 +150,10 @@ def _coefficient_table(result, full: bool = False) -> PlainTable:
         t.add_column(col, justify="left" if col in ("coefficient", "unit") else "right")
     for key, v in result.coefficients.items():
         se = result.std_errors.get(key)
-        rel = _fmt(None if se is None or v == 0 else 100 * se / abs(v), full, 2)
+        rel = number(None if se is None or v == 0 else 100 * se / abs(v), full, 2)
         ci = result.confidence_95.get(key)
-        interval = _fmt(None, full) if ci is None else f"[{_fmt(ci[0], full)}, {_fmt(ci[1], full)}]"
-        t.add_row(key, _fmt(v, full, 5), _fmt(se, full), rel, interval, coefficient_unit(key))
+        interval = number(None, full) if ci is None else f"[{number(ci[0], full)}, {number(ci[1], full)}]"
+        t.add_row(key, number(v, full, 5), number(se, full), rel, interval, coefficient_unit(key))
     return t
 
 
@@ -178,7 +173,7 @@ def _covariance_table(result, full: bool = False) -> PlainTable | None:
     for name in result.free:
         t.add_column(name, justify="right")
     for name, row in zip(result.free, result.covariance):
-        t.add_row(name, coefficient_unit(name), *(_fmt(float(v), full) for v in row))
+        t.add_row(name, coefficient_unit(name), *(number(float(v), full) for v in row))
     return t
 
 
@@ -196,5 +191,5 @@ def _force_table(result, full: bool = False) -> PlainTable:
     for key, unit in columns:
         f.add_column(f"{key} [{unit}]", justify="right")
     for row in result.fit:
-        f.add_row(*(_fmt(row[key], full) for key, _ in columns))
+        f.add_row(*(number(row[key], full) for key, _ in columns))
     return f

@@ -20,6 +20,7 @@ from orbitrig.config import LMS
 from orbitrig.load_systems import LoadSystem
 from orbitrig.run.calibration import CalibrationSession, SlowRoll
 from reduction.fourier import phasor
+from rigunits import micrometres
 
 PROBES = ("x_a", "y_a", "x_b", "y_b")
 
@@ -96,8 +97,8 @@ async def measure_probes(session: CalibrationSession, hands: ProbeHands, steps: 
                     if p.startswith(axis):
                         out[p].append(blk.dc[ch[p]])
                 session.note(
-                    f"step {axis} {d * 1e6:+.2f} um read: "
-                    + ", ".join(f"{p} {out[p][-1] * 1e6:+.3f} um" for p in PROBES if p.startswith(axis))
+                    f"step {axis} {micrometres(d, '+.2f')} read: "
+                    + ", ".join(f"{p} {micrometres(out[p][-1], '+.3f')}" for p in PROBES if p.startswith(axis))
                 )
     return {p: np.array(v) for p, v in out.items()}
 

@@ -83,3 +83,15 @@ async def test_closed_standard_input_fails_the_step_saying_so(stdin_pipe):
     stdin_pipe.close()
     with pytest.raises(CalibrationFailed, match="standard input is closed: nobody can confirm at the terminal"):
         await asyncio.wait_for(prompt, 30)
+
+
+async def test_the_prompts_give_lengths_in_micrometres_with_the_micro_sign(stdin_pipe, capsys):
+    """The probes' and the delay's prompts say the steps and the reference as the operator's other
+    words do (rigunits.micrometres: the micro sign), never an ASCII 'um'."""
+    hands = OperatorLoads()
+    stdin_pipe.write(b"\n\n")  # the operator's two Enters
+    await asyncio.wait_for(hands.apply_displacement(5e-6, -2.5e-6), 30)
+    await asyncio.wait_for(hands.apply_reference(500.0, 20e-6), 30)
+    said = capsys.readouterr().out
+    assert "step the journal by x = +5.00 \u00b5m, y = -2.50 \u00b5m (micrometer)" in said, said
+    assert "500 N on the force channels, 20 \u00b5m on the probes" in said and " um" not in said, said

@@ -162,6 +162,9 @@ def test_text_output_and_saved_design(tmp_path):
     rig.write_text((ROOT / "config" / "rig.toml").read_text())
     p = design("--model", "kc8", "--spin", "1000", "--target", "0.2", "--save", "kc8fast", "--config", str(rig))
     assert "proposal :" in p.stdout and "target 0.2 %: reached" in p.stdout
+    assert re.search(r"orbit radius [0-9.]+ \u00b5m, directions", p.stdout) and " um" not in p.stdout
+    comment = (tmp_path / "config" / "designs" / "kc8fast.toml").read_text(encoding="utf-8").splitlines()[1]
+    assert re.search(r"; orbit radius [0-9.]+ \u00b5m$", comment), comment
     saved = tomllib.loads((tmp_path / "config" / "designs" / "kc8fast.toml").read_text())
     assert saved["model"] == "kc8" and len(saved["ratios"]) == len(saved["revolutions"]) == len(saved["target_pct"])
     header = (tmp_path / "config" / "designs" / "kc8fast.toml").read_text().splitlines()[0]

@@ -47,7 +47,7 @@ def test_demo_predictions_match_the_design(tmp_path):
         line = next(ln for ln in lines if ln.startswith(f"  {model} none:"))
         shown = float(re.search(r"worst relative standard error ([0-9.e+]+) %", line).group(1))
         assert shown == float(f"{worst_pct(model, ratios, radius):.3g}")
-        assert f"({coef}" in line and "1000 rpm" in line and "orbit radius 5.76 um" in line
+        assert f"({coef}" in line and "1000 rpm" in line and "orbit radius 5.76 \u00b5m)" in line and " um" not in line
     # more revolutions per block: the prediction falls as 1/sqrt(n), the plan takes longer
     more = tmp_path / "more.toml"
     more.write_text(demo_text("more", 200))

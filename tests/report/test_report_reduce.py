@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
+import re
 import shutil
 
 import h5py
@@ -12,6 +13,7 @@ import h5py
 import numpy as np
 import pytest
 from support.report_synthetic import C_TRUE, K_TRUE, write_synthetic_run
+from support.rounded_cells import with_error
 from typer.testing import CliRunner
 
 from orbitrig.cli import app
@@ -194,7 +196,7 @@ def test_cli_reduce_power_auto_shows_the_chosen_exponent(synthetic_run):
     blocks = "\n".join(result.stdout.splitlines()[1:-1]).split("\n\n")  # a wide table: column blocks
     legend = " ".join(blocks[-1].split())  # then what the columns are
     assert "M = the exponent power:auto chose" in legend and "constant terms (Omega^0)" in legend
-    assert legend.startswith("resid = RMS of measured minus reproduced force")
+    assert legend.startswith("K, C, D: value \u00b1 its standard error") and "resid = RMS of measured minus" in legend
     header, *rows = blocks[-2].splitlines()  # the table's last block ends with M, after the key columns
     assert header.split()[-1] == "M"
     data = [r.split() for r in rows if r.split()[1] in ("piezo", "strain")]
@@ -229,10 +231,57 @@ def test_cli_reduce_csv_has_every_number_in_full_si(synthetic_run, tmp_path):
         for column, cell in true.items():
             if column not in ("point", "lms") and cell:
                 assert float(cell) == float(w[f"true_{column}"]), column
-    kxx = own[0]["coefficients"]["Kxx"]
-    assert rows[0]["Kxx [N/m]"] == repr(kxx) and f"{kxx:.4g}" != repr(kxx)
+    kxx, kxx_std = own[0]["coefficients"]["Kxx"], own[0]["std_errors"]["Kxx"]
+    assert rows[0]["Kxx [N/m]"] == repr(kxx) and rows[0]["Kxx_std [N/m]"] == repr(kxx_std)
+    assert list(rows[0])[3] == "Kxx_std [N/m]" and rows[1]["Kxx_std [N/m]"] == ""  # the true row has none
     text = CliRunner().invoke(app, ["reduce", str(run), "--model", "kcd11"], env={"COLUMNS": "300"}).stdout
-    assert "Kxx [MN/m]" in text and f"{kxx * 1e-6:.4g}" in text and repr(kxx) not in text
+    assert "Kxx [MN/m]" in text and with_error(kxx * 1e-6, kxx_std * 1e-6) in text and repr(kxx) not in text
     words = " ".join(CliRunner().invoke(app, ["reduce", "--help"], env={"COLUMNS": "300"}).stdout.split())
     words = words.replace("│ ", "").replace(" │", "")
-    assert "csv: the same table in SI (N/m, N s/m, kg), every number in full" in words
+    assert "csv: the same table in SI (N/m, N s/m, kg), each term followed by its _std, every number in full" in words
+
+
+def _text_rows(stdout: str) -> dict[tuple[str, str], dict[str, str]]:
+    """(point, lms) -> {column: cell} of `reduce`'s text table printed in one block (cells apart
+    by two or more spaces)."""
+    lines = [line for line in stdout.splitlines() if line.startswith(("point ", "0"))]
+    head = re.split(r"\s{2,}", lines[0])
+    return {(c[0], c[1]): dict(zip(head, c)) for c in (re.split(r"\s{2,}", line) for line in lines[1:])}
+
+
+def test_cli_reduce_text_shows_each_term_with_its_standard_error(synthetic_run, tmp_path):
+    """A referee reads every term beside its standard error, in MN/m, kN s/m and kg: the error to
+    2 significant digits, the value (and the true row's) to the same decimal, the legend says so."""
+    run = shutil.copytree(synthetic_run, tmp_path / "run")
+    text = CliRunner().invoke(app, ["reduce", str(run), "--model", "kcd11"], env={"COLUMNS": "400"}).stdout
+    own = json.loads(CliRunner().invoke(app, ["reduce", str(run), "--model", "kcd11", "--json"]).stdout)["results"]
+    shown = _text_rows(text)
+    scales = {"K": ("MN/m", 1e-6), "C": ("kN s/m", 1e-3), "D": ("kg", 1.0)}
+    checked = 0
+    for o in own:
+        fit, true = shown[(f"{o['point']:04d}", o["lms"])], shown[(f"{o['point']:04d}", f"true ({o['lms']})")]
+        for key, value in o["coefficients"].items():
+            unit, scale = scales[key[0]]
+            cell = with_error(value * scale, o["std_errors"][key] * scale)
+            assert fit[f"{key} [{unit}]"] == cell, (key, fit[f"{key} [{unit}]"], cell)
+            decimals = len(cell.split(" ")[0].partition(".")[2])
+            assert len(true[f"{key} [{unit}]"].partition(".")[2]) == decimals, key
+            checked += 1
+    assert checked == 4 * 12  # 2 points x 2 LMS x Kxx..Dyy (Dxy and Dyx one coefficient, both shown)
+    assert shown[("0000", "piezo")]["Kxx [MN/m]"].count(".") == 2  # e.g. '33.022 ± 0.073'
+    words = " ".join(text.split())
+    assert (
+        "K, C, D: value \u00b1 its standard error (k = 1, statistical: the fit's, no calibration; the CSV's _std)"
+        in words
+    )
+    assert "to 2 significant digits of the error and the value to the same decimal; units in the header" in words
+
+
+def test_a_value_is_rounded_to_the_decimal_of_its_uncertainty():
+    from orbitrig.analysis.rounding import with_uncertainty
+
+    assert with_uncertainty(33.0216, 0.07334) == "33.022 \u00b1 0.073"
+    assert with_uncertainty(12.3, 0.0996) == "12.30 \u00b1 0.10"  # the error rounds up a decade
+    assert with_uncertainty(-0.001, 0.1234) == "0.00 \u00b1 0.12"  # no '-0.00'
+    assert with_uncertainty(123456.0, 1234.0) == "123500 \u00b1 1200"
+    assert with_uncertainty(2.5, None) == with_uncertainty(2.5, float("nan")) == "2.5 \u00b1 -"

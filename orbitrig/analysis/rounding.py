@@ -1,0 +1,44 @@
+"""Numbers as a person reads them in a table: rounded to significant digits, or a value beside
+its uncertainty with as many digits as the uncertainty supports (standard library only: the
+command line imports it without numpy)."""
+
+from __future__ import annotations
+
+import math
+
+PLUS_MINUS = "\u00b1"
+
+
+def number(v: float | None, full: bool = False, digits: int = 4) -> str:
+    """A number as a table shows it: rounded to `digits` significant digits for reading, or
+    `full` (CSV) the shortest decimal that reads back as the same double (repr); a missing or
+    non-finite number is '-' (CSV: an empty cell)."""
+    if v is None or not math.isfinite(v):
+        return "" if full else "-"
+    return repr(float(v)) if full else f"{v:.{digits}g}"
+
+
+def uncertainty_decimals(u: float | None) -> int | None:
+    """The decimal an uncertainty `u` rounded to 2 significant digits ends at: 0.1234 -> 2 (0.12),
+    0.0996 -> 2 (0.10), 1234 -> -2 (1200); None for a missing, non-finite or non-positive `u`."""
+    if u is None or not math.isfinite(u) or u <= 0:
+        return None
+    decimals = 1 - math.floor(math.log10(u))
+    return 1 - math.floor(math.log10(round(u, decimals)))  # 0.0996 rounds up to 0.10
+
+
+def at_decimals(v: float | None, decimals: int | None) -> str:
+    """`v` rounded to `decimals` places (< 0: to tens, hundreds ...; None: 4 significant digits,
+    as :func:`number`); '-' when missing or not finite; never '-0.00'."""
+    if v is None or not math.isfinite(v) or decimals is None:
+        return number(v)
+    rounded = round(v, decimals) + 0.0  # -0.001 at 2 decimals: 0.00, not -0.00
+    return f"{rounded:.{max(decimals, 0)}f}"
+
+
+def with_uncertainty(v: float | None, u: float | None) -> str:
+    """'12.35 ± 0.12': the uncertainty `u` to 2 significant digits and the value `v` rounded to
+    the same decimal (both in one unit); without a usable `u` the value to 4 significant digits
+    and '± -'."""
+    decimals = uncertainty_decimals(u)
+    return f"{at_decimals(v, decimals)} {PLUS_MINUS} {at_decimals(u, decimals) if decimals is not None else '-'}"
