@@ -4,7 +4,7 @@ ACL), `orbitrig serve --sim`, `orbitrig dashboard` and headless chromium."""
 from __future__ import annotations
 
 import pytest
-from support.dash_helpers import REPO, RIG, Dashboard, chromium
+from support.dash_helpers import REPO, RIG, chromium, dashboard_running
 from support.mqtt_helpers import Broker, CutProxy, Service, broker_fixture, service_password_file
 
 SPEEDUP = "5"  # the demo matrix runs for ~20 s: time to pause, resume and stop it
@@ -62,9 +62,8 @@ def service(broker, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def dashboard(broker, service, tmp_path_factory):
-    dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", "1.5")
-    yield dash
-    assert dash.stop() == 0, dash.text()[-3000:]
+    with dashboard_running(broker.url, tmp_path_factory.mktemp("dashboard")) as dash:
+        yield dash
 
 
 @pytest.fixture(scope="module")

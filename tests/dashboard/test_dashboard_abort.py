@@ -11,7 +11,7 @@ import signal
 import time
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page, fresh_page
+from support.dash_helpers import Dashboard, Page, RIG, dashboard_running, fresh_page
 from support.mqtt_helpers import ACCOUNTS, Watcher
 
 REPLY_TIMEOUT = 8.0  # s: --reply-timeout of the module's dashboard (the bounds below leave a busy host 7 s)
@@ -21,9 +21,8 @@ EMERGENCY = "if it is still running use the rig's emergency stop"
 @pytest.fixture(scope="module")
 def dashboard(broker, tmp_path_factory):
     """The dashboard alone on the broker: no rig service answers."""
-    dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", str(REPLY_TIMEOUT))
-    yield dash
-    assert dash.stop() == 0, dash.text()[-3000:]
+    with dashboard_running(broker.url, tmp_path_factory.mktemp("dashboard"), REPLY_TIMEOUT) as dash:
+        yield dash
 
 
 @pytest.fixture

@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page
+from support.dash_helpers import Page, RIG, dashboard_running
 from support.mqtt_helpers import ACCOUNTS
 
 CAN = "CAN sensor node lost (no heartbeat for 1.5 s)"
@@ -22,9 +22,8 @@ UNKNOWN = "unknown: not known since the run ended"
 @pytest.fixture(scope="module")
 def dashboard(broker, tmp_path_factory):
     """The dashboard alone on the broker: the test publishes what the rig service would."""
-    dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", "1.5")
-    yield dash
-    assert dash.stop() == 0, dash.text()[-3000:]
+    with dashboard_running(broker.url, tmp_path_factory.mktemp("dashboard")) as dash:
+        yield dash
 
 
 def status(broker, state: str, run_id: str, message: str, since: str) -> None:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, idle_page, publish_as_service
+from support.dash_helpers import dashboard_running, idle_page, publish_as_service
 from support.mqtt_helpers import Broker
 
 RUN = "r-restart"
@@ -23,9 +23,8 @@ def broker(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def dashboard(relay, tmp_path_factory):
-    dash = Dashboard(relay.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", "1.5")
-    yield dash
-    assert dash.stop() == 0, dash.text()[-3000:]
+    with dashboard_running(relay.url, tmp_path_factory.mktemp("dashboard")) as dash:
+        yield dash
 
 
 def a_result(index: int) -> dict:

@@ -15,7 +15,7 @@ import threading
 import time
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page
+from support.dash_helpers import Dashboard, Page, RIG, dashboard_running
 from support.mqtt_helpers import ACCOUNTS, Broker, CutProxy, Watcher
 
 REPLY_TIMEOUT = 1.5  # s: --reply-timeout of the module's dashboard (its commands expire after 2 s)
@@ -46,9 +46,8 @@ class Blackhole(CutProxy):
 
 @pytest.fixture(scope="module")
 def dashboard(relay, tmp_path_factory):
-    dash = Dashboard(relay.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", str(REPLY_TIMEOUT))
-    yield dash
-    assert dash.stop() == 0, dash.text()[-3000:]
+    with dashboard_running(relay.url, tmp_path_factory.mktemp("dashboard"), REPLY_TIMEOUT) as dash:
+        yield dash
 
 
 def status(broker, state: str, message: str = "") -> None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import time
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page, publish_as_service
+from support.dash_helpers import Page, dashboard_running, publish_as_service
 from support.mqtt_helpers import ACCOUNTS
 
 PIEZO = "bad fit: chi2 = 104.2 for 57 degrees of freedom (p = 0.00014): the residuals exceed the stated u_*"
@@ -23,9 +23,8 @@ GROUPED = (
 @pytest.fixture(scope="module")
 def dashboard(broker, tmp_path_factory):
     """The dashboard alone on the broker: the test publishes what the rig service would."""
-    dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", "1.5")
-    yield dash
-    assert dash.stop() == 0, dash.text()[-3000:]
+    with dashboard_running(broker.url, tmp_path_factory.mktemp("dashboard")) as dash:
+        yield dash
 
 
 def fit(lms: str, warnings: list[str]) -> dict:

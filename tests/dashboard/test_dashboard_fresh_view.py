@@ -9,16 +9,15 @@ from __future__ import annotations
 import time
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page, publish_as_service
+from support.dash_helpers import Page, dashboard_running, publish_as_service
 from support.mqtt_helpers import ACCOUNTS
 
 
 @pytest.fixture(scope="module")
 def dashboard(broker, tmp_path_factory):
     """The dashboard alone on the broker (no rig service)."""
-    dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", "1.5")
-    yield dash
-    assert dash.stop() == 0, dash.text()[-3000:]
+    with dashboard_running(broker.url, tmp_path_factory.mktemp("dashboard")) as dash:
+        yield dash
 
 
 def status(broker, state: str, run_id: str, message: str = "") -> None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import time
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page, publish_as_service
+from support.dash_helpers import Page, dashboard_running, publish_as_service
 from support.mqtt_helpers import ACCOUNTS
 
 SIZES = [(1280, 800), (800, 800)]
@@ -32,17 +32,15 @@ ENDS = (
 @pytest.fixture(scope="module")
 def dashboard(broker, tmp_path_factory):
     """The dashboard alone on the broker (no rig service)."""
-    dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", "1.5")
-    yield dash
-    assert dash.stop() == 0, dash.text()[-3000:]
+    with dashboard_running(broker.url, tmp_path_factory.mktemp("dashboard")) as dash:
+        yield dash
 
 
 @pytest.fixture
 def own_dashboard(broker, tmp_path):
     """A dashboard of the test's own: its alarm list starts empty (alarms stay latched per dashboard)."""
-    dash = Dashboard(broker.url, RIG, tmp_path, "--reply-timeout", "1.5")
-    yield dash
-    assert dash.stop() == 0, dash.text()[-3000:]
+    with dashboard_running(broker.url, tmp_path) as dash:
+        yield dash
 
 
 def status(broker, state: str, message: str, run_id: str | None = "r-layout") -> None:

@@ -10,7 +10,7 @@ import math
 import re
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page, publish_as_service
+from support.dash_helpers import Page, dashboard_running, publish_as_service
 from support.mqtt_helpers import ACCOUNTS
 
 RUN = "r-words"
@@ -18,9 +18,8 @@ RUN = "r-words"
 
 @pytest.fixture(scope="module")
 def dashboard(broker, tmp_path_factory):
-    dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", "1.5")
-    yield dash
-    assert dash.stop() == 0, dash.text()[-3000:]
+    with dashboard_running(broker.url, tmp_path_factory.mktemp("dashboard")) as dash:
+        yield dash
 
 
 def status(state: str, message: str, since: str) -> dict:

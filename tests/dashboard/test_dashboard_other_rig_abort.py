@@ -9,7 +9,7 @@ from __future__ import annotations
 import time
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page, fresh_page
+from support.dash_helpers import Page, RIG, dashboard_running, fresh_page
 from support.mqtt_helpers import ACCOUNTS, Watcher, broker_fixture, sim_service
 
 OTHER = "rig-b"
@@ -33,9 +33,8 @@ def services(broker, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def dashboard(broker, services, tmp_path_factory):
-    dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", str(REPLY_TIMEOUT))
-    yield dash
-    assert dash.stop() == 0, dash.text()[-3000:]
+    with dashboard_running(broker.url, tmp_path_factory.mktemp("dashboard"), REPLY_TIMEOUT) as dash:
+        yield dash
 
 
 @pytest.fixture

@@ -10,7 +10,7 @@ from __future__ import annotations
 import time
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page, idle_page
+from support.dash_helpers import Page, RIG, dashboard_running, idle_page
 from support.mqtt_helpers import Service, Watcher, service_password_file
 
 #: three operating points (spin speeds: no manual setting between them), short blocks
@@ -52,9 +52,8 @@ def service(broker, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def dashboard(relay, service, tmp_path_factory):
-    dash = Dashboard(relay.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", "3")
-    yield dash
-    assert dash.stop() == 0, dash.text()[-3000:]
+    with dashboard_running(relay.url, tmp_path_factory.mktemp("dashboard"), "3") as dash:
+        yield dash
 
 
 def rows(page: Page) -> list[dict]:

@@ -10,16 +10,15 @@ import json
 import time
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page, card_shot, chromium
+from support.dash_helpers import Page, RIG, card_shot, chromium, dashboard_running
 from support.mqtt_helpers import ACCOUNTS
 
 
 @pytest.fixture(scope="module")
 def dashboard(broker, tmp_path_factory):
     """The dashboard alone on the broker: these tests publish what the rig service would."""
-    dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", "1.5")
-    yield dash
-    assert dash.stop() == 0, dash.text()[-3000:]
+    with dashboard_running(broker.url, tmp_path_factory.mktemp("dashboard")) as dash:
+        yield dash
 
 
 @pytest.fixture(scope="module")

@@ -9,15 +9,14 @@ import json
 import time
 
 import pytest
-from support.dash_helpers import RIG, Dashboard, Page
+from support.dash_helpers import Page, RIG, dashboard_running
 from support.mqtt_helpers import ACCOUNTS
 
 
 @pytest.fixture(scope="module")
 def dashboard(broker, tmp_path_factory):
-    dash = Dashboard(broker.url, RIG, tmp_path_factory.mktemp("dashboard"), "--reply-timeout", "1.5")
-    yield dash
-    assert dash.stop() == 0, dash.text()[-3000:]
+    with dashboard_running(broker.url, tmp_path_factory.mktemp("dashboard")) as dash:
+        yield dash
 
 
 def live(spin_rpm: float) -> dict:

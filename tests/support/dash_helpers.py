@@ -3,13 +3,14 @@ headless Debian chromium driven by chromedriver (selenium)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 
 import os
 import subprocess
 import tempfile
 from pathlib import Path
-from typing import Callable
+from collections.abc import Callable, Iterator
 
 from selenium import webdriver
 from selenium.webdriver.chrome.service import Service as DriverService
@@ -80,6 +81,15 @@ class Dashboard:
 
     def stop(self) -> int:
         return interrupt(self.proc)
+
+
+@contextlib.contextmanager
+def dashboard_running(broker_url: str, workdir: Path, reply_timeout: float | str = "1.5") -> Iterator[Dashboard]:
+    """A Dashboard of rig RIG on `broker_url` (`--reply-timeout` s) for the block (a fixture's
+    life); once it is left the dashboard must end cleanly on its interrupt (exit 0)."""
+    dash = Dashboard(broker_url, RIG, workdir, "--reply-timeout", str(reply_timeout))
+    yield dash
+    assert dash.stop() == 0, dash.text()[-3000:]
 
 
 def chromium(profile_root: Path) -> webdriver.Chrome:
