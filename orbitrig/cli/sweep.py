@@ -46,24 +46,11 @@ def register(app: typer.Typer) -> None:
 
         Exit 0 completed, 1 failed, 2 bad configuration or usage, 3 stopped, 4 aborted.
         """
-        _sweep_command(
-            run_dir,
-            out,
-            sim,
-            config,
-            matrix,
-            resume,
-            dry_run,
-            speedup,
-            sim_config,
-            operator,
-            steps=steps,
-            fmt=fmt,
-            draw_figures=draw_figures,
-        )
+        _sweep_command(**locals())
 
 
 def _sweep_command(
+    *,
     run_dir,
     out,
     sim,
@@ -71,13 +58,12 @@ def _sweep_command(
     matrix,
     resume,
     dry_run,
+    steps,
+    fmt,
     speedup,
     sim_config,
-    operator=None,
-    *,
-    steps=False,
-    fmt=None,
-    draw_figures=False,
+    operator,
+    draw_figures,
 ) -> None:
     """`orbitrig sweep`, its options checked; raises typer.Exit with the run's exit status."""
     from orbitrig.errors import OrbitrigError
