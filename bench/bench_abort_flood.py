@@ -42,12 +42,11 @@ import tempfile
 import time
 from pathlib import Path
 
-from bench.bench_abort_latency import CW_STOPPING, Operator
-from tests.support.mqtt_helpers import ACCOUNTS, MATRIX, Broker
+from bench.bench_abort_latency import CW_STOPPING, TARGET_MS, Operator, bench_service, write_matrix
+from tests.support.mqtt_helpers import ACCOUNTS, Broker
 
 REPO = Path(__file__).resolve().parents[1]
 FLOODER = REPO / "tests" / "mqtt" / "mqtt_flood.py"
-TARGET_MS = 200.0
 
 
 class TimedOperator(Operator):
@@ -181,24 +180,18 @@ def timed_arrival(service) -> None:
 
 
 async def main(trials: int, speedup: float, count: int, modes: list[str], via: str, abort_connection: bool) -> int:
-    from orbitrig.cli.serve import build_service
-    from orbitrig.config import load_rig
-    from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
+    from orbitrig.service.rig_service import BrokerSettings
     from orbitrig.service.settings import AbortAccount
     from orbitrig.cli.simulated_rig import simulated_rig
 
     logging.basicConfig(level=logging.WARNING)
     work = Path(tempfile.mkdtemp(prefix="bench-abort-flood-"))
-    (work / "matrices").mkdir()
-    (work / "matrices" / "bench.toml").write_text(  # long blocks: abort lands mid-acquisition
-        MATRIX.format(name="bench", revs=400, ratios="[0.5, 0.7, 0.9]", directions='["forward"]')
-    )
+    write_matrix(work, revs=400)
     broker = Broker(work / "broker", bind_ids=True)
     broker.start()
     failures = 0
     try:
         async with simulated_rig(speedup) as (sim_rig, _):
-            settings = ServiceSettings(rig_id="bench", matrices_dir=work / "matrices")
             # the shipped setup: the service's account and its abort connection's (config/mosquitto/)
             abort = AbortAccount("orbitrig-service-abort", ACCOUNTS["orbitrig-service-abort"])
             creds = BrokerSettings.from_url(
@@ -207,7 +200,7 @@ async def main(trials: int, speedup: float, count: int, modes: list[str], via: s
                 password=ACCOUNTS["orbitrig-service"],
                 abort=abort if abort_connection else None,
             )
-            service = build_service(load_rig(), settings, creds, out=work / "runs", sim_rig=sim_rig, confirm="auto")
+            service = bench_service(sim_rig, work, creds)
             timed_arrival(service)
             shutdown = asyncio.Event()
             serving = asyncio.create_task(service.serve(shutdown), name="bench-service")

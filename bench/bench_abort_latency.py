@@ -33,6 +33,45 @@ from pathlib import Path
 from tests.support.mqtt_helpers import ACCOUNTS, MATRIX, Broker
 
 CW_STOPPING = 0b1101  # OFF1 (bit 0), OFF3 (bit 2), RUN (bit 3): any of them 0 = a stop command
+TARGET_MS = 200.0  # abort -> both drives commanded to stop
+
+
+def write_matrix(work: Path, revs: int = 200) -> None:
+    """``work/matrices/bench.toml``: three forward orbit ratios of ``revs`` revolutions each
+    (long blocks: the abort lands mid-acquisition)."""
+    (work / "matrices").mkdir()
+    (work / "matrices" / "bench.toml").write_text(
+        MATRIX.format(name="bench", revs=revs, ratios="[0.5, 0.7, 0.9]", directions='["forward"]')
+    )
+
+
+def bench_service(sim_rig, work: Path, creds):
+    """The rig service as `orbitrig serve --sim` builds it (rig id ``bench``, confirm auto) on
+    ``sim_rig``, with the matrices of :func:`write_matrix` and its runs in ``work``."""
+    from orbitrig.cli.serve import build_service
+    from orbitrig.config import load_rig
+    from orbitrig.service.rig_service import ServiceSettings
+
+    settings = ServiceSettings(rig_id="bench", matrices_dir=work / "matrices")
+    return build_service(load_rig(), settings, creds, out=work / "runs", sim_rig=sim_rig, confirm="auto")
+
+
+def service_account(url: str):
+    """The service's broker settings on ``url``: its account of the project's password file."""
+    from orbitrig.service.rig_service import BrokerSettings
+
+    return BrokerSettings.from_url(url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"])
+
+
+def print_summary(title: str, start: str, latencies_ms: list[float]) -> int:
+    """The latencies' median, min and max against the target; 0 when all are under it, else 1."""
+    print(
+        f"\n{title} over {len(latencies_ms)} trials ({start} -> both drives commanded to stop): "
+        f"median {statistics.median(latencies_ms):.1f} ms, min {min(latencies_ms):.1f} ms, "
+        f"max {max(latencies_ms):.1f} ms "
+        f"(target < {TARGET_MS:.0f} ms: {'met' if max(latencies_ms) < TARGET_MS else 'NOT met'})"
+    )
+    return 0 if max(latencies_ms) < TARGET_MS else 1
 
 
 def watch_control_words(sim_rig, stops: dict[int, float], words: dict[int, int], armed: threading.Event) -> None:
@@ -98,17 +137,11 @@ class Operator:
 
 async def main(trials: int, speedup: float) -> int:
     """Run the trials; 0 when every one is under the target, else 1."""
-    from orbitrig.cli.serve import build_service
-    from orbitrig.config import load_rig
-    from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
     from sim.rig import SimRig
 
     logging.basicConfig(level=logging.WARNING)
     work = Path(tempfile.mkdtemp(prefix="bench-abort-"))
-    (work / "matrices").mkdir()
-    (work / "matrices" / "bench.toml").write_text(  # long blocks: abort lands mid-acquisition
-        MATRIX.format(name="bench", revs=200, ratios="[0.5, 0.7, 0.9]", directions='["forward"]')
-    )
+    write_matrix(work)
     broker = Broker(work / "broker")
     broker.start()
     stops: dict[int, float] = {}
@@ -118,11 +151,7 @@ async def main(trials: int, speedup: float) -> int:
     try:
         async with SimRig(speedup=speedup, adc_pty=False) as sim_rig:
             watch_control_words(sim_rig, stops, words, armed)
-            settings = ServiceSettings(rig_id="bench", matrices_dir=work / "matrices")
-            creds = BrokerSettings.from_url(
-                broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]
-            )
-            service = build_service(load_rig(), settings, creds, out=work / "runs", sim_rig=sim_rig, confirm="auto")
+            service = bench_service(sim_rig, work, service_account(broker.url))
             handle = service.handle_command
 
             def timed_handle(payload: bytes, *, retained: bool = False) -> None:
@@ -171,13 +200,7 @@ async def main(trials: int, speedup: float) -> int:
                 await serving
     finally:
         broker.stop()
-    total = [r[2] for r in rows]
-    print(
-        f"\nabort latency over {len(total)} trials (publish -> both drives commanded to stop): "
-        f"median {statistics.median(total):.1f} ms, min {min(total):.1f} ms, max {max(total):.1f} ms "
-        f"(target < 200 ms: {'met' if max(total) < 200 else 'NOT met'})"
-    )
-    return 0 if max(total) < 200 else 1
+    return print_summary("abort latency", "publish", [r[2] for r in rows])
 
 
 if __name__ == "__main__":

@@ -26,16 +26,22 @@ from __future__ import annotations
 import argparse
 import asyncio
 import logging
-import statistics
 import sys
 import tempfile
 import threading
 import time
 from pathlib import Path
 
-from bench.bench_abort_latency import Operator, watch_control_words
+from bench.bench_abort_latency import (
+    Operator,
+    bench_service,
+    print_summary,
+    service_account,
+    watch_control_words,
+    write_matrix,
+)
 from tests.support.dash_helpers import Dashboard, Page, chromium
-from tests.support.mqtt_helpers import ACCOUNTS, MATRIX, Broker
+from tests.support.mqtt_helpers import ACCOUNTS, Broker
 
 
 def click_abort(page: Page) -> float:
@@ -76,17 +82,11 @@ async def trials_loop(
 
 async def main(trials: int, speedup: float) -> int:
     """Run the trials; 0 when every one is under the target, else 1."""
-    from orbitrig.cli.serve import build_service
-    from orbitrig.config import load_rig
-    from orbitrig.service.rig_service import BrokerSettings, ServiceSettings
     from sim.rig import SimRig
 
     logging.basicConfig(level=logging.WARNING)
     work = Path(tempfile.mkdtemp(prefix="bench-dash-abort-"))
-    (work / "matrices").mkdir()
-    (work / "matrices" / "bench.toml").write_text(
-        MATRIX.format(name="bench", revs=200, ratios="[0.5, 0.7, 0.9]", directions='["forward"]')
-    )
+    write_matrix(work)
     broker = Broker(work / "broker")
     broker.start()
     stops: dict[int, float] = {}
@@ -97,11 +97,7 @@ async def main(trials: int, speedup: float) -> int:
     try:
         async with SimRig(speedup=speedup, adc_pty=False) as sim_rig:
             watch_control_words(sim_rig, stops, words, armed)
-            settings = ServiceSettings(rig_id="bench", matrices_dir=work / "matrices")
-            creds = BrokerSettings.from_url(
-                broker.url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"]
-            )
-            service = build_service(load_rig(), settings, creds, out=work / "runs", sim_rig=sim_rig, confirm="auto")
+            service = bench_service(sim_rig, work, service_account(broker.url))
             shutdown = asyncio.Event()
             serving = asyncio.create_task(service.serve(shutdown), name="bench-service")
             watcher = await asyncio.to_thread(Operator, broker.port, "orbitrig/bench")
@@ -125,12 +121,7 @@ async def main(trials: int, speedup: float) -> int:
                 await serving
     finally:
         broker.stop()
-    print(
-        f"\ndashboard abort latency over {len(rows)} trials (click -> both drives commanded to stop): "
-        f"median {statistics.median(rows):.1f} ms, min {min(rows):.1f} ms, max {max(rows):.1f} ms "
-        f"(target < 200 ms: {'met' if max(rows) < 200 else 'NOT met'})"
-    )
-    return 0 if max(rows) < 200 else 1
+    return print_summary("dashboard abort latency", "click", rows)
 
 
 if __name__ == "__main__":
