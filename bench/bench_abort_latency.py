@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import logging
 import statistics
 import sys
@@ -61,6 +62,26 @@ def service_account(url: str):
     from orbitrig.service.rig_service import BrokerSettings
 
     return BrokerSettings.from_url(url, username="orbitrig-service", password=ACCOUNTS["orbitrig-service"])
+
+
+@contextlib.asynccontextmanager
+async def service_on_sim(prefix: str, speedup: float, stops: dict, words: dict, armed: threading.Event):
+    """A work folder (``prefix``) with the bench matrix, a mosquitto, the simulator (its drives'
+    stopping control words timed into ``stops`` and ``words`` once ``armed``) and the bench
+    service on it, not yet serving: yields (work, broker, sim_rig, service)."""
+    from sim.rig import SimRig
+
+    logging.basicConfig(level=logging.WARNING)
+    work = Path(tempfile.mkdtemp(prefix=prefix))
+    write_matrix(work)
+    broker = Broker(work / "broker")
+    broker.start()
+    try:
+        async with SimRig(speedup=speedup, adc_pty=False) as sim_rig:
+            watch_control_words(sim_rig, stops, words, armed)
+            yield work, broker, sim_rig, bench_service(sim_rig, work, service_account(broker.url))
+    finally:
+        broker.stop()
 
 
 def print_summary(title: str, start: str, latencies_ms: list[float]) -> int:
@@ -137,69 +158,57 @@ class Operator:
 
 async def main(trials: int, speedup: float) -> int:
     """Run the trials; 0 when every one is under the target, else 1."""
-    from sim.rig import SimRig
-
-    logging.basicConfig(level=logging.WARNING)
-    work = Path(tempfile.mkdtemp(prefix="bench-abort-"))
-    write_matrix(work)
-    broker = Broker(work / "broker")
-    broker.start()
     stops: dict[int, float] = {}
     words: dict[int, int] = {}
     armed = threading.Event()
     arrivals: list[float] = []
-    try:
-        async with SimRig(speedup=speedup, adc_pty=False) as sim_rig:
-            watch_control_words(sim_rig, stops, words, armed)
-            service = bench_service(sim_rig, work, service_account(broker.url))
-            handle = service.handle_command
+    async with service_on_sim("bench-abort-", speedup, stops, words, armed) as (_, broker, sim_rig, service):
+        handle = service.handle_command
 
-            def timed_handle(payload: bytes, *, retained: bool = False) -> None:
-                arrivals.append(time.monotonic())
-                handle(payload, retained=retained)
+        def timed_handle(payload: bytes, *, retained: bool = False) -> None:
+            arrivals.append(time.monotonic())
+            handle(payload, retained=retained)
 
-            service.handle_command = timed_handle
-            shutdown = asyncio.Event()
-            serving = asyncio.create_task(service.serve(shutdown), name="bench-service")
-            op = await asyncio.to_thread(Operator, broker.port, "orbitrig/bench")
-            rows = []
-            try:
-                await asyncio.to_thread(op.wait, lambda: op.status.get("state") == "idle", 30)
-                for trial in range(trials):
-                    op.progress_revs = 0
-                    op.send("start", matrix="bench")
-                    # both drives at speed and the orbit being acquired
-                    await asyncio.to_thread(op.wait, lambda: op.progress_revs >= 20, 60)
-                    spin, orbit = (abs(sim_rig.drives[d].actual_rpm) for d in (1, 2))
-                    stops.clear()
-                    arrivals.clear()
-                    armed.set()
-                    t_pub = op.send("abort")
-                    await asyncio.to_thread(op.wait, lambda: op.status.get("state") == "idle", 60)
-                    armed.clear()
-                    if len(stops) != 2:
-                        raise RuntimeError(f"trial {trial}: stop commands seen for drives {sorted(stops)} only")
-                    t_arr = arrivals[0]
-                    rows.append(
-                        (
-                            (t_arr - t_pub) * 1e3,
-                            (max(stops.values()) - t_arr) * 1e3,
-                            (max(stops.values()) - t_pub) * 1e3,
-                        )
+        service.handle_command = timed_handle
+        shutdown = asyncio.Event()
+        serving = asyncio.create_task(service.serve(shutdown), name="bench-service")
+        op = await asyncio.to_thread(Operator, broker.port, "orbitrig/bench")
+        rows = []
+        try:
+            await asyncio.to_thread(op.wait, lambda: op.status.get("state") == "idle", 30)
+            for trial in range(trials):
+                op.progress_revs = 0
+                op.send("start", matrix="bench")
+                # both drives at speed and the orbit being acquired
+                await asyncio.to_thread(op.wait, lambda: op.progress_revs >= 20, 60)
+                spin, orbit = (abs(sim_rig.drives[d].actual_rpm) for d in (1, 2))
+                stops.clear()
+                arrivals.clear()
+                armed.set()
+                t_pub = op.send("abort")
+                await asyncio.to_thread(op.wait, lambda: op.status.get("state") == "idle", 60)
+                armed.clear()
+                if len(stops) != 2:
+                    raise RuntimeError(f"trial {trial}: stop commands seen for drives {sorted(stops)} only")
+                t_arr = arrivals[0]
+                rows.append(
+                    (
+                        (t_arr - t_pub) * 1e3,
+                        (max(stops.values()) - t_arr) * 1e3,
+                        (max(stops.values()) - t_pub) * 1e3,
                     )
-                    print(
-                        f"trial {trial + 1}: spin {spin:6.0f} rpm, orbit {orbit:+6.0f} rpm | "
-                        f"broker {rows[-1][0]:6.1f} ms + service/executor/Modbus {rows[-1][1]:6.1f} ms "
-                        f"= abort -> both drives stopping {rows[-1][2]:6.1f} ms "
-                        f"(CW {words[1]:#06x}, {words[2]:#06x})",
-                        flush=True,
-                    )
-            finally:
-                op.close()
-                shutdown.set()
-                await serving
-    finally:
-        broker.stop()
+                )
+                print(
+                    f"trial {trial + 1}: spin {spin:6.0f} rpm, orbit {orbit:+6.0f} rpm | "
+                    f"broker {rows[-1][0]:6.1f} ms + service/executor/Modbus {rows[-1][1]:6.1f} ms "
+                    f"= abort -> both drives stopping {rows[-1][2]:6.1f} ms "
+                    f"(CW {words[1]:#06x}, {words[2]:#06x})",
+                    flush=True,
+                )
+        finally:
+            op.close()
+            shutdown.set()
+            await serving
     return print_summary("abort latency", "publish", [r[2] for r in rows])
 
 

@@ -25,23 +25,13 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import logging
 import sys
-import tempfile
 import threading
 import time
-from pathlib import Path
 
-from bench.bench_abort_latency import (
-    Operator,
-    bench_service,
-    print_summary,
-    service_account,
-    watch_control_words,
-    write_matrix,
-)
+from bench.bench_abort_latency import Operator, print_summary, service_on_sim
 from tests.support.dash_helpers import Dashboard, Page, chromium
-from tests.support.mqtt_helpers import ACCOUNTS, Broker
+from tests.support.mqtt_helpers import ACCOUNTS
 
 
 def click_abort(page: Page) -> float:
@@ -82,45 +72,33 @@ async def trials_loop(
 
 async def main(trials: int, speedup: float) -> int:
     """Run the trials; 0 when every one is under the target, else 1."""
-    from sim.rig import SimRig
-
-    logging.basicConfig(level=logging.WARNING)
-    work = Path(tempfile.mkdtemp(prefix="bench-dash-abort-"))
-    write_matrix(work)
-    broker = Broker(work / "broker")
-    broker.start()
     stops: dict[int, float] = {}
     words: dict[int, int] = {}
     armed = threading.Event()
     rows: list[float] = []
     dash = driver = None
-    try:
-        async with SimRig(speedup=speedup, adc_pty=False) as sim_rig:
-            watch_control_words(sim_rig, stops, words, armed)
-            service = bench_service(sim_rig, work, service_account(broker.url))
-            shutdown = asyncio.Event()
-            serving = asyncio.create_task(service.serve(shutdown), name="bench-service")
-            watcher = await asyncio.to_thread(Operator, broker.port, "orbitrig/bench")
-            try:
-                dash = await asyncio.to_thread(Dashboard, broker.url, "bench", work)
-                driver = await asyncio.to_thread(chromium, work)
-                page = await asyncio.to_thread(Page, driver, dash.url, dash)
-                await asyncio.to_thread(page.sign_in, "operator", ACCOUNTS["operator"])
-                await asyncio.to_thread(page.signed_in)
-                await asyncio.to_thread(page.wait_state, "idle")
-                await asyncio.to_thread(page.el("matrix").clear)
-                await asyncio.to_thread(page.el("matrix").send_keys, "bench")
-                rows = await trials_loop(page, watcher, sim_rig, stops, words, armed, trials)
-            finally:
-                watcher.close()
-                if driver is not None:
-                    await asyncio.to_thread(driver.quit)
-                if dash is not None:
-                    await asyncio.to_thread(dash.stop)
-                shutdown.set()
-                await serving
-    finally:
-        broker.stop()
+    async with service_on_sim("bench-dash-abort-", speedup, stops, words, armed) as (work, broker, sim_rig, service):
+        shutdown = asyncio.Event()
+        serving = asyncio.create_task(service.serve(shutdown), name="bench-service")
+        watcher = await asyncio.to_thread(Operator, broker.port, "orbitrig/bench")
+        try:
+            dash = await asyncio.to_thread(Dashboard, broker.url, "bench", work)
+            driver = await asyncio.to_thread(chromium, work)
+            page = await asyncio.to_thread(Page, driver, dash.url, dash)
+            await asyncio.to_thread(page.sign_in, "operator", ACCOUNTS["operator"])
+            await asyncio.to_thread(page.signed_in)
+            await asyncio.to_thread(page.wait_state, "idle")
+            await asyncio.to_thread(page.el("matrix").clear)
+            await asyncio.to_thread(page.el("matrix").send_keys, "bench")
+            rows = await trials_loop(page, watcher, sim_rig, stops, words, armed, trials)
+        finally:
+            watcher.close()
+            if driver is not None:
+                await asyncio.to_thread(driver.quit)
+            if dash is not None:
+                await asyncio.to_thread(dash.stop)
+            shutdown.set()
+            await serving
     return print_summary("dashboard abort latency", "click", rows)
 
 
