@@ -1,6 +1,6 @@
 """In-process throughput of the acquisition pipeline: decode + assemble + average.
 
-Frames are made once (by a small encoder written from the spec, like the tests'),
+Frames are made once (by the tests' encoder written from the spec, tests/support/daq_encoder.py),
 then the byte stream is fed in chunks through FrameDecoder -> RevolutionAssembler
 -> StreamingAverager on one core. Prints samples per second for several board
 layouts with the paper's fixed rule (50 revolutions), and for the simulator's
@@ -14,22 +14,21 @@ Target: >= 10 million samples/s.
 from __future__ import annotations
 
 import argparse
-import struct
 import sys
 import time
-from binascii import crc_hqx
 
 import numpy as np
 
 from daq.averager import AveragingRule, StreamingAverager
 from daq.frames import FrameDecoder
 from daq.revolutions import RevolutionAssembler
+from tests.support.daq_encoder import SIMULTANEOUS, TRIGGER, frame
 
 
 def make_stream(n_revs: int, channels: int, mode: str, frame_slots: int, seed: int = 1) -> bytes:
     rng = np.random.default_rng(seed)
     n_ch = channels if mode == "simultaneous" else 1
-    flag_mode = 4 if mode == "simultaneous" else 0
+    flag_mode = SIMULTANEOUS if mode == "simultaneous" else 0
     # a few distinct revolutions, repeated (encoding speed is not what is measured)
     revs = rng.normal(0, 3000, (8, 360, n_ch)).astype("<i2")
     out, seq = [], 0
@@ -38,21 +37,8 @@ def make_stream(n_revs: int, channels: int, mode: str, frame_slots: int, seed: i
         samples = revs[r % 8]
         for fs in range(0, 360, frame_slots):
             ns = min(frame_slots, 360 - fs)
-            body = (
-                struct.pack(
-                    "<BBHIHBBI",
-                    1,
-                    (1 if fs == 0 else 0) | flag_mode,
-                    seq & 0xFFFF,
-                    r,
-                    fs,
-                    ns,
-                    n_ch,
-                    t_rev + fs * 80_000 // 360,
-                )
-                + samples[fs : fs + ns].tobytes()
-            )
-            out.append(b"\xa5\x5a" + body + struct.pack("<H", crc_hqx(body, 0xFFFF)))
+            flags = (TRIGGER if fs == 0 else 0) | flag_mode
+            out.append(frame(flags, seq, r, fs, samples[fs : fs + ns], t_rev + fs * 80_000 // 360))
             seq += 1
     return b"".join(out)
 

@@ -23,15 +23,14 @@ import math
 import multiprocessing as mp
 import os
 import select
-import struct
 import sys
 import time
 import tty
-from binascii import crc_hqx
 
 import numpy as np
 
 from daq.adc import AdcReader
+from tests.support.daq_encoder import SIMULTANEOUS, TRIGGER, frame
 
 
 # ------------------------------------------------------------------ sources
@@ -67,7 +66,7 @@ def writer_source(conn, mode: str, frame_slots: int = 45) -> None:
     n_ch = 8 if mode == "simultaneous" else 1
     rng = np.random.default_rng(0)
     revs = [rng.normal(0, 2000, (360, n_ch)).astype("<i2") for _ in range(64)]
-    flag_mode = 4 if mode == "simultaneous" else 0
+    flag_mode = SIMULTANEOUS if mode == "simultaneous" else 0
     period_us, seq, r = 20_000, 0, 0
     pending = memoryview(b"")
     while True:
@@ -77,21 +76,9 @@ def writer_source(conn, mode: str, frame_slots: int = 45) -> None:
                 samples = revs[r % len(revs)]
                 for fs in range(0, 360, frame_slots):
                     ns = min(frame_slots, 360 - fs)
-                    body = (
-                        struct.pack(
-                            "<BBHIHBBI",
-                            1,
-                            (1 if fs == 0 else 0) | flag_mode,
-                            seq & 0xFFFF,
-                            r & 0xFFFFFFFF,
-                            fs,
-                            ns,
-                            n_ch,
-                            (r * period_us + fs * period_us // 360) & 0xFFFFFFFF,
-                        )
-                        + samples[fs : fs + ns].tobytes()
-                    )
-                    out.append(b"\xa5\x5a" + body + struct.pack("<H", crc_hqx(body, 0xFFFF)))
+                    flags = (TRIGGER if fs == 0 else 0) | flag_mode
+                    t_us = r * period_us + fs * period_us // 360
+                    out.append(frame(flags, seq, r, fs, samples[fs : fs + ns], t_us))
                     seq += 1
                 r += 1
             pending = memoryview(b"".join(out))
