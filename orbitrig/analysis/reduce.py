@@ -222,7 +222,9 @@ def table_cells(rows: list[Reduced], full: bool = False) -> list[list[str]]:
     tail named residual_rms and exponent (as in the CSV written and the JSON). A refused
     (point, lms) shows 'refused' (the reason goes to standard error). In --sim runs each fit is
     followed by a row 'true (LMS)' of its own truth (fit_true_values: the true Z projected onto
-    the fit's model, as the CSV's true_* columns), in text to the fit's decimals."""
+    the fit's model, as the CSV's true_* columns), in text to the fit's decimals. The point is
+    named as on the terminal ('0003', Point.name) in text and by its index ('3') in `full`, as
+    every CSV file of a run carries it (coefficients.csv, reduce_*.csv, the exports)."""
     cols = [k for k in CONSTANT_KEYS if any(r.identification and k in r.identification.coefficients for r in rows)]
     auto = any(r.identification is not None and r.identification.exponent is not None for r in rows)
     if full:
@@ -234,12 +236,11 @@ def table_cells(rows: list[Reduced], full: bool = False) -> list[list[str]]:
     lines = [["point", "lms", *head, tail[0], *(tail[1:] if auto else [])]]
     for r in rows:
         ident = r.identification
-        lines.append(
-            [r.point.name, str(r.lms), *(["refused"] if ident is None else _fit_cells(ident, cols, full, auto))]
-        )
+        point = str(r.point.index) if full else r.point.name
+        lines.append([point, str(r.lms), *(["refused"] if ident is None else _fit_cells(ident, cols, full, auto))])
         truth = fit_true_values(r)
         if truth:
-            lines.append([r.point.name, f"true ({r.lms})", *_true_cells(truth, ident, cols, full)])
+            lines.append([point, f"true ({r.lms})", *_true_cells(truth, ident, cols, full)])
     return lines
 
 

@@ -10,6 +10,7 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+from orbitrig.store.layout import point_name
 from rigunits import COEFFICIENT_UNITS
 
 
@@ -45,16 +46,17 @@ def notes(bearing: dict[str, Any]) -> list[str]:
     """What the export tells on standard error about one bearing: its speeds, which fit gave
     each, every coefficient not determined and every fit warning."""
     used = ", ".join(f"{s['spin']:.6g} {s['used']} ({s['fit']})" for s in bearing["speeds"])
-    lines = [f"ross: {bearing['lms']} bearing of points {bearing['points']}: rad/s {used}; {bearing['outside']}"]
+    points = ", ".join(point_name(i) for i in bearing["points"])  # as the warnings below (the file: [3, 4])
+    lines = [f"ross: {bearing['lms']} bearing of points {points}: rad/s {used}; {bearing['outside']}"]
     for n in bearing["not_determined"]:
         unit = _unit(n)
         lines.append(
-            f"warning: point {n['point']:04d} at {n['spin']:.6g} rad/s, fit {n['fit']}: {n['coefficient']} = "
+            f"warning: point {point_name(n['point'])} at {n['spin']:.6g} rad/s, fit {n['fit']}: {n['coefficient']} = "
             f"{n['value']:.4g} {unit} with U = {n['U']:.4g} {unit} is not determined (U > |value|); "
             "exported as identified and listed in not_determined"
         )
     lines += [
-        f"warning: point {w['point']:04d} at {w['spin']:.6g} rad/s, fit {w['fit']}: {w['warning']}"
+        f"warning: point {point_name(w['point'])} at {w['spin']:.6g} rad/s, fit {w['fit']}: {w['warning']}"
         for w in bearing.get("fit_warnings") or []
     ]
     return lines

@@ -93,14 +93,18 @@ def sequential_lines(plan, duration: float) -> list[str]:
 
 
 def _print_points(plan) -> None:
-    """One line per operating point: its start, duration, blocks and settings."""
+    """One line per operating point (named as the run's files and --steps name it, 0003): its start,
+    duration, blocks and settings."""
+    from orbitrig.store.layout import point_name
     from rigunits import format_duration
 
     typer.echo(f"point  {'starts at':>9}  {'duration':>8}  blocks  settings  (times h:mm:ss)")
     t = 0.0
     for p in plan.points:
         d = sum(s.duration for s in plan.point_steps(p.index))
-        typer.echo(f"{p.index:>5d}  {format_duration(t):>9}  {format_duration(d):>8}  {len(p.blocks):>6}  {p.label}")
+        typer.echo(
+            f"{point_name(p.index):>5}  {format_duration(t):>9}  {format_duration(d):>8}  {len(p.blocks):>6}  {p.label}"
+        )
         t += d
     tail = sum(s.duration for s in plan.final_steps)
     if plan.final_steps:
@@ -111,6 +115,7 @@ def _print_points(plan) -> None:
 
 
 def _print_steps(steps) -> None:
+    from orbitrig.store.layout import point_name
     from rigunits import format_duration
 
     width = len(str(len(steps)))
@@ -119,6 +124,6 @@ def _print_steps(steps) -> None:
     )
     t = 0.0
     for i, s in enumerate(steps, 1):
-        where = f"point {s.point:04d}" if s.point is not None else "end       "
+        where = f"point {point_name(s.point)}" if s.point is not None else "end       "
         typer.echo(f"{i:>{width}}  {format_duration(t):>8}  {where}  {s.duration:8.2f} s  {s.describe()}")
         t += s.duration

@@ -1,7 +1,9 @@
 """Terminal progress of a sweep (rich): points, frequencies, revolutions, ETA.
 
 `SweepProgress` is an event subscriber of the RunEngine; status changes are
-printed as log lines above the bars.
+printed as log lines above the bars. The ETA is the plan's rig time left (each manual setting
+counted at its estimate); it does not run down while the run waits for the operator or is
+paused, and then says so: 'ETA 12:30 (paused: waiting for the operator)'.
 """
 
 from __future__ import annotations
@@ -14,6 +16,10 @@ from orbitrig.cli.terminal import TerminalConsole
 from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
 from rigunits import format_duration
 from orbitrig.run.states import RunState
+
+
+#: why the ETA stands still, by the state that holds the run
+HELD = {RunState.WAITING: "paused: waiting for the operator", RunState.PAUSED: "paused with the run"}
 
 
 class SweepProgress:
@@ -35,6 +41,8 @@ class SweepProgress:
         self.revolutions = revolutions  # per block: the revolutions bar's end
         self.done = 0
         self.measured = False  # a point was started (a resumed run with every point done starts none)
+        self.eta_s: float | None = None  # wall s of the plan left, as the last progress said
+        self.held = ""  # why the ETA stands still (HELD), "" while it runs down
 
     def __enter__(self) -> "SweepProgress":
         self.progress.start()
@@ -48,9 +56,8 @@ class SweepProgress:
 
     def __call__(self, ev) -> None:
         if isinstance(ev, ProgressEvent):
-            self.measured = True
-            eta = "" if ev.eta_s is None else f"ETA {format_duration(ev.eta_s)}"
-            self.progress.update(self.points, total=max(ev.points, 1), completed=self.done, extra=eta)
+            self.measured, self.eta_s = True, ev.eta_s
+            self.progress.update(self.points, total=max(ev.points, 1), completed=self.done, extra=self.eta())
             self.progress.update(self.freqs, total=max(ev.frequencies, 1), completed=max(ev.frequency - 1, 0))
             self.progress.update(self.revs, completed=min(ev.revolutions, self.revolutions))
         elif isinstance(ev, StatusEvent):
@@ -58,6 +65,8 @@ class SweepProgress:
                 ev.state, ""
             )
             self.progress.console.log(Text(f"{ev.state}: ", style=style) + Text(ev.message))
+            self.held = HELD.get(ev.state, "")
+            self.progress.update(self.points, extra=self.eta())
         elif isinstance(ev, ResultEvent):
             p = ev.payload
             self.done += 1
@@ -65,3 +74,10 @@ class SweepProgress:
             for task in (self.freqs, self.revs):
                 self.progress.update(task, completed=self.progress.tasks[task].total)
             self.progress.console.log(Text(f"point {p['point']:04d} {p['label']} complete"))
+
+    def eta(self) -> str:
+        """The points bar's ETA: 'ETA 12:30', '(paused: waiting for the operator)' after it
+        while the run waits; "" before the first estimate."""
+        if self.eta_s is None:
+            return ""
+        return f"ETA {format_duration(self.eta_s)}" + (f" ({self.held})" if self.held else "")

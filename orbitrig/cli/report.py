@@ -48,7 +48,7 @@ FormatOpt = Annotated[
     OutputFormat,
     typer.Option(
         "--format",
-        help="text: a plain table of the constant terms in MN/m, kN s/m, kg, each \u00b1 its standard error (2 significant digits, the value to the same decimal), never cut, split to the terminal's width; csv: the same table in SI (N/m, N s/m, kg), each term followed by its _std, every number in full (the shortest decimal that reads back as the same double); json: one object with every result. Every format also writes DIR/reduce_*.csv",
+        help="text: a plain table of the constant terms in MN/m, kN s/m, kg, each \u00b1 its standard error (2 significant digits, the value to the same decimal), never cut, split to the terminal's width; csv: the same table in SI (N/m, N s/m, kg), each term followed by its _std, every number in full (the shortest decimal that reads back as the same double), the point as its index (3, as in the CSV files; the text writes 0003); json: one object with every result. Every format also writes DIR/reduce_*.csv",
     ),
 ]
 

@@ -108,11 +108,12 @@ def test_sweep_matrix_by_name_prints_totals_first():
     assert len(undetermined) == 3  # kcd11 none, power:1 and power:2: D over 100 %; kc7 fits are not named
     assert re.search(r"Dyy \d+\.\.929 %", undetermined[0]) and "Dyy 2.48e+03..3.72e+04 %" in undetermined[1]
     points = [ln for ln in lines if re.fullmatch(r"\s*\d+\s+\d+:\d\d(:\d\d)?\s+\d+:\d\d\s+20\s+w\d+rpm\S+", ln)]
-    assert [int(ln.split()[0]) for ln in points] == list(range(108))
+    assert [ln.split()[0] for ln in points] == [f"{i:04d}" for i in range(108)]  # as --steps and the run's files
     assert len(lines) < 150 and f"({m.group(1)} steps: --steps lists every one" in lines[-1]
     full = orbitrig("sweep", "--sim", "--dry-run", "--matrix", "paper", "--steps").stdout.splitlines()
     steps = [line for line in full if re.match(r"\s*\d+\s+\d+:\d\d(:\d\d)?\s+(point|end)", line)]
     assert len(steps) == int(m.group(1)) and steps[-1].split()[0] == m.group(1)
+    assert sorted({ln.split()[3] for ln in steps if ln.split()[2] == "point"}) == [ln.split()[0] for ln in points]
 
 
 def test_sweep_matrix_name_and_file_give_the_same_plan():

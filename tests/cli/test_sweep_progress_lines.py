@@ -39,3 +39,19 @@ def test_bars_only_when_something_was_measured():
     assert "points" not in shown([StatusEvent(RunState.IDLE, "r1", "2026-12-02T00:00:00Z", "completed")])
     measured = shown([ProgressEvent("r1", 1, 2, 1, 10, 5, 30.0)])
     assert "points" in measured and "frequencies" in measured and "ETA" in measured
+
+
+def test_eta_says_paused_while_the_run_is_paused_and_runs_again_after():
+    """An operator's pause (or an interlock's) holds the rig time left as a setting's wait does;
+    the ETA says so until the run goes on, and a progress during the hold keeps the words."""
+    from orbitrig.run.engine import ProgressEvent
+
+    progress = SweepProgress(TerminalConsole(file=io.StringIO(), width=140, force_terminal=False))
+    progress(ProgressEvent("r1", 1, 2, 3, 10, 5, 750.0))
+    assert progress.eta() == "ETA 12:30"
+    progress(StatusEvent(RunState.PAUSED, "r1", "2026-12-02T00:00:00Z", "paused at a safe point"))
+    assert progress.eta() == "ETA 12:30 (paused with the run)"
+    progress(ProgressEvent("r1", 1, 2, 3, 10, 10, 745.0))  # a block's last revolutions, sent at the hold
+    assert progress.eta() == "ETA 12:25 (paused with the run)"
+    progress(StatusEvent(RunState.RUNNING, "r1", "2026-12-02T00:01:00Z", "resumed"))
+    assert progress.eta() == "ETA 12:25"

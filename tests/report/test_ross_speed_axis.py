@@ -105,6 +105,7 @@ def test_the_frequency_axis_is_the_rotor_speed_with_synchronous_coefficients(spe
         assert speed["whirl_range"] == pytest.approx([0.3 * spins[i], 1.2 * spins[i]], rel=1e-12)
     assert "end values held below 52.3599 and above 157.08 rad/s" == bearing["outside"]
     assert "52.3599 synchronous (piezo:kcd11:power:1:ols)" in res.stderr
+    assert "ross: piezo bearing of points 0000, 0001, 0002: rad/s" in res.stderr  # as its warnings name them
 
 
 def test_the_constant_fit_outside_the_tested_whirl_range(speed_run, tmp_path, monkeypatch):

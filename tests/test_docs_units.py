@@ -1,0 +1,40 @@
+"""The README and docs/ write micrometres in prose as the CLI prints them (rigunits.MICROMETRE,
+'µm'); an ASCII 'um' is left only in literal text: code spans and blocks (`--span-um`, `x_um`)."""
+
+from __future__ import annotations
+
+import re
+
+from support.paths import ROOT
+
+from rigunits import MICROMETRE
+
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+_ASCII_MICROMETRE = re.compile(r"(?<![\w-])um(?!\w)")
+
+
+def prose_lines(markdown: str) -> list[tuple[int, str]]:
+    """(line number, text) of ``markdown`` outside fenced code blocks, with `code spans` blanked."""
+    out, fenced = [], False
+    for n, line in enumerate(markdown.split("\n"), 1):
+        if line.lstrip().startswith("```"):
+            fenced = not fenced
+        elif not fenced:
+            out.append((n, re.sub(r"`[^`]*`", "``", line)))
+    return out
+
+
+def ascii_micrometres(markdown: str) -> list[str]:
+    """'LINE: text' of every prose line of ``markdown`` that writes micrometres as 'um'."""
+    return [f"{n}: {line.strip()}" for n, line in prose_lines(markdown) if _ASCII_MICROMETRE.search(line)]
+
+
+def test_the_check_finds_um_in_prose_and_leaves_literals():
+    page = "a 2.4 um orbit\n`--span-um`, default 40 um,\n`x_um` (m)\n```\nspan_um = 40  # um\n```\n"
+    assert ascii_micrometres(page) == ["1: a 2.4 um orbit", "2: ``, default 40 um,"]
+
+
+def test_docs_write_micrometres_as_the_cli_prints_them():
+    assert MICROMETRE == "\u00b5m"
+    found = {str(p.relative_to(ROOT)): ascii_micrometres(p.read_text(encoding="utf-8")) for p in PAGES}
+    assert {page: lines for page, lines in found.items() if lines} == {}
