@@ -25,6 +25,10 @@ source of `state`, and the interlock:
   (the emergency stop if an emergency stop is owed) and records the failure. A stop both
   drives took holds until a new speed is commanded: a drive found running again after it
   (another client, its keypad) gets it again, and the failure is recorded.
+- A drive that runs on through the stop sent again (refused, or taken and ignored) is kept
+  running by the poll's own requests (they feed its comm-loss watchdog): once found so for a
+  bound, no request goes to it until its watchdog has tripped it (drives/starve.py), the other
+  drive polled on; then its read tells whether that stopped it. Each step is a recorded failure.
 - `wait_stopped`: the owner's wait for standstill after a stop, and a drive that tripped
   meanwhile (StopTripError, `RigDrives.stop`); it asks for polls as the wait for the setpoint does.
 """
@@ -45,6 +49,7 @@ from drives.findings import reconnect_problem, running_after_stop, running_while
 from drives.heartbeat import fit_loss_polls
 from drives.link import ModbusLink
 from drives.poll_pace import PollPace, wait_tick
+from drives.starve import Starver
 from drives.state import RigDriveState, off_command
 from drives.stop import StopSender
 
@@ -99,6 +104,7 @@ class DrivePoll:
         self._sending = 0  # stops under way: what they reached is not known yet
         self._epoch = 0  # speed commands so far: a stop asked before the last one owes nothing
         self._held: tuple[float, bool] | None = None  # (monotonic s, emergency) of a stop both took, none since
+        self._starve = Starver(link, drives, poll_interval)  # drives not addressed: their watchdog starved
 
     def acknowledge(self) -> None:
         """Forget the recorded failure; trips read before now are not handled again."""
@@ -110,6 +116,7 @@ class DrivePoll:
         """Both drives are being run at raw REFs `refs` (spin, orbit): no stop is owed any more."""
         self._epoch += 1
         self.owed, self.following, self._started_at, self._held = None, False, None, None
+        self._starve.reset()
         self.command = refs
 
     def started(self) -> None:
@@ -234,10 +241,15 @@ class DrivePoll:
                     self.command = None
                 self.fail(DriveError(f"poll failed: {err!r}"))
 
+    async def _read(self, d: Drive, **kw: bool | int) -> DriveStatus:
+        """`d`'s status (`Drive.read_status` with `kw`), or while its watchdog is starved its last."""
+        return self._starve.starved(d) or await d.read_status(**kw)  # type: ignore[arg-type]
+
     async def _poll_once(self) -> None:
+        self._starve.ended()  # a drive starved long enough is read again
         try:
             if self.state.link_ok:  # no retry: failed polls in a row bound the time to a declared loss
-                statuses = [await d.read_status(retries=0, gives_way=True) for d in self.drives]
+                statuses = [await self._read(d, retries=0, gives_way=True) for d in self.drives]
             else:
                 statuses = await self._verify_after_reconnect()
         except DriveGaveWay:  # a stop took the link: no poll this time, and no failure
@@ -250,6 +262,8 @@ class DrivePoll:
         await self._check_trips(statuses)
         await self._check_following(statuses)
         await self._check_owed(statuses)
+        for found in self._starve.outcome(statuses):
+            self.fail(found)
 
     def _poll_failed(self, err: DriveError) -> None:
         """A poll without valid answers: counted; the link is declared lost after
@@ -290,8 +304,9 @@ class DrivePoll:
         a stop is owed are stopped (again) and the failure is recorded."""
         down = time.monotonic() - (self._link_lost_at or time.monotonic())
         for d in self.drives:
-            await d.read_parameters()  # volatile: a power-cycled drive has defaults again
-        statuses = [await d.read_status(retries=0) for d in self.drives]
+            if not self._starve.starved(d):
+                await d.read_parameters()  # volatile: a power-cycled drive has defaults again
+        statuses = [await self._read(d, retries=0) for d in self.drives]
         problem = reconnect_problem(statuses, self.drives, self.command, down) or self._owed_problem(
             statuses, f"link was down {down:.1f} s; "
         )
@@ -336,8 +351,11 @@ class DrivePoll:
         if problem is None:
             return
         log.error("%s", problem)
+        took = self.owed is None  # a stop both took, held
         await asyncio.shield(self._send(self._again()))
         self.fail(problem)
+        for found in self._starve.judge(statuses, took=took):  # one that runs on: its watchdog starved
+            self.fail(found)
 
     async def _check_trips(self, statuses: list[DriveStatus]) -> None:
         tripped = [st for st in statuses if st.tripped and st.time > self._ack_time]
