@@ -11,7 +11,8 @@ them and runs on, is kept running by the poll's own reads and resends. `Starver`
   REF or ACT is defiant from that read on, and starved once still read so `bound` s later:
   two poll intervals (the stop sent again at least once more, and read after it), plus, at
   REF = 0, its own ramp from the speed read (DECEL_TIME x |ACT| / SPEED_SCALE: a drive that
-  follows a zero REF in operation is stopping, merely slowly). A drive that took a stop word
+  follows a zero REF in operation is stopping, merely slowly); a poll that finds no drive
+  running after the stop in between forgives it (`forgive`). A drive that took a stop word
   leaves operation enabled at once (OFF1/OFF3 ACTIVE): a ramp stop is never taken for defiance.
   A drive enabled at REF 0 and standstill is not starved (it does not turn; the stop goes on).
 - Starving: its id goes into the link's `unaddressed` (no read, no write, no stop's word) for
@@ -72,6 +73,10 @@ class Starver:
     def reset(self) -> None:
         """A speed was commanded: drives not starved now are judged afresh."""
         self._of = {k: v for k, v in self._of.items() if v.phase is Phase.STARVED}
+
+    def forgive(self) -> None:
+        """A poll found no drive running after the stop: those found so before are judged afresh."""
+        self._of = {k: v for k, v in self._of.items() if v.phase is not Phase.DEFIANT}
 
     def starved(self, d: Drive) -> DriveStatus | None:
         """`d`'s last status while it is not addressed (the poll shows it), else None."""
