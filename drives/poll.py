@@ -12,9 +12,10 @@ source of `state`, and the interlock:
 - A poll's read gives way to a stop on TCP (drives/link.py): that poll is skipped, not failed.
 - A failed poll is counted (`state.poll_failures`, logged); the link is
   declared lost only after `link_loss_polls` consecutive failures (an isolated
-  lost frame on a noisy RS-485 line is tolerated). `fit_heartbeat` lowers the
-  count so that link_loss_polls x (poll_interval + timeout) stays below the
-  drives' COMM_LOSS_TIMEOUT.
+  lost frame on a noisy RS-485 line is tolerated), or once it has answered nothing (and failed)
+  for link_loss_polls x (poll_interval + timeout) s since the last good poll, whichever comes
+  first (drives/heartbeat.py: other requests, a stop's tries, hold the poll's). `fit_heartbeat`
+  lowers the count so that this time stays below the drives' COMM_LOSS_TIMEOUT.
 - While the link is down the poll keeps reconnecting; once it is back, both
   drives are verified against `command` before anything goes on: drives found
   tripped, off their reference or in local control are stopped and the loss is recorded.
@@ -25,12 +26,10 @@ source of `state`, and the interlock:
   (the emergency stop if an emergency stop is owed) and records the failure. A stop both
   drives took holds until a new speed is commanded: a drive found running again after it
   (another client, its keypad) gets it again, and the failure is recorded.
-- A drive that runs on through the stop sent again (refused, or taken and ignored) is kept
-  running by the poll's own requests (they feed its comm-loss watchdog): once found so for a
-  bound, no request goes to it until its watchdog has tripped it (drives/starve.py), the other
-  drive polled on; then its read tells whether that stopped it. Each step is a recorded failure.
-- `wait_stopped`: the owner's wait for standstill after a stop, and a drive that tripped
-  meanwhile (StopTripError, `RigDrives.stop`); it asks for polls as the wait for the setpoint does.
+- A drive that runs on through the stop sent again (refused, or taken and ignored; the poll's
+  requests feed its watchdog) gets no request until its comm-loss watchdog has tripped it, the
+  other polled on; then its read says if that stopped it (drives/starve.py). Each is a failure.
+- `wait_stopped`: the owner's wait for standstill after a stop (StopTripError, `RigDrives.stop`).
 """
 
 from __future__ import annotations
@@ -46,7 +45,7 @@ from drives import registers as R
 from drives.drive import Drive, DriveStatus
 from drives.errors import DriveError, DriveFaultError, DriveGaveWay, DriveTimeoutError, StopTripError
 from drives.findings import reconnect_problem, running_after_stop, running_while_owed, trip_fault
-from drives.heartbeat import fit_loss_polls
+from drives.heartbeat import LinkSilence, fit_loss_polls
 from drives.link import ModbusLink
 from drives.poll_pace import PollPace, wait_tick
 from drives.starve import Starver
@@ -105,6 +104,7 @@ class DrivePoll:
         self._epoch = 0  # speed commands so far: a stop asked before the last one owes nothing
         self._held: tuple[float, bool] | None = None  # (monotonic s, emergency) of a stop both took, none since
         self._starve = Starver(link, drives, poll_interval)  # drives not addressed: their watchdog starved
+        self._silence = LinkSilence(link, self._link_down, recheck=poll_interval)  # armed while link_ok
 
     def acknowledge(self) -> None:
         """Forget the recorded failure; trips read before now are not handled again."""
@@ -213,6 +213,10 @@ class DrivePoll:
             failed_in_row=old.failed_in_row + 1 if not link_ok else 0,
             time=time.monotonic(),
         )
+        if link_ok:  # the time bound of a declared loss counts from here
+            self._silence.good(self.link_loss_polls * (self.poll_interval + self.link.timeout))
+        else:
+            self._silence.cancel()
         tick, self.tick = self.tick, asyncio.Event()
         tick.set()
 
@@ -227,6 +231,7 @@ class DrivePoll:
                 await self._poll_once()
                 failing = False
             except asyncio.CancelledError:
+                self._silence.cancel()
                 raise
             except Exception as err:  # a bug must not end the heartbeat, nor leave the drives turning unwatched
                 stop = self.command is not None or (self.owed is not None and not self._sending)
@@ -247,8 +252,9 @@ class DrivePoll:
 
     async def _poll_once(self) -> None:
         self._starve.ended()  # a drive starved long enough is read again
+        was_ok = self.state.link_ok
         try:
-            if self.state.link_ok:  # no retry: failed polls in a row bound the time to a declared loss
+            if was_ok:  # no retry: failed polls in a row bound the time to a declared loss
                 statuses = [await self._read(d, retries=0, gives_way=True) for d in self.drives]
             else:
                 statuses = await self._verify_after_reconnect()
@@ -257,6 +263,8 @@ class DrivePoll:
             return
         except DriveError as err:
             self._poll_failed(err)
+            return
+        if was_ok and not self.state.link_ok:  # declared lost meanwhile (LinkSilence): the next poll verifies
             return
         self.publish(statuses, link_ok=True)
         await self._check_trips(statuses)
@@ -273,26 +281,22 @@ class DrivePoll:
         old = self.state
         in_row = old.failed_in_row + 1
         if not old.link_ok or in_row >= self.link_loss_polls:
-            self._link_down(err)
+            self._link_down(err, f"{in_row} failed polls in a row")
             return
-        log.warning(
-            "drive poll failed (%d in a row; link declared lost at %d): %s",
-            in_row,
-            self.link_loss_polls,
-            err,
-        )
+        log.warning("drive poll failed (%d in a row; link declared lost at %d): %s", in_row, self.link_loss_polls, err)
         self.state = dataclasses.replace(
             old, poll_failures=old.poll_failures + 1, failed_in_row=in_row, link_error=str(err)
         )
 
-    def _link_down(self, err: DriveError) -> None:
+    def _link_down(self, err: DriveError, how: str) -> None:
+        """Declare the link lost (`how`: after what), or (lost already) count the failed poll."""
         if self.state.link_ok:
             self._link_lost_at = time.monotonic()
             watchdogs = [d.params.comm_loss_timeout for d in self.drives if d.params]
             log.error(
-                "drive link lost (%d failed polls in a row): %s; a drive no request reaches stops on its "
-                "comm-loss watchdog after %s s (one still answering, with exceptions, does not); reconnecting",
-                self.state.failed_in_row + 1,
+                "drive link lost (%s): %s; a drive no request reaches stops on its comm-loss watchdog after "
+                "%s s (one still answering, with exceptions, does not); reconnecting",
+                how,
                 err,
                 max(watchdogs) if watchdogs else "?",
             )

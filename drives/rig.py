@@ -16,9 +16,11 @@ Safety rules this class keeps:
   source of `state`, and the interlock: if either drive trips, both are ramped
   to zero and the fault is raised from `wait_settled`.
 - A failed poll is counted (`state.poll_failures`, logged) but the link is declared lost only
-  after `link_loss_polls` consecutive failed polls. The count is lowered on entry, if needed, so
-  that link_loss_polls x (poll_interval + timeout) stays below the drives' COMM_LOSS_TIMEOUT: the
-  loss is declared before the drives' own watchdog stops them (a warning if the count was given).
+  after `link_loss_polls` consecutive failed polls, or once the link has answered nothing (and
+  failed) for link_loss_polls x (poll_interval + timeout) s since the last good poll (a stop's
+  tries hold the poll's reads). The count is lowered on entry, if needed, so that this time stays
+  below the drives' COMM_LOSS_TIMEOUT: the loss is declared before the drives' own watchdog stops
+  them (a warning if the count was given).
 - On a declared link loss the poll reports it (log, `state.link_ok`), keeps
   reconnecting and, once the link is back, verifies both drives against what was commanded
   before anything goes on; drives found tripped or off their reference are
