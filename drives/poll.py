@@ -225,26 +225,28 @@ class DrivePoll:
         when `pace.ask`ed. A poll that fails on a bug is logged with its traceback once, not
         at every poll while it keeps failing."""
         failing = False
-        while True:
-            await self.pace.next_poll()
-            try:
-                await self._poll_once()
-                failing = False
-            except asyncio.CancelledError:
-                self._silence.cancel()
-                raise
-            except Exception as err:  # a bug must not end the heartbeat, nor leave the drives turning unwatched
-                stop = self.command is not None or (self.owed is not None and not self._sending)
-                if not failing or stop:
-                    log.exception("drive poll failed" + ("; ramping both drives to zero" if stop else ""))
-                failing = True
-                if stop:  # what it can no longer judge is stopped, as after a trip; a stop owed is sent again
-                    try:
-                        await asyncio.shield(self._send(bool(self.owed)))
-                    except Exception:  # the stop's own failure must not end the heartbeat either
-                        log.exception("drive poll: the stop after its failure failed")
-                    self.command = None
-                self.fail(DriveError(f"poll failed: {err!r}"))
+        try:
+            while True:
+                await self.pace.next_poll()
+                try:
+                    await self._poll_once()
+                    failing = False
+                except asyncio.CancelledError:
+                    raise
+                except Exception as err:  # a bug must not end the heartbeat, nor leave the drives turning unwatched
+                    stop = self.command is not None or (self.owed is not None and not self._sending)
+                    if not failing or stop:
+                        log.exception("drive poll failed" + ("; ramping both drives to zero" if stop else ""))
+                    failing = True
+                    if stop:  # what it can no longer judge is stopped, as after a trip; a stop owed is sent again
+                        try:
+                            await asyncio.shield(self._send(bool(self.owed)))
+                        except Exception:  # the stop's own failure must not end the heartbeat either
+                            log.exception("drive poll: the stop after its failure failed")
+                        self.command = None
+                    self.fail(DriveError(f"poll failed: {err!r}"))
+        finally:
+            self._silence.cancel()  # no loss declared once the poll has ended
 
     async def _read(self, d: Drive, **kw: bool | int) -> DriveStatus:
         """`d`'s status (`Drive.read_status` with `kw`), or while its watchdog is starved its last."""
