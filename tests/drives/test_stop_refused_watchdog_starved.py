@@ -10,7 +10,7 @@ import logging
 import time
 
 import pytest
-from support.drives_testkit import RPM, SimDrives, open_rig
+from support.drives_testkit import CW_RUN, RPM, SimDrives, open_rig
 
 from drives.errors import DriveError
 from drives.limits import DriveLimits
@@ -130,3 +130,58 @@ async def test_a_drive_without_watchdog_running_on_is_said_unstoppable_at_once(t
     assert said[0].startswith("spin drive (id 1), register COMM_LOSS_TIMEOUT (104): ")
     assert "its COMM_LOSS_TIMEOUT reads 0 (no watchdog)" in said[0] and "emergency stop" in said[0]
     assert sim.regs(1)["FAULT"] == 0 and sim.regs(1)["ACT"] != 0  # running on: only the rig's e-stop now
+
+
+async def test_a_drive_ramping_down_at_a_zero_reference_is_not_starved(slow_drives, monkeypatch, caplog):
+    """The spin drive refuses its stop word but takes REF 0: it follows it down its own ramp
+    (about 0.6 s wall here) in operation, merely slowly; given that ramp from the speed read
+    (DECEL_TIME x |ACT| / SPEED_SCALE) plus two polls, it is never starved: the poll keeps
+    addressing it (the stop sent again every poll, as before) and no watchdog trips."""
+    sim = slow_drives
+    caplog.set_level(logging.ERROR, logger="drives")
+    async with open_rig(sim, LIMITS, comm_loss_timeout=WATCHDOG_S) as rig:
+        await rig.set_speeds(1000 * RPM, -500 * RPM)
+        await rig.wait_settled(hold=0.05, timeout=10.0)
+        times = request_times(sim, monkeypatch)
+        model, real = sim.models[1], sim.models[1].write
+
+        def refuse_cw(address, values):
+            if address == CW:
+                raise DriveModbusException(0x03, "refused by the test")
+            real(address, values)
+
+        monkeypatch.setattr(model, "write", refuse_cw)
+        t_stop = time.monotonic()
+        with pytest.raises(DriveError):
+            await rig.stop(wait=False)
+        took = await sim.wait_stopped(timeout=5.0)
+        await sim.wait_for(lambda: time.monotonic() > t_stop + took + 0.5, 2.0, "half a second at standstill")
+        assert sim.regs(1)["CW"] == CW_RUN and sim.regs(1)["FAULT"] == 0  # enabled at REF 0, not tripped
+        gap, _ = longest_gap(times[1], t_stop, time.monotonic())
+        monkeypatch.undo()
+    assert took > 2 * POLL_S, f"the ramp took {took:.2f} s: not slow enough to tell"
+    assert gap < 0.3, f"the spin drive went {gap:.2f} s unaddressed while ramping down"
+    assert "comm-loss watchdog" not in caplog.text, caplog.text
+
+
+async def test_a_drive_in_local_control_refusing_the_stop_is_said_unstoppable_after_starving(
+    tcp_sim, monkeypatch, caplog
+):
+    """The spin drive taken to its keypad refuses the network's stop word: the simulator's keypad
+    disarms its watchdog (the contract does not say), so starving it does not stop it; read again,
+    it still runs, and the finding says nothing over the network can stop it."""
+    sim = tcp_sim
+    caplog.set_level(logging.ERROR, logger="drives")
+    async with open_rig(sim, LIMITS) as rig:
+        await rig.set_speeds(1000 * RPM, -500 * RPM)
+        await rig.wait_settled(hold=0.05, timeout=10.0)
+        defy_stops(sim, 1, monkeypatch, refuse=True)
+        sim.models[1].local_control(1000.0)  # someone at the drive: the poll stops both, the spin drive refuses
+        await sim.wait_for(lambda: "read again after" in caplog.text, 5.0, "the starved drive read again")
+        monkeypatch.undo()
+    decision = [r.getMessage() for r in caplog.records if "trips fault 7510" in r.getMessage()]
+    assert decision and "in local control (SW REMOTE = 0: its watchdog may be disarmed)" in decision[0], decision
+    outcome = [r.getMessage() for r in caplog.records if "read again after" in r.getMessage()][0]
+    assert outcome.startswith("spin drive (id 1), register SW (3): read again after "), outcome
+    assert "still running: its comm-loss watchdog did not stop it; nothing over the network can stop it" in outcome
+    assert "use the rig's emergency stop" in outcome
