@@ -248,9 +248,9 @@ class DrivePoll:
         finally:
             self._silence.cancel()  # no loss declared once the poll has ended
 
-    async def _read(self, d: Drive, **kw: bool | int) -> DriveStatus:
-        """`d`'s status (`Drive.read_status` with `kw`), or while its watchdog is starved its last."""
-        return self._starve.starved(d) or await d.read_status(**kw)  # type: ignore[arg-type]
+    async def _read(self, d: Drive, *, retries: int, gives_way: bool = False) -> DriveStatus:
+        """`d`'s status (`Drive.read_status`), or while its watchdog is starved its last one."""
+        return self._starve.starved(d) or await d.read_status(retries=retries, gives_way=gives_way)
 
     async def _poll_once(self) -> None:
         self._starve.ended()  # a drive starved long enough is read again
