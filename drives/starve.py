@@ -13,7 +13,8 @@ them and runs on, is kept running by the poll's own reads and resends. `Starver`
   REF = 0, its own ramp from the speed read (DECEL_TIME x |ACT| / SPEED_SCALE: a drive that
   follows a zero REF in operation is stopping, merely slowly); a poll that finds no drive
   running after the stop in between forgives it (`forgive`). A drive that took a stop word
-  leaves operation enabled at once (OFF1/OFF3 ACTIVE): a ramp stop is never taken for defiance.
+  leaves operation enabled at once (OFF1/OFF3 ACTIVE, the contract's state machine and the
+  simulator's): a ramp stop is never taken for defiance.
   A drive enabled at REF 0 and standstill is not starved (it does not turn; the stop goes on).
 - Starving: its id goes into the link's `unaddressed` (no read, no write, no stop's word) for
   COMM_LOSS_TIMEOUT + `MARGIN_S` + two poll intervals after the decision; the other drive is
@@ -22,6 +23,8 @@ them and runs on, is kept running by the poll's own reads and resends. `Starver`
 - `ended` / `outcome`: then it is addressed again and the next poll's read of it is the
   finding: tripped (7510) and slowing, or still running: nothing over the network can stop
   it, the rig's emergency stop must. A drive is starved once until the next speed command.
+  A rig closed meanwhile addresses it no more either (its exit's stop skips it, named as not
+  sent): its watchdog still trips, but nobody reads it again.
 A drive in local control (SW REMOTE = 0) is starved too, said in the finding: the contract
 does not say whether the keypad disarms the watchdog (the simulator's does).
 """
