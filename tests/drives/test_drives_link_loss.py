@@ -230,7 +230,10 @@ async def test_failed_polls_in_a_row_declare_the_link_lost(sim):
         watch.stop()
         assert "drive_link:fail" in watch.trips  # the sweep's interlock fails the run
         st = r.state
-        assert st.poll_failures == 3 and st.failed_in_row == 3 and st.link_losses == 1
+        # three failed polls; or, polls slower than poll_interval + timeout on a busy machine, two
+        # and the declaration by time (link_loss_polls x (0.05 + 0.1) s since the last good poll),
+        # counted as one, and then the poll in flight
+        assert st.link_losses == 1 and st.poll_failures == st.failed_in_row and 3 <= st.failed_in_row <= 4
         assert took >= 2 * 0.1  # not at the first failure: three request timeouts of 0.1 s
         with pytest.raises(DriveLinkError, match="nothing commanded"):
             await r.set_speeds(1100 * RPM, 500 * RPM)
