@@ -8,6 +8,9 @@
 - `running_after_stop`: with no speed commanded since a stop both drives took, a drive found
   running (operation enabled) again: started by another client or at the drive; the stop is
   sent again.
+- `defies_stop`, `starved_outcome`: a drive that keeps running through the stop sent again
+  (drives/starve.py): its comm-loss watchdog starved, or why that cannot stop it; what it showed
+  when read again.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from drives import registers as R
-from drives.drive import Drive, DriveStatus
+from drives.drive import Drive, DriveParameters, DriveStatus
 from drives.errors import DriveError, DriveFaultError, DriveLinkError, DriveOffCommand
 from drives.limits import fmt_speed
 from drives.state import off_command
@@ -78,4 +81,56 @@ def running_after_stop(statuses: Sequence[DriveStatus], *, emergency: bool, why:
         drive=st.device_id,
         drive_name=st.name,
         register=R.SW,
+    )
+
+
+def defies_stop(st: DriveStatus, params: DriveParameters | None, *, since: float, took: bool) -> DriveFaultError:
+    """`st`'s drive found running (operation enabled) `since` s after a stop it `took` (else: it
+    missed), sent again every poll, as the failure: its comm-loss watchdog is starved (no request
+    to it until it trips fault 7510), or, COMM_LOSS_TIMEOUT reading 0 or unknown, nothing over
+    the network can stop it. Register COMM_LOSS_TIMEOUT."""
+    local = ", in local control (SW REMOTE = 0: its watchdog may be disarmed)" if not st.remote else ""
+    found = (
+        f"found {st.state}{local}, REF {fmt_speed(st.reference)}, ACT {fmt_speed(st.actual)}, {since:.1f} s after "
+        f"the stop it {'took' if took else 'missed'} (sent again every poll)"
+    )
+    timeout = None if params is None else params.comm_loss_timeout
+    if not timeout:
+        why = "reads 0 (no watchdog)" if timeout == 0 else "is not known (parameters not read)"
+        end = f"; its COMM_LOSS_TIMEOUT {why}: nothing over the network can stop it; use the rig's emergency stop"
+    else:
+        end = (
+            f": no request goes to it (the other drive is still polled) until its comm-loss watchdog "
+            f"({timeout:g} s) trips fault 7510, which ramps it down"
+        )
+    return DriveFaultError(found + end, drive=st.device_id, drive_name=st.name, register=R.COMM_LOSS_TIMEOUT)
+
+
+def starved_outcome(st: DriveStatus, before: DriveStatus, silent: float) -> DriveFaultError:
+    """What `st` shows, read again after `silent` s without a request (`before`: read when the
+    starving began): tripped (fault 7510: its watchdog stopped it) and slowing, or still running
+    (nothing over the network can stop it: the rig's emergency stop), as the failure."""
+    read = f"read again after {silent:.1f} s without a request: ACT {fmt_speed(st.actual)} (was {fmt_speed(before.actual)})"
+    slowing = st.stopped or abs(st.actual) < abs(before.actual)
+    if st.tripped:
+        what = "tripped by its comm-loss watchdog" if st.fault_code == R.FAULT_COMM_LOSS else "tripped"
+        pace = "at standstill" if st.stopped else "slowing" if slowing else "not slowing yet"
+        return DriveFaultError(
+            f"{read}, {what}, {pace}",
+            register=R.FAULT,
+            fault_code=st.fault_code,
+            drive=st.device_id,
+            drive_name=st.name,
+        )
+    if st.running and not st.stopped:
+        return DriveFaultError(
+            f"{read}, still {st.state}: its comm-loss watchdog did not stop it; nothing over the network "
+            "can stop it: use the rig's emergency stop",
+            register=R.SW,
+            drive=st.device_id,
+            drive_name=st.name,
+        )
+    now = "not turning" if st.stopped else "not running"
+    return DriveFaultError(
+        f"{read}, {st.state}, not tripped: {now}", register=R.SW, drive=st.device_id, drive_name=st.name
     )

@@ -4,13 +4,26 @@ A drive trips (fault 7510) after COMM_LOSS_TIMEOUT s without a valid request. Af
 request the longest silence is one request timeout plus one poll interval (`gap`); the link
 must be declared lost (and the sweep's interlock act) before the watchdog trips the drives,
 so `count` x `gap` is kept below the shortest watchdog.
+
+`LinkSilence` bounds the time as well: failed polls are counted only as the poll gets the link,
+and other requests hold it meanwhile (a stop's tries to both drives: 4 to 12 request timeouts
+after a drop), so `count` failed polls can come long after the watchdog tripped. The link is
+also declared lost once, since the last good poll, it has answered no request for `count` x
+`gap` s and failed one at least (a stalled host whose answers are waiting is not a lost link).
 """
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
+
+from drives.errors import DriveError, DriveTimeoutError
+
+if TYPE_CHECKING:
+    from drives.link import ModbusLink
 
 log = logging.getLogger(__name__)
 
@@ -52,3 +65,35 @@ def fit_loss_polls(
         fit,
     )
     return fit
+
+
+class LinkSilence:
+    """Calls `lost(error, how)` once the link has answered nothing for `budget` s since the last
+    good poll (`good`) and failed a request at least; checked again every `recheck` s until then."""
+
+    def __init__(self, link: ModbusLink, lost: Callable[[DriveError, str], None], recheck: float):
+        self.link, self.lost, self.recheck = link, lost, recheck
+        self._timer: asyncio.TimerHandle | None = None
+        self._since = (0.0, 0, 0)  # (loop s, link.requests, link.failures) at the last good poll
+
+    def good(self, budget: float) -> None:
+        """A good poll now: the silence counts from here, `budget` s at most."""
+        self.cancel()
+        loop = asyncio.get_running_loop()
+        self._since = (loop.time(), self.link.requests, self.link.failures)
+        self._timer = loop.call_later(budget, self._check)
+
+    def cancel(self) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+
+    def _check(self) -> None:
+        t0, answered, failed = self._since
+        loop = asyncio.get_running_loop()
+        if self.link.requests == answered and self.link.failures > failed:
+            self._timer = None
+            silent = f"no answer for {loop.time() - t0:.2f} s, {self.link.failures - failed} request(s) failed"
+            self.lost(DriveTimeoutError(silent), "since the last good poll")
+        else:
+            self._timer = loop.call_later(self.recheck, self._check)

@@ -28,6 +28,9 @@ answered (or timed out) first: on another connection the stop could overtake it.
 carries one exchange at a time: the stop waits for the one in flight (<= timeout, then the settle
 time after a missed answer).
 
+No request goes to a device id in `unaddressed` (DriveLinkError, checked once the request has
+the link): the poll starves that drive's comm-loss watchdog (drives/starve.py).
+
 pymodbus' own reconnect task and retries are switched off: reconnecting is
 this class' job, at the pace its callers (the poll) set.
 """
@@ -112,6 +115,7 @@ class ModbusLink:
         self.failures = 0  # requests without a valid answer
         self.connects = 0  # successful (re)connections
         self.retries = 0  # read and write retries after a timeout
+        self.unaddressed: dict[int, str] = {}  # device id -> why no request goes to it (DriveLinkError)
 
     # -- connection -------------------------------------------------------------
     @property
@@ -301,6 +305,8 @@ class ModbusLink:
         async with self._lock.turn(urgent):
             if guard is not None and not guard():
                 raise DriveSuperseded("not sent: a stop was asked after the command", **kw)
+            if device_id in self.unaddressed:  # checked with the link held: nothing queued gets past
+                raise DriveLinkError(f"not sent: {self.unaddressed[device_id]}", **kw)
             await self._settle_abandoned()
             await self._ensure_connected_for(device_id, span)
             client = self._client

@@ -56,7 +56,7 @@ def watchdog_words(drives: Sequence[Drive]) -> str:
     times = [(d, d.params.comm_loss_timeout if d.params is not None else None) for d in drives]
     armed = [t for _, t in times if t]
     if len(armed) == len(times):
-        return f"the drives' comm-loss watchdog ramps them down {max(armed):g} s after the last request"
+        return f"their comm-loss watchdog (COMM_LOSS_TIMEOUT) ramps them down {max(armed):g} s after the last request"
     off = [f"{d.name} (id {d.device_id})" for d, t in times if t == 0]
     if off:
         where = ", ".join(off)

@@ -12,9 +12,10 @@ source of `state`, and the interlock:
 - A poll's read gives way to a stop on TCP (drives/link.py): that poll is skipped, not failed.
 - A failed poll is counted (`state.poll_failures`, logged); the link is
   declared lost only after `link_loss_polls` consecutive failures (an isolated
-  lost frame on a noisy RS-485 line is tolerated). `fit_heartbeat` lowers the
-  count so that link_loss_polls x (poll_interval + timeout) stays below the
-  drives' COMM_LOSS_TIMEOUT.
+  lost frame on a noisy RS-485 line is tolerated), or once it has answered nothing (and failed)
+  for link_loss_polls x (poll_interval + timeout) s since the last good poll, whichever comes
+  first (drives/heartbeat.py: other requests, a stop's tries, hold the poll's). `fit_heartbeat`
+  lowers the count so that this time stays below the drives' COMM_LOSS_TIMEOUT.
 - While the link is down the poll keeps reconnecting; once it is back, both
   drives are verified against `command` before anything goes on: drives found
   tripped, off their reference or in local control are stopped and the loss is recorded.
@@ -25,8 +26,10 @@ source of `state`, and the interlock:
   (the emergency stop if an emergency stop is owed) and records the failure. A stop both
   drives took holds until a new speed is commanded: a drive found running again after it
   (another client, its keypad) gets it again, and the failure is recorded.
-- `wait_stopped`: the owner's wait for standstill after a stop, and a drive that tripped
-  meanwhile (StopTripError, `RigDrives.stop`); it asks for polls as the wait for the setpoint does.
+- A drive that runs on through the stop sent again (refused, or taken and ignored; the poll's
+  requests feed its watchdog) gets no request until its comm-loss watchdog has tripped it, the
+  other polled on; then its read says if that stopped it (drives/starve.py). Each is a failure.
+- `wait_stopped`: the owner's wait for standstill after a stop (StopTripError, `RigDrives.stop`).
 """
 
 from __future__ import annotations
@@ -42,9 +45,10 @@ from drives import registers as R
 from drives.drive import Drive, DriveStatus
 from drives.errors import DriveError, DriveFaultError, DriveGaveWay, DriveTimeoutError, StopTripError
 from drives.findings import reconnect_problem, running_after_stop, running_while_owed, trip_fault
-from drives.heartbeat import fit_loss_polls
+from drives.heartbeat import LinkSilence, fit_loss_polls
 from drives.link import ModbusLink
 from drives.poll_pace import PollPace, wait_tick
+from drives.starve import Starver
 from drives.state import RigDriveState, off_command
 from drives.stop import StopSender
 
@@ -99,6 +103,8 @@ class DrivePoll:
         self._sending = 0  # stops under way: what they reached is not known yet
         self._epoch = 0  # speed commands so far: a stop asked before the last one owes nothing
         self._held: tuple[float, bool] | None = None  # (monotonic s, emergency) of a stop both took, none since
+        self._starve = Starver(link, drives, poll_interval)  # drives not addressed: their watchdog starved
+        self._silence = LinkSilence(link, self._link_down, recheck=poll_interval)  # armed while link_ok
 
     def acknowledge(self) -> None:
         """Forget the recorded failure; trips read before now are not handled again."""
@@ -110,6 +116,7 @@ class DrivePoll:
         """Both drives are being run at raw REFs `refs` (spin, orbit): no stop is owed any more."""
         self._epoch += 1
         self.owed, self.following, self._started_at, self._held = None, False, None, None
+        self._starve.reset()
         self.command = refs
 
     def started(self) -> None:
@@ -206,6 +213,10 @@ class DrivePoll:
             failed_in_row=old.failed_in_row + 1 if not link_ok else 0,
             time=time.monotonic(),
         )
+        if link_ok:  # the time bound of a declared loss counts from here
+            self._silence.good(self.link_loss_polls * (self.poll_interval + self.link.timeout))
+        else:
+            self._silence.cancel()
         tick, self.tick = self.tick, asyncio.Event()
         tick.set()
 
@@ -214,30 +225,39 @@ class DrivePoll:
         when `pace.ask`ed. A poll that fails on a bug is logged with its traceback once, not
         at every poll while it keeps failing."""
         failing = False
-        while True:
-            await self.pace.next_poll()
-            try:
-                await self._poll_once()
-                failing = False
-            except asyncio.CancelledError:
-                raise
-            except Exception as err:  # a bug must not end the heartbeat, nor leave the drives turning unwatched
-                stop = self.command is not None or (self.owed is not None and not self._sending)
-                if not failing or stop:
-                    log.exception("drive poll failed" + ("; ramping both drives to zero" if stop else ""))
-                failing = True
-                if stop:  # what it can no longer judge is stopped, as after a trip; a stop owed is sent again
-                    try:
-                        await asyncio.shield(self._send(bool(self.owed)))
-                    except Exception:  # the stop's own failure must not end the heartbeat either
-                        log.exception("drive poll: the stop after its failure failed")
-                    self.command = None
-                self.fail(DriveError(f"poll failed: {err!r}"))
+        try:
+            while True:
+                await self.pace.next_poll()
+                try:
+                    await self._poll_once()
+                    failing = False
+                except asyncio.CancelledError:
+                    raise
+                except Exception as err:  # a bug must not end the heartbeat, nor leave the drives turning unwatched
+                    stop = self.command is not None or (self.owed is not None and not self._sending)
+                    if not failing or stop:
+                        log.exception("drive poll failed" + ("; ramping both drives to zero" if stop else ""))
+                    failing = True
+                    if stop:  # what it can no longer judge is stopped, as after a trip; a stop owed is sent again
+                        try:
+                            await asyncio.shield(self._send(bool(self.owed)))
+                        except Exception:  # the stop's own failure must not end the heartbeat either
+                            log.exception("drive poll: the stop after its failure failed")
+                        self.command = None
+                    self.fail(DriveError(f"poll failed: {err!r}"))
+        finally:
+            self._silence.cancel()  # no loss declared once the poll has ended
+
+    async def _read(self, d: Drive, *, retries: int, gives_way: bool = False) -> DriveStatus:
+        """`d`'s status (`Drive.read_status`), or while its watchdog is starved its last one."""
+        return self._starve.starved(d) or await d.read_status(retries=retries, gives_way=gives_way)
 
     async def _poll_once(self) -> None:
+        self._starve.ended()  # a drive starved long enough is read again
+        was_ok = self.state.link_ok
         try:
-            if self.state.link_ok:  # no retry: failed polls in a row bound the time to a declared loss
-                statuses = [await d.read_status(retries=0, gives_way=True) for d in self.drives]
+            if was_ok:  # no retry: failed polls in a row bound the time to a declared loss
+                statuses = [await self._read(d, retries=0, gives_way=True) for d in self.drives]
             else:
                 statuses = await self._verify_after_reconnect()
         except DriveGaveWay:  # a stop took the link: no poll this time, and no failure
@@ -246,10 +266,14 @@ class DrivePoll:
         except DriveError as err:
             self._poll_failed(err)
             return
+        if was_ok and not self.state.link_ok:  # declared lost meanwhile (LinkSilence): the next poll verifies
+            return
         self.publish(statuses, link_ok=True)
         await self._check_trips(statuses)
         await self._check_following(statuses)
         await self._check_owed(statuses)
+        for found in self._starve.outcome(statuses):
+            self.fail(found)
 
     def _poll_failed(self, err: DriveError) -> None:
         """A poll without valid answers: counted; the link is declared lost after
@@ -259,26 +283,22 @@ class DrivePoll:
         old = self.state
         in_row = old.failed_in_row + 1
         if not old.link_ok or in_row >= self.link_loss_polls:
-            self._link_down(err)
+            self._link_down(err, f"{in_row} failed polls in a row")
             return
-        log.warning(
-            "drive poll failed (%d in a row; link declared lost at %d): %s",
-            in_row,
-            self.link_loss_polls,
-            err,
-        )
+        log.warning("drive poll failed (%d in a row; link declared lost at %d): %s", in_row, self.link_loss_polls, err)
         self.state = dataclasses.replace(
             old, poll_failures=old.poll_failures + 1, failed_in_row=in_row, link_error=str(err)
         )
 
-    def _link_down(self, err: DriveError) -> None:
+    def _link_down(self, err: DriveError, how: str) -> None:
+        """Declare the link lost (`how`: after what), or (lost already) count the failed poll."""
         if self.state.link_ok:
             self._link_lost_at = time.monotonic()
             watchdogs = [d.params.comm_loss_timeout for d in self.drives if d.params]
             log.error(
-                "drive link lost (%d failed polls in a row): %s; a drive no request reaches stops on its "
-                "comm-loss watchdog after %s s (one still answering, with exceptions, does not); reconnecting",
-                self.state.failed_in_row + 1,
+                "drive link lost (%s): %s; a drive no request reaches stops on its comm-loss watchdog after "
+                "%s s (one still answering, with exceptions, does not); reconnecting",
+                how,
                 err,
                 max(watchdogs) if watchdogs else "?",
             )
@@ -290,8 +310,9 @@ class DrivePoll:
         a stop is owed are stopped (again) and the failure is recorded."""
         down = time.monotonic() - (self._link_lost_at or time.monotonic())
         for d in self.drives:
-            await d.read_parameters()  # volatile: a power-cycled drive has defaults again
-        statuses = [await d.read_status(retries=0) for d in self.drives]
+            if not self._starve.starved(d):
+                await d.read_parameters()  # volatile: a power-cycled drive has defaults again
+        statuses = [await self._read(d, retries=0) for d in self.drives]
         problem = reconnect_problem(statuses, self.drives, self.command, down) or self._owed_problem(
             statuses, f"link was down {down:.1f} s; "
         )
@@ -334,10 +355,14 @@ class DrivePoll:
         """A drive found running while a stop is owed (`_owed_problem`): the stop again, and the failure."""
         problem = self._owed_problem(statuses)
         if problem is None:
+            self._starve.forgive()
             return
         log.error("%s", problem)
+        took = self.owed is None  # a stop both took, held
         await asyncio.shield(self._send(self._again()))
         self.fail(problem)
+        for found in self._starve.judge(statuses, took=took):  # one that runs on: its watchdog starved
+            self.fail(found)
 
     async def _check_trips(self, statuses: list[DriveStatus]) -> None:
         tripped = [st for st in statuses if st.tripped and st.time > self._ack_time]

@@ -16,9 +16,11 @@ Safety rules this class keeps:
   source of `state`, and the interlock: if either drive trips, both are ramped
   to zero and the fault is raised from `wait_settled`.
 - A failed poll is counted (`state.poll_failures`, logged) but the link is declared lost only
-  after `link_loss_polls` consecutive failed polls. The count is lowered on entry, if needed, so
-  that link_loss_polls x (poll_interval + timeout) stays below the drives' COMM_LOSS_TIMEOUT: the
-  loss is declared before the drives' own watchdog stops them (a warning if the count was given).
+  after `link_loss_polls` consecutive failed polls, or once the link has answered nothing (and
+  failed) for link_loss_polls x (poll_interval + timeout) s since the last good poll (a stop's
+  tries hold the poll's reads). The count is lowered on entry, if needed, so that this time stays
+  below the drives' COMM_LOSS_TIMEOUT: the loss is declared before the drives' own watchdog stops
+  them (a warning if the count was given).
 - On a declared link loss the poll reports it (log, `state.link_ok`), keeps
   reconnecting and, once the link is back, verifies both drives against what was commanded
   before anything goes on; drives found tripped or off their reference are
@@ -29,7 +31,9 @@ Safety rules this class keeps:
   once both are at standstill (the message says so) or the wait ends.
 - Any exception inside `set_speeds`, and every exit of the context, ramps both drives to zero
   (an emergency stop is repeated as such); the stop is sent even while the task is being
-  cancelled. Only `release()` followed by a clean exit leaves them running (the CLI's `run`).
+  cancelled. Only `release()` followed by a clean exit leaves them running (the CLI's `run`),
+  said once (a warning); not if the poll recorded a failure (it stopped them): the exit stops
+  them again and raises it.
   No start word of `set_speeds` goes out after a stop asked since its command (the poll's on a trip).
 - On entry, a drive at standstill showing fault 7510 (a previous client went
   away) is reset; any other fault waits for `reset_faults()`.
@@ -158,8 +162,12 @@ class RigDrives:
                     cancelled = True
                 if not task.done():  # the stop never waits on it (it would feed the watchdogs)
                     log.error("the drives' poll did not end %g s after its cancel: stopping them beside it", POLL_END_S)
-            if self._release and exc_type is None and not cancelled:
-                log.warning("drives left running at their setpoint; %s", watchdog_words(self._drives))
+            kept = self._release and exc_type is None and not cancelled and (task is None or task.done())
+            if kept and self._poll.failure is None:  # judged once the poll has ended
+                log.warning(
+                    "both drives left running at the setpoint: with no client polling them, %s",
+                    watchdog_words(self._drives),
+                )
                 return
             try:
                 errors = await self._safe_stop(emergency=self._emergency)
@@ -169,6 +177,8 @@ class RigDrives:
                 raise asyncio.CancelledError
             if errors and exc_type is None:
                 raise errors[0]
+            if kept and self._poll.failure is not None:  # released, but the poll stopped them: not left running
+                raise self._poll.failure
         finally:
             if task is not None and not task.done():
                 task.cancel()
@@ -181,7 +191,9 @@ class RigDrives:
         cancellation still stops both drives; once no client polls them, the
         drives' own comm-loss watchdog ramps them down if it is armed
         (COMM_LOSS_TIMEOUT > 0: give `comm_loss_timeout` on entry); the exit's
-        log says whether it was, as last read.
+        warning ("both drives left running at the setpoint: ...") says whether it was, as last
+        read. A failure the poll recorded by the exit (it stopped both) is raised by the exit,
+        after the stop sent again, and nothing is left running.
         """
         self._release = True
 

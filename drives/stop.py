@@ -28,7 +28,7 @@ from drives import registers as R
 from drives.errors import DriveError, DriveExceptionResponse, DriveTimeoutError
 
 if TYPE_CHECKING:
-    from drives.drive import Drive, DriveStatus
+    from drives.drive import Drive, DriveParameters, DriveStatus
 
 log = logging.getLogger(__name__)
 
@@ -233,7 +233,12 @@ def standstill_wait(
     for d, st in drives:
         if d.params is None or st is None:
             continue
-        t = d.params.decel_time * abs(st.actual) / d.params.speed_scale
+        t = ramp_down_time(d.params, st.actual)
         t = t / 10 if emergency else t
         worst = max(worst, t + (60.0 if st.tripped else 0.0))
     return 1.5 * worst + 2.0 + 4 * poll_interval
+
+
+def ramp_down_time(params: DriveParameters, speed: float) -> float:
+    """s a drive's ramp stop takes from `speed` (rad/s) to zero: DECEL_TIME x |speed| / SPEED_SCALE."""
+    return params.decel_time * abs(speed) / params.speed_scale

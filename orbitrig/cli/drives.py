@@ -92,8 +92,8 @@ def _add_run(drives_app: typer.Typer) -> None:
         both ramped to zero, exit 2, naming the drive and the register. Without --hold
         the drives are left at their setpoint once both read an armed watchdog;
         with no client polling them, it ramps them down that many seconds after the
-        command (said on standard error); a signal as the command leaves them there ramps both
-        to zero after all, confirmed at standstill (exit 2). With --hold the
+        last request (said once on standard error); a failure the poll finds (a trip) or a signal as
+        the command leaves them there ramps both to zero after all, confirmed at standstill (exit 2). With --hold the
         command keeps polling until Ctrl-C/SIGTERM/SIGHUP/SIGQUIT (a closed standard
         output does not end it), then ramps both to zero (exit 0; a second signal
         during the ramp: emergency stop, exit 4); if another client stops a drive or
@@ -323,6 +323,8 @@ async def _run(url, d, limits, spin, orbit, settle, timeout, hold, status_every,
             raise
         return await stop_after_release(url, d, interrupt)  # a signal during the rig's exit
     except DriveError as err:
+        if released:  # the poll found a failure and stopped both as the exit left them: confirmed stopped
+            return await stop_after_release(url, d, interrupt, err)
         if code is not None:  # the exit's repeated stop word failed after the way out said how the drives ended
             return code
         report("run", err, stop_outcome(rig) + _refused_watchdog(err))  # the rig could not be opened: nothing commanded
@@ -356,16 +358,11 @@ async def _to_setpoint(rig, spin, orbit, settle, timeout, hold, status_every, in
 
 async def _release(rig, wanted: float) -> None:
     """Leave both drives at the setpoint, only if each one's comm-loss watchdog, read back now, is
-    armed (else WatchdogOff: the way out stops both); says after how long it ramps them down."""
-    from orbitrig.cli.drives_hold import armed_watchdog, watchdog_seconds
-    from orbitrig.cli.terminal import say
+    armed (else WatchdogOff: the way out stops both). The rig's exit says once that it left them
+    running, with the seconds their watchdog gives (as read now), unless the poll stopped them."""
+    from orbitrig.cli.drives_hold import armed_watchdog
 
     for drive in (rig.spin, rig.orbit):
         await drive.read_parameters()  # what each holds now, not what it held on entry
-    armed = armed_watchdog(rig, wanted)
-    say(
-        "both drives left running at the setpoint: with no client polling them, their comm-loss watchdog "
-        f"(COMM_LOSS_TIMEOUT) ramps them down {watchdog_seconds(armed)} after this command",
-        err=True,
-    )
+    armed_watchdog(rig, wanted)
     rig.release()

@@ -74,13 +74,6 @@ def armed_watchdog(rig, wanted: float) -> dict[str, float]:
     return armed
 
 
-def watchdog_seconds(armed: dict[str, float]) -> str:
-    """'1 s', or 'spin 1 s, orbit 2 s' when the drives' timeouts differ."""
-    if len(set(armed.values())) == 1:
-        return f"{next(iter(armed.values())):g} s"
-    return ", ".join(f"{name} {s:g} s" for name, s in armed.items())
-
-
 def _drive_line(d: dict) -> str:
     flags = ", at setpoint" if d["at_setpoint"] else ""
     return (
@@ -144,29 +137,35 @@ async def way_out(rig, err: BaseException, interrupt: Interrupt, reason) -> int:
     return code
 
 
-async def stop_after_release(url, d, interrupt: Interrupt) -> int:
+async def stop_after_release(url, d, interrupt: Interrupt, err: DriveError | None = None) -> int:
     """`run` cancelled by a signal as its rig's exit left both drives at the setpoint (after the
-    release), or signalled once its event loop had ended (orbitrig.cli.signals.take_late_signals):
+    release), signalled once its event loop had ended (orbitrig.cli.signals.take_late_signals),
+    or (`err`) failed by what the poll found as the exit left them (the exit stopped them again):
     whatever that exit sent, both drives are opened again, ramped to zero and confirmed
     at standstill (`ramp_down`; a further signal: the emergency stop, exit 4), exit 2; exit 1 if
     the standstill is not confirmed; if the drives cannot be opened, the stop words still go to
     each drive that answers, and the message names those that took them."""
-    from orbitrig.cli.drives_stop import delivered, stop_words_best_effort
+    from orbitrig.cli.drives_stop import delivered, reason, stop_words_best_effort
     from orbitrig.run.drive_setup import UNLIMITED, rig_drives
 
     task = asyncio.current_task()
     assert task is not None
     task.uncancel()
     interrupt.stopping = True  # a further signal (also while opening): the emergency stop
-    head = f"orbitrig drives run: interrupted by {interrupt.received[0].name} as it left both drives at the setpoint"
+    if err is None:
+        head = (
+            f"orbitrig drives run: interrupted by {interrupt.received[0].name} as it left both drives at the setpoint"
+        )
+    else:
+        head = f"orbitrig drives run failed ({reason(err)}) as it left both drives at the setpoint: {err}"
     opened = False
     try:
         async with rig_drives(url, d, UNLIMITED) as rig:
             opened = True
             escalated, line = await ramp_down(rig, interrupt)
-    except DriveError as err:
+    except DriveError as stop_err:
         sent = "" if opened else "; " + delivered(await stop_words_best_effort(url, d, interrupt.abort.is_set()))
-        say(f"{head}; {not_confirmed(err)}{sent}", err=True)
+        say(f"{head}; {not_confirmed(stop_err)}{sent}", err=True)
         return 1
     again = f"; {interrupt.received[-1].name} during the stop: " if escalated else "; "
     say(f"{head}; both drives stopped{again}{line}", err=True)

@@ -118,6 +118,7 @@ async def test_run_to_a_closed_standard_output_still_reaches_its_setpoint(slow_d
         os.close(w)
     code, err, at_exit = await exit_with_registers(proc, sim)
     assert code == 0, err
-    assert "drives left running at their setpoint" in err and "Traceback" not in err
+    assert "both drives left running at the setpoint" in err and "Traceback" not in err
+    assert err.count("left running") == 1, err
     for regs in at_exit:
         assert regs["CW"] == CW_RUN and regs["SW"] & SW_AT_SETPOINT, at_exit

@@ -66,7 +66,9 @@ async def test_owed_stop_is_sent_again_once_the_link_is_back(sim, emergency):
 
 
 async def test_owed_stop_is_sent_again_when_the_link_comes_back_before_a_loss_is_declared(sim):
-    async with open_rig(sim, LIMITS, comm_loss_timeout=WATCHDOG_S) as r:
+    """The stop's tries hold the silent link 1.2 s (TCP) to 2 s (RTU, which settles after each
+    missed answer); with 20 polls' time (3 s) to a declared loss it answers again before that."""
+    async with open_rig(sim, LIMITS, comm_loss_timeout=WATCHDOG_S, link_loss_polls=20) as r:
         await _stop_lost(r, sim, emergency=False)
         sim.endpoint.set_unresponsive(False)  # at once: the next polls are answered
         await sim.wait_for(lambda: sim.regs(1)["CW"] == sim.regs(2)["CW"] == CW_RAMP_STOP, 3, "the owed stop")

@@ -33,6 +33,14 @@ class SimDrives:
     kind: str
     models: dict[int, DriveModel]
     endpoint: ModbusEndpoint
+    loop: asyncio.AbstractEventLoop | None = None  # the loop serving them, when not the test's own
+
+    def in_loop(self, fn, *args) -> None:
+        """`fn(*args)` (a change to a drive model) run by the loop serving the drives."""
+        if self.loop is None:
+            fn(*args)
+        else:
+            asyncio.run_coroutine_threadsafe(_call(fn, *args), self.loop).result(10)
 
     @property
     def url(self) -> str:
@@ -67,6 +75,10 @@ class SimDrives:
 
     async def wait_stopped(self, timeout: float = 3.0) -> float:
         return await self.wait_for(lambda: self.regs(1)["ACT"] == 0 and self.regs(2)["ACT"] == 0, timeout, "standstill")
+
+
+async def _call(fn, *args) -> None:
+    fn(*args)
 
 
 async def wait_until(cond, timeout: float, what: str) -> None:

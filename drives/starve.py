@@ -1,0 +1,142 @@
+"""The last way a network master has to stop a drive that will not stop: starve its watchdog.
+
+A drive's comm-loss watchdog (COMM_LOSS_TIMEOUT, register 104) trips fault 7510, whose reaction
+is a ramp stop, once no valid request addressed to it came for that long. Every request the
+drive answers feeds it, exception answers included (the simulator counts them; the contract
+says "valid request"), so a drive that answers the stop's words with an exception, or takes
+them and runs on, is kept running by the poll's own reads and resends. `Starver`, the poll's:
+
+- `judge` (the poll found a drive running while no speed is commanded and a stop is owed by
+  it or held: the stop sent again): a drive read operation enabled (SW RDY_REF) with a nonzero
+  REF or ACT is defiant from that read on, and starved once still read so `bound` s later:
+  two poll intervals (the stop sent again at least once more, and read after it), plus, at
+  REF = 0, its own ramp from the speed read (DECEL_TIME x |ACT| / SPEED_SCALE: a drive that
+  follows a zero REF in operation is stopping, merely slowly); a poll that finds no drive
+  running after the stop in between forgives it (`forgive`). A drive that took a stop word
+  leaves operation enabled at once (OFF1/OFF3 ACTIVE, the contract's state machine and the
+  simulator's): a ramp stop is never taken for defiance.
+  A drive enabled at REF 0 and standstill is not starved (it does not turn; the stop goes on).
+- Starving: its id goes into the link's `unaddressed` (no read, no write, no stop's word) for
+  COMM_LOSS_TIMEOUT + `MARGIN_S` + two poll intervals after the decision; the other drive is
+  polled on (the poll reuses the starved drive's last status). With COMM_LOSS_TIMEOUT 0 or not
+  known, it is not starved: the finding says at once that nothing over the network stops it.
+- `ended` / `outcome`: then it is addressed again and the next poll's read of it is the
+  finding: tripped (7510) and slowing, or still running: nothing over the network can stop
+  it, the rig's emergency stop must. A drive is starved once until the next speed command.
+  A rig closed meanwhile addresses it no more either (its exit's stop skips it, named as not
+  sent): its watchdog still trips, but nobody reads it again.
+A drive in local control (SW REMOTE = 0) is starved too, said in the finding: the contract
+does not say whether the keypad disarms the watchdog (the simulator's does).
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from drives.drive import Drive, DriveStatus
+from drives.errors import DriveError
+from drives.findings import defies_stop, starved_outcome
+from drives.link import ModbusLink
+from drives.stop import ramp_down_time
+
+log = logging.getLogger(__name__)
+
+#: s added to COMM_LOSS_TIMEOUT (and two poll intervals) before a starved drive is read again:
+#: the drive's watchdog resolution and a busy host's scheduling
+MARGIN_S = 0.5
+
+
+class Phase(enum.Enum):
+    DEFIANT = "defiant"  # read running after the stop: starved if still so at `at`
+    STARVED = "starved"  # not addressed until `at`
+    READ_AGAIN = "read again"  # addressed again: the next read of it is the outcome
+    DONE = "done"  # starved, or found unstoppable, since the last speed command: not again
+
+
+@dataclass
+class _Drive:
+    phase: Phase
+    at: float  # monotonic s: when a defiant drive is starved, or a starved one read again
+    first: DriveStatus  # the read that found it defiant
+    last: DriveStatus  # the latest read (while starved: the one before)
+    began: float = 0.0  # monotonic s the starving began
+
+
+class Starver:
+    """The drives of one poll whose comm-loss watchdog is starved, or may have to be."""
+
+    def __init__(self, link: ModbusLink, drives: Sequence[Drive], poll_interval: float):
+        self.link, self.drives, self.poll_interval = link, drives, poll_interval
+        self._of: dict[int, _Drive] = {}  # device id -> its starving, if any
+
+    def reset(self) -> None:
+        """A speed was commanded: drives not starved now are judged afresh."""
+        self._of = {k: v for k, v in self._of.items() if v.phase is Phase.STARVED}
+
+    def forgive(self) -> None:
+        """A poll found no drive running after the stop: those found so before are judged afresh."""
+        self._of = {k: v for k, v in self._of.items() if v.phase is not Phase.DEFIANT}
+
+    def starved(self, d: Drive) -> DriveStatus | None:
+        """`d`'s last status while it is not addressed (the poll shows it), else None."""
+        s = self._of.get(d.device_id)
+        return s.last if s is not None and s.phase is Phase.STARVED else None
+
+    def judge(self, statuses: Sequence[DriveStatus], *, took: bool) -> list[DriveError]:
+        """Statuses of a poll that found a drive running after a stop (`took`: a stop both drives
+        took, held; else one owed) and sent it again: the findings of the drives starved now (or
+        found unstoppable: no watchdog), logged as errors."""
+        found: list[DriveError] = []
+        for d, st in zip(self.drives, statuses):
+            s = self._of.get(d.device_id)
+            if s is not None and s.phase is not Phase.DEFIANT:
+                continue
+            if not (st.running and (st.reference_raw or st.actual_raw)):
+                self._of.pop(d.device_id, None)
+            elif s is None:
+                self._of[d.device_id] = _Drive(Phase.DEFIANT, st.time + self._bound(d, st), st, st)
+            elif st.time >= s.at:
+                found.append(self._starve(d, s, st, took))
+        return found
+
+    def _bound(self, d: Drive, st: DriveStatus) -> float:
+        """s a defiant drive is given: two poll intervals, plus its ramp to zero at REF = 0."""
+        ramp = ramp_down_time(d.params, st.actual) if d.params is not None and st.reference_raw == 0 else 0.0
+        return 2 * self.poll_interval + ramp
+
+    def _starve(self, d: Drive, s: _Drive, st: DriveStatus, took: bool) -> DriveError:
+        err = defies_stop(st, d.params, since=st.time - s.first.time, took=took)
+        s.last, s.began, timeout = st, time.monotonic(), d.params.comm_loss_timeout if d.params is not None else 0.0
+        if timeout:
+            s.phase, s.at = Phase.STARVED, s.began + timeout + MARGIN_S + 2 * self.poll_interval
+            self.link.unaddressed[d.device_id] = f"its comm-loss watchdog is being starved ({err.reason})"
+        else:
+            s.phase = Phase.DONE
+        log.error("%s", err)
+        return err
+
+    def ended(self) -> None:
+        """Starved drives whose time is up are addressed again (`outcome` reads them)."""
+        now = time.monotonic()
+        for d in self.drives:
+            s = self._of.get(d.device_id)
+            if s is not None and s.phase is Phase.STARVED and now >= s.at:
+                self.link.unaddressed.pop(d.device_id, None)
+                s.phase = Phase.READ_AGAIN
+
+    def outcome(self, statuses: Sequence[DriveStatus]) -> list[DriveError]:
+        """The findings of the drives read again in `statuses` (logged as errors)."""
+        found: list[DriveError] = []
+        for st in statuses:
+            s = self._of.get(st.device_id)
+            if s is None or s.phase is not Phase.READ_AGAIN:
+                continue
+            s.phase = Phase.DONE
+            err = starved_outcome(st, s.last, st.time - s.began)
+            log.error("%s", err)
+            found.append(err)
+        return found
