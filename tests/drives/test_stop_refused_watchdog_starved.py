@@ -86,8 +86,6 @@ async def _defied(sim: SimDrives, monkeypatch, caplog, *, refuse: bool) -> tuple
 
 @pytest.mark.parametrize("refuse", [True, False], ids=["refused-03", "taken-ignored"])
 async def test_a_drive_running_on_through_the_stop_is_stopped_by_its_starved_watchdog(sim, monkeypatch, caplog, refuse):
-    if not refuse and sim.kind == "rtu":
-        pytest.skip("one link kind is enough for the ignored stop")
     times, t_stop = await _defied(sim, monkeypatch, caplog, refuse=refuse)
     t_trip = sim.models[1].comm_lost_after + WATCHDOG_S  # the spin drive's watchdog wall time
     gap, gap_start = longest_gap(times[1], t_stop, max(times[1]))
