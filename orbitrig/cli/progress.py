@@ -16,6 +16,7 @@ from orbitrig.cli.terminal import TerminalConsole
 from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
 from rigunits import format_duration
 from orbitrig.run.states import RunState
+from orbitrig.store.layout import point_name
 
 
 #: why the ETA stands still, by the state that holds the run
@@ -73,7 +74,7 @@ class SweepProgress:
             self.progress.update(self.points, completed=self.done)
             for task in (self.freqs, self.revs):
                 self.progress.update(task, completed=self.progress.tasks[task].total)
-            self.progress.console.log(Text(f"point {p['point']:04d} {p['label']} complete"))
+            self.progress.console.log(Text(f"point {point_name(p['point'])} {p['label']} complete"))
 
     def eta(self) -> str:
         """The points bar's ETA: 'ETA 12:30', '(paused: waiting for the operator)' after it
