@@ -51,8 +51,8 @@ def circle_instruments(spec: ModelSpec, table: OrbitTable, rank_rtol: float) -> 
     )
     if misfit > IV_MAX_MISFIT:
         raise IdentificationError(
-            f"iv: the orbits are not circles of common radius and trigger phase (misfit {misfit:.0%} "
-            f"> {IV_MAX_MISFIT:.0%}), so the circle instruments do not fit this table; use --method tls"
+            f"iv: the orbits are not circles of common radius and trigger phase (misfit {100 * misfit:.0f} % "
+            f"> {100 * IV_MAX_MISFIT:.0f} %), so the circle instruments do not fit this table; use --method tls"
         )
     Z = real_rows(regressors(spec, table.orbit, x_hat, y_hat))
     if numerical_rank(Z, rank_rtol).deficiency:

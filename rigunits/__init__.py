@@ -132,12 +132,13 @@ def micrometres(length: float, spec: str = ".2f") -> str:
     return f"{length / UM:{spec}} {MICROMETRE}"
 
 
-def format_duration(seconds: float) -> str:
-    """h:mm:ss, or m:ss under an hour (rounded to the second)."""
+def format_duration(seconds: float, hours: bool = False) -> str:
+    """h:mm:ss, or m:ss under an hour (rounded to the second); `hours`: h:mm:ss always, as a
+    column of times that line up (0:03:22 above 1:02:03)."""
     whole = int(round(seconds))
     h, rem = divmod(whole, int(HOUR))
     m, s = divmod(rem, int(MINUTE))
-    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
+    return f"{h}:{m:02d}:{s:02d}" if h or hours else f"{m}:{s:02d}"
 
 
 def _utc(when: _dt.datetime | float | None) -> _dt.datetime:

@@ -38,6 +38,8 @@ def test_units_and_durations() -> None:
     assert MPA == 1e6
     assert format_duration(59.6) == "1:00"
     assert format_duration(3 * 3600 + 62) == "3:01:02"
+    assert format_duration(202, hours=True) == "0:03:22"  # a column of times: h:mm:ss always
+    assert format_duration(3 * 3600 + 62, hours=True) == "3:01:02"
 
 
 def test_closed_sets_keep_their_words() -> None:

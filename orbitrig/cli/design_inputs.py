@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from orbitrig.load_systems import LoadSystem
+from orbitrig.store.layout import point_name
 from reduction.frequency_list import predict, smooth_noise
 
 from rigerrors import OrbitrigError
@@ -137,7 +138,7 @@ def prior_theta(
             if all(coeffs.get(n) is not None for n in spec.names):
                 return (
                     np.array([float(coeffs[n]) for n in spec.names]),
-                    f"identified: run {run.directory}, point {index:04d} ({lms})",
+                    f"identified: run {run.directory}, point {point_name(index)} ({lms})",
                 )
     return np.array([NOMINAL.get(n, 0.0) for n in spec.names]), "nominal (38.1 mm hydrostatic bearing)"
 
@@ -188,7 +189,7 @@ def model_check(spec, run, spin: float, lms: LoadSystem, problem, candidate: tup
     if reach[j] <= 1.0:
         return None
     name, model, unit = spec.names[j], spec.model, coefficient_unit(spec.names[j])
-    where = f"point {point.index:04d} of run {run.directory}"
+    where = f"point {point_name(point.index)} of run {run.directory}"
     if abs(sh.shift[j]) > 2 * sh.std[j]:
         return (
             f"the data of {where} show terms {model} leaves out ({' '.join(richer)}): from the candidate list "

@@ -103,13 +103,14 @@ def _print_points(plan) -> None:
     for p in plan.points:
         d = sum(s.duration for s in plan.point_steps(p.index))
         typer.echo(
-            f"{point_name(p.index):>5}  {format_duration(t):>9}  {format_duration(d):>8}  {len(p.blocks):>6}  {p.label}"
+            f"{point_name(p.index):>5}  {format_duration(t, hours=True):>9}  {format_duration(d, hours=True):>8}  "
+            f"{len(p.blocks):>6}  {p.label}"
         )
         t += d
     tail = sum(s.duration for s in plan.final_steps)
     if plan.final_steps:
         typer.echo(
-            f"{'end':>5}  {format_duration(t):>9}  {format_duration(tail):>8}  {'':>6}  "
+            f"{'end':>5}  {format_duration(t, hours=True):>9}  {format_duration(tail, hours=True):>8}  {'':>6}  "
             + "; ".join(s.describe() for s in plan.final_steps)
         )
 
@@ -125,5 +126,5 @@ def _print_steps(steps) -> None:
     t = 0.0
     for i, s in enumerate(steps, 1):
         where = f"point {point_name(s.point)}" if s.point is not None else "end       "
-        typer.echo(f"{i:>{width}}  {format_duration(t):>8}  {where}  {s.duration:8.2f} s  {s.describe()}")
+        typer.echo(f"{i:>{width}}  {format_duration(t, hours=True):>8}  {where}  {s.duration:8.2f} s  {s.describe()}")
         t += s.duration

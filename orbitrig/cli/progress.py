@@ -14,12 +14,10 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from orbitrig.cli.terminal import TerminalConsole
 from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
+from orbitrig.run.progress import ETA_HELD
 from rigunits import format_duration
 from orbitrig.run.states import RunState
-
-
-#: why the ETA stands still, by the state that holds the run
-HELD = {RunState.WAITING: "paused: waiting for the operator", RunState.PAUSED: "paused with the run"}
+from orbitrig.store.layout import point_name
 
 
 class SweepProgress:
@@ -42,7 +40,7 @@ class SweepProgress:
         self.done = 0
         self.measured = False  # a point was started (a resumed run with every point done starts none)
         self.eta_s: float | None = None  # wall s of the plan left, as the last progress said
-        self.held = ""  # why the ETA stands still (HELD), "" while it runs down
+        self.held = ""  # why the ETA stands still (ETA_HELD), "" while it runs down
 
     def __enter__(self) -> "SweepProgress":
         self.progress.start()
@@ -65,7 +63,7 @@ class SweepProgress:
                 ev.state, ""
             )
             self.progress.console.log(Text(f"{ev.state}: ", style=style) + Text(ev.message))
-            self.held = HELD.get(ev.state, "")
+            self.held = ETA_HELD.get(ev.state, "")
             self.progress.update(self.points, extra=self.eta())
         elif isinstance(ev, ResultEvent):
             p = ev.payload
@@ -73,7 +71,7 @@ class SweepProgress:
             self.progress.update(self.points, completed=self.done)
             for task in (self.freqs, self.revs):
                 self.progress.update(task, completed=self.progress.tasks[task].total)
-            self.progress.console.log(Text(f"point {p['point']:04d} {p['label']} complete"))
+            self.progress.console.log(Text(f"point {point_name(p['point'])} {p['label']} complete"))
 
     def eta(self) -> str:
         """The points bar's ETA: 'ETA 12:30', '(paused: waiting for the operator)' after it

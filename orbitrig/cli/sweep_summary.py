@@ -207,13 +207,13 @@ def _print_summary(console: Transcript, complete: list[Point], out: Path) -> Non
 
 
 def _cell(d: dict, c: str, err: float | None) -> str:
-    """'3.3e+07 ± 2.1e+05 (0.4%)', ' n.d.' appended when not determined; '' without the key."""
+    """'3.3e+07 ± 2.1e+05 (0.4 %)', ' n.d.' appended when not determined; '' without the key."""
     v = d["coefficients"].get(c)
     if v is None:
         return ""
     u = _uncertainty(d, c)
     cell = f"{v:.4g}" + ("" if u is None else f" \u00b1 {u:.2g}")
-    cell += "" if err is None else f" ({err:.1f}%)"
+    cell += "" if err is None else f" ({err:.1f} %)"
     return cell + (" n.d." if c in (d.get("not_determined") or []) else "")
 
 

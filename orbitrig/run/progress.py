@@ -12,6 +12,11 @@ from typing import Callable
 
 from orbitrig.run.events import ProgressEvent
 from orbitrig.run.rig_io import TimeScale
+from orbitrig.run.states import RunState
+
+#: why the ETA stands still, by the state that holds the run (the terminal's bars and the dashboard
+#: say it after the ETA; the plan's rig time left does not run down in these states)
+ETA_HELD = {RunState.WAITING: "paused: waiting for the operator", RunState.PAUSED: "paused with the run"}
 
 
 class ProgressMeter:

@@ -69,3 +69,14 @@ def test_a_fit_is_compared_with_its_own_truth_when_it_has_one():
     # |1.02 - 1.01| / 1.01 of the largest entry of each matrix
     assert errors["Kxx"] == pytest.approx(100 * 0.01 / 1.01) and errors["Dyy"] == pytest.approx(100 * 0.01 / 1.01)
     assert errors["Kxy"] == pytest.approx(100 * 0.01 / 1.01 * 5.4e6 / 3.3e7)
+
+
+def test_percentages_of_the_closing_table_are_written_alike():
+    """A coefficient's error and the impedance error, side by side in the point's table, both
+    with a space between the number and % (SI style): '(2.0 %)' as '0.50 %'."""
+    from orbitrig.cli.sweep_summary import _cell
+
+    fit = _result(1.02)
+    errors = compare_with_truth(fit, _truth())
+    assert _cell(fit, "Kxx", errors["Kxx"]) == "3.366e+07 (2.0 %)"
+    assert best_impedance_error([_result(1.005)], _truth()) == "0.50 %"

@@ -107,11 +107,15 @@ def test_sweep_matrix_by_name_prints_totals_first():
     undetermined = [ln for ln in lines if ln.startswith("    UNDETERMINED")]
     assert len(undetermined) == 3  # kcd11 none, power:1 and power:2: D over 100 %; kc7 fits are not named
     assert re.search(r"Dyy \d+\.\.929 %", undetermined[0]) and "Dyy 2.48e+03..3.72e+04 %" in undetermined[1]
-    points = [ln for ln in lines if re.fullmatch(r"\s*\d+\s+\d+:\d\d(:\d\d)?\s+\d+:\d\d\s+20\s+w\d+rpm\S+", ln)]
+    # the times as the header says, h:mm:ss: a column that lines up across the hour
+    assert next(ln for ln in lines if ln.startswith("point ")).endswith("(times h:mm:ss)")
+    points = [ln for ln in lines if re.fullmatch(r"\s*\d+\s+\d+:\d\d:\d\d\s+\d+:\d\d:\d\d\s+20\s+w\d+rpm\S+", ln)]
+    starts = [ln.split()[1] for ln in points]
+    assert starts[0] == "0:00:00" and len({len(t) for t in starts}) == 1, starts  # under 10 h: one width
     assert [ln.split()[0] for ln in points] == [f"{i:04d}" for i in range(108)]  # as --steps and the run's files
     assert len(lines) < 150 and f"({m.group(1)} steps: --steps lists every one" in lines[-1]
     full = orbitrig("sweep", "--sim", "--dry-run", "--matrix", "paper", "--steps").stdout.splitlines()
-    steps = [line for line in full if re.match(r"\s*\d+\s+\d+:\d\d(:\d\d)?\s+(point|end)", line)]
+    steps = [line for line in full if re.match(r"\s*\d+\s+\d+:\d\d:\d\d\s+(point|end)", line)]
     assert len(steps) == int(m.group(1)) and steps[-1].split()[0] == m.group(1)
     assert sorted({ln.split()[3] for ln in steps if ln.split()[2] == "point"}) == [ln.split()[0] for ln in points]
 

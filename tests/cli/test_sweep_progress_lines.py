@@ -55,3 +55,16 @@ def test_eta_says_paused_while_the_run_is_paused_and_runs_again_after():
     assert progress.eta() == "ETA 12:25 (paused with the run)"
     progress(StatusEvent(RunState.RUNNING, "r1", "2026-12-02T00:01:00Z", "resumed"))
     assert progress.eta() == "ETA 12:25"
+
+
+def test_a_completed_point_is_logged_by_its_name():
+    """The line of a completed point names it as the run's files do (store.layout.point_name)."""
+    from orbitrig.run.engine import ResultEvent
+    from orbitrig.store.layout import point_name
+
+    out = io.StringIO()
+    with SweepProgress(TerminalConsole(file=out, width=140, force_terminal=False)) as progress:
+        progress(ResultEvent("r1", {"point": 3, "label": "w1000rpm_p0.48MPa"}))
+    lines = [ln for ln in out.getvalue().splitlines() if "complete" in ln]
+    assert len(lines) == 1 and f"point {point_name(3)} w1000rpm_p0.48MPa complete" in lines[0], lines
+    assert point_name(3) == "0003"

@@ -38,9 +38,13 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     assert "4.90 … 6.62" in rows["orbit_radius"]  # the verification's band: +/- 15 %
     assert "0.4826" in rows["recess_pressure"]
     assert page.text("manual-motion") == "Both drives at standstill"  # as the service's prompt says it
+    # the ETA stands still while the run waits for the operator's hands, and says so under it
+    page.wait_text("eta-held", "(paused: waiting for the operator)", 10)
+    assert page.text("eta").endswith(" s"), page.text("eta")
     assert "confirm: accepted" in page.command("btn-confirm", "confirm:")
     page.wait_state("running")
     assert not page.el("manual").is_displayed()
+    page.wait_text("eta-held", "", 5)
 
     # progress and waveforms update
     page.wait_text("point", "1 / 1")
@@ -64,8 +68,10 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     paused = page.command("btn-pause", "pause:")
     assert paused == "pause: accepted — the run pauses at its next safe point (the state then says paused)", paused
     page.wait_state("paused", 30)
+    page.wait_text("eta-held", "(paused with the run)", 5)
     assert "resume: accepted" in page.command("btn-resume", "resume:")
     page.wait_state("running", 15)
+    page.wait_text("eta-held", "", 5)
     assert "stop: accepted" in page.command("btn-stop", "stop:")
     page.wait_state("idle", 60)
     assert "stopped" in page.text("message")

@@ -227,3 +227,14 @@ def test_a_bad_table_value_is_named_by_row_and_column(field, value, says):
     columns = dict(spin=1.0, orbit=[1.0, 2.0], x=[1, 1], y=[-1j, 1j], fx=[1, 1], fy=[1, 1])
     with pytest.raises(ReductionError, match=re.escape(says)):
         OrbitTable(**(columns | {field: value}))
+
+
+def test_iv_refuses_orbits_far_from_circles_and_says_by_how_much():
+    """Orbits of three radii (1, 2, 4 times) are no common circle: the misfit (rms |d - circle| /
+    rms |d|) is said as a percentage with a space before % (SI style), as the CLI writes them."""
+    true = truth("kc8", {"K": (0,), "C": (0,)})
+    table = orbit_table(true, frequencies(6))
+    scale = np.resize([1.0, 1.0, 2.0, 2.0, 4.0, 4.0], table.n)
+    wide = OrbitTable(table.spin, table.orbit, table.x * scale, table.y * scale, table.fx * scale, table.fy * scale)
+    with pytest.raises(IdentificationError, match=r"\(misfit \d+ % > 30 %\), so the circle instruments do not fit"):
+        identify(wide, "kc8", method="iv")

@@ -108,7 +108,7 @@ function clearRunView() {
   showDrives({}); showAux({}, {});  // every row in place before the first live message: no jump
   ["point", "frequency", "revolutions", "eta", "op-spin", "op-orbit", "op-orbit-hz", "op-direction"].forEach(id => { $(id).textContent = "—"; });
   $("progress-bar").style.width = "0";
-  st.liveAt = 0;
+  st.liveAt = 0; st.etaS = null; $("eta-held").textContent = "";
   ["plot-forces", "plot-disp", "plot-orbit"].forEach(id => {
     const c = $(id); c.getContext("2d").clearRect(0, 0, c.width, c.height); c.dataset.samples = "0";
   });
@@ -250,6 +250,7 @@ function showStatus(s) {
   if (runEnded(s) || !prev || prev.run_id !== s.run_id) clearRunView();
   if (s.state === RunState.IDLE && (s.message || "").includes(Outcome.COMPLETED)) $("progress-bar").style.width = "100%";
   showManual(s);
+  showEta();
 }
 
 const SETTING_LABEL = {orbit_radius: ["orbit radius", "µm", 1e6, 2], static_eccentricity: ["static eccentricity", "", 1, 3],
@@ -309,9 +310,18 @@ function showProgress(p) {
   $("point").textContent = p.point + " / " + p.points;
   $("frequency").textContent = p.frequency + " / " + p.frequencies;
   $("revolutions").textContent = String(p.revolutions);
-  $("eta").textContent = p.eta_s === null ? "—" : formatDuration(p.eta_s);
+  st.etaS = p.eta_s; showEta();
   const done = p.points ? (Math.max(0, p.point - 1) + (p.frequencies ? Math.max(0, p.frequency - 1) / p.frequencies : 0)) / p.points : 0;
   $("progress-bar").style.width = (100 * Math.min(1, done)).toFixed(1) + "%";
+}
+
+// the plan's rig time left, and under it why it stands still while the run waits for the operator
+// or is paused (EtaHeld, from the run's state): "4 min 10 s", "(paused: waiting for the operator)"
+function showEta() {
+  const known = st.etaS !== null && st.etaS !== undefined;
+  const held = known && st.status ? EtaHeld[Object.keys(RunState).find(k => RunState[k] === st.status.state)] : undefined;
+  $("eta").textContent = known ? formatDuration(st.etaS) : "—";
+  $("eta-held").textContent = held ? "(" + held + ")" : "";
 }
 
 function formatDuration(s) {

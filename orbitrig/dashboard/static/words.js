@@ -11,6 +11,10 @@ const RunState = Object.freeze({IDLE: "idle", RUNNING: "running", PAUSED: "pause
 // how a run ended (orbitrig.run.states.Outcome), as the idle status's message says it
 const Outcome = Object.freeze({COMPLETED: "completed", STOPPED: "stopped", ABORTED: "aborted", FAILED: "failed"});
 
+// why the ETA stands still, by the state that holds the run (orbitrig.run.progress.ETA_HELD): said
+// after the ETA as the terminal's progress bar says it
+const EtaHeld = Object.freeze({WAITING: "paused: waiting for the operator", PAUSED: "paused with the run"});
+
 // the commands the page sends (orbitrig.run.provenance.RunCommand; the server takes those of
 // orbitrig.dashboard.session.PAGE_COMMANDS)
 const Command = Object.freeze({START: "start", CONFIRM: "confirm", PAUSE: "pause", RESUME: "resume", STOP: "stop",
