@@ -18,6 +18,7 @@ from orbitrig.run.control import RunControl
 from orbitrig.run.provenance import UNNAMED
 from orbitrig.run.run_dir import record_end
 from orbitrig.run.states import ABORTED, STOPPED, Outcome
+from orbitrig.store.layout import point_name
 from orbitrig.store.writer import RunStore
 
 
@@ -42,7 +43,7 @@ def incomplete_note(store: RunStore) -> str:
         return ""
     if not left:
         return ""
-    named = ", ".join(f"{i:04d} ({n} block{'' if n == 1 else 's'} stored)" for i, n in left)
+    named = ", ".join(f"{point_name(i)} ({n} block{'' if n == 1 else 's'} stored)" for i, n in left)
     one = len(left) == 1
     point, verb, them, their = ("point", "is", "it", "its") if one else ("points", "are", "them", "their")
     return (

@@ -8,6 +8,7 @@ from typing import Any
 
 from orbitrig.load_systems import LoadSystem
 from orbitrig.run.plan import OperatingPoint
+from orbitrig.store.layout import point_name
 from orbitrig.store.records import IdentificationEntry, PointResults
 from rigunits import coefficient_unit
 
@@ -39,7 +40,7 @@ def point_log_lines(p: OperatingPoint, res: PointResults) -> list[str]:
         (lms, f"{e['spec'].model} {e['spec'].freq_dep} {e['spec'].method}", e.get("json"), e.get("error"))
         for (lms, _), e in res.identifications.items()
     ]
-    return [f"point {p.index:04d}: {line}" for line in judgement_lines(fits)]
+    return [f"point {point_name(p.index)}: {line}" for line in judgement_lines(fits)]
 
 
 def judgement_lines(

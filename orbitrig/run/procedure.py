@@ -50,6 +50,7 @@ from orbitrig.run.sequential_point import MAX_BLOCK_INDEX, choice_line, chosen_s
 from orbitrig.run.states import ConfirmMode
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.verification import geometry_problems, pressures_settled, radius_missed
+from orbitrig.store.layout import point_name
 from orbitrig.store.records import BlockChoice, BlockRecord, PointResults
 from orbitrig.store.writer import RunStore
 from reduction.rig_time import block_time
@@ -101,7 +102,7 @@ class PointState:
     def measured(self) -> BlockRecord:
         """The block acquired last (a RuntimeError before the point's first Acquire: a plan out of order)."""
         if self.last is None:
-            raise RuntimeError(f"point {self.point.index:04d}: no block acquired yet")
+            raise RuntimeError(f"point {point_name(self.point.index)}: no block acquired yet")
         return self.last
 
 
@@ -148,8 +149,8 @@ class PointProcedure:
     async def run_point(self, p: OperatingPoint, steps: list[Step], first: bool) -> None:
         r = self.r
         await r.background.wait_for_points(note=r.note)  # bounded memory: no pile of points waiting
-        r.background.spawn(r.background.write(r.store.begin_point, p), f"begin point {p.index:04d}")
-        r.store.log(f"point {p.index:04d} {p.label}: begin")
+        r.background.spawn(r.background.write(r.store.begin_point, p), f"begin point {point_name(p.index)}")
+        r.store.log(f"point {point_name(p.index)} {p.label}: begin")
         r.supervisor.pressure_armed = False
         ps = PointState(p, first)
         for step in steps:
@@ -196,11 +197,11 @@ class PointProcedure:
 
     async def _not_met(self, p: OperatingPoint, problems: list[str]) -> None:
         """Manual settings missed: the operator corrects and confirms (auto mode: the run fails)."""
-        msg = f"point {p.index:04d}: manual settings not met: " + "; ".join(problems)
+        msg = f"point {point_name(p.index)}: manual settings not met: " + "; ".join(problems)
         if self.r.confirm_mode == ConfirmMode.AUTO:
             raise RunFailed(msg)
         await self.r.control.ask(
-            f"verify:{p.index:04d}", f"{msg}; correct and confirm; {self.r.io.open_drives.state.motion()}"
+            f"verify:{point_name(p.index)}", f"{msg}; correct and confirm; {self.r.io.open_drives.state.motion()}"
         )
 
     async def verify_pressures(self, step: VerifyPressures, ps: PointState) -> None:
@@ -208,7 +209,7 @@ class PointProcedure:
         while problems := await self._pressures_settled(ps.point):
             await self._not_met(ps.point, problems)
         r.supervisor.pressure_armed = True
-        r.store.log(f"point {ps.point.index:04d}: pressures verified")
+        r.store.log(f"point {point_name(ps.point.index)}: pressures verified")
         self._add_time("verify", t0)
 
     async def _pressures_settled(self, p: OperatingPoint) -> list[str]:
@@ -228,7 +229,7 @@ class PointProcedure:
             if hands_on_spindle:
                 await self._set_speeds(ps.point.spin, step.acquire.block.orbit)
             await self._measure(step.acquire, ps, settle_first=True)
-        self.r.store.log(f"point {ps.point.index:04d}: orbit radius and static eccentricity verified")
+        self.r.store.log(f"point {point_name(ps.point.index)}: orbit radius and static eccentricity verified")
 
     # -------------------------------------------------------------- speeds
     async def _set_speeds(self, spin: float, orbit: float, ramp: float | None = None) -> None:
@@ -254,7 +255,7 @@ class PointProcedure:
         t0, timeout = time.monotonic(), self.scale.wall(self.r.rig.drives.stop_timeout_s) + 5.0
         await self.r.io.open_drives.stop(emergency=False, wait=True, timeout=timeout)
         self._add_time("stop", t0)
-        why = "" if ps is None else f"point {ps.point.index:04d}: for the orbit radius, set by hand: "
+        why = "" if ps is None else f"point {point_name(ps.point.index)}: for the orbit radius, set by hand: "
         self.r.note(f"{why}both drives ramped to zero")
 
     # -------------------------------------------------- settle and acquire
@@ -267,7 +268,7 @@ class PointProcedure:
             settled = r.io.open_drives.wait_settled(hold=self.scale.wall(step.hold), timeout=timeout, expect=expect)
             await r.control.guarded(settled, r.supervisor)
         except DriveError as err:
-            raise RunFailed(f"point {p.index:04d} [{step.block.tag}]: drives did not settle: {err}") from err
+            raise RunFailed(f"point {point_name(p.index)} [{step.block.tag}]: drives did not settle: {err}") from err
         self._add_time("settle", t0)
 
     async def settle(self, step: Settle, ps: PointState) -> None:
@@ -304,7 +305,7 @@ class PointProcedure:
             except (DaqError, TimeoutError) as err:
                 attempts += 1
                 msg = (
-                    f"point {p.index:04d} [{b.tag}]: acquisition failed ({type(err).__name__}: {err}); "
+                    f"point {point_name(p.index)} [{b.tag}]: acquisition failed ({type(err).__name__}: {err}); "
                     "orbit trigger lost or A/D link down?"
                 )
                 r.note(msg)
@@ -317,13 +318,13 @@ class PointProcedure:
         rec = ps.measured() if step.choice is None else dataclasses.replace(ps.measured(), choice=step.choice)
         ps.records[step.block.tag] = rec
         r.background.defer_writes()  # until the next speeds are reached (_settle_once, orbitrig.run.background)
-        r.background.spawn(self._write_block(ps.point, rec), f"store {ps.point.index:04d}/{step.block.tag}")
+        r.background.spawn(self._write_block(ps.point, rec), f"store {point_name(ps.point.index)}/{step.block.tag}")
         if r.control.stop_requested and len(ps.records) < len(ps.point.blocks):
             raise StopRun
 
     async def _write_block(self, p: OperatingPoint, rec: BlockRecord) -> None:
         await self.r.background.write(self.r.store.write_block, p.index, rec)
-        self.r.store.log(f"point {p.index:04d}: stored {rec.block.tag}")
+        self.r.store.log(f"point {point_name(p.index)}: stored {rec.block.tag}")
 
     async def choose_blocks(self, step: ChooseBlocks, ps: PointState) -> None:
         """A sequential point after its initial list: choose the next block (in a worker thread:
@@ -346,7 +347,9 @@ class PointProcedure:
                 ps.sequential = c
                 return
             if c.ratio not in step.rule.candidates:  # the plan's candidates only, whatever the numerics say
-                raise RunFailed(f"point {p.index:04d}: sequential design chose ratio {c.ratio:g}, not a candidate")
+                raise RunFailed(
+                    f"point {point_name(p.index)}: sequential design chose ratio {c.ratio:g}, not a candidate"
+                )
             for sub in chosen_steps(step, p.spin, c, freq, recs[-1].block.orbit, r.rig.estimates.store_s):
                 await self.run_step(sub, ps, counted=False)
             freq += 1
@@ -377,19 +380,19 @@ class PointProcedure:
             await r.background.write(r.store.write_results, p.index, res)
             return res
 
-        ps.results = r.background.spawn(results(), f"identify point {p.index:04d}")
+        ps.results = r.background.spawn(results(), f"identify point {point_name(p.index)}")
 
     async def complete_point(self, step: CompletePoint, ps: PointState) -> None:
         """Once the results are stored: mark the point complete and publish its results."""
         r, p, results = self.r, ps.point, ps.results
         if results is None:
-            raise RuntimeError(f"point {p.index:04d}: CompletePoint before its Identify step")
+            raise RuntimeError(f"point {point_name(p.index)}: CompletePoint before its Identify step")
 
         async def complete() -> None:
             res = await results
             await r.background.write(r.store.complete_point, p.index)
-            r.store.log(f"point {p.index:04d} {p.label}: complete")
+            r.store.log(f"point {point_name(p.index)} {p.label}: complete")
             await asyncio.to_thread(trim_heap)  # the point's blocks are freed: back to the system
             r.emit(ResultEvent(r.run_id, result_payload(r.run_id, p, res)))
 
-        r.background.spawn_point(complete(), f"complete point {p.index:04d}")
+        r.background.spawn_point(complete(), f"complete point {point_name(p.index)}")

@@ -24,6 +24,7 @@ from orbitrig.run.events import RunFailed
 from orbitrig.run.identification import orbit_table
 from orbitrig.run.sequential_rule import SequentialRule
 from orbitrig.run.steps import Acquire, Block, ChooseBlocks, SetOrbit, Settle, Step, StoreBlock
+from orbitrig.store.layout import point_name
 from orbitrig.store.records import BlockChoice, BlockRecord
 from reduction.arrays import FloatArray, NoiseAt
 from reduction.errors import ReductionError
@@ -130,10 +131,10 @@ def decide(
     try:
         return choose(rule, spin, recs, ch, corrections)
     except (ReductionError, ValueError, FloatingPointError) as err:
-        raise RunFailed(f"point {point:04d}: sequential design: {err}") from err
+        raise RunFailed(f"point {point_name(point)}: sequential design: {err}") from err
     except Exception as err:
-        log.error("point %04d: sequential design failed", point, exc_info=err)
-        raise RunFailed(f"point {point:04d}: sequential design failed: {type(err).__name__}: {err}") from err
+        log.error("point %s: sequential design failed", point_name(point), exc_info=err)
+        raise RunFailed(f"point {point_name(point)}: sequential design failed: {type(err).__name__}: {err}") from err
 
 
 def _information(
@@ -212,6 +213,6 @@ def choice_line(point: int, c: BlockChoice) -> str:
         else "stop"
     )
     return (
-        f"point {point:04d}: sequential: {what}: {Choice[c.reason.upper()].value}; largest predicted relative error "
-        f"{max(c.before) * 100:.3g} % -> {max(c.after) * 100:.3g} % after {c.spent_s:.1f} s of blocks"
+        f"point {point_name(point)}: sequential: {what}: {Choice[c.reason.upper()].value}; "
+        f"largest predicted relative error {max(c.before) * 100:.3g} % -> {max(c.after) * 100:.3g} % after {c.spent_s:.1f} s of blocks"
     )

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 from orbitrig.config import MPA, RPM, ModelSpec
 from orbitrig.run.sequential_rule import SequentialRule
+from orbitrig.store.layout import point_name
 from orbitrig.store.records import BlockChoice
 from rigunits import in_hz, micrometres
 
@@ -61,6 +62,7 @@ class Step:
 class SetManual(Step):
     """The operator's hands set orbit radius, static eccentricity and pressures (SI)."""
 
+    point: int  # always an operating point's
     orbit_radius: float
     static_eccentricity: float
     recess_pressure: float
@@ -71,7 +73,7 @@ class SetManual(Step):
 
     @property
     def step_id(self) -> str:
-        return f"manual:{self.point:04d}"
+        return f"manual:{point_name(self.point)}"
 
     def describe(self) -> str:
         what = "set by hand" if self.changed else "unchanged, confirm"
