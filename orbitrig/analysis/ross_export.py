@@ -33,6 +33,7 @@ from orbitrig.analysis.ross_warnings import UNITS, bearing_warnings, notes
 from orbitrig.errors import OrbitrigError
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store.durable import write_atomic
+from orbitrig.store.layout import point_name
 from orbitrig.store.stored_run import Point, Run
 from orbitrig.store.selection import Selection, select_points
 from reduction.statistics import not_determined
@@ -145,7 +146,7 @@ def _one_per_speed(speeds: list[dict[str, Any]], selection: Selection, missing: 
         if not kept or not math.isclose(s["spin"], kept[-1]["spin"], rel_tol=1e-9):
             kept.append(s)
             continue
-        why = f"spin {s['spin']:.6g} rad/s and condition as point {kept[-1]['point']:04d}: one value per speed"
+        why = f"spin {s['spin']:.6g} rad/s and condition as point {point_name(kept[-1]['point'])}: one value per speed"
         missing.append((next(q for q in selection.points if q.index == s["point"]), f"{why} (choose with --point)"))
     return kept
 

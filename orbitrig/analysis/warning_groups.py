@@ -14,6 +14,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from orbitrig.load_systems import LoadSystem
+from orbitrig.store.layout import point_name
 
 SEE_MOST = 2  # fit families named after "see"
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
@@ -114,7 +115,7 @@ def point_ranges(points: Iterable[int], most: int = 8) -> str:
             ranges[-1][1] = p
         else:
             ranges.append([p, p])
-    parts = [f"{a:04d}" if a == b else f"{a:04d}-{b:04d}" for a, b in ranges]
+    parts = [point_name(a) if a == b else f"{point_name(a)}-{point_name(b)}" for a, b in ranges]
     if len(parts) > most:
         parts = parts[:most] + [f"... ({len(parts) - most} more)"]
     return ", ".join(parts)

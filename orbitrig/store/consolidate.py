@@ -87,7 +87,7 @@ class RunImage:
                 self._done.add(index)
             self._out.file.flush()
         except Exception as err:  # noqa: BLE001 - h5py reports a failed write in several types
-            log.warning("run.h5 will be consolidated at the end (cannot copy point %04d now: %s)", index, err)
+            log.warning("run.h5 will be consolidated at the end (cannot copy point %s now: %s)", point_name(index), err)
             self.close()
 
     def write(self) -> Path:

@@ -82,6 +82,7 @@ def unit_product(a: str, b: str) -> str:
 
 
 def point_name(index: int) -> str:
+    """The name of operating point `index` in the run's folders, log lines and progress: 3 -> '0003'."""
     return f"{index:04d}"
 
 

@@ -25,7 +25,7 @@ from orbitrig.load_systems import LMS, LoadSystem
 from orbitrig.store.errors import RunDirError as RunDirError  # its readers' error, imported from here too
 from orbitrig.store.h5_values import json_attr, naming, open_h5, stored_values, text
 from orbitrig.store.identity import header_software
-from orbitrig.store.layout import READABLE_FORMATS, RUN_FILE, RunLayout
+from orbitrig.store.layout import READABLE_FORMATS, RUN_FILE, RunLayout, point_name
 from orbitrig.store.layout import freq_dep_from_key, freq_dep_key as freq_dep_key  # storage's key form, read here
 from orbitrig.store.index import NEVER_COMPLETED
 from orbitrig.store.status import RunStatus
@@ -168,7 +168,7 @@ def read_point(
     path = layout.point_file(index)
     try:
         settings = json.loads(path.read_bytes())
-        point = _new_point({**settings, "complete": complete}, f"{index:04d}")
+        point = _new_point({**settings, "complete": complete}, point_name(index))
     except (OSError, ValueError, KeyError, TypeError, RecursionError) as err:
         raise RunDirError(path, f"unreadable point settings ({type(err).__name__}: {err})") from err
     for tag in layout.block_tags(index) if blocks else ():
