@@ -72,12 +72,12 @@ def warn_or_refuse(data: dict[str, Any], path: str | Path, strict: bool) -> None
     fit warnings; with ``strict`` refuse them (ValueError naming each). A file written before
     fit warnings were exported has none."""
     flagged = [
-        f"point {n['point']} ({n['spin']:.6g} rad/s), fit {n['fit']}: {n['coefficient']} = {n['value']:.4g} "
+        f"point {point_name(n['point'])} ({n['spin']:.6g} rad/s), fit {n['fit']}: {n['coefficient']} = {n['value']:.4g} "
         f"{_unit(n)} with U = {n['U']:.4g} {_unit(n)}"
         for n in data["not_determined"]
     ]
     fits = [
-        f"point {w['point']} ({w['spin']:.6g} rad/s), fit {w['fit']}: {w['warning']}"
+        f"point {point_name(w['point'])} ({w['spin']:.6g} rad/s), fit {w['fit']}: {w['warning']}"
         for w in data.get("fit_warnings") or []
     ]
     messages = [f"{path}: coefficients not determined (U > |value|): " + "; ".join(flagged)] if flagged else []

@@ -68,9 +68,11 @@ def test_bearing_elements_warns_about_fit_warnings_and_strict_refuses(synthetic_
     with pytest.warns(UserWarning) as caught:
         elements = bearing_elements(path, [0, 6], point=0)
     text = " ".join(str(w.message) for w in caught)
-    assert f"fit warnings: point 0 (104.72 rad/s), fit piezo:kcd11:none:ols: {stored[0]}" in text
+    assert f"fit warnings: point 0000 (104.72 rad/s), fit piezo:kcd11:none:ols: {stored[0]}" in text
     assert all(isinstance(e, ross.BearingElement) for e in elements)
-    with pytest.raises(ValueError, match=r"fit warnings: point 0 \(104.72 rad/s\), fit piezo:kcd11:none:ols: chi2 = "):
+    with pytest.raises(
+        ValueError, match=r"fit warnings: point 0000 \(104.72 rad/s\), fit piezo:kcd11:none:ols: chi2 = "
+    ):
         bearing_elements(path, [0, 6], point=0, strict=True)
 
 

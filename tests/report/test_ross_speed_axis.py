@@ -190,9 +190,9 @@ def test_coefficients_not_determined_are_listed_and_warned(synthetic_run, tmp_pa
     assert (
         "warning: point 0001 at 104.72 rad/s, fit piezo:kcd11:none:ols: mxx = 17.8 kg with U = 21.07 kg" in res.stderr
     )
-    with pytest.warns(UserWarning, match=r"not determined .*point 1 .*mxx = 17.8 kg with U = 21.07 kg"):
+    with pytest.warns(UserWarning, match=r"not determined .*point 0001 .*mxx = 17.8 kg with U = 21.07 kg"):
         bearing_elements(tmp_path / "ross_bearings.json", [0], point=1)
-    with pytest.raises(ValueError, match=r"point 1 \(104.72 rad/s\), fit piezo:kcd11:none:ols: mxx"):
+    with pytest.raises(ValueError, match=r"point 0001 \(104.72 rad/s\), fit piezo:kcd11:none:ols: mxx"):
         bearing_elements(tmp_path / "ross_bearings.json", [0], point=1, strict=True)
 
 
