@@ -94,8 +94,10 @@ def _start(opts: ServeOptions) -> None:
 
 
 def _check_run_options(opts: ServeOptions, folder: Path) -> None:
-    if opts.speedup is not None and not 0 < opts.speedup <= 1e4:
-        fail(f"--speedup {opts.speedup:g}: a finite factor > 0 and at most 10000")
+    from sim.config import MAX_SPEEDUP
+
+    if opts.speedup is not None and not 0 < opts.speedup <= MAX_SPEEDUP:
+        fail(f"--speedup {opts.speedup:g}: a finite factor > 0 and at most {MAX_SPEEDUP:g}")
     if opts.confirm not in (ConfirmMode.REMOTE, ConfirmMode.AUTO):
         fail(f"--confirm: one of remote, auto, not {opts.confirm!r}")
     if opts.confirm == ConfirmMode.AUTO and not opts.sim:
