@@ -302,6 +302,8 @@ def load_sim_config(path: str | Path) -> SimConfig:
 def sim_config_from_text(text: str, source: str = "<text>") -> SimConfig:
     """A SimConfig from TOML text (as a scenario file; "" is the default rig). ValueError
     naming `source` and the key."""
+    if text.startswith("\ufeff"):  # TOML forbids it; its parser would say "Invalid statement" of an invisible character
+        raise ValueError(f"{source}: line 1: starts with a byte order mark (BOM), which TOML does not allow")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:

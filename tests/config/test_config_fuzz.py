@@ -175,6 +175,8 @@ CLI_CASES = [
     (RIG_TEXT, MATRIX_TEXT, 0, ""),
     (RIG_TEXT.replace(b"hold_s = 2.0", b"hold_s = inf"), MATRIX_TEXT, 2, "key 'settle.hold_s'"),
     (RIG_TEXT.replace(b"[bearing]", b"[bearing]\n# caf\xe9"), MATRIX_TEXT, 2, "not UTF-8 text"),
+    (b"\xef\xbb\xbf" + RIG_TEXT, MATRIX_TEXT, 2, "rig.toml: line 1: starts with a byte order mark (BOM"),
+    (RIG_TEXT, b"\xef\xbb\xbf" + MATRIX_TEXT, 2, "m.toml: line 1: starts with a byte order mark (BOM, bytes EF BB BF)"),
     (RIG_TEXT, MATRIX_TEXT.replace(b"[1000.0]", b"[nan]"), 2, "key 'operating.spin_rpm[0]'"),
     (RIG_TEXT, MATRIX_TEXT.replace(b'name = "demo"', b"name = 3"), 2, "key 'name'"),
     (RIG_TEXT, MATRIX_TEXT.replace(b"[0.3, 0.5, 0.7, 0.9, 1.2]", b"[]"), 2, "key 'orbit': 'ratios' has 0 value(s)"),

@@ -122,3 +122,11 @@ def test_a_scenario_with_an_infinite_speedup_is_refused(tmp_path):
     assert (
         p.returncode == 2 and "fast.toml" in p.stderr and "speedup must be > 0 and at most 10000 (got inf)" in p.stderr
     )
+
+
+def test_a_scenario_saved_with_a_byte_order_mark_is_refused_saying_so(tmp_path):
+    bom = tmp_path / "bom.toml"
+    bom.write_bytes(b"\xef\xbb\xbfspeedup = 2.0\n")
+    p = orbitrig("sim", "--config", str(bom), timeout=60)
+    assert p.returncode == 2 and f"{bom}: line 1: starts with a byte order mark (BOM)" in p.stderr
+    assert "Invalid statement" not in p.stderr
