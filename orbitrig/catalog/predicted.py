@@ -88,9 +88,14 @@ def _value(cell: str, path: Path, line: int, column: str) -> float:
     if not cell.strip():
         return math.nan
     try:
-        return float(cell)
+        value = float(cell)
     except ValueError:
         raise PredictedError(f"{path}, line {line}, column {column!r}: {cell!r} is not a number") from None
+    if not math.isfinite(value):  # an inf would be drawn off the axes; a written nan reads as a value
+        raise PredictedError(
+            f"{path}, line {line}, column {column!r}: {cell!r} is not a finite number (an empty cell is no prediction)"
+        )
+    return value
 
 
 def _conditions(line: dict[str, float], variable: Variable) -> tuple[tuple[str, float], ...]:
