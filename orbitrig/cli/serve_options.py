@@ -129,6 +129,8 @@ def read_password(
         return os.environ.get(env) or None
     try:
         mode = password_file.stat().st_mode
+        if stat.S_ISDIR(mode):  # its mode would be blamed (a folder is 0755)
+            fail(f"{option}: {password_file} is a folder: give the file holding the password")
         if mode & (stat.S_IRWXG | stat.S_IRWXO):
             fail(
                 f"{option}: {password_file} is accessible by other users "

@@ -239,6 +239,18 @@ def test_cli_refuses_a_password_file_others_can_access(broker, tmp_path, mode):
     assert "Traceback" not in done.stderr
 
 
+@pytest.mark.parametrize("mode", [0o755, 0o700])
+def test_cli_says_a_password_file_that_is_a_folder_is_one(broker, tmp_path, mode):
+    """Its mode was blamed (0755: "accessible by other users"), or chmod 600 suggested, of a folder."""
+    folder = tmp_path / "secrets"
+    folder.mkdir()
+    folder.chmod(mode)
+    done = _serve_cli("--broker", broker.url, "--username", "orbitrig-service", "--password-file", str(folder))
+    assert done.returncode == 2, done.stderr
+    assert f"--password-file: {folder} is a folder: give the file holding the password" in done.stderr
+    assert "chmod" not in done.stderr and "Traceback" not in done.stderr
+
+
 def test_cli_refuses_a_password_file_that_is_not_utf8(broker, tmp_path):
     pw = tmp_path / "pw"
     pw.write_bytes(b"caf\xe9\n")
