@@ -176,6 +176,8 @@ CLI_CASES = [
     (RIG_TEXT.replace(b"hold_s = 2.0", b"hold_s = inf"), MATRIX_TEXT, 2, "key 'settle.hold_s'"),
     (RIG_TEXT.replace(b"[bearing]", b"[bearing]\n# caf\xe9"), MATRIX_TEXT, 2, "not UTF-8 text"),
     (b"\xef\xbb\xbf" + RIG_TEXT, MATRIX_TEXT, 2, "rig.toml: line 1: starts with a byte order mark (BOM"),
+    (RIG_TEXT.replace(b"clearance_um = 60.0", b"clearance_um = 6e-5"), MATRIX_TEXT, 2, "'bearing.clearance_um'"),
+    (RIG_TEXT.replace(b"radius_mm = 19.05", b"radius_mm = 0.01905"), MATRIX_TEXT, 2, "'bearing.radius_mm'"),
     (RIG_TEXT, b"\xef\xbb\xbf" + MATRIX_TEXT, 2, "m.toml: line 1: starts with a byte order mark (BOM, bytes EF BB BF)"),
     (RIG_TEXT, MATRIX_TEXT.replace(b"[1000.0]", b"[nan]"), 2, "key 'operating.spin_rpm[0]'"),
     (RIG_TEXT, MATRIX_TEXT.replace(b'name = "demo"', b"name = 3"), 2, "key 'name'"),
