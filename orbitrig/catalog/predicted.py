@@ -70,6 +70,9 @@ def read_predicted(path: Path, against: Variable | None = None) -> list[dict[str
     lines = _lines(path)
     at, cells = lines[0] if lines else (1, [])
     header = [_column(name, path, at) for name in cells]
+    twice = next((cells[k] for k, name in enumerate(header) if name in header[:k]), None)
+    if twice is not None:  # else the last one would silently win
+        raise PredictedError(f"{path}, line {at}, column {twice.strip()!r}: the column appears twice in the header")
     if not any(name in COEFFICIENTS for name in header):
         raise PredictedError(f"{path}, line {at}: no coefficient column (e.g. 'Kxx [N/m]')")
     if against is not None and against.predicted_column not in header:
