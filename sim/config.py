@@ -308,6 +308,8 @@ def sim_config_from_text(text: str, source: str = "<text>") -> SimConfig:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise ValueError(f"{source}: {err}") from err
+    except RecursionError:  # the parser recurses per level of nesting
+        raise ValueError(f"{source}: not valid TOML: arrays or tables nested too deeply") from None
     return sim_config_from_data(data, source)
 
 

@@ -130,3 +130,14 @@ def test_a_scenario_saved_with_a_byte_order_mark_is_refused_saying_so(tmp_path):
     p = orbitrig("sim", "--config", str(bom), timeout=60)
     assert p.returncode == 2 and f"{bom}: line 1: starts with a byte order mark (BOM)" in p.stderr
     assert "Invalid statement" not in p.stderr
+
+
+@pytest.mark.parametrize("command", [("sim", "--config"), ("sweep", "--sim", "--out", "{tmp}/run", "--sim-config")])
+def test_a_scenario_nested_too_deeply_exits_2_naming_it(tmp_path, command):
+    """tomllib recurses per level: a RecursionError traceback (exit 1) before."""
+    deep = tmp_path / "deep.toml"
+    deep.write_text("x = " + "[" * 3000 + "]" * 3000 + "\n")
+    p = orbitrig(*(a.replace("{tmp}", str(tmp_path)) for a in command), str(deep), timeout=60)
+    assert p.returncode == 2, p.stderr
+    assert f"{deep}: not valid TOML: arrays or tables nested too deeply" in p.stderr and "Traceback" not in p.stderr
+    assert not (tmp_path / "run").exists()
