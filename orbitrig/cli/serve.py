@@ -104,6 +104,24 @@ def _check_run_options(opts: ServeOptions, folder: Path) -> None:
         fail("--confirm auto only with --sim (a real rig needs an operator)")
     if not folder.is_dir():
         fail(f"matrix folder: no such folder: {folder} (--matrices)")
+    if opts.catalog is not None:
+        _check_catalog_url(opts.catalog)
+
+
+def _check_catalog_url(url: str) -> None:
+    """--catalog names a database the catalog supports, and its extra is installed (exit 2 if not):
+    found at the start, not as each point fails to be added."""
+    try:
+        from orbitrig.catalog.errors import CatalogUsageError
+        from orbitrig.catalog.store import check_url
+    except ModuleNotFoundError as err:
+        fail(
+            f"--catalog needs {err.name}, which is not installed: pip install -e '.[catalog]' in orbitrig's source tree"
+        )
+    try:
+        check_url(url, "--catalog")
+    except CatalogUsageError as err:
+        fail(str(err))
 
 
 def build_service(
