@@ -129,9 +129,10 @@ def register(app: typer.Typer) -> None:
                 match=match,
                 test_models=tested,
             )
-            folder = output.designs_dir(rig_path) if save else None  # shipped defaults: refused before the search
+            # shipped defaults: refused before the search
+            folder = output.designs_dir(rig_path) if save is not None else None
             obj = report.design_object(rig, request)
-            if save and folder is not None:
+            if save is not None and folder is not None:
                 saved = output.save_design(obj, save, folder)
                 sys.stderr.write(f"orbitrig design: wrote {saved}\n")
         except OrbitrigError as err:

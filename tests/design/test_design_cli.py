@@ -177,6 +177,28 @@ def test_text_output_and_saved_design(tmp_path):
     assert header == "# orbitrig design --model kc8 --freq-dep none --spin 1000 --match --no-model-test"  # as made
 
 
+def test_an_empty_save_name_exits_2_and_writes_nothing(tmp_path):
+    """`--save ""` (an unset shell variable) wrote nothing and exited 0."""
+    rig = tmp_path / "config" / "rig.toml"
+    rig.parent.mkdir()
+    rig.write_text((ROOT / "config" / "rig.toml").read_text())
+    p = design(
+        "--model",
+        "kc8",
+        "--spin",
+        "1000",
+        "--match",
+        "--no-model-test",
+        "--save",
+        "",
+        "--config",
+        str(rig),
+        check=False,
+    )
+    assert p.returncode == 2 and p.stderr == "orbitrig design: --save '': use letters, digits, - and _ only\n"
+    assert not (tmp_path / "config" / "designs").exists() or not list((tmp_path / "config" / "designs").iterdir())
+
+
 @pytest.mark.parametrize(
     "args, message",
     [
