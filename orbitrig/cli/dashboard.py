@@ -100,7 +100,7 @@ def _settings(
     except ValueError as err:
         _fail(str(err))
     if tls_ca is not None and not tls_ca.is_file():
-        _fail(f"--tls-ca: no such file: {tls_ca}")
+        _fail(f"--tls-ca: {'a folder, not a file' if tls_ca.is_dir() else 'no such file'}: {tls_ca}")
     for name, value in (("--idle-timeout", idle_timeout), ("--reply-timeout", reply_timeout)):
         if not 0 < value < math.inf:  # NaN too: a session would never end, a reply never be waited for
             _fail(f"{name} {value:g}: a finite number of seconds > 0")

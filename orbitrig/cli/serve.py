@@ -103,7 +103,7 @@ def _check_run_options(opts: ServeOptions, folder: Path) -> None:
     if opts.confirm == ConfirmMode.AUTO and not opts.sim:
         fail("--confirm auto only with --sim (a real rig needs an operator)")
     if not folder.is_dir():
-        fail(f"matrix folder: no such folder: {folder} (--matrices)")
+        fail(f"matrix folder: {'a file, not a folder' if folder.exists() else 'no such folder'}: {folder} (--matrices)")
     if opts.catalog is not None:
         _check_catalog_url(opts.catalog)
 

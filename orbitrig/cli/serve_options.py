@@ -160,7 +160,7 @@ def broker_password(opts: ServeOptions) -> str | None:
     except ValueError as err:
         fail(f"--prefix: {err}")
     if opts.tls_ca is not None and not opts.tls_ca.is_file():
-        fail(f"--tls-ca: no such file: {opts.tls_ca}")
+        fail(f"--tls-ca: {'a folder, not a file' if opts.tls_ca.is_dir() else 'no such file'}: {opts.tls_ca}")
     password = read_password(opts.password_file)
     if opts.username is None and password is not None:
         fail(f"a password needs a user name (--username or {USERNAME_ENV})")

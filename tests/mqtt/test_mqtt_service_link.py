@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig, orbitrig_cmd
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Watcher, retained, wait
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceError, ServiceSettings
 
@@ -335,3 +335,17 @@ async def test_a_flood_is_answered_busy_or_counted_and_a_stop_amid_it_is_carried
     assert summary["busy"] <= counts["busy"], (summary, counts)
     assert summary["ok"] + summary["refused"] + counts["busy"] + counts["dropped"] <= counts["received"] - 1
     assert summary["seconds"] - summary["out_s"] < 10, summary  # no backlog long after the flood
+
+
+@pytest.mark.parametrize(
+    "option, says",
+    [("--tls-ca", "--tls-ca: a folder, not a file: {folder}"), ("--matrices", "matrix folder: a file, not a folder")],
+)
+def test_a_folder_for_a_file_or_a_file_for_a_folder_is_said_so(tmp_path, option, says):
+    """They said "no such file" of a folder and "no such folder" of a file."""
+    a_file = tmp_path / "quick.toml"
+    a_file.write_text("")
+    given = tmp_path if option == "--tls-ca" else a_file
+    p = orbitrig("serve", "--broker", "mqtts://127.0.0.1:1", option, str(given), timeout=60)
+    assert p.returncode == 2, p.stderr
+    assert f"orbitrig serve: {says.format(folder=tmp_path)}" in p.stderr and "Traceback" not in p.stderr
