@@ -129,8 +129,7 @@ def register(app: typer.Typer) -> None:
                 match=match,
                 test_models=tested,
             )
-            # shipped defaults: refused before the search
-            folder = output.designs_dir(rig_path) if save is not None else None
+            folder = None if save is None else output.designs_dir(rig_path)  # shipped: refused first
             obj = report.design_object(rig, request)
             if save is not None and folder is not None:
                 saved = output.save_design(obj, save, folder)
