@@ -150,6 +150,11 @@ class SupplyConfig:
     heating: float = 1.0e-4  # K per (rad/s)^2 of spin, recess temperature rise
 
 
+#: the fastest simulated time the simulator is asked to keep (simulated s per wall s); its
+#: loops cannot follow much faster, and an infinite one stops its clock making sense
+MAX_SPEEDUP = 1e4
+
+
 @dataclass
 class SimConfig:
     bearing: BearingConfig = field(default_factory=BearingConfig)
@@ -159,7 +164,7 @@ class SimConfig:
     chain: ChainConfig = field(default_factory=ChainConfig)
     noise: NoiseConfig = field(default_factory=NoiseConfig)
     supply: SupplyConfig = field(default_factory=SupplyConfig)
-    speedup: float = 1.0
+    speedup: float = 1.0  # simulated time / wall time, > 0 and at most MAX_SPEEDUP
     seed: int = 1
 
     def __post_init__(self) -> None:
@@ -192,8 +197,8 @@ def validate(cfg: SimConfig) -> list[str]:
         p.append("geometry.clearance must be > 0")
     if not 0 < cfg.supply.pressure_ratio < 1:
         p.append("supply.pressure_ratio must be in (0, 1)")
-    if not cfg.speedup > 0:
-        p.append("speedup must be > 0")
+    if not 0 < cfg.speedup <= MAX_SPEEDUP:
+        p.append(f"speedup must be > 0 and at most {MAX_SPEEDUP:g} (got {cfg.speedup:g})")
     ch = cfg.chain
     if len(ch.gain_error) != len(CHANNEL_NAMES) or len(ch.filter_cutoff) != len(CHANNEL_NAMES):
         p.append(
@@ -297,10 +302,14 @@ def load_sim_config(path: str | Path) -> SimConfig:
 def sim_config_from_text(text: str, source: str = "<text>") -> SimConfig:
     """A SimConfig from TOML text (as a scenario file; "" is the default rig). ValueError
     naming `source` and the key."""
+    if text.startswith("\ufeff"):  # TOML forbids it; its parser would say "Invalid statement" of an invisible character
+        raise ValueError(f"{source}: line 1: starts with a byte order mark (BOM), which TOML does not allow")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise ValueError(f"{source}: {err}") from err
+    except RecursionError:  # the parser recurses per level of nesting
+        raise ValueError(f"{source}: not valid TOML: arrays or tables nested too deeply") from None
     return sim_config_from_data(data, source)
 
 

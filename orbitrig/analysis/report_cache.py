@@ -54,7 +54,7 @@ def reuse(pr, out: Path, key: str, formats) -> bool:
     `key` and every figure is there in every format; False (nothing changed) otherwise."""
     try:
         record = json.loads(_record(out, pr.point.name).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):  # damaged (nested too deeply: RecursionError): drawn again
         return False
     if not isinstance(record, dict) or record.get("key") != key:
         return False

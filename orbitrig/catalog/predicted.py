@@ -70,6 +70,9 @@ def read_predicted(path: Path, against: Variable | None = None) -> list[dict[str
     lines = _lines(path)
     at, cells = lines[0] if lines else (1, [])
     header = [_column(name, path, at) for name in cells]
+    twice = next((cells[k] for k, name in enumerate(header) if name in header[:k]), None)
+    if twice is not None:  # else the last one would silently win
+        raise PredictedError(f"{path}, line {at}, column {twice.strip()!r}: the column appears twice in the header")
     if not any(name in COEFFICIENTS for name in header):
         raise PredictedError(f"{path}, line {at}: no coefficient column (e.g. 'Kxx [N/m]')")
     if against is not None and against.predicted_column not in header:
@@ -88,9 +91,14 @@ def _value(cell: str, path: Path, line: int, column: str) -> float:
     if not cell.strip():
         return math.nan
     try:
-        return float(cell)
+        value = float(cell)
     except ValueError:
         raise PredictedError(f"{path}, line {line}, column {column!r}: {cell!r} is not a number") from None
+    if not math.isfinite(value):  # an inf would be drawn off the axes; a written nan reads as a value
+        raise PredictedError(
+            f"{path}, line {line}, column {column!r}: {cell!r} is not a finite number (an empty cell is no prediction)"
+        )
+    return value
 
 
 def _conditions(line: dict[str, float], variable: Variable) -> tuple[tuple[str, float], ...]:

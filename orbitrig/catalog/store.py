@@ -33,7 +33,16 @@ class Dialect(StrEnum):
     POSTGRESQL = "postgresql"
 
 
-def _dialect(url: str) -> Dialect:
+def check_url(url: str, option: str) -> None:
+    """CatalogUsageError naming ``option`` when ``url`` is no database URL or one of a database
+    the catalog does not support; nothing is connected to (``serve --catalog`` at its start)."""
+    try:
+        _dialect(url, option)
+    except ArgumentError as err:
+        raise CatalogUsageError(f"{option} {_shown(url)}: not a database URL ({err})") from None
+
+
+def _dialect(url: str, option: str = "--db") -> Dialect:
     """The dialect of ``url``; CatalogUsageError naming the URL and its database when the
     catalog does not support it (ArgumentError when ``url`` is no database URL)."""
     name = make_url(_driver_url(url)).get_backend_name()
@@ -41,7 +50,9 @@ def _dialect(url: str) -> Dialect:
         return Dialect(name)
     except ValueError:
         supported = " or ".join(d.value for d in Dialect)
-        raise CatalogUsageError(f"--db {_shown(url)}: database {name!r} is not supported (use {supported})") from None
+        raise CatalogUsageError(
+            f"{option} {_shown(url)}: database {name!r} is not supported (use {supported})"
+        ) from None
 
 
 def default_url(runs_dir: Path) -> str:

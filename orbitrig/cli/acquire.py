@@ -117,7 +117,12 @@ def _rule(revolutions: int, target: float | None, min_revolutions: int):
     import math
 
     from daq.averager import AveragingRule
+    from orbitrig.config import MAX_REVOLUTIONS
 
+    if revolutions > MAX_REVOLUTIONS:
+        _fail(
+            f"--revolutions {revolutions}: at most {MAX_REVOLUTIONS} (as the rig configuration's [averaging] revolutions)"
+        )
     if target is None:
         return AveragingRule.fixed(revolutions)
     if not (math.isfinite(target) and target > 0):
@@ -192,7 +197,8 @@ Adc = Annotated[
     ),
 ]
 Channels = Annotated[
-    Optional[int], typer.Option("--channels", help="Channels in the scan list (default: the rig config's, else 8).")
+    Optional[int],
+    typer.Option("--channels", min=1, help="Channels in the scan list (default: the rig config's, else 8)."),
 ]
 Mode = Annotated[
     Optional[str],

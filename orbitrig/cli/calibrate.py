@@ -35,6 +35,7 @@ from orbitrig.cli import calibrate_records as records
 from orbitrig.cli.help_text import command_group
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
 from rigunits import MICROMETRE
+from sim.config import MAX_SPEEDUP
 
 DEFAULT_SPEEDUP = 40.0  # as orbitrig.cli.simulated_rig.DEFAULT_SPEEDUP
 _CONFIG = typer.Option(None, "--config", help=RIG_CONFIG_HELP)
@@ -47,7 +48,9 @@ _SIM_CONFIG = typer.Option(
     "--sim-config",
     help="simulator scenario: a TOML file or a shipped name (paper, clean, compressible); --sim only",
 )
-_SPEEDUP = typer.Option(DEFAULT_SPEEDUP, "--speedup", min=0.01, help="simulator time / wall time (--sim only)")
+_SPEEDUP = typer.Option(
+    DEFAULT_SPEEDUP, "--speedup", min=0.01, max=MAX_SPEEDUP, help="simulator time / wall time (--sim only)"
+)
 _REFERENCE_U = typer.Option(
     None,
     "--reference-u-pct",

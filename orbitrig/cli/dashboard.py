@@ -88,6 +88,8 @@ def _settings(
     limits: dict,
     tick: float,
 ):
+    import math
+
     from orbitrig.dashboard.session import DashboardSettings
     from orbitrig.service.protocol import topics, validate_rig_id
     from orbitrig.service.rig_service import BrokerSettings, ServiceError
@@ -98,9 +100,10 @@ def _settings(
     except ValueError as err:
         _fail(str(err))
     if tls_ca is not None and not tls_ca.is_file():
-        _fail(f"--tls-ca: no such file: {tls_ca}")
-    if idle_timeout <= 0 or reply_timeout <= 0:
-        _fail("--idle-timeout and --reply-timeout must be > 0 s")
+        _fail(f"--tls-ca: {'a folder, not a file' if tls_ca.is_dir() else 'no such file'}: {tls_ca}")
+    for name, value in (("--idle-timeout", idle_timeout), ("--reply-timeout", reply_timeout)):
+        if not 0 < value < math.inf:  # NaN too: a session would never end, a reply never be waited for
+            _fail(f"{name} {value:g}: a finite number of seconds > 0")
     if not 0 < tick <= 60:
         _fail("--tick must be > 0 and at most 60 s")
     try:

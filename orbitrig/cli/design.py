@@ -8,6 +8,7 @@ prior coefficients: orbitrig.cli.design_inputs. Exit 2 with a message on operato
 from __future__ import annotations
 
 import json
+import math
 import sys
 from pathlib import Path
 from typing import Optional
@@ -29,8 +30,8 @@ def _ratio_list(text: str) -> list[float]:
         values = [float(v) for v in text.replace(",", " ").split()]
     except ValueError:
         _fail(f"--ratios {text!r}: give numbers separated by commas, e.g. 0.2,0.5,1.2")
-    if not values or any(not v > 0 for v in values) or len(set(values)) != len(values):
-        _fail(f"--ratios {text!r}: give distinct ratios > 0")
+    if not values or any(not 0 < v < math.inf for v in values) or len(set(values)) != len(values):
+        _fail(f"--ratios {text!r}: give distinct finite ratios > 0")
     return values
 
 
@@ -67,6 +68,9 @@ def _candidate(
 def _noise(noise_from: Optional[Path], lms: LoadSystem, force: Optional[float], probe_nm: Optional[float]):
     from orbitrig.cli import design_inputs as di
 
+    for option, value, unit in (("--force-noise", force, "N"), ("--probe-noise", probe_nm, "nm")):
+        if value is not None and not 0 < value < math.inf:
+            _fail(f"{option} {value:g}: a per-revolution noise in {unit}, finite and > 0")
     probe = di.DEFAULT_PROBE_NOISE if probe_nm is None else probe_nm * 1e-9
     if noise_from is None:
         return di.stated_noise(di.DEFAULT_FORCE_NOISE if force is None else force, probe), None
@@ -125,9 +129,9 @@ def register(app: typer.Typer) -> None:
                 match=match,
                 test_models=tested,
             )
-            folder = output.designs_dir(rig_path) if save else None  # shipped defaults: refused before the search
+            folder = None if save is None else output.designs_dir(rig_path)  # shipped: refused first
             obj = report.design_object(rig, request)
-            if save and folder is not None:
+            if save is not None and folder is not None:
                 saved = output.save_design(obj, save, folder)
                 sys.stderr.write(f"orbitrig design: wrote {saved}\n")
         except OrbitrigError as err:

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from orbitrig.cli.design_inputs import DesignInputError
-from orbitrig.config import MIN_RATIOS, RPM
+from orbitrig.config import MIN_RATIOS, MIN_REVOLUTIONS, RPM
 from orbitrig.load_systems import LoadSystem
 from reduction.whirl import Directions
 from rigunits import coefficient_unit
@@ -200,6 +200,25 @@ class DesignRequest:
     test_models: list | None = None  # (model, freq_dep) pairs whose adequacy test the proposal keeps
 
 
+def _check_numbers(rig, req: DesignRequest) -> None:
+    """DesignInputError naming the first option whose number is out of its range (NaN and
+    infinities included): nothing is predicted from it."""
+    if not req.spin_rpm > 0:
+        raise DesignInputError(f"--spin must be > 0 rpm, got {req.spin_rpm:g}")
+    if req.revolutions is not None and req.revolutions < MIN_REVOLUTIONS:
+        raise DesignInputError(f"--revolutions {req.revolutions}: at least {MIN_REVOLUTIONS} revolutions per block")
+    if req.target is not None and not 0 < req.target < 100:
+        raise DesignInputError(f"--target {req.target:g}: a relative standard error in percent, > 0 and < 100")
+    clearance = rig.bearing.clearance
+    if req.radius is not None and not 0 < req.radius < clearance:
+        raise DesignInputError(
+            f"--radius {req.radius * 1e6:g} um: the orbit radius must be > 0 and below the bearing's "
+            f"clearance ({clearance * 1e6:g} um, the rig configuration's [bearing])"
+        )
+    if not 0 <= req.keep_away < math.inf:
+        raise DesignInputError(f"--keep-away {req.keep_away:g}: a distance from Omega/omega = 1, finite and >= 0")
+
+
 def design_object(rig, req: DesignRequest) -> dict:
     """Predict the candidate list, propose one; the JSON object `design --json` prints.
     ``req.test_models``: (model, freq_dep) pairs whose adequacy test the proposal must keep
@@ -208,8 +227,7 @@ def design_object(rig, req: DesignRequest) -> dict:
     from reduction.frequency_list import DesignProblem, predict
     from reduction.models import model_spec
 
-    if not req.spin_rpm > 0:
-        raise DesignInputError(f"--spin must be > 0 rpm, got {req.spin_rpm:g}")
+    _check_numbers(rig, req)
     spec = model_spec(req.model, req.freq_dep)
     spin, noise = req.spin_rpm * RPM, req.noise
     radius = req.radius if req.radius is not None else noise.radius or 0.1 * rig.bearing.clearance

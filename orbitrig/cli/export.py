@@ -1,7 +1,8 @@
 """`orbitrig export RUN`: a stored run's orbit tables and results as CSV, MATLAB, TDMS or HDF5.
 
 Exit status 0 on success, 2 when RUN is not a run directory or an option is bad (a negative
---point; also a ross --fit that no selected point stores: the fits there are are named), 1
+--point, a --fit with another format than ross; also a ross --fit that no selected point
+stores: the fits there are are named), 1
 when the export cannot be written (disk full, permissions) or a point asked for (every
 committed point, without --point) was skipped, for ross also a point without the fit or at a
 speed its test condition already has: each one is named. When no point asked for can be exported
@@ -36,13 +37,15 @@ Points = Annotated[
         help="Only this operating point index, 0 or more (repeatable; not with --format h5, the whole run).",
     ),
 ]
+#: the fit `--format ross` exports without --fit
+DEFAULT_FIT = "piezo:kcd11:none:ols"
 Fit = Annotated[
-    str,
+    Optional[str],
     typer.Option(
         "--fit",
         help="ross: the stored fit exported, LMS:MODEL:FREQ_DEP:METHOD (LMS '' = every load system), at each "
         "point's spin (synchronous whirl; else the constant fit); a fit no point stores exits 2, a point without "
-        "it is named and the exit status is 1.",
+        f"it is named and the exit status is 1 (default {DEFAULT_FIT}; with another format exits 2).",
     ),
 ]
 
@@ -58,7 +61,7 @@ def register(app: typer.Typer) -> None:
         fmt: Format = "csv",
         out: Out = None,
         point: Points = None,
-        fit: Fit = "piezo:kcd11:none:ols",
+        fit: Fit = None,
     ) -> None:
         """Export every complete operating point's orbit tables and results.
 
@@ -99,20 +102,25 @@ def _why_nothing(selection, point: list[int] | None) -> str:
     return "the run stores no operating point"
 
 
-def _export(directory: Path, word: str, out: Path | None, point: list[int] | None, fit: str):
+def _export(directory: Path, word: str, out: Path | None, point: list[int] | None, fit: str | None):
     """The files written and the selection (orbitrig.store.selection.Selection)."""
     from orbitrig.store.export import ExportFormat, export_run
+    from orbitrig.store.selection import negative_point
 
     if word not in set(ExportFormat):
         raise ExportOptionError(f"--format {word!r}: one of {', '.join(ExportFormat)}")
     fmt = ExportFormat(word)
     if point and fmt is ExportFormat.H5:
         raise ExportOptionError("--point does not apply to --format h5 (run.h5 holds the whole run)")
-    negative = [n for n in point or () if n < 0]
+    negative = negative_point(point)
     if negative:
-        raise ExportOptionError(f"--point {negative[0]}: a point index is 0 or more")
+        raise ExportOptionError(negative)
     if fmt is ExportFormat.ROSS:
-        return _export_ross(directory, out, point, fit)
+        return _export_ross(directory, out, point, fit or DEFAULT_FIT)
+    if fit is not None:
+        raise ExportOptionError(
+            f"--fit {fit!r} applies to --format ross only (--format {fmt} exports every stored fit)"
+        )
     exported = export_run(directory, fmt, out, point)
     return exported.files, exported.selection
 

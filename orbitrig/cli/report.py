@@ -214,7 +214,11 @@ def report_cmd(
     from orbitrig.cli.report_progress import ReportProgress
     from orbitrig.store.errors import StorageError
     from orbitrig.store.reader import RunDirError, read_run
+    from orbitrig.store.selection import negative_point
 
+    negative = negative_point(point)
+    if negative:
+        _fail(negative)
     kinds = FIGURES if figures is None else tuple(k.strip() for k in figures.split(",") if k.strip())
     unknown = [k for k in kinds if k not in FIGURES]
     if unknown:

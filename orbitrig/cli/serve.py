@@ -94,14 +94,34 @@ def _start(opts: ServeOptions) -> None:
 
 
 def _check_run_options(opts: ServeOptions, folder: Path) -> None:
-    if opts.speedup is not None and not 0 < opts.speedup <= 1e4:
-        fail(f"--speedup {opts.speedup:g}: a finite factor > 0 and at most 10000")
+    from sim.config import MAX_SPEEDUP
+
+    if opts.speedup is not None and not 0 < opts.speedup <= MAX_SPEEDUP:
+        fail(f"--speedup {opts.speedup:g}: a finite factor > 0 and at most {MAX_SPEEDUP:g}")
     if opts.confirm not in (ConfirmMode.REMOTE, ConfirmMode.AUTO):
         fail(f"--confirm: one of remote, auto, not {opts.confirm!r}")
     if opts.confirm == ConfirmMode.AUTO and not opts.sim:
         fail("--confirm auto only with --sim (a real rig needs an operator)")
     if not folder.is_dir():
-        fail(f"matrix folder: no such folder: {folder} (--matrices)")
+        fail(f"matrix folder: {'a file, not a folder' if folder.exists() else 'no such folder'}: {folder} (--matrices)")
+    if opts.catalog is not None:
+        _check_catalog_url(opts.catalog)
+
+
+def _check_catalog_url(url: str) -> None:
+    """--catalog names a database the catalog supports, and its extra is installed (exit 2 if not):
+    found at the start, not as each point fails to be added."""
+    try:
+        from orbitrig.catalog.errors import CatalogUsageError
+        from orbitrig.catalog.store import check_url
+    except ModuleNotFoundError as err:
+        fail(
+            f"--catalog needs {err.name}, which is not installed: pip install -e '.[catalog]' in orbitrig's source tree"
+        )
+    try:
+        check_url(url, "--catalog")
+    except CatalogUsageError as err:
+        fail(str(err))
 
 
 def build_service(

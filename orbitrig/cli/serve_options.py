@@ -129,6 +129,8 @@ def read_password(
         return os.environ.get(env) or None
     try:
         mode = password_file.stat().st_mode
+        if stat.S_ISDIR(mode):  # its mode would be blamed (a folder is 0755)
+            fail(f"{option}: {password_file} is a folder: give the file holding the password")
         if mode & (stat.S_IRWXG | stat.S_IRWXO):
             fail(
                 f"{option}: {password_file} is accessible by other users "
@@ -158,7 +160,7 @@ def broker_password(opts: ServeOptions) -> str | None:
     except ValueError as err:
         fail(f"--prefix: {err}")
     if opts.tls_ca is not None and not opts.tls_ca.is_file():
-        fail(f"--tls-ca: no such file: {opts.tls_ca}")
+        fail(f"--tls-ca: {'a folder, not a file' if opts.tls_ca.is_dir() else 'no such file'}: {opts.tls_ca}")
     password = read_password(opts.password_file)
     if opts.username is None and password is not None:
         fail(f"a password needs a user name (--username or {USERNAME_ENV})")

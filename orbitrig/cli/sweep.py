@@ -113,6 +113,7 @@ def _run_plan(plan, *, out, sim: bool, sim_config, resume: bool, speedup: float,
         raise typer.BadParameter("--out DIR is required (except with --dry-run)", param_hint="--out")
     if not sim:
         _check_rig_answers(plan.rig)
+    scenario = _scenario(sim_config, resume=resume, out=out) if sim else None  # a bad one: no run directory made
     if not resume:
         _check_out(out)
     from orbitrig.cli.dry_run import print_warnings
@@ -120,7 +121,6 @@ def _run_plan(plan, *, out, sim: bool, sim_config, resume: bool, speedup: float,
     print_warnings(plan)  # as the dry run, before anything starts
     import asyncio
 
-    scenario = _scenario(sim_config, resume=resume, out=out) if sim else None
     return asyncio.run(
         _sweep(
             plan,

@@ -10,6 +10,7 @@ import typer
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
 
 from orbitrig.cli.plain_table import OutputFormat
+from sim.config import MAX_SPEEDUP
 
 RunDir = Annotated[Optional[Path], typer.Argument(help="the run directory, as --out (`--resume DIR`)")]
 Out = Annotated[Optional[Path], typer.Option("--out", help="run directory (run.h5, coefficients.csv, run.log)")]
@@ -48,7 +49,9 @@ Format = Annotated[
         help="the closing table of coefficients: text (plain, numbers to 4 significant digits, never cut, split to the terminal's width), csv (the same tables) or json; every number in full, SI: DIR/run.h5 (orbitrig.open_run; `orbitrig export` fits.csv)",
     ),
 ]
-Speedup = Annotated[float, typer.Option("--speedup", min=0.01, help="simulator time / wall time (--sim only)")]
+Speedup = Annotated[
+    float, typer.Option("--speedup", min=0.01, max=MAX_SPEEDUP, help="simulator time / wall time (--sim only)")
+]
 SimConfig = Annotated[
     Optional[Path],
     typer.Option(

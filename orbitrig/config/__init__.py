@@ -55,7 +55,9 @@ from orbitrig.config.lab import SHIPPED_RIG_ID, write_lab  # noqa: F401
 from orbitrig.config.sequential import SequentialDesign, band_candidates, candidate_problems  # noqa: F401
 from orbitrig.config.resume import MAY_CHANGE, resume_differences  # noqa: F401
 from orbitrig.config.matrix import (  # noqa: F401
+    MAX_REVOLUTIONS,
     MIN_RATIOS,
+    MIN_REVOLUTIONS,
     MatrixAveraging,
     MatrixConfig,
     ModelSpec,
@@ -63,7 +65,7 @@ from orbitrig.config.matrix import (  # noqa: F401
     Orbit,
     PointOrder,
 )
-from orbitrig.config.messages import ConfigWarning, _line_of, _problems, reissue  # noqa: F401
+from orbitrig.config.messages import ConfigWarning, _line_of, _problems, bom_problem, reissue  # noqa: F401
 from orbitrig.config.plan_checks import check_matrix_against_rig, plan_warnings, warning_lines  # noqa: F401
 from orbitrig.config.records import (  # noqa: F401
     CalibrationRecord,
@@ -163,14 +165,19 @@ def read_text(path: Path | str) -> tuple[str, str]:
 
 
 def decode_text(data: bytes, file: str) -> str:
-    """UTF-8 text of a configuration file, or ConfigError naming the line and byte."""
+    """UTF-8 text of a configuration file, or ConfigError naming the line and byte (or the byte
+    order mark that TOML forbids)."""
     try:
-        return data.decode("utf-8")
+        text = data.decode("utf-8")
     except UnicodeDecodeError as err:
         line = data.count(b"\n", 0, err.start) + 1
         raise ConfigError(
             file, [f"line {line}: not UTF-8 text ({err.reason} at byte {err.start}); save the file as UTF-8"]
         ) from None
+    bom = bom_problem(text)
+    if bom is not None:
+        raise ConfigError(file, [bom])
+    return text
 
 
 def _read_default(path: Path | str | None, default: Path, option: str) -> tuple[str, str]:

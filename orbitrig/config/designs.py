@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING
 
 from orbitrig.config.home import DESIGNS, known_names, named_file
 from orbitrig.config.record_files import digest
+from orbitrig.config.messages import bom_problem
 from orbitrig.config.toml_out import render
 
 if TYPE_CHECKING:
@@ -59,6 +60,9 @@ def _read_file(name: str, path: Path) -> tuple[dict | None, str | None]:
         )
     except (OSError, UnicodeDecodeError) as err:
         return None, f"design file {path} cannot be read: {err}"
+    bom = bom_problem(text)
+    if bom is not None:
+        return None, f"design file {path}: {bom}"
     return {"name": name, "file": str(path.resolve()), "sha256": digest(text), "text": text}, None
 
 

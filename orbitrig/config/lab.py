@@ -55,9 +55,11 @@ def write_lab(
     """Write the lab configuration into ``folder``; the files written, in order. ``rig_id``: this
     rig's identifier in its rig.toml (None: the shipped example's, SHIPPED_RIG_ID).
 
-    Raises ConfigError if ``folder`` already holds a rig.toml and ``force`` is false, or
+    Raises ConfigError if ``folder`` is a file, already holds a rig.toml and ``force`` is false, or
     ``rig_id`` is not a RIG_ID_PATTERN word."""
     folder = Path(folder)
+    if folder.exists() and not folder.is_dir():  # else "DIR/rig.toml: cannot write: File exists"
+        raise ConfigError(str(folder), ["not a folder (a file is there): give a new or existing folder for the lab"])
     if (folder / RIG_FILE).exists() and not force:
         raise ConfigError(
             str(folder / RIG_FILE), ["already there: a lab configuration exists in this folder (--force overwrites it)"]

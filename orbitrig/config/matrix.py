@@ -55,8 +55,9 @@ class Operating(_Model):
         return self
 
 
-#: revolutions averaged per block (a fixed count, or an adaptive rule's bounds)
-Revolutions = Annotated[int, Field(ge=2, le=10_000)]
+#: revolutions averaged per block, fewest and most (a fixed count, or an adaptive rule's bounds)
+MIN_REVOLUTIONS, MAX_REVOLUTIONS = 2, 10_000
+Revolutions = Annotated[int, Field(ge=MIN_REVOLUTIONS, le=MAX_REVOLUTIONS)]
 #: an adaptive averaging target: relative standard uncertainty of every channel, percent
 TargetPct = Annotated[float, Field(gt=0, lt=100)]
 

@@ -133,3 +133,16 @@ def reissue(caught: Iterable[warnings.WarningMessage], file: str, text: str) -> 
             warnings.warn_explicit(w.message, w.category, file, line)
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
+#: what a configuration file's first bytes EF BB BF (Windows editors' "UTF-8 with BOM") are said to be:
+#: TOML forbids them, and its parser only says "Invalid statement (at line 1, column 1)" of an invisible character
+BOM_PROBLEM = (
+    "line 1: starts with a byte order mark (BOM, bytes EF BB BF), which TOML does not allow: "
+    "save the file as UTF-8 without BOM"
+)
+
+
+def bom_problem(text: str) -> str | None:
+    """BOM_PROBLEM when the decoded ``text`` starts with a byte order mark, else None."""
+    return BOM_PROBLEM if text.startswith("\ufeff") else None

@@ -86,8 +86,10 @@ class Channel(_Model):
 
 
 class Bearing(_Model):
-    radius_mm: Annotated[float, Field(gt=0, le=10_000)] = 19.05  # the paper's bearing, D = 38.1 mm: recorded only
-    clearance_um: Annotated[float, Field(gt=0, le=100_000)] = 60.0
+    """The bearing's size; the lower bounds catch a value in metres (0.01905, 6e-05) in a mm or um field."""
+
+    radius_mm: Annotated[float, Field(ge=1, le=10_000)] = 19.05  # the paper's bearing, D = 38.1 mm: recorded only
+    clearance_um: Annotated[float, Field(ge=1, le=100_000)] = 60.0
 
     @property
     def clearance(self) -> float:

@@ -26,7 +26,7 @@ from orbitrig.store.errors import WRITE_ERRORS, StorageError, UnusableRunDir
 from orbitrig.store.identity import header_software
 from orbitrig.store.index import PointState, scan
 from orbitrig.store.journal import CAN_DTYPE, CAN_UNITS, DRIVE_DTYPE, DRIVE_UNITS, FIELD_MEANING, Journal, read_journal
-from orbitrig.store.layout import FORMAT, POINT_ATTR_UNITS, RunLayout, point_name
+from orbitrig.store.layout import FORMAT, POINT_ATTR_UNITS, READABLE_FORMATS, RunLayout, point_name
 from orbitrig.store.annotate import annotate, annotate_attributes, annotate_dataset
 from orbitrig.store.pieces import STR, fixed_text, put, strings
 from rigunits import TEXT
@@ -38,10 +38,10 @@ COMMAND_DTYPE = np.dtype([("at", STR), ("command", STR), ("by", STR), ("detail",
 
 
 def read_header(layout: RunLayout) -> dict[str, Any]:
-    """run.json as a dict; UnusableRunDir when it is missing or not a run's header, StorageError
-    when it cannot be read (an I/O error)."""
+    """run.json as a dict; UnusableRunDir when it is missing or not a run's header (a key given
+    twice, a format this version does not read), StorageError when it cannot be read (an I/O error)."""
     try:
-        header = json.loads(layout.header.read_bytes())
+        header = json.loads(layout.header.read_bytes(), object_pairs_hook=_once_each)
         if not isinstance(header, dict) or not str(header.get("format", "")).startswith("orbitrig-run/"):
             raise ValueError(f"format {header.get('format') if isinstance(header, dict) else None!r}")
     except FileNotFoundError:
@@ -50,7 +50,24 @@ def read_header(layout: RunLayout) -> dict[str, Any]:
         raise UnusableRunDir(layout.header, f"not a readable run header ({type(err).__name__}: {err})") from err
     except OSError as err:
         raise StorageError(layout.header, f"not a readable run header ({type(err).__name__}: {err})") from err
+    if header["format"] not in READABLE_FORMATS:
+        raise UnusableRunDir(
+            layout.header,
+            f"format {header['format']!r}: a run of another orbitrig version; this one reads "
+            f"{', '.join(READABLE_FORMATS)}",
+        )
     return header
+
+
+def _once_each(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object whose keys are all different (ValueError naming one given twice: readers
+    differ in which of the two counts)."""
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise ValueError(f"key {key!r} given twice")
+        out[key] = value
+    return out
 
 
 def write_run_file(layout: RunLayout, dest: Path | None = None) -> Path:

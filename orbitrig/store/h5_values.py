@@ -38,6 +38,8 @@ def json_attr(attrs: h5py.AttributeManager, name: str) -> Any:
         return None if raw is None else json.loads(text(raw))
     except ValueError as err:
         raise ValueError(f"attribute {name!r} is not JSON ({err})") from err
+    except RecursionError:  # the decoder recurses per level
+        raise ValueError(f"attribute {name!r} is not JSON this reader takes (nested too deeply)") from None
 
 
 @contextmanager

@@ -32,6 +32,13 @@ class Selection:
         self.skipped.append(f"point {point.name} skipped: {reason}")
 
 
+def negative_point(wanted: Iterable[int] | None) -> str | None:
+    """The problem of a point index asked for below 0 (``--point -1``: a usage mistake, not a
+    point to skip), None when every one is 0 or more."""
+    negative = [n for n in wanted or () if n < 0]
+    return f"--point {negative[0]}: a point index is 0 or more" if negative else None
+
+
 def _unreadable_of(run: Run, name: str) -> list[str]:
     """The run's unreadable-file messages that belong to point directory `name`."""
     return [u for u in run.unreadable if f"/{name}/" in u or f"/{name}." in u]

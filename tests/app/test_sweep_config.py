@@ -86,7 +86,7 @@ def test_bad_rig_config_names_keys(tmp_path):
     with pytest.raises(ConfigError) as ei:
         cfg.load_rig(path)
     probs = ei.value.problems
-    assert any("key 'bearing.clearance_um'" in p and "greater than 0" in p for p in probs)
+    assert any("key 'bearing.clearance_um'" in p and "greater than or equal to 1" in p for p in probs)
     assert any("key 'channels[7].name'" in p and "'fx_piezo'" in p for p in probs)
     assert any("key 'settle.hold'" in p and "allowed keys here: hold_s, timeout_s" in p for p in probs)
 

@@ -1,7 +1,8 @@
 """The catalog commands' failures: a damaged point is named and `catalog add` exits 1 (as
 `export`), reading never creates a catalog, and an --out that cannot be written is one line
 naming the path and the cause (exit 1, no traceback); a database URL the catalog does not
-support is named with the ones it does."""
+support is named with the ones it does; a predicted coefficient written as inf or nan is refused
+naming the file, the line and the column (exit 2; it was taken), as is a column given twice."""
 
 from __future__ import annotations
 
@@ -69,3 +70,31 @@ def test_a_database_the_catalog_does_not_support_is_named_with_the_supported_one
     assert res.exit_code != 0 and "Traceback" not in res.output, res.output
     assert "--db mysql://alice@db.lab/fits: database 'mysql' is not supported (use sqlite or postgresql)" in res.stderr
     assert "secret" not in res.output and list(tmp_path.iterdir()) == []
+
+
+def test_a_prediction_that_is_not_finite_is_refused_naming_the_cell(catalog_run, tmp_path):
+    from orbitrig.catalog.rows import run_rows
+
+    Catalog(f"sqlite:///{tmp_path / 'catalog.sqlite'}").add(run_rows(read_run(catalog_run)))
+    for cell in ("inf", "nan"):
+        predicted = tmp_path / f"{cell}.csv"
+        predicted.write_text(f"static_eccentricity,Kxx [N/m]\n0.0,3.3e7\n0.15,{cell}\n")
+        args = ["compare", "--runs", str(tmp_path), "--against", "static_eccentricity", "--predicted", str(predicted)]
+        res = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "figures")])
+        assert res.exit_code == 2, res.output
+        assert f"error: {predicted}, line 3, column 'Kxx': '{cell}' is not a finite number" in res.stderr
+    assert not (tmp_path / "figures").exists()
+
+
+def test_a_predicted_column_given_twice_is_refused_naming_it(catalog_run, tmp_path):
+    """The last of the two was taken: a prediction nobody wrote."""
+    from orbitrig.catalog.rows import run_rows
+
+    Catalog(f"sqlite:///{tmp_path / 'catalog.sqlite'}").add(run_rows(read_run(catalog_run)))
+    predicted = tmp_path / "twice.csv"
+    predicted.write_text("# model\nstatic_eccentricity,Kxx [N/m],Kxx [N/m]\n0.0,3.3e7,1\n")
+    args = ["compare", "--runs", str(tmp_path), "--against", "static_eccentricity", "--predicted", str(predicted)]
+    res = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "figures")])
+    assert res.exit_code == 2, res.output
+    assert res.stderr == f"error: {predicted}, line 2, column 'Kxx [N/m]': the column appears twice in the header\n"
+    assert not (tmp_path / "figures").exists()

@@ -52,6 +52,9 @@ def test_predicted_csv_columns_and_errors(tmp_path):
     (tmp_path / "p4.csv").write_text("static_eccentricity,Kzz [N/m]\n0.1,3e7\n")
     with pytest.raises(PredictedError, match=r"p4.csv, line 1, column 'Kzz \[N/m\]': not one of spin_rpm"):
         read_predicted(tmp_path / "p4.csv")
+    (tmp_path / "p5.csv").write_text("static_eccentricity,Kxx [N/m],Kxx [N/m]\n0.1,3e7,1\n")
+    with pytest.raises(PredictedError, match=r"p5.csv, line 1, column 'Kxx \[N/m\]': the column appears twice"):
+        read_predicted(tmp_path / "p5.csv")
     (tmp_path / "p3.csv").write_text("static_eccentricity,Kxx [N/m]\n0.1,abc\n")
     with pytest.raises(PredictedError, match=r"p3.csv, line 2, column 'Kxx': 'abc'"):
         read_predicted(tmp_path / "p3.csv")

@@ -86,6 +86,22 @@ def test_init_refuses_an_existing_configuration(lab):
     assert "lab rig" not in (lab / "rig.toml").read_text()
 
 
+@pytest.mark.parametrize("force", [(), ("--force",)])
+def test_init_into_a_file_says_it_is_not_a_folder(tmp_path, force):
+    """It said `DIR/rig.toml: cannot write: File exists`, of a rig.toml nobody had written."""
+    a_file = tmp_path / "notes.txt"
+    a_file.write_text("kept")
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    done = subprocess.run(
+        orbitrig_cmd("init", str(a_file), *force), capture_output=True, text=True, env=env, timeout=60
+    )
+    assert done.returncode == 2, done.stderr
+    assert (
+        done.stderr == f"error: {a_file}: not a folder (a file is there): give a new or existing folder for the lab\n"
+    )
+    assert a_file.read_text() == "kept"
+
+
 def test_broker_dir_goes_into_mosquitto_conf(tmp_path):
     write_lab(tmp_path / "lab", broker_dir=Path("/etc/mosquitto/orbitrig"))
     conf = (tmp_path / "lab" / "mosquitto" / "mosquitto.conf").read_text()

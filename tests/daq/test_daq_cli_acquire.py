@@ -18,7 +18,7 @@ from orbitrig.cli import app
 from sim.config import scenario
 from sim.rig import SimRig
 
-from support.cli_helpers import orbitrig_async
+from support.cli_helpers import orbitrig, orbitrig_async
 
 ORBIT = 2 * math.pi * 12.5  # rad/s
 pytestmark = pytest.mark.timeout(60)
@@ -109,3 +109,17 @@ def test_the_default_wait_scales_with_revolutions_and_orbit_period(monkeypatch):
         # 1000 revolutions take 4 s: more than a stalled simulator's catch-up can deliver in 0.3 s
         r = CliRunner().invoke(app, ["acquire", "--adc", url, "--revolutions", "1000", "--timeout", "0.3"])
         assert r.exit_code == 2 and "of 1000 good revolutions within 0.3 s" in r.output
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (("--revolutions", "100000000000"), "--revolutions 100000000000: at most 10000"),
+        (("--channels", "0"), "Invalid value for '--channels'"),
+    ],
+)
+def test_counts_out_of_range_exit_2_before_the_link_opens(args, message):
+    """An absurd count is refused (it once allocated for every revolution asked: a MemoryError
+    traceback); the URL is one nothing serves, so reaching the link would say so instead."""
+    p = orbitrig("acquire", "--adc", "socket://127.0.0.1:1", *args)
+    assert p.returncode == 2 and message in p.stderr and "Traceback" not in p.stderr and p.stdout == ""

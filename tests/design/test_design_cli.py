@@ -177,6 +177,28 @@ def test_text_output_and_saved_design(tmp_path):
     assert header == "# orbitrig design --model kc8 --freq-dep none --spin 1000 --match --no-model-test"  # as made
 
 
+def test_an_empty_save_name_exits_2_and_writes_nothing(tmp_path):
+    """`--save ""` (an unset shell variable) wrote nothing and exited 0."""
+    rig = tmp_path / "config" / "rig.toml"
+    rig.parent.mkdir()
+    rig.write_text((ROOT / "config" / "rig.toml").read_text())
+    p = design(
+        "--model",
+        "kc8",
+        "--spin",
+        "1000",
+        "--match",
+        "--no-model-test",
+        "--save",
+        "",
+        "--config",
+        str(rig),
+        check=False,
+    )
+    assert p.returncode == 2 and p.stderr == "orbitrig design: --save '': use letters, digits, - and _ only\n"
+    assert not (tmp_path / "config" / "designs").exists() or not list((tmp_path / "config" / "designs").iterdir())
+
+
 @pytest.mark.parametrize(
     "args, message",
     [
@@ -184,6 +206,29 @@ def test_text_output_and_saved_design(tmp_path):
         (("--model", "kcd11", "--spin", "1000", "--ratios", "0.2,x"), "give numbers"),
         (("--model", "kcd13", "--spin", "1000"), "unknown model 'kcd13'"),
         (("--model", "kcd11", "--spin", "1000", "--ratios", "0.5", "--matrix", "demo"), "not both"),
+        (("--model", "kcd11", "--spin", "1000", "--ratios", "0.3,inf,0.5"), "give distinct finite ratios > 0"),
+        (
+            ("--model", "kcd11", "--spin", "1000", "--revolutions", "-5"),
+            "--revolutions -5: at least 2 revolutions per block",
+        ),
+        (
+            ("--model", "kcd11", "--spin", "1000", "--radius", "nan"),
+            "--radius nan um: the orbit radius must be > 0 and below",
+        ),
+        (("--model", "kcd11", "--spin", "1000", "--radius", "60"), "below the bearing's clearance (60 um"),
+        (("--model", "kcd11", "--spin", "1000", "--target", "-1"), "--target -1: a relative standard error in percent"),
+        (
+            ("--model", "kcd11", "--spin", "1000", "--keep-away", "nan"),
+            "--keep-away nan: a distance from Omega/omega = 1",
+        ),
+        (
+            ("--model", "kcd11", "--spin", "1000", "--force-noise", "nan"),
+            "--force-noise nan: a per-revolution noise in N",
+        ),
+        (
+            ("--model", "kcd11", "--spin", "1000", "--probe-noise", "-3"),
+            "--probe-noise -3: a per-revolution noise in nm",
+        ),
     ],
 )
 def test_operator_mistakes_exit_2(args, message):

@@ -1,5 +1,6 @@
 """`orbitrig serve --catalog URL`: each completed point lands in the campaign catalog; a
-catalog that cannot be written is logged and the run completes all the same."""
+catalog that cannot be written is logged and the run completes all the same; a URL of no
+database the catalog supports is refused at the start (exit 2), not found point by point."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import time
 
 import pytest
 
+from support.cli_helpers import orbitrig
 from support.mqtt_helpers import ACCOUNTS, RigClient, Service, sim_service_args
 from orbitrig.catalog.store import Catalog
 from orbitrig.store.reader import read_run
@@ -51,3 +53,19 @@ def test_completed_points_land_in_the_catalog(broker, tmp_path, writable):
     assert all(r["run_path"] == str(run_dir.resolve()) and r["Kxx_U"] > 0 for r in rows)
     ended = read_run(run_dir).provenance["ended"]
     assert ended and {(r["run_status"], r["ended"]) for r in rows} == {("completed", ended)}  # not left 'running'
+
+
+@pytest.mark.parametrize(
+    "url, says",
+    [
+        ("mysql://alice@db.lab/fits", "--catalog mysql://alice@db.lab/fits: database 'mysql' is not supported"),
+        ("catalog.sqlite", "--catalog catalog.sqlite: not a database URL"),
+    ],
+)
+def test_a_catalog_url_of_no_supported_database_exits_2_at_the_start(tmp_path, url, says):
+    """Checked before the broker is reached: no broker serves this port."""
+    args = ("serve", "--sim", "--broker", "mqtt://127.0.0.1:1", "--out", str(tmp_path / "runs"), "--catalog", url)
+    p = orbitrig(*args, timeout=60)
+    assert p.returncode == 2, p.stderr
+    assert f"orbitrig serve: {says}" in p.stderr and "Traceback" not in p.stderr
+    assert not (tmp_path / "runs").exists()

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig, orbitrig_cmd
 from support.mqtt_helpers import ACCOUNTS, Broker, RigClient, Watcher, retained, wait
 from orbitrig.service.rig_service import BrokerSettings, RigService, ServiceError, ServiceSettings
 
@@ -239,6 +239,18 @@ def test_cli_refuses_a_password_file_others_can_access(broker, tmp_path, mode):
     assert "Traceback" not in done.stderr
 
 
+@pytest.mark.parametrize("mode", [0o755, 0o700])
+def test_cli_says_a_password_file_that_is_a_folder_is_one(broker, tmp_path, mode):
+    """Its mode was blamed (0755: "accessible by other users"), or chmod 600 suggested, of a folder."""
+    folder = tmp_path / "secrets"
+    folder.mkdir()
+    folder.chmod(mode)
+    done = _serve_cli("--broker", broker.url, "--username", "orbitrig-service", "--password-file", str(folder))
+    assert done.returncode == 2, done.stderr
+    assert f"--password-file: {folder} is a folder: give the file holding the password" in done.stderr
+    assert "chmod" not in done.stderr and "Traceback" not in done.stderr
+
+
 def test_cli_refuses_a_password_file_that_is_not_utf8(broker, tmp_path):
     pw = tmp_path / "pw"
     pw.write_bytes(b"caf\xe9\n")
@@ -323,3 +335,17 @@ async def test_a_flood_is_answered_busy_or_counted_and_a_stop_amid_it_is_carried
     assert summary["busy"] <= counts["busy"], (summary, counts)
     assert summary["ok"] + summary["refused"] + counts["busy"] + counts["dropped"] <= counts["received"] - 1
     assert summary["seconds"] - summary["out_s"] < 10, summary  # no backlog long after the flood
+
+
+@pytest.mark.parametrize(
+    "option, says",
+    [("--tls-ca", "--tls-ca: a folder, not a file: {folder}"), ("--matrices", "matrix folder: a file, not a folder")],
+)
+def test_a_folder_for_a_file_or_a_file_for_a_folder_is_said_so(tmp_path, option, says):
+    """They said "no such file" of a folder and "no such folder" of a file."""
+    a_file = tmp_path / "quick.toml"
+    a_file.write_text("")
+    given = tmp_path if option == "--tls-ca" else a_file
+    p = orbitrig("serve", "--broker", "mqtts://127.0.0.1:1", option, str(given), timeout=60)
+    assert p.returncode == 2, p.stderr
+    assert f"orbitrig serve: {says.format(folder=tmp_path)}" in p.stderr and "Traceback" not in p.stderr

@@ -109,6 +109,17 @@ def test_an_unchanged_point_reuses_its_figures_until_something_changes(first, tm
         assert (run / "plots" / name).stat().st_mtime_ns == third[name][1]
 
 
+@pytest.mark.parametrize("damage", ['{"key":', "[" * 100_000 + "]" * 100_000], ids=["torn", "nested-too-deeply"])
+def test_a_damaged_figure_record_has_its_point_drawn_again(first, tmp_path, damage):
+    """A record nested too deeply was a RecursionError traceback (exit 1); a torn one was redrawn."""
+    run = shutil.copytree(first.run.directory, tmp_path / "run")
+    (run / "plots" / ".figures" / "0001.json").write_text(damage)
+    before = (run / "plots" / "lms_0001.png").stat().st_mtime_ns
+    result = CliRunner().invoke(app, ["report", str(run), "--figures", "coherence,lms"])
+    assert result.exit_code == 0 and result.exception is None, result.output
+    assert (run / "plots" / "lms_0001.png").stat().st_mtime_ns != before
+
+
 def test_the_key_follows_the_stored_point_and_the_options(stored):
     key = point_key(read_run(stored).points[0], QUICK)
     assert point_key(read_run(stored).points[0], QUICK) == key  # read again: the same key

@@ -13,7 +13,7 @@ import time
 
 import pytest
 
-from support.cli_helpers import orbitrig_cmd
+from support.cli_helpers import orbitrig, orbitrig_cmd
 from support.sim_reader import parse, revolutions
 
 from support.paths import ROOT
@@ -94,3 +94,50 @@ def test_sim_config_takes_a_shipped_scenario_by_name_from_any_folder(tmp_path):
         assert proc.wait(timeout=30) == 0
         proc.stdout.close()
         proc.stderr.close()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (("sim", "--speedup", "inf"), "orbitrig sim: --speedup inf: a finite factor > 0 and at most 10000"),
+        (("sim", "--speedup", "0"), "orbitrig sim: --speedup 0: a finite factor > 0 and at most 10000"),
+        (("sweep", "--sim", "--out", "{tmp}/run", "--speedup", "1e12"), "Invalid value for '--speedup'"),
+        (("calibrate", "loads", "--sim", "--speedup", "inf"), "Invalid value for '--speedup'"),
+        (("serve", "--sim", "--broker", "mqtt://127.0.0.1:1", "--speedup", "inf"), "--speedup inf: a finite factor"),
+    ],
+    ids=["sim-inf", "sim-0", "sweep", "calibrate", "serve"],
+)
+def test_a_speedup_beyond_the_simulators_exits_2_before_anything_starts(tmp_path, args, message):
+    """An infinite speed-up made the simulator's loops raise by the hundred (sim) or started a run
+    that failed with exit 1 (sweep); every command taking one refuses it, with the same bound."""
+    p = orbitrig(*(a.replace("{tmp}", str(tmp_path)) for a in args), timeout=60)
+    assert p.returncode == 2 and message in p.stderr and "Traceback" not in p.stderr, p.stderr
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_scenario_with_an_infinite_speedup_is_refused(tmp_path):
+    bad = tmp_path / "fast.toml"
+    bad.write_text("speedup = inf\n")
+    p = orbitrig("sim", "--config", str(bad), timeout=60)
+    assert (
+        p.returncode == 2 and "fast.toml" in p.stderr and "speedup must be > 0 and at most 10000 (got inf)" in p.stderr
+    )
+
+
+def test_a_scenario_saved_with_a_byte_order_mark_is_refused_saying_so(tmp_path):
+    bom = tmp_path / "bom.toml"
+    bom.write_bytes(b"\xef\xbb\xbfspeedup = 2.0\n")
+    p = orbitrig("sim", "--config", str(bom), timeout=60)
+    assert p.returncode == 2 and f"{bom}: line 1: starts with a byte order mark (BOM)" in p.stderr
+    assert "Invalid statement" not in p.stderr
+
+
+@pytest.mark.parametrize("command", [("sim", "--config"), ("sweep", "--sim", "--out", "{tmp}/run", "--sim-config")])
+def test_a_scenario_nested_too_deeply_exits_2_naming_it(tmp_path, command):
+    """tomllib recurses per level: a RecursionError traceback (exit 1) before."""
+    deep = tmp_path / "deep.toml"
+    deep.write_text("x = " + "[" * 3000 + "]" * 3000 + "\n")
+    p = orbitrig(*(a.replace("{tmp}", str(tmp_path)) for a in command), str(deep), timeout=60)
+    assert p.returncode == 2, p.stderr
+    assert f"{deep}: not valid TOML: arrays or tables nested too deeply" in p.stderr and "Traceback" not in p.stderr
+    assert not (tmp_path / "run").exists()

@@ -1,6 +1,8 @@
 """`orbitrig export RUN --point N` when no point asked for can be exported: nothing is written
 or removed (an earlier export stays byte for byte), the point is named and the exit status
-is 1, as `report --point` leaves its page; a negative N is bad usage (exit 2)."""
+is 1, as `report --point` leaves its page; a negative N is bad usage (exit 2), for `report` too
+(it said "point -001 skipped", exit 1), and so is a --fit with a format other than ross (it was
+ignored)."""
 
 from __future__ import annotations
 
@@ -54,6 +56,18 @@ def test_a_negative_point_is_bad_usage_naming_the_option(synthetic, exported):
         res = _export(synthetic, exported, "--format", fmt, "--point", "-1")
         assert res.exit_code == 2, (fmt, res.output)
         assert "--point -1" in res.stderr and "-001" not in res.stderr
+    assert _snapshot(exported) == before
+    res = CliRunner().invoke(app, ["report", str(synthetic), "--point", "-1"])
+    assert res.exit_code == 2 and "error: --point -1: a point index is 0 or more" in res.stderr
+    assert "-001" not in res.output and not (synthetic / "plots" / "point_-001").exists()
+
+
+@pytest.mark.parametrize("fmt", ["csv", "mat", "tdms", "h5"])
+def test_a_fit_with_another_format_than_ross_is_bad_usage(synthetic, exported, fmt):
+    before = _snapshot(exported)
+    res = _export(synthetic, exported, "--format", fmt, "--fit", "strain:kc8:none:ols")
+    assert res.exit_code == 2, res.output
+    assert f"--fit 'strain:kc8:none:ols' applies to --format ross only (--format {fmt} exports" in res.stderr
     assert _snapshot(exported) == before
 
 

@@ -14,8 +14,10 @@ import orbitrig
 from orbitrig.store.errors import RunDirError
 from orbitrig.store.layout import RunLayout
 from orbitrig.store.reader import read_point, read_run
+from support.cli_helpers import orbitrig as orbitrig_cli
 
 FIT = "points/0001/identification/strain__kcd11__none__ols"
+DEEP = "[" * 100_000 + "]" * 100_000  # the JSON decoder recurses per level: a RecursionError traceback before
 
 
 @pytest.fixture
@@ -38,6 +40,7 @@ def _damage(path, edit) -> None:
         (lambda f: f[FIT].attrs.__setitem__("json", "{not json"), [f"/{FIT}", "json"]),
         (lambda f: f.__delitem__("points/0000/frequencies/00_fwd/coherence"), None),  # optional: still read
         (lambda f: f["points/0000/truth"].attrs.__setitem__("json", "[1,"), ["/points/0000/truth", "json"]),
+        (lambda f: f[FIT].attrs.__setitem__("json", DEEP), [f"/{FIT}", "'json'", "nested too deeply"]),
     ],
 )
 def test_run_h5_damage_names_file_and_object(lone_run_h5, edit, names):
@@ -64,3 +67,13 @@ def test_results_piece_damage_names_the_object(synthetic, tmp_path):
     message = str(caught.value)
     assert message.startswith(f"{results}: malformed results of a complete point: ")
     assert "/identification/piezo__kc7__none__ols" in message and "json" in message
+
+
+def test_a_command_reading_such_a_run_h5_exits_2_naming_it(lone_run_h5):
+    _damage(lone_run_h5 / "run.h5", lambda f: f[FIT].attrs.__setitem__("json", DEEP))
+    p = orbitrig_cli("reduce", str(lone_run_h5), "--model", "kc8")
+    assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
+    assert p.stderr == (
+        f"error: {lone_run_h5 / 'run.h5'}: malformed run file: /{FIT}: "
+        "attribute 'json' is not JSON this reader takes (nested too deeply)\n"
+    )
