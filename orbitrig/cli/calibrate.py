@@ -35,9 +35,8 @@ from orbitrig.cli import calibrate_records as records
 from orbitrig.cli.help_text import command_group
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
 from rigunits import MICROMETRE
-from sim.config import MAX_SPEEDUP
+from orbitrig.cli.sim_options import DEFAULT_SPEEDUP, MAX_SPEEDUP
 
-DEFAULT_SPEEDUP = 40.0  # as orbitrig.cli.simulated_rig.DEFAULT_SPEEDUP
 _CONFIG = typer.Option(None, "--config", help=RIG_CONFIG_HELP)
 _OPERATOR = typer.Option(None, "--operator", help="who calibrates (default: the login name)")
 _RECESS = typer.Option(0.4826, "--recess-pressure-mpa", min=0.0, help="recess pressure during the slow roll (MPa)")

@@ -94,7 +94,7 @@ def _start(opts: ServeOptions) -> None:
 
 
 def _check_run_options(opts: ServeOptions, folder: Path) -> None:
-    from sim.config import MAX_SPEEDUP
+    from orbitrig.cli.sim_options import MAX_SPEEDUP
 
     if opts.speedup is not None and not 0 < opts.speedup <= MAX_SPEEDUP:
         fail(f"--speedup {opts.speedup:g}: a finite factor > 0 and at most {MAX_SPEEDUP:g}")
@@ -274,7 +274,8 @@ async def _serve_until_shutdown(rig, settings, broker_settings, opts: ServeOptio
     async with contextlib.AsyncExitStack() as stack:
         sim_rig = None
         if opts.sim:
-            from orbitrig.cli.simulated_rig import DEFAULT_SPEEDUP, simulated_rig
+            from orbitrig.cli.sim_options import DEFAULT_SPEEDUP
+            from orbitrig.cli.simulated_rig import simulated_rig
 
             sim_rig, _ = await stack.enter_async_context(simulated_rig(opts.speedup or DEFAULT_SPEEDUP))
         service = build_service(

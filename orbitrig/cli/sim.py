@@ -53,7 +53,7 @@ def _sim_config(path, speedup):
     """The simulator configuration of --config (a file or a shipped scenario's name; default: the paper's
     rig); exit 2 if it or --speedup is bad."""
     from orbitrig.cli.simulated_rig import scenario_file
-    from sim.config import MAX_SPEEDUP, SimConfig, load_sim_config
+    from sim.config import SimConfig, load_sim_config
 
     path = scenario_file(path, "--config")
     try:
@@ -61,8 +61,10 @@ def _sim_config(path, speedup):
     except ValueError as err:
         typer.echo(f"orbitrig sim: {err}", err=True)
         raise typer.Exit(2) from err
-    if speedup is not None and not 0 < speedup <= MAX_SPEEDUP:
-        typer.echo(f"orbitrig sim: --speedup {speedup:g}: a finite factor > 0 and at most {MAX_SPEEDUP:g}", err=True)
+    if speedup is not None and not 0 < speedup <= opt.MAX_SPEEDUP:
+        typer.echo(
+            f"orbitrig sim: --speedup {speedup:g}: a finite factor > 0 and at most {opt.MAX_SPEEDUP:g}", err=True
+        )
         raise typer.Exit(2)
     return cfg
 

@@ -7,6 +7,13 @@ from typing import Annotated, Optional
 
 import typer
 
+#: simulated time / wall time of a simulator started by sweep, calibrate or serve --sim
+DEFAULT_SPEEDUP = 40.0
+#: the largest time scale any command takes: the simulator's own limit (sim.config.MAX_SPEEDUP, which
+#: the simulator checks itself; a test holds them equal), here so that the command line can check it
+#: without loading the simulator
+MAX_SPEEDUP = 1e4
+
 Config = Annotated[
     Optional[Path],
     typer.Option(

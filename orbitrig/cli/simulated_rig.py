@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, BinaryIO
 
 import numpy as np
 
+from orbitrig.cli.sim_options import DEFAULT_SPEEDUP
 from orbitrig.cli.simulator_process import SimulatorError, SimulatorStart, start_simulator
 
 __all__ = ["SimulatorError", "simulated_access", "simulated_rig", "start_simulator"]
@@ -43,7 +44,6 @@ if TYPE_CHECKING:  # imported where used: the simulator starts before the engine
     from orbitrig.run.rig_io import Endpoints, RigAccess, Scenario
 
 #: simulator time / wall time of `orbitrig sweep --sim` and `orbitrig serve --sim`
-DEFAULT_SPEEDUP = 40.0
 
 
 #: wall seconds one control request may take (the truth of a long point list on a loaded machine)

@@ -12,10 +12,10 @@ import typer
 
 from orbitrig.cli import sweep_options as opt
 from orbitrig.cli.plain_table import OutputFormat
+from orbitrig.cli.sim_options import DEFAULT_SPEEDUP
 from orbitrig.cli.sweep_configs import load_plan
 from orbitrig.run.states import ConfirmMode, Outcome
 
-DEFAULT_SPEEDUP = 40.0  # as orbitrig.cli.simulated_rig.DEFAULT_SPEEDUP (imported only with --sim)
 EXIT = {Outcome.COMPLETED: 0, Outcome.FAILED: 1, Outcome.STOPPED: 3, Outcome.ABORTED: 4}
 
 

@@ -10,7 +10,7 @@ import typer
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
 
 from orbitrig.cli.plain_table import OutputFormat
-from sim.config import MAX_SPEEDUP
+from orbitrig.cli.sim_options import MAX_SPEEDUP
 
 RunDir = Annotated[Optional[Path], typer.Argument(help="the run directory, as --out (`--resume DIR`)")]
 Out = Annotated[Optional[Path], typer.Option("--out", help="run directory (run.h5, coefficients.csv, run.log)")]

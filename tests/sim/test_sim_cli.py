@@ -141,3 +141,12 @@ def test_a_scenario_nested_too_deeply_exits_2_naming_it(tmp_path, command):
     assert p.returncode == 2, p.stderr
     assert f"{deep}: not valid TOML: arrays or tables nested too deeply" in p.stderr and "Traceback" not in p.stderr
     assert not (tmp_path / "run").exists()
+
+
+def test_the_command_lines_speedup_bound_is_the_simulators():
+    """The options check --speedup against the simulator's own limit without loading the simulator
+    (a dry run loads no sim module): one number, held equal here."""
+    from orbitrig.cli import sim_options
+    from sim.config import MAX_SPEEDUP
+
+    assert sim_options.MAX_SPEEDUP == MAX_SPEEDUP == 1e4
