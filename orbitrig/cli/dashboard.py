@@ -90,6 +90,7 @@ def _settings(
 ):
     import math
 
+    from orbitrig.cli.serve_options import tls_ca_problem
     from orbitrig.dashboard.session import DashboardSettings
     from orbitrig.service.protocol import topics, validate_rig_id
     from orbitrig.service.rig_service import BrokerSettings, ServiceError
@@ -99,8 +100,9 @@ def _settings(
         tree = topics(rig_id, prefix)
     except ValueError as err:
         _fail(str(err))
-    if tls_ca is not None and not tls_ca.is_file():
-        _fail(f"--tls-ca: {'a folder, not a file' if tls_ca.is_dir() else 'no such file'}: {tls_ca}")
+    problem = tls_ca_problem(tls_ca)
+    if problem is not None:
+        _fail(problem)
     for name, value in (("--idle-timeout", idle_timeout), ("--reply-timeout", reply_timeout)):
         if not 0 < value < math.inf:  # NaN too: a session would never end, a reply never be waited for
             _fail(f"{name} {value:g}: a finite number of seconds > 0")

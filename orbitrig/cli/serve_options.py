@@ -147,6 +147,14 @@ def read_password(
     return password
 
 
+def tls_ca_problem(tls_ca: Path | None) -> str | None:
+    """What is wrong with a --tls-ca path (serve's and the dashboard's): no such file, or a folder;
+    None when it is a file or not given."""
+    if tls_ca is None or tls_ca.is_file():
+        return None
+    return f"--tls-ca: {'a folder, not a file' if tls_ca.is_dir() else 'no such file'}: {tls_ca}"
+
+
 def broker_password(opts: ServeOptions) -> str | None:
     """Check the topic and broker options; the password (exit 2 on any problem)."""
     from orbitrig.service.protocol import topics, validate_rig_id
@@ -159,8 +167,9 @@ def broker_password(opts: ServeOptions) -> str | None:
         topics(opts.rig_id, opts.prefix)
     except ValueError as err:
         fail(f"--prefix: {err}")
-    if opts.tls_ca is not None and not opts.tls_ca.is_file():
-        fail(f"--tls-ca: {'a folder, not a file' if opts.tls_ca.is_dir() else 'no such file'}: {opts.tls_ca}")
+    problem = tls_ca_problem(opts.tls_ca)
+    if problem is not None:
+        fail(problem)
     password = read_password(opts.password_file)
     if opts.username is None and password is not None:
         fail(f"a password needs a user name (--username or {USERNAME_ENV})")
