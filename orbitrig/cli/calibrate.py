@@ -34,8 +34,8 @@ import typer
 from orbitrig.cli import calibrate_records as records
 from orbitrig.cli.help_text import command_group
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
-from rigunits import MICROMETRE
 from orbitrig.cli.sim_options import DEFAULT_SPEEDUP, MAX_SPEEDUP
+from rigunits import MICROMETRE
 
 _CONFIG = typer.Option(None, "--config", help=RIG_CONFIG_HELP)
 _OPERATOR = typer.Option(None, "--operator", help="who calibrates (default: the login name)")

@@ -94,10 +94,11 @@ def _start(opts: ServeOptions) -> None:
 
 
 def _check_run_options(opts: ServeOptions, folder: Path) -> None:
-    from orbitrig.cli.sim_options import MAX_SPEEDUP
+    from orbitrig.cli.sim_options import speedup_problem
 
-    if opts.speedup is not None and not 0 < opts.speedup <= MAX_SPEEDUP:
-        fail(f"--speedup {opts.speedup:g}: a finite factor > 0 and at most {MAX_SPEEDUP:g}")
+    problem = speedup_problem(opts.speedup)
+    if problem is not None:
+        fail(problem)
     if opts.confirm not in (ConfirmMode.REMOTE, ConfirmMode.AUTO):
         fail(f"--confirm: one of remote, auto, not {opts.confirm!r}")
     if opts.confirm == ConfirmMode.AUTO and not opts.sim:

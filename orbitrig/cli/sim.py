@@ -61,10 +61,9 @@ def _sim_config(path, speedup):
     except ValueError as err:
         typer.echo(f"orbitrig sim: {err}", err=True)
         raise typer.Exit(2) from err
-    if speedup is not None and not 0 < speedup <= opt.MAX_SPEEDUP:
-        typer.echo(
-            f"orbitrig sim: --speedup {speedup:g}: a finite factor > 0 and at most {opt.MAX_SPEEDUP:g}", err=True
-        )
+    problem = opt.speedup_problem(speedup)
+    if problem is not None:
+        typer.echo(f"orbitrig sim: {problem}", err=True)
         raise typer.Exit(2)
     return cfg
 

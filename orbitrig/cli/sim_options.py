@@ -14,6 +14,15 @@ DEFAULT_SPEEDUP = 40.0
 #: without loading the simulator
 MAX_SPEEDUP = 1e4
 
+
+def speedup_problem(speedup: float | None) -> str | None:
+    """What is wrong with a --speedup that typer does not bound itself (sim's, serve's): not a
+    finite factor > 0 of at most MAX_SPEEDUP (NaN and infinities included); None if given right or not given."""
+    if speedup is None or 0 < speedup <= MAX_SPEEDUP:
+        return None
+    return f"--speedup {speedup:g}: a finite factor > 0 and at most {MAX_SPEEDUP:g}"
+
+
 Config = Annotated[
     Optional[Path],
     typer.Option(
