@@ -355,7 +355,7 @@ class DrivePoll:
         """A drive found running while a stop is owed (`_owed_problem`): the stop again, and the failure."""
         problem = self._owed_problem(statuses)
         if problem is None:
-            self._starve.forgive()
+            self._starve.forgive(statuses)
             return
         log.error("%s", problem)
         took = self.owed is None  # a stop both took, held

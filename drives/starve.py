@@ -11,8 +11,9 @@ them and runs on, is kept running by the poll's own reads and resends. `Starver`
   REF or ACT is defiant from that read on, and starved once still read so `bound` s later:
   two poll intervals (the stop sent again at least once more, and read after it), plus, at
   REF = 0, its own ramp from the speed read (DECEL_TIME x |ACT| / SPEED_SCALE: a drive that
-  follows a zero REF in operation is stopping, merely slowly); a poll that finds no drive
-  running after the stop in between forgives it (`forgive`). A drive that took a stop word
+  follows a zero REF in operation is stopping, merely slowly); a poll in between that reads it
+  stopping or stopped forgives it (`forgive`). One that could not judge (a stop in flight, or
+  read before the last stop ended: an operator pressing stop again and again) does not. A drive that took a stop word
   leaves operation enabled at once (OFF1/OFF3 ACTIVE, the contract's state machine and the
   simulator's): a ramp stop is never taken for defiance.
   A drive enabled at REF 0 and standstill is not starved (it does not turn; the stop goes on).
@@ -77,9 +78,15 @@ class Starver:
         """A speed was commanded: drives not starved now are judged afresh."""
         self._of = {k: v for k, v in self._of.items() if v.phase is Phase.STARVED}
 
-    def forgive(self) -> None:
-        """A poll found no drive running after the stop: those found so before are judged afresh."""
-        self._of = {k: v for k, v in self._of.items() if v.phase is not Phase.DEFIANT}
+    def forgive(self, statuses: Sequence[DriveStatus]) -> None:
+        """A poll that judged no drive (none found running after the stop, or a stop in flight,
+        or read before the last one ended): a drive found defiant before is judged afresh only
+        if `statuses` read it stopping or stopped (`_moving` false). One still turning keeps its
+        defiance: stops pressed again and again must not keep its watchdog fed."""
+        for st in statuses:
+            s = self._of.get(st.device_id)
+            if s is not None and s.phase is Phase.DEFIANT and not _moving(st):
+                del self._of[st.device_id]
 
     def starved(self, d: Drive) -> DriveStatus | None:
         """`d`'s last status while it is not addressed (the poll shows it), else None."""
@@ -95,7 +102,7 @@ class Starver:
             s = self._of.get(d.device_id)
             if s is not None and s.phase is not Phase.DEFIANT:
                 continue
-            if not (st.running and (st.reference_raw or st.actual_raw)):
+            if not _moving(st):
                 self._of.pop(d.device_id, None)
             elif s is None:
                 self._of[d.device_id] = _Drive(Phase.DEFIANT, st.time + self._bound(d, st), st, st)
@@ -140,3 +147,8 @@ class Starver:
             log.error("%s", err)
             found.append(err)
         return found
+
+
+def _moving(st: DriveStatus) -> bool:
+    """Whether `st` reads its drive defying a stop: operation enabled with a nonzero REF or ACT."""
+    return st.running and bool(st.reference_raw or st.actual_raw)

@@ -6,6 +6,7 @@ drives over real Modbus; the refusal alone is the test's (the simulator's drives
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import time
 
@@ -22,6 +23,7 @@ pytestmark = pytest.mark.timeout(60)
 LIMITS = DriveLimits(max_spin=2400 * RPM, max_orbit=2400 * RPM)
 CW, REF = 0, 1  # register addresses
 POLL_S, WATCHDOG_S = 0.05, 0.5  # open_rig's
+PRESS_S = 0.005
 
 
 def defy_stops(sim: SimDrives, dev: int, monkeypatch, *, refuse: bool) -> None:
@@ -183,3 +185,37 @@ async def test_a_drive_in_local_control_refusing_the_stop_is_said_unstoppable_af
     assert outcome.startswith("spin drive (id 1), register SW (3): read again after "), outcome
     assert "still running: its comm-loss watchdog did not stop it; nothing over the network can stop it" in outcome
     assert "use the rig's emergency stop" in outcome
+
+
+@pytest.mark.parametrize("refuse", [True, False], ids=["refused-03", "taken-ignored"])
+async def test_a_drive_running_on_while_the_operator_presses_stop_again_and_again_is_starved(
+    sim, monkeypatch, caplog, refuse
+):
+    """What an operator does when a drive will not stop: press the emergency stop again and again,
+    here every 0.02 s (faster than the poll). Polls that meet a stop in flight, or read before
+    the last one ended, cannot judge the drive, but they do not find it stopped either: the
+    defiance found before stands, and the drive is starved within about the same bound as with
+    one stop (its watchdog trips 7510 and ramps it down)."""
+    caplog.set_level(logging.ERROR, logger="drives")
+    async with open_rig(sim, LIMITS) as rig:
+        await rig.set_speeds(1000 * RPM, -500 * RPM)
+        await rig.wait_settled(hold=0.05, timeout=10.0)
+        defy_stops(sim, 1, monkeypatch, refuse=refuse)
+        t_stop, presses = time.monotonic(), 0
+        while sim.regs(1)["FAULT"] != COMM_LOSS_FAULT and time.monotonic() < t_stop + 5.0:
+            try:
+                await rig.stop(emergency=True, wait=False)
+            except DriveError:
+                pass  # refused, or (starved) not sent to the spin drive: the operator presses on
+            presses += 1
+            await asyncio.sleep(PRESS_S)
+        t_trip = time.monotonic()
+        await sim.wait_for(lambda: "read again after" in caplog.text, 3.0, "the starved drive read again")
+        monkeypatch.undo()
+        await sim.wait_stopped(timeout=3.0)
+        with pytest.raises(DriveError):
+            rig.check()
+    assert presses > 20, presses
+    assert sim.regs(1)["FAULT"] == COMM_LOSS_FAULT, f"not starved in {t_trip - t_stop:.1f} s of stops pressed"
+    bound = 2 * POLL_S + 3 * POLL_S + WATCHDOG_S  # judged over two polls (a few more met a stop in flight)
+    assert t_trip - t_stop < bound + 1.0, f"fault 7510 came {t_trip - t_stop:.2f} s after the first stop"
