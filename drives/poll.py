@@ -103,7 +103,7 @@ class DrivePoll:
         self._sending = 0  # stops under way: what they reached is not known yet
         self._epoch = 0  # speed commands so far: a stop asked before the last one owes nothing
         self._held: tuple[float, bool] | None = None  # (monotonic s, emergency) of a stop both took, none since
-        self._starve = Starver(link, drives, poll_interval)  # drives not addressed: their watchdog starved
+        self.starver = Starver(link, drives, poll_interval)  # drives not addressed: their watchdog starved
         self._silence = LinkSilence(link, self._link_down, recheck=poll_interval)  # armed while link_ok
 
     def acknowledge(self) -> None:
@@ -116,7 +116,7 @@ class DrivePoll:
         """Both drives are being run at raw REFs `refs` (spin, orbit): no stop is owed any more."""
         self._epoch += 1
         self.owed, self.following, self._started_at, self._held = None, False, None, None
-        self._starve.reset()
+        self.starver.reset()
         self.command = refs
 
     def started(self) -> None:
@@ -250,10 +250,10 @@ class DrivePoll:
 
     async def _read(self, d: Drive, *, retries: int, gives_way: bool = False) -> DriveStatus:
         """`d`'s status (`Drive.read_status`), or while its watchdog is starved its last one."""
-        return self._starve.starved(d) or await d.read_status(retries=retries, gives_way=gives_way)
+        return self.starver.starved(d) or await d.read_status(retries=retries, gives_way=gives_way)
 
     async def _poll_once(self) -> None:
-        self._starve.ended()  # a drive starved long enough is read again
+        self.starver.ended()  # a drive starved long enough is read again
         was_ok = self.state.link_ok
         try:
             if was_ok:  # no retry: failed polls in a row bound the time to a declared loss
@@ -272,7 +272,7 @@ class DrivePoll:
         await self._check_trips(statuses)
         await self._check_following(statuses)
         await self._check_owed(statuses)
-        for found in self._starve.outcome(statuses):
+        for found in self.starver.outcome(statuses):
             self.fail(found)
 
     def _poll_failed(self, err: DriveError) -> None:
@@ -310,7 +310,7 @@ class DrivePoll:
         a stop is owed are stopped (again) and the failure is recorded."""
         down = time.monotonic() - (self._link_lost_at or time.monotonic())
         for d in self.drives:
-            if not self._starve.starved(d):
+            if not self.starver.starved(d):
                 await d.read_parameters()  # volatile: a power-cycled drive has defaults again
         statuses = [await self._read(d, retries=0) for d in self.drives]
         problem = reconnect_problem(statuses, self.drives, self.command, down) or self._owed_problem(
@@ -355,13 +355,13 @@ class DrivePoll:
         """A drive found running while a stop is owed (`_owed_problem`): the stop again, and the failure."""
         problem = self._owed_problem(statuses)
         if problem is None:
-            self._starve.forgive(statuses)
+            self.starver.forgive(statuses)
             return
         log.error("%s", problem)
         took = self.owed is None  # a stop both took, held
         await asyncio.shield(self._send(self._again()))
         self.fail(problem)
-        for found in self._starve.judge(statuses, took=took):  # one that runs on: its watchdog starved
+        for found in self.starver.judge(statuses, took=took):  # one that runs on: its watchdog starved
             self.fail(found)
 
     async def _check_trips(self, statuses: list[DriveStatus]) -> None:

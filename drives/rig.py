@@ -33,7 +33,9 @@ Safety rules this class keeps:
   (an emergency stop is repeated as such); the stop is sent even while the task is being
   cancelled. Only `release()` followed by a clean exit leaves them running (the CLI's `run`),
   said once (a warning); not if the poll recorded a failure (it stopped them): the exit stops
-  them again and raises it.
+  them again and raises it. A drive whose comm-loss watchdog is being starved (it ran on through
+  the stop: drives/starve.py) is first waited for until the poll has read it again (about
+  COMM_LOSS_TIMEOUT + 0.6 s at most), so no exit leaves it unread; a second cancel skips the wait.
   No start word of `set_speeds` goes out after a stop asked since its command (the poll's on a trip).
 - On entry, a drive at standstill showing fault 7510 (a previous client went
   away) is reset; any other fault waits for `reset_faults()`.
@@ -154,6 +156,11 @@ class RigDrives:
         cancelled = False
         task, self._poll_task = self._poll_task, None
         try:
+            try:
+                if task is not None and not task.done():
+                    await self._starved_outcome()
+            except asyncio.CancelledError:  # the stop now; a starved drive is not addressed
+                cancelled = True
             if task is not None:
                 task.cancel()
                 try:
@@ -183,6 +190,18 @@ class RigDrives:
             if task is not None and not task.done():
                 task.cancel()
             await self.link.close()
+
+    async def _starved_outcome(self) -> None:
+        """Before the poll ends: a drive whose comm-loss watchdog is being starved (drives/starve.py)
+        is waited for until the poll has read it again and recorded what it shows, at most its
+        starving's end + two polls + a request's timeout, the other drive polled on meanwhile."""
+        due = self._poll.starver.due()
+        if due is None:
+            return
+        deadline = due + 2 * self.poll_interval + self.link.timeout
+        log.warning("closing in up to %.1f s: the starved drive is read again first", deadline - time.monotonic())
+        while self._poll.starver.due() is not None and time.monotonic() < deadline:
+            await wait_tick(self._poll.tick, deadline - time.monotonic())
 
     def release(self) -> None:
         """Leave the drives running if the context exits without an exception.

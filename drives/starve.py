@@ -24,8 +24,8 @@ them and runs on, is kept running by the poll's own reads and resends. `Starver`
 - `ended` / `outcome`: then it is addressed again and the next poll's read of it is the
   finding: tripped (7510) and slowing, or still running: nothing over the network can stop
   it, the rig's emergency stop must. A drive is starved once until the next speed command.
-  A rig closed meanwhile addresses it no more either (its exit's stop skips it, named as not
-  sent): its watchdog still trips, but nobody reads it again.
+  A rig closing meanwhile waits (`due`) for the poll to read it again before the poll ends, so
+  no run ends without the outcome; cancelled, it closes unread (its exit's stop skips it).
 A drive in local control (SW REMOTE = 0) is starved too, said in the finding: the contract
 does not say whether the keypad disarms the watchdog (the simulator's does).
 """
@@ -56,6 +56,9 @@ class Phase(enum.Enum):
     STARVED = "starved"  # not addressed until `at`
     READ_AGAIN = "read again"  # addressed again: the next read of it is the outcome
     DONE = "done"  # starved, or found unstoppable, since the last speed command: not again
+
+
+_UNREAD = (Phase.STARVED, Phase.READ_AGAIN)  # starving, its outcome not read yet
 
 
 @dataclass
@@ -134,6 +137,13 @@ class Starver:
             if s is not None and s.phase is Phase.STARVED and now >= s.at:
                 self.link.unaddressed.pop(d.device_id, None)
                 s.phase = Phase.READ_AGAIN
+
+    def due(self) -> float | None:
+        """Monotonic s the last drive being starved is addressed again (or now, one addressed
+        again and not read yet); None if none is: the rig's exit waits for its outcome."""
+        now = time.monotonic()
+        due = [s.at if s.phase is Phase.STARVED else now for s in self._of.values() if s.phase in _UNREAD]
+        return max(due) if due else None
 
     def outcome(self, statuses: Sequence[DriveStatus]) -> list[DriveError]:
         """The findings of the drives read again in `statuses` (logged as errors)."""

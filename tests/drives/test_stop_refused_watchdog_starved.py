@@ -219,3 +219,26 @@ async def test_a_drive_running_on_while_the_operator_presses_stop_again_and_agai
     assert sim.regs(1)["FAULT"] == COMM_LOSS_FAULT, f"not starved in {t_trip - t_stop:.1f} s of stops pressed"
     bound = 2 * POLL_S + 3 * POLL_S + WATCHDOG_S  # judged over two polls (a few more met a stop in flight)
     assert t_trip - t_stop < bound + 1.0, f"fault 7510 came {t_trip - t_stop:.2f} s after the first stop"
+
+
+async def test_the_rig_closing_while_a_drive_is_starved_reads_it_again_first(sim, monkeypatch, caplog):
+    """The command ends (the rig's exit) right after the spin drive's starving began: the exit
+    waits for its watchdog and for the poll to read it again, the orbit drive polled on, so the
+    run ends with the outcome said (tripped 7510, slowing), not with a drive left unread."""
+    caplog.set_level(logging.WARNING, logger="drives")
+    async with open_rig(sim, LIMITS) as rig:
+        await rig.set_speeds(1000 * RPM, -500 * RPM)
+        await rig.wait_settled(hold=0.05, timeout=10.0)
+        times = request_times(sim, monkeypatch)
+        defy_stops(sim, 1, monkeypatch, refuse=False)
+        await rig.stop(wait=False)
+        await sim.wait_for(lambda: "trips fault 7510" in caplog.text, 3.0, "the starving decided")
+        t_exit = time.monotonic()
+    t_closed = time.monotonic()
+    outcome = [r.getMessage() for r in caplog.records if "read again after" in r.getMessage()]
+    assert len(outcome) == 1 and "fault 7510" in outcome[0], caplog.text
+    starved = WATCHDOG_S + MARGIN_S + 2 * POLL_S
+    assert t_closed - t_exit < starved + 1.0, f"the exit took {t_closed - t_exit:.2f} s"
+    orbit_gap, _ = longest_gap(times[2], t_exit, t_closed)
+    assert orbit_gap < 0.5, f"the orbit drive went {orbit_gap:.2f} s unpolled while the exit waited"
+    assert sim.regs(2)["FAULT"] == 0 and sim.regs(1)["FAULT"] == COMM_LOSS_FAULT
