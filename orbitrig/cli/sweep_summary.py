@@ -23,6 +23,7 @@ from orbitrig.analysis.warning_groups import point_ranges, warning_lines
 from orbitrig.load_systems import LoadSystem
 from orbitrig.run.point_report import judgement_lines
 from orbitrig.store.csvfile import coef_order, fit_truth
+from orbitrig.store.layout import point_cell
 from orbitrig.store.reader import freq_dep_key, read_run
 from orbitrig.store.stored_run import Point
 from reduction.statistics import CHI2_ALPHA
@@ -147,10 +148,11 @@ def rejected_lines(complete: list[Point]) -> list[str]:
     ]
 
 
-def _print_summary(console: Transcript, complete: list[Point], out: Path) -> None:
+def _print_summary(console: Transcript, complete: list[Point], out: Path, full: bool) -> None:
     """One row per operating point: the main stiffness and damping entries of the first fit
     (piezo), in --sim mode the worst K and C error of every fit, the adequacy verdicts, the
-    worst LMS |E_n| and the counts of warnings and refused models."""
+    worst LMS |E_n| and the counts of warnings and refused models. The point is named '0003' in
+    text, by its index '3' in CSV and JSON (`full`), as coefficients.csv names it."""
     table = PlainTable(title=f"{len(complete)} operating points (full tables: coefficients.csv, orbitrig report {out})")
     for col in (
         "point",
@@ -171,7 +173,7 @@ def _print_summary(console: Transcript, complete: list[Point], out: Path) -> Non
     for p in complete:
         fits = _fits(p)
         first = next((d["coefficients"] for k, d in sorted(fits.items()) if k.startswith(LoadSystem.PIEZO)), None)
-        row = [p.name, p.settings.label]
+        row = [point_cell(p.index, full), p.settings.label]
         row += [
             f"{first[c] * scale:.4g}" if first and c in first else "-"
             for c, scale in (("Kxx", 1e-6), ("Kyy", 1e-6), ("Cxx", 1e-3), ("Cyy", 1e-3))
@@ -256,7 +258,7 @@ def print_coefficients(out: Path, fmt: OutputFormat = OutputFormat.TEXT) -> None
     console = Transcript()
     complete = read_run(out, blocks=False).complete_points  # the results, not the blocks
     if len(complete) > DETAIL_POINTS:
-        _print_summary(console, complete, out)
+        _print_summary(console, complete, out, full=fmt != OutputFormat.TEXT)
     else:
         _print_points(console, complete)
     console.write(fmt)

@@ -150,8 +150,14 @@ def test_closing_table_at_80_columns_shows_what_a_wide_terminal_shows(tmp_path, 
     assert table_cells and table_cells <= _cells(narrow)
     print_coefficients(run_dir, OutputFormat.JSON)
     data = json.loads(capsys.readouterr().out)
-    if n_points == 6:
-        assert [r["point"] for r in data["tables"][0]["rows"]] == [f"{i:04d}" for i in range(6)]
+    if n_points == 6:  # the point by its index, as coefficients.csv names it (the text: 0000 ..)
+        with (run_dir / "coefficients.csv").open(newline="") as fh:
+            in_file = list(dict.fromkeys(r["point"] for r in csv.DictReader(fh)))
+        assert [r["point"] for r in data["tables"][0]["rows"]] == in_file == [str(i) for i in range(6)]
+        print_coefficients(run_dir, OutputFormat.CSV)
+        table = [ln for ln in capsys.readouterr().out.splitlines() if not ln.startswith("#")]  # no title, notes
+        assert [r["point"] for r in csv.DictReader(table)] == in_file
+        assert re.findall(r"^0\d{3}(?=\s)", wide, flags=re.M) == [f"{i:04d}" for i in range(6)]
     else:
         assert [t["title"].split()[1] for t in data["tables"]] == ["0000", "0001"]
         assert {r["coef"] for r in data["tables"][0]["rows"]} >= {"Kxx", "Cyy", "Dxy"}
