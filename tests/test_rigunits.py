@@ -109,3 +109,34 @@ def test_planned_frequencies_read_as_the_decimals_meant() -> None:
             assert hz == float(meant), (r, rpm, hz)
             plain_missed += plain != float(meant)
     assert checked > 19000 and plain_missed > checked / 3, (checked, plain_missed)
+
+
+#: a second owner of a conversion at the edges: rad/s over 2 pi (Hz), 2 pi times a frequency in Hz,
+#: a length times 1e6 written as 'um' (rigunits.HZ / in_hz, rigunits.micrometres own them)
+_OWN_CONVERSION = re.compile(
+    r"/ \(2(\.0)? \* (np|math)\.pi\)|\b2(\.0)? \* (np|math)\.pi \* [^,)\n]*hz|1e6[^}\n]*\} ?um\b", re.IGNORECASE
+)
+
+
+def own_conversions(text: str) -> list[str]:
+    """'LINE: text' of every line of Python source `text` that converts to Hz or to micrometres itself."""
+    return [f"{n}: {line.strip()}" for n, line in enumerate(text.splitlines(), 1) if _OWN_CONVERSION.search(line)]
+
+
+def test_the_application_converts_hz_and_micrometres_through_rigunits() -> None:
+    from support.paths import ROOT
+
+    sample = (
+        'a = w / (2 * np.pi)\nb = 2 * math.pi * col["orbit_hz"]\nc = f"{r * 1e6:g} um"\nd = slots * (2 * np.pi / 360)\n'
+    )
+    assert own_conversions(sample) == [
+        "1: a = w / (2 * np.pi)",
+        '2: b = 2 * math.pi * col["orbit_hz"]',
+        '3: c = f"{r * 1e6:g} um"',
+    ]  # an angle of slots is no frequency
+    found = {
+        str(p.relative_to(ROOT)): hits
+        for p in sorted((ROOT / "orbitrig").rglob("*.py"))
+        if (hits := own_conversions(p.read_text(encoding="utf-8")))
+    }
+    assert found == {}
