@@ -1,6 +1,7 @@
 """The page's units (static/units.js) against rigunits, run in the real browser the dashboard
-tests drive: the ETA the page shows is the terminal's (format_duration), and the SI values of
-the CAN sensors are shown through one table of conversions."""
+tests drive: the ETA the page shows is the terminal's (format_duration), the coefficients are
+shown in the terminal's units (display_unit), and the SI values of the CAN sensors are shown
+through one table of conversions."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import re
 from pathlib import Path
 
 import orbitrig.dashboard
-from rigunits import MPA, format_duration
+from rigunits import DISPLAY_UNITS, MPA, display_unit, format_duration
 
 STATIC = Path(orbitrig.dashboard.__file__).parent / "static"
 #: durations (s) across every form: under a minute, minutes, hours, the roundings at their edges
@@ -26,6 +27,14 @@ def test_the_page_says_a_duration_as_the_terminal_does(driver):
     shown = _run(driver, "return arguments[0].map(formatDuration);", DURATIONS)
     assert shown == [format_duration(s) for s in DURATIONS]
     assert shown[DURATIONS.index(4000)] == "1:06:40" and shown[DURATIONS.index(250)] == "4:10"
+
+
+def test_the_page_shows_the_coefficients_in_the_terminals_units(driver):
+    keys = ["Kxx", "Cxy", "Dyy", "Kxx_1", "Cyx_2", "Dxy_4", "residual_rms"]
+    shown = _run(driver, "return [DISPLAY_UNITS, arguments[0].map(displayUnit)];", keys)
+    assert shown[0] == {m: list(u) for m, u in DISPLAY_UNITS.items()}
+    assert shown[1] == [list(display_unit(k)) for k in keys[:-1]] + [None]  # no matrix: the result's own unit
+    assert shown[1][3] == ["MN/m (rad/s)^-1", 1e-6]
 
 
 def test_the_page_converts_sensor_values_in_one_place(driver):

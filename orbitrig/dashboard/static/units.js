@@ -1,6 +1,7 @@
 // The page's units at the edges, one owner as rigunits is Python's: SI comes in the feed, the page
-// shows durations, temperatures, pressures and flow as the operator reads them.
-// tests/dashboard/test_dashboard_units.py holds formatDuration equal to rigunits.format_duration.
+// shows durations, temperatures, pressures, flow and the coefficients as the operator reads them.
+// tests/dashboard/test_dashboard_units.py holds formatDuration and displayUnit equal to
+// rigunits.format_duration and rigunits.display_unit.
 // Loaded before the scripts that use it.
 "use strict";
 
@@ -20,4 +21,17 @@ const SHOWN_IN = Object.freeze({"°C": v => v - 273.15, "MPa": v => v / 1e6, "l/
 function inShownUnit(v, unit) {
   if (v === null || v === undefined) return null;
   return unit in SHOWN_IN ? SHOWN_IN[unit](v) : v;
+}
+
+// the unit a person reads each matrix in and its scale, SI value x scale (rigunits.DISPLAY_UNITS):
+// as the terminal's tables (identify, reduce, the sweep's closing table) and the report show them
+const DISPLAY_UNITS = Object.freeze({K: ["MN/m", 1e-6], C: ["kN s/m", 1e-3], D: ["kg", 1]});
+
+// [unit, scale] of coefficient `key` (rigunits.display_unit): "Kxx" -> ["MN/m", 1e-6]; the term of
+// order r ("Kxx_2") multiplies Omega^r: ["MN/m (rad/s)^-2", 1e-6]; null for a key of no matrix
+function displayUnit(key) {
+  const shown = DISPLAY_UNITS[key[0]];
+  if (!shown) return null;
+  const order = key.split("_")[1];
+  return [order ? shown[0] + " (rad/s)^-" + order : shown[0], shown[1]];
 }
