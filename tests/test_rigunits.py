@@ -140,3 +140,17 @@ def test_the_application_converts_hz_and_micrometres_through_rigunits() -> None:
         if (hits := own_conversions(p.read_text(encoding="utf-8")))
     }
     assert found == {}
+
+
+def test_a_set_speed_reads_one_way() -> None:
+    """A commanded speed is said as the plan's decimal (rigunits.rpm_text), in the step that sets it
+    as in the run's note that it was set: an orbit of ratio 0.569 at 1000 rpm is '+569 rpm' in both."""
+    from orbitrig.run.steps import Block, SetOrbit, SetSpin
+    from rigunits import rpm_text
+
+    spin = 1000 * RPM
+    assert (rpm_text(spin), rpm_text(20.5 * RPM), rpm_text(-0.0, signed=True)) == ("1000 rpm", "20.5 rpm", "+0 rpm")
+    assert rpm_text(-0.977778 * spin, signed=True) == "-977.778 rpm"  # the planned ratio's decimal, not -977.8
+    block = Block(2, +1, 0.569 * spin)
+    assert SetSpin(0, 1.0, spin, block.orbit).describe() == "set spin 1000 rpm (orbit +569 rpm)"
+    assert SetOrbit(0, 1.0, block).describe() == "set orbit +569 rpm [02_fwd]"
