@@ -112,28 +112,31 @@ def test_planned_frequencies_read_as_the_decimals_meant() -> None:
 
 
 #: a second owner of a conversion at the edges: rad/s over 2 pi (Hz), 2 pi times a frequency in Hz,
-#: a length times 1e6 written as 'um' (rigunits.HZ / in_hz, rigunits.micrometres own them)
+#: a length times 1e6 written as 'um', a pressure over 1e6 written as MPa (rigunits.HZ / in_hz,
+#: rigunits.micrometres and rigunits.MPA own them)
 _OWN_CONVERSION = re.compile(
-    r"/ \(2(\.0)? \* (np|math)\.pi\)|\b2(\.0)? \* (np|math)\.pi \* [^,)\n]*hz|1e6[^}\n]*\} ?um\b", re.IGNORECASE
+    r"/ \(2(\.0)? \* (np|math)\.pi\)|\b2(\.0)? \* (np|math)\.pi \* [^,)\n]*hz"
+    r"|1e6[^}\n]*\} ?um\b|/ 1e6[^}\n]*\} ?MPa\b",
+    re.IGNORECASE,
 )
 
 
 def own_conversions(text: str) -> list[str]:
-    """'LINE: text' of every line of Python source `text` that converts to Hz or to micrometres itself."""
+    """'LINE: text' of every line of Python source `text` that converts to Hz, micrometres or MPa itself."""
     return [f"{n}: {line.strip()}" for n, line in enumerate(text.splitlines(), 1) if _OWN_CONVERSION.search(line)]
 
 
-def test_the_application_converts_hz_and_micrometres_through_rigunits() -> None:
+def test_the_application_converts_at_the_edges_through_rigunits() -> None:
     from support.paths import ROOT
 
-    sample = (
-        'a = w / (2 * np.pi)\nb = 2 * math.pi * col["orbit_hz"]\nc = f"{r * 1e6:g} um"\nd = slots * (2 * np.pi / 360)\n'
-    )
-    assert own_conversions(sample) == [
-        "1: a = w / (2 * np.pi)",
-        '2: b = 2 * math.pi * col["orbit_hz"]',
-        '3: c = f"{r * 1e6:g} um"',
-    ]  # an angle of slots is no frequency
+    sample = [
+        "a = w / (2 * np.pi)",
+        'b = 2 * math.pi * col["orbit_hz"]',
+        'c = f"{r * 1e6:g} um"',
+        "d = slots * (2 * np.pi / 360)",  # an angle of slots is no frequency
+        'e = f"pr = {p / 1e6:.4g} MPa"',
+    ]
+    assert own_conversions("\n".join(sample)) == [f"{n}: {sample[n - 1]}" for n in (1, 2, 3, 5)]
     found = {
         str(p.relative_to(ROOT)): hits
         for p in sorted((ROOT / "orbitrig").rglob("*.py"))
