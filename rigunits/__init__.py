@@ -127,6 +127,12 @@ def in_rpm(omega: float) -> float:
     return without_noise(omega / RPM)
 
 
+def rpm_text(omega: float, signed: bool = False) -> str:
+    """A set speed `omega` (rad/s) as a person reads it, the shortest decimal of ``in_rpm``:
+    '1000 rpm', `signed` (an orbit's whirl) '+569 rpm', '-977.778 rpm'; 0 is '+0 rpm', never '-0'."""
+    return f"{in_rpm(omega) + 0.0:{'+' if signed else ''}g} rpm"
+
+
 def micrometres(length: float, spec: str = ".2f") -> str:
     """A length (m: an orbit radius, a displacement) as a person reads it: '60.00 µm'."""
     return f"{length / UM:{spec}} {MICROMETRE}"

@@ -109,3 +109,51 @@ def test_planned_frequencies_read_as_the_decimals_meant() -> None:
             assert hz == float(meant), (r, rpm, hz)
             plain_missed += plain != float(meant)
     assert checked > 19000 and plain_missed > checked / 3, (checked, plain_missed)
+
+
+#: a second owner of a conversion at the edges: rad/s over 2 pi (Hz), 2 pi times a frequency in Hz,
+#: a length times 1e6 written as 'um', a pressure over 1e6 written as MPa (rigunits.HZ / in_hz,
+#: rigunits.micrometres and rigunits.MPA own them)
+_OWN_CONVERSION = re.compile(
+    r"/ \(2(\.0)? \* (np|math)\.pi\)|\b2(\.0)? \* (np|math)\.pi \* [^,)\n]*hz"
+    r"|1e6[^}\n]*\} ?um\b|/ 1e6[^}\n]*\} ?MPa\b",
+    re.IGNORECASE,
+)
+
+
+def own_conversions(text: str) -> list[str]:
+    """'LINE: text' of every line of Python source `text` that converts to Hz, micrometres or MPa itself."""
+    return [f"{n}: {line.strip()}" for n, line in enumerate(text.splitlines(), 1) if _OWN_CONVERSION.search(line)]
+
+
+def test_the_application_converts_at_the_edges_through_rigunits() -> None:
+    from support.paths import ROOT
+
+    sample = [
+        "a = w / (2 * np.pi)",
+        'b = 2 * math.pi * col["orbit_hz"]',
+        'c = f"{r * 1e6:g} um"',
+        "d = slots * (2 * np.pi / 360)",  # an angle of slots is no frequency
+        'e = f"pr = {p / 1e6:.4g} MPa"',
+    ]
+    assert own_conversions("\n".join(sample)) == [f"{n}: {sample[n - 1]}" for n in (1, 2, 3, 5)]
+    found = {
+        str(p.relative_to(ROOT)): hits
+        for p in sorted((ROOT / "orbitrig").rglob("*.py"))
+        if (hits := own_conversions(p.read_text(encoding="utf-8")))
+    }
+    assert found == {}
+
+
+def test_a_set_speed_reads_one_way() -> None:
+    """A commanded speed is said as the plan's decimal (rigunits.rpm_text), in the step that sets it
+    as in the run's note that it was set: an orbit of ratio 0.569 at 1000 rpm is '+569 rpm' in both."""
+    from orbitrig.run.steps import Block, SetOrbit, SetSpin
+    from rigunits import rpm_text
+
+    spin = 1000 * RPM
+    assert (rpm_text(spin), rpm_text(20.5 * RPM), rpm_text(-0.0, signed=True)) == ("1000 rpm", "20.5 rpm", "+0 rpm")
+    assert rpm_text(-0.977778 * spin, signed=True) == "-977.778 rpm"  # the planned ratio's decimal, not -977.8
+    block = Block(2, +1, 0.569 * spin)
+    assert SetSpin(0, 1.0, spin, block.orbit).describe() == "set spin 1000 rpm (orbit +569 rpm)"
+    assert SetOrbit(0, 1.0, block).describe() == "set orbit +569 rpm [02_fwd]"

@@ -25,7 +25,7 @@ from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plots import ENTRIES, TRUTH_LABEL, Fitted, _save, coverage, style
 from orbitrig.analysis.plot_panels import figure_legend, panels
 from orbitrig.analysis.plot_marks import _colors, _min_span, band, error_bars, keep_inside, plot_fit, split_tested
-from rigunits import DISPLAY_UNITS
+from rigunits import DISPLAY_UNITS, HZ
 from reduction.derived import entry_gradient
 
 #: the legend entry of the crosses of each fit's own truth (drawn in the fit's colour)
@@ -114,7 +114,7 @@ def truth_matrix(truth: dict, matrix: str) -> tuple[np.ndarray, np.ndarray] | No
     None when the truth has neither."""
     orbit = truth.get("orbit")
     if orbit is None and truth.get("orbit_hz") is not None:
-        orbit = 2 * np.pi * np.asarray(truth["orbit_hz"], dtype=float)
+        orbit = HZ * np.asarray(truth["orbit_hz"], dtype=float)
     if orbit is None or len(orbit) == 0:
         return None
     w = np.abs(np.asarray(orbit, dtype=float))

@@ -27,7 +27,7 @@ from orbitrig.analysis.plot_marks import _colors, _min_span, band, keep_inside, 
 from orbitrig.analysis.quality import TrueImpedance, orbit_grid
 from reduction.derived import Derived
 from reduction.systematic import UncertaintyBasis
-from rigunits import DISPLAY_UNITS
+from rigunits import DISPLAY_UNITS, HZ
 
 MN, KNS = DISPLAY_UNITS["K"][1], DISPLAY_UNITS["C"][1]  # N/m -> MN/m, N s/m -> kN s/m
 
@@ -45,8 +45,8 @@ def _zero_text(zero, spin: float) -> str:
     if zero is None:
         return "no zero crossing in the tested range"
     w0, sd = zero
-    pm = "" if sd is None else f" \u00b1 {coverage() * sd / (2 * np.pi):.2g}"
-    return f"zero {w0 / (2 * np.pi):.3g}{pm} Hz, \u03a9/\u03c9 {w0 / spin:.3f}"
+    pm = "" if sd is None else f" \u00b1 {coverage() * sd / HZ:.2g}"
+    return f"zero {w0 / HZ:.3g}{pm} Hz, \u03a9/\u03c9 {w0 / spin:.3f}"
 
 
 def derived_figure(derived: Sequence[tuple[str, Derived, UncertaintyBasis]], *, spin: float, title: str) -> Figure:

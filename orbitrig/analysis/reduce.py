@@ -39,6 +39,7 @@ from orbitrig.store.csvfile import (
     warnings_cell,
 )
 from orbitrig.store.durable import write_atomic
+from orbitrig.store.layout import point_cell
 from reduction.methods import Method
 from rigunits import MPA, display_unit
 
@@ -236,7 +237,7 @@ def table_cells(rows: list[Reduced], full: bool = False) -> list[list[str]]:
     lines = [["point", "lms", *head, tail[0], *(tail[1:] if auto else [])]]
     for r in rows:
         ident = r.identification
-        point = str(r.point.index) if full else r.point.name
+        point = point_cell(r.point.index, full)
         lines.append([point, str(r.lms), *(["refused"] if ident is None else _fit_cells(ident, cols, full, auto))])
         truth = fit_true_values(r)
         if truth:

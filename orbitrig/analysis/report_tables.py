@@ -34,7 +34,7 @@ from orbitrig.analysis.reduce import Reduced, own_truth
 from orbitrig.store.fit_record import expanded_k
 from reduction.derived import Derived
 from reduction.systematic import LmsAgreement, UncertaintyBasis
-from rigunits import display_unit
+from rigunits import HZ, display_unit
 
 D_SENTENCE = (
     "D is an apparent inertia (added mass): it absorbs everything that grows with \u03a9\u00b2, "
@@ -177,7 +177,7 @@ def derived_table(derived: list[tuple[Reduced, Derived]], labels: dict[int, str]
     def zero(z, k) -> str:
         if z is None:
             return "none in the tested range"
-        hz = 1 / (2 * np.pi)
+        hz = 1 / HZ
         return f"{pm(z[0], z[1], k, hz)} Hz (\u03a9/\u03c9 = {fmt(z[0] / spin, 3)})"
 
     rows = []
@@ -188,7 +188,7 @@ def derived_table(derived: list[tuple[Reduced, Derived]], labels: dict[int, str]
             f"<td>{pm(d.wfr[-1], wfr_std[-1], k)}</td><td>{zero(d.c_eff_zero_xx, k)}</td>"
             f"<td>{zero(d.c_eff_zero_yy, k)}</td></tr>"
         )
-    lo, hi = derived[0][1].orbit[[0, -1]] / (2 * np.pi)
+    lo, hi = derived[0][1].orbit[[0, -1]] / HZ
     head = (
         f'<tr><th class="l">identification</th><th>WFR at {fmt(lo, 3)} Hz</th><th>WFR at {fmt(hi, 3)} Hz</th>'
         "<th>C<sub>eff,xx</sub> = Cxx - Kxy/\u03a9 = 0 at</th><th>C<sub>eff,yy</sub> = Cyy + Kyx/\u03a9 = 0 at</th></tr>"

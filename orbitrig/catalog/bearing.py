@@ -20,7 +20,7 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from rigunits import without_noise
+from rigunits import micrometres, without_noise
 
 from orbitrig.config import Bearing
 from orbitrig.store.stored_run import Run
@@ -62,13 +62,14 @@ KEY_COLUMNS = ("bearing_radius", "bearing_clearance", "sim_scenario_sha256")
 def bearing_label(row: dict[str, Any]) -> str:
     """A short name of the row's bearing: `sim NAME` (the scenario file's stem; `paper` for the
     shipped sim.toml, the default scenario; an older run's default by its name's first word) or
-    the rig id with the clearance (`SAC-DS-1 c = 60 um`)."""
+    the rig id with the clearance (`SAC-DS-1 c = 60 µm`, rigunits.micrometres), made when shown
+    from the stored clearance (m): no catalog stores the label."""
     scenario = row.get("sim_scenario") or ""
     if scenario:
         stem = Path(scenario).stem if scenario.endswith(".toml") else scenario.split(" (")[0]
         return "sim " + ("paper" if stem == "sim" else stem)
     clearance = row.get("bearing_clearance")
-    return (row.get("rig_id") or "rig") + (f" c = {clearance * 1e6:.4g} um" if clearance else "")
+    return (row.get("rig_id") or "rig") + (f" c = {micrometres(clearance, '.4g')}" if clearance else "")
 
 
 def _rig_bearing(text: str) -> Bearing | None:

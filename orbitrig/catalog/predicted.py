@@ -19,10 +19,11 @@ from pathlib import Path
 from orbitrig.catalog.compare import Row, Variable, condition_value
 from orbitrig.catalog.errors import CatalogUsageError
 from orbitrig.catalog.rows import COEFFICIENTS, UNITS
+from rigunits import MPA
 
 CONDITION_COLUMNS = ("spin_rpm", "recess_pressure_mpa", "pressure_ratio", "static_eccentricity", "dynamic_eccentricity")
 #: condition column -> (catalog column, factor to the catalog's unit: MPa -> Pa)
-CATALOG_CONDITION = {c: (c, 1.0) for c in CONDITION_COLUMNS} | {"recess_pressure_mpa": ("recess_pressure", 1e6)}
+CATALOG_CONDITION = {c: (c, 1.0) for c in CONDITION_COLUMNS} | {"recess_pressure_mpa": ("recess_pressure", MPA)}
 #: prediction lines by their given conditions: ((catalog column, value), ...), lines
 PredictedLines = list[tuple[tuple[tuple[str, float], ...], list[dict[str, float]]]]
 

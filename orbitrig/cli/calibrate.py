@@ -35,7 +35,7 @@ from orbitrig.cli import calibrate_records as records
 from orbitrig.cli.help_text import command_group
 from orbitrig.cli.config_help import RIG_CONFIG_HELP
 from orbitrig.cli.sim_options import DEFAULT_SPEEDUP, MAX_SPEEDUP
-from rigunits import MICROMETRE
+from rigunits import MICROMETRE, UM
 
 _CONFIG = typer.Option(None, "--config", help=RIG_CONFIG_HELP)
 _OPERATOR = typer.Option(None, "--operator", help="who calibrates (default: the login name)")
@@ -172,7 +172,7 @@ def delay(
     delay (a 0.3 degree lag moves D by kilograms). The sweep takes the lags out of the forces."""
     speeds = _speeds(speeds_rpm)
     opts = _options(operator, speeds[0], revolutions, recess_pressure_mpa, pressure_ratio, sim, sim_config, speedup)
-    _guarded(lambda: records.delay(config, opts, speeds, (reference_n, reference_um * 1e-6), activate))
+    _guarded(lambda: records.delay(config, opts, speeds, (reference_n, reference_um * UM), activate))
 
 
 def probes(

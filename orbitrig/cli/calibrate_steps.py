@@ -30,7 +30,7 @@ from orbitrig.run.calibration import AsksOperator, CalibrationFailed, Calibratio
 from orbitrig.run.calibration_measure import PROBES, measure_delay, measure_loads, measure_probes, measure_runout
 from orbitrig.run.drive_setup import drive_limits
 from orbitrig.run.rig_io import RigAccess
-from rigunits import micrometres, now_iso
+from rigunits import micrometres, now_iso, rpm_text
 from reduction.calibration import fit_delay, fit_gain_matrix, fit_probe, static_loads
 
 FORCE_CHANNELS = ("fx_piezo", "fy_piezo", "fx_strain", "fy_strain")
@@ -80,7 +80,7 @@ def check_rolls(rig: RigConfig, rolls: list[SlowRoll], option: str) -> None:
             limits.check(roll.spin, roll.orbit, spin_id=d.spin_id, orbit_id=d.orbit_id)
         except DriveLimitError as err:
             raise CalibrationOptionError(
-                f"{option}: slow roll at spin {roll.spin / RPM:.0f} rpm, orbit {roll.orbit / RPM:.0f} rpm: "
+                f"{option}: slow roll at spin {rpm_text(roll.spin)}, orbit {rpm_text(roll.orbit)}: "
                 f"{err} (the rig's [drives] in {rig.file}); nothing sent"
             ) from None
 

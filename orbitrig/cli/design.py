@@ -18,6 +18,7 @@ import typer
 from orbitrig.cli import design_options as opt
 from orbitrig.load_systems import LoadSystem
 from reduction.whirl import Directions
+from rigunits import UM
 
 
 def _fail(message: str) -> None:
@@ -119,7 +120,7 @@ def register(app: typer.Typer) -> None:
                 candidate=cand,
                 source=source,
                 directions=directions,
-                radius=radius * 1e-6 if radius is not None else mat_radius,
+                radius=radius * UM if radius is not None else mat_radius,
                 noise=noise,
                 run=run,
                 lms=lms,

@@ -20,7 +20,7 @@ from orbitrig.cli.design_inputs import DesignInputError
 from orbitrig.config import MIN_RATIOS, MIN_REVOLUTIONS, RPM
 from orbitrig.load_systems import LoadSystem
 from reduction.whirl import Directions
-from rigunits import coefficient_unit
+from rigunits import coefficient_unit, in_hz, micrometres
 
 
 def rig_time(rig, ratios, spin: float, revolutions, directions: Directions) -> float:
@@ -36,7 +36,7 @@ def _list_object(rig, problem, pred, revolutions: int, directions: Directions) -
     ok = pred.std_errors is not None
     return {
         "ratios": list(pred.ratios),
-        "orbit_hz": [round(r * problem.spin / (2 * math.pi), 6) for r in pred.ratios],
+        "orbit_hz": [in_hz(r * problem.spin) for r in pred.ratios],  # as the run plans them (Block.orbit_hz)
         "directions": directions,
         "revolutions": revolutions,
         "identifiable": ok,
@@ -98,7 +98,7 @@ def _allocated(rig, problem, grid, scales, directions: Directions, test=None, re
     base = coefficient_scales_of(problem)
     out = {
         "ratios": list(a.ratios),
-        "orbit_hz": [round(r * problem.spin / (2 * math.pi), 6) for r in a.ratios],
+        "orbit_hz": [in_hz(r * problem.spin) for r in a.ratios],
         "directions": directions,
         "revolutions": list(a.revolutions),
         "target_pct": [
@@ -212,8 +212,8 @@ def _check_numbers(rig, req: DesignRequest) -> None:
     clearance = rig.bearing.clearance
     if req.radius is not None and not 0 < req.radius < clearance:
         raise DesignInputError(
-            f"--radius {req.radius * 1e6:g} um: the orbit radius must be > 0 and below the bearing's "
-            f"clearance ({clearance * 1e6:g} um, the rig configuration's [bearing])"
+            f"--radius {micrometres(req.radius, 'g')}: the orbit radius must be > 0 and below the bearing's "
+            f"clearance ({micrometres(clearance, 'g')}, the rig configuration's [bearing])"
         )
     if not 0 <= req.keep_away < math.inf:
         raise DesignInputError(f"--keep-away {req.keep_away:g}: a distance from Omega/omega = 1, finite and >= 0")

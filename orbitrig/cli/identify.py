@@ -18,7 +18,7 @@ import typer
 
 from orbitrig.analysis.rounding import number
 from orbitrig.cli.plain_table import OutputFormat, PlainTable, render, wrap
-from rigunits import coefficient_unit
+from rigunits import coefficient_unit, display_unit
 
 
 def _fail(message: str) -> None:
@@ -48,7 +48,7 @@ def register(app: typer.Typer) -> None:
         fmt: OutputFormat = typer.Option(
             OutputFormat.TEXT,
             "--format",
-            help="text: plain tables for reading, numbers rounded (values to 5, the rest to 4 significant digits), never cut at any width; csv: the coefficient, force and covariance tables as CSV, every number in full (the shortest decimal that reads back as the same double); json: the result object",
+            help="text: plain tables for reading, numbers rounded (values to 5, the rest to 4 significant digits), K, C, D in MN/m, kN s/m, kg (as reduce), never cut at any width; csv: the coefficient, force and covariance tables as CSV, in SI, every number in full (the shortest decimal that reads back as the same double); json: the result object",
         ),
     ) -> None:
         """Identify rotordynamic coefficients K, C, D from an orbit table."""
@@ -143,28 +143,37 @@ def _print_readable(result, path: Path, fmt: OutputFormat) -> None:
     typer.echo(render(tables, fmt))
 
 
+def _unit(key: str, full: bool) -> tuple[str, float]:
+    """Unit and scale (value in it = SI value x scale) of coefficient `key` in a table: SI in CSV
+    (`full`), in text the unit a person reads, as ``reduce`` shows it (rigunits.display_unit: MN/m)."""
+    return (coefficient_unit(key), 1.0) if full else display_unit(key)
+
+
 def _coefficient_table(result, full: bool = False) -> PlainTable:
-    """A row per coefficient: value, std error and interval in the row's ``unit`` (SI)."""
-    t = PlainTable(title="Coefficients (SI, Omega in rad/s)")
+    """A row per coefficient: value, std error and interval in the row's ``unit`` (SI in CSV,
+    MN/m, kN s/m, kg in text)."""
+    t = PlainTable(title="Coefficients (SI, Omega in rad/s)" if full else "Coefficients (Omega in rad/s)")
     for col in ("coefficient", "value", "std error", "rel. std error [%]", "95 % interval", "unit"):
         t.add_column(col, justify="left" if col in ("coefficient", "unit") else "right")
     for key, v in result.coefficients.items():
         se = result.std_errors.get(key)
         rel = number(None if se is None or v == 0 else 100 * se / abs(v), full, 2)
+        unit, k = _unit(key, full)
         ci = result.confidence_95.get(key)
-        interval = number(None, full) if ci is None else f"[{number(ci[0], full)}, {number(ci[1], full)}]"
-        t.add_row(key, number(v, full, 5), number(se, full), rel, interval, coefficient_unit(key))
+        interval = number(None, full) if ci is None else f"[{number(ci[0] * k, full)}, {number(ci[1] * k, full)}]"
+        t.add_row(key, number(v * k, full, 5), number(None if se is None else se * k, full), rel, interval, unit)
     return t
 
 
 def _covariance_table(result, full: bool = False) -> PlainTable | None:
-    """The covariance of the free coefficients (SI), rows and columns in ``result.free``'s order;
-    the entry of row a, column b is in unit(a) x unit(b) (each row's unit in the ``unit`` column,
-    the columns' the same by symmetry). None when the fit gives no covariance."""
+    """The covariance of the free coefficients (SI in CSV, the coefficients' text units in text),
+    rows and columns in ``result.free``'s order; the entry of row a, column b is in unit(a) x
+    unit(b) (each row's unit in the ``unit`` column, the columns' the same by symmetry). None when
+    the fit gives no covariance."""
     if result.covariance is None:
         return None
     t = PlainTable(
-        title="Covariance of the free coefficients (SI; row a, column b in unit(a) x unit(b), "
+        title=f"Covariance of the free coefficients ({'SI; ' if full else ''}row a, column b in unit(a) x unit(b), "
         "unit(a) in the unit column; a symmetric pair under its first key)",
         key_columns=2,
     )
@@ -172,8 +181,9 @@ def _covariance_table(result, full: bool = False) -> PlainTable | None:
     t.add_column("unit")
     for name in result.free:
         t.add_column(name, justify="right")
-    for name, row in zip(result.free, result.covariance):
-        t.add_row(name, coefficient_unit(name), *(number(float(v), full) for v in row))
+    units = [_unit(name, full) for name in result.free]
+    for name, (unit, ka), row in zip(result.free, units, result.covariance):
+        t.add_row(name, unit, *(number(float(v) * ka * kb, full) for v, (_, kb) in zip(row, units)))
     return t
 
 

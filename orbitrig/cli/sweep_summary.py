@@ -23,14 +23,16 @@ from orbitrig.analysis.warning_groups import point_ranges, warning_lines
 from orbitrig.load_systems import LoadSystem
 from orbitrig.run.point_report import judgement_lines
 from orbitrig.store.csvfile import coef_order, fit_truth
+from orbitrig.store.layout import point_cell
 from orbitrig.store.reader import freq_dep_key, read_run
 from orbitrig.store.stored_run import Point
 from reduction.statistics import CHI2_ALPHA
-from rigunits import COEFFICIENT_UNITS
+from rigunits import DISPLAY_UNITS, display_unit
 
 #: above this many complete points the final table is one summary row per point
 DETAIL_POINTS = 4
-_COEF_UNIT = COEFFICIENT_UNITS
+#: the terms of the summary row: the main stiffness and damping entries
+MAIN_TERMS = ("Kxx", "Kyy", "Cxx", "Cyy")
 TRUE_NOTE = (
     "true = the simulator's true Z(Omega) projected onto each fit's model (its constraints, "
     "frequency dependence, frequencies and weights); (%) = |identified - true| / largest true entry "
@@ -147,18 +149,16 @@ def rejected_lines(complete: list[Point]) -> list[str]:
     ]
 
 
-def _print_summary(console: Transcript, complete: list[Point], out: Path) -> None:
+def _print_summary(console: Transcript, complete: list[Point], out: Path, full: bool) -> None:
     """One row per operating point: the main stiffness and damping entries of the first fit
     (piezo), in --sim mode the worst K and C error of every fit, the adequacy verdicts, the
-    worst LMS |E_n| and the counts of warnings and refused models."""
+    worst LMS |E_n| and the counts of warnings and refused models. The point is named '0003' in
+    text, by its index '3' in CSV and JSON (`full`), as coefficients.csv names it."""
     table = PlainTable(title=f"{len(complete)} operating points (full tables: coefficients.csv, orbitrig report {out})")
     for col in (
         "point",
         "label",
-        "Kxx MN/m",
-        "Kyy MN/m",
-        "Cxx kN s/m",
-        "Cyy kN s/m",
+        *(f"{c} {display_unit(c)[0]}" for c in MAIN_TERMS),
         "worst K / C error",
         "|dZ|/|Z|",
         "freq. dep.",
@@ -171,11 +171,8 @@ def _print_summary(console: Transcript, complete: list[Point], out: Path) -> Non
     for p in complete:
         fits = _fits(p)
         first = next((d["coefficients"] for k, d in sorted(fits.items()) if k.startswith(LoadSystem.PIEZO)), None)
-        row = [p.name, p.settings.label]
-        row += [
-            f"{first[c] * scale:.4g}" if first and c in first else "-"
-            for c, scale in (("Kxx", 1e-6), ("Kyy", 1e-6), ("Cxx", 1e-3), ("Cyy", 1e-3))
-        ]
+        row = [point_cell(p.index, full), p.settings.label]
+        row += [f"{first[c] * display_unit(c)[1]:.4g}" if first and c in first else "-" for c in MAIN_TERMS]
         if p.truth:
             errs = [compare_with_truth(d, p.truth) for d in fits.values()]
             k = max((e[c] for e in errs for c in e if c[0] == "K"), default=float("nan"))
@@ -207,12 +204,13 @@ def _print_summary(console: Transcript, complete: list[Point], out: Path) -> Non
 
 
 def _cell(d: dict, c: str, err: float | None) -> str:
-    """'3.3e+07 ± 2.1e+05 (0.4 %)', ' n.d.' appended when not determined; '' without the key."""
+    """'33 ± 0.21 (0.4 %)' (in the unit a person reads, rigunits.display_unit: MN/m), ' n.d.'
+    appended when not determined; '' without the key."""
     v = d["coefficients"].get(c)
     if v is None:
         return ""
-    u = _uncertainty(d, c)
-    cell = f"{v:.4g}" + ("" if u is None else f" \u00b1 {u:.2g}")
+    u, k = _uncertainty(d, c), display_unit(c)[1]
+    cell = f"{v * k:.4g}" + ("" if u is None else f" \u00b1 {u * k:.2g}")
     cell += "" if err is None else f" ({err:.1f} %)"
     return cell + (" n.d." if c in (d.get("not_determined") or []) else "")
 
@@ -232,15 +230,16 @@ def _point_table(p: Point) -> tuple[PlainTable, list[str]]:
     errs = {k: compare_with_truth(d, truth) for k, d in fits.items()} if truth else {}
     trues = {k: fit_truth(d, truth) for k, d in fits.items()} if truth else {}
     for c in names:
-        row = [c] + ([f"{truth[c[0] + '0']['xy'.index(c[1])]['xy'.index(c[2])]:.4g}"] if truth else [])
+        k = display_unit(c)[1]
+        row = [c] + ([f"{truth[c[0] + '0']['xy'.index(c[1])]['xy'.index(c[2])] * k:.4g}"] if truth else [])
         table.add_row(*row, *(_cell(d, c, errs.get(key, {}).get(c)) for key, d in fits.items()))
         if truth:
             table.add_row(
                 "  true",
                 "",
                 *(
-                    "" if c not in trues[k] or c not in d["coefficients"] else f"{trues[k][c]:.4g}"
-                    for k, d in fits.items()
+                    "" if c not in trues[f] or c not in d["coefficients"] else f"{trues[f][c] * k:.4g}"
+                    for f, d in fits.items()
                 ),
             )
     z_errs = [worst_impedance_error(d, truth) for d in fits.values()]
@@ -256,7 +255,7 @@ def print_coefficients(out: Path, fmt: OutputFormat = OutputFormat.TEXT) -> None
     console = Transcript()
     complete = read_run(out, blocks=False).complete_points  # the results, not the blocks
     if len(complete) > DETAIL_POINTS:
-        _print_summary(console, complete, out)
+        _print_summary(console, complete, out, full=fmt != OutputFormat.TEXT)
     else:
         _print_points(console, complete)
     console.write(fmt)
@@ -267,7 +266,7 @@ def _print_points(console: Transcript, complete: list[Point]) -> None:
         table, names = _point_table(p)
         console.print(table)
         console.print(
-            "units: " + ", ".join(f"{m} {u}" for m, u in _COEF_UNIT.items() if any(c[0] == m for c in names)),
+            "units: " + ", ".join(f"{m} {u}" for m, (u, _) in DISPLAY_UNITS.items() if any(c[0] == m for c in names)),
             markup=False,
         )
         console.print(

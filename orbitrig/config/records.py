@@ -25,6 +25,7 @@ from pydantic import Field, field_validator
 from orbitrig.config.calibration import CalibrationUncertainty, Percent
 from orbitrig.config.fields import BY_VALUE, _Model
 from orbitrig.load_systems import LoadSystem
+from rigunits import UM
 
 ChannelName = Literal["fx_piezo", "fy_piezo", "fx_strain", "fy_strain", "x_a", "y_a", "x_b", "y_b"]
 
@@ -84,7 +85,7 @@ class Runout(_Model):
     def phasors(self, probe: str) -> np.ndarray:
         """(2,) complex runout (m) of ``probe`` at 1x and 2x spin."""
         p = getattr(self, probe)
-        return np.array([complex(*p.h1_um), complex(*p.h2_um)]) * 1e-6
+        return np.array([complex(*p.h1_um), complex(*p.h2_um)]) * UM
 
 
 class ProbeGain(_Model):

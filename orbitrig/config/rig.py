@@ -25,6 +25,7 @@ from orbitrig.config.fields import (
     _Model,
 )
 from orbitrig.config.messages import ConfigWarning
+from rigunits import UM
 
 
 class Transports(_Model):
@@ -94,7 +95,7 @@ class Bearing(_Model):
     @property
     def clearance(self) -> float:
         """Radial clearance c (m)."""
-        return self.clearance_um * 1e-6
+        return self.clearance_um * UM
 
 
 LINK_LOSS_MARGIN = 0.8  # [drives] link_loss_time_s above this share of comm_loss_timeout_s warns

@@ -38,7 +38,7 @@ from daq.aux import AuxState
 from daq.errors import DaqError
 from drives.errors import DriveError
 from drives.state import RigDriveState
-from orbitrig.config import RPM, RigConfig
+from orbitrig.config import RigConfig
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.interlocks import Trip
 from orbitrig.run.rig_io import RigAccess, RigIO
@@ -46,6 +46,7 @@ from orbitrig.run.safe_stop import not_confirmed, stop_shielded
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.verification import pressures_settled
 from reduction.rig_time import block_time
+from rigunits import rpm_text
 
 log = logging.getLogger(__name__)
 HOLD_REVOLUTIONS = 3  # read and dropped after a change at the input
@@ -221,9 +222,9 @@ class CalibrationSession:
             await self.watched(settled, self.check_interlocks)
         except DriveError as err:
             raise CalibrationFailed(
-                f"slow roll at spin {roll.spin / RPM:.0f} rpm, orbit {roll.orbit / RPM:.0f} rpm: {err}"
+                f"slow roll at spin {rpm_text(roll.spin)}, orbit {rpm_text(roll.orbit)}: {err}"
             ) from err
-        self.note(f"slow roll: spin {roll.spin / RPM:.0f} rpm, orbit spindle {roll.orbit / RPM:.0f} rpm, held")
+        self.note(f"slow roll: spin {rpm_text(roll.spin)}, orbit spindle {rpm_text(roll.orbit)}, held")
 
     async def _pressures_met(self, roll: SlowRoll) -> None:
         """The supply and recess pressures checked against the step's, as a sweep checks them before
@@ -263,7 +264,7 @@ class CalibrationSession:
         roll = self.roll_spec
         if roll is None or self.at_standstill:
             return ""
-        return f" during the slow roll at spin {roll.spin / RPM:.0f} rpm, orbit {roll.orbit / RPM:.0f} rpm"
+        return f" during the slow roll at spin {rpm_text(roll.spin)}, orbit {rpm_text(roll.orbit)}"
 
     async def watched(self, work: Callable[[], Awaitable[T]], check: Callable[[], None] | None = None) -> T:
         """``await work()`` (a hold, an acquisition, a prompt) raced against the drives' poll and

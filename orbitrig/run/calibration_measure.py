@@ -20,7 +20,7 @@ from orbitrig.config import LMS
 from orbitrig.load_systems import LoadSystem
 from orbitrig.run.calibration import CalibrationSession, SlowRoll
 from reduction.fourier import phasor
-from rigunits import micrometres
+from rigunits import HZ, micrometres
 
 PROBES = ("x_a", "y_a", "x_b", "y_b")
 
@@ -121,7 +121,7 @@ async def measure_delay(
             blk = await session.average()
             ph = np.asarray(blk.phasors)
             ref = np.mean([ph[ch[p]] / abs(ph[ch[p]]) for p in PROBES])
-            freqs.append(roll.orbit / (2 * np.pi))
+            freqs.append(roll.orbit / HZ)
             for name, i in ch.items():
                 lags[name].append(-np.angle(ph[i] / ref))
             session.note(

@@ -18,7 +18,7 @@ from typing import Awaitable, Callable
 
 from daq.errors import DaqError
 from drives.errors import DriveError
-from orbitrig.config import RPM, RigConfig
+from orbitrig.config import RigConfig
 from orbitrig.run.averaging import averaging_rule
 from orbitrig.run.background import Background
 from orbitrig.run.control import RunControl, StopRun, Suspended
@@ -55,6 +55,7 @@ from orbitrig.store.records import BlockChoice, BlockRecord, PointResults
 from orbitrig.store.writer import RunStore
 from reduction.rig_time import block_time
 from reduction.sequential import Choice
+from rigunits import rpm_text
 
 log = logging.getLogger(__name__)
 #: wall s after the ramps' expected end by which their first status is read; the block stored
@@ -239,11 +240,11 @@ class PointProcedure:
             await self.r.io.open_drives.set_speeds(spin, orbit)
         except DriveError as err:
             raise RunFailed(
-                f"cannot set speeds spin {spin / RPM:.0f} rpm, orbit {orbit / RPM:+.0f} rpm: {err}"
+                f"cannot set speeds spin {rpm_text(spin)}, orbit {rpm_text(orbit, signed=True)}: {err}"
             ) from err
         now = self._add_time("command", t0)
         self._ramps_end = None if ramp is None else now + self.scale.wall(ramp)
-        self.r.note(f"speeds set: spin {spin / RPM:.0f} rpm, orbit {orbit / RPM:+.1f} rpm")
+        self.r.note(f"speeds set: spin {rpm_text(spin)}, orbit {rpm_text(orbit, signed=True)}")
 
     async def set_spin(self, step: SetSpin, ps: PointState) -> None:
         await self._set_speeds(step.spin, step.orbit, step.duration)

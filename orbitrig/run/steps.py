@@ -9,11 +9,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from orbitrig.config import MPA, RPM, ModelSpec
+from orbitrig.config import MPA, ModelSpec
 from orbitrig.run.sequential_rule import SequentialRule
 from orbitrig.store.layout import point_name
 from orbitrig.store.records import BlockChoice
-from rigunits import in_hz, micrometres
+from rigunits import in_hz, micrometres, rpm_text
 
 TWO_PI = 2.0 * math.pi
 DIR_TAG = {+1: "fwd", -1: "bwd"}
@@ -102,7 +102,7 @@ class SetSpin(Step):
     word = "spin changes"
 
     def describe(self) -> str:
-        return f"set spin {self.spin / RPM:.0f} rpm (orbit {self.orbit / RPM:+.1f} rpm)"
+        return f"set spin {rpm_text(self.spin)} (orbit {rpm_text(self.orbit, signed=True)})"
 
 
 @dataclass(frozen=True)
@@ -112,7 +112,7 @@ class SetOrbit(Step):
     word = "orbit changes"
 
     def describe(self) -> str:
-        return f"set orbit {self.block.orbit / RPM:+.1f} rpm [{self.block.tag}]"
+        return f"set orbit {rpm_text(self.block.orbit, signed=True)} [{self.block.tag}]"
 
 
 @dataclass(frozen=True)

@@ -36,6 +36,7 @@ import numpy as np
 from orbitrig.store.layout import DERIVED_UNITS
 from orbitrig.store.pieces import fixed_text, put, strings
 from reduction.whirl import Whirl
+from rigunits import HZ
 
 PER_COEFFICIENT = "SI per coefficient (see dataset units)"
 SOURCE_UNITS = "per source: 1 (gain, sensitivity), rad (phase), s (delay)"
@@ -45,7 +46,7 @@ def c_eff_zero(derived: dict[str, Any], k: str) -> np.ndarray | None:
     """(Omega_0, its std) in rad/s where C_eff,k (k: xx, yy) changes sign, from the derived
     quantities as identified (stored in Hz); None where it does not."""
     zero = derived.get(f"c_eff_zero_{k}_hz")
-    return None if zero is None else 2 * math.pi * np.array([_num(v) for v in zero])
+    return None if zero is None else HZ * np.array([_num(v) for v in zero])
 
 
 def _num(v: Any) -> float:
@@ -175,7 +176,7 @@ def _consistency(g: h5py.Group, c: dict[str, Any], names: list[str]) -> None:
 def _derived(g: h5py.Group, d: dict[str, Any], names: list[str]) -> None:
     hz = np.asarray(d["orbit_hz"], dtype=np.float64)
     g.attrs["covariance"] = d.get("covariance", "")
-    put(g, "orbit", 2 * math.pi * hz, "rad/s")
+    put(g, "orbit", HZ * hz, "rad/s")
     put(g, "orbit_hz", hz, "Hz")
     for k in ("xx", "yy"):
         put(

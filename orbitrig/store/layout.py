@@ -86,6 +86,13 @@ def point_name(index: int) -> str:
     return f"{index:04d}"
 
 
+def point_cell(index: int, full: bool) -> str:
+    """Operating point `index` in a table cell: named as on the terminal ('0003', point_name) in
+    text, by its index ('3') in CSV and JSON (`full`), as every CSV file of a run carries it
+    (coefficients.csv, reduce_*.csv, the exports)."""
+    return str(index) if full else point_name(index)
+
+
 @dataclass(frozen=True)
 class RunLayout:
     """Paths of one run directory."""

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 import warnings
 from pathlib import Path
 
@@ -27,7 +26,7 @@ from orbitrig.store.orbit_table_header import GAMMA2, RECORDS, UNCERTAINTY, colu
 from orbitrig.store.orbit_table_rows import in_range, read_columns
 from reduction.errors import ReductionError
 from reduction.table import OrbitTable
-from rigunits import in_rpm
+from rigunits import HZ, in_rpm
 
 
 def read_orbit_table(path: str | Path) -> OrbitTable:
@@ -74,7 +73,7 @@ def _table(file: str, col: dict[str, np.ndarray]) -> OrbitTable:
     try:
         return OrbitTable(
             spin=float(col["spin_rpm"][0]) * RPM,
-            orbit=2 * math.pi * col["orbit_hz"],
+            orbit=HZ * col["orbit_hz"],
             x=col["x_re"] + 1j * col["x_im"],
             y=col["y_re"] + 1j * col["y_im"],
             fx=col["fx_re"] + 1j * col["fx_im"],

@@ -19,6 +19,7 @@ from orbitrig.load_systems import LoadSystem
 from orbitrig.store.identity import run_identity
 from orbitrig.store.status import RunStatus
 from reduction.methods import Method
+from rigunits import MPA
 
 if TYPE_CHECKING:
     from reduction.table import OrbitTable
@@ -41,7 +42,7 @@ class Settings:
         """The operating point in the paper's words, for plot titles."""
         return (
             f"\u03c9 = {self.spin_rpm:.0f} rpm, \u03b5d = {self.dynamic_eccentricity:g}, "
-            f"\u03b5s = {self.static_eccentricity:g}, pr = {self.recess_pressure / 1e6:.4g} MPa, "
+            f"\u03b5s = {self.static_eccentricity:g}, pr = {self.recess_pressure / MPA:.4g} MPa, "
             f"\u03b2 = {self.pressure_ratio:g}"
         )
 

@@ -171,7 +171,7 @@ def demo_sweep(tmp_path_factory) -> tuple[subprocess.CompletedProcess, Path]:
 def test_sweep_coefficient_table_states_units(demo_sweep):
     p, _ = demo_sweep
     assert p.returncode == 0, p.stderr
-    assert "units: K N/m, C N s/m, D kg" in p.stdout
+    assert "units: K MN/m, C kN s/m, D kg" in p.stdout  # as reduce's and identify's text tables
     assert "piezo kcd11" in p.stdout  # the table still fits 80 columns without wrapping its headers
 
 

@@ -14,7 +14,7 @@ import math
 import pytest
 from sqlalchemy import func, select
 
-from orbitrig.catalog.bearing import SIM_DEFAULT_SEED
+from orbitrig.catalog.bearing import SIM_DEFAULT_SEED, bearing_label
 from orbitrig.catalog.compare import repeat_groups, repeatability
 from orbitrig.catalog.rows import run_rows
 from orbitrig.catalog.schema import fits
@@ -54,6 +54,14 @@ def test_computed_numbers_are_kept_without_float_noise():
     orbit_hz = [ratio * spin / (2 * math.pi) for ratio in (0.3, 0.5, 1.2)]
     assert (60 * 1e-6, orbit_hz) == (5.9999999999999995e-05, [4.999999999999999, 8.333333333333332, 19.999999999999996])
     assert [without_noise(f) for f in orbit_hz] == [5.0, 8.333333333333332, 20.0]
+
+
+def test_a_rigs_bearing_is_named_by_its_clearance_in_micrometres():
+    """A run of the rig (no scenario) is named by its rig id and the stored clearance (m), shown as
+    the rest of the CLI shows a length: the micro sign, never an ASCII 'um'."""
+    assert bearing_label({"rig_id": "SAC-DS-1", "bearing_clearance": 6e-05}) == "SAC-DS-1 c = 60 \u00b5m"
+    assert bearing_label({"rig_id": "SAC-DS-1", "bearing_clearance": 60 * 1e-6}) == "SAC-DS-1 c = 60 \u00b5m"
+    assert bearing_label({"rig_id": "", "bearing_clearance": None}) == "rig"
 
 
 def test_the_default_seed_is_the_simulators():

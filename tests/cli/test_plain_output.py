@@ -64,10 +64,11 @@ def test_identify_at_80_columns_and_piped_keeps_every_number(columns):
     assert "..." not in text and "\u2026" not in text
     assert max(len(line) for line in text.splitlines()) <= 80  # piped: 80 columns too
     result = json.loads(run("identify", str(TABLE), "--model", "kcd11", "--json", columns=columns).stdout)
-    for key, value in result["coefficients"].items():
-        assert re.search(rf"^{key}\s+{re.escape(f'{value:.5g}')}\s", text, flags=re.M), key
+    for key, value in result["coefficients"].items():  # in the units reduce's text shows: MN/m, kN s/m, kg
+        unit, k = {"K": ("MN/m", 1e-6), "C": ("kN s/m", 1e-3), "D": ("kg", 1.0)}[key[0]]
         lo, hi = result["confidence_95"][key]
-        assert f"[{lo:.4g}, {hi:.4g}]" in text
+        row = rf"^{key}\s+{re.escape(f'{value * k:.5g}')}\s.*{re.escape(f'[{lo * k:.4g}, {hi * k:.4g}]')}\s+{unit}$"
+        assert re.search(row, text, flags=re.M), key
 
 
 def test_identify_formats_csv_and_json():
@@ -107,10 +108,11 @@ def test_identify_text_shows_the_whole_covariance_with_units(columns):
     result = json.loads(run("identify", str(TABLE), "--model", "kcd11", "--json", columns=columns).stdout)
     free, cov = result["free"], result["covariance"]
     assert len(free) == 11 and {(a, "unit") for a in free} | {(a, b) for a in free for b in free} == set(shown)
+    scale = {"K": 1e-6, "C": 1e-3, "D": 1.0}  # the coefficients' text units: MN/m, kN s/m, kg
     for i, a in enumerate(free):
-        assert shown[(a, "unit")] == {"K": "N/m", "C": "N s/m", "D": "kg"}[a[0]]
+        assert shown[(a, "unit")] == {"K": "MN/m", "C": "kN s/m", "D": "kg"}[a[0]]
         for j, b in enumerate(free):
-            assert shown[(a, b)] == f"{cov[i][j]:.4g}", (a, b)
+            assert shown[(a, b)] == f"{cov[i][j] * scale[a[0]] * scale[b[0]]:.4g}", (a, b)
 
 
 def test_identify_csv_has_the_covariance_matrix():
@@ -150,8 +152,14 @@ def test_closing_table_at_80_columns_shows_what_a_wide_terminal_shows(tmp_path, 
     assert table_cells and table_cells <= _cells(narrow)
     print_coefficients(run_dir, OutputFormat.JSON)
     data = json.loads(capsys.readouterr().out)
-    if n_points == 6:
-        assert [r["point"] for r in data["tables"][0]["rows"]] == [f"{i:04d}" for i in range(6)]
+    if n_points == 6:  # the point by its index, as coefficients.csv names it (the text: 0000 ..)
+        with (run_dir / "coefficients.csv").open(newline="") as fh:
+            in_file = list(dict.fromkeys(r["point"] for r in csv.DictReader(fh)))
+        assert [r["point"] for r in data["tables"][0]["rows"]] == in_file == [str(i) for i in range(6)]
+        print_coefficients(run_dir, OutputFormat.CSV)
+        table = [ln for ln in capsys.readouterr().out.splitlines() if not ln.startswith("#")]  # no title, notes
+        assert [r["point"] for r in csv.DictReader(table)] == in_file
+        assert re.findall(r"^0\d{3}(?=\s)", wide, flags=re.M) == [f"{i:04d}" for i in range(6)]
     else:
         assert [t["title"].split()[1] for t in data["tables"]] == ["0000", "0001"]
         assert {r["coef"] for r in data["tables"][0]["rows"]} >= {"Kxx", "Cyy", "Dxy"}
@@ -166,6 +174,7 @@ def test_reduce_formats(tmp_path):
     assert text.returncode == 0, text.stderr
     assert max(len(line) for line in text.stdout.splitlines() if not line.startswith("written")) <= 80  # a path
     assert "kcd11 none (ols) from the stored orbit tables of" in text.stdout  # the heading, folded
+    assert {"Kxx [MN/m]", "Cxx [kN s/m]", "Dxx [kg]"} <= set(re.split(r"\s{2,}|\n", text.stdout))  # as identify's
     rows = list(
         csv.DictReader(
             io.StringIO(run("reduce", str(run_dir), "--model", "kcd11", "--format", "csv", columns="80").stdout)

@@ -187,7 +187,7 @@ def test_manual_panel_fits_its_card_and_says_whether_the_drives_turn(broker, das
     page.wait(lambda: page.el("manual").is_displayed(), 10, "the manual setting panel")
     publish_as_service(broker, "progress", PROGRESS, qos=0)
     publish_as_service(broker, "live", live(), qos=0)
-    page.wait_text("eta", "1 h 6 min 40 s", 10)
+    page.wait_text("eta", "1:06:40", 10)
     assert page.text("eta-held") == "(paused: waiting for the operator)"
     page.wait(lambda: "0.4830" in page.rows("aux", "aux").get("p_recess_1", ""), 10, "the live sensors")
     rows = page.rows("manual-table", "setting")
@@ -229,24 +229,24 @@ def test_nothing_moves_when_the_manual_panel_or_the_first_alarm_appears(broker, 
     page.wait_text("alarm-count", "none unacknowledged", 10)
     status(broker, "running", "running")
     publish_as_service(broker, "progress", PROGRESS, qos=0)
-    page.wait_text("eta", "1 h 6 min 40 s", 10)
+    page.wait_text("eta", "1:06:40", 10)
     before = layout(page)
 
     publish_as_service(broker, "status", waiting(outside=True))  # the tallest panel: every value outside its band
     page.wait(lambda: page.el("manual").is_displayed(), 10, "the manual setting panel")
     # under the ETA, in a line of its own: why it stands still
-    assert (page.text("eta"), page.text("eta-held")) == ("1 h 6 min 40 s", "(paused: waiting for the operator)")
+    assert (page.text("eta"), page.text("eta-held")) == ("1:06:40", "(paused: waiting for the operator)")
     assert moved(before, layout(page)) == {}
     assert page.d.execute_script(OUTSIDE_CARDS) == []
     status(broker, "running", "confirmed manual:0001")
     page.wait(lambda: not page.el("manual").is_displayed(), 10, "the panel to go")
     assert moved(before, layout(page)) == {}
 
-    assert (page.text("eta"), page.text("eta-held")) == ("1 h 6 min 40 s", "")
+    assert (page.text("eta"), page.text("eta-held")) == ("1:06:40", "")
 
     status(broker, "paused", "suspended by interlock: lubricant supply pump is off")
     page.wait(lambda: page.d.find_elements("css selector", "#alarms button.ack"), 10, "the first alarm")
-    assert (page.text("eta"), page.text("eta-held")) == ("1 h 6 min 40 s", "(paused with the run)")
+    assert (page.text("eta"), page.text("eta-held")) == ("1:06:40", "(paused with the run)")
     assert moved(before, layout(page)) == {}
     assert page.d.execute_script(OUTSIDE_CARDS) == []
     status(broker, "idle", "run stopped")

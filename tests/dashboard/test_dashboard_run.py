@@ -40,7 +40,7 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     assert page.text("manual-motion") == "Both drives at standstill"  # as the service's prompt says it
     # the ETA stands still while the run waits for the operator's hands, and says so under it
     page.wait_text("eta-held", "(paused: waiting for the operator)", 10)
-    assert page.text("eta").endswith(" s"), page.text("eta")
+    assert re.fullmatch(r"\d+:\d\d", page.text("eta")), page.text("eta")  # m:ss, as the terminal
     assert "confirm: accepted" in page.command("btn-confirm", "confirm:")
     page.wait_state("running")
     assert not page.el("manual").is_displayed()
@@ -132,20 +132,21 @@ def test_viewer_sees_everything_and_commands_nothing(dashboard, service, browser
     operator.screenshot(shot)
     assert shot.stat().st_size > 20_000
     # the demo point completes: both load measuring systems x both models, one row per coefficient
-    # with its value, U (k = 2) and SI unit
+    # with its value, U (k = 2) and unit, as the terminal shows them (MN/m, kN s/m)
     fits = "#results tr.fit-first"
     viewer.wait(lambda: len(viewer.d.find_elements("css selector", fits)) == 4, 90, "4 fits in the results")
     viewer.wait_state("idle", 30)
     operator.wait(lambda: len(operator.d.find_elements("css selector", fits)) == 4, 10, "results")
     text = operator.text("results")
     assert "piezo" in text and "strain" in text
-    assert re.search(r"\bKxx\s-?[\d.]+(e[+-]\d+)?\s[\d.]+(e[+-]\d+)?\sN/m\b", text), text
-    assert re.search(r"\bCxx\s-?[\d.]+(e[+-]\d+)?\s[\d.]+(e[+-]\d+)?\sN s/m\b", text), text
+    assert re.search(r"\bKxx\s-?[\d.]+(e[+-]\d+)?\s[\d.]+(e[+-]\d+)?\sMN/m\b", text), text
+    assert re.search(r"\bCxx\s-?[\d.]+(e[+-]\d+)?\s[\d.]+(e[+-]\d+)?\skN s/m\b", text), text
     card_shot(operator, "trends-card", "trends", tmp_path)  # the demo run's trends
 
 
 def test_results_show_values_u_and_units_as_they_arrive(broker, dashboard, browsers):
-    """A result is drawn as it arrives: a row per coefficient with its value, U (k = 2) and unit; a refusal."""
+    """A result is drawn as it arrives: a row per coefficient with its value, U (k = 2) and unit (the
+    terminal's: MN/m, kN s/m, kg, rigunits.display_unit, where the result says N/m); a refusal."""
     page = Page(browsers(), dashboard.url, dashboard)
     page.sign_in("viewer", ACCOUNTS["viewer"])
     page.signed_in()
@@ -178,8 +179,8 @@ def test_results_show_values_u_and_units_as_they_arrive(broker, dashboard, brows
     rows = page.d.execute_script(
         "return [...document.querySelectorAll('#results tr')].slice(-3).map(r => [...r.children].map(c => c.innerText))"
     )
-    assert rows[0] == ["8 w1000rpm", "piezo", "kc8", "Kxx", "1.500e+7", "2.000e+5", "N/m"]
-    assert rows[1] == ["", "", "", "Cxx", "2.000e+4", "200.0", "N s/m"]
+    assert rows[0] == ["8 w1000rpm", "piezo", "kc8", "Kxx", "15.00", "0.2000", "MN/m"]
+    assert rows[1] == ["", "", "", "Cxx", "20.00", "0.2000", "kN s/m"]
     assert rows[2] == ["8 w1000rpm", "strain", "kcd11", "refused: too few orbit frequencies: 2 < 3"]
     events = page.text("events")
     assert "point 8 piezo kc8: condition number 3.1e6: Kxy poorly determined" in events

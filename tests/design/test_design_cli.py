@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from reduction.frequency_list import near_one
+from rigunits import RPM, in_hz
 from support.cli_helpers import orbitrig_cmd
 from support.paths import ROOT
 from support.sweep_helpers import demo_text
@@ -63,7 +64,8 @@ def test_json_keys_and_numbers():
     for lst in (obj["candidate"], obj["proposal"]):
         assert list(lst["std_errors"]) == names
         assert lst["worst_relative_pct"] == pytest.approx(max(lst["relative_pct"].values()))
-        assert lst["orbit_hz"] == pytest.approx(np.array(lst["ratios"]) * 1000 / 60, rel=1e-6)
+        assert lst["orbit_hz"] == pytest.approx(np.array(lst["ratios"]) * 1000 / 60, rel=1e-12)
+        assert lst["orbit_hz"] == [in_hz(r * (1000 * RPM)) for r in lst["ratios"]]  # as the run plans them
     # no target: the same number of frequencies, a lower worst relative error, inside the band, off 1
     c, p = obj["candidate"], obj["proposal"]
     assert len(p["ratios"]) == len(c["ratios"]) == 10
@@ -213,9 +215,9 @@ def test_an_empty_save_name_exits_2_and_writes_nothing(tmp_path):
         ),
         (
             ("--model", "kcd11", "--spin", "1000", "--radius", "nan"),
-            "--radius nan um: the orbit radius must be > 0 and below",
+            "--radius nan \u00b5m: the orbit radius must be > 0 and below",
         ),
-        (("--model", "kcd11", "--spin", "1000", "--radius", "60"), "below the bearing's clearance (60 um"),
+        (("--model", "kcd11", "--spin", "1000", "--radius", "60"), "below the bearing's clearance (60 \u00b5m"),
         (("--model", "kcd11", "--spin", "1000", "--target", "-1"), "--target -1: a relative standard error in percent"),
         (
             ("--model", "kcd11", "--spin", "1000", "--keep-away", "nan"),

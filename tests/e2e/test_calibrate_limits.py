@@ -26,7 +26,7 @@ def _rig(tmp_path, max_spin_rpm: float | None = None):
 @pytest.mark.parametrize(
     "args, option, rolled",
     [
-        (("delay", "--speeds-rpm", "300,600,5000"), "--speeds-rpm", "spin 7143 rpm, orbit 5000 rpm"),
+        (("delay", "--speeds-rpm", "300,600,5000"), "--speeds-rpm", "spin 7142.86 rpm, orbit 5000 rpm"),
         (("runout", "--spin-rpm", "3000"), "--spin-rpm", "spin 3000 rpm, orbit 3000 rpm"),
     ],
 )

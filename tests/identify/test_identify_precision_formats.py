@@ -71,9 +71,10 @@ def test_csv_covariance_and_forces_are_the_json_doubles(tables, result):
 def test_text_rounds_and_the_help_says_so(result):
     text = _run().stdout
     kxx = result["coefficients"]["Kxx"]
-    assert re.search(rf"^Kxx\s+{re.escape(f'{kxx:.5g}')}\s", text, flags=re.M) and repr(kxx) not in text
+    shown = re.escape(f"{kxx * 1e-6:.5g}")  # in MN/m, as reduce's text
+    assert re.search(rf"^Kxx\s+{shown}\s.*\sMN/m$", text, flags=re.M) and repr(kxx) not in text
     words = " ".join(CliRunner().invoke(app, ["identify", "--help"], env={"COLUMNS": "300"}).stdout.split())
     words = words.replace("│ ", "").replace(" │", "")
     assert "every number in full at any width" not in words
-    assert "text: plain tables for reading, numbers rounded" in words
-    assert "csv: the coefficient, force and covariance tables as CSV, every number in full" in words
+    assert "text: plain tables for reading, numbers rounded" in words and "K, C, D in MN/m, kN s/m, kg" in words
+    assert "csv: the coefficient, force and covariance tables as CSV, in SI, every number in full" in words

@@ -48,6 +48,9 @@ def test_few_points_print_the_full_tables(tmp_path, capsys, monkeypatch):
     titles = re.findall(r"^point \d{4}  \S", out, flags=re.M)  # one table per point, then its judgement lines
     assert len(titles) == 2 and "Cyy" in out and "operating points" not in out
     stored = read_run(run, blocks=False).complete_points
+    assert "units: K MN/m, C kN s/m, D kg" in out  # rigunits.display_unit, as reduce and identify
+    kxx = next(i.result for i in stored[0].identifications if i.ok)["coefficients"]["Kxx"]
+    assert re.search(rf"^Kxx\s.*\s{re.escape(f'{kxx * 1e-6:.4g}')} \u00b1 ", out, flags=re.M)
     assert not any(rejected(i.result) for p in stored for i in p.identifications if i.ok)
     assert " *" not in out and "adequacy test rejects" not in out  # nothing rejected, nothing marked
     monkeypatch.setattr(sweep_summary, "CHI2_ALPHA", 1.0)  # as above: the fits with residuals are rejected

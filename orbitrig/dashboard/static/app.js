@@ -316,18 +316,13 @@ function showProgress(p) {
 }
 
 // the plan's rig time left, and under it why it stands still while the run waits for the operator
-// or is paused (EtaHeld, from the run's state): "4 min 10 s", "(paused: waiting for the operator)"
+// or is paused (EtaHeld, from the run's state): "4:10" as the terminal's bar (formatDuration),
+// "(paused: waiting for the operator)"
 function showEta() {
   const known = st.etaS !== null && st.etaS !== undefined;
   const held = known && st.status ? EtaHeld[Object.keys(RunState).find(k => RunState[k] === st.status.state)] : undefined;
   $("eta").textContent = known ? formatDuration(st.etaS) : "—";
   $("eta-held").textContent = held ? "(" + held + ")" : "";
-}
-
-function formatDuration(s) {
-  s = Math.round(s);
-  const h = Math.floor(s / 3600), m = Math.floor(s % 3600 / 60), sec = s % 60;
-  return (h ? h + " h " : "") + (h || m ? m + " min " : "") + sec + " s";
 }
 
 // ---------------------------------------------------------------- live
@@ -371,21 +366,16 @@ const AUX = [["t_supply", "supply temperature", "°C"], ["t_recess", "recess tem
   ["p_supply", "supply pressure", "MPa"], ["p_recess_1", "recess pressure 1", "MPa"], ["p_recess_2", "recess pressure 2", "MPa"],
   ["p_recess_3", "recess pressure 3", "MPa"], ["p_recess_4", "recess pressure 4", "MPa"], ["beta", "pressure ratio", ""], ["flow", "flow", "l/min"]];
 
-function auxShown(v, unit) {
-  if (v === null || v === undefined) return null;
-  return unit === "°C" ? v - 273.15 : unit === "MPa" ? v / 1e6 : unit === "l/min" ? v * 6e4 : v;
-}
-
 function showAux(a, bands) {
   const body = $("aux"); clear(body);
   AUX.forEach(([key, text, unit]) => {
     const band = bands[key] || (key.startsWith("p_recess") ? bands.p_recess : null);
-    const v = auxShown(a[key], unit), digits = unit === "MPa" ? 4 : unit === "" ? 3 : 2;
+    const v = inShownUnit(a[key], unit), digits = unit === "MPa" ? 4 : unit === "" ? 3 : 2;
     const tr = document.createElement("tr"); tr.dataset.aux = key;
     cell(tr, text + (unit ? " (" + unit + ")" : ""));
     const out = band && a[key] !== null && (a[key] < band[0] || a[key] > band[1]);
     cell(tr, fmt(v, digits), out ? "out" : "");
-    cell(tr, band ? fmt(auxShown(band[0], unit), digits) + " … " + fmt(auxShown(band[1], unit), digits) : "");
+    cell(tr, band ? fmt(inShownUnit(band[0], unit), digits) + " … " + fmt(inShownUnit(band[1], unit), digits) : "");
     body.appendChild(tr);
   });
   // what the CAN node's flags say of these values: shown in the card, the values greyed when not current

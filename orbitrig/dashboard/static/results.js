@@ -1,5 +1,6 @@
 // The results table: one row per identified coefficient with its value, its expanded uncertainty
-// U (k = 2, as the service publishes it: expanded_uncertainty) and its SI unit; a refused fit is
+// U (k = 2, as the service publishes it: expanded_uncertainty) and its unit, MN/m, kN s/m or kg as
+// the terminal shows them (displayUnit; the result's SI unit for a key of no matrix); a refused fit is
 // one row with the reason. At most MAX_RESULT_ROWS rows are kept: the oldest points go first, each
 // whole, and a row at the top says which points are no longer shown.
 // Each point's result is shown once (a feed that starts again replaces the table: clearResults).
@@ -35,9 +36,11 @@ function fitRows(r, row) {
   if (row.error) return [[...head, {text: "refused: " + row.error, cls: "out", span: 4}]];
   const c = row.coefficients || {}, eu = row.expanded_uncertainty || {}, U = eu.values || {};
   const units = row.units || {}, loose = new Set(row.not_determined || []);
-  return Object.keys(c).map((k, i) => [...(i ? ["", "", ""] : head), {text: k},
-    {text: fmtValue(c[k]), cls: loose.has(k) ? "out" : ""},
-    {text: fmtValue(U[k]), title: eu.basis ? "k = " + eu.k + ", " + eu.basis : ""}, {text: units[k] || ""}]);
+  return Object.keys(c).map((k, i) => {
+    const [unit, scale] = displayUnit(k) || [units[k] || "", 1], shown = v => fmtValue(v === null || v === undefined ? v : v * scale);
+    return [...(i ? ["", "", ""] : head), {text: k}, {text: shown(c[k]), cls: loose.has(k) ? "out" : ""},
+      {text: shown(U[k]), title: eu.basis ? "k = " + eu.k + ", " + eu.basis : ""}, {text: unit}];
+  });
 }
 
 // a row across the table (a run's name, a gap)

@@ -11,10 +11,10 @@ const trendState = {recent: [], run: [], runId: null, bands: {}};
 // chart id -> [series: [key, label, dashed]], unit text, value in shown unit, band key
 const TREND_CHARTS = {
   "trend-speed": [[["spin_rpm", "spin"], ["spin_set_rpm", "spin set", true], ["orbit_rpm", "orbit"], ["orbit_set_rpm", "orbit set", true]], "rpm", v => v, null],
-  "trend-supply": [[["p_supply", "supply"]], "MPa", v => v / 1e6, "p_supply"],
-  "trend-recess": [[["p_recess_1", "recess 1"], ["p_recess_2", "recess 2"], ["p_recess_3", "recess 3"], ["p_recess_4", "recess 4"]], "MPa", v => v / 1e6, "p_recess"],
-  "trend-temperature": [[["t_supply", "supply"], ["t_recess", "recess"], ["t_groove", "groove"]], "°C", v => v - 273.15, null],
-  "trend-flow": [[["flow", "flow"]], "l/min", v => v * 6e4, null],
+  "trend-supply": [[["p_supply", "supply"]], "MPa", SHOWN_IN.MPa, "p_supply"],
+  "trend-recess": [[["p_recess_1", "recess 1"], ["p_recess_2", "recess 2"], ["p_recess_3", "recess 3"], ["p_recess_4", "recess 4"]], "MPa", SHOWN_IN.MPa, "p_recess"],
+  "trend-temperature": [[["t_supply", "supply"], ["t_recess", "recess"], ["t_groove", "groove"]], "°C", SHOWN_IN["°C"], null],
+  "trend-flow": [[["flow", "flow"]], "l/min", SHOWN_IN["l/min"], null],
   "trend-torque": [[["torque_spin", "spin"], ["torque_orbit", "orbit"]], "%", v => v, null],
 };
 
