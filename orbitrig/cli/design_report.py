@@ -20,7 +20,7 @@ from orbitrig.cli.design_inputs import DesignInputError
 from orbitrig.config import MIN_RATIOS, MIN_REVOLUTIONS, RPM
 from orbitrig.load_systems import LoadSystem
 from reduction.whirl import Directions
-from rigunits import coefficient_unit
+from rigunits import coefficient_unit, micrometres
 
 
 def rig_time(rig, ratios, spin: float, revolutions, directions: Directions) -> float:
@@ -212,8 +212,8 @@ def _check_numbers(rig, req: DesignRequest) -> None:
     clearance = rig.bearing.clearance
     if req.radius is not None and not 0 < req.radius < clearance:
         raise DesignInputError(
-            f"--radius {req.radius * 1e6:g} um: the orbit radius must be > 0 and below the bearing's "
-            f"clearance ({clearance * 1e6:g} um, the rig configuration's [bearing])"
+            f"--radius {micrometres(req.radius, 'g')}: the orbit radius must be > 0 and below the bearing's "
+            f"clearance ({micrometres(clearance, 'g')}, the rig configuration's [bearing])"
         )
     if not 0 <= req.keep_away < math.inf:
         raise DesignInputError(f"--keep-away {req.keep_away:g}: a distance from Omega/omega = 1, finite and >= 0")

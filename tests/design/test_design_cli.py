@@ -213,9 +213,9 @@ def test_an_empty_save_name_exits_2_and_writes_nothing(tmp_path):
         ),
         (
             ("--model", "kcd11", "--spin", "1000", "--radius", "nan"),
-            "--radius nan um: the orbit radius must be > 0 and below",
+            "--radius nan µm: the orbit radius must be > 0 and below",
         ),
-        (("--model", "kcd11", "--spin", "1000", "--radius", "60"), "below the bearing's clearance (60 um"),
+        (("--model", "kcd11", "--spin", "1000", "--radius", "60"), "below the bearing's clearance (60 µm"),
         (("--model", "kcd11", "--spin", "1000", "--target", "-1"), "--target -1: a relative standard error in percent"),
         (
             ("--model", "kcd11", "--spin", "1000", "--keep-away", "nan"),
