@@ -59,3 +59,26 @@ def test_docs_write_microseconds_as_the_cli_prints_them():
     assert MICROSECOND == "\u00b5s"
     found = {str(p.relative_to(ROOT)): ascii_microseconds(p.read_text(encoding="utf-8")) for p in PAGES}
     assert {page: lines for page, lines in found.items() if lines} == {}
+
+
+def comment_lines(toml: str) -> list[tuple[int, str]]:
+    """(line number, text) of the comments of ``toml`` (from a '#' outside a string), `code` blanked."""
+    out = []
+    for n, line in enumerate(toml.split("\n"), 1):
+        cut = re.sub(r'"[^"]*"', lambda m: " " * len(m.group()), line).find("#")
+        if cut >= 0:
+            out.append((n, re.sub(r"`[^`]*`", "``", line[cut:])))
+    return out
+
+
+def test_the_shipped_configuration_comments_write_micro_units_as_the_cli_prints_them():
+    assert comment_lines('ratios = [0.5]  # 5.76 um\nname = "a # b um"\n') == [(1, "# 5.76 um")]
+    found = {
+        str(p.relative_to(ROOT)): [
+            f"{n}: {text}"
+            for n, text in comment_lines(p.read_text(encoding="utf-8"))
+            if _ASCII_MICROMETRE.search(text) or _ASCII_MICROSECOND.search(text)
+        ]
+        for p in sorted((ROOT / "config").rglob("*.toml"))
+    }
+    assert {page: lines for page, lines in found.items() if lines} == {}
