@@ -270,7 +270,11 @@ def _base(rig: RigConfig, opts: StepOptions, step: RecordStep) -> dict:
 async def loads_record(
     rig: RigConfig, opts: StepOptions, load_n: float, reference: Reference, note
 ) -> CalibrationRecord:
-    """`calibrate loads`: the default load set of `load_n` N, each system's gain matrix fitted."""
+    """`calibrate loads`: the default load set of `load_n` N, each system's gain matrix fitted.
+    Values no record can hold (readings that do not follow the loads: none applied, a channel
+    unplugged) fail the step, no record written."""
+    from pydantic import ValidationError
+
     loads = static_loads(load_n)
     async with rig_access(rig, opts) as (access, hands):
         async with CalibrationSession(rig, access, note) as session:
@@ -281,18 +285,23 @@ async def loads_record(
     data["reference"] = reference.model_dump()
     data["loads"] = dict(data.get("loads") or {})
     u_ref = reference.uncertainty_pct / 100.0
-    for lms in LMS:
-        fit = fit_gain_matrix(loads, readings[lms], u_ref)
-        data["loads"][lms] = LoadGains(
-            gain=fit.gain.tolist(),
-            gain_u=fit.gain_u.tolist(),
-            offset_n=fit.offset.tolist(),
-            residual_n=fit.residual_rms,
-            loads=len(loads),
-        ).model_dump()
-        for axis, u in zip(("fx", "fy"), fit.relative_gain_u()):
-            data["uncertainty"][f"{axis}_{lms}"]["gain_pct"] = float(u * 100.0)
-    return CalibrationRecord.model_validate(data)
+    try:
+        for lms in LMS:
+            fit = fit_gain_matrix(loads, readings[lms], u_ref)
+            data["loads"][lms] = LoadGains(
+                gain=fit.gain.tolist(),
+                gain_u=fit.gain_u.tolist(),
+                offset_n=fit.offset.tolist(),
+                residual_n=fit.residual_rms,
+                loads=len(loads),
+            ).model_dump()
+            for axis, u in zip(("fx", "fy"), fit.relative_gain_u()):
+                data["uncertainty"][f"{axis}_{lms}"]["gain_pct"] = float(u * 100.0)
+        return CalibrationRecord.model_validate(data)
+    except ValidationError as err:
+        raise CalibrationFailed(
+            f"the fitted gain matrices cannot be recorded ({err}); were the loads applied as asked? no record written"
+        ) from None
 
 
 async def runout_record(rig: RigConfig, opts: StepOptions, note) -> CalibrationRecord:

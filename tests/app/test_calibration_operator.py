@@ -133,3 +133,25 @@ def test_a_failed_acquisition_stops_the_drives_before_anything_is_asked(rig):
     assert err.index("acquisition failed") < err.index("both drives stopped") < err.index(told), err
     assert "error: no block at the slow roll" in err and "Traceback" not in err
     assert sorted(p.name for p in records.iterdir()) == before
+
+
+def test_readings_that_do_not_follow_the_loads_fail_the_step_saying_so(rig):
+    """The operator confirms every prompt but applies no load: the gain matrices fitted to
+    readings of nothing have uncertainties no record can hold, so the step fails (exit 1), says
+    why, writes no record, and prints no traceback."""
+    sim, records, calibrate = rig
+    before = sorted(p.name for p in records.iterdir())
+    step = calibrate()
+    confirm_manual(sim, step)
+    for n in range(2, LOADS + 2):
+        step.wait_prompt(n)
+        step.enter()  # the loads asked for are never applied
+    step.wait_prompt(LOADS + 2)  # both drives at standstill: remove every calibration load
+    step.enter()
+    code = step.ended(sim)
+    err = step.stderr()
+    assert code == 1, err
+    assert "error: the fitted gain matrices cannot be recorded" in err and "were the loads applied as asked?" in err
+    assert "gain_pct" in err and "Traceback" not in err
+    assert sim.rpm() == (0.0, 0.0)
+    assert sorted(p.name for p in records.iterdir()) == before
