@@ -26,7 +26,7 @@ from orbitrig.config import LMS, MPA, RPM, CalibrationRecord, CalibrationUncerta
 from orbitrig.config import ProbeGain, ProbeRunout, RecordStep, Reference, RigConfig, Runout
 from orbitrig.errors import OrbitrigError
 from orbitrig.cli.terminal import say
-from orbitrig.run.calibration import AsksOperator, CalibrationFailed, CalibrationSession, SlowRoll
+from orbitrig.run.calibration import AsksOperator, CalibrationFailed, CalibrationSession, SlowRoll, unrecordable
 from orbitrig.run.calibration_measure import PROBES, measure_delay, measure_loads, measure_probes, measure_runout
 from orbitrig.run.drive_setup import drive_limits
 from orbitrig.run.rig_io import RigAccess
@@ -299,9 +299,7 @@ async def loads_record(
                 data["uncertainty"][f"{axis}_{lms}"]["gain_pct"] = float(u * 100.0)
         return CalibrationRecord.model_validate(data)
     except ValidationError as err:
-        raise CalibrationFailed(
-            f"the fitted gain matrices cannot be recorded ({err}); were the loads applied as asked? no record written"
-        ) from None
+        raise unrecordable("the fitted gain matrices", err, "were the loads applied as asked?") from None
 
 
 async def runout_record(rig: RigConfig, opts: StepOptions, note) -> CalibrationRecord:
@@ -359,7 +357,7 @@ async def delay_record(
             data["uncertainty"][name].update(phase_deg=d.phase_u_deg, delay_us=d.delay_u_us)
         return CalibrationRecord.model_validate(data)
     except ValidationError as err:
-        raise CalibrationFailed(f"the fitted lags cannot be recorded ({err}); no record written") from None
+        raise unrecordable("the fitted lags", err, "was the phase reference connected?") from None
 
 
 async def probes_record(
@@ -393,4 +391,4 @@ async def probes_record(
         data["uncertainty"]["probe_sensitivity_pct"] = reference.uncertainty_pct
         return CalibrationRecord.model_validate(data)
     except ValidationError as err:
-        raise CalibrationFailed(f"the fitted probe gains cannot be recorded ({err}); no record written") from None
+        raise unrecordable("the fitted probe gains", err, "was the journal stepped as asked?") from None

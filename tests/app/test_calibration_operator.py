@@ -16,7 +16,10 @@ import re
 import signal
 
 import pytest
+from pydantic import ValidationError
 
+from orbitrig.config.calibration import ChannelUncertainty
+from orbitrig.run.calibration import unrecordable
 from support.calibrate_operator import Calibrate, Simulator, confirm_manual, wait
 
 pytestmark = pytest.mark.timeout(300)
@@ -152,6 +155,18 @@ def test_readings_that_do_not_follow_the_loads_fail_the_step_saying_so(rig):
     err = step.stderr()
     assert code == 1, err
     assert "error: the fitted gain matrices cannot be recorded" in err and "were the loads applied as asked?" in err
-    assert "gain_pct" in err and "Traceback" not in err
+    assert "gain_pct = " in err and "Traceback" not in err and "errors.pydantic.dev" not in err
     assert sim.rpm() == (0.0, 0.0)
     assert sorted(p.name for p in records.iterdir()) == before
+
+
+def test_values_no_record_holds_are_said_field_by_field_on_one_line():
+    with pytest.raises(ValidationError) as caught:
+        ChannelUncertainty(gain_pct=334.4453, phase_deg=-1.0)
+    err = unrecordable("the fitted gain matrices", caught.value, "were the loads applied as asked?")
+    assert str(err) == (
+        "the fitted gain matrices cannot be recorded (gain_pct = 334.4: input should be less than or equal to 50; "
+        "phase_deg = -1: input should be greater than or equal to 0); were the loads applied as asked? "
+        "no record written"
+    )
+    assert str(unrecordable("the fitted lags", caught.value)).endswith("); no record written")
