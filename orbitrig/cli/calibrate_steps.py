@@ -23,7 +23,7 @@ import typer
 from drives.errors import DriveLimitError
 from orbitrig import __version__
 from orbitrig.config import LMS, MPA, RPM, CalibrationRecord, CalibrationUncertainty, ChannelDelay, LoadGains
-from orbitrig.config import ProbeGain, ProbeRunout, RecordStep, Reference, RigConfig, Runout
+from orbitrig.config import ProbeRunout, RecordStep, Reference, RigConfig, Runout
 from orbitrig.errors import OrbitrigError
 from orbitrig.cli.terminal import say
 from orbitrig.run.calibration import AsksOperator, CalibrationFailed, CalibrationSession, SlowRoll, unrecordable
@@ -380,13 +380,13 @@ async def probes_record(
     try:
         for p in PROBES:
             fit = fit_probe(steps, readings[p], reference.uncertainty_pct / 100.0)
-            data["probes"][p] = ProbeGain(
+            data["probes"][p] = dict(  # validated with the record: a refusal names the probe
                 gain=fit.gain,
                 gain_u=fit.gain_u,
                 linearity_pct=fit.linearity * 100,
                 span_um=float(np.ptp(steps)) * 1e6,
                 steps=len(steps),
-            ).model_dump()
+            )
             data["uncertainty"][p]["gain_pct"] = fit.gain_u_fit / abs(fit.gain) * 100.0
         data["uncertainty"]["probe_sensitivity_pct"] = reference.uncertainty_pct
         return CalibrationRecord.model_validate(data)
