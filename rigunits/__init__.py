@@ -39,6 +39,8 @@ UM = 1.0e-6  # m per micrometre
 #: the micrometre as a person reads it (the operator's prompts, the dashboard, the figures): the
 #: micro sign U+00B5, which pint parses too, never an ASCII "um"
 MICROMETRE = "\u00b5m"
+#: the microsecond likewise (a force channel's time delay), never an ASCII "us"
+MICROSECOND = "\u00b5s"
 MINUTE = 60.0  # s
 HOUR = 3600.0  # s
 

@@ -10,7 +10,7 @@ from functools import partial
 import typer
 
 from orbitrig.cli.signals import run_until_signal
-from rigunits import MICROMETRE, micrometres
+from rigunits import MICROMETRE, MICROSECOND, micrometres
 
 
 def rig_and_folder(config, writing: bool = True):
@@ -133,7 +133,7 @@ def delay(config, opts, speeds, amplitudes, activate) -> None:
         lambda rig, note: delay_record(rig, opts, speeds, amplitudes, note),
         lambda record: (
             f"{name}: lags the probes by {d.phase_deg:.4f} deg (u {d.phase_u_deg:.2g}) "
-            f"{'-' if d.delay_us < 0 else '+'} {abs(d.delay_us):.2f} us (u {d.delay_u_us:.2g})"
+            f"{'-' if d.delay_us < 0 else '+'} {abs(d.delay_us):.2f} {MICROSECOND} (u {d.delay_u_us:.2g})"
             for name, d in record.delay.items()
         ),
         "Units: [delay] phase_deg degrees, delay_us microseconds: the force "
@@ -142,7 +142,7 @@ def delay(config, opts, speeds, amplitudes, activate) -> None:
 
 
 def probes(config, opts, span_um, steps, reference_id, reference_u_pct, activate) -> None:
-    """`calibrate probes`: ``steps`` displacement steps over ``span_um`` um -> each probe's gain and linearity."""
+    """`calibrate probes`: ``steps`` displacement steps over ``span_um`` µm -> each probe's gain and linearity."""
     import numpy as np
 
     from orbitrig.cli.calibrate_steps import probes_record

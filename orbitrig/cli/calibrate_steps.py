@@ -23,10 +23,10 @@ import typer
 from drives.errors import DriveLimitError
 from orbitrig import __version__
 from orbitrig.config import LMS, MPA, RPM, CalibrationRecord, CalibrationUncertainty, ChannelDelay, LoadGains
-from orbitrig.config import ProbeGain, ProbeRunout, RecordStep, Reference, RigConfig, Runout
+from orbitrig.config import ProbeRunout, RecordStep, Reference, RigConfig, Runout
 from orbitrig.errors import OrbitrigError
 from orbitrig.cli.terminal import say
-from orbitrig.run.calibration import AsksOperator, CalibrationFailed, CalibrationSession, SlowRoll
+from orbitrig.run.calibration import AsksOperator, CalibrationFailed, CalibrationSession, SlowRoll, unrecordable
 from orbitrig.run.calibration_measure import PROBES, measure_delay, measure_loads, measure_probes, measure_runout
 from orbitrig.run.drive_setup import drive_limits
 from orbitrig.run.rig_io import RigAccess
@@ -270,7 +270,11 @@ def _base(rig: RigConfig, opts: StepOptions, step: RecordStep) -> dict:
 async def loads_record(
     rig: RigConfig, opts: StepOptions, load_n: float, reference: Reference, note
 ) -> CalibrationRecord:
-    """`calibrate loads`: the default load set of `load_n` N, each system's gain matrix fitted."""
+    """`calibrate loads`: the default load set of `load_n` N, each system's gain matrix fitted.
+    Values no record can hold (readings that do not follow the loads: none applied, a channel
+    unplugged) fail the step, no record written."""
+    from pydantic import ValidationError
+
     loads = static_loads(load_n)
     async with rig_access(rig, opts) as (access, hands):
         async with CalibrationSession(rig, access, note) as session:
@@ -281,18 +285,21 @@ async def loads_record(
     data["reference"] = reference.model_dump()
     data["loads"] = dict(data.get("loads") or {})
     u_ref = reference.uncertainty_pct / 100.0
-    for lms in LMS:
-        fit = fit_gain_matrix(loads, readings[lms], u_ref)
-        data["loads"][lms] = LoadGains(
-            gain=fit.gain.tolist(),
-            gain_u=fit.gain_u.tolist(),
-            offset_n=fit.offset.tolist(),
-            residual_n=fit.residual_rms,
-            loads=len(loads),
-        ).model_dump()
-        for axis, u in zip(("fx", "fy"), fit.relative_gain_u()):
-            data["uncertainty"][f"{axis}_{lms}"]["gain_pct"] = float(u * 100.0)
-    return CalibrationRecord.model_validate(data)
+    try:
+        for lms in LMS:
+            fit = fit_gain_matrix(loads, readings[lms], u_ref)
+            data["loads"][lms] = LoadGains(
+                gain=fit.gain.tolist(),
+                gain_u=fit.gain_u.tolist(),
+                offset_n=fit.offset.tolist(),
+                residual_n=fit.residual_rms,
+                loads=len(loads),
+            ).model_dump()
+            for axis, u in zip(("fx", "fy"), fit.relative_gain_u()):
+                data["uncertainty"][f"{axis}_{lms}"]["gain_pct"] = float(u * 100.0)
+        return CalibrationRecord.model_validate(data)
+    except ValidationError as err:
+        raise unrecordable("the fitted gain matrices", err, "were the loads applied as asked?") from None
 
 
 async def runout_record(rig: RigConfig, opts: StepOptions, note) -> CalibrationRecord:
@@ -350,7 +357,7 @@ async def delay_record(
             data["uncertainty"][name].update(phase_deg=d.phase_u_deg, delay_us=d.delay_u_us)
         return CalibrationRecord.model_validate(data)
     except ValidationError as err:
-        raise CalibrationFailed(f"the fitted lags cannot be recorded ({err}); no record written") from None
+        raise unrecordable("the fitted lags", err, "was the phase reference connected?") from None
 
 
 async def probes_record(
@@ -373,15 +380,15 @@ async def probes_record(
     try:
         for p in PROBES:
             fit = fit_probe(steps, readings[p], reference.uncertainty_pct / 100.0)
-            data["probes"][p] = ProbeGain(
+            data["probes"][p] = dict(  # validated with the record: a refusal names the probe
                 gain=fit.gain,
                 gain_u=fit.gain_u,
                 linearity_pct=fit.linearity * 100,
                 span_um=float(np.ptp(steps)) * 1e6,
                 steps=len(steps),
-            ).model_dump()
+            )
             data["uncertainty"][p]["gain_pct"] = fit.gain_u_fit / abs(fit.gain) * 100.0
         data["uncertainty"]["probe_sensitivity_pct"] = reference.uncertainty_pct
         return CalibrationRecord.model_validate(data)
     except ValidationError as err:
-        raise CalibrationFailed(f"the fitted probe gains cannot be recorded ({err}); no record written") from None
+        raise unrecordable("the fitted probe gains", err, "was the journal stepped as asked?") from None

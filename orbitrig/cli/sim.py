@@ -34,6 +34,9 @@ def register(app: typer.Typer) -> None:
         """
         import asyncio
 
+        from orbitrig.run.modbus_log import keep_pymodbus_off_the_terminal
+
+        keep_pymodbus_off_the_terminal()  # a client that hangs up before its answer: no hex dump on stderr
         cfg = _sim_config(config, speedup)
         ports = dict(modbus_port=modbus_port, adc_port=adc_port, control_port=control_port, modbus_rtu_pty=modbus_rtu)
         try:

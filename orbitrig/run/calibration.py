@@ -33,6 +33,8 @@ from dataclasses import dataclass
 from functools import partial
 from typing import Callable, TypeVar
 
+from pydantic import ValidationError
+
 from daq.averager import AveragedBlock, AveragingRule
 from daq.aux import AuxState
 from daq.errors import DaqError
@@ -55,6 +57,19 @@ T = TypeVar("T")
 
 class CalibrationFailed(OrbitrigError):
     """A calibration step could not be completed (drives, A/D link, operator)."""
+
+
+def unrecordable(what: str, err: ValidationError, hint: str = "") -> CalibrationFailed:
+    """The failure of a step whose measured values no record can hold (``err``: pydantic's
+    ValidationError): each field with its value and its limit on one line, not pydantic's text
+    (lines, URLs); ``hint`` says what the operator may have missed."""
+    fields = "; ".join(
+        f"{'.'.join(map(str, e['loc']))} = {e['input']:.4g}: {e['msg'].lower()}"
+        if isinstance(e.get("input"), (int, float))
+        else f"{'.'.join(map(str, e['loc']))}: {e['msg'].lower()}"
+        for e in err.errors(include_url=False)
+    )
+    return CalibrationFailed(f"{what} cannot be recorded ({fields}); {hint + ' ' if hint else ''}no record written")
 
 
 class AsksOperator:

@@ -16,7 +16,10 @@ import re
 import signal
 
 import pytest
+from pydantic import ValidationError
 
+from orbitrig.config.calibration import ChannelUncertainty
+from orbitrig.run.calibration import unrecordable
 from support.calibrate_operator import Calibrate, Simulator, confirm_manual, wait
 
 pytestmark = pytest.mark.timeout(300)
@@ -133,3 +136,37 @@ def test_a_failed_acquisition_stops_the_drives_before_anything_is_asked(rig):
     assert err.index("acquisition failed") < err.index("both drives stopped") < err.index(told), err
     assert "error: no block at the slow roll" in err and "Traceback" not in err
     assert sorted(p.name for p in records.iterdir()) == before
+
+
+def test_readings_that_do_not_follow_the_loads_fail_the_step_saying_so(rig):
+    """The operator confirms every prompt but applies no load: the gain matrices fitted to
+    readings of nothing have uncertainties no record can hold, so the step fails (exit 1), says
+    why, writes no record, and prints no traceback."""
+    sim, records, calibrate = rig
+    before = sorted(p.name for p in records.iterdir())
+    step = calibrate()
+    confirm_manual(sim, step)
+    for n in range(2, LOADS + 2):
+        step.wait_prompt(n)
+        step.enter()  # the loads asked for are never applied
+    step.wait_prompt(LOADS + 2)  # both drives at standstill: remove every calibration load
+    step.enter()
+    code = step.ended(sim)
+    err = step.stderr()
+    assert code == 1, err
+    assert "error: the fitted gain matrices cannot be recorded" in err and "were the loads applied as asked?" in err
+    assert "gain_pct = " in err and "Traceback" not in err and "errors.pydantic.dev" not in err
+    assert sim.rpm() == (0.0, 0.0)
+    assert sorted(p.name for p in records.iterdir()) == before
+
+
+def test_values_no_record_holds_are_said_field_by_field_on_one_line():
+    with pytest.raises(ValidationError) as caught:
+        ChannelUncertainty(gain_pct=334.4453, phase_deg=-1.0)
+    err = unrecordable("the fitted gain matrices", caught.value, "were the loads applied as asked?")
+    assert str(err) == (
+        "the fitted gain matrices cannot be recorded (gain_pct = 334.4: input should be less than or equal to 50; "
+        "phase_deg = -1: input should be greater than or equal to 0); were the loads applied as asked? "
+        "no record written"
+    )
+    assert str(unrecordable("the fitted lags", caught.value)).endswith("); no record written")

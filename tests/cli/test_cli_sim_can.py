@@ -117,3 +117,23 @@ async def test_orbitrig_sim_says_what_it_serves_and_its_can_node_reaches_another
         assert what in err, what
     assert f'can_interface = "serial", can_channel = "{ep["can"]}"' in err
     assert "Traceback" not in err
+
+
+async def test_orbitrig_sim_says_nothing_of_a_client_that_hangs_up_before_its_answer(sim_process):
+    """A client that closes its connection with a request unanswered (the drives' poll read
+    given up for a stop) is routine: pymodbus' error with its frames in hex stays off stderr."""
+    ep = json.loads(await asyncio.to_thread(sim_process.stdout.readline))
+    host, port = ep["modbus"].removeprefix("tcp://").rsplit(":", 1)
+    for tid in range(1, 21):  # each read of the spin drive's 7 status registers, then gone
+        _, writer = await asyncio.open_connection(host, int(port))
+        writer.write(bytes([0, tid, 0, 0, 0, 6, 1, 3, 0, 0, 0, 7]))
+        await writer.drain()
+        writer.close()
+        await writer.wait_closed()
+    await asyncio.sleep(0.5)  # the simulator's answers find the connections closed
+    os.kill(sim_process.pid, signal.SIGINT)
+    rc = await asyncio.to_thread(sim_process.wait, 20)
+    err = sim_process.stderr.read()
+    assert rc == 0, err
+    assert "Cancel send" not in err and ">>>>>" not in err, err
+    assert "Ctrl-C ends it" in err

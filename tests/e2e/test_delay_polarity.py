@@ -76,8 +76,8 @@ def test_a_reversed_force_channel_is_corrected_once_after_loads_and_delay(tmp_pa
     for lms, lag in (("piezo", 0.0), ("strain", STRAIN_LAG_DEG)):
         for ax in ("fx", "fy"):
             assert delay.delay[f"{ax}_{lms}"].phase_deg == pytest.approx(lag, abs=0.05), (ax, lms, delay.delay)
-    lag = r"lags the probes by -?\d+\.\d{4} deg \(u [0-9.e-]+\) [+-] \d+\.\d{2} us \(u [0-9.e-]+\)$"
-    assert len(re.findall(rf"^f[xy]_(piezo|strain): {lag}", p.stdout, re.M)) == 4, p.stdout  # never "+ -0.05 us"
+    lag = r"lags the probes by -?\d+\.\d{4} deg \(u [0-9.e-]+\) [+-] \d+\.\d{2} µs \(u [0-9.e-]+\)$"
+    assert len(re.findall(rf"^f[xy]_(piezo|strain): {lag}", p.stdout, re.M)) == 4, p.stdout  # never "+ -0.05 µs"
     for name in REVERSED:  # the record's step says what it saw
         assert f"{name} reads the reference inverted" in p.stderr, p.stderr
     assert "fy_piezo reads the reference inverted" not in p.stderr
