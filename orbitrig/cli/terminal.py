@@ -12,16 +12,23 @@ in its buffer (the interpreter's flush at exit among it) goes nowhere instead of
 :class:`TerminalConsole`, the rich console of a run's progress bars and operator lines (on
 standard error, from inside signal handlers and the bars' thread), is the exception: it goes
 quiet on any failure to write; the run log keeps the record.
+
+A reader that stops reading without going away (Ctrl-S at the terminal, a pipe nobody reads)
+makes a write wait until it reads again. The run's console writes through
+:class:`BackgroundStream`, whose own thread does the writing: the event loop that polls the
+drives and takes the signals never waits for the terminal.
 """
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import errno
 import os
 import sys
+import threading
 from collections.abc import Iterator
-from typing import Any
+from typing import Any, TextIO
 
 import typer
 from rich.console import Console
@@ -95,7 +102,86 @@ class TerminalConsole(Console):
     def on_broken_pipe(self) -> None:
         self.gone()
 
+    def written(self, timeout: float | None = None) -> None:
+        """Wait (at most ``timeout`` s) until what was printed has reached the stream (written by
+        the thread of a BackgroundStream): before the process ends without its exit's waits."""
+        if isinstance(self.file, BackgroundStream):
+            self.file.finish(timeout)
+
     def gone(self) -> None:
         """The terminal is gone: drop what waits to be written and write nothing more."""
         self.quiet = True
         del self._buffer[:]
+
+
+#: characters a BackgroundStream keeps waiting for its reader; beyond, what is written is dropped
+WAITING_MAX = 1_000_000
+
+
+class BackgroundStream:
+    """A text stream (``stream``: standard error) written by a thread of its own: ``write`` hands
+    the text over and returns at once, so that a reader that stops reading (Ctrl-S, a pipe nobody
+    reads) holds that thread only. Beyond WAITING_MAX characters waiting, the text is dropped
+    (``dropped`` counts it); once a write fails, the stream writes nothing more (the reader is gone:
+    the run log keeps the record). ``finish`` waits for what was handed over, also at the
+    process's exit."""
+
+    def __init__(self, stream: TextIO):
+        self._stream = stream
+        self._waiting: collections.deque[str] = collections.deque()
+        self._size = 0  # characters waiting
+        self._busy = False  # a write under way
+        self._gone = False
+        self.dropped = 0  # characters not written: more than WAITING_MAX were waiting
+        self._changed = threading.Condition()
+        threading.Thread(target=self._write_all, name="terminal-writer", daemon=True).start()
+        import atexit
+
+        atexit.register(self.finish)  # after the threads that are no daemons (a stop's outcome)
+
+    def write(self, text: str) -> int:
+        with self._changed:
+            if self._gone:
+                return len(text)
+            if self._size + len(text) > WAITING_MAX:
+                self.dropped += len(text)
+                return len(text)
+            self._waiting.append(text)
+            self._size += len(text)
+            self._changed.notify_all()
+        return len(text)
+
+    def flush(self) -> None:
+        """Nothing to wait for: the thread flushes what it writes."""
+
+    def finish(self, timeout: float | None = None) -> bool:
+        """Wait (at most ``timeout`` s) until what was handed over is written or the reader is gone."""
+        with self._changed:
+            return self._changed.wait_for(lambda: self._gone or not (self._waiting or self._busy), timeout)
+
+    def isatty(self) -> bool:
+        return self._stream.isatty()
+
+    def fileno(self) -> int:
+        return self._stream.fileno()
+
+    @property
+    def encoding(self) -> str:
+        return self._stream.encoding or "utf-8"
+
+    def _write_all(self) -> None:
+        while True:
+            with self._changed:
+                self._changed.wait_for(lambda: bool(self._waiting))
+                text, self._busy = "".join(self._waiting), True
+                self._waiting.clear()
+                self._size = 0
+            gone = False
+            try:
+                self._stream.write(text)
+                self._stream.flush()
+            except (OSError, ValueError):  # the reader gone, or the stream closed: quiet from here on
+                gone = True
+            with self._changed:
+                self._busy, self._gone = False, self._gone or gone
+                self._changed.notify_all()
