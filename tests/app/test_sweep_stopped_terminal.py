@@ -8,10 +8,8 @@ and the keystrokes through its line discipline, the sweep's simulator."""
 from __future__ import annotations
 
 import os
-import pty
 import signal
 import subprocess
-import threading
 import time
 
 import pytest
@@ -19,36 +17,27 @@ import pytest
 from orbitrig.cli.terminal import WAITING_MAX, BackgroundStream
 from support.cli_helpers import orbitrig_cmd
 from support.paths import ROOT
+from support.pseudo_terminal import CTRL_Q, CTRL_S, Terminal
 from support.store_checks import small_matrix
 from support.sweep_process import SweepProcess
 
 pytestmark = pytest.mark.timeout(120)
 
-CTRL_S, CTRL_Q = b"\x13", b"\x11"  # XOFF, XON
 SAFE = "spin ACT 0 rpm, fault 0; orbit ACT 0 rpm, fault 0"
 
 
 class TerminalSweep(SweepProcess):
-    """`orbitrig sweep --sim` with its standard error on a terminal (a pseudo-terminal's) read
-    into ``screen``; ``master`` takes the keystrokes."""
+    """`orbitrig sweep --sim` with its standard error on ``terminal``."""
 
     def __init__(self, out, *args: str):
-        self.master, self._tty = pty.openpty()
+        self.terminal = Terminal()
         super().__init__(out, *args)
-        os.close(self._tty)
-        self.screen = bytearray()
-        threading.Thread(target=self._read, daemon=True).start()
+        self.terminal.started()
 
     def start(self, *args: str) -> subprocess.Popen:
         command = orbitrig_cmd("sweep", "--sim", "--out", str(self.out), *args)
-        return subprocess.Popen(command, cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=self._tty)
-
-    def _read(self) -> None:
-        try:
-            while data := os.read(self.master, 65536):
-                self.screen.extend(data)
-        except OSError:  # the terminal's last reader (the sweep) has gone
-            pass
+        tty = self.terminal.tty
+        return subprocess.Popen(command, cwd=ROOT, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=tty)
 
 
 def test_a_terminal_that_stops_reading_holds_back_no_stop(tmp_path):
@@ -56,22 +45,19 @@ def test_a_terminal_that_stops_reading_holds_back_no_stop(tmp_path):
     s = TerminalSweep(tmp_path / "run", "--matrix", str(tmp_path / "m.toml"), "--speedup", "5")
     try:
         s.wait_log("[running] speeds set: spin 1000 rpm")
-        os.write(s.master, CTRL_S)
+        s.terminal.press(CTRL_S)
         time.sleep(1.5)  # the bars redraw 8 times a second: a write has met the stopped output
         s.proc.send_signal(signal.SIGTERM)
         s.wait_log("drives: ramp stop (OFF1); standstill after", timeout=10)  # before: nothing until Ctrl-Q
         log = s.text()
         assert "[stopping] SIGTERM: stopping now, both drives ramp to zero" in log and SAFE in log, log
-        os.write(s.master, CTRL_Q)
+        s.terminal.press(CTRL_Q)
         assert s.proc.wait(30) == 3
         assert s.status() == "stopped"
-        deadline = time.monotonic() + 10
-        while b"run stopped: stopped at once by SIGTERM" not in s.screen:  # said once the terminal reads
-            assert time.monotonic() < deadline, s.screen.decode(errors="replace")[-2000:]
-            time.sleep(0.05)
+        s.terminal.shows("run stopped: stopped at once by SIGTERM", 10)  # said once the terminal reads
     finally:
         s.close()
-        os.close(s.master)
+        s.terminal.close()
 
 
 def test_a_stream_nobody_reads_takes_each_write_at_once_and_drops_what_is_beyond_its_bound():
