@@ -1,4 +1,5 @@
-"""The log of `orbitrig serve`: standard error, and with --log-file a file that rotates.
+"""The log of `orbitrig serve` (and of `orbitrig dashboard`): standard error, and with --log-file
+a file that rotates.
 
 A service that runs for months must not fill its disk with its own log: the file is
 rotated by size (logging.handlers.RotatingFileHandler) when it reaches --log-max-mb and
@@ -7,7 +8,7 @@ at most --log-backups older files are kept (LOG.1 ... LOG.N), so the log takes a
 
 The records are written by a thread of their own (logging.handlers.QueueListener): a reader of
 standard error that stops reading (Ctrl-S at the terminal, a pipe nobody reads) or a log disk
-that stalls holds that thread only, never the event loop that carries out an abort. Beyond
+that stalls holds that thread only, never the event loop that carries out (or sends) an abort. Beyond
 WAITING_RECORDS records waiting, a record is dropped.
 """
 
