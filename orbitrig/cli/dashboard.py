@@ -167,13 +167,11 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Serve the live view of a rig: sign in with your broker user name and password."""
         import asyncio
-        import logging
         import signal
 
-        logging.basicConfig(
-            level=logging.DEBUG if verbose else logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s"
-        )
-        logging.getLogger("mqtt").setLevel(logging.WARNING)
+        from orbitrig.cli.service_log import setup_service_log
+
+        setup_service_log(verbose=verbose)  # a terminal that stops reading (Ctrl-S) holds back no abort
         limits = _limits(sessions_per_user, signin_delay, lockout_after, lockout, request_timeout)
         settings = _settings(broker, rig_id, prefix, tls_ca, idle_timeout, reply_timeout, limits, tick)
         host, port = _http_address(http)

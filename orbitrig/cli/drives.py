@@ -221,7 +221,7 @@ def _run_async(make_coro, command: str, interrupt=None) -> int:
     from drives.errors import DriveError
     from orbitrig.cli.drives_hold import Interrupt
     from orbitrig.cli.signals import hand_over, take_late_signals, watched
-    from orbitrig.cli.terminal import OutputError, say
+    from orbitrig.cli.terminal import OutputError, off_the_loop, say
 
     _quiet_logging()
     interrupt = Interrupt() if interrupt is None else interrupt
@@ -248,7 +248,12 @@ def _run_async(make_coro, command: str, interrupt=None) -> int:
         finally:
             hand_over(loop)
 
-    return asyncio.run(main())
+    try:
+        with off_the_loop():  # a terminal that stops reading (Ctrl-S) holds neither the poll nor a signal
+            return asyncio.run(main())
+    except OutputError as err:
+        report(command, err)
+        return 2
 
 
 def _quiet_logging() -> None:

@@ -245,6 +245,7 @@ class Operator:
                 words = left_unwritten(why, self.engine.run_id, self.engine)
                 self.console.print(f"error: {words}", style="bold red", markup=False)
         finally:
+            self.console.written(LEAVE_GRACE_S)  # said, unless the terminal does not read
             os._exit(1)
 
     def _send_stop(self, url: str, drives: Any) -> None:

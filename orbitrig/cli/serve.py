@@ -265,6 +265,10 @@ async def _leave(service: RigService, why: str, grace: float | None) -> None:
         with contextlib.suppress(OSError):
             say(f"error: orbitrig serve: {words}", err=True)
     finally:  # without joining the thread the stalled disk holds (an interpreter's exit would wait for it)
+        from orbitrig.cli.service_log import written
+        from orbitrig.service.leaving import LEAVE_GRACE_S
+
+        written(LEAVE_GRACE_S)  # the log's records so far, unless its reader does not read
         os._exit(1)
 
 

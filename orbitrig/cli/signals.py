@@ -149,4 +149,7 @@ def run_until_signal(make: Callable[[], Awaitable[T]]) -> T:
         finally:
             hand_over(loop)
 
-    return asyncio.run(main())
+    from orbitrig.cli.terminal import off_the_loop
+
+    with off_the_loop():  # a terminal that stops reading (Ctrl-S) holds neither the drives' poll nor a signal
+        return asyncio.run(main())

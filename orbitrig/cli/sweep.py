@@ -235,38 +235,43 @@ async def _sweep(
 
         started = start_simulator(speedup, sim[0])
     import contextlib
+    import sys
 
     from orbitrig.cli.progress import SweepProgress
-    from orbitrig.cli.terminal import TerminalConsole
+    from orbitrig.cli.terminal import BackgroundStream, TerminalConsole
     from orbitrig.run.heap import tune_heap
     from orbitrig.run.modbus_log import keep_pymodbus_off_the_terminal
 
     keep_pymodbus_off_the_terminal()
     tune_heap()  # bounded memory over months (orbitrig.run.heap)
-    console = TerminalConsole(stderr=True)
-    async with contextlib.AsyncExitStack() as stack:
-        access = None
-        if sim is not None:
-            from orbitrig.cli.simulated_rig import simulated_rig
+    terminal = BackgroundStream(sys.stderr)  # a terminal that stops reading (Ctrl-S) holds no drive's poll
+    console = TerminalConsole(file=terminal)
+    try:
+        async with contextlib.AsyncExitStack() as stack:
+            access = None
+            if sim is not None:
+                from orbitrig.cli.simulated_rig import simulated_rig
 
-            _, access = await stack.enter_async_context(simulated_rig(speedup, sim[0], sim[1], started=started))
-        engine, console_operator = _engine(plan, out=out, access=access, operator=operator, console=console)
-        for callback in subscribers:
-            engine.subscribe(callback)
-        if draw_figures:  # the report's figures of each completed point, drawn at the lowest priority
-            from orbitrig.analysis.report_ahead import FiguresAhead
+                _, access = await stack.enter_async_context(simulated_rig(speedup, sim[0], sim[1], started=started))
+            engine, console_operator = _engine(plan, out=out, access=access, operator=operator, console=console)
+            for callback in subscribers:
+                engine.subscribe(callback)
+            if draw_figures:  # the report's figures of each completed point, drawn at the lowest priority
+                from orbitrig.analysis.report_ahead import FiguresAhead
 
-            ahead = FiguresAhead(out)
-            stack.callback(ahead.close)
-            engine.subscribe(ahead.on_event)
-        with SweepProgress(console, revolutions=plan.revolutions) as bars:
-            engine.subscribe(bars)
-            console_operator.install()
-            try:
-                outcome = await engine.run(plan, resume=resume)
-            finally:
-                console_operator.uninstall()
-    _print_outcome(console, outcome, out, fmt)
+                ahead = FiguresAhead(out)
+                stack.callback(ahead.close)
+                engine.subscribe(ahead.on_event)
+            with SweepProgress(console, revolutions=plan.revolutions) as bars:
+                engine.subscribe(bars)
+                console_operator.install()
+                try:
+                    outcome = await engine.run(plan, resume=resume)
+                finally:
+                    console_operator.uninstall()
+        _print_outcome(console, outcome, out, fmt)
+    finally:
+        terminal.finish()  # on the terminal before anything else is said on standard error
     return outcome
 
 

@@ -12,16 +12,25 @@ in its buffer (the interpreter's flush at exit among it) goes nowhere instead of
 :class:`TerminalConsole`, the rich console of a run's progress bars and operator lines (on
 standard error, from inside signal handlers and the bars' thread), is the exception: it goes
 quiet on any failure to write; the run log keeps the record.
+
+A reader that stops reading without going away (Ctrl-S at the terminal, a pipe nobody reads)
+makes a write wait until it reads again. The run's console writes through
+:class:`BackgroundStream`, whose own thread does the writing, and so do standard output and
+error while a command that moves the drives runs its event loop (:func:`off_the_loop`): the
+loop that polls the drives and takes the signals never waits for the terminal.
 """
 
 from __future__ import annotations
 
+import atexit
+import collections
 import contextlib
 import errno
 import os
 import sys
+import threading
 from collections.abc import Iterator
-from typing import Any
+from typing import Any, TextIO
 
 import typer
 from rich.console import Console
@@ -69,7 +78,10 @@ def printing(*, err: bool = False) -> Iterator[None]:
 def stream_gone(*, err: bool = False) -> None:
     """Point standard output (`err`: error) at /dev/null: what waits in its buffer and every
     later write, the interpreter's flush at exit among them, go nowhere."""
-    stream = sys.stderr if err else sys.stdout
+    _to_devnull(sys.stderr if err else sys.stdout)
+
+
+def _to_devnull(stream: Any) -> None:
     with contextlib.suppress(OSError, ValueError):
         fd = os.open(os.devnull, os.O_WRONLY)
         try:
@@ -95,7 +107,135 @@ class TerminalConsole(Console):
     def on_broken_pipe(self) -> None:
         self.gone()
 
+    def written(self, timeout: float | None = None) -> None:
+        """Wait (at most ``timeout`` s) until what was printed has reached the stream (written by
+        the thread of a BackgroundStream): before the process ends without its exit's waits."""
+        if isinstance(self.file, BackgroundStream):
+            self.file.finish(timeout)
+
     def gone(self) -> None:
         """The terminal is gone: drop what waits to be written and write nothing more."""
         self.quiet = True
         del self._buffer[:]
+
+
+#: characters a BackgroundStream keeps waiting for its reader; beyond, what is written is dropped
+WAITING_MAX = 1_000_000
+
+
+class BackgroundStream:
+    """A text stream (``stream``: standard error) written by a thread of its own: ``write`` hands
+    the text over and returns at once, so that a reader that stops reading (Ctrl-S, a pipe nobody
+    reads) holds that thread only. Beyond WAITING_MAX characters waiting, the text is dropped
+    (``dropped`` counts it); once a write fails, the stream writes nothing more (the reader is gone:
+    the run log keeps the record; another failure, ENOSPC, is raised at the next ``flush``).
+    ``finish`` waits for what was handed over, also at the process's exit; ``close`` ends the
+    thread."""
+
+    def __init__(self, stream: TextIO):
+        self._stream = stream
+        self._waiting: collections.deque[str] = collections.deque()
+        self._size = 0  # characters waiting
+        self._busy = False  # a write under way
+        self._gone = False
+        self.dropped = 0  # characters not written: more than WAITING_MAX were waiting
+        self.unsaid: OSError | None = None  # a write that failed, its reader not gone; not raised yet
+        self._changed = threading.Condition()
+        self._closed = False  # `close`d: the thread ends, later writes go to the stream at once
+        threading.Thread(target=self._write_all, name="terminal-writer", daemon=True).start()
+        atexit.register(self.finish)  # after the threads that are no daemons (a stop's outcome)
+
+    def write(self, text: str) -> int:
+        if not isinstance(text, str):  # a text stream (click asks whether bytes are taken)
+            raise TypeError(f"write() argument must be str, not {type(text).__name__}")
+        with self._changed:
+            if self._closed and not self._gone:
+                return self._stream.write(text)
+            if self._gone:
+                return len(text)
+            if self._size + len(text) > WAITING_MAX:
+                self.dropped += len(text)
+                return len(text)
+            self._waiting.append(text)
+            self._size += len(text)
+            self._changed.notify_all()
+        return len(text)
+
+    def flush(self) -> None:
+        """Nothing to wait for (the thread flushes what it writes); a write that failed for another
+        reason than its reader gone (ENOSPC) and was not raised yet is raised here, once."""
+        with self._changed:
+            failure, self.unsaid = self.unsaid, None
+            closed = self._closed and not self._gone
+        if failure is not None:
+            raise failure
+        if closed:
+            self._stream.flush()
+
+    def finish(self, timeout: float | None = None) -> bool:
+        """Wait (at most ``timeout`` s) until what was handed over is written or the reader is gone."""
+        with self._changed:
+            return self._changed.wait_for(lambda: self._gone or not (self._waiting or self._busy), timeout)
+
+    def close(self) -> None:
+        """What waits written (`finish`, the reader willing), then the thread ends; from here on a
+        write goes to the stream at once (no event loop of a drive command waits on it any more)."""
+        self.finish()
+        with self._changed:
+            self._closed = True
+            self._changed.notify_all()
+        atexit.unregister(self.finish)
+
+    def isatty(self) -> bool:
+        return self._stream.isatty()
+
+    def fileno(self) -> int:
+        return self._stream.fileno()
+
+    @property
+    def encoding(self) -> str:
+        return self._stream.encoding or "utf-8"
+
+    def _write_all(self) -> None:
+        while True:
+            with self._changed:
+                self._changed.wait_for(lambda: bool(self._waiting) or self._closed)
+                if not self._waiting:
+                    return
+                text, self._busy = "".join(self._waiting), True
+                self._waiting.clear()
+                self._size = 0
+            failure: OSError | None = None
+            gone = False
+            try:
+                self._stream.write(text)
+                self._stream.flush()
+            except OSError as err:  # quiet from here on; raised at the next flush unless the reader is gone
+                gone, failure = True, None if reader_gone(err) else err
+                _to_devnull(self._stream)  # what is left in its buffer goes nowhere (the exit's flush)
+            except ValueError:  # the stream closed
+                gone = True
+            with self._changed:
+                self._busy, self._gone = False, self._gone or gone
+                self.unsaid = self.unsaid or failure
+                self._changed.notify_all()
+
+
+@contextlib.contextmanager
+def off_the_loop() -> Iterator[None]:
+    """Standard output and error written by threads of their own (BackgroundStream) for the block:
+    a command that moves the drives runs its event loop in it. Then what waits is written (once the
+    reader reads) and the streams are given back; a write that failed for another reason than its
+    reader gone, not raised yet, is raised as an OutputError naming the stream (as `printing` does)."""
+    streams = {"standard output": sys.stdout, "standard error": sys.stderr}
+    sys.stdout, sys.stderr = BackgroundStream(sys.stdout), BackgroundStream(sys.stderr)
+    taken = {"standard output": sys.stdout, "standard error": sys.stderr}
+    try:
+        yield
+    finally:
+        sys.stdout, sys.stderr = streams["standard output"], streams["standard error"]
+        for stream in taken.values():
+            stream.close()
+    for name, stream in taken.items():
+        if stream.unsaid is not None:
+            raise OutputError(stream.unsaid.errno, stream.unsaid.strerror, name)

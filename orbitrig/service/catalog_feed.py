@@ -3,41 +3,82 @@
 `CatalogFeed.point_completed` is called on the service's event loop when a point's
 results are stored, `CatalogFeed.run_ended` when the run's task has finished, whatever
 its outcome (it adds the run's complete points again, now with the run's final status
-and end time). Each hands the work to a worker thread (reading the run back from the
-run directory and writing the database may block) and returns at once. Adds are
-idempotent (orbitrig.catalog.store). A failure is logged and otherwise ignored: the
-catalog never touches the drives or the run.
+and end time). Each hands the work to the feed's own thread (reading the run back from
+the run directory and writing the database may block: a table locked by another client,
+a database server that does not answer) and returns at once; that thread adds one at a
+time, in order of completion. A database that never answers holds that thread alone: not
+the event loop's worker threads, which the service's broker connections (aiomqtt connects
+in one), the run's identifications and its disk checks need; and not the process's exit
+(a daemon thread: the service waits `finish` for it, bounded). Adds are idempotent
+(orbitrig.catalog.store). A failure is logged and otherwise ignored: the catalog never
+touches the drives or the run.
 """
 
 from __future__ import annotations
 
-import asyncio
+import collections
 import logging
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
 log = logging.getLogger("orbitrig.service.catalog")
+
+#: wall s the service's end waits for the catalog's adds in flight before it leaves without them
+FINISH_S = 10.0
 
 
 class CatalogFeed:
     def __init__(self, url: str):
         self.url = url
         self._catalog: Any = None  # a Catalog once the first point arrives
-        self._lock = threading.Lock()  # one write at a time, in order of completion
+        self._todo: collections.deque[tuple[Path, int | None]] = collections.deque()  # (run dir, point)
+        self._busy: tuple[Path, int | None] | None = None  # the add under way
+        self._changed = threading.Condition()
+        self._worker: threading.Thread | None = None  # started with the first add
         self.added = 0  # points added so far
         self.failed = 0  # points that could not be added
 
     def point_completed(self, run_dir: Path, point: int) -> None:
-        """Add ``point`` of the run in ``run_dir`` to the catalog, in a worker thread."""
-        asyncio.get_running_loop().run_in_executor(None, self._add, Path(run_dir), int(point))
+        """Add ``point`` of the run in ``run_dir`` to the catalog, in the feed's thread."""
+        self._hand_over(Path(run_dir), int(point))
 
     def run_ended(self, run_dir: Path) -> None:
-        """Add the complete points of the ended run in ``run_dir`` again (run_status, ended), in a worker thread."""
-        try:
-            asyncio.get_running_loop().run_in_executor(None, self._add, Path(run_dir), None)
-        except RuntimeError:  # the loop's executor is shut down (the service is leaving): here and now
-            self._add(Path(run_dir), None)
+        """Add the complete points of the ended run in ``run_dir`` again (run_status, ended), in the feed's thread."""
+        self._hand_over(Path(run_dir), None)
+
+    def finish(self, timeout: float) -> list[Path]:
+        """Wait up to ``timeout`` wall s for the adds handed over; the run directories of those not done."""
+        deadline = time.monotonic() + timeout
+        with self._changed:
+            while self._left() and self._changed.wait(max(0.0, deadline - time.monotonic())):
+                pass
+            return list(dict.fromkeys(run_dir for run_dir, _ in self._left()))
+
+    def _left(self) -> list[tuple[Path, int | None]]:
+        return ([self._busy] if self._busy is not None else []) + list(self._todo)
+
+    def _hand_over(self, run_dir: Path, point: int | None) -> None:
+        with self._changed:
+            self._todo.append((run_dir, point))
+            self._changed.notify_all()
+            if self._worker is None:
+                self._worker = threading.Thread(target=self._work, name="orbitrig-catalog", daemon=True)
+                self._worker.start()
+
+    def _work(self) -> None:
+        while True:
+            with self._changed:
+                while not self._todo:
+                    self._changed.wait()
+                self._busy = job = self._todo.popleft()
+            try:
+                self._add(*job)
+            finally:
+                with self._changed:
+                    self._busy = None
+                    self._changed.notify_all()
 
     def _add(self, run_dir: Path, point: int | None) -> None:
         """Add ``point`` of the run (None: all its complete points)."""
@@ -46,15 +87,14 @@ class CatalogFeed:
         from orbitrig.store.reader import read_run
 
         what = f"point {point}" if point is not None else "the ended run's points"
-        with self._lock:
-            try:
-                run = read_run(run_dir)  # read now: the run's status and end as they stand
-                points = [p for p in run.points if p.complete and point in (None, p.index)]
-                if self._catalog is None:
-                    self._catalog = Catalog(self.url)
-                self._catalog.add(run_rows(run, points))
-                self.added += 1
-                log.info("catalog: %s of %s added (run %s)", what, run_dir, run.status)
-            except Exception as err:  # noqa: BLE001 - the catalog must never disturb the run
-                self.failed += 1
-                log.warning("catalog %s: %s of %s not added: %s", self.url.split("@")[-1], what, run_dir, err)
+        try:
+            run = read_run(run_dir)  # read now: the run's status and end as they stand
+            points = [p for p in run.points if p.complete and point in (None, p.index)]
+            if self._catalog is None:
+                self._catalog = Catalog(self.url)
+            self._catalog.add(run_rows(run, points))
+            self.added += 1
+            log.info("catalog: %s of %s added (run %s)", what, run_dir, run.status)
+        except Exception as err:  # noqa: BLE001 - the catalog must never disturb the run
+            self.failed += 1
+            log.warning("catalog %s: %s of %s not added: %s", self.url.split("@")[-1], what, run_dir, err)

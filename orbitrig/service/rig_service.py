@@ -177,6 +177,7 @@ class RigService(RunHandling, SupervisionHandling, LeavingWithoutDisk):
         # (a fault inside the group cancels the connection task, whose session
         # publishes offline on its way out: BrokerLink._leave)
         await self.link.discard_session()
+        await self._catalog_finished()
 
     async def _shut_down(self) -> None:
         """The run stopped (drives first), then ``offline`` delivered. From the start

@@ -21,7 +21,7 @@ from orbitrig.run.heap import trim_heap
 from orbitrig.run.states import Outcome, RunState
 from orbitrig.service import live as live_feed
 from orbitrig.service import protocol as proto
-from orbitrig.service.catalog_feed import CatalogFeed
+from orbitrig.service.catalog_feed import FINISH_S, CatalogFeed
 from orbitrig.service.commands import CommandHandling
 from orbitrig.service.engine_port import Engine, EngineFactory, MatrixLoader
 from orbitrig.service.settings import CommandRefused, ServiceSettings
@@ -85,6 +85,20 @@ class RunHandling(CommandHandling):
             warnings = "".join(f"; warning: {w}" for w in summary)
             why = "" if status == Outcome.COMPLETED else f": {outcome.message}"  # who stopped it, and why
             self._set_status(RunState.IDLE, self._run_id, f"run {status}{why}{cut}{warnings}")
+
+    async def _catalog_finished(self) -> None:
+        """The catalog's adds in flight finished before the service leaves, for at most
+        catalog_feed.FINISH_S (a database that does not answer): those left are named."""
+        if self._catalog is None:
+            return
+        left = await asyncio.to_thread(self._catalog.finish, FINISH_S)
+        if left:
+            log.warning(
+                "catalog %s did not answer within %.0f s: not added: %s (`orbitrig catalog add` adds them later)",
+                self._catalog.url.split("@")[-1],
+                FINISH_S,
+                " ".join(str(run_dir) for run_dir in left),
+            )
 
     def _close_figures(self) -> None:
         ahead, self._ahead = self._ahead, None

@@ -141,11 +141,8 @@ def test_service_feed_adds_points_and_survives_a_broken_catalog(catalog_run, tmp
     async def feed(target: CatalogFeed):
         for point in (0, 1, 1):  # a point reported twice stays one set of rows
             target.point_completed(catalog_run, point)
-        await asyncio.sleep(0)
-        for _ in range(600):
-            if not target._lock.locked() and target.added + target.failed >= 3:
-                return
-            await asyncio.sleep(0.05)
+        assert await asyncio.to_thread(target.finish, 30) == []
+        assert target.added + target.failed == 3
 
     good = CatalogFeed(url)
     asyncio.run(feed(good))

@@ -16,7 +16,7 @@ def test_thousands_of_messages_keep_the_log_files_under_the_stated_size(tmp_path
     log_file = tmp_path / "serve.log"
     root = logging.getLogger()
     before, level = list(root.handlers), root.level
-    handler = setup_service_log(verbose=True, log_file=log_file, max_mb=0.05, backups=3)
+    service_log = setup_service_log(verbose=True, log_file=log_file, max_mb=0.05, backups=3)
     try:
         status = logging.getLogger("orbitrig.service.rig_service")
         for i in range(20_000):  # a month of a busy service, compressed
@@ -30,8 +30,7 @@ def test_thousands_of_messages_keep_the_log_files_under_the_stated_size(tmp_path
             if i % 7 == 0:
                 logging.getLogger("orbitrig.service.live").info("live: %d revolutions published", i)
     finally:
-        handler.close()
-        root.removeHandler(handler)
+        service_log.close()  # every record written
         root.handlers[:] = before
         root.setLevel(level)
     files = sorted(tmp_path.glob("serve.log*"))

@@ -1,5 +1,7 @@
 """`orbitrig drives run --hold` ended by a real signal: SIGTERM, SIGHUP and SIGQUIT ramp both drives to
-zero (exit 0); a second signal during that ramp makes it an emergency stop (exit 4)."""
+zero (exit 0); a second signal during that ramp makes it an emergency stop (exit 4). So they do while
+its terminal does not read (the operator's Ctrl-S, through a pseudo-terminal's line discipline): what
+it says waits, the stop does not."""
 
 from __future__ import annotations
 
@@ -8,6 +10,7 @@ import signal
 
 import pytest
 from support.drives_testkit import CW_EMERGENCY, CW_RAMP_STOP, make_models, serve, SimDrives, start_cli
+from support.pseudo_terminal import CTRL_Q, CTRL_S, Terminal
 
 pytestmark = pytest.mark.timeout(60)
 SW_AT_SETPOINT = 0x100
@@ -24,7 +27,9 @@ async def slow_sim() -> SimDrives:
         await endpoint.aclose()
 
 
-async def _hold(sim: SimDrives):
+async def _hold(sim: SimDrives, terminal: Terminal | None = None):
+    """`drives run --hold` at the setpoint (its output on ``terminal`` if given, else piped)."""
+    out = {} if terminal is None else {"stdout": terminal.tty, "stderr": terminal.tty}
     proc = await start_cli(
         "drives",
         "run",
@@ -39,7 +44,12 @@ async def _hold(sim: SimDrives):
         "--timeout",
         "30",
         "--hold",
+        **out,
     )
+    if terminal is not None:
+        terminal.started()
+        await asyncio.to_thread(terminal.shows, "holding at the setpoint", 30)
+        return proc
     said = b""
     while b"holding at the setpoint" not in said:  # the command's own word that it holds
         line = await asyncio.wait_for(proc.stderr.readline(), 30)
@@ -53,7 +63,7 @@ async def _finish(proc) -> tuple[int, str]:
     try:
         _, err = await asyncio.wait_for(proc.communicate(), 30)
     finally:
-        if proc.returncode is None:
+        if proc is not None and proc.returncode is None:
             proc.kill()
             await proc.wait()
     return proc.returncode, err.decode()
@@ -85,3 +95,24 @@ async def test_a_second_signal_during_the_ramp_is_an_emergency_stop(slow_sim):
     for dev in (1, 2):
         assert sim.regs(dev)["CW"] == CW_EMERGENCY and sim.not_the_watchdog(dev)
     await sim.wait_stopped()
+
+
+async def test_a_signal_ends_the_hold_while_its_terminal_does_not_read(slow_sim):
+    sim, terminal, proc = slow_sim, Terminal(), None
+    try:
+        proc = await _hold(sim, terminal)
+        terminal.press(CTRL_S)
+        await asyncio.sleep(0.5)
+        proc.send_signal(signal.SIGTERM)  # its words ('SIGTERM: ramping both drives to zero') meet the stopped output
+        ramp = lambda: sim.regs(1)["CW"] == CW_RAMP_STOP and sim.regs(2)["CW"] == CW_RAMP_STOP  # noqa: E731
+        await sim.wait_for(ramp, 5, "the ramp stop while the terminal does not read")  # before: none until Ctrl-Q
+        await sim.wait_stopped()
+        terminal.press(CTRL_Q)
+        assert await asyncio.wait_for(proc.wait(), 30) == 0
+        await asyncio.to_thread(terminal.shows, "both drives stopped", 10)
+        assert all(sim.not_the_watchdog(dev) for dev in (1, 2))
+    finally:
+        if proc is not None and proc.returncode is None:
+            proc.kill()
+            await proc.wait()
+        terminal.close()

@@ -46,10 +46,19 @@ def standstill(sim_rig) -> bool:
 
 @contextlib.asynccontextmanager
 async def serving(
-    broker: Broker, work: Path, rig_id: str, *, url: str | None = None, rig=None, speedup=20.0, decel=None
+    broker: Broker,
+    work: Path,
+    rig_id: str,
+    *,
+    url: str | None = None,
+    rig=None,
+    speedup=20.0,
+    decel=None,
+    catalog_url: str | None = None,
 ):
     """(service, sim_rig, client): the service `orbitrig serve --sim` builds, with its abort
-    connection, quick reconnects, on a fresh simulator (``decel``: both drives' DECEL_TIME)."""
+    connection, quick reconnects, on a fresh simulator (``decel``: both drives' DECEL_TIME;
+    ``catalog_url``: the catalog it adds completed points to)."""
     from sim.rig import SimRig
 
     async with SimRig(speedup=speedup, adc_pty=False) as sim_rig:
@@ -57,7 +66,11 @@ async def serving(
             for drive in sim_rig.drives.values():
                 drive.write(DECEL_TIME, [decel])
         settings = ServiceSettings(
-            rig_id=rig_id, matrices_dir=write_matrices(work / "matrices"), reconnect_initial=0.2, reconnect_max=1.0
+            rig_id=rig_id,
+            matrices_dir=write_matrices(work / "matrices"),
+            reconnect_initial=0.2,
+            reconnect_max=1.0,
+            catalog_url=catalog_url,
         )
         creds = BrokerSettings.from_url(
             url or broker.url,

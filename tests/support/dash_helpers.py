@@ -44,7 +44,8 @@ CHROMIUM_FLAGS = (
 class Dashboard:
     """`orbitrig dashboard` as a subprocess on a free loopback port (its log in ``log``)."""
 
-    def __init__(self, broker_url: str, rig_id: str, workdir: Path, *extra: str):
+    def __init__(self, broker_url: str, rig_id: str, workdir: Path, *extra: str, tty: int | None = None):
+        """``tty``: a terminal its output goes to (else its log file)."""
         self.port = free_port()
         self.url = f"{'https' if '--https-cert' in extra else 'http'}://127.0.0.1:{self.port}/"
         self.log = Path(workdir) / f"dashboard-{self.port}.log"
@@ -65,8 +66,8 @@ class Dashboard:
                     f"127.0.0.1:{self.port}",
                     *extra,
                 ),
-                stdout=log,
-                stderr=log,
+                stdout=log if tty is None else tty,
+                stderr=log if tty is None else tty,
                 env=env,
                 cwd=REPO,
             )
