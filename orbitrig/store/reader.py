@@ -61,6 +61,14 @@ def read_run(directory: str | Path, *, blocks: bool = True) -> Run:
     path = layout.run_file
     if not path.is_file():
         raise RunDirError(directory, f"not an orbitrig run directory: no {RUN_FILE} (nor {layout.header.name}) in it")
+    return read_run_file(path, blocks=blocks, directory=directory)
+
+
+def read_run_file(path: str | Path, *, blocks: bool = True, directory: Path | None = None) -> Run:
+    """Read a consolidated run file (run.h5 or the h5 export, under any name: a copy sent to a
+    colleague); the run's ``directory`` is the file itself unless given. Raises :class:`RunDirError`."""
+    path = Path(path)
+    directory = path if directory is None else directory
     with open_h5(path) as h5:
         fmt = text(h5.attrs.get("format"))
         if fmt not in READABLE_FORMATS:

@@ -18,7 +18,7 @@ from orbitrig.errors import TableError
 from orbitrig.load_systems import LoadSystem
 from orbitrig.store import frames
 from orbitrig.store.fit_record import FitRecord, fit_record, point_fits
-from orbitrig.store.reader import read_run
+from orbitrig.store.reader import read_run, read_run_file
 from orbitrig.store.stored_run import Point, Run
 from reduction.methods import Method
 
@@ -133,8 +133,9 @@ class RunData:
 
 
 def open_run(path: str | Path) -> RunData:
-    """Open the run in ``path`` (docs/api.md). Raises orbitrig.store.reader.RunDirError."""
-    return RunData(read_run(path))
+    """Open the run in ``path`` (docs/api.md): a run directory, or a run file (run.h5 or the h5
+    export, under any name). Raises orbitrig.store.reader.RunDirError."""
+    return RunData(read_run_file(path) if Path(path).is_file() else read_run(path))
 
 
 #: the "file" a table in memory is in errors
