@@ -243,6 +243,7 @@ def _frequency(name: str, fg: h5py.File | h5py.Group) -> Frequency:
         complete=bool(fa.get("complete", False)),
         coherence=coh,
         n_records=int(fa.get("n_records", 0)),
+        measured_orbit_speed=float(fa.get("measured_orbit_speed", np.nan)),
         waveform=waveform,
     )
 

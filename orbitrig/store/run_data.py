@@ -94,11 +94,12 @@ class RunData:
 
     def table(self, point: int, lms: LoadSystem | str = LoadSystem.PIEZO):
         """DataFrame: the point's orbit table for load measuring system ``lms`` (piezo |
-        strain), the orbit-table CSV's columns and ``direction``."""
+        strain), the orbit-table CSV's columns, ``direction`` and ``block`` (the waveforms' block
+        each row was measured in)."""
         p = self._point(point)
         if lms not in p.tables:
             raise KeyError(f"point {point} has no orbit table {str(lms)!r} (tables: {', '.join(p.tables) or 'none'})")
-        return frames.table_frame(p.tables[LoadSystem(lms)])  # lms may come as its str value
+        return frames.table_frame(p.tables[LoadSystem(lms)], p.frequencies)  # lms may come as its str value
 
     def fits(self, point: int | None = None) -> list[FitRecord]:
         """Every stored identification (of one point, or of every complete point) as arrays."""
