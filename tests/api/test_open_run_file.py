@@ -11,6 +11,7 @@ import pytest
 
 import orbitrig
 from orbitrig.store.errors import RunDirError
+from support.cli_helpers import orbitrig as orbitrig_cli
 
 
 @pytest.fixture(scope="module")
@@ -42,3 +43,14 @@ def test_a_file_that_is_no_run_file_is_refused_naming_it(sent):
     notes = sent.parent / "notes.txt"
     with pytest.raises(RunDirError, match=f"{notes}: not a readable HDF5 file"):
         orbitrig.open_run(notes)
+
+
+def test_reduce_still_wants_the_directory_it_writes_into(sent):
+    """`orbitrig reduce` writes its CSV into the run's directory: a file is refused as before,
+    not taken and then failing to write `FILE/reduce_*.csv`."""
+    p = orbitrig_cli("reduce", str(sent), "--model", "kc8")
+    assert p.returncode == 2, p.stderr
+    assert (
+        p.stderr == f"error: {sent}: not a directory (expected a run directory written by `orbitrig sweep --out DIR`)\n"
+    )
+    assert sorted(x.name for x in sent.parent.iterdir()) == ["notes.txt", sent.name]
