@@ -10,6 +10,7 @@ one identification, stored or made from a table in memory. Plain-data accessors
 from __future__ import annotations
 
 import io
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -154,6 +155,21 @@ def _in_frame(err: TableError, df) -> TableError:
     return TableError(where, None, err.column, reason)
 
 
+def _as_frame(df):
+    """``df`` as a DataFrame: a DataFrame as it is, a mapping of columns made into one; TypeError
+    naming what was given otherwise (an ndarray has no column names)."""
+    import pandas as pd
+
+    if isinstance(df, pd.DataFrame):
+        return df
+    if isinstance(df, Mapping):
+        return pd.DataFrame(df)
+    raise TypeError(
+        f"identify_table takes a pandas DataFrame (or a mapping of columns) with the orbit-table columns "
+        f"(spin_rpm, orbit_hz, x_re, ..., fy_im), not {type(df).__module__}.{type(df).__qualname__}"
+    )
+
+
 def identify_table(
     df, model: str = "kcd11", freq_dep: str = "none", method: Method | str = Method.OLS, solver: str = "qr"
 ) -> Fit:
@@ -169,6 +185,7 @@ def identify_table(
     from reduction.identify import identify
     from reduction.models import CONSTANT
 
+    df = _as_frame(df)
     buf = io.StringIO()
     df.to_csv(buf, index=False)
     try:
