@@ -34,19 +34,22 @@ def held_arrays(frequency: Any, values: dict[str, Any]) -> tuple[np.ndarray, dic
 
 
 def read_export(path: str | Path) -> dict[str, Any]:
-    """The exported ross_bearings.json at ``path``; ValueError naming the file when it is not one
-    (not JSON, or JSON of another kind: a run's run.json, say)."""
+    """The exported ross_bearings.json at ``path`` (or a file of its layout made by hand); ValueError
+    naming the file when it is not one (not JSON, or JSON of another kind: a run's run.json, say)."""
     try:
         doc = json.loads(Path(path).read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as err:
         raise ValueError(f"{path}: not JSON ({err})") from None
-    fmt = doc.get("format") if isinstance(doc, dict) else None
-    if not (isinstance(fmt, str) and fmt.startswith("orbitrig-ross/")) or not isinstance(doc.get("bearings"), list):
-        raise ValueError(
-            f"{path}: not an orbitrig ROSS export (format {fmt!r}): "
-            "`orbitrig export RUN --format ross` writes ross_bearings.json"
-        )
-    return doc
+    fmt = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
+    if fmt is not None and not (isinstance(fmt, str) and fmt.startswith("orbitrig-ross/")):
+        why = f"format {fmt!r}"  # a file made by hand in its layout may give none
+    elif not isinstance(doc.get("bearings"), list):
+        why = "no list 'bearings'"
+    else:
+        return doc
+    raise ValueError(
+        f"{path}: not an orbitrig ROSS export ({why}): `orbitrig export RUN --format ross` writes ross_bearings.json"
+    )
 
 
 def _chosen(doc: dict[str, Any], path: str | Path, point: int | None, lms: str) -> dict[str, Any]:

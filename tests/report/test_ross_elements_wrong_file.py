@@ -16,6 +16,10 @@ def test_a_file_that_is_no_ross_export_is_named(synthetic_run, tmp_path):
     header = synthetic_run / "run.json"
     with pytest.raises(ValueError, match=rf"^{header}: not an orbitrig ROSS export \(format 'orbitrig-run/"):
         bearing_elements(header, [0, 6])
+    other = tmp_path / "other.json"
+    other.write_text('{"points": []}')
+    with pytest.raises(ValueError, match=rf"^{other}: not an orbitrig ROSS export \(no list 'bearings'\)"):
+        bearing_elements(other, [0, 6])
     table = tmp_path / "point_0000_piezo.csv"
     table.write_text("spin_rpm,orbit_hz\n1000,5\n")
     with pytest.raises(ValueError, match=rf"^{table}: not JSON \("):
