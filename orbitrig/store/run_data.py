@@ -99,7 +99,10 @@ class RunData:
         each row was measured in)."""
         p = self._point(point)
         if lms not in p.tables:
-            raise KeyError(f"point {point} has no orbit table {str(lms)!r} (tables: {', '.join(p.tables) or 'none'})")
+            raise KeyError(
+                f"point {point} has no orbit table {str(lms)!r} (tables: {', '.join(p.tables) or 'none'})"
+                + (f"; it is not complete: {p.problem}" if not p.complete else "")
+            )
         return frames.table_frame(p.tables[LoadSystem(lms)], p.frequencies)  # lms may come as its str value
 
     def fits(self, point: int | None = None) -> list[FitRecord]:
@@ -120,9 +123,11 @@ class RunData:
         for f in fits:
             if (f.lms, f.model, f.freq_dep, f.method) == (lms, model, freq_dep, method):
                 return Fit(f)
+        p = self._point(point)
         raise KeyError(
             f"point {point}: no fit {lms} {model} {freq_dep} {method} "
             f"(fits: {', '.join(f.key for f in fits) or 'none'})"
+            + (f"; it is not complete: {p.problem}" if not p.complete else "")
         )
 
     def truth(self, point: int) -> dict | None:
