@@ -90,12 +90,14 @@ def _entry(fit: FitRecord, key: str, part: str) -> float:
     return float(getattr(fit, part)[fit.names.index(key)]) if key in fit.names else math.nan
 
 
-def coefficient_table(fit: FitRecord):
+def coefficient_table(fit: FitRecord, truth: dict[str, float] | None = None):
     """One fit's coefficients (index ``name``): value, std, U, unit, and the budget's parts.
     Their unit differs per row: ``attrs["row_units"]`` (name -> unit, the ``unit`` column)
     applies to every column in ``attrs["row_unit_columns"]``."""
     data = {"name": fit.names, "value": fit.value, "std": fit.std, "U": fit.U, "unit": fit.units}
     data.update({part: fit.budget[part] for part in BUDGET_PARTS if part in fit.budget})
+    if truth:  # --sim: the fit's own truth (fits.csv's `true`), NaN where it gives none
+        data["true"] = [float(truth.get(n, math.nan)) for n in fit.names]
     df = _frame(data, {"unit": ""}, "name")
     df.attrs["row_units"] = dict(zip(fit.names, fit.units))
     df.attrs["row_unit_columns"] = [k for k in data if k not in ("name", "unit")]

@@ -17,7 +17,7 @@ import numpy as np
 
 from orbitrig.errors import TableError
 from orbitrig.load_systems import LoadSystem
-from orbitrig.store import frames
+from orbitrig.store import csvfile, frames
 from orbitrig.store.fit_record import FitRecord, fit_record, point_fits
 from orbitrig.store.reader import read_run, read_run_file
 from orbitrig.store.stored_run import Point, Run
@@ -27,8 +27,9 @@ from reduction.methods import Method
 class Fit:
     """One identification: ``record`` (arrays) and its tables."""
 
-    def __init__(self, record: FitRecord):
+    def __init__(self, record: FitRecord, truth: dict[str, float] | None = None):
         self.record = record
+        self.truth = truth or {}  # coefficient -> true value (--sim runs; csvfile.fit_truth)
 
     def __repr__(self) -> str:
         r = self.record
@@ -46,8 +47,9 @@ class Fit:
 
     @property
     def coefficients(self):
-        """DataFrame (index ``name``): value, std, U, unit and the budget's parts (SI)."""
-        return frames.coefficient_table(self.record)
+        """DataFrame (index ``name``): value, std, U, unit, the budget's parts and, in --sim runs,
+        ``true`` (the fit's own truth, as fits.csv's column; SI)."""
+        return frames.coefficient_table(self.record, self.truth)
 
     @property
     def covariance(self):
@@ -122,7 +124,8 @@ class RunData:
         fits = self.fits(point)
         for f in fits:
             if (f.lms, f.model, f.freq_dep, f.method) == (lms, model, freq_dep, method):
-                return Fit(f)
+                p = self._point(point)
+                return Fit(f, csvfile.fit_truth(f.result, p.truth if self.run.sim else None))
         p = self._point(point)
         raise KeyError(
             f"point {point}: no fit {lms} {model} {freq_dep} {method} "
