@@ -216,7 +216,7 @@ def _plot_point(run: Run, pr: PointReport, out: Path, opts: ReportOptions) -> No
 
 def _fitted(pr: PointReport, r: Reduced) -> plots.Fitted:
     """`r` to draw, with the covariance of its bands (PointReport.bands; the fit's own if none)."""
-    b = pr.bands.get(id(r))
+    b = pr.band(r)
     if b is None:
         return plots.Fitted(fit_label(r), r.identification, own_truth(r))
     return plots.Fitted(fit_label(r), r.identification, own_truth(r), b.covariance, b.basis)

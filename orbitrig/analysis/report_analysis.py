@@ -34,7 +34,13 @@ class PointReport:
     unreadable: list[str] = field(default_factory=list)  # stored blocks the signal figures could not read
     verdicts: dict[LoadSystem, list[Verdict]] = field(default_factory=dict)  # lms -> model adequacy
     derived: dict[LoadSystem, list[tuple[Reduced, Derived]]] = field(default_factory=dict)  # lms -> derived
-    bands: dict[int, Band] = field(default_factory=dict)  # id(result) -> the covariance its figures draw
+    #: fit_key(result) -> the covariance its figures draw (not by id(): a point analysed in a
+    #: worker process comes back pickled, its results new objects)
+    bands: dict[tuple[str, ...], Band] = field(default_factory=dict)
+
+    def band(self, r: Reduced) -> Band | None:
+        """The covariance the figures of result ``r`` draw (None: not analysed here)."""
+        return self.bands.get(fit_key(r))
 
     def fit_warnings(self) -> list[str]:
         """'<lms> <model> <freq-dep> warns: <text>' for every warning of a repeated or stored fit,
@@ -51,6 +57,11 @@ class PointReport:
             if not i.ok
         ]
         return out + self.unreadable
+
+
+def fit_key(r: Reduced) -> tuple[str, ...]:
+    """What tells one result of a point from the others: load system, model, freq-dep, method."""
+    return (str(r.lms), r.model, r.freq_dep, str(r.method))
 
 
 def fit_label(r: Reduced) -> str:
@@ -97,8 +108,10 @@ def analyse_point(point: Point) -> PointReport:
     for lms, table in point.tables.items():
         results = pr.results.get(lms, [])
         pr.verdicts[lms] = adequacy_verdicts(lms, results)
-        pr.bands.update({id(r): band_of(r) for r in results})
-        pr.derived[lms] = [(r, d) for r in results if (d := derived_of(r, table.orbit, pr.bands[id(r)])) is not None]
+        pr.bands.update({fit_key(r): band_of(r) for r in results})
+        pr.derived[lms] = [
+            (r, d) for r in results if (d := derived_of(r, table.orbit, pr.bands[fit_key(r)])) is not None
+        ]
     return pr
 
 

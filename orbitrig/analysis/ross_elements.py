@@ -33,6 +33,25 @@ def held_arrays(frequency: Any, values: dict[str, Any]) -> tuple[np.ndarray, dic
     return pad(axis, 0.0, HOLD_SPEED), {k: pad(v, v[0], v[-1]) for k, v in values.items()}
 
 
+def read_export(path: str | Path) -> dict[str, Any]:
+    """The exported ross_bearings.json at ``path`` (or a file of its layout made by hand); ValueError
+    naming the file when it is not one (not JSON, or JSON of another kind: a run's run.json, say)."""
+    try:
+        doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise ValueError(f"{path}: not JSON ({err})") from None
+    fmt = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
+    if fmt is not None and not (isinstance(fmt, str) and fmt.startswith("orbitrig-ross/")):
+        why = f"format {fmt!r}"  # a file made by hand in its layout may give none
+    elif not isinstance(doc.get("bearings"), list):
+        why = "no list 'bearings'"
+    else:
+        return doc
+    raise ValueError(
+        f"{path}: not an orbitrig ROSS export ({why}): `orbitrig export RUN --format ross` writes ross_bearings.json"
+    )
+
+
 def _chosen(doc: dict[str, Any], path: str | Path, point: int | None, lms: str) -> dict[str, Any]:
     found = [b for b in doc["bearings"] if b["lms"] == lms and (point is None or point in b["points"])]
     if not found:
@@ -61,7 +80,7 @@ def bearing_elements(
     with ``strict`` refused (ValueError). Requires ross-rotordynamics: pip install -e ".[ross]" (source tree)."""
     import ross
 
-    data = _chosen(json.loads(Path(path).read_text()), path, point, str(lms))
+    data = _chosen(read_export(path), path, point, str(lms))
     warn_or_refuse(data, path, strict)
     if len(data["frequency"]) == 1:
         constant = {k: float(data[k][0]) for k in KEYS}

@@ -96,6 +96,24 @@ def operating_point(row: Row) -> tuple:
     return tuple(condition_value(row[c]) for c in CONDITIONS)
 
 
+def other_conditions(row: Row, variable: Variable) -> tuple[tuple[str, float | None], ...]:
+    """The row's conditions but ``variable`` (column, value rounded as condition_value; None
+    when not stored): the rows of one run that share them are one curve against ``variable``."""
+    return tuple(
+        (c, None if row.get(c) is None else condition_value(row[c])) for c in CONDITIONS if c != variable.value
+    )
+
+
+def curves(rows: list[Row], variable: Variable) -> dict[tuple, list[Row]]:
+    """``rows`` (one run's) by their other conditions, in order of first appearance: a run of
+    two pressure ratios plotted against static eccentricity is two curves, not one line
+    zigzagging between them."""
+    out: dict[tuple, list[Row]] = {}
+    for row in rows:
+        out.setdefault(other_conditions(row, variable), []).append(row)
+    return out
+
+
 def bearing_key(row: Row) -> tuple:
     """What tells the row's bearing from another's: rig, journal, clearance and scenario (its
     numbers rounded as the conditions are; a row catalogued before these columns were: None and

@@ -15,12 +15,12 @@ import numpy as np
 from orbitrig.analysis.plots import FigureFormat, _figure, style
 from orbitrig.analysis.plot_marks import _colors
 from orbitrig.catalog.bearing import bearing_label
-from orbitrig.catalog.compare import Row, Variable, bearing_key, repeatability, runs_of
+from orbitrig.catalog.compare import Row, Variable, bearing_key, curves, other_conditions, repeatability, runs_of
 from orbitrig.catalog.predicted import PredictedLines, predicted_lines
 from orbitrig.store.durable import write_atomic
 from orbitrig.store.errors import StorageError, storage_error
 from reduction.models import is_constant
-from rigunits import display_unit
+from rigunits import display_unit, in_rpm
 
 #: height of one row of panels with its titles and labels, and the figure's top and bottom edge (in)
 PANEL_HEIGHT, EDGE = 1.9, 0.06
@@ -56,6 +56,7 @@ def compare_figure(
     lines = predicted_lines(predicted or [], rows, variable)  # those of the plotted rows' conditions
     labels = _run_labels(runs)
     colors = _colors(len(runs))
+    markers = _curve_markers(rows, variable)
     xs = np.array([variable.of(r) for r in rows])
     step = np.min(np.diff(np.unique(xs))) if len(np.unique(xs)) > 1 else 1.0
     offsets = (np.arange(len(runs)) - (len(runs) - 1) / 2) * 0.06 * step  # repeats side by side
@@ -63,14 +64,9 @@ def compare_figure(
         ax = fig.add_subplot(nrow, ncol, k + 1)
         unit, scale = display_unit(name)
         for (run_id, run_rows), color, dx in zip(runs.items(), colors, offsets):
-            pts = [
-                (variable.of(r) + dx, r[name] * scale, (r[f"{name}_U"] or 0.0) * scale)
-                for r in run_rows
-                if r.get(name) is not None
-            ]
-            if pts:
-                x, y, u = np.array(sorted(pts)).T
-                ax.errorbar(x, y, yerr=u, fmt="o-", ms=4, lw=0.8, capsize=3, color=color, label=labels[run_id])
+            _draw_run(ax, run_rows, variable, name, (scale, dx), color, labels[run_id], markers)
+        if k == 0:
+            _condition_legend(ax, markers)
         _draw_predicted(ax, lines, variable, name, scale)
         ax.set_title(f"{name} [{unit}]\n{repeatability(rows, name).text()}", fontsize=font)
         ax.set_xlabel(variable.label, fontsize=font)
@@ -78,6 +74,49 @@ def compare_figure(
         ax.grid(alpha=0.3)
     _lay_out(fig, title, font)
     return fig
+
+
+def _curve_markers(rows: list[Row], variable: Variable) -> dict[tuple, tuple[str, str]]:
+    """Each set of the other conditions among ``rows`` -> (marker, legend text naming the
+    conditions that tell it from the other sets; "" when there is one set)."""
+    sets = list(dict.fromkeys(other_conditions(r, variable) for r in rows))
+    differing = [k for k in range(len(sets[0]) if sets else 0) if len({s[k] for s in sets}) > 1]
+    marks = "osD^v<>ph"
+    return {s: (marks[i % len(marks)], " ".join(_condition_text(*s[k]) for k in differing)) for i, s in enumerate(sets)}
+
+
+def _condition_text(column: str, value: float | None) -> str:
+    """A condition as the predicted CSV names it: spin in rpm, recess pressure in MPa."""
+    if value is None:
+        return f"{column} ?"
+    if column == "spin":
+        return f"spin_rpm {in_rpm(value):g}"
+    return f"recess_pressure_mpa {value / 1e6:g}" if column == "recess_pressure" else f"{column} {value:g}"
+
+
+def _draw_run(ax, run_rows, variable, name, at, color, label, markers) -> None:
+    """One run's values of ``name`` with their U bars: one curve per set of its other
+    conditions (compare.curves), each with that set's marker; only the first is labelled.
+    ``at``: (scale to the display unit, the run's offset on the x axis)."""
+    scale, dx = at
+    for conditions, curve in curves(run_rows, variable).items():
+        pts = [
+            (variable.of(r) + dx, r[name] * scale, (r[f"{name}_U"] or 0.0) * scale)
+            for r in curve
+            if r.get(name) is not None
+        ]
+        if pts:
+            x, y, u = np.array(sorted(pts)).T
+            fmt = markers[conditions][0] + "-"
+            ax.errorbar(x, y, yerr=u, fmt=fmt, ms=4, lw=0.8, capsize=3, color=color, label=label)
+            label = "_nolegend_"
+
+
+def _condition_legend(ax, markers: dict[tuple, tuple[str, str]]) -> None:
+    """Grey legend entries naming each set of conditions by its marker, when there are several."""
+    if len(markers) > 1:
+        for marker, text in markers.values():
+            ax.plot([], [], marker=marker, ls="-", lw=0.8, ms=4, color="0.45", label=text)
 
 
 def _run_labels(runs: dict[str, list[Row]]) -> dict[str, str]:

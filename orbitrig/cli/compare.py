@@ -60,6 +60,13 @@ def compare_cmd(
         rows = catalog.rows(f"{fit} and {where}" if where.strip() else fit)
         if not rows:
             raise CatalogUsageError(no_rows(catalog, fit, f"{lms} {model} {freq_dep} {method}", where))
+        absent = [c for c in names if all(r.get(c) is None for r in rows)]
+        if absent:  # else an empty panel, exit 0
+            given = [c for c in COEFFICIENTS if any(r.get(c) is not None for r in rows)]
+            raise CatalogUsageError(
+                f"--coefficients {','.join(absent)}: no catalog row of {lms} {model} {freq_dep} {method} gives "
+                f"{'it' if len(absent) == 1 else 'them'} (the model has none); its rows give {', '.join(given)}"
+            )
         if table and not predicted_lines(table, rows, Variable(against)):
             typer.echo(
                 f"--predicted {predicted}: no line's conditions are those of the plotted rows: none drawn", err=True

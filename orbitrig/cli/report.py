@@ -75,14 +75,13 @@ def reduce_cmd(
     error and the exit status is 1, the others reduced and written (as export, report).
     """
     from orbitrig.errors import ReductionError
-    from orbitrig import open_run
     from orbitrig.analysis.reduce import csv_path, reduce_run, write_csv
     from orbitrig.store.errors import StorageError
-    from orbitrig.store.reader import RunDirError
+    from orbitrig.store.reader import RunDirError, read_run
     from orbitrig.store.selection import select_points
 
     try:
-        run = open_run(directory).run
+        run = read_run(directory)  # a directory: the CSV is written into it
     except RunDirError as err:
         _fail(str(err))
     selection = select_points(run)  # as export and report: a damaged point is named, exit 1

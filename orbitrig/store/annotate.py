@@ -28,6 +28,13 @@ PER_CHANNEL, PER_COEFFICIENT, PER_SOURCE = "<channel>", "<coefficient>", "<sourc
 #: the description of a name missing from the catalog (the tests find none; a run never fails on it)
 UNDOCUMENTED = "undocumented"
 
+#: the sign of each ``orbit`` dataset (its attribute ``meaning``): an orbit table's rows and the
+#: derived quantities' frequencies are |Omega| (the whirl direction is in the phasors), the
+#: simulator's truth gives each row's Omega signed, as a block's ``orbit`` attribute does
+ORBIT_TABLE = "|Omega| > 0: the whirl direction is in the phasors (y_bar = -i x_bar forward, +i x_bar backward)"
+ORBIT_DERIVED = "|Omega| > 0, as planned"
+ORBIT_SIGNED = "signed (< 0 backward)"
+
 #: dataset name -> (units, description); the units may be a PER_* rule
 DATASETS = {
     "raw_counts": ("count", "every averaged revolution's A/D counts (revolution, channel, sample)"),
@@ -45,7 +52,7 @@ DATASETS = {
     "uncertainty": (PER_CHANNEL, "standard uncertainty of each averaged phasor, the spin tones fitted out"),
     "revolutions": (ONE, "the A/D board's revolution number of each averaged revolution"),
     "coherence": (ONE, "gamma^2 between displacement and force: rows piezo, strain; columns xfx, yfx, xfy, yfy"),
-    "orbit": ("rad/s", "orbit speed Omega"),
+    "orbit": ("rad/s", "orbit speed Omega (its sign: attribute meaning)"),
     "orbit_hz": ("Hz", "orbit frequency"),
     "x": ("m", "x displacement phasor of the journal (mean of the probe planes)"),
     "y": ("m", "y displacement phasor of the journal (mean of the probe planes)"),

@@ -55,7 +55,8 @@ UNIT_RULES = {
     "coefficients": "per coefficient: identification.*.units (also std_errors, U, interval_95*, the budget, truth)",
     "covariance": "entry (i, j) in units(i) x units(j), over covariance_names",
     "mean": "per channel: run.channel_units (also dc, phasors, uncertainty)",
-    "convention": "phasors q = Re(q_bar exp(i theta)); forces on the journal, f_bar = -Z d_bar",
+    "convention": "phasors q = Re(q_bar exp(i theta)); forces on the journal, f_bar = -Z d_bar; orbit of a load "
+    "system's table: |Omega| > 0 (the whirl: direction, +1 forward, -1 backward); truth.orbit: signed (< 0 backward)",
     "text": "a text (or cell of texts) with characters outside ASCII also as <name>_utf8, its UTF-8 bytes "
     "(uint8 row; a cell of them): GNU Octave cuts such a char field, char(<name>_utf8) is the exact text",
 }

@@ -33,6 +33,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from orbitrig.store.annotate import ORBIT_DERIVED
 from orbitrig.store.layout import DERIVED_UNITS
 from orbitrig.store.pieces import fixed_text, put, strings
 from reduction.whirl import Whirl
@@ -176,7 +177,7 @@ def _consistency(g: h5py.Group, c: dict[str, Any], names: list[str]) -> None:
 def _derived(g: h5py.Group, d: dict[str, Any], names: list[str]) -> None:
     hz = np.asarray(d["orbit_hz"], dtype=np.float64)
     g.attrs["covariance"] = d.get("covariance", "")
-    put(g, "orbit", HZ * hz, "rad/s")
+    put(g, "orbit", HZ * hz, "rad/s", meaning=ORBIT_DERIVED)
     put(g, "orbit_hz", hz, "Hz")
     for k in ("xx", "yy"):
         put(

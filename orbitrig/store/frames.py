@@ -44,13 +44,29 @@ def points_frame(points):
     return _frame(rows, SETTINGS_UNITS, "point")
 
 
-def table_frame(table):
+def table_frame(table, blocks=()):
     """An orbit table (reduction.table.OrbitTable) in the orbit-table CSV's columns (rpm, Hz,
-    m, N; gamma2_*, n_records, u_* when measured) and ``direction`` (+1 forward, -1 backward)."""
+    m, N; gamma2_*, n_records, u_* when measured), ``direction`` (+1 forward, -1 backward) and
+    ``block``: the name of the block among ``blocks`` (the point's Frequency list) each row was
+    measured in, as the waveforms' ``block`` coordinate names it ("" where none is known)."""
     cols = orbit_table_columns(table, direction=True)
-    return _frame(
-        {name: values for name, (values, _) in cols.items()}, {name: unit for name, (_, unit) in cols.items()}
-    )
+    data = {name: values for name, (values, _) in cols.items()}
+    data["block"] = row_blocks(table.orbit, data["direction"], blocks)
+    return _frame(data, {name: unit for name, (_, unit) in cols.items()} | {"block": ""})
+
+
+def row_blocks(orbit, direction, blocks) -> list[str]:
+    """The block of each table row (orbit > 0 in rad/s, direction +1/-1): the one whirling that
+    way at that speed, the speed measured on the timing disk (or, where none was, |the planned
+    one|), as the table's rows were made from them; "" unless exactly one matches."""
+    speeds = [
+        (b.name, b.direction, b.measured_orbit_speed if b.measured_orbit_speed > 0 else abs(b.orbit)) for b in blocks
+    ]
+    out = []
+    for w, d in zip(np.asarray(orbit, float), direction):
+        names = [n for n, bd, s in speeds if bd == d and math.isclose(s, w, rel_tol=1e-12)]
+        out.append(names[0] if len(names) == 1 else "")
+    return out
 
 
 def coefficients_frame(fits: list[FitRecord]):
@@ -74,12 +90,14 @@ def _entry(fit: FitRecord, key: str, part: str) -> float:
     return float(getattr(fit, part)[fit.names.index(key)]) if key in fit.names else math.nan
 
 
-def coefficient_table(fit: FitRecord):
+def coefficient_table(fit: FitRecord, truth: dict[str, float] | None = None):
     """One fit's coefficients (index ``name``): value, std, U, unit, and the budget's parts.
     Their unit differs per row: ``attrs["row_units"]`` (name -> unit, the ``unit`` column)
     applies to every column in ``attrs["row_unit_columns"]``."""
     data = {"name": fit.names, "value": fit.value, "std": fit.std, "U": fit.U, "unit": fit.units}
     data.update({part: fit.budget[part] for part in BUDGET_PARTS if part in fit.budget})
+    if truth:  # --sim: the fit's own truth (fits.csv's `true`), NaN where it gives none
+        data["true"] = [float(truth.get(n, math.nan)) for n in fit.names]
     df = _frame(data, {"unit": ""}, "name")
     df.attrs["row_units"] = dict(zip(fit.names, fit.units))
     df.attrs["row_unit_columns"] = [k for k in data if k not in ("name", "unit")]

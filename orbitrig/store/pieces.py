@@ -19,7 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from orbitrig.load_systems import LMS
-from orbitrig.store.annotate import DATASETS, annotate
+from orbitrig.store.annotate import DATASETS, ORBIT_SIGNED, ORBIT_TABLE, annotate
 from orbitrig.store.layout import (
     BLOCK_ATTR_UNITS,
     COHERENCE_PAIRS,
@@ -239,7 +239,7 @@ def write_results(g: h5py.Group, res: PointResults) -> None:
 def _write_table(h: h5py.Group, t: OrbitTable) -> None:
     h.attrs["spin"] = t.spin
     h.attrs["units_of_attributes"] = TABLE_ATTR_UNITS
-    put(h, "orbit", np.asarray(t.orbit, dtype=np.float64), "rad/s")
+    put(h, "orbit", np.asarray(t.orbit, dtype=np.float64), "rad/s", meaning=ORBIT_TABLE)
     put(h, "orbit_hz", np.asarray(t.orbit_hz, dtype=np.float64), "Hz")
     meanings = (
         ("m", "x displacement"),
@@ -329,7 +329,7 @@ def write_truth(h: h5py.Group, truth: dict[str, Any]) -> None:
     if "Z_re" not in truth:
         return
     h.attrs["meaning"] = str(truth.get("definition", "the simulator's truth"))
-    put(h, "orbit", np.asarray(truth["orbit"], dtype=np.float64), "rad/s", meaning="signed (< 0 backward)")
+    put(h, "orbit", np.asarray(truth["orbit"], dtype=np.float64), "rad/s", meaning=ORBIT_SIGNED)
     put(h, "orbit_hz", np.asarray(truth["orbit_hz"], dtype=np.float64), "Hz")
     z = np.asarray(truth["Z_re"], dtype=np.float64) + 1j * np.asarray(truth["Z_im"], dtype=np.float64)
     put(

@@ -61,6 +61,14 @@ def read_run(directory: str | Path, *, blocks: bool = True) -> Run:
     path = layout.run_file
     if not path.is_file():
         raise RunDirError(directory, f"not an orbitrig run directory: no {RUN_FILE} (nor {layout.header.name}) in it")
+    return read_run_file(path, blocks=blocks, directory=directory)
+
+
+def read_run_file(path: str | Path, *, blocks: bool = True, directory: Path | None = None) -> Run:
+    """Read a consolidated run file (run.h5 or the h5 export, under any name: a copy sent to a
+    colleague); the run's ``directory`` is the file itself unless given. Raises :class:`RunDirError`."""
+    path = Path(path)
+    directory = path if directory is None else directory
     with open_h5(path) as h5:
         fmt = text(h5.attrs.get("format"))
         if fmt not in READABLE_FORMATS:
@@ -68,7 +76,8 @@ def read_run(directory: str | Path, *, blocks: bool = True) -> Run:
         try:
             points = []
             for _, g in sorted(h5.get("points", {}).items()):
-                point = _new_point(g.attrs, g.name.rsplit("/", 1)[-1])
+                with naming(g):
+                    point = _new_point(g.attrs, g.name.rsplit("/", 1)[-1])
                 for fname, fg in sorted(g.get("frequencies", {}).items()) if blocks else ():
                     with naming(fg):
                         point.frequencies.append(_frequency(fname, fg))
@@ -187,15 +196,29 @@ def read_point(
     return point
 
 
+def _setting(a: h5py.AttributeManager | dict[str, Any], key: str, default: float | None = np.nan) -> float:
+    """Setting ``key`` of a point as a float (``default`` when absent; None: required);
+    ValueError naming the key when it is not a number."""
+    if key not in a and default is not None:
+        return default
+    if key not in a:
+        raise ValueError(f"setting {key!r} missing")
+    try:
+        return float(a[key])
+    except (TypeError, ValueError):
+        raise ValueError(f"setting {key!r} is not a number: {a[key]!r}") from None
+
+
 def _new_point(a: h5py.AttributeManager | dict[str, Any], name: str) -> Point:
+    spin = _setting(a, "spin", None)
     settings = Settings(
-        spin=float(a["spin"]),
-        spin_rpm=float(a.get("spin_rpm", float(a["spin"]) / RPM)),
-        recess_pressure=float(a.get("recess_pressure", np.nan)),
-        pressure_ratio=float(a.get("pressure_ratio", np.nan)),
-        static_eccentricity=float(a.get("static_eccentricity", np.nan)),
-        dynamic_eccentricity=float(a.get("dynamic_eccentricity", np.nan)),
-        orbit_radius=float(a.get("orbit_radius", np.nan)),
+        spin=spin,
+        spin_rpm=_setting(a, "spin_rpm", spin / RPM),
+        recess_pressure=_setting(a, "recess_pressure"),
+        pressure_ratio=_setting(a, "pressure_ratio"),
+        static_eccentricity=_setting(a, "static_eccentricity"),
+        dynamic_eccentricity=_setting(a, "dynamic_eccentricity"),
+        orbit_radius=_setting(a, "orbit_radius"),
         label=text(a.get("label"), name),
     )
     complete = bool(a.get("complete", False))
@@ -220,6 +243,7 @@ def _frequency(name: str, fg: h5py.File | h5py.Group) -> Frequency:
         complete=bool(fa.get("complete", False)),
         coherence=coh,
         n_records=int(fa.get("n_records", 0)),
+        measured_orbit_speed=float(fa.get("measured_orbit_speed", np.nan)),
         waveform=waveform,
     )
 

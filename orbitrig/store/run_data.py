@@ -10,15 +10,16 @@ one identification, stored or made from a table in memory. Plain-data accessors
 from __future__ import annotations
 
 import io
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
 from orbitrig.errors import TableError
 from orbitrig.load_systems import LoadSystem
-from orbitrig.store import frames
+from orbitrig.store import csvfile, frames
 from orbitrig.store.fit_record import FitRecord, fit_record, point_fits
-from orbitrig.store.reader import read_run
+from orbitrig.store.reader import read_run, read_run_file
 from orbitrig.store.stored_run import Point, Run
 from reduction.methods import Method
 
@@ -26,8 +27,9 @@ from reduction.methods import Method
 class Fit:
     """One identification: ``record`` (arrays) and its tables."""
 
-    def __init__(self, record: FitRecord):
+    def __init__(self, record: FitRecord, truth: dict[str, float] | None = None):
         self.record = record
+        self.truth = truth or {}  # coefficient -> true value (--sim runs; csvfile.fit_truth)
 
     def __repr__(self) -> str:
         r = self.record
@@ -45,8 +47,9 @@ class Fit:
 
     @property
     def coefficients(self):
-        """DataFrame (index ``name``): value, std, U, unit and the budget's parts (SI)."""
-        return frames.coefficient_table(self.record)
+        """DataFrame (index ``name``): value, std, U, unit, the budget's parts and, in --sim runs,
+        ``true`` (the fit's own truth, as fits.csv's column; SI)."""
+        return frames.coefficient_table(self.record, self.truth)
 
     @property
     def covariance(self):
@@ -94,11 +97,15 @@ class RunData:
 
     def table(self, point: int, lms: LoadSystem | str = LoadSystem.PIEZO):
         """DataFrame: the point's orbit table for load measuring system ``lms`` (piezo |
-        strain), the orbit-table CSV's columns and ``direction``."""
+        strain), the orbit-table CSV's columns, ``direction`` and ``block`` (the waveforms' block
+        each row was measured in)."""
         p = self._point(point)
         if lms not in p.tables:
-            raise KeyError(f"point {point} has no orbit table {str(lms)!r} (tables: {', '.join(p.tables) or 'none'})")
-        return frames.table_frame(p.tables[LoadSystem(lms)])  # lms may come as its str value
+            raise KeyError(
+                f"point {point} has no orbit table {str(lms)!r} (tables: {', '.join(p.tables) or 'none'})"
+                + (f"; it is not complete: {p.problem}" if not p.complete else "")
+            )
+        return frames.table_frame(p.tables[LoadSystem(lms)], p.frequencies)  # lms may come as its str value
 
     def fits(self, point: int | None = None) -> list[FitRecord]:
         """Every stored identification (of one point, or of every complete point) as arrays."""
@@ -117,10 +124,13 @@ class RunData:
         fits = self.fits(point)
         for f in fits:
             if (f.lms, f.model, f.freq_dep, f.method) == (lms, model, freq_dep, method):
-                return Fit(f)
+                p = self._point(point)
+                return Fit(f, csvfile.fit_truth(f.result, p.truth if self.run.sim else None))
+        p = self._point(point)
         raise KeyError(
             f"point {point}: no fit {lms} {model} {freq_dep} {method} "
             f"(fits: {', '.join(f.key for f in fits) or 'none'})"
+            + (f"; it is not complete: {p.problem}" if not p.complete else "")
         )
 
     def truth(self, point: int) -> dict | None:
@@ -133,8 +143,9 @@ class RunData:
 
 
 def open_run(path: str | Path) -> RunData:
-    """Open the run in ``path`` (docs/api.md). Raises orbitrig.store.reader.RunDirError."""
-    return RunData(read_run(path))
+    """Open the run in ``path`` (docs/api.md): a run directory, or a run file (run.h5 or the h5
+    export, under any name). Raises orbitrig.store.reader.RunDirError."""
+    return RunData(read_run_file(path) if Path(path).is_file() else read_run(path))
 
 
 #: the "file" a table in memory is in errors
@@ -152,6 +163,21 @@ def _in_frame(err: TableError, df) -> TableError:
     return TableError(where, None, err.column, reason)
 
 
+def _as_frame(df):
+    """``df`` as a DataFrame: a DataFrame as it is, a mapping of columns made into one; TypeError
+    naming what was given otherwise (an ndarray has no column names)."""
+    import pandas as pd
+
+    if isinstance(df, pd.DataFrame):
+        return df
+    if isinstance(df, Mapping):
+        return pd.DataFrame(df)
+    raise TypeError(
+        f"identify_table takes a pandas DataFrame (or a mapping of columns) with the orbit-table columns "
+        f"(spin_rpm, orbit_hz, x_re, ..., fy_im), not {type(df).__module__}.{type(df).__qualname__}"
+    )
+
+
 def identify_table(
     df, model: str = "kcd11", freq_dep: str = "none", method: Method | str = Method.OLS, solver: str = "qr"
 ) -> Fit:
@@ -167,6 +193,7 @@ def identify_table(
     from reduction.identify import identify
     from reduction.models import CONSTANT
 
+    df = _as_frame(df)
     buf = io.StringIO()
     df.to_csv(buf, index=False)
     try:

@@ -58,6 +58,7 @@ class Frequency:
     complete: bool
     coherence: npt.NDArray[np.float64] | None  # (2, 4): rows piezo|strain, cols xfx, yfx, xfy, yfy
     n_records: int = 0  # revolutions averaged
+    measured_orbit_speed: float = float("nan")  # rad/s, > 0: from the trigger times (the table row's orbit)
     #: the averaged block, SI per channel (N or m): mean (C, S), slots (C, S), dc (C,),
     #: phasors (C,) complex, uncertainty (C,) when measured
     waveform: dict[str, npt.NDArray[Any]] = field(default_factory=dict, repr=False)

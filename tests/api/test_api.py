@@ -126,7 +126,7 @@ def test_coefficient_and_covariance_units_apply_in_pint(run, h5):
     table = fit.coefficients
     stated = {k: g["coefficients"].attrs[f"units_{k}"] for k in table.index}
     assert table.attrs["row_units"] == stated == dict(zip(table.index, table["unit"]))
-    assert set(table.attrs["row_unit_columns"]) == {"value", "std", "U", *BUDGET_PARTS}
+    assert set(table.attrs["row_unit_columns"]) == {"value", "std", "U", *BUDGET_PARTS, "true"}  # true: --sim
     assert all(u == "" for u in table.attrs["units"].values())  # only the text column `unit` has one unit
     cxx = ureg.Quantity(table.loc["Cxx", "U"], table.attrs["row_units"]["Cxx"]).to("kN*s/m")
     assert cxx.magnitude == pytest.approx(table.loc["Cxx", "U"] * 1e-3)

@@ -38,3 +38,13 @@ def test_a_missing_column_names_the_column_not_a_header_line(table):
     with pytest.raises(TableError) as caught:
         orbitrig.identify_table(table.drop(columns=["fy_im"]))
     assert str(caught.value) == "<DataFrame>, column 'fy_im': required column missing from the columns"
+
+
+def test_what_is_no_table_is_named_and_a_mapping_of_columns_is_taken(table):
+    """An ndarray (no column names) or one row (a Series) raised AttributeError ('no attribute
+    to_csv') or claimed a column was missing; a dict of columns is a table."""
+    for given, name in ((table.to_numpy(), "numpy.ndarray"), (table.iloc[0], "pandas.Series")):
+        with pytest.raises(TypeError, match=f"^identify_table takes a pandas DataFrame .*, not {name}$"):
+            orbitrig.identify_table(given)
+    by_dict = orbitrig.identify_table(table.to_dict("list"), model="kc8")
+    assert by_dict.coefficients.equals(orbitrig.identify_table(table, model="kc8").coefficients)

@@ -11,6 +11,7 @@ import numpy as np
 from orbitrig.store.export import export_run
 from support.octave import octave_eval
 from support.paths import ROOT
+from support.report_synthetic import write_synthetic_run
 
 STORAGE = (ROOT / "docs" / "storage.md").read_text()
 
@@ -29,8 +30,21 @@ def test_python_reading_example_runs_verbatim(sim_run):
 
 
 def test_octave_reading_example_runs_verbatim(sim_run, tmp_path):
+    _octave_example_runs(sim_run, tmp_path)
+
+
+def test_octave_reading_example_runs_on_a_run_without_a_calibration_budget(tmp_path):
+    """A rig that states no calibration uncertainty stores no uncertainty/ group: the example
+    read U from uncertainty.expanded and failed there ("invalid use of undefined value")."""
+    run = write_synthetic_run(tmp_path / "run", incomplete=0)  # no stated calibration uncertainty
+    with h5py.File(run / "run.h5", "r") as f:
+        assert "uncertainty" not in f["points/0000/identification/piezo__kcd11__none__ols"]
+    _octave_example_runs(run, tmp_path)
+
+
+def _octave_example_runs(run, tmp_path) -> None:
     (code,) = re.findall(r"```octave\n(.*?)```", STORAGE, re.S)
-    export_run(sim_run, "h5", tmp_path / "export")
+    export_run(run, "h5", tmp_path / "export")
     done = octave_eval(code.replace("DIR/", f"{tmp_path}/"), tmp_path)
     errors = [line for line in done.stderr.splitlines() if "error" in line and "preparing to exit" not in line]
     assert done.returncode == 0 and not errors, done.stderr[-2000:]  # (Octave 7's own message at exit aside)

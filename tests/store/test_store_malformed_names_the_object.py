@@ -41,6 +41,9 @@ def _damage(path, edit) -> None:
         (lambda f: f.__delitem__("points/0000/frequencies/00_fwd/coherence"), None),  # optional: still read
         (lambda f: f["points/0000/truth"].attrs.__setitem__("json", "[1,"), ["/points/0000/truth", "json"]),
         (lambda f: f[FIT].attrs.__setitem__("json", DEEP), [f"/{FIT}", "'json'", "nested too deeply"]),
+        # a point's setting of the wrong type or missing: it said only "could not convert string to float"
+        (lambda f: f["points/0001"].attrs.__setitem__("spin", "fast"), ["/points/0001: setting 'spin'", "'fast'"]),
+        (lambda f: f["points/0000"].attrs.__delitem__("spin"), ["/points/0000: setting 'spin' missing"]),
     ],
 )
 def test_run_h5_damage_names_file_and_object(lone_run_h5, edit, names):
