@@ -108,7 +108,7 @@ function clearRunView() {
   showDrives({}); showAux({}, {});  // every row in place before the first live message: no jump
   ["point", "frequency", "revolutions", "eta", "op-spin", "op-orbit", "op-orbit-hz", "op-direction"].forEach(id => { $(id).textContent = "—"; });
   $("progress-bar").style.width = "0";
-  st.liveAt = 0; st.etaS = null; $("eta-held").textContent = "";
+  st.liveAt = 0; st.etaS = null; $("eta-held").textContent = ""; showLiveAge();
   ["plot-forces", "plot-disp", "plot-orbit"].forEach(id => {
     const c = $(id); c.getContext("2d").clearRect(0, 0, c.width, c.height); c.dataset.samples = "0";
   });
@@ -330,6 +330,7 @@ function showEta() {
 function showLive(d, age) {
   if (runEnded(st.status)) return;  // late: the run is over
   st.liveAt = Date.now() - 1000 * Math.max(0, age || 0);
+  showLiveAge();
   const orbit = (d.drives || {}).orbit;
   $("op-spin").textContent = withUnit(d.spin_rpm, 0, "rpm");
   $("op-orbit").textContent = withUnit(orbit ? orbit.actual_rpm : null, 0, "rpm");
@@ -348,6 +349,19 @@ function showLive(d, age) {
     const x = w.x_a.map((v, i) => (v + w.x_b[i]) / 2), y = w.y_a.map((v, i) => (v + w.y_b[i]) / 2);
     orbitPlots.drawOrbit($("plot-orbit"), x, y);
   }
+}
+
+// the live payload comes 5 times a second while a run is under way (docs/protocols/mqtt.md): one older than
+// LIVE_OLD_S (a hung service before its last will, a stalled acquisition) is not the present: the live values
+// (Run card, drives, sensors, averaged revolution) are greyed and each card says how old they are
+const LIVE_OLD_S = 3;
+
+function showLiveAge() {
+  const age = st.liveAt ? (Date.now() - st.liveAt) / 1000 : null, old = age !== null && age > LIVE_OLD_S;
+  const note = old ? "(the last live values, " + Math.round(age) + " s old: not the present)" : "";
+  $("live-age").textContent = age === null ? "—" : age.toFixed(1) + " s ago" + (old ? ": not the present" : "");
+  $("app").classList.toggle("live-old", old);
+  document.querySelectorAll(".live-note").forEach(el => { el.textContent = note; });
 }
 
 function showDrives(dr) {
@@ -487,7 +501,7 @@ function wire() {
   $("btn-confirm").addEventListener("click", () => send(Command.CONFIRM, {step: $("manual-step").textContent}));
   ["keydown", "pointerdown", "pointermove", "wheel"].forEach(t => document.addEventListener(t, activity, {passive: true}));
   setInterval(watchFeed, 500);
-  setInterval(() => { $("live-age").textContent = st.liveAt ? ((Date.now() - st.liveAt) / 1000).toFixed(1) + " s ago" : "—"; }, 500);
+  setInterval(showLiveAge, 500);
 }
 
 async function boot() {
