@@ -387,8 +387,8 @@ function showAux(a, bands) {
     const v = inShownUnit(a[key], unit), digits = unit === "MPa" ? 4 : unit === "" ? 3 : 2;
     const tr = document.createElement("tr"); tr.dataset.aux = key;
     cell(tr, text + (unit ? " (" + unit + ")" : ""));
-    const out = band && a[key] !== null && (a[key] < band[0] || a[key] > band[1]);
-    cell(tr, fmt(v, digits), out ? "out" : "");
+    const out = band && a[key] !== null && a[key] !== undefined && (a[key] < band[0] || a[key] > band[1]);
+    pieces(cell(tr, "", out ? "out" : ""), out ? [fmt(v, digits), "(outside the band)"] : [fmt(v, digits)], out);  // in words, not in red alone
     cell(tr, band ? fmt(inShownUnit(band[0], unit), digits) + " … " + fmt(inShownUnit(band[1], unit), digits) : "");
     body.appendChild(tr);
   });
