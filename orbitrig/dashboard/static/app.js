@@ -95,7 +95,7 @@ function clearRigView() {
   ["alarm-result", "run-id", "message", "manual-step", "manual-motion"].forEach(id => { $(id).textContent = ""; });
   $("state").textContent = "—"; $("state").className = "state";
   $("matrix").value = "demo";
-  Object.assign(st, {status: null, manual: null});
+  Object.assign(st, {status: null, manual: null, viewRun: undefined});
   show($("manual"), false); show($("manual-none"), true);
   trends.trendClear(); trends.drawTrends();
   document.querySelectorAll("canvas").forEach(c => { c.getContext("2d").clearRect(0, 0, c.width, c.height); c.dataset.updates = "0"; });
@@ -247,7 +247,12 @@ function showStatus(s) {
     addEvent(said.startsWith("run " + Outcome.COMPLETED) ? "info" : "warn", "run " + s.run_id + " " + said.slice(4), false, s.since, key);
   } else if (warn && !(prev && prev.message === s.message)) addEvent("warn", s.state + ": " + said, false, undefined, key);
   warnings.forEach(w => addEvent("warn", "run " + (s.run_id || "") + ": warning: " + w, false, undefined, ["run warning", s.run_id, w].join("|")));
-  if (runEnded(s) || !prev || prev.run_id !== s.run_id) clearRunView();
+  // an offline status changes no run (its run_id may be the last will's: the run of the service's connection):
+  // the view stays, its live values ageing, and goes on when the service is back with the same run
+  if (s.state !== RunState.OFFLINE) {
+    if (runEnded(s) || s.run_id !== st.viewRun) clearRunView();
+    st.viewRun = s.run_id;
+  }
   if (s.state === RunState.IDLE && (s.message || "").includes(Outcome.COMPLETED)) $("progress-bar").style.width = "100%";
   showManual(s);
   showEta();
