@@ -258,8 +258,9 @@ function showStatus(s) {
   showEta();
 }
 
-const SETTING_LABEL = {orbit_radius: ["orbit radius", "µm", 1e6, 2], static_eccentricity: ["static eccentricity", "", 1, 3],
-  recess_pressure: ["recess pressure", "MPa", 1e-6, 4], pressure_ratio: ["pressure ratio", "", 1, 3]};
+// setting -> [label, shown unit (SHOWN_IN), digits]
+const SETTING_LABEL = {orbit_radius: ["orbit radius", "µm", 2], static_eccentricity: ["static eccentricity", "", 3],
+  recess_pressure: ["recess pressure", "MPa", 4], pressure_ratio: ["pressure ratio", "", 3]};
 
 // the asked settings of a waiting status; measured values follow the live payload (highlighted outside their band)
 function showManual(s) {
@@ -272,11 +273,11 @@ function showManual(s) {
   showMotion(s.message || "");
   const body = $("manual-table"); clear(body);
   Object.entries(st.manual).forEach(([name, v]) => {
-    const [text, unit, k, d] = SETTING_LABEL[name] || [name, v.unit, 1, 4];
+    const [text, unit, d] = SETTING_LABEL[name] || [name, v.unit, 4], shown = x => fmt(inShownUnit(x, unit), d);
     const tr = document.createElement("tr"); tr.dataset.setting = name;
     cell(tr, text + (unit ? " (" + unit + ")" : ""));
-    cell(tr, v.value === null ? "—" : fmt(v.value * k, d));
-    cell(tr, ""); pieces(cell(tr, ""), v.band ? [fmt(v.band[0] * k, d) + " …", fmt(v.band[1] * k, d)] : []);
+    cell(tr, v.value === null ? "—" : shown(v.value));
+    cell(tr, ""); pieces(cell(tr, ""), v.band ? [shown(v.band[0]) + " …", shown(v.band[1])] : []);
     body.appendChild(tr);
   });
   showMeasured(Object.fromEntries(Object.entries(st.manual).map(([n, v]) => [n, v.measured])));
@@ -300,11 +301,11 @@ function showMeasured(measured) {
   document.querySelectorAll("#manual-table tr").forEach(tr => {
     const name = tr.dataset.setting, v = st.manual[name], m = measured[name], td = tr.children[2];
     if (m === undefined) return;
-    const [, , k, d] = SETTING_LABEL[name] || [name, "", 1, 4];
+    const [, unit, d] = SETTING_LABEL[name] || [name, "", 4], shown = fmt(inShownUnit(m, unit), d);
     const out = m !== null && v && v.band && (m < v.band[0] || m > v.band[1]);
     if (m === null) pieces(td, ["not measured yet"], true);
-    else if (out) pieces(td, [fmt(m * k, d), "(outside the band)"], true);
-    else pieces(td, [fmt(m * k, d)]);
+    else if (out) pieces(td, [shown, "(outside the band)"], true);
+    else pieces(td, [shown]);
     td.className = out ? "out" : "";
     tr.classList.toggle("outside", !!out);
   });
@@ -348,8 +349,8 @@ function showLive(d, age) {
   const w = d.waveforms || {};
   const forces = ["fx_piezo", "fy_piezo", "fx_strain", "fy_strain"].filter(n => w[n]);
   const disp = ["x_a", "y_a", "x_b", "y_b"].filter(n => w[n]);
-  if (forces.length) orbitPlots.drawTraces($("plot-forces"), forces.map(n => ({name: n, values: w[n]})), 1);
-  if (disp.length) orbitPlots.drawTraces($("plot-disp"), disp.map(n => ({name: n, values: w[n]})), 1e6);
+  if (forces.length) orbitPlots.drawTraces($("plot-forces"), forces.map(n => ({name: n, values: w[n]})), "N");
+  if (disp.length) orbitPlots.drawTraces($("plot-disp"), disp.map(n => ({name: n, values: w[n]})), "µm");
   if (w.x_a && w.y_a && w.x_b && w.y_b) {
     const x = w.x_a.map((v, i) => (v + w.x_b[i]) / 2), y = w.y_a.map((v, i) => (v + w.y_b[i]) / 2);
     orbitPlots.drawOrbit($("plot-orbit"), x, y);
