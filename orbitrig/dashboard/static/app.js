@@ -5,9 +5,10 @@
 
 const $ = id => document.getElementById(id);
 // outcomes: the keys of the command outcomes shown (outcomeKey), so that a feed starting again shows none twice
-// lastMsg, feedAt: Date.now() of the feed's latest message and of its connection; stale: the view is not the present
+// lastMsg, feedAt: Date.now() of the feed's latest message and of its connection; stale: the view is not the present;
+// feedClosed: the feed's websocket closed (the dashboard server gone): stale at once, not after the silence
 const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0, replyTimeout: 3, tick: 3, outcomes: new Set(),
-  lastMsg: 0, feedAt: 0, stale: false, bannerText: null};
+  lastMsg: 0, feedAt: 0, stale: false, feedClosed: false, bannerText: null};
 // the server sends something at least every st.tick s (a tick, 3 by default): silent STALE_TICKS ticks (7 s),
 // the view is stale; FEED_DEAD_TICKS (12 s), the feed is given up and connected again (a connection that died
 // without closing)
@@ -69,7 +70,7 @@ function enter(who) {
 
 function leave(reason) {
   if (st.ws) { st.ws.onclose = null; st.ws.close(); st.ws = null; }
-  st.lastMsg = 0; markStale(false);
+  st.lastMsg = 0; st.feedClosed = false; markStale(false);
   // an open modal dialog (the abort confirmation) would stay open unseen and block every click
   document.querySelectorAll("dialog[open]").forEach(d => d.close());
   show($("app"), false); show($("signin"), true);
@@ -124,8 +125,11 @@ function connect() {
   const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/api/feed");
   st.ws = ws; st.feedAt = Date.now();
   ws.onopen = () => { st.retry = 0; banner(null); };
-  ws.onmessage = ev => { st.lastMsg = Date.now(); markStale(false); handle(JSON.parse(ev.data)); };
-  ws.onclose = () => { st.ws = null; banner("offline: dashboard server unreachable — reconnecting"); setTimeout(reconnect, Math.min(5000, 500 * 2 ** st.retry++)); };
+  ws.onmessage = ev => { st.lastMsg = Date.now(); st.feedClosed = false; markStale(false); handle(JSON.parse(ev.data)); };
+  ws.onclose = () => {
+    st.ws = null; st.feedClosed = true; markStale(true);
+    banner("offline: dashboard server unreachable — reconnecting"); setTimeout(reconnect, Math.min(5000, 500 * 2 ** st.retry++));
+  };
 }
 
 async function reconnect() {
@@ -147,7 +151,7 @@ function banner(text) { st.bannerText = text || null; drawBanner(); }
 // the stale warning goes before any other: nothing the page shows is known to be the present
 function drawBanner() {
   let text = st.bannerText;
-  if (st.stale) {
+  if (st.stale && !st.feedClosed) {  // a closed feed says so itself (its banner)
     const live = st.ws && st.ws.readyState === 1 ? "" : " — reconnecting";
     text = "STALE: no data from the dashboard server for " + Math.round((Date.now() - st.lastMsg) / 1000) + " s" + live +
       " — what this page shows may not be the present";
@@ -165,7 +169,7 @@ function markStale(on) {
 function watchFeed() {
   if (!st.lastMsg) return;
   const now = Date.now();
-  markStale(now - st.lastMsg > 1000 * STALE_TICKS * st.tick);
+  markStale(st.feedClosed || now - st.lastMsg > 1000 * STALE_TICKS * st.tick);
   if (st.stale) drawBanner();
   if (st.ws && now - Math.max(st.lastMsg, st.feedAt) > 1000 * FEED_DEAD_TICKS * st.tick) {
     const ws = st.ws; st.ws = null;
