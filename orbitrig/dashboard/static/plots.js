@@ -173,6 +173,7 @@ function drawTrend(canvas, series, band, win) {
   legend(ctx, series.map(s => s.name), series.map((s, k) => COLOURS[k % COLOURS.length]));
   mark(canvas, n, y);
   canvas.dataset.pieces = pieces.join(",");
+  canvas.dataset.until = String(t1);  // the window's end (s since the epoch)
   canvas.dataset.band = band ? band.join(",") : "";
 }
 
