@@ -51,6 +51,7 @@ class Incoming:
     def _forget_rig(self) -> None:
         """Drop what the session knows of the rig it watched."""
         self.status = self.progress = self.live = None
+        self.view_run: str | None = None  # the run of the progress and live payloads kept (_forget_run_view)
         self.live_at = 0.0  # time.monotonic() when the live payload came
         # the results so far and the gaps where some may be missing, as feed messages (result, gap)
         self.results: collections.deque[dict] = collections.deque(maxlen=500)
@@ -119,10 +120,16 @@ class Incoming:
             self._resolve(data)
 
     def _forget_run_view(self, status: dict) -> None:
-        """The progress and live payloads go when the run ends or another run's status comes."""
-        run_id, old = status.get("run_id"), self.status
-        if status.get("state") in ENDED or (old is not None and old.get("run_id") != run_id):
+        """The progress and live payloads go when the run ends or another run's status comes. An ``offline``
+        status changes no run: its ``run_id`` may be the last will's (the run of the service's connection),
+        and a service that comes back goes on with the run it had (its progress comes only as the run moves
+        on: a waiting run's after the operator confirms)."""
+        state, run_id = status.get("state"), status.get("run_id")
+        if state == proto.OFFLINE:
+            return
+        if state in ENDED or run_id != self.view_run:
             self.progress = self.live = None
+        self.view_run = run_id
 
     def _resolve(self, data: dict) -> None:
         """A reply (or this session's own acknowledgement back from the broker) for a waiting call."""

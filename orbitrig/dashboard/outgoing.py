@@ -153,7 +153,7 @@ class Outgoing:
             self._await_late(cid, name, topics, rig)
             return {"ok": False, "error": self._no_reply(name, topics, before)}
         except aiomqtt.MqttError as err:  # the link went away before the command was handed over
-            return {"ok": False, "error": f"not sent: {err}"}
+            return {"ok": False, "error": f"{urgent_no_broker(name)} ({err})" if urgent else f"not sent: {err}"}
         finally:
             self._pending.pop(cid, None)
             self._release_later(cid)

@@ -2,7 +2,8 @@
 real chromium on a real authenticated mosquitto (no rig service: the tests publish its statuses and
 replies): no ordinary command goes while the service is offline, a command the service did not answer
 in time expires at the broker, a stop's or abort's late reply is shown, an abort without a broker link
-says it was not sent, and a page whose feed went silent says it is stale and connects again."""
+says it was not sent, a page whose feed went silent says it is stale and connects again, and one whose
+dashboard server died is greyed at once."""
 
 from __future__ import annotations
 
@@ -170,6 +171,26 @@ def test_a_silent_feed_is_shown_stale_and_connected_again(broker, ticking, drive
         assert page.state() == "idle"
     finally:
         hole.close()
+
+
+def test_a_dashboard_server_gone_greys_the_view_at_once(broker, driver, tmp_path):
+    """The feed's websocket closed (the dashboard server died): nothing shown is the present from then on,
+    the broker link's "online" included (the server's, not known any more); greyed at once, not after the
+    7 s of silence that tell a feed dead without a close (at least 4 s after the server's last tick)."""
+    status(broker, "idle")
+    dash = Dashboard(broker.url, RIG, tmp_path, "--reply-timeout", str(REPLY_TIMEOUT))
+    try:
+        page = signed_in(driver, dash.url, dash, "idle")
+        assert "stale" not in (page.el("app").get_attribute("class") or "")
+        dash.proc.send_signal(signal.SIGKILL)
+        gone = time.monotonic()
+        page.wait(lambda: "stale" in (page.el("app").get_attribute("class") or ""), 3, "the view greyed")
+        assert time.monotonic() - gone < 3.5
+        assert page.text("offline-banner") == "offline: dashboard server unreachable — reconnecting"
+        assert page.text("link") == "online"  # as last said, greyed with the view
+    finally:
+        dash.proc.kill()
+        dash.proc.wait()
 
 
 def test_the_results_table_trims_whole_points_and_says_which(broker, dashboard, driver):

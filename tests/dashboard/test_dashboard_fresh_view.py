@@ -1,6 +1,7 @@
 """The page in a real chromium on a real authenticated mosquitto shows the present run only:
 the previous run's progress, ETA, live values and waveforms go when a new run starts or the
-run ends (also in the first feed of a page loaded later); the live age is the payload's true
+run ends (also in the first feed of a page loaded later), not when the service goes offline and comes
+back to the same run; the live age is the payload's true
 age after a reload; a refusal names its command once; a result's point is counted from 1.
 The tests publish what the rig service would (as orbitrig-service)."""
 
@@ -124,9 +125,40 @@ def test_the_live_age_after_a_reload_is_the_payloads_age(broker, dashboard, brow
     time.sleep(4.0)
     page.d.refresh()
     page.signed_in()
-    page.wait(lambda: page.text("live-age").endswith("s ago"), 10, "the live age after the reload")
+    page.wait(lambda: " s ago" in page.text("live-age"), 10, "the live age after the reload")
     assert float(page.text("live-age").split()[0]) >= 3.5, page.text("live-age")
     status(broker, "idle", "r-age", "run stopped")
+
+
+def test_a_run_view_outlives_the_service_going_offline_and_coming_back(broker, dashboard, browsers):
+    """The broker's last will names the run of the service's connection (none here), not a new run: the
+    point and ETA of a run that waits for the operator stay through the service's absence, on the page
+    open then and on it loaded again (the service sends the progress again only as the run moves on)."""
+    page = signed_in(browsers, dashboard)
+    waiting = {"state": "waiting", "run_id": "r-blip", "since": "2026-01-05T13:00:00.000Z", "message": "set by hand"}
+    publish_as_service(broker, "status", dict(waiting, step="manual:0002", settings={}), retain=True)
+    page.wait_state("waiting")
+    publish_as_service(broker, "progress", dict(progress("r-blip"), point=3, points=10, eta_s=600), qos=0)
+    page.wait_text("point", "3 / 10", 10)
+    will = {"state": "offline", "run_id": None, "since": "2026-01-05T12:00:00.000Z", "message": "connection lost"}
+    publish_as_service(broker, "status", will, retain=True)
+    page.wait_state("offline")
+    assert (page.text("point"), page.text("eta")) == ("3 / 10", "10:00")  # the last known, under the banner
+    back = dict(waiting, since="2026-01-05T13:00:20.000Z", step="manual:0002", settings={})
+    publish_as_service(broker, "status", back, retain=True)
+    page.wait_state("waiting")
+    assert (page.text("point"), page.text("eta"), page.text("eta-held")) == (
+        "3 / 10",
+        "10:00",
+        "(paused: waiting for the operator)",
+    )
+    page.d.refresh()  # the session's snapshot kept the progress too
+    page.signed_in()
+    page.wait_state("waiting")
+    page.wait_text("point", "3 / 10", 10)
+    assert page.text("eta") == "10:00"
+    status(broker, "idle", "r-blip", "run stopped")
+    page.wait_text("point", "—", 10)  # the run's end still clears it
 
 
 def test_a_refusal_names_its_command_once(broker, dashboard, browsers):

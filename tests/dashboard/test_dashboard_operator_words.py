@@ -1,13 +1,15 @@
 """What the page says, as an operator reads it, in a real chromium on a real authenticated mosquitto:
 the sensors of a lost CAN node are greyed and the card says they are the last it sent (the node's
-faulty-sensor and pump-off flags said there too, in a place of their own: nothing moves); a value
-not known is "—" without a unit; alarm and event times are a 24 h clock with an ISO date, whatever
-the browser's locale. The test publishes what the rig service would (as orbitrig-service)."""
+faulty-sensor and pump-off flags said there too, in a place of their own: nothing moves); live values
+no longer coming are greyed and each card says how old they are; a sensor outside its band says so in
+words; a value not known is "—" without a unit; alarm and event times are a 24 h clock with an ISO
+date, whatever the browser's locale. The test publishes what the rig service would (as orbitrig-service)."""
 
 from __future__ import annotations
 
 import math
 import re
+import time
 
 import pytest
 from support.dash_helpers import Page, dashboard_running, publish_as_service
@@ -77,6 +79,50 @@ def test_a_value_not_known_is_a_dash_without_a_unit(broker, page):
     page.wait_text("op-spin", "1000 rpm", 10)
     assert page.text("op-orbit-hz") == "—"  # orbit_hz null: no revolutions coming in now
     assert page.text("op-orbit") == "—"
+
+
+def live_old(page: Page) -> dict:
+    """Whether the page marks the live values as not the present, and what each card says."""
+    script = (
+        "return {old: document.getElementById('app').classList.contains('live-old'),"
+        " notes: [...document.querySelectorAll('.live-note')].map(e => e.textContent),"
+        " spin: getComputedStyle(document.getElementById('op-spin')).color,"
+        " age: document.getElementById('live-age').textContent}"
+    )
+    return page.d.execute_script(script)
+
+
+def test_live_values_no_longer_coming_are_greyed_and_said_old(broker, page):
+    """A service that hangs (its last will comes 15 s later) or an acquisition that stalls leaves the last live
+    payload on the page: past 3 s (15 payloads missed) its values are greyed, and each card says so in words."""
+    publish_as_service(broker, "live", live(1), qos=0)
+    page.wait_text("op-spin", "1000 rpm", 10)
+    seen, fresh = time.monotonic(), live_old(page)
+    assert not fresh["old"] and fresh["notes"] == ["", "", ""], fresh
+    page.wait(lambda: live_old(page)["old"], 10, "the live values marked old")
+    assert time.monotonic() - seen >= 2.0  # not before the limit (3 s since the page got them)
+    old = live_old(page)
+    assert old["notes"] == [old["notes"][0]] * 3, old
+    assert re.fullmatch(r"\(the last live values, [3-9] s old: not the present\)", old["notes"][0]), old
+    assert old["age"].endswith(" s ago: not the present") and old["spin"] != fresh["spin"], old
+    assert page.text("op-spin") == "1000 rpm"  # the last values stay, marked
+    publish_as_service(broker, "live", live(2), qos=0)  # the payloads come again: live at once
+    page.wait(lambda: not live_old(page)["old"], 5, "the live values current again")
+    assert live_old(page)["notes"] == ["", "", ""]
+
+
+def test_a_sensor_outside_its_band_says_so_in_words(broker, page):
+    """Not in red alone (a reader who does not tell red, a grey print): as the manual panel says it."""
+    bands = {"p_supply": [0.2e6, 8.0e6], "p_recess": [0.4343e6, 0.5309e6]}
+    payload = live(1)
+    payload["aux"].update(p_supply=9.1e6, p_recess_1=0.48e6, p_recess_2=0.40e6)
+    publish_as_service(broker, "live", dict(payload, bands=bands), qos=0)
+    page.wait(lambda: "9.1000" in page.text("aux"), 10, "the values")
+    rows = {k: " ".join(v.split()) for k, v in page.rows("aux", "aux").items()}
+    assert rows["p_supply"] == "supply pressure (MPa) 9.1000 (outside the band) 0.2000 … 8.0000", rows
+    assert rows["p_recess_2"].startswith("recess pressure 2 (MPa) 0.4000 (outside the band) "), rows
+    assert rows["p_recess_1"] == "recess pressure 1 (MPa) 0.4800 0.4343 … 0.5309", rows
+    assert rows["t_supply"] == "supply temperature (°C) 40.00", rows  # no band: nothing said
 
 
 def test_times_are_a_24_hour_clock_with_an_iso_date(broker, page):

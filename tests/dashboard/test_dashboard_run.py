@@ -10,6 +10,7 @@ import re
 import time
 from pathlib import Path
 
+from orbitrig.cli.sweep_summary import ND_NOTE
 from support.dash_helpers import REPO, RIG, Page, card_shot, idle_page
 from support.mqtt_helpers import ACCOUNTS
 
@@ -146,7 +147,8 @@ def test_viewer_sees_everything_and_commands_nothing(dashboard, service, browser
 
 def test_results_show_values_u_and_units_as_they_arrive(broker, dashboard, browsers):
     """A result is drawn as it arrives: a row per coefficient with its value, U (k = 2) and unit (the
-    terminal's: MN/m, kN s/m, kg, rigunits.display_unit, where the result says N/m); a refusal."""
+    terminal's: MN/m, kN s/m, kg, rigunits.display_unit, where the result says N/m), a coefficient not
+    determined marked "n.d." as the terminal marks it (ND_NOTE its tooltip); a refusal."""
     page = Page(browsers(), dashboard.url, dashboard)
     page.sign_in("viewer", ACCOUNTS["viewer"])
     page.signed_in()
@@ -168,6 +170,7 @@ def test_results_show_values_u_and_units_as_they_arrive(broker, dashboard, brows
                 "confidence_95": {"Kxx": [1.48e7, 1.52e7], "Cxx": [1.98e4, 2.02e4]},
                 "expanded_uncertainty": {"k": 2, "basis": "statistical", "values": {"Kxx": 2e5, "Cxx": 2e2}},
                 "units": {"Kxx": "N/m", "Cxx": "N s/m"},
+                "not_determined": ["Cxx"],
                 "warnings": ["condition number 3.1e6: Kxy poorly determined"],
             },
             {"lms": "strain", "model": "kcd11", "error": "too few orbit frequencies: 2 < 3"},
@@ -180,7 +183,10 @@ def test_results_show_values_u_and_units_as_they_arrive(broker, dashboard, brows
         "return [...document.querySelectorAll('#results tr')].slice(-3).map(r => [...r.children].map(c => c.innerText))"
     )
     assert rows[0] == ["8 w1000rpm", "piezo", "kc8", "Kxx", "15.00", "0.2000", "MN/m"]
-    assert rows[1] == ["", "", "", "Cxx", "20.00", "0.2000", "kN s/m"]
+    assert rows[1] == ["", "", "", "Cxx", "20.00 n.d.", "0.2000", "kN s/m"]  # as the terminal says it, not red alone
+    nd_title = "return [...document.querySelectorAll('#results tr')].slice(-3)[arguments[0]].children[4].title"
+    assert page.d.execute_script(nd_title, 1) == ND_NOTE
+    assert page.d.execute_script(nd_title, 0) == ""
     assert rows[2] == ["8 w1000rpm", "strain", "kcd11", "refused: too few orbit frequencies: 2 < 3"]
     events = page.text("events")
     assert "point 8 piezo kc8: condition number 3.1e6: Kxy poorly determined" in events

@@ -1,6 +1,7 @@
 """Trend charts leave a silence blank, in a real chromium on a real authenticated mosquitto: live
 samples before and after 8 s without any (no run, the broker link down) are drawn as two pieces
-of line, not joined by a line across a time nobody measured. The test publishes what the rig
+of line, not joined by a line across a time nobody measured; while none comes the window moves on with
+the clock. The test publishes what the rig
 service would (as orbitrig-service)."""
 
 from __future__ import annotations
@@ -50,6 +51,23 @@ def test_a_silence_in_the_samples_is_not_bridged_by_a_line(broker, dashboard, br
     publish_samples(broker, 1200.0, 3)
     page.wait(lambda: int(speed_chart(page).get("samples", 0)) >= 6 * 4, 10, "3 more samples of each speed")
     assert speed_chart(page)["pieces"] == "2,2,2,2", speed_chart(page)
+
+
+def test_the_window_follows_the_clock_while_no_sample_comes(broker, dashboard, browsers):
+    """A service that hangs (or a run that ended) sends no sample: the charts still move on with the clock
+    (redrawn every 2 s), so the last samples leave the right edge instead of standing there as the present."""
+    status = {"state": "running", "run_id": "r-clock", "since": "2026-12-05T01:00:00.000Z", "message": "run started"}
+    broker.pub(f"orbitrig/{RIG}/status", json.dumps(status), user="orbitrig-service", retain=True)
+    page = Page(browsers(), dashboard.url, dashboard)
+    page.sign_in("viewer", ACCOUNTS["viewer"])
+    page.signed_in()
+    page.wait_state("running", 15)
+    publish_samples(broker, 1000.0, 2)
+    page.wait(lambda: int(speed_chart(page).get("samples", 0)) >= 2 * 4, 10, "2 samples of each speed")
+    until, seen = float(speed_chart(page)["until"]), time.time()
+    time.sleep(6)  # nothing published
+    moved = float(speed_chart(page)["until"]) - until
+    assert 3 <= moved <= time.time() - seen + 2.5, moved  # each read at most 2 s after its redraw (1 s margin)
 
 
 def test_the_axes_are_those_of_the_samples_the_window_shows(broker, dashboard, browsers):

@@ -1,7 +1,7 @@
 """The page's units (static/units.js) against rigunits, run in the real browser the dashboard
 tests drive: the ETA the page shows is the terminal's (format_duration), the coefficients are
-shown in the terminal's units (display_unit), and the SI values of the CAN sensors are shown
-through one table of conversions."""
+shown in the terminal's units (display_unit), and the SI values of the CAN sensors, the manual
+settings and the displacements are shown through one table of conversions."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ import re
 from pathlib import Path
 
 import orbitrig.dashboard
-from rigunits import DISPLAY_UNITS, MPA, display_unit, format_duration
+import pytest
+from rigunits import DISPLAY_UNITS, MICROMETRE, MPA, UM, display_unit, format_duration
 
 STATIC = Path(orbitrig.dashboard.__file__).parent / "static"
 #: durations (s) across every form: under a minute, minutes, hours, the roundings at their edges
@@ -41,14 +42,17 @@ def test_the_page_converts_sensor_values_in_one_place(driver):
     shown = _run(
         driver,
         "return [inShownUnit(313.15, '°C'), inShownUnit(1.206e6, 'MPa'), inShownUnit(2.1e-5, 'l/min'),"
-        " inShownUnit(0.4, ''), inShownUnit(null, 'MPa')];",
+        " inShownUnit(0.4, ''), inShownUnit(null, 'MPa'), inShownUnit(5.76e-6, arguments[0])];",
+        MICROMETRE,
     )
-    assert shown == [313.15 - 273.15, 1.206e6 / MPA, 2.1e-5 * 6e4, 0.4, None]  # K, Pa, m^3/s in
+    assert shown[:5] == [313.15 - 273.15, 1.206e6 / MPA, 2.1e-5 * 6e4, 0.4, None]  # K, Pa, m^3/s in
+    assert shown[5] == pytest.approx(5.76e-6 / UM, rel=1e-12)  # an orbit radius, a displacement (m) in
 
 
 def test_no_other_script_formats_a_duration_or_converts_a_unit_itself():
     others = {p.name: p.read_text(encoding="utf-8") for p in STATIC.glob("*.js") if p.name != "units.js"}
-    own = re.compile(r"function formatDuration|273\.15|/ 1e6|\* 6e4|\" h \"|\" min \"")
+    # a factor of its own: 273.15 (K), 1e6 (Pa, m), 6e4 (m^3/s), as a divisor, a multiplier or an argument
+    own = re.compile(r"function formatDuration|273\.15|/ 1e6|\* 1e6|\* 6e4|[,(] ?1e-?6\b|\" h \"|\" min \"")
     assert {name: own.findall(text) for name, text in others.items() if own.search(text)} == {}
     page = (STATIC / "index.html").read_text(encoding="utf-8")
     scripts = re.findall(r'<script src="/static/(\w+)\.js"', page)

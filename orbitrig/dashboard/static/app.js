@@ -5,9 +5,10 @@
 
 const $ = id => document.getElementById(id);
 // outcomes: the keys of the command outcomes shown (outcomeKey), so that a feed starting again shows none twice
-// lastMsg, feedAt: Date.now() of the feed's latest message and of its connection; stale: the view is not the present
+// lastMsg, feedAt: Date.now() of the feed's latest message and of its connection; stale: the view is not the present;
+// feedClosed: the feed's websocket closed (the dashboard server gone): stale at once, not after the silence
 const st = {ws: null, retry: 0, lastActive: 0, status: null, liveAt: 0, replyTimeout: 3, tick: 3, outcomes: new Set(),
-  lastMsg: 0, feedAt: 0, stale: false, bannerText: null};
+  lastMsg: 0, feedAt: 0, stale: false, feedClosed: false, bannerText: null};
 // the server sends something at least every st.tick s (a tick, 3 by default): silent STALE_TICKS ticks (7 s),
 // the view is stale; FEED_DEAD_TICKS (12 s), the feed is given up and connected again (a connection that died
 // without closing)
@@ -69,7 +70,7 @@ function enter(who) {
 
 function leave(reason) {
   if (st.ws) { st.ws.onclose = null; st.ws.close(); st.ws = null; }
-  st.lastMsg = 0; markStale(false);
+  st.lastMsg = 0; st.feedClosed = false; markStale(false);
   // an open modal dialog (the abort confirmation) would stay open unseen and block every click
   document.querySelectorAll("dialog[open]").forEach(d => d.close());
   show($("app"), false); show($("signin"), true);
@@ -95,7 +96,7 @@ function clearRigView() {
   ["alarm-result", "run-id", "message", "manual-step", "manual-motion"].forEach(id => { $(id).textContent = ""; });
   $("state").textContent = "—"; $("state").className = "state";
   $("matrix").value = "demo";
-  Object.assign(st, {status: null, manual: null});
+  Object.assign(st, {status: null, manual: null, viewRun: undefined});
   show($("manual"), false); show($("manual-none"), true);
   trends.trendClear(); trends.drawTrends();
   document.querySelectorAll("canvas").forEach(c => { c.getContext("2d").clearRect(0, 0, c.width, c.height); c.dataset.updates = "0"; });
@@ -108,7 +109,7 @@ function clearRunView() {
   showDrives({}); showAux({}, {});  // every row in place before the first live message: no jump
   ["point", "frequency", "revolutions", "eta", "op-spin", "op-orbit", "op-orbit-hz", "op-direction"].forEach(id => { $(id).textContent = "—"; });
   $("progress-bar").style.width = "0";
-  st.liveAt = 0; st.etaS = null; $("eta-held").textContent = "";
+  st.liveAt = 0; st.etaS = null; $("eta-held").textContent = ""; showLiveAge();
   ["plot-forces", "plot-disp", "plot-orbit"].forEach(id => {
     const c = $(id); c.getContext("2d").clearRect(0, 0, c.width, c.height); c.dataset.samples = "0";
   });
@@ -124,8 +125,11 @@ function connect() {
   const ws = new WebSocket((location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/api/feed");
   st.ws = ws; st.feedAt = Date.now();
   ws.onopen = () => { st.retry = 0; banner(null); };
-  ws.onmessage = ev => { st.lastMsg = Date.now(); markStale(false); handle(JSON.parse(ev.data)); };
-  ws.onclose = () => { st.ws = null; banner("offline: dashboard server unreachable — reconnecting"); setTimeout(reconnect, Math.min(5000, 500 * 2 ** st.retry++)); };
+  ws.onmessage = ev => { st.lastMsg = Date.now(); st.feedClosed = false; markStale(false); handle(JSON.parse(ev.data)); };
+  ws.onclose = () => {
+    st.ws = null; st.feedClosed = true; markStale(true);
+    banner("offline: dashboard server unreachable — reconnecting"); setTimeout(reconnect, Math.min(5000, 500 * 2 ** st.retry++));
+  };
 }
 
 async function reconnect() {
@@ -147,7 +151,7 @@ function banner(text) { st.bannerText = text || null; drawBanner(); }
 // the stale warning goes before any other: nothing the page shows is known to be the present
 function drawBanner() {
   let text = st.bannerText;
-  if (st.stale) {
+  if (st.stale && !st.feedClosed) {  // a closed feed says so itself (its banner)
     const live = st.ws && st.ws.readyState === 1 ? "" : " — reconnecting";
     text = "STALE: no data from the dashboard server for " + Math.round((Date.now() - st.lastMsg) / 1000) + " s" + live +
       " — what this page shows may not be the present";
@@ -165,7 +169,7 @@ function markStale(on) {
 function watchFeed() {
   if (!st.lastMsg) return;
   const now = Date.now();
-  markStale(now - st.lastMsg > 1000 * STALE_TICKS * st.tick);
+  markStale(st.feedClosed || now - st.lastMsg > 1000 * STALE_TICKS * st.tick);
   if (st.stale) drawBanner();
   if (st.ws && now - Math.max(st.lastMsg, st.feedAt) > 1000 * FEED_DEAD_TICKS * st.tick) {
     const ws = st.ws; st.ws = null;
@@ -247,14 +251,20 @@ function showStatus(s) {
     addEvent(said.startsWith("run " + Outcome.COMPLETED) ? "info" : "warn", "run " + s.run_id + " " + said.slice(4), false, s.since, key);
   } else if (warn && !(prev && prev.message === s.message)) addEvent("warn", s.state + ": " + said, false, undefined, key);
   warnings.forEach(w => addEvent("warn", "run " + (s.run_id || "") + ": warning: " + w, false, undefined, ["run warning", s.run_id, w].join("|")));
-  if (runEnded(s) || !prev || prev.run_id !== s.run_id) clearRunView();
+  // an offline status changes no run (its run_id may be the last will's: the run of the service's connection):
+  // the view stays, its live values ageing, and goes on when the service is back with the same run
+  if (s.state !== RunState.OFFLINE) {
+    if (runEnded(s) || s.run_id !== st.viewRun) clearRunView();
+    st.viewRun = s.run_id;
+  }
   if (s.state === RunState.IDLE && (s.message || "").includes(Outcome.COMPLETED)) $("progress-bar").style.width = "100%";
   showManual(s);
   showEta();
 }
 
-const SETTING_LABEL = {orbit_radius: ["orbit radius", "µm", 1e6, 2], static_eccentricity: ["static eccentricity", "", 1, 3],
-  recess_pressure: ["recess pressure", "MPa", 1e-6, 4], pressure_ratio: ["pressure ratio", "", 1, 3]};
+// setting -> [label, shown unit (SHOWN_IN), digits]
+const SETTING_LABEL = {orbit_radius: ["orbit radius", "µm", 2], static_eccentricity: ["static eccentricity", "", 3],
+  recess_pressure: ["recess pressure", "MPa", 4], pressure_ratio: ["pressure ratio", "", 3]};
 
 // the asked settings of a waiting status; measured values follow the live payload (highlighted outside their band)
 function showManual(s) {
@@ -267,11 +277,11 @@ function showManual(s) {
   showMotion(s.message || "");
   const body = $("manual-table"); clear(body);
   Object.entries(st.manual).forEach(([name, v]) => {
-    const [text, unit, k, d] = SETTING_LABEL[name] || [name, v.unit, 1, 4];
+    const [text, unit, d] = SETTING_LABEL[name] || [name, v.unit, 4], shown = x => fmt(inShownUnit(x, unit), d);
     const tr = document.createElement("tr"); tr.dataset.setting = name;
     cell(tr, text + (unit ? " (" + unit + ")" : ""));
-    cell(tr, v.value === null ? "—" : fmt(v.value * k, d));
-    cell(tr, ""); pieces(cell(tr, ""), v.band ? [fmt(v.band[0] * k, d) + " …", fmt(v.band[1] * k, d)] : []);
+    cell(tr, v.value === null ? "—" : shown(v.value));
+    cell(tr, ""); pieces(cell(tr, ""), v.band ? [shown(v.band[0]) + " …", shown(v.band[1])] : []);
     body.appendChild(tr);
   });
   showMeasured(Object.fromEntries(Object.entries(st.manual).map(([n, v]) => [n, v.measured])));
@@ -295,11 +305,11 @@ function showMeasured(measured) {
   document.querySelectorAll("#manual-table tr").forEach(tr => {
     const name = tr.dataset.setting, v = st.manual[name], m = measured[name], td = tr.children[2];
     if (m === undefined) return;
-    const [, , k, d] = SETTING_LABEL[name] || [name, "", 1, 4];
+    const [, unit, d] = SETTING_LABEL[name] || [name, "", 4], shown = fmt(inShownUnit(m, unit), d);
     const out = m !== null && v && v.band && (m < v.band[0] || m > v.band[1]);
     if (m === null) pieces(td, ["not measured yet"], true);
-    else if (out) pieces(td, [fmt(m * k, d), "(outside the band)"], true);
-    else pieces(td, [fmt(m * k, d)]);
+    else if (out) pieces(td, [shown, "(outside the band)"], true);
+    else pieces(td, [shown]);
     td.className = out ? "out" : "";
     tr.classList.toggle("outside", !!out);
   });
@@ -330,6 +340,7 @@ function showEta() {
 function showLive(d, age) {
   if (runEnded(st.status)) return;  // late: the run is over
   st.liveAt = Date.now() - 1000 * Math.max(0, age || 0);
+  showLiveAge();
   const orbit = (d.drives || {}).orbit;
   $("op-spin").textContent = withUnit(d.spin_rpm, 0, "rpm");
   $("op-orbit").textContent = withUnit(orbit ? orbit.actual_rpm : null, 0, "rpm");
@@ -342,12 +353,25 @@ function showLive(d, age) {
   const w = d.waveforms || {};
   const forces = ["fx_piezo", "fy_piezo", "fx_strain", "fy_strain"].filter(n => w[n]);
   const disp = ["x_a", "y_a", "x_b", "y_b"].filter(n => w[n]);
-  if (forces.length) orbitPlots.drawTraces($("plot-forces"), forces.map(n => ({name: n, values: w[n]})), 1);
-  if (disp.length) orbitPlots.drawTraces($("plot-disp"), disp.map(n => ({name: n, values: w[n]})), 1e6);
+  if (forces.length) orbitPlots.drawTraces($("plot-forces"), forces.map(n => ({name: n, values: w[n]})), "N");
+  if (disp.length) orbitPlots.drawTraces($("plot-disp"), disp.map(n => ({name: n, values: w[n]})), "µm");
   if (w.x_a && w.y_a && w.x_b && w.y_b) {
     const x = w.x_a.map((v, i) => (v + w.x_b[i]) / 2), y = w.y_a.map((v, i) => (v + w.y_b[i]) / 2);
     orbitPlots.drawOrbit($("plot-orbit"), x, y);
   }
+}
+
+// the live payload comes 5 times a second while a run is under way (docs/protocols/mqtt.md): one older than
+// LIVE_OLD_S (a hung service before its last will, a stalled acquisition) is not the present: the live values
+// (Run card, drives, sensors, averaged revolution) are greyed and each card says how old they are
+const LIVE_OLD_S = 3;
+
+function showLiveAge() {
+  const age = st.liveAt ? (Date.now() - st.liveAt) / 1000 : null, old = age !== null && age > LIVE_OLD_S;
+  const note = old ? "(the last live values, " + Math.round(age) + " s old: not the present)" : "";
+  $("live-age").textContent = age === null ? "—" : age.toFixed(1) + " s ago" + (old ? ": not the present" : "");
+  $("app").classList.toggle("live-old", old);
+  document.querySelectorAll(".live-note").forEach(el => { el.textContent = note; });
 }
 
 function showDrives(dr) {
@@ -373,8 +397,8 @@ function showAux(a, bands) {
     const v = inShownUnit(a[key], unit), digits = unit === "MPa" ? 4 : unit === "" ? 3 : 2;
     const tr = document.createElement("tr"); tr.dataset.aux = key;
     cell(tr, text + (unit ? " (" + unit + ")" : ""));
-    const out = band && a[key] !== null && (a[key] < band[0] || a[key] > band[1]);
-    cell(tr, fmt(v, digits), out ? "out" : "");
+    const out = band && a[key] !== null && a[key] !== undefined && (a[key] < band[0] || a[key] > band[1]);
+    pieces(cell(tr, "", out ? "out" : ""), out ? [fmt(v, digits), "(outside the band)"] : [fmt(v, digits)], out);  // in words, not in red alone
     cell(tr, band ? fmt(inShownUnit(band[0], unit), digits) + " … " + fmt(inShownUnit(band[1], unit), digits) : "");
     body.appendChild(tr);
   });
@@ -487,7 +511,7 @@ function wire() {
   $("btn-confirm").addEventListener("click", () => send(Command.CONFIRM, {step: $("manual-step").textContent}));
   ["keydown", "pointerdown", "pointermove", "wheel"].forEach(t => document.addEventListener(t, activity, {passive: true}));
   setInterval(watchFeed, 500);
-  setInterval(() => { $("live-age").textContent = st.liveAt ? ((Date.now() - st.liveAt) / 1000).toFixed(1) + " s ago" : "—"; }, 500);
+  setInterval(showLiveAge, 500);
 }
 
 async function boot() {

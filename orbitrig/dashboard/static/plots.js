@@ -67,18 +67,19 @@ function mark(canvas, samples, y) {
   canvas.dataset.ticks = y.ticks.map(v => fmtTick(v, y.step)).join(" ");
 }
 
-// series: [{name, values}], values over one revolution (samples evenly spread over 360 deg)
-function drawTraces(canvas, series, scale) {
+// series: [{name, values}], values (SI) over one revolution (samples evenly spread over 360 deg), drawn in `unit` (inShownUnit)
+function drawTraces(canvas, series, unit) {
   const ctx = canvas.getContext("2d"), w = canvas.width, h = canvas.height, m = MARGIN;
   let lo = Infinity, hi = -Infinity;
-  series.forEach(s => s.values.forEach(v => { if (v !== null) { lo = Math.min(lo, v * scale); hi = Math.max(hi, v * scale); } }));
+  series = series.map(s => ({name: s.name, values: s.values.map(v => inShownUnit(v, unit))}));
+  series.forEach(s => s.values.forEach(v => { if (v !== null) { lo = Math.min(lo, v); hi = Math.max(hi, v); } }));
   const y = niceTicks(lo, hi, 4);
   frame(ctx, w, h, y, [[0, "0°"], [0.25, "90°"], [0.5, "180°"], [0.75, "270°"], [1, "360°"]]);
   series.forEach((s, k) => {
     const n = s.values.length;
     ctx.strokeStyle = COLOURS[k % COLOURS.length]; ctx.lineWidth = 1.5; ctx.beginPath();
     s.values.forEach((v, i) => {
-      const x = m.l + (w - m.l - m.r) * i / Math.max(1, n), py = h - m.b - (h - m.t - m.b) * (v * scale - y.lo) / (y.hi - y.lo);
+      const x = m.l + (w - m.l - m.r) * i / Math.max(1, n), py = h - m.b - (h - m.t - m.b) * (v - y.lo) / (y.hi - y.lo);
       i ? ctx.lineTo(x, py) : ctx.moveTo(x, py);
     });
     ctx.stroke();
@@ -97,7 +98,7 @@ function squareMargin(w, h) {
 // round: the same pixels per um across and up), closed curve
 function drawOrbit(canvas, x, y) {
   const ctx = canvas.getContext("2d"), w = canvas.width, h = canvas.height, m = squareMargin(w, h);
-  const xs = x.map(v => v * 1e6), ys = y.map(v => v * 1e6);
+  const xs = x.map(v => inShownUnit(v, "µm")), ys = y.map(v => inShownUnit(v, "µm"));
   const r = Math.max(1e-3, ...xs.map(Math.abs), ...ys.map(Math.abs));
   const ax = niceTicks(-r, r, 4);
   frame(ctx, w, h, ax, ax.ticks.map(v => [(v - ax.lo) / (ax.hi - ax.lo), fmtTick(v, ax.step)]), m);
@@ -172,6 +173,7 @@ function drawTrend(canvas, series, band, win) {
   legend(ctx, series.map(s => s.name), series.map((s, k) => COLOURS[k % COLOURS.length]));
   mark(canvas, n, y);
   canvas.dataset.pieces = pieces.join(",");
+  canvas.dataset.until = String(t1);  // the window's end (s since the epoch)
   canvas.dataset.band = band ? band.join(",") : "";
 }
 

@@ -10,6 +10,9 @@
 "use strict";
 
 const MAX_RESULT_ROWS = 2000;
+// a coefficient not determined says so after its value, as the terminal's table and the report
+// ("15.00 n.d.", not in red alone); the cell's tooltip says what it means (orbitrig.cli.sweep_summary.ND_NOTE)
+const ND_MARK = " n.d.", ND_NOTE = "n.d. = not determined: the expanded uncertainty U exceeds the magnitude";
 // what the table holds: the results shown (resultKey), the run of the latest, whether runs are marked
 // and the points trimmed off the table (run -> {from, to, n}, point numbers as shown)
 const shownResults = {keys: new Set(), lastRun: null, marked: false, trimmed: new Map()};
@@ -38,7 +41,7 @@ function fitRows(r, row) {
   const units = row.units || {}, loose = new Set(row.not_determined || []);
   return Object.keys(c).map((k, i) => {
     const [unit, scale] = displayUnit(k) || [units[k] || "", 1], shown = v => fmtValue(v === null || v === undefined ? v : v * scale);
-    return [...(i ? ["", "", ""] : head), {text: k}, {text: shown(c[k]), cls: loose.has(k) ? "out" : ""},
+    return [...(i ? ["", "", ""] : head), {text: k}, loose.has(k) ? {text: shown(c[k]) + ND_MARK, cls: "out", title: ND_NOTE} : {text: shown(c[k])},
       {text: shown(U[k]), title: eu.basis ? "k = " + eu.k + ", " + eu.basis : ""}, {text: unit}];
   });
 }

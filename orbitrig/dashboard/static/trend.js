@@ -43,6 +43,11 @@ function scheduleDraw() {
   requestAnimationFrame(() => { trendState.drawPending = false; drawTrends(); });
 }
 
+// the window follows the clock also while no sample comes (a service that hangs, the run over): the latest
+// samples move left, away from the right edge, instead of standing there as the present
+const FOLLOW_CLOCK_MS = 2000;
+setInterval(scheduleDraw, FOLLOW_CLOCK_MS);
+
 function trendBands(bands) { trendState.bands = bands || {}; }
 
 function trendWindow() {

@@ -1,5 +1,5 @@
 // The page's units at the edges, one owner as rigunits is Python's: SI comes in the feed, the page
-// shows durations, temperatures, pressures, flow and the coefficients as the operator reads them.
+// shows durations, temperatures, pressures, flow, lengths and the coefficients as the operator reads them.
 // tests/dashboard/test_dashboard_units.py holds formatDuration and displayUnit equal to
 // rigunits.format_duration and rigunits.display_unit.
 // Loaded before the scripts that use it.
@@ -14,8 +14,9 @@ function formatDuration(s) {
   return h ? h + ":" + two(m) + ":" + two(sec) : m + ":" + two(sec);
 }
 
-// the shown unit of an SI value (K, Pa, m^3/s): v in SI -> v in that unit; a unit not here is SI itself
-const SHOWN_IN = Object.freeze({"°C": v => v - 273.15, "MPa": v => v / 1e6, "l/min": v => v * 6e4});
+// the shown unit of an SI value (K, Pa, m^3/s, m): v in SI -> v in that unit; a unit not here is SI itself
+// (µm: rigunits.MICROMETRE, an orbit radius, a displacement)
+const SHOWN_IN = Object.freeze({"°C": v => v - 273.15, "MPa": v => v / 1e6, "l/min": v => v * 6e4, "µm": v => v * 1e6});
 
 // SI value `v` in the shown `unit` (null stays null)
 function inShownUnit(v, unit) {
