@@ -41,6 +41,12 @@ def defy_stops(sim: SimDrives, dev: int, monkeypatch, *, refuse: bool) -> None:
     monkeypatch.setattr(model, "write", write)
 
 
+async def at_speed(rig) -> None:
+    """Spin 1000 rpm, orbit -500 rpm (backward whirl), settled."""
+    await rig.set_speeds(1000 * RPM, -500 * RPM)
+    await rig.wait_settled(hold=0.05, timeout=10.0)
+
+
 def request_times(sim: SimDrives, monkeypatch) -> dict[int, list[float]]:
     """Monotonic s of every request each drive receives from now on (observed, passed through)."""
     times: dict[int, list[float]] = {1: [], 2: []}
@@ -66,8 +72,7 @@ async def _defied(sim: SimDrives, monkeypatch, caplog, *, refuse: bool) -> tuple
     received and the monotonic s of the stop, once the spin drive reads tripped at standstill."""
     caplog.set_level(logging.ERROR, logger="drives")
     async with open_rig(sim, LIMITS) as rig:
-        await rig.set_speeds(1000 * RPM, -500 * RPM)
-        await rig.wait_settled(hold=0.05, timeout=10.0)
+        await at_speed(rig)
         times = request_times(sim, monkeypatch)
         defy_stops(sim, 1, monkeypatch, refuse=refuse)
         t_stop = time.monotonic()
@@ -112,8 +117,7 @@ async def test_a_drive_without_watchdog_running_on_is_said_unstoppable_at_once(t
     sim = tcp_sim
     caplog.set_level(logging.ERROR, logger="drives")
     async with open_rig(sim, LIMITS, comm_loss_timeout=0.0) as rig:
-        await rig.set_speeds(1000 * RPM, -500 * RPM)
-        await rig.wait_settled(hold=0.05, timeout=10.0)
+        await at_speed(rig)
         times = request_times(sim, monkeypatch)
         defy_stops(sim, 1, monkeypatch, refuse=True)
         t_stop = time.monotonic()
@@ -140,8 +144,7 @@ async def test_a_drive_ramping_down_at_a_zero_reference_is_not_starved(slow_driv
     sim = slow_drives
     caplog.set_level(logging.ERROR, logger="drives")
     async with open_rig(sim, LIMITS, comm_loss_timeout=WATCHDOG_S) as rig:
-        await rig.set_speeds(1000 * RPM, -500 * RPM)
-        await rig.wait_settled(hold=0.05, timeout=10.0)
+        await at_speed(rig)
         times = request_times(sim, monkeypatch)
         model, real = sim.models[1], sim.models[1].write
 
@@ -173,8 +176,7 @@ async def test_a_drive_in_local_control_refusing_the_stop_is_said_unstoppable_af
     sim = tcp_sim
     caplog.set_level(logging.ERROR, logger="drives")
     async with open_rig(sim, LIMITS) as rig:
-        await rig.set_speeds(1000 * RPM, -500 * RPM)
-        await rig.wait_settled(hold=0.05, timeout=10.0)
+        await at_speed(rig)
         defy_stops(sim, 1, monkeypatch, refuse=True)
         sim.models[1].local_control(1000.0)  # someone at the drive: the poll stops both, the spin drive refuses
         await sim.wait_for(lambda: "read again after" in caplog.text, 5.0, "the starved drive read again")
@@ -198,8 +200,7 @@ async def test_a_drive_running_on_while_the_operator_presses_stop_again_and_agai
     one stop (its watchdog trips 7510 and ramps it down)."""
     caplog.set_level(logging.ERROR, logger="drives")
     async with open_rig(sim, LIMITS) as rig:
-        await rig.set_speeds(1000 * RPM, -500 * RPM)
-        await rig.wait_settled(hold=0.05, timeout=10.0)
+        await at_speed(rig)
         defy_stops(sim, 1, monkeypatch, refuse=refuse)
         t_stop, presses = time.monotonic(), 0
         while sim.regs(1)["FAULT"] != COMM_LOSS_FAULT and time.monotonic() < t_stop + 5.0:
@@ -227,8 +228,7 @@ async def test_the_rig_closing_while_a_drive_is_starved_reads_it_again_first(sim
     run ends with the outcome said (tripped 7510, slowing), not with a drive left unread."""
     caplog.set_level(logging.WARNING, logger="drives")
     async with open_rig(sim, LIMITS) as rig:
-        await rig.set_speeds(1000 * RPM, -500 * RPM)
-        await rig.wait_settled(hold=0.05, timeout=10.0)
+        await at_speed(rig)
         times = request_times(sim, monkeypatch)
         defy_stops(sim, 1, monkeypatch, refuse=False)
         await rig.stop(wait=False)

@@ -115,6 +115,15 @@ def publish_abort(rc: RigClient, cid: str) -> int:
     return mark
 
 
+def emergency_stopped(reply: dict, sim_rig, t_abort: float) -> None:
+    """The abort's reply says the emergency stop went to both drives, and both got its word
+    (OFF3) after `t_abort` (monotonic s)."""
+    assert reply["ok"] is True and "emergency stop (OFF3) sent to both drives" in reply["detail"], reply
+    for device, drive in sim_rig.drives.items():
+        words = [cw for t, cw in drive.control_words if t >= t_abort]
+        assert R.CW_EMERGENCY_STOP in words, (device, [hex(w) for w in words])
+
+
 async def test_the_same_abort_after_a_reconnection_aborts_the_new_run(broker, tmp_path, monkeypatch, caplog):
     # the redelivery window made wide, so that a slow machine cannot close it before the abort
     monkeypatch.setattr(commands, "REDELIVERY_S", 600.0)
@@ -159,12 +168,7 @@ async def test_an_abort_after_an_unconfirmed_stop_sends_the_emergency_stop(broke
         assert not standstill(sim_rig), sim_rig.speeds  # still coasting: nothing holds them
 
         t_abort = time.monotonic()
-        reply = await wait(rc.command, {"cmd": "abort"})
-        assert reply["ok"] is True, reply
-        assert "emergency stop (OFF3) sent to both drives" in reply["detail"], reply
-        for device, drive in sim_rig.drives.items():
-            words = [cw for t, cw in drive.control_words if t >= t_abort]
-            assert R.CW_EMERGENCY_STOP in words, (device, [hex(w) for w in words])
+        emergency_stopped(await wait(rc.command, {"cmd": "abort"}), sim_rig, t_abort)
 
 
 async def test_an_abort_before_the_first_run_stops_drives_turned_from_their_keypads(broker, tmp_path):
@@ -173,11 +177,7 @@ async def test_an_abort_before_the_first_run_stops_drives_turned_from_their_keyp
         await until(lambda: min(abs(w) for w in sim_rig.speeds) > 10.0, 30, "both drives turning")
         t_abort = time.monotonic()
         mark = await wait(publish_abort, rc, "before-any-run")
-        reply = await wait(rc.reply, "before-any-run", 15, mark)
-        assert reply["ok"] is True and "emergency stop (OFF3) sent to both drives" in reply["detail"], reply
-        for device, drive in sim_rig.drives.items():
-            words = [cw for t, cw in drive.control_words if t >= t_abort]
-            assert R.CW_EMERGENCY_STOP in words, (device, [hex(w) for w in words])
+        emergency_stopped(await wait(rc.reply, "before-any-run", 15, mark), sim_rig, t_abort)
         await until(lambda: standstill(sim_rig), 30, "both drives at standstill")
 
 
