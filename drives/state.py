@@ -110,10 +110,21 @@ def off_command(
         else:
             continue
         return DriveOffCommand(
-            f"{what} while commanded to run at {fmt_speed(d.speed_of(raw))}: "
-            "stopped or changed by another client, or at the drive",
+            f"{what} while commanded to run at {fmt_speed(d.speed_of(raw))}: {_off_cause(st)}",
             drive=st.device_id,
             drive_name=st.name,
             register=register,
         )
     return None
+
+
+def _off_cause(st: DriveStatus) -> str:
+    """Who likely took the drive off the command: CW and REF reading 0 (no client writes CW 0, a
+    stop is OFF1 or OFF3 with REMOTE) are a drive come up from power-on; else another client or
+    its keypad."""
+    if not st.running and st.control_word == 0 and st.reference_raw == 0:
+        return (
+            "CW and REF read 0 as after power-on: the drive lost power or was reset "
+            "(its parameters are back to their defaults)"
+        )
+    return "stopped or changed by another client, or at the drive"

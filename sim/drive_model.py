@@ -210,6 +210,17 @@ class DriveModel:
         self._faults.causes.add(code)
         self._trip(code)
 
+    def power_cycle(self) -> None:
+        """The drive's supply off and on again (a mains dip, its breaker): the spindle coasts, and
+        the drive comes up as from power-on: switch-on inhibited, parameters at their defaults,
+        CW, REF and REF2 0, no fault latched, its comm-loss watchdog not armed."""
+        self.advance()
+        self._params = dict(R.PARAMETER_DEFAULTS)
+        self._cw_reg = self._cw = self._ref_reg = self._ref = self._ref2 = 0
+        self._remote = self._local = self._fault_ramp = False
+        self._faults, self._watchdog = FaultLatch(), CommWatchdog(self._w)
+        self._state = INHIBITED
+
     def clear_fault_cause(self, code: int | None = None) -> None:
         """Remove the cause of fault `code` (all causes if None); a RESET edge still
         has to clear the latched fault."""

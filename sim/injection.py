@@ -18,6 +18,7 @@ class SimFault(StrEnum):
     STALL_CLOCK = "stall_clock"
     CLOSE_ADC_LINK = "close_adc_link"
     DRIVE_TRIP = "drive_trip"
+    DRIVE_POWER_CYCLE = "drive_power_cycle"
     MODBUS_TIMEOUT = "modbus_timeout"
     CAN_HEARTBEAT_LOSS = "can_heartbeat_loss"
     CLEAR = "clear"
@@ -27,7 +28,7 @@ def inject(rig: SimRig, fault: str, **kw: Any) -> None:
     """Inject `fault` into `rig`; counts and switches as keywords:
     corrupt_bytes(count=1), drop_frames(count=1), missing_trigger(count=1),
     stall_clock(on=True), close_adc_link(reopen_after=1.0 s wall),
-    drive_trip(drive=1|2, code=2310), modbus_timeout(on=True),
+    drive_trip(drive=1|2, code=2310), drive_power_cycle(drive=1|2), modbus_timeout(on=True),
     can_heartbeat_loss(on=True), clear (every fault off, drive causes gone).
     An unknown fault or drive raises ValueError."""
     try:
@@ -45,11 +46,14 @@ def inject(rig: SimRig, fault: str, **kw: Any) -> None:
         b.stalled = bool(kw.get("on", True))
     elif which is SimFault.CLOSE_ADC_LINK:
         rig.adc_server.close_link(reopen_after=float(kw.get("reopen_after", 1.0)))
-    elif which is SimFault.DRIVE_TRIP:
+    elif which in (SimFault.DRIVE_TRIP, SimFault.DRIVE_POWER_CYCLE):
         drive = int(kw.get("drive", 2))
         if drive not in rig.drives:
-            raise ValueError(f"drive_trip: no drive {drive} (1 = spin, 2 = orbit)")
-        rig.drives[drive].inject_fault(int(kw.get("code", 2310)))
+            raise ValueError(f"{which.value}: no drive {drive} (1 = spin, 2 = orbit)")
+        if which is SimFault.DRIVE_TRIP:
+            rig.drives[drive].inject_fault(int(kw.get("code", 2310)))
+        else:
+            rig.drives[drive].power_cycle()
     elif which is SimFault.MODBUS_TIMEOUT:
         for ep in rig.modbus_servers:
             ep.set_unresponsive(bool(kw.get("on", True)))

@@ -98,4 +98,21 @@ def storage_error(path: str | os.PathLike[str], doing: str, err: BaseException) 
     text = os.strerror(code) if isinstance(code, int) else str(err)
     if code in _FULL:
         return StorageFullError(path, f"cannot {doing}: {text} (the disk is full)")
+    if code == errno.EIO and _read_only(path):
+        text += " (the file system went read-only)"
     return StorageError(path, f"cannot {doing}: {type(err).__name__}: {text}")
+
+
+def _read_only(path: str | os.PathLike[str]) -> bool:
+    """Whether the file system holding `path` (or its nearest existing folder) now refuses writes
+    as read-only: what the kernel makes of one on an I/O error (ext4 errors=remount-ro), whose
+    writes in flight get EIO. Asked by creating an unnamed file there (O_TMPFILE, gone at its
+    close): ext4's read-only state after an error shows in neither statvfs nor access()."""
+    where = os.path.abspath(path)
+    while not os.path.isdir(where) and os.path.dirname(where) != where:
+        where = os.path.dirname(where)
+    try:
+        os.close(os.open(where, os.O_TMPFILE | os.O_WRONLY, 0o600))
+    except OSError as err:
+        return err.errno == errno.EROFS
+    return False
