@@ -1,19 +1,18 @@
-"""The point procedure: manual settings, speeds, settle, acquire, verify, record.
+"""The point procedure: manual settings, speeds, settle, acquire, verify; then the record.
 
 Every step kind of the plan has one handler in `PointProcedure.handlers`
 and one rule for what comes before it (`BEFORE`: a safe point where a pause
 or a stop is honoured, and/or a hold while an interlock suspends the run).
 Times in the plan are physical; waits on the rig are converted to wall time
-by the rig's `TimeScale`.
+by the rig's `TimeScale`. The steps that record a point (store, choose, identify,
+complete) are handled by orbitrig.run.point_record.
 """
 
 from __future__ import annotations
 
-import asyncio
-import dataclasses
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Awaitable, Callable
 
 from daq.errors import DaqError
@@ -21,14 +20,11 @@ from drives.errors import DriveError
 from orbitrig.config import RigConfig
 from orbitrig.run.averaging import averaging_rule
 from orbitrig.run.background import Background
-from orbitrig.run.control import RunControl, StopRun, Suspended
-from orbitrig.run.corrections import Corrections
+from orbitrig.run.control import RunControl, Suspended
 from orbitrig.run.events import ResultEvent, RunFailed
-from orbitrig.run.heap import trim_heap
-from orbitrig.run.identification import block_record, identify_operating_point
-from orbitrig.run.point_report import point_log_lines, result_payload
+from orbitrig.run.identification import block_record
 from orbitrig.run.plan import OperatingPoint
-from orbitrig.run.truth import point_truth
+from orbitrig.run.point_record import PointRecord, PointState
 from orbitrig.run.steps import (
     Acquire,
     ChooseBlocks,
@@ -46,15 +42,12 @@ from orbitrig.run.steps import (
 )
 from orbitrig.run.progress import ProgressMeter
 from orbitrig.run.rig_io import RigAccess, RigIO
-from orbitrig.run.sequential_point import MAX_BLOCK_INDEX, choice_line, chosen_steps, decide
 from orbitrig.run.states import ConfirmMode
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.verification import geometry_problems, pressures_settled, radius_missed
 from orbitrig.store.layout import point_name
-from orbitrig.store.records import BlockChoice, BlockRecord, PointResults
 from orbitrig.store.writer import RunStore
 from reduction.rig_time import block_time
-from reduction.sequential import Choice
 from rigunits import rpm_text
 
 log = logging.getLogger(__name__)
@@ -90,24 +83,6 @@ BEFORE: dict[type[Step], Before] = {
 
 
 @dataclass
-class PointState:
-    """What one point's steps hand each other: the blocks measured and stored so far."""
-
-    point: OperatingPoint
-    always_confirm: bool  # the run's first point: its manual settings are confirmed even if unchanged
-    last: BlockRecord | None = None
-    records: dict[str, BlockRecord] = field(default_factory=dict)
-    results: asyncio.Task[PointResults] | None = None  # computed in the background
-    sequential: BlockChoice | None = None  # a sequential point's last decision (why it stopped)
-
-    def measured(self) -> BlockRecord:
-        """The block acquired last (a RuntimeError before the point's first Acquire: a plan out of order)."""
-        if self.last is None:
-            raise RuntimeError(f"point {point_name(self.point.index)}: no block acquired yet")
-        return self.last
-
-
-@dataclass
 class RunParts:
     """The run's parts the procedure works with."""
 
@@ -131,6 +106,7 @@ class PointProcedure:
         self.r = parts
         self.scale = parts.access.time_scale
         self._ramps_end: float | None = None  # monotonic s the last speed command's ramps should end
+        self.record = PointRecord(parts, self.run_step, self._add_time)  # the steps after the measurement
         self.handlers: dict[type[Step], Callable[..., Awaitable[None]]] = {  # (its step kind, PointState | None)
             SetManual: self.set_manual,
             VerifyPressures: self.verify_pressures,
@@ -139,10 +115,10 @@ class PointProcedure:
             Settle: self.settle,
             Acquire: self.acquire,
             VerifyGeometry: self.verify_geometry,
-            StoreBlock: self.store_block,
-            ChooseBlocks: self.choose_blocks,
-            Identify: self.identify,
-            CompletePoint: self.complete_point,
+            StoreBlock: self.record.store_block,
+            ChooseBlocks: self.record.choose_blocks,
+            Identify: self.record.identify,
+            CompletePoint: self.record.complete_point,
             StopDrives: self.stop_drives,
         }
 
@@ -312,88 +288,3 @@ class PointProcedure:
                 r.note(msg)
                 if attempts > av.retries:
                     raise RunFailed(msg) from err
-
-    # --------------------------------------------------------------- record
-    async def store_block(self, step: StoreBlock, ps: PointState) -> None:
-        r = self.r
-        rec = ps.measured() if step.choice is None else dataclasses.replace(ps.measured(), choice=step.choice)
-        ps.records[step.block.tag] = rec
-        r.background.defer_writes()  # until the next speeds are reached (_settle_once, orbitrig.run.background)
-        r.background.spawn(self._write_block(ps.point, rec), f"store {point_name(ps.point.index)}/{step.block.tag}")
-        if r.control.stop_requested and len(ps.records) < len(ps.point.blocks):
-            raise StopRun
-
-    async def _write_block(self, p: OperatingPoint, rec: BlockRecord) -> None:
-        await self.r.background.write(self.r.store.write_block, p.index, rec)
-        self.r.store.log(f"point {point_name(p.index)}: stored {rec.block.tag}")
-
-    async def choose_blocks(self, step: ChooseBlocks, ps: PointState) -> None:
-        """A sequential point after its initial list: choose the next block (in a worker thread:
-        reduction numerics), run it through the plan's own step kinds, again, until the target
-        or the cap. A stop request ends the point unfinished (a resume runs it again)."""
-        r, p, freq = self.r, ps.point, step.first_freq
-        while True:
-            if r.control.stop_requested:
-                raise StopRun
-            recs = list(ps.records.values())
-            c = await asyncio.to_thread(
-                decide, p.index, step.rule, p.spin, recs, r.rig.channel_index, Corrections.of_rig(r.rig)
-            )
-            if c.ratio is not None and freq > MAX_BLOCK_INDEX:  # no block name left: as at the cap
-                c = dataclasses.replace(
-                    c, reason=Choice.CAP.name.lower(), ratio=None, revolutions=0, seconds=0.0, after=c.before
-                )
-            r.store.log(choice_line(p.index, c))
-            if c.ratio is None:
-                ps.sequential = c
-                return
-            if c.ratio not in step.rule.candidates:  # the plan's candidates only, whatever the numerics say
-                raise RunFailed(
-                    f"point {point_name(p.index)}: sequential design chose ratio {c.ratio:g}, not a candidate"
-                )
-            for sub in chosen_steps(step, p.spin, c, freq, recs[-1].block.orbit, r.rig.estimates.store_s):
-                await self.run_step(sub, ps, counted=False)
-            freq += 1
-
-    async def identify(self, step: Identify, ps: PointState) -> None:
-        """Identify every model for both load measuring systems, in a worker thread: nothing of it
-        holds up the loop that polls the drives. A simulated rig's truth is taken first, before the
-        next step: it is the bearing at the present manual settings, which the next point changes."""
-        r, p, recs = self.r, ps.point, list(ps.records.values())
-        truth = None if r.access.truth is None else await asyncio.to_thread(point_truth, p, recs, r.access.truth)
-
-        async def results() -> PointResults:
-            t0 = time.monotonic()
-            res = await asyncio.to_thread(
-                identify_operating_point,
-                p.spin,
-                recs,
-                r.rig.channel_index,
-                step.models,
-                truth,
-                r.rig.calibration_uncertainty,
-                Corrections.of_rig(r.rig),
-            )
-            res.sequential = ps.sequential
-            self._add_time("identify", t0)
-            for line in point_log_lines(p, res):
-                r.store.log(line)
-            await r.background.write(r.store.write_results, p.index, res)
-            return res
-
-        ps.results = r.background.spawn(results(), f"identify point {point_name(p.index)}")
-
-    async def complete_point(self, step: CompletePoint, ps: PointState) -> None:
-        """Once the results are stored: mark the point complete and publish its results."""
-        r, p, results = self.r, ps.point, ps.results
-        if results is None:
-            raise RuntimeError(f"point {point_name(p.index)}: CompletePoint before its Identify step")
-
-        async def complete() -> None:
-            res = await results
-            await r.background.write(r.store.complete_point, p.index)
-            r.store.log(f"point {point_name(p.index)} {p.label}: complete")
-            await asyncio.to_thread(trim_heap)  # the point's blocks are freed: back to the system
-            r.emit(ResultEvent(r.run_id, result_payload(r.run_id, p, res)))
-
-        r.background.spawn_point(complete(), f"complete point {point_name(p.index)}")

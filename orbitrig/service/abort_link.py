@@ -33,7 +33,8 @@ from typing import Any, cast
 
 from daq.backoff import Backoff
 from orbitrig.service import protocol as proto
-from orbitrig.service.inbox import AbortCopies, CommandInbox, CommandTriage, Connection
+from orbitrig.service.abort_copies import AbortCopies, Connection
+from orbitrig.service.inbox import CommandInbox, CommandTriage
 from orbitrig.service.reconnect import TRAFFIC_S, Delivery, credentials_refused, reconnecting, refusals
 from orbitrig.service.settings import AbortAccount, BrokerSettings, ServiceError, ServiceSettings
 

@@ -20,13 +20,8 @@ carried out on the next one, first. The broker's redelivery of a command whose
 acknowledgement was lost with the link (DUP set, the packet id and bytes of one
 taken in before) is dropped: each command is carried out and answered once.
 
-Going out, replies to ordinary commands wait in a lane of their own, handed
-over only when no status or result waits, and published beside them: a status
-or a result never waits for the acknowledgements of a flood of replies (nor
-they for its). Each lane sends ``PUBLISH_WINDOW`` messages at a time. What the
-broker acknowledged is never sent again; what it had not when the link dropped
-is sent again on the next connection (QoS 1 is at least once: a reply may come
-twice, with its id).
+Going out, messages wait in two lanes (orbitrig.service.outbox, the link's base):
+replies to ordinary commands behind statuses and results, each lane in order.
 
 Every connection checks that the broker delivers to it (mosquitto grants a
 subscription its ACL denies, then delivers nothing): its own status, published
@@ -39,7 +34,6 @@ from __future__ import annotations
 
 import asyncio
 import collections
-import dataclasses
 import functools
 import json
 import logging
@@ -51,14 +45,13 @@ from orbitrig.service import protocol as proto
 from daq.backoff import Backoff
 from orbitrig.service.flood_read import hold_reading, read_in_bursts, shed_before_decoding
 from orbitrig.service.inbox import CommandInbox, CommandTriage
+from orbitrig.service.outbox import PUBLISH_WINDOW, Outbox
 from orbitrig.service.reconnect import TRAFFIC_S, Delivery, Redeliveries, credentials_refused, first_error
 from orbitrig.service.reconnect import next_message, reconnecting, watch_publish_refusals
 from orbitrig.service.settings import BrokerSettings, ServiceError, ServiceSettings
 
 log = logging.getLogger("orbitrig.service.link")
 
-#: messages handed to the MQTT client at once (it keeps its own in-flight limit)
-PUBLISH_WINDOW = 64
 #: s within which the service's own status must come back to it on every connection
 ECHO_S = 10.0
 #: where the broker's set-up is told, named while the service has never reached its broker
@@ -77,16 +70,7 @@ def _drop(message: Any) -> bool:
     return True  # (the connection that only ends the session subscribes to nothing)
 
 
-@dataclasses.dataclass
-class Outgoing:
-    topic: str
-    payload: bytes
-    qos: int
-    retain: bool = False
-    behind: bool = False  # a reply to an ordinary command: sent when nothing else waits
-
-
-class BrokerLink:
+class BrokerLink(Outbox):
     """The broker side of one rig service. ``status()`` gives the current status
     payload, ``offline(message)`` an ``offline`` status; ``on_command(payload,
     retained)`` gets each ordinary message on ``<prefix>/cmd`` in turn,
@@ -103,13 +87,10 @@ class BrokerLink:
         on_command: Callable[[bytes, bool], None],
         triage: CommandTriage,
     ):
-        self.broker, self.settings, self.topics = broker, settings, topics
+        super().__init__(topics, self._probe_status)
+        self.broker, self.settings = broker, settings
         self._status, self._offline, self._on_command = status, offline, on_command
         self.triage = triage
-        self._out: collections.deque[Outgoing] = collections.deque(maxlen=10_000)
-        self._replies: collections.deque[Outgoing] = collections.deque()
-        #: per lane (behind: replies), handed to the client, not yet acknowledged
-        self._sending: dict[bool, list[Outgoing]] = {False: [], True: []}
         self._inbox: CommandInbox | None = None  # the current connection's
         #: commands taken out of an inbox (or left in that of a lost connection), not yet handed over
         self._pending: collections.deque[Any] = collections.deque()
@@ -117,9 +98,6 @@ class BrokerLink:
         #: the current connection's end-to-end check (ECHO_S) and what the broker refused it
         self.delivery = Delivery(log, self.where, broker.username, topics)
         self._paho: Any = None  # the current connection's paho client
-        self._wakes = {False: asyncio.Event(), True: asyncio.Event()}  # per lane (behind: replies)
-        self.drained = asyncio.Event()
-        self.online = asyncio.Event()
         self.offline = asyncio.Event()
         self.offline.set()
         self.leaving = False  # set by the owner once "offline" was queued for a clean exit
@@ -132,68 +110,12 @@ class BrokerLink:
     def where(self) -> str:
         return f"{self.broker.host}:{self.broker.port}"
 
-    # -- outgoing -------------------------------------------------------------------
+    def _probe_status(self) -> bytes:
+        """The status sent first on a connection: the end-to-end check, it must come back (Delivery.verify)."""
+        self.delivery.probe = payload = self._status()
+        return payload
 
-    @property
-    def reply_backlog(self) -> int:
-        """Replies to ordinary commands not yet sent."""
-        return len(self._replies)
-
-    def send(self, topic: str, payload: bytes, qos: int, retain: bool = False, *, behind: bool = False) -> None:
-        """Queue a message; ``behind``: a reply to an ordinary command (its own lane)."""
-        if not self.online.is_set() and (qos == 0 or topic == self.topics.status):
-            return  # progress is of no use later; the status is republished on connection
-        if topic == self.topics.status and self._out and self._out[-1].payload == payload:
-            return  # the same status waits to be sent already (a repeated "status" command)
-        (self._replies if behind else self._out).append(Outgoing(topic, payload, qos, retain, behind))
-        self.drained.clear()
-        self._wakes[behind].set()
-
-    @staticmethod
-    def _next_batch(lane: collections.deque[Outgoing]) -> list[Outgoing]:
-        batch: list[Outgoing] = []
-        while lane and len(batch) < PUBLISH_WINDOW:
-            batch.append(lane.popleft())
-        return batch
-
-    async def _publish_loop(self, client: Any) -> None:
-        """Deliver the outgoing lanes, the current status first; what was handed over and
-        not acknowledged when a link dropped goes again (what was acknowledged never)."""
-        unsent = [m for lane in self._sending.values() for m in lane if m.topic != self.topics.status]
-        pending = [m for m in self._out if m.topic != self.topics.status]
-        self._out.clear()
-        first = Outgoing(self.topics.status, self._status(), proto.QOS_STATUS, True)
-        self.delivery.probe = first.payload  # the end-to-end check: it must come back (Delivery.verify)
-        self._out.append(first)
-        self._out.extend(m for m in unsent if not m.behind)
-        self._out.extend(pending)
-        self._replies.extendleft(reversed([m for m in unsent if m.behind]))
-        self._sending = {False: [], True: []}
-        async with asyncio.TaskGroup() as lanes:
-            lanes.create_task(self._lane(client, behind=False), name="mqtt-publish-status")
-            lanes.create_task(self._lane(client, behind=True), name="mqtt-publish-replies")
-
-    async def _lane(self, client: Any, *, behind: bool) -> None:
-        """One lane, PUBLISH_WINDOW messages at a time, each batch after the last one's
-        acknowledgements. Replies (``behind``) are handed over only while no status or
-        result waits; those never wait for the replies' acknowledgements."""
-        queue, wake = (self._replies, self._wakes[True]) if behind else (self._out, self._wakes[False])
-        while True:
-            while self._sending[behind] or (queue and not (behind and self._out)):
-                batch = self._sending[behind] = self._sending[behind] or self._next_batch(queue)
-                if not behind and not self._out:
-                    self._wakes[True].set()  # handed over in order: the replies' turn
-                await asyncio.gather(*(self._publish(client, m, batch) for m in list(batch)))
-                self._sending[behind] = []
-            if not (self._out or self._replies or self._sending[False] or self._sending[True]):
-                self.drained.set()
-            wake.clear()
-            await wake.wait()
-
-    @staticmethod
-    async def _publish(client: Any, m: Outgoing, batch: list[Outgoing]) -> None:
-        await client.publish(m.topic, m.payload, qos=m.qos, retain=m.retain)
-        batch.remove(m)  # acknowledged (QoS 1; QoS 0: written): never sent again
+    # -- incoming -------------------------------------------------------------------
 
     async def _command_loop(self, client: Any) -> None:
         """Ordinary commands in turn, as fast as the triage allows (stop and abort never get

@@ -183,16 +183,16 @@ async def test_a_bug_in_one_points_identification_names_the_point(tmp_path, monk
     """The identification of point 0000 raises on a bug (not a ReductionError, which refuses one
     model): the run fails at once naming the point, with the traceback logged, the drives stopped
     and every block of the point kept on disk. It said only "identification failed: ..."."""
-    from orbitrig.run import procedure
+    from orbitrig.run import point_record
 
-    real = procedure.identify_operating_point
+    real = point_record.identify_operating_point
 
     def buggy(spin, *args):
         if spin < 150.0:  # rad/s: point 0000's 1000 rpm, not point 0001's 2000
             raise ZeroDivisionError("float division by zero")
         return real(spin, *args)
 
-    monkeypatch.setattr(procedure, "identify_operating_point", buggy)
+    monkeypatch.setattr(point_record, "identify_operating_point", buggy)
     async with running(tmp_path, small_matrix(spin_rpm=[1000.0, 2000.0])) as (sim, eng, rec, run):
         outcome = await asyncio.wait_for(asyncio.shield(run), 60)
         assert outcome.status == "failed", outcome.message

@@ -12,7 +12,7 @@ import time
 
 import pytest
 
-import orbitrig.run.procedure as procedure
+import orbitrig.run.point_record as point_record
 from orbitrig.run.engine import ProgressEvent
 from orbitrig.store.run_log import RunLog
 from orbitrig.store.writer import RunStore
@@ -29,13 +29,13 @@ STOP_WORDS = (CW_RAMP_STOP, CW_EMERGENCY)
 
 async def test_a_stop_does_not_wait_for_the_identification_in_flight(tmp_path, monkeypatch):
     release = threading.Event()
-    real = procedure.identify_operating_point
+    real = point_record.identify_operating_point
 
     def hanging(*args, **kw):  # a loaded machine: point 1 is identified long after it was measured
         release.wait(30)
         return real(*args, **kw)
 
-    monkeypatch.setattr(procedure, "identify_operating_point", hanging)
+    monkeypatch.setattr(point_record, "identify_operating_point", hanging)
     async with running(tmp_path, small_matrix(spin_rpm=[1000.0, 2000.0])) as (sim, eng, rec, run):
 
         def at_point_2() -> bool:

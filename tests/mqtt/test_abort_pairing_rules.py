@@ -17,7 +17,8 @@ import time
 import pytest
 
 from orbitrig.service import inbox
-from orbitrig.service.inbox import AbortCopies, CommandInbox, CommandTriage, Connection
+from orbitrig.service.abort_copies import AbortCopies, Connection
+from orbitrig.service.inbox import CommandInbox, CommandTriage
 
 A1 = b'{"cmd":"abort","id":"estop"}'  # a button bridge's fixed id: every press the same bytes
 S1 = b'{"cmd":"stop","id":"s-1"}'

@@ -10,7 +10,8 @@ import json
 
 import pytest
 
-from orbitrig.service.inbox import CommandInbox, CommandTriage, Connection
+from orbitrig.service.abort_copies import Connection
+from orbitrig.service.inbox import CommandInbox, CommandTriage
 from orbitrig.service.protocol import MAX_COMMAND_BYTES, CommandError, parse_command
 
 BIG = "x" * 5000  # over MAX_COMMAND_BYTES
