@@ -64,14 +64,16 @@ def fit_key(r: Reduced) -> tuple[str, ...]:
     return (str(r.lms), r.model, r.freq_dep, str(r.method))
 
 
-def fit_label(r: Reduced) -> str:
-    """'kcd11 (11 coef.)', 'kcd11 power:1 (22 coef.)' - the paper's wording."""
+def fit_label(r: Reduced, name_ols: bool = False) -> str:
+    """'kcd11 (11 coef.)', 'kcd11 power:1 (22 coef.)' - the paper's wording; a method other
+    than ols once after it ('kc8 (8 coef.), wls'), ols too with ``name_ols`` (the tables'
+    headings: 'kc8 (8 coef.), ols')."""
     ident = r.identification
     fd = "" if is_constant(r.freq_dep) else f" {r.freq_dep}"
     if ident is not None and ident.exponent and parse_freq_dep(r.freq_dep).auto:
         fd = f" power:{ident.exponent} (auto)"
     n = f" ({ident.n_coefficients} coef.)" if ident is not None else ""
-    method = "" if r.method == Method.OLS else f", {r.method}"
+    method = "" if r.method == Method.OLS and not name_ols else f", {r.method}"
     return f"{r.model}{fd}{n}{method}"
 
 

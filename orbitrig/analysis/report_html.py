@@ -116,7 +116,7 @@ def _lms_section(pr, out_dir: Path, lms: LoadSystem, truth: dict, taken: set) ->
             + verdict_list(pr.verdicts.get(lms, []), labels)
             + "</div></div>"
         )
-    h.append(lms_tables(results, truth, [labels[id(r)] for r in results]))
+    h.append(lms_tables(results, truth, [fit_label(r, name_ols=True) for r in results]))
     h += _pick(
         pr, out_dir, taken, *(f"coefficients_{p.name}_{lms}_{m}" for m in dict.fromkeys(r.model for r in results))
     )

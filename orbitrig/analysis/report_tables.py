@@ -75,7 +75,8 @@ def _quality(ident) -> list[tuple[str, str]]:
 
 
 def identification_table(r: Reduced, truth: dict[str, float], label: str, with_budget: bool) -> str:
-    """One identification: coefficients with their uncertainties, quality rows, warnings, notes."""
+    """One identification under heading `label` (fit_label with the method): coefficients with their
+    uncertainties, quality rows, warnings, notes."""
     rows = coefficient_rows(r)
     own = own_truth(r)
     truth = own or truth
@@ -116,7 +117,7 @@ def identification_table(r: Reduced, truth: dict[str, float], label: str, with_b
         f'<tr><th class="l">{_e(name)}</th><td colspan="{span}" class="l">{value}</td></tr>'
         for name, value in _quality(r.identification)
     ]
-    out = [f"<h4>{_e(label)} ({_e(r.method)})</h4>", f"<table><tr>{''.join(head)}</tr>{''.join(body)}</table>"]
+    out = [f"<h4>{_e(label)}</h4>", f"<table><tr>{''.join(head)}</tr>{''.join(body)}</table>"]
     notes = ["n.d. = not determined: the expanded uncertainty U (k = 2) exceeds the value."] if nd else []
     notes += [D_SENTENCE] if any(row.key.startswith("D") for row in rows) else []
     if notes:

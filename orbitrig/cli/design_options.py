@@ -28,7 +28,11 @@ Matrix = Annotated[
 ]
 NoiseFrom = Annotated[
     Optional[Path],
-    typer.Option("--noise-from", help="Run directory: per-revolution noise (and prior coefficients) measured there."),
+    typer.Option(
+        "--noise-from",
+        help="Run directory, or a run file itself (run.h5 or its h5 export, under any name): "
+        "per-revolution noise (and prior coefficients) measured there.",
+    ),
 ]
 Lms = Annotated[LoadSystem, typer.Option("--lms", help="Load measuring system whose noise counts: piezo | strain.")]
 ForceNoise = Annotated[

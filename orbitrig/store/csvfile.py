@@ -117,6 +117,18 @@ def fit_truth(d: dict[str, Any] | None, truth: dict[str, Any] | None) -> dict[st
     return {k: true_entry(truth, k) for k in d["coefficients"] if "_" not in k and f"{k[0]}0" in truth}
 
 
+def fit_cells(d: dict[str, Any]) -> dict[str, Any]:
+    """The cells of a stored fit ``d`` (its identify JSON) that judge it as a whole, as
+    coefficients.csv and the API's ``run.coefficients`` show them: ``n_frequencies`` (rows of
+    its orbit table), ``not_determined`` (space-separated keys whose U exceeds their magnitude)
+    and ``warnings`` (`warnings_cell`)."""
+    return {
+        "n_frequencies": d["n_frequencies"],
+        "not_determined": " ".join(d.get("not_determined") or []),
+        "warnings": warnings_cell(d.get("warnings")),
+    }
+
+
 def _num(v: float | None, fmt: str) -> str:
     """A CSV cell: the number in `fmt`, empty for null (the identify JSON's non-finite values);
     fmt "" gives the shortest text that reads back as the same double."""
@@ -149,7 +161,6 @@ def point_rows(point: Point, sim: bool, exact: bool = False) -> list[CsvRow]:
                 {
                     "freq_dep": d["freq_dep"],
                     "method": d["method"],
-                    "n_frequencies": d["n_frequencies"],
                     "condition_number": _num(d["condition_number"], six),
                     "residual_rms [N]": _num(d["residual_rms"], six),
                     "error": "",
@@ -161,8 +172,7 @@ def point_rows(point: Point, sim: bool, exact: bool = False) -> list[CsvRow]:
                 row[coefficient_column(k, "std")] = _num((d.get("std_errors") or {}).get(k), six)
                 row[coefficient_column(k, "U")] = _num(expanded.get(k), six)
             row["_keys"] = list(d["coefficients"])
-            row["not_determined"] = " ".join(d.get("not_determined") or [])
-            row["warnings"] = warnings_cell(d.get("warnings"))
+            row.update(fit_cells(d))
         else:
             row.update(freq_dep=ident.freq_dep, method=ident.method, error=one_line(ident.error or ""))
         if truth is not None:

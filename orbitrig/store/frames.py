@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from orbitrig.store.csvfile import fit_cells
 from orbitrig.store.fit_record import BUDGET_PARTS, FitRecord
 from orbitrig.store.layout import DERIVED_UNITS, SETTINGS_UNITS, unit_product
 from orbitrig.store.orbit_table import orbit_table_columns
@@ -70,14 +71,21 @@ def row_blocks(orbit, direction, blocks) -> list[str]:
 
 
 def coefficients_frame(fits: list[FitRecord]):
-    """One row per fit: point, lms, model, freq_dep, method, error, then per coefficient KEY,
-    KEY_std and KEY_U (expanded uncertainty), SI (units in attrs)."""
+    """One row per fit: point, lms, model, freq_dep, method, error, n_frequencies,
+    not_determined, warnings (as coefficients.csv: csvfile.fit_cells; a refused model's are
+    <NA>, "", ""), then per coefficient KEY, KEY_std and KEY_U (expanded uncertainty), SI
+    (units in attrs)."""
+    import pandas as pd
+
     keys: list[str] = []
     for f in fits:
         keys += [k for k in f.names if k not in keys]
     data = {k: [getattr(f, k) for f in fits] for k in (*FIT_KEYS, "error")}
     data["lms"] = ["" if f.lms is None else str(f.lms) for f in fits]  # plain text, as the other key columns
-    units = {k: "" for k in data} | {"point": "1"}  # text, and the point's index (a number)
+    cells = [fit_cells(f.result) if f.result is not None else {} for f in fits]
+    data["n_frequencies"] = pd.array([c.get("n_frequencies") for c in cells], dtype="Int64")
+    data.update({k: [c.get(k, "") for c in cells] for k in ("not_determined", "warnings")})
+    units = {k: "" for k in data} | {"point": "1", "n_frequencies": "1"}  # text, and the counts
     for key in keys:
         for suffix, part in (("", "value"), ("_std", "std"), ("_U", "U")):
             data[key + suffix] = [_entry(f, key, part) for f in fits]

@@ -176,6 +176,11 @@ def test_design_help_names_the_default_revolutions_in_full():
     assert "(default: averaging.revolutions of the rig configuration)" in words and "rig.toml )" not in words
 
 
+def test_design_help_says_noise_from_takes_a_run_file_too():
+    words = _help_words("design")
+    assert "Run directory, or a run file itself (run.h5 or its h5 export, under any name)" in words
+
+
 def test_the_paper_matrix_comment_counts_what_kcd11_power_2_fits():
     """config/matrices/paper.toml says kcd11 power:2 is fitted with 18 coefficients, as the
     identification does (K_2 carried by D), not that it is refused."""

@@ -2,7 +2,8 @@
 the sensors of a lost CAN node are greyed and the card says they are the last it sent (the node's
 faulty-sensor and pump-off flags said there too, in a place of their own: nothing moves); live values
 no longer coming are greyed and each card says how old they are; a sensor outside its band says so in
-words; a value not known is "—" without a unit; alarm and event times are a 24 h clock with an ISO
+words; a value not known is "—" without a unit; a speed reads in one form on the Run card and in the
+Drives table, the terminal's ("1000 rpm", not "1000.0"); alarm and event times are a 24 h clock with an ISO
 date, whatever the browser's locale. The test publishes what the rig service would (as orbitrig-service)."""
 
 from __future__ import annotations
@@ -79,6 +80,21 @@ def test_a_value_not_known_is_a_dash_without_a_unit(broker, page):
     page.wait_text("op-spin", "1000 rpm", 10)
     assert page.text("op-orbit-hz") == "—"  # orbit_hz null: no revolutions coming in now
     assert page.text("op-orbit") == "—"
+
+
+def test_speeds_read_as_the_terminal_says_them_on_the_run_card_and_in_the_drives_table(broker, page):
+    payload = live(1)
+    payload["spin_rpm"] = 999.9  # the drive's reading in its 0.15 rpm steps
+    payload["drives"]["spin"]["actual_rpm"] = 999.9
+    payload["drives"]["orbit"].update(reference_rpm=-977.7777777, actual_rpm=-977.7777777)
+    publish_as_service(broker, "live", payload, qos=0)
+    page.wait_text("op-spin", "999.9 rpm", 10)
+    assert page.text("op-orbit") == "-977.778 rpm"
+    rows = {k: " ".join(v.split()) for k, v in page.rows("drives", "drive").items()}
+    assert rows == {
+        "spin": "spin 1000 999.9 2.0 running none",
+        "orbit": "orbit -977.778 -977.778 2.0 running none",
+    }, rows
 
 
 def live_old(page: Page) -> dict:

@@ -1,6 +1,6 @@
 """The page's units (static/units.js) against rigunits, run in the real browser the dashboard
-tests drive: the ETA the page shows is the terminal's (format_duration), the coefficients are
-shown in the terminal's units (display_unit), and the SI values of the CAN sensors, the manual
+tests drive: the ETA the page shows is the terminal's (format_duration), so are the speeds
+(rpm_text), the coefficients are shown in the terminal's units (display_unit), and the SI values of the CAN sensors, the manual
 settings and the displacements are shown through one table of conversions."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from pathlib import Path
 
 import orbitrig.dashboard
 import pytest
-from rigunits import DISPLAY_UNITS, MICROMETRE, MPA, UM, display_unit, format_duration
+from rigunits import DISPLAY_UNITS, MICROMETRE, MPA, RPM, UM, display_unit, format_duration, rpm_text
 
 STATIC = Path(orbitrig.dashboard.__file__).parent / "static"
 #: durations (s) across every form: under a minute, minutes, hours, the roundings at their edges
@@ -28,6 +28,26 @@ def test_the_page_says_a_duration_as_the_terminal_does(driver):
     shown = _run(driver, "return arguments[0].map(formatDuration);", DURATIONS)
     assert shown == [format_duration(s) for s in DURATIONS]
     assert shown[DURATIONS.index(4000)] == "1:06:40" and shown[DURATIONS.index(250)] == "4:10"
+
+
+#: speeds (rpm) as the feed gives them: set and read (the drives' 0.15 rpm steps), whirl signs, the edges of %g
+SPEEDS = [1000.0, 999.9, 1000.05, 20.5, 977.7777777, 569.0, -977.7777777, 0.0, -0.0, 0.3 * 1000, 2500.0]
+SPEEDS += [123456.7, 1234567.0, 0.00012, 0.000012, -3.0e-5]
+
+
+def test_the_page_says_a_speed_as_the_terminal_does(driver):
+    script = "return [false, true].map(s => arguments[0].map(v => rpmText(v, s))).concat([rpmText(null)],"
+    script += " [arguments[0].map(v => rpmNumber(v)), rpmNumber(null)]);"
+    shown = _run(driver, script, SPEEDS)
+    assert shown[:2] == [[rpm_text(v * RPM, signed) for v in SPEEDS] for signed in (False, True)]
+    assert (shown[0][0], shown[0][1], shown[1][6], shown[1][7], shown[2]) == (
+        "1000 rpm",
+        "999.9 rpm",
+        "-977.778 rpm",
+        "+0 rpm",
+        "—",
+    )
+    assert shown[3] == [t.removesuffix(" rpm") for t in shown[0]] and shown[4] == "—"  # a table's cells
 
 
 def test_the_page_shows_the_coefficients_in_the_terminals_units(driver):
@@ -52,7 +72,7 @@ def test_the_page_converts_sensor_values_in_one_place(driver):
 def test_no_other_script_formats_a_duration_or_converts_a_unit_itself():
     others = {p.name: p.read_text(encoding="utf-8") for p in STATIC.glob("*.js") if p.name != "units.js"}
     # a factor of its own: 273.15 (K), 1e6 (Pa, m), 6e4 (m^3/s), as a divisor, a multiplier or an argument
-    own = re.compile(r"function formatDuration|273\.15|/ 1e6|\* 1e6|\* 6e4|[,(] ?1e-?6\b|\" h \"|\" min \"")
+    own = re.compile(r"function formatDuration|273\.15|/ 1e6|\* 1e6|\* 6e4|[,(] ?1e-?6\b|\" h \"|\" min \"|, \"rpm\"\)")
     assert {name: own.findall(text) for name, text in others.items() if own.search(text)} == {}
     page = (STATIC / "index.html").read_text(encoding="utf-8")
     scripts = re.findall(r'<script src="/static/(\w+)\.js"', page)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 import subprocess
 import tomllib
 
@@ -266,6 +267,13 @@ def test_noise_and_prior_from_a_simulated_run(tmp_path):
     assert kc8["proposal"]["ratios"] == [1.5] and len(kc8["warnings"]) == 1
     assert "kc8 leaves out terms of kcd12" in kc8["warnings"][0] or "terms kc8 leaves out" in kc8["warnings"][0]
     assert " N/m " in kc8["warnings"][0]  # how far K could move, with its unit
+    copy = tmp_path / "sent to a colleague.h5"  # the run file itself, under any name: the same noise and prior
+    shutil.copyfile(run / "run.h5", copy)
+    from_file = json.loads(design("--model", "kcd11", "--spin", "1000", "--noise-from", str(copy), "--json").stdout)
+    assert (from_file["noise"]["u_revolution"], from_file["prior"]["coefficients"]) == (
+        noise["u_revolution"],
+        obj["prior"]["coefficients"],
+    )
     p = design("--model", "kcd11", "--spin", "1000", "--noise-from", str(tmp_path), check=False)
     assert p.returncode == 2 and "Traceback" not in p.stderr
 

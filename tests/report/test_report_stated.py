@@ -18,6 +18,7 @@ from orbitrig.analysis.report_html import render
 from orbitrig.analysis.report_tables import identification_table
 from orbitrig.store.reader import read_run
 from reduction.identify import identify
+from reduction.methods import Method
 from reduction.systematic import UncertaintyBasis
 from reduction.table import OrbitTable
 from support.report_synthetic import write_synthetic_run
@@ -123,3 +124,18 @@ def test_interval_named_student_t_without_u(synthetic_run):
     assert "95 % interval, statistical only<br>(Student t, 4n - p dof)" in html and "normal" not in html
     std, (lo, hi) = r.identification.std_errors["Kxx"], r.identification.confidence_95["Kxx"]
     assert (hi - lo) / 2 / std > 1.97 and np.isfinite(hi)
+
+
+def test_each_table_heading_names_its_method_once(synthetic_run):
+    """'kcd11 (11 coef.), wls', never 'kcd11 (11 coef.), wls (wls)'; ols named too."""
+    run = read_run(synthetic_run)
+    pr = analyse_point(run.points[1])
+    r = pr.results["piezo"][0]
+    r.method = Method.WLS
+    r.identification = identify(r.point.tables["piezo"], model=r.model, freq_dep=r.freq_dep, method=Method.WLS)
+    heads = re.findall(r"<h4>([^<]*coef\.[^<]*)</h4>", render(Report(run, synthetic_run / "plots", [pr])))
+    results = [r for rs in pr.results.values() for r in rs]
+    assert len(heads) == len(results) >= 2
+    assert heads[0] == f"{r.model} ({r.identification.n_coefficients} coef.), wls" and heads[1].endswith(", ols")
+    for head in heads:
+        assert sum(head.count(m) for m in ("ols", "wls", "tls", "iv")) == 1

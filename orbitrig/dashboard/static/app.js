@@ -342,8 +342,8 @@ function showLive(d, age) {
   st.liveAt = Date.now() - 1000 * Math.max(0, age || 0);
   showLiveAge();
   const orbit = (d.drives || {}).orbit;
-  $("op-spin").textContent = withUnit(d.spin_rpm, 0, "rpm");
-  $("op-orbit").textContent = withUnit(orbit ? orbit.actual_rpm : null, 0, "rpm");
+  $("op-spin").textContent = rpmText(d.spin_rpm);
+  $("op-orbit").textContent = rpmText(orbit ? orbit.actual_rpm : null);
   $("op-orbit-hz").textContent = withUnit(d.orbit_hz, 2, "Hz");
   $("op-direction").textContent = d.direction || "—";
   showDrives(d.drives || {});
@@ -379,7 +379,7 @@ function showDrives(dr) {
   ["spin", "orbit"].forEach(name => {
     const d = dr[name], tr = document.createElement("tr"); tr.dataset.drive = name;
     cell(tr, name);
-    cell(tr, d ? fmt(d.reference_rpm, 1) : "—"); cell(tr, d ? fmt(d.actual_rpm, 1) : "—");
+    cell(tr, d ? rpmNumber(d.reference_rpm) : "—"); cell(tr, d ? rpmNumber(d.actual_rpm) : "—");
     cell(tr, d ? fmt(d.torque_pct, 1) : "—"); cell(tr, d ? d.state : (dr.link_ok === false ? "link lost" : "—"));
     cell(tr, d ? (d.fault_code ? d.fault + " (" + d.fault_code + ")" : "none") : "—", d && d.fault_code ? "out" : "");
     body.appendChild(tr);

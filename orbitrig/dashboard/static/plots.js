@@ -4,6 +4,10 @@
 "use strict";
 
 const COLOURS = ["#1976d2", "#c62828", "#2e7d32", "#ef6c00", "#6a1b9a", "#00838f", "#5d4037", "#ad1457"];
+// the k-th line of a trend chart also has the k-th dash pattern (solid, dashed, dotted, dash-dot), in its
+// legend too: no line is told from another by its colour alone (a reader who does not tell the colours
+// apart, a grey print); a chart has at most as many lines as patterns
+const DASHES = [[], [7, 3], [2, 2], [9, 3, 2, 3]];
 
 // ticks covering [lo, hi]: about `target` round steps; returns {lo, hi, step, ticks}
 function niceTicks(lo, hi, target) {
@@ -49,16 +53,18 @@ function frame(ctx, w, h, y, xticks, m) {
   ctx.textAlign = "left";
 }
 
-// legend in the top margin, left to right
-function legend(ctx, names, colours) {
+// legend in the top margin, left to right: each name after a short line in its colour and, with
+// `dashes`, its dash pattern
+function legend(ctx, names, colours, dashes) {
   let x = MARGIN.l;
-  ctx.font = "10px sans-serif"; ctx.textBaseline = "middle";
+  ctx.font = "10px sans-serif"; ctx.textBaseline = "middle"; ctx.lineWidth = 2;
   names.forEach((n, k) => {
-    ctx.fillStyle = colours[k]; ctx.fillRect(x, 8, 10, 3);
-    ctx.fillStyle = "#37474f"; ctx.fillText(n, x + 13, 10);
-    x += 20 + ctx.measureText(n).width;
+    ctx.strokeStyle = colours[k]; ctx.setLineDash(dashes ? dashes[k] : []);
+    ctx.beginPath(); ctx.moveTo(x, 9.5); ctx.lineTo(x + 18, 9.5); ctx.stroke();
+    ctx.fillStyle = "#37474f"; ctx.fillText(n, x + 21, 10);
+    x += 28 + ctx.measureText(n).width;
   });
-  ctx.textBaseline = "alphabetic";
+  ctx.setLineDash([]); ctx.textBaseline = "alphabetic";
 }
 
 function mark(canvas, samples, y) {
@@ -139,7 +145,9 @@ function gapAfter(series) {
   return Math.max(5, 3 * (steps.length ? steps[steps.length >> 1] : 1));
 }
 
-// series: [{name, points: [[t, v], ...], dashed}], band [lo, hi] or null (shaded), window [t0, t1] (s)
+// series: [{name, points: [[t, v], ...], line}], the k-th drawn in COLOURS[line] and DASHES[line] (line: its place
+// among the chart's lines, so that each keeps its look while another has no samples; k when not given), band
+// [lo, hi] or null (shaded), window [t0, t1] (s)
 function drawTrend(canvas, series, band, win) {
   const ctx = canvas.getContext("2d"), w = canvas.width, h = canvas.height, m = MARGIN;
   let lo = Infinity, hi = -Infinity, n = 0;
@@ -154,9 +162,10 @@ function drawTrend(canvas, series, band, win) {
     ctx.strokeStyle = "rgba(46,125,50,0.6)"; ctx.setLineDash([3, 3]);
     [band[0], band[1]].forEach(v => { ctx.beginPath(); ctx.moveTo(m.l, py(v)); ctx.lineTo(w - m.r, py(v)); ctx.stroke(); });
   }
-  const gap = gapAfter(series), pieces = [];
+  const gap = gapAfter(series), pieces = [], look = series.map((s, k) => (s.line === undefined ? k : s.line));
+  const colour = k => COLOURS[look[k] % COLOURS.length], dash = k => DASHES[look[k] % DASHES.length];
   series.forEach((s, k) => {
-    ctx.strokeStyle = COLOURS[k % COLOURS.length]; ctx.lineWidth = 1.5; ctx.setLineDash(s.dashed ? [5, 3] : []);
+    ctx.strokeStyle = colour(k); ctx.lineWidth = 1.5; ctx.setLineDash(dash(k));
     ctx.beginPath();
     let pen = false, last = null, drawn = 0;
     s.points.forEach(([t, v]) => {
@@ -167,12 +176,13 @@ function drawTrend(canvas, series, band, win) {
     });
     ctx.stroke();
     pieces.push(drawn);
-    if (last) { ctx.fillStyle = COLOURS[k % COLOURS.length]; ctx.beginPath(); ctx.arc(px(last[0]), py(last[1]), 2.5, 0, 2 * Math.PI); ctx.fill(); }
+    if (last) { ctx.fillStyle = colour(k); ctx.beginPath(); ctx.arc(px(last[0]), py(last[1]), 2.5, 0, 2 * Math.PI); ctx.fill(); }
   });
   ctx.setLineDash([]);
-  legend(ctx, series.map(s => s.name), series.map((s, k) => COLOURS[k % COLOURS.length]));
+  legend(ctx, series.map(s => s.name), series.map((s, k) => colour(k)), series.map((s, k) => dash(k)));
   mark(canvas, n, y);
   canvas.dataset.pieces = pieces.join(",");
+  canvas.dataset.dashes = series.map((s, k) => dash(k).join(" ") || "solid").join(",");
   canvas.dataset.until = String(t1);  // the window's end (s since the epoch)
   canvas.dataset.band = band ? band.join(",") : "";
 }

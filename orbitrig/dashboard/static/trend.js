@@ -8,9 +8,10 @@
 const RECENT_MAX = 1800, RUN_TAIL_MAX = 600;
 const trendState = {recent: [], run: [], runId: null, bands: {}};
 
-// chart id -> [series: [key, label, dashed]], unit text, value in shown unit, band key
+// chart id -> [series: [key, label]] (each line drawn in its own colour and dash pattern: orbitPlots.drawTrend),
+// unit text, value in shown unit, band key
 const TREND_CHARTS = {
-  "trend-speed": [[["spin_rpm", "spin"], ["spin_set_rpm", "spin set", true], ["orbit_rpm", "orbit"], ["orbit_set_rpm", "orbit set", true]], "rpm", v => v, null],
+  "trend-speed": [[["spin_rpm", "spin"], ["spin_set_rpm", "spin set"], ["orbit_rpm", "orbit"], ["orbit_set_rpm", "orbit set"]], "rpm", v => v, null],
   "trend-supply": [[["p_supply", "supply"]], "MPa", SHOWN_IN.MPa, "p_supply"],
   "trend-recess": [[["p_recess_1", "recess 1"], ["p_recess_2", "recess 2"], ["p_recess_3", "recess 3"], ["p_recess_4", "recess 4"]], "MPa", SHOWN_IN.MPa, "p_recess"],
   "trend-temperature": [[["t_supply", "supply"], ["t_recess", "recess"], ["t_groove", "groove"]], "°C", SHOWN_IN["°C"], null],
@@ -65,7 +66,7 @@ function drawTrends() {
   const [all, win] = trendWindow();
   const data = all.filter(s => s.t >= win[0]);  // the axes and legends of what the window shows, not of older samples
   Object.entries(TREND_CHARTS).forEach(([id, [keys, , shown, bandKey]]) => {
-    const series = keys.map(([key, label, dashed]) => ({name: label, dashed,
+    const series = keys.map(([key, label], line) => ({name: label, line,
       points: data.map(s => [s.t, s[key] === null || s[key] === undefined ? null : shown(s[key])])}))
       .filter(s => s.points.some(p => p[1] !== null));
     const raw = bandKey ? trendState.bands[bandKey] : null;

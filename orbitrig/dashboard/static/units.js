@@ -1,7 +1,7 @@
 // The page's units at the edges, one owner as rigunits is Python's: SI comes in the feed, the page
-// shows durations, temperatures, pressures, flow, lengths and the coefficients as the operator reads them.
-// tests/dashboard/test_dashboard_units.py holds formatDuration and displayUnit equal to
-// rigunits.format_duration and rigunits.display_unit.
+// shows durations, speeds, temperatures, pressures, flow, lengths and the coefficients as the operator reads them.
+// tests/dashboard/test_dashboard_units.py holds formatDuration, displayUnit and rpmText equal to
+// rigunits.format_duration, rigunits.display_unit and rigunits.rpm_text.
 // Loaded before the scripts that use it.
 "use strict";
 
@@ -35,4 +35,24 @@ function displayUnit(key) {
   if (!shown) return null;
   const order = key.split("_")[1];
   return [order ? shown[0] + " (rad/s)^-" + order : shown[0], shown[1]];
+}
+
+// a speed `rpm` as the terminal says it (rigunits.rpm_text): the shortest decimal of its 6 significant
+// digits ("1000 rpm", "999.9 rpm", "977.778 rpm"), `signed` (an orbit's whirl) "+569 rpm"; 0 is "0 rpm"
+// ("+0 rpm"), never "-0"; "—" alone when there is none
+function rpmText(rpm, signed) {
+  const number = rpmNumber(rpm, signed);
+  return number === "—" ? number : number + " rpm";
+}
+
+// the number of rpmText alone ("1000", "999.9"): a table whose head states the unit
+function rpmNumber(rpm, signed) {
+  if (rpm === null || rpm === undefined || !isFinite(rpm)) return "—";
+  const v = Number(Number(rpm).toPrecision(6)) + 0, a = Math.abs(v);
+  let text = String(v);
+  if (a && (a < 1e-4 || a >= 1e6)) {  // Python's %g: an exponent of two digits at least
+    const [m, e] = v.toExponential().split("e");
+    text = m + "e" + e[0] + e.slice(1).padStart(2, "0");
+  }
+  return (signed && v >= 0 ? "+" : "") + text;
 }

@@ -1,0 +1,68 @@
+"""A trend chart's lines differ in more than colour, in the real browser: each is drawn (and its legend
+entry too) in its own dash pattern, solid, dashed, dotted, dash-dot, read back from the canvas's pixels
+whatever their colour; a line keeps its look while another of its chart has no samples."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import orbitrig.dashboard
+
+STATIC = Path(orbitrig.dashboard.__file__).parent / "static"
+
+#: lines at levels between the grid lines over 100 s; for each: the runs of drawn pixels (any colour) along the line's row
+#: in the plot and along its legend entry's short line
+DRAW = """
+const canvas = document.createElement("canvas"); canvas.width = 420; canvas.height = 180; document.body.appendChild(canvas);
+const lines = arguments[0], times = Array.from({length: 101}, (_, i) => i);
+const series = lines.map(([name, line, v]) => ({name, line, points: times.map(t => [t, v])}));
+orbitPlots.drawTrend(canvas, series, null, [0, 100]);
+const ctx = canvas.getContext("2d"), m = {l: 52, r: 14, t: 22, b: 20}, h = canvas.height;
+const y = orbitPlots.niceTicks(Math.min(...lines.map(l => l[2])), Math.max(...lines.map(l => l[2])), 4);
+const drawn = (x0, x1, row) => {
+  const rows = [row - 1, row, row + 1].map(r => ctx.getImageData(x0, r, x1 - x0, 1).data);
+  return Array.from({length: x1 - x0}, (_, i) => Math.max(...rows.map(d => d[4 * i + 3])) > 60);
+};
+const runs = on => { const out = []; let n = 0; on.forEach(b => { if (b) n++; else if (n) { out.push(n); n = 0; } }); if (n) out.push(n); return out; };
+ctx.font = "10px sans-serif";
+let x = m.l;
+return series.map(s => {
+  const row = Math.round(h - m.b - (h - m.t - m.b) * (s.points[0][1] - y.lo) / (y.hi - y.lo));
+  const plot = runs(drawn(m.l + 4, canvas.width - m.r - 8, row)), key = runs(drawn(x, x + 18, 9));
+  x += 28 + ctx.measureText(s.name).width;
+  return {plot, key};
+}).concat([canvas.dataset.dashes]);
+"""
+
+
+def _draw(driver, lines):
+    driver.get("about:blank")
+    scripts = "\n".join((STATIC / f"{name}.js").read_text(encoding="utf-8") for name in ("units", "plots"))
+    return driver.execute_script(scripts + "\n" + DRAW, lines)
+
+
+def _look(runs: list[int], whole: bool = True) -> str:
+    """solid | dashed | dotted | dash-dot, from the lengths (px) of the drawn runs along a line; a plot's
+    line (not `whole`) is judged on its inner runs, its ends cut by the plot area wherever the pattern is."""
+    if len(runs) == 1 and runs[0] >= 17:
+        return "solid"
+    inner = runs if whole else runs[1:-1]
+    long, short = [n for n in inner if n >= 5], [n for n in inner if n < 5]
+    if long and short:
+        return "dash-dot"
+    return "dashed" if long else "dotted" if len(short) >= 3 else "?"
+
+
+def test_each_line_and_its_legend_entry_have_their_own_dash_pattern(driver):
+    *drawn, dashes = _draw(driver, [["spin", 0, 1.3], ["spin set", 1, 2.3], ["orbit", 2, 3.6], ["orbit set", 3, 4.6]])
+    assert [_look(d["plot"], whole=False) for d in drawn] == ["solid", "dashed", "dotted", "dash-dot"], drawn
+    assert [_look(d["key"]) for d in drawn] == ["solid", "dashed", "dotted", "dash-dot"], drawn
+    assert dashes == "solid,7 3,2 2,9 3 2 3"
+
+
+def test_a_line_keeps_its_look_while_another_has_no_samples(driver):
+    *drawn, dashes = _draw(driver, [["spin", 0, 1.3], ["orbit", 2, 3.6]])  # no set points in the window
+    assert [_look(d["plot"], whole=False) for d in drawn] == ["solid", "dotted"] == [_look(d["key"]) for d in drawn], (
+        drawn
+    )
+    assert dashes == "solid,2 2"
