@@ -143,6 +143,7 @@ class DrivePoll:
         self._sending -= 1
         if epoch != self._epoch:
             return
+        self.starver.stop_ended()
         if not task.cancelled() and task.exception() is None and not task.result():
             self.owed, self._held = None, (time.monotonic(), emergency or bool(self._held and self._held[1]))
             return
@@ -352,17 +353,15 @@ class DrivePoll:
         return bool(self.owed) if self.owed is not None else bool(self._held and self._held[1])
 
     async def _check_owed(self, statuses: Sequence[DriveStatus]) -> None:
-        """A drive found running while a stop is owed (`_owed_problem`): the stop again, and the failure."""
-        problem = self._owed_problem(statuses)
-        if problem is None:
-            self.starver.forgive(statuses)
-            return
-        log.error("%s", problem)
-        took = self.owed is None  # a stop both took, held
-        await asyncio.shield(self._send(self._again()))
-        self.fail(problem)
-        for found in self.starver.judge(statuses, took=took):  # one that runs on: its watchdog starved
-            self.fail(found)
+        """A drive found running while a stop is owed (`_owed_problem`): the stop again, and the
+        failure. Every poll with no speed commanded goes to the starver (one that runs on)."""
+        problem, took = self._owed_problem(statuses), self.owed is None  # took: a stop both took, held
+        if problem is not None:
+            log.error("%s", problem)
+            await asyncio.shield(self._send(self._again()))
+            self.fail(problem)
+        for found in self.starver.judge(statuses, took=took) if self.command is None else []:
+            self.fail(found)  # one that runs on through the stops: its watchdog starved
 
     async def _check_trips(self, statuses: list[DriveStatus]) -> None:
         tripped = [st for st in statuses if st.tripped and st.time > self._ack_time]

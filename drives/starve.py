@@ -6,14 +6,14 @@ drive answers feeds it, exception answers included (the simulator counts them; t
 says "valid request"), so a drive that answers the stop's words with an exception, or takes
 them and runs on, is kept running by the poll's own reads and resends. `Starver`, the poll's:
 
-- `judge` (the poll found a drive running while no speed is commanded and a stop is owed by
-  it or held: the stop sent again): a drive read operation enabled (SW RDY_REF) with a nonzero
+- `judge` (every poll with no speed commanded; reads after the first stop since the last
+  command ended, `stop_ended`): a drive read operation enabled (SW RDY_REF) with a nonzero
   REF or ACT is defiant from that read on, and starved once still read so `bound` s later:
   two poll intervals (the stop sent again at least once more, and read after it), plus, at
   REF = 0, its own ramp from the speed read (DECEL_TIME x |ACT| / SPEED_SCALE: a drive that
   follows a zero REF in operation is stopping, merely slowly); a poll in between that reads it
-  stopping or stopped forgives it (`forgive`). One that could not judge (a stop in flight, or
-  read before the last stop ended: an operator pressing stop again and again) does not. A drive that took a stop word
+  stopping or stopped forgives it. Later stops (in flight, or ended after the read: an operator
+  pressing stop again and again) change nothing: it has missed or ignored the ones before. A drive that took a stop word
   leaves operation enabled at once (OFF1/OFF3 ACTIVE, the contract's state machine and the
   simulator's): a ramp stop is never taken for defiance.
   A drive enabled at REF 0 and standstill is not starved (it does not turn; the stop goes on).
@@ -76,20 +76,18 @@ class Starver:
     def __init__(self, link: ModbusLink, drives: Sequence[Drive], poll_interval: float):
         self.link, self.drives, self.poll_interval = link, drives, poll_interval
         self._of: dict[int, _Drive] = {}  # device id -> its starving, if any
+        self._stopped_at: float | None = None  # monotonic s the first stop since the last command ended
 
     def reset(self) -> None:
-        """A speed was commanded: drives not starved now are judged afresh."""
+        """A speed was commanded: drives not starved now are judged afresh, after its next stop."""
         self._of = {k: v for k, v in self._of.items() if v.phase is Phase.STARVED}
+        self._stopped_at = None
 
-    def forgive(self, statuses: Sequence[DriveStatus]) -> None:
-        """A poll that judged no drive (none found running after the stop, or a stop in flight,
-        or read before the last one ended): a drive found defiant before is judged afresh only
-        if `statuses` read it stopping or stopped (`_moving` false). One still turning keeps its
-        defiance: stops pressed again and again must not keep its watchdog fed."""
-        for st in statuses:
-            s = self._of.get(st.device_id)
-            if s is not None and s.phase is Phase.DEFIANT and not _moving(st):
-                del self._of[st.device_id]
+    def stop_ended(self) -> None:
+        """A stop ended (taken or not): the first since the last speed command starts the clock
+        of `judge` (reads after it are judged)."""
+        if self._stopped_at is None:
+            self._stopped_at = time.monotonic()
 
     def starved(self, d: Drive) -> DriveStatus | None:
         """`d`'s last status while it is not addressed (the poll shows it), else None."""
@@ -97,9 +95,11 @@ class Starver:
         return s.last if s is not None and s.phase is Phase.STARVED else None
 
     def judge(self, statuses: Sequence[DriveStatus], *, took: bool) -> list[DriveError]:
-        """Statuses of a poll that found a drive running after a stop (`took`: a stop both drives
-        took, held; else one owed) and sent it again: the findings of the drives starved now (or
-        found unstoppable: no watchdog), logged as errors."""
+        """Statuses of a poll with no speed commanded (`took`: the last stop both drives took, else
+        one is owed): the findings of the drives starved now (or found unstoppable: no watchdog),
+        logged as errors. Reads before the first stop since the command ended are not judged;
+        a drive read stopping or stopped is forgiven; whether a stop is in flight or ended after
+        the read does not matter: stops pressed again and again must not keep its watchdog fed."""
         found: list[DriveError] = []
         for d, st in zip(self.drives, statuses):
             s = self._of.get(d.device_id)
@@ -107,6 +107,8 @@ class Starver:
                 continue
             if not _moving(st):
                 self._of.pop(d.device_id, None)
+            elif self._stopped_at is None or st.time <= self._stopped_at:
+                continue
             elif s is None:
                 self._of[d.device_id] = _Drive(Phase.DEFIANT, st.time + self._bound(d, st), st, st)
             elif st.time >= s.at:

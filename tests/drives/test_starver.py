@@ -4,6 +4,8 @@ The live behaviour (real Modbus, the watchdog tripping) is tests/drives/test_sto
 
 from __future__ import annotations
 
+import time
+
 from drives import registers as R
 from drives.drive import Drive, DriveParameters, DriveStatus
 from drives.link import ModbusLink
@@ -37,31 +39,55 @@ def read(t: float, *, spin_running: bool = True) -> list[DriveStatus]:
     return [spin, orbit]
 
 
-def test_defiant_for_two_polls_is_starved():
+def stopped() -> tuple[Starver, ModbusLink, float]:
+    """A starver whose first stop since the command has just ended; monotonic s of that end."""
     s, link = starver()
-    assert s.judge(read(1.0), took=True) == []  # found running: defiant from now
-    assert s.judge(read(1.05), took=True) == [] and link.unaddressed == {}
-    found = s.judge(read(1.1), took=True)
+    s.stop_ended()
+    return s, link, time.monotonic()
+
+
+def test_defiant_for_two_polls_is_starved():
+    s, link, t = stopped()
+    assert s.judge(read(t + 0.01), took=True) == []  # found running: defiant from now
+    assert s.judge(read(t + 0.06), took=True) == [] and link.unaddressed == {}
+    found = s.judge(read(t + 0.12), took=True)
     assert len(found) == 1 and found[0].drive == 1 and "trips fault 7510" in str(found[0])
     assert set(link.unaddressed) == {1}
 
 
-def test_polls_that_could_not_judge_keep_the_defiance():
-    """Stops pressed again and again: polls in between meet a stop in flight (no judgement) and
-    are handed to `forgive`; the drive they read still turning stays defiant and is starved on the
-    first judged poll past its bound, not two polls after the presses end."""
+def test_reads_before_the_first_stop_ended_are_not_judged():
+    """Running at the command, or read while the first stop was still on its way: not defiant."""
     s, link = starver()
-    s.judge(read(1.0), took=True)
-    for t in (1.05, 1.1, 1.15, 1.2):
-        s.forgive(read(t))
-    found = s.judge(read(1.25), took=True)
-    assert [e.drive for e in found] == [1] and set(link.unaddressed) == {1}
+    assert s.judge(read(time.monotonic()), took=False) == []
+    s.stop_ended()
+    t = time.monotonic()
+    assert s.judge(read(t - 0.3), took=False) == [] and s.judge(read(t - 0.01), took=False) == []
+    assert s.judge(read(t + 0.01), took=False) == []  # the first read after it: defiant from here
+    assert [e.drive for e in s.judge(read(t + 0.12), took=False)] == [1]
+
+
+def test_a_later_stop_does_not_restart_the_clock():
+    """Stops pressed again and again: each ends after the poll's read, yet the drive found defiant
+    after the first is starved two polls after that finding."""
+    s, link, t = stopped()
+    s.judge(read(t + 0.01), took=True)
+    for _ in range(5):
+        s.stop_ended()  # the operator's next press
+    assert [e.drive for e in s.judge(read(t + 0.12), took=True)] == [1] and set(link.unaddressed) == {1}
 
 
 def test_a_poll_reading_it_stopping_forgives_it():
-    s, link = starver()
-    s.judge(read(1.0), took=True)
-    s.forgive(read(1.05, spin_running=False))  # took the stop after all: ramping down, OFF1 active
-    assert s.judge(read(1.1), took=True) == []  # running again: judged afresh, defiant from 1.1
-    assert s.judge(read(1.15), took=True) == [] and link.unaddressed == {}
-    assert [e.drive for e in s.judge(read(1.25), took=True)] == [1]
+    s, link, t = stopped()
+    s.judge(read(t + 0.01), took=True)
+    assert s.judge(read(t + 0.06, spin_running=False), took=True) == []  # ramping down, OFF1 active
+    assert s.judge(read(t + 0.11), took=True) == []  # running again: judged afresh, defiant from here
+    assert s.judge(read(t + 0.16), took=True) == [] and link.unaddressed == {}
+    assert [e.drive for e in s.judge(read(t + 0.22), took=True)] == [1]
+
+
+def test_a_speed_commanded_clears_the_clock():
+    s, link, t = stopped()
+    s.judge(read(t + 0.01), took=True)
+    s.reset()  # the next speed command: running is what it was told
+    assert s.judge(read(t + 0.12), took=True) == [] and s.judge(read(t + 0.5), took=True) == []
+    assert link.unaddressed == {}
