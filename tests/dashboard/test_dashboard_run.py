@@ -57,7 +57,9 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     assert int(page.el("plot-forces").get_attribute("data-samples")) == 4 * 45  # 4 forces x 45 slots
     assert int(page.el("plot-orbit").get_attribute("data-samples")) == 45
     assert page.text("op-spin").endswith(" rpm") and page.text("op-orbit").endswith(" rpm")
-    assert page.text("op-orbit-hz").endswith(" Hz")
+    # between orbit frequencies (the averaged revolutions not current) it says "—": a loaded
+    # host may read it there, so it is waited for, as the trends below
+    page.wait_text("op-orbit-hz", lambda t: t.endswith(" Hz"), 10)
     page.wait(lambda: "spin" in (page.el("trend-speed").get_attribute("data-series") or ""), 10, "the speed trend")
     drives = page.rows("drives", "drive")
     speeds = re.match(r"spin\s+(\d+(?:\.\d*[1-9])?)\s+(\d+(?:\.\d*[1-9])?)\s", drives["spin"])  # no "1000.0"
@@ -139,7 +141,8 @@ def test_viewer_sees_everything_and_commands_nothing(dashboard, service, browser
     fits = "#results tr.fit-first"
     viewer.wait(lambda: len(viewer.d.find_elements("css selector", fits)) == 4, 90, "4 fits in the results")
     viewer.wait_state("idle", 30)
-    operator.wait(lambda: len(operator.d.find_elements("css selector", fits)) == 4, 10, "results")
+    operator.wait(lambda: len(operator.d.find_elements("css selector", fits)) >= 4, 10, "the operator's results")
+    assert len(operator.d.find_elements("css selector", fits)) == 4, operator.text("results")  # each once
     text = operator.text("results")
     assert "piezo" in text and "strain" in text
     assert re.search(r"\bKxx\s-?[\d.]+(e[+-]\d+)?\s[\d.]+(e[+-]\d+)?\sMN/m\b", text), text

@@ -58,15 +58,26 @@ async def test_refused_configure_changes_nothing(sim):
 
 def _outage_on_first_write(sim, link, address: int, duration: float) -> list[float]:
     """Make the endpoint drop every request for `duration` s from the first write
-    to `address` (the frame carrying it is lost). Returns [time it started]."""
+    to `address` (the frame carrying it is lost). Returns [time it started].
+
+    The outage starts as that write's frame goes on the line (the link held), not when
+    the write asks for the link: a poll's read holding the link then would meet the
+    outage instead, and on a loaded machine the write would go out after it."""
     loop = asyncio.get_running_loop()
     request, started = link._request, []
 
-    async def request_with_outage(device_id, span, function_code, call, *more):
-        if not started and span[0] == address and function_code in (6, 16):
+    def outage_then(call):
+        async def lossy(client):
             started.append(loop.time())
             sim.endpoint.set_unresponsive(True)
             loop.call_later(duration, sim.endpoint.set_unresponsive, False)
+            return await call(client)
+
+        return lossy
+
+    async def request_with_outage(device_id, span, function_code, call, *more):
+        if not started and span[0] == address and function_code in (6, 16):
+            call = outage_then(call)
         return await request(device_id, span, function_code, call, *more)
 
     link._request = request_with_outage
