@@ -23,6 +23,8 @@ COMMANDS = [
     "strace",
     "octave-cli",
     "pg_ctlcluster",
+    "mkfs.ext4",
+    "findmnt",
 ]
 
 
@@ -77,6 +79,8 @@ def test_missing_system_packages_are_named_before_anything_runs(tmp_path):
         "strace": "strace",
         "octave-cli": "octave",
         "pg_ctlcluster": "postgresql",
+        "mkfs.ext4": "e2fsprogs",
+        "findmnt": "util-linux",
     }
     on_sbin = {c for c in COMMANDS if os.path.exists(f"/usr/sbin/{c}") or os.path.exists(f"/sbin/{c}")}
     expected = {package_of[c] for c in COMMANDS if c not in present | on_sbin}  # the script also looks in sbin
