@@ -13,9 +13,9 @@ them and runs on, is kept running by the poll's own reads and resends. `Starver`
   REF = 0, its own ramp from the speed read (DECEL_TIME x |ACT| / SPEED_SCALE: a drive that
   follows a zero REF in operation is stopping, merely slowly); a poll in between that reads it
   stopping or stopped forgives it. Later stops (in flight, or ended after the read: an operator
-  pressing stop again and again) change nothing: it has missed or ignored the ones before. A drive that took a stop word
-  leaves operation enabled at once (OFF1/OFF3 ACTIVE, the contract's state machine and the
-  simulator's): a ramp stop is never taken for defiance.
+  pressing stop again and again) change nothing: it has missed or ignored the ones before.
+  A drive that took a stop word leaves operation enabled at once (OFF1/OFF3 ACTIVE, the
+  contract's state machine and the simulator's): a ramp stop is never taken for defiance.
   A drive enabled at REF 0 and standstill is not starved (it does not turn; the stop goes on).
 - Starving: its id goes into the link's `unaddressed` (no read, no write, no stop's word) for
   COMM_LOSS_TIMEOUT + `MARGIN_S` + two poll intervals after the decision; the other drive is
