@@ -33,17 +33,23 @@ def publish_samples(broker, spin_rpm: float, count: int) -> None:
         time.sleep(1.3)
 
 
-def speed_chart(page) -> dict[str, str]:
-    return page.d.execute_script("return Object.assign({}, document.getElementById('trend-speed').dataset)")
-
-
-def test_a_silence_in_the_samples_is_not_bridged_by_a_line(broker, dashboard, browsers):
-    status = {"state": "running", "run_id": "r-gap", "since": "2026-12-05T01:00:00.000Z", "message": "run started"}
+def viewer_of_a_run(broker, dashboard, browsers, run_id: str) -> Page:
+    """A viewer's page signed in while the service says run `run_id` is running."""
+    status = {"state": "running", "run_id": run_id, "since": "2026-12-05T01:00:00.000Z", "message": "run started"}
     broker.pub(f"orbitrig/{RIG}/status", json.dumps(status), user="orbitrig-service", retain=True)
     page = Page(browsers(), dashboard.url, dashboard)
     page.sign_in("viewer", ACCOUNTS["viewer"])
     page.signed_in()
     page.wait_state("running", 15)
+    return page
+
+
+def speed_chart(page) -> dict[str, str]:
+    return page.d.execute_script("return Object.assign({}, document.getElementById('trend-speed').dataset)")
+
+
+def test_a_silence_in_the_samples_is_not_bridged_by_a_line(broker, dashboard, browsers):
+    page = viewer_of_a_run(broker, dashboard, browsers, "r-gap")
     publish_samples(broker, 1000.0, 3)
     page.wait(lambda: int(speed_chart(page).get("samples", 0)) >= 3 * 4, 10, "3 samples of each speed")
     assert speed_chart(page)["pieces"] == "1,1,1,1"  # spin, spin set, orbit, orbit set: one line each
@@ -56,12 +62,7 @@ def test_a_silence_in_the_samples_is_not_bridged_by_a_line(broker, dashboard, br
 def test_the_window_follows_the_clock_while_no_sample_comes(broker, dashboard, browsers):
     """A service that hangs (or a run that ended) sends no sample: the charts still move on with the clock
     (redrawn every 2 s), so the last samples leave the right edge instead of standing there as the present."""
-    status = {"state": "running", "run_id": "r-clock", "since": "2026-12-05T01:00:00.000Z", "message": "run started"}
-    broker.pub(f"orbitrig/{RIG}/status", json.dumps(status), user="orbitrig-service", retain=True)
-    page = Page(browsers(), dashboard.url, dashboard)
-    page.sign_in("viewer", ACCOUNTS["viewer"])
-    page.signed_in()
-    page.wait_state("running", 15)
+    page = viewer_of_a_run(broker, dashboard, browsers, "r-clock")
     publish_samples(broker, 1000.0, 2)
     page.wait(lambda: int(speed_chart(page).get("samples", 0)) >= 2 * 4, 10, "2 samples of each speed")
     until, seen = float(speed_chart(page)["until"]), time.time()
