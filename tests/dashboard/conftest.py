@@ -60,6 +60,28 @@ def service(broker, tmp_path_factory):
     holder.proc.stop()
 
 
+_FAILED = pytest.StashKey[bool]()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item, call):
+    report = yield
+    if report.when == "call" and report.failed:
+        item.stash[_FAILED] = True
+    return report
+
+
+@pytest.fixture(autouse=True)
+def _service_fresh_after_a_failure(request):
+    """A test that fails mid-run leaves the module's service paused or running: the next test
+    gets a service restarted (its drives stopped), not the failure's leftovers."""
+    yield
+    if request.node.stash.get(_FAILED, False) and "service" in request.fixturenames:
+        holder = request.getfixturevalue("service")
+        holder.proc.stop()
+        holder.restart()
+
+
 @pytest.fixture(scope="module")
 def dashboard(broker, service, tmp_path_factory):
     with dashboard_running(broker.url, tmp_path_factory.mktemp("dashboard")) as dash:
