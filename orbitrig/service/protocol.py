@@ -19,10 +19,12 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import math
+import numbers
 from dataclasses import dataclass
 from typing import Any
 
 from orbitrig.run.states import RunState
+from orbitrig.store.layout import point_name
 from orbitrig.service.command_json import MAX_COMMAND_BYTES, CommandError  # noqa: F401 - part of this contract's names
 from orbitrig.service.command_models import (  # noqa: F401 - part of this contract's names
     ALWAYS_ACCEPTED,
@@ -206,8 +208,13 @@ def progress_payload(
 
 def result_payload(run_id: str | None, payload: dict[str, Any]) -> bytes:
     """One completed operating point (its settings and identified coefficients)
-    for ``<prefix>/result``; ``run_id`` is added when the payload lacks it."""
-    return dumps({"run_id": run_id, **payload} if "run_id" not in payload else payload)
+    for ``<prefix>/result``; ``run_id`` is added when the payload lacks it, and ``point_name``,
+    the name of its 0-based ``index`` (or ``point``) in the run files (point_name: 3 -> '0003')."""
+    out = {"run_id": run_id, **payload} if "run_id" not in payload else dict(payload)
+    index = next((out[k] for k in ("index", "point") if k in out), None)
+    if isinstance(index, numbers.Integral) and not isinstance(index, bool):
+        out["point_name"] = point_name(int(index))
+    return dumps(out)
 
 
 def reply_ok(cid: str | None, detail: str | None = None) -> bytes:

@@ -30,7 +30,7 @@ from orbitrig.store.fit_record import (
 )
 from orbitrig.store.layout import DERIVED_UNITS, INTERVAL_BASIS_MEANING, SETTINGS_UNITS
 from orbitrig.store.orbit_table import orbit_table_columns
-from rigunits import COEFFICIENT_UNITS
+from orbitrig.store.truth_data import truth_data
 
 if TYPE_CHECKING:
     from orbitrig.store.stored_run import Point, Run
@@ -230,17 +230,16 @@ def flat(props: dict[str, tuple[Any, str]]) -> dict[str, tuple[float | str, str]
 
 
 def truth_arrays(truth: dict[str, Any] | None) -> dict[str, Column]:
-    """The simulator's truth: K0, C0, D0 (2 x 2), and Z (complex, row x 2 x 2) at ``orbit``."""
-    if not truth:
+    """The simulator's truth (orbitrig.store.truth_data, as RunData.truth gives it): K0, C0, D0
+    (2 x 2), and Z (complex, row x 2 x 2) at ``orbit``."""
+    t = truth_data(truth) if truth else None
+    if not t:
         return {}
-    out: dict[str, Column] = {
-        k: (np.asarray(truth[k], dtype=float), u)
-        for k, u in ((f"{m}0", unit) for m, unit in COEFFICIENT_UNITS.items())
-        if k in truth
-    }
-    if "Z_re" in truth:
-        out["Z"] = (np.asarray(truth["Z_re"], dtype=float) + 1j * np.asarray(truth["Z_im"], dtype=float), "N/m")
-        out["orbit"] = (np.asarray(truth["orbit"], dtype=float), "rad/s")
+    units = t["units"]
+    out: dict[str, Column] = {k: (t[k], units[k]) for k in ("K0", "C0", "D0") if k in t}
+    if "Z_re" in t:
+        out["Z"] = (t["Z_re"] + 1j * t["Z_im"], units["Z_re"])
+        out["orbit"] = (t["orbit"], units["orbit"])
     return out
 
 

@@ -21,6 +21,7 @@ from orbitrig.store import csvfile, frames
 from orbitrig.store.fit_record import FitRecord, fit_record, point_fits
 from orbitrig.store.reader import read_run, read_run_file
 from orbitrig.store.stored_run import Point, Run
+from orbitrig.store.truth_data import truth_data
 from reduction.methods import Method
 
 
@@ -134,8 +135,10 @@ class RunData:
         )
 
     def truth(self, point: int) -> dict | None:
-        """--sim runs: the simulator's true impedance and its best fits (K0, C0, D0, ...), SI."""
-        return self._point(point).truth
+        """--sim runs: the simulator's true impedance and its best fits as numpy arrays, SI
+        (orbitrig.store.truth_data: ``orbit`` (n,) rad/s, ``Z_re``, ``Z_im`` (n, 2, 2) N/m,
+        ``K0``, ``C0``, ``D0`` (2, 2), ``units``); None otherwise."""
+        return truth_data(self._point(point).truth)
 
     def waveforms(self, point: int):
         """xarray Dataset of the point's averaged revolutions (dims block, channel, angle)."""

@@ -143,10 +143,44 @@ def test_coefficient_and_covariance_units_apply_in_pint(run, h5):
             ureg.parse_units(unit)
 
 
-def test_truth(run, h5):
-    truth = run.truth(0)
-    stored = json.loads(h5["points/0000/truth"].attrs["json"])
-    np.testing.assert_array_equal(truth["K0"], stored["K0"])
+def test_truth_is_arrays_of_the_stated_shapes_and_units(run, h5):
+    """docs/api.md: Z_re, Z_im (n, 2, 2) at the rows' signed orbit (n,) rad/s, K0, C0, D0 (2, 2), SI;
+    the same numbers as run.h5's truth datasets, one row per row of the point's orbit table."""
+    truth, g = run.truth(0), h5["points/0000/truth"]
+    n = len(run.table(0, "piezo"))
+    assert n == 10  # 5 orbit frequencies, both ways
+    shapes = {
+        k: (type(truth[k]), truth[k].dtype, truth[k].shape) for k in ("orbit", "orbit_hz", "Z_re", "Z_im", "band")
+    }
+    shapes |= {k: (type(truth[k]), truth[k].dtype, truth[k].shape) for k in ("K0", "C0", "D0")}
+    rows, mat = (n,), (2, 2)
+    assert shapes == {
+        **{k: (np.ndarray, np.float64, rows) for k in ("orbit", "orbit_hz")},
+        **{k: (np.ndarray, np.float64, (n, 2, 2)) for k in ("Z_re", "Z_im")},
+        "band": (np.ndarray, np.float64, g["fits/band"].shape),  # m: the point's |Omega|, each measured speed
+        **{k: (np.ndarray, np.float64, mat) for k in ("K0", "C0", "D0")},
+    }
+    np.testing.assert_array_equal(truth["Z_re"] + 1j * truth["Z_im"], g["Z"][()])
+    np.testing.assert_array_equal(truth["orbit"], g["orbit"][()])
+    np.testing.assert_array_equal(truth["band"], g["fits/band"][()])
+    for m in "KCD":
+        np.testing.assert_array_equal(truth[f"{m}0"], g[f"fits/constant/{m}"][()])
+        np.testing.assert_array_equal(truth["fits"]["constant"][m], truth[f"{m}0"])
+        assert (
+            truth["units"][f"{m}0"] == truth["fits"]["constant"]["units"][m] == g[f"fits/constant/{m}"].attrs["units"]
+        )
+    assert {k: truth["units"][k] for k in ("orbit", "Z_re", "band")} == {
+        "orbit": "rad/s",
+        "Z_re": "N/m",
+        "band": "rad/s",
+    }
+    assert truth["units"]["Z_re"] == g["Z"].attrs["units"] and truth["units"]["orbit"] == g["orbit"].attrs["units"]
+    power = truth["fits"]["power"]
+    assert power["exponents"] == tuple(g["fits/power"].attrs["exponents"])
+    for k in ("K0", "Km", "C0", "Cn", "D0", "Dp"):
+        assert power[k].shape == mat and power["units"][k] == g[f"fits/power/{k}"].attrs["units"], k
+    np.testing.assert_array_equal(truth["orbit"] < 0, run.table(0, "piezo")["direction"].to_numpy() < 0)
+    assert truth["definition"] == json.loads(g.attrs["json"])["definition"]
 
 
 def test_identify_table_reproduces_the_stored_fit(run):

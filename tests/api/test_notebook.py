@@ -21,3 +21,4 @@ def test_example_notebook_runs(sim_run, tmp_path, monkeypatch):
     assert "(11, 11)" in text  # the kcd11 covariance over its free coefficients
     assert "fx_piezo: half peak-to-peak" in text
     assert "within_U" in text
+    assert "(10, 2, 2), 'N/m')" in " ".join(text.split())  # the truth: Z (rows, 2, 2) as an array, K0 in N/m

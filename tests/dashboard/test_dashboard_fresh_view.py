@@ -7,11 +7,14 @@ The tests publish what the rig service would (as orbitrig-service)."""
 
 from __future__ import annotations
 
+import json
 import time
 
 import pytest
 from support.dash_helpers import Page, dashboard_running, publish_as_service
 from support.mqtt_helpers import ACCOUNTS
+
+from orbitrig.service.protocol import result_payload
 
 
 @pytest.fixture(scope="module")
@@ -184,7 +187,7 @@ def test_a_results_point_is_counted_as_the_progress_counts_it(broker, dashboard,
     status(broker, "running", "r-result")
     row = {"lms": "piezo", "model": "kc7", "freq_dep": "none", "coefficients": {"Kxx": 1e7}, "units": {"Kxx": "N/m"}}
     result = {"run_id": "r-result", "index": 0, "point": 0, "label": "w1000rpm", "identification": [row]}
-    publish_as_service(broker, "result", result)
+    publish_as_service(broker, "result", json.loads(result_payload("r-result", result)))  # as the service names it
     page.wait(lambda: page.d.find_elements("css selector", "#results tr.fit-first"), 10, "the result row")
     first = page.d.find_element("css selector", "#results tr.fit-first td")
     assert first.text == "1 w1000rpm" and first.get_attribute("title") == "file point 0000"

@@ -13,6 +13,8 @@ import pytest
 from support.dash_helpers import Page, RIG, dashboard_running, idle_page
 from support.mqtt_helpers import Service, Watcher, service_password_file
 
+from orbitrig.store.layout import point_name
+
 #: three operating points (spin speeds: no manual setting between them), short blocks
 MATRIX = """\
 name = "threep"
@@ -57,10 +59,10 @@ def dashboard(relay, service, tmp_path_factory):
 
 
 def rows(page: Page) -> list[dict]:
-    """The results table's rows in order: class, run, first cell."""
+    """The results table's rows in order: class, run, first cell and its tooltip."""
     return page.d.execute_script(
         "return [...document.querySelectorAll('#results tr')].map(r => ({cls: r.className, run: r.dataset.run,"
-        " first: r.children[0].innerText}))"
+        " first: r.children[0].innerText, title: r.children[0].title}))"
     )
 
 
@@ -105,6 +107,8 @@ def test_two_runs_rows_are_each_under_a_row_naming_their_run(dashboard, browsers
     assert {r["run"] for r in shown[cut + 1 :]} == {second}
     points = [r["first"].split()[0] for r in shown if r["cls"] == "fit-first"]
     assert points == ["1", "1", "2", "2", "3", "3"] * 2  # the same points in both runs: told apart by the run rows
+    files = [r["title"] for r in shown if r["cls"] == "fit-first"]  # as the service names them (result: point_name)
+    assert files == [f"file point {point_name(i)}" for i in (0, 0, 1, 1, 2, 2)] * 2
 
 
 def test_a_page_whose_feed_reconnects_draws_the_results_once(dashboard, browsers):

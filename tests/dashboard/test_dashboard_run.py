@@ -56,6 +56,14 @@ def test_operator_runs_the_demo_matrix(dashboard, service, browsers):
     page.wait(lambda: page.text("revolutions") != revs0, 10, "revolutions counting")
     assert int(page.el("plot-forces").get_attribute("data-samples")) == 4 * 45  # 4 forces x 45 slots
     assert int(page.el("plot-orbit").get_attribute("data-samples")) == 45
+    # each trace named in the legend and drawn in its own dash pattern, not told apart by colour alone
+    lines = {
+        i: [page.el(i).get_attribute(f"data-{a}") for a in ("series", "dashes")] for i in ("plot-forces", "plot-disp")
+    }
+    assert lines == {
+        "plot-forces": ["Fx piezo,Fy piezo,Fx strain,Fy strain", "solid,7 3,2 2,9 3 2 3"],
+        "plot-disp": ["x plane A,y plane A,x plane B,y plane B", "solid,7 3,2 2,9 3 2 3"],
+    }
     assert page.text("op-spin").endswith(" rpm") and page.text("op-orbit").endswith(" rpm")
     # between orbit frequencies (the averaged revolutions not current) it says "—": a loaded
     # host may read it there, so it is waited for, as the trends below

@@ -1,6 +1,7 @@
-"""A trend chart's lines differ in more than colour, in the real browser: each is drawn (and its legend
-entry too) in its own dash pattern, solid, dashed, dotted, dash-dot, read back from the canvas's pixels
-whatever their colour; a line keeps its look while another of its chart has no samples."""
+"""A chart's lines differ in more than colour, in the real browser: each line of a trend chart and of an
+averaged revolution's chart is drawn (and its legend entry too) in its own dash pattern, solid, dashed,
+dotted, dash-dot, read back from the canvas's pixels whatever their colour; a line keeps its look while
+another of its chart has no samples."""
 
 from __future__ import annotations
 
@@ -10,13 +11,16 @@ import orbitrig.dashboard
 
 STATIC = Path(orbitrig.dashboard.__file__).parent / "static"
 
-#: lines at levels between the grid lines over 100 s; for each: the runs of drawn pixels (any colour) along the line's row
-#: in the plot and along its legend entry's short line
+#: lines at levels between the grid lines, over 100 s in a trend chart (arguments[1] "trend") or over a revolution of 45
+#: slots in N (an averaged revolution's); for each: the runs of drawn pixels (any colour) along the line's row in the
+#: plot and along its legend entry's short line; then the canvas's data-dashes and data-series
 DRAW = """
-const canvas = document.createElement("canvas"); canvas.width = 420; canvas.height = 180; document.body.appendChild(canvas);
+const canvas = document.createElement("canvas"), trend = arguments[1] === "trend"; document.body.appendChild(canvas);
+canvas.width = 420; canvas.height = trend ? 180 : 220;
 const lines = arguments[0], times = Array.from({length: 101}, (_, i) => i);
-const series = lines.map(([name, line, v]) => ({name, line, points: times.map(t => [t, v])}));
-orbitPlots.drawTrend(canvas, series, null, [0, 100]);
+const series = lines.map(([name, line, v]) => ({name, line, points: times.map(t => [t, v]), values: Array(45).fill(v)}));
+if (trend) orbitPlots.drawTrend(canvas, series, null, [0, 100]);
+else orbitPlots.drawTraces(canvas, series, "N");
 const ctx = canvas.getContext("2d"), m = {l: 52, r: 14, t: 22, b: 20}, h = canvas.height;
 const y = orbitPlots.niceTicks(Math.min(...lines.map(l => l[2])), Math.max(...lines.map(l => l[2])), 4);
 const drawn = (x0, x1, row) => {
@@ -27,18 +31,18 @@ const runs = on => { const out = []; let n = 0; on.forEach(b => { if (b) n++; el
 ctx.font = "10px sans-serif";
 let x = m.l;
 return series.map(s => {
-  const row = Math.round(h - m.b - (h - m.t - m.b) * (s.points[0][1] - y.lo) / (y.hi - y.lo));
+  const row = Math.round(h - m.b - (h - m.t - m.b) * (s.values[0] - y.lo) / (y.hi - y.lo));
   const plot = runs(drawn(m.l + 4, canvas.width - m.r - 8, row)), key = runs(drawn(x, x + 18, 9));
   x += 28 + ctx.measureText(s.name).width;
   return {plot, key};
-}).concat([canvas.dataset.dashes]);
+}).concat([canvas.dataset.dashes, canvas.dataset.series]);
 """
 
 
-def _draw(driver, lines):
+def _draw(driver, lines, chart: str = "trend"):
     driver.get("about:blank")
     scripts = "\n".join((STATIC / f"{name}.js").read_text(encoding="utf-8") for name in ("units", "plots"))
-    return driver.execute_script(scripts + "\n" + DRAW, lines)
+    return driver.execute_script(scripts + "\n" + DRAW, lines, chart)
 
 
 def _look(runs: list[int], whole: bool = True) -> str:
@@ -54,15 +58,29 @@ def _look(runs: list[int], whole: bool = True) -> str:
 
 
 def test_each_line_and_its_legend_entry_have_their_own_dash_pattern(driver):
-    *drawn, dashes = _draw(driver, [["spin", 0, 1.3], ["spin set", 1, 2.3], ["orbit", 2, 3.6], ["orbit set", 3, 4.6]])
+    *drawn, dashes, _ = _draw(
+        driver, [["spin", 0, 1.3], ["spin set", 1, 2.3], ["orbit", 2, 3.6], ["orbit set", 3, 4.6]]
+    )
     assert [_look(d["plot"], whole=False) for d in drawn] == ["solid", "dashed", "dotted", "dash-dot"], drawn
     assert [_look(d["key"]) for d in drawn] == ["solid", "dashed", "dotted", "dash-dot"], drawn
     assert dashes == "solid,7 3,2 2,9 3 2 3"
 
 
 def test_a_line_keeps_its_look_while_another_has_no_samples(driver):
-    *drawn, dashes = _draw(driver, [["spin", 0, 1.3], ["orbit", 2, 3.6]])  # no set points in the window
+    *drawn, dashes, _ = _draw(driver, [["spin", 0, 1.3], ["orbit", 2, 3.6]])  # no set points in the window
     assert [_look(d["plot"], whole=False) for d in drawn] == ["solid", "dotted"] == [_look(d["key"]) for d in drawn], (
         drawn
     )
     assert dashes == "solid,2 2"
+
+
+def test_each_trace_of_an_averaged_revolution_has_its_own_dash_pattern_and_name(driver):
+    forces = [["Fx piezo", 0, 130.0], ["Fy piezo", 1, 230.0], ["Fx strain", 2, 360.0], ["Fy strain", 3, 460.0]]
+    *drawn, dashes, names = _draw(driver, forces, "revolution")
+    assert [_look(d["plot"], whole=False) for d in drawn] == ["solid", "dashed", "dotted", "dash-dot"], drawn
+    assert [_look(d["key"]) for d in drawn] == ["solid", "dashed", "dotted", "dash-dot"], drawn
+    assert (dashes, names) == ("solid,7 3,2 2,9 3 2 3", "Fx piezo,Fy piezo,Fx strain,Fy strain")
+    # a channel missing from the payload: the others keep their looks
+    *drawn, dashes, names = _draw(driver, [forces[1], forces[3]], "revolution")
+    assert [_look(d["plot"], whole=False) for d in drawn] == ["dashed", "dash-dot"] == [_look(d["key"]) for d in drawn]
+    assert (dashes, names) == ("7 3,9 3 2 3", "Fy piezo,Fy strain")

@@ -178,6 +178,7 @@ def test_result_payload_is_plain_json():
     assert obj == {
         "run_id": "r9",
         "point": 0,
+        "point_name": "0000",  # the run files' name of the point (orbitrig.store.layout.point_name)
         "spin_rpm": 1200.0,
         "coefficients": {"Kxx": 1.5e7},
         "orbit_hz": [1.0, 2.0],
@@ -186,6 +187,19 @@ def test_result_payload_is_plain_json():
         "ok": True,
     }
     assert json.loads(result_payload("r9", {"run_id": "own"}))["run_id"] == "own"
+
+
+@pytest.mark.parametrize(
+    ("settings", "name"),
+    [({"index": 3, "point": 3}, "0003"), ({"index": np.int64(12)}, "0012"), ({"point": 10000}, "10000")],
+)
+def test_result_payload_names_the_point_as_the_run_files(settings, name):
+    assert json.loads(result_payload("r9", settings))["point_name"] == name
+
+
+@pytest.mark.parametrize("settings", [{}, {"index": None}, {"index": True}, {"index": "3"}])
+def test_result_payload_without_a_point_index_names_no_point(settings):
+    assert "point_name" not in json.loads(result_payload("r9", settings))
 
 
 def test_result_payload_times_are_the_house_timestamps():

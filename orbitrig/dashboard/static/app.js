@@ -336,6 +336,13 @@ function showEta() {
 }
 
 // ---------------------------------------------------------------- live
+// averaged revolution chart id -> [[channel (docs/interfaces.md), its legend entry], ...], shown unit; each line
+// in its own colour and dash pattern (orbitPlots.drawTraces), kept while another channel is missing
+const REVOLUTION_CHARTS = {
+  "plot-forces": [[["fx_piezo", "Fx piezo"], ["fy_piezo", "Fy piezo"], ["fx_strain", "Fx strain"], ["fy_strain", "Fy strain"]], "N"],
+  "plot-disp": [[["x_a", "x plane A"], ["y_a", "y plane A"], ["x_b", "x plane B"], ["y_b", "y plane B"]], "µm"],
+};
+
 // `age` (s): how old the payload is when it comes (a page's first feed replays the last one)
 function showLive(d, age) {
   if (runEnded(st.status)) return;  // late: the run is over
@@ -351,10 +358,10 @@ function showLive(d, age) {
   trends.trendBands(d.bands);
   if (d.settings_measured) showMeasured(d.settings_measured);
   const w = d.waveforms || {};
-  const forces = ["fx_piezo", "fy_piezo", "fx_strain", "fy_strain"].filter(n => w[n]);
-  const disp = ["x_a", "y_a", "x_b", "y_b"].filter(n => w[n]);
-  if (forces.length) orbitPlots.drawTraces($("plot-forces"), forces.map(n => ({name: n, values: w[n]})), "N");
-  if (disp.length) orbitPlots.drawTraces($("plot-disp"), disp.map(n => ({name: n, values: w[n]})), "µm");
+  Object.entries(REVOLUTION_CHARTS).forEach(([id, [channels, unit]]) => {
+    const series = channels.map(([n, name], line) => ({name, line, values: w[n]})).filter(s => s.values);
+    if (series.length) orbitPlots.drawTraces($(id), series, unit);
+  });
   if (w.x_a && w.y_a && w.x_b && w.y_b) {
     const x = w.x_a.map((v, i) => (v + w.x_b[i]) / 2), y = w.y_a.map((v, i) => (v + w.y_b[i]) / 2);
     orbitPlots.drawOrbit($("plot-orbit"), x, y);

@@ -4,10 +4,23 @@
 "use strict";
 
 const COLOURS = ["#1976d2", "#c62828", "#2e7d32", "#ef6c00", "#6a1b9a", "#00838f", "#5d4037", "#ad1457"];
-// the k-th line of a trend chart also has the k-th dash pattern (solid, dashed, dotted, dash-dot), in its
-// legend too: no line is told from another by its colour alone (a reader who does not tell the colours
-// apart, a grey print); a chart has at most as many lines as patterns
+// the k-th line of a chart (trend or averaged revolution) also has the k-th dash pattern (solid, dashed,
+// dotted, dash-dot), in its legend too: no line is told from another by its colour alone (a reader who does
+// not tell the colours apart, a grey print); a chart has at most as many lines as patterns
 const DASHES = [[], [7, 3], [2, 2], [9, 3, 2, 3]];
+
+// the colour and dash pattern of each of `series` by its `line` (its place among the chart's lines, so that
+// each keeps its look while another is missing; its index when not given)
+function looks(series) {
+  const look = series.map((s, k) => (s.line === undefined ? k : s.line));
+  return {colour: k => COLOURS[look[k] % COLOURS.length], dash: k => DASHES[look[k] % DASHES.length]};
+}
+
+// what a test reads of a chart's lines: their names and dash patterns ("solid", "7 3", ...), in drawing order
+function markLines(canvas, series, dash) {
+  canvas.dataset.series = series.map(s => s.name).join(",");
+  canvas.dataset.dashes = series.map((s, k) => dash(k).join(" ") || "solid").join(",");
+}
 
 // ticks covering [lo, hi]: about `target` round steps; returns {lo, hi, step, ticks}
 function niceTicks(lo, hi, target) {
@@ -73,25 +86,28 @@ function mark(canvas, samples, y) {
   canvas.dataset.ticks = y.ticks.map(v => fmtTick(v, y.step)).join(" ");
 }
 
-// series: [{name, values}], values (SI) over one revolution (samples evenly spread over 360 deg), drawn in `unit` (inShownUnit)
+// series: [{name, values, line}], values (SI) over one revolution (samples evenly spread over 360 deg), drawn in
+// `unit` (inShownUnit); the k-th in COLOURS[line] and DASHES[line] (line: as drawTrend's), its legend entry too
 function drawTraces(canvas, series, unit) {
   const ctx = canvas.getContext("2d"), w = canvas.width, h = canvas.height, m = MARGIN;
   let lo = Infinity, hi = -Infinity;
-  series = series.map(s => ({name: s.name, values: s.values.map(v => inShownUnit(v, unit))}));
+  series = series.map(s => ({name: s.name, line: s.line, values: s.values.map(v => inShownUnit(v, unit))}));
   series.forEach(s => s.values.forEach(v => { if (v !== null) { lo = Math.min(lo, v); hi = Math.max(hi, v); } }));
-  const y = niceTicks(lo, hi, 4);
+  const y = niceTicks(lo, hi, 4), {colour, dash} = looks(series);
   frame(ctx, w, h, y, [[0, "0°"], [0.25, "90°"], [0.5, "180°"], [0.75, "270°"], [1, "360°"]]);
   series.forEach((s, k) => {
     const n = s.values.length;
-    ctx.strokeStyle = COLOURS[k % COLOURS.length]; ctx.lineWidth = 1.5; ctx.beginPath();
+    ctx.strokeStyle = colour(k); ctx.lineWidth = 1.5; ctx.setLineDash(dash(k)); ctx.beginPath();
     s.values.forEach((v, i) => {
       const x = m.l + (w - m.l - m.r) * i / Math.max(1, n), py = h - m.b - (h - m.t - m.b) * (v - y.lo) / (y.hi - y.lo);
       i ? ctx.lineTo(x, py) : ctx.moveTo(x, py);
     });
     ctx.stroke();
   });
-  legend(ctx, series.map(s => s.name), series.map((s, k) => COLOURS[k % COLOURS.length]));
+  ctx.setLineDash([]);
+  legend(ctx, series.map(s => s.name), series.map((s, k) => colour(k)), series.map((s, k) => dash(k)));
   mark(canvas, series.reduce((a, s) => a + s.values.length, 0), y);
+  markLines(canvas, series, dash);
 }
 
 // margins that leave a square plot area in a w x h canvas (the wider side's margins grow alike)
@@ -162,8 +178,7 @@ function drawTrend(canvas, series, band, win) {
     ctx.strokeStyle = "rgba(46,125,50,0.6)"; ctx.setLineDash([3, 3]);
     [band[0], band[1]].forEach(v => { ctx.beginPath(); ctx.moveTo(m.l, py(v)); ctx.lineTo(w - m.r, py(v)); ctx.stroke(); });
   }
-  const gap = gapAfter(series), pieces = [], look = series.map((s, k) => (s.line === undefined ? k : s.line));
-  const colour = k => COLOURS[look[k] % COLOURS.length], dash = k => DASHES[look[k] % DASHES.length];
+  const gap = gapAfter(series), pieces = [], {colour, dash} = looks(series);
   series.forEach((s, k) => {
     ctx.strokeStyle = colour(k); ctx.lineWidth = 1.5; ctx.setLineDash(dash(k));
     ctx.beginPath();
@@ -182,7 +197,7 @@ function drawTrend(canvas, series, band, win) {
   legend(ctx, series.map(s => s.name), series.map((s, k) => colour(k)), series.map((s, k) => dash(k)));
   mark(canvas, n, y);
   canvas.dataset.pieces = pieces.join(",");
-  canvas.dataset.dashes = series.map((s, k) => dash(k).join(" ") || "solid").join(",");
+  markLines(canvas, series, dash);
   canvas.dataset.until = String(t1);  // the window's end (s since the epoch)
   canvas.dataset.band = band ? band.join(",") : "";
 }

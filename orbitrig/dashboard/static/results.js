@@ -26,7 +26,8 @@ function fmtValue(v) {
 // a result's `index` is 0-based (the run files' PPPP); the page counts points 1-based, as the progress does
 function pointIndex(r) { return Number.isInteger(r.index) ? r.index : Number.isInteger(r.point) ? r.point : null; }
 function pointText(r) { const i = pointIndex(r); return i === null ? "?" : String(i + 1); }
-function pointFile(r) { const i = pointIndex(r); return i === null ? "" : "file point " + String(i).padStart(4, "0"); }
+// the run files' name of the point, as the service names it (`point_name`: orbitrig.store.layout.point_name)
+function pointFile(r) { return typeof r.point_name === "string" ? "file point " + r.point_name : ""; }
 // one point's result: its run, point and fits (the broker may hand a result on again after a reconnection)
 function resultKey(r) {
   const fits = (r.identification || []).map(row => [row.lms, row.model, row.freq_dep, row.method].join(" "));

@@ -71,9 +71,7 @@ function drawTrends() {
       .filter(s => s.points.some(p => p[1] !== null));
     const raw = bandKey ? trendState.bands[bandKey] : null;
     const band = raw ? [shown(raw[0]), shown(raw[1])] : null;
-    const canvas = document.getElementById(id);
-    orbitPlots.drawTrend(canvas, series, band, win);
-    canvas.dataset.series = series.map(s => s.name).join(",");
+    orbitPlots.drawTrend(document.getElementById(id), series, band, win);
   });
 }
 
