@@ -147,7 +147,7 @@ def _rig(watchdog_s: float, speedup: float):
 
 
 async def soak_sweep(points: int | None, speedup: float, watchdog_s: float = 0.0) -> bool:
-    from orbitrig.cli.sweep import _scenario, _sweep
+    from orbitrig.cli.sweep import _scenario, _sweep, print_table
 
     plan = make_plan(_subset(cfg.load_matrix(cfg.default_matrix_path("paper")), points), _rig(watchdog_s, speedup))
     out = Path(tempfile.mkdtemp(prefix="bench-soak-")) / "run"
@@ -169,6 +169,7 @@ async def soak_sweep(points: int | None, speedup: float, watchdog_s: float = 0.0
             operator="bench",
             subscribers=[sampler],
         )
+        print_table(outcome, out)
     wall = time.monotonic() - t0
     s = sampler.samples
     print(

@@ -48,6 +48,7 @@ class ServiceLog:
         self._hand_over = _HandOver(self._waiting)
         self._listener = logging.handlers.QueueListener(self._waiting, *handlers)
         self._listener.start()
+        self._listening = True  # the listener's thread runs (QueueListener.stop() once only)
         logging.getLogger().addHandler(self._hand_over)
         atexit.register(self.close)
 
@@ -59,12 +60,16 @@ class ServiceLog:
         return not self._waiting.unfinished_tasks
 
     def close(self) -> None:
+        """No more records taken; the log's thread ends once those waiting are written, then the
+        handlers are closed. Closed again (at the exit, after a command's own close), no thread is
+        stopped twice."""
         logging.getLogger().removeHandler(self._hand_over)
-        if self._listener._thread is not None:  # (stop() is not idempotent)
+        if self._listening:
             try:
                 self._listener.stop()
             except queue.Full:  # its reader does not read: the records waiting are not waited for
                 return
+            self._listening = False
         for handler in self._handlers:
             handler.close()
 

@@ -121,18 +121,22 @@ def _run_plan(plan, *, out, sim: bool, sim_config, resume: bool, speedup: float,
     print_warnings(plan)  # as the dry run, before anything starts
     import asyncio
 
-    return asyncio.run(
-        _sweep(
-            plan,
-            out=out,
-            sim=scenario,
-            resume=resume,
-            speedup=speedup,
-            operator=operator,
-            fmt=fmt,
-            draw_figures=draw_figures,
+    from orbitrig.cli.terminal import off_the_loop
+
+    with off_the_loop():  # a terminal that stops reading (Ctrl-S) holds neither the drives' poll nor a signal
+        outcome = asyncio.run(
+            _sweep(
+                plan,
+                out=out,
+                sim=scenario,
+                resume=resume,
+                speedup=speedup,
+                operator=operator,
+                draw_figures=draw_figures,
+            )
         )
-    )
+    print_table(outcome, out, fmt)  # the loop is done: straight to standard output
+    return outcome
 
 
 def _scenario(path, *, resume: bool, out):
@@ -222,13 +226,14 @@ async def _sweep(
     resume: bool,
     speedup: float,
     operator: str = "",
-    fmt=None,
     subscribers=(),
     draw_figures: bool = False,
 ):
-    """Run the plan; ``sim`` the simulator's (SimConfig, Scenario) (None: the real rig);
-    ``subscribers``: more event callbacks of the engine (bench/bench_soak.py samples memory);
-    ``draw_figures``: the report's figures of each completed point drawn during the run."""
+    """Run the plan, its progress and closing line on standard error (the console); ``sim`` the
+    simulator's (SimConfig, Scenario) (None: the real rig); ``subscribers``: more event callbacks
+    of the engine (bench/bench_soak.py samples memory); ``draw_figures``: the report's figures of
+    each completed point drawn during the run. The closing table is `print_table`'s, once the
+    event loop is done."""
     started = None
     if sim is not None:  # it boots in its own process while this one imports the engine
         from orbitrig.cli.simulated_rig import start_simulator
@@ -238,14 +243,13 @@ async def _sweep(
     import sys
 
     from orbitrig.cli.progress import SweepProgress
-    from orbitrig.cli.terminal import BackgroundStream, TerminalConsole
+    from orbitrig.cli.terminal import TerminalConsole
     from orbitrig.run.heap import tune_heap
     from orbitrig.run.modbus_log import keep_pymodbus_off_the_terminal
 
     keep_pymodbus_off_the_terminal()
     tune_heap()  # bounded memory over months (orbitrig.run.heap)
-    terminal = BackgroundStream(sys.stderr)  # a terminal that stops reading (Ctrl-S) holds no drive's poll
-    console = TerminalConsole(file=terminal)
+    console = TerminalConsole(file=sys.stderr)  # off the loop in `orbitrig sweep` (terminal.off_the_loop)
     try:
         async with contextlib.AsyncExitStack() as stack:
             access = None
@@ -269,9 +273,9 @@ async def _sweep(
                     outcome = await engine.run(plan, resume=resume)
                 finally:
                     console_operator.uninstall()
-        _print_outcome(console, outcome, out, fmt)
+        console.print(_closing_line(outcome, out), markup=False)
     finally:
-        terminal.finish()  # on the terminal before anything else is said on standard error
+        console.written()  # on the terminal before anything else is said on standard error
     return outcome
 
 
@@ -294,16 +298,21 @@ def _engine(plan, *, out: Path, access, operator: str, console):
     return engine, console_operator
 
 
-def _print_outcome(console, outcome, out: Path, fmt) -> None:
-    """The run's closing line and, when a point completed, the table of its coefficients."""
-    console.print(
+def _closing_line(outcome, out: Path) -> str:
+    """The run's closing line on the console: its status, why, and the points complete."""
+    return (
         f"run {outcome.status}: {outcome.message}  ({len(outcome.completed_points)} of "
-        f"{outcome.points} points complete in {out})",
-        markup=False,
+        f"{outcome.points} points complete in {out})"
     )
-    if outcome.completed_points:
-        from orbitrig.cli.terminal import printing
-        from orbitrig.cli.sweep_summary import print_coefficients  # the closing table
 
-        with printing():  # a reader gone (`| head`) ends the table, not the run's exit status
-            print_coefficients(out, fmt or OutputFormat.TEXT)
+
+def print_table(outcome, out: Path, fmt=OutputFormat.TEXT) -> None:
+    """When a point completed, the table of its coefficients on standard output: a reader gone
+    (`| head`) ends the table, not the run's exit status; another failure (ENOSPC) is raised as
+    an OutputError."""
+    if outcome.completed_points:
+        from orbitrig.cli.sweep_summary import print_coefficients
+        from orbitrig.cli.terminal import printing
+
+        with printing():
+            print_coefficients(out, fmt)

@@ -14,10 +14,12 @@ standard error, from inside signal handlers and the bars' thread), is the except
 quiet on any failure to write; the run log keeps the record.
 
 A reader that stops reading without going away (Ctrl-S at the terminal, a pipe nobody reads)
-makes a write wait until it reads again. The run's console writes through
-:class:`BackgroundStream`, whose own thread does the writing, and so do standard output and
-error while a command that moves the drives runs its event loop (:func:`off_the_loop`): the
-loop that polls the drives and takes the signals never waits for the terminal.
+makes a write wait until it reads again. While a command that moves the drives (a sweep, a
+calibration, `drives run`) runs its event loop, standard output and error are each a
+:class:`BackgroundStream`, whose own thread does the writing (:func:`off_the_loop`), the run's
+console among what writes on them: the loop that polls the drives and takes the signals never
+waits for the terminal. What such a command prints once its loop is done goes straight to the
+stream again.
 """
 
 from __future__ import annotations
@@ -109,9 +111,15 @@ class TerminalConsole(Console):
 
     def written(self, timeout: float | None = None) -> None:
         """Wait (at most ``timeout`` s) until what was printed has reached the stream (written by
-        the thread of a BackgroundStream): before the process ends without its exit's waits."""
+        the thread of a BackgroundStream): before the process ends without its exit's waits, or
+        the stream is given back (`off_the_loop`). A failure to write it makes the console quiet
+        here, as any other of its failures, instead of failing the command later."""
         if isinstance(self.file, BackgroundStream):
             self.file.finish(timeout)
+            try:
+                self.file.flush()  # raises what the thread met after the console's last flush
+            except OSError:
+                self.gone()
 
     def gone(self) -> None:
         """The terminal is gone: drop what waits to be written and write nothing more."""

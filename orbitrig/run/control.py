@@ -19,11 +19,8 @@ a confirmation, an interlock clearing).
 - no room: too little free disk space for the next point pauses the run.
 - stop now: a signal from the system (SIGTERM, SIGHUP, SIGQUIT): the engine cancels the
   run at once, the drives ramp to zero (not an emergency), the run ends stopped.
-- nobody to answer (`unanswered_limit`, wall s): a pause or a confirmation
-  that nobody can answer (no terminal, no MQTT) stops the run after that long;
-  a wait already under way when the limit is set counts it from then. The wait's status
-  says when it stops the run; one under way when the limit is lifted (the service's broker
-  back) keeps its deadline until its next wake, and its stop says that nobody answered.
+- nobody to answer (`set_unanswered_limit`, wall s): a pause or a confirmation that nobody
+  can answer (no terminal, no MQTT) stops the run after that long (orbitrig.run.unanswered).
 
 Every stop and abort keeps who asked for it (`stop_by`, `abort_by`: the sender as the
 commands log records it, e.g. 'ada', 'service (supervision lost)', 'SIGTERM'): the run's
@@ -42,7 +39,8 @@ from orbitrig.run.provenance import UNNAMED
 from orbitrig.run.states import FAULTED, IDLE, PAUSED, RUNNING, STOPPING, WAITING, RunState, next_state
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.interlocks import SUSPEND, Trip, TripKind
-from rigunits import now_iso, utc_iso
+from orbitrig.run.unanswered import UnansweredWait
+from rigunits import now_iso
 
 T = TypeVar("T")
 
@@ -51,8 +49,6 @@ STOP_WORDS = (
     "finishing the current orbit frequency, then both drives ramp to zero; a point left incomplete "
     "is measured again from its start by orbitrig sweep --resume (its blocks so far kept in aside/)"
 )
-#: who asks for the stop when a wait nobody can answer times out (the commands log's sender)
-UNANSWERED = "orbitrig"
 #: wall s between looks at the cause of a suspension in force (a new cause is noted in the run's events)
 RECHECK_S = 0.5
 
@@ -99,11 +95,7 @@ class RunControl:
         self.since = now_iso()
         self.waiting_step: str | None = None
         self.timing: dict[str, float] = {}
-        self.unanswered_limit: float | None = None  # None: someone can answer a pause
-        self._unanswered_from = 0.0  # time.monotonic() when the limit was set
-        self._answerable_since = ""  # when the limit was last lifted (ISO time)
-        self._hold = ("", "")  # the wait under way: (its message without a deadline, what answers it)
-        self._deadline: float | None = None  # the deadline its status states (time.monotonic())
+        self.unanswered = UnansweredWait()  # the limit on waits nobody can answer
         self.reset()
 
     def reset(self) -> None:
@@ -208,11 +200,9 @@ class RunControl:
         """Nobody can answer a pause or a confirmation from now on (`limit` wall s), or someone
         can (None). A wait under way takes a limit at once, counted from now; one under way when
         the limit is lifted keeps it until its next wake (a request)."""
-        self.unanswered_limit, self._unanswered_from = limit, time.monotonic()
+        self.unanswered.set_limit(limit)
         if limit is not None:
             self.wake.set()
-        else:
-            self._answerable_since = now_iso()
 
     # -------------------------------------------------------------- waits
     def _end_if_aborted(self) -> None:
@@ -227,31 +217,15 @@ class RunControl:
         while self.pause_requested and not self.stop_requested:
             await self._wait_answer(t0)
 
-    def _deadline_of(self, t0: float) -> float | None:
-        """When a wait begun at `t0` stops the run (time.monotonic()), or None: someone can answer."""
-        limit = self.unanswered_limit
-        return None if limit is None else max(t0, self._unanswered_from) + limit
-
-    def _held(self, message: str, answer: str, t0: float) -> str:
-        """The status message of a wait begun at `t0` (`answer`: what ends it): with the time it
-        stops the run if nobody can answer."""
-        self._hold, self._deadline = (message, answer), self._deadline_of(t0)
-        if self._deadline is None:
-            return message
-        at = utc_iso(time.time() + self._deadline - time.monotonic())
-        return (
-            f"{message}; the run stops at {at} unless {answer} (nobody could answer: limit {self.unanswered_limit:g} s)"
-        )
-
     async def _wait_answer(self, t0: float) -> None:
-        """Until the next request; if nobody can answer, a stop once `unanswered_limit` s
-        have passed since `t0` (the wait's start) or since the limit was set, the later.
-        The status is stated again when that deadline changes."""
+        """Until the next request; if nobody can answer, a stop once the unanswered limit has
+        passed since `t0` (the wait's start) or since the limit was set, the later. The status
+        is stated again when that deadline changes."""
         self._end_if_aborted()
         self.wake.clear()
-        limit, deadline = self.unanswered_limit, self._deadline_of(t0)
-        if deadline != self._deadline:
-            self.message = self._held(*self._hold, t0)
+        limit, deadline = self.unanswered.limit, self.unanswered.deadline_of(t0)
+        if (restated := self.unanswered.restated(t0)) is not None:
+            self.message = restated
             self._on_state(self.state, self.message)  # the same state, its deadline changed
         if limit is None or deadline is None:
             await self.wake.wait()
@@ -261,15 +235,8 @@ class RunControl:
             self._stop_unanswered(limit)
 
     def _stop_unanswered(self, limit: float) -> None:
-        """Nobody answered the wait within `limit` s: the run stops. Said as it is: nobody can
-        answer, or the limit was lifted meanwhile (the broker back) and nobody answered."""
-        if self.unanswered_limit is None:
-            answer = "confirmed" if self.state == WAITING else "resumed"
-            why = f"nobody {answer} within {limit:g} s: no terminal; MQTT back since {self._answerable_since}"
-            by, message = f"{UNANSWERED} ({why})", why
-        else:
-            waited = f"{self.state} for {limit:g} s, no terminal and no MQTT"
-            by, message = f"{UNANSWERED} (nobody can answer: {waited})", f"nobody can answer ({waited})"
+        """Nobody answered the wait within `limit` s: the run stops, said as it is."""
+        by, message = self.unanswered.stop_words(self.state, limit)
         self.request_stop(by, f"{message}: stopping the run (continue later with --resume)")
         self._own_stop(by)
 
@@ -282,7 +249,9 @@ class RunControl:
             return
         t0 = time.monotonic()
         asked = f"; asked by {self.pause_by}" if self.pause_by else ""
-        self.fire("pause", self._held(f"paused at a safe point (drives keep their speeds){asked}", "resumed", t0))
+        self.fire(
+            "pause", self.unanswered.held(f"paused at a safe point (drives keep their speeds){asked}", "resumed", t0)
+        )
         await self._until_resumed(t0)
         if self.stop_requested:
             if allow_stop:
@@ -297,7 +266,7 @@ class RunControl:
         t0 = time.monotonic()
         self.waiting_step, self.confirmed = step_id, None
         # the operator (terminal or MQTT) confirms by this id: {"cmd": "confirm", "step": ...}
-        self.fire("ask", self._held(f"{message} (confirm step {step_id!r})", "confirmed", t0))
+        self.fire("ask", self.unanswered.held(f"{message} (confirm step {step_id!r})", "confirmed", t0))
         try:
             while self.confirmed != step_id:
                 if self.stop_requested:
@@ -317,7 +286,7 @@ class RunControl:
         if self.stop_requested:
             raise StopRun
         t0 = time.monotonic()
-        self.fire("no_room", self._held(f"paused: {why}; free disk space, then resume", "resumed", t0))
+        self.fire("no_room", self.unanswered.held(f"paused: {why}; free disk space, then resume", "resumed", t0))
         self.held_for_room = True
         try:
             while why is not None:

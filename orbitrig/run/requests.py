@@ -185,7 +185,7 @@ class OperatorRequests:
         """Nobody can answer a pause or a confirmation (no terminal, no MQTT): such a wait
         stops the run after [interlocks] unanswered_pause_s (one under way: after that long
         from when this was set)."""
-        return self._control.unanswered_limit is not None
+        return self._control.unanswered.limit is not None
 
     @unattended.setter
     def unattended(self, value: bool) -> None:

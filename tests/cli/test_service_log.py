@@ -41,6 +41,23 @@ def test_thousands_of_messages_keep_the_log_files_under_the_stated_size(tmp_path
     assert "point" in log_file.read_text().splitlines()[-1] or "live" in log_file.read_text().splitlines()[-1]
 
 
+def test_a_log_closed_by_its_command_and_again_at_the_exit_writes_each_record_once(tmp_path):
+    log_file = tmp_path / "serve.log"
+    root = logging.getLogger()
+    before, level = list(root.handlers), root.level
+    service_log = setup_service_log(verbose=False, log_file=log_file)
+    try:
+        logging.getLogger("orbitrig.service").info("stopped by SIGTERM")
+        service_log.close()
+        logging.getLogger("orbitrig.service").info("after the close")  # no handler of the log takes it
+        service_log.close()  # as atexit does: no second stop of the thread, no error
+    finally:
+        root.handlers[:] = before
+        root.setLevel(level)
+    lines = log_file.read_text().splitlines()
+    assert len(lines) == 1 and lines[0].endswith("INFO orbitrig.service: stopped by SIGTERM"), lines
+
+
 def test_bad_log_options_are_a_usage_error(tmp_path):
     p = subprocess.run(
         orbitrig_cmd(
