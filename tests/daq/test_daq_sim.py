@@ -85,8 +85,8 @@ async def test_clean(rig, link):
     tap = WireTap(rig)
     block, used = await acquire_with_fault(rig, url_of(rig, link))
     s = block.stats
-    counts = (s.revolutions_used, s.revolutions_dropped, s.frames_bad, s.link_drops)
-    assert counts == (N, 0, 0, 0), (s.drop_reasons, s.frame_errors)
+    counts = (s.revolutions_used, s.revolutions_dropped, s.frames_bad, s.link_drops, s.frames_lost)
+    assert counts == (N, 0, 0, 0, 0), (s.drop_reasons, s.frame_errors)
     assert s.drop_reasons == {} and s.frame_errors == {}
     assert [r.rev for r in used] == list(range(used[0].rev, used[0].rev + N))
     check_block(rig, block, used, tap)
@@ -107,7 +107,7 @@ async def test_drop_frames(rig, link):
     tap = WireTap(rig)
     block, used = await acquire_with_fault(rig, url_of(rig, link), "drop_frames", count=3)
     s = block.stats
-    assert s.frames_bad == 0 and s.bytes_skipped == 0
+    assert s.frames_bad == 0 and s.bytes_skipped == 0 and s.frames_lost == 3
     # the revolution that lost frames (seq gap), and the next one if the frame after
     # the loss (it carries OVERRUN) is in it
     assert 1 <= s.revolutions_dropped <= 2 and "seq_gap" in s.drop_reasons
