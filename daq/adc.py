@@ -22,6 +22,7 @@ dropped (``link_drop``).
 from __future__ import annotations
 
 import asyncio
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 
@@ -88,7 +89,7 @@ class AdcReader:
     (default raw counts). on_revolution: called with every revolution that goes
     into an average (the block carries their raw counts too). max_backoff: the
     longest delay (s) between reconnect attempts. ``stats``: cumulative counters;
-    ``reconnects``: reconnect attempts made.
+    ``reconnects``: reconnect attempts made; ``silent_s``: wall s since the last byte came.
     """
 
     def __init__(
@@ -124,6 +125,7 @@ class AdcReader:
         self.link_drops = 0
         self.reconnects = 0
         self.link_error: Exception | None = None
+        self._heard_at = time.monotonic()  # the last byte's arrival (or the reader's creation)
 
     async def __aenter__(self) -> AdcReader:
         await self.open()
@@ -135,6 +137,7 @@ class AdcReader:
     async def open(self) -> None:
         """Open the link; raises DaqLinkError if it cannot be opened."""
         self._closed = False
+        self._heard_at = time.monotonic()
         self._link = await open_link(self.url, self._on_data, self._on_lost, timeout=self.open_timeout)
         self._flowed = False
 
@@ -153,6 +156,11 @@ class AdcReader:
             self._fail(DaqLinkError(f"{self.url}: reader closed"))
 
     @property
+    def silent_s(self) -> float:
+        """Wall s since the board's last byte arrived (since the reader was opened, before any)."""
+        return time.monotonic() - self._heard_at
+
+    @property
     def connected(self) -> bool:
         return self._link is not None and not self._link.closed
 
@@ -168,10 +176,13 @@ class AdcReader:
             drop_reasons=dict(a.drop_reasons),
             frame_errors=dict(d.frame_errors),
             link_drops=self.link_drops,
+            frames_lost=a.frames_lost,
         )
 
     # ------------------------------------------------------------ data path
     def _on_data(self, data: bytes) -> None:
+        if data:
+            self._heard_at = time.monotonic()
         try:
             frames = self._decoder.feed_batch(data)
             revs = self._assembler.push_batch(frames)

@@ -18,6 +18,7 @@ from typing import Awaitable, Callable
 from daq.errors import DaqError
 from drives.errors import DriveError
 from orbitrig.config import RigConfig
+from orbitrig.run.adc_link import block_link_line, board_silence
 from orbitrig.run.averaging import averaging_rule
 from orbitrig.run.background import Background
 from orbitrig.run.control import RunControl, Suspended
@@ -275,16 +276,16 @@ class PointProcedure:
                 rule = averaging_rule(step, p.spin, av.speed_tolerance)
                 avg = await r.control.guarded(r.io.acquire(rule, timeout=timeout), r.supervisor)
                 self._add_time("acquire", t0)
+                if (dropped := block_link_line(p.index, b.tag, avg.stats)) is not None:
+                    r.note(dropped)
                 ps.last = block_record(b, avg, r.rig)
                 return
             except Suspended:
                 await self._hold_while_suspended()
             except (DaqError, TimeoutError) as err:
                 attempts += 1
-                msg = (
-                    f"point {point_name(p.index)} [{b.tag}]: acquisition failed ({type(err).__name__}: {err}); "
-                    "orbit trigger lost or A/D link down?"
-                )
+                why = board_silence(r.io.adc) or "orbit trigger lost or A/D link down?"
+                msg = f"point {point_name(p.index)} [{b.tag}]: acquisition failed ({type(err).__name__}: {err}); {why}"
                 r.note(msg)
                 if attempts > av.retries:
                     raise RunFailed(msg) from err
