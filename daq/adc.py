@@ -38,6 +38,10 @@ from daq.stats import AcquisitionStats
 from daq.transport import ByteLink, open_link
 
 
+#: s after a silence bound is passed by which acquire() has noticed it
+SILENCE_CHECK_S = 0.05
+
+
 class _Collection:
     """One ``acquire`` in progress."""
 
@@ -230,14 +234,21 @@ class AdcReader:
 
     # ------------------------------------------------------------ acquisition
     async def acquire(
-        self, rule: AveragingRule | int = 50, *, timeout: float, per_revolution: float | None = None
+        self,
+        rule: AveragingRule | int = 50,
+        *,
+        timeout: float,
+        per_revolution: float | None = None,
+        silence: float | None = None,
     ) -> AveragedBlock:
         """Average the good revolutions received after this call as ``rule`` says
         (an ``AveragingRule``, or n for the fixed rule of n revolutions).
 
         Waits ``timeout`` s; with ``per_revolution`` = F, once the orbit period P is
         measured the wait grows to ``timeout + F * rule.max_revolutions * P``. Raises
-        DaqTimeoutError (with the counts seen) if the block is not complete in time,
+        DaqTimeoutError (with the counts seen) if the block is not complete in time, or
+        once the board has sent nothing for ``silence`` s, counted from this call at the
+        earliest (None: no such bound),
         DaqLinkError if the link drops and ``reconnect`` is off.
         """
         if self._collection is not None:
@@ -266,11 +277,24 @@ class AdcReader:
                 left = t0 + limit - loop.time()
                 if left <= 0:
                     raise self._timeout_error(start, averager, limit)
+                if silence is not None:  # counted from this call at the earliest: each call waits for the board
+                    quiet = min(self.silent_s, loop.time() - t0)
+                    if quiet > silence:
+                        raise self._silence_error(start, averager)
+                    left = min(left, silence - quiet + SILENCE_CHECK_S)
                 await asyncio.wait({c.future}, timeout=left)
             block = c.future.result()
         finally:
             self._collection = None
         return replace(block, stats=self.stats.since(start))
+
+    def _silence_error(self, start: AcquisitionStats, averager: StreamingAverager) -> DaqTimeoutError:
+        s = self.stats.since(start)
+        link = "open" if self.connected else f"down: {str(self.link_error).removeprefix(f'{self.url}: ')}"
+        return DaqTimeoutError(
+            f"{self.url}: the A/D board has sent nothing for {self.silent_s:.1f} s (its link {link}; "
+            f"{averager.count} of {averager.n_revolutions} good revolutions, link drops {s.link_drops})"
+        )
 
     def _timeout_error(self, start: AcquisitionStats, averager: StreamingAverager, waited: float) -> DaqTimeoutError:
         s = self.stats.since(start)

@@ -39,6 +39,9 @@ def board_silence(adc: AdcReader | None) -> str | None:
         return None
     said = f"the A/D board ({adc.url}) has sent nothing for {silent:.1f} s"
     if adc.connected:
-        return said + " (its link is open)"
-    why = f": {type(adc.link_error).__name__}: {adc.link_error}" if adc.link_error is not None else ""
+        return (
+            said
+            + " (its link is open: no slot edge clocked? the orbit spindle stopped or the timing disk's sensor off)"
+        )
+    why = "" if adc.link_error is None else ": " + str(adc.link_error).removeprefix(f"{adc.url}: ")
     return said + f" (its link is down{why}; {adc.reconnects} reconnect attempts so far)"

@@ -19,7 +19,7 @@ from daq.errors import DaqError
 from drives.errors import DriveError
 from orbitrig.config import RigConfig
 from orbitrig.run.adc_link import block_link_line, board_silence
-from orbitrig.run.averaging import averaging_rule
+from orbitrig.run.averaging import acquire_waits, averaging_rule
 from orbitrig.run.background import Background
 from orbitrig.run.control import RunControl, Suspended
 from orbitrig.run.events import ResultEvent, RunFailed
@@ -48,7 +48,6 @@ from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.verification import geometry_problems, pressures_settled, radius_missed
 from orbitrig.store.layout import point_name
 from orbitrig.store.writer import RunStore
-from reduction.rig_time import block_time
 from rigunits import rpm_text
 
 log = logging.getLogger(__name__)
@@ -261,10 +260,11 @@ class PointProcedure:
 
     async def _measure(self, step: Acquire, ps: PointState, *, settle_first: bool) -> None:
         """Acquire one block (settled first if asked); after a suspension or a failed acquisition
-        (retried `averaging.retries` times) the block is settled and acquired again."""
+        (retried `averaging.retries` times) the block is settled and acquired again; an attempt
+        waits as `acquire_waits` says, for the block and for an A/D board that sends nothing."""
         r, p, b = self.r, ps.point, step.block
         av = r.rig.averaging
-        timeout = self.scale.wall(av.timeout_factor * block_time(b.orbit, step.revolutions) + av.timeout_margin_s) + 2.0
+        timeout, silence = acquire_waits(av, b.orbit, step.revolutions, self.scale.wall)
         attempts = 0
         while True:
             try:
@@ -274,7 +274,7 @@ class PointProcedure:
                 t0 = time.monotonic()
                 r.progress.block(len(ps.records) + 1)
                 rule = averaging_rule(step, p.spin, av.speed_tolerance)
-                avg = await r.control.guarded(r.io.acquire(rule, timeout=timeout), r.supervisor)
+                avg = await r.control.guarded(r.io.acquire(rule, timeout=timeout, silence=silence), r.supervisor)
                 self._add_time("acquire", t0)
                 if (dropped := block_link_line(p.index, b.tag, avg.stats)) is not None:
                     r.note(dropped)
@@ -284,8 +284,11 @@ class PointProcedure:
                 await self._hold_while_suspended()
             except (DaqError, TimeoutError) as err:
                 attempts += 1
-                why = board_silence(r.io.adc) or "orbit trigger lost or A/D link down?"
-                msg = f"point {point_name(p.index)} [{b.tag}]: acquisition failed ({type(err).__name__}: {err}); {why}"
+                said = f"({type(err).__name__}: {err}); orbit trigger lost or A/D link down?"
+                silent = board_silence(r.io.adc)
+                msg = f"point {point_name(p.index)} [{b.tag}]: acquisition failed" + (
+                    said if silent is None else f": {silent}"
+                )
                 r.note(msg)
                 if attempts > av.retries:
                     raise RunFailed(msg) from err

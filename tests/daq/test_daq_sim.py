@@ -243,3 +243,18 @@ async def test_unopenable_links():
     with pytest.raises(DaqLinkError, match=r"write socket://127\.0\.0\.1:5000 \(tcp:// is the Modbus"):
         async with AdcReader("tcp://127.0.0.1:5000"):
             pass
+
+
+async def test_a_board_gone_ends_acquire_after_the_silence_bound(rig):
+    """The board gone (nothing listens): acquire gives up once it has sent nothing for `silence`
+    s, not at its timeout; a second call waits the bound again from its own start."""
+    async with AdcReader(rig.adc_url, channels=len(rig.config.adc.channels)) as adc:
+        await adc.acquire(5, timeout=20)
+        rig.inject("adc_board_gone")
+        loop = asyncio.get_running_loop()
+        for waited in (0.4, 0.4):
+            t0 = loop.time()
+            with pytest.raises(DaqTimeoutError, match=r"the A/D board has sent nothing for \d\.\d s \(its link down"):
+                await adc.acquire(10_000, timeout=30, silence=0.4)
+            assert waited <= loop.time() - t0 < 3.0
+        assert adc.silent_s > 0.8 and not adc.connected
