@@ -290,7 +290,8 @@ class AdcReader:
 
     def _silence_error(self, start: AcquisitionStats, averager: StreamingAverager) -> DaqTimeoutError:
         s = self.stats.since(start)
-        link = "open" if self.connected else f"down: {str(self.link_error).removeprefix(f'{self.url}: ')}"
+        why = "" if self.link_error is None else ": " + str(self.link_error).removeprefix(f"{self.url}: ")
+        link = "open" if self.connected else f"down{why}"
         return DaqTimeoutError(
             f"{self.url}: the A/D board has sent nothing for {self.silent_s:.1f} s (its link {link}; "
             f"{averager.count} of {averager.n_revolutions} good revolutions, link drops {s.link_drops})"
