@@ -1,7 +1,7 @@
 """The CAN sensor node gone silent mid-run (the simulator's can_node_silent: no heartbeat, no
 process data): the run is suspended, then fails after [interlocks] can_heartbeat_timeout_s with
 both drives given the emergency stop first, a message naming the CAN node and its silence, and
-the blocks stored before kept."""
+the blocks stored before kept. A node back within the limit lets the run complete."""
 
 import asyncio
 import re
@@ -39,3 +39,18 @@ async def test_a_silent_can_node_fails_the_run_after_its_timeout_drives_stopped_
     assert said and "suspended" in log[said[0]], log[-12:]  # the suspension is said first
     stop = next(i for i, line in enumerate(log) if "emergency stop" in line and i > said[0])
     assert stop < len(log) - 1 and outcome.message in log[-1], log[-6:]  # the stop before the end's line
+
+
+async def test_a_can_node_back_within_its_limit_lets_the_run_complete(tmp_path):
+    async with running(tmp_path, LONG) as (sim, eng, rec, run):  # the shipped limit: 10 s
+        await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
+        sim.inject("can_node_silent")
+        await wait_for(lambda: eng.state == "paused", 10, what="the suspension")
+        sim.inject("clear")
+        outcome = await asyncio.wait_for(asyncio.shield(run), 60)
+    assert outcome.status == "completed", outcome.message
+    log = (tmp_path / "run" / "run.log").read_text()
+    assert re.search(
+        r"\[paused\] suspended by interlock: CAN sensor node lost \(silent: no heartbeat and no process data", log
+    ), log
+    assert "interlock cleared (can_heartbeat): settling and acquiring the block again" in log
