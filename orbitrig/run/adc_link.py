@@ -1,4 +1,5 @@
-"""What the run says about the A/D board's link: the drops inside a block, and a board gone silent."""
+"""What the run says about the A/D board's link: the drops inside a block and between blocks, and a
+board gone silent."""
 
 from __future__ import annotations
 
@@ -29,6 +30,15 @@ def block_link_line(point: int, tag: str, stats: AcquisitionStats) -> str | None
         f"{stats.frames_lost} frames lost, {stats.revolutions_dropped} revolutions dropped"
         + (f" ({reasons})" if reasons else "")
         + f"; the block averaged {stats.revolutions_used} good revolutions"
+    )
+
+
+def between_blocks_line(point: int, tag: str, drops: int) -> str:
+    """One line for `drops` A/D link drops since the block before (or the rig's opening), said as
+    the block `tag` starts: no data of a block was lost."""
+    return (
+        f"point {point_name(point)} [{tag}]: A/D link dropped {_times(drops)} before the block "
+        "(no block under way: no data lost)"
     )
 
 

@@ -1,6 +1,7 @@
 """The A/D link dropped inside a block (the simulator's close_adc_link, mid-acquisition, over
 TCP): the reader reconnects, the block completes, and run.log says so once, for that block, with
-the counts its stored statistics hold; the engine's log (the console) says the same line."""
+the counts its stored statistics hold; the engine's log (the console) says the same line. A drop
+while no block is under way is said once, as the next block starts."""
 
 import asyncio
 import json
@@ -39,7 +40,7 @@ async def test_a_link_drop_inside_a_block_is_said_once_for_that_block(tmp_path, 
     assert outcome.status == "completed", outcome.message
     lines = (tmp_path / "run" / "run.log").read_text().splitlines()
     said = [m for line in lines if (m := SAID.search(line))]
-    assert len(said) == 1, [line for line in lines if "A/D link" in line]
+    assert len(said) == 1 and sum("A/D link" in line for line in lines) == 1, [ln for ln in lines if "A/D" in ln]
     tag, frames, revs, reasons, used = said[0].groups()
     assert int(used) == REVOLUTIONS and int(revs) >= 1, said[0].group(0)
     stats = {}
@@ -51,3 +52,19 @@ async def test_a_link_drop_inside_a_block_is_said_once_for_that_block(tmp_path, 
     assert stats[tag]["revolutions_dropped"] == int(revs), stats[tag]
     assert reasons == ", ".join(f"{k} {v}" for k, v in sorted(json.loads(stats[tag]["drop_reasons"]).items()))
     assert sum(said[0].group(0) in r.getMessage() for r in caplog.records) == 1
+
+
+async def test_a_link_drop_while_no_block_is_under_way_is_said_as_the_next_block_starts(tmp_path):
+    async with running(tmp_path, small_matrix(revolutions=10), confirm_mode="remote") as (sim, eng, rec, run):
+        await wait_for(lambda: eng.waiting_step == "manual:0000", what="the first point's settings")
+        sim.inject("close_adc_link")
+        eng.confirm("manual:0000")
+        outcome = await asyncio.wait_for(asyncio.shield(run), 60)
+    assert outcome.status == "completed", outcome.message
+    lines = (tmp_path / "run" / "run.log").read_text().splitlines()
+    said = [line for line in lines if "A/D link dropped" in line]
+    assert len(said) == 1 and re.search(
+        r"\[running\] point 0000 \[\w+\]: A/D link dropped once before the block \(no block under way", said[0]
+    ), said
+    first = next(i for i, line in enumerate(lines) if "speeds set" in line)
+    assert lines.index(said[0]) > first  # said as the first block starts, not before the drives run
