@@ -223,9 +223,10 @@ class AdcServer:
         """Fault: the board goes away (its power, its cable): every TCP client dropped, nothing
         listening at its port (a connect is refused), the pty hung up; back on the same port and
         a new pty after ``back_after`` wall s (None: for good)."""
-        if self._back is not None:
-            self._back.cancel()
-            self._back = None
+        for pending in (self._back, self._reopen):  # a return or a pty reopening planned before
+            if pending is not None:
+                pending.cancel()
+        self._back = self._reopen = None
         server, self._server = self._server, None
         if server is not None:
             server.close()
@@ -244,8 +245,6 @@ class AdcServer:
             self._server = await asyncio.start_server(self._client, self._host, self.port)
         except OSError as err:
             log.error("the A/D board cannot listen again at port %s: %s", self.port, err)
-        if self._reopen is not None:
-            self._reopen.cancel()
         self._reopen_pty()
         self._back = None
 
