@@ -22,6 +22,7 @@ dropped (``link_drop``).
 from __future__ import annotations
 
 import asyncio
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 
@@ -35,6 +36,10 @@ from daq.frames import FrameDecoder
 from daq.revolutions import Revolution, RevolutionAssembler, RevolutionBatch
 from daq.stats import AcquisitionStats
 from daq.transport import ByteLink, open_link
+
+
+#: s after a silence bound is passed by which acquire() has noticed it
+SILENCE_CHECK_S = 0.05
 
 
 class _Collection:
@@ -88,7 +93,7 @@ class AdcReader:
     (default raw counts). on_revolution: called with every revolution that goes
     into an average (the block carries their raw counts too). max_backoff: the
     longest delay (s) between reconnect attempts. ``stats``: cumulative counters;
-    ``reconnects``: reconnect attempts made.
+    ``reconnects``: reconnect attempts made; ``silent_s``: wall s since the last byte came.
     """
 
     def __init__(
@@ -124,6 +129,7 @@ class AdcReader:
         self.link_drops = 0
         self.reconnects = 0
         self.link_error: Exception | None = None
+        self._heard_at = time.monotonic()  # the last byte's arrival (or the reader's creation)
 
     async def __aenter__(self) -> AdcReader:
         await self.open()
@@ -135,6 +141,7 @@ class AdcReader:
     async def open(self) -> None:
         """Open the link; raises DaqLinkError if it cannot be opened."""
         self._closed = False
+        self._heard_at = time.monotonic()
         self._link = await open_link(self.url, self._on_data, self._on_lost, timeout=self.open_timeout)
         self._flowed = False
 
@@ -153,6 +160,11 @@ class AdcReader:
             self._fail(DaqLinkError(f"{self.url}: reader closed"))
 
     @property
+    def silent_s(self) -> float:
+        """Wall s since the board's last byte arrived (since the reader was opened, before any)."""
+        return time.monotonic() - self._heard_at
+
+    @property
     def connected(self) -> bool:
         return self._link is not None and not self._link.closed
 
@@ -168,10 +180,13 @@ class AdcReader:
             drop_reasons=dict(a.drop_reasons),
             frame_errors=dict(d.frame_errors),
             link_drops=self.link_drops,
+            frames_lost=a.frames_lost,
         )
 
     # ------------------------------------------------------------ data path
     def _on_data(self, data: bytes) -> None:
+        if data:
+            self._heard_at = time.monotonic()
         try:
             frames = self._decoder.feed_batch(data)
             revs = self._assembler.push_batch(frames)
@@ -219,14 +234,21 @@ class AdcReader:
 
     # ------------------------------------------------------------ acquisition
     async def acquire(
-        self, rule: AveragingRule | int = 50, *, timeout: float, per_revolution: float | None = None
+        self,
+        rule: AveragingRule | int = 50,
+        *,
+        timeout: float,
+        per_revolution: float | None = None,
+        silence: float | None = None,
     ) -> AveragedBlock:
         """Average the good revolutions received after this call as ``rule`` says
         (an ``AveragingRule``, or n for the fixed rule of n revolutions).
 
         Waits ``timeout`` s; with ``per_revolution`` = F, once the orbit period P is
         measured the wait grows to ``timeout + F * rule.max_revolutions * P``. Raises
-        DaqTimeoutError (with the counts seen) if the block is not complete in time,
+        DaqTimeoutError (with the counts seen) if the block is not complete in time, or
+        once the board has sent nothing for ``silence`` s, counted from this call at the
+        earliest (None: no such bound),
         DaqLinkError if the link drops and ``reconnect`` is off.
         """
         if self._collection is not None:
@@ -255,11 +277,25 @@ class AdcReader:
                 left = t0 + limit - loop.time()
                 if left <= 0:
                     raise self._timeout_error(start, averager, limit)
+                if silence is not None:  # counted from this call at the earliest: each call waits for the board
+                    quiet = min(self.silent_s, loop.time() - t0)
+                    if quiet > silence:
+                        raise self._silence_error(start, averager)
+                    left = min(left, silence - quiet + SILENCE_CHECK_S)
                 await asyncio.wait({c.future}, timeout=left)
             block = c.future.result()
         finally:
             self._collection = None
         return replace(block, stats=self.stats.since(start))
+
+    def _silence_error(self, start: AcquisitionStats, averager: StreamingAverager) -> DaqTimeoutError:
+        s = self.stats.since(start)
+        why = "" if self.link_error is None else ": " + str(self.link_error).removeprefix(f"{self.url}: ")
+        link = "open" if self.connected else f"down{why}"
+        return DaqTimeoutError(
+            f"{self.url}: the A/D board has sent nothing for {self.silent_s:.1f} s (its link {link}; "
+            f"{averager.count} of {averager.n_revolutions} good revolutions, link drops {s.link_drops})"
+        )
 
     def _timeout_error(self, start: AcquisitionStats, averager: StreamingAverager, waited: float) -> DaqTimeoutError:
         s = self.stats.since(start)

@@ -122,7 +122,10 @@ class RevolutionAssembler:
 
     Statistics (cumulative): ``revolutions_good``, ``revolutions_dropped``,
     ``drop_reasons`` (reason -> count), ``frames_discarded`` (frames of partial
-    revolutions seen right after start/reset, before the first trigger: not faults).
+    revolutions seen right after start/reset, before the first trigger: not faults),
+    ``frames_lost`` (frames missing from the stream, by the frame counter's jumps: lost on
+    the way, dropped by the board or too damaged to read; across a dropped link too, as the
+    board counts on; modulo 65536, the counter's range).
     """
 
     def __init__(self, channels: int = 8, mode: AdcMode | str = AdcMode.SEQUENTIAL) -> None:
@@ -144,6 +147,7 @@ class RevolutionAssembler:
         self.revolutions_dropped = 0
         self.drop_reasons: dict[str, int] = {}
         self.frames_discarded = 0
+        self.frames_lost = 0
         self.reset()
 
     def reset(self) -> None:
@@ -186,6 +190,17 @@ class RevolutionAssembler:
             n = int(gap[i]) - 1
             self.revolutions_dropped += n
             count(self.drop_reasons, why(int(i)), n)
+
+    def _count_lost_frames(
+        self, seq: np.ndarray, p_seq: int, seq_ok: np.ndarray, carried: int, known_first: bool
+    ) -> None:
+        """Add the frames skipped by the frame counter's jumps before the new frames (those after
+        the ``carried`` ones, already counted; frame 0's predecessor is known after the first batch)."""
+        prev = np.concatenate(([p_seq], seq[:-1])).astype(np.int64)
+        lost = ~seq_ok
+        lost[:carried] = False
+        lost[0] &= known_first
+        self.frames_lost += int(((seq[lost].astype(np.int64) - prev[lost] - 1) & _U16).sum())
 
     def count_dropped(self, revs: np.ndarray | Sequence[int], reason: str = "off_speed") -> None:
         """Count revolutions (their rev numbers) that a reader left out after assembly."""
@@ -278,6 +293,7 @@ class RevolutionAssembler:
         for r in rev[good_first[bad_clock]]:
             self._drop(int(r), "bad_clock")
         self._count_unseen(rev, prev_rev, seq_ok, why, known_first=self._prev is not None)
+        self._count_lost_frames(seq, p_seq, seq_ok, len(self._carry), known_first=self._prev is not None)
 
         self._carry = b.select(carry_from) if carry_from is not None else FrameBatch.empty()
         self._discarding = discard_first and len(starts) == 1 and not clean_start[0]

@@ -37,6 +37,7 @@ class AcquisitionStats:
     drop_reasons: dict[str, int] = field(default_factory=dict)
     frame_errors: dict[str, int] = field(default_factory=dict)
     link_drops: int = 0
+    frames_lost: int = 0  # frames missing from the stream (frame counter jumps): lost, dropped or unreadable
 
     def copy(self) -> "AcquisitionStats":
         return AcquisitionStats(
@@ -48,6 +49,7 @@ class AcquisitionStats:
             dict(self.drop_reasons),
             dict(self.frame_errors),
             self.link_drops,
+            self.frames_lost,
         )
 
     def since(self, earlier: "AcquisitionStats") -> "AcquisitionStats":
@@ -65,6 +67,7 @@ class AcquisitionStats:
             sub(self.drop_reasons, earlier.drop_reasons),
             sub(self.frame_errors, earlier.frame_errors),
             self.link_drops - earlier.link_drops,
+            self.frames_lost - earlier.frames_lost,
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -77,6 +80,7 @@ class AcquisitionStats:
             "drop_reasons": dict(self.drop_reasons),
             "frame_errors": dict(self.frame_errors),
             "link_drops": self.link_drops,
+            "frames_lost": self.frames_lost,
         }
 
 

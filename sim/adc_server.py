@@ -163,9 +163,12 @@ class AdcServer:
         self.clients: set[TcpSink] = set()
         self.pty: PtySink | None = None
         self.port: int | None = None
+        self._host = "127.0.0.1"
         self._reopen: asyncio.TimerHandle | None = None
+        self._back: asyncio.Task[None] | None = None  # the board coming back after gone()
 
     async def start(self, *, host: str = "127.0.0.1", port: int = 0, pty: bool = True) -> None:
+        self._host = host
         self._server = await asyncio.start_server(self._client, host, port)
         self.port = self._server.sockets[0].getsockname()[1]
         if pty:
@@ -205,16 +208,45 @@ class AdcServer:
         if self.pty is not None:
             self.pty.send(data)
 
-    def close_link(self, *, reopen_after: float = 1.0) -> None:
+    def close_link(self, *, reopen_after: float | None = 1.0) -> None:
         """Fault: drop every TCP client and hang up the pty (reopened after
-        ``reopen_after`` wall seconds; the path may change)."""
+        ``reopen_after`` wall seconds, None: not; the path may change)."""
         for c in list(self.clients):
             c.close()
         self.clients.clear()
         if self.pty is not None and self.pty.master is not None:
             self.pty.hangup()
-            loop = asyncio.get_running_loop()
-            self._reopen = loop.call_later(reopen_after, self._reopen_pty)
+            if reopen_after is not None:
+                self._reopen = asyncio.get_running_loop().call_later(reopen_after, self._reopen_pty)
+
+    def gone(self, *, back_after: float | None = None) -> None:
+        """Fault: the board goes away (its power, its cable): every TCP client dropped, nothing
+        listening at its port (a connect is refused), the pty hung up; back on the same port and
+        a new pty after ``back_after`` wall s (None: for good)."""
+        for pending in (self._back, self._reopen):  # a return or a pty reopening planned before
+            if pending is not None:
+                pending.cancel()
+        self._back = self._reopen = None
+        server, self._server = self._server, None
+        if server is not None:
+            server.close()
+        self.close_link(reopen_after=None)
+        if back_after is not None:
+            self._back = asyncio.get_running_loop().create_task(self._come_back(back_after), name="sim-adc-back")
+
+    def back(self) -> None:
+        """A board gone (gone()) comes back now."""
+        if self._server is None and self.port is not None:
+            self.gone(back_after=0.0)
+
+    async def _come_back(self, after: float) -> None:
+        await asyncio.sleep(after)
+        try:
+            self._server = await asyncio.start_server(self._client, self._host, self.port)
+        except OSError as err:
+            log.error("the A/D board cannot listen again at port %s: %s", self.port, err)
+        self._reopen_pty()
+        self._back = None
 
     def _reopen_pty(self) -> None:
         if self.pty is not None and self.pty.master is None:
@@ -226,6 +258,8 @@ class AdcServer:
     async def aclose(self) -> None:
         if self._reopen is not None:
             self._reopen.cancel()
+        if self._back is not None:
+            self._back.cancel()
         for c in list(self.clients):
             c.close()
         self.clients.clear()

@@ -17,10 +17,12 @@ class SimFault(StrEnum):
     MISSING_TRIGGER = "missing_trigger"
     STALL_CLOCK = "stall_clock"
     CLOSE_ADC_LINK = "close_adc_link"
+    ADC_BOARD_GONE = "adc_board_gone"
     DRIVE_TRIP = "drive_trip"
     DRIVE_POWER_CYCLE = "drive_power_cycle"
     MODBUS_TIMEOUT = "modbus_timeout"
     CAN_HEARTBEAT_LOSS = "can_heartbeat_loss"
+    CAN_NODE_SILENT = "can_node_silent"
     CLEAR = "clear"
 
 
@@ -28,8 +30,10 @@ def inject(rig: SimRig, fault: str, **kw: Any) -> None:
     """Inject `fault` into `rig`; counts and switches as keywords:
     corrupt_bytes(count=1), drop_frames(count=1), missing_trigger(count=1),
     stall_clock(on=True), close_adc_link(reopen_after=1.0 s wall),
+    adc_board_gone(back_after=None: for good, else wall s; nothing listens meanwhile),
     drive_trip(drive=1|2, code=2310), drive_power_cycle(drive=1|2), modbus_timeout(on=True),
-    can_heartbeat_loss(on=True), clear (every fault off, drive causes gone).
+    can_heartbeat_loss(on=True), can_node_silent(on=True: no frame at all, heartbeat included),
+    clear (every fault off, drive causes gone, a board gone back).
     An unknown fault or drive raises ValueError."""
     try:
         which = SimFault(fault)
@@ -46,6 +50,9 @@ def inject(rig: SimRig, fault: str, **kw: Any) -> None:
         b.stalled = bool(kw.get("on", True))
     elif which is SimFault.CLOSE_ADC_LINK:
         rig.adc_server.close_link(reopen_after=float(kw.get("reopen_after", 1.0)))
+    elif which is SimFault.ADC_BOARD_GONE:
+        back = kw.get("back_after")
+        rig.adc_server.gone(back_after=None if back is None else float(back))
     elif which in (SimFault.DRIVE_TRIP, SimFault.DRIVE_POWER_CYCLE):
         drive = int(kw.get("drive", 2))
         if drive not in rig.drives:
@@ -60,6 +67,9 @@ def inject(rig: SimRig, fault: str, **kw: Any) -> None:
     elif which is SimFault.CAN_HEARTBEAT_LOSS:
         if rig.can_node is not None:
             rig.can_node.heartbeat_lost = bool(kw.get("on", True))
+    elif which is SimFault.CAN_NODE_SILENT:
+        if rig.can_node is not None:
+            rig.can_node.silent = bool(kw.get("on", True))
     else:  # SimFault.CLEAR
         _clear(rig)
 
@@ -69,9 +79,10 @@ def _clear(rig: SimRig) -> None:
     b = rig.board
     b.corrupt = b.drop = b.missed_triggers = 0
     b.stalled = False
+    rig.adc_server.back()
     for ep in rig.modbus_servers:
         ep.set_unresponsive(False)
     for d in rig.drives.values():
         d.clear_fault_cause()
     if rig.can_node is not None:
-        rig.can_node.heartbeat_lost = False
+        rig.can_node.heartbeat_lost = rig.can_node.silent = False

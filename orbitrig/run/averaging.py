@@ -1,9 +1,26 @@
-"""The A/D averaging rule of an Acquire step: how many revolutions a block averages, and which."""
+"""The A/D averaging rule of an Acquire step: how many revolutions a block averages, and which;
+and how long an attempt at a block waits."""
 
 from __future__ import annotations
 
+from typing import Callable
+
 from daq.averager import AveragingRule
+from orbitrig.config import Averaging
 from orbitrig.run.steps import Acquire
+from reduction.rig_time import block_time
+
+#: wall s an attempt's waits allow beyond the rig's time (a loaded host)
+WALL_SLACK_S = 2.0
+
+
+def acquire_waits(av: Averaging, orbit: float, revolutions: int, wall: Callable[[float], float]) -> tuple[float, float]:
+    """Wall s an attempt at a block of `revolutions` at `orbit` (rad/s) waits (`wall`: physical s
+    -> wall s): for the block, `timeout_factor` block times + `timeout_margin_s`; for an A/D
+    board that sends nothing, `timeout_margin_s` + two revolutions (a frame spans less than
+    one); each + WALL_SLACK_S."""
+    timeout = wall(av.timeout_factor * block_time(orbit, revolutions) + av.timeout_margin_s) + WALL_SLACK_S
+    return timeout, wall(av.timeout_margin_s + block_time(orbit, 1)) + WALL_SLACK_S
 
 
 def averaging_rule(step: Acquire, spin: float, speed_tolerance: float = 0.005) -> AveragingRule:

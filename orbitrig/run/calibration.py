@@ -42,12 +42,12 @@ from drives.errors import DriveError
 from drives.state import RigDriveState
 from orbitrig.config import RigConfig
 from orbitrig.errors import OrbitrigError
+from orbitrig.run.averaging import acquire_waits
 from orbitrig.run.interlocks import Trip
 from orbitrig.run.rig_io import RigAccess, RigIO
 from orbitrig.run.safe_stop import not_confirmed, stop_shielded
 from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.verification import pressures_settled
-from reduction.rig_time import block_time
 from rigunits import rpm_text
 
 log = logging.getLogger(__name__)
@@ -316,11 +316,11 @@ class CalibrationSession:
         if roll is None:
             raise CalibrationFailed("no slow roll set before the averaging: a step out of order")
         n = revolutions or roll.revolutions
-        timeout = self.access.time_scale.wall(av.timeout_factor * block_time(roll.orbit, n) + av.timeout_margin_s) + 2.0
+        timeout, silence = acquire_waits(av, roll.orbit, n, self.access.time_scale.wall)
         rule = AveragingRule(n, n, None, 1.0 / roll.ratio, abs(roll.orbit), av.speed_tolerance)
         for attempt in range(av.retries + 1):
             try:
-                return await self.watched(lambda: self.io.acquire(rule, timeout=timeout))
+                return await self.watched(lambda: self.io.acquire(rule, timeout=timeout, silence=silence))
             except (DaqError, TimeoutError) as err:
                 self.note(f"acquisition failed ({type(err).__name__}: {err})")
                 if attempt == av.retries:

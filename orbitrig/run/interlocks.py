@@ -81,6 +81,8 @@ class Trip:
 
 #: the words of the CAN node lost (its trip's message: NODE_LOST (why))
 NODE_LOST = "CAN sensor node lost"
+#: s without any frame of the CAN node (5 of its 0.1 s process-data periods): it is said silent
+SILENT_AFTER = 0.5
 #: the CAN node gone or mute, and the supply itself lost: each group escalates on one clock
 NODE_KINDS = frozenset({TripKind.CAN_HEARTBEAT, TripKind.CAN_NODE})
 SUPPLY_KINDS = frozenset({TripKind.SUPPLY_PUMP, TripKind.SUPPLY_LOW})
@@ -127,10 +129,22 @@ def _node_missing(aux: AuxState, cfg: Interlocks) -> str | None:
     return None
 
 
+def _why_lost(aux: AuxState) -> str:
+    """Why the CAN node counts as lost: its bus link failed, it fell silent altogether (no
+    process data either for SILENT_AFTER s and more: said with how long), or its heartbeat alone is missing."""
+    if aux.link_error:
+        return f"its bus link failed: {aux.link_error}"
+    quiet = min([aux.heartbeat_age, *aux.ages.values()])
+    if math.isinf(quiet):
+        return "silent: no frame from it since the bus was opened"
+    if quiet > SILENT_AFTER:
+        return f"silent: no heartbeat and no process data for {quiet:.1f} s"
+    return f"no heartbeat for {LOST_AFTER:g} s"
+
+
 def _supply_trips(aux: AuxState, cfg: Interlocks, pressure_armed: bool, turning: bool) -> list[Trip]:
     if cfg.check_can_heartbeat and aux.node_lost:
-        why = f"its bus link failed: {aux.link_error}" if aux.link_error else "no heartbeat for 1.5 s"
-        return [Trip(TripKind.CAN_HEARTBEAT, SUSPEND, f"{NODE_LOST} ({why})")]
+        return [Trip(TripKind.CAN_HEARTBEAT, SUSPEND, f"{NODE_LOST} ({_why_lost(aux)})")]
     if not (pressure_armed or turning):
         return []
     missing = _node_missing(aux, cfg)

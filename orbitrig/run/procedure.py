@@ -18,7 +18,8 @@ from typing import Awaitable, Callable
 from daq.errors import DaqError
 from drives.errors import DriveError
 from orbitrig.config import RigConfig
-from orbitrig.run.averaging import averaging_rule
+from orbitrig.run.adc_link import between_blocks_line, block_link_line, board_silence
+from orbitrig.run.averaging import acquire_waits, averaging_rule
 from orbitrig.run.background import Background
 from orbitrig.run.control import RunControl, Suspended
 from orbitrig.run.events import ResultEvent, RunFailed
@@ -47,7 +48,6 @@ from orbitrig.run.supervision import InterlockSupervisor
 from orbitrig.run.verification import geometry_problems, pressures_settled, radius_missed
 from orbitrig.store.layout import point_name
 from orbitrig.store.writer import RunStore
-from reduction.rig_time import block_time
 from rigunits import rpm_text
 
 log = logging.getLogger(__name__)
@@ -106,6 +106,7 @@ class PointProcedure:
         self.r = parts
         self.scale = parts.access.time_scale
         self._ramps_end: float | None = None  # monotonic s the last speed command's ramps should end
+        self._link_drops = 0  # the A/D reader's link drops said so far (in a block's line or before it)
         self.record = PointRecord(parts, self.run_step, self._add_time)  # the steps after the measurement
         self.handlers: dict[type[Step], Callable[..., Awaitable[None]]] = {  # (its step kind, PointState | None)
             SetManual: self.set_manual,
@@ -258,12 +259,22 @@ class PointProcedure:
     async def acquire(self, step: Acquire, ps: PointState) -> None:
         await self._measure(step, ps, settle_first=False)
 
+    def _adc_link_drops(self) -> int:
+        return 0 if self.r.io.adc is None else self.r.io.adc.link_drops
+
+    def _say_drops_before(self, p: OperatingPoint, tag: str) -> None:
+        """Say the A/D link drops since the last attempt at a block (or the rig's opening), once."""
+        if (drops := self._adc_link_drops() - self._link_drops) > 0:
+            self.r.note(between_blocks_line(p.index, tag, drops))
+        self._link_drops += drops
+
     async def _measure(self, step: Acquire, ps: PointState, *, settle_first: bool) -> None:
         """Acquire one block (settled first if asked); after a suspension or a failed acquisition
-        (retried `averaging.retries` times) the block is settled and acquired again."""
+        (retried `averaging.retries` times) the block is settled and acquired again; an attempt
+        waits as `acquire_waits` says, for the block and for an A/D board that sends nothing."""
         r, p, b = self.r, ps.point, step.block
         av = r.rig.averaging
-        timeout = self.scale.wall(av.timeout_factor * block_time(b.orbit, step.revolutions) + av.timeout_margin_s) + 2.0
+        timeout, silence = acquire_waits(av, b.orbit, step.revolutions, self.scale.wall)
         attempts = 0
         while True:
             try:
@@ -273,17 +284,24 @@ class PointProcedure:
                 t0 = time.monotonic()
                 r.progress.block(len(ps.records) + 1)
                 rule = averaging_rule(step, p.spin, av.speed_tolerance)
-                avg = await r.control.guarded(r.io.acquire(rule, timeout=timeout), r.supervisor)
+                self._say_drops_before(p, b.tag)
+                try:
+                    avg = await r.control.guarded(r.io.acquire(rule, timeout=timeout, silence=silence), r.supervisor)
+                finally:
+                    self._link_drops = self._adc_link_drops()  # the attempt's own: said with its outcome
                 self._add_time("acquire", t0)
+                if (dropped := block_link_line(p.index, b.tag, avg.stats)) is not None:
+                    r.note(dropped)
                 ps.last = block_record(b, avg, r.rig)
                 return
             except Suspended:
                 await self._hold_while_suspended()
             except (DaqError, TimeoutError) as err:
                 attempts += 1
-                msg = (
-                    f"point {point_name(p.index)} [{b.tag}]: acquisition failed ({type(err).__name__}: {err}); "
-                    "orbit trigger lost or A/D link down?"
+                said = f"({type(err).__name__}: {err}); orbit trigger lost or A/D link down?"
+                silent = board_silence(r.io.adc)
+                msg = f"point {point_name(p.index)} [{b.tag}]: acquisition failed" + (
+                    said if silent is None else f": {silent}"
                 )
                 r.note(msg)
                 if attempts > av.retries:

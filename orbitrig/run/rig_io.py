@@ -184,8 +184,11 @@ class RigIO:
         if self._on_revolution is not None:
             self._on_revolution(rev)
 
-    async def acquire(self, rule: AveragingRule | int, *, timeout: float) -> AveragedBlock:
-        """Average good revolutions by `rule` (wall `timeout` s); the block carries their raw counts."""
+    async def acquire(
+        self, rule: AveragingRule | int, *, timeout: float, silence: float | None = None
+    ) -> AveragedBlock:
+        """Average good revolutions by `rule` (wall `timeout` s; a DaqTimeoutError once the board has
+        sent nothing for `silence` wall s); the block carries their raw counts."""
         if self.adc is None:
             raise DaqError("the A/D board is not open: acquire inside `async with RigIO(...)`")
-        return await self.adc.acquire(rule, timeout=timeout)
+        return await self.adc.acquire(rule, timeout=timeout, silence=silence)

@@ -168,6 +168,7 @@ ATTRIBUTES = {
     "frames_bad": (ONE, "damaged A/D frames"),
     "bytes_skipped": ("byte", "bytes skipped while resynchronising"),
     "link_drops": (ONE, "A/D link drops"),
+    "frames_lost": (ONE, "A/D frames missing from the stream (frame counter jumps)"),
     "revolutions_used": (ONE, "revolutions averaged"),
     "revolutions_dropped": (ONE, "revolutions dropped"),
     "drop_reasons": ("", "dropped revolutions by reason (JSON)"),

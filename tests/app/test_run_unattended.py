@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from orbitrig import config as cfg
+from support.rig_configs import interlocked_rig
 from support.sweep_helpers import running, small_matrix, wait_for
 
 pytestmark = pytest.mark.timeout(90)
@@ -18,16 +18,6 @@ CW_RAMP_STOP, CW_EMERGENCY = 0x047E, 0x047B
 
 
 LONG = small_matrix(revolutions=50, spin_rpm=[1000.0, 2000.0])  # several seconds at speed-up 40
-
-
-def _rig(**interlocks):
-    """config/rig.toml with some [interlocks] keys changed (the shipped file must name them)."""
-    text = cfg.default_rig_path().read_text()
-    for key, value in interlocks.items():
-        old = f"{key} = {getattr(cfg.load_rig().interlocks, key)!r}"
-        assert old in text, old
-        text = text.replace(old, f"{key} = {value!r}")
-    return cfg.rig_from_text(text, "rig.toml")
 
 
 def _commanded(sim) -> tuple[int, int]:
@@ -46,7 +36,7 @@ def _standstill(sim) -> bool:
 
 @pytest.mark.parametrize("paused", [False, True], ids=["running", "paused-by-the-operator"])
 async def test_a_lost_can_heartbeat_fails_the_run_within_its_timeout(tmp_path, paused):
-    rig = _rig(can_heartbeat_timeout_s=1.0)
+    rig = interlocked_rig(can_heartbeat_timeout_s=1.0)
     async with running(tmp_path, LONG, rig) as (sim, eng, rec, run):
         await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
         if paused:  # a safe point, no interlock hold: the supervisor's own clock still runs
@@ -75,7 +65,7 @@ def _stopped_unanswered(outcome, took: float, rec, sim) -> None:
 
 
 async def test_a_pause_nobody_can_answer_stops_the_run(tmp_path):
-    rig = _rig(unanswered_pause_s=1.0)
+    rig = interlocked_rig(unanswered_pause_s=1.0)
     async with running(tmp_path, small_matrix(revolutions=30), rig) as (sim, eng, rec, run):
         eng.unattended = True
         await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
@@ -90,7 +80,7 @@ async def test_a_pause_nobody_can_answer_stops_the_run(tmp_path):
 async def test_a_pause_under_way_when_nobody_can_answer_any_more_stops_after_the_limit(tmp_path):
     """`serve` losing its broker marks the run unattended while a pause is already held: that
     pause, begun with no limit, stops the run unanswered_pause_s after the mark, not at once."""
-    rig = _rig(unanswered_pause_s=1.0)
+    rig = interlocked_rig(unanswered_pause_s=1.0)
     async with running(tmp_path, small_matrix(revolutions=30), rig) as (sim, eng, rec, run):
         await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
         eng.request_pause()
@@ -105,7 +95,7 @@ async def test_a_pause_under_way_when_nobody_can_answer_any_more_stops_after_the
 
 
 async def test_a_confirmation_nobody_can_answer_stops_the_run(tmp_path):
-    rig = _rig(unanswered_pause_s=1.0)
+    rig = interlocked_rig(unanswered_pause_s=1.0)
     async with running(tmp_path, small_matrix(), rig, confirm_mode="remote") as (sim, eng, rec, run):
         eng.unattended = True
         await wait_for(lambda: eng.state == "waiting", what="waiting for the manual settings")
@@ -115,7 +105,7 @@ async def test_a_confirmation_nobody_can_answer_stops_the_run(tmp_path):
 
 
 async def test_without_unattended_a_pause_holds(tmp_path):
-    rig = _rig(unanswered_pause_s=1.0)
+    rig = interlocked_rig(unanswered_pause_s=1.0)
     async with running(tmp_path, small_matrix(revolutions=30), rig) as (sim, eng, rec, run):
         await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
         eng.request_pause()

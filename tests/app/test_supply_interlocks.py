@@ -19,6 +19,7 @@ from drives.drive import DriveStatus
 from drives.state import RigDriveState
 from orbitrig import config as cfg
 from orbitrig.run import interlocks
+from support.rig_configs import interlocked_rig
 from support.sweep_helpers import Recorder, SimulatorView, small_matrix, wait_for
 
 pytestmark = pytest.mark.timeout(90)
@@ -27,17 +28,6 @@ CW_EMERGENCY = 0x047B  # spec control word (OFF3), written out on purpose
 LONG = small_matrix(revolutions=50, spin_rpm=[1000.0, 2000.0])  # several seconds at speed-up 40
 # two points that differ in static eccentricity: the drives keep turning while it is set by hand
 TWO_MANUAL = small_matrix(static_eccentricity=[0.15, 0.0])
-
-
-def _rig(**interlock_keys):
-    """config/rig.toml with some [interlocks] keys changed (the shipped file must name them)."""
-    text = cfg.default_rig_path().read_text()
-    shipped = cfg.load_rig().interlocks.model_dump()
-    for key, value in interlock_keys.items():
-        old = f"{key} = {shipped[key]!r}"
-        assert old in text, old
-        text = text.replace(old, f"{key} = {value!r}")
-    return cfg.rig_from_text(text, "rig.toml")
 
 
 def _standstill(sim) -> bool:
@@ -131,7 +121,7 @@ def _sensor_fault(node: StandInNode) -> None:
     ids=["pre-operational", "no-status-frame", "sensor-fault"],
 )
 async def test_a_node_with_a_heartbeat_but_no_usable_data_fails_the_run(tmp_path, fault, named):
-    rig = _rig(can_heartbeat_timeout_s=1.0)
+    rig = interlocked_rig(can_heartbeat_timeout_s=1.0)
     async with _running(tmp_path, LONG, rig, node=True) as (sim, eng, rec, run, node):
         await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
         t0 = time.monotonic()
@@ -146,7 +136,7 @@ async def test_a_node_with_a_heartbeat_but_no_usable_data_fails_the_run(tmp_path
 
 
 async def test_the_pump_stopping_while_the_operator_sets_a_point_fails_the_run(tmp_path):
-    rig = _rig(supply_lost_timeout_s=1.0)
+    rig = interlocked_rig(supply_lost_timeout_s=1.0)
     async with _running(tmp_path, TWO_MANUAL, rig, confirm_mode="remote") as (sim, eng, rec, run, _):
         first = None
         while True:  # confirm everything up to the second point's manual settings
@@ -167,7 +157,7 @@ async def test_the_pump_stopping_while_the_operator_sets_a_point_fails_the_run(t
 
 
 async def test_the_pump_stopping_during_a_block_fails_the_run_after_its_limit(tmp_path):
-    rig = _rig(supply_lost_timeout_s=1.0)  # suspend_timeout_s stays 300 s
+    rig = interlocked_rig(supply_lost_timeout_s=1.0)  # suspend_timeout_s stays 300 s
     async with _running(tmp_path, LONG, rig) as (sim, eng, rec, run, _):
         await wait_for(lambda: rec.blocks_done() >= 2, what="two blocks")
         t0 = time.monotonic()
@@ -222,11 +212,32 @@ def test_the_supply_is_watched_while_a_drive_turns_the_band_top_once_armed():
     )
 
 
+def test_a_lost_node_is_said_silent_when_its_process_data_stopped_too():
+    def said(aux: AuxState) -> str:
+        (trip,) = interlocks.check(aux, _drives(1000.0), CFG, pressure_armed=True)
+        return trip.message
+
+    hb_only = _aux(node_lost=True, heartbeat_age=1.6)  # process data 0.1 s old
+    silent = _aux(node_lost=True, heartbeat_age=1.6, ages={"p_supply": 1.6, "pump_off": 1.6, "t_recess": 1.6})
+    assert said(hb_only) == "CAN sensor node lost (no heartbeat for 1.5 s)"
+    assert said(silent) == "CAN sensor node lost (silent: no heartbeat and no process data for 1.6 s)"
+    one_fresh = _aux(node_lost=True, heartbeat_age=1.6, ages={"p_supply": 1.6, "t_recess": 0.4})
+    assert said(one_fresh) == "CAN sensor node lost (no heartbeat for 1.5 s)"
+    never = _aux(node_lost=True, heartbeat_age=math.inf, ages={"p_supply": math.inf, "t_recess": 2.0})
+    assert said(never) == "CAN sensor node lost (silent: no heartbeat and no process data for 2.0 s)"
+    unheard = _aux(node_lost=True, heartbeat_age=math.inf, ages={"p_supply": math.inf})
+    assert said(unheard) == "CAN sensor node lost (silent: no frame from it since the bus was opened)"
+
+
 def test_a_node_lost_past_its_limit_says_why_it_was_lost():
     """The fail after the limit keeps the trip's reason: no heartbeat, or the bus link failed."""
     from orbitrig.run.supervision import _lasting
 
-    for why in ("no heartbeat for 1.5 s", "its bus link failed: DaqError: cannot open bus (refused)"):
+    for why in (
+        "no heartbeat for 1.5 s",
+        "silent: no heartbeat and no process data for 1.2 s",
+        "its bus link failed: DaqError: cannot open bus (refused)",
+    ):
         trip = interlocks.Trip(interlocks.TripKind.CAN_HEARTBEAT, interlocks.SUSPEND, f"CAN sensor node lost ({why})")
         assert _lasting(trip, 10.0) == (
             f"CAN sensor node lost for more than 10 s ({why}): supply pressure and pump are not watched"

@@ -85,8 +85,8 @@ async def test_clean(rig, link):
     tap = WireTap(rig)
     block, used = await acquire_with_fault(rig, url_of(rig, link))
     s = block.stats
-    counts = (s.revolutions_used, s.revolutions_dropped, s.frames_bad, s.link_drops)
-    assert counts == (N, 0, 0, 0), (s.drop_reasons, s.frame_errors)
+    counts = (s.revolutions_used, s.revolutions_dropped, s.frames_bad, s.link_drops, s.frames_lost)
+    assert counts == (N, 0, 0, 0, 0), (s.drop_reasons, s.frame_errors)
     assert s.drop_reasons == {} and s.frame_errors == {}
     assert [r.rev for r in used] == list(range(used[0].rev, used[0].rev + N))
     check_block(rig, block, used, tap)
@@ -107,7 +107,7 @@ async def test_drop_frames(rig, link):
     tap = WireTap(rig)
     block, used = await acquire_with_fault(rig, url_of(rig, link), "drop_frames", count=3)
     s = block.stats
-    assert s.frames_bad == 0 and s.bytes_skipped == 0
+    assert s.frames_bad == 0 and s.bytes_skipped == 0 and s.frames_lost == 3
     # the revolution that lost frames (seq gap), and the next one if the frame after
     # the loss (it carries OVERRUN) is in it
     assert 1 <= s.revolutions_dropped <= 2 and "seq_gap" in s.drop_reasons
@@ -243,3 +243,18 @@ async def test_unopenable_links():
     with pytest.raises(DaqLinkError, match=r"write socket://127\.0\.0\.1:5000 \(tcp:// is the Modbus"):
         async with AdcReader("tcp://127.0.0.1:5000"):
             pass
+
+
+async def test_a_board_gone_ends_acquire_after_the_silence_bound(rig):
+    """The board gone (nothing listens): acquire gives up once it has sent nothing for `silence`
+    s, not at its timeout; a second call waits the bound again from its own start."""
+    async with AdcReader(rig.adc_url, channels=len(rig.config.adc.channels)) as adc:
+        await adc.acquire(5, timeout=20)
+        rig.inject("adc_board_gone")
+        loop = asyncio.get_running_loop()
+        for waited in (0.4, 0.4):
+            t0 = loop.time()
+            with pytest.raises(DaqTimeoutError, match=r"the A/D board has sent nothing for \d\.\d s \(its link down"):
+                await adc.acquire(10_000, timeout=30, silence=0.4)
+            assert waited <= loop.time() - t0 < 3.0
+        assert adc.silent_s > 0.8 and not adc.connected

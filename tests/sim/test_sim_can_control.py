@@ -83,6 +83,23 @@ async def test_heartbeat_loss_and_recovery():
     assert any(m.arbitration_id == 0x701 for m in back)
 
 
+async def test_a_silent_node_sends_nothing_until_cleared():
+    channel = f"sim-test-{uuid.uuid4().hex[:8]}"
+    bus = can.Bus(interface="virtual", channel=channel)
+    try:
+        async with SimRig(SimConfig(), can_channel=channel) as rig:
+            rig.inject("can_node_silent")
+            await collect(bus, 0.05)
+            silent = await collect(bus, 1.2)
+            rig.inject("clear")
+            back = await collect(bus, 0.6)
+    finally:
+        bus.shutdown()
+    assert silent == []  # neither heartbeat nor process data
+    assert any(m.arbitration_id == 0x701 for m in back)
+    assert sum(m.arbitration_id == 0x181 for m in back) >= 4
+
+
 async def request(reader, writer, obj) -> dict:
     writer.write((json.dumps(obj) if not isinstance(obj, bytes) else obj.decode()).encode() + b"\n")
     await writer.drain()

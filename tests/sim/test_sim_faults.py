@@ -191,3 +191,40 @@ async def test_board_fifo_overflow_is_flagged():
     gaps = [(a, b) for a, b in zip(frames, frames[1:]) if b.seq != (a.seq + 1) & 0xFFFF]
     assert gaps and all(b.flags & 0x02 for _, b in gaps)
     assert len(revolutions(frames)) >= 20
+
+
+async def _refused(port: int) -> bool:
+    try:
+        _, writer = await asyncio.open_connection("127.0.0.1", port)
+    except ConnectionRefusedError:
+        return True
+    writer.close()
+    return False
+
+
+async def test_a_board_gone_refuses_connections_then_comes_back(rig):
+    reader, writer = await asyncio.open_connection("127.0.0.1", rig.adc_server.port)
+    assert await reader.read(100)
+    rig.inject("adc_board_gone", back_after=0.6)
+    t0 = time.monotonic()
+    while await asyncio.wait_for(reader.read(1 << 16), 2.0):  # its client dropped
+        assert time.monotonic() - t0 < 2.0
+    writer.close()
+    assert await _refused(rig.adc_server.port)
+    assert rig.adc_pty_path is None
+    await asyncio.sleep(0.3)
+    assert await _refused(rig.adc_server.port) and rig.adc_pty_path is None  # still gone at 0.3 s
+    await asyncio.sleep(0.6)
+    frames, bad, _ = parse(await read_tcp(rig.adc_server.port, min_revs=2))  # back on the same port
+    assert bad == 0 and len(revolutions(frames)) >= 2
+    assert rig.adc_pty_path is not None
+
+
+async def test_a_board_gone_for_good_comes_back_on_clear(rig):
+    rig.inject("adc_board_gone")
+    await asyncio.sleep(1.2)
+    assert await _refused(rig.adc_server.port)
+    rig.inject("clear")
+    await asyncio.sleep(0.1)
+    frames, bad, _ = parse(await read_tcp(rig.adc_server.port, min_revs=2))
+    assert bad == 0 and len(revolutions(frames)) >= 2

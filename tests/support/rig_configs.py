@@ -82,3 +82,16 @@ def lab_record_config(folder: Path, record: str | None = None, edits: dict[str, 
         text = text.replace(old, line)
     (folder / "rig.toml").write_text(text)
     return folder / "rig.toml"
+
+
+def interlocked_rig(**interlock_keys):
+    """The shipped config/rig.toml with some [interlocks] keys changed (the file must name them)."""
+    from orbitrig import config as cfg
+
+    text = cfg.default_rig_path().read_text()
+    shipped = cfg.load_rig().interlocks.model_dump()
+    for key, value in interlock_keys.items():
+        old = f"{key} = {shipped[key]!r}"
+        assert old in text, old
+        text = text.replace(old, f"{key} = {value!r}")
+    return cfg.rig_from_text(text, "rig.toml")

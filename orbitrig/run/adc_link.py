@@ -1,0 +1,57 @@
+"""What the run says about the A/D board's link: the drops inside a block and between blocks, and a
+board gone silent."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from daq.stats import AcquisitionStats
+from orbitrig.store.layout import point_name
+
+if TYPE_CHECKING:
+    from daq.adc import AdcReader
+
+#: wall s without a byte from the A/D board: a failed acquisition is said as the board's silence
+SILENT_AFTER_S = 1.0
+
+
+def _times(n: int) -> str:
+    return "once" if n == 1 else f"{n} times"
+
+
+def block_link_line(point: int, tag: str, stats: AcquisitionStats) -> str | None:
+    """One line for a block whose A/D link dropped while it was measured (None: the link held):
+    how often, the frames missing from the stream and the revolutions dropped (by reason)."""
+    if not stats.link_drops:
+        return None
+    reasons = ", ".join(f"{why} {n}" for why, n in sorted(stats.drop_reasons.items()))
+    return (
+        f"point {point_name(point)} [{tag}]: A/D link dropped {_times(stats.link_drops)} during the block: "
+        f"{stats.frames_lost} frames lost, {stats.revolutions_dropped} revolutions dropped"
+        + (f" ({reasons})" if reasons else "")
+        + f"; the block averaged {stats.revolutions_used} good revolutions"
+    )
+
+
+def between_blocks_line(point: int, tag: str, drops: int) -> str:
+    """One line for `drops` A/D link drops since the block before (or the rig's opening), said as
+    the block `tag` starts: no data of a block was lost."""
+    return (
+        f"point {point_name(point)} [{tag}]: A/D link dropped {_times(drops)} before the block "
+        "(no block under way: no data lost)"
+    )
+
+
+def board_silence(adc: AdcReader | None) -> str | None:
+    """What a silent A/D board looks like now (no byte for SILENT_AFTER_S and more), or None:
+    how long, and whether its link is down (its error, the reconnect attempts so far)."""
+    if adc is None or (silent := adc.silent_s) < SILENT_AFTER_S:
+        return None
+    said = f"the A/D board ({adc.url}) has sent nothing for {silent:.1f} s"
+    if adc.connected:
+        return (
+            said
+            + " (its link is open: no slot edge clocked? the orbit spindle stopped or the timing disk's sensor off)"
+        )
+    why = "" if adc.link_error is None else ": " + str(adc.link_error).removeprefix(f"{adc.url}: ")
+    return said + f" (its link is down{why}; {adc.reconnects} reconnect attempts so far)"
