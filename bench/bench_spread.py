@@ -46,7 +46,7 @@ from daq.averager import AveragingRule
 from orbitrig.config import LMS, load_rig, matrix_from_text
 from orbitrig.run.corrections import Corrections
 from orbitrig.run.identification import block_record, orbit_table
-from orbitrig.run.sequential_point import choose, spent_seconds
+from orbitrig.run.sequential_point import PointSoFar, choose, spent_seconds
 from orbitrig.run.sequential_rule import SequentialRule, sequential_rule
 from orbitrig.run.steps import Block
 from reduction.identify import identify
@@ -95,7 +95,7 @@ def sequential_point(point: Point, rule: SequentialRule, initial, counts) -> Non
     """The matrix's initial list, then the sweep's own choice block by block until it stops."""
     fixed_point(point, initial, counts)
     while True:
-        c = choose(rule, SPIN, point.recs, point.rig.channel_index)
+        c = choose(PointSoFar(rule, SPIN, tuple(point.recs), point.rig.channel_index))
         if c.ratio is None:
             return
         for w in Directions(c.direction).whirls:

@@ -21,7 +21,7 @@ from orbitrig.run.heap import trim_heap
 from orbitrig.run.identification import identify_operating_point
 from orbitrig.run.plan import OperatingPoint
 from orbitrig.run.point_report import point_log_lines, result_payload
-from orbitrig.run.sequential_point import MAX_BLOCK_INDEX, choice_line, chosen_steps, decide
+from orbitrig.run.sequential_point import MAX_BLOCK_INDEX, PointSoFar, choice_line, chosen_steps, decide
 from orbitrig.run.steps import ChooseBlocks, CompletePoint, Identify, Step, StoreBlock
 from orbitrig.run.truth import point_truth
 from orbitrig.store.layout import point_name
@@ -87,9 +87,8 @@ class PointRecord:
             if r.control.stop_requested:
                 raise StopRun
             recs = list(ps.records.values())
-            c = await asyncio.to_thread(
-                decide, p.index, step.rule, p.spin, recs, r.rig.channel_index, Corrections.of_rig(r.rig)
-            )
+            so_far = PointSoFar(step.rule, p.spin, tuple(recs), r.rig.channel_index, Corrections.of_rig(r.rig))
+            c = await asyncio.to_thread(decide, p.index, so_far)
             if c.ratio is not None and freq > MAX_BLOCK_INDEX:  # no block name left: as at the cap
                 c = dataclasses.replace(
                     c, reason=Choice.CAP.name.lower(), ratio=None, revolutions=0, seconds=0.0, after=c.before

@@ -1,6 +1,7 @@
 """A sequential point at run time: from the blocks measured so far to the next block.
 
-`choose` (pure, CPU-bound: the engine calls it in a worker thread) builds the point's piezo
+`choose` (pure, CPU-bound: the engine calls it in a worker thread) takes the point so far
+(:class:`PointSoFar`: its rule, spin, blocks, channels and corrections), builds its piezo
 orbit table from its own blocks, identifies the rule's model on it (wls), takes each block's
 measured per-revolution noise (its u x sqrt(n); smoothed across the ratios for the
 candidates, reduction.frequency_list.smooth_noise), sums the blocks' Fisher information at
@@ -14,6 +15,7 @@ own step kinds (SetOrbit, Settle, Acquire of the chosen count, StoreBlock with t
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -43,6 +45,19 @@ log = logging.getLogger(__name__)
 MAX_BLOCK_INDEX = 99
 
 
+@dataclass(frozen=True)
+class PointSoFar:
+    """A sequential point so far, as its design reads it: the point's ``rule``, its ``spin``
+    (rad/s), the ``blocks`` measured (in the order they ran), the ``channels`` (name -> index in
+    the blocks' phasors) and the ``corrections`` of the rig's active record (none: as read)."""
+
+    rule: SequentialRule
+    spin: float
+    blocks: tuple[BlockRecord, ...]
+    channels: dict[str, int]
+    corrections: Corrections = field(default_factory=Corrections)
+
+
 def spent_seconds(rule: SequentialRule, recs: list[BlockRecord]) -> float:
     """Rig seconds of the blocks ``recs`` (in the order they ran): revolutions + trigger,
     settle hold and store per block, the orbit ramps between them."""
@@ -67,17 +82,10 @@ def _noise(table: OrbitTable, ratios: FloatArray) -> tuple[FloatArray, NoiseAt]:
     return per_rev, noise_at
 
 
-def choose(
-    rule: SequentialRule,
-    spin: float,
-    recs: list[BlockRecord],
-    ch: dict[str, int],
-    corrections: Corrections | None = None,
-) -> BlockChoice:
-    """The next block of the point whose blocks so far are ``recs`` (in the order they ran), or
-    the stop (reason target or cap). Raises ReductionError/ValueError when the blocks cannot
-    identify the model."""
-    corr = corrections or Corrections()
+def choose(so_far: PointSoFar) -> BlockChoice:
+    """The next block of the point ``so_far``, or the stop (reason target or cap). Raises
+    ReductionError/ValueError when the blocks cannot identify the model."""
+    rule, spin, recs, ch, corr = so_far.rule, so_far.spin, list(so_far.blocks), so_far.channels, so_far.corrections
     spec = model_spec(rule.model)
     probes = [(corr.probe_phasors(r, ch, spin), corr.probe_records(r, ch, spin)) for r in recs]
     table = orbit_table(spin, recs, ch, LMS[0], corr, probes)
@@ -118,18 +126,11 @@ def choose(
     )
 
 
-def decide(
-    point: int,
-    rule: SequentialRule,
-    spin: float,
-    recs: list[BlockRecord],
-    ch: dict[str, int],
-    corrections: Corrections | None = None,
-) -> BlockChoice:
+def decide(point: int, so_far: PointSoFar) -> BlockChoice:
     """`choose` at operating point ``point``; its failure a RunFailed naming the point: a refusal
     of the numerics in its own words, a bug with its type (and its traceback in the log)."""
     try:
-        return choose(rule, spin, recs, ch, corrections)
+        return choose(so_far)
     except (ReductionError, ValueError, FloatingPointError) as err:
         raise RunFailed(f"point {point_name(point)}: sequential design: {err}") from err
     except Exception as err:
