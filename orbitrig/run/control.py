@@ -31,18 +31,16 @@ from __future__ import annotations
 
 import asyncio
 import time
-from typing import Awaitable, Callable, TypeVar
+from typing import Callable
 
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.events import RunFailed
 from orbitrig.run.provenance import UNNAMED
 from orbitrig.run.states import FAULTED, IDLE, PAUSED, RUNNING, STOPPING, WAITING, RunState, next_state
 from orbitrig.run.supervision import InterlockSupervisor
-from orbitrig.run.interlocks import SUSPEND, Trip, TripKind
+from orbitrig.run.interlocks import Trip
 from orbitrig.run.unanswered import UnansweredWait
 from rigunits import now_iso
-
-T = TypeVar("T")
 
 #: what a stop does, said when it is asked for
 STOP_WORDS = (
@@ -59,14 +57,6 @@ class StopRun(Exception):
 
 class NotNow(OrbitrigError):
     """A request the run cannot take in its state; the message is the whole refusal."""
-
-
-class Suspended(Exception):
-    """An interlock tripped while the engine waited for the drives or the A/D board."""
-
-    def __init__(self, trip: Trip):
-        super().__init__(trip.message)
-        self.trip = trip
 
 
 async def _first(*events: asyncio.Event, timeout: float | None = None) -> None:
@@ -338,18 +328,3 @@ class RunControl:
             await self.safe_point()
             return
         self.fire("clear", f"interlock cleared ({trip.kind}): settling and acquiring the block again")
-
-    async def guarded(self, aw: Awaitable[T], sup: InterlockSupervisor) -> T:
-        """Await `aw`; Suspended (and `aw` cancelled) if an interlock suspends the run meanwhile."""
-        task = asyncio.ensure_future(aw)
-        trip = asyncio.ensure_future(sup.tripped.wait())
-        try:
-            await asyncio.wait({task, trip}, return_when=asyncio.FIRST_COMPLETED)
-            if task.done():
-                return task.result()
-            raise Suspended(sup.trip or Trip(TripKind.INTERLOCK, SUSPEND, "interlock"))
-        finally:
-            for t in (task, trip):
-                if not t.done():
-                    t.cancel()
-            await asyncio.gather(task, trip, return_exceptions=True)

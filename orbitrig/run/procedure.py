@@ -21,9 +21,10 @@ from orbitrig.config import RigConfig
 from orbitrig.run.adc_link import between_blocks_line, block_link_line, board_silence
 from orbitrig.run.averaging import acquire_waits, averaging_rule
 from orbitrig.run.background import Background
-from orbitrig.run.control import RunControl, Suspended
+from orbitrig.run.control import RunControl
 from orbitrig.run.events import ResultEvent, RunFailed
 from orbitrig.run.identification import block_record
+from orbitrig.run.interlock_guard import Suspended, guarded
 from orbitrig.run.plan import OperatingPoint
 from orbitrig.run.point_record import PointRecord, PointState
 from orbitrig.run.steps import (
@@ -244,7 +245,7 @@ class PointProcedure:
         timeout = self.scale.wall(r.rig.settle.timeout_s) + 5.0
         try:
             settled = r.io.open_drives.wait_settled(hold=self.scale.wall(step.hold), timeout=timeout, expect=expect)
-            await r.control.guarded(settled, r.supervisor)
+            await guarded(settled, r.supervisor)
         except DriveError as err:
             raise RunFailed(f"point {point_name(p.index)} [{step.block.tag}]: drives did not settle: {err}") from err
         self._add_time("settle", t0)
@@ -286,7 +287,7 @@ class PointProcedure:
                 rule = averaging_rule(step, p.spin, av.speed_tolerance)
                 self._say_drops_before(p, b.tag)
                 try:
-                    avg = await r.control.guarded(r.io.acquire(rule, timeout=timeout, silence=silence), r.supervisor)
+                    avg = await guarded(r.io.acquire(rule, timeout=timeout, silence=silence), r.supervisor)
                 finally:
                     self._link_drops = self._adc_link_drops()  # the attempt's own: said with its outcome
                 self._add_time("acquire", t0)
