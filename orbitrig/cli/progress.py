@@ -1,9 +1,10 @@
 """Terminal progress of a sweep (rich): points, frequencies, revolutions, ETA.
 
-`SweepProgress` is an event subscriber of the RunEngine; status changes are
-printed as log lines above the bars. The ETA is the plan's rig time left (each manual setting
-counted at its estimate); it does not run down while the run waits for the operator or is
-paused, and then says so: 'ETA 12:30 (paused: waiting for the operator)'.
+`SweepProgress` is an event subscriber of the RunEngine; status changes, the run's warnings
+(things gone wrong that it survived: an A/D link drop in a block, an acquisition retried; not
+its routine notes) and completed points are printed as log lines above the bars. The ETA is
+the plan's rig time left (each manual setting counted at its estimate); it does not run down
+while the run waits for the operator or is paused, and then says so: 'ETA 12:30 (paused: waiting for the operator)'.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from rich.text import Text
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from orbitrig.cli.terminal import TerminalConsole
-from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
+from orbitrig.run.engine import NoteEvent, ProgressEvent, ResultEvent, Severity, StatusEvent
 from orbitrig.run.progress import ETA_HELD
 from rigunits import format_duration
 from orbitrig.run.states import RunState
@@ -72,6 +73,8 @@ class SweepProgress:
             for task in (self.freqs, self.revs):
                 self.progress.update(task, completed=self.progress.tasks[task].total)
             self.progress.console.log(Text(f"point {point_name(p['point'])} {p['label']} complete"))
+        elif isinstance(ev, NoteEvent) and ev.severity is Severity.WARNING:
+            self.progress.console.log(Text("warning: ", style="bold yellow") + Text(ev.message))
 
     def eta(self) -> str:
         """The points bar's ETA: 'ETA 12:30', '(paused: waiting for the operator)' after it

@@ -34,7 +34,7 @@ import time
 from typing import Callable
 
 from orbitrig.errors import OrbitrigError
-from orbitrig.run.events import RunFailed
+from orbitrig.run.events import Note, RunFailed, Severity
 from orbitrig.run.provenance import UNNAMED
 from orbitrig.run.states import FAULTED, IDLE, PAUSED, RUNNING, STOPPING, WAITING, RunState, next_state
 from orbitrig.run.supervision import InterlockSupervisor
@@ -73,7 +73,7 @@ class RunControl:
     def __init__(
         self,
         on_state: Callable[[RunState, str], None],
-        note: Callable[[str], None],
+        note: Note,
         own_stop: Callable[[str], None] = lambda by: None,
     ):
         """``own_stop(by)``: records a stop this control asks itself (a wait nobody can answer)."""
@@ -286,7 +286,7 @@ class RunControl:
                     raise StopRun
                 why = await asyncio.to_thread(problem)
                 if why is not None:
-                    self._note(f"still paused: {why}")
+                    self._note(f"still paused: {why}", Severity.WARNING)
         finally:
             self.held_for_room = False
         self.fire("resume", "resumed: there is room for the next point")
@@ -316,7 +316,7 @@ class RunControl:
                 now = sup.trip
                 if now is not None and now.kind != kind:  # another cause came first to the check
                     kind = now.kind
-                    self._note(f"still suspended by interlock: {now.message}")
+                    self._note(f"still suspended by interlock: {now.message}", Severity.WARNING)
             self._end_if_aborted()  # an abort or a stop asked as the interlock cleared: honoured here
             if self.stop_requested:
                 raise StopRun

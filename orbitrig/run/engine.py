@@ -39,10 +39,12 @@ from orbitrig.run.control import RunControl, StopRun
 from orbitrig.run.ending import aborted, stopped
 from orbitrig.run.events import (  # noqa: F401 - the engine's public names
     Event,
+    NoteEvent,
     ProgressEvent,
     ResultEvent,
     RunFailed,
     RunOutcome,
+    Severity,
     StatusEvent,
     Subscriber,
 )
@@ -99,7 +101,7 @@ class RunEngine(OperatorRequests, RunClosing):
         self.timing: dict[str, float] = {}  # wall s per activity (bench)
         self._subs: list[Subscriber] = []
         self.revolution_taps: list[Callable[[Revolution], None]] = []  # every revolution (orbitrig.service.live)
-        self._control = RunControl(self._state_changed, self._log_event, self._own_stop)
+        self._control = RunControl(self._state_changed, self._note, self._own_stop)
         self._store: RunStore | None = None
         self._io: RigIO | None = None
         self._body: asyncio.Task[Outcome] | None = None
@@ -258,7 +260,7 @@ class RunEngine(OperatorRequests, RunClosing):
                 self.confirm_mode,
                 store.run_id,
                 self._emit,
-                self._log_event,
+                self._note,
             )
         )
 
@@ -327,6 +329,12 @@ class RunEngine(OperatorRequests, RunClosing):
             self._store.logs.add("events", (time.monotonic() - self._log_t0, state, message))
             self._write_later(functools.partial(self._store.log, f"[{state}] {message}"))
 
+    def _note(self, message: str, severity: Severity = Severity.INFO) -> None:
+        """A note of the run: in run.log and run.h5's events, and to the subscribers (the sweep's
+        console shows the warnings)."""
+        self._log_event(message)
+        self._emit(NoteEvent(self.run_id, severity, message))
+
     def _on_revolution(self, rev: Revolution) -> None:
         self._progress.revolution()
         for tap in list(self.revolution_taps):
@@ -335,7 +343,9 @@ class RunEngine(OperatorRequests, RunClosing):
             except Exception as err:  # the live view must never disturb the run: detached
                 log.exception("revolution tap %r failed; detached", tap)
                 self.revolution_taps.remove(tap)
-                self._log_event(f"live feed detached: its revolution hook failed ({type(err).__name__}: {err})")
+                self._note(
+                    f"live feed detached: its revolution hook failed ({type(err).__name__}: {err})", Severity.WARNING
+                )
 
 
 def _cancelling() -> bool:

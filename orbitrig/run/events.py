@@ -1,10 +1,16 @@
-"""What the run engine tells its subscribers (terminal UI, MQTT) and returns."""
+"""What the run engine tells its subscribers (terminal UI, MQTT) and returns.
+
+A note of the run (a line of run.log and of run.h5's events that is no state change) reaches the
+subscribers as a `NoteEvent` with its `Severity`: routine (speeds set, a pause requested) or a
+warning, something gone wrong that the run survived (an A/D link drop, an acquisition failed and
+retried, a suspension's new cause); `orbitrig sweep`'s console shows the warnings."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import StrEnum
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Protocol
 
 from orbitrig.errors import OrbitrigError
 from orbitrig.run.states import Outcome, RunState
@@ -35,7 +41,27 @@ class ResultEvent:
     payload: dict[str, Any]
 
 
-Event = StatusEvent | ProgressEvent | ResultEvent
+class Severity(StrEnum):
+    """How much a note of the run matters to the operator watching it."""
+
+    INFO = "info"  # routine: speeds set, drives ramped to zero, a pause requested
+    WARNING = "warning"  # something gone wrong that the run survived (once per block at most)
+
+
+@dataclass(frozen=True)
+class NoteEvent:
+    run_id: str | None
+    severity: Severity
+    message: str
+
+
+class Note(Protocol):
+    """Where the run's parts say a note (run.log, run.h5's events, the subscribers)."""
+
+    def __call__(self, message: str, severity: Severity = Severity.INFO) -> None: ...
+
+
+Event = StatusEvent | ProgressEvent | ResultEvent | NoteEvent
 Subscriber = Callable[[Event], None]
 
 

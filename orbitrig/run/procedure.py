@@ -10,6 +10,7 @@ complete) are handled by orbitrig.run.point_record.
 
 from __future__ import annotations
 
+import functools
 import logging
 import time
 from dataclasses import dataclass
@@ -22,7 +23,7 @@ from orbitrig.run.adc_link import between_blocks_line, block_link_line, board_si
 from orbitrig.run.averaging import acquire_waits, averaging_rule
 from orbitrig.run.background import Background
 from orbitrig.run.control import RunControl
-from orbitrig.run.events import ResultEvent, RunFailed
+from orbitrig.run.events import Note, ResultEvent, RunFailed, Severity
 from orbitrig.run.identification import block_record
 from orbitrig.run.interlock_guard import Suspended, guarded
 from orbitrig.run.plan import OperatingPoint
@@ -99,7 +100,7 @@ class RunParts:
     confirm_mode: ConfirmMode
     run_id: str
     emit: Callable[[ResultEvent], None]
-    note: Callable[[str], None]
+    note: Note
 
 
 class PointProcedure:
@@ -127,7 +128,8 @@ class PointProcedure:
     # ------------------------------------------------------------- driving
     async def run_point(self, p: OperatingPoint, steps: list[Step], first: bool) -> None:
         r = self.r
-        await r.background.wait_for_points(note=r.note)  # bounded memory: no pile of points waiting
+        slow = functools.partial(r.note, severity=Severity.WARNING)  # a slow or stalled disk
+        await r.background.wait_for_points(note=slow)  # bounded memory: no pile of points waiting
         r.background.spawn(r.background.write(r.store.begin_point, p), f"begin point {point_name(p.index)}")
         r.store.log(f"point {point_name(p.index)} {p.label}: begin")
         r.supervisor.pressure_armed = False
@@ -266,7 +268,7 @@ class PointProcedure:
     def _say_drops_before(self, p: OperatingPoint, tag: str) -> None:
         """Say the A/D link drops since the last attempt at a block (or the rig's opening), once."""
         if (drops := self._adc_link_drops() - self._link_drops) > 0:
-            self.r.note(between_blocks_line(p.index, tag, drops))
+            self.r.note(between_blocks_line(p.index, tag, drops), Severity.WARNING)
         self._link_drops += drops
 
     async def _measure(self, step: Acquire, ps: PointState, *, settle_first: bool) -> None:
@@ -292,18 +294,19 @@ class PointProcedure:
                     self._link_drops = self._adc_link_drops()  # the attempt's own: said with its outcome
                 self._add_time("acquire", t0)
                 if (dropped := block_link_line(p.index, b.tag, avg.stats)) is not None:
-                    r.note(dropped)
+                    r.note(dropped, Severity.WARNING)
                 ps.last = block_record(b, avg, r.rig)
                 return
             except Suspended:
                 await self._hold_while_suspended()
             except (DaqError, TimeoutError) as err:
                 attempts += 1
-                said = f"({type(err).__name__}: {err}); orbit trigger lost or A/D link down?"
+                said = f" ({type(err).__name__}: {err}); orbit trigger lost or A/D link down?"
                 silent = board_silence(r.io.adc)
                 msg = f"point {point_name(p.index)} [{b.tag}]: acquisition failed" + (
                     said if silent is None else f": {silent}"
                 )
-                r.note(msg)
-                if attempts > av.retries:
+                if attempts > av.retries:  # said again as the run's failure (its state line)
+                    r.note(msg)
                     raise RunFailed(msg) from err
+                r.note(msg, Severity.WARNING)  # retried

@@ -16,7 +16,7 @@ from orbitrig.analysis.report_ahead import FiguresAhead
 from orbitrig.analysis.run_warnings import closing_warnings, result_fit_warnings
 from orbitrig.analysis.warning_groups import warning_lines
 from orbitrig.errors import ConfigError
-from orbitrig.run.engine import ProgressEvent, ResultEvent, StatusEvent
+from orbitrig.run.engine import Event, ProgressEvent, ResultEvent, StatusEvent
 from orbitrig.run.heap import trim_heap
 from orbitrig.run.states import Outcome, RunState
 from orbitrig.service import live as live_feed
@@ -148,7 +148,7 @@ class RunHandling(CommandHandling):
 
     # -- executor events --------------------------------------------------------
 
-    def _on_event(self, event: StatusEvent | ResultEvent | ProgressEvent) -> None:
+    def _on_event(self, event: Event) -> None:
         """Executor event -> MQTT message (thread-safe)."""
         if threading.get_ident() != self._thread and self._loop is not None:
             self._loop.call_soon_threadsafe(self._on_event, event)

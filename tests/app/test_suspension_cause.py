@@ -2,8 +2,8 @@
 
 The CAN node sends the supply pressure and the pump status in separate frames, so when the pump
 stops either may trip first: the suspension names the first, and once the other cause comes first
-in the check (the pump ahead of the low pressure it causes) the run's events note it, once per
-change of cause (not per new pressure reading). The failure after the limit names the cause in
+in the check (the pump ahead of the low pressure it causes) the run's events note it, a warning
+(the sweep's console shows it), once per change of cause (not per new pressure reading). The failure after the limit names the cause in
 force then. Pure: the run's control and a supervisor holding the trip in force."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import asyncio
 import pytest
 
 from orbitrig.run.control import RECHECK_S, RunControl
-from orbitrig.run.events import RunFailed
+from orbitrig.run.events import RunFailed, Severity
 from orbitrig.run.interlocks import SUSPEND, Trip, TripKind
 from orbitrig.run.states import RUNNING
 
@@ -33,14 +33,16 @@ def low(mpa: float) -> Trip:
 PUMP = Trip(TripKind.SUPPLY_PUMP, SUSPEND, "lubricant supply pump is off")
 
 
-def _control(notes: list[str]) -> RunControl:
-    control = RunControl(lambda state, message: None, notes.append)
+def _control(notes: list[tuple[str, Severity]]) -> RunControl:
+    control = RunControl(
+        lambda state, message: None, lambda message, severity=Severity.INFO: notes.append((message, severity))
+    )
     control.state = RUNNING
     return control
 
 
 async def test_a_new_cause_is_noted_once_and_the_clearing_ends_the_suspension():
-    notes: list[str] = []
+    notes: list[tuple[str, Severity]] = []
     control, sup = _control(notes), Supervisor(low(0.150))
     held = asyncio.create_task(control.hold_while_suspended(sup, limit=60.0))
     await asyncio.sleep(0.05)
@@ -50,7 +52,7 @@ async def test_a_new_cause_is_noted_once_and_the_clearing_ends_the_suspension():
     assert notes == []
     sup.trip = PUMP
     await asyncio.sleep(2.5 * RECHECK_S)
-    assert notes == ["still suspended by interlock: lubricant supply pump is off"]
+    assert notes == [("still suspended by interlock: lubricant supply pump is off", Severity.WARNING)]
     sup.trip = None
     sup.clear.set()
     await asyncio.wait_for(held, 5)

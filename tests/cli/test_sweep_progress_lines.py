@@ -4,6 +4,7 @@ the source file and line that printed them."""
 from __future__ import annotations
 
 import io
+import re
 
 from orbitrig.cli.progress import SweepProgress
 from orbitrig.cli.terminal import TerminalConsole
@@ -68,3 +69,18 @@ def test_a_completed_point_is_logged_by_its_name():
     lines = [ln for ln in out.getvalue().splitlines() if "complete" in ln]
     assert len(lines) == 1 and f"point {point_name(3)} w1000rpm_p0.48MPa complete" in lines[0], lines
     assert point_name(3) == "0003"
+
+
+def test_a_warning_note_is_one_line_and_a_routine_note_none():
+    """The run's warnings (something gone wrong it survived) are log lines as the states are; its
+    routine notes (speeds set) stay in run.log."""
+    from orbitrig.run.engine import NoteEvent, Severity
+
+    out = io.StringIO()
+    dropped = "point 0000 [04_fwd]: A/D link dropped once during the block: 217 frames lost"
+    with SweepProgress(TerminalConsole(file=out, width=200, force_terminal=False)) as progress:
+        progress(NoteEvent("r1", Severity.INFO, "speeds set: spin 1000 rpm, orbit +300 rpm"))
+        progress(NoteEvent("r1", Severity.WARNING, dropped))
+    lines = [ln.rstrip() for ln in out.getvalue().splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].endswith(f"warning: {dropped}"), lines
+    assert re.match(r"\[\d\d:\d\d:\d\d\] warning: ", lines[0]), lines
