@@ -167,7 +167,7 @@ async def test_an_os_error_of_a_device_is_no_storage_failure(tmp_path, monkeypat
     its own DaqError."""
     from orbitrig.run.rig_io import RigIO
 
-    async def broken(self, rule, *, timeout):
+    async def broken(self, rule, *, timeout, silence=None):
         raise OSError(5, "Input/output error", "/dev/ttyUSB0")
 
     monkeypatch.setattr(RigIO, "acquire", broken)
