@@ -13,6 +13,7 @@ from typer.testing import CliRunner
 from orbitrig import config as cfg
 from orbitrig.cli import app
 from orbitrig.errors import ConfigError
+from orbitrig.run.events import RunOutcome
 from orbitrig.run.states import Outcome
 
 MATRIX = """name = "t"
@@ -175,12 +176,9 @@ def test_dry_run_and_sweep_start_warn_once_per_matrix(tmp_path, monkeypatch):
 
     import orbitrig.cli.sweep as sweep
 
-    class Done:
-        status = Outcome.COMPLETED
-
     async def no_run(*args, **kwargs):
         print("RUN STARTS", file=sys.stderr)
-        return Done()
+        return RunOutcome(Outcome.COMPLETED, "nothing run", "t", tmp_path / "run")
 
     monkeypatch.setattr(sweep, "_sweep", no_run)
     path = write(tmp_path, spin="[1000.0, 1500.0]", beta="[0.25, 0.4]", ratios="ratios = [0.5, 0.95, 1.05]")
