@@ -2,9 +2,10 @@
 
 - :func:`signals_figure`: the paper's Figure 4 for one orbit frequency: (a) the
   time-averaged force over the averaged revolutions from both load measuring systems,
-  with their amplitude and phase difference; (b) one raw revolution against the average.
+  with their amplitude and phase difference; (b) one raw revolution against the average; one
+  legend under the panels.
 - :func:`orbits_figure`: the measured x-y orbit of both probe planes, one panel per
-  orbit frequency (the rig engineer's first sanity check).
+  orbit frequency (the rig engineer's first sanity check): plane A solid, B dash-dotted.
 
 Each ``*_figure`` returns the Figure (tests read back what was drawn); ``save`` writes it.
 Forces are on the journal (N), displacements in um, orbit angle in deg after the trigger.
@@ -27,6 +28,10 @@ from orbitrig.load_systems import LMS, LoadSystem
 from reduction.fourier import harmonic_fit
 from reduction.whirl import Whirl
 from rigunits import MICROMETRE, UM
+
+#: the line of probe planes A and B in an orbit panel (a greyscale print tells them apart; the
+#: commanded radius is thin, grey and dashed)
+PLANE_LINES = ("-", "-.")
 
 
 @dataclass(frozen=True)
@@ -68,7 +73,7 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
     """Figure 4 of the paper for one block: row (a) both systems' averaged Fx and Fy, the
     amplitude and phase difference in each panel's title; row (b) one raw revolution of the
     piezoelectric forces against their average, with the RMS deviation from the fundamental."""
-    fig, axes = panels(12, 8.0, 2, 2, left=0.9, top=1.35, bottom=0.65, hspace=0.36, wspace=0.22)
+    fig, axes = panels(12, 8.0, 2, 2, left=0.9, top=1.35, bottom=1.05, hspace=0.36, wspace=0.22)
     colors = _colors(2)
     for col, axis in enumerate(("fx", "fy")):
         label = f"F{axis[1]}"
@@ -83,7 +88,6 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
             fontsize="medium",
         )
         ax.set_ylabel(f"{label} on the journal  [N]")
-        ax.legend(fontsize="x-small", loc="upper right", framealpha=0.9)
         ax = axes[1, col]
         name = FORCE_CHANNELS[LoadSystem.PIEZO][col]
         deg, mean, raw = sig.of(name)
@@ -91,7 +95,7 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
         rms_raw = float(fundamental(sig.theta[i], sig.raw[i]).rms_residual)
         rms_mean = float(fundamental(sig.theta[i], sig.mean[i]).rms_residual)
         ax.plot(deg, raw, ".-", color="0.5", lw=0.8, ms=3.5, label=f"revolution {sig.revolution + 1} (raw)")
-        ax.plot(deg, mean, "-", color=colors[0], lw=2.2, label=f"average of {sig.n_revolutions}")
+        ax.plot(deg, mean, "-", color=colors[0], lw=2.4, label=f"average of {sig.n_revolutions}")
         ax.set_title(
             f"(b) {label} piezo: one revolution against the average\n"
             f"RMS deviation from the fundamental: raw {rms_raw:.3g} N, average {rms_mean:.3g} N",
@@ -99,13 +103,22 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
         )
         ax.set_ylabel(f"{label} on the journal  [N]")
         ax.set_xlabel("orbit angle after the trigger  [deg]")
-        ax.legend(fontsize="x-small", loc="upper right", framealpha=0.9)
     for ax in axes.flat:
         ax.set_xlim(0, 360)
         ax.set_xticks(range(0, 361, 45 if max_columns(4) == 4 else 90))
         light_grid(ax)
+    _signals_legend(fig, axes, sig)
     fig.suptitle(title)
     return fig
+
+
+def _signals_legend(fig: Figure, axes, sig: BlockSignals) -> None:
+    """One legend under the panels (none in a panel covers data): both systems' averages of row
+    (a) (piezo's is row (b)'s average too) and row (b)'s raw revolution."""
+    (piezo, strain), (raw, _) = axes[0, 0].get_lines(), axes[1, 0].get_lines()
+    n = sig.n_revolutions
+    labels = [f"piezo, average of {n}", f"strain, average of {n}", f"piezo, {raw.get_label()}"]
+    figure_legend(fig, [piezo, strain, raw], labels, ncols=3, fontsize="small", frameon=False)
 
 
 def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) -> Figure:
@@ -141,7 +154,8 @@ def _orbit_panel(ax, sig: BlockSignals, radius: float) -> None:
     centre, radii = [], []
     for k, (plane, (xn, yn)) in enumerate(PROBE_PLANES.items()):
         x, y = plane_orbit(sig, xn, yn)
-        ax.plot(np.append(x, x[0]) / UM, np.append(y, y[0]) / UM, "-", color=colors[k], lw=1.4, label=f"plane {plane}")
+        line = {"ls": PLANE_LINES[k], "color": colors[k], "lw": 1.4, "label": f"plane {plane}"}
+        ax.plot(np.append(x, x[0]) / UM, np.append(y, y[0]) / UM, **line)
         if k == 0:  # the trigger (0 deg) and the sense of the motion
             ax.plot(x[0] / UM, y[0] / UM, "o", color="black", ms=4, label="trigger (0 deg)")
             j = max(1, len(x) // 12)
