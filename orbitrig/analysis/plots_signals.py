@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from matplotlib.figure import Figure
 
+from orbitrig.analysis.plots import style
 from orbitrig.analysis.grid import light_grid
 from orbitrig.analysis.plot_panels import figure_legend, max_columns, panels
 from orbitrig.analysis.plot_marks import _colors
@@ -83,7 +84,7 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
             ax.plot(deg, mean, "-", color=colors[k], lw=2.4 - 1.2 * k, label=f"{lms}")
         d = lms_difference(sig, axis)
         ax.set_title(
-            f"(a) {label} averaged over {sig.n_revolutions} revolutions, both load measuring systems\n"
+            f"(a) {label}, both systems, average of {sig.n_revolutions} revolutions\n"
             f"strain vs piezo: amplitude {d.amplitude_pct:+.2f} %, phase {d.phase_deg:+.2f} deg",
             fontsize="medium",
         )
@@ -97,7 +98,7 @@ def signals_figure(sig: BlockSignals, *, title: str) -> Figure:
         ax.plot(deg, raw, ".-", color="0.5", lw=0.8, ms=3.5, label=f"revolution {sig.revolution + 1} (raw)")
         ax.plot(deg, mean, "-", color=colors[0], lw=2.4, label=f"average of {sig.n_revolutions}")
         ax.set_title(
-            f"(b) {label} piezo: one revolution against the average\n"
+            f"(b) {label} piezo, one revolution and the average\n"
             f"RMS deviation from the fundamental: raw {rms_raw:.3g} N, average {rms_mean:.3g} N",
             fontsize="medium",
         )
@@ -118,7 +119,7 @@ def _signals_legend(fig: Figure, axes, sig: BlockSignals) -> None:
     (piezo, strain), (raw, _) = axes[0, 0].get_lines(), axes[1, 0].get_lines()
     n = sig.n_revolutions
     labels = [f"piezo, average of {n}", f"strain, average of {n}", f"piezo, {raw.get_label()}"]
-    figure_legend(fig, [piezo, strain, raw], labels, ncols=3, fontsize="small", frameon=False)
+    figure_legend(fig, [piezo, strain, raw], labels, ncols=3, fontsize=style().small, frameon=False)
 
 
 def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) -> Figure:
@@ -129,7 +130,7 @@ def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) 
     cols = min(max_columns(5), max(1, n))
     rows = max(1, math.ceil(n / cols))
     width, height = 2.7 * cols + 0.8, 2.9 * rows + 1.6
-    margins = {"left": 0.7, "right": 0.15, "top": 1.25, "bottom": 1.0, "wspace": 0.35, "hspace": 0.45}
+    margins = {"left": 0.7, "right": 0.45, "top": 1.25, "bottom": 1.0, "wspace": 0.45, "hspace": 0.5}
     fig, grid = panels(width, height, rows, cols, sharex=False, **margins)
     axes = grid.ravel()
     for ax, sig in zip(axes, blocks):
@@ -137,11 +138,11 @@ def orbits_figure(blocks: Sequence[BlockSignals], *, radius: float, title: str) 
     for ax in axes[n:]:
         ax.set_visible(False)
     for ax in axes[(rows - 1) * cols : (rows - 1) * cols + cols]:
-        ax.set_xlabel(f"x  [{MICROMETRE}]", fontsize="small")
+        ax.set_xlabel(f"x  [{MICROMETRE}]", fontsize=style().small)
     for ax in axes[::cols]:
-        ax.set_ylabel(f"y  [{MICROMETRE}]", fontsize="small")
+        ax.set_ylabel(f"y  [{MICROMETRE}]", fontsize=style().small)
     handles, labels = axes[0].get_legend_handles_labels()
-    figure_legend(fig, handles, labels, loc="lower center", ncols=len(labels), fontsize="small", frameon=False)
+    figure_legend(fig, handles, labels, loc="lower center", ncols=len(labels), fontsize=style().small, frameon=False)
     fig.suptitle(title)
     return fig
 
@@ -170,8 +171,8 @@ def _orbit_panel(ax, sig: BlockSignals, radius: float) -> None:
     f = sig.frequency
     ax.set_title(
         f"{f.orbit_hz:.3g} Hz {_direction(sig)}\nmean radius A {radii[0] / UM:.3g}, B {radii[1] / UM:.3g} {MICROMETRE}",
-        fontsize="small",
+        fontsize=style().small,
     )
     ax.set_aspect("equal", adjustable="datalim")
     light_grid(ax)
-    ax.tick_params(labelsize="small")
+    ax.tick_params(labelsize=style().small)

@@ -72,7 +72,7 @@ def summary_plot(
         labels,
         loc="lower center",
         ncols=len(labels),
-        fontsize="small",
+        fontsize=style().small,
         title=style().band_label("error bars", [f.basis for entries in series.values() for _, f in entries]),
     )
     fig.suptitle(title)

@@ -2,7 +2,8 @@
 as drawn into the PNG): every legend lies inside the figure and covers no data (a legend in a
 panel holds none of its data points, a legend under the panels none of them), and the entries of every legend differ in
 more than colour (line style, width, marker and its fill; a filled patch's hatch or grey level:
-what a greyscale print keeps)."""
+what a greyscale print keeps), no text is smaller than 6 pt, and every labelled x axis
+shows the values of its ticks."""
 
 from __future__ import annotations
 
@@ -17,7 +18,10 @@ from matplotlib.offsetbox import DrawingArea, OffsetBox, TextArea
 from matplotlib.patches import Patch
 
 from orbitrig.analysis import plots
-from support.report_figures import KINDS, checked_figures
+from support.report_figures import KINDS, checked_figures, figure_texts
+
+#: the smallest text a journal prints (pt)
+SMALLEST_PT = 6.0
 
 
 def _data_points(ax) -> np.ndarray:
@@ -113,8 +117,25 @@ def _colour_only(fig) -> list[str]:
     return out
 
 
+def _small_texts(fig) -> list[str]:
+    """Texts under SMALLEST_PT as printed (the figure is drawn at its print size)."""
+    return [f"{t.get_fontsize():.2g} pt: {t.get_text()!r}" for t in figure_texts(fig) if t.get_fontsize() < SMALLEST_PT]
+
+
+def _unnumbered_axes(fig) -> list[str]:
+    """Labelled x axes of visible panels that show no tick label (a quantity without numbers)."""
+    fig.canvas.draw()
+    return [
+        f"x axis {ax.get_xlabel()!r} of panel {ax.get_title()!r} has no tick labels"
+        for ax in fig.axes
+        if ax.get_visible()
+        and ax.get_xlabel()
+        and not any(t.label1.get_visible() and t.label1.get_text() for t in ax.xaxis._update_ticks())
+    ]
+
+
 def _check(fig) -> list[str]:
-    return _legends_over_data(fig) + _colour_only(fig)
+    return _legends_over_data(fig) + _colour_only(fig) + _small_texts(fig) + _unnumbered_axes(fig)
 
 
 @pytest.fixture(scope="module", params=sorted(plots.COLUMN_WIDTHS))
@@ -125,6 +146,6 @@ def checked(request, synthetic_run, tmp_path_factory):
 
 
 @pytest.mark.parametrize("kind", KINDS)
-def test_no_legend_covers_data_and_no_entry_is_told_by_colour_alone(checked, kind):
+def test_no_legend_covers_data_no_entry_is_told_by_colour_alone_no_text_is_tiny(checked, kind):
     problems = [p for fig in checked[kind] for p in fig]
     assert problems == [], "\n".join(dict.fromkeys(problems))
